@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Installs every Debian package pitmap needs to build, test and run the demo.
+# Idempotent: when everything is present it only checks and returns (< 1 s).
+# Usage: tools/install-deps.sh [--minimal]   (--minimal: the vehicle side only, no OpenVDB)
+set -euo pipefail
+
+common_pkgs=(
+  cmake ninja-build g++ pkg-config git ca-certificates
+  libeigen3-dev libgeographiclib-dev
+  liblcm-dev liblcm-bin
+  libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
+  libpcap-dev zlib1g-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  iproute2 socat util-linux
+)
+processor_pkgs=(
+  libsuitesparse-dev libblas-dev liblapack-dev
+  libopenvdb-dev libtbb-dev libboost-iostreams-dev
+  libnanoflann-dev
+)
+tool_pkgs=(
+  clang libclang-rt-14-dev
+)
+
+pkgs=("${common_pkgs[@]}")
+if [[ "${1:-}" != "--minimal" ]]; then
+  pkgs+=("${processor_pkgs[@]}" "${tool_pkgs[@]}")
+fi
+
+missing=()
+for p in "${pkgs[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "install-deps: all ${#pkgs[@]} packages present"
+  exit 0
+fi
+
+if [[ $(id -u) -ne 0 ]]; then
+  if command -v sudo >/dev/null 2>&1; then SUDO=sudo; else
+    echo "install-deps: missing packages and not root (no sudo): ${missing[*]}" >&2
+    exit 1
+  fi
+else
+  SUDO=
+fi
+
+echo "install-deps: installing ${#missing[@]} package(s): ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "install-deps: done"
