@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Builds the libFuzzer targets (tests/fuzz/*_fuzz.cpp) with clang and runs each for a bounded
+# time, seeded with the real captures in tests/data. A crash, leak or sanitizer report fails.
+#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses less)
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+seconds=${1:-60}
+build=${BUILD_DIR:-$root/build-fuzz}
+"$root/tools/install-deps.sh"
+
+CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=OFF -DPITMAP_BUILD_TOOLS=OFF \
+  -DPITMAP_BUILD_FIRMWARE_HOST=OFF -DPITMAP_BUILD_BENCHMARKS=OFF > "$build.configure.log" 2>&1 || {
+    cat "$build.configure.log"; echo "run-fuzzers: configure failed" >&2; exit 1; }
+shopt -s nullglob
+targets=()
+for src in "$root"/tests/fuzz/*_fuzz.cpp; do targets+=("$(basename "${src%.cpp}")"); done
+if [[ ${#targets[@]} -eq 0 ]]; then
+  echo "run-fuzzers: no fuzz targets"; exit 0
+fi
+cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" --target "${targets[@]}"
+
+status=0
+for t in "${targets[@]}"; do
+  corpus=$(mktemp -d)
+  seeds="$root/tests/data/fuzz/${t%_fuzz}"
+  [[ -d $seeds ]] || seeds="$root/tests/data/${t%_fuzz}"
+  echo "run-fuzzers: $t for ${seconds} s (seeds: ${seeds#"$root"/})"
+  if ! "$build/fuzz/$t" -max_total_time="$seconds" -max_len=65536 -print_final_stats=1 \
+        -artifact_prefix="$build/fuzz/$t-" "$corpus" ${seeds:+"$seeds"} > "$build/fuzz/$t.log" 2>&1; then
+    status=1
+    echo "run-fuzzers: $t FAILED; last lines of its log:"
+    tail -n 40 "$build/fuzz/$t.log"
+  else
+    grep -E 'stat::number_of_executed_units|stat::peak_rss_mb' "$build/fuzz/$t.log" | sed "s/^/  $t /"
+  fi
+  rm -rf "$corpus"
+done
+exit $status
