@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: MIT
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/frames.hpp"
+#include "tools/sim/nav_errors.hpp"
+#include "tools/sim/trajectory.hpp"
+#include "tools/sim/world.hpp"
+
+namespace pitmap::sim {
+namespace {
+
+TEST(SurveyTrack, EveryScenarioTrackFloatsAndIsLongEnough) {
+    for (const auto& name : BuiltinScenarioNames()) {
+        const ScenarioConfig sc = *BuiltinScenario(name);
+        const PitWorld world(sc.pit, sc.seed);
+        auto track = SurveyTrack::Plan(sc);
+        ASSERT_TRUE(track.ok()) << name;
+        EXPECT_GE(track->length_m(), sc.track.duration_s * sc.track.speed_mps) << name;
+        double min_depth = 1e9;
+        for (const auto& p : track->points()) min_depth = std::min(min_depth, world.Depth(p.x(), p.y()));
+        EXPECT_GT(min_depth, 1.0) << name << ": the boat would run aground";
+    }
+}
+
+TEST(SurveyTrack, HeadingIsSmooth) {
+    const ScenarioConfig sc = *BuiltinScenario("bejanca");
+    auto track = SurveyTrack::Plan(sc);
+    ASSERT_TRUE(track.ok());
+    double worst = 0;
+    for (double s = 1; s < track->length_m() - 2; s += 0.5) {
+        worst = std::max(worst, std::abs(frames::WrapPi(track->HeadingAt(s + 0.5) - track->HeadingAt(s))));
+    }
+    // The twin hull pivots in tight turns (the sharpest is the U-turn where the pattern repeats),
+    // but the track never kinks: over 0.5 m of travel the heading changes by less than 60 deg
+    // (turn radius > 0.48 m) everywhere.
+    EXPECT_LT(frames::RadToDeg(worst), 60.0);
+}
+
+TEST(TruthTrajectory, SpeedRatesAndDuration) {
+    const ScenarioConfig sc = *BuiltinScenario("demo");
+    TruthTrajectory truth(sc, *SurveyTrack::Plan(sc));
+    EXPECT_NEAR(truth.duration_s(), 120.0, 1e-9);
+    for (double t = 5; t < 115; t += 10) {
+        const TruthState st = truth.StateAt(t);
+        const double v = st.velocity_world.head<2>().norm();
+        EXPECT_NEAR(v, sc.track.speed_mps, 0.15) << t;
+        // Rates integrate to the pose change over 2 ms (error ~ angular acceleration * dt^2 / 2).
+        const Pose later = truth.PoseAt(t + 0.002);
+        const Eigen::Matrix3d predicted = st.T_world_vehicle.linear() * ExpSO3(st.angular_rate_vehicle * 0.002);
+        EXPECT_LT(RotationAngleBetween(predicted, later.linear()), 1e-5) << t;
+        // Wave motion stays within its amplitudes.
+        const auto rpy = frames::RpyFromRotationWorld(st.T_world_vehicle.linear());
+        EXPECT_LE(std::abs(frames::RadToDeg(rpy.roll)), sc.track.roll_amplitude_deg + 1e-9);
+        EXPECT_LE(std::abs(st.T_world_vehicle.translation().z()), sc.track.heave_amplitude_m + 1e-9);
+    }
+}
+
+TEST(NavErrorModel, RtkQualityWithoutOutage) {
+    NavErrorConfig cfg;
+    NavErrorModel m(cfg, 1300, 42);
+    double sum2 = 0;
+    int n = 0;
+    for (double t = 0; t < 1300; t += 1.0) {
+        const NavError e = m.At(t);
+        EXPECT_TRUE(e.gnss_available);
+        sum2 += e.position_enu_m.head<2>().squaredNorm() / 2;
+        ++n;
+    }
+    const double rms = std::sqrt(sum2 / n);
+    EXPECT_GT(rms, 0.3 * cfg.position_gm_sigma_m);
+    EXPECT_LT(rms, 3.0 * cfg.position_gm_sigma_m);
+}
+
+TEST(NavErrorModel, OutageDriftsSeveralMetresThenRecovers) {
+    const ScenarioConfig sc = *BuiltinScenario("gps-outage");
+    NavErrorModel m(sc.nav, sc.track.duration_s, sc.seed);
+    const double start = sc.nav.outages_s[0], end = sc.nav.outages_s[1];
+    double worst = 0;
+    for (double t = start; t < end; t += 1.0) {
+        EXPECT_FALSE(m.At(t).gnss_available);
+        worst = std::max(worst, m.At(t).position_enu_m.norm());
+    }
+    EXPECT_GT(worst, 1.5);   // several metres of drift...
+    EXPECT_LT(worst, 20.0);  // ...not kilometres
+    EXPECT_GT(m.At(end - 1).position_stddev_enu_m.x(), 0.5);  // the INS admits it
+    EXPECT_LT(m.At(end + 3 * sc.nav.recovery_time_s).position_enu_m.norm(), 0.2);
+    // Same seed, same errors.
+    NavErrorModel m2(sc.nav, sc.track.duration_s, sc.seed);
+    EXPECT_EQ(m.At(300.0).position_enu_m, m2.At(300.0).position_enu_m);
+}
+
+}  // namespace
+}  // namespace pitmap::sim

@@ -1,0 +1,94 @@
+// SPDX-License-Identifier: MIT
+#include "tools/sim/sonar_model.hpp"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "common/frames.hpp"
+
+namespace pitmap::sim {
+
+SonarModel::SonarModel(const SonarConfig& config, const PitWorld& world, std::uint64_t seed)
+    : cfg_(config), world_(world), seed_(seed) {}
+
+double SonarModel::BeamAngleDeg(int i) const {
+    const long start = std::lround((cfg_.start_angle_deg + 180.0) * 100.0);
+    const long inc = std::lround(cfg_.angle_increment_deg * 100.0);
+    return static_cast<double>(start + i * inc) / 100.0 - 180.0;
+}
+
+double SonarModel::RangeSigma(double r) const {
+    return cfg_.range_noise_fraction * r + cfg_.range_noise_constant_m;
+}
+
+SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) const {
+    const auto nb = static_cast<std::size_t>(cfg_.num_beams);
+    SimPing out;
+    out.ping_number = ping_number;
+    out.range_counts.assign(nb, 0);
+    out.intensities.assign(cfg_.intensities ? nb : 0, 0);
+    out.true_range_m.assign(nb, std::numeric_limits<float>::quiet_NaN());
+    out.outcome.assign(nb, BeamOutcome::kNoHit);
+    std::mt19937_64 rng(seed_ * 0x9E3779B97F4A7C15ull + static_cast<std::uint64_t>(ping_number));
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+
+    const Eigen::Vector3d origin = T_world_sonar.translation();
+    const Eigen::Matrix3d R = T_world_sonar.linear();
+    const double half_width = frames::DegToRad(cfg_.beam_width_deg) / 2;
+    // Footprint pattern: the beam axis, then pairs across and along track at half the half-width.
+    const int nsub = cfg_.footprint_rays;
+    const double res_m = cfg_.range_resolution_mm / 1000.0;
+    for (std::size_t i = 0; i < nb; ++i) {
+        const double theta = frames::DegToRad(BeamAngleDeg(static_cast<int>(i)));
+        double sum = 0;
+        int hits = 0;
+        for (int k = 0; k < nsub; ++k) {
+            // Footprint pattern (across, along) in units of 0.6 half-widths: the axis, a cross,
+            // then the diagonals.
+            static constexpr double kPattern[9][2] = {{0, 0},     {1, 0},     {-1, 0},
+                                                      {0, 1},     {0, -1},    {0.7, 0.7},
+                                                      {-0.7, 0.7}, {0.7, -0.7}, {-0.7, -0.7}};
+            const double dtheta = kPattern[k][0] * 0.6 * half_width;
+            const double dphi = kPattern[k][1] * 0.6 * half_width;
+            // Beam direction in the sonar frame: rotate nadir (z) by theta about x (towards +y),
+            // then by phi about y (towards +x, along track).
+            const double t = theta + dtheta;
+            const Eigen::Vector3d d_sonar(std::sin(dphi) * std::cos(t), std::sin(t),
+                                          std::cos(dphi) * std::cos(t));
+            if (auto r = world_.RayCast(origin, R * d_sonar, cfg_.max_range_m)) {
+                sum += *r;
+                ++hits;
+            }
+        }
+        if (hits * 2 <= nsub) continue;  // most of the footprint saw nothing
+        const double r_true = sum / hits;
+        out.true_range_m[i] = static_cast<float>(r_true);
+        double r = r_true + RangeSigma(r_true) * gauss(rng);
+        const double u = uni(rng);
+        out.outcome[i] = BeamOutcome::kValid;
+        if (u < cfg_.dropout_probability) {
+            out.outcome[i] = BeamOutcome::kDropout;
+            continue;
+        }
+        if (u < cfg_.dropout_probability + cfg_.outlier_probability) {
+            out.outcome[i] = BeamOutcome::kOutlier;
+            r = r_true * (0.3 + 1.0 * uni(rng));  // coarse: 30 % .. 130 % of the true range
+        }
+        const double counts = std::round(std::clamp(r, 0.0, cfg_.max_range_m) / res_m);
+        out.range_counts[i] = static_cast<std::uint16_t>(std::clamp(counts, 1.0, 65535.0));
+        if (cfg_.intensities) {
+            // Amplitude falls with range (spreading + absorption) and with incidence.
+            const Eigen::Vector3d hit = origin + R * Eigen::Vector3d(0, std::sin(theta), std::cos(theta)) * r_true;
+            const Eigen::Vector3d n = world_.Normal(hit.x(), hit.y());
+            const Eigen::Vector3d dir = (hit - origin).normalized();
+            const double cos_inc = std::max(0.05, -dir.dot(n));
+            const double amp = 20000.0 * cos_inc * std::exp(-0.03 * r_true) / (1.0 + 0.05 * r_true);
+            out.intensities[i] = static_cast<std::uint16_t>(std::clamp(amp * (1.0 + 0.1 * gauss(rng)), 1.0, 65535.0));
+        }
+    }
+    return out;
+}
+
+}  // namespace pitmap::sim

@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: MIT
+// The Delta T as the simulator sees it: ray casting each beam over its footprint (sub-rays
+// spread over the beam width), then range noise, dropouts, coarse outliers and quantisation to
+// the 83P range resolution. Per-ping random streams depend only on (seed, ping number), so the
+// result is the same for any thread count and any order of calls.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common/se3.hpp"
+#include "tools/sim/scenario.hpp"
+#include "tools/sim/world.hpp"
+
+namespace pitmap::sim {
+
+enum class BeamOutcome : std::uint8_t { kValid, kNoHit, kDropout, kOutlier };
+
+struct SimPing {
+    std::int64_t ping_number = 0;
+    std::vector<std::uint16_t> range_counts;  // 83P counts of range_resolution; 0 = no detection
+    std::vector<std::uint16_t> intensities;   // raw normalised amplitude
+    std::vector<float> true_range_m;          // noise-free footprint range; NaN = no hit
+    std::vector<BeamOutcome> outcome;         // what the model did to each beam
+};
+
+// Thread safety: const methods may be called concurrently.
+class SonarModel {
+public:
+    SonarModel(const SonarConfig& config, const PitWorld& world, std::uint64_t seed);
+    // Simulates one ping from the sonar head pose (sonar frame: x fwd, y stbd, z down).
+    SimPing Ping(const Pose& T_world_sonar, std::int64_t ping_number) const;
+    // Beam i's angle from nadir, degrees, positive to starboard (integer 0.01 deg arithmetic,
+    // as the 83P header encodes it).
+    double BeamAngleDeg(int i) const;
+    double RangeSigma(double range_m) const;
+
+private:
+    SonarConfig cfg_;
+    const PitWorld& world_;
+    std::uint64_t seed_;
+};
+
+}  // namespace pitmap::sim

@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+// The synthetic open pit: an exact terrain surface z = H(x, y) in the world frame (ENU, origin
+// at the pit centre on the water surface, z up), queryable for height, normal, signed distance
+// and ray casts. The surface is the bilinear interpolation of a regular grid built
+// deterministically from the PitConfig and a seed; that same grid is the ground truth that
+// every product is scored against.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "tools/sim/scenario.hpp"
+
+namespace pitmap::sim {
+
+struct TerrainGrid {
+    double x0_m = 0;          // world x of column 0
+    double y0_m = 0;          // world y of row 0
+    double resolution_m = 0;  // cell size
+    int nx = 0;               // columns (x)
+    int ny = 0;               // rows (y)
+    std::vector<float> height_m;  // row-major: height_m[iy * nx + ix], metres (z up)
+};
+
+// Thread safety: all const methods may be called concurrently.
+class PitWorld {
+public:
+    PitWorld(const PitConfig& config, std::uint64_t seed);
+    // Builds a world over a grid that was written before (truth files).
+    explicit PitWorld(TerrainGrid grid);
+
+    const TerrainGrid& grid() const { return grid_; }
+    // Terrain height at (x, y), metres; outside the grid: the height at the nearest edge.
+    double Height(double x, double y) const;
+    // Gradient dH/dx, dH/dy of the bilinear surface.
+    Eigen::Vector2d Gradient(double x, double y) const;
+    // Unit surface normal pointing up (into the water).
+    Eigen::Vector3d Normal(double x, double y) const;
+    // Signed distance from p to the terrain surface: > 0 above (in the water), < 0 below.
+    // Exact for a locally planar surface; refined by re-projection near edges.
+    double SignedDistance(const Eigen::Vector3d& p) const;
+    // First intersection of the ray origin + t * dir (dir unit) with the terrain, t in
+    // (0, max_range_m]; nullopt if none (or if the origin is below the terrain).
+    std::optional<double> RayCast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                                  double max_range_m) const;
+    // Water depth at (x, y): max(0, -Height).
+    double Depth(double x, double y) const { return std::max(0.0, -Height(x, y)); }
+    // Largest |gradient| over the grid (the Lipschitz bound the ray marcher relies on).
+    double max_slope() const { return max_slope_; }
+
+private:
+    double At(int ix, int iy) const;
+    void ComputeMaxSlope();
+
+    TerrainGrid grid_;
+    double max_slope_ = 1.0;
+};
+
+// Distance from (x, y) to the water line of the superellipse pit, measured along the ray from
+// the pit centre; > 0 inside the pit, < 0 on land. Used to lay out benches and laps.
+double DistanceFromShore(const PitConfig& pit, double x, double y);
+
+}  // namespace pitmap::sim
