@@ -222,14 +222,6 @@ std::optional<TransportLayer> ParseIpv6(ByteSpan ip) {
     return t;
 }
 
-bool IsGzipFile(const std::string& path) {
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
-                                                      &std::fclose);
-    if (!f) return false;
-    unsigned char magic[2] = {};
-    return std::fread(magic, 1, 2, f.get()) == 2 && magic[0] == 0x1F && magic[1] == 0x8B;
-}
-
 struct PcapCloser {
     void operator()(pcap_t* p) const { pcap_close(p); }
 };
@@ -389,6 +381,14 @@ Expected<std::vector<std::uint8_t>> ReadFileBytes(const std::string& path) {
     if (std::ferror(f.get()) != 0) return Error{path + ": read error"};
     if (data.size() >= 2 && data[0] == 0x1F && data[1] == 0x8B) return Gunzip(data, path);
     return data;
+}
+
+bool IsGzipFile(const std::string& path) {
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
+                                                      &std::fclose);
+    if (!f) return false;
+    unsigned char magic[2] = {};
+    return std::fread(magic, 1, 2, f.get()) == 2 && magic[0] == 0x1F && magic[1] == 0x8B;
 }
 
 bool LooksLikeCapture(ByteSpan head) {

@@ -83,6 +83,9 @@ struct CaptureContents {
 // Errors name the file: missing, unreadable, corrupt or truncated gzip data.
 Expected<std::vector<std::uint8_t>> ReadFileBytes(const std::string& path);
 
+// True if the file starts with the gzip magic 1F 8B (false if it cannot be read).
+bool IsGzipFile(const std::string& path);
+
 // True if `head` starts with a pcap (any byte order, micro- or nanosecond) or pcapng magic.
 bool LooksLikeCapture(ByteSpan head);
 

@@ -1,0 +1,653 @@
+// SPDX-License-Identifier: MIT
+#include "tools/inspect/inspect.hpp"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <memory>
+#include <string_view>
+#include <utility>
+#include <variant>
+
+#include "common/capture/capture.hpp"
+#include "common/protocol/deltat/stream_framer.hpp"
+#include "common/protocol/novatel/framer.hpp"
+#include "pitmap/channel_status_t.hpp"
+#include "pitmap/clock_sync_t.hpp"
+#include "pitmap/daemon_status_t.hpp"
+#include "pitmap/gnss_position_t.hpp"
+#include "pitmap/gnss_velocity_t.hpp"
+#include "pitmap/gps_time_t.hpp"
+#include "pitmap/heading_t.hpp"
+#include "pitmap/imu_t.hpp"
+#include "pitmap/ins_attitude_t.hpp"
+#include "pitmap/ins_pva_t.hpp"
+#include "pitmap/ins_stddev_t.hpp"
+#include "pitmap/mark_time_t.hpp"
+#include "pitmap/multibeam_ping_t.hpp"
+#include "pitmap/novatel_header_t.hpp"
+#include "pitmap/raw_bytes_t.hpp"
+#include "pitmap/receiver_response_t.hpp"
+
+namespace pitmap::tools::inspect {
+namespace {
+
+namespace novatel = protocol::novatel;
+namespace deltat = protocol::deltat;
+
+constexpr double kSecondsPerWeek = 604800.0;
+constexpr std::size_t kSniffBytes = 64 * 1024;
+
+void WidenGps(SourceSummary& s, double t) {
+    s.gps_start_s = s.gps_start_s ? std::min(*s.gps_start_s, t) : t;
+    s.gps_end_s = s.gps_end_s ? std::max(*s.gps_end_s, t) : t;
+}
+
+void WidenSonar(SourceSummary& s, std::int64_t t) {
+    s.sonar_start_utime = s.sonar_start_utime ? std::min(*s.sonar_start_utime, t) : t;
+    s.sonar_end_utime = s.sonar_end_utime ? std::max(*s.sonar_end_utime, t) : t;
+}
+
+std::string_view AsText(ByteSpan bytes) {
+    return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
+}
+
+// Comma-separated header fields of an ASCII frame, up to the ';' that ends the header.
+std::vector<std::string_view> HeaderFields(std::string_view text) {
+    const std::size_t end = std::min(text.find(';'), text.find('*'));
+    text = text.substr(0, end);
+    std::vector<std::string_view> fields;
+    std::size_t start = 0;
+    while (true) {
+        const std::size_t comma = text.find(',', start);
+        fields.push_back(text.substr(start, comma - start));
+        if (comma == std::string_view::npos) break;
+        start = comma + 1;
+    }
+    return fields;
+}
+
+// GPS seconds from ASCII week and seconds-of-week fields; nullopt for week 0 or non-numbers.
+std::optional<double> AsciiGpsTime(std::string_view week_text, std::string_view sow_text) {
+    const std::string week_str(week_text);
+    const std::string sow_str(sow_text);
+    char* end = nullptr;
+    const long week = std::strtol(week_str.c_str(), &end, 10);
+    if (week_str.empty() || *end != '\0' || week <= 0) return std::nullopt;
+    const double sow = std::strtod(sow_str.c_str(), &end);
+    if (sow_str.empty() || *end != '\0' || sow < 0.0 || sow >= kSecondsPerWeek) {
+        return std::nullopt;
+    }
+    return static_cast<double>(week) * kSecondsPerWeek + sow;
+}
+
+void CountKey(SourceSummary& s, const std::string& key) { ++s.frames_by_id[key]; }
+
+// One NovAtel frame into the summary (spec §2, §3, §5 for the header fields read here).
+void CountNovatelFrame(const novatel::Frame& frame, SourceSummary& s) {
+    ++s.frames_total;
+    ++s.frames_by_kind[std::string(novatel::ToString(frame.kind))];
+    const ByteSpan b = frame.bytes;
+    switch (frame.kind) {
+        case novatel::FrameKind::kLongBinary: {
+            ByteReader r(b);
+            r.Seek(6);
+            const bool response = (r.U8() & 0x80) != 0;  // message type bit 7
+            r.Seek(14);
+            const std::uint16_t week = r.U16Le();
+            const std::uint32_t ms = r.U32Le();
+            CountKey(s, std::to_string(frame.message_id) + (response ? "R" : ""));
+            if (response) {
+                ++s.responses;
+            } else {
+                ++s.log_frames;
+            }
+            if (r.ok() && week != 0) {
+                WidenGps(s, week * kSecondsPerWeek + static_cast<double>(ms) / 1000.0);
+            }
+            break;
+        }
+        case novatel::FrameKind::kShortBinary: {
+            ByteReader r(b);
+            r.Seek(6);
+            const std::uint16_t week = r.U16Le();
+            const std::uint32_t ms = r.U32Le();
+            CountKey(s, std::to_string(frame.message_id));
+            ++s.log_frames;
+            if (r.ok() && week != 0) {
+                WidenGps(s, week * kSecondsPerWeek + static_cast<double>(ms) / 1000.0);
+            }
+            break;
+        }
+        case novatel::FrameKind::kProprietary:
+            CountKey(s, "P" + std::to_string(frame.message_id));
+            ++s.log_frames;
+            break;
+        case novatel::FrameKind::kAscii: {
+            const auto fields = HeaderFields(AsText(b.subspan(1)));
+            const std::string name(fields.front());
+            CountKey(s, "#" + name);
+            if (!name.empty() && name.back() == 'R') {
+                ++s.responses;
+            } else {
+                ++s.log_frames;
+            }
+            if (fields.size() > 6) {
+                if (auto t = AsciiGpsTime(fields[5], fields[6])) WidenGps(s, *t);
+            }
+            break;
+        }
+        case novatel::FrameKind::kShortAscii: {
+            const auto fields = HeaderFields(AsText(b.subspan(1)));
+            CountKey(s, "%" + std::string(fields.front()));
+            ++s.log_frames;
+            if (fields.size() > 2) {
+                if (auto t = AsciiGpsTime(fields[1], fields[2])) WidenGps(s, *t);
+            }
+            break;
+        }
+        case novatel::FrameKind::kAbbreviated: {
+            std::string_view text = AsText(b.subspan(1));
+            while (!text.empty() && (text.back() == '\r' || text.back() == '\n')) {
+                text.remove_suffix(1);
+            }
+            if (text.substr(0, 2) == "OK") {
+                CountKey(s, "OK");
+                ++s.responses;
+            } else if (text.substr(0, 5) == "ERROR") {
+                CountKey(s, "ERROR");
+                ++s.responses;
+            } else {
+                const std::size_t space = text.find(' ');
+                CountKey(s, "<" + std::string(text.substr(0, space)));
+                ++s.log_frames;
+            }
+            break;
+        }
+        case novatel::FrameKind::kPrompt:
+            CountKey(s, "PROMPT");
+            ++s.prompts;
+            break;
+        case novatel::FrameKind::kNmea: {
+            std::string_view text = AsText(b);
+            CountKey(s, std::string(text.substr(0, std::min(text.find(','), text.find('*')))));
+            ++s.log_frames;
+            break;
+        }
+    }
+}
+
+void CountSkipped(const protocol::Skipped& skipped, SourceSummary& s) {
+    s.skipped.Add(skipped);
+    if (skipped.reason == protocol::SkipReason::kBadCrc) ++s.crc_failures;
+}
+
+protocol::SkipReason ReasonFor(deltat::DecodeErrorKind kind) {
+    switch (kind) {
+        case deltat::DecodeErrorKind::kTruncated: return protocol::SkipReason::kTruncated;
+        case deltat::DecodeErrorKind::kBadMarker:
+        case deltat::DecodeErrorKind::kUnsupported: return protocol::SkipReason::kGarbage;
+        case deltat::DecodeErrorKind::kBadTerminator: return protocol::SkipReason::kBadTerminator;
+        default: return protocol::SkipReason::kBadLength;
+    }
+}
+
+// Frames one byte source with the framer of its protocol and counts what comes out.
+class SourceCounter {
+public:
+    enum class Mode : std::uint8_t { kNovatel, kDeltaTStream, kDeltaTDatagram, kUnframed };
+
+    SourceCounter(std::string name, std::string protocol_name, Mode mode) : mode_(mode) {
+        summary_.name = std::move(name);
+        summary_.protocol = std::move(protocol_name);
+        if (mode_ == Mode::kNovatel) novatel_ = std::make_unique<novatel::Framer>();
+        if (mode_ == Mode::kDeltaTStream) deltat_ = std::make_unique<deltat::StreamFramer>();
+    }
+
+    // One chunk as the transport delivered it (a UDP datagram in datagram mode).
+    void Push(ByteSpan bytes) {
+        summary_.bytes += bytes.size();
+        ++summary_.chunks;
+        switch (mode_) {
+            case Mode::kNovatel:
+                novatel_->Push(bytes);
+                DrainNovatel();
+                break;
+            case Mode::kDeltaTStream:
+                deltat_->Push(bytes);
+                DrainDeltaT();
+                break;
+            case Mode::kDeltaTDatagram:
+                CountDatagram(bytes);
+                break;
+            case Mode::kUnframed:
+                summary_.unframed_bytes += bytes.size();
+                break;
+        }
+    }
+
+    // The stream breaks (bytes missing from a capture): a frame cannot span the break.
+    void Break() {
+        std::optional<protocol::Skipped> tail;
+        if (novatel_) tail = novatel_->Flush();
+        if (deltat_) tail = deltat_->Flush();
+        if (tail) CountSkipped(*tail, summary_);
+    }
+
+    SourceSummary Finish() {
+        std::optional<protocol::Skipped> tail;
+        if (novatel_) tail = novatel_->Flush();
+        if (deltat_) tail = deltat_->Flush();
+        if (tail) {
+            CountSkipped(*tail, summary_);
+            summary_.truncated_tail_bytes += tail->bytes;
+        }
+        return std::move(summary_);
+    }
+
+private:
+    void DrainNovatel() {
+        while (true) {
+            auto ev = novatel_->Next();
+            if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+            if (const auto* skipped = std::get_if<protocol::Skipped>(&ev)) {
+                CountSkipped(*skipped, summary_);
+                continue;
+            }
+            CountNovatelFrame(std::get<novatel::Frame>(ev), summary_);
+        }
+    }
+
+    void DrainDeltaT() {
+        while (true) {
+            auto ev = deltat_->Next();
+            if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+            if (const auto* skipped = std::get_if<protocol::Skipped>(&ev)) {
+                CountSkipped(*skipped, summary_);
+                continue;
+            }
+            const auto& record = std::get<deltat::Record>(ev);
+            ++summary_.frames_total;
+            ++summary_.frames_by_kind["83p"];
+            const auto decoded = deltat::DecodeRecord83PInto(record.bytes, memory_, ping_);
+            CountDecoded83P(decoded);
+        }
+    }
+
+    void CountDatagram(ByteSpan datagram) {
+        const auto decoded = deltat::DecodeDatagramInto(datagram, memory_, ping_);
+        if (const auto* error = std::get_if<deltat::DecodeError>(&decoded)) {
+            ++summary_.datagram_errors;
+            CountSkipped(protocol::Skipped{ReasonFor(error->kind), datagram.size(),
+                                           summary_.bytes - datagram.size()},
+                         summary_);
+            return;
+        }
+        ++summary_.frames_total;
+        ++summary_.frames_by_kind["83p"];
+        CountDecoded83P(decoded);
+    }
+
+    void CountDecoded83P(const std::variant<deltat::RecordKind, deltat::DecodeError>& decoded) {
+        if (const auto* kind = std::get_if<deltat::RecordKind>(&decoded)) {
+            if (*kind == deltat::RecordKind::kComment) {
+                CountKey(summary_, "83P_COMMENT");
+                return;
+            }
+            CountKey(summary_, "83P");
+            ++summary_.log_frames;
+            if (ping_.utime_sonar_header != 0) WidenSonar(summary_, ping_.utime_sonar_header);
+            return;
+        }
+        // Framed (the header validated) but the body did not decode.
+        CountKey(summary_, "83P_UNDECODED");
+        ++summary_.log_frames;
+    }
+
+    Mode mode_;
+    SourceSummary summary_;
+    std::unique_ptr<novatel::Framer> novatel_;
+    std::unique_ptr<deltat::StreamFramer> deltat_;
+    deltat::FloatOrderMemory memory_;
+    deltat::Ping83P ping_;
+};
+
+bool StartsWith(ByteSpan bytes, std::string_view prefix) {
+    return bytes.size() >= prefix.size() && AsText(bytes.first(prefix.size())) == prefix;
+}
+
+bool EndsWithNoCase(const std::string& text, std::string_view suffix) {
+    if (text.size() < suffix.size()) return false;
+    for (std::size_t i = 0; i < suffix.size(); ++i) {
+        const char a = text[text.size() - suffix.size() + i];
+        if (std::tolower(static_cast<unsigned char>(a)) !=
+            std::tolower(static_cast<unsigned char>(suffix[i]))) {
+            return false;
+        }
+    }
+    return true;
+}
+
+bool LooksLikeNovatel(ByteSpan bytes) {
+    const ByteSpan head = bytes.first(std::min(bytes.size(), kSniffBytes));
+    const std::string_view text = AsText(head);
+    for (std::size_t i = 0; i + 2 < head.size(); ++i) {
+        if (head[i] == 0xAA && (head[i + 1] == 0x44 || head[i + 1] == 0x45) &&
+            (head[i + 2] == 0x12 || head[i + 2] == 0x13)) {
+            return true;
+        }
+    }
+    for (std::string_view marker : {"<OK", "<ERROR", "[COM", "[ICOM", "[USB", "[NCOM", "$GP",
+                                    "$GN"}) {
+        if (text.find(marker) != std::string_view::npos) return true;
+    }
+    // An ASCII log header: '#' or '%', an upper-case name, then ','.
+    for (std::size_t i = 0; i + 2 < text.size(); ++i) {
+        if (text[i] != '#' && text[i] != '%') continue;
+        std::size_t j = i + 1;
+        while (j < text.size() && std::isupper(static_cast<unsigned char>(text[j]))) ++j;
+        if (j > i + 3 && j < text.size() && text[j] == ',') return true;
+    }
+    return false;
+}
+
+bool LooksLikeDeltaT(ByteSpan bytes, const std::string& name) {
+    return StartsWith(bytes, "83P") || EndsWithNoCase(name, ".83p");
+}
+
+std::string LcmTypeName(const lcm::LogEvent& ev) {
+    if (ev.datalen < 8) return "unknown";
+    const auto hash =
+        static_cast<std::int64_t>(ByteReader(static_cast<const std::uint8_t*>(ev.data), 8).U64Be());
+    struct Known {
+        std::int64_t hash;
+        const char* name;
+    };
+    static const Known kKnown[] = {
+        {pitmap::channel_status_t::getHash(), "channel_status_t"},
+        {pitmap::clock_sync_t::getHash(), "clock_sync_t"},
+        {pitmap::daemon_status_t::getHash(), "daemon_status_t"},
+        {pitmap::gnss_position_t::getHash(), "gnss_position_t"},
+        {pitmap::gnss_velocity_t::getHash(), "gnss_velocity_t"},
+        {pitmap::gps_time_t::getHash(), "gps_time_t"},
+        {pitmap::heading_t::getHash(), "heading_t"},
+        {pitmap::imu_t::getHash(), "imu_t"},
+        {pitmap::ins_attitude_t::getHash(), "ins_attitude_t"},
+        {pitmap::ins_pva_t::getHash(), "ins_pva_t"},
+        {pitmap::ins_stddev_t::getHash(), "ins_stddev_t"},
+        {pitmap::mark_time_t::getHash(), "mark_time_t"},
+        {pitmap::multibeam_ping_t::getHash(), "multibeam_ping_t"},
+        {pitmap::novatel_header_t::getHash(), "novatel_header_t"},
+        {pitmap::raw_bytes_t::getHash(), "raw_bytes_t"},
+        {pitmap::receiver_response_t::getHash(), "receiver_response_t"},
+    };
+    for (const auto& k : kKnown) {
+        if (k.hash == hash) return k.name;
+    }
+    return "unknown";
+}
+
+SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::int8_t transport) {
+    if (protocol_name == "novatel") return SourceCounter::Mode::kNovatel;
+    if (protocol_name == "deltat_83p") {
+        return transport == pitmap::raw_bytes_t::TRANSPORT_UDP
+                   ? SourceCounter::Mode::kDeltaTDatagram
+                   : SourceCounter::Mode::kDeltaTStream;
+    }
+    return SourceCounter::Mode::kUnframed;
+}
+
+Expected<InspectReport> InspectLcmLog(const std::string& path, InspectReport report) {
+    lcm::LogFile log(path, "r");
+    if (!log.good()) return Error{path + ": cannot open as an LCM log"};
+    LcmSummary lcm_summary;
+    // Sources in order of first appearance, keyed by channel and source id.
+    std::vector<std::unique_ptr<SourceCounter>> counters;
+    std::map<std::string, std::size_t> index;
+    std::map<std::string, std::int64_t> last_seq;
+    pitmap::raw_bytes_t raw;
+    while (const lcm::LogEvent* ev = log.readNextEvent()) {
+        ++lcm_summary.events;
+        if (lcm_summary.events == 1) lcm_summary.first_utime = ev->timestamp;
+        lcm_summary.last_utime = ev->timestamp;
+        auto& channel = lcm_summary.channels[ev->channel];
+        ++channel.events;
+        channel.bytes += static_cast<std::uint64_t>(std::max(ev->datalen, 0));
+        // LCM's fingerprint check makes decode fail for every other type (conventions.md).
+        if (ev->datalen > 0 && raw.decode(ev->data, 0, ev->datalen) == ev->datalen) {
+            channel.type = "raw_bytes_t";
+            const std::string key = ev->channel + " " + raw.source;
+            auto it = index.find(key);
+            if (it == index.end()) {
+                counters.push_back(std::make_unique<SourceCounter>(
+                    key, raw.protocol, ModeForRawProtocol(raw.protocol, raw.transport)));
+                it = index.emplace(key, counters.size() - 1).first;
+            } else if (raw.seq > last_seq[key] + 1) {
+                lcm_summary.raw_seq_gaps += static_cast<std::uint64_t>(raw.seq - last_seq[key] - 1);
+            }
+            last_seq[key] = raw.seq;
+            counters[it->second]->Push(ByteSpan(raw.data.data(), raw.data.size()));
+            continue;
+        }
+        channel.type = LcmTypeName(*ev);
+    }
+    for (auto& counter : counters) {
+        report.sources.push_back(counter->Finish());
+        report.total.Add(report.sources.back());
+    }
+    report.lcm = std::move(lcm_summary);
+    return report;
+}
+
+SourceCounter::Mode StreamMode(Protocol protocol, ByteSpan first_bytes) {
+    if (protocol == Protocol::kDeltaT) return SourceCounter::Mode::kDeltaTStream;
+    if (protocol == Protocol::kNovatel) return SourceCounter::Mode::kNovatel;
+    return StartsWith(first_bytes, "83P") ? SourceCounter::Mode::kDeltaTStream
+                                          : SourceCounter::Mode::kNovatel;
+}
+
+std::string ModeName(SourceCounter::Mode mode) {
+    return mode == SourceCounter::Mode::kNovatel ? "novatel" : "deltat_83p";
+}
+
+InspectReport InspectCapture(capture::CaptureContents contents, const InspectOptions& options,
+                             InspectReport report) {
+    CaptureSummary cap;
+    const auto& st = contents.stats;
+    cap.format = st.format;
+    cap.gzip = st.gzip;
+    cap.link_type = st.link_type_name;
+    cap.packets = st.packets;
+    cap.tcp_packets = st.tcp_packets;
+    cap.udp_packets = st.udp_packets;
+    cap.other_packets = st.non_ip_packets + st.other_ip_packets + st.ip_fragments;
+    cap.truncated_packets = st.truncated_packets + st.truncated_payloads;
+    cap.first_utime = st.first_utime;
+    cap.last_utime = st.last_utime;
+    cap.read_error = st.read_error;
+    cap.udp_datagrams = contents.udp.size();
+
+    for (const auto& stream : contents.tcp) {
+        const std::string name = stream.src.ToString() + " > " + stream.dst.ToString();
+        TcpSummary t;
+        t.name = name;
+        t.bytes = stream.bytes.size();
+        t.packets = stream.stats.packets;
+        t.payload_segments = stream.stats.payload_segments;
+        t.retransmitted_segments = stream.stats.retransmitted_segments;
+        t.retransmitted_bytes = stream.stats.retransmitted_bytes;
+        t.out_of_order_segments = stream.stats.out_of_order_segments;
+        t.gaps = stream.stats.gaps;
+        t.gap_bytes = stream.stats.gap_bytes;
+        cap.tcp.push_back(t);
+        if (stream.bytes.empty()) continue;  // the direction that only acknowledges
+
+        const ByteSpan all(stream.bytes);
+        const auto mode = StreamMode(options.protocol, all);
+        SourceCounter counter("tcp " + name, ModeName(mode), mode);
+        // Feed the bytes as the socket delivered them; break the stream at capture gaps.
+        std::size_t gap_index = 0;
+        for (std::size_t i = 0; i < stream.chunks.size(); ++i) {
+            const std::size_t begin = stream.chunks[i].offset;
+            const std::size_t end =
+                i + 1 < stream.chunks.size() ? stream.chunks[i + 1].offset : all.size();
+            while (gap_index < stream.gaps.size() && stream.gaps[gap_index].offset <= begin) {
+                if (stream.gaps[gap_index].offset == begin && begin != 0) counter.Break();
+                ++gap_index;
+            }
+            counter.Push(all.subspan(begin, end - begin));
+        }
+        report.sources.push_back(counter.Finish());
+    }
+
+    // UDP: one source per flow, one Push per datagram.
+    std::vector<std::unique_ptr<SourceCounter>> udp_counters;
+    std::map<std::string, std::size_t> udp_index;
+    for (const auto& dgram : contents.udp) {
+        const std::string name = "udp " + dgram.src.ToString() + " > " + dgram.dst.ToString();
+        auto it = udp_index.find(name);
+        if (it == udp_index.end()) {
+            auto mode = StreamMode(options.protocol, dgram.payload);
+            if (mode == SourceCounter::Mode::kDeltaTStream) {
+                mode = SourceCounter::Mode::kDeltaTDatagram;  // one record per datagram (§3.2)
+            }
+            udp_counters.push_back(std::make_unique<SourceCounter>(name, ModeName(mode), mode));
+            it = udp_index.emplace(name, udp_counters.size() - 1).first;
+        }
+        udp_counters[it->second]->Push(dgram.payload);
+    }
+    for (auto& counter : udp_counters) report.sources.push_back(counter->Finish());
+
+    for (const auto& source : report.sources) report.total.Add(source);
+    report.capture = std::move(cap);
+    return report;
+}
+
+}  // namespace
+
+std::string ToString(InputFormat format) {
+    switch (format) {
+        case InputFormat::kAuto: return "auto";
+        case InputFormat::kRaw: return "raw";
+        case InputFormat::kPcap: return "pcap";
+        case InputFormat::kLcmLog: return "lcm";
+    }
+    return "unknown";
+}
+
+std::string ToString(Protocol protocol) {
+    switch (protocol) {
+        case Protocol::kAuto: return "auto";
+        case Protocol::kNovatel: return "novatel";
+        case Protocol::kDeltaT: return "deltat_83p";
+    }
+    return "unknown";
+}
+
+std::optional<InputFormat> ParseInputFormat(const std::string& text) {
+    if (text == "auto") return InputFormat::kAuto;
+    if (text == "raw" || text == "83p") return InputFormat::kRaw;
+    if (text == "pcap" || text == "pcapng") return InputFormat::kPcap;
+    if (text == "lcm") return InputFormat::kLcmLog;
+    return std::nullopt;
+}
+
+std::optional<Protocol> ParseProtocol(const std::string& text) {
+    if (text == "auto") return Protocol::kAuto;
+    if (text == "novatel") return Protocol::kNovatel;
+    if (text == "deltat" || text == "deltat_83p" || text == "83p") return Protocol::kDeltaT;
+    return std::nullopt;
+}
+
+void SourceSummary::Add(const SourceSummary& o) {
+    bytes += o.bytes;
+    chunks += o.chunks;
+    frames_total += o.frames_total;
+    log_frames += o.log_frames;
+    responses += o.responses;
+    prompts += o.prompts;
+    for (const auto& [k, v] : o.frames_by_id) frames_by_id[k] += v;
+    for (const auto& [k, v] : o.frames_by_kind) frames_by_kind[k] += v;
+    crc_failures += o.crc_failures;
+    for (std::size_t i = 0; i < protocol::kNumSkipReasons; ++i) {
+        skipped.bytes[i] += o.skipped.bytes[i];
+        skipped.events[i] += o.skipped.events[i];
+    }
+    truncated_tail_bytes += o.truncated_tail_bytes;
+    unframed_bytes += o.unframed_bytes;
+    datagram_errors += o.datagram_errors;
+    if (o.gps_start_s) WidenGps(*this, *o.gps_start_s);
+    if (o.gps_end_s) WidenGps(*this, *o.gps_end_s);
+    if (o.sonar_start_utime) WidenSonar(*this, *o.sonar_start_utime);
+    if (o.sonar_end_utime) WidenSonar(*this, *o.sonar_end_utime);
+}
+
+Expected<Detected> DetectFormat(ByteSpan bytes, const std::string& name) {
+    if (capture::LooksLikeCapture(bytes)) return Detected{InputFormat::kPcap, Protocol::kAuto};
+    if (bytes.size() >= 4 && ByteReader(bytes).U32Be() == 0xEDA1DA01u) {
+        return Detected{InputFormat::kLcmLog, Protocol::kAuto};
+    }
+    if (LooksLikeDeltaT(bytes, name)) return Detected{InputFormat::kRaw, Protocol::kDeltaT};
+    if (LooksLikeNovatel(bytes)) return Detected{InputFormat::kRaw, Protocol::kNovatel};
+    if (bytes.empty()) return Error{name + ": the file is empty; cannot tell its format"};
+    return Error{name +
+                 ": cannot tell the format (not a pcap/pcapng capture, an LCM log, 83P records "
+                 "or NovAtel data); give --format and --protocol"};
+}
+
+SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, std::size_t chunk_bytes,
+                            const std::string& name) {
+    const auto mode = protocol == Protocol::kDeltaT ? SourceCounter::Mode::kDeltaTStream
+                                                    : SourceCounter::Mode::kNovatel;
+    SourceCounter counter(name, ModeName(mode), mode);
+    chunk_bytes = std::max<std::size_t>(chunk_bytes, 1);
+    for (std::size_t off = 0; off < bytes.size(); off += chunk_bytes) {
+        counter.Push(bytes.subspan(off, std::min(chunk_bytes, bytes.size() - off)));
+    }
+    return counter.Finish();
+}
+
+Expected<InspectReport> InspectFile(const std::string& path, const InspectOptions& options) {
+    auto bytes = capture::ReadFileBytes(path);
+    if (!bytes) return bytes.error();
+    InspectReport report;
+    report.file = path;
+    report.input_bytes = bytes->size();
+
+    Detected detected;
+    if (options.format == InputFormat::kAuto) {
+        auto d = DetectFormat(*bytes, path);
+        if (!d) return d.error();
+        detected = *d;
+    } else {
+        detected.format = options.format;
+        detected.protocol =
+            LooksLikeDeltaT(*bytes, path) ? Protocol::kDeltaT : Protocol::kNovatel;
+    }
+    if (options.protocol != Protocol::kAuto) detected.protocol = options.protocol;
+    report.format = detected.format;
+
+    switch (detected.format) {
+        case InputFormat::kPcap: {
+            auto contents = capture::ParseCapture(*bytes, path);
+            if (!contents) return contents.error();
+            contents->stats.gzip = capture::IsGzipFile(path);
+            return InspectCapture(std::move(contents).value(), options, std::move(report));
+        }
+        case InputFormat::kLcmLog:
+            if (capture::IsGzipFile(path)) {
+                return Error{path + ": gzip-compressed LCM logs are not supported; gunzip it"};
+            }
+            return InspectLcmLog(path, std::move(report));
+        case InputFormat::kAuto:
+        case InputFormat::kRaw:
+            break;
+    }
+    report.sources.push_back(InspectStream(*bytes, detected.protocol, options.chunk_bytes, "file"));
+    report.total.Add(report.sources.back());
+    return report;
+}
+
+}  // namespace pitmap::tools::inspect

@@ -1,0 +1,60 @@
+// SPDX-License-Identifier: MIT
+// pitmap-inspect: frame counts, CRC failures, skipped bytes and time span of a raw NovAtel file,
+// a .83P file, a pcap/pcapng(.gz) capture or a pitmap LCM log. See inspect.hpp.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include "tools/inspect/inspect.hpp"
+
+int main(int argc, char** argv) {
+    namespace inspect = pitmap::tools::inspect;
+    CLI::App app{"pitmap-inspect: what is in a sensor byte file, capture or LCM log"};
+    std::string path;
+    std::string format = "auto";
+    std::string protocol = "auto";
+    bool json = false;
+    app.add_option("file", path, "input: NovAtel raw (.gps/.GPS/.ASC/.dat), .83P, "
+                                 ".pcap/.pcapng[.gz] or LCM log")
+        ->required();
+    app.add_option("--format", format, "input kind: auto, raw, 83p, pcap, lcm")
+        ->capture_default_str();
+    app.add_option("--protocol", protocol, "framing of raw bytes: auto, novatel, deltat")
+        ->capture_default_str();
+    app.add_flag("--json", json, "print one JSON object instead of text");
+    CLI11_PARSE(app, argc, argv);
+
+    try {
+        inspect::InspectOptions options;
+        const auto parsed_format = inspect::ParseInputFormat(format);
+        const auto parsed_protocol = inspect::ParseProtocol(protocol);
+        if (!parsed_format || !parsed_protocol) {
+            std::cerr << "pitmap-inspect: unknown "
+                      << (!parsed_format ? "--format " + format : "--protocol " + protocol)
+                      << "\n";
+            return 2;
+        }
+        options.format = *parsed_format;
+        options.protocol = *parsed_protocol;
+        if (format == "83p" && options.protocol == inspect::Protocol::kAuto) {
+            options.protocol = inspect::Protocol::kDeltaT;
+        }
+        const auto report = inspect::InspectFile(path, options);
+        if (!report) {
+            std::cerr << "pitmap-inspect: " << report.error().message << "\n";
+            return 1;
+        }
+        if (json) {
+            std::cout << inspect::ToJson(*report).dump(2) << "\n";
+        } else {
+            std::cout << inspect::ToText(*report);
+        }
+        return 0;
+    } catch (const std::exception& e) {
+        std::cerr << "pitmap-inspect: " << path << ": " << e.what() << "\n";
+        return 1;
+    }
+}
