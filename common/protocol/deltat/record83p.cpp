@@ -276,8 +276,10 @@ void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix) {
     std::memcpy(ping.time_text.data(), buf, 8);
     std::snprintf(buf, sizeof buf, ".%02d", c.microsecond / 10'000);
     std::memcpy(ping.hundredths_text.data(), buf, 3);
-    std::snprintf(buf, sizeof buf, ".%03d", c.microsecond / 1'000);
-    std::memcpy(ping.milliseconds_text.data(), buf, 4);
+    if (ping.is_v110()) {
+        std::snprintf(buf, sizeof buf, ".%03d", c.microsecond / 1'000);
+        std::memcpy(ping.milliseconds_text.data(), buf, 4);
+    }
     const auto parsed = ParseHeaderClock(
         View(ping.date_text), View(ping.time_text),
         ping.is_v110() ? View(ping.milliseconds_text) : View(ping.hundredths_text));

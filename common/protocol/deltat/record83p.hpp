@@ -81,7 +81,7 @@ std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_
 double ParseLatitudeText(std::string_view text14);
 double ParseLongitudeText(std::string_view text14);
 // Fill the text fields and their decoded values consistently. The header clock is written
-// with hundredths and milliseconds; the decoded utime keeps the resolution of the version
+// with hundredths and (v1.10 only) milliseconds; the decoded utime keeps the resolution of the version
 // (hundredths for v1.00, ms for v1.10), so set format_version first. Times before year 0 or
 // after 9999 make the clock "not parsable". NaN latitude/longitude writes blanks.
 void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix);
