@@ -22,7 +22,7 @@ function(pitmap_target_defaults target)
   target_include_directories(${target} PUBLIC ${PROJECT_SOURCE_DIR})
   target_compile_options(${target} PRIVATE
     -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align
-    -Woverloaded-virtual -Wnull-dereference -Wimplicit-fallthrough
+    -Woverloaded-virtual -Wimplicit-fallthrough
     # GCC 12 reports false -Wrestrict positives inside std::string operator+ at -O2/-O3
     # (GCC bug 105329); the warning is sound on clang and later GCCs.
     $<$<CXX_COMPILER_ID:GNU>:-Wno-restrict>
