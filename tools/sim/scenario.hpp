@@ -96,6 +96,11 @@ struct ScenarioConfig {
     std::string name = "custom";
     std::uint64_t seed = 1;
     std::string start_utc = "2026-06-15T09:00:00Z";  // survey start
+    // Geodetic position of the world origin (pit centre on the water surface), WGS84.
+    double origin_latitude_deg = 40.4435;   // Bejanca, Portugal
+    double origin_longitude_deg = -7.7806;
+    double origin_height_m = 412.0;         // ellipsoidal height of the water surface
+    double geoid_undulation_m = 55.2;       // geoid - ellipsoid (NovAtel's "undulation")
     PitConfig pit;
     TrackConfig track;
     LeverArms lever_arms;
