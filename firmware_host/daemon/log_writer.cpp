@@ -1,0 +1,373 @@
+// SPDX-License-Identifier: MIT
+#include "firmware_host/daemon/log_writer.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <utility>
+
+#include "common/gps_time.hpp"
+#include "firmware_host/io/byte_source.hpp"
+
+namespace pitmap::acq {
+namespace {
+
+constexpr std::uint32_t kLcmSyncWord = 0xEDA1DA01u;
+
+void PutBe(std::vector<std::byte>& out, std::uint64_t v, int bytes) {
+    for (int i = bytes - 1; i >= 0; --i)
+        out.push_back(static_cast<std::byte>((v >> (8 * i)) & 0xFF));
+}
+
+std::string Errno(const std::string& what, int err) {
+    return what + ": " + std::strerror(err) + " (errno " + std::to_string(err) + ")";
+}
+
+std::optional<std::int64_t> StatvfsFree(const std::string& dir) {
+    struct statvfs s {};
+    if (::statvfs(dir.c_str(), &s) != 0) return std::nullopt;
+    return static_cast<std::int64_t>(s.f_bavail) * static_cast<std::int64_t>(s.f_frsize);
+}
+
+}  // namespace
+
+std::vector<std::byte> EncodeLcmLogEvent(std::int64_t event_number,
+                                         std::int64_t utime,
+                                         std::string_view channel,
+                                         std::span<const std::uint8_t> data) {
+    std::vector<std::byte> out;
+    out.reserve(28 + channel.size() + data.size());
+    PutBe(out, kLcmSyncWord, 4);
+    PutBe(out, static_cast<std::uint64_t>(event_number), 8);
+    PutBe(out, static_cast<std::uint64_t>(utime), 8);
+    PutBe(out, static_cast<std::uint32_t>(channel.size()), 4);
+    PutBe(out, static_cast<std::uint32_t>(data.size()), 4);
+    for (char c : channel) out.push_back(static_cast<std::byte>(c));
+    for (std::uint8_t b : data) out.push_back(static_cast<std::byte>(b));
+    return out;
+}
+
+std::string LogFileName(const std::string& prefix, std::int64_t utime, int sequence) {
+    const UtcCalendar c = UtcCalendarFromUnix(utime);
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), "-%04d%02d%02d-%02d%02d%02d-%03d.lcmlog", c.year, c.month,
+                  c.day, c.hour, c.minute, c.second, sequence % 1000);
+    return prefix + buf;
+}
+
+std::vector<std::string> LogWriterConfig::Validate() const {
+    std::vector<std::string> p;
+    if (directory.empty()) p.push_back("log: directory is empty");
+    if (prefix.empty() || prefix.find('/') != std::string::npos) {
+        p.push_back("log: prefix must be a non-empty file name part without '/'");
+    }
+    if (queue_max_events == 0) p.push_back("log: queue_max_events must be > 0");
+    if (queue_max_bytes == 0) p.push_back("log: queue_max_bytes must be > 0");
+    if (rotate_bytes < 0) p.push_back("log: rotate_bytes must be >= 0");
+    if (rotate_interval_s < 0) p.push_back("log: rotate_interval_s must be >= 0");
+    if (flush_interval_ms <= 0) p.push_back("log: flush_interval_ms must be > 0");
+    if (min_free_bytes < 0 || resume_margin_bytes < 0) {
+        p.push_back("log: min_free_bytes and resume_margin_bytes must be >= 0");
+    }
+    if (disk_check_interval_ms <= 0) p.push_back("log: disk_check_interval_ms must be > 0");
+    if (error_retry_ms <= 0) p.push_back("log: error_retry_ms must be > 0");
+    return p;
+}
+
+LogWriter::LogWriter(LogWriterConfig config, LogWriterHooks hooks)
+    : config_(std::move(config)), hooks_(std::move(hooks)) {
+    PITMAP_CHECK(config_.Validate().empty(), "LogWriter: invalid config");
+    if (!hooks_.now_utime) hooks_.now_utime = [] { return HostNowUtime(); };
+    if (!hooks_.free_bytes) hooks_.free_bytes = StatvfsFree;
+}
+
+LogWriter::~LogWriter() { Stop(); }
+
+std::int64_t LogWriter::Now() const { return hooks_.now_utime(); }
+
+Status LogWriter::Start() {
+    if (running_) return Ok{};
+    struct stat st {};
+    if (::stat(config_.directory.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+        return Error{"log: directory " + config_.directory + " does not exist"};
+    }
+    if (::access(config_.directory.c_str(), W_OK) != 0) {
+        return Error{Errno("log: directory " + config_.directory + " is not writable", errno)};
+    }
+    {
+        std::lock_guard lock(queue_mu_);
+        stop_requested_ = false;
+    }
+    {
+        std::lock_guard lock(stats_mu_);
+        stats_.state = LogWriterState::kOn;
+    }
+    last_disk_check_us_ = 0;
+    running_ = true;
+    thread_ = std::thread([this] { Run(); });
+    return Ok{};
+}
+
+void LogWriter::Stop() {
+    if (!running_) return;
+    {
+        std::lock_guard lock(queue_mu_);
+        stop_requested_ = true;
+    }
+    queue_cv_.notify_all();
+    thread_.join();
+    running_ = false;
+    std::lock_guard lock(stats_mu_);
+    stats_.state = LogWriterState::kOff;
+}
+
+bool LogWriter::Enqueue(std::int64_t utime, std::string channel, std::vector<std::uint8_t> data) {
+    const std::size_t size = data.size() + channel.size();
+    {
+        std::lock_guard lock(queue_mu_);
+        if (queue_.size() < config_.queue_max_events &&
+            queue_bytes_ + size <= config_.queue_max_bytes) {
+            queue_bytes_ += size;
+            queue_.push_back(Event{utime, std::move(channel), std::move(data)});
+            queue_cv_.notify_one();
+            return true;
+        }
+    }
+    std::lock_guard lock(stats_mu_);
+    ++stats_.dropped_queue_full;
+    return false;
+}
+
+void LogWriter::RequestRotate() {
+    std::lock_guard lock(queue_mu_);
+    rotate_requested_ = true;
+    queue_cv_.notify_one();
+}
+
+bool LogWriter::Flush(int timeout_ms) {
+    std::unique_lock lock(queue_mu_);
+    if (!running_ || stop_requested_) return false;
+    const std::uint64_t want = ++flush_requested_;
+    queue_cv_.notify_one();
+    return flushed_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
+                                [&] { return flush_done_ >= want; });
+}
+
+LogWriterStats LogWriter::stats() const {
+    std::lock_guard lock(stats_mu_);
+    return stats_;
+}
+
+void LogWriter::Run() {
+    std::deque<Event> batch;
+    for (;;) {
+        bool stop = false;
+        bool rotate = false;
+        std::uint64_t flush_gen = 0;
+        {
+            std::unique_lock lock(queue_mu_);
+            queue_cv_.wait_for(lock, std::chrono::milliseconds(config_.flush_interval_ms), [&] {
+                return !queue_.empty() || stop_requested_ || rotate_requested_ ||
+                       flush_requested_ > flush_done_;
+            });
+            batch.swap(queue_);
+            queue_bytes_ = 0;
+            stop = stop_requested_;
+            rotate = rotate_requested_;
+            rotate_requested_ = false;
+            flush_gen = flush_requested_;
+        }
+        if (rotate) CloseFile();
+        if (!batch.empty()) CheckDisk(false);
+        for (const Event& e : batch) WriteOne(e);
+        batch.clear();
+        const std::int64_t mono = MonotonicNowUs();
+        if (dirty_ &&
+            (mono - last_sync_us_ >= config_.flush_interval_ms * 1000LL || stop || flush_gen > 0)) {
+            Sync();
+        }
+        CheckDisk(false);
+        {
+            std::lock_guard lock(queue_mu_);
+            if (flush_gen > flush_done_) flush_done_ = flush_gen;
+        }
+        flushed_cv_.notify_all();
+        if (stop) {
+            std::lock_guard lock(queue_mu_);
+            if (queue_.empty()) break;
+        }
+    }
+    CloseFile();
+}
+
+void LogWriter::SetError(const std::string& message) {
+    std::lock_guard lock(stats_mu_);
+    ++stats_.write_errors;
+    stats_.last_error = message;
+    stats_.state = LogWriterState::kError;
+    retry_at_us_ = MonotonicNowUs() + config_.error_retry_ms * 1000LL;
+}
+
+void LogWriter::CheckDisk(bool force) {
+    if (config_.min_free_bytes == 0) return;
+    const std::int64_t mono = MonotonicNowUs();
+    if (!force && last_disk_check_us_ != 0 &&
+        mono - last_disk_check_us_ < config_.disk_check_interval_ms * 1000LL) {
+        return;
+    }
+    last_disk_check_us_ = mono;
+    const std::optional<std::int64_t> free = hooks_.free_bytes(config_.directory);
+    LogWriterState state;
+    {
+        std::lock_guard lock(stats_mu_);
+        stats_.disk_free_bytes = free.value_or(-1);
+        state = stats_.state;
+    }
+    if (!free) return;
+    if (state == LogWriterState::kOn && *free < config_.min_free_bytes) {
+        CloseFile();
+        std::lock_guard lock(stats_mu_);
+        stats_.state = LogWriterState::kDiskGuard;
+        stats_.last_error = "disk guard: " + std::to_string(*free) + " bytes free < " +
+                            std::to_string(config_.min_free_bytes);
+    } else if (state == LogWriterState::kDiskGuard &&
+               *free >= config_.min_free_bytes + config_.resume_margin_bytes) {
+        std::lock_guard lock(stats_mu_);
+        stats_.state = LogWriterState::kOn;
+    }
+}
+
+bool LogWriter::OpenNewFile() {
+    const std::int64_t now = Now();
+    for (int attempt = 0; attempt < 1000; ++attempt) {
+        const std::string name = LogFileName(config_.prefix, now, file_sequence_++);
+        const std::string path = config_.directory + "/" + name;
+        const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+        if (fd < 0 && errno == EEXIST) continue;
+        if (fd < 0) {
+            SetError(Errno("log: create " + path, errno));
+            return false;
+        }
+        // Make the new directory entry durable too, or a power cut can lose the whole file.
+        const int dfd = ::open(config_.directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (dfd >= 0) {
+            ::fsync(dfd);
+            ::close(dfd);
+        }
+        fd_ = fd;
+        path_ = path;
+        file_bytes_ = 0;
+        file_open_utime_ = now;
+        event_number_ = 0;
+        dirty_ = false;
+        last_sync_us_ = MonotonicNowUs();
+        std::lock_guard lock(stats_mu_);
+        ++stats_.files_opened;
+        stats_.current_path = path;
+        return true;
+    }
+    SetError("log: no free file name for prefix " + config_.prefix);
+    return false;
+}
+
+void LogWriter::Sync() {
+    if (fd_ < 0) return;
+    if (::fdatasync(fd_) != 0) SetError(Errno("log: fdatasync " + path_, errno));
+    dirty_ = false;
+    last_sync_us_ = MonotonicNowUs();
+}
+
+void LogWriter::CloseFile() {
+    if (fd_ < 0) return;
+    if (dirty_) Sync();
+    ::close(fd_);
+    fd_ = -1;
+    path_.clear();
+    std::lock_guard lock(stats_mu_);
+    stats_.current_path.clear();
+}
+
+void LogWriter::WriteOne(const Event& e) {
+    LogWriterState state;
+    {
+        std::lock_guard lock(stats_mu_);
+        state = stats_.state;
+    }
+    if (state == LogWriterState::kDiskGuard) {
+        CheckDisk(false);
+        std::lock_guard lock(stats_mu_);
+        if (stats_.state == LogWriterState::kDiskGuard) {
+            ++stats_.dropped_disk_guard;
+            return;
+        }
+    }
+    if (state == LogWriterState::kError) {
+        if (MonotonicNowUs() < retry_at_us_) {
+            std::lock_guard lock(stats_mu_);
+            ++stats_.dropped_write_error;
+            return;
+        }
+        {
+            std::lock_guard lock(stats_mu_);
+            stats_.state = LogWriterState::kOn;
+        }
+        CheckDisk(true);
+        std::lock_guard lock(stats_mu_);
+        if (stats_.state != LogWriterState::kOn) {
+            ++stats_.dropped_disk_guard;
+            return;
+        }
+    }
+    const std::int64_t size = 28 + static_cast<std::int64_t>(e.channel.size() + e.data.size());
+    if (fd_ >= 0) {
+        const bool too_big = config_.rotate_bytes > 0 && file_bytes_ > 0 &&
+                             file_bytes_ + size > config_.rotate_bytes;
+        const bool too_old = config_.rotate_interval_s > 0 &&
+                             Now() - file_open_utime_ >= config_.rotate_interval_s * 1'000'000;
+        if (too_big || too_old) CloseFile();
+    }
+    if (fd_ < 0 && !OpenNewFile()) {
+        std::lock_guard lock(stats_mu_);
+        ++stats_.dropped_write_error;
+        return;
+    }
+    buffer_ = EncodeLcmLogEvent(event_number_, e.utime, e.channel, e.data);
+    std::size_t done = 0;
+    while (done < buffer_.size()) {
+        const ssize_t n = ::write(fd_, buffer_.data() + done, buffer_.size() - done);
+        if (n > 0) {
+            done += static_cast<std::size_t>(n);
+            continue;
+        }
+        if (n < 0 && errno == EINTR) continue;
+        const int err = n < 0 ? errno : EIO;
+        // Cut the partial event off so the file ends on a complete event and a later writer
+        // (or lcm::LogFile) never sees half an event followed by more data.
+        const std::string path = path_;
+        const bool truncated = ::ftruncate(fd_, file_bytes_) == 0 &&
+                               ::lseek(fd_, file_bytes_, SEEK_SET) == file_bytes_;
+        ::close(fd_);
+        fd_ = -1;
+        path_.clear();
+        SetError(Errno("log: write " + path, err) +
+                 (truncated ? "" : " (and the partial event could not be cut off)"));
+        std::lock_guard lock(stats_mu_);
+        ++stats_.dropped_write_error;
+        stats_.current_path.clear();
+        return;
+    }
+    file_bytes_ += size;
+    ++event_number_;
+    dirty_ = true;
+    std::lock_guard lock(stats_mu_);
+    ++stats_.events_written;
+    stats_.bytes_written += size;
+}
+
+}  // namespace pitmap::acq
