@@ -41,8 +41,11 @@ std::vector<std::string> Captures() {
     return names;
 }
 
+// As tools/inspect/regen-golden.sh runs it: --json --dump-first 2.
 json Inspect(const std::string& name) {
-    const auto report = InspectFile((kDataDir / name).string(), InspectOptions{});
+    InspectOptions options;
+    options.dump_first = 2;
+    const auto report = InspectFile((kDataDir / name).string(), options);
     EXPECT_TRUE(report.ok()) << (report.ok() ? "" : report.error().message);
     return report.ok() ? ToJson(*report) : json();
 }
@@ -179,6 +182,31 @@ TEST(ProvenanceTest, Oem7DriverCaptures) {
     const json time = Inspect("oem7drv_time.gps");
     ExpectExactly(time, {{"101", 6}});
     EXPECT_EQ(time.at("time_span").at("gps_start").at("week"), 2070);
+    // Decoded TIME: UTC offset -18 s on 2019-09-10.
+    const json& first_time = time.at("samples").at("TIME").at("first").at(0);
+    EXPECT_EQ(first_time.at("utc_offset_s"), -18.0);
+    EXPECT_EQ(first_time.at("utc_year"), 2019);
+    EXPECT_EQ(first_time.at("utc_month"), 9);
+    EXPECT_EQ(first_time.at("utc_day"), 10);
+}
+
+TEST(ProvenanceTest, DecodersAcceptEveryFrameTheyClaim) {
+    for (const auto& name : Captures()) {
+        const json j = Inspect(name);
+        EXPECT_TRUE(j.at("decode_errors").empty()) << name << ": " << j.at("decode_errors");
+        EXPECT_EQ(j.at("decoded").get<std::uint64_t>() + j.at("unsupported").get<std::uint64_t>(),
+                  j.at("frames_total").get<std::uint64_t>())
+            << name;
+    }
+    // ProPak6 INS PPP: UTC offset -16 s in November 2014; every BESTPOS/INSPVAX decoded.
+    const json ppp = Inspect("spandrv_propak6-ins-ppp.pcap.gz");
+    const json& time = ppp.at("samples").at("TIME");
+    EXPECT_EQ(time.at("count"), 115);
+    EXPECT_EQ(time.at("first").at(0).at("utc_offset_s"), -16.0);
+    EXPECT_EQ(time.at("first").at(0).at("utc_year"), 2014);
+    EXPECT_EQ(time.at("first").at(0).at("utc_month"), 11);
+    EXPECT_EQ(ppp.at("samples").at("BESTPOS").at("count"), 2288);
+    EXPECT_EQ(ppp.at("samples").at("INSPVAX").at("count"), 2289);
 }
 
 TEST(ProvenanceTest, GavlabOneEach) {
@@ -254,7 +282,7 @@ RunResult RunInspect(const std::string& args) {
 
 TEST(InspectProgramTest, JsonOutputEqualsGolden) {
     const std::string name = "swri_corrimudata.pcapng";
-    const RunResult r = RunInspect("--json '" + (kDataDir / name).string() + "'");
+    const RunResult r = RunInspect("--json --dump-first 2 '" + (kDataDir / name).string() + "'");
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_EQ(json::parse(r.output, nullptr, false), ReadJson(kGoldenDir / (name + ".json")));
 }

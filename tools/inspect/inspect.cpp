@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <string_view>
@@ -13,6 +14,7 @@
 
 #include "common/capture/capture.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
+#include "common/protocol/novatel/decoder.hpp"
 #include "common/protocol/novatel/framer.hpp"
 #include "pitmap/channel_status_t.hpp"
 #include "pitmap/clock_sync_t.hpp"
@@ -179,6 +181,108 @@ void CountNovatelFrame(const novatel::Frame& frame, SourceSummary& s) {
     }
 }
 
+// Rounded so that golden files hold what the decoder means, not the last bit of a double.
+double Round(double v, double quantum) { return std::round(v / quantum) * quantum; }
+double Deg(double v) { return Round(v, 1e-9); }
+double Metres(double v) { return Round(v, 1e-4); }
+double Small(double v) { return Round(v, 1e-6); }
+
+nlohmann::json HeaderTime(const novatel::Header& h) {
+    return nlohmann::json{{"gps_week", h.gps_week}, {"gps_ms", h.gps_ms}};
+}
+
+// The sampled fields of a decoded message, with its name; nullopt for types not sampled.
+std::optional<std::pair<std::string, nlohmann::json>> Sample(const novatel::DecodeResult& r) {
+    using nlohmann::json;
+    if (const auto* m = std::get_if<novatel::BestPos>(&r)) {
+        return std::pair{std::string("BESTPOS"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"solution_status", static_cast<std::uint32_t>(m->solution_status)},
+                              {"position_type", static_cast<std::uint32_t>(m->position_type)},
+                              {"latitude_deg", Deg(m->latitude_deg)},
+                              {"longitude_deg", Deg(m->longitude_deg)},
+                              {"height_msl_m", Metres(m->height_msl_m)},
+                              {"undulation_m", Metres(m->undulation_m)},
+                              {"num_svs_in_solution", m->num_svs_in_solution}}};
+    }
+    if (const auto* m = std::get_if<novatel::BestVel>(&r)) {
+        return std::pair{std::string("BESTVEL"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"horizontal_speed_mps", Small(m->horizontal_speed_mps)},
+                              {"track_over_ground_deg", Small(m->track_over_ground_deg)},
+                              {"vertical_speed_mps", Small(m->vertical_speed_mps)}}};
+    }
+    if (const auto* m = std::get_if<novatel::InsPva>(&r)) {
+        return std::pair{std::string("INSPVA"),
+                         json{{"gps_week", m->gps_week},
+                              {"gps_seconds", Small(m->gps_seconds)},
+                              {"latitude_deg", Deg(m->latitude_deg)},
+                              {"longitude_deg", Deg(m->longitude_deg)},
+                              {"height_ellipsoid_m", Metres(m->height_ellipsoid_m)},
+                              {"roll_deg", Small(m->roll_deg)},
+                              {"pitch_deg", Small(m->pitch_deg)},
+                              {"azimuth_deg", Small(m->azimuth_deg)},
+                              {"ins_status", static_cast<std::uint32_t>(m->ins_status)}}};
+    }
+    if (const auto* m = std::get_if<novatel::InsPvaX>(&r)) {
+        return std::pair{std::string("INSPVAX"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"latitude_deg", Deg(m->latitude_deg)},
+                              {"longitude_deg", Deg(m->longitude_deg)},
+                              {"height_msl_m", Metres(m->height_msl_m)},
+                              {"roll_deg", Small(m->roll_deg)},
+                              {"pitch_deg", Small(m->pitch_deg)},
+                              {"azimuth_deg", Small(m->azimuth_deg)},
+                              {"ins_status", static_cast<std::uint32_t>(m->ins_status)}}};
+    }
+    if (const auto* m = std::get_if<novatel::InsAttX>(&r)) {
+        return std::pair{std::string("INSATTX"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"roll_deg", Small(m->roll_deg)},
+                              {"pitch_deg", Small(m->pitch_deg)},
+                              {"azimuth_deg", Small(m->azimuth_deg)}}};
+    }
+    if (const auto* m = std::get_if<novatel::Heading2>(&r)) {
+        return std::pair{std::string("HEADING2"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"heading_deg", Small(m->heading_deg)},
+                              {"pitch_deg", Small(m->pitch_deg)},
+                              {"baseline_length_m", Metres(m->baseline_length_m)}}};
+    }
+    if (const auto* m = std::get_if<novatel::Time>(&r)) {
+        return std::pair{std::string("TIME"),
+                         json{{"time", HeaderTime(m->header)},
+                              {"utc_offset_s", Small(m->utc_offset_s)},
+                              {"utc_year", m->utc_year},
+                              {"utc_month", m->utc_month},
+                              {"utc_day", m->utc_day}}};
+    }
+    return std::nullopt;
+}
+
+void CountDecoded(const novatel::Frame& frame, std::size_t dump_first, SourceSummary& s) {
+    const auto result = novatel::Decode(frame);
+    if (const auto* error = std::get_if<novatel::DecodeError>(&result)) {
+        ++s.decode_errors[std::string(novatel::ToString(error->kind))];
+        return;
+    }
+    if (std::holds_alternative<novatel::Unsupported>(result)) {
+        ++s.unsupported;
+        return;
+    }
+    ++s.decoded;
+    if (dump_first == 0) return;
+    auto sample = Sample(result);
+    if (!sample) return;
+    auto& samples = s.samples[sample->first];
+    ++samples.count;
+    if (samples.first.size() < dump_first) {
+        samples.first.push_back(std::move(sample->second));
+    } else {
+        samples.last = std::move(sample->second);
+    }
+}
+
 void CountSkipped(const protocol::Skipped& skipped, SourceSummary& s) {
     s.skipped.Add(skipped);
     if (skipped.reason == protocol::SkipReason::kBadCrc) ++s.crc_failures;
@@ -199,7 +303,8 @@ class SourceCounter {
 public:
     enum class Mode : std::uint8_t { kNovatel, kDeltaTStream, kDeltaTDatagram, kUnframed };
 
-    SourceCounter(std::string name, std::string protocol_name, Mode mode) : mode_(mode) {
+    SourceCounter(std::string name, std::string protocol_name, Mode mode, std::size_t dump_first)
+        : mode_(mode), dump_first_(dump_first) {
         summary_.name = std::move(name);
         summary_.protocol = std::move(protocol_name);
         if (mode_ == Mode::kNovatel) novatel_ = std::make_unique<novatel::Framer>();
@@ -256,7 +361,9 @@ private:
                 CountSkipped(*skipped, summary_);
                 continue;
             }
-            CountNovatelFrame(std::get<novatel::Frame>(ev), summary_);
+            const auto& frame = std::get<novatel::Frame>(ev);
+            CountNovatelFrame(frame, summary_);
+            CountDecoded(frame, dump_first_, summary_);
         }
     }
 
@@ -307,6 +414,7 @@ private:
     }
 
     Mode mode_;
+    std::size_t dump_first_ = 0;
     SourceSummary summary_;
     std::unique_ptr<novatel::Framer> novatel_;
     std::unique_ptr<deltat::StreamFramer> deltat_;
@@ -399,7 +507,8 @@ SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::in
     return SourceCounter::Mode::kUnframed;
 }
 
-Expected<InspectReport> InspectLcmLog(const std::string& path, InspectReport report) {
+Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOptions& options,
+                                      InspectReport report) {
     lcm::LogFile log(path, "r");
     if (!log.good()) return Error{path + ": cannot open as an LCM log"};
     LcmSummary lcm_summary;
@@ -422,7 +531,8 @@ Expected<InspectReport> InspectLcmLog(const std::string& path, InspectReport rep
             auto it = index.find(key);
             if (it == index.end()) {
                 counters.push_back(std::make_unique<SourceCounter>(
-                    key, raw.protocol, ModeForRawProtocol(raw.protocol, raw.transport)));
+                    key, raw.protocol, ModeForRawProtocol(raw.protocol, raw.transport),
+                    options.dump_first));
                 it = index.emplace(key, counters.size() - 1).first;
             } else if (raw.seq > last_seq[key] + 1) {
                 lcm_summary.raw_seq_gaps += static_cast<std::uint64_t>(raw.seq - last_seq[key] - 1);
@@ -486,7 +596,7 @@ InspectReport InspectCapture(capture::CaptureContents contents, const InspectOpt
 
         const ByteSpan all(stream.bytes);
         const auto mode = StreamMode(options.protocol, all);
-        SourceCounter counter("tcp " + name, ModeName(mode), mode);
+        SourceCounter counter("tcp " + name, ModeName(mode), mode, options.dump_first);
         // Feed the bytes as the socket delivered them; break the stream at capture gaps.
         std::size_t gap_index = 0;
         for (std::size_t i = 0; i < stream.chunks.size(); ++i) {
@@ -513,7 +623,8 @@ InspectReport InspectCapture(capture::CaptureContents contents, const InspectOpt
             if (mode == SourceCounter::Mode::kDeltaTStream) {
                 mode = SourceCounter::Mode::kDeltaTDatagram;  // one record per datagram (§3.2)
             }
-            udp_counters.push_back(std::make_unique<SourceCounter>(name, ModeName(mode), mode));
+            udp_counters.push_back(
+                std::make_unique<SourceCounter>(name, ModeName(mode), mode, options.dump_first));
             it = udp_index.emplace(name, udp_counters.size() - 1).first;
         }
         udp_counters[it->second]->Push(dgram.payload);
@@ -582,6 +693,24 @@ void SourceSummary::Add(const SourceSummary& o) {
     if (o.gps_end_s) WidenGps(*this, *o.gps_end_s);
     if (o.sonar_start_utime) WidenSonar(*this, *o.sonar_start_utime);
     if (o.sonar_end_utime) WidenSonar(*this, *o.sonar_end_utime);
+    decoded += o.decoded;
+    unsupported += o.unsupported;
+    for (const auto& [k, v] : o.decode_errors) decode_errors[k] += v;
+    // Samples of several sources: the first ones in source order, the last of the last source.
+    for (const auto& [type, theirs] : o.samples) {
+        auto& mine = samples[type];
+        mine.count += theirs.count;
+        std::vector<nlohmann::json> tail = theirs.first;
+        if (!theirs.last.is_null()) tail.push_back(theirs.last);
+        const std::size_t limit = std::max(mine.first.size(), theirs.first.size());
+        for (auto& j : tail) {
+            if (mine.first.size() < limit) {
+                mine.first.push_back(std::move(j));
+            } else {
+                mine.last = std::move(j);
+            }
+        }
+    }
 }
 
 Expected<Detected> DetectFormat(ByteSpan bytes, const std::string& name) {
@@ -597,12 +726,12 @@ Expected<Detected> DetectFormat(ByteSpan bytes, const std::string& name) {
                  "or NovAtel data); give --format and --protocol"};
 }
 
-SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, std::size_t chunk_bytes,
+SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, const InspectOptions& options,
                             const std::string& name) {
     const auto mode = protocol == Protocol::kDeltaT ? SourceCounter::Mode::kDeltaTStream
                                                     : SourceCounter::Mode::kNovatel;
-    SourceCounter counter(name, ModeName(mode), mode);
-    chunk_bytes = std::max<std::size_t>(chunk_bytes, 1);
+    SourceCounter counter(name, ModeName(mode), mode, options.dump_first);
+    const std::size_t chunk_bytes = std::max<std::size_t>(options.chunk_bytes, 1);
     for (std::size_t off = 0; off < bytes.size(); off += chunk_bytes) {
         counter.Push(bytes.subspan(off, std::min(chunk_bytes, bytes.size() - off)));
     }
@@ -640,12 +769,12 @@ Expected<InspectReport> InspectFile(const std::string& path, const InspectOption
             if (capture::IsGzipFile(path)) {
                 return Error{path + ": gzip-compressed LCM logs are not supported; gunzip it"};
             }
-            return InspectLcmLog(path, std::move(report));
+            return InspectLcmLog(path, options, std::move(report));
         case InputFormat::kAuto:
         case InputFormat::kRaw:
             break;
     }
-    report.sources.push_back(InspectStream(*bytes, detected.protocol, options.chunk_bytes, "file"));
+    report.sources.push_back(InspectStream(*bytes, detected.protocol, options, "file"));
     report.total.Add(report.sources.back());
     return report;
 }

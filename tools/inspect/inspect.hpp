@@ -42,6 +42,17 @@ struct InspectOptions {
     InputFormat format = InputFormat::kAuto;
     Protocol protocol = Protocol::kAuto;  // for raw files and capture streams
     std::size_t chunk_bytes = 4096;       // raw files are pushed to the framer in such blocks
+    // Decoded fields of the first N (and the last) messages of each sampled type (BESTPOS,
+    // BESTVEL, INSPVA(S), INSPVAX, INSATTX, HEADING2, TIME) go into the report; 0 = none.
+    std::size_t dump_first = 0;
+};
+
+// Decoded fields of some messages of one type (SI units as the decoder gives them, angles in
+// degrees as NovAtel sends them).
+struct DecodedSamples {
+    std::uint64_t count = 0;              // messages of this type decoded
+    std::vector<nlohmann::json> first;    // the first dump_first of them
+    nlohmann::json last;                  // the last one (null if count <= dump_first)
 };
 
 // What detection concluded about a file's first bytes and name.
@@ -77,6 +88,11 @@ struct SourceSummary {
     std::uint64_t truncated_tail_bytes = 0;  // what Flush() returned at the end of the source
     std::uint64_t unframed_bytes = 0;        // bytes of a protocol no framer here knows
     std::uint64_t datagram_errors = 0;       // UDP 83P datagrams that did not decode
+    // NovAtel decoder results (common/protocol/novatel/decoder.hpp) for every frame.
+    std::uint64_t decoded = 0;      // frames that decoded to a message
+    std::uint64_t unsupported = 0;  // valid frames without a decoder (counted, not an error)
+    std::map<std::string, std::uint64_t> decode_errors;  // by DecodeErrorKind name
+    std::map<std::string, DecodedSamples> samples;       // by message name, if dump_first > 0
     // GPS time from NovAtel headers (week 0 = unknown time is left out), as GPS seconds since
     // 1980-01-06 (week * 604800 + seconds of week).
     std::optional<double> gps_start_s;
@@ -144,14 +160,15 @@ struct InspectReport {
 Expected<InspectReport> InspectFile(const std::string& path, const InspectOptions& options);
 
 // Frames a byte stream already in memory as one source (used for raw files; exposed for tests).
-SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, std::size_t chunk_bytes,
+SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, const InspectOptions& options,
                             const std::string& name);
 
 // The machine-readable report: ONE object. Keys at the top level: file (base name only, so
 // golden files do not depend on where the data lives), format, input_bytes, frames_total,
 // log_frames, responses, prompts, frames_by_id, frames_by_kind, message_names, crc_failures,
-// skipped_bytes {total, <reason>...}, truncated_tail_bytes, time_span, sources[], and capture
-// or lcm when the input was one.
+// skipped_bytes {total, <reason>...}, truncated_tail_bytes, time_span, decoded, unsupported,
+// decode_errors, samples (when dump_first > 0), sources[], and capture or lcm when the input
+// was one.
 nlohmann::json ToJson(const InspectReport& report);
 
 // The human-readable report.

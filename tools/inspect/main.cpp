@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
     std::string format = "auto";
     std::string protocol = "auto";
     bool json = false;
+    std::size_t dump_first = 0;
     app.add_option("file", path, "input: NovAtel raw (.gps/.GPS/.ASC/.dat), .83P, "
                                  ".pcap/.pcapng[.gz] or LCM log")
         ->required();
@@ -25,6 +26,9 @@ int main(int argc, char** argv) {
     app.add_option("--protocol", protocol, "framing of raw bytes: auto, novatel, deltat")
         ->capture_default_str();
     app.add_flag("--json", json, "print one JSON object instead of text");
+    app.add_option("--dump-first", dump_first,
+                   "decoded fields of the first N (and the last) BESTPOS, BESTVEL, INSPVA(S), "
+                   "INSPVAX, INSATTX, HEADING2 and TIME messages");
     CLI11_PARSE(app, argc, argv);
 
     try {
@@ -39,6 +43,7 @@ int main(int argc, char** argv) {
         }
         options.format = *parsed_format;
         options.protocol = *parsed_protocol;
+        options.dump_first = dump_first;
         if (format == "83p" && options.protocol == inspect::Protocol::kAuto) {
             options.protocol = inspect::Protocol::kDeltaT;
         }

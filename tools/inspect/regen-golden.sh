@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: MIT
 # Regenerates tests/data/novatel/golden/<capture>.json: pitmap-inspect's JSON for every capture
 # in tests/data/novatel. The only writer of those files; review the diff before committing it.
-#   tools/inspect/regen-golden.sh            # uses build/bin/pitmap-inspect
+#   tools/inspect/regen-golden.sh            # uses build/bin/pitmap-inspect --json --dump-first 2
 #   PITMAP_BUILD_DIR=build-x tools/inspect/regen-golden.sh
 set -eu
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -26,7 +26,7 @@ for capture in "$data"/*; do
     *.md) continue ;;
   esac
   # Run from the data folder so nothing about this machine's paths reaches the output.
-  (cd "$data" && "$inspect" --json "$name") > "$data/golden/$name.json.tmp"
+  (cd "$data" && "$inspect" --json --dump-first 2 "$name") > "$data/golden/$name.json.tmp"
   mv "$data/golden/$name.json.tmp" "$data/golden/$name.json"
   count=$((count + 1))
 done

@@ -85,6 +85,17 @@ json Counts(const SourceSummary& s) {
     out["unframed_bytes"] = s.unframed_bytes;
     out["datagram_errors"] = s.datagram_errors;
     out["time_span"] = TimeSpan(s);
+    out["decoded"] = s.decoded;
+    out["unsupported"] = s.unsupported;
+    out["decode_errors"] = s.decode_errors;
+    if (!s.samples.empty()) {
+        json samples = json::object();
+        for (const auto& [name, sample] : s.samples) {
+            samples[name] = json{{"count", sample.count}, {"first", sample.first},
+                                 {"last", sample.last}};
+        }
+        out["samples"] = std::move(samples);
+    }
     return out;
 }
 
@@ -116,6 +127,14 @@ void WriteCounts(std::ostringstream& os, const SourceSummary& s, const std::stri
     os << ", truncated tail " << s.truncated_tail_bytes << "\n";
     if (s.unframed_bytes != 0) os << indent << "unframed bytes " << s.unframed_bytes << "\n";
     if (s.datagram_errors != 0) os << indent << "bad datagrams " << s.datagram_errors << "\n";
+    os << indent << "decoded " << s.decoded << ", no decoder " << s.unsupported;
+    for (const auto& [kind, count] : s.decode_errors) os << ", " << kind << " " << count;
+    os << "\n";
+    for (const auto& [name, sample] : s.samples) {
+        os << indent << name << " x" << sample.count << ": first " << sample.first.front().dump()
+           << "\n";
+        if (!sample.last.is_null()) os << indent << "  last " << sample.last.dump() << "\n";
+    }
     if (s.gps_start_s && s.gps_end_s) {
         os << indent << "GPS time " << FormatGps(*s.gps_start_s) << " .. "
            << FormatGps(*s.gps_end_s) << " (" << (*s.gps_end_s - *s.gps_start_s) << " s)\n";
