@@ -4,7 +4,8 @@
 // Connects with a timeout (non-blocking connect + poll), enables SO_KEEPALIVE with
 // TCP_KEEPIDLE/INTVL/CNT so a dead peer is noticed within idle + intvl*cnt seconds even
 // when the line is silent, TCP_NODELAY for commands, and SO_TIMESTAMPNS so a chunk carries
-// the kernel receive time of its last segment. A peer that closes or resets the connection
+// the kernel receive time of its last segment where the kernel provides one (often not on
+// TCP: then utime_kernel is 0). A peer that closes or resets the connection
 // makes the source kDisconnected; Read() reconnects with bounded backoff. TCP segments do
 // not respect message boundaries: the framer downstream reassembles.
 //
