@@ -1,0 +1,164 @@
+// SPDX-License-Identifier: MIT
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "common/frames.hpp"
+#include "tools/eval/ply.hpp"
+#include "tools/eval/scores.hpp"
+
+namespace pitmap::eval {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Eval : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = fs::path(::testing::TempDir()) / ("pitmap_eval_" + std::to_string(::getpid()));
+        fs::remove_all(dir_);
+        fs::create_directories(dir_ / "truth");
+        fs::create_directories(dir_ / "products");
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    fs::path dir_;
+};
+
+// A flat floor at z = -10 and a straight true track along x at 1 m/s.
+sim::Truth FlatTruth() {
+    sim::Truth t;
+    t.origin = {40.4435, -7.7806, 412.0};
+    t.terrain.x0_m = -50;
+    t.terrain.y0_m = -50;
+    t.terrain.resolution_m = 1.0;
+    t.terrain.nx = t.terrain.ny = 101;
+    t.terrain.height_m.assign(101 * 101, -10.0f);
+    for (int k = 0; k <= 100; ++k) {
+        t.trajectory.push_back({1.4e9 + k, MakePose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(k - 50.0, 0, 0))});
+    }
+    t.boresight = {0.5, 0.0, 1.0, {0.8, 0.0, 0.25}};
+    return t;
+}
+
+void WritePlyAscii(const fs::path& p, const std::vector<Eigen::Vector3d>& v, const std::string& comment,
+                   const std::vector<std::array<int, 4>>& quads = {}) {
+    std::ofstream out(p);
+    out << "ply\nformat ascii 1.0\n";
+    if (!comment.empty()) out << "comment " << comment << "\n";
+    out << "element vertex " << v.size() << "\nproperty double x\nproperty double y\nproperty double z\n"
+        << "property uchar red\n";
+    out << "element face " << quads.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (const auto& x : v) out << x.x() << " " << x.y() << " " << x.z() << " 7\n";
+    for (const auto& q : quads) out << "4 " << q[0] << " " << q[1] << " " << q[2] << " " << q[3] << "\n";
+}
+
+TEST(Ply, ReadsBinaryLittleEndianWithMixedTypes) {
+    const fs::path p = fs::path(::testing::TempDir()) / "pitmap_eval_bin.ply";
+    {
+        std::ofstream out(p, std::ios::binary);
+        out << "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin 1 2 3\n"
+               "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty double t\n"
+               "element face 1\nproperty list uchar uint vertex_indices\nend_header\n";
+        const float xyz[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 2, -1.5f}};
+        for (const auto& v : xyz) {
+            out.write(reinterpret_cast<const char*>(v), 12);
+            const double t = 5.0;
+            out.write(reinterpret_cast<const char*>(&t), 8);
+        }
+        const unsigned char n = 3;
+        const unsigned int idx[3] = {0, 1, 2};
+        out.write(reinterpret_cast<const char*>(&n), 1);
+        out.write(reinterpret_cast<const char*>(idx), 12);
+    }
+    auto ply = ReadPly(p.string());
+    ASSERT_TRUE(ply.ok()) << ply.error().message;
+    ASSERT_EQ(ply->vertices.size(), 3u);
+    EXPECT_EQ(ply->vertices[2], Eigen::Vector3d(0, 2, -1.5));
+    ASSERT_EQ(ply->triangles.size(), 1u);
+    EXPECT_EQ(ply->comments.at(0), "pitmap_origin 1 2 3");
+    // Truncated body: a clear error, not a crash.
+    fs::resize_file(p, fs::file_size(p) - 5);
+    EXPECT_FALSE(ReadPly(p.string()).ok());
+    fs::remove(p);
+}
+
+TEST(Frames, ProductToTruthIsExactForNearbyOrigins) {
+    const Geodetic truth_origin{40.4435, -7.7806, 412.0};
+    const Geodetic prod_origin{40.4440, -7.7800, 410.0};
+    const Pose T = ProductToTruthFrame(prod_origin, truth_origin);
+    const LocalTangentFrame prod(prod_origin), truth(truth_origin);
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(60, -45, -27)}) {
+        EXPECT_LT((T * p - truth.ToEnu(prod.FromEnu(p))).norm(), 1e-6);
+    }
+    EXPECT_TRUE(ProductToTruthFrame(truth_origin, truth_origin).isApprox(Pose::Identity(), 1e-9));
+}
+
+TEST(Scores, DistanceStatistics) {
+    const DistanceStats s = SummariseDistances({-1, 1, -1, 1});
+    EXPECT_DOUBLE_EQ(s.rms_m, 1.0);
+    EXPECT_DOUBLE_EQ(s.bias_m, 0.0);
+    EXPECT_DOUBLE_EQ(s.p95_m, 1.0);
+    std::vector<double> d(100);
+    for (int i = 0; i < 100; ++i) d[static_cast<std::size_t>(i)] = i + 1;  // 1..100
+    EXPECT_DOUBLE_EQ(SummariseDistances(d).p95_m, 95.0);
+    EXPECT_EQ(SummariseDistances({}).count, 0u);
+}
+
+TEST(Scores, BoresightAngle) {
+    EXPECT_NEAR(BoresightErrorDeg(0.5, 0, 1.0, 0.5, 0, 1.0), 0.0, 1e-9);
+    EXPECT_NEAR(BoresightErrorDeg(0.5, 0, 2.0, 0.5, 0, 1.0), 1.0, 1e-6);
+    EXPECT_NEAR(BoresightErrorDeg(0, 0, 0, 0.3, 0.4, 0), 0.5, 1e-3);
+}
+
+TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
+    const sim::Truth truth = FlatTruth();
+    ASSERT_TRUE(sim::WriteTruth((dir_ / "truth").string(), *sim::BuiltinScenario("demo"), truth).ok());
+    const double shift = 0.25;  // metres up
+    for (const double dz : {0.0, shift}) {
+        // Trajectory: the truth, shifted.
+        {
+            std::ofstream csv(dir_ / "products" / "trajectory.csv");
+            csv << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n";
+            csv.precision(12);
+            for (const auto& p : truth.trajectory) {
+                const Eigen::Vector3d t = p.T_world_vehicle.translation();
+                csv << p.gps_time_s << "," << t.x() << "," << t.y() << "," << t.z() + dz << ",0,0,0\n";
+            }
+        }
+        // Points on the floor, shifted; a 2 x 2 quad mesh likewise.
+        std::vector<Eigen::Vector3d> pts;
+        for (int i = 0; i < 50; ++i) pts.emplace_back(i - 25.0, 0.5 * i - 12, -10.0 + dz);
+        WritePlyAscii(dir_ / "products" / "points.ply", pts, "pitmap_origin 40.4435 -7.7806 412.0");
+        WritePlyAscii(dir_ / "products" / "mesh.ply",
+                      {{-5, -5, -10 + dz}, {5, -5, -10 + dz}, {5, 5, -10 + dz}, {-5, 5, -10 + dz}}, "",
+                      {{0, 1, 2, 3}});
+        std::ofstream(dir_ / "products" / "boresight.json")
+            << "{\"roll_deg\": 0.5, \"pitch_deg\": 0.0, \"yaw_deg\": " << (1.0 + dz) << "}\n";
+        const fs::path json_path = dir_ / "scores.json";
+        const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" +
+                                (dir_ / "truth").string() + "' --products '" + (dir_ / "products").string() +
+                                "' --json '" + json_path.string() + "' > /dev/null";
+        ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        std::ifstream in(json_path);
+        const auto j = nlohmann::json::parse(in);
+        EXPECT_NEAR(j.at("trajectory_ate_rmse_m").get<double>(), dz, 1e-6);
+        EXPECT_NEAR(j.at("points_rms_m").get<double>(), dz, 1e-4);
+        EXPECT_NEAR(j.at("points_p95_m").get<double>(), dz, 1e-4);
+        EXPECT_NEAR(j.at("mesh_mean_abs_m").get<double>(), dz, 1e-4);
+        EXPECT_NEAR(j.at("boresight_error_deg").get<double>(), dz, 1e-6);  // yaw off by dz degrees
+    }
+}
+
+TEST_F(Eval, MissingTruthIsAClearError) {
+    const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" + (dir_ / "nothing").string() +
+                            "' --products '" + (dir_ / "products").string() + "' 2>/dev/null";
+    EXPECT_EQ(WEXITSTATUS(std::system(cmd.c_str())), 2);
+}
+
+}  // namespace
+}  // namespace pitmap::eval

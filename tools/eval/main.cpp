@@ -1,0 +1,164 @@
+// SPDX-License-Identifier: MIT
+// pitmap-eval: scores survey products against the simulator's ground truth.
+//   pitmap-eval --truth DIR/truth --products P --json scores.json
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "tools/eval/ply.hpp"
+#include "tools/eval/scores.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace pitmap;
+
+namespace {
+
+constexpr const char* kDefinitions = R"(Scores (only those whose product exists are written):
+  trajectory_ate_rmse_m         RMS position error of P/trajectory.csv against the true trajectory
+                                at the same GPS times, in the truth's world frame, no alignment.
+  trajectory_ate_rmse_before_m  the same for P/trajectory_initial.csv (before SLAM).
+  trajectory_z_std_m            standard deviation of the product track height (a surface
+                                vehicle's track should be planar).
+  points_rms_m, points_p95_m    RMS and 95th percentile of the distance of each point of
+                                P/points.ply to the true terrain surface; points_bias_m: mean signed.
+  boresight_error_deg           angle between the estimated (P/boresight.json) and the true
+                                INS->sonar rotation, R = Rz(yaw) Ry(pitch) Rx(roll).
+  mesh_mean_abs_m, mesh_rms_m, mesh_p95_m
+                                distance of the vertices and triangle centroids of P/mesh.ply
+                                to the true surface.
+Products are in a local ENU frame whose origin is P/summary.json "world_origin"
+(latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
+either, the truth's origin is assumed (and said).)";
+
+std::optional<Geodetic> ProductOrigin(const fs::path& products, const std::vector<std::string>& ply_comments) {
+    std::ifstream in(products / "summary.json");
+    if (in) {
+        const json j = json::parse(in, nullptr, false);
+        if (!j.is_discarded() && j.contains("world_origin")) {
+            const json& o = j["world_origin"];
+            return Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
+        }
+    }
+    for (const auto& c : ply_comments) {
+        Geodetic g;
+        if (std::sscanf(c.c_str(), "pitmap_origin %lf %lf %lf", &g.latitude_deg, &g.longitude_deg, &g.height_m) == 3) return g;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"pitmap-eval: score survey products against simulator ground truth"};
+    std::string truth_dir, products_dir, json_path;
+    app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")->required();
+    app.add_option("--products", products_dir, "products folder (pitmap ... --out P)")->required();
+    app.add_option("--json", json_path, "write the scores as one JSON object to this file");
+    app.footer(kDefinitions);
+    CLI11_PARSE(app, argc, argv);
+
+    auto truth = sim::ReadTruth(truth_dir);
+    if (!truth) {
+        std::fprintf(stderr, "pitmap-eval: %s\n", truth.error().message.c_str());
+        return 2;
+    }
+    const fs::path P(products_dir);
+    if (!fs::is_directory(P)) {
+        std::fprintf(stderr, "pitmap-eval: %s: not a folder\n", products_dir.c_str());
+        return 2;
+    }
+    const sim::PitWorld world(truth->terrain);
+    json scores;
+    std::vector<std::string> comments;
+    eval::PlyData cloud;
+    bool have_cloud = false;
+    if (fs::exists(P / "points.ply")) {
+        auto ply = eval::ReadPly((P / "points.ply").string());
+        if (!ply) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
+            return 2;
+        }
+        cloud = std::move(*ply);
+        comments = cloud.comments;
+        have_cloud = true;
+    }
+    auto origin = ProductOrigin(P, comments);
+    if (!origin) {
+        std::fprintf(stderr, "pitmap-eval: no world origin in the products; assuming the truth's origin\n");
+        origin = truth->origin;
+    }
+    const Pose T = eval::ProductToTruthFrame(*origin, truth->origin);
+
+    for (const auto& [file, key] : {std::pair{"trajectory.csv", "trajectory_ate_rmse_m"},
+                                    std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
+        if (!fs::exists(P / file)) continue;
+        auto traj = eval::ReadTrajectoryCsv((P / file).string());
+        if (!traj) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", traj.error().message.c_str());
+            return 2;
+        }
+        const auto s = eval::ScoreTrajectory(*traj, T, truth->trajectory);
+        if (s.poses == 0) {
+            std::fprintf(stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
+            continue;
+        }
+        scores[key] = s.ate_rmse_m;
+        if (std::string(file) == "trajectory.csv") {
+            scores["trajectory_ate_max_m"] = s.ate_max_m;
+            scores["trajectory_z_std_m"] = s.z_std_m;
+        }
+    }
+    if (have_cloud) {
+        const auto s = eval::ScorePoints(cloud.vertices, T, world);
+        scores["points_rms_m"] = s.rms_m;
+        scores["points_p95_m"] = s.p95_m;
+        scores["points_bias_m"] = s.bias_m;
+        scores["points_scored"] = s.count;
+    }
+    if (fs::exists(P / "boresight.json")) {
+        std::ifstream in(P / "boresight.json");
+        const json b = json::parse(in, nullptr, false);
+        if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") || !b.contains("yaw_deg")) {
+            std::fprintf(stderr, "pitmap-eval: %s/boresight.json: needs roll_deg, pitch_deg, yaw_deg\n", products_dir.c_str());
+            return 2;
+        }
+        scores["boresight_error_deg"] = eval::BoresightErrorDeg(
+            b["roll_deg"].get<double>(), b["pitch_deg"].get<double>(), b["yaw_deg"].get<double>(),
+            truth->boresight.roll_deg, truth->boresight.pitch_deg, truth->boresight.yaw_deg);
+    }
+    if (fs::exists(P / "mesh.ply")) {
+        auto mesh = eval::ReadPly((P / "mesh.ply").string());
+        if (!mesh) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", mesh.error().message.c_str());
+            return 2;
+        }
+        std::vector<Eigen::Vector3d> samples = mesh->vertices;
+        for (const auto& t : mesh->triangles) {
+            samples.push_back((mesh->vertices[static_cast<std::size_t>(t[0])] + mesh->vertices[static_cast<std::size_t>(t[1])] +
+                               mesh->vertices[static_cast<std::size_t>(t[2])]) / 3.0);
+        }
+        const auto s = eval::ScorePoints(samples, T, world);
+        scores["mesh_mean_abs_m"] = s.mean_abs_m;
+        scores["mesh_rms_m"] = s.rms_m;
+        scores["mesh_p95_m"] = s.p95_m;
+    }
+
+    if (scores.empty()) {
+        std::fprintf(stderr, "pitmap-eval: %s holds no product to score\n", products_dir.c_str());
+        return 1;
+    }
+    std::printf("%-32s %12s\n", "score", "value");
+    for (const auto& [k, v] : scores.items()) std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
+    if (!json_path.empty()) {
+        std::ofstream out(json_path);
+        out << scores.dump(2) << "\n";
+        if (!out) {
+            std::fprintf(stderr, "pitmap-eval: %s: cannot write\n", json_path.c_str());
+            return 2;
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,167 @@
+// SPDX-License-Identifier: MIT
+#include "tools/eval/ply.hpp"
+
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "common/byte_io.hpp"
+
+namespace pitmap::eval {
+namespace {
+
+enum class Type { kInt8, kUInt8, kInt16, kUInt16, kInt32, kUInt32, kFloat32, kFloat64, kInvalid };
+
+Type ParseType(const std::string& s) {
+    if (s == "char" || s == "int8") return Type::kInt8;
+    if (s == "uchar" || s == "uint8") return Type::kUInt8;
+    if (s == "short" || s == "int16") return Type::kInt16;
+    if (s == "ushort" || s == "uint16") return Type::kUInt16;
+    if (s == "int" || s == "int32") return Type::kInt32;
+    if (s == "uint" || s == "uint32") return Type::kUInt32;
+    if (s == "float" || s == "float32") return Type::kFloat32;
+    if (s == "double" || s == "float64") return Type::kFloat64;
+    return Type::kInvalid;
+}
+
+struct Property {
+    std::string name;
+    Type type = Type::kInvalid;
+    bool is_list = false;
+    Type count_type = Type::kInvalid;
+};
+
+struct Element {
+    std::string name;
+    std::size_t count = 0;
+    std::vector<Property> props;
+};
+
+double ReadBinary(ByteReader& r, Type t) {
+    switch (t) {
+        case Type::kInt8: return r.I8();
+        case Type::kUInt8: return r.U8();
+        case Type::kInt16: return r.I16Le();
+        case Type::kUInt16: return r.U16Le();
+        case Type::kInt32: return r.I32Le();
+        case Type::kUInt32: return r.U32Le();
+        case Type::kFloat32: return r.F32Le();
+        case Type::kFloat64: return r.F64Le();
+        case Type::kInvalid: break;
+    }
+    return 0;
+}
+
+}  // namespace
+
+Expected<PlyData> ReadPly(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Error{path + ": cannot open"};
+    std::string line;
+    if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return Error{path + ": not a PLY file"};
+    bool binary = false;
+    std::vector<Element> elements;
+    PlyData out;
+    while (std::getline(in, line)) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::istringstream ls(line);
+        std::string word;
+        ls >> word;
+        if (word == "format") {
+            std::string fmt;
+            ls >> fmt;
+            if (fmt == "binary_little_endian") binary = true;
+            else if (fmt != "ascii") return Error{path + ": unsupported PLY format " + fmt};
+        } else if (word == "comment") {
+            out.comments.push_back(line.size() > 8 ? line.substr(8) : "");
+        } else if (word == "element") {
+            Element e;
+            ls >> e.name >> e.count;
+            if (!ls) return Error{path + ": bad element line: " + line};
+            elements.push_back(e);
+        } else if (word == "property") {
+            if (elements.empty()) return Error{path + ": property before any element"};
+            Property p;
+            std::string t;
+            ls >> t;
+            if (t == "list") {
+                std::string ct, it;
+                ls >> ct >> it >> p.name;
+                p.is_list = true;
+                p.count_type = ParseType(ct);
+                p.type = ParseType(it);
+            } else {
+                p.type = ParseType(t);
+                ls >> p.name;
+            }
+            if (p.type == Type::kInvalid || (p.is_list && p.count_type == Type::kInvalid)) {
+                return Error{path + ": bad property line: " + line};
+            }
+            elements.back().props.push_back(p);
+        } else if (word == "end_header") {
+            break;
+        }
+    }
+    if (!in) return Error{path + ": truncated header"};
+
+    std::vector<std::uint8_t> body;
+    if (binary) {
+        body.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    ByteReader r(body);
+    for (const Element& e : elements) {
+        const bool is_vertex = e.name == "vertex";
+        const bool is_face = e.name == "face";
+        int ix = -1, iy = -1, iz = -1;
+        for (std::size_t k = 0; k < e.props.size(); ++k) {
+            if (e.props[k].name == "x") ix = static_cast<int>(k);
+            if (e.props[k].name == "y") iy = static_cast<int>(k);
+            if (e.props[k].name == "z") iz = static_cast<int>(k);
+        }
+        if (is_vertex && (ix < 0 || iy < 0 || iz < 0)) return Error{path + ": vertex without x, y, z"};
+        for (std::size_t n = 0; n < e.count; ++n) {
+            Eigen::Vector3d v = Eigen::Vector3d::Zero();
+            std::vector<int> face;
+            std::istringstream ls;
+            if (!binary) {
+                if (!std::getline(in, line)) return Error{path + ": truncated " + e.name + " data"};
+                ls.str(line);
+            }
+            for (std::size_t k = 0; k < e.props.size(); ++k) {
+                const Property& p = e.props[k];
+                if (p.is_list) {
+                    double cnt = 0;
+                    if (binary) cnt = ReadBinary(r, p.count_type);
+                    else ls >> cnt;
+                    for (int j = 0; j < static_cast<int>(cnt); ++j) {
+                        double val = 0;
+                        if (binary) val = ReadBinary(r, p.type);
+                        else ls >> val;
+                        if (is_face && p.name.find("vertex_ind") == 0) face.push_back(static_cast<int>(val));
+                    }
+                } else {
+                    double val = 0;
+                    if (binary) val = ReadBinary(r, p.type);
+                    else ls >> val;
+                    if (is_vertex && static_cast<int>(k) == ix) v.x() = val;
+                    if (is_vertex && static_cast<int>(k) == iy) v.y() = val;
+                    if (is_vertex && static_cast<int>(k) == iz) v.z() = val;
+                }
+            }
+            if (binary ? !r.ok() : ls.fail()) return Error{path + ": truncated or malformed " + e.name + " data"};
+            if (is_vertex) out.vertices.push_back(v);
+            for (std::size_t j = 2; is_face && j < face.size(); ++j) {
+                const std::array<int, 3> tri = {face[0], face[j - 1], face[j]};
+                for (int idx : tri) {
+                    if (idx < 0 || static_cast<std::size_t>(idx) >= out.vertices.size()) {
+                        return Error{path + ": face index out of range"};
+                    }
+                }
+                out.triangles.push_back(tri);
+            }
+        }
+    }
+    return out;
+}
+
+}  // namespace pitmap::eval

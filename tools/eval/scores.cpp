@@ -1,0 +1,110 @@
+// SPDX-License-Identifier: MIT
+#include "tools/eval/scores.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "common/frames.hpp"
+#include "common/se3.hpp"
+
+namespace pitmap::eval {
+
+Expected<std::vector<ProductPose>> ReadTrajectoryCsv(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) return Error{path + ": cannot open"};
+    std::string line;
+    if (!std::getline(in, line) || line.rfind("gps_time_s,x_m,y_m,z_m", 0) != 0) {
+        return Error{path + ": header must start with gps_time_s,x_m,y_m,z_m"};
+    }
+    std::vector<ProductPose> out;
+    int lineno = 1;
+    while (std::getline(in, line)) {
+        ++lineno;
+        if (line.empty()) continue;
+        ProductPose p;
+        if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &p.gps_time_s, &p.position.x(),
+                        &p.position.y(), &p.position.z()) != 4) {
+            return Error{path + ":" + std::to_string(lineno) + ": expected numbers"};
+        }
+        out.push_back(p);
+    }
+    return out;
+}
+
+Pose ProductToTruthFrame(const Geodetic& product_origin, const Geodetic& truth_origin) {
+    const LocalTangentFrame prod(product_origin), truth(truth_origin);
+    // Images of the product frame's origin and axes in the truth frame.
+    const Eigen::Vector3d o = truth.ToEnu(prod.FromEnu(Eigen::Vector3d::Zero()));
+    Eigen::Matrix3d R;
+    for (int i = 0; i < 3; ++i) {
+        R.col(i) = (truth.ToEnu(prod.FromEnu(100.0 * Eigen::Vector3d::Unit(i))) - o) / 100.0;
+    }
+    // Re-orthonormalise (removes the tiny error of the 100 m finite differences).
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    return MakePose(svd.matrixU() * svd.matrixV().transpose(), o);
+}
+
+DistanceStats SummariseDistances(std::vector<double> d) {
+    DistanceStats s;
+    s.count = d.size();
+    if (d.empty()) return s;
+    double sum = 0, sum2 = 0, sum_abs = 0;
+    for (double& v : d) {
+        sum += v;
+        sum2 += v * v;
+        v = std::abs(v);
+        sum_abs += v;
+    }
+    const auto n = static_cast<double>(d.size());
+    s.bias_m = sum / n;
+    s.rms_m = std::sqrt(sum2 / n);
+    s.mean_abs_m = sum_abs / n;
+    const auto k = static_cast<std::size_t>(std::ceil(0.95 * n)) - 1;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+    s.p95_m = d[k];
+    s.max_abs_m = *std::max_element(d.begin(), d.end());
+    return s;
+}
+
+TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose& T,
+                                const std::vector<sim::TruthPose>& truth) {
+    TrajectoryScore s;
+    double sum2 = 0, zsum = 0, zsum2 = 0;
+    for (const ProductPose& p : est) {
+        auto t = sim::InterpolateTruth(truth, p.gps_time_s);
+        if (!t) continue;
+        const Eigen::Vector3d pt = T * p.position;
+        const double e = (pt - t->translation()).norm();
+        sum2 += e * e;
+        s.ate_max_m = std::max(s.ate_max_m, e);
+        zsum += pt.z();
+        zsum2 += pt.z() * pt.z();
+        ++s.poses;
+    }
+    if (s.poses > 0) {
+        const auto n = static_cast<double>(s.poses);
+        s.ate_rmse_m = std::sqrt(sum2 / n);
+        s.z_std_m = std::sqrt(std::max(0.0, zsum2 / n - (zsum / n) * (zsum / n)));
+    }
+    return s;
+}
+
+DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts, const Pose& T,
+                          const sim::PitWorld& world, std::size_t max_points) {
+    const std::size_t stride = std::max<std::size_t>(1, (pts.size() + max_points - 1) / std::max<std::size_t>(max_points, 1));
+    std::vector<double> d;
+    d.reserve(pts.size() / stride + 1);
+    for (std::size_t i = 0; i < pts.size(); i += stride) d.push_back(world.SignedDistance(T * pts[i]));
+    return SummariseDistances(std::move(d));
+}
+
+double BoresightErrorDeg(double re, double pe, double ye, double rt, double pt, double yt) {
+    using frames::DegToRad;
+    const Eigen::Matrix3d a = frames::RotationNedFromRpy(DegToRad(re), DegToRad(pe), DegToRad(ye));
+    const Eigen::Matrix3d b = frames::RotationNedFromRpy(DegToRad(rt), DegToRad(pt), DegToRad(yt));
+    return frames::RadToDeg(RotationAngleBetween(a, b));
+}
+
+}  // namespace pitmap::eval

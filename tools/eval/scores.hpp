@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: MIT
+// Scores of survey products against the simulator's ground truth (pitmap-eval). Definitions:
+//   trajectory_ate_rmse_m   RMS of |p_est(t) - p_true(t)| over the product trajectory's poses
+//                           inside the true trajectory's span, positions in the truth's world
+//                           frame, no alignment (products are georeferenced, so an offset is an
+//                           error). ..._before_m: the same for trajectory_initial.csv.
+//   points_rms_m, points_p95_m  RMS and 95th percentile of the unsigned distance of each point
+//                           to the true terrain surface (points_bias_m: mean signed distance).
+//   boresight_error_deg     angle of R_true^T R_est, R = Rz(yaw) Ry(pitch) Rx(roll).
+//   mesh_mean_abs_m, mesh_rms_m, mesh_p95_m  distance of mesh vertices and triangle centroids to
+//                           the true surface.
+//   mesh_completeness       share of the insonified true surface (truth coverage mask) that lies
+//                           within 0.2 m of the mesh.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/geodesy.hpp"
+#include "common/result.hpp"
+#include "tools/sim/truth_io.hpp"
+
+namespace pitmap::eval {
+
+struct ProductPose {
+    double gps_time_s = 0;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();  // product world frame
+};
+
+// Reads a trajectory CSV whose header starts gps_time_s,x_m,y_m,z_m (more columns allowed).
+Expected<std::vector<ProductPose>> ReadTrajectoryCsv(const std::string& path);
+
+// Maps product world coordinates (ENU at product_origin) to the truth's world frame. Two local
+// ENU frames are both rigid transforms of ECEF, so one rigid transform relates them exactly.
+Pose ProductToTruthFrame(const Geodetic& product_origin, const Geodetic& truth_origin);
+
+struct DistanceStats {
+    std::size_t count = 0;
+    double rms_m = 0, p95_m = 0, mean_abs_m = 0, bias_m = 0, max_abs_m = 0;
+};
+// Statistics of signed distances (|d| for rms/p95/mean_abs, d for bias).
+DistanceStats SummariseDistances(std::vector<double> d);
+
+struct TrajectoryScore {
+    std::size_t poses = 0;
+    double ate_rmse_m = 0, ate_max_m = 0, z_std_m = 0;
+};
+TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose& T_truth_product,
+                                const std::vector<sim::TruthPose>& truth);
+
+DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
+                          const Pose& T_truth_product, const sim::PitWorld& world,
+                          std::size_t max_points = 3'000'000);
+
+// Angle in degrees between two roll/pitch/yaw (degrees) rotations.
+double BoresightErrorDeg(double roll_est, double pitch_est, double yaw_est, double roll_true,
+                         double pitch_true, double yaw_true);
+
+}  // namespace pitmap::eval
