@@ -1,11 +1,15 @@
 // SPDX-License-Identifier: MIT
 // Text and JSON renderings of an InspectReport.
+#include <algorithm>
+#include <cctype>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "common/protocol/novatel/framer.hpp"
 #include "tools/inspect/inspect.hpp"
@@ -110,7 +114,22 @@ void WriteCounts(std::ostringstream& os, const SourceSummary& s, const std::stri
     os << indent << "bytes " << s.bytes << " in " << s.chunks << " chunks, frames "
        << s.frames_total << " (logs " << s.log_frames << ", responses " << s.responses
        << ", prompts " << s.prompts << ")\n";
-    for (const auto& [key, count] : s.frames_by_id) {
+    // Binary ids in numeric order first, then the text keys.
+    std::vector<std::pair<std::string, std::uint64_t>> rows(s.frames_by_id.begin(),
+                                                            s.frames_by_id.end());
+    const auto numeric = [](const std::string& k) {
+        return !k.empty() && std::isdigit(static_cast<unsigned char>(k[0])) != 0;
+    };
+    std::stable_sort(rows.begin(), rows.end(), [&](const auto& a, const auto& b) {
+        if (numeric(a.first) != numeric(b.first)) return numeric(a.first);
+        if (numeric(a.first)) {
+            const unsigned long ia = std::stoul(a.first);  // "36R" -> 36
+            const unsigned long ib = std::stoul(b.first);
+            if (ia != ib) return ia < ib;
+        }
+        return a.first < b.first;
+    });
+    for (const auto& [key, count] : rows) {
         const std::string name = NameForKey(key);
         char line[160];
         std::snprintf(line, sizeof(line), "%s  %-22s %-22s %" PRIu64 "\n", indent.c_str(),
