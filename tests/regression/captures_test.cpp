@@ -171,7 +171,8 @@ TEST(ProvenanceTest, Oem7DriverCaptures) {
                                                    {"PROMPT", 8}});
     ExpectExactly(Inspect("oem7drv_ins1.gps"),
                   {{"508", 243}, {"2264", 10}, {"2051", 29}, {"1945", 2}});
-    ExpectExactly(Inspect("oem7drv_ins2.gps"), {{"1362", 766}, {"508", 62}, {"1465", 6}, {"1945", 1}});
+    ExpectExactly(Inspect("oem7drv_ins2.gps"),
+                  {{"1362", 766}, {"508", 62}, {"1465", 6}, {"1945", 1}});
     ExpectExactly(Inspect("oem7drv_ins2_humble.gps"), {{"1362", 7},
                                                        {"508", 4},
                                                        {"1465", 4},
@@ -317,8 +318,8 @@ TEST(InspectProgramTest, ErrorsNameTheFileAndExitNonZero) {
     EXPECT_NE(unknown.output.find(garbage.string()), std::string::npos) << unknown.output;
     EXPECT_NE(unknown.output.find("cannot tell the format"), std::string::npos);
     // Forced to NovAtel framing, the same bytes are all garbage, and that is a report.
-    const RunResult forced = RunInspect("--json --format raw --protocol novatel '" + garbage.string() +
-                                 "'");
+    const RunResult forced =
+        RunInspect("--json --format raw --protocol novatel '" + garbage.string() + "'");
     EXPECT_EQ(forced.exit_code, 0) << forced.output;
     const json j = json::parse(forced.output, nullptr, false);
     ASSERT_TRUE(j.is_object()) << forced.output;

@@ -90,7 +90,8 @@ TEST(DetectFormatTest, MagicNumbersAndMarkers) {
           Protocol::kNovatel);
     check(Text("\r\n<OK\r\n[COM1]"), "x.txt", InputFormat::kRaw, Protocol::kNovatel);
     // The real files are detected too.
-    for (const char* name : {"oem7drv_bestpos.gps", "gavlab_OneEach.ASC", "gavlab_test2_rcvr1.dat"}) {
+    for (const char* name :
+         {"oem7drv_bestpos.gps", "gavlab_OneEach.ASC", "gavlab_test2_rcvr1.dat"}) {
         check(ReadBytes(kNovatelDir / name), name, InputFormat::kRaw, Protocol::kNovatel);
     }
     check(ReadBytes(kNovatelDir / "spandrv_propak6-basic-fix.pcap.gz"), "gz", InputFormat::kPcap,
