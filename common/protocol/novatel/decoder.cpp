@@ -359,8 +359,9 @@ DecodeResult DecodeBinary(const Frame& frame) {
         h.kind = HeaderKind::kLongBinary;
         body_offset = r.U8();
         h.message_id = r.U16Le();
-        h.message_type = r.U8();
-        h.is_response = (h.message_type & kResponseBit) != 0;
+        const std::uint8_t type = r.U8();
+        h.is_response = (type & kResponseBit) != 0;
+        h.message_type = static_cast<std::uint8_t>(type & ~kResponseBit);
         h.port_address = r.U8();
         body_length = r.U16Le();
         h.sequence = r.U16Le();

@@ -97,12 +97,22 @@ public:
 
     void Raw(std::string_view s) { out_.insert(out_.end(), s.begin(), s.end()); }
     void Printf(const char* fmt, ...) __attribute__((format(printf, 2, 3))) {
-        char buf[128];
+        char buf[512];
         va_list args;
         va_start(args, fmt);
+        va_list copy;
+        va_copy(copy, args);
         const int n = std::vsnprintf(buf, sizeof buf, fmt, args);
         va_end(args);
-        if (n > 0) Raw(std::string_view(buf, std::min<std::size_t>(static_cast<std::size_t>(n), sizeof buf - 1)));
+        if (n >= 0 && static_cast<std::size_t>(n) < sizeof buf) {
+            Raw(std::string_view(buf, static_cast<std::size_t>(n)));
+        } else if (n > 0) {
+            // Long station ids or huge numbers: format again into a buffer of the right size.
+            std::string big(static_cast<std::size_t>(n) + 1, '\0');
+            std::vsnprintf(big.data(), big.size(), fmt, copy);
+            Raw(std::string_view(big.data(), static_cast<std::size_t>(n)));
+        }
+        va_end(copy);
     }
     void Sep() { out_.push_back(','); }
     template <typename E>

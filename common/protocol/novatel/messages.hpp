@@ -171,8 +171,9 @@ enum class HeaderKind : std::uint8_t {
 struct Header {
     HeaderKind kind = HeaderKind::kLongBinary;
     std::uint16_t message_id = 0;
-    // Long binary message type byte: bits 0-4 measurement source, 5-6 format, 7 response.
+    // Long binary message type byte without bit 7: bits 0-4 measurement source, 5-6 format.
     std::uint8_t message_type = 0;
+    // Bit 7 of the message type (binary), or the 'R' suffix (ASCII): a command response.
     bool is_response = false;
     std::uint8_t port_address = 0;   // long binary port byte (0x20 COM1, 0x40 COM2, ...)
     std::string port_name;           // ASCII header port field ("COM1", "ICOM2"), "" in binary
