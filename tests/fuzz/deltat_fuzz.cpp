@@ -20,13 +20,12 @@ using namespace pitmap;
 using namespace pitmap::protocol;
 using namespace pitmap::protocol::deltat;
 
-#define FUZZ_CHECK(cond)                                                          \
-    do {                                                                          \
-        if (!(cond)) {                                                            \
-            std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, \
-                         #cond);                                                  \
-            std::abort();                                                         \
-        }                                                                         \
+#define FUZZ_CHECK(cond)                                                                  \
+    do {                                                                                  \
+        if (!(cond)) {                                                                    \
+            std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
+            std::abort();                                                                 \
+        }                                                                                 \
     } while (0)
 
 // Chunk sizes come from the input's first bytes: a tiny xorshift seeded by them.

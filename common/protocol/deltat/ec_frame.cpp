@@ -7,7 +7,7 @@
 namespace pitmap::protocol::deltat {
 namespace {
 
-constexpr std::array<std::uint16_t, 13> kRangeByCode = {5,   10,  20,  30,  40,  50, 60,
+constexpr std::array<std::uint16_t, 13> kRangeByCode = {5,  10,  20,  30,  40,  50, 60,
                                                         80, 100, 150, 200, 250, 300};
 constexpr std::uint8_t kFirstRangeCode = 2;
 constexpr std::array<std::uint16_t, 4> kSectorByCode = {30, 60, 90, 120};
@@ -135,37 +135,37 @@ bool EncodeEcFrame(const EcFrame& frame, std::vector<std::uint8_t>& out) {
     out.reserve(out.size() + kEcFrameBytes);
     ByteWriter w(out);
     const auto b = [](bool v) { return static_cast<std::uint8_t>(v ? 1 : 0); };
-    w.U8('E');                                 // 0
-    w.U8('C');                                 // 1
-    w.U8(0);                                   // 2
-    w.U8(b(frame.external_control));           // 3
-    w.U8(b(frame.receive_only));               // 4
-    w.Zeros(2);                                // 5-6
-    w.U8(*range);                              // 7
-    w.U8(frame.start_gain_db);                 // 8
-    w.U8(frame.display_gain_pct);              // 9
-    w.U8(b(frame.gain_equalisation));          // 10
-    w.U8(*sector);                             // 11
-    w.U8(static_cast<std::uint8_t>(frame.beam_width));  // 12
-    w.U8(*beams);                              // 13
-    w.U8(frame.averaging);                     // 14
-    w.U16Be(frame.persistence_s);              // 15-16
-    w.U16Be(static_cast<std::uint16_t>(sv));   // 17-18
-    w.U8(static_cast<std::uint8_t>(frame.mode));    // 19
-    w.U8(static_cast<std::uint8_t>(frame.output));  // 20
-    w.U8(b(frame.profile_points));             // 21
-    w.U8(frame.profile_min_range_m);           // 22
-    w.U8(frame.profile_min_level_pct);         // 23
-    w.U8(b(frame.transducer_up));              // 24
+    w.U8('E');                                                      // 0
+    w.U8('C');                                                      // 1
+    w.U8(0);                                                        // 2
+    w.U8(b(frame.external_control));                                // 3
+    w.U8(b(frame.receive_only));                                    // 4
+    w.Zeros(2);                                                     // 5-6
+    w.U8(*range);                                                   // 7
+    w.U8(frame.start_gain_db);                                      // 8
+    w.U8(frame.display_gain_pct);                                   // 9
+    w.U8(b(frame.gain_equalisation));                               // 10
+    w.U8(*sector);                                                  // 11
+    w.U8(static_cast<std::uint8_t>(frame.beam_width));              // 12
+    w.U8(*beams);                                                   // 13
+    w.U8(frame.averaging);                                          // 14
+    w.U16Be(frame.persistence_s);                                   // 15-16
+    w.U16Be(static_cast<std::uint16_t>(sv));                        // 17-18
+    w.U8(static_cast<std::uint8_t>(frame.mode));                    // 19
+    w.U8(static_cast<std::uint8_t>(frame.output));                  // 20
+    w.U8(b(frame.profile_points));                                  // 21
+    w.U8(frame.profile_min_range_m);                                // 22
+    w.U8(frame.profile_min_level_pct);                              // 23
+    w.U8(b(frame.transducer_up));                                   // 24
     w.U8(static_cast<std::uint8_t>(frame.profile_tilt_deg + 180));  // 25
-    w.U8(b(frame.roll_compensation));          // 26
-    w.U8(0);                                   // 27
-    w.U8(b(frame.record_837));                 // 28
-    w.U8(b(frame.record_83p));                 // 29
-    w.U8(0);                                   // 30
-    w.U8(frame.control);                       // 31
-    w.U16Be(frame.trigger_delay);              // 32-33
-    w.U8(static_cast<std::uint8_t>(frame.profile_filter));  // 34
+    w.U8(b(frame.roll_compensation));                               // 26
+    w.U8(0);                                                        // 27
+    w.U8(b(frame.record_837));                                      // 28
+    w.U8(b(frame.record_83p));                                      // 29
+    w.U8(0);                                                        // 30
+    w.U8(frame.control);                                            // 31
+    w.U16Be(frame.trigger_delay);                                   // 32-33
+    w.U8(static_cast<std::uint8_t>(frame.profile_filter));          // 34
     w.Zeros(kEcFrameBytes - 35);
     return true;
 }

@@ -73,29 +73,29 @@ bool EncodeSwitchCommand(const SwitchCommand& c, std::vector<std::uint8_t>& out)
     }
     out.reserve(out.size() + kSwitchCommandBytes);
     ByteWriter w(out);
-    w.U8(kCommandHeader0);       // 0
-    w.U8(kCommandHeader1);       // 1
-    w.U8(c.head_id);             // 2
-    w.U8(c.range_m);             // 3
-    w.U8(c.range_offset);        // 4
-    w.U16Be(c.nadir_offset_raw); // 5-6
-    w.U8(0);                     // 7
-    w.U8(c.start_gain_db);       // 8
-    w.U8(c.logf);                // 9
-    w.U8(c.absorption_centi_db_per_m);  // 10
-    w.U8(c.agc_threshold);       // 11
-    w.U8(0);                     // 12
-    w.U8(c.packet_number);       // 13
+    w.U8(kCommandHeader0);                                    // 0
+    w.U8(kCommandHeader1);                                    // 1
+    w.U8(c.head_id);                                          // 2
+    w.U8(c.range_m);                                          // 3
+    w.U8(c.range_offset);                                     // 4
+    w.U16Be(c.nadir_offset_raw);                              // 5-6
+    w.U8(0);                                                  // 7
+    w.U8(c.start_gain_db);                                    // 8
+    w.U8(c.logf);                                             // 9
+    w.U8(c.absorption_centi_db_per_m);                        // 10
+    w.U8(c.agc_threshold);                                    // 11
+    w.U8(0);                                                  // 12
+    w.U8(c.packet_number);                                    // 13
     w.U8(static_cast<std::uint8_t>(c.pulse_length_us / 10));  // 14
-    w.Zeros(4);                  // 15-18
-    w.U8(c.packets());           // 19
-    w.U8(c.data_bits);           // 20
-    w.U8(c.orientation_request); // 21
-    w.U8(c.run_mode);            // 22
-    w.U8(0);                     // 23
-    w.U8(static_cast<std::uint8_t>(c.switch_delay_ms / 2));  // 24
-    w.U8(c.frequency_code);      // 25
-    w.U8(kCommandTerminator);    // 26
+    w.Zeros(4);                                               // 15-18
+    w.U8(c.packets());                                        // 19
+    w.U8(c.data_bits);                                        // 20
+    w.U8(c.orientation_request);                              // 21
+    w.U8(c.run_mode);                                         // 22
+    w.U8(0);                                                  // 23
+    w.U8(static_cast<std::uint8_t>(c.switch_delay_ms / 2));   // 24
+    w.U8(c.frequency_code);                                   // 25
+    w.U8(kCommandTerminator);                                 // 26
     return true;
 }
 

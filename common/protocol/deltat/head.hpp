@@ -34,22 +34,22 @@ inline constexpr std::uint8_t kHeadReplyTerminator = 0xFC;
 // Switch data command, 27 bytes (§3.1). Fixed bytes (0xFE 0x44 header, zeros, 0xFD) are not
 // stored. Values are in physical units where the wire has a scale.
 struct SwitchCommand {
-    std::uint8_t head_id = kDefaultHeadId;      // byte 2
-    std::uint8_t range_m = 50;                  // byte 3: 5,10,20,30,40,50,60,80,100
-    std::uint8_t range_offset = 0;              // byte 4 [1]
-    std::uint16_t nadir_offset_raw = 0;         // bytes 5-6 BE, 65536 = 360 deg [1]
-    std::uint8_t start_gain_db = 10;            // byte 8 (0-20)
-    std::uint8_t logf = 1;                      // byte 9, meaning [U]
+    std::uint8_t head_id = kDefaultHeadId;        // byte 2
+    std::uint8_t range_m = 50;                    // byte 3: 5,10,20,30,40,50,60,80,100
+    std::uint8_t range_offset = 0;                // byte 4 [1]
+    std::uint16_t nadir_offset_raw = 0;           // bytes 5-6 BE, 65536 = 360 deg [1]
+    std::uint8_t start_gain_db = 10;              // byte 8 (0-20)
+    std::uint8_t logf = 1;                        // byte 9, meaning [U]
     std::uint8_t absorption_centi_db_per_m = 10;  // byte 10, 0.01 dB/m
-    std::uint8_t agc_threshold = 120;           // byte 11 (10-250) [1]
-    std::uint8_t packet_number = 0;             // byte 13: 0 .. packets()-1
-    std::uint16_t pulse_length_us = 300;        // byte 14 x 10 us
-    std::uint16_t data_points = 8000;           // byte 19 x 1000: 8000 or 16000
-    std::uint8_t data_bits = 8;                 // byte 20
-    std::uint8_t orientation_request = 0x80;    // byte 21: 0x80 asks for orientation [1]
-    std::uint8_t run_mode = 0;                  // byte 22: bit4 = AGC [1]
-    std::uint16_t switch_delay_ms = 0;          // byte 24 x 2 ms (0-510)
-    std::uint8_t frequency_code = 86;           // byte 25: kHz = 5 * code - 170 (derived)
+    std::uint8_t agc_threshold = 120;             // byte 11 (10-250) [1]
+    std::uint8_t packet_number = 0;               // byte 13: 0 .. packets()-1
+    std::uint16_t pulse_length_us = 300;          // byte 14 x 10 us
+    std::uint16_t data_points = 8000;             // byte 19 x 1000: 8000 or 16000
+    std::uint8_t data_bits = 8;                   // byte 20
+    std::uint8_t orientation_request = 0x80;      // byte 21: 0x80 asks for orientation [1]
+    std::uint8_t run_mode = 0;                    // byte 22: bit4 = AGC [1]
+    std::uint16_t switch_delay_ms = 0;            // byte 24 x 2 ms (0-510)
+    std::uint8_t frequency_code = 86;             // byte 25: kHz = 5 * code - 170 (derived)
 
     std::uint8_t packets() const { return static_cast<std::uint8_t>(data_points / 1000); }
     int frequency_khz() const { return 5 * frequency_code - 170; }
@@ -69,25 +69,26 @@ std::vector<std::uint8_t> EncodeSwitchCommand(const SwitchCommand& command);
 // Return packet, 1033 bytes (§3.1). Undocumented bytes are kept raw so a packet re-encodes
 // byte for byte.
 struct HeadReply {
-    std::uint8_t mode = 'U';                 // byte 1: 'U' 8000 points, 'V' 16000 points
-    std::uint8_t head_id = kDefaultHeadId;   // byte 3
-    std::uint8_t serial_status = 0;          // byte 4
-    std::uint8_t packet_number = 0;          // byte 5: echo of command byte 13 [C]
-    std::uint8_t firmware_version = 0;       // byte 6
-    std::uint8_t range_m = 0;                // byte 7
-    std::array<std::uint8_t, 2> bytes_8_9{};  // undocumented
-    std::uint16_t data_bytes_be = 1000;      // bytes 10-11 read big-endian; byte order [U]
-    std::uint8_t byte_12 = 0;                // undocumented
-    std::uint8_t orientation_type = 0;       // byte 13: non-zero = valid (packet 0) [1]
-    std::int16_t pitch_raw = 0;              // bytes 14-15 LE, 65536 = 360 deg [1]
-    std::int16_t roll_raw = 0;               // bytes 16-17 LE [1]
-    std::int16_t heading_raw = 0;            // bytes 18-19 LE [1]
+    std::uint8_t mode = 'U';                     // byte 1: 'U' 8000 points, 'V' 16000 points
+    std::uint8_t head_id = kDefaultHeadId;       // byte 3
+    std::uint8_t serial_status = 0;              // byte 4
+    std::uint8_t packet_number = 0;              // byte 5: echo of command byte 13 [C]
+    std::uint8_t firmware_version = 0;           // byte 6
+    std::uint8_t range_m = 0;                    // byte 7
+    std::array<std::uint8_t, 2> bytes_8_9{};     // undocumented
+    std::uint16_t data_bytes_be = 1000;          // bytes 10-11 read big-endian; byte order [U]
+    std::uint8_t byte_12 = 0;                    // undocumented
+    std::uint8_t orientation_type = 0;           // byte 13: non-zero = valid (packet 0) [1]
+    std::int16_t pitch_raw = 0;                  // bytes 14-15 LE, 65536 = 360 deg [1]
+    std::int16_t roll_raw = 0;                   // bytes 16-17 LE [1]
+    std::int16_t heading_raw = 0;                // bytes 18-19 LE [1]
     std::array<std::uint8_t, 12> bytes_20_31{};  // undocumented [U]
     std::array<std::uint8_t, kHeadReplyDataBytes> data{};  // raw echo data, opaque
 
     // 1000 in either byte order (the order is [U]); otherwise the raw big-endian value.
     std::uint16_t data_bytes() const {
-        const auto swapped = static_cast<std::uint16_t>((data_bytes_be >> 8) | (data_bytes_be << 8));
+        const auto swapped =
+            static_cast<std::uint16_t>((data_bytes_be >> 8) | (data_bytes_be << 8));
         return swapped == kHeadReplyDataBytes ? swapped : data_bytes_be;
     }
     bool orientation_valid() const { return orientation_type != 0; }

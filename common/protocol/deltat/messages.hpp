@@ -34,30 +34,40 @@ inline constexpr std::uint8_t kVersion110 = 10;
 
 // What went wrong in a decoder. `offset` is the byte offset inside the record or frame.
 enum class DecodeErrorKind : std::uint8_t {
-    kTruncated = 0,     // fewer bytes than the header (or N) requires
-    kTrailingBytes,     // more bytes than N (datagram) or than the fixed frame size
-    kBadMarker,         // not `83P` / `EC` / 0xFE 0x44 / `I?X`
-    kUnsupported,       // a known but unsupported record (83B, 83M): log verbatim, skip
-    kBadLength,         // N < 256 or N > 2176
-    kBadBeamCount,      // B outside 1..480
-    kLengthMismatch,    // N matches neither 256+2B nor 256+4B as allowed by byte 117
-    kBadTerminator,     // fixed-size frame without its terminator byte
-    kBadValue,          // a coded field outside its table (EC range code, sector, ...)
+    kTruncated = 0,   // fewer bytes than the header (or N) requires
+    kTrailingBytes,   // more bytes than N (datagram) or than the fixed frame size
+    kBadMarker,       // not `83P` / `EC` / 0xFE 0x44 / `I?X`
+    kUnsupported,     // a known but unsupported record (83B, 83M): log verbatim, skip
+    kBadLength,       // N < 256 or N > 2176
+    kBadBeamCount,    // B outside 1..480
+    kLengthMismatch,  // N matches neither 256+2B nor 256+4B as allowed by byte 117
+    kBadTerminator,   // fixed-size frame without its terminator byte
+    kBadValue,        // a coded field outside its table (EC range code, sector, ...)
     kCount
 };
 
 constexpr std::string_view ToString(DecodeErrorKind k) {
     switch (k) {
-        case DecodeErrorKind::kTruncated: return "truncated";
-        case DecodeErrorKind::kTrailingBytes: return "trailing_bytes";
-        case DecodeErrorKind::kBadMarker: return "bad_marker";
-        case DecodeErrorKind::kUnsupported: return "unsupported";
-        case DecodeErrorKind::kBadLength: return "bad_length";
-        case DecodeErrorKind::kBadBeamCount: return "bad_beam_count";
-        case DecodeErrorKind::kLengthMismatch: return "length_mismatch";
-        case DecodeErrorKind::kBadTerminator: return "bad_terminator";
-        case DecodeErrorKind::kBadValue: return "bad_value";
-        case DecodeErrorKind::kCount: break;
+        case DecodeErrorKind::kTruncated:
+            return "truncated";
+        case DecodeErrorKind::kTrailingBytes:
+            return "trailing_bytes";
+        case DecodeErrorKind::kBadMarker:
+            return "bad_marker";
+        case DecodeErrorKind::kUnsupported:
+            return "unsupported";
+        case DecodeErrorKind::kBadLength:
+            return "bad_length";
+        case DecodeErrorKind::kBadBeamCount:
+            return "bad_beam_count";
+        case DecodeErrorKind::kLengthMismatch:
+            return "length_mismatch";
+        case DecodeErrorKind::kBadTerminator:
+            return "bad_terminator";
+        case DecodeErrorKind::kBadValue:
+            return "bad_value";
+        case DecodeErrorKind::kCount:
+            break;
     }
     return "unknown";
 }
@@ -77,15 +87,15 @@ enum class FloatOrder : std::uint8_t {
 
 // The float fields of the v1.10 header, in offset order; index into the arrays below.
 enum class FloatField : std::uint8_t {
-    kOffsetX = 0,     // 100
-    kOffsetY,         // 104
-    kOffsetZ,         // 108
-    kHeave,           // 128
-    kAltitude,        // 133
-    kExternalPitch,   // 138
-    kExternalRoll,    // 142
-    kExternalHeading, // 146
-    kScanAngle,       // 151
+    kOffsetX = 0,      // 100
+    kOffsetY,          // 104
+    kOffsetZ,          // 108
+    kHeave,            // 128
+    kAltitude,         // 133
+    kExternalPitch,    // 138
+    kExternalRoll,     // 142
+    kExternalHeading,  // 146
+    kScanAngle,        // 151
     kCount
 };
 inline constexpr std::size_t kNumFloatFields = static_cast<std::size_t>(FloatField::kCount);
@@ -123,20 +133,20 @@ struct Ping83P {
     std::uint16_t total_bytes = 0;              // N as read (decoder); ignored by the encoder
 
     // Clock of the topside PC (not UTC-disciplined, §1.4), bytes 8-32 and 112-116.
-    std::array<char, 12> date_text{};          // "DD-MMM-YYYY"
-    std::array<char, 9> time_text{};           // "HH:MM:SS"
-    std::array<char, 4> hundredths_text{};     // ".hh"
-    std::array<char, 5> milliseconds_text{};   // ".mmm" (v1.10)
-    bool header_time_valid = false;            // false: date/time text not parsable
-    std::int64_t utime_sonar_header = 0;       // Unix microseconds as if UTC; 0 if not valid
+    std::array<char, 12> date_text{};         // "DD-MMM-YYYY"
+    std::array<char, 9> time_text{};          // "HH:MM:SS"
+    std::array<char, 4> hundredths_text{};    // ".hh"
+    std::array<char, 5> milliseconds_text{};  // ".mmm" (v1.10)
+    bool header_time_valid = false;           // false: date/time text not parsable
+    std::int64_t utime_sonar_header = 0;      // Unix microseconds as if UTC; 0 if not valid
 
     // Navigation strings from the topside software, bytes 33-60 (§1.4).
     std::array<char, 14> latitude_text{};
     std::array<char, 14> longitude_text{};
     double latitude_deg = std::numeric_limits<double>::quiet_NaN();   // NaN: blank/zero/bad
     double longitude_deg = std::numeric_limits<double>::quiet_NaN();  // NaN: blank/zero/bad
-    double speed_over_ground_knots = 0.0;  // byte 61, 0.1 kn
-    double course_over_ground_deg = 0.0;   // bytes 62-63, 0.1 deg
+    double speed_over_ground_knots = 0.0;                             // byte 61, 0.1 kn
+    double course_over_ground_deg = 0.0;                              // bytes 62-63, 0.1 deg
 
     // Internal attitude sensor, bytes 64-69: bit15 = valid. Values are NaN when not valid.
     bool internal_pitch_valid = false;
@@ -149,40 +159,40 @@ struct Ping83P {
     // Sonar settings, bytes 70-96. B (bytes 70-71) is range_counts.size().
     std::uint16_t samples_per_beam = 0;
     std::uint16_t sector_size_deg = 0;
-    std::int32_t start_angle_cdeg = 0;     // beam 0 angle, 0.01 deg, starboard positive (§1.5)
-    std::uint8_t angle_increment_cdeg = 0; // 0.01 deg per beam
+    std::int32_t start_angle_cdeg = 0;      // beam 0 angle, 0.01 deg, starboard positive (§1.5)
+    std::uint8_t angle_increment_cdeg = 0;  // 0.01 deg per beam
     std::uint16_t acoustic_range_m = 0;
     std::uint16_t frequency_khz = 0;
     bool sound_velocity_flag = false;        // V bit of bytes 83-84
     double sound_velocity_header_mps = 0.0;  // (bits 0-14)/10 as written; 0 when V clear
     double sound_velocity_mps = kDefaultSoundVelocityMps;  // effective value (§4.7)
-    bool sound_velocity_valid = false;       // V set and inside 1300..1700 m/s
-    std::uint16_t range_resolution_mm = 0;   // millimetres per range count
-    std::uint16_t pulse_length_us = 0;       // bytes 87-88 as read (vendor: reserved) [U]
-    double profile_tilt_deg = 0.0;           // fore/aft fan tilt tau (§1.4, §4.8)
-    bool profile_tilt_837_style = false;     // bytes 89-90 had bit15 set: ((v&0x7FFF)/10)-180
+    bool sound_velocity_valid = false;                     // V set and inside 1300..1700 m/s
+    std::uint16_t range_resolution_mm = 0;                 // millimetres per range count
+    std::uint16_t pulse_length_us = 0;    // bytes 87-88 as read (vendor: reserved) [U]
+    double profile_tilt_deg = 0.0;        // fore/aft fan tilt tau (§1.4, §4.8)
+    bool profile_tilt_837_style = false;  // bytes 89-90 had bit15 set: ((v&0x7FFF)/10)-180
     std::uint16_t repetition_rate_ms = 0;
     std::uint32_t ping_number = 0;
 
     // v1.10 only (bytes 100-154); zero / false for v1.00.
-    std::array<float, 3> sonar_offset_m{};    // x, y, z
-    std::uint8_t intensity_flag_raw = 0;      // byte 117 as read
-    bool intensity_included = false;          // intensities follow the ranges
-    bool intensity_flag_ignored = false;      // byte 117 = 1 but N = 256+2B (MB-System, §4.2)
-    std::int32_t ping_latency_us = -1;        // bytes 118-119 x 100 us; -1 for v1.00
-    std::int32_t data_latency_us = -1;        // bytes 120-121 x 100 us; -1 for v1.00
-    std::uint8_t sample_rate = 0;             // 0 standard, 1 high
-    std::uint8_t option_flags = 0;            // kOption* bits
+    std::array<float, 3> sonar_offset_m{};  // x, y, z
+    std::uint8_t intensity_flag_raw = 0;    // byte 117 as read
+    bool intensity_included = false;        // intensities follow the ranges
+    bool intensity_flag_ignored = false;    // byte 117 = 1 but N = 256+2B (MB-System, §4.2)
+    std::int32_t ping_latency_us = -1;      // bytes 118-119 x 100 us; -1 for v1.00
+    std::int32_t data_latency_us = -1;      // bytes 120-121 x 100 us; -1 for v1.00
+    std::uint8_t sample_rate = 0;           // 0 standard, 1 high
+    std::uint8_t option_flags = 0;          // kOption* bits
     std::uint8_t pings_averaged = 0;
-    std::int32_t center_ping_offset_us = 0;   // bytes 126-127 x 100 us
-    float heave_m = 0.0f;                     // external, positive up
-    std::uint8_t user_byte = 0;               // byte 132
+    std::int32_t center_ping_offset_us = 0;  // bytes 126-127 x 100 us
+    float heave_m = 0.0f;                    // external, positive up
+    std::uint8_t user_byte = 0;              // byte 132
     float altitude_m = 0.0f;
-    std::uint8_t external_sensor_flags = 0;   // kExternal* bits
+    std::uint8_t external_sensor_flags = 0;  // kExternal* bits
     float external_pitch_deg = 0.0f;
     float external_roll_deg = 0.0f;
     float external_heading_deg = 0.0f;
-    std::uint8_t transmit_scan_flag = 0;      // 0 manual, 1 auto-scan
+    std::uint8_t transmit_scan_flag = 0;  // 0 manual, 1 auto-scan
     float transmit_scan_angle_deg = 0.0f;
     // Byte order the decoder chose per float field, and which fields were implausible in
     // both orders (then the preferred order's value is passed on unfiltered).
@@ -214,6 +224,12 @@ struct Ping83P {
         return SlantRangeM(i) * scale;
     }
     bool has_detection(std::size_t i) const { return range_counts[i] != 0; }
+    // Age of the transmit when the datagram left the topside PC, data - ping latency (§1.4);
+    // -1 for v1.00 or when the latencies are inconsistent. Not valid in file playback.
+    std::int32_t TransmitAgeAtSendUs() const {
+        if (ping_latency_us < 0 || data_latency_us < ping_latency_us) return -1;
+        return data_latency_us - ping_latency_us;
+    }
     bool external_valid(std::uint8_t bit) const { return (external_sensor_flags & bit) != 0; }
 };
 

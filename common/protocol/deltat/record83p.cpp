@@ -120,13 +120,18 @@ bool PlausibleFloat(FloatField f, float v) {
         case FloatField::kOffsetX:
         case FloatField::kOffsetY:
         case FloatField::kOffsetZ:
-        case FloatField::kHeave: return std::fabs(v) < 100.0f;
-        case FloatField::kAltitude: return v >= 0.0f && v <= 1000.0f;
+        case FloatField::kHeave:
+            return std::fabs(v) < 100.0f;
+        case FloatField::kAltitude:
+            return v >= 0.0f && v <= 1000.0f;
         case FloatField::kExternalPitch:
         case FloatField::kExternalRoll:
-        case FloatField::kScanAngle: return std::fabs(v) <= 90.0f;
-        case FloatField::kExternalHeading: return v >= 0.0f && v <= 360.0f;
-        case FloatField::kCount: break;
+        case FloatField::kScanAngle:
+            return std::fabs(v) <= 90.0f;
+        case FloatField::kExternalHeading:
+            return v >= 0.0f && v <= 360.0f;
+        case FloatField::kCount:
+            break;
     }
     return false;
 }
@@ -136,7 +141,7 @@ bool PlausibleFloat(FloatField f, float v) {
 // angle [1]); spec §1.1 / §1.2. [U] until checked on the real unit.
 FloatOrder DefaultOrder(FloatField f) {
     return (f == FloatField::kAltitude || f == FloatField::kScanAngle) ? FloatOrder::kLittle
-                                                                      : FloatOrder::kBig;
+                                                                       : FloatOrder::kBig;
 }
 
 float ReadFloat(ByteSpan rec, FloatField f, FloatOrderMemory& memory, Ping83P& out) {
@@ -161,8 +166,8 @@ float ReadFloat(ByteSpan rec, FloatField f, FloatOrderMemory& memory, Ping83P& o
         chosen = be_ok ? FloatOrder::kBig : FloatOrder::kLittle;
         memory.Set(f, chosen);
     } else if (!be_ok) {
-        out.float_implausible_mask = static_cast<std::uint16_t>(out.float_implausible_mask |
-                                                                (1u << idx));
+        out.float_implausible_mask =
+            static_cast<std::uint16_t>(out.float_implausible_mask | (1u << idx));
     }
     out.float_order[idx] = chosen;
     return chosen == FloatOrder::kBig ? be : le;
@@ -227,7 +232,7 @@ void FormatNav(std::array<char, 14>& text, double deg, bool latitude) {
 }  // namespace
 
 std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_view time,
-                                              std::string_view fraction) {
+                                             std::string_view fraction) {
     if (date.size() < 11 || time.size() < 8 || fraction.size() < 3) return std::nullopt;
     UtcCalendar c;
     c.day = ParseDigits(date, 0, 2, false);
@@ -240,8 +245,9 @@ std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_
     c.hour = ParseDigits(time, 0, 2, false);
     c.minute = ParseDigits(time, 3, 2, false);
     c.second = ParseDigits(time, 6, 2, false);
-    if (date[2] != '-' || date[6] != '-' || time[2] != ':' || time[5] != ':' || fraction[0] != '.' ||
-        c.day < 0 || c.year < 0 || c.hour < 0 || c.minute < 0 || c.second < 0) {
+    if (date[2] != '-' || date[6] != '-' || time[2] != ':' || time[5] != ':' ||
+        fraction[0] != '.' || c.day < 0 || c.year < 0 || c.hour < 0 || c.minute < 0 ||
+        c.second < 0) {
         return std::nullopt;
     }
     // ".hh" or ".mmm": the digits after the dot up to NUL/end are a decimal fraction.
@@ -312,15 +318,17 @@ std::variant<Layout83P, DecodeError> ValidateHeader83P(ByteSpan prefix) {
     Layout83P layout;
     layout.format_version = r.U8();
     layout.total_bytes = r.U16Be();
+    if (!r.ok()) return Error(DecodeErrorKind::kTruncated, prefix.size(), "header truncated");
+    // Reject an impossible N as soon as it is seen (no waiting for the rest of the header).
+    if (layout.total_bytes < kHeaderBytes || layout.total_bytes > kMaxRecordBytes) {
+        return Error(DecodeErrorKind::kBadLength, kOffsetLength, "N outside 256..2176");
+    }
     const std::uint8_t c0 = r.U8();
     const std::uint8_t c1 = r.U8();
     if (!r.ok()) return Error(DecodeErrorKind::kTruncated, prefix.size(), "header truncated");
     if (layout.total_bytes == kHeaderBytes && c0 == '#' && c1 == '#') {
         layout.comment = true;
         return layout;
-    }
-    if (layout.total_bytes < kHeaderBytes || layout.total_bytes > kMaxRecordBytes) {
-        return Error(DecodeErrorKind::kBadLength, kOffsetLength, "N outside 256..2176");
     }
     if (prefix.size() < kMinBytesToValidate) {
         return Error(DecodeErrorKind::kTruncated, prefix.size(), "header truncated");
@@ -345,8 +353,7 @@ std::variant<Layout83P, DecodeError> ValidateHeader83P(ByteSpan prefix) {
     return layout;
 }
 
-std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record,
-                                                          FloatOrderMemory& memory,
+std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record, FloatOrderMemory& memory,
                                                           Ping83P& out) {
     const auto validated = ValidateHeader83P(record);
     if (const auto* e = std::get_if<DecodeError>(&validated)) return *e;
@@ -442,12 +449,12 @@ std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record,
     // §1.4 time: ms (v1.10) over hundredths; v1.10 falls back to hundredths if ms is bad.
     std::optional<std::int64_t> clock;
     if (out.is_v110()) {
-        clock = ParseHeaderClock(View(out.date_text), View(out.time_text),
-                                 View(out.milliseconds_text));
+        clock =
+            ParseHeaderClock(View(out.date_text), View(out.time_text), View(out.milliseconds_text));
     }
     if (!clock) {
-        clock = ParseHeaderClock(View(out.date_text), View(out.time_text),
-                                 View(out.hundredths_text));
+        clock =
+            ParseHeaderClock(View(out.date_text), View(out.time_text), View(out.hundredths_text));
     }
     out.header_time_valid = clock.has_value();
     out.utime_sonar_header = clock.value_or(0);
@@ -533,10 +540,9 @@ bool EncodeRecord83P(const Ping83P& ping, const EncodeOptions& options,
     w.U16Be(ping.range_resolution_mm);
     w.U16Be(ping.pulse_length_us);
     w.U16Be(ping.profile_tilt_837_style
-                ? static_cast<std::uint16_t>(
-                      0x8000u | Quantize(ping.profile_tilt_deg, 10.0, 1800.0, 0x7FFF))
-                : static_cast<std::uint16_t>(
-                      Quantize(ping.profile_tilt_deg, 1.0, 180.0, 0x7FFF)));
+                ? static_cast<std::uint16_t>(0x8000u |
+                                             Quantize(ping.profile_tilt_deg, 10.0, 1800.0, 0x7FFF))
+                : static_cast<std::uint16_t>(Quantize(ping.profile_tilt_deg, 1.0, 180.0, 0x7FFF)));
     w.U16Be(ping.repetition_rate_ms);
     w.U32Be(ping.ping_number);
     w.Zeros(3);
@@ -551,8 +557,8 @@ bool EncodeRecord83P(const Ping83P& ping, const EncodeOptions& options,
         w.U8(ping.option_flags);
         w.U8(0);
         w.U8(ping.pings_averaged);
-        w.U16Be(static_cast<std::uint16_t>(
-            Quantize(ping.center_ping_offset_us, 0.01, 0.0, 0xFFFF)));
+        w.U16Be(
+            static_cast<std::uint16_t>(Quantize(ping.center_ping_offset_us, 0.01, 0.0, 0xFFFF)));
         WriteFloat(w, ping.heave_m, order);
         w.U8(ping.user_byte);
         WriteFloat(w, ping.altitude_m, order);

@@ -25,10 +25,10 @@ namespace pitmap::protocol::deltat {
 // What the length fields of a header say (§1.3, §4.2).
 struct Layout83P {
     std::uint8_t format_version = 0;
-    std::uint16_t total_bytes = 0;   // N
-    std::uint16_t num_beams = 0;     // B (0 for a comment record)
-    bool comment = false;            // MB-System comment record (§2.3)
-    bool intensity = false;          // intensities follow the ranges
+    std::uint16_t total_bytes = 0;        // N
+    std::uint16_t num_beams = 0;          // B (0 for a comment record)
+    bool comment = false;                 // MB-System comment record (§2.3)
+    bool intensity = false;               // intensities follow the ranges
     bool intensity_flag_ignored = false;  // byte 117 = 1 with N = 256+2B (MB-System writer)
 };
 
@@ -45,8 +45,7 @@ enum class RecordKind : std::uint8_t { kPing = 0, kComment };
 // -> kTrailingBytes). Decodes into `out`, reusing its vectors (no allocation once their
 // capacity reached B); on kComment or an error `out` is unspecified. `memory` carries the
 // per-stream float byte-order choices (§4.5).
-std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record,
-                                                          FloatOrderMemory& memory,
+std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record, FloatOrderMemory& memory,
                                                           Ping83P& out);
 
 using Decoded83P = std::variant<Ping83P, Comment83P, DecodeError>;
@@ -81,8 +80,8 @@ std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_
 double ParseLatitudeText(std::string_view text14);
 double ParseLongitudeText(std::string_view text14);
 // Fill the text fields and their decoded values consistently. The header clock is written
-// with hundredths and (v1.10 only) milliseconds; the decoded utime keeps the resolution of the version
-// (hundredths for v1.00, ms for v1.10), so set format_version first. Times before year 0 or
+// with hundredths and (v1.10 only) milliseconds; the decoded utime keeps the resolution of the
+// version (hundredths for v1.00, ms for v1.10), so set format_version first. Times before year 0 or
 // after 9999 make the clock "not parsable". NaN latitude/longitude writes blanks.
 void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix);
 void SetHeaderLatitude(Ping83P& ping, double latitude_deg);

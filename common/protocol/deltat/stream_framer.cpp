@@ -33,8 +33,8 @@ std::variant<NeedMore, Skipped, Record> StreamFramer::Next() {
     const std::size_t avail = tail_ - head_;
     if (avail == 0) return NeedMore{};
     const std::uint8_t* p = buffer_.data() + head_;
-    const bool marker_prefix = p[0] == kMarker0 && (avail < 2 || p[1] == kMarker1) &&
-                               (avail < 3 || p[2] == kMarker2);
+    const bool marker_prefix =
+        p[0] == kMarker0 && (avail < 2 || p[1] == kMarker1) && (avail < 3 || p[2] == kMarker2);
     if (!marker_prefix) {
         // Garbage up to the next '8' that could start a marker (possibly cut by the end).
         std::size_t i = 1;

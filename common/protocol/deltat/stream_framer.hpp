@@ -54,9 +54,9 @@ private:
     Skipped Skip(SkipReason reason, std::size_t n);
 
     std::vector<std::uint8_t> buffer_;
-    std::size_t head_ = 0;       // first unconsumed byte
-    std::size_t tail_ = 0;       // one past the last valid byte
-    std::uint64_t consumed_ = 0; // stream offset of buffer_[head_]
+    std::size_t head_ = 0;        // first unconsumed byte
+    std::size_t tail_ = 0;        // one past the last valid byte
+    std::uint64_t consumed_ = 0;  // stream offset of buffer_[head_]
     std::uint64_t pushed_ = 0;
 };
 

@@ -199,7 +199,7 @@ TEST(EcFrame, DecoderRejectsBadFrames) {
     b[1] = 'X';
     expect_error(b, DecodeErrorKind::kBadMarker, 0);
     const std::pair<std::size_t, std::uint8_t> bad_values[] = {
-        {3, 2}, {4, 7}, {7, 1}, {7, 15}, {10, 2}, {11, 4}, {12, 4}, {13, 3}, {14, 11},
+        {3, 2},  {4, 7},  {7, 1},  {7, 15},   {10, 2}, {11, 4}, {12, 4}, {13, 3}, {14, 11},
         {19, 5}, {20, 3}, {21, 2}, {23, 101}, {24, 2}, {26, 2}, {28, 2}, {29, 2}, {34, 3}};
     for (const auto& [offset, value] : bad_values) {
         b = good;

@@ -40,8 +40,8 @@ SwitchCommand SampleCommand() {
 TEST(SwitchCommand, EncodesEveryByteOfTheTable) {
     const Bytes b = EncodeSwitchCommand(SampleCommand());
     ASSERT_EQ(b.size(), 27u);
-    const Bytes expected = {0xFE, 0x44, 0x10, 30, 0, 0xC0, 0x00, 0, 6, 1, 10, 120, 0, 13,
-                            18,   0,    0,    0,  0, 16,   8,    0x80, 0x10, 0, 10, 86, 0xFD};
+    const Bytes expected = {0xFE, 0x44, 0x10, 30, 0, 0xC0, 0x00, 0,    6,    1, 10, 120, 0,   13,
+                            18,   0,    0,    0,  0, 16,   8,    0x80, 0x10, 0, 10, 86,  0xFD};
     EXPECT_EQ(b, expected);
 }
 
@@ -80,8 +80,7 @@ TEST(SwitchCommand, DecoderRejectsBadCommands) {
     const auto kind_of = [](const Bytes& b) {
         const auto d = DecodeSwitchCommand(b);
         EXPECT_TRUE(std::holds_alternative<DecodeError>(d));
-        return std::holds_alternative<DecodeError>(d) ? std::get<DecodeError>(d)
-                                                       : DecodeError{};
+        return std::holds_alternative<DecodeError>(d) ? std::get<DecodeError>(d) : DecodeError{};
     };
     Bytes b = good;
     b[0] = 0xFF;
@@ -133,8 +132,8 @@ HeadReply SampleReply(std::uint8_t packet, char mode = 'U') {
     h.data_bytes_be = 1000;
     h.byte_12 = 0x33;
     h.orientation_type = packet == 0 ? 1 : 0;
-    h.pitch_raw = 16384;    // 90 deg
-    h.roll_raw = -8192;     // -45 deg
+    h.pitch_raw = 16384;  // 90 deg
+    h.roll_raw = -8192;   // -45 deg
     h.heading_raw = 0x7FFF;
     for (std::size_t i = 0; i < h.bytes_20_31.size(); ++i) {
         h.bytes_20_31[i] = static_cast<std::uint8_t>(0xA0 + i);

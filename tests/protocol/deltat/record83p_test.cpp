@@ -35,8 +35,8 @@ std::vector<std::uint8_t> HandBuiltV110() {
     PutText(b, 29, ".12");
     PutText(b, 33, " 45.30.12345 N");
     PutText(b, 47, "073.15.50000 W");
-    b[61] = 25;                          // 2.5 kn
-    PutU16Be(b, 62, 1234);               // 123.4 deg
+    b[61] = 25;                             // 2.5 kn
+    PutU16Be(b, 62, 1234);                  // 123.4 deg
     PutU16Be(b, 64, 0x8000 | (900 + 25));   // pitch +2.5
     PutU16Be(b, 66, 0x8000 | (900 - 105));  // roll -10.5
     PutU16Be(b, 68, 0x8000 | 3599);         // heading 359.9
@@ -148,6 +148,7 @@ TEST(Record83P, HandBuiltV110EveryField) {
     EXPECT_EQ(p.option_flags, kOptionRollCorrected | kOptionOverlapped);
     EXPECT_EQ(p.pings_averaged, 3);
     EXPECT_EQ(p.center_ping_offset_us, 4000);
+    EXPECT_EQ(p.TransmitAgeAtSendUs(), 12000 - 2500);
     EXPECT_EQ(p.heave_m, 0.5f);
     EXPECT_EQ(p.user_byte, 0xAB);
     EXPECT_EQ(p.altitude_m, 12.5f);
@@ -184,6 +185,7 @@ TEST(Record83P, HandBuiltV100IgnoresBytes100To255) {
     EXPECT_EQ(p.intensity_flag_raw, 0);
     EXPECT_EQ(p.ping_latency_us, -1);
     EXPECT_EQ(p.data_latency_us, -1);
+    EXPECT_EQ(p.TransmitAgeAtSendUs(), -1);
     EXPECT_EQ(p.sonar_offset_m[0], 0.0f);
     EXPECT_EQ(p.altitude_m, 0.0f);
     EXPECT_EQ(p.external_sensor_flags, 0);
@@ -220,7 +222,7 @@ TEST(Record83P, SoundVelocityBit) {
 
 TEST(Record83P, AttitudeBit15) {
     auto b = HandBuiltV110();
-    PutU16Be(b, 64, 925);   // bit15 clear: not supplied
+    PutU16Be(b, 64, 925);  // bit15 clear: not supplied
     PutU16Be(b, 66, 0);
     PutU16Be(b, 68, 0x8000);  // valid heading 0.0
     const Ping83P p = DecodeOk(b);
@@ -256,12 +258,16 @@ TEST(Record83P, TiltRules) {
 TEST(Record83P, LatitudeStrings) {
     EXPECT_DOUBLE_EQ(ParseLatitudeText(" 45.30.12345 N"), 45.0 + 30.12345 / 60.0);
     EXPECT_DOUBLE_EQ(ParseLatitudeText("_45_30.12345_S"), -(45.0 + 30.12345 / 60.0));
-    EXPECT_DOUBLE_EQ(ParseLatitudeText(std::string_view(" 45\0" "30\0" "12345\0N", 14)),
+    EXPECT_DOUBLE_EQ(ParseLatitudeText(std::string_view(" 45\0"
+                                                        "30\0"
+                                                        "12345\0N",
+                                                        14)),
                      45.0 + 30.12345 / 60.0);
     EXPECT_DOUBLE_EQ(ParseLatitudeText(" 45. 5.12345 S"), -(45.0 + 5.12345 / 60.0));
     EXPECT_DOUBLE_EQ(ParseLatitudeText("_ 5_ 5.00000_N"), 5.0 + 5.0 / 60.0);
     EXPECT_TRUE(std::isnan(ParseLatitudeText("              ")));
-    EXPECT_TRUE(std::isnan(ParseLatitudeText(std::string_view("\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 14))));
+    EXPECT_TRUE(
+        std::isnan(ParseLatitudeText(std::string_view("\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 14))));
     EXPECT_TRUE(std::isnan(ParseLatitudeText(" 00.00.00000 N")));  // all zero: no GNSS
     EXPECT_TRUE(std::isnan(ParseLatitudeText("______________")));
     EXPECT_TRUE(std::isnan(ParseLatitudeText(" 45.60.00000 N")));  // minutes >= 60

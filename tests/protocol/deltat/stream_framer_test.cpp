@@ -29,8 +29,9 @@ void Append(Bytes& out, std::string_view text) { out.insert(out.end(), text.begi
 // Four records of every size class: 2176 (480 + intensity), 496 (120), 256 (comment),
 // 736 (240, v1.00).
 std::vector<Bytes> SampleRecords() {
-    return {EncodeRecord83P(MakePing(480, true, 10, 1)), EncodeRecord83P(MakePing(120, false, 10, 2)),
-            EncodeComment83P("mbcopy comment"), EncodeRecord83P(MakePing(240, false, 0, 3))};
+    return {EncodeRecord83P(MakePing(480, true, 10, 1)),
+            EncodeRecord83P(MakePing(120, false, 10, 2)), EncodeComment83P("mbcopy comment"),
+            EncodeRecord83P(MakePing(240, false, 0, 3))};
 }
 
 Bytes Concat(const std::vector<Bytes>& records) {
@@ -267,8 +268,8 @@ TEST(StreamFramer, BadLengthIsSkippedAndResynced) {
 
 TEST(StreamFramer, OverLongAndRuntLengths) {
     const auto records = SampleRecords();
-    for (std::uint16_t n : {std::uint16_t{2178}, std::uint16_t{0xFFFF}, std::uint16_t{255},
-                            std::uint16_t{0}}) {
+    for (std::uint16_t n :
+         {std::uint16_t{2178}, std::uint16_t{0xFFFF}, std::uint16_t{255}, std::uint16_t{0}}) {
         Bytes b = records[0];
         PutU16Be(b, 4, n);
         const Outcome o = FeedStream(Concat({b, records[1]}), {});
