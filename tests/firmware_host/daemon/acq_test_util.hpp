@@ -1,0 +1,142 @@
+// SPDX-License-Identifier: MIT
+// Test helpers for the daemon: a scripted ByteSource and an LCM log reader.
+#pragma once
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "firmware_host/io/byte_source.hpp"
+
+namespace pitmap::acq::testing {
+
+// A ByteSource that replays a script: chunks of bytes, timeouts, disconnects (the next read
+// fails and the following one "reopens", bumping generation()), end of stream. Writes are
+// recorded; `on_write` may queue an answer.
+class FakeSource final : public ByteSource {
+public:
+    struct Step {
+        enum class Kind { kData, kTimeout, kDisconnect, kEnd } kind = Kind::kData;
+        std::vector<std::byte> data;
+        std::int64_t utime_host = 0;
+    };
+
+    explicit FakeSource(Transport transport = Transport::kSerial) : transport_(transport) {}
+
+    void PushData(const std::vector<std::uint8_t>& bytes, std::int64_t utime_host) {
+        Step s;
+        s.data.resize(bytes.size());
+        std::memcpy(s.data.data(), bytes.data(), bytes.size());
+        s.utime_host = utime_host;
+        steps_.push_back(std::move(s));
+    }
+    void PushTimeout() { steps_.push_back(Step{Step::Kind::kTimeout, {}, 0}); }
+    void PushDisconnect() { steps_.push_back(Step{Step::Kind::kDisconnect, {}, 0}); }
+    void PushEnd() { steps_.push_back(Step{Step::Kind::kEnd, {}, 0}); }
+    // Puts an answer at the front of the script (the receiver answering a command).
+    void PushFrontData(const std::string& text, std::int64_t utime_host) {
+        Step s;
+        for (char c : text) s.data.push_back(static_cast<std::byte>(c));
+        s.utime_host = utime_host;
+        steps_.push_front(std::move(s));
+    }
+
+    Status Open() override {
+        NoteOpened();
+        return Ok{};
+    }
+    Expected<ReadOutcome> Read(Chunk& chunk, int /*timeout_ms*/) override {
+        if (state() == SourceState::kDisconnected) {
+            NoteOpened();  // the "device" is back
+        }
+        if (steps_.empty()) return ReadOutcome::kTimeout;
+        Step s = std::move(steps_.front());
+        steps_.pop_front();
+        switch (s.kind) {
+            case Step::Kind::kData:
+                chunk.data = std::move(s.data);
+                chunk.utime_host = s.utime_host;
+                chunk.utime_kernel = 0;
+                chunk.peer = "fake";
+                chunk.truncated = false;
+                return ReadOutcome::kData;
+            case Step::Kind::kTimeout: return ReadOutcome::kTimeout;
+            case Step::Kind::kDisconnect:
+                set_state(SourceState::kDisconnected);
+                return Fail("fake device unplugged");
+            case Step::Kind::kEnd: set_state(SourceState::kFinished); return ReadOutcome::kEndOfStream;
+        }
+        return ReadOutcome::kTimeout;
+    }
+    Status Write(std::span<const std::byte> bytes, int /*timeout_ms*/) override {
+        std::string text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+        writes.push_back(text);
+        if (on_write) on_write(text);
+        return Ok{};
+    }
+    void Close() override { set_state(SourceState::kClosed); }
+    Transport transport() const override { return transport_; }
+    std::string description() const override { return "fake"; }
+
+    std::vector<std::string> writes;
+    std::function<void(const std::string&)> on_write;
+    bool empty() const { return steps_.empty(); }
+
+private:
+    Transport transport_;
+    std::deque<Step> steps_;
+};
+
+struct LogEvent {
+    std::string channel;
+    std::int64_t timestamp = 0;
+    std::vector<std::uint8_t> data;
+};
+
+// Every event of every *.lcmlog file in `dir`, files in name order.
+inline std::vector<LogEvent> ReadLogDir(const std::string& dir) {
+    std::vector<std::string> files;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        if (e.path().extension() == ".lcmlog") files.push_back(e.path().string());
+    }
+    std::sort(files.begin(), files.end());
+    std::vector<LogEvent> out;
+    for (const auto& f : files) {
+        lcm::LogFile log(f, "r");
+        if (!log.good()) continue;
+        while (const lcm::LogEvent* ev = log.readNextEvent()) {
+            const auto* p = static_cast<const std::uint8_t*>(ev->data);
+            out.push_back(LogEvent{ev->channel, ev->timestamp,
+                                   std::vector<std::uint8_t>(p, p + ev->datalen)});
+        }
+    }
+    return out;
+}
+
+template <typename T>
+T DecodeAs(const std::vector<std::uint8_t>& data) {
+    T t;
+    const int n = t.decode(data.data(), 0, static_cast<int>(data.size()));
+    if (n < 0) ADD_FAILURE() << "undecodable " << T::getTypeName();
+    return t;
+}
+
+inline std::vector<std::uint8_t> ReadBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {});
+}
+
+inline std::string FreshDir(const std::string& name) {
+    const std::string dir = ::testing::TempDir() + "/" + name;
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+}  // namespace pitmap::acq::testing

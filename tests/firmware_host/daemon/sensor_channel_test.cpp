@@ -1,0 +1,442 @@
+// SPDX-License-Identifier: MIT
+// SensorChannel with a scripted ByteSource, a manual clock, memq:// LCM and the real
+// LogWriter: real NovAtel captures replayed in odd-sized chunks (per-kind counts equal the
+// golden files, RAW_ reproduces the input byte for byte), garbage bursts, set-up commands
+// with answers, refusals, silence and reconnects, 83P datagrams with and without GPS time,
+// EC steering.
+#include "firmware_host/daemon/sensor_channel.hpp"
+
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
+
+#include <map>
+#include <random>
+
+#include "common/protocol/deltat/ec_frame.hpp"
+#include "common/protocol/deltat/record83p.hpp"
+#include "firmware_host/daemon/log_writer.hpp"
+#include "pitmap/channel_status_t.hpp"
+#include "tests/firmware_host/daemon/acq_test_util.hpp"
+
+namespace pitmap::acq {
+namespace {
+
+using testing::DecodeAs;
+using testing::FakeSource;
+using testing::LogEvent;
+
+constexpr std::int64_t kT0 = 1'700'000'000'000'000;
+
+// Daemon back end of one test: log writer into a fresh directory + memq publisher.
+struct Backend {
+    explicit Backend(const std::string& name)
+        : dir(testing::FreshDir(name)),
+          log(LogWriterConfig{.directory = dir, .prefix = "t", .min_free_bytes = 0}),
+          publisher(LcmPublisherConfig{.lcm_url = "memq://"}, &log) {
+        EXPECT_TRUE(log.Start().ok());
+        EXPECT_TRUE(publisher.Start().ok());
+    }
+    std::vector<LogEvent> Finish() {
+        publisher.Stop();
+        log.Stop();
+        return testing::ReadLogDir(dir);
+    }
+    std::string dir;
+    LogWriter log;
+    LcmPublisher publisher;
+};
+
+std::vector<std::size_t> OddChunks() { return {1, 7, 13, 61, 251, 1021, 4093, 3}; }
+
+// Queues `data` into the source in the cycled chunk sizes, 1 ms apart.
+void Feed(FakeSource& src, const std::vector<std::uint8_t>& data, std::int64_t t0) {
+    const auto sizes = OddChunks();
+    std::size_t pos = 0;
+    for (std::size_t i = 0; pos < data.size(); ++i) {
+        const std::size_t n = std::min(sizes[i % sizes.size()], data.size() - pos);
+        src.PushData(std::vector<std::uint8_t>(data.begin() + static_cast<long>(pos),
+                                               data.begin() + static_cast<long>(pos + n)),
+                     t0 + static_cast<std::int64_t>(i) * 1000);
+        pos += n;
+    }
+}
+
+void RunToEnd(SensorChannel& ch) {
+    while (ch.RunOnce()) {
+    }
+}
+
+std::vector<std::uint8_t> RawConcat(const std::vector<LogEvent>& events, const std::string& ch) {
+    std::vector<std::uint8_t> out;
+    std::int64_t expected_seq = 0;
+    for (const auto& e : events) {
+        if (e.channel != ch) continue;
+        const auto raw = DecodeAs<pitmap::raw_bytes_t>(e.data);
+        EXPECT_EQ(raw.seq, expected_seq++);
+        EXPECT_EQ(raw.utime, e.timestamp);
+        EXPECT_EQ(raw.num_bytes, static_cast<std::int32_t>(raw.data.size()));
+        out.insert(out.end(), raw.data.begin(), raw.data.end());
+    }
+    return out;
+}
+
+
+std::map<std::string, std::int64_t> ChannelCounts(const std::vector<LogEvent>& events) {
+    std::map<std::string, std::int64_t> n;
+    for (const auto& e : events) ++n[e.channel];
+    return n;
+}
+
+SensorChannelConfig NovatelConfig(const std::string& id) {
+    SensorChannelConfig c;
+    c.id = id;
+    c.protocol = ChannelProtocol::kNovatel;
+    return c;
+}
+
+class GoldenReplay : public ::testing::TestWithParam<const char*> {};
+
+// Every raw NovAtel capture with a golden file: counts per kind as pitmap-inspect found them,
+// CRC failures, bytes; the RAW_ channel in the log is the input, byte for byte.
+TEST_P(GoldenReplay, CountsMatchGoldenAndRawIsTheInput) {
+    const std::string name = GetParam();
+    const auto data = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/" + name);
+    ASSERT_FALSE(data.empty());
+    std::ifstream gin(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/golden/" + name + ".json");
+    const nlohmann::json golden = nlohmann::json::parse(gin);
+
+    Backend be("golden_" + name);
+    FakeSource src;
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    SensorChannel ch(NovatelConfig("nov"), src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    Feed(src, data, kT0);
+    src.PushEnd();
+    RunToEnd(ch);
+    const ChannelCounters c = ch.counters();
+    const auto events = be.Finish();
+
+    EXPECT_EQ(c.bytes, golden["input_bytes"].get<std::int64_t>());
+    EXPECT_EQ(c.frames, golden["frames_total"].get<std::int64_t>());
+    EXPECT_EQ(c.crc_failures, golden["crc_failures"].get<std::int64_t>());
+    std::map<std::string, std::int64_t> expected;
+    for (const auto& [k, v] : golden["frames_by_id"].items()) expected[k] = v.get<std::int64_t>();
+    EXPECT_EQ(c.frame_kinds, expected);
+    EXPECT_EQ(c.decode_errors, 0);
+    EXPECT_EQ(c.queue_drops, 0);
+
+    EXPECT_EQ(RawConcat(events, "RAW_NOV"), data);
+    // Every published message is in the log exactly once.
+    EXPECT_EQ(static_cast<std::int64_t>(events.size()), c.published);
+    // The status snapshot carries the same counters.
+    const auto st = ch.Status();
+    EXPECT_EQ(st.bytes, c.bytes);
+    EXPECT_EQ(st.frames, c.frames);
+    EXPECT_EQ(st.num_frame_kinds, static_cast<std::int32_t>(expected.size()));
+    EXPECT_EQ(st.state, pitmap::channel_status_t::STATE_STOPPED);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    NovatelCaptures, GoldenReplay,
+    ::testing::Values("gavlab_OneEach.ASC", "gavlab_OneEach.GPS", "gavlab_ParsingData.GPS",
+                      "gavlab_test2_rcvr1.dat", "oem7drv_align.gps", "oem7drv_bestpos.gps",
+                      "oem7drv_ins1.gps", "oem7drv_ins2.gps", "oem7drv_ins2_humble.gps",
+                      "oem7drv_rxstatus.gps", "oem7drv_time.gps", "rtklib_oemv_200911218.gps"),
+    [](const auto& param_info) {
+        std::string n = param_info.param;
+        for (char& ch : n) {
+            if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+        }
+        return n;
+    });
+
+TEST(SensorChannelTest, InsCapturePublishesDecodedChannelsAndLocksTheHostClock) {
+    const auto data = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins2.gps");
+    Backend be("ins2");
+    FakeSource src;
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    auto cfg = NovatelConfig("nov");
+    cfg.imu.imu_rate_hz = 100.0;
+    SensorChannel ch(cfg, src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    Feed(src, data, kT0);
+    src.PushEnd();
+    RunToEnd(ch);
+    // memq: the publisher's own LCM object delivers to subscribers on it.
+    be.publisher.Drain(5000);
+    const auto events = be.Finish();
+    const auto n = ChannelCounts(events);
+    EXPECT_EQ(n.at("IMU_NOV"), 766);
+    EXPECT_EQ(n.at("INS_PVA_NOV"), 62 + 6);
+    EXPECT_EQ(n.count("RESPONSE_NOV"), 0u);
+    for (const auto& e : events) {
+        if (e.channel != "IMU_NOV") continue;
+        const auto imu = DecodeAs<pitmap::imu_t>(e.data);
+        EXPECT_EQ(imu.header.message_id, 1362);
+        EXPECT_EQ(imu.corrected, 1);
+        EXPECT_DOUBLE_EQ(imu.dt_s, 0.01);
+        EXPECT_GT(imu.utime_gps, 0);
+        break;
+    }
+    // The capture's INS times fed the host model: raw chunks got GPS times once it had samples.
+    EXPECT_NE(time.HostQuality(kT0 + 10'000'000).state, ClockState::kNoTime);
+    const auto last_raw = [&] {
+        for (auto it = events.rbegin(); it != events.rend(); ++it) {
+            if (it->channel == "RAW_NOV") return DecodeAs<pitmap::raw_bytes_t>(it->data);
+        }
+        return pitmap::raw_bytes_t{};
+    }();
+    EXPECT_GT(last_raw.utime_gps, 0);
+    EXPECT_EQ(be.publisher.stats().queue_drops, 0);
+    EXPECT_EQ(be.publisher.stats().published, static_cast<std::int64_t>(events.size()));
+}
+
+TEST(SensorChannelTest, GarbageBurstsAreCountedAndFramesSurvive) {
+    const auto clean = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps");
+    // Insert bursts of printable-free garbage (no 0xAA, '#', '%', '<', '[', '$') every ~997 bytes.
+    std::mt19937 rng(42);
+    std::vector<std::uint8_t> dirty;
+    std::int64_t inserted = 0;
+    for (std::size_t i = 0; i < clean.size(); ++i) {
+        dirty.push_back(clean[i]);
+        if (i % 997 == 996) {
+            const int burst = 1 + static_cast<int>(rng() % 300);
+            for (int k = 0; k < burst; ++k) {
+                dirty.push_back(static_cast<std::uint8_t>(0x01 + rng() % 0x1F));  // control bytes
+            }
+            inserted += burst;
+        }
+    }
+    Backend be("garbage");
+    FakeSource src;
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    SensorChannel ch(NovatelConfig("nov"), src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    Feed(src, dirty, kT0);
+    src.PushEnd();
+    RunToEnd(ch);
+    const auto c = ch.counters();
+    const auto events = be.Finish();
+    EXPECT_EQ(RawConcat(events, "RAW_NOV"), dirty);
+    EXPECT_EQ(c.bytes, static_cast<std::int64_t>(dirty.size()));
+    std::int64_t skipped = 0;
+    for (auto b : c.skipped_bytes) skipped += b;
+    // Every byte is in a frame or counted as skipped. A burst inside a frame breaks that frame
+    // (its bytes are skipped too), so frames can only be lost, never invented.
+    EXPECT_GE(skipped, inserted);
+    EXPECT_LE(c.frames, 284);
+    EXPECT_GT(c.frames, 200);
+    EXPECT_EQ(c.decode_errors, 0);
+}
+
+TEST(SensorChannelTest, SetupCommandsAnsweredRefusedAndResentOnReconnect) {
+    Backend be("commands");
+    FakeSource src(Transport::kTcp);
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    auto cfg = NovatelConfig("icom1");
+    cfg.setup_commands = {"LOG ICOM1 INSPVAXB ONTIME 0.05", "LOG ICOM1 BOGUSB ONTIME 1"};
+    SensorChannel ch(cfg, src, be.publisher, clock, time);
+    int answered = 0;
+    src.on_write = [&](const std::string& line) {
+        // A receiver: OK to the first, ERROR to the second command.
+        src.PushFrontData(line.find("BOGUS") == std::string::npos ? "\r\n<OK\r\n[ICOM1]"
+                                                                   : "\r\n<ERROR:Invalid Message\r\n[ICOM1]",
+                          clock.NowUtime());
+        ++answered;
+    };
+    ASSERT_TRUE(src.Open().ok());
+    for (int i = 0; i < 6; ++i) ch.RunOnce();
+    ASSERT_EQ(src.writes.size(), 2u);
+    EXPECT_EQ(src.writes[0], "LOG ICOM1 INSPVAXB ONTIME 0.05\r\n");
+    auto c = ch.counters();
+    EXPECT_EQ(c.commands_sent, 2);
+    EXPECT_EQ(c.commands_ok, 1);
+    EXPECT_EQ(c.commands_refused, 1);
+    EXPECT_EQ(c.FrameCount("OK"), 1);
+    EXPECT_EQ(c.FrameCount("ERROR"), 1);
+    EXPECT_EQ(c.FrameCount("PROMPT"), 2);
+
+    // The TCP server restarts: the channel reconnects and sends everything again.
+    src.PushDisconnect();
+    for (int i = 0; i < 8; ++i) ch.RunOnce();
+    EXPECT_EQ(src.writes.size(), 4u);
+    c = ch.counters();
+    EXPECT_EQ(c.commands_ok, 2);
+    EXPECT_EQ(c.commands_refused, 2);
+    EXPECT_EQ(c.reconnects, 1);
+    EXPECT_NE(c.last_error.find("Invalid Message"), std::string::npos);
+
+    const auto events = be.Finish();
+    std::vector<pitmap::receiver_response_t> responses;
+    for (const auto& e : events) {
+        if (e.channel == "RESPONSE_ICOM1") responses.push_back(DecodeAs<pitmap::receiver_response_t>(e.data));
+    }
+    ASSERT_EQ(responses.size(), 4u);
+    EXPECT_EQ(responses[0].ok, 1);
+    EXPECT_EQ(responses[0].command, "LOG ICOM1 INSPVAXB ONTIME 0.05");
+    EXPECT_EQ(responses[1].ok, 0);
+    EXPECT_EQ(responses[1].text, "ERROR:Invalid Message");
+    EXPECT_EQ(responses[1].command, "LOG ICOM1 BOGUSB ONTIME 1");
+    EXPECT_EQ(responses[1].source, "icom1");
+    // What the receiver said is in the raw log too.
+    std::string raw;
+    for (auto b : RawConcat(events, "RAW_ICOM1")) raw.push_back(static_cast<char>(b));
+    EXPECT_EQ(raw, "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]"
+                   "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]");
+}
+
+TEST(SensorChannelTest, SilentReceiverGetsOneRetryThenTheNextCommand) {
+    Backend be("silent");
+    FakeSource src(Transport::kTcp);
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    auto cfg = NovatelConfig("nov");
+    cfg.setup_commands = {"LOG BESTPOSB ONTIME 1", "LOG TIMEB ONTIME 1"};
+    SensorChannel ch(cfg, src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    ch.RunOnce();
+    EXPECT_EQ(src.writes.size(), 1u);
+    clock.AdvanceUs(500'000);
+    ch.RunOnce();
+    EXPECT_EQ(src.writes.size(), 1u);  // still waiting
+    clock.AdvanceUs(600'000);
+    ch.RunOnce();
+    ASSERT_EQ(src.writes.size(), 2u);  // the retry
+    EXPECT_EQ(src.writes[1], src.writes[0]);
+    clock.AdvanceUs(1'100'000);
+    ch.RunOnce();
+    ASSERT_EQ(src.writes.size(), 3u);  // gave up: the next command
+    EXPECT_EQ(src.writes[2], "LOG TIMEB ONTIME 1\r\n");
+    EXPECT_EQ(ch.counters().commands_unanswered, 1);
+    EXPECT_EQ(ch.Status().state, pitmap::channel_status_t::STATE_SILENT);
+    be.Finish();
+}
+
+TEST(SensorChannelTest, UnplugReplugKeepsCountingAndReportsState) {
+    const auto data = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_bestpos.gps");
+    Backend be("replug");
+    FakeSource src;
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    SensorChannel ch(NovatelConfig("nov"), src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    const std::size_t half = data.size() / 2;
+    src.PushData(std::vector<std::uint8_t>(data.begin(), data.begin() + static_cast<long>(half)), kT0);
+    src.PushDisconnect();
+    ch.RunOnce();
+    ch.RunOnce();
+    EXPECT_EQ(ch.Status().state, pitmap::channel_status_t::STATE_DISCONNECTED);
+    EXPECT_EQ(ch.counters().last_error, "fake device unplugged");
+    src.PushData(std::vector<std::uint8_t>(data.begin() + static_cast<long>(half), data.end()), kT0 + 1000);
+    src.PushEnd();
+    RunToEnd(ch);
+    EXPECT_EQ(ch.counters().reconnects, 1);
+    EXPECT_EQ(ch.counters().bytes, static_cast<std::int64_t>(data.size()));
+    const auto events = be.Finish();
+    EXPECT_EQ(RawConcat(events, "RAW_NOV"), data);
+}
+
+protocol::deltat::Ping83P MakePing(std::uint32_t number, std::int64_t header_utime) {
+    protocol::deltat::Ping83P p;
+    p.format_version = protocol::deltat::kVersion110;
+    protocol::deltat::SetHeaderTime(p, header_utime);
+    p.sector_size_deg = 120;
+    p.start_angle_cdeg = -6000;
+    p.angle_increment_cdeg = 50;
+    p.acoustic_range_m = 50;
+    p.frequency_khz = 260;
+    p.range_resolution_mm = 10;
+    p.repetition_rate_ms = 100;
+    p.ping_number = number;
+    p.ping_latency_us = 1000;
+    p.data_latency_us = 20'000;
+    p.range_counts.assign(240, 0);
+    for (std::size_t i = 0; i < p.range_counts.size(); ++i) {
+        p.range_counts[i] = static_cast<std::uint16_t>(1000 + i + number);
+    }
+    return p;
+}
+
+TEST(SensorChannelTest, DeltatDatagramsStampedOnlyOnceTheHostClockHasTime) {
+    Backend be("deltat");
+    FakeSource src(Transport::kUdp);
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    SensorChannelConfig cfg;
+    cfg.id = "mb";
+    cfg.protocol = ChannelProtocol::kDeltat83P;
+    cfg.ec.enabled = true;
+    cfg.ec.frame.range_m = 30;
+    cfg.ec.frame.start_gain_db = 12;
+    SensorChannel ch(cfg, src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    const std::int64_t header_offset = -3'000'000;  // topside clock 3 s behind the host
+    std::vector<std::vector<std::uint8_t>> sent;
+    // 3 pings before any NovAtel time, then the host model learns GPS = host + 18 s, 50 pings.
+    const std::int64_t gps_minus_host = 18'000'000 - 315'964'800'000'000;
+    for (int i = 0; i < 53; ++i) {
+        const std::int64_t tx_host = kT0 + i * 100'000;
+        if (i == 3) {
+            for (int k = 0; k < 100; ++k) {
+                const std::int64_t h = kT0 - 10'000'000 + k * 200'000;
+                time.AddNovatel(h + 2000 + (k % 7) * 500, h + gps_minus_host, true);
+            }
+        }
+        if (i >= 3) {
+            time.AddNovatel(tx_host + 2000, tx_host + gps_minus_host, true);
+        }
+        sent.push_back(protocol::deltat::EncodeRecord83P(MakePing(static_cast<std::uint32_t>(i),
+                                                                  tx_host - 1000 + header_offset)));
+        src.PushData(sent.back(), tx_host + 19'000 + (i % 5) * 300);
+        ch.RunOnce();
+        clock.AdvanceUs(100'000);
+    }
+    src.PushData({'n', 'o', 't', ' ', '8', '3', 'P'}, kT0 + 6'000'000);
+    src.PushEnd();
+    while (ch.RunOnce()) clock.AdvanceUs(100'000);
+    const auto c = ch.counters();
+    EXPECT_EQ(c.FrameCount("83P"), 53);
+    EXPECT_EQ(c.decode_errors, 1);
+    EXPECT_GE(c.ec_frames_sent, 1);
+    ASSERT_FALSE(src.writes.empty());
+    const auto ec = protocol::deltat::DecodeEcFrame(ByteSpan(
+        reinterpret_cast<const std::uint8_t*>(src.writes[0].data()), src.writes[0].size()));
+    ASSERT_TRUE(std::holds_alternative<protocol::deltat::EcFrame>(ec));
+    EXPECT_EQ(std::get<protocol::deltat::EcFrame>(ec).range_m, 30);
+    EXPECT_EQ(std::get<protocol::deltat::EcFrame>(ec).start_gain_db, 12);
+
+    const auto events = be.Finish();
+    std::vector<pitmap::multibeam_ping_t> pings;
+    std::vector<std::vector<std::uint8_t>> raws;
+    for (const auto& e : events) {
+        if (e.channel == "MULTIBEAM_PING_MB") pings.push_back(DecodeAs<pitmap::multibeam_ping_t>(e.data));
+        if (e.channel == "RAW_MB") raws.push_back(DecodeAs<pitmap::raw_bytes_t>(e.data).data);
+    }
+    ASSERT_EQ(pings.size(), 53u);
+    ASSERT_EQ(raws.size(), 54u);
+    for (std::size_t i = 0; i < sent.size(); ++i) EXPECT_EQ(raws[i], sent[i]);
+    for (int i = 0; i < 3; ++i) {
+        EXPECT_EQ(pings[i].utime_gps, 0);
+        EXPECT_EQ(pings[i].gps_time_source, pitmap::multibeam_ping_t::TIME_SOURCE_NONE);
+        EXPECT_TRUE(std::isnan(pings[i].gps_time_stddev_s));
+    }
+    for (int i = 3; i < 53; ++i) {
+        EXPECT_EQ(pings[i].ping_number, i);
+        EXPECT_EQ(pings[i].num_beams, 240);
+        EXPECT_EQ(pings[i].range_counts[5], 1005 + i);
+        EXPECT_NE(pings[i].gps_time_source, pitmap::multibeam_ping_t::TIME_SOURCE_NONE);
+        // Truth: transmit at tx_host (host) = tx_host + gps_minus_host (GPS).
+        const std::int64_t truth = kT0 + i * 100'000 + gps_minus_host;
+        EXPECT_NEAR(static_cast<double>(pings[i].utime_gps), static_cast<double>(truth), 5000.0)
+            << "ping " << i;
+    }
+    EXPECT_EQ(pings.back().gps_time_source, pitmap::multibeam_ping_t::TIME_SOURCE_HEADER_CLOCK);
+}
+
+}  // namespace
+}  // namespace pitmap::acq
