@@ -154,13 +154,17 @@ double PitWorld::At(int ix, int iy) const {
 }
 
 double PitWorld::Height(double x, double y) const {
+    // One clamp, then the four corners straight from the row-major array (hot path of the
+    // ray marcher: no per-corner bounds checks).
     const double gx = std::clamp((x - grid_.x0_m) / grid_.resolution_m, 0.0, grid_.nx - 1.0);
     const double gy = std::clamp((y - grid_.y0_m) / grid_.resolution_m, 0.0, grid_.ny - 1.0);
     const int ix = std::min(static_cast<int>(gx), grid_.nx - 2);
     const int iy = std::min(static_cast<int>(gy), grid_.ny - 2);
     const double u = gx - ix, v = gy - iy;
-    return (At(ix, iy) * (1 - u) + At(ix + 1, iy) * u) * (1 - v) +
-           (At(ix, iy + 1) * (1 - u) + At(ix + 1, iy + 1) * u) * v;
+    const float* row0 = grid_.height_m.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(grid_.nx) +
+                        static_cast<std::size_t>(ix);
+    const float* row1 = row0 + grid_.nx;
+    return (row0[0] * (1 - u) + row0[1] * u) * (1 - v) + (row1[0] * (1 - u) + row1[1] * u) * v;
 }
 
 Eigen::Vector2d PitWorld::Gradient(double x, double y) const {

@@ -1,0 +1,261 @@
+// SPDX-License-Identifier: MIT
+#include "tools/sim/synth.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "common/frames.hpp"
+#include "common/gps_time.hpp"
+#include "firmware_host/daemon/log_writer.hpp"
+#include "firmware_host/daemon/to_lcm.hpp"
+#include "tools/sim/decoded_channels.hpp"
+#include "tools/sim/nav_errors.hpp"
+#include "tools/sim/receiver_sim.hpp"
+#include "tools/sim/sonar_model.hpp"
+#include "tools/sim/trajectory.hpp"
+#include "tools/sim/truth_io.hpp"
+#include "tools/sim/world.hpp"
+
+namespace pitmap::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kNovatelId = "novatel_com1";
+constexpr const char* kSonarId = "deltat_udp";
+constexpr double kReadTickS = 0.005;  // the daemon's serial reads return every 5 ms
+
+struct Event {
+    std::int64_t utime = 0;
+    std::string channel;
+    std::vector<std::uint8_t> data;
+};
+
+std::vector<std::uint8_t> EncodeRaw(std::int64_t utime, std::int64_t utime_gps, const std::string& source,
+                                    const std::string& protocol, acq::Transport transport, std::int64_t seq,
+                                    const std::string& peer, const std::vector<std::uint8_t>& bytes) {
+    acq::RawBytesExtra extra;
+    extra.utime_gps = utime_gps;
+    extra.gps_time_valid = true;
+    extra.peer = peer;
+    return acq::EncodeLcm(acq::MakeRawBytes(utime, source, protocol, transport, seq,
+                                            std::span<const std::uint8_t>(bytes), extra));
+}
+
+Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
+    std::ofstream out(path);
+    if (!out) return Error{path.string() + ": cannot create"};
+    const auto& s = sc.lever_arms.sonar_m;
+    const auto& a = sc.lever_arms.antenna_m;
+    out << "# pitmap vehicle configuration, written beside the logs (docs/conventions.md).\n"
+        << "# Lever arms: vehicle frame (x forward, y starboard, z down), metres, from the INS\n"
+        << "# reference point. boresight_deg: nominal R_vehicle_sonar (roll, pitch, yaw) before\n"
+        << "# calibration.\n"
+        << "vehicle: " << (sc.name == "demo" ? "demo-asv" : "roaz") << "\n"
+        << "lever_arms_m:\n"
+        << "  sonar: [" << s[0] << ", " << s[1] << ", " << s[2] << "]\n"
+        << "  gnss_antenna: [" << a[0] << ", " << a[1] << ", " << a[2] << "]\n"
+        << "boresight_deg: [0.0, 0.0, 0.0]\n"
+        << "navigation_channel: " << kNovatelId << "\n"
+        << "sonar_channel: " << kSonarId << "\n";
+    return out ? Status(Ok{}) : Status(Error{path.string() + ": write failed"});
+}
+
+}  // namespace
+
+Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt,
+                               const ProgressCallback& progress) {
+    if (auto problems = sc.Validate(); !problems.empty()) {
+        std::string msg = "invalid scenario:";
+        for (const auto& p : problems) msg += "\n  - " + p;
+        return Error{msg};
+    }
+    auto start_gps = SurveyStartGps(sc);
+    if (!start_gps) return start_gps.error();
+    const fs::path out(opt.out_dir), log_dir = out / "log", truth_dir = out / "truth";
+    std::error_code ec;
+    fs::create_directories(log_dir, ec);
+    fs::create_directories(truth_dir, ec);
+    if (ec || !fs::is_directory(log_dir) || !fs::is_directory(truth_dir)) {
+        return Error{opt.out_dir + ": cannot create the output folders"};
+    }
+    for (const auto& entry : fs::directory_iterator(log_dir)) {
+        if (entry.path().extension() == ".lcmlog") {
+            return Error{log_dir.string() + " already holds log files; choose an empty --out"};
+        }
+    }
+
+    const PitWorld world(sc.pit, sc.seed);
+    auto track = SurveyTrack::Plan(sc);
+    if (!track) return track.error();
+    const TruthTrajectory truth(sc, *track);
+    const NavErrorModel errors(sc.nav, truth.duration_s(), sc.seed);
+    const SonarModel sonar(sc.sonar, world, sc.seed);
+    SimulatedReceiver receiver(sc, truth, errors, *start_gps);
+    const SimulatedTopside topside(sc, *start_gps);
+    DecodedChannels decoded(sc);
+
+    // Boresight and lever arm of the sonar: the truth the calibration must find.
+    const Eigen::Matrix3d R_vehicle_sonar = frames::RotationNedFromRpy(
+        frames::DegToRad(sc.boresight_deg[0]), frames::DegToRad(sc.boresight_deg[1]),
+        frames::DegToRad(sc.boresight_deg[2]));
+    const Pose T_vehicle_sonar = MakePose(
+        R_vehicle_sonar, Eigen::Vector3d(sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
+
+    std::atomic<std::int64_t> sim_utime{UnixFromGps(*start_gps)};
+    acq::LogWriterConfig lw;
+    lw.directory = log_dir.string();
+    lw.prefix = "pitmap";
+    lw.rotate_bytes = opt.rotate_bytes;
+    lw.rotate_interval_s = 0;
+    lw.min_free_bytes = 64LL << 20;
+    lw.resume_margin_bytes = 16LL << 20;
+    if (auto problems = lw.Validate(); !problems.empty()) return Error{"log writer: " + problems.front()};
+    acq::LogWriterHooks hooks;
+    hooks.now_utime = [&sim_utime] { return sim_utime.load(); };
+    acq::LogWriter writer(lw, hooks);
+    if (auto s = writer.Start(); !s) return s.error();
+
+    SynthResult result;
+    result.duration_s = truth.duration_s();
+    result.track_length_m = truth.duration_s() * sc.track.speed_mps;
+    const double byte_time = 10.0 / opt.serial_baud;  // 8N1: 10 bits per byte
+    const int threads = opt.num_threads > 0 ? opt.num_threads
+                                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const auto utime_at = [&](double t) { return UnixFromGps(*start_gps + std::llround(t * 1e6)); };
+    const auto gps_at = [&](double t) { return *start_gps + std::llround(t * 1e6); };
+    std::mt19937_64 jitter_rng(sc.seed ^ 0x1172E7ull);
+    std::uniform_real_distribution<double> jitter(0.0002, 0.003);
+
+    double line_free = 0;            // when the serial line is free again
+    std::vector<std::uint8_t> line;  // bytes on the line not yet read: (completion time, byte)
+    std::vector<double> line_done;
+    std::int64_t nov_seq = 0, sonar_seq = 0, next_ping = 0;
+    const double block = 1.0;        // seconds per block
+    const auto total_pings = static_cast<std::int64_t>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
+    std::int64_t events_since_flush = 0;
+
+    for (double t0 = 0; t0 < truth.duration_s(); t0 += block) {
+        const double t1 = std::min(t0 + block, truth.duration_s());
+        std::vector<Event> events;
+        // NovAtel: frames onto the serial line, read in 5 ms ticks.
+        for (EmittedFrame& f : receiver.Emit(t0, t1)) {
+            const double start = std::max(f.t_emit_s, line_free);
+            for (std::size_t i = 0; i < f.bytes.size(); ++i) {
+                line.push_back(f.bytes[i]);
+                line_done.push_back(start + static_cast<double>(i + 1) * byte_time);
+            }
+            line_free = start + static_cast<double>(f.bytes.size()) * byte_time;
+            ++result.novatel_frames;
+        }
+        for (double tick = std::ceil(t0 / kReadTickS) * kReadTickS; tick < t1; tick += kReadTickS) {
+            std::size_t n = 0;
+            while (n < line_done.size() && line_done[n] <= tick) ++n;
+            if (n == 0) continue;
+            std::vector<std::uint8_t> chunk(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(n));
+            line.erase(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(n));
+            line_done.erase(line_done.begin(), line_done.begin() + static_cast<std::ptrdiff_t>(n));
+            result.novatel_bytes += static_cast<std::int64_t>(chunk.size());
+            const std::int64_t u = utime_at(tick);
+            // As the daemon does: the raw chunk first, then what it decodes to.
+            auto frames = decoded.NovatelChunk(chunk, u);
+            events.push_back({u, "RAW_NOVATEL_COM1",
+                              EncodeRaw(u, gps_at(tick), kNovatelId, "novatel", acq::Transport::kSerial,
+                                        nov_seq++, "/dev/ttyS1", chunk)});
+            for (auto& [ch, bytes] : frames) events.push_back({u, std::move(ch), std::move(bytes)});
+        }
+        // Sonar pings of this block, ray cast in parallel (deterministic per ping).
+        std::vector<std::int64_t> ping_ids;
+        while (next_ping < total_pings && static_cast<double>(next_ping) / sc.sonar.ping_rate_hz < t1) {
+            ping_ids.push_back(next_ping++);
+        }
+        std::vector<SimPing> pings(ping_ids.size());
+        std::atomic<std::size_t> next{0};
+        auto work = [&] {
+            for (std::size_t i = next++; i < ping_ids.size(); i = next++) {
+                const double t = static_cast<double>(ping_ids[i]) / sc.sonar.ping_rate_hz;
+                pings[i] = sonar.Ping(truth.PoseAt(t) * T_vehicle_sonar, ping_ids[i]);
+            }
+        };
+        std::vector<std::thread> pool;
+        for (int k = 1; k < threads; ++k) pool.emplace_back(work);
+        work();
+        for (auto& th : pool) th.join();
+        for (std::size_t i = 0; i < pings.size(); ++i) {
+            const double t = static_cast<double>(ping_ids[i]) / sc.sonar.ping_rate_hz;
+            TopsideDatagram d = topside.Encode(pings[i], t);
+            const double t_rx = d.t_sent_s + jitter(jitter_rng);
+            const std::int64_t u = utime_at(t_rx);
+            auto decoded_ping = decoded.SonarDatagram(d.bytes, u, gps_at(t));
+            events.push_back({u, "RAW_DELTAT_UDP",
+                              EncodeRaw(u, gps_at(t_rx), kSonarId, "deltat_83p", acq::Transport::kUdp,
+                                        sonar_seq++, "127.0.0.1:4040", d.bytes)});
+            for (auto& [ch, bytes] : decoded_ping) events.push_back({u, std::move(ch), std::move(bytes)});
+            ++result.pings;
+        }
+        // Time order; stable, so a raw chunk stays ahead of what it decoded to.
+        std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.utime < b.utime; });
+        for (Event& e : events) {
+            if (e.channel.empty()) continue;
+            sim_utime = e.utime;
+            if (++events_since_flush >= 20000) {
+                writer.Flush(60000);
+                events_since_flush = 0;
+            }
+            if (!writer.Enqueue(e.utime, e.channel, e.data)) {
+                writer.Flush(60000);
+                if (!writer.Enqueue(e.utime, std::move(e.channel), std::move(e.data))) {
+                    writer.Stop();
+                    return Error{"log writer refused an event: " + writer.stats().last_error};
+                }
+            }
+        }
+        if (progress && !progress(t1 / truth.duration_s())) {
+            writer.Stop();
+            return Error{"cancelled"};
+        }
+    }
+    // Bytes still on the serial line when the survey ends: the daemon's next read gets them.
+    if (!line.empty()) {
+        const double tick = std::ceil(line_done.back() / kReadTickS) * kReadTickS;
+        const std::int64_t u = utime_at(tick);
+        auto frames = decoded.NovatelChunk(line, u);
+        result.novatel_bytes += static_cast<std::int64_t>(line.size());
+        writer.Enqueue(u, "RAW_NOVATEL_COM1",
+                       EncodeRaw(u, gps_at(tick), kNovatelId, "novatel", acq::Transport::kSerial,
+                                 nov_seq++, "/dev/ttyS1", line));
+        for (auto& [ch, bytes] : frames) writer.Enqueue(u, std::move(ch), std::move(bytes));
+    }
+    writer.Stop();
+    if (decoded.failures() > 0) {
+        return Error{"internal: " + std::to_string(decoded.failures()) + " simulated frames did not decode"};
+    }
+    const acq::LogWriterStats st = writer.stats();
+    if (st.dropped() > 0 || st.write_errors > 0) {
+        return Error{"log writer lost events (" + std::to_string(st.dropped()) + " dropped, " +
+                     std::to_string(st.write_errors) + " write errors): " + st.last_error};
+    }
+    result.log_events = st.events_written;
+    result.log_bytes = st.bytes_written;
+    result.log_files = static_cast<int>(st.files_opened);
+    if (auto s = WriteVehicleYaml(log_dir / "vehicle.yaml", sc); !s) return s.error();
+
+    // Ground truth.
+    Truth t;
+    t.origin = {sc.origin_latitude_deg, sc.origin_longitude_deg, sc.origin_height_m};
+    t.terrain = world.grid();
+    const double dt = 1.0 / opt.truth_rate_hz;
+    for (double tt = 0; tt <= truth.duration_s() + 1e-9; tt += dt) {
+        t.trajectory.push_back({static_cast<double>(gps_at(tt)) * 1e-6, truth.PoseAt(tt)});
+    }
+    t.boresight = {sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
+    if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
+    return result;
+}
+
+}  // namespace pitmap::sim

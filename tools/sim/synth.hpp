@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: MIT
+// `pitmap-sim synth`: runs a scenario faster than real time and writes
+//   <out>/log/    LCM log files exactly as pitmap-acqd would write them (raw chunks of the
+//                 NovAtel serial stream and of the 83P datagrams, plus the decoded channels),
+//                 rotated by size, and vehicle.yaml (lever arms, nominal boresight)
+//   <out>/truth/  the ground truth (tools/sim/truth_io.hpp)
+// The NovAtel bytes are chunked as a serial port at `serial_baud` delivers them to 5 ms reads;
+// datagrams arrive after the topside's data latency plus network jitter. Host clocks are ideal
+// (utime = UTC, utime_gps from a locked model): the daemon's clock estimation is tested by the
+// HIL rig, not here.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/progress.hpp"
+#include "common/result.hpp"
+#include "tools/sim/scenario.hpp"
+
+namespace pitmap::sim {
+
+struct SynthOptions {
+    std::string out_dir;                        // created if missing
+    int serial_baud = 460800;                   // NovAtel COM port
+    std::int64_t rotate_bytes = 64LL << 20;     // log segment size
+    int num_threads = 0;                        // sonar ray casting; 0 = hardware concurrency
+    double truth_rate_hz = 50.0;                // true trajectory sampling
+};
+
+struct SynthResult {
+    std::int64_t pings = 0;
+    std::int64_t novatel_frames = 0;
+    std::int64_t novatel_bytes = 0;
+    std::int64_t log_events = 0;
+    std::int64_t log_bytes = 0;
+    int log_files = 0;
+    double duration_s = 0;       // simulated
+    double track_length_m = 0;   // travelled
+};
+
+Expected<SynthResult> RunSynth(const ScenarioConfig& scenario, const SynthOptions& options,
+                               const ProgressCallback& progress = {});
+
+}  // namespace pitmap::sim
