@@ -1,0 +1,119 @@
+// SPDX-License-Identifier: MIT
+// pitmap-acqd: the onboard acquisition daemon (issue 4). Arguments -> YAML -> DaemonConfig ->
+// every problem listed -> Daemon -> run until SIGTERM/SIGINT (flush, exit 0); SIGHUP starts a
+// new log file. With file sources only, it exits once every file is replayed.
+//
+//   pitmap-acqd --config FILE [--check-config]
+//
+// Exit codes: 0 ok, 1 start-up failure (log directory, LCM URL), 2 usage or invalid config.
+// Signals are blocked in every thread and taken synchronously here (sigtimedwait), so only
+// main handles them.
+#include <signal.h>
+
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <string>
+
+#include "firmware_host/daemon/clock.hpp"
+#include "firmware_host/daemon/daemon.hpp"
+#include "firmware_host/daemon/daemon_config.hpp"
+
+namespace {
+
+void Usage() {
+    std::fprintf(stderr,
+                 "usage: pitmap-acqd --config FILE [--check-config]\n"
+                 "  --config FILE     daemon configuration (YAML)\n"
+                 "  --check-config    validate FILE, list every problem, exit\n");
+}
+
+int Run(int argc, char** argv) {
+    std::string config_path;
+    bool check_only = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--config" && i + 1 < argc) {
+            config_path = argv[++i];
+        } else if (a == "--check-config") {
+            check_only = true;
+        } else if (a == "--help" || a == "-h") {
+            Usage();
+            return 0;
+        } else {
+            std::fprintf(stderr, "pitmap-acqd: unknown argument '%s'\n", a.c_str());
+            Usage();
+            return 2;
+        }
+    }
+    if (config_path.empty()) {
+        Usage();
+        return 2;
+    }
+    pitmap::acq::LoadedConfig loaded = pitmap::acq::LoadDaemonConfig(config_path);
+    if (!loaded.problems.empty()) {
+        std::fprintf(stderr, "pitmap-acqd: %s: %zu problem(s):\n", config_path.c_str(),
+                     loaded.problems.size());
+        for (const auto& p : loaded.problems) std::fprintf(stderr, "  - %s\n", p.c_str());
+        return 2;
+    }
+    if (check_only) {
+        std::printf("%s: ok (%zu channels)\n", config_path.c_str(), loaded.config.channels.size());
+        return 0;
+    }
+
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGTERM);
+    sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGHUP);
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);  // before any thread starts
+    signal(SIGPIPE, SIG_IGN);
+
+    pitmap::acq::SystemClock clock;
+    pitmap::acq::Daemon daemon(std::move(loaded.config), clock);
+    if (auto s = daemon.Start(); !s) {
+        std::fprintf(stderr, "pitmap-acqd: %s\n", s.error().message.c_str());
+        return 1;
+    }
+    std::fprintf(stderr, "pitmap-acqd: running with %zu channels, logging to %s\n",
+                 daemon.config().channels.size(), daemon.config().log.directory.c_str());
+    const int period_ms = daemon.config().status_period_ms;
+    std::int64_t next_status = clock.MonotonicUs();
+    while (true) {
+        const std::int64_t wait_us = std::max<std::int64_t>(0, next_status - clock.MonotonicUs());
+        timespec timeout{static_cast<time_t>(wait_us / 1'000'000),
+                         static_cast<long>((wait_us % 1'000'000) * 1000)};
+        const int sig = sigtimedwait(&signals, nullptr, &timeout);
+        if (sig == SIGTERM || sig == SIGINT) {
+            std::fprintf(stderr, "pitmap-acqd: %s, flushing and exiting\n", strsignal(sig));
+            break;
+        }
+        if (sig == SIGHUP) {
+            std::fprintf(stderr, "pitmap-acqd: SIGHUP, rotating the log\n");
+            daemon.Rotate();
+            continue;
+        }
+        if (clock.MonotonicUs() >= next_status) {
+            daemon.PublishStatus();
+            next_status += std::int64_t{period_ms} * 1000;
+            if (daemon.AllFinished()) {
+                std::fprintf(stderr, "pitmap-acqd: every source reached its end\n");
+                break;
+            }
+        }
+    }
+    daemon.Stop();
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        return Run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "pitmap-acqd: fatal: %s\n", e.what());
+        return 1;
+    }
+}

@@ -1,0 +1,134 @@
+// SPDX-License-Identifier: MIT
+#include "firmware_host/daemon/daemon.hpp"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "common/gps_time.hpp"
+#include "firmware_host/daemon/to_lcm.hpp"
+
+namespace pitmap::acq {
+namespace {
+
+std::unique_ptr<ByteSource> MakeSource(const ChannelSpec& spec) {
+    switch (spec.kind) {
+        case SourceKind::kSerial: return std::make_unique<SerialSource>(spec.serial);
+        case SourceKind::kTcp: return std::make_unique<TcpClientSource>(spec.tcp);
+        case SourceKind::kUdp: return std::make_unique<UdpSource>(spec.udp);
+        case SourceKind::kFile: return std::make_unique<FileSource>(spec.file);
+    }
+    return nullptr;
+}
+
+std::string Hostname() {
+    char buf[256] = {};
+    if (gethostname(buf, sizeof(buf) - 1) != 0) return "";
+    return buf;
+}
+
+}  // namespace
+
+Daemon::Daemon(DaemonConfig config, Clock& clock)
+    : config_(std::move(config)),
+      clock_(clock),
+      time_(config_.host_clock, config_.sonar_clock),
+      log_(config_.log),
+      publisher_(config_.publisher, &log_) {
+    for (const auto& spec : config_.channels) {
+        sources_.push_back(MakeSource(spec));
+        channels_.push_back(std::make_unique<SensorChannel>(spec.channel, *sources_.back(),
+                                                            publisher_, clock_, time_, &human_log_));
+    }
+}
+
+Daemon::~Daemon() { Stop(); }
+
+Status Daemon::Start() {
+    if (started_) return Ok{};
+    std::error_code ec;
+    std::filesystem::create_directories(config_.log.directory, ec);
+    if (ec) return Error{"cannot create log directory " + config_.log.directory + ": " + ec.message()};
+    if (!config_.vehicle_yaml.empty()) {
+        const std::string path = config_.log.directory + "/vehicle.yaml";
+        std::ofstream out(path, std::ios::trunc);
+        out << config_.vehicle_yaml;
+        if (!out) return Error{"cannot write " + path};
+    }
+    if (auto s = log_.Start(); !s) return s;
+    if (auto s = publisher_.Start(); !s) {
+        log_.Stop();
+        return s;
+    }
+    start_mono_us_ = clock_.MonotonicUs();
+    for (auto& ch : channels_) ch->Start();
+    started_ = true;
+    return Ok{};
+}
+
+pitmap::daemon_status_t Daemon::Snapshot() const {
+    const std::int64_t now = clock_.NowUtime();
+    pitmap::daemon_status_t s;
+    s.utime = now;
+    s.utime_gps = time_.HostToGps(now).utime_gps;
+    s.hostname = Hostname();
+    s.uptime_s = (clock_.MonotonicUs() - start_mono_us_) / 1'000'000;
+    for (const auto& ch : channels_) s.channels.push_back(ch->Status());
+    s.num_channels = static_cast<std::int32_t>(s.channels.size());
+    s.host_clock = time_.HostClockSync(now);
+    s.sonar_clock = time_.SonarClockSync(now);
+    const LogWriterStats ls = log_.stats();
+    s.logging = static_cast<std::int8_t>(ls.state);
+    s.log_path = ls.current_path;
+    s.log_bytes_written = ls.bytes_written;
+    s.log_events_written = ls.events_written;
+    s.log_events_dropped = ls.dropped();
+    s.disk_free_bytes = ls.disk_free_bytes;
+    s.publish_failures = publisher_.stats().publish_failures;
+    return s;
+}
+
+void Daemon::PublishStatus() {
+    const pitmap::daemon_status_t s = Snapshot();
+    const std::int64_t mono = clock_.MonotonicUs();
+    for (const auto& cs : s.channels) {
+        publisher_.Publish(ChannelName(kChannelStatus, cs.name), s.utime, EncodeLcm(cs));
+        if (cs.state == pitmap::channel_status_t::STATE_DISCONNECTED ||
+            cs.state == pitmap::channel_status_t::STATE_SILENT) {
+            human_log_.Log(cs.name + ":state", mono,
+                           cs.name + (cs.state == pitmap::channel_status_t::STATE_SILENT
+                                          ? ": no data"
+                                          : ": disconnected, reconnecting") +
+                               (cs.last_error.empty() ? "" : " (" + cs.last_error + ")"));
+        }
+    }
+    publisher_.Publish(std::string(kChannelClockSync), s.utime, EncodeLcm(s.host_clock));
+    publisher_.Publish(std::string(kChannelClockSync), s.utime, EncodeLcm(s.sonar_clock));
+    publisher_.Publish(std::string(kChannelDaemonStatus), s.utime, EncodeLcm(s));
+    if (s.logging != pitmap::daemon_status_t::LOGGING_ON && s.log_events_written > 0) {
+        human_log_.Log("log", mono, "logging stopped: " + log_.stats().last_error);
+    }
+}
+
+void Daemon::Rotate() { log_.RequestRotate(); }
+
+bool Daemon::AllFinished() const {
+    for (const auto& ch : channels_) {
+        if (!ch->finished()) return false;
+    }
+    return !channels_.empty();
+}
+
+void Daemon::Stop() {
+    if (!started_) return;
+    for (auto& ch : channels_) ch->Stop();
+    PublishStatus();
+    publisher_.Drain(2000);
+    publisher_.Stop();
+    log_.Flush(5000);
+    log_.Stop();
+    started_ = false;
+}
+
+}  // namespace pitmap::acq
