@@ -11,7 +11,7 @@ build=${BUILD_DIR:-$root/build-fuzz}
 
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=OFF -DPITMAP_BUILD_TOOLS=OFF \
-  -DPITMAP_BUILD_FIRMWARE_HOST=OFF -DPITMAP_BUILD_BENCHMARKS=OFF > "$build.configure.log" 2>&1 || {
+  -DPITMAP_BUILD_FIRMWARE_HOST=OFF -DPITMAP_BUILD_BENCHMARKS=OFF -DPITMAP_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 || {
     cat "$build.configure.log"; echo "run-fuzzers: configure failed" >&2; exit 1; }
 shopt -s nullglob
 targets=()
@@ -26,7 +26,10 @@ for t in "${targets[@]}"; do
   corpus=$(mktemp -d)
   seeds="$root/tests/data/fuzz/${t%_fuzz}"
   [[ -d $seeds ]] || seeds="$root/tests/data/${t%_fuzz}"
-  echo "run-fuzzers: $t for ${seconds} s (seeds: ${seeds#"$root"/})"
+  [[ -d $seeds ]] || seeds=""
+  label=none
+  [[ -n $seeds ]] && label=${seeds#"$root"/}
+  echo "run-fuzzers: $t for ${seconds} s (seeds: $label)"
   if ! "$build/fuzz/$t" -max_total_time="$seconds" -max_len=65536 -print_final_stats=1 \
         -artifact_prefix="$build/fuzz/$t-" "$corpus" ${seeds:+"$seeds"} > "$build/fuzz/$t.log" 2>&1; then
     status=1
