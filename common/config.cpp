@@ -34,9 +34,12 @@ YAML::Node ConfigReader::Lookup(std::string_view key) const {
     const std::string k(key);
     state_->consumed.insert(Path(k));
     if (!node_.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
-    // operator[] on a const node does not insert.
+    // operator[] on a const node does not insert; for a missing key it returns a "zombie"
+    // node on which most calls throw, so hand out a plain undefined node instead.
     const YAML::Node& const_node = node_;
-    return const_node[k];
+    YAML::Node n = const_node[k];
+    if (!n.IsDefined()) return YAML::Node(YAML::NodeType::Undefined);
+    return n;
 }
 
 bool ConfigReader::Has(std::string_view key) const {

@@ -114,6 +114,24 @@ TEST(ConfigReader, ChildThatIsNotAMap) {
     ASSERT_EQ(reader->problems().size(), 1u);
 }
 
+TEST(ConfigReader, MissingChildKeepsDefaultsAndDoesNotThrow) {
+    auto reader = ConfigReader::FromString("a: 1\n");
+    ASSERT_TRUE(reader.ok());
+    ConfigReader missing = reader->Child("sonar");
+    int x = 3;
+    EXPECT_FALSE(missing.Read("x", x));
+    EXPECT_EQ(x, 3);
+    EXPECT_FALSE(missing.Has("x"));
+    EXPECT_TRUE(missing.Keys().empty());
+    EXPECT_TRUE(missing.Items("list").empty());
+    missing.Child("deeper").RejectUnknownKeys();
+    missing.RejectUnknownKeys();
+    EXPECT_FALSE(missing.Require("port", x));
+    ASSERT_EQ(reader->problems().size(), 1u);
+    EXPECT_NE(reader->problems()[0].find("sonar.port: required but missing"), std::string::npos)
+        << reader->problems()[0];
+}
+
 TEST(ConfigReader, FromFileReadsWhatWasWritten) {
     const std::string path = ::testing::TempDir() + "/pitmap_config_test.yaml";
     {
