@@ -1,0 +1,34 @@
+// SPDX-License-Identifier: MIT
+// Writing the TSDF volume as an OpenVDB .vdb file (grids "tsdf" and "weight") and reading a
+// file's summary back. A file writer unit of the fusion stage (the stage itself does no I/O).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "processor/fusion/tsdf.hpp"
+
+namespace pitmap::proc::fusion {
+
+struct VdbGridInfo {
+    std::string name;
+    std::int64_t active_voxels = 0;
+    double voxel_size_m = 0;
+};
+
+struct VdbFileInfo {
+    std::vector<VdbGridInfo> grids;
+    std::vector<std::string> metadata;  // "key=value" of the file metadata
+};
+
+// Writes both grids, with the file metadata given as key/value strings (e.g. the world
+// origin). Fails (no throw) when the file cannot be written.
+Status WriteVdb(const TsdfVolume& volume, const std::string& path,
+                const std::vector<std::pair<std::string, std::string>>& metadata = {});
+
+// Opens a .vdb file and lists its grids with their active voxel counts.
+Expected<VdbFileInfo> ReadVdbInfo(const std::string& path);
+
+}  // namespace pitmap::proc::fusion
