@@ -1,0 +1,862 @@
+// SPDX-License-Identifier: MIT
+#include "processor/slam/slam.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <optional>
+#include <unordered_map>
+
+#include <nanoflann.hpp>
+
+namespace pitmap::proc::slam {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a) {
+    return std::chrono::duration<double>(Clock::now() - a).count();
+}
+
+// ---- input, sorted by time ------------------------------------------------------------------
+
+struct Input {
+    std::vector<std::size_t> input_index;  // sorted slice -> input slice
+    std::vector<double> t_s;
+    std::vector<Pose> T_ins;               // INS poses (measurements)
+    std::vector<Vector6d> sigma;
+    std::vector<std::size_t> offset;       // first point of each slice in `points`
+    std::vector<Eigen::Vector3f> points;   // vehicle frame, finite only
+    std::size_t num_slices() const { return t_s.size(); }
+};
+
+bool FinitePose(const Pose& T) { return T.matrix().allFinite(); }
+
+// ---- parametrisation: node corrections applied to per-slice base poses ----------------------
+// Slice pose: R = Rc * R_base, t = Rc (t_base - pivot) + pivot + tc, with (Rc, tc) the node
+// correction (interpolated between two nodes with weight alpha in a bin).
+
+struct Param {
+    std::vector<Pose> base;
+    std::vector<Eigen::Vector3d> pivot;
+    std::vector<int> k0, k1;
+    std::vector<double> alpha;
+    std::vector<int> anchor;  // node -> slice whose pose depends on that node alone
+    std::vector<Eigen::Matrix3d> Rc;
+    std::vector<Eigen::Vector3d> tc;
+    std::size_t num_nodes() const { return anchor.size(); }
+};
+
+void SliceCorrection(const Param& p, std::size_t s, Eigen::Matrix3d* R, Eigen::Vector3d* t) {
+    const int a = p.k0[s];
+    const double w = p.alpha[s];
+    if (w == 0.0) {
+        *R = p.Rc[a];
+        *t = p.tc[a];
+        return;
+    }
+    const int b = p.k1[s];
+    *R = ExpSO3((1.0 - w) * LogSO3(p.Rc[a]) + w * LogSO3(p.Rc[b]));
+    *t = (1.0 - w) * p.tc[a] + w * p.tc[b];
+}
+
+std::vector<Pose> SlicePoses(const Param& p) {
+    std::vector<Pose> out(p.base.size());
+    tbb::parallel_for(std::size_t{0}, p.base.size(), [&](std::size_t s) {
+        Eigen::Matrix3d R;
+        Eigen::Vector3d t;
+        SliceCorrection(p, s, &R, &t);
+        out[s] = MakePose(R * p.base[s].linear(),
+                          R * (p.base[s].translation() - p.pivot[s]) + p.pivot[s] + t);
+    });
+    return out;
+}
+
+// d(slice pose perturbation) / d(node increment), times the interpolation weight w.
+Matrix6d NodeToSlice(const Param& p, const Pose& T_s, std::size_t s, double w) {
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+    SliceCorrection(p, s, &R, &t);
+    Matrix6d G = Matrix6d::Zero();
+    G.topLeftCorner<3, 3>().setIdentity();
+    G.bottomRightCorner<3, 3>().setIdentity();
+    G.bottomLeftCorner<3, 3>() = -Hat(T_s.translation() - p.pivot[s] - t);
+    return w * G;
+}
+
+// ---- k-d tree blocks ------------------------------------------------------------------------
+
+struct BlockCloud {
+    const Eigen::Vector3f* pts = nullptr;
+    std::size_t n = 0;
+    std::size_t kdtree_get_point_count() const { return n; }
+    float kdtree_get_pt(std::size_t i, std::size_t d) const { return pts[i][static_cast<int>(d)]; }
+    template <class B>
+    bool kdtree_get_bbox(B& /*bb*/) const {
+        return false;
+    }
+};
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, BlockCloud>,
+                                                   BlockCloud, 3, std::size_t>;
+
+struct Block {
+    std::size_t s0 = 0, s1 = 0;  // slices [s0, s1)
+    std::size_t p0 = 0, p1 = 0;  // points [p0, p1)
+    double t0 = 0, t1 = 0;       // time span
+    Eigen::Vector3f lo = Eigen::Vector3f::Zero();  // bounding box of the world points
+    Eigen::Vector3f hi = Eigen::Vector3f::Zero();
+    BlockCloud cloud;
+    std::unique_ptr<KdTree> tree;
+};
+
+std::vector<Block> MakeBlocks(const Input& in, double length_s) {
+    std::vector<Block> blocks;
+    std::size_t s = 0;
+    while (s < in.num_slices()) {
+        Block b;
+        b.s0 = s;
+        while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + length_s) ++s;
+        b.s1 = s;
+        b.p0 = in.offset[b.s0];
+        b.p1 = in.offset[b.s1];
+        b.t0 = in.t_s[b.s0];
+        b.t1 = in.t_s[b.s1 - 1];
+        blocks.push_back(std::move(b));
+    }
+    return blocks;
+}
+
+void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& pw) {
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
+        Block& b = blocks[i];
+        b.cloud.pts = pw.data() + b.p0;
+        b.cloud.n = b.p1 - b.p0;
+        b.lo.setConstant(std::numeric_limits<float>::max());
+        b.hi.setConstant(std::numeric_limits<float>::lowest());
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            b.lo = b.lo.cwiseMin(pw[k]);
+            b.hi = b.hi.cwiseMax(pw[k]);
+        }
+        b.tree.reset();
+        if (b.cloud.n > 0) {
+            b.tree = std::make_unique<KdTree>(3, b.cloud,
+                                              nanoflann::KDTreeSingleIndexAdaptorParams(16));
+        }
+    });
+}
+
+struct Pair {
+    std::uint32_t slice_a = 0, slice_b = 0;
+    std::size_t point_a = 0, point_b = 0;  // global point indices
+    std::uint32_t block_a = 0, block_b = 0;
+    Eigen::Vector3f normal_a = Eigen::Vector3f::Zero();
+    Eigen::Vector3f normal_b = Eigen::Vector3f::Zero();
+};
+
+// Closest point of pw[q] among blocks entirely at least t_d away in time, within d_max.
+std::vector<Pair> FindPairs(const Input& in,
+                            const std::vector<Block>& blocks,
+                            const std::vector<std::uint32_t>& slice_block,
+                            const std::vector<Eigen::Vector3f>& pw,
+                            const SlamConfig& cfg) {
+    const float dmax = static_cast<float>(cfg.max_pair_distance_m);
+    const float dmax2 = dmax * dmax;
+    const double td = cfg.min_time_separation_s;
+    const auto stride = static_cast<std::size_t>(cfg.query_stride);
+    tbb::enumerable_thread_specific<std::vector<Pair>> local;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+        auto& out = local.local();
+        for (std::size_t s = range.begin(); s != range.end(); ++s) {
+            const double t = in.t_s[s];
+            for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
+                const Eigen::Vector3f& p = pw[q];
+                float best = dmax2;
+                std::size_t best_idx = 0;
+                std::uint32_t best_block = 0;
+                bool found = false;
+                for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+                    const Block& b = blocks[bi];
+                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                    if ((p.array() < b.lo.array() - dmax).any() ||
+                        (p.array() > b.hi.array() + dmax).any()) {
+                        continue;
+                    }
+                    std::size_t idx = 0;
+                    float d2 = 0;
+                    if (b.tree->knnSearch(p.data(), 1, &idx, &d2) == 1 && d2 < best) {
+                        best = d2;
+                        best_idx = b.p0 + idx;
+                        best_block = bi;
+                        found = true;
+                    }
+                }
+                if (!found) continue;
+                Pair pr;
+                pr.slice_a = static_cast<std::uint32_t>(s);
+                pr.point_a = q;
+                pr.block_a = slice_block[s];
+                pr.point_b = best_idx;
+                pr.block_b = best_block;
+                const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), best_idx);
+                pr.slice_b = static_cast<std::uint32_t>(it - in.offset.begin() - 1);
+                out.push_back(pr);
+            }
+        }
+    });
+    std::vector<Pair> pairs;
+    for (auto& v : local) pairs.insert(pairs.end(), v.begin(), v.end());
+    // Thread order is arbitrary; sort so that the sums below see the same order every run.
+    std::sort(pairs.begin(), pairs.end(),
+              [](const Pair& a, const Pair& b) { return a.point_a < b.point_a; });
+    return pairs;
+}
+
+// Unit normal of the points around pw[k] in its block (smallest eigenvector of the local
+// covariance); zero if fewer than 3 neighbours.
+Eigen::Vector3f LocalNormal(const Block& b, const std::vector<Eigen::Vector3f>& pw, std::size_t k,
+                            int num_neighbours) {
+    std::vector<std::size_t> idx(static_cast<std::size_t>(num_neighbours));
+    std::vector<float> d2(idx.size());
+    const std::size_t n = b.tree->knnSearch(pw[k].data(), idx.size(), idx.data(), d2.data());
+    if (n < 3) return Eigen::Vector3f::Zero();
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < n; ++i) mean += pw[b.p0 + idx[i]].cast<double>();
+    mean /= static_cast<double>(n);
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d d = pw[b.p0 + idx[i]].cast<double>() - mean;
+        C += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    Eigen::Vector3d nrm = es.eigenvectors().col(0);
+    if (nrm.z() < 0) nrm = -nrm;
+    return nrm.cast<float>();
+}
+
+// ---- normal equations -----------------------------------------------------------------------
+
+struct Accum {
+    std::vector<Matrix6d> diag;
+    std::vector<Vector6d> grad;
+    std::unordered_map<std::uint64_t, Matrix6d> off;  // key i * n + j, i < j
+    double cost = 0;
+    double sq_dist = 0;
+    explicit Accum(std::size_t n) : diag(n, Matrix6d::Zero()), grad(n, Vector6d::Zero()) {}
+};
+
+// Adds J^T W J and J^T W r for a residual that depends on up to 4 nodes.
+template <int M>
+void AddTerm(Accum& acc, std::size_t n, const int* nodes, const Eigen::Matrix<double, M, 6>* J,
+             int count, const Eigen::Matrix<double, M, M>& W, const Eigen::Matrix<double, M, 1>& r) {
+    for (int i = 0; i < count; ++i) {
+        const Eigen::Matrix<double, 6, M> JtW = J[i].transpose() * W;
+        acc.grad[static_cast<std::size_t>(nodes[i])] += JtW * r;
+        for (int j = 0; j < count; ++j) {
+            if (nodes[i] == nodes[j]) {
+                acc.diag[static_cast<std::size_t>(nodes[i])] += JtW * J[j];
+            } else if (nodes[i] < nodes[j]) {
+                const std::uint64_t key = static_cast<std::uint64_t>(nodes[i]) * n +
+                                          static_cast<std::uint64_t>(nodes[j]);
+                auto it = acc.off.find(key);
+                if (it == acc.off.end()) it = acc.off.emplace(key, Matrix6d::Zero()).first;
+                it->second += JtW * J[j];
+            }
+        }
+    }
+}
+
+// The slice's dependence on nodes: (node, weight) pairs.
+int SliceNodes(const Param& p, std::size_t s, int* nodes, double* w) {
+    nodes[0] = p.k0[s];
+    w[0] = 1.0 - p.alpha[s];
+    if (p.alpha[s] == 0.0) {
+        w[0] = 1.0;
+        return 1;
+    }
+    nodes[1] = p.k1[s];
+    w[1] = p.alpha[s];
+    return 2;
+}
+
+Vector6d SigmaVector(const Vector6d& ins, double scale) {
+    Vector6d s;
+    const double att_h = std::max(ins(0), ins(1));
+    const double pos_h = std::max(ins(3), ins(4));
+    s << att_h, att_h, ins(2), pos_h, pos_h, ins(5);
+    return s * scale;
+}
+
+// Relative-motion and absolute terms (no pairs).
+void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
+                  const SlamConfig& cfg, Accum& acc) {
+    const std::size_t n = p.num_nodes();
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+        const auto i = static_cast<std::size_t>(p.anchor[k]);
+        const auto j = static_cast<std::size_t>(p.anchor[k + 1]);
+        const RelativeMotion m = MeasureRelativeMotion(in.T_ins[i], in.T_ins[j]);
+        Matrix6d Ji, Jj;
+        const Vector6d r = RelativeMotionResidual(T[i], T[j], m, &Ji, &Jj);
+        const double dt = std::abs(in.t_s[j] - in.t_s[i]);
+        const double f = std::sqrt(std::min(1.0, 2.0 * dt / cfg.ins_correlation_time_s));
+        Vector6d sig = SigmaVector(0.5 * (in.sigma[i] + in.sigma[j]), f * cfg.ins_sigma_scale);
+        for (int c = 0; c < 3; ++c) sig(c) = std::max(sig(c), cfg.min_relative_rotation_sigma_rad);
+        for (int c = 3; c < 6; ++c) {
+            sig(c) = std::max(sig(c), cfg.min_relative_translation_sigma_m);
+        }
+        const Matrix6d W = sig.cwiseInverse().cwiseAbs2().asDiagonal();
+        const int nodes[2] = {static_cast<int>(k), static_cast<int>(k + 1)};
+        const Matrix6d J[2] = {Ji * NodeToSlice(p, T[i], i, 1.0), Jj * NodeToSlice(p, T[j], j, 1.0)};
+        AddTerm<6>(acc, n, nodes, J, 2, W, r);
+        acc.cost += r.dot(W * r);
+    }
+    const bool abs_any = cfg.absolute_position_terms || cfg.absolute_attitude_terms;
+    for (std::size_t k = 0; k < n; ++k) {
+        const auto i = static_cast<std::size_t>(p.anchor[k]);
+        Matrix6d Ja;
+        const Vector6d r = AbsolutePoseResidual(T[i], in.T_ins[i], &Ja);
+        Vector6d info = Vector6d::Zero();
+        if (abs_any) {
+            const Vector6d sig = SigmaVector(in.sigma[i], cfg.absolute_sigma_scale);
+            if (cfg.absolute_attitude_terms) info.head<3>() = sig.head<3>().cwiseInverse().cwiseAbs2();
+            if (cfg.absolute_position_terms) info.tail<3>() = sig.tail<3>().cwiseInverse().cwiseAbs2();
+        } else if (k == 0) {
+            info.setConstant(1e8);  // gauge: the first pose stays where the INS put it
+        }
+        if (info.isZero()) continue;
+        const Matrix6d W = info.asDiagonal();
+        const int nodes[1] = {static_cast<int>(k)};
+        const Matrix6d J[1] = {Ja * NodeToSlice(p, T[i], i, 1.0)};
+        AddTerm<6>(acc, n, nodes, J, 1, W, r);
+        acc.cost += r.dot(W * r);
+    }
+}
+
+void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
+                  const std::vector<Pair>& pairs, const SlamConfig& cfg,
+                  tbb::enumerable_thread_specific<Accum>& accs) {
+    const std::size_t n = p.num_nodes();
+    const double s2 = cfg.point_sigma_m * cfg.point_sigma_m;
+    const double t2 = cfg.gicp_tangent_sigma_m * cfg.gicp_tangent_sigma_m;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 1024),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+        Accum& acc = accs.local();
+        for (std::size_t k = range.begin(); k != range.end(); ++k) {
+            const Pair& pr = pairs[k];
+            const std::size_t a = pr.slice_a, b = pr.slice_b;
+            const Eigen::Vector3d xa = in.points[pr.point_a].cast<double>();
+            const Eigen::Vector3d xb = in.points[pr.point_b].cast<double>();
+            Matrix36d Ja, Jb;
+            const Eigen::Vector3d r3 = PointPairResidual(T[a], xa, T[b], xb, &Ja, &Jb);
+            int nodes[4];
+            double w[4];
+            const int na = SliceNodes(p, a, nodes, w);
+            const int nb = SliceNodes(p, b, nodes + na, w + na);
+            const int count = na + nb;
+            acc.sq_dist += r3.squaredNorm();
+            if (cfg.correspondence == CorrespondenceType::kPointToPlane) {
+                const Eigen::Vector3d nrm = pr.normal_b.cast<double>();
+                Eigen::Matrix<double, 1, 1> r;
+                r(0) = nrm.dot(r3);
+                const double sw = std::abs(r(0)) / cfg.point_sigma_m;
+                Eigen::Matrix<double, 1, 1> W;
+                W(0) = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) / s2;
+                Matrix16d J[4];
+                for (int i = 0; i < count; ++i) {
+                    const bool is_a = i < na;
+                    const std::size_t s = is_a ? a : b;
+                    J[i] = nrm.transpose() * (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
+                }
+                AddTerm<1>(acc, n, nodes, J, count, W, r);
+                acc.cost += r(0) * r(0) / s2;
+            } else {
+                Eigen::Matrix3d info;
+                if (cfg.correspondence == CorrespondenceType::kGicp) {
+                    const Eigen::Vector3d na3 = pr.normal_a.cast<double>();
+                    const Eigen::Vector3d nb3 = pr.normal_b.cast<double>();
+                    const Eigen::Matrix3d C = 2.0 * t2 * Eigen::Matrix3d::Identity() +
+                                              (s2 - t2) * (na3 * na3.transpose() +
+                                                           nb3 * nb3.transpose());
+                    info = C.inverse();
+                } else {
+                    info = Eigen::Matrix3d::Identity() / s2;
+                }
+                const double m2 = r3.dot(info * r3);
+                const double sw = std::sqrt(m2);
+                const Eigen::Matrix3d W = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
+                Matrix36d J[4];
+                for (int i = 0; i < count; ++i) {
+                    const bool is_a = i < na;
+                    const std::size_t s = is_a ? a : b;
+                    J[i] = (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
+                }
+                AddTerm<3>(acc, n, nodes, J, count, W, r3);
+                acc.cost += m2;
+            }
+        }
+    });
+}
+
+// Solves (H + damping) delta = -g with CHOLMOD; false if the factorisation fails.
+bool SolveNormalEquations(std::size_t n, tbb::enumerable_thread_specific<Accum>& accs,
+                          const Accum& pose_terms, Eigen::VectorXd* delta, double* cost,
+                          double* sq_dist) {
+    std::vector<Matrix6d> diag = pose_terms.diag;
+    std::vector<Vector6d> grad = pose_terms.grad;
+    std::unordered_map<std::uint64_t, Matrix6d> off = pose_terms.off;
+    *cost = pose_terms.cost;
+    *sq_dist = 0;
+    for (auto& acc : accs) {
+        for (std::size_t i = 0; i < n; ++i) {
+            diag[i] += acc.diag[i];
+            grad[i] += acc.grad[i];
+        }
+        for (const auto& [key, m] : acc.off) {
+            auto it = off.find(key);
+            if (it == off.end()) off.emplace(key, m);
+            else it->second += m;
+        }
+        *cost += acc.cost;
+        *sq_dist += acc.sq_dist;
+    }
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(n * 21 + off.size() * 36);
+    Eigen::VectorXd rhs(static_cast<Eigen::Index>(6 * n));
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto o = static_cast<int>(6 * i);
+        for (int r = 0; r < 6; ++r) {
+            for (int c = r; c < 6; ++c) {
+                double v = diag[i](r, c);
+                if (r == c) v += 1e-6 * diag[i](r, r) + 1e-9;  // tiny Levenberg damping
+                trip.emplace_back(o + r, o + c, v);
+            }
+        }
+        rhs.segment<6>(o) = -grad[i];
+    }
+    for (const auto& [key, m] : off) {
+        const auto i = static_cast<int>(key / n), j = static_cast<int>(key % n);
+        for (int r = 0; r < 6; ++r) {
+            for (int c = 0; c < 6; ++c) trip.emplace_back(6 * i + r, 6 * j + c, m(r, c));
+        }
+    }
+    Eigen::SparseMatrix<double> H(static_cast<Eigen::Index>(6 * n),
+                                  static_cast<Eigen::Index>(6 * n));
+    H.setFromTriplets(trip.begin(), trip.end());
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt;
+    llt.compute(H);
+    if (llt.info() != Eigen::Success) return false;
+    *delta = llt.solve(rhs);
+    return llt.info() == Eigen::Success && delta->allFinite();
+}
+
+// ---- consistency score ----------------------------------------------------------------------
+
+// Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart:
+// per cell, z = a + b x + c y by least squares; score = sqrt(sum SSR / sum (n - 3)).
+double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
+    struct Cell {
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        double zz = 0;
+        double t_min = std::numeric_limits<double>::max();
+        double t_max = std::numeric_limits<double>::lowest();
+        int n = 0;
+    };
+    const double h = cfg.score_cell_m;
+    const auto stride = static_cast<std::size_t>(cfg.query_stride);
+    std::unordered_map<std::uint64_t, Cell> cells;
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
+            const Eigen::Vector3d p = T[s] * in.points[q].cast<double>();
+            const double fx = std::floor(p.x() / h), fy = std::floor(p.y() / h);
+            const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+            const std::uint64_t key = (static_cast<std::uint64_t>(ix + (1 << 30)) << 32) ^
+                                      static_cast<std::uint64_t>(iy + (1 << 30));
+            Cell& c = cells[key];
+            const Eigen::Vector3d u(1.0, p.x() - (fx + 0.5) * h, p.y() - (fy + 0.5) * h);
+            c.A += u * u.transpose();
+            c.b += u * p.z();
+            c.zz += p.z() * p.z();
+            c.t_min = std::min(c.t_min, in.t_s[s]);
+            c.t_max = std::max(c.t_max, in.t_s[s]);
+            ++c.n;
+        }
+    }
+    double ssr = 0, dof = 0;
+    for (const auto& [key, c] : cells) {
+        if (c.n < 6 || c.t_max - c.t_min < cfg.min_time_separation_s) continue;
+        Eigen::LDLT<Eigen::Matrix3d> ldlt(c.A);
+        if (ldlt.info() != Eigen::Success) continue;
+        const Eigen::Vector3d beta = ldlt.solve(c.b);
+        // Mean-centre z first: zz - b^T beta loses digits at large |z|.
+        const double v = std::max(0.0, c.zz - c.b.dot(beta));
+        if (!std::isfinite(v)) continue;
+        ssr += v;
+        dof += c.n - 3;
+    }
+    return dof > 0 ? std::sqrt(ssr / dof) : 0.0;
+}
+
+// ---- one stage ------------------------------------------------------------------------------
+
+struct StageOutcome {
+    SlamTermination termination = SlamTermination::kMaxIterations;
+    std::string message;
+    int iterations = 0;
+    std::size_t num_pairs = 0;
+    std::size_t num_links = 0;
+};
+
+StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterations,
+                      std::vector<Block>& blocks, const std::vector<std::uint32_t>& slice_block,
+                      const SlamConfig& cfg, double* best_score, SlamResult& res) {
+    StageOutcome out;
+    const std::size_t n = p.num_nodes();
+    std::vector<Eigen::Matrix3d> best_R = p.Rc;
+    std::vector<Eigen::Vector3d> best_t = p.tc;
+    int stalled = 0;
+    std::vector<Eigen::Vector3f> pw(in.points.size());
+    for (int it = 1; it <= max_iterations; ++it) {
+        const std::vector<Pose> T = SlicePoses(p);
+        auto t0 = Clock::now();
+        tbb::parallel_for(std::size_t{0}, in.num_slices(), [&](std::size_t s) {
+            const Eigen::Matrix3f R = T[s].linear().cast<float>();
+            const Eigen::Vector3f t = T[s].translation().cast<float>();
+            for (std::size_t k = in.offset[s]; k < in.offset[s + 1]; ++k) {
+                pw[k] = R * in.points[k] + t;
+            }
+        });
+        BuildTrees(blocks, pw);
+        res.timings.trees_s += Seconds(t0);
+        t0 = Clock::now();
+        std::vector<Pair> pairs = FindPairs(in, blocks, slice_block, pw, cfg);
+        if (stage == SlamStage::kRigid) {
+            // Section graph: keep links with enough pairs (overlap heuristic of the paper).
+            std::unordered_map<std::uint64_t, std::size_t> link;
+            auto key = [&](const Pair& pr) {
+                const auto a = std::min(pr.block_a, pr.block_b);
+                const auto b = std::max(pr.block_a, pr.block_b);
+                return (static_cast<std::uint64_t>(a) << 32) | b;
+            };
+            for (const Pair& pr : pairs) ++link[key(pr)];
+            std::erase_if(pairs, [&](const Pair& pr) {
+                return link[key(pr)] < static_cast<std::size_t>(cfg.min_section_link_pairs);
+            });
+            out.num_links = 0;
+            for (const auto& [k, c] : link) {
+                if (c >= static_cast<std::size_t>(cfg.min_section_link_pairs)) ++out.num_links;
+            }
+        }
+        if (cfg.correspondence != CorrespondenceType::kPointToPoint) {
+            tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+                Pair& pr = pairs[k];
+                pr.normal_b = LocalNormal(blocks[pr.block_b], pw, pr.point_b,
+                                          cfg.normal_neighbours);
+                if (cfg.correspondence == CorrespondenceType::kGicp) {
+                    pr.normal_a = LocalNormal(blocks[pr.block_a], pw, pr.point_a,
+                                              cfg.normal_neighbours);
+                }
+            });
+            std::erase_if(pairs, [&](const Pair& pr) {
+                return pr.normal_b.isZero() ||
+                       (cfg.correspondence == CorrespondenceType::kGicp && pr.normal_a.isZero());
+            });
+        }
+        res.timings.search_s += Seconds(t0);
+        out.num_pairs = pairs.size();
+        if (pairs.empty()) {
+            out.termination = SlamTermination::kNoOverlap;
+            out.message = "no point pairs at least " + std::to_string(cfg.min_time_separation_s) +
+                          " s apart and closer than " + std::to_string(cfg.max_pair_distance_m) +
+                          " m";
+            break;
+        }
+        t0 = Clock::now();
+        Accum pose_terms(n);
+        AddPoseTerms(in, p, T, cfg, pose_terms);
+        tbb::enumerable_thread_specific<Accum> accs([n] { return Accum(n); });
+        AddPairTerms(in, p, T, pairs, cfg, accs);
+        res.timings.build_s += Seconds(t0);
+        t0 = Clock::now();
+        Eigen::VectorXd delta;
+        double cost = 0, sq_dist = 0;
+        const bool ok = SolveNormalEquations(n, accs, pose_terms, &delta, &cost, &sq_dist);
+        res.timings.solve_s += Seconds(t0);
+        if (!ok) {
+            out.termination = SlamTermination::kSolverFailed;
+            out.message = "CHOLMOD could not factorise the normal equations";
+            break;
+        }
+        double max_rot = 0, max_trans = 0;
+        for (std::size_t k = 0; k < n; ++k) {
+            const Vector6d d = delta.segment<6>(static_cast<Eigen::Index>(6 * k));
+            p.Rc[k] = ExpSO3(d.head<3>()) * p.Rc[k];
+            p.tc[k] += d.tail<3>();
+            max_rot = std::max(max_rot, d.head<3>().norm());
+            max_trans = std::max(max_trans, d.tail<3>().norm());
+        }
+        t0 = Clock::now();
+        const double score = ConsistencyScore(in, SlicePoses(p), cfg);
+        res.timings.score_s += Seconds(t0);
+        SlamIteration rec;
+        rec.stage = stage;
+        rec.iteration = it;
+        rec.num_pairs = pairs.size();
+        rec.cost = cost;
+        rec.pair_rms_m = std::sqrt(sq_dist / static_cast<double>(pairs.size()));
+        rec.consistency_m = score;
+        rec.max_step_rotation_rad = max_rot;
+        rec.max_step_translation_m = max_trans;
+        rec.best = score <= *best_score;
+        res.iterations.push_back(rec);
+        out.iterations = it;
+        if (rec.best) {
+            *best_score = score;
+            best_R = p.Rc;
+            best_t = p.tc;
+            stalled = 0;
+        } else if (++stalled >= cfg.score_patience) {
+            out.termination = SlamTermination::kScoreStalled;
+            out.message = "consistency score did not improve for " +
+                          std::to_string(cfg.score_patience) + " iterations; best iterate kept";
+            break;
+        }
+        if (max_rot < cfg.convergence_rotation_rad && max_trans < cfg.convergence_translation_m) {
+            out.termination = SlamTermination::kConverged;
+            out.message = "pose updates below the convergence thresholds";
+            break;
+        }
+        if (cfg.progress && !cfg.progress(static_cast<int>(stage), it)) {
+            out.termination = SlamTermination::kCancelled;
+            out.message = "cancelled";
+            break;
+        }
+        if (it == max_iterations) out.message = "iteration budget spent";
+    }
+    p.Rc = best_R;
+    p.tc = best_t;
+    return out;
+}
+
+Param MakeParam(const std::vector<Pose>& base, const std::vector<std::size_t>& node_start) {
+    Param p;
+    const std::size_t ns = base.size();
+    p.base = base;
+    p.pivot.resize(ns);
+    p.k0.resize(ns);
+    p.k1.resize(ns);
+    p.alpha.assign(ns, 0.0);
+    for (std::size_t k = 0; k < node_start.size(); ++k) {
+        p.anchor.push_back(static_cast<int>(node_start[k]));
+    }
+    p.Rc.assign(node_start.size(), Eigen::Matrix3d::Identity());
+    p.tc.assign(node_start.size(), Eigen::Vector3d::Zero());
+    return p;
+}
+
+}  // namespace
+
+const char* ToString(SlamTermination t) {
+    switch (t) {
+        case SlamTermination::kConverged: return "converged";
+        case SlamTermination::kMaxIterations: return "max_iterations";
+        case SlamTermination::kScoreStalled: return "score_stalled";
+        case SlamTermination::kNoOverlap: return "no_overlap";
+        case SlamTermination::kSolverFailed: return "solver_failed";
+        case SlamTermination::kCancelled: return "cancelled";
+        case SlamTermination::kInvalidInput: return "invalid_input";
+    }
+    return "unknown";
+}
+
+std::vector<std::string> SlamConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(min_time_separation_s >= 0)) p.push_back("min_time_separation_s must be >= 0");
+    if (!(max_pair_distance_m > 0)) p.push_back("max_pair_distance_m must be > 0");
+    if (!(section_length_s > 0)) p.push_back("section_length_s must be > 0");
+    if (rigid_iterations < 0) p.push_back("rigid_iterations must be >= 0");
+    if (min_section_link_pairs < 1) p.push_back("min_section_link_pairs must be >= 1");
+    if (bin_slices < 1) p.push_back("bin_slices must be >= 1");
+    if (max_iterations < 0) p.push_back("max_iterations must be >= 0");
+    if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");
+    if (!(convergence_translation_m >= 0)) p.push_back("convergence_translation_m must be >= 0");
+    if (normal_neighbours < 3) p.push_back("normal_neighbours must be >= 3");
+    if (!(point_sigma_m > 0)) p.push_back("point_sigma_m must be > 0");
+    if (!(gicp_tangent_sigma_m > 0)) p.push_back("gicp_tangent_sigma_m must be > 0");
+    if (!(robust_width > 0)) p.push_back("robust_width must be > 0");
+    if (query_stride < 1) p.push_back("query_stride must be >= 1");
+    if (!(ins_correlation_time_s > 0)) p.push_back("ins_correlation_time_s must be > 0");
+    if (!(ins_sigma_scale > 0)) p.push_back("ins_sigma_scale must be > 0");
+    if (!(min_relative_rotation_sigma_rad > 0)) {
+        p.push_back("min_relative_rotation_sigma_rad must be > 0");
+    }
+    if (!(min_relative_translation_sigma_m > 0)) {
+        p.push_back("min_relative_translation_sigma_m must be > 0");
+    }
+    if (!(absolute_sigma_scale > 0)) p.push_back("absolute_sigma_scale must be > 0");
+    if (!(score_cell_m > 0)) p.push_back("score_cell_m must be > 0");
+    if (score_patience < 1) p.push_back("score_patience must be >= 1");
+    if (num_threads < 0) p.push_back("num_threads must be >= 0 (0 = auto)");
+    return p;
+}
+
+std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,
+                                         const std::vector<SlamPose>& trajectory) {
+    std::vector<Eigen::Vector3f> out;
+    for (const SlamPose& sp : trajectory) {
+        if (sp.input_index >= slices.size()) continue;
+        const Eigen::Isometry3f T = sp.T_world_vehicle.cast<float>();
+        for (const auto& x : slices[sp.input_index].points_vehicle) {
+            if (x.allFinite()) out.push_back(T * x);
+        }
+    }
+    return out;
+}
+
+SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
+    const auto t_start = Clock::now();
+    SlamResult res;
+    const auto problems = cfg.Validate();
+    if (!problems.empty()) {
+        res.termination = SlamTermination::kInvalidInput;
+        res.message = "invalid config: " + problems.front();
+        for (std::size_t i = 1; i < problems.size(); ++i) res.message += "; " + problems[i];
+        return res;
+    }
+    if (slices.empty()) {
+        res.termination = SlamTermination::kInvalidInput;
+        res.message = "no slices";
+        return res;
+    }
+    for (std::size_t i = 0; i < slices.size(); ++i) {
+        if (!std::isfinite(slices[i].gps_time_s) || !FinitePose(slices[i].T_world_vehicle) ||
+            !slices[i].pose_sigma.allFinite() || (slices[i].pose_sigma.array() <= 0).any()) {
+            res.termination = SlamTermination::kInvalidInput;
+            res.message = "slice " + std::to_string(i) +
+                          ": non-finite time or pose, or a pose sigma that is not > 0";
+            return res;
+        }
+    }
+    std::optional<tbb::global_control> threads;
+    if (cfg.num_threads > 0) {
+        threads.emplace(tbb::global_control::max_allowed_parallelism,
+                        static_cast<std::size_t>(cfg.num_threads));
+    }
+
+    // Sort by time (ties by input index) so that the result does not depend on input order.
+    Input in;
+    std::vector<std::size_t> order(slices.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return slices[a].gps_time_s < slices[b].gps_time_s;
+    });
+    in.input_index = order;
+    in.offset.push_back(0);
+    for (std::size_t i : order) {
+        const Slice& s = slices[i];
+        in.t_s.push_back(s.gps_time_s);
+        Pose T = s.T_world_vehicle;
+        T.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
+        in.T_ins.push_back(T);
+        in.sigma.push_back(s.pose_sigma);
+        for (const auto& x : s.points_vehicle) {
+            if (x.allFinite()) in.points.push_back(x);
+        }
+        in.offset.push_back(in.points.size());
+    }
+    const std::size_t ns = in.num_slices();
+
+    std::vector<Block> blocks = MakeBlocks(in, cfg.section_length_s);
+    std::vector<std::uint32_t> slice_block(ns);
+    for (std::uint32_t b = 0; b < blocks.size(); ++b) {
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) slice_block[s] = b;
+    }
+    res.num_sections = blocks.size();
+
+    auto t0 = Clock::now();
+    res.initial_consistency_m = ConsistencyScore(in, in.T_ins, cfg);
+    res.timings.score_s += Seconds(t0);
+    double best_score = res.initial_consistency_m;
+    std::vector<Pose> current = in.T_ins;
+
+    // Stage 1: rigid sections, rotating about the section's mean position.
+    StageOutcome rigid;
+    rigid.termination = SlamTermination::kConverged;
+    if (cfg.rigid_iterations > 0) {
+        std::vector<std::size_t> starts;
+        for (const Block& b : blocks) starts.push_back(b.s0);
+        Param p = MakeParam(current, starts);
+        for (std::size_t b = 0; b < blocks.size(); ++b) {
+            Eigen::Vector3d c = Eigen::Vector3d::Zero();
+            for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) c += current[s].translation();
+            c /= static_cast<double>(blocks[b].s1 - blocks[b].s0);
+            for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
+                p.pivot[s] = c;
+                p.k0[s] = p.k1[s] = static_cast<int>(b);
+            }
+        }
+        rigid = RunStage(in, p, SlamStage::kRigid, cfg.rigid_iterations, blocks, slice_block, cfg,
+                         &best_score, res);
+        res.rigid_iterations = rigid.iterations;
+        res.num_section_links = rigid.num_links;
+        current = SlicePoses(p);
+    }
+
+    // Stage 2: semi-rigid, one pose per bin, slices interpolated inside a bin.
+    StageOutcome semi;
+    semi.termination = rigid.termination;
+    semi.message = rigid.message;
+    if (cfg.max_iterations > 0 && rigid.termination != SlamTermination::kNoOverlap &&
+        rigid.termination != SlamTermination::kCancelled) {
+        std::vector<std::size_t> starts;
+        const auto bin = static_cast<std::size_t>(cfg.bin_slices);
+        for (std::size_t s = 0; s < ns; s += bin) starts.push_back(s);
+        Param p = MakeParam(current, starts);
+        for (std::size_t s = 0; s < ns; ++s) {
+            const std::size_t k = s / bin;
+            p.pivot[s] = current[s].translation();
+            p.k0[s] = static_cast<int>(k);
+            p.k1[s] = static_cast<int>(std::min(k + 1, starts.size() - 1));
+            p.alpha[s] = p.k1[s] == p.k0[s] ? 0.0
+                                            : static_cast<double>(s - starts[k]) /
+                                                  static_cast<double>(bin);
+        }
+        res.num_poses = starts.size();
+        semi = RunStage(in, p, SlamStage::kSemiRigid, cfg.max_iterations, blocks, slice_block, cfg,
+                        &best_score, res);
+        res.semi_rigid_iterations = semi.iterations;
+        current = SlicePoses(p);
+        if (semi.message.empty()) semi.message = "iteration budget spent";
+    }
+    res.num_pairs = semi.num_pairs != 0 ? semi.num_pairs : rigid.num_pairs;
+    res.termination = semi.termination;
+    res.message = semi.message;
+    if (rigid.termination == SlamTermination::kNoOverlap) {
+        res.message = "rigid stage: " + rigid.message + "; trajectory unchanged";
+    }
+    res.final_consistency_m = best_score;
+    res.trajectory.resize(ns);
+    for (std::size_t s = 0; s < ns; ++s) {
+        res.trajectory[s].gps_time_s = in.t_s[s];
+        res.trajectory[s].T_world_vehicle = current[s];
+        res.trajectory[s].input_index = in.input_index[s];
+    }
+    res.timings.total_s = Seconds(t_start);
+    return res;
+}
+
+}  // namespace pitmap::proc::slam

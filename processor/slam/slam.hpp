@@ -1,0 +1,158 @@
+// SPDX-License-Identifier: MIT
+// Continuous-time (semi-rigid) SLAM for multibeam slices, after Elseberg, Borrmann & Nuechter
+// (2013) and Borrmann et al. (2008); seed paper section 4.2.
+//
+// Input: one Slice per ping (initial pose from the INS, soundings in the vehicle frame).
+// Two stages, both Gauss-Newton on the sparse normal equations solved with CHOLMOD:
+//  1. Rigid: the trajectory is split into sections of section_length_s; sections whose points
+//     overlap (at least min_section_link_pairs closest-point pairs) are linked; all section
+//     poses are solved at once (globally consistent scan matching) and correspondences are
+//     found again each iteration, like ICP.
+//  2. Semi-rigid: one 6-DoF pose per bin of bin_slices slices (slice poses interpolated inside
+//     a bin); point pairs only between slices at least min_time_separation_s apart and closer
+//     than max_pair_distance_m; relative-motion terms between consecutive poses keep the motion
+//     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms.
+// A consistency score (plane-fit vertical RMS over grid cells seen by passes at least
+// min_time_separation_s apart) is evaluated after every iteration; the best iterate is kept
+// and the stage stops when the score does not improve for score_patience iterations.
+//
+// World frame: local ENU (z up). Vehicle frame: FRD. Rotations are optimised on the manifold
+// (processor/slam/slam_math.hpp).
+//
+// THREADING: RunSlam uses TBB (num_threads, 0 = TBB's default) for the k-d trees, the
+// closest-point search and the normal equations.
+// @note Sums over pairs are reduced in thread-dependent order, so results depend on the
+//       thread count at the level of floating-point rounding (compare with a tolerance).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "processor/slam/slam_math.hpp"
+
+namespace pitmap::proc::slam {
+
+// One sonar ping, ready for SLAM.
+struct Slice {
+    double gps_time_s = 0;  // GPS time of the ping, seconds
+    Eigen::Isometry3d T_world_vehicle = Eigen::Isometry3d::Identity();  // initial, from the INS
+    // Soundings of this ping already in the vehicle frame (lever arm and boresight applied), m.
+    std::vector<Eigen::Vector3f> points_vehicle;
+    // INS 1-sigma: roll, pitch, yaw (rad), east, north, up (m).
+    Eigen::Matrix<double, 6, 1> pose_sigma = Eigen::Matrix<double, 6, 1>::Constant(0.01);
+};
+
+enum class CorrespondenceType {
+    kPointToPoint,  // |p_a - p_b|^2 / point_sigma^2 (the paper)
+    kPointToPlane,  // (n_b . (p_a - p_b))^2 / point_sigma^2, n_b from the target's neighbours
+    kGicp,          // (p_a - p_b)^T (C_a + C_b)^-1 (p_a - p_b), plane-like covariances
+};
+
+struct SlamConfig {
+    double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart
+    double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
+    double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
+    int rigid_iterations = 5;             // rigid stage iterations (0: skip the stage)
+    int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
+    int bin_slices = 1;                   // semi-rigid: slices per pose (1 = one per slice)
+    int max_iterations = 15;              // semi-rigid stage iterations
+    // Converged when the largest pose update is below both thresholds.
+    double convergence_rotation_rad = 2e-5;
+    double convergence_translation_m = 2e-4;
+    CorrespondenceType correspondence = CorrespondenceType::kGicp;
+    int normal_neighbours = 10;       // neighbours for normals / covariances
+    double point_sigma_m = 0.05;      // 1-sigma of a point along the surface normal
+    double gicp_tangent_sigma_m = 0.5;  // GICP: 1-sigma along the surface (plane-like C)
+    RobustKernel robust_kernel = RobustKernel::kNone;
+    double robust_width = 2.0;        // kernel width, in point sigmas
+    int query_stride = 8;             // every n-th sounding of a slice is a query point
+    // INS relative-motion terms between consecutive poses: sigma of the motion over dt is
+    // mean(pose_sigma) * sqrt(min(1, 2 dt / ins_correlation_time_s)) * ins_sigma_scale (a
+    // first-order Gauss-Markov error), at least the floors below. World rotation x, y use
+    // max(roll, pitch), z uses yaw; translation x, y (slice frame) max(east, north), z up.
+    double ins_correlation_time_s = 60.0;
+    double ins_sigma_scale = 1.0;
+    double min_relative_rotation_sigma_rad = 2e-5;
+    double min_relative_translation_sigma_m = 5e-4;
+    bool absolute_position_terms = true;  // GNSS/INS position per pose, weighted by its sigma
+    bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
+    double absolute_sigma_scale = 1.0;
+    double score_cell_m = 0.5;   // consistency score grid cell
+    int score_patience = 2;      // stop after this many iterations without a better score
+    int num_threads = 0;         // 0 = TBB default
+    // Called after every iteration with (stage, iteration); return false to cancel.
+    std::function<bool(int, int)> progress;
+
+    // Every problem with the configuration (empty when valid).
+    std::vector<std::string> Validate() const;
+};
+
+enum class SlamStage { kRigid, kSemiRigid };
+
+enum class SlamTermination {
+    kConverged,         // pose updates below the thresholds
+    kMaxIterations,     // iteration budget spent
+    kScoreStalled,      // consistency did not improve for score_patience iterations; best kept
+    kNoOverlap,         // no point pairs at all: the trajectory is returned unchanged
+    kSolverFailed,      // the normal equations could not be factorised; best iterate kept
+    kCancelled,         // the progress callback returned false; best iterate kept
+    kInvalidInput,      // empty input, non-finite values or an invalid config
+};
+const char* ToString(SlamTermination t);
+
+struct SlamIteration {
+    SlamStage stage = SlamStage::kSemiRigid;
+    int iteration = 0;             // 1-based within the stage
+    std::size_t num_pairs = 0;     // point pairs used
+    double cost = 0;               // sum of squared whitened residuals before the step
+    double pair_rms_m = 0;         // RMS pair distance before the step
+    double consistency_m = 0;      // score after the step (lower is better)
+    double max_step_rotation_rad = 0;
+    double max_step_translation_m = 0;
+    bool best = false;             // this iterate is the best so far
+};
+
+struct SlamPose {
+    double gps_time_s = 0;
+    Eigen::Isometry3d T_world_vehicle = Eigen::Isometry3d::Identity();
+    std::size_t input_index = 0;  // index of the slice in the input
+};
+
+struct SlamTimings {
+    double trees_s = 0;
+    double search_s = 0;
+    double build_s = 0;
+    double solve_s = 0;
+    double score_s = 0;
+    double total_s = 0;
+};
+
+struct SlamResult {
+    std::vector<SlamPose> trajectory;  // corrected, one per slice, sorted by GPS time
+    std::vector<SlamIteration> iterations;
+    int rigid_iterations = 0;
+    int semi_rigid_iterations = 0;
+    std::size_t num_sections = 0;
+    std::size_t num_section_links = 0;  // rigid graph edges
+    std::size_t num_poses = 0;          // semi-rigid unknown poses
+    std::size_t num_pairs = 0;          // pairs of the last iteration
+    double initial_consistency_m = 0;
+    double final_consistency_m = 0;
+    SlamTimings timings;
+    SlamTermination termination = SlamTermination::kInvalidInput;
+    std::string message;
+};
+
+// Runs both stages. Never throws for bad data; degenerate input ends with a termination
+// reason and the initial trajectory.
+SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& config);
+
+// Applies a trajectory to the slices' points (world frame), for scoring and export.
+std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,
+                                         const std::vector<SlamPose>& trajectory);
+
+}  // namespace pitmap::proc::slam
