@@ -145,6 +145,7 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
         l.Read("flush_interval_ms", cfg.log.flush_interval_ms);
         l.Read("min_free_bytes", cfg.log.min_free_bytes);
         l.Read("resume_margin_bytes", cfg.log.resume_margin_bytes);
+        l.Read("disk_check_interval_ms", cfg.log.disk_check_interval_ms);
         l.Read("queue_max_events", cfg.log.queue_max_events);
         l.Read("queue_max_bytes", cfg.log.queue_max_bytes);
         l.RejectUnknownKeys();

@@ -7,7 +7,8 @@
 //   lcm_url            LCM provider URL ("" = log only); e.g. udpm://239.255.76.67:7667?ttl=0
 //   status_period_ms   STATUS_<ID>, CLOCK_SYNC and DAEMON_STATUS period (1000)
 //   log                directory, prefix, rotate_bytes, rotate_interval_s, flush_interval_ms,
-//                      min_free_bytes, resume_margin_bytes, queue_max_events, queue_max_bytes
+//                      min_free_bytes, resume_margin_bytes, disk_check_interval_ms,
+//                      queue_max_events, queue_max_bytes
 //   publisher          queue_max_events, queue_max_bytes (outbound LCM queue)
 //   clock              fixed_latency_us (host model), sonar_header_resolution_us
 //   channels           list; each: id, protocol (novatel | deltat_83p), exactly one of

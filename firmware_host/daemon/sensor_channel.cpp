@@ -494,7 +494,10 @@ void SensorChannel::MaybeSendEc() {
 }
 
 pitmap::channel_status_t SensorChannel::Status() const {
-    const ChannelCounters c = stats_.Get();
+    ChannelCounters c = stats_.Get();
+    // The counters copy it only when bytes or errors arrive; a reconnect that has not
+    // delivered anything yet must show too.
+    c.reconnects = source_.reconnects();
     const std::int64_t mono = clock_.MonotonicUs();
     std::int8_t state = pitmap::channel_status_t::STATE_STOPPED;
     switch (source_.state()) {

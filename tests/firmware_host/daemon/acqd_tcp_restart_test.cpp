@@ -72,10 +72,11 @@ std::string Config(const std::string& dir, int port) {
     return yaml;
 }
 
-// One session of the server: accept, handshake, capture, wait until logged, close.
+// One session of the server: accept, handshake, capture, wait until logged. The connection
+// stays open (`conn`): the caller decides what goes away first.
 void ServeSession(int listen_fd, const std::vector<std::uint8_t>& capture,
-                  std::vector<std::uint8_t>& written, const std::string& log_dir) {
-    const int conn = Accept(listen_fd);
+                  std::vector<std::uint8_t>& written, const std::string& log_dir, int& conn) {
+    conn = Accept(listen_fd);
     ASSERT_GE(conn, 0) << "the daemon did not connect";
     const auto lines = testing::AnswerCommands(conn, kCommands.size(), kAnswer, written);
     ASSERT_EQ(lines.size(), kCommands.size());
@@ -84,7 +85,6 @@ void ServeSession(int listen_fd, const std::vector<std::uint8_t>& capture,
     EXPECT_TRUE(testing::WaitFor(
         [&] { return testing::LoggedRawBytes(log_dir, "RAW_NOV") == written.size(); }))
         << "logged " << testing::LoggedRawBytes(log_dir, "RAW_NOV") << " of " << written.size();
-    ::close(conn);
 }
 
 TEST(AcqdTcpRestartTest, ServerRestartOnTheSamePortReconnectsAndResendsEveryCommand) {
@@ -99,9 +99,12 @@ TEST(AcqdTcpRestartTest, ServerRestartOnTheSamePortReconnectsAndResendsEveryComm
     const pid_t pid = testing::SpawnAcqd({"--config", dir + "/c.yaml"}, dir + "/err.txt");
     std::vector<std::uint8_t> written;
 
-    ServeSession(listen_fd, capture, written, dir + "/logs");
-    // The server goes away completely: connects are refused, the daemon backs off.
+    int conn = -1;
+    ServeSession(listen_fd, capture, written, dir + "/logs", conn);
+    // The server goes away completely (listener first, so the daemon cannot sneak into its
+    // backlog): connects are refused, the daemon backs off.
     ::close(listen_fd);
+    ::close(conn);
     ASSERT_TRUE(testing::WaitFor([&] {
         const std::string err = testing::ReadText(dir + "/err.txt");
         return err.find("Connection refused") != std::string::npos;
@@ -111,10 +114,12 @@ TEST(AcqdTcpRestartTest, ServerRestartOnTheSamePortReconnectsAndResendsEveryComm
     listen_fd = Listen(port);
     ASSERT_GE(listen_fd, 0) << "port " << same_port << " could not be bound again";
     ASSERT_EQ(port, same_port);
-    ServeSession(listen_fd, capture, written, dir + "/logs");
+    ServeSession(listen_fd, capture, written, dir + "/logs", conn);
 
+    // Stop while connected, so the count of reconnects and commands is exact.
     ::kill(pid, SIGTERM);
     ASSERT_EQ(testing::WaitExit(pid), 0) << testing::ReadText(dir + "/err.txt");
+    ::close(conn);
     ::close(listen_fd);
 
     const auto events = testing::ReadLogDir(dir + "/logs");
