@@ -1,0 +1,312 @@
+// SPDX-License-Identifier: MIT
+#include "processor/georef/georef.hpp"
+
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <memory>
+
+#include "common/frames.hpp"
+
+namespace pitmap::proc::georef {
+
+Eigen::Matrix3d SonarMount::R_vehicle_sonar() const {
+    return frames::RotationNedFromRpy(frames::DegToRad(boresight_roll_deg),
+                                      frames::DegToRad(boresight_pitch_deg),
+                                      frames::DegToRad(boresight_yaw_deg));
+}
+
+Pose SonarMount::T_vehicle_sonar() const { return MakePose(R_vehicle_sonar(), lever_arm_m); }
+
+std::vector<std::string> GeorefConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(max_nav_gap_s > 0)) p.push_back("georef.max_nav_gap_s must be > 0");
+    if (!(min_range_m >= 0)) p.push_back("georef.min_range_m must be >= 0");
+    if (!(max_range_m > min_range_m)) p.push_back("georef.max_range_m must be > min_range_m");
+    if (!(nominal_sound_speed_mps > 1000 && nominal_sound_speed_mps < 2000)) {
+        p.push_back("georef.nominal_sound_speed_mps must be in (1000, 2000)");
+    }
+    if (spike_half_window < 0 || spike_half_window > 50) {
+        p.push_back("georef.spike_half_window must be in 0..50");
+    }
+    if (!(spike_abs_m > 0)) p.push_back("georef.spike_abs_m must be > 0");
+    if (!(spike_rel >= 0)) p.push_back("georef.spike_rel must be >= 0");
+    if (num_threads < 0) p.push_back("georef.num_threads must be >= 0 (0 = all cores)");
+    return p;
+}
+
+Trajectory::Trajectory(const NavSeries& nav, const LocalTangentFrame& world) {
+    utime_gps_.reserve(nav.samples.size());
+    T_world_vehicle_.reserve(nav.samples.size());
+    for (const NavSample& s : nav.samples) {
+        utime_gps_.push_back(s.utime_gps);
+        T_world_vehicle_.push_back(
+            MakePose(frames::RotationWorldFromRpy(s.roll_rad, s.pitch_rad, s.yaw_rad),
+                     world.ToEnu(s.position)));
+    }
+}
+
+std::optional<Pose> Trajectory::PoseAt(std::int64_t utime_gps, double max_gap_s) const {
+    if (utime_gps_.empty() || utime_gps < utime_gps_.front() || utime_gps > utime_gps_.back()) {
+        return std::nullopt;
+    }
+    auto it = std::lower_bound(utime_gps_.begin(), utime_gps_.end(), utime_gps);
+    const auto i1 = static_cast<std::size_t>(it - utime_gps_.begin());
+    if (utime_gps_[i1] == utime_gps) return T_world_vehicle_[i1];
+    const std::size_t i0 = i1 - 1;
+    const double dt_s = static_cast<double>(utime_gps_[i1] - utime_gps_[i0]) * 1e-6;
+    if (dt_s > max_gap_s) return std::nullopt;
+    const double alpha = static_cast<double>(utime_gps - utime_gps_[i0]) * 1e-6 / dt_s;
+    return InterpolatePose(T_world_vehicle_[i0], T_world_vehicle_[i1], alpha);
+}
+
+Eigen::Vector3d BeamVectorSonar(double range_m, double angle_rad, double tilt_rad) {
+    const Eigen::Vector3d v(0.0, range_m * std::sin(angle_rad), range_m * std::cos(angle_rad));
+    if (tilt_rad == 0.0) return v;
+    // Tilt about the sonar y axis: positive tilts the fan forward (x grows for z > 0).
+    const double c = std::cos(tilt_rad), s = std::sin(tilt_rad);
+    return Eigen::Vector3d(c * v.x() + s * v.z(), v.y(), -s * v.x() + c * v.z());
+}
+
+int SpikeFilter(const std::vector<double>& r, int half_window, double abs_m, double rel,
+                std::vector<char>& keep) {
+    const int n = static_cast<int>(r.size());
+    keep.assign(r.size(), 1);
+    if (half_window <= 0) return 0;
+    int spikes = 0;
+    double window[101];
+    for (int i = 0; i < n; ++i) {
+        if (!(r[i] > 0)) continue;
+        int m = 0;
+        for (int j = std::max(0, i - half_window); j <= std::min(n - 1, i + half_window); ++j) {
+            if (r[j] > 0) window[m++] = r[j];
+        }
+        if (m < 3) continue;  // too few neighbours to judge
+        std::nth_element(window, window + m / 2, window + m);
+        const double med = window[m / 2];
+        if (std::abs(r[i] - med) > abs_m + rel * med) {
+            keep[i] = 0;
+            ++spikes;
+        }
+    }
+    return spikes;
+}
+
+namespace {
+
+struct PingWork {
+    bool ok = false;
+    int reason = 0;  // 1 outside, 2 gap, 3 bad header
+    GeorefPing ping;
+    std::int64_t no_detection = 0, range_gate = 0, spikes = 0;
+};
+
+}  // namespace
+
+GeorefResult RunGeoref(const NavSeries& nav, const PingSeries& series, const SonarMount& mount,
+                       const GeorefConfig& config, std::optional<Geodetic> origin,
+                       const ProgressCallback& progress) {
+    GeorefResult result;
+    result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
+    result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
+    if (nav.samples.empty()) {
+        result.message = "no navigation samples";
+        result.counts.pings_outside_nav = result.counts.pings_in;
+        return result;
+    }
+    result.world_origin = origin ? *origin : nav.samples.front().position;
+    const LocalTangentFrame world(result.world_origin);
+    const Trajectory trajectory(nav, world);
+    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
+
+    const std::size_t n_pings = series.pings.size();
+    std::vector<PingWork> work(n_pings);
+    // Provisional per-beam outputs in the input's flat layout; compacted below.
+    std::vector<Eigen::Vector3d> pos(series.range_counts.size());
+    std::vector<float> rng(series.range_counts.size(), -1.0f);
+    std::vector<float> ang(series.range_counts.size(), 0.0f);
+
+    std::unique_ptr<tbb::global_control> limit;
+    if (config.num_threads > 0) {
+        limit = std::make_unique<tbb::global_control>(
+            tbb::global_control::max_allowed_parallelism,
+            static_cast<std::size_t>(config.num_threads));
+    }
+    std::atomic<std::size_t> done{0};
+    std::atomic<bool> cancel{false};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_pings, 64), [&](const auto& block) {
+        std::vector<double> r;
+        std::vector<char> keep;
+        for (std::size_t k = block.begin(); k != block.end(); ++k) {
+            if (cancel.load(std::memory_order_relaxed)) return;
+            const PingHeader& h = series.pings[k];
+            PingWork& w = work[k];
+            if (!(h.range_resolution_m > 0) || !std::isfinite(h.start_angle_deg) ||
+                !std::isfinite(h.angle_increment_deg) || !std::isfinite(h.profile_tilt_deg)) {
+                w.reason = 3;
+                continue;
+            }
+            const std::int64_t t = h.utime_gps;
+            if (trajectory.times().empty() || t < trajectory.times().front() ||
+                t > trajectory.times().back()) {
+                w.reason = 1;
+                continue;
+            }
+            const auto T_world_vehicle = trajectory.PoseAt(t, config.max_nav_gap_s);
+            if (!T_world_vehicle) {
+                w.reason = 2;
+                continue;
+            }
+            w.ok = true;
+            const Pose T_world_sonar = *T_world_vehicle * T_vehicle_sonar;
+            w.ping.utime_gps = t;
+            w.ping.ping_number = h.ping_number;
+            w.ping.header_index = static_cast<std::uint32_t>(k);
+            w.ping.T_world_vehicle = *T_world_vehicle;
+            w.ping.sensor_world = T_world_sonar.translation();
+            w.ping.profile_tilt_rad =
+                config.apply_profile_tilt ? frames::DegToRad(h.profile_tilt_deg) : 0.0;
+            double scale = h.range_resolution_m;
+            if (config.sound_speed_scaling && h.sound_speed_valid) {
+                scale *= h.sound_speed_mps / config.nominal_sound_speed_mps;
+            }
+            r.assign(h.num_beams, -1.0);
+            for (std::size_t i = 0; i < h.num_beams; ++i) {
+                const std::uint32_t c = series.range_counts[h.beam_offset + i];
+                if (c == 0) {
+                    ++w.no_detection;
+                    continue;
+                }
+                const double range = c * scale;
+                if (range < config.min_range_m || range > config.max_range_m) {
+                    ++w.range_gate;
+                    continue;
+                }
+                r[i] = range;
+            }
+            w.spikes = SpikeFilter(r, config.spike_half_window, config.spike_abs_m,
+                                   config.spike_rel, keep);
+            for (std::size_t i = 0; i < h.num_beams; ++i) {
+                if (!(r[i] > 0) || !keep[i]) continue;
+                const double theta =
+                    frames::DegToRad(h.start_angle_deg + static_cast<double>(i) *
+                                                             h.angle_increment_deg);
+                const std::size_t j = h.beam_offset + i;
+                pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, w.ping.profile_tilt_rad);
+                rng[j] = static_cast<float>(r[i]);
+                ang[j] = static_cast<float>(theta);
+            }
+        }
+        const std::size_t d = done.fetch_add(block.size()) + block.size();
+        if (progress && !progress(static_cast<double>(d) / static_cast<double>(n_pings))) {
+            cancel = true;
+        }
+    });
+    if (cancel) {
+        result.cancelled = true;
+        result.message = "cancelled";
+        return result;
+    }
+
+    // Compact in ping order (deterministic, independent of the thread count).
+    std::size_t n_points = 0;
+    for (std::size_t k = 0; k < n_pings; ++k) {
+        if (!work[k].ok) continue;
+        const PingHeader& h = series.pings[k];
+        for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[h.beam_offset + i] > 0;
+    }
+    GeorefPoints& P = result.points;
+    P.position_world.reserve(n_points);
+    P.ping.reserve(n_points);
+    P.beam.reserve(n_points);
+    P.range_m.reserve(n_points);
+    P.angle_rad.reserve(n_points);
+    GeorefCounts& c = result.counts;
+    for (std::size_t k = 0; k < n_pings; ++k) {
+        PingWork& w = work[k];
+        if (!w.ok) {
+            if (w.reason == 1) ++c.pings_outside_nav;
+            if (w.reason == 2) ++c.pings_in_nav_gap;
+            if (w.reason == 3) ++c.pings_bad_header;
+            continue;
+        }
+        c.no_detection += w.no_detection;
+        c.range_gate += w.range_gate;
+        c.spikes += w.spikes;
+        const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
+        result.pings.push_back(w.ping);
+        const PingHeader& h = series.pings[k];
+        for (std::size_t i = 0; i < h.num_beams; ++i) {
+            const std::size_t j = h.beam_offset + i;
+            if (!(rng[j] > 0)) continue;
+            P.position_world.push_back(pos[j]);
+            P.ping.push_back(ping_index);
+            P.beam.push_back(static_cast<std::uint16_t>(i));
+            P.range_m.push_back(rng[j]);
+            P.angle_rad.push_back(ang[j]);
+        }
+    }
+    c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
+    c.points = static_cast<std::int64_t>(P.size());
+    result.message = std::to_string(c.points) + " points from " +
+                     std::to_string(c.pings_georeferenced) + " of " + std::to_string(c.pings_in) +
+                     " pings";
+    return result;
+}
+
+void Regeoreference(GeorefResult& result, const SonarMount& mount) {
+    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
+    GeorefPoints& P = result.points;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 4096), [&](const auto& b) {
+        for (std::size_t j = b.begin(); j != b.end(); ++j) {
+            const GeorefPing& ping = result.pings[P.ping[j]];
+            P.position_world[j] = ping.T_world_vehicle * T_vehicle_sonar *
+                                  BeamVectorSonar(P.range_m[j], P.angle_rad[j],
+                                                  ping.profile_tilt_rad);
+        }
+    });
+    for (GeorefPing& ping : result.pings) {
+        ping.sensor_world = (ping.T_world_vehicle * T_vehicle_sonar).translation();
+    }
+}
+
+Expected<UtmPoints> ToUtm(const GeorefResult& result) {
+    UtmPoints out;
+    auto o = UtmFromGeodetic(result.world_origin);
+    if (!o) return o.error();
+    out.zone = o->zone;
+    out.northern = o->northern;
+    out.epsg = UtmEpsgCode(o->zone, o->northern);
+    const LocalTangentFrame world(result.world_origin);
+    // Jacobian of (E, N) w.r.t. (east, north) at the origin, by central differences over 10 m.
+    Eigen::Matrix2d J;
+    for (int axis = 0; axis < 2; ++axis) {
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[axis] = 10.0;
+        auto plus = UtmFromGeodetic(world.FromEnu(d), out.zone);
+        auto minus = UtmFromGeodetic(world.FromEnu(-d), out.zone);
+        if (!plus || !minus) return Error{"UTM: cannot project around the world origin"};
+        J(0, axis) = (plus->easting_m - minus->easting_m) / 20.0;
+        J(1, axis) = (plus->northing_m - minus->northing_m) / 20.0;
+    }
+    std::vector<Eigen::Vector3d> sensor_utm(result.pings.size());
+    for (std::size_t k = 0; k < result.pings.size(); ++k) {
+        auto u = UtmFromGeodetic(world.FromEnu(result.pings[k].sensor_world), out.zone);
+        if (!u) return u.error();
+        sensor_utm[k] = Eigen::Vector3d(u->easting_m, u->northing_m, u->height_m);
+    }
+    const GeorefPoints& P = result.points;
+    out.easting_northing_height.resize(P.size());
+    for (std::size_t j = 0; j < P.size(); ++j) {
+        const GeorefPing& ping = result.pings[P.ping[j]];
+        const Eigen::Vector3d d = P.position_world[j] - ping.sensor_world;
+        const Eigen::Vector2d en = J * d.head<2>();
+        out.easting_northing_height[j] = sensor_utm[P.ping[j]] + Eigen::Vector3d(en.x(), en.y(), d.z());
+    }
+    return out;
+}
+
+}  // namespace pitmap::proc::georef

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: MIT
+#include "processor/georef/series.hpp"
+
+#include <algorithm>
+
+namespace pitmap::proc::georef {
+
+void SortAndDeduplicate(NavSeries& nav) {
+    auto by_time = [](const auto& a, const auto& b) { return a.utime_gps < b.utime_gps; };
+    auto same_time = [](const auto& a, const auto& b) { return a.utime_gps == b.utime_gps; };
+    std::stable_sort(nav.samples.begin(), nav.samples.end(), by_time);
+    nav.samples.erase(std::unique(nav.samples.begin(), nav.samples.end(), same_time),
+                      nav.samples.end());
+    std::stable_sort(nav.stddevs.begin(), nav.stddevs.end(), by_time);
+    nav.stddevs.erase(std::unique(nav.stddevs.begin(), nav.stddevs.end(), same_time),
+                      nav.stddevs.end());
+}
+
+void SortAndDeduplicate(PingSeries& s) {
+    std::vector<std::size_t> order(s.pings.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return s.pings[a].utime_gps < s.pings[b].utime_gps;
+    });
+    PingSeries out;
+    out.pings.reserve(s.pings.size());
+    out.range_counts.reserve(s.range_counts.size());
+    for (std::size_t k = 0; k < order.size(); ++k) {
+        const PingHeader& h = s.pings[order[k]];
+        if (!out.pings.empty() && out.pings.back().utime_gps == h.utime_gps) continue;
+        PingHeader c = h;
+        c.beam_offset = static_cast<std::uint32_t>(out.range_counts.size());
+        out.range_counts.insert(out.range_counts.end(), s.range_counts.begin() + h.beam_offset,
+                                s.range_counts.begin() + h.beam_offset + h.num_beams);
+        out.pings.push_back(c);
+    }
+    s = std::move(out);
+}
+
+}  // namespace pitmap::proc::georef

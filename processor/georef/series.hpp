@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// Plain time series the processor works on: INS navigation and multibeam pings in GPS time.
+// Produced by processor/io (LCM logs, vendor files), consumed by the stages. No I/O here.
+//
+// Times are utime_gps (GPS microseconds since 1980-01-06, docs/conventions.md). Attitudes are
+// radians, roll/pitch/yaw of the vehicle (FRD) frame relative to NED (common/frames.hpp).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "common/geodesy.hpp"
+
+namespace pitmap::proc::georef {
+
+inline constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+
+// One INS solution (INSPVA/INSPVAS/INSPVAX) at the INS reference point.
+struct NavSample {
+    std::int64_t utime_gps = 0;
+    Geodetic position;                                      // ellipsoidal height
+    double roll_rad = 0, pitch_rad = 0, yaw_rad = 0;        // R_ned_vehicle angles
+    Eigen::Vector3d velocity_enu_mps = Eigen::Vector3d::Zero();
+    std::int32_t ins_status = -1;                           // NovAtel INS status enum
+    std::int32_t position_type = -1;                        // NovAtel position type, -1 if none
+};
+
+// INS standard deviations (INSSTDEV, or the ones INSPVAX carries), 1 sigma.
+struct NavStdDev {
+    std::int64_t utime_gps = 0;
+    float north_m = kNaNf, east_m = kNaNf, up_m = kNaNf;
+    float roll_deg = kNaNf, pitch_deg = kNaNf, yaw_deg = kNaNf;
+};
+
+// Time-sorted, one sample per time (duplicates removed by the reader).
+struct NavSeries {
+    std::vector<NavSample> samples;
+    std::vector<NavStdDev> stddevs;
+    // GPS - UTC seconds from the receiver's TIME log; -1 when none was seen.
+    int leap_seconds = -1;
+};
+
+// The 83P header fields the processing needs (all of one ping, without the beams).
+struct PingHeader {
+    std::int64_t utime_gps = 0;          // transmit time
+    std::int64_t ping_number = 0;
+    double sound_speed_mps = 1500.0;     // header value (1500 when not set)
+    bool sound_speed_valid = false;
+    double range_resolution_m = 0;       // metres per range count
+    double start_angle_deg = 0;          // beam 0, from nadir, positive to starboard
+    double angle_increment_deg = 0;
+    double profile_tilt_deg = 0;         // fore/aft fan tilt
+    std::uint32_t beam_offset = 0;       // first beam in PingSeries::range_counts
+    std::uint16_t num_beams = 0;
+};
+
+// Time-sorted pings; the raw range counts of all pings in one flat array.
+struct PingSeries {
+    std::vector<PingHeader> pings;
+    std::vector<std::uint32_t> range_counts;  // 0 = no detection
+    std::size_t num_soundings() const { return range_counts.size(); }
+};
+
+// Sorts by time, drops exact duplicate times (the first kept), rebuilds beam offsets.
+void SortAndDeduplicate(NavSeries& nav);
+void SortAndDeduplicate(PingSeries& pings);
+
+}  // namespace pitmap::proc::georef

@@ -1,0 +1,635 @@
+// SPDX-License-Identifier: MIT
+#include "processor/io/ingest.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <pitmap/gps_time_t.hpp>
+#include <pitmap/ins_pva_t.hpp>
+#include <pitmap/ins_stddev_t.hpp>
+#include <pitmap/multibeam_ping_t.hpp>
+#include <pitmap/raw_bytes_t.hpp>
+#include <type_traits>
+#include <variant>
+
+#include "common/frames.hpp"
+#include "common/gps_time.hpp"
+#include "common/protocol/deltat/stream_framer.hpp"
+#include "common/protocol/novatel/decoder.hpp"
+#include "processor/io/lcm_log_reader.hpp"
+
+namespace pitmap::proc::io {
+
+namespace fs = std::filesystem;
+namespace nv = pitmap::protocol::novatel;
+namespace dt = pitmap::protocol::deltat;
+using georef::NavSample;
+using georef::NavStdDev;
+using georef::PingHeader;
+
+const char* ToString(IngestSource s) {
+    switch (s) {
+        case IngestSource::kAuto: return "auto";
+        case IngestSource::kDecoded: return "decoded";
+        case IngestSource::kRaw: return "raw";
+    }
+    return "auto";
+}
+
+bool ParseIngestSource(const std::string& t, IngestSource& out) {
+    if (t == "auto") out = IngestSource::kAuto;
+    else if (t == "decoded") out = IngestSource::kDecoded;
+    else if (t == "raw") out = IngestSource::kRaw;
+    else return false;
+    return true;
+}
+
+std::vector<std::string> IngestConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!std::isfinite(sonar_clock_offset_s)) p.push_back("ingest.sonar_clock_offset_s must be finite");
+    for (const std::string* id : {&nav_channel_id, &sonar_channel_id}) {
+        for (char c : *id) {
+            if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
+                p.push_back("ingest channel id '" + *id + "' may hold only letters, digits and _");
+                break;
+            }
+        }
+    }
+    return p;
+}
+
+namespace {
+
+std::string Upper(std::string s) {
+    for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    return s;
+}
+
+bool StartsWith(std::string_view s, std::string_view prefix) {
+    return s.size() >= prefix.size() && s.substr(0, prefix.size()) == prefix;
+}
+
+// Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
+bool Matches(std::string_view channel, std::string_view prefix, const std::string& want_upper) {
+    if (!StartsWith(channel, prefix)) return false;
+    return want_upper.empty() || channel.substr(prefix.size()) == want_upper;
+}
+
+NavSample FromPva(std::int64_t utime_gps, double lat, double lon, double h, double vn, double ve,
+                  double vu, double roll_deg, double pitch_deg, double azimuth_deg, int status,
+                  int position_type) {
+    NavSample s;
+    s.utime_gps = utime_gps;
+    s.position = {lat, lon, h};
+    s.roll_rad = frames::DegToRad(roll_deg);
+    s.pitch_rad = frames::DegToRad(pitch_deg);
+    s.yaw_rad = frames::WrapPi(frames::DegToRad(azimuth_deg));
+    s.velocity_enu_mps = Eigen::Vector3d(ve, vn, vu);
+    s.ins_status = status;
+    s.position_type = position_type;
+    return s;
+}
+
+bool PlausibleNav(const NavSample& s) {
+    return std::isfinite(s.position.latitude_deg) && std::abs(s.position.latitude_deg) <= 90 &&
+           std::isfinite(s.position.longitude_deg) && std::abs(s.position.longitude_deg) <= 360 &&
+           std::isfinite(s.position.height_m) && std::isfinite(s.roll_rad) &&
+           std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
+}
+
+constexpr int kInsSolutionGood = 3;
+
+// Accumulates into an IngestResult, shared by the LCM and vendor-file paths.
+class Collector {
+public:
+    Collector(const IngestConfig& config, IngestResult& r) : config_(config), r_(r) {}
+
+    void AddNav(const NavSample& s) {
+        if (s.utime_gps <= 0) {
+            ++r_.counts.nav_without_time;
+            return;
+        }
+        if (!PlausibleNav(s)) {
+            ++r_.counts.decode_failures;
+            return;
+        }
+        if (config_.require_good_ins && s.ins_status != kInsSolutionGood) {
+            ++r_.counts.nav_not_good;
+            return;
+        }
+        r_.nav.samples.push_back(s);
+    }
+    void AddStdDev(const NavStdDev& s) {
+        if (s.utime_gps <= 0) return;
+        r_.nav.stddevs.push_back(s);
+    }
+    void AddLeapSeconds(double utc_offset_s, int utc_status) {
+        if (utc_status == 1 && std::isfinite(utc_offset_s)) {
+            r_.nav.leap_seconds = static_cast<int>(std::lround(-utc_offset_s));
+        }
+    }
+    void AddPing(const PingHeader& h_in, const std::int32_t* counts, std::size_t n) {
+        if (h_in.utime_gps <= 0) {
+            ++r_.counts.pings_without_time;
+            return;
+        }
+        if (n == 0 || n > dt::kMaxBeams) {
+            ++r_.counts.pings_bad;
+            return;
+        }
+        PingHeader h = h_in;
+        h.beam_offset = static_cast<std::uint32_t>(r_.pings.range_counts.size());
+        h.num_beams = static_cast<std::uint16_t>(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            r_.pings.range_counts.push_back(counts[i] > 0 ? static_cast<std::uint32_t>(counts[i]) : 0u);
+        }
+        r_.pings.pings.push_back(h);
+    }
+    void AddPing83P(const dt::Ping83P& p, std::int64_t utime_gps) {
+        PingHeader h;
+        h.utime_gps = utime_gps;
+        h.ping_number = p.ping_number;
+        h.sound_speed_mps = p.sound_velocity_mps;
+        h.sound_speed_valid = p.sound_velocity_valid;
+        h.range_resolution_m = p.range_resolution_mm / 1000.0;
+        h.start_angle_deg = p.start_angle_deg();
+        h.angle_increment_deg = p.angle_increment_deg();
+        h.profile_tilt_deg = p.profile_tilt_deg;
+        counts_buf_.assign(p.range_counts.begin(), p.range_counts.end());
+        AddPing(h, counts_buf_.data(), counts_buf_.size());
+    }
+
+    // NovAtel messages decoded from bytes (raw channels and files).
+    void AddNovatel(const nv::DecodeResult& d) {
+        std::visit(
+            [&](const auto& m) {
+                using T = std::decay_t<decltype(m)>;
+                if constexpr (std::is_same_v<T, nv::InsPva>) {
+                    AddNav(FromPva(m.utime_gps(), m.latitude_deg, m.longitude_deg,
+                                   m.height_ellipsoid_m, m.velocity_north_mps, m.velocity_east_mps,
+                                   m.velocity_up_mps, m.roll_deg, m.pitch_deg, m.azimuth_deg,
+                                   static_cast<int>(m.ins_status), -1));
+                } else if constexpr (std::is_same_v<T, nv::InsPvaX>) {
+                    AddNav(FromPva(m.utime_gps(), m.latitude_deg, m.longitude_deg,
+                                   m.height_msl_m + m.undulation_m, m.velocity_north_mps,
+                                   m.velocity_east_mps, m.velocity_up_mps, m.roll_deg, m.pitch_deg,
+                                   m.azimuth_deg, static_cast<int>(m.ins_status),
+                                   static_cast<int>(m.position_type)));
+                    AddStdDev({m.utime_gps(), m.latitude_stddev_m, m.longitude_stddev_m,
+                               m.height_stddev_m, m.roll_stddev_deg, m.pitch_stddev_deg,
+                               m.azimuth_stddev_deg});
+                } else if constexpr (std::is_same_v<T, nv::InsStdDev>) {
+                    AddStdDev({m.utime_gps(), m.latitude_stddev_m, m.longitude_stddev_m,
+                               m.height_stddev_m, m.roll_stddev_deg, m.pitch_stddev_deg,
+                               m.azimuth_stddev_deg});
+                } else if constexpr (std::is_same_v<T, nv::Time>) {
+                    AddLeapSeconds(m.utc_offset_s, static_cast<int>(m.utc_status));
+                } else if constexpr (std::is_same_v<T, nv::DecodeError>) {
+                    ++r_.counts.raw_decode_errors;
+                }
+            },
+            d);
+    }
+
+private:
+    const IngestConfig& config_;
+    IngestResult& r_;
+    std::vector<std::int32_t> counts_buf_;
+};
+
+// Re-decoding state per raw source.
+struct RawStream {
+    std::unique_ptr<nv::Framer> novatel;
+    std::unique_ptr<dt::StreamFramer> deltat;
+    dt::FloatOrderMemory float_order;
+    std::int64_t last_utime_gps = 0;
+};
+
+void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
+    while (true) {
+        auto ev = s.novatel->Next();
+        if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+        if (auto* sk = std::get_if<protocol::Skipped>(&ev)) {
+            counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            continue;
+        }
+        col.AddNovatel(nv::Decode(std::get<nv::Frame>(ev)));
+    }
+}
+
+void DrainDeltat(RawStream& s, Collector& col, IngestCounts& counts, std::int64_t utime_gps,
+                 dt::Ping83P& ping) {
+    while (true) {
+        auto ev = s.deltat->Next();
+        if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+        if (auto* sk = std::get_if<protocol::Skipped>(&ev)) {
+            counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            continue;
+        }
+        const auto& rec = std::get<dt::Record>(ev);
+        auto d = dt::DecodeRecord83PInto(rec.bytes, s.float_order, ping);
+        if (std::holds_alternative<dt::DecodeError>(d)) {
+            ++counts.pings_bad;
+        } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
+            const std::int32_t age = ping.TransmitAgeAtSendUs();
+            col.AddPing83P(ping, utime_gps > 0 ? utime_gps - std::max(0, age) : 0);
+        }
+    }
+}
+
+struct Pass {
+    bool decoded_nav = false;
+    bool decoded_sonar = false;
+    bool raw_nav = false;
+    bool raw_sonar = false;
+};
+
+Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& config, bool want_decoded,
+                bool want_raw_nav, bool want_raw_sonar, IngestResult& r, Pass& seen,
+                const ProgressCallback& progress, std::uint64_t total_bytes,
+                std::uint64_t& bytes_done, bool count_files) {
+    Collector col(config, r);
+    const std::string nav_id = Upper(config.nav_channel_id);
+    const std::string sonar_id = Upper(config.sonar_channel_id);
+    std::map<std::string, RawStream, std::less<>> raw_streams;
+    pitmap::ins_pva_t pva;
+    pitmap::ins_stddev_t sd;
+    pitmap::gps_time_t gt;
+    pitmap::multibeam_ping_t mb;
+    pitmap::raw_bytes_t raw;
+    dt::Ping83P ping83;
+    for (const std::string& path : paths) {
+        auto reader = LcmLogReader::Open(path);
+        if (!reader) return reader.error();
+        LcmEvent ev;
+        std::uint64_t last_pos = 0;
+        std::int64_t n = 0;
+        while ((*reader)->Next(ev)) {
+            IngestCounts& c = r.counts;
+            if (count_files) {
+                ++c.events;
+                auto it = c.events_by_channel.find(std::string(ev.channel));
+                if (it == c.events_by_channel.end()) {
+                    c.events_by_channel.emplace(std::string(ev.channel), 1);
+                } else {
+                    ++it->second;
+                }
+            }
+            const int len = static_cast<int>(ev.data.size());
+            const void* buf = ev.data.data();
+            const std::string_view ch = ev.channel;
+            if (Matches(ch, "INS_PVA_", nav_id)) {
+                seen.decoded_nav = true;
+                if (!want_decoded) continue;
+                if (pva.decode(buf, 0, len) != len) {
+                    ++c.decode_failures;
+                    continue;
+                }
+                col.AddNav(FromPva(pva.utime_gps, pva.latitude_deg, pva.longitude_deg,
+                                   pva.height_ellipsoid_m, pva.velocity_north_mps,
+                                   pva.velocity_east_mps, pva.velocity_up_mps, pva.roll_deg,
+                                   pva.pitch_deg, pva.azimuth_deg, pva.ins_status,
+                                   pva.position_type));
+                if (pva.has_stddev) {
+                    col.AddStdDev({pva.utime_gps, pva.latitude_stddev_m, pva.longitude_stddev_m,
+                                   pva.height_stddev_m, pva.roll_stddev_deg, pva.pitch_stddev_deg,
+                                   pva.azimuth_stddev_deg});
+                }
+            } else if (Matches(ch, "INS_STDDEV_", nav_id)) {
+                if (!want_decoded) continue;
+                if (sd.decode(buf, 0, len) != len) {
+                    ++c.decode_failures;
+                    continue;
+                }
+                col.AddStdDev({sd.utime_gps, sd.latitude_stddev_m, sd.longitude_stddev_m,
+                               sd.height_stddev_m, sd.roll_stddev_deg, sd.pitch_stddev_deg,
+                               sd.azimuth_stddev_deg});
+            } else if (StartsWith(ch, "GPS_TIME_")) {
+                if (!want_decoded) continue;
+                if (gt.decode(buf, 0, len) != len) {
+                    ++c.decode_failures;
+                    continue;
+                }
+                col.AddLeapSeconds(gt.utc_offset_s, gt.utc_status);
+            } else if (Matches(ch, "MULTIBEAM_PING_", sonar_id)) {
+                seen.decoded_sonar = true;
+                if (!want_decoded) continue;
+                if (mb.decode(buf, 0, len) != len) {
+                    ++c.decode_failures;
+                    continue;
+                }
+                PingHeader h;
+                h.utime_gps = mb.utime_gps;
+                h.ping_number = mb.ping_number;
+                h.sound_speed_mps = mb.sound_speed_mps;
+                h.sound_speed_valid = mb.sound_speed_valid != 0;
+                h.range_resolution_m = mb.range_resolution_m;
+                h.start_angle_deg = mb.start_angle_deg;
+                h.angle_increment_deg = mb.angle_increment_deg;
+                h.profile_tilt_deg = mb.profile_tilt_deg;
+                col.AddPing(h, mb.range_counts.data(), mb.range_counts.size());
+            } else if (StartsWith(ch, "RAW_")) {
+                const bool nav_ok = nav_id.empty() || ch.substr(4) == nav_id;
+                const bool sonar_ok = sonar_id.empty() || ch.substr(4) == sonar_id;
+                if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
+                if (raw.decode(buf, 0, len) != len) {
+                    ++c.decode_failures;
+                    continue;
+                }
+                const bool is_nav = raw.protocol == "novatel" && nav_ok;
+                const bool is_sonar = raw.protocol == "deltat_83p" && sonar_ok;
+                seen.raw_nav = seen.raw_nav || is_nav;
+                seen.raw_sonar = seen.raw_sonar || is_sonar;
+                if (!((is_nav && want_raw_nav) || (is_sonar && want_raw_sonar))) continue;
+                ++c.raw_chunks_decoded;
+                RawStream& s = raw_streams[std::string(ch)];
+                const ByteSpan bytes(raw.data.data(), raw.data.size());
+                if (is_nav) {
+                    if (!s.novatel) s.novatel = std::make_unique<nv::Framer>();
+                    s.novatel->Push(bytes);
+                    DrainNovatel(s, col, c);
+                } else if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
+                    auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
+                    if (std::holds_alternative<dt::DecodeError>(d)) {
+                        ++c.pings_bad;
+                    } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
+                        const std::int32_t age = ping83.TransmitAgeAtSendUs();
+                        col.AddPing83P(ping83,
+                                       raw.utime_gps > 0 ? raw.utime_gps - std::max(0, age) : 0);
+                    }
+                } else {
+                    if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
+                    s.deltat->Push(bytes);
+                    DrainDeltat(s, col, c, raw.utime_gps, ping83);
+                }
+            }
+            if (progress && (++n & 0x3FFF) == 0) {
+                const std::uint64_t p = (*reader)->position();
+                bytes_done += p - last_pos;
+                last_pos = p;
+                progress(total_bytes ? static_cast<double>(bytes_done) / total_bytes : 0.0);
+            }
+        }
+        bytes_done += (*reader)->size() - last_pos;
+        if (count_files) {
+            const LcmLogCounts& lc = (*reader)->counts();
+            ++r.counts.files;
+            r.counts.bytes += static_cast<std::int64_t>((*reader)->size());
+            r.counts.corrupt_events += lc.corrupt_headers;
+            r.counts.resync_bytes += lc.resync_bytes;
+            r.counts.truncated_events += lc.truncated_events;
+        }
+    }
+    for (auto& [name, s] : raw_streams) {
+        if (s.novatel) {
+            if (auto sk = s.novatel->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            DrainNovatel(s, col, r.counts);
+        }
+        if (s.deltat) {
+            if (auto sk = s.deltat->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+        }
+    }
+    return Ok{};
+}
+
+void Finish(IngestResult& r) {
+    // Prefer INSPVA(S) samples over INSPVAX ones at the same time (the latter carry a float
+    // undulation).
+    std::stable_sort(r.nav.samples.begin(), r.nav.samples.end(), [](const auto& a, const auto& b) {
+        if (a.utime_gps != b.utime_gps) return a.utime_gps < b.utime_gps;
+        return (a.position_type == -1) > (b.position_type == -1);
+    });
+    const std::size_t nav_before = r.nav.samples.size();
+    const std::size_t pings_before = r.pings.pings.size();
+    georef::SortAndDeduplicate(r.nav);
+    georef::SortAndDeduplicate(r.pings);
+    r.counts.nav_duplicates += static_cast<std::int64_t>(nav_before - r.nav.samples.size());
+    r.counts.ping_duplicates += static_cast<std::int64_t>(pings_before - r.pings.pings.size());
+    r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
+    r.counts.stddev_samples = static_cast<std::int64_t>(r.nav.stddevs.size());
+    r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
+    r.message = std::to_string(r.counts.nav_samples) + " INS samples" +
+                (r.nav_from_raw ? " (re-decoded)" : "") + ", " + std::to_string(r.counts.pings) +
+                " pings" + (r.pings_from_raw ? " (re-decoded)" : "") + ", " +
+                std::to_string(r.pings.num_soundings()) + " soundings";
+}
+
+enum class FileKind { kLcm, k83P, kNovatel, kUnknown };
+
+FileKind Sniff(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::uint8_t b[4] = {0, 0, 0, 0};
+    in.read(reinterpret_cast<char*>(b), 4);
+    if (in.gcount() < 3) return FileKind::kUnknown;
+    if (in.gcount() == 4 && b[0] == 0xED && b[1] == 0xA1 && b[2] == 0xDA && b[3] == 0x01) {
+        return FileKind::kLcm;
+    }
+    if (b[0] == '8' && b[1] == '3' && b[2] == 'P') return FileKind::k83P;
+    std::string ext = fs::path(path).extension().string();
+    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext == ".lcmlog") return FileKind::kLcm;
+    if (ext == ".83p") return FileKind::k83P;
+    return FileKind::kNovatel;  // binary (0xAA 0x44 ...) or ASCII ('#', '%', '<'), found by framing
+}
+
+}  // namespace
+
+Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
+                                     const IngestConfig& config, const ProgressCallback& progress) {
+    if (paths.empty()) return Error{"no log files given"};
+    std::uint64_t total = 0;
+    for (const auto& p : paths) {
+        std::error_code ec;
+        const auto sz = fs::file_size(p, ec);
+        if (ec) return Error{p + ": cannot read: " + ec.message()};
+        total += sz;
+    }
+    const bool raw = config.source == IngestSource::kRaw;
+    if (raw) total *= 1;
+    IngestResult r;
+    Pass seen;
+    std::uint64_t done = 0;
+    if (auto s = ReadLogs(paths, config, !raw, raw, raw, r, seen, progress, total, done, true); !s) {
+        return s.error();
+    }
+    r.nav_from_raw = raw;
+    r.pings_from_raw = raw;
+    if (config.source == IngestSource::kAuto) {
+        const bool need_nav = !seen.decoded_nav && seen.raw_nav;
+        const bool need_sonar = !seen.decoded_sonar && seen.raw_sonar;
+        if (need_nav || need_sonar) {
+            IngestResult extra;
+            Pass seen2;
+            std::uint64_t done2 = 0;
+            if (auto s = ReadLogs(paths, config, false, need_nav, need_sonar, extra, seen2, {},
+                                  total, done2, false);
+                !s) {
+                return s.error();
+            }
+            if (need_nav) {
+                r.nav.samples = std::move(extra.nav.samples);
+                r.nav.stddevs = std::move(extra.nav.stddevs);
+                if (extra.nav.leap_seconds >= 0) r.nav.leap_seconds = extra.nav.leap_seconds;
+                r.nav_from_raw = true;
+            }
+            if (need_sonar) {
+                r.pings = std::move(extra.pings);
+                r.pings_from_raw = true;
+            }
+            IngestCounts& c = r.counts;
+            const IngestCounts& e = extra.counts;
+            c.nav_without_time += e.nav_without_time;
+            c.nav_not_good += e.nav_not_good;
+            c.pings_without_time += e.pings_without_time;
+            c.pings_bad += e.pings_bad;
+            c.raw_chunks_decoded += e.raw_chunks_decoded;
+            c.raw_skipped_bytes += e.raw_skipped_bytes;
+            c.raw_decode_errors += e.raw_decode_errors;
+            c.decode_failures += e.decode_failures;
+        }
+    }
+    if (progress) progress(1.0);
+    Finish(r);
+    return r;
+}
+
+Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
+                                          const IngestConfig& config) {
+    IngestResult r;
+    Collector col(config, r);
+    for (const std::string& path : paths) {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) return Error{path + ": cannot open"};
+        RawStream s;
+        s.novatel = std::make_unique<nv::Framer>();
+        std::vector<std::uint8_t> buf(1 << 16);
+        while (in) {
+            in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+            const auto got = static_cast<std::size_t>(in.gcount());
+            if (got == 0) break;
+            r.counts.bytes += static_cast<std::int64_t>(got);
+            s.novatel->Push(ByteSpan(buf.data(), got));
+            DrainNovatel(s, col, r.counts);
+        }
+        if (auto sk = s.novatel->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+        DrainNovatel(s, col, r.counts);
+        ++r.counts.files;
+    }
+    r.nav_from_raw = true;
+    Finish(r);
+    return r;
+}
+
+Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig& config,
+                      int leap_seconds, IngestResult& into) {
+    Collector col(config, into);
+    dt::Ping83P ping;
+    for (const std::string& path : paths) {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) return Error{path + ": cannot open"};
+        RawStream s;
+        s.deltat = std::make_unique<dt::StreamFramer>();
+        std::vector<std::uint8_t> buf(1 << 16);
+        while (in) {
+            in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+            const auto got = static_cast<std::size_t>(in.gcount());
+            if (got == 0) break;
+            into.counts.bytes += static_cast<std::int64_t>(got);
+            s.deltat->Push(ByteSpan(buf.data(), got));
+            while (true) {
+                auto ev = s.deltat->Next();
+                if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+                if (auto* sk = std::get_if<protocol::Skipped>(&ev)) {
+                    into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                    continue;
+                }
+                auto d = dt::DecodeRecord83PInto(std::get<dt::Record>(ev).bytes, s.float_order, ping);
+                if (std::holds_alternative<dt::DecodeError>(d)) {
+                    ++into.counts.pings_bad;
+                    continue;
+                }
+                if (std::get<dt::RecordKind>(d) != dt::RecordKind::kPing) continue;
+                std::int64_t t = 0;
+                if (ping.header_time_valid) {
+                    t = (leap_seconds >= 0 ? GpsFromUnix(ping.utime_sonar_header, leap_seconds)
+                                           : GpsFromUnix(ping.utime_sonar_header)) +
+                        std::llround(config.sonar_clock_offset_s * 1e6);
+                }
+                col.AddPing83P(ping, t);
+            }
+        }
+        if (auto sk = s.deltat->Flush()) into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+        ++into.counts.files;
+    }
+    into.pings_from_raw = true;
+    return Ok{};
+}
+
+Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& inputs) {
+    std::vector<std::string> out;
+    for (const std::string& in : inputs) {
+        std::error_code ec;
+        if (fs::is_directory(in, ec)) {
+            std::vector<std::string> files;
+            for (const auto& e : fs::directory_iterator(in, ec)) {
+                if (!e.is_regular_file()) continue;
+                std::string ext = e.path().extension().string();
+                for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+                if (ext == ".lcmlog" || ext == ".83p" || ext == ".gps" || ext == ".asc" ||
+                    ext == ".bin") {
+                    files.push_back(e.path().string());
+                }
+            }
+            if (ec) return Error{in + ": cannot list: " + ec.message()};
+            std::sort(files.begin(), files.end());
+            if (files.empty()) return Error{in + ": no .lcmlog, .83P or NovAtel files in this folder"};
+            out.insert(out.end(), files.begin(), files.end());
+        } else if (fs::is_regular_file(in, ec)) {
+            out.push_back(in);
+        } else {
+            return Error{in + ": no such file or folder"};
+        }
+    }
+    return out;
+}
+
+Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
+                                   const IngestConfig& config, const ProgressCallback& progress) {
+    std::vector<std::string> lcm, p83, novatel;
+    for (const auto& f : files) {
+        switch (Sniff(f)) {
+            case FileKind::kLcm: lcm.push_back(f); break;
+            case FileKind::k83P: p83.push_back(f); break;
+            case FileKind::kNovatel: novatel.push_back(f); break;
+            case FileKind::kUnknown: return Error{f + ": empty or too short to be a log file"};
+        }
+    }
+    IngestResult r;
+    if (!lcm.empty()) {
+        auto a = IngestLcmLogs(lcm, config, progress);
+        if (!a) return a.error();
+        r = std::move(*a);
+    }
+    if (!novatel.empty()) {
+        auto b = IngestNovatelFiles(novatel, config);
+        if (!b) return b.error();
+        r.nav.samples.insert(r.nav.samples.end(), b->nav.samples.begin(), b->nav.samples.end());
+        r.nav.stddevs.insert(r.nav.stddevs.end(), b->nav.stddevs.begin(), b->nav.stddevs.end());
+        if (b->nav.leap_seconds >= 0) r.nav.leap_seconds = b->nav.leap_seconds;
+        r.counts.files += b->counts.files;
+        r.counts.bytes += b->counts.bytes;
+        r.counts.raw_skipped_bytes += b->counts.raw_skipped_bytes;
+        r.counts.raw_decode_errors += b->counts.raw_decode_errors;
+        r.nav_from_raw = true;
+    }
+    if (!p83.empty()) {
+        if (auto s = Ingest83PFiles(p83, config, r.nav.leap_seconds, r); !s) return s.error();
+    }
+    Finish(r);
+    return r;
+}
+
+}  // namespace pitmap::proc::io

@@ -1,0 +1,98 @@
+// SPDX-License-Identifier: MIT
+// Ingest: LCM logs (pitmap-acqd, pitmap-sim) and vendor files (.83P, NovAtel binary/ASCII) into
+// the NavSeries and PingSeries of processor/georef/series.hpp, in GPS time, with counts of
+// everything skipped.
+//
+// LCM logs: files are read in the order given (rotated segments sort by name). Decoded channels
+// (INS_PVA_<ID>, INS_STDDEV_<ID>, GPS_TIME_<ID>, MULTIBEAM_PING_<ID>) are preferred; the raw
+// channels (raw_bytes_t, recognised by decoding, with `protocol` "novatel" / "deltat_83p") are
+// re-decoded with common/protocol when `source` is kRaw, or in kAuto for a stream (navigation
+// or sonar) that has no decoded channel in the logs. A re-decoded ping gets the GPS time of its
+// datagram's receipt minus the transmit age the 83P header states (data - ping latency), as
+// the daemon does.
+// .83P files carry only the topside PC's clock: utime_gps = header time (read as UTC) + GPS-UTC
+// (from a NovAtel TIME log when one is given, else the leap-second table) + sonar_clock_offset_s.
+// Failure model: unreadable files are errors naming the path; bad bytes and bad events are
+// counted, never fatal.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "common/progress.hpp"
+#include "common/result.hpp"
+#include "processor/georef/series.hpp"
+
+namespace pitmap::proc::io {
+
+enum class IngestSource { kAuto = 0, kDecoded, kRaw };
+const char* ToString(IngestSource s);
+bool ParseIngestSource(const std::string& text, IngestSource& out);
+
+struct IngestConfig {
+    IngestSource source = IngestSource::kAuto;  // decoded channels, raw re-decoding, or auto
+    std::string nav_channel_id;     // channel id (e.g. "novatel_com1"); "" = every INS channel
+    std::string sonar_channel_id;   // e.g. "deltat_udp"; "" = every sonar channel
+    double sonar_clock_offset_s = 0;  // .83P files: added to header time (as UTC) -> GPS
+    bool require_good_ins = false;    // drop INS samples whose status is not SOLUTION_GOOD
+
+    std::vector<std::string> Validate() const;
+};
+
+struct IngestCounts {
+    std::int64_t files = 0;
+    std::int64_t bytes = 0;
+    std::int64_t events = 0;
+    std::int64_t corrupt_events = 0;      // impossible event headers (resynchronised)
+    std::int64_t resync_bytes = 0;
+    std::int64_t truncated_events = 0;    // cut by the end of a file
+    std::int64_t decode_failures = 0;     // events whose lcmtype did not decode
+    std::int64_t nav_samples = 0;
+    std::int64_t nav_without_time = 0;    // utime_gps = 0
+    std::int64_t nav_not_good = 0;        // dropped by require_good_ins
+    std::int64_t nav_duplicates = 0;
+    std::int64_t stddev_samples = 0;
+    std::int64_t pings = 0;
+    std::int64_t pings_without_time = 0;
+    std::int64_t pings_bad = 0;           // no beams, over-long, undecodable 83P
+    std::int64_t ping_duplicates = 0;
+    std::int64_t raw_chunks_decoded = 0;
+    std::int64_t raw_skipped_bytes = 0;   // framer skips in re-decoded raw streams
+    std::int64_t raw_decode_errors = 0;
+    std::map<std::string, std::int64_t> events_by_channel;
+};
+
+struct IngestResult {
+    georef::NavSeries nav;
+    georef::PingSeries pings;
+    IngestCounts counts;
+    bool nav_from_raw = false;
+    bool pings_from_raw = false;
+    std::string message;
+};
+
+// Reads LCM log files in order. An empty list or an unreadable file is an error.
+Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
+                                     const IngestConfig& config,
+                                     const ProgressCallback& progress = {});
+
+// Reads NovAtel binary or ASCII log files (any mix of messages; INS ones are kept).
+Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
+                                          const IngestConfig& config);
+
+// Reads .83P files; `leap_seconds` < 0 uses the table. Adds to `into`.
+Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig& config,
+                      int leap_seconds, IngestResult& into);
+
+// Expands directories (their *.lcmlog, *.83P, *.gps/*.asc/*.bin files, sorted by name) and keeps
+// files as given. Fails for a path that does not exist.
+Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& inputs);
+
+// Dispatches by content: LCM logs, .83P files, NovAtel files; sorts and deduplicates.
+Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
+                                   const IngestConfig& config,
+                                   const ProgressCallback& progress = {});
+
+}  // namespace pitmap::proc::io

@@ -1,0 +1,60 @@
+// SPDX-License-Identifier: MIT
+// Products folder I/O: vehicle.yaml, point clouds (binary PLY, LAS 1.4), trajectory CSV, JSON
+// summaries, and the binary ingest cache that later stages (calibrate) re-read.
+//
+// PLY: binary_little_endian 1.0, vertex properties float x, y, z (world ENU metres), double
+//   gps_time_s (GPS seconds since 1980-01-06), float range_m, uint ping, ushort beam; a header
+//   comment "pitmap_origin LAT LON H" (degrees, degrees, ellipsoidal metres) names the origin.
+// LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
+//   coordinates with scale 0.001 m, GPS time as Adjusted Standard GPS time (GPS s - 1e9,
+//   global encoding bit 0), CRS as an OGC WKT VLR (LASF_Projection / 2112, global encoding
+//   bit 4). Heights are ellipsoidal (WGS84).
+// Failure model: every function returns an error naming the file.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "processor/georef/georef.hpp"
+#include "processor/io/ingest.hpp"
+
+namespace pitmap::proc::io {
+
+// What vehicle.yaml says. Both the simulator's keys (lever_arms_m.sonar, boresight_deg
+// [r, p, y], navigation_channel, sonar_channel) and pitmap-acqd's `vehicle` section
+// (lever_arms_m.imu_to_sonar, boresight_sonar_deg {roll, pitch, yaw}, optionally nested under
+// `vehicle:`) are accepted.
+struct VehicleConfig {
+    std::string name;
+    georef::SonarMount mount;
+    std::string navigation_channel;  // "" if not given
+    std::string sonar_channel;       // "" if not given
+    std::vector<std::string> missing;  // keys that were looked for and not found
+};
+Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
+
+Status WritePly(const std::string& path, const georef::GeorefResult& result);
+Status WriteLas(const std::string& path, const georef::GeorefResult& result,
+                const georef::UtmPoints& utm);
+// OGC WKT (WKT1) of WGS 84 / UTM zone.
+std::string UtmWkt(int zone, bool northern);
+
+// Trajectory CSV: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU at `origin`),
+// then vel_e_mps,vel_n_mps,vel_u_mps,ins_status.
+Status WriteTrajectoryCsv(const std::string& path, const georef::NavSeries& nav,
+                          const Geodetic& origin);
+
+Expected<nlohmann::json> ReadJsonFile(const std::string& path);
+Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
+
+// The ingest result in a private, versioned binary file.
+Status WriteIngestCache(const std::string& path, const IngestResult& r);
+Expected<IngestResult> ReadIngestCache(const std::string& path);
+
+// Peak resident set size of this process so far, MiB.
+double PeakRssMb();
+
+}  // namespace pitmap::proc::io
