@@ -564,10 +564,9 @@ IsoSurfaceResult TsdfVolume::ExtractIsoSurface(double iso_m) const {
         }
         return remap[i];
     };
-    // OpenVDB orients polygons with the inside (negative) on one side; flip so that the
-    // triangles wind counter-clockwise seen from the positive (water) side.
+    // OpenVDB winds polygons counter-clockwise seen from the positive (water) side.
     auto add = [&](openvdb::Index a, openvdb::Index b, openvdb::Index c) {
-        mesh.triangles.emplace_back(vertex(a), vertex(c), vertex(b));
+        mesh.triangles.emplace_back(vertex(a), vertex(b), vertex(c));
     };
     for (const openvdb::Vec3I& t : tris) {
         if (!ok[t[0]] || !ok[t[1]] || !ok[t[2]]) {
