@@ -1,0 +1,324 @@
+// SPDX-License-Identifier: MIT
+#include "processor/calib/boresight.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <nanoflann.hpp>
+#include <unordered_map>
+
+#include "common/frames.hpp"
+
+namespace pitmap::proc::calib {
+
+using georef::GeorefResult;
+using georef::SonarMount;
+
+const char* ToString(Termination t) {
+    switch (t) {
+        case Termination::kConverged: return "converged";
+        case Termination::kMaxIterations: return "max_iterations";
+        case Termination::kNoOverlap: return "no_overlap";
+        case Termination::kCancelled: return "cancelled";
+    }
+    return "unknown";
+}
+
+std::vector<std::string> BoresightConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(segment_duration_s > 0)) p.push_back("calibrate.segment_duration_s must be > 0");
+    if (!(part_duration_s > 0)) p.push_back("calibrate.part_duration_s must be > 0");
+    if (!(min_separation_s >= part_duration_s)) {
+        p.push_back("calibrate.min_separation_s must be >= part_duration_s");
+    }
+    if (beam_stride < 1) p.push_back("calibrate.beam_stride must be >= 1");
+    if (!(min_distance_m > 0)) p.push_back("calibrate.min_distance_m must be > 0");
+    if (!(max_distance_m >= min_distance_m)) {
+        p.push_back("calibrate.max_distance_m must be >= min_distance_m");
+    }
+    if (!(normal_radius_m > 0)) p.push_back("calibrate.normal_radius_m must be > 0");
+    if (!(cauchy_scale_m > 0)) p.push_back("calibrate.cauchy_scale_m must be > 0");
+    if (max_iterations < 1) p.push_back("calibrate.max_iterations must be >= 1");
+    if (!(convergence_deg > 0)) p.push_back("calibrate.convergence_deg must be > 0");
+    if (!(max_position_stddev_m > 0)) p.push_back("calibrate.max_position_stddev_m must be > 0");
+    if (!(max_heading_stddev_deg > 0)) p.push_back("calibrate.max_heading_stddev_deg must be > 0");
+    if (num_verify_segments < 0) p.push_back("calibrate.num_verify_segments must be >= 0");
+    return p;
+}
+
+namespace {
+
+struct Cloud {
+    const std::vector<Eigen::Vector3d>* pts = nullptr;
+    std::size_t kdtree_get_point_count() const { return pts->size(); }
+    double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*pts)[i][static_cast<int>(d)]; }
+    template <class B>
+    bool kdtree_get_bbox(B&) const {
+        return false;
+    }
+};
+using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud,
+                                                 3, std::size_t>;
+
+// Soundings of one segment, subsampled.
+struct Samples {
+    std::vector<std::uint32_t> ping;
+    std::vector<Eigen::Vector3d> s_sonar;  // beam vectors, sonar frame
+    std::vector<double> t_s;               // seconds since the segment start
+};
+
+Samples Collect(const GeorefResult& geo, double t0, double t1, int stride) {
+    Samples S;
+    const auto& P = geo.points;
+    for (std::size_t j = 0; j < P.size(); ++j) {
+        if (P.beam[j] % stride != 0) continue;
+        const auto& ping = geo.pings[P.ping[j]];
+        const double t = static_cast<double>(ping.utime_gps) * 1e-6;
+        if (t < t0 || t >= t1) continue;
+        S.ping.push_back(P.ping[j]);
+        S.s_sonar.push_back(georef::BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad));
+        S.t_s.push_back(t - t0);
+    }
+    return S;
+}
+
+struct Pair {
+    bool ok = false;
+    std::size_t q = 0;
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    double r = 0;
+};
+
+void Positions(const GeorefResult& geo, const Samples& S, const SonarMount& m,
+               std::vector<Eigen::Vector3d>& p) {
+    const Pose T_vs = m.T_vehicle_sonar();
+    p.resize(S.ping.size());
+    for (std::size_t k = 0; k < p.size(); ++k) {
+        p[k] = geo.pings[S.ping[k]].T_world_vehicle * (T_vs * S.s_sonar[k]);
+    }
+}
+
+// Correspondences for every sample: normal of its own pass, closest point of another pass.
+std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p, const Samples& S,
+                            const BoresightConfig& cfg, double d_max) {
+    Cloud cloud{&p};
+    Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    tree.buildIndex();
+    std::vector<Pair> pairs(p.size());
+    const double radius = std::max(cfg.normal_radius_m, d_max);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
+        std::vector<std::pair<std::size_t, double>> hits;
+        for (std::size_t k = b.begin(); k != b.end(); ++k) {
+            hits.clear();
+            tree.radiusSearch(p[k].data(), radius * radius, hits, nanoflann::SearchParams(32, 0, false));
+            Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+            int n_same = 0;
+            double best = d_max * d_max;
+            std::size_t best_j = 0;
+            bool found = false;
+            for (const auto& [j, d2] : hits) {
+                const double dt = std::abs(S.t_s[j] - S.t_s[k]);
+                if (dt < cfg.min_separation_s) {
+                    if (d2 <= cfg.normal_radius_m * cfg.normal_radius_m) {
+                        mean += p[j];
+                        cov += p[j] * p[j].transpose();
+                        ++n_same;
+                    }
+                } else if (d2 < best) {
+                    best = d2;
+                    best_j = j;
+                    found = true;
+                }
+            }
+            if (!found || n_same < 8) continue;
+            mean /= n_same;
+            cov = cov / n_same - mean * mean.transpose();
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+            const Eigen::Vector3d ev = es.eigenvalues();
+            if (!(ev[0] < 0.1 * ev[1])) continue;  // not planar enough
+            Pair& pr = pairs[k];
+            pr.ok = true;
+            pr.q = best_j;
+            pr.n = es.eigenvectors().col(0);
+            pr.r = pr.n.dot(p[k] - p[best_j]);
+        }
+    });
+    return pairs;
+}
+
+ResidualStats Stats(const std::vector<Pair>& pairs) {
+    std::vector<double> a;
+    double ss = 0;
+    for (const auto& pr : pairs) {
+        if (!pr.ok) continue;
+        a.push_back(std::abs(pr.r));
+        ss += pr.r * pr.r;
+    }
+    ResidualStats s;
+    s.pairs = static_cast<std::int64_t>(a.size());
+    if (a.empty()) return s;
+    s.rms_m = std::sqrt(ss / static_cast<double>(a.size()));
+    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+    s.median_abs_m = a[a.size() / 2];
+    return s;
+}
+
+ResidualStats Evaluate(const GeorefResult& geo, const Samples& S, const SonarMount& m,
+                       const BoresightConfig& cfg) {
+    std::vector<Eigen::Vector3d> p;
+    Positions(geo, S, m, p);
+    return Stats(FindPairs(p, S, cfg, cfg.min_distance_m));
+}
+
+SegmentScore ScoreSegment(const GeorefResult& geo, const georef::NavSeries& nav, double t0,
+                          double t1, const BoresightConfig& cfg) {
+    SegmentScore s;
+    s.start_s = t0;
+    s.end_s = t1;
+    struct Span {
+        double lo = 1e300, hi = -1e300;
+    };
+    std::unordered_map<std::int64_t, Span> cells;
+    const auto& P = geo.points;
+    for (std::size_t j = 0; j < P.size(); j += 7) {
+        const double t = static_cast<double>(geo.pings[P.ping[j]].utime_gps) * 1e-6;
+        if (t < t0 || t >= t1) continue;
+        const auto& x = P.position_world[j];
+        const std::int64_t key = (static_cast<std::int64_t>(std::floor(x.x())) << 32) ^
+                                 (static_cast<std::int64_t>(std::floor(x.y())) & 0xFFFFFFFF);
+        Span& sp = cells[key];
+        sp.lo = std::min(sp.lo, t);
+        sp.hi = std::max(sp.hi, t);
+    }
+    for (const auto& [k, sp] : cells) s.overlap_cells += (sp.hi - sp.lo >= cfg.min_separation_s);
+    for (const auto& sd : nav.stddevs) {
+        const double t = static_cast<double>(sd.utime_gps) * 1e-6;
+        if (t < t0 || t >= t1) continue;
+        const double h = std::hypot(static_cast<double>(sd.north_m), static_cast<double>(sd.east_m));
+        if (std::isfinite(h)) s.max_position_stddev_m = std::max(s.max_position_stddev_m, h);
+        if (std::isfinite(sd.yaw_deg)) {
+            s.max_heading_stddev_deg = std::max(s.max_heading_stddev_deg, static_cast<double>(sd.yaw_deg));
+        }
+    }
+    s.low_drift = s.max_position_stddev_m <= cfg.max_position_stddev_m &&
+                  s.max_heading_stddev_deg <= cfg.max_heading_stddev_deg;
+    return s;
+}
+
+}  // namespace
+
+BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSeries& nav,
+                                   const SonarMount& mount, const BoresightConfig& cfg,
+                                   const ProgressCallback& progress) {
+    BoresightResult res;
+    res.mount = mount;
+    if (geo.pings.size() < 2) {
+        res.message = "too few georeferenced pings";
+        return res;
+    }
+    const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
+    const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
+    const double dur = std::min(cfg.segment_duration_s, t_last - t_first);
+    // Candidate windows.
+    const double step = dur / 4;
+    for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
+        res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
+        if (step <= 0) break;
+    }
+    if (res.candidates.empty()) res.candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
+    auto better = [](const SegmentScore& a, const SegmentScore& b) {
+        if (a.low_drift != b.low_drift) return a.low_drift;
+        return a.overlap_cells > b.overlap_cells;
+    };
+    if (cfg.segment_start_s >= 0) {
+        res.segment = ScoreSegment(geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
+    } else {
+        res.segment = *std::min_element(res.candidates.begin(), res.candidates.end(), better);
+    }
+    const Samples S = Collect(geo, res.segment.start_s, res.segment.end_s, cfg.beam_stride);
+
+    res.before = Evaluate(geo, S, mount, cfg);
+    SonarMount m = mount;
+    Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
+    std::vector<Eigen::Vector3d> p;
+    res.termination = Termination::kMaxIterations;
+    for (int it = 0; it < cfg.max_iterations; ++it) {
+        if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
+            res.termination = Termination::kCancelled;
+            break;
+        }
+        const double a = cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
+        const double d_max = std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
+        Positions(geo, S, m, p);
+        const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
+        Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d g = Eigen::Vector3d::Zero();
+        std::int64_t n = 0;
+        for (std::size_t k = 0; k < pairs.size(); ++k) {
+            const Pair& pr = pairs[k];
+            if (!pr.ok) continue;
+            const Eigen::Matrix3d A_p = geo.pings[S.ping[k]].T_world_vehicle.linear() * R_vs;
+            const Eigen::Matrix3d A_q = geo.pings[S.ping[pr.q]].T_world_vehicle.linear() * R_vs;
+            const Eigen::RowVector3d J =
+                pr.n.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[pr.q]));
+            const double u = pr.r / cfg.cauchy_scale_m;
+            const double w = 1.0 / (1.0 + u * u);
+            H += w * J.transpose() * J;
+            g += w * J.transpose() * pr.r;
+            ++n;
+        }
+        if (n < 50) {
+            res.termination = Termination::kNoOverlap;
+            break;
+        }
+        const Eigen::Vector3d delta = -(H + 1e-9 * H.trace() * Eigen::Matrix3d::Identity()).ldlt().solve(g);
+        R_vs = R_vs * ExpSO3(delta);
+        const frames::Rpy rpy = frames::RpyFromRotationNed(R_vs);
+        m.boresight_roll_deg = frames::RadToDeg(rpy.roll);
+        m.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
+        m.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
+        res.iterations = it + 1;
+        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg && d_max <= cfg.min_distance_m + 1e-9) {
+            res.termination = Termination::kConverged;
+            break;
+        }
+    }
+    if (res.termination == Termination::kNoOverlap) {
+        res.message = "no overlap between passes in the segment: boresight unchanged";
+        res.mount = mount;
+        return res;
+    }
+    res.mount = m;
+    res.after = Evaluate(geo, S, m, cfg);
+    // Verification on other segments, preferring low drift and overlap, not overlapping ours.
+    std::vector<SegmentScore> others;
+    for (const auto& c : res.candidates) {
+        if (c.end_s <= res.segment.start_s || c.start_s >= res.segment.end_s) others.push_back(c);
+    }
+    std::sort(others.begin(), others.end(), better);
+    std::vector<SegmentScore> chosen;
+    for (const auto& c : others) {
+        if (static_cast<int>(chosen.size()) >= cfg.num_verify_segments) break;
+        bool clash = false;
+        for (const auto& o : chosen) clash |= !(c.end_s <= o.start_s || c.start_s >= o.end_s);
+        if (!clash && c.overlap_cells > 0) chosen.push_back(c);
+    }
+    for (const auto& c : chosen) {
+        const Samples V = Collect(geo, c.start_s, c.end_s, cfg.beam_stride);
+        res.verify.push_back({c, Evaluate(geo, V, mount, cfg), Evaluate(geo, V, m, cfg)});
+    }
+    char buf[256];
+    std::snprintf(buf, sizeof(buf),
+                  "boresight roll %.3f pitch %.3f yaw %.3f deg (%s after %d iterations); "
+                  "residual RMS %.4f -> %.4f m over %lld pairs",
+                  m.boresight_roll_deg, m.boresight_pitch_deg, m.boresight_yaw_deg,
+                  ToString(res.termination), res.iterations, res.before.rms_m, res.after.rms_m,
+                  static_cast<long long>(res.after.pairs));
+    res.message = buf;
+    return res;
+}
+
+}  // namespace pitmap::proc::calib

@@ -1,0 +1,86 @@
+// SPDX-License-Identifier: MIT
+// Boresight calibration after the seed paper's §4.1: on a short low-drift segment with
+// overlapping passes, split the trajectory into parts, pair each sounding with its closest
+// sounding of another part (k-d tree, nanoflann), and find the roll/pitch/yaw of
+// R_vehicle_sonar that minimises the point-to-plane distances (Gauss-Newton with a Cauchy
+// kernel, correspondences re-found every outer iteration). Verified on other segments.
+//
+// Model: p = t_wv + R_wv (lever + R_vs(theta) s), s = the beam's sonar-frame vector. With the
+// right perturbation R_vs Exp(delta): dp/d delta = -R_wv R_vs [s]x. The residual of a pair
+// (p from part a, q from part b) is r = n_p . (p - q), n_p the normal of p's own part (PCA of
+// its neighbours within normal_radius_m), so dr/d delta = n_p^T (-A_p [s_p]x + A_q [s_q]x),
+// A = R_wv R_vs.
+// Segment choice (when not given): windows of segment_duration_s, stepped by a quarter; a
+// window is eligible when its INS 1-sigma horizontal position and heading stay under the limits
+// (low drift); among those the one with the most overlap (1 m cells seen by parts at least
+// min_separation_s apart) wins.
+// Thread safety: reentrant. Results do not depend on the thread count.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/progress.hpp"
+#include "processor/georef/georef.hpp"
+
+namespace pitmap::proc::calib {
+
+struct BoresightConfig {
+    double segment_start_s = -1;      // GPS seconds; < 0 = choose automatically
+    double segment_duration_s = 300;  // seconds (clamped to the survey)
+    double part_duration_s = 10;      // trajectory parts, seconds
+    double min_separation_s = 20;     // pairs only between soundings this far apart in time
+    int beam_stride = 4;              // use every n-th sounding of a ping
+    double max_distance_m = 1.0;      // correspondence distance, first iteration
+    double min_distance_m = 0.3;      // ... shrinking to this by the last iteration
+    double normal_radius_m = 0.6;     // neighbourhood for the normals
+    double cauchy_scale_m = 0.05;     // robust kernel scale
+    int max_iterations = 12;          // outer (correspondence) iterations
+    double convergence_deg = 1e-4;    // stop when the update is smaller
+    double max_position_stddev_m = 0.15;  // low-drift limit (horizontal, 1 sigma)
+    double max_heading_stddev_deg = 0.2;  // low-drift limit
+    int num_verify_segments = 2;      // other segments to verify on
+
+    std::vector<std::string> Validate() const;
+};
+
+struct SegmentScore {
+    double start_s = 0, end_s = 0;    // GPS seconds
+    std::int64_t overlap_cells = 0;
+    double max_position_stddev_m = 0, max_heading_stddev_deg = 0;
+    bool low_drift = false;
+};
+
+struct ResidualStats {
+    std::int64_t pairs = 0;
+    double rms_m = 0;        // RMS point-to-plane distance over pairs within the gate
+    double median_abs_m = 0;
+};
+
+struct VerifyResult {
+    SegmentScore segment;
+    ResidualStats before, after;
+};
+
+enum class Termination { kConverged = 0, kMaxIterations, kNoOverlap, kCancelled };
+const char* ToString(Termination t);
+
+struct BoresightResult {
+    georef::SonarMount mount;          // the input mount with the calibrated boresight
+    SegmentScore segment;              // the one used
+    ResidualStats before, after;       // on that segment
+    std::vector<VerifyResult> verify;  // other segments
+    int iterations = 0;
+    Termination termination = Termination::kNoOverlap;
+    std::vector<SegmentScore> candidates;
+    std::string message;
+};
+
+// `geo` must have been georeferenced with `mount`; its points and pings are read only.
+BoresightResult CalibrateBoresight(const georef::GeorefResult& geo, const georef::NavSeries& nav,
+                                   const georef::SonarMount& mount, const BoresightConfig& config,
+                                   const ProgressCallback& progress = {});
+
+}  // namespace pitmap::proc::calib
