@@ -12,7 +12,7 @@ common_pkgs=(
   libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libpcap-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  iproute2 socat util-linux
+  iproute2 socat util-linux pps-tools
 )
 processor_pkgs=(
   libsuitesparse-dev libblas-dev liblapack-dev

@@ -31,6 +31,9 @@ std::string Hostname() {
 }  // namespace
 
 Daemon::Daemon(DaemonConfig config, Clock& clock)
+    : Daemon(std::move(config), clock, nullptr) {}
+
+Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps)
     : config_(std::move(config)),
       clock_(clock),
       time_(config_.host_clock, config_.sonar_clock),
@@ -41,7 +44,14 @@ Daemon::Daemon(DaemonConfig config, Clock& clock)
         channels_.push_back(std::make_unique<SensorChannel>(spec.channel, *sources_.back(),
                                                             publisher_, clock_, time_, &human_log_));
     }
+    if (!config_.pps.device.empty()) {
+        pps_source_ = pps ? std::move(pps) : std::make_unique<Rfc2783PpsSource>(config_.pps.device);
+        pps_ = std::make_unique<PpsChannel>(*pps_source_, time_, config_.pps.fetch_timeout_ms,
+                                            &human_log_);
+    }
 }
+
+PpsCounters Daemon::pps_counters() const { return pps_ ? pps_->counters() : PpsCounters{}; }
 
 Daemon::~Daemon() { Stop(); }
 
@@ -63,6 +73,7 @@ Status Daemon::Start() {
     }
     start_mono_us_ = clock_.MonotonicUs();
     for (auto& ch : channels_) ch->Start();
+    if (pps_) pps_->Start();
     started_ = true;
     return Ok{};
 }
@@ -122,6 +133,7 @@ bool Daemon::AllFinished() const {
 
 void Daemon::Stop() {
     if (!started_) return;
+    if (pps_) pps_->Stop();
     for (auto& ch : channels_) ch->Stop();
     PublishStatus();
     publisher_.Drain(2000);

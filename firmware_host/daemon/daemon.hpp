@@ -9,7 +9,7 @@
 // not published on LCM: the processor reads it next to the logs).
 //
 // THREADING: one reader thread per channel (SensorChannel), the publisher thread, the log
-// writer thread. Start(), PublishStatus(), Rotate() and Stop() are called from the one
+// writer thread, the PPS thread when a device is configured. Start(), PublishStatus(), Rotate() and Stop() are called from the one
 // controlling thread (main, which also owns the signals).
 #pragma once
 
@@ -20,6 +20,7 @@
 #include "firmware_host/daemon/clock.hpp"
 #include "firmware_host/daemon/daemon_config.hpp"
 #include "firmware_host/daemon/log_writer.hpp"
+#include "firmware_host/daemon/pps_channel.hpp"
 #include "firmware_host/daemon/publisher.hpp"
 #include "firmware_host/daemon/rate_limited_log.hpp"
 #include "firmware_host/daemon/sensor_channel.hpp"
@@ -32,6 +33,8 @@ class Daemon {
 public:
     // Precondition: the config loaded without problems.
     Daemon(DaemonConfig config, Clock& clock);
+    // As above with the PPS source given (tests): used when config.pps.device is set.
+    Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps);
     ~Daemon();
     Daemon(const Daemon&) = delete;
     Daemon& operator=(const Daemon&) = delete;
@@ -52,6 +55,8 @@ public:
     bool AllFinished() const;
 
     pitmap::daemon_status_t Snapshot() const;
+    // PPS counters; all zero without a PPS device.
+    PpsCounters pps_counters() const;
     const DaemonConfig& config() const { return config_; }
 
 private:
@@ -63,6 +68,8 @@ private:
     LcmPublisher publisher_;
     std::vector<std::unique_ptr<ByteSource>> sources_;
     std::vector<std::unique_ptr<SensorChannel>> channels_;
+    std::unique_ptr<PpsSource> pps_source_;
+    std::unique_ptr<PpsChannel> pps_;
     std::int64_t start_mono_us_ = 0;
     bool started_ = false;
 };

@@ -133,6 +133,9 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
     r.Read("lcm_url", cfg.lcm_url);
     cfg.publisher.lcm_url = cfg.lcm_url;
     r.Read("status_period_ms", cfg.status_period_ms);
+    r.Read("pps_device", cfg.pps.device);
+    r.Read("pps_fetch_timeout_ms", cfg.pps.fetch_timeout_ms);
+    if (!cfg.pps.device.empty()) Append(extra, r.Path("pps_device"), cfg.pps.Validate());
     // Child() only on present keys: common/config's reader over a missing key is a zombie
     // yaml-cpp node that throws on use.
     if (!r.Has("log")) r.AddProblem(r.Path("log") + ": required but missing");

@@ -6,6 +6,9 @@
 // Top level keys:
 //   lcm_url            LCM provider URL ("" = log only); e.g. udpm://239.255.76.67:7667?ttl=0
 //   status_period_ms   STATUS_<ID>, CLOCK_SYNC and DAEMON_STATUS period (1000)
+//   pps_device         RFC 2783 PPS device feeding the host clock model, e.g. /dev/pps0;
+//                      absent or "" = none. Must exist (a character device) at start-up.
+//   pps_fetch_timeout_ms  one wait for a pulse (1500)
 //   log                directory, prefix, rotate_bytes, rotate_interval_s, flush_interval_ms,
 //                      min_free_bytes, resume_margin_bytes, disk_check_interval_ms,
 //                      queue_max_events, queue_max_bytes
@@ -32,6 +35,7 @@
 #include "firmware_host/daemon/publisher.hpp"
 #include "firmware_host/daemon/sensor_channel.hpp"
 #include "firmware_host/io/file_source.hpp"
+#include "firmware_host/io/pps_source.hpp"
 #include "firmware_host/io/serial_source.hpp"
 #include "firmware_host/io/tcp_client_source.hpp"
 #include "firmware_host/io/udp_source.hpp"
@@ -56,6 +60,7 @@ struct DaemonConfig {
     LcmPublisherConfig publisher;
     HostClockConfig host_clock;
     SonarClockConfig sonar_clock;
+    PpsConfig pps;  // pps.device "" = no PPS
     std::vector<ChannelSpec> channels;
     std::string vehicle_yaml;  // the `vehicle` section re-emitted as YAML, "" if absent
 };

@@ -13,6 +13,11 @@ void TimeKeeper::AddNovatel(std::int64_t utime_host, std::int64_t utime_gps, boo
     host_.AddMessage(utime_host, utime_gps, time_valid);
 }
 
+bool TimeKeeper::AddPps(std::int64_t utime_host) {
+    std::lock_guard<std::mutex> lock(mu_);
+    return host_.AddPps(utime_host);
+}
+
 GpsEstimate TimeKeeper::HostToGps(std::int64_t utime_host) const {
     std::lock_guard<std::mutex> lock(mu_);
     return host_.ToGps(utime_host);

@@ -18,6 +18,9 @@ public:
     explicit TimeKeeper(const HostClockConfig& host = {}, const SonarClockConfig& sonar = {});
 
     void AddNovatel(std::int64_t utime_host, std::int64_t utime_gps, bool time_valid);
+    // An RFC 2783 PPS assert time (host Unix us); see HostClockModel::AddPps. Returns whether
+    // the pulse was used.
+    bool AddPps(std::int64_t utime_host);
     GpsEstimate HostToGps(std::int64_t utime_host) const;
     // Stamps one 83P record: the receive time goes through the host model first.
     SonarStamp StampPing(std::int64_t utime_receive_host, std::int64_t utime_header,
