@@ -56,7 +56,10 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
             drift *= decay;
             drift_vel.setZero();
         }
-        pos_[k] = gm_p + drift;
+        // White noise of each INS output on top of the correlated error.
+        const Eigen::Vector3d white(cfg.position_noise_m * g(rng), cfg.position_noise_m * g(rng),
+                                    cfg.position_noise_m * g(rng));
+        pos_[k] = gm_p + drift + white;
         att_[k] = gm_a;
         pos_sd_[k] = sd;
     }

@@ -55,9 +55,11 @@ struct LeverArms {
 
 // Errors of the INS solution the receiver reports (the truth is the vehicle's motion).
 struct NavErrorConfig {
+    // Defaults: a post-processed, tightly coupled RTK/INS solution (the paper's data went
+    // through NovAtel Inertial Explorer), about 1 cm horizontal and 1.5 cm vertical.
     double position_noise_m = 0.005;        // white noise per INS output, horizontal
-    double position_gm_sigma_m = 0.02;      // Gauss-Markov (RTK-quality) error, horizontal
-    double height_gm_sigma_m = 0.03;        // Gauss-Markov error, vertical
+    double position_gm_sigma_m = 0.01;      // Gauss-Markov (RTK-quality) error, horizontal
+    double height_gm_sigma_m = 0.015;       // Gauss-Markov error, vertical
     double position_gm_tau_s = 60.0;
     double attitude_gm_sigma_deg = 0.015;   // roll/pitch Gauss-Markov error
     double heading_gm_sigma_deg = 0.04;     // heading Gauss-Markov error
