@@ -538,22 +538,29 @@ IsoSurfaceResult TsdfVolume::ExtractIsoSurface(double iso_m) const {
     openvdb::tools::volumeToMesh(*impl_->distance, points, tris, quads, iso_m, 0.0);
     result.polygons_raw = static_cast<std::int64_t>(tris.size() + quads.size());
 
-    // A vertex is kept if the 8 voxel centres around it were all observed.
+    // A vertex (one per cell in OpenVDB's dual mesh) is kept if the sign change it marks lies
+    // between observed voxels: its cell must hold observed voxels on both sides of the iso
+    // value. A cell whose observed corners all lie on one side only crosses the iso value
+    // against an unobserved neighbour (background +T), i.e. at the back of the band.
     const double inv_s = 1.0 / config_.voxel_size_m;
+    const float iso = static_cast<float>(iso_m);
     std::vector<std::int32_t> remap(points.size(), -1);
     std::vector<char> ok(points.size(), 0);
     {
         auto wacc = impl_->weight->getConstAccessor();
+        auto dacc = impl_->distance->getConstAccessor();
         for (std::size_t i = 0; i < points.size(); ++i) {
             const openvdb::Vec3s& q = points[i];
             const int x0 = static_cast<int>(std::floor(q.x() * inv_s));
             const int y0 = static_cast<int>(std::floor(q.y() * inv_s));
             const int z0 = static_cast<int>(std::floor(q.z() * inv_s));
-            bool all = true;
-            for (int c = 0; c < 8 && all; ++c) {
-                all = wacc.isValueOn(Coord(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + (c >> 2)));
+            bool below = false, above = false;
+            for (int c = 0; c < 8; ++c) {
+                const Coord ijk(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + (c >> 2));
+                if (!wacc.isValueOn(ijk)) continue;
+                (dacc.getValue(ijk) < iso ? below : above) = true;
             }
-            ok[i] = all ? 1 : 0;
+            ok[i] = below && above ? 1 : 0;
         }
     }
     TriangleMesh& mesh = result.mesh;

@@ -87,7 +87,7 @@ struct TriangleMesh {
 struct IsoSurfaceResult {
     TriangleMesh mesh;
     std::int64_t polygons_raw = 0;       // polygons from volume-to-mesh (quads count once)
-    std::int64_t polygons_unobserved = 0;  // dropped: a cell corner was never observed
+    std::int64_t polygons_unobserved = 0;  // dropped: sign change only against unobserved voxels
     std::string message;
 };
 
@@ -123,8 +123,9 @@ public:
     WeightFilterResult FilterByWeight(const WeightFilterConfig& config);
 
     // Zero level set (OpenVDB volumeToMesh, marching-cubes style, adaptivity 0), keeping only
-    // polygons whose cell corners are all observed (an unobserved neighbour reads as the
-    // background +T and would create a false surface at the back of the band).
+    // polygons whose cells hold observed voxels on both sides of the iso value (an unobserved
+    // neighbour reads as the background +T and would create a false surface at the back of
+    // the band).
     IsoSurfaceResult ExtractIsoSurface(double iso_m = 0.0) const;
 
     // Signed distance and weight at a world point (nearest voxel); weight 0 = unobserved.

@@ -1,0 +1,347 @@
+// SPDX-License-Identifier: MIT
+// pitmap-bench-tsdf: TSDF fusion and meshing of a simulated survey on the TRUE trajectory
+// (issue 8). Builds SonarScans from the simulator (tools/sim: PitWorld, TruthTrajectory,
+// SonarModel with noise, dropouts and coarse outliers), integrates them, filters by weight,
+// meshes, and scores the mesh against the exact terrain:
+//   integration_s       wall time of TsdfVolume::Integrate
+//   peak_rss_mb         VmHWM of the process after meshing (simulation included)
+//   mesh_mean_abs_m     mean |signed distance to the true surface| of the mesh vertices and
+//                       triangle centroids (pitmap-eval's mesh_mean_abs_m definition)
+//   completeness        share of the insonified true surface (exact ray casts of every
+//                       --stride-th beam of every --stride-th ping) within 0.2 m of the mesh
+// Usage: pitmap-bench-tsdf [--scenario bejanca] [--mode beam|ray] [--threads 2]
+//                          [--min-weight 3] [--max-pings N] [--stride 4] [--out DIR]
+#include <algorithm>
+#include <atomic>
+#include <limits>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/frames.hpp"
+#include "processor/fusion/tsdf.hpp"
+#include "processor/fusion/vdb_io.hpp"
+#include "processor/mesh/export.hpp"
+#include "processor/mesh/surface.hpp"
+#include "tools/sim/scenario.hpp"
+#include "tools/sim/sonar_model.hpp"
+#include "tools/sim/trajectory.hpp"
+#include "tools/sim/world.hpp"
+
+namespace {
+
+using namespace pitmap;
+namespace fusion = pitmap::proc::fusion;
+namespace pmesh = pitmap::proc::mesh;
+
+double PeakRssMb() {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+    }
+    return 0;
+}
+
+double Seconds(std::chrono::steady_clock::time_point a) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+}
+
+// Closest distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
+double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+    const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0 && d2 <= 0) return (p - a).norm();
+    const Eigen::Vector3d bp = p - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0 && d4 <= d3) return (p - b).norm();
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
+    const Eigen::Vector3d cp = p - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0 && d5 <= d6) return (p - c).norm();
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
+    }
+    const double denom = 1.0 / (va + vb + vc);
+    return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
+}
+
+// Triangles bucketed in a uniform grid (sorted (cell, triangle) pairs) for near queries.
+class TriangleGrid {
+public:
+    TriangleGrid(const pmesh::ColouredMesh& m, double cell_m) : m_(m), cell_(cell_m) {
+        for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+            Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+            for (int k = 0; k < 3; ++k) {
+                const Eigen::Vector3d v =
+                    m.vertices[static_cast<std::size_t>(m.triangles[t][k])].cast<double>();
+                lo = lo.cwiseMin(v);
+                hi = hi.cwiseMax(v);
+            }
+            const Eigen::Vector3i a = Cell(lo), b = Cell(hi);
+            for (int x = a.x(); x <= b.x(); ++x)
+                for (int y = a.y(); y <= b.y(); ++y)
+                    for (int z = a.z(); z <= b.z(); ++z)
+                        pairs_.push_back({Key(x, y, z), static_cast<std::uint32_t>(t)});
+        }
+        std::sort(pairs_.begin(), pairs_.end());
+    }
+    // Distance to the nearest triangle if within one cell, else +inf.
+    double Distance(const Eigen::Vector3d& p) const {
+        const Eigen::Vector3i c = Cell(p);
+        double best = std::numeric_limits<double>::infinity();
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const std::uint64_t key = Key(c.x() + dx, c.y() + dy, c.z() + dz);
+                    auto it = std::lower_bound(pairs_.begin(), pairs_.end(),
+                                               std::pair<std::uint64_t, std::uint32_t>{key, 0});
+                    for (; it != pairs_.end() && it->first == key; ++it) {
+                        const Eigen::Vector3i& t = m_.triangles[it->second];
+                        best = std::min(best, PointTriangleDistance(
+                            p, m_.vertices[static_cast<std::size_t>(t[0])].cast<double>(),
+                            m_.vertices[static_cast<std::size_t>(t[1])].cast<double>(),
+                            m_.vertices[static_cast<std::size_t>(t[2])].cast<double>()));
+                    }
+                }
+        return best;
+    }
+
+private:
+    Eigen::Vector3i Cell(const Eigen::Vector3d& p) const {
+        return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)),
+                               static_cast<int>(std::floor(p.y() / cell_)),
+                               static_cast<int>(std::floor(p.z() / cell_)));
+    }
+    static std::uint64_t Key(int x, int y, int z) {
+        return (static_cast<std::uint64_t>(x + (1 << 20)) << 42) |
+               (static_cast<std::uint64_t>(y + (1 << 20)) << 21) |
+               static_cast<std::uint64_t>(z + (1 << 20));
+    }
+    const pmesh::ColouredMesh& m_;
+    double cell_;
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> pairs_;
+};
+
+struct Options {
+    std::string scenario = "bejanca";
+    std::string mode = "beam";
+    int threads = 2;
+    float min_weight = 3.0f;
+    long max_pings = 0;
+    int stride = 4;
+    std::string out;
+};
+
+bool ParseArgs(int argc, char** argv, Options& o) {
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        const bool has = i + 1 < argc;
+        if (a == "--scenario" && has) o.scenario = argv[++i];
+        else if (a == "--mode" && has) o.mode = argv[++i];
+        else if (a == "--threads" && has) o.threads = std::atoi(argv[++i]);
+        else if (a == "--min-weight" && has) o.min_weight = static_cast<float>(std::atof(argv[++i]));
+        else if (a == "--max-pings" && has) o.max_pings = std::atol(argv[++i]);
+        else if (a == "--stride" && has) o.stride = std::max(1, std::atoi(argv[++i]));
+        else if (a == "--out" && has) o.out = argv[++i];
+        else {
+            std::fprintf(stderr, "usage: pitmap-bench-tsdf [--scenario S] [--mode beam|ray] "
+                                 "[--threads N] [--min-weight W] [--max-pings N] [--stride K] "
+                                 "[--out DIR]\n");
+            return false;
+        }
+    }
+    return o.mode == "beam" || o.mode == "ray";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Options opt;
+    if (!ParseArgs(argc, argv, opt)) return 2;
+    auto sc_or = sim::BuiltinScenario(opt.scenario);
+    if (!sc_or) {
+        std::fprintf(stderr, "pitmap-bench-tsdf: %s\n", sc_or.error().message.c_str());
+        return 2;
+    }
+    const sim::ScenarioConfig sc = *sc_or;
+    const sim::PitWorld world(sc.pit, sc.seed);
+    auto track = sim::SurveyTrack::Plan(sc);
+    if (!track) {
+        std::fprintf(stderr, "pitmap-bench-tsdf: %s\n", track.error().message.c_str());
+        return 2;
+    }
+    const sim::TruthTrajectory truth(sc, *track);
+    const sim::SonarModel sonar(sc.sonar, world, sc.seed);
+    const Eigen::Matrix3d R_vehicle_sonar = frames::RotationNedFromRpy(
+        frames::DegToRad(sc.boresight_deg[0]), frames::DegToRad(sc.boresight_deg[1]),
+        frames::DegToRad(sc.boresight_deg[2]));
+    const Pose T_vehicle_sonar = MakePose(
+        R_vehicle_sonar,
+        Eigen::Vector3d(sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
+    long n_pings = static_cast<long>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
+    if (opt.max_pings > 0) n_pings = std::min(n_pings, opt.max_pings);
+
+    // 1. Simulate the pings (parallel, deterministic per ping).
+    const auto t_sim = std::chrono::steady_clock::now();
+    std::vector<fusion::SonarScan> scans(static_cast<std::size_t>(n_pings));
+    const float start = static_cast<float>(frames::DegToRad(sonar.BeamAngleDeg(0)));
+    const float inc = static_cast<float>(
+        frames::DegToRad(sonar.BeamAngleDeg(1) - sonar.BeamAngleDeg(0)));
+    const double res_m = sc.sonar.range_resolution_mm * 1e-3;
+    std::vector<Eigen::Vector3d> samples;  // insonified true surface
+    std::vector<std::vector<Eigen::Vector3d>> samples_per(static_cast<std::size_t>(n_pings));
+    {
+        std::atomic<long> next{0};
+        auto work = [&] {
+            for (long i = next++; i < n_pings; i = next++) {
+                const double t = static_cast<double>(i) / sc.sonar.ping_rate_hz;
+                const Pose T = truth.PoseAt(t) * T_vehicle_sonar;
+                const sim::SimPing ping = sonar.Ping(T, i);
+                fusion::SonarScan& s = scans[static_cast<std::size_t>(i)];
+                s.gps_time_s = t;
+                s.T_world_sonar = T;
+                s.start_angle_rad = start;
+                s.angle_increment_rad = inc;
+                s.ranges_m.resize(ping.range_counts.size());
+                for (std::size_t b = 0; b < ping.range_counts.size(); ++b) {
+                    s.ranges_m[b] = static_cast<float>(ping.range_counts[b] * res_m);
+                }
+                if (i % opt.stride != 0) continue;
+                auto& out = samples_per[static_cast<std::size_t>(i)];
+                for (std::size_t b = 0; b < ping.range_counts.size();
+                     b += static_cast<std::size_t>(opt.stride)) {
+                    const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
+                    const Eigen::Vector3d dir =
+                        T.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
+                    const auto r = world.RayCast(T.translation(), dir, sc.sonar.max_range_m);
+                    if (r) out.push_back(T.translation() + *r * dir);
+                }
+            }
+        };
+        std::vector<std::thread> pool;
+        for (int k = 1; k < std::max(1, opt.threads); ++k) pool.emplace_back(work);
+        work();
+        for (auto& th : pool) th.join();
+    }
+    for (auto& v : samples_per) samples.insert(samples.end(), v.begin(), v.end());
+    samples_per.clear();
+    samples_per.shrink_to_fit();
+    const double sim_s = Seconds(t_sim);
+
+    // 2. Fuse, filter, mesh.
+    fusion::TsdfConfig config;
+    config.sensor_model = opt.mode == "beam" ? fusion::SensorModel::kBeamWidth
+                                             : fusion::SensorModel::kRay;
+    config.beam_width_rad = frames::DegToRad(sc.sonar.beam_width_deg);
+    config.num_threads = opt.threads;
+    fusion::TsdfVolume volume(config);
+    const fusion::IntegrateResult ir = volume.Integrate(scans);
+    const fusion::VolumeStats stats_before = volume.Stats();
+    fusion::WeightFilterConfig wf;
+    wf.min_weight = opt.min_weight;
+    const auto t_filter = std::chrono::steady_clock::now();
+    const fusion::WeightFilterResult fr = volume.FilterByWeight(wf);
+    const double filter_s = Seconds(t_filter);
+    const auto t_mesh = std::chrono::steady_clock::now();
+    const pmesh::MeshResult mr = pmesh::RunMesh(volume, pmesh::MeshConfig{});
+    const double mesh_s = Seconds(t_mesh);
+    const double peak_mb = PeakRssMb();
+
+    // 3. Score.
+    std::vector<double> dist;
+    dist.reserve(mr.mesh.vertices.size() + mr.mesh.triangles.size());
+    for (const Eigen::Vector3f& v : mr.mesh.vertices) {
+        dist.push_back(std::abs(world.SignedDistance(v.cast<double>())));
+    }
+    for (const Eigen::Vector3i& t : mr.mesh.triangles) {
+        const Eigen::Vector3d c = (mr.mesh.vertices[static_cast<std::size_t>(t[0])] +
+                                   mr.mesh.vertices[static_cast<std::size_t>(t[1])] +
+                                   mr.mesh.vertices[static_cast<std::size_t>(t[2])])
+                                      .cast<double>() / 3.0;
+        dist.push_back(std::abs(world.SignedDistance(c)));
+    }
+    double mean_abs = 0, rms = 0, p95 = 0;
+    if (!dist.empty()) {
+        for (double d : dist) {
+            mean_abs += d;
+            rms += d * d;
+        }
+        mean_abs /= static_cast<double>(dist.size());
+        rms = std::sqrt(rms / static_cast<double>(dist.size()));
+        const std::size_t k = static_cast<std::size_t>(0.95 * static_cast<double>(dist.size()));
+        std::nth_element(dist.begin(), dist.begin() + static_cast<std::ptrdiff_t>(k), dist.end());
+        p95 = dist[k];
+    }
+    std::size_t covered = 0;
+    {
+        const TriangleGrid grid(mr.mesh, 0.25);
+        std::vector<char> hit(samples.size(), 0);
+        std::atomic<std::size_t> next{0};
+        auto work = [&] {
+            for (std::size_t i = next++; i < samples.size(); i = next++) {
+                hit[i] = grid.Distance(samples[i]) <= 0.2 ? 1 : 0;
+            }
+        };
+        std::vector<std::thread> pool;
+        for (int k = 1; k < std::max(1, opt.threads); ++k) pool.emplace_back(work);
+        work();
+        for (auto& th : pool) th.join();
+        for (char h : hit) covered += static_cast<std::size_t>(h);
+    }
+    const double completeness =
+        samples.empty() ? 0.0 : static_cast<double>(covered) / static_cast<double>(samples.size());
+
+    if (!opt.out.empty()) {
+        std::filesystem::create_directories(opt.out);
+        const Geodetic origin{sc.origin_latitude_deg, sc.origin_longitude_deg, sc.origin_height_m};
+        const std::string d = opt.out + "/";
+        for (const Status& s :
+             {pmesh::WritePly(mr.mesh, d + "mesh.ply", origin),
+              pmesh::WriteObj(mr.mesh, d + "mesh.obj", origin),
+              pmesh::WriteGlb(mr.mesh, d + "mesh.glb", origin),
+              pmesh::WritePly(mr.mesh_filled, d + "mesh_filled.ply", origin),
+              fusion::WriteVdb(volume, d + "tsdf.vdb")}) {
+            if (!s) std::fprintf(stderr, "pitmap-bench-tsdf: %s\n", s.error().message.c_str());
+        }
+    }
+
+    std::printf("scenario %s, mode %s, threads %d, pings %ld, beams used %lld\n",
+                opt.scenario.c_str(), opt.mode.c_str(), opt.threads, n_pings,
+                static_cast<long long>(ir.beams_used));
+    std::printf("  simulate_s        %.1f\n", sim_s);
+    std::printf("  integration_s     %.2f   (%lld voxel updates)\n", ir.elapsed_s,
+                static_cast<long long>(ir.voxel_updates));
+    std::printf("  active_voxels     %lld   (grids %.0f MB)\n",
+                static_cast<long long>(stats_before.active_voxels),
+                static_cast<double>(stats_before.memory_bytes) / 1048576.0);
+    std::printf("  weight_filter     min %.1f: removed %lld of %lld (%.1f %%) in %.2f s\n",
+                static_cast<double>(opt.min_weight), static_cast<long long>(fr.voxels_removed),
+                static_cast<long long>(fr.voxels_before),
+                fr.voxels_before > 0 ? 100.0 * static_cast<double>(fr.voxels_removed) /
+                                           static_cast<double>(fr.voxels_before)
+                                     : 0.0,
+                filter_s);
+    std::printf("  mesh_s            %.2f   (%zu vertices, %zu triangles, %lld polygons dropped "
+                "at unobserved cells; filled %lld holes)\n",
+                mesh_s, mr.mesh.vertices.size(), mr.mesh.triangles.size(),
+                static_cast<long long>(mr.polygons_unobserved),
+                static_cast<long long>(mr.holes.holes_filled));
+    std::printf("  peak_rss_mb       %.0f\n", peak_mb);
+    std::printf("  mesh_mean_abs_m   %.4f   (rms %.4f, p95 %.4f)\n", mean_abs, rms, p95);
+    std::printf("  completeness      %.4f   (%zu of %zu insonified surface samples within 0.2 m)\n",
+                completeness, covered, samples.size());
+    return 0;
+}
