@@ -58,7 +58,9 @@ struct SlamConfig {
     double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
     int rigid_iterations = 5;             // rigid stage iterations (0: skip the stage)
     int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
-    int bin_slices = 1;                   // semi-rigid: slices per pose (1 = one per slice)
+    // Semi-rigid: slices per pose (1 = one pose per slice). The factorisation cost grows fast
+    // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
+    int bin_slices = 10;
     int max_iterations = 15;              // semi-rigid stage iterations
     // Converged when the largest pose update is below both thresholds.
     double convergence_rotation_rad = 2e-5;
