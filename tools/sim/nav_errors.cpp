@@ -17,6 +17,7 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
     pos_sd_.resize(n);
     std::mt19937_64 rng(seed ^ 0xA11E5ull);
     std::normal_distribution<double> g(0.0, 1.0);
+    std::mt19937_64 white_rng(seed ^ 0x3A17Eull);  // own stream: white noise does not shift the walks
 
     // First-order Gauss-Markov: x' = phi x + sigma sqrt(1 - phi^2) w keeps variance sigma^2.
     const double phi_p = std::exp(-dt_ / cfg.position_gm_tau_s);
@@ -57,8 +58,8 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
             drift_vel.setZero();
         }
         // White noise of each INS output on top of the correlated error.
-        const Eigen::Vector3d white(cfg.position_noise_m * g(rng), cfg.position_noise_m * g(rng),
-                                    cfg.position_noise_m * g(rng));
+        const Eigen::Vector3d white(cfg.position_noise_m * g(white_rng), cfg.position_noise_m * g(white_rng),
+                                    cfg.position_noise_m * g(white_rng));
         pos_[k] = gm_p + drift + white;
         att_[k] = gm_a;
         pos_sd_[k] = sd;

@@ -66,7 +66,7 @@ struct NavErrorConfig {
     double attitude_gm_tau_s = 120.0;
     // GPS outages: [start_s, end_s) pairs, seconds since the survey start.
     std::vector<double> outages_s;
-    double outage_velocity_random_walk_mps_per_sqrt_s = 0.004;  // drift growth in outages
+    double outage_velocity_random_walk_mps_per_sqrt_s = 0.003;  // drift growth in outages
     double outage_vertical_fraction = 0.4;  // vertical drift relative to horizontal
     double recovery_time_s = 8.0;           // time to pull back after the outage
 };
