@@ -540,8 +540,8 @@ IsoSurfaceResult TsdfVolume::ExtractIsoSurface(double iso_m) const {
 
     // A vertex (one per cell in OpenVDB's dual mesh) is kept if the sign change it marks lies
     // between observed voxels: its cell must hold observed voxels on both sides of the iso
-    // value. A cell whose observed corners all lie on one side only crosses the iso value
-    // against an unobserved neighbour (background +T), i.e. at the back of the band.
+    // value, and no edge may join a voxel below the level to an unobserved one. Otherwise the
+    // crossing is against the background +T, e.g. the false surface at the back of the band.
     const double inv_s = 1.0 / config_.voxel_size_m;
     const float iso = static_cast<float>(iso_m);
     std::vector<std::int32_t> remap(points.size(), -1);
@@ -554,13 +554,25 @@ IsoSurfaceResult TsdfVolume::ExtractIsoSurface(double iso_m) const {
             const int x0 = static_cast<int>(std::floor(q.x() * inv_s));
             const int y0 = static_cast<int>(std::floor(q.y() * inv_s));
             const int z0 = static_cast<int>(std::floor(q.z() * inv_s));
+            // Corner state: 0 unobserved, 1 observed below the iso value, 2 observed above.
+            int state[8];
             bool below = false, above = false;
             for (int c = 0; c < 8; ++c) {
                 const Coord ijk(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + (c >> 2));
-                if (!wacc.isValueOn(ijk)) continue;
-                (dacc.getValue(ijk) < iso ? below : above) = true;
+                state[c] = !wacc.isValueOn(ijk) ? 0 : (dacc.getValue(ijk) < iso ? 1 : 2);
+                below |= state[c] == 1;
+                above |= state[c] == 2;
             }
-            ok[i] = below && above ? 1 : 0;
+            // The vertex averages the crossings on the cell's edges; an edge from a voxel below
+            // the level to an unobserved one (read as +T) would pull it off the surface.
+            bool contaminated = false;
+            for (int c = 0; c < 8 && !contaminated; ++c) {
+                for (int bit = 1; bit < 8 && !contaminated; bit <<= 1) {
+                    const int o = c ^ bit;
+                    contaminated = (state[c] == 1 && state[o] == 0);
+                }
+            }
+            ok[i] = below && above && !contaminated ? 1 : 0;
         }
     }
     TriangleMesh& mesh = result.mesh;
