@@ -45,7 +45,8 @@ Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps
                                                             publisher_, clock_, time_, &human_log_));
     }
     if (!config_.pps.device.empty()) {
-        pps_source_ = pps ? std::move(pps) : std::make_unique<Rfc2783PpsSource>(config_.pps.device);
+        pps_source_ =
+            pps ? std::move(pps) : std::make_unique<Rfc2783PpsSource>(config_.pps.device);
         pps_ = std::make_unique<PpsChannel>(*pps_source_, time_, config_.pps.fetch_timeout_ms,
                                             &human_log_);
     }

@@ -8,15 +8,20 @@
 
 namespace pitmap::acq {
 
-PpsChannel::PpsChannel(PpsSource& source, TimeKeeper& time, int fetch_timeout_ms,
-                       RateLimitedLog* log, BackoffConfig reopen)
+PpsChannel::PpsChannel(PpsSource& source,
+                       TimeKeeper& time,
+                       int fetch_timeout_ms,
+                       RateLimitedLog* log,
+                       BackoffConfig reopen)
     : source_(source),
       time_(time),
       fetch_timeout_ms_(fetch_timeout_ms),
       log_(log),
       backoff_(reopen) {}
 
-PpsChannel::~PpsChannel() { Stop(); }
+PpsChannel::~PpsChannel() {
+    Stop();
+}
 
 void PpsChannel::Start() {
     if (running_) return;
@@ -58,8 +63,8 @@ void PpsChannel::RunOnce() {
         const std::int64_t now = MonotonicNowUs();
         if (!backoff_.Ready(now)) {
             // Sleep towards the next attempt, never longer than one fetch wait.
-            const std::int64_t wait_us =
-                std::min<std::int64_t>(backoff_.next_attempt_us() - now, fetch_timeout_ms_ * 1000LL);
+            const std::int64_t wait_us = std::min<std::int64_t>(backoff_.next_attempt_us() - now,
+                                                                fetch_timeout_ms_ * 1000LL);
             std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
             return;
         }

@@ -37,8 +37,11 @@ struct PpsCounters {
 class PpsChannel {
 public:
     // References must outlive the channel. fetch_timeout_ms bounds one wait (and Stop()).
-    PpsChannel(PpsSource& source, TimeKeeper& time, int fetch_timeout_ms,
-               RateLimitedLog* log = nullptr, BackoffConfig reopen = {});
+    PpsChannel(PpsSource& source,
+               TimeKeeper& time,
+               int fetch_timeout_ms,
+               RateLimitedLog* log = nullptr,
+               BackoffConfig reopen = {});
     ~PpsChannel();
     PpsChannel(const PpsChannel&) = delete;
     PpsChannel& operator=(const PpsChannel&) = delete;

@@ -43,11 +43,15 @@ std::vector<std::string> PpsConfig::Validate() const {
     return p;
 }
 
-bool Rfc2783Available() { return PITMAP_HAVE_TIMEPPS != 0; }
+bool Rfc2783Available() {
+    return PITMAP_HAVE_TIMEPPS != 0;
+}
 
 Rfc2783PpsSource::Rfc2783PpsSource(std::string device) : device_(std::move(device)) {}
 
-Rfc2783PpsSource::~Rfc2783PpsSource() { Close(); }
+Rfc2783PpsSource::~Rfc2783PpsSource() {
+    Close();
+}
 
 #if PITMAP_HAVE_TIMEPPS
 
@@ -113,7 +117,8 @@ void Rfc2783PpsSource::Close() {
 #else  // no <sys/timepps.h>
 
 Status Rfc2783PpsSource::Open() {
-    return Error{"pps: " + device_ + ": this build has no RFC 2783 API (<sys/timepps.h>, "
+    return Error{"pps: " + device_ +
+                 ": this build has no RFC 2783 API (<sys/timepps.h>, "
                  "Debian package pps-tools)"};
 }
 

@@ -56,16 +56,18 @@ using namespace pitmap::acq;
 namespace nv = protocol::novatel;
 namespace dt = protocol::deltat;
 
-constexpr std::int64_t kHostBehindGpsUs = 250'000;      // host clock error against UTC
-constexpr std::int64_t kTopsideOffsetUs = -3'700'000;   // topside clock error at the start
-constexpr double kTopsideDriftPpm = 40.0;               // topside clock rate error
-constexpr std::int32_t kPingLatencyUs = 2'000;          // header instant -> transmit
-constexpr std::int32_t kDataLatencyUs = 12'000;         // header instant -> datagram sent
+constexpr std::int64_t kHostBehindGpsUs = 250'000;     // host clock error against UTC
+constexpr std::int64_t kTopsideOffsetUs = -3'700'000;  // topside clock error at the start
+constexpr double kTopsideDriftPpm = 40.0;              // topside clock rate error
+constexpr std::int32_t kPingLatencyUs = 2'000;         // header instant -> transmit
+constexpr std::int32_t kDataLatencyUs = 12'000;        // header instant -> datagram sent
 constexpr std::int64_t kMaxTransportDelayUs = 20'000;
 constexpr double kExpMeanUs = 4'000.0;
 constexpr double kWarmupS = 15.0;  // the sonar slope is fitted after 10 s of span
 
-std::int64_t Gps(std::int64_t host) { return GpsFromUnix(host) + kHostBehindGpsUs; }
+std::int64_t Gps(std::int64_t host) {
+    return GpsFromUnix(host) + kHostBehindGpsUs;
+}
 
 double CpuSeconds() {
     rusage ru{};
@@ -97,7 +99,8 @@ public:
 class TeePublisher final : public Publisher {
 public:
     explicit TeePublisher(Publisher& next) : next_(next) {}
-    bool Publish(std::string_view channel, std::int64_t utime,
+    bool Publish(std::string_view channel,
+                 std::int64_t utime,
                  std::vector<std::uint8_t> data) override {
         if (channel.starts_with("MULTIBEAM_PING_")) {
             pitmap::multibeam_ping_t p;
@@ -271,16 +274,14 @@ void Session(Delay kind, double seconds, double ping_hz, const std::string& dir,
             h + kTopsideOffsetUs +
             static_cast<std::int64_t>(kTopsideDriftPpm * 1e-6 * static_cast<double>(h - h0));
         const std::int64_t delay =
-            kind == Delay::kUniform
-                ? uniform(rng)
-                : std::min<std::int64_t>(static_cast<std::int64_t>(expo(rng)),
-                                         kMaxTransportDelayUs);
+            kind == Delay::kUniform ? uniform(rng)
+                                    : std::min<std::int64_t>(static_cast<std::int64_t>(expo(rng)),
+                                                             kMaxTransportDelayUs);
         truth[i] = Gps(h + kPingLatencyUs);
         header_host[i] = h;
         const auto rec = PingRecord(i, topside);
         SleepUntilHost(h + kDataLatencyUs + delay);
-        ::sendto(fd, rec.data(), rec.size(), 0, reinterpret_cast<const sockaddr*>(&to),
-                 sizeof(to));
+        ::sendto(fd, rec.data(), rec.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof(to));
     }
     ::close(fd);
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
@@ -290,7 +291,8 @@ void Session(Delay kind, double seconds, double ping_hz, const std::string& dir,
     lcm_pub.Drain(10'000);
     log.Flush(10'000);
     const double cpu = CpuSeconds() - c0;
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
     lcm_pub.Stop();
     log.Stop();
 
@@ -316,21 +318,33 @@ void Session(Delay kind, double seconds, double ping_hz, const std::string& dir,
     const auto mc = mb.counters();
     const bool loss = mc.FrameCount("83P") != num_pings || ls.dropped() != 0 ||
                       nc.queue_drops != 0 || mc.queue_drops != 0 || nc.crc_failures != 0;
-    std::printf("%s transport delays 0-20 ms: %u pings sent, %zu published (%d header model, "
-                "%d receive fallback, %d without time)\n",
-                kind == Delay::kUniform ? "uniform" : "exponential (mean 4 ms, cut at 20 ms)",
-                num_pings, pings.size(), header_model, receive, none);
+    std::printf(
+        "%s transport delays 0-20 ms: %u pings sent, %zu published (%d header model, "
+        "%d receive fallback, %d without time)\n",
+        kind == Delay::kUniform ? "uniform" : "exponential (mean 4 ms, cut at 20 ms)",
+        num_pings,
+        pings.size(),
+        header_model,
+        receive,
+        none);
     std::printf("  |utime_gps - truth| all:            p50 %7.0f us  p99 %7.0f us  max %7.0f us\n",
-                Percentile(err_all, 0.5), Percentile(err_all, 0.99),
+                Percentile(err_all, 0.5),
+                Percentile(err_all, 0.99),
                 err_all.empty() ? 0.0 : *std::max_element(err_all.begin(), err_all.end()));
-    std::printf("  |utime_gps - truth| after %2.0f s:     p50 %7.0f us  p99 %7.0f us  max %7.0f us"
-                " (%zu pings) -> %s\n",
-                kWarmupS, Percentile(err_steady, 0.5), Percentile(err_steady, 0.99),
-                err_steady.empty() ? 0.0 : *std::max_element(err_steady.begin(), err_steady.end()),
-                err_steady.size(), Percentile(err_steady, 0.99) < 2000.0 ? "p99 < 2 ms" : "MISSED");
+    std::printf(
+        "  |utime_gps - truth| after %2.0f s:     p50 %7.0f us  p99 %7.0f us  max %7.0f us"
+        " (%zu pings) -> %s\n",
+        kWarmupS,
+        Percentile(err_steady, 0.5),
+        Percentile(err_steady, 0.99),
+        err_steady.empty() ? 0.0 : *std::max_element(err_steady.begin(), err_steady.end()),
+        err_steady.size(),
+        Percentile(err_steady, 0.99) < 2000.0 ? "p99 < 2 ms" : "MISSED");
     std::printf("  novatel chunks %lld, frames %lld, log events %lld, drops %lld -> %s\n",
-                static_cast<long long>(chunks), static_cast<long long>(nc.frames),
-                static_cast<long long>(ls.events_written), static_cast<long long>(ls.dropped()),
+                static_cast<long long>(chunks),
+                static_cast<long long>(nc.frames),
+                static_cast<long long>(ls.events_written),
+                static_cast<long long>(ls.dropped()),
                 loss ? "LOSS" : "NO LOSS");
     totals.latency_us.insert(totals.latency_us.end(), latency.begin(), latency.end());
     totals.chunks += chunks;
@@ -353,18 +367,23 @@ int main(int argc, char** argv) {
     Totals totals;
     Session(Delay::kUniform, seconds, ping_hz, base + "/uniform", totals);
     Session(Delay::kExponential, seconds, ping_hz, base + "/exponential", totals);
-    std::printf("nominal rates (INSPVAS 100 Hz, RAWIMUSX 200 Hz, TIMEB 1 Hz, pings %.0f Hz), "
-                "%.0f s wall: process CPU %.2f %% of one core (upper bound: includes the "
-                "traffic generators)\n",
-                ping_hz, totals.wall_s, 100.0 * totals.cpu_s / totals.wall_s);
-    std::printf("receive-to-logged latency over %lld chunks: p50 %.0f us, p99 %.0f us, max %.0f us"
-                " -> %s\n",
-                static_cast<long long>(totals.chunks), Percentile(totals.latency_us, 0.5),
-                Percentile(totals.latency_us, 0.99),
-                totals.latency_us.empty()
-                    ? 0.0
-                    : *std::max_element(totals.latency_us.begin(), totals.latency_us.end()),
-                totals.loss ? "with LOSS" : "no loss");
+    std::printf(
+        "nominal rates (INSPVAS 100 Hz, RAWIMUSX 200 Hz, TIMEB 1 Hz, pings %.0f Hz), "
+        "%.0f s wall: process CPU %.2f %% of one core (upper bound: includes the "
+        "traffic generators)\n",
+        ping_hz,
+        totals.wall_s,
+        100.0 * totals.cpu_s / totals.wall_s);
+    std::printf(
+        "receive-to-logged latency over %lld chunks: p50 %.0f us, p99 %.0f us, max %.0f us"
+        " -> %s\n",
+        static_cast<long long>(totals.chunks),
+        Percentile(totals.latency_us, 0.5),
+        Percentile(totals.latency_us, 0.99),
+        totals.latency_us.empty()
+            ? 0.0
+            : *std::max_element(totals.latency_us.begin(), totals.latency_us.end()),
+        totals.loss ? "with LOSS" : "no loss");
     std::filesystem::remove_all(base);
     return totals.loss ? 1 : 0;
 }

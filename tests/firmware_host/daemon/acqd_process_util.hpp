@@ -141,7 +141,9 @@ inline bool WriteAll(int fd, const std::uint8_t* data, std::size_t size, int tim
 // and answers each with `answer` until `count` commands arrived. The lines are returned;
 // fewer than `count` when nothing came for `timeout_ms`. Every answer is appended to
 // `written` (the bytes the daemon must log).
-inline std::vector<std::string> AnswerCommands(int fd, std::size_t count, const std::string& answer,
+inline std::vector<std::string> AnswerCommands(int fd,
+                                               std::size_t count,
+                                               const std::string& answer,
                                                std::vector<std::uint8_t>& written,
                                                int timeout_ms = 10'000) {
     std::vector<std::string> lines;
@@ -168,14 +170,16 @@ inline std::vector<std::string> AnswerCommands(int fd, std::size_t count, const 
 
 // Writes `data` in cycled odd-sized chunks (1, 7, 13, ... bytes), yielding between chunks so
 // the reader sees many small reads. Appends to `written`.
-inline bool WriteInOddChunks(int fd, const std::vector<std::uint8_t>& data,
+inline bool WriteInOddChunks(int fd,
+                             const std::vector<std::uint8_t>& data,
                              std::vector<std::uint8_t>& written) {
     static constexpr std::size_t kSizes[] = {1, 7, 13, 61, 251, 1021, 4093, 3, 509};
     std::size_t pos = 0;
     for (std::size_t i = 0; pos < data.size(); ++i) {
         const std::size_t n = std::min(kSizes[i % std::size(kSizes)], data.size() - pos);
         if (!WriteAll(fd, data.data() + pos, n)) return false;
-        written.insert(written.end(), data.begin() + static_cast<long>(pos),
+        written.insert(written.end(),
+                       data.begin() + static_cast<long>(pos),
                        data.begin() + static_cast<long>(pos + n));
         pos += n;
         if (i % 8 == 7) std::this_thread::sleep_for(std::chrono::milliseconds(1));

@@ -25,8 +25,8 @@ namespace {
 using testing::DecodeAs;
 
 constexpr const char* kCapture = "oem7drv_ins2.gps";
-const std::vector<std::string> kCommands = {"LOG INSPVASB ONTIME 0.02", "LOG RAWIMUSXB ONNEW",
-                                            "LOG TIMEB ONTIME 1"};
+const std::vector<std::string> kCommands = {
+    "LOG INSPVASB ONTIME 0.02", "LOG RAWIMUSXB ONNEW", "LOG TIMEB ONTIME 1"};
 const std::string kAnswer = "<OK\r\n[COM1]";
 
 // A pty pair in raw mode (no echo, no line discipline) from the start, so nothing the test
@@ -83,15 +83,18 @@ std::string Config(const std::string& dir, const std::string& link) {
 }
 
 // Handshake then the capture; waits until the daemon logged everything written so far.
-void PlayReceiver(const Pty& pty, const std::vector<std::uint8_t>& capture,
-                  std::vector<std::uint8_t>& written, const std::string& log_dir) {
+void PlayReceiver(const Pty& pty,
+                  const std::vector<std::uint8_t>& capture,
+                  std::vector<std::uint8_t>& written,
+                  const std::string& log_dir) {
     const auto lines = testing::AnswerCommands(pty.master, kCommands.size(), kAnswer, written);
     ASSERT_EQ(lines.size(), kCommands.size());
     for (std::size_t i = 0; i < kCommands.size(); ++i) EXPECT_EQ(lines[i], Encoded(kCommands[i]));
     ASSERT_TRUE(testing::WriteInOddChunks(pty.master, capture, written));
-    ASSERT_TRUE(testing::WaitFor(
-        [&] { return testing::LoggedRawBytes(log_dir, "RAW_NOV") == written.size(); }))
-        << "logged " << testing::LoggedRawBytes(log_dir, "RAW_NOV") << " of " << written.size();
+    ASSERT_TRUE(testing::WaitFor([&] {
+        return testing::LoggedRawBytes(log_dir, "RAW_NOV") == written.size();
+    })) << "logged "
+        << testing::LoggedRawBytes(log_dir, "RAW_NOV") << " of " << written.size();
 }
 
 TEST(AcqdSerialPtyTest, CaptureThroughPtyWithUnplugAndReplugIsLoggedExactly) {

@@ -24,8 +24,8 @@ namespace {
 using testing::DecodeAs;
 
 constexpr const char* kCapture = "oem7drv_ins1.gps";
-const std::vector<std::string> kCommands = {"LOG ICOM1 INSPVAXB ONTIME 0.05",
-                                            "LOG ICOM1 BESTPOSB ONTIME 1", "LOG ICOM1 TIMEB ONTIME 1"};
+const std::vector<std::string> kCommands = {
+    "LOG ICOM1 INSPVAXB ONTIME 0.05", "LOG ICOM1 BESTPOSB ONTIME 1", "LOG ICOM1 TIMEB ONTIME 1"};
 const std::string kAnswer = "<OK\r\n[ICOM1]";
 
 // Listens on 127.0.0.1:`port` (0 = any); returns the fd or -1. Close-on-exec, so the daemon
@@ -66,7 +66,9 @@ std::string Config(const std::string& dir, int port) {
     std::string yaml = "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " + dir +
                        "/logs\n  prefix: tcp\n  min_free_bytes: 0\n  flush_interval_ms: 50\n"
                        "channels:\n  - id: nov\n    protocol: novatel\n    tcp: {host: 127.0.0.1, "
-                       "port: " + std::to_string(port) + ", connect_timeout_ms: 500}\n"
+                       "port: " +
+                       std::to_string(port) +
+                       ", connect_timeout_ms: 500}\n"
                        "    setup_commands:\n";
     for (const auto& c : kCommands) yaml += "      - \"" + c + "\"\n";
     return yaml;
@@ -74,17 +76,21 @@ std::string Config(const std::string& dir, int port) {
 
 // One session of the server: accept, handshake, capture, wait until logged. The connection
 // stays open (`conn`): the caller decides what goes away first.
-void ServeSession(int listen_fd, const std::vector<std::uint8_t>& capture,
-                  std::vector<std::uint8_t>& written, const std::string& log_dir, int& conn) {
+void ServeSession(int listen_fd,
+                  const std::vector<std::uint8_t>& capture,
+                  std::vector<std::uint8_t>& written,
+                  const std::string& log_dir,
+                  int& conn) {
     conn = Accept(listen_fd);
     ASSERT_GE(conn, 0) << "the daemon did not connect";
     const auto lines = testing::AnswerCommands(conn, kCommands.size(), kAnswer, written);
     ASSERT_EQ(lines.size(), kCommands.size());
     for (std::size_t i = 0; i < kCommands.size(); ++i) EXPECT_EQ(lines[i], Encoded(kCommands[i]));
     ASSERT_TRUE(testing::WriteInOddChunks(conn, capture, written));
-    EXPECT_TRUE(testing::WaitFor(
-        [&] { return testing::LoggedRawBytes(log_dir, "RAW_NOV") == written.size(); }))
-        << "logged " << testing::LoggedRawBytes(log_dir, "RAW_NOV") << " of " << written.size();
+    EXPECT_TRUE(testing::WaitFor([&] {
+        return testing::LoggedRawBytes(log_dir, "RAW_NOV") == written.size();
+    })) << "logged "
+        << testing::LoggedRawBytes(log_dir, "RAW_NOV") << " of " << written.size();
 }
 
 TEST(AcqdTcpRestartTest, ServerRestartOnTheSamePortReconnectsAndResendsEveryCommand) {

@@ -110,11 +110,14 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
     const std::string published = dir_ + "/published.lcmlog";
     testing::WriteText(
         dir_ + "/c.yaml",
-        "lcm_url: \"file://" + published + "?mode=w\"\nstatus_period_ms: 100\nlog:\n"
-        "  directory: " + logs_ + "\n  prefix: full\n  min_free_bytes: " +
-            std::to_string(kMinFreeBytes) + "\n  disk_check_interval_ms: 20\n"
+        "lcm_url: \"file://" + published +
+            "?mode=w\"\nstatus_period_ms: 100\nlog:\n"
+            "  directory: " +
+            logs_ + "\n  prefix: full\n  min_free_bytes: " + std::to_string(kMinFreeBytes) +
+            "\n  disk_check_interval_ms: 20\n"
             "  flush_interval_ms: 50\nchannels:\n  - id: mb\n    protocol: deltat_83p\n"
-            "    udp: {bind_address: 127.0.0.1, port: " + std::to_string(port) + "}\n");
+            "    udp: {bind_address: 127.0.0.1, port: " +
+            std::to_string(port) + "}\n");
     const pid_t pid = testing::SpawnAcqd({"--config", dir_ + "/c.yaml"}, dir_ + "/err.txt");
     ASSERT_TRUE(testing::WaitFor([&] {
         return testing::ReadText(dir_ + "/err.txt").find("running") != std::string::npos;
@@ -128,8 +131,12 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
     std::vector<std::vector<std::uint8_t>> sent;
     auto send_one = [&] {
         sent.push_back(Ping(static_cast<std::uint32_t>(sent.size())));
-        ::sendto(fd, sent.back().data(), sent.back().size(), 0,
-                 reinterpret_cast<const sockaddr*>(&to), sizeof(to));
+        ::sendto(fd,
+                 sent.back().data(),
+                 sent.back().size(),
+                 0,
+                 reinterpret_cast<const sockaddr*>(&to),
+                 sizeof(to));
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
     };
     // Fill the tmpfs until the daemon says logging stopped (bounded: 1 MiB needs ~150 pings).
@@ -137,8 +144,8 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
     while (!stopped && sent.size() < 3000) {
         send_one();
         if (sent.size() % 10 == 0) {
-            stopped = testing::ReadText(dir_ + "/err.txt").find("logging stopped") !=
-                      std::string::npos;
+            stopped =
+                testing::ReadText(dir_ + "/err.txt").find("logging stopped") != std::string::npos;
         }
     }
     ASSERT_TRUE(stopped) << testing::ReadText(dir_ + "/err.txt");

@@ -24,9 +24,13 @@ namespace {
 
 constexpr std::int64_t kT0 = 1'700'000'000'000'000;
 // Truth: GPS time of host instant h (host clock 123.456 ms behind).
-std::int64_t Gps(std::int64_t h) { return GpsFromUnix(h, 18) + 123'456; }
+std::int64_t Gps(std::int64_t h) {
+    return GpsFromUnix(h, 18) + 123'456;
+}
 // Host instant at which GPS time is `gps`.
-std::int64_t HostAt(std::int64_t gps) { return UnixFromGps(gps - 123'456, 18); }
+std::int64_t HostAt(std::int64_t gps) {
+    return UnixFromGps(gps - 123'456, 18);
+}
 
 // A scripted PPS device: pulses, timeouts and failures in order; then timeouts.
 class FakePps final : public PpsSource {
@@ -58,7 +62,8 @@ public:
                 pulse.utime_assert = s.utime;
                 pulse.sequence = static_cast<std::uint64_t>(++sequence_);
                 return PpsOutcome::kPulse;
-            case Step::Kind::kError: return Error{"fake pps: device went away"};
+            case Step::Kind::kError:
+                return Error{"fake pps: device went away"};
             case Step::Kind::kTimeout:
                 std::this_thread::sleep_for(std::chrono::milliseconds(std::min(timeout_ms, 5)));
                 return PpsOutcome::kTimeout;
@@ -116,8 +121,7 @@ TEST(PpsConfigTest, BinaryRejectsAMissingDeviceAtStartUp) {
         if (check_only) args.push_back("--check-config");
         const pid_t pid = testing::SpawnAcqd(args, dir + "/err.txt");
         EXPECT_EQ(testing::WaitExit(pid), 2);
-        EXPECT_NE(testing::ReadText(dir + "/err.txt").find("/nonexistent/pps9"),
-                  std::string::npos);
+        EXPECT_NE(testing::ReadText(dir + "/err.txt").find("/nonexistent/pps9"), std::string::npos);
     }
     EXPECT_FALSE(std::filesystem::exists(dir + "/logs"));  // nothing was started
 }
@@ -157,7 +161,8 @@ TEST(PpsChannelTest, PulsesRemoveTheDelayFloorOfTheMessageModel) {
         if (k == 2) {
             pps.Push({FakePps::Step::Kind::kError});
             // A pulse 400 ms off a whole second (a glitch): rejected.
-            pps.Push({FakePps::Step::Kind::kPulse, HostAt((first_second + k) * 1'000'000) - 400'000});
+            pps.Push(
+                {FakePps::Step::Kind::kPulse, HostAt((first_second + k) * 1'000'000) - 400'000});
         }
         pps.Push({FakePps::Step::Kind::kPulse, HostAt((first_second + k) * 1'000'000)});
         pps.Push({FakePps::Step::Kind::kTimeout});
