@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "tools/sim/sonar_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -42,7 +43,7 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
     const double res_m = cfg_.range_resolution_mm / 1000.0;
     for (std::size_t i = 0; i < nb; ++i) {
         const double theta = frames::DegToRad(BeamAngleDeg(static_cast<int>(i)));
-        double sum = 0;
+        double hits_m[9];
         int hits = 0;
         for (int k = 0; k < nsub; ++k) {
             // Footprint pattern (across, along) in units of 0.6 half-widths: the axis, a cross,
@@ -57,13 +58,14 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
             const double t = theta + dtheta;
             const Eigen::Vector3d d_sonar(std::sin(dphi) * std::cos(t), std::sin(t),
                                           std::cos(dphi) * std::cos(t));
-            if (auto r = world_.RayCast(origin, R * d_sonar, cfg_.max_range_m)) {
-                sum += *r;
-                ++hits;
-            }
+            if (auto r = world_.RayCast(origin, R * d_sonar, cfg_.max_range_m)) hits_m[hits++] = *r;
         }
         if (hits * 2 <= nsub) continue;  // most of the footprint saw nothing
-        const double r_true = sum / hits;
+        // The detection is the median range over the footprint: unbiased on a plane (a mean
+        // of 1/cos over the beam width is biased long at oblique incidence) and, at a bench
+        // edge, the range of the surface that fills most of the beam.
+        std::nth_element(hits_m, hits_m + hits / 2, hits_m + hits);
+        const double r_true = hits_m[hits / 2];
         out.true_range_m[i] = static_cast<float>(r_true);
         double r = r_true + RangeSigma(r_true) * gauss(rng);
         const double u = uni(rng);
