@@ -543,7 +543,15 @@ StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterat
         BuildTrees(blocks, pw);
         res.timings.trees_s += Seconds(t0);
         t0 = Clock::now();
-        std::vector<Pair> pairs = FindPairs(in, blocks, slice_block, pw, cfg);
+        SlamConfig it_cfg = cfg;
+        if (stage == SlamStage::kRigid && max_iterations > 1) {
+            // d_i = d_0 (d_max / d_0)^((i - 1) / (n - 1)): coarse to fine.
+            const double f = static_cast<double>(it - 1) / static_cast<double>(max_iterations - 1);
+            it_cfg.max_pair_distance_m =
+                cfg.rigid_max_pair_distance_m *
+                std::pow(cfg.max_pair_distance_m / cfg.rigid_max_pair_distance_m, f);
+        }
+        std::vector<Pair> pairs = FindPairs(in, blocks, slice_block, pw, it_cfg);
         if (stage == SlamStage::kRigid) {
             // Section graph: keep links with enough pairs (overlap heuristic of the paper).
             std::unordered_map<std::uint64_t, std::size_t> link;
@@ -687,6 +695,9 @@ std::vector<std::string> SlamConfig::Validate() const {
     std::vector<std::string> p;
     if (!(min_time_separation_s >= 0)) p.push_back("min_time_separation_s must be >= 0");
     if (!(max_pair_distance_m > 0)) p.push_back("max_pair_distance_m must be > 0");
+    if (!(rigid_max_pair_distance_m >= max_pair_distance_m)) {
+        p.push_back("rigid_max_pair_distance_m must be >= max_pair_distance_m");
+    }
     if (!(section_length_s > 0)) p.push_back("section_length_s must be > 0");
     if (rigid_iterations < 0) p.push_back("rigid_iterations must be >= 0");
     if (min_section_link_pairs < 1) p.push_back("min_section_link_pairs must be >= 1");

@@ -56,7 +56,10 @@ struct SlamConfig {
     double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart
     double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
     double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
-    int rigid_iterations = 5;             // rigid stage iterations (0: skip the stage)
+    int rigid_iterations = 10;            // rigid stage iterations (0: skip the stage)
+    // Rigid stage pair distance, shrunk geometrically to max_pair_distance_m over its
+    // iterations (coarse to fine), so that multi-metre INS drift is inside the capture range.
+    double rigid_max_pair_distance_m = 4.0;
     int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
     // Semi-rigid: slices per pose (1 = one pose per slice). The factorisation cost grows fast
     // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
@@ -84,7 +87,7 @@ struct SlamConfig {
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     double absolute_sigma_scale = 1.0;
     double score_cell_m = 0.5;   // consistency score grid cell
-    int score_patience = 2;      // stop after this many iterations without a better score
+    int score_patience = 4;      // stop after this many iterations without a better score
     int num_threads = 0;         // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;

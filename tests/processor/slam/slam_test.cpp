@@ -105,6 +105,9 @@ SlamConfig TestConfig() {
     cfg.absolute_attitude_terms = false;
     cfg.min_section_link_pairs = 20;
     cfg.bin_slices = 5;
+    cfg.rigid_iterations = 5;
+    cfg.rigid_max_pair_distance_m = 0.5;  // drift here is within d_max
+    cfg.score_patience = 2;
     return cfg;
 }
 
