@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // pitmap-sim: synthetic surveys with ground truth.
-//   pitmap-sim synth --scenario NAME --out DIR [--seed N]   log files + truth, faster than real time
-//   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
+//   pitmap-sim synth --scenario NAME --out DIR [--seed N]   log files + truth, faster than real
+//   time pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
 //   pitmap-sim scenarios                                    the built-in scenarios
@@ -21,11 +21,15 @@ namespace {
 
 std::atomic<bool> g_interrupted{false};
 
-void OnSignal(int) { g_interrupted = true; }
+void OnSignal(int) {
+    g_interrupted = true;
+}
 
 // `pitmap-sim hil`: exit 0 ok, 1 run failure or daemon failure, 2 bad arguments.
-int RunHilCommand(const std::string& scenario_name, std::uint64_t seed,
-                  sim::hil::HilOptions opt, const std::string& faults) {
+int RunHilCommand(const std::string& scenario_name,
+                  std::uint64_t seed,
+                  sim::hil::HilOptions opt,
+                  const std::string& faults) {
     auto scenario = sim::BuiltinScenario(scenario_name);
     if (!scenario) {
         std::fprintf(stderr, "pitmap-sim: %s\n", scenario.error().message.c_str());
@@ -47,22 +51,32 @@ int RunHilCommand(const std::string& scenario_name, std::uint64_t seed,
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
     std::signal(SIGPIPE, SIG_IGN);
-    std::fprintf(stderr, "pitmap-sim: hil %s: starting the emulators%s\n", scenario_name.c_str(),
+    std::fprintf(stderr,
+                 "pitmap-sim: hil %s: starting the emulators%s\n",
+                 scenario_name.c_str(),
                  opt.acqd_path.empty() ? "" : " and pitmap-acqd");
     auto r = sim::hil::RunHil(*scenario, opt, [] { return !g_interrupted.load(); });
     if (!r) {
         std::fprintf(stderr, "pitmap-sim: hil: %s\n", r.error().message.c_str());
         return 1;
     }
-    std::printf("pitmap-sim: hil %s: %.1f s: %lld COM1 frames, %lld ICOM1 frames, %lld pings, "
-                "%lld commands (%lld refused), %lld EC frames; faults: %lld garbage, %lld crc, "
-                "%lld unplug, %lld tcp drop; truth and manifest in %s/truth\n",
-                scenario_name.c_str(), r->duration_s, static_cast<long long>(r->com_frames),
-                static_cast<long long>(r->icom_frames), static_cast<long long>(r->pings),
-                static_cast<long long>(r->commands), static_cast<long long>(r->commands_refused),
-                static_cast<long long>(r->ec_frames), static_cast<long long>(r->garbage_bursts),
-                static_cast<long long>(r->crc_errors), static_cast<long long>(r->unplugs),
-                static_cast<long long>(r->tcp_drops), opt.out_dir.c_str());
+    std::printf(
+        "pitmap-sim: hil %s: %.1f s: %lld COM1 frames, %lld ICOM1 frames, %lld pings, "
+        "%lld commands (%lld refused), %lld EC frames; faults: %lld garbage, %lld crc, "
+        "%lld unplug, %lld tcp drop; truth and manifest in %s/truth\n",
+        scenario_name.c_str(),
+        r->duration_s,
+        static_cast<long long>(r->com_frames),
+        static_cast<long long>(r->icom_frames),
+        static_cast<long long>(r->pings),
+        static_cast<long long>(r->commands),
+        static_cast<long long>(r->commands_refused),
+        static_cast<long long>(r->ec_frames),
+        static_cast<long long>(r->garbage_bursts),
+        static_cast<long long>(r->crc_errors),
+        static_cast<long long>(r->unplugs),
+        static_cast<long long>(r->tcp_drops),
+        opt.out_dir.c_str());
     if (!r->daemon_problem.empty()) {
         std::fprintf(stderr, "pitmap-sim: hil: %s\n", r->daemon_problem.c_str());
         return 1;
@@ -78,24 +92,32 @@ int main(int argc, char** argv) {
     std::string scenario_name, out_dir;
     std::uint64_t seed = 0;
     int threads = 0;
-    auto* synth = app.add_subcommand("synth", "write a survey's LCM logs (as pitmap-acqd would) and its ground truth");
-    synth->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")->required();
-    synth->add_option("--out", out_dir, "output folder: DIR/log (logs, vehicle.yaml) and DIR/truth")->required();
+    auto* synth = app.add_subcommand(
+        "synth", "write a survey's LCM logs (as pitmap-acqd would) and its ground truth");
+    synth->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")
+        ->required();
+    synth->add_option("--out", out_dir, "output folder: DIR/log (logs, vehicle.yaml) and DIR/truth")
+        ->required();
     synth->add_option("--seed", seed, "random seed (default: the scenario's own)");
     synth->add_option("--threads", threads, "threads for sonar ray casting (0 = all cores)");
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
     auto* hil = app.add_subcommand("hil", "run a scenario in real time behind a pty, TCP and UDP");
-    hil->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")->required();
-    hil->add_option("--out", hil_opt.out_dir, "output folder: DIR/truth, DIR/log (the daemon's)")->required();
+    hil->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")
+        ->required();
+    hil->add_option("--out", hil_opt.out_dir, "output folder: DIR/truth, DIR/log (the daemon's)")
+        ->required();
     hil->add_option("--acqd", hil_opt.acqd_path, "pitmap-acqd to run against the emulators");
     hil->add_option("--duration", hil_opt.duration_s, "seconds to run (default: the scenario's)");
-    hil->add_option("--faults", faults, "e.g. garbage=3,crc=3,unplug=1,tcp-drop=1,jitter-ms=2,outage=10:20");
-    hil->add_option("--pty", hil_opt.pty_link, "symlink to the emulated COM1 (default DIR/novatel-com1)");
+    hil->add_option(
+        "--faults", faults, "e.g. garbage=3,crc=3,unplug=1,tcp-drop=1,jitter-ms=2,outage=10:20");
+    hil->add_option(
+        "--pty", hil_opt.pty_link, "symlink to the emulated COM1 (default DIR/novatel-com1)");
     hil->add_option("--baud", hil_opt.baud, "COM1 line rate the pty is paced at (460800)");
     hil->add_option("--tcp-port", hil_opt.tcp_port, "ICOM1 TCP port on 127.0.0.1 (3001)");
-    hil->add_option("--udp-port", hil_opt.udp_port, "the daemon's 83P UDP port on 127.0.0.1 (4040)");
+    hil->add_option(
+        "--udp-port", hil_opt.udp_port, "the daemon's 83P UDP port on 127.0.0.1 (4040)");
     hil->add_option("--lcm-url", hil_opt.lcm_url, "the daemon's LCM URL (memq://)");
     hil->add_option("--seed", seed, "random seed (default: the scenario's own)");
     CLI11_PARSE(app, argc, argv);
@@ -105,9 +127,13 @@ int main(int argc, char** argv) {
     if (*list) {
         for (const auto& n : sim::BuiltinScenarioNames()) {
             const auto s = *sim::BuiltinScenario(n);
-            std::printf("%-11s pit %.0f x %.0f m, %.0f m deep, %.0f s, %.0f pings\n", n.c_str(),
-                        2 * s.pit.half_length_m, 2 * s.pit.half_width_m, s.pit.max_depth_m,
-                        s.track.duration_s, s.track.duration_s * s.sonar.ping_rate_hz);
+            std::printf("%-11s pit %.0f x %.0f m, %.0f m deep, %.0f s, %.0f pings\n",
+                        n.c_str(),
+                        2 * s.pit.half_length_m,
+                        2 * s.pit.half_width_m,
+                        s.pit.max_depth_m,
+                        s.track.duration_s,
+                        s.track.duration_s * s.sonar.ping_rate_hz);
         }
         return 0;
     }
@@ -128,12 +154,22 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "pitmap-sim: %s\n", result.error().message.c_str());
         return 1;
     }
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("pitmap-sim: %s: %.1f s simulated (%.0f m) in %.1f s: %lld pings, %lld NovAtel frames "
-                "(%lld bytes); log: %lld events, %.1f MB in %d file(s) under %s/log; truth in %s/truth\n",
-                scenario_name.c_str(), result->duration_s, result->track_length_m, wall,
-                static_cast<long long>(result->pings), static_cast<long long>(result->novatel_frames),
-                static_cast<long long>(result->novatel_bytes), static_cast<long long>(result->log_events),
-                static_cast<double>(result->log_bytes) / 1e6, result->log_files, out_dir.c_str(), out_dir.c_str());
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf(
+        "pitmap-sim: %s: %.1f s simulated (%.0f m) in %.1f s: %lld pings, %lld NovAtel frames "
+        "(%lld bytes); log: %lld events, %.1f MB in %d file(s) under %s/log; truth in %s/truth\n",
+        scenario_name.c_str(),
+        result->duration_s,
+        result->track_length_m,
+        wall,
+        static_cast<long long>(result->pings),
+        static_cast<long long>(result->novatel_frames),
+        static_cast<long long>(result->novatel_bytes),
+        static_cast<long long>(result->log_events),
+        static_cast<double>(result->log_bytes) / 1e6,
+        result->log_files,
+        out_dir.c_str(),
+        out_dir.c_str());
     return 0;
 }

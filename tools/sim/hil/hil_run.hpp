@@ -28,17 +28,17 @@
 namespace pitmap::sim::hil {
 
 struct HilOptions {
-    std::string out_dir;                 // created if missing
-    std::string acqd_path;               // "" = emulators only
-    double duration_s = 0;               // 0 = the scenario's duration
-    std::string pty_link;                // "" = <out>/novatel-com1
-    int baud = 460800;                   // COM1 line rate, bit/s
-    int tcp_port = 3001;                 // ICOM1
-    int udp_port = 4040;                 // the daemon's 83P port
-    std::string lcm_url = "memq://";     // the daemon's LCM URL (memq: the log is the output)
+    std::string out_dir;              // created if missing
+    std::string acqd_path;            // "" = emulators only
+    double duration_s = 0;            // 0 = the scenario's duration
+    std::string pty_link;             // "" = <out>/novatel-com1
+    int baud = 460800;                // COM1 line rate, bit/s
+    int tcp_port = 3001;              // ICOM1
+    int udp_port = 4040;              // the daemon's 83P port
+    std::string lcm_url = "memq://";  // the daemon's LCM URL (memq: the log is the output)
     FaultPlan faults;
-    double lead_s = 3.0;                 // from the start of the emulators to the first epoch
-    double stop_timeout_s = 15.0;        // SIGTERM -> exit of the daemon, seconds
+    double lead_s = 3.0;           // from the start of the emulators to the first epoch
+    double stop_timeout_s = 15.0;  // SIGTERM -> exit of the daemon, seconds
     double truth_rate_hz = 50.0;
 
     std::vector<std::string> Validate() const;
@@ -52,12 +52,13 @@ struct HilResult {
     std::int64_t garbage_bursts = 0, crc_errors = 0, unplugs = 0, tcp_drops = 0;
     std::int64_t tcp_connections = 0, lost_frames = 0, ec_frames = 0;
     std::int64_t serial_late_us_max = 0, udp_late_us_max = 0;
-    int daemon_exit_code = -1;           // -1 = no daemon
-    std::string daemon_problem;          // "" when the daemon ran and stopped cleanly
+    int daemon_exit_code = -1;   // -1 = no daemon
+    std::string daemon_problem;  // "" when the daemon ran and stopped cleanly
 };
 
 // Runs the scenario; `keep_running` is polled about every 50 ms (false = stop early).
-Expected<HilResult> RunHil(ScenarioConfig scenario, const HilOptions& options,
+Expected<HilResult> RunHil(ScenarioConfig scenario,
+                           const HilOptions& options,
                            const std::function<bool()>& keep_running = {});
 
 }  // namespace pitmap::sim::hil

@@ -70,7 +70,9 @@ ManifestRecord& ManifestRecord::Bytes(std::span<const std::uint8_t> bytes) {
     return Str("fnv64", HexU64(Fnv1a64(bytes)));
 }
 
-Manifest::~Manifest() { Close(); }
+Manifest::~Manifest() {
+    Close();
+}
 
 Status Manifest::Open(const std::string& path) {
     std::lock_guard<std::mutex> lock(mu_);

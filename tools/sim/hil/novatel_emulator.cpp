@@ -26,10 +26,10 @@ namespace pitmap::sim::hil {
 namespace nv = protocol::novatel;
 namespace {
 
-constexpr double kGenerateAheadS = 0.3;   // frames are simulated this far ahead of time
+constexpr double kGenerateAheadS = 0.3;  // frames are simulated this far ahead of time
 constexpr double kGenerateBlockS = 0.1;
-constexpr double kDrainLimitS = 2.0;      // after end_s: finish the line, at most this long
-constexpr double kUnplugDrainS = 0.5;     // wait for the reader to empty the pty before closing
+constexpr double kDrainLimitS = 2.0;   // after end_s: finish the line, at most this long
+constexpr double kUnplugDrainS = 0.5;  // wait for the reader to empty the pty before closing
 constexpr std::size_t kMaxCommandLine = 512;
 
 bool Simulated(std::uint16_t id) {
@@ -47,9 +47,13 @@ bool Simulated(std::uint16_t id) {
     }
 }
 
-std::string Errno(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
+std::string Errno(const char* what) {
+    return std::string(what) + ": " + std::strerror(errno);
+}
 
-void SetNonBlocking(int fd) { ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK); }
+void SetNonBlocking(int fd) {
+    ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
+}
 
 }  // namespace
 
@@ -64,10 +68,12 @@ std::vector<std::string> NovatelPortConfig::Validate() const {
     return p;
 }
 
-NovatelPortEmulator::NovatelPortEmulator(NovatelPortConfig config, const ScenarioConfig& scenario,
+NovatelPortEmulator::NovatelPortEmulator(NovatelPortConfig config,
+                                         const ScenarioConfig& scenario,
                                          const TruthTrajectory& truth,
                                          const NavErrorModel& errors,
-                                         std::int64_t start_utime_gps, const RealTimeBase& time,
+                                         std::int64_t start_utime_gps,
+                                         const RealTimeBase& time,
                                          Manifest& manifest)
     : config_(std::move(config)),
       scenario_(scenario),
@@ -133,7 +139,7 @@ Status NovatelPortEmulator::CreatePty() {
         ::close(slave);
         return Error{Errno("ptsname")};
     }
-    struct stat st{};
+    struct stat st {};
     if (::lstat(config_.pty_link.c_str(), &st) == 0 && !S_ISLNK(st.st_mode)) {
         ::close(master);
         ::close(slave);
@@ -203,7 +209,8 @@ void NovatelPortEmulator::Run(double end_s) {
         const timespec ts{0, static_cast<long>(wait_s * 1e9)};
         if (::ppoll(fds, n, &ts, nullptr) > 0) ReadCommands(time_.NowS());
     }
-    if (client_fd_ >= 0) CloseClient("end");
+    // The connection stays open until the emulator is destroyed, after the daemon stopped:
+    // closing it here would show the daemon a drop nobody injected.
 }
 
 void NovatelPortEmulator::Generate(double now) {
@@ -350,10 +357,10 @@ void NovatelPortEmulator::ServiceLine(double now) {
                                static_cast<std::size_t>((now - it.start_s) / byte_s) + 1);
         }
         if (allowed > it.written) {
-            const ssize_t n = config_.tcp ? ::send(fd, it.bytes.data() + it.written,
-                                                   allowed - it.written, MSG_NOSIGNAL)
-                                          : ::write(fd, it.bytes.data() + it.written,
-                                                    allowed - it.written);
+            const ssize_t n =
+                config_.tcp
+                    ? ::send(fd, it.bytes.data() + it.written, allowed - it.written, MSG_NOSIGNAL)
+                    : ::write(fd, it.bytes.data() + it.written, allowed - it.written);
             if (n < 0) {
                 if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return;
                 manifest_.Write(ManifestRecord("fault", config_.id)
@@ -397,9 +404,8 @@ void NovatelPortEmulator::ReadCommands(double now) {
         client_fd_ = fd;
         ++stats_.connections;
         line_free_s_ = now;
-        manifest_.Write(ManifestRecord("connect", config_.id)
-                            .Int("utime", time_.UnixAt(now))
-                            .Num("t_s", now));
+        manifest_.Write(
+            ManifestRecord("connect", config_.id).Int("utime", time_.UnixAt(now)).Num("t_s", now));
         return;
     }
     const int fd = config_.tcp ? client_fd_ : master_fd_;

@@ -40,24 +40,24 @@
 namespace pitmap::sim::hil {
 
 struct NovatelPortConfig {
-    std::string id = "novatel_com1";      // manifest source name
-    std::string port_name = "COM1";       // name in prompts and LOG commands
-    bool tcp = false;                     // false: pseudo-terminal, true: TCP ICOM server
-    std::string pty_link;                 // pty: stable symlink to the slave device
-    int baud = 460800;                    // pty: line rate the writes are paced at, bit/s
+    std::string id = "novatel_com1";  // manifest source name
+    std::string port_name = "COM1";   // name in prompts and LOG commands
+    bool tcp = false;                 // false: pseudo-terminal, true: TCP ICOM server
+    std::string pty_link;             // pty: stable symlink to the slave device
+    int baud = 460800;                // pty: line rate the writes are paced at, bit/s
     std::string tcp_address = "127.0.0.1";
     int tcp_port = 3001;
     std::vector<std::string> default_logs;  // LOG lines active before any command
     std::vector<double> garbage_times_s, crc_times_s, unplug_times_s, drop_times_s;
-    double unplug_s = 1.0;                // how long an unplugged pty stays away, seconds
-    std::uint64_t seed = 1;               // garbage bytes
+    double unplug_s = 1.0;   // how long an unplugged pty stays away, seconds
+    std::uint64_t seed = 1;  // garbage bytes
 
     std::vector<std::string> Validate() const;
 };
 
 struct NovatelPortStats {
-    std::int64_t frames = 0;          // frames written (corrupt ones included)
-    std::int64_t bytes = 0;           // every byte written
+    std::int64_t frames = 0;  // frames written (corrupt ones included)
+    std::int64_t bytes = 0;   // every byte written
     std::int64_t commands = 0;
     std::int64_t commands_ok = 0;
     std::int64_t commands_refused = 0;
@@ -66,17 +66,20 @@ struct NovatelPortStats {
     std::int64_t crc_errors = 0;
     std::int64_t unplugs = 0;
     std::int64_t tcp_drops = 0;
-    std::int64_t connections = 0;     // TCP clients accepted
-    std::int64_t lost_frames = 0;     // requested frames due while the port was away
-    std::int64_t late_us_max = 0;     // worst lateness of a frame's last byte vs its schedule
+    std::int64_t connections = 0;  // TCP clients accepted
+    std::int64_t lost_frames = 0;  // requested frames due while the port was away
+    std::int64_t late_us_max = 0;  // worst lateness of a frame's last byte vs its schedule
 };
 
 class NovatelPortEmulator {
 public:
     // The references must outlive the emulator.
-    NovatelPortEmulator(NovatelPortConfig config, const ScenarioConfig& scenario,
-                        const TruthTrajectory& truth, const NavErrorModel& errors,
-                        std::int64_t start_utime_gps, const RealTimeBase& time,
+    NovatelPortEmulator(NovatelPortConfig config,
+                        const ScenarioConfig& scenario,
+                        const TruthTrajectory& truth,
+                        const NavErrorModel& errors,
+                        std::int64_t start_utime_gps,
+                        const RealTimeBase& time,
                         Manifest& manifest);
     ~NovatelPortEmulator();
     NovatelPortEmulator(const NovatelPortEmulator&) = delete;
@@ -92,10 +95,10 @@ public:
 private:
     struct Item {
         std::vector<std::uint8_t> bytes;
-        std::string kind;         // manifest kind
+        std::string kind;  // manifest kind
         int message_id = -1;
-        std::string command;      // response: the command line answered
-        double start_s = 0;       // when its first byte goes out (pty pacing)
+        std::string command;  // response: the command line answered
+        double start_s = 0;   // when its first byte goes out (pty pacing)
         std::size_t written = 0;
     };
     struct ActiveLog {

@@ -18,10 +18,14 @@
 namespace pitmap::sim::hil {
 namespace dt = protocol::deltat;
 
-TopsideEmulator::TopsideEmulator(TopsideConfig config, const ScenarioConfig& scenario,
-                                 const TruthTrajectory& truth, const SonarModel& sonar,
-                                 const Pose& T_vehicle_sonar, std::int64_t start_utime_gps,
-                                 const RealTimeBase& time, Manifest& manifest)
+TopsideEmulator::TopsideEmulator(TopsideConfig config,
+                                 const ScenarioConfig& scenario,
+                                 const TruthTrajectory& truth,
+                                 const SonarModel& sonar,
+                                 const Pose& T_vehicle_sonar,
+                                 std::int64_t start_utime_gps,
+                                 const RealTimeBase& time,
+                                 Manifest& manifest)
     : config_(std::move(config)),
       scenario_(scenario),
       truth_(truth),
@@ -97,8 +101,12 @@ void TopsideEmulator::Run(double end_s) {
             if (::ppoll(&p, 1, &ts, nullptr) > 0) ReceiveEc(time_.NowS());
         }
         if (stop_.load()) break;
-        const ssize_t n = ::sendto(fd_, d.bytes.data(), d.bytes.size(), 0,
-                                   reinterpret_cast<const sockaddr*>(&dest), sizeof(dest));
+        const ssize_t n = ::sendto(fd_,
+                                   d.bytes.data(),
+                                   d.bytes.size(),
+                                   0,
+                                   reinterpret_cast<const sockaddr*>(&dest),
+                                   sizeof(dest));
         const double now = time_.NowS();
         if (n != static_cast<ssize_t>(d.bytes.size())) {
             ++stats_.send_errors;
@@ -112,14 +120,15 @@ void TopsideEmulator::Run(double end_s) {
         ++stats_.pings;
         stats_.late_us_max =
             std::max(stats_.late_us_max, static_cast<std::int64_t>((now - t_send) * 1e6));
-        manifest_.Write(ManifestRecord("datagram", config_.id)
-                            .Int("utime", time_.UnixAt(now))
-                            .Num("t_s", now)
-                            .Bytes(d.bytes)
-                            .Int("ping", k)
-                            .Int("utime_gps_transmit", start_utime_gps_ + std::llround(t_tx * 1e6))
-                            .Int("jitter_us", std::llround(j * 1e6))
-                            .Int("range_m", static_cast<std::int64_t>(scenario_.sonar.max_range_m)));
+        manifest_.Write(
+            ManifestRecord("datagram", config_.id)
+                .Int("utime", time_.UnixAt(now))
+                .Num("t_s", now)
+                .Bytes(d.bytes)
+                .Int("ping", k)
+                .Int("utime_gps_transmit", start_utime_gps_ + std::llround(t_tx * 1e6))
+                .Int("jitter_us", std::llround(j * 1e6))
+                .Int("range_m", static_cast<std::int64_t>(scenario_.sonar.max_range_m)));
     }
     // EC frames that answer the last pings.
     const double until = time_.NowS() + 0.3;

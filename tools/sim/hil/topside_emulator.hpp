@@ -34,27 +34,31 @@ struct TopsideConfig {
     std::string id = "deltat_udp";           // manifest source name
     std::string dest_address = "127.0.0.1";  // where the daemon listens
     int dest_port = 4040;
-    int source_port = 0;                     // 0 = any free port
-    double jitter_ms = 0;                    // extra latency, uniform in [0, jitter_ms]
+    int source_port = 0;   // 0 = any free port
+    double jitter_ms = 0;  // extra latency, uniform in [0, jitter_ms]
     std::uint64_t seed = 1;
 };
 
 struct TopsideStats {
-    std::int64_t pings = 0;          // datagrams sent
+    std::int64_t pings = 0;  // datagrams sent
     std::int64_t send_errors = 0;
-    std::int64_t ec_frames = 0;      // EC frames received and decoded
-    std::int64_t ec_bad = 0;         // datagrams received that were not EC frames
-    std::int64_t late_us_max = 0;    // worst lateness of a send vs its schedule
-    int range_m = 0;                 // acoustic range in effect at the end
+    std::int64_t ec_frames = 0;    // EC frames received and decoded
+    std::int64_t ec_bad = 0;       // datagrams received that were not EC frames
+    std::int64_t late_us_max = 0;  // worst lateness of a send vs its schedule
+    int range_m = 0;               // acoustic range in effect at the end
 };
 
 class TopsideEmulator {
 public:
     // The references must outlive the emulator.
-    TopsideEmulator(TopsideConfig config, const ScenarioConfig& scenario,
-                    const TruthTrajectory& truth, const SonarModel& sonar,
-                    const Pose& T_vehicle_sonar, std::int64_t start_utime_gps,
-                    const RealTimeBase& time, Manifest& manifest);
+    TopsideEmulator(TopsideConfig config,
+                    const ScenarioConfig& scenario,
+                    const TruthTrajectory& truth,
+                    const SonarModel& sonar,
+                    const Pose& T_vehicle_sonar,
+                    std::int64_t start_utime_gps,
+                    const RealTimeBase& time,
+                    Manifest& manifest);
     ~TopsideEmulator();
     TopsideEmulator(const TopsideEmulator&) = delete;
     TopsideEmulator& operator=(const TopsideEmulator&) = delete;
