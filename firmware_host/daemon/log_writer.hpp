@@ -21,7 +21,8 @@
 // THREADING: Enqueue(), RequestRotate(), Flush() and stats() may be called from any thread.
 // Start()/Stop() from one controlling thread (idempotent). The writer thread owns the file
 // descriptor and all file state; the queue is guarded by queue_mu_, the statistics by
-// stats_mu_.
+// stats_mu_. A syncer thread runs the periodic fdatasync on a dup of the descriptor
+// (sync_mu_).
 #pragma once
 
 #include <atomic>
@@ -129,6 +130,12 @@ private:
     bool OpenNewFile();
     void CloseFile();
     void Sync();
+    // The periodic fdatasync runs on its own thread, on a dup of the file descriptor, so a slow
+    // sync (eMMC, a busy disk) never holds up writing the events behind it. Flush() and Stop()
+    // still sync synchronously, after any sync in flight.
+    void SyncLoop();
+    bool StartAsyncSync();      // writer thread: hand the file to the syncer; false if it is busy
+    void WaitAsyncSyncIdle();   // writer thread: wait until no sync is in flight
     void CheckDisk(bool force);
     void SetError(const std::string& message);
     std::int64_t Now() const;
@@ -146,6 +153,13 @@ private:
     std::uint64_t flush_requested_ = 0;  // generation asked for
     std::uint64_t flush_done_ = 0;       // generation completed
     std::thread thread_;
+    std::thread sync_thread_;
+    std::mutex sync_mu_;                // guards the four fields below
+    std::condition_variable sync_cv_;
+    int sync_fd_ = -1;                  // dup of the log fd handed to the syncer
+    bool sync_busy_ = false;
+    bool sync_stop_ = false;
+    std::string sync_path_;
     bool running_ = false;  // controlling thread only
 
     mutable std::mutex stats_mu_;
