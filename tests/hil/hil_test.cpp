@@ -13,10 +13,13 @@
 //     topside received.
 // Loopback only: free ports on 127.0.0.1, LCM memq:// (nothing leaves the daemon; the log is
 // the output). Skips when pitmap-acqd or pitmap-sim is not built, or the machine has no ptys.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -33,11 +36,18 @@
 #include <thread>
 #include <vector>
 
+#include "common/gps_time.hpp"
+#include "common/protocol/novatel/framer.hpp"
+#include "common/protocol/novatel/messages.hpp"
 #include "pitmap/clock_sync_t.hpp"
 #include "pitmap/daemon_status_t.hpp"
 #include "pitmap/multibeam_ping_t.hpp"
 #include "pitmap/raw_bytes_t.hpp"
 #include "tools/sim/hil/manifest.hpp"
+#include "tools/sim/hil/novatel_emulator.hpp"
+#include "tools/sim/hil/realtime.hpp"
+#include "tools/sim/nav_errors.hpp"
+#include "tools/sim/trajectory.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -462,5 +472,96 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
         ec_received);
     RecordProperty("ping_error_p50_ms", std::to_string(p50));
     RecordProperty("ping_error_p99_ms", std::to_string(p99));
+    if (!HasFailure()) fs::remove_all(dir);
+}
+
+// The NovAtel emulator alone on its pty: silent until asked, <OK / <ERROR with the port prompt
+// for each command, only the requested logs at the requested rates, paced at the baud rate.
+TEST(HilEmulator, NovatelPtyAnswersCommandsAndSendsOnlyRequestedLogs) {
+    namespace nv = pitmap::protocol::novatel;
+    using namespace pitmap::sim;
+    const fs::path dir =
+        fs::path(::testing::TempDir()) / ("pitmap_hil_pty_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    auto sc = BuiltinScenario("demo");
+    ASSERT_TRUE(sc.ok());
+    sc->track.duration_s = 10.0;
+    auto track = SurveyTrack::Plan(*sc);
+    ASSERT_TRUE(track.ok());
+    const TruthTrajectory truth(*sc, *track);
+    const NavErrorModel errors(sc->nav, truth.duration_s(), sc->seed);
+    const hil::RealTimeBase time(1.0);
+    hil::Manifest manifest;
+    ASSERT_TRUE(manifest.Open((dir / "manifest.jsonl").string()).ok());
+    hil::NovatelPortConfig cfg;
+    cfg.pty_link = (dir / "com1").string();
+    cfg.baud = 115200;
+    hil::NovatelPortEmulator emu(
+        cfg, *sc, truth, errors, pitmap::GpsFromUnix(time.start_unix_us()), time, manifest);
+    if (auto s = emu.Open(); !s.ok()) GTEST_SKIP() << s.error().message;
+    emu.Start(3.0);
+    const int fd = ::open(cfg.pty_link.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    ASSERT_GE(fd, 0);
+    termios tio{};
+    ::tcgetattr(fd, &tio);
+    ::cfmakeraw(&tio);
+    ::tcsetattr(fd, TCSANOW, &tio);
+    std::vector<std::uint8_t> rx;
+    const auto read_until = [&](double t_s) {
+        while (time.NowS() < t_s) {
+            pollfd p{fd, POLLIN, 0};
+            if (::poll(&p, 1, 20) <= 0) continue;
+            std::uint8_t buf[4096];
+            const ssize_t n = ::read(fd, buf, sizeof(buf));
+            if (n > 0) rx.insert(rx.end(), buf, buf + n);
+        }
+    };
+    read_until(0.5);
+    EXPECT_TRUE(rx.empty()) << "the receiver talked before any LOG command";
+    const std::string cmds =
+        "LOG BESTPOSB ONTIME 1\r\nLOG FOOBARB ONNEW\r\nLOG INSPVASB ONTIME 0.1\r\n";
+    ASSERT_EQ(::write(fd, cmds.data(), cmds.size()), static_cast<ssize_t>(cmds.size()));
+    const double t_cmd = time.NowS();
+    read_until(2.45);
+    const double t_end = time.NowS();
+    emu.Stop();
+    ::close(fd);
+
+    nv::Framer framer;
+    framer.Push(pitmap::ByteSpan(rx.data(), rx.size()));
+    int ok = 0, error = 0, prompts = 0, bestpos = 0, inspvas = 0, others = 0, skipped = 0;
+    for (int i = 0; i < 100000; ++i) {
+        auto ev = framer.Next();
+        if (std::holds_alternative<pitmap::protocol::NeedMore>(ev)) break;
+        if (std::holds_alternative<pitmap::protocol::Skipped>(ev)) {
+            ++skipped;
+            continue;
+        }
+        const auto& f = std::get<nv::Frame>(ev);
+        const std::string text(f.bytes.begin(), f.bytes.end());
+        if (f.kind == nv::FrameKind::kPrompt) {
+            EXPECT_EQ(text, "[COM1]");
+            ++prompts;
+        } else if (f.kind == nv::FrameKind::kAbbreviated) {
+            (text.rfind("<OK", 0) == 0 ? ok : error) += 1;
+        } else if (f.message_id == nv::msg_id::kBestPos) {
+            ++bestpos;
+        } else if (f.message_id == nv::msg_id::kInsPvaS) {
+            ++inspvas;
+        } else {
+            ++others;
+        }
+    }
+    EXPECT_EQ(skipped, 0);
+    EXPECT_EQ(ok, 2);
+    EXPECT_EQ(error, 1);
+    EXPECT_EQ(prompts, 3);
+    EXPECT_EQ(bestpos, 2);        // epochs 1 and 2 s: asked for at 0.5 s
+    EXPECT_NEAR(inspvas, 20, 1);  // 10 Hz from 0.5 to 2.4 s (decimated from 50 Hz)
+    EXPECT_EQ(others, 0) << "logs nobody asked for";
+    // Paced at 115200 bit/s, 8N1: never faster than 11 520 bytes/s.
+    EXPECT_LE(static_cast<double>(rx.size()), 11520.0 * (t_end - t_cmd) + 200.0);
+    EXPECT_EQ(emu.stats().commands, 3);
     if (!HasFailure()) fs::remove_all(dir);
 }
