@@ -120,6 +120,10 @@ int main(int argc, char** argv) {
         "--udp-port", hil_opt.udp_port, "the daemon's 83P UDP port on 127.0.0.1 (4040)");
     hil->add_option("--lcm-url", hil_opt.lcm_url, "the daemon's LCM URL (memq://)");
     hil->add_option("--seed", seed, "random seed (default: the scenario's own)");
+    hil->add_option("--default-log",
+                    hil_opt.default_logs,
+                    "a COM1 log active before any command, e.g. \"LOG INSPVASB ONTIME 0.02\" "
+                    "(repeatable; default: none, as after UNLOGALL)");
     CLI11_PARSE(app, argc, argv);
 
     if (*hil) return RunHilCommand(scenario_name, seed, hil_opt, faults);

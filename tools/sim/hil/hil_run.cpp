@@ -271,6 +271,7 @@ Expected<HilResult> RunHil(ScenarioConfig sc,
     com.crc_times_s = opt.faults.crc_times_s;
     com.unplug_times_s = opt.faults.unplug_times_s;
     com.unplug_s = opt.faults.unplug_s;
+    com.default_logs = opt.default_logs;
     com.seed = sc.seed;
     NovatelPortConfig icom;
     icom.id = kIcomId;

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "common/result.hpp"
 #include "tools/sim/hil/faults.hpp"
@@ -37,8 +38,9 @@ struct HilOptions {
     int udp_port = 4040;              // the daemon's 83P port
     std::string lcm_url = "memq://";  // the daemon's LCM URL (memq: the log is the output)
     FaultPlan faults;
-    double lead_s = 3.0;           // from the start of the emulators to the first epoch
-    double stop_timeout_s = 15.0;  // SIGTERM -> exit of the daemon, seconds
+    std::vector<std::string> default_logs;  // COM1 logs active before any command ("LOG ...")
+    double lead_s = 3.0;                    // from the start of the emulators to the first epoch
+    double stop_timeout_s = 15.0;           // SIGTERM -> exit of the daemon, seconds
     double truth_rate_hz = 50.0;
 
     std::vector<std::string> Validate() const;
