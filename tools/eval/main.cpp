@@ -29,6 +29,8 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
   mesh_mean_abs_m, mesh_rms_m, mesh_p95_m
                                 distance of the vertices and triangle centroids of P/mesh.ply
                                 to the true surface.
+  mesh_completeness             share of the insonified true surface (truth/coverage.u8) within
+                                0.2 m of a mesh vertex or triangle centroid.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
 either, the truth's origin is assumed (and said).)";
@@ -141,6 +143,8 @@ int main(int argc, char** argv) {
                                mesh->vertices[static_cast<std::size_t>(t[2])]) / 3.0);
         }
         const auto s = eval::ScorePoints(samples, T, world);
+        for (auto& p : samples) p = T * p;
+        if (auto c = eval::MeshCompleteness(samples, *truth)) scores["mesh_completeness"] = *c;
         scores["mesh_mean_abs_m"] = s.mean_abs_m;
         scores["mesh_rms_m"] = s.rms_m;
         scores["mesh_p95_m"] = s.p95_m;

@@ -2,6 +2,7 @@
 #include "tools/eval/scores.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -98,6 +99,52 @@ DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts, const Pose& T
     d.reserve(pts.size() / stride + 1);
     for (std::size_t i = 0; i < pts.size(); i += stride) d.push_back(world.SignedDistance(T * pts[i]));
     return SummariseDistances(std::move(d));
+}
+
+std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& samples,
+                                       const sim::Truth& truth, double radius_m) {
+    if (truth.coverage.empty()) return std::nullopt;
+    // Sorted cell keys of the mesh samples (cells of radius_m): a query looks at its 27
+    // neighbouring cells, which hold every sample within radius_m.
+    auto cell = [radius_m](double v) { return static_cast<std::int64_t>(std::floor(v / radius_m)); };
+    auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+        return ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
+    };
+    std::vector<std::pair<std::int64_t, std::uint32_t>> keyed;
+    keyed.reserve(samples.size());
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        const Eigen::Vector3d& p = samples[i];
+        keyed.emplace_back(key(cell(p.x()), cell(p.y()), cell(p.z())), static_cast<std::uint32_t>(i));
+    }
+    std::sort(keyed.begin(), keyed.end());
+    const sim::TerrainGrid& g = truth.terrain;
+    const sim::PitWorld world(g);
+    std::size_t covered = 0, found = 0;
+    for (int iy = 0; iy < g.ny; ++iy) {
+        for (int ix = 0; ix < g.nx; ++ix) {
+            if (truth.coverage[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) + static_cast<std::size_t>(ix)] == 0) continue;
+            ++covered;
+            const Eigen::Vector3d q(g.x0_m + ix * g.resolution_m, g.y0_m + iy * g.resolution_m, 0.0);
+            const Eigen::Vector3d s(q.x(), q.y(), world.Height(q.x(), q.y()));
+            const std::int64_t cx = cell(s.x()), cy = cell(s.y()), cz = cell(s.z());
+            bool hit = false;
+            for (std::int64_t dx = -1; dx <= 1 && !hit; ++dx)
+                for (std::int64_t dy = -1; dy <= 1 && !hit; ++dy)
+                    for (std::int64_t dz = -1; dz <= 1 && !hit; ++dz) {
+                        const std::int64_t k = key(cx + dx, cy + dy, cz + dz);
+                        auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(k, std::uint32_t{0}));
+                        for (; it != keyed.end() && it->first == k; ++it) {
+                            if ((samples[it->second] - s).norm() <= radius_m) {
+                                hit = true;
+                                break;
+                            }
+                        }
+                    }
+            if (hit) ++found;
+        }
+    }
+    if (covered == 0) return std::nullopt;
+    return static_cast<double>(found) / static_cast<double>(covered);
 }
 
 double BoresightErrorDeg(double re, double pe, double ye, double rt, double pt, double yt) {

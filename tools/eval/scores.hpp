@@ -9,8 +9,10 @@
 //   boresight_error_deg     angle of R_true^T R_est, R = Rz(yaw) Ry(pitch) Rx(roll).
 //   mesh_mean_abs_m, mesh_rms_m, mesh_p95_m  distance of mesh vertices and triangle centroids to
 //                           the true surface.
-//   mesh_completeness       share of the insonified true surface (truth coverage mask) that lies
-//                           within 0.2 m of the mesh.
+//   mesh_completeness       share of the insonified true surface (truth/coverage.u8: terrain
+//                           cells hit by a true beam) lying within 0.2 m of the mesh, the mesh
+//                           being sampled at its vertices and triangle centroids (for a 0.1 m
+//                           voxel mesh this overstates the distance by at most a few cm).
 #pragma once
 
 #include <map>
@@ -53,6 +55,11 @@ TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose&
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
                           const Pose& T_truth_product, const sim::PitWorld& world,
                           std::size_t max_points = 3'000'000);
+
+// Share of the covered true-surface cells whose surface point has a mesh sample within
+// radius_m (mesh samples already in the truth frame). nullopt without a coverage mask.
+std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& mesh_samples_truth,
+                                       const sim::Truth& truth, double radius_m = 0.2);
 
 // Angle in degrees between two roll/pitch/yaw (degrees) rotations.
 double BoresightErrorDeg(double roll_est, double pitch_est, double yaw_est, double roll_true,

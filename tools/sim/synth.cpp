@@ -139,6 +139,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     const double block = 1.0;        // seconds per block
     const auto total_pings = static_cast<std::int64_t>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
     std::int64_t events_since_flush = 0;
+    // Insonified area: terrain cells hit by a true beam axis (for the mesh completeness score).
+    const TerrainGrid& grid = world.grid();
+    std::vector<std::uint8_t> coverage(grid.height_m.size(), 0);
 
     for (double t0 = 0; t0 < truth.duration_s(); t0 += block) {
         const double t1 = std::min(t0 + block, truth.duration_s());
@@ -188,6 +191,16 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
         for (auto& th : pool) th.join();
         for (std::size_t i = 0; i < pings.size(); ++i) {
             const double t = static_cast<double>(ping_ids[i]) / sc.sonar.ping_rate_hz;
+            const Pose T_ws = truth.PoseAt(t) * T_vehicle_sonar;
+            for (std::size_t b = 0; b < pings[i].true_range_m.size(); ++b) {
+                const float r = pings[i].true_range_m[b];
+                if (!std::isfinite(r)) continue;
+                const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
+                const Eigen::Vector3d hit = T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
+                const long ix = std::lround((hit.x() - grid.x0_m) / grid.resolution_m);
+                const long iy = std::lround((hit.y() - grid.y0_m) / grid.resolution_m);
+                if (ix >= 0 && iy >= 0 && ix < grid.nx && iy < grid.ny) coverage[static_cast<std::size_t>(iy * grid.nx + ix)] = 1;
+            }
             TopsideDatagram d = topside.Encode(pings[i], t);
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
@@ -254,6 +267,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
         t.trajectory.push_back({static_cast<double>(gps_at(tt)) * 1e-6, truth.PoseAt(tt)});
     }
     t.boresight = {sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
+    t.coverage = std::move(coverage);
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
     return result;
 }

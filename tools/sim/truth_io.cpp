@@ -122,6 +122,12 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
         csv << line;
     }
     if (auto s = WriteText(dir + "/trajectory.csv", csv.str()); !s) return s;
+    if (!truth.coverage.empty()) {
+        if (truth.coverage.size() != g.height_m.size()) return Error{"coverage does not match the terrain grid"};
+        if (auto s = WriteText(dir + "/coverage.u8", std::string(truth.coverage.begin(), truth.coverage.end())); !s) {
+            return s;
+        }
+    }
     json b = {{"roll_deg", truth.boresight.roll_deg}, {"pitch_deg", truth.boresight.pitch_deg},
               {"yaw_deg", truth.boresight.yaw_deg}, {"lever_arm_sonar_m", truth.boresight.lever_arm_sonar_m},
               {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD, sonar x fwd y stbd z down"}};
@@ -180,6 +186,14 @@ Expected<Truth> ReadTruth(const std::string& dir) {
             p.T_world_vehicle = MakePose(frames::RotationWorldFromRpy(frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
                                          Eigen::Vector3d(v[1], v[2], v[3]));
             t.trajectory.push_back(p);
+        }
+    }
+    {
+        const std::string path = dir + "/coverage.u8";
+        std::ifstream in(path, std::ios::binary);
+        if (in) {
+            t.coverage.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+            if (t.coverage.size() != t.terrain.height_m.size()) return Error{path + ": size does not match terrain.json"};
         }
     }
     auto bj = ReadJson(dir + "/boresight.json");

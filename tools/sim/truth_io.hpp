@@ -7,8 +7,11 @@
 // <dir>/trajectory.csv    true vehicle pose at a fixed rate: gps_time_s (GPS seconds since
 //                         1980-01-06), x_m, y_m, z_m (world ENU), roll_deg, pitch_deg, yaw_deg
 // <dir>/boresight.json    true R_vehicle_sonar as roll/pitch/yaw degrees, lever arms
+// <dir>/coverage.u8       optional: 1 byte per terrain cell (same grid), 1 where a true beam
+//                         hit that cell (the insonified area), else 0
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -35,6 +38,7 @@ struct Truth {
     TerrainGrid terrain;
     std::vector<TruthPose> trajectory;
     TruthBoresight boresight;
+    std::vector<std::uint8_t> coverage;  // empty, or one byte per terrain cell (insonified = 1)
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);

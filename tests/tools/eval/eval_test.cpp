@@ -154,6 +154,33 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
     }
 }
 
+TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
+    sim::Truth truth = FlatTruth();  // 1 m cells, floor at z = -10
+    EXPECT_FALSE(MeshCompleteness({}, truth).has_value());  // no coverage mask
+    truth.coverage.assign(truth.terrain.height_m.size(), 0);
+    int covered = 0;
+    for (int iy = 0; iy < truth.terrain.ny; ++iy) {
+        for (int ix = 0; ix < truth.terrain.nx; ++ix) {
+            const double x = truth.terrain.x0_m + ix, y = truth.terrain.y0_m + iy;
+            if (std::abs(x) <= 10 && std::abs(y) <= 2) {
+                truth.coverage[static_cast<std::size_t>(iy * truth.terrain.nx + ix)] = 1;
+                ++covered;
+            }
+        }
+    }
+    ASSERT_EQ(covered, 21 * 5);
+    // A dense mesh sample grid over x in [-10, 0]: covers x = -10..0 (11 columns of cells).
+    std::vector<Eigen::Vector3d> samples;
+    for (double x = -10; x <= 0.0001; x += 0.1)
+        for (double y = -2.5; y <= 2.5001; y += 0.1) samples.emplace_back(x, y, -10.05);
+    auto c = MeshCompleteness(samples, truth);
+    ASSERT_TRUE(c.has_value());
+    EXPECT_NEAR(*c, 55.0 / 105.0, 1e-12);
+    // Lifted 0.3 m above the surface, nothing is within 0.2 m.
+    for (auto& p : samples) p.z() += 0.3;
+    EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
+}
+
 TEST_F(Eval, MissingTruthIsAClearError) {
     const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" + (dir_ / "nothing").string() +
                             "' --products '" + (dir_ / "products").string() + "' 2>/dev/null";

@@ -122,6 +122,9 @@ TEST_F(Synth, EveryFrameAndPingIsLoggedOnceInTimeOrder) {
 TEST_F(Synth, SoundingsLieOnTheTrueTerrainWithTheTruePoses) {
     auto truth = ReadTruth((*dir_ / "truth").string());
     ASSERT_TRUE(truth.ok()) << truth.error().message;
+    // The insonified area is recorded for the mesh completeness score.
+    ASSERT_EQ(truth->coverage.size(), truth->terrain.height_m.size());
+    EXPECT_GT(std::count(truth->coverage.begin(), truth->coverage.end(), 1), 10000);
     const PitWorld world(truth->terrain);
     const auto& b = truth->boresight;
     const Pose T_vehicle_sonar = MakePose(
