@@ -3,9 +3,11 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <nanoflann.hpp>
 #include <unordered_map>
 
@@ -18,10 +20,14 @@ using georef::SonarMount;
 
 const char* ToString(Termination t) {
     switch (t) {
-        case Termination::kConverged: return "converged";
-        case Termination::kMaxIterations: return "max_iterations";
-        case Termination::kNoOverlap: return "no_overlap";
-        case Termination::kCancelled: return "cancelled";
+        case Termination::kConverged:
+            return "converged";
+        case Termination::kMaxIterations:
+            return "max_iterations";
+        case Termination::kNoOverlap:
+            return "no_overlap";
+        case Termination::kCancelled:
+            return "cancelled";
     }
     return "unknown";
 }
@@ -45,6 +51,9 @@ std::vector<std::string> BoresightConfig::Validate() const {
     if (!(max_position_stddev_m > 0)) p.push_back("calibrate.max_position_stddev_m must be > 0");
     if (!(max_heading_stddev_deg > 0)) p.push_back("calibrate.max_heading_stddev_deg must be > 0");
     if (num_verify_segments < 0) p.push_back("calibrate.num_verify_segments must be >= 0");
+    if (!(height_offset_sigma_m > 0)) p.push_back("calibrate.height_offset_sigma_m must be > 0");
+    if (!(range_noise_fraction >= 0)) p.push_back("calibrate.range_noise_fraction must be >= 0");
+    if (!(range_noise_constant_m > 0)) p.push_back("calibrate.range_noise_constant_m must be > 0");
     return p;
 }
 
@@ -53,14 +62,16 @@ namespace {
 struct Cloud {
     const std::vector<Eigen::Vector3d>* pts = nullptr;
     std::size_t kdtree_get_point_count() const { return pts->size(); }
-    double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*pts)[i][static_cast<int>(d)]; }
+    double kdtree_get_pt(std::size_t i, std::size_t d) const {
+        return (*pts)[i][static_cast<int>(d)];
+    }
     template <class B>
     bool kdtree_get_bbox(B&) const {
         return false;
     }
 };
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud,
-                                                 3, std::size_t>;
+using Tree = nanoflann::
+    KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud, 3, std::size_t>;
 
 // Soundings of one segment, subsampled.
 struct Samples {
@@ -78,7 +89,8 @@ Samples Collect(const GeorefResult& geo, double t0, double t1, int stride) {
         const double t = static_cast<double>(ping.utime_gps) * 1e-6;
         if (t < t0 || t >= t1) continue;
         S.ping.push_back(P.ping[j]);
-        S.s_sonar.push_back(georef::BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad));
+        S.s_sonar.push_back(
+            georef::BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad));
         S.t_s.push_back(t - t0);
     }
     return S;
@@ -89,9 +101,12 @@ struct Pair {
     std::size_t q = 0;
     Eigen::Vector3d n = Eigen::Vector3d::Zero();
     double r = 0;
+    double w = 1;
 };
 
-void Positions(const GeorefResult& geo, const Samples& S, const SonarMount& m,
+void Positions(const GeorefResult& geo,
+               const Samples& S,
+               const SonarMount& m,
                std::vector<Eigen::Vector3d>& p) {
     const Pose T_vs = m.T_vehicle_sonar();
     p.resize(S.ping.size());
@@ -101,49 +116,75 @@ void Positions(const GeorefResult& geo, const Samples& S, const SonarMount& m,
 }
 
 // Correspondences for every sample: normal of its own pass, closest point of another pass.
-std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p, const Samples& S,
-                            const BoresightConfig& cfg, double d_max) {
+std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
+                            const Samples& S,
+                            const BoresightConfig& cfg,
+                            double d_max) {
     Cloud cloud{&p};
     Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
     tree.buildIndex();
-    std::vector<Pair> pairs(p.size());
-    const double radius = std::max(cfg.normal_radius_m, d_max);
+    // Normals from the sounding's own pass only (several pings: a single ping is a line).
+    const double nwin = cfg.min_separation_s;
+    std::vector<Eigen::Vector3d> normals(p.size(), Eigen::Vector3d::Zero());
+    std::vector<char> nok(p.size(), 0);
+    const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
         std::vector<std::pair<std::size_t, double>> hits;
         for (std::size_t k = b.begin(); k != b.end(); ++k) {
             hits.clear();
-            tree.radiusSearch(p[k].data(), radius * radius, hits, nanoflann::SearchParams(32, 0, false));
+            tree.radiusSearch(p[k].data(), nr2, hits, nanoflann::SearchParams(32, 0, false));
             Eigen::Vector3d mean = Eigen::Vector3d::Zero();
             Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
             int n_same = 0;
-            double best = d_max * d_max;
-            std::size_t best_j = 0;
-            bool found = false;
             for (const auto& [j, d2] : hits) {
-                const double dt = std::abs(S.t_s[j] - S.t_s[k]);
-                if (dt < cfg.min_separation_s) {
-                    if (d2 <= cfg.normal_radius_m * cfg.normal_radius_m) {
-                        mean += p[j];
-                        cov += p[j] * p[j].transpose();
-                        ++n_same;
-                    }
-                } else if (d2 < best) {
-                    best = d2;
-                    best_j = j;
-                    found = true;
+                if (std::abs(S.t_s[j] - S.t_s[k]) < nwin) {
+                    mean += p[j];
+                    cov += p[j] * p[j].transpose();
+                    ++n_same;
                 }
             }
-            if (!found || n_same < 8) continue;
+            if (n_same < 8) continue;
             mean /= n_same;
             cov = cov / n_same - mean * mean.transpose();
             Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
             const Eigen::Vector3d ev = es.eigenvalues();
             if (!(ev[0] < 0.1 * ev[1])) continue;  // not planar enough
+            Eigen::Vector3d n = es.eigenvectors().col(0);
+            if (n.z() < 0) n = -n;
+            normals[k] = n;
+            nok[k] = 1;
+        }
+    });
+    std::vector<Pair> pairs(p.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
+        std::vector<std::pair<std::size_t, double>> hits;
+        for (std::size_t k = b.begin(); k != b.end(); ++k) {
+            hits.clear();
+            tree.radiusSearch(
+                p[k].data(), d_max * d_max, hits, nanoflann::SearchParams(32, 0, false));
+            double best = d_max * d_max;
+            std::size_t best_j = 0;
+            bool found = false;
+            for (const auto& [j, d2] : hits) {
+                if (std::abs(S.t_s[j] - S.t_s[k]) >= cfg.min_separation_s && d2 < best) {
+                    best = d2;
+                    best_j = j;
+                    found = true;
+                }
+            }
+            if (!found) continue;
+            if (!nok[k]) continue;
             Pair& pr = pairs[k];
             pr.ok = true;
             pr.q = best_j;
-            pr.n = es.eigenvectors().col(0);
+            pr.n = normals[k];
             pr.r = pr.n.dot(p[k] - p[best_j]);
+            // 1 / sigma^2 of the difference, sigma = fraction * range + constant per sounding.
+            const double sp =
+                cfg.range_noise_fraction * S.s_sonar[k].norm() + cfg.range_noise_constant_m;
+            const double sq =
+                cfg.range_noise_fraction * S.s_sonar[best_j].norm() + cfg.range_noise_constant_m;
+            pr.w = 1.0 / (sp * sp + sq * sq);
         }
     });
     return pairs;
@@ -166,15 +207,20 @@ ResidualStats Stats(const std::vector<Pair>& pairs) {
     return s;
 }
 
-ResidualStats Evaluate(const GeorefResult& geo, const Samples& S, const SonarMount& m,
+ResidualStats Evaluate(const GeorefResult& geo,
+                       const Samples& S,
+                       const SonarMount& m,
                        const BoresightConfig& cfg) {
     std::vector<Eigen::Vector3d> p;
     Positions(geo, S, m, p);
     return Stats(FindPairs(p, S, cfg, cfg.min_distance_m));
 }
 
-SegmentScore ScoreSegment(const GeorefResult& geo, const georef::NavSeries& nav, double t0,
-                          double t1, const BoresightConfig& cfg) {
+SegmentScore ScoreSegment(const GeorefResult& geo,
+                          const georef::NavSeries& nav,
+                          double t0,
+                          double t1,
+                          const BoresightConfig& cfg) {
     SegmentScore s;
     s.start_s = t0;
     s.end_s = t1;
@@ -197,10 +243,12 @@ SegmentScore ScoreSegment(const GeorefResult& geo, const georef::NavSeries& nav,
     for (const auto& sd : nav.stddevs) {
         const double t = static_cast<double>(sd.utime_gps) * 1e-6;
         if (t < t0 || t >= t1) continue;
-        const double h = std::hypot(static_cast<double>(sd.north_m), static_cast<double>(sd.east_m));
+        const double h =
+            std::hypot(static_cast<double>(sd.north_m), static_cast<double>(sd.east_m));
         if (std::isfinite(h)) s.max_position_stddev_m = std::max(s.max_position_stddev_m, h);
         if (std::isfinite(sd.yaw_deg)) {
-            s.max_heading_stddev_deg = std::max(s.max_heading_stddev_deg, static_cast<double>(sd.yaw_deg));
+            s.max_heading_stddev_deg =
+                std::max(s.max_heading_stddev_deg, static_cast<double>(sd.yaw_deg));
         }
     }
     s.low_drift = s.max_position_stddev_m <= cfg.max_position_stddev_m &&
@@ -210,8 +258,10 @@ SegmentScore ScoreSegment(const GeorefResult& geo, const georef::NavSeries& nav,
 
 }  // namespace
 
-BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSeries& nav,
-                                   const SonarMount& mount, const BoresightConfig& cfg,
+BoresightResult CalibrateBoresight(const GeorefResult& geo,
+                                   const georef::NavSeries& nav,
+                                   const SonarMount& mount,
+                                   const BoresightConfig& cfg,
                                    const ProgressCallback& progress) {
     BoresightResult res;
     res.mount = mount;
@@ -228,13 +278,15 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSer
         res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
         if (step <= 0) break;
     }
-    if (res.candidates.empty()) res.candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
+    if (res.candidates.empty())
+        res.candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
     auto better = [](const SegmentScore& a, const SegmentScore& b) {
         if (a.low_drift != b.low_drift) return a.low_drift;
         return a.overlap_cells > b.overlap_cells;
     };
     if (cfg.segment_start_s >= 0) {
-        res.segment = ScoreSegment(geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
+        res.segment = ScoreSegment(
+            geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
     } else {
         res.segment = *std::min_element(res.candidates.begin(), res.candidates.end(), better);
     }
@@ -244,19 +296,52 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSer
     SonarMount m = mount;
     Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
     std::vector<Eigen::Vector3d> p;
+    // Nuisance: a height correction per node (every part_duration_s, linear in between) absorbs
+    // the INS height error, which differs from pass to pass. Without it a height difference
+    // between two parallel passes d apart reads as a roll of dz / d (1.5 cm over 3 m = 0.3 deg).
+    const int odim = cfg.estimate_height_offsets ? 1 : 0;
+    const double seg_len = res.segment.end_s - res.segment.start_s;
+    const int n_nodes =
+        odim > 0 ? static_cast<int>(std::ceil(seg_len / cfg.part_duration_s)) + 1 : 0;
+    const int dim = 3 + n_nodes * odim;
+    Eigen::VectorXd off = Eigen::VectorXd::Zero(n_nodes * odim);
+    const double sig_o = cfg.height_offset_sigma_m;
+    auto node_of = [&](double t, int& i, double& f) {
+        const double u =
+            std::clamp(t / cfg.part_duration_s, 0.0, static_cast<double>(n_nodes - 1) - 1e-9);
+        i = static_cast<int>(u);
+        f = u - i;
+    };
+    auto offset_at = [&](double t) {
+        Eigen::Vector3d o = Eigen::Vector3d::Zero();
+        if (n_nodes == 0) return o;
+        int i;
+        double f;
+        node_of(t, i, f);
+        for (int d = 0; d < odim; ++d) {
+            const int axis = odim == 1 ? 2 : d;
+            o[axis] = (1 - f) * off[i * odim + d] + f * off[(i + 1) * odim + d];
+        }
+        return o;
+    };
     res.termination = Termination::kMaxIterations;
     for (int it = 0; it < cfg.max_iterations; ++it) {
         if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
             res.termination = Termination::kCancelled;
             break;
         }
-        const double a = cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
-        const double d_max = std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
+        const double a =
+            cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
+        const double d_max =
+            std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
         Positions(geo, S, m, p);
+        for (std::size_t k = 0; k < p.size(); ++k) p[k] += offset_at(S.t_s[k]);
         const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
-        Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-        Eigen::Vector3d g = Eigen::Vector3d::Zero();
+        Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dim, dim);
+        Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
         std::int64_t n = 0;
+        std::vector<int> idx;
+        std::vector<double> val;
         for (std::size_t k = 0; k < pairs.size(); ++k) {
             const Pair& pr = pairs[k];
             if (!pr.ok) continue;
@@ -264,24 +349,58 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSer
             const Eigen::Matrix3d A_q = geo.pings[S.ping[pr.q]].T_world_vehicle.linear() * R_vs;
             const Eigen::RowVector3d J =
                 pr.n.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[pr.q]));
+            idx.assign({0, 1, 2});
+            val.assign({J[0], J[1], J[2]});
+            if (n_nodes > 0) {
+                for (int side = 0; side < 2; ++side) {
+                    int i;
+                    double f;
+                    node_of(S.t_s[side == 0 ? k : pr.q], i, f);
+                    const double sgn = side == 0 ? 1.0 : -1.0;
+                    for (int d = 0; d < odim; ++d) {
+                        const int axis = odim == 1 ? 2 : d;
+                        idx.push_back(3 + i * odim + d);
+                        val.push_back(sgn * (1 - f) * pr.n[axis]);
+                        idx.push_back(3 + (i + 1) * odim + d);
+                        val.push_back(sgn * f * pr.n[axis]);
+                    }
+                }
+            }
             const double u = pr.r / cfg.cauchy_scale_m;
-            const double w = 1.0 / (1.0 + u * u);
-            H += w * J.transpose() * J;
-            g += w * J.transpose() * pr.r;
+            const double w = pr.w / (1.0 + u * u);
+            for (std::size_t x = 0; x < idx.size(); ++x) {
+                g[idx[x]] += w * val[x] * pr.r;
+                for (std::size_t y = 0; y < idx.size(); ++y)
+                    H(idx[x], idx[y]) += w * val[x] * val[y];
+            }
             ++n;
         }
         if (n < 50) {
             res.termination = Termination::kNoOverlap;
             break;
         }
-        const Eigen::Vector3d delta = -(H + 1e-9 * H.trace() * Eigen::Matrix3d::Identity()).ldlt().solve(g);
+        for (int j = 0; j < n_nodes * odim; ++j) {
+            H(3 + j, 3 + j) += 1.0 / (sig_o * sig_o);
+            g[3 + j] += off[j] / (sig_o * sig_o);
+        }
+        H.topLeftCorner<3, 3>() +=
+            1e-9 * H.topLeftCorner<3, 3>().trace() * Eigen::Matrix3d::Identity();
+        const Eigen::VectorXd x = -H.ldlt().solve(g);
+        const Eigen::Vector3d delta = x.head<3>();
+        off += x.tail(n_nodes * odim);
+        const Eigen::Matrix3d C = H.inverse().topLeftCorner<3, 3>();
+        for (int j = 0; j < 3; ++j)
+            res.formal_sd_deg[j] = frames::RadToDeg(std::sqrt(std::max(0.0, C(j, j))));
+        res.height_offsets_rms_m =
+            off.size() ? std::sqrt(off.squaredNorm() / static_cast<double>(off.size())) : 0.0;
         R_vs = R_vs * ExpSO3(delta);
         const frames::Rpy rpy = frames::RpyFromRotationNed(R_vs);
         m.boresight_roll_deg = frames::RadToDeg(rpy.roll);
         m.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
         m.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
         res.iterations = it + 1;
-        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg && d_max <= cfg.min_distance_m + 1e-9) {
+        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg &&
+            d_max <= cfg.min_distance_m + 1e-9) {
             res.termination = Termination::kConverged;
             break;
         }
@@ -311,11 +430,17 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo, const georef::NavSer
         res.verify.push_back({c, Evaluate(geo, V, mount, cfg), Evaluate(geo, V, m, cfg)});
     }
     char buf[256];
-    std::snprintf(buf, sizeof(buf),
+    std::snprintf(buf,
+                  sizeof(buf),
                   "boresight roll %.3f pitch %.3f yaw %.3f deg (%s after %d iterations); "
                   "residual RMS %.4f -> %.4f m over %lld pairs",
-                  m.boresight_roll_deg, m.boresight_pitch_deg, m.boresight_yaw_deg,
-                  ToString(res.termination), res.iterations, res.before.rms_m, res.after.rms_m,
+                  m.boresight_roll_deg,
+                  m.boresight_pitch_deg,
+                  m.boresight_yaw_deg,
+                  ToString(res.termination),
+                  res.iterations,
+                  res.before.rms_m,
+                  res.after.rms_m,
                   static_cast<long long>(res.after.pairs));
     res.message = buf;
     return res;

@@ -9,7 +9,10 @@
 // right perturbation R_vs Exp(delta): dp/d delta = -R_wv R_vs [s]x. The residual of a pair
 // (p from part a, q from part b) is r = n_p . (p - q), n_p the normal of p's own part (PCA of
 // its neighbours within normal_radius_m), so dr/d delta = n_p^T (-A_p [s_p]x + A_q [s_q]x),
-// A = R_wv R_vs.
+// A = R_wv R_vs. Unknowns besides the boresight: a height correction per node (one every
+// part_duration_s, linear in between, prior height_offset_sigma_m): the INS height error differs
+// between passes and would otherwise bias roll (parallel passes see a roll error only as a height
+// step). Pairs are weighted by 1 / (sigma_p^2 + sigma_q^2), sigma = fraction * range + constant.
 // Segment choice (when not given): windows of segment_duration_s, stepped by a quarter; a
 // window is eligible when its INS 1-sigma horizontal position and heading stay under the limits
 // (low drift); among those the one with the most overlap (1 m cells seen by parts at least
@@ -28,26 +31,30 @@
 namespace pitmap::proc::calib {
 
 struct BoresightConfig {
-    double segment_start_s = -1;      // GPS seconds; < 0 = choose automatically
-    double segment_duration_s = 300;  // seconds (clamped to the survey)
-    double part_duration_s = 10;      // trajectory parts, seconds
-    double min_separation_s = 20;     // pairs only between soundings this far apart in time
-    int beam_stride = 4;              // use every n-th sounding of a ping
-    double max_distance_m = 1.0;      // correspondence distance, first iteration
-    double min_distance_m = 0.3;      // ... shrinking to this by the last iteration
-    double normal_radius_m = 0.6;     // neighbourhood for the normals
-    double cauchy_scale_m = 0.05;     // robust kernel scale
-    int max_iterations = 12;          // outer (correspondence) iterations
-    double convergence_deg = 1e-4;    // stop when the update is smaller
-    double max_position_stddev_m = 0.15;  // low-drift limit (horizontal, 1 sigma)
-    double max_heading_stddev_deg = 0.2;  // low-drift limit
-    int num_verify_segments = 2;      // other segments to verify on
+    double segment_start_s = -1;           // GPS seconds; < 0 = choose automatically
+    double segment_duration_s = 300;       // seconds (clamped to the survey)
+    double part_duration_s = 10;           // trajectory parts, seconds
+    double min_separation_s = 20;          // pairs only between soundings this far apart in time
+    int beam_stride = 4;                   // use every n-th sounding of a ping
+    double max_distance_m = 1.0;           // correspondence distance, first iteration
+    double min_distance_m = 0.3;           // ... shrinking to this by the last iteration
+    double normal_radius_m = 0.6;          // neighbourhood for the normals
+    double cauchy_scale_m = 0.05;          // robust kernel scale
+    int max_iterations = 12;               // outer (correspondence) iterations
+    double convergence_deg = 1e-4;         // stop when the update is smaller
+    double max_position_stddev_m = 0.15;   // low-drift limit (horizontal, 1 sigma)
+    double max_heading_stddev_deg = 0.2;   // low-drift limit
+    int num_verify_segments = 2;           // other segments to verify on
+    bool estimate_height_offsets = true;   // per-node INS height corrections (nuisance)
+    double height_offset_sigma_m = 0.03;   // their prior, 1 sigma
+    double range_noise_fraction = 0.002;   // pair weight 1/sigma^2, sigma = fraction * range
+    double range_noise_constant_m = 0.02;  //   + constant, per sounding
 
     std::vector<std::string> Validate() const;
 };
 
 struct SegmentScore {
-    double start_s = 0, end_s = 0;    // GPS seconds
+    double start_s = 0, end_s = 0;  // GPS seconds
     std::int64_t overlap_cells = 0;
     double max_position_stddev_m = 0, max_heading_stddev_deg = 0;
     bool low_drift = false;
@@ -55,7 +62,7 @@ struct SegmentScore {
 
 struct ResidualStats {
     std::int64_t pairs = 0;
-    double rms_m = 0;        // RMS point-to-plane distance over pairs within the gate
+    double rms_m = 0;  // RMS point-to-plane distance over pairs within the gate
     double median_abs_m = 0;
 };
 
@@ -73,14 +80,18 @@ struct BoresightResult {
     ResidualStats before, after;       // on that segment
     std::vector<VerifyResult> verify;  // other segments
     int iterations = 0;
+    double formal_sd_deg[3] = {0, 0, 0};  // roll, pitch, yaw (range noise only: optimistic)
+    double height_offsets_rms_m = 0;      // RMS of the estimated height corrections
     Termination termination = Termination::kNoOverlap;
     std::vector<SegmentScore> candidates;
     std::string message;
 };
 
 // `geo` must have been georeferenced with `mount`; its points and pings are read only.
-BoresightResult CalibrateBoresight(const georef::GeorefResult& geo, const georef::NavSeries& nav,
-                                   const georef::SonarMount& mount, const BoresightConfig& config,
+BoresightResult CalibrateBoresight(const georef::GeorefResult& geo,
+                                   const georef::NavSeries& nav,
+                                   const georef::SonarMount& mount,
+                                   const BoresightConfig& config,
                                    const ProgressCallback& progress = {});
 
 }  // namespace pitmap::proc::calib

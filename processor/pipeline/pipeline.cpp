@@ -24,7 +24,8 @@ std::vector<std::string> PipelineConfig::Validate() const {
     const bool all = !std::isnan(origin_latitude_deg) && !std::isnan(origin_longitude_deg) &&
                      !std::isnan(origin_height_m);
     if (any && !all) p.push_back("products.origin needs latitude_deg, longitude_deg and height_m");
-    if (all && std::abs(origin_latitude_deg) > 90) p.push_back("products.origin.latitude_deg out of range");
+    if (all && std::abs(origin_latitude_deg) > 90)
+        p.push_back("products.origin.latitude_deg out of range");
     return p;
 }
 
@@ -72,6 +73,10 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     b.Read("max_position_stddev_m", bc.max_position_stddev_m);
     b.Read("max_heading_stddev_deg", bc.max_heading_stddev_deg);
     b.Read("num_verify_segments", bc.num_verify_segments);
+    b.Read("estimate_height_offsets", bc.estimate_height_offsets);
+    b.Read("height_offset_sigma_m", bc.height_offset_sigma_m);
+    b.Read("range_noise_fraction", bc.range_noise_fraction);
+    b.Read("range_noise_constant_m", bc.range_noise_constant_m);
     b.RejectUnknownKeys();
     ConfigReader pr = reader->Child("products");
     pr.Read("write_las", c.write_las);
@@ -95,29 +100,39 @@ std::string DefaultsYaml() {
     auto b = [](bool v) { return v ? "true" : "false"; };
     o << "# pitmap processor configuration: every key with its default.\n"
       << "ingest:\n"
-      << "  source: " << io::ToString(c.ingest.source) << "            # auto | decoded | raw (re-decode RAW_* channels)\n"
+      << "  source: " << io::ToString(c.ingest.source)
+      << "            # auto | decoded | raw (re-decode RAW_* channels)\n"
       << "  nav_channel_id: \"\"        # e.g. novatel_com1; \"\" = every INS channel\n"
       << "  sonar_channel_id: \"\"      # e.g. deltat_udp; \"\" = every sonar channel\n"
-      << "  sonar_clock_offset_s: " << c.ingest.sonar_clock_offset_s << "   # .83P files: GPS = header clock (UTC) + leap + offset\n"
-      << "  require_good_ins: " << b(c.ingest.require_good_ins) << "   # drop INS samples not INS_SOLUTION_GOOD\n"
+      << "  sonar_clock_offset_s: " << c.ingest.sonar_clock_offset_s
+      << "   # .83P files: GPS = header clock (UTC) + leap + offset\n"
+      << "  require_good_ins: " << b(c.ingest.require_good_ins)
+      << "   # drop INS samples not INS_SOLUTION_GOOD\n"
       << "georef:\n"
-      << "  max_nav_gap_s: " << c.georef.max_nav_gap_s << "          # refuse pings across longer INS gaps, s\n"
+      << "  max_nav_gap_s: " << c.georef.max_nav_gap_s
+      << "          # refuse pings across longer INS gaps, s\n"
       << "  min_range_m: " << c.georef.min_range_m << "            # range gate, m\n"
       << "  max_range_m: " << c.georef.max_range_m << "            # range gate, m\n"
-      << "  sound_speed_scaling: " << b(c.georef.sound_speed_scaling) << "  # r *= c_header / nominal\n"
+      << "  sound_speed_scaling: " << b(c.georef.sound_speed_scaling)
+      << "  # r *= c_header / nominal\n"
       << "  nominal_sound_speed_mps: " << c.georef.nominal_sound_speed_mps << "\n"
       << "  apply_profile_tilt: " << b(c.georef.apply_profile_tilt) << "\n"
-      << "  spike_half_window: " << c.georef.spike_half_window << "      # beams each side of the median; 0 = off\n"
-      << "  spike_abs_m: " << c.georef.spike_abs_m << "            # spike if |r - median| > abs + rel * median\n"
+      << "  spike_half_window: " << c.georef.spike_half_window
+      << "      # beams each side of the median; 0 = off\n"
+      << "  spike_abs_m: " << c.georef.spike_abs_m
+      << "            # spike if |r - median| > abs + rel * median\n"
       << "  spike_rel: " << c.georef.spike_rel << "\n"
       << "  num_threads: " << c.georef.num_threads << "              # 0 = all cores\n"
       << "calibrate:\n"
-      << "  segment_start_s: " << c.calibrate.segment_start_s << "         # GPS seconds; < 0 = automatic\n"
+      << "  segment_start_s: " << c.calibrate.segment_start_s
+      << "         # GPS seconds; < 0 = automatic\n"
       << "  segment_duration_s: " << c.calibrate.segment_duration_s << "\n"
       << "  part_duration_s: " << c.calibrate.part_duration_s << "\n"
-      << "  min_separation_s: " << c.calibrate.min_separation_s << "      # pairs only between soundings this far apart\n"
+      << "  min_separation_s: " << c.calibrate.min_separation_s
+      << "      # pairs only between soundings this far apart\n"
       << "  beam_stride: " << c.calibrate.beam_stride << "\n"
-      << "  max_distance_m: " << c.calibrate.max_distance_m << "        # correspondence gate, first iteration\n"
+      << "  max_distance_m: " << c.calibrate.max_distance_m
+      << "        # correspondence gate, first iteration\n"
       << "  min_distance_m: " << c.calibrate.min_distance_m << "        # ... last iteration\n"
       << "  normal_radius_m: " << c.calibrate.normal_radius_m << "\n"
       << "  cauchy_scale_m: " << c.calibrate.cauchy_scale_m << "\n"
@@ -126,6 +141,12 @@ std::string DefaultsYaml() {
       << "  max_position_stddev_m: " << c.calibrate.max_position_stddev_m << " # low-drift limit\n"
       << "  max_heading_stddev_deg: " << c.calibrate.max_heading_stddev_deg << "\n"
       << "  num_verify_segments: " << c.calibrate.num_verify_segments << "\n"
+      << "  estimate_height_offsets: " << b(c.calibrate.estimate_height_offsets)
+      << "  # per-node INS height corrections (else parallel passes bias roll)\n"
+      << "  height_offset_sigma_m: " << c.calibrate.height_offset_sigma_m << "  # their prior\n"
+      << "  range_noise_fraction: " << c.calibrate.range_noise_fraction
+      << "  # pair weights 1/sigma^2, sigma = fraction * range + constant\n"
+      << "  range_noise_constant_m: " << c.calibrate.range_noise_constant_m << "\n"
       << "products:\n"
       << "  write_las: " << b(c.write_las) << "\n"
       << "  vehicle_yaml: \"\"          # \"\" = vehicle.yaml beside the first log\n"
@@ -137,28 +158,44 @@ std::string DefaultsYaml() {
 namespace {
 
 json CountsJson(const io::IngestCounts& c) {
-    json j = {{"files", c.files}, {"bytes", c.bytes}, {"events", c.events},
-              {"corrupt_events", c.corrupt_events}, {"resync_bytes", c.resync_bytes},
-              {"truncated_events", c.truncated_events}, {"decode_failures", c.decode_failures},
-              {"nav_samples", c.nav_samples}, {"nav_without_time", c.nav_without_time},
-              {"nav_not_good", c.nav_not_good}, {"nav_duplicates", c.nav_duplicates},
-              {"stddev_samples", c.stddev_samples}, {"pings", c.pings},
-              {"pings_without_time", c.pings_without_time}, {"pings_bad", c.pings_bad},
-              {"ping_duplicates", c.ping_duplicates}, {"raw_chunks_decoded", c.raw_chunks_decoded},
-              {"raw_skipped_bytes", c.raw_skipped_bytes}, {"raw_decode_errors", c.raw_decode_errors}};
+    json j = {{"files", c.files},
+              {"bytes", c.bytes},
+              {"events", c.events},
+              {"corrupt_events", c.corrupt_events},
+              {"resync_bytes", c.resync_bytes},
+              {"truncated_events", c.truncated_events},
+              {"decode_failures", c.decode_failures},
+              {"nav_samples", c.nav_samples},
+              {"nav_without_time", c.nav_without_time},
+              {"nav_not_good", c.nav_not_good},
+              {"nav_duplicates", c.nav_duplicates},
+              {"stddev_samples", c.stddev_samples},
+              {"pings", c.pings},
+              {"pings_without_time", c.pings_without_time},
+              {"pings_bad", c.pings_bad},
+              {"ping_duplicates", c.ping_duplicates},
+              {"raw_chunks_decoded", c.raw_chunks_decoded},
+              {"raw_skipped_bytes", c.raw_skipped_bytes},
+              {"raw_decode_errors", c.raw_decode_errors}};
     return j;
 }
 
 json CountsJson(const georef::GeorefCounts& c) {
-    return {{"pings_in", c.pings_in}, {"pings_georeferenced", c.pings_georeferenced},
-            {"pings_outside_nav", c.pings_outside_nav}, {"pings_in_nav_gap", c.pings_in_nav_gap},
-            {"pings_bad_header", c.pings_bad_header}, {"soundings_in", c.soundings_in},
-            {"no_detection", c.no_detection}, {"range_gate", c.range_gate}, {"spikes", c.spikes},
+    return {{"pings_in", c.pings_in},
+            {"pings_georeferenced", c.pings_georeferenced},
+            {"pings_outside_nav", c.pings_outside_nav},
+            {"pings_in_nav_gap", c.pings_in_nav_gap},
+            {"pings_bad_header", c.pings_bad_header},
+            {"soundings_in", c.soundings_in},
+            {"no_detection", c.no_detection},
+            {"range_gate", c.range_gate},
+            {"spikes", c.spikes},
             {"points", c.points}};
 }
 
 json MountJson(const georef::SonarMount& m) {
-    return {{"roll_deg", m.boresight_roll_deg}, {"pitch_deg", m.boresight_pitch_deg},
+    return {{"roll_deg", m.boresight_roll_deg},
+            {"pitch_deg", m.boresight_pitch_deg},
             {"yaw_deg", m.boresight_yaw_deg},
             {"lever_arm_sonar_m", {m.lever_arm_m.x(), m.lever_arm_m.y(), m.lever_arm_m.z()}},
             {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD"}};
@@ -168,7 +205,9 @@ double Since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-Status WritePoints(const std::string& dir, const georef::GeorefResult& geo, const PipelineConfig& c,
+Status WritePoints(const std::string& dir,
+                   const georef::GeorefResult& geo,
+                   const PipelineConfig& c,
                    json& summary) {
     if (auto s = io::WritePly(dir + "/points.ply", geo); !s) return s;
     auto utm = georef::ToUtm(geo);
@@ -193,11 +232,13 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     o << CountsJson(r->counts).dump(2) << "\n";
     auto span = [](std::int64_t a, std::int64_t b) {
         char s[96];
-        std::snprintf(s, sizeof(s), "%.3f .. %.3f GPS s (%.1f s)", a * 1e-6, b * 1e-6, (b - a) * 1e-6);
+        std::snprintf(
+            s, sizeof(s), "%.3f .. %.3f GPS s (%.1f s)", a * 1e-6, b * 1e-6, (b - a) * 1e-6);
         return std::string(s);
     };
     if (!r->nav.samples.empty()) {
-        o << "nav: " << span(r->nav.samples.front().utime_gps, r->nav.samples.back().utime_gps) << "\n";
+        o << "nav: " << span(r->nav.samples.front().utime_gps, r->nav.samples.back().utime_gps)
+          << "\n";
     }
     if (!r->pings.pings.empty()) {
         o << "pings: " << span(r->pings.pings.front().utime_gps, r->pings.pings.back().utime_gps)
@@ -207,8 +248,10 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     return o.str();
 }
 
-Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string& out_dir,
-                      const PipelineConfig& config, const Log& log) {
+Status RunGeorefStage(const std::vector<std::string>& inputs,
+                      const std::string& out_dir,
+                      const PipelineConfig& config,
+                      const Log& log) {
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec) return Error{out_dir + ": cannot create: " + ec.message()};
@@ -249,16 +292,20 @@ Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string&
     summary["stages"]["ingest"]["peak_rss_mb"] = io::PeakRssMb();
     summary["stages"]["ingest"]["nav_from_raw"] = ing->nav_from_raw;
     summary["stages"]["ingest"]["pings_from_raw"] = ing->pings_from_raw;
-    if (ing->nav.samples.empty()) return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
-    if (ing->pings.pings.empty()) return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
+    if (ing->nav.samples.empty())
+        return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
+    if (ing->pings.pings.empty())
+        return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
 
     t0 = std::chrono::steady_clock::now();
     std::optional<Geodetic> origin;
     if (!std::isnan(config.origin_latitude_deg)) {
-        origin = Geodetic{config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
+        origin = Geodetic{
+            config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter gbar("georef", 1000);
-    georef::GeorefResult geo = georef::RunGeoref(ing->nav, ing->pings, mount, config.georef, origin, gbar.AsCallback());
+    georef::GeorefResult geo =
+        georef::RunGeoref(ing->nav, ing->pings, mount, config.georef, origin, gbar.AsCallback());
     gbar.Finish();
     const double georef_s = Since(t0);
     log("georef: " + geo.message);
@@ -274,11 +321,13 @@ Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string&
 
     t0 = std::chrono::steady_clock::now();
     if (auto s = WritePoints(out_dir, geo, config, summary); !s) return s;
-    if (auto s = io::WriteTrajectoryCsv(out_dir + "/trajectory.csv", ing->nav, geo.world_origin); !s) return s;
+    if (auto s = io::WriteTrajectoryCsv(out_dir + "/trajectory.csv", ing->nav, geo.world_origin);
+        !s)
+        return s;
     if (auto s = io::WriteJsonFile(out_dir + "/boresight.json", MountJson(mount)); !s) return s;
     if (auto s = io::WriteIngestCache(out_dir + "/ingest.cache", *ing); !s) return s;
-    summary["stages"]["export"] = {{"seconds", Since(t0)}, {"peak_rss_mb", io::PeakRssMb()},
-                                   {"points", geo.counts.points}};
+    summary["stages"]["export"] = {
+        {"seconds", Since(t0)}, {"peak_rss_mb", io::PeakRssMb()}, {"points", geo.counts.points}};
     return io::WriteJsonFile(out_dir + "/summary.json", summary);
 }
 
@@ -304,33 +353,48 @@ Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& confi
         return Error{out_dir + "/summary.json: malformed mount"};
     }
     const json& o = s["world_origin"];
-    const Geodetic origin{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
+    const Geodetic origin{
+        o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
     auto t0 = std::chrono::steady_clock::now();
-    georef::GeorefResult geo = georef::RunGeoref(ing->nav, ing->pings, mount, config.georef, origin);
+    georef::GeorefResult geo =
+        georef::RunGeoref(ing->nav, ing->pings, mount, config.georef, origin);
     ProgressReporter bar("calibrate", 1000);
-    calib::BoresightResult cal = calib::CalibrateBoresight(geo, ing->nav, mount, config.calibrate, bar.AsCallback());
+    calib::BoresightResult cal =
+        calib::CalibrateBoresight(geo, ing->nav, mount, config.calibrate, bar.AsCallback());
     bar.Finish();
     log("calibrate: " + cal.message);
-    json st = {{"termination", calib::ToString(cal.termination)},
-               {"iterations", cal.iterations},
-               {"message", cal.message},
-               {"segment", {{"start_s", cal.segment.start_s}, {"end_s", cal.segment.end_s},
-                            {"overlap_cells", cal.segment.overlap_cells},
-                            {"max_position_stddev_m", cal.segment.max_position_stddev_m},
-                            {"max_heading_stddev_deg", cal.segment.max_heading_stddev_deg}}},
-               {"residual_before_rms_m", cal.before.rms_m},
-               {"residual_after_rms_m", cal.after.rms_m},
-               {"pairs", cal.after.pairs},
-               {"boresight_before", MountJson(mount)},
-               {"boresight_after", MountJson(cal.mount)}};
+    json st = {
+        {"termination", calib::ToString(cal.termination)},
+        {"iterations", cal.iterations},
+        {"message", cal.message},
+        {"segment",
+         {{"start_s", cal.segment.start_s},
+          {"end_s", cal.segment.end_s},
+          {"overlap_cells", cal.segment.overlap_cells},
+          {"max_position_stddev_m", cal.segment.max_position_stddev_m},
+          {"max_heading_stddev_deg", cal.segment.max_heading_stddev_deg}}},
+        {"residual_before_rms_m", cal.before.rms_m},
+        {"residual_after_rms_m", cal.after.rms_m},
+        {"pairs", cal.after.pairs},
+        {"formal_sd_deg", {cal.formal_sd_deg[0], cal.formal_sd_deg[1], cal.formal_sd_deg[2]}},
+        {"height_offsets_rms_m", cal.height_offsets_rms_m},
+        {"boresight_before", MountJson(mount)},
+        {"boresight_after", MountJson(cal.mount)}};
     st["verify"] = json::array();
     for (const auto& v : cal.verify) {
-        st["verify"].push_back({{"start_s", v.segment.start_s}, {"end_s", v.segment.end_s},
-                                {"rms_before_m", v.before.rms_m}, {"rms_after_m", v.after.rms_m},
+        st["verify"].push_back({{"start_s", v.segment.start_s},
+                                {"end_s", v.segment.end_s},
+                                {"rms_before_m", v.before.rms_m},
+                                {"rms_after_m", v.after.rms_m},
                                 {"pairs", v.after.pairs}});
         char buf[160];
-        std::snprintf(buf, sizeof(buf), "verify %.1f..%.1f s: residual RMS %.4f -> %.4f m (%lld pairs)",
-                      v.segment.start_s, v.segment.end_s, v.before.rms_m, v.after.rms_m,
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "verify %.1f..%.1f s: residual RMS %.4f -> %.4f m (%lld pairs)",
+                      v.segment.start_s,
+                      v.segment.end_s,
+                      v.before.rms_m,
+                      v.after.rms_m,
                       static_cast<long long>(v.after.pairs));
         log(buf);
     }
