@@ -1,0 +1,115 @@
+// SPDX-License-Identifier: MIT
+// Boresight calibration on a synthetic seabed with relief, surveyed by passes with a known
+// boresight; the soundings are georeferenced with the nominal (zero) boresight and the
+// calibration must recover the true one. One pass alone has no overlap and must say so.
+#include "processor/calib/boresight.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/frames.hpp"
+
+namespace pitmap::proc::calib {
+namespace {
+
+using georef::GeorefResult;
+using georef::SonarMount;
+
+double Seabed(double x, double y) {
+    return -10.0 + 1.5 * std::sin(x / 6.0) + 1.0 * std::cos(y / 5.0);
+}
+
+struct Pass {
+    double t0_s;                 // start time, seconds
+    Eigen::Vector2d start, dir;  // metres, unit direction
+    double length_m;
+};
+
+// Pings at 10 Hz along the passes at 1 m/s; 121 beams over +-60 deg; soundings georeferenced
+// with `nominal`, ranges found on the seabed with `truth`.
+GeorefResult Survey(const std::vector<Pass>& passes,
+                    const SonarMount& truth,
+                    const SonarMount& nominal) {
+    GeorefResult g;
+    const Pose T_vs_true = truth.T_vehicle_sonar(), T_vs_nom = nominal.T_vehicle_sonar();
+    for (const Pass& pass : passes) {
+        const double yaw = std::atan2(pass.dir.x(), pass.dir.y());  // from north, clockwise
+        for (int k = 0; k <= static_cast<int>(pass.length_m * 10); ++k) {
+            const Eigen::Vector2d xy = pass.start + pass.dir * (k * 0.1);
+            georef::GeorefPing ping;
+            ping.utime_gps = static_cast<std::int64_t>((pass.t0_s + k * 0.1) * 1e6);
+            ping.T_world_vehicle =
+                MakePose(frames::RotationWorldFromRpy(0.02 * std::sin(k * 0.3), 0.0, yaw),
+                         Eigen::Vector3d(xy.x(), xy.y(), 0.0));
+            const auto pi = static_cast<std::uint32_t>(g.pings.size());
+            g.pings.push_back(ping);
+            for (int b = 0; b < 121; ++b) {
+                const double theta = frames::DegToRad(-60.0 + b);
+                // Range where the true beam meets the seabed (bisection on the height difference).
+                double lo = 0.5, hi = 60.0;
+                for (int it = 0; it < 60; ++it) {
+                    const double r = 0.5 * (lo + hi);
+                    const Eigen::Vector3d p =
+                        ping.T_world_vehicle * (T_vs_true * georef::BeamVectorSonar(r, theta, 0.0));
+                    (p.z() > Seabed(p.x(), p.y()) ? lo : hi) = r;
+                }
+                const double r = 0.5 * (lo + hi);
+                g.points.position_world.push_back(
+                    ping.T_world_vehicle * (T_vs_nom * georef::BeamVectorSonar(r, theta, 0.0)));
+                g.points.ping.push_back(pi);
+                g.points.beam.push_back(static_cast<std::uint16_t>(b));
+                g.points.range_m.push_back(static_cast<float>(r));
+                g.points.angle_rad.push_back(static_cast<float>(theta));
+            }
+        }
+    }
+    return g;
+}
+
+SonarMount Mount(double roll, double pitch, double yaw) {
+    SonarMount m;
+    m.lever_arm_m = Eigen::Vector3d(0.8, 0.0, 0.25);
+    m.boresight_roll_deg = roll;
+    m.boresight_pitch_deg = pitch;
+    m.boresight_yaw_deg = yaw;
+    return m;
+}
+
+TEST(Boresight, RecoversAKnownErrorFromOppositeAndCrossingPasses) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const std::vector<Pass> passes = {
+        {0.0, {0, -20}, {0, 1}, 40}, {60.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
+    const GeorefResult geo = Survey(passes, truth, nominal);
+    const BoresightResult res = CalibrateBoresight(geo, {}, nominal, BoresightConfig{});
+    EXPECT_NE(res.termination, Termination::kNoOverlap) << res.message;
+    EXPECT_NEAR(res.mount.boresight_roll_deg, 1.0, 0.02) << res.message;
+    EXPECT_NEAR(res.mount.boresight_pitch_deg, -0.8, 0.02) << res.message;
+    EXPECT_NEAR(res.mount.boresight_yaw_deg, 1.5, 0.02) << res.message;
+    EXPECT_LT(res.after.rms_m, 0.5 * res.before.rms_m);
+    EXPECT_GT(res.after.pairs, 1000);
+    EXPECT_EQ(res.mount.lever_arm_m, nominal.lever_arm_m);
+}
+
+TEST(Boresight, OnePassHasNoOverlapAndSaysSo) {
+    const SonarMount truth = Mount(1.0, 0, 0), nominal = Mount(0, 0, 0);
+    const GeorefResult geo = Survey({{0.0, {0, -20}, {0, 1}, 15}}, truth, nominal);
+    const BoresightResult res = CalibrateBoresight(geo, {}, nominal, BoresightConfig{});
+    EXPECT_EQ(res.termination, Termination::kNoOverlap);
+    EXPECT_STREQ(ToString(res.termination), "no_overlap");
+    EXPECT_NE(res.message.find("no overlap"), std::string::npos) << res.message;
+    EXPECT_EQ(res.mount.boresight_roll_deg, 0.0);  // unchanged
+}
+
+TEST(Boresight, ConfigValidationListsEveryProblem) {
+    BoresightConfig c;
+    c.segment_duration_s = 0;
+    c.beam_stride = 0;
+    c.height_offset_sigma_m = -1;
+    const auto p = c.Validate();
+    EXPECT_EQ(p.size(), 3u);
+    EXPECT_TRUE(BoresightConfig{}.Validate().empty());
+}
+
+}  // namespace
+}  // namespace pitmap::proc::calib
