@@ -248,3 +248,17 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
                 0.01 * log_scores.at("points_scored"));
     EXPECT_NEAR(file_scores.at("points_rms_m"), log_scores.at("points_rms_m"), 0.003);
 }
+
+TEST_F(DemoScenario, RawChannelsRedecodeToTheSameSoundings) {
+    std::string out;
+    ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir_ / "sim/log") + " --out " +
+                             Quote(dir_ / "decoded"), &out), 0) << out;
+    ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir_ / "sim/log") + " --from-raw --out " +
+                             Quote(dir_ / "raw"), &out), 0) << out;
+    const auto decoded = Eval(dir_ / "decoded");
+    const auto raw = Eval(dir_ / "raw");
+    ASSERT_TRUE(raw.count("points_scored")) << out;
+    EXPECT_EQ(raw.at("points_scored"), decoded.at("points_scored"));
+    EXPECT_NEAR(raw.at("points_rms_m"), decoded.at("points_rms_m"), 0.001);
+    EXPECT_NEAR(raw.at("trajectory_ate_rmse_m"), decoded.at("trajectory_ate_rmse_m"), 0.001);
+}
