@@ -2,12 +2,12 @@
 #include "tools/sim/truth_io.hpp"
 
 #include <algorithm>
-#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "common/byte_io.hpp"
 #include "common/frames.hpp"
 
 namespace pitmap::sim {
@@ -102,13 +102,11 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
                            {"height_m", truth.origin.height_m}}}};
     if (auto s = WriteText(dir + "/terrain.json", th.dump(2) + "\n"); !s) return s;
     {
-        std::string bytes(g.height_m.size() * 4, '\0');
-        for (std::size_t i = 0; i < g.height_m.size(); ++i) {
-            std::uint32_t bits;
-            std::memcpy(&bits, &g.height_m[i], 4);
-            for (int b = 0; b < 4; ++b) bytes[i * 4 + static_cast<std::size_t>(b)] = static_cast<char>((bits >> (8 * b)) & 0xFF);
-        }
-        if (auto s = WriteText(dir + "/terrain.f32", bytes); !s) return s;
+        std::vector<std::uint8_t> bytes;
+        bytes.reserve(g.height_m.size() * 4);
+        ByteWriter w(bytes);
+        for (const float h : g.height_m) w.F32Le(h);
+        if (auto s = WriteText(dir + "/terrain.f32", std::string(bytes.begin(), bytes.end())); !s) return s;
     }
     std::ostringstream csv;
     csv << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n";
@@ -161,11 +159,8 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         const std::size_t n = static_cast<std::size_t>(t.terrain.nx) * static_cast<std::size_t>(t.terrain.ny);
         if (bytes.size() != n * 4) return Error{path + ": size does not match terrain.json"};
         t.terrain.height_m.resize(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            std::uint32_t bits = 0;
-            for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[i * 4 + static_cast<std::size_t>(b)])) << (8 * b);
-            std::memcpy(&t.terrain.height_m[i], &bits, 4);
-        }
+        ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+        for (std::size_t i = 0; i < n; ++i) t.terrain.height_m[i] = r.F32Le();
     }
     {
         const std::string path = dir + "/trajectory.csv";
