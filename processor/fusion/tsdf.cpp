@@ -21,6 +21,7 @@
 #include <limits>
 #include <mutex>
 
+#include "common/result.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
 
 namespace pitmap::proc::fusion {
@@ -636,6 +637,35 @@ VolumeStats TsdfVolume::Stats() const {
         first = false;
     }
     return s;
+}
+
+WeightHistogram TsdfVolume::ComputeWeightHistogram(int num_bins) const {
+    PITMAP_CHECK(num_bins >= 0, "num_bins must be >= 0");
+    WeightHistogram h;
+    const float w_max = config_.max_weight;
+    if (num_bins == 0) {
+        const int top = static_cast<int>(std::ceil(w_max));
+        for (int k = 0; k <= top + 1; ++k) h.edges.push_back(static_cast<float>(k));
+    } else {
+        for (int k = 0; k <= num_bins; ++k) {
+            h.edges.push_back(w_max * static_cast<float>(k) / static_cast<float>(num_bins));
+        }
+        h.edges.back() = w_max;
+    }
+    const std::size_t bins = h.edges.size() - 1;
+    h.counts.assign(bins, 0);
+    const float width = h.edges[1] - h.edges[0];
+    for (auto v = impl_->weight->tree().cbeginValueOn(); v; ++v) {
+        const float w = *v;
+        std::size_t k = w <= 0.0f ? 0 : static_cast<std::size_t>(w / width);
+        k = std::min(k, bins - 1);
+        // Guard rounding at the edges of equal-width bins.
+        while (k > 0 && w < h.edges[k]) --k;
+        while (k + 1 < bins && w >= h.edges[k + 1]) ++k;
+        ++h.counts[k];
+        ++h.total;
+    }
+    return h;
 }
 
 }  // namespace pitmap::proc::fusion

@@ -100,6 +100,15 @@ struct VolumeStats {
     float max_weight = 0;
 };
 
+// Histogram of the weights of the active (observed) voxels. Bin k counts weights w with
+// edges[k] <= w < edges[k + 1] (the last bin also takes w == edges.back()); counts has
+// edges.size() - 1 entries.
+struct WeightHistogram {
+    std::vector<float> edges;
+    std::vector<std::int64_t> counts;
+    std::int64_t total = 0;  // active voxels counted (sum of counts)
+};
+
 // THREADING: Integrate uses up to num_threads TBB workers internally. Space is cut into slabs
 // along world x; each slab is integrated by one task over all scans in input order, so the
 // result is identical for any thread count (bit for bit). The object itself is not thread safe:
@@ -133,10 +142,17 @@ public:
     float WeightAt(const Eigen::Vector3d& p_world) const;
 
     VolumeStats Stats() const;
+
+    // Weight histogram over the active voxels (config().max_weight is w_max).
+    // num_bins = 0: one bin per unit weight, edges 0, 1, ..., W + 1 with W = ceil(w_max), so a
+    // weight of exactly k lands in bin k and the cap w_max in the last bin.
+    // num_bins > 0: that many equal bins over [0, w_max]. Precondition: num_bins >= 0.
+    WeightHistogram ComputeWeightHistogram(int num_bins = 0) const;
     const TsdfConfig& config() const { return config_; }
 
     struct Impl;  // defined in detail/tsdf_grids.hpp (OpenVDB)
     const Impl& impl() const { return *impl_; }
+    Impl& impl() { return *impl_; }
 
 private:
     TsdfConfig config_;

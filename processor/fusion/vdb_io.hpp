@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Writing the TSDF volume as an OpenVDB .vdb file (grids "tsdf" and "weight") and reading a
-// file's summary back. A file writer unit of the fusion stage (the stage itself does no I/O).
+// Writing the TSDF volume as an OpenVDB .vdb file (grids "tsdf" and "weight"), reading a
+// file's summary back, and reading the volume itself back (e.g. to mesh a fused volume). A file writer unit of the fusion stage (the stage itself does no I/O).
 #pragma once
 
 #include <cstdint>
@@ -30,5 +30,13 @@ Status WriteVdb(const TsdfVolume& volume, const std::string& path,
 
 // Opens a .vdb file and lists its grids with their active voxel counts.
 Expected<VdbFileInfo> ReadVdbInfo(const std::string& path);
+
+// Reads a volume written by WriteVdb. The grid parameters come from the file: voxel_size_m
+// from the grids' transform, truncation_m from the "tsdf" grid's background (+T). Every other
+// field (weights, sensor model, ranges, threads) is taken from `config`, so a later Integrate
+// or FilterByWeight behaves as with that config. Fails (no throw) when the file cannot be
+// read, lacks a float grid "tsdf" or "weight", the two grids disagree in their transform, the
+// transform is not a uniform scale without rotation, or the resulting config is invalid.
+Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config = {});
 
 }  // namespace pitmap::proc::fusion

@@ -304,6 +304,52 @@ TEST(TsdfVolume, ProgressCallbackCanCancel) {
     EXPECT_GE(calls, 1);
 }
 
+TEST(TsdfVolume, WeightHistogramCountsEveryActiveVoxelOncePerUnitWeight) {
+    SyntheticWorld world;
+    LineSurvey survey;
+    survey.x0_m = -1.0;
+    survey.x1_m = 1.0;
+    TsdfConfig c = SmallConfig(SensorModel::kRay);
+    TsdfVolume volume(c);
+    volume.Integrate(MakeScans(world, survey));
+    // 30 repeats of one ping put voxels at the cap, 20.
+    volume.Integrate(std::vector<SonarScan>(30, MakeScans(world, survey).front()));
+    const WeightHistogram h = volume.ComputeWeightHistogram();
+    ASSERT_EQ(h.edges.size(), 22u);  // 0, 1, ..., 21: bins for weights 0..20
+    ASSERT_EQ(h.counts.size(), 21u);
+    EXPECT_FLOAT_EQ(h.edges.front(), 0.0f);
+    EXPECT_FLOAT_EQ(h.edges.back(), 21.0f);
+    const VolumeStats st = volume.Stats();
+    EXPECT_EQ(h.total, st.active_voxels);
+    std::int64_t sum = 0;
+    for (std::int64_t n : h.counts) sum += n;
+    EXPECT_EQ(sum, st.active_voxels);
+    EXPECT_EQ(h.counts[0], 0);   // active voxels have weight >= f = 1
+    EXPECT_GT(h.counts[1], 0);   // seen once
+    EXPECT_GT(h.counts[20], 0);  // capped at w_max
+    // The weight filter with min_weight k removes exactly bins 0..k-1.
+    std::int64_t below5 = 0;
+    for (int k = 0; k < 5; ++k) below5 += h.counts[static_cast<std::size_t>(k)];
+    const WeightFilterResult fr = volume.FilterByWeight({.min_weight = 5.0f});
+    EXPECT_EQ(fr.voxels_removed, below5);
+    // Equal bins over [0, w_max]: the cap lands in the last bin.
+    const WeightHistogram h4 = volume.ComputeWeightHistogram(4);
+    ASSERT_EQ(h4.edges.size(), 5u);
+    EXPECT_FLOAT_EQ(h4.edges[1], 5.0f);
+    EXPECT_FLOAT_EQ(h4.edges.back(), 20.0f);
+    EXPECT_EQ(h4.counts[0], 0);  // [0, 5): removed by the filter
+    EXPECT_GT(h4.counts[3], 0);
+    EXPECT_EQ(h4.total, volume.Stats().active_voxels);
+}
+
+TEST(TsdfVolume, WeightHistogramOfAnEmptyVolumeIsAllZero) {
+    TsdfVolume volume(TsdfConfig{});
+    const WeightHistogram h = volume.ComputeWeightHistogram();
+    EXPECT_EQ(h.counts.size(), 21u);
+    EXPECT_EQ(h.total, 0);
+    for (std::int64_t n : h.counts) EXPECT_EQ(n, 0);
+}
+
 TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     const TsdfConfig defaults;
     EXPECT_TRUE(defaults.Validate().empty());
