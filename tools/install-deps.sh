@@ -18,6 +18,7 @@ processor_pkgs=(
   libsuitesparse-dev libblas-dev liblapack-dev
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev
+  python3-numpy python3-matplotlib
 )
 tool_pkgs=(
   clang libclang-rt-14-dev

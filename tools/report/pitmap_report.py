@@ -1,0 +1,1140 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""pitmap-report: a self-contained HTML report of a products folder.
+
+Usage: pitmap-report P [--scores FILE] [--title TEXT]
+
+Reads what `pitmap run --out P` wrote (summary.json, trajectory[_initial].csv,
+points[_initial].ply, mesh[_initial].ply, boresight.json, optional scores.json from
+pitmap-eval --json) and writes P/report.html with the plots embedded as PNG data URIs
+(no external resource), and the same PNGs under P/report/. The figures follow the seed
+paper: trajectory before/after SLAM and point-cloud cross-sections (Fig. 3), a
+depth-coloured top view and mesh renders before/after SLAM (Fig. 4).
+
+Frames: products are in the local world frame (East, North, Up metres at the summary's
+world_origin); gps_time_s counts seconds since 1980-01-06 on the GPS time scale.
+
+Exit 0 when the report was written (every missing optional product is named in it as
+"not produced: ..."); 1 when P is not a usable products folder (no readable
+summary.json) or the report cannot be written; 2 on bad arguments.
+
+Runs with Debian's python3, python3-numpy and python3-matplotlib (Agg backend) only.
+Large products stay cheap: PLY data is memory-mapped through numpy structured dtypes and
+plots use rasters or subsamples, never every point.
+"""
+
+import argparse
+import base64
+import datetime
+import html
+import io
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
+from matplotlib.colors import LightSource, Normalize  # noqa: E402
+
+PROG = "pitmap-report"
+START_TIME = time.monotonic()
+
+# Stage order of `pitmap run`; summary.json may give its own in "stage_order".
+PIPELINE_STAGES = ["ingest", "georef", "calibrate", "slam", "fuse", "mesh", "export", "report"]
+
+# GPS - UTC: the leap seconds since the GPS epoch, as (first UTC day it applies, GPS - UTC s).
+LEAP_SECONDS = [
+    ((1981, 7, 1), 1), ((1982, 7, 1), 2), ((1983, 7, 1), 3), ((1985, 7, 1), 4),
+    ((1988, 1, 1), 5), ((1990, 1, 1), 6), ((1991, 1, 1), 7), ((1992, 7, 1), 8),
+    ((1993, 7, 1), 9), ((1994, 7, 1), 10), ((1996, 1, 1), 11), ((1997, 7, 1), 12),
+    ((1999, 1, 1), 13), ((2006, 1, 1), 14), ((2009, 1, 1), 15), ((2012, 7, 1), 16),
+    ((2015, 7, 1), 17), ((2017, 1, 1), 18),
+]
+GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06 00:00:00 UTC
+
+# What pitmap-eval's scores mean (pitmap-eval --help); unknown names are shown as they come.
+SCORE_MEANINGS = {
+    "trajectory_ate_rmse_m": "trajectory error after SLAM (RMS position error vs truth, no alignment)",
+    "trajectory_ate_rmse_before_m": "trajectory error before SLAM (trajectory_initial.csv)",
+    "trajectory_ate_max_m": "largest trajectory position error after SLAM",
+    "trajectory_z_std_m": "std of the track height (a surface vehicle's track is planar)",
+    "points_rms_m": "RMS distance of the points to the true terrain",
+    "points_p95_m": "95th percentile of the point distance to the true terrain",
+    "points_bias_m": "mean signed point distance to the true terrain",
+    "points_scored": "points scored",
+    "boresight_error_deg": "angle between the estimated and the true boresight rotation",
+    "mesh_mean_abs_m": "mean |distance| of mesh vertices and centroids to the true surface",
+    "mesh_rms_m": "RMS distance of the mesh to the true surface",
+    "mesh_p95_m": "95th percentile of the mesh distance to the true surface",
+    "mesh_completeness": "share of the insonified true surface within 0.2 m of the mesh",
+}
+
+PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+
+MAX_SCATTER_POINTS = 150_000  # per panel
+FIG_DPI = 100
+
+
+def Log(msg):
+    print(f"{PROG}: [{time.monotonic() - START_TIME:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+
+class ReportError(Exception):
+    """A products folder that cannot be reported on at all."""
+
+
+class PlyError(Exception):
+    pass
+
+
+# ----------------------------------------------------------------------------------- inputs
+
+
+class Ply:
+    """A binary PLY file: header facts plus one numpy structured array per element.
+
+    Elements of fixed-size records are memory-mapped; a list property (faces) is read as a
+    fixed-length array when every record has the same list length (triangles), which is
+    checked. ASCII PLY and variable-length lists raise PlyError.
+    """
+
+    def __init__(self, path):
+        self.path = path
+        self.comments = []
+        self.elements = {}  # name -> structured array
+        self.counts = {}    # name -> count from the header
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+        end = head.find(b"end_header")
+        if not head.startswith(b"ply") or end < 0:
+            raise PlyError(f"{path}: not a PLY file (no 'ply' magic or no end_header)")
+        nl = head.find(b"\n", end)
+        if nl < 0:
+            raise PlyError(f"{path}: header not terminated")
+        data_offset = nl + 1
+        fmt = None
+        elements = []  # (name, count, [prop]) with prop = (name, type) or (name, count_t, item_t)
+        for raw in head[:end].decode("ascii", "replace").splitlines()[1:]:
+            words = raw.split()
+            if not words:
+                continue
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "comment":
+                self.comments.append(raw.strip()[len("comment"):].strip())
+            elif words[0] == "element":
+                elements.append((words[1], int(words[2]), []))
+            elif words[0] == "property":
+                if not elements:
+                    raise PlyError(f"{path}: property before any element")
+                if words[1] == "list":
+                    elements[-1][2].append((words[4], words[2], words[3]))
+                else:
+                    elements[-1][2].append((words[2], words[1]))
+        if fmt == "binary_little_endian":
+            endian = "<"
+        elif fmt == "binary_big_endian":
+            endian = ">"
+        else:
+            raise PlyError(f"{path}: format {fmt} not supported (binary PLY only)")
+
+        def T(name):
+            if name not in PLY_TYPES:
+                raise PlyError(f"{path}: unknown property type {name}")
+            return endian + PLY_TYPES[name]
+
+        file_size = os.path.getsize(path)
+        offset = data_offset
+        for name, count, props in elements:
+            self.counts[name] = count
+            fields = []
+            lists = [p for p in props if len(p) == 3]
+            list_lengths = {}
+            if lists and count > 0:
+                # The first record fixes every list's length; all records are checked below.
+                with open(path, "rb") as f:
+                    f.seek(offset)
+                    first = f.read(4096)
+                pos = 0
+                for p in props:
+                    if len(p) == 2:
+                        pos += np.dtype(T(p[1])).itemsize
+                    else:
+                        ct = np.dtype(T(p[1]))
+                        n = int(np.frombuffer(first, ct, count=1, offset=pos)[0])
+                        list_lengths[p[0]] = n
+                        pos += ct.itemsize + n * np.dtype(T(p[2])).itemsize
+            for p in props:
+                if len(p) == 2:
+                    fields.append((p[0], T(p[1])))
+                else:
+                    fields.append((p[0] + "__count", T(p[1])))
+                    fields.append((p[0], T(p[2]), (list_lengths.get(p[0], 0),)))
+            dtype = np.dtype(fields)
+            size = dtype.itemsize * count
+            if offset + size > file_size:
+                raise PlyError(f"{path}: truncated (element {name} needs {offset + size} bytes, "
+                               f"file has {file_size})")
+            if count == 0:
+                arr = np.zeros(0, dtype)
+            else:
+                arr = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=(count,))
+            for p in lists:
+                if count > 0 and np.any(arr[p[0] + "__count"] != list_lengths[p[0]]):
+                    raise PlyError(f"{path}: element {name}: lists of varying length "
+                                   "are not supported")
+            self.elements[name] = arr
+            offset += size
+
+    def origin(self):
+        for c in self.comments:
+            w = c.split()
+            if len(w) == 4 and w[0] == "pitmap_origin":
+                return tuple(float(v) for v in w[1:])
+        return None
+
+
+def ReadTrajectory(path):
+    """gps_time_s, x_m, y_m, z_m columns of a trajectory CSV as a dict of float arrays."""
+    with open(path) as f:
+        header = f.readline().strip().split(",")
+    need = ["gps_time_s", "x_m", "y_m", "z_m"]
+    missing = [c for c in need if c not in header]
+    if missing:
+        raise ValueError(f"{path}: no column(s) {', '.join(missing)}")
+    cols = [header.index(c) for c in need]
+    data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=cols, ndmin=2)
+    if data.shape[0] == 0:
+        raise ValueError(f"{path}: no rows")
+    order = np.argsort(data[:, 0], kind="stable")
+    data = data[order]
+    return {c: data[:, i] for i, c in enumerate(["t", "x", "y", "z"])}
+
+
+def GpsToUtc(gps_s):
+    approx = datetime.datetime.fromtimestamp(gps_s + GPS_EPOCH_UNIX_S, datetime.timezone.utc)
+    leap = 0
+    for (y, m, d), n in LEAP_SECONDS:
+        if approx >= datetime.datetime(y, m, d, tzinfo=datetime.timezone.utc) + \
+                datetime.timedelta(seconds=n):
+            leap = n
+    return approx - datetime.timedelta(seconds=leap)
+
+
+# ---------------------------------------------------------------------------------- helpers
+
+
+def Esc(v):
+    return html.escape(str(v))
+
+
+def Num(v, digits=3):
+    """Number formatting for tables: integers with thin grouping, floats to `digits`."""
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return f"{v:,}".replace(",", "\u2009")
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return str(v)
+        if v != 0 and (abs(v) >= 1e6 or abs(v) < 10 ** (-digits)):
+            return f"{v:.{digits}g}"
+        return f"{v:.{digits}f}"
+    return Esc(v)
+
+
+def NotProduced(what, why=""):
+    return f'<p class="missing">not produced: {Esc(what)}{(" (" + Esc(why) + ")") if why else ""}</p>'
+
+
+def Table(rows, header=None, cls=""):
+    out = [f'<table class="{cls}">' if cls else "<table>"]
+    if header:
+        out.append("<tr>" + "".join(f"<th>{Esc(h)}</th>" for h in header) + "</tr>")
+    for r in rows:
+        out.append("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def Subsample(n, k, seed=0):
+    """Sorted indices of at most k of n items (all when n <= k)."""
+    if n <= k:
+        return np.arange(n)
+    rng = np.random.default_rng(seed)
+    return np.sort(rng.choice(n, size=k, replace=False))
+
+
+def Limits(arrays, margin=0.03, lo_pct=None):
+    vals = [a for a in arrays if a is not None and len(a)]
+    if not vals:
+        return (0.0, 1.0)
+    if lo_pct is None:
+        lo = min(float(np.nanmin(a)) for a in vals)
+        hi = max(float(np.nanmax(a)) for a in vals)
+    else:
+        lo = min(float(np.nanpercentile(a, lo_pct)) for a in vals)
+        hi = max(float(np.nanpercentile(a, 100 - lo_pct)) for a in vals)
+    span = max(hi - lo, 1e-6)
+    return (lo - margin * span, hi + margin * span)
+
+
+def RasterMean(x, y, v, x0, y0, cell, nx, ny):
+    """Mean of v per grid cell (NaN where empty); rows are y, columns x."""
+    ix = np.floor((x - x0) / cell).astype(np.int64)
+    iy = np.floor((y - y0) / cell).astype(np.int64)
+    ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & np.isfinite(v)
+    flat = iy[ok] * nx + ix[ok]
+    s = np.bincount(flat, weights=v[ok], minlength=nx * ny)
+    n = np.bincount(flat, minlength=nx * ny)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        grid = s / n
+    grid[n == 0] = np.nan
+    return grid.reshape(ny, nx)
+
+
+def RasterMax(x, y, v, x0, y0, cell, nx, ny):
+    """Largest v per grid cell (the surface seen from above), NaN where empty."""
+    ix = np.floor((x - x0) / cell).astype(np.int64)
+    iy = np.floor((y - y0) / cell).astype(np.int64)
+    ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny) & np.isfinite(v)
+    flat = iy[ok] * nx + ix[ok]
+    vv = v[ok]
+    grid = np.full(nx * ny, np.nan)
+    if len(flat):
+        order = np.lexsort((vv, flat))
+        fs = flat[order]
+        last = np.r_[fs[1:] != fs[:-1], True]
+        grid[fs[last]] = vv[order][last]
+    return grid.reshape(ny, nx)
+
+
+def FillHoles(grid, passes=2):
+    """NaN cells next to data take the mean of their valid 8-neighbours (`passes` rings),
+    so that the hill-shade gradient has no artificial cliff at a hole's edge."""
+    g = grid.copy()
+    for _ in range(passes):
+        nan = np.isnan(g)
+        if not nan.any():
+            break
+        p = np.pad(g, 1, constant_values=np.nan)
+        stack = np.stack([p[1 + dy:p.shape[0] - 1 + dy, 1 + dx:p.shape[1] - 1 + dx]
+                          for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx])
+        cnt = np.sum(np.isfinite(stack), axis=0)
+        with np.errstate(invalid="ignore"):
+            mean = np.nansum(stack, axis=0) / np.maximum(cnt, 1)
+        fill = nan & (cnt > 0)
+        g[fill] = mean[fill]
+    return g
+
+
+# ------------------------------------------------------------------------------ the report
+
+
+class Report:
+    def __init__(self, folder, scores_path, title):
+        self.folder = folder
+        self.fig_dir = os.path.join(folder, "report")
+        self.scores_path = scores_path
+        self.title = title
+        self.missing = []   # names of optional products not found
+        self.problems = []  # sections that failed to draw
+        path = os.path.join(folder, "summary.json")
+        if not os.path.isfile(path):
+            raise ReportError(f"{folder}: no summary.json (not a pitmap products folder?)")
+        try:
+            with open(path) as f:
+                self.summary = json.load(f)
+        except (OSError, ValueError) as e:
+            raise ReportError(f"{path}: cannot read: {e}")
+        if not isinstance(self.summary, dict):
+            raise ReportError(f"{path}: not a JSON object")
+        self.stages = self.summary.get("stages") or {}
+        if not isinstance(self.stages, dict):
+            self.stages = {}
+        os.makedirs(self.fig_dir, exist_ok=True)
+        self.traj = {}
+        self.points = {}
+        self.t0 = None
+        self.ref_z = 0.0
+
+    # ---- loading
+    def P(self, name):
+        return os.path.join(self.folder, name)
+
+    def Missing(self, name, why=""):
+        if name not in self.missing:
+            self.missing.append(name)
+        return NotProduced(name, why)
+
+    def LoadTrajectories(self):
+        for key, name in (("initial", "trajectory_initial.csv"), ("final", "trajectory.csv")):
+            if os.path.isfile(self.P(name)):
+                try:
+                    self.traj[key] = ReadTrajectory(self.P(name))
+                    Log(f"{name}: {len(self.traj[key]['t'])} poses")
+                except (OSError, ValueError) as e:
+                    Log(f"{name}: unreadable: {e}")
+                    self.problems.append(f"{name}: {e}")
+        ts = [tr["t"][0] for tr in self.traj.values()]
+        if ts:
+            self.t0 = min(ts)
+        main = self.traj.get("final") or self.traj.get("initial")
+        if main is not None:
+            self.ref_z = float(np.median(main["z"]))
+
+    def LoadPoints(self):
+        for key, name in (("initial", "points_initial.ply"), ("final", "points.ply")):
+            if not os.path.isfile(self.P(name)):
+                continue
+            try:
+                ply = Ply(self.P(name))
+                v = ply.elements.get("vertex")
+                if v is None or not all(c in v.dtype.names for c in ("x", "y", "z")):
+                    raise PlyError(f"{name}: no vertex x, y, z")
+                self.points[key] = v
+                Log(f"{name}: {len(v)} points")
+            except (OSError, PlyError) as e:
+                Log(f"{name}: unreadable: {e}")
+                self.problems.append(str(e))
+        if self.t0 is None:
+            for v in self.points.values():
+                if "gps_time_s" in v.dtype.names and len(v):
+                    self.t0 = float(np.min(v["gps_time_s"][::max(1, len(v) // 10000)]))
+
+    def LoadMesh(self, name):
+        if not os.path.isfile(self.P(name)):
+            return None
+        ply = Ply(self.P(name))
+        v = ply.elements.get("vertex")
+        f = ply.elements.get("face")
+        if v is None or f is None:
+            raise PlyError(f"{name}: no vertex or face element")
+        lists = [n for n in f.dtype.names if not n.endswith("__count")]
+        if not lists or f.dtype[lists[0]].shape != (3,) and len(f):
+            raise PlyError(f"{name}: faces are not triangles")
+        xyz = np.stack([np.asarray(v[c], dtype=np.float64) for c in ("x", "y", "z")], axis=1)
+        tri = np.asarray(f[lists[0]], dtype=np.int64).reshape(-1, 3) if len(f) else \
+            np.zeros((0, 3), np.int64)
+        if len(tri) and (tri.min() < 0 or tri.max() >= len(xyz)):
+            raise PlyError(f"{name}: face index out of range")
+        return xyz, tri
+
+    # ---- figures
+    def Figure(self, fig, name, alt):
+        path = os.path.join(self.fig_dir, name + ".png")
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=FIG_DPI)
+        plt.close(fig)
+        data = buf.getvalue()
+        with open(path, "wb") as f:
+            f.write(data)
+        Log(f"figure {name}.png ({len(data) // 1024} kB)")
+        b64 = base64.b64encode(data).decode("ascii")
+        return f'<img alt="{Esc(alt)}" src="data:image/png;base64,{b64}">'
+
+    def MinutesOf(self, t):
+        return (np.asarray(t, dtype=np.float64) - (self.t0 or 0.0)) / 60.0
+
+    # ---- sections; each returns an HTML fragment
+    def SectionHeader(self):
+        s = self.summary
+        rows = []
+        main = self.traj.get("final") or self.traj.get("initial")
+        if main is not None:
+            t_a, t_b = float(main["t"][0]), float(main["t"][-1])
+            u_a, u_b = GpsToUtc(t_a), GpsToUtc(t_b)
+            rows.append(("Survey time (UTC)",
+                         f"{u_a:%Y-%m-%d %H:%M:%S} to {u_b:%H:%M:%S} "
+                         f"({(t_b - t_a) / 60:.1f} min; GPS {t_a:.1f} to {t_b:.1f} s)"))
+            length = float(np.sum(np.hypot(np.diff(main["x"]), np.diff(main["y"]))))
+            which = "after SLAM" if "final" in self.traj else "before SLAM"
+            rows.append(("Track length", f"{length:.0f} m ({which})"))
+        o = s.get("world_origin") or {}
+        if o:
+            rows.append(("World origin (WGS84)",
+                         f"lat {Num(float(o.get('latitude_deg', float('nan'))), 7)}&deg;, "
+                         f"lon {Num(float(o.get('longitude_deg', float('nan'))), 7)}&deg;, "
+                         f"h {Num(float(o.get('height_m', float('nan'))), 2)} m; "
+                         "frame: East, North, Up metres"))
+        u = s.get("utm") or {}
+        if u:
+            rows.append(("Projected CRS", f"UTM zone {Esc(u.get('zone'))}"
+                         f"{'N' if u.get('northern', True) else 'S'}, EPSG:{Esc(u.get('epsg'))}"))
+        geo = self.stages.get("georef") or {}
+        ing = self.stages.get("ingest") or {}
+        if "pings_georeferenced" in geo:
+            rows.append(("Pings", f"{Num(geo['pings_georeferenced'])} georeferenced of "
+                         f"{Num(geo.get('pings_in', ing.get('pings', '?')))}"))
+        elif "pings" in ing:
+            rows.append(("Pings", Num(ing["pings"])))
+        for key, label in (("final", "Points (after SLAM)"), ("initial", "Points (before SLAM)")):
+            if key in self.points:
+                rows.append((label, Num(len(self.points[key]))))
+        for name in ("mesh.ply", "mesh_initial.ply"):
+            if os.path.isfile(self.P(name)):
+                try:
+                    ply = Ply(self.P(name))
+                    rows.append((f"Mesh {name}", f"{Num(ply.counts.get('vertex', 0))} vertices, "
+                                 f"{Num(ply.counts.get('face', 0))} triangles"))
+                except (OSError, PlyError) as e:
+                    rows.append((f"Mesh {name}", Esc(e)))
+        if "total_seconds" in s:
+            rows.append(("Processing time", f"{float(s['total_seconds']):.1f} s"))
+        inputs = s.get("inputs") or []
+        if inputs:
+            rows.append(("Inputs", "<br>".join(Esc(i) for i in inputs)))
+        m = s.get("mount") or {}
+        if m:
+            rows.append(("Boresight used (roll, pitch, yaw)",
+                         f"{Num(float(m.get('roll_deg', 0)))}&deg;, "
+                         f"{Num(float(m.get('pitch_deg', 0)))}&deg;, "
+                         f"{Num(float(m.get('yaw_deg', 0)))}&deg;"))
+        rows.append(("Report written (UTC)",
+                     f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M:%S}"))
+        return Table([(f"<b>{k}</b>", v) for k, v in rows], cls="facts")
+
+    def SectionTrajectory(self):
+        if not self.traj:
+            return self.Missing("trajectory.csv and trajectory_initial.csv")
+        out = []
+        if "initial" not in self.traj:
+            out.append(self.Missing("trajectory_initial.csv", "no before-SLAM trajectory"))
+        if "final" not in self.traj:
+            out.append(self.Missing("trajectory.csv", "no after-SLAM trajectory"))
+        trs = {k: v for k, v in self.traj.items()}
+        dec = {k: slice(None, None, max(1, len(v["t"]) // 20000)) for k, v in trs.items()}
+        xl = Limits([v["x"] for v in trs.values()])
+        yl = Limits([v["y"] for v in trs.values()])
+        zl = Limits([v["z"] for v in trs.values()], margin=0.08)
+        tl = Limits([self.MinutesOf(v["t"]) for v in trs.values()], margin=0.01)
+        top_h = float(np.clip(6.0 * (yl[1] - yl[0]) / (xl[1] - xl[0]), 2.5, 9.0))
+        fig, ax = plt.subplots(2, 2, figsize=(13, top_h + 4.2), height_ratios=[top_h, 3.0],
+                               layout="constrained")
+        panels = [("initial", "(a) before SLAM (GPS/INS)", "k", "--"),
+                  ("final", "(b) after SLAM", "tab:red", "-")]
+        for col, (key, title, colour, ls) in enumerate(panels):
+            a_top, a_z = ax[0][col], ax[1][col]
+            if key not in trs:
+                for a in (a_top, a_z):
+                    a.text(0.5, 0.5, "not produced", ha="center", va="center",
+                           transform=a.transAxes, color="grey")
+                a_top.set_title(title)
+                continue
+            tr, d = trs[key], dec[key]
+            if key == "final" and "initial" in trs:
+                ti, di = trs["initial"], dec["initial"]
+                a_top.plot(ti["x"][di], ti["y"][di], color="0.7", ls="--", lw=0.7,
+                           label="before SLAM")
+                a_z.plot(self.MinutesOf(ti["t"][di]), ti["z"][di], color="0.7", ls="--", lw=0.7,
+                         label="before SLAM")
+            a_top.plot(tr["x"][d], tr["y"][d], color=colour, ls=ls, lw=0.9,
+                       label=title.split(") ")[1])
+            a_top.plot(tr["x"][0], tr["y"][0], "o", color=colour, ms=5, label="start")
+            a_z.plot(self.MinutesOf(tr["t"][d]), tr["z"][d], color=colour, ls=ls, lw=0.9,
+                     label=title.split(") ")[1])
+            a_top.set_title(title)
+            a_top.set_xlim(xl)
+            a_top.set_ylim(yl)
+            a_top.set_aspect("equal", adjustable="box")
+            a_top.set_xlabel("East x (m)")
+            a_top.set_ylabel("North y (m)")
+            a_top.grid(alpha=0.3)
+            a_top.legend(loc="best", fontsize=8)
+            a_z.set_xlim(tl)
+            a_z.set_ylim(zl)
+            a_z.set_xlabel("time since start (min)")
+            a_z.set_ylabel("height z (m)")
+            a_z.set_title(f"track height, std {np.std(tr['z']):.3f} m, "
+                          f"range {np.ptp(tr['z']):.3f} m")
+            a_z.grid(alpha=0.3)
+            a_z.legend(loc="best", fontsize=8)
+        out.append(self.Figure(fig, "trajectory", "trajectory before and after SLAM"))
+        out.append('<p class="caption">Top: the track seen from above; bottom: its height over '
+                   "time. A surface vehicle moves on a plane: after SLAM the height should be "
+                   "flat. Both columns share their axis limits.</p>")
+        return "\n".join(out)
+
+    def SectionCrossSections(self):
+        if not self.points:
+            return self.Missing("points.ply and points_initial.ply")
+        out = []
+        if "initial" not in self.points:
+            out.append(self.Missing("points_initial.ply", "no before-SLAM point cloud"))
+        if "final" not in self.points:
+            out.append(self.Missing("points.ply", "no after-SLAM point cloud"))
+        ref = self.points.get("final", self.points.get("initial"))
+        step = max(1, len(ref) // 200_000)
+        xs = np.asarray(ref["x"][::step], dtype=np.float64)
+        ys = np.asarray(ref["y"][::step], dtype=np.float64)
+        xc = 0.5 * sum(np.percentile(xs, [1, 99])) if len(xs) else 0.0
+        yc = 0.5 * sum(np.percentile(ys, [1, 99])) if len(ys) else 0.0
+        half = 0.5
+        cuts = {}  # (axis, key) -> (u, z, minutes)
+        for key, pts in self.points.items():
+            x = np.asarray(pts["x"], dtype=np.float64)
+            y = np.asarray(pts["y"], dtype=np.float64)
+            has_t = "gps_time_s" in pts.dtype.names
+            for axis, sel, u in (("x", np.abs(y - yc) < half, x), ("y", np.abs(x - xc) < half, y)):
+                idx = np.nonzero(sel)[0]
+                idx = idx[Subsample(len(idx), MAX_SCATTER_POINTS, seed=1)]
+                z = np.asarray(pts["z"][idx], dtype=np.float64)
+                m = self.MinutesOf(pts["gps_time_s"][idx]) if has_t else np.zeros(len(idx))
+                cuts[(axis, key)] = (u[idx], z, m)
+            del x, y
+        all_m = [c[2] for c in cuts.values() if len(c[2])]
+        tnorm = Normalize(min(float(m.min()) for m in all_m) if all_m else 0,
+                          max(float(m.max()) for m in all_m) if all_m else 1)
+        geom = {}
+        for axis in ("x", "y"):
+            ul = Limits([cuts[(axis, k)][0] for k in self.points], margin=0.02, lo_pct=0.2)
+            zl = Limits([cuts[(axis, k)][1] for k in self.points], margin=0.05, lo_pct=0.2)
+            # Vertical exaggeration so that a panel is about 2.8 times as wide as high.
+            ve = max(1.0, round(2 * (ul[1] - ul[0]) / (2.8 * (zl[1] - zl[0]))) / 2)
+            geom[axis] = (ul, zl, ve, 5.6 * ve * (zl[1] - zl[0]) / (ul[1] - ul[0]))
+        fig, ax = plt.subplots(2, 2, figsize=(13, geom["x"][3] + geom["y"][3] + 1.8),
+                               height_ratios=[geom["x"][3], geom["y"][3]], layout="constrained")
+        sc = None
+        for row, axis in enumerate(("x", "y")):
+            ul, zl, ve, _ = geom[axis]
+            for col, (key, title) in enumerate((("initial", "(c) before SLAM"),
+                                                ("final", "(d) after SLAM"))):
+                a = ax[row][col]
+                where = (f"slab |y - {yc:.1f}| < {half} m" if axis == "x"
+                         else f"slab |x - {xc:.1f}| < {half} m")
+                a.set_title(f"{title}: along {axis}, {where}", fontsize=10)
+                if (axis, key) not in cuts:
+                    a.text(0.5, 0.5, "not produced", ha="center", va="center",
+                           transform=a.transAxes, color="grey")
+                    continue
+                u, z, m = cuts[(axis, key)]
+                sc = a.scatter(u, z, c=m, s=1.0, cmap="turbo", norm=tnorm, linewidths=0,
+                               rasterized=True)
+                a.set_xlim(ul)
+                a.set_ylim(zl)
+                a.set_aspect(ve, adjustable="box")
+                a.set_xlabel(f"{'East x' if axis == 'x' else 'North y'} (m)")
+                a.set_ylabel(f"height z (m), vert. exag. {ve:g}x")
+                a.grid(alpha=0.3)
+                a.text(0.01, 0.02, f"{len(u)} points", transform=a.transAxes, fontsize=8)
+        if sc is not None:
+            cb = fig.colorbar(sc, ax=ax, shrink=0.8, pad=0.01, aspect=30)
+            cb.set_label("pass time (min since start)")
+        out.append(self.Figure(fig, "cross_sections", "point cloud cross-sections before/after"))
+        out.append('<p class="caption">Points within 0.5 m of a vertical plane through the middle '
+                   "of the survey, coloured by the time they were measured. Passes that disagree "
+                   "show as doubled walls or floors in different colours (paper Fig. 3 c/d).</p>")
+        return "\n".join(out)
+
+    def SectionDepth(self):
+        if "final" not in self.points:
+            return self.Missing("points.ply", "no after-SLAM point cloud")
+        pts = self.points["final"]
+        x = np.asarray(pts["x"], dtype=np.float64)
+        y = np.asarray(pts["y"], dtype=np.float64)
+        z = np.asarray(pts["z"], dtype=np.float64)
+        xl = Limits([x], margin=0.02, lo_pct=0.05)
+        yl = Limits([y], margin=0.02, lo_pct=0.05)
+        cell = max(0.1, max(xl[1] - xl[0], yl[1] - yl[0]) / 500.0)
+        nx = max(1, int(math.ceil((xl[1] - xl[0]) / cell)))
+        ny = max(1, int(math.ceil((yl[1] - yl[0]) / cell)))
+        grid = FillHoles(RasterMean(x, y, self.ref_z - z, xl[0], yl[0], cell, nx, ny), passes=1)
+        del x, y, z
+        valid = grid[np.isfinite(grid)]
+        vmin, vmax = (np.percentile(valid, [0.5, 99.5]) if len(valid) else (0, 1))
+        fig, a = plt.subplots(figsize=(12, float(np.clip(10.5 * ny / nx, 3, 14)) + 0.8),
+                              layout="constrained")
+        im = a.imshow(grid, origin="lower", extent=(xl[0], xl[0] + nx * cell, yl[0],
+                      yl[0] + ny * cell), cmap="turbo_r", vmin=vmin, vmax=vmax,
+                      interpolation="nearest")
+        tr = self.traj.get("final")
+        if tr is not None:
+            d = slice(None, None, max(1, len(tr["t"]) // 20000))
+            a.plot(tr["x"][d], tr["y"][d], color="k", lw=0.4, alpha=0.6, label="track")
+            a.legend(loc="upper right", fontsize=8)
+        a.set_xlim(xl)
+        a.set_ylim(yl)
+        a.set_aspect("equal")
+        a.set_xlabel("East x (m)")
+        a.set_ylabel("North y (m)")
+        a.set_title(f"points after SLAM: mean depth per {cell:.2f} m cell")
+        a.grid(alpha=0.25)
+        cb = fig.colorbar(im, ax=a, shrink=0.9, pad=0.01)
+        cb.set_label(f"depth below the track (m; track median z = {self.ref_z:.2f} m)")
+        return "\n".join([self.Figure(fig, "depth_top_view", "depth-coloured top view"),
+                          f'<p class="caption">{Num(len(pts))} points rasterised; white cells '
+                          "hold no point (single empty cells are filled from their neighbours).</p>"])
+
+    def SectionMesh(self):
+        meshes = {}
+        out = []
+        for key, name in (("initial", "mesh_initial.ply"), ("final", "mesh.ply")):
+            try:
+                m = self.LoadMesh(name)
+            except (OSError, PlyError) as e:
+                out.append(NotProduced(name, str(e)))
+                self.problems.append(str(e))
+                continue
+            if m is None:
+                out.append(self.Missing(name, "no mesh before SLAM" if key == "initial"
+                                        else "no mesh after SLAM"))
+            elif len(m[1]) == 0:
+                out.append(NotProduced(name, "empty mesh"))
+            else:
+                meshes[key] = m
+                Log(f"{name}: {len(m[0])} vertices, {len(m[1])} triangles")
+        if not meshes:
+            return "\n".join(out)
+        xl = Limits([m[0][:, 0] for m in meshes.values()], margin=0.02)
+        yl = Limits([m[0][:, 1] for m in meshes.values()], margin=0.02)
+        cell = max(0.05, max(xl[1] - xl[0], yl[1] - yl[0]) / 700.0)
+        nx = max(1, int(math.ceil((xl[1] - xl[0]) / cell)))
+        ny = max(1, int(math.ceil((yl[1] - yl[0]) / cell)))
+        grids = {k: self.RasteriseMesh(v, t, xl[0], yl[0], cell, nx, ny)
+                 for k, (v, t) in meshes.items()}
+        valid = np.concatenate([g[np.isfinite(g)] for g in grids.values()])
+        depth_lim = (np.percentile(self.ref_z - valid, [0.5, 99.5]) if len(valid) else (0, 1))
+        norm = Normalize(*depth_lim)
+        cmap = plt.get_cmap("turbo_r")
+        ls = LightSource(azdeg=315, altdeg=40)
+        fig, ax = plt.subplots(1, 2, figsize=(14, float(np.clip(6.0 * ny / nx, 2.5, 9)) + 0.9),
+                               squeeze=False, layout="constrained")
+        for col, (key, title) in enumerate((("initial", "(c) mesh before SLAM"),
+                                            ("final", "(d) mesh after SLAM"))):
+            a = ax[0][col]
+            a.set_title(title)
+            if key not in grids:
+                a.text(0.5, 0.5, "not produced", ha="center", va="center",
+                       transform=a.transAxes, color="grey")
+                a.set_axis_off()
+                continue
+            g = grids[key]
+            filled = FillHoles(g)
+            filled_any = np.where(np.isfinite(filled), filled, np.nanmean(g))
+            rgb = cmap(norm(self.ref_z - filled_any))[..., :3]
+            shaded = ls.shade_rgb(rgb, filled_any, fraction=1.0, blend_mode="soft",
+                                  vert_exag=2.0, dx=cell, dy=cell)
+            rgba = np.dstack([shaded, np.isfinite(g).astype(float)])
+            a.imshow(rgba, origin="lower", extent=(xl[0], xl[0] + nx * cell, yl[0],
+                     yl[0] + ny * cell), interpolation="bilinear")
+            a.set_xlim(xl)
+            a.set_ylim(yl)
+            a.set_aspect("equal")
+            a.set_xlabel("East x (m)")
+            a.set_ylabel("North y (m)")
+            v, t = meshes[key]
+            a.text(0.01, 0.01, f"{len(v)} vertices, {len(t)} triangles", fontsize=8,
+                   transform=a.transAxes)
+        sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+        cb = fig.colorbar(sm, ax=ax, shrink=0.9, pad=0.01)
+        cb.set_label("depth below the track (m)")
+        out.append(self.Figure(fig, "mesh_renders", "mesh renders before and after SLAM"))
+        out.append('<p class="caption">Each mesh rasterised from above (highest surface per '
+                   f"{cell:.2f} m cell), hill-shaded with light from the north-west (vertical "
+                   "exaggeration 2) and coloured by depth; the same colours and axes in both "
+                   "panels (paper Fig. 4 c/d). A rough floor or doubled benches before SLAM "
+                   "show passes that disagree.</p>")
+        out.append(self.Oblique(grids, meshes, xl, yl, cell, norm, cmap, ls))
+        return "\n".join(out)
+
+    def RasteriseMesh(self, v, t, x0, y0, cell, nx, ny):
+        """Top surface of a triangle mesh on a grid: each triangle is sampled on a barycentric
+        lattice fine enough to hit every cell it covers, the highest sample per cell wins."""
+        a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+        edge = np.maximum(np.maximum(np.hypot(*(a - b)[:, :2].T), np.hypot(*(b - c)[:, :2].T)),
+                          np.hypot(*(c - a)[:, :2].T))
+        n = np.clip(np.ceil(edge / (0.7 * cell)), 1, 64).astype(np.int64)
+        xs, ys, zs = [v[:, 0]], [v[:, 1]], [v[:, 2]]
+        for k in np.unique(n):
+            sel = n == k
+            i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+            keep = (i + j <= k) & ~(((i == k) & (j == 0)) | ((i == 0) & (j == k)) |
+                                    ((i == 0) & (j == 0)))
+            if k == 1:  # vertices are already in; add the centroid
+                wa = np.array([1 / 3])
+                wb = np.array([1 / 3])
+            else:
+                wa = (i[keep] / k).astype(np.float64)
+                wb = (j[keep] / k).astype(np.float64)
+            wc = 1.0 - wa - wb
+            p = (a[sel][:, None, :] * wa[None, :, None] + b[sel][:, None, :] * wb[None, :, None]
+                 + c[sel][:, None, :] * wc[None, :, None]).reshape(-1, 3)
+            xs.append(p[:, 0])
+            ys.append(p[:, 1])
+            zs.append(p[:, 2])
+        return RasterMax(np.concatenate(xs), np.concatenate(ys), np.concatenate(zs),
+                         x0, y0, cell, nx, ny)
+
+    def Oblique(self, grids, meshes, xl, yl, cell, norm, cmap, ls):
+        """An oblique 3-D view of the rasterised meshes (coarse, lit), as a surveyor would
+        look into the pit from its rim."""
+        step = max(1, int(math.ceil(max(next(iter(grids.values())).shape) / 160)))
+        fig = plt.figure(figsize=(14, 6.5))
+        for col, (key, title) in enumerate((("initial", "before SLAM"), ("final", "after SLAM"))):
+            a = fig.add_subplot(1, 2, col + 1, projection="3d")
+            a.set_title(f"oblique view, {title}")
+            if key not in grids:
+                a.text2D(0.5, 0.5, "not produced", ha="center", transform=a.transAxes,
+                         color="grey")
+                continue
+            g = FillHoles(grids[key])[::step, ::step]
+            ny, nx = g.shape
+            X, Y = np.meshgrid(xl[0] + (np.arange(nx) + 0.5) * cell * step,
+                               yl[0] + (np.arange(ny) + 0.5) * cell * step)
+            finite = np.isfinite(g)
+            gz = np.where(finite, g, np.nanmean(g))
+            rgb = ls.shade_rgb(cmap(norm(self.ref_z - gz))[..., :3], gz, fraction=1.0,
+                               blend_mode="soft", vert_exag=1.0, dx=cell * step, dy=cell * step)
+            rgba = np.dstack([rgb, finite.astype(float)])
+            Z = np.where(finite, g, np.nan)
+            a.plot_surface(X, Y, Z, facecolors=rgba, rstride=1, cstride=1, linewidth=0,
+                           antialiased=False, shade=False)
+            a.view_init(elev=35, azim=-60)
+            a.set_xlabel("East x (m)")
+            a.set_ylabel("North y (m)")
+            a.set_zlabel("z (m)")
+            # True scale, but never flatter than 0.15 of the width.
+            a.set_box_aspect((xl[1] - xl[0], yl[1] - yl[0],
+                              max(0.15 * max(xl[1] - xl[0], yl[1] - yl[0]),
+                                  float(np.nanmax(g) - np.nanmin(g)))))
+        fig.subplots_adjust(left=0.02, right=0.98, bottom=0.04, top=0.94, wspace=0.05)
+        return self.Figure(fig, "mesh_oblique", "oblique 3-D view of the meshes")
+
+    def SectionBoresight(self):
+        out = []
+        cal = self.stages.get("calibrate")
+        bs_file = self.P("boresight.json")
+        mount = None
+        if os.path.isfile(bs_file):
+            try:
+                with open(bs_file) as f:
+                    mount = json.load(f)
+            except (OSError, ValueError) as e:
+                out.append(NotProduced("boresight.json", f"unreadable: {e}"))
+        else:
+            out.append(self.Missing("boresight.json"))
+        if not isinstance(cal, dict):
+            out.append(self.Missing("boresight calibration",
+                                    "no calibrate stage in summary.json; the mount was used "
+                                    "as configured"))
+            if isinstance(mount, dict):
+                out.append(Table([[Esc(a), Num(float(mount.get(f"{a}_deg", float("nan"))), 4)]
+                                  for a in ("roll", "pitch", "yaw")],
+                                 header=["axis", "boresight used (deg)"]))
+            return "\n".join(out)
+        b0 = cal.get("boresight_before") or {}
+        b1 = cal.get("boresight_after") or mount or {}
+        sd = cal.get("formal_sd_deg") or [float("nan")] * 3
+        rows = []
+        for i, axis in enumerate(("roll", "pitch", "yaw")):
+            a0 = float(b0.get(f"{axis}_deg", float("nan")))
+            a1 = float(b1.get(f"{axis}_deg", float("nan")))
+            rows.append([axis, Num(a0, 4), Num(a1, 4), Num(a1 - a0, 4),
+                         Num(float(sd[i]) if i < len(sd) else float("nan"), 4)])
+        out.append(Table(rows, header=["axis", "before (deg)", "after (deg)", "change (deg)",
+                                       "formal sd (deg)"]))
+        facts = []
+        if "residual_before_rms_m" in cal or "residual_after_rms_m" in cal:
+            facts.append(("residual RMS", f"{Num(cal.get('residual_before_rms_m', float('nan')), 4)}"
+                          f" &rarr; {Num(cal.get('residual_after_rms_m', float('nan')), 4)} m"))
+        for k in ("pairs", "iterations", "termination", "height_offsets_rms_m"):
+            if k in cal:
+                facts.append((k.replace("_", " "), Num(cal[k], 4)))
+        seg = cal.get("segment")
+        if isinstance(seg, dict) and "start_s" in seg:
+            t0 = self.t0 or seg["start_s"]
+            facts.append(("calibration segment",
+                          f"{(seg['start_s'] - t0) / 60:.2f} to {(seg.get('end_s', 0) - t0) / 60:.2f}"
+                          f" min since start ({seg.get('end_s', 0) - seg['start_s']:.0f} s)"))
+        if cal.get("message"):
+            facts.append(("message", Esc(cal["message"])))
+        out.append(Table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"))
+        ver = cal.get("verify")
+        if isinstance(ver, list) and ver:
+            t0 = self.t0 or 0.0
+            rows = []
+            for v in ver:
+                rows.append([f"{(v.get('start_s', 0) - t0) / 60:.2f}&ndash;"
+                             f"{(v.get('end_s', 0) - t0) / 60:.2f}",
+                             Num(float(v.get("rms_before_m", float("nan"))), 4),
+                             Num(float(v.get("rms_after_m", float("nan"))), 4),
+                             Num(v.get("pairs", 0))])
+            out.append("<h3>Verification segments</h3>")
+            out.append(Table(rows, header=["segment (min since start)", "RMS before (m)",
+                                           "RMS after (m)", "pairs"]))
+        else:
+            out.append('<p class="missing">not produced: verification segments (none found '
+                       "outside the calibration segment)</p>")
+        return "\n".join(out)
+
+    def SectionTsdf(self):
+        fuse = self.stages.get("fuse")
+        if not isinstance(fuse, dict):
+            return self.Missing("TSDF fusion statistics", "no fuse stage in summary.json")
+        out = []
+        h = fuse.get("weight_histogram")
+        if isinstance(h, dict) and len(h.get("counts", [])) and \
+                len(h.get("edges", [])) == len(h["counts"]) + 1:
+            edges = np.asarray(h["edges"], dtype=np.float64)
+            counts = np.asarray(h["counts"], dtype=np.float64)
+            fig, a = plt.subplots(figsize=(10, 4.2))
+            a.bar(edges[:-1], np.where(counts > 0, counts, np.nan), width=np.diff(edges),
+                  align="edge", color="tab:blue", edgecolor="white", linewidth=0.5)
+            a.set_yscale("log")
+            a.set_xlabel("voxel weight (number of updates, capped at w_max)")
+            a.set_ylabel("active voxels")
+            a.grid(alpha=0.3, which="both", axis="y")
+            mw = next((fuse[k] for k in ("min_weight", "filter_min_weight") if k in fuse), None)
+            if isinstance(mw, (int, float)):
+                a.axvline(float(mw), color="tab:red", ls="--", label=f"filter min weight {mw:g}")
+                a.legend()
+            a.set_title("TSDF weight histogram")
+            fig.tight_layout()
+            out.append(self.Figure(fig, "tsdf_weights", "TSDF weight histogram"))
+        else:
+            out.append(self.Missing("TSDF weight histogram",
+                                    "no stages.fuse.weight_histogram {edges, counts}"))
+        facts = [(k.replace("_", " "), Num(v, 4)) for k, v in fuse.items()
+                 if isinstance(v, (int, float, str, bool)) and k not in ("seconds", "peak_rss_mb")]
+        for k, v in fuse.items():
+            if isinstance(v, dict) and k != "weight_histogram":
+                facts += [(f"{k} {kk}".replace("_", " "), Num(vv, 4)) for kk, vv in v.items()
+                          if isinstance(vv, (int, float, str, bool))]
+        if facts:
+            out.append(Table([(f"<b>{Esc(k)}</b>", v) for k, v in facts], cls="facts"))
+        return "\n".join(out)
+
+    def SectionSlam(self):
+        slam = self.stages.get("slam")
+        if not isinstance(slam, dict):
+            return self.Missing("SLAM statistics", "no slam stage in summary.json")
+        out = []
+        its = [i for i in slam.get("iterations") or [] if isinstance(i, dict)]
+        if its:
+            stages = [str(i.get("stage", "?")) for i in its]
+            xs = np.arange(1, len(its) + 1)
+            fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
+            keys = [("pair_rms_m", "pair RMS distance (m)", False),
+                    ("cost", "cost (sum of squared whitened residuals)", True),
+                    ("consistency_m", "consistency score (m, lower is better)", False)]
+            colours = {"rigid": "tab:blue", "semi_rigid": "tab:orange"}
+            for a, (k, label, logy) in zip(ax, keys):
+                vals = np.array([float(i.get(k, np.nan)) for i in its])
+                for st in dict.fromkeys(stages):
+                    m = np.array([s == st for s in stages])
+                    a.plot(xs[m], vals[m], "o-", ms=4, color=colours.get(st, "tab:green"),
+                           label=st.replace("_", "-"))
+                best = np.array([bool(i.get("best", False)) for i in its])
+                if best.any():
+                    a.plot(xs[best], vals[best], "o", ms=9, mfc="none", mec="k", label="best so far")
+                if logy and np.all(vals[np.isfinite(vals)] > 0):
+                    a.set_yscale("log")
+                a.set_xlabel("iteration (rigid, then semi-rigid)")
+                a.set_ylabel(label)
+                a.grid(alpha=0.3)
+            ax[0].legend(fontsize=8)
+            fig.suptitle("SLAM per iteration")
+            fig.tight_layout()
+            out.append(self.Figure(fig, "slam_iterations", "SLAM per-iteration trend"))
+        else:
+            out.append(self.Missing("SLAM iterations", "no stages.slam.iterations"))
+        facts = []
+        if "initial_consistency_m" in slam or "final_consistency_m" in slam:
+            facts.append(("consistency", f"{Num(slam.get('initial_consistency_m', float('nan')), 4)}"
+                          f" &rarr; {Num(slam.get('final_consistency_m', float('nan')), 4)} m"))
+        facts += [(k.replace("_", " "), Num(v, 4)) for k, v in slam.items()
+                  if isinstance(v, (int, float, str, bool)) and k not in
+                  ("seconds", "peak_rss_mb", "initial_consistency_m", "final_consistency_m")]
+        if facts:
+            out.append(Table([(f"<b>{Esc(k)}</b>", v) for k, v in facts], cls="facts"))
+        return "\n".join(out)
+
+    def StageOrder(self):
+        order = self.summary.get("stage_order")
+        if isinstance(order, list) and order:
+            names = [str(n) for n in order if n in self.stages]
+        else:
+            names = [n for n in PIPELINE_STAGES if n in self.stages]
+        return names + [n for n in self.stages if n not in names]
+
+    def SectionStages(self):
+        names = self.StageOrder()
+        if not names:
+            return self.Missing("stage statistics", "summary.json has no stages")
+        rows = []
+        secs, mems = [], []
+        for n in names:
+            st = self.stages.get(n) or {}
+            s = st.get("seconds")
+            m = st.get("peak_rss_mb")
+            secs.append(float(s) if isinstance(s, (int, float)) else 0.0)
+            mems.append(float(m) if isinstance(m, (int, float)) else float("nan"))
+            counts = [f"{Esc(k.replace('_', ' '))} {Num(v, 4)}" for k, v in st.items()
+                      if isinstance(v, (int, float, bool)) and not isinstance(v, bool)
+                      and k not in ("seconds", "peak_rss_mb")]
+            rows.append([f"<b>{Esc(n)}</b>", Num(s, 2) if s is not None else "&ndash;",
+                         Num(m, 0) if m is not None else "&ndash;",
+                         '<span class="counts">' + ", ".join(counts) + "</span>"])
+        total = self.summary.get("total_seconds")
+        rows.append(["<b>total</b>", Num(total, 2) if total is not None else Num(sum(secs), 2),
+                     Num(float(np.nanmax(mems)), 0) if np.isfinite(mems).any() else "&ndash;",
+                     "peak memory is the largest of the stages"])
+        out = [Table(rows, header=["stage", "seconds", "peak RSS (MB)", "counts"], cls="stages")]
+        fig, ax = plt.subplots(1, 2, figsize=(13, 0.45 * len(names) + 1.4))
+        yy = np.arange(len(names))[::-1]
+        ax[0].barh(yy, secs, color="tab:blue")
+        ax[0].set_xlabel("seconds")
+        ax[1].barh(yy, np.nan_to_num(mems), color="tab:purple")
+        ax[1].set_xlabel("peak RSS (MB)")
+        for a in ax:
+            a.set_yticks(yy, names)
+            a.grid(alpha=0.3, axis="x")
+        fig.tight_layout()
+        out.append(self.Figure(fig, "stages", "time and memory per stage"))
+        return "\n".join(out)
+
+    def SectionScores(self):
+        path = self.scores_path
+        if not os.path.isfile(path):
+            return self.Missing(os.path.basename(path), "no ground truth given (pitmap-eval --json)")
+        try:
+            with open(path) as f:
+                scores = json.load(f)
+        except (OSError, ValueError) as e:
+            self.problems.append(f"{path}: {e}")
+            return NotProduced(os.path.basename(path), f"unreadable: {e}")
+        if not isinstance(scores, dict):
+            return NotProduced(os.path.basename(path), "not a JSON object")
+        rows = [[Esc(k), Num(v, 4) if isinstance(v, (int, float)) else Esc(v),
+                 Esc(SCORE_MEANINGS.get(k, ""))] for k, v in scores.items()]
+        return Table(rows, header=["score", "value", "meaning"])
+
+    # ---- page
+    def Build(self):
+        self.LoadTrajectories()
+        self.LoadPoints()
+        sections = [
+            ("summary", "Survey", self.SectionHeader),
+            ("trajectory", "Trajectory before and after SLAM", self.SectionTrajectory),
+            ("cross-sections", "Cross-sections of the point cloud", self.SectionCrossSections),
+            ("depth", "Depth-coloured top view", self.SectionDepth),
+            ("mesh", "Mesh before and after SLAM", self.SectionMesh),
+            ("boresight", "Boresight calibration", self.SectionBoresight),
+            ("tsdf", "TSDF weight histogram", self.SectionTsdf),
+            ("slam", "SLAM per iteration", self.SectionSlam),
+            ("stages", "Stages: time and memory", self.SectionStages),
+            ("scores", "Scores against ground truth", self.SectionScores),
+        ]
+        body = []
+        for sid, heading, fn in sections:
+            Log(f"section {sid}")
+            try:
+                frag = fn()
+            except Exception as e:  # a broken product must not cost the whole report
+                Log(f"section {sid} failed: {type(e).__name__}: {e}")
+                self.problems.append(f"{heading}: {type(e).__name__}: {e}")
+                frag = f'<p class="problem">could not draw: {Esc(type(e).__name__)}: {Esc(e)}</p>'
+                plt.close("all")
+            body.append(f'<section id="{sid}"><h2>{Esc(heading)}</h2>\n{frag}\n</section>')
+        toc = " &middot; ".join(f'<a href="#{sid}">{Esc(h)}</a>' for sid, h, _ in sections)
+        notes = []
+        if self.missing:
+            notes.append('<p class="missing">not produced: ' +
+                         ", ".join(Esc(m) for m in self.missing) + "</p>")
+        for p in self.problems:
+            notes.append(f'<p class="problem">{Esc(p)}</p>')
+        return PAGE.format(title=Esc(self.title), toc=toc, notes="\n".join(notes),
+                           body="\n".join(body), css=CSS)
+
+
+CSS = """
+body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; margin: 0 auto;
+       max-width: 1400px; padding: 0 24px 48px; color: #222; background: #fff; }
+h1 { margin: 24px 0 4px; font-size: 26px; }
+h2 { margin-top: 36px; border-bottom: 2px solid #2a6f97; padding-bottom: 4px; color: #1d4e6b; }
+h3 { margin-bottom: 6px; }
+nav { font-size: 14px; margin: 8px 0 16px; line-height: 1.7; }
+nav a { color: #2a6f97; text-decoration: none; }
+table { border-collapse: collapse; margin: 8px 0; font-size: 14px; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: left; vertical-align: top; }
+th { background: #eef3f7; }
+td:nth-child(n+2) { font-variant-numeric: tabular-nums; }
+table.facts td:first-child { white-space: nowrap; background: #f7f9fb; }
+table.stages .counts { font-size: 12px; color: #444; }
+img { max-width: 100%; height: auto; display: block; margin: 8px 0; }
+.caption { font-size: 13px; color: #555; max-width: 1100px; }
+.missing { color: #8a5a00; background: #fff6e0; padding: 4px 8px; border-left: 4px solid #e0a000; }
+.problem { color: #900; background: #fde8e8; padding: 4px 8px; border-left: 4px solid #c00; }
+footer { margin-top: 40px; font-size: 12px; color: #777; }
+"""
+
+PAGE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>{title}</title>
+<style>{css}</style>
+</head>
+<body>
+<h1>{title}</h1>
+<nav>{toc}</nav>
+{notes}
+{body}
+<footer>pitmap-report. Local frame: East, North, Up metres at the world origin;
+times in GPS seconds since 1980-01-06 unless marked UTC.</footer>
+</body>
+</html>
+"""
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog=PROG, description="Write P/report.html (self-contained, "
+                                 "PNG plots embedded) and P/report/*.png from a pitmap products "
+                                 "folder P.")
+    ap.add_argument("products", metavar="P", help="products folder (pitmap run --out P)")
+    ap.add_argument("--scores", metavar="FILE",
+                    help="scores JSON from pitmap-eval --json (default: P/scores.json)")
+    ap.add_argument("--title", metavar="TEXT", help="report title")
+    args = ap.parse_args(argv)
+    folder = os.path.abspath(args.products)
+    if not os.path.isdir(folder):
+        print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
+        return 1
+    title = args.title or f"pitmap survey report: {os.path.basename(folder)}"
+    scores = args.scores or os.path.join(folder, "scores.json")
+    try:
+        report = Report(folder, scores, title)
+        page = report.Build()
+    except ReportError as e:
+        print(f"{PROG}: {e}", file=sys.stderr)
+        return 1
+    except OSError as e:
+        print(f"{PROG}: {e}", file=sys.stderr)
+        return 1
+    out = os.path.join(folder, "report.html")
+    tmp = out + ".tmp"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(page)
+        os.replace(tmp, out)
+    except OSError as e:
+        print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
+        return 1
+    Log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)"
+        + (f"; not produced: {', '.join(report.missing)}" if report.missing else "")
+        + (f"; {len(report.problems)} problem(s)" if report.problems else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
