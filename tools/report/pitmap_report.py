@@ -338,6 +338,35 @@ def FillHoles(grid, passes=2):
     return g
 
 
+def RasteriseMesh(v, t, x0, y0, cell, nx, ny):
+    """Top surface of a triangle mesh on a grid: each triangle is sampled on a barycentric
+    lattice fine enough to hit every cell it covers, the highest sample per cell wins."""
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    edge = np.maximum(np.maximum(np.hypot(*(a - b)[:, :2].T), np.hypot(*(b - c)[:, :2].T)),
+                      np.hypot(*(c - a)[:, :2].T))
+    n = np.clip(np.ceil(edge / (0.7 * cell)), 1, 64).astype(np.int64)
+    xs, ys, zs = [v[:, 0]], [v[:, 1]], [v[:, 2]]
+    for k in np.unique(n):
+        sel = n == k
+        i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+        keep = (i + j <= k) & ~(((i == k) & (j == 0)) | ((i == 0) & (j == k)) |
+                                ((i == 0) & (j == 0)))
+        if k == 1:  # vertices are already in; add the centroid
+            wa = np.array([1 / 3])
+            wb = np.array([1 / 3])
+        else:
+            wa = (i[keep] / k).astype(np.float64)
+            wb = (j[keep] / k).astype(np.float64)
+        wc = 1.0 - wa - wb
+        p = (a[sel][:, None, :] * wa[None, :, None] + b[sel][:, None, :] * wb[None, :, None]
+             + c[sel][:, None, :] * wc[None, :, None]).reshape(-1, 3)
+        xs.append(p[:, 0])
+        ys.append(p[:, 1])
+        zs.append(p[:, 2])
+    return RasterMax(np.concatenate(xs), np.concatenate(ys), np.concatenate(zs),
+                     x0, y0, cell, nx, ny)
+
+
 # ------------------------------------------------------------------------------ the report
 
 
@@ -700,7 +729,7 @@ class Report:
         cell = max(0.05, max(xl[1] - xl[0], yl[1] - yl[0]) / 700.0)
         nx = max(1, int(math.ceil((xl[1] - xl[0]) / cell)))
         ny = max(1, int(math.ceil((yl[1] - yl[0]) / cell)))
-        grids = {k: self.RasteriseMesh(v, t, xl[0], yl[0], cell, nx, ny)
+        grids = {k: RasteriseMesh(v, t, xl[0], yl[0], cell, nx, ny)
                  for k, (v, t) in meshes.items()}
         valid = np.concatenate([g[np.isfinite(g)] for g in grids.values()])
         depth_lim = (np.percentile(self.ref_z - valid, [0.5, 99.5]) if len(valid) else (0, 1))
@@ -746,34 +775,6 @@ class Report:
                    "show passes that disagree.</p>")
         out.append(self.Oblique(grids, meshes, xl, yl, cell, norm, cmap, ls))
         return "\n".join(out)
-
-    def RasteriseMesh(self, v, t, x0, y0, cell, nx, ny):
-        """Top surface of a triangle mesh on a grid: each triangle is sampled on a barycentric
-        lattice fine enough to hit every cell it covers, the highest sample per cell wins."""
-        a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-        edge = np.maximum(np.maximum(np.hypot(*(a - b)[:, :2].T), np.hypot(*(b - c)[:, :2].T)),
-                          np.hypot(*(c - a)[:, :2].T))
-        n = np.clip(np.ceil(edge / (0.7 * cell)), 1, 64).astype(np.int64)
-        xs, ys, zs = [v[:, 0]], [v[:, 1]], [v[:, 2]]
-        for k in np.unique(n):
-            sel = n == k
-            i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-            keep = (i + j <= k) & ~(((i == k) & (j == 0)) | ((i == 0) & (j == k)) |
-                                    ((i == 0) & (j == 0)))
-            if k == 1:  # vertices are already in; add the centroid
-                wa = np.array([1 / 3])
-                wb = np.array([1 / 3])
-            else:
-                wa = (i[keep] / k).astype(np.float64)
-                wb = (j[keep] / k).astype(np.float64)
-            wc = 1.0 - wa - wb
-            p = (a[sel][:, None, :] * wa[None, :, None] + b[sel][:, None, :] * wb[None, :, None]
-                 + c[sel][:, None, :] * wc[None, :, None]).reshape(-1, 3)
-            xs.append(p[:, 0])
-            ys.append(p[:, 1])
-            zs.append(p[:, 2])
-        return RasterMax(np.concatenate(xs), np.concatenate(ys), np.concatenate(zs),
-                         x0, y0, cell, nx, ny)
 
     def Oblique(self, grids, meshes, xl, yl, cell, norm, cmap, ls):
         """An oblique 3-D view of the rasterised meshes (coarse, lit), as a surveyor would

@@ -1,0 +1,362 @@
+# SPDX-License-Identifier: MIT
+"""pitmap-report on small synthetic products folders that this test writes itself.
+
+Usage: python3 report_test.py --report PATH_TO_pitmap-report [unittest args]
+
+Checks: the report is written and self-contained (no http(s) link, every image a data URI,
+no reference to a file), holds every section, names each missing optional product
+("not produced: ...") instead of failing, refuses a folder without summary.json, and the
+PLY reader and raster helpers give known values.
+"""
+
+import argparse
+import base64
+import importlib.machinery
+import importlib.util
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+REPORT = None  # path of the pitmap-report script, from --report
+SECTIONS = ["summary", "trajectory", "cross-sections", "depth", "mesh", "boresight", "tsdf",
+            "slam", "stages", "scores"]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
+
+
+def LoadModule():
+    loader = importlib.machinery.SourceFileLoader("pitmap_report", REPORT)
+    spec = importlib.util.spec_from_loader("pitmap_report", loader)
+    mod = importlib.util.module_from_spec(spec)
+    loader.exec_module(mod)
+    return mod
+
+
+def Bowl(x, y):
+    """A pit: 8 m deep bowl of radius 15 m with a 2 m bench."""
+    r = np.hypot(x, y)
+    return np.where(r < 15, -8 + 6 * (r / 15) ** 2 + 2 * (r > 9), 0.5) - 2.0
+
+
+def WritePly(path, header_props, arrays, faces=None, comments=(), endian="<"):
+    """Binary PLY; header_props = [(name, ply type, numpy type)], arrays by name."""
+    n = len(arrays[header_props[0][0]])
+    fmt = "binary_little_endian" if endian == "<" else "binary_big_endian"
+    head = ["ply", f"format {fmt} 1.0"] + [f"comment {c}" for c in comments]
+    head.append(f"element vertex {n}")
+    head += [f"property {t} {name}" for name, t, _ in header_props]
+    dtype = np.dtype([(name, endian + nt) for name, _, nt in header_props])
+    rec = np.zeros(n, dtype)
+    for name, _, _ in header_props:
+        rec[name] = arrays[name]
+    body = rec.tobytes()
+    if faces is not None:
+        head += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+        fd = np.dtype([("n", "u1"), ("v", endian + "i4", (3,))])
+        fr = np.zeros(len(faces), fd)
+        fr["n"] = 3
+        fr["v"] = faces
+        body += fr.tobytes()
+    head.append("end_header")
+    with open(path, "wb") as f:
+        f.write(("\n".join(head) + "\n").encode("ascii") + body)
+
+
+POINT_PROPS = [("x", "float", "f4"), ("y", "float", "f4"), ("z", "float", "f4"),
+               ("gps_time_s", "double", "f8"), ("range_m", "float", "f4"),
+               ("ping", "uint", "u4"), ("beam", "ushort", "u2")]
+
+
+def WriteProducts(folder, full=True):
+    """A tiny survey: two laps around a bowl; before SLAM the track drifts in height."""
+    os.makedirs(folder, exist_ok=True)
+    t = GPS_T0 + np.arange(0, 120, 0.2)
+    ang = 2 * np.pi * (t - GPS_T0) / 60
+    x, y = 12 * np.cos(ang), 8 * np.sin(ang)
+    drift = 0.6 * np.sin(np.pi * (t - GPS_T0) / 120)
+
+    def Traj(path, dz):
+        with open(path, "w") as f:
+            f.write("gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n")
+            for i in range(len(t)):
+                f.write(f"{t[i]:.3f},{x[i]:.4f},{y[i] + dz[i] * 0.5:.4f},{dz[i]:.4f},0,0,0\n")
+
+    Traj(os.path.join(folder, "trajectory.csv"), np.zeros_like(t))
+    # Points: a fan of beams across the track at every pose.
+    beams = np.linspace(-10, 10, 21)
+    px = (x[:, None] + beams[None, :] * np.cos(ang)[:, None]).ravel()
+    py = (y[:, None] + beams[None, :] * np.sin(ang)[:, None]).ravel()
+    pt = np.repeat(t, len(beams))
+    pz = Bowl(px, py)
+    arrays = {"x": px, "y": py, "z": pz, "gps_time_s": pt, "range_m": -pz,
+              "ping": np.repeat(np.arange(len(t)), len(beams)),
+              "beam": np.tile(np.arange(len(beams)), len(t))}
+    origin = "pitmap_origin 40.4435 -7.7804 412.0"
+    WritePly(os.path.join(folder, "points.ply"), POINT_PROPS, arrays, comments=[origin])
+    summary = {
+        "world_origin": {"latitude_deg": 40.4435, "longitude_deg": -7.7804, "height_m": 412.0},
+        "utm": {"zone": 29, "northern": True, "epsg": 32629},
+        "inputs": ["survey.lcmlog"],
+        "mount": {"roll_deg": 0.5, "pitch_deg": 0.0, "yaw_deg": 1.0},
+        "stages": {
+            "ingest": {"seconds": 0.5, "peak_rss_mb": 30.0, "pings": len(t)},
+            "georef": {"seconds": 0.7, "peak_rss_mb": 40.0, "points": len(px),
+                       "pings_in": len(t), "pings_georeferenced": len(t)},
+        },
+        "total_seconds": 9.5,
+    }
+    if full:
+        Traj(os.path.join(folder, "trajectory_initial.csv"), drift)
+        pd = np.repeat(drift, len(beams))
+        arrays_i = dict(arrays, y=py + 0.5 * pd, z=pz + pd)
+        WritePly(os.path.join(folder, "points_initial.ply"), POINT_PROPS, arrays_i,
+                 comments=[origin])
+        gx, gy = np.meshgrid(np.linspace(-16, 16, 33), np.linspace(-12, 12, 25))
+        vx, vy = gx.ravel(), gy.ravel()
+        nx = gx.shape[1]
+        faces = []
+        for r in range(gx.shape[0] - 1):
+            for c in range(nx - 1):
+                i = r * nx + c
+                faces += [(i, i + 1, i + nx + 1), (i, i + nx + 1, i + nx)]
+        mesh_props = [("x", "float", "f4"), ("y", "float", "f4"), ("z", "float", "f4"),
+                      ("red", "uchar", "u1"), ("green", "uchar", "u1"), ("blue", "uchar", "u1")]
+        col = np.full(len(vx), 128)
+        for name, noise in (("mesh.ply", 0.0), ("mesh_initial.ply", 0.2)):
+            z = Bowl(vx, vy) + noise * np.sin(3 * vx) * np.cos(2 * vy)
+            WritePly(os.path.join(folder, name), mesh_props,
+                     {"x": vx, "y": vy, "z": z, "red": col, "green": col, "blue": col},
+                     faces=np.array(faces), comments=[origin])
+        mount = {"roll_deg": 0.52, "pitch_deg": -0.01, "yaw_deg": 1.02,
+                 "lever_arm_sonar_m": [0.8, 0, 0.25]}
+        with open(os.path.join(folder, "boresight.json"), "w") as f:
+            json.dump(mount, f)
+        summary["stages"]["calibrate"] = {
+            "seconds": 3.0, "peak_rss_mb": 60.0, "pairs": 1234, "iterations": 7,
+            "termination": "converged",
+            "boresight_before": {"roll_deg": 0.0, "pitch_deg": 0.0, "yaw_deg": 0.0},
+            "boresight_after": mount, "formal_sd_deg": [0.005, 0.012, 0.011],
+            "residual_before_rms_m": 0.0425, "residual_after_rms_m": 0.0344,
+            "segment": {"start_s": GPS_T0, "end_s": GPS_T0 + 60},
+            "verify": [{"start_s": GPS_T0 + 60, "end_s": GPS_T0 + 120, "rms_before_m": 0.051,
+                        "rms_after_m": 0.0377, "pairs": 999}]}
+        summary["stages"]["slam"] = {
+            "seconds": 4.0, "peak_rss_mb": 120.0, "termination": "converged",
+            "initial_consistency_m": 0.31, "final_consistency_m": 0.048,
+            "iterations": [{"stage": st, "iteration": i + 1, "num_pairs": 100, "cost": 50.0 / (i + 1),
+                            "pair_rms_m": 0.3 / (i + 1), "consistency_m": 0.2 / (i + 1),
+                            "best": True} for st in ("rigid", "semi_rigid") for i in range(3)]}
+        summary["stages"]["fuse"] = {
+            "seconds": 1.0, "peak_rss_mb": 200.0, "active_voxels": 4321, "sensor_model": "beam",
+            "weight_histogram": {"edges": list(range(0, 22)),
+                                 "counts": [0] + [1000 // k for k in range(1, 21)]}}
+        summary["stages"]["mesh"] = {"seconds": 0.2, "peak_rss_mb": 210.0,
+                                     "triangles": len(faces)}
+        summary["stage_order"] = ["ingest", "georef", "calibrate", "slam", "fuse", "mesh"]
+        with open(os.path.join(folder, "scores.json"), "w") as f:
+            json.dump({"trajectory_ate_rmse_m": 0.0306, "trajectory_ate_rmse_before_m": 1.3468,
+                       "points_rms_m": 0.0391, "boresight_error_deg": 0.0316}, f)
+    with open(os.path.join(folder, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=1)
+
+
+def Run(*args):
+    return subprocess.run([REPORT, *args], capture_output=True, text=True, timeout=300)
+
+
+def Sections(page):
+    """section id -> its HTML."""
+    return dict(re.findall(r'<section id="([^"]+)">(.*?)</section>', page, flags=re.S))
+
+
+class ReportTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory(prefix="pitmap-report-test-")
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def AssertSelfContained(self, page, folder):
+        self.assertNotRegex(page, r"(?i)https?:")
+        srcs = re.findall(r'src="([^"]*)"', page)
+        self.assertTrue(srcs, "no image at all")
+        for s in srcs:
+            self.assertTrue(s.startswith("data:image/png;base64,"), s[:60])
+            self.assertEqual(base64.b64decode(s.split(",", 1)[1])[:8], PNG_MAGIC)
+        for h in re.findall(r'href="([^"]*)"', page):
+            self.assertTrue(h.startswith("#"), h)
+        self.assertNotIn("<link", page)
+        self.assertNotIn("url(", page)
+
+    def test_full_folder(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        r = Run(p, "--title", "Test pit <survey>")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("section trajectory", r.stderr)  # progress lines on stderr
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            page = f.read()
+        self.AssertSelfContained(page, p)
+        self.assertIn("<title>Test pit &lt;survey&gt;</title>", page)
+        sec = Sections(page)
+        self.assertEqual(list(sec), SECTIONS)
+        self.assertNotIn("not produced", page)
+        self.assertNotIn("could not draw", page)
+        for s in ("trajectory", "cross-sections", "depth", "mesh", "tsdf", "slam", "stages"):
+            self.assertIn("data:image/png", sec[s], s)
+        self.assertIn("2026-06-15 09:00:00", sec["summary"])
+        self.assertIn("0.5200", sec["boresight"])      # roll after
+        self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
+        self.assertIn("1.3468", sec["scores"])
+        self.assertIn("trajectory error before SLAM", sec["scores"])
+        # Stage table in stage_order, then the total.
+        order = [m for m in re.findall(r"<td><b>([a-z]+)</b></td>", sec["stages"])]
+        self.assertEqual(order, ["ingest", "georef", "calibrate", "slam", "fuse", "mesh",
+                                 "total"])
+        pngs = sorted(os.listdir(os.path.join(p, "report")))
+        for name in ("trajectory.png", "cross_sections.png", "depth_top_view.png",
+                     "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
+                     "stages.png"):
+            self.assertIn(name, pngs)
+            with open(os.path.join(p, "report", name), "rb") as f:
+                self.assertEqual(f.read(8), PNG_MAGIC)
+
+    def test_missing_optional_products_are_named(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=False)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            page = f.read()
+        self.AssertSelfContained(page, p)
+        sec = Sections(page)
+        self.assertEqual(list(sec), SECTIONS)
+        self.assertNotIn("could not draw", page)
+        expect = {"trajectory": "trajectory_initial.csv", "cross-sections": "points_initial.ply",
+                  "mesh": "mesh.ply", "boresight": "boresight.json", "tsdf": "TSDF",
+                  "slam": "SLAM", "scores": "scores.json"}
+        for s, name in expect.items():
+            self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
+        self.assertIn("mesh_initial.ply", sec["mesh"])
+        # What exists is still drawn.
+        for s in ("trajectory", "cross-sections", "depth", "stages"):
+            self.assertIn("data:image/png", sec[s], s)
+
+    def test_broken_products_are_named_not_fatal(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        with open(os.path.join(p, "mesh.ply"), "r+b") as f:
+            f.truncate(os.path.getsize(os.path.join(p, "mesh.ply")) // 2)
+        with open(os.path.join(p, "scores.json"), "w") as f:
+            f.write("{not json")
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            sec = Sections(f.read())
+        self.assertRegex(sec["mesh"], r"not produced: mesh\.ply \([^)]*truncated")
+        self.assertIn("data:image/png", sec["mesh"])  # the mesh before SLAM is still drawn
+        self.assertRegex(sec["scores"], r"not produced: scores\.json \(unreadable")
+
+    def test_scores_option(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=False)
+        other = os.path.join(self.dir, "elsewhere.json")
+        with open(other, "w") as f:
+            json.dump({"mesh_completeness": 0.8765}, f)
+        r = Run(p, "--scores", other)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            sec = Sections(f.read())
+        self.assertIn("0.8765", sec["scores"])
+        self.assertNotIn("not produced", sec["scores"])
+
+    def test_unusable_folder_fails_clearly(self):
+        r = Run(self.dir)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("summary.json", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "report.html")))
+        r = Run(os.path.join(self.dir, "does-not-exist"))
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("not a folder", r.stderr)
+        with open(os.path.join(self.dir, "summary.json"), "w") as f:
+            f.write("[1, 2")
+        r = Run(self.dir)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("summary.json", r.stderr)
+
+
+class HelperTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.m = LoadModule()
+
+    def test_ply_reader_follows_the_header(self):
+        with tempfile.TemporaryDirectory() as d:
+            for endian in ("<", ">"):
+                path = os.path.join(d, "p.ply")
+                props = [("beam", "ushort", "u2"), ("z", "double", "f8"), ("x", "float", "f4"),
+                         ("y", "int", "i4")]
+                WritePly(path, props, {"beam": [7, 8], "z": [-1.5, 2.25], "x": [3.0, 4.0],
+                                       "y": [-5, 6]}, faces=np.array([[0, 1, 0]]),
+                         comments=["pitmap_origin 1.5 -2.5 3.25"], endian=endian)
+                ply = self.m.Ply(path)
+                v = ply.elements["vertex"]
+                self.assertEqual(list(v["beam"]), [7, 8])
+                self.assertEqual(list(v["z"]), [-1.5, 2.25])
+                self.assertEqual(list(v["x"]), [3.0, 4.0])
+                self.assertEqual(list(v["y"]), [-5, 6])
+                self.assertEqual(ply.elements["face"]["vertex_indices"].tolist(), [[0, 1, 0]])
+                self.assertEqual(ply.origin(), (1.5, -2.5, 3.25))
+
+    def test_ply_reader_rejects_bad_files(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "a.ply")
+            with open(path, "w") as f:
+                f.write("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n")
+            with self.assertRaisesRegex(self.m.PlyError, "ascii"):
+                self.m.Ply(path)
+            WritePly(path, [("x", "float", "f4")], {"x": np.arange(10.0)})
+            with open(path, "r+b") as f:
+                f.truncate(os.path.getsize(path) - 4)
+            with self.assertRaisesRegex(self.m.PlyError, "truncated"):
+                self.m.Ply(path)
+
+    def test_gps_to_utc(self):
+        self.assertEqual(str(self.m.GpsToUtc(GPS_T0)), "2026-06-15 09:00:00+00:00")
+        # 2000-01-01 00:00:00 UTC, GPS - UTC = 13 s then.
+        self.assertEqual(str(self.m.GpsToUtc(630720013.0)), "2000-01-01 00:00:00+00:00")
+
+    def test_rasters(self):
+        x = np.array([0.1, 0.2, 1.5, 5.0])
+        y = np.array([0.1, 0.3, 0.5, 5.0])  # the last one is outside the grid
+        v = np.array([1.0, 3.0, 7.0, 9.0])
+        mean = self.m.RasterMean(x, y, v, 0.0, 0.0, 1.0, 2, 1)
+        self.assertEqual(mean.tolist(), [[2.0, 7.0]])
+        top = self.m.RasterMax(x, y, v, 0.0, 0.0, 1.0, 3, 1)
+        self.assertEqual(top[0, :2].tolist(), [3.0, 7.0])
+        self.assertTrue(np.isnan(top[0, 2]))
+
+    def test_mesh_raster_covers_large_triangles(self):
+        # One 10 m triangle on 0.5 m cells: every cell whose centre is inside gets a value.
+        v = np.array([[0.0, 0.0, 1.0], [10.0, 0.0, 1.0], [0.0, 10.0, 1.0]])
+        t = np.array([[0, 1, 2]])
+        g = self.m.RasteriseMesh(v, t, 0.0, 0.0, 0.5, 20, 20)
+        cx = (np.arange(20) + 0.5) * 0.5
+        inside = (cx[None, :] + cx[:, None]) < 9.5
+        self.assertTrue(np.all(g[inside] == 1.0))
+        self.assertTrue(np.all(np.isnan(g[(cx[None, :] + cx[:, None]) > 10.5])))
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--report", required=True)
+    args, rest = ap.parse_known_args()
+    REPORT = os.path.abspath(args.report)
+    unittest.main(argv=[sys.argv[0]] + rest)
