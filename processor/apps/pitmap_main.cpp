@@ -3,10 +3,18 @@
 //   pitmap info LOGS...
 //   pitmap georef LOGS... --out P [--config FILE] [--from-raw] [--sonar-clock-offset S]
 //   pitmap calibrate --out P [--config FILE]
+//   pitmap slam --out P [--config FILE]
+//   pitmap fuse --out P [--config FILE]
+//   pitmap mesh --out P [--config FILE]
+//   pitmap report --out P
+//   pitmap run LOGS... --out P [--config FILE] [--from-raw] [--no-calibrate] [--no-slam]
 //   pitmap config --defaults
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 
 #include "common/config.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -18,6 +26,14 @@ namespace {
 int Fail(const std::string& message) {
     std::fprintf(stderr, "pitmap: %s\n", message.c_str());
     return 1;
+}
+
+// pitmap-report lives beside the pitmap executable (build/bin, or the install's bin).
+std::string ReportProgram() {
+    std::error_code ec;
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (ec) return "";
+    return (self.parent_path() / "pitmap-report").string();
 }
 
 }  // namespace
@@ -44,6 +60,24 @@ int main(int argc, char** argv) try {
     auto* cal = app.add_subcommand("calibrate", "boresight calibration on a georeferenced folder");
     cal->add_option("--out", out_dir, "products folder written by pitmap georef")->required();
     cal->add_option("--config", config_path, "YAML config");
+    auto* slam = app.add_subcommand("slam", "continuous-time SLAM on a georeferenced folder");
+    auto* fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
+    auto* mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
+    auto* report = app.add_subcommand("report", "report.html of a products folder");
+    for (auto* sub : {slam, fuse, mesh, report}) {
+        sub->add_option("--out", out_dir, "products folder")->required();
+        sub->add_option("--config", config_path, "YAML config");
+    }
+    bool no_calibrate = false, no_slam = false, no_report = false;
+    auto* run = app.add_subcommand(
+        "run", "everything: ingest, georef, calibrate, SLAM, TSDF, mesh, report");
+    run->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
+    run->add_option("--out", out_dir, "products folder")->required();
+    run->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
+    run->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
+    run->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
+    run->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
+    run->add_flag("--no-report", no_report, "no report.html");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     CLI11_PARSE(app, argc, argv);
@@ -61,6 +95,10 @@ int main(int argc, char** argv) try {
     }
     if (from_raw) config.ingest.source = pitmap::proc::io::IngestSource::kRaw;
     if (offset_given) config.ingest.sonar_clock_offset_s = sonar_clock_offset_s;
+    if (no_calibrate) config.run.calibrate = false;
+    if (no_slam) config.run.slam = false;
+    if (no_report) config.run.report = false;
+    config.report_program = ReportProgram();
     if (auto problems = config.Validate(); !problems.empty()) {
         return Fail("invalid config:\n" + pitmap::FormatProblems(problems));
     }
@@ -75,7 +113,14 @@ int main(int argc, char** argv) try {
         if (auto s = pp::RunGeorefStage(inputs, out_dir, config, log); !s) return Fail(s.error().message);
         return 0;
     }
-    if (auto s = pp::RunCalibrateStage(out_dir, config, log); !s) return Fail(s.error().message);
+    pitmap::Status status = pitmap::Ok{};
+    if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);
+    if (slam->parsed()) status = pp::RunSlamStage(out_dir, config, log);
+    if (fuse->parsed()) status = pp::RunFuseStage(out_dir, config, log);
+    if (mesh->parsed()) status = pp::RunMeshStage(out_dir, config, log);
+    if (report->parsed()) status = pp::RunReportStage(out_dir, config, log);
+    if (run->parsed()) status = pp::RunAll(inputs, out_dir, config, log);
+    if (!status) return Fail(status.error().message);
     return 0;
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap: internal error: %s\n", e.what());

@@ -1,11 +1,23 @@
 // SPDX-License-Identifier: MIT
 // Composition of the stages on a products folder P (the `pitmap` subcommands):
-//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory.csv,
+//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory.csv (INS rate),
 //              boresight.json (the mount used), ingest.cache, summary.json
 //   calibrate: P/ingest.cache + P/summary.json -> boresight calibration -> re-georeference ->
 //              P/boresight.json, points.ply, points.las, summary.json (stage "calibrate")
+//   slam:      re-georeference with the current mount -> continuous-time SLAM ->
+//              P/trajectory_initial.csv (per ping, before), trajectory.csv (per ping, after),
+//              points_initial.ply (before), points.ply, points.las (after); the INS-rate
+//              trajectory.csv of georef is kept as trajectory_ins.csv
+//   fuse:      pings on the trajectory of the last stage (trajectory.csv) -> TSDF -> weight
+//              filter -> P/tsdf.vdb
+//   mesh:      P/tsdf.vdb -> P/mesh.{ply,obj,glb}, mesh_filled.{ply,obj,glb}
+//   report:    P -> P/report.html (the pitmap-report program beside the pitmap executable)
+//   run:       all of the above in memory, in that order (calibrate, SLAM and the report
+//              optional), plus P/mesh_initial.ply (the mesh before SLAM) for the report.
 // summary.json: world_origin {latitude_deg, longitude_deg, height_m}, utm {zone, northern, epsg},
-// inputs, mount, stages -> name -> {seconds, peak_rss_mb, counts...}.
+// inputs, mount, stages -> name -> {seconds, peak_rss_mb, counts...}, stage_order, and after
+// `run` total_seconds. peak_rss_mb is the process's resident-memory high-water mark during
+// the stage (reset at each stage start where the kernel allows it).
 #pragma once
 
 #include <cmath>
@@ -16,15 +28,43 @@
 
 #include "common/result.hpp"
 #include "processor/calib/boresight.hpp"
+#include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/mesh/surface.hpp"
+#include "processor/slam/slam.hpp"
 
 namespace pitmap::proc::pipeline {
+
+// Which optional stages `pitmap run` performs.
+struct RunOptions {
+    bool calibrate = true;         // boresight calibration before SLAM
+    bool slam = true;              // continuous-time SLAM (else the INS trajectory is fused)
+    bool mesh_before_slam = true;  // also mesh the survey before SLAM (mesh_initial.ply, report)
+    bool report = true;            // report.html through pitmap-report
+};
+
+// SLAM stage settings beyond slam::SlamConfig.
+struct SlamStageConfig {
+    int point_stride = 1;          // every n-th kept sounding of a ping goes into its slice
+    double sigma_max_age_s = 5.0;  // INS stddev records further from a ping are not used
+    // INS 1-sigma used where the logs carry none: roll, pitch, yaw (deg), east, north, up (m).
+    double fallback_attitude_deg[3] = {0.02, 0.02, 0.05};
+    double fallback_position_m[3] = {0.02, 0.02, 0.03};
+};
 
 struct PipelineConfig {
     io::IngestConfig ingest;
     georef::GeorefConfig georef;
     calib::BoresightConfig calibrate;
+    slam::SlamConfig slam;
+    SlamStageConfig slam_stage;
+    fusion::TsdfConfig tsdf;
+    fusion::WeightFilterConfig weight_filter;
+    mesh::MeshConfig mesh;
+    RunOptions run;
+    // The report program (pitmap-report); set by the command line, "" = no report.
+    std::string report_program;
     // World origin; NaN = the first INS position.
     double origin_latitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_longitude_deg = std::numeric_limits<double>::quiet_NaN();
@@ -35,7 +75,8 @@ struct PipelineConfig {
     std::vector<std::string> Validate() const;
 };
 
-// Reads a YAML config (sections ingest, georef, calibrate, products); every problem listed.
+// Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, products);
+// every problem listed.
 Expected<PipelineConfig> LoadConfig(const std::string& path);
 // The YAML of every default, with a comment per key.
 std::string DefaultsYaml();
@@ -47,5 +88,13 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
 Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string& out_dir,
                       const PipelineConfig& config, const Log& log);
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// Every stage from the logs to the report, in memory; products and summary.json are written
+// after each stage, so a failure leaves what was done.
+Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir,
+              const PipelineConfig& config, const Log& log);
 
 }  // namespace pitmap::proc::pipeline

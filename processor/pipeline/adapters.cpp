@@ -1,0 +1,215 @@
+// SPDX-License-Identifier: MIT
+#include "processor/pipeline/adapters.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "common/frames.hpp"
+
+namespace pitmap::proc::pipeline {
+
+namespace {
+
+// [first, last) point index range of every ping; points are stored in ping order.
+std::vector<std::size_t> PingOffsets(const georef::GeorefResult& geo) {
+    std::vector<std::size_t> offset(geo.pings.size() + 1, 0);
+    for (std::uint32_t k : geo.points.ping) ++offset[k + 1];
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) offset[k + 1] += offset[k];
+    return offset;
+}
+
+bool IsSortedByPing(const georef::GeorefResult& geo) {
+    return std::is_sorted(geo.points.ping.begin(), geo.points.ping.end());
+}
+
+}  // namespace
+
+PoseSigma PoseSigmaAt(const georef::NavSeries& nav, std::int64_t utime_gps, double max_age_s,
+                      const PoseSigma& fallback) {
+    const auto& s = nav.stddevs;
+    if (s.empty()) return fallback;
+    auto it = std::lower_bound(s.begin(), s.end(), utime_gps,
+                               [](const georef::NavStdDev& d, std::int64_t t) {
+                                   return d.utime_gps < t;
+                               });
+    if (it == s.end() || (it != s.begin() && utime_gps - std::prev(it)->utime_gps <
+                                                 it->utime_gps - utime_gps)) {
+        it = std::prev(it);
+    }
+    if (std::abs(static_cast<double>(it->utime_gps - utime_gps)) * 1e-6 > max_age_s) {
+        return fallback;
+    }
+    const double deg = frames::DegToRad(1.0);
+    const double v[6] = {it->roll_deg * deg, it->pitch_deg * deg, it->yaw_deg * deg,
+                         it->east_m,         it->north_m,         it->up_m};
+    PoseSigma out;
+    for (int i = 0; i < 6; ++i) out[i] = std::isfinite(v[i]) && v[i] > 0 ? v[i] : fallback[i];
+    return out;
+}
+
+SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& nav,
+                    int point_stride, double sigma_max_age_s, const PoseSigma& fallback_sigma) {
+    SliceSet out;
+    if (!IsSortedByPing(geo)) return out;
+    const std::vector<std::size_t> offset = PingOffsets(geo);
+    const std::size_t stride = static_cast<std::size_t>(std::max(1, point_stride));
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        if (offset[k + 1] == offset[k]) continue;
+        const georef::GeorefPing& ping = geo.pings[k];
+        slam::Slice s;
+        s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
+        s.T_world_vehicle = ping.T_world_vehicle;
+        s.pose_sigma = PoseSigmaAt(nav, ping.utime_gps, sigma_max_age_s, fallback_sigma);
+        const Pose T_vehicle_world = ping.T_world_vehicle.inverse();
+        s.points_vehicle.reserve((offset[k + 1] - offset[k] + stride - 1) / stride);
+        for (std::size_t i = offset[k]; i < offset[k + 1]; i += stride) {
+            s.points_vehicle.push_back((T_vehicle_world * geo.points.position_world[i]).cast<float>());
+        }
+        out.slices.push_back(std::move(s));
+        out.ping.push_back(static_cast<std::uint32_t>(k));
+    }
+    return out;
+}
+
+void ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle,
+                       const georef::SonarMount& mount) {
+    if (T_world_vehicle.size() != geo.pings.size()) return;
+    std::vector<Pose> delta(geo.pings.size());
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        delta[k] = T_world_vehicle[k] * geo.pings[k].T_world_vehicle.inverse();
+    }
+    for (std::size_t i = 0; i < geo.points.size(); ++i) {
+        geo.points.position_world[i] = delta[geo.points.ping[i]] * geo.points.position_world[i];
+    }
+    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        geo.pings[k].T_world_vehicle = T_world_vehicle[k];
+        geo.pings[k].sensor_world = (T_world_vehicle[k] * T_vehicle_sonar).translation();
+    }
+}
+
+PoseLookup PosesAtPings(const georef::GeorefResult& geo, const std::vector<double>& t,
+                        const std::vector<Pose>& T) {
+    PoseLookup out;
+    out.T_world_vehicle.reserve(geo.pings.size());
+    const std::size_t n = std::min(t.size(), T.size());
+    for (const georef::GeorefPing& ping : geo.pings) {
+        const double tp = static_cast<double>(ping.utime_gps) * 1e-6;
+        // Times in the CSV carry 1 us: a ping's own sample matches within that.
+        constexpr double kTolerance = 2e-6;
+        if (n == 0 || tp < t.front() - kTolerance || tp > t[n - 1] + kTolerance) {
+            out.T_world_vehicle.push_back(ping.T_world_vehicle);
+            ++out.outside_span;
+            continue;
+        }
+        const auto it = std::lower_bound(t.begin(), t.begin() + static_cast<long>(n), tp);
+        const std::size_t j = static_cast<std::size_t>(it - t.begin());
+        if (j < n && std::abs(t[j] - tp) <= kTolerance) {
+            out.T_world_vehicle.push_back(T[j]);
+        } else if (j > 0 && j < n && std::abs(t[j - 1] - tp) <= kTolerance) {
+            out.T_world_vehicle.push_back(T[j - 1]);
+        } else if (j == 0) {
+            out.T_world_vehicle.push_back(T[0]);
+        } else if (j >= n) {
+            out.T_world_vehicle.push_back(T[n - 1]);
+        } else {
+            const double a = (tp - t[j - 1]) / (t[j] - t[j - 1]);
+            out.T_world_vehicle.push_back(InterpolatePose(T[j - 1], T[j], a));
+        }
+    }
+    return out;
+}
+
+std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
+                                         const georef::PingSeries& pings,
+                                         const georef::SonarMount& mount) {
+    std::vector<fusion::SonarScan> scans;
+    if (!IsSortedByPing(geo)) return scans;
+    const std::vector<std::size_t> offset = PingOffsets(geo);
+    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
+    scans.resize(geo.pings.size());
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        const georef::GeorefPing& ping = geo.pings[k];
+        fusion::SonarScan& s = scans[k];
+        s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
+        Pose tilt = Pose::Identity();
+        tilt.linear() = Eigen::AngleAxisd(ping.profile_tilt_rad, Eigen::Vector3d::UnitY())
+                            .toRotationMatrix();
+        s.T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar * tilt;
+        if (ping.header_index >= pings.pings.size()) continue;
+        const georef::PingHeader& h = pings.pings[ping.header_index];
+        s.start_angle_rad = static_cast<float>(frames::DegToRad(h.start_angle_deg));
+        s.angle_increment_rad = static_cast<float>(frames::DegToRad(h.angle_increment_deg));
+        s.ranges_m.assign(h.num_beams, 0.0f);
+        for (std::size_t i = offset[k]; i < offset[k + 1]; ++i) {
+            const std::uint16_t b = geo.points.beam[i];
+            if (b < s.ranges_m.size()) s.ranges_m[b] = geo.points.range_m[i];
+        }
+    }
+    return scans;
+}
+
+TimedPoses PingPoses(const georef::GeorefResult& geo) {
+    TimedPoses out;
+    out.gps_time_s.reserve(geo.pings.size());
+    out.T_world_vehicle.reserve(geo.pings.size());
+    for (const auto& p : geo.pings) {
+        out.gps_time_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+        out.T_world_vehicle.push_back(p.T_world_vehicle);
+    }
+    return out;
+}
+
+Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory) {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (f == nullptr) return Error{path + ": cannot create"};
+    std::fprintf(f, "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n");
+    const std::size_t n = std::min(trajectory.gps_time_s.size(), trajectory.T_world_vehicle.size());
+    for (std::size_t i = 0; i < n; ++i) {
+        const Pose& T = trajectory.T_world_vehicle[i];
+        const frames::Rpy a = frames::RpyFromRotationWorld(T.linear());
+        std::fprintf(f, "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f\n", trajectory.gps_time_s[i],
+                     T.translation().x(), T.translation().y(), T.translation().z(),
+                     frames::RadToDeg(a.roll), frames::RadToDeg(a.pitch), frames::RadToDeg(a.yaw));
+    }
+    const bool ok = std::ferror(f) == 0;
+    if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
+    return Ok{};
+}
+
+Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) return Error{path + ": cannot open"};
+    std::string line;
+    if (!std::getline(in, line) || line.rfind("gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg", 0) != 0) {
+        return Error{path + ": not a trajectory CSV (header gps_time_s,x_m,y_m,z_m,roll_deg,"
+                            "pitch_deg,yaw_deg expected)"};
+    }
+    TimedPoses out;
+    std::size_t line_no = 1;
+    while (std::getline(in, line)) {
+        ++line_no;
+        if (line.empty()) continue;
+        double v[7];
+        int used = 0;
+        if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf%n", &v[0], &v[1], &v[2], &v[3],
+                        &v[4], &v[5], &v[6], &used) != 7 ||
+            !std::all_of(std::begin(v), std::end(v), [](double x) { return std::isfinite(x); })) {
+            return Error{path + ":" + std::to_string(line_no) + ": malformed row"};
+        }
+        if (!out.gps_time_s.empty() && v[0] <= out.gps_time_s.back()) {
+            return Error{path + ":" + std::to_string(line_no) + ": times not increasing"};
+        }
+        out.gps_time_s.push_back(v[0]);
+        out.T_world_vehicle.push_back(MakePose(
+            frames::RotationWorldFromRpy(frames::DegToRad(v[4]), frames::DegToRad(v[5]),
+                                         frames::DegToRad(v[6])),
+            Eigen::Vector3d(v[1], v[2], v[3])));
+    }
+    return out;
+}
+
+}  // namespace pitmap::proc::pipeline

@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: MIT
+// Conversions between the georeferenced survey (processor/georef) and the inputs and outputs of
+// the 3-D stages: SLAM slices (processor/slam), sonar scans for the TSDF (processor/fusion), and
+// corrected trajectories applied back to the soundings. No I/O.
+//
+// Frames (docs/conventions.md): world local ENU (z up), vehicle FRD, sonar x forward, y
+// starboard, z down. A georeferenced sounding is p_world = T_world_vehicle * T_vehicle_sonar *
+// Ry(tilt) * (0, r sin theta, r cos theta), so its vehicle-frame point is
+// T_world_vehicle^-1 * p_world exactly, and the fan frame of a ping is
+// T_world_vehicle * T_vehicle_sonar * Ry(tilt).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "common/se3.hpp"
+#include "processor/fusion/tsdf.hpp"
+#include "processor/georef/georef.hpp"
+#include "processor/georef/series.hpp"
+#include "processor/slam/slam.hpp"
+
+namespace pitmap::proc::pipeline {
+
+// 1-sigma pose uncertainty in the order slam::Slice::pose_sigma uses: roll, pitch, yaw (rad),
+// east, north, up (m).
+using PoseSigma = Eigen::Matrix<double, 6, 1>;
+
+// The INS's own 1-sigma at a time: the stddev record nearest in time (records are ~1 Hz; the
+// INS error changes slowly). Components the receiver did not report (NaN), and all of them when
+// there is no record within max_age_s, take `fallback`.
+PoseSigma PoseSigmaAt(const georef::NavSeries& nav, std::int64_t utime_gps, double max_age_s,
+                      const PoseSigma& fallback);
+
+// SLAM input: one slice per georeferenced ping that kept at least one sounding, its initial
+// pose the georeferenced one, every `point_stride`-th kept sounding in the vehicle frame.
+struct SliceSet {
+    std::vector<slam::Slice> slices;
+    std::vector<std::uint32_t> ping;  // slice -> index into GeorefResult::pings
+};
+SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& nav,
+                    int point_stride, double sigma_max_age_s, const PoseSigma& fallback_sigma);
+
+// Moves every sounding and ping of `geo` to new vehicle poses, one per ping
+// (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p. Precondition:
+// T_world_vehicle.size() == geo.pings.size().
+void ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle,
+                       const georef::SonarMount& mount);
+
+// New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the
+// SLAM stage): interpolated between the bracketing samples (position linear, attitude slerp);
+// pings outside the trajectory's span keep their pose and are counted.
+struct PoseLookup {
+    std::vector<Pose> T_world_vehicle;  // one per ping of geo
+    std::size_t outside_span = 0;
+};
+PoseLookup PosesAtPings(const georef::GeorefResult& geo, const std::vector<double>& gps_time_s,
+                        const std::vector<Pose>& T_world_vehicle);
+
+// TSDF input: one scan per georeferenced ping; a beam's range is the kept sounding's range, 0
+// where the georeferencing dropped it (no detection, range gate, spike). The fan's angles come
+// from the ping header (theta_i = start + i * increment).
+std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
+                                         const georef::PingSeries& pings,
+                                         const georef::SonarMount& mount);
+
+// A vehicle trajectory in the world frame with GPS times (seconds), for trajectory CSVs.
+struct TimedPoses {
+    std::vector<double> gps_time_s;
+    std::vector<Pose> T_world_vehicle;
+};
+TimedPoses PingPoses(const georef::GeorefResult& geo);
+
+// trajectory.csv: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU; attitude of the
+// vehicle FRD frame relative to NED, common/frames.hpp).
+Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory);
+// Reads the first seven columns of a trajectory CSV (any further columns are ignored).
+Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path);
+
+}  // namespace pitmap::proc::pipeline

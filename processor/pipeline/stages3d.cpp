@@ -1,0 +1,358 @@
+// SPDX-License-Identifier: MIT
+// The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "common/frames.hpp"
+#include "common/progress.hpp"
+#include "processor/fusion/vdb_io.hpp"
+#include "processor/io/products.hpp"
+#include "processor/mesh/export.hpp"
+#include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/survey.hpp"
+
+extern char** environ;
+
+namespace pitmap::proc::pipeline {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string Fixed(double v, int digits) {
+    char b[64];
+    std::snprintf(b, sizeof(b), "%.*f", digits, v);
+    return b;
+}
+
+}  // namespace
+
+namespace detail {
+
+namespace {
+
+const char* StageName(slam::SlamStage s) {
+    return s == slam::SlamStage::kRigid ? "rigid" : "semi_rigid";
+}
+
+const char* CorrespondenceName(slam::CorrespondenceType t) {
+    switch (t) {
+        case slam::CorrespondenceType::kPointToPoint: return "point_to_point";
+        case slam::CorrespondenceType::kPointToPlane: return "point_to_plane";
+        case slam::CorrespondenceType::kGicp: return "gicp";
+    }
+    return "?";
+}
+
+// Position change between two per-ping trajectories: RMS and maximum, metres.
+std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::vector<Pose>& b) {
+    double sum = 0, worst = 0;
+    const std::size_t n = std::min(a.size(), b.size());
+    for (std::size_t i = 0; i < n; ++i) {
+        const double d = (a[i].translation() - b[i].translation()).norm();
+        sum += d * d;
+        worst = std::max(worst, d);
+    }
+    return {n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0, worst};
+}
+
+}  // namespace
+
+Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    const SlamStageConfig& sc = config.slam_stage;
+    PoseSigma fallback;
+    fallback << frames::DegToRad(sc.fallback_attitude_deg[0]),
+        frames::DegToRad(sc.fallback_attitude_deg[1]), frames::DegToRad(sc.fallback_attitude_deg[2]),
+        sc.fallback_position_m[0], sc.fallback_position_m[1], sc.fallback_position_m[2];
+    SliceSet set = MakeSlices(s.geo, s.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
+    std::size_t num_points = 0;
+    for (const auto& sl : set.slices) num_points += sl.points_vehicle.size();
+    log("slam: " + std::to_string(set.slices.size()) + " slices, " + std::to_string(num_points) +
+        " points");
+
+    slam::SlamConfig cfg = config.slam;
+    cfg.progress = [&log](int stage, int iteration) {
+        log(std::string("slam: ") + (stage == 0 ? "rigid" : "semi-rigid") + " iteration " +
+            std::to_string(iteration));
+        return true;
+    };
+    const slam::SlamResult r = slam::RunSlam(set.slices, cfg);
+    log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
+
+    // The trajectory before, per ping, and the optimised one: slice poses where SLAM has them,
+    // interpolated between slices for pings that kept no sounding.
+    const TimedPoses before = PingPoses(s.geo);
+    TimedPoses slices_after;
+    for (const slam::SlamPose& p : r.trajectory) {
+        if (p.input_index >= set.ping.size()) continue;
+        slices_after.gps_time_s.push_back(
+            static_cast<double>(s.geo.pings[set.ping[p.input_index]].utime_gps) * 1e-6);
+        slices_after.T_world_vehicle.push_back(p.T_world_vehicle);
+    }
+    std::vector<Pose> after = before.T_world_vehicle;
+    if (!slices_after.gps_time_s.empty()) {
+        after = PosesAtPings(s.geo, slices_after.gps_time_s, slices_after.T_world_vehicle)
+                    .T_world_vehicle;
+    }
+    const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
+
+    const std::string& P = s.out_dir;
+    std::error_code ec;
+    const bool first_slam = !(s.summary.contains("stages") && s.summary["stages"].contains("slam"));
+    if (first_slam && fs::exists(P + "/trajectory.csv")) {
+        fs::copy_file(P + "/trajectory.csv", P + "/trajectory_ins.csv",
+                      fs::copy_options::overwrite_existing, ec);
+        if (ec) return Error{P + "/trajectory_ins.csv: " + ec.message()};
+    }
+    if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
+    if (auto w = io::WritePly(P + "/points_initial.ply", s.geo); !w) return w;
+    ApplyVehiclePoses(s.geo, after, s.mount);
+    if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
+    if (auto w = WritePoints(P, s.geo, config, s.summary); !w) return w;
+
+    json st = {{"termination", slam::ToString(r.termination)},
+               {"message", r.message},
+               {"slices", set.slices.size()},
+               {"points", num_points},
+               {"sections", r.num_sections},
+               {"section_links", r.num_section_links},
+               {"poses", r.num_poses},
+               {"pairs", r.num_pairs},
+               {"rigid_iterations", r.rigid_iterations},
+               {"semi_rigid_iterations", r.semi_rigid_iterations},
+               {"initial_consistency_m", r.initial_consistency_m},
+               {"final_consistency_m", r.final_consistency_m},
+               {"position_change_rms_m", change_rms},
+               {"position_change_max_m", change_max},
+               {"correspondence", CorrespondenceName(cfg.correspondence)},
+               {"timings_s",
+                {{"trees", r.timings.trees_s},
+                 {"search", r.timings.search_s},
+                 {"build", r.timings.build_s},
+                 {"solve", r.timings.solve_s},
+                 {"score", r.timings.score_s},
+                 {"total", r.timings.total_s}}}};
+    st["iterations"] = json::array();
+    for (const slam::SlamIteration& it : r.iterations) {
+        st["iterations"].push_back({{"stage", StageName(it.stage)},
+                                    {"iteration", it.iteration},
+                                    {"num_pairs", it.num_pairs},
+                                    {"cost", it.cost},
+                                    {"pair_rms_m", it.pair_rms_m},
+                                    {"consistency_m", it.consistency_m},
+                                    {"max_step_rotation_rad", it.max_step_rotation_rad},
+                                    {"max_step_translation_m", it.max_step_translation_m},
+                                    {"best", it.best}});
+    }
+    log("slam: trajectory moved by " + Fixed(change_rms, 3) + " m RMS, " + Fixed(change_max, 3) +
+        " m at most; consistency " + Fixed(r.initial_consistency_m, 4) + " -> " +
+        Fixed(r.final_consistency_m, 4) + " m");
+    RecordStage(s.summary, "slam", st, clock);
+    if (r.termination == slam::SlamTermination::kInvalidInput) {
+        (void)SaveSummary(s);
+        return Error{"slam: " + r.message};
+    }
+    return SaveSummary(s);
+}
+
+Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
+                                        const std::string& stage, const Log& log) {
+    StageClock clock;
+    const std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.ingest.pings, s.mount);
+    fusion::TsdfVolume volume(config.tsdf);
+    ProgressReporter bar(stage, 1000);
+    const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
+    bar.Finish();
+    log(stage + ": " + ir.message);
+    // Before the filter, so the report shows what the filter removes.
+    const fusion::WeightHistogram hist = volume.ComputeWeightHistogram();
+    const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
+    log(stage + ": weight filter: " + wf.message);
+    const fusion::VolumeStats vs = volume.Stats();
+    json st = {{"sensor_model", config.tsdf.sensor_model == fusion::SensorModel::kRay ? "ray"
+                                                                                      : "beam_width"},
+               {"voxel_size_m", config.tsdf.voxel_size_m},
+               {"truncation_m", config.tsdf.truncation_m},
+               {"scans", ir.scans},
+               {"beams_used", ir.beams_used},
+               {"beams_no_detection", ir.beams_no_detection},
+               {"beams_out_of_range", ir.beams_out_of_range},
+               {"voxel_updates", ir.voxel_updates},
+               {"integrate_seconds", ir.elapsed_s},
+               {"min_weight", config.weight_filter.min_weight},
+               {"voxels_before_filter", wf.voxels_before},
+               {"voxels_removed", wf.voxels_removed},
+               {"active_voxels", vs.active_voxels},
+               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)},
+               {"weight_histogram", {{"edges", hist.edges}, {"counts", hist.counts},
+                                     {"before_filter", true}}}};
+    if (stage == "fuse") {
+        const std::vector<std::pair<std::string, std::string>> meta = {
+            {"pitmap_origin_latitude_deg", Fixed(s.origin.latitude_deg, 9)},
+            {"pitmap_origin_longitude_deg", Fixed(s.origin.longitude_deg, 9)},
+            {"pitmap_origin_height_m", Fixed(s.origin.height_m, 4)},
+            {"pitmap_frame", "local ENU at the origin, metres"}};
+        if (auto w = fusion::WriteVdb(volume, s.out_dir + "/tsdf.vdb", meta); !w) return w.error();
+    }
+    RecordStage(s.summary, stage, st, clock);
+    if (auto w = SaveSummary(s); !w) return w.error();
+    if (ir.cancelled) return Error{stage + ": cancelled"};
+    return volume;
+}
+
+Status MeshSurvey(Survey& s, const fusion::TsdfVolume& volume, const PipelineConfig& config,
+                  const std::string& stage, const Log& log) {
+    StageClock clock;
+    const mesh::MeshResult m = mesh::RunMesh(volume, config.mesh);
+    log(stage + ": " + m.message);
+    const std::string& P = s.out_dir;
+    const std::optional<Geodetic> origin = s.origin;
+    if (stage == "mesh") {
+        for (const auto& [name, mm] : {std::pair<std::string, const mesh::ColouredMesh*>{"mesh", &m.mesh},
+                                       {"mesh_filled", &m.mesh_filled}}) {
+            if (auto w = mesh::WritePly(*mm, P + "/" + name + ".ply", origin); !w) return w;
+            if (auto w = mesh::WriteObj(*mm, P + "/" + name + ".obj", origin); !w) return w;
+            if (auto w = mesh::WriteGlb(*mm, P + "/" + name + ".glb", origin); !w) return w;
+        }
+    } else {
+        if (auto w = mesh::WritePly(m.mesh, P + "/" + stage + ".ply", origin); !w) return w;
+    }
+    json st = {{"vertices", m.mesh.vertices.size()},
+               {"triangles", m.mesh.triangles.size()},
+               {"polygons_raw", m.polygons_raw},
+               {"polygons_unobserved", m.polygons_unobserved},
+               {"area_m2", m.area_m2},
+               {"min_z_m", m.min_z_m},
+               {"max_z_m", m.max_z_m},
+               {"filled_triangles", m.mesh_filled.triangles.size()},
+               {"holes_found", m.holes.holes_found},
+               {"holes_filled", m.holes.holes_filled},
+               {"holes_too_large", m.holes.holes_too_large}};
+    RecordStage(s.summary, stage, st, clock);
+    return SaveSummary(s);
+}
+
+Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    const std::string& program = config.report_program;
+    if (program.empty() || ::access(program.c_str(), X_OK) != 0) {
+        return Error{"report: the report program " +
+                     (program.empty() ? std::string("(pitmap-report)") : program) +
+                     " is not there; the products are complete without report.html"};
+    }
+    if (auto w = SaveSummary(s); !w) return w;
+    std::vector<std::string> args = {program, s.out_dir};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_t pid = 0;
+    if (posix_spawn(&pid, program.c_str(), nullptr, nullptr, argv.data(), environ) != 0) {
+        return Error{"report: cannot start " + program};
+    }
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0) {
+        if (errno != EINTR) return Error{"report: lost " + program};
+    }
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        return Error{"report: " + program + " failed (exit status " +
+                     std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")"};
+    }
+    log("report: " + s.out_dir + "/report.html");
+    RecordStage(s.summary, "report", {{"file", "report.html"}}, clock);
+    return SaveSummary(s);
+}
+
+}  // namespace detail
+
+Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/false, log);
+    if (!s) return s.error();
+    return detail::SlamSurvey(*s, config, log);
+}
+
+Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/true, log);
+    if (!s) return s.error();
+    auto v = detail::FuseSurvey(*s, config, "fuse", log);
+    if (!v) return v.error();
+    return Ok{};
+}
+
+Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
+    if (!summary) return Error{summary.error().message + " (run `pitmap fuse` first)"};
+    detail::Survey s;
+    s.out_dir = out_dir;
+    s.summary = std::move(*summary);
+    const json o = s.summary.value("world_origin", json::object());
+    s.origin = Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0),
+                        o.value("height_m", 0.0)};
+    auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb");
+    if (!volume) return Error{volume.error().message + " (run `pitmap fuse` first)"};
+    return detail::MeshSurvey(s, *volume, config, "mesh", log);
+}
+
+Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
+    if (!summary) return Error{summary.error().message + " (run `pitmap georef` first)"};
+    detail::Survey s;
+    s.out_dir = out_dir;
+    s.summary = std::move(*summary);
+    return detail::ReportSurvey(s, config, log);
+}
+
+Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir,
+              const PipelineConfig& config, const Log& log) {
+    const auto start = std::chrono::steady_clock::now();
+    detail::Survey s;
+    s.out_dir = out_dir;
+    if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;
+    if (config.run.calibrate) {
+        if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
+            // No overlap to calibrate on is a property of the survey, not a failure of the run.
+            const json& c = s.summary["stages"]["calibrate"];
+            if (!c.is_object() || c.value("termination", "") !=
+                                      calib::ToString(calib::Termination::kNoOverlap)) {
+                return st;
+            }
+            log("warning: " + st.error().message + "; keeping the mount of vehicle.yaml");
+        }
+    }
+    if (config.run.slam && config.run.mesh_before_slam) {
+        auto v = detail::FuseSurvey(s, config, "fuse_initial", log);
+        if (!v) return v.error();
+        if (auto st = detail::MeshSurvey(s, *v, config, "mesh_initial", log); !st) return st;
+    }
+    if (config.run.slam) {
+        if (auto st = detail::SlamSurvey(s, config, log); !st) return st;
+    }
+    {
+        auto v = detail::FuseSurvey(s, config, "fuse", log);
+        if (!v) return v.error();
+        if (auto st = detail::MeshSurvey(s, *v, config, "mesh", log); !st) return st;
+    }
+    auto total = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    s.summary["total_seconds"] = total();
+    if (auto st = detail::SaveSummary(s); !st) return st;
+    if (config.run.report) {
+        auto st = detail::ReportSurvey(s, config, log);
+        s.summary["total_seconds"] = total();
+        if (auto w = detail::SaveSummary(s); !w) return w;
+        if (!st) return st;
+    }
+    log("done in " + Fixed(total(), 1) + " s; products in " + out_dir);
+    return Ok{};
+}
+
+}  // namespace pitmap::proc::pipeline
