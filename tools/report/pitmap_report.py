@@ -31,6 +31,7 @@ import io
 import json
 import math
 import os
+import resource
 import sys
 import time
 
@@ -85,8 +86,13 @@ MAX_SCATTER_POINTS = 150_000  # per panel
 FIG_DPI = 100
 
 
+def PeakRssMb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 def Log(msg):
-    print(f"{PROG}: [{time.monotonic() - START_TIME:6.1f} s] {msg}", file=sys.stderr, flush=True)
+    print(f"{PROG}: [{time.monotonic() - START_TIME:6.1f} s, {PeakRssMb():5.0f} MB] {msg}",
+          file=sys.stderr, flush=True)
 
 
 class ReportError(Exception):
@@ -338,33 +344,38 @@ def FillHoles(grid, passes=2):
     return g
 
 
-def RasteriseMesh(v, t, x0, y0, cell, nx, ny):
+def RasteriseMesh(v, t, x0, y0, cell, nx, ny, chunk=300_000):
     """Top surface of a triangle mesh on a grid: each triangle is sampled on a barycentric
-    lattice fine enough to hit every cell it covers, the highest sample per cell wins."""
-    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    edge = np.maximum(np.maximum(np.hypot(*(a - b)[:, :2].T), np.hypot(*(b - c)[:, :2].T)),
-                      np.hypot(*(c - a)[:, :2].T))
-    n = np.clip(np.ceil(edge / (0.7 * cell)), 1, 64).astype(np.int64)
-    xs, ys, zs = [v[:, 0]], [v[:, 1]], [v[:, 2]]
-    for k in np.unique(n):
-        sel = n == k
-        i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-        keep = (i + j <= k) & ~(((i == k) & (j == 0)) | ((i == 0) & (j == k)) |
-                                ((i == 0) & (j == 0)))
-        if k == 1:  # vertices are already in; add the centroid
-            wa = np.array([1 / 3])
-            wb = np.array([1 / 3])
-        else:
-            wa = (i[keep] / k).astype(np.float64)
-            wb = (j[keep] / k).astype(np.float64)
-        wc = 1.0 - wa - wb
-        p = (a[sel][:, None, :] * wa[None, :, None] + b[sel][:, None, :] * wb[None, :, None]
-             + c[sel][:, None, :] * wc[None, :, None]).reshape(-1, 3)
-        xs.append(p[:, 0])
-        ys.append(p[:, 1])
-        zs.append(p[:, 2])
-    return RasterMax(np.concatenate(xs), np.concatenate(ys), np.concatenate(zs),
-                     x0, y0, cell, nx, ny)
+    lattice fine enough to hit every cell it covers, the highest sample per cell wins.
+    Triangles go in chunks so that memory stays bounded for meshes of millions."""
+    grid = RasterMax(v[:, 0], v[:, 1], v[:, 2], x0, y0, cell, nx, ny)
+    for start in range(0, len(t), chunk):
+        tt = t[start:start + chunk]
+        a, b, c = v[tt[:, 0]], v[tt[:, 1]], v[tt[:, 2]]
+        edge = np.maximum(np.maximum(np.hypot(*(a - b)[:, :2].T), np.hypot(*(b - c)[:, :2].T)),
+                          np.hypot(*(c - a)[:, :2].T))
+        n = np.clip(np.ceil(edge / (0.7 * cell)), 1, 64).astype(np.int64)
+        xs, ys, zs = [], [], []
+        for k in np.unique(n):
+            sel = n == k
+            if k == 1:  # vertices are already in; add the centroid
+                wa = np.array([1 / 3])
+                wb = np.array([1 / 3])
+            else:
+                i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+                keep = (i + j <= k) & ~(((i == k) & (j == 0)) | ((i == 0) & (j == k)) |
+                                        ((i == 0) & (j == 0)))
+                wa = (i[keep] / k).astype(np.float64)
+                wb = (j[keep] / k).astype(np.float64)
+            wc = 1.0 - wa - wb
+            p = (a[sel][:, None, :] * wa[None, :, None] + b[sel][:, None, :] * wb[None, :, None]
+                 + c[sel][:, None, :] * wc[None, :, None]).reshape(-1, 3)
+            xs.append(p[:, 0])
+            ys.append(p[:, 1])
+            zs.append(p[:, 2])
+        grid = np.fmax(grid, RasterMax(np.concatenate(xs), np.concatenate(ys),
+                                       np.concatenate(zs), x0, y0, cell, nx, ny))
+    return grid
 
 
 # ------------------------------------------------------------------------------ the report
@@ -406,6 +417,20 @@ class Report:
             self.missing.append(name)
         return NotProduced(name, why)
 
+    def CheckOrigin(self, ply, name):
+        """A product whose pitmap_origin differs from summary.json's world_origin would be
+        drawn offset: say so (1e-6 deg is about 0.1 m)."""
+        o, w = ply.origin(), self.summary.get("world_origin")
+        if o is None or not isinstance(w, dict):
+            return
+        ref = (w.get("latitude_deg"), w.get("longitude_deg"), w.get("height_m"))
+        if not all(isinstance(v, (int, float)) for v in ref):
+            return
+        if abs(o[0] - ref[0]) > 1e-6 or abs(o[1] - ref[1]) > 1e-6 or abs(o[2] - ref[2]) > 0.1:
+            self.problems.append(f"{name}: origin {o[0]:.7f} {o[1]:.7f} {o[2]:.2f} differs from "
+                                 f"summary.json world_origin {ref[0]:.7f} {ref[1]:.7f} "
+                                 f"{ref[2]:.2f}; its figures are offset")
+
     def LoadTrajectories(self):
         for key, name in (("initial", "trajectory_initial.csv"), ("final", "trajectory.csv")):
             if os.path.isfile(self.P(name)):
@@ -432,6 +457,7 @@ class Report:
                 if v is None or not all(c in v.dtype.names for c in ("x", "y", "z")):
                     raise PlyError(f"{name}: no vertex x, y, z")
                 self.points[key] = v
+                self.CheckOrigin(ply, name)
                 Log(f"{name}: {len(v)} points")
             except (OSError, PlyError) as e:
                 Log(f"{name}: unreadable: {e}")
@@ -449,12 +475,13 @@ class Report:
         f = ply.elements.get("face")
         if v is None or f is None:
             raise PlyError(f"{name}: no vertex or face element")
+        self.CheckOrigin(ply, name)
         lists = [n for n in f.dtype.names if not n.endswith("__count")]
         if not lists or f.dtype[lists[0]].shape != (3,) and len(f):
             raise PlyError(f"{name}: faces are not triangles")
         xyz = np.stack([np.asarray(v[c], dtype=np.float64) for c in ("x", "y", "z")], axis=1)
-        tri = np.asarray(f[lists[0]], dtype=np.int64).reshape(-1, 3) if len(f) else \
-            np.zeros((0, 3), np.int64)
+        tri = np.array(f[lists[0]], dtype=np.int32).reshape(-1, 3) if len(f) else \
+            np.zeros((0, 3), np.int32)
         if len(tri) and (tri.min() < 0 or tri.max() >= len(xyz)):
             raise PlyError(f"{name}: face index out of range")
         return xyz, tri
@@ -639,8 +666,8 @@ class Report:
             for col, (key, title) in enumerate((("initial", "(c) before SLAM"),
                                                 ("final", "(d) after SLAM"))):
                 a = ax[row][col]
-                where = (f"slab |y - {yc:.1f}| < {half} m" if axis == "x"
-                         else f"slab |x - {xc:.1f}| < {half} m")
+                where = (f"slab y = {yc:.1f} \u00b1 {half} m" if axis == "x"
+                         else f"slab x = {xc:.1f} \u00b1 {half} m")
                 a.set_title(f"{title}: along {axis}, {where}", fontsize=10)
                 if (axis, key) not in cuts:
                     a.text(0.5, 0.5, "not produced", ha="center", va="center",
@@ -874,8 +901,7 @@ class Report:
             out.append(Table(rows, header=["segment (min since start)", "RMS before (m)",
                                            "RMS after (m)", "pairs"]))
         else:
-            out.append('<p class="missing">not produced: verification segments (none found '
-                       "outside the calibration segment)</p>")
+            out.append(NotProduced("verification segments", "calibrate reported none"))
         return "\n".join(out)
 
     def SectionTsdf(self):
