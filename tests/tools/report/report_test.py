@@ -209,6 +209,7 @@ class ReportTest(unittest.TestCase):
         self.assertEqual(list(sec), SECTIONS)
         self.assertNotIn("not produced", page)
         self.assertNotIn("could not draw", page)
+        self.assertNotIn('class="problem"', page)
         for s in ("trajectory", "cross-sections", "depth", "mesh", "tsdf", "slam", "stages"):
             self.assertIn("data:image/png", sec[s], s)
         self.assertIn("2026-06-15 09:00:00", sec["summary"])
@@ -256,10 +257,17 @@ class ReportTest(unittest.TestCase):
             f.truncate(os.path.getsize(os.path.join(p, "mesh.ply")) // 2)
         with open(os.path.join(p, "scores.json"), "w") as f:
             f.write("{not json")
+        with open(os.path.join(p, "mesh_initial.ply"), "r+b") as f:
+            data = f.read()
+            f.seek(0)
+            f.write(data.replace(b"pitmap_origin 40.4435 ", b"pitmap_origin 40.4436 ", 1))
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
         with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            sec = Sections(f.read())
+            page = f.read()
+        sec = Sections(page)
+        self.assertRegex(page, r'class="problem">mesh_initial\.ply: origin 40\.4436000 '
+                               r"[^<]*differs from summary\.json world_origin 40\.4435000")
         self.assertRegex(sec["mesh"], r"not produced: mesh\.ply \([^)]*truncated")
         self.assertIn("data:image/png", sec["mesh"])  # the mesh before SLAM is still drawn
         self.assertRegex(sec["scores"], r"not produced: scores\.json \(unreadable")
