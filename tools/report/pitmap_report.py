@@ -41,6 +41,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 from matplotlib.colors import LightSource, Normalize  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 PROG = "pitmap-report"
 START_TIME = time.monotonic()
@@ -87,6 +88,15 @@ FIG_DPI = 100
 
 
 def PeakRssMb():
+    """VmHWM of this process. Linux carries ru_maxrss across exec, so a report started by
+    `pitmap run` would show the pipeline's peak there; VmHWM starts afresh."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
@@ -909,25 +919,41 @@ class Report:
         if not isinstance(fuse, dict):
             return self.Missing("TSDF fusion statistics", "no fuse stage in summary.json")
         out = []
-        h = fuse.get("weight_histogram")
-        if isinstance(h, dict) and len(h.get("counts", [])) and \
-                len(h.get("edges", [])) == len(h["counts"]) + 1:
-            edges = np.asarray(h["edges"], dtype=np.float64)
-            counts = np.asarray(h["counts"], dtype=np.float64)
-            fig, a = plt.subplots(figsize=(10, 4.2))
+
+        def Hist(stage):
+            h = stage.get("weight_histogram") if isinstance(stage, dict) else None
+            if isinstance(h, dict) and len(h.get("counts", [])) and \
+                    len(h.get("edges", [])) == len(h["counts"]) + 1:
+                return (np.asarray(h["edges"], dtype=np.float64),
+                        np.asarray(h["counts"], dtype=np.float64), bool(h.get("before_filter")))
+            return None
+
+        h = Hist(fuse)
+        h0 = Hist(self.stages.get("fuse_initial"))
+        if h is not None:
+            edges, counts, before_filter = h
+            fig, a = plt.subplots(figsize=(10, 4.2), layout="constrained")
             a.bar(edges[:-1], np.where(counts > 0, counts, np.nan), width=np.diff(edges),
-                  align="edge", color="tab:blue", edgecolor="white", linewidth=0.5)
+                  align="edge", color="tab:blue", edgecolor="white", linewidth=0.5,
+                  label="after SLAM (fuse)")
+            if h0 is not None:
+                a.stairs(np.where(h0[1] > 0, h0[1], np.nan), h0[0], color="k", ls="--", lw=1.2,
+                         label="before SLAM (fuse_initial)")
             a.set_yscale("log")
             a.set_xlabel("voxel weight (number of updates, capped at w_max)")
             a.set_ylabel("active voxels")
+            a.xaxis.set_major_locator(MaxNLocator(integer=True))
             a.grid(alpha=0.3, which="both", axis="y")
-            mw = next((fuse[k] for k in ("min_weight", "filter_min_weight") if k in fuse), None)
+            mw = fuse.get("min_weight")
             if isinstance(mw, (int, float)):
                 a.axvline(float(mw), color="tab:red", ls="--", label=f"filter min weight {mw:g}")
-                a.legend()
-            a.set_title("TSDF weight histogram")
-            fig.tight_layout()
+            a.legend()
+            when = " (before the weight filter)" if before_filter else ""
+            a.set_title("TSDF weight histogram" + when)
             out.append(self.Figure(fig, "tsdf_weights", "TSDF weight histogram"))
+            out.append('<p class="caption">How often each voxel was observed. Voxels under the '
+                       "filter weight are dropped before meshing (outlier surfaces); the last "
+                       "bin holds the voxels at the weight cap.</p>")
         else:
             out.append(self.Missing("TSDF weight histogram",
                                     "no stages.fuse.weight_histogram {edges, counts}"))
@@ -967,6 +993,7 @@ class Report:
                 if logy and np.all(vals[np.isfinite(vals)] > 0):
                     a.set_yscale("log")
                 a.set_xlabel("iteration (rigid, then semi-rigid)")
+                a.xaxis.set_major_locator(MaxNLocator(integer=True))
                 a.set_ylabel(label)
                 a.grid(alpha=0.3)
             ax[0].legend(fontsize=8)
