@@ -555,6 +555,16 @@ class Report:
                                  f"{Num(ply.counts.get('face', 0))} triangles"))
                 except (OSError, PlyError) as e:
                     rows.append((f"Mesh {name}", Esc(e)))
+        if "initial" in self.traj and "final" in self.traj:
+            rows.append(("Track height std (before &rarr; after SLAM)",
+                         f"{np.std(self.traj['initial']['z']):.3f} &rarr; "
+                         f"{np.std(self.traj['final']['z']):.3f} m"))
+        slam = self.stages.get("slam")
+        if isinstance(slam, dict) and "initial_consistency_m" in slam:
+            rows.append(("SLAM consistency score",
+                         f"{Num(slam['initial_consistency_m'], 4)} &rarr; "
+                         f"{Num(slam.get('final_consistency_m', float('nan')), 4)} m "
+                         f"({Esc(slam.get('termination', '?'))})"))
         if "total_seconds" in s:
             rows.append(("Processing time", f"{float(s['total_seconds']):.1f} s"))
         inputs = s.get("inputs") or []
