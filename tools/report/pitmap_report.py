@@ -61,7 +61,8 @@ GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06 00:00:00 UTC
 
 # What pitmap-eval's scores mean (pitmap-eval --help); unknown names are shown as they come.
 SCORE_MEANINGS = {
-    "trajectory_ate_rmse_m": "trajectory error after SLAM (RMS position error vs truth, no alignment)",
+    "trajectory_ate_rmse_m":
+        "trajectory error after SLAM (RMS position error vs truth, no alignment)",
     "trajectory_ate_rmse_before_m": "trajectory error before SLAM (trajectory_initial.csv)",
     "trajectory_ate_max_m": "largest trajectory position error after SLAM",
     "trajectory_z_std_m": "std of the track height (a surface vehicle's track is planar)",
@@ -270,7 +271,8 @@ def Num(v, digits=3):
 
 
 def NotProduced(what, why=""):
-    return f'<p class="missing">not produced: {Esc(what)}{(" (" + Esc(why) + ")") if why else ""}</p>'
+    because = f" ({Esc(why)})" if why else ""
+    return f'<p class="missing">not produced: {Esc(what)}{because}</p>'
 
 
 def Table(rows, header=None, cls=""):
@@ -588,7 +590,7 @@ class Report:
             out.append(self.Missing("trajectory_initial.csv", "no before-SLAM trajectory"))
         if "final" not in self.traj:
             out.append(self.Missing("trajectory.csv", "no after-SLAM trajectory"))
-        trs = {k: v for k, v in self.traj.items()}
+        trs = self.traj
         dec = {k: slice(None, None, max(1, len(v["t"]) // 20000)) for k, v in trs.items()}
         xl = Limits([v["x"] for v in trs.values()])
         yl = Limits([v["y"] for v in trs.values()])
@@ -749,7 +751,8 @@ class Report:
         cb.set_label(f"depth below the track (m; track median z = {self.ref_z:.2f} m)")
         return "\n".join([self.Figure(fig, "depth_top_view", "depth-coloured top view"),
                           f'<p class="caption">{Num(len(pts))} points rasterised; white cells '
-                          "hold no point (single empty cells are filled from their neighbours).</p>"])
+                          "hold no point (single empty cells are filled from their "
+                          "neighbours).</p>"])
 
     def SectionMesh(self):
         meshes = {}
@@ -893,8 +896,9 @@ class Report:
                                        "formal sd (deg)"]))
         facts = []
         if "residual_before_rms_m" in cal or "residual_after_rms_m" in cal:
-            facts.append(("residual RMS", f"{Num(cal.get('residual_before_rms_m', float('nan')), 4)}"
-                          f" &rarr; {Num(cal.get('residual_after_rms_m', float('nan')), 4)} m"))
+            r0 = cal.get("residual_before_rms_m", float("nan"))
+            r1 = cal.get("residual_after_rms_m", float("nan"))
+            facts.append(("residual RMS", f"{Num(r0, 4)} &rarr; {Num(r1, 4)} m"))
         for k in ("pairs", "iterations", "termination", "height_offsets_rms_m"):
             if k in cal:
                 facts.append((k.replace("_", " "), Num(cal[k], 4)))
@@ -902,7 +906,8 @@ class Report:
         if isinstance(seg, dict) and "start_s" in seg:
             t0 = self.t0 or seg["start_s"]
             facts.append(("calibration segment",
-                          f"{(seg['start_s'] - t0) / 60:.2f} to {(seg.get('end_s', 0) - t0) / 60:.2f}"
+                          f"{(seg['start_s'] - t0) / 60:.2f} to "
+                          f"{(seg.get('end_s', 0) - t0) / 60:.2f}"
                           f" min since start ({seg.get('end_s', 0) - seg['start_s']:.0f} s)"))
         if cal.get("message"):
             facts.append(("message", Esc(cal["message"])))
@@ -999,7 +1004,8 @@ class Report:
                            label=st.replace("_", "-"))
                 best = np.array([bool(i.get("best", False)) for i in its])
                 if best.any():
-                    a.plot(xs[best], vals[best], "o", ms=9, mfc="none", mec="k", label="best so far")
+                    a.plot(xs[best], vals[best], "o", ms=9, mfc="none", mec="k",
+                           label="best so far")
                 if logy and np.all(vals[np.isfinite(vals)] > 0):
                     a.set_yscale("log")
                 a.set_xlabel("iteration (rigid, then semi-rigid)")
@@ -1014,8 +1020,9 @@ class Report:
             out.append(self.Missing("SLAM iterations", "no stages.slam.iterations"))
         facts = []
         if "initial_consistency_m" in slam or "final_consistency_m" in slam:
-            facts.append(("consistency", f"{Num(slam.get('initial_consistency_m', float('nan')), 4)}"
-                          f" &rarr; {Num(slam.get('final_consistency_m', float('nan')), 4)} m"))
+            c0 = slam.get("initial_consistency_m", float("nan"))
+            c1 = slam.get("final_consistency_m", float("nan"))
+            facts.append(("consistency", f"{Num(c0, 4)} &rarr; {Num(c1, 4)} m"))
         facts += [(k.replace("_", " "), Num(v, 4)) for k, v in slam.items()
                   if isinstance(v, (int, float, str, bool)) and k not in
                   ("seconds", "peak_rss_mb", "initial_consistency_m", "final_consistency_m")]
@@ -1070,7 +1077,8 @@ class Report:
     def SectionScores(self):
         path = self.scores_path
         if not os.path.isfile(path):
-            return self.Missing(os.path.basename(path), "no ground truth given (pitmap-eval --json)")
+            return self.Missing(os.path.basename(path),
+                                "no ground truth given (pitmap-eval --json)")
         try:
             with open(path) as f:
                 scores = json.load(f)

@@ -149,9 +149,10 @@ def WriteProducts(folder, full=True):
         summary["stages"]["slam"] = {
             "seconds": 4.0, "peak_rss_mb": 120.0, "termination": "converged",
             "initial_consistency_m": 0.31, "final_consistency_m": 0.048,
-            "iterations": [{"stage": st, "iteration": i + 1, "num_pairs": 100, "cost": 50.0 / (i + 1),
-                            "pair_rms_m": 0.3 / (i + 1), "consistency_m": 0.2 / (i + 1),
-                            "best": True} for st in ("rigid", "semi_rigid") for i in range(3)]}
+            "iterations": [{"stage": st, "iteration": i + 1, "num_pairs": 100,
+                            "cost": 50.0 / (i + 1), "pair_rms_m": 0.3 / (i + 1),
+                            "consistency_m": 0.2 / (i + 1), "best": True}
+                           for st in ("rigid", "semi_rigid") for i in range(3)]}
         summary["stages"]["fuse"] = {
             "seconds": 1.0, "peak_rss_mb": 200.0, "active_voxels": 4321, "sensor_model": "beam",
             "weight_histogram": {"edges": list(range(0, 22)),
@@ -327,7 +328,8 @@ class HelperTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as d:
             path = os.path.join(d, "a.ply")
             with open(path, "w") as f:
-                f.write("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n")
+                f.write("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                        "end_header\n1\n")
             with self.assertRaisesRegex(self.m.PlyError, "ascii"):
                 self.m.Ply(path)
             WritePly(path, [("x", "float", "f4")], {"x": np.arange(10.0)})
