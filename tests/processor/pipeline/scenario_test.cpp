@@ -262,3 +262,76 @@ TEST_F(DemoScenario, RawChannelsRedecodeToTheSameSoundings) {
     EXPECT_NEAR(raw.at("points_rms_m"), decoded.at("points_rms_m"), 0.001);
     EXPECT_NEAR(raw.at("trajectory_ate_rmse_m"), decoded.at("trajectory_ate_rmse_m"), 0.001);
 }
+
+// `pitmap run` end to end on the demo: every product, every stage in summary.json, and the
+// survey no worse than the INS alone; then the stand-alone stages re-make the same products
+// from the folder (tsdf.vdb -> mesh, trajectory.csv -> fuse).
+TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
+    const fs::path p = dir_ / "products";
+    const bool with_report = fs::exists(kBin + "/pitmap-report");
+    std::string out;
+    ASSERT_EQ(RunCommand(kBin + "/pitmap run " + Quote(dir_ / "sim/log") + " --out " + Quote(p) +
+                             (with_report ? "" : " --no-report"),
+                         &out),
+              0)
+        << out;
+    std::vector<std::string> products = {
+        "summary.json", "trajectory.csv", "trajectory_initial.csv", "trajectory_ins.csv",
+        "points.ply", "points_initial.ply", "points.las", "boresight.json", "tsdf.vdb",
+        "mesh.ply", "mesh.obj", "mesh.glb", "mesh_filled.ply", "mesh_filled.obj",
+        "mesh_filled.glb", "mesh_initial.ply"};
+    if (with_report) products.push_back("report.html");
+    for (const auto& f : products) {
+        EXPECT_TRUE(fs::exists(p / f) && fs::file_size(p / f) > 0) << f << " missing or empty";
+    }
+    const json summary = ReadJson(p / "summary.json");
+    std::vector<std::string> order;
+    for (const auto& n : summary.at("stage_order")) order.push_back(n.get<std::string>());
+    std::vector<std::string> expected = {"ingest", "georef", "export", "calibrate",
+                                         "fuse_initial", "mesh_initial", "slam", "fuse", "mesh"};
+    if (with_report) expected.push_back("report");
+    EXPECT_EQ(order, expected);
+    for (const auto& n : order) {
+        const json& st = summary.at("stages").at(n);
+        EXPECT_GE(st.at("seconds").get<double>(), 0.0) << n;
+        EXPECT_GT(st.at("peak_rss_mb").get<double>(), 1.0) << n;
+    }
+    EXPECT_GT(summary.at("total_seconds").get<double>(), 0.0);
+    const json& slam = summary.at("stages").at("slam");
+    EXPECT_EQ(slam.at("slices").get<int>(), 1200);
+    EXPECT_FALSE(slam.at("iterations").empty());
+
+    const auto s = Eval(p);
+    ASSERT_TRUE(s.count("trajectory_ate_rmse_before_m") && s.count("mesh_mean_abs_m")) << out;
+    RecordProperty("ate_before_m", std::to_string(s.at("trajectory_ate_rmse_before_m")));
+    RecordProperty("ate_after_m", std::to_string(s.at("trajectory_ate_rmse_m")));
+    RecordProperty("mesh_mean_abs_m", std::to_string(s.at("mesh_mean_abs_m")));
+    EXPECT_LT(s.at("boresight_error_deg"), 0.1);
+    // The demo's INS is RTK grade: SLAM must not make it worse.
+    EXPECT_LT(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.01);
+    EXPECT_LT(s.at("points_rms_m"), 1.2 * RangeNoiseRms(p / "points.ply"));
+    EXPECT_LT(s.at("mesh_mean_abs_m"), 0.05);
+
+    const auto triangles = summary.at("stages").at("mesh").at("triangles").get<std::int64_t>();
+    const auto voxels = summary.at("stages").at("fuse").at("active_voxels").get<double>();
+    ASSERT_EQ(RunCommand(kBin + "/pitmap mesh --out " + Quote(p), &out), 0) << out;
+    EXPECT_EQ(ReadJson(p / "summary.json").at("stages").at("mesh").at("triangles").get<std::int64_t>(),
+              triangles)
+        << "meshing tsdf.vdb again gives the mesh of the run";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(p), &out), 0) << out;
+    EXPECT_NEAR(ReadJson(p / "summary.json").at("stages").at("fuse").at("active_voxels").get<double>(),
+                voxels, 0.005 * voxels)
+        << "fusing on trajectory.csv gives the volume of the run";
+}
+
+TEST(PipelineCli, StagesOnAFolderWithoutTheirInputsSayWhatToRunFirst) {
+    const fs::path p = fs::temp_directory_path() / ("pitmap_empty_" + std::to_string(::getpid()));
+    fs::create_directories(p);
+    for (const char* stage : {"slam", "fuse", "mesh"}) {
+        std::string out;
+        EXPECT_EQ(RunCommand(kBin + "/pitmap " + stage + " --out " + Quote(p), &out) != 0, true)
+            << stage;
+        EXPECT_NE(out.find("first"), std::string::npos) << stage << ": " << out;
+    }
+    fs::remove_all(p);
+}

@@ -1,0 +1,238 @@
+// SPDX-License-Identifier: MIT
+// The conversions between the georeferenced survey and the 3-D stages (processor/pipeline/
+// adapters.hpp): SLAM slices and TSDF scans must reproduce the georeferenced soundings exactly,
+// corrected poses must move the soundings rigidly, and trajectory CSVs must round-trip.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "common/frames.hpp"
+#include "processor/pipeline/adapters.hpp"
+
+namespace pitmap::proc::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kStartDeg = -60.0;
+constexpr double kIncrementDeg = 0.25;
+constexpr int kBeams = 481;
+
+georef::SonarMount Mount() {
+    georef::SonarMount m;
+    m.lever_arm_m = Eigen::Vector3d(0.8, -0.1, 0.25);
+    m.boresight_roll_deg = 0.4;
+    m.boresight_pitch_deg = -0.3;
+    m.boresight_yaw_deg = 1.2;
+    return m;
+}
+
+Pose VehiclePose(int k) {
+    return MakePose(frames::RotationWorldFromRpy(0.02 * k, -0.01, 0.3 + 0.05 * k),
+                    Eigen::Vector3d(1.2 * k, 0.5 * k, 0.05 * k));
+}
+
+// Four pings, the third keeps no sounding; beams every 7th, ranges growing off nadir.
+struct Survey {
+    georef::GeorefResult geo;
+    georef::PingSeries pings;
+};
+
+Survey MakeSurvey(const georef::SonarMount& mount) {
+    Survey s;
+    for (int k = 0; k < 4; ++k) {
+        georef::PingHeader h;
+        h.utime_gps = 1'400'000'000'000'000 + k * 100'000;
+        h.start_angle_deg = kStartDeg;
+        h.angle_increment_deg = kIncrementDeg;
+        h.profile_tilt_deg = k == 1 ? 2.0 : 0.0;
+        h.num_beams = kBeams;
+        h.beam_offset = static_cast<std::uint32_t>(k * kBeams);
+        s.pings.pings.push_back(h);
+        georef::GeorefPing p;
+        p.utime_gps = h.utime_gps;
+        p.header_index = static_cast<std::uint32_t>(k);
+        p.T_world_vehicle = VehiclePose(k);
+        p.profile_tilt_rad = frames::DegToRad(h.profile_tilt_deg);
+        p.sensor_world = (p.T_world_vehicle * mount.T_vehicle_sonar()).translation();
+        s.geo.pings.push_back(p);
+        if (k == 2) continue;
+        for (int b = 0; b < kBeams; b += 7) {
+            const double theta = frames::DegToRad(kStartDeg + b * kIncrementDeg);
+            const double r = 20.0 / std::max(0.5, std::cos(theta));
+            s.geo.points.position_world.push_back(
+                p.T_world_vehicle * mount.T_vehicle_sonar() *
+                georef::BeamVectorSonar(r, theta, p.profile_tilt_rad));
+            s.geo.points.ping.push_back(static_cast<std::uint32_t>(k));
+            s.geo.points.beam.push_back(static_cast<std::uint16_t>(b));
+            s.geo.points.range_m.push_back(static_cast<float>(r));
+            s.geo.points.angle_rad.push_back(static_cast<float>(theta));
+        }
+    }
+    return s;
+}
+
+TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
+    const auto mount = Mount();
+    const Survey s = MakeSurvey(mount);
+    georef::NavSeries nav;
+    const SliceSet set = MakeSlices(s.geo, nav, 1, 5.0, PoseSigma::Constant(0.01));
+    ASSERT_EQ(set.slices.size(), 3u) << "the ping without soundings makes no slice";
+    EXPECT_EQ(set.ping, (std::vector<std::uint32_t>{0, 1, 3}));
+    std::size_t i = 0;
+    for (std::size_t j = 0; j < set.slices.size(); ++j) {
+        const slam::Slice& sl = set.slices[j];
+        EXPECT_DOUBLE_EQ(sl.gps_time_s, s.geo.pings[set.ping[j]].utime_gps * 1e-6);
+        for (const Eigen::Vector3f& x : sl.points_vehicle) {
+            const Eigen::Vector3d w = sl.T_world_vehicle * x.cast<double>();
+            EXPECT_LT((w - s.geo.points.position_world[i]).norm(), 1e-5) << "point " << i;
+            ++i;
+        }
+    }
+    EXPECT_EQ(i, s.geo.points.size());
+    const SliceSet strided = MakeSlices(s.geo, nav, 4, 5.0, PoseSigma::Constant(0.01));
+    EXPECT_EQ(strided.slices[0].points_vehicle.size(), (set.slices[0].points_vehicle.size() + 3) / 4);
+}
+
+TEST(Adapters, PoseSigmaComesFromTheNearestStddevRecord) {
+    georef::NavSeries nav;
+    for (int k = 0; k < 3; ++k) {
+        georef::NavStdDev d;
+        d.utime_gps = k * 1'000'000;
+        d.east_m = 0.1f * static_cast<float>(k + 1);
+        d.north_m = 0.2f;
+        d.up_m = georef::kNaNf;  // not reported: the fallback takes its place
+        d.roll_deg = d.pitch_deg = 0.01f;
+        d.yaw_deg = 0.05f;
+        nav.stddevs.push_back(d);
+    }
+    const PoseSigma fallback = PoseSigma::Constant(9.0);
+    const PoseSigma a = PoseSigmaAt(nav, 1'400'000, 5.0, fallback);
+    EXPECT_NEAR(a[3], 0.2, 1e-6) << "nearest record is the one at 1 s";
+    EXPECT_NEAR(a[4], 0.2, 1e-6);
+    EXPECT_EQ(a[5], 9.0);
+    EXPECT_NEAR(a[2], frames::DegToRad(0.05), 1e-9);
+    EXPECT_NEAR(PoseSigmaAt(nav, 1'600'000, 5.0, fallback)[3], 0.3, 1e-6);
+    EXPECT_EQ(PoseSigmaAt(nav, 60'000'000, 5.0, fallback), fallback) << "too old";
+    EXPECT_EQ(PoseSigmaAt(georef::NavSeries{}, 0, 5.0, fallback), fallback) << "no records";
+}
+
+TEST(Adapters, ScansReproduceTheSoundingsAndMarkDroppedBeams) {
+    const auto mount = Mount();
+    const Survey s = MakeSurvey(mount);
+    const auto scans = MakeScans(s.geo, s.pings, mount);
+    ASSERT_EQ(scans.size(), 4u);
+    for (const auto& scan : scans) ASSERT_EQ(scan.ranges_m.size(), static_cast<std::size_t>(kBeams));
+    for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
+        const auto& scan = scans[s.geo.points.ping[i]];
+        const int b = s.geo.points.beam[i];
+        const double theta = scan.start_angle_rad + b * static_cast<double>(scan.angle_increment_rad);
+        const double r = scan.ranges_m[static_cast<std::size_t>(b)];
+        const Eigen::Vector3d p = scan.T_world_sonar * Eigen::Vector3d(0, r * std::sin(theta), r * std::cos(theta));
+        EXPECT_LT((p - s.geo.points.position_world[i]).norm(), 2e-4) << "point " << i;
+    }
+    EXPECT_EQ(scans[0].ranges_m[1], 0.0f) << "beam 1 has no sounding";
+    for (float r : scans[2].ranges_m) EXPECT_EQ(r, 0.0f);
+}
+
+TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
+    const auto mount = Mount();
+    Survey s = MakeSurvey(mount);
+    const Survey before = s;
+    std::vector<Pose> poses;
+    for (const auto& p : s.geo.pings) poses.push_back(p.T_world_vehicle);
+    poses[1].translation() += Eigen::Vector3d(1.0, -2.0, 0.5);
+    poses[3].linear() = poses[3].linear() * Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    ApplyVehiclePoses(s.geo, poses, mount);
+    for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
+        const std::uint32_t k = s.geo.points.ping[i];
+        const Eigen::Vector3d expected = poses[k] * before.geo.pings[k].T_world_vehicle.inverse() *
+                                         before.geo.points.position_world[i];
+        EXPECT_LT((s.geo.points.position_world[i] - expected).norm(), 1e-9);
+        if (k == 0) EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i]).norm(), 1e-9);
+        if (k == 1) {
+            EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i] -
+                       Eigen::Vector3d(1.0, -2.0, 0.5)).norm(), 1e-9);
+        }
+    }
+    EXPECT_LT((s.geo.pings[1].sensor_world - before.geo.pings[1].sensor_world -
+               Eigen::Vector3d(1.0, -2.0, 0.5)).norm(), 1e-9);
+    // A scan made after the move still reproduces the moved soundings.
+    const auto scans = MakeScans(s.geo, s.pings, mount);
+    for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
+        const auto& scan = scans[s.geo.points.ping[i]];
+        const double th = scan.start_angle_rad + s.geo.points.beam[i] * static_cast<double>(scan.angle_increment_rad);
+        const double r = s.geo.points.range_m[i];
+        EXPECT_LT((scan.T_world_sonar * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th)) -
+                   s.geo.points.position_world[i]).norm(), 2e-4);
+    }
+}
+
+TEST(Adapters, PosesAtPingsMatchesInterpolatesAndCountsPingsOutside) {
+    const auto mount = Mount();
+    const Survey s = MakeSurvey(mount);
+    const double t0 = s.geo.pings[0].utime_gps * 1e-6;
+    // Samples at pings 0 and 2 only: ping 1 is interpolated halfway; ping 3 is outside.
+    const std::vector<double> t = {t0, t0 + 0.2};
+    const Pose a = MakePose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0));
+    const Pose b = MakePose(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                            Eigen::Vector3d(2, 4, -1));
+    const PoseLookup r = PosesAtPings(s.geo, t, {a, b});
+    ASSERT_EQ(r.T_world_vehicle.size(), 4u);
+    EXPECT_EQ(r.outside_span, 1u);
+    EXPECT_LT((r.T_world_vehicle[0].translation() - a.translation()).norm(), 1e-12);
+    EXPECT_LT((r.T_world_vehicle[1].translation() - Eigen::Vector3d(1, 2, -0.5)).norm(), 2e-5)
+        << "GPS seconds near 1.4e9 carry ~0.2 us";
+    EXPECT_NEAR(Eigen::AngleAxisd(r.T_world_vehicle[1].linear()).angle(), 0.1, 1e-6);
+    EXPECT_LT((r.T_world_vehicle[2].translation() - b.translation()).norm(), 1e-12);
+    EXPECT_TRUE(r.T_world_vehicle[3].isApprox(s.geo.pings[3].T_world_vehicle)) << "outside keeps its pose";
+}
+
+class TrajectoryCsv : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() / ("pitmap_adapters_" + std::to_string(::getpid()));
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    fs::path dir_;
+};
+
+TEST_F(TrajectoryCsv, RoundTripsToSubMillimetre) {
+    const auto mount = Mount();
+    const Survey s = MakeSurvey(mount);
+    const TimedPoses t = PingPoses(s.geo);
+    const std::string path = (dir_ / "trajectory.csv").string();
+    ASSERT_TRUE(WriteTrajectoryCsv(path, t).ok());
+    const auto back = ReadTrajectoryCsv(path);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    ASSERT_EQ(back->gps_time_s.size(), t.gps_time_s.size());
+    for (std::size_t i = 0; i < t.gps_time_s.size(); ++i) {
+        EXPECT_NEAR(back->gps_time_s[i], t.gps_time_s[i], 1e-6);
+        EXPECT_LT((back->T_world_vehicle[i].translation() - t.T_world_vehicle[i].translation()).norm(), 2e-5);
+        EXPECT_LT(Eigen::AngleAxisd(back->T_world_vehicle[i].linear().transpose() *
+                                    t.T_world_vehicle[i].linear()).angle(), 1e-6);
+    }
+}
+
+TEST_F(TrajectoryCsv, MalformedFilesAreErrorsNamingTheLine) {
+    const std::string path = (dir_ / "bad.csv").string();
+    std::ofstream(path) << "time,x\n1,2\n";
+    auto r = ReadTrajectoryCsv(path);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("not a trajectory CSV"), std::string::npos);
+    std::ofstream(path) << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n"
+                        << "1.0,0,0,0,0,0,0\n0.5,0,0,0,0,0,0\n";
+    r = ReadTrajectoryCsv(path);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find(":3: times not increasing"), std::string::npos) << r.error().message;
+    std::ofstream(path) << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n1.0,0,nan,0,0,0,0\n";
+    EXPECT_FALSE(ReadTrajectoryCsv(path).ok());
+    EXPECT_FALSE(ReadTrajectoryCsv((dir_ / "missing.csv").string()).ok());
+}
+
+}  // namespace
+}  // namespace pitmap::proc::pipeline
