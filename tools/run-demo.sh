@@ -14,7 +14,13 @@ bin=$build/bin
 "$root/tools/install-deps.sh"
 cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release > "$build.configure.log" 2>&1 || {
   cat "$build.configure.log"; echo "run-demo: configure failed" >&2; exit 1; }
-cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)"
+# Only what the demo runs (the tests and benchmarks are built by tools/run-tests.sh).
+targets=()
+for t in pitmap pitmap-acqd pitmap-sim pitmap-eval pitmap-inspect pitmap-report; do
+  ninja -C "$build" -t query "$t" > /dev/null 2>&1 && targets+=(--target "$t")
+done
+start=$(date +%s)
+cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" "${targets[@]}"
 mkdir -p "$out"
 
 missing=()
@@ -39,7 +45,7 @@ else
 fi
 
 if [[ -x $bin/pitmap && -d $out/sim/log ]]; then
-  step "processing: pitmap run"
+  step "processing: pitmap run (ingest, georef, calibrate, SLAM, TSDF, mesh, report)"
   "$bin/pitmap" run "$out/sim/log" --out "$out/products"
 else
   [[ -x $bin/pitmap ]] || missing+=("pitmap run (processor, issues 6-9)")
@@ -47,7 +53,12 @@ fi
 
 if [[ -x $bin/pitmap-eval && -d $out/products ]]; then
   step "scoring against ground truth"
-  "$bin/pitmap-eval" --truth "$out/sim/truth" --products "$out/products" --json "$out/scores.json"
+  "$bin/pitmap-eval" --truth "$out/sim/truth" --products "$out/products" \
+    --json "$out/products/scores.json"
+  if [[ -x $bin/pitmap-report ]]; then
+    step "report with the scores"
+    "$bin/pitmap" report --out "$out/products"
+  fi
 else
   [[ -x $bin/pitmap-eval ]] || missing+=("pitmap-eval (scorer, issue 5)")
 fi
@@ -57,5 +68,8 @@ if [[ ${#missing[@]} -gt 0 ]]; then
   echo "run-demo: the demo is not complete yet; these parts do not exist:"
   printf '  - %s\n' "${missing[@]}"
 else
-  echo "run-demo: products and report in $out/products (report: $out/products/report.html)"
+  echo "run-demo: built and ran in $(( $(date +%s) - start )) s."
+  echo "  products: $out/products (points.ply/.las, trajectory.csv, tsdf.vdb, mesh.ply/.obj/.glb)"
+  echo "  report:   $out/products/report.html"
+  echo "  scores:   $out/products/scores.json"
 fi

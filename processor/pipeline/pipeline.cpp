@@ -2,6 +2,7 @@
 #include "processor/pipeline/pipeline.hpp"
 
 #include <fcntl.h>
+#include <malloc.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -63,6 +64,9 @@ json CountsJson(const georef::GeorefCounts& c) {
 namespace detail {
 
 StageClock::StageClock() : start_(std::chrono::steady_clock::now()) {
+    // Hand the heap's free pages back first, so the stage's peak is not the previous stage's
+    // retained memory.
+    ::malloc_trim(0);
     // "5" resets the peak resident set size (Linux >= 4.0); without it the peak is cumulative.
     const int fd = ::open("/proc/self/clear_refs", O_WRONLY | O_CLOEXEC);
     if (fd >= 0) {

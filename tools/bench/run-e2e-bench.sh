@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# End-to-end benchmark: a simulated survey (default bejanca) through `pitmap run`, with the time
+# and peak memory of every stage, the scores against ground truth, and a ray-mode TSDF run of
+# the same trajectory for comparison with the beam-width sensor model.
+#   tools/bench/run-e2e-bench.sh [SCENARIO] [OUT]      (defaults: bejanca, out/bench/SCENARIO)
+# Writes OUT/bench.json and prints a Markdown table (the one in README.md).
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+scenario=${1:-bejanca}
+out=${2:-$root/out/bench/$scenario}
+build=${BUILD_DIR:-$root/build}
+bin=$build/bin
+
+"$root/tools/install-deps.sh"
+if [[ ! -f $build/CMakeCache.txt ]]; then
+  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release > "$build.configure.log" 2>&1 || {
+    cat "$build.configure.log"; echo "run-e2e-bench: configure failed" >&2; exit 1; }
+fi
+cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" \
+  --target pitmap pitmap-sim pitmap-eval pitmap-report
+
+rm -rf "$out"
+mkdir -p "$out"
+echo "=== run-e2e-bench: simulating '$scenario'"
+sim_start=$(date +%s.%N)
+"$bin/pitmap-sim" synth --scenario "$scenario" --out "$out/sim" > "$out/sim.log" 2>&1 || {
+  tail -20 "$out/sim.log"; exit 1; }
+sim_s=$(awk -v a="$sim_start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
+
+echo "=== run-e2e-bench: pitmap run"
+"$bin/pitmap" run "$out/sim/log" --out "$out/products" --no-report 2>&1 | tee "$out/run.log" |
+  grep -v '%  \[' || true
+[[ -f $out/products/mesh.ply ]] || { echo "run-e2e-bench: pitmap run failed" >&2; exit 1; }
+"$bin/pitmap-eval" --truth "$out/sim/truth" --products "$out/products" \
+  --json "$out/products/scores.json" > "$out/eval.txt"
+report_start=$(date +%s.%N)
+"$bin/pitmap" report --out "$out/products" > "$out/report.log" 2>&1 || tail -5 "$out/report.log"
+report_s=$(awk -v a="$report_start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
+
+echo "=== run-e2e-bench: ray-mode TSDF on the same trajectory"
+mkdir -p "$out/ray"
+cp "$out/products"/{summary.json,ingest.cache,trajectory.csv} "$out/ray/"
+printf 'fuse:\n  sensor_model: ray\n' > "$out/ray.yaml"
+"$bin/pitmap" fuse --out "$out/ray" --config "$out/ray.yaml" 2>&1 | grep -v '%  \[' || true
+"$bin/pitmap" mesh --out "$out/ray" 2>&1 | grep -v '%  \[' || true
+"$bin/pitmap-eval" --truth "$out/sim/truth" --products "$out/ray" --json "$out/ray/scores.json" \
+  > "$out/eval_ray.txt" || true
+
+python3 - "$out" "$scenario" "$sim_s" "$report_s" <<'PY'
+import json, os, sys
+out, scenario, sim_s, report_s = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
+s = json.load(open(os.path.join(out, "products", "summary.json")))
+scores = json.load(open(os.path.join(out, "products", "scores.json")))
+ray_s = json.load(open(os.path.join(out, "ray", "summary.json")))
+ray_scores = {}
+if os.path.exists(os.path.join(out, "ray", "scores.json")):
+    ray_scores = json.load(open(os.path.join(out, "ray", "scores.json")))
+stages = {n: {"seconds": s["stages"][n]["seconds"], "peak_rss_mb": s["stages"][n]["peak_rss_mb"]}
+          for n in s["stage_order"]}
+stages["report"] = {"seconds": report_s, "peak_rss_mb": None}
+fuse = s["stages"]["fuse"]
+bench = {
+    "scenario": scenario,
+    "cores": os.cpu_count(),
+    "simulate_seconds": sim_s,
+    "run_total_seconds": s["total_seconds"],
+    "peak_rss_mb": max(v["peak_rss_mb"] for v in stages.values() if v["peak_rss_mb"]),
+    "stages": stages,
+    "counts": {"pings": s["stages"]["georef"]["pings_georeferenced"],
+               "points": s["stages"]["georef"]["points"],
+               "slam_poses": s["stages"].get("slam", {}).get("poses"),
+               "active_voxels": fuse["active_voxels"],
+               "mesh_triangles": s["stages"]["mesh"]["triangles"]},
+    "scores": scores,
+    "tsdf_modes": {
+        fuse["sensor_model"]: {"integrate_seconds": fuse["integrate_seconds"],
+                               "peak_rss_mb": fuse["peak_rss_mb"],
+                               "active_voxels": fuse["active_voxels"],
+                               "mesh_mean_abs_m": scores.get("mesh_mean_abs_m"),
+                               "mesh_completeness": scores.get("mesh_completeness")},
+        ray_s["stages"]["fuse"]["sensor_model"]: {
+            "integrate_seconds": ray_s["stages"]["fuse"]["integrate_seconds"],
+            "peak_rss_mb": ray_s["stages"]["fuse"]["peak_rss_mb"],
+            "active_voxels": ray_s["stages"]["fuse"]["active_voxels"],
+            "mesh_mean_abs_m": ray_scores.get("mesh_mean_abs_m"),
+            "mesh_completeness": ray_scores.get("mesh_completeness")}},
+}
+json.dump(bench, open(os.path.join(out, "bench.json"), "w"), indent=2)
+print(f"\n{scenario}: {bench['counts']['pings']} pings, {bench['counts']['points']} points, "
+      f"{bench['cores']} cores\n")
+print("| stage | seconds | peak RSS (MB) |\n|---|---:|---:|")
+for n, v in stages.items():
+    mb = f"{v['peak_rss_mb']:.0f}" if v["peak_rss_mb"] else "-"
+    print(f"| {n} | {v['seconds']:.1f} | {mb} |")
+print(f"| **pitmap run total** | **{s['total_seconds']:.1f}** | **{bench['peak_rss_mb']:.0f}** |")
+print("\n| TSDF sensor model | integration (s) | peak RSS (MB) | active voxels | mesh mean abs (m) | completeness |")
+print("|---|---:|---:|---:|---:|---:|")
+for m, v in bench["tsdf_modes"].items():
+    f = lambda x, fmt: (fmt % x) if isinstance(x, (int, float)) else "-"
+    print(f"| {m} | {v['integrate_seconds']:.1f} | {v['peak_rss_mb']:.0f} | {v['active_voxels']} | "
+          f"{f(v['mesh_mean_abs_m'], '%.3f')} | {f(v['mesh_completeness'], '%.3f')} |")
+print("\nscores:", ", ".join(f"{k} {v:.4g}" for k, v in scores.items()))
+print(f"\nbench.json: {os.path.join(out, 'bench.json')}")
+PY
