@@ -101,28 +101,6 @@ struct PrintVisitor {
     }
 };
 
-const char* ToString(slam::CorrespondenceType t) {
-    switch (t) {
-        case slam::CorrespondenceType::kPointToPoint: return "point_to_point";
-        case slam::CorrespondenceType::kPointToPlane: return "point_to_plane";
-        case slam::CorrespondenceType::kGicp: return "gicp";
-    }
-    return "?";
-}
-
-const char* ToString(slam::RobustKernel k) {
-    switch (k) {
-        case slam::RobustKernel::kNone: return "none";
-        case slam::RobustKernel::kHuber: return "huber";
-        case slam::RobustKernel::kCauchy: return "cauchy";
-    }
-    return "?";
-}
-
-const char* ToString(fusion::SensorModel m) {
-    return m == fusion::SensorModel::kRay ? "ray" : "beam_width";
-}
-
 // Reads an enum spelled as one of its ToString names; a problem lists the valid ones.
 template <class E, std::size_t N>
 void ReadEnum(ConfigReader& in, const char* key, E& value, const E (&all)[N]) {
@@ -148,6 +126,28 @@ constexpr fusion::SensorModel kSensorModels[] = {fusion::SensorModel::kBeamWidth
                                                  fusion::SensorModel::kRay};
 
 }  // namespace
+
+const char* ToString(slam::CorrespondenceType t) {
+    switch (t) {
+        case slam::CorrespondenceType::kPointToPoint: return "point_to_point";
+        case slam::CorrespondenceType::kPointToPlane: return "point_to_plane";
+        case slam::CorrespondenceType::kGicp: return "gicp";
+    }
+    return "?";
+}
+
+const char* ToString(slam::RobustKernel k) {
+    switch (k) {
+        case slam::RobustKernel::kNone: return "none";
+        case slam::RobustKernel::kHuber: return "huber";
+        case slam::RobustKernel::kCauchy: return "cauchy";
+    }
+    return "?";
+}
+
+const char* ToString(fusion::SensorModel m) {
+    return m == fusion::SensorModel::kRay ? "ray" : "beam_width";
+}
 
 std::vector<std::string> PipelineConfig::Validate() const {
     std::vector<std::string> p = ingest.Validate();

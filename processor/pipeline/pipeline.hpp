@@ -81,6 +81,11 @@ Expected<PipelineConfig> LoadConfig(const std::string& path);
 // The YAML of every default, with a comment per key.
 std::string DefaultsYaml();
 
+// The YAML spellings of the stages' enums.
+const char* ToString(slam::CorrespondenceType t);
+const char* ToString(slam::RobustKernel k);
+const char* ToString(fusion::SensorModel m);
+
 using Log = std::function<void(const std::string&)>;
 
 // `info`: a text report of the inputs (files, channels, counts, time spans).

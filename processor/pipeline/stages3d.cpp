@@ -43,15 +43,6 @@ const char* StageName(slam::SlamStage s) {
     return s == slam::SlamStage::kRigid ? "rigid" : "semi_rigid";
 }
 
-const char* CorrespondenceName(slam::CorrespondenceType t) {
-    switch (t) {
-        case slam::CorrespondenceType::kPointToPoint: return "point_to_point";
-        case slam::CorrespondenceType::kPointToPlane: return "point_to_plane";
-        case slam::CorrespondenceType::kGicp: return "gicp";
-    }
-    return "?";
-}
-
 // Position change between two per-ping trajectories: RMS and maximum, metres.
 std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::vector<Pose>& b) {
     double sum = 0, worst = 0;
@@ -133,7 +124,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"final_consistency_m", r.final_consistency_m},
                {"position_change_rms_m", change_rms},
                {"position_change_max_m", change_max},
-               {"correspondence", CorrespondenceName(cfg.correspondence)},
+               {"correspondence", ToString(cfg.correspondence)},
+               {"robust_kernel", ToString(cfg.robust_kernel)},
                {"timings_s",
                 {{"trees", r.timings.trees_s},
                  {"search", r.timings.search_s},
@@ -178,8 +170,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
     const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
     log(stage + ": weight filter: " + wf.message);
     const fusion::VolumeStats vs = volume.Stats();
-    json st = {{"sensor_model", config.tsdf.sensor_model == fusion::SensorModel::kRay ? "ray"
-                                                                                      : "beam_width"},
+    json st = {{"sensor_model", ToString(config.tsdf.sensor_model)},
                {"voxel_size_m", config.tsdf.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
                {"scans", ir.scans},
@@ -287,27 +278,35 @@ Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, co
     return Ok{};
 }
 
-Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+namespace {
+
+// A survey of which only summary.json and the origin are needed (mesh, report).
+Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run_first) {
     auto summary = io::ReadJsonFile(out_dir + "/summary.json");
-    if (!summary) return Error{summary.error().message + " (run `pitmap fuse` first)"};
+    if (!summary) return Error{summary.error().message + " (run `pitmap " + run_first + "` first)"};
     detail::Survey s;
     s.out_dir = out_dir;
     s.summary = std::move(*summary);
     const json o = s.summary.value("world_origin", json::object());
     s.origin = Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0),
                         o.value("height_m", 0.0)};
+    return s;
+}
+
+}  // namespace
+
+Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = LoadSummary(out_dir, "fuse");
+    if (!s) return s.error();
     auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb");
     if (!volume) return Error{volume.error().message + " (run `pitmap fuse` first)"};
-    return detail::MeshSurvey(s, *volume, config, "mesh", log);
+    return detail::MeshSurvey(*s, *volume, config, "mesh", log);
 }
 
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
-    if (!summary) return Error{summary.error().message + " (run `pitmap georef` first)"};
-    detail::Survey s;
-    s.out_dir = out_dir;
-    s.summary = std::move(*summary);
-    return detail::ReportSurvey(s, config, log);
+    auto s = LoadSummary(out_dir, "georef");
+    if (!s) return s.error();
+    return detail::ReportSurvey(*s, config, log);
 }
 
 Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir,
