@@ -41,7 +41,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 from matplotlib.colors import LightSource, Normalize  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator  # noqa: E402
 
 PROG = "pitmap-report"
 START_TIME = time.monotonic()
@@ -666,6 +666,8 @@ class Report:
             for axis, sel, u in (("x", np.abs(y - yc) < half, x), ("y", np.abs(x - xc) < half, y)):
                 idx = np.nonzero(sel)[0]
                 idx = idx[Subsample(len(idx), MAX_SCATTER_POINTS, seed=1)]
+                # Drawn in random order: in time order the last pass would hide the others.
+                np.random.default_rng(2).shuffle(idx)
                 z = np.asarray(pts["z"][idx], dtype=np.float64)
                 m = self.MinutesOf(pts["gps_time_s"][idx]) if has_t else np.zeros(len(idx))
                 cuts[(axis, key)] = (u[idx], z, m)
@@ -688,8 +690,8 @@ class Report:
             for col, (key, title) in enumerate((("initial", "(c) before SLAM"),
                                                 ("final", "(d) after SLAM"))):
                 a = ax[row][col]
-                where = (f"slab y = {yc:.1f} \u00b1 {half} m" if axis == "x"
-                         else f"slab x = {xc:.1f} \u00b1 {half} m")
+                where = (f"slab y = {round(yc, 1) + 0.0:.1f} \u00b1 {half} m" if axis == "x"
+                         else f"slab x = {round(xc, 1) + 0.0:.1f} \u00b1 {half} m")
                 a.set_title(f"{title}: along {axis}, {where}", fontsize=10)
                 if (axis, key) not in cuts:
                     a.text(0.5, 0.5, "not produced", ha="center", va="center",
@@ -947,7 +949,7 @@ class Report:
         h0 = Hist(self.stages.get("fuse_initial"))
         if h is not None:
             edges, counts, before_filter = h
-            fig, a = plt.subplots(figsize=(10, 4.2), layout="constrained")
+            fig, a = plt.subplots(figsize=(12, 4.2), layout="constrained")
             a.bar(edges[:-1], np.where(counts > 0, counts, np.nan), width=np.diff(edges),
                   align="edge", color="tab:blue", edgecolor="white", linewidth=0.5,
                   label="after SLAM (fuse)")
@@ -955,6 +957,9 @@ class Report:
                 a.stairs(np.where(h0[1] > 0, h0[1], np.nan), h0[0], color="k", ls="--", lw=1.2,
                          label="before SLAM (fuse_initial)")
             a.set_yscale("log")
+            # 1-2-5 steps with k/M labels: a histogram spanning one decade still gets labels.
+            a.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            a.yaxis.set_major_formatter(EngFormatter(sep=" "))
             a.set_xlabel("voxel weight (number of updates, capped at w_max)")
             a.set_ylabel("active voxels")
             a.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -962,7 +967,7 @@ class Report:
             mw = fuse.get("min_weight")
             if isinstance(mw, (int, float)):
                 a.axvline(float(mw), color="tab:red", ls="--", label=f"filter min weight {mw:g}")
-            a.legend()
+            a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9)
             when = " (before the weight filter)" if before_filter else ""
             a.set_title("TSDF weight histogram" + when)
             out.append(self.Figure(fig, "tsdf_weights", "TSDF weight histogram"))
