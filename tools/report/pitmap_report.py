@@ -307,6 +307,16 @@ def Limits(arrays, margin=0.03, lo_pct=None):
     return (lo - margin * span, hi + margin * span)
 
 
+def EmptyPanel(a):
+    """A panel whose product does not exist: a grey note, no axes."""
+    a.text(0.5, 0.5, "not produced", ha="center", va="center", transform=a.transAxes,
+           color="grey", fontsize=12)
+    a.set_xticks([])
+    a.set_yticks([])
+    for sp in a.spines.values():
+        sp.set_color("0.85")
+
+
 def RasterMean(x, y, v, x0, y0, cell, nx, ny):
     """Mean of v per grid cell (NaN where empty); rows are y, columns x."""
     ix = np.floor((x - x0) / cell).astype(np.int64)
@@ -419,6 +429,8 @@ class Report:
         self.points = {}
         self.t0 = None
         self.ref_z = 0.0
+        # The final products are "after SLAM" only when SLAM ran (pitmap run --no-slam).
+        self.after = "after SLAM" if "slam" in self.stages else "SLAM not run"
 
     # ---- loading
     def P(self, name):
@@ -526,7 +538,7 @@ class Report:
                          f"{u_a:%Y-%m-%d %H:%M:%S} to {u_b:%H:%M:%S} "
                          f"({(t_b - t_a) / 60:.1f} min; GPS {t_a:.1f} to {t_b:.1f} s)"))
             length = float(np.sum(np.hypot(np.diff(main["x"]), np.diff(main["y"]))))
-            which = "after SLAM" if "final" in self.traj else "before SLAM"
+            which = self.after if "final" in self.traj else "before SLAM"
             rows.append(("Track length", f"{length:.0f} m ({which})"))
         o = s.get("world_origin") or {}
         if o:
@@ -546,7 +558,7 @@ class Report:
                          f"{Num(geo.get('pings_in', ing.get('pings', '?')))}"))
         elif "pings" in ing:
             rows.append(("Pings", Num(ing["pings"])))
-        for key, label in (("final", "Points (after SLAM)"), ("initial", "Points (before SLAM)")):
+        for key, label in (("final", f"Points ({self.after})"), ("initial", "Points (before SLAM)")):
             if key in self.points:
                 rows.append((label, Num(len(self.points[key]))))
         for name in ("mesh.ply", "mesh_initial.ply"):
@@ -600,13 +612,12 @@ class Report:
         fig, ax = plt.subplots(2, 2, figsize=(13, top_h + 4.2), height_ratios=[top_h, 3.0],
                                layout="constrained")
         panels = [("initial", "(a) before SLAM (GPS/INS)", "k", "--"),
-                  ("final", "(b) after SLAM", "tab:red", "-")]
+                  ("final", f"(b) {self.after}", "tab:red", "-")]
         for col, (key, title, colour, ls) in enumerate(panels):
             a_top, a_z = ax[0][col], ax[1][col]
             if key not in trs:
                 for a in (a_top, a_z):
-                    a.text(0.5, 0.5, "not produced", ha="center", va="center",
-                           transform=a.transAxes, color="grey")
+                    EmptyPanel(a)
                 a_top.set_title(title)
                 continue
             tr, d = trs[key], dec[key]
@@ -688,14 +699,13 @@ class Report:
         for row, axis in enumerate(("x", "y")):
             ul, zl, ve, _ = geom[axis]
             for col, (key, title) in enumerate((("initial", "(c) before SLAM"),
-                                                ("final", "(d) after SLAM"))):
+                                                ("final", f"(d) {self.after}"))):
                 a = ax[row][col]
                 where = (f"slab y = {round(yc, 1) + 0.0:.1f} \u00b1 {half} m" if axis == "x"
                          else f"slab x = {round(xc, 1) + 0.0:.1f} \u00b1 {half} m")
                 a.set_title(f"{title}: along {axis}, {where}", fontsize=10)
                 if (axis, key) not in cuts:
-                    a.text(0.5, 0.5, "not produced", ha="center", va="center",
-                           transform=a.transAxes, color="grey")
+                    EmptyPanel(a)
                     continue
                 u, z, m = cuts[(axis, key)]
                 sc = a.scatter(u, z, c=m, s=1.0, cmap="turbo", norm=tnorm, linewidths=0,
@@ -788,16 +798,14 @@ class Report:
         norm = Normalize(*depth_lim)
         cmap = plt.get_cmap("turbo_r")
         ls = LightSource(azdeg=315, altdeg=40)
-        fig, ax = plt.subplots(1, 2, figsize=(14, float(np.clip(6.0 * ny / nx, 2.5, 9)) + 0.9),
+        fig, ax = plt.subplots(1, 2, figsize=(14, float(np.clip(6.0 * ny / nx, 2.5, 9)) + 1.3),
                                squeeze=False, layout="constrained")
-        for col, (key, title) in enumerate((("initial", "(c) mesh before SLAM"),
-                                            ("final", "(d) mesh after SLAM"))):
+        for col, (key, title) in enumerate((("initial", "(c) mesh (before SLAM)"),
+                                            ("final", f"(d) mesh ({self.after})"))):
             a = ax[0][col]
             a.set_title(title)
             if key not in grids:
-                a.text(0.5, 0.5, "not produced", ha="center", va="center",
-                       transform=a.transAxes, color="grey")
-                a.set_axis_off()
+                EmptyPanel(a)
                 continue
             g = grids[key]
             filled = FillHoles(g)
@@ -833,12 +841,13 @@ class Report:
         look into the pit from its rim."""
         step = max(1, int(math.ceil(max(next(iter(grids.values())).shape) / 160)))
         fig = plt.figure(figsize=(14, 6.5))
-        for col, (key, title) in enumerate((("initial", "before SLAM"), ("final", "after SLAM"))):
+        for col, (key, title) in enumerate((("initial", "before SLAM"), ("final", self.after))):
             a = fig.add_subplot(1, 2, col + 1, projection="3d")
             a.set_title(f"oblique view, {title}")
             if key not in grids:
                 a.text2D(0.5, 0.5, "not produced", ha="center", transform=a.transAxes,
-                         color="grey")
+                         color="grey", fontsize=12)
+                a.set_axis_off()
                 continue
             g = FillHoles(grids[key])[::step, ::step]
             ny, nx = g.shape
@@ -952,7 +961,7 @@ class Report:
             fig, a = plt.subplots(figsize=(12, 4.2), layout="constrained")
             a.bar(edges[:-1], np.where(counts > 0, counts, np.nan), width=np.diff(edges),
                   align="edge", color="tab:blue", edgecolor="white", linewidth=0.5,
-                  label="after SLAM (fuse)")
+                  label=f"{self.after} (fuse)")
             if h0 is not None:
                 a.stairs(np.where(h0[1] > 0, h0[1], np.nan), h0[0], color="k", ls="--", lw=1.2,
                          label="before SLAM (fuse_initial)")

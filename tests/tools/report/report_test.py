@@ -247,6 +247,9 @@ class ReportTest(unittest.TestCase):
         for s, name in expect.items():
             self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
         self.assertIn("mesh_initial.ply", sec["mesh"])
+        # Without a slam stage nothing claims to be "after SLAM".
+        self.assertIn("Points (SLAM not run)", sec["summary"])
+        self.assertNotIn("after SLAM", sec["summary"])
         # What exists is still drawn.
         for s in ("trajectory", "cross-sections", "depth", "stages"):
             self.assertIn("data:image/png", sec[s], s)
