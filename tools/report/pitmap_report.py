@@ -609,7 +609,7 @@ class Report:
         zl = Limits([v["z"] for v in trs.values()], margin=0.08)
         tl = Limits([self.MinutesOf(v["t"]) for v in trs.values()], margin=0.01)
         top_h = float(np.clip(6.0 * (yl[1] - yl[0]) / (xl[1] - xl[0]), 2.5, 9.0))
-        fig, ax = plt.subplots(2, 2, figsize=(13, top_h + 4.2), height_ratios=[top_h, 3.0],
+        fig, ax = plt.subplots(2, 2, figsize=(13, top_h + 4.6), height_ratios=[top_h, 3.0],
                                layout="constrained")
         panels = [("initial", "(a) before SLAM (GPS/INS)", "k", "--"),
                   ("final", f"(b) {self.after}", "tab:red", "-")]
