@@ -840,7 +840,7 @@ class Report:
         """An oblique 3-D view of the rasterised meshes (coarse, lit), as a surveyor would
         look into the pit from its rim."""
         step = max(1, int(math.ceil(max(next(iter(grids.values())).shape) / 160)))
-        fig = plt.figure(figsize=(14, 6.5))
+        fig = plt.figure(figsize=(14, 6.2))
         for col, (key, title) in enumerate((("initial", "before SLAM"), ("final", self.after))):
             a = fig.add_subplot(1, 2, col + 1, projection="3d")
             a.set_title(f"oblique view, {title}")
@@ -868,7 +868,8 @@ class Report:
             # True scale, but never flatter than 0.15 of the width.
             a.set_box_aspect((xl[1] - xl[0], yl[1] - yl[0],
                               max(0.15 * max(xl[1] - xl[0], yl[1] - yl[0]),
-                                  float(np.nanmax(g) - np.nanmin(g)))))
+                                  float(np.nanmax(g) - np.nanmin(g)))), zoom=1.05)
+            a.zaxis.set_major_locator(MaxNLocator(4))
         fig.subplots_adjust(left=0.02, right=0.98, bottom=0.04, top=0.94, wspace=0.05)
         return self.Figure(fig, "mesh_oblique", "oblique 3-D view of the meshes")
 
