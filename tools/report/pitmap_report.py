@@ -127,6 +127,7 @@ class Ply:
 
     def __init__(self, path):
         self.path = path
+        fname = os.path.basename(path)
         self.comments = []
         self.elements = {}  # name -> structured array
         self.counts = {}    # name -> count from the header
@@ -134,10 +135,10 @@ class Ply:
             head = f.read(1 << 16)
         end = head.find(b"end_header")
         if not head.startswith(b"ply") or end < 0:
-            raise PlyError(f"{path}: not a PLY file (no 'ply' magic or no end_header)")
+            raise PlyError(f"{fname}: not a PLY file (no 'ply' magic or no end_header)")
         nl = head.find(b"\n", end)
         if nl < 0:
-            raise PlyError(f"{path}: header not terminated")
+            raise PlyError(f"{fname}: header not terminated")
         data_offset = nl + 1
         fmt = None
         elements = []  # (name, count, [prop]) with prop = (name, type) or (name, count_t, item_t)
@@ -153,7 +154,7 @@ class Ply:
                 elements.append((words[1], int(words[2]), []))
             elif words[0] == "property":
                 if not elements:
-                    raise PlyError(f"{path}: property before any element")
+                    raise PlyError(f"{fname}: property before any element")
                 if words[1] == "list":
                     elements[-1][2].append((words[4], words[2], words[3]))
                 else:
@@ -163,12 +164,12 @@ class Ply:
         elif fmt == "binary_big_endian":
             endian = ">"
         else:
-            raise PlyError(f"{path}: format {fmt} not supported (binary PLY only)")
+            raise PlyError(f"{fname}: format {fmt} not supported (binary PLY only)")
 
-        def T(name):
-            if name not in PLY_TYPES:
-                raise PlyError(f"{path}: unknown property type {name}")
-            return endian + PLY_TYPES[name]
+        def T(type_name):
+            if type_name not in PLY_TYPES:
+                raise PlyError(f"{fname}: unknown property type {type_name}")
+            return endian + PLY_TYPES[type_name]
 
         file_size = os.path.getsize(path)
         offset = data_offset
@@ -200,7 +201,7 @@ class Ply:
             dtype = np.dtype(fields)
             size = dtype.itemsize * count
             if offset + size > file_size:
-                raise PlyError(f"{path}: truncated (element {name} needs {offset + size} bytes, "
+                raise PlyError(f"{fname}: truncated (element {name} needs {offset + size} bytes, "
                                f"file has {file_size})")
             if count == 0:
                 arr = np.zeros(0, dtype)
@@ -208,7 +209,7 @@ class Ply:
                 arr = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=(count,))
             for p in lists:
                 if count > 0 and np.any(arr[p[0] + "__count"] != list_lengths[p[0]]):
-                    raise PlyError(f"{path}: element {name}: lists of varying length "
+                    raise PlyError(f"{fname}: element {name}: lists of varying length "
                                    "are not supported")
             self.elements[name] = arr
             offset += size
@@ -228,11 +229,11 @@ def ReadTrajectory(path):
     need = ["gps_time_s", "x_m", "y_m", "z_m"]
     missing = [c for c in need if c not in header]
     if missing:
-        raise ValueError(f"{path}: no column(s) {', '.join(missing)}")
+        raise ValueError(f"no column(s) {', '.join(missing)}")
     cols = [header.index(c) for c in need]
     data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=cols, ndmin=2)
     if data.shape[0] == 0:
-        raise ValueError(f"{path}: no rows")
+        raise ValueError("no rows")
     order = np.argsort(data[:, 0], kind="stable")
     data = data[order]
     return {c: data[:, i] for i, c in enumerate(["t", "x", "y", "z"])}
@@ -410,7 +411,8 @@ class Report:
         self.scores_path = scores_path
         self.title = title
         self.missing = []   # names of optional products not found
-        self.problems = []  # sections that failed to draw
+        self.problems = []  # sections that failed to draw, inconsistent products
+        self.unusable = {}  # product name -> why it is present but not used
         path = os.path.join(folder, "summary.json")
         if not os.path.isfile(path):
             raise ReportError(f"{folder}: no summary.json (not a pitmap products folder?)")
@@ -437,9 +439,11 @@ class Report:
         return os.path.join(self.folder, name)
 
     def Missing(self, name, why=""):
+        """An optional product that is absent, or present but unusable (then its own reason,
+        from self.unusable, is given)."""
         if name not in self.missing:
             self.missing.append(name)
-        return NotProduced(name, why)
+        return NotProduced(name, self.unusable.get(name, why))
 
     def CheckOrigin(self, ply, name):
         """A product whose pitmap_origin differs from summary.json's world_origin would be
@@ -463,7 +467,7 @@ class Report:
                     Log(f"{name}: {len(self.traj[key]['t'])} poses")
                 except (OSError, ValueError) as e:
                     Log(f"{name}: unreadable: {e}")
-                    self.problems.append(f"{name}: {e}")
+                    self.unusable[name] = f"unreadable: {e}"
         ts = [tr["t"][0] for tr in self.traj.values()]
         if ts:
             self.t0 = min(ts)
@@ -480,12 +484,15 @@ class Report:
                 v = ply.elements.get("vertex")
                 if v is None or not all(c in v.dtype.names for c in ("x", "y", "z")):
                     raise PlyError(f"{name}: no vertex x, y, z")
+                if len(v) == 0:
+                    self.unusable[name] = "no points"
+                    continue
                 self.points[key] = v
                 self.CheckOrigin(ply, name)
                 Log(f"{name}: {len(v)} points")
             except (OSError, PlyError) as e:
                 Log(f"{name}: unreadable: {e}")
-                self.problems.append(str(e))
+                self.unusable[name] = f"unreadable: {e}"
         if self.t0 is None:
             for v in self.points.values():
                 if "gps_time_s" in v.dtype.names and len(v):
@@ -558,7 +565,8 @@ class Report:
                          f"{Num(geo.get('pings_in', ing.get('pings', '?')))}"))
         elif "pings" in ing:
             rows.append(("Pings", Num(ing["pings"])))
-        for key, label in (("final", f"Points ({self.after})"), ("initial", "Points (before SLAM)")):
+        for key, label in (("final", f"Points ({self.after})"),
+                           ("initial", "Points (before SLAM)")):
             if key in self.points:
                 rows.append((label, Num(len(self.points[key]))))
         for name in ("mesh.ply", "mesh_initial.ply"):
@@ -596,7 +604,8 @@ class Report:
 
     def SectionTrajectory(self):
         if not self.traj:
-            return self.Missing("trajectory.csv and trajectory_initial.csv")
+            return "\n".join(self.Missing(n, "no trajectory")
+                             for n in ("trajectory_initial.csv", "trajectory.csv"))
         out = []
         if "initial" not in self.traj:
             out.append(self.Missing("trajectory_initial.csv", "no before-SLAM trajectory"))
@@ -656,7 +665,8 @@ class Report:
 
     def SectionCrossSections(self):
         if not self.points:
-            return self.Missing("points.ply and points_initial.ply")
+            return "\n".join(self.Missing(n, "no point cloud")
+                             for n in ("points_initial.ply", "points.ply"))
         out = []
         if "initial" not in self.points:
             out.append(self.Missing("points_initial.ply", "no before-SLAM point cloud"))

@@ -276,6 +276,26 @@ class ReportTest(unittest.TestCase):
         self.assertIn("data:image/png", sec["mesh"])  # the mesh before SLAM is still drawn
         self.assertRegex(sec["scores"], r"not produced: scores\.json \(unreadable")
 
+    def test_unusable_points_and_trajectory_are_named_with_the_reason(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        WritePly(os.path.join(p, "points.ply"), POINT_PROPS,
+                 {name: np.zeros(0) for name, _, _ in POINT_PROPS})
+        with open(os.path.join(p, "trajectory_initial.csv"), "w") as f:
+            f.write("time,east,north\n1,2,3\n")
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            page = f.read()
+        sec = Sections(page)
+        self.assertNotIn("could not draw", page)
+        self.assertRegex(sec["depth"], r"not produced: points\.ply \(no points\)")
+        self.assertRegex(sec["cross-sections"], r"not produced: points\.ply \(no points\)")
+        self.assertRegex(sec["trajectory"],
+                         r"not produced: trajectory_initial\.csv \(unreadable: [^<]*gps_time_s")
+        # The before-SLAM cloud is still cut.
+        self.assertIn("data:image/png", sec["cross-sections"])
+
     def test_scores_option(self):
         p = os.path.join(self.dir, "P")
         WriteProducts(p, full=False)
@@ -338,7 +358,7 @@ class HelperTest(unittest.TestCase):
             WritePly(path, [("x", "float", "f4")], {"x": np.arange(10.0)})
             with open(path, "r+b") as f:
                 f.truncate(os.path.getsize(path) - 4)
-            with self.assertRaisesRegex(self.m.PlyError, "truncated"):
+            with self.assertRaisesRegex(self.m.PlyError, r"^a\.ply: truncated \(element vertex"):
                 self.m.Ply(path)
 
     def test_gps_to_utc(self):
