@@ -413,6 +413,7 @@ class Report:
         self.missing = []   # names of optional products not found
         self.problems = []  # sections that failed to draw, inconsistent products
         self.unusable = {}  # product name -> why it is present but not used
+        self.scores = {}
         path = os.path.join(folder, "summary.json")
         if not os.path.isfile(path):
             raise ReportError(f"{folder}: no summary.json (not a pitmap products folder?)")
@@ -577,6 +578,9 @@ class Report:
                                  f"{Num(ply.counts.get('face', 0))} triangles"))
                 except (OSError, PlyError) as e:
                     rows.append((f"Mesh {name}", Esc(e)))
+        ate = self.ScoreText("trajectory_ate_rmse_before_m", "trajectory_ate_rmse_m", "")
+        if ate:
+            rows.append(("Trajectory error vs truth (before &rarr; after SLAM)", ate.strip()))
         if "initial" in self.traj and "final" in self.traj:
             rows.append(("Track height std (before &rarr; after SLAM)",
                          f"{np.std(self.traj['initial']['z']):.3f} &rarr; "
@@ -658,9 +662,11 @@ class Report:
             a_z.grid(alpha=0.3)
             a_z.legend(loc="best", fontsize=8)
         out.append(self.Figure(fig, "trajectory", "trajectory before and after SLAM"))
+        ate = self.ScoreText("trajectory_ate_rmse_before_m", "trajectory_ate_rmse_m",
+                             " Trajectory error (RMS vs truth):")
         out.append('<p class="caption">Top: the track seen from above; bottom: its height over '
                    "time. A surface vehicle moves on a plane: after SLAM the height should be "
-                   "flat. Both columns share their axis limits.</p>")
+                   f"flat. Both columns share their axis limits.{ate}</p>")
         return "\n".join(out)
 
     def SectionCrossSections(self):
@@ -1099,27 +1105,43 @@ class Report:
         out.append(self.Figure(fig, "stages", "time and memory per stage"))
         return "\n".join(out)
 
-    def SectionScores(self):
+    def LoadScores(self):
+        """Scores from pitmap-eval --json (optional); the reason is kept when unusable."""
         path = self.scores_path
+        name = os.path.basename(path)
         if not os.path.isfile(path):
-            return self.Missing(os.path.basename(path),
-                                "no ground truth given (pitmap-eval --json)")
+            return
         try:
             with open(path) as f:
                 scores = json.load(f)
         except (OSError, ValueError) as e:
-            self.problems.append(f"{path}: {e}")
-            return NotProduced(os.path.basename(path), f"unreadable: {e}")
+            self.unusable[name] = f"unreadable: {e}"
+            return
         if not isinstance(scores, dict):
-            return NotProduced(os.path.basename(path), "not a JSON object")
+            self.unusable[name] = "not a JSON object"
+            return
+        self.scores = scores
+
+    def ScoreText(self, before, after, label):
+        """'label: 1.23 -> 0.45 m' from two scores when both exist, else ''."""
+        b, a = self.scores.get(before), self.scores.get(after)
+        if isinstance(b, (int, float)) and isinstance(a, (int, float)):
+            return f"{label} {b:.3f} &rarr; {a:.3f} m (scores.json)"
+        return ""
+
+    def SectionScores(self):
+        if not self.scores:
+            return self.Missing(os.path.basename(self.scores_path),
+                                "no ground truth given (pitmap-eval --json)")
         rows = [[Esc(k), Num(v, 4) if isinstance(v, (int, float)) else Esc(v),
-                 Esc(SCORE_MEANINGS.get(k, ""))] for k, v in scores.items()]
+                 Esc(SCORE_MEANINGS.get(k, ""))] for k, v in self.scores.items()]
         return Table(rows, header=["score", "value", "meaning"])
 
     # ---- page
     def Build(self):
         self.LoadTrajectories()
         self.LoadPoints()
+        self.LoadScores()
         sections = [
             ("summary", "Survey", self.SectionHeader),
             ("trajectory", "Trajectory before and after SLAM", self.SectionTrajectory),

@@ -218,6 +218,8 @@ class ReportTest(unittest.TestCase):
         self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
         self.assertIn("1.3468", sec["scores"])
         self.assertIn("trajectory error before SLAM", sec["scores"])
+        self.assertIn("1.347 &rarr; 0.031 m", sec["summary"])  # ATE before -> after
+        self.assertIn("1.347 &rarr; 0.031 m", sec["trajectory"])
         # Stage table in stage_order, then the total.
         order = [m for m in re.findall(r"<td><b>([a-z]+)</b></td>", sec["stages"])]
         self.assertEqual(order, ["ingest", "georef", "calibrate", "slam", "fuse", "mesh",
