@@ -38,7 +38,8 @@ struct Input {
     std::vector<std::size_t> input_index;  // sorted slice -> input slice
     std::vector<double> t_s;
     std::vector<Pose> T_ins;               // INS poses (measurements)
-    std::vector<Vector6d> sigma;
+    std::vector<Vector6d> sigma;           // effective INS 1-sigma (see ins_sigma_recovery_time_s)
+    Vector6d sigma_floor = Vector6d::Zero();  // smallest sigma of the survey, per component
     std::vector<std::size_t> offset;       // first point of each slice in `points`
     std::vector<Eigen::Vector3f> points;   // vehicle frame, finite only
     std::size_t num_slices() const { return t_s.size(); }
@@ -168,13 +169,19 @@ struct Pair {
 };
 
 // Closest point of pw[q] among blocks entirely at least t_d away in time, within d_max.
+// Also the pair score of the current poses: sqrt(mean(min(d, score_m)^2)) over the query
+// points that have a partner block (time and bounding box), d the distance to the closest
+// point (score_m when none is within the search distance); score_m <= the search distance.
 std::vector<Pair> FindPairs(const Input& in,
                             const std::vector<Block>& blocks,
                             const std::vector<std::uint32_t>& slice_block,
                             const std::vector<Eigen::Vector3f>& pw,
-                            const SlamConfig& cfg) {
+                            const SlamConfig& cfg, double score_m, double* score) {
     const float dmax = static_cast<float>(cfg.max_pair_distance_m);
     const float dmax2 = dmax * dmax;
+    const double score2 = score_m * score_m;
+    std::vector<double> slice_sum(in.num_slices(), 0.0);
+    std::vector<std::uint32_t> slice_count(in.num_slices(), 0);
     const double td = cfg.min_time_separation_s;
     const auto stride = static_cast<std::size_t>(cfg.query_stride);
     tbb::enumerable_thread_specific<std::vector<Pair>> local;
@@ -188,13 +195,18 @@ std::vector<Pair> FindPairs(const Input& in,
                 float best = dmax2;
                 std::size_t best_idx = 0;
                 std::uint32_t best_block = 0;
-                bool found = false;
+                bool found = false, candidate = false;
                 for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
                     const Block& b = blocks[bi];
                     if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
                     if ((p.array() < b.lo.array() - dmax).any() ||
                         (p.array() > b.hi.array() + dmax).any()) {
                         continue;
+                    }
+                    const float sm = static_cast<float>(score_m);
+                    if (!((p.array() < b.lo.array() - sm).any() ||
+                          (p.array() > b.hi.array() + sm).any())) {
+                        candidate = true;
                     }
                     std::size_t idx = 0;
                     float d2 = 0;
@@ -204,6 +216,10 @@ std::vector<Pair> FindPairs(const Input& in,
                         best_block = bi;
                         found = true;
                     }
+                }
+                if (candidate) {
+                    slice_sum[s] += found ? std::min(static_cast<double>(best), score2) : score2;
+                    ++slice_count[s];
                 }
                 if (!found) continue;
                 Pair pr;
@@ -218,6 +234,12 @@ std::vector<Pair> FindPairs(const Input& in,
             }
         }
     });
+    double sum = 0, count = 0;
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        sum += slice_sum[s];
+        count += slice_count[s];
+    }
+    *score = count > 0 ? std::sqrt(sum / count) : 0.0;
     std::vector<Pair> pairs;
     for (auto& v : local) pairs.insert(pairs.end(), v.begin(), v.end());
     // Thread order is arbitrary; sort so that the sums below see the same order every run.
@@ -302,8 +324,9 @@ Vector6d SigmaVector(const Vector6d& ins, double scale) {
 }
 
 // Relative-motion and absolute terms (no pairs).
+// With linearise false only acc.cost is accumulated (the step acceptance test).
 void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
-                  const SlamConfig& cfg, Accum& acc) {
+                  const SlamConfig& cfg, bool linearise, Accum& acc) {
     const std::size_t n = p.num_nodes();
     for (std::size_t k = 0; k + 1 < n; ++k) {
         const auto i = static_cast<std::size_t>(p.anchor[k]);
@@ -312,17 +335,58 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
         Matrix6d Ji, Jj;
         const Vector6d r = RelativeMotionResidual(T[i], T[j], m, &Ji, &Jj);
         const double dt = std::abs(in.t_s[j] - in.t_s[i]);
-        const double f = std::sqrt(std::min(1.0, 2.0 * dt / cfg.ins_correlation_time_s));
-        Vector6d sig = SigmaVector(0.5 * (in.sigma[i] + in.sigma[j]), f * cfg.ins_sigma_scale);
+        // Steady part: a Gauss-Markov error of the survey's smallest sigma; growing part (dead
+        // reckoning): its increment is about the change of the sigma above that floor.
+        const double f2 = std::min(1.0, 2.0 * dt / cfg.ins_correlation_time_s);
+        Vector6d raw;
+        for (int c = 0; c < 6; ++c) {
+            const double fl2 = in.sigma_floor(c) * in.sigma_floor(c);
+            const double gi = std::sqrt(std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - fl2));
+            const double gj = std::sqrt(std::max(0.0, in.sigma[j](c) * in.sigma[j](c) - fl2));
+            raw(c) = std::sqrt(fl2 * f2 + (gj - gi) * (gj - gi));
+        }
+        Vector6d sig = SigmaVector(raw, cfg.ins_sigma_scale);
         for (int c = 0; c < 3; ++c) sig(c) = std::max(sig(c), cfg.min_relative_rotation_sigma_rad);
         for (int c = 3; c < 6; ++c) {
             sig(c) = std::max(sig(c), cfg.min_relative_translation_sigma_m);
         }
         const Matrix6d W = sig.cwiseInverse().cwiseAbs2().asDiagonal();
+        acc.cost += r.dot(W * r);
+        if (!linearise) continue;
         const int nodes[2] = {static_cast<int>(k), static_cast<int>(k + 1)};
         const Matrix6d J[2] = {Ji * NodeToSlice(p, T[i], i, 1.0), Jj * NodeToSlice(p, T[j], j, 1.0)};
         AddTerm<6>(acc, n, nodes, J, 2, W, r);
-        acc.cost += r.dot(W * r);
+    }
+    // Drift smoothness: the INS's position error e = t - t_ins changes its rate (the velocity
+    // error) by a random walk, so (e_2 - e_1) / dt_1 - (e_1 - e_0) / dt_0 ~ N(0, q^2 dt) per axis,
+    // loosened where the INS sigma falls (a filter pulling its drift back after an outage).
+    const double q = cfg.drift_velocity_random_walk_mps_per_sqrt_s;
+    if (q > 0) {
+        for (std::size_t k = 1; k + 1 < n; ++k) {
+            std::size_t a[3];
+            Eigen::Vector3d e[3];
+            Eigen::Matrix<double, 3, 6> B[3];
+            for (int m = 0; m < 3; ++m) {
+                a[m] = static_cast<std::size_t>(p.anchor[k + static_cast<std::size_t>(m) - 1]);
+                e[m] = T[a[m]].translation() - in.T_ins[a[m]].translation();
+                B[m] = NodeToSlice(p, T[a[m]], a[m], 1.0).bottomRows<3>();
+            }
+            const double d0 = std::max(in.t_s[a[1]] - in.t_s[a[0]], 1e-3);
+            const double d1 = std::max(in.t_s[a[2]] - in.t_s[a[1]], 1e-3);
+            const Eigen::Vector3d r = (e[2] - e[1]) / d1 - (e[1] - e[0]) / d0;
+            const double dm = 0.5 * (d0 + d1);
+            Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+            for (int c = 0; c < 3; ++c) {
+                const double fall = std::max(0.0, in.sigma[a[0]](3 + c) - in.sigma[a[2]](3 + c)) / dm;
+                W(c, c) = 1.0 / (q * q * dm + fall * fall);
+            }
+            acc.cost += r.dot(W * r);
+            if (!linearise) continue;
+            const int nodes[3] = {static_cast<int>(k - 1), static_cast<int>(k),
+                                  static_cast<int>(k + 1)};
+            const Matrix36d J[3] = {-B[0] / d0, -(1.0 / d1 + 1.0 / d0) * B[1], B[2] / d1};
+            AddTerm<3>(acc, n, nodes, J, 3, W, r);
+        }
     }
     const bool abs_any = cfg.absolute_position_terms || cfg.absolute_attitude_terms;
     for (std::size_t k = 0; k < n; ++k) {
@@ -339,15 +403,17 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
         }
         if (info.isZero()) continue;
         const Matrix6d W = info.asDiagonal();
+        acc.cost += r.dot(W * r);
+        if (!linearise) continue;
         const int nodes[1] = {static_cast<int>(k)};
         const Matrix6d J[1] = {Ja * NodeToSlice(p, T[i], i, 1.0)};
         AddTerm<6>(acc, n, nodes, J, 1, W, r);
-        acc.cost += r.dot(W * r);
     }
 }
 
+// Pair terms; with linearise false only the robust cost (and sq_dist) are accumulated.
 void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
-                  const std::vector<Pair>& pairs, const SlamConfig& cfg,
+                  const std::vector<Pair>& pairs, const SlamConfig& cfg, bool linearise,
                   tbb::enumerable_thread_specific<Accum>& accs) {
     const std::size_t n = p.num_nodes();
     const double s2 = cfg.point_sigma_m * cfg.point_sigma_m;
@@ -361,7 +427,9 @@ void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
             const Eigen::Vector3d xa = in.points[pr.point_a].cast<double>();
             const Eigen::Vector3d xb = in.points[pr.point_b].cast<double>();
             Matrix36d Ja, Jb;
-            const Eigen::Vector3d r3 = PointPairResidual(T[a], xa, T[b], xb, &Ja, &Jb);
+            const Eigen::Vector3d r3 = linearise
+                                           ? PointPairResidual(T[a], xa, T[b], xb, &Ja, &Jb)
+                                           : PointPairResidual(T[a], xa, T[b], xb);
             int nodes[4];
             double w[4];
             const int na = SliceNodes(p, a, nodes, w);
@@ -373,6 +441,8 @@ void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
                 Eigen::Matrix<double, 1, 1> r;
                 r(0) = nrm.dot(r3);
                 const double sw = std::abs(r(0)) / cfg.point_sigma_m;
+                acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
+                if (!linearise) continue;
                 Eigen::Matrix<double, 1, 1> W;
                 W(0) = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) / s2;
                 Matrix16d J[4];
@@ -382,7 +452,6 @@ void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
                     J[i] = nrm.transpose() * (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
                 }
                 AddTerm<1>(acc, n, nodes, J, count, W, r);
-                acc.cost += r(0) * r(0) / s2;
             } else {
                 Eigen::Matrix3d info;
                 if (cfg.correspondence == CorrespondenceType::kGicp) {
@@ -397,6 +466,8 @@ void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
                 }
                 const double m2 = r3.dot(info * r3);
                 const double sw = std::sqrt(m2);
+                acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
+                if (!linearise) continue;
                 const Eigen::Matrix3d W = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
                 Matrix36d J[4];
                 for (int i = 0; i < count; ++i) {
@@ -405,62 +476,280 @@ void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
                     J[i] = (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
                 }
                 AddTerm<3>(acc, n, nodes, J, count, W, r3);
-                acc.cost += m2;
             }
         }
     });
 }
 
-// Solves (H + damping) delta = -g with CHOLMOD; false if the factorisation fails.
-bool SolveNormalEquations(std::size_t n, tbb::enumerable_thread_specific<Accum>& accs,
-                          const Accum& pose_terms, Eigen::VectorXd* delta, double* cost,
-                          double* sq_dist) {
-    std::vector<Matrix6d> diag = pose_terms.diag;
-    std::vector<Vector6d> grad = pose_terms.grad;
-    std::unordered_map<std::uint64_t, Matrix6d> off = pose_terms.off;
-    *cost = pose_terms.cost;
-    *sq_dist = 0;
-    for (auto& acc : accs) {
+// The normal equations H delta = -g of one linearisation, solved with CHOLMOD for a Levenberg
+// damping lambda: (H + lambda diag(H)) delta = -g.
+class NormalEquations {
+public:
+    NormalEquations(std::size_t n, tbb::enumerable_thread_specific<Accum>& accs,
+                    const Accum& pose_terms) {
+        std::vector<Matrix6d> diag = pose_terms.diag;
+        std::vector<Vector6d> grad = pose_terms.grad;
+        std::unordered_map<std::uint64_t, Matrix6d> off = pose_terms.off;
+        cost_ = pose_terms.cost;
+        for (auto& acc : accs) {
+            for (std::size_t i = 0; i < n; ++i) {
+                diag[i] += acc.diag[i];
+                grad[i] += acc.grad[i];
+            }
+            for (const auto& [key, m] : acc.off) {
+                auto it = off.find(key);
+                if (it == off.end()) off.emplace(key, m);
+                else it->second += m;
+            }
+            cost_ += acc.cost;
+            sq_dist_ += acc.sq_dist;
+        }
+        std::vector<Eigen::Triplet<double>> trip;
+        trip.reserve(n * 21 + off.size() * 36);
+        rhs_.resize(static_cast<Eigen::Index>(6 * n));
         for (std::size_t i = 0; i < n; ++i) {
-            diag[i] += acc.diag[i];
-            grad[i] += acc.grad[i];
+            const auto o = static_cast<int>(6 * i);
+            for (int r = 0; r < 6; ++r) {
+                for (int c = r; c < 6; ++c) trip.emplace_back(o + r, o + c, diag[i](r, c));
+            }
+            rhs_.segment<6>(o) = -grad[i];
         }
-        for (const auto& [key, m] : acc.off) {
-            auto it = off.find(key);
-            if (it == off.end()) off.emplace(key, m);
-            else it->second += m;
-        }
-        *cost += acc.cost;
-        *sq_dist += acc.sq_dist;
-    }
-    std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(n * 21 + off.size() * 36);
-    Eigen::VectorXd rhs(static_cast<Eigen::Index>(6 * n));
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto o = static_cast<int>(6 * i);
-        for (int r = 0; r < 6; ++r) {
-            for (int c = r; c < 6; ++c) {
-                double v = diag[i](r, c);
-                if (r == c) v += 1e-6 * diag[i](r, r) + 1e-9;  // tiny Levenberg damping
-                trip.emplace_back(o + r, o + c, v);
+        for (const auto& [key, m] : off) {
+            const auto i = static_cast<int>(key / n), j = static_cast<int>(key % n);
+            for (int r = 0; r < 6; ++r) {
+                for (int c = 0; c < 6; ++c) trip.emplace_back(6 * i + r, 6 * j + c, m(r, c));
             }
         }
-        rhs.segment<6>(o) = -grad[i];
+        H_.resize(static_cast<Eigen::Index>(6 * n), static_cast<Eigen::Index>(6 * n));
+        H_.setFromTriplets(trip.begin(), trip.end());
+        H_.makeCompressed();
+        diag_ = H_.diagonal();
+        llt_.analyzePattern(H_);
     }
-    for (const auto& [key, m] : off) {
-        const auto i = static_cast<int>(key / n), j = static_cast<int>(key % n);
-        for (int r = 0; r < 6; ++r) {
-            for (int c = 0; c < 6; ++c) trip.emplace_back(6 * i + r, 6 * j + c, m(r, c));
+    double cost() const { return cost_; }
+    double sq_dist() const { return sq_dist_; }
+    // false if the factorisation fails or the step is not finite.
+    bool Solve(double lambda, Eigen::VectorXd* delta) {
+        Eigen::SparseMatrix<double> A = H_;
+        A.diagonal() = diag_ * (1.0 + lambda) + Eigen::VectorXd::Constant(diag_.size(), 1e-9);
+        llt_.factorize(A);
+        if (llt_.info() != Eigen::Success) return false;
+        *delta = llt_.solve(rhs_);
+        return llt_.info() == Eigen::Success && delta->allFinite();
+    }
+
+private:
+    Eigen::SparseMatrix<double> H_;
+    Eigen::VectorXd rhs_, diag_;
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt_;
+    double cost_ = 0, sq_dist_ = 0;
+};
+
+// ---- coarse horizontal search -----------------------------------------------------------------
+
+// For every section whose INS horizontal 1-sigma exceeds coarse_search_min_sigma_m: the
+// horizontal offset (within min(coarse_search_m, 3 sigma), on a coarse_search_step_m grid) that
+// best fits its points to a height grid of the sections the INS is sure about, the vertical
+// offset taken as the median height difference. Score: mean |dz - median dz| over the points
+// that fall on the grid, among offsets that see at least half the best coverage. Closest-point
+// matching alone creeps towards offsets of several metres along smooth terrain (each step is
+// bounded by the closest-point distances); this puts the sections inside its capture range.
+// Returns the world translation per section (zero where not searched or not overlapping).
+constexpr double kCoarseScoreUnitM = 0.001;  // fit score unit against the smoothness terms
+constexpr double kInfeasible = 1e30;
+
+std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vector<Pose>& T,
+                                                 const std::vector<Block>& blocks,
+                                                 const SlamConfig& cfg, std::size_t* searched,
+                                                 std::size_t* shifted) {
+    const std::size_t nb = blocks.size();
+    std::vector<Eigen::Vector3d> offset(nb, Eigen::Vector3d::Zero());
+    *searched = *shifted = 0;
+    // A section's sigma: the median over its slices (a section where GNSS returns is mostly
+    // pulled back already).
+    std::vector<double> sigma_h(nb, 0.0);
+    for (std::size_t b = 0; b < nb; ++b) {
+        std::vector<double> sg;
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
+            sg.push_back(std::max(in.sigma[s](3), in.sigma[s](4)));
+        }
+        std::nth_element(sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2),
+                         sg.end());
+        sigma_h[b] = sg[sg.size() / 2];
+    }
+    const double h = cfg.coarse_search_cell_m;
+    const double trunc = 0.5 * h;  // deviations beyond half a cell count as a miss
+    // Per cell a plane z = c0 + c1 (x - xc) + c2 (y - yc) by least squares (walls are steep).
+    struct Cell {
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        double xc = 0, yc = 0;
+        int n = 0;
+    };
+    auto cell_of = [h](double x, double y) {
+        return std::pair{static_cast<std::int64_t>(std::floor(x / h)),
+                         static_cast<std::int64_t>(std::floor(y / h))};
+    };
+    auto key = [&](double x, double y) {
+        const auto [ix, iy] = cell_of(x, y);
+        return (static_cast<std::uint64_t>(ix + (1 << 30)) << 32) ^
+               static_cast<std::uint64_t>(iy + (1 << 30));
+    };
+    std::unordered_map<std::uint64_t, Cell> grid;
+    auto world = [&](std::size_t s, std::size_t k) {
+        return (T[s] * in.points[k].cast<double>()).eval();
+    };
+    for (std::size_t b = 0; b < nb; ++b) {
+        if (sigma_h[b] > cfg.coarse_search_min_sigma_m) continue;
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
+            for (std::size_t k = in.offset[s]; k < in.offset[s + 1]; ++k) {
+                const Eigen::Vector3d p = world(s, k);
+                Cell& c = grid[key(p.x(), p.y())];
+                const auto [ix, iy] = cell_of(p.x(), p.y());
+                c.xc = (static_cast<double>(ix) + 0.5) * h;
+                c.yc = (static_cast<double>(iy) + 0.5) * h;
+                const Eigen::Vector3d u(1.0, p.x() - c.xc, p.y() - c.yc);
+                c.A += u * u.transpose();
+                c.b += u * p.z();
+                ++c.n;
+            }
         }
     }
-    Eigen::SparseMatrix<double> H(static_cast<Eigen::Index>(6 * n),
-                                  static_cast<Eigen::Index>(6 * n));
-    H.setFromTriplets(trip.begin(), trip.end());
-    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt;
-    llt.compute(H);
-    if (llt.info() != Eigen::Success) return false;
-    *delta = llt.solve(rhs);
-    return llt.info() == Eigen::Success && delta->allFinite();
+    for (auto it = grid.begin(); it != grid.end();) {
+        Cell& c = it->second;
+        // Slightly regularised towards a level plane when the points line up.
+        Eigen::Matrix3d A = c.A;
+        A(1, 1) += 1e-3 * c.n;
+        A(2, 2) += 1e-3 * c.n;
+        if (c.n >= 4) c.c = A.ldlt().solve(c.b);
+        it = c.n < 4 || !c.c.allFinite() ? grid.erase(it) : std::next(it);
+    }
+    if (grid.empty()) return offset;
+    // One grid of candidate offsets for every searched section.
+    const int m = static_cast<int>(std::floor(cfg.coarse_search_m / cfg.coarse_search_step_m));
+    const int side = 2 * m + 1;
+    const auto nc = static_cast<std::size_t>(side * side);
+    auto cand = [&](std::size_t c) {
+        return Eigen::Vector2d((static_cast<int>(c) % side - m) * cfg.coarse_search_step_m,
+                               (static_cast<int>(c) / side - m) * cfg.coarse_search_step_m);
+    };
+    std::vector<std::vector<double>> data(nb), median(nb);
+    for (std::size_t b = 0; b < nb; ++b) {
+        if (sigma_h[b] <= cfg.coarse_search_min_sigma_m) continue;
+        ++*searched;
+        // At most ~2000 points of the section, spread over its slices.
+        const std::size_t np = blocks[b].p1 - blocks[b].p0;
+        const std::size_t stride = std::max<std::size_t>(1, np / 2000);
+        std::vector<Eigen::Vector3d> pts;
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
+            for (std::size_t k = in.offset[s] + (s % stride); k < in.offset[s + 1]; k += stride) {
+                pts.push_back(world(s, k));
+            }
+        }
+        if (pts.empty()) continue;
+        data[b].assign(nc, 0.0);
+        median[b].assign(nc, 0.0);
+        std::vector<std::size_t> cover(nc, 0);
+        tbb::parallel_for(std::size_t{0}, nc, [&](std::size_t c) {
+            const Eigen::Vector2d o = cand(c);
+            std::vector<double> dz;
+            dz.reserve(pts.size());
+            for (const Eigen::Vector3d& p : pts) {
+                const double x = p.x() + o.x(), y = p.y() + o.y();
+                const auto it = grid.find(key(x, y));
+                if (it == grid.end()) continue;
+                const Cell& g = it->second;
+                dz.push_back(g.c(0) + g.c(1) * (x - g.xc) + g.c(2) * (y - g.yc) - p.z());
+            }
+            double med = 0;
+            if (!dz.empty()) {
+                auto mid = dz.begin() + static_cast<std::ptrdiff_t>(dz.size() / 2);
+                std::nth_element(dz.begin(), mid, dz.end());
+                med = *mid;
+            }
+            // Truncated absolute deviation over the points on the grid, in kCoarseScoreUnitM,
+            // plus the INS's own prior on the offset.
+            double sum = 0;
+            for (double v : dz) sum += std::min(std::abs(v - med), trunc);
+            cover[c] = dz.size();
+            data[b][c] = dz.empty() ? 0.0
+                                    : sum / static_cast<double>(dz.size()) / kCoarseScoreUnitM +
+                                          0.5 * o.squaredNorm() / (sigma_h[b] * sigma_h[b]);
+            median[b][c] = med;
+        });
+        // Offsets that see less than half the best coverage are out (a fit on a few points).
+        const std::size_t max_cover = *std::max_element(cover.begin(), cover.end());
+        if (max_cover < std::max<std::size_t>(20, pts.size() / 10)) {
+            data[b].clear();
+            continue;
+        }
+        for (std::size_t c = 0; c < nc; ++c) {
+            if (2 * cover[c] < max_cover) data[b][c] = kInfeasible;
+        }
+    }
+    // Runs of consecutive searched sections: the offsets along a run by dynamic programming, so
+    // that offsets change between neighbours by about the change of the INS sigma (drift grows
+    // smoothly) and a run starts and ends near its unsearched (zero-offset) neighbours.
+    auto step_sigma = [&](double s0, double s1) {
+        return std::max(cfg.coarse_search_step_m, 2.0 * std::abs(s1 - s0));
+    };
+    std::size_t b = 0;
+    while (b < nb) {
+        if (data[b].empty()) {
+            ++b;
+            continue;
+        }
+        std::size_t e = b;
+        while (e < nb && !data[e].empty()) ++e;  // run [b, e)
+        std::vector<std::vector<double>> cost(e - b);
+        std::vector<std::vector<std::uint32_t>> from(e - b);
+        const double s_before = b > 0 ? sigma_h[b - 1] : 0.0;
+        for (std::size_t k = b; k < e; ++k) {
+            std::vector<double>& ck = cost[k - b];
+            ck = data[k];
+            from[k - b].assign(nc, 0);
+            if (k == b) {
+                const double st = step_sigma(s_before, sigma_h[k]);
+                for (std::size_t c = 0; c < nc; ++c) {
+                    ck[c] += 0.5 * cand(c).squaredNorm() / (st * st);
+                }
+                continue;
+            }
+            const double st = step_sigma(sigma_h[k - 1], sigma_h[k]);
+            const std::vector<double>& prev = cost[k - b - 1];
+            tbb::parallel_for(std::size_t{0}, nc, [&](std::size_t c) {
+                const Eigen::Vector2d oc = cand(c);
+                double best = std::numeric_limits<double>::max();
+                std::uint32_t arg = 0;
+                for (std::size_t i = 0; i < nc; ++i) {
+                    const double v = prev[i] + 0.5 * (oc - cand(i)).squaredNorm() / (st * st);
+                    if (v < best) {
+                        best = v;
+                        arg = static_cast<std::uint32_t>(i);
+                    }
+                }
+                ck[c] += best;
+                from[k - b][c] = arg;
+            });
+        }
+        const double s_after = e < nb ? sigma_h[e] : 0.0;
+        std::vector<double>& last = cost[e - b - 1];
+        if (e < nb) {
+            const double st = step_sigma(sigma_h[e - 1], s_after);
+            for (std::size_t c = 0; c < nc; ++c) last[c] += 0.5 * cand(c).squaredNorm() / (st * st);
+        }
+        std::size_t c = static_cast<std::size_t>(
+            std::min_element(last.begin(), last.end()) - last.begin());
+        for (std::size_t k = e; k-- > b;) {
+            const Eigen::Vector2d o = cand(c);
+            offset[k] = Eigen::Vector3d(o.x(), o.y(), median[k][c]);
+            ++*shifted;
+            c = from[k - b][c];
+        }
+        b = e;
+    }
+    return offset;
 }
 
 // ---- consistency score ----------------------------------------------------------------------
@@ -521,139 +810,218 @@ struct StageOutcome {
     std::size_t num_links = 0;
 };
 
+// Poses, world points and k-d trees of the current iterate; pairs and the pair score.
+struct Search {
+    std::vector<Pair> pairs;
+    double score = 0;
+    std::size_t num_links = 0;
+};
+
+Search SearchPairs(const Input& in, const std::vector<Pose>& T, SlamStage stage,
+                   double search_m, std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& slice_block, std::vector<Eigen::Vector3f>& pw,
+                   const SlamConfig& cfg, SlamResult& res) {
+    auto t0 = Clock::now();
+    tbb::parallel_for(std::size_t{0}, in.num_slices(), [&](std::size_t s) {
+        const Eigen::Matrix3f R = T[s].linear().cast<float>();
+        const Eigen::Vector3f t = T[s].translation().cast<float>();
+        for (std::size_t k = in.offset[s]; k < in.offset[s + 1]; ++k) pw[k] = R * in.points[k] + t;
+    });
+    BuildTrees(blocks, pw);
+    res.timings.trees_s += Seconds(t0);
+    t0 = Clock::now();
+    SlamConfig it_cfg = cfg;
+    it_cfg.max_pair_distance_m = search_m;
+    Search out;
+    out.pairs = FindPairs(in, blocks, slice_block, pw, it_cfg, cfg.max_pair_distance_m, &out.score);
+    std::vector<Pair>& pairs = out.pairs;
+    if (stage == SlamStage::kRigid) {
+        // Section graph: keep links with enough pairs (overlap heuristic of the paper).
+        std::unordered_map<std::uint64_t, std::size_t> link;
+        auto key = [&](const Pair& pr) {
+            const auto a = std::min(pr.block_a, pr.block_b);
+            const auto b = std::max(pr.block_a, pr.block_b);
+            return (static_cast<std::uint64_t>(a) << 32) | b;
+        };
+        for (const Pair& pr : pairs) ++link[key(pr)];
+        std::erase_if(pairs, [&](const Pair& pr) {
+            return link[key(pr)] < static_cast<std::size_t>(cfg.min_section_link_pairs);
+        });
+        for (const auto& [k, c] : link) {
+            if (c >= static_cast<std::size_t>(cfg.min_section_link_pairs)) ++out.num_links;
+        }
+    }
+    if (cfg.correspondence != CorrespondenceType::kPointToPoint) {
+        tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+            Pair& pr = pairs[k];
+            pr.normal_b = LocalNormal(blocks[pr.block_b], pw, pr.point_b, cfg.normal_neighbours);
+            if (cfg.correspondence == CorrespondenceType::kGicp) {
+                pr.normal_a = LocalNormal(blocks[pr.block_a], pw, pr.point_a,
+                                          cfg.normal_neighbours);
+            }
+        });
+        std::erase_if(pairs, [&](const Pair& pr) {
+            return pr.normal_b.isZero() ||
+                   (cfg.correspondence == CorrespondenceType::kGicp && pr.normal_a.isZero());
+        });
+    }
+    res.timings.search_s += Seconds(t0);
+    return out;
+}
+
+// Total cost (INS terms and robust pair terms) of the parametrisation p on fixed pairs.
+double CostAt(const Input& in, const Param& p, const std::vector<Pair>& pairs,
+              const SlamConfig& cfg) {
+    const std::vector<Pose> T = SlicePoses(p);
+    Accum pose_terms(0);
+    AddPoseTerms(in, p, T, cfg, /*linearise=*/false, pose_terms);
+    tbb::enumerable_thread_specific<Accum> accs([] { return Accum(0); });
+    AddPairTerms(in, p, T, pairs, cfg, /*linearise=*/false, accs);
+    double cost = pose_terms.cost;
+    for (const Accum& acc : accs) cost += acc.cost;
+    return cost;
+}
+
+// Gauss-Newton with re-found correspondences (ICP-like). Guards, so that the result is never
+// worse than the start:
+//  - a step is taken only if it lowers the total cost on the pairs it was computed from;
+//    otherwise the Levenberg damping grows (kMaxDampingRetries times at most, then the stage
+//    ends with kNoImprovement);
+//  - the pair score (truncated closest-point RMS at max_pair_distance_m over the overlap) of
+//    every iterate is measured with the next search; the best iterate is kept, and the stage
+//    ends after score_patience iterations without a better one.
 StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterations,
-                      std::vector<Block>& blocks, const std::vector<std::uint32_t>& slice_block,
-                      const SlamConfig& cfg, double* best_score, SlamResult& res) {
+                      double rigid_d0_m, std::vector<Block>& blocks,
+                      const std::vector<std::uint32_t>& slice_block, const SlamConfig& cfg,
+                      double* best_score, SlamResult& res) {
+    constexpr int kMaxDampingRetries = 8;
+    constexpr double kMinDamping = 1e-6;
     StageOutcome out;
     const std::size_t n = p.num_nodes();
     std::vector<Eigen::Matrix3d> best_R = p.Rc;
     std::vector<Eigen::Vector3d> best_t = p.tc;
     int stalled = 0;
+    double lambda = kMinDamping;
+    bool stop = false;
     std::vector<Eigen::Vector3f> pw(in.points.size());
-    for (int it = 1; it <= max_iterations; ++it) {
-        const std::vector<Pose> T = SlicePoses(p);
-        auto t0 = Clock::now();
-        tbb::parallel_for(std::size_t{0}, in.num_slices(), [&](std::size_t s) {
-            const Eigen::Matrix3f R = T[s].linear().cast<float>();
-            const Eigen::Vector3f t = T[s].translation().cast<float>();
-            for (std::size_t k = in.offset[s]; k < in.offset[s + 1]; ++k) {
-                pw[k] = R * in.points[k] + t;
-            }
-        });
-        BuildTrees(blocks, pw);
-        res.timings.trees_s += Seconds(t0);
-        t0 = Clock::now();
-        SlamConfig it_cfg = cfg;
-        if (stage == SlamStage::kRigid && max_iterations > 1) {
+    for (int it = 1;; ++it) {
+        double search_m = cfg.max_pair_distance_m;
+        if (stage == SlamStage::kRigid && max_iterations > 1 && it <= max_iterations) {
             // d_i = d_0 (d_max / d_0)^((i - 1) / (n - 1)): coarse to fine.
             const double f = static_cast<double>(it - 1) / static_cast<double>(max_iterations - 1);
-            it_cfg.max_pair_distance_m =
-                cfg.rigid_max_pair_distance_m *
-                std::pow(cfg.max_pair_distance_m / cfg.rigid_max_pair_distance_m, f);
+            search_m = rigid_d0_m * std::pow(cfg.max_pair_distance_m / rigid_d0_m, f);
         }
-        std::vector<Pair> pairs = FindPairs(in, blocks, slice_block, pw, it_cfg);
-        if (stage == SlamStage::kRigid) {
-            // Section graph: keep links with enough pairs (overlap heuristic of the paper).
-            std::unordered_map<std::uint64_t, std::size_t> link;
-            auto key = [&](const Pair& pr) {
-                const auto a = std::min(pr.block_a, pr.block_b);
-                const auto b = std::max(pr.block_a, pr.block_b);
-                return (static_cast<std::uint64_t>(a) << 32) | b;
-            };
-            for (const Pair& pr : pairs) ++link[key(pr)];
-            std::erase_if(pairs, [&](const Pair& pr) {
-                return link[key(pr)] < static_cast<std::size_t>(cfg.min_section_link_pairs);
-            });
-            out.num_links = 0;
-            for (const auto& [k, c] : link) {
-                if (c >= static_cast<std::size_t>(cfg.min_section_link_pairs)) ++out.num_links;
+        const std::vector<Pose> T = SlicePoses(p);
+        Search found = SearchPairs(in, T, stage, search_m, blocks, slice_block, pw, cfg, res);
+        if (it == 1 && res.iterations.empty()) {
+            *best_score = found.score;
+            res.initial_pair_score_m = found.score;
+        }
+        if (it > 1) {
+            // The score of the previous step's result.
+            SlamIteration& rec = res.iterations.back();
+            rec.pair_score_m = found.score;
+            rec.best = found.score < *best_score;
+            if (rec.best) {
+                *best_score = found.score;
+                best_R = p.Rc;
+                best_t = p.tc;
+                stalled = 0;
+            } else if (++stalled >= cfg.score_patience && !stop) {
+                out.termination = SlamTermination::kScoreStalled;
+                out.message = "pair score did not improve for " +
+                              std::to_string(cfg.score_patience) + " iterations; best iterate kept";
+                stop = true;
             }
         }
-        if (cfg.correspondence != CorrespondenceType::kPointToPoint) {
-            tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
-                Pair& pr = pairs[k];
-                pr.normal_b = LocalNormal(blocks[pr.block_b], pw, pr.point_b,
-                                          cfg.normal_neighbours);
-                if (cfg.correspondence == CorrespondenceType::kGicp) {
-                    pr.normal_a = LocalNormal(blocks[pr.block_a], pw, pr.point_a,
-                                              cfg.normal_neighbours);
-                }
-            });
-            std::erase_if(pairs, [&](const Pair& pr) {
-                return pr.normal_b.isZero() ||
-                       (cfg.correspondence == CorrespondenceType::kGicp && pr.normal_a.isZero());
-            });
-        }
-        res.timings.search_s += Seconds(t0);
+        if (stop || it > max_iterations) break;
+        std::vector<Pair>& pairs = found.pairs;
+        out.num_links = std::max(out.num_links, found.num_links);
         out.num_pairs = pairs.size();
         if (pairs.empty()) {
             out.termination = SlamTermination::kNoOverlap;
             out.message = "no point pairs at least " + std::to_string(cfg.min_time_separation_s) +
-                          " s apart and closer than " + std::to_string(cfg.max_pair_distance_m) +
-                          " m";
+                          " s apart and closer than " + std::to_string(search_m) + " m";
             break;
         }
-        t0 = Clock::now();
+        auto t0 = Clock::now();
         Accum pose_terms(n);
-        AddPoseTerms(in, p, T, cfg, pose_terms);
+        AddPoseTerms(in, p, T, cfg, /*linearise=*/true, pose_terms);
         tbb::enumerable_thread_specific<Accum> accs([n] { return Accum(n); });
-        AddPairTerms(in, p, T, pairs, cfg, accs);
+        AddPairTerms(in, p, T, pairs, cfg, /*linearise=*/true, accs);
         res.timings.build_s += Seconds(t0);
         t0 = Clock::now();
-        Eigen::VectorXd delta;
-        double cost = 0, sq_dist = 0;
-        const bool ok = SolveNormalEquations(n, accs, pose_terms, &delta, &cost, &sq_dist);
-        res.timings.solve_s += Seconds(t0);
-        if (!ok) {
-            out.termination = SlamTermination::kSolverFailed;
-            out.message = "CHOLMOD could not factorise the normal equations";
-            break;
-        }
-        double max_rot = 0, max_trans = 0;
-        for (std::size_t k = 0; k < n; ++k) {
-            const Vector6d d = delta.segment<6>(static_cast<Eigen::Index>(6 * k));
-            p.Rc[k] = ExpSO3(d.head<3>()) * p.Rc[k];
-            p.tc[k] += d.tail<3>();
-            max_rot = std::max(max_rot, d.head<3>().norm());
-            max_trans = std::max(max_trans, d.tail<3>().norm());
-        }
-        t0 = Clock::now();
-        const double score = ConsistencyScore(in, SlicePoses(p), cfg);
-        res.timings.score_s += Seconds(t0);
+        NormalEquations ne(n, accs, pose_terms);
+        res.timings.build_s += Seconds(t0);
         SlamIteration rec;
         rec.stage = stage;
         rec.iteration = it;
         rec.num_pairs = pairs.size();
-        rec.cost = cost;
-        rec.pair_rms_m = std::sqrt(sq_dist / static_cast<double>(pairs.size()));
-        rec.consistency_m = score;
-        rec.max_step_rotation_rad = max_rot;
-        rec.max_step_translation_m = max_trans;
-        rec.best = score <= *best_score;
-        res.iterations.push_back(rec);
+        rec.cost = ne.cost();
+        rec.pair_rms_m = std::sqrt(ne.sq_dist() / static_cast<double>(pairs.size()));
+        bool accepted = false, solved = false;
+        Param trial = p;
+        double max_rot = 0, max_trans = 0;
+        for (int attempt = 0; attempt <= kMaxDampingRetries && !accepted; ++attempt) {
+            t0 = Clock::now();
+            Eigen::VectorXd delta;
+            const bool ok = ne.Solve(lambda, &delta);
+            res.timings.solve_s += Seconds(t0);
+            if (!ok) {
+                lambda *= 10.0;
+                continue;
+            }
+            solved = true;
+            max_rot = max_trans = 0;
+            for (std::size_t k = 0; k < n; ++k) {
+                const Vector6d d = delta.segment<6>(static_cast<Eigen::Index>(6 * k));
+                trial.Rc[k] = ExpSO3(d.head<3>()) * p.Rc[k];
+                trial.tc[k] = p.tc[k] + d.tail<3>();
+                max_rot = std::max(max_rot, d.head<3>().norm());
+                max_trans = std::max(max_trans, d.tail<3>().norm());
+            }
+            t0 = Clock::now();
+            rec.cost_after = CostAt(in, trial, pairs, cfg);
+            res.timings.build_s += Seconds(t0);
+            accepted = rec.cost_after < rec.cost;
+            if (!accepted) {
+                lambda *= 10.0;
+                ++rec.rejected_steps;
+            }
+        }
+        rec.damping = lambda;
         out.iterations = it;
-        if (rec.best) {
-            *best_score = score;
-            best_R = p.Rc;
-            best_t = p.tc;
-            stalled = 0;
-        } else if (++stalled >= cfg.score_patience) {
-            out.termination = SlamTermination::kScoreStalled;
-            out.message = "consistency score did not improve for " +
-                          std::to_string(cfg.score_patience) + " iterations; best iterate kept";
+        if (!accepted) {
+            rec.cost_after = rec.cost;
+            rec.pair_score_m = found.score;  // no step taken: the iterate is unchanged
+            res.iterations.push_back(rec);
+            out.termination =
+                solved ? SlamTermination::kNoImprovement : SlamTermination::kSolverFailed;
+            out.message = solved ? "no step lowered the cost on the current pairs (damping up to " +
+                                       std::to_string(lambda / 10.0) + "); best iterate kept"
+                                 : "CHOLMOD could not factorise the normal equations";
             break;
         }
+        lambda = std::max(kMinDamping, lambda / 10.0);
+        p.Rc = trial.Rc;
+        p.tc = trial.tc;
+        rec.max_step_rotation_rad = max_rot;
+        rec.max_step_translation_m = max_trans;
+        t0 = Clock::now();
+        rec.consistency_m = ConsistencyScore(in, SlicePoses(p), cfg);
+        res.timings.score_s += Seconds(t0);
+        res.iterations.push_back(rec);
         if (max_rot < cfg.convergence_rotation_rad && max_trans < cfg.convergence_translation_m) {
             out.termination = SlamTermination::kConverged;
             out.message = "pose updates below the convergence thresholds";
-            break;
-        }
-        if (cfg.progress && !cfg.progress(static_cast<int>(stage), it)) {
+            stop = true;  // score this iterate, then stop
+        } else if (cfg.progress && !cfg.progress(static_cast<int>(stage), it)) {
             out.termination = SlamTermination::kCancelled;
             out.message = "cancelled";
-            break;
+            stop = true;
+        } else if (it == max_iterations) {
+            out.message = "iteration budget spent";
         }
-        if (it == max_iterations) out.message = "iteration budget spent";
     }
     p.Rc = best_R;
     p.tc = best_t;
@@ -683,6 +1051,7 @@ const char* ToString(SlamTermination t) {
         case SlamTermination::kConverged: return "converged";
         case SlamTermination::kMaxIterations: return "max_iterations";
         case SlamTermination::kScoreStalled: return "score_stalled";
+        case SlamTermination::kNoImprovement: return "no_improvement";
         case SlamTermination::kNoOverlap: return "no_overlap";
         case SlamTermination::kSolverFailed: return "solver_failed";
         case SlamTermination::kCancelled: return "cancelled";
@@ -718,7 +1087,15 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (!(min_relative_translation_sigma_m > 0)) {
         p.push_back("min_relative_translation_sigma_m must be > 0");
     }
+    if (!(ins_sigma_recovery_time_s >= 0)) p.push_back("ins_sigma_recovery_time_s must be >= 0");
+    if (!(drift_velocity_random_walk_mps_per_sqrt_s >= 0)) {
+        p.push_back("drift_velocity_random_walk_mps_per_sqrt_s must be >= 0");
+    }
     if (!(absolute_sigma_scale > 0)) p.push_back("absolute_sigma_scale must be > 0");
+    if (!(coarse_search_m >= 0)) p.push_back("coarse_search_m must be >= 0");
+    if (!(coarse_search_step_m > 0)) p.push_back("coarse_search_step_m must be > 0");
+    if (!(coarse_search_cell_m > 0)) p.push_back("coarse_search_cell_m must be > 0");
+    if (!(coarse_search_min_sigma_m > 0)) p.push_back("coarse_search_min_sigma_m must be > 0");
     if (!(score_cell_m > 0)) p.push_back("score_cell_m must be > 0");
     if (score_patience < 1) p.push_back("score_patience must be >= 1");
     if (num_threads < 0) p.push_back("num_threads must be >= 0 (0 = auto)");
@@ -790,6 +1167,15 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
         in.offset.push_back(in.points.size());
     }
     const std::size_t ns = in.num_slices();
+    in.sigma_floor = in.sigma.front();
+    for (const Vector6d& sg : in.sigma) in.sigma_floor = in.sigma_floor.cwiseMin(sg);
+    if (cfg.ins_sigma_recovery_time_s > 0) {
+        for (std::size_t s = 1; s < ns; ++s) {
+            const double decay =
+                std::exp(-(in.t_s[s] - in.t_s[s - 1]) / cfg.ins_sigma_recovery_time_s);
+            in.sigma[s] = in.sigma[s].cwiseMax(decay * in.sigma[s - 1]);
+        }
+    }
 
     std::vector<Block> blocks = MakeBlocks(in, cfg.section_length_s);
     std::vector<std::uint32_t> slice_block(ns);
@@ -801,7 +1187,7 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     auto t0 = Clock::now();
     res.initial_consistency_m = ConsistencyScore(in, in.T_ins, cfg);
     res.timings.score_s += Seconds(t0);
-    double best_score = res.initial_consistency_m;
+    double best_score = 0;  // pair score, set by the first search
     std::vector<Pose> current = in.T_ins;
 
     // Stage 1: rigid sections, rotating about the section's mean position.
@@ -820,8 +1206,29 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
                 p.k0[s] = p.k1[s] = static_cast<int>(b);
             }
         }
-        rigid = RunStage(in, p, SlamStage::kRigid, cfg.rigid_iterations, blocks, slice_block, cfg,
-                         &best_score, res);
+        if (cfg.coarse_search_m > 0) {
+            t0 = Clock::now();
+            const std::vector<Eigen::Vector3d> shift = CoarseSectionSearch(
+                in, current, blocks, cfg, &res.num_sections_searched, &res.num_sections_shifted);
+            for (std::size_t b = 0; b < blocks.size(); ++b) p.tc[b] = shift[b];
+            res.timings.coarse_search_s = Seconds(t0);
+        }
+        // Coarse to fine from 3 INS sigmas (the largest section median), within
+        // [max_pair_distance_m, rigid_max_pair_distance_m]: no wide search where GNSS was good.
+        double sigma_max = 0;
+        for (const Block& b : blocks) {
+            std::vector<double> sg;
+            for (std::size_t s = b.s0; s < b.s1; ++s) {
+                sg.push_back(std::max(in.sigma[s](3), in.sigma[s](4)));
+            }
+            std::nth_element(sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2),
+                             sg.end());
+            sigma_max = std::max(sigma_max, sg[sg.size() / 2]);
+        }
+        const double d0 = std::clamp(3.0 * sigma_max, cfg.max_pair_distance_m,
+                                     cfg.rigid_max_pair_distance_m);
+        rigid = RunStage(in, p, SlamStage::kRigid, cfg.rigid_iterations, d0, blocks, slice_block,
+                         cfg, &best_score, res);
         res.rigid_iterations = rigid.iterations;
         res.num_section_links = rigid.num_links;
         current = SlicePoses(p);
@@ -847,8 +1254,8 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
                                                   static_cast<double>(bin);
         }
         res.num_poses = starts.size();
-        semi = RunStage(in, p, SlamStage::kSemiRigid, cfg.max_iterations, blocks, slice_block, cfg,
-                        &best_score, res);
+        semi = RunStage(in, p, SlamStage::kSemiRigid, cfg.max_iterations, cfg.max_pair_distance_m,
+                        blocks, slice_block, cfg, &best_score, res);
         res.semi_rigid_iterations = semi.iterations;
         current = SlicePoses(p);
         if (semi.message.empty()) semi.message = "iteration budget spent";
@@ -859,7 +1266,10 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     if (rigid.termination == SlamTermination::kNoOverlap) {
         res.message = "rigid stage: " + rigid.message + "; trajectory unchanged";
     }
-    res.final_consistency_m = best_score;
+    res.final_pair_score_m = res.iterations.empty() ? res.initial_pair_score_m : best_score;
+    t0 = Clock::now();
+    res.final_consistency_m = ConsistencyScore(in, current, cfg);
+    res.timings.score_s += Seconds(t0);
     res.trajectory.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) {
         res.trajectory[s].gps_time_s = in.t_s[s];

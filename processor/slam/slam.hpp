@@ -12,9 +12,13 @@
 //     a bin); point pairs only between slices at least min_time_separation_s apart and closer
 //     than max_pair_distance_m; relative-motion terms between consecutive poses keep the motion
 //     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms.
-// A consistency score (plane-fit vertical RMS over grid cells seen by passes at least
-// min_time_separation_s apart) is evaluated after every iteration; the best iterate is kept
-// and the stage stops when the score does not improve for score_patience iterations.
+// Guards ("must not get worse"): a step is taken only if it lowers the total cost (INS terms and
+// robust pair terms) on the pairs it was computed from, else the Levenberg damping grows; the
+// pair score of every iterate (closest-point distance over the overlap, truncated at
+// max_pair_distance_m, RMS) is measured, the best iterate is kept and a stage stops after
+// score_patience iterations without a better one. A plane-fit consistency score (vertical RMS
+// over grid cells seen by passes at least min_time_separation_s apart) is reported too; it is
+// no stopping criterion, since multi-metre drift can make it rise while the alignment improves.
 //
 // World frame: local ENU (z up). Vehicle frame: FRD. Rotations are optimised on the manifold
 // (processor/slam/slam_math.hpp).
@@ -57,10 +61,20 @@ struct SlamConfig {
     double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
     double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
     int rigid_iterations = 10;            // rigid stage iterations (0: skip the stage)
-    // Rigid stage pair distance, shrunk geometrically to max_pair_distance_m over its
+    // Rigid stage pair distance at most, shrunk geometrically to max_pair_distance_m over its
     // iterations (coarse to fine), so that multi-metre INS drift is inside the capture range.
+    // The first distance is 3 x the largest section median INS horizontal sigma, within
+    // [max_pair_distance_m, this].
     double rigid_max_pair_distance_m = 4.0;
     int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
+    // Coarse horizontal search before the rigid stage, for sections whose INS horizontal
+    // 1-sigma exceeds coarse_search_min_sigma_m (GNSS outages): the offset within
+    // min(coarse_search_m, 3 sigma) that best fits the section to a height grid (cells of
+    // coarse_search_cell_m) of the other sections; 0 = off.
+    double coarse_search_m = 12.0;
+    double coarse_search_step_m = 0.5;
+    double coarse_search_cell_m = 1.0;
+    double coarse_search_min_sigma_m = 0.5;
     // Semi-rigid: slices per pose (1 = one pose per slice). The factorisation cost grows fast
     // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
     int bin_slices = 10;
@@ -83,11 +97,21 @@ struct SlamConfig {
     double ins_sigma_scale = 1.0;
     double min_relative_rotation_sigma_rad = 2e-5;
     double min_relative_translation_sigma_m = 5e-4;
+    // The INS's reported 1-sigma is not believed to shrink faster than exp(-dt / this): a
+    // filter that regains GNSS after an outage reports a small sigma at once but pulls its
+    // drift back over seconds, so sigma_i = max(reported_i, sigma_{i-1} exp(-dt / this)),
+    // per component. 0 = take the reported sigma as it is.
+    double ins_sigma_recovery_time_s = 10.0;
+    // Smoothness of the INS position error: its rate (the velocity error) follows a random walk
+    // of this density, as dead reckoning does in a GNSS outage; the term ties the corrections
+    // of consecutive poses so that matches at turns and pit walls carry along straight lines.
+    // Loosened where the INS sigma falls. 0 = off.
+    double drift_velocity_random_walk_mps_per_sqrt_s = 0.003;
     bool absolute_position_terms = true;  // GNSS/INS position per pose, weighted by its sigma
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     double absolute_sigma_scale = 1.0;
-    double score_cell_m = 0.5;   // consistency score grid cell
-    int score_patience = 4;      // stop after this many iterations without a better score
+    double score_cell_m = 0.5;   // plane-fit consistency score grid cell (reported only)
+    int score_patience = 4;      // stop after this many iterations without a better pair score
     int num_threads = 0;         // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;
@@ -101,7 +125,8 @@ enum class SlamStage { kRigid, kSemiRigid };
 enum class SlamTermination {
     kConverged,         // pose updates below the thresholds
     kMaxIterations,     // iteration budget spent
-    kScoreStalled,      // consistency did not improve for score_patience iterations; best kept
+    kScoreStalled,      // pair score did not improve for score_patience iterations; best kept
+    kNoImprovement,     // no damped step lowered the cost on the current pairs; best kept
     kNoOverlap,         // no point pairs at all: the trajectory is returned unchanged
     kSolverFailed,      // the normal equations could not be factorised; best iterate kept
     kCancelled,         // the progress callback returned false; best iterate kept
@@ -113,12 +138,16 @@ struct SlamIteration {
     SlamStage stage = SlamStage::kSemiRigid;
     int iteration = 0;             // 1-based within the stage
     std::size_t num_pairs = 0;     // point pairs used
-    double cost = 0;               // sum of squared whitened residuals before the step
+    double cost = 0;               // total cost (robust, whitened) before the step
+    double cost_after = 0;         // the same terms and pairs after the step (< cost if taken)
+    int rejected_steps = 0;        // damped steps that did not lower the cost
+    double damping = 0;            // Levenberg lambda of the step taken
     double pair_rms_m = 0;         // RMS pair distance before the step
-    double consistency_m = 0;      // score after the step (lower is better)
+    double pair_score_m = 0;       // pair score after the step (lower is better)
+    double consistency_m = 0;      // plane-fit score after the step (reported only)
     double max_step_rotation_rad = 0;
     double max_step_translation_m = 0;
-    bool best = false;             // this iterate is the best so far
+    bool best = false;             // this iterate has the best pair score so far
 };
 
 struct SlamPose {
@@ -128,6 +157,7 @@ struct SlamPose {
 };
 
 struct SlamTimings {
+    double coarse_search_s = 0;
     double trees_s = 0;
     double search_s = 0;
     double build_s = 0;
@@ -143,10 +173,14 @@ struct SlamResult {
     int semi_rigid_iterations = 0;
     std::size_t num_sections = 0;
     std::size_t num_section_links = 0;  // rigid graph edges
+    std::size_t num_sections_searched = 0;  // coarse search: sections the INS was unsure of
+    std::size_t num_sections_shifted = 0;   // ... that overlapped the others and were moved
     std::size_t num_poses = 0;          // semi-rigid unknown poses
     std::size_t num_pairs = 0;          // pairs of the last iteration
-    double initial_consistency_m = 0;
-    double final_consistency_m = 0;
+    double initial_consistency_m = 0;   // plane-fit score of the input trajectory
+    double final_consistency_m = 0;     // ... and of the result
+    double initial_pair_score_m = 0;    // pair score of the input trajectory
+    double final_pair_score_m = 0;      // ... and of the result (the best iterate)
     SlamTimings timings;
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;

@@ -126,4 +126,17 @@ double RobustWeight(RobustKernel kernel, double whitened_norm, double c) {
     return 1.0;
 }
 
+double RobustCost(RobustKernel kernel, double whitened_norm, double c) {
+    const double s = whitened_norm;
+    switch (kernel) {
+        case RobustKernel::kNone:
+            return s * s;
+        case RobustKernel::kHuber:
+            return s <= c ? s * s : 2.0 * c * s - c * c;
+        case RobustKernel::kCauchy:
+            return c * c * std::log1p((s / c) * (s / c));
+    }
+    return s * s;
+}
+
 }  // namespace pitmap::proc::slam
