@@ -7,6 +7,11 @@
 //
 // Usage: pitmap-bench-slam [scenario] [beam_stride] [correspondence p2p|p2plane|gicp]
 //                          [kernel none|huber|cauchy] [bin_slices] [query_stride] [threads]
+//                          [key=value ...]
+// Positional arguments may be cut short; key=value pairs override SlamConfig fields (see
+// Override below for the keys). ATE is also reported per phase: GNSS good, GNSS outage and
+// the 30 s after each outage (where the INS pulls its drift back). With SLAM_BENCH_SECTIONS set
+// in the environment, the mean position error per 15 s is printed before and after.
 #include <sys/resource.h>
 #include <tbb/parallel_for.h>
 
@@ -44,6 +49,23 @@ double Ate(const std::vector<Pose>& poses, const std::vector<Pose>& truth) {
     return std::sqrt(s / static_cast<double>(poses.size()));
 }
 
+// ATE over the slices whose phase (0 good, 1 outage, 2 recovery) is `phase`; also the max.
+void AtePhase(const std::vector<Pose>& poses, const std::vector<Pose>& truth,
+              const std::vector<int>& phase, int which, double* rms, double* max,
+              std::size_t* count) {
+    double s = 0;
+    *max = 0;
+    *count = 0;
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+        if (phase[i] != which) continue;
+        const double e2 = (poses[i].translation() - truth[i].translation()).squaredNorm();
+        s += e2;
+        *max = std::max(*max, std::sqrt(e2));
+        ++*count;
+    }
+    *rms = *count > 0 ? std::sqrt(s / static_cast<double>(*count)) : 0.0;
+}
+
 double HeightStd(const std::vector<Pose>& poses) {
     double m = 0, q = 0;
     for (const Pose& p : poses) m += p.translation().z();
@@ -61,16 +83,60 @@ double SurfaceRms(const sim::PitWorld& world, const Scored& sc, const std::vecto
     return std::sqrt(s / static_cast<double>(sc.slice.size()));
 }
 
+// Applies "key=value" to the config; false for an unknown key.
+bool Override(proc::slam::SlamConfig& c, const std::string& kv) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) return false;
+    const std::string k = kv.substr(0, eq);
+    const double v = std::atof(kv.c_str() + eq + 1);
+    const int i = static_cast<int>(v);
+    if (k == "t_d") c.min_time_separation_s = v;
+    else if (k == "d_max") c.max_pair_distance_m = v;
+    else if (k == "section_s") c.section_length_s = v;
+    else if (k == "rigid_it") c.rigid_iterations = i;
+    else if (k == "rigid_d_max") c.rigid_max_pair_distance_m = v;
+    else if (k == "link_pairs") c.min_section_link_pairs = i;
+    else if (k == "it") c.max_iterations = i;
+    else if (k == "point_sigma") c.point_sigma_m = v;
+    else if (k == "tangent_sigma") c.gicp_tangent_sigma_m = v;
+    else if (k == "robust_width") c.robust_width = v;
+    else if (k == "ins_tau") c.ins_correlation_time_s = v;
+    else if (k == "ins_scale") c.ins_sigma_scale = v;
+    else if (k == "abs_pos") c.absolute_position_terms = i != 0;
+    else if (k == "abs_att") c.absolute_attitude_terms = i != 0;
+    else if (k == "abs_scale") c.absolute_sigma_scale = v;
+    else if (k == "recovery_s") c.ins_sigma_recovery_time_s = v;
+    else if (k == "coarse_m") c.coarse_search_m = v;
+    else if (k == "coarse_step") c.coarse_search_step_m = v;
+    else if (k == "coarse_cell") c.coarse_search_cell_m = v;
+    else if (k == "coarse_sigma") c.coarse_search_min_sigma_m = v;
+    else if (k == "vrw") c.drift_velocity_random_walk_mps_per_sqrt_s = v;
+    else if (k == "patience") c.score_patience = i;
+    else return false;
+    return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string name = argc > 1 ? argv[1] : "gps-outage";
-    const int beam_stride = argc > 2 ? std::atoi(argv[2]) : 4;
-    const std::string corr = argc > 3 ? argv[3] : "gicp";
-    const std::string kernel = argc > 4 ? argv[4] : "none";
-    const int bin = argc > 5 ? std::atoi(argv[5]) : 10;
-    const int qstride = argc > 6 ? std::atoi(argv[6]) : 8;
-    const int threads = argc > 7 ? std::atoi(argv[7]) : 2;
+    proc::slam::SlamConfig cfg;
+    int npos = argc;
+    for (int a = 1; a < argc; ++a) {
+        if (std::string(argv[a]).find('=') != std::string::npos) {
+            npos = std::min(npos, a);
+            if (!Override(cfg, argv[a])) {
+                std::fprintf(stderr, "unknown override %s\n", argv[a]);
+                return 2;
+            }
+        }
+    }
+    const std::string name = npos > 1 ? argv[1] : "gps-outage";
+    const int beam_stride = npos > 2 ? std::atoi(argv[2]) : 4;
+    const std::string corr = npos > 3 ? argv[3] : "gicp";
+    const std::string kernel = npos > 4 ? argv[4] : "none";
+    const int bin = npos > 5 ? std::atoi(argv[5]) : cfg.bin_slices;
+    const int qstride = npos > 6 ? std::atoi(argv[6]) : cfg.query_stride;
+    const int threads = npos > 7 ? std::atoi(argv[7]) : 2;
 
     auto scenario = sim::BuiltinScenario(name);
     if (!scenario.ok()) {
@@ -96,6 +162,8 @@ int main(int argc, char** argv) {
     std::vector<proc::slam::Slice> slices(num_pings);
     std::vector<Pose> truth_poses(num_pings);
     std::vector<std::vector<std::uint8_t>> valid(num_pings);
+    std::vector<int> phase(num_pings, 0);
+    constexpr double kRecoveryWindowS = 30.0;
     const auto t_sim = std::chrono::steady_clock::now();
     tbb::parallel_for(std::size_t{0}, num_pings, [&](std::size_t k) {
         const double t = static_cast<double>(k) / sc.sonar.ping_rate_hz;
@@ -123,6 +191,15 @@ int main(int argc, char** argv) {
                                sim::BeamOutcome::kValid);
         }
         truth_poses[k] = T;
+        if (!e.gnss_available) {
+            phase[k] = 1;
+        } else if (t >= kRecoveryWindowS && !nav.At(t - kRecoveryWindowS).gnss_available) {
+            phase[k] = 2;
+        } else {
+            for (double b = 1.0; b < kRecoveryWindowS; b += 1.0) {
+                if (t >= b && !nav.At(t - b).gnss_available) phase[k] = 2;
+            }
+        }
     });
     const double sim_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sim).count();
@@ -140,7 +217,6 @@ int main(int argc, char** argv) {
     }
     scored.mean_range_sigma_m = sig / static_cast<double>(scored.slice.size());
 
-    proc::slam::SlamConfig cfg;
     cfg.correspondence = corr == "p2p"       ? CorrespondenceType::kPointToPoint
                          : corr == "p2plane" ? CorrespondenceType::kPointToPlane
                                              : CorrespondenceType::kGicp;
@@ -165,26 +241,57 @@ int main(int argc, char** argv) {
                 name.c_str(), num_pings, npts, beam_stride, qstride, bin, corr.c_str(),
                 kernel.c_str(), threads, sim_s);
     std::printf("termination: %s (%s)\n", proc::slam::ToString(r.termination), r.message.c_str());
-    std::printf("sections %zu, links %zu, poses %zu\n", r.num_sections, r.num_section_links,
-                r.num_poses);
-    std::printf("%-5s %4s %9s %12s %10s %12s %10s %10s\n", "stage", "it", "pairs", "cost",
-                "pair_rms", "consistency", "dphi_max", "dt_max");
+    std::printf("sections %zu, links %zu, poses %zu, coarse search: %zu searched, %zu shifted\n",
+                r.num_sections, r.num_section_links, r.num_poses, r.num_sections_searched,
+                r.num_sections_shifted);
+    std::printf("%-5s %4s %9s %11s %11s %3s %8s %10s %10s %12s %9s %9s\n", "stage", "it",
+                "pairs", "cost", "cost_after", "rej", "pair_rms", "pair_score", "plane_fit",
+                "dphi_max", "dt_max", "ATE");
     for (const auto& it : r.iterations) {
-        std::printf("%-5s %4d %9zu %12.4g %10.4f %12.5f %10.2e %10.2e%s\n",
+        std::printf("%-5s %4d %9zu %11.4g %11.4g %3d %8.4f %10.5f %10.5f %12.2e %9.2e %9s%s\n",
                     it.stage == proc::slam::SlamStage::kRigid ? "rigid" : "semi", it.iteration,
-                    it.num_pairs, it.cost, it.pair_rms_m, it.consistency_m,
-                    it.max_step_rotation_rad, it.max_step_translation_m, it.best ? " *" : "");
+                    it.num_pairs, it.cost, it.cost_after, it.rejected_steps, it.pair_rms_m,
+                    it.pair_score_m, it.consistency_m, it.max_step_rotation_rad,
+                    it.max_step_translation_m, "", it.best ? " *" : "");
     }
-    std::printf("consistency %.5f -> %.5f m\n", r.initial_consistency_m, r.final_consistency_m);
+    std::printf("pair score %.5f -> %.5f m\n", r.initial_pair_score_m, r.final_pair_score_m);
+    std::printf("plane-fit consistency %.5f -> %.5f m\n", r.initial_consistency_m, r.final_consistency_m);
     std::printf("ATE %.4f -> %.4f m\n", Ate(before, truth_poses), Ate(after, truth_poses));
+    const char* kPhase[3] = {"GNSS good", "GNSS outage", "recovery"};
+    for (int ph = 0; ph < 3; ++ph) {
+        double r0, m0, r1, m1;
+        std::size_t c = 0;
+        AtePhase(before, truth_poses, phase, ph, &r0, &m0, &c);
+        AtePhase(after, truth_poses, phase, ph, &r1, &m1, &c);
+        if (c == 0) continue;
+        std::printf("  %-12s %5zu slices: ATE %.4f -> %.4f m, max %.3f -> %.3f m\n", kPhase[ph],
+                    c, r0, r1, m0, m1);
+    }
+    if (std::getenv("SLAM_BENCH_SECTIONS") != nullptr) {
+        // Mean position error (after - truth, before - truth) per 15 s, for debugging.
+        for (std::size_t k0 = 0; k0 < num_pings; k0 += 150) {
+            Eigen::Vector3d eb = Eigen::Vector3d::Zero(), ea = Eigen::Vector3d::Zero();
+            const std::size_t k1 = std::min(num_pings, k0 + 150);
+            for (std::size_t k = k0; k < k1; ++k) {
+                eb += before[k].translation() - truth_poses[k].translation();
+                ea += after[k].translation() - truth_poses[k].translation();
+            }
+            eb /= static_cast<double>(k1 - k0);
+            ea /= static_cast<double>(k1 - k0);
+            std::printf("  t %6.1f  pos (%6.1f,%6.1f)  err before %6.2f %6.2f %6.2f  after %6.2f %6.2f %6.2f\n",
+                        static_cast<double>(k0) / sc.sonar.ping_rate_hz,
+                        truth_poses[k0].translation().x(), truth_poses[k0].translation().y(),
+                        eb.x(), eb.y(), eb.z(), ea.x(), ea.y(), ea.z());
+        }
+    }
     std::printf("track height std %.4f -> %.4f m (truth %.4f m)\n", HeightStd(before),
                 HeightStd(after), HeightStd(truth_poses));
     const double rms0 = SurfaceRms(world, scored, before), rms1 = SurfaceRms(world, scored, after);
     std::printf("point-to-surface RMS %.4f -> %.4f m (mean range sigma %.4f m, ratio %.2f)\n",
                 rms0, rms1, scored.mean_range_sigma_m, rms1 / scored.mean_range_sigma_m);
-    std::printf("time: trees %.1f s, search %.1f s, build %.1f s, solve %.1f s, score %.1f s, "
+    std::printf("time: coarse search %.1f s, trees %.1f s, search %.1f s, build %.1f s, solve %.1f s, score %.1f s, "
                 "total %.1f s; peak RSS %.0f MB\n",
-                r.timings.trees_s, r.timings.search_s, r.timings.build_s, r.timings.solve_s,
+                r.timings.coarse_search_s, r.timings.trees_s, r.timings.search_s, r.timings.build_s, r.timings.solve_s,
                 r.timings.score_s, r.timings.total_s, static_cast<double>(ru.ru_maxrss) / 1024.0);
     return 0;
 }
