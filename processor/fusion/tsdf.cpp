@@ -44,22 +44,116 @@ openvdb::FloatGrid::Ptr MakeGrid(float background, double voxel_size_m, const ch
     return grid;
 }
 
-// A valid beam of a scan, prepared once for all slabs.
+// A beam (beam-width mode: a sector) of a scan, prepared once for all slabs. Ranges are in
+// voxel units.
 struct PreparedBeam {
-    float range_vox;     // measured range in voxel units
-    std::uint16_t beam;  // beam index
-    std::int32_t x_lo;   // voxel x index range the beam can touch
+    float range_vox;       // ray mode: the measured range; beam-width mode: the footprint range
+    float range_prev_vox;  // beam-width mode: footprint range of beam - 1 (NaN = none)
+    float range_next_vox;  // beam-width mode: footprint range of beam + 1 (NaN = none)
+    float weight;          // f of one update (beam-width mode: f times the footprint support)
+    std::int32_t x_lo;     // voxel x index range the beam can touch
     std::int32_t x_hi;
+    std::uint16_t beam;    // beam index
 };
 
 struct PreparedScan {
     Eigen::Matrix3d R;        // R_world_sonar
     Eigen::Vector3d p_vox;    // sonar position in voxel index units
-    std::size_t first = 0;    // into the beam array
-    std::size_t count = 0;
+    std::vector<PreparedBeam> beams;
     std::int32_t x_lo = std::numeric_limits<std::int32_t>::max();
     std::int32_t x_hi = std::numeric_limits<std::int32_t>::min();
+    // Counters of this scan (summed into IntegrateResult).
+    std::int64_t beams_used = 0;
+    std::int64_t beams_no_detection = 0;
+    std::int64_t beams_out_of_range = 0;
+    std::int64_t beams_inconsistent = 0;
 };
+
+constexpr int kMaxFootprintHalf = 32;  // beams on each side of a footprint considered at most
+
+// Median of a small array (reorders it); the mean of the two middle values for even n.
+double SmallMedian(double* v, int n) {
+    std::sort(v, v + n);
+    return (n & 1) != 0 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The range the footprint of beam i sees, from the beams whose axes lie inside its cone
+// (|k| <= half, k = j - i): a robust line r(k) = c + s k (s the median slope between
+// neighbouring valid beams, c the median of r_j - s k), the beams within the gate of that line
+// are inliers, and the footprint range is the least-squares line through the inliers at k = 0.
+// On a planar patch the ranges vary almost linearly across the cone, so this is unbiased; an
+// isolated coarse outlier (or a dropout) inside the cone is outvoted. The line must hold a
+// strict majority of the cone's valid beams and a plausible slope (|dr/dk| <= max_slope * r,
+// i.e. incidence below ~80 deg); otherwise a constant model is tried, and a footprint that
+// straddles several surfaces with no majority gives no range. r holds the measured ranges,
+// NaN for invalid beams. Returns false when there is no range.
+struct FootprintRange {
+    float range = 0;
+    float slope = 0;        // range change per beam of the inlier line
+    float gate = 0;         // inlier gate used
+    int support = 0;        // inliers
+    bool self_inlier = false;  // beam i itself is valid and an inlier
+};
+bool FitFootprint(const std::vector<float>& r, int i, int half, double gate_vox,
+                  double gate_fraction, double max_slope, FootprintRange& out) {
+    const int n = static_cast<int>(r.size());
+    double ks[2 * kMaxFootprintHalf + 1];
+    double rs[2 * kMaxFootprintHalf + 1];
+    double tmp[2 * kMaxFootprintHalf + 1];
+    int m = 0;
+    for (int k = -half; k <= half; ++k) {
+        const int j = i + k;
+        if (j < 0 || j >= n || !std::isfinite(r[static_cast<std::size_t>(j)])) continue;
+        ks[m] = k;
+        rs[m] = r[static_cast<std::size_t>(j)];
+        ++m;
+    }
+    if (m == 0) return false;
+    auto attempt = [&](double slope) {
+        for (int t = 0; t < m; ++t) tmp[t] = rs[t] - slope * ks[t];
+        const double c = SmallMedian(tmp, m);
+        const double gate = gate_vox + gate_fraction * c;
+        // Least squares over the inliers: r = a + b k.
+        double sw = 0, sk = 0, sr = 0, skk = 0, skr = 0;
+        bool self_inlier = false;
+        for (int t = 0; t < m; ++t) {
+            if (std::abs(rs[t] - (c + slope * ks[t])) > gate) continue;
+            sw += 1;
+            sk += ks[t];
+            sr += rs[t];
+            skk += ks[t] * ks[t];
+            skr += ks[t] * rs[t];
+            if (ks[t] == 0) self_inlier = true;
+        }
+        const int support = static_cast<int>(sw);
+        if (2 * support <= m) return false;
+        const double det = sw * skk - sk * sk;
+        double a = c;
+        double b = slope;
+        if (support >= 2 && det > 1e-9) {
+            a = (skk * sr - sk * skr) / det;
+            b = (sw * skr - sk * sr) / det;
+        } else if (support == 1) {
+            a = sr - slope * sk;  // the single inlier moved along the slope to k = 0
+        } else {
+            a = sr / sw;  // several inliers on one beam position cannot happen; mean for safety
+        }
+        if (!(a > 0.0) || std::abs(b) > max_slope * a) return false;
+        out.range = static_cast<float>(a);
+        out.slope = static_cast<float>(b);
+        out.gate = static_cast<float>(gate);
+        out.support = support;
+        out.self_inlier = self_inlier;
+        return true;
+    };
+    double slope = 0;
+    if (m >= 2) {
+        for (int t = 0; t + 1 < m; ++t) tmp[t] = (rs[t + 1] - rs[t]) / (ks[t + 1] - ks[t]);
+        slope = SmallMedian(tmp, m - 1);
+    }
+    if (slope != 0.0 && attempt(slope)) return true;
+    return attempt(0.0);
+}
 
 // Running weighted average on a pair of leaves (Eq. 5-6), with the last leaf cached.
 class VoxelUpdater {
@@ -67,7 +161,10 @@ public:
     VoxelUpdater(openvdb::FloatGrid& distance, openvdb::FloatGrid& weight, float f, float w_max)
         : dacc_(distance.getAccessor()), wacc_(weight.getAccessor()), f_(f), w_max_(w_max) {}
 
-    void Update(const Coord& ijk, float d) {
+    void Update(const Coord& ijk, float d) { Update(ijk, d, f_); }
+
+    // One measurement of weight f (Eq. 5-6 with f in place of the uniform weight).
+    void Update(const Coord& ijk, float d, float f) {
         const Coord origin(ijk.x() & ~7, ijk.y() & ~7, ijk.z() & ~7);
         if (dleaf_ == nullptr || origin != origin_) {
             dleaf_ = dacc_.touchLeaf(ijk);
@@ -77,8 +174,8 @@ public:
         const openvdb::Index off = LeafT::coordToOffset(ijk);
         const float w = wleaf_->getValue(off);  // 0 (background) when unobserved
         const float s = w > 0.0f ? dleaf_->getValue(off) : 0.0f;
-        dleaf_->setValueOn(off, (w * s + f_ * d) / (w + f_));      // Eq. 5
-        wleaf_->setValueOn(off, std::min(w + f_, w_max_));          // Eq. 6
+        dleaf_->setValueOn(off, (w * s + f * d) / (w + f));      // Eq. 5
+        wleaf_->setValueOn(off, std::min(w + f, w_max_));        // Eq. 6
         ++updates_;
     }
     std::int64_t updates() const { return updates_; }
@@ -102,16 +199,29 @@ struct Geometry {
     double metres_per_voxel;
 };
 
-// Beam-width mode for one beam, restricted to x in [x_min, x_max].
-// The beam's sector is theta in [theta_i - inc/2, theta_i + inc/2) (each voxel belongs to the
-// beam it back-projects into), out-of-plane angle |phi| <= beam_width / 2, and the update band
-// d = r - |v - p| in (-T, T]. Candidates are voxel centres inside a six-plane pyramid frustum
-// that contains that set; each is then tested exactly in the sensor's polar frame.
+// Beam-width mode for one sector, restricted to x in [x_min, x_max].
+// The sector of beam i is theta in [theta_i - inc/2, theta_i + inc/2) (each voxel belongs to
+// the beam it back-projects into), out-of-plane angle |phi| <= beam_width / 2. The range at
+// the voxel's in-plane angle is interpolated linearly between the footprint ranges of beam i
+// and its neighbour on that side, and the update band is d = r - |v - p| in (-T, T].
+// Candidates are voxel centres inside a six-plane pyramid frustum that contains that set; each
+// is then tested exactly in the sensor's polar frame.
 void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, float theta,
                         float increment, const Geometry& g, int x_min, int x_max,
                         VoxelUpdater& up) {
     const double r = beam.range_vox;
+    const double r_prev = beam.range_prev_vox;  // NaN = no neighbour
+    const double r_next = beam.range_next_vox;
     const double T = g.trunc_vox;
+    // Radial reach: the interpolated range stays between r and the midpoints to the neighbours.
+    double r_min = r, r_max = r;
+    for (double rn : {r_prev, r_next}) {
+        if (!std::isfinite(rn)) continue;
+        r_min = std::min(r_min, 0.5 * (r + rn));
+        r_max = std::max(r_max, 0.5 * (r + rn));
+    }
+    const double inv_inc = 1.0 / static_cast<double>(increment);
+    const float f = beam.weight;
     const double half_inc = 0.5 * std::abs(static_cast<double>(increment));
     const double th_lo = theta - half_inc;
     const double th_hi = theta + half_inc;
@@ -127,8 +237,8 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     // rho <= (b . x) / cos(inc/2) inside the sector, so |x_s| <= t (b . x) contains the wedge.
     const double cos_half_inc = std::cos(half_inc);
     const double t = g.tan_half_bw / cos_half_inc;
-    const double q_lo = std::max(0.0, (r - T) * cos_half_inc * g.cos_half_bw);
-    const double q_hi = r + T;
+    const double q_lo = std::max(0.0, (r_min - T) * cos_half_inc * g.cos_half_bw);
+    const double q_hi = r_max + T;
     const Eigen::Vector3d& p = scan.p_vox;
 
     // Half-spaces g_k . v <= h_k in world voxel coordinates.
@@ -146,10 +256,14 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     H[4] = -q_lo - u.dot(p);
     H[5] = q_hi + u.dot(p);
     constexpr double kEps = 1e-6;
+    // Out of the plane a voxel is in the beam if its cube reaches into the beam's width: its
+    // centre within the cone, or within the cube's half-extent along n of the fan plane (near
+    // the sonar the cone is narrower than a voxel and than the ping spacing).
+    const double h_cube = 0.5 * (std::abs(n.x()) + std::abs(n.y()) + std::abs(n.z()));
     H[0] += kEps;
     H[1] += kEps;
-    H[2] += kEps;
-    H[3] += kEps;
+    H[2] += kEps + h_cube;
+    H[3] += kEps + h_cube;
 
     // Bounding box of the frustum's 8 corners.
     const double tan_half_inc = std::tan(half_inc);
@@ -158,7 +272,8 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     for (double q : {q_lo, q_hi}) {
         for (double se : {-1.0, 1.0}) {
             for (double sn : {-1.0, 1.0}) {
-                const Eigen::Vector3d c = p + q * (u + se * tan_half_inc * e + sn * t * n);
+                const Eigen::Vector3d c =
+                    p + q * (u + se * tan_half_inc * e + sn * t * n) + sn * h_cube * n;
                 lo = lo.cwiseMin(c);
                 hi = hi.cwiseMax(c);
             }
@@ -181,7 +296,6 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     const Eigen::Matrix3d Rt = R.transpose();
     const Eigen::Vector3d step_s = Rt.col(a);  // sonar-frame change per voxel along axis a
     const double tan_bw = g.tan_half_bw;
-    const double r_f = r;
 
     for (int jb = ilo[b_ax]; jb <= ihi[b_ax]; ++jb) {
         for (int jc = ilo[c_ax]; jc <= ihi[c_ax]; ++jc) {
@@ -215,12 +329,17 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
                 if (a_lo_s.dot(xs) < 0.0 || a_hi_s.dot(xs) >= 0.0) continue;
                 const double rho2 = xs.y() * xs.y() + xs.z() * xs.z();
                 const double rho = std::sqrt(rho2);
-                if (std::abs(xs.x()) > tan_bw * rho) continue;  // outside the beam width
+                if (std::abs(xs.x()) > std::max(tan_bw * rho, h_cube)) continue;  // beam width
+                // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
+                // as a signed fraction of the increment: > 0 towards beam i + 1.
+                const double frac = e_s.dot(xs) / b_s.dot(xs) * inv_inc;
+                const double rn = frac >= 0.0 ? r_next : r_prev;
+                const double r_at = std::isfinite(rn) ? r + std::abs(frac) * (rn - r) : r;
                 const double dist = std::sqrt(rho2 + xs.x() * xs.x());
-                const double d = r_f - dist;                      // Eq. 4
-                if (d <= -T || d > T) continue;
+                const double d = r_at - dist;                     // Eq. 4
+                if (!(d > -T && d <= T)) continue;
                 ijk[a] = ja;
-                up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel));
+                up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel), f);
             }
         }
     }
@@ -275,6 +394,108 @@ void IntegrateRay(const PreparedScan& scan, const PreparedBeam& beam, float thet
     }
 }
 
+// Valid beams of one scan with the x range of world voxel indices each can touch. Beam-width
+// mode replaces each range by its footprint range (FitFootprint) and gives each sector the
+// weight f times the footprint's support; a sector whose own beam is a dropout but whose
+// footprint sees the surface is integrated too (the footprint covers it).
+PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo) {
+    const double inv_s = 1.0 / config.voxel_size_m;
+    const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
+    PreparedScan ps;
+    ps.R = scan.T_world_sonar.linear();
+    ps.p_vox = scan.T_world_sonar.translation() * inv_s;
+    const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::vector<float> r(n, nan);  // valid ranges in voxel units
+    for (std::size_t i = 0; i < n; ++i) {
+        const float range = scan.ranges_m[i];
+        if (!std::isfinite(range) || range == 0.0f) {
+            ++ps.beams_no_detection;
+        } else if (range < config.min_range_m || range > config.max_range_m) {
+            ++ps.beams_out_of_range;
+        } else {
+            r[i] = static_cast<float>(range * inv_s);
+            ++ps.beams_used;
+        }
+    }
+    const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
+    const double half_inc = 0.5 * inc;
+    const double spread = beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc)
+                                     : 0.0;
+    // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
+    const int half = inc > 1e-9 ? std::min(kMaxFootprintHalf,
+                                           static_cast<int>(std::floor(
+                                               0.5 * config.beam_width_rad / inc + 1e-6)))
+                                : 0;
+    std::vector<float> fr;  // footprint ranges (beam-width mode)
+    std::vector<int> support;
+    std::vector<float> slope, gate;
+    if (beam_width) {
+        fr.assign(n, nan);
+        support.assign(n, 0);
+        slope.assign(n, 0.0f);
+        gate.assign(n, 0.0f);
+        const double gate_vox = config.footprint_gate_m * inv_s;
+        // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
+        const double max_slope = inc * std::tan(80.0 * 3.14159265358979323846 / 180.0);
+        for (std::size_t i = 0; i < n; ++i) {
+            FootprintRange fp;
+            if (!FitFootprint(r, static_cast<int>(i), half, gate_vox,
+                              config.footprint_gate_fraction, max_slope, fp)) {
+                continue;
+            }
+            fr[i] = fp.range;
+            support[i] = fp.support;
+            slope[i] = fp.slope;
+            gate[i] = fp.gate;
+            if (std::isfinite(r[i]) && !fp.self_inlier) ++ps.beams_inconsistent;
+        }
+    }
+    const std::vector<float>& ranges = beam_width ? fr : r;
+    ps.beams.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!std::isfinite(ranges[i])) continue;
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        const double u_x = ps.R(0, 1) * std::sin(theta) + ps.R(0, 2) * std::cos(theta);
+        PreparedBeam pb;
+        pb.range_vox = ranges[i];
+        // Interpolate towards a neighbour only on the same surface: its footprint range must lie
+        // on this footprint's line (a bench crest next to the floor below would otherwise
+        // span a false surface across the shadow).
+        pb.range_prev_vox = nan;
+        pb.range_next_vox = nan;
+        if (beam_width) {
+            if (i > 0 && std::abs(fr[i - 1] - (fr[i] - slope[i])) <= gate[i]) {
+                pb.range_prev_vox = fr[i - 1];
+            }
+            if (i + 1 < n && std::abs(fr[i + 1] - (fr[i] + slope[i])) <= gate[i]) {
+                pb.range_next_vox = fr[i + 1];
+            }
+        }
+        pb.weight = beam_width ? config.weight_per_measurement * static_cast<float>(support[i])
+                               : config.weight_per_measurement;
+        pb.beam = static_cast<std::uint16_t>(i);
+        double r_lo = pb.range_vox, r_hi = pb.range_vox;
+        for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
+            if (!std::isfinite(rn)) continue;
+            r_lo = std::min(r_lo, static_cast<double>(rn));
+            r_hi = std::max(r_hi, static_cast<double>(rn));
+        }
+        const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
+        const double q1 = r_hi + geo.trunc_vox;
+        // x extent of the frustum: along the axis plus the cross-section's reach.
+        const double reach = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
+        const double xa = ps.p_vox.x() + q0 * u_x;
+        const double xb = ps.p_vox.x() + q1 * u_x;
+        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach));
+        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach));
+        ps.x_lo = std::min(ps.x_lo, pb.x_lo);
+        ps.x_hi = std::max(ps.x_hi, pb.x_hi);
+        ps.beams.push_back(pb);
+    }
+    return ps;
+}
+
 }  // namespace
 
 std::vector<std::string> TsdfConfig::Validate() const {
@@ -298,6 +519,12 @@ std::vector<std::string> TsdfConfig::Validate() const {
     }
     if (!(min_range_m >= 0.0)) problems.push_back("min_range_m must be >= 0");
     if (!(max_range_m > min_range_m)) problems.push_back("max_range_m must be > min_range_m");
+    if (!(footprint_gate_m > 0.0) || !std::isfinite(footprint_gate_m)) {
+        problems.push_back("footprint_gate_m must be > 0");
+    }
+    if (!(footprint_gate_fraction >= 0.0) || !std::isfinite(footprint_gate_fraction)) {
+        problems.push_back("footprint_gate_fraction must be >= 0");
+    }
     if (num_threads < 0) problems.push_back("num_threads must be >= 0 (0 = all cores)");
     return problems;
 }
@@ -331,59 +558,37 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                        std::cos(0.5 * config_.beam_width_rad), config_.voxel_size_m};
     const bool beam_width = config_.sensor_model == SensorModel::kBeamWidth;
 
-    // 1. Prepare: valid beams and the x range each can touch.
+    const int threads = config_.num_threads > 0 ? config_.num_threads
+                                                : tbb::this_task_arena::max_concurrency();
+    tbb::task_arena arena(threads);
+
+    // 1. Prepare: valid beams (beam-width mode: footprint ranges) and the x range each can touch.
     std::vector<PreparedScan> prepared(scans.size());
-    std::vector<PreparedBeam> beams;
-    for (std::size_t si = 0; si < scans.size(); ++si) {
-        const SonarScan& scan = scans[si];
-        PreparedScan& ps = prepared[si];
-        ps.R = scan.T_world_sonar.linear();
-        ps.p_vox = scan.T_world_sonar.translation() * inv_s;
-        ps.first = beams.size();
-        const double half_inc = 0.5 * std::abs(static_cast<double>(scan.angle_increment_rad));
-        const double spread = beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc)
-                                         : 0.0;
-        for (std::size_t i = 0; i < scan.ranges_m.size() && i < 65536; ++i) {
-            const float range = scan.ranges_m[i];
-            if (!std::isfinite(range) || range == 0.0f) {
-                ++result.beams_no_detection;
-                continue;
-            }
-            if (range < config_.min_range_m || range > config_.max_range_m) {
-                ++result.beams_out_of_range;
-                continue;
-            }
-            const float theta = scan.start_angle_rad +
-                                static_cast<float>(i) * scan.angle_increment_rad;
-            const double u_x = ps.R(0, 1) * std::sin(theta) + ps.R(0, 2) * std::cos(theta);
-            const double r = range * inv_s;
-            const double q0 = std::max(0.0, r - geo.trunc_vox);
-            const double q1 = r + geo.trunc_vox;
-            // x extent of the frustum: along the axis plus the cross-section's reach.
-            const double reach = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
-            const double xa = ps.p_vox.x() + q0 * u_x;
-            const double xb = ps.p_vox.x() + q1 * u_x;
-            PreparedBeam pb;
-            pb.range_vox = static_cast<float>(r);
-            pb.beam = static_cast<std::uint16_t>(i);
-            pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach));
-            pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach));
-            ps.x_lo = std::min(ps.x_lo, pb.x_lo);
-            ps.x_hi = std::max(ps.x_hi, pb.x_hi);
-            beams.push_back(pb);
-            ++result.beams_used;
-        }
-        ps.count = beams.size() - ps.first;
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scans.size(), 64),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t si = range.begin(); si != range.end(); ++si) {
+                                  prepared[si] = PrepareScan(scans[si], config_, geo);
+                              }
+                          });
+    });
+    std::size_t total_beams = 0;
+    for (const PreparedScan& ps : prepared) {
+        result.beams_used += ps.beams_used;
+        result.beams_no_detection += ps.beams_no_detection;
+        result.beams_out_of_range += ps.beams_out_of_range;
+        result.beams_inconsistent += ps.beams_inconsistent;
+        total_beams += ps.beams.size();
     }
 
     int x_lo = std::numeric_limits<int>::max();
     int x_hi = std::numeric_limits<int>::min();
     for (const PreparedScan& ps : prepared) {
-        if (ps.count == 0) continue;
+        if (ps.beams.empty()) continue;
         x_lo = std::min(x_lo, ps.x_lo);
         x_hi = std::max(x_hi, ps.x_hi);
     }
-    if (beams.empty()) {
+    if (total_beams == 0) {
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
         result.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() -
                                                          t_start).count();
@@ -432,10 +637,9 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             for (std::size_t si = 0; si < prepared.size(); ++si) {
                 if ((si & 255u) == 0 && cancel.load(std::memory_order_relaxed)) break;
                 const PreparedScan& ps = prepared[si];
-                if (ps.count == 0 || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
+                if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
                 const SonarScan& scan = scans[si];
-                for (std::size_t bi = ps.first; bi < ps.first + ps.count; ++bi) {
-                    const PreparedBeam& pb = beams[bi];
+                for (const PreparedBeam& pb : ps.beams) {
                     if (pb.x_hi < sx0 || pb.x_lo > sx1) continue;
                     const float theta = scan.start_angle_rad +
                                         static_cast<float>(pb.beam) * scan.angle_increment_rad;
@@ -458,9 +662,6 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         }
     };
 
-    const int threads = config_.num_threads > 0 ? config_.num_threads
-                                                : tbb::this_task_arena::max_concurrency();
-    tbb::task_arena arena(threads);
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, num_slabs, 1),
                           [&](const tbb::blocked_range<int>& range) {

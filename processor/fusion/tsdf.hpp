@@ -5,6 +5,16 @@
 // width, updated by back-projection after May et al. (2014); a plain per-beam ray mode (as
 // point-sensor TSDF libraries do) is kept for comparison.
 //
+// Beam-width mode: every beam's cone (beam_width_rad, in and out of the fan plane) covers the
+// axes of its neighbours within beam_width / 2 (7 beams at 1.5 deg and 0.25 deg spacing). The
+// range that footprint sees is a robust line fit over those beams (coarse outliers and
+// dropouts are outvoted, and counted in beams_inconsistent); a voxel back-projects into the
+// sector of one beam, takes the range interpolated between that footprint and its neighbour's
+// (not across a range jump, e.g. a bench crest and the floor behind it), and is updated once
+// per ping with weight f times the number of beams in the footprint (so single coverage at
+// short range still carries a weight a filter can use). Out of the plane a voxel is in the
+// beam when its centre lies within the cone or within half a voxel of the fan plane.
+//
 // Frames: sonar x forward, y starboard, z down; beam i points at theta_i = start + i * increment
 // from nadir towards starboard, a hit lies at (0, r sin theta, r cos theta) in the sonar frame.
 // The world frame is the local ENU frame (z up) of the survey (docs/conventions.md).
@@ -46,6 +56,11 @@ struct TsdfConfig {
     double beam_width_rad = 1.5 * 3.14159265358979323846 / 180.0;  // full out-of-plane width
     double min_range_m = 0.3;           // ranges below are not detections (counted)
     double max_range_m = 120.0;         // ranges above are not detections (counted)
+    // Beam-width mode: the beams of one footprint (those whose axes lie within beam_width / 2
+    // of a beam's axis) agree with the footprint's robust range line within
+    // footprint_gate_m + footprint_gate_fraction * range; the others are outliers (counted).
+    double footprint_gate_m = 0.15;
+    double footprint_gate_fraction = 0.01;
     int num_threads = 0;                // 0 = all cores (TBB default)
 
     // Every problem with the configuration (empty when valid).
@@ -58,6 +73,8 @@ struct IntegrateResult {
     std::int64_t beams_used = 0;        // beams with a valid range that were integrated
     std::int64_t beams_no_detection = 0;  // 0 or NaN range
     std::int64_t beams_out_of_range = 0;  // outside [min_range_m, max_range_m] or negative
+    std::int64_t beams_inconsistent = 0;  // beam-width mode: valid beams outvoted by their
+                                          // footprint (coarse outliers; not integrated)
     std::int64_t voxel_updates = 0;     // (voxel, measurement) updates applied
     std::int64_t active_voxels = 0;     // active voxels of the volume afterwards
     double elapsed_s = 0;               // wall time of the call

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "tests/processor/fusion/synthetic_scans.hpp"
 
@@ -105,6 +106,34 @@ TEST_P(SphereTest, MeshedWithinHalfAVoxel) {
     EXPECT_LT(worst, 0.05);
 }
 
+// A sphere floating 4.5 m above the floor casts shadows on it. A footprint that straddles the
+// silhouette and the floor behind must not be interpolated into a curtain between the two:
+// every vertex lies near the sphere or the floor.
+TEST_P(SphereTest, NoFalseSurfaceInTheShadows) {
+    SyntheticWorld world;
+    world.plane_z_m = -14.0;
+    const Sphere sphere{Eigen::Vector3d(0.0, 0.0, -8.0), 1.5};
+    world.spheres.push_back(sphere);
+    LineSurvey survey;
+    survey.lines_y_m = {-5.0, 5.0};
+    survey.x0_m = -4.0;
+    survey.x1_m = 4.0;
+    survey.start_angle_rad = -60.0 * std::numbers::pi / 180.0;
+    survey.num_beams = 481;
+    TsdfVolume volume(SmallConfig(GetParam()));
+    volume.Integrate(MakeScans(world, survey));
+    const IsoSurfaceResult iso = volume.ExtractIsoSurface();
+    ASSERT_GT(iso.mesh.vertices.size(), 10000u);
+    double worst = 0;
+    for (const Eigen::Vector3f& v : iso.mesh.vertices) {
+        const Eigen::Vector3d p = v.cast<double>();
+        const double ds = std::abs((p - sphere.centre).norm() - sphere.radius_m);
+        const double dz = std::abs(p.z() - world.plane_z_m);
+        worst = std::max(worst, std::min(ds, dz));
+    }
+    EXPECT_LT(worst, 0.15) << "a vertex off both the sphere and the floor";
+}
+
 INSTANTIATE_TEST_SUITE_P(BothModels, SphereTest,
                          ::testing::Values(SensorModel::kBeamWidth, SensorModel::kRay));
 
@@ -163,11 +192,14 @@ TEST(TsdfVolume, IntegrationOrderDoesNotMatterBeyondTolerance) {
         }
     }
     EXPECT_GT(compared, 1000);
-    // With w_max = 20 capping, the average becomes order dependent; the noise is 2 cm.
-    EXPECT_LT(worst, 0.02);
+    // Once the weight reaches w_max = 20 (three pings of seven beams each), the running average
+    // forgets old measurements and becomes order dependent: the field differs by a fraction
+    // of the 2 cm range noise, most at the swath edges where footprints are one-sided.
+    EXPECT_LT(worst, 0.03);
     const auto [err_f, n_f] = PlaneError(forward.ExtractIsoSurface().mesh, world.plane_z_m);
     const auto [err_b, n_b] = PlaneError(backward.ExtractIsoSurface().mesh, world.plane_z_m);
-    EXPECT_EQ(n_f, n_b);
+    // The border of the swath moves by a cell here and there.
+    EXPECT_NEAR(static_cast<double>(n_f), static_cast<double>(n_b), 0.01 * static_cast<double>(n_f));
     EXPECT_NEAR(err_f, err_b, 0.01);
 }
 
@@ -175,8 +207,11 @@ TEST(TsdfVolume, WeightFilterRemovesOutliersBeyondTheTruncationBand) {
     SyntheticWorld world;
     LineSurvey survey;
     auto scans = MakeScans(world, survey);
-    // Coarse outliers: in two consecutive pings of every 40, 20 beams report a surface 5 m above
-    // the floor (far outside the +-0.5 m band around the true surface).
+    // A coherent false surface (a fish school, multipath): in two consecutive pings of every
+    // 40, 20 adjacent beams report a surface 5 m above the floor (far outside the +-0.5 m band
+    // around the true surface). Footprints inside the block agree with it, so it is fused with
+    // the weight of two pings' footprints (at most 2 x 7 beams); the floor is seen by ~5 pings
+    // (the 0.26 m wide beam at 10 m, pings 0.05 m apart) and reaches w_max = 20.
     std::size_t outlier_beams = 0;
     for (std::size_t k = 0; k + 1 < scans.size(); k += 40) {
         for (std::size_t j = k; j < k + 2; ++j) {
@@ -192,17 +227,18 @@ TEST(TsdfVolume, WeightFilterRemovesOutliersBeyondTheTruncationBand) {
     // The outlier hit of ping 0, beam 180 (nadir): 5 m below the sonar.
     const Eigen::Vector3d outlier = scans[0].T_world_sonar * Eigen::Vector3d(0.0, 0.0, 5.0);
     EXPECT_GT(volume.WeightAt(outlier), 0.0f);
-    EXPECT_LT(volume.WeightAt(outlier), 3.0f);
-    EXPECT_GE(volume.WeightAt(Eigen::Vector3d(0.0, 0.0, world.plane_z_m)), 3.0f);
+    EXPECT_LE(volume.WeightAt(outlier), 14.0f);
+    EXPECT_FLOAT_EQ(volume.WeightAt(Eigen::Vector3d(0.0, 0.0, world.plane_z_m)), 20.0f);
     const TriangleMesh before = volume.ExtractIsoSurface().mesh;
-    WeightFilterConfig filter;  // default min_weight 3
+    WeightFilterConfig filter;
+    filter.min_weight = 15.0f;  // more than two pings' footprints
     ASSERT_TRUE(filter.Validate().empty());
     const WeightFilterResult fr = volume.FilterByWeight(filter);
     EXPECT_GT(fr.voxels_removed, 0);
     EXPECT_EQ(fr.voxels_before - fr.voxels_removed, fr.voxels_after);
     EXPECT_EQ(volume.Stats().active_voxels, fr.voxels_after);
     EXPECT_EQ(volume.WeightAt(outlier), 0.0f);
-    EXPECT_GE(volume.Stats().min_weight, 3.0f);
+    EXPECT_GE(volume.Stats().min_weight, 15.0f);
     const TriangleMesh after = volume.ExtractIsoSurface().mesh;
     EXPECT_EQ(std::count_if(after.vertices.begin(), after.vertices.end(),
                             [](const Eigen::Vector3f& v) { return v.z() > -9.0f; }),
@@ -210,6 +246,36 @@ TEST(TsdfVolume, WeightFilterRemovesOutliersBeyondTheTruncationBand) {
     const auto [err, n] = PlaneError(after, world.plane_z_m);
     EXPECT_LT(err, 0.05);
     EXPECT_GT(n, before.vertices.size() / 2);
+}
+
+// Sporadic coarse outliers, as a multibeam gives them: single beams at 30-130 % of the true
+// range. Beam-width mode outvotes them inside each footprint before fusion (ray mode fuses the
+// ones that fall within the band of the true surface, which no weight filter can undo).
+TEST(TsdfVolume, FootprintOutvotesIsolatedOutliers) {
+    SyntheticWorld world;
+    LineSurvey survey;
+    survey.noise_sigma_m = 0.02;
+    auto scans = MakeScans(world, survey);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    std::int64_t outliers = 0;
+    for (SonarScan& scan : scans) {
+        for (float& r : scan.ranges_m) {
+            if (uni(rng) >= 0.03) continue;
+            r = static_cast<float>(r * (0.3 + uni(rng)));
+            ++outliers;
+        }
+    }
+    TsdfVolume volume(SmallConfig(SensorModel::kBeamWidth));
+    const IntegrateResult ir = volume.Integrate(scans);
+    // Outliers within the gate of their footprint's line cannot be told from noise.
+    EXPECT_GT(ir.beams_inconsistent, outliers * 9 / 10);
+    EXPECT_LE(ir.beams_inconsistent, outliers);
+    // No weight filter: nothing off the plane to remove.
+    const TriangleMesh mesh = volume.ExtractIsoSurface().mesh;
+    const auto [err, n] = PlaneError(mesh, world.plane_z_m);
+    EXPECT_LT(err, 0.05);
+    EXPECT_GT(n, 15000u);
 }
 
 TEST(TsdfVolume, EmptyInputGivesAnEmptyValidVolume) {
