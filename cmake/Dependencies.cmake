@@ -21,6 +21,9 @@ endif()
 
 if(PITMAP_BUILD_TESTS)
   find_package(GTest REQUIRED)
+  if(PITMAP_BUILD_PROCESSOR)
+    find_package(assimp CONFIG REQUIRED)  # reads the exported meshes back in tests
+  endif()
 endif()
 if(PITMAP_BUILD_BENCHMARKS)
   find_package(benchmark REQUIRED)

@@ -17,7 +17,7 @@ common_pkgs=(
 processor_pkgs=(
   libsuitesparse-dev libblas-dev liblapack-dev
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
-  libnanoflann-dev
+  libnanoflann-dev libassimp-dev
   python3-numpy python3-matplotlib
 )
 tool_pkgs=(
