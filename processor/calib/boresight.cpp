@@ -271,12 +271,21 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     }
     const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
     const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
-    const double dur = std::min(cfg.segment_duration_s, t_last - t_first);
-    // Candidate windows.
-    const double step = dur / 4;
-    for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
-        res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
-        if (step <= 0) break;
+    // Candidate windows, overlapping by 3/4. When no window of the configured length is low
+    // drift (a GNSS outage longer than the survey's quiet stretches), shorter ones are tried,
+    // down to a quarter of it, before settling for the best drifting one.
+    const double full = std::min(cfg.segment_duration_s, t_last - t_first);
+    for (double dur = full; dur >= full / 4 - 1e-9; dur /= 2) {
+        const double step = dur / 4;
+        for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
+            res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
+            if (step <= 0) break;
+        }
+        if (std::any_of(res.candidates.begin(), res.candidates.end(),
+                        [](const SegmentScore& c) { return c.low_drift; }) ||
+            step <= 0) {
+            break;
+        }
     }
     if (res.candidates.empty())
         res.candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));

@@ -16,7 +16,8 @@
 // Segment choice (when not given): windows of segment_duration_s, stepped by a quarter; a
 // window is eligible when its INS 1-sigma horizontal position and heading stay under the limits
 // (low drift); among those the one with the most overlap (1 m cells seen by parts at least
-// min_separation_s apart) wins.
+// min_separation_s apart) wins. When no window is low drift, windows of half and then a quarter
+// of the length are tried before the best drifting window is taken.
 // Thread safety: reentrant. Results do not depend on the thread count.
 #pragma once
 

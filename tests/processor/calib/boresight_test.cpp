@@ -91,6 +91,30 @@ TEST(Boresight, RecoversAKnownErrorFromOppositeAndCrossingPasses) {
     EXPECT_EQ(res.mount.lever_arm_m, nominal.lever_arm_m);
 }
 
+TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const std::vector<Pass> passes = {
+        {0.0, {0, -20}, {0, 1}, 40}, {40.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
+    const GeorefResult geo = Survey(passes, truth, nominal);
+    // The INS drifts (GNSS outage) from 100 s on: no 160 s window is low drift, 80 s ones are.
+    georef::NavSeries nav;
+    for (int t = 0; t <= 170; ++t) {
+        georef::NavStdDev sd;
+        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
+        sd.east_m = sd.north_m = t >= 100 ? 5.0f : 0.01f;
+        sd.up_m = 0.02f;
+        sd.yaw_deg = 0.02f;
+        nav.stddevs.push_back(sd);
+    }
+    BoresightConfig cfg;
+    cfg.segment_duration_s = 160;
+    const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
+    EXPECT_NE(res.termination, Termination::kNoOverlap) << res.message;
+    EXPECT_LE(res.segment.max_position_stddev_m, cfg.max_position_stddev_m) << res.message;
+    EXPECT_LE(res.segment.end_s, 100.0 + 1e-6);
+    EXPECT_NEAR(res.segment.end_s - res.segment.start_s, 80.0, 1e-6);
+}
+
 TEST(Boresight, OnePassHasNoOverlapAndSaysSo) {
     const SonarMount truth = Mount(1.0, 0, 0), nominal = Mount(0, 0, 0);
     const GeorefResult geo = Survey({{0.0, {0, -20}, {0, 1}, 15}}, truth, nominal);
