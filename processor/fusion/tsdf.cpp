@@ -15,6 +15,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -265,15 +266,18 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     H[2] += kEps + h_cube;
     H[3] += kEps + h_cube;
 
-    // Bounding box of the frustum's 8 corners.
+    // The frustum's 8 corners (its vertices) and their bounding box.
     const double tan_half_inc = std::tan(half_inc);
+    Eigen::Vector3d corner[8];
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector3d hi = -lo;
+    int nc = 0;
     for (double q : {q_lo, q_hi}) {
         for (double se : {-1.0, 1.0}) {
             for (double sn : {-1.0, 1.0}) {
                 const Eigen::Vector3d c =
                     p + q * (u + se * tan_half_inc * e + sn * t * n) + sn * h_cube * n;
+                corner[nc++] = c;
                 lo = lo.cwiseMin(c);
                 hi = hi.cwiseMax(c);
             }
@@ -288,33 +292,95 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     ihi[0] = std::min(ihi[0], x_max);
     if (ilo[0] > ihi[0]) return;
 
-    // Columns along the axis most aligned with the beam.
+    // Columns along the axis that crosses the frustum longest: it is thin across the fan plane
+    // (w_e, about a voxel), wider out of it (w_n) and long along the beam (w_u); a column along
+    // axis k crosses it over at most min(w_e / |e_k|, w_n / |n_k|, w_u / |u_k|).
     int a = 0;
-    u.cwiseAbs().maxCoeff(&a);
+    {
+        const double w_e = 2.0 * q_hi * tan_half_inc + 1.0;
+        const double w_n = 2.0 * (t * q_hi + h_cube) + 1.0;
+        const double w_u = q_hi - q_lo + 1.0;
+        double best = -1.0;
+        for (int k = 0; k < 3; ++k) {
+            const double len = std::min({w_e / (std::abs(e[k]) + 1e-9),
+                                         w_n / (std::abs(n[k]) + 1e-9),
+                                         w_u / (std::abs(u[k]) + 1e-9)});
+            if (len > best) {
+                best = len;
+                a = k;
+            }
+        }
+    }
     const int b_ax = (a + 1) % 3;
     const int c_ax = (a + 2) % 3;
+    // Convex hull of the corners projected on (b, c) (Andrew's monotone chain).
+    std::array<Eigen::Vector2d, 8> pts;
+    for (int k = 0; k < 8; ++k) pts[static_cast<std::size_t>(k)] = {corner[k][b_ax], corner[k][c_ax]};
+    std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
+        return p0.x() < p1.x() || (p0.x() == p1.x() && p0.y() < p1.y());
+    });
+    std::array<Eigen::Vector2d, 17> hull;
+    int nh = 0;
+    auto turn = [](const Eigen::Vector2d& o, const Eigen::Vector2d& p1, const Eigen::Vector2d& p2) {
+        return (p1.x() - o.x()) * (p2.y() - o.y()) - (p1.y() - o.y()) * (p2.x() - o.x());
+    };
+    auto hv = [&](int k) -> Eigen::Vector2d& { return hull[static_cast<std::size_t>(k)]; };
+    for (const Eigen::Vector2d& q : pts) {
+        while (nh >= 2 && turn(hv(nh - 2), hv(nh - 1), q) <= 0.0) --nh;
+        hv(nh++) = q;
+    }
+    for (int k = 6, lower = nh + 1; k >= 0; --k) {
+        const Eigen::Vector2d& q = pts[static_cast<std::size_t>(k)];
+        while (nh >= lower && turn(hv(nh - 2), hv(nh - 1), q) <= 0.0) --nh;
+        hv(nh++) = q;
+    }
+    --nh;  // the last point repeats the first
+    if (nh < 1) return;
+    double inv_ga[6];  // 1 / G[k][a], 0 when the plane is parallel to the columns
+    for (int k = 0; k < 6; ++k) inv_ga[k] = std::abs(G[k][a]) < 1e-12 ? 0.0 : 1.0 / G[k][a];
     const Eigen::Matrix3d Rt = R.transpose();
     const Eigen::Vector3d step_s = Rt.col(a);  // sonar-frame change per voxel along axis a
     const double tan_bw = g.tan_half_bw;
 
     for (int jb = ilo[b_ax]; jb <= ihi[b_ax]; ++jb) {
-        for (int jc = ilo[c_ax]; jc <= ihi[c_ax]; ++jc) {
+        // Columns of this row that meet the frustum: where the row line b = jb crosses the
+        // convex hull of the corners projected along a.
+        double c_min = std::numeric_limits<double>::infinity();
+        double c_max = -c_min;
+        for (int k = 0; k < nh; ++k) {
+            const Eigen::Vector2d& h0 = hv(k);
+            const Eigen::Vector2d& h1 = hv((k + 1) % nh);
+            const double b0 = h0.x() - jb;
+            const double b1 = h1.x() - jb;
+            if (std::abs(b0) <= kEps) {
+                c_min = std::min(c_min, h0.y());
+                c_max = std::max(c_max, h0.y());
+            }
+            if ((b0 < 0.0) == (b1 < 0.0) || b0 == b1) continue;
+            const double cc = h0.y() + (h1.y() - h0.y()) * (b0 / (b0 - b1));
+            c_min = std::min(c_min, cc);
+            c_max = std::max(c_max, cc);
+        }
+        const int jc0 = std::max(ilo[c_ax], static_cast<int>(std::ceil(c_min - kEps)));
+        const int jc1 = std::min(ihi[c_ax], static_cast<int>(std::floor(c_max + kEps)));
+        double row_h[6];
+        for (int k = 0; k < 6; ++k) row_h[k] = H[k] - G[k][b_ax] * jb;
+        for (int jc = jc0; jc <= jc1; ++jc) {
+            // Clip the column a in [ilo, ihi] by the six half-spaces.
             double lo_a = ilo[a];
             double hi_a = ihi[a];
             bool empty = false;
-            for (int k = 0; k < 6 && !empty; ++k) {
-                const double rhs = H[k] - G[k][b_ax] * jb - G[k][c_ax] * jc;
-                const double ga = G[k][a];
-                if (std::abs(ga) < 1e-12) {
-                    if (rhs < 0) empty = true;
-                } else if (ga > 0) {
-                    hi_a = std::min(hi_a, rhs / ga);
+            for (int k = 0; k < 6; ++k) {
+                const double rhs = row_h[k] - G[k][c_ax] * jc;
+                if (inv_ga[k] > 0.0) {
+                    hi_a = std::min(hi_a, rhs * inv_ga[k]);
+                } else if (inv_ga[k] < 0.0) {
+                    lo_a = std::max(lo_a, rhs * inv_ga[k]);
                 } else {
-                    lo_a = std::max(lo_a, rhs / ga);
+                    empty |= rhs < 0.0;
                 }
-                if (lo_a > hi_a) empty = true;
             }
-            if (empty) continue;
+            if (empty || lo_a > hi_a) continue;
             const int ja0 = static_cast<int>(std::ceil(lo_a));
             const int ja1 = static_cast<int>(std::floor(hi_a));
             if (ja0 > ja1) continue;
