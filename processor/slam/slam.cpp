@@ -184,6 +184,36 @@ std::vector<Pair> FindPairs(const Input& in,
     std::vector<std::uint32_t> slice_count(in.num_slices(), 0);
     const double td = cfg.min_time_separation_s;
     const auto stride = static_cast<std::size_t>(cfg.query_stride);
+    // Blocks per horizontal cell (cells of at least 2 dmax): a block is listed in every cell
+    // its points come within dmax of, so that a query visits only the trees that can hold its
+    // partner, not every tree whose bounding box it touches.
+    const float cell = std::max(2.0f * dmax, 2.0f);
+    auto cell_key = [cell](float x, float y) {
+        const auto ix = static_cast<std::int64_t>(std::floor(x / cell)) + (1 << 30);
+        const auto iy = static_cast<std::int64_t>(std::floor(y / cell)) + (1 << 30);
+        return (static_cast<std::uint64_t>(ix) << 32) | static_cast<std::uint64_t>(iy);
+    };
+    std::vector<std::vector<std::uint64_t>> block_cells(blocks.size());
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t bi) {
+        const Block& b = blocks[bi];
+        auto& keys = block_cells[bi];
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            const Eigen::Vector3f& p = pw[k];
+            for (const float dx : {-dmax, dmax}) {
+                for (const float dy : {-dmax, dmax}) {
+                    const std::uint64_t key = cell_key(p.x() + dx, p.y() + dy);
+                    if (keys.empty() || keys.back() != key) keys.push_back(key);
+                }
+            }
+        }
+        std::sort(keys.begin(), keys.end());
+        keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+    });
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cell_blocks;
+    for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+        for (const std::uint64_t key : block_cells[bi]) cell_blocks[key].push_back(bi);
+    }
+    const std::vector<std::uint32_t> no_blocks;
     tbb::enumerable_thread_specific<std::vector<Pair>> local;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
                       [&](const tbb::blocked_range<std::size_t>& range) {
@@ -196,17 +226,23 @@ std::vector<Pair> FindPairs(const Input& in,
                 std::size_t best_idx = 0;
                 std::uint32_t best_block = 0;
                 bool found = false, candidate = false;
-                for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+                // Score bookkeeping: does any time-separated block's box come within score_m?
+                const float sm = static_cast<float>(score_m);
+                for (const Block& b : blocks) {
+                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                    if (!((p.array() < b.lo.array() - sm).any() ||
+                          (p.array() > b.hi.array() + sm).any())) {
+                        candidate = true;
+                        break;
+                    }
+                }
+                const auto cb = cell_blocks.find(cell_key(p.x(), p.y()));
+                for (const std::uint32_t bi : cb == cell_blocks.end() ? no_blocks : cb->second) {
                     const Block& b = blocks[bi];
                     if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
                     if ((p.array() < b.lo.array() - dmax).any() ||
                         (p.array() > b.hi.array() + dmax).any()) {
                         continue;
-                    }
-                    const float sm = static_cast<float>(score_m);
-                    if (!((p.array() < b.lo.array() - sm).any() ||
-                          (p.array() > b.hi.array() + sm).any())) {
-                        candidate = true;
                     }
                     std::size_t idx = 0;
                     float d2 = 0;
@@ -555,7 +591,7 @@ private:
 // matching alone creeps towards offsets of several metres along smooth terrain (each step is
 // bounded by the closest-point distances); this puts the sections inside its capture range.
 // Returns the world translation per section (zero where not searched or not overlapping).
-constexpr double kCoarseScoreUnitM = 0.001;  // fit score unit against the smoothness terms
+constexpr double kCoarseScoreUnitM = 0.01;  // fit score unit against the smoothness terms
 constexpr double kInfeasible = 1e30;
 
 std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vector<Pose>& T,
@@ -921,7 +957,7 @@ StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterat
             // The score of the previous step's result.
             SlamIteration& rec = res.iterations.back();
             rec.pair_score_m = found.score;
-            rec.best = found.score < *best_score;
+            rec.best = found.score < *best_score * (1.0 - cfg.score_tolerance);
             if (rec.best) {
                 *best_score = found.score;
                 best_R = p.Rc;
@@ -1098,6 +1134,9 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (!(coarse_search_min_sigma_m > 0)) p.push_back("coarse_search_min_sigma_m must be > 0");
     if (!(score_cell_m > 0)) p.push_back("score_cell_m must be > 0");
     if (score_patience < 1) p.push_back("score_patience must be >= 1");
+    if (!(score_tolerance >= 0 && score_tolerance < 1)) {
+        p.push_back("score_tolerance must be in [0, 1)");
+    }
     if (num_threads < 0) p.push_back("num_threads must be >= 0 (0 = auto)");
     return p;
 }
@@ -1190,13 +1229,17 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     double best_score = 0;  // pair score, set by the first search
     std::vector<Pose> current = in.T_ins;
 
-    // Stage 1: rigid sections, rotating about the section's mean position.
+    // Stage 1: rigid sections, rotating about the section's mean position; or, with
+    // rigid_interpolate_sections, one correction per section centre, interpolated in time
+    // between centres (the corrected track stays continuous).
     StageOutcome rigid;
     rigid.termination = SlamTermination::kConverged;
     if (cfg.rigid_iterations > 0) {
-        std::vector<std::size_t> starts;
-        for (const Block& b : blocks) starts.push_back(b.s0);
-        Param p = MakeParam(current, starts);
+        std::vector<std::size_t> nodes;
+        for (const Block& b : blocks) {
+            nodes.push_back(cfg.rigid_interpolate_sections ? (b.s0 + b.s1 - 1) / 2 : b.s0);
+        }
+        Param p = MakeParam(current, nodes);
         for (std::size_t b = 0; b < blocks.size(); ++b) {
             Eigen::Vector3d c = Eigen::Vector3d::Zero();
             for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) c += current[s].translation();
@@ -1204,6 +1247,21 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
             for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
                 p.pivot[s] = c;
                 p.k0[s] = p.k1[s] = static_cast<int>(b);
+            }
+        }
+        if (cfg.rigid_interpolate_sections) {
+            std::size_t k = 0;
+            for (std::size_t s = 0; s < ns; ++s) {
+                while (k + 1 < nodes.size() && nodes[k + 1] <= s) ++k;
+                p.pivot[s] = current[s].translation();
+                p.k0[s] = static_cast<int>(k);
+                p.k1[s] = static_cast<int>(k);
+                p.alpha[s] = 0.0;
+                if (s > nodes[k] && k + 1 < nodes.size()) {
+                    p.k1[s] = static_cast<int>(k + 1);
+                    p.alpha[s] = (in.t_s[s] - in.t_s[nodes[k]]) /
+                                 std::max(in.t_s[nodes[k + 1]] - in.t_s[nodes[k]], 1e-9);
+                }
             }
         }
         if (cfg.coarse_search_m > 0) {

@@ -67,6 +67,10 @@ struct SlamConfig {
     // [max_pair_distance_m, this].
     double rigid_max_pair_distance_m = 4.0;
     int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
+    // Rigid stage: true = one correction per section centre, slices interpolated in time between
+    // centres (continuous track; the INS drift is smooth); false = each section moves rigidly,
+    // rotating about its mean position (the paper).
+    bool rigid_interpolate_sections = true;
     // Coarse horizontal search before the rigid stage, for sections whose INS horizontal
     // 1-sigma exceeds coarse_search_min_sigma_m (GNSS outages): the offset within
     // min(coarse_search_m, 3 sigma) that best fits the section to a height grid (cells of
@@ -101,7 +105,7 @@ struct SlamConfig {
     // filter that regains GNSS after an outage reports a small sigma at once but pulls its
     // drift back over seconds, so sigma_i = max(reported_i, sigma_{i-1} exp(-dt / this)),
     // per component. 0 = take the reported sigma as it is.
-    double ins_sigma_recovery_time_s = 10.0;
+    double ins_sigma_recovery_time_s = 3.0;
     // Smoothness of the INS position error: its rate (the velocity error) follows a random walk
     // of this density, as dead reckoning does in a GNSS outage; the term ties the corrections
     // of consecutive poses so that matches at turns and pit walls carry along straight lines.
@@ -111,7 +115,8 @@ struct SlamConfig {
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     double absolute_sigma_scale = 1.0;
     double score_cell_m = 0.5;   // plane-fit consistency score grid cell (reported only)
-    int score_patience = 4;      // stop after this many iterations without a better pair score
+    int score_patience = 2;      // stop after this many iterations without a better pair score
+    double score_tolerance = 1e-3;  // "better": lower by more than this fraction
     int num_threads = 0;         // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;

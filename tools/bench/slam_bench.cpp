@@ -112,6 +112,8 @@ bool Override(proc::slam::SlamConfig& c, const std::string& kv) {
     else if (k == "coarse_sigma") c.coarse_search_min_sigma_m = v;
     else if (k == "vrw") c.drift_velocity_random_walk_mps_per_sqrt_s = v;
     else if (k == "patience") c.score_patience = i;
+    else if (k == "rigid_interp") c.rigid_interpolate_sections = i != 0;
+    else if (k == "score_tol") c.score_tolerance = v;
     else return false;
     return true;
 }
