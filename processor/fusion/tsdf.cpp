@@ -315,7 +315,9 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     const int c_ax = (a + 2) % 3;
     // Convex hull of the corners projected on (b, c) (Andrew's monotone chain).
     std::array<Eigen::Vector2d, 8> pts;
-    for (int k = 0; k < 8; ++k) pts[static_cast<std::size_t>(k)] = {corner[k][b_ax], corner[k][c_ax]};
+    for (int k = 0; k < 8; ++k) {
+        pts[static_cast<std::size_t>(k)] = {corner[k][b_ax], corner[k][c_ax]};
+    }
     std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
         return p0.x() < p1.x() || (p0.x() == p1.x() && p0.y() < p1.y());
     });

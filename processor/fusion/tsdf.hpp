@@ -83,7 +83,10 @@ struct IntegrateResult {
 };
 
 struct WeightFilterConfig {
-    float min_weight = 3.0f;            // voxels with weight below are removed
+    // Voxels with weight below are removed. In beam-width mode a ping adds f per beam of the
+    // footprint (7 at 1.5 deg / 0.25 deg), so 3 removes voxels seen by fewer than 3 beams and
+    // keeps single coverage; 8 would demand two pings (bejanca: completeness 0.999 -> 0.909).
+    float min_weight = 3.0f;
 
     std::vector<std::string> Validate() const;
 };

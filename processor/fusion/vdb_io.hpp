@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Writing the TSDF volume as an OpenVDB .vdb file (grids "tsdf" and "weight"), reading a
-// file's summary back, and reading the volume itself back (e.g. to mesh a fused volume). A file writer unit of the fusion stage (the stage itself does no I/O).
+// file's summary back, and reading the volume itself back (e.g. to mesh a fused volume).
+// The file I/O unit of the fusion stage (the stage itself does no I/O).
 #pragma once
 
 #include <cstdint>

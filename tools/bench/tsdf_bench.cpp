@@ -193,7 +193,8 @@ bool SaveCache(const Options& o, const std::vector<fusion::SonarScan>& scans,
         for (int k = 0; k < 3; ++k) w.F64Le(p[k]);
     }
     std::ofstream out(o.cache, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
     return static_cast<bool>(out);
 }
 
@@ -241,7 +242,8 @@ bool ParseArgs(int argc, char** argv, Options& o) {
             std::string list = argv[++i];
             for (std::size_t p = 0; p <= list.size();) {
                 const std::size_t q = std::min(list.find(',', p), list.size());
-                o.min_weights.push_back(static_cast<float>(std::atof(list.substr(p, q - p).c_str())));
+                o.min_weights.push_back(
+                    static_cast<float>(std::atof(list.substr(p, q - p).c_str())));
                 p = q + 1;
             }
         }
@@ -339,9 +341,10 @@ int main(int argc, char** argv) {
     const Eigen::Matrix3d R_vehicle_sonar = frames::RotationNedFromRpy(
         frames::DegToRad(sc.boresight_deg[0]), frames::DegToRad(sc.boresight_deg[1]),
         frames::DegToRad(sc.boresight_deg[2]));
-    const Pose T_vehicle_sonar = MakePose(
-        R_vehicle_sonar,
-        Eigen::Vector3d(sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
+    const Pose T_vehicle_sonar =
+        MakePose(R_vehicle_sonar,
+                 Eigen::Vector3d(
+                     sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
     long n_pings = static_cast<long>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
     if (opt.max_pings > 0) n_pings = std::min(n_pings, opt.max_pings);
 
@@ -351,51 +354,52 @@ int main(int argc, char** argv) {
     std::vector<Eigen::Vector3d> samples;  // insonified true surface
     const bool cached = !opt.cache.empty() && LoadCache(opt, scans, samples);
     if (!cached) {
-    scans.resize(static_cast<std::size_t>(n_pings));
-    const float start = static_cast<float>(frames::DegToRad(sonar.BeamAngleDeg(0)));
-    const float inc = static_cast<float>(
-        frames::DegToRad(sonar.BeamAngleDeg(1) - sonar.BeamAngleDeg(0)));
-    const double res_m = sc.sonar.range_resolution_mm * 1e-3;
-    std::vector<std::vector<Eigen::Vector3d>> samples_per(static_cast<std::size_t>(n_pings));
-    {
-        std::atomic<long> next{0};
-        auto work = [&] {
-            for (long i = next++; i < n_pings; i = next++) {
-                const double t = static_cast<double>(i) / sc.sonar.ping_rate_hz;
-                const Pose T = truth.PoseAt(t) * T_vehicle_sonar;
-                const sim::SimPing ping = sonar.Ping(T, i);
-                fusion::SonarScan& s = scans[static_cast<std::size_t>(i)];
-                s.gps_time_s = t;
-                s.T_world_sonar = T;
-                s.start_angle_rad = start;
-                s.angle_increment_rad = inc;
-                s.ranges_m.resize(ping.range_counts.size());
-                for (std::size_t b = 0; b < ping.range_counts.size(); ++b) {
-                    s.ranges_m[b] = static_cast<float>(ping.range_counts[b] * res_m);
+        scans.resize(static_cast<std::size_t>(n_pings));
+        const float start = static_cast<float>(frames::DegToRad(sonar.BeamAngleDeg(0)));
+        const float inc = static_cast<float>(
+            frames::DegToRad(sonar.BeamAngleDeg(1) - sonar.BeamAngleDeg(0)));
+        const double res_m = sc.sonar.range_resolution_mm * 1e-3;
+        std::vector<std::vector<Eigen::Vector3d>> samples_per(static_cast<std::size_t>(n_pings));
+        {
+            std::atomic<long> next{0};
+            auto work = [&] {
+                for (long i = next++; i < n_pings; i = next++) {
+                    const double t = static_cast<double>(i) / sc.sonar.ping_rate_hz;
+                    const Pose T = truth.PoseAt(t) * T_vehicle_sonar;
+                    const sim::SimPing ping = sonar.Ping(T, i);
+                    fusion::SonarScan& s = scans[static_cast<std::size_t>(i)];
+                    s.gps_time_s = t;
+                    s.T_world_sonar = T;
+                    s.start_angle_rad = start;
+                    s.angle_increment_rad = inc;
+                    s.ranges_m.resize(ping.range_counts.size());
+                    for (std::size_t b = 0; b < ping.range_counts.size(); ++b) {
+                        s.ranges_m[b] = static_cast<float>(ping.range_counts[b] * res_m);
+                    }
+                    if (i % opt.stride != 0) continue;
+                    auto& out = samples_per[static_cast<std::size_t>(i)];
+                    for (std::size_t b = 0; b < ping.range_counts.size();
+                         b += static_cast<std::size_t>(opt.stride)) {
+                        const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
+                        const Eigen::Vector3d dir =
+                            T.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
+                        const auto r = world.RayCast(T.translation(), dir, sc.sonar.max_range_m);
+                        if (r) out.push_back(T.translation() + *r * dir);
+                    }
                 }
-                if (i % opt.stride != 0) continue;
-                auto& out = samples_per[static_cast<std::size_t>(i)];
-                for (std::size_t b = 0; b < ping.range_counts.size();
-                     b += static_cast<std::size_t>(opt.stride)) {
-                    const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
-                    const Eigen::Vector3d dir =
-                        T.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
-                    const auto r = world.RayCast(T.translation(), dir, sc.sonar.max_range_m);
-                    if (r) out.push_back(T.translation() + *r * dir);
-                }
-            }
-        };
-        std::vector<std::thread> pool;
-        for (int k = 1; k < std::max(1, opt.threads); ++k) pool.emplace_back(work);
-        work();
-        for (auto& th : pool) th.join();
-    }
-    for (auto& v : samples_per) samples.insert(samples.end(), v.begin(), v.end());
-    samples_per.clear();
-    samples_per.shrink_to_fit();
-    if (!opt.cache.empty() && !SaveCache(opt, scans, samples)) {
-        std::fprintf(stderr, "pitmap-bench-tsdf: %s: cannot write the cache\n", opt.cache.c_str());
-    }
+            };
+            std::vector<std::thread> pool;
+            for (int k = 1; k < std::max(1, opt.threads); ++k) pool.emplace_back(work);
+            work();
+            for (auto& th : pool) th.join();
+        }
+        for (auto& v : samples_per) samples.insert(samples.end(), v.begin(), v.end());
+        samples_per.clear();
+        samples_per.shrink_to_fit();
+        if (!opt.cache.empty() && !SaveCache(opt, scans, samples)) {
+            std::fprintf(
+                stderr, "pitmap-bench-tsdf: %s: cannot write the cache\n", opt.cache.c_str());
+        }
     }
     n_pings = static_cast<long>(scans.size());
     const double sim_s = Seconds(t_sim);
@@ -450,13 +454,17 @@ int main(int argc, char** argv) {
         const double peak_mb = PeakRssMb();
         const Score sc_m = ScoreMesh(mr.mesh, world, samples, opt.threads);
         if (ti > 0) {
-            std::printf("  min_weight %-5.1f removed %5.2f %% of the voxels; %zu vertices; mean "
-                        "%.4f m (rms %.4f, p95 %.4f); completeness %.4f\n",
-                        static_cast<double>(min_weight),
-                        100.0 * static_cast<double>(removed) /
-                            static_cast<double>(std::max<std::int64_t>(1, stats_before.active_voxels)),
-                        mr.mesh.vertices.size(), sc_m.mean_abs, sc_m.rms, sc_m.p95,
-                        sc_m.completeness);
+            std::printf(
+                "  min_weight %-5.1f removed %5.2f %% of the voxels; %zu vertices; mean "
+                "%.4f m (rms %.4f, p95 %.4f); completeness %.4f\n",
+                static_cast<double>(min_weight),
+                100.0 * static_cast<double>(removed) /
+                    static_cast<double>(std::max<std::int64_t>(1, stats_before.active_voxels)),
+                mr.mesh.vertices.size(),
+                sc_m.mean_abs,
+                sc_m.rms,
+                sc_m.p95,
+                sc_m.completeness);
             continue;
         }
         std::printf("  weight_filter     min %.1f: removed %lld of %lld (%.2f %%) in %.2f s\n",
@@ -502,8 +510,9 @@ int main(int argc, char** argv) {
             std::vector<std::int64_t> bad_w(22, 0);
             std::int64_t bad_above = 0, bad_below = 0;
             std::int64_t bad_z[10] = {};
-            std::FILE* bad_csv =
-                opt.out.empty() ? nullptr : std::fopen((opt.out + "/bad_vertices.txt").c_str(), "w");
+            std::FILE* bad_csv = opt.out.empty()
+                                     ? nullptr
+                                     : std::fopen((opt.out + "/bad_vertices.txt").c_str(), "w");
             for (const Eigen::Vector3f& v : mr.mesh.vertices) {
                 const double e = std::abs(world.SignedDistance(v.cast<double>()));
                 int k = 0;
@@ -528,9 +537,11 @@ int main(int argc, char** argv) {
                 }
             }
             if (bad_csv) std::fclose(bad_csv);
-            std::printf("  vertices off by > 0.5 m: %lld above the true surface, %lld below; by depth "
-                        "(3 m bins):", static_cast<long long>(bad_above),
-                        static_cast<long long>(bad_below));
+            std::printf(
+                "  vertices off by > 0.5 m: %lld above the true surface, %lld below; by depth "
+                "(3 m bins):",
+                static_cast<long long>(bad_above),
+                static_cast<long long>(bad_below));
             for (std::int64_t b : bad_z) std::printf(" %lld", static_cast<long long>(b));
             std::printf("\n");
             const double nv = static_cast<double>(mr.mesh.vertices.size());
@@ -539,7 +550,9 @@ int main(int argc, char** argv) {
                 std::printf("    <= %-6.2f %6.2f %%  %.4f m\n", lim[k] > 1e9 ? 99.0 : lim[k],
                             100.0 * static_cast<double>(by_err[k]) / nv, sum_by_err[k] / nv);
             }
-            std::printf("  vertices by the weight of their nearest voxel (count, mean |error|, > 0.2 m):\n");
+            std::printf(
+                "  vertices by the weight of their nearest voxel (count, mean |error|, > 0.2 "
+                "m):\n");
             for (std::size_t w = 0; w < n_w.size(); ++w) {
                 if (n_w[w] == 0) continue;
                 std::printf("    w %2zu  %9lld  %.4f  %lld\n", w, static_cast<long long>(n_w[w]),

@@ -185,8 +185,9 @@ TEST(TsdfVolume, IntegrationOrderDoesNotMatterBeyondTolerance) {
             for (double z = -10.4; z <= -9.6; z += 0.1) {
                 const Eigen::Vector3d p(x, y, z);
                 if (forward.WeightAt(p) < 3.0f) continue;
-                worst = std::max(worst, static_cast<double>(
-                                            std::abs(forward.DistanceAt(p) - backward.DistanceAt(p))));
+                worst = std::max(
+                    worst,
+                    static_cast<double>(std::abs(forward.DistanceAt(p) - backward.DistanceAt(p))));
                 ++compared;
             }
         }
@@ -199,7 +200,8 @@ TEST(TsdfVolume, IntegrationOrderDoesNotMatterBeyondTolerance) {
     const auto [err_f, n_f] = PlaneError(forward.ExtractIsoSurface().mesh, world.plane_z_m);
     const auto [err_b, n_b] = PlaneError(backward.ExtractIsoSurface().mesh, world.plane_z_m);
     // The border of the swath moves by a cell here and there.
-    EXPECT_NEAR(static_cast<double>(n_f), static_cast<double>(n_b), 0.01 * static_cast<double>(n_f));
+    EXPECT_NEAR(
+        static_cast<double>(n_f), static_cast<double>(n_b), 0.01 * static_cast<double>(n_f));
     EXPECT_NEAR(err_f, err_b, 0.01);
 }
 
@@ -433,6 +435,11 @@ TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     bad.max_range_m = 5;
     bad.num_threads = -2;
     EXPECT_EQ(bad.Validate().size(), 6u);  // max_weight >= f still holds with f = 0
+    EXPECT_EQ(defaults.sensor_model, SensorModel::kBeamWidth);
+    bad.footprint_gate_m = 0;
+    bad.footprint_gate_fraction = -0.1;
+    EXPECT_EQ(bad.Validate().size(), 8u);
+    EXPECT_FLOAT_EQ(WeightFilterConfig{}.min_weight, 3.0f);
     WeightFilterConfig wf;
     wf.min_weight = -1;
     EXPECT_EQ(wf.Validate().size(), 1u);

@@ -3,10 +3,10 @@
 // sphere on the floor) and an empty glTF scene are read back with Assimp (the importer behind
 // many viewers and engines), with the same vertex and face counts, vertex colours and
 // coordinates (glTF is y-up: (E, U, -N)).
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <gtest/gtest.h>
+#include <assimp/Importer.hpp>
 
 #include <filesystem>
 #include <numbers>
@@ -134,7 +134,8 @@ TEST_F(MeshReadBack, GlbHasTheSameVerticesFacesColoursAndYUpCoordinates) {
         EXPECT_EQ(c.non_triangles, 0u);
         EXPECT_TRUE(c.colours);
         Eigen::AlignedBox3f box;  // (E, U, -N)
-        for (const Eigen::Vector3f& v : m->vertices) box.extend(Eigen::Vector3f(v.x(), v.z(), -v.y()));
+        for (const Eigen::Vector3f& v : m->vertices)
+            box.extend(Eigen::Vector3f(v.x(), v.z(), -v.y()));
         EXPECT_TRUE(c.box.min().isApprox(box.min(), 1e-5f));
         EXPECT_TRUE(c.box.max().isApprox(box.max(), 1e-5f));
         std::filesystem::remove(path);
