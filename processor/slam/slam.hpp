@@ -4,14 +4,21 @@
 //
 // Input: one Slice per ping (initial pose from the INS, soundings in the vehicle frame).
 // Two stages, both Gauss-Newton on the sparse normal equations solved with CHOLMOD:
+//  0. Coarse search (GNSS outages): sections whose INS horizontal sigma is large are placed by a
+//     horizontal offset search against a height grid of the sections the INS is sure about,
+//     smoothed along each run of such sections (dynamic programming); see coarse_search_m.
 //  1. Rigid: the trajectory is split into sections of section_length_s; sections whose points
 //     overlap (at least min_section_link_pairs closest-point pairs) are linked; all section
-//     poses are solved at once (globally consistent scan matching) and correspondences are
-//     found again each iteration, like ICP.
+//     corrections are solved at once (globally consistent scan matching) and correspondences
+//     are found again each iteration, like ICP, coarse to fine. By default the corrections sit
+//     at the section centres and are interpolated in time between them.
 //  2. Semi-rigid: one 6-DoF pose per bin of bin_slices slices (slice poses interpolated inside
 //     a bin); point pairs only between slices at least min_time_separation_s apart and closer
 //     than max_pair_distance_m; relative-motion terms between consecutive poses keep the motion
 //     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms.
+// INS terms in both stages: relative motion (sigma from the steady INS sigma and from its
+// growth), a drift-smoothness term (the velocity error is a random walk) and absolute terms; the
+// reported sigma is not believed to shrink faster than ins_sigma_recovery_time_s.
 // Guards ("must not get worse"): a step is taken only if it lowers the total cost (INS terms and
 // robust pair terms) on the pairs it was computed from, else the Levenberg damping grows; the
 // pair score of every iterate (closest-point distance over the overlap, truncated at
@@ -77,7 +84,7 @@ struct SlamConfig {
     // coarse_search_cell_m) of the other sections; 0 = off.
     double coarse_search_m = 12.0;
     double coarse_search_step_m = 0.5;
-    double coarse_search_cell_m = 1.0;
+    double coarse_search_cell_m = 4.0;
     double coarse_search_min_sigma_m = 0.5;
     // Semi-rigid: slices per pose (1 = one pose per slice). The factorisation cost grows fast
     // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
@@ -92,11 +99,13 @@ struct SlamConfig {
     double gicp_tangent_sigma_m = 0.5;  // GICP: 1-sigma along the surface (plane-like C)
     RobustKernel robust_kernel = RobustKernel::kNone;
     double robust_width = 2.0;        // kernel width, in point sigmas
-    int query_stride = 8;             // every n-th sounding of a slice is a query point
-    // INS relative-motion terms between consecutive poses: sigma of the motion over dt is
-    // mean(pose_sigma) * sqrt(min(1, 2 dt / ins_correlation_time_s)) * ins_sigma_scale (a
-    // first-order Gauss-Markov error), at least the floors below. World rotation x, y use
-    // max(roll, pitch), z uses yaw; translation x, y (slice frame) max(east, north), z up.
+    int query_stride = 16;            // every n-th sounding of a slice is a query point
+    // INS relative-motion terms between consecutive poses i, j: per component the sigma of the
+    // motion over dt is sqrt(f^2 * 2 dt / ins_correlation_time_s (at most 1) + (g_j - g_i)^2)
+    // * ins_sigma_scale, with f the survey's smallest sigma (a first-order Gauss-Markov error)
+    // and g = sqrt(sigma^2 - f^2) the part that grows in an outage; at least the floors below.
+    // World rotation x, y use max(roll, pitch), z uses yaw; translation x, y (slice frame)
+    // max(east, north), z up.
     double ins_correlation_time_s = 60.0;
     double ins_sigma_scale = 1.0;
     double min_relative_rotation_sigma_rad = 2e-5;
