@@ -338,11 +338,17 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
     }
     --nh;  // the last point repeats the first
     if (nh < 1) return;
+    const double lo_y = a_lo_s.y(), lo_z = a_lo_s.z(), hi_y = a_hi_s.y(), hi_z = a_hi_s.z();
+    const double b_y = b_s.y(), b_z = b_s.z(), e_y = e_s.y(), e_z = e_s.z();
+    const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
+    const double h_cube2 = h_cube * h_cube;
+    // Range change towards each neighbour (0 = no interpolation on that side).
+    const double dr_prev = std::isfinite(r_prev) ? r_prev - r : 0.0;
+    const double dr_next = std::isfinite(r_next) ? r_next - r : 0.0;
     double inv_ga[6];  // 1 / G[k][a], 0 when the plane is parallel to the columns
     for (int k = 0; k < 6; ++k) inv_ga[k] = std::abs(G[k][a]) < 1e-12 ? 0.0 : 1.0 / G[k][a];
     const Eigen::Matrix3d Rt = R.transpose();
     const Eigen::Vector3d step_s = Rt.col(a);  // sonar-frame change per voxel along axis a
-    const double tan_bw = g.tan_half_bw;
 
     for (int jb = ilo[b_ax]; jb <= ihi[b_ax]; ++jb) {
         // Columns of this row that meet the frustum: where the row line b = jb crosses the
@@ -393,18 +399,18 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
             Eigen::Vector3d xs = Rt * (v - p);
             Coord ijk(static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2]));
             for (int ja = ja0; ja <= ja1; ++ja, xs += step_s) {
-                // Sector of this beam (same planes as the candidate test, half-open).
-                if (a_lo_s.dot(xs) < 0.0 || a_hi_s.dot(xs) >= 0.0) continue;
-                const double rho2 = xs.y() * xs.y() + xs.z() * xs.z();
-                const double rho = std::sqrt(rho2);
-                if (std::abs(xs.x()) > std::max(tan_bw * rho, h_cube)) continue;  // beam width
+                // Sector of this beam (same planes as the candidate test, half-open); the
+                // in-plane vectors have no x component.
+                const double y = xs.y(), z = xs.z(), x2 = xs.x() * xs.x();
+                if (lo_y * y + lo_z * z < 0.0 || hi_y * y + hi_z * z >= 0.0) continue;
+                const double rho2 = y * y + z * z;
+                // Beam width: |x| <= max(tan(bw / 2) rho, h_cube).
+                if (x2 > tan2_bw * rho2 && x2 > h_cube2) continue;
                 // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
                 // as a signed fraction of the increment: > 0 towards beam i + 1.
-                const double frac = e_s.dot(xs) / b_s.dot(xs) * inv_inc;
-                const double rn = frac >= 0.0 ? r_next : r_prev;
-                const double r_at = std::isfinite(rn) ? r + std::abs(frac) * (rn - r) : r;
-                const double dist = std::sqrt(rho2 + xs.x() * xs.x());
-                const double d = r_at - dist;                     // Eq. 4
+                const double frac = (e_y * y + e_z * z) / (b_y * y + b_z * z) * inv_inc;
+                const double r_at = r + std::abs(frac) * (frac >= 0.0 ? dr_next : dr_prev);
+                const double d = r_at - std::sqrt(rho2 + x2);  // Eq. 4
                 if (!(d > -T && d <= T)) continue;
                 ijk[a] = ja;
                 up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel), f);
