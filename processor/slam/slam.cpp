@@ -957,15 +957,23 @@ StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterat
             // The score of the previous step's result.
             SlamIteration& rec = res.iterations.back();
             rec.pair_score_m = found.score;
-            rec.best = found.score < *best_score * (1.0 - cfg.score_tolerance);
+            // The lowest score is kept; only a gain beyond score_tolerance resets the patience.
+            const bool gain = found.score < *best_score * (1.0 - cfg.score_tolerance);
+            rec.best = found.score < *best_score;
             if (rec.best) {
                 *best_score = found.score;
                 best_R = p.Rc;
                 best_t = p.tc;
+            }
+            if (gain) {
                 stalled = 0;
-            } else if (++stalled >= cfg.score_patience && !stop) {
+            } else if (++stalled >= cfg.score_patience && !stop &&
+                       search_m <= cfg.max_pair_distance_m * (1.0 + 1e-9)) {
+                // (Not while the rigid stage's pair distance is still shrinking: the truncated
+                // score sees little of the coarse alignment.)
                 out.termination = SlamTermination::kScoreStalled;
-                out.message = "pair score did not improve for " +
+                out.message = "pair score did not improve by more than " +
+                              std::to_string(cfg.score_tolerance) + " (relative) for " +
                               std::to_string(cfg.score_patience) + " iterations; best iterate kept";
                 stop = true;
             }

@@ -124,8 +124,10 @@ struct SlamConfig {
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     double absolute_sigma_scale = 1.0;
     double score_cell_m = 0.5;   // plane-fit consistency score grid cell (reported only)
-    int score_patience = 2;      // stop after this many iterations without a better pair score
-    double score_tolerance = 1e-3;  // "better": lower by more than this fraction
+    // Stop after this many iterations without a better pair score (the rigid stage: only once
+    // its pair distance has come down to max_pair_distance_m).
+    int score_patience = 2;
+    double score_tolerance = 1e-3;  // patience: a gain counts if above this fraction
     int num_threads = 0;         // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;
