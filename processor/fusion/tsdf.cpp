@@ -770,7 +770,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     result.elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     result.message = std::string(result.cancelled ? "cancelled: " : "") +
-                     std::to_string(result.beams_used) + " beams, " +
+                     std::to_string(result.beams_used) + " beams (" +
+                     std::to_string(result.beams_inconsistent) + " outvoted by footprints), " +
                      std::to_string(result.voxel_updates) + " voxel updates, " +
                      std::to_string(result.active_voxels) + " active voxels";
     return result;

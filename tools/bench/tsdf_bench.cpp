@@ -11,11 +11,16 @@
 //                       --stride-th beam of every --stride-th ping) within 0.2 m of the mesh
 //   integration_cpu_s   process CPU time of Integrate (the machine may be shared: wall time
 //                       alone is noisy)
-// --cache FILE keeps the simulated scans and surface samples in FILE (written when missing,
-// read when its header matches scenario, --max-pings and --stride), to repeat runs quickly.
+// --min-weight W1,W2,... reports the weight filter's effect: the thresholds are applied in
+// ascending order on the same volume, each followed by meshing and scoring (the first gets
+// the full report, --out files and --diag).
+// --cache FILE keeps the simulated scans and surface samples in FILE (written when missing or
+// when its header does not match scenario, --max-pings and --stride), to repeat runs quickly.
+// --diag prints where the error is (|error| bins, error by voxel weight) and, with --out,
+// writes the vertices off by more than 0.5 m; --beam-width-deg overrides the sonar's width.
 // Usage: pitmap-bench-tsdf [--scenario bejanca] [--mode beam|ray] [--threads 2]
 //                          [--min-weight W[,W2,...]] [--max-pings N] [--stride 4] [--out DIR]
-//                          [--cache FILE]
+//                          [--cache FILE] [--diag] [--beam-width-deg D]
 #include <algorithm>
 #include <atomic>
 #include <limits>
@@ -255,8 +260,9 @@ bool ParseArgs(int argc, char** argv, Options& o) {
         else if (a == "--beam-width-deg" && has) o.beam_width_deg = std::atof(argv[++i]);
         else {
             std::fprintf(stderr, "usage: pitmap-bench-tsdf [--scenario S] [--mode beam|ray] "
-                                 "[--threads N] [--min-weight W] [--max-pings N] [--stride K] "
-                                 "[--out DIR] [--cache FILE]\n");
+                                 "[--threads N] [--min-weight W[,W2,...]] [--max-pings N] "
+                                 "[--stride K] [--out DIR] [--cache FILE] [--diag] "
+                                 "[--beam-width-deg D]\n");
             return false;
         }
     }
