@@ -53,6 +53,8 @@ void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v("weight_per_measurement", c.weight_per_measurement, "f (uniform weights)");
     v("max_weight", c.max_weight, "w_max");
     v("beam_width_rad", c.beam_width_rad, "out-of-plane beam width, rad");
+    v("footprint_gate_m", c.footprint_gate_m, "beam-width: a footprint beam agrees within this");
+    v("footprint_gate_fraction", c.footprint_gate_fraction, "... plus this share of the range");
     v("min_range_m", c.min_range_m, "shorter ranges are not detections, m");
     v("max_range_m", c.max_range_m, "longer ranges are not detections, m");
     v("num_threads", c.num_threads, "0 = all cores");
