@@ -97,7 +97,7 @@ struct SlamConfig {
     int normal_neighbours = 10;       // neighbours for normals / covariances
     double point_sigma_m = 0.05;      // 1-sigma of a point along the surface normal
     double gicp_tangent_sigma_m = 0.5;  // GICP: 1-sigma along the surface (plane-like C)
-    RobustKernel robust_kernel = RobustKernel::kNone;
+    RobustKernel robust_kernel = RobustKernel::kHuber;  // gps-outage ATE 0.56 -> 0.52 m
     double robust_width = 2.0;        // kernel width, in point sigmas
     int query_stride = 16;            // every n-th sounding of a slice is a query point
     // INS relative-motion terms between consecutive poses i, j: per component the sigma of the

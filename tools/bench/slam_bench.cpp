@@ -134,8 +134,8 @@ int main(int argc, char** argv) {
     }
     const std::string name = npos > 1 ? argv[1] : "gps-outage";
     const int beam_stride = npos > 2 ? std::atoi(argv[2]) : 4;
-    const std::string corr = npos > 3 ? argv[3] : "gicp";
-    const std::string kernel = npos > 4 ? argv[4] : "none";
+    const std::string corr = npos > 3 ? argv[3] : "default";
+    const std::string kernel = npos > 4 ? argv[4] : "default";
     const int bin = npos > 5 ? std::atoi(argv[5]) : cfg.bin_slices;
     const int qstride = npos > 6 ? std::atoi(argv[6]) : cfg.query_stride;
     const int threads = npos > 7 ? std::atoi(argv[7]) : 2;
@@ -219,12 +219,16 @@ int main(int argc, char** argv) {
     }
     scored.mean_range_sigma_m = sig / static_cast<double>(scored.slice.size());
 
-    cfg.correspondence = corr == "p2p"       ? CorrespondenceType::kPointToPoint
-                         : corr == "p2plane" ? CorrespondenceType::kPointToPlane
-                                             : CorrespondenceType::kGicp;
-    cfg.robust_kernel = kernel == "huber"    ? RobustKernel::kHuber
-                        : kernel == "cauchy" ? RobustKernel::kCauchy
-                                             : RobustKernel::kNone;
+    if (corr != "default") {
+        cfg.correspondence = corr == "p2p"       ? CorrespondenceType::kPointToPoint
+                             : corr == "p2plane" ? CorrespondenceType::kPointToPlane
+                                                 : CorrespondenceType::kGicp;
+    }
+    if (kernel != "default") {
+        cfg.robust_kernel = kernel == "huber"    ? RobustKernel::kHuber
+                            : kernel == "cauchy" ? RobustKernel::kCauchy
+                                                 : RobustKernel::kNone;
+    }
     cfg.bin_slices = bin;
     cfg.query_stride = qstride;
     cfg.num_threads = threads;
@@ -240,8 +244,14 @@ int main(int argc, char** argv) {
     getrusage(RUSAGE_SELF, &ru);
     std::printf("scenario %s: %zu slices, %zu points (beam stride %d), query stride %d, "
                 "bins of %d slices, %s, kernel %s, %d threads (simulation %.1f s)\n",
-                name.c_str(), num_pings, npts, beam_stride, qstride, bin, corr.c_str(),
-                kernel.c_str(), threads, sim_s);
+                name.c_str(), num_pings, npts, beam_stride, qstride, bin,
+                cfg.correspondence == CorrespondenceType::kPointToPoint   ? "p2p"
+                : cfg.correspondence == CorrespondenceType::kPointToPlane ? "p2plane"
+                                                                          : "gicp",
+                cfg.robust_kernel == RobustKernel::kHuber    ? "huber"
+                : cfg.robust_kernel == RobustKernel::kCauchy ? "cauchy"
+                                                             : "none",
+                threads, sim_s);
     std::printf("termination: %s (%s)\n", proc::slam::ToString(r.termination), r.message.c_str());
     std::printf("sections %zu, links %zu, poses %zu, coarse search: %zu searched, %zu shifted\n",
                 r.num_sections, r.num_section_links, r.num_poses, r.num_sections_searched,
