@@ -27,31 +27,40 @@ bool IsSortedByPing(const georef::GeorefResult& geo) {
 
 }  // namespace
 
-PoseSigma PoseSigmaAt(const georef::NavSeries& nav, std::int64_t utime_gps, double max_age_s,
+PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
+                      std::int64_t utime_gps,
+                      double max_age_s,
                       const PoseSigma& fallback) {
     const auto& s = nav.stddevs;
     if (s.empty()) return fallback;
-    auto it = std::lower_bound(s.begin(), s.end(), utime_gps,
-                               [](const georef::NavStdDev& d, std::int64_t t) {
-                                   return d.utime_gps < t;
-                               });
-    if (it == s.end() || (it != s.begin() && utime_gps - std::prev(it)->utime_gps <
-                                                 it->utime_gps - utime_gps)) {
+    auto it = std::lower_bound(
+        s.begin(), s.end(), utime_gps, [](const georef::NavStdDev& d, std::int64_t t) {
+            return d.utime_gps < t;
+        });
+    if (it == s.end() ||
+        (it != s.begin() && utime_gps - std::prev(it)->utime_gps < it->utime_gps - utime_gps)) {
         it = std::prev(it);
     }
     if (std::abs(static_cast<double>(it->utime_gps - utime_gps)) * 1e-6 > max_age_s) {
         return fallback;
     }
     const double deg = frames::DegToRad(1.0);
-    const double v[6] = {it->roll_deg * deg, it->pitch_deg * deg, it->yaw_deg * deg,
-                         it->east_m,         it->north_m,         it->up_m};
+    const double v[6] = {it->roll_deg * deg,
+                         it->pitch_deg * deg,
+                         it->yaw_deg * deg,
+                         it->east_m,
+                         it->north_m,
+                         it->up_m};
     PoseSigma out;
     for (int i = 0; i < 6; ++i) out[i] = std::isfinite(v[i]) && v[i] > 0 ? v[i] : fallback[i];
     return out;
 }
 
-SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& nav,
-                    int point_stride, double sigma_max_age_s, const PoseSigma& fallback_sigma) {
+SliceSet MakeSlices(const georef::GeorefResult& geo,
+                    const georef::NavSeries& nav,
+                    int point_stride,
+                    double sigma_max_age_s,
+                    const PoseSigma& fallback_sigma) {
     SliceSet out;
     if (!IsSortedByPing(geo)) return out;
     const std::vector<std::size_t> offset = PingOffsets(geo);
@@ -66,7 +75,8 @@ SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& na
         const Pose T_vehicle_world = ping.T_world_vehicle.inverse();
         s.points_vehicle.reserve((offset[k + 1] - offset[k] + stride - 1) / stride);
         for (std::size_t i = offset[k]; i < offset[k + 1]; i += stride) {
-            s.points_vehicle.push_back((T_vehicle_world * geo.points.position_world[i]).cast<float>());
+            s.points_vehicle.push_back(
+                (T_vehicle_world * geo.points.position_world[i]).cast<float>());
         }
         out.slices.push_back(std::move(s));
         out.ping.push_back(static_cast<std::uint32_t>(k));
@@ -74,7 +84,8 @@ SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& na
     return out;
 }
 
-void ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle,
+void ApplyVehiclePoses(georef::GeorefResult& geo,
+                       const std::vector<Pose>& T_world_vehicle,
                        const georef::SonarMount& mount) {
     if (T_world_vehicle.size() != geo.pings.size()) return;
     std::vector<Pose> delta(geo.pings.size());
@@ -91,7 +102,8 @@ void ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_wor
     }
 }
 
-PoseLookup PosesAtPings(const georef::GeorefResult& geo, const std::vector<double>& t,
+PoseLookup PosesAtPings(const georef::GeorefResult& geo,
+                        const std::vector<double>& t,
                         const std::vector<Pose>& T) {
     PoseLookup out;
     out.T_world_vehicle.reserve(geo.pings.size());
@@ -136,8 +148,8 @@ std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
         fusion::SonarScan& s = scans[k];
         s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
         Pose tilt = Pose::Identity();
-        tilt.linear() = Eigen::AngleAxisd(ping.profile_tilt_rad, Eigen::Vector3d::UnitY())
-                            .toRotationMatrix();
+        tilt.linear() =
+            Eigen::AngleAxisd(ping.profile_tilt_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
         s.T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar * tilt;
         if (ping.header_index >= pings.pings.size()) continue;
         const georef::PingHeader& h = pings.pings[ping.header_index];
@@ -171,9 +183,15 @@ Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory)
     for (std::size_t i = 0; i < n; ++i) {
         const Pose& T = trajectory.T_world_vehicle[i];
         const frames::Rpy a = frames::RpyFromRotationWorld(T.linear());
-        std::fprintf(f, "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f\n", trajectory.gps_time_s[i],
-                     T.translation().x(), T.translation().y(), T.translation().z(),
-                     frames::RadToDeg(a.roll), frames::RadToDeg(a.pitch), frames::RadToDeg(a.yaw));
+        std::fprintf(f,
+                     "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f\n",
+                     trajectory.gps_time_s[i],
+                     T.translation().x(),
+                     T.translation().y(),
+                     T.translation().z(),
+                     frames::RadToDeg(a.roll),
+                     frames::RadToDeg(a.pitch),
+                     frames::RadToDeg(a.yaw));
     }
     const bool ok = std::ferror(f) == 0;
     if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
@@ -184,9 +202,11 @@ Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
     std::ifstream in(path);
     if (!in) return Error{path + ": cannot open"};
     std::string line;
-    if (!std::getline(in, line) || line.rfind("gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg", 0) != 0) {
-        return Error{path + ": not a trajectory CSV (header gps_time_s,x_m,y_m,z_m,roll_deg,"
-                            "pitch_deg,yaw_deg expected)"};
+    if (!std::getline(in, line) ||
+        line.rfind("gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg", 0) != 0) {
+        return Error{path +
+                     ": not a trajectory CSV (header gps_time_s,x_m,y_m,z_m,roll_deg,"
+                     "pitch_deg,yaw_deg expected)"};
     }
     TimedPoses out;
     std::size_t line_no = 1;
@@ -195,8 +215,16 @@ Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
         if (line.empty()) continue;
         double v[7];
         int used = 0;
-        if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf%n", &v[0], &v[1], &v[2], &v[3],
-                        &v[4], &v[5], &v[6], &used) != 7 ||
+        if (std::sscanf(line.c_str(),
+                        "%lf,%lf,%lf,%lf,%lf,%lf,%lf%n",
+                        &v[0],
+                        &v[1],
+                        &v[2],
+                        &v[3],
+                        &v[4],
+                        &v[5],
+                        &v[6],
+                        &used) != 7 ||
             !std::all_of(std::begin(v), std::end(v), [](double x) { return std::isfinite(x); })) {
             return Error{path + ":" + std::to_string(line_no) + ": malformed row"};
         }
@@ -204,10 +232,10 @@ Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
             return Error{path + ":" + std::to_string(line_no) + ": times not increasing"};
         }
         out.gps_time_s.push_back(v[0]);
-        out.T_world_vehicle.push_back(MakePose(
-            frames::RotationWorldFromRpy(frames::DegToRad(v[4]), frames::DegToRad(v[5]),
-                                         frames::DegToRad(v[6])),
-            Eigen::Vector3d(v[1], v[2], v[3])));
+        out.T_world_vehicle.push_back(
+            MakePose(frames::RotationWorldFromRpy(
+                         frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
+                     Eigen::Vector3d(v[1], v[2], v[3])));
     }
     return out;
 }

@@ -32,7 +32,9 @@ using PoseSigma = Eigen::Matrix<double, 6, 1>;
 // The INS's own 1-sigma at a time: the stddev record nearest in time (records are ~1 Hz; the
 // INS error changes slowly). Components the receiver did not report (NaN), and all of them when
 // there is no record within max_age_s, take `fallback`.
-PoseSigma PoseSigmaAt(const georef::NavSeries& nav, std::int64_t utime_gps, double max_age_s,
+PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
+                      std::int64_t utime_gps,
+                      double max_age_s,
                       const PoseSigma& fallback);
 
 // SLAM input: one slice per georeferenced ping that kept at least one sounding, its initial
@@ -41,13 +43,17 @@ struct SliceSet {
     std::vector<slam::Slice> slices;
     std::vector<std::uint32_t> ping;  // slice -> index into GeorefResult::pings
 };
-SliceSet MakeSlices(const georef::GeorefResult& geo, const georef::NavSeries& nav,
-                    int point_stride, double sigma_max_age_s, const PoseSigma& fallback_sigma);
+SliceSet MakeSlices(const georef::GeorefResult& geo,
+                    const georef::NavSeries& nav,
+                    int point_stride,
+                    double sigma_max_age_s,
+                    const PoseSigma& fallback_sigma);
 
 // Moves every sounding and ping of `geo` to new vehicle poses, one per ping
 // (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p. Precondition:
 // T_world_vehicle.size() == geo.pings.size().
-void ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle,
+void ApplyVehiclePoses(georef::GeorefResult& geo,
+                       const std::vector<Pose>& T_world_vehicle,
                        const georef::SonarMount& mount);
 
 // New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the
@@ -57,7 +63,8 @@ struct PoseLookup {
     std::vector<Pose> T_world_vehicle;  // one per ping of geo
     std::size_t outside_span = 0;
 };
-PoseLookup PosesAtPings(const georef::GeorefResult& geo, const std::vector<double>& gps_time_s,
+PoseLookup PosesAtPings(const georef::GeorefResult& geo,
+                        const std::vector<double>& gps_time_s,
                         const std::vector<Pose>& T_world_vehicle);
 
 // TSDF input: one scan per georeferenced ping; a beam's range is the kept sounding's range, 0

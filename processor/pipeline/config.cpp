@@ -18,11 +18,28 @@ namespace {
 template <class V>
 void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("point_stride", s.point_stride, "every n-th kept sounding of a ping enters SLAM");
-    v("min_time_separation_s", c.min_time_separation_s, "t_d: pairs only between slices this far apart, s");
-    v("max_pair_distance_m", c.max_pair_distance_m, "d_max: closest-point pairs closer than this, m");
+    v("min_time_separation_s",
+      c.min_time_separation_s,
+      "t_d: pairs only between slices this far apart, s");
+    v("max_pair_distance_m",
+      c.max_pair_distance_m,
+      "d_max: closest-point pairs closer than this, m");
     v("section_length_s", c.section_length_s, "rigid stage sections, s");
     v("rigid_iterations", c.rigid_iterations, "0 = no rigid stage");
-    v("rigid_max_pair_distance_m", c.rigid_max_pair_distance_m, "rigid pair distance, first iteration, m");
+    v("rigid_max_pair_distance_m",
+      c.rigid_max_pair_distance_m,
+      "rigid pair distance, first iteration, m");
+    v("rigid_interpolate_sections",
+      c.rigid_interpolate_sections,
+      "corrections interpolated between section centres (false: the paper's rigid sections)");
+    v("coarse_search_m",
+      c.coarse_search_m,
+      "horizontal search for sections of a drifting INS, m; 0 = off");
+    v("coarse_search_step_m", c.coarse_search_step_m, "its step, m");
+    v("coarse_search_cell_m", c.coarse_search_cell_m, "its height-grid cell, m");
+    v("coarse_search_min_sigma_m",
+      c.coarse_search_min_sigma_m,
+      "searched when the INS 1-sigma exceeds this, m");
     v("min_section_link_pairs", c.min_section_link_pairs, "pairs needed to link two sections");
     v("bin_slices", c.bin_slices, "semi-rigid: slices per pose (1 = one pose per slice)");
     v("max_iterations", c.max_iterations, "semi-rigid iterations");
@@ -35,13 +52,22 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("query_stride", c.query_stride, "every n-th point of a slice is a query point");
     v("ins_correlation_time_s", c.ins_correlation_time_s, "INS error correlation time, s");
     v("ins_sigma_scale", c.ins_sigma_scale, "scales the INS relative-motion sigmas");
+    v("ins_sigma_recovery_time_s",
+      c.ins_sigma_recovery_time_s,
+      "the INS sigma is not believed to shrink faster, s");
+    v("drift_velocity_random_walk_mps_per_sqrt_s",
+      c.drift_velocity_random_walk_mps_per_sqrt_s,
+      "drift smoothness");
     v("min_relative_rotation_sigma_rad", c.min_relative_rotation_sigma_rad, "floor, rad");
     v("min_relative_translation_sigma_m", c.min_relative_translation_sigma_m, "floor, m");
     v("absolute_position_terms", c.absolute_position_terms, "GNSS/INS position prior per pose");
     v("absolute_attitude_terms", c.absolute_attitude_terms, "INS attitude prior per pose");
     v("absolute_sigma_scale", c.absolute_sigma_scale, "scales the absolute priors' sigmas");
-    v("score_cell_m", c.score_cell_m, "consistency score grid cell, m");
-    v("score_patience", c.score_patience, "stop after this many iterations without improvement");
+    v("score_cell_m", c.score_cell_m, "plane-fit consistency score grid cell (reported), m");
+    v("score_patience",
+      c.score_patience,
+      "stop after this many iterations without a better pair score");
+    v("score_tolerance", c.score_tolerance, "a gain counts above this fraction");
     v("num_threads", c.num_threads, "0 = all cores");
     v("sigma_max_age_s", s.sigma_max_age_s, "INS stddev records further from a ping are unused, s");
 }
@@ -80,7 +106,9 @@ void VisitRun(V&& v, RunOptions& r) {
 struct ReadVisitor {
     ConfigReader& in;
     template <class T>
-    void operator()(const char* key, T& value, const char*) { in.Read(key, value); }
+    void operator()(const char* key, T& value, const char*) {
+        in.Read(key, value);
+    }
 };
 
 struct PrintVisitor {
@@ -119,11 +147,11 @@ void ReadEnum(ConfigReader& in, const char* key, E& value, const E (&all)[N]) {
     in.AddProblem(in.Path(key) + ": '" + text + "' is not one of " + valid);
 }
 
-constexpr slam::CorrespondenceType kCorrespondences[] = {
-    slam::CorrespondenceType::kPointToPoint, slam::CorrespondenceType::kPointToPlane,
-    slam::CorrespondenceType::kGicp};
-constexpr slam::RobustKernel kKernels[] = {slam::RobustKernel::kNone, slam::RobustKernel::kHuber,
-                                           slam::RobustKernel::kCauchy};
+constexpr slam::CorrespondenceType kCorrespondences[] = {slam::CorrespondenceType::kPointToPoint,
+                                                         slam::CorrespondenceType::kPointToPlane,
+                                                         slam::CorrespondenceType::kGicp};
+constexpr slam::RobustKernel kKernels[] = {
+    slam::RobustKernel::kNone, slam::RobustKernel::kHuber, slam::RobustKernel::kCauchy};
 constexpr fusion::SensorModel kSensorModels[] = {fusion::SensorModel::kBeamWidth,
                                                  fusion::SensorModel::kRay};
 
@@ -131,18 +159,24 @@ constexpr fusion::SensorModel kSensorModels[] = {fusion::SensorModel::kBeamWidth
 
 const char* ToString(slam::CorrespondenceType t) {
     switch (t) {
-        case slam::CorrespondenceType::kPointToPoint: return "point_to_point";
-        case slam::CorrespondenceType::kPointToPlane: return "point_to_plane";
-        case slam::CorrespondenceType::kGicp: return "gicp";
+        case slam::CorrespondenceType::kPointToPoint:
+            return "point_to_point";
+        case slam::CorrespondenceType::kPointToPlane:
+            return "point_to_plane";
+        case slam::CorrespondenceType::kGicp:
+            return "gicp";
     }
     return "?";
 }
 
 const char* ToString(slam::RobustKernel k) {
     switch (k) {
-        case slam::RobustKernel::kNone: return "none";
-        case slam::RobustKernel::kHuber: return "huber";
-        case slam::RobustKernel::kCauchy: return "cauchy";
+        case slam::RobustKernel::kNone:
+            return "none";
+        case slam::RobustKernel::kHuber:
+            return "huber";
+        case slam::RobustKernel::kCauchy:
+            return "cauchy";
     }
     return "?";
 }

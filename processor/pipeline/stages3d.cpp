@@ -62,8 +62,9 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     const SlamStageConfig& sc = config.slam_stage;
     PoseSigma fallback;
     fallback << frames::DegToRad(sc.fallback_attitude_deg[0]),
-        frames::DegToRad(sc.fallback_attitude_deg[1]), frames::DegToRad(sc.fallback_attitude_deg[2]),
-        sc.fallback_position_m[0], sc.fallback_position_m[1], sc.fallback_position_m[2];
+        frames::DegToRad(sc.fallback_attitude_deg[1]),
+        frames::DegToRad(sc.fallback_attitude_deg[2]), sc.fallback_position_m[0],
+        sc.fallback_position_m[1], sc.fallback_position_m[2];
     SliceSet set = MakeSlices(s.geo, s.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
     std::size_t num_points = 0;
     for (const auto& sl : set.slices) num_points += sl.points_vehicle.size();
@@ -100,8 +101,10 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     std::error_code ec;
     const bool first_slam = !(s.summary.contains("stages") && s.summary["stages"].contains("slam"));
     if (first_slam && fs::exists(P + "/trajectory.csv")) {
-        fs::copy_file(P + "/trajectory.csv", P + "/trajectory_ins.csv",
-                      fs::copy_options::overwrite_existing, ec);
+        fs::copy_file(P + "/trajectory.csv",
+                      P + "/trajectory_ins.csv",
+                      fs::copy_options::overwrite_existing,
+                      ec);
         if (ec) return Error{P + "/trajectory_ins.csv: " + ec.message()};
     }
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
@@ -120,6 +123,10 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"pairs", r.num_pairs},
                {"rigid_iterations", r.rigid_iterations},
                {"semi_rigid_iterations", r.semi_rigid_iterations},
+               {"initial_pair_score_m", r.initial_pair_score_m},
+               {"final_pair_score_m", r.final_pair_score_m},
+               {"sections_searched", r.num_sections_searched},
+               {"sections_shifted", r.num_sections_shifted},
                {"initial_consistency_m", r.initial_consistency_m},
                {"final_consistency_m", r.final_consistency_m},
                {"position_change_rms_m", change_rms},
@@ -128,6 +135,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"robust_kernel", ToString(cfg.robust_kernel)},
                {"timings_s",
                 {{"trees", r.timings.trees_s},
+                 {"coarse_search", r.timings.coarse_search_s},
                  {"search", r.timings.search_s},
                  {"build", r.timings.build_s},
                  {"solve", r.timings.solve_s},
@@ -139,6 +147,10 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                                     {"iteration", it.iteration},
                                     {"num_pairs", it.num_pairs},
                                     {"cost", it.cost},
+                                    {"cost_after", it.cost_after},
+                                    {"rejected_steps", it.rejected_steps},
+                                    {"damping", it.damping},
+                                    {"pair_score_m", it.pair_score_m},
                                     {"pair_rms_m", it.pair_rms_m},
                                     {"consistency_m", it.consistency_m},
                                     {"max_step_rotation_rad", it.max_step_rotation_rad},
@@ -146,8 +158,9 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                                     {"best", it.best}});
     }
     log("slam: trajectory moved by " + Fixed(change_rms, 3) + " m RMS, " + Fixed(change_max, 3) +
-        " m at most; consistency " + Fixed(r.initial_consistency_m, 4) + " -> " +
-        Fixed(r.final_consistency_m, 4) + " m");
+        " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) + " -> " +
+        Fixed(r.final_pair_score_m, 4) + " m, consistency " + Fixed(r.initial_consistency_m, 4) +
+        " -> " + Fixed(r.final_consistency_m, 4) + " m");
     RecordStage(s.summary, "slam", st, clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
@@ -156,8 +169,10 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     return SaveSummary(s);
 }
 
-Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
-                                        const std::string& stage, const Log& log) {
+Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
+                                        const PipelineConfig& config,
+                                        const std::string& stage,
+                                        const Log& log) {
     StageClock clock;
     const std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.ingest.pings, s.mount);
     fusion::TsdfVolume volume(config.tsdf);
@@ -185,8 +200,8 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
                {"voxels_removed", wf.voxels_removed},
                {"active_voxels", vs.active_voxels},
                {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)},
-               {"weight_histogram", {{"edges", hist.edges}, {"counts", hist.counts},
-                                     {"before_filter", true}}}};
+               {"weight_histogram",
+                {{"edges", hist.edges}, {"counts", hist.counts}, {"before_filter", true}}}};
     if (stage == "fuse") {
         const std::vector<std::pair<std::string, std::string>> meta = {
             {"pitmap_origin_latitude_deg", Fixed(s.origin.latitude_deg, 9)},
@@ -201,16 +216,20 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
     return volume;
 }
 
-Status MeshSurvey(Survey& s, const fusion::TsdfVolume& volume, const PipelineConfig& config,
-                  const std::string& stage, const Log& log) {
+Status MeshSurvey(Survey& s,
+                  const fusion::TsdfVolume& volume,
+                  const PipelineConfig& config,
+                  const std::string& stage,
+                  const Log& log) {
     StageClock clock;
     const mesh::MeshResult m = mesh::RunMesh(volume, config.mesh);
     log(stage + ": " + m.message);
     const std::string& P = s.out_dir;
     const std::optional<Geodetic> origin = s.origin;
     if (stage == "mesh") {
-        for (const auto& [name, mm] : {std::pair<std::string, const mesh::ColouredMesh*>{"mesh", &m.mesh},
-                                       {"mesh_filled", &m.mesh_filled}}) {
+        for (const auto& [name, mm] :
+             {std::pair<std::string, const mesh::ColouredMesh*>{"mesh", &m.mesh},
+              {"mesh_filled", &m.mesh_filled}}) {
             if (auto w = mesh::WritePly(*mm, P + "/" + name + ".ply", origin); !w) return w;
             if (auto w = mesh::WriteObj(*mm, P + "/" + name + ".obj", origin); !w) return w;
             if (auto w = mesh::WriteGlb(*mm, P + "/" + name + ".glb", origin); !w) return w;
@@ -289,8 +308,8 @@ Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run
     s.out_dir = out_dir;
     s.summary = std::move(*summary);
     const json o = s.summary.value("world_origin", json::object());
-    s.origin = Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0),
-                        o.value("height_m", 0.0)};
+    s.origin = Geodetic{
+        o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
     return s;
 }
 
@@ -310,8 +329,10 @@ Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, 
     return detail::ReportSurvey(*s, config, log);
 }
 
-Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir,
-              const PipelineConfig& config, const Log& log) {
+Status RunAll(const std::vector<std::string>& inputs,
+              const std::string& out_dir,
+              const PipelineConfig& config,
+              const Log& log) {
     const auto start = std::chrono::steady_clock::now();
     detail::Survey s;
     s.out_dir = out_dir;
@@ -320,8 +341,8 @@ Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
             const json& c = s.summary["stages"]["calibrate"];
-            if (!c.is_object() || c.value("termination", "") !=
-                                      calib::ToString(calib::Termination::kNoOverlap)) {
+            if (!c.is_object() ||
+                c.value("termination", "") != calib::ToString(calib::Termination::kNoOverlap)) {
                 return st;
             }
             log("warning: " + st.error().message + "; keeping the mount of vehicle.yaml");

@@ -28,8 +28,10 @@ struct Survey {
 
 // Loads P/summary.json and P/ingest.cache and georeferences with the recorded mount; with
 // `apply_trajectory`, moves the pings onto P/trajectory.csv when a SLAM stage wrote it.
-Expected<Survey> LoadSurvey(const std::string& out_dir, const PipelineConfig& config,
-                            bool apply_trajectory, const Log& log);
+Expected<Survey> LoadSurvey(const std::string& out_dir,
+                            const PipelineConfig& config,
+                            bool apply_trajectory,
+                            const Log& log);
 
 // Wall time and memory of one stage. Start resets the kernel's resident-memory high-water mark
 // (/proc/self/clear_refs), so peak_rss_mb is the stage's own peak where the kernel allows it
@@ -46,31 +48,42 @@ private:
 
 // Records a stage in summary["stages"][name] (adding seconds and peak_rss_mb) and in
 // summary["stage_order"].
-void RecordStage(nlohmann::json& summary, const std::string& name, nlohmann::json stage,
+void RecordStage(nlohmann::json& summary,
+                 const std::string& name,
+                 nlohmann::json stage,
                  const StageClock& clock);
 
 nlohmann::json MountJson(const georef::SonarMount& m);
 Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
 
 // points.ply, points.las (when configured) and summary["utm"] for the current soundings.
-Status WritePoints(const std::string& dir, const georef::GeorefResult& geo,
-                   const PipelineConfig& c, nlohmann::json& summary);
+Status WritePoints(const std::string& dir,
+                   const georef::GeorefResult& geo,
+                   const PipelineConfig& c,
+                   nlohmann::json& summary);
 
 Status SaveSummary(const Survey& s);
 
 // The stages on a survey in memory (bodies of the Run*Stage functions and of RunAll).
-Status GeorefSurvey(Survey& s, const std::vector<std::string>& inputs,
-                    const PipelineConfig& config, const Log& log);
+Status GeorefSurvey(Survey& s,
+                    const std::vector<std::string>& inputs,
+                    const PipelineConfig& config,
+                    const Log& log);
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` names the
 // summary entry ("fuse", or "fuse_initial" for the mesh before SLAM).
-Expected<fusion::TsdfVolume> FuseSurvey(Survey& s, const PipelineConfig& config,
-                                        const std::string& stage, const Log& log);
+Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
+                                        const PipelineConfig& config,
+                                        const std::string& stage,
+                                        const Log& log);
 // Meshes a volume; "mesh" writes mesh.* and mesh_filled.*, "mesh_initial" only
 // mesh_initial.ply.
-Status MeshSurvey(Survey& s, const fusion::TsdfVolume& volume, const PipelineConfig& config,
-                  const std::string& stage, const Log& log);
+Status MeshSurvey(Survey& s,
+                  const fusion::TsdfVolume& volume,
+                  const PipelineConfig& config,
+                  const std::string& stage,
+                  const Log& log);
 Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 
 }  // namespace pitmap::proc::pipeline::detail

@@ -94,7 +94,8 @@ TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
     }
     EXPECT_EQ(i, s.geo.points.size());
     const SliceSet strided = MakeSlices(s.geo, nav, 4, 5.0, PoseSigma::Constant(0.01));
-    EXPECT_EQ(strided.slices[0].points_vehicle.size(), (set.slices[0].points_vehicle.size() + 3) / 4);
+    EXPECT_EQ(strided.slices[0].points_vehicle.size(),
+              (set.slices[0].points_vehicle.size() + 3) / 4);
 }
 
 TEST(Adapters, PoseSigmaComesFromTheNearestStddevRecord) {
@@ -125,13 +126,16 @@ TEST(Adapters, ScansReproduceTheSoundingsAndMarkDroppedBeams) {
     const Survey s = MakeSurvey(mount);
     const auto scans = MakeScans(s.geo, s.pings, mount);
     ASSERT_EQ(scans.size(), 4u);
-    for (const auto& scan : scans) ASSERT_EQ(scan.ranges_m.size(), static_cast<std::size_t>(kBeams));
+    for (const auto& scan : scans)
+        ASSERT_EQ(scan.ranges_m.size(), static_cast<std::size_t>(kBeams));
     for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
         const auto& scan = scans[s.geo.points.ping[i]];
         const int b = s.geo.points.beam[i];
-        const double theta = scan.start_angle_rad + b * static_cast<double>(scan.angle_increment_rad);
+        const double theta =
+            scan.start_angle_rad + b * static_cast<double>(scan.angle_increment_rad);
         const double r = scan.ranges_m[static_cast<std::size_t>(b)];
-        const Eigen::Vector3d p = scan.T_world_sonar * Eigen::Vector3d(0, r * std::sin(theta), r * std::cos(theta));
+        const Eigen::Vector3d p =
+            scan.T_world_sonar * Eigen::Vector3d(0, r * std::sin(theta), r * std::cos(theta));
         EXPECT_LT((p - s.geo.points.position_world[i]).norm(), 2e-4) << "point " << i;
     }
     EXPECT_EQ(scans[0].ranges_m[1], 0.0f) << "beam 1 has no sounding";
@@ -145,29 +149,39 @@ TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
     std::vector<Pose> poses;
     for (const auto& p : s.geo.pings) poses.push_back(p.T_world_vehicle);
     poses[1].translation() += Eigen::Vector3d(1.0, -2.0, 0.5);
-    poses[3].linear() = poses[3].linear() * Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    poses[3].linear() =
+        poses[3].linear() * Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     ApplyVehiclePoses(s.geo, poses, mount);
     for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
         const std::uint32_t k = s.geo.points.ping[i];
         const Eigen::Vector3d expected = poses[k] * before.geo.pings[k].T_world_vehicle.inverse() *
                                          before.geo.points.position_world[i];
         EXPECT_LT((s.geo.points.position_world[i] - expected).norm(), 1e-9);
-        if (k == 0) EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i]).norm(), 1e-9);
+        if (k == 0)
+            EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i]).norm(),
+                      1e-9);
         if (k == 1) {
             EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i] -
-                       Eigen::Vector3d(1.0, -2.0, 0.5)).norm(), 1e-9);
+                       Eigen::Vector3d(1.0, -2.0, 0.5))
+                          .norm(),
+                      1e-9);
         }
     }
     EXPECT_LT((s.geo.pings[1].sensor_world - before.geo.pings[1].sensor_world -
-               Eigen::Vector3d(1.0, -2.0, 0.5)).norm(), 1e-9);
+               Eigen::Vector3d(1.0, -2.0, 0.5))
+                  .norm(),
+              1e-9);
     // A scan made after the move still reproduces the moved soundings.
     const auto scans = MakeScans(s.geo, s.pings, mount);
     for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
         const auto& scan = scans[s.geo.points.ping[i]];
-        const double th = scan.start_angle_rad + s.geo.points.beam[i] * static_cast<double>(scan.angle_increment_rad);
+        const double th = scan.start_angle_rad +
+                          s.geo.points.beam[i] * static_cast<double>(scan.angle_increment_rad);
         const double r = s.geo.points.range_m[i];
         EXPECT_LT((scan.T_world_sonar * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th)) -
-                   s.geo.points.position_world[i]).norm(), 2e-4);
+                   s.geo.points.position_world[i])
+                      .norm(),
+                  2e-4);
     }
 }
 
@@ -188,7 +202,8 @@ TEST(Adapters, PosesAtPingsMatchesInterpolatesAndCountsPingsOutside) {
         << "GPS seconds near 1.4e9 carry ~0.2 us";
     EXPECT_NEAR(Eigen::AngleAxisd(r.T_world_vehicle[1].linear()).angle(), 0.1, 1e-6);
     EXPECT_LT((r.T_world_vehicle[2].translation() - b.translation()).norm(), 1e-12);
-    EXPECT_TRUE(r.T_world_vehicle[3].isApprox(s.geo.pings[3].T_world_vehicle)) << "outside keeps its pose";
+    EXPECT_TRUE(r.T_world_vehicle[3].isApprox(s.geo.pings[3].T_world_vehicle))
+        << "outside keeps its pose";
 }
 
 class TrajectoryCsv : public ::testing::Test {
@@ -212,9 +227,13 @@ TEST_F(TrajectoryCsv, RoundTripsToSubMillimetre) {
     ASSERT_EQ(back->gps_time_s.size(), t.gps_time_s.size());
     for (std::size_t i = 0; i < t.gps_time_s.size(); ++i) {
         EXPECT_NEAR(back->gps_time_s[i], t.gps_time_s[i], 1e-6);
-        EXPECT_LT((back->T_world_vehicle[i].translation() - t.T_world_vehicle[i].translation()).norm(), 2e-5);
+        EXPECT_LT(
+            (back->T_world_vehicle[i].translation() - t.T_world_vehicle[i].translation()).norm(),
+            2e-5);
         EXPECT_LT(Eigen::AngleAxisd(back->T_world_vehicle[i].linear().transpose() *
-                                    t.T_world_vehicle[i].linear()).angle(), 1e-6);
+                                    t.T_world_vehicle[i].linear())
+                      .angle(),
+                  1e-6);
     }
 }
 
@@ -228,7 +247,8 @@ TEST_F(TrajectoryCsv, MalformedFilesAreErrorsNamingTheLine) {
                         << "1.0,0,0,0,0,0,0\n0.5,0,0,0,0,0,0\n";
     r = ReadTrajectoryCsv(path);
     ASSERT_FALSE(r.ok());
-    EXPECT_NE(r.error().message.find(":3: times not increasing"), std::string::npos) << r.error().message;
+    EXPECT_NE(r.error().message.find(":3: times not increasing"), std::string::npos)
+        << r.error().message;
     std::ofstream(path) << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n1.0,0,nan,0,0,0,0\n";
     EXPECT_FALSE(ReadTrajectoryCsv(path).ok());
     EXPECT_FALSE(ReadTrajectoryCsv((dir_ / "missing.csv").string()).ok());
