@@ -157,9 +157,10 @@ TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
         const Eigen::Vector3d expected = poses[k] * before.geo.pings[k].T_world_vehicle.inverse() *
                                          before.geo.points.position_world[i];
         EXPECT_LT((s.geo.points.position_world[i] - expected).norm(), 1e-9);
-        if (k == 0)
+        if (k == 0) {
             EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i]).norm(),
                       1e-9);
+        }
         if (k == 1) {
             EXPECT_LT((s.geo.points.position_world[i] - before.geo.points.position_world[i] -
                        Eigen::Vector3d(1.0, -2.0, 0.5))
