@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -270,7 +271,8 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         return Error{"report: cannot start " + program};
     }
     int status = 0;
-    while (::waitpid(pid, &status, 0) < 0) {
+    struct rusage usage {};
+    while (::wait4(pid, &status, 0, &usage) < 0) {
         if (errno != EINTR) return Error{"report: lost " + program};
     }
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
@@ -279,6 +281,8 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     log("report: " + s.out_dir + "/report.html");
     RecordStage(s.summary, "report", {{"file", "report.html"}}, clock);
+    // The work is the child's: its own high-water mark (ru_maxrss, kB).
+    s.summary["stages"]["report"]["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
     return SaveSummary(s);
 }
 
