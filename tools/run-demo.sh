@@ -38,6 +38,7 @@ fi
 
 if [[ -x $bin/pitmap-sim && -x $bin/pitmap-acqd ]]; then
   step "simulated survey 'demo' through the real daemon"
+  rm -rf "$out/sim" "$out/products"   # the demo's own output of an earlier run
   "$bin/pitmap-sim" hil --scenario demo --out "$out/sim" --acqd "$bin/pitmap-acqd"
 else
   [[ -x $bin/pitmap-acqd ]] || missing+=("pitmap-acqd (acquisition daemon, issue 4)")
