@@ -29,6 +29,7 @@ step() { echo; echo "=== run-demo: $*"; }
 if [[ -x $bin/pitmap-inspect ]]; then
   step "checking the real NovAtel captures with pitmap-inspect"
   for f in "$root"/tests/data/novatel/*; do
+    [[ -f $f ]] || continue
     case "$f" in *.md|*.json) continue ;; esac
     "$bin/pitmap-inspect" "$f" | head -n 4
   done
