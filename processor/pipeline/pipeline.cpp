@@ -130,8 +130,24 @@ Expected<georef::SonarMount> MountFromJson(const json& m) {
     return mount;
 }
 
-Status WritePoints(const std::string& dir, const georef::GeorefResult& geo,
-                   const PipelineConfig& c, json& summary) {
+Expected<Geodetic> OriginFromJson(const json& summary) {
+    if (!summary.is_object() || !summary.contains("world_origin")) {
+        return Error{"no world_origin"};
+    }
+    try {
+        const json& o = summary.at("world_origin");
+        return Geodetic{o.at("latitude_deg").get<double>(),
+                        o.at("longitude_deg").get<double>(),
+                        o.at("height_m").get<double>()};
+    } catch (const std::exception& e) {
+        return Error{std::string("malformed world_origin: ") + e.what()};
+    }
+}
+
+Status WritePoints(const std::string& dir,
+                   const georef::GeorefResult& geo,
+                   const PipelineConfig& c,
+                   json& summary) {
     if (auto s = io::WritePly(dir + "/points.ply", geo); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
@@ -146,22 +162,25 @@ Status SaveSummary(const Survey& s) {
     return io::WriteJsonFile(s.out_dir + "/summary.json", s.summary);
 }
 
-Expected<Survey> LoadSurvey(const std::string& out_dir, const PipelineConfig& config,
-                            bool apply_trajectory, const Log& log) {
+Expected<Survey> LoadSurvey(const std::string& out_dir,
+                            const PipelineConfig& config,
+                            bool apply_trajectory,
+                            const Log& log) {
     Survey s;
     s.out_dir = out_dir;
     auto summary = io::ReadJsonFile(out_dir + "/summary.json");
     if (!summary) return Error{summary.error().message + " (run `pitmap georef` first)"};
     s.summary = std::move(*summary);
-    if (!s.summary.contains("world_origin") || !s.summary.contains("mount")) {
+    if (!s.summary.is_object() || !s.summary.contains("world_origin") ||
+        !s.summary.contains("mount")) {
         return Error{out_dir + "/summary.json: no world_origin/mount (run `pitmap georef` first)"};
     }
     auto mount = MountFromJson(s.summary["mount"]);
     if (!mount) return Error{out_dir + "/summary.json: " + mount.error().message};
     s.mount = *mount;
-    const json& o = s.summary["world_origin"];
-    s.origin = Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0),
-                        o.value("height_m", 0.0)};
+    auto origin = OriginFromJson(s.summary);
+    if (!origin) return Error{out_dir + "/summary.json: " + origin.error().message};
+    s.origin = *origin;
     auto ing = io::ReadIngestCache(out_dir + "/ingest.cache");
     if (!ing) return ing.error();
     s.ingest = std::move(*ing);
@@ -212,9 +231,13 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
                                 {"rms_after_m", v.after.rms_m},
                                 {"pairs", v.after.pairs}});
         char buf[160];
-        std::snprintf(buf, sizeof(buf),
+        std::snprintf(buf,
+                      sizeof(buf),
                       "verify %.1f..%.1f s: residual RMS %.4f -> %.4f m (%lld pairs)",
-                      v.segment.start_s, v.segment.end_s, v.before.rms_m, v.after.rms_m,
+                      v.segment.start_s,
+                      v.segment.end_s,
+                      v.before.rms_m,
+                      v.after.rms_m,
                       static_cast<long long>(v.after.pairs));
         log(buf);
     }
@@ -235,7 +258,9 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
 }
 
 // inputs -> ingest -> georef -> products; the survey stays in memory for later stages.
-Status GeorefSurvey(Survey& s, const std::vector<std::string>& inputs, const PipelineConfig& config,
+Status GeorefSurvey(Survey& s,
+                    const std::vector<std::string>& inputs,
+                    const PipelineConfig& config,
                     const Log& log) {
     const std::string& out_dir = s.out_dir;
     std::error_code ec;
@@ -296,8 +321,8 @@ Status GeorefSurvey(Survey& s, const std::vector<std::string>& inputs, const Pip
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter gbar("georef", 1000);
-    s.geo = georef::RunGeoref(s.ingest.nav, s.ingest.pings, s.mount, config.georef, origin,
-                              gbar.AsCallback());
+    s.geo = georef::RunGeoref(
+        s.ingest.nav, s.ingest.pings, s.mount, config.georef, origin, gbar.AsCallback());
     gbar.Finish();
     log("georef: " + s.geo.message);
     s.origin = s.geo.world_origin;
@@ -317,9 +342,17 @@ Status GeorefSurvey(Survey& s, const std::vector<std::string>& inputs, const Pip
         return st;
     if (auto st = io::WriteIngestCache(out_dir + "/ingest.cache", s.ingest); !st) return st;
     // Products of later stages made from an earlier georeference would now be stale.
-    for (const char* stale : {"trajectory_initial.csv", "trajectory_ins.csv", "points_initial.ply",
-                              "tsdf.vdb", "mesh.ply", "mesh.obj", "mesh.glb", "mesh_filled.ply",
-                              "mesh_filled.obj", "mesh_filled.glb", "mesh_initial.ply",
+    for (const char* stale : {"trajectory_initial.csv",
+                              "trajectory_ins.csv",
+                              "points_initial.ply",
+                              "tsdf.vdb",
+                              "mesh.ply",
+                              "mesh.obj",
+                              "mesh.glb",
+                              "mesh_filled.ply",
+                              "mesh_filled.obj",
+                              "mesh_filled.glb",
+                              "mesh_initial.ply",
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }
@@ -356,8 +389,10 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     return o.str();
 }
 
-Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string& out_dir,
-                      const PipelineConfig& config, const Log& log) {
+Status RunGeorefStage(const std::vector<std::string>& inputs,
+                      const std::string& out_dir,
+                      const PipelineConfig& config,
+                      const Log& log) {
     detail::Survey s;
     s.out_dir = out_dir;
     return detail::GeorefSurvey(s, inputs, config, log);

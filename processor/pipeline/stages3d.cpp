@@ -311,9 +311,12 @@ Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run
     detail::Survey s;
     s.out_dir = out_dir;
     s.summary = std::move(*summary);
-    const json o = s.summary.value("world_origin", json::object());
-    s.origin = Geodetic{
-        o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
+    auto origin = detail::OriginFromJson(s.summary);
+    if (!origin) {
+        return Error{out_dir + "/summary.json: " + origin.error().message + " (run `pitmap " +
+                     run_first + "` first)"};
+    }
+    s.origin = *origin;
     return s;
 }
 

@@ -55,6 +55,8 @@ void RecordStage(nlohmann::json& summary,
 
 nlohmann::json MountJson(const georef::SonarMount& m);
 Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
+// summary["world_origin"] {latitude_deg, longitude_deg, height_m}; an error names what is wrong.
+Expected<Geodetic> OriginFromJson(const nlohmann::json& summary);
 
 // points.ply, points.las (when configured) and summary["utm"] for the current soundings.
 Status WritePoints(const std::string& dir,

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <sys/wait.h>
 #include <unistd.h>
 #include <cmath>
 #include <cstdio>
@@ -332,6 +333,24 @@ TEST(PipelineCli, StagesOnAFolderWithoutTheirInputsSayWhatToRunFirst) {
         EXPECT_EQ(RunCommand(kBin + "/pitmap " + stage + " --out " + Quote(p), &out) != 0, true)
             << stage;
         EXPECT_NE(out.find("first"), std::string::npos) << stage << ": " << out;
+    }
+    fs::remove_all(p);
+}
+
+TEST(PipelineCli, AMalformedSummaryIsAClearErrorNotACrash) {
+    const fs::path p = fs::temp_directory_path() / ("pitmap_badsum_" + std::to_string(::getpid()));
+    fs::create_directories(p);
+    for (const char* text : {"[1, 2]", "{\"world_origin\": 5, \"mount\": {}}",
+                             "{\"world_origin\": {\"latitude_deg\": \"x\"}}", "{\"trunc"}) {
+        std::ofstream(p / "summary.json") << text;
+        for (const char* stage : {"slam", "mesh", "report"}) {
+            std::string out;
+            const int status = RunCommand(kBin + "/pitmap " + stage + " --out " + Quote(p), &out);
+            EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+                << stage << " on " << text << ": " << out;
+            EXPECT_NE(out.find("summary.json"), std::string::npos) << stage << ": " << out;
+            EXPECT_EQ(out.find("internal error"), std::string::npos) << stage << ": " << out;
+        }
     }
     fs::remove_all(p);
 }
