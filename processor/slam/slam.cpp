@@ -42,8 +42,33 @@ struct Input {
     Vector6d sigma_floor = Vector6d::Zero();  // smallest sigma of the survey, per component
     std::vector<std::size_t> offset;       // first point of each slice in `points`
     std::vector<Eigen::Vector3f> points;   // vehicle frame, finite only
+    // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
+    // there, so no correction is interpolated across them (sections and bins start there).
+    std::vector<std::size_t> breaks;
     std::size_t num_slices() const { return t_s.size(); }
+    bool IsBreak(std::size_t s) const { return std::binary_search(breaks.begin(), breaks.end(), s); }
 };
+
+// GNSS recoveries: the reported horizontal 1-sigma falls below half its largest value of the
+// previous kBreakWindowS, from above min_sigma_m (one break per kBreakWindowS at most).
+constexpr double kBreakWindowS = 2.0;
+constexpr double kBreakFirstSectionS = 1.0;  // first section after a recovery
+std::vector<std::size_t> FindBreaks(const std::vector<double>& t_s,
+                                    const std::vector<Vector6d>& reported, double min_sigma_m) {
+    std::vector<std::size_t> breaks;
+    std::size_t w0 = 0;
+    for (std::size_t s = 1; s < t_s.size(); ++s) {
+        while (t_s[w0] < t_s[s] - kBreakWindowS) ++w0;
+        double peak = 0;
+        for (std::size_t k = w0; k < s; ++k) {
+            peak = std::max(peak, std::max(reported[k](3), reported[k](4)));
+        }
+        const double now = std::max(reported[s](3), reported[s](4));
+        const bool recent = !breaks.empty() && t_s[breaks.back()] > t_s[s] - kBreakWindowS;
+        if (peak > min_sigma_m && now < 0.5 * peak && !recent) breaks.push_back(s);
+    }
+    return breaks;
+}
 
 bool FinitePose(const Pose& T) { return T.matrix().allFinite(); }
 
@@ -127,10 +152,17 @@ struct Block {
 std::vector<Block> MakeBlocks(const Input& in, double length_s) {
     std::vector<Block> blocks;
     std::size_t s = 0;
+    double t_break = -std::numeric_limits<double>::infinity();
     while (s < in.num_slices()) {
         Block b;
-        b.s0 = s;
-        while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + length_s) ++s;
+        if (in.IsBreak(s)) t_break = in.t_s[s];
+        b.s0 = s++;
+        // After a GNSS recovery the INS error falls within seconds: sections of 1, 1, 2, 4, 8 s
+        // there (doubling up to length_s), so that the rigid stage can follow the fall.
+        const double since = in.t_s[b.s0] - t_break;
+        const double len = since < length_s ? std::clamp(since, kBreakFirstSectionS, length_s)
+                                            : length_s;
+        while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + len && !in.IsBreak(s)) ++s;
         b.s1 = s;
         b.p0 = in.offset[b.s0];
         b.p1 = in.offset[b.s1];
@@ -583,24 +615,36 @@ private:
 
 // ---- coarse horizontal search -----------------------------------------------------------------
 
-// For every section whose INS horizontal 1-sigma exceeds coarse_search_min_sigma_m: the
-// horizontal offset (within min(coarse_search_m, 3 sigma), on a coarse_search_step_m grid) that
-// best fits its points to a height grid of the sections the INS is sure about, the vertical
-// offset taken as the median height difference. Score: mean |dz - median dz| over the points
-// that fall on the grid, among offsets that see at least half the best coverage. Closest-point
-// matching alone creeps towards offsets of several metres along smooth terrain (each step is
-// bounded by the closest-point distances); this puts the sections inside its capture range.
-// Returns the world translation per section (zero where not searched or not overlapping).
+// For every section whose INS horizontal 1-sigma exceeds coarse_search_min_sigma_m: how well
+// each horizontal offset (within coarse_search_m, on a coarse_search_step_m grid) fits its
+// points to a height grid of the sections the INS is sure about, the vertical offset taken as
+// the median height difference. Score: mean |dz - median dz| over the points that fall on the
+// grid (inside a cell's own extent: no extrapolation past swath edges), plus the INS prior on
+// the offset, among offsets that see enough of the grid. The offsets of a run of such sections
+// are then chosen together under the INS drift model (see below). Closest-point matching alone
+// creeps towards offsets of several metres along smooth terrain (each step is bounded by the
+// closest-point distances); this puts the sections inside its capture range.
+// Returns the world translation per section (zero where not searched).
 constexpr double kCoarseScoreUnitM = 0.01;  // fit score unit against the smoothness terms
 constexpr double kInfeasible = 1e30;
+constexpr double kCoarseExtentMarginM = 0.25;
+// Offsets whose points fall on the grid less than this fraction of the best offset's are out (a
+// fit on a few points). Not more: a section at the survey's edge overlaps the others only
+// partly at its true place, and a larger fraction pushes it inwards.
+constexpr double kCoarseMinCoverFraction = 0.25;
+constexpr double kCoarseTemperature = 2.0;    // score units (cm of mean deviation)
+constexpr double kCoarseMinDriftRw = 0.003;   // m/s/sqrt(s), when the drift term is off
+constexpr int kCoarseRefinements = 3;
+constexpr double kCoarseWindowSigmas = 3.0;
+constexpr double kCoarseMinWindowM = 1.5;
 
 std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vector<Pose>& T,
                                                  const std::vector<Block>& blocks,
-                                                 const SlamConfig& cfg, std::size_t* searched,
-                                                 std::size_t* shifted) {
+                                                 const SlamConfig& cfg,
+                                                 std::vector<SlamSection>* sections) {
     const std::size_t nb = blocks.size();
     std::vector<Eigen::Vector3d> offset(nb, Eigen::Vector3d::Zero());
-    *searched = *shifted = 0;
+    sections->resize(nb);
     // A section's sigma: the median over its slices (a section where GNSS returns is mostly
     // pulled back already).
     std::vector<double> sigma_h(nb, 0.0);
@@ -612,6 +656,8 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
         std::nth_element(sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2),
                          sg.end());
         sigma_h[b] = sg[sg.size() / 2];
+        (*sections)[b].sigma_h_m = sigma_h[b];
+        (*sections)[b].searched = sigma_h[b] > cfg.coarse_search_min_sigma_m;
     }
     const double h = cfg.coarse_search_cell_m;
     const double trunc = 0.5 * h;  // deviations beyond half a cell count as a miss
@@ -621,7 +667,15 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
         Eigen::Vector3d b = Eigen::Vector3d::Zero();
         Eigen::Vector3d c = Eigen::Vector3d::Zero();
         double xc = 0, yc = 0;
+        // Extent of the cell's points: a point outside it (beyond kCoarseExtentMarginM) is off
+        // the grid rather than an extrapolation of the plane (the grid's edges are swath edges).
+        double x0 = std::numeric_limits<double>::max(), x1 = std::numeric_limits<double>::lowest();
+        double y0 = std::numeric_limits<double>::max(), y1 = std::numeric_limits<double>::lowest();
         int n = 0;
+        bool Covers(double x, double y) const {
+            return x >= x0 - kCoarseExtentMarginM && x <= x1 + kCoarseExtentMarginM &&
+                   y >= y0 - kCoarseExtentMarginM && y <= y1 + kCoarseExtentMarginM;
+        }
     };
     auto cell_of = [h](double x, double y) {
         return std::pair{static_cast<std::int64_t>(std::floor(x / h)),
@@ -648,6 +702,10 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
                 const Eigen::Vector3d u(1.0, p.x() - c.xc, p.y() - c.yc);
                 c.A += u * u.transpose();
                 c.b += u * p.z();
+                c.x0 = std::min(c.x0, p.x());
+                c.x1 = std::max(c.x1, p.x());
+                c.y0 = std::min(c.y0, p.y());
+                c.y1 = std::max(c.y1, p.y());
                 ++c.n;
             }
         }
@@ -663,17 +721,17 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
     }
     if (grid.empty()) return offset;
     // One grid of candidate offsets for every searched section.
-    const int m = static_cast<int>(std::floor(cfg.coarse_search_m / cfg.coarse_search_step_m));
-    const int side = 2 * m + 1;
+    const long m_steps = std::lround(std::floor(cfg.coarse_search_m / cfg.coarse_search_step_m));
+    const long side = 2 * m_steps + 1;
     const auto nc = static_cast<std::size_t>(side * side);
     auto cand = [&](std::size_t c) {
-        return Eigen::Vector2d((static_cast<int>(c) % side - m) * cfg.coarse_search_step_m,
-                               (static_cast<int>(c) / side - m) * cfg.coarse_search_step_m);
+        const auto i = static_cast<long>(c);
+        return Eigen::Vector2d(static_cast<double>(i % side - m_steps) * cfg.coarse_search_step_m,
+                               static_cast<double>(i / side - m_steps) * cfg.coarse_search_step_m);
     };
     std::vector<std::vector<double>> data(nb), median(nb);
     for (std::size_t b = 0; b < nb; ++b) {
         if (sigma_h[b] <= cfg.coarse_search_min_sigma_m) continue;
-        ++*searched;
         // At most ~2000 points of the section, spread over its slices.
         const std::size_t np = blocks[b].p1 - blocks[b].p0;
         const std::size_t stride = std::max<std::size_t>(1, np / 2000);
@@ -694,7 +752,7 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
             for (const Eigen::Vector3d& p : pts) {
                 const double x = p.x() + o.x(), y = p.y() + o.y();
                 const auto it = grid.find(key(x, y));
-                if (it == grid.end()) continue;
+                if (it == grid.end() || !it->second.Covers(x, y)) continue;
                 const Cell& g = it->second;
                 dz.push_back(g.c(0) + g.c(1) * (x - g.xc) + g.c(2) * (y - g.yc) - p.z());
             }
@@ -721,67 +779,140 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
             continue;
         }
         for (std::size_t c = 0; c < nc; ++c) {
-            if (2 * cover[c] < max_cover) data[b][c] = kInfeasible;
+            if (static_cast<double>(cover[c]) < kCoarseMinCoverFraction * static_cast<double>(max_cover)) {
+                data[b][c] = kInfeasible;
+            }
         }
     }
-    // Runs of consecutive searched sections: the offsets along a run by dynamic programming, so
-    // that offsets change between neighbours by about the change of the INS sigma (drift grows
-    // smoothly) and a run starts and ends near its unsearched (zero-offset) neighbours.
-    auto step_sigma = [&](double s0, double s1) {
-        return std::max(cfg.coarse_search_step_m, 2.0 * std::abs(s1 - s0));
+    // Runs of consecutive searched sections, smoothed jointly. Each section's fit surface is
+    // summarised as a Gaussian (the mean and covariance of exp(-score / kCoarseTemperature) over
+    // its feasible offsets: an along-track valley gives a long axis); the offsets along the run
+    // then minimise those terms plus the INS drift model (the velocity error is a random walk, as
+    // in the semi-rigid drift term, loosened where the sigma falls) plus a zero offset with the
+    // INS sigma at the trusted sections on either side. The summaries are taken again within
+    // kCoarseWindowSigmas of the smoothed offsets (kCoarseRefinements times), so that a section
+    // with two candidate places takes the one its neighbours agree with. Searched sections that
+    // did not overlap the grid are carried by their neighbours.
+    const double q = std::max(cfg.drift_velocity_random_walk_mps_per_sqrt_s, kCoarseMinDriftRw);
+    const double cell_var = cfg.coarse_search_step_m * cfg.coarse_search_step_m / 12.0;
+    auto summarise = [&](std::size_t k, const Eigen::Vector2d& centre, double radius,
+                         Eigen::Vector2d* mu, Eigen::Matrix2d* cov) {
+        double best = kInfeasible;
+        for (std::size_t c = 0; c < nc; ++c) {
+            if ((cand(c) - centre).norm() <= radius) best = std::min(best, data[k][c]);
+        }
+        if (best >= kInfeasible) return false;
+        double w_sum = 0;
+        Eigen::Vector2d m = Eigen::Vector2d::Zero();
+        Eigen::Matrix2d s2 = Eigen::Matrix2d::Zero();
+        for (std::size_t c = 0; c < nc; ++c) {
+            if (data[k][c] >= kInfeasible || (cand(c) - centre).norm() > radius) continue;
+            const double w = std::exp(-(data[k][c] - best) / kCoarseTemperature);
+            w_sum += w;
+            m += w * cand(c);
+            s2 += w * cand(c) * cand(c).transpose();
+        }
+        *mu = m / w_sum;
+        *cov = s2 / w_sum - *mu * mu->transpose() + cell_var * Eigen::Matrix2d::Identity();
+        return true;
     };
     std::size_t b = 0;
     while (b < nb) {
-        if (data[b].empty()) {
+        if (!(*sections)[b].searched) {
             ++b;
             continue;
         }
         std::size_t e = b;
-        while (e < nb && !data[e].empty()) ++e;  // run [b, e)
-        std::vector<std::vector<double>> cost(e - b);
-        std::vector<std::vector<std::uint32_t>> from(e - b);
-        const double s_before = b > 0 ? sigma_h[b - 1] : 0.0;
-        for (std::size_t k = b; k < e; ++k) {
-            std::vector<double>& ck = cost[k - b];
-            ck = data[k];
-            from[k - b].assign(nc, 0);
-            if (k == b) {
-                const double st = step_sigma(s_before, sigma_h[k]);
-                for (std::size_t c = 0; c < nc; ++c) {
-                    ck[c] += 0.5 * cand(c).squaredNorm() / (st * st);
+        while (e < nb && (*sections)[e].searched) ++e;  // run [b, e)
+        // Unknowns: the run and its trusted neighbours (offset 0 within their sigma).
+        const std::size_t first = b > 0 ? b - 1 : b, last = e < nb ? e : e - 1;
+        const std::size_t m = last - first + 1;
+        auto centre_t = [&](std::size_t k) { return 0.5 * (blocks[k].t0 + blocks[k].t1); };
+        std::vector<Eigen::Vector2d> mu(m, Eigen::Vector2d::Zero()), smooth(m);
+        std::vector<Eigen::Matrix2d> info(m, Eigen::Matrix2d::Zero());
+        std::vector<Eigen::Matrix2d> post(m, Eigen::Matrix2d::Identity() * 1e6);
+        bool any = false;
+        for (int pass = 0; pass <= kCoarseRefinements; ++pass) {
+            any = false;
+            for (std::size_t i = 0; i < m; ++i) {
+                const std::size_t k = first + i;
+                info[i].setZero();
+                mu[i].setZero();
+                if (!(*sections)[k].searched) {
+                    info[i] = Eigen::Matrix2d::Identity() /
+                              std::max(sigma_h[k] * sigma_h[k], cell_var);
+                    continue;
                 }
-                continue;
+                if (data[k].empty()) continue;
+                Eigen::Vector2d c0 = Eigen::Vector2d::Zero();
+                double radius = std::numeric_limits<double>::infinity();
+                if (pass > 0) {
+                    c0 = smooth[i];
+                    const double sd = std::sqrt(post[i].eigenvalues().real().maxCoeff());
+                    radius = std::max(kCoarseMinWindowM, kCoarseWindowSigmas * sd);
+                }
+                Eigen::Matrix2d cov;
+                if (!summarise(k, c0, radius, &mu[i], &cov)) continue;
+                info[i] = cov.inverse();
+                any = true;
             }
-            const double st = step_sigma(sigma_h[k - 1], sigma_h[k]);
-            const std::vector<double>& prev = cost[k - b - 1];
-            tbb::parallel_for(std::size_t{0}, nc, [&](std::size_t c) {
-                const Eigen::Vector2d oc = cand(c);
-                double best = std::numeric_limits<double>::max();
-                std::uint32_t arg = 0;
-                for (std::size_t i = 0; i < nc; ++i) {
-                    const double v = prev[i] + 0.5 * (oc - cand(i)).squaredNorm() / (st * st);
-                    if (v < best) {
-                        best = v;
-                        arg = static_cast<std::uint32_t>(i);
+            if (!any) break;
+            // Normal equations of the run (2 m unknowns, dense: runs are short).
+            Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2 * m, 2 * m);
+            Eigen::VectorXd g = Eigen::VectorXd::Zero(2 * m);
+            for (std::size_t i = 0; i < m; ++i) {
+                const auto r = static_cast<Eigen::Index>(2 * i);
+                H.block<2, 2>(r, r) += info[i];
+                g.segment<2>(r) += info[i] * mu[i];
+            }
+            for (std::size_t i = 1; i + 1 < m; ++i) {
+                const std::size_t k = first + i;
+                const double d0 = std::max(centre_t(k) - centre_t(k - 1), 1e-3);
+                const double d1 = std::max(centre_t(k + 1) - centre_t(k), 1e-3);
+                const double dm = 0.5 * (d0 + d1);
+                // The velocity error changes by about the change of the sigma's growth rate
+                // where that is larger (a GNSS outage starting or ending).
+                const double bend =
+                    std::abs((sigma_h[k + 1] - sigma_h[k]) / d1 - (sigma_h[k] - sigma_h[k - 1]) / d0);
+                const double w = 1.0 / (q * q * dm + bend * bend);
+                // r = o_{i+1} / d1 - o_i (1/d0 + 1/d1) + o_{i-1} / d0, per axis.
+                const double c[3] = {1.0 / d0, -(1.0 / d0 + 1.0 / d1), 1.0 / d1};
+                for (int u = 0; u < 3; ++u) {
+                    for (int v = 0; v < 3; ++v) {
+                        const auto ru = static_cast<Eigen::Index>(2 * (i - 1 + u));
+                        const auto rv = static_cast<Eigen::Index>(2 * (i - 1 + v));
+                        H.block<2, 2>(ru, rv) += w * c[u] * c[v] * Eigen::Matrix2d::Identity();
                     }
                 }
-                ck[c] += best;
-                from[k - b][c] = arg;
-            });
+            }
+            H.diagonal().array() += 1e-9;
+            const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
+            const Eigen::VectorXd x = ldlt.solve(g);
+            const Eigen::MatrixXd P = ldlt.solve(Eigen::MatrixXd::Identity(2 * m, 2 * m));
+            for (std::size_t i = 0; i < m; ++i) {
+                const auto r = static_cast<Eigen::Index>(2 * i);
+                smooth[i] = x.segment<2>(r);
+                post[i] = P.block<2, 2>(r, r);
+            }
         }
-        const double s_after = e < nb ? sigma_h[e] : 0.0;
-        std::vector<double>& last = cost[e - b - 1];
-        if (e < nb) {
-            const double st = step_sigma(sigma_h[e - 1], s_after);
-            for (std::size_t c = 0; c < nc; ++c) last[c] += 0.5 * cand(c).squaredNorm() / (st * st);
-        }
-        std::size_t c = static_cast<std::size_t>(
-            std::min_element(last.begin(), last.end()) - last.begin());
-        for (std::size_t k = e; k-- > b;) {
-            const Eigen::Vector2d o = cand(c);
-            offset[k] = Eigen::Vector3d(o.x(), o.y(), median[k][c]);
-            ++*shifted;
-            c = from[k - b][c];
+        if (any) {
+            for (std::size_t k = b; k < e; ++k) {
+                const Eigen::Vector2d o = smooth[k - first];
+                double dz = 0;
+                if (!data[k].empty()) {
+                    // The vertical offset of the nearest candidate.
+                    const auto ix = std::clamp<long>(std::lround(o.x() / cfg.coarse_search_step_m), -m_steps, m_steps);
+                    const auto iy = std::clamp<long>(std::lround(o.y() / cfg.coarse_search_step_m), -m_steps, m_steps);
+                    dz = median[k][static_cast<std::size_t>((iy + m_steps) * side + ix + m_steps)];
+                } else {
+                    // No overlap: the vertical offset interpolated like the horizontal one is
+                    // not known; keep the INS height.
+                    dz = 0;
+                }
+                offset[k] = Eigen::Vector3d(o.x(), o.y(), dz);
+                (*sections)[k].shifted = true;
+                (*sections)[k].coarse_offset_m = offset[k];
+            }
         }
         b = e;
     }
@@ -1214,6 +1345,7 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
         in.offset.push_back(in.points.size());
     }
     const std::size_t ns = in.num_slices();
+    in.breaks = FindBreaks(in.t_s, in.sigma, cfg.coarse_search_min_sigma_m);
     in.sigma_floor = in.sigma.front();
     for (const Vector6d& sg : in.sigma) in.sigma_floor = in.sigma_floor.cwiseMin(sg);
     if (cfg.ins_sigma_recovery_time_s > 0) {
@@ -1230,6 +1362,11 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
         for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) slice_block[s] = b;
     }
     res.num_sections = blocks.size();
+    res.sections.resize(blocks.size());
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+        res.sections[b].t0_s = blocks[b].t0;
+        res.sections[b].t1_s = blocks[b].t1;
+    }
 
     auto t0 = Clock::now();
     res.initial_consistency_m = ConsistencyScore(in, in.T_ins, cfg);
@@ -1244,8 +1381,12 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     rigid.termination = SlamTermination::kConverged;
     if (cfg.rigid_iterations > 0) {
         std::vector<std::size_t> nodes;
+        // Interpolated: a node at each section centre, but at the start of a section that
+        // starts at a GNSS recovery (the INS error is continuous there, its rate is not).
         for (const Block& b : blocks) {
-            nodes.push_back(cfg.rigid_interpolate_sections ? (b.s0 + b.s1 - 1) / 2 : b.s0);
+            nodes.push_back(cfg.rigid_interpolate_sections && !in.IsBreak(b.s0)
+                                ? (b.s0 + b.s1 - 1) / 2
+                                : b.s0);
         }
         Param p = MakeParam(current, nodes);
         for (std::size_t b = 0; b < blocks.size(); ++b) {
@@ -1274,8 +1415,12 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
         }
         if (cfg.coarse_search_m > 0) {
             t0 = Clock::now();
-            const std::vector<Eigen::Vector3d> shift = CoarseSectionSearch(
-                in, current, blocks, cfg, &res.num_sections_searched, &res.num_sections_shifted);
+            const std::vector<Eigen::Vector3d> shift =
+                CoarseSectionSearch(in, current, blocks, cfg, &res.sections);
+            for (const SlamSection& sec : res.sections) {
+                res.num_sections_searched += sec.searched ? 1 : 0;
+                res.num_sections_shifted += sec.shifted ? 1 : 0;
+            }
             for (std::size_t b = 0; b < blocks.size(); ++b) p.tc[b] = shift[b];
             res.timings.coarse_search_s = Seconds(t0);
         }
@@ -1306,18 +1451,33 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     semi.message = rigid.message;
     if (cfg.max_iterations > 0 && rigid.termination != SlamTermination::kNoOverlap &&
         rigid.termination != SlamTermination::kCancelled) {
+        // Bins of bin_slices, restarted at every GNSS recovery with bins of 1, 1, 2, 4, ...
+        // slices (the INS error falls fast there); slice poses are interpolated between bin
+        // starts.
         std::vector<std::size_t> starts;
         const auto bin = static_cast<std::size_t>(cfg.bin_slices);
-        for (std::size_t s = 0; s < ns; s += bin) starts.push_back(s);
+        std::size_t since_break = ns;  // slices since the last recovery
+        for (std::size_t s = 0; s < ns;) {
+            if (in.IsBreak(s)) since_break = 0;
+            starts.push_back(s);
+            const std::size_t len = std::clamp<std::size_t>(since_break, 1, bin);
+            std::size_t next = s + 1;
+            while (next < ns && next < s + len && !in.IsBreak(next)) ++next;
+            since_break += next - s;
+            s = next;
+        }
         Param p = MakeParam(current, starts);
+        std::size_t k = 0;
         for (std::size_t s = 0; s < ns; ++s) {
-            const std::size_t k = s / bin;
+            while (k + 1 < starts.size() && starts[k + 1] <= s) ++k;
             p.pivot[s] = current[s].translation();
-            p.k0[s] = static_cast<int>(k);
-            p.k1[s] = static_cast<int>(std::min(k + 1, starts.size() - 1));
-            p.alpha[s] = p.k1[s] == p.k0[s] ? 0.0
-                                            : static_cast<double>(s - starts[k]) /
-                                                  static_cast<double>(bin);
+            p.k0[s] = p.k1[s] = static_cast<int>(k);
+            p.alpha[s] = 0.0;
+            if (k + 1 < starts.size() && s > starts[k]) {
+                p.k1[s] = static_cast<int>(k + 1);
+                p.alpha[s] = static_cast<double>(s - starts[k]) /
+                             static_cast<double>(starts[k + 1] - starts[k]);
+            }
         }
         res.num_poses = starts.size();
         semi = RunStage(in, p, SlamStage::kSemiRigid, cfg.max_iterations, cfg.max_pair_distance_m,

@@ -280,10 +280,15 @@ int main(int argc, char** argv) {
                     c, r0, r1, m0, m1);
     }
     if (std::getenv("SLAM_BENCH_SECTIONS") != nullptr) {
-        // Mean position error (after - truth, before - truth) per 15 s, for debugging.
-        for (std::size_t k0 = 0; k0 < num_pings; k0 += 150) {
+        // Mean position error (after - truth, before - truth) per window, for debugging.
+        // SLAM_BENCH_SECTIONS=<seconds> sets the window (default 15 s).
+        const double win_s = std::max(0.1, std::atof(std::getenv("SLAM_BENCH_SECTIONS")));
+        const auto win = static_cast<std::size_t>(
+            std::max(1.0, std::round((std::atof(std::getenv("SLAM_BENCH_SECTIONS")) > 0 ? win_s : 15.0) *
+                                     sc.sonar.ping_rate_hz)));
+        for (std::size_t k0 = 0; k0 < num_pings; k0 += win) {
             Eigen::Vector3d eb = Eigen::Vector3d::Zero(), ea = Eigen::Vector3d::Zero();
-            const std::size_t k1 = std::min(num_pings, k0 + 150);
+            const std::size_t k1 = std::min(num_pings, k0 + win);
             for (std::size_t k = k0; k < k1; ++k) {
                 eb += before[k].translation() - truth_poses[k].translation();
                 ea += after[k].translation() - truth_poses[k].translation();
@@ -294,6 +299,27 @@ int main(int argc, char** argv) {
                         static_cast<double>(k0) / sc.sonar.ping_rate_hz,
                         truth_poses[k0].translation().x(), truth_poses[k0].translation().y(),
                         eb.x(), eb.y(), eb.z(), ea.x(), ea.y(), ea.z());
+        }
+    }
+    if (std::getenv("SLAM_BENCH_SECTIONS") != nullptr) {
+        // Coarse search per searched section: the offset applied and the one the truth asks for
+        // (minus the mean position error of the section's slices).
+        for (const auto& sec : r.sections) {
+            if (!sec.searched) continue;
+            Eigen::Vector3d e = Eigen::Vector3d::Zero();
+            std::size_t n = 0;
+            for (std::size_t k = 0; k < num_pings; ++k) {
+                const double t = slices[k].gps_time_s;
+                if (t < sec.t0_s || t > sec.t1_s) continue;
+                e += before[k].translation() - truth_poses[k].translation();
+                ++n;
+            }
+            e /= static_cast<double>(std::max<std::size_t>(n, 1));
+            std::printf("  section %6.1f-%6.1f s  sigma %5.2f m  coarse %6.2f %6.2f %6.2f  "
+                        "truth %6.2f %6.2f %6.2f%s\n",
+                        sec.t0_s, sec.t1_s, sec.sigma_h_m, sec.coarse_offset_m.x(),
+                        sec.coarse_offset_m.y(), sec.coarse_offset_m.z(), -e.x(), -e.y(), -e.z(),
+                        sec.shifted ? "" : "  (not shifted)");
         }
     }
     std::printf("track height std %.4f -> %.4f m (truth %.4f m)\n", HeightStd(before),

@@ -178,8 +178,9 @@ TEST(Slam, GuardDoesNotStopWhileTheScoreFalls) {
     EXPECT_LT(Ate(r.trajectory, sv.truth), 0.5 * Ate(Initial(sv.slices), sv.truth)) << r.message;
 }
 
-// GNSS good (2 cm) except in one leg where the INS is off by 2.4 m and says so (sigma 1.5 m):
-// the coarse search moves that leg's sections into the capture range of the pair matching.
+// GNSS good (2 cm) except in one leg, a GNSS outage: the INS drifts away by up to 2.4 m and says
+// so (its sigma grows to 1.5 m), then pulls the drift back within seconds when GNSS returns.
+// The coarse search moves that leg's sections into the capture range of the pair matching.
 TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
     Survey sv = MakeSurvey(kCrossing, 0.0);
     const Eigen::Vector3d offset(2.0, -1.2, 0.3);
@@ -189,9 +190,15 @@ TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
         const double t = s.gps_time_s - 1000.0;
         s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
         if (t >= 60.0 && t < 96.0) {
+            // Drift that grows like dead reckoning with a velocity error (quadratic from the
+            // start, then about linear).
+            const double f = std::min(1.0, 0.3 + 0.7 * (t - 60.0) / 36.0) *
+                             std::min(1.0, (t - 60.0) / 6.0);
             leg[i] = true;
-            s.T_world_vehicle.translation() += offset;
-            s.pose_sigma.tail<3>().setConstant(1.5);
+            s.T_world_vehicle.translation() += f * offset;
+            s.pose_sigma.tail<3>().setConstant(std::max(0.02, 1.5 * f));
+        } else if (t >= 96.0) {
+            s.T_world_vehicle.translation() += std::exp(-(t - 96.0) / 1.0) * offset;
         }
     }
     SlamConfig cfg = TestConfig();
@@ -213,10 +220,10 @@ TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
     EXPECT_GT(r.num_sections_searched, 0u);
     EXPECT_GT(r.num_sections_shifted, 0u);
     EXPECT_LT(leg_ate(r.trajectory), 0.25 * leg_ate(Initial(sv.slices))) << r.message;
-    cfg.coarse_search_m = 0;  // without it, ICP alone does not get there
+    cfg.coarse_search_m = 0;  // without it, ICP alone gets less far (measured 0.22 vs 0.30 m)
     const SlamResult r0 = RunSlam(sv.slices, cfg);
     EXPECT_EQ(r0.num_sections_searched, 0u);
-    EXPECT_LT(leg_ate(r.trajectory), 0.5 * leg_ate(r0.trajectory))
+    EXPECT_LT(leg_ate(r.trajectory), 0.8 * leg_ate(r0.trajectory))
         << leg_ate(r.trajectory) << " " << leg_ate(r0.trajectory) << " "
         << leg_ate(Initial(sv.slices));
 }
