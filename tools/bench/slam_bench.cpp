@@ -7,7 +7,7 @@
 //
 // Usage: pitmap-bench-slam [scenario] [beam_stride] [correspondence p2p|p2plane|gicp]
 //                          [kernel none|huber|cauchy] [bin_slices] [query_stride] [threads]
-//                          [key=value ...]
+//                          [key=value ...] [seed=N]
 // Positional arguments may be cut short; key=value pairs override SlamConfig fields (see
 // Override below for the keys). ATE is also reported per phase: GNSS good, GNSS outage and
 // the 30 s after each outage (where the INS pulls its drift back). With SLAM_BENCH_SECTIONS set
@@ -123,10 +123,13 @@ bool Override(proc::slam::SlamConfig& c, const std::string& kv) {
 int main(int argc, char** argv) {
     proc::slam::SlamConfig cfg;
     int npos = argc;
+    long seed = -1;  // seed=N: another draw of the scenario's world, INS errors and noise
     for (int a = 1; a < argc; ++a) {
         if (std::string(argv[a]).find('=') != std::string::npos) {
             npos = std::min(npos, a);
-            if (!Override(cfg, argv[a])) {
+            if (std::string(argv[a]).rfind("seed=", 0) == 0) {
+                seed = std::atol(argv[a] + 5);
+            } else if (!Override(cfg, argv[a])) {
                 std::fprintf(stderr, "unknown override %s\n", argv[a]);
                 return 2;
             }
@@ -145,6 +148,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "unknown scenario %s\n", name.c_str());
         return 2;
     }
+    if (seed >= 0) scenario->seed = static_cast<std::uint64_t>(seed);
     const sim::ScenarioConfig& sc = *scenario;
     auto track = sim::SurveyTrack::Plan(sc);
     if (!track.ok()) return 2;

@@ -228,6 +228,45 @@ TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
         << leg_ate(Initial(sv.slices));
 }
 
+// A GNSS recovery (the reported sigma falls sharply) starts a section, and the sections after it
+// double from 1 s (the INS pulls its drift back within seconds); sections elsewhere keep
+// section_length_s. A survey without one has none.
+TEST(Slam, GnssRecoveryStartsShortSections) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) {
+        const double t = s.gps_time_s - 1000.0;
+        s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+        if (t >= 60.0 && t < 96.0) s.pose_sigma.tail<3>().setConstant(1.5);
+    }
+    SlamConfig cfg = TestConfig();
+    cfg.max_iterations = 0;
+    cfg.rigid_iterations = 1;
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    std::size_t at = r.sections.size();
+    for (std::size_t k = 0; k < r.sections.size(); ++k) {
+        if (std::abs(r.sections[k].t0_s - 1096.0) < 0.05) at = k;
+    }
+    ASSERT_LT(at + 4, r.sections.size());
+    const double ping_s = 0.2;  // MakeSurvey pings at 5 Hz
+    const double expected[4] = {1.0, 1.0, 2.0, 4.0};
+    for (int i = 0; i < 4; ++i) {
+        const SlamSection& sec = r.sections[at + static_cast<std::size_t>(i)];
+        EXPECT_NEAR(sec.t1_s - sec.t0_s + ping_s, expected[i], 0.21) << "section " << i;
+    }
+    EXPECT_NEAR(r.sections.front().t1_s - r.sections.front().t0_s + ping_s,
+                cfg.section_length_s, 0.21);
+    // Every section is searched where the (recovery-smoothed) sigma is large, and only there.
+    for (const SlamSection& sec : r.sections) {
+        EXPECT_EQ(sec.searched, sec.sigma_h_m > cfg.coarse_search_min_sigma_m);
+    }
+
+    const SlamResult r0 = RunSlam(MakeSurvey(kCrossing, 0.0).slices, cfg);
+    for (const SlamSection& sec : r0.sections) {
+        if (&sec == &r0.sections.back()) break;
+        EXPECT_NEAR(sec.t1_s - sec.t0_s + ping_s, cfg.section_length_s, 0.21);
+    }
+}
+
 // Interpolated section corrections (the default): on this small world they recover less than
 // rigid sections (measured 0.145 m from 0.265 m, rigid sections 0.13 m or less), but still most
 // of the perturbation; on the gps-outage scenario they do better (continuous track).
