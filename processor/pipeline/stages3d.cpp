@@ -142,6 +142,18 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  {"solve", r.timings.solve_s},
                  {"score", r.timings.score_s},
                  {"total", r.timings.total_s}}}};
+    // The sections the coarse search looked at (INS unsure: GNSS outages) and what it did.
+    st["coarse_search"] = json::array();
+    for (const slam::SlamSection& sec : r.sections) {
+        if (!sec.searched) continue;
+        st["coarse_search"].push_back(
+            {{"t0_s", sec.t0_s},
+             {"t1_s", sec.t1_s},
+             {"ins_sigma_h_m", sec.sigma_h_m},
+             {"shifted", sec.shifted},
+             {"offset_enu_m",
+              {sec.coarse_offset_m.x(), sec.coarse_offset_m.y(), sec.coarse_offset_m.z()}}});
+    }
     st["iterations"] = json::array();
     for (const slam::SlamIteration& it : r.iterations) {
         st["iterations"].push_back({{"stage", StageName(it.stage)},

@@ -301,6 +301,9 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     const json& slam = summary.at("stages").at("slam");
     EXPECT_EQ(slam.at("slices").get<int>(), 1200);
     EXPECT_FALSE(slam.at("iterations").empty());
+    // RTK throughout: no section for the coarse search, and the list says so.
+    EXPECT_TRUE(slam.at("coarse_search").is_array());
+    EXPECT_EQ(slam.at("coarse_search").size(), slam.at("sections_searched").get<std::size_t>());
 
     const auto s = Eval(p);
     ASSERT_TRUE(s.count("trajectory_ate_rmse_before_m") && s.count("mesh_mean_abs_m")) << out;
