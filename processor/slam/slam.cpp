@@ -897,7 +897,11 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
         }
         if (any) {
             for (std::size_t k = b; k < e; ++k) {
-                const Eigen::Vector2d o = smooth[k - first];
+                // A run at the survey's start or end with one fitted section leaves a trend
+                // barely determined: never more than the search reach, never non-finite.
+                if (!smooth[k - first].allFinite()) continue;
+                const Eigen::Vector2d o =
+                    smooth[k - first].cwiseMax(-cfg.coarse_search_m).cwiseMin(cfg.coarse_search_m);
                 double dz = 0;
                 if (!data[k].empty()) {
                     // The vertical offset of the nearest candidate.
