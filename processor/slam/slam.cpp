@@ -43,10 +43,13 @@ struct Input {
     std::vector<std::size_t> offset;       // first point of each slice in `points`
     std::vector<Eigen::Vector3f> points;   // vehicle frame, finite only
     // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
-    // there, so no correction is interpolated across them (sections and bins start there).
+    // there, so sections and bins start there and are short after them (the correction stays
+    // continuous; its rate changes).
     std::vector<std::size_t> breaks;
     std::size_t num_slices() const { return t_s.size(); }
-    bool IsBreak(std::size_t s) const { return std::binary_search(breaks.begin(), breaks.end(), s); }
+    bool IsBreak(std::size_t s) const {
+        return std::binary_search(breaks.begin(), breaks.end(), s);
+    }
 };
 
 // GNSS recoveries: the reported horizontal 1-sigma falls below half its largest value of the
@@ -779,7 +782,8 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
             continue;
         }
         for (std::size_t c = 0; c < nc; ++c) {
-            if (static_cast<double>(cover[c]) < kCoarseMinCoverFraction * static_cast<double>(max_cover)) {
+            if (static_cast<double>(cover[c]) <
+                kCoarseMinCoverFraction * static_cast<double>(max_cover)) {
                 data[b][c] = kInfeasible;
             }
         }
@@ -788,11 +792,11 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
     // summarised as a Gaussian (the mean and covariance of exp(-score / kCoarseTemperature) over
     // its feasible offsets: an along-track valley gives a long axis); the offsets along the run
     // then minimise those terms plus the INS drift model (the velocity error is a random walk, as
-    // in the semi-rigid drift term, loosened where the sigma falls) plus a zero offset with the
-    // INS sigma at the trusted sections on either side. The summaries are taken again within
-    // kCoarseWindowSigmas of the smoothed offsets (kCoarseRefinements times), so that a section
-    // with two candidate places takes the one its neighbours agree with. Searched sections that
-    // did not overlap the grid are carried by their neighbours.
+    // in the semi-rigid drift term, loosened where the sigma's growth rate bends) plus a zero
+    // offset with the INS sigma at the trusted sections on either side. The summaries are taken
+    // again within kCoarseWindowSigmas of the smoothed offsets (kCoarseRefinements times), so
+    // that a section with two candidate places takes the one its neighbours agree with. Searched
+    // sections that did not overlap the grid are carried by their neighbours.
     const double q = std::max(cfg.drift_velocity_random_walk_mps_per_sqrt_s, kCoarseMinDriftRw);
     const double cell_var = cfg.coarse_search_step_m * cfg.coarse_search_step_m / 12.0;
     auto summarise = [&](std::size_t k, const Eigen::Vector2d& centre, double radius,
@@ -902,16 +906,13 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
                 if (!smooth[k - first].allFinite()) continue;
                 const Eigen::Vector2d o =
                     smooth[k - first].cwiseMax(-cfg.coarse_search_m).cwiseMin(cfg.coarse_search_m);
+                // The vertical offset of the nearest candidate; without overlap the INS height.
                 double dz = 0;
                 if (!data[k].empty()) {
-                    // The vertical offset of the nearest candidate.
-                    const auto ix = std::clamp<long>(std::lround(o.x() / cfg.coarse_search_step_m), -m_steps, m_steps);
-                    const auto iy = std::clamp<long>(std::lround(o.y() / cfg.coarse_search_step_m), -m_steps, m_steps);
+                    const double st = cfg.coarse_search_step_m;
+                    const long ix = std::clamp(std::lround(o.x() / st), -m_steps, m_steps);
+                    const long iy = std::clamp(std::lround(o.y() / st), -m_steps, m_steps);
                     dz = median[k][static_cast<std::size_t>((iy + m_steps) * side + ix + m_steps)];
-                } else {
-                    // No overlap: the vertical offset interpolated like the horizontal one is
-                    // not known; keep the INS height.
-                    dz = 0;
                 }
                 offset[k] = Eigen::Vector3d(o.x(), o.y(), dz);
                 (*sections)[k].shifted = true;

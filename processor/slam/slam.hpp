@@ -182,7 +182,8 @@ struct SlamSection {
     double t0_s = 0, t1_s = 0;      // GPS time of its first and last slice
     double sigma_h_m = 0;           // median INS horizontal 1-sigma over its slices
     bool searched = false;          // sigma_h_m > coarse_search_min_sigma_m
-    bool shifted = false;           // searched, overlapped the trusted sections and was moved
+    bool shifted = false;  // searched and moved (by its own fit, or by its neighbours' if it
+                           // did not overlap the trusted sections)
     Eigen::Vector3d coarse_offset_m = Eigen::Vector3d::Zero();  // world shift applied, ENU
 };
 
@@ -204,7 +205,7 @@ struct SlamResult {
     std::size_t num_sections = 0;
     std::size_t num_section_links = 0;  // rigid graph edges
     std::size_t num_sections_searched = 0;  // coarse search: sections the INS was unsure of
-    std::size_t num_sections_shifted = 0;   // ... that overlapped the others and were moved
+    std::size_t num_sections_shifted = 0;   // ... that were moved (SlamSection::shifted)
     std::vector<SlamSection> sections;  // the rigid sections, in time order
     std::size_t num_poses = 0;          // semi-rigid unknown poses
     std::size_t num_pairs = 0;          // pairs of the last iteration

@@ -286,10 +286,10 @@ int main(int argc, char** argv) {
     if (std::getenv("SLAM_BENCH_SECTIONS") != nullptr) {
         // Mean position error (after - truth, before - truth) per window, for debugging.
         // SLAM_BENCH_SECTIONS=<seconds> sets the window (default 15 s).
-        const double win_s = std::max(0.1, std::atof(std::getenv("SLAM_BENCH_SECTIONS")));
+        const double env_s = std::atof(std::getenv("SLAM_BENCH_SECTIONS"));
+        const double win_s = env_s > 0 ? env_s : 15.0;
         const auto win = static_cast<std::size_t>(
-            std::max(1.0, std::round((std::atof(std::getenv("SLAM_BENCH_SECTIONS")) > 0 ? win_s : 15.0) *
-                                     sc.sonar.ping_rate_hz)));
+            std::max(1.0, std::round(win_s * sc.sonar.ping_rate_hz)));
         for (std::size_t k0 = 0; k0 < num_pings; k0 += win) {
             Eigen::Vector3d eb = Eigen::Vector3d::Zero(), ea = Eigen::Vector3d::Zero();
             const std::size_t k1 = std::min(num_pings, k0 + win);
