@@ -9,7 +9,9 @@
 //     if (Skipped)  count it;           // bytes that are not (part of) a valid frame
 //     if (Frame)    decode it;          // a span into the framer's buffer: valid until the
 //   }                                   // next Push/Next call
-//   framer.Flush();                     // end of stream: the partial tail comes out as Skipped
+//   while (auto s = framer.Flush()) {   // end of stream: the candidate that waits for more
+//     count *s; drain Next() again;     // bytes gives up its sync only, and what it had
+//   }                                   // buffered behind is framed again
 // Every byte pushed comes out exactly once, either inside a frame or counted in a Skipped:
 // nothing is dropped silently. Buffers are bounded by the longest legal frame; no allocation
 // per frame in steady state.

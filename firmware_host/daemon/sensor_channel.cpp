@@ -183,10 +183,9 @@ bool SensorChannel::RunOnce() {
     switch (*r) {
         case ReadOutcome::kData: Process(chunk_); break;
         case ReadOutcome::kTimeout:
-            if (config_.protocol == ChannelProtocol::kNovatel && novatel_framer_.buffered() > 0 &&
-                last_bytes_mono_us_ >= 0 &&
+            if (last_bytes_mono_us_ >= 0 &&
                 now - last_bytes_mono_us_ > std::int64_t{config_.stale_partial_ms} * 1000) {
-                if (auto s = novatel_framer_.Expire()) CountSkip(*s);
+                GiveUpPartials(protocol::SkipReason::kStale);
             }
             break;
         case ReadOutcome::kEndOfStream:
@@ -245,11 +244,25 @@ void SensorChannel::CountSkip(const protocol::Skipped& s) {
     }
 }
 
-void SensorChannel::FlushFramer() {
+void SensorChannel::FlushFramer() { GiveUpPartials(protocol::SkipReason::kTruncated); }
+
+void SensorChannel::GiveUpPartials(protocol::SkipReason why) {
+    // No byte came for the maximum wait (or the stream ended): a waiting candidate with
+    // complete frames behind it (every candidate, at the end) gives up its sync only, and what
+    // it held is framed again. A real frame cut by the pause keeps waiting. Frames found so
+    // are stamped with the last chunk's receive time; they feed no clock sample, since they
+    // may have arrived earlier than that.
+    const bool end = why == protocol::SkipReason::kTruncated;
     if (config_.protocol == ChannelProtocol::kNovatel) {
-        if (auto s = novatel_framer_.Flush()) CountSkip(*s);
+        while (auto s = end ? novatel_framer_.Flush() : novatel_framer_.Expire()) {
+            CountSkip(*s);
+            DrainNovatel(last_chunk_);
+        }
     } else if (source_.transport() != Transport::kUdp) {
-        if (auto s = deltat_framer_.Flush()) CountSkip(*s);
+        while (auto s = end ? deltat_framer_.Flush() : deltat_framer_.Expire()) {
+            CountSkip(*s);
+            DrainDeltat(last_chunk_);
+        }
     }
 }
 
@@ -258,15 +271,8 @@ void SensorChannel::ProcessNovatel(const Chunk& chunk) {
     chunk_time_invalid_ = false;
     novatel_framer_.Push(ByteSpan(reinterpret_cast<const std::uint8_t*>(chunk.data.data()),
                                   chunk.data.size()));
-    while (true) {
-        auto ev = novatel_framer_.Next();
-        if (std::holds_alternative<protocol::NeedMore>(ev)) break;
-        if (const auto* s = std::get_if<protocol::Skipped>(&ev)) {
-            CountSkip(*s);
-            continue;
-        }
-        HandleNovatelFrame(std::get<nv::Frame>(ev), chunk);
-    }
+    RememberChunk(chunk);
+    DrainNovatel(chunk);
     // One clock sample per chunk (the receive time is shared by everything in it).
     if (chunk.utime_host > last_clock_host_) {
         if (chunk_best_gps_ != 0) {
@@ -276,6 +282,24 @@ void SensorChannel::ProcessNovatel(const Chunk& chunk) {
             time_.AddNovatel(chunk.utime_host, 0, false);
             last_clock_host_ = chunk.utime_host;
         }
+    }
+}
+
+void SensorChannel::RememberChunk(const Chunk& chunk) {
+    last_chunk_.utime_host = chunk.utime_host;
+    last_chunk_.utime_kernel = chunk.utime_kernel;
+    if (last_chunk_.peer != chunk.peer) last_chunk_.peer = chunk.peer;
+}
+
+void SensorChannel::DrainNovatel(const Chunk& chunk) {
+    while (true) {
+        auto ev = novatel_framer_.Next();
+        if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+        if (const auto* s = std::get_if<protocol::Skipped>(&ev)) {
+            CountSkip(*s);
+            continue;
+        }
+        HandleNovatelFrame(std::get<nv::Frame>(ev), chunk);
     }
 }
 
@@ -429,6 +453,11 @@ void SensorChannel::ProcessDeltat(const Chunk& chunk) {
         return;
     }
     deltat_framer_.Push(bytes);
+    RememberChunk(chunk);
+    DrainDeltat(chunk);
+}
+
+void SensorChannel::DrainDeltat(const Chunk& chunk) {
     while (true) {
         auto ev = deltat_framer_.Next();
         if (std::holds_alternative<protocol::NeedMore>(ev)) break;

@@ -64,7 +64,7 @@ struct SensorChannelConfig {
     ChannelProtocol protocol = ChannelProtocol::kNovatel;
     int read_timeout_ms = 100;                 // one Read() wait, milliseconds
     int silent_timeout_ms = 2000;              // no bytes this long while open: SILENT, ms
-    int stale_partial_ms = 1000;               // drop a partial NovAtel frame after this, ms
+    int stale_partial_ms = 1000;  // a false sync with frames behind it waits no longer, ms
     std::vector<std::string> setup_commands;   // NovAtel command lines sent on (re)connect,
                                                // e.g. "LOG ICOM1 INSPVAXB ONTIME 0.05"
     int command_timeout_ms = 1000;             // wait for <OK / <ERROR, milliseconds
@@ -95,7 +95,8 @@ public:
     bool RunOnce();
     // Processes one chunk as if read now (raw publish, framing, decoding, counting).
     void Process(const Chunk& chunk);
-    // End of stream: reports a buffered partial frame as truncated.
+    // End of stream: a buffered partial frame gives up its sync as truncated, and the bytes it
+    // held are framed again (nothing behind a false header is lost).
     void FlushFramer();
 
     const SensorChannelConfig& config() const { return config_; }
@@ -108,6 +109,11 @@ private:
     void PublishEncoded(std::string_view channel, std::int64_t utime,
                         std::vector<std::uint8_t> data);
     void ProcessNovatel(const Chunk& chunk);
+    void DrainNovatel(const Chunk& chunk);
+    void DrainDeltat(const Chunk& chunk);
+    void RememberChunk(const Chunk& chunk);
+    // A stale wait (kStale) or the end of the stream (kTruncated): see FlushFramer.
+    void GiveUpPartials(protocol::SkipReason why);
     void HandleNovatelFrame(const protocol::novatel::Frame& frame, const Chunk& chunk);
     void ProcessDeltat(const Chunk& chunk);
     void HandlePing(const protocol::deltat::Ping83P& ping, const Chunk& chunk);
@@ -134,6 +140,7 @@ private:
     // Reader thread only.
     std::int64_t seq_ = 0;
     Chunk chunk_;
+    Chunk last_chunk_;  // receive time and peer of the latest chunk (no data)
     protocol::novatel::Framer novatel_framer_;
     protocol::deltat::StreamFramer deltat_framer_;
     protocol::deltat::FloatOrderMemory float_memory_;

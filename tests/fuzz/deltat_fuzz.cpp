@@ -100,7 +100,7 @@ void FuzzStreamFramer(ByteSpan input, Chunker chunker) {
                 CheckPingRoundTrip(ping, (r.offset & 1) ? FloatOrder::kLittle : FloatOrder::kBig);
             }
         }
-        FUZZ_CHECK(framer.buffered() < kMaxRecordBytes);
+        FUZZ_CHECK(framer.buffered() <= kMaxRecordBytes + 2);
     };
     while (at < input.size()) {
         const std::size_t n = std::min(chunker.Next(), input.size() - at);
@@ -108,10 +108,13 @@ void FuzzStreamFramer(ByteSpan input, Chunker chunker) {
         at += n;
         drain();
     }
-    if (const auto tail = framer.Flush()) {
+    while (const auto tail = framer.Flush()) {
         FUZZ_CHECK(tail->offset == accounted);
+        FUZZ_CHECK(tail->bytes > 0);
         accounted += tail->bytes;
+        drain();
     }
+    FUZZ_CHECK(framer.buffered() == 0);
     FUZZ_CHECK(accounted == input.size());
     FUZZ_CHECK(framer.bytes_pushed() == input.size());
 }
@@ -148,10 +151,13 @@ void FuzzHeadFramer(ByteSpan input, Chunker chunker) {
         at += n;
         drain();
     }
-    if (const auto tail = framer.Flush()) {
+    while (const auto tail = framer.Flush()) {
         FUZZ_CHECK(tail->offset == accounted);
+        FUZZ_CHECK(tail->bytes > 0);
         accounted += tail->bytes;
+        drain();
     }
+    FUZZ_CHECK(framer.buffered() == 0);
     FUZZ_CHECK(accounted == input.size());
 }
 

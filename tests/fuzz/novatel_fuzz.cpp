@@ -101,10 +101,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         drain();
         Check(framer.buffered() <= nv::kMaxLongFrameLength + n);
     }
-    if (auto tail = framer.Flush()) {
+    while (auto tail = framer.Flush()) {
         Check(tail->offset == accounted);
+        Check(tail->bytes > 0);
         accounted += tail->bytes;
+        drain();
     }
+    Check(framer.buffered() == 0);
     Check(accounted == stream_size);
     Check(framer.bytes_pushed() == stream_size);
     return 0;

@@ -235,7 +235,12 @@ std::variant<NeedMore, Skipped, HeadFrame> HeadReplyFramer::Next() {
 std::optional<Skipped> HeadReplyFramer::Flush() {
     const std::size_t avail = tail_ - head_;
     if (avail == 0) return std::nullopt;
-    return Skip(SkipReason::kTruncated, avail);
+    // Only the waiting packet's sync byte goes, with the bytes after it that start no packet;
+    // what it had buffered behind is framed again by Next().
+    const std::uint8_t* p = buffer_.data() + head_;
+    std::size_t i = 1;
+    while (i < avail && !MatchesSyncPrefix(p + i, avail - i)) ++i;
+    return Skip(SkipReason::kTruncated, i);
 }
 
 }  // namespace pitmap::protocol::deltat

@@ -115,7 +115,9 @@ public:
 
     void Push(ByteSpan bytes);
     std::variant<NeedMore, Skipped, HeadFrame> Next();
-    // End of stream: the buffered partial packet as kTruncated.
+    // End of stream: gives up the packet that waits for more bytes (its sync byte and the bytes
+    // after it that start no packet) as kTruncated, or nullopt when nothing is buffered. Drain
+    // Next() and repeat until it returns nullopt.
     std::optional<Skipped> Flush();
 
     std::uint64_t bytes_pushed() const { return pushed_; }

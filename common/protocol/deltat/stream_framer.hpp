@@ -9,11 +9,15 @@
 // Contract (common/protocol/framing.hpp): every pushed byte comes out exactly once, inside a
 // Record or counted in a Skipped. A candidate whose header fails validation is skipped as
 // kBadLength (its 3 marker bytes; the marker cannot overlap itself) and the scan resumes
-// after it. Bytes that start no marker are kGarbage. 83B/83M records are not framed: they
-// come out as garbage (log the raw bytes to keep them).
-// Memory: bytes retained after Next() returned NeedMore are fewer than kMaxRecordBytes. The
-// buffer grows once to the largest Push plus one record and is reused: no allocation per
-// record in steady state. Drain Next() until NeedMore before the next Push.
+// after it. Records carry no checksum, so a complete candidate that holds another valid
+// header inside it is accepted only when the next `83P` marker follows it (a false header must
+// not swallow the real records behind it); it waits for those 3 bytes, and is skipped as
+// kBadLength when they are something else. Bytes that start no marker are kGarbage. 83B/83M
+// records are not framed: they come out as garbage (log the raw bytes to keep them).
+// Memory: bytes retained after Next() returned NeedMore are at most kMaxRecordBytes + 2 (a
+// record that waits for the marker after it). The buffer grows once to the largest Push plus
+// one record and is reused: no allocation per record in steady state. Drain Next() until
+// NeedMore before the next Push.
 // Not thread safe: one framer per stream.
 #pragma once
 
@@ -44,14 +48,21 @@ public:
     void Push(ByteSpan bytes);
     // The next event: a record, skipped bytes, or NeedMore when nothing complete is buffered.
     std::variant<NeedMore, Skipped, Record> Next();
-    // End of stream: whatever is still buffered (a partial record or marker) as kTruncated.
+    // End of stream: gives up the candidate record that waits for more bytes (its marker and
+    // the garbage after it) as kTruncated, or nullopt when nothing is buffered. The bytes it had
+    // buffered behind are framed again: call after Next() returned NeedMore, drain Next(), and
+    // repeat until Flush() returns nullopt.
     std::optional<Skipped> Flush();
+    // For a transport's maximum wait: like Flush() (as kStale), but only when a complete record
+    // is buffered behind the waiting candidate (proof that it is false); nullopt otherwise.
+    std::optional<Skipped> Expire();
 
     std::uint64_t bytes_pushed() const { return pushed_; }
     std::size_t buffered() const { return tail_ - head_; }
 
 private:
     Skipped Skip(SkipReason reason, std::size_t n);
+    std::optional<Skipped> GiveUpCandidate(SkipReason reason);
 
     std::vector<std::uint8_t> buffer_;
     std::size_t head_ = 0;        // first unconsumed byte

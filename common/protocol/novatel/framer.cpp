@@ -166,15 +166,43 @@ Skipped Framer::Consume(std::size_t n, SkipReason reason) {
     return s;
 }
 
-std::optional<Skipped> Framer::DropTail(SkipReason reason) {
-    const std::size_t n = buffer_.size() - start_;
-    if (n == 0) return std::nullopt;
-    return Consume(n, reason);
+std::optional<Skipped> Framer::GiveUpCandidate(SkipReason reason) {
+    const std::size_t end = buffer_.size();
+    if (start_ == end) return std::nullopt;
+    // The candidate at start_ waits for bytes that will not come. Only its first byte is given
+    // up, with the bytes after it that cannot start a frame; whatever it had buffered behind
+    // that is scanned again by Next(), so a false sync cannot hide the frames behind it.
+    std::size_t pos = start_ + 1;
+    while (pos < end && !kIsStart[buffer_[pos]]) ++pos;
+    return Consume(pos - start_, reason);
 }
 
-std::optional<Skipped> Framer::Flush() { return DropTail(SkipReason::kTruncated); }
+std::optional<Skipped> Framer::Flush() { return GiveUpCandidate(SkipReason::kTruncated); }
 
-std::optional<Skipped> Framer::Expire() { return DropTail(SkipReason::kStale); }
+std::optional<Skipped> Framer::Expire() {
+    // Only a candidate with a complete checksummed frame behind it is given up: it cannot be a
+    // real frame then (a real frame does not hold another). A real frame cut by a pause keeps
+    // waiting for the rest, so a pause loses nothing.
+    if (!ChecksummedFrameBehind()) return std::nullopt;
+    return GiveUpCandidate(SkipReason::kStale);
+}
+
+bool Framer::ChecksummedFrameBehind() const {
+    for (std::size_t pos = start_ + 1; pos < buffer_.size(); ++pos) {
+        if (!kIsStart[buffer_[pos]]) continue;
+        const Attempt a = TryAt(pos);
+        if (a.outcome != Outcome::kFrame) continue;
+        switch (a.kind) {
+            case FrameKind::kLongBinary:
+            case FrameKind::kShortBinary:
+            case FrameKind::kProprietary:
+            case FrameKind::kAscii:
+            case FrameKind::kShortAscii: return true;
+            default: break;
+        }
+    }
+    return false;
+}
 
 std::variant<NeedMore, Skipped, Frame> Framer::Next() {
     const std::size_t end = buffer_.size();
@@ -345,6 +373,9 @@ Framer::Attempt Framer::TryAbbreviated(std::size_t pos) const {
     Attempt a;
     a.kind = FrameKind::kAbbreviated;
     for (std::size_t i = 1; i < avail; ++i) {
+        // '#' and '%' start checksummed frames and never occur inside an abbreviated line: a
+        // stray '<' must not swallow the ASCII log behind it.
+        if (p[i] == '#' || p[i] == '%') return a;
         if (IsPrintable(p[i])) continue;
         if (p[i] != kCr || i == 1) return a;
         if (i + 1 == avail) break;

@@ -24,11 +24,19 @@
 // Skipped (common/protocol/framing.hpp). CR/LF between frames (e.g. before "<OK") is garbage.
 //
 // Partial frames: the framer never times out (it has no clock). A candidate whose length field
-// points past the buffered data waits for more bytes, up to 32768 bytes for a long frame. A
-// transport that wants a maximum wait (§9 item 4) calls Expire() after its timeout, which
-// returns the buffered tail as SkipReason::kStale; at end of stream Flush() returns it as
-// SkipReason::kTruncated. Both leave the framer ready for more bytes, stream offsets continuing.
-// Known limitation: frames buffered *behind* such an incomplete candidate are discarded with it.
+// points past the buffered data waits for more bytes, up to 32768 bytes for a long frame; if it
+// was a false sync, its CRC fails once they have come and the scan resumes one byte after it, so
+// nothing behind it is lost, only delayed. Two calls shorten that wait:
+//   - Flush(), at the end of the stream, gives up the waiting candidate (its first byte and the
+//     bytes after it that cannot start a frame) as SkipReason::kTruncated;
+//   - Expire(), for a transport's maximum wait (§9 item 4), does the same as kStale, but only
+//     when a complete checksummed frame is buffered behind the candidate (which proves it
+//     false). A real frame cut by a pause keeps waiting for its rest.
+// Both leave the bytes behind the candidate buffered: a false sync whose length field claims
+// 30 000 bytes does not take the real frames behind it along. So both are called in a loop,
+// draining Next() in between:
+//   for (;;) { <Next() until NeedMore>; auto s = framer.Flush(); if (!s) break; <count *s>; }
+// Flush() ends with nothing buffered. Both leave the framer ready for more bytes.
 //
 // Memory: one buffer holding the unconsumed tail (< 32768 bytes once Next() returns NeedMore)
 // plus the bytes of one Push. Its capacity is kept, so steady-state framing allocates nothing.
@@ -91,10 +99,12 @@ public:
     // The next event: a frame, bytes skipped with a reason, or NeedMore when nothing complete is
     // buffered. Call until NeedMore after every Push.
     std::variant<NeedMore, Skipped, Frame> Next();
-    // End of stream: the buffered tail that cannot complete (kTruncated), or nullopt if nothing
-    // is buffered. Call after Next() has returned NeedMore.
+    // End of stream: gives up the candidate frame that waits for more bytes (kTruncated) and
+    // returns what it skipped, or nullopt if nothing is buffered. Call after Next() has
+    // returned NeedMore, then drain Next() again, until Flush() returns nullopt.
     std::optional<Skipped> Flush();
-    // Same as Flush() but reports the tail as kStale: for a transport's maximum wait.
+    // For a transport's maximum wait: like Flush() (as kStale), but only when a complete
+    // checksummed frame is buffered behind the waiting candidate; nullopt otherwise.
     std::optional<Skipped> Expire();
 
     // Bytes pushed so far (the stream offset of the next pushed byte).
@@ -118,7 +128,8 @@ private:
     Attempt TryPrompt(std::size_t pos) const;
     Attempt TryNmea(std::size_t pos) const;
     Skipped Consume(std::size_t n, SkipReason reason);
-    std::optional<Skipped> DropTail(SkipReason reason);
+    std::optional<Skipped> GiveUpCandidate(SkipReason reason);
+    bool ChecksummedFrameBehind() const;
 
     std::vector<std::uint8_t> buffer_;
     std::size_t start_ = 0;           // first unconsumed byte in buffer_

@@ -233,6 +233,80 @@ TEST(SensorChannelTest, GarbageBurstsAreCountedAndFramesSurvive) {
     EXPECT_EQ(c.decode_errors, 0);
 }
 
+// Frame offsets of a clean NovAtel stream (frame boundaries to insert at).
+std::vector<std::size_t> FrameOffsets(const std::vector<std::uint8_t>& data) {
+    protocol::novatel::Framer f;
+    f.Push(ByteSpan(data.data(), data.size()));
+    std::vector<std::size_t> out;
+    for (;;) {
+        auto ev = f.Next();
+        if (std::holds_alternative<protocol::NeedMore>(ev)) break;
+        if (const auto* fr = std::get_if<protocol::novatel::Frame>(&ev)) {
+            out.push_back(static_cast<std::size_t>(fr->offset));
+        }
+    }
+    return out;
+}
+
+// `AA 44 12 1C` with a length field claiming a 30 000-byte frame, 28 bytes in all.
+std::vector<std::uint8_t> FalseLongHeader() {
+    std::vector<std::uint8_t> h(28, 0x11);
+    h[0] = 0xAA;
+    h[1] = 0x44;
+    h[2] = 0x12;
+    h[3] = 0x1C;
+    h[8] = static_cast<std::uint8_t>((30000 - 32) & 0xFF);
+    h[9] = static_cast<std::uint8_t>((30000 - 32) >> 8);
+    return h;
+}
+
+// A false long header before a pause in the input and another before the end of the stream:
+// the daemon used to drop everything buffered behind each (137 of 284 frames decoded); now the
+// stale wait and the end give up only the false sync and every real frame is decoded.
+TEST(SensorChannelTest, FalseLongHeadersBeforeAPauseAndTheEndLoseNoFrame) {
+    const auto clean =
+        testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps");
+    const auto offsets = FrameOffsets(clean);
+    ASSERT_EQ(offsets.size(), 284u);
+    const auto fake = FalseLongHeader();
+    std::vector<std::uint8_t> dirty(clean.begin(), clean.begin() + static_cast<long>(offsets[100]));
+    dirty.insert(dirty.end(), fake.begin(), fake.end());
+    const std::size_t pause = dirty.size() + (offsets[140] - offsets[100]);
+    dirty.insert(dirty.end(), clean.begin() + static_cast<long>(offsets[100]),
+                 clean.begin() + static_cast<long>(offsets[250]));
+    dirty.insert(dirty.end(), fake.begin(), fake.end());
+    dirty.insert(dirty.end(), clean.begin() + static_cast<long>(offsets[250]), clean.end());
+
+    Backend be("falsehdr");
+    FakeSource src;
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    auto cfg = NovatelConfig("nov");
+    SensorChannel ch(cfg, src, be.publisher, clock, time);
+    ASSERT_TRUE(src.Open().ok());
+    // Up to the pause, then silence longer than stale_partial_ms, then the rest and the end.
+    const std::vector<std::uint8_t> first(dirty.begin(), dirty.begin() + static_cast<long>(pause));
+    const std::vector<std::uint8_t> rest(dirty.begin() + static_cast<long>(pause), dirty.end());
+    src.PushData(first, kT0);
+    ASSERT_TRUE(ch.RunOnce());
+    const std::int64_t frames_before_pause = ch.counters().frames;
+    clock.AdvanceUs(std::int64_t{cfg.stale_partial_ms} * 1000 + 500'000);
+    src.PushTimeout();
+    ASSERT_TRUE(ch.RunOnce());
+    // The 40 frames behind the false header came out at the pause, not at the end.
+    EXPECT_EQ(ch.counters().frames, frames_before_pause + 40);
+    src.PushData(rest, kT0 + 3'000'000);
+    src.PushEnd();
+    RunToEnd(ch);
+    const auto c = ch.counters();
+    be.Finish();
+    EXPECT_EQ(c.frames, 284);
+    EXPECT_EQ(c.decode_errors, 0);
+    std::int64_t skipped = 0;
+    for (auto b : c.skipped_bytes) skipped += b;
+    EXPECT_EQ(skipped, 2 * 28);
+}
+
 TEST(SensorChannelTest, SetupCommandsAnsweredRefusedAndResentOnReconnect) {
     Backend be("commands");
     FakeSource src(Transport::kTcp);

@@ -94,8 +94,23 @@ TEST(NovatelFramer, IncompleteFrameWaitsThenFlushReportsTruncated) {
     const auto tail = framer.Flush();
     ASSERT_TRUE(tail.has_value());
     EXPECT_EQ(tail->reason, SkipReason::kTruncated);
-    EXPECT_EQ(tail->bytes, 75u);
     EXPECT_EQ(tail->offset, 0u);
+    // Only the sync and the bytes after it that start no frame are given up; the rest is
+    // framed again and holds no frame.
+    std::size_t skipped = tail->bytes;
+    for (;;) {
+        auto ev = framer.Next();
+        if (std::holds_alternative<NeedMore>(ev)) {
+            auto more = framer.Flush();
+            if (!more) break;
+            skipped += more->bytes;
+            continue;
+        }
+        ASSERT_TRUE(std::holds_alternative<Skipped>(ev));
+        skipped += std::get<Skipped>(ev).bytes;
+    }
+    EXPECT_EQ(skipped, 75u);
+    EXPECT_EQ(framer.buffered(), 0u);
     EXPECT_FALSE(framer.Flush().has_value());
     // The framer continues after a flush, offsets counting on.
     framer.Push(kTimeB);
@@ -104,14 +119,32 @@ TEST(NovatelFramer, IncompleteFrameWaitsThenFlushReportsTruncated) {
     EXPECT_EQ(std::get<Frame>(r).offset, 75u);
 }
 
-TEST(NovatelFramer, ExpireReportsStale) {
+TEST(NovatelFramer, ExpireKeepsARealFrameCutByAPause) {
     Framer framer;
     framer.Push(ByteSpan(kTimeB.data(), 30));
+    EXPECT_TRUE(std::holds_alternative<NeedMore>(framer.Next()));
+    EXPECT_FALSE(framer.Expire().has_value());
+    framer.Push(ByteSpan(kTimeB.data() + 30, kTimeB.size() - 30));
+    auto r = framer.Next();
+    ASSERT_TRUE(std::holds_alternative<Frame>(r));
+    EXPECT_EQ(std::get<Frame>(r).bytes.size(), kTimeB.size());
+}
+
+TEST(NovatelFramer, ExpireGivesUpAFalseSyncWithAFrameBehind) {
+    Bytes fake = {0xAA, 0x44, 0x12, 0x1C, 0, 0, 0, 0, 0x10, 0x75};
+    fake.resize(28, 0x11);
+    const Bytes stream = Concat({fake, kTimeB});
+    Framer framer;
+    framer.Push(stream);
     EXPECT_TRUE(std::holds_alternative<NeedMore>(framer.Next()));
     const auto tail = framer.Expire();
     ASSERT_TRUE(tail.has_value());
     EXPECT_EQ(tail->reason, SkipReason::kStale);
-    EXPECT_EQ(tail->bytes, 30u);
+    EXPECT_EQ(tail->offset, 0u);
+    EXPECT_EQ(tail->bytes, 28u);
+    auto r = framer.Next();
+    ASSERT_TRUE(std::holds_alternative<Frame>(r));
+    EXPECT_EQ(std::get<Frame>(r).offset, 28u);
 }
 
 TEST(NovatelFramer, EveryFrameKind) {

@@ -154,7 +154,7 @@ inline void Drain(Framer& framer, Events& ev, std::uint64_t& next_offset) {
     }
 }
 
-// Frames `data` pushed in chunks of the given sizes (cycled), then flushes. Checks that every
+// Frames `data` pushed in chunks of the given sizes (cycled), then flushes until empty. Checks that every
 // byte is accounted for exactly once.
 inline Events FrameAll(const Bytes& data, const std::vector<std::size_t>& chunks = {}) {
     Framer framer;
@@ -169,12 +169,14 @@ inline Events FrameAll(const Bytes& data, const std::vector<std::size_t>& chunks
         pos += n;
         Drain(framer, ev, next);
     }
-    if (auto tail = framer.Flush()) {
+    // End of input: the waiting candidate gives up its sync, the rest is framed again.
+    while (auto tail = framer.Flush()) {
         EXPECT_EQ(tail->offset, next);
         next += tail->bytes;
         ev.counters.Add(*tail);
         ev.order.push_back(~static_cast<long>(ev.skips.size()));
         ev.skips.push_back(*tail);
+        Drain(framer, ev, next);
     }
     EXPECT_EQ(next, data.size());
     EXPECT_EQ(ev.frame_bytes + ev.counters.TotalBytes(), data.size());
