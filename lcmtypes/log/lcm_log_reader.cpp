@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "processor/io/lcm_log_reader.hpp"
+#include "lcmtypes/log/lcm_log_reader.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -8,8 +8,9 @@
 
 #include <cerrno>
 #include <cstring>
+#include <optional>
 
-namespace pitmap::proc::io {
+namespace pitmap::lcmlog {
 
 namespace {
 
@@ -61,50 +62,87 @@ LcmLogReader::~LcmLogReader() {
     if (data_ != nullptr) ::munmap(const_cast<std::uint8_t*>(data_), size_);
 }
 
+std::optional<LcmLogReader::Header> LcmLogReader::HeaderAt(std::uint64_t pos) const {
+    if (pos + kHeaderBytes > size_ || ReadU32Be(data_ + pos) != kLcmSyncWord) return std::nullopt;
+    const std::uint8_t* h = data_ + pos;
+    Header hd;
+    hd.eventnum = static_cast<std::int64_t>(ReadU64Be(h + 4));
+    hd.utime = static_cast<std::int64_t>(ReadU64Be(h + 12));
+    hd.channel_len = static_cast<std::int32_t>(ReadU32Be(h + 20));
+    hd.data_len = static_cast<std::int32_t>(ReadU32Be(h + 24));
+    if (hd.channel_len <= 0 || hd.channel_len > kLcmMaxChannelLength || hd.data_len < 0) {
+        return std::nullopt;
+    }
+    const std::uint64_t channel_end = pos + kHeaderBytes + static_cast<std::uint64_t>(hd.channel_len);
+    if (channel_end > size_ ||
+        !PrintableChannel(h + kHeaderBytes, static_cast<std::size_t>(hd.channel_len))) {
+        return std::nullopt;
+    }
+    hd.data_begin = channel_end;
+    hd.claimed_end = channel_end + static_cast<std::uint64_t>(hd.data_len);
+    return hd;
+}
+
+std::uint64_t LcmLogReader::NextPlausibleHeader(std::uint64_t from) const {
+    static constexpr std::uint8_t kSync[4] = {0xED, 0xA1, 0xDA, 0x01};
+    std::uint64_t q = from;
+    while (q + 4 <= size_) {
+        const void* hit = ::memmem(data_ + q, size_ - q, kSync, 4);
+        if (hit == nullptr) break;
+        q = static_cast<std::uint64_t>(static_cast<const std::uint8_t*>(hit) - data_);
+        if (HeaderAt(q)) return q;
+        ++q;
+    }
+    return size_;
+}
+
 bool LcmLogReader::Next(LcmEvent& ev) {
     while (pos_ + 4 <= size_) {
         if (ReadU32Be(data_ + pos_) != kLcmSyncWord) {
+            // Skip to the next sync word in one step, counting the bytes.
+            static constexpr std::uint8_t kSync[4] = {0xED, 0xA1, 0xDA, 0x01};
+            const void* hit = ::memmem(data_ + pos_, size_ - pos_, kSync, 4);
+            const std::uint64_t to =
+                hit ? static_cast<std::uint64_t>(static_cast<const std::uint8_t*>(hit) - data_)
+                    : size_ - 3;
+            counts_.resync_bytes += static_cast<std::int64_t>(to - pos_);
+            pos_ = to;
+            continue;
+        }
+        if (pos_ + kHeaderBytes > size_) break;  // truncated header
+        const auto hd = HeaderAt(pos_);
+        if (!hd) {
+            // Impossible lengths or a channel that is not text: resynchronise after this sync.
+            ++counts_.corrupt_headers;
             ++pos_;
             ++counts_.resync_bytes;
             continue;
         }
-        if (pos_ + kHeaderBytes > size_) break;  // truncated header
-        const std::uint8_t* h = data_ + pos_;
-        const auto eventnum = static_cast<std::int64_t>(ReadU64Be(h + 4));
-        const auto utime = static_cast<std::int64_t>(ReadU64Be(h + 12));
-        const auto channel_len = static_cast<std::int32_t>(ReadU32Be(h + 20));
-        const auto data_len = static_cast<std::int32_t>(ReadU32Be(h + 24));
-        if (channel_len <= 0 || channel_len > kLcmMaxChannelLength || data_len < 0) {
-            ++counts_.corrupt_headers;
-            ++pos_;  // resynchronise after this sync word
-            continue;
-        }
-        const std::uint64_t end = pos_ + kHeaderBytes + static_cast<std::uint64_t>(channel_len) +
-                                  static_cast<std::uint64_t>(data_len);
-        if (end > size_) {
-            // Either the last event cut by a power cut, or a corrupt length in the middle: look
-            // for a later sync word to tell them apart.
-            const void* later = nullptr;
-            if (pos_ + 4 < size_) {
-                const std::uint8_t sync[4] = {0xED, 0xA1, 0xDA, 0x01};
-                later = ::memmem(data_ + pos_ + 4, size_ - pos_ - 4, sync, 4);
+        // The data length is trusted only when the next event starts where it says (or the
+        // file ends there). Otherwise it was corrupted, or the next sync word was: the first
+        // plausible header after the channel tells which.
+        std::uint64_t end = hd->claimed_end;
+        const bool lands = end == size_ || (end < size_ && (end + 4 > size_ ||
+                                                            ReadU32Be(data_ + end) == kLcmSyncWord));
+        if (!lands) {
+            const std::uint64_t q = NextPlausibleHeader(hd->data_begin);
+            if (q < size_ && q < end) {
+                // A real event starts inside the claimed span: the length field is wrong. The
+                // event's data runs up to that event (exact when only the length was hit;
+                // otherwise its lcmtype decode fails and is counted).
+                ++counts_.length_repairs;
+                end = q;
+            } else if (end > size_) {
+                break;  // the last event, cut by the end of the file (power cut)
             }
-            if (later == nullptr) break;
-            ++counts_.corrupt_headers;
-            ++pos_;
-            continue;
+            // else: the length is consistent with the next real event; the sync word after
+            // this event was damaged, and the scan resynchronises there.
         }
-        const std::uint8_t* ch = h + kHeaderBytes;
-        if (!PrintableChannel(ch, static_cast<std::size_t>(channel_len))) {
-            ++counts_.corrupt_headers;
-            ++pos_;
-            continue;
-        }
-        ev.eventnum = eventnum;
-        ev.utime = utime;
-        ev.channel = std::string_view(reinterpret_cast<const char*>(ch),
-                                      static_cast<std::size_t>(channel_len));
-        ev.data = ByteSpan(ch + channel_len, static_cast<std::size_t>(data_len));
+        ev.eventnum = hd->eventnum;
+        ev.utime = hd->utime;
+        ev.channel = std::string_view(reinterpret_cast<const char*>(data_ + pos_ + kHeaderBytes),
+                                      static_cast<std::size_t>(hd->channel_len));
+        ev.data = ByteSpan(data_ + hd->data_begin, static_cast<std::size_t>(end - hd->data_begin));
         pos_ = end;
         ++counts_.events;
         return true;
@@ -118,4 +156,4 @@ bool LcmLogReader::Next(LcmEvent& ev) {
     return false;
 }
 
-}  // namespace pitmap::proc::io
+}  // namespace pitmap::lcmlog

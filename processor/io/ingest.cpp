@@ -19,7 +19,8 @@
 #include "common/gps_time.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
 #include "common/protocol/novatel/decoder.hpp"
-#include "processor/io/lcm_log_reader.hpp"
+#include "lcmtypes/log/lcm_log_reader.hpp"
+#include "lcmtypes/log/lcm_wire.hpp"
 
 namespace pitmap::proc::io {
 
@@ -262,9 +263,9 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
     pitmap::raw_bytes_t raw;
     dt::Ping83P ping83;
     for (const std::string& path : paths) {
-        auto reader = LcmLogReader::Open(path);
+        auto reader = lcmlog::LcmLogReader::Open(path);
         if (!reader) return reader.error();
-        LcmEvent ev;
+        lcmlog::LcmEvent ev;
         std::uint64_t last_pos = 0;
         std::int64_t n = 0;
         while ((*reader)->Next(ev)) {
@@ -278,13 +279,15 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                     ++it->second;
                 }
             }
-            const int len = static_cast<int>(ev.data.size());
+            // Every decode is bounds-checked against the event's own bytes first: a corrupted
+            // count is a counted decode failure, never an exception or a huge allocation.
+            const std::size_t len = ev.data.size();
             const void* buf = ev.data.data();
             const std::string_view ch = ev.channel;
             if (Matches(ch, "INS_PVA_", nav_id)) {
                 seen.decoded_nav = true;
                 if (!want_decoded) continue;
-                if (pva.decode(buf, 0, len) != len) {
+                if (!lcmlog::DecodeChecked(pva, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
@@ -300,7 +303,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                 }
             } else if (Matches(ch, "INS_STDDEV_", nav_id)) {
                 if (!want_decoded) continue;
-                if (sd.decode(buf, 0, len) != len) {
+                if (!lcmlog::DecodeChecked(sd, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
@@ -309,7 +312,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                                sd.azimuth_stddev_deg});
             } else if (StartsWith(ch, "GPS_TIME_")) {
                 if (!want_decoded) continue;
-                if (gt.decode(buf, 0, len) != len) {
+                if (!lcmlog::DecodeChecked(gt, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
@@ -317,7 +320,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
             } else if (Matches(ch, "MULTIBEAM_PING_", sonar_id)) {
                 seen.decoded_sonar = true;
                 if (!want_decoded) continue;
-                if (mb.decode(buf, 0, len) != len) {
+                if (!lcmlog::DecodeChecked(mb, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
@@ -335,7 +338,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                 const bool nav_ok = nav_id.empty() || ch.substr(4) == nav_id;
                 const bool sonar_ok = sonar_id.empty() || ch.substr(4) == sonar_id;
                 if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
-                if (raw.decode(buf, 0, len) != len) {
+                if (!lcmlog::DecodeChecked(raw, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
@@ -362,6 +365,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                     }
                 } else {
                     if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
+                    s.last_utime_gps = raw.utime_gps;
                     s.deltat->Push(bytes);
                     DrainDeltat(s, col, c, raw.utime_gps, ping83);
                 }
@@ -375,21 +379,29 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
         }
         bytes_done += (*reader)->size() - last_pos;
         if (count_files) {
-            const LcmLogCounts& lc = (*reader)->counts();
+            const lcmlog::LcmLogCounts& lc = (*reader)->counts();
             ++r.counts.files;
             r.counts.bytes += static_cast<std::int64_t>((*reader)->size());
             r.counts.corrupt_events += lc.corrupt_headers;
             r.counts.resync_bytes += lc.resync_bytes;
             r.counts.truncated_events += lc.truncated_events;
+            r.counts.length_repairs += lc.length_repairs;
         }
     }
     for (auto& [name, s] : raw_streams) {
+        // End of the logs: a candidate still waiting gives up its sync only; what it held is
+        // framed again (frames behind a false header are not lost).
         if (s.novatel) {
-            if (auto sk = s.novatel->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-            DrainNovatel(s, col, r.counts);
+            while (auto sk = s.novatel->Flush()) {
+                r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                DrainNovatel(s, col, r.counts);
+            }
         }
         if (s.deltat) {
-            if (auto sk = s.deltat->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            while (auto sk = s.deltat->Flush()) {
+                r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                DrainDeltat(s, col, r.counts, s.last_utime_gps, ping83);
+            }
         }
     }
     return Ok{};
@@ -514,8 +526,10 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
             s.novatel->Push(ByteSpan(buf.data(), got));
             DrainNovatel(s, col, r.counts);
         }
-        if (auto sk = s.novatel->Flush()) r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-        DrainNovatel(s, col, r.counts);
+        while (auto sk = s.novatel->Flush()) {
+            r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            DrainNovatel(s, col, r.counts);
+        }
         ++r.counts.files;
     }
     r.nav_from_raw = true;
@@ -533,12 +547,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig&
         RawStream s;
         s.deltat = std::make_unique<dt::StreamFramer>();
         std::vector<std::uint8_t> buf(1 << 16);
-        while (in) {
-            in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
-            const auto got = static_cast<std::size_t>(in.gcount());
-            if (got == 0) break;
-            into.counts.bytes += static_cast<std::int64_t>(got);
-            s.deltat->Push(ByteSpan(buf.data(), got));
+        const auto drain = [&] {
             while (true) {
                 auto ev = s.deltat->Next();
                 if (std::holds_alternative<protocol::NeedMore>(ev)) break;
@@ -560,8 +569,19 @@ Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig&
                 }
                 col.AddPing83P(ping, t);
             }
+        };
+        while (in) {
+            in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+            const auto got = static_cast<std::size_t>(in.gcount());
+            if (got == 0) break;
+            into.counts.bytes += static_cast<std::int64_t>(got);
+            s.deltat->Push(ByteSpan(buf.data(), got));
+            drain();
         }
-        if (auto sk = s.deltat->Flush()) into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+        while (auto sk = s.deltat->Flush()) {
+            into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            drain();
+        }
         ++into.counts.files;
     }
     into.pings_from_raw = true;
@@ -598,14 +618,23 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
 
 Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
                                    const IngestConfig& config, const ProgressCallback& progress) {
-    std::vector<std::string> lcm, p83, novatel;
+    std::vector<std::string> lcm, p83, novatel, skipped;
     for (const auto& f : files) {
         switch (Sniff(f)) {
             case FileKind::kLcm: lcm.push_back(f); break;
             case FileKind::k83P: p83.push_back(f); break;
             case FileKind::kNovatel: novatel.push_back(f); break;
-            case FileKind::kUnknown: return Error{f + ": empty or too short to be a log file"};
+            case FileKind::kUnknown:
+                // An empty segment (e.g. created while the disk was full) holds nothing to
+                // lose: it is skipped and said so, and the other files are read.
+                skipped.push_back(f + ": empty or too short to be a log file, skipped");
+                break;
         }
+    }
+    if (lcm.empty() && p83.empty() && novatel.empty()) {
+        return Error{files.empty() ? std::string("no input files")
+                                   : files.front() + (files.size() > 1 ? " and the others" : "") +
+                                         ": empty or too short to be log files"};
     }
     IngestResult r;
     if (!lcm.empty()) {
@@ -628,6 +657,8 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
     if (!p83.empty()) {
         if (auto s = Ingest83PFiles(p83, config, r.nav.leap_seconds, r); !s) return s.error();
     }
+    r.counts.files_skipped += static_cast<std::int64_t>(skipped.size());
+    r.warnings.insert(r.warnings.end(), skipped.begin(), skipped.end());
     Finish(r);
     return r;
 }

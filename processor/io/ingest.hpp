@@ -48,6 +48,8 @@ struct IngestCounts {
     std::int64_t corrupt_events = 0;      // impossible event headers (resynchronised)
     std::int64_t resync_bytes = 0;
     std::int64_t truncated_events = 0;    // cut by the end of a file
+    std::int64_t length_repairs = 0;      // event lengths that did not land on the next event
+    std::int64_t files_skipped = 0;       // empty or too short to be a log
     std::int64_t decode_failures = 0;     // events whose lcmtype did not decode
     std::int64_t nav_samples = 0;
     std::int64_t nav_without_time = 0;    // utime_gps = 0
@@ -71,6 +73,7 @@ struct IngestResult {
     bool nav_from_raw = false;
     bool pings_from_raw = false;
     std::string message;
+    std::vector<std::string> warnings;  // files skipped and why: print them, keep them in the summary
 };
 
 // Reads LCM log files in order. An empty list or an unreadable file is an error.

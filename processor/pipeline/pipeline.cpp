@@ -30,6 +30,8 @@ json CountsJson(const io::IngestCounts& c) {
               {"corrupt_events", c.corrupt_events},
               {"resync_bytes", c.resync_bytes},
               {"truncated_events", c.truncated_events},
+              {"length_repairs", c.length_repairs},
+              {"files_skipped", c.files_skipped},
               {"decode_failures", c.decode_failures},
               {"nav_samples", c.nav_samples},
               {"nav_without_time", c.nav_without_time},
@@ -304,8 +306,10 @@ Status GeorefSurvey(Survey& s,
     bar.Finish();
     if (!ing) return ing.error();
     s.ingest = std::move(*ing);
+    for (const auto& w : s.ingest.warnings) log("warning: " + w);
     log("ingest: " + s.ingest.message);
     json ist = CountsJson(s.ingest.counts);
+    ist["warnings"] = s.ingest.warnings;
     ist["nav_from_raw"] = s.ingest.nav_from_raw;
     ist["pings_from_raw"] = s.ingest.pings_from_raw;
     RecordStage(s.summary, "ingest", ist, ingest_clock);
@@ -369,6 +373,7 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     if (!r) return r.error();
     std::ostringstream o;
     for (const auto& f : *files) o << "file " << f << "\n";
+    for (const auto& w : r->warnings) o << "warning: " << w << "\n";
     for (const auto& [ch, n] : r->counts.events_by_channel) o << "  " << ch << ": " << n << "\n";
     o << CountsJson(r->counts).dump(2) << "\n";
     auto span = [](std::int64_t a, std::int64_t b) {

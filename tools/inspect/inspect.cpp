@@ -16,6 +16,8 @@
 #include "common/protocol/deltat/stream_framer.hpp"
 #include "common/protocol/novatel/decoder.hpp"
 #include "common/protocol/novatel/framer.hpp"
+#include "lcmtypes/log/lcm_log_reader.hpp"
+#include "lcmtypes/log/lcm_wire.hpp"
 #include "pitmap/channel_status_t.hpp"
 #include "pitmap/clock_sync_t.hpp"
 #include "pitmap/daemon_status_t.hpp"
@@ -334,25 +336,33 @@ public:
     }
 
     // The stream breaks (bytes missing from a capture): a frame cannot span the break.
-    void Break() {
-        std::optional<protocol::Skipped> tail;
-        if (novatel_) tail = novatel_->Flush();
-        if (deltat_) tail = deltat_->Flush();
-        if (tail) CountSkipped(*tail, summary_);
-    }
+    void Break() { GiveUpPartials(false); }
 
     SourceSummary Finish() {
-        std::optional<protocol::Skipped> tail;
-        if (novatel_) tail = novatel_->Flush();
-        if (deltat_) tail = deltat_->Flush();
-        if (tail) {
-            CountSkipped(*tail, summary_);
-            summary_.truncated_tail_bytes += tail->bytes;
-        }
+        GiveUpPartials(true);
         return std::move(summary_);
     }
 
 private:
+    // The candidate waiting for more bytes gives up its sync only; the bytes it held are framed
+    // again, until nothing is buffered (frames behind a false header are found).
+    void GiveUpPartials(bool end_of_source) {
+        while (novatel_) {
+            const auto tail = novatel_->Flush();
+            if (!tail) break;
+            CountSkipped(*tail, summary_);
+            if (end_of_source) summary_.truncated_tail_bytes += tail->bytes;
+            DrainNovatel();
+        }
+        while (deltat_) {
+            const auto tail = deltat_->Flush();
+            if (!tail) break;
+            CountSkipped(*tail, summary_);
+            if (end_of_source) summary_.truncated_tail_bytes += tail->bytes;
+            DrainDeltaT();
+        }
+    }
+
     void DrainNovatel() {
         while (true) {
             auto ev = novatel_->Next();
@@ -465,10 +475,9 @@ bool LooksLikeDeltaT(ByteSpan bytes, const std::string& name) {
     return StartsWith(bytes, "83P") || EndsWithNoCase(name, ".83p");
 }
 
-std::string LcmTypeName(const lcm::LogEvent& ev) {
-    if (ev.datalen < 8) return "unknown";
-    const auto hash =
-        static_cast<std::int64_t>(ByteReader(static_cast<const std::uint8_t*>(ev.data), 8).U64Be());
+std::string LcmTypeName(ByteSpan data) {
+    if (data.size() < 8) return "unknown";
+    const auto hash = static_cast<std::int64_t>(ByteReader(data.data(), 8).U64Be());
     struct Known {
         std::int64_t hash;
         const char* name;
@@ -509,25 +518,33 @@ SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::in
 
 Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOptions& options,
                                       InspectReport report) {
-    lcm::LogFile log(path, "r");
-    if (!log.good()) return Error{path + ": cannot open as an LCM log"};
+    // The bounded reader: a corrupted length resynchronises instead of asserting or
+    // allocating what it claims, and every message is bounds-checked before it is decoded.
+    auto log = lcmlog::LcmLogReader::Open(path);
+    if (!log) return log.error();
     LcmSummary lcm_summary;
     // Sources in order of first appearance, keyed by channel and source id.
     std::vector<std::unique_ptr<SourceCounter>> counters;
     std::map<std::string, std::size_t> index;
     std::map<std::string, std::int64_t> last_seq;
     pitmap::raw_bytes_t raw;
-    while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    lcmlog::LcmEvent ev;
+    while ((*log)->Next(ev)) {
         ++lcm_summary.events;
-        if (lcm_summary.events == 1) lcm_summary.first_utime = ev->timestamp;
-        lcm_summary.last_utime = ev->timestamp;
-        auto& channel = lcm_summary.channels[ev->channel];
+        if (lcm_summary.events == 1) lcm_summary.first_utime = ev.utime;
+        lcm_summary.last_utime = ev.utime;
+        auto& channel = lcm_summary.channels[std::string(ev.channel)];
         ++channel.events;
-        channel.bytes += static_cast<std::uint64_t>(std::max(ev->datalen, 0));
-        // LCM's fingerprint check makes decode fail for every other type (conventions.md).
-        if (ev->datalen > 0 && raw.decode(ev->data, 0, ev->datalen) == ev->datalen) {
+        channel.bytes += ev.data.size();
+        const std::string type = LcmTypeName(ev.data);
+        if (type == "raw_bytes_t") {
+            if (!lcmlog::DecodeChecked(raw, ev.data.data(), ev.data.size())) {
+                channel.type = type;
+                ++lcm_summary.undecodable_events;
+                continue;
+            }
             channel.type = "raw_bytes_t";
-            const std::string key = ev->channel + " " + raw.source;
+            const std::string key = std::string(ev.channel) + " " + raw.source;
             auto it = index.find(key);
             if (it == index.end()) {
                 counters.push_back(std::make_unique<SourceCounter>(
@@ -541,8 +558,13 @@ Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOpti
             counters[it->second]->Push(ByteSpan(raw.data.data(), raw.data.size()));
             continue;
         }
-        channel.type = LcmTypeName(*ev);
+        channel.type = type;
     }
+    const lcmlog::LcmLogCounts& lc = (*log)->counts();
+    lcm_summary.corrupt_headers = static_cast<std::uint64_t>(lc.corrupt_headers);
+    lcm_summary.resync_bytes = static_cast<std::uint64_t>(lc.resync_bytes);
+    lcm_summary.length_repairs = static_cast<std::uint64_t>(lc.length_repairs);
+    lcm_summary.truncated_bytes = static_cast<std::uint64_t>(lc.truncated_bytes);
     for (auto& counter : counters) {
         report.sources.push_back(counter->Finish());
         report.total.Add(report.sources.back());

@@ -85,7 +85,7 @@ struct SourceSummary {
     std::map<std::string, std::uint64_t> frames_by_kind;  // "long_binary", "prompt", "83p", ...
     std::uint64_t crc_failures = 0;          // Skipped events with reason bad_crc
     protocol::SkipCounters skipped;          // bytes and events by reason
-    std::uint64_t truncated_tail_bytes = 0;  // what Flush() returned at the end of the source
+    std::uint64_t truncated_tail_bytes = 0;  // what Flush() gave up at the end of the source
     std::uint64_t unframed_bytes = 0;        // bytes of a protocol no framer here knows
     std::uint64_t datagram_errors = 0;       // UDP 83P datagrams that did not decode
     // NovAtel decoder results (common/protocol/novatel/decoder.hpp) for every frame.
@@ -144,6 +144,12 @@ struct LcmSummary {
     std::int64_t last_utime = 0;
     std::map<std::string, LcmChannelSummary> channels;
     std::uint64_t raw_seq_gaps = 0;  // raw_bytes_t chunks missing according to `seq`
+    // Damage found by the bounded log reader (lcmtypes/log/lcm_log_reader.hpp).
+    std::uint64_t corrupt_headers = 0;
+    std::uint64_t resync_bytes = 0;
+    std::uint64_t length_repairs = 0;
+    std::uint64_t truncated_bytes = 0;      // a last event cut by the end of the file
+    std::uint64_t undecodable_events = 0;   // raw_bytes_t events that fail the wire check
 };
 
 struct InspectReport {

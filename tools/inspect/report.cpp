@@ -221,6 +221,11 @@ nlohmann::json ToJson(const InspectReport& report) {
                           {"first_utime", l.first_utime},
                           {"last_utime", l.last_utime},
                           {"raw_seq_gaps", l.raw_seq_gaps},
+                          {"corrupt_headers", l.corrupt_headers},
+                          {"resync_bytes", l.resync_bytes},
+                          {"length_repairs", l.length_repairs},
+                          {"truncated_bytes", l.truncated_bytes},
+                          {"undecodable_events", l.undecodable_events},
                           {"channels", std::move(channels)}};
     }
     return out;
@@ -247,6 +252,14 @@ std::string ToText(const InspectReport& report) {
         const auto& l = *report.lcm;
         os << "LCM log: " << l.events << " events, raw chunks missing by seq " << l.raw_seq_gaps
            << "\n";
+        if (l.corrupt_headers + l.resync_bytes + l.length_repairs + l.truncated_bytes +
+                l.undecodable_events >
+            0) {
+            os << "  damage: " << l.corrupt_headers << " corrupt event headers, " << l.resync_bytes
+               << " bytes skipped to resynchronise, " << l.length_repairs
+               << " event lengths repaired, " << l.truncated_bytes << " bytes cut at the end, "
+               << l.undecodable_events << " raw events that do not decode\n";
+        }
         for (const auto& [name, ch] : l.channels) {
             os << "  " << name << ": " << ch.type << " x" << ch.events << "\n";
         }

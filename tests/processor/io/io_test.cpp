@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// LCM log reader: rotated files, a truncated last event and corrupt bytes are counted, never
-// fatal. LAS 1.4 writer: read back field by field.
+// Ingest of LCM logs (the reader itself: tests/lcmtypes/lcm_log_reader_test.cpp); empty
+// segments; LAS 1.4 writer: read back field by field.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -8,9 +8,12 @@
 #include <string>
 #include <vector>
 
+#include <pitmap/multibeam_ping_t.hpp>
+#include <pitmap/raw_bytes_t.hpp>
+
 #include "common/byte_io.hpp"
 #include "processor/io/ingest.hpp"
-#include "processor/io/lcm_log_reader.hpp"
+#include "lcmtypes/log/lcm_log_reader.hpp"
 #include "processor/io/products.hpp"
 
 namespace pitmap::proc::io {
@@ -22,7 +25,7 @@ void PutBe(std::vector<std::uint8_t>& b, std::uint64_t v, int n) {
 
 std::vector<std::uint8_t> Event(std::int64_t num, const std::string& ch, std::size_t len) {
     std::vector<std::uint8_t> b;
-    PutBe(b, kLcmSyncWord, 4);
+    PutBe(b, lcmlog::kLcmSyncWord, 4);
     PutBe(b, static_cast<std::uint64_t>(num), 8);
     PutBe(b, 1'700'000'000'000'000ull + static_cast<std::uint64_t>(num), 8);
     PutBe(b, ch.size(), 4);
@@ -39,40 +42,102 @@ std::string WriteFile(const std::string& name, const std::vector<std::uint8_t>& 
     return path;
 }
 
-TEST(LcmLogReader, CountsCorruptAndTruncatedEvents) {
+std::vector<std::uint8_t> EventWith(std::int64_t num, const std::string& ch,
+                                    const std::vector<std::uint8_t>& data) {
     std::vector<std::uint8_t> b;
-    for (int i = 0; i < 3; ++i) {
-        auto e = Event(i, "CH_A", 10);
-        b.insert(b.end(), e.begin(), e.end());
-    }
-    b.insert(b.end(), {1, 2, 3, 4, 5});  // garbage between events
-    auto bad = Event(3, "CH_B", 4);
-    bad[20] = 0x7F;  // channel length 2 GB: corrupt header
-    b.insert(b.end(), bad.begin(), bad.end());
-    auto ok = Event(4, "CH_A", 10);
-    b.insert(b.end(), ok.begin(), ok.end());
-    auto cut = Event(5, "CH_A", 100);
-    cut.resize(60);  // power cut
-    b.insert(b.end(), cut.begin(), cut.end());
-    auto reader = LcmLogReader::Open(WriteFile("corrupt.lcmlog", b));
-    ASSERT_TRUE(reader.ok()) << reader.error().message;
-    LcmEvent ev;
-    int n = 0;
-    while ((*reader)->Next(ev)) {
-        EXPECT_EQ(ev.channel, "CH_A");
-        EXPECT_EQ(ev.data.size(), 10u);
-        ++n;
-    }
-    EXPECT_EQ(n, 4);
-    EXPECT_EQ((*reader)->counts().corrupt_headers, 1);
-    EXPECT_EQ((*reader)->counts().truncated_events, 1);
-    EXPECT_GT((*reader)->counts().resync_bytes, 0);
+    PutBe(b, lcmlog::kLcmSyncWord, 4);
+    PutBe(b, static_cast<std::uint64_t>(num), 8);
+    PutBe(b, 1'700'000'000'000'000ull + static_cast<std::uint64_t>(num), 8);
+    PutBe(b, ch.size(), 4);
+    PutBe(b, data.size(), 4);
+    b.insert(b.end(), ch.begin(), ch.end());
+    b.insert(b.end(), data.begin(), data.end());
+    return b;
 }
 
-TEST(LcmLogReader, MissingFileIsAnErrorNamingIt) {
-    auto r = LcmLogReader::Open(::testing::TempDir() + "/nope.lcmlog");
-    ASSERT_FALSE(r.ok());
-    EXPECT_NE(r.error().message.find("nope.lcmlog"), std::string::npos);
+template <class T>
+std::vector<std::uint8_t> Encode(const T& msg) {
+    std::vector<std::uint8_t> b(static_cast<std::size_t>(msg.getEncodedSize()));
+    msg.encode(b.data(), 0, static_cast<int>(b.size()));
+    return b;
+}
+
+std::vector<std::uint8_t> PingBytes(std::int64_t i, int beams) {
+    pitmap::multibeam_ping_t m{};
+    m.utime = 1'700'000'000'000'000 + i * 100'000;
+    m.utime_gps = 1'400'000'000'000'000 + i * 100'000;
+    m.ping_number = i;
+    m.sound_speed_mps = 1500;
+    m.sound_speed_valid = 1;
+    m.range_resolution_m = 0.01f;
+    m.start_angle_deg = -60;
+    m.angle_increment_deg = 1;
+    m.num_beams = static_cast<std::int16_t>(beams);
+    m.range_counts.assign(static_cast<std::size_t>(beams), 1000);
+    return Encode(m);
+}
+
+// One MULTIBEAM_PING with num_beams = -1 among 1 200 used to abort `pitmap info` and `pitmap
+// run` with "internal error: vector::_M_default_append"; raw events with num_bytes = -5 or
+// 0x7fffffff likewise (or allocated 2 GiB). Each is one counted decode failure now.
+TEST(Ingest, UndecodableEventsAreCountedAndSkipped) {
+    std::vector<std::uint8_t> log;
+    for (int i = 0; i < 1200; ++i) {
+        auto ping = PingBytes(i, 32);
+        if (i == 600) {
+            const std::size_t at = ping.size() - 2 - 4 * 32 - 2;  // num_beams
+            ping[at] = 0xFF;
+            ping[at + 1] = 0xFF;
+        }
+        const auto e = EventWith(i, "MULTIBEAM_PING_DELTAT_UDP", ping);
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    for (const std::uint32_t bad : {0xFFFFFFFBu, 0x7FFFFFFFu}) {
+        pitmap::raw_bytes_t raw{};
+        raw.source = "novatel_com1";
+        raw.protocol = "novatel";
+        raw.transport = pitmap::raw_bytes_t::TRANSPORT_SERIAL;
+        raw.num_bytes = 64;
+        raw.data.assign(64, 0x20);
+        auto bytes = Encode(raw);
+        const std::size_t at = bytes.size() - 64 - 4;
+        for (int k = 0; k < 4; ++k) bytes[at + k] = static_cast<std::uint8_t>(bad >> (24 - 8 * k));
+        const auto e = EventWith(2000, "RAW_NOVATEL_COM1", bytes);
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    IngestConfig cfg;
+    auto r = IngestLcmLogs({WriteFile("badcounts.lcmlog", log)}, cfg);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->counts.events, 1202);
+    EXPECT_EQ(r->counts.decode_failures, 3);
+    EXPECT_EQ(r->pings.pings.size(), 1199u);
+    cfg.source = IngestSource::kRaw;
+    r = IngestLcmLogs({WriteFile("badcounts.lcmlog", log)}, cfg);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->counts.decode_failures, 2);
+}
+
+// The daemon's retry on a full disk once left a 0-byte segment; `pitmap info LOGDIR` then
+// refused the whole folder. Empty and too-short files are skipped with a warning.
+TEST(Ingest, EmptySegmentsAreSkippedWithAWarning) {
+    std::vector<std::uint8_t> log;
+    for (int i = 0; i < 10; ++i) {
+        const auto e = EventWith(i, "MULTIBEAM_PING_DELTAT_UDP", PingBytes(i, 8));
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    const std::string good = WriteFile("seg-000.lcmlog", log);
+    const std::string empty = WriteFile("seg-001.lcmlog", {});
+    const std::string tiny = WriteFile("seg-002.lcmlog", {0xED, 0xA1});
+    auto r = IngestFiles({good, empty, tiny}, IngestConfig{});
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->counts.files_skipped, 2);
+    ASSERT_EQ(r->warnings.size(), 2u);
+    EXPECT_NE(r->warnings[0].find("seg-001.lcmlog"), std::string::npos);
+    EXPECT_EQ(r->counts.pings, 10);
+    // Nothing readable at all is still an error, naming the file.
+    auto none = IngestFiles({empty}, IngestConfig{});
+    ASSERT_FALSE(none.ok());
+    EXPECT_NE(none.error().message.find("seg-001.lcmlog"), std::string::npos);
 }
 
 TEST(Ingest, LogWithoutSensorChannelsGivesEmptySeries) {
