@@ -151,6 +151,8 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
         l.Read("disk_check_interval_ms", cfg.log.disk_check_interval_ms);
         l.Read("queue_max_events", cfg.log.queue_max_events);
         l.Read("queue_max_bytes", cfg.log.queue_max_bytes);
+        l.Read("error_retry_ms", cfg.log.error_retry_ms);
+        l.Read("fallback_dir", cfg.log.fallback_directory);
         l.RejectUnknownKeys();
         Append(extra, r.Path("log"), cfg.log.Validate());
     }
