@@ -90,9 +90,9 @@ TEST(AcqdLogDirTest, DeletedLogDirectoryIsReportedRecreatedAndLoggingGoesOn) {
                            "    udp: {bind_address: 127.0.0.1, port: " +
                            std::to_string(port) + "}\n");
     const pid_t pid = testing::SpawnAcqd({"--config", dir + "/c.yaml"}, err);
-    ASSERT_TRUE(testing::WaitFor(
-        [&] { return testing::ReadText(err).find("running") != std::string::npos; }))
-        << testing::ReadText(err);
+    ASSERT_TRUE(testing::WaitFor([&] {
+        return testing::ReadText(err).find("running") != std::string::npos;
+    })) << testing::ReadText(err);
     Pinger pinger(port);
     ASSERT_TRUE(testing::WaitFor([&] {
         pinger.Send();
@@ -135,8 +135,7 @@ TEST(AcqdLogDirTest, DeletedLogDirectoryIsReportedRecreatedAndLoggingGoesOn) {
         while (const lcm::LogEvent* ev = log.readNextEvent()) {
             if (std::string(ev->channel) != "DAEMON_STATUS") continue;
             const auto* p = static_cast<const std::uint8_t*>(ev->data);
-            last = DecodeAs<pitmap::daemon_status_t>(
-                std::vector<std::uint8_t>(p, p + ev->datalen));
+            last = DecodeAs<pitmap::daemon_status_t>(std::vector<std::uint8_t>(p, p + ev->datalen));
         }
     }
     EXPECT_EQ(last.log_dir_lost, 1);
