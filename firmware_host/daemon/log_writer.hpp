@@ -55,7 +55,7 @@ namespace pitmap::acq {
 
 struct LogWriterConfig {
     std::string directory;                          // existing directory for the log files
-    std::string fallback_directory;                 // used when `directory` fails; "" = none
+    std::string fallback_directory{};               // used when `directory` fails; "" = none
     std::string prefix = "pitmap";                  // file name prefix
     std::size_t queue_max_events = 100'000;         // queued events before dropping
     std::size_t queue_max_bytes = 64u << 20;        // queued payload bytes before dropping

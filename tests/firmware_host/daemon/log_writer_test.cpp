@@ -538,6 +538,48 @@ TEST(LogWriterTest, UncreatableDirectorySwitchesToTheFallbackAndBack) {
     EXPECT_NE(text.find("writing to " + dir + " again"), std::string::npos) << text;
 }
 
+// The log directory's file system is unmounted (lazily, as `umount -l` does) under the writer:
+// the path now leads to the directory underneath. The writer notices (the open segment is
+// still linked, so nothing counts as lost), and goes on there. Exit code 0 = good.
+int UnmountedInChild(const std::string& dir) {
+    if (::mount("tmpfs", dir.c_str(), "tmpfs", 0, "size=1m") != 0) return 77;
+    LogWriterConfig c = BaseConfig(dir);
+    c.flush_interval_ms = 20;
+    LogWriter w(c);
+    if (!w.Start().ok()) return 10;
+    int next = 0;
+    for (; next < 10; ++next) w.Enqueue(next, "C", Payload(next, 100));
+    if (!w.Flush(5000)) return 11;
+    if (::umount2(dir.c_str(), MNT_DETACH) != 0) return 77;
+    if (!LogFiles(dir).empty()) return 12;  // the directory underneath is empty
+    next = FeedUntilSegmentIn(w, dir, next);
+    for (int k = 0; k < 10; ++k, ++next) w.Enqueue(next, "C", Payload(next, 100));
+    w.Stop();
+    const LogWriterStats s = w.stats();
+    if (s.directory_lost != 1 || s.events_lost != 0) return 13;
+    const auto files = LogFiles(dir);
+    if (files.size() != 1) return 14;
+    const auto events = ReadLog(files[0]);
+    if (events.size() < 11 || events.back().timestamp != next - 1) return 15;
+    return 0;
+}
+
+TEST(LogWriterTest, UnmountedDirectoryIsNoticedAndLoggingGoesOnUnderneath) {
+    const std::string dir = FreshDir("unmounted");
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        if (::unshare(CLONE_NEWNS) != 0) ::_exit(77);
+        if (::mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0) ::_exit(77);
+        ::_exit(UnmountedInChild(dir));
+    }
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    ASSERT_TRUE(WIFEXITED(status));
+    if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no mount namespace here";
+    EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
 TEST(LogWriterTest, FilesAreCreated0640) {
     const std::string dir = FreshDir("mode");
     const mode_t old = ::umask(0);
