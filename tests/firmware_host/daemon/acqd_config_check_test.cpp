@@ -154,9 +154,9 @@ TEST(AcqdConfigCheckTest, StartUpChecksTheHostBeforeStartingAndListsEverything) 
 
 TEST(AcqdConfigCheckTest, ConfigThatIsADirectory) {
     const std::string dir = testing::FreshDir("acqd_check_dir");
-    const pid_t pid = testing::SpawnAcqd({"--config", dir, "--check-config"}, dir + "/../e.txt");
+    const pid_t pid = testing::SpawnAcqd({"--config", dir, "--check-config"}, dir + "_err.txt");
     EXPECT_EQ(testing::WaitExit(pid), 2);
-    const std::string err = testing::ReadText(dir + "/../e.txt");
+    const std::string err = testing::ReadText(dir + "_err.txt");
     EXPECT_NE(err.find(dir + ": is a directory"), std::string::npos) << err;
     EXPECT_EQ(err.find("log: required"), std::string::npos) << err;
 }

@@ -83,7 +83,9 @@ std::vector<testing::LogEvent> ReadLogFile(const std::string& path) {
 class AcqdTmpfsFullTest : public ::testing::Test {
 protected:
     void SetUp() override {
-        dir_ = testing::FreshDir("acqd_tmpfs_full");
+        // One directory per test: ctest runs them in parallel.
+        dir_ = testing::FreshDir(std::string("acqd_tmpfs_full_") +
+                                 ::testing::UnitTest::GetInstance()->current_test_info()->name());
         logs_ = dir_ + "/logs";
         std::filesystem::create_directories(logs_);
         if (::geteuid() != 0) GTEST_SKIP() << "needs root for unshare(CLONE_NEWNS) and mount";

@@ -52,7 +52,9 @@ bool HaveSystemdAnalyze() {
 
 // The unit with ExecStart/ExecStartPre on the built binary, in a fresh directory.
 std::string UnitCopy() {
-    const std::string dir = ::testing::TempDir() + "/systemd_unit_test";
+    // One directory per test: ctest runs them in parallel.
+    const std::string dir = ::testing::TempDir() + "/systemd_unit_test_" +
+                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     const std::string unit = std::regex_replace(ReadText(kConfigDir + "pitmap-acqd.service"),
