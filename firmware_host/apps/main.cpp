@@ -5,7 +5,9 @@
 //
 //   pitmap-acqd --config FILE [--check-config]
 //
-// Exit codes: 0 ok, 1 start-up failure (log directory, LCM URL), 2 usage or invalid config.
+// Exit codes: 0 ok, 1 start-up failure (the host checks of startup_check.hpp, the log
+// directory, LCM), 2 usage or invalid config (with --check-config: any problem, host checks
+// included). Warnings (a serial device not there yet, a UDP port in use) do not stop it.
 // Signals are blocked in every thread and taken synchronously here (sigtimedwait), so only
 // main handles them.
 #include <signal.h>
@@ -14,10 +16,12 @@
 #include <cstring>
 #include <exception>
 #include <string>
+#include <vector>
 
 #include "firmware_host/daemon/clock.hpp"
 #include "firmware_host/daemon/daemon.hpp"
 #include "firmware_host/daemon/daemon_config.hpp"
+#include "firmware_host/daemon/startup_check.hpp"
 
 namespace {
 
@@ -51,14 +55,23 @@ int Run(int argc, char** argv) {
         return 2;
     }
     pitmap::acq::LoadedConfig loaded = pitmap::acq::LoadDaemonConfig(config_path);
-    if (!loaded.problems.empty()) {
+    // What the host must offer (log directory, devices, ports): checked here too, before any
+    // thread starts, so a start-up fails with the whole list rather than the first problem.
+    const pitmap::acq::HostCheck host = pitmap::acq::CheckHost(loaded.config);
+    for (const auto& w : host.warnings) {
+        std::fprintf(stderr, "pitmap-acqd: warning: %s\n", w.c_str());
+    }
+    std::vector<std::string> problems = loaded.problems;
+    problems.insert(problems.end(), host.errors.begin(), host.errors.end());
+    if (!problems.empty()) {
         std::fprintf(stderr, "pitmap-acqd: %s: %zu problem(s):\n", config_path.c_str(),
-                     loaded.problems.size());
-        for (const auto& p : loaded.problems) std::fprintf(stderr, "  - %s\n", p.c_str());
-        return 2;
+                     problems.size());
+        for (const auto& p : problems) std::fprintf(stderr, "  - %s\n", p.c_str());
+        return check_only || !loaded.problems.empty() ? 2 : 1;
     }
     if (check_only) {
-        std::printf("%s: ok (%zu channels)\n", config_path.c_str(), loaded.config.channels.size());
+        std::printf("%s: ok (%zu channels%s)\n", config_path.c_str(),
+                    loaded.config.channels.size(), host.warnings.empty() ? "" : ", warnings");
         return 0;
     }
 

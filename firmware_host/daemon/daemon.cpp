@@ -37,7 +37,7 @@ Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps
     : config_(std::move(config)),
       clock_(clock),
       time_(config_.host_clock, config_.sonar_clock),
-      log_(config_.log),
+      log_(config_.log, {}, &human_log_),
       publisher_(config_.publisher, &log_) {
     for (const auto& spec : config_.channels) {
         sources_.push_back(MakeSource(spec));
@@ -60,9 +60,18 @@ Status Daemon::Start() {
     if (started_) return Ok{};
     std::error_code ec;
     std::filesystem::create_directories(config_.log.directory, ec);
-    if (ec) return Error{"cannot create log directory " + config_.log.directory + ": " + ec.message()};
+    std::string log_dir = config_.log.directory;
+    if (ec) {
+        // The log writer starts in the fallback directory if there is one (and says so).
+        if (config_.log.fallback_directory.empty()) {
+            return Error{"cannot create log directory " + config_.log.directory + ": " +
+                         ec.message()};
+        }
+        log_dir = config_.log.fallback_directory;
+        std::filesystem::create_directories(log_dir, ec);
+    }
     if (!config_.vehicle_yaml.empty()) {
-        const std::string path = config_.log.directory + "/vehicle.yaml";
+        const std::string path = log_dir + "/vehicle.yaml";
         std::ofstream out(path, std::ios::trunc);
         out << config_.vehicle_yaml;
         if (!out) return Error{"cannot write " + path};
@@ -98,6 +107,9 @@ pitmap::daemon_status_t Daemon::Snapshot() const {
     s.log_events_dropped = ls.dropped();
     s.disk_free_bytes = ls.disk_free_bytes;
     s.publish_failures = publisher_.stats().publish_failures;
+    s.log_dir_lost = ls.directory_lost;
+    s.log_events_lost = ls.events_lost;
+    s.log_directory = ls.directory;
     return s;
 }
 

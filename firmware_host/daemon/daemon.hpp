@@ -4,13 +4,15 @@
 // periodic status (STATUS_<ID> channel_status_t, CLOCK_SYNC clock_sync_t for the host and
 // the sonar model, DAEMON_STATUS daemon_status_t).
 //
-// At Start() the log directory is created if missing and the config's `vehicle` section is
-// written there as vehicle.yaml (lever arms and nominal boresight for the processor; it is
-// not published on LCM: the processor reads it next to the logs).
+// At Start() the log directory is created if missing (log.fallback_dir is used when that
+// fails) and the config's `vehicle` section is written there as vehicle.yaml (lever arms and
+// nominal boresight for the processor; it is not published on LCM: the processor reads it
+// next to the logs). The log writer reports through the daemon's rate-limited human log.
 //
 // THREADING: one reader thread per channel (SensorChannel), the publisher thread, the log
-// writer thread, the PPS thread when a device is configured. Start(), PublishStatus(), Rotate() and Stop() are called from the one
-// controlling thread (main, which also owns the signals).
+// writer thread, the PPS thread when a device is configured. Start(), PublishStatus(),
+// Rotate() and Stop() are called from the one controlling thread (main, which also owns the
+// signals).
 #pragma once
 
 #include <memory>

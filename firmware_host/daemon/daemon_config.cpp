@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "firmware_host/daemon/daemon_config.hpp"
 
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
 #include <fstream>
@@ -8,6 +9,7 @@
 #include <sstream>
 
 #include "common/config.hpp"
+#include "firmware_host/daemon/startup_check.hpp"
 
 namespace pitmap::acq {
 namespace {
@@ -132,6 +134,7 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
     std::vector<std::string> extra;
     r.Read("lcm_url", cfg.lcm_url);
     cfg.publisher.lcm_url = cfg.lcm_url;
+    for (const std::string& p : ValidateLcmUrl(cfg.lcm_url)) extra.push_back(p);  // names it
     r.Read("status_period_ms", cfg.status_period_ms);
     r.Read("pps_device", cfg.pps.device);
     r.Read("pps_fetch_timeout_ms", cfg.pps.fetch_timeout_ms);
@@ -151,6 +154,8 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
         l.Read("disk_check_interval_ms", cfg.log.disk_check_interval_ms);
         l.Read("queue_max_events", cfg.log.queue_max_events);
         l.Read("queue_max_bytes", cfg.log.queue_max_bytes);
+        l.Read("error_retry_ms", cfg.log.error_retry_ms);
+        l.Read("fallback_dir", cfg.log.fallback_directory);
         l.RejectUnknownKeys();
         Append(extra, r.Path("log"), cfg.log.Validate());
     }
@@ -216,6 +221,12 @@ LoadedConfig LoadDaemonConfigFromString(const std::string& yaml, const std::stri
 }
 
 LoadedConfig LoadDaemonConfig(const std::string& path) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+        LoadedConfig out;
+        out.problems.push_back(path + ": is a directory, not a config file");
+        return out;
+    }
     std::ifstream in(path);
     std::stringstream ss;
     ss << in.rdbuf();

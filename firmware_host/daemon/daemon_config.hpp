@@ -4,14 +4,17 @@
 // problems. Units are in the key names.
 //
 // Top level keys:
-//   lcm_url            LCM provider URL ("" = log only); e.g. udpm://239.255.76.67:7667?ttl=0
+//   lcm_url            LCM provider URL ("" = log only); e.g. udpm://239.255.76.67:7667?ttl=0;
+//                      checked by ValidateLcmUrl (startup_check.hpp)
 //   status_period_ms   STATUS_<ID>, CLOCK_SYNC and DAEMON_STATUS period (1000)
 //   pps_device         RFC 2783 PPS device feeding the host clock model, e.g. /dev/pps0;
 //                      absent or "" = none. Must exist (a character device) at start-up.
 //   pps_fetch_timeout_ms  one wait for a pulse (1500)
 //   log                directory, prefix, rotate_bytes, rotate_interval_s, flush_interval_ms,
 //                      min_free_bytes, resume_margin_bytes, disk_check_interval_ms,
-//                      queue_max_events, queue_max_bytes
+//                      queue_max_events, queue_max_bytes, error_retry_ms; optional
+//                      fallback_dir: where files go when `directory` cannot be (re)created
+//                      or written (e.g. its file system was unmounted)
 //   publisher          queue_max_events, queue_max_bytes (outbound LCM queue)
 //   clock              fixed_latency_us (host model), sonar_header_resolution_us
 //   channels           list; each: id, protocol (novatel | deltat_83p), exactly one of
@@ -71,7 +74,8 @@ struct LoadedConfig {
 };
 
 // Reads and validates a config file: parse errors, wrong types, unknown keys and every
-// Validate() of the parts, each as one line naming the key.
+// Validate() of the parts, each as one line naming the key. What depends on the host (the log
+// directory, devices, ports) is CheckHost's (startup_check.hpp).
 LoadedConfig LoadDaemonConfig(const std::string& path);
 LoadedConfig LoadDaemonConfigFromString(const std::string& yaml, const std::string& origin);
 

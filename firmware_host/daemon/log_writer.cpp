@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <utility>
 
 #include "common/gps_time.hpp"
@@ -77,11 +78,14 @@ std::vector<std::string> LogWriterConfig::Validate() const {
     }
     if (disk_check_interval_ms <= 0) p.push_back("log: disk_check_interval_ms must be > 0");
     if (error_retry_ms <= 0) p.push_back("log: error_retry_ms must be > 0");
+    if (!fallback_directory.empty() && fallback_directory == directory) {
+        p.push_back("log: fallback_dir must differ from directory");
+    }
     return p;
 }
 
-LogWriter::LogWriter(LogWriterConfig config, LogWriterHooks hooks)
-    : config_(std::move(config)), hooks_(std::move(hooks)) {
+LogWriter::LogWriter(LogWriterConfig config, LogWriterHooks hooks, RateLimitedLog* human_log)
+    : config_(std::move(config)), hooks_(std::move(hooks)), human_log_(human_log) {
     PITMAP_CHECK(config_.Validate().empty(), "LogWriter: invalid config");
     if (!hooks_.now_utime) hooks_.now_utime = [] { return HostNowUtime(); };
     if (!hooks_.free_bytes) hooks_.free_bytes = StatvfsFree;
@@ -94,11 +98,22 @@ std::int64_t LogWriter::Now() const { return hooks_.now_utime(); }
 Status LogWriter::Start() {
     if (running_) return Ok{};
     struct stat st {};
+    std::string problem;
     if (::stat(config_.directory.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
-        return Error{"log: directory " + config_.directory + " does not exist"};
+        problem = "log: directory " + config_.directory + " does not exist";
+    } else if (::access(config_.directory.c_str(), W_OK) != 0) {
+        problem = Errno("log: directory " + config_.directory + " is not writable", errno);
     }
-    if (::access(config_.directory.c_str(), W_OK) != 0) {
-        return Error{Errno("log: directory " + config_.directory + " is not writable", errno)};
+    if (!problem.empty()) {
+        if (config_.fallback_directory.empty()) return Error{problem};
+        std::error_code ec;
+        std::filesystem::create_directories(config_.fallback_directory, ec);
+        if (ec || ::access(config_.fallback_directory.c_str(), W_OK) != 0) {
+            return Error{problem + "; fallback directory " + config_.fallback_directory +
+                         " is not usable either"};
+        }
+        Say("log:directory", problem + "; logging to fallback directory " +
+                                 config_.fallback_directory);
     }
     {
         std::lock_guard lock(queue_mu_);
@@ -194,6 +209,11 @@ void LogWriter::Run() {
             rotate_requested_ = false;
             flush_gen = flush_requested_;
         }
+        const std::int64_t pass_mono = MonotonicNowUs();
+        if (fd_ >= 0 && pass_mono - last_gone_check_us_ >= config_.flush_interval_ms * 1000LL) {
+            last_gone_check_us_ = pass_mono;
+            CheckSegmentGone();
+        }
         if (rotate) CloseFile();
         if (!batch.empty()) CheckDisk(false);
         for (const Event& e : batch) WriteOne(e);
@@ -223,6 +243,10 @@ void LogWriter::Run() {
     CloseFile();
 }
 
+void LogWriter::Say(const std::string& key, const std::string& message) {
+    if (human_log_ != nullptr) human_log_->Log(key, MonotonicNowUs(), message);
+}
+
 void LogWriter::SetError(const std::string& message) {
     std::lock_guard lock(stats_mu_);
     ++stats_.write_errors;
@@ -239,7 +263,8 @@ void LogWriter::CheckDisk(bool force) {
         return;
     }
     last_disk_check_us_ = mono;
-    const std::optional<std::int64_t> free = hooks_.free_bytes(config_.directory);
+    const std::optional<std::int64_t> free =
+        hooks_.free_bytes(last_dir_.empty() ? config_.directory : last_dir_);
     LogWriterState state;
     {
         std::lock_guard lock(stats_mu_);
@@ -261,36 +286,116 @@ void LogWriter::CheckDisk(bool force) {
 }
 
 bool LogWriter::OpenNewFile() {
+    std::string error;
+    if (OpenIn(config_.directory, error)) {
+        if (!last_dir_.empty() && last_dir_ != config_.directory) {
+            Say("log:directory", "log: writing to " + config_.directory + " again");
+        }
+        last_dir_ = config_.directory;
+        return true;
+    }
+    if (!config_.fallback_directory.empty()) {
+        std::string fallback_error;
+        if (OpenIn(config_.fallback_directory, fallback_error)) {
+            if (last_dir_ != config_.fallback_directory) {
+                Say("log:directory",
+                    error + "; writing to fallback directory " + config_.fallback_directory);
+            }
+            last_dir_ = config_.fallback_directory;
+            return true;
+        }
+        error += "; fallback: " + fallback_error;
+    }
+    SetError(error);
+    Say("log:open", error + "; retrying in " + std::to_string(config_.error_retry_ms) + " ms");
+    return false;
+}
+
+bool LogWriter::OpenIn(const std::string& dir, std::string& error) {
+    struct stat st {};
+    if (::stat(dir.c_str(), &st) != 0) {
+        // Missing (deleted, or its file system went away): make it again.
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec) {
+            error = "log: cannot create directory " + dir + ": " + ec.message();
+            return false;
+        }
+        if (!last_dir_.empty()) {
+            Say("log:recreated", "log: directory " + dir + " was missing: created it again");
+        }
+    }
+    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd < 0) {
+        error = Errno("log: open directory " + dir, errno);
+        return false;
+    }
     const std::int64_t now = Now();
     for (int attempt = 0; attempt < 1000; ++attempt) {
         const std::string name = LogFileName(config_.prefix, now, file_sequence_++);
-        const std::string path = config_.directory + "/" + name;
-        const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+        // 0640: the logs are readable by the daemon's group, not by everyone (the umask of the
+        // systemd unit, 0027, agrees).
+        const int fd = ::openat(dfd, name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0640);
         if (fd < 0 && errno == EEXIST) continue;
         if (fd < 0) {
-            SetError(Errno("log: create " + path, errno));
+            error = Errno("log: create " + dir + "/" + name, errno);
+            ::close(dfd);
             return false;
         }
         // Make the new directory entry durable too, or a power cut can lose the whole file.
-        const int dfd = ::open(config_.directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (dfd >= 0) {
-            ::fsync(dfd);
-            ::close(dfd);
-        }
+        ::fsync(dfd);
         fd_ = fd;
-        path_ = path;
+        dir_fd_ = dfd;
+        dir_ = dir;
+        name_ = name;
+        path_ = dir + "/" + name;
         file_bytes_ = 0;
         file_open_utime_ = now;
         event_number_ = 0;
         dirty_ = false;
         last_sync_us_ = MonotonicNowUs();
+        last_gone_check_us_ = last_sync_us_;
         std::lock_guard lock(stats_mu_);
         ++stats_.files_opened;
-        stats_.current_path = path;
+        stats_.current_path = path_;
+        stats_.directory = dir;
         return true;
     }
-    SetError("log: no free file name for prefix " + config_.prefix);
+    ::close(dfd);
+    error = "log: no free file name for prefix " + config_.prefix + " in " + dir;
     return false;
+}
+
+bool LogWriter::CheckSegmentGone() {
+    if (fd_ < 0) return false;
+    struct stat file_st {};
+    struct stat dir_st {};
+    struct stat path_st {};
+    const bool deleted = ::fstat(fd_, &file_st) == 0 && file_st.st_nlink == 0;
+    std::string what;
+    if (deleted) {
+        what = "log: file " + path_ + " was deleted while open";
+    } else if (::fstat(dir_fd_, &dir_st) == 0) {
+        if (::stat(dir_.c_str(), &path_st) != 0) {
+            what = Errno("log: directory " + dir_ + " is gone", errno);
+        } else if (path_st.st_dev != dir_st.st_dev || path_st.st_ino != dir_st.st_ino) {
+            what = "log: directory " + dir_ + " was replaced or unmounted under " + path_;
+        }
+    }
+    if (what.empty()) return false;
+    const std::int64_t lost = deleted ? event_number_ : 0;
+    if (deleted) what += " (its " + std::to_string(lost) + " events are lost)";
+    what += "; starting a new file";
+    {
+        std::lock_guard lock(stats_mu_);
+        ++stats_.directory_lost;
+        stats_.events_lost += lost;
+        stats_.last_error = what;
+    }
+    Say("log:gone", what);
+    if (deleted) dirty_ = false;  // nothing to keep: no sync, and nothing to remove
+    ReleaseSegment(/*sync=*/!deleted, /*remove_if_empty=*/!deleted);
+    return true;
 }
 
 bool LogWriter::StartAsyncSync() {
@@ -344,10 +449,24 @@ void LogWriter::Sync() {
 
 void LogWriter::CloseFile() {
     if (fd_ < 0) return;
-    if (dirty_) Sync();
+    if (CheckSegmentGone()) return;  // reported and already released
+    ReleaseSegment(/*sync=*/true, /*remove_if_empty=*/true);
+}
+
+void LogWriter::ReleaseSegment(bool sync, bool remove_if_empty) {
+    if (fd_ < 0) return;
+    if (sync && dirty_) Sync();
     ::close(fd_);
     fd_ = -1;
+    // A segment without one complete event (its first write failed, or nothing came) is no
+    // log: remove it rather than leave a 0-byte file for the shore tools.
+    if (remove_if_empty && file_bytes_ == 0) ::unlinkat(dir_fd_, name_.c_str(), 0);
+    ::close(dir_fd_);
+    dir_fd_ = -1;
     path_.clear();
+    name_.clear();
+    dir_.clear();
+    dirty_ = false;
     std::lock_guard lock(stats_mu_);
     stats_.current_path.clear();
 }
@@ -411,9 +530,10 @@ void LogWriter::WriteOne(const Event& e) {
         const std::string path = path_;
         const bool truncated = ::ftruncate(fd_, file_bytes_) == 0 &&
                                ::lseek(fd_, file_bytes_, SEEK_SET) == file_bytes_;
-        ::close(fd_);
-        fd_ = -1;
-        path_.clear();
+        // As before this change: the complete events before are not synced here (the disk is
+        // failing); an empty segment is removed.
+        dirty_ = false;
+        ReleaseSegment(/*sync=*/false, /*remove_if_empty=*/true);
         SetError(Errno("log: write " + path, err) +
                  (truncated ? "" : " (and the partial event could not be cut off)"));
         std::lock_guard lock(stats_mu_);

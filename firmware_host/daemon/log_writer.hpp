@@ -17,6 +17,16 @@
 // opens a new file once space is back above min_free_bytes + resume_margin_bytes. A write
 // error (ENOSPC, EIO, EFBIG) truncates the file back to the last complete event, closes it,
 // is counted and reported, and writing is retried after error_retry_ms; nothing is fatal.
+// A segment that holds no complete event when it is closed or abandoned (its first write
+// failed) is removed, so no 0-byte log is ever left behind. Files are created 0640.
+//
+// A vanished log (issue 14): on every flush interval and before a file is closed, the open
+// segment is checked with fstat (st_nlink 0: deleted) and its directory by comparing the
+// path's stat with the directory the segment was opened in (deleted, replaced, unmounted).
+// Either is reported (a rate-limited human line, LogWriterStats::directory_lost, and the
+// events of a deleted segment in events_lost), the segment is closed and the next event opens
+// a new one: the directory is created again (mkdir -p) or, when that or the file creation
+// fails, the optional fallback_directory is used. Each new file tries the primary first.
 //
 // THREADING: Enqueue(), RequestRotate(), Flush() and stats() may be called from any thread.
 // Start()/Stop() from one controlling thread (idempotent). The writer thread owns the file
@@ -39,11 +49,13 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "firmware_host/daemon/rate_limited_log.hpp"
 
 namespace pitmap::acq {
 
 struct LogWriterConfig {
     std::string directory;                          // existing directory for the log files
+    std::string fallback_directory{};               // used when `directory` fails; "" = none
     std::string prefix = "pitmap";                  // file name prefix
     std::size_t queue_max_events = 100'000;         // queued events before dropping
     std::size_t queue_max_bytes = 64u << 20;        // queued payload bytes before dropping
@@ -71,6 +83,10 @@ struct LogWriterStats {
     std::int64_t dropped_write_error = 0;  // lost to a write error or while waiting to retry
     std::int64_t write_errors = 0;         // failed writes/opens
     std::int64_t files_opened = 0;
+    std::int64_t directory_lost = 0;    // open segment or its directory vanished (deleted,
+                                        // replaced, unmounted) and a new one was started
+    std::int64_t events_lost = 0;       // events written to segments deleted while open
+    std::string directory;              // directory of the current (last) file; "" before any
     std::int64_t disk_free_bytes = -1;  // last statvfs result; -1 = unknown
     std::string last_error;             // "" if none
     std::int64_t dropped() const {
@@ -95,14 +111,17 @@ std::string LogFileName(const std::string& prefix, std::int64_t utime, int seque
 
 class LogWriter {
 public:
-    // Precondition: config.Validate() is empty.
-    explicit LogWriter(LogWriterConfig config, LogWriterHooks hooks = {});
+    // Precondition: config.Validate() is empty. `human_log` (may be null, must outlive this)
+    // gets the rate-limited lines about a vanished directory and failing file creation.
+    explicit LogWriter(LogWriterConfig config, LogWriterHooks hooks = {},
+                       RateLimitedLog* human_log = nullptr);
     ~LogWriter();
     LogWriter(const LogWriter&) = delete;
     LogWriter& operator=(const LogWriter&) = delete;
 
     // Starts the writer thread (the first file opens with the first event). Fails when the
-    // directory is missing or not writable. Idempotent.
+    // directory is missing or not writable and no fallback_directory can be created and
+    // written. Idempotent.
     Status Start();
     // Writes everything queued, syncs, closes. Idempotent.
     void Stop();
@@ -128,7 +147,16 @@ private:
     void Run();
     void WriteOne(const Event& e);
     bool OpenNewFile();
+    // Creates `dir` if missing and a new segment in it; on failure `error` says why.
+    bool OpenIn(const std::string& dir, std::string& error);
     void CloseFile();
+    // Closes the open segment (syncing it first when `sync`), removing it when it holds no
+    // complete event and `remove_if_empty`.
+    void ReleaseSegment(bool sync, bool remove_if_empty);
+    // Writer thread: when the open segment or its directory vanished, reports it, counts it
+    // and closes the segment (the next event opens a new one). True if it did.
+    bool CheckSegmentGone();
+    void Say(const std::string& key, const std::string& message);
     void Sync();
     // The periodic fdatasync runs on its own thread, on a dup of the file descriptor, so a slow
     // sync (eMMC, a busy disk) never holds up writing the events behind it. Flush() and Stop()
@@ -142,6 +170,7 @@ private:
 
     const LogWriterConfig config_;
     LogWriterHooks hooks_;
+    RateLimitedLog* human_log_;
 
     mutable std::mutex queue_mu_;
     std::condition_variable queue_cv_;
@@ -167,7 +196,12 @@ private:
 
     // Writer thread only.
     int fd_ = -1;
+    int dir_fd_ = -1;        // the directory the open segment was created in
+    std::string dir_;        // its path (config directory or fallback)
+    std::string name_;       // the segment's file name in dir_
     std::string path_;
+    std::string last_dir_;   // directory of the previous segment, "" before the first
+    std::int64_t last_gone_check_us_ = 0;
     std::int64_t file_bytes_ = 0;
     std::int64_t file_open_utime_ = 0;
     std::int64_t event_number_ = 0;

@@ -5,6 +5,8 @@
 // LOGGING_DISK_GUARD, no write error), the daemon must keep publishing: its LCM side is a
 // file:// provider on the ordinary disk, so every datagram can be checked there, and the
 // log on the tmpfs must read back exactly up to where it stopped.
+// Without the guard (issue 14 case 4) the writes fail with ENOSPC and every retry opens a new
+// segment: none of them may be left behind empty.
 // Needs root (unshare(CLONE_NEWNS) + mount); skips with a message where that is refused.
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -16,6 +18,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <regex>
 
 #include "common/protocol/deltat/record83p.hpp"
 #include "pitmap/daemon_status_t.hpp"
@@ -80,7 +83,9 @@ std::vector<testing::LogEvent> ReadLogFile(const std::string& path) {
 class AcqdTmpfsFullTest : public ::testing::Test {
 protected:
     void SetUp() override {
-        dir_ = testing::FreshDir("acqd_tmpfs_full");
+        // One directory per test: ctest runs them in parallel.
+        dir_ = testing::FreshDir(std::string("acqd_tmpfs_full_") +
+                                 ::testing::UnitTest::GetInstance()->current_test_info()->name());
         logs_ = dir_ + "/logs";
         std::filesystem::create_directories(logs_);
         if (::geteuid() != 0) GTEST_SKIP() << "needs root for unshare(CLONE_NEWNS) and mount";
@@ -205,6 +210,51 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
     EXPECT_EQ(file_bytes, last.log_bytes_written);
     EXPECT_LT(file_bytes, kTmpfsBytes - kMinFreeBytes / 2);
     EXPECT_EQ(testing::ReadText(dir_ + "/err.txt").find("No space left"), std::string::npos);
+}
+
+TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
+    const int port = FreeUdpPort();
+    testing::WriteText(dir_ + "/c.yaml",
+                       "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " +
+                           logs_ +
+                           "\n  prefix: full\n  min_free_bytes: 0\n  error_retry_ms: 20\n"
+                           "  flush_interval_ms: 50\nchannels:\n  - id: mb\n"
+                           "    protocol: deltat_83p\n"
+                           "    udp: {bind_address: 127.0.0.1, port: " +
+                           std::to_string(port) + "}\n");
+    const pid_t pid = testing::SpawnAcqd({"--config", dir_ + "/c.yaml"}, dir_ + "/err.txt");
+    ASSERT_TRUE(testing::WaitFor([&] {
+        return testing::ReadText(dir_ + "/err.txt").find("running") != std::string::npos;
+    })) << testing::ReadText(dir_ + "/err.txt");
+    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<std::uint16_t>(port));
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    // Fill the tmpfs, then go on until a retry (a later segment, -001 or beyond) failed too.
+    const std::regex retried("-0[0-9][1-9]\\.lcmlog: No space left");
+    bool retried_seen = false;
+    for (std::uint32_t n = 0; n < 20'000 && !retried_seen; ++n) {
+        const auto ping = Ping(n);
+        ::sendto(fd, ping.data(), ping.size(), 0, reinterpret_cast<const sockaddr*>(&to),
+                 sizeof(to));
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        if (n % 20 == 0) {
+            retried_seen = std::regex_search(testing::ReadText(dir_ + "/err.txt"), retried);
+        }
+    }
+    ::close(fd);
+    ::kill(pid, SIGTERM);
+    ASSERT_EQ(testing::WaitExit(pid), 0) << testing::ReadText(dir_ + "/err.txt");
+    ASSERT_TRUE(retried_seen) << testing::ReadText(dir_ + "/err.txt");
+    int files = 0;
+    for (const auto& e : std::filesystem::directory_iterator(logs_)) {
+        if (e.path().extension() != ".lcmlog") continue;
+        ++files;
+        EXPECT_GT(std::filesystem::file_size(e.path()), 0u) << e.path() << " left empty";
+        EXPECT_FALSE(ReadLogFile(e.path().string()).empty()) << e.path();
+    }
+    EXPECT_GE(files, 1);
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
-// LogWriter against lcm::LogFile: byte format, rotation, drops, kill -9, full disk.
+// LogWriter against lcm::LogFile: byte format, rotation, drops, kill -9, full disk, a log
+// directory deleted under the writer (issue 14), file modes.
 #include "firmware_host/daemon/log_writer.hpp"
+#include "firmware_host/daemon/rate_limited_log.hpp"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -374,6 +376,223 @@ TEST(LogWriterTest, FullTmpfsIsAReportedErrorNotACrash) {
     ASSERT_TRUE(WIFEXITED(status));
     if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no mount namespace here";
     EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
+// Issue 14 case 4: on a full disk every retry opens a new segment whose first event fails
+// too. Such a segment holds no complete event and must not be left behind (shore tools choke
+// on a 0-byte log): the directory keeps only the one file cut back to its last event.
+int RetryOnFullDiskInChild(const std::string& dir) {
+    LogWriterConfig c = BaseConfig(dir);
+    c.error_retry_ms = 1;
+    LogWriter w(c);
+    if (!w.Start().ok()) return 10;
+    int i = 0;
+    for (; i < 2000 && w.stats().write_errors == 0; ++i) {
+        w.Enqueue(i, "C", Payload(i, 1000));
+        if (!w.Flush(5000)) return 11;
+    }
+    if (w.stats().write_errors == 0) return 12;
+    // Retries: each one opens a new segment and fails on its first event.
+    for (int k = 0; k < 200 && w.stats().write_errors < 4; ++k, ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        w.Enqueue(i, "C", Payload(i, 1000));
+        if (!w.Flush(5000)) return 13;
+    }
+    w.Stop();
+    const LogWriterStats s = w.stats();
+    if (s.write_errors < 4) return 14;
+    const auto files = LogFiles(dir);
+    for (const auto& f : files) {
+        if (fs::file_size(f) == 0) return 15;  // an empty segment left behind
+    }
+    if (files.size() != 1) return 16;
+    if (CheckDeadLog(files[0], 1000) != s.events_written) return 17;
+    return 0;
+}
+
+TEST(LogWriterTest, FullTmpfsRetriesLeaveNoEmptySegment) {
+    const std::string dir = FreshDir("tmpfs_retry");
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        if (::unshare(CLONE_NEWNS) != 0) ::_exit(77);
+        if (::mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0) ::_exit(77);
+        if (::mount("tmpfs", dir.c_str(), "tmpfs", 0, "size=256k") != 0) ::_exit(77);
+        ::_exit(RetryOnFullDiskInChild(dir));
+    }
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    ASSERT_TRUE(WIFEXITED(status));
+    if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no mount namespace here";
+    EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
+std::string ReadAll(std::FILE* f) {
+    std::fflush(f);
+    std::rewind(f);
+    std::string out;
+    char buf[4096];
+    std::size_t n;
+    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) out.append(buf, n);
+    return out;
+}
+
+// Events keep coming (one per pass) until a segment shows up in `dir` again (bounded; the
+// writer notices at its next flush interval). Returns the next timestamp.
+int FeedUntilSegmentIn(LogWriter& w, const std::string& dir, int next) {
+    for (int k = 0; k < 2000; ++k) {
+        std::error_code ec;
+        if (fs::is_directory(dir, ec) && !LogFiles(dir).empty()) break;
+        w.Enqueue(next, "C", Payload(next, 100));
+        ++next;
+        w.Flush(5000);
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return next;
+}
+
+// Issue 14 case 6: the log directory is deleted under the running writer. It must notice
+// (not write into the deleted file for ever), say so, count it, create the directory again
+// and go on in a new segment there.
+TEST(LogWriterTest, DeletedDirectoryIsReportedRecreatedAndLoggingGoesOn) {
+    const std::string dir = FreshDir("deleted");
+    LogWriterConfig c = BaseConfig(dir);
+    c.flush_interval_ms = 20;
+    std::FILE* said = std::tmpfile();
+    ASSERT_NE(said, nullptr);
+    RateLimitedLog human(said, 0);
+    LogWriter w(c, {}, &human);
+    ASSERT_TRUE(w.Start().ok());
+    int next = 0;
+    for (; next < 10; ++next) w.Enqueue(next, "C", Payload(next, 100));
+    ASSERT_TRUE(w.Flush(5000));
+    fs::remove_all(dir);
+    next = FeedUntilSegmentIn(w, dir, next);
+    ASSERT_TRUE(fs::is_directory(dir));
+    for (int k = 0; k < 10; ++k, ++next) w.Enqueue(next, "C", Payload(next, 100));
+    w.Stop();
+    const auto files = LogFiles(dir);
+    ASSERT_EQ(files.size(), 1u);
+    const auto events = ReadLog(files[0]);
+    ASSERT_GE(events.size(), 11u);  // at least what came after the new file opened
+    for (std::size_t k = 0; k < events.size(); ++k) {
+        EXPECT_EQ(events[k].timestamp, events.front().timestamp + static_cast<std::int64_t>(k));
+        EXPECT_EQ(events[k].data, Payload(static_cast<int>(events[k].timestamp), 100));
+    }
+    EXPECT_EQ(events.back().timestamp, next - 1);
+    const LogWriterStats s = w.stats();
+    EXPECT_EQ(s.directory_lost, 1);
+    // Everything before the new file went into the deleted one, and is counted as lost.
+    EXPECT_EQ(s.events_lost, events.front().timestamp);
+    EXPECT_EQ(s.events_written, next);
+    EXPECT_EQ(s.directory, dir);
+    const std::string text = ReadAll(said);
+    std::fclose(said);
+    EXPECT_NE(text.find("was deleted while open"), std::string::npos) << text;
+    EXPECT_NE(text.find("created it again"), std::string::npos) << text;
+}
+
+// As above, but the directory cannot be made again (its parent became a file): the writer
+// goes on in log.fallback_dir, and back in the primary once that works again.
+TEST(LogWriterTest, UncreatableDirectorySwitchesToTheFallbackAndBack) {
+    const std::string base = FreshDir("fallback");
+    const std::string parent = base + "/mnt";
+    const std::string dir = parent + "/logs";
+    const std::string fallback = base + "/fallback";
+    fs::create_directories(dir);
+    LogWriterConfig c = BaseConfig(dir);
+    c.fallback_directory = fallback;
+    c.flush_interval_ms = 20;
+    c.error_retry_ms = 1;
+    std::FILE* said = std::tmpfile();
+    ASSERT_NE(said, nullptr);
+    RateLimitedLog human(said, 0);
+    LogWriter w(c, {}, &human);
+    ASSERT_TRUE(w.Start().ok());
+    int next = 0;
+    for (; next < 5; ++next) w.Enqueue(next, "C", Payload(next, 100));
+    ASSERT_TRUE(w.Flush(5000));
+    fs::remove_all(parent);
+    {
+        std::ofstream f(parent);  // mkdir -p of the primary now fails (ENOTDIR)
+        f << "not a directory";
+    }
+    next = FeedUntilSegmentIn(w, fallback, next);
+    ASSERT_EQ(LogFiles(fallback).size(), 1u);
+    for (int k = 0; k < 5; ++k, ++next) w.Enqueue(next, "C", Payload(next, 100));
+    ASSERT_TRUE(w.Flush(5000));
+    EXPECT_EQ(w.stats().directory, fallback);
+    EXPECT_EQ(w.stats().directory_lost, 1);
+    // The primary can be made again: the next file (SIGHUP) goes there.
+    fs::remove(parent);
+    w.RequestRotate();
+    for (int k = 0; k < 5; ++k, ++next) w.Enqueue(next, "C", Payload(next, 100));
+    w.Stop();
+    ASSERT_EQ(LogFiles(dir).size(), 1u);
+    EXPECT_EQ(ReadLog(LogFiles(dir)[0]).size(), 5u);
+    EXPECT_EQ(ReadLog(LogFiles(fallback)[0]).back().timestamp, next - 6);
+    EXPECT_EQ(w.stats().directory, dir);
+    const std::string text = ReadAll(said);
+    std::fclose(said);
+    EXPECT_NE(text.find("writing to fallback directory " + fallback), std::string::npos) << text;
+    EXPECT_NE(text.find("writing to " + dir + " again"), std::string::npos) << text;
+}
+
+// The log directory's file system is unmounted (lazily, as `umount -l` does) under the writer:
+// the path now leads to the directory underneath. The writer notices (the open segment is
+// still linked, so nothing counts as lost), and goes on there. Exit code 0 = good.
+int UnmountedInChild(const std::string& dir) {
+    if (::mount("tmpfs", dir.c_str(), "tmpfs", 0, "size=1m") != 0) return 77;
+    LogWriterConfig c = BaseConfig(dir);
+    c.flush_interval_ms = 20;
+    LogWriter w(c);
+    if (!w.Start().ok()) return 10;
+    int next = 0;
+    for (; next < 10; ++next) w.Enqueue(next, "C", Payload(next, 100));
+    if (!w.Flush(5000)) return 11;
+    if (::umount2(dir.c_str(), MNT_DETACH) != 0) return 77;
+    if (!LogFiles(dir).empty()) return 12;  // the directory underneath is empty
+    next = FeedUntilSegmentIn(w, dir, next);
+    for (int k = 0; k < 10; ++k, ++next) w.Enqueue(next, "C", Payload(next, 100));
+    w.Stop();
+    const LogWriterStats s = w.stats();
+    if (s.directory_lost != 1 || s.events_lost != 0) return 13;
+    const auto files = LogFiles(dir);
+    if (files.size() != 1) return 14;
+    const auto events = ReadLog(files[0]);
+    if (events.size() < 11 || events.back().timestamp != next - 1) return 15;
+    return 0;
+}
+
+TEST(LogWriterTest, UnmountedDirectoryIsNoticedAndLoggingGoesOnUnderneath) {
+    const std::string dir = FreshDir("unmounted");
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        if (::unshare(CLONE_NEWNS) != 0) ::_exit(77);
+        if (::mount(nullptr, "/", nullptr, MS_REC | MS_PRIVATE, nullptr) != 0) ::_exit(77);
+        ::_exit(UnmountedInChild(dir));
+    }
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    ASSERT_TRUE(WIFEXITED(status));
+    if (WEXITSTATUS(status) == 77) GTEST_SKIP() << "no mount namespace here";
+    EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
+TEST(LogWriterTest, FilesAreCreated0640) {
+    const std::string dir = FreshDir("mode");
+    const mode_t old = ::umask(0);
+    LogWriter w(BaseConfig(dir));
+    ASSERT_TRUE(w.Start().ok());
+    w.Enqueue(0, "C", Payload(0, 10));
+    w.Stop();
+    ::umask(old);
+    const auto files = LogFiles(dir);
+    ASSERT_EQ(files.size(), 1u);
+    struct stat st {};
+    ASSERT_EQ(::stat(files[0].c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0640u);
 }
 
 TEST(LogWriterTest, ConfigValidationAndMissingDirectory) {
