@@ -276,7 +276,8 @@ TEST(AcqdProcessTest, UdpStartupSaysWhereItListens) {
     };
     for (const bool wildcard : {false, true}) {
         WriteText(dir + "/c.yaml", config(wildcard ? "bind_address: 0.0.0.0, " : ""));
-        const Child c = Spawn({"--config", dir + "/c.yaml"}, dir + "/err.txt");
+        const Child c = Spawn({"--config", dir + "/c.yaml"},
+                              dir + (wildcard ? "/err_wildcard.txt" : "/err_default.txt"));
         ASSERT_TRUE(
             WaitFor([&] { return ReadText(c.err_path).find("running") != std::string::npos; }));
         kill(c.pid, SIGTERM);
