@@ -171,9 +171,16 @@ bool SensorChannel::Note(const std::string& condition, const std::string& messag
 
 void SensorChannel::CheckKernelDrops() {
     const std::int64_t drops = source_.kernel_drops();
-    if (drops == kernel_drops_checked_) return;
-    kernel_drops_checked_ = drops;
-    stats_.Update([&](ChannelCounters& c) { c.kernel_drops = drops; });
+    const std::int64_t mono = clock_.MonotonicUs();
+    if (drops != kernel_drops_checked_) {
+        kernel_drops_checked_ = drops;
+        stats_.Update([&](ChannelCounters& c) { c.kernel_drops = drops; });
+    } else if (drops == kernel_drops_noted_ || mono - kernel_drops_note_mono_us_ < 1'000'000) {
+        // Nothing new, or drops not yet noted but the last attempt was rate-limited less than
+        // a second ago: try again later, so the final total of a burst is noted too.
+        return;
+    }
+    kernel_drops_note_mono_us_ = mono;
     if (Note("kernel_drops", config_.id + ": the kernel dropped " +
                                  std::to_string(drops - kernel_drops_noted_) +
                                  " datagram(s) since the last note, " + std::to_string(drops) +

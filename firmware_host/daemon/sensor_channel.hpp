@@ -161,6 +161,7 @@ private:
     std::int64_t last_ec_mono_us_ = -1;
     std::int64_t kernel_drops_checked_ = 0;  // source_.kernel_drops() at the last check
     std::int64_t kernel_drops_noted_ = 0;    // ... at the last printed note
+    std::int64_t kernel_drops_note_mono_us_ = 0;  // monotonic time of the last note attempt
 };
 
 }  // namespace pitmap::acq

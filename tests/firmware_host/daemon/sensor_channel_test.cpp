@@ -615,12 +615,29 @@ TEST(SensorChannelUdpTest, KernelDropsReachTheStatusAndTheLog) {
     EXPECT_GT(status.kernel_drops, 0);
     EXPECT_EQ(status.chunks + status.kernel_drops, kSent);
     EXPECT_EQ(ch.counters().kernel_drops, status.kernel_drops);
+
+    // A second burst within the log's one-second rate limit: its note is held back, then
+    // given with the final total once the second has passed, although nothing new dropped.
+    for (int i = 0; i < kSent; ++i) {
+        head.Send(src.bound_port(), protocol::deltat::EncodeRecord83P(MakePing(
+                                        static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+    }
+    for (int i = 0; i < 2 * kSent && ch.Status().chunks + ch.Status().kernel_drops < 2 * kSent;
+         ++i) {
+        ch.RunOnce();
+    }
+    const std::int64_t total = ch.Status().kernel_drops;
+    EXPECT_GT(total, status.kernel_drops);
+    EXPECT_EQ(ch.Status().chunks + total, 2 * kSent);
+    clock.AdvanceUs(1'100'000);
+    ch.RunOnce();
     std::fflush(sink);
     std::rewind(sink);
     std::string text(4096, '\0');
     text.resize(std::fread(text.data(), 1, text.size(), sink));
     std::fclose(sink);
     EXPECT_NE(text.find("mb: the kernel dropped"), std::string::npos) << text;
+    EXPECT_NE(text.find(", " + std::to_string(total) + " in total"), std::string::npos) << text;
     be.Finish();
 }
 
