@@ -45,6 +45,8 @@ pitmap::channel_status_t ToChannelStatus(const ChannelCounters& c,
     s.unsupported = c.unsupported;
     s.reconnects = c.reconnects;
     s.queue_drops = c.queue_drops;
+    s.kernel_drops = c.kernel_drops;
+    s.foreign_datagrams = c.foreign_datagrams;
     s.last_message_age_ms =
         c.last_frame_mono_us < 0 ? -1 : (mono_now_us - c.last_frame_mono_us) / 1000;
     s.last_error = c.last_error;

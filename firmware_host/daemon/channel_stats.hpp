@@ -28,6 +28,8 @@ struct ChannelCounters {
     std::int64_t unsupported = 0;
     std::int64_t reconnects = 0;
     std::int64_t queue_drops = 0;                  // publish calls that dropped a copy
+    std::int64_t kernel_drops = 0;                 // ByteSource::kernel_drops() (UDP socket)
+    std::int64_t foreign_datagrams = 0;            // UDP datagrams from senders not allowed
     std::int64_t published = 0;                    // messages handed to the publisher
     std::int64_t commands_sent = 0;                // set-up commands written (with retries)
     std::int64_t commands_ok = 0;

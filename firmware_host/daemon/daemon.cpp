@@ -52,6 +52,35 @@ Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps
     }
 }
 
+void Daemon::NoteUdpListening(std::size_t index) {
+    // Who the channel listens to, said once at start-up (issue 14 case 10).
+    const ChannelSpec& spec = config_.channels[index];
+    const auto* udp = dynamic_cast<const UdpSource*>(sources_[index].get());
+    if (udp == nullptr) return;
+    std::string allowed;
+    for (const auto& a : spec.udp.allowed_senders) allowed += (allowed.empty() ? "" : ", ") + a;
+    std::string text = spec.channel.id + ": udp ";
+    if (spec.udp.bind_address == "0.0.0.0") {
+        text += "bound to 0.0.0.0:" + std::to_string(spec.udp.port) +
+                ", EVERY interface, because bind_address: 0.0.0.0 is configured";
+    } else if (!udp->bound_address().empty()) {
+        text += "bound to " + udp->bound_address() + ":" + std::to_string(udp->bound_port()) +
+                (spec.udp.bind_address.empty() ? " (the interface facing " +
+                                                     spec.udp.allowed_senders.front() + ")"
+                                               : "");
+    } else {
+        text += "not bound yet (" + udp->last_error() + "; retrying)";
+    }
+    text += "; datagrams from " + allowed + " are decoded, any other sender's are logged raw "
+            "as foreign";
+    if (spec.channel.ec.enabled) {
+        text += "; EC frames only to " +
+                (spec.udp.reply_to.empty() ? spec.udp.allowed_senders.front()
+                                           : spec.udp.reply_to);
+    }
+    human_log_.Log(spec.channel.id + ":listen", clock_.MonotonicUs(), text);
+}
+
 PpsCounters Daemon::pps_counters() const { return pps_ ? pps_->counters() : PpsCounters{}; }
 
 Daemon::~Daemon() { Stop(); }
@@ -82,6 +111,13 @@ Status Daemon::Start() {
         return s;
     }
     start_mono_us_ = clock_.MonotonicUs();
+    for (std::size_t i = 0; i < config_.channels.size(); ++i) {
+        // Opened here, before its reader thread exists, to say where it listens; a failure
+        // is reported again and retried by the channel.
+        if (config_.channels[i].kind != SourceKind::kUdp) continue;
+        (void)sources_[i]->Open();
+        NoteUdpListening(i);
+    }
     for (auto& ch : channels_) ch->Start();
     if (pps_) pps_->Start();
     started_ = true;

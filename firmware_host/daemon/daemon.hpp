@@ -62,6 +62,9 @@ public:
     const DaemonConfig& config() const { return config_; }
 
 private:
+    // Logs where UDP channel `index` listens and whom it accepts (before its thread starts).
+    void NoteUdpListening(std::size_t index);
+
     DaemonConfig config_;
     Clock& clock_;
     RateLimitedLog human_log_;

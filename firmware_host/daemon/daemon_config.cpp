@@ -64,6 +64,13 @@ void ReadChannel(ConfigReader& r, ChannelSpec& spec, std::vector<std::string>& p
         s.Read("bind_address", spec.udp.bind_address);
         s.Require("port", spec.udp.port);
         s.Read("receive_buffer_bytes", spec.udp.receive_buffer_bytes);
+        // Required and non-empty: the daemon never takes sensor data from just anyone.
+        if (s.Require("allowed_senders", spec.udp.allowed_senders) &&
+            spec.udp.allowed_senders.empty()) {
+            s.AddProblem(s.Path("allowed_senders") +
+                         ": must list the sender(s), e.g. [\"192.168.0.4\"]");
+        }
+        s.Read("reply_to", spec.udp.reply_to);
         s.RejectUnknownKeys();
         Append(problems, r.Path("udp"), spec.udp.Validate());
     }
@@ -119,6 +126,11 @@ void ReadChannel(ConfigReader& r, ChannelSpec& spec, std::vector<std::string>& p
     r.RejectUnknownKeys();
     if (c.ec.enabled && spec.kind != SourceKind::kUdp) {
         r.AddProblem(r.Path("ec") + ": EC steering needs a udp source");
+    }
+    if (c.ec.enabled && spec.kind == SourceKind::kUdp && spec.udp.reply_to.empty() &&
+        spec.udp.allowed_senders.size() > 1) {
+        r.AddProblem(r.Path("udp") + ".reply_to: required for EC steering with more than one "
+                                     "allowed sender (which one is the head?)");
     }
     Append(problems, base, c.Validate());
 }

@@ -19,7 +19,10 @@
 //   clock              fixed_latency_us (host model), sonar_header_resolution_us
 //   channels           list; each: id, protocol (novatel | deltat_83p), exactly one of
 //                      serial {path, baud, rtscts, exclusive}, tcp {host, port,
-//                      connect_timeout_ms}, udp {bind_address, port, receive_buffer_bytes},
+//                      connect_timeout_ms}, udp {port, allowed_senders [..], bind_address,
+//                      reply_to, receive_buffer_bytes} (udp_source.hpp: allowed_senders is
+//                      required, bind_address defaults to the interface facing the first
+//                      allowed sender, EC frames go to reply_to or the first allowed sender),
 //                      file {path, chunk_bytes, bytes_per_second}; optional read_timeout_ms,
 //                      silent_timeout_ms, setup_commands [..], command_timeout_ms,
 //                      command_retries, imu_type, imu_rate_hz, corrimu_rate_hz,

@@ -164,13 +164,36 @@ void SensorChannel::Stop() {
     running_ = false;
 }
 
-void SensorChannel::Note(const std::string& condition, const std::string& message) {
-    if (log_ != nullptr) log_->Log(config_.id + ":" + condition, clock_.MonotonicUs(), message);
+bool SensorChannel::Note(const std::string& condition, const std::string& message) {
+    if (log_ == nullptr) return false;
+    return log_->Log(config_.id + ":" + condition, clock_.MonotonicUs(), message);
+}
+
+void SensorChannel::CheckKernelDrops() {
+    const std::int64_t drops = source_.kernel_drops();
+    const std::int64_t mono = clock_.MonotonicUs();
+    if (drops != kernel_drops_checked_) {
+        kernel_drops_checked_ = drops;
+        stats_.Update([&](ChannelCounters& c) { c.kernel_drops = drops; });
+    } else if (drops == kernel_drops_noted_ || mono - kernel_drops_note_mono_us_ < 1'000'000) {
+        // Nothing new, or drops not yet noted but the last attempt was rate-limited less than
+        // a second ago: try again later, so the final total of a burst is noted too.
+        return;
+    }
+    kernel_drops_note_mono_us_ = mono;
+    if (Note("kernel_drops", config_.id + ": the kernel dropped " +
+                                 std::to_string(drops - kernel_drops_noted_) +
+                                 " datagram(s) since the last note, " + std::to_string(drops) +
+                                 " in total (socket receive buffer full: the reader is too "
+                                 "slow or the buffer too small)")) {
+        kernel_drops_noted_ = drops;
+    }
 }
 
 bool SensorChannel::RunOnce() {
     PollCommands();
     auto r = source_.Read(chunk_, config_.read_timeout_ms);
+    CheckKernelDrops();
     const std::int64_t now = clock_.MonotonicUs();
     if (!r) {
         stats_.Update([&](ChannelCounters& c) {
@@ -208,8 +231,6 @@ void SensorChannel::PublishEncoded(std::string_view channel, std::int64_t utime,
 }
 
 void SensorChannel::Process(const Chunk& chunk) {
-    const std::int64_t mono = clock_.MonotonicUs();
-    last_bytes_mono_us_ = mono;
     const GpsEstimate gps = time_.HostToGps(chunk.utime_host);
     RawBytesExtra extra{.utime_gps = gps.utime_gps,
                         .gps_time_valid = gps.state == ClockState::kLocked,
@@ -218,6 +239,21 @@ void SensorChannel::Process(const Chunk& chunk) {
     const std::string_view proto = config_.protocol == ChannelProtocol::kNovatel
                                        ? kProtocolNovatel
                                        : kProtocolDeltat83P;
+    if (chunk.foreign) {
+        // Evidence of who is talking to the port, under a protocol name no decoder takes.
+        const std::string foreign = std::string(proto) + std::string(kForeignSuffix);
+        PublishEncoded(ChannelName(kChannelRaw, config_.id), chunk.utime_host,
+                       EncodeLcm(MakeRawBytes(chunk.utime_host, config_.id, foreign,
+                                              source_.transport(), seq_++,
+                                              std::span<const std::byte>(chunk.data), extra)));
+        stats_.Update([](ChannelCounters& c) { ++c.foreign_datagrams; });
+        Note("foreign", config_.id + ": datagram from " + chunk.peer +
+                            ", not an allowed sender: logged raw as " + foreign +
+                            ", not decoded");
+        return;
+    }
+    const std::int64_t mono = clock_.MonotonicUs();
+    last_bytes_mono_us_ = mono;
     PublishEncoded(ChannelName(kChannelRaw, config_.id), chunk.utime_host,
                    EncodeLcm(MakeRawBytes(chunk.utime_host, config_.id, proto, source_.transport(),
                                           seq_++, std::span<const std::byte>(chunk.data), extra)));
@@ -527,6 +563,7 @@ pitmap::channel_status_t SensorChannel::Status() const {
     // The counters copy it only when bytes or errors arrive; a reconnect that has not
     // delivered anything yet must show too.
     c.reconnects = source_.reconnects();
+    c.kernel_drops = source_.kernel_drops();
     const std::int64_t mono = clock_.MonotonicUs();
     std::int8_t state = pitmap::channel_status_t::STATE_STOPPED;
     switch (source_.state()) {

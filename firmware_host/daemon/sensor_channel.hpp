@@ -17,7 +17,13 @@
 // Every ping is stamped through the sonar clock model and published on MULTIBEAM_PING_<ID>
 // with utime_gps = GPS time of transmit (the stamp of the header instant plus the v1.10 ping
 // latency); before any fix utime_gps = 0 and gps_time_source = TIME_SOURCE_NONE. Optional EC
-// frames (range, gains from the config) are sent back to the datagram's sender.
+// frames (range, gains from the config) go through ByteSource::Write(), which for UDP sends
+// only to the configured head (UdpConfig::reply_to), never to whoever sent last.
+// A UDP datagram from a sender not on the allow-list (Chunk::foreign) is published on RAW_<ID>
+// with protocol "<protocol>_foreign" (kForeignSuffix) and counted as foreign_datagrams; it is
+// never framed or decoded, triggers no EC frame and does not keep the channel RUNNING.
+// Datagrams the kernel dropped (ByteSource::kernel_drops()) are counted as kernel_drops and
+// noted in the log (rate-limited) whenever the count grows.
 // Frame kinds are named as pitmap-inspect names them (so counts compare with the golden
 // files): binary "<id>" or "<id>R" (response), "P<id>" proprietary, "#NAME" ASCII, "%NAME"
 // short ASCII, "OK" / "ERROR" / "<NAME" abbreviated, "PROMPT", NMEA "$GPGGA"; 83P records
@@ -122,7 +128,9 @@ private:
     void SendCurrentCommand();
     void OnResponse(const protocol::novatel::Response& r, std::int64_t utime_host);
     void MaybeSendEc();
-    void Note(const std::string& condition, const std::string& message);
+    void CheckKernelDrops();
+    // Logs through the rate-limited log; true when the line was printed.
+    bool Note(const std::string& condition, const std::string& message);
 
     const SensorChannelConfig config_;
     ByteSource& source_;
@@ -158,6 +166,9 @@ private:
     std::int64_t command_sent_mono_us_ = 0;
     std::vector<std::string> command_lines_;  // encoded, CR LF terminated
     std::int64_t last_ec_mono_us_ = -1;
+    std::int64_t kernel_drops_checked_ = 0;  // source_.kernel_drops() at the last check
+    std::int64_t kernel_drops_noted_ = 0;    // ... at the last printed note
+    std::int64_t kernel_drops_note_mono_us_ = 0;  // monotonic time of the last note attempt
 };
 
 }  // namespace pitmap::acq

@@ -45,6 +45,9 @@ namespace pitmap::acq {
 inline constexpr std::string_view kProtocolNovatel = "novatel";
 inline constexpr std::string_view kProtocolDeltat83P = "deltat_83p";
 inline constexpr std::string_view kProtocolDeltatHead = "deltat_head";
+// Appended to raw_bytes_t.protocol for a UDP datagram from a sender not on the channel's
+// allowed_senders ("deltat_83p_foreign"): kept as evidence, never decoded by anyone.
+inline constexpr std::string_view kForeignSuffix = "_foreign";
 
 // ---- Channel names (docs/conventions.md "LCM channels") ----
 inline constexpr std::string_view kChannelRaw = "RAW_";

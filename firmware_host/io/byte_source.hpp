@@ -10,7 +10,7 @@
 //
 // THREADING: a source is owned by one thread (the channel's reader thread), which makes every
 // call, including Write()/SendTo() for commands. Only the const accessors state(),
-// reconnects(), generation() may be called from other threads (they read atomics).
+// reconnects(), generation(), kernel_drops() may be called from other threads (atomics).
 #pragma once
 
 #include <atomic>
@@ -46,6 +46,9 @@ struct Chunk {
                                     // microseconds; 0 = not available
     std::string peer;               // "address:port" for UDP/TCP, device path for serial, ""
     bool truncated = false;         // UDP only: the datagram was longer than the buffer
+    bool foreign = false;           // UDP only: the sender is not on the source's allow-list
+                                    // (UdpConfig::allowed_senders); such bytes are evidence,
+                                    // never sensor data
 };
 
 enum class ReadOutcome {
@@ -82,6 +85,10 @@ public:
     std::int64_t reconnects() const { return reconnects_.load(std::memory_order_relaxed); }
     // +1 on every successful open: a channel that sees it change re-sends its set-up commands.
     std::int64_t generation() const { return generation_.load(std::memory_order_relaxed); }
+    // Datagrams the kernel dropped on this source's socket before they were read (receive
+    // buffer full), summed over reopens. Always 0 for transports that cannot lose data in the
+    // kernel without the reader seeing it (serial, TCP, files).
+    std::int64_t kernel_drops() const { return kernel_drops_.load(std::memory_order_relaxed); }
     // The last transport error message, "" if none. Owner thread only.
     const std::string& last_error() const { return last_error_; }
 
@@ -93,6 +100,7 @@ protected:
         }
         set_state(SourceState::kOpen);
     }
+    void AddKernelDrops(std::int64_t n) { kernel_drops_.fetch_add(n, std::memory_order_relaxed); }
     Error Fail(std::string message) {
         last_error_ = message;
         return Error{std::move(message)};
@@ -102,6 +110,7 @@ private:
     std::atomic<SourceState> state_{SourceState::kClosed};
     std::atomic<std::int64_t> reconnects_{0};
     std::atomic<std::int64_t> generation_{0};
+    std::atomic<std::int64_t> kernel_drops_{0};
     std::string last_error_;
 };
 

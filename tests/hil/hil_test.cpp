@@ -434,6 +434,9 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
     EXPECT_EQ(FrameKindCount(icom, "CMD_OK"), commands_ok["novatel_icom1"]);
     EXPECT_EQ(FrameKindCount(udp, "EC_SENT"), ec_received);
     EXPECT_EQ(FrameKindCount(udp, "83P"), static_cast<std::int64_t>(datagrams.size()));
+    // The emulated topside is the allowed sender (127.0.0.1); the socket kept up.
+    EXPECT_EQ(udp.foreign_datagrams, 0);
+    EXPECT_EQ(udp.kernel_drops, 0);
     EXPECT_GE(SkippedBytes(com, "garbage"), 16 * faults["garbage"]);
     for (const auto& [name, s] : channel_status) {
         EXPECT_EQ(s.crc_failures, last[name].crc_failures) << "STATUS_ vs DAEMON_STATUS " << name;

@@ -22,9 +22,11 @@ long RecvWithTimestamp(int fd,
                        std::size_t capacity,
                        std::int64_t& utime_kernel,
                        sockaddr_in* from,
-                       bool* truncated) {
+                       bool* truncated,
+                       std::uint32_t* rxq_ovfl) {
     iovec iov{dst, capacity};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) * 2] = {};
+    alignas(cmsghdr) char
+        control[CMSG_SPACE(sizeof(timespec)) * 2 + CMSG_SPACE(sizeof(std::uint32_t))] = {};
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
@@ -44,6 +46,9 @@ long RecvWithTimestamp(int fd,
             timespec ts{};
             std::memcpy(&ts, CMSG_DATA(c), sizeof(ts));
             utime_kernel = UtimeFromTimespec(ts.tv_sec, ts.tv_nsec);
+        } else if (rxq_ovfl != nullptr && c->cmsg_level == SOL_SOCKET &&
+                   c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
+            std::memcpy(rxq_ovfl, CMSG_DATA(c), sizeof(std::uint32_t));
         }
     }
     return n;

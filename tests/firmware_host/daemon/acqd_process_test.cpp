@@ -192,7 +192,7 @@ std::string UdpConfig(const std::string& dir, int port) {
     return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
            "/logs\n  prefix: t\n  min_free_bytes: 0\n  flush_interval_ms: 50\n"
            "channels:\n  - id: mb\n    protocol: deltat_83p\n    udp: {bind_address: 127.0.0.1, "
-           "port: " + std::to_string(port) + "}\n";
+           "allowed_senders: [127.0.0.1], port: " + std::to_string(port) + "}\n";
 }
 
 std::vector<std::uint8_t> Ping(std::uint32_t n) {
@@ -262,6 +262,32 @@ TEST(AcqdProcessTest, UdpPingsThenKillDashNineLeavesAReadableLog) {
     }
     EXPECT_GE(raw_index, 40u);
     EXPECT_GE(pings + 1, static_cast<int>(raw_index));
+}
+
+// Issue 14 case 10: where a UDP channel listens is said at start-up; without bind_address it
+// is the interface facing the allowed sender, 0.0.0.0 only when configured and then loudly.
+TEST(AcqdProcessTest, UdpStartupSaysWhereItListens) {
+    const std::string dir = testing::FreshDir("acqd_udp_bind");
+    const auto config = [&](const std::string& bind) {
+        return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
+               "/logs\n  min_free_bytes: 0\nchannels:\n  - id: mb\n    protocol: deltat_83p\n"
+               "    udp: {" + bind + "allowed_senders: [127.0.0.1], port: " +
+               std::to_string(FreeUdpPort()) + "}\n    ec: {enabled: true, range_m: 30}\n";
+    };
+    for (const bool wildcard : {false, true}) {
+        WriteText(dir + "/c.yaml", config(wildcard ? "bind_address: 0.0.0.0, " : ""));
+        const Child c = Spawn({"--config", dir + "/c.yaml"},
+                              dir + (wildcard ? "/err_wildcard.txt" : "/err_default.txt"));
+        ASSERT_TRUE(
+            WaitFor([&] { return ReadText(c.err_path).find("running") != std::string::npos; }));
+        kill(c.pid, SIGTERM);
+        EXPECT_EQ(Wait(c.pid), 0);
+        const std::string err = ReadText(c.err_path);
+        const std::string expected = wildcard ? "bound to 0.0.0.0:" : "bound to 127.0.0.1:";
+        EXPECT_NE(err.find(expected), std::string::npos) << err;
+        EXPECT_EQ(err.find("EVERY interface") != std::string::npos, wildcard) << err;
+        EXPECT_NE(err.find("EC frames only to 127.0.0.1"), std::string::npos) << err;
+    }
 }
 
 TEST(AcqdProcessTest, SigtermFlushesAndSighupRotates) {

@@ -86,7 +86,7 @@ private:
 std::string BaseYaml(const std::string& dir) {
     return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
            "/logs\n  min_free_bytes: 0\nchannels:\n  - id: mb\n    protocol: deltat_83p\n"
-           "    udp: {bind_address: 127.0.0.1, port: 0}\n";
+           "    udp: {bind_address: 127.0.0.1, allowed_senders: [127.0.0.1], port: 0}\n";
 }
 
 TEST(PpsConfigTest, DeviceMustExistAndBeACharacterDevice) {

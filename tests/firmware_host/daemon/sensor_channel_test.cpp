@@ -6,16 +6,23 @@
 // EC steering.
 #include "firmware_host/daemon/sensor_channel.hpp"
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
 #include <map>
 #include <random>
 
 #include "common/protocol/deltat/ec_frame.hpp"
 #include "common/protocol/deltat/record83p.hpp"
+#include "firmware_host/daemon/daemon_config.hpp"
 #include "firmware_host/daemon/log_writer.hpp"
+#include "firmware_host/io/udp_source.hpp"
 #include "pitmap/channel_status_t.hpp"
 #include "tests/firmware_host/daemon/acq_test_util.hpp"
 
@@ -510,6 +517,235 @@ TEST(SensorChannelTest, DeltatDatagramsStampedOnlyOnceTheHostClockHasTime) {
             << "ping " << i;
     }
     EXPECT_EQ(pings.back().gps_time_source, pitmap::multibeam_ping_t::TIME_SOURCE_HEADER_CLOCK);
+}
+
+// ---- Issue 14: UDP hardening through the real UdpSource on loopback ----
+
+sockaddr_in Ipv4(const char* ip, int port) {
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    ::inet_pton(AF_INET, ip, &a.sin_addr);
+    return a;
+}
+
+// A UDP socket on ip:0: the sonar topside, or a forger.
+struct UdpPeer {
+    int fd = -1;
+    int port = 0;
+    explicit UdpPeer(const char* ip) {
+        fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+        sockaddr_in a = Ipv4(ip, 0);
+        EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0) << ip;
+        socklen_t len = sizeof(a);
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+        port = ntohs(a.sin_port);
+    }
+    ~UdpPeer() { ::close(fd); }
+    UdpPeer(const UdpPeer&) = delete;
+    UdpPeer& operator=(const UdpPeer&) = delete;
+    void Send(int to_port, const std::vector<std::uint8_t>& d) const {
+        const sockaddr_in to = Ipv4("127.0.0.1", to_port);
+        EXPECT_EQ(::sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to),
+                           sizeof(to)),
+                  static_cast<long>(d.size()));
+    }
+    // The datagrams waiting now (loopback delivery is synchronous).
+    std::vector<std::vector<std::uint8_t>> Drain() const {
+        std::vector<std::vector<std::uint8_t>> out;
+        std::vector<std::uint8_t> buf(65536);
+        long n;
+        while ((n = ::recv(fd, buf.data(), buf.size(), MSG_DONTWAIT)) >= 0) {
+            out.emplace_back(buf.begin(), buf.begin() + n);
+        }
+        return out;
+    }
+};
+
+SensorChannelConfig DeltatUdpConfig() {
+    SensorChannelConfig cfg;
+    cfg.id = "mb";
+    cfg.protocol = ChannelProtocol::kDeltat83P;
+    cfg.read_timeout_ms = 20;
+    cfg.ec.enabled = true;
+    cfg.ec.frame.range_m = 30;
+    cfg.ec.interval_ms = 5000;
+    return cfg;
+}
+
+// Issue 14 case 10: the head on 127.0.0.1 is allowed, a forger on 127.0.0.2 sends valid 83P
+// pings. The forger's datagrams are logged raw as "deltat_83p_foreign" and counted, never
+// decoded; EC frames go to the head only. (Before: the forger's pings were published as
+// sonar data and every EC frame after a forged datagram went to the forger.)
+TEST(SensorChannelUdpTest, ForgerLoggedRawAsForeignNeverDecodedAndGetsNoEc) {
+    Backend be("udp_forger");
+    UdpConfig uc;
+    uc.bind_address = "127.0.0.1";
+    uc.port = 0;
+    uc.allowed_senders = {"127.0.0.1"};
+    UdpSource src(uc);
+    ASSERT_TRUE(src.Open().ok()) << src.last_error();
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    SensorChannel ch(DeltatUdpConfig(), src, be.publisher, clock, time);
+    UdpPeer head("127.0.0.1");
+    UdpPeer forger("127.0.0.2");
+
+    constexpr int kRounds = 7;
+    std::vector<std::vector<std::uint8_t>> forged;
+    for (int i = 0; i < kRounds; ++i) {
+        // The forger first, then the head; each datagram read separately, 6 s apart so every
+        // datagram would be due an EC frame.
+        forged.push_back(protocol::deltat::EncodeRecord83P(
+            MakePing(static_cast<std::uint32_t>(1000 + i), kT0 + i * 100'000)));
+        forger.Send(src.bound_port(), forged.back());
+        ch.RunOnce();
+        clock.AdvanceUs(6'000'000);
+        head.Send(src.bound_port(),
+                  protocol::deltat::EncodeRecord83P(
+                      MakePing(static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+        ch.RunOnce();
+        clock.AdvanceUs(6'000'000);
+    }
+    const auto at_head = head.Drain();
+    const auto at_forger = forger.Drain();
+    std::printf("EC frames: %zu to the head, %zu to the forger\n", at_head.size(),
+                at_forger.size());
+    EXPECT_EQ(at_head.size(), static_cast<std::size_t>(kRounds));
+    EXPECT_TRUE(at_forger.empty());
+    for (const auto& f : at_head) {
+        EXPECT_TRUE(std::holds_alternative<protocol::deltat::EcFrame>(
+            protocol::deltat::DecodeEcFrame(ByteSpan(f.data(), f.size()))));
+    }
+    const pitmap::channel_status_t status = ch.Status();
+    EXPECT_EQ(status.foreign_datagrams, kRounds);
+    EXPECT_EQ(status.chunks, kRounds);  // sensor chunks only
+    EXPECT_EQ(ch.counters().FrameCount("83P"), kRounds);
+    EXPECT_EQ(ch.counters().ec_frames_sent, kRounds);
+
+    const auto events = be.Finish();
+    int pings = 0;
+    std::vector<pitmap::raw_bytes_t> foreign;
+    std::int64_t seq = 0;
+    for (const auto& e : events) {
+        if (e.channel == "MULTIBEAM_PING_MB") {
+            ++pings;
+            EXPECT_LT(DecodeAs<pitmap::multibeam_ping_t>(e.data).ping_number, 1000);
+        } else if (e.channel == "RAW_MB") {
+            const auto raw = DecodeAs<pitmap::raw_bytes_t>(e.data);
+            EXPECT_EQ(raw.seq, seq++);  // one sequence: no false gaps
+            if (raw.protocol == "deltat_83p_foreign") {
+                foreign.push_back(raw);
+            } else {
+                EXPECT_EQ(raw.protocol, "deltat_83p");
+                EXPECT_EQ(raw.peer, "127.0.0.1:" + std::to_string(head.port));
+            }
+        }
+    }
+    std::printf("forged pings decoded: %d of %d published pings\n", pings - kRounds, pings);
+    EXPECT_EQ(pings, kRounds);
+    ASSERT_EQ(foreign.size(), static_cast<std::size_t>(kRounds));
+    for (int i = 0; i < kRounds; ++i) {
+        EXPECT_EQ(foreign[i].data, forged[i]);
+        EXPECT_EQ(foreign[i].peer, "127.0.0.2:" + std::to_string(forger.port));
+        EXPECT_EQ(foreign[i].transport, pitmap::raw_bytes_t::TRANSPORT_UDP);
+    }
+}
+
+// Issue 14 case 8: datagrams the kernel dropped show in channel_status_t.kernel_drops, exactly,
+// and a note goes to the log.
+TEST(SensorChannelUdpTest, KernelDropsReachTheStatusAndTheLog) {
+    Backend be("udp_drops");
+    UdpConfig uc;
+    uc.bind_address = "127.0.0.1";
+    uc.port = 0;
+    uc.allowed_senders = {"127.0.0.1"};
+    uc.receive_buffer_bytes = 16384;
+    UdpSource src(uc);
+    ASSERT_TRUE(src.Open().ok()) << src.last_error();
+    ManualClock clock(kT0);
+    TimeKeeper time;
+    std::FILE* sink = std::tmpfile();
+    ASSERT_NE(sink, nullptr);
+    RateLimitedLog log(sink);
+    SensorChannelConfig cfg = DeltatUdpConfig();
+    cfg.ec.enabled = false;
+    SensorChannel ch(cfg, src, be.publisher, clock, time, &log);
+    UdpPeer head("127.0.0.1");
+    constexpr int kSent = 300;
+    for (int i = 0; i < kSent; ++i) {
+        head.Send(src.bound_port(), protocol::deltat::EncodeRecord83P(MakePing(
+                                        static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+    }
+    // Drain (bounded: loopback has delivered everything when sendto() returned).
+    for (int i = 0; i < 2 * kSent && ch.Status().chunks + ch.Status().kernel_drops < kSent; ++i) {
+        ch.RunOnce();
+        clock.AdvanceUs(10'000);
+    }
+    const pitmap::channel_status_t status = ch.Status();
+    std::printf("sent %d, read %lld, kernel drops in channel_status_t %lld\n", kSent,
+                static_cast<long long>(status.chunks),
+                static_cast<long long>(status.kernel_drops));
+    EXPECT_GT(status.kernel_drops, 0);
+    EXPECT_EQ(status.chunks + status.kernel_drops, kSent);
+    EXPECT_EQ(ch.counters().kernel_drops, status.kernel_drops);
+
+    // A second burst within the log's one-second rate limit: its note is held back, then
+    // given with the final total once the second has passed, although nothing new dropped.
+    for (int i = 0; i < kSent; ++i) {
+        head.Send(src.bound_port(), protocol::deltat::EncodeRecord83P(MakePing(
+                                        static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+    }
+    for (int i = 0; i < 2 * kSent && ch.Status().chunks + ch.Status().kernel_drops < 2 * kSent;
+         ++i) {
+        ch.RunOnce();
+    }
+    const std::int64_t total = ch.Status().kernel_drops;
+    EXPECT_GT(total, status.kernel_drops);
+    EXPECT_EQ(ch.Status().chunks + total, 2 * kSent);
+    clock.AdvanceUs(1'100'000);
+    ch.RunOnce();
+    std::fflush(sink);
+    std::rewind(sink);
+    std::string text(4096, '\0');
+    text.resize(std::fread(text.data(), 1, text.size(), sink));
+    std::fclose(sink);
+    EXPECT_NE(text.find("mb: the kernel dropped"), std::string::npos) << text;
+    EXPECT_NE(text.find(", " + std::to_string(total) + " in total"), std::string::npos) << text;
+    be.Finish();
+}
+
+// The daemon config: a UDP channel must name its senders; EC needs to know which is the head.
+TEST(SensorChannelUdpTest, ConfigRequiresAllowedSenders) {
+    const auto yaml = [](const std::string& udp, const std::string& ec) {
+        return "lcm_url: \"memq://\"\nlog:\n  directory: logs\n  min_free_bytes: 0\n"
+               "channels:\n  - id: mb\n    protocol: deltat_83p\n    udp: {port: 4040" +
+               udp + "}\n" + ec;
+    };
+    const auto has = [](const LoadedConfig& c, const std::string& what) {
+        for (const auto& p : c.problems) {
+            if (p.find(what) != std::string::npos) return true;
+        }
+        return false;
+    };
+    EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml("", ""), "t"), "allowed_senders"));
+    EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml(", allowed_senders: []", ""), "t"),
+                    "allowed_senders"));
+    EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml(", allowed_senders: [sonar]", ""), "t"),
+                    "sonar"));
+    const auto ok = LoadDaemonConfigFromString(yaml(", allowed_senders: [192.168.0.4]", ""), "t");
+    EXPECT_TRUE(ok.problems.empty()) << ok.problems.front();
+    ASSERT_EQ(ok.config.channels.size(), 1u);
+    EXPECT_EQ(ok.config.channels[0].udp.bind_address, "");  // the interface facing the head
+    const std::string ec = "    ec: {enabled: true, range_m: 30}\n";
+    EXPECT_TRUE(has(LoadDaemonConfigFromString(
+                        yaml(", allowed_senders: [192.168.0.4, 192.168.0.5]", ec), "t"),
+                    "reply_to"));
+    EXPECT_TRUE(LoadDaemonConfigFromString(yaml(", allowed_senders: [192.168.0.4, 192.168.0.5], "
+                                                "reply_to: 192.168.0.5",
+                                                ec),
+                                           "t")
+                    .problems.empty());
 }
 
 }  // namespace

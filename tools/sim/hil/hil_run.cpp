@@ -109,6 +109,7 @@ std::string DaemonYaml(const ScenarioConfig& sc,
     y += "    udp:\n";
     y += "      bind_address: 127.0.0.1\n";
     y += "      port: " + std::to_string(opt.udp_port) + "\n";
+    y += "      allowed_senders: [\"127.0.0.1\"]\n";  // the topside emulator's address
     y += "    ec:\n";
     y += "      enabled: true\n";
     y += "      range_m: " + std::to_string(static_cast<int>(sc.sonar.max_range_m)) + "\n";
