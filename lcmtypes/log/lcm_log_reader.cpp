@@ -73,7 +73,8 @@ std::optional<LcmLogReader::Header> LcmLogReader::HeaderAt(std::uint64_t pos) co
     if (hd.channel_len <= 0 || hd.channel_len > kLcmMaxChannelLength || hd.data_len < 0) {
         return std::nullopt;
     }
-    const std::uint64_t channel_end = pos + kHeaderBytes + static_cast<std::uint64_t>(hd.channel_len);
+    const std::uint64_t channel_end =
+        pos + kHeaderBytes + static_cast<std::uint64_t>(hd.channel_len);
     if (channel_end > size_ ||
         !PrintableChannel(h + kHeaderBytes, static_cast<std::size_t>(hd.channel_len))) {
         return std::nullopt;
@@ -122,8 +123,9 @@ bool LcmLogReader::Next(LcmEvent& ev) {
         // file ends there). Otherwise it was corrupted, or the next sync word was: the first
         // plausible header after the channel tells which.
         std::uint64_t end = hd->claimed_end;
-        const bool lands = end == size_ || (end < size_ && (end + 4 > size_ ||
-                                                            ReadU32Be(data_ + end) == kLcmSyncWord));
+        const bool lands =
+            end == size_ ||
+            (end < size_ && (end + 4 > size_ || ReadU32Be(data_ + end) == kLcmSyncWord));
         if (!lands) {
             const std::uint64_t q = NextPlausibleHeader(hd->data_begin);
             if (q < size_ && q < end) {

@@ -26,16 +26,16 @@ struct LcmEvent {
     std::int64_t eventnum = 0;
     std::int64_t utime = 0;  // logger receive time, Unix microseconds
     std::string_view channel;
-    ByteSpan data;            // valid until the next Next() or the reader's destruction
+    ByteSpan data;  // valid until the next Next() or the reader's destruction
 };
 
 struct LcmLogCounts {
     std::int64_t events = 0;
-    std::int64_t corrupt_headers = 0;  // impossible lengths or a channel that is not text
-    std::int64_t resync_bytes = 0;     // bytes skipped looking for a sync word
-    std::int64_t truncated_events = 0; // an event cut short by the end of the file
+    std::int64_t corrupt_headers = 0;   // impossible lengths or a channel that is not text
+    std::int64_t resync_bytes = 0;      // bytes skipped looking for a sync word
+    std::int64_t truncated_events = 0;  // an event cut short by the end of the file
     std::int64_t truncated_bytes = 0;
-    std::int64_t length_repairs = 0;   // data lengths that did not land on the next event
+    std::int64_t length_repairs = 0;  // data lengths that did not land on the next event
 };
 
 class LcmLogReader {

@@ -33,8 +33,8 @@ std::string StripComments(std::string_view text) {
             while (i < text.size() && text[i] != '\n') ++i;
         } else if (text.compare(i, 2, "/*") == 0) {
             const std::size_t end = text.find("*/", i + 2);
-            for (std::size_t k = i; k < std::min(end == std::string_view::npos ? text.size() : end + 2,
-                                                 text.size());
+            for (std::size_t k = i;
+                 k < std::min(end == std::string_view::npos ? text.size() : end + 2, text.size());
                  ++k) {
                 if (text[k] == '\n') out += '\n';
             }
@@ -68,9 +68,8 @@ void ParseMember(const std::string& decl, Struct& s) {
     std::size_t start = 0;
     while (start <= rest.size()) {
         const std::size_t comma = rest.find(',', start);
-        const std::string one =
-            Trim(std::string_view(rest).substr(start, comma == std::string::npos ? std::string::npos
-                                                                                 : comma - start));
+        const std::string one = Trim(std::string_view(rest).substr(
+            start, comma == std::string::npos ? std::string::npos : comma - start));
         Field f;
         f.type = type;
         const std::size_t bracket = one.find('[');
@@ -78,7 +77,8 @@ void ParseMember(const std::string& decl, Struct& s) {
         std::size_t b = bracket;
         while (b != std::string::npos) {
             const std::size_t close = one.find(']', b);
-            if (close == std::string::npos) throw std::runtime_error("lcm: bad array '" + one + "'");
+            if (close == std::string::npos)
+                throw std::runtime_error("lcm: bad array '" + one + "'");
             const std::string dim = Trim(std::string_view(one).substr(b + 1, close - b - 1));
             Dim d;
             if (!dim.empty() && std::isdigit(static_cast<unsigned char>(dim[0]))) {
@@ -89,7 +89,8 @@ void ParseMember(const std::string& decl, Struct& s) {
             f.dims.push_back(d);
             b = one.find('[', close);
         }
-        if (f.name.empty()) throw std::runtime_error("lcm: member without a name in '" + decl + "'");
+        if (f.name.empty())
+            throw std::runtime_error("lcm: member without a name in '" + decl + "'");
         s.fields.push_back(std::move(f));
         if (comma == std::string::npos) break;
         start = comma + 1;
@@ -159,10 +160,14 @@ private:
         std::uint64_t v = 0;
         for (int i = 0; i < size; ++i) v = (v << 8) | p_[i];
         switch (size) {
-            case 1: return static_cast<std::int8_t>(v);
-            case 2: return static_cast<std::int16_t>(v);
-            case 4: return static_cast<std::int32_t>(v);
-            default: return static_cast<std::int64_t>(v);
+            case 1:
+                return static_cast<std::int8_t>(v);
+            case 2:
+                return static_cast<std::int16_t>(v);
+            case 4:
+                return static_cast<std::int32_t>(v);
+            default:
+                return static_cast<std::int64_t>(v);
         }
     }
     void Skip(std::uint64_t n) {
@@ -183,7 +188,8 @@ Schema Schema::Parse(const std::vector<std::string_view>& texts) {
         const std::string text = StripComments(raw);
         std::size_t pos = 0;
         while ((pos = text.find("struct", pos)) != std::string::npos) {
-            const bool word_start = pos == 0 || std::isspace(static_cast<unsigned char>(text[pos - 1]));
+            const bool word_start =
+                pos == 0 || std::isspace(static_cast<unsigned char>(text[pos - 1]));
             const std::size_t open = text.find('{', pos);
             if (!word_start || open == std::string::npos) {
                 pos += 6;

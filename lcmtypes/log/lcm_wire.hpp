@@ -15,8 +15,8 @@
 // DecodeChecked() is the one way shore code and tools decode an outside message.
 #pragma once
 
-#include <cstddef>
 #include <climits>
+#include <cstddef>
 #include <cstdint>
 #include <exception>
 #include <map>

@@ -36,7 +36,8 @@ Bytes Event(std::int64_t num, const std::string& ch, std::size_t len) {
 bool Intact(const LcmEvent& ev, std::size_t len) {
     if (ev.data.size() != len) return false;
     for (std::size_t i = 0; i < len; ++i) {
-        if (ev.data[i] != static_cast<std::uint8_t>(ev.eventnum * 31 + static_cast<std::int64_t>(i)))
+        if (ev.data[i] !=
+            static_cast<std::uint8_t>(ev.eventnum * 31 + static_cast<std::int64_t>(i)))
             return false;
     }
     return true;
@@ -49,7 +50,9 @@ std::string WriteFile(const std::string& name, const Bytes& b) {
     return path;
 }
 
-std::size_t LenOf(std::int64_t num) { return 50 + static_cast<std::size_t>(num * 7919 % 4000); }
+std::size_t LenOf(std::int64_t num) {
+    return 50 + static_cast<std::size_t>(num * 7919 % 4000);
+}
 
 // A log of n events of 50..4050 bytes on two channels; offsets of each event.
 Bytes MakeLog(int n, std::vector<std::size_t>* offsets = nullptr) {

@@ -28,7 +28,8 @@ Bytes Encode(const T& msg) {
 
 void PutBe32(Bytes& b, std::size_t at, std::int32_t v) {
     const auto u = static_cast<std::uint32_t>(v);
-    for (int i = 0; i < 4; ++i) b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(u >> (24 - 8 * i));
+    for (int i = 0; i < 4; ++i)
+        b[at + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(u >> (24 - 8 * i));
 }
 void PutBe16(Bytes& b, std::size_t at, std::int16_t v) {
     const auto u = static_cast<std::uint16_t>(v);
@@ -57,9 +58,15 @@ pitmap::raw_bytes_t Raw(std::size_t n) {
 }
 
 TEST(LcmWire, SchemaHasEveryProjectType) {
-    for (const char* name : {"multibeam_ping_t", "raw_bytes_t", "ins_pva_t", "ins_stddev_t",
-                             "gps_time_t", "channel_status_t", "daemon_status_t",
-                             "novatel_header_t", "clock_sync_t"}) {
+    for (const char* name : {"multibeam_ping_t",
+                             "raw_bytes_t",
+                             "ins_pva_t",
+                             "ins_stddev_t",
+                             "gps_time_t",
+                             "channel_status_t",
+                             "daemon_status_t",
+                             "novatel_header_t",
+                             "clock_sync_t"}) {
         EXPECT_NE(Schema::Pitmap().Find(name), nullptr) << name;
     }
 }
@@ -141,7 +148,8 @@ TEST(LcmWire, RandomDamageNeverThrowsOrOverAllocates) {
     std::mt19937 rng(7);
     for (int round = 0; round < 20000; ++round) {
         Bytes b = clean;
-        for (int k = 0; k < 3; ++k) b[8 + rng() % (b.size() - 8)] = static_cast<std::uint8_t>(rng());
+        for (int k = 0; k < 3; ++k)
+            b[8 + rng() % (b.size() - 8)] = static_cast<std::uint8_t>(rng());
         pitmap::multibeam_ping_t out;
         if (DecodeChecked(out, b.data(), b.size())) {
             EXPECT_LE(out.range_counts.size() * 4 + out.intensities.size() * 4, b.size());

@@ -215,7 +215,11 @@ void Session(Delay kind, double seconds, double ping_hz, const std::string& dir,
     nov_cfg.imu.imu_rate_hz = 200.0;
     SensorChannel nov(nov_cfg, nov_src, publisher, clock, time);
     (void)nov_src.Open();
-    UdpSource udp(UdpConfig{.bind_address = "127.0.0.1", .port = 0});
+    UdpConfig udp_cfg;
+    udp_cfg.bind_address = "127.0.0.1";
+    udp_cfg.port = 0;
+    udp_cfg.allowed_senders = {"127.0.0.1"};
+    UdpSource udp(udp_cfg);
     SensorChannelConfig mb_cfg;
     mb_cfg.id = "mb";
     mb_cfg.protocol = ChannelProtocol::kDeltat83P;

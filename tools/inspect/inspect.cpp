@@ -516,6 +516,10 @@ SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::in
     return SourceCounter::Mode::kUnframed;
 }
 
+// Raw chunks a daemon writes in a day at 1 kHz is 8.6e7; more than that between two chunks of
+// one source is a damaged or reset counter.
+constexpr std::int64_t kMaxPlausibleSeqGap = 100'000'000;
+
 Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOptions& options,
                                       InspectReport report) {
     // The bounded reader: a corrupted length resynchronises instead of asserting or
@@ -552,7 +556,13 @@ Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOpti
                     options.dump_first));
                 it = index.emplace(key, counters.size() - 1).first;
             } else if (raw.seq > last_seq[key] + 1) {
-                lcm_summary.raw_seq_gaps += static_cast<std::uint64_t>(raw.seq - last_seq[key] - 1);
+                // A gap larger than any log could hold is a damaged counter, not lost chunks.
+                const std::int64_t gap = raw.seq - last_seq[key] - 1;
+                if (gap <= kMaxPlausibleSeqGap) {
+                    lcm_summary.raw_seq_gaps += static_cast<std::uint64_t>(gap);
+                } else {
+                    ++lcm_summary.raw_seq_jumps;
+                }
             }
             last_seq[key] = raw.seq;
             counters[it->second]->Push(ByteSpan(raw.data.data(), raw.data.size()));

@@ -144,6 +144,7 @@ struct LcmSummary {
     std::int64_t last_utime = 0;
     std::map<std::string, LcmChannelSummary> channels;
     std::uint64_t raw_seq_gaps = 0;  // raw_bytes_t chunks missing according to `seq`
+    std::uint64_t raw_seq_jumps = 0;  // implausible jumps of `seq` (damaged or reset counter)
     // Damage found by the bounded log reader (lcmtypes/log/lcm_log_reader.hpp).
     std::uint64_t corrupt_headers = 0;
     std::uint64_t resync_bytes = 0;

@@ -221,6 +221,7 @@ nlohmann::json ToJson(const InspectReport& report) {
                           {"first_utime", l.first_utime},
                           {"last_utime", l.last_utime},
                           {"raw_seq_gaps", l.raw_seq_gaps},
+                          {"raw_seq_jumps", l.raw_seq_jumps},
                           {"corrupt_headers", l.corrupt_headers},
                           {"resync_bytes", l.resync_bytes},
                           {"length_repairs", l.length_repairs},
@@ -250,8 +251,9 @@ std::string ToText(const InspectReport& report) {
     }
     if (report.lcm) {
         const auto& l = *report.lcm;
-        os << "LCM log: " << l.events << " events, raw chunks missing by seq " << l.raw_seq_gaps
-           << "\n";
+        os << "LCM log: " << l.events << " events, raw chunks missing by seq " << l.raw_seq_gaps;
+        if (l.raw_seq_jumps > 0) os << " (" << l.raw_seq_jumps << " implausible seq jumps)";
+        os << "\n";
         if (l.corrupt_headers + l.resync_bytes + l.length_repairs + l.truncated_bytes +
                 l.undecodable_events >
             0) {

@@ -97,7 +97,7 @@ std::string HostProblemsConfig(const std::string& dir, int port, const std::stri
            "channels:\n  - id: nov\n    protocol: novatel\n"
            "    serial: {path: /dev/pitmap-no-such-tty, baud: 115200}\n"
            "  - id: mb\n    protocol: deltat_83p\n"
-           "    udp: {bind_address: 127.0.0.1, port: " +
+           "    udp: {bind_address: 127.0.0.1, allowed_senders: [127.0.0.1], port: " +
            std::to_string(port) + "}\n";
 }
 

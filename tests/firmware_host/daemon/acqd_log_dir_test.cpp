@@ -87,7 +87,8 @@ TEST(AcqdLogDirTest, DeletedLogDirectoryIsReportedRecreatedAndLoggingGoesOn) {
                            "?mode=w\"\nstatus_period_ms: 100\nlog:\n  directory: " + logs +
                            "\n  prefix: t\n  min_free_bytes: 0\n  flush_interval_ms: 50\n"
                            "channels:\n  - id: mb\n    protocol: deltat_83p\n"
-                           "    udp: {bind_address: 127.0.0.1, port: " +
+                           "    udp: {bind_address: 127.0.0.1, allowed_senders: [127.0.0.1],"
+                           " port: " +
                            std::to_string(port) + "}\n");
     const pid_t pid = testing::SpawnAcqd({"--config", dir + "/c.yaml"}, err);
     ASSERT_TRUE(testing::WaitFor([&] {

@@ -220,7 +220,8 @@ TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
                            "\n  prefix: full\n  min_free_bytes: 0\n  error_retry_ms: 20\n"
                            "  flush_interval_ms: 50\nchannels:\n  - id: mb\n"
                            "    protocol: deltat_83p\n"
-                           "    udp: {bind_address: 127.0.0.1, port: " +
+                           "    udp: {bind_address: 127.0.0.1, allowed_senders: [127.0.0.1],"
+                           " port: " +
                            std::to_string(port) + "}\n");
     const pid_t pid = testing::SpawnAcqd({"--config", dir_ + "/c.yaml"}, dir_ + "/err.txt");
     ASSERT_TRUE(testing::WaitFor([&] {

@@ -33,7 +33,8 @@ std::size_t CrcFrameAt(const Bytes& s, std::size_t i) {
         if (s[i + 1] == 0x44 && s[i + 2] == 0x13) {
             total = 12 + std::size_t{s[i + 3]} + 4;
         } else if (s[i + 2] == 0x12 && s[i + 3] >= 28) {
-            total = std::size_t{s[i + 3]} + (std::size_t{s[i + 8]} | (std::size_t{s[i + 9]} << 8)) + 4;
+            total =
+                std::size_t{s[i + 3]} + (std::size_t{s[i + 8]} | (std::size_t{s[i + 9]} << 8)) + 4;
             if (total > 32768) return 0;
         } else {
             return 0;
@@ -177,7 +178,8 @@ TEST_F(FalseHeader, BeforeAPause) {
     const std::size_t at = Boundary(clean_.size() / 3);
     const Bytes s = Insert(capture_, at, MakeFalseHeader(2));
     // The input pauses a few frames after the insert and resumes later.
-    const std::size_t pause = static_cast<std::size_t>(ReferenceOffsets(s).at(clean_.size() / 3 + 5));
+    const std::size_t pause =
+        static_cast<std::size_t>(ReferenceOffsets(s).at(clean_.size() / 3 + 5));
     const auto ref = ReferenceOffsets(s);
     EXPECT_EQ(ref.size(), clean_.size());
     EXPECT_EQ(FramerOffsets(s, {pause}), ref);
@@ -223,10 +225,12 @@ TEST_F(FalseHeader, RandomInsertsAndPauses) {
 
 TEST(FalseHeaderAscii, StrayStartsBeforeAsciiLogsAndTheEnd) {
     // A '#' log header with no '*' yet, a '<' and a '$' before real ASCII logs, then the end.
-    const Bytes log1 = testing::AsciiLine('#', "TIMEA,COM1,0,50.0,FINESTEERING,2000,1.0,0,0,0;"
-                                                "VALID,0,0,0,2018,5,1,0,0,1000,VALID");
-    const Bytes log2 = testing::AsciiLine('%', "INSPVASA,2000,1.0;2000,1.0,51,-114,1000,0,0,0,0,0,"
-                                                "90,INS_SOLUTION_GOOD");
+    const Bytes log1 = testing::AsciiLine('#',
+                                          "TIMEA,COM1,0,50.0,FINESTEERING,2000,1.0,0,0,0;"
+                                          "VALID,0,0,0,2018,5,1,0,0,1000,VALID");
+    const Bytes log2 = testing::AsciiLine('%',
+                                          "INSPVASA,2000,1.0;2000,1.0,51,-114,1000,0,0,0,0,0,"
+                                          "90,INS_SOLUTION_GOOD");
     Bytes s = testing::FromText("#BESTPOSA,COM1,0,83.5,FINESTEERING,1419,336148.000");
     for (const auto* part : {&log1, &log2}) s.insert(s.end(), part->begin(), part->end());
     const Bytes stray = testing::FromText("<garbage $GPGGA,1");

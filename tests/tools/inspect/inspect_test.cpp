@@ -404,6 +404,42 @@ TEST(InspectFileTest, TruncatedLcmLogKeepsTheCompleteEvents) {
     EXPECT_EQ(report->total.frames_by_id.at("101"), 5u);
 }
 
+// lcm's own LogFile asserted on a corrupt channel length and allocated what a corrupt data
+// length claimed; pitmap-inspect reads with the bounded reader now: a grown data length, a
+// raw event whose num_bytes is -5 and a damaged seq are counted, every other event is kept.
+TEST(InspectFileTest, DamagedLcmLogIsCountedNotFatal) {
+    const auto bytes = ReadBytes(kNovatelDir / "oem7drv_time.gps");  // 6 x TIME, 76 bytes each
+    TempFile tmp("damaged.lcm");
+    {
+        lcm::LogFile log(tmp.path(), "w");
+        for (std::int64_t i = 0; i < 6; ++i) {
+            WriteEvent(log, i, "RAW_NOVATEL",
+                       Encode(Raw("novatel", "novatel", pitmap::raw_bytes_t::TRANSPORT_SERIAL, i,
+                                  bytes.data() + i * 76, 76)));
+        }
+    }
+    auto full = ReadBytes(tmp.path());
+    const std::size_t event = full.size() / 6;  // every event has the same size
+    // Event 1: data length + 9.8 MB. Event 3: num_bytes = -5. Event 4: seq's top byte.
+    full[event * 1 + 25] = 0x95;
+    const std::size_t num_bytes = event * 4 - 76 - 4;
+    for (int k = 0; k < 4; ++k) full[num_bytes + static_cast<std::size_t>(k)] = k < 3 ? 0xFF : 0xFB;
+    const std::size_t channel_len = std::string("RAW_NOVATEL").size();
+    const std::size_t data4 = event * 4 + 28 + channel_len;
+    const std::size_t seq4 = data4 + 8 + 8 + 8 + 1 + (4 + 8) + (4 + 8) + 1;
+    full[seq4] = 0x7C;
+    tmp.Write(full);
+    const auto report = InspectFile(tmp.path(), InspectOptions{});
+    ASSERT_TRUE(report.ok()) << report.error().message;
+    ASSERT_TRUE(report->lcm);
+    EXPECT_EQ(report->lcm->events, 6u);
+    EXPECT_EQ(report->lcm->length_repairs, 1u);
+    EXPECT_EQ(report->lcm->undecodable_events, 1u);
+    EXPECT_EQ(report->lcm->raw_seq_jumps, 1u);
+    EXPECT_LE(report->lcm->raw_seq_gaps, 1u);  // event 3's seq is missing from the count
+    EXPECT_EQ(report->total.frames_by_id.at("101"), 5u);
+}
+
 // ---- Bad inputs ----------------------------------------------------------------------------
 
 TEST(InspectFileTest, BadInputsAreErrorsNamingTheFile) {
