@@ -318,7 +318,7 @@ namespace {
 
 // A survey of which only summary.json and the origin are needed (mesh, report).
 Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run_first) {
-    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
+    auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
     if (!summary) return Error{summary.error().message + " (run `pitmap " + run_first + "` first)"};
     detail::Survey s;
     s.out_dir = out_dir;
