@@ -59,7 +59,10 @@ Expected<nlohmann::json> ReadJsonFile(const std::string& path);
 Expected<nlohmann::json> ReadSummaryJson(const std::string& path);
 Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
 
-// The ingest result in a private, versioned binary file.
+// The ingest result in a private, versioned binary file (layout in products.cpp), read only by
+// the build that wrote it. The reader checks every array count against the bytes left in the
+// file before allocating (memory stays bounded by the file size) and a trailing CRC-32; a
+// truncated, corrupted or older file is an error naming the file.
 Status WriteIngestCache(const std::string& path, const IngestResult& r);
 Expected<IngestResult> ReadIngestCache(const std::string& path);
 
