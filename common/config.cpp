@@ -82,7 +82,10 @@ std::vector<ConfigReader> ConfigReader::Items(std::string_view key) {
 std::vector<std::string> ConfigReader::Keys() const {
     std::vector<std::string> keys;
     if (!node_.IsMap()) return keys;
-    for (const auto& kv : node_) keys.push_back(kv.first.as<std::string>());
+    // A key may be any node in YAML ("? [a, b]: 1", "{a: 1}: 2"); only scalars name settings.
+    for (const auto& kv : node_) {
+        keys.push_back(kv.first.IsScalar() ? kv.first.Scalar() : Describe(kv.first));
+    }
     return keys;
 }
 

@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Builds the libFuzzer targets (tests/fuzz/*_fuzz.cpp) with clang and runs each for a bounded
-# time, seeded with the real captures in tests/data. A crash, leak or sanitizer report fails.
-#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses less)
+# time, seeded with tests/fuzz/seeds/<target>/ (small product and config files), else the real
+# captures in tests/data/<target>/. A crash, leak or sanitizer report fails.
+#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 30)
+#   FUZZ_TARGETS="ply_fuzz novatel_fuzz" tools/run-fuzzers.sh 30   (only those targets)
+# The product and config targets need the processor and daemon libraries, so both are built
+# (with clang, only what the fuzz targets link).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-60}
@@ -10,12 +14,16 @@ build=${BUILD_DIR:-$root/build-fuzz}
 "$root/tools/install-deps.sh"
 
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=OFF -DPITMAP_BUILD_TOOLS=OFF \
-  -DPITMAP_BUILD_FIRMWARE_HOST=OFF -DPITMAP_BUILD_BENCHMARKS=OFF -DPITMAP_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 || {
+  -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=ON -DPITMAP_BUILD_TOOLS=OFF \
+  -DPITMAP_BUILD_FIRMWARE_HOST=ON -DPITMAP_BUILD_BENCHMARKS=OFF -DPITMAP_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 || {
     cat "$build.configure.log"; echo "run-fuzzers: configure failed" >&2; exit 1; }
 shopt -s nullglob
 targets=()
-for src in "$root"/tests/fuzz/*_fuzz.cpp; do targets+=("$(basename "${src%.cpp}")"); done
+if [[ -n ${FUZZ_TARGETS:-} ]]; then
+  read -r -a targets <<< "$FUZZ_TARGETS"
+else
+  for src in "$root"/tests/fuzz/*_fuzz.cpp; do targets+=("$(basename "${src%.cpp}")"); done
+fi
 if [[ ${#targets[@]} -eq 0 ]]; then
   echo "run-fuzzers: no fuzz targets"; exit 0
 fi
@@ -24,7 +32,8 @@ cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" --target "${targets[@
 status=0
 for t in "${targets[@]}"; do
   corpus=$(mktemp -d)
-  seeds="$root/tests/data/fuzz/${t%_fuzz}"
+  seeds="$root/tests/fuzz/seeds/${t%_fuzz}"
+  [[ -d $seeds ]] || seeds="$root/tests/data/fuzz/${t%_fuzz}"
   [[ -d $seeds ]] || seeds="$root/tests/data/${t%_fuzz}"
   [[ -d $seeds ]] || seeds=""
   label=none

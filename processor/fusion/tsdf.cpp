@@ -68,6 +68,7 @@ struct PreparedScan {
     std::int64_t beams_no_detection = 0;
     std::int64_t beams_out_of_range = 0;
     std::int64_t beams_inconsistent = 0;
+    bool out_of_bounds = false;  // pose non-finite or beyond kMaxSonarOffsetM: no beams
 };
 
 constexpr int kMaxFootprintHalf = 32;  // beams on each side of a footprint considered at most
@@ -477,7 +478,13 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
     const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
     PreparedScan ps;
     ps.R = scan.T_world_sonar.linear();
-    ps.p_vox = scan.T_world_sonar.translation() * inv_s;
+    const Eigen::Vector3d p_world = scan.T_world_sonar.translation();
+    if (!p_world.allFinite() || !ps.R.allFinite() ||
+        p_world.cwiseAbs().maxCoeff() > kMaxSonarOffsetM) {
+        ps.out_of_bounds = true;  // would make the x range (and the slab arrays) unbounded
+        return ps;
+    }
+    ps.p_vox = p_world * inv_s;
     const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
     const float nan = std::numeric_limits<float>::quiet_NaN();
     std::vector<float> r(n, nan);  // valid ranges in voxel units
@@ -651,6 +658,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         result.beams_used += ps.beams_used;
         result.beams_no_detection += ps.beams_no_detection;
         result.beams_out_of_range += ps.beams_out_of_range;
+        result.scans_out_of_bounds += ps.out_of_bounds ? 1 : 0;
         result.beams_inconsistent += ps.beams_inconsistent;
         total_beams += ps.beams.size();
     }

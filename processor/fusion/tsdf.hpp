@@ -68,8 +68,15 @@ struct TsdfConfig {
 };
 
 // Statistics of one Integrate call.
+// Sonar positions further than this from the world origin on any axis (or non-finite poses)
+// are not integrated: no survey spans 100 km, and the volume's index range stays far inside
+// OpenVDB's 32-bit coordinates.
+inline constexpr double kMaxSonarOffsetM = 100'000.0;
+
 struct IntegrateResult {
     std::int64_t scans = 0;             // scans given
+    std::int64_t scans_out_of_bounds = 0;  // pose non-finite or beyond kMaxSonarOffsetM; their
+                                           // beams are not integrated (nor counted below)
     std::int64_t beams_used = 0;        // beams with a valid range that were integrated
     std::int64_t beams_no_detection = 0;  // 0 or NaN range
     std::int64_t beams_out_of_range = 0;  // outside [min_range_m, max_range_m] or negative

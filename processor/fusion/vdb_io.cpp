@@ -3,12 +3,145 @@
 
 #include <openvdb/io/File.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <exception>
+#include <fstream>
 
+#include "common/protocol/novatel/crc32.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
 
 namespace pitmap::proc::fusion {
+
+namespace {
+
+// The checksum trailer appended after OpenVDB's bytes (OpenVDB and other readers ignore bytes
+// after the last grid): magic "PMVDBCRC", u64 LE length of the OpenVDB part, u32 LE CRC-32
+// (common/protocol/novatel/crc32) of that part, u32 LE trailer version.
+constexpr char kTrailerMagic[8] = {'P', 'M', 'V', 'D', 'B', 'C', 'R', 'C'};
+constexpr std::uint32_t kTrailerVersion = 1;
+constexpr std::size_t kTrailerBytes = 24;
+
+std::uint64_t GetLe(const unsigned char* p, int n) {
+    std::uint64_t v = 0;
+    for (int i = n - 1; i >= 0; --i) v = (v << 8) | p[i];
+    return v;
+}
+
+void PutLe(unsigned char* p, std::uint64_t v, int n) {
+    for (int i = 0; i < n; ++i) p[i] = static_cast<unsigned char>(v >> (8 * i));
+}
+
+// CRC-32 of the first `length` bytes of `in` (read from its current position), false on a
+// short read.
+bool CrcOfStream(std::istream& in, std::uint64_t length, std::uint32_t& crc) {
+    std::vector<std::uint8_t> buf(1 << 20);
+    crc = 0;
+    while (length > 0) {
+        const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(length, buf.size()));
+        if (!in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(n))) {
+            return false;
+        }
+        crc = protocol::novatel::Crc32({buf.data(), n}, crc);
+        length -= n;
+    }
+    return true;
+}
+
+// Appends the trailer to a file OpenVDB has just written.
+Status AppendTrailer(const std::string& path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    if (!in) return Error{path + ": cannot reopen the written VDB"};
+    const auto size = static_cast<std::uint64_t>(in.tellg());
+    in.seekg(0);
+    std::uint32_t crc = 0;
+    if (!CrcOfStream(in, size, crc)) return Error{path + ": cannot re-read the written VDB"};
+    in.close();
+    std::array<unsigned char, kTrailerBytes> t{};
+    std::copy(std::begin(kTrailerMagic), std::end(kTrailerMagic), t.begin());
+    PutLe(t.data() + 8, size, 8);
+    PutLe(t.data() + 16, crc, 4);
+    PutLe(t.data() + 20, kTrailerVersion, 4);
+    std::FILE* f = std::fopen(path.c_str(), "ab");
+    if (f == nullptr) return Error{path + ": cannot append the checksum"};
+    const bool ok = std::fwrite(t.data(), 1, t.size(), f) == t.size();
+    if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed (disk full?)"};
+    return Ok{};
+}
+
+// Checks the trailer and the CRC of everything before it, so that no corrupted or truncated
+// byte ever reaches OpenVDB (whose reader crashes on many corruptions). Reads the file once,
+// in 1 MiB pieces.
+Status VerifyTrailer(const std::string& path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    if (!in) return Error{path + ": cannot read VDB: cannot open"};
+    const auto size = static_cast<std::uint64_t>(in.tellg());
+    if (size < kTrailerBytes) {
+        return Error{path + ": not a pitmap TSDF volume: " + std::to_string(size) +
+                     " bytes, too short"};
+    }
+    std::array<unsigned char, kTrailerBytes> t{};
+    in.seekg(static_cast<std::streamoff>(size - kTrailerBytes));
+    if (!in.read(reinterpret_cast<char*>(t.data()), kTrailerBytes)) {
+        return Error{path + ": cannot read VDB: read error"};
+    }
+    if (!std::equal(std::begin(kTrailerMagic), std::end(kTrailerMagic), t.begin())) {
+        return Error{path +
+                     ": no pitmap checksum trailer (truncated, corrupted, or not written "
+                     "by this pitmap version)"};
+    }
+    const std::uint64_t length = GetLe(t.data() + 8, 8);
+    const auto stored = static_cast<std::uint32_t>(GetLe(t.data() + 16, 4));
+    const auto version = static_cast<std::uint32_t>(GetLe(t.data() + 20, 4));
+    if (version != kTrailerVersion) {
+        return Error{path + ": checksum trailer version " + std::to_string(version) +
+                     " not supported"};
+    }
+    if (length != size - kTrailerBytes) {
+        return Error{path + ": file is " + std::to_string(size) + " bytes but its trailer says " +
+                     std::to_string(length) + " + " + std::to_string(kTrailerBytes) +
+                     " (truncated or corrupted)"};
+    }
+    in.seekg(0);
+    std::uint32_t crc = 0;
+    if (!CrcOfStream(in, length, crc)) return Error{path + ": cannot read VDB: read error"};
+    if (crc != stored) {
+        return Error{path + ": checksum mismatch (file corrupted)"};
+    }
+    return Ok{};
+}
+
+// Rejects a (checksummed) file whose grid metadata does not describe a pitmap volume, before
+// any tree is read: the two float grids, and an in-memory size OpenVDB recorded at writing
+// that is plausible for the file size.
+Status CheckGridMetadata(openvdb::io::File& file, const std::string& path) {
+    const openvdb::GridPtrVecPtr meta = file.readAllGridMetadata();
+    bool tsdf = false, weight = false;
+    std::int64_t mem_bytes = 0;
+    for (const openvdb::GridBase::Ptr& g : *meta) {
+        if (g->getName() == "tsdf") tsdf = g->isType<openvdb::FloatGrid>();
+        if (g->getName() == "weight") weight = g->isType<openvdb::FloatGrid>();
+        if (const auto m = g->getMetadata<openvdb::Int64Metadata>("file_mem_bytes")) {
+            if (m->value() < 0) return Error{path + ": negative grid size in the metadata"};
+            mem_bytes += m->value();
+        }
+    }
+    if (!tsdf || !weight) {
+        return Error{path +
+                     ": not a pitmap TSDF volume (needs float grids \"tsdf\" and "
+                     "\"weight\")"};
+    }
+    const std::int64_t file_bytes = static_cast<std::int64_t>(file.getSize());
+    constexpr std::int64_t kMaxExpansion = 256;  // in-memory bytes per file byte, generous
+    if (mem_bytes > (1ll << 30) && mem_bytes / kMaxExpansion > file_bytes) {
+        return Error{path + ": grid metadata claims " + std::to_string(mem_bytes) +
+                     " bytes in memory for a " + std::to_string(file_bytes) + "-byte file"};
+    }
+    return Ok{};
+}
+
+}  // namespace
 
 Status WriteVdb(const TsdfVolume& volume, const std::string& path,
                 const std::vector<std::pair<std::string, std::string>>& metadata) {
@@ -27,15 +160,16 @@ Status WriteVdb(const TsdfVolume& volume, const std::string& path,
     } catch (const std::exception& e) {
         return Error{path + ": cannot write VDB: " + e.what()};
     }
-    return Ok{};
+    return AppendTrailer(path);
 }
 
 Expected<VdbFileInfo> ReadVdbInfo(const std::string& path) {
     VdbFileInfo info;
+    if (auto st = VerifyTrailer(path); !st) return st.error();
     try {
         openvdb::initialize();
         openvdb::io::File file(path);
-        file.open();
+        file.open(/*delayLoad=*/false);
         openvdb::MetaMap::Ptr meta = file.getMetadata();
         for (auto it = meta->beginMeta(); it != meta->endMeta(); ++it) {
             info.metadata.push_back(it->first + "=" + it->second->str());
@@ -53,12 +187,14 @@ Expected<VdbFileInfo> ReadVdbInfo(const std::string& path) {
 }
 
 Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config) {
+    if (auto st = VerifyTrailer(path); !st) return st.error();
     openvdb::FloatGrid::Ptr distance;
     openvdb::FloatGrid::Ptr weight;
     try {
         openvdb::initialize();
         openvdb::io::File file(path);
-        file.open();
+        file.open(/*delayLoad=*/false);
+        if (auto st = CheckGridMetadata(file, path); !st) return st.error();
         openvdb::GridPtrVecPtr grids = file.getGrids();
         file.close();
         for (const openvdb::GridBase::Ptr& g : *grids) {

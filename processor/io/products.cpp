@@ -2,10 +2,13 @@
 #include "processor/io/products.hpp"
 
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -14,6 +17,7 @@
 
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
+#include "common/protocol/novatel/crc32.hpp"
 
 namespace pitmap::proc::io {
 
@@ -284,10 +288,81 @@ Status WriteTrajectoryCsv(const std::string& path, const georef::NavSeries& nav,
 }
 
 Expected<nlohmann::json> ReadJsonFile(const std::string& path) {
-    std::ifstream in(path);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return Error{path + ": cannot open"};
-    nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-    if (j.is_discarded()) return Error{path + ": not valid JSON"};
+    const auto size = static_cast<std::uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
+    if (size > kMaxJsonFileBytes) {
+        return Error{path + ": " + std::to_string(size) + " bytes, more than the " +
+                     std::to_string(kMaxJsonFileBytes) + " a JSON product may have"};
+    }
+    in.seekg(0);
+    std::string text(static_cast<std::size_t>(size), '\0');
+    if (!in.read(text.data(), static_cast<std::streamsize>(size))) {
+        return Error{path + ": read error"};
+    }
+    try {
+        return nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+        return Error{path + ": not valid JSON: " + e.what()};
+    }
+}
+
+namespace {
+
+// "" if `j[key]` is a finite number, else what is wrong with it.
+std::string CheckNumber(const nlohmann::json& j, const char* key, const std::string& where) {
+    const auto it = j.find(key);
+    if (it == j.end()) return where + "." + key + " missing";
+    if (!it->is_number()) return where + "." + key + " must be a number, is " + it->type_name();
+    if (!std::isfinite(it->get<double>())) return where + "." + key + " is not finite";
+    return "";
+}
+
+std::string CheckSummary(const nlohmann::json& j) {
+    if (!j.is_object()) return std::string("must be a JSON object, is ") + j.type_name();
+    if (const auto o = j.find("world_origin"); o != j.end()) {
+        if (!o->is_object()) return "world_origin must be an object";
+        for (const char* k : {"latitude_deg", "longitude_deg", "height_m"}) {
+            if (auto e = CheckNumber(*o, k, "world_origin"); !e.empty()) return e;
+        }
+        if (std::abs(o->at("latitude_deg").get<double>()) > 90.0) {
+            return "world_origin.latitude_deg beyond +-90";
+        }
+    }
+    if (const auto m = j.find("mount"); m != j.end()) {
+        if (!m->is_object()) return "mount must be an object";
+        for (const char* k : {"roll_deg", "pitch_deg", "yaw_deg"}) {
+            if (auto e = CheckNumber(*m, k, "mount"); !e.empty()) return e;
+        }
+        const auto a = m->find("lever_arm_sonar_m");
+        if (a == m->end() || !a->is_array() || a->size() != 3 ||
+            !std::all_of(a->begin(), a->end(), [](const nlohmann::json& x) {
+                return x.is_number() && std::isfinite(x.get<double>());
+            })) {
+            return "mount.lever_arm_sonar_m must be 3 finite numbers";
+        }
+    }
+    if (const auto u = j.find("utm"); u != j.end() && !u->is_object()) {
+        return "utm must be an object";
+    }
+    if (const auto st = j.find("stages"); st != j.end()) {
+        if (!st->is_object()) return "stages must be an object";
+        for (const auto& [name, stage] : st->items()) {
+            if (!stage.is_object()) return "stages." + name + " must be an object";
+        }
+    }
+    if (const auto so = j.find("stage_order"); so != j.end() && !so->is_array()) {
+        return "stage_order must be an array";
+    }
+    return "";
+}
+
+}  // namespace
+
+Expected<nlohmann::json> ReadSummaryJson(const std::string& path) {
+    auto j = ReadJsonFile(path);
+    if (!j) return j;
+    if (const std::string e = CheckSummary(*j); !e.empty()) return Error{path + ": " + e};
     return j;
 }
 
@@ -300,8 +375,13 @@ Status WriteJsonFile(const std::string& path, const nlohmann::json& j) {
 }
 
 namespace {
+// Ingest cache layout (native byte order and struct layout; read only by the build that wrote
+// it): u32 magic "PMIC", u32 version, u32 byte order (1 little, 2 big), i32 leap seconds, then
+// four arrays (nav samples, nav stddevs, ping headers, range counts), each as u64 count, u64
+// element size, count * size bytes; then a u32 CRC-32 (common/protocol/novatel/crc32) of every
+// byte before it. Version 1 had no CRC.
 constexpr std::uint32_t kCacheMagic = 0x43494D50;  // "PMIC"
-constexpr std::uint32_t kCacheVersion = 1;
+constexpr std::uint32_t kCacheVersion = 2;
 
 struct DiskNav {
     std::int64_t utime_gps;
@@ -329,40 +409,118 @@ georef::NavSample FromDisk(const DiskNav& d) {
     return s;
 }
 
-template <typename T>
-void PutVec(std::FILE* f, const std::vector<T>& v) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    const std::uint64_t n = v.size();
-    const std::uint64_t sz = sizeof(T);
-    std::fwrite(&n, sizeof n, 1, f);
-    std::fwrite(&sz, sizeof sz, 1, f);
-    if (n > 0) std::fwrite(v.data(), sizeof(T), v.size(), f);
+// Writes through a FILE and keeps the CRC-32 of everything written.
+class CacheWriter {
+public:
+    explicit CacheWriter(std::FILE* f) : f_(f) {}
+    void Bytes(const void* p, std::size_t n) {
+        if (n == 0) return;
+        if (std::fwrite(p, 1, n, f_) != n) ok_ = false;
+        crc_ = protocol::novatel::Crc32({static_cast<const std::uint8_t*>(p), n}, crc_);
+    }
+    template <typename T>
+    void Vec(const std::vector<T>& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        const std::uint64_t n = v.size();
+        const std::uint64_t sz = sizeof(T);
+        Bytes(&n, sizeof n);
+        Bytes(&sz, sizeof sz);
+        Bytes(v.data(), v.size() * sizeof(T));
+    }
+    void Finish() {
+        const std::uint32_t crc = crc_;
+        if (std::fwrite(&crc, sizeof crc, 1, f_) != 1) ok_ = false;
+    }
+    bool ok() const { return ok_; }
+
+private:
+    std::FILE* f_;
+    std::uint32_t crc_ = 0;
+    bool ok_ = true;
+};
+
+// Reads a cache file of known size: never reads past `size` minus the CRC trailer and never
+// allocates more than the bytes that remain, so memory stays bounded by the file size whatever
+// the counts say. The first problem found is kept in `error` (without the path).
+class CacheReader {
+public:
+    CacheReader(std::FILE* f, std::uint64_t size) : f_(f), size_(size) {}
+    bool Bytes(void* p, std::size_t n, const char* what) {
+        if (!error.empty()) return false;
+        if (n > Remaining()) return Fail(std::string("truncated in ") + what);
+        if (n > 0 && std::fread(p, 1, n, f_) != n)
+            return Fail(std::string("read error in ") + what);
+        crc_ = protocol::novatel::Crc32({static_cast<const std::uint8_t*>(p), n}, crc_);
+        pos_ += n;
+        return true;
+    }
+    template <typename T>
+    bool Vec(std::vector<T>& v, const char* what) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        std::uint64_t n = 0, sz = 0;
+        if (!Bytes(&n, sizeof n, what) || !Bytes(&sz, sizeof sz, what)) return false;
+        if (sz != sizeof(T)) {
+            return Fail(std::string(what) + ": element size " + std::to_string(sz) + ", expected " +
+                        std::to_string(sizeof(T)));
+        }
+        if (n > Remaining() / sizeof(T)) {
+            return Fail(std::string(what) + ": count " + std::to_string(n) + " needs " +
+                        std::to_string(n) + " x " + std::to_string(sizeof(T)) + " bytes but only " +
+                        std::to_string(Remaining()) + " remain");
+        }
+        v.resize(n);
+        return Bytes(v.data(), n * sizeof(T), what);
+    }
+    // At the trailer: every byte consumed and the CRC matches.
+    bool Finish() {
+        if (!error.empty()) return false;
+        if (Remaining() != 0) {
+            return Fail(std::to_string(Remaining()) + " unexpected bytes before the checksum");
+        }
+        std::uint32_t stored = 0;
+        if (std::fread(&stored, sizeof stored, 1, f_) != 1) return Fail("read error in checksum");
+        if (stored != crc_) return Fail("checksum mismatch (file corrupted)");
+        return true;
+    }
+    std::string error;
+
+private:
+    std::uint64_t Remaining() const { return size_ - 4 - pos_; }  // size_ >= 4 checked by caller
+    bool Fail(std::string message) {
+        if (error.empty()) error = std::move(message);
+        return false;
+    }
+    std::FILE* f_;
+    std::uint64_t size_;
+    std::uint64_t pos_ = 0;
+    std::uint32_t crc_ = 0;
+};
+
+std::uint64_t FileSize(std::FILE* f) {
+    struct stat st {};
+    if (fstat(fileno(f), &st) != 0 || st.st_size < 0) return 0;
+    return static_cast<std::uint64_t>(st.st_size);
 }
-template <typename T>
-bool GetVec(std::FILE* f, std::vector<T>& v) {
-    std::uint64_t n = 0, sz = 0;
-    if (std::fread(&n, sizeof n, 1, f) != 1 || std::fread(&sz, sizeof sz, 1, f) != 1) return false;
-    if (sz != sizeof(T) || n > (1ull << 34) / sizeof(T)) return false;
-    v.resize(n);
-    return n == 0 || std::fread(v.data(), sizeof(T), n, f) == n;
-}
+
 }  // namespace
 
-// The cache is read only by the build that wrote it (native layout; size checks per array).
 Status WriteIngestCache(const std::string& path, const IngestResult& r) {
     std::FILE* f = std::fopen(path.c_str(), "wb");
     if (f == nullptr) return Error{path + ": cannot create"};
-    const std::uint32_t head[3] = {kCacheMagic, kCacheVersion, std::endian::native == std::endian::little ? 1u : 2u};
-    std::fwrite(head, sizeof head, 1, f);
+    CacheWriter w(f);
+    const std::uint32_t head[3] = {
+        kCacheMagic, kCacheVersion, std::endian::native == std::endian::little ? 1u : 2u};
+    w.Bytes(head, sizeof head);
     const std::int32_t leap = r.nav.leap_seconds;
-    std::fwrite(&leap, sizeof leap, 1, f);
+    w.Bytes(&leap, sizeof leap);
     std::vector<DiskNav> nav(r.nav.samples.size());
     for (std::size_t i = 0; i < nav.size(); ++i) nav[i] = ToDisk(r.nav.samples[i]);
-    PutVec(f, nav);
-    PutVec(f, r.nav.stddevs);
-    PutVec(f, r.pings.pings);
-    PutVec(f, r.pings.range_counts);
-    const bool ok = std::ferror(f) == 0;
+    w.Vec(nav);
+    w.Vec(r.nav.stddevs);
+    w.Vec(r.pings.pings);
+    w.Vec(r.pings.range_counts);
+    w.Finish();
+    const bool ok = w.ok() && std::ferror(f) == 0;
     if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
     return Ok{};
 }
@@ -370,19 +528,45 @@ Status WriteIngestCache(const std::string& path, const IngestResult& r) {
 Expected<IngestResult> ReadIngestCache(const std::string& path) {
     std::FILE* f = std::fopen(path.c_str(), "rb");
     if (f == nullptr) return Error{path + ": cannot open (run `pitmap georef` first)"};
+    const std::uint64_t size = FileSize(f);
+    const std::string rerun = " (run `pitmap georef` again)";
+    constexpr std::uint64_t kHeadBytes = 3 * 4 + 4;
+    if (size < kHeadBytes + 4) {
+        std::fclose(f);
+        return Error{path + ": not a pitmap ingest cache (" + std::to_string(size) + " bytes)" +
+                     rerun};
+    }
+    CacheReader in(f, size);
     IngestResult r;
     std::uint32_t head[3] = {0, 0, 0};
     std::int32_t leap = -1;
     std::vector<DiskNav> nav;
-    bool ok = std::fread(head, sizeof head, 1, f) == 1 && head[0] == kCacheMagic &&
-              head[1] == kCacheVersion && std::fread(&leap, sizeof leap, 1, f) == 1 &&
-              GetVec(f, nav) && GetVec(f, r.nav.stddevs) && GetVec(f, r.pings.pings) &&
-              GetVec(f, r.pings.range_counts);
+    in.Bytes(head, sizeof head, "header");
+    if (in.error.empty() && head[0] != kCacheMagic) {
+        std::fclose(f);
+        return Error{path + ": not a pitmap ingest cache (bad magic)" + rerun};
+    }
+    if (in.error.empty() && (head[1] != kCacheVersion ||
+                             head[2] != (std::endian::native == std::endian::little ? 1u : 2u))) {
+        std::fclose(f);
+        return Error{path + ": ingest cache version " + std::to_string(head[1]) +
+                     " or byte order not of this build" + rerun};
+    }
+    in.Bytes(&leap, sizeof leap, "header");
+    in.Vec(nav, "nav samples");
+    in.Vec(r.nav.stddevs, "nav stddevs");
+    in.Vec(r.pings.pings, "pings");
+    in.Vec(r.pings.range_counts, "range counts");
+    in.Finish();
     std::fclose(f);
-    if (!ok) return Error{path + ": not a pitmap ingest cache of this version, or truncated"};
-    for (const auto& p : r.pings.pings) {
+    if (!in.error.empty()) return Error{path + ": corrupt ingest cache: " + in.error + rerun};
+    for (auto& p : r.pings.pings) {
+        // A bool read from bytes must hold 0 or 1 (the CRC does not stop crafted files).
+        auto* flag =
+            reinterpret_cast<unsigned char*>(&p) + offsetof(georef::PingHeader, sound_speed_valid);
+        *flag = *flag != 0 ? 1 : 0;
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size()) {
-            return Error{path + ": inconsistent beam offsets"};
+            return Error{path + ": corrupt ingest cache: inconsistent beam offsets" + rerun};
         }
     }
     r.nav.leap_seconds = leap;

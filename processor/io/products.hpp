@@ -47,10 +47,22 @@ std::string UtmWkt(int zone, bool northern);
 Status WriteTrajectoryCsv(const std::string& path, const georef::NavSeries& nav,
                           const Geodetic& origin);
 
+// Reads a JSON file of at most kMaxJsonFileBytes. Errors name the file and, for a syntax error,
+// the line and column.
+inline constexpr std::uint64_t kMaxJsonFileBytes = 64ull << 20;
 Expected<nlohmann::json> ReadJsonFile(const std::string& path);
+// summary.json of a products folder: ReadJsonFile, then the keys the stages read, where
+// present, must have their types (an object at the top; world_origin {latitude_deg,
+// longitude_deg, height_m} finite numbers with |latitude| <= 90; mount {roll_deg, pitch_deg,
+// yaw_deg, lever_arm_sonar_m [3]} finite numbers; utm and every entry of stages objects;
+// stage_order an array), or the read fails naming the file and the key.
+Expected<nlohmann::json> ReadSummaryJson(const std::string& path);
 Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
 
-// The ingest result in a private, versioned binary file.
+// The ingest result in a private, versioned binary file (layout in products.cpp), read only by
+// the build that wrote it. The reader checks every array count against the bytes left in the
+// file before allocating (memory stays bounded by the file size) and a trailing CRC-32; a
+// truncated, corrupted or older file is an error naming the file.
 Status WriteIngestCache(const std::string& path, const IngestResult& r);
 Expected<IngestResult> ReadIngestCache(const std::string& path);
 

@@ -226,7 +226,26 @@ Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
                         &v[6],
                         &used) != 7 ||
             !std::all_of(std::begin(v), std::end(v), [](double x) { return std::isfinite(x); })) {
-            return Error{path + ":" + std::to_string(line_no) + ": malformed row"};
+            return Error{path + ":" + std::to_string(line_no) +
+                         ": malformed row (7 finite numbers expected)"};
+        }
+        static const char* const kNames[7] = {
+            "gps_time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"};
+        for (int k = 0; k < 7; ++k) {
+            const double limit = k == 0  ? kMaxGpsTimeS
+                                 : k < 4 ? kMaxTrajectoryOffsetM
+                                         : kMaxTrajectoryAngleDeg;
+            if (std::abs(v[k]) > limit) {
+                char msg[160];
+                std::snprintf(msg,
+                              sizeof msg,
+                              ": %s = %g is beyond +-%g%s",
+                              kNames[k],
+                              v[k],
+                              limit,
+                              k >= 1 && k < 4 ? " m of the world origin" : "");
+                return Error{path + ":" + std::to_string(line_no) + msg};
+            }
         }
         if (!out.gps_time_s.empty() && v[0] <= out.gps_time_s.back()) {
             return Error{path + ":" + std::to_string(line_no) + ": times not increasing"};

@@ -84,7 +84,13 @@ TimedPoses PingPoses(const georef::GeorefResult& geo);
 // trajectory.csv: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU; attitude of the
 // vehicle FRD frame relative to NED, common/frames.hpp).
 Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory);
-// Reads the first seven columns of a trajectory CSV (any further columns are ignored).
+// Reads the first seven columns of a trajectory CSV (any further columns are ignored). Every
+// value must be finite and plausible for a survey, or the read fails naming the file and line:
+// positions within kMaxTrajectoryOffsetM of the world origin on each axis (the TSDF's extent
+// comes from them), angles within +-kMaxTrajectoryAngleDeg, times within +-kMaxGpsTimeS.
+inline constexpr double kMaxTrajectoryOffsetM = 50'000.0;
+inline constexpr double kMaxTrajectoryAngleDeg = 720.0;
+inline constexpr double kMaxGpsTimeS = 1e11;
 Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path);
 
 }  // namespace pitmap::proc::pipeline

@@ -170,7 +170,7 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const Log& log) {
     Survey s;
     s.out_dir = out_dir;
-    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
+    auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
     if (!summary) return Error{summary.error().message + " (run `pitmap georef` first)"};
     s.summary = std::move(*summary);
     if (!s.summary.is_object() || !s.summary.contains("world_origin") ||
@@ -278,7 +278,7 @@ Status GeorefSurvey(Survey& s,
         if (fs::exists(first)) vpath = first.string();
     }
     io::IngestConfig icfg = config.ingest;
-    if (auto old = io::ReadJsonFile(out_dir + "/summary.json"); old && old->is_object()) {
+    if (auto old = io::ReadSummaryJson(out_dir + "/summary.json"); old && old->is_object()) {
         s.summary = *old;
     } else {
         s.summary = json::object();

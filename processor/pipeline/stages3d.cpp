@@ -205,6 +205,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                {"beams_used", ir.beams_used},
                {"beams_no_detection", ir.beams_no_detection},
                {"beams_out_of_range", ir.beams_out_of_range},
+               {"scans_out_of_bounds", ir.scans_out_of_bounds},
                {"beams_inconsistent", ir.beams_inconsistent},
                {"voxel_updates", ir.voxel_updates},
                {"integrate_seconds", ir.elapsed_s},
@@ -318,7 +319,7 @@ namespace {
 
 // A survey of which only summary.json and the origin are needed (mesh, report).
 Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run_first) {
-    auto summary = io::ReadJsonFile(out_dir + "/summary.json");
+    auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
     if (!summary) return Error{summary.error().message + " (run `pitmap " + run_first + "` first)"};
     detail::Survey s;
     s.out_dir = out_dir;

@@ -73,6 +73,21 @@ TEST(ConfigReader, TopLevelMustBeAMap) {
     EXPECT_TRUE(ConfigReader::FromString("").ok());  // empty file: all defaults
 }
 
+// Found by daemon_config_fuzz: a key that is a list or a map ("? -" is a complex key holding a
+// list) threw YAML::TypedBadConversion out of RejectUnknownKeys. It is an unknown setting.
+TEST(ConfigReader, ListAndMapKeysAreUnknownSettingsNotExceptions) {
+    for (const char* text : {"? -\n", "? [a, b]\n: 1\n", "{x: 1}: 2\n", "sub:\n  ? [c]\n  : 3\n"}) {
+        auto reader = ConfigReader::FromString(text, "keys.yaml");
+        ASSERT_TRUE(reader.ok()) << text;
+        ConfigReader sub = reader->Child("sub");
+        EXPECT_NO_THROW(sub.RejectUnknownKeys()) << text;
+        EXPECT_NO_THROW(reader->RejectUnknownKeys()) << text;
+        ASSERT_FALSE(reader->problems().empty()) << text;
+        EXPECT_NE(reader->problems().back().find("not a known setting"), std::string::npos)
+            << reader->problems().back();
+    }
+}
+
 TEST(ConfigReader, MissingFileIsAClearError) {
     auto reader = ConfigReader::FromFile("/nonexistent/pitmap.yaml");
     ASSERT_FALSE(reader.ok());

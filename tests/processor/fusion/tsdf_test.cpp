@@ -309,6 +309,28 @@ TEST(TsdfVolume, BadBeamsAreCountedNotFatal) {
     EXPECT_GT(r.voxel_updates, 0);
 }
 
+// Issue 14, case 5: a pose 1e9 m away (a corrupted trajectory) made the volume's x range, and
+// the arrays sized by it, unbounded ("cannot create std::vector larger than max_size()").
+// Such scans, and non-finite poses, are counted and skipped; the others are integrated.
+TEST(TsdfVolume, ScansFarOutsideAnySurveyAreCountedAndSkipped) {
+    SonarScan good;
+    good.T_world_sonar = testing::SonarPose(Eigen::Vector3d::Zero());
+    good.start_angle_rad = -0.1f;
+    good.angle_increment_rad = 0.01f;
+    good.ranges_m.assign(21, 10.0f);
+    std::vector<SonarScan> scans = {good, good, good, good};
+    scans[1].T_world_sonar = testing::SonarPose(Eigen::Vector3d(1e9, 0.0, 0.0));
+    scans[2].T_world_sonar = testing::SonarPose(Eigen::Vector3d(0.0, -2e5, 0.0));
+    scans[3].T_world_sonar.translation().z() = std::nan("");
+    TsdfVolume volume(TsdfConfig{});
+    const IntegrateResult r = volume.Integrate(scans);
+    EXPECT_EQ(r.scans, 4);
+    EXPECT_EQ(r.scans_out_of_bounds, 3);
+    EXPECT_EQ(r.beams_used, 21);
+    EXPECT_GT(r.voxel_updates, 0);
+    EXPECT_GT(volume.Stats().active_voxels, 0);
+}
+
 TEST(TsdfVolume, DefaultConfigIntegratesWithFullTruncation) {
     SyntheticWorld world;
     LineSurvey survey;

@@ -255,5 +255,36 @@ TEST_F(TrajectoryCsv, MalformedFilesAreErrorsNamingTheLine) {
     EXPECT_FALSE(ReadTrajectoryCsv((dir_ / "missing.csv").string()).ok());
 }
 
+// Case 5 of issue 14: trajectory.csv sets the TSDF's extent, so a position of 1e9 m made
+// `pitmap fuse` fail inside std::vector ("cannot create std::vector larger than max_size()").
+// Implausible or non-finite values are errors naming the file and the line.
+TEST_F(TrajectoryCsv, ImplausibleValuesAreErrorsNamingFileAndLine) {
+    const std::string path = (dir_ / "trajectory.csv").string();
+    const std::string header = "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n";
+    const std::string good = "1.0,10,20,-3,1,2,3\n";
+    for (const char* row : {"2.0,1e9,0,0,0,0,0",
+                            "2.0,0,-60000,0,0,0,0",
+                            "2.0,0,0,1e300,0,0,0",
+                            "2.0,0,0,0,1e5,0,0",
+                            "2.0,0,0,0,0,0,-1e300",
+                            "1e300,0,0,0,0,0,0",
+                            "2.0,inf,0,0,0,0,0",
+                            "2.0,0,0,nan,0,0,0",
+                            "2.0,1,2",
+                            ""}) {
+        std::ofstream(path, std::ios::trunc) << header << good << row << (row[0] ? "\n" : "x\n");
+        const auto r = ReadTrajectoryCsv(path);
+        ASSERT_FALSE(r.ok()) << row;
+        EXPECT_NE(r.error().message.find(path + ":3:"), std::string::npos)
+            << row << ": " << r.error().message;
+    }
+    std::ofstream(path, std::ios::trunc) << header << good << "2.0,0,49999,-50000,-720,0,719\n";
+    EXPECT_TRUE(ReadTrajectoryCsv(path).ok()) << "values at the limits are accepted";
+    std::ofstream(path, std::ios::trunc) << "";
+    const auto empty = ReadTrajectoryCsv(path);
+    ASSERT_FALSE(empty.ok());
+    EXPECT_NE(empty.error().message.find(path), std::string::npos);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::pipeline

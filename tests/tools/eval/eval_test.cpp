@@ -4,9 +4,12 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "common/frames.hpp"
 #include "tools/eval/ply.hpp"
@@ -84,6 +87,104 @@ TEST(Ply, ReadsBinaryLittleEndianWithMixedTypes) {
     // Truncated body: a clear error, not a crash.
     fs::resize_file(p, fs::file_size(p) - 5);
     EXPECT_FALSE(ReadPly(p.string()).ok());
+    fs::remove(p);
+}
+
+// A binary mesh PLY as the mesh stage writes it: `nv` vertices, one triangle fan.
+std::string MeshPly(int nv, const std::vector<float>& xyz) {
+    std::string s =
+        "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin 1 2 3\n"
+        "element vertex " +
+        std::to_string(nv) +
+        "\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    s.append(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
+    s.push_back(3);
+    const int idx[3] = {0, 1, 2};
+    s.append(reinterpret_cast<const char*>(idx), sizeof idx);
+    return s;
+}
+
+// Issue 14, case 5: the PLY reader on corrupted input. Header counts are bounded by the file
+// size, list counts by the bytes left, NaN/inf/1e300 coordinates and out-of-range indices are
+// rejected; every failure names the file; nothing crashes or loops for long.
+TEST(Ply, CorruptedFilesAreCleanErrors) {
+    const fs::path p = fs::path(::testing::TempDir()) / "pitmap_eval_corrupt.ply";
+    const std::string path = p.string();
+    auto expect_error = [&](const std::string& bytes, const std::string& what) {
+        std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
+        const auto r = ReadPly(path);
+        ASSERT_FALSE(r.ok()) << what;
+        EXPECT_NE(r.error().message.find(path), std::string::npos)
+            << what << ": " << r.error().message;
+    };
+    const std::vector<float> xyz = {0, 0, 0, 1, 0, 0, 0, 2, -1.5f};
+    const std::string good = MeshPly(3, xyz);
+    std::ofstream(p, std::ios::binary | std::ios::trunc) << good;
+    ASSERT_TRUE(ReadPly(path).ok());
+    const std::size_t header = good.find("end_header\n") + 11;
+    for (std::size_t keep : {std::size_t{0},
+                             std::size_t{2},
+                             std::size_t{4},
+                             std::size_t{40},
+                             header - 1,
+                             header,
+                             header + 5,
+                             good.size() - 13,
+                             good.size() - 1}) {
+        expect_error(good.substr(0, keep), "truncated to " + std::to_string(keep));
+    }
+    expect_error(MeshPly(2000000000, xyz), "vertex count beyond the file");
+    expect_error(MeshPly(3, xyz).replace(good.find("vertex 3"), 8, "vertex 99999999999999999999"),
+                 "vertex count overflowing 64 bits");
+    expect_error(MeshPly(3, xyz).replace(good.find("vertex 3"), 8, "vertex -3"), "negative count");
+    const float nan = std::nanf("");
+    const float inf = std::numeric_limits<float>::infinity();
+    expect_error(MeshPly(3, {0, 0, 0, 1, nan, 0, 0, 2, 0}), "NaN coordinate");
+    expect_error(MeshPly(3, {0, 0, 0, 1, 0, -inf, 0, 2, 0}), "infinite coordinate");
+    expect_error(MeshPly(3, {0, 0, 0, 1, 0, 3e9f, 0, 2, 0}), "coordinate of 3e9 m");
+    std::string huge_list = good;
+    huge_list[header + 36] = static_cast<char>(0xff);  // list count 255 with 12 bytes left
+    expect_error(huge_list, "list count beyond the data");
+    std::string bad_index = good;
+    const int big = 1 << 30;
+    std::memcpy(bad_index.data() + header + 37, &big, 4);
+    expect_error(bad_index, "vertex index out of range");
+    expect_error(
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty double y\n"
+        "property double z\nend_header\n0 1e300 2\n",
+        "1e300 coordinate (ascii)");
+    expect_error(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+        "property double z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n",
+        "ascii list count 4e9");
+    expect_error(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+        "property double z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 1e300\n",
+        "ascii index 1e300");
+    expect_error("ply\nelement vertex 0\nend_header\n", "no format line");
+    expect_error("ply\nformat binary_big_endian 1.0\nend_header\n", "big endian");
+    expect_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty list float int x\nend_header\n",
+                 "float list count");
+    expect_error("ply\nformat ascii 1.0\n" + std::string(100000, 'c'), "endless header");
+    // Overwritten bytes over 20 seeds: an error naming the file, or a consistent mesh.
+    for (unsigned seed = 1; seed <= 20; ++seed) {
+        std::mt19937 rng(seed);
+        std::string bad = good;
+        for (int k = 0; k < 6; ++k) bad[rng() % bad.size()] = static_cast<char>(rng() & 0xff);
+        std::ofstream(p, std::ios::binary | std::ios::trunc) << bad;
+        const auto r = ReadPly(path);
+        if (!r.ok()) {
+            EXPECT_NE(r.error().message.find(path), std::string::npos) << r.error().message;
+            continue;
+        }
+        for (const auto& v : r->vertices) EXPECT_TRUE(v.allFinite());
+        for (const auto& t : r->triangles) {
+            for (int i : t) EXPECT_LT(static_cast<std::size_t>(i), r->vertices.size());
+        }
+    }
     fs::remove(p);
 }
 

@@ -1,0 +1,28 @@
+// SPDX-License-Identifier: MIT
+// libFuzzer target for the summary.json reader (processor/io/products.cpp) and the readers of
+// its world origin and mount (processor/pipeline). A read either fails with an error naming
+// the file, or the keys the stages use have their types, so that reading them cannot throw.
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+
+#include "processor/io/products.hpp"
+#include "processor/pipeline/survey.hpp"
+#include "tests/fuzz/fuzz_file.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const pitmap::fuzz::MemFile file(data, size);
+    const auto r = pitmap::proc::io::ReadSummaryJson(file.path());
+    if (!r) {
+        pitmap::fuzz::CheckNamesFile(r.error().message, file.path());
+        return 0;
+    }
+    namespace detail = pitmap::proc::pipeline::detail;
+    if (r->contains("world_origin")) {
+        const auto o = detail::OriginFromJson(*r);
+        if (!o || !std::isfinite(o->latitude_deg)) std::abort();
+    }
+    if (r->contains("mount") && !detail::MountFromJson(r->at("mount"))) std::abort();
+    return 0;
+}
