@@ -3,7 +3,7 @@
 # Builds the libFuzzer targets (tests/fuzz/*_fuzz.cpp) with clang and runs each for a bounded
 # time, seeded with tests/fuzz/seeds/<target>/ (small product and config files), else the real
 # captures in tests/data/<target>/. A crash, leak or sanitizer report fails.
-#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 30)
+#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 20)
 #   FUZZ_TARGETS="ply_fuzz novatel_fuzz" tools/run-fuzzers.sh 30   (only those targets)
 # The product and config targets need the processor and daemon libraries, so both are built
 # (with clang, only what the fuzz targets link).
