@@ -1,8 +1,13 @@
 // SPDX-License-Identifier: MIT
-// Test helpers for the daemon: a scripted ByteSource and an LCM log reader.
+// Test helpers for the daemon: a scripted ByteSource, an LCM log reader, a free loopback UDP
+// port and a test 83P ping.
 #pragma once
 
+#include <arpa/inet.h>
 #include <lcm/lcm-cpp.hpp>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <deque>
 #include <filesystem>
@@ -12,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "common/protocol/deltat/record83p.hpp"
 #include "firmware_host/io/byte_source.hpp"
 
 namespace pitmap::acq::testing {
@@ -137,6 +143,38 @@ inline std::string FreshDir(const std::string& name) {
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
+}
+
+// A UDP port on 127.0.0.1 that was free a moment ago.
+inline int FreeUdpPort() {
+    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
+    socklen_t len = sizeof(a);
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+    ::close(fd);
+    return ntohs(a.sin_port);
+}
+
+// Ping `n` as the topside program sends it: 83P v1.10, 480 beams, header time and ranges from
+// `n`, intensities on request.
+inline std::vector<std::uint8_t> TestPing83P(std::uint32_t n, bool intensities = false) {
+    protocol::deltat::Ping83P p;
+    p.format_version = protocol::deltat::kVersion110;
+    protocol::deltat::SetHeaderTime(p, 1'700'000'000'000'000 + n * 100'000LL);
+    p.sector_size_deg = 120;
+    p.angle_increment_cdeg = 25;
+    p.start_angle_cdeg = -6000;
+    p.range_resolution_mm = 10;
+    p.ping_number = n;
+    p.range_counts.assign(480, static_cast<std::uint16_t>(100 + n % 1000));
+    if (intensities) {
+        p.intensity_included = true;
+        p.intensities.assign(480, static_cast<std::uint16_t>(n % 200));
+    }
+    return protocol::deltat::EncodeRecord83P(p);
 }
 
 }  // namespace pitmap::acq::testing

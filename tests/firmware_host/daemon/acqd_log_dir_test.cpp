@@ -20,31 +20,6 @@ namespace {
 
 using testing::DecodeAs;
 
-int FreeUdpPort() {
-    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
-    socklen_t len = sizeof(a);
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-    ::close(fd);
-    return ntohs(a.sin_port);
-}
-
-std::vector<std::uint8_t> Ping(std::uint32_t n) {
-    protocol::deltat::Ping83P p;
-    p.format_version = protocol::deltat::kVersion110;
-    protocol::deltat::SetHeaderTime(p, 1'700'000'000'000'000 + n * 100'000LL);
-    p.sector_size_deg = 120;
-    p.angle_increment_cdeg = 25;
-    p.start_angle_cdeg = -6000;
-    p.range_resolution_mm = 10;
-    p.ping_number = n;
-    p.range_counts.assign(480, static_cast<std::uint16_t>(100 + n % 1000));
-    return protocol::deltat::EncodeRecord83P(p);
-}
-
 // Sequence numbers of the RAW_MB events in the *.lcmlog files of `dir` (none if it is gone).
 std::vector<std::int64_t> RawSeqs(const std::string& dir) {
     std::vector<std::int64_t> out;
@@ -65,7 +40,7 @@ public:
     }
     ~Pinger() { ::close(fd_); }
     void Send() {
-        const auto p = Ping(n_++);
+        const auto p = testing::TestPing83P(n_++);
         ::sendto(fd_, p.data(), p.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof(to_));
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
@@ -81,7 +56,7 @@ TEST(AcqdLogDirTest, DeletedLogDirectoryIsReportedRecreatedAndLoggingGoesOn) {
     const std::string logs = dir + "/logs";
     const std::string published = dir + "/published.lcmlog";
     const std::string err = dir + "/err.txt";
-    const int port = FreeUdpPort();
+    const int port = testing::FreeUdpPort();
     testing::WriteText(dir + "/c.yaml",
                        "lcm_url: \"file://" + published +
                            "?mode=w\"\nstatus_period_ms: 100\nlog:\n  directory: " + logs +

@@ -90,18 +90,6 @@ bool WaitFor(P pred, int max_ms = 10'000) {
     return pred();
 }
 
-int FreeUdpPort() {
-    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
-    socklen_t len = sizeof(a);
-    getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-    close(fd);
-    return ntohs(a.sin_port);
-}
-
 TEST(AcqdProcessTest, InvalidConfigListsEveryProblem) {
     const std::string dir = testing::FreshDir("acqd_invalid");
     WriteText(dir + "/bad.yaml", R"(lcm_url: "memq://"
@@ -195,19 +183,6 @@ std::string UdpConfig(const std::string& dir, int port) {
            "allowed_senders: [127.0.0.1], port: " + std::to_string(port) + "}\n";
 }
 
-std::vector<std::uint8_t> Ping(std::uint32_t n) {
-    protocol::deltat::Ping83P p;
-    p.format_version = protocol::deltat::kVersion110;
-    protocol::deltat::SetHeaderTime(p, 1'700'000'000'000'000 + n * 100'000LL);
-    p.sector_size_deg = 120;
-    p.angle_increment_cdeg = 25;
-    p.start_angle_cdeg = -6000;
-    p.range_resolution_mm = 10;
-    p.ping_number = n;
-    p.range_counts.assign(480, static_cast<std::uint16_t>(100 + n));
-    return protocol::deltat::EncodeRecord83P(p);
-}
-
 // Sends pings until the daemon's log holds at least `until` RAW events (bounded).
 int SendPings(int port, const std::string& log_dir, int until, std::vector<std::vector<std::uint8_t>>& sent) {
     const int fd = socket(AF_INET, SOCK_DGRAM, 0);
@@ -216,7 +191,7 @@ int SendPings(int port, const std::string& log_dir, int until, std::vector<std::
     a.sin_port = htons(static_cast<std::uint16_t>(port));
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     for (int i = 0; i < 2000; ++i) {
-        sent.push_back(Ping(static_cast<std::uint32_t>(i)));
+        sent.push_back(testing::TestPing83P(static_cast<std::uint32_t>(i)));
         sendto(fd, sent.back().data(), sent.back().size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof(a));
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
         if (i % 20 == 19) {
@@ -231,7 +206,7 @@ int SendPings(int port, const std::string& log_dir, int until, std::vector<std::
 
 TEST(AcqdProcessTest, UdpPingsThenKillDashNineLeavesAReadableLog) {
     const std::string dir = testing::FreshDir("acqd_kill9");
-    const int port = FreeUdpPort();
+    const int port = testing::FreeUdpPort();
     WriteText(dir + "/c.yaml", UdpConfig(dir, port));
     const Child c = Spawn({"--config", dir + "/c.yaml"}, dir + "/err.txt");
     ASSERT_TRUE(WaitFor([&] { return ReadText(c.err_path).find("running") != std::string::npos; }));
@@ -272,7 +247,8 @@ TEST(AcqdProcessTest, UdpStartupSaysWhereItListens) {
         return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
                "/logs\n  min_free_bytes: 0\nchannels:\n  - id: mb\n    protocol: deltat_83p\n"
                "    udp: {" + bind + "allowed_senders: [127.0.0.1], port: " +
-               std::to_string(FreeUdpPort()) + "}\n    ec: {enabled: true, range_m: 30}\n";
+               std::to_string(testing::FreeUdpPort()) +
+               "}\n    ec: {enabled: true, range_m: 30}\n";
     };
     for (const bool wildcard : {false, true}) {
         WriteText(dir + "/c.yaml", config(wildcard ? "bind_address: 0.0.0.0, " : ""));
@@ -292,7 +268,7 @@ TEST(AcqdProcessTest, UdpStartupSaysWhereItListens) {
 
 TEST(AcqdProcessTest, SigtermFlushesAndSighupRotates) {
     const std::string dir = testing::FreshDir("acqd_signals");
-    const int port = FreeUdpPort();
+    const int port = testing::FreeUdpPort();
     WriteText(dir + "/c.yaml", UdpConfig(dir, port));
     const Child c = Spawn({"--config", dir + "/c.yaml"}, dir + "/err.txt");
     ASSERT_TRUE(WaitFor([&] { return ReadText(c.err_path).find("running") != std::string::npos; }));

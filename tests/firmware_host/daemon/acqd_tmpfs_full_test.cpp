@@ -33,33 +33,6 @@ using testing::DecodeAs;
 constexpr std::int64_t kTmpfsBytes = 2 << 20;
 constexpr std::int64_t kMinFreeBytes = 1 << 20;
 
-int FreeUdpPort() {
-    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
-    socklen_t len = sizeof(a);
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-    ::close(fd);
-    return ntohs(a.sin_port);
-}
-
-std::vector<std::uint8_t> Ping(std::uint32_t n) {
-    protocol::deltat::Ping83P p;
-    p.format_version = protocol::deltat::kVersion110;
-    protocol::deltat::SetHeaderTime(p, 1'700'000'000'000'000 + n * 100'000LL);
-    p.sector_size_deg = 120;
-    p.angle_increment_cdeg = 25;
-    p.start_angle_cdeg = -6000;
-    p.range_resolution_mm = 10;
-    p.ping_number = n;
-    p.range_counts.assign(480, static_cast<std::uint16_t>(100 + n % 1000));
-    p.intensity_included = true;
-    p.intensities.assign(480, static_cast<std::uint16_t>(n % 200));
-    return protocol::deltat::EncodeRecord83P(p);
-}
-
 // RAW_MB payloads of the complete events of an LCM log file.
 std::vector<std::vector<std::uint8_t>> RawDatagrams(const std::vector<testing::LogEvent>& events) {
     std::vector<std::vector<std::uint8_t>> out;
@@ -111,7 +84,7 @@ protected:
 };
 
 TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
-    const int port = FreeUdpPort();
+    const int port = testing::FreeUdpPort();
     const std::string published = dir_ + "/published.lcmlog";
     testing::WriteText(
         dir_ + "/c.yaml",
@@ -135,7 +108,7 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
     to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     std::vector<std::vector<std::uint8_t>> sent;
     auto send_one = [&] {
-        sent.push_back(Ping(static_cast<std::uint32_t>(sent.size())));
+        sent.push_back(testing::TestPing83P(static_cast<std::uint32_t>(sent.size()), true));
         ::sendto(fd,
                  sent.back().data(),
                  sent.back().size(),
@@ -213,7 +186,7 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
 }
 
 TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
-    const int port = FreeUdpPort();
+    const int port = testing::FreeUdpPort();
     testing::WriteText(dir_ + "/c.yaml",
                        "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " +
                            logs_ +
@@ -236,7 +209,7 @@ TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
     const std::regex retried("-0[0-9][1-9]\\.lcmlog: No space left");
     bool retried_seen = false;
     for (std::uint32_t n = 0; n < 20'000 && !retried_seen; ++n) {
-        const auto ping = Ping(n);
+        const auto ping = testing::TestPing83P(n, true);
         ::sendto(fd, ping.data(), ping.size(), 0, reinterpret_cast<const sockaddr*>(&to),
                  sizeof(to));
         std::this_thread::sleep_for(std::chrono::milliseconds(1));

@@ -25,6 +25,7 @@
 #include "firmware_host/io/udp_source.hpp"
 #include "pitmap/channel_status_t.hpp"
 #include "tests/firmware_host/daemon/acq_test_util.hpp"
+#include "tests/protocol/novatel/test_util.hpp"
 
 namespace pitmap::acq {
 namespace {
@@ -255,18 +256,6 @@ std::vector<std::size_t> FrameOffsets(const std::vector<std::uint8_t>& data) {
     return out;
 }
 
-// `AA 44 12 1C` with a length field claiming a 30 000-byte frame, 28 bytes in all.
-std::vector<std::uint8_t> FalseLongHeader() {
-    std::vector<std::uint8_t> h(28, 0x11);
-    h[0] = 0xAA;
-    h[1] = 0x44;
-    h[2] = 0x12;
-    h[3] = 0x1C;
-    h[8] = static_cast<std::uint8_t>((30000 - 32) & 0xFF);
-    h[9] = static_cast<std::uint8_t>((30000 - 32) >> 8);
-    return h;
-}
-
 // A false long header before a pause in the input and another before the end of the stream:
 // the daemon used to drop everything buffered behind each (137 of 284 frames decoded); now the
 // stale wait and the end give up only the false sync and every real frame is decoded.
@@ -275,7 +264,7 @@ TEST(SensorChannelTest, FalseLongHeadersBeforeAPauseAndTheEndLoseNoFrame) {
         testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps");
     const auto offsets = FrameOffsets(clean);
     ASSERT_EQ(offsets.size(), 284u);
-    const auto fake = FalseLongHeader();
+    const auto fake = protocol::novatel::testing::FalseLongHeader();
     std::vector<std::uint8_t> dirty(clean.begin(), clean.begin() + static_cast<long>(offsets[100]));
     dirty.insert(dirty.end(), fake.begin(), fake.end());
     const std::size_t pause = dirty.size() + (offsets[140] - offsets[100]);

@@ -128,19 +128,11 @@ std::vector<std::uint64_t> FramerOffsets(const Bytes& s, std::vector<std::size_t
     return out;
 }
 
-// AA 44 12 1C, message length such that the frame would be 30 000 bytes, the rest of a
-// 28-byte header of garbage (no CRC ever checked: the frame never completes).
+// A false header with its padding drawn from `seed` (7-bit bytes, so no 0xAA inside).
 Bytes MakeFalseHeader(std::uint32_t seed) {
-    Bytes h(28);
+    Bytes h = testing::FalseLongHeader();
     std::mt19937 rng(seed);
-    for (auto& b : h) b = static_cast<std::uint8_t>(rng() & 0x7F);
-    h[0] = 0xAA;
-    h[1] = 0x44;
-    h[2] = 0x12;
-    h[3] = 0x1C;
-    const std::uint16_t len = 30000 - 28 - 4;
-    h[8] = static_cast<std::uint8_t>(len & 0xFF);
-    h[9] = static_cast<std::uint8_t>(len >> 8);
+    for (std::size_t i = 10; i < h.size(); ++i) h[i] = static_cast<std::uint8_t>(rng() & 0x7F);
     return h;
 }
 

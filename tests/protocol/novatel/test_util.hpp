@@ -110,6 +110,20 @@ inline Bytes AsciiLine(char sync, std::string_view body) {
     return FromText(std::string(1, sync) + std::string(body) + "*" + crc + "\r\n");
 }
 
+// A false long-binary sync, `AA 44 12 1C`, whose length field claims a frame of
+// `claimed_total` bytes, padded to a 28-byte header with `fill` (no frame start byte).
+inline Bytes FalseLongHeader(std::uint16_t claimed_total = 30000, std::uint8_t fill = 0x11) {
+    Bytes h(28, fill);
+    h[0] = 0xAA;
+    h[1] = 0x44;
+    h[2] = 0x12;
+    h[3] = 0x1C;
+    const auto message_length = static_cast<std::uint16_t>(claimed_total - 28 - 4);
+    h[8] = static_cast<std::uint8_t>(message_length & 0xFF);
+    h[9] = static_cast<std::uint8_t>(message_length >> 8);
+    return h;
+}
+
 struct FrameCopy {
     FrameKind kind;
     std::int32_t message_id;

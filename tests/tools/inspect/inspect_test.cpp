@@ -19,6 +19,7 @@
 #include "common/protocol/deltat/record83p.hpp"
 #include "pitmap/gnss_position_t.hpp"
 #include "pitmap/raw_bytes_t.hpp"
+#include "tests/protocol/novatel/test_util.hpp"
 
 namespace pitmap::tools::inspect {
 namespace {
@@ -164,13 +165,7 @@ TEST(InspectStreamTest, FalseLongHeaderBeforeTheEndHidesNoFrame) {
     for (const auto& [id, n] : whole.frames_by_id) clean_frames += n;
     ASSERT_EQ(clean_frames, 284u);
     // Insert at a frame boundary: after the first frame of id 1362 past the middle.
-    std::vector<std::uint8_t> fake(28, 0x11);
-    fake[0] = 0xAA;
-    fake[1] = 0x44;
-    fake[2] = 0x12;
-    fake[3] = 0x1C;
-    fake[8] = static_cast<std::uint8_t>((30000 - 32) & 0xFF);
-    fake[9] = static_cast<std::uint8_t>((30000 - 32) >> 8);
+    const auto fake = protocol::novatel::testing::FalseLongHeader();
     std::size_t at = clean.size() / 2;
     while (!(clean[at] == 0xAA && clean[at + 1] == 0x44 && clean[at + 2] == 0x13)) ++at;
     std::vector<std::uint8_t> dirty(clean.begin(), clean.begin() + static_cast<long>(at));
