@@ -145,18 +145,26 @@ inline std::string FreshDir(const std::string& name) {
     return dir;
 }
 
+// A UDP socket bound to a free port on 127.0.0.1, closed at the end of the scope.
+struct BoundUdp {
+    int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    int port = 0;
+    BoundUdp() {
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
+        socklen_t len = sizeof(a);
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+        port = ntohs(a.sin_port);
+    }
+    ~BoundUdp() { ::close(fd); }
+    BoundUdp(const BoundUdp&) = delete;
+    BoundUdp& operator=(const BoundUdp&) = delete;
+};
+
 // A UDP port on 127.0.0.1 that was free a moment ago.
-inline int FreeUdpPort() {
-    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
-    socklen_t len = sizeof(a);
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-    ::close(fd);
-    return ntohs(a.sin_port);
-}
+inline int FreeUdpPort() { return BoundUdp().port; }
 
 // Ping `n` as the topside program sends it: 83P v1.10, 480 beams, header time and ranges from
 // `n`, intensities on request.

@@ -72,22 +72,6 @@ TEST(StartupCheckTest, LogDirectories) {
     EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), {}), 1);  // only "file"
 }
 
-// A bound UDP socket on loopback, closed at the end of the scope.
-struct BoundUdp {
-    int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    int port = 0;
-    BoundUdp() {
-        sockaddr_in a{};
-        a.sin_family = AF_INET;
-        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a));
-        socklen_t len = sizeof(a);
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-        port = ntohs(a.sin_port);
-    }
-    ~BoundUdp() { ::close(fd); }
-};
-
 // A config with four problems of the host: the log directory is a regular file, the LCM URL
 // has no such provider (those two are errors), the serial device is not there and the UDP
 // port is taken (warnings).
@@ -104,7 +88,7 @@ std::string HostProblemsConfig(const std::string& dir, int port, const std::stri
 TEST(AcqdConfigCheckTest, CheckConfigListsHostProblemsAndWarnings) {
     const std::string dir = testing::FreshDir("acqd_check_host");
     testing::WriteText(dir + "/file", "x");
-    const BoundUdp taken;
+    const testing::BoundUdp taken;
     testing::WriteText(dir + "/c.yaml", HostProblemsConfig(dir, taken.port, "bogus://x"));
     const pid_t pid =
         testing::SpawnAcqd({"--config", dir + "/c.yaml", "--check-config"}, dir + "/err.txt");
@@ -125,7 +109,7 @@ TEST(AcqdConfigCheckTest, CheckConfigListsHostProblemsAndWarnings) {
 
 TEST(AcqdConfigCheckTest, WarningsAloneDoNotFailTheCheck) {
     const std::string dir = testing::FreshDir("acqd_check_warn");
-    const BoundUdp taken;
+    const testing::BoundUdp taken;
     testing::WriteText(dir + "/c.yaml",
                        "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
                            "/logs\nchannels:\n  - id: nov\n    protocol: novatel\n"
