@@ -67,15 +67,6 @@ std::string StringFrom(std::string_view s) { return std::string(s.data(), s.size
 
 }  // namespace
 
-std::string ChannelName(std::string_view prefix, std::string_view channel_id) {
-    std::string name = StringFrom(prefix);
-    name.reserve(prefix.size() + channel_id.size());
-    for (char c : channel_id) {
-        name.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
-    }
-    return name;
-}
-
 pitmap::novatel_header_t ToLcm(const novatel::Header& h) {
     pitmap::novatel_header_t out;
     out.message_id = h.message_id;

@@ -25,6 +25,7 @@
 #include "common/protocol/deltat/messages.hpp"
 #include "common/protocol/novatel/messages.hpp"
 #include "firmware_host/io/byte_source.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "pitmap/gnss_position_t.hpp"
 #include "pitmap/gnss_velocity_t.hpp"
 #include "pitmap/gps_time_t.hpp"
@@ -41,35 +42,28 @@
 
 namespace pitmap::acq {
 
-// raw_bytes_t.protocol / channel_status_t.protocol values.
-inline constexpr std::string_view kProtocolNovatel = "novatel";
-inline constexpr std::string_view kProtocolDeltat83P = "deltat_83p";
-inline constexpr std::string_view kProtocolDeltatHead = "deltat_head";
-// Appended to raw_bytes_t.protocol for a UDP datagram from a sender not on the channel's
-// allowed_senders ("deltat_83p_foreign"): kept as evidence, never decoded by anyone.
-inline constexpr std::string_view kForeignSuffix = "_foreign";
-
-// ---- Channel names (docs/conventions.md "LCM channels") ----
-inline constexpr std::string_view kChannelRaw = "RAW_";
-inline constexpr std::string_view kChannelInsPva = "INS_PVA_";
-inline constexpr std::string_view kChannelInsAttitude = "INS_ATTITUDE_";
-inline constexpr std::string_view kChannelInsStdDev = "INS_STDDEV_";
-inline constexpr std::string_view kChannelGnssPosition = "GNSS_POSITION_";
-inline constexpr std::string_view kChannelGnssVelocity = "GNSS_VELOCITY_";
-inline constexpr std::string_view kChannelImu = "IMU_";
-inline constexpr std::string_view kChannelGpsTime = "GPS_TIME_";
-inline constexpr std::string_view kChannelHeading = "HEADING_";
-inline constexpr std::string_view kChannelMarkTime = "MARK_TIME_";
-inline constexpr std::string_view kChannelResponse = "RESPONSE_";
-inline constexpr std::string_view kChannelMultibeamPing = "MULTIBEAM_PING_";
-inline constexpr std::string_view kChannelStatus = "STATUS_";
-inline constexpr std::string_view kChannelClockSync = "CLOCK_SYNC";
-inline constexpr std::string_view kChannelDaemonStatus = "DAEMON_STATUS";
-inline constexpr std::string_view kChannelVehicleConfig = "VEHICLE_CONFIG";
-
-// `prefix` + the channel id upper-cased: ChannelName(kChannelInsPva, "novatel_com1") is
-// "INS_PVA_NOVATEL_COM1".
-std::string ChannelName(std::string_view prefix, std::string_view channel_id);
+// The vehicle-shore contract (channel and protocol names) lives in lcmtypes/log/channels.hpp.
+using lcmlog::ChannelName;
+using lcmlog::kChannelClockSync;
+using lcmlog::kChannelDaemonStatus;
+using lcmlog::kChannelGnssPosition;
+using lcmlog::kChannelGnssVelocity;
+using lcmlog::kChannelGpsTime;
+using lcmlog::kChannelHeading;
+using lcmlog::kChannelImu;
+using lcmlog::kChannelInsAttitude;
+using lcmlog::kChannelInsPva;
+using lcmlog::kChannelInsStdDev;
+using lcmlog::kChannelMarkTime;
+using lcmlog::kChannelMultibeamPing;
+using lcmlog::kChannelRaw;
+using lcmlog::kChannelResponse;
+using lcmlog::kChannelStatus;
+using lcmlog::kChannelVehicleConfig;
+using lcmlog::kForeignSuffix;
+using lcmlog::kProtocolDeltat83P;
+using lcmlog::kProtocolDeltatHead;
+using lcmlog::kProtocolNovatel;
 
 // ---- NovAtel ----
 namespace novatel = protocol::novatel;

@@ -19,6 +19,7 @@
 #include "common/gps_time.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
 #include "common/protocol/novatel/decoder.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "lcmtypes/log/lcm_log_reader.hpp"
 #include "lcmtypes/log/lcm_wire.hpp"
 
@@ -284,7 +285,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
             const std::size_t len = ev.data.size();
             const void* buf = ev.data.data();
             const std::string_view ch = ev.channel;
-            if (Matches(ch, "INS_PVA_", nav_id)) {
+            if (Matches(ch, lcmlog::kChannelInsPva, nav_id)) {
                 seen.decoded_nav = true;
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(pva, buf, len)) {
@@ -301,7 +302,7 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                                    pva.height_stddev_m, pva.roll_stddev_deg, pva.pitch_stddev_deg,
                                    pva.azimuth_stddev_deg});
                 }
-            } else if (Matches(ch, "INS_STDDEV_", nav_id)) {
+            } else if (Matches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(sd, buf, len)) {
                     ++c.decode_failures;
@@ -310,14 +311,14 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                 col.AddStdDev({sd.utime_gps, sd.latitude_stddev_m, sd.longitude_stddev_m,
                                sd.height_stddev_m, sd.roll_stddev_deg, sd.pitch_stddev_deg,
                                sd.azimuth_stddev_deg});
-            } else if (StartsWith(ch, "GPS_TIME_")) {
+            } else if (StartsWith(ch, lcmlog::kChannelGpsTime)) {
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(gt, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
                 col.AddLeapSeconds(gt.utc_offset_s, gt.utc_status);
-            } else if (Matches(ch, "MULTIBEAM_PING_", sonar_id)) {
+            } else if (Matches(ch, lcmlog::kChannelMultibeamPing, sonar_id)) {
                 seen.decoded_sonar = true;
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(mb, buf, len)) {
@@ -334,16 +335,17 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                 h.angle_increment_deg = mb.angle_increment_deg;
                 h.profile_tilt_deg = mb.profile_tilt_deg;
                 col.AddPing(h, mb.range_counts.data(), mb.range_counts.size());
-            } else if (StartsWith(ch, "RAW_")) {
-                const bool nav_ok = nav_id.empty() || ch.substr(4) == nav_id;
-                const bool sonar_ok = sonar_id.empty() || ch.substr(4) == sonar_id;
+            } else if (StartsWith(ch, lcmlog::kChannelRaw)) {
+                const std::string_view raw_id = ch.substr(lcmlog::kChannelRaw.size());
+                const bool nav_ok = nav_id.empty() || raw_id == nav_id;
+                const bool sonar_ok = sonar_id.empty() || raw_id == sonar_id;
                 if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
                 if (!lcmlog::DecodeChecked(raw, buf, len)) {
                     ++c.decode_failures;
                     continue;
                 }
-                const bool is_nav = raw.protocol == "novatel" && nav_ok;
-                const bool is_sonar = raw.protocol == "deltat_83p" && sonar_ok;
+                const bool is_nav = raw.protocol == lcmlog::kProtocolNovatel && nav_ok;
+                const bool is_sonar = raw.protocol == lcmlog::kProtocolDeltat83P && sonar_ok;
                 seen.raw_nav = seen.raw_nav || is_nav;
                 seen.raw_sonar = seen.raw_sonar || is_sonar;
                 if (!((is_nav && want_raw_nav) || (is_sonar && want_raw_sonar))) continue;

@@ -102,7 +102,7 @@ public:
     bool Publish(std::string_view channel,
                  std::int64_t utime,
                  std::vector<std::uint8_t> data) override {
-        if (channel.starts_with("MULTIBEAM_PING_")) {
+        if (channel.starts_with(lcmlog::kChannelMultibeamPing)) {
             pitmap::multibeam_ping_t p;
             if (p.decode(data.data(), 0, static_cast<int>(data.size())) >= 0) {
                 std::lock_guard<std::mutex> lock(mu_);

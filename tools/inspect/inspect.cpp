@@ -16,6 +16,7 @@
 #include "common/protocol/deltat/stream_framer.hpp"
 #include "common/protocol/novatel/decoder.hpp"
 #include "common/protocol/novatel/framer.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "lcmtypes/log/lcm_log_reader.hpp"
 #include "lcmtypes/log/lcm_wire.hpp"
 #include "pitmap/channel_status_t.hpp"
@@ -507,8 +508,8 @@ std::string LcmTypeName(ByteSpan data) {
 }
 
 SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::int8_t transport) {
-    if (protocol_name == "novatel") return SourceCounter::Mode::kNovatel;
-    if (protocol_name == "deltat_83p") {
+    if (protocol_name == lcmlog::kProtocolNovatel) return SourceCounter::Mode::kNovatel;
+    if (protocol_name == lcmlog::kProtocolDeltat83P) {
         return transport == pitmap::raw_bytes_t::TRANSPORT_UDP
                    ? SourceCounter::Mode::kDeltaTDatagram
                    : SourceCounter::Mode::kDeltaTStream;

@@ -13,6 +13,7 @@
 #include "common/gps_time.hpp"
 #include "firmware_host/daemon/log_writer.hpp"
 #include "firmware_host/daemon/to_lcm.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "tools/sim/decoded_channels.hpp"
 #include "tools/sim/nav_errors.hpp"
 #include "tools/sim/receiver_sim.hpp"
@@ -37,7 +38,7 @@ struct Event {
 };
 
 std::vector<std::uint8_t> EncodeRaw(std::int64_t utime, std::int64_t utime_gps, const std::string& source,
-                                    const std::string& protocol, acq::Transport transport, std::int64_t seq,
+                                    std::string_view protocol, acq::Transport transport, std::int64_t seq,
                                     const std::string& peer, const std::vector<std::uint8_t>& bytes) {
     acq::RawBytesExtra extra;
     extra.utime_gps = utime_gps;
@@ -167,9 +168,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
             const std::int64_t u = utime_at(tick);
             // As the daemon does: the raw chunk first, then what it decodes to.
             auto frames = decoded.NovatelChunk(chunk, u);
-            events.push_back({u, "RAW_NOVATEL_COM1",
-                              EncodeRaw(u, gps_at(tick), kNovatelId, "novatel", acq::Transport::kSerial,
-                                        nov_seq++, "/dev/ttyS1", chunk)});
+            events.push_back({u, lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
+                              EncodeRaw(u, gps_at(tick), kNovatelId, lcmlog::kProtocolNovatel,
+                                        acq::Transport::kSerial, nov_seq++, "/dev/ttyS1", chunk)});
             for (auto& [ch, bytes] : frames) events.push_back({u, std::move(ch), std::move(bytes)});
         }
         // Sonar pings of this block, ray cast in parallel (deterministic per ping).
@@ -205,9 +206,10 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
             auto decoded_ping = decoded.SonarDatagram(d.bytes, u, gps_at(t));
-            events.push_back({u, "RAW_DELTAT_UDP",
-                              EncodeRaw(u, gps_at(t_rx), kSonarId, "deltat_83p", acq::Transport::kUdp,
-                                        sonar_seq++, "127.0.0.1:4040", d.bytes)});
+            events.push_back({u, lcmlog::ChannelName(lcmlog::kChannelRaw, kSonarId),
+                              EncodeRaw(u, gps_at(t_rx), kSonarId, lcmlog::kProtocolDeltat83P,
+                                        acq::Transport::kUdp, sonar_seq++, "127.0.0.1:4040",
+                                        d.bytes)});
             for (auto& [ch, bytes] : decoded_ping) events.push_back({u, std::move(ch), std::move(bytes)});
             ++result.pings;
         }
@@ -239,9 +241,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
         const std::int64_t u = utime_at(tick);
         auto frames = decoded.NovatelChunk(line, u);
         result.novatel_bytes += static_cast<std::int64_t>(line.size());
-        writer.Enqueue(u, "RAW_NOVATEL_COM1",
-                       EncodeRaw(u, gps_at(tick), kNovatelId, "novatel", acq::Transport::kSerial,
-                                 nov_seq++, "/dev/ttyS1", line));
+        writer.Enqueue(u, lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
+                       EncodeRaw(u, gps_at(tick), kNovatelId, lcmlog::kProtocolNovatel,
+                                 acq::Transport::kSerial, nov_seq++, "/dev/ttyS1", line));
         for (auto& [ch, bytes] : frames) writer.Enqueue(u, std::move(ch), std::move(bytes));
     }
     writer.Stop();
