@@ -451,6 +451,32 @@ FileKind Sniff(const std::string& path) {
 
 }  // namespace
 
+IngestCounts& IngestCounts::operator+=(const IngestCounts& o) {
+    files += o.files;
+    bytes += o.bytes;
+    events += o.events;
+    corrupt_events += o.corrupt_events;
+    resync_bytes += o.resync_bytes;
+    truncated_events += o.truncated_events;
+    length_repairs += o.length_repairs;
+    files_skipped += o.files_skipped;
+    decode_failures += o.decode_failures;
+    nav_samples += o.nav_samples;
+    nav_without_time += o.nav_without_time;
+    nav_not_good += o.nav_not_good;
+    nav_duplicates += o.nav_duplicates;
+    stddev_samples += o.stddev_samples;
+    pings += o.pings;
+    pings_without_time += o.pings_without_time;
+    pings_bad += o.pings_bad;
+    ping_duplicates += o.ping_duplicates;
+    raw_chunks_decoded += o.raw_chunks_decoded;
+    raw_skipped_bytes += o.raw_skipped_bytes;
+    raw_decode_errors += o.raw_decode_errors;
+    for (const auto& [channel, n] : o.events_by_channel) events_by_channel[channel] += n;
+    return *this;
+}
+
 Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
                                      const IngestConfig& config, const ProgressCallback& progress) {
     if (paths.empty()) return Error{"no log files given"};
@@ -650,10 +676,9 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
         r.nav.samples.insert(r.nav.samples.end(), b->nav.samples.begin(), b->nav.samples.end());
         r.nav.stddevs.insert(r.nav.stddevs.end(), b->nav.stddevs.begin(), b->nav.stddevs.end());
         if (b->nav.leap_seconds >= 0) r.nav.leap_seconds = b->nav.leap_seconds;
-        r.counts.files += b->counts.files;
-        r.counts.bytes += b->counts.bytes;
-        r.counts.raw_skipped_bytes += b->counts.raw_skipped_bytes;
-        r.counts.raw_decode_errors += b->counts.raw_decode_errors;
+        // Every count, not a chosen few: the merged result is re-finished below, which
+        // recomputes the sample totals and adds the duplicates found across inputs.
+        r.counts += b->counts;
         r.nav_from_raw = true;
     }
     if (!p83.empty()) {

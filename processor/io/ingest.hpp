@@ -64,6 +64,9 @@ struct IngestCounts {
     std::int64_t raw_skipped_bytes = 0;   // framer skips in re-decoded raw streams
     std::int64_t raw_decode_errors = 0;
     std::map<std::string, std::int64_t> events_by_channel;
+
+    // Adds every count of `o` (used when the results of several inputs are merged).
+    IngestCounts& operator+=(const IngestCounts& o);
 };
 
 struct IngestResult {

@@ -5,6 +5,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -138,6 +139,28 @@ TEST(Ingest, EmptySegmentsAreSkippedWithAWarning) {
     auto none = IngestFiles({empty}, IngestConfig{});
     ASSERT_FALSE(none.ok());
     EXPECT_NE(none.error().message.find("seg-001.lcmlog"), std::string::npos);
+}
+
+// IngestFiles used to copy 4 of the vendor files' counters and drop the others: the same
+// capture given twice reported 0 duplicate INS samples. Every count now reaches the result.
+TEST(Ingest, VendorFileCountsAreAllKept) {
+    const std::string capture = std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps";
+    std::ifstream in(capture, std::ios::binary);
+    const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                          std::istreambuf_iterator<char>());
+    const std::string copy = WriteFile("ins1-copy.gps", bytes);
+    IngestConfig cfg;
+    auto direct = IngestNovatelFiles({capture, copy}, cfg);
+    ASSERT_TRUE(direct.ok()) << direct.error().message;
+    ASSERT_GT(direct->counts.nav_duplicates, 0);
+    auto merged = IngestFiles({capture, copy}, cfg);
+    ASSERT_TRUE(merged.ok()) << merged.error().message;
+    EXPECT_EQ(merged->counts.nav_duplicates, direct->counts.nav_duplicates);
+    EXPECT_EQ(merged->counts.nav_samples, direct->counts.nav_samples);
+    EXPECT_EQ(merged->counts.nav_not_good, direct->counts.nav_not_good);
+    EXPECT_EQ(merged->counts.nav_without_time, direct->counts.nav_without_time);
+    EXPECT_EQ(merged->counts.files, 2);
+    EXPECT_EQ(merged->counts.bytes, 2 * static_cast<std::int64_t>(bytes.size()));
 }
 
 TEST(Ingest, LogWithoutSensorChannelsGivesEmptySeries) {
