@@ -21,7 +21,7 @@ processor_pkgs=(
   python3-numpy python3-matplotlib
 )
 tool_pkgs=(
-  clang libclang-rt-14-dev
+  clang libclang-rt-14-dev clang-format
 )
 
 pkgs=("${common_pkgs[@]}")
