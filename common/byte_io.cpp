@@ -93,7 +93,8 @@ bool ByteWriter::PatchU16Be(std::size_t offset, std::uint16_t v) {
 
 bool ByteWriter::PatchU32Le(std::size_t offset, std::uint32_t v) {
     if (offset > out_.size() || out_.size() - offset < 4) return false;
-    for (int i = 0; i < 4; ++i) out_[offset + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+    for (int i = 0; i < 4; ++i)
+        out_[offset + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
     return true;
 }
 

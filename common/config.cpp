@@ -14,7 +14,8 @@ Expected<ConfigReader> ConfigReader::FromFile(const std::string& path) {
     return FromString(text.str(), path);
 }
 
-Expected<ConfigReader> ConfigReader::FromString(const std::string& text, const std::string& origin) {
+Expected<ConfigReader> ConfigReader::FromString(const std::string& text,
+                                                const std::string& origin) {
     YAML::Node root;
     try {
         root = YAML::Load(text);
@@ -51,7 +52,8 @@ bool ConfigReader::Has(std::string_view key) const {
 
 ConfigReader ConfigReader::Child(std::string_view key) {
     const YAML::Node n = Lookup(key);
-    const std::string child_path = path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+    const std::string child_path =
+        path_.empty() ? std::string(key) : path_ + "." + std::string(key);
     if (n.IsDefined() && !n.IsNull() && !n.IsMap()) {
         AddProblemAt(n, std::string(key), "must be a map of key: value");
         return ConfigReader(YAML::Node(YAML::NodeType::Undefined), child_path, state_);
@@ -98,16 +100,20 @@ void ConfigReader::RejectUnknownKeys() {
     }
 }
 
-void ConfigReader::AddProblem(const std::string& message) { state_->problems.push_back(message); }
+void ConfigReader::AddProblem(const std::string& message) {
+    state_->problems.push_back(message);
+}
 
 std::string ConfigReader::Path(std::string_view key) const {
     return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
 }
 
-void ConfigReader::AddProblemAt(const YAML::Node& node, const std::string& key,
+void ConfigReader::AddProblemAt(const YAML::Node& node,
+                                const std::string& key,
                                 const std::string& what) {
     std::string where = state_->origin;
-    if (node.IsDefined() && node.Mark().line >= 0) where += ":" + std::to_string(node.Mark().line + 1);
+    if (node.IsDefined() && node.Mark().line >= 0)
+        where += ":" + std::to_string(node.Mark().line + 1);
     AddProblem(where + ": " + Path(key) + " " + what);
 }
 

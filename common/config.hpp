@@ -40,7 +40,8 @@ public:
             value = node.as<T>();
             return true;
         } catch (const YAML::Exception&) {
-            AddProblemAt(node, std::string(key), "has the wrong type or value '" + Describe(node) + "'");
+            AddProblemAt(
+                node, std::string(key), "has the wrong type or value '" + Describe(node) + "'");
             return false;
         }
     }

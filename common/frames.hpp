@@ -32,8 +32,12 @@ inline constexpr const char* kSpan = "span";
 inline constexpr const char* kSonar = "sonar";
 
 inline constexpr double kPi = 3.14159265358979323846;
-inline constexpr double DegToRad(double deg) { return deg * (kPi / 180.0); }
-inline constexpr double RadToDeg(double rad) { return rad * (180.0 / kPi); }
+inline constexpr double DegToRad(double deg) {
+    return deg * (kPi / 180.0);
+}
+inline constexpr double RadToDeg(double rad) {
+    return rad * (180.0 / kPi);
+}
 
 // R_enu_ned: maps NED vectors to ENU (a symmetric permutation with a sign flip).
 inline Eigen::Matrix3d RotationEnuFromNed() {

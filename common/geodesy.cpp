@@ -10,9 +10,8 @@ namespace pitmap {
 
 LocalTangentFrame::LocalTangentFrame(const Geodetic& origin)
     : origin_(origin),
-      impl_(std::make_unique<GeographicLib::LocalCartesian>(origin.latitude_deg,
-                                                            origin.longitude_deg,
-                                                            origin.height_m)) {}
+      impl_(std::make_unique<GeographicLib::LocalCartesian>(
+          origin.latitude_deg, origin.longitude_deg, origin.height_m)) {}
 
 LocalTangentFrame::~LocalTangentFrame() = default;
 
@@ -51,8 +50,13 @@ Expected<UtmCoordinate> UtmFromGeodetic(const Geodetic& p, int zone) {
     u.height_m = p.height_m;
     try {
         const int setzone = zone == -1 ? GeographicLib::UTMUPS::STANDARD : zone;
-        GeographicLib::UTMUPS::Forward(p.latitude_deg, p.longitude_deg, u.zone, u.northern,
-                                       u.easting_m, u.northing_m, setzone);
+        GeographicLib::UTMUPS::Forward(p.latitude_deg,
+                                       p.longitude_deg,
+                                       u.zone,
+                                       u.northern,
+                                       u.easting_m,
+                                       u.northing_m,
+                                       setzone);
     } catch (const GeographicLib::GeographicErr& e) {
         return Error{std::string("UTM conversion failed: ") + e.what()};
     }
@@ -63,8 +67,8 @@ Expected<Geodetic> GeodeticFromUtm(const UtmCoordinate& u) {
     Geodetic p;
     p.height_m = u.height_m;
     try {
-        GeographicLib::UTMUPS::Reverse(u.zone, u.northern, u.easting_m, u.northing_m,
-                                       p.latitude_deg, p.longitude_deg);
+        GeographicLib::UTMUPS::Reverse(
+            u.zone, u.northern, u.easting_m, u.northing_m, p.latitude_deg, p.longitude_deg);
     } catch (const GeographicLib::GeographicErr& e) {
         return Error{std::string("UTM inverse conversion failed: ") + e.what()};
     }

@@ -40,11 +40,11 @@ private:
 };
 
 struct UtmCoordinate {
-    int zone = 0;           // 1..60 for UTM, 0 for UPS (polar)
-    bool northern = true;   // hemisphere
+    int zone = 0;          // 1..60 for UTM, 0 for UPS (polar)
+    bool northern = true;  // hemisphere
     double easting_m = 0;
     double northing_m = 0;
-    double height_m = 0;    // ellipsoidal height, passed through
+    double height_m = 0;  // ellipsoidal height, passed through
 };
 
 // Geodetic -> UTM (or UPS at the poles). zone = -1 picks the standard zone; a zone 1..60

@@ -25,15 +25,24 @@ struct LeapEntry {
 
 // GPS - UTC from IERS Bulletin C. Each entry is the first UTC second after an inserted leap second.
 constexpr std::array<LeapEntry, 18> kLeapTable = {{
-    {DaysFromCivil(1981, 7, 1) * 86400, 1},  {DaysFromCivil(1982, 7, 1) * 86400, 2},
-    {DaysFromCivil(1983, 7, 1) * 86400, 3},  {DaysFromCivil(1985, 7, 1) * 86400, 4},
-    {DaysFromCivil(1988, 1, 1) * 86400, 5},  {DaysFromCivil(1990, 1, 1) * 86400, 6},
-    {DaysFromCivil(1991, 1, 1) * 86400, 7},  {DaysFromCivil(1992, 7, 1) * 86400, 8},
-    {DaysFromCivil(1993, 7, 1) * 86400, 9},  {DaysFromCivil(1994, 7, 1) * 86400, 10},
-    {DaysFromCivil(1996, 1, 1) * 86400, 11}, {DaysFromCivil(1997, 7, 1) * 86400, 12},
-    {DaysFromCivil(1999, 1, 1) * 86400, 13}, {DaysFromCivil(2006, 1, 1) * 86400, 14},
-    {DaysFromCivil(2009, 1, 1) * 86400, 15}, {DaysFromCivil(2012, 7, 1) * 86400, 16},
-    {DaysFromCivil(2015, 7, 1) * 86400, 17}, {DaysFromCivil(2017, 1, 1) * 86400, 18},
+    {DaysFromCivil(1981, 7, 1) * 86400, 1},
+    {DaysFromCivil(1982, 7, 1) * 86400, 2},
+    {DaysFromCivil(1983, 7, 1) * 86400, 3},
+    {DaysFromCivil(1985, 7, 1) * 86400, 4},
+    {DaysFromCivil(1988, 1, 1) * 86400, 5},
+    {DaysFromCivil(1990, 1, 1) * 86400, 6},
+    {DaysFromCivil(1991, 1, 1) * 86400, 7},
+    {DaysFromCivil(1992, 7, 1) * 86400, 8},
+    {DaysFromCivil(1993, 7, 1) * 86400, 9},
+    {DaysFromCivil(1994, 7, 1) * 86400, 10},
+    {DaysFromCivil(1996, 1, 1) * 86400, 11},
+    {DaysFromCivil(1997, 7, 1) * 86400, 12},
+    {DaysFromCivil(1999, 1, 1) * 86400, 13},
+    {DaysFromCivil(2006, 1, 1) * 86400, 14},
+    {DaysFromCivil(2009, 1, 1) * 86400, 15},
+    {DaysFromCivil(2012, 7, 1) * 86400, 16},
+    {DaysFromCivil(2015, 7, 1) * 86400, 17},
+    {DaysFromCivil(2017, 1, 1) * 86400, 18},
 }};
 
 std::int64_t FloorDiv(std::int64_t a, std::int64_t b) {
@@ -98,7 +107,8 @@ std::optional<std::int64_t> UnixFromUtcCalendar(const UtcCalendar& c) {
         return std::nullopt;
     }
     const bool leap_year = (c.year % 4 == 0 && c.year % 100 != 0) || c.year % 400 == 0;
-    const int month_days = kDays[static_cast<std::size_t>(c.month - 1)] + (c.month == 2 && leap_year ? 1 : 0);
+    const int month_days =
+        kDays[static_cast<std::size_t>(c.month - 1)] + (c.month == 2 && leap_year ? 1 : 0);
     if (c.day > month_days) return std::nullopt;
     const std::int64_t days =
         DaysFromCivil(c.year, static_cast<unsigned>(c.month), static_cast<unsigned>(c.day));
@@ -133,8 +143,16 @@ UtcCalendar UtcCalendarFromUnix(std::int64_t utime_unix) {
 std::string FormatUnixIso8601(std::int64_t utime_unix) {
     const UtcCalendar c = UtcCalendarFromUnix(utime_unix);
     char buf[40];
-    std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%06dZ", c.year, c.month, c.day,
-                  c.hour, c.minute, c.second, c.microsecond);
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%04d-%02d-%02dT%02d:%02d:%02d.%06dZ",
+                  c.year,
+                  c.month,
+                  c.day,
+                  c.hour,
+                  c.minute,
+                  c.second,
+                  c.microsecond);
     return buf;
 }
 

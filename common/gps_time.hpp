@@ -20,8 +20,8 @@ inline constexpr std::int64_t kMicrosPerWeek = kSecondsPerWeek * kMicrosPerSecon
 inline constexpr std::int64_t kGpsEpochUnixSeconds = 315'964'800;
 
 struct GpsWeekTow {
-    int week = 0;                 // full GPS week number (not modulo 1024)
-    std::int64_t tow_us = 0;      // microseconds of week, 0 .. kMicrosPerWeek-1
+    int week = 0;             // full GPS week number (not modulo 1024)
+    std::int64_t tow_us = 0;  // microseconds of week, 0 .. kMicrosPerWeek-1
     double tow_s() const { return static_cast<double>(tow_us) * 1e-6; }
 };
 

@@ -7,24 +7,42 @@
 
 namespace pitmap {
 
-std::string FormatProgressLine(const std::string& label, std::int64_t done, std::int64_t total,
+std::string FormatProgressLine(const std::string& label,
+                               std::int64_t done,
+                               std::int64_t total,
                                double elapsed_s) {
     char buf[256];
     if (total > 0) {
-        const double frac = std::clamp(static_cast<double>(done) / static_cast<double>(total), 0.0, 1.0);
+        const double frac =
+            std::clamp(static_cast<double>(done) / static_cast<double>(total), 0.0, 1.0);
         if (frac > 0 && frac < 1) {
             const double eta = elapsed_s * (1.0 - frac) / frac;
-            std::snprintf(buf, sizeof buf, "%s %5.1f %%  [%lld/%lld]  %.1f s, eta %.1f s",
-                          label.c_str(), 100.0 * frac, static_cast<long long>(done),
-                          static_cast<long long>(total), elapsed_s, eta);
+            std::snprintf(buf,
+                          sizeof buf,
+                          "%s %5.1f %%  [%lld/%lld]  %.1f s, eta %.1f s",
+                          label.c_str(),
+                          100.0 * frac,
+                          static_cast<long long>(done),
+                          static_cast<long long>(total),
+                          elapsed_s,
+                          eta);
         } else {
-            std::snprintf(buf, sizeof buf, "%s %5.1f %%  [%lld/%lld]  %.1f s", label.c_str(),
-                          100.0 * frac, static_cast<long long>(done),
-                          static_cast<long long>(total), elapsed_s);
+            std::snprintf(buf,
+                          sizeof buf,
+                          "%s %5.1f %%  [%lld/%lld]  %.1f s",
+                          label.c_str(),
+                          100.0 * frac,
+                          static_cast<long long>(done),
+                          static_cast<long long>(total),
+                          elapsed_s);
         }
     } else {
-        std::snprintf(buf, sizeof buf, "%s  [%lld]  %.1f s", label.c_str(),
-                      static_cast<long long>(done), elapsed_s);
+        std::snprintf(buf,
+                      sizeof buf,
+                      "%s  [%lld]  %.1f s",
+                      label.c_str(),
+                      static_cast<long long>(done),
+                      elapsed_s);
     }
     return buf;
 }
@@ -37,7 +55,9 @@ ProgressReporter::ProgressReporter(std::string label, std::int64_t total, std::F
       start_(std::chrono::steady_clock::now()),
       last_print_(start_) {}
 
-ProgressReporter::~ProgressReporter() { Finish(); }
+ProgressReporter::~ProgressReporter() {
+    Finish();
+}
 
 double ProgressReporter::elapsed_s() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -68,7 +88,8 @@ void ProgressReporter::Finish() {
 ProgressCallback ProgressReporter::AsCallback() {
     const std::int64_t scale = total_ > 0 ? total_ : 1000;
     return [this, scale](double fraction) {
-        Update(static_cast<std::int64_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(scale)));
+        Update(
+            static_cast<std::int64_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(scale)));
         return true;
     };
 }

@@ -17,7 +17,9 @@ namespace pitmap {
 using ProgressCallback = std::function<bool(double fraction)>;
 
 // "label  42.0 %  [1234/5000]  12.3 s, eta 17.0 s"; total <= 0 prints the count only.
-std::string FormatProgressLine(const std::string& label, std::int64_t done, std::int64_t total,
+std::string FormatProgressLine(const std::string& label,
+                               std::int64_t done,
+                               std::int64_t total,
                                double elapsed_s);
 
 // Thread safety: one reporter per thread; Update is cheap when nothing is printed.

@@ -18,8 +18,8 @@ struct Error {
 template <typename T>
 class [[nodiscard]] Expected {
 public:
-    Expected(T value) : v_(std::move(value)) {}         // NOLINT: implicit by design
-    Expected(Error error) : v_(std::move(error)) {}     // NOLINT: implicit by design
+    Expected(T value) : v_(std::move(value)) {}      // NOLINT: implicit by design
+    Expected(Error error) : v_(std::move(error)) {}  // NOLINT: implicit by design
 
     bool ok() const { return std::holds_alternative<T>(v_); }
     explicit operator bool() const { return ok(); }
@@ -48,11 +48,10 @@ using Status = Expected<Ok>;
 
 // Aborts with a message when a precondition (a bug, not an input problem) is violated.
 // Stays on in Release builds; keep the condition cheap.
-#define PITMAP_CHECK(cond, msg)                                                           \
-    do {                                                                                  \
-        if (!(cond)) {                                                                    \
-            std::fprintf(stderr, "%s:%d: check failed: %s: %s\n", __FILE__, __LINE__,     \
-                         #cond, msg);                                                     \
-            std::abort();                                                                 \
-        }                                                                                 \
+#define PITMAP_CHECK(cond, msg)                                                                    \
+    do {                                                                                           \
+        if (!(cond)) {                                                                             \
+            std::fprintf(stderr, "%s:%d: check failed: %s: %s\n", __FILE__, __LINE__, #cond, msg); \
+            std::abort();                                                                          \
+        }                                                                                          \
     } while (false)

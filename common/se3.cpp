@@ -46,7 +46,8 @@ double RotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) 
     return LogSO3(a.transpose() * b).norm();
 }
 
-Eigen::Quaterniond SlerpShortest(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b,
+Eigen::Quaterniond SlerpShortest(const Eigen::Quaterniond& a,
+                                 const Eigen::Quaterniond& b,
                                  double alpha) {
     Eigen::Quaterniond bb = b;
     if (a.dot(b) < 0) bb.coeffs() *= -1.0;

@@ -24,7 +24,8 @@ double RotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // alpha = 0 gives a, 1 gives b; alpha outside [0, 1] extrapolates.
 Pose InterpolatePose(const Pose& a, const Pose& b, double alpha);
 // Same for a rotation alone.
-Eigen::Quaterniond SlerpShortest(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b,
+Eigen::Quaterniond SlerpShortest(const Eigen::Quaterniond& a,
+                                 const Eigen::Quaterniond& b,
                                  double alpha);
 
 // Builds a pose from a rotation matrix and a translation.

@@ -31,7 +31,9 @@ constexpr int kLinkTypeIpv6 = 229;  // DLT_IPV6
 constexpr int kLinkTypeSll2 = 276;  // DLT_LINUX_SLL2
 constexpr int kLinkTypeLoop = 108;  // DLT_LOOP (network byte order family)
 
-std::string ErrnoText(int err) { return std::strerror(err); }
+std::string ErrnoText(int err) {
+    return std::strerror(err);
+}
 
 Expected<std::vector<std::uint8_t>> Gunzip(const std::vector<std::uint8_t>& in,
                                            const std::string& path) {
@@ -158,7 +160,7 @@ struct TransportLayer {
     std::uint8_t protocol = 0;
     Endpoint src;  // ports filled in later
     Endpoint dst;
-    ByteSpan bytes;       // transport header + payload, trimmed to the IP length
+    ByteSpan bytes;          // transport header + payload, trimmed to the IP length
     bool truncated = false;  // the IP packet is longer than what was captured
     bool fragment = false;
 };
@@ -323,8 +325,8 @@ private:
             flows_.push_back(Flow{ip.src, ip.dst, TcpReassembler{}});
             it = index_.insert_or_assign(key, flows_.size() - 1).first;
         }
-        flows_[it->second].reassembler.AddSegment(utime, seq, syn, fin, rst,
-                                                  seg.subspan(header_len));
+        flows_[it->second].reassembler.AddSegment(
+            utime, seq, syn, fin, rst, seg.subspan(header_len));
     }
 
     void AddUdp(std::int64_t utime, TransportLayer& ip, bool truncated, CaptureStats& stats) {
@@ -367,8 +369,7 @@ Expected<std::vector<std::uint8_t>> ReadFileBytes(const std::string& path) {
         return Error{path + ": " + ErrnoText(errno)};
     }
     if (S_ISDIR(st.st_mode)) return Error{path + ": is a directory"};
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
-                                                      &std::fclose);
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
     if (!f) return Error{path + ": " + ErrnoText(errno)};
     std::vector<std::uint8_t> data;
     if (S_ISREG(st.st_mode)) data.reserve(static_cast<std::size_t>(st.st_size));
@@ -384,8 +385,7 @@ Expected<std::vector<std::uint8_t>> ReadFileBytes(const std::string& path) {
 }
 
 bool IsGzipFile(const std::string& path) {
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
-                                                      &std::fclose);
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
     if (!f) return false;
     unsigned char magic[2] = {};
     return std::fread(magic, 1, 2, f.get()) == 2 && magic[0] == 0x1F && magic[1] == 0x8B;
@@ -435,8 +435,8 @@ Expected<CaptureContents> ParseCapture(ByteSpan file_bytes, const std::string& n
         }
         const std::int64_t utime = static_cast<std::int64_t>(header->ts.tv_sec) * 1000000 +
                                    static_cast<std::int64_t>(header->ts.tv_usec);
-        builder.AddPacket(utime, ByteSpan(data, header->caplen), header->caplen < header->len,
-                          stats);
+        builder.AddPacket(
+            utime, ByteSpan(data, header->caplen), header->caplen < header->len, stats);
     }
     return builder.Finish(std::move(stats));
 }

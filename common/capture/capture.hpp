@@ -55,11 +55,11 @@ struct UdpDatagram {
 
 // What was in the capture, packet by packet.
 struct CaptureStats {
-    std::string format;           // "pcap" or "pcapng"
-    bool gzip = false;            // the file was gzip-compressed
-    int link_type = -1;           // DLT_* value of the capture
-    std::string link_type_name;   // as libpcap names it, e.g. "EN10MB"
-    std::uint64_t packets = 0;             // every packet record
+    std::string format;          // "pcap" or "pcapng"
+    bool gzip = false;           // the file was gzip-compressed
+    int link_type = -1;          // DLT_* value of the capture
+    std::string link_type_name;  // as libpcap names it, e.g. "EN10MB"
+    std::uint64_t packets = 0;   // every packet record
     std::uint64_t tcp_packets = 0;
     std::uint64_t udp_packets = 0;
     std::uint64_t non_ip_packets = 0;      // ARP, LLDP, ... (link payload not IPv4/IPv6)
@@ -74,8 +74,8 @@ struct CaptureStats {
 };
 
 struct CaptureContents {
-    std::vector<TcpStream> tcp;   // in order of each direction's first packet
-    std::vector<UdpDatagram> udp; // in capture order
+    std::vector<TcpStream> tcp;    // in order of each direction's first packet
+    std::vector<UdpDatagram> udp;  // in capture order
     CaptureStats stats;
 };
 

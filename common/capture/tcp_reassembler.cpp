@@ -22,12 +22,8 @@ std::int64_t TcpReassembler::Unwrap(std::uint32_t seq) {
     return last_abs_;
 }
 
-void TcpReassembler::AddSegment(std::int64_t utime,
-                                std::uint32_t seq,
-                                bool syn,
-                                bool fin,
-                                bool rst,
-                                ByteSpan payload) {
+void TcpReassembler::AddSegment(
+    std::int64_t utime, std::uint32_t seq, bool syn, bool fin, bool rst, ByteSpan payload) {
     PITMAP_CHECK(!finished_, "AddSegment after Finish");
     if (stats_.packets == 0) first_utime_ = utime;
     last_utime_ = std::max(last_utime_, utime);

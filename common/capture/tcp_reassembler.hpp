@@ -55,12 +55,8 @@ struct TcpStreamStats {
 class TcpReassembler {
 public:
     // One TCP segment: its sequence number, flags and payload (may be empty).
-    void AddSegment(std::int64_t utime,
-                    std::uint32_t seq,
-                    bool syn,
-                    bool fin,
-                    bool rst,
-                    ByteSpan payload);
+    void AddSegment(
+        std::int64_t utime, std::uint32_t seq, bool syn, bool fin, bool rst, ByteSpan payload);
 
     // Ends the stream: fills the outputs below. Call once, after the last AddSegment.
     void Finish();
@@ -95,8 +91,8 @@ private:
     std::uint32_t last_seq_ = 0;  // raw value of the last sequence number unwrapped
     std::int64_t last_abs_ = 0;   // its unwrapped value
     bool have_syn_ = false;
-    std::int64_t syn_abs_ = 0;    // unwrapped sequence number of the SYN
-    std::int64_t next_ = 0;       // unwrapped sequence number of the next byte expected
+    std::int64_t syn_abs_ = 0;          // unwrapped sequence number of the SYN
+    std::int64_t next_ = 0;             // unwrapped sequence number of the next byte expected
     std::int64_t last_fill_utime_ = 0;  // capture time of the segment that filled the last hole
     std::map<std::int64_t, Pending> pending_;  // segments ahead of a hole, by start
     // The stream start is known only at the end when no SYN was captured (it is the lowest

@@ -25,13 +25,13 @@
 namespace pitmap::protocol {
 
 enum class SkipReason : std::uint8_t {
-    kGarbage = 0,      // bytes before a sync pattern / between frames that start no frame
-    kBadCrc,           // a complete candidate frame whose CRC/checksum failed (only its sync byte
-                       // is skipped: the framer rescans from the next byte)
-    kBadLength,        // a header whose length field is impossible (runt or over-long)
-    kBadTerminator,    // a fixed-length frame without its terminator byte
-    kTruncated,        // the stream ended (Flush) inside a frame
-    kStale,            // a partial frame abandoned because no more bytes came in time
+    kGarbage = 0,    // bytes before a sync pattern / between frames that start no frame
+    kBadCrc,         // a complete candidate frame whose CRC/checksum failed (only its sync byte
+                     // is skipped: the framer rescans from the next byte)
+    kBadLength,      // a header whose length field is impossible (runt or over-long)
+    kBadTerminator,  // a fixed-length frame without its terminator byte
+    kTruncated,      // the stream ended (Flush) inside a frame
+    kStale,          // a partial frame abandoned because no more bytes came in time
     kCount
 };
 
@@ -39,13 +39,20 @@ inline constexpr std::size_t kNumSkipReasons = static_cast<std::size_t>(SkipReas
 
 constexpr std::string_view ToString(SkipReason r) {
     switch (r) {
-        case SkipReason::kGarbage: return "garbage";
-        case SkipReason::kBadCrc: return "bad_crc";
-        case SkipReason::kBadLength: return "bad_length";
-        case SkipReason::kBadTerminator: return "bad_terminator";
-        case SkipReason::kTruncated: return "truncated";
-        case SkipReason::kStale: return "stale";
-        case SkipReason::kCount: break;
+        case SkipReason::kGarbage:
+            return "garbage";
+        case SkipReason::kBadCrc:
+            return "bad_crc";
+        case SkipReason::kBadLength:
+            return "bad_length";
+        case SkipReason::kBadTerminator:
+            return "bad_terminator";
+        case SkipReason::kTruncated:
+            return "truncated";
+        case SkipReason::kStale:
+            return "stale";
+        case SkipReason::kCount:
+            break;
     }
     return "unknown";
 }

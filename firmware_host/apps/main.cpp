@@ -64,14 +64,16 @@ int Run(int argc, char** argv) {
     std::vector<std::string> problems = loaded.problems;
     problems.insert(problems.end(), host.errors.begin(), host.errors.end());
     if (!problems.empty()) {
-        std::fprintf(stderr, "pitmap-acqd: %s: %zu problem(s):\n", config_path.c_str(),
-                     problems.size());
+        std::fprintf(
+            stderr, "pitmap-acqd: %s: %zu problem(s):\n", config_path.c_str(), problems.size());
         for (const auto& p : problems) std::fprintf(stderr, "  - %s\n", p.c_str());
         return check_only || !loaded.problems.empty() ? 2 : 1;
     }
     if (check_only) {
-        std::printf("%s: ok (%zu channels%s)\n", config_path.c_str(),
-                    loaded.config.channels.size(), host.warnings.empty() ? "" : ", warnings");
+        std::printf("%s: ok (%zu channels%s)\n",
+                    config_path.c_str(),
+                    loaded.config.channels.size(),
+                    host.warnings.empty() ? "" : ", warnings");
         return 0;
     }
 
@@ -89,8 +91,10 @@ int Run(int argc, char** argv) {
         std::fprintf(stderr, "pitmap-acqd: %s\n", s.error().message.c_str());
         return 1;
     }
-    std::fprintf(stderr, "pitmap-acqd: running with %zu channels, logging to %s\n",
-                 daemon.config().channels.size(), daemon.config().log.directory.c_str());
+    std::fprintf(stderr,
+                 "pitmap-acqd: running with %zu channels, logging to %s\n",
+                 daemon.config().channels.size(),
+                 daemon.config().log.directory.c_str());
     const int period_ms = daemon.config().status_period_ms;
     std::int64_t next_status = clock.MonotonicUs();
     while (true) {

@@ -23,12 +23,11 @@ pitmap::channel_status_t ToChannelStatus(const ChannelCounters& c,
         s.frame_kind.push_back(kind);
         s.frame_count.push_back(n);
     }
-    const std::pair<const char*, std::int64_t> extra[] = {
-        {"CMD_SENT", c.commands_sent},
-        {"CMD_OK", c.commands_ok},
-        {"CMD_REFUSED", c.commands_refused},
-        {"CMD_UNANSWERED", c.commands_unanswered},
-        {"EC_SENT", c.ec_frames_sent}};
+    const std::pair<const char*, std::int64_t> extra[] = {{"CMD_SENT", c.commands_sent},
+                                                          {"CMD_OK", c.commands_ok},
+                                                          {"CMD_REFUSED", c.commands_refused},
+                                                          {"CMD_UNANSWERED", c.commands_unanswered},
+                                                          {"EC_SENT", c.ec_frames_sent}};
     for (const auto& [kind, n] : extra) {
         if (n == 0) continue;
         s.frame_kind.emplace_back(kind);

@@ -20,24 +20,24 @@ namespace pitmap::acq {
 struct ChannelCounters {
     std::int64_t bytes = 0;
     std::int64_t chunks = 0;
-    std::int64_t frames = 0;                       // framed (checksum-valid), all kinds
+    std::int64_t frames = 0;                          // framed (checksum-valid), all kinds
     std::map<std::string, std::int64_t> frame_kinds;  // "BESTPOS", "1335", "OK", "83P", ...
-    std::int64_t crc_failures = 0;                 // SkipReason::kBadCrc events
+    std::int64_t crc_failures = 0;                    // SkipReason::kBadCrc events
     std::array<std::int64_t, protocol::kNumSkipReasons> skipped_bytes{};
     std::int64_t decode_errors = 0;
     std::int64_t unsupported = 0;
     std::int64_t reconnects = 0;
-    std::int64_t queue_drops = 0;                  // publish calls that dropped a copy
-    std::int64_t kernel_drops = 0;                 // ByteSource::kernel_drops() (UDP socket)
-    std::int64_t foreign_datagrams = 0;            // UDP datagrams from senders not allowed
-    std::int64_t published = 0;                    // messages handed to the publisher
-    std::int64_t commands_sent = 0;                // set-up commands written (with retries)
+    std::int64_t queue_drops = 0;        // publish calls that dropped a copy
+    std::int64_t kernel_drops = 0;       // ByteSource::kernel_drops() (UDP socket)
+    std::int64_t foreign_datagrams = 0;  // UDP datagrams from senders not allowed
+    std::int64_t published = 0;          // messages handed to the publisher
+    std::int64_t commands_sent = 0;      // set-up commands written (with retries)
     std::int64_t commands_ok = 0;
-    std::int64_t commands_refused = 0;             // answered <ERROR
-    std::int64_t commands_unanswered = 0;          // no answer after the retry
+    std::int64_t commands_refused = 0;     // answered <ERROR
+    std::int64_t commands_unanswered = 0;  // no answer after the retry
     std::int64_t ec_frames_sent = 0;
-    std::int64_t last_frame_mono_us = -1;          // monotonic time of the last frame, -1 never
-    std::int64_t last_bytes_mono_us = -1;          // monotonic time of the last chunk, -1 never
+    std::int64_t last_frame_mono_us = -1;  // monotonic time of the last frame, -1 never
+    std::int64_t last_bytes_mono_us = -1;  // monotonic time of the last chunk, -1 never
     std::string last_error;
 
     std::int64_t FrameCount(const std::string& kind) const {

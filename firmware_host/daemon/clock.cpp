@@ -5,7 +5,11 @@
 
 namespace pitmap::acq {
 
-std::int64_t SystemClock::NowUtime() const { return HostNowUtime(); }
-std::int64_t SystemClock::MonotonicUs() const { return MonotonicNowUs(); }
+std::int64_t SystemClock::NowUtime() const {
+    return HostNowUtime();
+}
+std::int64_t SystemClock::MonotonicUs() const {
+    return MonotonicNowUs();
+}
 
 }  // namespace pitmap::acq

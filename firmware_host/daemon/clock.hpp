@@ -29,8 +29,7 @@ public:
 // A clock that moves only when told; wall = monotonic + a fixed epoch.
 class ManualClock final : public Clock {
 public:
-    explicit ManualClock(std::int64_t start_utime = 1'700'000'000'000'000)
-        : epoch_(start_utime) {}
+    explicit ManualClock(std::int64_t start_utime = 1'700'000'000'000'000) : epoch_(start_utime) {}
     std::int64_t NowUtime() const override { return epoch_ + mono_.load(); }
     std::int64_t MonotonicUs() const override { return mono_.load(); }
     void AdvanceUs(std::int64_t us) { mono_.fetch_add(us); }

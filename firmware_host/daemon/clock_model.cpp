@@ -10,7 +10,9 @@ namespace {
 
 constexpr double kMicrosPerSecondD = 1e6;
 
-std::int64_t RoundToInt64(double v) { return static_cast<std::int64_t>(std::llround(v)); }
+std::int64_t RoundToInt64(double v) {
+    return static_cast<std::int64_t>(std::llround(v));
+}
 
 // Cross product of (a - o) x (b - o); > 0 for a counter-clockwise turn o -> a -> b.
 double Cross(double ox, double oy, double ax, double ay, double bx, double by) {
@@ -21,10 +23,14 @@ double Cross(double ox, double oy, double ax, double ay, double bx, double by) {
 
 const char* ToString(ClockState state) {
     switch (state) {
-        case ClockState::kNoTime: return "no_time";
-        case ClockState::kConverging: return "converging";
-        case ClockState::kLocked: return "locked";
-        case ClockState::kHoldover: return "holdover";
+        case ClockState::kNoTime:
+            return "no_time";
+        case ClockState::kConverging:
+            return "converging";
+        case ClockState::kLocked:
+            return "locked";
+        case ClockState::kHoldover:
+            return "holdover";
     }
     return "unknown";
 }
@@ -42,7 +48,9 @@ void LowerEnvelope::Clear() {
     line_ = {};
 }
 
-double LowerEnvelope::residual_rms() const { return std::sqrt(residual_ms2_); }
+double LowerEnvelope::residual_rms() const {
+    return std::sqrt(residual_ms2_);
+}
 
 void LowerEnvelope::Add(std::int64_t x, std::int64_t y) {
     if (num_samples_ > 0) {
@@ -99,9 +107,12 @@ void LowerEnvelope::Refit() {
         for (const Point& p : points_) {
             const double px = static_cast<double>(p.x - x0);
             const double py = static_cast<double>(p.y - y0);
-            while (hull.size() >= 2 &&
-                   Cross(hull[hull.size() - 2].first, hull[hull.size() - 2].second,
-                         hull.back().first, hull.back().second, px, py) <= 0.0) {
+            while (hull.size() >= 2 && Cross(hull[hull.size() - 2].first,
+                                             hull[hull.size() - 2].second,
+                                             hull.back().first,
+                                             hull.back().second,
+                                             px,
+                                             py) <= 0.0) {
                 hull.pop_back();
             }
             hull.emplace_back(px, py);

@@ -14,10 +14,14 @@ namespace {
 
 std::unique_ptr<ByteSource> MakeSource(const ChannelSpec& spec) {
     switch (spec.kind) {
-        case SourceKind::kSerial: return std::make_unique<SerialSource>(spec.serial);
-        case SourceKind::kTcp: return std::make_unique<TcpClientSource>(spec.tcp);
-        case SourceKind::kUdp: return std::make_unique<UdpSource>(spec.udp);
-        case SourceKind::kFile: return std::make_unique<FileSource>(spec.file);
+        case SourceKind::kSerial:
+            return std::make_unique<SerialSource>(spec.serial);
+        case SourceKind::kTcp:
+            return std::make_unique<TcpClientSource>(spec.tcp);
+        case SourceKind::kUdp:
+            return std::make_unique<UdpSource>(spec.udp);
+        case SourceKind::kFile:
+            return std::make_unique<FileSource>(spec.file);
     }
     return nullptr;
 }
@@ -30,8 +34,7 @@ std::string Hostname() {
 
 }  // namespace
 
-Daemon::Daemon(DaemonConfig config, Clock& clock)
-    : Daemon(std::move(config), clock, nullptr) {}
+Daemon::Daemon(DaemonConfig config, Clock& clock) : Daemon(std::move(config), clock, nullptr) {}
 
 Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps)
     : config_(std::move(config)),
@@ -41,14 +44,13 @@ Daemon::Daemon(DaemonConfig config, Clock& clock, std::unique_ptr<PpsSource> pps
       publisher_(config_.publisher, &log_) {
     for (const auto& spec : config_.channels) {
         sources_.push_back(MakeSource(spec));
-        channels_.push_back(std::make_unique<SensorChannel>(spec.channel, *sources_.back(),
-                                                            publisher_, clock_, time_, &human_log_));
+        channels_.push_back(std::make_unique<SensorChannel>(
+            spec.channel, *sources_.back(), publisher_, clock_, time_, &human_log_));
     }
     if (!config_.pps.device.empty()) {
-        pps_source_ =
-            pps ? std::move(pps) : std::make_unique<Rfc2783PpsSource>(config_.pps.device);
-        pps_ = std::make_unique<PpsChannel>(*pps_source_, time_, config_.pps.fetch_timeout_ms,
-                                            &human_log_);
+        pps_source_ = pps ? std::move(pps) : std::make_unique<Rfc2783PpsSource>(config_.pps.device);
+        pps_ = std::make_unique<PpsChannel>(
+            *pps_source_, time_, config_.pps.fetch_timeout_ms, &human_log_);
     }
 }
 
@@ -65,25 +67,29 @@ void Daemon::NoteUdpListening(std::size_t index) {
                 ", EVERY interface, because bind_address: 0.0.0.0 is configured";
     } else if (!udp->bound_address().empty()) {
         text += "bound to " + udp->bound_address() + ":" + std::to_string(udp->bound_port()) +
-                (spec.udp.bind_address.empty() ? " (the interface facing " +
-                                                     spec.udp.allowed_senders.front() + ")"
-                                               : "");
+                (spec.udp.bind_address.empty()
+                     ? " (the interface facing " + spec.udp.allowed_senders.front() + ")"
+                     : "");
     } else {
         text += "not bound yet (" + udp->last_error() + "; retrying)";
     }
-    text += "; datagrams from " + allowed + " are decoded, any other sender's are logged raw "
+    text += "; datagrams from " + allowed +
+            " are decoded, any other sender's are logged raw "
             "as foreign";
     if (spec.channel.ec.enabled) {
         text += "; EC frames only to " +
-                (spec.udp.reply_to.empty() ? spec.udp.allowed_senders.front()
-                                           : spec.udp.reply_to);
+                (spec.udp.reply_to.empty() ? spec.udp.allowed_senders.front() : spec.udp.reply_to);
     }
     human_log_.Log(spec.channel.id + ":listen", clock_.MonotonicUs(), text);
 }
 
-PpsCounters Daemon::pps_counters() const { return pps_ ? pps_->counters() : PpsCounters{}; }
+PpsCounters Daemon::pps_counters() const {
+    return pps_ ? pps_->counters() : PpsCounters{};
+}
 
-Daemon::~Daemon() { Stop(); }
+Daemon::~Daemon() {
+    Stop();
+}
 
 Status Daemon::Start() {
     if (started_) return Ok{};
@@ -156,10 +162,12 @@ void Daemon::PublishStatus() {
         publisher_.Publish(ChannelName(kChannelStatus, cs.name), s.utime, EncodeLcm(cs));
         if (cs.state == pitmap::channel_status_t::STATE_DISCONNECTED ||
             cs.state == pitmap::channel_status_t::STATE_SILENT) {
-            human_log_.Log(cs.name + ":state", mono,
-                           cs.name + (cs.state == pitmap::channel_status_t::STATE_SILENT
-                                          ? ": no data"
-                                          : ": disconnected, reconnecting") +
+            human_log_.Log(cs.name + ":state",
+                           mono,
+                           cs.name +
+                               (cs.state == pitmap::channel_status_t::STATE_SILENT
+                                    ? ": no data"
+                                    : ": disconnected, reconnecting") +
                                (cs.last_error.empty() ? "" : " (" + cs.last_error + ")"));
         }
     }
@@ -171,7 +179,9 @@ void Daemon::PublishStatus() {
     }
 }
 
-void Daemon::Rotate() { log_.RequestRotate(); }
+void Daemon::Rotate() {
+    log_.RequestRotate();
+}
 
 bool Daemon::AllFinished() const {
     for (const auto& ch : channels_) {

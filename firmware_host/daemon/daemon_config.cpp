@@ -14,7 +14,8 @@
 namespace pitmap::acq {
 namespace {
 
-void Append(std::vector<std::string>& to, const std::string& prefix,
+void Append(std::vector<std::string>& to,
+            const std::string& prefix,
             const std::vector<std::string>& from) {
     for (const auto& p : from) to.push_back(prefix + ": " + p);
 }
@@ -113,8 +114,9 @@ void ReadChannel(ConfigReader& r, ChannelSpec& spec, std::vector<std::string>& p
         e.RejectUnknownKeys();
         if (range_m < 0 || range_m > 65535 || gain < 0 || gain > 40 || display < 0 ||
             display > 100 || sector < 0 || sector > 65535 || beams < 0 || beams > 65535) {
-            e.AddProblem(r.Path("ec") + ": value out of range (start_gain_db 0..40, "
-                                        "display_gain_pct 0..100)");
+            e.AddProblem(r.Path("ec") +
+                         ": value out of range (start_gain_db 0..40, "
+                         "display_gain_pct 0..100)");
         } else {
             c.ec.frame.range_m = static_cast<std::uint16_t>(range_m);
             c.ec.frame.start_gain_db = static_cast<std::uint8_t>(gain);
@@ -129,8 +131,9 @@ void ReadChannel(ConfigReader& r, ChannelSpec& spec, std::vector<std::string>& p
     }
     if (c.ec.enabled && spec.kind == SourceKind::kUdp && spec.udp.reply_to.empty() &&
         spec.udp.allowed_senders.size() > 1) {
-        r.AddProblem(r.Path("udp") + ".reply_to: required for EC steering with more than one "
-                                     "allowed sender (which one is the head?)");
+        r.AddProblem(r.Path("udp") +
+                     ".reply_to: required for EC steering with more than one "
+                     "allowed sender (which one is the head?)");
     }
     Append(problems, base, c.Validate());
 }

@@ -57,8 +57,16 @@ std::vector<std::byte> EncodeLcmLogEvent(std::int64_t event_number,
 std::string LogFileName(const std::string& prefix, std::int64_t utime, int sequence) {
     const UtcCalendar c = UtcCalendarFromUnix(utime);
     char buf[64];
-    std::snprintf(buf, sizeof(buf), "-%04d%02d%02d-%02d%02d%02d-%03d.lcmlog", c.year, c.month,
-                  c.day, c.hour, c.minute, c.second, sequence % 1000);
+    std::snprintf(buf,
+                  sizeof(buf),
+                  "-%04d%02d%02d-%02d%02d%02d-%03d.lcmlog",
+                  c.year,
+                  c.month,
+                  c.day,
+                  c.hour,
+                  c.minute,
+                  c.second,
+                  sequence % 1000);
     return prefix + buf;
 }
 
@@ -91,9 +99,13 @@ LogWriter::LogWriter(LogWriterConfig config, LogWriterHooks hooks, RateLimitedLo
     if (!hooks_.free_bytes) hooks_.free_bytes = StatvfsFree;
 }
 
-LogWriter::~LogWriter() { Stop(); }
+LogWriter::~LogWriter() {
+    Stop();
+}
 
-std::int64_t LogWriter::Now() const { return hooks_.now_utime(); }
+std::int64_t LogWriter::Now() const {
+    return hooks_.now_utime();
+}
 
 Status LogWriter::Start() {
     if (running_) return Ok{};
@@ -112,8 +124,8 @@ Status LogWriter::Start() {
             return Error{problem + "; fallback directory " + config_.fallback_directory +
                          " is not usable either"};
         }
-        Say("log:directory", problem + "; logging to fallback directory " +
-                                 config_.fallback_directory);
+        Say("log:directory",
+            problem + "; logging to fallback directory " + config_.fallback_directory);
     }
     {
         std::lock_guard lock(queue_mu_);
@@ -181,8 +193,8 @@ bool LogWriter::Flush(int timeout_ms) {
     if (!running_ || stop_requested_) return false;
     const std::uint64_t want = ++flush_requested_;
     queue_cv_.notify_one();
-    return flushed_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
-                                [&] { return flush_done_ >= want; });
+    return flushed_cv_.wait_for(
+        lock, std::chrono::milliseconds(timeout_ms), [&] { return flush_done_ >= want; });
 }
 
 LogWriterStats LogWriter::stats() const {
@@ -224,7 +236,8 @@ void LogWriter::Run() {
                 // Flush() and Stop() promise synced data: wait for a sync in flight, then sync.
                 WaitAsyncSyncIdle();
                 Sync();
-            } else if (mono - last_sync_us_ >= config_.flush_interval_ms * 1000LL && StartAsyncSync()) {
+            } else if (mono - last_sync_us_ >= config_.flush_interval_ms * 1000LL &&
+                       StartAsyncSync()) {
                 dirty_ = false;
                 last_sync_us_ = mono;
             }

@@ -113,7 +113,8 @@ class LogWriter {
 public:
     // Precondition: config.Validate() is empty. `human_log` (may be null, must outlive this)
     // gets the rate-limited lines about a vanished directory and failing file creation.
-    explicit LogWriter(LogWriterConfig config, LogWriterHooks hooks = {},
+    explicit LogWriter(LogWriterConfig config,
+                       LogWriterHooks hooks = {},
                        RateLimitedLog* human_log = nullptr);
     ~LogWriter();
     LogWriter(const LogWriter&) = delete;
@@ -162,8 +163,8 @@ private:
     // sync (eMMC, a busy disk) never holds up writing the events behind it. Flush() and Stop()
     // still sync synchronously, after any sync in flight.
     void SyncLoop();
-    bool StartAsyncSync();      // writer thread: hand the file to the syncer; false if it is busy
-    void WaitAsyncSyncIdle();   // writer thread: wait until no sync is in flight
+    bool StartAsyncSync();     // writer thread: hand the file to the syncer; false if it is busy
+    void WaitAsyncSyncIdle();  // writer thread: wait until no sync is in flight
     void CheckDisk(bool force);
     void SetError(const std::string& message);
     std::int64_t Now() const;
@@ -183,9 +184,9 @@ private:
     std::uint64_t flush_done_ = 0;       // generation completed
     std::thread thread_;
     std::thread sync_thread_;
-    std::mutex sync_mu_;                // guards the four fields below
+    std::mutex sync_mu_;  // guards the four fields below
     std::condition_variable sync_cv_;
-    int sync_fd_ = -1;                  // dup of the log fd handed to the syncer
+    int sync_fd_ = -1;  // dup of the log fd handed to the syncer
     bool sync_busy_ = false;
     bool sync_stop_ = false;
     std::string sync_path_;
@@ -196,11 +197,11 @@ private:
 
     // Writer thread only.
     int fd_ = -1;
-    int dir_fd_ = -1;        // the directory the open segment was created in
-    std::string dir_;        // its path (config directory or fallback)
-    std::string name_;       // the segment's file name in dir_
+    int dir_fd_ = -1;   // the directory the open segment was created in
+    std::string dir_;   // its path (config directory or fallback)
+    std::string name_;  // the segment's file name in dir_
     std::string path_;
-    std::string last_dir_;   // directory of the previous segment, "" before the first
+    std::string last_dir_;  // directory of the previous segment, "" before the first
     std::int64_t last_gone_check_us_ = 0;
     std::int64_t file_bytes_ = 0;
     std::int64_t file_open_utime_ = 0;

@@ -19,7 +19,9 @@ std::vector<std::string> LcmPublisherConfig::Validate() const {
 LcmPublisher::LcmPublisher(LcmPublisherConfig config, LogWriter* log)
     : config_(std::move(config)), log_(log) {}
 
-LcmPublisher::~LcmPublisher() { Stop(); }
+LcmPublisher::~LcmPublisher() {
+    Stop();
+}
 
 Status LcmPublisher::Start() {
     {
@@ -52,7 +54,8 @@ void LcmPublisher::Stop() {
     running_ = false;
 }
 
-bool LcmPublisher::Publish(std::string_view channel, std::int64_t utime,
+bool LcmPublisher::Publish(std::string_view channel,
+                           std::int64_t utime,
                            std::vector<std::uint8_t> data) {
     bool ok = true;
     // The log first: it never blocks, and it is what must not lose data.
@@ -91,9 +94,9 @@ void LcmPublisher::Run() {
         queue_bytes_ -= e.data.size();
         busy_ = true;
         lock.unlock();
-        const int rc = lcm_ ? lcm_->publish(e.channel, e.data.data(),
-                                            static_cast<unsigned int>(e.data.size()))
-                            : 0;
+        const int rc =
+            lcm_ ? lcm_->publish(e.channel, e.data.data(), static_cast<unsigned int>(e.data.size()))
+                 : 0;
         lock.lock();
         busy_ = false;
         if (rc == 0) {
@@ -108,8 +111,8 @@ void LcmPublisher::Run() {
 
 bool LcmPublisher::Drain(int timeout_ms) {
     std::unique_lock<std::mutex> lock(queue_mu_);
-    return drained_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
-                                [this] { return queue_.empty() && !busy_; });
+    return drained_cv_.wait_for(
+        lock, std::chrono::milliseconds(timeout_ms), [this] { return queue_.empty() && !busy_; });
 }
 
 PublisherStats LcmPublisher::stats() const {
@@ -119,7 +122,8 @@ PublisherStats LcmPublisher::stats() const {
     return s;
 }
 
-bool RecordingPublisher::Publish(std::string_view channel, std::int64_t utime,
+bool RecordingPublisher::Publish(std::string_view channel,
+                                 std::int64_t utime,
                                  std::vector<std::uint8_t> data) {
     std::lock_guard<std::mutex> lock(mu_);
     events_.push_back(Event{std::string(channel), utime, std::move(data)});

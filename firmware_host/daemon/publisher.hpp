@@ -35,13 +35,14 @@ public:
     virtual ~Publisher() = default;
     // Queues one encoded LCM message on `channel`, host time `utime`. Never blocks on I/O.
     // False when any copy was dropped (queue full, not running).
-    virtual bool Publish(std::string_view channel, std::int64_t utime,
+    virtual bool Publish(std::string_view channel,
+                         std::int64_t utime,
                          std::vector<std::uint8_t> data) = 0;
 };
 
 struct LcmPublisherConfig {
-    std::string lcm_url;                    // lcm::LCM provider URL; "" = log only, no LCM
-    std::size_t queue_max_events = 20'000;  // outbound LCM queue bound, events
+    std::string lcm_url;                      // lcm::LCM provider URL; "" = log only, no LCM
+    std::size_t queue_max_events = 20'000;    // outbound LCM queue bound, events
     std::size_t queue_max_bytes = 32u << 20;  // outbound LCM queue bound, bytes
 
     std::vector<std::string> Validate() const;
@@ -67,7 +68,8 @@ public:
     // Publishes what is queued, then stops. Idempotent.
     void Stop();
 
-    bool Publish(std::string_view channel, std::int64_t utime,
+    bool Publish(std::string_view channel,
+                 std::int64_t utime,
                  std::vector<std::uint8_t> data) override;
     PublisherStats stats() const;
     // The LCM object (for in-process subscribers in tests, memq://); null before Start().
@@ -106,7 +108,8 @@ public:
         std::int64_t utime = 0;
         std::vector<std::uint8_t> data;
     };
-    bool Publish(std::string_view channel, std::int64_t utime,
+    bool Publish(std::string_view channel,
+                 std::int64_t utime,
                  std::vector<std::uint8_t> data) override;
     std::vector<Event> events() const;
     void Clear();

@@ -15,7 +15,9 @@ bool RateLimitedLog::Log(const std::string& key, std::int64_t now_us, const std:
     e.last_us = now_us;
     if (sink_ != nullptr) {
         if (e.suppressed > 0) {
-            std::fprintf(sink_, "pitmap-acqd: %s (%lld similar suppressed)\n", message.c_str(),
+            std::fprintf(sink_,
+                         "pitmap-acqd: %s (%lld similar suppressed)\n",
+                         message.c_str(),
                          static_cast<long long>(e.suppressed));
         } else {
             std::fprintf(sink_, "pitmap-acqd: %s\n", message.c_str());

@@ -30,13 +30,18 @@ std::string FirstWord(ByteSpan b) {
 std::string FrameKindName(const nv::Frame& f) {
     switch (f.kind) {
         case nv::FrameKind::kLongBinary: {
-            const bool response = f.bytes.size() > 6 && (static_cast<std::uint8_t>(f.bytes[6]) & 0x80);
+            const bool response =
+                f.bytes.size() > 6 && (static_cast<std::uint8_t>(f.bytes[6]) & 0x80);
             return std::to_string(f.message_id) + (response ? "R" : "");
         }
-        case nv::FrameKind::kShortBinary: return std::to_string(f.message_id);
-        case nv::FrameKind::kProprietary: return "P" + std::to_string(f.message_id);
-        case nv::FrameKind::kAscii: return "#" + FirstWord(f.bytes);
-        case nv::FrameKind::kShortAscii: return "%" + FirstWord(f.bytes);
+        case nv::FrameKind::kShortBinary:
+            return std::to_string(f.message_id);
+        case nv::FrameKind::kProprietary:
+            return "P" + std::to_string(f.message_id);
+        case nv::FrameKind::kAscii:
+            return "#" + FirstWord(f.bytes);
+        case nv::FrameKind::kShortAscii:
+            return "%" + FirstWord(f.bytes);
         case nv::FrameKind::kAbbreviated: {
             std::string_view t = AsText(f.bytes.subspan(1));
             while (!t.empty() && (t.back() == '\r' || t.back() == '\n')) t.remove_suffix(1);
@@ -44,7 +49,8 @@ std::string FrameKindName(const nv::Frame& f) {
             if (t.substr(0, 5) == "ERROR") return "ERROR";
             return "<" + std::string(t.substr(0, t.find(' ')));
         }
-        case nv::FrameKind::kPrompt: return "PROMPT";
+        case nv::FrameKind::kPrompt:
+            return "PROMPT";
         case nv::FrameKind::kNmea: {
             const std::string_view t = AsText(f.bytes);
             return std::string(t.substr(0, std::min(t.find(','), t.find('*'))));
@@ -53,7 +59,9 @@ std::string FrameKindName(const nv::Frame& f) {
     return "?";
 }
 
-bool FineTime(nv::TimeStatus s) { return static_cast<int>(s) >= static_cast<int>(nv::TimeStatus::kFine); }
+bool FineTime(nv::TimeStatus s) {
+    return static_cast<int>(s) >= static_cast<int>(nv::TimeStatus::kFine);
+}
 
 // The sample a decoded message gives the host clock model: (gps us, valid), or nullopt for a
 // message that says nothing about time.
@@ -71,8 +79,7 @@ std::optional<std::pair<std::int64_t, bool>> ClockSample(const nv::Message& m) {
                 }
                 // Short headers carry no time status: only the body time of INS/IMU logs.
                 if constexpr (std::is_same_v<T, nv::InsPva> || std::is_same_v<T, nv::InsAtt> ||
-                              std::is_same_v<T, nv::CorrImuData> ||
-                              std::is_same_v<T, nv::RawImu>) {
+                              std::is_same_v<T, nv::CorrImuData> || std::is_same_v<T, nv::RawImu>) {
                     if (msg.utime_gps() != 0) {
                         return std::pair<std::int64_t, bool>{msg.utime_gps(), true};
                     }
@@ -98,7 +105,8 @@ std::vector<std::string> SensorChannelConfig::Validate() const {
             break;
         }
     }
-    if (read_timeout_ms < 1 || read_timeout_ms > 10'000) p.push_back("read_timeout_ms must be 1..10000");
+    if (read_timeout_ms < 1 || read_timeout_ms > 10'000)
+        p.push_back("read_timeout_ms must be 1..10000");
     if (silent_timeout_ms < 1) p.push_back("silent_timeout_ms must be > 0");
     if (stale_partial_ms < 1) p.push_back("stale_partial_ms must be > 0");
     if (command_timeout_ms < 1) p.push_back("command_timeout_ms must be > 0");
@@ -116,16 +124,21 @@ std::vector<std::string> SensorChannelConfig::Validate() const {
     if (ec.enabled) {
         if (protocol != ChannelProtocol::kDeltat83P) p.push_back("ec is for Delta T channels only");
         if (dt::EncodeEcFrame(ec.frame).empty()) {
-            p.push_back("ec settings cannot be encoded (range_m, sector_deg or num_beams not in "
-                        "the EC tables)");
+            p.push_back(
+                "ec settings cannot be encoded (range_m, sector_deg or num_beams not in "
+                "the EC tables)");
         }
         if (ec.interval_ms < 100) p.push_back("ec.interval_ms must be >= 100");
     }
     return p;
 }
 
-SensorChannel::SensorChannel(SensorChannelConfig config, ByteSource& source, Publisher& publisher,
-                             Clock& clock, TimeKeeper& time, RateLimitedLog* log)
+SensorChannel::SensorChannel(SensorChannelConfig config,
+                             ByteSource& source,
+                             Publisher& publisher,
+                             Clock& clock,
+                             TimeKeeper& time,
+                             RateLimitedLog* log)
     : config_(std::move(config)),
       source_(source),
       publisher_(publisher),
@@ -141,7 +154,9 @@ SensorChannel::SensorChannel(SensorChannelConfig config, ByteSource& source, Pub
     command_index_ = command_lines_.size();
 }
 
-SensorChannel::~SensorChannel() { Stop(); }
+SensorChannel::~SensorChannel() {
+    Stop();
+}
 
 void SensorChannel::Start() {
     if (running_) return;
@@ -181,11 +196,11 @@ void SensorChannel::CheckKernelDrops() {
         return;
     }
     kernel_drops_note_mono_us_ = mono;
-    if (Note("kernel_drops", config_.id + ": the kernel dropped " +
-                                 std::to_string(drops - kernel_drops_noted_) +
-                                 " datagram(s) since the last note, " + std::to_string(drops) +
-                                 " in total (socket receive buffer full: the reader is too "
-                                 "slow or the buffer too small)")) {
+    if (Note("kernel_drops",
+             config_.id + ": the kernel dropped " + std::to_string(drops - kernel_drops_noted_) +
+                 " datagram(s) since the last note, " + std::to_string(drops) +
+                 " in total (socket receive buffer full: the reader is too "
+                 "slow or the buffer too small)")) {
         kernel_drops_noted_ = drops;
     }
 }
@@ -204,7 +219,9 @@ bool SensorChannel::RunOnce() {
         return true;
     }
     switch (*r) {
-        case ReadOutcome::kData: Process(chunk_); break;
+        case ReadOutcome::kData:
+            Process(chunk_);
+            break;
         case ReadOutcome::kTimeout:
             if (last_bytes_mono_us_ >= 0 &&
                 now - last_bytes_mono_us_ > std::int64_t{config_.stale_partial_ms} * 1000) {
@@ -220,7 +237,8 @@ bool SensorChannel::RunOnce() {
     return true;
 }
 
-void SensorChannel::PublishEncoded(std::string_view channel, std::int64_t utime,
+void SensorChannel::PublishEncoded(std::string_view channel,
+                                   std::int64_t utime,
                                    std::vector<std::uint8_t> data) {
     const bool ok = publisher_.Publish(channel, utime, std::move(data));
     stats_.Update([&](ChannelCounters& c) {
@@ -236,27 +254,37 @@ void SensorChannel::Process(const Chunk& chunk) {
                         .gps_time_valid = gps.state == ClockState::kLocked,
                         .peer = chunk.peer,
                         .utime_kernel = chunk.utime_kernel};
-    const std::string_view proto = config_.protocol == ChannelProtocol::kNovatel
-                                       ? kProtocolNovatel
-                                       : kProtocolDeltat83P;
+    const std::string_view proto =
+        config_.protocol == ChannelProtocol::kNovatel ? kProtocolNovatel : kProtocolDeltat83P;
     if (chunk.foreign) {
         // Evidence of who is talking to the port, under a protocol name no decoder takes.
         const std::string foreign = std::string(proto) + std::string(kForeignSuffix);
-        PublishEncoded(ChannelName(kChannelRaw, config_.id), chunk.utime_host,
-                       EncodeLcm(MakeRawBytes(chunk.utime_host, config_.id, foreign,
-                                              source_.transport(), seq_++,
-                                              std::span<const std::byte>(chunk.data), extra)));
+        PublishEncoded(ChannelName(kChannelRaw, config_.id),
+                       chunk.utime_host,
+                       EncodeLcm(MakeRawBytes(chunk.utime_host,
+                                              config_.id,
+                                              foreign,
+                                              source_.transport(),
+                                              seq_++,
+                                              std::span<const std::byte>(chunk.data),
+                                              extra)));
         stats_.Update([](ChannelCounters& c) { ++c.foreign_datagrams; });
-        Note("foreign", config_.id + ": datagram from " + chunk.peer +
-                            ", not an allowed sender: logged raw as " + foreign +
-                            ", not decoded");
+        Note("foreign",
+             config_.id + ": datagram from " + chunk.peer +
+                 ", not an allowed sender: logged raw as " + foreign + ", not decoded");
         return;
     }
     const std::int64_t mono = clock_.MonotonicUs();
     last_bytes_mono_us_ = mono;
-    PublishEncoded(ChannelName(kChannelRaw, config_.id), chunk.utime_host,
-                   EncodeLcm(MakeRawBytes(chunk.utime_host, config_.id, proto, source_.transport(),
-                                          seq_++, std::span<const std::byte>(chunk.data), extra)));
+    PublishEncoded(ChannelName(kChannelRaw, config_.id),
+                   chunk.utime_host,
+                   EncodeLcm(MakeRawBytes(chunk.utime_host,
+                                          config_.id,
+                                          proto,
+                                          source_.transport(),
+                                          seq_++,
+                                          std::span<const std::byte>(chunk.data),
+                                          extra)));
     stats_.Update([&](ChannelCounters& c) {
         c.bytes += static_cast<std::int64_t>(chunk.data.size());
         ++c.chunks;
@@ -280,7 +308,9 @@ void SensorChannel::CountSkip(const protocol::Skipped& s) {
     }
 }
 
-void SensorChannel::FlushFramer() { GiveUpPartials(protocol::SkipReason::kTruncated); }
+void SensorChannel::FlushFramer() {
+    GiveUpPartials(protocol::SkipReason::kTruncated);
+}
 
 void SensorChannel::GiveUpPartials(protocol::SkipReason why) {
     // No byte came for the maximum wait (or the stream ended): a waiting candidate with
@@ -305,8 +335,8 @@ void SensorChannel::GiveUpPartials(protocol::SkipReason why) {
 void SensorChannel::ProcessNovatel(const Chunk& chunk) {
     chunk_best_gps_ = 0;
     chunk_time_invalid_ = false;
-    novatel_framer_.Push(ByteSpan(reinterpret_cast<const std::uint8_t*>(chunk.data.data()),
-                                  chunk.data.size()));
+    novatel_framer_.Push(
+        ByteSpan(reinterpret_cast<const std::uint8_t*>(chunk.data.data()), chunk.data.size()));
     RememberChunk(chunk);
     DrainNovatel(chunk);
     // One clock sample per chunk (the receive time is shared by everything in it).
@@ -375,9 +405,11 @@ void SensorChannel::HandleNovatelFrame(const nv::Frame& frame, const Chunk& chun
     }
     if (const auto* ci = std::get_if<nv::CorrImuData>(&message)) {
         // CORRIMUDATA(S) increments span the log period: measure it when not configured.
-        if (ci->header.message_id != nv::msg_id::kImuRateCorrImuS && config_.imu.corrimu_rate_hz <= 0.0) {
+        if (ci->header.message_id != nv::msg_id::kImuRateCorrImuS &&
+            config_.imu.corrimu_rate_hz <= 0.0) {
             const std::int64_t t = ci->utime_gps();
-            if (last_corrimu_gps_ != 0 && t > last_corrimu_gps_ && t - last_corrimu_gps_ <= 1'000'000) {
+            if (last_corrimu_gps_ != 0 && t > last_corrimu_gps_ &&
+                t - last_corrimu_gps_ <= 1'000'000) {
                 imu_.corrimu_rate_hz = 1e6 / static_cast<double>(t - last_corrimu_gps_);
             }
             last_corrimu_gps_ = t;
@@ -409,7 +441,8 @@ void SensorChannel::OnResponse(const nv::Response& r, std::int64_t utime_host) {
         ++command_index_;
         SendCurrentCommand();
     }
-    PublishEncoded(ChannelName(kChannelResponse, config_.id), utime_host,
+    PublishEncoded(ChannelName(kChannelResponse, config_.id),
+                   utime_host,
                    EncodeLcm(ToLcm(r, utime_host, config_.id, command)));
 }
 
@@ -450,8 +483,10 @@ void SensorChannel::PollCommands() {
         return;
     }
     stats_.Update([](ChannelCounters& c) { ++c.commands_unanswered; });
-    Note("unanswered", config_.id + ": no answer to '" + command_lines_[command_index_].substr(
-                           0, command_lines_[command_index_].size() - 2) + "'");
+    Note("unanswered",
+         config_.id + ": no answer to '" +
+             command_lines_[command_index_].substr(0, command_lines_[command_index_].size() - 2) +
+             "'");
     command_pending_ = false;
     command_attempts_ = 0;
     ++command_index_;
@@ -459,7 +494,8 @@ void SensorChannel::PollCommands() {
 }
 
 void SensorChannel::ProcessDeltat(const Chunk& chunk) {
-    const ByteSpan bytes(reinterpret_cast<const std::uint8_t*>(chunk.data.data()), chunk.data.size());
+    const ByteSpan bytes(reinterpret_cast<const std::uint8_t*>(chunk.data.data()),
+                         chunk.data.size());
     if (source_.transport() == Transport::kUdp) {
         MaybeSendEc();
         const auto r = dt::DecodeDatagramInto(bytes, float_memory_, ping_);
@@ -473,8 +509,8 @@ void SensorChannel::ProcessDeltat(const Chunk& chunk) {
                 }
             });
             if (!unsupported) {
-                Note("decode", config_.id + ": bad datagram (" +
-                                   std::string(dt::ToString(e->kind)) + ")");
+                Note("decode",
+                     config_.id + ": bad datagram (" + std::string(dt::ToString(e->kind)) + ")");
             }
             return;
         }
@@ -534,14 +570,16 @@ void SensorChannel::HandlePing(const dt::Ping83P& ping, const Chunk& chunk) {
                      : pitmap::multibeam_ping_t::TIME_SOURCE_RECEIVE;
         stddev_s = static_cast<float>(stamp.stddev_us * 1e-6);
     }
-    PublishEncoded(ChannelName(kChannelMultibeamPing, config_.id), chunk.utime_host,
+    PublishEncoded(ChannelName(kChannelMultibeamPing, config_.id),
+                   chunk.utime_host,
                    EncodeLcm(ToLcm(ping, chunk.utime_host, utime_gps, source, stddev_s)));
 }
 
 void SensorChannel::MaybeSendEc() {
     if (!config_.ec.enabled) return;
     const std::int64_t now = clock_.MonotonicUs();
-    if (last_ec_mono_us_ >= 0 && now - last_ec_mono_us_ < std::int64_t{config_.ec.interval_ms} * 1000) {
+    if (last_ec_mono_us_ >= 0 &&
+        now - last_ec_mono_us_ < std::int64_t{config_.ec.interval_ms} * 1000) {
         return;
     }
     last_ec_mono_us_ = now;
@@ -568,9 +606,15 @@ pitmap::channel_status_t SensorChannel::Status() const {
     std::int8_t state = pitmap::channel_status_t::STATE_STOPPED;
     switch (source_.state()) {
         case SourceState::kClosed:
-        case SourceState::kFinished: state = pitmap::channel_status_t::STATE_STOPPED; break;
-        case SourceState::kConnecting: state = pitmap::channel_status_t::STATE_CONNECTING; break;
-        case SourceState::kDisconnected: state = pitmap::channel_status_t::STATE_DISCONNECTED; break;
+        case SourceState::kFinished:
+            state = pitmap::channel_status_t::STATE_STOPPED;
+            break;
+        case SourceState::kConnecting:
+            state = pitmap::channel_status_t::STATE_CONNECTING;
+            break;
+        case SourceState::kDisconnected:
+            state = pitmap::channel_status_t::STATE_DISCONNECTED;
+            break;
         case SourceState::kOpen:
             state = (c.last_bytes_mono_us < 0 ||
                      mono - c.last_bytes_mono_us > std::int64_t{config_.silent_timeout_ms} * 1000)
@@ -578,9 +622,13 @@ pitmap::channel_status_t SensorChannel::Status() const {
                         : pitmap::channel_status_t::STATE_RUNNING;
             break;
     }
-    return ToChannelStatus(c, config_.id, ToString(config_.protocol),
-                           static_cast<std::int8_t>(source_.transport()), state,
-                           clock_.NowUtime(), mono);
+    return ToChannelStatus(c,
+                           config_.id,
+                           ToString(config_.protocol),
+                           static_cast<std::int8_t>(source_.transport()),
+                           state,
+                           clock_.NowUtime(),
+                           mono);
 }
 
 }  // namespace pitmap::acq

@@ -66,17 +66,17 @@ struct EcSteeringConfig {
 };
 
 struct SensorChannelConfig {
-    std::string id;                            // channel id, e.g. "novatel_com1"
+    std::string id;  // channel id, e.g. "novatel_com1"
     ChannelProtocol protocol = ChannelProtocol::kNovatel;
-    int read_timeout_ms = 100;                 // one Read() wait, milliseconds
-    int silent_timeout_ms = 2000;              // no bytes this long while open: SILENT, ms
-    int stale_partial_ms = 1000;  // a false sync with frames behind it waits no longer, ms
-    std::vector<std::string> setup_commands;   // NovAtel command lines sent on (re)connect,
-                                               // e.g. "LOG ICOM1 INSPVAXB ONTIME 0.05"
-    int command_timeout_ms = 1000;             // wait for <OK / <ERROR, milliseconds
-    int command_retries = 1;                   // resends after a timeout
-    ImuContext imu{};                          // IMU type / rates for imu_t
-    EcSteeringConfig ec{};                     // Delta T only
+    int read_timeout_ms = 100;     // one Read() wait, milliseconds
+    int silent_timeout_ms = 2000;  // no bytes this long while open: SILENT, ms
+    int stale_partial_ms = 1000;   // a false sync with frames behind it waits no longer, ms
+    std::vector<std::string> setup_commands;  // NovAtel command lines sent on (re)connect,
+                                              // e.g. "LOG ICOM1 INSPVAXB ONTIME 0.05"
+    int command_timeout_ms = 1000;            // wait for <OK / <ERROR, milliseconds
+    int command_retries = 1;                  // resends after a timeout
+    ImuContext imu{};                         // IMU type / rates for imu_t
+    EcSteeringConfig ec{};                    // Delta T only
 
     std::vector<std::string> Validate() const;  // every problem, "" prefix-free
 };
@@ -84,8 +84,12 @@ struct SensorChannelConfig {
 class SensorChannel {
 public:
     // Precondition: config.Validate() is empty. References must outlive the channel.
-    SensorChannel(SensorChannelConfig config, ByteSource& source, Publisher& publisher,
-                  Clock& clock, TimeKeeper& time, RateLimitedLog* log = nullptr);
+    SensorChannel(SensorChannelConfig config,
+                  ByteSource& source,
+                  Publisher& publisher,
+                  Clock& clock,
+                  TimeKeeper& time,
+                  RateLimitedLog* log = nullptr);
     ~SensorChannel();
     SensorChannel(const SensorChannel&) = delete;
     SensorChannel& operator=(const SensorChannel&) = delete;
@@ -112,7 +116,8 @@ public:
     bool finished() const { return finished_.load(); }
 
 private:
-    void PublishEncoded(std::string_view channel, std::int64_t utime,
+    void PublishEncoded(std::string_view channel,
+                        std::int64_t utime,
                         std::vector<std::uint8_t> data);
     void ProcessNovatel(const Chunk& chunk);
     void DrainNovatel(const Chunk& chunk);
@@ -154,20 +159,20 @@ private:
     protocol::deltat::FloatOrderMemory float_memory_;
     protocol::deltat::Ping83P ping_;
     std::int64_t last_bytes_mono_us_ = -1;
-    std::int64_t last_clock_host_ = 0;       // last host time fed to the clock model
-    std::int64_t chunk_best_gps_ = 0;        // latest valid GPS time in this chunk
-    bool chunk_time_invalid_ = false;        // a long header in this chunk had no fine time
+    std::int64_t last_clock_host_ = 0;  // last host time fed to the clock model
+    std::int64_t chunk_best_gps_ = 0;   // latest valid GPS time in this chunk
+    bool chunk_time_invalid_ = false;   // a long header in this chunk had no fine time
     ImuContext imu_;
     std::int64_t last_corrimu_gps_ = 0;
     std::int64_t seen_generation_ = 0;
-    std::size_t command_index_ = 0;          // next command; == size(): none pending
+    std::size_t command_index_ = 0;  // next command; == size(): none pending
     bool command_pending_ = false;
     int command_attempts_ = 0;
     std::int64_t command_sent_mono_us_ = 0;
     std::vector<std::string> command_lines_;  // encoded, CR LF terminated
     std::int64_t last_ec_mono_us_ = -1;
-    std::int64_t kernel_drops_checked_ = 0;  // source_.kernel_drops() at the last check
-    std::int64_t kernel_drops_noted_ = 0;    // ... at the last printed note
+    std::int64_t kernel_drops_checked_ = 0;       // source_.kernel_drops() at the last check
+    std::int64_t kernel_drops_noted_ = 0;         // ... at the last printed note
     std::int64_t kernel_drops_note_mono_us_ = 0;  // monotonic time of the last note attempt
 };
 

@@ -6,11 +6,11 @@
 //     1.3 has (udpm, mpudpm, tcpq, memq, file) and a network and options that provider takes.
 //     Pure: part of LoadDaemonConfig's problems.
 //   - CheckHost: the log directory can be created (mkdir -p, undone afterwards: start-up
-//     creates it for good) and a file can be created and removed in it (a regular file, /proc or /sys, a read-only file
-//     system are errors); the fallback directory likewise, as warnings; a serial device that
-//     does not exist or cannot be opened read-write by this user is a warning (USB may come
-//     later, the channel keeps retrying); a UDP port that cannot be bound (in use) is a
-//     warning (the channel keeps retrying).
+//     creates it for good) and a file can be created and removed in it (a regular file, /proc or
+//     /sys, a read-only file system are errors); the fallback directory likewise, as warnings; a
+//     serial device that does not exist or cannot be opened read-write by this user is a warning
+//     (USB may come later, the channel keeps retrying); a UDP port that cannot be bound (in use) is
+//     a warning (the channel keeps retrying).
 #pragma once
 
 #include <string>

@@ -23,7 +23,8 @@ GpsEstimate TimeKeeper::HostToGps(std::int64_t utime_host) const {
     return host_.ToGps(utime_host);
 }
 
-SonarStamp TimeKeeper::StampPing(std::int64_t utime_receive_host, std::int64_t utime_header,
+SonarStamp TimeKeeper::StampPing(std::int64_t utime_receive_host,
+                                 std::int64_t utime_header,
                                  std::int64_t age_at_send_us) {
     std::lock_guard<std::mutex> lock(mu_);
     SonarPingTimes t;
@@ -76,8 +77,8 @@ pitmap::clock_sync_t TimeKeeper::HostClockSync(std::int64_t utime_now) const {
 }
 
 pitmap::clock_sync_t TimeKeeper::SonarClockSync(std::int64_t utime_now) const {
-    return ToClockSync(SonarQuality(utime_now), pitmap::clock_sync_t::SOURCE_SONAR_HEADER,
-                       utime_now);
+    return ToClockSync(
+        SonarQuality(utime_now), pitmap::clock_sync_t::SOURCE_SONAR_HEADER, utime_now);
 }
 
 }  // namespace pitmap::acq

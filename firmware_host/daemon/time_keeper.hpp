@@ -23,7 +23,8 @@ public:
     bool AddPps(std::int64_t utime_host);
     GpsEstimate HostToGps(std::int64_t utime_host) const;
     // Stamps one 83P record: the receive time goes through the host model first.
-    SonarStamp StampPing(std::int64_t utime_receive_host, std::int64_t utime_header,
+    SonarStamp StampPing(std::int64_t utime_receive_host,
+                         std::int64_t utime_header,
                          std::int64_t age_at_send_us);
 
     ClockQuality HostQuality(std::int64_t utime_host_now) const;

@@ -20,12 +20,16 @@ std::int32_t Enum32(E e) {
 
 std::int8_t HeaderKindToLcm(novatel::HeaderKind kind) {
     switch (kind) {
-        case novatel::HeaderKind::kLongBinary: return pitmap::novatel_header_t::KIND_LONG_BINARY;
+        case novatel::HeaderKind::kLongBinary:
+            return pitmap::novatel_header_t::KIND_LONG_BINARY;
         case novatel::HeaderKind::kShortBinary:
             return pitmap::novatel_header_t::KIND_SHORT_BINARY;
-        case novatel::HeaderKind::kAscii: return pitmap::novatel_header_t::KIND_ASCII;
-        case novatel::HeaderKind::kShortAscii: return pitmap::novatel_header_t::KIND_SHORT_ASCII;
-        case novatel::HeaderKind::kAbbreviated: break;
+        case novatel::HeaderKind::kAscii:
+            return pitmap::novatel_header_t::KIND_ASCII;
+        case novatel::HeaderKind::kShortAscii:
+            return pitmap::novatel_header_t::KIND_SHORT_ASCII;
+        case novatel::HeaderKind::kAbbreviated:
+            break;
     }
     return 0;  // abbreviated responses have no header
 }
@@ -63,7 +67,9 @@ void FillCorrected(pitmap::imu_t& out,
     }
 }
 
-std::string StringFrom(std::string_view s) { return std::string(s.data(), s.size()); }
+std::string StringFrom(std::string_view s) {
+    return std::string(s.data(), s.size());
+}
 
 }  // namespace
 
@@ -74,8 +80,8 @@ pitmap::novatel_header_t ToLcm(const novatel::Header& h) {
     out.is_response = h.is_response ? 1 : 0;
     out.gps_week = h.gps_week;
     out.gps_ms = static_cast<std::int32_t>(h.gps_ms);
-    const bool full = h.kind == novatel::HeaderKind::kLongBinary ||
-                      h.kind == novatel::HeaderKind::kAscii;
+    const bool full =
+        h.kind == novatel::HeaderKind::kLongBinary || h.kind == novatel::HeaderKind::kAscii;
     if (full) {
         out.port = h.port_address;
         out.sequence = h.sequence;
@@ -271,7 +277,8 @@ pitmap::imu_t ToLcm(const novatel::CorrImuData& m, std::int64_t utime_host, doub
     out.utime_gps = m.utime_gps();
     out.header = ToLcm(m.header);
     out.sample_count = 1;
-    FillCorrected(out, m.delta_angle_rad, m.delta_velocity_mps, rate_hz > 0.0 ? 1.0 / rate_hz : kNaN);
+    FillCorrected(
+        out, m.delta_angle_rad, m.delta_velocity_mps, rate_hz > 0.0 ? 1.0 / rate_hz : kNaN);
     return out;
 }
 
@@ -475,9 +482,9 @@ pitmap::multibeam_ping_t ToLcm(const protocol::deltat::Ping83P& p,
     out.option_flags = p.option_flags;
     out.pings_averaged = p.pings_averaged;
     out.center_ping_offset_us = p.center_ping_offset_us;
-    out.internal_attitude_valid = static_cast<std::int8_t>(
-        (p.internal_pitch_valid ? 1 : 0) | (p.internal_roll_valid ? 2 : 0) |
-        (p.internal_heading_valid ? 4 : 0));
+    out.internal_attitude_valid = static_cast<std::int8_t>((p.internal_pitch_valid ? 1 : 0) |
+                                                           (p.internal_roll_valid ? 2 : 0) |
+                                                           (p.internal_heading_valid ? 4 : 0));
     out.internal_pitch_deg = static_cast<float>(p.internal_pitch_deg);
     out.internal_roll_deg = static_cast<float>(p.internal_roll_deg);
     out.internal_heading_deg = static_cast<float>(p.internal_heading_deg);
@@ -534,11 +541,14 @@ pitmap::raw_bytes_t MakeRawBytes(std::int64_t utime_host,
                                  std::int64_t seq,
                                  std::span<const std::byte> data,
                                  const RawBytesExtra& extra) {
-    return MakeRawBytes(
-        utime_host, source, protocol, transport, seq,
-        std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(data.data()),
-                                      data.size()),
-        extra);
+    return MakeRawBytes(utime_host,
+                        source,
+                        protocol,
+                        transport,
+                        seq,
+                        std::span<const std::uint8_t>(
+                            reinterpret_cast<const std::uint8_t*>(data.data()), data.size()),
+                        extra);
 }
 
 }  // namespace pitmap::acq

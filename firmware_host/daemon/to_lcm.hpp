@@ -108,9 +108,9 @@ pitmap::receiver_response_t ToLcm(const novatel::Response& m,
 
 // What a channel needs to turn IMU logs into rates.
 struct ImuContext {
-    std::int32_t imu_type = -1;   // IMU type enum for RAWIMU(S) (INSCONFIG or config); -1 unknown
-    double imu_rate_hz = 0.0;     // IMU data rate, Hz; 0 = the table's nominal rate / unknown
-    double corrimu_rate_hz = 0.0; // CORRIMUDATA(S) log rate, Hz; 0 = unknown (rates NaN)
+    std::int32_t imu_type = -1;    // IMU type enum for RAWIMU(S) (INSCONFIG or config); -1 unknown
+    double imu_rate_hz = 0.0;      // IMU data rate, Hz; 0 = the table's nominal rate / unknown
+    double corrimu_rate_hz = 0.0;  // CORRIMUDATA(S) log rate, Hz; 0 = unknown (rates NaN)
 };
 
 // One LCM message ready to publish: its channel and its encoded bytes.

@@ -139,7 +139,7 @@ UdpSource::UdpSource(UdpConfig config)
 }
 
 std::string UdpSource::description() const {
-    const std::string& address = !bound_address_.empty()        ? bound_address_
+    const std::string& address = !bound_address_.empty()         ? bound_address_
                                  : !config_.bind_address.empty() ? config_.bind_address
                                                                  : std::string("(auto)");
     return "udp " + address + ":" + std::to_string(config_.port);
@@ -280,8 +280,13 @@ Expected<ReadOutcome> UdpSource::Read(Chunk& chunk, int timeout_ms) {
     std::uint32_t rxq_ovfl = drops_seen_;
     long n;
     do {
-        n = detail::RecvWithTimestamp(fd_.get(), chunk.data.data(), chunk.data.size(),
-                                      chunk.utime_kernel, &from, &truncated, &rxq_ovfl);
+        n = detail::RecvWithTimestamp(fd_.get(),
+                                      chunk.data.data(),
+                                      chunk.data.size(),
+                                      chunk.utime_kernel,
+                                      &from,
+                                      &truncated,
+                                      &rxq_ovfl);
     } while (n < 0 && errno == EINTR);
     NoteDropCounter(rxq_ovfl);
     chunk.utime_host = HostNowUtime();
@@ -317,8 +322,12 @@ Status UdpSource::SendTo(std::span<const std::byte> bytes, const UdpEndpoint& to
     addr.sin_port = htons(to.port);
     long n;
     do {
-        n = ::sendto(fd_.get(), bytes.data(), bytes.size(), MSG_DONTWAIT,
-                     reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+        n = ::sendto(fd_.get(),
+                     bytes.data(),
+                     bytes.size(),
+                     MSG_DONTWAIT,
+                     reinterpret_cast<const sockaddr*>(&addr),
+                     sizeof(addr));
     } while (n < 0 && errno == EINTR);
     if (n < 0)
         return Fail(detail::ErrnoMessage(description() + ": sendto " + to.ToString(), errno));

@@ -112,8 +112,8 @@ private:
     UdpConfig config_;
     detail::UniqueFd fd_;
     Backoff backoff_;
-    std::vector<UdpEndpoint> allowed_;      // port 0 = any port
-    std::optional<UdpEndpoint> reply_;      // port 0 = learn it; nullopt = last sender
+    std::vector<UdpEndpoint> allowed_;  // port 0 = any port
+    std::optional<UdpEndpoint> reply_;  // port 0 = learn it; nullopt = last sender
     std::uint16_t reply_port_learned_ = 0;
     std::optional<UdpEndpoint> last_sender_;
     std::string bound_address_;
@@ -121,7 +121,7 @@ private:
     int granted_rcvbuf_ = 0;
     std::int64_t truncated_ = 0;
     std::int64_t foreign_ = 0;
-    std::uint32_t drops_seen_ = 0;          // the socket's drop counter already accounted
+    std::uint32_t drops_seen_ = 0;  // the socket's drop counter already accounted
 };
 
 }  // namespace pitmap::acq

@@ -54,7 +54,8 @@ int main(int argc, char** argv) try {
     geo->add_option("--out", out_dir, "products folder")->required();
     geo->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
     geo->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
-    geo->add_option("--sonar-clock-offset", sonar_clock_offset_s,
+    geo->add_option("--sonar-clock-offset",
+                    sonar_clock_offset_s,
                     ".83P files: seconds added to the topside clock to get GPS time")
         ->each([&](const std::string&) { offset_given = true; });
     auto* cal = app.add_subcommand("calibrate", "boresight calibration on a georeferenced folder");
@@ -102,7 +103,9 @@ int main(int argc, char** argv) try {
     if (auto problems = config.Validate(); !problems.empty()) {
         return Fail("invalid config:\n" + pitmap::FormatProblems(problems));
     }
-    const pp::Log log = [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); };
+    const pp::Log log = [](const std::string& m) {
+        std::fprintf(stderr, "pitmap: %s\n", m.c_str());
+    };
     if (info->parsed()) {
         auto text = pp::Info(inputs, config);
         if (!text) return Fail(text.error().message);
@@ -110,7 +113,8 @@ int main(int argc, char** argv) try {
         return 0;
     }
     if (geo->parsed()) {
-        if (auto s = pp::RunGeorefStage(inputs, out_dir, config, log); !s) return Fail(s.error().message);
+        if (auto s = pp::RunGeorefStage(inputs, out_dir, config, log); !s)
+            return Fail(s.error().message);
         return 0;
     }
     pitmap::Status status = pitmap::Ok{};

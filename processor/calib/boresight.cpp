@@ -281,7 +281,8 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
             if (step <= 0) break;
         }
-        if (std::any_of(res.candidates.begin(), res.candidates.end(),
+        if (std::any_of(res.candidates.begin(),
+                        res.candidates.end(),
                         [](const SegmentScore& c) { return c.low_drift; }) ||
             step <= 0) {
             break;

@@ -36,7 +36,9 @@ using openvdb::Coord;
 constexpr int kSlabVoxels = 64;  // multiple of LeafT::DIM (8)
 
 // floor(a / b) for b > 0.
-int FloorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+int FloorDiv(int a, int b) {
+    return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
 
 openvdb::FloatGrid::Ptr MakeGrid(float background, double voxel_size_m, const char* name) {
     auto grid = openvdb::FloatGrid::create(background);
@@ -54,12 +56,12 @@ struct PreparedBeam {
     float weight;          // f of one update (beam-width mode: f times the footprint support)
     std::int32_t x_lo;     // voxel x index range the beam can touch
     std::int32_t x_hi;
-    std::uint16_t beam;    // beam index
+    std::uint16_t beam;  // beam index
 };
 
 struct PreparedScan {
-    Eigen::Matrix3d R;        // R_world_sonar
-    Eigen::Vector3d p_vox;    // sonar position in voxel index units
+    Eigen::Matrix3d R;      // R_world_sonar
+    Eigen::Vector3d p_vox;  // sonar position in voxel index units
     std::vector<PreparedBeam> beams;
     std::int32_t x_lo = std::numeric_limits<std::int32_t>::max();
     std::int32_t x_hi = std::numeric_limits<std::int32_t>::min();
@@ -91,13 +93,18 @@ double SmallMedian(double* v, int n) {
 // NaN for invalid beams. Returns false when there is no range.
 struct FootprintRange {
     float range = 0;
-    float slope = 0;        // range change per beam of the inlier line
-    float gate = 0;         // inlier gate used
-    int support = 0;        // inliers
+    float slope = 0;           // range change per beam of the inlier line
+    float gate = 0;            // inlier gate used
+    int support = 0;           // inliers
     bool self_inlier = false;  // beam i itself is valid and an inlier
 };
-bool FitFootprint(const std::vector<float>& r, int i, int half, double gate_vox,
-                  double gate_fraction, double max_slope, FootprintRange& out) {
+bool FitFootprint(const std::vector<float>& r,
+                  int i,
+                  int half,
+                  double gate_vox,
+                  double gate_fraction,
+                  double max_slope,
+                  FootprintRange& out) {
     const int n = static_cast<int>(r.size());
     double ks[2 * kMaxFootprintHalf + 1];
     double rs[2 * kMaxFootprintHalf + 1];
@@ -176,8 +183,8 @@ public:
         const openvdb::Index off = LeafT::coordToOffset(ijk);
         const float w = wleaf_->getValue(off);  // 0 (background) when unobserved
         const float s = w > 0.0f ? dleaf_->getValue(off) : 0.0f;
-        dleaf_->setValueOn(off, (w * s + f * d) / (w + f));      // Eq. 5
-        wleaf_->setValueOn(off, std::min(w + f, w_max_));        // Eq. 6
+        dleaf_->setValueOn(off, (w * s + f * d) / (w + f));  // Eq. 5
+        wleaf_->setValueOn(off, std::min(w + f, w_max_));    // Eq. 6
         ++updates_;
     }
     std::int64_t updates() const { return updates_; }
@@ -208,8 +215,13 @@ struct Geometry {
 // and its neighbour on that side, and the update band is d = r - |v - p| in (-T, T].
 // Candidates are voxel centres inside a six-plane pyramid frustum that contains that set; each
 // is then tested exactly in the sensor's polar frame.
-void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, float theta,
-                        float increment, const Geometry& g, int x_min, int x_max,
+void IntegrateBeamWidth(const PreparedScan& scan,
+                        const PreparedBeam& beam,
+                        float theta,
+                        float increment,
+                        const Geometry& g,
+                        int x_min,
+                        int x_max,
                         VoxelUpdater& up) {
     const double r = beam.range_vox;
     const double r_prev = beam.range_prev_vox;  // NaN = no neighbour
@@ -422,8 +434,13 @@ void IntegrateBeamWidth(const PreparedScan& scan, const PreparedBeam& beam, floa
 
 // Ray mode: voxels traversed by the beam's centre ray between r - T and r + T (3-D DDA,
 // Amanatides & Woo 1987), each updated with d = r - |v - p|.
-void IntegrateRay(const PreparedScan& scan, const PreparedBeam& beam, float theta,
-                  const Geometry& g, int x_min, int x_max, VoxelUpdater& up) {
+void IntegrateRay(const PreparedScan& scan,
+                  const PreparedBeam& beam,
+                  float theta,
+                  const Geometry& g,
+                  int x_min,
+                  int x_max,
+                  VoxelUpdater& up) {
     const double r = beam.range_vox;
     const double T = g.trunc_vox;
     const Eigen::Vector3d u = scan.R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta));
@@ -501,13 +518,14 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
     }
     const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
     const double half_inc = 0.5 * inc;
-    const double spread = beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc)
-                                     : 0.0;
+    const double spread =
+        beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc) : 0.0;
     // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
-    const int half = inc > 1e-9 ? std::min(kMaxFootprintHalf,
-                                           static_cast<int>(std::floor(
-                                               0.5 * config.beam_width_rad / inc + 1e-6)))
-                                : 0;
+    const int half =
+        inc > 1e-9
+            ? std::min(kMaxFootprintHalf,
+                       static_cast<int>(std::floor(0.5 * config.beam_width_rad / inc + 1e-6)))
+            : 0;
     std::vector<float> fr;  // footprint ranges (beam-width mode)
     std::vector<int> support;
     std::vector<float> slope, gate;
@@ -521,8 +539,13 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
         const double max_slope = inc * std::tan(80.0 * 3.14159265358979323846 / 180.0);
         for (std::size_t i = 0; i < n; ++i) {
             FootprintRange fp;
-            if (!FitFootprint(r, static_cast<int>(i), half, gate_vox,
-                              config.footprint_gate_fraction, max_slope, fp)) {
+            if (!FitFootprint(r,
+                              static_cast<int>(i),
+                              half,
+                              gate_vox,
+                              config.footprint_gate_fraction,
+                              max_slope,
+                              fp)) {
                 continue;
             }
             fr[i] = fp.range;
@@ -620,8 +643,8 @@ std::vector<std::string> WeightFilterConfig::Validate() const {
 
 TsdfVolume::TsdfVolume(const TsdfConfig& config) : config_(config), impl_(new Impl) {
     openvdb::initialize();
-    impl_->distance = MakeGrid(static_cast<float>(config_.truncation_m), config_.voxel_size_m,
-                               "tsdf");
+    impl_->distance =
+        MakeGrid(static_cast<float>(config_.truncation_m), config_.voxel_size_m, "tsdf");
     impl_->weight = MakeGrid(0.0f, config_.voxel_size_m, "weight");
 }
 
@@ -635,12 +658,14 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     IntegrateResult result;
     result.scans = static_cast<std::int64_t>(scans.size());
     const double inv_s = 1.0 / config_.voxel_size_m;
-    const Geometry geo{config_.truncation_m * inv_s, std::tan(0.5 * config_.beam_width_rad),
-                       std::cos(0.5 * config_.beam_width_rad), config_.voxel_size_m};
+    const Geometry geo{config_.truncation_m * inv_s,
+                       std::tan(0.5 * config_.beam_width_rad),
+                       std::cos(0.5 * config_.beam_width_rad),
+                       config_.voxel_size_m};
     const bool beam_width = config_.sensor_model == SensorModel::kBeamWidth;
 
-    const int threads = config_.num_threads > 0 ? config_.num_threads
-                                                : tbb::this_task_arena::max_concurrency();
+    const int threads =
+        config_.num_threads > 0 ? config_.num_threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
 
     // 1. Prepare: valid beams (beam-width mode: footprint ranges) and the x range each can touch.
@@ -672,8 +697,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     }
     if (total_beams == 0) {
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
-        result.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() -
-                                                         t_start).count();
+        result.elapsed_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
         result.message = "no valid beams";
         return result;
     }
@@ -726,8 +751,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                     const float theta = scan.start_angle_rad +
                                         static_cast<float>(pb.beam) * scan.angle_increment_rad;
                     if (beam_width) {
-                        IntegrateBeamWidth(ps, pb, theta, scan.angle_increment_rad, geo, sx0, sx1,
-                                           up);
+                        IntegrateBeamWidth(
+                            ps, pb, theta, scan.angle_increment_rad, geo, sx0, sx1, up);
                     } else {
                         IntegrateRay(ps, pb, theta, geo, sx0, sx1, up);
                     }
@@ -745,11 +770,12 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     };
 
     arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<int>(0, num_slabs, 1),
-                          [&](const tbb::blocked_range<int>& range) {
-                              for (int k = range.begin(); k != range.end(); ++k) run_slab(k);
-                          },
-                          tbb::simple_partitioner());
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, num_slabs, 1),
+            [&](const tbb::blocked_range<int>& range) {
+                for (int k = range.begin(); k != range.end(); ++k) run_slab(k);
+            },
+            tbb::simple_partitioner());
     });
 
     // 4. Rebuild the global trees: untouched old leaves plus every slab's leaves.
@@ -912,8 +938,8 @@ VolumeStats TsdfVolume::Stats() const {
     VolumeStats s;
     s.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
     s.leaf_nodes = static_cast<std::int64_t>(impl_->weight->tree().leafCount());
-    s.memory_bytes = static_cast<std::size_t>(impl_->distance->memUsage() +
-                                              impl_->weight->memUsage());
+    s.memory_bytes =
+        static_cast<std::size_t>(impl_->distance->memUsage() + impl_->weight->memUsage());
     bool first = true;
     for (auto v = impl_->weight->tree().cbeginValueOn(); v; ++v) {
         s.min_weight = first ? *v : std::min(s.min_weight, *v);

@@ -35,11 +35,11 @@ namespace pitmap::proc::fusion {
 
 // One multibeam ping, already georeferenced.
 struct SonarScan {
-    double gps_time_s = 0;               // GPS time of the ping (only for diagnostics)
+    double gps_time_s = 0;  // GPS time of the ping (only for diagnostics)
     Eigen::Isometry3d T_world_sonar = Eigen::Isometry3d::Identity();  // sonar -> world (ENU)
-    float start_angle_rad = 0;           // angle of beam 0 from nadir, positive to starboard
-    float angle_increment_rad = 0;       // angle between consecutive beams
-    std::vector<float> ranges_m;         // slant range per beam; 0 or NaN = no detection
+    float start_angle_rad = 0;      // angle of beam 0 from nadir, positive to starboard
+    float angle_increment_rad = 0;  // angle between consecutive beams
+    std::vector<float> ranges_m;    // slant range per beam; 0 or NaN = no detection
 };
 
 enum class SensorModel : std::uint8_t {
@@ -48,20 +48,20 @@ enum class SensorModel : std::uint8_t {
 };
 
 struct TsdfConfig {
-    double voxel_size_m = 0.10;         // edge length of a voxel
-    double truncation_m = 1.5;          // |d| band: voxels with d in (-T, T] are updated
+    double voxel_size_m = 0.10;           // edge length of a voxel
+    double truncation_m = 1.5;            // |d| band: voxels with d in (-T, T] are updated
     float weight_per_measurement = 1.0f;  // f in Eq. 5-6 (uniform weights)
-    float max_weight = 20.0f;           // w_max in Eq. 6
+    float max_weight = 20.0f;             // w_max in Eq. 6
     SensorModel sensor_model = SensorModel::kBeamWidth;
     double beam_width_rad = 1.5 * 3.14159265358979323846 / 180.0;  // full out-of-plane width
-    double min_range_m = 0.3;           // ranges below are not detections (counted)
-    double max_range_m = 120.0;         // ranges above are not detections (counted)
+    double min_range_m = 0.3;    // ranges below are not detections (counted)
+    double max_range_m = 120.0;  // ranges above are not detections (counted)
     // Beam-width mode: the beams of one footprint (those whose axes lie within beam_width / 2
     // of a beam's axis) agree with the footprint's robust range line within
     // footprint_gate_m + footprint_gate_fraction * range; the others are outliers (counted).
     double footprint_gate_m = 0.15;
     double footprint_gate_fraction = 0.01;
-    int num_threads = 0;                // 0 = all cores (TBB default)
+    int num_threads = 0;  // 0 = all cores (TBB default)
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
@@ -74,18 +74,18 @@ struct TsdfConfig {
 inline constexpr double kMaxSonarOffsetM = 100'000.0;
 
 struct IntegrateResult {
-    std::int64_t scans = 0;             // scans given
+    std::int64_t scans = 0;                // scans given
     std::int64_t scans_out_of_bounds = 0;  // pose non-finite or beyond kMaxSonarOffsetM; their
                                            // beams are not integrated (nor counted below)
-    std::int64_t beams_used = 0;        // beams with a valid range that were integrated
-    std::int64_t beams_no_detection = 0;  // 0 or NaN range
-    std::int64_t beams_out_of_range = 0;  // outside [min_range_m, max_range_m] or negative
-    std::int64_t beams_inconsistent = 0;  // beam-width mode: valid beams outvoted by their
-                                          // footprint (coarse outliers; not integrated)
-    std::int64_t voxel_updates = 0;     // (voxel, measurement) updates applied
-    std::int64_t active_voxels = 0;     // active voxels of the volume afterwards
-    double elapsed_s = 0;               // wall time of the call
-    bool cancelled = false;             // the progress callback asked to stop
+    std::int64_t beams_used = 0;           // beams with a valid range that were integrated
+    std::int64_t beams_no_detection = 0;   // 0 or NaN range
+    std::int64_t beams_out_of_range = 0;   // outside [min_range_m, max_range_m] or negative
+    std::int64_t beams_inconsistent = 0;   // beam-width mode: valid beams outvoted by their
+                                           // footprint (coarse outliers; not integrated)
+    std::int64_t voxel_updates = 0;        // (voxel, measurement) updates applied
+    std::int64_t active_voxels = 0;        // active voxels of the volume afterwards
+    double elapsed_s = 0;                  // wall time of the call
+    bool cancelled = false;                // the progress callback asked to stop
     std::string message;
 };
 
@@ -100,7 +100,7 @@ struct WeightFilterConfig {
 
 struct WeightFilterResult {
     std::int64_t voxels_before = 0;
-    std::int64_t voxels_removed = 0;    // weight < min_weight
+    std::int64_t voxels_removed = 0;  // weight < min_weight
     std::int64_t voxels_after = 0;
     std::string message;
 };
@@ -113,7 +113,7 @@ struct TriangleMesh {
 
 struct IsoSurfaceResult {
     TriangleMesh mesh;
-    std::int64_t polygons_raw = 0;       // polygons from volume-to-mesh (quads count once)
+    std::int64_t polygons_raw = 0;         // polygons from volume-to-mesh (quads count once)
     std::int64_t polygons_unobserved = 0;  // dropped: sign change only against unobserved voxels
     std::string message;
 };
@@ -122,7 +122,7 @@ struct IsoSurfaceResult {
 struct VolumeStats {
     std::int64_t active_voxels = 0;
     std::int64_t leaf_nodes = 0;
-    std::size_t memory_bytes = 0;        // both grids
+    std::size_t memory_bytes = 0;  // both grids
     float min_weight = 0;
     float max_weight = 0;
 };

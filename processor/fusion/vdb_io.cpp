@@ -143,7 +143,8 @@ Status CheckGridMetadata(openvdb::io::File& file, const std::string& path) {
 
 }  // namespace
 
-Status WriteVdb(const TsdfVolume& volume, const std::string& path,
+Status WriteVdb(const TsdfVolume& volume,
+                const std::string& path,
                 const std::vector<std::pair<std::string, std::string>>& metadata) {
     try {
         openvdb::initialize();
@@ -176,7 +177,8 @@ Expected<VdbFileInfo> ReadVdbInfo(const std::string& path) {
         }
         openvdb::GridPtrVecPtr grids = file.getGrids();
         for (const openvdb::GridBase::Ptr& g : *grids) {
-            info.grids.push_back({g->getName(), static_cast<std::int64_t>(g->activeVoxelCount()),
+            info.grids.push_back({g->getName(),
+                                  static_cast<std::int64_t>(g->activeVoxelCount()),
                                   g->voxelSize()[0]});
         }
         file.close();
@@ -205,13 +207,15 @@ Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config) 
         return Error{path + ": cannot read VDB: " + e.what()};
     }
     if (!distance || !weight) {
-        return Error{path + ": not a pitmap TSDF volume (needs float grids \"tsdf\" and "
-                            "\"weight\")"};
+        return Error{path +
+                     ": not a pitmap TSDF volume (needs float grids \"tsdf\" and "
+                     "\"weight\")"};
     }
     const openvdb::math::Transform& xf = distance->transform();
     if (!xf.isLinear() || !xf.hasUniformScale() || !(xf == weight->transform())) {
-        return Error{path + ": grids \"tsdf\" and \"weight\" must share one uniform, linear "
-                            "transform"};
+        return Error{path +
+                     ": grids \"tsdf\" and \"weight\" must share one uniform, linear "
+                     "transform"};
     }
     // A pure uniform scale maps voxel (0,0,0) to the world origin and has no rotation.
     const openvdb::Vec3d voxel = xf.voxelSize();

@@ -33,7 +33,8 @@ struct VdbFileInfo {
 
 // Writes both grids, with the file metadata given as key/value strings (e.g. the world
 // origin). Fails (no throw) when the file cannot be written.
-Status WriteVdb(const TsdfVolume& volume, const std::string& path,
+Status WriteVdb(const TsdfVolume& volume,
+                const std::string& path,
                 const std::vector<std::pair<std::string, std::string>>& metadata = {});
 
 // Opens a .vdb file written by WriteVdb (trailer verified) and lists its grids with their

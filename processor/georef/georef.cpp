@@ -19,7 +19,9 @@ Eigen::Matrix3d SonarMount::R_vehicle_sonar() const {
                                       frames::DegToRad(boresight_yaw_deg));
 }
 
-Pose SonarMount::T_vehicle_sonar() const { return MakePose(R_vehicle_sonar(), lever_arm_m); }
+Pose SonarMount::T_vehicle_sonar() const {
+    return MakePose(R_vehicle_sonar(), lever_arm_m);
+}
 
 std::vector<std::string> GeorefConfig::Validate() const {
     std::vector<std::string> p;
@@ -71,7 +73,10 @@ Eigen::Vector3d BeamVectorSonar(double range_m, double angle_rad, double tilt_ra
     return Eigen::Vector3d(c * v.x() + s * v.z(), v.y(), -s * v.x() + c * v.z());
 }
 
-int SpikeFilter(const std::vector<double>& r, int half_window, double abs_m, double rel,
+int SpikeFilter(const std::vector<double>& r,
+                int half_window,
+                double abs_m,
+                double rel,
                 std::vector<char>& keep) {
     const int n = static_cast<int>(r.size());
     keep.assign(r.size(), 1);
@@ -106,8 +111,11 @@ struct PingWork {
 
 }  // namespace
 
-GeorefResult RunGeoref(const NavSeries& nav, const PingSeries& series, const SonarMount& mount,
-                       const GeorefConfig& config, std::optional<Geodetic> origin,
+GeorefResult RunGeoref(const NavSeries& nav,
+                       const PingSeries& series,
+                       const SonarMount& mount,
+                       const GeorefConfig& config,
+                       std::optional<Geodetic> origin,
                        const ProgressCallback& progress) {
     GeorefResult result;
     result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
@@ -131,9 +139,8 @@ GeorefResult RunGeoref(const NavSeries& nav, const PingSeries& series, const Son
 
     std::unique_ptr<tbb::global_control> limit;
     if (config.num_threads > 0) {
-        limit = std::make_unique<tbb::global_control>(
-            tbb::global_control::max_allowed_parallelism,
-            static_cast<std::size_t>(config.num_threads));
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      static_cast<std::size_t>(config.num_threads));
     }
     std::atomic<std::size_t> done{0};
     std::atomic<bool> cancel{false};
@@ -187,13 +194,12 @@ GeorefResult RunGeoref(const NavSeries& nav, const PingSeries& series, const Son
                 }
                 r[i] = range;
             }
-            w.spikes = SpikeFilter(r, config.spike_half_window, config.spike_abs_m,
-                                   config.spike_rel, keep);
+            w.spikes = SpikeFilter(
+                r, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
             for (std::size_t i = 0; i < h.num_beams; ++i) {
                 if (!(r[i] > 0) || !keep[i]) continue;
-                const double theta =
-                    frames::DegToRad(h.start_angle_deg + static_cast<double>(i) *
-                                                             h.angle_increment_deg);
+                const double theta = frames::DegToRad(
+                    h.start_angle_deg + static_cast<double>(i) * h.angle_increment_deg);
                 const std::size_t j = h.beam_offset + i;
                 pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, w.ping.profile_tilt_rad);
                 rng[j] = static_cast<float>(r[i]);
@@ -263,9 +269,9 @@ void Regeoreference(GeorefResult& result, const SonarMount& mount) {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 4096), [&](const auto& b) {
         for (std::size_t j = b.begin(); j != b.end(); ++j) {
             const GeorefPing& ping = result.pings[P.ping[j]];
-            P.position_world[j] = ping.T_world_vehicle * T_vehicle_sonar *
-                                  BeamVectorSonar(P.range_m[j], P.angle_rad[j],
-                                                  ping.profile_tilt_rad);
+            P.position_world[j] =
+                ping.T_world_vehicle * T_vehicle_sonar *
+                BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad);
         }
     });
     for (GeorefPing& ping : result.pings) {
@@ -304,7 +310,8 @@ Expected<UtmPoints> ToUtm(const GeorefResult& result) {
         const GeorefPing& ping = result.pings[P.ping[j]];
         const Eigen::Vector3d d = P.position_world[j] - ping.sensor_world;
         const Eigen::Vector2d en = J * d.head<2>();
-        out.easting_northing_height[j] = sensor_utm[P.ping[j]] + Eigen::Vector3d(en.x(), en.y(), d.z());
+        out.easting_northing_height[j] =
+            sensor_utm[P.ping[j]] + Eigen::Vector3d(en.x(), en.y(), d.z());
     }
     return out;
 }

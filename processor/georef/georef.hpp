@@ -32,7 +32,7 @@ namespace pitmap::proc::georef {
 // The sonar's mounting on the vehicle.
 struct SonarMount {
     Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();  // vehicle FRD, from INS ref point
-    double boresight_roll_deg = 0;   // R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll)
+    double boresight_roll_deg = 0;  // R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll)
     double boresight_pitch_deg = 0;
     double boresight_yaw_deg = 0;
     Eigen::Matrix3d R_vehicle_sonar() const;
@@ -71,10 +71,10 @@ private:
 // Georeferenced soundings (struct of arrays, one entry per kept sounding).
 struct GeorefPoints {
     std::vector<Eigen::Vector3d> position_world;  // ENU metres at the world origin
-    std::vector<std::uint32_t> ping;               // index into GeorefResult::pings
-    std::vector<std::uint16_t> beam;               // beam number in its ping
-    std::vector<float> range_m;                    // slant range used
-    std::vector<float> angle_rad;                  // beam angle theta (sonar frame)
+    std::vector<std::uint32_t> ping;              // index into GeorefResult::pings
+    std::vector<std::uint16_t> beam;              // beam number in its ping
+    std::vector<float> range_m;                   // slant range used
+    std::vector<float> angle_rad;                 // beam angle theta (sonar frame)
     std::size_t size() const { return position_world.size(); }
 };
 
@@ -82,18 +82,18 @@ struct GeorefPoints {
 struct GeorefPing {
     std::int64_t utime_gps = 0;
     std::int64_t ping_number = 0;
-    std::uint32_t header_index = 0;       // index into the input PingSeries
+    std::uint32_t header_index = 0;  // index into the input PingSeries
     Pose T_world_vehicle;
     Eigen::Vector3d sensor_world = Eigen::Vector3d::Zero();  // transducer position
-    double profile_tilt_rad = 0;          // applied tilt
+    double profile_tilt_rad = 0;                             // applied tilt
 };
 
 struct GeorefCounts {
     std::int64_t pings_in = 0;
     std::int64_t pings_georeferenced = 0;
-    std::int64_t pings_outside_nav = 0;   // before the first or after the last INS sample
-    std::int64_t pings_in_nav_gap = 0;    // bracketing samples further apart than max_nav_gap_s
-    std::int64_t pings_bad_header = 0;    // zero resolution, NaN angles
+    std::int64_t pings_outside_nav = 0;  // before the first or after the last INS sample
+    std::int64_t pings_in_nav_gap = 0;   // bracketing samples further apart than max_nav_gap_s
+    std::int64_t pings_bad_header = 0;   // zero resolution, NaN angles
     std::int64_t soundings_in = 0;
     std::int64_t no_detection = 0;
     std::int64_t range_gate = 0;
@@ -115,13 +115,19 @@ Eigen::Vector3d BeamVectorSonar(double range_m, double angle_rad, double tilt_ra
 
 // Median spike filter over one ping's ranges (metres, <= 0 = invalid). Sets keep[i] = false for
 // spikes; returns their number.
-int SpikeFilter(const std::vector<double>& range_m, int half_window, double abs_m, double rel,
+int SpikeFilter(const std::vector<double>& range_m,
+                int half_window,
+                double abs_m,
+                double rel,
                 std::vector<char>& keep);
 
 // Georeferences every ping. `origin`: world frame origin; nullopt = the first INS position.
 // Preconditions: config.Validate() is empty.
-GeorefResult RunGeoref(const NavSeries& nav, const PingSeries& pings, const SonarMount& mount,
-                       const GeorefConfig& config, std::optional<Geodetic> origin = std::nullopt,
+GeorefResult RunGeoref(const NavSeries& nav,
+                       const PingSeries& pings,
+                       const SonarMount& mount,
+                       const GeorefConfig& config,
+                       std::optional<Geodetic> origin = std::nullopt,
                        const ProgressCallback& progress = {});
 
 // Re-applies a mount (boresight) to already georeferenced soundings, in place; the pings keep

@@ -30,7 +30,8 @@ void SortAndDeduplicate(PingSeries& s) {
         if (!out.pings.empty() && out.pings.back().utime_gps == h.utime_gps) continue;
         PingHeader c = h;
         c.beam_offset = static_cast<std::uint32_t>(out.range_counts.size());
-        out.range_counts.insert(out.range_counts.end(), s.range_counts.begin() + h.beam_offset,
+        out.range_counts.insert(out.range_counts.end(),
+                                s.range_counts.begin() + h.beam_offset,
                                 s.range_counts.begin() + h.beam_offset + h.num_beams);
         out.pings.push_back(c);
     }

@@ -20,11 +20,11 @@ inline constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 // One INS solution (INSPVA/INSPVAS/INSPVAX) at the INS reference point.
 struct NavSample {
     std::int64_t utime_gps = 0;
-    Geodetic position;                                      // ellipsoidal height
-    double roll_rad = 0, pitch_rad = 0, yaw_rad = 0;        // R_ned_vehicle angles
+    Geodetic position;                                // ellipsoidal height
+    double roll_rad = 0, pitch_rad = 0, yaw_rad = 0;  // R_ned_vehicle angles
     Eigen::Vector3d velocity_enu_mps = Eigen::Vector3d::Zero();
-    std::int32_t ins_status = -1;                           // NovAtel INS status enum
-    std::int32_t position_type = -1;                        // NovAtel position type, -1 if none
+    std::int32_t ins_status = -1;     // NovAtel INS status enum
+    std::int32_t position_type = -1;  // NovAtel position type, -1 if none
 };
 
 // INS standard deviations (INSSTDEV, or the ones INSPVAX carries), 1 sigma.
@@ -44,15 +44,15 @@ struct NavSeries {
 
 // The 83P header fields the processing needs (all of one ping, without the beams).
 struct PingHeader {
-    std::int64_t utime_gps = 0;          // transmit time
+    std::int64_t utime_gps = 0;  // transmit time
     std::int64_t ping_number = 0;
-    double sound_speed_mps = 1500.0;     // header value (1500 when not set)
+    double sound_speed_mps = 1500.0;  // header value (1500 when not set)
     bool sound_speed_valid = false;
-    double range_resolution_m = 0;       // metres per range count
-    double start_angle_deg = 0;          // beam 0, from nadir, positive to starboard
+    double range_resolution_m = 0;  // metres per range count
+    double start_angle_deg = 0;     // beam 0, from nadir, positive to starboard
     double angle_increment_deg = 0;
-    double profile_tilt_deg = 0;         // fore/aft fan tilt
-    std::uint32_t beam_offset = 0;       // first beam in PingSeries::range_counts
+    double profile_tilt_deg = 0;    // fore/aft fan tilt
+    std::uint32_t beam_offset = 0;  // first beam in PingSeries::range_counts
     std::uint16_t num_beams = 0;
 };
 

@@ -34,24 +34,32 @@ using georef::PingHeader;
 
 const char* ToString(IngestSource s) {
     switch (s) {
-        case IngestSource::kAuto: return "auto";
-        case IngestSource::kDecoded: return "decoded";
-        case IngestSource::kRaw: return "raw";
+        case IngestSource::kAuto:
+            return "auto";
+        case IngestSource::kDecoded:
+            return "decoded";
+        case IngestSource::kRaw:
+            return "raw";
     }
     return "auto";
 }
 
 bool ParseIngestSource(const std::string& t, IngestSource& out) {
-    if (t == "auto") out = IngestSource::kAuto;
-    else if (t == "decoded") out = IngestSource::kDecoded;
-    else if (t == "raw") out = IngestSource::kRaw;
-    else return false;
+    if (t == "auto")
+        out = IngestSource::kAuto;
+    else if (t == "decoded")
+        out = IngestSource::kDecoded;
+    else if (t == "raw")
+        out = IngestSource::kRaw;
+    else
+        return false;
     return true;
 }
 
 std::vector<std::string> IngestConfig::Validate() const {
     std::vector<std::string> p;
-    if (!std::isfinite(sonar_clock_offset_s)) p.push_back("ingest.sonar_clock_offset_s must be finite");
+    if (!std::isfinite(sonar_clock_offset_s))
+        p.push_back("ingest.sonar_clock_offset_s must be finite");
     for (const std::string* id : {&nav_channel_id, &sonar_channel_id}) {
         for (char c : *id) {
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
@@ -80,8 +88,17 @@ bool Matches(std::string_view channel, std::string_view prefix, const std::strin
     return want_upper.empty() || channel.substr(prefix.size()) == want_upper;
 }
 
-NavSample FromPva(std::int64_t utime_gps, double lat, double lon, double h, double vn, double ve,
-                  double vu, double roll_deg, double pitch_deg, double azimuth_deg, int status,
+NavSample FromPva(std::int64_t utime_gps,
+                  double lat,
+                  double lon,
+                  double h,
+                  double vn,
+                  double ve,
+                  double vu,
+                  double roll_deg,
+                  double pitch_deg,
+                  double azimuth_deg,
+                  int status,
                   int position_type) {
     NavSample s;
     s.utime_gps = utime_gps;
@@ -146,7 +163,8 @@ public:
         h.beam_offset = static_cast<std::uint32_t>(r_.pings.range_counts.size());
         h.num_beams = static_cast<std::uint16_t>(n);
         for (std::size_t i = 0; i < n; ++i) {
-            r_.pings.range_counts.push_back(counts[i] > 0 ? static_cast<std::uint32_t>(counts[i]) : 0u);
+            r_.pings.range_counts.push_back(counts[i] > 0 ? static_cast<std::uint32_t>(counts[i])
+                                                          : 0u);
         }
         r_.pings.pings.push_back(h);
     }
@@ -170,22 +188,45 @@ public:
             [&](const auto& m) {
                 using T = std::decay_t<decltype(m)>;
                 if constexpr (std::is_same_v<T, nv::InsPva>) {
-                    AddNav(FromPva(m.utime_gps(), m.latitude_deg, m.longitude_deg,
-                                   m.height_ellipsoid_m, m.velocity_north_mps, m.velocity_east_mps,
-                                   m.velocity_up_mps, m.roll_deg, m.pitch_deg, m.azimuth_deg,
-                                   static_cast<int>(m.ins_status), -1));
+                    AddNav(FromPva(m.utime_gps(),
+                                   m.latitude_deg,
+                                   m.longitude_deg,
+                                   m.height_ellipsoid_m,
+                                   m.velocity_north_mps,
+                                   m.velocity_east_mps,
+                                   m.velocity_up_mps,
+                                   m.roll_deg,
+                                   m.pitch_deg,
+                                   m.azimuth_deg,
+                                   static_cast<int>(m.ins_status),
+                                   -1));
                 } else if constexpr (std::is_same_v<T, nv::InsPvaX>) {
-                    AddNav(FromPva(m.utime_gps(), m.latitude_deg, m.longitude_deg,
-                                   m.height_msl_m + m.undulation_m, m.velocity_north_mps,
-                                   m.velocity_east_mps, m.velocity_up_mps, m.roll_deg, m.pitch_deg,
-                                   m.azimuth_deg, static_cast<int>(m.ins_status),
+                    AddNav(FromPva(m.utime_gps(),
+                                   m.latitude_deg,
+                                   m.longitude_deg,
+                                   m.height_msl_m + m.undulation_m,
+                                   m.velocity_north_mps,
+                                   m.velocity_east_mps,
+                                   m.velocity_up_mps,
+                                   m.roll_deg,
+                                   m.pitch_deg,
+                                   m.azimuth_deg,
+                                   static_cast<int>(m.ins_status),
                                    static_cast<int>(m.position_type)));
-                    AddStdDev({m.utime_gps(), m.latitude_stddev_m, m.longitude_stddev_m,
-                               m.height_stddev_m, m.roll_stddev_deg, m.pitch_stddev_deg,
+                    AddStdDev({m.utime_gps(),
+                               m.latitude_stddev_m,
+                               m.longitude_stddev_m,
+                               m.height_stddev_m,
+                               m.roll_stddev_deg,
+                               m.pitch_stddev_deg,
                                m.azimuth_stddev_deg});
                 } else if constexpr (std::is_same_v<T, nv::InsStdDev>) {
-                    AddStdDev({m.utime_gps(), m.latitude_stddev_m, m.longitude_stddev_m,
-                               m.height_stddev_m, m.roll_stddev_deg, m.pitch_stddev_deg,
+                    AddStdDev({m.utime_gps(),
+                               m.latitude_stddev_m,
+                               m.longitude_stddev_m,
+                               m.height_stddev_m,
+                               m.roll_stddev_deg,
+                               m.pitch_stddev_deg,
                                m.azimuth_stddev_deg});
                 } else if constexpr (std::is_same_v<T, nv::Time>) {
                     AddLeapSeconds(m.utc_offset_s, static_cast<int>(m.utc_status));
@@ -222,8 +263,8 @@ void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
     }
 }
 
-void DrainDeltat(RawStream& s, Collector& col, IngestCounts& counts, std::int64_t utime_gps,
-                 dt::Ping83P& ping) {
+void DrainDeltat(
+    RawStream& s, Collector& col, IngestCounts& counts, std::int64_t utime_gps, dt::Ping83P& ping) {
     while (true) {
         auto ev = s.deltat->Next();
         if (std::holds_alternative<protocol::NeedMore>(ev)) break;
@@ -249,10 +290,17 @@ struct Pass {
     bool raw_sonar = false;
 };
 
-Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& config, bool want_decoded,
-                bool want_raw_nav, bool want_raw_sonar, IngestResult& r, Pass& seen,
-                const ProgressCallback& progress, std::uint64_t total_bytes,
-                std::uint64_t& bytes_done, bool count_files) {
+Status ReadLogs(const std::vector<std::string>& paths,
+                const IngestConfig& config,
+                bool want_decoded,
+                bool want_raw_nav,
+                bool want_raw_sonar,
+                IngestResult& r,
+                Pass& seen,
+                const ProgressCallback& progress,
+                std::uint64_t total_bytes,
+                std::uint64_t& bytes_done,
+                bool count_files) {
     Collector col(config, r);
     const std::string nav_id = Upper(config.nav_channel_id);
     const std::string sonar_id = Upper(config.sonar_channel_id);
@@ -292,14 +340,25 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                     ++c.decode_failures;
                     continue;
                 }
-                col.AddNav(FromPva(pva.utime_gps, pva.latitude_deg, pva.longitude_deg,
-                                   pva.height_ellipsoid_m, pva.velocity_north_mps,
-                                   pva.velocity_east_mps, pva.velocity_up_mps, pva.roll_deg,
-                                   pva.pitch_deg, pva.azimuth_deg, pva.ins_status,
+                col.AddNav(FromPva(pva.utime_gps,
+                                   pva.latitude_deg,
+                                   pva.longitude_deg,
+                                   pva.height_ellipsoid_m,
+                                   pva.velocity_north_mps,
+                                   pva.velocity_east_mps,
+                                   pva.velocity_up_mps,
+                                   pva.roll_deg,
+                                   pva.pitch_deg,
+                                   pva.azimuth_deg,
+                                   pva.ins_status,
                                    pva.position_type));
                 if (pva.has_stddev) {
-                    col.AddStdDev({pva.utime_gps, pva.latitude_stddev_m, pva.longitude_stddev_m,
-                                   pva.height_stddev_m, pva.roll_stddev_deg, pva.pitch_stddev_deg,
+                    col.AddStdDev({pva.utime_gps,
+                                   pva.latitude_stddev_m,
+                                   pva.longitude_stddev_m,
+                                   pva.height_stddev_m,
+                                   pva.roll_stddev_deg,
+                                   pva.pitch_stddev_deg,
                                    pva.azimuth_stddev_deg});
                 }
             } else if (Matches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
@@ -308,8 +367,12 @@ Status ReadLogs(const std::vector<std::string>& paths, const IngestConfig& confi
                     ++c.decode_failures;
                     continue;
                 }
-                col.AddStdDev({sd.utime_gps, sd.latitude_stddev_m, sd.longitude_stddev_m,
-                               sd.height_stddev_m, sd.roll_stddev_deg, sd.pitch_stddev_deg,
+                col.AddStdDev({sd.utime_gps,
+                               sd.latitude_stddev_m,
+                               sd.longitude_stddev_m,
+                               sd.height_stddev_m,
+                               sd.roll_stddev_deg,
+                               sd.pitch_stddev_deg,
                                sd.azimuth_stddev_deg});
             } else if (StartsWith(ch, lcmlog::kChannelGpsTime)) {
                 if (!want_decoded) continue;
@@ -478,7 +541,8 @@ IngestCounts& IngestCounts::operator+=(const IngestCounts& o) {
 }
 
 Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
-                                     const IngestConfig& config, const ProgressCallback& progress) {
+                                     const IngestConfig& config,
+                                     const ProgressCallback& progress) {
     if (paths.empty()) return Error{"no log files given"};
     std::uint64_t total = 0;
     for (const auto& p : paths) {
@@ -492,7 +556,8 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
     IngestResult r;
     Pass seen;
     std::uint64_t done = 0;
-    if (auto s = ReadLogs(paths, config, !raw, raw, raw, r, seen, progress, total, done, true); !s) {
+    if (auto s = ReadLogs(paths, config, !raw, raw, raw, r, seen, progress, total, done, true);
+        !s) {
         return s.error();
     }
     r.nav_from_raw = raw;
@@ -504,8 +569,17 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
             IngestResult extra;
             Pass seen2;
             std::uint64_t done2 = 0;
-            if (auto s = ReadLogs(paths, config, false, need_nav, need_sonar, extra, seen2, {},
-                                  total, done2, false);
+            if (auto s = ReadLogs(paths,
+                                  config,
+                                  false,
+                                  need_nav,
+                                  need_sonar,
+                                  extra,
+                                  seen2,
+                                  {},
+                                  total,
+                                  done2,
+                                  false);
                 !s) {
                 return s.error();
             }
@@ -565,8 +639,10 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
     return r;
 }
 
-Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig& config,
-                      int leap_seconds, IngestResult& into) {
+Status Ingest83PFiles(const std::vector<std::string>& paths,
+                      const IngestConfig& config,
+                      int leap_seconds,
+                      IngestResult& into) {
     Collector col(config, into);
     dt::Ping83P ping;
     for (const std::string& path : paths) {
@@ -583,7 +659,8 @@ Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig&
                     into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
                     continue;
                 }
-                auto d = dt::DecodeRecord83PInto(std::get<dt::Record>(ev).bytes, s.float_order, ping);
+                auto d =
+                    dt::DecodeRecord83PInto(std::get<dt::Record>(ev).bytes, s.float_order, ping);
                 if (std::holds_alternative<dt::DecodeError>(d)) {
                     ++into.counts.pings_bad;
                     continue;
@@ -625,7 +702,8 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
             for (const auto& e : fs::directory_iterator(in, ec)) {
                 if (!e.is_regular_file()) continue;
                 std::string ext = e.path().extension().string();
-                for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+                for (char& ch : ext)
+                    ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
                 if (ext == ".lcmlog" || ext == ".83p" || ext == ".gps" || ext == ".asc" ||
                     ext == ".bin") {
                     files.push_back(e.path().string());
@@ -633,7 +711,8 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
             }
             if (ec) return Error{in + ": cannot list: " + ec.message()};
             std::sort(files.begin(), files.end());
-            if (files.empty()) return Error{in + ": no .lcmlog, .83P or NovAtel files in this folder"};
+            if (files.empty())
+                return Error{in + ": no .lcmlog, .83P or NovAtel files in this folder"};
             out.insert(out.end(), files.begin(), files.end());
         } else if (fs::is_regular_file(in, ec)) {
             out.push_back(in);
@@ -645,13 +724,20 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
 }
 
 Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
-                                   const IngestConfig& config, const ProgressCallback& progress) {
+                                   const IngestConfig& config,
+                                   const ProgressCallback& progress) {
     std::vector<std::string> lcm, p83, novatel, skipped;
     for (const auto& f : files) {
         switch (Sniff(f)) {
-            case FileKind::kLcm: lcm.push_back(f); break;
-            case FileKind::k83P: p83.push_back(f); break;
-            case FileKind::kNovatel: novatel.push_back(f); break;
+            case FileKind::kLcm:
+                lcm.push_back(f);
+                break;
+            case FileKind::k83P:
+                p83.push_back(f);
+                break;
+            case FileKind::kNovatel:
+                novatel.push_back(f);
+                break;
             case FileKind::kUnknown:
                 // An empty segment (e.g. created while the disk was full) holds nothing to
                 // lose: it is skipped and said so, and the other files are read.

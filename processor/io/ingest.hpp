@@ -33,8 +33,8 @@ bool ParseIngestSource(const std::string& text, IngestSource& out);
 
 struct IngestConfig {
     IngestSource source = IngestSource::kAuto;  // decoded channels, raw re-decoding, or auto
-    std::string nav_channel_id;     // channel id (e.g. "novatel_com1"); "" = every INS channel
-    std::string sonar_channel_id;   // e.g. "deltat_udp"; "" = every sonar channel
+    std::string nav_channel_id;       // channel id (e.g. "novatel_com1"); "" = every INS channel
+    std::string sonar_channel_id;     // e.g. "deltat_udp"; "" = every sonar channel
     double sonar_clock_offset_s = 0;  // .83P files: added to header time (as UTC) -> GPS
     bool require_good_ins = false;    // drop INS samples whose status is not SOLUTION_GOOD
 
@@ -45,23 +45,23 @@ struct IngestCounts {
     std::int64_t files = 0;
     std::int64_t bytes = 0;
     std::int64_t events = 0;
-    std::int64_t corrupt_events = 0;      // impossible event headers (resynchronised)
+    std::int64_t corrupt_events = 0;  // impossible event headers (resynchronised)
     std::int64_t resync_bytes = 0;
-    std::int64_t truncated_events = 0;    // cut by the end of a file
-    std::int64_t length_repairs = 0;      // event lengths that did not land on the next event
-    std::int64_t files_skipped = 0;       // empty or too short to be a log
-    std::int64_t decode_failures = 0;     // events whose lcmtype did not decode
+    std::int64_t truncated_events = 0;  // cut by the end of a file
+    std::int64_t length_repairs = 0;    // event lengths that did not land on the next event
+    std::int64_t files_skipped = 0;     // empty or too short to be a log
+    std::int64_t decode_failures = 0;   // events whose lcmtype did not decode
     std::int64_t nav_samples = 0;
-    std::int64_t nav_without_time = 0;    // utime_gps = 0
-    std::int64_t nav_not_good = 0;        // dropped by require_good_ins
+    std::int64_t nav_without_time = 0;  // utime_gps = 0
+    std::int64_t nav_not_good = 0;      // dropped by require_good_ins
     std::int64_t nav_duplicates = 0;
     std::int64_t stddev_samples = 0;
     std::int64_t pings = 0;
     std::int64_t pings_without_time = 0;
-    std::int64_t pings_bad = 0;           // no beams, over-long, undecodable 83P
+    std::int64_t pings_bad = 0;  // no beams, over-long, undecodable 83P
     std::int64_t ping_duplicates = 0;
     std::int64_t raw_chunks_decoded = 0;
-    std::int64_t raw_skipped_bytes = 0;   // framer skips in re-decoded raw streams
+    std::int64_t raw_skipped_bytes = 0;  // framer skips in re-decoded raw streams
     std::int64_t raw_decode_errors = 0;
     std::map<std::string, std::int64_t> events_by_channel;
 
@@ -76,7 +76,8 @@ struct IngestResult {
     bool nav_from_raw = false;
     bool pings_from_raw = false;
     std::string message;
-    std::vector<std::string> warnings;  // files skipped and why: print them, keep them in the summary
+    std::vector<std::string>
+        warnings;  // files skipped and why: print them, keep them in the summary
 };
 
 // Reads LCM log files in order. An empty list or an unreadable file is an error.
@@ -89,8 +90,10 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
                                           const IngestConfig& config);
 
 // Reads .83P files; `leap_seconds` < 0 uses the table. Adds to `into`.
-Status Ingest83PFiles(const std::vector<std::string>& paths, const IngestConfig& config,
-                      int leap_seconds, IngestResult& into);
+Status Ingest83PFiles(const std::vector<std::string>& paths,
+                      const IngestConfig& config,
+                      int leap_seconds,
+                      IngestResult& into);
 
 // Expands directories (their *.lcmlog, *.83P, *.gps/*.asc/*.bin files, sorted by name) and keeps
 // files as given. Fails for a path that does not exist.

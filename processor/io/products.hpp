@@ -30,21 +30,23 @@ namespace pitmap::proc::io {
 struct VehicleConfig {
     std::string name;
     georef::SonarMount mount;
-    std::string navigation_channel;  // "" if not given
-    std::string sonar_channel;       // "" if not given
+    std::string navigation_channel;    // "" if not given
+    std::string sonar_channel;         // "" if not given
     std::vector<std::string> missing;  // keys that were looked for and not found
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
 
 Status WritePly(const std::string& path, const georef::GeorefResult& result);
-Status WriteLas(const std::string& path, const georef::GeorefResult& result,
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& result,
                 const georef::UtmPoints& utm);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.
 std::string UtmWkt(int zone, bool northern);
 
 // Trajectory CSV: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU at `origin`),
 // then vel_e_mps,vel_n_mps,vel_u_mps,ins_status.
-Status WriteTrajectoryCsv(const std::string& path, const georef::NavSeries& nav,
+Status WriteTrajectoryCsv(const std::string& path,
+                          const georef::NavSeries& nav,
                           const Geodetic& origin);
 
 // Reads a JSON file of at most kMaxJsonFileBytes. Errors name the file and, for a syntax error,

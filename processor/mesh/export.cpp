@@ -40,11 +40,14 @@ Status WriteAll(const std::string& path, const std::string& bytes) {
     return Ok{};
 }
 
-bool HasColours(const ColouredMesh& m) { return m.colours.size() == m.vertices.size(); }
+bool HasColours(const ColouredMesh& m) {
+    return m.colours.size() == m.vertices.size();
+}
 
 }  // namespace
 
-Status WritePly(const ColouredMesh& mesh, const std::string& path,
+Status WritePly(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin) {
     const bool colours = HasColours(mesh);
     std::string out;
@@ -69,7 +72,8 @@ Status WritePly(const ColouredMesh& mesh, const std::string& path,
     return WriteAll(path, out);
 }
 
-Status WriteObj(const ColouredMesh& mesh, const std::string& path,
+Status WriteObj(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin) {
     std::FILE* f = std::fopen(path.c_str(), "w");
     if (f == nullptr) return Error{path + ": cannot open for writing"};
@@ -80,8 +84,14 @@ Status WriteObj(const ColouredMesh& mesh, const std::string& path,
         const Eigen::Vector3f& p = mesh.vertices[i];
         if (colours) {
             const auto& c = mesh.colours[i];
-            std::fprintf(f, "v %.4f %.4f %.4f %.4f %.4f %.4f\n", p.x(), p.y(), p.z(),
-                         c[0] / 255.0, c[1] / 255.0, c[2] / 255.0);
+            std::fprintf(f,
+                         "v %.4f %.4f %.4f %.4f %.4f %.4f\n",
+                         p.x(),
+                         p.y(),
+                         p.z(),
+                         c[0] / 255.0,
+                         c[1] / 255.0,
+                         c[2] / 255.0);
         } else {
             std::fprintf(f, "v %.4f %.4f %.4f\n", p.x(), p.y(), p.z());
         }
@@ -94,16 +104,16 @@ Status WriteObj(const ColouredMesh& mesh, const std::string& path,
     return Ok{};
 }
 
-Status WriteGlb(const ColouredMesh& mesh, const std::string& path,
+Status WriteGlb(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin) {
     using nlohmann::json;
     json doc;
     doc["asset"] = {{"version", "2.0"}, {"generator", "pitmap proc_mesh"}};
     if (origin) {
-        doc["asset"]["extras"]["pitmap_origin"] = {
-            {"latitude_deg", origin->latitude_deg},
-            {"longitude_deg", origin->longitude_deg},
-            {"height_m", origin->height_m}};
+        doc["asset"]["extras"]["pitmap_origin"] = {{"latitude_deg", origin->latitude_deg},
+                                                   {"longitude_deg", origin->longitude_deg},
+                                                   {"height_m", origin->height_m}};
     }
     doc["scene"] = 0;
     std::string bin;
@@ -140,32 +150,41 @@ Status WriteGlb(const ColouredMesh& mesh, const std::string& path,
         const std::size_t idx_bytes = bin.size() - idx_offset;
         json views = json::array();
         json accessors = json::array();
-        views.push_back({{"buffer", 0}, {"byteOffset", 0}, {"byteLength", pos_bytes},
-                         {"target", 34962}});
-        accessors.push_back({{"bufferView", 0}, {"componentType", 5126}, {"count", nv},
-                             {"type", "VEC3"}, {"min", {lo[0], lo[1], lo[2]}},
+        views.push_back(
+            {{"buffer", 0}, {"byteOffset", 0}, {"byteLength", pos_bytes}, {"target", 34962}});
+        accessors.push_back({{"bufferView", 0},
+                             {"componentType", 5126},
+                             {"count", nv},
+                             {"type", "VEC3"},
+                             {"min", {lo[0], lo[1], lo[2]}},
                              {"max", {hi[0], hi[1], hi[2]}}});
         json attributes = {{"POSITION", 0}};
         if (colours) {
-            views.push_back({{"buffer", 0}, {"byteOffset", pos_bytes}, {"byteLength", col_bytes},
+            views.push_back({{"buffer", 0},
+                             {"byteOffset", pos_bytes},
+                             {"byteLength", col_bytes},
                              {"target", 34962}});
-            accessors.push_back({{"bufferView", 1}, {"componentType", 5126}, {"count", nv},
-                                 {"type", "VEC3"}});
+            accessors.push_back(
+                {{"bufferView", 1}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"}});
             attributes["COLOR_0"] = 1;
         }
         const int idx_view = static_cast<int>(views.size());
-        views.push_back({{"buffer", 0}, {"byteOffset", idx_offset}, {"byteLength", idx_bytes},
+        views.push_back({{"buffer", 0},
+                         {"byteOffset", idx_offset},
+                         {"byteLength", idx_bytes},
                          {"target", 34963}});
-        accessors.push_back({{"bufferView", idx_view}, {"componentType", 5125},
-                             {"count", mesh.triangles.size() * 3}, {"type", "SCALAR"}});
+        accessors.push_back({{"bufferView", idx_view},
+                             {"componentType", 5125},
+                             {"count", mesh.triangles.size() * 3},
+                             {"type", "SCALAR"}});
         const int idx_accessor = static_cast<int>(accessors.size()) - 1;
         doc["scenes"] = json::array({{{"nodes", {0}}}});
         doc["nodes"] = json::array({{{"mesh", 0}, {"name", "pit_surface"}}});
         doc["meshes"] = json::array(
             {{{"name", "pit_surface"},
               {"primitives",
-               json::array({{{"attributes", attributes}, {"indices", idx_accessor},
-                             {"mode", 4}}})}}});
+               json::array(
+                   {{{"attributes", attributes}, {"indices", idx_accessor}, {"mode", 4}}})}}});
         doc["bufferViews"] = views;
         doc["accessors"] = accessors;
         doc["buffers"] = json::array({{{"byteLength", bin.size()}}});

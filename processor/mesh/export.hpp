@@ -17,11 +17,14 @@
 
 namespace pitmap::proc::mesh {
 
-Status WritePly(const ColouredMesh& mesh, const std::string& path,
+Status WritePly(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin = std::nullopt);
-Status WriteObj(const ColouredMesh& mesh, const std::string& path,
+Status WriteObj(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin = std::nullopt);
-Status WriteGlb(const ColouredMesh& mesh, const std::string& path,
+Status WriteGlb(const ColouredMesh& mesh,
+                const std::string& path,
                 const std::optional<Geodetic>& origin = std::nullopt);
 
 }  // namespace pitmap::proc::mesh

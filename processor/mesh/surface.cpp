@@ -38,9 +38,11 @@ std::vector<std::string> MeshConfig::Validate() const {
 
 std::array<std::uint8_t, 3> DepthColour(double z_m, double min_z_m, double max_z_m) {
     // Five stops from deep to shallow: dark blue, cyan, green, yellow, red.
-    static constexpr double kStops[5][3] = {
-        {0.10, 0.10, 0.50}, {0.00, 0.65, 0.90}, {0.20, 0.80, 0.30}, {0.95, 0.90, 0.20},
-        {0.85, 0.20, 0.10}};
+    static constexpr double kStops[5][3] = {{0.10, 0.10, 0.50},
+                                            {0.00, 0.65, 0.90},
+                                            {0.20, 0.80, 0.30},
+                                            {0.95, 0.90, 0.20},
+                                            {0.85, 0.20, 0.10}};
     double t = max_z_m > min_z_m ? (z_m - min_z_m) / (max_z_m - min_z_m) : 0.5;
     t = std::clamp(t, 0.0, 1.0) * 4.0;
     const int k = std::min(3, static_cast<int>(t));
@@ -66,7 +68,8 @@ double MeshArea(const std::vector<Eigen::Vector3f>& vertices,
 }
 
 HoleFillResult FillSmallHoles(std::vector<Eigen::Vector3f>& vertices,
-                              std::vector<Eigen::Vector3i>& triangles, int max_edges) {
+                              std::vector<Eigen::Vector3i>& triangles,
+                              int max_edges) {
     HoleFillResult r;
     // Directed edges of the mesh; a boundary edge a->b has no b->a.
     std::unordered_map<std::uint64_t, int> directed;
@@ -75,7 +78,7 @@ HoleFillResult FillSmallHoles(std::vector<Eigen::Vector3f>& vertices,
         for (int k = 0; k < 3; ++k) ++directed[EdgeKey(t[k], t[(k + 1) % 3])];
     }
     // The fill must contain the reverse of each boundary edge: walk b -> a.
-    std::unordered_map<int, int> next;       // start vertex -> end vertex (reversed edge)
+    std::unordered_map<int, int> next;  // start vertex -> end vertex (reversed edge)
     std::unordered_map<int, int> out_count;
     for (const auto& [key, count] : directed) {
         const int a = static_cast<int>(key >> 32);
@@ -165,15 +168,16 @@ MeshResult RunMesh(const fusion::TsdfVolume& volume, const MeshConfig& config) {
     result.area_m2 = MeshArea(result.mesh.vertices, result.mesh.triangles);
     result.mesh_filled.vertices = result.mesh.vertices;
     result.mesh_filled.triangles = result.mesh.triangles;
-    result.holes = FillSmallHoles(result.mesh_filled.vertices, result.mesh_filled.triangles,
-                                  config.max_hole_edges);
+    result.holes = FillSmallHoles(
+        result.mesh_filled.vertices, result.mesh_filled.triangles, config.max_hole_edges);
     Colourise(result.mesh, lo, hi);
     Colourise(result.mesh_filled, lo, hi);
     result.message = std::to_string(result.mesh.vertices.size()) + " vertices, " +
-                     std::to_string(result.mesh.triangles.size()) + " triangles; display mesh: " +
-                     std::to_string(result.holes.holes_filled) + " holes filled (" +
-                     std::to_string(result.holes.triangles_added) + " triangles added), " +
-                     std::to_string(result.holes.holes_too_large) + " left open";
+                     std::to_string(result.mesh.triangles.size()) +
+                     " triangles; display mesh: " + std::to_string(result.holes.holes_filled) +
+                     " holes filled (" + std::to_string(result.holes.triangles_added) +
+                     " triangles added), " + std::to_string(result.holes.holes_too_large) +
+                     " left open";
     return result;
 }
 

@@ -69,8 +69,8 @@ struct PipelineConfig {
     double origin_latitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_longitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_height_m = std::numeric_limits<double>::quiet_NaN();
-    bool write_las = true;        // points.las (UTM) beside points.ply
-    std::string vehicle_yaml;     // "" = vehicle.yaml beside the first log
+    bool write_las = true;     // points.las (UTM) beside points.ply
+    std::string vehicle_yaml;  // "" = vehicle.yaml beside the first log
 
     std::vector<std::string> Validate() const;
 };
@@ -90,8 +90,10 @@ using Log = std::function<void(const std::string&)>;
 
 // `info`: a text report of the inputs (files, channels, counts, time spans).
 Expected<std::string> Info(const std::vector<std::string>& inputs, const PipelineConfig& config);
-Status RunGeorefStage(const std::vector<std::string>& inputs, const std::string& out_dir,
-                      const PipelineConfig& config, const Log& log);
+Status RunGeorefStage(const std::vector<std::string>& inputs,
+                      const std::string& out_dir,
+                      const PipelineConfig& config,
+                      const Log& log);
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
@@ -99,7 +101,9 @@ Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, co
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 // Every stage from the logs to the report, in memory; products and summary.json are written
 // after each stage, so a failure leaves what was done.
-Status RunAll(const std::vector<std::string>& inputs, const std::string& out_dir,
-              const PipelineConfig& config, const Log& log);
+Status RunAll(const std::vector<std::string>& inputs,
+              const std::string& out_dir,
+              const PipelineConfig& config,
+              const Log& log);
 
 }  // namespace pitmap::proc::pipeline

@@ -37,11 +37,11 @@ double Seconds(Clock::time_point a) {
 struct Input {
     std::vector<std::size_t> input_index;  // sorted slice -> input slice
     std::vector<double> t_s;
-    std::vector<Pose> T_ins;               // INS poses (measurements)
-    std::vector<Vector6d> sigma;           // effective INS 1-sigma (see ins_sigma_recovery_time_s)
+    std::vector<Pose> T_ins;      // INS poses (measurements)
+    std::vector<Vector6d> sigma;  // effective INS 1-sigma (see ins_sigma_recovery_time_s)
     Vector6d sigma_floor = Vector6d::Zero();  // smallest sigma of the survey, per component
-    std::vector<std::size_t> offset;       // first point of each slice in `points`
-    std::vector<Eigen::Vector3f> points;   // vehicle frame, finite only
+    std::vector<std::size_t> offset;          // first point of each slice in `points`
+    std::vector<Eigen::Vector3f> points;      // vehicle frame, finite only
     // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
     // there, so sections and bins start there and are short after them (the correction stays
     // continuous; its rate changes).
@@ -57,7 +57,8 @@ struct Input {
 constexpr double kBreakWindowS = 2.0;
 constexpr double kBreakFirstSectionS = 1.0;  // first section after a recovery
 std::vector<std::size_t> FindBreaks(const std::vector<double>& t_s,
-                                    const std::vector<Vector6d>& reported, double min_sigma_m) {
+                                    const std::vector<Vector6d>& reported,
+                                    double min_sigma_m) {
     std::vector<std::size_t> breaks;
     std::size_t w0 = 0;
     for (std::size_t s = 1; s < t_s.size(); ++s) {
@@ -73,7 +74,9 @@ std::vector<std::size_t> FindBreaks(const std::vector<double>& t_s,
     return breaks;
 }
 
-bool FinitePose(const Pose& T) { return T.matrix().allFinite(); }
+bool FinitePose(const Pose& T) {
+    return T.matrix().allFinite();
+}
 
 // ---- parametrisation: node corrections applied to per-slice base poses ----------------------
 // Slice pose: R = Rc * R_base, t = Rc (t_base - pivot) + pivot + tc, with (Rc, tc) the node
@@ -140,12 +143,14 @@ struct BlockCloud {
     }
 };
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, BlockCloud>,
-                                                   BlockCloud, 3, std::size_t>;
+                                                   BlockCloud,
+                                                   3,
+                                                   std::size_t>;
 
 struct Block {
-    std::size_t s0 = 0, s1 = 0;  // slices [s0, s1)
-    std::size_t p0 = 0, p1 = 0;  // points [p0, p1)
-    double t0 = 0, t1 = 0;       // time span
+    std::size_t s0 = 0, s1 = 0;                    // slices [s0, s1)
+    std::size_t p0 = 0, p1 = 0;                    // points [p0, p1)
+    double t0 = 0, t1 = 0;                         // time span
     Eigen::Vector3f lo = Eigen::Vector3f::Zero();  // bounding box of the world points
     Eigen::Vector3f hi = Eigen::Vector3f::Zero();
     BlockCloud cloud;
@@ -163,8 +168,8 @@ std::vector<Block> MakeBlocks(const Input& in, double length_s) {
         // After a GNSS recovery the INS error falls within seconds: sections of 1, 1, 2, 4, 8 s
         // there (doubling up to length_s), so that the rigid stage can follow the fall.
         const double since = in.t_s[b.s0] - t_break;
-        const double len = since < length_s ? std::clamp(since, kBreakFirstSectionS, length_s)
-                                            : length_s;
+        const double len =
+            since < length_s ? std::clamp(since, kBreakFirstSectionS, length_s) : length_s;
         while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + len && !in.IsBreak(s)) ++s;
         b.s1 = s;
         b.p0 = in.offset[b.s0];
@@ -189,8 +194,8 @@ void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& 
         }
         b.tree.reset();
         if (b.cloud.n > 0) {
-            b.tree = std::make_unique<KdTree>(3, b.cloud,
-                                              nanoflann::KDTreeSingleIndexAdaptorParams(16));
+            b.tree =
+                std::make_unique<KdTree>(3, b.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
         }
     });
 }
@@ -211,7 +216,9 @@ std::vector<Pair> FindPairs(const Input& in,
                             const std::vector<Block>& blocks,
                             const std::vector<std::uint32_t>& slice_block,
                             const std::vector<Eigen::Vector3f>& pw,
-                            const SlamConfig& cfg, double score_m, double* score) {
+                            const SlamConfig& cfg,
+                            double score_m,
+                            double* score) {
     const float dmax = static_cast<float>(cfg.max_pair_distance_m);
     const float dmax2 = dmax * dmax;
     const double score2 = score_m * score_m;
@@ -250,61 +257,64 @@ std::vector<Pair> FindPairs(const Input& in,
     }
     const std::vector<std::uint32_t> no_blocks;
     tbb::enumerable_thread_specific<std::vector<Pair>> local;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-        auto& out = local.local();
-        for (std::size_t s = range.begin(); s != range.end(); ++s) {
-            const double t = in.t_s[s];
-            for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
-                const Eigen::Vector3f& p = pw[q];
-                float best = dmax2;
-                std::size_t best_idx = 0;
-                std::uint32_t best_block = 0;
-                bool found = false, candidate = false;
-                // Score bookkeeping: does any time-separated block's box come within score_m?
-                const float sm = static_cast<float>(score_m);
-                for (const Block& b : blocks) {
-                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
-                    if (!((p.array() < b.lo.array() - sm).any() ||
-                          (p.array() > b.hi.array() + sm).any())) {
-                        candidate = true;
-                        break;
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            auto& out = local.local();
+            for (std::size_t s = range.begin(); s != range.end(); ++s) {
+                const double t = in.t_s[s];
+                for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
+                    const Eigen::Vector3f& p = pw[q];
+                    float best = dmax2;
+                    std::size_t best_idx = 0;
+                    std::uint32_t best_block = 0;
+                    bool found = false, candidate = false;
+                    // Score bookkeeping: does any time-separated block's box come within score_m?
+                    const float sm = static_cast<float>(score_m);
+                    for (const Block& b : blocks) {
+                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                        if (!((p.array() < b.lo.array() - sm).any() ||
+                              (p.array() > b.hi.array() + sm).any())) {
+                            candidate = true;
+                            break;
+                        }
                     }
-                }
-                const auto cb = cell_blocks.find(cell_key(p.x(), p.y()));
-                for (const std::uint32_t bi : cb == cell_blocks.end() ? no_blocks : cb->second) {
-                    const Block& b = blocks[bi];
-                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
-                    if ((p.array() < b.lo.array() - dmax).any() ||
-                        (p.array() > b.hi.array() + dmax).any()) {
-                        continue;
+                    const auto cb = cell_blocks.find(cell_key(p.x(), p.y()));
+                    for (const std::uint32_t bi :
+                         cb == cell_blocks.end() ? no_blocks : cb->second) {
+                        const Block& b = blocks[bi];
+                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                        if ((p.array() < b.lo.array() - dmax).any() ||
+                            (p.array() > b.hi.array() + dmax).any()) {
+                            continue;
+                        }
+                        std::size_t idx = 0;
+                        float d2 = 0;
+                        if (b.tree->knnSearch(p.data(), 1, &idx, &d2) == 1 && d2 < best) {
+                            best = d2;
+                            best_idx = b.p0 + idx;
+                            best_block = bi;
+                            found = true;
+                        }
                     }
-                    std::size_t idx = 0;
-                    float d2 = 0;
-                    if (b.tree->knnSearch(p.data(), 1, &idx, &d2) == 1 && d2 < best) {
-                        best = d2;
-                        best_idx = b.p0 + idx;
-                        best_block = bi;
-                        found = true;
+                    if (candidate) {
+                        slice_sum[s] +=
+                            found ? std::min(static_cast<double>(best), score2) : score2;
+                        ++slice_count[s];
                     }
+                    if (!found) continue;
+                    Pair pr;
+                    pr.slice_a = static_cast<std::uint32_t>(s);
+                    pr.point_a = q;
+                    pr.block_a = slice_block[s];
+                    pr.point_b = best_idx;
+                    pr.block_b = best_block;
+                    const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), best_idx);
+                    pr.slice_b = static_cast<std::uint32_t>(it - in.offset.begin() - 1);
+                    out.push_back(pr);
                 }
-                if (candidate) {
-                    slice_sum[s] += found ? std::min(static_cast<double>(best), score2) : score2;
-                    ++slice_count[s];
-                }
-                if (!found) continue;
-                Pair pr;
-                pr.slice_a = static_cast<std::uint32_t>(s);
-                pr.point_a = q;
-                pr.block_a = slice_block[s];
-                pr.point_b = best_idx;
-                pr.block_b = best_block;
-                const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), best_idx);
-                pr.slice_b = static_cast<std::uint32_t>(it - in.offset.begin() - 1);
-                out.push_back(pr);
             }
-        }
-    });
+        });
     double sum = 0, count = 0;
     for (std::size_t s = 0; s < in.num_slices(); ++s) {
         sum += slice_sum[s];
@@ -314,14 +324,17 @@ std::vector<Pair> FindPairs(const Input& in,
     std::vector<Pair> pairs;
     for (auto& v : local) pairs.insert(pairs.end(), v.begin(), v.end());
     // Thread order is arbitrary; sort so that the sums below see the same order every run.
-    std::sort(pairs.begin(), pairs.end(),
-              [](const Pair& a, const Pair& b) { return a.point_a < b.point_a; });
+    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+        return a.point_a < b.point_a;
+    });
     return pairs;
 }
 
 // Unit normal of the points around pw[k] in its block (smallest eigenvector of the local
 // covariance); zero if fewer than 3 neighbours.
-Eigen::Vector3f LocalNormal(const Block& b, const std::vector<Eigen::Vector3f>& pw, std::size_t k,
+Eigen::Vector3f LocalNormal(const Block& b,
+                            const std::vector<Eigen::Vector3f>& pw,
+                            std::size_t k,
                             int num_neighbours) {
     std::vector<std::size_t> idx(static_cast<std::size_t>(num_neighbours));
     std::vector<float> d2(idx.size());
@@ -354,8 +367,13 @@ struct Accum {
 
 // Adds J^T W J and J^T W r for a residual that depends on up to 4 nodes.
 template <int M>
-void AddTerm(Accum& acc, std::size_t n, const int* nodes, const Eigen::Matrix<double, M, 6>* J,
-             int count, const Eigen::Matrix<double, M, M>& W, const Eigen::Matrix<double, M, 1>& r) {
+void AddTerm(Accum& acc,
+             std::size_t n,
+             const int* nodes,
+             const Eigen::Matrix<double, M, 6>* J,
+             int count,
+             const Eigen::Matrix<double, M, M>& W,
+             const Eigen::Matrix<double, M, 1>& r) {
     for (int i = 0; i < count; ++i) {
         const Eigen::Matrix<double, 6, M> JtW = J[i].transpose() * W;
         acc.grad[static_cast<std::size_t>(nodes[i])] += JtW * r;
@@ -363,8 +381,8 @@ void AddTerm(Accum& acc, std::size_t n, const int* nodes, const Eigen::Matrix<do
             if (nodes[i] == nodes[j]) {
                 acc.diag[static_cast<std::size_t>(nodes[i])] += JtW * J[j];
             } else if (nodes[i] < nodes[j]) {
-                const std::uint64_t key = static_cast<std::uint64_t>(nodes[i]) * n +
-                                          static_cast<std::uint64_t>(nodes[j]);
+                const std::uint64_t key =
+                    static_cast<std::uint64_t>(nodes[i]) * n + static_cast<std::uint64_t>(nodes[j]);
                 auto it = acc.off.find(key);
                 if (it == acc.off.end()) it = acc.off.emplace(key, Matrix6d::Zero()).first;
                 it->second += JtW * J[j];
@@ -396,8 +414,12 @@ Vector6d SigmaVector(const Vector6d& ins, double scale) {
 
 // Relative-motion and absolute terms (no pairs).
 // With linearise false only acc.cost is accumulated (the step acceptance test).
-void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
-                  const SlamConfig& cfg, bool linearise, Accum& acc) {
+void AddPoseTerms(const Input& in,
+                  const Param& p,
+                  const std::vector<Pose>& T,
+                  const SlamConfig& cfg,
+                  bool linearise,
+                  Accum& acc) {
     const std::size_t n = p.num_nodes();
     for (std::size_t k = 0; k + 1 < n; ++k) {
         const auto i = static_cast<std::size_t>(p.anchor[k]);
@@ -425,7 +447,8 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
         acc.cost += r.dot(W * r);
         if (!linearise) continue;
         const int nodes[2] = {static_cast<int>(k), static_cast<int>(k + 1)};
-        const Matrix6d J[2] = {Ji * NodeToSlice(p, T[i], i, 1.0), Jj * NodeToSlice(p, T[j], j, 1.0)};
+        const Matrix6d J[2] = {Ji * NodeToSlice(p, T[i], i, 1.0),
+                               Jj * NodeToSlice(p, T[j], j, 1.0)};
         AddTerm<6>(acc, n, nodes, J, 2, W, r);
     }
     // Drift smoothness: the INS's position error e = t - t_ins changes its rate (the velocity
@@ -448,13 +471,14 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
             const double dm = 0.5 * (d0 + d1);
             Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
             for (int c = 0; c < 3; ++c) {
-                const double fall = std::max(0.0, in.sigma[a[0]](3 + c) - in.sigma[a[2]](3 + c)) / dm;
+                const double fall =
+                    std::max(0.0, in.sigma[a[0]](3 + c) - in.sigma[a[2]](3 + c)) / dm;
                 W(c, c) = 1.0 / (q * q * dm + fall * fall);
             }
             acc.cost += r.dot(W * r);
             if (!linearise) continue;
-            const int nodes[3] = {static_cast<int>(k - 1), static_cast<int>(k),
-                                  static_cast<int>(k + 1)};
+            const int nodes[3] = {
+                static_cast<int>(k - 1), static_cast<int>(k), static_cast<int>(k + 1)};
             const Matrix36d J[3] = {-B[0] / d0, -(1.0 / d1 + 1.0 / d0) * B[1], B[2] / d1};
             AddTerm<3>(acc, n, nodes, J, 3, W, r);
         }
@@ -467,8 +491,10 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
         Vector6d info = Vector6d::Zero();
         if (abs_any) {
             const Vector6d sig = SigmaVector(in.sigma[i], cfg.absolute_sigma_scale);
-            if (cfg.absolute_attitude_terms) info.head<3>() = sig.head<3>().cwiseInverse().cwiseAbs2();
-            if (cfg.absolute_position_terms) info.tail<3>() = sig.tail<3>().cwiseInverse().cwiseAbs2();
+            if (cfg.absolute_attitude_terms)
+                info.head<3>() = sig.head<3>().cwiseInverse().cwiseAbs2();
+            if (cfg.absolute_position_terms)
+                info.tail<3>() = sig.tail<3>().cwiseInverse().cwiseAbs2();
         } else if (k == 0) {
             info.setConstant(1e8);  // gauge: the first pose stays where the INS put it
         }
@@ -483,80 +509,87 @@ void AddPoseTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
 }
 
 // Pair terms; with linearise false only the robust cost (and sq_dist) are accumulated.
-void AddPairTerms(const Input& in, const Param& p, const std::vector<Pose>& T,
-                  const std::vector<Pair>& pairs, const SlamConfig& cfg, bool linearise,
+void AddPairTerms(const Input& in,
+                  const Param& p,
+                  const std::vector<Pose>& T,
+                  const std::vector<Pair>& pairs,
+                  const SlamConfig& cfg,
+                  bool linearise,
                   tbb::enumerable_thread_specific<Accum>& accs) {
     const std::size_t n = p.num_nodes();
     const double s2 = cfg.point_sigma_m * cfg.point_sigma_m;
     const double t2 = cfg.gicp_tangent_sigma_m * cfg.gicp_tangent_sigma_m;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 1024),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-        Accum& acc = accs.local();
-        for (std::size_t k = range.begin(); k != range.end(); ++k) {
-            const Pair& pr = pairs[k];
-            const std::size_t a = pr.slice_a, b = pr.slice_b;
-            const Eigen::Vector3d xa = in.points[pr.point_a].cast<double>();
-            const Eigen::Vector3d xb = in.points[pr.point_b].cast<double>();
-            Matrix36d Ja, Jb;
-            const Eigen::Vector3d r3 = linearise
-                                           ? PointPairResidual(T[a], xa, T[b], xb, &Ja, &Jb)
-                                           : PointPairResidual(T[a], xa, T[b], xb);
-            int nodes[4];
-            double w[4];
-            const int na = SliceNodes(p, a, nodes, w);
-            const int nb = SliceNodes(p, b, nodes + na, w + na);
-            const int count = na + nb;
-            acc.sq_dist += r3.squaredNorm();
-            if (cfg.correspondence == CorrespondenceType::kPointToPlane) {
-                const Eigen::Vector3d nrm = pr.normal_b.cast<double>();
-                Eigen::Matrix<double, 1, 1> r;
-                r(0) = nrm.dot(r3);
-                const double sw = std::abs(r(0)) / cfg.point_sigma_m;
-                acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
-                if (!linearise) continue;
-                Eigen::Matrix<double, 1, 1> W;
-                W(0) = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) / s2;
-                Matrix16d J[4];
-                for (int i = 0; i < count; ++i) {
-                    const bool is_a = i < na;
-                    const std::size_t s = is_a ? a : b;
-                    J[i] = nrm.transpose() * (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
-                }
-                AddTerm<1>(acc, n, nodes, J, count, W, r);
-            } else {
-                Eigen::Matrix3d info;
-                if (cfg.correspondence == CorrespondenceType::kGicp) {
-                    const Eigen::Vector3d na3 = pr.normal_a.cast<double>();
-                    const Eigen::Vector3d nb3 = pr.normal_b.cast<double>();
-                    const Eigen::Matrix3d C = 2.0 * t2 * Eigen::Matrix3d::Identity() +
-                                              (s2 - t2) * (na3 * na3.transpose() +
-                                                           nb3 * nb3.transpose());
-                    info = C.inverse();
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, pairs.size(), 1024),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            Accum& acc = accs.local();
+            for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                const Pair& pr = pairs[k];
+                const std::size_t a = pr.slice_a, b = pr.slice_b;
+                const Eigen::Vector3d xa = in.points[pr.point_a].cast<double>();
+                const Eigen::Vector3d xb = in.points[pr.point_b].cast<double>();
+                Matrix36d Ja, Jb;
+                const Eigen::Vector3d r3 = linearise
+                                               ? PointPairResidual(T[a], xa, T[b], xb, &Ja, &Jb)
+                                               : PointPairResidual(T[a], xa, T[b], xb);
+                int nodes[4];
+                double w[4];
+                const int na = SliceNodes(p, a, nodes, w);
+                const int nb = SliceNodes(p, b, nodes + na, w + na);
+                const int count = na + nb;
+                acc.sq_dist += r3.squaredNorm();
+                if (cfg.correspondence == CorrespondenceType::kPointToPlane) {
+                    const Eigen::Vector3d nrm = pr.normal_b.cast<double>();
+                    Eigen::Matrix<double, 1, 1> r;
+                    r(0) = nrm.dot(r3);
+                    const double sw = std::abs(r(0)) / cfg.point_sigma_m;
+                    acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
+                    if (!linearise) continue;
+                    Eigen::Matrix<double, 1, 1> W;
+                    W(0) = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) / s2;
+                    Matrix16d J[4];
+                    for (int i = 0; i < count; ++i) {
+                        const bool is_a = i < na;
+                        const std::size_t s = is_a ? a : b;
+                        J[i] = nrm.transpose() * (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
+                    }
+                    AddTerm<1>(acc, n, nodes, J, count, W, r);
                 } else {
-                    info = Eigen::Matrix3d::Identity() / s2;
+                    Eigen::Matrix3d info;
+                    if (cfg.correspondence == CorrespondenceType::kGicp) {
+                        const Eigen::Vector3d na3 = pr.normal_a.cast<double>();
+                        const Eigen::Vector3d nb3 = pr.normal_b.cast<double>();
+                        const Eigen::Matrix3d C =
+                            2.0 * t2 * Eigen::Matrix3d::Identity() +
+                            (s2 - t2) * (na3 * na3.transpose() + nb3 * nb3.transpose());
+                        info = C.inverse();
+                    } else {
+                        info = Eigen::Matrix3d::Identity() / s2;
+                    }
+                    const double m2 = r3.dot(info * r3);
+                    const double sw = std::sqrt(m2);
+                    acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
+                    if (!linearise) continue;
+                    const Eigen::Matrix3d W =
+                        RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
+                    Matrix36d J[4];
+                    for (int i = 0; i < count; ++i) {
+                        const bool is_a = i < na;
+                        const std::size_t s = is_a ? a : b;
+                        J[i] = (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
+                    }
+                    AddTerm<3>(acc, n, nodes, J, count, W, r3);
                 }
-                const double m2 = r3.dot(info * r3);
-                const double sw = std::sqrt(m2);
-                acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
-                if (!linearise) continue;
-                const Eigen::Matrix3d W = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
-                Matrix36d J[4];
-                for (int i = 0; i < count; ++i) {
-                    const bool is_a = i < na;
-                    const std::size_t s = is_a ? a : b;
-                    J[i] = (is_a ? Ja : Jb) * NodeToSlice(p, T[s], s, w[i]);
-                }
-                AddTerm<3>(acc, n, nodes, J, count, W, r3);
             }
-        }
-    });
+        });
 }
 
 // The normal equations H delta = -g of one linearisation, solved with CHOLMOD for a Levenberg
 // damping lambda: (H + lambda diag(H)) delta = -g.
 class NormalEquations {
 public:
-    NormalEquations(std::size_t n, tbb::enumerable_thread_specific<Accum>& accs,
+    NormalEquations(std::size_t n,
+                    tbb::enumerable_thread_specific<Accum>& accs,
                     const Accum& pose_terms) {
         std::vector<Matrix6d> diag = pose_terms.diag;
         std::vector<Vector6d> grad = pose_terms.grad;
@@ -569,8 +602,10 @@ public:
             }
             for (const auto& [key, m] : acc.off) {
                 auto it = off.find(key);
-                if (it == off.end()) off.emplace(key, m);
-                else it->second += m;
+                if (it == off.end())
+                    off.emplace(key, m);
+                else
+                    it->second += m;
             }
             cost_ += acc.cost;
             sq_dist_ += acc.sq_dist;
@@ -635,13 +670,14 @@ constexpr double kCoarseExtentMarginM = 0.25;
 // fit on a few points). Not more: a section at the survey's edge overlaps the others only
 // partly at its true place, and a larger fraction pushes it inwards.
 constexpr double kCoarseMinCoverFraction = 0.25;
-constexpr double kCoarseTemperature = 2.0;    // score units (cm of mean deviation)
-constexpr double kCoarseMinDriftRw = 0.003;   // m/s/sqrt(s), when the drift term is off
+constexpr double kCoarseTemperature = 2.0;   // score units (cm of mean deviation)
+constexpr double kCoarseMinDriftRw = 0.003;  // m/s/sqrt(s), when the drift term is off
 constexpr int kCoarseRefinements = 3;
 constexpr double kCoarseWindowSigmas = 3.0;
 constexpr double kCoarseMinWindowM = 1.5;
 
-std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vector<Pose>& T,
+std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in,
+                                                 const std::vector<Pose>& T,
                                                  const std::vector<Block>& blocks,
                                                  const SlamConfig& cfg,
                                                  std::vector<SlamSection>* sections) {
@@ -656,8 +692,8 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
         for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
             sg.push_back(std::max(in.sigma[s](3), in.sigma[s](4)));
         }
-        std::nth_element(sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2),
-                         sg.end());
+        std::nth_element(
+            sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2), sg.end());
         sigma_h[b] = sg[sg.size() / 2];
         (*sections)[b].sigma_h_m = sigma_h[b];
         (*sections)[b].searched = sigma_h[b] > cfg.coarse_search_min_sigma_m;
@@ -799,8 +835,11 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
     // sections that did not overlap the grid are carried by their neighbours.
     const double q = std::max(cfg.drift_velocity_random_walk_mps_per_sqrt_s, kCoarseMinDriftRw);
     const double cell_var = cfg.coarse_search_step_m * cfg.coarse_search_step_m / 12.0;
-    auto summarise = [&](std::size_t k, const Eigen::Vector2d& centre, double radius,
-                         Eigen::Vector2d* mu, Eigen::Matrix2d* cov) {
+    auto summarise = [&](std::size_t k,
+                         const Eigen::Vector2d& centre,
+                         double radius,
+                         Eigen::Vector2d* mu,
+                         Eigen::Matrix2d* cov) {
         double best = kInfeasible;
         for (std::size_t c = 0; c < nc; ++c) {
             if ((cand(c) - centre).norm() <= radius) best = std::min(best, data[k][c]);
@@ -843,8 +882,8 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
                 info[i].setZero();
                 mu[i].setZero();
                 if (!(*sections)[k].searched) {
-                    info[i] = Eigen::Matrix2d::Identity() /
-                              std::max(sigma_h[k] * sigma_h[k], cell_var);
+                    info[i] =
+                        Eigen::Matrix2d::Identity() / std::max(sigma_h[k] * sigma_h[k], cell_var);
                     continue;
                 }
                 if (data[k].empty()) continue;
@@ -876,8 +915,8 @@ std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in, const std::vec
                 const double dm = 0.5 * (d0 + d1);
                 // The velocity error changes by about the change of the sigma's growth rate
                 // where that is larger (a GNSS outage starting or ending).
-                const double bend =
-                    std::abs((sigma_h[k + 1] - sigma_h[k]) / d1 - (sigma_h[k] - sigma_h[k - 1]) / d0);
+                const double bend = std::abs((sigma_h[k + 1] - sigma_h[k]) / d1 -
+                                             (sigma_h[k] - sigma_h[k - 1]) / d0);
                 const double w = 1.0 / (q * q * dm + bend * bend);
                 // r = o_{i+1} / d1 - o_i (1/d0 + 1/d1) + o_{i-1} / d0, per axis.
                 const double c[3] = {1.0 / d0, -(1.0 / d0 + 1.0 / d1), 1.0 / d1};
@@ -989,10 +1028,15 @@ struct Search {
     std::size_t num_links = 0;
 };
 
-Search SearchPairs(const Input& in, const std::vector<Pose>& T, SlamStage stage,
-                   double search_m, std::vector<Block>& blocks,
-                   const std::vector<std::uint32_t>& slice_block, std::vector<Eigen::Vector3f>& pw,
-                   const SlamConfig& cfg, SlamResult& res) {
+Search SearchPairs(const Input& in,
+                   const std::vector<Pose>& T,
+                   SlamStage stage,
+                   double search_m,
+                   std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& slice_block,
+                   std::vector<Eigen::Vector3f>& pw,
+                   const SlamConfig& cfg,
+                   SlamResult& res) {
     auto t0 = Clock::now();
     tbb::parallel_for(std::size_t{0}, in.num_slices(), [&](std::size_t s) {
         const Eigen::Matrix3f R = T[s].linear().cast<float>();
@@ -1028,8 +1072,8 @@ Search SearchPairs(const Input& in, const std::vector<Pose>& T, SlamStage stage,
             Pair& pr = pairs[k];
             pr.normal_b = LocalNormal(blocks[pr.block_b], pw, pr.point_b, cfg.normal_neighbours);
             if (cfg.correspondence == CorrespondenceType::kGicp) {
-                pr.normal_a = LocalNormal(blocks[pr.block_a], pw, pr.point_a,
-                                          cfg.normal_neighbours);
+                pr.normal_a =
+                    LocalNormal(blocks[pr.block_a], pw, pr.point_a, cfg.normal_neighbours);
             }
         });
         std::erase_if(pairs, [&](const Pair& pr) {
@@ -1042,7 +1086,9 @@ Search SearchPairs(const Input& in, const std::vector<Pose>& T, SlamStage stage,
 }
 
 // Total cost (INS terms and robust pair terms) of the parametrisation p on fixed pairs.
-double CostAt(const Input& in, const Param& p, const std::vector<Pair>& pairs,
+double CostAt(const Input& in,
+              const Param& p,
+              const std::vector<Pair>& pairs,
               const SlamConfig& cfg) {
     const std::vector<Pose> T = SlicePoses(p);
     Accum pose_terms(0);
@@ -1062,10 +1108,16 @@ double CostAt(const Input& in, const Param& p, const std::vector<Pair>& pairs,
 //  - the pair score (truncated closest-point RMS at max_pair_distance_m over the overlap) of
 //    every iterate is measured with the next search; the best iterate is kept, and the stage
 //    ends after score_patience iterations without a better one.
-StageOutcome RunStage(const Input& in, Param& p, SlamStage stage, int max_iterations,
-                      double rigid_d0_m, std::vector<Block>& blocks,
-                      const std::vector<std::uint32_t>& slice_block, const SlamConfig& cfg,
-                      double* best_score, SlamResult& res) {
+StageOutcome RunStage(const Input& in,
+                      Param& p,
+                      SlamStage stage,
+                      int max_iterations,
+                      double rigid_d0_m,
+                      std::vector<Block>& blocks,
+                      const std::vector<std::uint32_t>& slice_block,
+                      const SlamConfig& cfg,
+                      double* best_score,
+                      SlamResult& res) {
     constexpr int kMaxDampingRetries = 8;
     constexpr double kMinDamping = 1e-6;
     StageOutcome out;
@@ -1228,14 +1280,22 @@ Param MakeParam(const std::vector<Pose>& base, const std::vector<std::size_t>& n
 
 const char* ToString(SlamTermination t) {
     switch (t) {
-        case SlamTermination::kConverged: return "converged";
-        case SlamTermination::kMaxIterations: return "max_iterations";
-        case SlamTermination::kScoreStalled: return "score_stalled";
-        case SlamTermination::kNoImprovement: return "no_improvement";
-        case SlamTermination::kNoOverlap: return "no_overlap";
-        case SlamTermination::kSolverFailed: return "solver_failed";
-        case SlamTermination::kCancelled: return "cancelled";
-        case SlamTermination::kInvalidInput: return "invalid_input";
+        case SlamTermination::kConverged:
+            return "converged";
+        case SlamTermination::kMaxIterations:
+            return "max_iterations";
+        case SlamTermination::kScoreStalled:
+            return "score_stalled";
+        case SlamTermination::kNoImprovement:
+            return "no_improvement";
+        case SlamTermination::kNoOverlap:
+            return "no_overlap";
+        case SlamTermination::kSolverFailed:
+            return "solver_failed";
+        case SlamTermination::kCancelled:
+            return "cancelled";
+        case SlamTermination::kInvalidInput:
+            return "invalid_input";
     }
     return "unknown";
 }
@@ -1389,9 +1449,8 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
         // Interpolated: a node at each section centre, but at the start of a section that
         // starts at a GNSS recovery (the INS error is continuous there, its rate is not).
         for (const Block& b : blocks) {
-            nodes.push_back(cfg.rigid_interpolate_sections && !in.IsBreak(b.s0)
-                                ? (b.s0 + b.s1 - 1) / 2
-                                : b.s0);
+            nodes.push_back(
+                cfg.rigid_interpolate_sections && !in.IsBreak(b.s0) ? (b.s0 + b.s1 - 1) / 2 : b.s0);
         }
         Param p = MakeParam(current, nodes);
         for (std::size_t b = 0; b < blocks.size(); ++b) {
@@ -1437,14 +1496,22 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
             for (std::size_t s = b.s0; s < b.s1; ++s) {
                 sg.push_back(std::max(in.sigma[s](3), in.sigma[s](4)));
             }
-            std::nth_element(sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2),
-                             sg.end());
+            std::nth_element(
+                sg.begin(), sg.begin() + static_cast<std::ptrdiff_t>(sg.size() / 2), sg.end());
             sigma_max = std::max(sigma_max, sg[sg.size() / 2]);
         }
-        const double d0 = std::clamp(3.0 * sigma_max, cfg.max_pair_distance_m,
-                                     cfg.rigid_max_pair_distance_m);
-        rigid = RunStage(in, p, SlamStage::kRigid, cfg.rigid_iterations, d0, blocks, slice_block,
-                         cfg, &best_score, res);
+        const double d0 =
+            std::clamp(3.0 * sigma_max, cfg.max_pair_distance_m, cfg.rigid_max_pair_distance_m);
+        rigid = RunStage(in,
+                         p,
+                         SlamStage::kRigid,
+                         cfg.rigid_iterations,
+                         d0,
+                         blocks,
+                         slice_block,
+                         cfg,
+                         &best_score,
+                         res);
         res.rigid_iterations = rigid.iterations;
         res.num_section_links = rigid.num_links;
         current = SlicePoses(p);
@@ -1485,8 +1552,16 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
             }
         }
         res.num_poses = starts.size();
-        semi = RunStage(in, p, SlamStage::kSemiRigid, cfg.max_iterations, cfg.max_pair_distance_m,
-                        blocks, slice_block, cfg, &best_score, res);
+        semi = RunStage(in,
+                        p,
+                        SlamStage::kSemiRigid,
+                        cfg.max_iterations,
+                        cfg.max_pair_distance_m,
+                        blocks,
+                        slice_block,
+                        cfg,
+                        &best_score,
+                        res);
         res.semi_rigid_iterations = semi.iterations;
         current = SlicePoses(p);
         if (semi.message.empty()) semi.message = "iteration budget spent";

@@ -78,7 +78,7 @@ struct SlamConfig {
     // search's job; a long first distance drags sections along smooth terrain (gps-outage ATE
     // 0.157 m at 1 m, 0.183 m at 2 m).
     double rigid_max_pair_distance_m = 1.0;
-    int min_section_link_pairs = 50;      // pairs needed to link two sections (rigid graph)
+    int min_section_link_pairs = 50;  // pairs needed to link two sections (rigid graph)
     // Rigid stage: true = one correction per section centre, slices interpolated in time between
     // centres (continuous track; the INS drift is smooth); false = each section moves rigidly,
     // rotating about its mean position (the paper).
@@ -94,17 +94,17 @@ struct SlamConfig {
     // Semi-rigid: slices per pose (1 = one pose per slice). The factorisation cost grows fast
     // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
     int bin_slices = 10;
-    int max_iterations = 15;              // semi-rigid stage iterations
+    int max_iterations = 15;  // semi-rigid stage iterations
     // Converged when the largest pose update is below both thresholds.
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;
     CorrespondenceType correspondence = CorrespondenceType::kGicp;
-    int normal_neighbours = 10;       // neighbours for normals / covariances
-    double point_sigma_m = 0.05;      // 1-sigma of a point along the surface normal
+    int normal_neighbours = 10;         // neighbours for normals / covariances
+    double point_sigma_m = 0.05;        // 1-sigma of a point along the surface normal
     double gicp_tangent_sigma_m = 0.5;  // GICP: 1-sigma along the surface (plane-like C)
     RobustKernel robust_kernel = RobustKernel::kHuber;  // gps-outage ATE 0.56 -> 0.52 m
-    double robust_width = 2.0;        // kernel width, in point sigmas
-    int query_stride = 16;            // every n-th sounding of a slice is a query point
+    double robust_width = 2.0;                          // kernel width, in point sigmas
+    int query_stride = 16;  // every n-th sounding of a slice is a query point
     // INS relative-motion terms between consecutive poses i, j: per component the sigma of the
     // motion over dt is sqrt(f^2 * 2 dt / ins_correlation_time_s (at most 1) + (g_j - g_i)^2)
     // * ins_sigma_scale, with f the survey's smallest sigma (a first-order Gauss-Markov error)
@@ -128,12 +128,12 @@ struct SlamConfig {
     bool absolute_position_terms = true;  // GNSS/INS position per pose, weighted by its sigma
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     double absolute_sigma_scale = 1.0;
-    double score_cell_m = 0.5;   // plane-fit consistency score grid cell (reported only)
+    double score_cell_m = 0.5;  // plane-fit consistency score grid cell (reported only)
     // Stop after this many iterations without a better pair score (the rigid stage: only once
     // its pair distance has come down to max_pair_distance_m).
     int score_patience = 2;
     double score_tolerance = 1e-3;  // patience: a gain counts if above this fraction
-    int num_threads = 0;         // 0 = TBB default
+    int num_threads = 0;            // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;
 
@@ -144,31 +144,31 @@ struct SlamConfig {
 enum class SlamStage { kRigid, kSemiRigid };
 
 enum class SlamTermination {
-    kConverged,         // pose updates below the thresholds
-    kMaxIterations,     // iteration budget spent
-    kScoreStalled,      // pair score did not improve for score_patience iterations; best kept
-    kNoImprovement,     // no damped step lowered the cost on the current pairs; best kept
-    kNoOverlap,         // no point pairs at all: the trajectory is returned unchanged
-    kSolverFailed,      // the normal equations could not be factorised; best iterate kept
-    kCancelled,         // the progress callback returned false; best iterate kept
-    kInvalidInput,      // empty input, non-finite values or an invalid config
+    kConverged,      // pose updates below the thresholds
+    kMaxIterations,  // iteration budget spent
+    kScoreStalled,   // pair score did not improve for score_patience iterations; best kept
+    kNoImprovement,  // no damped step lowered the cost on the current pairs; best kept
+    kNoOverlap,      // no point pairs at all: the trajectory is returned unchanged
+    kSolverFailed,   // the normal equations could not be factorised; best iterate kept
+    kCancelled,      // the progress callback returned false; best iterate kept
+    kInvalidInput,   // empty input, non-finite values or an invalid config
 };
 const char* ToString(SlamTermination t);
 
 struct SlamIteration {
     SlamStage stage = SlamStage::kSemiRigid;
-    int iteration = 0;             // 1-based within the stage
-    std::size_t num_pairs = 0;     // point pairs used
-    double cost = 0;               // total cost (robust, whitened) before the step
-    double cost_after = 0;         // the same terms and pairs after the step (< cost if taken)
-    int rejected_steps = 0;        // damped steps that did not lower the cost
-    double damping = 0;            // Levenberg lambda of the step taken
-    double pair_rms_m = 0;         // RMS pair distance before the step
-    double pair_score_m = 0;       // pair score after the step (lower is better)
-    double consistency_m = 0;      // plane-fit score after the step (reported only)
+    int iteration = 0;          // 1-based within the stage
+    std::size_t num_pairs = 0;  // point pairs used
+    double cost = 0;            // total cost (robust, whitened) before the step
+    double cost_after = 0;      // the same terms and pairs after the step (< cost if taken)
+    int rejected_steps = 0;     // damped steps that did not lower the cost
+    double damping = 0;         // Levenberg lambda of the step taken
+    double pair_rms_m = 0;      // RMS pair distance before the step
+    double pair_score_m = 0;    // pair score after the step (lower is better)
+    double consistency_m = 0;   // plane-fit score after the step (reported only)
     double max_step_rotation_rad = 0;
     double max_step_translation_m = 0;
-    bool best = false;             // this iterate has the best pair score so far
+    bool best = false;  // this iterate has the best pair score so far
 };
 
 struct SlamPose {
@@ -179,11 +179,11 @@ struct SlamPose {
 
 // One rigid section (section_length_s of slices) and what the coarse search did with it.
 struct SlamSection {
-    double t0_s = 0, t1_s = 0;      // GPS time of its first and last slice
-    double sigma_h_m = 0;           // median INS horizontal 1-sigma over its slices
-    bool searched = false;          // sigma_h_m > coarse_search_min_sigma_m
-    bool shifted = false;  // searched and moved (by its own fit, or by its neighbours' if it
-                           // did not overlap the trusted sections)
+    double t0_s = 0, t1_s = 0;  // GPS time of its first and last slice
+    double sigma_h_m = 0;       // median INS horizontal 1-sigma over its slices
+    bool searched = false;      // sigma_h_m > coarse_search_min_sigma_m
+    bool shifted = false;       // searched and moved (by its own fit, or by its neighbours' if it
+                                // did not overlap the trusted sections)
     Eigen::Vector3d coarse_offset_m = Eigen::Vector3d::Zero();  // world shift applied, ENU
 };
 
@@ -203,16 +203,16 @@ struct SlamResult {
     int rigid_iterations = 0;
     int semi_rigid_iterations = 0;
     std::size_t num_sections = 0;
-    std::size_t num_section_links = 0;  // rigid graph edges
+    std::size_t num_section_links = 0;      // rigid graph edges
     std::size_t num_sections_searched = 0;  // coarse search: sections the INS was unsure of
     std::size_t num_sections_shifted = 0;   // ... that were moved (SlamSection::shifted)
-    std::vector<SlamSection> sections;  // the rigid sections, in time order
-    std::size_t num_poses = 0;          // semi-rigid unknown poses
-    std::size_t num_pairs = 0;          // pairs of the last iteration
-    double initial_consistency_m = 0;   // plane-fit score of the input trajectory
-    double final_consistency_m = 0;     // ... and of the result
-    double initial_pair_score_m = 0;    // pair score of the input trajectory
-    double final_pair_score_m = 0;      // ... and of the result (the best iterate)
+    std::vector<SlamSection> sections;      // the rigid sections, in time order
+    std::size_t num_poses = 0;              // semi-rigid unknown poses
+    std::size_t num_pairs = 0;              // pairs of the last iteration
+    double initial_consistency_m = 0;       // plane-fit score of the input trajectory
+    double final_consistency_m = 0;         // ... and of the result
+    double initial_pair_score_m = 0;        // pair score of the input trajectory
+    double final_pair_score_m = 0;          // ... and of the result (the best iterate)
     SlamTimings timings;
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;

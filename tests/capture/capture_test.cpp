@@ -23,7 +23,9 @@ constexpr int kLinkEthernet = 1;
 constexpr int kLinkRaw = 101;  // LINKTYPE_RAW in the file (libpcap maps it to DLT_RAW)
 constexpr int kLinkSll = 113;
 
-std::vector<std::uint8_t> Text(const std::string& s) { return {s.begin(), s.end()}; }
+std::vector<std::uint8_t> Text(const std::string& s) {
+    return {s.begin(), s.end()};
+}
 
 // Writes the classic pcap format: a 24-byte global header, then 16-byte record headers.
 class PcapWriter {
@@ -39,7 +41,8 @@ public:
         w.U32Le(static_cast<std::uint32_t>(link_type));
     }
 
-    void Packet(std::int64_t utime, const std::vector<std::uint8_t>& data,
+    void Packet(std::int64_t utime,
+                const std::vector<std::uint8_t>& data,
                 std::size_t orig_len = 0) {
         ByteWriter w(bytes_);
         w.U32Le(static_cast<std::uint32_t>(utime / 1000000));
@@ -66,8 +69,10 @@ constexpr std::uint8_t kFin = 0x01;
 constexpr std::uint8_t kSyn = 0x02;
 constexpr std::uint8_t kAck = 0x10;
 
-std::vector<std::uint8_t> Ipv4(const Tuple& t, std::uint8_t proto,
-                               const std::vector<std::uint8_t>& l4, std::uint16_t frag = 0) {
+std::vector<std::uint8_t> Ipv4(const Tuple& t,
+                               std::uint8_t proto,
+                               const std::vector<std::uint8_t>& l4,
+                               std::uint16_t frag = 0) {
     std::vector<std::uint8_t> out;
     ByteWriter w(out);
     w.U8(0x45);
@@ -84,7 +89,9 @@ std::vector<std::uint8_t> Ipv4(const Tuple& t, std::uint8_t proto,
     return out;
 }
 
-std::vector<std::uint8_t> Tcp(const Tuple& t, std::uint32_t seq, std::uint8_t flags,
+std::vector<std::uint8_t> Tcp(const Tuple& t,
+                              std::uint32_t seq,
+                              std::uint8_t flags,
                               const std::vector<std::uint8_t>& payload) {
     std::vector<std::uint8_t> out;
     ByteWriter w(out);
@@ -112,7 +119,8 @@ std::vector<std::uint8_t> Udp(const Tuple& t, const std::vector<std::uint8_t>& p
     return Ipv4(t, 17, out);
 }
 
-std::vector<std::uint8_t> Ethernet(const std::vector<std::uint8_t>& ip, bool vlan = false,
+std::vector<std::uint8_t> Ethernet(const std::vector<std::uint8_t>& ip,
+                                   bool vlan = false,
                                    std::size_t pad_to = 0) {
     std::vector<std::uint8_t> out(12, 0x11);
     ByteWriter w(out);
@@ -285,7 +293,7 @@ TEST(CaptureTest, SequenceNumbersWrapAround) {
     Tuple t;
     const std::uint32_t isn = 0xFFFFFFF0u;
     w.Packet(1, Ethernet(Tcp(t, isn, kSyn, {})));
-    w.Packet(2, Ethernet(Tcp(t, isn + 1, kAck, Part(0, 20))));                       // wraps
+    w.Packet(2, Ethernet(Tcp(t, isn + 1, kAck, Part(0, 20))));  // wraps
     w.Packet(3, Ethernet(Tcp(t, static_cast<std::uint32_t>(isn + 21), kAck, Part(20, 10))));
     const auto c = Parse(w);
     ASSERT_EQ(c.tcp.size(), 1u);
@@ -390,7 +398,7 @@ TEST(CaptureTest, BadPacketsAreCountedNotFatal) {
     arp.push_back(0x06);
     arp.resize(42, 0);
     w.Packet(2, arp);
-    w.Packet(3, Ethernet(Ipv4(t, 1, {8, 0, 0, 0})));                       // ICMP
+    w.Packet(3, Ethernet(Ipv4(t, 1, {8, 0, 0, 0})));                            // ICMP
     w.Packet(4, Ethernet(Ipv4(t, 17, {0, 1, 0, 2, 0, 9, 0, 0, 'x'}, 0x2000)));  // fragment
     auto snapped = Ethernet(Tcp(t, 1, kAck, Text("0123456789")));
     const std::size_t full = snapped.size();
@@ -447,8 +455,7 @@ TEST(CaptureTest, GarbageAndMissingFilesAreErrorsNamingTheFile) {
 class TempFile {
 public:
     explicit TempFile(const std::string& name)
-        : path_((std::filesystem::temp_directory_path() /
-                 (std::to_string(::getpid()) + "_" + name))
+        : path_((std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name))
                     .string()) {}
     ~TempFile() { std::remove(path_.c_str()); }
     const std::string& path() const { return path_; }
@@ -501,14 +508,16 @@ TEST(CaptureTest, GzippedCaptureFromFile) {
 struct RealCapture {
     const char* file;
     const char* format;
-    std::uint64_t stream_bytes;     // union of the segments' byte ranges
-    std::uint64_t payload_bytes;    // every payload byte captured
+    std::uint64_t stream_bytes;   // union of the segments' byte ranges
+    std::uint64_t payload_bytes;  // every payload byte captured
     std::uint64_t payload_segments;
     std::uint64_t retransmitted_segments;
-    const char* first_bytes;        // the stream starts with a prompt or a binary sync
+    const char* first_bytes;  // the stream starts with a prompt or a binary sync
 };
 
-void PrintTo(const RealCapture& capture, std::ostream* os) { *os << capture.file; }
+void PrintTo(const RealCapture& capture, std::ostream* os) {
+    *os << capture.file;
+}
 
 class CaptureRealTest : public ::testing::TestWithParam<RealCapture> {};
 
@@ -547,13 +556,28 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         // Ten retransmissions resend a 60-byte PSRDOP2 segment together with the next 180
         // bytes: 600 duplicate bytes, 8527 - 600 = 7927 in the stream.
-        RealCapture{"swri_bestpos-bestvel-psrdop2-sync.pcap", "pcap", 7927, 8527, 66, 10,
+        RealCapture{"swri_bestpos-bestvel-psrdop2-sync.pcap",
+                    "pcap",
+                    7927,
+                    8527,
+                    66,
+                    10,
                     "[ICOM1]\xAA\x44\x12"},
-        RealCapture{"swri_corrimudata.pcapng", "pcapng", 10872, 10872, 100, 0,
-                    "\r\n<OK\r\n[ICOM1]"},
-        RealCapture{"spandrv_propak6-basic-fix.pcap.gz", "pcap", 1527600, 1527600, 10051, 0,
+        RealCapture{
+            "swri_corrimudata.pcapng", "pcapng", 10872, 10872, 100, 0, "\r\n<OK\r\n[ICOM1]"},
+        RealCapture{"spandrv_propak6-basic-fix.pcap.gz",
+                    "pcap",
+                    1527600,
+                    1527600,
+                    10051,
+                    0,
                     "\xAA\x44\x12"},
-        RealCapture{"spandrv_propak6-ins-ppp.pcap.gz", "pcap", 864872, 864872, 8191, 0,
+        RealCapture{"spandrv_propak6-ins-ppp.pcap.gz",
+                    "pcap",
+                    864872,
+                    864872,
+                    8191,
+                    0,
                     "\r\n<OK\r\n[ICOM1]"}),
     [](const ::testing::TestParamInfo<RealCapture>& param_info) {
         std::string name = param_info.param.file;

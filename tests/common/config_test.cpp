@@ -96,7 +96,8 @@ TEST(ConfigReader, MissingFileIsAClearError) {
 
 TEST(ConfigReader, NestedMapsAndListsCarryTheirPath) {
     auto reader = ConfigReader::FromString(
-        "daemon:\n  log_dir: /tmp\n  channels:\n    - name: a\n      port: 1\n    - name: b\n      prot: 2\n"
+        "daemon:\n  log_dir: /tmp\n  channels:\n    - name: a\n      port: 1\n    - name: b\n      "
+        "prot: 2\n"
         "    - 7\n");
     ASSERT_TRUE(reader.ok());
     ConfigReader daemon = reader->Child("daemon");

@@ -35,15 +35,18 @@ TEST(Frames, SpanAndEnuPermutationsAreProperRotations) {
         EXPECT_NEAR(R.determinant(), -1.0 * -1.0, kTol);  // det +1: no reflection
     }
     // SPAN forward (y) is vehicle forward (x); SPAN up is vehicle -z.
-    EXPECT_TRUE((RotationVehicleFromSpan() * Eigen::Vector3d::UnitY()).isApprox(Eigen::Vector3d::UnitX()));
-    EXPECT_TRUE((RotationVehicleFromSpan() * Eigen::Vector3d::UnitZ()).isApprox(-Eigen::Vector3d::UnitZ()));
+    EXPECT_TRUE(
+        (RotationVehicleFromSpan() * Eigen::Vector3d::UnitY()).isApprox(Eigen::Vector3d::UnitX()));
+    EXPECT_TRUE(
+        (RotationVehicleFromSpan() * Eigen::Vector3d::UnitZ()).isApprox(-Eigen::Vector3d::UnitZ()));
 }
 
 TEST(Frames, RpyRoundTripOverGrid) {
     for (double r = -170; r <= 170; r += 34) {
         for (double p = -85; p <= 85; p += 17) {
             for (double y = -179; y <= 180; y += 41) {
-                const Eigen::Matrix3d R = RotationWorldFromRpy(DegToRad(r), DegToRad(p), DegToRad(y));
+                const Eigen::Matrix3d R =
+                    RotationWorldFromRpy(DegToRad(r), DegToRad(p), DegToRad(y));
                 const Rpy back = RpyFromRotationWorld(R);
                 EXPECT_NEAR(back.roll, DegToRad(r), 1e-9);
                 EXPECT_NEAR(back.pitch, DegToRad(p), 1e-9);

@@ -12,7 +12,8 @@ TEST(LocalTangentFrame, RoundTripAroundTheSurvey) {
     // Bejanca mine, Portugal (approximate).
     const LocalTangentFrame frame({40.44, -7.78, 350.0});
     EXPECT_TRUE(frame.ToEnu(frame.origin()).isZero(1e-9));
-    for (const Eigen::Vector3d& enu : {Eigen::Vector3d(62.5, 45.0, -27.0), Eigen::Vector3d(-300, 10, 2)}) {
+    for (const Eigen::Vector3d& enu :
+         {Eigen::Vector3d(62.5, 45.0, -27.0), Eigen::Vector3d(-300, 10, 2)}) {
         const Geodetic g = frame.FromEnu(enu);
         EXPECT_TRUE(frame.ToEnu(g).isApprox(enu, 1e-9));
     }

@@ -12,7 +12,8 @@ namespace {
 TEST(Progress, FormatLine) {
     EXPECT_EQ(FormatProgressLine("georef", 250, 1000, 5.0),
               "georef  25.0 %  [250/1000]  5.0 s, eta 15.0 s");
-    EXPECT_EQ(FormatProgressLine("georef", 1000, 1000, 20.0), "georef 100.0 %  [1000/1000]  20.0 s");
+    EXPECT_EQ(FormatProgressLine("georef", 1000, 1000, 20.0),
+              "georef 100.0 %  [1000/1000]  20.0 s");
     EXPECT_EQ(FormatProgressLine("ingest", 42, 0, 1.25), "ingest  [42]  1.2 s");
     // Over-counting does not print more than 100 %.
     EXPECT_EQ(FormatProgressLine("x", 20, 10, 1.0), "x 100.0 %  [20/10]  1.0 s");

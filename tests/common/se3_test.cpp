@@ -58,8 +58,8 @@ TEST(Interpolation, ShortestArcAcrossHeadingWrap) {
     // Heading 179 deg to -179 deg: the slerp goes through 180, not through 0.
     const Eigen::Matrix3d Ra = ExpSO3(Eigen::Vector3d(0, 0, 179.0 * kPi / 180));
     const Eigen::Matrix3d Rb = ExpSO3(Eigen::Vector3d(0, 0, -179.0 * kPi / 180));
-    const Pose m = InterpolatePose(MakePose(Ra, Eigen::Vector3d::Zero()),
-                                   MakePose(Rb, Eigen::Vector3d::Zero()), 0.5);
+    const Pose m = InterpolatePose(
+        MakePose(Ra, Eigen::Vector3d::Zero()), MakePose(Rb, Eigen::Vector3d::Zero()), 0.5);
     EXPECT_LT(RotationAngleBetween(m.linear(), ExpSO3(Eigen::Vector3d(0, 0, kPi))), 1e-9);
 }
 
@@ -68,7 +68,8 @@ TEST(Interpolation, SlerpHandlesOppositeQuaternionSigns) {
     Eigen::Quaterniond b(ExpSO3(Eigen::Vector3d(0.3, 0, 0)));
     b.coeffs() *= -1.0;  // same rotation, other hemisphere
     const Eigen::Quaterniond m = SlerpShortest(a, b, 0.5);
-    EXPECT_LT(RotationAngleBetween(m.toRotationMatrix(), ExpSO3(Eigen::Vector3d(0.2, 0, 0))), 1e-12);
+    EXPECT_LT(RotationAngleBetween(m.toRotationMatrix(), ExpSO3(Eigen::Vector3d(0.2, 0, 0))),
+              1e-12);
 }
 
 }  // namespace

@@ -41,7 +41,9 @@ Msg Decode(const lcm::LogEvent* ev) {
     return m;
 }
 
-void WriteEvent(lcm::LogFile& log, std::int64_t utime, const std::string& channel,
+void WriteEvent(lcm::LogFile& log,
+                std::int64_t utime,
+                const std::string& channel,
                 const std::vector<std::uint8_t>& data) {
     lcm::LogEvent ev{};
     ev.timestamp = utime;

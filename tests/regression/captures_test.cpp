@@ -127,13 +127,14 @@ TEST(ProvenanceTest, SwriBestposIs99FramesNot109) {
 TEST(ProvenanceTest, SwriCorrimudata89FramesAnd14ResponsesAndPrompts) {
     const json j = Inspect("swri_corrimudata.pcapng");
     EXPECT_EQ(j.at("log_frames"), 89);
-    ExpectExactly(j, {{"42", 28},
-                      {"812", 29},
-                      {"1465", 28},
-                      {"264", 2},
-                      {"101", 2},
-                      {"OK", 14},
-                      {"PROMPT", 14}});
+    ExpectExactly(j,
+                  {{"42", 28},
+                   {"812", 29},
+                   {"1465", 28},
+                   {"264", 2},
+                   {"101", 2},
+                   {"OK", 14},
+                   {"PROMPT", 14}});
 }
 
 TEST(ProvenanceTest, Propak6BasicFix10139Frames) {
@@ -148,37 +149,36 @@ TEST(ProvenanceTest, Propak6BasicFix10139Frames) {
 TEST(ProvenanceTest, Propak6InsPpp7096FramesAnd1145OkPromptPairs) {
     const json j = Inspect("spandrv_propak6-ins-ppp.pcap.gz");
     EXPECT_EQ(j.at("log_frames"), 7096);
-    ExpectExactly(j, {{"42", 2288},
-                      {"812", 2289},
-                      {"1465", 2289},
-                      {"264", 115},
-                      {"101", 115},
-                      {"OK", 1145},
-                      {"PROMPT", 1145}});
+    ExpectExactly(j,
+                  {{"42", 2288},
+                   {"812", 2289},
+                   {"1465", 2289},
+                   {"264", 115},
+                   {"101", 115},
+                   {"OK", 1145},
+                   {"PROMPT", 1145}});
     // The only skipped bytes are the CR LF before each <OK.
     EXPECT_EQ(j.at("skipped_bytes").at("total"), 2 * 1145);
 }
 
 TEST(ProvenanceTest, Oem7DriverCaptures) {
     ExpectExactly(Inspect("oem7drv_align.gps"), {{"1335", 12}});
-    ExpectExactly(Inspect("oem7drv_bestpos.gps"), {{"42", 5},
-                                                   {"99", 5},
-                                                   {"726", 2},
-                                                   {"1163", 2},
-                                                   {"1465", 2},
-                                                   {"508", 10},
-                                                   {"OK", 8},
-                                                   {"PROMPT", 8}});
+    ExpectExactly(Inspect("oem7drv_bestpos.gps"),
+                  {{"42", 5},
+                   {"99", 5},
+                   {"726", 2},
+                   {"1163", 2},
+                   {"1465", 2},
+                   {"508", 10},
+                   {"OK", 8},
+                   {"PROMPT", 8}});
     ExpectExactly(Inspect("oem7drv_ins1.gps"),
                   {{"508", 243}, {"2264", 10}, {"2051", 29}, {"1945", 2}});
     ExpectExactly(Inspect("oem7drv_ins2.gps"),
                   {{"1362", 766}, {"508", 62}, {"1465", 6}, {"1945", 1}});
-    ExpectExactly(Inspect("oem7drv_ins2_humble.gps"), {{"1362", 7},
-                                                       {"508", 4},
-                                                       {"1465", 4},
-                                                       {"1945", 3},
-                                                       {"#RXSTATUSEVENTA", 3},
-                                                       {"PROMPT", 1}});
+    ExpectExactly(
+        Inspect("oem7drv_ins2_humble.gps"),
+        {{"1362", 7}, {"508", 4}, {"1465", 4}, {"1945", 3}, {"#RXSTATUSEVENTA", 3}, {"PROMPT", 1}});
     ExpectExactly(Inspect("oem7drv_rxstatus.gps"), {{"93", 3}});
     const json time = Inspect("oem7drv_time.gps");
     ExpectExactly(time, {{"101", 6}});
@@ -220,8 +220,14 @@ TEST(ProvenanceTest, GavlabOneEach) {
     EXPECT_GE(Count(j, "OK"), 1u);
     // The ASCII twin: the same eight logs, as ASCII.
     const json ascii = Inspect("gavlab_OneEach.ASC");
-    for (const char* name : {"#BESTPOSA", "#RXSTATUSA", "#BESTVELA", "#RXHWLEVELSA", "#BESTXYZA",
-                             "#PSRXYZA", "#BSLNXYZA", "#BESTUTMA"}) {
+    for (const char* name : {"#BESTPOSA",
+                             "#RXSTATUSA",
+                             "#BESTVELA",
+                             "#RXHWLEVELSA",
+                             "#BESTXYZA",
+                             "#PSRXYZA",
+                             "#BSLNXYZA",
+                             "#BESTUTMA"}) {
         EXPECT_EQ(Count(ascii, name), 1u) << name;
     }
 }

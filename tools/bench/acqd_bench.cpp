@@ -11,9 +11,9 @@
 #include <sys/resource.h>
 
 #include <algorithm>
-#include <cstring>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 #include <vector>
@@ -35,12 +35,16 @@ namespace dt = protocol::deltat;
 double CpuSeconds() {
     rusage ru{};
     getrusage(RUSAGE_SELF, &ru);
-    return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
+    return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec +
+           (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
 }
 
 class ChunkSource final : public ByteSource {
 public:
-    Status Open() override { NoteOpened(); return Ok{}; }
+    Status Open() override {
+        NoteOpened();
+        return Ok{};
+    }
     Expected<ReadOutcome> Read(Chunk&, int) override { return ReadOutcome::kEndOfStream; }
     Status Write(std::span<const std::byte>, int) override { return Ok{}; }
     void Close() override {}
@@ -189,30 +193,43 @@ void Throughput(const std::string& dir, int rate_x, double seconds) {
     std::size_t p = 0;
     for (std::size_t i = 0; i < s.novatel.size(); ++i) {
         rig.nov.Process(s.novatel[i]);
-        if (p < s.pings.size() && s.pings[p].utime_host <= s.novatel[i].utime_host) rig.mb.Process(s.pings[p++]);
+        if (p < s.pings.size() && s.pings[p].utime_host <= s.novatel[i].utime_host)
+            rig.mb.Process(s.pings[p++]);
     }
     while (p < s.pings.size()) rig.mb.Process(s.pings[p++]);
     rig.publisher.Drain(60'000);
     rig.log.Flush(60'000);
     const double cpu = CpuSeconds() - c0;
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
     const auto nc = rig.nov.counters();
     const auto mc = rig.mb.counters();
     const auto ls = rig.log.stats();
     const auto ps = rig.publisher.stats();
-    std::printf("rate x%-3d data %.0f s: cpu %.3f s (%.2f %% of one core per data second), wall %.3f s\n",
-                rate_x, seconds, cpu, 100.0 * cpu / seconds, wall);
-    std::printf("  novatel frames %lld/%lld, pings %lld/%zu, published %lld, logged %lld, log drops %lld, "
-                "lcm drops %lld, lcm failures %lld -> %s\n",
-                static_cast<long long>(nc.frames), static_cast<long long>(s.novatel_frames),
-                static_cast<long long>(mc.FrameCount("83P")), s.pings.size(),
-                static_cast<long long>(nc.published + mc.published),
-                static_cast<long long>(ls.events_written), static_cast<long long>(ls.dropped()),
-                static_cast<long long>(ps.queue_drops), static_cast<long long>(ps.publish_failures),
-                (nc.frames == s.novatel_frames && mc.FrameCount("83P") == static_cast<std::int64_t>(s.pings.size()) &&
-                 ls.dropped() == 0 && ls.events_written == nc.published + mc.published)
-                    ? "NO LOSS"
-                    : "LOSS");
+    std::printf(
+        "rate x%-3d data %.0f s: cpu %.3f s (%.2f %% of one core per data second), wall %.3f s\n",
+        rate_x,
+        seconds,
+        cpu,
+        100.0 * cpu / seconds,
+        wall);
+    std::printf(
+        "  novatel frames %lld/%lld, pings %lld/%zu, published %lld, logged %lld, log drops %lld, "
+        "lcm drops %lld, lcm failures %lld -> %s\n",
+        static_cast<long long>(nc.frames),
+        static_cast<long long>(s.novatel_frames),
+        static_cast<long long>(mc.FrameCount("83P")),
+        s.pings.size(),
+        static_cast<long long>(nc.published + mc.published),
+        static_cast<long long>(ls.events_written),
+        static_cast<long long>(ls.dropped()),
+        static_cast<long long>(ps.queue_drops),
+        static_cast<long long>(ps.publish_failures),
+        (nc.frames == s.novatel_frames &&
+         mc.FrameCount("83P") == static_cast<std::int64_t>(s.pings.size()) && ls.dropped() == 0 &&
+         ls.events_written == nc.published + mc.published)
+            ? "NO LOSS"
+            : "LOSS");
 }
 
 void Latency(const std::string& dir) {
@@ -223,24 +240,32 @@ void Latency(const std::string& dir) {
     std::vector<double> lat_us;
     std::size_t p = 0;
     for (std::size_t i = 0; i < s.novatel.size(); ++i) {
-        const bool with_ping = p < s.pings.size() && s.pings[p].utime_host <= s.novatel[i].utime_host;
+        const bool with_ping =
+            p < s.pings.size() && s.pings[p].utime_host <= s.novatel[i].utime_host;
         const auto t0 = std::chrono::steady_clock::now();
         rig.nov.Process(s.novatel[i]);
         if (with_ping) rig.mb.Process(s.pings[p++]);
         const std::int64_t target = rig.nov.counters().published + rig.mb.counters().published;
         while (rig.log.stats().events_written < target) std::this_thread::yield();
-        lat_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+        lat_us.push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
+                .count());
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
     std::sort(lat_us.begin(), lat_us.end());
-    std::printf("receive-to-logged latency over %zu chunks: p50 %.0f us, p99 %.0f us, max %.0f us\n",
-                lat_us.size(), lat_us[lat_us.size() / 2], lat_us[lat_us.size() * 99 / 100], lat_us.back());
+    std::printf(
+        "receive-to-logged latency over %zu chunks: p50 %.0f us, p99 %.0f us, max %.0f us\n",
+        lat_us.size(),
+        lat_us[lat_us.size() / 2],
+        lat_us[lat_us.size() * 99 / 100],
+        lat_us.back());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string base = (argc > 1 ? std::string(argv[1]) : std::string("/tmp")) + "/pitmap-bench-acqd";
+    const std::string base =
+        (argc > 1 ? std::string(argv[1]) : std::string("/tmp")) + "/pitmap-bench-acqd";
     Throughput(base + "/x1", 1, 30.0);
     Throughput(base + "/x10", 10, 10.0);
     Latency(base + "/lat");

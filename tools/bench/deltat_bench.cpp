@@ -18,8 +18,12 @@ namespace {
 std::atomic<std::uint64_t> g_allocations{0};
 
 // Out of line so the compiler does not pair an inlined malloc/free with new/delete.
-[[gnu::noinline]] void* Acquire(std::size_t size) { return std::malloc(size == 0 ? 1 : size); }
-[[gnu::noinline]] void Release(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void* Acquire(std::size_t size) {
+    return std::malloc(size == 0 ? 1 : size);
+}
+[[gnu::noinline]] void Release(void* p) noexcept {
+    std::free(p);
+}
 
 }  // namespace
 
@@ -28,11 +32,21 @@ void* operator new(std::size_t size) {
     if (void* p = Acquire(size)) return p;
     throw std::bad_alloc();
 }
-void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { Release(p); }
-void operator delete[](void* p) noexcept { Release(p); }
-void operator delete(void* p, std::size_t) noexcept { Release(p); }
-void operator delete[](void* p, std::size_t) noexcept { Release(p); }
+void* operator new[](std::size_t size) {
+    return operator new(size);
+}
+void operator delete(void* p) noexcept {
+    Release(p);
+}
+void operator delete[](void* p) noexcept {
+    Release(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+    Release(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+    Release(p);
+}
 
 namespace {
 
@@ -71,8 +85,10 @@ std::vector<std::uint8_t> MakeStream(bool intensity) {
 }
 
 // Frames and decodes the whole stream once; returns the number of pings decoded.
-std::size_t FrameAndDecode(const std::vector<std::uint8_t>& stream, StreamFramer& framer,
-                           FloatOrderMemory& memory, Ping83P& ping) {
+std::size_t FrameAndDecode(const std::vector<std::uint8_t>& stream,
+                           StreamFramer& framer,
+                           FloatOrderMemory& memory,
+                           Ping83P& ping) {
     std::size_t pings = 0;
     for (std::size_t at = 0; at < stream.size(); at += kChunkBytes) {
         const std::size_t n = std::min(kChunkBytes, stream.size() - at);

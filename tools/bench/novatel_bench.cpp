@@ -33,8 +33,12 @@ void* operator new(std::size_t n) {
     if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
     throw std::bad_alloc();
 }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+    std::free(p);
+}
 
 namespace {
 
@@ -48,17 +52,22 @@ Bytes ReadCapture(const std::string& name) {
 
 const Bytes& RealStream() {
     static const Bytes stream = [] {
-        const char* files[] = {"oem7drv_align.gps",  "oem7drv_bestpos.gps",
-                               "oem7drv_ins1.gps",   "oem7drv_ins2.gps",
-                               "oem7drv_ins2_humble.gps", "oem7drv_rxstatus.gps",
-                               "oem7drv_time.gps",   "rtklib_oemv_200911218.gps"};
+        const char* files[] = {"oem7drv_align.gps",
+                               "oem7drv_bestpos.gps",
+                               "oem7drv_ins1.gps",
+                               "oem7drv_ins2.gps",
+                               "oem7drv_ins2_humble.gps",
+                               "oem7drv_rxstatus.gps",
+                               "oem7drv_time.gps",
+                               "rtklib_oemv_200911218.gps"};
         Bytes one;
         for (const char* f : files) {
             const Bytes b = ReadCapture(f);
             one.insert(one.end(), b.begin(), b.end());
         }
         Bytes out;
-        while (out.size() < (16u << 20) && !one.empty()) out.insert(out.end(), one.begin(), one.end());
+        while (out.size() < (16u << 20) && !one.empty())
+            out.insert(out.end(), one.begin(), one.end());
         return out;
     }();
     return stream;
@@ -133,21 +142,28 @@ void RunStream(benchmark::State& state, const Bytes& stream) {
         allocations += g_allocations.load(std::memory_order_relaxed) - alloc_before;
     }
     state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * stream.size()));
-    state.counters["frames"] = static_cast<double>(frames) / static_cast<double>(state.iterations());
-    state.counters["decoded"] = static_cast<double>(messages) / static_cast<double>(state.iterations());
+    state.counters["frames"] =
+        static_cast<double>(frames) / static_cast<double>(state.iterations());
+    state.counters["decoded"] =
+        static_cast<double>(messages) / static_cast<double>(state.iterations());
     state.counters["allocs_per_frame"] =
         frames == 0 ? 0.0 : static_cast<double>(allocations) / static_cast<double>(frames);
 }
 
-void BM_RealCaptures(benchmark::State& state) { RunStream(state, RealStream()); }
-void BM_SyntheticInsImu(benchmark::State& state) { RunStream(state, SyntheticStream()); }
+void BM_RealCaptures(benchmark::State& state) {
+    RunStream(state, RealStream());
+}
+void BM_SyntheticInsImu(benchmark::State& state) {
+    RunStream(state, SyntheticStream());
+}
 
 void BM_FramingOnly(benchmark::State& state) {
     const Bytes& stream = SyntheticStream();
     nv::Framer framer;
     for (auto _ : state) {
         for (std::size_t pos = 0; pos < stream.size(); pos += 4096) {
-            framer.Push(pitmap::ByteSpan(stream.data() + pos, std::min<std::size_t>(4096, stream.size() - pos)));
+            framer.Push(pitmap::ByteSpan(stream.data() + pos,
+                                         std::min<std::size_t>(4096, stream.size() - pos)));
             while (!std::holds_alternative<pitmap::protocol::NeedMore>(framer.Next())) {
             }
         }

@@ -23,15 +23,15 @@
 //                          [--cache FILE] [--diag] [--beam-width-deg D]
 #include <algorithm>
 #include <atomic>
-#include <limits>
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
@@ -67,8 +67,10 @@ double Seconds(std::chrono::steady_clock::time_point a) {
 }
 
 // Closest distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
-double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                             const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+double PointTriangleDistance(const Eigen::Vector3d& p,
+                             const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b,
+                             const Eigen::Vector3d& c) {
     const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
     const double d1 = ab.dot(ap), d2 = ac.dot(ap);
     if (d1 <= 0 && d2 <= 0) return (p - a).norm();
@@ -118,14 +120,18 @@ public:
             for (int dy = -1; dy <= 1; ++dy)
                 for (int dz = -1; dz <= 1; ++dz) {
                     const std::uint64_t key = Key(c.x() + dx, c.y() + dy, c.z() + dz);
-                    auto it = std::lower_bound(pairs_.begin(), pairs_.end(),
+                    auto it = std::lower_bound(pairs_.begin(),
+                                               pairs_.end(),
                                                std::pair<std::uint64_t, std::uint32_t>{key, 0});
                     for (; it != pairs_.end() && it->first == key; ++it) {
                         const Eigen::Vector3i& t = m_.triangles[it->second];
-                        best = std::min(best, PointTriangleDistance(
-                            p, m_.vertices[static_cast<std::size_t>(t[0])].cast<double>(),
-                            m_.vertices[static_cast<std::size_t>(t[1])].cast<double>(),
-                            m_.vertices[static_cast<std::size_t>(t[2])].cast<double>()));
+                        best = std::min(
+                            best,
+                            PointTriangleDistance(
+                                p,
+                                m_.vertices[static_cast<std::size_t>(t[0])].cast<double>(),
+                                m_.vertices[static_cast<std::size_t>(t[1])].cast<double>(),
+                                m_.vertices[static_cast<std::size_t>(t[2])].cast<double>()));
                     }
                 }
         return best;
@@ -173,7 +179,8 @@ std::string CacheKey(const Options& o) {
     return o.scenario + "/" + std::to_string(o.max_pings) + "/" + std::to_string(o.stride);
 }
 
-bool SaveCache(const Options& o, const std::vector<fusion::SonarScan>& scans,
+bool SaveCache(const Options& o,
+               const std::vector<fusion::SonarScan>& scans,
                const std::vector<Eigen::Vector3d>& samples) {
     std::vector<std::uint8_t> bytes;
     ByteWriter w(bytes);
@@ -203,7 +210,8 @@ bool SaveCache(const Options& o, const std::vector<fusion::SonarScan>& scans,
     return static_cast<bool>(out);
 }
 
-bool LoadCache(const Options& o, std::vector<fusion::SonarScan>& scans,
+bool LoadCache(const Options& o,
+               std::vector<fusion::SonarScan>& scans,
                std::vector<Eigen::Vector3d>& samples) {
     std::ifstream in(o.cache, std::ios::binary);
     if (!in) return false;
@@ -239,9 +247,12 @@ bool ParseArgs(int argc, char** argv, Options& o) {
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         const bool has = i + 1 < argc;
-        if (a == "--scenario" && has) o.scenario = argv[++i];
-        else if (a == "--mode" && has) o.mode = argv[++i];
-        else if (a == "--threads" && has) o.threads = std::atoi(argv[++i]);
+        if (a == "--scenario" && has)
+            o.scenario = argv[++i];
+        else if (a == "--mode" && has)
+            o.mode = argv[++i];
+        else if (a == "--threads" && has)
+            o.threads = std::atoi(argv[++i]);
         else if (a == "--min-weight" && has) {
             // A comma-separated list: each threshold is reported (the weight filter's effect).
             std::string list = argv[++i];
@@ -251,18 +262,24 @@ bool ParseArgs(int argc, char** argv, Options& o) {
                     static_cast<float>(std::atof(list.substr(p, q - p).c_str())));
                 p = q + 1;
             }
-        }
-        else if (a == "--max-pings" && has) o.max_pings = std::atol(argv[++i]);
-        else if (a == "--stride" && has) o.stride = std::max(1, std::atoi(argv[++i]));
-        else if (a == "--out" && has) o.out = argv[++i];
-        else if (a == "--cache" && has) o.cache = argv[++i];
-        else if (a == "--diag") o.diag = true;
-        else if (a == "--beam-width-deg" && has) o.beam_width_deg = std::atof(argv[++i]);
+        } else if (a == "--max-pings" && has)
+            o.max_pings = std::atol(argv[++i]);
+        else if (a == "--stride" && has)
+            o.stride = std::max(1, std::atoi(argv[++i]));
+        else if (a == "--out" && has)
+            o.out = argv[++i];
+        else if (a == "--cache" && has)
+            o.cache = argv[++i];
+        else if (a == "--diag")
+            o.diag = true;
+        else if (a == "--beam-width-deg" && has)
+            o.beam_width_deg = std::atof(argv[++i]);
         else {
-            std::fprintf(stderr, "usage: pitmap-bench-tsdf [--scenario S] [--mode beam|ray] "
-                                 "[--threads N] [--min-weight W[,W2,...]] [--max-pings N] "
-                                 "[--stride K] [--out DIR] [--cache FILE] [--diag] "
-                                 "[--beam-width-deg D]\n");
+            std::fprintf(stderr,
+                         "usage: pitmap-bench-tsdf [--scenario S] [--mode beam|ray] "
+                         "[--threads N] [--min-weight W[,W2,...]] [--max-pings N] "
+                         "[--stride K] [--out DIR] [--cache FILE] [--diag] "
+                         "[--beam-width-deg D]\n");
             return false;
         }
     }
@@ -280,8 +297,10 @@ struct Score {
 };
 
 // mesh_mean_abs_m over vertices and triangle centroids, and completeness over the samples.
-Score ScoreMesh(const pmesh::ColouredMesh& mesh, const sim::PitWorld& world,
-                const std::vector<Eigen::Vector3d>& samples, int threads) {
+Score ScoreMesh(const pmesh::ColouredMesh& mesh,
+                const sim::PitWorld& world,
+                const std::vector<Eigen::Vector3d>& samples,
+                int threads) {
     Score sc;
     std::vector<double> dist;
     dist.reserve(mesh.vertices.size() + mesh.triangles.size());
@@ -292,7 +311,8 @@ Score ScoreMesh(const pmesh::ColouredMesh& mesh, const sim::PitWorld& world,
         const Eigen::Vector3d c = (mesh.vertices[static_cast<std::size_t>(t[0])] +
                                    mesh.vertices[static_cast<std::size_t>(t[1])] +
                                    mesh.vertices[static_cast<std::size_t>(t[2])])
-                                      .cast<double>() / 3.0;
+                                      .cast<double>() /
+                                  3.0;
         dist.push_back(std::abs(world.SignedDistance(c)));
     }
     if (!dist.empty()) {
@@ -319,9 +339,9 @@ Score ScoreMesh(const pmesh::ColouredMesh& mesh, const sim::PitWorld& world,
     work();
     for (auto& th : pool) th.join();
     for (char h : hit) sc.covered += static_cast<std::size_t>(h);
-    sc.completeness = samples.empty() ? 0.0
-                                      : static_cast<double>(sc.covered) /
-                                            static_cast<double>(samples.size());
+    sc.completeness = samples.empty()
+                          ? 0.0
+                          : static_cast<double>(sc.covered) / static_cast<double>(samples.size());
     return sc;
 }
 
@@ -344,9 +364,10 @@ int main(int argc, char** argv) {
     }
     const sim::TruthTrajectory truth(sc, *track);
     const sim::SonarModel sonar(sc.sonar, world, sc.seed);
-    const Eigen::Matrix3d R_vehicle_sonar = frames::RotationNedFromRpy(
-        frames::DegToRad(sc.boresight_deg[0]), frames::DegToRad(sc.boresight_deg[1]),
-        frames::DegToRad(sc.boresight_deg[2]));
+    const Eigen::Matrix3d R_vehicle_sonar =
+        frames::RotationNedFromRpy(frames::DegToRad(sc.boresight_deg[0]),
+                                   frames::DegToRad(sc.boresight_deg[1]),
+                                   frames::DegToRad(sc.boresight_deg[2]));
     const Pose T_vehicle_sonar =
         MakePose(R_vehicle_sonar,
                  Eigen::Vector3d(
@@ -362,8 +383,8 @@ int main(int argc, char** argv) {
     if (!cached) {
         scans.resize(static_cast<std::size_t>(n_pings));
         const float start = static_cast<float>(frames::DegToRad(sonar.BeamAngleDeg(0)));
-        const float inc = static_cast<float>(
-            frames::DegToRad(sonar.BeamAngleDeg(1) - sonar.BeamAngleDeg(0)));
+        const float inc =
+            static_cast<float>(frames::DegToRad(sonar.BeamAngleDeg(1) - sonar.BeamAngleDeg(0)));
         const double res_m = sc.sonar.range_resolution_mm * 1e-3;
         std::vector<std::vector<Eigen::Vector3d>> samples_per(static_cast<std::size_t>(n_pings));
         {
@@ -412,10 +433,10 @@ int main(int argc, char** argv) {
 
     // 2. Fuse.
     fusion::TsdfConfig config;
-    config.sensor_model = opt.mode == "beam" ? fusion::SensorModel::kBeamWidth
-                                             : fusion::SensorModel::kRay;
-    config.beam_width_rad = frames::DegToRad(opt.beam_width_deg > 0 ? opt.beam_width_deg
-                                                                     : sc.sonar.beam_width_deg);
+    config.sensor_model =
+        opt.mode == "beam" ? fusion::SensorModel::kBeamWidth : fusion::SensorModel::kRay;
+    config.beam_width_rad =
+        frames::DegToRad(opt.beam_width_deg > 0 ? opt.beam_width_deg : sc.sonar.beam_width_deg);
     config.num_threads = opt.threads;
     fusion::TsdfVolume volume(config);
     const double cpu0 = CpuSeconds();
@@ -425,22 +446,29 @@ int main(int argc, char** argv) {
     const fusion::WeightHistogram hist = volume.ComputeWeightHistogram();
 
     std::printf("scenario %s, mode %s, threads %d, pings %ld, beams used %lld\n",
-                opt.scenario.c_str(), opt.mode.c_str(), opt.threads, n_pings,
+                opt.scenario.c_str(),
+                opt.mode.c_str(),
+                opt.threads,
+                n_pings,
                 static_cast<long long>(ir.beams_used));
     std::printf("  simulate_s        %.1f%s\n", sim_s, cached ? "   (read from the cache)" : "");
-    std::printf("  integration_s     %.2f   (cpu %.2f s; %lld voxel updates; %lld beams "
-                "outvoted by their footprint)\n",
-                ir.elapsed_s, integration_cpu_s, static_cast<long long>(ir.voxel_updates),
-                static_cast<long long>(ir.beams_inconsistent));
+    std::printf(
+        "  integration_s     %.2f   (cpu %.2f s; %lld voxel updates; %lld beams "
+        "outvoted by their footprint)\n",
+        ir.elapsed_s,
+        integration_cpu_s,
+        static_cast<long long>(ir.voxel_updates),
+        static_cast<long long>(ir.beams_inconsistent));
     std::printf("  active_voxels     %lld   (grids %.0f MB)\n",
                 static_cast<long long>(stats_before.active_voxels),
                 static_cast<double>(stats_before.memory_bytes) / 1048576.0);
     std::printf("  weight histogram  (%% of active voxels, weight 0..%d):",
                 static_cast<int>(hist.counts.size()) - 1);
     for (std::int64_t c : hist.counts) {
-        std::printf(" %.1f", hist.total > 0 ? 100.0 * static_cast<double>(c) /
-                                                  static_cast<double>(hist.total)
-                                            : 0.0);
+        std::printf(" %.1f",
+                    hist.total > 0
+                        ? 100.0 * static_cast<double>(c) / static_cast<double>(hist.total)
+                        : 0.0);
     }
     std::printf("\n");
 
@@ -474,38 +502,44 @@ int main(int argc, char** argv) {
             continue;
         }
         std::printf("  weight_filter     min %.1f: removed %lld of %lld (%.2f %%) in %.2f s\n",
-                    static_cast<double>(min_weight), static_cast<long long>(fr.voxels_removed),
+                    static_cast<double>(min_weight),
+                    static_cast<long long>(fr.voxels_removed),
                     static_cast<long long>(fr.voxels_before),
                     fr.voxels_before > 0 ? 100.0 * static_cast<double>(fr.voxels_removed) /
                                                static_cast<double>(fr.voxels_before)
                                          : 0.0,
                     filter_s);
-        std::printf("  mesh_s            %.2f   (%zu vertices, %zu triangles, %lld polygons "
-                    "dropped at unobserved cells; filled %lld holes)\n",
-                    mesh_s, mr.mesh.vertices.size(), mr.mesh.triangles.size(),
-                    static_cast<long long>(mr.polygons_unobserved),
-                    static_cast<long long>(mr.holes.holes_filled));
+        std::printf(
+            "  mesh_s            %.2f   (%zu vertices, %zu triangles, %lld polygons "
+            "dropped at unobserved cells; filled %lld holes)\n",
+            mesh_s,
+            mr.mesh.vertices.size(),
+            mr.mesh.triangles.size(),
+            static_cast<long long>(mr.polygons_unobserved),
+            static_cast<long long>(mr.holes.holes_filled));
         std::printf("  peak_rss_mb       %.0f\n", peak_mb);
-        std::printf("  mesh_mean_abs_m   %.4f   (rms %.4f, p95 %.4f)\n", sc_m.mean_abs, sc_m.rms,
-                    sc_m.p95);
-        std::printf("  completeness      %.4f   (%zu of %zu insonified surface samples within "
-                    "0.2 m)\n",
-                    sc_m.completeness, sc_m.covered, samples.size());
+        std::printf(
+            "  mesh_mean_abs_m   %.4f   (rms %.4f, p95 %.4f)\n", sc_m.mean_abs, sc_m.rms, sc_m.p95);
+        std::printf(
+            "  completeness      %.4f   (%zu of %zu insonified surface samples within "
+            "0.2 m)\n",
+            sc_m.completeness,
+            sc_m.covered,
+            samples.size());
         if (!opt.out.empty()) {
             std::filesystem::create_directories(opt.out);
-            const Geodetic origin{sc.origin_latitude_deg, sc.origin_longitude_deg,
-                                  sc.origin_height_m};
+            const Geodetic origin{
+                sc.origin_latitude_deg, sc.origin_longitude_deg, sc.origin_height_m};
             const std::string d = opt.out + "/";
-            for (const Status& s :
-                 {pmesh::WritePly(mr.mesh, d + "mesh.ply", origin),
-                  pmesh::WriteObj(mr.mesh, d + "mesh.obj", origin),
-                  pmesh::WriteGlb(mr.mesh, d + "mesh.glb", origin),
-                  pmesh::WritePly(mr.mesh_filled, d + "mesh_filled.ply", origin),
-                  fusion::WriteVdb(volume, d + "tsdf.vdb")}) {
+            for (const Status& s : {pmesh::WritePly(mr.mesh, d + "mesh.ply", origin),
+                                    pmesh::WriteObj(mr.mesh, d + "mesh.obj", origin),
+                                    pmesh::WriteGlb(mr.mesh, d + "mesh.glb", origin),
+                                    pmesh::WritePly(mr.mesh_filled, d + "mesh_filled.ply", origin),
+                                    fusion::WriteVdb(volume, d + "tsdf.vdb")}) {
                 if (!s) std::fprintf(stderr, "pitmap-bench-tsdf: %s\n", s.error().message.c_str());
             }
         }
-    if (opt.diag) {
+        if (opt.diag) {
             // Where the error is: vertex |distance| by the weight of their voxel and by size.
             constexpr int kBins = 6;
             const double lim[kBins] = {0.05, 0.1, 0.2, 0.5, 1.0, 1e300};
@@ -533,8 +567,13 @@ int main(int argc, char** argv) {
                 if (e > 0.5) {
                     const double sd = world.SignedDistance(v.cast<double>());
                     if (bad_csv) {
-                        std::fprintf(bad_csv, "%.2f %.2f %.2f %.3f %.0f %.3f %.3f\n", v.x(), v.y(),
-                                     v.z(), sd, static_cast<double>(w),
+                        std::fprintf(bad_csv,
+                                     "%.2f %.2f %.2f %.3f %.0f %.3f %.3f\n",
+                                     v.x(),
+                                     v.y(),
+                                     v.z(),
+                                     sd,
+                                     static_cast<double>(w),
                                      world.Height(v.x(), v.y()),
                                      static_cast<double>(volume.DistanceAt(v.cast<double>())));
                     }
@@ -553,16 +592,21 @@ int main(int argc, char** argv) {
             const double nv = static_cast<double>(mr.mesh.vertices.size());
             std::printf("  vertex |error| bins (share, contribution to the mean):\n");
             for (int k = 0; k < kBins; ++k) {
-                std::printf("    <= %-6.2f %6.2f %%  %.4f m\n", lim[k] > 1e9 ? 99.0 : lim[k],
-                            100.0 * static_cast<double>(by_err[k]) / nv, sum_by_err[k] / nv);
+                std::printf("    <= %-6.2f %6.2f %%  %.4f m\n",
+                            lim[k] > 1e9 ? 99.0 : lim[k],
+                            100.0 * static_cast<double>(by_err[k]) / nv,
+                            sum_by_err[k] / nv);
             }
             std::printf(
                 "  vertices by the weight of their nearest voxel (count, mean |error|, > 0.2 "
                 "m):\n");
             for (std::size_t w = 0; w < n_w.size(); ++w) {
                 if (n_w[w] == 0) continue;
-                std::printf("    w %2zu  %9lld  %.4f  %lld\n", w, static_cast<long long>(n_w[w]),
-                            e_w[w] / static_cast<double>(n_w[w]), static_cast<long long>(bad_w[w]));
+                std::printf("    w %2zu  %9lld  %.4f  %lld\n",
+                            w,
+                            static_cast<long long>(n_w[w]),
+                            e_w[w] / static_cast<double>(n_w[w]),
+                            static_cast<long long>(bad_w[w]));
             }
         }
         if (opt.min_weights.size() > 1) {

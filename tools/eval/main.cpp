@@ -35,18 +35,26 @@ Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
 either, the truth's origin is assumed (and said).)";
 
-std::optional<Geodetic> ProductOrigin(const fs::path& products, const std::vector<std::string>& ply_comments) {
+std::optional<Geodetic> ProductOrigin(const fs::path& products,
+                                      const std::vector<std::string>& ply_comments) {
     std::ifstream in(products / "summary.json");
     if (in) {
         const json j = json::parse(in, nullptr, false);
         if (!j.is_discarded() && j.contains("world_origin")) {
             const json& o = j["world_origin"];
-            return Geodetic{o.value("latitude_deg", 0.0), o.value("longitude_deg", 0.0), o.value("height_m", 0.0)};
+            return Geodetic{o.value("latitude_deg", 0.0),
+                            o.value("longitude_deg", 0.0),
+                            o.value("height_m", 0.0)};
         }
     }
     for (const auto& c : ply_comments) {
         Geodetic g;
-        if (std::sscanf(c.c_str(), "pitmap_origin %lf %lf %lf", &g.latitude_deg, &g.longitude_deg, &g.height_m) == 3) return g;
+        if (std::sscanf(c.c_str(),
+                        "pitmap_origin %lf %lf %lf",
+                        &g.latitude_deg,
+                        &g.longitude_deg,
+                        &g.height_m) == 3)
+            return g;
     }
     return std::nullopt;
 }
@@ -56,7 +64,8 @@ std::optional<Geodetic> ProductOrigin(const fs::path& products, const std::vecto
 int main(int argc, char** argv) {
     CLI::App app{"pitmap-eval: score survey products against simulator ground truth"};
     std::string truth_dir, products_dir, json_path;
-    app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")->required();
+    app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")
+        ->required();
     app.add_option("--products", products_dir, "products folder (pitmap ... --out P)")->required();
     app.add_option("--json", json_path, "write the scores as one JSON object to this file");
     app.footer(kDefinitions);
@@ -89,13 +98,15 @@ int main(int argc, char** argv) {
     }
     auto origin = ProductOrigin(P, comments);
     if (!origin) {
-        std::fprintf(stderr, "pitmap-eval: no world origin in the products; assuming the truth's origin\n");
+        std::fprintf(stderr,
+                     "pitmap-eval: no world origin in the products; assuming the truth's origin\n");
         origin = truth->origin;
     }
     const Pose T = eval::ProductToTruthFrame(*origin, truth->origin);
 
-    for (const auto& [file, key] : {std::pair{"trajectory.csv", "trajectory_ate_rmse_m"},
-                                    std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
+    for (const auto& [file, key] :
+         {std::pair{"trajectory.csv", "trajectory_ate_rmse_m"},
+          std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
         if (!fs::exists(P / file)) continue;
         auto traj = eval::ReadTrajectoryCsv((P / file).string());
         if (!traj) {
@@ -104,7 +115,8 @@ int main(int argc, char** argv) {
         }
         const auto s = eval::ScoreTrajectory(*traj, T, truth->trajectory);
         if (s.poses == 0) {
-            std::fprintf(stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
+            std::fprintf(
+                stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
             continue;
         }
         scores[key] = s.ate_rmse_m;
@@ -123,13 +135,19 @@ int main(int argc, char** argv) {
     if (fs::exists(P / "boresight.json")) {
         std::ifstream in(P / "boresight.json");
         const json b = json::parse(in, nullptr, false);
-        if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") || !b.contains("yaw_deg")) {
-            std::fprintf(stderr, "pitmap-eval: %s/boresight.json: needs roll_deg, pitch_deg, yaw_deg\n", products_dir.c_str());
+        if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") ||
+            !b.contains("yaw_deg")) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s/boresight.json: needs roll_deg, pitch_deg, yaw_deg\n",
+                         products_dir.c_str());
             return 2;
         }
-        scores["boresight_error_deg"] = eval::BoresightErrorDeg(
-            b["roll_deg"].get<double>(), b["pitch_deg"].get<double>(), b["yaw_deg"].get<double>(),
-            truth->boresight.roll_deg, truth->boresight.pitch_deg, truth->boresight.yaw_deg);
+        scores["boresight_error_deg"] = eval::BoresightErrorDeg(b["roll_deg"].get<double>(),
+                                                                b["pitch_deg"].get<double>(),
+                                                                b["yaw_deg"].get<double>(),
+                                                                truth->boresight.roll_deg,
+                                                                truth->boresight.pitch_deg,
+                                                                truth->boresight.yaw_deg);
     }
     if (fs::exists(P / "mesh.ply")) {
         auto mesh = eval::ReadPly((P / "mesh.ply").string());
@@ -139,8 +157,10 @@ int main(int argc, char** argv) {
         }
         std::vector<Eigen::Vector3d> samples = mesh->vertices;
         for (const auto& t : mesh->triangles) {
-            samples.push_back((mesh->vertices[static_cast<std::size_t>(t[0])] + mesh->vertices[static_cast<std::size_t>(t[1])] +
-                               mesh->vertices[static_cast<std::size_t>(t[2])]) / 3.0);
+            samples.push_back((mesh->vertices[static_cast<std::size_t>(t[0])] +
+                               mesh->vertices[static_cast<std::size_t>(t[1])] +
+                               mesh->vertices[static_cast<std::size_t>(t[2])]) /
+                              3.0);
         }
         const auto s = eval::ScorePoints(samples, T, world);
         for (auto& p : samples) p = T * p;
@@ -155,7 +175,8 @@ int main(int argc, char** argv) {
         return 1;
     }
     std::printf("%-32s %12s\n", "score", "value");
-    for (const auto& [k, v] : scores.items()) std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
+    for (const auto& [k, v] : scores.items())
+        std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
     if (!json_path.empty()) {
         std::ofstream out(json_path);
         out << scores.dump(2) << "\n";

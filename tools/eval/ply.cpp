@@ -41,15 +41,24 @@ struct Element {
 
 double ReadBinary(ByteReader& r, Type t) {
     switch (t) {
-        case Type::kInt8: return r.I8();
-        case Type::kUInt8: return r.U8();
-        case Type::kInt16: return r.I16Le();
-        case Type::kUInt16: return r.U16Le();
-        case Type::kInt32: return r.I32Le();
-        case Type::kUInt32: return r.U32Le();
-        case Type::kFloat32: return r.F32Le();
-        case Type::kFloat64: return r.F64Le();
-        case Type::kInvalid: break;
+        case Type::kInt8:
+            return r.I8();
+        case Type::kUInt8:
+            return r.U8();
+        case Type::kInt16:
+            return r.I16Le();
+        case Type::kUInt16:
+            return r.U16Le();
+        case Type::kInt32:
+            return r.I32Le();
+        case Type::kUInt32:
+            return r.U32Le();
+        case Type::kFloat32:
+            return r.F32Le();
+        case Type::kFloat64:
+            return r.F64Le();
+        case Type::kInvalid:
+            break;
     }
     return 0;
 }
@@ -101,8 +110,10 @@ Expected<PlyData> ReadPly(const std::string& path) {
         if (word == "format") {
             std::string fmt, version;
             ls >> fmt >> version;
-            if (fmt == "binary_little_endian") binary = true;
-            else if (fmt != "ascii") return Error{path + ": unsupported PLY format " + fmt};
+            if (fmt == "binary_little_endian")
+                binary = true;
+            else if (fmt != "ascii")
+                return Error{path + ": unsupported PLY format " + fmt};
             if (version != "1.0") return Error{path + ": unsupported PLY version " + version};
             have_format = true;
         } else if (word.empty() || word == "comment" || word == "obj_info") {
@@ -165,7 +176,8 @@ Expected<PlyData> ReadPly(const std::string& path) {
             if (e.props[k].name == "y") iy = static_cast<int>(k);
             if (e.props[k].name == "z") iz = static_cast<int>(k);
         }
-        if (is_vertex && (ix < 0 || iy < 0 || iz < 0)) return Error{path + ": vertex without x, y, z"};
+        if (is_vertex && (ix < 0 || iy < 0 || iz < 0))
+            return Error{path + ": vertex without x, y, z"};
         const std::string where = path + ": " + e.name + " ";
         for (std::size_t n = 0; n < e.count; ++n) {
             Eigen::Vector3d v = Eigen::Vector3d::Zero();
@@ -179,8 +191,10 @@ Expected<PlyData> ReadPly(const std::string& path) {
                 const Property& p = e.props[k];
                 if (p.is_list) {
                     double cnt = 0;
-                    if (binary) cnt = ReadBinary(r, p.count_type);
-                    else ls >> cnt;
+                    if (binary)
+                        cnt = ReadBinary(r, p.count_type);
+                    else
+                        ls >> cnt;
                     // The entries must fit in what is left (binary) or on the line (ascii,
                     // at least two characters each).
                     const double room = binary
@@ -192,8 +206,10 @@ Expected<PlyData> ReadPly(const std::string& path) {
                     }
                     for (std::size_t j = 0; j < static_cast<std::size_t>(cnt); ++j) {
                         double val = 0;
-                        if (binary) val = ReadBinary(r, p.type);
-                        else ls >> val;
+                        if (binary)
+                            val = ReadBinary(r, p.type);
+                        else
+                            ls >> val;
                         if (!is_face || p.name.find("vertex_ind") != 0) continue;
                         if (!(val >= 0 && val < static_cast<double>(out.vertices.size())) ||
                             val != std::floor(val)) {
@@ -204,8 +220,10 @@ Expected<PlyData> ReadPly(const std::string& path) {
                     }
                 } else {
                     double val = 0;
-                    if (binary) val = ReadBinary(r, p.type);
-                    else ls >> val;
+                    if (binary)
+                        val = ReadBinary(r, p.type);
+                    else
+                        ls >> val;
                     if (is_vertex && static_cast<int>(k) == ix) v.x() = val;
                     if (is_vertex && static_cast<int>(k) == iy) v.y() = val;
                     if (is_vertex && static_cast<int>(k) == iz) v.z() = val;

@@ -2,8 +2,8 @@
 #include "tools/eval/scores.hpp"
 
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <sstream>
 
@@ -25,8 +25,12 @@ Expected<std::vector<ProductPose>> ReadTrajectoryCsv(const std::string& path) {
         ++lineno;
         if (line.empty()) continue;
         ProductPose p;
-        if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &p.gps_time_s, &p.position.x(),
-                        &p.position.y(), &p.position.z()) != 4) {
+        if (std::sscanf(line.c_str(),
+                        "%lf,%lf,%lf,%lf",
+                        &p.gps_time_s,
+                        &p.position.x(),
+                        &p.position.y(),
+                        &p.position.z()) != 4) {
             return Error{path + ":" + std::to_string(lineno) + ": expected numbers"};
         }
         out.push_back(p);
@@ -69,7 +73,8 @@ DistanceStats SummariseDistances(std::vector<double> d) {
     return s;
 }
 
-TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose& T,
+TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est,
+                                const Pose& T,
                                 const std::vector<sim::TruthPose>& truth) {
     TrajectoryScore s;
     double sum2 = 0, zsum = 0, zsum2 = 0;
@@ -92,21 +97,28 @@ TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose&
     return s;
 }
 
-DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts, const Pose& T,
-                          const sim::PitWorld& world, std::size_t max_points) {
-    const std::size_t stride = std::max<std::size_t>(1, (pts.size() + max_points - 1) / std::max<std::size_t>(max_points, 1));
+DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts,
+                          const Pose& T,
+                          const sim::PitWorld& world,
+                          std::size_t max_points) {
+    const std::size_t stride = std::max<std::size_t>(
+        1, (pts.size() + max_points - 1) / std::max<std::size_t>(max_points, 1));
     std::vector<double> d;
     d.reserve(pts.size() / stride + 1);
-    for (std::size_t i = 0; i < pts.size(); i += stride) d.push_back(world.SignedDistance(T * pts[i]));
+    for (std::size_t i = 0; i < pts.size(); i += stride)
+        d.push_back(world.SignedDistance(T * pts[i]));
     return SummariseDistances(std::move(d));
 }
 
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& samples,
-                                       const sim::Truth& truth, double radius_m) {
+                                       const sim::Truth& truth,
+                                       double radius_m) {
     if (truth.coverage.empty()) return std::nullopt;
     // Sorted cell keys of the mesh samples (cells of radius_m): a query looks at its 27
     // neighbouring cells, which hold every sample within radius_m.
-    auto cell = [radius_m](double v) { return static_cast<std::int64_t>(std::floor(v / radius_m)); };
+    auto cell = [radius_m](double v) {
+        return static_cast<std::int64_t>(std::floor(v / radius_m));
+    };
     auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
         return ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
     };
@@ -114,7 +126,8 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
     keyed.reserve(samples.size());
     for (std::size_t i = 0; i < samples.size(); ++i) {
         const Eigen::Vector3d& p = samples[i];
-        keyed.emplace_back(key(cell(p.x()), cell(p.y()), cell(p.z())), static_cast<std::uint32_t>(i));
+        keyed.emplace_back(key(cell(p.x()), cell(p.y()), cell(p.z())),
+                           static_cast<std::uint32_t>(i));
     }
     std::sort(keyed.begin(), keyed.end());
     const sim::TerrainGrid& g = truth.terrain;
@@ -122,9 +135,12 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
     std::size_t covered = 0, found = 0;
     for (int iy = 0; iy < g.ny; ++iy) {
         for (int ix = 0; ix < g.nx; ++ix) {
-            if (truth.coverage[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) + static_cast<std::size_t>(ix)] == 0) continue;
+            if (truth.coverage[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) +
+                               static_cast<std::size_t>(ix)] == 0)
+                continue;
             ++covered;
-            const Eigen::Vector3d q(g.x0_m + ix * g.resolution_m, g.y0_m + iy * g.resolution_m, 0.0);
+            const Eigen::Vector3d q(
+                g.x0_m + ix * g.resolution_m, g.y0_m + iy * g.resolution_m, 0.0);
             const Eigen::Vector3d s(q.x(), q.y(), world.Height(q.x(), q.y()));
             const std::int64_t cx = cell(s.x()), cy = cell(s.y()), cz = cell(s.z());
             bool hit = false;
@@ -132,7 +148,8 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
                 for (std::int64_t dy = -1; dy <= 1 && !hit; ++dy)
                     for (std::int64_t dz = -1; dz <= 1 && !hit; ++dz) {
                         const std::int64_t k = key(cx + dx, cy + dy, cz + dz);
-                        auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(k, std::uint32_t{0}));
+                        auto it = std::lower_bound(
+                            keyed.begin(), keyed.end(), std::make_pair(k, std::uint32_t{0}));
                         for (; it != keyed.end() && it->first == k; ++it) {
                             if ((samples[it->second] - s).norm() <= radius_m) {
                                 hit = true;

@@ -49,20 +49,27 @@ struct TrajectoryScore {
     std::size_t poses = 0;
     double ate_rmse_m = 0, ate_max_m = 0, z_std_m = 0;
 };
-TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est, const Pose& T_truth_product,
+TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est,
+                                const Pose& T_truth_product,
                                 const std::vector<sim::TruthPose>& truth);
 
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
-                          const Pose& T_truth_product, const sim::PitWorld& world,
+                          const Pose& T_truth_product,
+                          const sim::PitWorld& world,
                           std::size_t max_points = 3'000'000);
 
 // Share of the covered true-surface cells whose surface point has a mesh sample within
 // radius_m (mesh samples already in the truth frame). nullopt without a coverage mask.
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& mesh_samples_truth,
-                                       const sim::Truth& truth, double radius_m = 0.2);
+                                       const sim::Truth& truth,
+                                       double radius_m = 0.2);
 
 // Angle in degrees between two roll/pitch/yaw (degrees) rotations.
-double BoresightErrorDeg(double roll_est, double pitch_est, double yaw_est, double roll_true,
-                         double pitch_true, double yaw_true);
+double BoresightErrorDeg(double roll_est,
+                         double pitch_est,
+                         double yaw_est,
+                         double roll_true,
+                         double pitch_true,
+                         double yaw_true);
 
 }  // namespace pitmap::eval

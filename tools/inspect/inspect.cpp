@@ -88,7 +88,9 @@ std::optional<double> AsciiGpsTime(std::string_view week_text, std::string_view 
     return static_cast<double>(week) * kSecondsPerWeek + sow;
 }
 
-void CountKey(SourceSummary& s, const std::string& key) { ++s.frames_by_id[key]; }
+void CountKey(SourceSummary& s, const std::string& key) {
+    ++s.frames_by_id[key];
+}
 
 // One NovAtel frame into the summary (spec §2, §3, §5 for the header fields read here).
 void CountNovatelFrame(const novatel::Frame& frame, SourceSummary& s) {
@@ -185,10 +187,18 @@ void CountNovatelFrame(const novatel::Frame& frame, SourceSummary& s) {
 }
 
 // Rounded so that golden files hold what the decoder means, not the last bit of a double.
-double Round(double v, double quantum) { return std::round(v / quantum) * quantum; }
-double Deg(double v) { return Round(v, 1e-9); }
-double Metres(double v) { return Round(v, 1e-4); }
-double Small(double v) { return Round(v, 1e-6); }
+double Round(double v, double quantum) {
+    return std::round(v / quantum) * quantum;
+}
+double Deg(double v) {
+    return Round(v, 1e-9);
+}
+double Metres(double v) {
+    return Round(v, 1e-4);
+}
+double Small(double v) {
+    return Round(v, 1e-6);
+}
 
 nlohmann::json HeaderTime(const novatel::Header& h) {
     return nlohmann::json{{"gps_week", h.gps_week}, {"gps_ms", h.gps_ms}};
@@ -293,11 +303,15 @@ void CountSkipped(const protocol::Skipped& skipped, SourceSummary& s) {
 
 protocol::SkipReason ReasonFor(deltat::DecodeErrorKind kind) {
     switch (kind) {
-        case deltat::DecodeErrorKind::kTruncated: return protocol::SkipReason::kTruncated;
+        case deltat::DecodeErrorKind::kTruncated:
+            return protocol::SkipReason::kTruncated;
         case deltat::DecodeErrorKind::kBadMarker:
-        case deltat::DecodeErrorKind::kUnsupported: return protocol::SkipReason::kGarbage;
-        case deltat::DecodeErrorKind::kBadTerminator: return protocol::SkipReason::kBadTerminator;
-        default: return protocol::SkipReason::kBadLength;
+        case deltat::DecodeErrorKind::kUnsupported:
+            return protocol::SkipReason::kGarbage;
+        case deltat::DecodeErrorKind::kBadTerminator:
+            return protocol::SkipReason::kBadTerminator;
+        default:
+            return protocol::SkipReason::kBadLength;
     }
 }
 
@@ -398,9 +412,10 @@ private:
         const auto decoded = deltat::DecodeDatagramInto(datagram, memory_, ping_);
         if (const auto* error = std::get_if<deltat::DecodeError>(&decoded)) {
             ++summary_.datagram_errors;
-            CountSkipped(protocol::Skipped{ReasonFor(error->kind), datagram.size(),
-                                           summary_.bytes - datagram.size()},
-                         summary_);
+            CountSkipped(
+                protocol::Skipped{
+                    ReasonFor(error->kind), datagram.size(), summary_.bytes - datagram.size()},
+                summary_);
             return;
         }
         ++summary_.frames_total;
@@ -458,8 +473,8 @@ bool LooksLikeNovatel(ByteSpan bytes) {
             return true;
         }
     }
-    for (std::string_view marker : {"<OK", "<ERROR", "[COM", "[ICOM", "[USB", "[NCOM", "$GP",
-                                    "$GN"}) {
+    for (std::string_view marker :
+         {"<OK", "<ERROR", "[COM", "[ICOM", "[USB", "[NCOM", "$GP", "$GN"}) {
         if (text.find(marker) != std::string_view::npos) return true;
     }
     // An ASCII log header: '#' or '%', an upper-case name, then ','.
@@ -521,7 +536,8 @@ SourceCounter::Mode ModeForRawProtocol(const std::string& protocol_name, std::in
 // one source is a damaged or reset counter.
 constexpr std::int64_t kMaxPlausibleSeqGap = 100'000'000;
 
-Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOptions& options,
+Expected<InspectReport> InspectLcmLog(const std::string& path,
+                                      const InspectOptions& options,
                                       InspectReport report) {
     // The bounded reader: a corrupted length resynchronises instead of asserting or
     // allocating what it claims, and every message is bounds-checked before it is decoded.
@@ -552,9 +568,11 @@ Expected<InspectReport> InspectLcmLog(const std::string& path, const InspectOpti
             const std::string key = std::string(ev.channel) + " " + raw.source;
             auto it = index.find(key);
             if (it == index.end()) {
-                counters.push_back(std::make_unique<SourceCounter>(
-                    key, raw.protocol, ModeForRawProtocol(raw.protocol, raw.transport),
-                    options.dump_first));
+                counters.push_back(
+                    std::make_unique<SourceCounter>(key,
+                                                    raw.protocol,
+                                                    ModeForRawProtocol(raw.protocol, raw.transport),
+                                                    options.dump_first));
                 it = index.emplace(key, counters.size() - 1).first;
             } else if (raw.seq > last_seq[key] + 1) {
                 // A gap larger than any log could hold is a damaged counter, not lost chunks.
@@ -595,7 +613,8 @@ std::string ModeName(SourceCounter::Mode mode) {
     return mode == SourceCounter::Mode::kNovatel ? "novatel" : "deltat_83p";
 }
 
-InspectReport InspectCapture(capture::CaptureContents contents, const InspectOptions& options,
+InspectReport InspectCapture(capture::CaptureContents contents,
+                             const InspectOptions& options,
                              InspectReport report) {
     CaptureSummary cap;
     const auto& st = contents.stats;
@@ -673,19 +692,26 @@ InspectReport InspectCapture(capture::CaptureContents contents, const InspectOpt
 
 std::string ToString(InputFormat format) {
     switch (format) {
-        case InputFormat::kAuto: return "auto";
-        case InputFormat::kRaw: return "raw";
-        case InputFormat::kPcap: return "pcap";
-        case InputFormat::kLcmLog: return "lcm";
+        case InputFormat::kAuto:
+            return "auto";
+        case InputFormat::kRaw:
+            return "raw";
+        case InputFormat::kPcap:
+            return "pcap";
+        case InputFormat::kLcmLog:
+            return "lcm";
     }
     return "unknown";
 }
 
 std::string ToString(Protocol protocol) {
     switch (protocol) {
-        case Protocol::kAuto: return "auto";
-        case Protocol::kNovatel: return "novatel";
-        case Protocol::kDeltaT: return "deltat_83p";
+        case Protocol::kAuto:
+            return "auto";
+        case Protocol::kNovatel:
+            return "novatel";
+        case Protocol::kDeltaT:
+            return "deltat_83p";
     }
     return "unknown";
 }
@@ -759,7 +785,9 @@ Expected<Detected> DetectFormat(ByteSpan bytes, const std::string& name) {
                  "or NovAtel data); give --format and --protocol"};
 }
 
-SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, const InspectOptions& options,
+SourceSummary InspectStream(ByteSpan bytes,
+                            Protocol protocol,
+                            const InspectOptions& options,
                             const std::string& name) {
     const auto mode = protocol == Protocol::kDeltaT ? SourceCounter::Mode::kDeltaTStream
                                                     : SourceCounter::Mode::kNovatel;
@@ -785,8 +813,7 @@ Expected<InspectReport> InspectFile(const std::string& path, const InspectOption
         detected = *d;
     } else {
         detected.format = options.format;
-        detected.protocol =
-            LooksLikeDeltaT(*bytes, path) ? Protocol::kDeltaT : Protocol::kNovatel;
+        detected.protocol = LooksLikeDeltaT(*bytes, path) ? Protocol::kDeltaT : Protocol::kNovatel;
     }
     if (options.protocol != Protocol::kAuto) detected.protocol = options.protocol;
     report.format = detected.format;

@@ -33,7 +33,7 @@ enum class InputFormat : std::uint8_t { kAuto = 0, kRaw, kPcap, kLcmLog };
 enum class Protocol : std::uint8_t { kAuto = 0, kNovatel, kDeltaT };
 
 std::string ToString(InputFormat format);  // "auto", "raw", "pcap", "lcm"
-std::string ToString(Protocol protocol);    // "auto", "novatel", "deltat_83p"
+std::string ToString(Protocol protocol);   // "auto", "novatel", "deltat_83p"
 // Parses the command-line spellings: raw|pcap|lcm|83p (83p = raw + Delta T), novatel|deltat.
 std::optional<InputFormat> ParseInputFormat(const std::string& text);
 std::optional<Protocol> ParseProtocol(const std::string& text);
@@ -50,9 +50,9 @@ struct InspectOptions {
 // Decoded fields of some messages of one type (SI units as the decoder gives them, angles in
 // degrees as NovAtel sends them).
 struct DecodedSamples {
-    std::uint64_t count = 0;              // messages of this type decoded
-    std::vector<nlohmann::json> first;    // the first dump_first of them
-    nlohmann::json last;                  // the last one (null if count <= dump_first)
+    std::uint64_t count = 0;            // messages of this type decoded
+    std::vector<nlohmann::json> first;  // the first dump_first of them
+    nlohmann::json last;                // the last one (null if count <= dump_first)
 };
 
 // What detection concluded about a file's first bytes and name.
@@ -69,10 +69,10 @@ Expected<Detected> DetectFormat(ByteSpan bytes, const std::string& name);
 
 // Frame counts of one byte source (or of all of them added up).
 struct SourceSummary {
-    std::string name;      // "file", "192.168.0.2:3001 > 192.168.0.1:50000", LCM channel/source
-    std::string protocol;  // "novatel", "deltat_83p", or what an LCM raw channel said
-    std::uint64_t bytes = 0;     // bytes fed to the framer
-    std::uint64_t chunks = 0;    // Push calls (raw_bytes_t events, TCP deliveries, datagrams)
+    std::string name;          // "file", "192.168.0.2:3001 > 192.168.0.1:50000", LCM channel/source
+    std::string protocol;      // "novatel", "deltat_83p", or what an LCM raw channel said
+    std::uint64_t bytes = 0;   // bytes fed to the framer
+    std::uint64_t chunks = 0;  // Push calls (raw_bytes_t events, TCP deliveries, datagrams)
     std::uint64_t frames_total = 0;
     std::uint64_t log_frames = 0;  // binary/ASCII/NMEA logs and 83P pings (not responses)
     std::uint64_t responses = 0;   // command responses: binary/ASCII with the response flag,
@@ -83,8 +83,8 @@ struct SourceSummary {
     // "P1234" (proprietary AA 45 12 frame).
     std::map<std::string, std::uint64_t> frames_by_id;
     std::map<std::string, std::uint64_t> frames_by_kind;  // "long_binary", "prompt", "83p", ...
-    std::uint64_t crc_failures = 0;          // Skipped events with reason bad_crc
-    protocol::SkipCounters skipped;          // bytes and events by reason
+    std::uint64_t crc_failures = 0;                       // Skipped events with reason bad_crc
+    protocol::SkipCounters skipped;                       // bytes and events by reason
     std::uint64_t truncated_tail_bytes = 0;  // what Flush() gave up at the end of the source
     std::uint64_t unframed_bytes = 0;        // bytes of a protocol no framer here knows
     std::uint64_t datagram_errors = 0;       // UDP 83P datagrams that did not decode
@@ -143,14 +143,14 @@ struct LcmSummary {
     std::int64_t first_utime = 0;  // log event timestamps, Unix microseconds
     std::int64_t last_utime = 0;
     std::map<std::string, LcmChannelSummary> channels;
-    std::uint64_t raw_seq_gaps = 0;  // raw_bytes_t chunks missing according to `seq`
+    std::uint64_t raw_seq_gaps = 0;   // raw_bytes_t chunks missing according to `seq`
     std::uint64_t raw_seq_jumps = 0;  // implausible jumps of `seq` (damaged or reset counter)
     // Damage found by the bounded log reader (lcmtypes/log/lcm_log_reader.hpp).
     std::uint64_t corrupt_headers = 0;
     std::uint64_t resync_bytes = 0;
     std::uint64_t length_repairs = 0;
-    std::uint64_t truncated_bytes = 0;      // a last event cut by the end of the file
-    std::uint64_t undecodable_events = 0;   // raw_bytes_t events that fail the wire check
+    std::uint64_t truncated_bytes = 0;     // a last event cut by the end of the file
+    std::uint64_t undecodable_events = 0;  // raw_bytes_t events that fail the wire check
 };
 
 struct InspectReport {
@@ -167,7 +167,9 @@ struct InspectReport {
 Expected<InspectReport> InspectFile(const std::string& path, const InspectOptions& options);
 
 // Frames a byte stream already in memory as one source (used for raw files; exposed for tests).
-SourceSummary InspectStream(ByteSpan bytes, Protocol protocol, const InspectOptions& options,
+SourceSummary InspectStream(ByteSpan bytes,
+                            Protocol protocol,
+                            const InspectOptions& options,
                             const std::string& name);
 
 // The machine-readable report: ONE object. Keys at the top level: file (base name only, so

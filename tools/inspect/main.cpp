@@ -18,15 +18,18 @@ int main(int argc, char** argv) {
     std::string protocol = "auto";
     bool json = false;
     std::size_t dump_first = 0;
-    app.add_option("file", path, "input: NovAtel raw (.gps/.GPS/.ASC/.dat), .83P, "
-                                 ".pcap/.pcapng[.gz] or LCM log")
+    app.add_option("file",
+                   path,
+                   "input: NovAtel raw (.gps/.GPS/.ASC/.dat), .83P, "
+                   ".pcap/.pcapng[.gz] or LCM log")
         ->required();
     app.add_option("--format", format, "input kind: auto, raw, 83p, pcap, lcm")
         ->capture_default_str();
     app.add_option("--protocol", protocol, "framing of raw bytes: auto, novatel, deltat")
         ->capture_default_str();
     app.add_flag("--json", json, "print one JSON object instead of text");
-    app.add_option("--dump-first", dump_first,
+    app.add_option("--dump-first",
+                   dump_first,
                    "decoded fields of the first N (and the last) BESTPOS, BESTVEL, INSPVA(S), "
                    "INSPVAX, INSATTX, HEADING2 and TIME messages");
     CLI11_PARSE(app, argc, argv);
@@ -37,8 +40,7 @@ int main(int argc, char** argv) {
         const auto parsed_protocol = inspect::ParseProtocol(protocol);
         if (!parsed_format || !parsed_protocol) {
             std::cerr << "pitmap-inspect: unknown "
-                      << (!parsed_format ? "--format " + format : "--protocol " + protocol)
-                      << "\n";
+                      << (!parsed_format ? "--format " + format : "--protocol " + protocol) << "\n";
             return 2;
         }
         options.format = *parsed_format;

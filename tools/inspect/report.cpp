@@ -35,7 +35,9 @@ std::string NameForKey(const std::string& key) {
 }
 
 // Seconds rounded to the millisecond, so the JSON does not carry binary noise.
-double RoundMs(double s) { return std::round(s * 1000.0) / 1000.0; }
+double RoundMs(double s) {
+    return std::round(s * 1000.0) / 1000.0;
+}
 
 json GpsTime(double gps_s) {
     const double week = std::floor(gps_s / kSecondsPerWeek);
@@ -95,8 +97,8 @@ json Counts(const SourceSummary& s) {
     if (!s.samples.empty()) {
         json samples = json::object();
         for (const auto& [name, sample] : s.samples) {
-            samples[name] = json{{"count", sample.count}, {"first", sample.first},
-                                 {"last", sample.last}};
+            samples[name] =
+                json{{"count", sample.count}, {"first", sample.first}, {"last", sample.last}};
         }
         out["samples"] = std::move(samples);
     }
@@ -132,8 +134,13 @@ void WriteCounts(std::ostringstream& os, const SourceSummary& s, const std::stri
     for (const auto& [key, count] : rows) {
         const std::string name = NameForKey(key);
         char line[160];
-        std::snprintf(line, sizeof(line), "%s  %-22s %-22s %" PRIu64 "\n", indent.c_str(),
-                      key.c_str(), name.c_str(), count);
+        std::snprintf(line,
+                      sizeof(line),
+                      "%s  %-22s %-22s %" PRIu64 "\n",
+                      indent.c_str(),
+                      key.c_str(),
+                      name.c_str(),
+                      count);
         os << line;
     }
     os << indent << "CRC failures " << s.crc_failures << ", skipped bytes "
@@ -159,8 +166,8 @@ void WriteCounts(std::ostringstream& os, const SourceSummary& s, const std::stri
            << FormatGps(*s.gps_end_s) << " (" << (*s.gps_end_s - *s.gps_start_s) << " s)\n";
     }
     if (s.sonar_start_utime && s.sonar_end_utime) {
-        os << indent << "sonar header time " << *s.sonar_start_utime << " .. "
-           << *s.sonar_end_utime << " us (Unix)\n";
+        os << indent << "sonar header time " << *s.sonar_start_utime << " .. " << *s.sonar_end_utime
+           << " us (Unix)\n";
     }
 }
 

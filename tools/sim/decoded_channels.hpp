@@ -22,7 +22,8 @@ public:
     std::vector<acq::EncodedMessage> NovatelChunk(ByteSpan chunk, std::int64_t utime_host);
     // The ping of one 83P datagram; the daemon's clock model is taken as exact (utime_gps of
     // the transmit, source HEADER_CLOCK).
-    std::vector<acq::EncodedMessage> SonarDatagram(ByteSpan datagram, std::int64_t utime_host,
+    std::vector<acq::EncodedMessage> SonarDatagram(ByteSpan datagram,
+                                                   std::int64_t utime_host,
                                                    std::int64_t utime_gps_transmit);
     // Frames or datagrams that did not decode (always 0 for the simulator's own bytes).
     std::int64_t failures() const { return failures_; }

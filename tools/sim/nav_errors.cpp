@@ -17,13 +17,15 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
     pos_sd_.resize(n);
     std::mt19937_64 rng(seed ^ 0xA11E5ull);
     std::normal_distribution<double> g(0.0, 1.0);
-    std::mt19937_64 white_rng(seed ^ 0x3A17Eull);  // own stream: white noise does not shift the walks
+    std::mt19937_64 white_rng(seed ^
+                              0x3A17Eull);  // own stream: white noise does not shift the walks
 
     // First-order Gauss-Markov: x' = phi x + sigma sqrt(1 - phi^2) w keeps variance sigma^2.
     const double phi_p = std::exp(-dt_ / cfg.position_gm_tau_s);
     const double phi_a = std::exp(-dt_ / cfg.attitude_gm_tau_s);
     const double q_p = std::sqrt(1 - phi_p * phi_p), q_a = std::sqrt(1 - phi_a * phi_a);
-    const Eigen::Vector3d sig_p(cfg.position_gm_sigma_m, cfg.position_gm_sigma_m, cfg.height_gm_sigma_m);
+    const Eigen::Vector3d sig_p(
+        cfg.position_gm_sigma_m, cfg.position_gm_sigma_m, cfg.height_gm_sigma_m);
     const Eigen::Vector3d sig_a(frames::DegToRad(cfg.attitude_gm_sigma_deg),
                                 frames::DegToRad(cfg.attitude_gm_sigma_deg),
                                 frames::DegToRad(cfg.heading_gm_sigma_deg));
@@ -43,12 +45,14 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
         if (InOutage(t)) {
             if (outage_start < 0) outage_start = t;
             for (int i = 0; i < 3; ++i) {
-                drift_vel[i] += rw[i] * cfg.outage_velocity_random_walk_mps_per_sqrt_s * std::sqrt(dt_) * g(rng);
+                drift_vel[i] += rw[i] * cfg.outage_velocity_random_walk_mps_per_sqrt_s *
+                                std::sqrt(dt_) * g(rng);
             }
             drift += drift_vel * dt_;
             // Integrated random walk: sigma(t) = q t^1.5 / sqrt(3); the INS reports it grows.
             const double te = t - outage_start;
-            const double grow = cfg.outage_velocity_random_walk_mps_per_sqrt_s * std::pow(te, 1.5) / std::sqrt(3.0);
+            const double grow =
+                cfg.outage_velocity_random_walk_mps_per_sqrt_s * std::pow(te, 1.5) / std::sqrt(3.0);
             sd = (sig_p.array().square() + (rw * grow).array().square()).sqrt();
         } else {
             outage_start = -1;
@@ -58,7 +62,8 @@ NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::
             drift_vel.setZero();
         }
         // White noise of each INS output on top of the correlated error.
-        const Eigen::Vector3d white(cfg.position_noise_m * g(white_rng), cfg.position_noise_m * g(white_rng),
+        const Eigen::Vector3d white(cfg.position_noise_m * g(white_rng),
+                                    cfg.position_noise_m * g(white_rng),
                                     cfg.position_noise_m * g(white_rng));
         pos_[k] = gm_p + drift + white;
         att_[k] = gm_a;

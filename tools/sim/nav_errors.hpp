@@ -14,9 +14,10 @@
 namespace pitmap::sim {
 
 struct NavError {
-    Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();  // reported - true, world frame
+    Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();    // reported - true, world frame
     Eigen::Vector3d attitude_rpy_rad = Eigen::Vector3d::Zero();  // reported - true roll, pitch, yaw
-    Eigen::Vector3d position_stddev_enu_m = Eigen::Vector3d::Zero();  // what the INS claims (1 sigma)
+    Eigen::Vector3d position_stddev_enu_m =
+        Eigen::Vector3d::Zero();  // what the INS claims (1 sigma)
     Eigen::Vector3d attitude_stddev_rpy_rad = Eigen::Vector3d::Zero();
     bool gnss_available = true;  // false inside an outage
 };
@@ -31,7 +32,7 @@ public:
 private:
     NavErrorConfig cfg_;
     double dt_ = 0.02;
-    std::vector<Eigen::Vector3d> pos_;   // per grid step
+    std::vector<Eigen::Vector3d> pos_;  // per grid step
     std::vector<Eigen::Vector3d> att_;
     std::vector<Eigen::Vector3d> pos_sd_;
 };

@@ -23,21 +23,24 @@ constexpr std::uint16_t kSwBuild = 16809;
 
 // The reported (erroneous) navigation state at t.
 struct Reported {
-    Geodetic geo;                    // INS reference point, ellipsoidal height
+    Geodetic geo;  // INS reference point, ellipsoidal height
     Eigen::Vector3d velocity_enu;
-    frames::Rpy rpy;                 // radians
+    frames::Rpy rpy;  // radians
     NavError error;
 };
 
-Reported Report(const TruthTrajectory& truth, const NavErrorModel& errors,
-                const LocalTangentFrame& world, double t) {
+Reported Report(const TruthTrajectory& truth,
+                const NavErrorModel& errors,
+                const LocalTangentFrame& world,
+                double t) {
     const TruthState st = truth.StateAt(t);
     Reported r;
     r.error = errors.At(t);
     r.geo = world.FromEnu(st.T_world_vehicle.translation() + r.error.position_enu_m);
     r.velocity_enu = st.velocity_world;
     const frames::Rpy true_rpy = frames::RpyFromRotationWorld(st.T_world_vehicle.linear());
-    r.rpy = {true_rpy.roll + r.error.attitude_rpy_rad.x(), true_rpy.pitch + r.error.attitude_rpy_rad.y(),
+    r.rpy = {true_rpy.roll + r.error.attitude_rpy_rad.x(),
+             true_rpy.pitch + r.error.attitude_rpy_rad.y(),
              frames::WrapPi(true_rpy.yaw + r.error.attitude_rpy_rad.z())};
     return r;
 }
@@ -72,8 +75,14 @@ std::vector<std::uint8_t> Encode(const nv::Message& m) {
 
 Expected<std::int64_t> SurveyStartGps(const ScenarioConfig& sc) {
     UtcCalendar c;
-    if (std::sscanf(sc.start_utc.c_str(), "%d-%d-%dT%d:%d:%dZ", &c.year, &c.month, &c.day, &c.hour,
-                    &c.minute, &c.second) != 6) {
+    if (std::sscanf(sc.start_utc.c_str(),
+                    "%d-%d-%dT%d:%d:%dZ",
+                    &c.year,
+                    &c.month,
+                    &c.day,
+                    &c.hour,
+                    &c.minute,
+                    &c.second) != 6) {
         return Error{"start_utc '" + sc.start_utc + "' is not YYYY-MM-DDTHH:MM:SSZ"};
     }
     auto unix_us = UnixFromUtcCalendar(c);
@@ -81,8 +90,10 @@ Expected<std::int64_t> SurveyStartGps(const ScenarioConfig& sc) {
     return GpsFromUnix(*unix_us);
 }
 
-SimulatedReceiver::SimulatedReceiver(const ScenarioConfig& sc, const TruthTrajectory& truth,
-                                     const NavErrorModel& errors, std::int64_t start_utime_gps)
+SimulatedReceiver::SimulatedReceiver(const ScenarioConfig& sc,
+                                     const TruthTrajectory& truth,
+                                     const NavErrorModel& errors,
+                                     std::int64_t start_utime_gps)
     : sc_(sc),
       truth_(truth),
       errors_(errors),
@@ -104,14 +115,21 @@ std::vector<EmittedFrame> SimulatedReceiver::Emit(double t0, double t1) {
         out.push_back({t0, nv::msg_id::kInsConfig, InsConfig(t0)});
         config_sent_ = true;
     }
-    epochs(sc_.imu_rate_hz, [&](double t) { return RawImuSX(t); }, nv::msg_id::kRawImuSX, 0.0010);
-    epochs(sc_.ins_rate_hz, [&](double t) { return InsPvaS(t); }, nv::msg_id::kInsPvaS, 0.0030);
-    epochs(sc_.gnss_rate_hz, [&](double t) { return BestPos(t); }, nv::msg_id::kBestPos, 0.0120);
-    epochs(sc_.gnss_rate_hz, [&](double t) { return InsPvaX(t); }, nv::msg_id::kInsPvaX, 0.0135);
-    epochs(sc_.gnss_rate_hz, [&](double t) { return InsStdDev(t); }, nv::msg_id::kInsStdDev, 0.0150);
-    epochs(sc_.gnss_rate_hz, [&](double t) { return TimeLog(t); }, nv::msg_id::kTime, 0.0160);
-    std::stable_sort(out.begin(), out.end(),
-                     [](const EmittedFrame& a, const EmittedFrame& b) { return a.t_emit_s < b.t_emit_s; });
+    epochs(
+        sc_.imu_rate_hz, [&](double t) { return RawImuSX(t); }, nv::msg_id::kRawImuSX, 0.0010);
+    epochs(
+        sc_.ins_rate_hz, [&](double t) { return InsPvaS(t); }, nv::msg_id::kInsPvaS, 0.0030);
+    epochs(
+        sc_.gnss_rate_hz, [&](double t) { return BestPos(t); }, nv::msg_id::kBestPos, 0.0120);
+    epochs(
+        sc_.gnss_rate_hz, [&](double t) { return InsPvaX(t); }, nv::msg_id::kInsPvaX, 0.0135);
+    epochs(
+        sc_.gnss_rate_hz, [&](double t) { return InsStdDev(t); }, nv::msg_id::kInsStdDev, 0.0150);
+    epochs(
+        sc_.gnss_rate_hz, [&](double t) { return TimeLog(t); }, nv::msg_id::kTime, 0.0160);
+    std::stable_sort(out.begin(), out.end(), [](const EmittedFrame& a, const EmittedFrame& b) {
+        return a.t_emit_s < b.t_emit_s;
+    });
     return out;
 }
 
@@ -142,7 +160,8 @@ std::vector<std::uint8_t> SimulatedReceiver::InsPvaX(double t) const {
     nv::InsPvaX m;
     m.header = MakeHeader(nv::msg_id::kInsPvaX, false, ug);
     m.ins_status = nv::InsStatus::kSolutionGood;
-    m.position_type = r.error.gnss_available ? nv::PositionType::kInsRtkFixed : nv::PositionType::kPropagated;
+    m.position_type =
+        r.error.gnss_available ? nv::PositionType::kInsRtkFixed : nv::PositionType::kPropagated;
     m.latitude_deg = r.geo.latitude_deg;
     m.longitude_deg = r.geo.longitude_deg;
     m.undulation_m = static_cast<float>(sc_.geoid_undulation_m);
@@ -160,8 +179,10 @@ std::vector<std::uint8_t> SimulatedReceiver::InsPvaX(double t) const {
     m.velocity_up_stddev_mps = 0.01f;
     m.roll_stddev_deg = static_cast<float>(frames::RadToDeg(r.error.attitude_stddev_rpy_rad.x()));
     m.pitch_stddev_deg = static_cast<float>(frames::RadToDeg(r.error.attitude_stddev_rpy_rad.y()));
-    m.azimuth_stddev_deg = static_cast<float>(frames::RadToDeg(r.error.attitude_stddev_rpy_rad.z()));
-    m.extended_status = (1u << 6) | (r.error.gnss_available ? 1u : 0u);  // converged, position update
+    m.azimuth_stddev_deg =
+        static_cast<float>(frames::RadToDeg(r.error.attitude_stddev_rpy_rad.z()));
+    m.extended_status =
+        (1u << 6) | (r.error.gnss_available ? 1u : 0u);  // converged, position update
     return Encode(m);
 }
 
@@ -171,7 +192,8 @@ std::vector<std::uint8_t> SimulatedReceiver::BestPos(double t) const {
     nv::BestPos m;
     m.header = MakeHeader(nv::msg_id::kBestPos, false, ug);
     m.solution_status = nv::SolutionStatus::kSolComputed;
-    m.position_type = r.error.gnss_available ? nv::PositionType::kInsRtkFixed : nv::PositionType::kPropagated;
+    m.position_type =
+        r.error.gnss_available ? nv::PositionType::kInsRtkFixed : nv::PositionType::kPropagated;
     m.latitude_deg = r.geo.latitude_deg;
     m.longitude_deg = r.geo.longitude_deg;
     m.undulation_m = static_cast<float>(sc_.geoid_undulation_m);
@@ -231,9 +253,11 @@ std::vector<std::uint8_t> SimulatedReceiver::RawImuSX(double t) {
     const TruthState st = truth_.StateAt(t - 0.5 * dt);
     const Eigen::Matrix3d R_wv = st.T_world_vehicle.linear();
     const double lat = frames::DegToRad(sc_.origin_latitude_deg);
-    const Eigen::Vector3d earth_rate_world(0, kEarthRate * std::cos(lat), kEarthRate * std::sin(lat));
+    const Eigen::Vector3d earth_rate_world(
+        0, kEarthRate * std::cos(lat), kEarthRate * std::sin(lat));
     const Eigen::Vector3d omega_frd = st.angular_rate_vehicle + R_wv.transpose() * earth_rate_world;
-    const Eigen::Vector3d f_frd = R_wv.transpose() * (st.acceleration_world + Eigen::Vector3d(0, 0, kGravity));
+    const Eigen::Vector3d f_frd =
+        R_wv.transpose() * (st.acceleration_world + Eigen::Vector3d(0, 0, kGravity));
     // IMU enclosure aligned with the SPAN frame (x right, y forward, z up).
     const Eigen::Matrix3d R_span_frd = frames::RotationVehicleFromSpan().transpose();
     const Eigen::Vector3d omega = R_span_frd * omega_frd, f = R_span_frd * f_frd;
@@ -250,7 +274,8 @@ std::vector<std::uint8_t> SimulatedReceiver::RawImuSX(double t) {
     for (int i = 0; i < 3; ++i) {
         const double dtheta = omega[i] * dt + 2e-7 * g(rng);
         const double dv = f[i] * dt + 2e-5 * g(rng);
-        m.gyro_counts[static_cast<std::size_t>(i)] = std::llround(dtheta / scale.gyro_rad_per_count);
+        m.gyro_counts[static_cast<std::size_t>(i)] =
+            std::llround(dtheta / scale.gyro_rad_per_count);
         m.accel_counts[static_cast<std::size_t>(i)] = std::llround(dv / scale.accel_mps_per_count);
     }
     return Encode(m);
@@ -275,7 +300,8 @@ TopsideDatagram SimulatedTopside::Encode(const SimPing& ping, double t_transmit)
     d.t_sent_s = t_interrogate + so.data_latency_ms * 1e-3;
     // Topside PC clock: UTC plus an offset (time zone and error) that drifts.
     const std::int64_t ug = start_utime_gps_ + std::llround(t_interrogate * 1e6);
-    const double clock_s = so.topside_clock_offset_s + so.topside_clock_drift_ppm * 1e-6 * t_interrogate;
+    const double clock_s =
+        so.topside_clock_offset_s + so.topside_clock_drift_ppm * 1e-6 * t_interrogate;
     const std::int64_t header_unix = UnixFromGps(ug) + std::llround(clock_s * 1e6);
 
     dt::Ping83P p;

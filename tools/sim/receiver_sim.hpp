@@ -22,7 +22,7 @@ namespace pitmap::sim {
 
 // One encoded receiver log, stamped with the GPS time at which the receiver emits it.
 struct EmittedFrame {
-    double t_emit_s = 0;      // seconds since the survey start when the last byte left the receiver
+    double t_emit_s = 0;  // seconds since the survey start when the last byte left the receiver
     std::uint16_t message_id = 0;
     std::vector<std::uint8_t> bytes;
 };
@@ -30,8 +30,10 @@ struct EmittedFrame {
 // Thread safety: not thread safe (it keeps the IMU noise state); one per stream.
 class SimulatedReceiver {
 public:
-    SimulatedReceiver(const ScenarioConfig& scenario, const TruthTrajectory& truth,
-                      const NavErrorModel& errors, std::int64_t start_utime_gps);
+    SimulatedReceiver(const ScenarioConfig& scenario,
+                      const TruthTrajectory& truth,
+                      const NavErrorModel& errors,
+                      std::int64_t start_utime_gps);
 
     // Every log the receiver emits in [t0_s, t1_s), in emission order.
     std::vector<EmittedFrame> Emit(double t0_s, double t1_s);
@@ -57,8 +59,8 @@ private:
 
 // The topside program's datagram for one ping and its timing.
 struct TopsideDatagram {
-    double t_transmit_s = 0;  // true transmit time, seconds since the survey start
-    double t_sent_s = 0;      // when the datagram left the topside PC
+    double t_transmit_s = 0;          // true transmit time, seconds since the survey start
+    double t_sent_s = 0;              // when the datagram left the topside PC
     std::vector<std::uint8_t> bytes;  // one 83P record
 };
 

@@ -48,16 +48,22 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
         for (int k = 0; k < nsub; ++k) {
             // Footprint pattern (across, along) in units of 0.6 half-widths: the axis, a cross,
             // then the diagonals.
-            static constexpr double kPattern[9][2] = {{0, 0},     {1, 0},     {-1, 0},
-                                                      {0, 1},     {0, -1},    {0.7, 0.7},
-                                                      {-0.7, 0.7}, {0.7, -0.7}, {-0.7, -0.7}};
+            static constexpr double kPattern[9][2] = {{0, 0},
+                                                      {1, 0},
+                                                      {-1, 0},
+                                                      {0, 1},
+                                                      {0, -1},
+                                                      {0.7, 0.7},
+                                                      {-0.7, 0.7},
+                                                      {0.7, -0.7},
+                                                      {-0.7, -0.7}};
             const double dtheta = kPattern[k][0] * 0.6 * half_width;
             const double dphi = kPattern[k][1] * 0.6 * half_width;
             // Beam direction in the sonar frame: rotate nadir (z) by theta about x (towards +y),
             // then by phi about y (towards +x, along track).
             const double t = theta + dtheta;
-            const Eigen::Vector3d d_sonar(std::sin(dphi) * std::cos(t), std::sin(t),
-                                          std::cos(dphi) * std::cos(t));
+            const Eigen::Vector3d d_sonar(
+                std::sin(dphi) * std::cos(t), std::sin(t), std::cos(dphi) * std::cos(t));
             if (auto r = world_.RayCast(origin, R * d_sonar, cfg_.max_range_m)) hits_m[hits++] = *r;
         }
         if (hits * 2 <= nsub) continue;  // most of the footprint saw nothing
@@ -82,12 +88,14 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
         out.range_counts[i] = static_cast<std::uint16_t>(std::clamp(counts, 1.0, 65535.0));
         if (cfg_.intensities) {
             // Amplitude falls with range (spreading + absorption) and with incidence.
-            const Eigen::Vector3d hit = origin + R * Eigen::Vector3d(0, std::sin(theta), std::cos(theta)) * r_true;
+            const Eigen::Vector3d hit =
+                origin + R * Eigen::Vector3d(0, std::sin(theta), std::cos(theta)) * r_true;
             const Eigen::Vector3d n = world_.Normal(hit.x(), hit.y());
             const Eigen::Vector3d dir = (hit - origin).normalized();
             const double cos_inc = std::max(0.05, -dir.dot(n));
             const double amp = 20000.0 * cos_inc * std::exp(-0.03 * r_true) / (1.0 + 0.05 * r_true);
-            out.intensities[i] = static_cast<std::uint16_t>(std::clamp(amp * (1.0 + 0.1 * gauss(rng)), 1.0, 65535.0));
+            out.intensities[i] = static_cast<std::uint16_t>(
+                std::clamp(amp * (1.0 + 0.1 * gauss(rng)), 1.0, 65535.0));
         }
     }
     return out;

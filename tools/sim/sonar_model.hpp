@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The Delta T as the simulator sees it: ray casting each beam over its footprint (sub-rays
-// spread over the beam width, detection at their median range), then range noise, dropouts, coarse outliers and quantisation to
-// the 83P range resolution. Per-ping random streams depend only on (seed, ping number), so the
-// result is the same for any thread count and any order of calls.
+// spread over the beam width, detection at their median range), then range noise, dropouts, coarse
+// outliers and quantisation to the 83P range resolution. Per-ping random streams depend only on
+// (seed, ping number), so the result is the same for any thread count and any order of calls.
 #pragma once
 
 #include <cstdint>

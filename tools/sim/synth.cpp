@@ -37,15 +37,20 @@ struct Event {
     std::vector<std::uint8_t> data;
 };
 
-std::vector<std::uint8_t> EncodeRaw(std::int64_t utime, std::int64_t utime_gps, const std::string& source,
-                                    std::string_view protocol, acq::Transport transport, std::int64_t seq,
-                                    const std::string& peer, const std::vector<std::uint8_t>& bytes) {
+std::vector<std::uint8_t> EncodeRaw(std::int64_t utime,
+                                    std::int64_t utime_gps,
+                                    const std::string& source,
+                                    std::string_view protocol,
+                                    acq::Transport transport,
+                                    std::int64_t seq,
+                                    const std::string& peer,
+                                    const std::vector<std::uint8_t>& bytes) {
     acq::RawBytesExtra extra;
     extra.utime_gps = utime_gps;
     extra.gps_time_valid = true;
     extra.peer = peer;
-    return acq::EncodeLcm(acq::MakeRawBytes(utime, source, protocol, transport, seq,
-                                            std::span<const std::uint8_t>(bytes), extra));
+    return acq::EncodeLcm(acq::MakeRawBytes(
+        utime, source, protocol, transport, seq, std::span<const std::uint8_t>(bytes), extra));
 }
 
 Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
@@ -69,7 +74,8 @@ Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
 
 }  // namespace
 
-Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt,
+Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
+                               const SynthOptions& opt,
                                const ProgressCallback& progress) {
     if (auto problems = sc.Validate(); !problems.empty()) {
         std::string msg = "invalid scenario:";
@@ -102,11 +108,14 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     DecodedChannels decoded(sc);
 
     // Boresight and lever arm of the sonar: the truth the calibration must find.
-    const Eigen::Matrix3d R_vehicle_sonar = frames::RotationNedFromRpy(
-        frames::DegToRad(sc.boresight_deg[0]), frames::DegToRad(sc.boresight_deg[1]),
-        frames::DegToRad(sc.boresight_deg[2]));
-    const Pose T_vehicle_sonar = MakePose(
-        R_vehicle_sonar, Eigen::Vector3d(sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
+    const Eigen::Matrix3d R_vehicle_sonar =
+        frames::RotationNedFromRpy(frames::DegToRad(sc.boresight_deg[0]),
+                                   frames::DegToRad(sc.boresight_deg[1]),
+                                   frames::DegToRad(sc.boresight_deg[2]));
+    const Pose T_vehicle_sonar =
+        MakePose(R_vehicle_sonar,
+                 Eigen::Vector3d(
+                     sc.lever_arms.sonar_m[0], sc.lever_arms.sonar_m[1], sc.lever_arms.sonar_m[2]));
 
     std::atomic<std::int64_t> sim_utime{UnixFromGps(*start_gps)};
     acq::LogWriterConfig lw;
@@ -116,7 +125,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     lw.rotate_interval_s = 0;
     lw.min_free_bytes = 64LL << 20;
     lw.resume_margin_bytes = 16LL << 20;
-    if (auto problems = lw.Validate(); !problems.empty()) return Error{"log writer: " + problems.front()};
+    if (auto problems = lw.Validate(); !problems.empty())
+        return Error{"log writer: " + problems.front()};
     acq::LogWriterHooks hooks;
     hooks.now_utime = [&sim_utime] { return sim_utime.load(); };
     acq::LogWriter writer(lw, hooks);
@@ -126,8 +136,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     result.duration_s = truth.duration_s();
     result.track_length_m = truth.duration_s() * sc.track.speed_mps;
     const double byte_time = 10.0 / opt.serial_baud;  // 8N1: 10 bits per byte
-    const int threads = opt.num_threads > 0 ? opt.num_threads
-                                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const int threads = opt.num_threads > 0
+                            ? opt.num_threads
+                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     const auto utime_at = [&](double t) { return UnixFromGps(*start_gps + std::llround(t * 1e6)); };
     const auto gps_at = [&](double t) { return *start_gps + std::llround(t * 1e6); };
     std::mt19937_64 jitter_rng(sc.seed ^ 0x1172E7ull);
@@ -137,8 +148,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     std::vector<std::uint8_t> line;  // bytes on the line not yet read: (completion time, byte)
     std::vector<double> line_done;
     std::int64_t nov_seq = 0, sonar_seq = 0, next_ping = 0;
-    const double block = 1.0;        // seconds per block
-    const auto total_pings = static_cast<std::int64_t>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
+    const double block = 1.0;  // seconds per block
+    const auto total_pings =
+        static_cast<std::int64_t>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
     std::int64_t events_since_flush = 0;
     // Insonified area: terrain cells hit by a true beam axis (for the mesh completeness score).
     const TerrainGrid& grid = world.grid();
@@ -161,21 +173,30 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
             std::size_t n = 0;
             while (n < line_done.size() && line_done[n] <= tick) ++n;
             if (n == 0) continue;
-            std::vector<std::uint8_t> chunk(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(n));
+            std::vector<std::uint8_t> chunk(line.begin(),
+                                            line.begin() + static_cast<std::ptrdiff_t>(n));
             line.erase(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(n));
             line_done.erase(line_done.begin(), line_done.begin() + static_cast<std::ptrdiff_t>(n));
             result.novatel_bytes += static_cast<std::int64_t>(chunk.size());
             const std::int64_t u = utime_at(tick);
             // As the daemon does: the raw chunk first, then what it decodes to.
             auto frames = decoded.NovatelChunk(chunk, u);
-            events.push_back({u, lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
-                              EncodeRaw(u, gps_at(tick), kNovatelId, lcmlog::kProtocolNovatel,
-                                        acq::Transport::kSerial, nov_seq++, "/dev/ttyS1", chunk)});
+            events.push_back({u,
+                              lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
+                              EncodeRaw(u,
+                                        gps_at(tick),
+                                        kNovatelId,
+                                        lcmlog::kProtocolNovatel,
+                                        acq::Transport::kSerial,
+                                        nov_seq++,
+                                        "/dev/ttyS1",
+                                        chunk)});
             for (auto& [ch, bytes] : frames) events.push_back({u, std::move(ch), std::move(bytes)});
         }
         // Sonar pings of this block, ray cast in parallel (deterministic per ping).
         std::vector<std::int64_t> ping_ids;
-        while (next_ping < total_pings && static_cast<double>(next_ping) / sc.sonar.ping_rate_hz < t1) {
+        while (next_ping < total_pings &&
+               static_cast<double>(next_ping) / sc.sonar.ping_rate_hz < t1) {
             ping_ids.push_back(next_ping++);
         }
         std::vector<SimPing> pings(ping_ids.size());
@@ -197,24 +218,35 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
                 const float r = pings[i].true_range_m[b];
                 if (!std::isfinite(r)) continue;
                 const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
-                const Eigen::Vector3d hit = T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
+                const Eigen::Vector3d hit =
+                    T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
                 const long ix = std::lround((hit.x() - grid.x0_m) / grid.resolution_m);
                 const long iy = std::lround((hit.y() - grid.y0_m) / grid.resolution_m);
-                if (ix >= 0 && iy >= 0 && ix < grid.nx && iy < grid.ny) coverage[static_cast<std::size_t>(iy * grid.nx + ix)] = 1;
+                if (ix >= 0 && iy >= 0 && ix < grid.nx && iy < grid.ny)
+                    coverage[static_cast<std::size_t>(iy * grid.nx + ix)] = 1;
             }
             TopsideDatagram d = topside.Encode(pings[i], t);
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
             auto decoded_ping = decoded.SonarDatagram(d.bytes, u, gps_at(t));
-            events.push_back({u, lcmlog::ChannelName(lcmlog::kChannelRaw, kSonarId),
-                              EncodeRaw(u, gps_at(t_rx), kSonarId, lcmlog::kProtocolDeltat83P,
-                                        acq::Transport::kUdp, sonar_seq++, "127.0.0.1:4040",
+            events.push_back({u,
+                              lcmlog::ChannelName(lcmlog::kChannelRaw, kSonarId),
+                              EncodeRaw(u,
+                                        gps_at(t_rx),
+                                        kSonarId,
+                                        lcmlog::kProtocolDeltat83P,
+                                        acq::Transport::kUdp,
+                                        sonar_seq++,
+                                        "127.0.0.1:4040",
                                         d.bytes)});
-            for (auto& [ch, bytes] : decoded_ping) events.push_back({u, std::move(ch), std::move(bytes)});
+            for (auto& [ch, bytes] : decoded_ping)
+                events.push_back({u, std::move(ch), std::move(bytes)});
             ++result.pings;
         }
         // Time order; stable, so a raw chunk stays ahead of what it decoded to.
-        std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.utime < b.utime; });
+        std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
+            return a.utime < b.utime;
+        });
         for (Event& e : events) {
             if (e.channel.empty()) continue;
             sim_utime = e.utime;
@@ -241,14 +273,22 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
         const std::int64_t u = utime_at(tick);
         auto frames = decoded.NovatelChunk(line, u);
         result.novatel_bytes += static_cast<std::int64_t>(line.size());
-        writer.Enqueue(u, lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
-                       EncodeRaw(u, gps_at(tick), kNovatelId, lcmlog::kProtocolNovatel,
-                                 acq::Transport::kSerial, nov_seq++, "/dev/ttyS1", line));
+        writer.Enqueue(u,
+                       lcmlog::ChannelName(lcmlog::kChannelRaw, kNovatelId),
+                       EncodeRaw(u,
+                                 gps_at(tick),
+                                 kNovatelId,
+                                 lcmlog::kProtocolNovatel,
+                                 acq::Transport::kSerial,
+                                 nov_seq++,
+                                 "/dev/ttyS1",
+                                 line));
         for (auto& [ch, bytes] : frames) writer.Enqueue(u, std::move(ch), std::move(bytes));
     }
     writer.Stop();
     if (decoded.failures() > 0) {
-        return Error{"internal: " + std::to_string(decoded.failures()) + " simulated frames did not decode"};
+        return Error{"internal: " + std::to_string(decoded.failures()) +
+                     " simulated frames did not decode"};
     }
     const acq::LogWriterStats st = writer.stats();
     if (st.dropped() > 0 || st.write_errors > 0) {
@@ -268,7 +308,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc, const SynthOptions& opt
     for (double tt = 0; tt <= truth.duration_s() + 1e-9; tt += dt) {
         t.trajectory.push_back({static_cast<double>(gps_at(tt)) * 1e-6, truth.PoseAt(tt)});
     }
-    t.boresight = {sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
+    t.boresight = {
+        sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
     t.coverage = std::move(coverage);
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
     return result;

@@ -20,11 +20,11 @@
 namespace pitmap::sim {
 
 struct SynthOptions {
-    std::string out_dir;                        // created if missing
-    int serial_baud = 460800;                   // NovAtel COM port
-    std::int64_t rotate_bytes = 64LL << 20;     // log segment size
-    int num_threads = 0;                        // sonar ray casting; 0 = hardware concurrency
-    double truth_rate_hz = 50.0;                // true trajectory sampling
+    std::string out_dir;                     // created if missing
+    int serial_baud = 460800;                // NovAtel COM port
+    std::int64_t rotate_bytes = 64LL << 20;  // log segment size
+    int num_threads = 0;                     // sonar ray casting; 0 = hardware concurrency
+    double truth_rate_hz = 50.0;             // true trajectory sampling
 };
 
 struct SynthResult {
@@ -34,11 +34,12 @@ struct SynthResult {
     std::int64_t log_events = 0;
     std::int64_t log_bytes = 0;
     int log_files = 0;
-    double duration_s = 0;       // simulated
-    double track_length_m = 0;   // travelled
+    double duration_s = 0;      // simulated
+    double track_length_m = 0;  // travelled
 };
 
-Expected<SynthResult> RunSynth(const ScenarioConfig& scenario, const SynthOptions& options,
+Expected<SynthResult> RunSynth(const ScenarioConfig& scenario,
+                               const SynthOptions& options,
                                const ProgressCallback& progress = {});
 
 }  // namespace pitmap::sim

@@ -48,7 +48,8 @@ std::vector<Eigen::Vector2d> Chaikin(const std::vector<Eigen::Vector2d>& in, int
     return cur;
 }
 
-std::vector<Eigen::Vector2d> ResampleByArcLength(const std::vector<Eigen::Vector2d>& in, double step) {
+std::vector<Eigen::Vector2d> ResampleByArcLength(const std::vector<Eigen::Vector2d>& in,
+                                                 double step) {
     std::vector<Eigen::Vector2d> out{in.front()};
     double carried = 0;  // arc length since the last output point
     for (std::size_t i = 0; i + 1 < in.size(); ++i) {
@@ -87,10 +88,9 @@ Expected<SurveyTrack> SurveyTrack::Plan(const ScenarioConfig& sc) {
         // Tie lines across the long axis, alternating direction, spread over the width.
         const double inner = tr.first_lap_offset_m;
         for (int i = 0; i < tr.num_tie_lines; ++i) {
-            const double y = (tr.num_tie_lines == 1)
-                                 ? 0.0
-                                 : (pit.half_width_m - inner - 6.0) *
-                                       (2.0 * i / (tr.num_tie_lines - 1) - 1.0);
+            const double y = (tr.num_tie_lines == 1) ? 0.0
+                                                     : (pit.half_width_m - inner - 6.0) *
+                                                           (2.0 * i / (tr.num_tie_lines - 1) - 1.0);
             double xe = pit.half_length_m - inner;
             // Keep the ends inside the lap: shrink until the shore is far enough.
             while (xe > 1.0 && DistanceFromShore(pit, xe, y) < inner) xe -= 0.5;
@@ -126,7 +126,9 @@ Eigen::Vector2d SurveyTrack::PositionAt(double s) const {
     const auto n = static_cast<std::ptrdiff_t>(points_.size());
     const auto i = std::min(static_cast<std::ptrdiff_t>(u), n - 2);
     const double f = u - static_cast<double>(i);
-    const auto at = [&](std::ptrdiff_t k) { return points_[static_cast<std::size_t>(std::clamp<std::ptrdiff_t>(k, 0, n - 1))]; };
+    const auto at = [&](std::ptrdiff_t k) {
+        return points_[static_cast<std::size_t>(std::clamp<std::ptrdiff_t>(k, 0, n - 1))];
+    };
     const Eigen::Vector2d p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
     const double f2 = f * f, f3 = f2 * f;
     return 0.5 * ((2.0 * p1) + (p2 - p0) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2 +
@@ -153,15 +155,18 @@ Pose TruthTrajectory::PoseAt(double t) const {
     const Eigen::Vector2d xy = track_.PositionAt(s);
     const double w = 2 * kPi / cfg_.wave_period_s;
     // Two incommensurate components per axis make the motion look irregular.
-    const double roll = frames::DegToRad(cfg_.roll_amplitude_deg) *
-                        (0.8 * std::sin(w * t + phase_[0]) + 0.2 * std::sin(1.63 * w * t + phase_[1]));
-    const double pitch = frames::DegToRad(cfg_.pitch_amplitude_deg) *
-                         (0.8 * std::sin(1.21 * w * t + phase_[2]) + 0.2 * std::sin(2.1 * w * t + phase_[3]));
-    const double heave = cfg_.heave_amplitude_m *
-                         (0.7 * std::sin(0.93 * w * t + phase_[4]) + 0.3 * std::sin(1.7 * w * t + phase_[5]));
-    const double yaw = track_.HeadingAt(s) +
-                       frames::DegToRad(cfg_.yaw_oscillation_deg) * std::sin(0.37 * w * t + phase_[1]);
-    return MakePose(frames::RotationWorldFromRpy(roll, pitch, yaw), Eigen::Vector3d(xy.x(), xy.y(), heave));
+    const double roll =
+        frames::DegToRad(cfg_.roll_amplitude_deg) *
+        (0.8 * std::sin(w * t + phase_[0]) + 0.2 * std::sin(1.63 * w * t + phase_[1]));
+    const double pitch =
+        frames::DegToRad(cfg_.pitch_amplitude_deg) *
+        (0.8 * std::sin(1.21 * w * t + phase_[2]) + 0.2 * std::sin(2.1 * w * t + phase_[3]));
+    const double heave = cfg_.heave_amplitude_m * (0.7 * std::sin(0.93 * w * t + phase_[4]) +
+                                                   0.3 * std::sin(1.7 * w * t + phase_[5]));
+    const double yaw = track_.HeadingAt(s) + frames::DegToRad(cfg_.yaw_oscillation_deg) *
+                                                 std::sin(0.37 * w * t + phase_[1]);
+    return MakePose(frames::RotationWorldFromRpy(roll, pitch, yaw),
+                    Eigen::Vector3d(xy.x(), xy.y(), heave));
 }
 
 TruthState TruthTrajectory::StateAt(double t) const {

@@ -34,11 +34,11 @@ private:
 
 // One instant of the true vehicle state.
 struct TruthState {
-    double t_s = 0;                  // seconds since the survey start
-    Pose T_world_vehicle;            // vehicle (FRD) -> world (ENU)
-    Eigen::Vector3d velocity_world;  // m/s
-    Eigen::Vector3d angular_rate_vehicle;     // rad/s, body rates in the vehicle frame
-    Eigen::Vector3d acceleration_world;       // m/s^2, kinematic (gravity not included)
+    double t_s = 0;                        // seconds since the survey start
+    Pose T_world_vehicle;                  // vehicle (FRD) -> world (ENU)
+    Eigen::Vector3d velocity_world;        // m/s
+    Eigen::Vector3d angular_rate_vehicle;  // rad/s, body rates in the vehicle frame
+    Eigen::Vector3d acceleration_world;    // m/s^2, kinematic (gravity not included)
 };
 
 // Thread safety: const methods may be called concurrently.

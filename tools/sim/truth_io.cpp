@@ -20,48 +20,74 @@ json ScenarioToJson(const ScenarioConfig& s) {
     j["name"] = s.name;
     j["seed"] = s.seed;
     j["start_utc"] = s.start_utc;
-    j["origin"] = {{"latitude_deg", s.origin_latitude_deg}, {"longitude_deg", s.origin_longitude_deg},
-                   {"height_m", s.origin_height_m}, {"geoid_undulation_m", s.geoid_undulation_m}};
+    j["origin"] = {{"latitude_deg", s.origin_latitude_deg},
+                   {"longitude_deg", s.origin_longitude_deg},
+                   {"height_m", s.origin_height_m},
+                   {"geoid_undulation_m", s.geoid_undulation_m}};
     const PitConfig& p = s.pit;
-    j["pit"] = {{"half_length_m", p.half_length_m}, {"half_width_m", p.half_width_m},
-                {"superellipse_exponent", p.superellipse_exponent}, {"max_depth_m", p.max_depth_m},
-                {"floor_depth_m", p.floor_depth_m}, {"num_benches", p.num_benches},
-                {"bench_width_m", p.bench_width_m}, {"wall_slope_deg", p.wall_slope_deg},
-                {"shore_slope_deg", p.shore_slope_deg}, {"backfill_amplitude_m", p.backfill_amplitude_m},
-                {"backfill_wavelength_m", p.backfill_wavelength_m}, {"rubble_amplitude_m", p.rubble_amplitude_m},
-                {"rubble_wavelength_m", p.rubble_wavelength_m}, {"grid_resolution_m", p.grid_resolution_m},
+    j["pit"] = {{"half_length_m", p.half_length_m},
+                {"half_width_m", p.half_width_m},
+                {"superellipse_exponent", p.superellipse_exponent},
+                {"max_depth_m", p.max_depth_m},
+                {"floor_depth_m", p.floor_depth_m},
+                {"num_benches", p.num_benches},
+                {"bench_width_m", p.bench_width_m},
+                {"wall_slope_deg", p.wall_slope_deg},
+                {"shore_slope_deg", p.shore_slope_deg},
+                {"backfill_amplitude_m", p.backfill_amplitude_m},
+                {"backfill_wavelength_m", p.backfill_wavelength_m},
+                {"rubble_amplitude_m", p.rubble_amplitude_m},
+                {"rubble_wavelength_m", p.rubble_wavelength_m},
+                {"grid_resolution_m", p.grid_resolution_m},
                 {"land_height_m", p.land_height_m}};
     const TrackConfig& t = s.track;
-    j["track"] = {{"speed_mps", t.speed_mps}, {"first_lap_offset_m", t.first_lap_offset_m},
-                  {"lap_spacing_m", t.lap_spacing_m}, {"num_laps", t.num_laps},
-                  {"num_tie_lines", t.num_tie_lines}, {"duration_s", t.duration_s},
-                  {"turn_radius_m", t.turn_radius_m}, {"roll_amplitude_deg", t.roll_amplitude_deg},
-                  {"pitch_amplitude_deg", t.pitch_amplitude_deg}, {"heave_amplitude_m", t.heave_amplitude_m},
-                  {"yaw_oscillation_deg", t.yaw_oscillation_deg}, {"wave_period_s", t.wave_period_s}};
+    j["track"] = {{"speed_mps", t.speed_mps},
+                  {"first_lap_offset_m", t.first_lap_offset_m},
+                  {"lap_spacing_m", t.lap_spacing_m},
+                  {"num_laps", t.num_laps},
+                  {"num_tie_lines", t.num_tie_lines},
+                  {"duration_s", t.duration_s},
+                  {"turn_radius_m", t.turn_radius_m},
+                  {"roll_amplitude_deg", t.roll_amplitude_deg},
+                  {"pitch_amplitude_deg", t.pitch_amplitude_deg},
+                  {"heave_amplitude_m", t.heave_amplitude_m},
+                  {"yaw_oscillation_deg", t.yaw_oscillation_deg},
+                  {"wave_period_s", t.wave_period_s}};
     j["lever_arms"] = {{"sonar_m", s.lever_arms.sonar_m}, {"antenna_m", s.lever_arms.antenna_m}};
     j["boresight_deg"] = s.boresight_deg;
     const NavErrorConfig& n = s.nav;
-    j["nav"] = {{"position_noise_m", n.position_noise_m}, {"position_gm_sigma_m", n.position_gm_sigma_m},
-                {"height_gm_sigma_m", n.height_gm_sigma_m}, {"position_gm_tau_s", n.position_gm_tau_s},
+    j["nav"] = {{"position_noise_m", n.position_noise_m},
+                {"position_gm_sigma_m", n.position_gm_sigma_m},
+                {"height_gm_sigma_m", n.height_gm_sigma_m},
+                {"position_gm_tau_s", n.position_gm_tau_s},
                 {"attitude_gm_sigma_deg", n.attitude_gm_sigma_deg},
-                {"heading_gm_sigma_deg", n.heading_gm_sigma_deg}, {"attitude_gm_tau_s", n.attitude_gm_tau_s},
+                {"heading_gm_sigma_deg", n.heading_gm_sigma_deg},
+                {"attitude_gm_tau_s", n.attitude_gm_tau_s},
                 {"outages_s", n.outages_s},
-                {"outage_velocity_random_walk_mps_per_sqrt_s", n.outage_velocity_random_walk_mps_per_sqrt_s},
+                {"outage_velocity_random_walk_mps_per_sqrt_s",
+                 n.outage_velocity_random_walk_mps_per_sqrt_s},
                 {"outage_vertical_fraction", n.outage_vertical_fraction},
                 {"recovery_time_s", n.recovery_time_s}};
     const SonarConfig& o = s.sonar;
-    j["sonar"] = {{"ping_rate_hz", o.ping_rate_hz}, {"num_beams", o.num_beams},
-                  {"start_angle_deg", o.start_angle_deg}, {"angle_increment_deg", o.angle_increment_deg},
-                  {"beam_width_deg", o.beam_width_deg}, {"footprint_rays", o.footprint_rays},
-                  {"max_range_m", o.max_range_m}, {"range_resolution_mm", o.range_resolution_mm},
+    j["sonar"] = {{"ping_rate_hz", o.ping_rate_hz},
+                  {"num_beams", o.num_beams},
+                  {"start_angle_deg", o.start_angle_deg},
+                  {"angle_increment_deg", o.angle_increment_deg},
+                  {"beam_width_deg", o.beam_width_deg},
+                  {"footprint_rays", o.footprint_rays},
+                  {"max_range_m", o.max_range_m},
+                  {"range_resolution_mm", o.range_resolution_mm},
                   {"range_noise_fraction", o.range_noise_fraction},
                   {"range_noise_constant_m", o.range_noise_constant_m},
                   {"dropout_probability", o.dropout_probability},
-                  {"outlier_probability", o.outlier_probability}, {"sound_speed_mps", o.sound_speed_mps},
-                  {"intensities", o.intensities}, {"format_version", o.format_version},
+                  {"outlier_probability", o.outlier_probability},
+                  {"sound_speed_mps", o.sound_speed_mps},
+                  {"intensities", o.intensities},
+                  {"format_version", o.format_version},
                   {"topside_clock_offset_s", o.topside_clock_offset_s},
                   {"topside_clock_drift_ppm", o.topside_clock_drift_ppm},
-                  {"ping_latency_ms", o.ping_latency_ms}, {"data_latency_ms", o.data_latency_ms}};
+                  {"ping_latency_ms", o.ping_latency_ms},
+                  {"data_latency_ms", o.data_latency_ms}};
     j["ins_rate_hz"] = s.ins_rate_hz;
     j["imu_rate_hz"] = s.imu_rate_hz;
     j["gnss_rate_hz"] = s.gnss_rate_hz;
@@ -94,19 +120,26 @@ Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc) {
 Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth& truth) {
     if (auto s = WriteScenarioJson(dir + "/scenario.json", sc); !s) return s;
     const TerrainGrid& g = truth.terrain;
-    json th = {{"x0_m", g.x0_m}, {"y0_m", g.y0_m}, {"resolution_m", g.resolution_m}, {"nx", g.nx},
-               {"ny", g.ny}, {"data", "terrain.f32"}, {"layout", "float32 little-endian, row-major iy*nx+ix, z up, metres"},
+    json th = {{"x0_m", g.x0_m},
+               {"y0_m", g.y0_m},
+               {"resolution_m", g.resolution_m},
+               {"nx", g.nx},
+               {"ny", g.ny},
+               {"data", "terrain.f32"},
+               {"layout", "float32 little-endian, row-major iy*nx+ix, z up, metres"},
                {"frame", "world: ENU at origin"},
-               {"origin", {{"latitude_deg", truth.origin.latitude_deg},
-                           {"longitude_deg", truth.origin.longitude_deg},
-                           {"height_m", truth.origin.height_m}}}};
+               {"origin",
+                {{"latitude_deg", truth.origin.latitude_deg},
+                 {"longitude_deg", truth.origin.longitude_deg},
+                 {"height_m", truth.origin.height_m}}}};
     if (auto s = WriteText(dir + "/terrain.json", th.dump(2) + "\n"); !s) return s;
     {
         std::vector<std::uint8_t> bytes;
         bytes.reserve(g.height_m.size() * 4);
         ByteWriter w(bytes);
         for (const float h : g.height_m) w.F32Le(h);
-        if (auto s = WriteText(dir + "/terrain.f32", std::string(bytes.begin(), bytes.end())); !s) return s;
+        if (auto s = WriteText(dir + "/terrain.f32", std::string(bytes.begin(), bytes.end())); !s)
+            return s;
     }
     std::ostringstream csv;
     csv << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n";
@@ -114,21 +147,35 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
     for (const TruthPose& p : truth.trajectory) {
         const auto rpy = frames::RpyFromRotationWorld(p.T_world_vehicle.linear());
         const Eigen::Vector3d t = p.T_world_vehicle.translation();
-        std::snprintf(line, sizeof line, "%.6f,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f\n", p.gps_time_s, t.x(),
-                      t.y(), t.z(), frames::RadToDeg(rpy.roll), frames::RadToDeg(rpy.pitch),
+        std::snprintf(line,
+                      sizeof line,
+                      "%.6f,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f\n",
+                      p.gps_time_s,
+                      t.x(),
+                      t.y(),
+                      t.z(),
+                      frames::RadToDeg(rpy.roll),
+                      frames::RadToDeg(rpy.pitch),
                       frames::RadToDeg(rpy.yaw));
         csv << line;
     }
     if (auto s = WriteText(dir + "/trajectory.csv", csv.str()); !s) return s;
     if (!truth.coverage.empty()) {
-        if (truth.coverage.size() != g.height_m.size()) return Error{"coverage does not match the terrain grid"};
-        if (auto s = WriteText(dir + "/coverage.u8", std::string(truth.coverage.begin(), truth.coverage.end())); !s) {
+        if (truth.coverage.size() != g.height_m.size())
+            return Error{"coverage does not match the terrain grid"};
+        if (auto s = WriteText(dir + "/coverage.u8",
+                               std::string(truth.coverage.begin(), truth.coverage.end()));
+            !s) {
             return s;
         }
     }
-    json b = {{"roll_deg", truth.boresight.roll_deg}, {"pitch_deg", truth.boresight.pitch_deg},
-              {"yaw_deg", truth.boresight.yaw_deg}, {"lever_arm_sonar_m", truth.boresight.lever_arm_sonar_m},
-              {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD, sonar x fwd y stbd z down"}};
+    json b = {
+        {"roll_deg", truth.boresight.roll_deg},
+        {"pitch_deg", truth.boresight.pitch_deg},
+        {"yaw_deg", truth.boresight.yaw_deg},
+        {"lever_arm_sonar_m", truth.boresight.lever_arm_sonar_m},
+        {"convention",
+         "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD, sonar x fwd y stbd z down"}};
     return WriteText(dir + "/boresight.json", b.dump(2) + "\n");
 }
 
@@ -155,8 +202,10 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         const std::string path = dir + "/terrain.f32";
         std::ifstream in(path, std::ios::binary);
         if (!in) return Error{path + ": cannot open"};
-        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-        const std::size_t n = static_cast<std::size_t>(t.terrain.nx) * static_cast<std::size_t>(t.terrain.ny);
+        const std::string bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+        const std::size_t n =
+            static_cast<std::size_t>(t.terrain.nx) * static_cast<std::size_t>(t.terrain.ny);
         if (bytes.size() != n * 4) return Error{path + ": size does not match terrain.json"};
         t.terrain.height_m.resize(n);
         ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
@@ -173,13 +222,23 @@ Expected<Truth> ReadTruth(const std::string& dir) {
             ++lineno;
             if (line.empty()) continue;
             double v[7];
-            if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6]) != 7) {
+            if (std::sscanf(line.c_str(),
+                            "%lf,%lf,%lf,%lf,%lf,%lf,%lf",
+                            &v[0],
+                            &v[1],
+                            &v[2],
+                            &v[3],
+                            &v[4],
+                            &v[5],
+                            &v[6]) != 7) {
                 return Error{path + ":" + std::to_string(lineno) + ": expected 7 numbers"};
             }
             TruthPose p;
             p.gps_time_s = v[0];
-            p.T_world_vehicle = MakePose(frames::RotationWorldFromRpy(frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
-                                         Eigen::Vector3d(v[1], v[2], v[3]));
+            p.T_world_vehicle = MakePose(
+                frames::RotationWorldFromRpy(
+                    frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
+                Eigen::Vector3d(v[1], v[2], v[3]));
             t.trajectory.push_back(p);
         }
     }
@@ -188,7 +247,8 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         std::ifstream in(path, std::ios::binary);
         if (in) {
             t.coverage.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-            if (t.coverage.size() != t.terrain.height_m.size()) return Error{path + ": size does not match terrain.json"};
+            if (t.coverage.size() != t.terrain.height_m.size())
+                return Error{path + ": size does not match terrain.json"};
         }
     }
     auto bj = ReadJson(dir + "/boresight.json");
@@ -205,11 +265,14 @@ Expected<Truth> ReadTruth(const std::string& dir) {
 }
 
 Expected<Pose> InterpolateTruth(const std::vector<TruthPose>& traj, double gps_time_s) {
-    if (traj.size() < 2 || gps_time_s < traj.front().gps_time_s || gps_time_s > traj.back().gps_time_s) {
+    if (traj.size() < 2 || gps_time_s < traj.front().gps_time_s ||
+        gps_time_s > traj.back().gps_time_s) {
         return Error{"time outside the true trajectory"};
     }
-    const auto it = std::lower_bound(traj.begin(), traj.end(), gps_time_s,
-                                     [](const TruthPose& p, double t) { return p.gps_time_s < t; });
+    const auto it =
+        std::lower_bound(traj.begin(), traj.end(), gps_time_s, [](const TruthPose& p, double t) {
+            return p.gps_time_s < t;
+        });
     if (it == traj.begin()) return traj.front().T_world_vehicle;
     const TruthPose& b = *it;
     const TruthPose& a = *(it - 1);

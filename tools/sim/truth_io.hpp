@@ -30,11 +30,11 @@ struct TruthPose {
 
 struct TruthBoresight {
     double roll_deg = 0, pitch_deg = 0, yaw_deg = 0;  // R_vehicle_sonar error about the nominal
-    std::vector<double> lever_arm_sonar_m;             // vehicle frame
+    std::vector<double> lever_arm_sonar_m;            // vehicle frame
 };
 
 struct Truth {
-    Geodetic origin;                 // world frame origin
+    Geodetic origin;  // world frame origin
     TerrainGrid terrain;
     std::vector<TruthPose> trajectory;
     TruthBoresight boresight;

@@ -19,7 +19,9 @@ double LatticeValue(std::int64_t ix, std::int64_t iy, std::uint64_t seed) {
     return static_cast<double>(z >> 11) * (2.0 / 9007199254740992.0) - 1.0;
 }
 
-double Fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
+double Fade(double t) {
+    return t * t * t * (t * (t * 6 - 15) + 10);
+}
 
 // Smooth value noise with unit lattice spacing, range about [-1, 1].
 double ValueNoise(double x, double y, std::uint64_t seed) {
@@ -57,7 +59,8 @@ double BenchProfile(const PitConfig& pit, double d) {
     const double corner_m = 0.4;
     double depth = 0, start = 0;
     for (int i = 0; i < risers; ++i) {
-        const double slope = std::tan((i == 0 ? pit.shore_slope_deg : pit.wall_slope_deg) * kDegToRad);
+        const double slope =
+            std::tan((i == 0 ? pit.shore_slope_deg : pit.wall_slope_deg) * kDegToRad);
         const double width = h / slope;
         depth += h * SoftRamp((d - start) / width, width / corner_m);
         start += width + pit.bench_width_m;
@@ -71,7 +74,8 @@ double FloorStart(const PitConfig& pit) {
     const double h = pit.floor_depth_m / risers;
     double start = 0;
     for (int i = 0; i < risers; ++i) {
-        const double slope = std::tan((i == 0 ? pit.shore_slope_deg : pit.wall_slope_deg) * kDegToRad);
+        const double slope =
+            std::tan((i == 0 ? pit.shore_slope_deg : pit.wall_slope_deg) * kDegToRad);
         start += h / slope + (i + 1 < risers ? pit.bench_width_m : 0.0);
     }
     return start;
@@ -81,9 +85,9 @@ double FloorStart(const PitConfig& pit) {
 
 double DistanceFromShore(const PitConfig& pit, double x, double y) {
     const double p = pit.superellipse_exponent;
-    const double r = std::pow(std::pow(std::abs(x) / pit.half_length_m, p) +
-                                  std::pow(std::abs(y) / pit.half_width_m, p),
-                              1.0 / p);
+    const double r = std::pow(
+        std::pow(std::abs(x) / pit.half_length_m, p) + std::pow(std::abs(y) / pit.half_width_m, p),
+        1.0 / p);
     const double rho = std::hypot(x, y);
     if (r < 1e-9) return std::min(pit.half_length_m, pit.half_width_m);
     // The shore point on the ray from the centre is at rho / r.
@@ -95,8 +99,10 @@ PitWorld::PitWorld(const PitConfig& pit, std::uint64_t seed) {
     grid_.resolution_m = pit.grid_resolution_m;
     grid_.x0_m = -(pit.half_length_m + margin);
     grid_.y0_m = -(pit.half_width_m + margin);
-    grid_.nx = static_cast<int>(std::ceil(2 * (pit.half_length_m + margin) / grid_.resolution_m)) + 1;
-    grid_.ny = static_cast<int>(std::ceil(2 * (pit.half_width_m + margin) / grid_.resolution_m)) + 1;
+    grid_.nx =
+        static_cast<int>(std::ceil(2 * (pit.half_length_m + margin) / grid_.resolution_m)) + 1;
+    grid_.ny =
+        static_cast<int>(std::ceil(2 * (pit.half_width_m + margin) / grid_.resolution_m)) + 1;
     grid_.height_m.resize(static_cast<std::size_t>(grid_.nx) * static_cast<std::size_t>(grid_.ny));
     const double floor_start = FloorStart(pit);
     const double land_slope = std::tan(pit.shore_slope_deg * kDegToRad);
@@ -132,7 +138,9 @@ PitWorld::PitWorld(const PitConfig& pit, std::uint64_t seed) {
     ComputeMaxSlope();
 }
 
-PitWorld::PitWorld(TerrainGrid grid) : grid_(std::move(grid)) { ComputeMaxSlope(); }
+PitWorld::PitWorld(TerrainGrid grid) : grid_(std::move(grid)) {
+    ComputeMaxSlope();
+}
 
 void PitWorld::ComputeMaxSlope() {
     double m = 0;
@@ -161,7 +169,8 @@ double PitWorld::Height(double x, double y) const {
     const int ix = std::min(static_cast<int>(gx), grid_.nx - 2);
     const int iy = std::min(static_cast<int>(gy), grid_.ny - 2);
     const double u = gx - ix, v = gy - iy;
-    const float* row0 = grid_.height_m.data() + static_cast<std::size_t>(iy) * static_cast<std::size_t>(grid_.nx) +
+    const float* row0 = grid_.height_m.data() +
+                        static_cast<std::size_t>(iy) * static_cast<std::size_t>(grid_.nx) +
                         static_cast<std::size_t>(ix);
     const float* row1 = row0 + grid_.nx;
     return (row0[0] * (1 - u) + row0[1] * u) * (1 - v) + (row1[0] * (1 - u) + row1[1] * u) * v;
@@ -173,8 +182,10 @@ Eigen::Vector2d PitWorld::Gradient(double x, double y) const {
     const int ix = std::min(static_cast<int>(gx), grid_.nx - 2);
     const int iy = std::min(static_cast<int>(gy), grid_.ny - 2);
     const double u = gx - ix, v = gy - iy;
-    const double dhdu = (At(ix + 1, iy) - At(ix, iy)) * (1 - v) + (At(ix + 1, iy + 1) - At(ix, iy + 1)) * v;
-    const double dhdv = (At(ix, iy + 1) - At(ix, iy)) * (1 - u) + (At(ix + 1, iy + 1) - At(ix + 1, iy)) * u;
+    const double dhdu =
+        (At(ix + 1, iy) - At(ix, iy)) * (1 - v) + (At(ix + 1, iy + 1) - At(ix, iy + 1)) * v;
+    const double dhdv =
+        (At(ix, iy + 1) - At(ix, iy)) * (1 - u) + (At(ix + 1, iy + 1) - At(ix + 1, iy)) * u;
     return Eigen::Vector2d(dhdu, dhdv) / grid_.resolution_m;
 }
 
@@ -196,7 +207,8 @@ double PitWorld::SignedDistance(const Eigen::Vector3d& p) const {
     return d;
 }
 
-std::optional<double> PitWorld::RayCast(const Eigen::Vector3d& o, const Eigen::Vector3d& dir,
+std::optional<double> PitWorld::RayCast(const Eigen::Vector3d& o,
+                                        const Eigen::Vector3d& dir,
                                         double max_range_m) const {
     auto gap = [&](double t) {
         const Eigen::Vector3d q = o + t * dir;

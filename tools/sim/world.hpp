@@ -16,11 +16,11 @@
 namespace pitmap::sim {
 
 struct TerrainGrid {
-    double x0_m = 0;          // world x of column 0
-    double y0_m = 0;          // world y of row 0
-    double resolution_m = 0;  // cell size
-    int nx = 0;               // columns (x)
-    int ny = 0;               // rows (y)
+    double x0_m = 0;              // world x of column 0
+    double y0_m = 0;              // world y of row 0
+    double resolution_m = 0;      // cell size
+    int nx = 0;                   // columns (x)
+    int ny = 0;                   // rows (y)
     std::vector<float> height_m;  // row-major: height_m[iy * nx + ix], metres (z up)
 };
 
@@ -43,7 +43,8 @@ public:
     double SignedDistance(const Eigen::Vector3d& p) const;
     // First intersection of the ray origin + t * dir (dir unit) with the terrain, t in
     // (0, max_range_m]; nullopt if none (or if the origin is below the terrain).
-    std::optional<double> RayCast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+    std::optional<double> RayCast(const Eigen::Vector3d& origin,
+                                  const Eigen::Vector3d& dir,
                                   double max_range_m) const;
     // Water depth at (x, y): max(0, -Height).
     double Depth(double x, double y) const { return std::max(0.0, -Height(x, y)); }

@@ -7,8 +7,8 @@
 namespace pitmap::protocol::deltat {
 namespace {
 
-constexpr std::array<std::uint16_t, 13> kRangeByCode = {5,  10,  20,  30,  40,  50, 60,
-                                                        80, 100, 150, 200, 250, 300};
+constexpr std::array<std::uint16_t, 13> kRangeByCode = {
+    5, 10, 20, 30, 40, 50, 60, 80, 100, 150, 200, 250, 300};
 constexpr std::uint8_t kFirstRangeCode = 2;
 constexpr std::array<std::uint16_t, 4> kSectorByCode = {30, 60, 90, 120};
 constexpr std::array<std::uint16_t, 3> kBeamsByCode = {480, 240, 120};
@@ -63,8 +63,8 @@ std::variant<EcFrame, DecodeError> DecodeEcFrame(ByteSpan frame) {
         return DecodeError{DecodeErrorKind::kTruncated, frame.size(), "EC frame shorter than 256"};
     }
     if (frame.size() > kEcFrameBytes) {
-        return DecodeError{DecodeErrorKind::kTrailingBytes, kEcFrameBytes,
-                           "EC frame longer than 256"};
+        return DecodeError{
+            DecodeErrorKind::kTrailingBytes, kEcFrameBytes, "EC frame longer than 256"};
     }
     ByteReader r(frame);
     if (r.U8() != 'E' || r.U8() != 'C') {

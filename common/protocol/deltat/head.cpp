@@ -15,7 +15,9 @@ constexpr std::uint8_t kCommandTerminator = 0xFD;
 // these 3 bytes and the head-id byte is rescanned.
 constexpr std::size_t kSyncSkip = 3;
 
-bool IsModeByte(std::uint8_t b) { return b == 'U' || b == 'V'; }
+bool IsModeByte(std::uint8_t b) {
+    return b == 'U' || b == 'V';
+}
 
 }  // namespace
 
@@ -24,8 +26,8 @@ std::variant<SwitchCommand, DecodeError> DecodeSwitchCommand(ByteSpan bytes) {
         return DecodeError{DecodeErrorKind::kTruncated, bytes.size(), "command shorter than 27"};
     }
     if (bytes.size() > kSwitchCommandBytes) {
-        return DecodeError{DecodeErrorKind::kTrailingBytes, kSwitchCommandBytes,
-                           "command longer than 27"};
+        return DecodeError{
+            DecodeErrorKind::kTrailingBytes, kSwitchCommandBytes, "command longer than 27"};
     }
     ByteReader r(bytes);
     if (r.U8() != kCommandHeader0 || r.U8() != kCommandHeader1) {
@@ -110,15 +112,15 @@ std::variant<HeadReply, DecodeError> DecodeHeadReply(ByteSpan bytes) {
         return DecodeError{DecodeErrorKind::kTruncated, bytes.size(), "reply shorter than 1033"};
     }
     if (bytes.size() > kHeadReplyBytes) {
-        return DecodeError{DecodeErrorKind::kTrailingBytes, kHeadReplyBytes,
-                           "reply longer than 1033"};
+        return DecodeError{
+            DecodeErrorKind::kTrailingBytes, kHeadReplyBytes, "reply longer than 1033"};
     }
     if (bytes[0] != 'I' || !IsModeByte(bytes[1]) || bytes[2] != 'X') {
         return DecodeError{DecodeErrorKind::kBadMarker, 0, "no I?X sync"};
     }
     if (bytes[kHeadReplyBytes - 1] != kHeadReplyTerminator) {
-        return DecodeError{DecodeErrorKind::kBadTerminator, kHeadReplyBytes - 1,
-                           "no 0xFC terminator"};
+        return DecodeError{
+            DecodeErrorKind::kBadTerminator, kHeadReplyBytes - 1, "no 0xFC terminator"};
     }
     HeadReply h;
     ByteReader r(bytes);

@@ -20,18 +20,24 @@ constexpr std::size_t kOffsetNumBeams = 70;
 constexpr std::size_t kOffsetFloatBlock = 100;
 constexpr std::size_t kOffsetIntensityFlag = 117;
 
-constexpr std::array<std::size_t, kNumFloatFields> kFloatOffsets = {100, 104, 108, 128, 133,
-                                                                    138, 142, 146, 151};
+constexpr std::array<std::size_t, kNumFloatFields> kFloatOffsets = {
+    100, 104, 108, 128, 133, 138, 142, 146, 151};
 
-constexpr std::array<std::string_view, 12> kMonths = {"JAN", "FEB", "MAR", "APR", "MAY", "JUN",
-                                                      "JUL", "AUG", "SEP", "OCT", "NOV", "DEC"};
+constexpr std::array<std::string_view, 12> kMonths = {
+    "JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC"};
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-bool IsDigit(char c) { return c >= '0' && c <= '9'; }
+bool IsDigit(char c) {
+    return c >= '0' && c <= '9';
+}
 // Blank positions of the navigation strings: space, MB-System's underscore, or NUL (§4.10).
-bool IsPad(char c) { return c == ' ' || c == '_' || c == '\0'; }
-char ToUpper(char c) { return (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c; }
+bool IsPad(char c) {
+    return c == ' ' || c == '_' || c == '\0';
+}
+char ToUpper(char c) {
+    return (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c;
+}
 
 // Digits at text[pos, pos+n); with `allow_leading_pad`, leading pads count as zeros (space-
 // padded minutes, §1.4). Returns -1 if malformed.
@@ -220,18 +226,29 @@ void FormatNav(std::array<char, 14>& text, double deg, bool latitude) {
     const char hemi = latitude ? (deg < 0 ? 'S' : 'N') : (deg < 0 ? 'W' : 'E');
     char buf[32];
     if (latitude) {
-        std::snprintf(buf, sizeof buf, " %02d.%02d.%05d %c", static_cast<int>(d),
-                      static_cast<int>(m), static_cast<int>(f), hemi);
+        std::snprintf(buf,
+                      sizeof buf,
+                      " %02d.%02d.%05d %c",
+                      static_cast<int>(d),
+                      static_cast<int>(m),
+                      static_cast<int>(f),
+                      hemi);
     } else {
-        std::snprintf(buf, sizeof buf, "%03d.%02d.%05d %c", static_cast<int>(d),
-                      static_cast<int>(m), static_cast<int>(f), hemi);
+        std::snprintf(buf,
+                      sizeof buf,
+                      "%03d.%02d.%05d %c",
+                      static_cast<int>(d),
+                      static_cast<int>(m),
+                      static_cast<int>(f),
+                      hemi);
     }
     std::memcpy(text.data(), buf, text.size());
 }
 
 }  // namespace
 
-std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_view time,
+std::optional<std::int64_t> ParseHeaderClock(std::string_view date,
+                                             std::string_view time,
                                              std::string_view fraction) {
     if (date.size() < 11 || time.size() < 8 || fraction.size() < 3) return std::nullopt;
     UtcCalendar c;
@@ -262,8 +279,12 @@ std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_
     return UnixFromUtcCalendar(c);
 }
 
-double ParseLatitudeText(std::string_view text14) { return ParseNavText(text14, true); }
-double ParseLongitudeText(std::string_view text14) { return ParseNavText(text14, false); }
+double ParseLatitudeText(std::string_view text14) {
+    return ParseNavText(text14, true);
+}
+double ParseLongitudeText(std::string_view text14) {
+    return ParseNavText(text14, false);
+}
 
 void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix) {
     const UtcCalendar c = UtcCalendarFromUnix(utime_unix);
@@ -275,8 +296,12 @@ void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix) {
     ping.utime_sonar_header = 0;
     if (c.year < 0 || c.year > 9999) return;
     char buf[32];
-    std::snprintf(buf, sizeof buf, "%02d-%s-%04d", c.day,
-                  kMonths[static_cast<std::size_t>(c.month - 1)].data(), c.year);
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%02d-%s-%04d",
+                  c.day,
+                  kMonths[static_cast<std::size_t>(c.month - 1)].data(),
+                  c.year);
     std::memcpy(ping.date_text.data(), buf, 11);
     std::snprintf(buf, sizeof buf, "%02d:%02d:%02d", c.hour, c.minute, c.second);
     std::memcpy(ping.time_text.data(), buf, 8);
@@ -287,7 +312,8 @@ void SetHeaderTime(Ping83P& ping, std::int64_t utime_unix) {
         std::memcpy(ping.milliseconds_text.data(), buf, 4);
     }
     const auto parsed = ParseHeaderClock(
-        View(ping.date_text), View(ping.time_text),
+        View(ping.date_text),
+        View(ping.time_text),
         ping.is_v110() ? View(ping.milliseconds_text) : View(ping.hundredths_text));
     ping.header_time_valid = parsed.has_value();
     ping.utime_sonar_header = parsed.value_or(0);
@@ -347,13 +373,14 @@ std::variant<Layout83P, DecodeError> ValidateHeader83P(ByteSpan prefix) {
     } else if (layout.total_bytes == ranges_only) {
         layout.intensity_flag_ignored = flag;
     } else {
-        return Error(DecodeErrorKind::kLengthMismatch, kOffsetLength,
-                     "N inconsistent with B and byte 117");
+        return Error(
+            DecodeErrorKind::kLengthMismatch, kOffsetLength, "N inconsistent with B and byte 117");
     }
     return layout;
 }
 
-std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record, FloatOrderMemory& memory,
+std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record,
+                                                          FloatOrderMemory& memory,
                                                           Ping83P& out) {
     const auto validated = ValidateHeader83P(record);
     if (const auto* e = std::get_if<DecodeError>(&validated)) return *e;
@@ -497,7 +524,8 @@ Decoded83P DecodeRecord83P(ByteSpan record) {
     return DecodeRecord83P(record, memory);
 }
 
-bool EncodeRecord83P(const Ping83P& ping, const EncodeOptions& options,
+bool EncodeRecord83P(const Ping83P& ping,
+                     const EncodeOptions& options,
                      std::vector<std::uint8_t>& out) {
     const std::size_t num_beams = ping.range_counts.size();
     if (num_beams < 1 || num_beams > kMaxBeams) return false;

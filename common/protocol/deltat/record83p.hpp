@@ -45,7 +45,8 @@ enum class RecordKind : std::uint8_t { kPing = 0, kComment };
 // -> kTrailingBytes). Decodes into `out`, reusing its vectors (no allocation once their
 // capacity reached B); on kComment or an error `out` is unspecified. `memory` carries the
 // per-stream float byte-order choices (§4.5).
-std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record, FloatOrderMemory& memory,
+std::variant<RecordKind, DecodeError> DecodeRecord83PInto(ByteSpan record,
+                                                          FloatOrderMemory& memory,
                                                           Ping83P& out);
 
 using Decoded83P = std::variant<Ping83P, Comment83P, DecodeError>;
@@ -63,7 +64,8 @@ struct EncodeOptions {
 // Appends the record for `ping` to `out`. v1.00 writes zeros at 100-255 and never writes
 // intensities. Returns false (appending nothing) if the ping cannot be encoded: B outside
 // 1..480, or intensity_included with intensities.size() != B.
-bool EncodeRecord83P(const Ping83P& ping, const EncodeOptions& options,
+bool EncodeRecord83P(const Ping83P& ping,
+                     const EncodeOptions& options,
                      std::vector<std::uint8_t>& out);
 // Same, returning a new vector (empty on failure).
 std::vector<std::uint8_t> EncodeRecord83P(const Ping83P& ping, const EncodeOptions& options = {});
@@ -74,7 +76,8 @@ std::vector<std::uint8_t> EncodeComment83P(std::string_view text,
 // Field helpers (§1.4), exposed for tests and for the simulator.
 // Date "DD-MMM-YYYY" (month case-insensitive), time "HH:MM:SS", fraction ".hh" or ".mmm":
 // Unix microseconds, or nullopt when not parsable.
-std::optional<std::int64_t> ParseHeaderClock(std::string_view date, std::string_view time,
+std::optional<std::int64_t> ParseHeaderClock(std::string_view date,
+                                             std::string_view time,
                                              std::string_view fraction);
 // Latitude / longitude strings parsed by position; NaN when blank, all zero or malformed.
 double ParseLatitudeText(std::string_view text14);

@@ -109,7 +109,9 @@ std::optional<Skipped> StreamFramer::GiveUpCandidate(SkipReason reason) {
     return Skip(reason, GarbageRunEnd(buffer_.data() + head_, avail, 1));
 }
 
-std::optional<Skipped> StreamFramer::Flush() { return GiveUpCandidate(SkipReason::kTruncated); }
+std::optional<Skipped> StreamFramer::Flush() {
+    return GiveUpCandidate(SkipReason::kTruncated);
+}
 
 std::optional<Skipped> StreamFramer::Expire() {
     // Only a candidate with a complete record behind it is given up (it cannot be real then); a
@@ -132,7 +134,8 @@ std::optional<Skipped> StreamFramer::Expire() {
 }
 
 std::variant<RecordKind, DecodeError> DecodeDatagramInto(ByteSpan datagram,
-                                                         FloatOrderMemory& memory, Ping83P& out) {
+                                                         FloatOrderMemory& memory,
+                                                         Ping83P& out) {
     // DecodeRecord83PInto already requires exactly N bytes.
     return DecodeRecord83PInto(datagram, memory, out);
 }
@@ -141,6 +144,8 @@ Decoded83P DecodeDatagram(ByteSpan datagram, FloatOrderMemory& memory) {
     return DecodeRecord83P(datagram, memory);
 }
 
-Decoded83P DecodeDatagram(ByteSpan datagram) { return DecodeRecord83P(datagram); }
+Decoded83P DecodeDatagram(ByteSpan datagram) {
+    return DecodeRecord83P(datagram);
+}
 
 }  // namespace pitmap::protocol::deltat

@@ -74,7 +74,8 @@ private:
 // One UDP datagram = one record (§3.2): decodes it with DecodeRecord83PInto rules, reporting
 // missing bytes as kTruncated and extra bytes as kTrailingBytes.
 std::variant<RecordKind, DecodeError> DecodeDatagramInto(ByteSpan datagram,
-                                                         FloatOrderMemory& memory, Ping83P& out);
+                                                         FloatOrderMemory& memory,
+                                                         Ping83P& out);
 Decoded83P DecodeDatagram(ByteSpan datagram, FloatOrderMemory& memory);
 Decoded83P DecodeDatagram(ByteSpan datagram);
 

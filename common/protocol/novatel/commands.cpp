@@ -12,8 +12,8 @@
 namespace pitmap::protocol::novatel {
 namespace {
 
-constexpr std::array<std::string_view, 6> kTriggerNames = {"ONNEW",  "ONCHANGED", "ONTIME",
-                                                           "ONNEXT", "ONCE",      "ONMARK"};
+constexpr std::array<std::string_view, 6> kTriggerNames = {
+    "ONNEW", "ONCHANGED", "ONTIME", "ONNEXT", "ONCE", "ONMARK"};
 
 std::string Number(double v) {
     char buf[32];
@@ -124,7 +124,8 @@ std::string EncodeCommand(const Command& command) {
 std::variant<Command, CommandError> ParseCommand(std::string_view line) {
     std::string upper;
     upper.reserve(line.size());
-    for (char c : line) upper.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
+    for (char c : line)
+        upper.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
     std::vector<std::string_view> w;
     std::string_view rest(upper);
     while (!rest.empty()) {

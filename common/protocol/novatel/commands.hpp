@@ -64,8 +64,8 @@ struct SerialConfigCommand {
     bool operator==(const SerialConfigCommand&) const = default;
 };
 
-using Command = std::variant<LogCommand, UnlogCommand, UnlogAllCommand, InterfaceModeCommand,
-                             SerialConfigCommand>;
+using Command = std::
+    variant<LogCommand, UnlogCommand, UnlogAllCommand, InterfaceModeCommand, SerialConfigCommand>;
 
 enum class CommandErrorKind : std::uint8_t {
     kEmpty = 0,

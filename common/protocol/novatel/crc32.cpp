@@ -15,7 +15,8 @@ std::uint32_t Crc32(ByteSpan data, std::uint32_t crc) {
     const std::uint8_t* p = data.data();
     std::size_t left = data.size();
     while (left > 0) {
-        const auto chunk = static_cast<uInt>(std::min<std::size_t>(left, std::numeric_limits<uInt>::max()));
+        const auto chunk =
+            static_cast<uInt>(std::min<std::size_t>(left, std::numeric_limits<uInt>::max()));
         z = crc32(z, p, chunk);
         p += chunk;
         left -= chunk;

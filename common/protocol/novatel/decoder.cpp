@@ -12,7 +12,9 @@ namespace {
 
 constexpr std::uint8_t kResponseBit = 0x80;
 
-DecodeError Error(DecodeErrorKind kind, std::size_t offset) { return DecodeError{kind, offset}; }
+DecodeError Error(DecodeErrorKind kind, std::size_t offset) {
+    return DecodeError{kind, offset};
+}
 
 // ---------------------------------------------------------------------------------------------
 // Binary bodies (§6). Each reads its fields in wire order; the table below guarantees the body
@@ -345,7 +347,8 @@ DecodeResult DecodeBinary(const Frame& frame) {
     std::size_t body_length = 0;
     r.Skip(3);
     if (frame.kind == FrameKind::kShortBinary) {
-        if (bytes.size() < kShortHeaderLength + kCrcLength) return Error(DecodeErrorKind::kBadHeader, 0);
+        if (bytes.size() < kShortHeaderLength + kCrcLength)
+            return Error(DecodeErrorKind::kBadHeader, 0);
         h.kind = HeaderKind::kShortBinary;
         body_length = r.U8();
         h.message_id = r.U16Le();
@@ -746,10 +749,13 @@ std::optional<std::size_t> MinimumBodyLength(std::uint16_t message_id) {
 DecodeResult Decode(const Frame& frame) {
     switch (frame.kind) {
         case FrameKind::kLongBinary:
-        case FrameKind::kShortBinary: return DecodeBinary(frame);
+        case FrameKind::kShortBinary:
+            return DecodeBinary(frame);
         case FrameKind::kAscii:
-        case FrameKind::kShortAscii: return DecodeAscii(frame);
-        case FrameKind::kAbbreviated: return DecodeAbbreviated(frame);
+        case FrameKind::kShortAscii:
+            return DecodeAscii(frame);
+        case FrameKind::kAbbreviated:
+            return DecodeAbbreviated(frame);
         case FrameKind::kPrompt: {
             if (frame.bytes.size() < 2) return Error(DecodeErrorKind::kBadHeader, 0);
             PortPrompt p;
@@ -758,7 +764,8 @@ DecodeResult Decode(const Frame& frame) {
             return p;
         }
         case FrameKind::kProprietary:
-        case FrameKind::kNmea: break;
+        case FrameKind::kNmea:
+            break;
     }
     return Unsupported{frame.message_id, frame.kind};
 }

@@ -48,7 +48,8 @@ bool WriteFrame(const Header& h, std::vector<std::uint8_t>& out, BodyFn&& body) 
         w.U8(0x12);
         w.U8(static_cast<std::uint8_t>(kLongHeaderMinLength));
         w.U16Le(h.message_id);
-        w.U8(static_cast<std::uint8_t>((h.message_type & 0x7F) | (h.is_response ? kResponseBit : 0)));
+        w.U8(static_cast<std::uint8_t>((h.message_type & 0x7F) |
+                                       (h.is_response ? kResponseBit : 0)));
         w.U8(h.port_address);
         w.U16Le(0);  // length, patched below
         w.U16Le(h.sequence);
@@ -87,7 +88,9 @@ void WriteVec3(ByteWriter& w, const std::array<double, 3>& v) {
     for (double x : v) w.F64Le(x);
 }
 
-std::uint32_t Neg32(std::int64_t v) { return static_cast<std::uint32_t>(-v); }
+std::uint32_t Neg32(std::int64_t v) {
+    return static_cast<std::uint32_t>(-v);
+}
 
 // ---- ASCII ----
 
@@ -126,7 +129,8 @@ public:
     }
     // Terminates with "*crc\r\n" (CRC over the bytes after the sync character).
     void FinishCrc() {
-        const std::uint32_t crc = Crc32(ByteSpan(out_.data() + start_ + 1, out_.size() - start_ - 1));
+        const std::uint32_t crc =
+            Crc32(ByteSpan(out_.data() + start_ + 1, out_.size() - start_ - 1));
         Printf("*%08x\r\n", crc);
     }
 
@@ -145,19 +149,27 @@ void AsciiHeader(Line& l, const Header& h, std::string_view name, char suffix) {
         l.Printf("%u,%.3f;", h.gps_week, h.gps_ms / 1000.0);
         return;
     }
-    const std::string port = h.port_name.empty() ? PortNameFromAddress(h.port_address) : h.port_name;
+    const std::string port =
+        h.port_name.empty() ? PortNameFromAddress(h.port_address) : h.port_name;
     l.Raw(port.empty() ? "UNKNOWN" : port);
     l.Printf(",%u,%.1f,", h.sequence, h.idle_percent());
     l.Enum(h.time_status);
-    l.Printf(",%u,%.3f,%08x,%04x,%u;", h.gps_week, h.gps_ms / 1000.0, h.receiver_status,
-             h.reserved, h.sw_build);
+    l.Printf(",%u,%.3f,%08x,%04x,%u;",
+             h.gps_week,
+             h.gps_ms / 1000.0,
+             h.receiver_status,
+             h.reserved,
+             h.sw_build);
 }
 
 void AsciiBody(Line& l, const BestPos& m) {
     l.Enum(m.solution_status);
     l.Sep();
     l.Enum(m.position_type);
-    l.Printf(",%.11f,%.11f,%.4f,%.4f,", m.latitude_deg, m.longitude_deg, m.height_msl_m,
+    l.Printf(",%.11f,%.11f,%.4f,%.4f,",
+             m.latitude_deg,
+             m.longitude_deg,
+             m.height_msl_m,
              static_cast<double>(m.undulation_m));
     const std::string_view datum = DatumName(m.datum_id);
     if (datum.empty()) {
@@ -166,28 +178,48 @@ void AsciiBody(Line& l, const BestPos& m) {
         l.Raw(datum);
     }
     l.Printf(",%.4f,%.4f,%.4f,\"%.4s\",%.3f,%.3f,%u,%u,%u,%u,%x,%02x,%02x,%02x",
-             static_cast<double>(m.latitude_stddev_m), static_cast<double>(m.longitude_stddev_m),
-             static_cast<double>(m.height_stddev_m), m.base_station_id.c_str(),
-             static_cast<double>(m.differential_age_s), static_cast<double>(m.solution_age_s),
-             m.num_svs_tracked, m.num_svs_in_solution, m.num_svs_l1_in_solution,
-             m.num_svs_multifreq_in_solution, m.reserved, m.extended_solution_status,
-             m.galileo_beidou_signal_mask, m.gps_glonass_signal_mask);
+             static_cast<double>(m.latitude_stddev_m),
+             static_cast<double>(m.longitude_stddev_m),
+             static_cast<double>(m.height_stddev_m),
+             m.base_station_id.c_str(),
+             static_cast<double>(m.differential_age_s),
+             static_cast<double>(m.solution_age_s),
+             m.num_svs_tracked,
+             m.num_svs_in_solution,
+             m.num_svs_l1_in_solution,
+             m.num_svs_multifreq_in_solution,
+             m.reserved,
+             m.extended_solution_status,
+             m.galileo_beidou_signal_mask,
+             m.gps_glonass_signal_mask);
 }
 
 void AsciiBody(Line& l, const BestVel& m) {
     l.Enum(m.solution_status);
     l.Sep();
     l.Enum(m.velocity_type);
-    l.Printf(",%.3f,%.3f,%.4f,%.6f,%.4f,%.1f", static_cast<double>(m.latency_s),
-             static_cast<double>(m.differential_age_s), m.horizontal_speed_mps,
-             m.track_over_ground_deg, m.vertical_speed_mps, static_cast<double>(m.reserved));
+    l.Printf(",%.3f,%.3f,%.4f,%.6f,%.4f,%.1f",
+             static_cast<double>(m.latency_s),
+             static_cast<double>(m.differential_age_s),
+             m.horizontal_speed_mps,
+             m.track_over_ground_deg,
+             m.vertical_speed_mps,
+             static_cast<double>(m.reserved));
 }
 
 void AsciiBody(Line& l, const InsPva& m) {
-    l.Printf("%u,%.9f,%.11f,%.11f,%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,", m.gps_week,
-             m.gps_seconds, m.latitude_deg, m.longitude_deg, m.height_ellipsoid_m,
-             m.velocity_north_mps, m.velocity_east_mps, m.velocity_up_mps, m.roll_deg,
-             m.pitch_deg, m.azimuth_deg);
+    l.Printf("%u,%.9f,%.11f,%.11f,%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,",
+             m.gps_week,
+             m.gps_seconds,
+             m.latitude_deg,
+             m.longitude_deg,
+             m.height_ellipsoid_m,
+             m.velocity_north_mps,
+             m.velocity_east_mps,
+             m.velocity_up_mps,
+             m.roll_deg,
+             m.pitch_deg,
+             m.azimuth_deg);
     l.Enum(m.ins_status);
 }
 
@@ -195,26 +227,43 @@ void AsciiBody(Line& l, const InsPvaX& m) {
     l.Enum(m.ins_status);
     l.Sep();
     l.Enum(m.position_type);
-    l.Printf(",%.11f,%.11f,%.4f,%.4f,%.4f,%.4f,%.4f,%.9f,%.9f,%.9f,", m.latitude_deg,
-             m.longitude_deg, m.height_msl_m, static_cast<double>(m.undulation_m),
-             m.velocity_north_mps, m.velocity_east_mps, m.velocity_up_mps, m.roll_deg,
-             m.pitch_deg, m.azimuth_deg);
+    l.Printf(",%.11f,%.11f,%.4f,%.4f,%.4f,%.4f,%.4f,%.9f,%.9f,%.9f,",
+             m.latitude_deg,
+             m.longitude_deg,
+             m.height_msl_m,
+             static_cast<double>(m.undulation_m),
+             m.velocity_north_mps,
+             m.velocity_east_mps,
+             m.velocity_up_mps,
+             m.roll_deg,
+             m.pitch_deg,
+             m.azimuth_deg);
     l.Printf("%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%08x,%u",
-             static_cast<double>(m.latitude_stddev_m), static_cast<double>(m.longitude_stddev_m),
+             static_cast<double>(m.latitude_stddev_m),
+             static_cast<double>(m.longitude_stddev_m),
              static_cast<double>(m.height_stddev_m),
              static_cast<double>(m.velocity_north_stddev_mps),
              static_cast<double>(m.velocity_east_stddev_mps),
              static_cast<double>(m.velocity_up_stddev_mps),
-             static_cast<double>(m.roll_stddev_deg), static_cast<double>(m.pitch_stddev_deg),
-             static_cast<double>(m.azimuth_stddev_deg), m.extended_status,
+             static_cast<double>(m.roll_stddev_deg),
+             static_cast<double>(m.pitch_stddev_deg),
+             static_cast<double>(m.azimuth_stddev_deg),
+             m.extended_status,
              m.time_since_update_s);
 }
 
 void AsciiBody(Line& l, const Time& m) {
     l.Enum(m.clock_model_status);
-    l.Printf(",%.9e,%.9e,%.11f,%u,%u,%u,%u,%u,%u,", m.receiver_clock_offset_s,
-             m.receiver_clock_offset_stddev_s, m.utc_offset_s, m.utc_year, m.utc_month,
-             m.utc_day, m.utc_hour, m.utc_minute, m.utc_ms);
+    l.Printf(",%.9e,%.9e,%.11f,%u,%u,%u,%u,%u,%u,",
+             m.receiver_clock_offset_s,
+             m.receiver_clock_offset_stddev_s,
+             m.utc_offset_s,
+             m.utc_year,
+             m.utc_month,
+             m.utc_day,
+             m.utc_hour,
+             m.utc_minute,
+             m.utc_ms);
     l.Enum(m.utc_status);
 }
 
@@ -222,18 +271,30 @@ void AsciiBody(Line& l, const Heading2& m) {
     l.Enum(m.solution_status);
     l.Sep();
     l.Enum(m.position_type);
-    l.Printf(",%.9f,%.9f,%.9f,%.1f,%.9f,%.9f,", static_cast<double>(m.baseline_length_m),
-             static_cast<double>(m.heading_deg), static_cast<double>(m.pitch_deg),
-             static_cast<double>(m.reserved), static_cast<double>(m.heading_stddev_deg),
+    l.Printf(",%.9f,%.9f,%.9f,%.1f,%.9f,%.9f,",
+             static_cast<double>(m.baseline_length_m),
+             static_cast<double>(m.heading_deg),
+             static_cast<double>(m.pitch_deg),
+             static_cast<double>(m.reserved),
+             static_cast<double>(m.heading_stddev_deg),
              static_cast<double>(m.pitch_stddev_deg));
-    l.Printf("\"%.4s\",\"%.4s\",%u,%u,%u,%u,%02x,%02x,%02x,%02x", m.rover_station_id.c_str(),
-             m.base_station_id.c_str(), m.num_svs_tracked, m.num_svs_in_solution,
-             m.num_svs_above_mask, m.num_svs_multifreq, m.solution_source,
-             m.extended_solution_status, m.galileo_beidou_signal_mask, m.gps_glonass_signal_mask);
+    l.Printf("\"%.4s\",\"%.4s\",%u,%u,%u,%u,%02x,%02x,%02x,%02x",
+             m.rover_station_id.c_str(),
+             m.base_station_id.c_str(),
+             m.num_svs_tracked,
+             m.num_svs_in_solution,
+             m.num_svs_above_mask,
+             m.num_svs_multifreq,
+             m.solution_source,
+             m.extended_solution_status,
+             m.galileo_beidou_signal_mask,
+             m.gps_glonass_signal_mask);
 }
 
 template <typename M>
-bool AsciiLog(const M& m, std::vector<std::uint8_t>& out, std::initializer_list<std::uint16_t> ids) {
+bool AsciiLog(const M& m,
+              std::vector<std::uint8_t>& out,
+              std::initializer_list<std::uint16_t> ids) {
     if (!IdIn(m.header.message_id, ids)) return false;
     const std::string_view name = MessageNameFromId(m.header.message_id);
     if (name.empty()) return false;

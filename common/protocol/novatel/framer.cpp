@@ -31,9 +31,15 @@ constexpr std::array<bool, 256> MakeStartTable() {
 }
 constexpr std::array<bool, 256> kIsStart = MakeStartTable();
 
-constexpr bool IsPrintable(std::uint8_t c) { return c >= 0x20 && c <= 0x7E; }
-constexpr bool IsUpper(std::uint8_t c) { return c >= 'A' && c <= 'Z'; }
-constexpr bool IsDigit(std::uint8_t c) { return c >= '0' && c <= '9'; }
+constexpr bool IsPrintable(std::uint8_t c) {
+    return c >= 0x20 && c <= 0x7E;
+}
+constexpr bool IsUpper(std::uint8_t c) {
+    return c >= 'A' && c <= 'Z';
+}
+constexpr bool IsDigit(std::uint8_t c) {
+    return c >= '0' && c <= '9';
+}
 
 int HexValue(std::uint8_t c) {
     if (c >= '0' && c <= '9') return c - '0';
@@ -119,14 +125,22 @@ std::int32_t IdOfSuffixedName(std::string_view name) {
 
 std::string_view ToString(FrameKind kind) {
     switch (kind) {
-        case FrameKind::kLongBinary: return "long_binary";
-        case FrameKind::kShortBinary: return "short_binary";
-        case FrameKind::kProprietary: return "proprietary";
-        case FrameKind::kAscii: return "ascii";
-        case FrameKind::kShortAscii: return "short_ascii";
-        case FrameKind::kAbbreviated: return "abbreviated";
-        case FrameKind::kPrompt: return "prompt";
-        case FrameKind::kNmea: return "nmea";
+        case FrameKind::kLongBinary:
+            return "long_binary";
+        case FrameKind::kShortBinary:
+            return "short_binary";
+        case FrameKind::kProprietary:
+            return "proprietary";
+        case FrameKind::kAscii:
+            return "ascii";
+        case FrameKind::kShortAscii:
+            return "short_ascii";
+        case FrameKind::kAbbreviated:
+            return "abbreviated";
+        case FrameKind::kPrompt:
+            return "prompt";
+        case FrameKind::kNmea:
+            return "nmea";
     }
     return "unknown";
 }
@@ -145,7 +159,9 @@ std::string_view MessageNameFromId(std::uint16_t id) {
     return {};
 }
 
-Framer::Framer() { buffer_.reserve(2 * kMaxLongFrameLength); }
+Framer::Framer() {
+    buffer_.reserve(2 * kMaxLongFrameLength);
+}
 
 void Framer::Push(ByteSpan bytes) {
     if (bytes.empty()) return;
@@ -177,7 +193,9 @@ std::optional<Skipped> Framer::GiveUpCandidate(SkipReason reason) {
     return Consume(pos - start_, reason);
 }
 
-std::optional<Skipped> Framer::Flush() { return GiveUpCandidate(SkipReason::kTruncated); }
+std::optional<Skipped> Framer::Flush() {
+    return GiveUpCandidate(SkipReason::kTruncated);
+}
 
 std::optional<Skipped> Framer::Expire() {
     // Only a candidate with a complete checksummed frame behind it is given up: it cannot be a
@@ -197,8 +215,10 @@ bool Framer::ChecksummedFrameBehind() const {
             case FrameKind::kShortBinary:
             case FrameKind::kProprietary:
             case FrameKind::kAscii:
-            case FrameKind::kShortAscii: return true;
-            default: break;
+            case FrameKind::kShortAscii:
+                return true;
+            default:
+                break;
         }
     }
     return false;
@@ -230,10 +250,14 @@ std::variant<NeedMore, Skipped, Frame> Framer::Next() {
                 start_ = pos + a.length;
                 return f;
             }
-            case Outcome::kNeedMore: return NeedMore{};
-            case Outcome::kBadCrc: return Consume(1, SkipReason::kBadCrc);
-            case Outcome::kBadLength: return Consume(1, SkipReason::kBadLength);
-            case Outcome::kNotAFrame: break;
+            case Outcome::kNeedMore:
+                return NeedMore{};
+            case Outcome::kBadCrc:
+                return Consume(1, SkipReason::kBadCrc);
+            case Outcome::kBadLength:
+                return Consume(1, SkipReason::kBadLength);
+            case Outcome::kNotAFrame:
+                break;
         }
     }
     if (pos > start_) return Consume(pos - start_, SkipReason::kGarbage);
@@ -242,13 +266,20 @@ std::variant<NeedMore, Skipped, Frame> Framer::Next() {
 
 Framer::Attempt Framer::TryAt(std::size_t pos) const {
     switch (buffer_[pos]) {
-        case kSync0: return TryBinary(pos);
-        case '#': return TryCrcText(pos, FrameKind::kAscii);
-        case '%': return TryCrcText(pos, FrameKind::kShortAscii);
-        case '<': return TryAbbreviated(pos);
-        case '[': return TryPrompt(pos);
-        case '$': return TryNmea(pos);
-        default: return {};
+        case kSync0:
+            return TryBinary(pos);
+        case '#':
+            return TryCrcText(pos, FrameKind::kAscii);
+        case '%':
+            return TryCrcText(pos, FrameKind::kShortAscii);
+        case '<':
+            return TryAbbreviated(pos);
+        case '[':
+            return TryPrompt(pos);
+        case '$':
+            return TryNmea(pos);
+        default:
+            return {};
     }
 }
 
@@ -361,8 +392,8 @@ Framer::Attempt Framer::TryCrcText(std::size_t pos, FrameKind kind) const {
     }
     a.outcome = Outcome::kFrame;
     a.length = total;
-    a.message_id = IdOfSuffixedName(
-        std::string_view(reinterpret_cast<const char*>(p + 1), name_end - 1));
+    a.message_id =
+        IdOfSuffixedName(std::string_view(reinterpret_cast<const char*>(p + 1), name_end - 1));
     return a;
 }
 

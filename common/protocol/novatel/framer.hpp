@@ -55,11 +55,11 @@
 
 namespace pitmap::protocol::novatel {
 
-inline constexpr std::size_t kLongHeaderMinLength = 28;   // §2
-inline constexpr std::size_t kShortHeaderLength = 12;     // §3
-inline constexpr std::size_t kCrcLength = 4;              // §4
+inline constexpr std::size_t kLongHeaderMinLength = 28;    // §2
+inline constexpr std::size_t kShortHeaderLength = 12;      // §3
+inline constexpr std::size_t kCrcLength = 4;               // §4
 inline constexpr std::size_t kMaxLongFrameLength = 32768;  // §2, §9 item 5
-inline constexpr std::size_t kMaxShortFrameLength = 271;  // 12 + 255 + 4
+inline constexpr std::size_t kMaxShortFrameLength = 271;   // 12 + 255 + 4
 inline constexpr std::size_t kMaxAsciiFrameLength = 32768;
 inline constexpr std::size_t kMaxAbbreviatedLineLength = 4096;
 inline constexpr std::size_t kMaxNmeaLength = 256;  // NMEA says 82; NovAtel's own are longer
@@ -85,8 +85,8 @@ struct Frame {
     // Binary: the header's message id. ASCII/short ASCII: the id of the log name (without its
     // A/R suffix) when the name is known (MessageIdFromName), else -1. Other kinds: -1.
     std::int32_t message_id = -1;
-    ByteSpan bytes;              // the whole frame, sync to CRC / terminator inclusive
-    std::uint64_t offset = 0;    // stream offset of bytes[0] (bytes pushed before it)
+    ByteSpan bytes;            // the whole frame, sync to CRC / terminator inclusive
+    std::uint64_t offset = 0;  // stream offset of bytes[0] (bytes pushed before it)
 };
 
 // Incremental framer; see the file comment for the contract.
@@ -132,8 +132,8 @@ private:
     bool ChecksummedFrameBehind() const;
 
     std::vector<std::uint8_t> buffer_;
-    std::size_t start_ = 0;           // first unconsumed byte in buffer_
-    std::uint64_t base_offset_ = 0;   // stream offset of buffer_[0]
+    std::size_t start_ = 0;          // first unconsumed byte in buffer_
+    std::uint64_t base_offset_ = 0;  // stream offset of buffer_[0]
 };
 
 // Message id of a log or command name as used in ASCII headers and LOG commands, without the

@@ -141,12 +141,24 @@ constexpr double kStandardGravity = 9.80665;
 
 }  // namespace
 
-std::string_view ToString(TimeStatus v) { return Lookup(kTimeStatusNames, v); }
-std::string_view ToString(SolutionStatus v) { return Lookup(kSolutionStatusNames, v); }
-std::string_view ToString(PositionType v) { return Lookup(kPositionTypeNames, v); }
-std::string_view ToString(InsStatus v) { return Lookup(kInsStatusNames, v); }
-std::string_view ToString(ClockModelStatus v) { return Lookup(kClockNames, v); }
-std::string_view ToString(UtcStatus v) { return Lookup(kUtcNames, v); }
+std::string_view ToString(TimeStatus v) {
+    return Lookup(kTimeStatusNames, v);
+}
+std::string_view ToString(SolutionStatus v) {
+    return Lookup(kSolutionStatusNames, v);
+}
+std::string_view ToString(PositionType v) {
+    return Lookup(kPositionTypeNames, v);
+}
+std::string_view ToString(InsStatus v) {
+    return Lookup(kInsStatusNames, v);
+}
+std::string_view ToString(ClockModelStatus v) {
+    return Lookup(kClockNames, v);
+}
+std::string_view ToString(UtcStatus v) {
+    return Lookup(kUtcNames, v);
+}
 
 std::string_view DatumName(std::uint32_t datum_id) {
     if (datum_id == 61) return "WGS84";
@@ -156,10 +168,14 @@ std::string_view DatumName(std::uint32_t datum_id) {
 
 std::string_view ToString(DecodeErrorKind kind) {
     switch (kind) {
-        case DecodeErrorKind::kRunt: return "runt";
-        case DecodeErrorKind::kBadHeader: return "bad_header";
-        case DecodeErrorKind::kBadField: return "bad_field";
-        case DecodeErrorKind::kCount: break;
+        case DecodeErrorKind::kRunt:
+            return "runt";
+        case DecodeErrorKind::kBadHeader:
+            return "bad_header";
+        case DecodeErrorKind::kBadField:
+            return "bad_field";
+        case DecodeErrorKind::kCount:
+            break;
     }
     return "unknown";
 }
@@ -178,10 +194,18 @@ std::int64_t BestVel::utime_gps() const {
     return t - static_cast<std::int64_t>(std::llround(static_cast<double>(latency_s) * 1e6));
 }
 
-std::int64_t InsPva::utime_gps() const { return BodyTime(gps_week, gps_seconds); }
-std::int64_t InsAtt::utime_gps() const { return BodyTime(gps_week, gps_seconds); }
-std::int64_t CorrImuData::utime_gps() const { return BodyTime(gps_week, gps_seconds); }
-std::int64_t RawImu::utime_gps() const { return BodyTime(gps_week, gps_seconds); }
+std::int64_t InsPva::utime_gps() const {
+    return BodyTime(gps_week, gps_seconds);
+}
+std::int64_t InsAtt::utime_gps() const {
+    return BodyTime(gps_week, gps_seconds);
+}
+std::int64_t CorrImuData::utime_gps() const {
+    return BodyTime(gps_week, gps_seconds);
+}
+std::int64_t RawImu::utime_gps() const {
+    return BodyTime(gps_week, gps_seconds);
+}
 std::int64_t MarkTime::utime_gps() const {
     return gps_week <= 0 ? 0 : BodyTime(static_cast<std::uint32_t>(gps_week), gps_seconds);
 }
@@ -197,46 +221,67 @@ std::optional<ImuScale> ImuScaleFor(std::int32_t imu_type, double imu_rate_hz) {
     };
     ImuScale s;
     switch (imu_type) {
-        case 1: case 5: case 11: case 20: case 27: case 28:
+        case 1:
+        case 5:
+        case 11:
+        case 20:
+        case 27:
+        case 28:
             s = {std::ldexp(1.0, -33), std::ldexp(1.0, -27) * kFeetToMetres, 100.0};
             break;
-        case 4: case 12:
+        case 4:
+        case 12:
             s = {std::ldexp(1.0, -33), std::ldexp(1.0, -26) * kFeetToMetres, 100.0};
             break;
-        case 8: s = {std::ldexp(1.0, -19), std::ldexp(1.0, -14), 200.0}; break;
-        case 26: case 52: s = {1.0e-9, 2.0e-8, 200.0}; break;
+        case 8:
+            s = {std::ldexp(1.0, -19), std::ldexp(1.0, -14), 200.0};
+            break;
+        case 26:
+        case 52:
+            s = {1.0e-9, 2.0e-8, 200.0};
+            break;
         case 13:
             s = {0.1 * std::ldexp(1.0, -8) * kArcsecToRad, 0.05 * std::ldexp(1.0, -15), 200.0};
             break;
-        case 16: case 33:
+        case 16:
+        case 33:
             // §6.9 note: unit unverified; NovAtel's driver applies the number as rad/count.
-            s = {0.1 / (3600.0 * 256.0), 0.05 * std::ldexp(1.0, -15), imu_type == 33 ? 200.0 : 100.0};
+            s = {0.1 / (3600.0 * 256.0),
+                 0.05 * std::ldexp(1.0, -15),
+                 imu_type == 33 ? 200.0 : 100.0};
             break;
         case 31:
             s = {720.0 / std::ldexp(1.0, 31) * kDegToRad, 200.0 / std::ldexp(1.0, 31), 200.0};
             break;
-        case 32: case 56:
+        case 32:
+        case 56:
             s = {std::ldexp(1.0, -21) * kDegToRad, std::ldexp(1.0, -22), 125.0};
             break;
-        case 58: case 68: case 69: {
+        case 58:
+        case 68:
+        case 69: {
             const double nominal = imu_type == 58 ? 200.0 : (imu_type == 68 ? 100.0 : 400.0);
             s = {std::ldexp(1.0, -33), std::ldexp(1.0, -29), nominal};
             break;
         }
-        case 41: case 62: {
+        case 41:
+        case 62: {
             const double nominal = imu_type == 41 ? 125.0 : 200.0;
             const double rate = rate_or(nominal);
             s = {(0.008 / 65536.0) / rate * kDegToRad,
-                 (0.2 / 65536.0) * (kStandardGravity / 1000.0) / rate, nominal};
+                 (0.2 / 65536.0) * (kStandardGravity / 1000.0) / rate,
+                 nominal};
             break;
         }
         case 61: {
             const double rate = rate_or(200.0);
             s = {(0.0151515 / 65536.0) / rate * kDegToRad,
-                 (0.4 / 65536.0) * (kStandardGravity / 1000.0) / rate, 200.0};
+                 (0.4 / 65536.0) * (kStandardGravity / 1000.0) / rate,
+                 200.0};
             break;
         }
-        default: return std::nullopt;
+        default:
+            return std::nullopt;
     }
     return s;
 }

@@ -175,15 +175,15 @@ struct Header {
     std::uint8_t message_type = 0;
     // Bit 7 of the message type (binary), or the 'R' suffix (ASCII): a command response.
     bool is_response = false;
-    std::uint8_t port_address = 0;   // long binary port byte (0x20 COM1, 0x40 COM2, ...)
-    std::string port_name;           // ASCII header port field ("COM1", "ICOM2"), "" in binary
+    std::uint8_t port_address = 0;  // long binary port byte (0x20 COM1, 0x40 COM2, ...)
+    std::string port_name;          // ASCII header port field ("COM1", "ICOM2"), "" in binary
     std::uint16_t sequence = 0;
-    std::uint8_t idle_time = 0;      // 0..200 = idle_percent() * 2
+    std::uint8_t idle_time = 0;  // 0..200 = idle_percent() * 2
     TimeStatus time_status = TimeStatus::kUnknown;
     std::uint16_t gps_week = 0;
-    std::uint32_t gps_ms = 0;        // GPS milliseconds of week
+    std::uint32_t gps_ms = 0;  // GPS milliseconds of week
     std::uint32_t receiver_status = 0;
-    std::uint16_t reserved = 0;      // message definition word: log it, never validate it
+    std::uint16_t reserved = 0;  // message definition word: log it, never validate it
     std::uint16_t sw_build = 0;
 
     float idle_percent() const { return static_cast<float>(idle_time) * 0.5f; }
@@ -357,7 +357,7 @@ struct CorrImuS {
 // (the wire order is Z, -Y, X). Scale with ImuScaleFor() / ScaleRawImu().
 struct RawImu {
     Header header;
-    std::uint8_t imu_info = 0;  // RAWIMU(S)X only: bit 0 = IMU error
+    std::uint8_t imu_info = 0;   // RAWIMU(S)X only: bit 0 = IMU error
     std::int32_t imu_type = -1;  // RAWIMU(S)X: IMU type enum (§6.9); -1 for RAWIMU(S)
     std::uint32_t gps_week = 0;
     double gps_seconds = 0.0;
@@ -471,8 +471,8 @@ struct RxStatus {
 
     Header header;
     std::uint32_t error_word = 0;
-    std::uint32_t num_status_codes = 0;  // as sent
-    std::uint32_t num_groups = 0;         // groups decoded (<= kMaxGroups)
+    std::uint32_t num_status_codes = 0;      // as sent
+    std::uint32_t num_groups = 0;            // groups decoded (<= kMaxGroups)
     std::array<Group, kMaxGroups> groups{};  // [0] receiver status, [1..] auxiliary 1, 2, ...
     std::vector<std::uint8_t> trailing;      // body bytes after the decoded groups
 
@@ -483,7 +483,7 @@ struct RxStatus {
 // A command response (§5): abbreviated "<OK"/"<ERROR:...", ASCII "#...R", binary (bit 7).
 struct Response {
     enum class Form : std::uint8_t { kAbbreviated = 0, kAscii, kBinary };
-    Header header;            // message_id = the command's id (binary/ASCII); kind kAbbreviated
+    Header header;  // message_id = the command's id (binary/ASCII); kind kAbbreviated
     Form form = Form::kAbbreviated;
     std::int32_t response_id = -1;  // binary: NovAtel response id (1 = OK); -1 otherwise
     std::string text;               // "OK", "ERROR:Invalid Message. Field = ..."
@@ -507,9 +507,9 @@ struct Unsupported {
 };
 
 enum class DecodeErrorKind : std::uint8_t {
-    kRunt = 0,        // body shorter than the id's minimum length
-    kBadHeader,       // header length inconsistent with the frame, or unparsable ASCII header
-    kBadField,        // ASCII field missing or unparsable
+    kRunt = 0,   // body shorter than the id's minimum length
+    kBadHeader,  // header length inconsistent with the frame, or unparsable ASCII header
+    kBadField,   // ASCII field missing or unparsable
     kCount
 };
 std::string_view ToString(DecodeErrorKind kind);
@@ -520,9 +520,23 @@ struct DecodeError {
     bool operator==(const DecodeError&) const = default;
 };
 
-using Message = std::variant<BestPos, BestVel, InsPva, InsPvaX, InsAtt, InsAttX, CorrImuData,
-                             CorrImuS, RawImu, Time, Heading2, MarkTime, InsStdDev, InsConfig,
-                             RxStatus, Response, PortPrompt>;
+using Message = std::variant<BestPos,
+                             BestVel,
+                             InsPva,
+                             InsPvaX,
+                             InsAtt,
+                             InsAttX,
+                             CorrImuData,
+                             CorrImuS,
+                             RawImu,
+                             Time,
+                             Heading2,
+                             MarkTime,
+                             InsStdDev,
+                             InsConfig,
+                             RxStatus,
+                             Response,
+                             PortPrompt>;
 
 // ---- IMU scale factors (§6.8, §6.9) ----
 struct ImuScale {
@@ -536,7 +550,7 @@ struct ImuScale {
 std::optional<ImuScale> ImuScaleFor(std::int32_t imu_type, double imu_rate_hz = 0.0);
 
 struct ImuIncrements {
-    std::array<double, 3> delta_angle_rad{};     // IMU body x, y, z
+    std::array<double, 3> delta_angle_rad{};  // IMU body x, y, z
     std::array<double, 3> delta_velocity_mps{};
     std::array<double, 3> angular_rate_radps{};  // delta / dt, dt = 1 / imu_rate_hz
     std::array<double, 3> acceleration_mps2{};

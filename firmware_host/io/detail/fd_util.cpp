@@ -14,11 +14,16 @@ namespace pitmap::acq {
 
 const char* ToString(SourceState state) {
     switch (state) {
-        case SourceState::kClosed: return "closed";
-        case SourceState::kConnecting: return "connecting";
-        case SourceState::kOpen: return "open";
-        case SourceState::kDisconnected: return "disconnected";
-        case SourceState::kFinished: return "finished";
+        case SourceState::kClosed:
+            return "closed";
+        case SourceState::kConnecting:
+            return "connecting";
+        case SourceState::kOpen:
+            return "open";
+        case SourceState::kDisconnected:
+            return "disconnected";
+        case SourceState::kFinished:
+            return "finished";
     }
     return "unknown";
 }

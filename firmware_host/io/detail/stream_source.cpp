@@ -56,10 +56,13 @@ Expected<ReadOutcome> StreamSource::Read(Chunk& chunk, int timeout_ms) {
     const std::int64_t left_us = deadline - MonotonicNowUs();
     const int left_ms = left_us <= 0 ? 0 : static_cast<int>((left_us + 999) / 1000);
     switch (PollFd(fd_.get(), POLLIN, left_ms)) {
-        case PollResult::kTimeout: return ReadOutcome::kTimeout;
-        case PollResult::kError: return Lost(ErrnoMessage(description() + ": poll", errno));
+        case PollResult::kTimeout:
+            return ReadOutcome::kTimeout;
+        case PollResult::kError:
+            return Lost(ErrnoMessage(description() + ": poll", errno));
         case PollResult::kHangup:
-        case PollResult::kReady: break;
+        case PollResult::kReady:
+            break;
     }
     chunk.data.resize(read_buffer_bytes_);
     chunk.utime_kernel = 0;

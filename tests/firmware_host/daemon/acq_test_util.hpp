@@ -4,10 +4,10 @@
 #pragma once
 
 #include <arpa/inet.h>
-#include <lcm/lcm-cpp.hpp>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
+#include <lcm/lcm-cpp.hpp>
 
 #include <deque>
 #include <filesystem>
@@ -72,11 +72,14 @@ public:
                 chunk.peer = "fake";
                 chunk.truncated = false;
                 return ReadOutcome::kData;
-            case Step::Kind::kTimeout: return ReadOutcome::kTimeout;
+            case Step::Kind::kTimeout:
+                return ReadOutcome::kTimeout;
             case Step::Kind::kDisconnect:
                 set_state(SourceState::kDisconnected);
                 return Fail("fake device unplugged");
-            case Step::Kind::kEnd: set_state(SourceState::kFinished); return ReadOutcome::kEndOfStream;
+            case Step::Kind::kEnd:
+                set_state(SourceState::kFinished);
+                return ReadOutcome::kEndOfStream;
         }
         return ReadOutcome::kTimeout;
     }
@@ -118,8 +121,8 @@ inline std::vector<LogEvent> ReadLogDir(const std::string& dir) {
         if (!log.good()) continue;
         while (const lcm::LogEvent* ev = log.readNextEvent()) {
             const auto* p = static_cast<const std::uint8_t*>(ev->data);
-            out.push_back(LogEvent{ev->channel, ev->timestamp,
-                                   std::vector<std::uint8_t>(p, p + ev->datalen)});
+            out.push_back(LogEvent{
+                ev->channel, ev->timestamp, std::vector<std::uint8_t>(p, p + ev->datalen)});
         }
     }
     return out;
@@ -164,7 +167,9 @@ struct BoundUdp {
 };
 
 // A UDP port on 127.0.0.1 that was free a moment ago.
-inline int FreeUdpPort() { return BoundUdp().port; }
+inline int FreeUdpPort() {
+    return BoundUdp().port;
+}
 
 // Ping `n` as the topside program sends it: 83P v1.10, 480 beams, header time and ranges from
 // `n`, intensities on request.

@@ -38,7 +38,8 @@ struct Child {
 };
 
 // Starts pitmap-acqd with `args`, stderr to a file; `fsize_limit` > 0 sets RLIMIT_FSIZE.
-Child Spawn(const std::vector<std::string>& args, const std::string& err_path,
+Child Spawn(const std::vector<std::string>& args,
+            const std::string& err_path,
             rlim_t fsize_limit = 0) {
     Child c;
     c.err_path = err_path;
@@ -109,10 +110,16 @@ channels:
     const Child c = Spawn({"--config", dir + "/bad.yaml", "--check-config"}, dir + "/err.txt");
     EXPECT_EQ(Wait(c.pid), 2);
     const std::string err = ReadText(c.err_path);
-    for (const char* expected :
-         {"status_period_ms", "logg", "log: required", "channels[0]: id 'nov 1'", "baud",
-          "FROB THE RECEIVER", "colour", "sidescan", "channels[1]: needs exactly one",
-          "port"}) {
+    for (const char* expected : {"status_period_ms",
+                                 "logg",
+                                 "log: required",
+                                 "channels[0]: id 'nov 1'",
+                                 "baud",
+                                 "FROB THE RECEIVER",
+                                 "colour",
+                                 "sidescan",
+                                 "channels[1]: needs exactly one",
+                                 "port"}) {
         EXPECT_NE(err.find(expected), std::string::npos) << "missing: " << expected << "\n" << err;
     }
     // Not a config at all, and a missing file.
@@ -126,7 +133,8 @@ channels:
 TEST(AcqdProcessTest, ShippedConfigsAreValid) {
     for (const char* name : {"roaz.yaml", "test-loopback.yaml"}) {
         const std::string dir = testing::FreshDir("acqd_shipped");
-        const Child c = Spawn({"--config", std::string(PITMAP_SOURCE_DIR) + "/firmware_host/config/" + name,
+        const Child c = Spawn({"--config",
+                               std::string(PITMAP_SOURCE_DIR) + "/firmware_host/config/" + name,
                                "--check-config"},
                               dir + "/err.txt");
         EXPECT_EQ(Wait(c.pid), 0) << ReadText(dir + "/err.txt");
@@ -136,7 +144,8 @@ TEST(AcqdProcessTest, ShippedConfigsAreValid) {
 std::string FileReplayConfig(const std::string& dir, const std::string& capture) {
     return "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " + dir +
            "/logs\n  prefix: t\n  min_free_bytes: 0\n  flush_interval_ms: 50\n"
-           "channels:\n  - id: nov\n    protocol: novatel\n    file: {path: " + capture +
+           "channels:\n  - id: nov\n    protocol: novatel\n    file: {path: " +
+           capture +
            ", chunk_bytes: 333}\n    imu_rate_hz: 100\n"
            "vehicle:\n  name: TEST\n  lever_arms_m: {imu_to_sonar: [1.0, 0.0, 0.5]}\n";
 }
@@ -180,11 +189,15 @@ std::string UdpConfig(const std::string& dir, int port) {
     return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
            "/logs\n  prefix: t\n  min_free_bytes: 0\n  flush_interval_ms: 50\n"
            "channels:\n  - id: mb\n    protocol: deltat_83p\n    udp: {bind_address: 127.0.0.1, "
-           "allowed_senders: [127.0.0.1], port: " + std::to_string(port) + "}\n";
+           "allowed_senders: [127.0.0.1], port: " +
+           std::to_string(port) + "}\n";
 }
 
 // Sends pings until the daemon's log holds at least `until` RAW events (bounded).
-int SendPings(int port, const std::string& log_dir, int until, std::vector<std::vector<std::uint8_t>>& sent) {
+int SendPings(int port,
+              const std::string& log_dir,
+              int until,
+              std::vector<std::vector<std::uint8_t>>& sent) {
     const int fd = socket(AF_INET, SOCK_DGRAM, 0);
     sockaddr_in a{};
     a.sin_family = AF_INET;
@@ -192,7 +205,12 @@ int SendPings(int port, const std::string& log_dir, int until, std::vector<std::
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     for (int i = 0; i < 2000; ++i) {
         sent.push_back(testing::TestPing83P(static_cast<std::uint32_t>(i)));
-        sendto(fd, sent.back().data(), sent.back().size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof(a));
+        sendto(fd,
+               sent.back().data(),
+               sent.back().size(),
+               0,
+               reinterpret_cast<sockaddr*>(&a),
+               sizeof(a));
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
         if (i % 20 == 19) {
             int raws = 0;
@@ -246,8 +264,9 @@ TEST(AcqdProcessTest, UdpStartupSaysWhereItListens) {
     const auto config = [&](const std::string& bind) {
         return "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
                "/logs\n  min_free_bytes: 0\nchannels:\n  - id: mb\n    protocol: deltat_83p\n"
-               "    udp: {" + bind + "allowed_senders: [127.0.0.1], port: " +
-               std::to_string(testing::FreeUdpPort()) +
+               "    udp: {" +
+               bind +
+               "allowed_senders: [127.0.0.1], port: " + std::to_string(testing::FreeUdpPort()) +
                "}\n    ec: {enabled: true, range_m: 30}\n";
     };
     for (const bool wildcard : {false, true}) {
@@ -275,7 +294,8 @@ TEST(AcqdProcessTest, SigtermFlushesAndSighupRotates) {
     std::vector<std::vector<std::uint8_t>> sent;
     SendPings(port, dir + "/logs", 10, sent);
     kill(c.pid, SIGHUP);
-    ASSERT_TRUE(WaitFor([&] { return ReadText(c.err_path).find("rotating") != std::string::npos; }));
+    ASSERT_TRUE(
+        WaitFor([&] { return ReadText(c.err_path).find("rotating") != std::string::npos; }));
     const std::size_t before = sent.size();
     SendPings(port, dir + "/logs", static_cast<int>(before) + 10, sent);
     kill(c.pid, SIGTERM);

@@ -188,8 +188,7 @@ TEST_F(AcqdTmpfsFullTest, DiskGuardStopsLoggingCleanlyWhilePublishingGoesOn) {
 TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
     const int port = testing::FreeUdpPort();
     testing::WriteText(dir_ + "/c.yaml",
-                       "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " +
-                           logs_ +
+                       "lcm_url: \"memq://\"\nstatus_period_ms: 100\nlog:\n  directory: " + logs_ +
                            "\n  prefix: full\n  min_free_bytes: 0\n  error_retry_ms: 20\n"
                            "  flush_interval_ms: 50\nchannels:\n  - id: mb\n"
                            "    protocol: deltat_83p\n"
@@ -210,8 +209,8 @@ TEST_F(AcqdTmpfsFullTest, RetriesOnAFullDiskLeaveNoEmptySegment) {
     bool retried_seen = false;
     for (std::uint32_t n = 0; n < 20'000 && !retried_seen; ++n) {
         const auto ping = testing::TestPing83P(n, true);
-        ::sendto(fd, ping.data(), ping.size(), 0, reinterpret_cast<const sockaddr*>(&to),
-                 sizeof(to));
+        ::sendto(
+            fd, ping.data(), ping.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof(to));
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
         if (n % 20 == 0) {
             retried_seen = std::regex_search(testing::ReadText(dir_ + "/err.txt"), retried);

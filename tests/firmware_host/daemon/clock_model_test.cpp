@@ -126,7 +126,9 @@ TEST(HostClockModelTest, UniformDelaysOffsetAndDrift) {
     const double p99 = Percentile(abs_err, 0.99);
     const double p50 = Percentile(abs_err, 0.50);
     std::printf("host model, uniform 0-20 ms, 40 ppm: |error| p50 %.1f us, p99 %.1f us, max %.1f\n",
-                p50, p99, Percentile(abs_err, 1.0));
+                p50,
+                p99,
+                Percentile(abs_err, 1.0));
     EXPECT_LT(p99, 500.0);
     const auto end = truth.Host(kGpsStart + 600'000'000);
     const ClockQuality q = run.model.Quality(end);
@@ -165,8 +167,8 @@ TEST(HostClockModelTest, ConvergesThenLocks) {
     m.AddMessage(truth.Host(kGpsStart) + 5000, kGpsStart, true);
     EXPECT_EQ(m.ToGps(truth.Host(kGpsStart) + 5000).state, ClockState::kConverging);
     // One sample: the estimate is the receive time minus nothing, i.e. off by its delay.
-    EXPECT_NEAR(static_cast<double>(m.ToGps(truth.Host(kGpsStart)).utime_gps - kGpsStart), -5000.0,
-                1.0);
+    EXPECT_NEAR(
+        static_cast<double>(m.ToGps(truth.Host(kGpsStart)).utime_gps - kGpsStart), -5000.0, 1.0);
     HostRun run;
     RunHost(run, truth, DelayKind::kUniform20ms, 0, 30, 0, 3);
     EXPECT_EQ(run.model.ToGps(truth.Host(kGpsStart + 30'000'000)).state, ClockState::kLocked);
@@ -350,7 +352,9 @@ TEST(SonarClockModelTest, HeaderClockAccuracy) {
             "sonar model, %s, 40 ppm, ms header: |error| p50 %.1f us, p99 %.1f us (all pings); "
             "p99 %.1f us, max %.1f us after 30 s\n",
             kind == DelayKind::kUniform20ms ? "uniform 0-20 ms" : "exponential 5 ms",
-            Percentile(run.abs_errors_us, 0.5), p99, Percentile(after, 0.99),
+            Percentile(run.abs_errors_us, 0.5),
+            p99,
+            Percentile(after, 0.99),
             Percentile(after, 1.0));
         EXPECT_LT(p99, 2000.0);
         EXPECT_LT(Percentile(after, 0.99), 1000.0);
@@ -389,8 +393,8 @@ TEST(SonarClockModelTest, HeaderJumpUsesFallbackThenRelearns) {
     int fallbacks = 0;
     for (int i = 0; i < 600; ++i) {
         const std::int64_t gps = kGpsStart + 120'000'000 + i * 100'000LL;
-        SonarPingTimes t{jumped.Header(gps),
-                         gps + std::llround(Delay(rng, DelayKind::kUniform20ms)), 0};
+        SonarPingTimes t{
+            jumped.Header(gps), gps + std::llround(Delay(rng, DelayKind::kUniform20ms)), 0};
         const SonarStamp s = run.model.Update(t);
         if (s.method == SonarStampMethod::kReceiveTime) ++fallbacks;
         errs.push_back(std::abs(static_cast<double>(s.utime_gps - gps)));

@@ -113,8 +113,8 @@ TEST(LogWriterTest, RoundTripThroughLcmLogFile) {
     LogWriter w(BaseConfig(dir));
     ASSERT_TRUE(w.Start().ok());
     for (int i = 0; i < 500; ++i) {
-        ASSERT_TRUE(w.Enqueue(1000 + i, "CH" + std::to_string(i % 5),
-                              Payload(i, static_cast<std::size_t>(i % 300))));
+        ASSERT_TRUE(w.Enqueue(
+            1000 + i, "CH" + std::to_string(i % 5), Payload(i, static_cast<std::size_t>(i % 300))));
     }
     ASSERT_TRUE(w.Flush(5000));
     w.Stop();
@@ -315,7 +315,8 @@ TEST(LogWriterTest, KillNineLeavesAReadableLog) {
     ASSERT_EQ(files.size(), 1u);
     const int n = CheckDeadLog(files[0], kPayload);
     EXPECT_GE(n, 20);
-    std::printf("kill -9: %d complete events readable, %ju bytes in the file\n", n,
+    std::printf("kill -9: %d complete events readable, %ju bytes in the file\n",
+                n,
                 static_cast<std::uintmax_t>(fs::file_size(files[0])));
 }
 

@@ -8,10 +8,10 @@
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <lcm/lcm-cpp.hpp>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
+#include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
@@ -55,7 +55,9 @@ struct Backend {
     LcmPublisher publisher;
 };
 
-std::vector<std::size_t> OddChunks() { return {1, 7, 13, 61, 251, 1021, 4093, 3}; }
+std::vector<std::size_t> OddChunks() {
+    return {1, 7, 13, 61, 251, 1021, 4093, 3};
+}
 
 // Queues `data` into the source in the cycled chunk sizes, 1 ms apart.
 void Feed(FakeSource& src, const std::vector<std::uint8_t>& data, std::int64_t t0) {
@@ -88,7 +90,6 @@ std::vector<std::uint8_t> RawConcat(const std::vector<LogEvent>& events, const s
     }
     return out;
 }
-
 
 std::map<std::string, std::int64_t> ChannelCounts(const std::vector<LogEvent>& events) {
     std::map<std::string, std::int64_t> n;
@@ -146,22 +147,31 @@ TEST_P(GoldenReplay, CountsMatchGoldenAndRawIsTheInput) {
     EXPECT_EQ(st.state, pitmap::channel_status_t::STATE_STOPPED);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    NovatelCaptures, GoldenReplay,
-    ::testing::Values("gavlab_OneEach.ASC", "gavlab_OneEach.GPS", "gavlab_ParsingData.GPS",
-                      "gavlab_test2_rcvr1.dat", "oem7drv_align.gps", "oem7drv_bestpos.gps",
-                      "oem7drv_ins1.gps", "oem7drv_ins2.gps", "oem7drv_ins2_humble.gps",
-                      "oem7drv_rxstatus.gps", "oem7drv_time.gps", "rtklib_oemv_200911218.gps"),
-    [](const auto& param_info) {
-        std::string n = param_info.param;
-        for (char& ch : n) {
-            if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-        }
-        return n;
-    });
+INSTANTIATE_TEST_SUITE_P(NovatelCaptures,
+                         GoldenReplay,
+                         ::testing::Values("gavlab_OneEach.ASC",
+                                           "gavlab_OneEach.GPS",
+                                           "gavlab_ParsingData.GPS",
+                                           "gavlab_test2_rcvr1.dat",
+                                           "oem7drv_align.gps",
+                                           "oem7drv_bestpos.gps",
+                                           "oem7drv_ins1.gps",
+                                           "oem7drv_ins2.gps",
+                                           "oem7drv_ins2_humble.gps",
+                                           "oem7drv_rxstatus.gps",
+                                           "oem7drv_time.gps",
+                                           "rtklib_oemv_200911218.gps"),
+                         [](const auto& param_info) {
+                             std::string n = param_info.param;
+                             for (char& ch : n) {
+                                 if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                             }
+                             return n;
+                         });
 
 TEST(SensorChannelTest, InsCapturePublishesDecodedChannelsAndLocksTheHostClock) {
-    const auto data = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins2.gps");
+    const auto data =
+        testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins2.gps");
     Backend be("ins2");
     FakeSource src;
     ManualClock clock(kT0);
@@ -203,7 +213,8 @@ TEST(SensorChannelTest, InsCapturePublishesDecodedChannelsAndLocksTheHostClock) 
 }
 
 TEST(SensorChannelTest, GarbageBurstsAreCountedAndFramesSurvive) {
-    const auto clean = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps");
+    const auto clean =
+        testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_ins1.gps");
     // Insert bursts of printable-free garbage (no 0xAA, '#', '%', '<', '[', '$') every ~997 bytes.
     std::mt19937 rng(42);
     std::vector<std::uint8_t> dirty;
@@ -268,7 +279,8 @@ TEST(SensorChannelTest, FalseLongHeadersBeforeAPauseAndTheEndLoseNoFrame) {
     std::vector<std::uint8_t> dirty(clean.begin(), clean.begin() + static_cast<long>(offsets[100]));
     dirty.insert(dirty.end(), fake.begin(), fake.end());
     const std::size_t pause = dirty.size() + (offsets[140] - offsets[100]);
-    dirty.insert(dirty.end(), clean.begin() + static_cast<long>(offsets[100]),
+    dirty.insert(dirty.end(),
+                 clean.begin() + static_cast<long>(offsets[100]),
                  clean.begin() + static_cast<long>(offsets[250]));
     dirty.insert(dirty.end(), fake.begin(), fake.end());
     dirty.insert(dirty.end(), clean.begin() + static_cast<long>(offsets[250]), clean.end());
@@ -314,8 +326,9 @@ TEST(SensorChannelTest, SetupCommandsAnsweredRefusedAndResentOnReconnect) {
     int answered = 0;
     src.on_write = [&](const std::string& line) {
         // A receiver: OK to the first, ERROR to the second command.
-        src.PushFrontData(line.find("BOGUS") == std::string::npos ? "\r\n<OK\r\n[ICOM1]"
-                                                                   : "\r\n<ERROR:Invalid Message\r\n[ICOM1]",
+        src.PushFrontData(line.find("BOGUS") == std::string::npos
+                              ? "\r\n<OK\r\n[ICOM1]"
+                              : "\r\n<ERROR:Invalid Message\r\n[ICOM1]",
                           clock.NowUtime());
         ++answered;
     };
@@ -344,7 +357,8 @@ TEST(SensorChannelTest, SetupCommandsAnsweredRefusedAndResentOnReconnect) {
     const auto events = be.Finish();
     std::vector<pitmap::receiver_response_t> responses;
     for (const auto& e : events) {
-        if (e.channel == "RESPONSE_ICOM1") responses.push_back(DecodeAs<pitmap::receiver_response_t>(e.data));
+        if (e.channel == "RESPONSE_ICOM1")
+            responses.push_back(DecodeAs<pitmap::receiver_response_t>(e.data));
     }
     ASSERT_EQ(responses.size(), 4u);
     EXPECT_EQ(responses[0].ok, 1);
@@ -356,8 +370,9 @@ TEST(SensorChannelTest, SetupCommandsAnsweredRefusedAndResentOnReconnect) {
     // What the receiver said is in the raw log too.
     std::string raw;
     for (auto b : RawConcat(events, "RAW_ICOM1")) raw.push_back(static_cast<char>(b));
-    EXPECT_EQ(raw, "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]"
-                   "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]");
+    EXPECT_EQ(raw,
+              "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]"
+              "\r\n<OK\r\n[ICOM1]\r\n<ERROR:Invalid Message\r\n[ICOM1]");
 }
 
 TEST(SensorChannelTest, SilentReceiverGetsOneRetryThenTheNextCommand) {
@@ -388,7 +403,8 @@ TEST(SensorChannelTest, SilentReceiverGetsOneRetryThenTheNextCommand) {
 }
 
 TEST(SensorChannelTest, UnplugReplugKeepsCountingAndReportsState) {
-    const auto data = testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_bestpos.gps");
+    const auto data =
+        testing::ReadBytes(std::string(PITMAP_TEST_DATA_DIR) + "/novatel/oem7drv_bestpos.gps");
     Backend be("replug");
     FakeSource src;
     ManualClock clock(kT0);
@@ -396,13 +412,15 @@ TEST(SensorChannelTest, UnplugReplugKeepsCountingAndReportsState) {
     SensorChannel ch(NovatelConfig("nov"), src, be.publisher, clock, time);
     ASSERT_TRUE(src.Open().ok());
     const std::size_t half = data.size() / 2;
-    src.PushData(std::vector<std::uint8_t>(data.begin(), data.begin() + static_cast<long>(half)), kT0);
+    src.PushData(std::vector<std::uint8_t>(data.begin(), data.begin() + static_cast<long>(half)),
+                 kT0);
     src.PushDisconnect();
     ch.RunOnce();
     ch.RunOnce();
     EXPECT_EQ(ch.Status().state, pitmap::channel_status_t::STATE_DISCONNECTED);
     EXPECT_EQ(ch.counters().last_error, "fake device unplugged");
-    src.PushData(std::vector<std::uint8_t>(data.begin() + static_cast<long>(half), data.end()), kT0 + 1000);
+    src.PushData(std::vector<std::uint8_t>(data.begin() + static_cast<long>(half), data.end()),
+                 kT0 + 1000);
     src.PushEnd();
     RunToEnd(ch);
     EXPECT_EQ(ch.counters().reconnects, 1);
@@ -460,8 +478,8 @@ TEST(SensorChannelTest, DeltatDatagramsStampedOnlyOnceTheHostClockHasTime) {
         if (i >= 3) {
             time.AddNovatel(tx_host + 2000, tx_host + gps_minus_host, true);
         }
-        sent.push_back(protocol::deltat::EncodeRecord83P(MakePing(static_cast<std::uint32_t>(i),
-                                                                  tx_host - 1000 + header_offset)));
+        sent.push_back(protocol::deltat::EncodeRecord83P(
+            MakePing(static_cast<std::uint32_t>(i), tx_host - 1000 + header_offset)));
         src.PushData(sent.back(), tx_host + 19'000 + (i % 5) * 300);
         ch.RunOnce();
         clock.AdvanceUs(100'000);
@@ -484,7 +502,8 @@ TEST(SensorChannelTest, DeltatDatagramsStampedOnlyOnceTheHostClockHasTime) {
     std::vector<pitmap::multibeam_ping_t> pings;
     std::vector<std::vector<std::uint8_t>> raws;
     for (const auto& e : events) {
-        if (e.channel == "MULTIBEAM_PING_MB") pings.push_back(DecodeAs<pitmap::multibeam_ping_t>(e.data));
+        if (e.channel == "MULTIBEAM_PING_MB")
+            pings.push_back(DecodeAs<pitmap::multibeam_ping_t>(e.data));
         if (e.channel == "RAW_MB") raws.push_back(DecodeAs<pitmap::raw_bytes_t>(e.data).data);
     }
     ASSERT_EQ(pings.size(), 53u);
@@ -535,9 +554,9 @@ struct UdpPeer {
     UdpPeer& operator=(const UdpPeer&) = delete;
     void Send(int to_port, const std::vector<std::uint8_t>& d) const {
         const sockaddr_in to = Ipv4("127.0.0.1", to_port);
-        EXPECT_EQ(::sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to),
-                           sizeof(to)),
-                  static_cast<long>(d.size()));
+        EXPECT_EQ(
+            ::sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof(to)),
+            static_cast<long>(d.size()));
     }
     // The datagrams waiting now (loopback delivery is synchronous).
     std::vector<std::vector<std::uint8_t>> Drain() const {
@@ -598,8 +617,8 @@ TEST(SensorChannelUdpTest, ForgerLoggedRawAsForeignNeverDecodedAndGetsNoEc) {
     }
     const auto at_head = head.Drain();
     const auto at_forger = forger.Drain();
-    std::printf("EC frames: %zu to the head, %zu to the forger\n", at_head.size(),
-                at_forger.size());
+    std::printf(
+        "EC frames: %zu to the head, %zu to the forger\n", at_head.size(), at_forger.size());
     EXPECT_EQ(at_head.size(), static_cast<std::size_t>(kRounds));
     EXPECT_TRUE(at_forger.empty());
     for (const auto& f : at_head) {
@@ -663,8 +682,9 @@ TEST(SensorChannelUdpTest, KernelDropsReachTheStatusAndTheLog) {
     UdpPeer head("127.0.0.1");
     constexpr int kSent = 300;
     for (int i = 0; i < kSent; ++i) {
-        head.Send(src.bound_port(), protocol::deltat::EncodeRecord83P(MakePing(
-                                        static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+        head.Send(src.bound_port(),
+                  protocol::deltat::EncodeRecord83P(
+                      MakePing(static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
     }
     // Drain (bounded: loopback has delivered everything when sendto() returned).
     for (int i = 0; i < 2 * kSent && ch.Status().chunks + ch.Status().kernel_drops < kSent; ++i) {
@@ -672,7 +692,8 @@ TEST(SensorChannelUdpTest, KernelDropsReachTheStatusAndTheLog) {
         clock.AdvanceUs(10'000);
     }
     const pitmap::channel_status_t status = ch.Status();
-    std::printf("sent %d, read %lld, kernel drops in channel_status_t %lld\n", kSent,
+    std::printf("sent %d, read %lld, kernel drops in channel_status_t %lld\n",
+                kSent,
                 static_cast<long long>(status.chunks),
                 static_cast<long long>(status.kernel_drops));
     EXPECT_GT(status.kernel_drops, 0);
@@ -682,8 +703,9 @@ TEST(SensorChannelUdpTest, KernelDropsReachTheStatusAndTheLog) {
     // A second burst within the log's one-second rate limit: its note is held back, then
     // given with the final total once the second has passed, although nothing new dropped.
     for (int i = 0; i < kSent; ++i) {
-        head.Send(src.bound_port(), protocol::deltat::EncodeRecord83P(MakePing(
-                                        static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
+        head.Send(src.bound_port(),
+                  protocol::deltat::EncodeRecord83P(
+                      MakePing(static_cast<std::uint32_t>(i), kT0 + i * 100'000)));
     }
     for (int i = 0; i < 2 * kSent && ch.Status().chunks + ch.Status().kernel_drops < 2 * kSent;
          ++i) {
@@ -718,18 +740,18 @@ TEST(SensorChannelUdpTest, ConfigRequiresAllowedSenders) {
         return false;
     };
     EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml("", ""), "t"), "allowed_senders"));
-    EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml(", allowed_senders: []", ""), "t"),
-                    "allowed_senders"));
-    EXPECT_TRUE(has(LoadDaemonConfigFromString(yaml(", allowed_senders: [sonar]", ""), "t"),
-                    "sonar"));
+    EXPECT_TRUE(
+        has(LoadDaemonConfigFromString(yaml(", allowed_senders: []", ""), "t"), "allowed_senders"));
+    EXPECT_TRUE(
+        has(LoadDaemonConfigFromString(yaml(", allowed_senders: [sonar]", ""), "t"), "sonar"));
     const auto ok = LoadDaemonConfigFromString(yaml(", allowed_senders: [192.168.0.4]", ""), "t");
     EXPECT_TRUE(ok.problems.empty()) << ok.problems.front();
     ASSERT_EQ(ok.config.channels.size(), 1u);
     EXPECT_EQ(ok.config.channels[0].udp.bind_address, "");  // the interface facing the head
     const std::string ec = "    ec: {enabled: true, range_m: 30}\n";
-    EXPECT_TRUE(has(LoadDaemonConfigFromString(
-                        yaml(", allowed_senders: [192.168.0.4, 192.168.0.5]", ec), "t"),
-                    "reply_to"));
+    EXPECT_TRUE(has(
+        LoadDaemonConfigFromString(yaml(", allowed_senders: [192.168.0.4, 192.168.0.5]", ec), "t"),
+        "reply_to"));
     EXPECT_TRUE(LoadDaemonConfigFromString(yaml(", allowed_senders: [192.168.0.4, 192.168.0.5], "
                                                 "reply_to: 192.168.0.5",
                                                 ec),

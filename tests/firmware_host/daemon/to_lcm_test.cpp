@@ -195,9 +195,14 @@ TEST(ToLcmTest, InsPvaHasNoStddevAndUsesBodyTime) {
     EXPECT_DOUBLE_EQ(o.pitch_deg, -2.5);
     EXPECT_DOUBLE_EQ(o.azimuth_deg, 359.5);
     EXPECT_EQ(o.has_stddev, 0);
-    for (float f : {o.latitude_stddev_m, o.longitude_stddev_m, o.height_stddev_m,
-                    o.velocity_north_stddev_mps, o.velocity_east_stddev_mps,
-                    o.velocity_up_stddev_mps, o.roll_stddev_deg, o.pitch_stddev_deg,
+    for (float f : {o.latitude_stddev_m,
+                    o.longitude_stddev_m,
+                    o.height_stddev_m,
+                    o.velocity_north_stddev_mps,
+                    o.velocity_east_stddev_mps,
+                    o.velocity_up_stddev_mps,
+                    o.roll_stddev_deg,
+                    o.pitch_stddev_deg,
                     o.azimuth_stddev_deg}) {
         EXPECT_TRUE(std::isnan(f));
     }
@@ -404,8 +409,7 @@ TEST(ToLcmTest, RawImuScaledByTheTable) {
     EXPECT_EQ(o.utime_gps, GpsUtimeFromWeekTow(2300, 20.0));
     for (int i = 0; i < 3; ++i) {
         EXPECT_DOUBLE_EQ(o.delta_angle_rad[i], m.gyro_counts[i] * scale->gyro_rad_per_count);
-        EXPECT_DOUBLE_EQ(o.delta_velocity_mps[i],
-                         m.accel_counts[i] * scale->accel_mps_per_count);
+        EXPECT_DOUBLE_EQ(o.delta_velocity_mps[i], m.accel_counts[i] * scale->accel_mps_per_count);
         EXPECT_DOUBLE_EQ(o.angular_rate_radps[i], o.delta_angle_rad[i] * 100.0);
         EXPECT_DOUBLE_EQ(o.acceleration_mps2[i], o.delta_velocity_mps[i] * 100.0);
     }
@@ -703,7 +707,9 @@ TEST(ToLcmTest, Ping83PVersion100HasNoLatenciesNorIntensities) {
     const auto bytes = dt::EncodeRecord83P(MakePing(dt::kVersion100, false));
     const auto decoded = dt::DecodeRecord83P(ByteSpan(bytes.data(), bytes.size()));
     ASSERT_TRUE(std::holds_alternative<dt::Ping83P>(decoded));
-    const auto o = RoundTrip(ToLcm(std::get<dt::Ping83P>(decoded), kHost, 0,
+    const auto o = RoundTrip(ToLcm(std::get<dt::Ping83P>(decoded),
+                                   kHost,
+                                   0,
                                    pitmap::multibeam_ping_t::TIME_SOURCE_NONE,
                                    std::numeric_limits<float>::quiet_NaN()));
     EXPECT_EQ(o.utime_gps, 0);
@@ -733,10 +739,16 @@ TEST(ToLcmTest, PingWithBlankClockAndPosition) {
 TEST(ToLcmTest, RawBytesKeepTheDataUnmodified) {
     std::vector<std::byte> data;
     for (int i = 0; i < 256; ++i) data.push_back(static_cast<std::byte>(i));
-    const auto o = RoundTrip(MakeRawBytes(kHost, "novatel_com1", kProtocolNovatel,
-                                          Transport::kSerial, 17, std::span(data),
-                                          {.utime_gps = 99, .gps_time_valid = true,
-                                           .peer = "/dev/ttyUSB0", .utime_kernel = kHost - 5}));
+    const auto o = RoundTrip(MakeRawBytes(kHost,
+                                          "novatel_com1",
+                                          kProtocolNovatel,
+                                          Transport::kSerial,
+                                          17,
+                                          std::span(data),
+                                          {.utime_gps = 99,
+                                           .gps_time_valid = true,
+                                           .peer = "/dev/ttyUSB0",
+                                           .utime_kernel = kHost - 5}));
     EXPECT_EQ(o.utime, kHost);
     EXPECT_EQ(o.utime_gps, 99);
     EXPECT_EQ(o.gps_time_valid, 1);
@@ -750,8 +762,8 @@ TEST(ToLcmTest, RawBytesKeepTheDataUnmodified) {
     EXPECT_EQ(std::memcmp(o.data.data(), data.data(), 256), 0);
 
     const std::vector<std::uint8_t> u8 = {1, 2, 3};
-    const auto d = MakeRawBytes(kHost, "d", kProtocolDeltat83P, Transport::kUdp, 0,
-                                std::span<const std::uint8_t>(u8));
+    const auto d = MakeRawBytes(
+        kHost, "d", kProtocolDeltat83P, Transport::kUdp, 0, std::span<const std::uint8_t>(u8));
     EXPECT_EQ(d.utime_gps, 0);
     EXPECT_EQ(d.gps_time_valid, 0);
     EXPECT_EQ(d.peer, "");

@@ -174,9 +174,10 @@ TEST(UdpSourceTest, DatagramsWithKernelTimestampsAndReplies) {
     for (std::size_t size : {100u, 2176u, 1u}) {
         std::vector<std::byte> d(size);
         for (std::size_t k = 0; k < size; ++k) d[k] = static_cast<std::byte>((k * 7 + size) & 0xFF);
-        ASSERT_EQ(::sendto(tx, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&dst),
-                           sizeof(dst)),
-                  static_cast<long>(size));
+        ASSERT_EQ(
+            ::sendto(
+                tx, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&dst), sizeof(dst)),
+            static_cast<long>(size));
         sent.push_back(d);
     }
     Chunk chunk;

@@ -183,8 +183,8 @@ TEST(SerialSourceTest, UnplugAndReplugThroughAStablePath) {
     Pty second;
     ASSERT_TRUE(second.Open());
     PointLink(link, second.slave_path);
-    const std::vector<std::byte> again{std::byte{0x00}, std::byte{0xAA}, std::byte{0x44},
-                                       std::byte{0x12}};
+    const std::vector<std::byte> again{
+        std::byte{0x00}, std::byte{0xAA}, std::byte{0x44}, std::byte{0x12}};
     std::vector<std::byte> got;
     for (int i = 0; i < 100 && got.size() < again.size(); ++i) {
         auto r = src.Read(chunk, 20);

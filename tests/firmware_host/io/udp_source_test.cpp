@@ -42,9 +42,9 @@ struct Peer {
     Peer& operator=(const Peer&) = delete;
     void SendTo(int to_port, const std::vector<std::byte>& d) const {
         const sockaddr_in to = Address("127.0.0.1", to_port);
-        ASSERT_EQ(::sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to),
-                           sizeof(to)),
-                  static_cast<long>(d.size()));
+        ASSERT_EQ(
+            ::sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof(to)),
+            static_cast<long>(d.size()));
     }
     // Datagrams waiting now (non-blocking drain).
     int Pending() const {
@@ -100,7 +100,9 @@ TEST(UdpSourceHardeningTest, KernelDropsAreCountedExactly) {
             ++timeouts;
         }
     }
-    std::printf("sent %d, received %d, kernel drops counted %lld\n", kSent, received,
+    std::printf("sent %d, received %d, kernel drops counted %lld\n",
+                kSent,
+                received,
                 static_cast<long long>(src.kernel_drops()));
     EXPECT_GT(received, 0);
     EXPECT_GT(src.kernel_drops(), 0);

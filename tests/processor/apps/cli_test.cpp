@@ -45,12 +45,17 @@ TEST_F(Cli, InvalidConfigListsEveryProblem) {
     std::ofstream(dir_ / "bad.yaml") << "ingest:\n  source: sideways\ngeoref:\n  max_range_m: -5\n"
                                         "  spike_rel: abc\ncalibrate:\n  part_duration_s: 0\n"
                                         "  colour: blue\nextra_key: 1\n";
-    const CliRun r = Pitmap("georef " + Q(dir_ / "logs") + " --out " + Q(dir_ / "P") + " --config " +
-                         Q(dir_ / "bad.yaml"));
+    const CliRun r = Pitmap("georef " + Q(dir_ / "logs") + " --out " + Q(dir_ / "P") +
+                            " --config " + Q(dir_ / "bad.yaml"));
     EXPECT_NE(r.status, 0);
-    for (const char* expected : {"ingest.source", "bad.yaml:5: georef.spike_rel", "bad.yaml:8: calibrate.colour",
-                                 "bad.yaml:9: extra_key", "georef.max_range_m", "calibrate.part_duration_s"}) {
-        EXPECT_NE(r.output.find(expected), std::string::npos) << expected << " missing in:\n" << r.output;
+    for (const char* expected : {"ingest.source",
+                                 "bad.yaml:5: georef.spike_rel",
+                                 "bad.yaml:8: calibrate.colour",
+                                 "bad.yaml:9: extra_key",
+                                 "georef.max_range_m",
+                                 "calibrate.part_duration_s"}) {
+        EXPECT_NE(r.output.find(expected), std::string::npos) << expected << " missing in:\n"
+                                                              << r.output;
     }
 }
 
@@ -66,8 +71,8 @@ TEST_F(Cli, DefaultsAreAValidConfig) {
     ASSERT_EQ(defaults.status, 0) << defaults.output;
     std::ofstream(dir_ / "defaults.yaml") << defaults.output;
     // An empty log folder: the run fails on the input, never on the config.
-    const CliRun r = Pitmap("georef " + Q(dir_ / "logs") + " --out " + Q(dir_ / "P") + " --config " +
-                         Q(dir_ / "defaults.yaml"));
+    const CliRun r = Pitmap("georef " + Q(dir_ / "logs") + " --out " + Q(dir_ / "P") +
+                            " --config " + Q(dir_ / "defaults.yaml"));
     EXPECT_NE(r.status, 0);
     EXPECT_EQ(r.output.find("invalid config"), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("not a known setting"), std::string::npos) << r.output;

@@ -21,7 +21,7 @@ struct Sphere {
 };
 
 struct SyntheticWorld {
-    double plane_z_m = -10.0;        // horizontal floor (NaN = none)
+    double plane_z_m = -10.0;  // horizontal floor (NaN = none)
     std::vector<Sphere> spheres;
 
     // Range along the unit ray from o, or NaN when nothing is hit within max_m.
@@ -57,9 +57,9 @@ inline Eigen::Isometry3d SonarPose(const Eigen::Vector3d& position, double yaw_r
 }
 
 struct LineSurvey {
-    double x0_m = -5.0;             // start of each line (east)
-    double x1_m = 5.0;              // end
-    double spacing_m = 0.05;        // between pings
+    double x0_m = -5.0;       // start of each line (east)
+    double x1_m = 5.0;        // end
+    double spacing_m = 0.05;  // between pings
     std::vector<double> lines_y_m = {0.0};
     int num_beams = 361;
     double start_angle_rad = -45.0 * std::numbers::pi / 180.0;

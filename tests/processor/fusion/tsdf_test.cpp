@@ -67,7 +67,8 @@ TEST_P(PlaneTest, MeshedWithinHalfAVoxel) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(BothModels, PlaneTest,
+INSTANTIATE_TEST_SUITE_P(BothModels,
+                         PlaneTest,
                          ::testing::Values(SensorModel::kBeamWidth, SensorModel::kRay));
 
 class SphereTest : public ::testing::TestWithParam<SensorModel> {};
@@ -134,7 +135,8 @@ TEST_P(SphereTest, NoFalseSurfaceInTheShadows) {
     EXPECT_LT(worst, 0.15) << "a vertex off both the sphere and the floor";
 }
 
-INSTANTIATE_TEST_SUITE_P(BothModels, SphereTest,
+INSTANTIATE_TEST_SUITE_P(BothModels,
+                         SphereTest,
                          ::testing::Values(SensorModel::kBeamWidth, SensorModel::kRay));
 
 TEST(TsdfVolume, SameResultForOneAndTwoThreads) {
@@ -242,7 +244,8 @@ TEST(TsdfVolume, WeightFilterRemovesOutliersBeyondTheTruncationBand) {
     EXPECT_EQ(volume.WeightAt(outlier), 0.0f);
     EXPECT_GE(volume.Stats().min_weight, 15.0f);
     const TriangleMesh after = volume.ExtractIsoSurface().mesh;
-    EXPECT_EQ(std::count_if(after.vertices.begin(), after.vertices.end(),
+    EXPECT_EQ(std::count_if(after.vertices.begin(),
+                            after.vertices.end(),
                             [](const Eigen::Vector3f& v) { return v.z() > -9.0f; }),
               0);
     const auto [err, n] = PlaneError(after, world.plane_z_m);
@@ -299,8 +302,8 @@ TEST(TsdfVolume, BadBeamsAreCountedNotFatal) {
     scan.T_world_sonar = testing::SonarPose(Eigen::Vector3d::Zero());
     scan.start_angle_rad = -0.1f;
     scan.angle_increment_rad = 0.01f;
-    scan.ranges_m = {0.0f, std::nanf(""), -3.0f, 0.1f, 500.0f,
-                     std::numeric_limits<float>::infinity(), 10.0f};
+    scan.ranges_m = {
+        0.0f, std::nanf(""), -3.0f, 0.1f, 500.0f, std::numeric_limits<float>::infinity(), 10.0f};
     TsdfVolume volume(TsdfConfig{});
     const IntegrateResult r = volume.Integrate({scan});
     EXPECT_EQ(r.beams_no_detection, 3);  // 0, NaN, inf

@@ -38,7 +38,8 @@ void AddFlatPing(PingSeries& s, std::int64_t t, double sonar_depth_m, int beams 
     h.num_beams = static_cast<std::uint16_t>(beams);
     for (int i = 0; i < beams; ++i) {
         const double th = frames::DegToRad(h.start_angle_deg + i * h.angle_increment_deg);
-        s.range_counts.push_back(static_cast<std::uint32_t>(std::lround((kDepthM - sonar_depth_m) / std::cos(th) / 0.001)));
+        s.range_counts.push_back(static_cast<std::uint32_t>(
+            std::lround((kDepthM - sonar_depth_m) / std::cos(th) / 0.001)));
     }
     s.pings.push_back(h);
 }
@@ -58,7 +59,8 @@ TEST(Georef, FlatSeabedPointsLieOnThePlane) {
     // Beam 0 points to port (west of a north-east heading vehicle): starboard positive.
     const Eigen::Vector3d first = r.points.position_world[0];
     const Eigen::Vector3d last = r.points.position_world[120];
-    const Eigen::Vector3d stbd(std::cos(frames::DegToRad(30.0)), -std::sin(frames::DegToRad(30.0)), 0);
+    const Eigen::Vector3d stbd(
+        std::cos(frames::DegToRad(30.0)), -std::sin(frames::DegToRad(30.0)), 0);
     EXPECT_GT((last - first).dot(stbd), 30.0);
 }
 
@@ -67,9 +69,9 @@ TEST(Georef, RefusesPingsInNavGapsAndOutsideTheSpan) {
     NavSeries later = LevelNav(0.0, 2'000'000, 10, 20'000);
     nav.samples.insert(nav.samples.end(), later.samples.begin(), later.samples.end());
     PingSeries pings;
-    AddFlatPing(pings, 10'000, 0.0);      // inside
-    AddFlatPing(pings, 1'000'000, 0.0);   // in the 1.8 s gap
-    AddFlatPing(pings, 9'000'000, 0.0);   // after the end
+    AddFlatPing(pings, 10'000, 0.0);     // inside
+    AddFlatPing(pings, 1'000'000, 0.0);  // in the 1.8 s gap
+    AddFlatPing(pings, 9'000'000, 0.0);  // after the end
     const GeorefResult r = RunGeoref(nav, pings, SonarMount{}, GeorefConfig{});
     EXPECT_EQ(r.counts.pings_georeferenced, 1);
     EXPECT_EQ(r.counts.pings_in_nav_gap, 1);
@@ -80,9 +82,9 @@ TEST(Georef, SpikeFilterAndRangeGateAreCounted) {
     const NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
     PingSeries pings;
     AddFlatPing(pings, 10'000, 0.0);
-    pings.range_counts[60] = 5000;   // 5 m among 10 m neighbours: a spike
-    pings.range_counts[10] = 0;      // no detection
-    pings.range_counts[20] = 100;    // 0.1 m: range gate
+    pings.range_counts[60] = 5000;  // 5 m among 10 m neighbours: a spike
+    pings.range_counts[10] = 0;     // no detection
+    pings.range_counts[20] = 100;   // 0.1 m: range gate
     const GeorefResult r = RunGeoref(nav, pings, SonarMount{}, GeorefConfig{});
     EXPECT_EQ(r.counts.spikes, 1);
     EXPECT_EQ(r.counts.no_detection, 1);
@@ -100,7 +102,8 @@ TEST(Georef, BoresightRollTiltsTheSwath) {
     // With the wrong (unmodelled) roll the flat seabed is no longer flat; re-applying the
     // zero boresight makes it flat again.
     double spread = 0;
-    for (const auto& p : r.points.position_world) spread = std::max(spread, std::abs(p.z() + kDepthM));
+    for (const auto& p : r.points.position_world)
+        spread = std::max(spread, std::abs(p.z() + kDepthM));
     EXPECT_GT(spread, 0.2);
     Regeoreference(r, SonarMount{});
     for (const auto& p : r.points.position_world) EXPECT_NEAR(p.z(), -kDepthM, 2e-3);

@@ -13,8 +13,8 @@
 #include <pitmap/raw_bytes_t.hpp>
 
 #include "common/byte_io.hpp"
-#include "processor/io/ingest.hpp"
 #include "lcmtypes/log/lcm_log_reader.hpp"
+#include "processor/io/ingest.hpp"
 #include "processor/io/products.hpp"
 
 namespace pitmap::proc::io {
@@ -38,12 +38,13 @@ std::vector<std::uint8_t> Event(std::int64_t num, const std::string& ch, std::si
 
 std::string WriteFile(const std::string& name, const std::vector<std::uint8_t>& b) {
     const std::string path = ::testing::TempDir() + "/" + name;
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(b.data()),
-                                                 static_cast<std::streamsize>(b.size()));
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
     return path;
 }
 
-std::vector<std::uint8_t> EventWith(std::int64_t num, const std::string& ch,
+std::vector<std::uint8_t> EventWith(std::int64_t num,
+                                    const std::string& ch,
                                     const std::vector<std::uint8_t>& data) {
     std::vector<std::uint8_t> b;
     PutBe(b, lcmlog::kLcmSyncWord, 4);

@@ -17,10 +17,13 @@ namespace pitmap::proc::mesh {
 namespace {
 
 // An n x n grid of vertices in the plane z = -10, two triangles per cell, CCW from above.
-void GridMesh(int n, std::vector<Eigen::Vector3f>& v, std::vector<Eigen::Vector3i>& t,
+void GridMesh(int n,
+              std::vector<Eigen::Vector3f>& v,
+              std::vector<Eigen::Vector3i>& t,
               int skip_cell = -1) {
     for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) v.emplace_back(static_cast<float>(i), static_cast<float>(j), -10.0f);
+        for (int i = 0; i < n; ++i)
+            v.emplace_back(static_cast<float>(i), static_cast<float>(j), -10.0f);
     for (int j = 0; j + 1 < n; ++j)
         for (int i = 0; i + 1 < n; ++i) {
             if (j * (n - 1) + i == skip_cell) continue;
@@ -39,7 +42,8 @@ std::string ReadFile(const std::string& path) {
 
 std::uint32_t U32(const std::string& s, std::size_t off) {
     std::uint32_t v = 0;
-    for (int k = 3; k >= 0; --k) v = (v << 8) | static_cast<unsigned char>(s[off + static_cast<std::size_t>(k)]);
+    for (int k = 3; k >= 0; --k)
+        v = (v << 8) | static_cast<unsigned char>(s[off + static_cast<std::size_t>(k)]);
     return v;
 }
 
@@ -149,8 +153,9 @@ TEST_F(ExportTest, PlyReadsBackWithOriginComment) {
     for (std::size_t f = 0; f < 18; ++f) {
         EXPECT_EQ(s[faces + f * 13], 3);
         for (int k = 0; k < 3; ++k) {
-            EXPECT_EQ(static_cast<int>(U32(s, faces + f * 13 + 1 + 4 * static_cast<std::size_t>(k))),
-                      mesh_.triangles[f][k]);
+            EXPECT_EQ(
+                static_cast<int>(U32(s, faces + f * 13 + 1 + 4 * static_cast<std::size_t>(k))),
+                mesh_.triangles[f][k]);
         }
     }
 }
@@ -165,7 +170,8 @@ TEST_F(ExportTest, ObjReadsBack) {
     while (std::getline(in, line)) {
         if (line.rfind("v ", 0) == 0) {
             double x, y, z, r, g, b;
-            ASSERT_EQ(std::sscanf(line.c_str(), "v %lf %lf %lf %lf %lf %lf", &x, &y, &z, &r, &g, &b), 6);
+            ASSERT_EQ(
+                std::sscanf(line.c_str(), "v %lf %lf %lf %lf %lf %lf", &x, &y, &z, &r, &g, &b), 6);
             EXPECT_NEAR(x, mesh_.vertices[static_cast<std::size_t>(v)].x(), 1e-4);
             ++v;
         } else if (line.rfind("f ", 0) == 0) {
@@ -201,7 +207,8 @@ TEST_F(ExportTest, GlbContainerParsesAndPositionsReadBack) {
     EXPECT_EQ(U32(s, bin_hdr + 4), 0x004E4942u);
     EXPECT_EQ(bin_hdr + 8 + bin_len, s.size());
     EXPECT_EQ(doc["buffers"][0]["byteLength"].get<std::uint32_t>(), bin_len);
-    EXPECT_DOUBLE_EQ(doc["asset"]["extras"]["pitmap_origin"]["latitude_deg"].get<double>(), 40.4435);
+    EXPECT_DOUBLE_EQ(doc["asset"]["extras"]["pitmap_origin"]["latitude_deg"].get<double>(),
+                     40.4435);
     const auto& prim = doc["meshes"][0]["primitives"][0];
     EXPECT_EQ(prim["mode"], 4);
     const auto& pos = doc["accessors"][prim["attributes"]["POSITION"].get<int>()];

@@ -218,7 +218,8 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
     for (const auto& e : fs::directory_iterator(dir_ / "sim/log"))
         if (e.path().extension() == ".lcmlog") logs.push_back(e.path());
     std::sort(logs.begin(), logs.end());
-    std::ofstream nav(vendor / "nav.gps", std::ios::binary), sonar(vendor / "survey.83P", std::ios::binary);
+    std::ofstream nav(vendor / "nav.gps", std::ios::binary),
+        sonar(vendor / "survey.83P", std::ios::binary);
     std::size_t records = 0;
     for (const auto& path : logs) {
         lcm::LogFile log(path.string(), "r");
@@ -228,7 +229,8 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
             pitmap::raw_bytes_t raw;
             ASSERT_GT(raw.decode(ev->data, 0, ev->datalen), 0);
             auto& out = ev->channel == "RAW_NOVATEL_COM1" ? nav : sonar;
-            out.write(reinterpret_cast<const char*>(raw.data.data()), static_cast<std::streamsize>(raw.data.size()));
+            out.write(reinterpret_cast<const char*>(raw.data.data()),
+                      static_cast<std::streamsize>(raw.data.size()));
             if (ev->channel == "RAW_DELTAT_UDP") ++records;
         }
     }
@@ -239,16 +241,23 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
 
     std::string out;
     ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir_ / "sim/log") + " --out " +
-                             Quote(dir_ / "from_log"), &out), 0) << out;
+                             Quote(dir_ / "from_log"),
+                         &out),
+              0)
+        << out;
     // The demo topside clock runs 3600 + 2.37 s ahead of UTC (tools/sim/scenario.cpp); its
     // 35 ppm drift adds at most 4 ms over the 2-minute survey.
     ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(vendor / "nav.gps") + " " +
-                             Quote(vendor / "survey.83P") + " --sonar-clock-offset -3602.37 --out " +
-                             Quote(dir_ / "from_files"), &out), 0) << out;
+                             Quote(vendor / "survey.83P") +
+                             " --sonar-clock-offset -3602.37 --out " + Quote(dir_ / "from_files"),
+                         &out),
+              0)
+        << out;
     const auto log_scores = Eval(dir_ / "from_log");
     const auto file_scores = Eval(dir_ / "from_files");
     ASSERT_TRUE(file_scores.count("points_rms_m")) << out;
-    EXPECT_NEAR(file_scores.at("points_scored"), log_scores.at("points_scored"),
+    EXPECT_NEAR(file_scores.at("points_scored"),
+                log_scores.at("points_scored"),
                 0.01 * log_scores.at("points_scored"));
     EXPECT_NEAR(file_scores.at("points_rms_m"), log_scores.at("points_rms_m"), 0.003);
 }
@@ -256,9 +265,15 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
 TEST_F(DemoScenario, RawChannelsRedecodeToTheSameSoundings) {
     std::string out;
     ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir_ / "sim/log") + " --out " +
-                             Quote(dir_ / "decoded"), &out), 0) << out;
+                             Quote(dir_ / "decoded"),
+                         &out),
+              0)
+        << out;
     ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir_ / "sim/log") + " --from-raw --out " +
-                             Quote(dir_ / "raw"), &out), 0) << out;
+                             Quote(dir_ / "raw"),
+                         &out),
+              0)
+        << out;
     const auto decoded = Eval(dir_ / "decoded");
     const auto raw = Eval(dir_ / "raw");
     ASSERT_TRUE(raw.count("points_scored")) << out;
@@ -279,11 +294,22 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
                          &out),
               0)
         << out;
-    std::vector<std::string> products = {
-        "summary.json", "trajectory.csv", "trajectory_initial.csv", "trajectory_ins.csv",
-        "points.ply", "points_initial.ply", "points.las", "boresight.json", "tsdf.vdb",
-        "mesh.ply", "mesh.obj", "mesh.glb", "mesh_filled.ply", "mesh_filled.obj",
-        "mesh_filled.glb", "mesh_initial.ply"};
+    std::vector<std::string> products = {"summary.json",
+                                         "trajectory.csv",
+                                         "trajectory_initial.csv",
+                                         "trajectory_ins.csv",
+                                         "points.ply",
+                                         "points_initial.ply",
+                                         "points.las",
+                                         "boresight.json",
+                                         "tsdf.vdb",
+                                         "mesh.ply",
+                                         "mesh.obj",
+                                         "mesh.glb",
+                                         "mesh_filled.ply",
+                                         "mesh_filled.obj",
+                                         "mesh_filled.glb",
+                                         "mesh_initial.ply"};
     if (with_report) products.push_back("report.html");
     for (const auto& f : products) {
         EXPECT_TRUE(fs::exists(p / f) && fs::file_size(p / f) > 0) << f << " missing or empty";
@@ -291,8 +317,15 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     const json summary = ReadJson(p / "summary.json");
     std::vector<std::string> order;
     for (const auto& n : summary.at("stage_order")) order.push_back(n.get<std::string>());
-    std::vector<std::string> expected = {"ingest", "georef", "export", "calibrate",
-                                         "fuse_initial", "mesh_initial", "slam", "fuse", "mesh"};
+    std::vector<std::string> expected = {"ingest",
+                                         "georef",
+                                         "export",
+                                         "calibrate",
+                                         "fuse_initial",
+                                         "mesh_initial",
+                                         "slam",
+                                         "fuse",
+                                         "mesh"};
     if (with_report) expected.push_back("report");
     EXPECT_EQ(order, expected);
     for (const auto& n : order) {
@@ -322,12 +355,15 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     const auto triangles = summary.at("stages").at("mesh").at("triangles").get<std::int64_t>();
     const auto voxels = summary.at("stages").at("fuse").at("active_voxels").get<double>();
     ASSERT_EQ(RunCommand(kBin + "/pitmap mesh --out " + Quote(p), &out), 0) << out;
-    EXPECT_EQ(ReadJson(p / "summary.json").at("stages").at("mesh").at("triangles").get<std::int64_t>(),
-              triangles)
+    EXPECT_EQ(
+        ReadJson(p / "summary.json").at("stages").at("mesh").at("triangles").get<std::int64_t>(),
+        triangles)
         << "meshing tsdf.vdb again gives the mesh of the run";
     ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(p), &out), 0) << out;
-    EXPECT_NEAR(ReadJson(p / "summary.json").at("stages").at("fuse").at("active_voxels").get<double>(),
-                voxels, 0.005 * voxels)
+    EXPECT_NEAR(
+        ReadJson(p / "summary.json").at("stages").at("fuse").at("active_voxels").get<double>(),
+        voxels,
+        0.005 * voxels)
         << "fusing on trajectory.csv gives the volume of the run";
 
     // Issue 14, case 5: damaged products are errors naming the file (exit 1), never crashes.
@@ -387,8 +423,10 @@ TEST(PipelineCli, StagesOnAFolderWithoutTheirInputsSayWhatToRunFirst) {
 TEST(PipelineCli, AMalformedSummaryIsAClearErrorNotACrash) {
     const fs::path p = fs::temp_directory_path() / ("pitmap_badsum_" + std::to_string(::getpid()));
     fs::create_directories(p);
-    for (const char* text : {"[1, 2]", "{\"world_origin\": 5, \"mount\": {}}",
-                             "{\"world_origin\": {\"latitude_deg\": \"x\"}}", "{\"trunc"}) {
+    for (const char* text : {"[1, 2]",
+                             "{\"world_origin\": 5, \"mount\": {}}",
+                             "{\"world_origin\": {\"latitude_deg\": \"x\"}}",
+                             "{\"trunc"}) {
         std::ofstream(p / "summary.json") << text;
         for (const char* stage : {"slam", "mesh", "report"}) {
             std::string out;

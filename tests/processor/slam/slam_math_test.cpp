@@ -39,15 +39,15 @@ TEST(SlamMath, JacobianInversesAreInversesOfTheJacobians) {
         for (int k = 0; k < 3; ++k) {
             Eigen::Vector3d d = Eigen::Vector3d::Zero();
             d(k) = h;
-            J.col(k) = (LogSO3(ExpSO3(phi) * ExpSO3(d)) - LogSO3(ExpSO3(phi) * ExpSO3(-d))) /
-                       (2 * h);
+            J.col(k) =
+                (LogSO3(ExpSO3(phi) * ExpSO3(d)) - LogSO3(ExpSO3(phi) * ExpSO3(-d))) / (2 * h);
         }
         EXPECT_TRUE(J.isApprox(RightJacobianInverseSO3(phi), 1e-6)) << "angle " << angle;
         for (int k = 0; k < 3; ++k) {
             Eigen::Vector3d d = Eigen::Vector3d::Zero();
             d(k) = h;
-            J.col(k) = (LogSO3(ExpSO3(d) * ExpSO3(phi)) - LogSO3(ExpSO3(-d) * ExpSO3(phi))) /
-                       (2 * h);
+            J.col(k) =
+                (LogSO3(ExpSO3(d) * ExpSO3(phi)) - LogSO3(ExpSO3(-d) * ExpSO3(phi))) / (2 * h);
         }
         EXPECT_TRUE(J.isApprox(LeftJacobianInverseSO3(phi), 1e-6)) << "angle " << angle;
     }
@@ -122,7 +122,8 @@ TEST(SlamMath, RobustCostMatchesItsWeight) {
         for (const double s : {0.3, 0.9, 1.5, 3.0, 10.0}) {
             const double h = 1e-6;
             const double d = (RobustCost(k, s + h, 1.2) - RobustCost(k, s - h, 1.2)) / (2 * h);
-            EXPECT_NEAR(d / (2 * s), RobustWeight(k, s, 1.2), 1e-6) << static_cast<int>(k) << " " << s;
+            EXPECT_NEAR(d / (2 * s), RobustWeight(k, s, 1.2), 1e-6)
+                << static_cast<int>(k) << " " << s;
         }
         EXPECT_NEAR(RobustCost(k, 0.01, 1.2), 1e-4, 1e-8);
         EXPECT_NEAR(RobustCost(k, 1.2 + 1e-9, 1.2), RobustCost(k, 1.2 - 1e-9, 1.2), 1e-6);

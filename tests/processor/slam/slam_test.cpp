@@ -45,7 +45,8 @@ Survey MakeSurvey(const std::vector<Waypoint>& wps, double drift_scale, bool fla
             sl.gps_time_s = 1000.0 + t;
             for (int i = 0; i <= 60; ++i) {
                 const double th = frames::DegToRad(-60.0 + 2.0 * i);
-                const Eigen::Vector3d dir = T.linear() * Eigen::Vector3d(0, std::sin(th), std::cos(th));
+                const Eigen::Vector3d dir =
+                    T.linear() * Eigen::Vector3d(0, std::sin(th), std::cos(th));
                 // March then bisect to the surface.
                 double lo = 0, hi = 0;
                 for (double r = 0.5; r < 60; r += 0.5) {
@@ -67,7 +68,8 @@ Survey MakeSurvey(const std::vector<Waypoint>& wps, double drift_scale, bool fla
             }
             // INS error: smooth drift in position and heading, zero at the start.
             const double u = t / 60.0;
-            const Eigen::Vector3d dp = drift_scale * Eigen::Vector3d(0.05 * u * u, -0.08 * u, 0.04 * u);
+            const Eigen::Vector3d dp =
+                drift_scale * Eigen::Vector3d(0.05 * u * u, -0.08 * u, 0.04 * u);
             const Eigen::Vector3d dr = drift_scale * Eigen::Vector3d(0.0, 0.001 * u, 0.002 * u);
             sl.T_world_vehicle = MakePose(ExpSO3(dr) * T.linear(), T.translation() + dp);
             sl.pose_sigma << 0.01, 0.01, 0.02, 1.0, 1.0, 1.0;
@@ -118,7 +120,8 @@ const std::vector<Waypoint> kCrossing = {{-20, -8}, {20, -8}, {20, 8}, {-20, 8},
 TEST(Slam, RecoversAKnownPerturbation) {
     const Survey sv = MakeSurvey(kCrossing, 1.0);
     const double before = Ate(Initial(sv.slices), sv.truth);
-    for (const auto type : {CorrespondenceType::kPointToPoint, CorrespondenceType::kPointToPlane,
+    for (const auto type : {CorrespondenceType::kPointToPoint,
+                            CorrespondenceType::kPointToPlane,
                             CorrespondenceType::kGicp}) {
         SlamConfig cfg = TestConfig();
         cfg.correspondence = type;
@@ -192,8 +195,8 @@ TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
         if (t >= 60.0 && t < 96.0) {
             // Drift that grows like dead reckoning with a velocity error (quadratic from the
             // start, then about linear).
-            const double f = std::min(1.0, 0.3 + 0.7 * (t - 60.0) / 36.0) *
-                             std::min(1.0, (t - 60.0) / 6.0);
+            const double f =
+                std::min(1.0, 0.3 + 0.7 * (t - 60.0) / 36.0) * std::min(1.0, (t - 60.0) / 6.0);
             leg[i] = true;
             s.T_world_vehicle.translation() += f * offset;
             s.pose_sigma.tail<3>().setConstant(std::max(0.02, 1.5 * f));
@@ -253,8 +256,8 @@ TEST(Slam, GnssRecoveryStartsShortSections) {
         const SlamSection& sec = r.sections[at + static_cast<std::size_t>(i)];
         EXPECT_NEAR(sec.t1_s - sec.t0_s + ping_s, expected[i], 0.21) << "section " << i;
     }
-    EXPECT_NEAR(r.sections.front().t1_s - r.sections.front().t0_s + ping_s,
-                cfg.section_length_s, 0.21);
+    EXPECT_NEAR(
+        r.sections.front().t1_s - r.sections.front().t0_s + ping_s, cfg.section_length_s, 0.21);
     // Every section is searched where the (recovery-smoothed) sigma is large, and only there.
     for (const SlamSection& sec : r.sections) {
         EXPECT_EQ(sec.searched, sec.sigma_h_m > cfg.coarse_search_min_sigma_m);
@@ -299,7 +302,9 @@ TEST(Slam, InvariantToInputOrder) {
         EXPECT_DOUBLE_EQ(a.trajectory[i].gps_time_s, b.trajectory[i].gps_time_s);
         EXPECT_EQ(perm[b.trajectory[i].input_index], a.trajectory[i].input_index);
         EXPECT_LT((a.trajectory[i].T_world_vehicle.translation() -
-                   b.trajectory[i].T_world_vehicle.translation()).norm(), 1e-4);
+                   b.trajectory[i].T_world_vehicle.translation())
+                      .norm(),
+                  1e-4);
     }
 }
 
@@ -314,7 +319,9 @@ TEST(Slam, ThreadCountChangesOnlyRounding) {
     ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
     for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
         EXPECT_LT((a.trajectory[i].T_world_vehicle.translation() -
-                   b.trajectory[i].T_world_vehicle.translation()).norm(), 1e-3);
+                   b.trajectory[i].T_world_vehicle.translation())
+                      .norm(),
+                  1e-3);
     }
 }
 

@@ -40,7 +40,9 @@ inline void PutF32(std::vector<std::uint8_t>& b, std::size_t off, float v, bool 
 
 // A ping with every field set to a distinct value that survives quantisation, B beams.
 // Float values have few significant bits so their byte-swapped reading is implausible.
-inline Ping83P MakePing(std::size_t num_beams, bool intensity, std::uint8_t version,
+inline Ping83P MakePing(std::size_t num_beams,
+                        bool intensity,
+                        std::uint8_t version,
                         std::uint32_t ping_number = 7) {
     Ping83P p;
     p.format_version = version;

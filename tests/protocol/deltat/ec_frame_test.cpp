@@ -182,13 +182,13 @@ TEST(EcFrame, CodeTables) {
 
 TEST(EcFrame, DecoderRejectsBadFrames) {
     const auto good = EncodeEcFrame(SampleFrame());
-    const auto expect_error = [](std::vector<std::uint8_t> b, DecodeErrorKind kind,
-                                 std::size_t offset) {
-        const auto d = DecodeEcFrame(b);
-        ASSERT_TRUE(std::holds_alternative<DecodeError>(d));
-        EXPECT_EQ(std::get<DecodeError>(d).kind, kind);
-        EXPECT_EQ(std::get<DecodeError>(d).offset, offset);
-    };
+    const auto expect_error =
+        [](std::vector<std::uint8_t> b, DecodeErrorKind kind, std::size_t offset) {
+            const auto d = DecodeEcFrame(b);
+            ASSERT_TRUE(std::holds_alternative<DecodeError>(d));
+            EXPECT_EQ(std::get<DecodeError>(d).kind, kind);
+            EXPECT_EQ(std::get<DecodeError>(d).offset, offset);
+        };
     auto b = good;
     b.pop_back();
     expect_error(b, DecodeErrorKind::kTruncated, 255);
@@ -198,9 +198,24 @@ TEST(EcFrame, DecoderRejectsBadFrames) {
     b = good;
     b[1] = 'X';
     expect_error(b, DecodeErrorKind::kBadMarker, 0);
-    const std::pair<std::size_t, std::uint8_t> bad_values[] = {
-        {3, 2},  {4, 7},  {7, 1},  {7, 15},   {10, 2}, {11, 4}, {12, 4}, {13, 3}, {14, 11},
-        {19, 5}, {20, 3}, {21, 2}, {23, 101}, {24, 2}, {26, 2}, {28, 2}, {29, 2}, {34, 3}};
+    const std::pair<std::size_t, std::uint8_t> bad_values[] = {{3, 2},
+                                                               {4, 7},
+                                                               {7, 1},
+                                                               {7, 15},
+                                                               {10, 2},
+                                                               {11, 4},
+                                                               {12, 4},
+                                                               {13, 3},
+                                                               {14, 11},
+                                                               {19, 5},
+                                                               {20, 3},
+                                                               {21, 2},
+                                                               {23, 101},
+                                                               {24, 2},
+                                                               {26, 2},
+                                                               {28, 2},
+                                                               {29, 2},
+                                                               {34, 3}};
     for (const auto& [offset, value] : bad_values) {
         b = good;
         b[offset] = value;

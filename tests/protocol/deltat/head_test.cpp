@@ -216,7 +216,8 @@ struct Outcome {
     std::vector<Skipped> skipped;
 };
 
-Outcome FeedHead(const Bytes& stream, const std::vector<std::size_t>& cuts,
+Outcome FeedHead(const Bytes& stream,
+                 const std::vector<std::size_t>& cuts,
                  std::uint8_t head_id = kDefaultHeadId) {
     HeadReplyFramer framer(head_id);
     std::vector<Event> events;

@@ -303,8 +303,8 @@ TEST(Record83P, NavStringsInRecord) {
 }
 
 TEST(Record83P, MonthParsing) {
-    const char* months[] = {"JAN", "FEB", "MAR", "APR", "MAY", "JUN",
-                            "JUL", "AUG", "SEP", "OCT", "NOV", "DEC"};
+    const char* months[] = {
+        "JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC"};
     for (int m = 0; m < 12; ++m) {
         const std::string date = std::string("01-") + months[m] + "-2023";
         const auto t = ParseHeaderClock(date, "00:00:00", ".00");
@@ -483,7 +483,9 @@ std::string RoundTripName(const ::testing::TestParamInfo<RoundTripCase>& param) 
            std::to_string(c.version) + (c.order == FloatOrder::kBig ? "_be" : "_le");
 }
 
-INSTANTIATE_TEST_SUITE_P(AllLayouts, RoundTrip, ::testing::ValuesIn(AllRoundTripCases()),
+INSTANTIATE_TEST_SUITE_P(AllLayouts,
+                         RoundTrip,
+                         ::testing::ValuesIn(AllRoundTripCases()),
                          RoundTripName);
 
 TEST(Record83P, Collision1216Bytes) {

@@ -24,14 +24,19 @@ using test_util::PutU16Be;
 
 using Bytes = std::vector<std::uint8_t>;
 
-void Append(Bytes& out, const Bytes& more) { out.insert(out.end(), more.begin(), more.end()); }
-void Append(Bytes& out, std::string_view text) { out.insert(out.end(), text.begin(), text.end()); }
+void Append(Bytes& out, const Bytes& more) {
+    out.insert(out.end(), more.begin(), more.end());
+}
+void Append(Bytes& out, std::string_view text) {
+    out.insert(out.end(), text.begin(), text.end());
+}
 
 // Four records of every size class: 2176 (480 + intensity), 496 (120), 256 (comment),
 // 736 (240, v1.00).
 std::vector<Bytes> SampleRecords() {
     return {EncodeRecord83P(MakePing(480, true, 10, 1)),
-            EncodeRecord83P(MakePing(120, false, 10, 2)), EncodeComment83P("mbcopy comment"),
+            EncodeRecord83P(MakePing(120, false, 10, 2)),
+            EncodeComment83P("mbcopy comment"),
             EncodeRecord83P(MakePing(240, false, 0, 3))};
 }
 
@@ -50,7 +55,8 @@ struct Outcome {
 
 // Feeds `stream` in chunks cut at `cuts` (sorted offsets), drains after each push; at the cuts
 // listed in `pauses` the input stops long enough for Expire(); flushes at the end.
-Outcome FeedStream(const Bytes& stream, const std::vector<std::size_t>& cuts,
+Outcome FeedStream(const Bytes& stream,
+                   const std::vector<std::size_t>& cuts,
                    const std::vector<std::size_t>& pauses = {}) {
     StreamFramer framer;
     std::vector<Event> events;

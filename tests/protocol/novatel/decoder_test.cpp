@@ -49,10 +49,10 @@ std::vector<T> All(const std::vector<DecodeResult>& results) {
 }
 
 TEST(NovatelDecoder, TimeBWorkedExample) {
-    const auto r = DecodeOne(FromHex(
-        "aa44121c 65000040 2c000000 a2b41608 60a65e0e 20400002 24990080"
-        "00000000 3fdc41c9af91123e 52580931837b133e ce550a00000032c0"
-        "e3070000 09 0a 12 39 b0b30000 01000000 46ed42b9"));
+    const auto r =
+        DecodeOne(FromHex("aa44121c 65000040 2c000000 a2b41608 60a65e0e 20400002 24990080"
+                          "00000000 3fdc41c9af91123e 52580931837b133e ce550a00000032c0"
+                          "e3070000 09 0a 12 39 b0b30000 01000000 46ed42b9"));
     ASSERT_TRUE(std::holds_alternative<Time>(r));
     const auto& t = std::get<Time>(r);
     EXPECT_EQ(t.header.kind, HeaderKind::kLongBinary);
@@ -292,8 +292,8 @@ TEST(NovatelDecoder, RawImuAxisOrderAndScale) {
     EXPECT_DOUBLE_EQ(scale->nominal_rate_hz, 125.0);
     const auto inc = ScaleRawImu(m, *scale, 125.0);
     EXPECT_DOUBLE_EQ(inc.delta_velocity_mps[0], 300.0 * std::ldexp(1.0, -22));
-    EXPECT_NEAR(inc.angular_rate_radps[2], -400.0 * std::ldexp(1.0, -21) * M_PI / 180.0 * 125.0,
-                1e-15);
+    EXPECT_NEAR(
+        inc.angular_rate_radps[2], -400.0 * std::ldexp(1.0, -21) * M_PI / 180.0 * 125.0, 1e-15);
     EXPECT_FALSE(ImuScaleFor(9999).has_value());
     // HG1700-AG58: ft/s counts.
     EXPECT_DOUBLE_EQ(ImuScaleFor(11)->accel_mps_per_count, std::ldexp(1.0, -27) * 0.3048);
@@ -335,10 +335,11 @@ TEST(NovatelDecoder, TextFrames) {
 }
 
 TEST(NovatelDecoder, AsciiShortHeaderAndBadFields) {
-    const auto r = DecodeOne(AsciiLine(
-        '%', "INSPVASA,2209,490712.000;2209,490712.002135700,51.116680071,-114.037929194,"
-             "515.286704183,277.896368884,84.915188605,-8.488207941,0.759619515,-2.892414901,"
-             "6.179554750,INS_SOLUTION_GOOD"));
+    const auto r = DecodeOne(
+        AsciiLine('%',
+                  "INSPVASA,2209,490712.000;2209,490712.002135700,51.116680071,-114.037929194,"
+                  "515.286704183,277.896368884,84.915188605,-8.488207941,0.759619515,-2.892414901,"
+                  "6.179554750,INS_SOLUTION_GOOD"));
     ASSERT_TRUE(std::holds_alternative<InsPva>(r));
     const auto& m = std::get<InsPva>(r);
     EXPECT_EQ(m.header.kind, HeaderKind::kShortAscii);
@@ -348,14 +349,16 @@ TEST(NovatelDecoder, AsciiShortHeaderAndBadFields) {
     EXPECT_DOUBLE_EQ(m.azimuth_deg, 6.179554750);
     EXPECT_EQ(m.ins_status, InsStatus::kSolutionGood);
 
-    const auto bad = DecodeOne(AsciiLine(
-        '#', "BESTVELA,COM1,0,62.5,FINESTEERING,1687,419959.000,00000000,827b,3153;"
-             "SOL_COMPUTED,DOPPLER_VELOCITY,0.150,abc,0.0239,19.451947,-0.0290,0.0"));
+    const auto bad = DecodeOne(
+        AsciiLine('#',
+                  "BESTVELA,COM1,0,62.5,FINESTEERING,1687,419959.000,00000000,827b,3153;"
+                  "SOL_COMPUTED,DOPPLER_VELOCITY,0.150,abc,0.0239,19.451947,-0.0290,0.0"));
     ASSERT_TRUE(std::holds_alternative<DecodeError>(bad));
     EXPECT_EQ(std::get<DecodeError>(bad).kind, DecodeErrorKind::kBadField);
-    const auto missing = DecodeOne(AsciiLine(
-        '#', "BESTVELA,COM1,0,62.5,FINESTEERING,1687,419959.000,00000000,827b,3153;"
-             "SOL_COMPUTED,DOPPLER_VELOCITY,0.150"));
+    const auto missing =
+        DecodeOne(AsciiLine('#',
+                            "BESTVELA,COM1,0,62.5,FINESTEERING,1687,419959.000,00000000,827b,3153;"
+                            "SOL_COMPUTED,DOPPLER_VELOCITY,0.150"));
     ASSERT_TRUE(std::holds_alternative<DecodeError>(missing));
     const auto bad_header = DecodeOne(AsciiLine('#', "BESTVELA,COM1,x;SOL_COMPUTED"));
     ASSERT_TRUE(std::holds_alternative<DecodeError>(bad_header));

@@ -57,7 +57,7 @@ void ExpectBinaryRoundTrip(const M& m) {
     ASSERT_TRUE(EncodeBinary(m, out));
     out.erase(out.begin());
     const FrameKind kind = m.header.kind == HeaderKind::kShortBinary ? FrameKind::kShortBinary
-                                                                      : FrameKind::kLongBinary;
+                                                                     : FrameKind::kLongBinary;
     const auto r = FrameAndDecode(out, kind);
     ASSERT_TRUE(std::holds_alternative<M>(r)) << r.index();
     EXPECT_EQ(std::get<M>(r), m);
@@ -445,9 +445,14 @@ TEST(NovatelEncoder, RealAsciiLinesAreFixedPoints) {
 }
 
 TEST(NovatelEncoder, RealBinaryCapturesReencode) {
-    const char* files[] = {"oem7drv_align.gps",    "oem7drv_bestpos.gps",  "oem7drv_ins1.gps",
-                           "oem7drv_ins2.gps",     "oem7drv_rxstatus.gps", "oem7drv_time.gps",
-                           "gavlab_OneEach.GPS",   "gavlab_ParsingData.GPS"};
+    const char* files[] = {"oem7drv_align.gps",
+                           "oem7drv_bestpos.gps",
+                           "oem7drv_ins1.gps",
+                           "oem7drv_ins2.gps",
+                           "oem7drv_rxstatus.gps",
+                           "oem7drv_time.gps",
+                           "gavlab_OneEach.GPS",
+                           "gavlab_ParsingData.GPS"};
     int identical = 0;
     int reencoded = 0;
     for (const char* name : files) {

@@ -45,14 +45,22 @@ Bytes Concat(std::initializer_list<Bytes> parts) {
 Bytes MixedStream() {
     Bytes body(40);
     for (std::size_t i = 0; i < body.size(); ++i) body[i] = static_cast<std::uint8_t>(i * 7);
-    return Concat({kTimeB, FromText("\r\n<OK\r\n[COM1]"), ShortFrame(508, body),
-                   FromText(kBestPosA), AsciiLine('%', "INSPVASA,2209,490712.000;1,2,3"),
+    return Concat({kTimeB,
+                   FromText("\r\n<OK\r\n[COM1]"),
+                   ShortFrame(508, body),
+                   FromText(kBestPosA),
+                   AsciiLine('%', "INSPVASA,2209,490712.000;1,2,3"),
                    FromText("$GPGGA,1*4B\r\n"),
-                   LongFrame(0x1234, body, 0, 0x45), FromText("<ERROR:Invalid Message\r\n"),
-                   kLogResponse, FromText("[ICOM1]"), kTimeB});
+                   LongFrame(0x1234, body, 0, 0x45),
+                   FromText("<ERROR:Invalid Message\r\n"),
+                   kLogResponse,
+                   FromText("[ICOM1]"),
+                   kTimeB});
 }
 
-TEST(NovatelCrc, CheckValue) { EXPECT_EQ(Crc32(FromText("123456789")), 0x2DFD2D88u); }
+TEST(NovatelCrc, CheckValue) {
+    EXPECT_EQ(Crc32(FromText("123456789")), 0x2DFD2D88u);
+}
 
 TEST(NovatelCrc, SpecVectors) {
     ASSERT_EQ(kTimeB.size(), 76u);
@@ -150,11 +158,18 @@ TEST(NovatelFramer, ExpireGivesUpAFalseSyncWithAFrameBehind) {
 TEST(NovatelFramer, EveryFrameKind) {
     const Bytes stream = MixedStream();
     const auto ev = FrameAll(stream);
-    const std::vector<FrameKind> kinds = {
-        FrameKind::kLongBinary,  FrameKind::kAbbreviated, FrameKind::kPrompt,
-        FrameKind::kShortBinary, FrameKind::kAscii,       FrameKind::kShortAscii,
-        FrameKind::kNmea,        FrameKind::kProprietary, FrameKind::kAbbreviated,
-        FrameKind::kLongBinary,  FrameKind::kPrompt,      FrameKind::kLongBinary};
+    const std::vector<FrameKind> kinds = {FrameKind::kLongBinary,
+                                          FrameKind::kAbbreviated,
+                                          FrameKind::kPrompt,
+                                          FrameKind::kShortBinary,
+                                          FrameKind::kAscii,
+                                          FrameKind::kShortAscii,
+                                          FrameKind::kNmea,
+                                          FrameKind::kProprietary,
+                                          FrameKind::kAbbreviated,
+                                          FrameKind::kLongBinary,
+                                          FrameKind::kPrompt,
+                                          FrameKind::kLongBinary};
     ASSERT_EQ(ev.frames.size(), kinds.size());
     for (std::size_t i = 0; i < kinds.size(); ++i) EXPECT_EQ(ev.frames[i].kind, kinds[i]) << i;
     EXPECT_EQ(ev.frames[3].message_id, 508);
@@ -292,8 +307,8 @@ TEST(NovatelFramer, TruncatedEndOfStream) {
 
 TEST(NovatelFramer, TextNeverSwallowsBinarySync) {
     // A '#' "line" that runs into a binary frame (§9 item 1).
-    const auto ev = FrameAll(Concat({FromText("#BESTPOSA,COM1,0"), kTimeB, FromText("<OK"),
-                                      kTimeB, FromText("[COM"), kTimeB}));
+    const auto ev = FrameAll(Concat(
+        {FromText("#BESTPOSA,COM1,0"), kTimeB, FromText("<OK"), kTimeB, FromText("[COM"), kTimeB}));
     ASSERT_EQ(ev.frames.size(), 3u);
     for (const auto& f : ev.frames) EXPECT_EQ(f.kind, FrameKind::kLongBinary);
     EXPECT_EQ(ev.counters.Bytes(SkipReason::kGarbage), 16u + 3u + 4u);

@@ -53,27 +53,38 @@ TEST(NovatelCaptures, Oem7Driver) {
 
     r = FrameFile("oem7drv_bestpos.gps");
     ExpectClean(r);
-    EXPECT_EQ(r.counts, (Counts{{{kL, 42}, 5}, {{kL, 99}, 5}, {{kL, 726}, 2}, {{kL, 1163}, 2},
-                                {{kL, 1465}, 2}, {{kS, 508}, 10}, {{kAbbrev, -1}, 8},
-                                {{kPrompt, -1}, 8}}));
+    EXPECT_EQ(r.counts,
+              (Counts{{{kL, 42}, 5},
+                      {{kL, 99}, 5},
+                      {{kL, 726}, 2},
+                      {{kL, 1163}, 2},
+                      {{kL, 1465}, 2},
+                      {{kS, 508}, 10},
+                      {{kAbbrev, -1}, 8},
+                      {{kPrompt, -1}, 8}}));
     // Only the CR LF before each "<OK" is outside a frame.
     EXPECT_EQ(r.events.counters.Bytes(SkipReason::kGarbage), 16u);
 
     r = FrameFile("oem7drv_ins1.gps");
     ExpectClean(r);
-    EXPECT_EQ(r.counts, (Counts{{{kS, 508}, 243}, {{kS, 2264}, 10}, {{kL, 2051}, 29},
-                                {{kL, 1945}, 2}}));
+    EXPECT_EQ(r.counts,
+              (Counts{{{kS, 508}, 243}, {{kS, 2264}, 10}, {{kL, 2051}, 29}, {{kL, 1945}, 2}}));
     EXPECT_EQ(r.events.counters.TotalBytes(), 0u);
 
     r = FrameFile("oem7drv_ins2.gps");
     ExpectClean(r);
-    EXPECT_EQ(r.counts, (Counts{{{kS, 1362}, 766}, {{kS, 508}, 62}, {{kL, 1465}, 6},
-                                {{kL, 1945}, 1}}));
+    EXPECT_EQ(r.counts,
+              (Counts{{{kS, 1362}, 766}, {{kS, 508}, 62}, {{kL, 1465}, 6}, {{kL, 1945}, 1}}));
 
     r = FrameFile("oem7drv_ins2_humble.gps");
     ExpectClean(r);
-    EXPECT_EQ(r.counts, (Counts{{{kS, 1362}, 7}, {{kS, 508}, 4}, {{kL, 1465}, 4},
-                                {{kL, 1945}, 3}, {{kA, 94}, 3}, {{kPrompt, -1}, 1}}));
+    EXPECT_EQ(r.counts,
+              (Counts{{{kS, 1362}, 7},
+                      {{kS, 508}, 4},
+                      {{kL, 1465}, 4},
+                      {{kL, 1945}, 3},
+                      {{kA, 94}, 3},
+                      {{kPrompt, -1}, 1}}));
 
     r = FrameFile("oem7drv_rxstatus.gps");
     ExpectClean(r);
@@ -113,7 +124,8 @@ TEST(NovatelCaptures, GavlabOneEachAndParsingData) {
 }
 
 TEST(NovatelCaptures, GavlabTest2OneInjectedCrcFailure) {
-    for (const auto& chunks : {std::vector<std::size_t>{}, std::vector<std::size_t>{1448, 7, 513}}) {
+    for (const auto& chunks :
+         {std::vector<std::size_t>{}, std::vector<std::size_t>{1448, 7, 513}}) {
         auto r = FrameFile("gavlab_test2_rcvr1.dat", chunks);
         EXPECT_EQ(r.events.counters.Events(SkipReason::kBadCrc), 1u);
         EXPECT_EQ(r.events.counters.Bytes(SkipReason::kBadCrc), 1u);
@@ -141,9 +153,16 @@ TEST(NovatelCaptures, RtklibTruncatedTail) {
     const auto r = FrameFile("rtklib_oemv_200911218.gps", {4096});
     EXPECT_EQ(r.events.counters.Events(SkipReason::kBadCrc), 0u);
     EXPECT_EQ(r.decode_errors, 0);
-    EXPECT_EQ(r.counts, (Counts{{{kL, 41}, 25}, {{kL, 42}, 49}, {{kL, 48}, 49}, {{kL, 83}, 50},
-                                {{kL, 140}, 46}, {{kL, 287}, 90}, {{kL, 723}, 8},
-                                {{kAbbrev, -1}, 5}, {{kPrompt, -1}, 5}}));
+    EXPECT_EQ(r.counts,
+              (Counts{{{kL, 41}, 25},
+                      {{kL, 42}, 49},
+                      {{kL, 48}, 49},
+                      {{kL, 83}, 50},
+                      {{kL, 140}, 46},
+                      {{kL, 287}, 90},
+                      {{kL, 723}, 8},
+                      {{kAbbrev, -1}, 5},
+                      {{kPrompt, -1}, 5}}));
     ASSERT_FALSE(r.events.skips.empty());
     const Skipped& tail = r.events.skips.back();
     EXPECT_EQ(tail.reason, SkipReason::kTruncated);

@@ -55,7 +55,9 @@ inline Bytes FromHex(std::string_view hex) {
     return out;
 }
 
-inline Bytes FromText(std::string_view text) { return Bytes(text.begin(), text.end()); }
+inline Bytes FromText(std::string_view text) {
+    return Bytes(text.begin(), text.end());
+}
 
 inline void AppendCrc(Bytes& b) {
     const std::uint32_t crc = Crc32(b);
@@ -70,7 +72,9 @@ inline void StoreCrc(Bytes& b) {
 }
 
 // A long-header binary frame with the given id and body, CRC appended.
-inline Bytes LongFrame(std::uint16_t id, const Bytes& body, std::uint8_t message_type = 0,
+inline Bytes LongFrame(std::uint16_t id,
+                       const Bytes& body,
+                       std::uint8_t message_type = 0,
                        std::uint8_t sync1 = 0x44) {
     // Sized once: growing the vector trips a GCC 12 -Warray-bounds false positive.
     Bytes b(28 + body.size() + 4, 0);
@@ -164,12 +168,13 @@ inline void Drain(Framer& framer, Events& ev, std::uint64_t& next_offset) {
         next_offset = f.offset + f.bytes.size();
         ev.frame_bytes += f.bytes.size();
         ev.order.push_back(static_cast<long>(ev.frames.size()));
-        ev.frames.push_back({f.kind, f.message_id, Bytes(f.bytes.begin(), f.bytes.end()), f.offset});
+        ev.frames.push_back(
+            {f.kind, f.message_id, Bytes(f.bytes.begin(), f.bytes.end()), f.offset});
     }
 }
 
-// Frames `data` pushed in chunks of the given sizes (cycled), then flushes until empty. Checks that every
-// byte is accounted for exactly once.
+// Frames `data` pushed in chunks of the given sizes (cycled), then flushes until empty. Checks that
+// every byte is accounted for exactly once.
 inline Events FrameAll(const Bytes& data, const std::vector<std::size_t>& chunks = {}) {
     Framer framer;
     Events ev;

@@ -42,22 +42,28 @@ sim::Truth FlatTruth() {
     t.terrain.nx = t.terrain.ny = 101;
     t.terrain.height_m.assign(101 * 101, -10.0f);
     for (int k = 0; k <= 100; ++k) {
-        t.trajectory.push_back({1.4e9 + k, MakePose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(k - 50.0, 0, 0))});
+        t.trajectory.push_back(
+            {1.4e9 + k, MakePose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(k - 50.0, 0, 0))});
     }
     t.boresight = {0.5, 0.0, 1.0, {0.8, 0.0, 0.25}};
     return t;
 }
 
-void WritePlyAscii(const fs::path& p, const std::vector<Eigen::Vector3d>& v, const std::string& comment,
+void WritePlyAscii(const fs::path& p,
+                   const std::vector<Eigen::Vector3d>& v,
+                   const std::string& comment,
                    const std::vector<std::array<int, 4>>& quads = {}) {
     std::ofstream out(p);
     out << "ply\nformat ascii 1.0\n";
     if (!comment.empty()) out << "comment " << comment << "\n";
-    out << "element vertex " << v.size() << "\nproperty double x\nproperty double y\nproperty double z\n"
+    out << "element vertex " << v.size()
+        << "\nproperty double x\nproperty double y\nproperty double z\n"
         << "property uchar red\n";
-    out << "element face " << quads.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    out << "element face " << quads.size()
+        << "\nproperty list uchar int vertex_indices\nend_header\n";
     for (const auto& x : v) out << x.x() << " " << x.y() << " " << x.z() << " 7\n";
-    for (const auto& q : quads) out << "4 " << q[0] << " " << q[1] << " " << q[2] << " " << q[3] << "\n";
+    for (const auto& q : quads)
+        out << "4 " << q[0] << " " << q[1] << " " << q[2] << " " << q[3] << "\n";
 }
 
 TEST(Ply, ReadsBinaryLittleEndianWithMixedTypes) {
@@ -65,7 +71,8 @@ TEST(Ply, ReadsBinaryLittleEndianWithMixedTypes) {
     {
         std::ofstream out(p, std::ios::binary);
         out << "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin 1 2 3\n"
-               "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty double t\n"
+               "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty "
+               "double t\n"
                "element face 1\nproperty list uchar uint vertex_indices\nend_header\n";
         const float xyz[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 2, -1.5f}};
         for (const auto& v : xyz) {
@@ -218,7 +225,8 @@ TEST(Scores, BoresightAngle) {
 
 TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
     const sim::Truth truth = FlatTruth();
-    ASSERT_TRUE(sim::WriteTruth((dir_ / "truth").string(), *sim::BuiltinScenario("demo"), truth).ok());
+    ASSERT_TRUE(
+        sim::WriteTruth((dir_ / "truth").string(), *sim::BuiltinScenario("demo"), truth).ok());
     const double shift = 0.25;  // metres up
     for (const double dz : {0.0, shift}) {
         // Trajectory: the truth, shifted.
@@ -228,7 +236,8 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
             csv.precision(12);
             for (const auto& p : truth.trajectory) {
                 const Eigen::Vector3d t = p.T_world_vehicle.translation();
-                csv << p.gps_time_s << "," << t.x() << "," << t.y() << "," << t.z() + dz << ",0,0,0\n";
+                csv << p.gps_time_s << "," << t.x() << "," << t.y() << "," << t.z() + dz
+                    << ",0,0,0\n";
             }
         }
         // Points on the floor, shifted; a 2 x 2 quad mesh likewise.
@@ -236,14 +245,16 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
         for (int i = 0; i < 50; ++i) pts.emplace_back(i - 25.0, 0.5 * i - 12, -10.0 + dz);
         WritePlyAscii(dir_ / "products" / "points.ply", pts, "pitmap_origin 40.4435 -7.7806 412.0");
         WritePlyAscii(dir_ / "products" / "mesh.ply",
-                      {{-5, -5, -10 + dz}, {5, -5, -10 + dz}, {5, 5, -10 + dz}, {-5, 5, -10 + dz}}, "",
+                      {{-5, -5, -10 + dz}, {5, -5, -10 + dz}, {5, 5, -10 + dz}, {-5, 5, -10 + dz}},
+                      "",
                       {{0, 1, 2, 3}});
         std::ofstream(dir_ / "products" / "boresight.json")
             << "{\"roll_deg\": 0.5, \"pitch_deg\": 0.0, \"yaw_deg\": " << (1.0 + dz) << "}\n";
         const fs::path json_path = dir_ / "scores.json";
         const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" +
-                                (dir_ / "truth").string() + "' --products '" + (dir_ / "products").string() +
-                                "' --json '" + json_path.string() + "' > /dev/null";
+                                (dir_ / "truth").string() + "' --products '" +
+                                (dir_ / "products").string() + "' --json '" + json_path.string() +
+                                "' > /dev/null";
         ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
         std::ifstream in(json_path);
         const auto j = nlohmann::json::parse(in);
@@ -256,7 +267,7 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
 }
 
 TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
-    sim::Truth truth = FlatTruth();  // 1 m cells, floor at z = -10
+    sim::Truth truth = FlatTruth();                         // 1 m cells, floor at z = -10
     EXPECT_FALSE(MeshCompleteness({}, truth).has_value());  // no coverage mask
     truth.coverage.assign(truth.terrain.height_m.size(), 0);
     int covered = 0;
@@ -283,8 +294,9 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
 }
 
 TEST_F(Eval, MissingTruthIsAClearError) {
-    const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" + (dir_ / "nothing").string() +
-                            "' --products '" + (dir_ / "products").string() + "' 2>/dev/null";
+    const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" +
+                            (dir_ / "nothing").string() + "' --products '" +
+                            (dir_ / "products").string() + "' 2>/dev/null";
     EXPECT_EQ(WEXITSTATUS(std::system(cmd.c_str())), 2);
 }
 

@@ -5,8 +5,8 @@
 #include "tools/inspect/inspect.hpp"
 
 #include <gtest/gtest.h>
-#include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
+#include <lcm/lcm-cpp.hpp>
 
 #include <cstdio>
 #include <filesystem>
@@ -29,7 +29,9 @@ namespace deltat = protocol::deltat;
 
 const fs::path kNovatelDir = fs::path(PITMAP_TEST_DATA_DIR) / "novatel";
 
-std::vector<std::uint8_t> Text(const std::string& s) { return {s.begin(), s.end()}; }
+std::vector<std::uint8_t> Text(const std::string& s) {
+    return {s.begin(), s.end()};
+}
 
 std::vector<std::uint8_t> ReadBytes(const fs::path& path) {
     auto bytes = capture::ReadFileBytes(path.string());
@@ -69,8 +71,10 @@ deltat::Ping83P MakePing(std::int64_t utime, std::uint32_t ping_number) {
 // ---- Detection -----------------------------------------------------------------------------
 
 TEST(DetectFormatTest, MagicNumbersAndMarkers) {
-    const auto check = [](const std::vector<std::uint8_t>& bytes, const std::string& name,
-                          InputFormat format, Protocol protocol) {
+    const auto check = [](const std::vector<std::uint8_t>& bytes,
+                          const std::string& name,
+                          InputFormat format,
+                          Protocol protocol) {
         const auto d = DetectFormat(bytes, name);
         ASSERT_TRUE(d.ok()) << name << ": " << d.error().message;
         EXPECT_EQ(d->format, format) << name;
@@ -87,15 +91,16 @@ TEST(DetectFormatTest, MagicNumbersAndMarkers) {
     check(Text("anything"), "survey.83p", InputFormat::kRaw, Protocol::kDeltaT);
     check({0x00, 0x01, 0xAA, 0x44, 0x12, 0x1C}, "x.bin", InputFormat::kRaw, Protocol::kNovatel);
     check({0xAA, 0x44, 0x13, 0x58}, "x.bin", InputFormat::kRaw, Protocol::kNovatel);
-    check(Text("junk #BESTPOSA,COM1,0,83.5,FINE"), "x.asc", InputFormat::kRaw,
-          Protocol::kNovatel);
+    check(Text("junk #BESTPOSA,COM1,0,83.5,FINE"), "x.asc", InputFormat::kRaw, Protocol::kNovatel);
     check(Text("\r\n<OK\r\n[COM1]"), "x.txt", InputFormat::kRaw, Protocol::kNovatel);
     // The real files are detected too.
     for (const char* name :
          {"oem7drv_bestpos.gps", "gavlab_OneEach.ASC", "gavlab_test2_rcvr1.dat"}) {
         check(ReadBytes(kNovatelDir / name), name, InputFormat::kRaw, Protocol::kNovatel);
     }
-    check(ReadBytes(kNovatelDir / "spandrv_propak6-basic-fix.pcap.gz"), "gz", InputFormat::kPcap,
+    check(ReadBytes(kNovatelDir / "spandrv_propak6-basic-fix.pcap.gz"),
+          "gz",
+          InputFormat::kPcap,
           Protocol::kAuto);
 }
 
@@ -283,7 +288,9 @@ TEST(InspectFileTest, UdpDatagramsOf83pRecords) {
 
 // ---- LCM logs ------------------------------------------------------------------------------
 
-void WriteEvent(lcm::LogFile& log, std::int64_t utime, const std::string& channel,
+void WriteEvent(lcm::LogFile& log,
+                std::int64_t utime,
+                const std::string& channel,
                 const std::vector<std::uint8_t>& data) {
     lcm::LogEvent ev{};
     ev.timestamp = utime;
@@ -300,8 +307,11 @@ std::vector<std::uint8_t> Encode(const Msg& m) {
     return buf;
 }
 
-pitmap::raw_bytes_t Raw(const std::string& source, const std::string& protocol_name,
-                        std::int8_t transport, std::int64_t seq, const std::uint8_t* data,
+pitmap::raw_bytes_t Raw(const std::string& source,
+                        const std::string& protocol_name,
+                        std::int8_t transport,
+                        std::int64_t seq,
+                        const std::uint8_t* data,
                         std::size_t n) {
     pitmap::raw_bytes_t raw{};
     raw.utime = 1'700'000'000'000'000 + seq;
@@ -325,27 +335,45 @@ TEST(InspectFileTest, LcmLogFramesRawChannelsOnceAndCountsTheOthers) {
         for (std::size_t off = 0; off < novatel.size(); off += 333) {
             if (seq == 5) ++seq;
             const std::size_t n = std::min<std::size_t>(333, novatel.size() - off);
-            WriteEvent(log, 1000 + seq, "RAW_NOVATEL_COM1",
-                       Encode(Raw("novatel_com1", "novatel", pitmap::raw_bytes_t::TRANSPORT_SERIAL,
-                                  seq, novatel.data() + off, n)));
+            WriteEvent(log,
+                       1000 + seq,
+                       "RAW_NOVATEL_COM1",
+                       Encode(Raw("novatel_com1",
+                                  "novatel",
+                                  pitmap::raw_bytes_t::TRANSPORT_SERIAL,
+                                  seq,
+                                  novatel.data() + off,
+                                  n)));
             ++seq;
         }
         // Two sonar datagrams.
         for (std::int64_t i = 0; i < 2; ++i) {
             const auto rec = deltat::EncodeRecord83P(MakePing(1'700'000'000'000'000 + i, 0));
-            WriteEvent(log, 2000 + i, "RAW_DELTAT_UDP",
-                       Encode(Raw("deltat_udp", "deltat_83p", pitmap::raw_bytes_t::TRANSPORT_UDP,
-                                  i, rec.data(), rec.size())));
+            WriteEvent(log,
+                       2000 + i,
+                       "RAW_DELTAT_UDP",
+                       Encode(Raw("deltat_udp",
+                                  "deltat_83p",
+                                  pitmap::raw_bytes_t::TRANSPORT_UDP,
+                                  i,
+                                  rec.data(),
+                                  rec.size())));
         }
         // A protocol without a framer here.
         const std::vector<std::uint8_t> head = {0xFE, 0x44, 0x01};
-        WriteEvent(log, 2500, "RAW_DELTAT_HEAD",
-                   Encode(Raw("deltat_head", "deltat_head", pitmap::raw_bytes_t::TRANSPORT_TCP, 0,
-                              head.data(), head.size())));
+        WriteEvent(log,
+                   2500,
+                   "RAW_DELTAT_HEAD",
+                   Encode(Raw("deltat_head",
+                              "deltat_head",
+                              pitmap::raw_bytes_t::TRANSPORT_TCP,
+                              0,
+                              head.data(),
+                              head.size())));
         // Decoded messages and a foreign type.
         pitmap::gnss_position_t pos{};
-        for (int i = 0; i < 3; ++i) WriteEvent(log, 3000 + i, "GNSS_POSITION_NOVATEL_COM1",
-                                               Encode(pos));
+        for (int i = 0; i < 3; ++i)
+            WriteEvent(log, 3000 + i, "GNSS_POSITION_NOVATEL_COM1", Encode(pos));
         WriteEvent(log, 4000, "SOMETHING_ELSE", {1, 2, 3, 4, 5, 6, 7, 8, 9});
     }
 
@@ -384,9 +412,15 @@ TEST(InspectFileTest, TruncatedLcmLogKeepsTheCompleteEvents) {
     {
         lcm::LogFile log(tmp.path(), "w");
         for (std::int64_t i = 0; i < 6; ++i) {
-            WriteEvent(log, i, "RAW_NOVATEL",
-                       Encode(Raw("novatel", "novatel", pitmap::raw_bytes_t::TRANSPORT_SERIAL, i,
-                                  bytes.data() + i * 76, 76)));
+            WriteEvent(log,
+                       i,
+                       "RAW_NOVATEL",
+                       Encode(Raw("novatel",
+                                  "novatel",
+                                  pitmap::raw_bytes_t::TRANSPORT_SERIAL,
+                                  i,
+                                  bytes.data() + i * 76,
+                                  76)));
         }
     }
     auto full = ReadBytes(tmp.path());
@@ -408,9 +442,15 @@ TEST(InspectFileTest, DamagedLcmLogIsCountedNotFatal) {
     {
         lcm::LogFile log(tmp.path(), "w");
         for (std::int64_t i = 0; i < 6; ++i) {
-            WriteEvent(log, i, "RAW_NOVATEL",
-                       Encode(Raw("novatel", "novatel", pitmap::raw_bytes_t::TRANSPORT_SERIAL, i,
-                                  bytes.data() + i * 76, 76)));
+            WriteEvent(log,
+                       i,
+                       "RAW_NOVATEL",
+                       Encode(Raw("novatel",
+                                  "novatel",
+                                  pitmap::raw_bytes_t::TRANSPORT_SERIAL,
+                                  i,
+                                  bytes.data() + i * 76,
+                                  76)));
         }
     }
     auto full = ReadBytes(tmp.path());

@@ -20,7 +20,9 @@ TerrainGrid FlatGrid(double z) {
 }
 
 // Sonar 0.25 m below the surface, level, looking down.
-Pose LevelSonar() { return MakePose(frames::RotationWorldFromRpy(0, 0, 0), Eigen::Vector3d(0, 0, -0.25)); }
+Pose LevelSonar() {
+    return MakePose(frames::RotationWorldFromRpy(0, 0, 0), Eigen::Vector3d(0, 0, -0.25));
+}
 
 TEST(SonarModel, GeometryOnAFlatFloorWithoutNoise) {
     const PitWorld world(FlatGrid(-10.25));

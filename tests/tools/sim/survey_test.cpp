@@ -19,7 +19,8 @@ TEST(SurveyTrack, EveryScenarioTrackFloatsAndIsLongEnough) {
         ASSERT_TRUE(track.ok()) << name;
         EXPECT_GE(track->length_m(), sc.track.duration_s * sc.track.speed_mps) << name;
         double min_depth = 1e9;
-        for (const auto& p : track->points()) min_depth = std::min(min_depth, world.Depth(p.x(), p.y()));
+        for (const auto& p : track->points())
+            min_depth = std::min(min_depth, world.Depth(p.x(), p.y()));
         EXPECT_GT(min_depth, 1.0) << name << ": the boat would run aground";
     }
 }
@@ -30,7 +31,8 @@ TEST(SurveyTrack, HeadingIsSmooth) {
     ASSERT_TRUE(track.ok());
     double worst = 0;
     for (double s = 1; s < track->length_m() - 2; s += 0.5) {
-        worst = std::max(worst, std::abs(frames::WrapPi(track->HeadingAt(s + 0.5) - track->HeadingAt(s))));
+        worst = std::max(worst,
+                         std::abs(frames::WrapPi(track->HeadingAt(s + 0.5) - track->HeadingAt(s))));
     }
     // The twin hull pivots in tight turns (the sharpest is the U-turn where the pattern repeats),
     // but the track never kinks: over 0.5 m of travel the heading changes by less than 60 deg
@@ -48,12 +50,14 @@ TEST(TruthTrajectory, SpeedRatesAndDuration) {
         EXPECT_NEAR(v, sc.track.speed_mps, 0.15) << t;
         // Rates integrate to the pose change over 2 ms (error ~ angular acceleration * dt^2 / 2).
         const Pose later = truth.PoseAt(t + 0.002);
-        const Eigen::Matrix3d predicted = st.T_world_vehicle.linear() * ExpSO3(st.angular_rate_vehicle * 0.002);
+        const Eigen::Matrix3d predicted =
+            st.T_world_vehicle.linear() * ExpSO3(st.angular_rate_vehicle * 0.002);
         EXPECT_LT(RotationAngleBetween(predicted, later.linear()), 1e-5) << t;
         // Wave motion stays within its amplitudes.
         const auto rpy = frames::RpyFromRotationWorld(st.T_world_vehicle.linear());
         EXPECT_LE(std::abs(frames::RadToDeg(rpy.roll)), sc.track.roll_amplitude_deg + 1e-9);
-        EXPECT_LE(std::abs(st.T_world_vehicle.translation().z()), sc.track.heave_amplitude_m + 1e-9);
+        EXPECT_LE(std::abs(st.T_world_vehicle.translation().z()),
+                  sc.track.heave_amplitude_m + 1e-9);
     }
 }
 
@@ -82,8 +86,8 @@ TEST(NavErrorModel, OutageDriftsSeveralMetresThenRecovers) {
         EXPECT_FALSE(m.At(t).gnss_available);
         worst = std::max(worst, m.At(t).position_enu_m.norm());
     }
-    EXPECT_GT(worst, 1.5);   // several metres of drift...
-    EXPECT_LT(worst, 20.0);  // ...not kilometres
+    EXPECT_GT(worst, 1.5);                                    // several metres of drift...
+    EXPECT_LT(worst, 20.0);                                   // ...not kilometres
     EXPECT_GT(m.At(end - 1).position_stddev_enu_m.x(), 0.5);  // the INS admits it
     EXPECT_LT(m.At(end + 3 * sc.nav.recovery_time_s).position_enu_m.norm(), 0.2);
     // Same seed, same errors.

@@ -5,8 +5,8 @@
 #include "tools/sim/synth.hpp"
 
 #include <gtest/gtest.h>
-#include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
+#include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -30,13 +30,14 @@ namespace fs = std::filesystem;
 class Synth : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
-        dir_ = new fs::path(fs::path(::testing::TempDir()) / ("pitmap_synth_" + std::to_string(::getpid())));
+        dir_ = new fs::path(fs::path(::testing::TempDir()) /
+                            ("pitmap_synth_" + std::to_string(::getpid())));
         fs::remove_all(*dir_);
         scenario_ = new ScenarioConfig(*BuiltinScenario("demo"));
         scenario_->track.duration_s = 12.0;  // 120 pings
         SynthOptions opt;
         opt.out_dir = dir_->string();
-        opt.rotate_bytes = 1 << 20;          // force several log segments
+        opt.rotate_bytes = 1 << 20;  // force several log segments
         auto r = RunSynth(*scenario_, opt);
         ASSERT_TRUE(r.ok()) << r.error().message;
         result_ = new SynthResult(*r);
@@ -128,7 +129,9 @@ TEST_F(Synth, SoundingsLieOnTheTrueTerrainWithTheTruePoses) {
     const PitWorld world(truth->terrain);
     const auto& b = truth->boresight;
     const Pose T_vehicle_sonar = MakePose(
-        frames::RotationNedFromRpy(frames::DegToRad(b.roll_deg), frames::DegToRad(b.pitch_deg), frames::DegToRad(b.yaw_deg)),
+        frames::RotationNedFromRpy(frames::DegToRad(b.roll_deg),
+                                   frames::DegToRad(b.pitch_deg),
+                                   frames::DegToRad(b.yaw_deg)),
         Eigen::Vector3d(b.lever_arm_sonar_m[0], b.lever_arm_sonar_m[1], b.lever_arm_sonar_m[2]));
     std::vector<double> residuals;
     for (const auto& path : Logs()) {
@@ -137,15 +140,18 @@ TEST_F(Synth, SoundingsLieOnTheTrueTerrainWithTheTruePoses) {
             if (ev->channel != "MULTIBEAM_PING_DELTAT_UDP") continue;
             multibeam_ping_t ping;
             ASSERT_GT(ping.decode(ev->data, 0, ev->datalen), 0);
-            auto T_wv = InterpolateTruth(truth->trajectory, static_cast<double>(ping.utime_gps) * 1e-6);
+            auto T_wv =
+                InterpolateTruth(truth->trajectory, static_cast<double>(ping.utime_gps) * 1e-6);
             ASSERT_TRUE(T_wv.ok());
             const Pose T_ws = *T_wv * T_vehicle_sonar;
             for (int i = 0; i < ping.num_beams; ++i) {
                 const int c = ping.range_counts[static_cast<std::size_t>(i)];
                 if (c == 0) continue;
                 const double r = c * ping.range_resolution_m;
-                const double th = frames::DegToRad(ping.start_angle_deg + i * ping.angle_increment_deg);
-                const Eigen::Vector3d p = T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
+                const double th =
+                    frames::DegToRad(ping.start_angle_deg + i * ping.angle_increment_deg);
+                const Eigen::Vector3d p =
+                    T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
                 residuals.push_back(std::abs(world.SignedDistance(p)));
             }
         }

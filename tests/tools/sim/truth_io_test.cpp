@@ -3,9 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include "common/frames.hpp"
 
@@ -32,7 +32,8 @@ Truth SmallTruth() {
     t.terrain.resolution_m = 0.5;
     t.terrain.nx = 9;
     t.terrain.ny = 5;
-    for (int i = 0; i < 45; ++i) t.terrain.height_m.push_back(-10.0f - 0.125f * static_cast<float>(i));
+    for (int i = 0; i < 45; ++i)
+        t.terrain.height_m.push_back(-10.0f - 0.125f * static_cast<float>(i));
     for (int k = 0; k < 4; ++k) {
         TruthPose p;
         p.gps_time_s = 1.4e9 + 0.1 * k;
@@ -55,7 +56,8 @@ TEST_F(TruthIo, RoundTrip) {
     ASSERT_EQ(back->trajectory.size(), 4u);
     for (std::size_t k = 0; k < 4; ++k) {
         EXPECT_NEAR(back->trajectory[k].gps_time_s, t.trajectory[k].gps_time_s, 1e-6);
-        EXPECT_TRUE(back->trajectory[k].T_world_vehicle.isApprox(t.trajectory[k].T_world_vehicle, 1e-4));
+        EXPECT_TRUE(
+            back->trajectory[k].T_world_vehicle.isApprox(t.trajectory[k].T_world_vehicle, 1e-4));
     }
     EXPECT_DOUBLE_EQ(back->boresight.yaw_deg, 1.0);
     // A world built from the read grid answers like the original.

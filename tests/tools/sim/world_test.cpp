@@ -54,7 +54,8 @@ TEST(PitWorld, BejancaShapeMatchesTheScenario) {
     // Centre: the backfilled floor, within its mound amplitude.
     EXPECT_NEAR(world.Depth(0, 0), pit.floor_depth_m, pit.backfill_amplitude_m + 0.5);
     double deepest = 0;
-    for (const float h : world.grid().height_m) deepest = std::max(deepest, -static_cast<double>(h));
+    for (const float h : world.grid().height_m)
+        deepest = std::max(deepest, -static_cast<double>(h));
     EXPECT_LE(deepest, pit.max_depth_m + 1e-6);
     EXPECT_GT(deepest, pit.floor_depth_m);
     // Benches: walking in from the shore, depth rises in steps: some flat-ish treads exist.
@@ -83,8 +84,8 @@ TEST(PitWorld, RayCastOnAFlatFloor) {
     r = world.RayCast(o, Eigen::Vector3d(std::sin(a), 0, -std::cos(a)), 100.0);
     ASSERT_TRUE(r);
     EXPECT_NEAR(*r, 9.75 / std::cos(a), 1e-4);
-    EXPECT_FALSE(world.RayCast(o, Eigen::Vector3d(0, 0, -1), 5.0));      // out of range
-    EXPECT_FALSE(world.RayCast(o, Eigen::Vector3d(1, 0, 0), 100.0));     // horizontal: never
+    EXPECT_FALSE(world.RayCast(o, Eigen::Vector3d(0, 0, -1), 5.0));             // out of range
+    EXPECT_FALSE(world.RayCast(o, Eigen::Vector3d(1, 0, 0), 100.0));            // horizontal: never
     EXPECT_FALSE(world.RayCast({0, 0, -20}, Eigen::Vector3d(0, 0, 1), 100.0));  // starts below
 }
 
@@ -120,7 +121,8 @@ TEST(PitWorld, SignedDistanceOnAFlatFloorAndAWall) {
     TerrainGrid g = FlatGrid(0.0, 40, 0.5);
     for (int iy = 0; iy < g.ny; ++iy)
         for (int ix = 0; ix < g.nx; ++ix)
-            g.height_m[static_cast<std::size_t>(iy * g.nx + ix)] = static_cast<float>(g.x0_m + ix * g.resolution_m - 20.0);
+            g.height_m[static_cast<std::size_t>(iy * g.nx + ix)] =
+                static_cast<float>(g.x0_m + ix * g.resolution_m - 20.0);
     const PitWorld slope(g);
     EXPECT_NEAR(slope.SignedDistance({0, 0, 0}), 20.0 / std::sqrt(2.0), 1e-6);
     EXPECT_NEAR(slope.Normal(1, 1).dot(Eigen::Vector3d(-1, 0, 1).normalized()), 1.0, 1e-9);
@@ -136,7 +138,8 @@ TEST(PitWorld, SignedDistanceNearBenchEdgesMatchesBruteForce) {
         double best = 1e9;
         for (double dx = -1.0; dx <= 1.0; dx += 0.01)
             for (double dy = -0.5; dy <= 0.5; dy += 0.05) {
-                const Eigen::Vector3d q(p.x() + dx, p.y() + dy, world.Height(p.x() + dx, p.y() + dy));
+                const Eigen::Vector3d q(
+                    p.x() + dx, p.y() + dy, world.Height(p.x() + dx, p.y() + dy));
                 best = std::min(best, (p - q).norm());
             }
         EXPECT_NEAR(world.SignedDistance(p), best, 0.02) << x;
