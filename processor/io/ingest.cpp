@@ -773,6 +773,17 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
     r.counts.files_skipped += static_cast<std::int64_t>(skipped.size());
     r.warnings.insert(r.warnings.end(), skipped.begin(), skipped.end());
     Finish(r);
+    // Damage is not only counted in the summary: the run says so where it is read.
+    const IngestCounts& c = r.counts;
+    if (c.corrupt_events + c.length_repairs + c.truncated_events + c.decode_failures > 0 ||
+        c.resync_bytes > 0) {
+        r.warnings.push_back(
+            "damaged input: " + std::to_string(c.corrupt_events) + " corrupt event headers, " +
+            std::to_string(c.resync_bytes) + " bytes skipped to resynchronise, " +
+            std::to_string(c.length_repairs) + " event lengths repaired, " +
+            std::to_string(c.truncated_events) + " events cut at a file end, " +
+            std::to_string(c.decode_failures) + " events that do not decode (skipped)");
+    }
     return r;
 }
 

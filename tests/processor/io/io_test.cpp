@@ -137,6 +137,13 @@ TEST(Ingest, EmptySegmentsAreSkippedWithAWarning) {
     EXPECT_NE(r->warnings[0].find("seg-001.lcmlog"), std::string::npos);
     EXPECT_EQ(r->counts.pings, 10);
     // Nothing readable at all is still an error, naming the file.
+    // A clean log says nothing more; a damaged one says so.
+    auto damaged_log = log;
+    damaged_log[30] ^= 0x5A;  // inside the first event's channel name
+    auto damaged = IngestFiles({WriteFile("seg-damaged.lcmlog", damaged_log)}, IngestConfig{});
+    ASSERT_TRUE(damaged.ok()) << damaged.error().message;
+    ASSERT_FALSE(damaged->warnings.empty());
+    EXPECT_NE(damaged->warnings.back().find("damaged input"), std::string::npos);
     auto none = IngestFiles({empty}, IngestConfig{});
     ASSERT_FALSE(none.ok());
     EXPECT_NE(none.error().message.find("seg-001.lcmlog"), std::string::npos);
