@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "lcmtypes/log/lcm_wire.hpp"
 
+#include <array>
 #include <cctype>
 #include <stdexcept>
 
@@ -97,6 +98,30 @@ void ParseMember(const std::string& decl, Struct& s) {
     }
 }
 
+// Points every variable dimension at the member holding its size, which must be an earlier
+// integer scalar of the same struct (the LCM specification's rule).
+void ResolveSizes(Struct& s) {
+    if (s.fields.size() > Struct::kMaxFields) {
+        throw std::runtime_error("lcm: " + s.name + " has more than " +
+                                 std::to_string(Struct::kMaxFields) + " members");
+    }
+    for (std::size_t k = 0; k < s.fields.size(); ++k) {
+        for (Dim& d : s.fields[k].dims) {
+            if (d.ref.empty()) continue;
+            for (std::size_t j = 0; j < k; ++j) {
+                const Field& f = s.fields[j];
+                if (f.name == d.ref && f.dims.empty() && IsInteger(f.type)) {
+                    d.ref_index = static_cast<int>(j);
+                }
+            }
+            if (d.ref_index < 0) {
+                throw std::runtime_error("lcm: " + s.name + "." + s.fields[k].name + ": size " +
+                                         d.ref + " is no earlier integer member");
+            }
+        }
+    }
+}
+
 class Walker {
 public:
     Walker(const Schema& schema, const std::uint8_t* data, std::size_t size)
@@ -107,16 +132,15 @@ public:
     // Empty on success, else the problem.
     std::string Struct(const pitmap::lcmlog::Struct& s, int depth) {
         if (depth > 16) return "structs nested too deeply";
-        std::map<std::string, std::int64_t, std::less<>> ints;
-        for (const Field& f : s.fields) {
+        // Values of the integer members read so far, by member index (Parse checked that every
+        // size member is an earlier integer scalar). On the stack: no allocation per message.
+        std::array<std::int64_t, pitmap::lcmlog::Struct::kMaxFields> ints{};
+        for (std::size_t k = 0; k < s.fields.size(); ++k) {
+            const Field& f = s.fields[k];
             std::int64_t count = 1;
             for (const Dim& d : f.dims) {
-                std::int64_t n = d.size;
-                if (!d.ref.empty()) {
-                    const auto it = ints.find(d.ref);
-                    if (it == ints.end()) return s.name + "." + f.name + ": unknown size " + d.ref;
-                    n = it->second;
-                }
+                const std::int64_t n =
+                    d.ref_index < 0 ? d.size : ints[static_cast<std::size_t>(d.ref_index)];
                 if (n < 0) return s.name + "." + d.ref + " = " + std::to_string(n);
                 // Every element takes at least one byte (strings four): a count larger than the
                 // bytes left is impossible, whatever the element type.
@@ -130,7 +154,7 @@ public:
             if (size > 0) {
                 const std::uint64_t bytes = static_cast<std::uint64_t>(count) * size;
                 if (bytes > left_) return s.name + "." + f.name + ": cut short";
-                if (f.dims.empty() && IsInteger(f.type)) ints[f.name] = ReadInt(size);
+                if (f.dims.empty() && IsInteger(f.type)) ints[k] = ReadInt(size);
                 Skip(bytes);
             } else if (size == 0) {
                 for (std::int64_t i = 0; i < count; ++i) {
@@ -209,6 +233,7 @@ Schema Schema::Parse(const std::vector<std::string_view>& texts) {
                 if (decl.empty() || decl.rfind("const ", 0) == 0) continue;
                 ParseMember(decl, s);
             }
+            ResolveSizes(s);
             schema.structs_[s.name] = std::move(s);
             pos = close;
         }

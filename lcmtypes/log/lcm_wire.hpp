@@ -29,6 +29,7 @@ namespace pitmap::lcmlog {
 struct Dim {
     std::int64_t size = 0;  // fixed size, when `ref` is empty
     std::string ref;        // name of the integer member holding the size
+    int ref_index = -1;     // that member's index in Struct::fields (resolved by Parse)
 };
 
 struct Field {
@@ -38,6 +39,8 @@ struct Field {
 };
 
 struct Struct {
+    // More members than any LCM type of the project has; Parse refuses a larger struct.
+    static constexpr std::size_t kMaxFields = 128;
     std::string name;
     std::vector<Field> fields;
 };
