@@ -88,12 +88,15 @@ std::variant<NeedMore, Skipped, Record> StreamFramer::Next() {
     // 83P has no checksum. A candidate that holds another header which validates may be a
     // false header swallowing real records: it is trusted only when the next marker follows
     // it; otherwise only its marker is skipped and the records inside are framed.
-    if (HoldsAnotherHeader(p, layout.total_bytes, avail)) {
-        if (avail < static_cast<std::size_t>(layout.total_bytes) + 3) return NeedMore{};
-        const std::uint8_t* q = p + layout.total_bytes;
-        if (q[0] != kMarker0 || q[1] != kMarker1 || q[2] != kMarker2) {
-            return Skip(SkipReason::kBadLength, 3);
-        }
+    // The common case, a record followed by the next marker, costs a 3-byte compare; the scan
+    // for an inner header runs only for the last record buffered or one not followed by a
+    // marker.
+    const std::size_t end = layout.total_bytes;
+    const bool marker_follows =
+        avail >= end + 3 && p[end] == kMarker0 && p[end + 1] == kMarker1 && p[end + 2] == kMarker2;
+    if (!marker_follows && HoldsAnotherHeader(p, end, avail)) {
+        if (avail < end + 3) return NeedMore{};
+        return Skip(SkipReason::kBadLength, 3);
     }
     const Record record{ByteSpan(p, layout.total_bytes), consumed_, layout};
     head_ += layout.total_bytes;
