@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <nanoflann.hpp>
 #include <unordered_map>
 
@@ -104,15 +105,52 @@ struct Pair {
     double w = 1;
 };
 
-void Positions(const GeorefResult& geo,
+// Vehicle poses of the pings with the sonar clock shifted by tau: the INS interpolated at
+// t + tau, clamped to its span (a ping within tau of the span's end keeps the edge pose). With
+// tau = 0 these are the georeference's own poses.
+class ShiftedPoses {
+public:
+    ShiftedPoses(const GeorefResult& geo, const georef::NavSeries& nav)
+        : geo_(geo), traj_(nav, LocalTangentFrame(geo.world_origin)) {}
+
+    Pose At(std::uint32_t ping, double tau) const {
+        const auto& g = geo_.pings[ping];
+        if (tau == 0.0 || traj_.times().size() < 2) return g.T_world_vehicle;
+        std::int64_t t = g.utime_gps + static_cast<std::int64_t>(std::llround(tau * 1e6));
+        t = std::clamp(t, traj_.times().front(), traj_.times().back());
+        auto T = traj_.PoseAt(t, kMaxGapS);
+        return T ? *T : g.T_world_vehicle;
+    }
+    // d(T_world_vehicle(t + tau) x)/dtau by central differences of 5 ms.
+    Eigen::Vector3d Rate(std::uint32_t ping, double tau, const Eigen::Vector3d& x) const {
+        constexpr double h = 0.005;
+        return ((At(ping, tau + h) * x) - (At(ping, tau - h) * x)) / (2 * h);
+    }
+
+private:
+    static constexpr double kMaxGapS = 0.5;
+    const GeorefResult& geo_;
+    georef::Trajectory traj_;
+};
+
+void Positions(const ShiftedPoses& poses,
                const Samples& S,
                const SonarMount& m,
+               double tau,
                std::vector<Eigen::Vector3d>& p) {
     const Pose T_vs = m.T_vehicle_sonar();
     p.resize(S.ping.size());
-    for (std::size_t k = 0; k < p.size(); ++k) {
-        p[k] = geo.pings[S.ping[k]].T_world_vehicle * (T_vs * S.s_sonar[k]);
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 1024), [&](const auto& b) {
+        std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
+        Pose T = Pose::Identity();
+        for (std::size_t k = b.begin(); k != b.end(); ++k) {
+            if (S.ping[k] != last) {
+                last = S.ping[k];
+                T = poses.At(last, tau);
+            }
+            p[k] = T * (T_vs * S.s_sonar[k]);
+        }
+    });
 }
 
 // Correspondences for every sample: normal of its own pass, closest point of another pass.
@@ -192,28 +230,44 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
 
 ResidualStats Stats(const std::vector<Pair>& pairs) {
     std::vector<double> a;
-    double ss = 0;
+    double ss = 0, var = 0;
     for (const auto& pr : pairs) {
         if (!pr.ok) continue;
         a.push_back(std::abs(pr.r));
         ss += pr.r * pr.r;
+        var += 1.0 / pr.w;
     }
     ResidualStats s;
     s.pairs = static_cast<std::int64_t>(a.size());
     if (a.empty()) return s;
     s.rms_m = std::sqrt(ss / static_cast<double>(a.size()));
+    s.expected_rms_m = std::sqrt(var / static_cast<double>(a.size()));
     std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
     s.median_abs_m = a[a.size() / 2];
     return s;
 }
 
-ResidualStats Evaluate(const GeorefResult& geo,
+ResidualStats Evaluate(const ShiftedPoses& poses,
                        const Samples& S,
                        const SonarMount& m,
+                       double tau,
                        const BoresightConfig& cfg) {
     std::vector<Eigen::Vector3d> p;
-    Positions(geo, S, m, p);
+    Positions(poses, S, m, tau, p);
     return Stats(FindPairs(p, S, cfg, cfg.min_distance_m));
+}
+
+// Median |residual| over the pairs found within max_distance_m at a latency (the scan's cost:
+// insensitive to the pair count, which itself changes with tau), and the pair count.
+std::pair<double, std::int64_t> ScanCost(const ShiftedPoses& poses,
+                                         const Samples& S,
+                                         const SonarMount& m,
+                                         double tau,
+                                         const BoresightConfig& cfg) {
+    std::vector<Eigen::Vector3d> p;
+    Positions(poses, S, m, tau, p);
+    const ResidualStats st = Stats(FindPairs(p, S, cfg, cfg.max_distance_m));
+    return {st.pairs > 0 ? st.median_abs_m : std::numeric_limits<double>::infinity(), st.pairs};
 }
 
 SegmentScore ScoreSegment(const GeorefResult& geo,
@@ -301,8 +355,31 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         res.segment = *std::min_element(res.candidates.begin(), res.candidates.end(), better);
     }
     const Samples S = Collect(geo, res.segment.start_s, res.segment.end_s, cfg.beam_stride);
+    const ShiftedPoses poses(geo, nav);
 
-    res.before = Evaluate(geo, S, mount, cfg);
+    const double tau0 = cfg.estimate_latency ? cfg.initial_latency_s : 0.0;
+    res.before = Evaluate(poses, S, mount, tau0, cfg);
+    double tau = tau0;
+    if (cfg.estimate_latency && cfg.latency_scan_s > 0) {
+        // Beyond the linear range: the latency whose pairs fit best at the nominal mount.
+        double best = std::numeric_limits<double>::infinity();
+        std::int64_t most_pairs = 0;
+        std::vector<std::pair<double, std::pair<double, std::int64_t>>> costs;
+        const int n = static_cast<int>(std::floor(cfg.latency_scan_s / cfg.latency_scan_step_s));
+        for (int i = -n; i <= n; ++i) {
+            const double t = tau0 + i * cfg.latency_scan_step_s;
+            costs.push_back({t, ScanCost(poses, S, mount, t, cfg)});
+            most_pairs = std::max(most_pairs, costs.back().second.second);
+        }
+        for (const auto& [t, c] : costs) {
+            // Too few pairs means the passes were pushed apart, not that they fit.
+            if (2 * c.second >= most_pairs && c.first < best) {
+                best = c.first;
+                tau = t;
+            }
+        }
+        res.latency_scan_best_s = tau;
+    }
     SonarMount m = mount;
     Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
     std::vector<Eigen::Vector3d> p;
@@ -310,10 +387,12 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     // the INS height error, which differs from pass to pass. Without it a height difference
     // between two parallel passes d apart reads as a roll of dz / d (1.5 cm over 3 m = 0.3 deg).
     const int odim = cfg.estimate_height_offsets ? 1 : 0;
+    const int ldim = cfg.estimate_latency ? 1 : 0;
+    const int base = 3 + ldim;  // [roll, pitch, yaw, (tau), height offsets...]
     const double seg_len = res.segment.end_s - res.segment.start_s;
     const int n_nodes =
         odim > 0 ? static_cast<int>(std::ceil(seg_len / cfg.part_duration_s)) + 1 : 0;
-    const int dim = 3 + n_nodes * odim;
+    const int dim = base + n_nodes * odim;
     Eigen::VectorXd off = Eigen::VectorXd::Zero(n_nodes * odim);
     const double sig_o = cfg.height_offset_sigma_m;
     auto node_of = [&](double t, int& i, double& f) {
@@ -335,6 +414,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         return o;
     };
     res.termination = Termination::kMaxIterations;
+    std::vector<Eigen::Vector3d> rate;
     for (int it = 0; it < cfg.max_iterations; ++it) {
         if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
             res.termination = Termination::kCancelled;
@@ -344,9 +424,24 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
         const double d_max =
             std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
-        Positions(geo, S, m, p);
+        Positions(poses, S, m, tau, p);
         for (std::size_t k = 0; k < p.size(); ++k) p[k] += offset_at(S.t_s[k]);
         const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
+        if (ldim > 0) {
+            // dp/dtau of every sample that takes part in a pair.
+            rate.assign(p.size(), Eigen::Vector3d::Zero());
+            std::vector<char> need(p.size(), 0);
+            for (std::size_t k = 0; k < p.size(); ++k) {
+                if (pairs[k].ok) need[k] = need[pairs[k].q] = 1;
+            }
+            const Pose T_vs = m.T_vehicle_sonar();
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
+                    for (std::size_t k = b.begin(); k != b.end(); ++k) {
+                        if (need[k]) rate[k] = poses.Rate(S.ping[k], tau, T_vs * S.s_sonar[k]);
+                    }
+                });
+        }
         Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dim, dim);
         Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
         std::int64_t n = 0;
@@ -355,12 +450,16 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         for (std::size_t k = 0; k < pairs.size(); ++k) {
             const Pair& pr = pairs[k];
             if (!pr.ok) continue;
-            const Eigen::Matrix3d A_p = geo.pings[S.ping[k]].T_world_vehicle.linear() * R_vs;
-            const Eigen::Matrix3d A_q = geo.pings[S.ping[pr.q]].T_world_vehicle.linear() * R_vs;
+            const Eigen::Matrix3d A_p = poses.At(S.ping[k], tau).linear() * R_vs;
+            const Eigen::Matrix3d A_q = poses.At(S.ping[pr.q], tau).linear() * R_vs;
             const Eigen::RowVector3d J =
                 pr.n.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[pr.q]));
             idx.assign({0, 1, 2});
             val.assign({J[0], J[1], J[2]});
+            if (ldim > 0) {
+                idx.push_back(3);
+                val.push_back(pr.n.dot(rate[k] - rate[pr.q]));
+            }
             if (n_nodes > 0) {
                 for (int side = 0; side < 2; ++side) {
                     int i;
@@ -369,9 +468,9 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                     const double sgn = side == 0 ? 1.0 : -1.0;
                     for (int d = 0; d < odim; ++d) {
                         const int axis = odim == 1 ? 2 : d;
-                        idx.push_back(3 + i * odim + d);
+                        idx.push_back(base + i * odim + d);
                         val.push_back(sgn * (1 - f) * pr.n[axis]);
-                        idx.push_back(3 + (i + 1) * odim + d);
+                        idx.push_back(base + (i + 1) * odim + d);
                         val.push_back(sgn * f * pr.n[axis]);
                     }
                 }
@@ -390,17 +489,30 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             break;
         }
         for (int j = 0; j < n_nodes * odim; ++j) {
-            H(3 + j, 3 + j) += 1.0 / (sig_o * sig_o);
-            g[3 + j] += off[j] / (sig_o * sig_o);
+            H(base + j, base + j) += 1.0 / (sig_o * sig_o);
+            g[base + j] += off[j] / (sig_o * sig_o);
+        }
+        if (ldim > 0) {
+            const double sl = cfg.latency_sigma_s;
+            H(3, 3) += 1.0 / (sl * sl);
+            g[3] += (tau - tau0) / (sl * sl);
         }
         H.topLeftCorner<3, 3>() +=
             1e-9 * H.topLeftCorner<3, 3>().trace() * Eigen::Matrix3d::Identity();
         const Eigen::VectorXd x = -H.ldlt().solve(g);
         const Eigen::Vector3d delta = x.head<3>();
+        double dtau = 0;
+        if (ldim > 0) {
+            // A Gauss-Newton step is linear in the rotation rates: cap it at the scan step so
+            // that an early step from far away cannot jump into another wave period.
+            dtau = std::clamp(x[3], -cfg.latency_scan_step_s, cfg.latency_scan_step_s);
+            tau += dtau;
+        }
         off += x.tail(n_nodes * odim);
-        const Eigen::Matrix3d C = H.inverse().topLeftCorner<3, 3>();
+        const Eigen::MatrixXd C = H.inverse();
         for (int j = 0; j < 3; ++j)
             res.formal_sd_deg[j] = frames::RadToDeg(std::sqrt(std::max(0.0, C(j, j))));
+        if (ldim > 0) res.latency_formal_sd_s = std::sqrt(std::max(0.0, C(3, 3)));
         res.height_offsets_rms_m =
             off.size() ? std::sqrt(off.squaredNorm() / static_cast<double>(off.size())) : 0.0;
         R_vs = R_vs * ExpSO3(delta);
@@ -409,19 +521,21 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         m.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
         m.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
         res.iterations = it + 1;
-        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg &&
+        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg && std::abs(dtau) < 1e-4 &&
             d_max <= cfg.min_distance_m + 1e-9) {
             res.termination = Termination::kConverged;
             break;
         }
     }
+    res.latency_estimated = ldim > 0 && res.termination != Termination::kNoOverlap;
+    res.latency_s = res.latency_estimated ? tau : tau0;
     if (res.termination == Termination::kNoOverlap) {
         res.message = "no overlap between passes in the segment: boresight unchanged";
         res.mount = mount;
         return res;
     }
     res.mount = m;
-    res.after = Evaluate(geo, S, m, cfg);
+    res.after = Evaluate(poses, S, m, res.latency_s, cfg);
     // Verification on other segments, preferring low drift and overlap, not overlapping ours.
     std::vector<SegmentScore> others;
     for (const auto& c : res.candidates) {
@@ -437,7 +551,8 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     }
     for (const auto& c : chosen) {
         const Samples V = Collect(geo, c.start_s, c.end_s, cfg.beam_stride);
-        res.verify.push_back({c, Evaluate(geo, V, mount, cfg), Evaluate(geo, V, m, cfg)});
+        res.verify.push_back(
+            {c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg)});
     }
     char buf[256];
     std::snprintf(buf,
@@ -453,6 +568,14 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                   res.after.rms_m,
                   static_cast<long long>(res.after.pairs));
     res.message = buf;
+    if (res.latency_estimated) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "; latency %+.4f s (formal sd %.4f s)",
+                      res.latency_s,
+                      res.latency_formal_sd_s);
+        res.message += buf;
+    }
     return res;
 }
 

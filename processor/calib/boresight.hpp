@@ -13,6 +13,12 @@
 // part_duration_s, linear in between, prior height_offset_sigma_m): the INS height error differs
 // between passes and would otherwise bias roll (parallel passes see a roll error only as a height
 // step). Pairs are weighted by 1 / (sigma_p^2 + sigma_q^2), sigma = fraction * range + constant.
+// Latency (estimate_latency): the sonar's time offset tau is a fourth unknown, the automatic
+// patch test's "latency": p(t + tau), dp/dtau from the INS poses at t + tau +- 5 ms, so the pair
+// Jacobian gains n_p . (dp_p/dtau - dp_q/dtau). It is observable through the vehicle's rotation
+// rate (wave roll and pitch, turns) and, on slopes, its speed. Starting values further than the
+// linear range (about a tenth of the roll period) need latency_scan_s: the residual RMS is first
+// scanned over initial +- latency_scan_s in latency_scan_step_s at the nominal mount.
 // Segment choice (when not given): windows of segment_duration_s, stepped by a quarter; a
 // window is eligible when its INS 1-sigma horizontal position and heading stay under the limits
 // (low drift); among those the one with the most overlap (1 m cells seen by parts at least
@@ -50,6 +56,11 @@ struct BoresightConfig {
     double height_offset_sigma_m = 0.03;   // their prior, 1 sigma
     double range_noise_fraction = 0.002;   // pair weight 1/sigma^2, sigma = fraction * range
     double range_noise_constant_m = 0.02;  //   + constant, per sounding
+    bool estimate_latency = true;          // the sonar time offset as a fourth unknown
+    double initial_latency_s = 0;          // start value (a coarse clock estimate's rest)
+    double latency_scan_s = 0;             // scan +- this first; 0 = no scan
+    double latency_scan_step_s = 0.05;
+    double latency_sigma_s = 1.0;          // prior on (tau - initial), 1 sigma
 
     std::vector<std::string> Validate() const;
 };
@@ -65,6 +76,7 @@ struct ResidualStats {
     std::int64_t pairs = 0;
     double rms_m = 0;  // RMS point-to-plane distance over pairs within the gate
     double median_abs_m = 0;
+    double expected_rms_m = 0;  // what the range noise alone would leave (pair weights)
 };
 
 struct VerifyResult {
@@ -83,6 +95,10 @@ struct BoresightResult {
     int iterations = 0;
     double formal_sd_deg[3] = {0, 0, 0};  // roll, pitch, yaw (range noise only: optimistic)
     double height_offsets_rms_m = 0;      // RMS of the estimated height corrections
+    bool latency_estimated = false;
+    double latency_s = 0;            // add to the ping times (t_gps = t_ping + latency_s)
+    double latency_formal_sd_s = 0;  // range noise only: optimistic
+    double latency_scan_best_s = 0;  // the scan's minimum (when scanned)
     Termination termination = Termination::kNoOverlap;
     std::vector<SegmentScore> candidates;
     std::string message;

@@ -23,6 +23,7 @@ void SortAndDeduplicate(PingSeries& s) {
         return s.pings[a].utime_gps < s.pings[b].utime_gps;
     });
     PingSeries out;
+    out.clock = s.clock;
     out.pings.reserve(s.pings.size());
     out.range_counts.reserve(s.range_counts.size());
     for (std::size_t k = 0; k < order.size(); ++k) {

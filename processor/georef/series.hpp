@@ -54,12 +54,28 @@ struct PingHeader {
     double profile_tilt_deg = 0;    // fore/aft fan tilt
     std::uint32_t beam_offset = 0;  // first beam in PingSeries::range_counts
     std::uint16_t num_beams = 0;
+    // What the topside program wrote beside its clock, NaN when absent: a position from its
+    // NMEA feed (the last fix it had, so up to a fix interval stale), and the head's attitude
+    // (internal sensor, else the external fields). Only used to find an unknown sonar clock
+    // offset (processor/calib/sonar_clock.hpp); in the sonar head's own frame.
+    double aid_latitude_deg = std::numeric_limits<double>::quiet_NaN();
+    double aid_longitude_deg = std::numeric_limits<double>::quiet_NaN();
+    double aid_roll_deg = std::numeric_limits<double>::quiet_NaN();
+    double aid_pitch_deg = std::numeric_limits<double>::quiet_NaN();
+    double aid_heading_deg = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Where the pings' times come from.
+enum class PingClock : std::uint32_t {
+    kGpsStamped = 0,     // pitmap-acqd's GPS-disciplined receive stamps (residual latency: ms)
+    kTopsideHeader = 1,  // the 83P header clock of the topside PC (offset unknown: s to hours)
 };
 
 // Time-sorted pings; the raw range counts of all pings in one flat array.
 struct PingSeries {
     std::vector<PingHeader> pings;
     std::vector<std::uint32_t> range_counts;  // 0 = no detection
+    PingClock clock = PingClock::kGpsStamped;  // kTopsideHeader if any ping came from a .83P file
     std::size_t num_soundings() const { return range_counts.size(); }
 };
 

@@ -178,6 +178,22 @@ public:
         h.start_angle_deg = p.start_angle_deg();
         h.angle_increment_deg = p.angle_increment_deg();
         h.profile_tilt_deg = p.profile_tilt_deg;
+        h.aid_latitude_deg = p.latitude_deg;
+        h.aid_longitude_deg = p.longitude_deg;
+        // The head's own sensor first; the topside's external fields when it has none.
+        const bool v110 = p.is_v110();
+        const auto ext = [&](std::uint8_t bit, float v) {
+            return v110 && (p.external_sensor_flags & bit) != 0 && std::isfinite(v)
+                       ? static_cast<double>(v)
+                       : std::numeric_limits<double>::quiet_NaN();
+        };
+        h.aid_roll_deg = p.internal_roll_valid ? p.internal_roll_deg
+                                               : ext(dt::kExternalRollValid, p.external_roll_deg);
+        h.aid_pitch_deg = p.internal_pitch_valid ? p.internal_pitch_deg
+                                                 : ext(dt::kExternalPitchValid, p.external_pitch_deg);
+        h.aid_heading_deg = p.internal_heading_valid
+                                ? p.internal_heading_deg
+                                : ext(dt::kExternalHeadingValid, p.external_heading_deg);
         counts_buf_.assign(p.range_counts.begin(), p.range_counts.end());
         AddPing(h, counts_buf_.data(), counts_buf_.size());
     }
@@ -673,6 +689,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
                         std::llround(config.sonar_clock_offset_s * 1e6);
                 }
                 col.AddPing83P(ping, t);
+                into.pings.clock = georef::PingClock::kTopsideHeader;
             }
         };
         while (in) {

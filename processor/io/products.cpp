@@ -405,12 +405,13 @@ Status WriteJsonFile(const std::string& path, const nlohmann::json& j) {
 
 namespace {
 // Ingest cache layout (native byte order and struct layout; read only by the build that wrote
-// it): u32 magic "PMIC", u32 version, u32 byte order (1 little, 2 big), i32 leap seconds, then
+// it): u32 magic "PMIC", u32 version, u32 byte order (1 little, 2 big), i32 leap seconds, u32
+// ping clock (georef::PingClock), then
 // four arrays (nav samples, nav stddevs, ping headers, range counts), each as u64 count, u64
 // element size, count * size bytes; then a u32 CRC-32 (common/protocol/novatel/crc32) of every
-// byte before it. Version 1 had no CRC.
+// byte before it. Version 1 had no CRC; version 2 no ping clock and no header aids.
 constexpr std::uint32_t kCacheMagic = 0x43494D50;  // "PMIC"
-constexpr std::uint32_t kCacheVersion = 2;
+constexpr std::uint32_t kCacheVersion = 3;
 
 struct DiskNav {
     std::int64_t utime_gps;
@@ -551,6 +552,8 @@ Status WriteIngestCache(const std::string& path, const IngestResult& r) {
     w.Bytes(head, sizeof head);
     const std::int32_t leap = r.nav.leap_seconds;
     w.Bytes(&leap, sizeof leap);
+    const auto clock = static_cast<std::uint32_t>(r.pings.clock);
+    w.Bytes(&clock, sizeof clock);
     std::vector<DiskNav> nav(r.nav.samples.size());
     for (std::size_t i = 0; i < nav.size(); ++i) nav[i] = ToDisk(r.nav.samples[i]);
     w.Vec(nav);
@@ -568,7 +571,7 @@ Expected<IngestResult> ReadIngestCache(const std::string& path) {
     if (f == nullptr) return Error{path + ": cannot open (run `pitmap georef` first)"};
     const std::uint64_t size = FileSize(f);
     const std::string rerun = " (run `pitmap georef` again)";
-    constexpr std::uint64_t kHeadBytes = 3 * 4 + 4;
+    constexpr std::uint64_t kHeadBytes = 3 * 4 + 4 + 4;
     if (size < kHeadBytes + 4) {
         std::fclose(f);
         return Error{path + ": not a pitmap ingest cache (" + std::to_string(size) + " bytes)" +
@@ -591,6 +594,13 @@ Expected<IngestResult> ReadIngestCache(const std::string& path) {
                      " or byte order not of this build" + rerun};
     }
     in.Bytes(&leap, sizeof leap, "header");
+    std::uint32_t clock = 0;
+    in.Bytes(&clock, sizeof clock, "header");
+    if (in.error.empty() && clock > static_cast<std::uint32_t>(georef::PingClock::kTopsideHeader)) {
+        std::fclose(f);
+        return Error{path + ": corrupt ingest cache: ping clock " + std::to_string(clock) + rerun};
+    }
+    r.pings.clock = static_cast<georef::PingClock>(clock);
     in.Vec(nav, "nav samples");
     in.Vec(r.nav.stddevs, "nav stddevs");
     in.Vec(r.pings.pings, "pings");

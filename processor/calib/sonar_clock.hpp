@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: MIT
+// The sonar clock, coarsely: how far the pings' times are from GPS time when the pings come from
+// .83P files written by the topside program, whose PC clock is off by an unknown amount
+// (seconds to hours, either sign; shared/specs/imagenex_deltat.md §1.4). Found from what the
+// files carry besides the clock, before any sounding is looked at:
+//
+//  1. "header position": the latitude/longitude the topside program got from its NMEA feed. A
+//     fix is repeated in every ping until the next one arrives, so only the first ping that
+//     carries a new fix is used (the fix is then at most one ping interval plus the serial
+//     latency old). The correction c minimises the median horizontal distance between those
+//     fixes and the INS antenna position at (ping time + c): a scan over every c that makes the
+//     two time spans overlap (step scan_step_s), then a parabola through the best three steps
+//     of a finer scan.
+//  2. "header attitude": no position, but the head's roll/pitch (internal sensor or the external
+//     fields) and/or heading: the correction minimises the RMS of the de-biased differences to
+//     the INS attitude (a constant difference is the mount). Heading decides the coarse scan
+//     when present (turns are unique; wave roll is periodic and gives aliases).
+//  3. "span": nothing but the clock. The two recordings are assumed to be simultaneous: c
+//     aligns the span centres, sigma = half the difference of the span lengths. Usable only
+//     when that sigma is small enough for the data (the calibration's latency scan) to finish.
+//
+// A match is "ambiguous" when a second minimum at least min_alias_separation_s away scores within
+// alias_ratio of the best: then it is not trusted (found = false) and the message says why.
+// The correction is to be ADDED to the pings' times: t_gps = t_ping + correction_s.
+// Thread safety: reentrant.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "processor/georef/series.hpp"
+
+namespace pitmap::proc::calib {
+
+struct ClockSearchConfig {
+    double scan_step_s = 0.5;               // coarse scan step over the whole overlap range
+    double fine_window_s = 2.0;             // fine scan +- this around the coarse minimum
+    double fine_step_s = 0.02;              // fine scan step
+    int max_samples = 3000;                 // aid samples used (evenly thinned)
+    double max_position_misfit_m = 10.0;    // median distance above which no match is claimed
+    double max_attitude_misfit_deg = 3.0;   // RMS attitude difference above which ditto
+    double alias_ratio = 1.5;               // second minimum within this factor = ambiguous
+    double min_alias_separation_s = 3.0;    // minima closer than this are the same one
+    double min_overlap_fraction = 0.5;      // of the aid samples inside the nav span
+    // INS -> GNSS antenna, vehicle FRD (m): the NMEA position is the antenna's.
+    Eigen::Vector3d antenna_lever_arm_m = Eigen::Vector3d::Zero();
+};
+
+struct ClockEstimate {
+    bool found = false;
+    std::string method;        // "header position", "header attitude", "span" or "none"
+    double correction_s = 0;   // add to the ping times
+    double sigma_s = 0;        // 1 sigma, including the staleness of the aids
+    double misfit = 0;         // median distance (m) or RMS attitude difference (deg) at the best
+    double alias_misfit = 0;   // best score at least min_alias_separation_s away (0 = none)
+    double alias_correction_s = 0;
+    std::int64_t samples = 0;  // aid samples used
+    std::string message;       // one line for the terminal and the report
+};
+
+// `pings` and `nav` as ingest made them (GPS-time nav, pings on their own clock).
+ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
+                                 const georef::NavSeries& nav,
+                                 const ClockSearchConfig& config = {});
+
+// Adds `correction_s` to every ping's time (order is kept).
+void ShiftPingTimes(georef::PingSeries& pings, double correction_s);
+
+// "a .. b GPS s (n s)" of a time span in microseconds, for messages naming spans.
+std::string SpanText(std::int64_t first_utime, std::int64_t last_utime);
+
+}  // namespace pitmap::proc::calib

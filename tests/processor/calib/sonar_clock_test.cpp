@@ -1,0 +1,152 @@
+// SPDX-License-Identifier: MIT
+// The coarse sonar clock (header position, header attitude, span) and the latency found jointly
+// with the boresight, on a synthetic survey whose sonar clock is off by a known amount.
+#include "processor/calib/sonar_clock.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "processor/calib/boresight.hpp"
+#include "synthetic_survey.hpp"
+
+namespace pitmap::proc::calib {
+namespace {
+
+using testing::MakeSurvey;
+using testing::SurveyOptions;
+
+TEST(SonarClock, HeaderPositionFindsAnOffsetOfAnHour) {
+    SurveyOptions o;
+    o.clock_error_s = 3600.0 + 2.35;  // topside clock an hour and 2.35 s ahead
+    o.header_position = true;
+    const auto sv = MakeSurvey(o);
+    const ClockEstimate e = EstimateSonarClock(sv.pings, sv.nav);
+    ASSERT_TRUE(e.found) << e.message;
+    EXPECT_EQ(e.method, "header position");
+    // The fixes are 0.15-0.25 s stale: the estimate is that much early, inside its sigma.
+    EXPECT_NEAR(e.correction_s, -o.clock_error_s, 0.3) << e.message;
+    EXPECT_LE(std::abs(e.correction_s + o.clock_error_s), 2 * e.sigma_s) << e.message;
+    EXPECT_LT(e.misfit, 1.0);
+}
+
+TEST(SonarClock, HeaderPositionWorksForAClockBehindToo) {
+    SurveyOptions o;
+    o.clock_error_s = -5 * 3600.0 - 0.8;
+    o.header_position = true;
+    const ClockEstimate e = EstimateSonarClock(MakeSurvey(o).pings, MakeSurvey(o).nav);
+    ASSERT_TRUE(e.found) << e.message;
+    EXPECT_NEAR(e.correction_s, -o.clock_error_s, 0.3) << e.message;
+}
+
+TEST(SonarClock, HeaderHeadingPlacesAndRollPitchRefine) {
+    SurveyOptions o;
+    o.clock_error_s = -7.3;
+    o.header_attitude = true;
+    const auto sv = MakeSurvey(o);
+    const ClockEstimate e = EstimateSonarClock(sv.pings, sv.nav);
+    ASSERT_TRUE(e.found) << e.message;
+    EXPECT_EQ(e.method, "header attitude");
+    EXPECT_NEAR(e.correction_s, 7.3, 0.03) << e.message;
+}
+
+TEST(SonarClock, PeriodicRollAloneIsAmbiguousAndSaysSo) {
+    SurveyOptions o;
+    o.clock_error_s = 12.0;
+    o.header_attitude = true;
+    o.pitch_amplitude_deg = 0;  // one wave period: roll repeats every 3.5 s
+    auto sv = MakeSurvey(o);
+    for (auto& h : sv.pings.pings) h.aid_heading_deg = std::nan("");
+    const ClockEstimate e = EstimateSonarClock(sv.pings, sv.nav);
+    EXPECT_FALSE(e.found) << e.message;
+    EXPECT_NE(e.message.find("ambiguous"), std::string::npos) << e.message;
+}
+
+TEST(SonarClock, NoAidsCentresTheSpansAndStatesTheUncertainty) {
+    SurveyOptions o;
+    o.clock_error_s = 40.0;
+    const auto sv = MakeSurvey(o);
+    const ClockEstimate same = EstimateSonarClock(sv.pings, sv.nav);
+    ASSERT_TRUE(same.found) << same.message;
+    EXPECT_EQ(same.method, "span");
+    EXPECT_NEAR(same.correction_s, -40.0, 0.1) << same.message;
+    EXPECT_LT(same.sigma_s, 0.1);
+    // The sonar file stops 30 s before the navigation log: centring is 15 s off, and says
+    // that it can be (sigma of a uniform 30 s).
+    georef::PingSeries shorter = sv.pings;
+    shorter.pings.resize(shorter.pings.size() - 300);
+    const ClockEstimate e = EstimateSonarClock(shorter, sv.nav);
+    EXPECT_NEAR(e.sigma_s, 30.0 / (2 * std::sqrt(3.0)), 0.2) << e.message;
+    EXPECT_LE(std::abs(e.correction_s + 40.0), 2 * e.sigma_s) << e.message;
+}
+
+TEST(SonarClock, ShiftKeepsOrder) {
+    SurveyOptions o;
+    o.duration_s = 5;
+    auto sv = MakeSurvey(o);
+    const auto t0 = sv.pings.pings.front().utime_gps;
+    ShiftPingTimes(sv.pings, -1.25);
+    EXPECT_EQ(sv.pings.pings.front().utime_gps, t0 - 1'250'000);
+    EXPECT_EQ(SpanText(0, 2'500'000), "0.000 .. 2.500 GPS s (2.5 s)");
+}
+
+// The sonar's stamps are late by `error`: the joint calibration finds the latency (and the
+// boresight) from the soundings alone.
+BoresightResult CalibrateWithClockError(double error, double scan_s, georef::SonarMount* truth) {
+    SurveyOptions o;
+    o.clock_error_s = error;
+    o.num_beams = 61;
+    o.truth.lever_arm_m = Eigen::Vector3d(0.8, 0.0, 0.25);
+    o.truth.boresight_roll_deg = 0.5;
+    o.truth.boresight_pitch_deg = -0.3;
+    o.truth.boresight_yaw_deg = 1.0;
+    *truth = o.truth;
+    const auto sv = MakeSurvey(o);
+    georef::SonarMount nominal;
+    nominal.lever_arm_m = o.truth.lever_arm_m;
+    const auto geo = georef::RunGeoref(sv.nav, sv.pings, nominal, georef::GeorefConfig{});
+    BoresightConfig cfg;
+    cfg.latency_scan_s = scan_s;
+    return CalibrateBoresight(geo, sv.nav, nominal, cfg);
+}
+
+TEST(SonarLatency, ThirtyMillisecondsAreFoundWithTheBoresight) {
+    georef::SonarMount truth;
+    const BoresightResult r = CalibrateWithClockError(0.030, 0.0, &truth);
+    ASSERT_TRUE(r.latency_estimated) << r.message;
+    EXPECT_NEAR(r.latency_s, -0.030, 0.002) << r.message;
+    EXPECT_NEAR(r.mount.boresight_roll_deg, truth.boresight_roll_deg, 0.02) << r.message;
+    EXPECT_NEAR(r.mount.boresight_pitch_deg, truth.boresight_pitch_deg, 0.02) << r.message;
+    EXPECT_NEAR(r.mount.boresight_yaw_deg, truth.boresight_yaw_deg, 0.02) << r.message;
+    EXPECT_LT(r.after.rms_m, 2 * r.after.expected_rms_m) << r.message;
+}
+
+TEST(SonarLatency, HalfASecondNeedsTheScanAndIsFoundWithIt) {
+    georef::SonarMount truth;
+    const BoresightResult r = CalibrateWithClockError(-0.45, 1.0, &truth);
+    ASSERT_TRUE(r.latency_estimated) << r.message;
+    EXPECT_NEAR(r.latency_scan_best_s, 0.45, 0.1) << r.message;
+    EXPECT_NEAR(r.latency_s, 0.45, 0.002) << r.message;
+    EXPECT_NEAR(r.mount.boresight_roll_deg, truth.boresight_roll_deg, 0.02) << r.message;
+}
+
+TEST(SonarLatency, WithoutLatencyTheBoresightAbsorbsTheClockError) {
+    // The reason for the fourth unknown: the same data with latency fixed at 0.
+    SurveyOptions o;
+    o.clock_error_s = 0.1;
+    o.num_beams = 61;
+    o.truth.lever_arm_m = Eigen::Vector3d(0.8, 0.0, 0.25);
+    const auto sv = MakeSurvey(o);
+    const auto geo = georef::RunGeoref(sv.nav, sv.pings, o.truth, georef::GeorefConfig{});
+    BoresightConfig cfg;
+    cfg.estimate_latency = false;
+    const BoresightResult fixed = CalibrateBoresight(geo, sv.nav, o.truth, cfg);
+    cfg.estimate_latency = true;
+    const BoresightResult joint = CalibrateBoresight(geo, sv.nav, o.truth, cfg);
+    EXPECT_GT(fixed.after.rms_m, 1.5 * joint.after.rms_m)
+        << fixed.message << "\n" << joint.message;
+    EXPECT_NEAR(joint.latency_s, -0.1, 0.002) << joint.message;
+}
+
+}  // namespace
+}  // namespace pitmap::proc::calib
