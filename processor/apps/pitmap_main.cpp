@@ -9,6 +9,7 @@
 //   pitmap report --out P
 //   pitmap run LOGS... --out P [--config FILE] [--from-raw] [--no-calibrate] [--no-slam]
 //   pitmap config --defaults
+// Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -17,6 +18,7 @@
 #include <filesystem>
 
 #include "common/config.hpp"
+#include "processor/io/products.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
 namespace pp = pitmap::proc::pipeline;
@@ -35,6 +37,22 @@ std::string ReportProgram() {
     if (ec) return "";
     return (self.parent_path() / "pitmap-report").string();
 }
+
+// The quality gates summary.json records (processor/pipeline/survey.hpp), one line each.
+std::vector<std::string> TrippedGates(const std::string& out_dir) {
+    std::vector<std::string> out;
+    auto j = pitmap::proc::io::ReadSummaryJson(out_dir + "/summary.json");
+    if (!j || !j->is_object() || !j->contains("quality_gates")) return out;
+    const auto& g = (*j)["quality_gates"];
+    if (!g.is_array()) return out;
+    for (const auto& e : g) {
+        if (e.is_object())
+            out.push_back(e.value("stage", "?") + "/" + e.value("gate", "?"));
+    }
+    return out;
+}
+
+constexpr int kExitQualityGate = 4;
 
 }  // namespace
 
@@ -81,6 +99,13 @@ int main(int argc, char** argv) try {
     run->add_flag("--no-report", no_report, "no report.html");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
+    bool strict = false;
+    for (auto* sub : {geo, cal, slam, fuse, mesh, run}) {
+        sub->add_flag("--strict",
+                      strict,
+                      "exit with status 4 when a quality gate trips (the stage could not "
+                      "explain its data; the products are still written and say why)");
+    }
     CLI11_PARSE(app, argc, argv);
 
     if (cfg->parsed()) {
@@ -95,7 +120,10 @@ int main(int argc, char** argv) try {
         config = *c;
     }
     if (from_raw) config.ingest.source = pitmap::proc::io::IngestSource::kRaw;
-    if (offset_given) config.ingest.sonar_clock_offset_s = sonar_clock_offset_s;
+    if (offset_given) {
+        config.ingest.sonar_clock_offset_s = sonar_clock_offset_s;
+        config.ingest.sonar_clock_offset_known = true;
+    }
     if (no_calibrate) config.run.calibrate = false;
     if (no_slam) config.run.slam = false;
     if (no_report) config.run.report = false;
@@ -112,12 +140,8 @@ int main(int argc, char** argv) try {
         std::fputs(text->c_str(), stdout);
         return 0;
     }
-    if (geo->parsed()) {
-        if (auto s = pp::RunGeorefStage(inputs, out_dir, config, log); !s)
-            return Fail(s.error().message);
-        return 0;
-    }
     pitmap::Status status = pitmap::Ok{};
+    if (geo->parsed()) status = pp::RunGeorefStage(inputs, out_dir, config, log);
     if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);
     if (slam->parsed()) status = pp::RunSlamStage(out_dir, config, log);
     if (fuse->parsed()) status = pp::RunFuseStage(out_dir, config, log);
@@ -125,6 +149,16 @@ int main(int argc, char** argv) try {
     if (report->parsed()) status = pp::RunReportStage(out_dir, config, log);
     if (run->parsed()) status = pp::RunAll(inputs, out_dir, config, log);
     if (!status) return Fail(status.error().message);
+    if (const auto gates = TrippedGates(out_dir); !gates.empty()) {
+        std::string list;
+        for (const auto& g : gates) list += (list.empty() ? "" : ", ") + g;
+        std::fprintf(stderr,
+                     "pitmap: %zu quality gate(s) tripped: %s (summary.json quality_gates)%s\n",
+                     gates.size(),
+                     list.c_str(),
+                     strict ? "" : "; --strict makes this an error");
+        if (strict) return kExitQualityGate;
+    }
     return 0;
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap: internal error: %s\n", e.what());

@@ -36,6 +36,7 @@ struct IngestConfig {
     std::string nav_channel_id;       // channel id (e.g. "novatel_com1"); "" = every INS channel
     std::string sonar_channel_id;     // e.g. "deltat_udp"; "" = every sonar channel
     double sonar_clock_offset_s = 0;  // .83P files: added to header time (as UTC) -> GPS
+    bool sonar_clock_offset_known = false;  // given by the user: checked, not searched for
     bool require_good_ins = false;    // drop INS samples whose status is not SOLUTION_GOOD
 
     std::vector<std::string> Validate() const;

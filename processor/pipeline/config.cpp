@@ -96,6 +96,20 @@ void VisitMesh(V&& v, mesh::MeshConfig& c) {
 }
 
 template <class V>
+void VisitQuality(V&& v, QualityConfig& q) {
+    v("calibration_residual_ratio",
+      q.calibration_residual_ratio,
+      "calibration residual RMS / the range noise's, above: gate");
+    v("max_clock_scan_s", q.max_clock_scan_s, "widest sonar-clock uncertainty the data resolve, s");
+    v("clock_disagreement_s", q.clock_disagreement_s, "configured vs found clock, beyond 3 sigma");
+    v("slam_sigma_multiple", q.slam_sigma_multiple, "SLAM may move a good-INS ping this many sigma");
+    v("slam_min_allowance_m", q.slam_min_allowance_m, "... or this far, m");
+    v("slam_good_ins_sigma_m", q.slam_good_ins_sigma_m, "INS horizontal sigma below: good, m");
+    v("slam_max_fraction", q.slam_max_fraction, "share of good pings moved further: gate");
+    v("max_outside_nav_fraction", q.max_outside_nav_fraction, "share of pings outside the nav");
+}
+
+template <class V>
 void VisitRun(V&& v, RunOptions& r) {
     v("calibrate", r.calibrate, "boresight calibration before SLAM");
     v("slam", r.slam, "continuous-time SLAM (else the INS trajectory is fused)");
@@ -185,6 +199,21 @@ const char* ToString(fusion::SensorModel m) {
     return m == fusion::SensorModel::kRay ? "ray" : "beam_width";
 }
 
+std::vector<std::string> QualityConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(calibration_residual_ratio >= 1)) p.push_back("calibration_residual_ratio must be >= 1");
+    if (!(max_clock_scan_s > 0)) p.push_back("max_clock_scan_s must be > 0");
+    if (!(clock_disagreement_s >= 0)) p.push_back("clock_disagreement_s must be >= 0");
+    if (!(slam_sigma_multiple > 0)) p.push_back("slam_sigma_multiple must be > 0");
+    if (!(slam_min_allowance_m >= 0)) p.push_back("slam_min_allowance_m must be >= 0");
+    if (!(slam_good_ins_sigma_m > 0)) p.push_back("slam_good_ins_sigma_m must be > 0");
+    if (!(slam_max_fraction >= 0 && slam_max_fraction <= 1))
+        p.push_back("slam_max_fraction must be in [0, 1]");
+    if (!(max_outside_nav_fraction >= 0 && max_outside_nav_fraction <= 1))
+        p.push_back("max_outside_nav_fraction must be in [0, 1]");
+    return p;
+}
+
 std::vector<std::string> PipelineConfig::Validate() const {
     std::vector<std::string> p = ingest.Validate();
     for (auto& s : georef.Validate()) p.push_back(s);
@@ -193,6 +222,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : tsdf.Validate()) p.push_back("fuse." + s);
     for (auto& s : weight_filter.Validate()) p.push_back("fuse." + s);
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
+    for (auto& s : quality.Validate()) p.push_back("quality." + s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");
     const bool any = !std::isnan(origin_latitude_deg) || !std::isnan(origin_longitude_deg) ||
@@ -217,6 +247,7 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     }
     in.Read("nav_channel_id", c.ingest.nav_channel_id);
     in.Read("sonar_channel_id", c.ingest.sonar_channel_id);
+    if (in.Has("sonar_clock_offset_s")) c.ingest.sonar_clock_offset_known = true;
     in.Read("sonar_clock_offset_s", c.ingest.sonar_clock_offset_s);
     in.Read("require_good_ins", c.ingest.require_good_ins);
     in.RejectUnknownKeys();
@@ -253,6 +284,9 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     b.Read("height_offset_sigma_m", bc.height_offset_sigma_m);
     b.Read("range_noise_fraction", bc.range_noise_fraction);
     b.Read("range_noise_constant_m", bc.range_noise_constant_m);
+    b.Read("estimate_latency", bc.estimate_latency);
+    b.Read("latency_sigma_s", bc.latency_sigma_s);
+    b.Read("latency_scan_step_s", bc.latency_scan_step_s);
     b.RejectUnknownKeys();
     {
         ConfigReader sl = reader->Child("slam");
@@ -270,6 +304,9 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
         ConfigReader ru = reader->Child("run");
         VisitRun(ReadVisitor{ru}, c.run);
         ru.RejectUnknownKeys();
+        ConfigReader qu = reader->Child("quality");
+        VisitQuality(ReadVisitor{qu}, c.quality);
+        qu.RejectUnknownKeys();
     }
     ConfigReader pr = reader->Child("products");
     pr.Read("write_las", c.write_las);
@@ -339,7 +376,12 @@ std::string DefaultsYaml() {
       << "  height_offset_sigma_m: " << c.calibrate.height_offset_sigma_m << "  # their prior\n"
       << "  range_noise_fraction: " << c.calibrate.range_noise_fraction
       << "  # pair weights 1/sigma^2, sigma = fraction * range + constant\n"
-      << "  range_noise_constant_m: " << c.calibrate.range_noise_constant_m << "\n";
+      << "  range_noise_constant_m: " << c.calibrate.range_noise_constant_m << "\n"
+      << "  estimate_latency: " << b(c.calibrate.estimate_latency)
+      << "      # the sonar time offset as a 4th unknown (patch test latency)\n"
+      << "  latency_sigma_s: " << c.calibrate.latency_sigma_s << "         # its prior, 1 sigma, s\n"
+      << "  latency_scan_step_s: " << c.calibrate.latency_scan_step_s
+      << "  # scan step when the clock is uncertain beyond the linear range, s\n";
     {
         PipelineConfig d;
         o << "slam:\n";
@@ -356,6 +398,8 @@ std::string DefaultsYaml() {
         VisitMesh(PrintVisitor{o}, d.mesh);
         o << "run:\n";
         VisitRun(PrintVisitor{o}, d.run);
+        o << "quality:\n";
+        VisitQuality(PrintVisitor{o}, d.quality);
     }
     o << "products:\n"
       << "  write_las: " << b(c.write_las) << "\n"

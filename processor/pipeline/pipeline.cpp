@@ -12,6 +12,7 @@
 #include "common/config.hpp"
 #include "common/frames.hpp"
 #include "common/progress.hpp"
+#include "processor/calib/sonar_clock.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/survey.hpp"
@@ -164,6 +165,112 @@ Status SaveSummary(const Survey& s) {
     return io::WriteJsonFile(s.out_dir + "/summary.json", s.summary);
 }
 
+void TripGate(Survey& s,
+              const std::string& stage,
+              const std::string& gate,
+              const std::string& message,
+              const Log& log) {
+    log("quality gate " + stage + "/" + gate + ": " + message);
+    if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array())
+        s.summary["quality_gates"] = json::array();
+    s.summary["quality_gates"].push_back({{"stage", stage}, {"gate", gate}, {"message", message}});
+}
+
+void ClearGates(Survey& s, const std::string& stage) {
+    if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array()) return;
+    json kept = json::array();
+    for (const auto& g : s.summary["quality_gates"]) {
+        if (!(g.is_object() && g.value("stage", "") == stage)) kept.push_back(g);
+    }
+    s.summary["quality_gates"] = std::move(kept);
+}
+
+namespace {
+
+std::string Num(const char* fmt, double v) {
+    char b[64];
+    std::snprintf(b, sizeof(b), fmt, v);
+    return b;
+}
+
+}  // namespace
+
+Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    georef::PingSeries& pings = s.ingest.pings;
+    const georef::NavSeries& nav = s.ingest.nav;
+    const QualityConfig& q = config.quality;
+    const bool header = pings.clock == georef::PingClock::kTopsideHeader;
+    json clk = {{"source",
+                 header ? "83P header: the topside PC clock (offset unknown)"
+                        : "pitmap-acqd: GPS-disciplined receive stamps"},
+                {"configured", config.ingest.sonar_clock_offset_known}};
+    if (config.ingest.sonar_clock_offset_known)
+        clk["configured_offset_s"] = config.ingest.sonar_clock_offset_s;
+    double applied = 0;
+    // What is left for the calibration's latency scan: the coarse estimate's uncertainty, or
+    // half a second around a configured offset or the daemon's stamps.
+    double sigma = 0.0;
+    const std::string nav_span =
+        calib::SpanText(nav.samples.front().utime_gps, nav.samples.back().utime_gps);
+    if (header) {
+        const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav);
+        log("sonar clock: " + est.message);
+        clk["coarse"] = {{"method", est.method},
+                         {"found", est.found},
+                         {"correction_s", est.correction_s},
+                         {"sigma_s", est.sigma_s},
+                         {"misfit", est.misfit},
+                         {"samples", est.samples},
+                         {"message", est.message}};
+        const std::string sonar_span = calib::SpanText(pings.pings.front().utime_gps,
+                                                       pings.pings.back().utime_gps);
+        if (config.ingest.sonar_clock_offset_known) {
+            const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
+            if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
+                TripGate(s,
+                         "georef",
+                         "sonar_clock_disagrees",
+                         "the configured sonar clock offset " +
+                             Num("%+.3f", config.ingest.sonar_clock_offset_s) +
+                             " s leaves the pings " + Num("%+.3f", est.correction_s) +
+                             " s (+- " + Num("%.3f", est.sigma_s) + " s) from the " +
+                             est.method + " in the 83P headers; the configured value is used",
+                         log);
+            }
+            sigma = 0.1;
+        } else {
+            const std::string give =
+                "; give the offset (--sonar-clock-offset S, or sonar_clock_offset_s in the "
+                "vehicle file). Navigation: " +
+                nav_span + "; sonar, on its own clock: " + sonar_span;
+            if (!est.found) return Error{"sonar clock: " + est.message + give};
+            if (est.sigma_s > q.max_clock_scan_s) {
+                return Error{"sonar clock: " + est.message + ": more uncertain than the " +
+                             Num("%.1f", q.max_clock_scan_s) +
+                             " s the data can resolve (quality.max_clock_scan_s)" + give};
+            }
+            calib::ShiftPingTimes(pings, est.correction_s);
+            applied = est.correction_s;
+            sigma = est.sigma_s;
+        }
+    } else {
+        sigma = 0.0;  // ms: the calibration's linear range covers it
+    }
+    clk["correction_s"] = applied;
+    clk["sigma_s"] = sigma;
+    s.summary["sonar_clock"] = clk;
+    // The two recordings must overlap in time.
+    const std::int64_t p0 = pings.pings.front().utime_gps, p1 = pings.pings.back().utime_gps;
+    const std::int64_t n0 = nav.samples.front().utime_gps, n1 = nav.samples.back().utime_gps;
+    if (p1 < n0 || p0 > n1) {
+        return Error{"navigation and sonar do not overlap in time: navigation " + nav_span +
+                     ", sonar " + calib::SpanText(p0, p1) +
+                     (header ? " (sonar clock corrected by " + Num("%+.3f", applied) + " s)"
+                             : std::string())};
+    }
+    return Ok{};
+}
+
 Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const PipelineConfig& config,
                             bool apply_trajectory,
@@ -202,10 +309,23 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
 
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
+    ClearGates(s, "calibrate");
     const georef::SonarMount before = s.mount;
+    const QualityConfig& q = config.quality;
+    calib::BoresightConfig bc = config.calibrate;
+    const bool header = s.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+    json& clk = s.summary["sonar_clock"];
+    if (!clk.is_object()) clk = json::object();
+    const double clock_sigma = clk.value("sigma_s", 0.0);
+    if (bc.estimate_latency) {
+        // The pings carry the coarse correction already; scan what it leaves (4 sigma).
+        bc.initial_latency_s = 0;
+        bc.latency_scan_s =
+            header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
+    }
     ProgressReporter bar("calibrate", 1000);
     calib::BoresightResult cal =
-        calib::CalibrateBoresight(s.geo, s.ingest.nav, s.mount, config.calibrate, bar.AsCallback());
+        calib::CalibrateBoresight(s.geo, s.ingest.nav, s.mount, bc, bar.AsCallback());
     bar.Finish();
     log("calibrate: " + cal.message);
     json st = {
@@ -220,12 +340,19 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
           {"max_heading_stddev_deg", cal.segment.max_heading_stddev_deg}}},
         {"residual_before_rms_m", cal.before.rms_m},
         {"residual_after_rms_m", cal.after.rms_m},
+        {"residual_expected_rms_m", cal.after.expected_rms_m},
         {"pairs", cal.after.pairs},
         {"formal_sd_deg", {cal.formal_sd_deg[0], cal.formal_sd_deg[1], cal.formal_sd_deg[2]}},
         {"height_offsets_rms_m", cal.height_offsets_rms_m},
+        {"latency_estimated", cal.latency_estimated},
+        {"latency_s", cal.latency_s},
+        {"latency_formal_sd_s", cal.latency_formal_sd_s},
+        {"latency_scan_s", bc.latency_scan_s},
+        {"latency_scan_best_s", cal.latency_scan_best_s},
         {"boresight_before", MountJson(before)},
         {"boresight_after", MountJson(cal.mount)}};
     st["verify"] = json::array();
+    bool verified = true;
     for (const auto& v : cal.verify) {
         st["verify"].push_back({{"start_s", v.segment.start_s},
                                 {"end_s", v.segment.end_s},
@@ -242,19 +369,61 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
                       v.after.rms_m,
                       static_cast<long long>(v.after.pairs));
         log(buf);
+        if (v.after.pairs > 0 && v.before.pairs > 0 && v.after.rms_m > v.before.rms_m)
+            verified = false;
     }
     if (cal.termination == calib::Termination::kNoOverlap) {
         RecordStage(s.summary, "calibrate", st, clock);
         (void)SaveSummary(s);
         return Error{"calibrate: " + cal.message};
     }
-    georef::Regeoreference(s.geo, cal.mount);
+    if (cal.after.pairs > 0 &&
+        cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {
+        TripGate(s,
+                 "calibrate",
+                 "calibration_residual",
+                 "residual RMS " + Num("%.4f", cal.after.rms_m) + " m after calibration is " +
+                     Num("%.1f", cal.after.rms_m / cal.after.expected_rms_m) +
+                     "x what the range noise leaves (" + Num("%.4f", cal.after.expected_rms_m) +
+                     " m): the overlapping passes disagree in a way the boresight and latency "
+                     "do not explain (sonar clock, lever arm, sound speed or navigation)",
+                 log);
+    }
+    const bool keep_nominal = !verified;
+    if (keep_nominal) {
+        TripGate(s,
+                 "calibrate",
+                 "calibration_not_verified",
+                 "the calibrated mount fits other segments worse than the nominal one: the "
+                 "nominal mount and sonar clock are kept",
+                 log);
+        cal.mount = before;
+        cal.latency_s = 0;
+    }
+    st["kept_nominal"] = keep_nominal;
     s.mount = cal.mount;
+    if (cal.latency_estimated && !keep_nominal && cal.latency_s != 0.0) {
+        // The ping times themselves change: georeference again from the ingested series.
+        calib::ShiftPingTimes(s.ingest.pings, cal.latency_s);
+        s.geo = georef::RunGeoref(s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin);
+        if (auto w = io::WriteIngestCache(s.out_dir + "/ingest.cache", s.ingest); !w) return w;
+    } else {
+        georef::Regeoreference(s.geo, cal.mount);
+    }
+    clk["latency_s"] = cal.latency_estimated && !keep_nominal ? cal.latency_s : 0.0;
+    clk["latency_formal_sd_s"] = cal.latency_formal_sd_s;
+    clk["correction_s"] = clk.value("correction_s", 0.0) + clk["latency_s"].get<double>();
+    if (cal.latency_estimated && !keep_nominal) clk["sigma_s"] = cal.latency_formal_sd_s;
+    if (config.ingest.sonar_clock_offset_known && header) {
+        // In the configured offset's own terms: the offset that would have needed no correction.
+        clk["estimated_offset_s"] =
+            config.ingest.sonar_clock_offset_s + clk["correction_s"].get<double>();
+    }
     s.summary["mount"] = MountJson(cal.mount);
     if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
-    if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", MountJson(cal.mount)); !w) {
-        return w;
-    }
+    json bj = MountJson(cal.mount);
+    bj["sonar_clock"] = clk;
+    if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     RecordStage(s.summary, "calibrate", st, clock);
     return SaveSummary(s);
 }
@@ -287,6 +456,8 @@ Status GeorefSurvey(Survey& s,
     s.summary.erase("stages");
     s.summary.erase("stage_order");
     s.summary.erase("total_seconds");
+    s.summary.erase("quality_gates");
+    s.summary.erase("sonar_clock");
     if (vpath.empty()) {
         log("warning: no vehicle.yaml found beside " + files->front() +
             ": lever arm and boresight default to zero (give products.vehicle_yaml)");
@@ -318,6 +489,11 @@ Status GeorefSurvey(Survey& s,
     if (s.ingest.pings.pings.empty())
         return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
 
+    if (auto c = ClockSurvey(s, config, log); !c) {
+        (void)SaveSummary(s);
+        return c;
+    }
+
     StageClock georef_clock;
     std::optional<Geodetic> origin;
     if (!std::isnan(config.origin_latitude_deg)) {
@@ -329,6 +505,21 @@ Status GeorefSurvey(Survey& s,
         s.ingest.nav, s.ingest.pings, s.mount, config.georef, origin, gbar.AsCallback());
     gbar.Finish();
     log("georef: " + s.geo.message);
+    if (const std::int64_t out = s.geo.counts.pings_outside_nav; out > 0) {
+        const auto& P = s.ingest.pings.pings;
+        const auto& N = s.ingest.nav.samples;
+        const std::string what =
+            std::to_string(out) + " of " + std::to_string(P.size()) +
+            " pings lie outside the navigation span and are not georeferenced: navigation " +
+            calib::SpanText(N.front().utime_gps, N.back().utime_gps) + ", sonar " +
+            calib::SpanText(P.front().utime_gps, P.back().utime_gps);
+        if (static_cast<double>(out) >
+            config.quality.max_outside_nav_fraction * static_cast<double>(P.size())) {
+            TripGate(s, "georef", "pings_outside_navigation", what, log);
+        } else {
+            log("warning: " + what);
+        }
+    }
     s.origin = s.geo.world_origin;
     RecordStage(s.summary, "georef", CountsJson(s.geo.counts), georef_clock);
     s.summary["world_origin"] = {{"latitude_deg", s.origin.latitude_deg},

@@ -44,6 +44,21 @@ struct RunOptions {
     bool report = true;            // report.html through pitmap-report
 };
 
+// Quality gates: where a stage says that it cannot explain its data (summary.json
+// "quality_gates", the terminal and the report; `pitmap ... --strict` exits non-zero on any).
+struct QualityConfig {
+    double calibration_residual_ratio = 2.5;  // residual RMS after calibration / range noise's
+    double max_clock_scan_s = 5.0;        // widest sonar-clock uncertainty the data may resolve
+    double clock_disagreement_s = 0.05;   // configured vs found clock offset, beyond 3 sigma
+    double slam_sigma_multiple = 3.0;     // SLAM may move a ping this many INS sigmas ...
+    double slam_min_allowance_m = 0.05;   // ... or this far, whichever is larger
+    double slam_good_ins_sigma_m = 0.10;  // pings whose INS horizontal sigma is below: "good"
+    double slam_max_fraction = 0.05;      // more good pings moved further trips the gate
+    double max_outside_nav_fraction = 0.01;  // pings outside the navigation span
+
+    std::vector<std::string> Validate() const;
+};
+
 // SLAM stage settings beyond slam::SlamConfig.
 struct SlamStageConfig {
     int point_stride = 1;          // every n-th kept sounding of a ping goes into its slice
@@ -63,6 +78,7 @@ struct PipelineConfig {
     fusion::WeightFilterConfig weight_filter;
     mesh::MeshConfig mesh;
     RunOptions run;
+    QualityConfig quality;
     // The report program (pitmap-report); set by the command line, "" = no report.
     std::string report_program;
     // World origin; NaN = the first INS position.

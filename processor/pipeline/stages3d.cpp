@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include "common/frames.hpp"
 #include "common/progress.hpp"
@@ -96,6 +97,60 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         after = PosesAtPings(s.geo, slices_after.gps_time_s, slices_after.T_world_vehicle)
                     .T_world_vehicle;
     }
+    // Where the INS is good (GNSS, cm-level sigma) SLAM may not move a ping further than its
+    // sigma allows: a correction beyond that is an inconsistency (a sonar clock or mount error
+    // the calibration did not remove) and is reported, not absorbed into the trajectory.
+    ClearGates(s, "slam");
+    json ins_check = json::object();
+    {
+        const QualityConfig& q = config.quality;
+        const auto& sd = s.ingest.nav.stddevs;
+        std::vector<std::size_t> good;
+        std::int64_t beyond = 0;
+        double worst = 0;
+        for (std::size_t i = 0; i < after.size() && i < s.geo.pings.size(); ++i) {
+            const std::int64_t t = s.geo.pings[i].utime_gps;
+            auto it = std::lower_bound(sd.begin(), sd.end(), t, [](const auto& a, std::int64_t b) {
+                return a.utime_gps < b;
+            });
+            double sigma = std::numeric_limits<double>::quiet_NaN();
+            double age = 1e300;
+            for (auto c : {it, it == sd.begin() ? it : it - 1}) {
+                if (c == sd.end()) continue;
+                const double a = std::abs(static_cast<double>(c->utime_gps - t)) * 1e-6;
+                if (a < age) {
+                    age = a;
+                    sigma = std::hypot(static_cast<double>(c->north_m), static_cast<double>(c->east_m));
+                }
+            }
+            if (!(age <= sc.sigma_max_age_s && sigma <= q.slam_good_ins_sigma_m)) continue;
+            good.push_back(i);
+            const double moved =
+                (after[i].translation() - before.T_world_vehicle[i].translation()).norm();
+            const double allowed = std::max(q.slam_sigma_multiple * sigma, q.slam_min_allowance_m);
+            if (moved > allowed) ++beyond;
+            worst = std::max(worst, moved);
+        }
+        ins_check = {{"good_ins_pings", good.size()},
+                     {"moved_beyond_allowance", beyond},
+                     {"max_move_good_ins_m", worst},
+                     {"reverted", false}};
+        if (!good.empty() &&
+            static_cast<double>(beyond) > q.slam_max_fraction * static_cast<double>(good.size())) {
+            TripGate(s,
+                     "slam",
+                     "slam_beyond_ins_sigma",
+                     "SLAM moved " + std::to_string(beyond) + " of " + std::to_string(good.size()) +
+                         " pings with good INS (horizontal sigma <= " +
+                         Fixed(q.slam_good_ins_sigma_m, 2) + " m) by more than " +
+                         Fixed(q.slam_sigma_multiple, 1) + " sigma (up to " + Fixed(worst, 3) +
+                         " m): the soundings disagree with a good INS (sonar clock, mount or "
+                         "sound speed?); the INS trajectory is kept at those pings",
+                     log);
+            for (std::size_t i : good) after[i] = before.T_world_vehicle[i];
+            ins_check["reverted"] = true;
+        }
+    }
     const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
 
     const std::string& P = s.out_dir;
@@ -132,6 +187,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"final_consistency_m", r.final_consistency_m},
                {"position_change_rms_m", change_rms},
                {"position_change_max_m", change_max},
+               {"ins_check", ins_check},
                {"correspondence", ToString(cfg.correspondence)},
                {"robust_kernel", ToString(cfg.robust_kernel)},
                {"timings_s",

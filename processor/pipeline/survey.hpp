@@ -66,6 +66,21 @@ Status WritePoints(const std::string& dir,
 
 Status SaveSummary(const Survey& s);
 
+// Quality gates (QualityConfig): a stage that cannot explain its data says so in the terminal
+// ("quality gate STAGE/GATE: ...") and in summary["quality_gates"] [{stage, gate, message}];
+// the report lists them. A stage clears its own before it runs again.
+void TripGate(Survey& s,
+              const std::string& stage,
+              const std::string& gate,
+              const std::string& message,
+              const Log& log);
+void ClearGates(Survey& s, const std::string& stage);
+
+// The sonar clock after ingest: for .83P pings (topside clock) the coarse offset from the
+// header aids is found and applied, or a configured offset is checked against it; then the
+// navigation and sonar spans must overlap. summary["sonar_clock"] records what was done.
+Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+
 // The stages on a survey in memory (bodies of the Run*Stage functions and of RunAll).
 Status GeorefSurvey(Survey& s,
                     const std::vector<std::string>& inputs,
