@@ -42,10 +42,10 @@ void FixCrc(std::vector<std::uint8_t>& b) {
 }
 
 // Offsets of the four arrays' u64 count fields (each followed by the u64 element size and
-// the elements), after the 16-byte header.
+// the elements), after the 20-byte header.
 std::vector<std::size_t> ArrayOffsets(const std::vector<std::uint8_t>& b) {
     std::vector<std::size_t> at;
-    std::size_t pos = 16;
+    std::size_t pos = 20;  // magic, version, byte order, leap seconds, ping clock
     for (int array = 0; array < 4; ++array) {
         at.push_back(pos);
         std::uint64_t count = 0, size = 0;
@@ -162,6 +162,21 @@ TEST_F(ProductReaders, OverwrittenIngestCacheBytesAreCleanErrorsOverTwentySeeds)
 
 // Case 5: an array count edited to 3 GiB allocated 3.2 GB before the error. Every count is now
 // checked against the bytes that remain, before allocating, whether or not the CRC is right.
+TEST_F(ProductReaders, IngestCacheKeepsThePingClockAndRefusesAnUnknownOne) {
+    IngestResult r = SmallIngest();
+    r.pings.clock = georef::PingClock::kTopsideHeader;
+    r.pings.pings[0].aid_latitude_deg = 40.5;
+    const std::string path = (dir_ / "clock.cache").string();
+    ASSERT_TRUE(WriteIngestCache(path, r));
+    auto back = ReadIngestCache(path);
+    ASSERT_TRUE(back) << back.error().message;
+    EXPECT_EQ(back->pings.clock, georef::PingClock::kTopsideHeader);
+    EXPECT_EQ(back->pings.pings[0].aid_latitude_deg, 40.5);
+    std::vector<std::uint8_t> bad = good_;
+    bad[16] = 9;  // ping clock field
+    ExpectCacheError(bad, "ping clock");
+}
+
 TEST_F(ProductReaders, HugeIngestCacheCountsFailWithoutAllocating) {
     const double rss_before_mb = PeakRssMb();
     const std::vector<std::size_t> offsets = ArrayOffsets(good_);
