@@ -889,6 +889,41 @@ class Report:
         fig.subplots_adjust(left=0.02, right=0.98, bottom=0.04, top=0.94, wspace=0.05)
         return self.Figure(fig, "mesh_oblique", "oblique 3-D view of the meshes")
 
+    def SectionQuality(self):
+        """The quality gates: where a stage said it could not explain its data."""
+        gates = self.summary.get("quality_gates")
+        if not isinstance(gates, list) or not gates:
+            return ('<p>No quality gate tripped: every stage explained its data within the '
+                    'limits of the <code>quality</code> configuration.</p>')
+        rows = [[Esc(g.get("stage", "?")), Esc(g.get("gate", "?")), Esc(g.get("message", ""))]
+                for g in gates if isinstance(g, dict)]
+        return ('<p class="problem">' + str(len(rows)) + " quality gate(s) tripped: the "
+                "products below are what the processing could make, but these stages could not "
+                "explain their data. Read the reasons before using the results.</p>" +
+                Table(rows, header=["stage", "gate", "what was found"]))
+
+    def SectionClock(self):
+        clk = self.summary.get("sonar_clock")
+        if not isinstance(clk, dict):
+            return self.Missing("sonar clock", "summary.json has no sonar_clock (older run)")
+        facts = [("time source of the pings", Esc(clk.get("source", "?")))]
+        if clk.get("configured"):
+            facts.append(("configured offset", f"{Num(clk.get('configured_offset_s', 0), 4)} s"))
+        co = clk.get("coarse")
+        if isinstance(co, dict):
+            facts.append(("coarse estimate (" + Esc(co.get("method", "?")) + ")",
+                          Esc(co.get("message", ""))))
+        if "latency_s" in clk:
+            facts.append(("latency from the soundings",
+                          f"{Num(1e3 * float(clk['latency_s']), 2)} ms (formal sd "
+                          f"{Num(1e3 * float(clk.get('latency_formal_sd_s', 0)), 2)} ms)"))
+        facts.append(("correction applied to the ping times",
+                      f"{Num(float(clk.get('correction_s', 0)), 4)} s &plusmn; "
+                      f"{Num(float(clk.get('sigma_s', 0)), 4)} s"))
+        if "estimated_offset_s" in clk:
+            facts.append(("offset the data imply", f"{Num(clk['estimated_offset_s'], 4)} s"))
+        return Table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts")
+
     def SectionBoresight(self):
         out = []
         cal = self.stages.get("calibrate")
@@ -1144,11 +1179,13 @@ class Report:
         self.LoadScores()
         sections = [
             ("summary", "Survey", self.SectionHeader),
+            ("quality", "Quality gates", self.SectionQuality),
             ("trajectory", "Trajectory before and after SLAM", self.SectionTrajectory),
             ("cross-sections", "Cross-sections of the point cloud", self.SectionCrossSections),
             ("depth", "Depth-coloured top view", self.SectionDepth),
             ("mesh", "Mesh before and after SLAM", self.SectionMesh),
             ("boresight", "Boresight calibration", self.SectionBoresight),
+            ("clock", "Sonar clock and latency", self.SectionClock),
             ("tsdf", "TSDF weight histogram", self.SectionTsdf),
             ("slam", "SLAM per iteration", self.SectionSlam),
             ("stages", "Stages: time and memory", self.SectionStages),
