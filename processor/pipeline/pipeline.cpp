@@ -193,6 +193,11 @@ std::string Num(const char* fmt, double v) {
     return b;
 }
 
+// The offset (in the configuration's terms) that would have needed no further correction.
+double ImpliedClockOffset(const io::IngestConfig& c, double correction_s) {
+    return c.sonar_clock_offset_s + correction_s;  // ingest adds the offset to the header time
+}
+
 }  // namespace
 
 Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
@@ -230,11 +235,12 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                 TripGate(s,
                          "georef",
                          "sonar_clock_disagrees",
-                         "the configured sonar clock offset " +
+                         "the configured sonar clock offset is " +
                              Num("%+.3f", config.ingest.sonar_clock_offset_s) +
-                             " s leaves the pings " + Num("%+.3f", est.correction_s) +
-                             " s (+- " + Num("%.3f", est.sigma_s) + " s) from the " +
-                             est.method + " in the 83P headers; the configured value is used",
+                             " s, the " + est.method + " in the 83P headers implies " +
+                             Num("%+.3f", ImpliedClockOffset(config.ingest, est.correction_s)) +
+                             " s (+- " + Num("%.3f", est.sigma_s) +
+                             " s); the configured value is used",
                          log);
             }
             sigma = 0.1;
@@ -417,7 +423,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     if (config.ingest.sonar_clock_offset_known && header) {
         // In the configured offset's own terms: the offset that would have needed no correction.
         clk["estimated_offset_s"] =
-            config.ingest.sonar_clock_offset_s + clk["correction_s"].get<double>();
+            ImpliedClockOffset(config.ingest, clk["correction_s"].get<double>());
     }
     s.summary["mount"] = MountJson(cal.mount);
     if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
