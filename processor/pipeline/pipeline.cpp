@@ -422,8 +422,21 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     if (cal.latency_estimated && !keep_nominal) clk["sigma_s"] = cal.latency_formal_sd_s;
     if (config.ingest.sonar_clock_offset_known && header) {
         // In the configured offset's own terms: the offset that would have needed no correction.
-        clk["estimated_offset_s"] =
+        const double implied =
             ImpliedClockOffset(config.ingest, clk["correction_s"].get<double>());
+        clk["estimated_offset_s"] = implied;
+        if (cal.latency_estimated && !keep_nominal &&
+            std::abs(cal.latency_s) >
+                std::max(q.clock_disagreement_s, 3 * cal.latency_formal_sd_s)) {
+            TripGate(s,
+                     "calibrate",
+                     "sonar_clock_disagrees",
+                     "the configured sonar clock offset is " +
+                         Num("%+.4f", config.ingest.sonar_clock_offset_s) +
+                         " s, the soundings put it at " + Num("%+.4f", implied) +
+                         " s; the soundings' value is applied",
+                     log);
+        }
     }
     s.summary["mount"] = MountJson(cal.mount);
     if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
