@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
 // pitmap-sim: synthetic surveys with ground truth.
-//   pitmap-sim synth --scenario NAME --out DIR [--seed N]   log files + truth, faster than real
-//   time pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
+//   pitmap-sim synth --scenario NAME --out DIR [--seed N] [--vendor-files]
+//                    [--topside-clock-offset S]             log files + truth (+ vendor files),
+//                                                           faster than real time
+//   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
 //   pitmap-sim scenarios                                    the built-in scenarios
@@ -94,17 +96,31 @@ int main(int argc, char** argv) {
     int threads = 0;
     auto* synth = app.add_subcommand(
         "synth", "write a survey's LCM logs (as pitmap-acqd would) and its ground truth");
-    synth->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")
+    synth
+        ->add_option(
+            "--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage, quarry")
         ->required();
     synth->add_option("--out", out_dir, "output folder: DIR/log (logs, vehicle.yaml) and DIR/truth")
         ->required();
     synth->add_option("--seed", seed, "random seed (default: the scenario's own)");
     synth->add_option("--threads", threads, "threads for sonar ray casting (0 = all cores)");
+    bool vendor_files = false;
+    double clock_offset_s = 0;
+    synth->add_flag("--vendor-files",
+                    vendor_files,
+                    "also write DIR/vendor/<scenario>.gps (NovAtel binary stream) and "
+                    "DIR/vendor/<scenario>.83P (83P records as the topside program records them)");
+    auto* clock_offset_opt =
+        synth->add_option("--topside-clock-offset",
+                          clock_offset_s,
+                          "seconds: sonar header time minus UTC at the survey start (default: "
+                          "the scenario's); GPS = header + (GPS-UTC) - offset");
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
     auto* hil = app.add_subcommand("hil", "run a scenario in real time behind a pty, TCP and UDP");
-    hil->add_option("--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage")
+    hil->add_option(
+           "--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage, quarry")
         ->required();
     hil->add_option("--out", hil_opt.out_dir, "output folder: DIR/truth, DIR/log (the daemon's)")
         ->required();
@@ -130,14 +146,8 @@ int main(int argc, char** argv) {
 
     if (*list) {
         for (const auto& n : sim::BuiltinScenarioNames()) {
-            const auto s = *sim::BuiltinScenario(n);
-            std::printf("%-11s pit %.0f x %.0f m, %.0f m deep, %.0f s, %.0f pings\n",
-                        n.c_str(),
-                        2 * s.pit.half_length_m,
-                        2 * s.pit.half_width_m,
-                        s.pit.max_depth_m,
-                        s.track.duration_s,
-                        s.track.duration_s * s.sonar.ping_rate_hz);
+            std::printf(
+                "%-11s %s\n", n.c_str(), sim::DescribeScenario(*sim::BuiltinScenario(n)).c_str());
         }
         return 0;
     }
@@ -147,9 +157,11 @@ int main(int argc, char** argv) {
         return 2;
     }
     if (seed != 0) scenario->seed = seed;
+    if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
     sim::SynthOptions opt;
     opt.out_dir = out_dir;
     opt.num_threads = threads;
+    opt.vendor_files = vendor_files;
     const auto t0 = std::chrono::steady_clock::now();
     ProgressReporter progress("synth " + scenario_name, 1000);
     auto result = sim::RunSynth(*scenario, opt, progress.AsCallback());
@@ -162,7 +174,8 @@ int main(int argc, char** argv) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf(
         "pitmap-sim: %s: %.1f s simulated (%.0f m) in %.1f s: %lld pings, %lld NovAtel frames "
-        "(%lld bytes); log: %lld events, %.1f MB in %d file(s) under %s/log; truth in %s/truth\n",
+        "(%lld bytes); log: %lld events, %.1f MB in %d file(s) under %s/log; truth in %s/truth"
+        "%s\n",
         scenario_name.c_str(),
         result->duration_s,
         result->track_length_m,
@@ -174,6 +187,7 @@ int main(int argc, char** argv) {
         static_cast<double>(result->log_bytes) / 1e6,
         result->log_files,
         out_dir.c_str(),
-        out_dir.c_str());
+        out_dir.c_str(),
+        vendor_files ? "; vendor files in DIR/vendor" : "");
     return 0;
 }

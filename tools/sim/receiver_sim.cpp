@@ -2,6 +2,7 @@
 #include "tools/sim/receiver_sim.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -289,8 +290,55 @@ std::vector<std::uint8_t> SimulatedReceiver::InsConfig(double t) const {
     return Encode(m);
 }
 
-SimulatedTopside::SimulatedTopside(const ScenarioConfig& sc, std::int64_t start_utime_gps)
-    : sc_(sc), start_utime_gps_(start_utime_gps) {}
+namespace {
+
+// Noise streams of the topside's inputs.
+constexpr std::uint64_t kStreamGga = 1, kStreamVtg = 2, kStreamHdt = 3, kStreamAttitude = 4;
+constexpr double kMpsPerKnot = 1852.0 / 3600.0;
+
+// Two independent standard normal numbers that depend only on (seed, stream, index).
+std::array<double, 2> GaussPair(std::uint64_t seed, std::uint64_t stream, std::int64_t index) {
+    auto mix = [](std::uint64_t z) {
+        z += 0x9E3779B97F4A7C15ull;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        return z ^ (z >> 31);
+    };
+    const std::uint64_t a =
+        mix(seed ^ mix(stream * 0xD1B54A32D192ED03ull ^ static_cast<std::uint64_t>(index)));
+    const std::uint64_t b = mix(a);
+    const double u1 = (static_cast<double>(a >> 11) + 0.5) / 9007199254740992.0;  // (0, 1)
+    const double u2 = static_cast<double>(b >> 11) / 9007199254740992.0;
+    const double r = std::sqrt(-2.0 * std::log(u1)), phi = 2.0 * 3.14159265358979323846 * u2;
+    return {r * std::cos(phi), r * std::sin(phi)};
+}
+
+// Index of the last sentence of a feed at `rate_hz` (epochs k / rate_hz, k >= 0) that has
+// reached the topside at time t, `latency_s` after its epoch; -1 if none has yet.
+std::int64_t LastEpoch(double rate_hz, double latency_s, double t) {
+    const double x = (t - latency_s) * rate_hz;
+    if (x < -1e-9) return -1;
+    return static_cast<std::int64_t>(std::floor(x + 1e-9));
+}
+
+double WrapDeg360(double a) {
+    a = std::fmod(a, 360.0);
+    if (a < 0) a += 360.0;
+    return a;
+}
+
+}  // namespace
+
+SimulatedTopside::SimulatedTopside(const ScenarioConfig& sc,
+                                   const TruthTrajectory& truth,
+                                   std::int64_t start_utime_gps)
+    : sc_(sc),
+      truth_(truth),
+      start_utime_gps_(start_utime_gps),
+      world_({sc.origin_latitude_deg, sc.origin_longitude_deg, sc.origin_height_m}),
+      R_vehicle_sonar_(frames::RotationNedFromRpy(frames::DegToRad(sc.boresight_deg.at(0)),
+                                                  frames::DegToRad(sc.boresight_deg.at(1)),
+                                                  frames::DegToRad(sc.boresight_deg.at(2)))) {}
 
 TopsideDatagram SimulatedTopside::Encode(const SimPing& ping, double t_transmit) const {
     const SonarConfig& so = sc_.sonar;
@@ -307,8 +355,62 @@ TopsideDatagram SimulatedTopside::Encode(const SimPing& ping, double t_transmit)
     dt::Ping83P p;
     p.format_version = static_cast<std::uint8_t>(so.format_version);
     dt::SetHeaderTime(p, header_unix);
-    dt::SetHeaderLatitude(p, std::numeric_limits<double>::quiet_NaN());  // no GNSS into the topside
-    dt::SetHeaderLongitude(p, std::numeric_limits<double>::quiet_NaN());
+    // Auxiliary inputs: what the topside had last received at the interrogation.
+    double latitude = std::numeric_limits<double>::quiet_NaN();  // blank: no fix yet / no feed
+    double longitude = std::numeric_limits<double>::quiet_NaN();
+    const std::int64_t fix =
+        so.nmea_position ? LastEpoch(so.nmea_position_rate_hz, so.nmea_latency_s, t_interrogate)
+                         : -1;
+    if (fix >= 0) {
+        // GGA: the antenna position at the fix epoch. VTG: its velocity over ground.
+        const double t_fix = static_cast<double>(fix) / so.nmea_position_rate_hz;
+        const auto& la = sc_.lever_arms.antenna_m;
+        const Eigen::Vector3d lever(la[0], la[1], la[2]);
+        Eigen::Vector3d antenna = truth_.PoseAt(t_fix) * lever;
+        const auto n = GaussPair(sc_.seed, kStreamGga, fix);
+        antenna.x() += so.nmea_position_noise_m * n[0];
+        antenna.y() += so.nmea_position_noise_m * n[1];
+        const Geodetic g = world_.FromEnu(antenna);
+        latitude = g.latitude_deg;
+        longitude = g.longitude_deg;
+        const double h = 0.05, t0 = std::max(0.0, t_fix - h), t1 = t_fix + h;
+        const Eigen::Vector3d v =
+            (truth_.PoseAt(t1) * lever - truth_.PoseAt(t0) * lever) / (t1 - t0);
+        const auto nvel = GaussPair(sc_.seed, kStreamVtg, fix);
+        const double ve = v.x() + so.nmea_speed_noise_mps * nvel[0];
+        const double vn = v.y() + so.nmea_speed_noise_mps * nvel[1];
+        p.speed_over_ground_knots = std::min(std::hypot(ve, vn) / kMpsPerKnot, 25.5);
+        double course = WrapDeg360(frames::RadToDeg(std::atan2(ve, vn)));
+        if (course >= 359.95) course -= 360.0;  // 0.1 deg field: 360.0 is written as 0.0
+        p.course_over_ground_deg = course;
+    }
+    dt::SetHeaderLatitude(p, latitude);
+    dt::SetHeaderLongitude(p, longitude);
+    const std::int64_t hdt =
+        so.nmea_heading && p.is_v110()
+            ? LastEpoch(so.nmea_heading_rate_hz, so.nmea_latency_s, t_interrogate)
+            : -1;
+    if (hdt >= 0) {
+        // HDT: true heading of the vehicle's x axis at the sentence's epoch.
+        const double t_hdt = static_cast<double>(hdt) / so.nmea_heading_rate_hz;
+        const frames::Rpy rpy = frames::RpyFromRotationWorld(truth_.PoseAt(t_hdt).linear());
+        const double heading =
+            WrapDeg360(frames::RadToDeg(rpy.yaw) +
+                       so.nmea_heading_noise_deg * GaussPair(sc_.seed, kStreamHdt, hdt)[0]);
+        p.external_sensor_flags |= dt::kExternalHeadingValid;
+        p.external_heading_deg = static_cast<float>(heading);
+    }
+    if (so.internal_attitude_sensor) {
+        // The head's own attitude (vehicle attitude composed with the mount) at the
+        // interrogation; the encoder quantises to 0.1 deg.
+        const Eigen::Matrix3d R_world_sonar =
+            truth_.PoseAt(t_interrogate).linear() * R_vehicle_sonar_;
+        const frames::Rpy rpy = frames::RpyFromRotationWorld(R_world_sonar);
+        const auto n = GaussPair(sc_.seed, kStreamAttitude, ping.ping_number);
+        p.internal_pitch_valid = p.internal_roll_valid = true;
+        p.internal_pitch_deg = frames::RadToDeg(rpy.pitch) + so.internal_attitude_noise_deg * n[0];
+        p.internal_roll_deg = frames::RadToDeg(rpy.roll) + so.internal_attitude_noise_deg * n[1];
+    }
     p.samples_per_beam = 500;
     p.sector_size_deg = 120;
     p.start_angle_cdeg = static_cast<std::int32_t>(std::lround(so.start_angle_deg * 100.0));

@@ -3,8 +3,16 @@
 //   SimulatedReceiver: a NovAtel SPAN receiver (ISA-100C fibre-optic IMU) logging INSPVASB at
 //     the INS rate, RAWIMUSXB at the IMU rate, and INSPVAXB, BESTPOSB, INSSTDEVB, TIMEB at the
 //     GNSS rate, INSCONFIGB once; values are the truth plus the INS error model.
-//   SimulatedTopside: Imagenex's topside program turning a sonar ping into one 83P v1.10 record,
-//     stamped with the topside PC's (offset, drifting) clock.
+//   SimulatedTopside: Imagenex's topside program turning a sonar ping into one 83P record
+//     (v1.10, or v1.00 by SonarConfig::format_version), stamped with the topside PC's (offset,
+//     drifting) clock, with the header fields its NMEA inputs and the head's attitude sensor
+//     fill (stale GGA position, VTG speed/course, HDT heading, internal pitch/roll).
+//
+// Topside clock convention (also written to truth/sonar_clock.json): at t seconds after the
+// survey start, offset(t) = topside_clock_offset_s + topside_clock_drift_ppm * 1e-6 * t is the
+// sonar header time minus UTC; the header time is the ping's interrogation, truncated to the
+// header's resolution. Hence GPS time of the interrogation = header time (read as UTC) +
+// (GPS - UTC) - offset(t), and the transmit is ping_latency_ms later.
 // Used by `pitmap-sim synth` (log files) and by the real-time HIL emulators.
 #pragma once
 
@@ -64,15 +72,25 @@ struct TopsideDatagram {
     std::vector<std::uint8_t> bytes;  // one 83P record
 };
 
+// Thread safety: const methods may be called concurrently. Noise of the NMEA fixes and of the
+// attitude sensor depends only on (seed, fix or ping number), so two instances write the same
+// bytes for the same ping.
 class SimulatedTopside {
 public:
-    SimulatedTopside(const ScenarioConfig& scenario, std::int64_t start_utime_gps);
+    // `truth` gives the antenna position, velocity and heading the NMEA feeds report and the
+    // attitude the head's sensor measures; it must outlive this object.
+    SimulatedTopside(const ScenarioConfig& scenario,
+                     const TruthTrajectory& truth,
+                     std::int64_t start_utime_gps);
     // Encodes `ping` (transmitted at t_transmit_s) as the topside would send it.
     TopsideDatagram Encode(const SimPing& ping, double t_transmit_s) const;
 
 private:
     const ScenarioConfig& sc_;
+    const TruthTrajectory& truth_;
     std::int64_t start_utime_gps_;
+    LocalTangentFrame world_;
+    Eigen::Matrix3d R_vehicle_sonar_;
 };
 
 // GPS microseconds of the survey start (scenario start_utc); fails on a malformed date.

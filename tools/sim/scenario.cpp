@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "tools/sim/scenario.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace pitmap::sim {
 namespace {
@@ -40,6 +42,10 @@ ScenarioConfig Bejanca() {
     s.track.num_tie_lines = 3;
     s.track.duration_s = 1278.6;  // 12 786 pings at 10 Hz
     s.boresight_deg = {0.4, -0.3, 1.2};
+    // The paper's topside program had no NMEA input and the head no attitude sensor: the 83P
+    // headers stay as they were (blank position, no attitude).
+    s.sonar.nmea_position = false;
+    s.sonar.internal_attitude_sensor = false;
     return s;
 }
 
@@ -54,6 +60,53 @@ ScenarioConfig GpsOutage() {
     s.track.num_tie_lines = 1;
     s.track.duration_s = 729.1;  // 7 291 pings at 10 Hz
     s.nav.outages_s = {180.0, 420.0};
+    return s;
+}
+
+// A short survey of a flooded quarry that is not a smooth bowl: two benches, a 65 deg high
+// wall on the north side, a haul road down to the first bench on the south side, three dozen
+// boulders, RTK-grade navigation without outage, and a topside PC fed with NMEA whose clock
+// is 2.35 s ahead of UTC. About 3.5 minutes at 10 Hz: a test fixture for the processor.
+ScenarioConfig Quarry() {
+    ScenarioConfig s;
+    s.name = "quarry";
+    s.seed = 2718;
+    s.pit.half_length_m = 35.0;
+    s.pit.half_width_m = 25.0;
+    s.pit.max_depth_m = 17.0;
+    s.pit.floor_depth_m = 14.0;
+    s.pit.num_benches = 2;
+    s.pit.bench_width_m = 3.5;
+    s.pit.wall_slope_deg = 55.0;
+    s.pit.shore_slope_deg = 40.0;
+    s.pit.backfill_amplitude_m = 0.8;
+    s.pit.backfill_wavelength_m = 10.0;
+    s.pit.rubble_amplitude_m = 0.15;
+    s.pit.rubble_wavelength_m = 3.0;
+    s.pit.land_height_m = 4.0;
+    s.pit.high_wall_slope_deg = 65.0;
+    s.pit.high_wall_direction_deg = 90.0;  // north side
+    s.pit.high_wall_half_angle_deg = 35.0;
+    s.pit.high_wall_blend_deg = 8.0;
+    s.pit.ramp_width_m = 5.0;
+    s.pit.ramp_direction_deg = -125.0;  // from the south-west corner, eastwards along the shore
+    s.pit.ramp_grade_deg = 10.0;
+    s.pit.ramp_bench = 1;
+    s.pit.num_boulders = 36;
+    s.pit.boulder_min_diameter_m = 0.5;
+    s.pit.boulder_max_diameter_m = 2.0;
+    s.track.speed_mps = 1.5;
+    s.track.first_lap_offset_m = 4.0;
+    s.track.lap_spacing_m = 7.0;
+    s.track.num_laps = 2;
+    s.track.num_tie_lines = 1;
+    s.track.duration_s = 210.0;  // 2 100 pings at 10 Hz
+    s.boresight_deg = {0.6, -0.4, 0.9};
+    s.nav.outages_s.clear();  // RTK-grade throughout
+    s.sonar.topside_clock_offset_s = 2.350;
+    s.sonar.nmea_position = true;
+    s.sonar.nmea_heading = true;
+    s.sonar.internal_attitude_sensor = true;
     return s;
 }
 
@@ -77,6 +130,33 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         p.push_back("pit.wall_slope_deg must be in (5, 89)");
     if (!(pit.shore_slope_deg > 5 && pit.shore_slope_deg < 89))
         p.push_back("pit.shore_slope_deg must be in (5, 89)");
+    if (pit.high_wall_slope_deg != 0) {
+        if (!(pit.high_wall_slope_deg > 5 && pit.high_wall_slope_deg < 89))
+            p.push_back("pit.high_wall_slope_deg must be 0 (none) or in (5, 89)");
+        if (!(pit.high_wall_half_angle_deg > 0 && pit.high_wall_half_angle_deg <= 180))
+            p.push_back("pit.high_wall_half_angle_deg must be in (0, 180]");
+        if (!(pit.high_wall_blend_deg >= 0 && pit.high_wall_blend_deg < 90))
+            p.push_back("pit.high_wall_blend_deg must be in [0, 90)");
+        if (!std::isfinite(pit.high_wall_direction_deg))
+            p.push_back("pit.high_wall_direction_deg must be finite");
+    }
+    if (!(pit.ramp_width_m >= 0) || !std::isfinite(pit.ramp_width_m))
+        p.push_back("pit.ramp_width_m must be >= 0 (0 = no ramp)");
+    if (pit.ramp_width_m > 0) {
+        if (!(pit.ramp_grade_deg >= 1 && pit.ramp_grade_deg <= 30))
+            p.push_back("pit.ramp_grade_deg must be in [1, 30]");
+        if (pit.ramp_bench < 1 || pit.ramp_bench > pit.num_benches)
+            p.push_back("pit.ramp_bench must be 1..num_benches");
+        if (!std::isfinite(pit.ramp_direction_deg))
+            p.push_back("pit.ramp_direction_deg must be finite");
+    }
+    if (pit.num_boulders < 0 || pit.num_boulders > 10000)
+        p.push_back("pit.num_boulders must be 0..10000");
+    if (pit.num_boulders > 0 && !(pit.boulder_min_diameter_m > 0 &&
+                                  pit.boulder_max_diameter_m >= pit.boulder_min_diameter_m &&
+                                  pit.boulder_max_diameter_m <= 20)) {
+        p.push_back("pit: boulder diameters must satisfy 0 < min <= max <= 20 m");
+    }
     CheckPositive(p, track.speed_mps, "track.speed_mps");
     CheckPositive(p, track.lap_spacing_m, "track.lap_spacing_m");
     if (track.num_laps < 1) p.push_back("track.num_laps must be >= 1");
@@ -118,6 +198,31 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         sonar.dropout_probability + sonar.outlier_probability > 1) {
         p.push_back("sonar: dropout and outlier probabilities must be >= 0 and sum to <= 1");
     }
+    if (sonar.nmea_position) {
+        CheckPositive(p, sonar.nmea_position_rate_hz, "sonar.nmea_position_rate_hz");
+        if (!(sonar.nmea_position_noise_m >= 0) || !(sonar.nmea_speed_noise_mps >= 0))
+            p.push_back("sonar: nmea_position_noise_m and nmea_speed_noise_mps must be >= 0");
+    }
+    if (sonar.nmea_heading) {
+        if (!(sonar.nmea_heading_rate_hz >= 1 && sonar.nmea_heading_rate_hz <= 10))
+            p.push_back("sonar.nmea_heading_rate_hz must be in [1, 10]");
+        if (!(sonar.nmea_heading_noise_deg >= 0))
+            p.push_back("sonar.nmea_heading_noise_deg must be >= 0");
+    }
+    if ((sonar.nmea_position || sonar.nmea_heading) &&
+        !(sonar.nmea_latency_s >= 0 && sonar.nmea_latency_s <= 10)) {
+        p.push_back("sonar.nmea_latency_s must be in [0, 10]");
+    }
+    if (sonar.internal_attitude_sensor && !(sonar.internal_attitude_noise_deg >= 0))
+        p.push_back("sonar.internal_attitude_noise_deg must be >= 0");
+    if (!std::isfinite(sonar.topside_clock_offset_s) ||
+        std::abs(sonar.topside_clock_offset_s) > 30.0 * 86400.0) {
+        p.push_back("sonar.topside_clock_offset_s must be finite and within +-30 days");
+    }
+    if (!std::isfinite(sonar.topside_clock_drift_ppm) ||
+        std::abs(sonar.topside_clock_drift_ppm) > 1000) {
+        p.push_back("sonar.topside_clock_drift_ppm must be within +-1000");
+    }
     CheckPositive(p, ins_rate_hz, "ins_rate_hz");
     CheckPositive(p, imu_rate_hz, "imu_rate_hz");
     CheckPositive(p, gnss_rate_hz, "gnss_rate_hz");
@@ -125,14 +230,62 @@ std::vector<std::string> ScenarioConfig::Validate() const {
 }
 
 const std::vector<std::string>& BuiltinScenarioNames() {
-    static const std::vector<std::string> kNames = {"demo", "bejanca", "gps-outage"};
+    static const std::vector<std::string> kNames = {"demo", "bejanca", "gps-outage", "quarry"};
     return kNames;
+}
+
+std::string DescribeScenario(const ScenarioConfig& s) {
+    char buf[512];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "pit %.0f x %.0f m, %.0f m deep, %d bench(es), %.0f s, %.0f pings",
+                  2 * s.pit.half_length_m,
+                  2 * s.pit.half_width_m,
+                  s.pit.max_depth_m,
+                  s.pit.num_benches,
+                  s.track.duration_s,
+                  std::floor(s.track.duration_s * s.sonar.ping_rate_hz + 1e-9));
+    std::string d = buf;
+    if (s.pit.high_wall_slope_deg != 0) {
+        std::snprintf(buf, sizeof buf, "; %.0f deg high wall", s.pit.high_wall_slope_deg);
+        d += buf;
+    }
+    if (s.pit.ramp_width_m > 0) {
+        std::snprintf(buf, sizeof buf, "; %.0f deg ramp", s.pit.ramp_grade_deg);
+        d += buf;
+    }
+    if (s.pit.num_boulders > 0) d += "; " + std::to_string(s.pit.num_boulders) + " boulders";
+    if (!s.nav.outages_s.empty()) {
+        d += "; GPS outage(s)";
+        for (std::size_t i = 0; i + 1 < s.nav.outages_s.size(); i += 2) {
+            std::snprintf(
+                buf, sizeof buf, " %.0f-%.0f s", s.nav.outages_s[i], s.nav.outages_s[i + 1]);
+            d += buf;
+        }
+    }
+    std::snprintf(buf, sizeof buf, "; topside clock %+.3f s", s.sonar.topside_clock_offset_s);
+    d += buf;
+    std::string aux;
+    if (s.sonar.nmea_position) {
+        std::snprintf(buf, sizeof buf, "GGA %g Hz", s.sonar.nmea_position_rate_hz);
+        aux += buf;
+    }
+    if (s.sonar.nmea_heading) {
+        std::snprintf(
+            buf, sizeof buf, "%sHDT %g Hz", aux.empty() ? "" : ", ", s.sonar.nmea_heading_rate_hz);
+        aux += buf;
+    }
+    if (s.sonar.internal_attitude_sensor)
+        aux += std::string(aux.empty() ? "" : ", ") + "pitch/roll";
+    d += "; 83P header: " + (aux.empty() ? std::string("no NMEA, no attitude") : aux);
+    return d;
 }
 
 Expected<ScenarioConfig> BuiltinScenario(const std::string& name) {
     if (name == "demo") return Demo();
     if (name == "bejanca") return Bejanca();
     if (name == "gps-outage") return GpsOutage();
+    if (name == "quarry") return Quarry();
     std::string valid;
     for (const auto& n : BuiltinScenarioNames()) valid += (valid.empty() ? "" : ", ") + n;
     return Error{"unknown scenario '" + name + "' (valid: " + valid + ")"};

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Synthetic survey scenarios: the pit, the track, the sensors and the faults to inject.
-// Built-in names are stable (shared/design/mission.md): "demo", "bejanca", "gps-outage".
+// Built-in names are stable (shared/design/mission.md): "demo", "bejanca", "gps-outage";
+// "quarry" is the short non-bowl test survey (high wall, ramp, boulders, NMEA into the topside).
 // All lengths in metres, angles in degrees (configuration), times in seconds.
 #pragma once
 
@@ -30,6 +31,30 @@ struct PitConfig {
     double rubble_wavelength_m = 3.0;
     double grid_resolution_m = 0.10;  // resolution of the exact terrain grid
     double land_height_m = 3.0;       // height of the banks above the water
+
+    // Optional quarry features (all off by default; the built-in pits without them are
+    // unchanged). Directions are seen from the pit centre, degrees counter-clockwise from +x
+    // (east).
+    // High wall: in a sector of the perimeter the benches give way to one face from the banks
+    // down to the floor (a quarry face cut without benches).
+    double high_wall_slope_deg = 0;          // slope of the face; 0 = no high wall
+    double high_wall_direction_deg = 90.0;   // centre of the sector
+    double high_wall_half_angle_deg = 30.0;  // half-width of the sector
+    double high_wall_blend_deg = 8.0;        // angular width of the blend into the benches
+    // Ramp: a straight haul road, ramp_width_m wide, from the water line at ramp_direction_deg
+    // down to the tread of bench `ramp_bench` at ramp_grade_deg, running counter-clockwise
+    // along the shore (clockwise if ramp_clockwise). Cut and fill faces at wall_slope_deg.
+    double ramp_width_m = 0;  // 0 = no ramp
+    double ramp_direction_deg = -120.0;
+    double ramp_grade_deg = 10.0;
+    int ramp_bench = 1;  // 1 = the shallowest bench; needs num_benches >= ramp_bench
+    bool ramp_clockwise = false;
+    // Boulders: rounded blocks resting on gentle ground under water (treads, floor, ramp):
+    // a squarish plan outline and a flat-topped dome, height 0.3-0.45 of the diameter, partly
+    // buried. Placed at random (from the seed) where the ground slopes less than 15 deg.
+    int num_boulders = 0;  // 0 = none
+    double boulder_min_diameter_m = 0.5;
+    double boulder_max_diameter_m = 2.0;
 };
 
 // The vehicle's track: concentric laps inward from the shore, then tie lines across.
@@ -92,6 +117,32 @@ struct SonarConfig {
     double topside_clock_drift_ppm = 35.0;
     double ping_latency_ms = 2.0;   // interrogation -> transmit
     double data_latency_ms = 35.0;  // interrogation -> datagram sent
+
+    // What the topside program puts into the 83P header from its auxiliary inputs (spec
+    // §1.2, §1.4). Every value it writes is the last one it had received when the ping was
+    // interrogated: a fix taken at t_fix reaches it at t_fix + nmea_latency_s, so the header
+    // position is stale by up to 1/rate + latency. Before the first fix arrives the fields
+    // stay blank (latitude/longitude) or zero (speed/course).
+    // GGA + VTG feed from a GNSS receiver whose antenna is at lever_arms.antenna_m: header
+    // latitude/longitude (bytes 33-60), speed and course over ground (61-63).
+    bool nmea_position = true;
+    double nmea_position_rate_hz = 1.0;   // fixes per second, taken at whole multiples of 1/rate
+    double nmea_latency_s = 0.15;         // fix epoch -> received by the topside (serial, parse)
+    double nmea_position_noise_m = 0.02;  // white horizontal noise per fix, per axis (1 sigma);
+                                          // 0.02 = RTK, about 1-2 = autonomous GNSS
+    double nmea_speed_noise_mps = 0.02;   // white noise on each velocity axis of the VTG
+    // HDT feed (e.g. a dual-antenna GNSS compass): external heading, bytes 137 bit 0 and
+    // 146-149 (v1.10 only; v1.00 has no field for it). Heading of the vehicle's x axis.
+    bool nmea_heading = false;
+    double nmea_heading_rate_hz = 5.0;     // 1..10 Hz; same latency as the position feed
+    double nmea_heading_noise_deg = 0.05;  // white noise per HDT sentence
+    // The head's internal pitch/roll sensor (bytes 64-67, 0.1 deg resolution, bit 15 = valid):
+    // the attitude of the head itself, i.e. the vehicle's attitude composed with the mount
+    // (boresight), sampled at the interrogation. Aerospace convention on the sonar frame
+    // (x fwd, y stbd, z down): roll positive starboard down, pitch positive bow up. No
+    // internal heading (bytes 68-69 stay "not valid").
+    bool internal_attitude_sensor = true;
+    double internal_attitude_noise_deg = 0.05;  // white noise per ping, before quantisation
 };
 
 struct ScenarioConfig {
@@ -122,5 +173,8 @@ struct ScenarioConfig {
 const std::vector<std::string>& BuiltinScenarioNames();
 // A built-in scenario by name; an unknown name is an error that lists the valid ones.
 Expected<ScenarioConfig> BuiltinScenario(const std::string& name);
+// One line on what a scenario holds: pit size and depth, duration and pings, terrain features,
+// GNSS outages, the topside clock and the 83P header inputs (`pitmap-sim scenarios`).
+std::string DescribeScenario(const ScenarioConfig& scenario);
 
 }  // namespace pitmap::sim

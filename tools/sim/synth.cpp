@@ -97,6 +97,25 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         }
     }
 
+    // Vendor files: opened before the run so a bad folder fails early.
+    std::ofstream vendor_gps, vendor_83p;
+    const fs::path vendor_dir = out / "vendor";
+    if (opt.vendor_files) {
+        fs::create_directories(vendor_dir, ec);
+        if (ec || !fs::is_directory(vendor_dir))
+            return Error{vendor_dir.string() + ": cannot create"};
+        const fs::path gps_path = vendor_dir / (sc.name + ".gps");
+        const fs::path p83_path = vendor_dir / (sc.name + ".83P");
+        vendor_gps.open(gps_path, std::ios::binary | std::ios::trunc);
+        vendor_83p.open(p83_path, std::ios::binary | std::ios::trunc);
+        if (!vendor_gps) return Error{gps_path.string() + ": cannot create"};
+        if (!vendor_83p) return Error{p83_path.string() + ": cannot create"};
+    }
+    const auto append = [](std::ofstream& f, const std::vector<std::uint8_t>& bytes) {
+        f.write(reinterpret_cast<const char*>(bytes.data()),
+                static_cast<std::streamsize>(bytes.size()));
+    };
+
     const PitWorld world(sc.pit, sc.seed);
     auto track = SurveyTrack::Plan(sc);
     if (!track) return track.error();
@@ -104,7 +123,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     const NavErrorModel errors(sc.nav, truth.duration_s(), sc.seed);
     const SonarModel sonar(sc.sonar, world, sc.seed);
     SimulatedReceiver receiver(sc, truth, errors, *start_gps);
-    const SimulatedTopside topside(sc, *start_gps);
+    const SimulatedTopside topside(sc, truth, *start_gps);
     DecodedChannels decoded(sc);
 
     // Boresight and lever arm of the sonar: the truth the calibration must find.
@@ -168,6 +187,10 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
             }
             line_free = start + static_cast<double>(f.bytes.size()) * byte_time;
             ++result.novatel_frames;
+            if (opt.vendor_files) {
+                append(vendor_gps, f.bytes);
+                result.vendor_gps_bytes += static_cast<std::int64_t>(f.bytes.size());
+            }
         }
         for (double tick = std::ceil(t0 / kReadTickS) * kReadTickS; tick < t1; tick += kReadTickS) {
             std::size_t n = 0;
@@ -226,6 +249,10 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
                     coverage[static_cast<std::size_t>(iy * grid.nx + ix)] = 1;
             }
             TopsideDatagram d = topside.Encode(pings[i], t);
+            if (opt.vendor_files) {
+                append(vendor_83p, d.bytes);
+                result.vendor_83p_bytes += static_cast<std::int64_t>(d.bytes.size());
+            }
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
             auto decoded_ping = decoded.SonarDatagram(d.bytes, u, gps_at(t));
@@ -299,6 +326,12 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     result.log_bytes = st.bytes_written;
     result.log_files = static_cast<int>(st.files_opened);
     if (auto s = WriteVehicleYaml(log_dir / "vehicle.yaml", sc); !s) return s.error();
+    if (opt.vendor_files) {
+        vendor_gps.close();
+        vendor_83p.close();
+        if (!vendor_gps || !vendor_83p)
+            return Error{vendor_dir.string() + ": writing the vendor files failed"};
+    }
 
     // Ground truth.
     Truth t;
@@ -311,6 +344,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     t.boresight = {
         sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
     t.coverage = std::move(coverage);
+    t.sonar_clock = MakeSonarClockTruth(sc, *start_gps, truth.duration_s());
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
     return result;
 }

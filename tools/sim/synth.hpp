@@ -3,7 +3,13 @@
 //   <out>/log/    LCM log files exactly as pitmap-acqd would write them (raw chunks of the
 //                 NovAtel serial stream and of the 83P datagrams, plus the decoded channels),
 //                 rotated by size, and vehicle.yaml (lever arms, nominal boresight)
-//   <out>/truth/  the ground truth (tools/sim/truth_io.hpp)
+//   <out>/truth/  the ground truth (tools/sim/truth_io.hpp), with sonar_clock.json
+//   <out>/vendor/ with SynthOptions::vendor_files: the files the instruments' own software
+//                 would record: <scenario>.gps, the NovAtel binary stream exactly as the
+//                 receiver sends it on COM1 (every frame, in emission order), and
+//                 <scenario>.83P, the 83P records concatenated as the topside program records
+//                 them (the same bytes as its datagrams: header time = topside PC clock; the
+//                 data latency field is what was sent live and means nothing in file playback)
 // The NovAtel bytes are chunked as a serial port at `serial_baud` delivers them to 5 ms reads;
 // datagrams arrive after the topside's data latency plus network jitter. Host clocks are ideal
 // (utime = UTC, utime_gps from a locked model): the daemon's clock estimation is tested by the
@@ -25,6 +31,7 @@ struct SynthOptions {
     std::int64_t rotate_bytes = 64LL << 20;  // log segment size
     int num_threads = 0;                     // sonar ray casting; 0 = hardware concurrency
     double truth_rate_hz = 50.0;             // true trajectory sampling
+    bool vendor_files = false;               // also write <out>/vendor/ (see above)
 };
 
 struct SynthResult {
@@ -34,8 +41,10 @@ struct SynthResult {
     std::int64_t log_events = 0;
     std::int64_t log_bytes = 0;
     int log_files = 0;
-    double duration_s = 0;      // simulated
-    double track_length_m = 0;  // travelled
+    double duration_s = 0;              // simulated
+    double track_length_m = 0;          // travelled
+    std::int64_t vendor_gps_bytes = 0;  // <out>/vendor/<scenario>.gps (0 without vendor_files)
+    std::int64_t vendor_83p_bytes = 0;  // <out>/vendor/<scenario>.83P
 };
 
 Expected<SynthResult> RunSynth(const ScenarioConfig& scenario,

@@ -2,6 +2,7 @@
 #include "tools/sim/truth_io.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -9,6 +10,7 @@
 
 #include "common/byte_io.hpp"
 #include "common/frames.hpp"
+#include "common/gps_time.hpp"
 
 namespace pitmap::sim {
 namespace {
@@ -39,7 +41,19 @@ json ScenarioToJson(const ScenarioConfig& s) {
                 {"rubble_amplitude_m", p.rubble_amplitude_m},
                 {"rubble_wavelength_m", p.rubble_wavelength_m},
                 {"grid_resolution_m", p.grid_resolution_m},
-                {"land_height_m", p.land_height_m}};
+                {"land_height_m", p.land_height_m},
+                {"high_wall_slope_deg", p.high_wall_slope_deg},
+                {"high_wall_direction_deg", p.high_wall_direction_deg},
+                {"high_wall_half_angle_deg", p.high_wall_half_angle_deg},
+                {"high_wall_blend_deg", p.high_wall_blend_deg},
+                {"ramp_width_m", p.ramp_width_m},
+                {"ramp_direction_deg", p.ramp_direction_deg},
+                {"ramp_grade_deg", p.ramp_grade_deg},
+                {"ramp_bench", p.ramp_bench},
+                {"ramp_clockwise", p.ramp_clockwise},
+                {"num_boulders", p.num_boulders},
+                {"boulder_min_diameter_m", p.boulder_min_diameter_m},
+                {"boulder_max_diameter_m", p.boulder_max_diameter_m}};
     const TrackConfig& t = s.track;
     j["track"] = {{"speed_mps", t.speed_mps},
                   {"first_lap_offset_m", t.first_lap_offset_m},
@@ -87,7 +101,17 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"topside_clock_offset_s", o.topside_clock_offset_s},
                   {"topside_clock_drift_ppm", o.topside_clock_drift_ppm},
                   {"ping_latency_ms", o.ping_latency_ms},
-                  {"data_latency_ms", o.data_latency_ms}};
+                  {"data_latency_ms", o.data_latency_ms},
+                  {"nmea_position", o.nmea_position},
+                  {"nmea_position_rate_hz", o.nmea_position_rate_hz},
+                  {"nmea_latency_s", o.nmea_latency_s},
+                  {"nmea_position_noise_m", o.nmea_position_noise_m},
+                  {"nmea_speed_noise_mps", o.nmea_speed_noise_mps},
+                  {"nmea_heading", o.nmea_heading},
+                  {"nmea_heading_rate_hz", o.nmea_heading_rate_hz},
+                  {"nmea_heading_noise_deg", o.nmea_heading_noise_deg},
+                  {"internal_attitude_sensor", o.internal_attitude_sensor},
+                  {"internal_attitude_noise_deg", o.internal_attitude_noise_deg}};
     j["ins_rate_hz"] = s.ins_rate_hz;
     j["imu_rate_hz"] = s.imu_rate_hz;
     j["gnss_rate_hz"] = s.gnss_rate_hz;
@@ -111,7 +135,73 @@ Expected<json> ReadJson(const std::string& path) {
     return j;
 }
 
+json SonarClockToJson(const SonarClockTruth& c) {
+    return {
+        {"topside_clock_offset_s", c.offset_s},
+        {"topside_clock_drift_ppm", c.drift_ppm},
+        {"survey_start_gps_s", c.survey_start_gps_s},
+        {"gps_minus_utc_s", c.gps_minus_utc_s},
+        {"ping_latency_s", c.ping_latency_s},
+        {"header_resolution_s", c.header_resolution_s},
+        {"first_ping_offset_s", c.first_ping_offset_s},
+        {"last_ping_offset_s", c.last_ping_offset_s},
+        {"ingest_sonar_clock_offset_s", c.ingest_sonar_clock_offset_s},
+        {"definition",
+         "offset(t) = sonar header time - UTC = topside_clock_offset_s + "
+         "topside_clock_drift_ppm * 1e-6 * t, t = seconds since the survey start "
+         "(survey_start_gps_s). A positive offset means the topside PC clock is ahead of UTC."},
+        {"gps_from_header",
+         "GPS time of the interrogation = header time (read as UTC) + (GPS - UTC) - offset(t); "
+         "GPS time of the transmit = that + ping_latency_s. The header time marks the "
+         "interrogation, truncated to header_resolution_s."},
+        {"ingest",
+         "ingest_sonar_clock_offset_s = -first_ping_offset_s + ping_latency_s: the value that "
+         "pitmap's ingest adds to the header time (after GPS - UTC) to get the transmit time "
+         "(exact at the first ping; the drift moves it by last - first over the survey)."},
+        {"header_aux",
+         {{"nmea_position", c.nmea_position},
+          {"nmea_position_rate_hz", c.nmea_position_rate_hz},
+          {"nmea_latency_s", c.nmea_latency_s},
+          {"nmea_position_noise_m", c.nmea_position_noise_m},
+          {"nmea_heading", c.nmea_heading},
+          {"nmea_heading_rate_hz", c.nmea_heading_rate_hz},
+          {"internal_attitude_sensor", c.internal_attitude_sensor},
+          {"staleness",
+           "header latitude/longitude/speed/course (and external heading) are those of the last "
+           "NMEA sentence received at the interrogation: epoch k / rate with k / rate + "
+           "nmea_latency_s <= interrogation; latitude/longitude are the GNSS antenna's "
+           "(lever_arms.antenna_m) plus nmea_position_noise_m"}}}};
+}
+
 }  // namespace
+
+SonarClockTruth MakeSonarClockTruth(const ScenarioConfig& sc,
+                                    std::int64_t start_utime_gps,
+                                    double duration_s) {
+    const SonarConfig& so = sc.sonar;
+    SonarClockTruth c;
+    c.offset_s = so.topside_clock_offset_s;
+    c.drift_ppm = so.topside_clock_drift_ppm;
+    c.survey_start_gps_s = static_cast<double>(start_utime_gps) * 1e-6;
+    c.gps_minus_utc_s = LeapSecondsAtGps(start_utime_gps);
+    c.ping_latency_s = so.ping_latency_ms * 1e-3;
+    c.header_resolution_s = so.format_version >= 10 ? 0.001 : 0.01;
+    const auto pings = static_cast<std::int64_t>(std::floor(duration_s * so.ping_rate_hz + 1e-9));
+    const auto offset_at = [&](double t) { return c.offset_s + c.drift_ppm * 1e-6 * t; };
+    c.first_ping_offset_s = offset_at(-c.ping_latency_s);
+    c.last_ping_offset_s =
+        offset_at(static_cast<double>(std::max<std::int64_t>(pings - 1, 0)) / so.ping_rate_hz -
+                  c.ping_latency_s);
+    c.ingest_sonar_clock_offset_s = -c.first_ping_offset_s + c.ping_latency_s;
+    c.nmea_position = so.nmea_position;
+    c.nmea_position_rate_hz = so.nmea_position_rate_hz;
+    c.nmea_latency_s = so.nmea_latency_s;
+    c.nmea_position_noise_m = so.nmea_position_noise_m;
+    c.nmea_heading = so.nmea_heading;
+    c.nmea_heading_rate_hz = so.nmea_heading_rate_hz;
+    c.internal_attitude_sensor = so.internal_attitude_sensor;
+    return c;
+}
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc) {
     return WriteText(path, ScenarioToJson(sc).dump(2) + "\n");
@@ -165,6 +255,13 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
             return Error{"coverage does not match the terrain grid"};
         if (auto s = WriteText(dir + "/coverage.u8",
                                std::string(truth.coverage.begin(), truth.coverage.end()));
+            !s) {
+            return s;
+        }
+    }
+    if (truth.sonar_clock) {
+        if (auto s = WriteText(dir + "/sonar_clock.json",
+                               SonarClockToJson(*truth.sonar_clock).dump(2) + "\n");
             !s) {
             return s;
         }
@@ -249,6 +346,33 @@ Expected<Truth> ReadTruth(const std::string& dir) {
             t.coverage.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
             if (t.coverage.size() != t.terrain.height_m.size())
                 return Error{path + ": size does not match terrain.json"};
+        }
+    }
+    if (std::ifstream probe(dir + "/sonar_clock.json"); probe) {
+        auto cj = ReadJson(dir + "/sonar_clock.json");
+        if (!cj) return cj.error();
+        try {
+            SonarClockTruth c;
+            c.offset_s = cj->at("topside_clock_offset_s").get<double>();
+            c.drift_ppm = cj->at("topside_clock_drift_ppm").get<double>();
+            c.survey_start_gps_s = cj->at("survey_start_gps_s").get<double>();
+            c.gps_minus_utc_s = cj->at("gps_minus_utc_s").get<int>();
+            c.ping_latency_s = cj->at("ping_latency_s").get<double>();
+            c.header_resolution_s = cj->at("header_resolution_s").get<double>();
+            c.first_ping_offset_s = cj->at("first_ping_offset_s").get<double>();
+            c.last_ping_offset_s = cj->at("last_ping_offset_s").get<double>();
+            c.ingest_sonar_clock_offset_s = cj->at("ingest_sonar_clock_offset_s").get<double>();
+            const json& a = cj->at("header_aux");
+            c.nmea_position = a.at("nmea_position").get<bool>();
+            c.nmea_position_rate_hz = a.at("nmea_position_rate_hz").get<double>();
+            c.nmea_latency_s = a.at("nmea_latency_s").get<double>();
+            c.nmea_position_noise_m = a.at("nmea_position_noise_m").get<double>();
+            c.nmea_heading = a.at("nmea_heading").get<bool>();
+            c.nmea_heading_rate_hz = a.at("nmea_heading_rate_hz").get<double>();
+            c.internal_attitude_sensor = a.at("internal_attitude_sensor").get<bool>();
+            t.sonar_clock = c;
+        } catch (const json::exception& e) {
+            return Error{dir + "/sonar_clock.json: " + e.what()};
         }
     }
     auto bj = ReadJson(dir + "/boresight.json");

@@ -9,9 +9,12 @@
 // <dir>/boresight.json    true R_vehicle_sonar as roll/pitch/yaw degrees, lever arms
 // <dir>/coverage.u8       optional: 1 byte per terrain cell (same grid), 1 where a true beam
 //                         hit that cell (the insonified area), else 0
+// <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
+//                         and what the topside's NMEA / attitude inputs put into the headers
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,12 +36,48 @@ struct TruthBoresight {
     std::vector<double> lever_arm_sonar_m;            // vehicle frame
 };
 
+// The topside PC clock that stamps the 83P headers, stated so an estimator's sign can be
+// checked: at t seconds after the survey start,
+//   offset(t) = sonar header time - UTC = offset_s + drift_ppm * 1e-6 * t,
+//   GPS time of the interrogation = header time (read as UTC) + (GPS - UTC) - offset(t),
+//   GPS time of the transmit = that + ping_latency_s.
+// The header time marks the interrogation and is truncated to header_resolution_s.
+struct SonarClockTruth {
+    double offset_s = 0;             // sonar header time - UTC at the survey start (t = 0)
+    double drift_ppm = 0;            // rate of change of the offset, 1e-6 s/s
+    double survey_start_gps_s = 0;   // GPS seconds since 1980-01-06 at t = 0
+    int gps_minus_utc_s = 0;         // leap seconds at the survey start
+    double ping_latency_s = 0;       // interrogation -> transmit
+    double header_resolution_s = 0;  // 0.001 (v1.10 milliseconds) or 0.01 (v1.00 hundredths)
+    double first_ping_offset_s = 0;  // offset(t) at the first and last pings' interrogation
+    double last_ping_offset_s = 0;
+    // Value of pitmap's ingest sonar_clock_offset_s (added to the header time read as UTC,
+    // after GPS - UTC) that yields the transmit time of the first ping:
+    // -first_ping_offset_s + ping_latency_s.
+    double ingest_sonar_clock_offset_s = 0;
+    // The headers' auxiliary fields (SonarConfig): position feed, heading feed, attitude.
+    bool nmea_position = false;
+    double nmea_position_rate_hz = 0;
+    double nmea_latency_s = 0;
+    double nmea_position_noise_m = 0;
+    bool nmea_heading = false;
+    double nmea_heading_rate_hz = 0;
+    bool internal_attitude_sensor = false;
+};
+
+// The sonar clock truth of a scenario whose survey starts at start_utime_gps and lasts
+// duration_s (pings at k / ping_rate_hz for k < floor(duration_s * ping_rate_hz)).
+SonarClockTruth MakeSonarClockTruth(const ScenarioConfig& sc,
+                                    std::int64_t start_utime_gps,
+                                    double duration_s);
+
 struct Truth {
     Geodetic origin;  // world frame origin
     TerrainGrid terrain;
     std::vector<TruthPose> trajectory;
     TruthBoresight boresight;
     std::vector<std::uint8_t> coverage;  // empty, or one byte per terrain cell (insonified = 1)
+    std::optional<SonarClockTruth> sonar_clock;  // written when set; read when present
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The synthetic open pit: an exact terrain surface z = H(x, y) in the world frame (ENU, origin
 // at the pit centre on the water surface, z up), queryable for height, normal, signed distance
-// and ray casts. The surface is the bilinear interpolation of a regular grid built
-// deterministically from the PitConfig and a seed; that same grid is the ground truth that
+// and ray casts. Benches, backfill, a sump and rubble always; optionally a high wall, a haul
+// road ramp and boulders (PitConfig). The surface is the bilinear interpolation of a regular grid
+// built deterministically from the PitConfig and a seed; that same grid is the ground truth that
 // every product is scored against.
 #pragma once
 
@@ -24,6 +25,27 @@ struct TerrainGrid {
     std::vector<float> height_m;  // row-major: height_m[iy * nx + ix], metres (z up)
 };
 
+// The haul road of PitConfig::ramp_*: a straight strip whose centre line runs from `top` on
+// the water line to `bottom` on the middle of the bench tread, its surface at depth
+// u * tan(grade) at u metres from `top` along the line.
+struct RampGeometry {
+    Eigen::Vector2d top = Eigen::Vector2d::Zero();     // world x, y on the water line
+    Eigen::Vector2d bottom = Eigen::Vector2d::Zero();  // world x, y on the bench tread
+    double width_m = 0;
+    double grade_deg = 0;
+    double bottom_depth_m = 0;  // depth of the bench it reaches
+    double length_m() const { return (bottom - top).norm(); }
+};
+// The ramp of a PitConfig, or nullopt when ramp_width_m is 0.
+std::optional<RampGeometry> PlanRamp(const PitConfig& pit);
+
+// One boulder laid into the terrain grid.
+struct Boulder {
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // world x, y
+    double diameter_m = 0;                             // long axis of the plan outline
+    double height_m = 0;  // top above the surrounding ground (before the boulder)
+};
+
 // Thread safety: all const methods may be called concurrently.
 class PitWorld {
 public:
@@ -32,6 +54,9 @@ public:
     explicit PitWorld(TerrainGrid grid);
 
     const TerrainGrid& grid() const { return grid_; }
+    // The boulders laid into the grid (PitConfig::num_boulders; fewer if the pit has too
+    // little gentle ground for them). Empty for a world read from a grid.
+    const std::vector<Boulder>& boulders() const { return boulders_; }
     // Terrain height at (x, y), metres; outside the grid: the height at the nearest edge.
     double Height(double x, double y) const;
     // Gradient dH/dx, dH/dy of the bilinear surface.
@@ -55,7 +80,10 @@ private:
     double At(int ix, int iy) const;
     void ComputeMaxSlope();
 
+    void PlaceBoulders(const PitConfig& pit, std::uint64_t seed);
+
     TerrainGrid grid_;
+    std::vector<Boulder> boulders_;
     double max_slope_ = 1.0;
 };
 

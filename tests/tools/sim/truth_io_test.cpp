@@ -6,6 +6,8 @@
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "common/frames.hpp"
 
@@ -63,6 +65,40 @@ TEST_F(TruthIo, RoundTrip) {
     // A world built from the read grid answers like the original.
     const PitWorld w(back->terrain);
     EXPECT_NEAR(w.Height(-2.0, -1.0), -10.0, 1e-6);
+}
+
+TEST_F(TruthIo, SonarClockIsStatedAndReadBack) {
+    ScenarioConfig sc = *BuiltinScenario("quarry");
+    sc.sonar.topside_clock_drift_ppm = 100.0;
+    const std::int64_t start_gps = 1'465'549'218'000'000;
+    Truth t = SmallTruth();
+    t.sonar_clock = MakeSonarClockTruth(sc, start_gps, 210.0);
+    const SonarClockTruth& c = *t.sonar_clock;
+    EXPECT_DOUBLE_EQ(c.offset_s, 2.350);
+    EXPECT_EQ(c.gps_minus_utc_s, 18);
+    EXPECT_DOUBLE_EQ(c.survey_start_gps_s, 1'465'549'218.0);
+    // Interrogations at k / 10 - 2 ms for k = 0..2099.
+    EXPECT_NEAR(c.first_ping_offset_s, 2.350 - 100e-6 * 0.002, 1e-12);
+    EXPECT_NEAR(c.last_ping_offset_s, 2.350 + 100e-6 * (209.9 - 0.002), 1e-12);
+    EXPECT_NEAR(c.ingest_sonar_clock_offset_s, -c.first_ping_offset_s + 0.002, 1e-12);
+    EXPECT_TRUE(c.nmea_position && c.nmea_heading && c.internal_attitude_sensor);
+    ASSERT_TRUE(WriteTruth(dir_.string(), sc, t).ok());
+    std::ifstream in(dir_ / "sonar_clock.json");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("sonar header time - UTC"), std::string::npos);
+    EXPECT_NE(text.find("header time (read as UTC) + (GPS - UTC) - offset(t)"), std::string::npos);
+    auto back = ReadTruth(dir_.string());
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    ASSERT_TRUE(back->sonar_clock.has_value());
+    EXPECT_DOUBLE_EQ(back->sonar_clock->offset_s, 2.350);
+    EXPECT_DOUBLE_EQ(back->sonar_clock->drift_ppm, 100.0);
+    EXPECT_DOUBLE_EQ(back->sonar_clock->last_ping_offset_s, c.last_ping_offset_s);
+    EXPECT_DOUBLE_EQ(back->sonar_clock->nmea_latency_s, 0.15);
+    // Without the file (older truth folders) there is no clock truth, and no error.
+    fs::remove(dir_ / "sonar_clock.json");
+    back = ReadTruth(dir_.string());
+    ASSERT_TRUE(back.ok());
+    EXPECT_FALSE(back->sonar_clock.has_value());
 }
 
 TEST_F(TruthIo, InterpolationAndItsBounds) {

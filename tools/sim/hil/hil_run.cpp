@@ -389,6 +389,7 @@ Expected<HilResult> RunHil(ScenarioConfig sc,
     }
     t.boresight = {
         sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
+    t.sonar_clock = MakeSonarClockTruth(sc, start_gps, duration);
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
 
     nlohmann::json j;

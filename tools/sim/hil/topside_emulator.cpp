@@ -87,7 +87,7 @@ void TopsideEmulator::Run(double end_s) {
         for (auto& c : ping.range_counts) {
             if (static_cast<double>(c) * res_m > scenario_.sonar.max_range_m) c = 0;
         }
-        const SimulatedTopside topside(scenario_, start_utime_gps_);
+        const SimulatedTopside topside(scenario_, truth_, start_utime_gps_);
         TopsideDatagram d = topside.Encode(ping, t_tx);
         const double j = config_.jitter_ms > 0 ? jitter(rng) : 0.0;
         const double t_send = d.t_sent_s + j;
