@@ -512,6 +512,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             // A Gauss-Newton step is linear in the rotation rates: cap it at the scan step so
             // that an early step from far away cannot jump into another wave period.
             dtau = std::clamp(x[3], -cfg.latency_scan_step_s, cfg.latency_scan_step_s);
+            res.latency_unresolved = std::abs(x[3]) >= cfg.latency_scan_step_s;
             tau += dtau;
         }
         off += x.tail(n_nodes * odim);

@@ -99,6 +99,9 @@ struct BoresightResult {
     double latency_s = 0;            // add to the ping times (t_gps = t_ping + latency_s)
     double latency_formal_sd_s = 0;  // range noise only: optimistic
     double latency_scan_best_s = 0;  // the scan's minimum (when scanned)
+    // The last latency step hit its cap (latency_scan_step_s): the latency was still running
+    // when the iterations ended, i.e. the clock is off by more than the data resolved.
+    bool latency_unresolved = false;
     Termination termination = Termination::kNoOverlap;
     std::vector<SegmentScore> candidates;
     std::string message;

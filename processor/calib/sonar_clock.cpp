@@ -323,7 +323,28 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         const ScanResult coarse = Scan(score, lo, hi, step, cfg.min_alias_separation_s);
         // A fix reaches the topside a serial latency (~0.1-0.2 s) after its epoch and shows in
         // the next ping: up to a ping interval later.
-        finish(coarse, score, cfg.max_position_misfit_m, "m", std::hypot(0.5 * ping_interval, 0.15));
+        finish(coarse,
+               score,
+               cfg.max_position_misfit_m,
+               "m",
+               std::hypot(ping_interval / std::sqrt(12.0), cfg.fix_latency_sigma_s));
+        // The fix a ping carries is older than the ping: the match found the fix's epoch,
+        // which is `age` before the ping.
+        const double age = cfg.assumed_fix_latency_s + 0.5 * ping_interval;
+        est.correction_s += age;
+        if (est.found) {
+            std::snprintf(buf,
+                          sizeof(buf),
+                          "%s: correction %+.3f s +- %.3f s (misfit %.3g m over %lld fixes, "
+                          "their mean age of %.3f s taken off)",
+                          est.method.c_str(),
+                          est.correction_s,
+                          est.sigma_s,
+                          est.misfit,
+                          static_cast<long long>(est.samples),
+                          age);
+            est.message = buf;
+        }
         return est;
     }
     if (att.size() >= 10) {

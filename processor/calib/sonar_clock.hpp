@@ -10,7 +10,8 @@
 //     latency old). The correction c minimises the median horizontal distance between those
 //     fixes and the INS antenna position at (ping time + c): a scan over every c that makes the
 //     two time spans overlap (step scan_step_s), then a parabola through the best three steps
-//     of a finer scan.
+//     of a finer scan; the fixes' mean age (assumed_fix_latency_s + half a ping interval) is
+//     taken off.
 //  2. "header attitude": no position, but the head's roll/pitch (internal sensor or the external
 //     fields) and/or heading: the correction minimises the RMS of the de-biased differences to
 //     the INS attitude (a constant difference is the mount). Heading decides the coarse scan
@@ -44,6 +45,10 @@ struct ClockSearchConfig {
     double alias_ratio = 1.5;               // second minimum within this factor = ambiguous
     double min_alias_separation_s = 3.0;    // minima closer than this are the same one
     double min_overlap_fraction = 0.5;      // of the aid samples inside the nav span
+    // NMEA fix to topside: a fix shows in the first ping after it arrives, so it is this
+    // latency plus half a ping interval old on average (subtracted); its spread is the sigma.
+    double assumed_fix_latency_s = 0.1;
+    double fix_latency_sigma_s = 0.1;
     // INS -> GNSS antenna, vehicle FRD (m): the NMEA position is the antenna's.
     Eigen::Vector3d antenna_lever_arm_m = Eigen::Vector3d::Zero();
 };

@@ -395,14 +395,26 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
                      "do not explain (sonar clock, lever arm, sound speed or navigation)",
                  log);
     }
-    const bool keep_nominal = !verified;
-    if (keep_nominal) {
+    if (cal.latency_unresolved) {
+        TripGate(s,
+                 "calibrate",
+                 "sonar_clock_unresolved",
+                 "the sonar latency was still moving when the calibration ended (at " +
+                     Num("%+.3f", cal.latency_s) +
+                     " s): the sonar clock is off by more than the soundings can resolve; the "
+                     "nominal mount and clock are kept (give --sonar-clock-offset)",
+                 log);
+    }
+    const bool keep_nominal = !verified || cal.latency_unresolved;
+    if (!verified) {
         TripGate(s,
                  "calibrate",
                  "calibration_not_verified",
                  "the calibrated mount fits other segments worse than the nominal one: the "
                  "nominal mount and sonar clock are kept",
                  log);
+    }
+    if (keep_nominal) {
         cal.mount = before;
         cal.latency_s = 0;
     }

@@ -47,7 +47,7 @@ struct RunOptions {
 // Quality gates: where a stage says that it cannot explain its data (summary.json
 // "quality_gates", the terminal and the report; `pitmap ... --strict` exits non-zero on any).
 struct QualityConfig {
-    double calibration_residual_ratio = 2.5;  // residual RMS after calibration / range noise's
+    double calibration_residual_ratio = 1.5;  // residual RMS after calibration / range noise's
     double max_clock_scan_s = 5.0;        // widest sonar-clock uncertainty the data may resolve
     double clock_disagreement_s = 0.05;   // configured vs found clock offset, beyond 3 sigma
     double slam_sigma_multiple = 3.0;     // SLAM may move a ping this many INS sigmas ...

@@ -142,7 +142,8 @@ protected:
         fs::create_directories(dir_);
         std::string out;
         ASSERT_EQ(
-            RunCommand(kBin + "/pitmap-sim synth --scenario demo --out " + Quote(dir_ / "sim"),
+            RunCommand(kBin + "/pitmap-sim synth --scenario demo --vendor-files --out " +
+                           Quote(dir_ / "sim"),
                        &out),
             0)
             << out;
@@ -438,4 +439,151 @@ TEST(PipelineCli, AMalformedSummaryIsAClearErrorNotACrash) {
         }
     }
     fs::remove_all(p);
+}
+
+namespace {
+
+// Exit status of a command run by RunCommand (-1 when it did not exit normally).
+int ExitCode(int status) {
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The demo's vendor files (NovAtel .gps, topside .83P) with vehicle.yaml beside them.
+fs::path VendorDir(const fs::path& sim) {
+    fs::copy_file(sim / "log/vehicle.yaml",
+                  sim / "vendor/vehicle.yaml",
+                  fs::copy_options::overwrite_existing);
+    return sim / "vendor";
+}
+
+std::vector<std::string> Gates(const json& summary) {
+    std::vector<std::string> g;
+    if (summary.contains("quality_gates")) {
+        for (const auto& e : summary["quality_gates"])
+            g.push_back(e.at("stage").get<std::string>() + "/" + e.at("gate").get<std::string>());
+    }
+    return g;
+}
+
+// A faster calibration for the tests: fewer soundings per ping.
+fs::path FastCalibrationConfig(const fs::path& dir) {
+    const fs::path p = dir / "fast_calibrate.yaml";
+    std::ofstream(p) << "calibrate:\n  beam_stride: 8\n";
+    return p;
+}
+
+}  // namespace
+
+// Issue 15: the topside clock of the demo's .83P file runs 3602.37 s ahead of UTC and nobody
+// says so. The 83P headers' NMEA position places the pings (georef), the soundings refine it
+// to milliseconds (calibrate), and no quality gate trips.
+TEST_F(DemoScenario, VendorFilesWithAnUnknownClockAreTimedFromTheirHeaders) {
+    const fs::path vendor = VendorDir(dir_ / "sim");
+    const json clock_truth = ReadJson(dir_ / "sim/truth/sonar_clock.json");
+    // ingest adds the offset to the header time; the clock drifts: take the survey's mean.
+    const double truth = clock_truth.at("ingest_sonar_clock_offset_s").get<double>() -
+                         0.5 * (clock_truth.at("last_ping_offset_s").get<double>() -
+                                clock_truth.at("first_ping_offset_s").get<double>());
+    const fs::path p = dir_ / "unknown_clock";
+    std::string out;
+    ASSERT_EQ(ExitCode(RunCommand(
+                  kBin + "/pitmap georef " + Quote(vendor) + " --strict --out " + Quote(p), &out)),
+              0)
+        << out;
+    json summary = ReadJson(p / "summary.json");
+    const json& coarse = summary.at("sonar_clock").at("coarse");
+    EXPECT_EQ(coarse.at("method"), "header position") << out;
+    EXPECT_NEAR(coarse.at("correction_s").get<double>(), truth, 1.0) << out;
+    ASSERT_EQ(ExitCode(RunCommand(kBin + "/pitmap calibrate --strict --out " + Quote(p) +
+                                      " --config " + Quote(FastCalibrationConfig(dir_)),
+                                  &out)),
+              0)
+        << out;
+    summary = ReadJson(p / "summary.json");
+    const double found = summary.at("sonar_clock").at("correction_s").get<double>();
+    RecordProperty("clock_error_ms", std::to_string(1e3 * (found - truth)));
+    EXPECT_NEAR(found, truth, 0.005) << out;
+    EXPECT_TRUE(Gates(summary).empty()) << summary["quality_gates"].dump();
+    EXPECT_TRUE(ReadJson(p / "boresight.json").contains("sonar_clock"));
+    const auto s = Eval(p);
+    EXPECT_LT(s.at("boresight_error_deg"), 0.1);
+}
+
+// Each gate of the georef stage trips on the data that should trip it; --strict makes it
+// exit status 4, and the message names what was found.
+TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
+    const fs::path vendor = VendorDir(dir_ / "sim");
+    const json clock_truth = ReadJson(dir_ / "sim/truth/sonar_clock.json");
+    const double truth = clock_truth.at("ingest_sonar_clock_offset_s").get<double>();
+    std::string out;
+    // A configured offset 1.5 s off: the headers disagree.
+    char offset[32];
+    std::snprintf(offset, sizeof(offset), "%.3f", truth + 1.5);
+    const fs::path wrong = dir_ / "wrong_clock";
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
+                                      " --strict --sonar-clock-offset " + offset + " --out " +
+                                      Quote(wrong),
+                                  &out)),
+              4)
+        << out;
+    auto gates = Gates(ReadJson(wrong / "summary.json"));
+    EXPECT_NE(std::find(gates.begin(), gates.end(), "georef/sonar_clock_disagrees"), gates.end())
+        << out;
+    // The calibration cannot absorb 1.5 s either: its residual stays far above the noise.
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap calibrate --strict --out " + Quote(wrong) +
+                                      " --config " + Quote(FastCalibrationConfig(dir_)),
+                                  &out)),
+              4)
+        << out;
+    gates = Gates(ReadJson(wrong / "summary.json"));
+    EXPECT_TRUE(std::find(gates.begin(), gates.end(), "calibrate/calibration_residual") !=
+                    gates.end() ||
+                std::find(gates.begin(), gates.end(), "calibrate/calibration_not_verified") !=
+                    gates.end())
+        << out;
+    // Without --strict the same run finishes (exit 0) and says so.
+    out.clear();
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
+                                      " --sonar-clock-offset " + offset + " --out " +
+                                      Quote(dir_ / "lenient"),
+                                  &out)),
+              0)
+        << out;
+    EXPECT_NE(out.find("quality gate georef/sonar_clock_disagrees"), std::string::npos) << out;
+    EXPECT_NE(out.find("--strict makes this an error"), std::string::npos) << out;
+
+    // Navigation that covers only the first half of the sonar file.
+    const fs::path half = dir_ / "half_nav";
+    fs::create_directories(half);
+    fs::copy_file(vendor / "demo.83P", half / "demo.83P");
+    fs::copy_file(vendor / "vehicle.yaml", half / "vehicle.yaml");
+    {
+        std::ifstream in(vendor / "demo.gps", std::ios::binary);
+        std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});
+        std::ofstream(half / "demo.gps", std::ios::binary)
+            .write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+    }
+    out.clear();
+    char exact[32];
+    std::snprintf(exact, sizeof(exact), "%.4f", truth);
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(half) +
+                                      " --strict --sonar-clock-offset " + exact + " --out " +
+                                      Quote(dir_ / "half_products"),
+                                  &out)),
+              4)
+        << out;
+    EXPECT_NE(out.find("pings lie outside the navigation span"), std::string::npos) << out;
+    EXPECT_NE(out.find("navigation "), std::string::npos) << out;
+
+    // No overlap at all: a clear error naming both spans, not a product.
+    out.clear();
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
+                                      " --sonar-clock-offset 5000 --out " +
+                                      Quote(dir_ / "no_overlap"),
+                                  &out)),
+              1)
+        << out;
+    EXPECT_NE(out.find("navigation and sonar do not overlap in time: navigation "),
+              std::string::npos)
+        << out;
 }
