@@ -106,6 +106,7 @@ int main(int argc, char** argv) {
     synth->add_option("--threads", threads, "threads for sonar ray casting (0 = all cores)");
     bool vendor_files = false;
     double clock_offset_s = 0;
+    double stamp_error_ms = 0;
     synth->add_flag("--vendor-files",
                     vendor_files,
                     "also write DIR/vendor/<scenario>.gps (NovAtel binary stream) and "
@@ -115,6 +116,11 @@ int main(int argc, char** argv) {
                           clock_offset_s,
                           "seconds: sonar header time minus UTC at the survey start (default: "
                           "the scenario's); GPS = header + (GPS-UTC) - offset");
+    auto* stamp_error_opt =
+        synth->add_option("--sonar-stamp-error-ms",
+                          stamp_error_ms,
+                          "the decoded pings in the log are stamped this many ms late (a "
+                          "daemon's residual latency; default 0)");
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -158,6 +164,7 @@ int main(int argc, char** argv) {
     }
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
+    if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;
     sim::SynthOptions opt;
     opt.out_dir = out_dir;
     opt.num_threads = threads;

@@ -192,6 +192,8 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         std::abs(sonar.start_angle_deg + (sonar.num_beams - 1) * sonar.angle_increment_deg) > 90) {
         p.push_back("sonar: the fan must stay within +-90 deg of nadir");
     }
+    if (!(std::abs(sonar.daemon_stamp_error_ms) <= 1000.0))
+        p.push_back("sonar.daemon_stamp_error_ms must be within +-1000");
     if (sonar.format_version != 0 && sonar.format_version != 10)
         p.push_back("sonar.format_version must be 0 or 10");
     if (sonar.dropout_probability < 0 || sonar.outlier_probability < 0 ||

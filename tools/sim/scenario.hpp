@@ -117,6 +117,9 @@ struct SonarConfig {
     double topside_clock_drift_ppm = 35.0;
     double ping_latency_ms = 2.0;   // interrogation -> transmit
     double data_latency_ms = 35.0;  // interrogation -> datagram sent
+    // The daemon's stamping error: decoded pings in the log are stamped this much late (a
+    // residual latency the processor's calibration must find; 0 = exact).
+    double daemon_stamp_error_ms = 0.0;
 
     // What the topside program puts into the 83P header from its auxiliary inputs (spec
     // §1.2, §1.4). Every value it writes is the last one it had received when the ping was

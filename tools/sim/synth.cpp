@@ -255,7 +255,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
             }
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
-            auto decoded_ping = decoded.SonarDatagram(d.bytes, u, gps_at(t));
+            auto decoded_ping = decoded.SonarDatagram(
+                d.bytes, u, gps_at(t + sc.sonar.daemon_stamp_error_ms * 1e-3));
             events.push_back({u,
                               lcmlog::ChannelName(lcmlog::kChannelRaw, kSonarId),
                               EncodeRaw(u,

@@ -101,6 +101,7 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"topside_clock_offset_s", o.topside_clock_offset_s},
                   {"topside_clock_drift_ppm", o.topside_clock_drift_ppm},
                   {"ping_latency_ms", o.ping_latency_ms},
+                  {"daemon_stamp_error_ms", o.daemon_stamp_error_ms},
                   {"data_latency_ms", o.data_latency_ms},
                   {"nmea_position", o.nmea_position},
                   {"nmea_position_rate_hz", o.nmea_position_rate_hz},
