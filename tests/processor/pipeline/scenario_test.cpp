@@ -541,6 +541,13 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
                 std::find(gates.begin(), gates.end(), "calibrate/calibration_not_verified") !=
                     gates.end())
         << out;
+    // SLAM on a trajectory whose pings are 1.5 s off would bend a good RTK track: the gate
+    // trips and the INS is kept where it is good.
+    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap slam --strict --out " + Quote(wrong), &out)), 4)
+        << out;
+    gates = Gates(ReadJson(wrong / "summary.json"));
+    EXPECT_NE(std::find(gates.begin(), gates.end(), "slam/slam_beyond_ins_sigma"), gates.end())
+        << out;
     // Without --strict the same run finishes (exit 0) and says so.
     out.clear();
     EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
