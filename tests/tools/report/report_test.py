@@ -24,8 +24,8 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "trajectory", "cross-sections", "depth", "mesh", "boresight", "tsdf",
-            "slam", "stages", "scores"]
+SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "mesh", "boresight",
+            "clock", "tsdf", "slam", "stages", "scores"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
 
@@ -146,6 +146,12 @@ def WriteProducts(folder, full=True):
             "segment": {"start_s": GPS_T0, "end_s": GPS_T0 + 60},
             "verify": [{"start_s": GPS_T0 + 60, "end_s": GPS_T0 + 120, "rms_before_m": 0.051,
                         "rms_after_m": 0.0377, "pairs": 999}]}
+        summary["sonar_clock"] = {
+            "source": "83P header: the topside PC clock (offset unknown)", "configured": False,
+            "coarse": {"method": "header position", "found": True, "correction_s": -2.732,
+                       "sigma_s": 0.106, "message": "header position: correction -2.732 s"},
+            "latency_s": 0.3786, "latency_formal_sd_s": 0.0003, "correction_s": -2.3534,
+            "sigma_s": 0.0003}
         summary["stages"]["slam"] = {
             "seconds": 4.0, "peak_rss_mb": 120.0, "termination": "converged",
             "initial_consistency_m": 0.31, "final_consistency_m": 0.048,
@@ -216,6 +222,10 @@ class ReportTest(unittest.TestCase):
         self.assertIn("2026-06-15 09:00:00", sec["summary"])
         self.assertIn("0.5200", sec["boresight"])      # roll after
         self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
+        self.assertIn("No quality gate tripped", sec["quality"])
+        self.assertIn("header position: correction -2.732 s", sec["clock"])
+        self.assertIn("378.60 ms", sec["clock"])       # latency from the soundings
+        self.assertIn("-2.3534 s", sec["clock"])       # total correction
         self.assertIn("1.3468", sec["scores"])
         self.assertIn("trajectory error before SLAM", sec["scores"])
         self.assertIn("1.347 &rarr; 0.031 m", sec["summary"])  # ATE before -> after
@@ -231,6 +241,26 @@ class ReportTest(unittest.TestCase):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
+
+    def test_tripped_quality_gates_lead_the_report(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        summary["quality_gates"] = [
+            {"stage": "calibrate", "gate": "calibration_residual",
+             "message": "residual RMS 0.1229 m after calibration is 2.1x what <noise> leaves"},
+            {"stage": "slam", "gate": "slam_beyond_ins_sigma", "message": "SLAM moved 282 pings"}]
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            sec = Sections(f.read())
+        self.assertIn("2 quality gate(s) tripped", sec["quality"])
+        self.assertIn("calibration_residual", sec["quality"])
+        self.assertIn("what &lt;noise&gt; leaves", sec["quality"])  # escaped
+        self.assertIn("slam_beyond_ins_sigma", sec["quality"])
 
     def test_missing_optional_products_are_named(self):
         p = os.path.join(self.dir, "P")
