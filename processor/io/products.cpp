@@ -190,6 +190,14 @@ std::string UtmWkt(int zone, bool northern) {
            std::to_string(epsg) + "\"]]";
 }
 
+std::string LasWkt(int zone, bool northern) {
+    return "COMPD_CS[\"WGS 84 / UTM zone " + std::to_string(zone) + (northern ? "N" : "S") +
+           " + WGS 84 ellipsoidal height\"," + UtmWkt(zone, northern) +
+           ",VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[\"World Geodetic System 1984\","
+           "2002],UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AXIS[\"Ellipsoidal height\","
+           "UP]]]";
+}
+
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& r,
                 const georef::UtmPoints& utm) {
@@ -204,7 +212,7 @@ Status WriteLas(const std::string& path,
     if (n == 0) lo = hi = Eigen::Vector3d::Zero();
     const double scale = 0.001;
     const Eigen::Vector3d offset(std::floor(lo.x()), std::floor(lo.y()), std::floor(lo.z()));
-    const std::string wkt = UtmWkt(utm.zone, utm.northern) + std::string(1, '\0');
+    const std::string wkt = LasWkt(utm.zone, utm.northern) + std::string(1, '\0');
     constexpr std::uint16_t kHeaderSize = 375;
     constexpr std::uint16_t kVlrHeaderSize = 54;
     constexpr std::uint16_t kRecordLength = 30;

@@ -8,7 +8,9 @@
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
 //   coordinates with scale 0.001 m, GPS time as Adjusted Standard GPS time (GPS s - 1e9,
 //   global encoding bit 0), CRS as an OGC WKT VLR (LASF_Projection / 2112, global encoding
-//   bit 4). Heights are ellipsoidal (WGS84).
+//   bit 4): a COMPD_CS of the UTM PROJCS and VERT_CS "WGS 84 ellipsoidal height" (OGC 01-009
+//   vertical datum type 2002, ellipsoidal), since heights are WGS 84 ellipsoidal: pitmap
+//   applies no geoid (one that does must declare its geoid's VERT_CS here instead).
 // Failure model: every function returns an error naming the file.
 #pragma once
 
@@ -42,6 +44,8 @@ Status WriteLas(const std::string& path,
                 const georef::UtmPoints& utm);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.
 std::string UtmWkt(int zone, bool northern);
+// The LAS file's CRS: COMPD_CS[UtmWkt, VERT_CS WGS 84 ellipsoidal height], WKT1.
+std::string LasWkt(int zone, bool northern);
 
 // Trajectory CSV: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU at `origin`),
 // then vel_e_mps,vel_n_mps,vel_u_mps,ins_status.

@@ -2,7 +2,8 @@
 // Product readers on corrupted input (issue 14, case 5): ingest.cache and summary.json,
 // truncated at several points, with overwritten bytes over several seeds, with huge counts,
 // wrong types and empty files. Every failure is a clear error naming the file, in memory
-// bounded by the file's size; nothing crashes.
+// bounded by the file's size; nothing crashes. points.las: its CRS VLR is a compound WKT with
+// the vertical datum.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -293,6 +294,64 @@ TEST_F(ProductReaders, BrokenSummaryJsonIsAnErrorNamingTheFileAndKey) {
     const auto missing = ReadSummaryJson((dir_ / "none.json").string());
     ASSERT_FALSE(missing.ok());
     EXPECT_NE(missing.error().message.find("none.json"), std::string::npos);
+}
+
+// The LAS CRS VLR (LASF_Projection / 2112): COMPD_CS of the UTM PROJCS and a VERT_CS of WGS 84
+// ellipsoidal heights (OGC 01-009 vertical datum type 2002).
+TEST_F(ProductReaders, LasDeclaresItsVerticalDatum) {
+    georef::GeorefResult r;
+    r.world_origin = {40.4435, -7.7806, 412.0};
+    georef::GeorefPing ping;
+    ping.utime_gps = 1'400'000'000'000'000;
+    r.pings.push_back(ping);
+    r.points.position_world = {Eigen::Vector3d(1, 2, -10)};
+    r.points.ping = {0};
+    r.points.beam = {0};
+    r.points.range_m = {10.0f};
+    r.points.angle_rad = {0.0f};
+    const auto utm = georef::ToUtm(r);
+    ASSERT_TRUE(utm) << utm.error().message;
+    const std::string las = (dir_ / "points.las").string();
+    ASSERT_TRUE(WriteLas(las, r, *utm));
+    const std::vector<std::uint8_t> b = ReadBytes(las);
+    ASSERT_GT(b.size(), 375u + 54u);
+    auto u16 = [&](std::size_t at) { return static_cast<unsigned>(b[at] | (b[at + 1] << 8)); };
+    auto u32 = [&](std::size_t at) {
+        return static_cast<std::uint32_t>(u16(at) | (u16(at + 2) << 16));
+    };
+    EXPECT_EQ(u16(6) & (1u << 4), 1u << 4) << "global encoding: WKT";
+    ASSERT_EQ(u32(100), 1u) << "one VLR";
+    const std::size_t vlr = u16(94);  // header size
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 2])), "LASF_Projection");
+    EXPECT_EQ(u16(vlr + 18), 2112u);
+    const std::size_t n = u16(vlr + 20);
+    ASSERT_LE(vlr + 54 + n, b.size());
+    EXPECT_EQ(u32(96), vlr + 54 + n) << "offset to point data";
+    std::string wkt(reinterpret_cast<const char*>(&b[vlr + 54]), n);
+    ASSERT_FALSE(wkt.empty());
+    EXPECT_EQ(wkt.back(), '\0');
+    wkt.pop_back();
+    const std::string zone = "WGS 84 / UTM zone 29N";  // 7.78 W
+    EXPECT_EQ(
+        wkt.rfind("COMPD_CS[\"" + zone + " + WGS 84 ellipsoidal height\",PROJCS[\"" + zone, 0), 0u)
+        << wkt;
+    const auto projcs = wkt.find("PROJCS[");
+    const auto vert = wkt.find(",VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[");
+    ASSERT_NE(vert, std::string::npos) << wkt;
+    EXPECT_EQ(wkt.substr(projcs, vert - projcs), UtmWkt(29, true));
+    EXPECT_NE(wkt.find("AUTHORITY[\"EPSG\",\"32629\"]]", projcs), std::string::npos) << wkt;
+    EXPECT_NE(wkt.find("VERT_DATUM[\"World Geodetic System 1984\",2002]", vert), std::string::npos)
+        << wkt;
+    EXPECT_NE(wkt.find("AXIS[\"Ellipsoidal height\",UP]", vert), std::string::npos) << wkt;
+    // Brackets balance and the compound closes last.
+    int depth = 0, min_depth_before_end = 1;
+    for (std::size_t i = 0; i < wkt.size(); ++i) {
+        depth += wkt[i] == '[' ? 1 : wkt[i] == ']' ? -1 : 0;
+        if (i > 9 && i + 1 < wkt.size())
+            min_depth_before_end = std::min(min_depth_before_end, depth);
+    }
+    EXPECT_EQ(depth, 0);
+    EXPECT_EQ(min_depth_before_end, 1) << "one COMPD_CS holds everything";
 }
 
 }  // namespace
