@@ -20,23 +20,24 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "common/vehicle.hpp"
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
 
 namespace pitmap::proc::io {
 
-// What vehicle.yaml says. Both the simulator's keys (lever_arms_m.sonar, boresight_deg
-// [r, p, y], navigation_channel, sonar_channel) and pitmap-acqd's `vehicle` section
-// (lever_arms_m.imu_to_sonar, boresight_sonar_deg {roll, pitch, yaw}, optionally nested under
-// `vehicle:`) are accepted.
+// What vehicle.yaml says (common/vehicle.hpp: the one schema, `pitmap_vehicle: 1`), with the
+// sonar mount as the georeferencing uses it: `mount` holds the lever arm and the whole
+// R_vehicle_sonar = R_boresight * R_mount as roll, pitch, yaw. A file that is not a pitmap
+// vehicle file, lacks a required key (sonar.lever_arm_m, sonar.mount.orientation,
+// sonar.mount.connector) or has any other problem is an error listing every problem.
 struct VehicleConfig {
-    std::string name;
+    VehicleDescription description;
     georef::SonarMount mount;
-    std::string navigation_channel;    // "" if not given
-    std::string sonar_channel;         // "" if not given
-    std::vector<std::string> missing;  // keys that were looked for and not found
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
+// summary.json's record of the vehicle file.
+nlohmann::json VehicleJson(const VehicleDescription& v);
 
 Status WritePly(const std::string& path, const georef::GeorefResult& result);
 Status WriteLas(const std::string& path,

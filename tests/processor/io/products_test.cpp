@@ -2,12 +2,14 @@
 // Product readers on corrupted input (issue 14, case 5): ingest.cache and summary.json,
 // truncated at several points, with overwritten bytes over several seeds, with huge counts,
 // wrong types and empty files. Every failure is a clear error naming the file, in memory
-// bounded by the file's size; nothing crashes. points.las: its CRS VLR is a compound WKT with
-// the vertical datum.
+// bounded by the file's size; nothing crashes.
+// vehicle.yaml: each sonar mount georeferences its beams where that mount looks; a foreign
+// file is an error. points.las: its CRS VLR is a compound WKT with the vertical datum.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <filesystem>
@@ -17,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "common/frames.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 #include "processor/io/products.hpp"
 
@@ -294,6 +297,100 @@ TEST_F(ProductReaders, BrokenSummaryJsonIsAnErrorNamingTheFileAndKey) {
     const auto missing = ReadSummaryJson((dir_ / "none.json").string());
     ASSERT_FALSE(missing.ok());
     EXPECT_NE(missing.error().message.find("none.json"), std::string::npos);
+}
+
+// A level vehicle heading north at the world origin, one ping with beams at -30, 0 and +30
+// degrees, 10 m each, through the mount that `vehicle` (vehicle.yaml text) describes; returns
+// the soundings in world ENU metres relative to the sonar, in beam order.
+std::vector<Eigen::Vector3d> BeamsThrough(const fs::path& dir, const std::string& vehicle) {
+    const std::string path = (dir / "vehicle.yaml").string();
+    std::ofstream(path, std::ios::trunc) << vehicle;
+    const auto v = ReadVehicleYaml(path);
+    EXPECT_TRUE(v) << v.error().message;
+    if (!v) return {};
+    georef::NavSeries nav;
+    for (int i = 0; i < 3; ++i) {
+        georef::NavSample s;
+        s.utime_gps = 1'400'000'000'000'000 + i * 100'000;
+        s.position = {40.4435, -7.7806, 412.0};
+        nav.samples.push_back(s);
+    }
+    georef::PingSeries pings;
+    georef::PingHeader h;
+    h.utime_gps = 1'400'000'000'100'000;
+    h.range_resolution_m = 0.001;
+    h.start_angle_deg = -30;
+    h.angle_increment_deg = 30;
+    h.num_beams = 3;
+    pings.pings.push_back(h);
+    pings.range_counts = {10'000, 10'000, 10'000};
+    georef::GeorefConfig cfg;
+    cfg.spike_half_window = 0;
+    const georef::GeorefResult r = georef::RunGeoref(nav, pings, v->mount, cfg);
+    EXPECT_EQ(r.points.size(), 3u);
+    std::vector<Eigen::Vector3d> out;
+    for (const auto& p : r.points.position_world) out.push_back(p - r.pings[0].sensor_world);
+    return out;
+}
+
+std::string Vehicle(const std::string& mount) {
+    return "pitmap_vehicle: 1\nsonar:\n  lever_arm_m: [0.8, 0.1, 0.25]\n  mount: {" + mount + "}\n";
+}
+
+TEST_F(ProductReaders, EachSonarMountGeoreferencesWhereItLooks) {
+    // World ENU, vehicle heading north: starboard = east, forward = north, down = -z.
+    const double s30 = 10 * std::sin(frames::DegToRad(30));
+    const double c30 = 10 * std::cos(frames::DegToRad(30));
+    const double s60 = 10 * std::sin(frames::DegToRad(60));
+    const double c60 = 10 * std::cos(frames::DegToRad(60));
+    struct Case {
+        const char* mount;
+        Eigen::Vector3d minus30, nadir, plus30;
+    };
+    const Case cases[] = {
+        // The standard mount: positive angles to starboard.
+        {"orientation: down, connector: aft", {-s30, 0, -c30}, {0, 0, -10}, {s30, 0, -c30}},
+        // Head turned round: positive angles to port.
+        {"orientation: down, connector: forward", {s30, 0, -c30}, {0, 0, -10}, {-s30, 0, -c30}},
+        // Fan along the track: positive angles aft (connector port) or forward (starboard).
+        {"orientation: down, connector: port", {0, s30, -c30}, {0, 0, -10}, {0, -s30, -c30}},
+        {"orientation: down, connector: starboard", {0, -s30, -c30}, {0, 0, -10}, {0, s30, -c30}},
+        // Tilted 30 degrees to starboard: the centre beam looks 30 degrees off nadir.
+        {"orientation: tilted, tilt_deg: 30, connector: aft",
+         {0, 0, -10},
+         {s30, 0, -c30},
+         {s60, 0, -c60}},
+        // Connector forward, tilted towards its -y side, which is the vehicle's starboard.
+        {"orientation: tilted, tilt_deg: -30, connector: forward",
+         {s60, 0, -c60},
+         {s30, 0, -c30},
+         {0, 0, -10}},
+    };
+    for (const Case& c : cases) {
+        const auto b = BeamsThrough(dir_, Vehicle(c.mount));
+        ASSERT_EQ(b.size(), 3u) << c.mount;
+        EXPECT_LT((b[0] - c.minus30).norm(), 1e-3) << c.mount << ": -30 at " << b[0].transpose();
+        EXPECT_LT((b[1] - c.nadir).norm(), 1e-3) << c.mount << ": 0 at " << b[1].transpose();
+        EXPECT_LT((b[2] - c.plus30).norm(), 1e-3) << c.mount << ": +30 at " << b[2].transpose();
+    }
+}
+
+TEST_F(ProductReaders, ForeignOrIncompleteVehicleFilesAreErrors) {
+    const std::string path = (dir_ / "vehicle.yaml").string();
+    // What the processor read as a zero lever arm with two warnings before schema 1.
+    std::ofstream(path, std::ios::trunc) << "vehicle: survey-boat\noperator: acme\n";
+    auto v = ReadVehicleYaml(path);
+    ASSERT_FALSE(v);
+    EXPECT_NE(v.error().message.find(path + ": not a pitmap vehicle file; missing: "
+                                            "pitmap_vehicle sonar.lever_arm_m"),
+              std::string::npos)
+        << v.error().message;
+    std::ofstream(path, std::ios::trunc)
+        << "pitmap_vehicle: 1\nsonar:\n  mount: {orientation: down, connector: aft}\n";
+    v = ReadVehicleYaml(path);
+    ASSERT_FALSE(v);
+    EXPECT_NE(v.error().message.find("sonar.lever_arm_m: required but missing"), std::string::npos)
+        << v.error().message;
 }
 
 // The LAS CRS VLR (LASF_Projection / 2112): COMPD_CS of the UTM PROJCS and a VERT_CS of WGS 84
