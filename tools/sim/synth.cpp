@@ -325,6 +325,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         vendor_83p.close();
         if (!vendor_gps || !vendor_83p)
             return Error{vendor_dir.string() + ": writing the vendor files failed"};
+        // Beside them as a surveyor keeps it (sonar clock offset unknown).
+        if (auto s = WriteVehicleYaml(vendor_dir / "vehicle.yaml", sc); !s) return s.error();
     }
 
     // Ground truth.
