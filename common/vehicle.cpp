@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -108,11 +109,21 @@ std::string Vec(const Eigen::Vector3d& v) {
     return "[" + Num(v.x()) + ", " + Num(v.y()) + ", " + Num(v.z()) + "]";
 }
 
+// A YAML double-quoted scalar that reads back as `s` (control characters escaped).
 std::string Quoted(const std::string& s) {
     std::string q = "\"";
     for (char c : s) {
-        if (c == '"' || c == '\\') q += '\\';
-        q += c;
+        const auto u = static_cast<unsigned char>(c);
+        if (c == '"' || c == '\\') {
+            q += '\\';
+            q += c;
+        } else if (u < 0x20 || u == 0x7f) {
+            char esc[8];
+            std::snprintf(esc, sizeof esc, "\\x%02x", u);
+            q += esc;
+        } else {
+            q += c;
+        }
     }
     return q + "\"";
 }

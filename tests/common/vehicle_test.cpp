@@ -71,7 +71,7 @@ TEST(VehicleFile, TemplateParsesAndEveryKeyHasAComment) {
 
 TEST(VehicleFile, WrittenFileReadsBackTheSameValues) {
     VehicleDescription v;
-    v.name = "roaz \"2\"";
+    v.name = "roaz \"2\"\n\tC:\\";
     v.sonar_lever_arm_m = Eigen::Vector3d(0.95, -0.1, 0.62);
     v.orientation = SonarOrientation::kTilted;
     v.tilt_deg = -35.5;
