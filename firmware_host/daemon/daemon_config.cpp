@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/config.hpp"
+#include "common/vehicle.hpp"
 #include "firmware_host/daemon/startup_check.hpp"
 
 namespace pitmap::acq {
@@ -203,8 +204,11 @@ LoadedConfig Load(Expected<ConfigReader> reader, const std::string& vehicle_yaml
         cfg.channels.push_back(std::move(spec));
     }
     if (r.Has("vehicle")) {
-        // Free-form for the processor: only its being a map is checked here.
-        r.Child("vehicle");
+        // For the processor, but checked here against its schema (common/vehicle.hpp), so a
+        // wrong vehicle section stops the daemon at start, not the survey's processing later.
+        ConfigReader v = r.Child("vehicle");
+        VehicleDescription unused;
+        ReadVehicle(v, unused);
         cfg.vehicle_yaml = vehicle_yaml;
     }
     if (cfg.status_period_ms < 100 || cfg.status_period_ms > 60'000) {

@@ -28,8 +28,9 @@
 //                      command_retries, imu_type, imu_rate_hz, corrimu_rate_hz,
 //                      ec {enabled, range_m, start_gain_db, display_gain_pct, sector_deg,
 //                      num_beams, interval_ms}
-//   vehicle            free-form record for the processor (lever arms, nominal boresight):
-//                      not interpreted here beyond being a map; copied verbatim into the log
+//   vehicle            the vehicle description for the processor (common/vehicle.hpp, schema
+//                      `pitmap_vehicle: 1`: lever arms, mount, boresight, ...): checked
+//                      against the schema here (every problem listed), then copied into the log
 //                      directory as vehicle.yaml at start (see DaemonConfig::vehicle_yaml).
 #pragma once
 

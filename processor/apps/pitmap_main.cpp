@@ -1,14 +1,16 @@
 // SPDX-License-Identifier: MIT
 // pitmap: the shore processor's command line. Arguments -> YAML -> Config -> Validate -> run.
-//   pitmap info LOGS...
-//   pitmap georef LOGS... --out P [--config FILE] [--from-raw] [--sonar-clock-offset S]
+//   pitmap info LOGS... [--vehicle FILE] [--sonar-clock-offset S]
+//   pitmap georef LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
+//                 [--sonar-clock-offset S]
 //   pitmap calibrate --out P [--config FILE]
 //   pitmap slam --out P [--config FILE]
 //   pitmap fuse --out P [--config FILE]
 //   pitmap mesh --out P [--config FILE]
 //   pitmap report --out P
-//   pitmap run LOGS... --out P [--config FILE] [--from-raw] [--no-calibrate] [--no-slam]
-//   pitmap config --defaults
+//   pitmap run LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
+//              [--sonar-clock-offset S] [--no-calibrate] [--no-slam]
+//   pitmap config --defaults | --vehicle
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 #include <unistd.h>
 
@@ -18,6 +20,7 @@
 #include <filesystem>
 
 #include "common/config.hpp"
+#include "common/vehicle.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
@@ -46,8 +49,7 @@ std::vector<std::string> TrippedGates(const std::string& out_dir) {
     const auto& g = (*j)["quality_gates"];
     if (!g.is_array()) return out;
     for (const auto& e : g) {
-        if (e.is_object())
-            out.push_back(e.value("stage", "?") + "/" + e.value("gate", "?"));
+        if (e.is_object()) out.push_back(e.value("stage", "?") + "/" + e.value("gate", "?"));
     }
     return out;
 }
@@ -60,22 +62,36 @@ int main(int argc, char** argv) try {
     CLI::App app{"pitmap: flooded open-pit mine mapping, shore-side processor"};
     app.require_subcommand(1);
     std::vector<std::string> inputs;
-    std::string out_dir, config_path;
-    bool from_raw = false, defaults = false;
+    std::string out_dir, config_path, vehicle_path;
+    bool from_raw = false, defaults = false, vehicle_template = false;
     double sonar_clock_offset_s = 0;
     bool offset_given = false;
+    // The options of the commands that read the inputs (info, georef, run).
+    const auto input_options = [&](CLI::App* sub) {
+        sub->add_option("--vehicle",
+                        vehicle_path,
+                        "vehicle.yaml (pitmap config --vehicle); default: vehicle.yaml beside "
+                        "the first input");
+        sub->add_option("--sonar-clock-offset",
+                        sonar_clock_offset_s,
+                        ".83P files: the sonar's (header) clock minus GPS-disciplined UTC, s. "
+                        "Positive = the sonar clock runs ahead of UTC, negative = it runs behind "
+                        "(a topside PC 2 s fast: 2); GPS time = header time - S + (GPS - UTC). "
+                        "Default: the config's "
+                        "ingest.sonar_clock_offset_s, else vehicle.yaml's sonar.clock_offset_s, "
+                        "else found from the 83P headers")
+            ->each([&](const std::string&) { offset_given = true; });
+    };
 
     auto* info = app.add_subcommand("info", "summarise logs and vendor files");
     info->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
+    input_options(info);
     auto* geo = app.add_subcommand("georef", "ingest and georeference into a products folder");
     geo->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
     geo->add_option("--out", out_dir, "products folder")->required();
     geo->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
     geo->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
-    geo->add_option("--sonar-clock-offset",
-                    sonar_clock_offset_s,
-                    ".83P files: seconds added to the topside clock to get GPS time")
-        ->each([&](const std::string&) { offset_given = true; });
+    input_options(geo);
     auto* cal = app.add_subcommand("calibrate", "boresight calibration on a georeferenced folder");
     cal->add_option("--out", out_dir, "products folder written by pitmap georef")->required();
     cal->add_option("--config", config_path, "YAML config");
@@ -94,11 +110,13 @@ int main(int argc, char** argv) try {
     run->add_option("--out", out_dir, "products folder")->required();
     run->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
     run->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
+    input_options(run);
     run->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
     run->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
     run->add_flag("--no-report", no_report, "no report.html");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
+    cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
     bool strict = false;
     for (auto* sub : {geo, cal, slam, fuse, mesh, run}) {
         sub->add_flag("--strict",
@@ -109,8 +127,8 @@ int main(int argc, char** argv) try {
     CLI11_PARSE(app, argc, argv);
 
     if (cfg->parsed()) {
-        if (!defaults) return Fail("config: give --defaults");
-        std::fputs(pp::DefaultsYaml().c_str(), stdout);
+        if (defaults == vehicle_template) return Fail("config: give --defaults or --vehicle");
+        std::fputs((defaults ? pp::DefaultsYaml() : pitmap::VehicleYamlTemplate()).c_str(), stdout);
         return 0;
     }
     pp::PipelineConfig config;
@@ -124,6 +142,7 @@ int main(int argc, char** argv) try {
         config.ingest.sonar_clock_offset_s = sonar_clock_offset_s;
         config.ingest.sonar_clock_offset_known = true;
     }
+    if (!vehicle_path.empty()) config.vehicle_yaml = vehicle_path;
     if (no_calibrate) config.run.calibrate = false;
     if (no_slam) config.run.slam = false;
     if (no_report) config.run.report = false;

@@ -189,8 +189,9 @@ public:
         };
         h.aid_roll_deg = p.internal_roll_valid ? p.internal_roll_deg
                                                : ext(dt::kExternalRollValid, p.external_roll_deg);
-        h.aid_pitch_deg = p.internal_pitch_valid ? p.internal_pitch_deg
-                                                 : ext(dt::kExternalPitchValid, p.external_pitch_deg);
+        h.aid_pitch_deg = p.internal_pitch_valid
+                              ? p.internal_pitch_deg
+                              : ext(dt::kExternalPitchValid, p.external_pitch_deg);
         h.aid_heading_deg = p.internal_heading_valid
                                 ? p.internal_heading_deg
                                 : ext(dt::kExternalHeadingValid, p.external_heading_deg);
@@ -684,8 +685,9 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
                 if (std::get<dt::RecordKind>(d) != dt::RecordKind::kPing) continue;
                 std::int64_t t = 0;
                 if (ping.header_time_valid) {
+                    // The offset is the sonar clock minus UTC: subtracted (ingest.hpp).
                     t = (leap_seconds >= 0 ? GpsFromUnix(ping.utime_sonar_header, leap_seconds)
-                                           : GpsFromUnix(ping.utime_sonar_header)) +
+                                           : GpsFromUnix(ping.utime_sonar_header)) -
                         std::llround(config.sonar_clock_offset_s * 1e6);
                 }
                 col.AddPing83P(ping, t);

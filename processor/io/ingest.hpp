@@ -11,7 +11,9 @@
 // datagram's receipt minus the transmit age the 83P header states (data - ping latency), as
 // the daemon does.
 // .83P files carry only the topside PC's clock: utime_gps = header time (read as UTC) + GPS-UTC
-// (from a NovAtel TIME log when one is given, else the leap-second table) + sonar_clock_offset_s.
+// (from a NovAtel TIME log when one is given, else the leap-second table) - sonar_clock_offset_s,
+// where sonar_clock_offset_s = sonar clock - UTC (> 0: the sonar clock runs ahead of UTC;
+// common/vehicle.hpp); 0 when not known (the pipeline then finds the clock, calib/sonar_clock).
 // Failure model: unreadable files are errors naming the path; bad bytes and bad events are
 // counted, never fatal.
 #pragma once
@@ -33,11 +35,14 @@ bool ParseIngestSource(const std::string& text, IngestSource& out);
 
 struct IngestConfig {
     IngestSource source = IngestSource::kAuto;  // decoded channels, raw re-decoding, or auto
-    std::string nav_channel_id;       // channel id (e.g. "novatel_com1"); "" = every INS channel
-    std::string sonar_channel_id;     // e.g. "deltat_udp"; "" = every sonar channel
-    double sonar_clock_offset_s = 0;  // .83P files: added to header time (as UTC) -> GPS
-    bool sonar_clock_offset_known = false;  // given by the user: checked, not searched for
-    bool require_good_ins = false;    // drop INS samples whose status is not SOLUTION_GOOD
+    std::string nav_channel_id;    // channel id (e.g. "novatel_com1"); "" = every INS channel
+    std::string sonar_channel_id;  // e.g. "deltat_udp"; "" = every sonar channel
+    // .83P files: sonar (header) clock minus UTC, s, subtracted from header times (> 0 = the
+    // sonar clock runs ahead). Known (given by the user, the config or the vehicle file):
+    // checked against the 83P headers; else searched for (processor/calib/sonar_clock.hpp).
+    double sonar_clock_offset_s = 0;
+    bool sonar_clock_offset_known = false;
+    bool require_good_ins = false;  // drop INS samples whose status is not SOLUTION_GOOD
 
     std::vector<std::string> Validate() const;
 };

@@ -3,7 +3,6 @@
 
 #include <sys/resource.h>
 #include <sys/stat.h>
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <bit>
@@ -88,59 +87,43 @@ std::string Fmt(const char* fmt, double a, double b, double c) {
     return s;
 }
 
-bool ReadVec3(const YAML::Node& n, Eigen::Vector3d& v) {
-    if (!n || !n.IsSequence() || n.size() != 3) return false;
-    try {
-        for (int i = 0; i < 3; ++i) v[i] = n[i].as<double>();
-    } catch (const YAML::Exception&) {
-        return false;
-    }
-    return true;
-}
-
 }  // namespace
 
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path) {
-    YAML::Node root;
-    try {
-        root = YAML::LoadFile(path);
-    } catch (const YAML::BadFile&) {
-        return Error{path + ": cannot open"};
-    } catch (const YAML::Exception& e) {
-        return Error{path + ": " + e.what()};
-    }
-    if (!root.IsMap()) return Error{path + ": not a YAML map"};
-    if (root["vehicle"] && root["vehicle"].IsMap()) root = root["vehicle"];
+    auto d = ReadVehicleFile(path);
+    if (!d) return d.error();
     VehicleConfig v;
-    try {
-        if (root["name"]) v.name = root["name"].as<std::string>();
-        if (root["vehicle"] && root["vehicle"].IsScalar())
-            v.name = root["vehicle"].as<std::string>();
-        const YAML::Node arms = root["lever_arms_m"];
-        if (!(arms && (ReadVec3(arms["sonar"], v.mount.lever_arm_m) ||
-                       ReadVec3(arms["imu_to_sonar"], v.mount.lever_arm_m)))) {
-            v.missing.push_back("lever_arms_m.sonar (or lever_arms_m.imu_to_sonar) [x, y, z]");
-        }
-        Eigen::Vector3d b;
-        if (ReadVec3(root["boresight_deg"], b)) {
-            v.mount.boresight_roll_deg = b[0];
-            v.mount.boresight_pitch_deg = b[1];
-            v.mount.boresight_yaw_deg = b[2];
-        } else if (const YAML::Node bs = root["boresight_sonar_deg"]; bs && bs.IsMap()) {
-            v.mount.boresight_roll_deg = bs["roll"] ? bs["roll"].as<double>() : 0.0;
-            v.mount.boresight_pitch_deg = bs["pitch"] ? bs["pitch"].as<double>() : 0.0;
-            v.mount.boresight_yaw_deg = bs["yaw"] ? bs["yaw"].as<double>() : 0.0;
-        } else {
-            v.missing.push_back(
-                "boresight_deg [roll, pitch, yaw] (or boresight_sonar_deg {roll, pitch, yaw})");
-        }
-        if (root["navigation_channel"])
-            v.navigation_channel = root["navigation_channel"].as<std::string>();
-        if (root["sonar_channel"]) v.sonar_channel = root["sonar_channel"].as<std::string>();
-    } catch (const YAML::Exception& e) {
-        return Error{path + ": " + e.what()};
-    }
+    v.description = std::move(*d);
+    v.mount.lever_arm_m = v.description.sonar_lever_arm_m;
+    const frames::Rpy rpy = frames::RpyFromRotationNed(v.description.R_vehicle_sonar());
+    v.mount.boresight_roll_deg = frames::RadToDeg(rpy.roll);
+    v.mount.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
+    v.mount.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
     return v;
+}
+
+nlohmann::json VehicleJson(const VehicleDescription& v) {
+    auto vec = [](const Eigen::Vector3d& x) { return nlohmann::json{x.x(), x.y(), x.z()}; };
+    nlohmann::json antennas = nlohmann::json::array();
+    for (const auto& a : v.gnss_antenna_lever_arms_m) antennas.push_back(vec(a));
+    nlohmann::json j = {
+        {"schema", kVehicleSchemaVersion},
+        {"name", v.name},
+        {"sonar_lever_arm_m", vec(v.sonar_lever_arm_m)},
+        {"orientation", ToString(v.orientation)},
+        {"tilt_deg", v.tilt_deg},
+        {"connector", ToString(v.connector)},
+        {"boresight_deg", vec(v.boresight_deg)},
+        {"sonar_clock_offset_s", nullptr},
+        {"sound_velocity_source", ToString(v.sound_velocity_source)},
+        {"gnss_antenna_lever_arms_m", antennas},
+        {"ins_height_above_waterline_m", nullptr},
+    };
+    if (v.sonar_clock_offset_s) j["sonar_clock_offset_s"] = *v.sonar_clock_offset_s;
+    if (v.ins_height_above_waterline_m) {
+        j["ins_height_above_waterline_m"] = *v.ins_height_above_waterline_m;
+    }
+    return j;
 }
 
 Status WritePly(const std::string& path, const georef::GeorefResult& r) {
@@ -190,6 +173,14 @@ std::string UtmWkt(int zone, bool northern) {
            std::to_string(epsg) + "\"]]";
 }
 
+std::string LasWkt(int zone, bool northern) {
+    return "COMPD_CS[\"WGS 84 / UTM zone " + std::to_string(zone) + (northern ? "N" : "S") +
+           " + WGS 84 ellipsoidal height\"," + UtmWkt(zone, northern) +
+           ",VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[\"World Geodetic System 1984\","
+           "2002],UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AXIS[\"Ellipsoidal height\","
+           "UP]]]";
+}
+
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& r,
                 const georef::UtmPoints& utm) {
@@ -204,7 +195,7 @@ Status WriteLas(const std::string& path,
     if (n == 0) lo = hi = Eigen::Vector3d::Zero();
     const double scale = 0.001;
     const Eigen::Vector3d offset(std::floor(lo.x()), std::floor(lo.y()), std::floor(lo.z()));
-    const std::string wkt = UtmWkt(utm.zone, utm.northern) + std::string(1, '\0');
+    const std::string wkt = LasWkt(utm.zone, utm.northern) + std::string(1, '\0');
     constexpr std::uint16_t kHeaderSize = 375;
     constexpr std::uint16_t kVlrHeaderSize = 54;
     constexpr std::uint16_t kRecordLength = 30;

@@ -8,7 +8,9 @@
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
 //   coordinates with scale 0.001 m, GPS time as Adjusted Standard GPS time (GPS s - 1e9,
 //   global encoding bit 0), CRS as an OGC WKT VLR (LASF_Projection / 2112, global encoding
-//   bit 4). Heights are ellipsoidal (WGS84).
+//   bit 4): a COMPD_CS of the UTM PROJCS and VERT_CS "WGS 84 ellipsoidal height" (OGC 01-009
+//   vertical datum type 2002, ellipsoidal), since heights are WGS 84 ellipsoidal: pitmap
+//   applies no geoid (one that does must declare its geoid's VERT_CS here instead).
 // Failure model: every function returns an error naming the file.
 #pragma once
 
@@ -18,23 +20,24 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "common/vehicle.hpp"
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
 
 namespace pitmap::proc::io {
 
-// What vehicle.yaml says. Both the simulator's keys (lever_arms_m.sonar, boresight_deg
-// [r, p, y], navigation_channel, sonar_channel) and pitmap-acqd's `vehicle` section
-// (lever_arms_m.imu_to_sonar, boresight_sonar_deg {roll, pitch, yaw}, optionally nested under
-// `vehicle:`) are accepted.
+// What vehicle.yaml says (common/vehicle.hpp: the one schema, `pitmap_vehicle: 1`), with the
+// sonar mount as the georeferencing uses it: `mount` holds the lever arm and the whole
+// R_vehicle_sonar = R_boresight * R_mount as roll, pitch, yaw. A file that is not a pitmap
+// vehicle file, lacks a required key (sonar.lever_arm_m, sonar.mount.orientation,
+// sonar.mount.connector) or has any other problem is an error listing every problem.
 struct VehicleConfig {
-    std::string name;
+    VehicleDescription description;
     georef::SonarMount mount;
-    std::string navigation_channel;    // "" if not given
-    std::string sonar_channel;         // "" if not given
-    std::vector<std::string> missing;  // keys that were looked for and not found
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
+// summary.json's record of the vehicle file.
+nlohmann::json VehicleJson(const VehicleDescription& v);
 
 Status WritePly(const std::string& path, const georef::GeorefResult& result);
 Status WriteLas(const std::string& path,
@@ -42,6 +45,8 @@ Status WriteLas(const std::string& path,
                 const georef::UtmPoints& utm);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.
 std::string UtmWkt(int zone, bool northern);
+// The LAS file's CRS: COMPD_CS[UtmWkt, VERT_CS WGS 84 ellipsoidal height], WKT1.
+std::string LasWkt(int zone, bool northern);
 
 // Trajectory CSV: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU at `origin`),
 // then vel_e_mps,vel_n_mps,vel_u_mps,ins_status.

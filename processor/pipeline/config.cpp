@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "common/config.hpp"
+#include "common/vehicle.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -102,7 +103,9 @@ void VisitQuality(V&& v, QualityConfig& q) {
       "calibration residual RMS / the range noise's, above: gate");
     v("max_clock_scan_s", q.max_clock_scan_s, "widest sonar-clock uncertainty the data resolve, s");
     v("clock_disagreement_s", q.clock_disagreement_s, "configured vs found clock, beyond 3 sigma");
-    v("slam_sigma_multiple", q.slam_sigma_multiple, "SLAM may move a good-INS ping this many sigma");
+    v("slam_sigma_multiple",
+      q.slam_sigma_multiple,
+      "SLAM may move a good-INS ping this many sigma");
     v("slam_min_allowance_m", q.slam_min_allowance_m, "... or this far, m");
     v("slam_good_ins_sigma_m", q.slam_good_ins_sigma_m, "INS horizontal sigma below: good, m");
     v("slam_max_fraction", q.slam_max_fraction, "share of good pings moved further: gate");
@@ -334,8 +337,9 @@ std::string DefaultsYaml() {
       << "            # auto | decoded | raw (re-decode RAW_* channels)\n"
       << "  nav_channel_id: \"\"        # e.g. novatel_com1; \"\" = every INS channel\n"
       << "  sonar_channel_id: \"\"      # e.g. deltat_udp; \"\" = every sonar channel\n"
-      << "  sonar_clock_offset_s: " << c.ingest.sonar_clock_offset_s
-      << "   # .83P files: GPS = header clock (UTC) + leap + offset\n"
+      << "  sonar_clock_offset_s: null  # .83P files: sonar (header) clock minus UTC, s:\n"
+      << "                              # > 0 = the sonar clock is ahead, < 0 = behind;\n"
+      << "                              # null = vehicle.yaml's sonar.clock_offset_s, else 0\n"
       << "  require_good_ins: " << b(c.ingest.require_good_ins)
       << "   # drop INS samples not INS_SOLUTION_GOOD\n"
       << "georef:\n"
@@ -379,7 +383,8 @@ std::string DefaultsYaml() {
       << "  range_noise_constant_m: " << c.calibrate.range_noise_constant_m << "\n"
       << "  estimate_latency: " << b(c.calibrate.estimate_latency)
       << "      # the sonar time offset as a 4th unknown (patch test latency)\n"
-      << "  latency_sigma_s: " << c.calibrate.latency_sigma_s << "         # its prior, 1 sigma, s\n"
+      << "  latency_sigma_s: " << c.calibrate.latency_sigma_s
+      << "         # its prior, 1 sigma, s\n"
       << "  latency_scan_step_s: " << c.calibrate.latency_scan_step_s
       << "  # scan step when the clock is uncertain beyond the linear range, s\n";
     {
@@ -403,9 +408,14 @@ std::string DefaultsYaml() {
     }
     o << "products:\n"
       << "  write_las: " << b(c.write_las) << "\n"
-      << "  vehicle_yaml: \"\"          # \"\" = vehicle.yaml beside the first log\n"
+      << "  vehicle_yaml: \"\"          # \"\" = vehicle.yaml beside the first log (--vehicle)\n"
       << "  origin:                    # world origin; absent = first INS position\n"
       << "    latitude_deg: null\n    longitude_deg: null\n    height_m: null\n";
+    // The vehicle file is separate (products.vehicle_yaml, --vehicle): its schema as comments,
+    // so that this output stays a valid processor config.
+    o << "#\n# vehicle.yaml, a separate file (`pitmap config --vehicle` prints it uncommented):\n";
+    std::istringstream vehicle(VehicleYamlTemplate());
+    for (std::string line; std::getline(vehicle, line);) o << "#   " << line << "\n";
     return o.str();
 }
 

@@ -62,6 +62,25 @@ json CountsJson(const georef::GeorefCounts& c) {
             {"points", c.points}};
 }
 
+// The vehicle file: products.vehicle_yaml (--vehicle), else vehicle.yaml beside the first
+// input, else "".
+std::string VehicleFilePath(const std::vector<std::string>& files, const PipelineConfig& config) {
+    if (!config.vehicle_yaml.empty() || files.empty()) return config.vehicle_yaml;
+    const fs::path beside = fs::path(files.front()).parent_path() / "vehicle.yaml";
+    return fs::exists(beside) ? beside.string() : "";
+}
+
+// What the vehicle file sets for ingest where the config and command line left it unset:
+// the channels and the sonar clock offset.
+void ApplyVehicle(const VehicleDescription& v, io::IngestConfig& icfg) {
+    if (icfg.nav_channel_id.empty()) icfg.nav_channel_id = v.navigation_channel;
+    if (icfg.sonar_channel_id.empty()) icfg.sonar_channel_id = v.sonar_channel;
+    if (!icfg.sonar_clock_offset_known && v.sonar_clock_offset_s) {
+        icfg.sonar_clock_offset_s = *v.sonar_clock_offset_s;
+        icfg.sonar_clock_offset_known = true;
+    }
+}
+
 }  // namespace
 
 namespace detail {
@@ -193,9 +212,10 @@ std::string Num(const char* fmt, double v) {
     return b;
 }
 
-// The offset (in the configuration's terms) that would have needed no further correction.
-double ImpliedClockOffset(const io::IngestConfig& c, double correction_s) {
-    return c.sonar_clock_offset_s + correction_s;  // ingest adds the offset to the header time
+// The offset (sonar clock minus UTC, as configured) that would have needed no further
+// correction: ingest subtracts the offset from the header time, the correction is added.
+double ImpliedClockOffset(double configured_offset_s, double correction_s) {
+    return configured_offset_s - correction_s;
 }
 
 }  // namespace
@@ -218,7 +238,16 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     const std::string nav_span =
         calib::SpanText(nav.samples.front().utime_gps, nav.samples.back().utime_gps);
     if (header) {
-        const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav);
+        calib::ClockSearchConfig search;
+        // The NMEA position in the headers is the (first) GNSS antenna's.
+        if (const auto v = s.summary.find("vehicle"); v != s.summary.end() && v->is_object()) {
+            const json& arms = v->value("gnss_antenna_lever_arms_m", json::array());
+            if (!arms.empty() && arms[0].is_array() && arms[0].size() == 3) {
+                search.antenna_lever_arm_m = Eigen::Vector3d(
+                    arms[0][0].get<double>(), arms[0][1].get<double>(), arms[0][2].get<double>());
+            }
+        }
+        const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav, search);
         log("sonar clock: " + est.message);
         clk["coarse"] = {{"method", est.method},
                          {"found", est.found},
@@ -227,8 +256,8 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                          {"misfit", est.misfit},
                          {"samples", est.samples},
                          {"message", est.message}};
-        const std::string sonar_span = calib::SpanText(pings.pings.front().utime_gps,
-                                                       pings.pings.back().utime_gps);
+        const std::string sonar_span =
+            calib::SpanText(pings.pings.front().utime_gps, pings.pings.back().utime_gps);
         if (config.ingest.sonar_clock_offset_known) {
             const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
             if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
@@ -236,9 +265,11 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                          "georef",
                          "sonar_clock_disagrees",
                          "the configured sonar clock offset is " +
-                             Num("%+.3f", config.ingest.sonar_clock_offset_s) +
-                             " s, the " + est.method + " in the 83P headers implies " +
-                             Num("%+.3f", ImpliedClockOffset(config.ingest, est.correction_s)) +
+                             Num("%+.3f", config.ingest.sonar_clock_offset_s) + " s, the " +
+                             est.method + " in the 83P headers implies " +
+                             Num("%+.3f",
+                                 ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
+                                                    est.correction_s)) +
                              " s (+- " + Num("%.3f", est.sigma_s) +
                              " s); the configured value is used",
                          log);
@@ -246,8 +277,8 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             sigma = 0.1;
         } else {
             const std::string give =
-                "; give the offset (--sonar-clock-offset S, or sonar_clock_offset_s in the "
-                "vehicle file). Navigation: " +
+                "; give the offset (--sonar-clock-offset S, or sonar.clock_offset_s in "
+                "vehicle.yaml: the sonar clock minus UTC). Navigation: " +
                 nav_span + "; sonar, on its own clock: " + sonar_span;
             if (!est.found) return Error{"sonar clock: " + est.message + give};
             if (est.sigma_s > q.max_clock_scan_s) {
@@ -326,8 +357,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     if (bc.estimate_latency) {
         // The pings carry the coarse correction already; scan what it leaves (4 sigma).
         bc.initial_latency_s = 0;
-        bc.latency_scan_s =
-            header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
+        bc.latency_scan_s = header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
     }
     ProgressReporter bar("calibrate", 1000);
     calib::BoresightResult cal =
@@ -432,10 +462,13 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     clk["latency_formal_sd_s"] = cal.latency_formal_sd_s;
     clk["correction_s"] = clk.value("correction_s", 0.0) + clk["latency_s"].get<double>();
     if (cal.latency_estimated && !keep_nominal) clk["sigma_s"] = cal.latency_formal_sd_s;
-    if (config.ingest.sonar_clock_offset_known && header) {
+    // Configured by the command line, the config or the vehicle file (ClockSurvey's record, so
+    // that a stand-alone calibrate knows it too).
+    const double configured_offset = clk.value("configured_offset_s", 0.0);
+    if (clk.value("configured", false) && header) {
         // In the configured offset's own terms: the offset that would have needed no correction.
         const double implied =
-            ImpliedClockOffset(config.ingest, clk["correction_s"].get<double>());
+            ImpliedClockOffset(configured_offset, clk["correction_s"].get<double>());
         clk["estimated_offset_s"] = implied;
         if (cal.latency_estimated && !keep_nominal &&
             std::abs(cal.latency_s) >
@@ -443,8 +476,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             TripGate(s,
                      "calibrate",
                      "sonar_clock_disagrees",
-                     "the configured sonar clock offset is " +
-                         Num("%+.4f", config.ingest.sonar_clock_offset_s) +
+                     "the configured sonar clock offset is " + Num("%+.4f", configured_offset) +
                          " s, the soundings put it at " + Num("%+.4f", implied) +
                          " s; the soundings' value is applied",
                      log);
@@ -471,12 +503,7 @@ Status GeorefSurvey(Survey& s,
     auto files = io::ExpandInputs(inputs);
     if (!files) return files.error();
     if (files->empty()) return Error{"no input files"};
-    // Vehicle config: given, or beside the first input.
-    std::string vpath = config.vehicle_yaml;
-    if (vpath.empty()) {
-        const fs::path first = fs::path(files->front()).parent_path() / "vehicle.yaml";
-        if (fs::exists(first)) vpath = first.string();
-    }
+    const std::string vpath = VehicleFilePath(*files, config);
     io::IngestConfig icfg = config.ingest;
     if (auto old = io::ReadSummaryJson(out_dir + "/summary.json"); old && old->is_object()) {
         s.summary = *old;
@@ -491,16 +518,20 @@ Status GeorefSurvey(Survey& s,
     s.summary.erase("sonar_clock");
     if (vpath.empty()) {
         log("warning: no vehicle.yaml found beside " + files->front() +
-            ": lever arm and boresight default to zero (give products.vehicle_yaml)");
+            ": lever arm and boresight default to zero (give --vehicle FILE)");
+        s.summary.erase("vehicle_yaml");
+        s.summary.erase("vehicle");
     } else {
         auto v = io::ReadVehicleYaml(vpath);
         if (!v) return v.error();
-        for (const auto& m : v->missing) log("warning: " + vpath + ": missing " + m + " (using 0)");
         s.mount = v->mount;
-        if (icfg.nav_channel_id.empty()) icfg.nav_channel_id = v->navigation_channel;
-        if (icfg.sonar_channel_id.empty()) icfg.sonar_channel_id = v->sonar_channel;
+        ApplyVehicle(v->description, icfg);
         s.summary["vehicle_yaml"] = fs::absolute(vpath).string();
+        s.summary["vehicle"] = io::VehicleJson(v->description);
     }
+    // The configured offset (sonar clock minus UTC), null when the clock is to be found.
+    s.summary["sonar_clock_offset_s"] =
+        icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
 
     StageClock ingest_clock;
     ProgressReporter bar("ingest", 1000);
@@ -520,7 +551,9 @@ Status GeorefSurvey(Survey& s,
     if (s.ingest.pings.pings.empty())
         return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
 
-    if (auto c = ClockSurvey(s, config, log); !c) {
+    PipelineConfig resolved = config;  // with what the vehicle file gave
+    resolved.ingest = icfg;
+    if (auto c = ClockSurvey(s, resolved, log); !c) {
         (void)SaveSummary(s);
         return c;
     }
@@ -591,7 +624,13 @@ Status GeorefSurvey(Survey& s,
 Expected<std::string> Info(const std::vector<std::string>& inputs, const PipelineConfig& config) {
     auto files = io::ExpandInputs(inputs);
     if (!files) return files.error();
-    auto r = io::IngestFiles(*files, config.ingest);
+    io::IngestConfig icfg = config.ingest;
+    if (const std::string vpath = VehicleFilePath(*files, config); !vpath.empty()) {
+        auto v = io::ReadVehicleYaml(vpath);
+        if (!v) return v.error();
+        ApplyVehicle(v->description, icfg);
+    }
+    auto r = io::IngestFiles(*files, icfg);
     if (!r) return r.error();
     std::ostringstream o;
     for (const auto& f : *files) o << "file " << f << "\n";

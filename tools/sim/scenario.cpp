@@ -283,6 +283,19 @@ std::string DescribeScenario(const ScenarioConfig& s) {
     return d;
 }
 
+VehicleDescription NominalVehicle(const ScenarioConfig& sc) {
+    VehicleDescription v;
+    v.name = sc.name == "demo" ? "demo-asv" : "roaz";
+    const auto vec = [](const std::vector<double>& a) {
+        return a.size() == 3 ? Eigen::Vector3d(a[0], a[1], a[2]) : Eigen::Vector3d::Zero();
+    };
+    v.sonar_lever_arm_m = vec(sc.lever_arms.sonar_m);
+    v.orientation = SonarOrientation::kDown;
+    v.connector = ConnectorDirection::kAft;
+    v.gnss_antenna_lever_arms_m = {vec(sc.lever_arms.antenna_m)};
+    return v;
+}
+
 Expected<ScenarioConfig> BuiltinScenario(const std::string& name) {
     if (name == "demo") return Demo();
     if (name == "bejanca") return Bejanca();

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "common/vehicle.hpp"
 
 namespace pitmap::sim {
 
@@ -112,7 +113,8 @@ struct SonarConfig {
     double sound_speed_mps = 1480.0;
     bool intensities = true;
     int format_version = 10;  // 83P v1.10
-    // Topside PC clock in the 83P header: offset from UTC and drift (not to be trusted).
+    // Topside PC clock in the 83P header: offset from UTC (header clock - UTC, the sign of
+    // vehicle.yaml sonar.clock_offset_s) and drift (not to be trusted).
     double topside_clock_offset_s = 3600.0 + 2.37;
     double topside_clock_drift_ppm = 35.0;
     double ping_latency_ms = 2.0;   // interrogation -> transmit
@@ -171,6 +173,11 @@ struct ScenarioConfig {
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
 };
+
+// The vehicle.yaml a survey team would write for the scenario: the true lever arms, the
+// nominal mount (down, connector aft) with boresight 0 (the true boresight_deg is what
+// `pitmap calibrate` must find) and the sonar clock offset unknown. Channels are left "".
+VehicleDescription NominalVehicle(const ScenarioConfig& sc);
 
 // The names of the built-in scenarios, in a stable order.
 const std::vector<std::string>& BuiltinScenarioNames();

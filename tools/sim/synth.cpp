@@ -56,19 +56,12 @@ std::vector<std::uint8_t> EncodeRaw(std::int64_t utime,
 Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
     std::ofstream out(path);
     if (!out) return Error{path.string() + ": cannot create"};
-    const auto& s = sc.lever_arms.sonar_m;
-    const auto& a = sc.lever_arms.antenna_m;
-    out << "# pitmap vehicle configuration, written beside the logs (docs/conventions.md).\n"
-        << "# Lever arms: vehicle frame (x forward, y starboard, z down), metres, from the INS\n"
-        << "# reference point. boresight_deg: nominal R_vehicle_sonar (roll, pitch, yaw) before\n"
-        << "# calibration.\n"
-        << "vehicle: " << (sc.name == "demo" ? "demo-asv" : "roaz") << "\n"
-        << "lever_arms_m:\n"
-        << "  sonar: [" << s[0] << ", " << s[1] << ", " << s[2] << "]\n"
-        << "  gnss_antenna: [" << a[0] << ", " << a[1] << ", " << a[2] << "]\n"
-        << "boresight_deg: [0.0, 0.0, 0.0]\n"
-        << "navigation_channel: " << kNovatelId << "\n"
-        << "sonar_channel: " << kSonarId << "\n";
+    VehicleDescription v = NominalVehicle(sc);
+    v.navigation_channel = kNovatelId;
+    v.sonar_channel = kSonarId;
+    out << "# pitmap vehicle description (schema: `pitmap config --vehicle`), written by "
+           "pitmap-sim.\n"
+        << FormatVehicleYaml(v);
     return out ? Status(Ok{}) : Status(Error{path.string() + ": write failed"});
 }
 
@@ -332,6 +325,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         vendor_83p.close();
         if (!vendor_gps || !vendor_83p)
             return Error{vendor_dir.string() + ": writing the vendor files failed"};
+        // Beside them as a surveyor keeps it (sonar clock offset unknown).
+        if (auto s = WriteVehicleYaml(vendor_dir / "vehicle.yaml", sc); !s) return s.error();
     }
 
     // Ground truth.

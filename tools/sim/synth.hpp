@@ -10,6 +10,7 @@
 //                 <scenario>.83P, the 83P records concatenated as the topside program records
 //                 them (the same bytes as its datagrams: header time = topside PC clock; the
 //                 data latency field is what was sent live and means nothing in file playback)
+//                 and the vehicle.yaml a surveyor keeps beside them (clock offset unknown)
 // The NovAtel bytes are chunked as a serial port at `serial_baud` delivers them to 5 ms reads;
 // datagrams arrive after the topside's data latency plus network jitter. Host clocks are ideal
 // (utime = UTC, utime_gps from a locked model): the daemon's clock estimation is tested by the

@@ -156,8 +156,9 @@ json SonarClockToJson(const SonarClockTruth& c) {
          "GPS time of the transmit = that + ping_latency_s. The header time marks the "
          "interrogation, truncated to header_resolution_s."},
         {"ingest",
-         "ingest_sonar_clock_offset_s = -first_ping_offset_s + ping_latency_s: the value that "
-         "pitmap's ingest adds to the header time (after GPS - UTC) to get the transmit time "
+         "ingest_sonar_clock_offset_s = first_ping_offset_s - ping_latency_s: the value of "
+         "pitmap's sonar clock offset (sonar clock minus UTC), which ingest subtracts from the "
+         "header time (after GPS - UTC) to get the transmit time "
          "(exact at the first ping; the drift moves it by last - first over the survey)."},
         {"header_aux",
          {{"nmea_position", c.nmea_position},
@@ -193,7 +194,7 @@ SonarClockTruth MakeSonarClockTruth(const ScenarioConfig& sc,
     c.last_ping_offset_s =
         offset_at(static_cast<double>(std::max<std::int64_t>(pings - 1, 0)) / so.ping_rate_hz -
                   c.ping_latency_s);
-    c.ingest_sonar_clock_offset_s = -c.first_ping_offset_s + c.ping_latency_s;
+    c.ingest_sonar_clock_offset_s = c.first_ping_offset_s - c.ping_latency_s;
     c.nmea_position = so.nmea_position;
     c.nmea_position_rate_hz = so.nmea_position_rate_hz;
     c.nmea_latency_s = so.nmea_latency_s;

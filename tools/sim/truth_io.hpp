@@ -51,9 +51,10 @@ struct SonarClockTruth {
     double header_resolution_s = 0;  // 0.001 (v1.10 milliseconds) or 0.01 (v1.00 hundredths)
     double first_ping_offset_s = 0;  // offset(t) at the first and last pings' interrogation
     double last_ping_offset_s = 0;
-    // Value of pitmap's ingest sonar_clock_offset_s (added to the header time read as UTC,
-    // after GPS - UTC) that yields the transmit time of the first ping:
-    // -first_ping_offset_s + ping_latency_s.
+    // Value of pitmap's sonar clock offset (--sonar-clock-offset, vehicle.yaml
+    // sonar.clock_offset_s: the sonar clock minus UTC, subtracted from the header time read as
+    // UTC, after GPS - UTC) that yields the transmit time of the first ping:
+    // first_ping_offset_s - ping_latency_s.
     double ingest_sonar_clock_offset_s = 0;
     // The headers' auxiliary fields (SonarConfig): position feed, heading feed, attitude.
     bool nmea_position = false;

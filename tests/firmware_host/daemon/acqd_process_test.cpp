@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "common/protocol/deltat/record83p.hpp"
+#include "common/vehicle.hpp"
 #include "pitmap/daemon_status_t.hpp"
 #include "pitmap/multibeam_ping_t.hpp"
 #include "pitmap/raw_bytes_t.hpp"
@@ -147,7 +148,8 @@ std::string FileReplayConfig(const std::string& dir, const std::string& capture)
            "channels:\n  - id: nov\n    protocol: novatel\n    file: {path: " +
            capture +
            ", chunk_bytes: 333}\n    imu_rate_hz: 100\n"
-           "vehicle:\n  name: TEST\n  lever_arms_m: {imu_to_sonar: [1.0, 0.0, 0.5]}\n";
+           "vehicle:\n  pitmap_vehicle: 1\n  name: TEST\n  sonar:\n    lever_arm_m: [1.0, 0.0, "
+           "0.5]\n    mount: {orientation: down, connector: port}\n";
 }
 
 TEST(AcqdProcessTest, FileReplayLogsEveryByteAndExitsAtTheEnd) {
@@ -180,9 +182,12 @@ TEST(AcqdProcessTest, FileReplayLogsEveryByteAndExitsAtTheEnd) {
     EXPECT_EQ(last_status.channels[0].bytes, 65748);
     EXPECT_EQ(last_status.channels[0].frames, 835);
     EXPECT_EQ(last_status.channels[0].crc_failures, 0);
-    const std::string vehicle = ReadText(dir + "/logs/vehicle.yaml");
-    EXPECT_NE(vehicle.find("imu_to_sonar"), std::string::npos);
-    EXPECT_NE(vehicle.find("TEST"), std::string::npos);
+    // The copied section is a vehicle file the processor reads (common/vehicle.hpp).
+    const auto vehicle = pitmap::ReadVehicleFile(dir + "/logs/vehicle.yaml");
+    ASSERT_TRUE(vehicle) << vehicle.error().message;
+    EXPECT_EQ(vehicle->name, "TEST");
+    EXPECT_EQ(vehicle->sonar_lever_arm_m, Eigen::Vector3d(1.0, 0.0, 0.5));
+    EXPECT_EQ(vehicle->connector, pitmap::ConnectorDirection::kPort);
 }
 
 std::string UdpConfig(const std::string& dir, int port) {

@@ -759,5 +759,38 @@ TEST(SensorChannelUdpTest, ConfigRequiresAllowedSenders) {
                     .problems.empty());
 }
 
+// The `vehicle` section is checked against the vehicle schema (common/vehicle.hpp) at start:
+// the old free-form layout and a section without the sonar lever arm are config problems
+// with their line; a schema-1 section passes and is kept for the log folder.
+TEST(DaemonConfigVehicleTest, VehicleSectionIsCheckedAgainstTheSchema) {
+    const std::string base =
+        "lcm_url: \"memq://\"\nlog:\n  directory: logs\n  min_free_bytes: 0\n"
+        "channels:\n  - id: nov\n    protocol: novatel\n    file: {path: x.gps}\n";
+    const auto problems = [&](const std::string& vehicle) {
+        std::string all;
+        for (const auto& p : LoadDaemonConfigFromString(base + vehicle, "c.yaml").problems) {
+            all += p + "\n";
+        }
+        return all;
+    };
+    const std::string old =
+        problems("vehicle:\n  name: ROAZ\n  lever_arms_m: {imu_to_sonar: [1, 0, 0.5]}\n");
+    EXPECT_NE(old.find("vehicle.pitmap_vehicle: required"), std::string::npos) << old;
+    EXPECT_NE(old.find("vehicle.sonar.lever_arm_m: required"), std::string::npos) << old;
+    EXPECT_NE(old.find("c.yaml:11: vehicle.lever_arms_m is not a known setting"), std::string::npos)
+        << old;
+    const std::string no_arm = problems(
+        "vehicle:\n  pitmap_vehicle: 1\n  sonar:\n    mount: {orientation: down, connector: "
+        "aft}\n");
+    EXPECT_NE(no_arm.find("vehicle.sonar.lever_arm_m: required"), std::string::npos) << no_arm;
+    const std::string vehicle =
+        "vehicle:\n  pitmap_vehicle: 1\n  sonar:\n    lever_arm_m: [1, 0, 0.5]\n"
+        "    mount: {orientation: tilted, tilt_deg: 30, connector: aft}\n";
+    EXPECT_EQ(problems(vehicle), "");
+    const auto ok = LoadDaemonConfigFromString(base + vehicle, "c.yaml");
+    EXPECT_NE(ok.config.vehicle_yaml.find("tilt_deg: 30"), std::string::npos)
+        << ok.config.vehicle_yaml;
+}
+
 }  // namespace
 }  // namespace pitmap::acq

@@ -1,13 +1,19 @@
 // SPDX-License-Identifier: MIT
 // The `pitmap` CLI's answers to bad input: every config problem listed at once with its file
 // and line, a missing input named, a non-zero exit; and `config --defaults` is itself a valid
-// config.
+// config. The vehicle file and the sonar clock offset: --vehicle and --sonar-clock-offset on
+// info, georef and run, the sign stated both ways, a foreign vehicle.yaml beside the logs an
+// error naming what is missing, `config --vehicle` a vehicle file pitmap reads.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <sys/wait.h>
+
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 namespace {
@@ -37,6 +43,14 @@ protected:
         fs::create_directories(dir_ / "logs");
     }
     void TearDown() override { fs::remove_all(dir_); }
+    // A NovAtel capture as the only log: enough for the vehicle file to be read.
+    fs::path Log() const {
+        const fs::path log = dir_ / "logs" / "nav.gps";
+        if (!fs::exists(log)) {
+            fs::copy_file(fs::path(PITMAP_TEST_DATA_DIR) / "novatel" / "oem7drv_ins2.gps", log);
+        }
+        return log;
+    }
     std::string Q(const fs::path& p) const { return "'" + p.string() + "'"; }
     fs::path dir_;
 };
@@ -76,6 +90,85 @@ TEST_F(Cli, DefaultsAreAValidConfig) {
     EXPECT_NE(r.status, 0);
     EXPECT_EQ(r.output.find("invalid config"), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("not a known setting"), std::string::npos) << r.output;
+}
+
+TEST_F(Cli, ClockOffsetAndVehicleOptionsOnEveryCommandThatReadsLogs) {
+    for (const char* command : {"info", "georef", "run"}) {
+        const CliRun help = Pitmap(std::string(command) + " --help");
+        ASSERT_EQ(help.status, 0) << help.output;
+        // CLI11 wraps long help text: compare with the spaces and line breaks squeezed.
+        std::string text;
+        for (char c : help.output) {
+            if (std::isspace(static_cast<unsigned char>(c))) {
+                if (!text.empty() && text.back() != ' ') text += ' ';
+            } else {
+                text += c;
+            }
+        }
+        for (const char* expected : {"--vehicle",
+                                     "--sonar-clock-offset",
+                                     "minus GPS-disciplined UTC",
+                                     "Positive = the sonar clock runs ahead of UTC",
+                                     "negative = it runs behind",
+                                     "GPS time = header time - S"}) {
+            EXPECT_NE(text.find(expected), std::string::npos)
+                << command << ": '" << expected << "' not in:\n"
+                << help.output;
+        }
+    }
+    // `run` takes the offset into its config (a non-finite one is refused by validation).
+    const CliRun r = Pitmap("run " + Q(Log()) + " --out " + Q(dir_ / "P") +
+                            " --sonar-clock-offset inf --no-report");
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.output.find("ingest.sonar_clock_offset_s must be finite"), std::string::npos)
+        << r.output;
+}
+
+TEST_F(Cli, ForeignVehicleFileBesideTheLogsIsAnErrorNamingWhatIsMissing) {
+    const fs::path vehicle = dir_ / "logs" / "vehicle.yaml";
+    std::ofstream(vehicle) << "# some other tool's vehicle file\nname: boat\nlength_m: 4.2\n";
+    for (const char* command : {"georef", "run"}) {
+        const CliRun r = Pitmap(std::string(command) + " " + Q(Log()) + " --out " + Q(dir_ / "P"));
+        EXPECT_EQ(WEXITSTATUS(r.status), 1) << r.output;
+        EXPECT_NE(r.output.find(vehicle.string() + ": not a pitmap vehicle file; missing: "
+                                                   "pitmap_vehicle sonar.lever_arm_m"),
+                  std::string::npos)
+            << command << ": " << r.output;
+    }
+    // --vehicle names another file; one without the sonar lever arm is an error too.
+    const fs::path other = dir_ / "other.yaml";
+    std::ofstream(other) << "pitmap_vehicle: 1\nsonar:\n  mount: {orientation: down, "
+                            "connector: aft}\n";
+    const CliRun r =
+        Pitmap("georef " + Q(Log()) + " --vehicle " + Q(other) + " --out " + Q(dir_ / "P"));
+    EXPECT_EQ(WEXITSTATUS(r.status), 1) << r.output;
+    EXPECT_NE(r.output.find(other.string() + ": sonar.lever_arm_m: required but missing"),
+              std::string::npos)
+        << r.output;
+}
+
+TEST_F(Cli, VehicleTemplateIsAVehicleFilePitmapReads) {
+    const CliRun t = Pitmap("config --vehicle");
+    ASSERT_EQ(t.status, 0) << t.output;
+    EXPECT_NE(t.output.find("pitmap_vehicle: 1"), std::string::npos) << t.output;
+    std::ofstream(dir_ / "logs" / "vehicle.yaml") << "name: not this one\n";
+    std::ofstream(dir_ / "vehicle.yaml") << t.output;
+    // The capture has no sonar: the run stops there, past the vehicle file.
+    const CliRun r = Pitmap("georef " + Q(Log()) + " --vehicle " + Q(dir_ / "vehicle.yaml") +
+                            " --out " + Q(dir_ / "P"));
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.output.find("no sonar pings"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("vehicle"), std::string::npos) << r.output;
+    // The README documents the same text.
+    std::ifstream readme(fs::path(PITMAP_TEST_DATA_DIR) / ".." / ".." / "README.md");
+    const std::string doc((std::istreambuf_iterator<char>(readme)),
+                          std::istreambuf_iterator<char>());
+    EXPECT_NE(doc.find("```yaml\n" + t.output + "```\n"), std::string::npos)
+        << "README.md's vehicle.yaml block differs from `pitmap config --vehicle`";
+    // --defaults carries the same schema, commented out.
+    const CliRun d = Pitmap("config --defaults");
+    EXPECT_NE(d.output.find("#   pitmap_vehicle: 1"), std::string::npos) << d.output;
+    EXPECT_NE(Pitmap("config").status, 0);
 }
 
 }  // namespace

@@ -3,10 +3,13 @@
 // truncated at several points, with overwritten bytes over several seeds, with huge counts,
 // wrong types and empty files. Every failure is a clear error naming the file, in memory
 // bounded by the file's size; nothing crashes.
+// vehicle.yaml: each sonar mount georeferences its beams where that mount looks; a foreign
+// file is an error. points.las: its CRS VLR is a compound WKT with the vertical datum.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <filesystem>
@@ -16,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "common/frames.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 #include "processor/io/products.hpp"
 
@@ -293,6 +297,158 @@ TEST_F(ProductReaders, BrokenSummaryJsonIsAnErrorNamingTheFileAndKey) {
     const auto missing = ReadSummaryJson((dir_ / "none.json").string());
     ASSERT_FALSE(missing.ok());
     EXPECT_NE(missing.error().message.find("none.json"), std::string::npos);
+}
+
+// A level vehicle heading north at the world origin, one ping with beams at -30, 0 and +30
+// degrees, 10 m each, through the mount that `vehicle` (vehicle.yaml text) describes; returns
+// the soundings in world ENU metres relative to the sonar, in beam order.
+std::vector<Eigen::Vector3d> BeamsThrough(const fs::path& dir, const std::string& vehicle) {
+    const std::string path = (dir / "vehicle.yaml").string();
+    std::ofstream(path, std::ios::trunc) << vehicle;
+    const auto v = ReadVehicleYaml(path);
+    EXPECT_TRUE(v) << v.error().message;
+    if (!v) return {};
+    georef::NavSeries nav;
+    for (int i = 0; i < 3; ++i) {
+        georef::NavSample s;
+        s.utime_gps = 1'400'000'000'000'000 + i * 100'000;
+        s.position = {40.4435, -7.7806, 412.0};
+        nav.samples.push_back(s);
+    }
+    georef::PingSeries pings;
+    georef::PingHeader h;
+    h.utime_gps = 1'400'000'000'100'000;
+    h.range_resolution_m = 0.001;
+    h.start_angle_deg = -30;
+    h.angle_increment_deg = 30;
+    h.num_beams = 3;
+    pings.pings.push_back(h);
+    pings.range_counts = {10'000, 10'000, 10'000};
+    georef::GeorefConfig cfg;
+    cfg.spike_half_window = 0;
+    const georef::GeorefResult r = georef::RunGeoref(nav, pings, v->mount, cfg);
+    EXPECT_EQ(r.points.size(), 3u);
+    std::vector<Eigen::Vector3d> out;
+    for (const auto& p : r.points.position_world) out.push_back(p - r.pings[0].sensor_world);
+    return out;
+}
+
+std::string Vehicle(const std::string& mount) {
+    return "pitmap_vehicle: 1\nsonar:\n  lever_arm_m: [0.8, 0.1, 0.25]\n  mount: {" + mount + "}\n";
+}
+
+TEST_F(ProductReaders, EachSonarMountGeoreferencesWhereItLooks) {
+    // World ENU, vehicle heading north: starboard = east, forward = north, down = -z.
+    const double s30 = 10 * std::sin(frames::DegToRad(30));
+    const double c30 = 10 * std::cos(frames::DegToRad(30));
+    const double s60 = 10 * std::sin(frames::DegToRad(60));
+    const double c60 = 10 * std::cos(frames::DegToRad(60));
+    struct Case {
+        const char* mount;
+        Eigen::Vector3d minus30, nadir, plus30;
+    };
+    const Case cases[] = {
+        // The standard mount: positive angles to starboard.
+        {"orientation: down, connector: aft", {-s30, 0, -c30}, {0, 0, -10}, {s30, 0, -c30}},
+        // Head turned round: positive angles to port.
+        {"orientation: down, connector: forward", {s30, 0, -c30}, {0, 0, -10}, {-s30, 0, -c30}},
+        // Fan along the track: positive angles aft (connector port) or forward (starboard).
+        {"orientation: down, connector: port", {0, s30, -c30}, {0, 0, -10}, {0, -s30, -c30}},
+        {"orientation: down, connector: starboard", {0, -s30, -c30}, {0, 0, -10}, {0, s30, -c30}},
+        // Tilted 30 degrees to starboard: the centre beam looks 30 degrees off nadir.
+        {"orientation: tilted, tilt_deg: 30, connector: aft",
+         {0, 0, -10},
+         {s30, 0, -c30},
+         {s60, 0, -c60}},
+        // Connector forward, tilted towards its -y side, which is the vehicle's starboard.
+        {"orientation: tilted, tilt_deg: -30, connector: forward",
+         {s60, 0, -c60},
+         {s30, 0, -c30},
+         {0, 0, -10}},
+    };
+    for (const Case& c : cases) {
+        const auto b = BeamsThrough(dir_, Vehicle(c.mount));
+        ASSERT_EQ(b.size(), 3u) << c.mount;
+        EXPECT_LT((b[0] - c.minus30).norm(), 1e-3) << c.mount << ": -30 at " << b[0].transpose();
+        EXPECT_LT((b[1] - c.nadir).norm(), 1e-3) << c.mount << ": 0 at " << b[1].transpose();
+        EXPECT_LT((b[2] - c.plus30).norm(), 1e-3) << c.mount << ": +30 at " << b[2].transpose();
+    }
+}
+
+TEST_F(ProductReaders, ForeignOrIncompleteVehicleFilesAreErrors) {
+    const std::string path = (dir_ / "vehicle.yaml").string();
+    // What the processor read as a zero lever arm with two warnings before schema 1.
+    std::ofstream(path, std::ios::trunc) << "vehicle: survey-boat\noperator: acme\n";
+    auto v = ReadVehicleYaml(path);
+    ASSERT_FALSE(v);
+    EXPECT_NE(v.error().message.find(path + ": not a pitmap vehicle file; missing: "
+                                            "pitmap_vehicle sonar.lever_arm_m"),
+              std::string::npos)
+        << v.error().message;
+    std::ofstream(path, std::ios::trunc)
+        << "pitmap_vehicle: 1\nsonar:\n  mount: {orientation: down, connector: aft}\n";
+    v = ReadVehicleYaml(path);
+    ASSERT_FALSE(v);
+    EXPECT_NE(v.error().message.find("sonar.lever_arm_m: required but missing"), std::string::npos)
+        << v.error().message;
+}
+
+// The LAS CRS VLR (LASF_Projection / 2112): COMPD_CS of the UTM PROJCS and a VERT_CS of WGS 84
+// ellipsoidal heights (OGC 01-009 vertical datum type 2002).
+TEST_F(ProductReaders, LasDeclaresItsVerticalDatum) {
+    georef::GeorefResult r;
+    r.world_origin = {40.4435, -7.7806, 412.0};
+    georef::GeorefPing ping;
+    ping.utime_gps = 1'400'000'000'000'000;
+    r.pings.push_back(ping);
+    r.points.position_world = {Eigen::Vector3d(1, 2, -10)};
+    r.points.ping = {0};
+    r.points.beam = {0};
+    r.points.range_m = {10.0f};
+    r.points.angle_rad = {0.0f};
+    const auto utm = georef::ToUtm(r);
+    ASSERT_TRUE(utm) << utm.error().message;
+    const std::string las = (dir_ / "points.las").string();
+    ASSERT_TRUE(WriteLas(las, r, *utm));
+    const std::vector<std::uint8_t> b = ReadBytes(las);
+    ASSERT_GT(b.size(), 375u + 54u);
+    auto u16 = [&](std::size_t at) { return static_cast<unsigned>(b[at] | (b[at + 1] << 8)); };
+    auto u32 = [&](std::size_t at) {
+        return static_cast<std::uint32_t>(u16(at) | (u16(at + 2) << 16));
+    };
+    EXPECT_EQ(u16(6) & (1u << 4), 1u << 4) << "global encoding: WKT";
+    ASSERT_EQ(u32(100), 1u) << "one VLR";
+    const std::size_t vlr = u16(94);  // header size
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 2])), "LASF_Projection");
+    EXPECT_EQ(u16(vlr + 18), 2112u);
+    const std::size_t n = u16(vlr + 20);
+    ASSERT_LE(vlr + 54 + n, b.size());
+    EXPECT_EQ(u32(96), vlr + 54 + n) << "offset to point data";
+    std::string wkt(reinterpret_cast<const char*>(&b[vlr + 54]), n);
+    ASSERT_FALSE(wkt.empty());
+    EXPECT_EQ(wkt.back(), '\0');
+    wkt.pop_back();
+    const std::string zone = "WGS 84 / UTM zone 29N";  // 7.78 W
+    EXPECT_EQ(
+        wkt.rfind("COMPD_CS[\"" + zone + " + WGS 84 ellipsoidal height\",PROJCS[\"" + zone, 0), 0u)
+        << wkt;
+    const auto projcs = wkt.find("PROJCS[");
+    const auto vert = wkt.find(",VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[");
+    ASSERT_NE(vert, std::string::npos) << wkt;
+    EXPECT_EQ(wkt.substr(projcs, vert - projcs), UtmWkt(29, true));
+    EXPECT_NE(wkt.find("AUTHORITY[\"EPSG\",\"32629\"]]", projcs), std::string::npos) << wkt;
+    EXPECT_NE(wkt.find("VERT_DATUM[\"World Geodetic System 1984\",2002]", vert), std::string::npos)
+        << wkt;
+    EXPECT_NE(wkt.find("AXIS[\"Ellipsoidal height\",UP]", vert), std::string::npos) << wkt;
+    // Brackets balance and the compound closes last.
+    int depth = 0, min_depth_before_end = 1;
+    for (std::size_t i = 0; i < wkt.size(); ++i) {
+        depth += wkt[i] == '[' ? 1 : wkt[i] == ']' ? -1 : 0;
+        if (i > 9 && i + 1 < wkt.size())
+            min_depth_before_end = std::min(min_depth_before_end, depth);
+    }
+    EXPECT_EQ(depth, 0);
+    EXPECT_EQ(min_depth_before_end, 1) << "one COMPD_CS holds everything";
 }
 
 }  // namespace

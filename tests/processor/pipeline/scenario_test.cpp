@@ -119,16 +119,17 @@ void SetBoresight(const fs::path& vehicle_yaml, double roll, double pitch, doubl
     std::string line;
     bool found = false;
     while (std::getline(in, line)) {
-        if (line.rfind("boresight_deg:", 0) == 0) {
+        if (line.rfind("  boresight_deg:", 0) == 0) {
             char buf[128];
-            std::snprintf(buf, sizeof(buf), "boresight_deg: [%.6f, %.6f, %.6f]", roll, pitch, yaw);
+            std::snprintf(
+                buf, sizeof(buf), "  boresight_deg: [%.6f, %.6f, %.6f]", roll, pitch, yaw);
             line = buf;
             found = true;
         }
         out << line << "\n";
     }
     in.close();
-    ASSERT_TRUE(found) << vehicle_yaml << ": no boresight_deg line";
+    ASSERT_TRUE(found) << vehicle_yaml << ": no sonar.boresight_deg line";
     std::ofstream(vehicle_yaml) << out.str();
 }
 
@@ -246,14 +247,37 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
                          &out),
               0)
         << out;
-    // The demo topside clock runs 3600 + 2.37 s ahead of UTC (tools/sim/scenario.cpp); its
-    // 35 ppm drift adds at most 4 ms over the 2-minute survey.
+    // The demo topside clock runs 3600 + 2.37 s ahead of UTC (tools/sim/scenario.cpp): the
+    // offset (sonar clock minus UTC) is +3602.37 s; its 35 ppm drift adds at most 4 ms over the
+    // 2-minute survey.
     ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(vendor / "nav.gps") + " " +
-                             Quote(vendor / "survey.83P") +
-                             " --sonar-clock-offset -3602.37 --out " + Quote(dir_ / "from_files"),
+                             Quote(vendor / "survey.83P") + " --sonar-clock-offset 3602.37 --out " +
+                             Quote(dir_ / "from_files"),
                          &out),
               0)
         << out;
+    // The same offset from the vehicle file (sonar.clock_offset_s), no option given.
+    {
+        std::ifstream in(vendor / "vehicle.yaml");
+        std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::string unknown = "  clock_offset_s: null\n";
+        const auto at = text.find(unknown);
+        ASSERT_NE(at, std::string::npos) << text;
+        text.replace(at, unknown.size(), "  clock_offset_s: 3602.37\n");
+        std::ofstream(vendor / "vehicle_with_offset.yaml") << text;
+    }
+    std::string from_vehicle;
+    ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(vendor / "nav.gps") + " " +
+                             Quote(vendor / "survey.83P") + " --vehicle " +
+                             Quote(vendor / "vehicle_with_offset.yaml") + " --out " +
+                             Quote(dir_ / "from_vehicle"),
+                         &from_vehicle),
+              0)
+        << from_vehicle;
+    // Configured, so checked against the 83P headers rather than searched for.
+    const json vehicle_summary = ReadJson(dir_ / "from_vehicle/summary.json");
+    EXPECT_EQ(vehicle_summary.at("sonar_clock_offset_s"), 3602.37);
+    EXPECT_EQ(vehicle_summary.at("sonar_clock").at("configured"), true) << from_vehicle;
     const auto log_scores = Eval(dir_ / "from_log");
     const auto file_scores = Eval(dir_ / "from_files");
     ASSERT_TRUE(file_scores.count("points_rms_m")) << out;
@@ -261,6 +285,10 @@ TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
                 log_scores.at("points_scored"),
                 0.01 * log_scores.at("points_scored"));
     EXPECT_NEAR(file_scores.at("points_rms_m"), log_scores.at("points_rms_m"), 0.003);
+    const auto vehicle_scores = Eval(dir_ / "from_vehicle");
+    ASSERT_TRUE(vehicle_scores.count("points_rms_m")) << from_vehicle;
+    EXPECT_EQ(vehicle_scores.at("points_scored"), file_scores.at("points_scored"));
+    EXPECT_EQ(vehicle_scores.at("points_rms_m"), file_scores.at("points_rms_m"));
 }
 
 TEST_F(DemoScenario, RawChannelsRedecodeToTheSameSoundings) {
@@ -480,8 +508,9 @@ fs::path FastCalibrationConfig(const fs::path& dir) {
 TEST_F(DemoScenario, VendorFilesWithAnUnknownClockAreTimedFromTheirHeaders) {
     const fs::path vendor = VendorDir(dir_ / "sim");
     const json clock_truth = ReadJson(dir_ / "sim/truth/sonar_clock.json");
-    // ingest adds the offset to the header time; the clock drifts: take the survey's mean.
-    const double truth = clock_truth.at("ingest_sonar_clock_offset_s").get<double>() -
+    // The correction added to the ping times (ingest used offset 0) is minus the sonar clock
+    // offset; the clock drifts: take the survey's mean.
+    const double truth = -clock_truth.at("ingest_sonar_clock_offset_s").get<double>() -
                          0.5 * (clock_truth.at("last_ping_offset_s").get<double>() -
                                 clock_truth.at("first_ping_offset_s").get<double>());
     const fs::path p = dir_ / "unknown_clock";

@@ -80,7 +80,7 @@ TEST_F(TruthIo, SonarClockIsStatedAndReadBack) {
     // Interrogations at k / 10 - 2 ms for k = 0..2099.
     EXPECT_NEAR(c.first_ping_offset_s, 2.350 - 100e-6 * 0.002, 1e-12);
     EXPECT_NEAR(c.last_ping_offset_s, 2.350 + 100e-6 * (209.9 - 0.002), 1e-12);
-    EXPECT_NEAR(c.ingest_sonar_clock_offset_s, -c.first_ping_offset_s + 0.002, 1e-12);
+    EXPECT_NEAR(c.ingest_sonar_clock_offset_s, c.first_ping_offset_s - 0.002, 1e-12);
     EXPECT_TRUE(c.nmea_position && c.nmea_heading && c.internal_attitude_sensor);
     ASSERT_TRUE(WriteTruth(dir_.string(), sc, t).ok());
     std::ifstream in(dir_ / "sonar_clock.json");

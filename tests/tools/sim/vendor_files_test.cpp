@@ -20,6 +20,7 @@
 #include "common/protocol/deltat/record83p.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
 #include "common/protocol/novatel/framer.hpp"
+#include "common/vehicle.hpp"
 #include "pitmap/raw_bytes_t.hpp"
 #include "tools/sim/synth.hpp"
 #include "tools/sim/truth_io.hpp"
@@ -149,6 +150,16 @@ TEST_F(VendorFiles, GpsFileIsTheReceiverStreamAndFramesWithNoSkippedByte) {
     while (auto s = framer.Flush()) skipped += static_cast<std::int64_t>(s->bytes);
     EXPECT_EQ(skipped, 0);
     EXPECT_EQ(frames, run_->result.novatel_frames);
+}
+
+// The vehicle file beside the vendor files, as beside the logs: schema 1, the scenario's lever
+// arms, the sonar clock offset left unknown (the processor finds or is given it).
+TEST_F(VendorFiles, VehicleFileBesideThemIsTheSchemaWithTheClockOffsetUnknown) {
+    const auto v = ReadVehicleFile((run_->dir / "vendor" / "vehicle.yaml").string());
+    ASSERT_TRUE(v) << v.error().message;
+    const auto& arm = run_->scenario.lever_arms.sonar_m;
+    EXPECT_EQ(v->sonar_lever_arm_m, Eigen::Vector3d(arm[0], arm[1], arm[2]));
+    EXPECT_FALSE(v->sonar_clock_offset_s.has_value());
 }
 
 TEST_F(VendorFiles, File83PHoldsEveryDatagramAndFramesWithNoSkippedByte) {

@@ -54,12 +54,6 @@ std::string Quoted(const std::string& s) {
     return out + "\"";
 }
 
-std::string Vec3(const std::vector<double>& v) {
-    char buf[96];
-    std::snprintf(buf, sizeof(buf), "[%g, %g, %g]", v[0], v[1], v[2]);
-    return buf;
-}
-
 // The daemon configuration for this run (firmware_host/daemon/daemon_config.hpp).
 std::string DaemonYaml(const ScenarioConfig& sc,
                        const HilOptions& opt,
@@ -115,14 +109,10 @@ std::string DaemonYaml(const ScenarioConfig& sc,
     y += "      range_m: " + std::to_string(static_cast<int>(sc.sonar.max_range_m)) + "\n";
     y += "      interval_ms: 5000\n";
     // As synth's vehicle.yaml: the processor finds its channels and lever arms there.
-    y += "vehicle:\n";
-    y += "  vehicle: " + std::string(sc.name == "demo" ? "demo-asv" : "roaz") + "\n";
-    y += "  lever_arms_m:\n";
-    y += "    sonar: " + Vec3(sc.lever_arms.sonar_m) + "\n";
-    y += "    gnss_antenna: " + Vec3(sc.lever_arms.antenna_m) + "\n";
-    y += "  boresight_deg: [0.0, 0.0, 0.0]\n";
-    y += "  navigation_channel: " + std::string(kComId) + "\n";
-    y += "  sonar_channel: " + std::string(kSonarId) + "\n";
+    VehicleDescription v = NominalVehicle(sc);
+    v.navigation_channel = kComId;
+    v.sonar_channel = kSonarId;
+    y += "vehicle:\n" + FormatVehicleYaml(v, 2);
     return y;
 }
 

@@ -1,0 +1,245 @@
+// SPDX-License-Identifier: MIT
+// The vehicle description (vehicle.yaml, schema 1): the documented template and the written
+// file read back; a foreign file, an old pitmap layout and a file without the sonar lever arm
+// are errors naming what is missing; every other problem is listed; the mount rotations.
+#include "common/vehicle.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "common/frames.hpp"
+
+namespace pitmap {
+namespace {
+
+constexpr const char* kMinimal =
+    "pitmap_vehicle: 1\n"
+    "sonar:\n"
+    "  lever_arm_m: [0.8, 0.0, 0.25]\n"
+    "  mount: {orientation: down, connector: aft}\n";
+
+std::string ErrorOf(const std::string& text) {
+    auto v = ParseVehicleYaml(text, "v.yaml");
+    return v ? std::string("(accepted)") : v.error().message;
+}
+
+bool Contains(const std::string& text, const std::string& what) {
+    return text.find(what) != std::string::npos;
+}
+
+TEST(VehicleFile, TemplateParsesAndEveryKeyHasAComment) {
+    const std::string t = VehicleYamlTemplate();
+    auto v = ParseVehicleYaml(t, "template");
+    ASSERT_TRUE(v) << v.error().message;
+    EXPECT_EQ(v->sonar_lever_arm_m, Eigen::Vector3d(0.95, 0.0, 0.62));
+    ASSERT_EQ(v->gnss_antenna_lever_arms_m.size(), 1u);
+    ASSERT_TRUE(v->ins_height_above_waterline_m.has_value());
+    EXPECT_FALSE(v->sonar_clock_offset_s.has_value());
+    for (const char* key : {"pitmap_vehicle:",
+                            "lever_arm_m:",
+                            "orientation:",
+                            "tilt_deg:",
+                            "connector:",
+                            "boresight_deg:",
+                            "clock_offset_s:",
+                            "sound_velocity_source:",
+                            "antenna_lever_arms_m:",
+                            "height_above_waterline_m:"}) {
+        // The line that sets the key (not a comment that names it).
+        std::istringstream lines(t);
+        bool found = false;
+        for (std::string line; std::getline(lines, line);) {
+            const auto first = line.find_first_not_of(' ');
+            if (first == std::string::npos || line.compare(first, std::strlen(key), key) != 0) {
+                continue;
+            }
+            found = true;
+            EXPECT_NE(line.find('#'), std::string::npos) << key << " uncommented";
+        }
+        EXPECT_TRUE(found) << key;
+    }
+    // The clock-offset sign is stated in words.
+    EXPECT_TRUE(Contains(t, "the sonar's (.83P header) clock minus GPS-disciplined UTC")) << t;
+    EXPECT_TRUE(Contains(t, "> 0 = the sonar clock is ahead of UTC, < 0 = behind")) << t;
+}
+
+TEST(VehicleFile, WrittenFileReadsBackTheSameValues) {
+    VehicleDescription v;
+    v.name = "roaz \"2\"\n\tC:\\";
+    v.sonar_lever_arm_m = Eigen::Vector3d(0.95, -0.1, 0.62);
+    v.orientation = SonarOrientation::kTilted;
+    v.tilt_deg = -35.5;
+    v.connector = ConnectorDirection::kStarboard;
+    v.boresight_deg = Eigen::Vector3d(0.1, -0.2, 1.0 / 3.0);
+    v.sonar_clock_offset_s = 3602.37;
+    v.sound_velocity_source = SoundVelocitySource::kProbe;
+    v.sonar_channel = "deltat";
+    v.gnss_antenna_lever_arms_m = {Eigen::Vector3d(0.42, -0.31, -1.25),
+                                   Eigen::Vector3d(-0.58, -0.31, -1.25)};
+    v.ins_height_above_waterline_m = 0.35;
+    v.navigation_channel = "novatel_com1";
+    const std::string text = FormatVehicleYaml(v);
+    auto r = ParseVehicleYaml(text, "written");
+    ASSERT_TRUE(r) << r.error().message << "\n" << text;
+    EXPECT_EQ(r->name, v.name);
+    EXPECT_EQ(r->sonar_lever_arm_m, v.sonar_lever_arm_m);
+    EXPECT_EQ(r->orientation, v.orientation);
+    EXPECT_EQ(r->tilt_deg, v.tilt_deg);
+    EXPECT_EQ(r->connector, v.connector);
+    EXPECT_EQ(r->boresight_deg, v.boresight_deg);  // exact: shortest round-trip text
+    EXPECT_EQ(r->sonar_clock_offset_s, v.sonar_clock_offset_s);
+    EXPECT_EQ(r->sound_velocity_source, v.sound_velocity_source);
+    EXPECT_EQ(r->sonar_channel, v.sonar_channel);
+    EXPECT_EQ(r->gnss_antenna_lever_arms_m, v.gnss_antenna_lever_arms_m);
+    EXPECT_EQ(r->ins_height_above_waterline_m, v.ins_height_above_waterline_m);
+    EXPECT_EQ(r->navigation_channel, v.navigation_channel);
+    // Indented, as a daemon config's `vehicle` section.
+    const std::string section = FormatVehicleYaml(v, 2);
+    EXPECT_EQ(section.rfind("  pitmap_vehicle: 1\n", 0), 0u) << section;
+}
+
+TEST(VehicleFile, MinimalFileHasTheStandardMount) {
+    auto v = ParseVehicleYaml(kMinimal, "v.yaml");
+    ASSERT_TRUE(v) << v.error().message;
+    EXPECT_EQ(v->boresight_deg, Eigen::Vector3d::Zero());
+    EXPECT_FALSE(v->sonar_clock_offset_s);
+    EXPECT_TRUE(v->R_vehicle_sonar().isApprox(Eigen::Matrix3d::Identity()));
+}
+
+TEST(VehicleFile, ForeignFileIsNotAVehicleFileAndSaysWhatIsMissing) {
+    // A ROS-style description someone left beside the logs.
+    const std::string e = ErrorOf("robot: boat\nlinks:\n  - {name: base_link}\n");
+    EXPECT_TRUE(Contains(e, "v.yaml: not a pitmap vehicle file")) << e;
+    EXPECT_TRUE(Contains(e,
+                         "missing: pitmap_vehicle sonar.lever_arm_m sonar.mount.orientation "
+                         "sonar.mount.connector"))
+        << e;
+    EXPECT_TRUE(Contains(e, "pitmap config --vehicle")) << e;
+    EXPECT_EQ(ErrorOf(""), ErrorOf("{}"));
+    EXPECT_TRUE(Contains(ErrorOf("[1, 2]"), "v.yaml")) << ErrorOf("[1, 2]");
+    EXPECT_TRUE(Contains(ErrorOf("a: [1,"), "v.yaml:")) << ErrorOf("a: [1,");
+}
+
+TEST(VehicleFile, OldPitmapLayoutsAreNamedWithTheirFix) {
+    // pitmap-sim before schema 1, and pitmap-acqd's roaz.yaml section before schema 1.
+    for (const char* old : {"vehicle: demo-asv\nlever_arms_m:\n  sonar: [0.8, 0.0, 0.25]\n"
+                            "boresight_deg: [0.0, 0.0, 0.0]\nnavigation_channel: novatel_com1\n",
+                            "name: ROAZ\nlever_arms_m:\n  imu_to_sonar: [0.95, 0.00, 0.62]\n"
+                            "boresight_sonar_deg: {roll: 0, pitch: 0, yaw: 0}\n"}) {
+        const std::string e = ErrorOf(old);
+        EXPECT_TRUE(Contains(e, "not a pitmap vehicle file; missing: pitmap_vehicle")) << e;
+        EXPECT_TRUE(Contains(e, "move the sonar lever arm to sonar.lever_arm_m")) << e;
+    }
+}
+
+TEST(VehicleFile, MissingSonarLeverArmIsAnError) {
+    const std::string e =
+        ErrorOf("pitmap_vehicle: 1\nsonar:\n  mount: {orientation: down, connector: aft}\n");
+    EXPECT_TRUE(Contains(e, "v.yaml: sonar.lever_arm_m: required but missing")) << e;
+    const std::string no_sonar = ErrorOf("pitmap_vehicle: 1\nname: x\n");
+    EXPECT_TRUE(Contains(no_sonar, "sonar.lever_arm_m: required but missing")) << no_sonar;
+    EXPECT_TRUE(Contains(no_sonar, "sonar.mount.orientation: required but missing")) << no_sonar;
+    EXPECT_TRUE(Contains(no_sonar, "sonar.mount.connector: required but missing")) << no_sonar;
+}
+
+TEST(VehicleFile, EveryProblemIsListedWithItsLine) {
+    const std::string e = ErrorOf(
+        "pitmap_vehicle: 2\n"                                   // 1
+        "sonar:\n"                                              // 2
+        "  lever_arm_m: [0.8, 0.0]\n"                           // 3
+        "  mount:\n"                                            // 4
+        "    orientation: sideways\n"                           // 5
+        "    connector: aft\n"                                  // 6
+        "    tilt_deg: 20\n"                                    // 7
+        "  boresight_deg: [0, 0, 180]\n"                        // 8
+        "  clock_offset_s: abc\n"                               // 9
+        "  sound_velocity_source: ctd\n"                        // 10
+        "gnss: {antenna_lever_arms_m: [[1, 2, 3], [1, 2]]}\n"   // 11
+        "ins: {height_above_waterline_m: .nan, colour: red}\n"  // 12
+        "lever_arms_m: {sonar: [0, 0, 0]}\n");                  // 13
+    for (const char* what : {"pitmap_vehicle: schema 2 is not known",
+                             "sonar.lever_arm_m: must be 3 finite numbers",
+                             "sonar.mount.orientation: 'sideways' is not one of down | tilted",
+                             "v.yaml:9: sonar.clock_offset_s has the wrong type",
+                             "sonar.sound_velocity_source: 'ctd' is not one of",
+                             "gnss.antenna_lever_arms_m[1]: must be 3 finite numbers",
+                             "ins.height_above_waterline_m: must be a finite number",
+                             "v.yaml:12: ins.colour is not a known setting",
+                             "v.yaml:13: lever_arms_m is not a known setting",
+                             "sonar.boresight_deg: [0, 0, 180] beyond +-15 degrees"}) {
+        EXPECT_TRUE(Contains(e, what)) << what << " not in:\n" << e;
+    }
+    // A tilt needs the tilted orientation, and a tilted mount needs its tilt.
+    EXPECT_TRUE(
+        Contains(ErrorOf(std::string(kMinimal) + "  boresight_deg: [0, 0, 0]\n"), "(accepted)"));
+    EXPECT_TRUE(Contains(ErrorOf("pitmap_vehicle: 1\nsonar:\n  lever_arm_m: [0, 0, 0]\n"
+                                 "  mount: {orientation: down, connector: aft, tilt_deg: 30}\n"),
+                         "sonar.mount.tilt_deg: 30 with orientation: down"));
+    EXPECT_TRUE(Contains(ErrorOf("pitmap_vehicle: 1\nsonar:\n  lever_arm_m: [0, 0, 0]\n"
+                                 "  mount: {orientation: tilted, connector: aft}\n"),
+                         "sonar.mount.tilt_deg: required for orientation: tilted"));
+    EXPECT_TRUE(Contains(ErrorOf("pitmap_vehicle: 1\nsonar:\n  lever_arm_m: [0, 0, 0]\n"
+                                 "  mount: {orientation: tilted, connector: aft, tilt_deg: 95}\n"),
+                         "0 < |tilt| <= 90"));
+}
+
+TEST(VehicleFile, MissingFileIsNamed) {
+    auto v = ReadVehicleFile("/nonexistent/vehicle.yaml");
+    ASSERT_FALSE(v);
+    EXPECT_EQ(v.error().message, "/nonexistent/vehicle.yaml: cannot open");
+}
+
+// Where the sonar's axes point in the vehicle frame (FRD) for each mount.
+TEST(VehicleFile, MountOrientationsRotateTheSonarFrame) {
+    struct Case {
+        SonarOrientation orientation;
+        double tilt_deg;
+        ConnectorDirection connector;
+        Eigen::Vector3d sonar_y_in_vehicle;  // the fan's positive-angle side
+        Eigen::Vector3d sonar_z_in_vehicle;  // the centre beam
+    };
+    const double s30 = std::sin(frames::DegToRad(30)), c30 = std::cos(frames::DegToRad(30));
+    const Case cases[] = {
+        {SonarOrientation::kDown, 0, ConnectorDirection::kAft, {0, 1, 0}, {0, 0, 1}},
+        {SonarOrientation::kDown, 0, ConnectorDirection::kForward, {0, -1, 0}, {0, 0, 1}},
+        {SonarOrientation::kDown, 0, ConnectorDirection::kPort, {-1, 0, 0}, {0, 0, 1}},
+        {SonarOrientation::kDown, 0, ConnectorDirection::kStarboard, {1, 0, 0}, {0, 0, 1}},
+        // Tilted 30 deg towards the sonar's +y: the centre beam looks down and to starboard.
+        {SonarOrientation::kTilted, 30, ConnectorDirection::kAft, {0, c30, -s30}, {0, s30, c30}},
+        // Connector forward, tilted -30 (towards the sonar's -y = the vehicle's starboard).
+        {SonarOrientation::kTilted,
+         -30,
+         ConnectorDirection::kForward,
+         {0, -c30, s30},
+         {0, s30, c30}},
+        {SonarOrientation::kTilted, 90, ConnectorDirection::kPort, {0, 0, -1}, {-1, 0, 0}},
+    };
+    for (const Case& c : cases) {
+        VehicleDescription v;
+        v.orientation = c.orientation;
+        v.tilt_deg = c.tilt_deg;
+        v.connector = c.connector;
+        const Eigen::Matrix3d R = v.R_vehicle_sonar();
+        const std::string label =
+            std::string(ToString(c.orientation)) + " " + ToString(c.connector);
+        EXPECT_TRUE(R.col(1).isApprox(c.sonar_y_in_vehicle, 1e-12)) << label << "\n" << R;
+        EXPECT_TRUE(R.col(2).isApprox(c.sonar_z_in_vehicle, 1e-12)) << label << "\n" << R;
+        EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+    }
+    // The boresight turns about the vehicle's axes after the mount: a roll of the same sign
+    // moves the centre beam the same way whichever way the connector points.
+    VehicleDescription aft, fwd;
+    aft.boresight_deg = fwd.boresight_deg = Eigen::Vector3d(2, 0, 0);
+    fwd.connector = ConnectorDirection::kForward;
+    EXPECT_TRUE(aft.R_vehicle_sonar().col(2).isApprox(fwd.R_vehicle_sonar().col(2), 1e-12));
+    EXPECT_LT(aft.R_vehicle_sonar()(1, 2), 0);  // roll > 0: the beam swings to port
+}
+
+}  // namespace
+}  // namespace pitmap
