@@ -441,12 +441,13 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                 if (pairs[k].ok) need[k] = need[pairs[k].q] = 1;
             }
             const Pose T_vs = m.T_vehicle_sonar();
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
-                    for (std::size_t k = b.begin(); k != b.end(); ++k) {
-                        if (need[k]) rate[k] = poses.Rate(S.ping[k], tau, T_vs * S.s_sonar[k]);
-                    }
-                });
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512),
+                              [&](const auto& b) {
+                                  for (std::size_t k = b.begin(); k != b.end(); ++k) {
+                                      if (need[k])
+                                          rate[k] = poses.Rate(S.ping[k], tau, T_vs * S.s_sonar[k]);
+                                  }
+                              });
         }
         Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dim, dim);
         Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);

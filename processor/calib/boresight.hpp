@@ -60,7 +60,7 @@ struct BoresightConfig {
     double initial_latency_s = 0;          // start value (a coarse clock estimate's rest)
     double latency_scan_s = 0;             // scan +- this first; 0 = no scan
     double latency_scan_step_s = 0.05;
-    double latency_sigma_s = 1.0;          // prior on (tau - initial), 1 sigma
+    double latency_sigma_s = 1.0;  // prior on (tau - initial), 1 sigma
 
     std::vector<std::string> Validate() const;
 };

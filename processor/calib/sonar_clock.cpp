@@ -32,7 +32,8 @@ public:
         for (std::size_t i = 0; i < nav.samples.size(); ++i) {
             const auto& s = nav.samples[i];
             t_.push_back(static_cast<double>(s.utime_gps - t_ref) * 1e-6);
-            const Eigen::Matrix3d R = frames::RotationWorldFromRpy(s.roll_rad, s.pitch_rad, s.yaw_rad);
+            const Eigen::Matrix3d R =
+                frames::RotationWorldFromRpy(s.roll_rad, s.pitch_rad, s.yaw_rad);
             const Eigen::Vector3d p = world_.ToEnu(s.position) + R * antenna;
             east_.push_back(p.x());
             north_.push_back(p.y());
@@ -104,7 +105,8 @@ double PositionMisfit(const std::vector<AidSample>& s,
     std::vector<double> d;
     d.reserve(s.size());
     for (const auto& a : s) {
-        if (auto n = nav.Interpolate(a.t + c)) d.push_back(std::hypot(a.east - n->east, a.north - n->north));
+        if (auto n = nav.Interpolate(a.t + c))
+            d.push_back(std::hypot(a.east - n->east, a.north - n->north));
     }
     if (d.size() < std::max<std::size_t>(5, static_cast<std::size_t>(min_fraction * s.size())))
         return std::numeric_limits<double>::infinity();
@@ -245,7 +247,11 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         const bool rp = std::isfinite(h.aid_roll_deg) && std::isfinite(h.aid_pitch_deg);
         const bool hd = std::isfinite(h.aid_heading_deg);
         if (rp || hd) {
-            att.push_back({t, 0, 0, rp ? h.aid_roll_deg : 0.0, rp ? h.aid_pitch_deg : 0.0,
+            att.push_back({t,
+                           0,
+                           0,
+                           rp ? h.aid_roll_deg : 0.0,
+                           rp ? h.aid_pitch_deg : 0.0,
                            hd ? h.aid_heading_deg : 0.0});
             have_roll_pitch |= rp;
             have_heading |= hd;
@@ -360,7 +366,8 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         if (have_heading && have_roll_pitch) {
             // Heading placed it; the roll and pitch of the waves are sharper locally.
             const auto rp_score = [&](double c) {
-                return AttitudeMisfit(att, track, c, cfg.min_overlap_fraction, AttitudeUse::kRollPitch);
+                return AttitudeMisfit(
+                    att, track, c, cfg.min_overlap_fraction, AttitudeUse::kRollPitch);
             };
             const ScanResult heading_alias = coarse;
             coarse = Scan(rp_score,
@@ -375,16 +382,12 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
                 heading_alias.alias < cfg.alias_ratio * heading_alias.best) {
                 est.found = false;
                 est.message = est.method + ": heading fits " +
-                               std::to_string(heading_alias.best_c) + " s and " +
-                               std::to_string(heading_alias.alias_c) + " s almost equally";
+                              std::to_string(heading_alias.best_c) + " s and " +
+                              std::to_string(heading_alias.alias_c) + " s almost equally";
             }
             return est;
         }
-        finish(coarse,
-               coarse_score,
-               cfg.max_attitude_misfit_deg,
-               "deg",
-               0.5 * ping_interval);
+        finish(coarse, coarse_score, cfg.max_attitude_misfit_deg, "deg", 0.5 * ping_interval);
         return est;
     }
     // Nothing but the clock: assume the two recordings ran at the same time.

@@ -36,15 +36,15 @@
 namespace pitmap::proc::calib {
 
 struct ClockSearchConfig {
-    double scan_step_s = 0.5;               // coarse scan step over the whole overlap range
-    double fine_window_s = 2.0;             // fine scan +- this around the coarse minimum
-    double fine_step_s = 0.02;              // fine scan step
-    int max_samples = 3000;                 // aid samples used (evenly thinned)
-    double max_position_misfit_m = 10.0;    // median distance above which no match is claimed
-    double max_attitude_misfit_deg = 3.0;   // RMS attitude difference above which ditto
-    double alias_ratio = 1.5;               // second minimum within this factor = ambiguous
-    double min_alias_separation_s = 3.0;    // minima closer than this are the same one
-    double min_overlap_fraction = 0.5;      // of the aid samples inside the nav span
+    double scan_step_s = 0.5;              // coarse scan step over the whole overlap range
+    double fine_window_s = 2.0;            // fine scan +- this around the coarse minimum
+    double fine_step_s = 0.02;             // fine scan step
+    int max_samples = 3000;                // aid samples used (evenly thinned)
+    double max_position_misfit_m = 10.0;   // median distance above which no match is claimed
+    double max_attitude_misfit_deg = 3.0;  // RMS attitude difference above which ditto
+    double alias_ratio = 1.5;              // second minimum within this factor = ambiguous
+    double min_alias_separation_s = 3.0;   // minima closer than this are the same one
+    double min_overlap_fraction = 0.5;     // of the aid samples inside the nav span
     // NMEA fix to topside: a fix shows in the first ping after it arrives, so it is this
     // latency plus half a ping interval old on average (subtracted); its spread is the sigma.
     double assumed_fix_latency_s = 0.1;
@@ -55,11 +55,11 @@ struct ClockSearchConfig {
 
 struct ClockEstimate {
     bool found = false;
-    std::string method;        // "header position", "header attitude", "span" or "none"
-    double correction_s = 0;   // add to the ping times
-    double sigma_s = 0;        // 1 sigma, including the staleness of the aids
-    double misfit = 0;         // median distance (m) or RMS attitude difference (deg) at the best
-    double alias_misfit = 0;   // best score at least min_alias_separation_s away (0 = none)
+    std::string method;       // "header position", "header attitude", "span" or "none"
+    double correction_s = 0;  // add to the ping times
+    double sigma_s = 0;       // 1 sigma, including the staleness of the aids
+    double misfit = 0;        // median distance (m) or RMS attitude difference (deg) at the best
+    double alias_misfit = 0;  // best score at least min_alias_separation_s away (0 = none)
     double alias_correction_s = 0;
     std::int64_t samples = 0;  // aid samples used
     std::string message;       // one line for the terminal and the report

@@ -74,7 +74,7 @@ enum class PingClock : std::uint32_t {
 // Time-sorted pings; the raw range counts of all pings in one flat array.
 struct PingSeries {
     std::vector<PingHeader> pings;
-    std::vector<std::uint32_t> range_counts;  // 0 = no detection
+    std::vector<std::uint32_t> range_counts;   // 0 = no detection
     PingClock clock = PingClock::kGpsStamped;  // kTopsideHeader if any ping came from a .83P file
     std::size_t num_soundings() const { return range_counts.size(); }
 };

@@ -48,13 +48,13 @@ struct RunOptions {
 // "quality_gates", the terminal and the report; `pitmap ... --strict` exits non-zero on any).
 struct QualityConfig {
     double calibration_residual_ratio = 1.5;  // residual RMS after calibration / range noise's
-    double max_clock_scan_s = 5.0;        // widest sonar-clock uncertainty the data may resolve
-    double clock_disagreement_s = 0.05;   // configured vs found clock offset, beyond 3 sigma
-    double slam_sigma_multiple = 3.0;     // SLAM may move a ping this many INS sigmas ...
-    double slam_min_allowance_m = 0.05;   // ... or this far, whichever is larger
-    double slam_good_ins_sigma_m = 0.10;  // pings whose INS horizontal sigma is below: "good"
-    double slam_max_fraction = 0.05;      // more good pings moved further trips the gate
-    double max_outside_nav_fraction = 0.01;  // pings outside the navigation span
+    double max_clock_scan_s = 5.0;            // widest sonar-clock uncertainty the data may resolve
+    double clock_disagreement_s = 0.05;       // configured vs found clock offset, beyond 3 sigma
+    double slam_sigma_multiple = 3.0;         // SLAM may move a ping this many INS sigmas ...
+    double slam_min_allowance_m = 0.05;       // ... or this far, whichever is larger
+    double slam_good_ins_sigma_m = 0.10;      // pings whose INS horizontal sigma is below: "good"
+    double slam_max_fraction = 0.05;          // more good pings moved further trips the gate
+    double max_outside_nav_fraction = 0.01;   // pings outside the navigation span
 
     std::vector<std::string> Validate() const;
 };

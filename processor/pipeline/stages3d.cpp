@@ -120,7 +120,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                 const double a = std::abs(static_cast<double>(c->utime_gps - t)) * 1e-6;
                 if (a < age) {
                     age = a;
-                    sigma = std::hypot(static_cast<double>(c->north_m), static_cast<double>(c->east_m));
+                    sigma =
+                        std::hypot(static_cast<double>(c->north_m), static_cast<double>(c->east_m));
                 }
             }
             if (!(age <= sc.sigma_max_age_s && sigma <= q.slam_good_ins_sigma_m)) continue;

@@ -144,8 +144,7 @@ TEST(SonarLatency, WithoutLatencyTheBoresightAbsorbsTheClockError) {
     const BoresightResult fixed = CalibrateBoresight(geo, sv.nav, o.truth, cfg);
     cfg.estimate_latency = true;
     const BoresightResult joint = CalibrateBoresight(geo, sv.nav, o.truth, cfg);
-    EXPECT_GT(fixed.after.rms_m, 1.5 * joint.after.rms_m)
-        << fixed.message << "\n" << joint.message;
+    EXPECT_GT(fixed.after.rms_m, 1.5 * joint.after.rms_m) << fixed.message << "\n" << joint.message;
     EXPECT_NEAR(joint.latency_s, -0.1, 0.002) << joint.message;
 }
 

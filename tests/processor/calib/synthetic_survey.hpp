@@ -31,9 +31,9 @@ struct SurveyOptions {
     double clock_error_s = 0;
     double roll_amplitude_deg = 2.0;
     double pitch_amplitude_deg = 1.0;
-    bool header_position = false;   // 1 Hz NMEA fixes, stale by up to a ping + 0.15 s
-    bool header_attitude = false;   // roll, pitch and heading of the head at the ping
-    georef::SonarMount truth;       // the mount the ranges are made with
+    bool header_position = false;  // 1 Hz NMEA fixes, stale by up to a ping + 0.15 s
+    bool header_attitude = false;  // roll, pitch and heading of the head at the ping
+    georef::SonarMount truth;      // the mount the ranges are made with
 };
 
 // Vehicle state at time t (seconds since the start).

@@ -142,11 +142,10 @@ protected:
         fs::remove_all(dir_);
         fs::create_directories(dir_);
         std::string out;
-        ASSERT_EQ(
-            RunCommand(kBin + "/pitmap-sim synth --scenario demo --vendor-files --out " +
-                           Quote(dir_ / "sim"),
-                       &out),
-            0)
+        ASSERT_EQ(RunCommand(kBin + "/pitmap-sim synth --scenario demo --vendor-files --out " +
+                                 Quote(dir_ / "sim"),
+                             &out),
+                  0)
             << out;
         truth_ = ReadJson(dir_ / "sim/truth/boresight.json");
     }
@@ -565,10 +564,9 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
               4)
         << out;
     gates = Gates(ReadJson(wrong / "summary.json"));
-    EXPECT_TRUE(std::find(gates.begin(), gates.end(), "calibrate/calibration_residual") !=
-                    gates.end() ||
-                std::find(gates.begin(), gates.end(), "calibrate/calibration_not_verified") !=
-                    gates.end())
+    EXPECT_TRUE(
+        std::find(gates.begin(), gates.end(), "calibrate/calibration_residual") != gates.end() ||
+        std::find(gates.begin(), gates.end(), "calibrate/calibration_not_verified") != gates.end())
         << out;
     // SLAM on a trajectory whose pings are 1.5 s off would bend a good RTK track: the gate
     // trips and the INS is kept where it is good.
@@ -579,11 +577,11 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
         << out;
     // Without --strict the same run finishes (exit 0) and says so.
     out.clear();
-    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
-                                      " --sonar-clock-offset " + offset + " --out " +
-                                      Quote(dir_ / "lenient"),
-                                  &out)),
-              0)
+    EXPECT_EQ(
+        ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) + " --sonar-clock-offset " +
+                                offset + " --out " + Quote(dir_ / "lenient"),
+                            &out)),
+        0)
         << out;
     EXPECT_NE(out.find("quality gate georef/sonar_clock_disagrees"), std::string::npos) << out;
     EXPECT_NE(out.find("--strict makes this an error"), std::string::npos) << out;
@@ -613,11 +611,11 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
 
     // No overlap at all: a clear error naming both spans, not a product.
     out.clear();
-    EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
-                                      " --sonar-clock-offset 5000 --out " +
-                                      Quote(dir_ / "no_overlap"),
-                                  &out)),
-              1)
+    EXPECT_EQ(
+        ExitCode(RunCommand(kBin + "/pitmap georef " + Quote(vendor) +
+                                " --sonar-clock-offset 5000 --out " + Quote(dir_ / "no_overlap"),
+                            &out)),
+        1)
         << out;
     EXPECT_NE(out.find("navigation and sonar do not overlap in time: navigation "),
               std::string::npos)
@@ -631,15 +629,16 @@ TEST(DemoLatency, ADaemonStampingLatencyIsFoundWithinTwoMilliseconds) {
         fs::temp_directory_path() / ("pitmap_scenario_latency_" + std::to_string(::getpid()));
     fs::remove_all(dir);
     std::string out;
-    ASSERT_EQ(RunCommand(kBin + "/pitmap-sim synth --scenario demo --sonar-stamp-error-ms 35 --out " +
-                             Quote(dir / "sim"),
-                         &out),
-              0)
+    ASSERT_EQ(
+        RunCommand(kBin + "/pitmap-sim synth --scenario demo --sonar-stamp-error-ms 35 --out " +
+                       Quote(dir / "sim"),
+                   &out),
+        0)
         << out;
     const fs::path p = dir / "products";
-    ASSERT_EQ(RunCommand(kBin + "/pitmap georef " + Quote(dir / "sim/log") + " --out " + Quote(p),
-                         &out),
-              0)
+    ASSERT_EQ(
+        RunCommand(kBin + "/pitmap georef " + Quote(dir / "sim/log") + " --out " + Quote(p), &out),
+        0)
         << out;
     ASSERT_EQ(ExitCode(RunCommand(kBin + "/pitmap calibrate --strict --out " + Quote(p) +
                                       " --config " + Quote(FastCalibrationConfig(dir)),
