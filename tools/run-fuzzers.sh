@@ -6,17 +6,30 @@
 #   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 20)
 #   FUZZ_TARGETS="ply_fuzz novatel_fuzz" tools/run-fuzzers.sh 30   (only those targets)
 # The product and config targets need the processor and daemon libraries, so both are built
-# (with clang, only what the fuzz targets link).
+# (with clang, only what the fuzz targets link) in build-fuzz/.
+#   BUILD_DIR=build-san tools/run-fuzzers.sh 20   (CI) reuses a build folder that was already
+#       configured with clang and PITMAP_BUILD_FUZZERS=ON (e.g. with PITMAP_SANITIZE and the
+#       tests too): no second configure, and only fuzz targets not yet built are built.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-60}
 build=${BUILD_DIR:-$root/build-fuzz}
+case "$build" in /*) ;; *) build=$root/$build ;; esac
 "$root/tools/install-deps.sh"
 
-CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=ON -DPITMAP_BUILD_TOOLS=OFF \
-  -DPITMAP_BUILD_FIRMWARE_HOST=ON -DPITMAP_BUILD_BENCHMARKS=OFF -DPITMAP_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 || {
-    cat "$build.configure.log"; echo "run-fuzzers: configure failed" >&2; exit 1; }
+if [[ -f $build/CMakeCache.txt ]] && grep -q '^PITMAP_BUILD_FUZZERS:BOOL=ON$' "$build/CMakeCache.txt"; then
+  echo "run-fuzzers: reusing $build (configured with PITMAP_BUILD_FUZZERS=ON)"
+elif [[ -f $build/CMakeCache.txt && -n ${BUILD_DIR:-} ]]; then
+  # Reconfiguring with another compiler would wipe that build folder's cache.
+  echo "run-fuzzers: $build is a build without PITMAP_BUILD_FUZZERS=ON; choose another BUILD_DIR" >&2
+  exit 1
+else
+  CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DPITMAP_BUILD_FUZZERS=ON -DPITMAP_BUILD_PROCESSOR=ON -DPITMAP_BUILD_TOOLS=OFF \
+    -DPITMAP_BUILD_FIRMWARE_HOST=ON -DPITMAP_BUILD_BENCHMARKS=OFF -DPITMAP_BUILD_TESTS=OFF \
+    > "$build.configure.log" 2>&1 || {
+      cat "$build.configure.log"; echo "run-fuzzers: configure failed" >&2; exit 1; }
+fi
 shopt -s nullglob
 targets=()
 if [[ -n ${FUZZ_TARGETS:-} ]]; then

@@ -9,6 +9,8 @@
 #   PITMAP_WERROR    ON = warnings are errors (CI sets it)
 #   PITMAP_SANITIZE  e.g. address,undefined
 #   PITMAP_CMAKE_ARGS extra configure arguments
+#   BUILD_TARGETS    build only these targets (default: everything), e.g. "unit-tests" with -L unit
+#   CC, CXX          the compilers, read by cmake when it configures a new build folder
 # ctest runs inside a private network namespace (only loopback, multicast routed to it) when
 # the machine allows one, so LCM multicast tests never meet other traffic and send nothing out.
 set -euo pipefail
@@ -27,7 +29,8 @@ cmake -S "$root" -B "$build" -G Ninja \
   ${PITMAP_CMAKE_ARGS:-} > "$build.configure.log" 2>&1 || {
     cat "$build.configure.log"; echo "run-tests: configure failed" >&2; exit 1; }
 echo "run-tests: configured $build (${BUILD_TYPE:-Release}${PITMAP_SANITIZE:+, sanitizers: $PITMAP_SANITIZE})"
-cmake --build "$build" -j "$jobs"
+# shellcheck disable=SC2086
+cmake --build "$build" -j "$jobs" ${BUILD_TARGETS:+--target $BUILD_TARGETS}
 
 ctest_cmd=(ctest --test-dir "$build" --output-on-failure -j "$jobs" "$@")
 if unshare -n true 2>/dev/null; then
