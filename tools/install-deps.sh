@@ -21,7 +21,7 @@ processor_pkgs=(
   python3-numpy python3-matplotlib
 )
 tool_pkgs=(
-  clang libclang-rt-14-dev clang-format
+  clang libclang-rt-14-dev clang-format llvm-14 ccache
 )
 
 pkgs=("${common_pkgs[@]}")
