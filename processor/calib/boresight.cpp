@@ -253,26 +253,26 @@ ResidualStats Stats(const std::vector<Pair>& pairs) {
     return s;
 }
 
+// Residuals of the pairs within `d_max` (default: the last iteration's gate) at a latency.
 ResidualStats Evaluate(const ShiftedPoses& poses,
                        const Samples& S,
                        const SonarMount& m,
                        double tau,
-                       const BoresightConfig& cfg) {
+                       const BoresightConfig& cfg,
+                       double d_max = 0) {
     std::vector<Eigen::Vector3d> p;
     Positions(poses, S, m, tau, p);
-    return Stats(FindPairs(p, S, cfg, cfg.min_distance_m));
+    return Stats(FindPairs(p, S, cfg, d_max > 0 ? d_max : cfg.min_distance_m));
 }
 
-// Median |residual| over the pairs found within max_distance_m at a latency (the scan's cost:
-// insensitive to the pair count, which itself changes with tau), and the pair count.
+// The latency scan's cost: the median |residual| over the pairs within max_distance_m
+// (insensitive to the pair count, which itself changes with tau), and the pair count.
 std::pair<double, std::int64_t> ScanCost(const ShiftedPoses& poses,
                                          const Samples& S,
                                          const SonarMount& m,
                                          double tau,
                                          const BoresightConfig& cfg) {
-    std::vector<Eigen::Vector3d> p;
-    Positions(poses, S, m, tau, p);
-    const ResidualStats st = Stats(FindPairs(p, S, cfg, cfg.max_distance_m));
+    const ResidualStats st = Evaluate(poses, S, m, tau, cfg, cfg.max_distance_m);
     return {st.pairs > 0 ? st.median_abs_m : std::numeric_limits<double>::infinity(), st.pairs};
 }
 
