@@ -326,7 +326,15 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         const auto score = [&](double c) {
             return PositionMisfit(pos, track, c, cfg.min_overlap_fraction);
         };
-        const ScanResult coarse = Scan(score, lo, hi, step, cfg.min_alias_separation_s);
+        // The scan over the whole overlap range (hours for a PC clock on local time) on fewer
+        // fixes; the fine scan uses all of them.
+        const std::vector<AidSample> few = Thin(pos, cfg.max_coarse_samples);
+        const ScanResult coarse =
+            Scan([&](double c) { return PositionMisfit(few, track, c, cfg.min_overlap_fraction); },
+                 lo,
+                 hi,
+                 step,
+                 cfg.min_alias_separation_s);
         // A fix reaches the topside a serial latency (~0.1-0.2 s) after its epoch and shows in
         // the next ping: up to a ping interval later.
         finish(coarse,
@@ -362,29 +370,23 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         const auto coarse_score = [&](double c) {
             return AttitudeMisfit(att, track, c, cfg.min_overlap_fraction, coarse_use);
         };
-        ScanResult coarse = Scan(coarse_score, lo, hi, step, cfg.min_alias_separation_s);
+        const std::vector<AidSample> few = Thin(att, cfg.max_coarse_samples);
+        const ScanResult coarse = Scan(
+            [&](double c) {
+                return AttitudeMisfit(few, track, c, cfg.min_overlap_fraction, coarse_use);
+            },
+            lo,
+            hi,
+            step,
+            cfg.min_alias_separation_s);
         if (have_heading && have_roll_pitch) {
-            // Heading placed it; the roll and pitch of the waves are sharper locally.
+            // Heading placed it (and decides ambiguity: turns are unique); the roll and pitch
+            // of the waves are sharper locally, so the fine scan uses them.
             const auto rp_score = [&](double c) {
                 return AttitudeMisfit(
                     att, track, c, cfg.min_overlap_fraction, AttitudeUse::kRollPitch);
             };
-            const ScanResult heading_alias = coarse;
-            coarse = Scan(rp_score,
-                          coarse.best_c - cfg.fine_window_s,
-                          coarse.best_c + cfg.fine_window_s,
-                          cfg.fine_step_s,
-                          1e9);
-            coarse.alias = 0;
             finish(coarse, rp_score, cfg.max_attitude_misfit_deg, "deg", 0.5 * ping_interval);
-            // Ambiguity is the heading scan's (the local roll/pitch scan has none by design).
-            if (heading_alias.alias > 0 &&
-                heading_alias.alias < cfg.alias_ratio * heading_alias.best) {
-                est.found = false;
-                est.message = est.method + ": heading fits " +
-                              std::to_string(heading_alias.best_c) + " s and " +
-                              std::to_string(heading_alias.alias_c) + " s almost equally";
-            }
             return est;
         }
         finish(coarse, coarse_score, cfg.max_attitude_misfit_deg, "deg", 0.5 * ping_interval);

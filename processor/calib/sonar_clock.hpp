@@ -40,6 +40,7 @@ struct ClockSearchConfig {
     double fine_window_s = 2.0;            // fine scan +- this around the coarse minimum
     double fine_step_s = 0.02;             // fine scan step
     int max_samples = 3000;                // aid samples used (evenly thinned)
+    int max_coarse_samples = 500;          // ... of them in the scan over the whole overlap range
     double max_position_misfit_m = 10.0;   // median distance above which no match is claimed
     double max_attitude_misfit_deg = 3.0;  // RMS attitude difference above which ditto
     double alias_ratio = 1.5;              // second minimum within this factor = ambiguous

@@ -374,6 +374,30 @@ std::string CheckSummary(const nlohmann::json& j) {
     if (const auto so = j.find("stage_order"); so != j.end() && !so->is_array()) {
         return "stage_order must be an array";
     }
+    if (const auto c = j.find("sonar_clock"); c != j.end()) {
+        if (!c->is_object()) return "sonar_clock must be an object";
+        for (const char* k : {"correction_s",
+                              "sigma_s",
+                              "latency_s",
+                              "latency_formal_sd_s",
+                              "configured_offset_s",
+                              "estimated_offset_s"}) {
+            if (c->contains(k)) {
+                if (auto e = CheckNumber(*c, k, "sonar_clock"); !e.empty()) return e;
+            }
+        }
+    }
+    if (const auto g = j.find("quality_gates"); g != j.end()) {
+        if (!g->is_array()) return "quality_gates must be an array";
+        for (const auto& e : *g) {
+            if (!e.is_object()) return "quality_gates entries must be objects";
+            for (const char* k : {"stage", "gate", "message"}) {
+                const auto it = e.find(k);
+                if (it == e.end() || !it->is_string())
+                    return std::string("quality_gates[].") + k + " must be a string";
+            }
+        }
+    }
     return "";
 }
 

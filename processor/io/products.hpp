@@ -62,7 +62,9 @@ Expected<nlohmann::json> ReadJsonFile(const std::string& path);
 // present, must have their types (an object at the top; world_origin {latitude_deg,
 // longitude_deg, height_m} finite numbers with |latitude| <= 90; mount {roll_deg, pitch_deg,
 // yaw_deg, lever_arm_sonar_m [3]} finite numbers; utm and every entry of stages objects;
-// stage_order an array), or the read fails naming the file and the key.
+// stage_order an array; sonar_clock an object whose *_s members are finite numbers;
+// quality_gates an array of {stage, gate, message} strings), or the read fails naming the file
+// and the key.
 Expected<nlohmann::json> ReadSummaryJson(const std::string& path);
 Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
 

@@ -274,6 +274,11 @@ TEST_F(ProductReaders, BrokenSummaryJsonIsAnErrorNamingTheFileAndKey) {
         {R"({"stages": {"fuse": 3}})", "stages.fuse must be an object"},
         {R"({"stage_order": "georef"})", "stage_order must be an array"},
         {R"({"utm": "29N"})", "utm must be an object"},
+        {R"({"sonar_clock": 2})", "sonar_clock must be an object"},
+        {R"({"sonar_clock": {"sigma_s": "x"}})", "sonar_clock.sigma_s must be a number"},
+        {R"({"quality_gates": {}})", "quality_gates must be an array"},
+        {R"({"quality_gates": [{"stage": 3, "gate": "g", "message": "m"}]})",
+         "quality_gates[].stage must be a string"},
     };
     for (const Case& c : cases) {
         std::ofstream(path, std::ios::trunc) << c.text;
