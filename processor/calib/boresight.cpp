@@ -9,10 +9,15 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <nanoflann.hpp>
 #include <unordered_map>
 
 #include "common/frames.hpp"
+#include "processor/registration/correspondence.hpp"
+#include "processor/registration/grid_key.hpp"
+#include "processor/registration/neighbours.hpp"
+#include "processor/registration/normal_equations.hpp"
+#include "processor/registration/normals.hpp"
+#include "processor/registration/robust.hpp"
 
 namespace pitmap::proc::calib {
 
@@ -63,20 +68,6 @@ std::vector<std::string> BoresightConfig::Validate() const {
 
 namespace {
 
-struct Cloud {
-    const std::vector<Eigen::Vector3d>* pts = nullptr;
-    std::size_t kdtree_get_point_count() const { return pts->size(); }
-    double kdtree_get_pt(std::size_t i, std::size_t d) const {
-        return (*pts)[i][static_cast<int>(d)];
-    }
-    template <class B>
-    bool kdtree_get_bbox(B&) const {
-        return false;
-    }
-};
-using Tree = nanoflann::
-    KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud, 3, std::size_t>;
-
 // Soundings of one segment, subsampled.
 struct Samples {
     std::vector<std::uint32_t> ping;
@@ -100,10 +91,11 @@ Samples Collect(const GeorefResult& geo, double t0, double t1, int stride) {
     return S;
 }
 
+// A correspondence (query: the sample, target: its closest point of another pass; the normal
+// is the query's, from its own pass), its point-to-plane residual and 1 / sigma^2.
 struct Pair {
     bool ok = false;
-    std::size_t q = 0;
-    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    reg::Correspondence3d c;
     double r = 0;
     double w = 1;
 };
@@ -164,48 +156,32 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                             const Samples& S,
                             const BoresightConfig& cfg,
                             double d_max) {
-    Cloud cloud{&p};
-    Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-    tree.buildIndex();
+    const reg::PointIndex3d index(p.data(), p.size());
     // Normals from the sounding's own pass only (several pings: a single ping is a line).
     const double nwin = cfg.min_separation_s;
     std::vector<Eigen::Vector3d> normals(p.size(), Eigen::Vector3d::Zero());
     std::vector<char> nok(p.size(), 0);
     const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
-        std::vector<std::pair<std::size_t, double>> hits;
+        std::vector<reg::PointIndex3d::Hit> hits;
         for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            hits.clear();
-            tree.radiusSearch(p[k].data(), nr2, hits, nanoflann::SearchParams(32, 0, false));
-            Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-            int n_same = 0;
+            index.WithinRadius(p[k], nr2, hits);
+            reg::MomentAccumulator m;
             for (const auto& [j, d2] : hits) {
-                if (std::abs(S.t_s[j] - S.t_s[k]) < nwin) {
-                    mean += p[j];
-                    cov += p[j] * p[j].transpose();
-                    ++n_same;
-                }
+                if (std::abs(S.t_s[j] - S.t_s[k]) < nwin) m.Add(p[j]);
             }
-            if (n_same < 8) continue;
-            mean /= n_same;
-            cov = cov / n_same - mean * mean.transpose();
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-            const Eigen::Vector3d ev = es.eigenvalues();
-            if (!(ev[0] < 0.1 * ev[1])) continue;  // not planar enough
-            Eigen::Vector3d n = es.eigenvectors().col(0);
-            if (n.z() < 0) n = -n;
-            normals[k] = n;
+            if (m.count() < 8) continue;
+            const reg::PlaneFit f = reg::FitPlane(m);
+            if (!f.Planar(0.1)) continue;  // not planar enough
+            normals[k] = f.normal;
             nok[k] = 1;
         }
     });
     std::vector<Pair> pairs(p.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
-        std::vector<std::pair<std::size_t, double>> hits;
+        std::vector<reg::PointIndex3d::Hit> hits;
         for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            hits.clear();
-            tree.radiusSearch(
-                p[k].data(), d_max * d_max, hits, nanoflann::SearchParams(32, 0, false));
+            index.WithinRadius(p[k], d_max * d_max, hits);
             double best = d_max * d_max;
             std::size_t best_j = 0;
             bool found = false;
@@ -220,9 +196,10 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
             if (!nok[k]) continue;
             Pair& pr = pairs[k];
             pr.ok = true;
-            pr.q = best_j;
-            pr.n = normals[k];
-            pr.r = pr.n.dot(p[k] - p[best_j]);
+            pr.c.query = k;
+            pr.c.target = best_j;
+            pr.c.query_normal = normals[k];
+            pr.r = pr.c.query_normal.dot(p[k] - p[best_j]);
             // 1 / sigma^2 of the difference, sigma = fraction * range + constant per sounding.
             const double sp =
                 cfg.range_noise_fraction * S.s_sonar[k].norm() + cfg.range_noise_constant_m;
@@ -287,14 +264,13 @@ SegmentScore ScoreSegment(const GeorefResult& geo,
     struct Span {
         double lo = 1e300, hi = -1e300;
     };
-    std::unordered_map<std::int64_t, Span> cells;
+    std::unordered_map<std::uint64_t, Span> cells;
     const auto& P = geo.points;
     for (std::size_t j = 0; j < P.size(); j += 7) {
         const double t = static_cast<double>(geo.pings[P.ping[j]].utime_gps) * 1e-6;
         if (t < t0 || t >= t1) continue;
         const auto& x = P.position_world[j];
-        const std::int64_t key = (static_cast<std::int64_t>(std::floor(x.x())) << 32) ^
-                                 (static_cast<std::int64_t>(std::floor(x.y())) & 0xFFFFFFFF);
+        const std::uint64_t key = reg::CellKeyOf(x.x(), x.y(), 1.0);
         Span& sp = cells[key];
         sp.lo = std::min(sp.lo, t);
         sp.hi = std::max(sp.hi, t);
@@ -420,6 +396,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         return o;
     };
     res.termination = Termination::kMaxIterations;
+    bool solve_failed = false;
     std::vector<Eigen::Vector3d> rate;
     for (int it = 0; it < cfg.max_iterations; ++it) {
         if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
@@ -438,7 +415,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             rate.assign(p.size(), Eigen::Vector3d::Zero());
             std::vector<char> need(p.size(), 0);
             for (std::size_t k = 0; k < p.size(); ++k) {
-                if (pairs[k].ok) need[k] = need[pairs[k].q] = 1;
+                if (pairs[k].ok) need[k] = need[pairs[k].c.target] = 1;
             }
             const Pose T_vs = m.T_vehicle_sonar();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512),
@@ -449,64 +426,76 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                                   }
                               });
         }
-        Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dim, dim);
-        Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
+        // Normal equations in scalar blocks: [roll, pitch, yaw, (tau), height offsets...].
+        reg::BlockSystem<1> sys(static_cast<std::size_t>(dim));
         std::int64_t n = 0;
         std::vector<int> idx;
-        std::vector<double> val;
+        std::vector<Eigen::Matrix<double, 1, 1>> J;
+        auto push = [&](int i, double v) {
+            idx.push_back(i);
+            J.push_back(Eigen::Matrix<double, 1, 1>::Constant(v));
+        };
         for (std::size_t k = 0; k < pairs.size(); ++k) {
             const Pair& pr = pairs[k];
             if (!pr.ok) continue;
+            const std::size_t q = pr.c.target;
+            const Eigen::Vector3d& nrm = pr.c.query_normal;
             const Eigen::Matrix3d A_p = poses.At(S.ping[k], tau).linear() * R_vs;
-            const Eigen::Matrix3d A_q = poses.At(S.ping[pr.q], tau).linear() * R_vs;
-            const Eigen::RowVector3d J =
-                pr.n.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[pr.q]));
-            idx.assign({0, 1, 2});
-            val.assign({J[0], J[1], J[2]});
-            if (ldim > 0) {
-                idx.push_back(3);
-                val.push_back(pr.n.dot(rate[k] - rate[pr.q]));
-            }
+            const Eigen::Matrix3d A_q = poses.At(S.ping[q], tau).linear() * R_vs;
+            const Eigen::RowVector3d Jr =
+                nrm.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[q]));
+            idx.clear();
+            J.clear();
+            for (int j = 0; j < 3; ++j) push(j, Jr[j]);
+            if (ldim > 0) push(3, nrm.dot(rate[k] - rate[q]));
             if (n_nodes > 0) {
                 for (int side = 0; side < 2; ++side) {
                     int i;
                     double f;
-                    node_of(S.t_s[side == 0 ? k : pr.q], i, f);
+                    node_of(S.t_s[side == 0 ? k : q], i, f);
                     const double sgn = side == 0 ? 1.0 : -1.0;
                     for (int d = 0; d < odim; ++d) {
                         const int axis = odim == 1 ? 2 : d;
-                        idx.push_back(base + i * odim + d);
-                        val.push_back(sgn * (1 - f) * pr.n[axis]);
-                        idx.push_back(base + (i + 1) * odim + d);
-                        val.push_back(sgn * f * pr.n[axis]);
+                        push(base + i * odim + d, sgn * (1 - f) * nrm[axis]);
+                        push(base + (i + 1) * odim + d, sgn * f * nrm[axis]);
                     }
                 }
             }
-            const double u = pr.r / cfg.cauchy_scale_m;
-            const double w = pr.w / (1.0 + u * u);
-            for (std::size_t x = 0; x < idx.size(); ++x) {
-                g[idx[x]] += w * val[x] * pr.r;
-                for (std::size_t y = 0; y < idx.size(); ++y)
-                    H(idx[x], idx[y]) += w * val[x] * val[y];
-            }
+            const Eigen::Matrix<double, 1, 1> W = Eigen::Matrix<double, 1, 1>::Constant(
+                pr.w *
+                reg::RobustWeight(reg::RobustKernel::kCauchy, std::abs(pr.r), cfg.cauchy_scale_m));
+            sys.Add<1>(idx.data(),
+                       J.data(),
+                       static_cast<int>(idx.size()),
+                       W,
+                       Eigen::Matrix<double, 1, 1>::Constant(pr.r));
             ++n;
         }
         if (n < 50) {
             res.termination = Termination::kNoOverlap;
             break;
         }
+        using Scalar1 = Eigen::Matrix<double, 1, 1>;
         for (int j = 0; j < n_nodes * odim; ++j) {
-            H(base + j, base + j) += 1.0 / (sig_o * sig_o);
-            g[base + j] += off[j] / (sig_o * sig_o);
+            sys.AddPrior(static_cast<std::size_t>(base + j),
+                         Scalar1::Constant(1.0 / (sig_o * sig_o)),
+                         Scalar1::Constant(off[j]));
         }
         if (ldim > 0) {
             const double sl = cfg.latency_sigma_s;
-            H(3, 3) += 1.0 / (sl * sl);
-            g[3] += (tau - tau0) / (sl * sl);
+            sys.AddPrior(3, Scalar1::Constant(1.0 / (sl * sl)), Scalar1::Constant(tau - tau0));
         }
-        H.topLeftCorner<3, 3>() +=
-            1e-9 * H.topLeftCorner<3, 3>().trace() * Eigen::Matrix3d::Identity();
-        const Eigen::VectorXd x = -H.ldlt().solve(g);
+        const double rot_trace = sys.diag()[0](0) + sys.diag()[1](0) + sys.diag()[2](0);
+        for (std::size_t j = 0; j < 3; ++j) {
+            sys.AddPrior(j, Scalar1::Constant(1e-9 * rot_trace), Scalar1::Zero());
+        }
+        // Gauss-Newton (no damping): the step is capped below where it matters (latency).
+        reg::DampedSolver<1> solver(sys);
+        Eigen::VectorXd x;
+        if (!solver.Solve(0.0, &x)) {
+            solve_failed = true;  // non-finite data: the previous iterate is kept
+            break;
+        }
         const Eigen::Vector3d delta = x.head<3>();
         double dtau = 0;
         if (ldim > 0) {
@@ -517,7 +506,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             tau += dtau;
         }
         off += x.tail(n_nodes * odim);
-        const Eigen::MatrixXd C = H.inverse();
+        const Eigen::MatrixXd C = solver.InverseLeadingBlock(base);
         for (int j = 0; j < 3; ++j)
             res.formal_sd_deg[j] = frames::RadToDeg(std::sqrt(std::max(0.0, C(j, j))));
         if (ldim > 0) res.latency_formal_sd_s = std::sqrt(std::max(0.0, C(3, 3)));
@@ -576,6 +565,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                   res.after.rms_m,
                   static_cast<long long>(res.after.pairs));
     res.message = buf;
+    if (solve_failed) res.message += "; stopped: the normal equations could not be solved";
     if (res.latency_estimated) {
         std::snprintf(buf,
                       sizeof(buf),

@@ -47,6 +47,7 @@
 #include <string>
 #include <vector>
 
+#include "processor/registration/correspondence.hpp"
 #include "processor/slam/slam_math.hpp"
 
 namespace pitmap::proc::slam {
@@ -61,11 +62,8 @@ struct Slice {
     Eigen::Matrix<double, 6, 1> pose_sigma = Eigen::Matrix<double, 6, 1>::Constant(0.01);
 };
 
-enum class CorrespondenceType {
-    kPointToPoint,  // |p_a - p_b|^2 / point_sigma^2 (the paper)
-    kPointToPlane,  // (n_b . (p_a - p_b))^2 / point_sigma^2, n_b from the target's neighbours
-    kGicp,          // (p_a - p_b)^T (C_a + C_b)^-1 (p_a - p_b), plane-like covariances
-};
+// Correspondence types (point-to-point, point-to-plane, GICP): the registration core's.
+using reg::CorrespondenceType;
 
 struct SlamConfig {
     double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include "common/se3.hpp"
+#include "processor/registration/robust.hpp"
 
 namespace pitmap::proc::slam {
 
@@ -73,14 +74,9 @@ Vector6d RelativeMotionResidual(const Pose& T_i,
 // Absolute pose term: r = [ LogSO3(R R_prior^T) ; t - t_prior ].
 Vector6d AbsolutePoseResidual(const Pose& T, const Pose& T_prior, Matrix6d* J = nullptr);
 
-enum class RobustKernel { kNone, kHuber, kCauchy };
-
-// IRLS weight of a residual with whitened norm s (= sqrt(r^T Info r)); c is the kernel width
-// in the same whitened units. kNone: 1; Huber: min(1, c / s); Cauchy: 1 / (1 + (s / c)^2).
-double RobustWeight(RobustKernel kernel, double whitened_norm, double c);
-
-// The cost rho(s) whose IRLS weight RobustWeight is (rho'(s) / (2 s)): kNone: s^2; Huber: s^2
-// up to c, then 2 c s - c^2; Cauchy: c^2 log(1 + (s / c)^2).
-double RobustCost(RobustKernel kernel, double whitened_norm, double c);
+// The robust kernels live in the registration core (shared with calibration).
+using reg::RobustCost;
+using reg::RobustKernel;
+using reg::RobustWeight;
 
 }  // namespace pitmap::proc::slam

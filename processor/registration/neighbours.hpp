@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+// Neighbour search over a fixed array of 3D points: a nanoflann k-d tree behind a small class
+// that both calibration and SLAM use. The points are not copied; they must outlive the index
+// and not move while it exists.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <memory>
+#include <nanoflann.hpp>
+#include <utility>
+#include <vector>
+
+namespace pitmap::proc::reg {
+
+template <class Scalar>
+class PointIndex {
+public:
+    using Point = Eigen::Matrix<Scalar, 3, 1>;
+    // (index into the points, squared distance)
+    using Hit = std::pair<std::size_t, Scalar>;
+
+    PointIndex(const Point* points, std::size_t count)
+        : view_{points, count},
+          tree_(3, view_, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize)) {}  // builds
+    PointIndex(const PointIndex&) = delete;
+    PointIndex& operator=(const PointIndex&) = delete;
+
+    std::size_t size() const { return view_.n; }
+    const Point& point(std::size_t i) const { return view_.pts[i]; }
+
+    // The k nearest points (fewer if the index holds fewer); returns how many were found.
+    std::size_t Nearest(const Point& q, std::size_t k, std::size_t* idx, Scalar* d2) const {
+        return tree_.knnSearch(q.data(), k, idx, d2);
+    }
+    // Every point within sqrt(radius2) of q, unsorted; `hits` is cleared first.
+    void WithinRadius(const Point& q, Scalar radius2, std::vector<Hit>& hits) const {
+        hits.clear();
+        tree_.radiusSearch(q.data(), radius2, hits, nanoflann::SearchParams(32, 0, false));
+    }
+
+private:
+    static constexpr std::size_t kLeafSize = 16;
+    struct View {
+        const Point* pts = nullptr;
+        std::size_t n = 0;
+        std::size_t kdtree_get_point_count() const { return n; }
+        Scalar kdtree_get_pt(std::size_t i, std::size_t d) const {
+            return pts[i][static_cast<Eigen::Index>(d)];
+        }
+        template <class Box>
+        bool kdtree_get_bbox(Box& /*box*/) const {
+            return false;
+        }
+    };
+    using Tree = nanoflann::
+        KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<Scalar, View>, View, 3, std::size_t>;
+    View view_;
+    Tree tree_;
+};
+
+using PointIndex3f = PointIndex<float>;
+using PointIndex3d = PointIndex<double>;
+
+}  // namespace pitmap::proc::reg

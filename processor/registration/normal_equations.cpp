@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: MIT
+#include "processor/registration/normal_equations.hpp"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseCore>
+
+namespace pitmap::proc::reg {
+
+template <int B>
+struct DampedSolver<B>::Impl {
+    Eigen::SparseMatrix<double> H;  // upper triangle
+    Eigen::VectorXd rhs, diag;
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt;
+    bool factorised = false;
+};
+
+template <int B>
+DampedSolver<B>::DampedSolver(const BlockSystem<B>& system) : impl_(std::make_unique<Impl>()) {
+    const std::size_t n = system.num_blocks();
+    const auto& diag = system.diag();
+    const auto& grad = system.grad();
+    const auto& off = system.off_diagonal();
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(n * static_cast<std::size_t>(B * (B + 1) / 2) +
+                 off.size() * static_cast<std::size_t>(B * B));
+    impl_->rhs.resize(static_cast<Eigen::Index>(B * n));
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto o = static_cast<int>(B * i);
+        for (int r = 0; r < B; ++r) {
+            for (int c = r; c < B; ++c) trip.emplace_back(o + r, o + c, diag[i](r, c));
+        }
+        impl_->rhs.template segment<B>(o) = -grad[i];
+    }
+    for (const auto& [key, m] : off) {
+        const auto i = static_cast<int>(key / n), j = static_cast<int>(key % n);
+        for (int r = 0; r < B; ++r) {
+            for (int c = 0; c < B; ++c) trip.emplace_back(B * i + r, B * j + c, m(r, c));
+        }
+    }
+    const auto dim = static_cast<Eigen::Index>(B * n);
+    impl_->H.resize(dim, dim);
+    impl_->H.setFromTriplets(trip.begin(), trip.end());
+    impl_->H.makeCompressed();
+    impl_->diag = impl_->H.diagonal();
+    impl_->llt.analyzePattern(impl_->H);
+}
+
+template <int B>
+DampedSolver<B>::~DampedSolver() = default;
+
+template <int B>
+std::size_t DampedSolver<B>::num_unknowns() const {
+    return static_cast<std::size_t>(impl_->rhs.size());
+}
+
+template <int B>
+bool DampedSolver<B>::Solve(double lambda, Eigen::VectorXd* delta) {
+    Impl& s = *impl_;
+    s.factorised = false;
+    Eigen::SparseMatrix<double> A = s.H;
+    A.diagonal() = s.diag * (1.0 + lambda) + Eigen::VectorXd::Constant(s.diag.size(), 1e-9);
+    s.llt.factorize(A);
+    if (s.llt.info() != Eigen::Success) return false;
+    *delta = s.llt.solve(s.rhs);
+    s.factorised = s.llt.info() == Eigen::Success && delta->allFinite();
+    return s.factorised;
+}
+
+template <int B>
+Eigen::MatrixXd DampedSolver<B>::InverseLeadingBlock(int k) {
+    Impl& s = *impl_;
+    if (!s.factorised || k <= 0 || k > s.rhs.size()) return {};
+    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(s.rhs.size(), k);
+    for (int i = 0; i < k; ++i) E(i, i) = 1.0;
+    const Eigen::MatrixXd X = s.llt.solve(E);
+    return X.topRows(k);
+}
+
+template class DampedSolver<1>;
+template class DampedSolver<6>;
+
+}  // namespace pitmap::proc::reg

@@ -1,0 +1,42 @@
+// SPDX-License-Identifier: MIT
+#include "processor/registration/normals.hpp"
+
+#include <Eigen/Eigenvalues>
+
+namespace pitmap::proc::reg {
+
+void MomentAccumulator::Add(const Eigen::Vector3d& p) {
+    if (n_ == 0) ref_ = p;
+    const Eigen::Vector3d d = p - ref_;
+    sum_ += d;
+    sum_sq_ += d * d.transpose();
+    ++n_;
+}
+
+Eigen::Vector3d MomentAccumulator::Mean() const {
+    return n_ > 0 ? Eigen::Vector3d(ref_ + sum_ / n_) : Eigen::Vector3d::Zero();
+}
+
+Eigen::Matrix3d MomentAccumulator::Covariance() const {
+    if (n_ < 2) return Eigen::Matrix3d::Zero();
+    const Eigen::Vector3d m = sum_ / n_;
+    return sum_sq_ / n_ - m * m.transpose();
+}
+
+PlaneFit FitPlane(const MomentAccumulator& m) {
+    PlaneFit f;
+    f.count = m.count();
+    f.mean = m.Mean();
+    if (m.count() < 3) return f;
+    const Eigen::Matrix3d C = m.Covariance();
+    if (!C.allFinite()) return f;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    if (es.info() != Eigen::Success) return f;
+    f.eigenvalues = es.eigenvalues();
+    f.normal = es.eigenvectors().col(0);
+    if (f.normal.z() < 0) f.normal = -f.normal;
+    f.valid = true;
+    return f;
+}
+
+}  // namespace pitmap::proc::reg

@@ -1,0 +1,305 @@
+// SPDX-License-Identifier: MIT
+// SLAM sections and correspondences: k-d tree blocks of consecutive slices, closest-point
+// pairs between slices at least t_d apart (seed paper §4.2: "we match only to points, if they
+// were recorded at least td time steps away", within a maximal point-to-point distance), their
+// normals, the section graph of the rigid stage (links with enough pairs, Borrmann et al.
+// 2008), and the two scores that judge an iterate: the truncated pair score and the plane-fit
+// consistency score.
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <unordered_map>
+
+#include "processor/registration/grid_key.hpp"
+#include "processor/registration/normals.hpp"
+#include "processor/slam/internal.hpp"
+
+namespace pitmap::proc::slam::detail {
+
+std::vector<Block> MakeBlocks(const Input& in, double length_s) {
+    std::vector<Block> blocks;
+    std::size_t s = 0;
+    double t_break = -std::numeric_limits<double>::infinity();
+    while (s < in.num_slices()) {
+        Block b;
+        if (in.IsBreak(s)) t_break = in.t_s[s];
+        b.s0 = s++;
+        // After a GNSS recovery the INS error falls within seconds: sections of 1, 1, 2, 4, 8 s
+        // there (doubling up to length_s), so that the rigid stage can follow the fall.
+        const double since = in.t_s[b.s0] - t_break;
+        const double len =
+            since < length_s ? std::clamp(since, kBreakFirstSectionS, length_s) : length_s;
+        while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + len && !in.IsBreak(s)) ++s;
+        b.s1 = s;
+        b.p0 = in.offset[b.s0];
+        b.p1 = in.offset[b.s1];
+        b.t0 = in.t_s[b.s0];
+        b.t1 = in.t_s[b.s1 - 1];
+        blocks.push_back(std::move(b));
+    }
+    return blocks;
+}
+
+namespace {
+
+void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& pw) {
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
+        Block& b = blocks[i];
+        b.lo.setConstant(std::numeric_limits<float>::max());
+        b.hi.setConstant(std::numeric_limits<float>::lowest());
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            b.lo = b.lo.cwiseMin(pw[k]);
+            b.hi = b.hi.cwiseMax(pw[k]);
+        }
+        b.tree.reset();
+        if (b.p1 > b.p0)
+            b.tree = std::make_unique<reg::PointIndex3f>(pw.data() + b.p0, b.p1 - b.p0);
+    });
+}
+
+// Closest point of pw[q] among blocks entirely at least t_d away in time, within d_max.
+// Also the pair score of the current poses: sqrt(mean(min(d, score_m)^2)) over the query
+// points that have a partner block (time and bounding box), d the distance to the closest
+// point (score_m when none is within the search distance); score_m <= the search distance.
+std::vector<Pair> FindPairs(const Input& in,
+                            const std::vector<Block>& blocks,
+                            const std::vector<std::uint32_t>& slice_block,
+                            const std::vector<Eigen::Vector3f>& pw,
+                            const SlamConfig& cfg,
+                            double score_m,
+                            double* score) {
+    const float dmax = static_cast<float>(cfg.max_pair_distance_m);
+    const float dmax2 = dmax * dmax;
+    const double score2 = score_m * score_m;
+    std::vector<double> slice_sum(in.num_slices(), 0.0);
+    std::vector<std::uint32_t> slice_count(in.num_slices(), 0);
+    const double td = cfg.min_time_separation_s;
+    const auto stride = static_cast<std::size_t>(cfg.query_stride);
+    // Blocks per horizontal cell (cells of at least 2 dmax): a block is listed in every cell
+    // its points come within dmax of, so that a query visits only the trees that can hold its
+    // partner, not every tree whose bounding box it touches.
+    const float cell = std::max(2.0f * dmax, 2.0f);
+    auto cell_key = [cell](float x, float y) {
+        return reg::CellKey(static_cast<std::int64_t>(std::floor(x / cell)),
+                            static_cast<std::int64_t>(std::floor(y / cell)));
+    };
+    std::vector<std::vector<std::uint64_t>> block_cells(blocks.size());
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t bi) {
+        const Block& b = blocks[bi];
+        auto& keys = block_cells[bi];
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            const Eigen::Vector3f& p = pw[k];
+            for (const float dx : {-dmax, dmax}) {
+                for (const float dy : {-dmax, dmax}) {
+                    const std::uint64_t key = cell_key(p.x() + dx, p.y() + dy);
+                    if (keys.empty() || keys.back() != key) keys.push_back(key);
+                }
+            }
+        }
+        std::sort(keys.begin(), keys.end());
+        keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+    });
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cell_blocks;
+    for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+        for (const std::uint64_t key : block_cells[bi]) cell_blocks[key].push_back(bi);
+    }
+    const std::vector<std::uint32_t> no_blocks;
+    tbb::enumerable_thread_specific<std::vector<Pair>> local;
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            auto& out = local.local();
+            for (std::size_t s = range.begin(); s != range.end(); ++s) {
+                const double t = in.t_s[s];
+                for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
+                    const Eigen::Vector3f& p = pw[q];
+                    float best = dmax2;
+                    std::size_t best_idx = 0;
+                    std::uint32_t best_block = 0;
+                    bool found = false, candidate = false;
+                    // Score bookkeeping: does any time-separated block's box come within score_m?
+                    const float sm = static_cast<float>(score_m);
+                    for (const Block& b : blocks) {
+                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                        if (!((p.array() < b.lo.array() - sm).any() ||
+                              (p.array() > b.hi.array() + sm).any())) {
+                            candidate = true;
+                            break;
+                        }
+                    }
+                    const auto cb = cell_blocks.find(cell_key(p.x(), p.y()));
+                    for (const std::uint32_t bi :
+                         cb == cell_blocks.end() ? no_blocks : cb->second) {
+                        const Block& b = blocks[bi];
+                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                        if ((p.array() < b.lo.array() - dmax).any() ||
+                            (p.array() > b.hi.array() + dmax).any()) {
+                            continue;
+                        }
+                        std::size_t idx = 0;
+                        float d2 = 0;
+                        if (b.tree->Nearest(p, 1, &idx, &d2) == 1 && d2 < best) {
+                            best = d2;
+                            best_idx = b.p0 + idx;
+                            best_block = bi;
+                            found = true;
+                        }
+                    }
+                    if (candidate) {
+                        slice_sum[s] +=
+                            found ? std::min(static_cast<double>(best), score2) : score2;
+                        ++slice_count[s];
+                    }
+                    if (!found) continue;
+                    Pair pr;
+                    pr.slice_a = static_cast<std::uint32_t>(s);
+                    pr.c.query = q;
+                    pr.block_a = slice_block[s];
+                    pr.c.target = best_idx;
+                    pr.block_b = best_block;
+                    const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), best_idx);
+                    pr.slice_b = static_cast<std::uint32_t>(it - in.offset.begin() - 1);
+                    out.push_back(pr);
+                }
+            }
+        });
+    double sum = 0, count = 0;
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        sum += slice_sum[s];
+        count += slice_count[s];
+    }
+    *score = count > 0 ? std::sqrt(sum / count) : 0.0;
+    std::vector<Pair> pairs;
+    for (auto& v : local) pairs.insert(pairs.end(), v.begin(), v.end());
+    // Thread order is arbitrary; sort so that the sums below see the same order every run.
+    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+        return a.c.query < b.c.query;
+    });
+    return pairs;
+}
+
+// Unit normal of the points around pw[k] in its block (smallest eigenvector of the local
+// covariance of its num_neighbours nearest); zero if fewer than 3 neighbours.
+Eigen::Vector3f LocalNormal(const Block& b,
+                            const std::vector<Eigen::Vector3f>& pw,
+                            std::size_t k,
+                            int num_neighbours) {
+    std::vector<std::size_t> idx(static_cast<std::size_t>(num_neighbours));
+    std::vector<float> d2(idx.size());
+    const std::size_t n = b.tree->Nearest(pw[k], idx.size(), idx.data(), d2.data());
+    reg::MomentAccumulator m;
+    for (std::size_t i = 0; i < n; ++i) m.Add(pw[b.p0 + idx[i]].cast<double>());
+    const reg::PlaneFit f = reg::FitPlane(m);
+    return f.valid ? Eigen::Vector3f(f.normal.cast<float>()) : Eigen::Vector3f::Zero();
+}
+
+}  // namespace
+
+// ---- consistency score ----------------------------------------------------------------------
+
+// Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart:
+// per cell, z = a + b x + c y by least squares; score = sqrt(sum SSR / sum (n - 3)).
+double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
+    struct Cell {
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        double zz = 0;
+        double t_min = std::numeric_limits<double>::max();
+        double t_max = std::numeric_limits<double>::lowest();
+        int n = 0;
+    };
+    const double h = cfg.score_cell_m;
+    const auto stride = static_cast<std::size_t>(cfg.query_stride);
+    std::unordered_map<std::uint64_t, Cell> cells;
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
+            const Eigen::Vector3d p = T[s] * in.points[q].cast<double>();
+            const double fx = std::floor(p.x() / h), fy = std::floor(p.y() / h);
+            const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+            const std::uint64_t key = reg::CellKey(ix, iy);
+            Cell& c = cells[key];
+            const Eigen::Vector3d u(1.0, p.x() - (fx + 0.5) * h, p.y() - (fy + 0.5) * h);
+            c.A += u * u.transpose();
+            c.b += u * p.z();
+            c.zz += p.z() * p.z();
+            c.t_min = std::min(c.t_min, in.t_s[s]);
+            c.t_max = std::max(c.t_max, in.t_s[s]);
+            ++c.n;
+        }
+    }
+    double ssr = 0, dof = 0;
+    for (const auto& [key, c] : cells) {
+        if (c.n < 6 || c.t_max - c.t_min < cfg.min_time_separation_s) continue;
+        Eigen::LDLT<Eigen::Matrix3d> ldlt(c.A);
+        if (ldlt.info() != Eigen::Success) continue;
+        const Eigen::Vector3d beta = ldlt.solve(c.b);
+        // Mean-centre z first: zz - b^T beta loses digits at large |z|.
+        const double v = std::max(0.0, c.zz - c.b.dot(beta));
+        if (!std::isfinite(v)) continue;
+        ssr += v;
+        dof += c.n - 3;
+    }
+    return dof > 0 ? std::sqrt(ssr / dof) : 0.0;
+}
+
+Search SearchPairs(const Input& in,
+                   const std::vector<Pose>& T,
+                   SlamStage stage,
+                   double search_m,
+                   std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& slice_block,
+                   std::vector<Eigen::Vector3f>& pw,
+                   const SlamConfig& cfg,
+                   SlamResult& res) {
+    auto t0 = Clock::now();
+    tbb::parallel_for(std::size_t{0}, in.num_slices(), [&](std::size_t s) {
+        const Eigen::Matrix3f R = T[s].linear().cast<float>();
+        const Eigen::Vector3f t = T[s].translation().cast<float>();
+        for (std::size_t k = in.offset[s]; k < in.offset[s + 1]; ++k) pw[k] = R * in.points[k] + t;
+    });
+    BuildTrees(blocks, pw);
+    res.timings.trees_s += Seconds(t0);
+    t0 = Clock::now();
+    SlamConfig it_cfg = cfg;
+    it_cfg.max_pair_distance_m = search_m;
+    Search out;
+    out.pairs = FindPairs(in, blocks, slice_block, pw, it_cfg, cfg.max_pair_distance_m, &out.score);
+    std::vector<Pair>& pairs = out.pairs;
+    if (stage == SlamStage::kRigid) {
+        // Section graph: keep links with enough pairs (overlap heuristic of the paper).
+        std::unordered_map<std::uint64_t, std::size_t> link;
+        auto key = [](const Pair& pr) { return reg::UnorderedPairKey(pr.block_a, pr.block_b); };
+        for (const Pair& pr : pairs) ++link[key(pr)];
+        std::erase_if(pairs, [&](const Pair& pr) {
+            return link[key(pr)] < static_cast<std::size_t>(cfg.min_section_link_pairs);
+        });
+        for (const auto& [k, c] : link) {
+            if (c >= static_cast<std::size_t>(cfg.min_section_link_pairs)) ++out.num_links;
+        }
+    }
+    if (cfg.correspondence != CorrespondenceType::kPointToPoint) {
+        tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+            Pair& pr = pairs[k];
+            pr.c.target_normal =
+                LocalNormal(blocks[pr.block_b], pw, pr.c.target, cfg.normal_neighbours);
+            if (cfg.correspondence == CorrespondenceType::kGicp) {
+                pr.c.query_normal =
+                    LocalNormal(blocks[pr.block_a], pw, pr.c.query, cfg.normal_neighbours);
+            }
+        });
+        std::erase_if(pairs, [&](const Pair& pr) {
+            return pr.c.target_normal.isZero() ||
+                   (cfg.correspondence == CorrespondenceType::kGicp && pr.c.query_normal.isZero());
+        });
+    }
+    res.timings.search_s += Seconds(t0);
+    return out;
+}
+
+}  // namespace pitmap::proc::slam::detail

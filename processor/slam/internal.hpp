@@ -1,0 +1,206 @@
+// SPDX-License-Identifier: MIT
+// Internal to processor/slam: what the files of the SLAM stage share. The method follows the
+// seed paper §4.2 (Elseberg, Borrmann & Nuechter 2013; Borrmann et al. 2008):
+//   correspondences.cpp  sections (k-d tree blocks), closest-point pairs at least t_d apart,
+//                        normals, the pair and consistency scores;
+//   terms.cpp            the parametrisation (node corrections) and the residual terms of the
+//                        normal equations: n-scan pairs (eq. 2), INS relative motion and priors;
+//   coarse_search.cpp    the horizontal search that puts drifted sections into capture range;
+//   iterate.cpp          one stage's ICP-like Gauss-Newton loop on the damped sparse solver;
+//   rigid_stage.cpp      globally consistent matching of rigid sections (Borrmann et al. 2008);
+//   semi_rigid_stage.cpp the semi-rigid stage, one pose per bin (Elseberg et al. 2013);
+//   slam.cpp             input, configuration and the two stages in order.
+// Neighbour search, normals, correspondence types, robust kernels, grid keys and the solver
+// come from the registration core (processor/registration), shared with calibration.
+#pragma once
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "processor/registration/correspondence.hpp"
+#include "processor/registration/neighbours.hpp"
+#include "processor/registration/normal_equations.hpp"
+#include "processor/slam/slam.hpp"
+#include "processor/slam/slam_math.hpp"
+
+namespace pitmap::proc::slam::detail {
+
+using Clock = std::chrono::steady_clock;
+
+inline double Seconds(Clock::time_point a) {
+    return std::chrono::duration<double>(Clock::now() - a).count();
+}
+
+// ---- input, sorted by time ------------------------------------------------------------------
+
+struct Input {
+    std::vector<std::size_t> input_index;  // sorted slice -> input slice
+    std::vector<double> t_s;
+    std::vector<Pose> T_ins;      // INS poses (measurements)
+    std::vector<Vector6d> sigma;  // effective INS 1-sigma (see ins_sigma_recovery_time_s)
+    Vector6d sigma_floor = Vector6d::Zero();  // smallest sigma of the survey, per component
+    std::vector<std::size_t> offset;          // first point of each slice in `points`
+    std::vector<Eigen::Vector3f> points;      // vehicle frame, finite only
+    // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
+    // there, so sections and bins start there and are short after them (the correction stays
+    // continuous; its rate changes).
+    std::vector<std::size_t> breaks;
+    std::size_t num_slices() const { return t_s.size(); }
+    bool IsBreak(std::size_t s) const {
+        return std::binary_search(breaks.begin(), breaks.end(), s);
+    }
+};
+
+constexpr double kBreakFirstSectionS = 1.0;  // first section after a GNSS recovery
+
+// ---- parametrisation: node corrections applied to per-slice base poses ----------------------
+// Slice pose: R = Rc * R_base, t = Rc (t_base - pivot) + pivot + tc, with (Rc, tc) the node
+// correction (interpolated between two nodes with weight alpha in a bin).
+
+struct Param {
+    std::vector<Pose> base;
+    std::vector<Eigen::Vector3d> pivot;
+    std::vector<int> k0, k1;
+    std::vector<double> alpha;
+    std::vector<int> anchor;  // node -> slice whose pose depends on that node alone
+    std::vector<Eigen::Matrix3d> Rc;
+    std::vector<Eigen::Vector3d> tc;
+    std::size_t num_nodes() const { return anchor.size(); }
+};
+
+Param MakeParam(const std::vector<Pose>& base, const std::vector<std::size_t>& node_start);
+void SliceCorrection(const Param& p, std::size_t s, Eigen::Matrix3d* R, Eigen::Vector3d* t);
+std::vector<Pose> SlicePoses(const Param& p);
+// d(slice pose perturbation) / d(node increment), times the interpolation weight w.
+Matrix6d NodeToSlice(const Param& p, const Pose& T_s, std::size_t s, double w);
+
+// ---- sections and correspondences (correspondences.cpp) -------------------------------------
+
+// A section of consecutive slices: the rigid stage's unit and a k-d tree block of world points.
+struct Block {
+    std::size_t s0 = 0, s1 = 0;                    // slices [s0, s1)
+    std::size_t p0 = 0, p1 = 0;                    // points [p0, p1)
+    double t0 = 0, t1 = 0;                         // time span
+    Eigen::Vector3f lo = Eigen::Vector3f::Zero();  // bounding box of the world points
+    Eigen::Vector3f hi = Eigen::Vector3f::Zero();
+    std::unique_ptr<reg::PointIndex3f> tree;  // over the block's world points
+};
+
+std::vector<Block> MakeBlocks(const Input& in, double length_s);
+
+// A correspondence (global point indices) with the slices and blocks of both sides.
+struct Pair {
+    reg::Correspondence c;
+    std::uint32_t slice_a = 0, slice_b = 0;
+    std::uint32_t block_a = 0, block_b = 0;
+};
+
+// Pairs of the current iterate and the pair score.
+struct Search {
+    std::vector<Pair> pairs;
+    double score = 0;
+    std::size_t num_links = 0;
+};
+
+// Moves the points to the world with T, rebuilds the k-d trees and finds the pairs within
+// search_m (with normals when the correspondence type needs them); the rigid stage keeps only
+// links between sections with enough pairs (the paper's overlap heuristic).
+Search SearchPairs(const Input& in,
+                   const std::vector<Pose>& T,
+                   SlamStage stage,
+                   double search_m,
+                   std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& slice_block,
+                   std::vector<Eigen::Vector3f>& pw,
+                   const SlamConfig& cfg,
+                   SlamResult& res);
+
+// Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart.
+double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg);
+
+// ---- residual terms (terms.cpp) --------------------------------------------------------------
+
+// Normal equations of one linearisation (or, with linearise false, the cost only).
+struct Terms {
+    reg::BlockSystem<6> sys;
+    double cost = 0;
+    double sq_dist = 0;  // sum of squared pair distances
+    explicit Terms(std::size_t num_nodes) : sys(num_nodes) {}
+};
+
+// Relative-motion, drift-smoothness and absolute terms (no pairs).
+void AddPoseTerms(const Input& in,
+                  const Param& p,
+                  const std::vector<Pose>& T,
+                  const SlamConfig& cfg,
+                  bool linearise,
+                  Terms& acc);
+// Pair terms; with linearise false only the robust cost (and sq_dist) are accumulated.
+void AddPairTerms(const Input& in,
+                  const Param& p,
+                  const std::vector<Pose>& T,
+                  const std::vector<Pair>& pairs,
+                  const SlamConfig& cfg,
+                  bool linearise,
+                  tbb::enumerable_thread_specific<Terms>& accs);
+// Total cost (INS terms and robust pair terms) of the parametrisation p on fixed pairs.
+double CostAt(const Input& in,
+              const Param& p,
+              const std::vector<Pair>& pairs,
+              const SlamConfig& cfg);
+
+// ---- coarse horizontal search (coarse_search.cpp) -------------------------------------------
+
+std::vector<Eigen::Vector3d> CoarseSectionSearch(const Input& in,
+                                                 const std::vector<Pose>& T,
+                                                 const std::vector<Block>& blocks,
+                                                 const SlamConfig& cfg,
+                                                 std::vector<SlamSection>* sections);
+
+// ---- stages (iterate.cpp, rigid_stage.cpp, semi_rigid_stage.cpp) ----------------------------
+
+struct StageOutcome {
+    SlamTermination termination = SlamTermination::kMaxIterations;
+    std::string message;
+    int iterations = 0;
+    std::size_t num_pairs = 0;
+    std::size_t num_links = 0;
+};
+
+// One stage's iterations on the parametrisation p (see iterate.cpp).
+StageOutcome RunStage(const Input& in,
+                      Param& p,
+                      SlamStage stage,
+                      int max_iterations,
+                      double rigid_d0_m,
+                      std::vector<Block>& blocks,
+                      const std::vector<std::uint32_t>& slice_block,
+                      const SlamConfig& cfg,
+                      double* best_score,
+                      SlamResult& res);
+
+// The rigid stage from the poses `current`, which it replaces with its result.
+StageOutcome RunRigidStage(const Input& in,
+                           std::vector<Block>& blocks,
+                           const std::vector<std::uint32_t>& slice_block,
+                           const SlamConfig& cfg,
+                           std::vector<Pose>& current,
+                           double* best_score,
+                           SlamResult& res);
+
+// The semi-rigid stage from the poses `current`, which it replaces with its result.
+StageOutcome RunSemiRigidStage(const Input& in,
+                               std::vector<Block>& blocks,
+                               const std::vector<std::uint32_t>& slice_block,
+                               const SlamConfig& cfg,
+                               std::vector<Pose>& current,
+                               double* best_score,
+                               SlamResult& res);
+
+}  // namespace pitmap::proc::slam::detail

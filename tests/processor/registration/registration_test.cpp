@@ -1,0 +1,218 @@
+// SPDX-License-Identifier: MIT
+// The registration core shared by calibration and SLAM: neighbour search against brute force,
+// plane fits far from the origin, grid keys, GICP information, the block normal equations and
+// the damped CHOLMOD solver against dense Eigen solves, robust kernels.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "processor/registration/correspondence.hpp"
+#include "processor/registration/grid_key.hpp"
+#include "processor/registration/neighbours.hpp"
+#include "processor/registration/normal_equations.hpp"
+#include "processor/registration/normals.hpp"
+#include "processor/registration/robust.hpp"
+
+namespace pitmap::proc::reg {
+namespace {
+
+std::vector<Eigen::Vector3d> RandomPoints(int n, unsigned seed, double scale) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-scale, scale);
+    std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(n));
+    for (auto& x : p) x = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    return p;
+}
+
+TEST(PointIndex, NearestAndRadiusMatchBruteForce) {
+    const auto pts = RandomPoints(2000, 1, 10.0);
+    const PointIndex3d index(pts.data(), pts.size());
+    ASSERT_EQ(index.size(), pts.size());
+    const auto queries = RandomPoints(50, 2, 11.0);
+    std::vector<PointIndex3d::Hit> hits;
+    for (const auto& q : queries) {
+        std::vector<std::pair<double, std::size_t>> all;
+        for (std::size_t i = 0; i < pts.size(); ++i) all.push_back({(pts[i] - q).squaredNorm(), i});
+        std::sort(all.begin(), all.end());
+        std::size_t idx[5];
+        double d2[5];
+        ASSERT_EQ(index.Nearest(q, 5, idx, d2), 5u);
+        for (int k = 0; k < 5; ++k) {
+            EXPECT_EQ(idx[k], all[static_cast<std::size_t>(k)].second);
+            EXPECT_NEAR(d2[k], all[static_cast<std::size_t>(k)].first, 1e-9);
+        }
+        const double r2 = 4.0;
+        index.WithinRadius(q, r2, hits);
+        std::set<std::size_t> got, want;
+        for (const auto& [i, d] : hits) got.insert(i);
+        for (const auto& [d, i] : all) {
+            if (d < r2) want.insert(i);
+        }
+        EXPECT_EQ(got, want);
+    }
+}
+
+TEST(PointIndex, FloatPointsAndFewerThanAsked) {
+    std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {1, 0, 0}};
+    const PointIndex3f index(pts.data(), pts.size());
+    std::size_t idx[4];
+    float d2[4];
+    EXPECT_EQ(index.Nearest(Eigen::Vector3f(0.9f, 0, 0), 4, idx, d2), 2u);
+    EXPECT_EQ(idx[0], 1u);
+}
+
+// A tilted plane 100 km from the origin with centimetre spread: the normal to 1e-6 rad
+// (a one-pass covariance of raw coordinates would lose every digit here).
+TEST(PlaneFit, TiltedPlaneFarFromTheOrigin) {
+    const Eigen::Vector3d n_true = Eigen::Vector3d(0.3, -0.2, 1.0).normalized();
+    const Eigen::Vector3d u = n_true.unitOrthogonal(), v = n_true.cross(u);
+    const Eigen::Vector3d origin(1e5, -2e5, 50.0);
+    MomentAccumulator m;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> a(-0.05, 0.05);
+    for (int i = 0; i < 200; ++i) m.Add(origin + a(rng) * u + a(rng) * v);
+    const PlaneFit f = FitPlane(m);
+    ASSERT_TRUE(f.valid);
+    EXPECT_EQ(f.count, 200);
+    EXPECT_LT((f.normal - n_true).norm(), 1e-6);
+    EXPECT_GE(f.normal.z(), 0.0);
+    EXPECT_TRUE(f.Planar(0.1));
+    EXPECT_LT((f.mean - origin).norm(), 0.01);
+}
+
+TEST(PlaneFit, TooFewPointsOrALineIsNotAPlane) {
+    MomentAccumulator two;
+    two.Add({0, 0, 0});
+    two.Add({1, 0, 0});
+    EXPECT_FALSE(FitPlane(two).valid);
+    MomentAccumulator line;
+    for (int i = 0; i < 20; ++i) line.Add({0.1 * i, 0.2 * i, 0.0});
+    const PlaneFit f = FitPlane(line);
+    EXPECT_TRUE(f.valid);
+    EXPECT_FALSE(f.Planar(0.1));  // two zero eigenvalues: no plane
+}
+
+TEST(GridKey, DistinctNeighboursAndSymmetricPairs) {
+    std::set<std::uint64_t> keys;
+    for (int ix = -3; ix <= 3; ++ix) {
+        for (int iy = -3; iy <= 3; ++iy) keys.insert(CellKey(ix, iy));
+    }
+    EXPECT_EQ(keys.size(), 49u);
+    EXPECT_EQ(CellKeyOf(-0.5, 2.5, 1.0), CellKey(-1, 2));
+    EXPECT_EQ(CellKeyOf(-0.5, 2.5, 4.0), CellKey(-1, 0));
+    EXPECT_NE(CellKey(1, 0), CellKey(0, 1));
+    EXPECT_EQ(UnorderedPairKey(3, 9), UnorderedPairKey(9, 3));
+    EXPECT_NE(UnorderedPairKey(3, 9), UnorderedPairKey(3, 8));
+}
+
+TEST(Gicp, InformationAlongAndAcrossTheSurface) {
+    const Eigen::Vector3d n(0, 0, 1);
+    const Eigen::Matrix3d I = GicpInformation(n, n, 0.05, 0.5);
+    EXPECT_NEAR(I(2, 2), 1.0 / (2 * 0.05 * 0.05), 1e-9);
+    EXPECT_NEAR(I(0, 0), 1.0 / (2 * 0.5 * 0.5), 1e-9);
+    EXPECT_NEAR(I(0, 2), 0.0, 1e-12);
+}
+
+// A random sparse least-squares problem: residuals on 1-3 blocks each, some blocks repeated.
+template <int B>
+void CheckAgainstDense(unsigned seed) {
+    constexpr int kBlocks = 7;
+    constexpr int M = 2;
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> g;
+    std::uniform_int_distribution<int> pick(0, kBlocks - 1);
+    BlockSystem<B> sys(kBlocks);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(B * kBlocks, B * kBlocks);
+    Eigen::VectorXd grad = Eigen::VectorXd::Zero(B * kBlocks);
+    for (int t = 0; t < 60; ++t) {
+        const int count = 1 + t % 3;
+        int blocks[3];
+        Eigen::Matrix<double, M, B> J[3];
+        for (int i = 0; i < count; ++i) {
+            blocks[i] = t % 11 == 0 && i > 0 ? blocks[0] : pick(rng);  // repeats
+            for (int r = 0; r < M; ++r) {
+                for (int c = 0; c < B; ++c) J[i](r, c) = g(rng);
+            }
+        }
+        Eigen::Matrix<double, M, M> W;
+        W << 2.0, 0.3, 0.3, 1.0;
+        const Eigen::Matrix<double, M, 1> r(g(rng), g(rng));
+        sys.template Add<M>(blocks, J, count, W, r);
+        Eigen::MatrixXd Jd = Eigen::MatrixXd::Zero(M, B * kBlocks);
+        for (int i = 0; i < count; ++i) Jd.middleCols(B * blocks[i], B) += J[i];
+        H += Jd.transpose() * W * Jd;
+        grad += Jd.transpose() * W * r;
+    }
+    for (int b = 0; b < kBlocks; ++b) {  // a prior keeps every block determined
+        sys.AddPrior(static_cast<std::size_t>(b),
+                     Eigen::Matrix<double, B, B>::Identity(),
+                     Eigen::Matrix<double, B, 1>::Constant(0.5));
+        H.block(B * b, B * b, B, B) += Eigen::MatrixXd::Identity(B, B);
+        grad.segment(B * b, B) += Eigen::VectorXd::Constant(B, 0.5);
+    }
+    DampedSolver<B> solver(sys);
+    ASSERT_EQ(solver.num_unknowns(), static_cast<std::size_t>(B * kBlocks));
+    Eigen::VectorXd x;
+    ASSERT_TRUE(solver.Solve(0.0, &x));
+    const Eigen::VectorXd want = -H.ldlt().solve(grad);
+    EXPECT_LT((x - want).norm(), 1e-7 * (1 + want.norm()));
+    const Eigen::MatrixXd C = solver.InverseLeadingBlock(B + 1);
+    const Eigen::MatrixXd Cd = H.inverse().topLeftCorner(B + 1, B + 1);
+    EXPECT_LT((C - Cd).norm(), 1e-7 * Cd.norm());
+    // Levenberg damping: (H + lambda diag(H)) x = -g, a shorter step.
+    const double lambda = 3.0;
+    ASSERT_TRUE(solver.Solve(lambda, &x));
+    Eigen::MatrixXd A = H;
+    A.diagonal() *= 1.0 + lambda;
+    EXPECT_LT((x - (-A.ldlt().solve(grad))).norm(), 1e-7 * (1 + want.norm()));
+    EXPECT_LT(x.norm(), want.norm());
+}
+
+TEST(DampedSolver, ScalarBlocksMatchADenseSolve) {
+    CheckAgainstDense<1>(5);
+}
+TEST(DampedSolver, PoseBlocksMatchADenseSolve) {
+    CheckAgainstDense<6>(6);
+}
+
+TEST(DampedSolver, NonFiniteSystemFailsCleanly) {
+    BlockSystem<1> sys(2);
+    const int b[1] = {0};
+    const Eigen::Matrix<double, 1, 1> J[1] = {Eigen::Matrix<double, 1, 1>::Constant(NAN)};
+    sys.Add<1>(
+        b, J, 1, Eigen::Matrix<double, 1, 1>::Identity(), Eigen::Matrix<double, 1, 1>::Ones());
+    DampedSolver<1> solver(sys);
+    Eigen::VectorXd x;
+    EXPECT_FALSE(solver.Solve(0.0, &x));
+    EXPECT_EQ(solver.InverseLeadingBlock(1).size(), 0);
+}
+
+TEST(Robust, RobustWeights) {
+    EXPECT_DOUBLE_EQ(RobustWeight(RobustKernel::kNone, 10.0, 1.0), 1.0);
+    EXPECT_DOUBLE_EQ(RobustWeight(RobustKernel::kHuber, 0.5, 1.0), 1.0);
+    EXPECT_DOUBLE_EQ(RobustWeight(RobustKernel::kHuber, 4.0, 1.0), 0.25);
+    EXPECT_DOUBLE_EQ(RobustWeight(RobustKernel::kCauchy, 0.0, 2.0), 1.0);
+    EXPECT_DOUBLE_EQ(RobustWeight(RobustKernel::kCauchy, 2.0, 2.0), 0.5);
+}
+
+// The step guard compares RobustCost; the normal equations use RobustWeight: the weight must be
+// rho'(s) / (2 s) of that cost, and the cost continuous and equal to s^2 near zero.
+TEST(Robust, RobustCostMatchesItsWeight) {
+    for (const auto k : {RobustKernel::kNone, RobustKernel::kHuber, RobustKernel::kCauchy}) {
+        for (const double s : {0.3, 0.9, 1.5, 3.0, 10.0}) {
+            const double h = 1e-6;
+            const double d = (RobustCost(k, s + h, 1.2) - RobustCost(k, s - h, 1.2)) / (2 * h);
+            EXPECT_NEAR(d / (2 * s), RobustWeight(k, s, 1.2), 1e-6)
+                << static_cast<int>(k) << " " << s;
+        }
+        EXPECT_NEAR(RobustCost(k, 0.01, 1.2), 1e-4, 1e-8);
+        EXPECT_NEAR(RobustCost(k, 1.2 + 1e-9, 1.2), RobustCost(k, 1.2 - 1e-9, 1.2), 1e-6);
+    }
+}
+
+}  // namespace
+}  // namespace pitmap::proc::reg
