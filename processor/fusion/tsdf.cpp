@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // TSDF integration (seed paper section 4.3, Eq. 4-6) with a polar line sensor model after
-// May et al. (2014), on OpenVDB grids. All OpenVDB template code of the fusion stage lives here
-// (and the file I/O in vdb_io.cpp).
+// May et al. (2014), on OpenVDB grids: the voxel rasteriser and the integration loop. The
+// footprint model is in footprint.cpp, queries of the volume in tsdf_queries.cpp.
 //
 // Work is cut into slabs of kSlabVoxels along the world x index. One TBB task owns one slab:
 // it replays every scan in input order but touches only voxels of its slab, in a grid of its
@@ -23,12 +23,16 @@
 #include <mutex>
 
 #include "common/result.hpp"
+#include "processor/fusion/detail/prepared_scan.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
 
 namespace pitmap::proc::fusion {
 
 namespace {
 
+using detail::Geometry;
+using detail::PreparedBeam;
+using detail::PreparedScan;
 using FloatTree = openvdb::FloatTree;
 using LeafT = FloatTree::LeafNodeType;
 using openvdb::Coord;
@@ -45,123 +49,6 @@ openvdb::FloatGrid::Ptr MakeGrid(float background, double voxel_size_m, const ch
     grid->setTransform(openvdb::math::Transform::createLinearTransform(voxel_size_m));
     grid->setName(name);
     return grid;
-}
-
-// A beam (beam-width mode: a sector) of a scan, prepared once for all slabs. Ranges are in
-// voxel units.
-struct PreparedBeam {
-    float range_vox;       // ray mode: the measured range; beam-width mode: the footprint range
-    float range_prev_vox;  // beam-width mode: footprint range of beam - 1 (NaN = none)
-    float range_next_vox;  // beam-width mode: footprint range of beam + 1 (NaN = none)
-    float weight;          // f of one update (beam-width mode: f times the footprint support)
-    std::int32_t x_lo;     // voxel x index range the beam can touch
-    std::int32_t x_hi;
-    std::uint16_t beam;  // beam index
-};
-
-struct PreparedScan {
-    Eigen::Matrix3d R;      // R_world_sonar
-    Eigen::Vector3d p_vox;  // sonar position in voxel index units
-    std::vector<PreparedBeam> beams;
-    std::int32_t x_lo = std::numeric_limits<std::int32_t>::max();
-    std::int32_t x_hi = std::numeric_limits<std::int32_t>::min();
-    // Counters of this scan (summed into IntegrateResult).
-    std::int64_t beams_used = 0;
-    std::int64_t beams_no_detection = 0;
-    std::int64_t beams_out_of_range = 0;
-    std::int64_t beams_inconsistent = 0;
-    bool out_of_bounds = false;  // pose non-finite or beyond kMaxSonarOffsetM: no beams
-};
-
-constexpr int kMaxFootprintHalf = 32;  // beams on each side of a footprint considered at most
-
-// Median of a small array (reorders it); the mean of the two middle values for even n.
-double SmallMedian(double* v, int n) {
-    std::sort(v, v + n);
-    return (n & 1) != 0 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-// The range the footprint of beam i sees, from the beams whose axes lie inside its cone
-// (|k| <= half, k = j - i): a robust line r(k) = c + s k (s the median slope between
-// neighbouring valid beams, c the median of r_j - s k), the beams within the gate of that line
-// are inliers, and the footprint range is the least-squares line through the inliers at k = 0.
-// On a planar patch the ranges vary almost linearly across the cone, so this is unbiased; an
-// isolated coarse outlier (or a dropout) inside the cone is outvoted. The line must hold a
-// strict majority of the cone's valid beams and a plausible slope (|dr/dk| <= max_slope * r,
-// i.e. incidence below ~80 deg); otherwise a constant model is tried, and a footprint that
-// straddles several surfaces with no majority gives no range. r holds the measured ranges,
-// NaN for invalid beams. Returns false when there is no range.
-struct FootprintRange {
-    float range = 0;
-    float slope = 0;           // range change per beam of the inlier line
-    float gate = 0;            // inlier gate used
-    int support = 0;           // inliers
-    bool self_inlier = false;  // beam i itself is valid and an inlier
-};
-bool FitFootprint(const std::vector<float>& r,
-                  int i,
-                  int half,
-                  double gate_vox,
-                  double gate_fraction,
-                  double max_slope,
-                  FootprintRange& out) {
-    const int n = static_cast<int>(r.size());
-    double ks[2 * kMaxFootprintHalf + 1];
-    double rs[2 * kMaxFootprintHalf + 1];
-    double tmp[2 * kMaxFootprintHalf + 1];
-    int m = 0;
-    for (int k = -half; k <= half; ++k) {
-        const int j = i + k;
-        if (j < 0 || j >= n || !std::isfinite(r[static_cast<std::size_t>(j)])) continue;
-        ks[m] = k;
-        rs[m] = r[static_cast<std::size_t>(j)];
-        ++m;
-    }
-    if (m == 0) return false;
-    auto attempt = [&](double slope) {
-        for (int t = 0; t < m; ++t) tmp[t] = rs[t] - slope * ks[t];
-        const double c = SmallMedian(tmp, m);
-        const double gate = gate_vox + gate_fraction * c;
-        // Least squares over the inliers: r = a + b k.
-        double sw = 0, sk = 0, sr = 0, skk = 0, skr = 0;
-        bool self_inlier = false;
-        for (int t = 0; t < m; ++t) {
-            if (std::abs(rs[t] - (c + slope * ks[t])) > gate) continue;
-            sw += 1;
-            sk += ks[t];
-            sr += rs[t];
-            skk += ks[t] * ks[t];
-            skr += ks[t] * rs[t];
-            if (ks[t] == 0) self_inlier = true;
-        }
-        const int support = static_cast<int>(sw);
-        if (2 * support <= m) return false;
-        const double det = sw * skk - sk * sk;
-        double a = c;
-        double b = slope;
-        if (support >= 2 && det > 1e-9) {
-            a = (skk * sr - sk * skr) / det;
-            b = (sw * skr - sk * sr) / det;
-        } else if (support == 1) {
-            a = sr - slope * sk;  // the single inlier moved along the slope to k = 0
-        } else {
-            a = sr / sw;  // several inliers on one beam position cannot happen; mean for safety
-        }
-        if (!(a > 0.0) || std::abs(b) > max_slope * a) return false;
-        out.range = static_cast<float>(a);
-        out.slope = static_cast<float>(b);
-        out.gate = static_cast<float>(gate);
-        out.support = support;
-        out.self_inlier = self_inlier;
-        return true;
-    };
-    double slope = 0;
-    if (m >= 2) {
-        for (int t = 0; t + 1 < m; ++t) tmp[t] = (rs[t + 1] - rs[t]) / (ks[t + 1] - ks[t]);
-        slope = SmallMedian(tmp, m - 1);
-    }
-    if (slope != 0.0 && attempt(slope)) return true;
-    return attempt(0.0);
 }
 
 // Running weighted average on a pair of leaves (Eq. 5-6), with the last leaf cached.
@@ -198,14 +85,6 @@ private:
     float f_;
     float w_max_;
     std::int64_t updates_ = 0;
-};
-
-// Geometry shared by both sensor models, in voxel index units (voxel centres at integers).
-struct Geometry {
-    double trunc_vox;
-    double tan_half_bw;
-    double cos_half_bw;
-    double metres_per_voxel;
 };
 
 // Beam-width mode for one sector, restricted to x in [x_min, x_max].
@@ -490,115 +369,6 @@ void IntegrateRay(const PreparedScan& scan,
 // mode replaces each range by its footprint range (FitFootprint) and gives each sector the
 // weight f times the footprint's support; a sector whose own beam is a dropout but whose
 // footprint sees the surface is integrated too (the footprint covers it).
-PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo) {
-    const double inv_s = 1.0 / config.voxel_size_m;
-    const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
-    PreparedScan ps;
-    ps.R = scan.T_world_sonar.linear();
-    const Eigen::Vector3d p_world = scan.T_world_sonar.translation();
-    if (!p_world.allFinite() || !ps.R.allFinite() ||
-        p_world.cwiseAbs().maxCoeff() > kMaxSonarOffsetM) {
-        ps.out_of_bounds = true;  // would make the x range (and the slab arrays) unbounded
-        return ps;
-    }
-    ps.p_vox = p_world * inv_s;
-    const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    std::vector<float> r(n, nan);  // valid ranges in voxel units
-    for (std::size_t i = 0; i < n; ++i) {
-        const float range = scan.ranges_m[i];
-        if (!std::isfinite(range) || range == 0.0f) {
-            ++ps.beams_no_detection;
-        } else if (range < config.min_range_m || range > config.max_range_m) {
-            ++ps.beams_out_of_range;
-        } else {
-            r[i] = static_cast<float>(range * inv_s);
-            ++ps.beams_used;
-        }
-    }
-    const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
-    const double half_inc = 0.5 * inc;
-    const double spread =
-        beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc) : 0.0;
-    // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
-    const int half =
-        inc > 1e-9
-            ? std::min(kMaxFootprintHalf,
-                       static_cast<int>(std::floor(0.5 * config.beam_width_rad / inc + 1e-6)))
-            : 0;
-    std::vector<float> fr;  // footprint ranges (beam-width mode)
-    std::vector<int> support;
-    std::vector<float> slope, gate;
-    if (beam_width) {
-        fr.assign(n, nan);
-        support.assign(n, 0);
-        slope.assign(n, 0.0f);
-        gate.assign(n, 0.0f);
-        const double gate_vox = config.footprint_gate_m * inv_s;
-        // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
-        const double max_slope = inc * std::tan(80.0 * 3.14159265358979323846 / 180.0);
-        for (std::size_t i = 0; i < n; ++i) {
-            FootprintRange fp;
-            if (!FitFootprint(r,
-                              static_cast<int>(i),
-                              half,
-                              gate_vox,
-                              config.footprint_gate_fraction,
-                              max_slope,
-                              fp)) {
-                continue;
-            }
-            fr[i] = fp.range;
-            support[i] = fp.support;
-            slope[i] = fp.slope;
-            gate[i] = fp.gate;
-            if (std::isfinite(r[i]) && !fp.self_inlier) ++ps.beams_inconsistent;
-        }
-    }
-    const std::vector<float>& ranges = beam_width ? fr : r;
-    ps.beams.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        if (!std::isfinite(ranges[i])) continue;
-        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
-        const double u_x = ps.R(0, 1) * std::sin(theta) + ps.R(0, 2) * std::cos(theta);
-        PreparedBeam pb;
-        pb.range_vox = ranges[i];
-        // Interpolate towards a neighbour only on the same surface: its footprint range must lie
-        // on this footprint's line (a bench crest next to the floor below would otherwise
-        // span a false surface across the shadow).
-        pb.range_prev_vox = nan;
-        pb.range_next_vox = nan;
-        if (beam_width) {
-            if (i > 0 && std::abs(fr[i - 1] - (fr[i] - slope[i])) <= gate[i]) {
-                pb.range_prev_vox = fr[i - 1];
-            }
-            if (i + 1 < n && std::abs(fr[i + 1] - (fr[i] + slope[i])) <= gate[i]) {
-                pb.range_next_vox = fr[i + 1];
-            }
-        }
-        pb.weight = beam_width ? config.weight_per_measurement * static_cast<float>(support[i])
-                               : config.weight_per_measurement;
-        pb.beam = static_cast<std::uint16_t>(i);
-        double r_lo = pb.range_vox, r_hi = pb.range_vox;
-        for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
-            if (!std::isfinite(rn)) continue;
-            r_lo = std::min(r_lo, static_cast<double>(rn));
-            r_hi = std::max(r_hi, static_cast<double>(rn));
-        }
-        const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
-        const double q1 = r_hi + geo.trunc_vox;
-        // x extent of the frustum: along the axis plus the cross-section's reach.
-        const double reach = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
-        const double xa = ps.p_vox.x() + q0 * u_x;
-        const double xb = ps.p_vox.x() + q1 * u_x;
-        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach));
-        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach));
-        ps.x_lo = std::min(ps.x_lo, pb.x_lo);
-        ps.x_hi = std::max(ps.x_hi, pb.x_hi);
-        ps.beams.push_back(pb);
-    }
-    return ps;
-}
 
 }  // namespace
 
@@ -674,7 +444,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scans.size(), 64),
                           [&](const tbb::blocked_range<std::size_t>& range) {
                               for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                  prepared[si] = PrepareScan(scans[si], config_, geo);
+                                  prepared[si] = detail::PrepareScan(scans[si], config_, geo);
                               }
                           });
     });
@@ -809,173 +579,6 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                      std::to_string(result.voxel_updates) + " voxel updates, " +
                      std::to_string(result.active_voxels) + " active voxels";
     return result;
-}
-
-WeightFilterResult TsdfVolume::FilterByWeight(const WeightFilterConfig& config) {
-    WeightFilterResult result;
-    FloatTree& wt = impl_->weight->tree();
-    FloatTree& dt = impl_->distance->tree();
-    result.voxels_before = static_cast<std::int64_t>(wt.activeVoxelCount());
-    const float background_d = static_cast<float>(config_.truncation_m);
-    auto dacc = impl_->distance->getAccessor();
-    for (auto leaf = wt.beginLeaf(); leaf; ++leaf) {
-        LeafT* dleaf = dacc.probeLeaf(leaf->origin());
-        for (auto v = leaf->beginValueOn(); v; ++v) {
-            if (*v >= config.min_weight) continue;
-            const openvdb::Index off = v.pos();
-            leaf->setValueOff(off, 0.0f);
-            if (dleaf != nullptr) dleaf->setValueOff(off, background_d);
-            ++result.voxels_removed;
-        }
-    }
-    openvdb::tools::pruneInactive(wt);
-    openvdb::tools::pruneInactive(dt);
-    result.voxels_after = static_cast<std::int64_t>(wt.activeVoxelCount());
-    result.message = "removed " + std::to_string(result.voxels_removed) + " of " +
-                     std::to_string(result.voxels_before) + " voxels with weight < " +
-                     std::to_string(config.min_weight);
-    return result;
-}
-
-IsoSurfaceResult TsdfVolume::ExtractIsoSurface(double iso_m) const {
-    IsoSurfaceResult result;
-    if (impl_->weight->activeVoxelCount() == 0) {
-        result.message = "empty volume";
-        return result;
-    }
-    std::vector<openvdb::Vec3s> points;
-    std::vector<openvdb::Vec3I> tris;
-    std::vector<openvdb::Vec4I> quads;
-    openvdb::tools::volumeToMesh(*impl_->distance, points, tris, quads, iso_m, 0.0);
-    result.polygons_raw = static_cast<std::int64_t>(tris.size() + quads.size());
-
-    // A vertex (one per cell in OpenVDB's dual mesh) is kept if the sign change it marks lies
-    // between observed voxels: its cell must hold observed voxels on both sides of the iso
-    // value, and no edge may join a voxel below the level to an unobserved one. Otherwise the
-    // crossing is against the background +T, e.g. the false surface at the back of the band.
-    const double inv_s = 1.0 / config_.voxel_size_m;
-    const float iso = static_cast<float>(iso_m);
-    std::vector<std::int32_t> remap(points.size(), -1);
-    std::vector<char> ok(points.size(), 0);
-    {
-        auto wacc = impl_->weight->getConstAccessor();
-        auto dacc = impl_->distance->getConstAccessor();
-        for (std::size_t i = 0; i < points.size(); ++i) {
-            const openvdb::Vec3s& q = points[i];
-            const int x0 = static_cast<int>(std::floor(q.x() * inv_s));
-            const int y0 = static_cast<int>(std::floor(q.y() * inv_s));
-            const int z0 = static_cast<int>(std::floor(q.z() * inv_s));
-            // Corner state: 0 unobserved, 1 observed below the iso value, 2 observed above.
-            int state[8];
-            bool below = false, above = false;
-            for (int c = 0; c < 8; ++c) {
-                const Coord ijk(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + (c >> 2));
-                state[c] = !wacc.isValueOn(ijk) ? 0 : (dacc.getValue(ijk) < iso ? 1 : 2);
-                below |= state[c] == 1;
-                above |= state[c] == 2;
-            }
-            // The vertex averages the crossings on the cell's edges; an edge from a voxel below
-            // the level to an unobserved one (read as +T) would pull it off the surface.
-            bool contaminated = false;
-            for (int c = 0; c < 8 && !contaminated; ++c) {
-                for (int bit = 1; bit < 8 && !contaminated; bit <<= 1) {
-                    const int o = c ^ bit;
-                    contaminated = (state[c] == 1 && state[o] == 0);
-                }
-            }
-            ok[i] = below && above && !contaminated ? 1 : 0;
-        }
-    }
-    TriangleMesh& mesh = result.mesh;
-    auto vertex = [&](openvdb::Index i) {
-        if (remap[i] < 0) {
-            remap[i] = static_cast<std::int32_t>(mesh.vertices.size());
-            mesh.vertices.emplace_back(points[i].x(), points[i].y(), points[i].z());
-        }
-        return remap[i];
-    };
-    // OpenVDB winds polygons counter-clockwise seen from the positive (water) side.
-    auto add = [&](openvdb::Index a, openvdb::Index b, openvdb::Index c) {
-        mesh.triangles.emplace_back(vertex(a), vertex(b), vertex(c));
-    };
-    for (const openvdb::Vec3I& t : tris) {
-        if (!ok[t[0]] || !ok[t[1]] || !ok[t[2]]) {
-            ++result.polygons_unobserved;
-            continue;
-        }
-        add(t[0], t[1], t[2]);
-    }
-    for (const openvdb::Vec4I& q : quads) {
-        if (!ok[q[0]] || !ok[q[1]] || !ok[q[2]] || !ok[q[3]]) {
-            ++result.polygons_unobserved;
-            continue;
-        }
-        add(q[0], q[1], q[2]);
-        add(q[0], q[2], q[3]);
-    }
-    result.message = std::to_string(mesh.vertices.size()) + " vertices, " +
-                     std::to_string(mesh.triangles.size()) + " triangles (" +
-                     std::to_string(result.polygons_unobserved) +
-                     " polygons at unobserved cells dropped)";
-    return result;
-}
-
-float TsdfVolume::DistanceAt(const Eigen::Vector3d& p_world) const {
-    const Eigen::Vector3d q = p_world / config_.voxel_size_m;
-    return impl_->distance->tree().getValue(Coord(static_cast<int>(std::lround(q.x())),
-                                                  static_cast<int>(std::lround(q.y())),
-                                                  static_cast<int>(std::lround(q.z()))));
-}
-
-float TsdfVolume::WeightAt(const Eigen::Vector3d& p_world) const {
-    const Eigen::Vector3d q = p_world / config_.voxel_size_m;
-    return impl_->weight->tree().getValue(Coord(static_cast<int>(std::lround(q.x())),
-                                                static_cast<int>(std::lround(q.y())),
-                                                static_cast<int>(std::lround(q.z()))));
-}
-
-VolumeStats TsdfVolume::Stats() const {
-    VolumeStats s;
-    s.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
-    s.leaf_nodes = static_cast<std::int64_t>(impl_->weight->tree().leafCount());
-    s.memory_bytes =
-        static_cast<std::size_t>(impl_->distance->memUsage() + impl_->weight->memUsage());
-    bool first = true;
-    for (auto v = impl_->weight->tree().cbeginValueOn(); v; ++v) {
-        s.min_weight = first ? *v : std::min(s.min_weight, *v);
-        s.max_weight = first ? *v : std::max(s.max_weight, *v);
-        first = false;
-    }
-    return s;
-}
-
-WeightHistogram TsdfVolume::ComputeWeightHistogram(int num_bins) const {
-    PITMAP_CHECK(num_bins >= 0, "num_bins must be >= 0");
-    WeightHistogram h;
-    const float w_max = config_.max_weight;
-    if (num_bins == 0) {
-        const int top = static_cast<int>(std::ceil(w_max));
-        for (int k = 0; k <= top + 1; ++k) h.edges.push_back(static_cast<float>(k));
-    } else {
-        for (int k = 0; k <= num_bins; ++k) {
-            h.edges.push_back(w_max * static_cast<float>(k) / static_cast<float>(num_bins));
-        }
-        h.edges.back() = w_max;
-    }
-    const std::size_t bins = h.edges.size() - 1;
-    h.counts.assign(bins, 0);
-    const float width = h.edges[1] - h.edges[0];
-    for (auto v = impl_->weight->tree().cbeginValueOn(); v; ++v) {
-        const float w = *v;
-        std::size_t k = w <= 0.0f ? 0 : static_cast<std::size_t>(w / width);
-        k = std::min(k, bins - 1);
-        // Guard rounding at the edges of equal-width bins.
-        while (k > 0 && w < h.edges[k]) --k;
-        while (k + 1 < bins && w >= h.edges[k + 1]) ++k;
-        ++h.counts[k];
-        ++h.total;
-    }
-    return h;
 }
 
 }  // namespace pitmap::proc::fusion

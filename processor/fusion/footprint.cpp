@@ -1,0 +1,218 @@
+// SPDX-License-Identifier: MIT
+// The beam-width sensor model's footprint (after May et al. 2014): for every beam, the ranges
+// of the beams whose axes lie inside its cone are fitted by a robust line (median slope, gated
+// inliers), whose value at the beam is the footprint range the rasteriser integrates. Pure
+// arithmetic on one ping; no OpenVDB here.
+#include <algorithm>
+#include <cmath>
+
+#include "processor/fusion/detail/prepared_scan.hpp"
+
+namespace pitmap::proc::fusion::detail {
+
+namespace {
+
+constexpr int kMaxFootprintHalf = 32;  // beams on each side of a footprint considered at most
+
+// Median of a small array (reorders it); the mean of the two middle values for even n.
+double SmallMedian(double* v, int n) {
+    std::sort(v, v + n);
+    return (n & 1) != 0 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The range the footprint of beam i sees, from the beams whose axes lie inside its cone
+// (|k| <= half, k = j - i): a robust line r(k) = c + s k (s the median slope between
+// neighbouring valid beams, c the median of r_j - s k), the beams within the gate of that line
+// are inliers, and the footprint range is the least-squares line through the inliers at k = 0.
+// On a planar patch the ranges vary almost linearly across the cone, so this is unbiased; an
+// isolated coarse outlier (or a dropout) inside the cone is outvoted. The line must hold a
+// strict majority of the cone's valid beams and a plausible slope (|dr/dk| <= max_slope * r,
+// i.e. incidence below ~80 deg); otherwise a constant model is tried, and a footprint that
+// straddles several surfaces with no majority gives no range. r holds the measured ranges,
+// NaN for invalid beams. Returns false when there is no range.
+struct FootprintRange {
+    float range = 0;
+    float slope = 0;           // range change per beam of the inlier line
+    float gate = 0;            // inlier gate used
+    int support = 0;           // inliers
+    bool self_inlier = false;  // beam i itself is valid and an inlier
+};
+bool FitFootprint(const std::vector<float>& r,
+                  int i,
+                  int half,
+                  double gate_vox,
+                  double gate_fraction,
+                  double max_slope,
+                  FootprintRange& out) {
+    const int n = static_cast<int>(r.size());
+    double ks[2 * kMaxFootprintHalf + 1];
+    double rs[2 * kMaxFootprintHalf + 1];
+    double tmp[2 * kMaxFootprintHalf + 1];
+    int m = 0;
+    for (int k = -half; k <= half; ++k) {
+        const int j = i + k;
+        if (j < 0 || j >= n || !std::isfinite(r[static_cast<std::size_t>(j)])) continue;
+        ks[m] = k;
+        rs[m] = r[static_cast<std::size_t>(j)];
+        ++m;
+    }
+    if (m == 0) return false;
+    auto attempt = [&](double slope) {
+        for (int t = 0; t < m; ++t) tmp[t] = rs[t] - slope * ks[t];
+        const double c = SmallMedian(tmp, m);
+        const double gate = gate_vox + gate_fraction * c;
+        // Least squares over the inliers: r = a + b k.
+        double sw = 0, sk = 0, sr = 0, skk = 0, skr = 0;
+        bool self_inlier = false;
+        for (int t = 0; t < m; ++t) {
+            if (std::abs(rs[t] - (c + slope * ks[t])) > gate) continue;
+            sw += 1;
+            sk += ks[t];
+            sr += rs[t];
+            skk += ks[t] * ks[t];
+            skr += ks[t] * rs[t];
+            if (ks[t] == 0) self_inlier = true;
+        }
+        const int support = static_cast<int>(sw);
+        if (2 * support <= m) return false;
+        const double det = sw * skk - sk * sk;
+        double a = c;
+        double b = slope;
+        if (support >= 2 && det > 1e-9) {
+            a = (skk * sr - sk * skr) / det;
+            b = (sw * skr - sk * sr) / det;
+        } else if (support == 1) {
+            a = sr - slope * sk;  // the single inlier moved along the slope to k = 0
+        } else {
+            a = sr / sw;  // several inliers on one beam position cannot happen; mean for safety
+        }
+        if (!(a > 0.0) || std::abs(b) > max_slope * a) return false;
+        out.range = static_cast<float>(a);
+        out.slope = static_cast<float>(b);
+        out.gate = static_cast<float>(gate);
+        out.support = support;
+        out.self_inlier = self_inlier;
+        return true;
+    };
+    double slope = 0;
+    if (m >= 2) {
+        for (int t = 0; t + 1 < m; ++t) tmp[t] = (rs[t + 1] - rs[t]) / (ks[t + 1] - ks[t]);
+        slope = SmallMedian(tmp, m - 1);
+    }
+    if (slope != 0.0 && attempt(slope)) return true;
+    return attempt(0.0);
+}
+
+}  // namespace
+
+PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo) {
+    const double inv_s = 1.0 / config.voxel_size_m;
+    const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
+    PreparedScan ps;
+    ps.R = scan.T_world_sonar.linear();
+    const Eigen::Vector3d p_world = scan.T_world_sonar.translation();
+    if (!p_world.allFinite() || !ps.R.allFinite() ||
+        p_world.cwiseAbs().maxCoeff() > kMaxSonarOffsetM) {
+        ps.out_of_bounds = true;  // would make the x range (and the slab arrays) unbounded
+        return ps;
+    }
+    ps.p_vox = p_world * inv_s;
+    const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::vector<float> r(n, nan);  // valid ranges in voxel units
+    for (std::size_t i = 0; i < n; ++i) {
+        const float range = scan.ranges_m[i];
+        if (!std::isfinite(range) || range == 0.0f) {
+            ++ps.beams_no_detection;
+        } else if (range < config.min_range_m || range > config.max_range_m) {
+            ++ps.beams_out_of_range;
+        } else {
+            r[i] = static_cast<float>(range * inv_s);
+            ++ps.beams_used;
+        }
+    }
+    const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
+    const double half_inc = 0.5 * inc;
+    const double spread =
+        beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc) : 0.0;
+    // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
+    const int half =
+        inc > 1e-9
+            ? std::min(kMaxFootprintHalf,
+                       static_cast<int>(std::floor(0.5 * config.beam_width_rad / inc + 1e-6)))
+            : 0;
+    std::vector<float> fr;  // footprint ranges (beam-width mode)
+    std::vector<int> support;
+    std::vector<float> slope, gate;
+    if (beam_width) {
+        fr.assign(n, nan);
+        support.assign(n, 0);
+        slope.assign(n, 0.0f);
+        gate.assign(n, 0.0f);
+        const double gate_vox = config.footprint_gate_m * inv_s;
+        // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
+        const double max_slope = inc * std::tan(80.0 * 3.14159265358979323846 / 180.0);
+        for (std::size_t i = 0; i < n; ++i) {
+            FootprintRange fp;
+            if (!FitFootprint(r,
+                              static_cast<int>(i),
+                              half,
+                              gate_vox,
+                              config.footprint_gate_fraction,
+                              max_slope,
+                              fp)) {
+                continue;
+            }
+            fr[i] = fp.range;
+            support[i] = fp.support;
+            slope[i] = fp.slope;
+            gate[i] = fp.gate;
+            if (std::isfinite(r[i]) && !fp.self_inlier) ++ps.beams_inconsistent;
+        }
+    }
+    const std::vector<float>& ranges = beam_width ? fr : r;
+    ps.beams.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!std::isfinite(ranges[i])) continue;
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        const double u_x = ps.R(0, 1) * std::sin(theta) + ps.R(0, 2) * std::cos(theta);
+        PreparedBeam pb;
+        pb.range_vox = ranges[i];
+        // Interpolate towards a neighbour only on the same surface: its footprint range must lie
+        // on this footprint's line (a bench crest next to the floor below would otherwise
+        // span a false surface across the shadow).
+        pb.range_prev_vox = nan;
+        pb.range_next_vox = nan;
+        if (beam_width) {
+            if (i > 0 && std::abs(fr[i - 1] - (fr[i] - slope[i])) <= gate[i]) {
+                pb.range_prev_vox = fr[i - 1];
+            }
+            if (i + 1 < n && std::abs(fr[i + 1] - (fr[i] + slope[i])) <= gate[i]) {
+                pb.range_next_vox = fr[i + 1];
+            }
+        }
+        pb.weight = beam_width ? config.weight_per_measurement * static_cast<float>(support[i])
+                               : config.weight_per_measurement;
+        pb.beam = static_cast<std::uint16_t>(i);
+        double r_lo = pb.range_vox, r_hi = pb.range_vox;
+        for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
+            if (!std::isfinite(rn)) continue;
+            r_lo = std::min(r_lo, static_cast<double>(rn));
+            r_hi = std::max(r_hi, static_cast<double>(rn));
+        }
+        const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
+        const double q1 = r_hi + geo.trunc_vox;
+        // x extent of the frustum: along the axis plus the cross-section's reach.
+        const double reach = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
+        const double xa = ps.p_vox.x() + q0 * u_x;
+        const double xb = ps.p_vox.x() + q1 * u_x;
+        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach));
+        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach));
+        ps.x_lo = std::min(ps.x_lo, pb.x_lo);
+        ps.x_hi = std::max(ps.x_hi, pb.x_hi);
+        ps.beams.push_back(pb);
+    }
+    return ps;
+}
+
+}  // namespace pitmap::proc::fusion::detail
