@@ -9,8 +9,9 @@
 // moving leaves; each voxel sees the same updates in the same order for any thread count.
 #include "processor/fusion/tsdf.hpp"
 
-#include <openvdb/tools/Prune.h>
-#include <openvdb/tools/VolumeToMesh.h>
+#include <openvdb/math/DDA.h>
+#include <openvdb/math/Ray.h>
+#include <openvdb/openvdb.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -325,44 +326,22 @@ void IntegrateRay(const PreparedScan& scan,
     const Eigen::Vector3d u = scan.R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta));
     const double q0 = std::max(0.0, r - T);
     const double q1 = r + T;
-    // Voxel k covers [k - 0.5, k + 0.5): work on shifted coordinates s = x + 0.5.
+    // Voxel k covers [k - 0.5, k + 0.5): OpenVDB's DDA (Amanatides & Woo) walks the cells
+    // [k, k + 1) of the shifted coordinates s = x + 0.5, from q0 to q1 along the beam.
+    using Ray = openvdb::math::Ray<double>;
     const Eigen::Vector3d s0 = scan.p_vox + q0 * u + Eigen::Vector3d::Constant(0.5);
-    int cell[3], step[3];
-    double t_max[3], t_delta[3];
-    for (int k = 0; k < 3; ++k) {
-        cell[k] = static_cast<int>(std::floor(s0[k]));
-        if (u[k] > 0) {
-            step[k] = 1;
-            t_delta[k] = 1.0 / u[k];
-            t_max[k] = (cell[k] + 1 - s0[k]) / u[k];
-        } else if (u[k] < 0) {
-            step[k] = -1;
-            t_delta[k] = -1.0 / u[k];
-            t_max[k] = (s0[k] - cell[k]) / -u[k];
-        } else {
-            step[k] = 0;
-            t_delta[k] = std::numeric_limits<double>::infinity();
-            t_max[k] = std::numeric_limits<double>::infinity();
-        }
-    }
     const double length = q1 - q0;
-    double t = 0;
-    while (t <= length) {
-        if (cell[0] >= x_min && cell[0] <= x_max) {
-            const Eigen::Vector3d v(cell[0], cell[1], cell[2]);
+    const Ray ray(Ray::Vec3Type(s0.x(), s0.y(), s0.z()), Ray::Vec3Type(u.x(), u.y(), u.z()));
+    openvdb::math::DDA<Ray, 0> dda(ray, 0.0, length);
+    do {
+        const Coord& c = dda.voxel();
+        if (c.x() >= x_min && c.x() <= x_max) {
+            const Eigen::Vector3d v(c.x(), c.y(), c.z());
             const double d = r - (v - scan.p_vox).norm();  // Eq. 4
-            if (d > -T && d <= T) {
-                up.Update(Coord(cell[0], cell[1], cell[2]),
-                          static_cast<float>(std::min(d, T) * g.metres_per_voxel));
-            }
+            if (d > -T && d <= T)
+                up.Update(c, static_cast<float>(std::min(d, T) * g.metres_per_voxel));
         }
-        int k = 0;
-        if (t_max[1] < t_max[k]) k = 1;
-        if (t_max[2] < t_max[k]) k = 2;
-        t = t_max[k];
-        t_max[k] += t_delta[k];
-        cell[k] += step[k];
-    }
+    } while (dda.step());
 }
 
 // Valid beams of one scan with the x range of world voxel indices each can touch. Beam-width
