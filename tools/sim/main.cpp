@@ -121,6 +121,13 @@ int main(int argc, char** argv) {
                           stamp_error_ms,
                           "the decoded pings in the log are stamped this many ms late (a "
                           "daemon's residual latency; default 0)");
+    std::vector<double> stamp_step;
+    synth
+        ->add_option("--sonar-stamp-error-step",
+                     stamp_step,
+                     "AT_S MS: from AT_S seconds after the survey start on, the decoded pings are "
+                     "stamped MS ms late instead (a daemon clock that stepped mid-survey)")
+        ->expected(2);
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -165,6 +172,10 @@ int main(int argc, char** argv) {
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
     if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;
+    if (stamp_step.size() == 2) {
+        scenario->sonar.daemon_stamp_error_step_s = stamp_step[0];
+        scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
+    }
     sim::SynthOptions opt;
     opt.out_dir = out_dir;
     opt.num_threads = threads;

@@ -194,6 +194,10 @@ std::vector<std::string> ScenarioConfig::Validate() const {
     }
     if (!(std::abs(sonar.daemon_stamp_error_ms) <= 1000.0))
         p.push_back("sonar.daemon_stamp_error_ms must be within +-1000");
+    if (!(std::abs(sonar.daemon_stamp_error_after_ms) <= 1000.0))
+        p.push_back("sonar.daemon_stamp_error_after_ms must be within +-1000");
+    if (!std::isfinite(sonar.daemon_stamp_error_step_s))
+        p.push_back("sonar.daemon_stamp_error_step_s must be finite");
     if (sonar.format_version != 0 && sonar.format_version != 10)
         p.push_back("sonar.format_version must be 0 or 10");
     if (sonar.dropout_probability < 0 || sonar.outlier_probability < 0 ||

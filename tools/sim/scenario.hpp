@@ -122,6 +122,11 @@ struct SonarConfig {
     // The daemon's stamping error: decoded pings in the log are stamped this much late (a
     // residual latency the processor's calibration must find; 0 = exact).
     double daemon_stamp_error_ms = 0.0;
+    // A step of that error during the survey (the daemon's clock re-locked, say): from
+    // daemon_stamp_error_step_s after the survey start on, pings are stamped
+    // daemon_stamp_error_after_ms late instead (< 0 = no step).
+    double daemon_stamp_error_step_s = -1.0;
+    double daemon_stamp_error_after_ms = 0.0;
 
     // What the topside program puts into the 83P header from its auxiliary inputs (spec
     // §1.2, §1.4). Every value it writes is the last one it had received when the ping was

@@ -25,6 +25,13 @@
 namespace pitmap::sim {
 namespace {
 
+// The daemon's stamping error of a ping t seconds after the first (its step, if any).
+double StampErrorMs(const SonarConfig& o, double t) {
+    return o.daemon_stamp_error_step_s >= 0 && t >= o.daemon_stamp_error_step_s
+               ? o.daemon_stamp_error_after_ms
+               : o.daemon_stamp_error_ms;
+}
+
 namespace fs = std::filesystem;
 
 constexpr const char* kNovatelId = "novatel_com1";
@@ -248,8 +255,8 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
             }
             const double t_rx = d.t_sent_s + jitter(jitter_rng);
             const std::int64_t u = utime_at(t_rx);
-            auto decoded_ping = decoded.SonarDatagram(
-                d.bytes, u, gps_at(t + sc.sonar.daemon_stamp_error_ms * 1e-3));
+            auto decoded_ping =
+                decoded.SonarDatagram(d.bytes, u, gps_at(t + StampErrorMs(sc.sonar, t) * 1e-3));
             events.push_back({u,
                               lcmlog::ChannelName(lcmlog::kChannelRaw, kSonarId),
                               EncodeRaw(u,

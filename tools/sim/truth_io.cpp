@@ -102,6 +102,8 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"topside_clock_drift_ppm", o.topside_clock_drift_ppm},
                   {"ping_latency_ms", o.ping_latency_ms},
                   {"daemon_stamp_error_ms", o.daemon_stamp_error_ms},
+                  {"daemon_stamp_error_step_s", o.daemon_stamp_error_step_s},
+                  {"daemon_stamp_error_after_ms", o.daemon_stamp_error_after_ms},
                   {"data_latency_ms", o.data_latency_ms},
                   {"nmea_position", o.nmea_position},
                   {"nmea_position_rate_hz", o.nmea_position_rate_hz},
