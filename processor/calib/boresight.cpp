@@ -548,8 +548,10 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     }
     for (const auto& c : chosen) {
         const Samples V = Collect(geo, c.start_s, c.end_s, cfg.beam_stride);
-        res.verify.push_back(
-            {c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg)});
+        VerifyResult v{
+            c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg), {}};
+        if (res.latency_estimated) v.after_nominal_latency = Evaluate(poses, V, m, tau0, cfg);
+        res.verify.push_back(v);
     }
     char buf[256];
     std::snprintf(buf,

@@ -81,7 +81,11 @@ struct ResidualStats {
 
 struct VerifyResult {
     SegmentScore segment;
-    ResidualStats before, after;
+    ResidualStats before, after;  // nominal mount and latency; calibrated mount and latency
+    // Calibrated mount at the nominal latency (only when the latency was estimated): a latency
+    // that fits its own window but not this one (a sonar clock that stepped) shows here, even
+    // where the calibrated boresight makes `after` better than `before`.
+    ResidualStats after_nominal_latency;
 };
 
 enum class Termination { kConverged = 0, kMaxIterations, kNoOverlap, kCancelled };
