@@ -15,6 +15,7 @@
 #include <type_traits>
 #include <variant>
 
+#include "common/clock/ping_time.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
@@ -60,6 +61,7 @@ std::vector<std::string> IngestConfig::Validate() const {
     std::vector<std::string> p;
     if (!std::isfinite(sonar_clock_offset_s))
         p.push_back("ingest.sonar_clock_offset_s must be finite");
+    for (const std::string& problem : sonar_clock.Validate()) p.push_back("ingest." + problem);
     for (const std::string* id : {&nav_channel_id, &sonar_channel_id}) {
         for (char c : *id) {
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
@@ -264,8 +266,9 @@ private:
 struct RawStream {
     std::unique_ptr<nv::Framer> novatel;
     std::unique_ptr<dt::StreamFramer> deltat;
+    std::unique_ptr<clock::PingStamper> stamper;  // sonar channels: the daemon's clock model
     dt::FloatOrderMemory float_order;
-    std::int64_t last_utime_gps = 0;
+    clock::ChunkTimes last_chunk;  // receive times of the latest chunk (the flush stamps with it)
 };
 
 void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
@@ -280,8 +283,12 @@ void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
     }
 }
 
-void DrainDeltat(
-    RawStream& s, Collector& col, IngestCounts& counts, std::int64_t utime_gps, dt::Ping83P& ping) {
+// A re-decoded ping, stamped as the daemon stamped it (common/clock/ping_time.hpp).
+void AddRawPing(RawStream& s, Collector& col, const dt::Ping83P& ping) {
+    col.AddPing83P(ping, s.stamper->Stamp(ping, clock::ReceiveUtimeGps(s.last_chunk)).utime_gps);
+}
+
+void DrainDeltat(RawStream& s, Collector& col, IngestCounts& counts, dt::Ping83P& ping) {
     while (true) {
         auto ev = s.deltat->Next();
         if (std::holds_alternative<protocol::NeedMore>(ev)) break;
@@ -294,8 +301,7 @@ void DrainDeltat(
         if (std::holds_alternative<dt::DecodeError>(d)) {
             ++counts.pings_bad;
         } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
-            const std::int32_t age = ping.TransmitAgeAtSendUs();
-            col.AddPing83P(ping, utime_gps > 0 ? utime_gps - std::max(0, age) : 0);
+            AddRawPing(s, col, ping);
         }
     }
 }
@@ -436,20 +442,24 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     if (!s.novatel) s.novatel = std::make_unique<nv::Framer>();
                     s.novatel->Push(bytes);
                     DrainNovatel(s, col, c);
-                } else if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
-                    auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
-                    if (std::holds_alternative<dt::DecodeError>(d)) {
-                        ++c.pings_bad;
-                    } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
-                        const std::int32_t age = ping83.TransmitAgeAtSendUs();
-                        col.AddPing83P(ping83,
-                                       raw.utime_gps > 0 ? raw.utime_gps - std::max(0, age) : 0);
-                    }
                 } else {
-                    if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
-                    s.last_utime_gps = raw.utime_gps;
-                    s.deltat->Push(bytes);
-                    DrainDeltat(s, col, c, raw.utime_gps, ping83);
+                    if (!s.stamper)
+                        s.stamper = std::make_unique<clock::PingStamper>(config.sonar_clock);
+                    s.last_chunk = {.utime_host = raw.utime,
+                                    .utime_gps = raw.utime_gps,
+                                    .utime_kernel = raw.utime_kernel};
+                    if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
+                        auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
+                        if (std::holds_alternative<dt::DecodeError>(d)) {
+                            ++c.pings_bad;
+                        } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
+                            AddRawPing(s, col, ping83);
+                        }
+                    } else {
+                        if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
+                        s.deltat->Push(bytes);
+                        DrainDeltat(s, col, c, ping83);
+                    }
                 }
             }
             if (progress && (++n & 0x3FFF) == 0) {
@@ -482,7 +492,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
         if (s.deltat) {
             while (auto sk = s.deltat->Flush()) {
                 r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-                DrainDeltat(s, col, r.counts, s.last_utime_gps, ping83);
+                DrainDeltat(s, col, r.counts, ping83);
             }
         }
     }
