@@ -306,24 +306,35 @@ void DrainDeltat(RawStream& s, Collector& col, IngestCounts& counts, dt::Ping83P
     }
 }
 
+// What one pass over the logs reads.
+struct ReadLogsOptions {
+    bool decoded = false;           // the decoded channels (INS_PVA_, INS_STDDEV_, GPS_TIME_, ...)
+    bool raw_nav = false;           // re-decode raw NovAtel chunks
+    bool raw_sonar = false;         // re-decode raw 83P chunks
+    bool count_events = false;      // count files, bytes, events and damage (the first pass only)
+    ProgressCallback progress;      // empty: no progress
+    std::uint64_t total_bytes = 0;  // of all paths, for the progress fraction
+};
+
+// What one pass saw.
 struct Pass {
     bool decoded_nav = false;
     bool decoded_sonar = false;
     bool raw_nav = false;
     bool raw_sonar = false;
+    std::int64_t raw_event_failures = 0;  // raw_bytes_t events that did not decode
 };
 
 Status ReadLogs(const std::vector<std::string>& paths,
                 const IngestConfig& config,
-                bool want_decoded,
-                bool want_raw_nav,
-                bool want_raw_sonar,
+                const ReadLogsOptions& options,
                 IngestResult& r,
-                Pass& seen,
-                const ProgressCallback& progress,
-                std::uint64_t total_bytes,
-                std::uint64_t& bytes_done,
-                bool count_files) {
+                Pass& seen) {
+    const bool want_decoded = options.decoded;
+    const bool want_raw_nav = options.raw_nav;
+    const bool want_raw_sonar = options.raw_sonar;
+    const ProgressCallback& progress = options.progress;
+    std::uint64_t bytes_done = 0;
     Collector col(config, r);
     const std::string nav_id = Upper(config.nav_channel_id);
     const std::string sonar_id = Upper(config.sonar_channel_id);
@@ -342,7 +353,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
         std::int64_t n = 0;
         while ((*reader)->Next(ev)) {
             IngestCounts& c = r.counts;
-            if (count_files) {
+            if (options.count_events) {
                 ++c.events;
                 auto it = c.events_by_channel.find(std::string(ev.channel));
                 if (it == c.events_by_channel.end()) {
@@ -428,6 +439,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
                 if (!lcmlog::DecodeChecked(raw, buf, len)) {
                     ++c.decode_failures;
+                    ++seen.raw_event_failures;
                     continue;
                 }
                 const bool is_nav = raw.protocol == lcmlog::kProtocolNovatel && nav_ok;
@@ -466,11 +478,12 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 const std::uint64_t p = (*reader)->position();
                 bytes_done += p - last_pos;
                 last_pos = p;
-                progress(total_bytes ? static_cast<double>(bytes_done) / total_bytes : 0.0);
+                progress(options.total_bytes ? static_cast<double>(bytes_done) / options.total_bytes
+                                             : 0.0);
             }
         }
         bytes_done += (*reader)->size() - last_pos;
-        if (count_files) {
+        if (options.count_events) {
             const lcmlog::LcmLogCounts& lc = (*reader)->counts();
             ++r.counts.files;
             r.counts.bytes += static_cast<std::int64_t>((*reader)->size());
@@ -579,11 +592,18 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
         total += sz;
     }
     const bool raw = config.source == IngestSource::kRaw;
-    if (raw) total *= 1;
     IngestResult r;
     Pass seen;
-    std::uint64_t done = 0;
-    if (auto s = ReadLogs(paths, config, !raw, raw, raw, r, seen, progress, total, done, true);
+    if (auto s = ReadLogs(paths,
+                          config,
+                          {.decoded = !raw,
+                           .raw_nav = raw,
+                           .raw_sonar = raw,
+                           .count_events = true,
+                           .progress = progress,
+                           .total_bytes = total},
+                          r,
+                          seen);
         !s) {
         return s.error();
     }
@@ -595,18 +615,16 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
         if (need_nav || need_sonar) {
             IngestResult extra;
             Pass seen2;
-            std::uint64_t done2 = 0;
             if (auto s = ReadLogs(paths,
                                   config,
-                                  false,
-                                  need_nav,
-                                  need_sonar,
+                                  {.decoded = false,
+                                   .raw_nav = need_nav,
+                                   .raw_sonar = need_sonar,
+                                   .count_events = false,
+                                   .progress = {},
+                                   .total_bytes = total},
                                   extra,
-                                  seen2,
-                                  {},
-                                  total,
-                                  done2,
-                                  false);
+                                  seen2);
                 !s) {
                 return s.error();
             }
@@ -620,16 +638,12 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
                 r.pings = std::move(extra.pings);
                 r.pings_from_raw = true;
             }
-            IngestCounts& c = r.counts;
-            const IngestCounts& e = extra.counts;
-            c.nav_without_time += e.nav_without_time;
-            c.nav_not_good += e.nav_not_good;
-            c.pings_without_time += e.pings_without_time;
-            c.pings_bad += e.pings_bad;
-            c.raw_chunks_decoded += e.raw_chunks_decoded;
-            c.raw_skipped_bytes += e.raw_skipped_bytes;
-            c.raw_decode_errors += e.raw_decode_errors;
-            c.decode_failures += e.decode_failures;
+            // The second pass counts no files, events or damage (count_events is off) and
+            // decodes every raw event: the raw events the first pass already found
+            // undecodable are not counted twice.
+            extra.counts.decode_failures -=
+                std::min(seen.raw_event_failures, seen2.raw_event_failures);
+            r.counts += extra.counts;
         }
     }
     if (progress) progress(1.0);
