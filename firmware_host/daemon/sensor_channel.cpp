@@ -93,7 +93,8 @@ std::optional<std::pair<std::int64_t, bool>> ClockSample(const nv::Message& m) {
 }  // namespace
 
 const char* ToString(ChannelProtocol p) {
-    return p == ChannelProtocol::kNovatel ? "novatel" : "deltat_83p";
+    // The names are literals (channels.hpp): data() is NUL-terminated.
+    return p == ChannelProtocol::kNovatel ? kProtocolNovatel.data() : kProtocolDeltat83P.data();
 }
 
 std::vector<std::string> SensorChannelConfig::Validate() const {
