@@ -11,6 +11,7 @@
 #include "common/config.hpp"
 #include "common/vehicle.hpp"
 #include "firmware_host/daemon/startup_check.hpp"
+#include "lcmtypes/log/channels.hpp"
 
 namespace pitmap::acq {
 namespace {
@@ -28,13 +29,14 @@ void ReadChannel(ConfigReader& r, ChannelSpec& spec, std::vector<std::string>& p
     r.Require("id", c.id);
     std::string protocol;
     if (r.Require("protocol", protocol)) {
-        if (protocol == "novatel") {
+        if (protocol == lcmlog::kProtocolNovatel) {
             c.protocol = ChannelProtocol::kNovatel;
-        } else if (protocol == "deltat_83p") {
+        } else if (protocol == lcmlog::kProtocolDeltat83P) {
             c.protocol = ChannelProtocol::kDeltat83P;
         } else {
-            r.AddProblem(r.Path("protocol") + ": '" + protocol +
-                         "' is not one of novatel, deltat_83p");
+            r.AddProblem(r.Path("protocol") + ": '" + protocol + "' is not one of " +
+                         std::string(lcmlog::kProtocolNovatel) + ", " +
+                         std::string(lcmlog::kProtocolDeltat83P));
         }
     }
     int sources = 0;

@@ -37,10 +37,10 @@
 #include <string>
 #include <vector>
 
-#include "firmware_host/daemon/clock_model.hpp"
 #include "firmware_host/daemon/log_writer.hpp"
 #include "firmware_host/daemon/publisher.hpp"
 #include "firmware_host/daemon/sensor_channel.hpp"
+#include "firmware_host/daemon/time_keeper.hpp"
 #include "firmware_host/io/file_source.hpp"
 #include "firmware_host/io/pps_source.hpp"
 #include "firmware_host/io/serial_source.hpp"

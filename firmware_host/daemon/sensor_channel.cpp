@@ -93,7 +93,8 @@ std::optional<std::pair<std::int64_t, bool>> ClockSample(const nv::Message& m) {
 }  // namespace
 
 const char* ToString(ChannelProtocol p) {
-    return p == ChannelProtocol::kNovatel ? "novatel" : "deltat_83p";
+    // The names are literals (channels.hpp): data() is NUL-terminated.
+    return p == ChannelProtocol::kNovatel ? kProtocolNovatel.data() : kProtocolDeltat83P.data();
 }
 
 std::vector<std::string> SensorChannelConfig::Validate() const {
@@ -276,6 +277,9 @@ void SensorChannel::Process(const Chunk& chunk) {
     }
     const std::int64_t mono = clock_.MonotonicUs();
     last_bytes_mono_us_ = mono;
+    // The pings this chunk completes take their receive time from this logged value, never
+    // from a later query of the host model, so that the shore re-decodes the same times.
+    chunk_utime_gps_ = gps.utime_gps;
     PublishEncoded(ChannelName(kChannelRaw, config_.id),
                    chunk.utime_host,
                    EncodeLcm(MakeRawBytes(chunk.utime_host,
@@ -555,16 +559,15 @@ void SensorChannel::DrainDeltat(const Chunk& chunk) {
 }
 
 void SensorChannel::HandlePing(const dt::Ping83P& ping, const Chunk& chunk) {
-    const std::int64_t receive = chunk.utime_kernel != 0 ? chunk.utime_kernel : chunk.utime_host;
-    const std::int64_t header = ping.header_time_valid ? ping.utime_sonar_header : 0;
-    const std::int64_t age = ping.is_v110() && ping.data_latency_us > 0 ? ping.data_latency_us : 0;
-    const SonarStamp stamp = time_.StampPing(receive, header, age);
-    std::int64_t utime_gps = stamp.utime_gps;
+    // The stamping rule shared with the shore's re-decoding (common/clock/ping_time.hpp).
+    const PingTime stamp = time_.StampPing(ping,
+                                           ChunkTimes{.utime_host = chunk.utime_host,
+                                                      .utime_gps = chunk_utime_gps_,
+                                                      .utime_kernel = chunk.utime_kernel});
+    const std::int64_t utime_gps = stamp.utime_gps;
     std::int8_t source = pitmap::multibeam_ping_t::TIME_SOURCE_NONE;
     float stddev_s = std::numeric_limits<float>::quiet_NaN();
     if (utime_gps != 0) {
-        // The stamp is the header instant (interrogation); transmit is ping_latency later.
-        if (ping.is_v110() && ping.ping_latency_us > 0) utime_gps += ping.ping_latency_us;
         source = stamp.method == SonarStampMethod::kHeaderModel
                      ? pitmap::multibeam_ping_t::TIME_SOURCE_HEADER_CLOCK
                      : pitmap::multibeam_ping_t::TIME_SOURCE_RECEIVE;

@@ -16,7 +16,9 @@
 // Delta T 83P: a UDP datagram is one record; TCP/file streams go through the stream framer.
 // Every ping is stamped through the sonar clock model and published on MULTIBEAM_PING_<ID>
 // with utime_gps = GPS time of transmit (the stamp of the header instant plus the v1.10 ping
-// latency); before any fix utime_gps = 0 and gps_time_source = TIME_SOURCE_NONE. Optional EC
+// latency); before any fix utime_gps = 0 and gps_time_source = TIME_SOURCE_NONE. The rule and
+// its inputs (only what RAW_<ID> logs: receive times and the chunk's utime_gps) are
+// common/clock/ping_time.hpp, which the shore uses to re-decode the same times. Optional EC
 // frames (range, gains from the config) go through ByteSource::Write(), which for UDP sends
 // only to the configured head (UdpConfig::reply_to), never to whoever sent last.
 // A UDP datagram from a sender not on the allow-list (Chunk::foreign) is published on RAW_<ID>
@@ -153,7 +155,9 @@ private:
     // Reader thread only.
     std::int64_t seq_ = 0;
     Chunk chunk_;
-    Chunk last_chunk_;  // receive time and peer of the latest chunk (no data)
+    Chunk last_chunk_;                  // receive time and peer of the latest chunk (no data)
+    std::int64_t chunk_utime_gps_ = 0;  // GPS time of the latest chunk's utime_host as its
+                                        // raw_bytes_t logs it (0 = unknown); pings take it
     protocol::novatel::Framer novatel_framer_;
     protocol::deltat::StreamFramer deltat_framer_;
     protocol::deltat::FloatOrderMemory float_memory_;

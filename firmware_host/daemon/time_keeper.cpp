@@ -23,19 +23,14 @@ GpsEstimate TimeKeeper::HostToGps(std::int64_t utime_host) const {
     return host_.ToGps(utime_host);
 }
 
-SonarStamp TimeKeeper::StampPing(std::int64_t utime_receive_host,
-                                 std::int64_t utime_header,
-                                 std::int64_t age_at_send_us) {
+PingTime TimeKeeper::StampPing(const protocol::deltat::Ping83P& ping, const ChunkTimes& chunk) {
     std::lock_guard<std::mutex> lock(mu_);
-    SonarPingTimes t;
-    t.utime_header = utime_header;
-    t.utime_gps_receive = host_.ToGps(utime_receive_host).utime_gps;
-    t.age_at_send_us = age_at_send_us;
+    const std::int64_t utime_header = clock::ClockInputsOf(ping).utime_header;
     if (utime_header != 0) {
         last_header_utime_ = utime_header;
-        last_header_host_ = utime_receive_host;
+        last_header_host_ = clock::ReceiveUtimeHost(chunk);
     }
-    return sonar_.Update(t);
+    return sonar_.Stamp(ping, clock::ReceiveUtimeGps(chunk));
 }
 
 ClockQuality TimeKeeper::HostQuality(std::int64_t utime_host_now) const {
@@ -48,7 +43,7 @@ ClockQuality TimeKeeper::SonarQuality(std::int64_t utime_host_now) const {
     // The sonar model runs on the header clock: estimate "now" on it from the last record.
     const std::int64_t header_now =
         last_header_utime_ == 0 ? 0 : last_header_utime_ + (utime_host_now - last_header_host_);
-    return sonar_.Quality(header_now);
+    return sonar_.model().Quality(header_now);
 }
 
 pitmap::clock_sync_t ToClockSync(const ClockQuality& q, std::int8_t source, std::int64_t utime) {

@@ -15,6 +15,7 @@
 #include <type_traits>
 #include <variant>
 
+#include "common/clock/ping_time.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
 #include "common/protocol/deltat/stream_framer.hpp"
@@ -60,6 +61,7 @@ std::vector<std::string> IngestConfig::Validate() const {
     std::vector<std::string> p;
     if (!std::isfinite(sonar_clock_offset_s))
         p.push_back("ingest.sonar_clock_offset_s must be finite");
+    for (const std::string& problem : sonar_clock.Validate()) p.push_back("ingest." + problem);
     for (const std::string* id : {&nav_channel_id, &sonar_channel_id}) {
         for (char c : *id) {
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
@@ -264,8 +266,9 @@ private:
 struct RawStream {
     std::unique_ptr<nv::Framer> novatel;
     std::unique_ptr<dt::StreamFramer> deltat;
+    std::unique_ptr<clock::PingStamper> stamper;  // sonar channels: the daemon's clock model
     dt::FloatOrderMemory float_order;
-    std::int64_t last_utime_gps = 0;
+    clock::ChunkTimes last_chunk;  // receive times of the latest chunk (the flush stamps with it)
 };
 
 void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
@@ -280,8 +283,12 @@ void DrainNovatel(RawStream& s, Collector& col, IngestCounts& counts) {
     }
 }
 
-void DrainDeltat(
-    RawStream& s, Collector& col, IngestCounts& counts, std::int64_t utime_gps, dt::Ping83P& ping) {
+// A re-decoded ping, stamped as the daemon stamped it (common/clock/ping_time.hpp).
+void AddRawPing(RawStream& s, Collector& col, const dt::Ping83P& ping) {
+    col.AddPing83P(ping, s.stamper->Stamp(ping, clock::ReceiveUtimeGps(s.last_chunk)).utime_gps);
+}
+
+void DrainDeltat(RawStream& s, Collector& col, IngestCounts& counts, dt::Ping83P& ping) {
     while (true) {
         auto ev = s.deltat->Next();
         if (std::holds_alternative<protocol::NeedMore>(ev)) break;
@@ -294,30 +301,40 @@ void DrainDeltat(
         if (std::holds_alternative<dt::DecodeError>(d)) {
             ++counts.pings_bad;
         } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
-            const std::int32_t age = ping.TransmitAgeAtSendUs();
-            col.AddPing83P(ping, utime_gps > 0 ? utime_gps - std::max(0, age) : 0);
+            AddRawPing(s, col, ping);
         }
     }
 }
 
+// What one pass over the logs reads.
+struct ReadLogsOptions {
+    bool decoded = false;           // the decoded channels (INS_PVA_, INS_STDDEV_, GPS_TIME_, ...)
+    bool raw_nav = false;           // re-decode raw NovAtel chunks
+    bool raw_sonar = false;         // re-decode raw 83P chunks
+    bool count_events = false;      // count files, bytes, events and damage (the first pass only)
+    ProgressCallback progress;      // empty: no progress
+    std::uint64_t total_bytes = 0;  // of all paths, for the progress fraction
+};
+
+// What one pass saw.
 struct Pass {
     bool decoded_nav = false;
     bool decoded_sonar = false;
     bool raw_nav = false;
     bool raw_sonar = false;
+    std::int64_t raw_event_failures = 0;  // raw_bytes_t events that did not decode
 };
 
 Status ReadLogs(const std::vector<std::string>& paths,
                 const IngestConfig& config,
-                bool want_decoded,
-                bool want_raw_nav,
-                bool want_raw_sonar,
+                const ReadLogsOptions& options,
                 IngestResult& r,
-                Pass& seen,
-                const ProgressCallback& progress,
-                std::uint64_t total_bytes,
-                std::uint64_t& bytes_done,
-                bool count_files) {
+                Pass& seen) {
+    const bool want_decoded = options.decoded;
+    const bool want_raw_nav = options.raw_nav;
+    const bool want_raw_sonar = options.raw_sonar;
+    const ProgressCallback& progress = options.progress;
+    std::uint64_t bytes_done = 0;
     Collector col(config, r);
     const std::string nav_id = Upper(config.nav_channel_id);
     const std::string sonar_id = Upper(config.sonar_channel_id);
@@ -336,7 +353,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
         std::int64_t n = 0;
         while ((*reader)->Next(ev)) {
             IngestCounts& c = r.counts;
-            if (count_files) {
+            if (options.count_events) {
                 ++c.events;
                 auto it = c.events_by_channel.find(std::string(ev.channel));
                 if (it == c.events_by_channel.end()) {
@@ -422,6 +439,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
                 if (!lcmlog::DecodeChecked(raw, buf, len)) {
                     ++c.decode_failures;
+                    ++seen.raw_event_failures;
                     continue;
                 }
                 const bool is_nav = raw.protocol == lcmlog::kProtocolNovatel && nav_ok;
@@ -436,31 +454,36 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     if (!s.novatel) s.novatel = std::make_unique<nv::Framer>();
                     s.novatel->Push(bytes);
                     DrainNovatel(s, col, c);
-                } else if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
-                    auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
-                    if (std::holds_alternative<dt::DecodeError>(d)) {
-                        ++c.pings_bad;
-                    } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
-                        const std::int32_t age = ping83.TransmitAgeAtSendUs();
-                        col.AddPing83P(ping83,
-                                       raw.utime_gps > 0 ? raw.utime_gps - std::max(0, age) : 0);
-                    }
                 } else {
-                    if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
-                    s.last_utime_gps = raw.utime_gps;
-                    s.deltat->Push(bytes);
-                    DrainDeltat(s, col, c, raw.utime_gps, ping83);
+                    if (!s.stamper)
+                        s.stamper = std::make_unique<clock::PingStamper>(config.sonar_clock);
+                    s.last_chunk = {.utime_host = raw.utime,
+                                    .utime_gps = raw.utime_gps,
+                                    .utime_kernel = raw.utime_kernel};
+                    if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
+                        auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
+                        if (std::holds_alternative<dt::DecodeError>(d)) {
+                            ++c.pings_bad;
+                        } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
+                            AddRawPing(s, col, ping83);
+                        }
+                    } else {
+                        if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
+                        s.deltat->Push(bytes);
+                        DrainDeltat(s, col, c, ping83);
+                    }
                 }
             }
             if (progress && (++n & 0x3FFF) == 0) {
                 const std::uint64_t p = (*reader)->position();
                 bytes_done += p - last_pos;
                 last_pos = p;
-                progress(total_bytes ? static_cast<double>(bytes_done) / total_bytes : 0.0);
+                progress(options.total_bytes ? static_cast<double>(bytes_done) / options.total_bytes
+                                             : 0.0);
             }
         }
         bytes_done += (*reader)->size() - last_pos;
-        if (count_files) {
+        if (options.count_events) {
             const lcmlog::LcmLogCounts& lc = (*reader)->counts();
             ++r.counts.files;
             r.counts.bytes += static_cast<std::int64_t>((*reader)->size());
@@ -482,7 +505,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
         if (s.deltat) {
             while (auto sk = s.deltat->Flush()) {
                 r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-                DrainDeltat(s, col, r.counts, s.last_utime_gps, ping83);
+                DrainDeltat(s, col, r.counts, ping83);
             }
         }
     }
@@ -569,11 +592,18 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
         total += sz;
     }
     const bool raw = config.source == IngestSource::kRaw;
-    if (raw) total *= 1;
     IngestResult r;
     Pass seen;
-    std::uint64_t done = 0;
-    if (auto s = ReadLogs(paths, config, !raw, raw, raw, r, seen, progress, total, done, true);
+    if (auto s = ReadLogs(paths,
+                          config,
+                          {.decoded = !raw,
+                           .raw_nav = raw,
+                           .raw_sonar = raw,
+                           .count_events = true,
+                           .progress = progress,
+                           .total_bytes = total},
+                          r,
+                          seen);
         !s) {
         return s.error();
     }
@@ -585,18 +615,16 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
         if (need_nav || need_sonar) {
             IngestResult extra;
             Pass seen2;
-            std::uint64_t done2 = 0;
             if (auto s = ReadLogs(paths,
                                   config,
-                                  false,
-                                  need_nav,
-                                  need_sonar,
+                                  {.decoded = false,
+                                   .raw_nav = need_nav,
+                                   .raw_sonar = need_sonar,
+                                   .count_events = false,
+                                   .progress = {},
+                                   .total_bytes = total},
                                   extra,
-                                  seen2,
-                                  {},
-                                  total,
-                                  done2,
-                                  false);
+                                  seen2);
                 !s) {
                 return s.error();
             }
@@ -610,16 +638,12 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
                 r.pings = std::move(extra.pings);
                 r.pings_from_raw = true;
             }
-            IngestCounts& c = r.counts;
-            const IngestCounts& e = extra.counts;
-            c.nav_without_time += e.nav_without_time;
-            c.nav_not_good += e.nav_not_good;
-            c.pings_without_time += e.pings_without_time;
-            c.pings_bad += e.pings_bad;
-            c.raw_chunks_decoded += e.raw_chunks_decoded;
-            c.raw_skipped_bytes += e.raw_skipped_bytes;
-            c.raw_decode_errors += e.raw_decode_errors;
-            c.decode_failures += e.decode_failures;
+            // The second pass counts no files, events or damage (count_events is off) and
+            // decodes every raw event: the raw events the first pass already found
+            // undecodable are not counted twice.
+            extra.counts.decode_failures -=
+                std::min(seen.raw_event_failures, seen2.raw_event_failures);
+            r.counts += extra.counts;
         }
     }
     if (progress) progress(1.0);

@@ -7,9 +7,9 @@
 // (INS_PVA_<ID>, INS_STDDEV_<ID>, GPS_TIME_<ID>, MULTIBEAM_PING_<ID>) are preferred; the raw
 // channels (raw_bytes_t, recognised by decoding, with `protocol` "novatel" / "deltat_83p") are
 // re-decoded with common/protocol when `source` is kRaw, or in kAuto for a stream (navigation
-// or sonar) that has no decoded channel in the logs. A re-decoded ping gets the GPS time of its
-// datagram's receipt minus the transmit age the 83P header states (data - ping latency), as
-// the daemon does.
+// or sonar) that has no decoded channel in the logs. A re-decoded ping gets the time the daemon
+// gave it live: the same rule and clock model (common/clock/ping_time.hpp), fed the receive
+// times its RAW_<ID> chunks logged, one model per sonar channel.
 // .83P files carry only the topside PC's clock: utime_gps = header time (read as UTC) + GPS-UTC
 // (from a NovAtel TIME log when one is given, else the leap-second table) - sonar_clock_offset_s,
 // where sonar_clock_offset_s = sonar clock - UTC (> 0: the sonar clock runs ahead of UTC;
@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "common/clock/clock_model.hpp"
 #include "common/progress.hpp"
 #include "common/result.hpp"
 #include "processor/georef/series.hpp"
@@ -43,6 +44,9 @@ struct IngestConfig {
     double sonar_clock_offset_s = 0;
     bool sonar_clock_offset_known = false;
     bool require_good_ins = false;  // drop INS samples whose status is not SOLUTION_GOOD
+    // Re-decoded raw 83P: the sonar clock model; must equal the daemon's (its `clock:`
+    // settings, e.g. sonar_header_resolution_us) for re-decoded pings to get its times.
+    clock::SonarClockConfig sonar_clock{};
 
     std::vector<std::string> Validate() const;
 };

@@ -43,6 +43,7 @@
 #include "pitmap/daemon_status_t.hpp"
 #include "pitmap/multibeam_ping_t.hpp"
 #include "pitmap/raw_bytes_t.hpp"
+#include "processor/io/ingest.hpp"
 #include "tools/sim/hil/manifest.hpp"
 #include "tools/sim/hil/novatel_emulator.hpp"
 #include "tools/sim/hil/realtime.hpp"
@@ -443,6 +444,34 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
         EXPECT_EQ(s.reconnects, last[name].reconnects) << name;
     }
     EXPECT_EQ(status.log_events_dropped, 0);
+
+    // 5. Issue 16: the shore re-decoding RAW_ (raw source) gives every ping the time the
+    // running daemon published on MULTIBEAM_PING_ (its reader threads racing for the clock).
+    std::vector<std::string> log_files;
+    for (const auto& e : fs::directory_iterator(out / "log")) {
+        if (e.path().extension() == ".lcmlog") log_files.push_back(e.path().string());
+    }
+    std::sort(log_files.begin(), log_files.end());
+    pitmap::proc::io::IngestConfig ingest;
+    ingest.source = pitmap::proc::io::IngestSource::kDecoded;
+    const auto from_decoded = pitmap::proc::io::IngestLcmLogs(log_files, ingest);
+    ingest.source = pitmap::proc::io::IngestSource::kRaw;
+    const auto from_raw = pitmap::proc::io::IngestLcmLogs(log_files, ingest);
+    ASSERT_TRUE(from_decoded.ok()) << from_decoded.error().message;
+    ASSERT_TRUE(from_raw.ok()) << from_raw.error().message;
+    const auto& dec = from_decoded->pings.pings;
+    const auto& red = from_raw->pings.pings;
+    EXPECT_GT(dec.size(), datagrams.size() / 2);
+    ASSERT_EQ(red.size(), dec.size());
+    std::int64_t redecode_max_us = 0;
+    for (std::size_t k = 0; k < dec.size(); ++k) {
+        EXPECT_EQ(red[k].ping_number, dec[k].ping_number) << "at " << k;
+        redecode_max_us = std::max(redecode_max_us, std::abs(red[k].utime_gps - dec[k].utime_gps));
+    }
+    EXPECT_EQ(redecode_max_us, 0);
+    std::printf("HIL re-decoded RAW_ vs MULTIBEAM_PING_: %zu pings, max difference %lld us\n",
+                dec.size(),
+                static_cast<long long>(redecode_max_us));
 
     std::printf(
         "HIL measured: COM1 %lld frames, ICOM1 %lld frames, %zu datagrams (%d logged once), "

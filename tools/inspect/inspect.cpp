@@ -610,7 +610,8 @@ SourceCounter::Mode StreamMode(Protocol protocol, ByteSpan first_bytes) {
 }
 
 std::string ModeName(SourceCounter::Mode mode) {
-    return mode == SourceCounter::Mode::kNovatel ? "novatel" : "deltat_83p";
+    return std::string(mode == SourceCounter::Mode::kNovatel ? lcmlog::kProtocolNovatel
+                                                             : lcmlog::kProtocolDeltat83P);
 }
 
 InspectReport InspectCapture(capture::CaptureContents contents,
@@ -709,9 +710,9 @@ std::string ToString(Protocol protocol) {
         case Protocol::kAuto:
             return "auto";
         case Protocol::kNovatel:
-            return "novatel";
+            return std::string(lcmlog::kProtocolNovatel);
         case Protocol::kDeltaT:
-            return "deltat_83p";
+            return std::string(lcmlog::kProtocolDeltat83P);
     }
     return "unknown";
 }
@@ -726,8 +727,10 @@ std::optional<InputFormat> ParseInputFormat(const std::string& text) {
 
 std::optional<Protocol> ParseProtocol(const std::string& text) {
     if (text == "auto") return Protocol::kAuto;
-    if (text == "novatel") return Protocol::kNovatel;
-    if (text == "deltat" || text == "deltat_83p" || text == "83p") return Protocol::kDeltaT;
+    if (text == lcmlog::kProtocolNovatel) return Protocol::kNovatel;
+    if (text == "deltat" || text == lcmlog::kProtocolDeltat83P || text == "83p") {
+        return Protocol::kDeltaT;
+    }
     return std::nullopt;
 }
 

@@ -31,20 +31,24 @@ public:
         enum class Kind { kData, kTimeout, kDisconnect, kEnd } kind = Kind::kData;
         std::vector<std::byte> data;
         std::int64_t utime_host = 0;
+        std::int64_t utime_kernel = 0;  // 0 = no kernel receive time
     };
 
     explicit FakeSource(Transport transport = Transport::kSerial) : transport_(transport) {}
 
-    void PushData(const std::vector<std::uint8_t>& bytes, std::int64_t utime_host) {
+    void PushData(const std::vector<std::uint8_t>& bytes,
+                  std::int64_t utime_host,
+                  std::int64_t utime_kernel = 0) {
         Step s;
         s.data.resize(bytes.size());
         std::memcpy(s.data.data(), bytes.data(), bytes.size());
         s.utime_host = utime_host;
+        s.utime_kernel = utime_kernel;
         steps_.push_back(std::move(s));
     }
-    void PushTimeout() { steps_.push_back(Step{Step::Kind::kTimeout, {}, 0}); }
-    void PushDisconnect() { steps_.push_back(Step{Step::Kind::kDisconnect, {}, 0}); }
-    void PushEnd() { steps_.push_back(Step{Step::Kind::kEnd, {}, 0}); }
+    void PushTimeout() { steps_.push_back(Step{Step::Kind::kTimeout, {}, 0, 0}); }
+    void PushDisconnect() { steps_.push_back(Step{Step::Kind::kDisconnect, {}, 0, 0}); }
+    void PushEnd() { steps_.push_back(Step{Step::Kind::kEnd, {}, 0, 0}); }
     // Puts an answer at the front of the script (the receiver answering a command).
     void PushFrontData(const std::string& text, std::int64_t utime_host) {
         Step s;
@@ -68,7 +72,7 @@ public:
             case Step::Kind::kData:
                 chunk.data = std::move(s.data);
                 chunk.utime_host = s.utime_host;
-                chunk.utime_kernel = 0;
+                chunk.utime_kernel = s.utime_kernel;
                 chunk.peer = "fake";
                 chunk.truncated = false;
                 return ReadOutcome::kData;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Ingest of LCM logs (the reader itself: tests/lcmtypes/lcm_log_reader_test.cpp); empty
-// segments; LAS 1.4 writer: read back field by field.
+// segments; IngestFiles on a mix of .83P, NovAtel and LCM files (every count kept); LAS 1.4
+// writer: read back field by field.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -9,10 +10,15 @@
 #include <string>
 #include <vector>
 
+#include <pitmap/ins_pva_t.hpp>
 #include <pitmap/multibeam_ping_t.hpp>
 #include <pitmap/raw_bytes_t.hpp>
 
 #include "common/byte_io.hpp"
+#include "common/gps_time.hpp"
+#include "common/protocol/deltat/record83p.hpp"
+#include "common/protocol/novatel/encoder.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "lcmtypes/log/lcm_log_reader.hpp"
 #include "processor/io/ingest.hpp"
 #include "processor/io/products.hpp"
@@ -169,6 +175,278 @@ TEST(Ingest, VendorFileCountsAreAllKept) {
     EXPECT_EQ(merged->counts.nav_without_time, direct->counts.nav_without_time);
     EXPECT_EQ(merged->counts.files, 2);
     EXPECT_EQ(merged->counts.bytes, 2 * static_cast<std::int64_t>(bytes.size()));
+}
+
+namespace nv = protocol::novatel;
+namespace dt = protocol::deltat;
+
+constexpr std::int64_t kGpsT0 = 2303LL * kMicrosPerWeek + 100'000'000;  // 2024-03
+
+// What a crafted NovAtel stream holds, by Collector's order of checks.
+struct NovatelTruth {
+    std::int64_t good = 0;
+    std::int64_t without_time = 0;  // GPS week 0
+    std::int64_t implausible = 0;   // latitude 95 deg: a decode failure
+    std::int64_t not_good = 0;      // INS status ALIGNING (with require_good_ins)
+};
+
+// `n` INSPVAS at 20 Hz from `t0`, with garbage in between; some without time, some with an
+// impossible latitude, some not INS_SOLUTION_GOOD.
+std::vector<std::uint8_t> NovatelBytes(int n, std::int64_t t0, NovatelTruth& truth) {
+    std::vector<std::uint8_t> buf;
+    for (int i = 0; i < n; ++i) {
+        const std::int64_t t = t0 + i * 50'000;
+        nv::InsPva p;
+        p.header.kind = nv::HeaderKind::kShortBinary;
+        p.header.message_id = nv::msg_id::kInsPvaS;
+        p.header.gps_week = static_cast<std::uint16_t>(t / kMicrosPerWeek);
+        p.header.gps_ms = static_cast<std::uint32_t>((t % kMicrosPerWeek) / 1000);
+        p.gps_week = i % 10 == 3 ? 0u : static_cast<std::uint32_t>(t / kMicrosPerWeek);
+        p.gps_seconds = static_cast<double>(t % kMicrosPerWeek) * 1e-6;
+        p.latitude_deg = i % 13 == 5 ? 95.0 : 46.05;
+        p.longitude_deg = 14.5;
+        p.height_ellipsoid_m = 300;
+        p.ins_status = i % 7 == 1 ? nv::InsStatus::kAligning : nv::InsStatus::kSolutionGood;
+        if (p.gps_week == 0) {
+            ++truth.without_time;
+        } else if (p.latitude_deg > 90) {
+            ++truth.implausible;
+        } else if (p.ins_status != nv::InsStatus::kSolutionGood) {
+            ++truth.not_good;
+        } else {
+            ++truth.good;
+        }
+        EXPECT_TRUE(nv::EncodeBinary(p, buf));
+        if (i % 9 == 0) buf.insert(buf.end(), {'x', 'y', 'z'});
+    }
+    return buf;
+}
+
+// `n` 83P v1.10 pings at 10 Hz (Unix time), every 6th with a garbled header clock, with
+// garbage between records.
+std::vector<std::uint8_t> File83P(int n, std::int64_t unix0, std::int64_t& garbled) {
+    std::vector<std::uint8_t> out;
+    for (int i = 0; i < n; ++i) {
+        dt::Ping83P p;
+        p.format_version = dt::kVersion110;
+        dt::SetHeaderTime(p, unix0 + i * 100'000);
+        if (i % 6 == 2) {
+            const char bad[] = "XX-XXX-XXXX";
+            std::copy(std::begin(bad), std::end(bad) - 1, p.date_text.begin());
+            ++garbled;
+        }
+        p.sector_size_deg = 120;
+        p.start_angle_cdeg = -6000;
+        p.angle_increment_cdeg = 50;
+        p.range_resolution_mm = 10;
+        p.ping_number = static_cast<std::uint32_t>(i);
+        p.range_counts.assign(240, static_cast<std::uint16_t>(900 + i));
+        const auto rec = dt::EncodeRecord83P(p);
+        out.insert(out.end(), rec.begin(), rec.end());
+        if (i % 5 == 4) out.insert(out.end(), {'-', '-'});
+    }
+    return out;
+}
+
+std::vector<std::uint8_t> InsPvaEvent(std::int64_t num, std::int64_t utime_gps, int status) {
+    pitmap::ins_pva_t m{};
+    m.utime = 1'700'000'000'000'000 + num;
+    m.utime_gps = utime_gps;
+    m.ins_status = status;
+    m.position_type = -1;
+    m.latitude_deg = 46.06;
+    m.longitude_deg = 14.51;
+    m.height_ellipsoid_m = 301;
+    return EventWith(num, "INS_PVA_NOV", Encode(m));
+}
+
+// Every count that adds up across inputs (Finish() recomputes the sample totals).
+void ExpectSum(const IngestCounts& all, const std::vector<const IngestCounts*>& parts) {
+#define PITMAP_EXPECT_SUM(field)                             \
+    do {                                                     \
+        std::int64_t sum = 0;                                \
+        for (const IngestCounts* p : parts) sum += p->field; \
+        EXPECT_EQ(all.field, sum) << #field;                 \
+    } while (false)
+    PITMAP_EXPECT_SUM(files);
+    PITMAP_EXPECT_SUM(bytes);
+    PITMAP_EXPECT_SUM(events);
+    PITMAP_EXPECT_SUM(corrupt_events);
+    PITMAP_EXPECT_SUM(resync_bytes);
+    PITMAP_EXPECT_SUM(truncated_events);
+    PITMAP_EXPECT_SUM(length_repairs);
+    PITMAP_EXPECT_SUM(files_skipped);
+    PITMAP_EXPECT_SUM(decode_failures);
+    PITMAP_EXPECT_SUM(nav_samples);
+    PITMAP_EXPECT_SUM(nav_without_time);
+    PITMAP_EXPECT_SUM(nav_not_good);
+    PITMAP_EXPECT_SUM(nav_duplicates);
+    PITMAP_EXPECT_SUM(stddev_samples);
+    PITMAP_EXPECT_SUM(pings);
+    PITMAP_EXPECT_SUM(pings_without_time);
+    PITMAP_EXPECT_SUM(pings_bad);
+    PITMAP_EXPECT_SUM(ping_duplicates);
+    PITMAP_EXPECT_SUM(raw_chunks_decoded);
+    PITMAP_EXPECT_SUM(raw_skipped_bytes);
+    PITMAP_EXPECT_SUM(raw_decode_errors);
+#undef PITMAP_EXPECT_SUM
+    std::map<std::string, std::int64_t> by_channel;
+    for (const IngestCounts* p : parts) {
+        for (const auto& [ch, n] : p->events_by_channel) by_channel[ch] += n;
+    }
+    EXPECT_EQ(all.events_by_channel, by_channel);
+}
+
+// Issue 16: IngestFiles on a mix of a .83P file, a NovAtel file and an LCM log keeps every
+// count of each input (and each is non-zero, so a dropped one shows).
+TEST(IngestFiles, MixOf83PNovatelAndLcmKeepsEveryCount) {
+    NovatelTruth nov_truth;
+    const std::string nov = WriteFile("mix-ins.gps", NovatelBytes(200, kGpsT0, nov_truth));
+    std::int64_t garbled = 0;
+    const std::string p83 = WriteFile("mix-sonar.83P", File83P(60, 1'709'300'000'000'000, garbled));
+    std::vector<std::uint8_t> log;
+    std::int64_t num = 0;
+    for (int i = 0; i < 40; ++i) {
+        // 4 without time, 8 not good, 28 good, at times the NovAtel file does not have.
+        const std::int64_t t = i % 10 == 0 ? 0 : kGpsT0 + 20'000'000 + i * 10'000;
+        const auto e = InsPvaEvent(num++, t, i % 5 == 1 ? 1 : 3);
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    for (int i = 0; i < 30; ++i) {
+        auto ping = PingBytes(i, 32);
+        if (i == 7) {
+            const std::size_t at = ping.size() - 2 - 4 * 32 - 2;  // num_beams = -1
+            ping[at] = 0xFF;
+            ping[at + 1] = 0xFF;
+        }
+        const auto e = EventWith(num++, "MULTIBEAM_PING_DELTAT_UDP", ping);
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    const std::string lcm = WriteFile("mix-log.lcmlog", log);
+
+    IngestConfig cfg;
+    cfg.require_good_ins = true;
+    auto a = IngestLcmLogs({lcm}, cfg);
+    ASSERT_TRUE(a.ok()) << a.error().message;
+    auto b = IngestNovatelFiles({nov}, cfg);
+    ASSERT_TRUE(b.ok()) << b.error().message;
+    IngestResult c;
+    ASSERT_TRUE(Ingest83PFiles({p83}, cfg, -1, c).ok());
+    // Ingest83PFiles adds to a result that the caller finishes: count its pings here.
+    c.counts.pings = static_cast<std::int64_t>(c.pings.pings.size());
+
+    // Each input on its own: the counts the construction says.
+    EXPECT_EQ(a->counts.nav_without_time, 4);
+    EXPECT_EQ(a->counts.nav_not_good, 8);
+    EXPECT_EQ(a->counts.nav_samples, 28);
+    EXPECT_EQ(a->counts.decode_failures, 1);
+    EXPECT_EQ(a->counts.pings, 29);
+    EXPECT_EQ(b->counts.nav_without_time, nov_truth.without_time);
+    EXPECT_EQ(b->counts.decode_failures, nov_truth.implausible);
+    EXPECT_EQ(b->counts.nav_not_good, nov_truth.not_good);
+    EXPECT_EQ(b->counts.nav_samples, nov_truth.good);
+    EXPECT_GT(b->counts.raw_skipped_bytes, 0);
+    EXPECT_EQ(c.counts.pings_without_time, garbled);
+    EXPECT_EQ(c.counts.pings, 60 - garbled);
+    EXPECT_GT(c.counts.raw_skipped_bytes, 0);
+    for (std::int64_t n :
+         {nov_truth.without_time, nov_truth.implausible, nov_truth.not_good, garbled}) {
+        EXPECT_GT(n, 0);
+    }
+
+    // Together, in any order: every count is the sum.
+    for (const auto& files :
+         {std::vector<std::string>{p83, nov, lcm}, std::vector<std::string>{lcm, p83, nov}}) {
+        auto all = IngestFiles(files, cfg);
+        ASSERT_TRUE(all.ok()) << all.error().message;
+        ExpectSum(all->counts, {&a->counts, &b->counts, &c.counts});
+        EXPECT_EQ(all->nav.samples.size(), static_cast<std::size_t>(28 + nov_truth.good));
+        EXPECT_EQ(all->pings.pings.size(), static_cast<std::size_t>(29 + 60 - garbled));
+    }
+}
+
+// IngestFiles on LCM logs alone equals IngestLcmLogs, and the same NovAtel file twice counts
+// its samples as duplicates while keeping the other counts doubled.
+TEST(IngestFiles, LcmLogsAndRepeatedVendorFiles) {
+    std::vector<std::uint8_t> log;
+    for (int i = 0; i < 12; ++i) {
+        const auto e =
+            InsPvaEvent(i, i % 4 == 0 ? 0 : kGpsT0 + 7'000'000 + i * 10'000, i % 3 == 0 ? 2 : 3);
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    const std::string seg0 = WriteFile("lcm-only-0.lcmlog", log);
+    const std::string seg1 = WriteFile("lcm-only-1.lcmlog", Event(99, "OTHER", 5));
+    IngestConfig cfg;
+    cfg.require_good_ins = true;
+    auto direct = IngestLcmLogs({seg0, seg1}, cfg);
+    ASSERT_TRUE(direct.ok());
+    auto files = IngestFiles({seg1, seg0}, cfg);
+    ASSERT_TRUE(files.ok());
+    ExpectSum(files->counts, {&direct->counts});
+    EXPECT_EQ(direct->counts.nav_without_time, 3);
+    EXPECT_EQ(direct->counts.nav_not_good, 3);  // i = 3, 6, 9
+    EXPECT_EQ(direct->counts.files, 2);
+
+    NovatelTruth truth;
+    const std::string nov = WriteFile("twice.gps", NovatelBytes(100, kGpsT0, truth));
+    auto once = IngestNovatelFiles({nov}, cfg);
+    ASSERT_TRUE(once.ok());
+    auto twice = IngestFiles({nov, nov, seg0}, cfg);
+    ASSERT_TRUE(twice.ok());
+    EXPECT_EQ(twice->counts.nav_without_time,
+              2 * once->counts.nav_without_time + direct->counts.nav_without_time);
+    EXPECT_EQ(twice->counts.nav_not_good,
+              2 * once->counts.nav_not_good + direct->counts.nav_not_good);
+    EXPECT_EQ(twice->counts.decode_failures, 2 * once->counts.decode_failures);
+    EXPECT_EQ(twice->counts.nav_duplicates, once->counts.nav_samples);
+    EXPECT_EQ(twice->counts.nav_samples, once->counts.nav_samples + direct->counts.nav_samples);
+    EXPECT_EQ(twice->counts.files, 3);
+}
+
+// A log with raw NovAtel chunks only (no decoded INS channel) and one undecodable raw event:
+// in auto mode the raw channel is read twice, and the bad event is still counted once.
+TEST(Ingest, AutoModeCountsAnUndecodableRawEventOnce) {
+    NovatelTruth truth;
+    const auto bytes = NovatelBytes(60, kGpsT0, truth);
+    std::vector<std::uint8_t> log;
+    std::int64_t num = 0;
+    for (std::size_t pos = 0, k = 0; pos < bytes.size(); ++k) {
+        const std::size_t n = std::min<std::size_t>(97 + 31 * (k % 5), bytes.size() - pos);
+        pitmap::raw_bytes_t raw{};
+        raw.utime = 1'700'000'000'000'000 + num;
+        raw.source = "nov";
+        raw.protocol = std::string(lcmlog::kProtocolNovatel);
+        raw.transport = pitmap::raw_bytes_t::TRANSPORT_SERIAL;
+        raw.seq = static_cast<std::int64_t>(k);
+        raw.data.assign(bytes.begin() + static_cast<long>(pos),
+                        bytes.begin() + static_cast<long>(pos + n));
+        raw.num_bytes = static_cast<std::int32_t>(n);
+        auto enc = Encode(raw);
+        if (k == 3) {
+            // num_bytes = 0x7fffffff: the event does not decode.
+            const std::size_t at = enc.size() - n - 4;
+            enc[at] = 0x7F;
+            enc[at + 1] = enc[at + 2] = enc[at + 3] = 0xFF;
+        }
+        const auto e = EventWith(num++, "RAW_NOV", enc);
+        log.insert(log.end(), e.begin(), e.end());
+        pos += n;
+    }
+    const std::string path = WriteFile("raw-only.lcmlog", log);
+    IngestConfig cfg;
+    cfg.source = IngestSource::kRaw;
+    auto raw = IngestLcmLogs({path}, cfg);
+    ASSERT_TRUE(raw.ok());
+    auto automatic = IngestLcmLogs({path}, IngestConfig{});
+    ASSERT_TRUE(automatic.ok());
+    EXPECT_TRUE(automatic->nav_from_raw);
+    // The bad event plus the implausible INS samples in the chunks that decoded.
+    EXPECT_GE(raw->counts.decode_failures, 1);
+    EXPECT_EQ(automatic->counts.decode_failures, raw->counts.decode_failures);
+    EXPECT_EQ(automatic->counts.nav_without_time, raw->counts.nav_without_time);
+    EXPECT_EQ(automatic->counts.nav_samples, raw->counts.nav_samples);
+    EXPECT_EQ(automatic->counts.events, raw->counts.events);
+    EXPECT_GT(raw->counts.nav_samples, 0);
 }
 
 TEST(Ingest, LogWithoutSensorChannelsGivesEmptySeries) {

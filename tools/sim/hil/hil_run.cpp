@@ -16,6 +16,7 @@
 
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
+#include "lcmtypes/log/channels.hpp"
 #include "tools/sim/hil/manifest.hpp"
 #include "tools/sim/hil/novatel_emulator.hpp"
 #include "tools/sim/hil/realtime.hpp"
@@ -75,7 +76,7 @@ std::string DaemonYaml(const ScenarioConfig& sc,
     y += "  min_free_bytes: 0\n";
     y += "channels:\n";
     y += "  - id: " + std::string(kComId) + "\n";
-    y += "    protocol: novatel\n";
+    y += "    protocol: " + std::string(lcmlog::kProtocolNovatel) + "\n";
     y += "    serial:\n";
     y += "      path: " + Quoted(pty) + "\n";
     y += "      baud: " + std::to_string(opt.baud) + "\n";
@@ -90,7 +91,7 @@ std::string DaemonYaml(const ScenarioConfig& sc,
     y += "      - \"LOG INSSTDEVB ONTIME 1\"\n";
     y += "      - \"LOG INSCONFIGB ONCHANGED\"\n";
     y += "  - id: " + std::string(kIcomId) + "\n";
-    y += "    protocol: novatel\n";
+    y += "    protocol: " + std::string(lcmlog::kProtocolNovatel) + "\n";
     y += "    tcp:\n";
     y += "      host: 127.0.0.1\n";
     y += "      port: " + std::to_string(opt.tcp_port) + "\n";
@@ -99,7 +100,7 @@ std::string DaemonYaml(const ScenarioConfig& sc,
     y += "      - \"LOG BESTPOSB ONTIME 1\"\n";
     y += "      - \"LOG TIMEB ONTIME 1\"\n";
     y += "  - id: " + std::string(kSonarId) + "\n";
-    y += "    protocol: deltat_83p\n";
+    y += "    protocol: " + std::string(lcmlog::kProtocolDeltat83P) + "\n";
     y += "    udp:\n";
     y += "      bind_address: 127.0.0.1\n";
     y += "      port: " + std::to_string(opt.udp_port) + "\n";

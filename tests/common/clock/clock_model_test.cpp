@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Clock models against synthetic truth: known offset and drift, random positive delays.
-#include "firmware_host/daemon/clock_model.hpp"
+#include "common/clock/clock_model.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 
 #include "common/gps_time.hpp"
 
-namespace pitmap::acq {
+namespace pitmap::clock {
 namespace {
 
 // 2024-03-01 in GPS microseconds (week 2303).
@@ -420,4 +420,4 @@ TEST(SonarClockModelTest, HoldoverWithoutReceiveTimes) {
 }
 
 }  // namespace
-}  // namespace pitmap::acq
+}  // namespace pitmap::clock

@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-namespace pitmap::acq {
+namespace pitmap::clock {
 
 enum class ClockState : std::int8_t {  // values of clock_sync_t.STATE_*
     kNoTime = 0,
@@ -96,7 +96,7 @@ private:
     EnvelopeLine line_;
 };
 
-// The model's quality, mapped one to one onto clock_sync_t by the daemon.
+// The model's quality, mapped one to one onto clock_sync_t by the daemon (time_keeper.hpp).
 struct ClockQuality {
     ClockState state = ClockState::kNoTime;
     std::int64_t ref_utime_in = 0;       // reference point of the model, input clock us
@@ -272,4 +272,4 @@ private:
     std::int64_t fallbacks_ = 0;
 };
 
-}  // namespace pitmap::acq
+}  // namespace pitmap::clock

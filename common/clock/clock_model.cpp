@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
-#include "firmware_host/daemon/clock_model.hpp"
+#include "common/clock/clock_model.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-namespace pitmap::acq {
+namespace pitmap::clock {
 namespace {
 
 constexpr double kMicrosPerSecondD = 1e6;
@@ -479,4 +479,4 @@ ClockQuality SonarClockModel::Quality(std::int64_t now) const {
     return q;
 }
 
-}  // namespace pitmap::acq
+}  // namespace pitmap::clock
