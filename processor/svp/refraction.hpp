@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "common/config.hpp"
 #include "processor/svp/cast.hpp"
 #include "processor/svp/ray_trace.hpp"
 
@@ -60,16 +61,12 @@ struct RefractionConfig {
 
     bool enabled() const { return !svp_files.empty(); }
     std::vector<std::string> Validate() const;
-
-    // Key visitor for reading and printing (ConfigReader-style): scalar keys only; the
-    // enums and the file list are handled beside it.
-    template <class V>
-    void VisitScalars(V&& v) {
-        v("ins_height_above_waterline_m",
-          ins_height_above_waterline_m,
-          "INS above the water line, m; null = vehicle.yaml's");
-    }
 };
+
+// The `refraction:` section of the processor's YAML (keys above; every problem recorded in the
+// reader), and its defaults as YAML text with a comment per key.
+void ReadRefractionConfig(ConfigReader& r, RefractionConfig& c);
+std::string RefractionDefaultsYaml(const RefractionConfig& c = {});
 
 // A cast ready for tracing.
 struct PreparedCast {
