@@ -121,6 +121,21 @@ int main(int argc, char** argv) {
                           stamp_error_ms,
                           "the decoded pings in the log are stamped this many ms late (a "
                           "daemon's residual latency; default 0)");
+    bool refraction = false;
+    double water_surface_speed = 0, water_deep_speed = 0;
+    std::vector<double> thermocline;
+    synth->add_flag("--refraction",
+                    refraction,
+                    "a refracting water column: warm mixed layer over a thermocline; the pings "
+                    "are ray traced through it and the true cast is written to "
+                    "DIR/truth/water_column.svp (and DIR/vendor/<scenario>.svp)");
+    auto* surface_speed_opt = synth->add_option(
+        "--water-surface-speed", water_surface_speed, "mixed layer sound speed, m/s (1496)");
+    auto* deep_speed_opt = synth->add_option(
+        "--water-deep-speed", water_deep_speed, "speed below the thermocline, m/s (1452)");
+    auto* thermocline_opt =
+        synth->add_option("--thermocline", thermocline, "its top and bottom depth, m (2 7)")
+            ->expected(2);
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -165,6 +180,13 @@ int main(int argc, char** argv) {
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
     if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;
+    if (refraction) scenario->water.refraction = true;
+    if (surface_speed_opt->count() > 0) scenario->water.surface_speed_mps = water_surface_speed;
+    if (deep_speed_opt->count() > 0) scenario->water.deep_speed_mps = water_deep_speed;
+    if (thermocline_opt->count() > 0) {
+        scenario->water.mixed_layer_depth_m = thermocline[0];
+        scenario->water.thermocline_depth_m = thermocline[1];
+    }
     sim::SynthOptions opt;
     opt.out_dir = out_dir;
     opt.num_threads = threads;
