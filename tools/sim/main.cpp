@@ -2,7 +2,8 @@
 // pitmap-sim: synthetic surveys with ground truth.
 //   pitmap-sim synth --scenario NAME --out DIR [--seed N] [--vendor-files]
 //                    [--topside-clock-offset S]             log files + truth (+ vendor files),
-//                                                           faster than real time
+//                    [--duration S] [--refraction]          faster than real time; --refraction:
+//                                                           a refracting water column
 //   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
@@ -121,6 +122,9 @@ int main(int argc, char** argv) {
                           stamp_error_ms,
                           "the decoded pings in the log are stamped this many ms late (a "
                           "daemon's residual latency; default 0)");
+    double duration_s = 0;
+    auto* duration_opt = synth->add_option(
+        "--duration", duration_s, "seconds of the survey to simulate (default: the scenario's)");
     bool refraction = false;
     double water_surface_speed = 0, water_deep_speed = 0;
     std::vector<double> thermocline;
@@ -180,6 +184,7 @@ int main(int argc, char** argv) {
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
     if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;
+    if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
     if (refraction) scenario->water.refraction = true;
     if (surface_speed_opt->count() > 0) scenario->water.surface_speed_mps = water_surface_speed;
     if (deep_speed_opt->count() > 0) scenario->water.deep_speed_mps = water_deep_speed;
