@@ -2,14 +2,14 @@
 // pitmap: the shore processor's command line. Arguments -> YAML -> Config -> Validate -> run.
 //   pitmap info LOGS... [--vehicle FILE] [--sonar-clock-offset S]
 //   pitmap georef LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
-//                 [--sonar-clock-offset S]
+//                 [--sonar-clock-offset S] [--svp FILE...]
 //   pitmap calibrate --out P [--config FILE]
 //   pitmap slam --out P [--config FILE]
 //   pitmap fuse --out P [--config FILE]
 //   pitmap mesh --out P [--config FILE]
 //   pitmap report --out P
 //   pitmap run LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
-//              [--sonar-clock-offset S] [--no-calibrate] [--no-slam]
+//              [--sonar-clock-offset S] [--svp FILE...] [--no-calibrate] [--no-slam]
 //   pitmap config --defaults | --vehicle
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 #include <unistd.h>
@@ -61,7 +61,7 @@ constexpr int kExitQualityGate = 4;
 int main(int argc, char** argv) try {
     CLI::App app{"pitmap: flooded open-pit mine mapping, shore-side processor"};
     app.require_subcommand(1);
-    std::vector<std::string> inputs;
+    std::vector<std::string> inputs, svp_files;
     std::string out_dir, config_path, vehicle_path;
     bool from_raw = false, defaults = false, vehicle_template = false;
     double sonar_clock_offset_s = 0;
@@ -114,6 +114,13 @@ int main(int argc, char** argv) try {
     run->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
     run->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
     run->add_flag("--no-report", no_report, "no report.html");
+    // The commands that georeference take sound-velocity casts.
+    for (auto* sub : {geo, run}) {
+        sub->add_option("--svp",
+                        svp_files,
+                        "sound-velocity casts (CARIS .svp, CSV or two-column depth/speed): ray "
+                        "trace every beam through them (config refraction.svp_files)");
+    }
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
@@ -143,6 +150,7 @@ int main(int argc, char** argv) try {
         config.ingest.sonar_clock_offset_known = true;
     }
     if (!vehicle_path.empty()) config.vehicle_yaml = vehicle_path;
+    if (!svp_files.empty()) config.refraction.svp_files = svp_files;
     if (no_calibrate) config.run.calibrate = false;
     if (no_slam) config.run.slam = false;
     if (no_report) config.run.report = false;

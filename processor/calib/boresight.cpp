@@ -84,8 +84,9 @@ Samples Collect(const GeorefResult& geo, double t0, double t1, int stride) {
         const double t = static_cast<double>(ping.utime_gps) * 1e-6;
         if (t < t0 || t >= t1) continue;
         S.ping.push_back(P.ping[j]);
-        S.s_sonar.push_back(
-            georef::BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad));
+        // With refraction: the traced sounding seen from the head at the current mount (the
+        // ray's bend changes little over the boresight's fraction of a degree).
+        S.s_sonar.push_back(georef::SoundingVectorSonar(geo, j));
         S.t_s.push_back(t - t0);
     }
     return S;

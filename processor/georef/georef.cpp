@@ -106,18 +106,47 @@ struct PingWork {
     bool ok = false;
     int reason = 0;  // 1 outside, 2 gap, 3 bad header
     GeorefPing ping;
-    std::int64_t no_detection = 0, range_gate = 0, spikes = 0;
+    std::int64_t no_detection = 0, range_gate = 0, spikes = 0, refraction_failed = 0;
 };
 
+// What refraction needs per ping: transducer depth and the speed at the face.
+struct PingWater {
+    double transducer_depth_m = 0;
+    double face_speed_mps = 0;
+};
+
+PingWater WaterAt(const svp::Refraction& refr,
+                  const GeorefPing& ping,
+                  const SonarMount& mount,
+                  double header_speed_mps) {
+    PingWater w;
+    w.transducer_depth_m = refr.TransducerDepth(ping.T_world_vehicle.linear() * mount.lever_arm_m);
+    w.face_speed_mps = refr.FaceSpeed(ping.cast, w.transducer_depth_m, header_speed_mps);
+    return w;
+}
+
 }  // namespace
+
+Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result, std::size_t j) {
+    const GeorefPoints& P = result.points;
+    const GeorefPing& ping = result.pings[P.ping[j]];
+    if (!result.refraction) {
+        return BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad);
+    }
+    const Pose T_world_sonar = ping.T_world_vehicle * result.mount.T_vehicle_sonar();
+    return T_world_sonar.inverse() * P.position_world[j];
+}
 
 GeorefResult RunGeoref(const NavSeries& nav,
                        const PingSeries& series,
                        const SonarMount& mount,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin,
-                       const ProgressCallback& progress) {
+                       const ProgressCallback& progress,
+                       std::shared_ptr<const svp::Refraction> refraction) {
     GeorefResult result;
+    result.mount = mount;
+    result.refraction = refraction;
     result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
     result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
     if (nav.samples.empty()) {
@@ -176,6 +205,19 @@ GeorefResult RunGeoref(const NavSeries& nav,
             w.ping.sensor_world = T_world_sonar.translation();
             w.ping.profile_tilt_rad =
                 config.apply_profile_tilt ? frames::DegToRad(h.profile_tilt_deg) : 0.0;
+            PingWater water;
+            if (refraction) {
+                w.ping.assumed_sound_speed_mps =
+                    h.sound_speed_mps > 0 ? h.sound_speed_mps : config.nominal_sound_speed_mps;
+                double lat = 0, lon = 0;
+                if (refraction->selection() == svp::CastSelection::kNearestInDistance) {
+                    const Geodetic g = world.FromEnu(w.ping.sensor_world);
+                    lat = g.latitude_deg;
+                    lon = g.longitude_deg;
+                }
+                w.ping.cast = refraction->SelectCast(t, lat, lon);
+                water = WaterAt(*refraction, w.ping, mount, w.ping.assumed_sound_speed_mps);
+            }
             double scale = h.range_resolution_m;
             if (config.sound_speed_scaling && h.sound_speed_valid) {
                 scale *= h.sound_speed_mps / config.nominal_sound_speed_mps;
@@ -201,7 +243,23 @@ GeorefResult RunGeoref(const NavSeries& nav,
                 const double theta = frames::DegToRad(
                     h.start_angle_deg + static_cast<double>(i) * h.angle_increment_deg);
                 const std::size_t j = h.beam_offset + i;
-                pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, w.ping.profile_tilt_rad);
+                if (refraction) {
+                    const svp::BeamGeometry b = refraction->Beam(w.ping.cast,
+                                                                 T_world_sonar.linear(),
+                                                                 theta,
+                                                                 w.ping.profile_tilt_rad,
+                                                                 r[i],
+                                                                 w.ping.assumed_sound_speed_mps,
+                                                                 water.transducer_depth_m,
+                                                                 water.face_speed_mps);
+                    if (b.steering_failed || b.status != svp::RayStatus::kOk) {
+                        ++w.refraction_failed;
+                        continue;
+                    }
+                    pos[j] = w.ping.sensor_world + b.offset_world;
+                } else {
+                    pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, w.ping.profile_tilt_rad);
+                }
                 rng[j] = static_cast<float>(r[i]);
                 ang[j] = static_cast<float>(theta);
             }
@@ -242,6 +300,7 @@ GeorefResult RunGeoref(const NavSeries& nav,
         c.no_detection += w.no_detection;
         c.range_gate += w.range_gate;
         c.spikes += w.spikes;
+        c.refraction_failed += w.refraction_failed;
         const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
         result.pings.push_back(w.ping);
         const PingHeader& h = series.pings[k];
@@ -265,18 +324,45 @@ GeorefResult RunGeoref(const NavSeries& nav,
 
 void Regeoreference(GeorefResult& result, const SonarMount& mount) {
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
-    GeorefPoints& P = result.points;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 4096), [&](const auto& b) {
-        for (std::size_t j = b.begin(); j != b.end(); ++j) {
-            const GeorefPing& ping = result.pings[P.ping[j]];
-            P.position_world[j] =
-                ping.T_world_vehicle * T_vehicle_sonar *
-                BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad);
-        }
-    });
     for (GeorefPing& ping : result.pings) {
         ping.sensor_world = (ping.T_world_vehicle * T_vehicle_sonar).translation();
     }
+    result.mount = mount;
+    GeorefPoints& P = result.points;
+    const svp::Refraction* refr = result.refraction.get();
+    std::vector<PingWater> water(refr ? result.pings.size() : 0);
+    for (std::size_t k = 0; k < water.size(); ++k) {
+        water[k] = WaterAt(*refr, result.pings[k], mount, result.pings[k].assumed_sound_speed_mps);
+    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 4096), [&](const auto& b) {
+        for (std::size_t j = b.begin(); j != b.end(); ++j) {
+            const GeorefPing& ping = result.pings[P.ping[j]];
+            const Pose T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar;
+            if (refr) {
+                const PingWater& w = water[P.ping[j]];
+                const svp::BeamGeometry g = refr->Beam(ping.cast,
+                                                       T_world_sonar.linear(),
+                                                       P.angle_rad[j],
+                                                       ping.profile_tilt_rad,
+                                                       P.range_m[j],
+                                                       ping.assumed_sound_speed_mps,
+                                                       w.transducer_depth_m,
+                                                       w.face_speed_mps);
+                // A beam that traced before and not now (a mount change of a fraction of a
+                // degree at a turning ray) keeps its straight position.
+                P.position_world[j] =
+                    g.status == svp::RayStatus::kOk && !g.steering_failed
+                        ? Eigen::Vector3d(ping.sensor_world + g.offset_world)
+                        : Eigen::Vector3d(T_world_sonar * BeamVectorSonar(P.range_m[j],
+                                                                          P.angle_rad[j],
+                                                                          ping.profile_tilt_rad));
+            } else {
+                P.position_world[j] =
+                    T_world_sonar *
+                    BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad);
+            }
+        }
+    });
 }
 
 Expected<UtmPoints> ToUtm(const GeorefResult& result) {

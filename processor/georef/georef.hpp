@@ -9,6 +9,11 @@
 //   p_world = t_world_vehicle(t) + R_world_vehicle(t) (lever_arm_m + R_vehicle_sonar p_sonar),
 //   R_world_vehicle = frames::RotationWorldFromRpy(roll, pitch, yaw) at the ping's transmit time,
 //   position interpolated linearly and attitude by slerp between the two bracketing INS samples.
+// Refraction (optional, processor/svp/refraction.hpp): with a svp::Refraction each beam is ray
+// traced through the ping's sound-velocity cast from the transducer depth instead of the
+// straight p_sonar above; the launch angle is taken after the attitude and the mount, and the
+// steering is corrected for the speed at the face. Beams whose ray turns, surfaces or cannot be
+// steered are dropped and counted (refraction_failed).
 // Pings whose bracketing samples are more than max_nav_gap_s apart (or outside the nav span)
 // are refused and counted. Filters, in order: no detection, range gate, spike filter (median of
 // the valid ranges within +-spike_half_window beams; |r - median| > spike_abs_m +
@@ -18,6 +23,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +32,7 @@
 #include "common/progress.hpp"
 #include "common/se3.hpp"
 #include "processor/georef/series.hpp"
+#include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::georef {
 
@@ -86,6 +93,9 @@ struct GeorefPing {
     Pose T_world_vehicle;
     Eigen::Vector3d sensor_world = Eigen::Vector3d::Zero();  // transducer position
     double profile_tilt_rad = 0;                             // applied tilt
+    // Refraction inputs (used when GeorefResult::refraction is set).
+    double assumed_sound_speed_mps = 1500;  // the header's (the sonar's) sound speed
+    int cast = -1;                          // index into refraction->casts(); -1 = none
 };
 
 struct GeorefCounts {
@@ -98,6 +108,7 @@ struct GeorefCounts {
     std::int64_t no_detection = 0;
     std::int64_t range_gate = 0;
     std::int64_t spikes = 0;
+    std::int64_t refraction_failed = 0;  // ray turned, surfaced or beam not steerable
     std::int64_t points = 0;
 };
 
@@ -106,12 +117,19 @@ struct GeorefResult {
     GeorefPoints points;
     std::vector<GeorefPing> pings;
     GeorefCounts counts;
+    SonarMount mount;  // the mount the points were computed with
+    // The refraction applied (null = straight rays); Regeoreference traces again with it.
+    std::shared_ptr<const svp::Refraction> refraction;
     bool cancelled = false;
     std::string message;
 };
 
 // Sonar-frame vector of a beam: Ry(tilt) (0, r sin theta, r cos theta).
 Eigen::Vector3d BeamVectorSonar(double range_m, double angle_rad, double tilt_rad);
+
+// The sonar-frame vector from the transducer to sounding j as georeferenced (with refraction,
+// the ray-traced sounding seen from the head; else BeamVectorSonar).
+Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result, std::size_t j);
 
 // Median spike filter over one ping's ranges (metres, <= 0 = invalid). Sets keep[i] = false for
 // spikes; returns their number.
@@ -128,10 +146,11 @@ GeorefResult RunGeoref(const NavSeries& nav,
                        const SonarMount& mount,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin = std::nullopt,
-                       const ProgressCallback& progress = {});
+                       const ProgressCallback& progress = {},
+                       std::shared_ptr<const svp::Refraction> refraction = nullptr);
 
 // Re-applies a mount (boresight) to already georeferenced soundings, in place; the pings keep
-// their poses. Used after calibration.
+// their poses (with refraction, each beam is traced again). Used after calibration.
 void Regeoreference(GeorefResult& result, const SonarMount& mount);
 
 // UTM coordinates of the points, all in the zone of the world origin. Exact (GeographicLib) at

@@ -220,6 +220,7 @@ std::vector<std::string> QualityConfig::Validate() const {
 std::vector<std::string> PipelineConfig::Validate() const {
     std::vector<std::string> p = ingest.Validate();
     for (auto& s : georef.Validate()) p.push_back(s);
+    for (auto& s : refraction.Validate()) p.push_back(s);
     for (auto& s : calibrate.Validate()) p.push_back(s);
     for (auto& s : slam.Validate()) p.push_back("slam." + s);
     for (auto& s : tsdf.Validate()) p.push_back("fuse." + s);
@@ -267,6 +268,8 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     g.Read("spike_rel", gc.spike_rel);
     g.Read("num_threads", gc.num_threads);
     g.RejectUnknownKeys();
+    ConfigReader rf = reader->Child("refraction");
+    svp::ReadRefractionConfig(rf, c.refraction);
     ConfigReader b = reader->Child("calibrate");
     auto& bc = c.calibrate;
     b.Read("segment_start_s", bc.segment_start_s);
@@ -357,7 +360,7 @@ std::string DefaultsYaml() {
       << "            # spike if |r - median| > abs + rel * median\n"
       << "  spike_rel: " << c.georef.spike_rel << "\n"
       << "  num_threads: " << c.georef.num_threads << "              # 0 = all cores\n"
-      << "calibrate:\n"
+      << svp::RefractionDefaultsYaml() << "calibrate:\n"
       << "  segment_start_s: " << c.calibrate.segment_start_s
       << "         # GPS seconds; < 0 = automatic\n"
       << "  segment_duration_s: " << c.calibrate.segment_duration_s << "\n"

@@ -60,6 +60,7 @@ json CountsJson(const georef::GeorefCounts& c) {
             {"no_detection", c.no_detection},
             {"range_gate", c.range_gate},
             {"spikes", c.spikes},
+            {"refraction_failed", c.refraction_failed},
             {"points", c.points}};
 }
 
@@ -331,7 +332,9 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     auto ing = io::ReadIngestCache(out_dir + "/ingest.cache");
     if (!ing) return ing.error();
     s.ingest = std::move(*ing);
-    s.geo = georef::RunGeoref(s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin);
+    if (auto r = RestoreRefraction(s, log); !r) return r.error();
+    s.geo = georef::RunGeoref(
+        s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin, {}, s.refraction);
     if (apply_trajectory && s.summary.contains("stages") && s.summary["stages"].contains("slam")) {
         auto traj = ReadTrajectoryCsv(out_dir + "/trajectory.csv");
         if (!traj) return traj.error();
@@ -476,7 +479,8 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     if (cal.latency_estimated && !keep_nominal && cal.latency_s != 0.0) {
         // The ping times themselves change: georeference again from the ingested series.
         calib::ShiftPingTimes(s.ingest.pings, cal.latency_s);
-        s.geo = georef::RunGeoref(s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin);
+        s.geo = georef::RunGeoref(
+            s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin, {}, s.refraction);
         if (auto w = io::WriteIngestCache(s.out_dir + "/ingest.cache", s.ingest); !w) return w;
     } else {
         georef::Regeoreference(s.geo, cal.mount);
@@ -539,6 +543,7 @@ Status GeorefSurvey(Survey& s,
     s.summary.erase("total_seconds");
     s.summary.erase("quality_gates");
     s.summary.erase("sonar_clock");
+    std::optional<double> ins_height_m;
     if (vpath.empty()) {
         log("warning: no vehicle.yaml found beside " + files->front() +
             ": lever arm and boresight default to zero (give --vehicle FILE)");
@@ -548,10 +553,12 @@ Status GeorefSurvey(Survey& s,
         auto v = io::ReadVehicleYaml(vpath);
         if (!v) return v.error();
         s.mount = v->mount;
+        ins_height_m = v->description.ins_height_above_waterline_m;
         ApplyVehicle(v->description, icfg);
         s.summary["vehicle_yaml"] = fs::absolute(vpath).string();
         s.summary["vehicle"] = io::VehicleJson(v->description);
     }
+    if (auto r = SetUpRefraction(s, config, ins_height_m, log); !r) return r;
     // The configured offset (sonar clock minus UTC), null when the clock is to be found.
     s.summary["sonar_clock_offset_s"] =
         icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
@@ -588,8 +595,13 @@ Status GeorefSurvey(Survey& s,
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter gbar("georef", 1000);
-    s.geo = georef::RunGeoref(
-        s.ingest.nav, s.ingest.pings, s.mount, config.georef, origin, gbar.AsCallback());
+    s.geo = georef::RunGeoref(s.ingest.nav,
+                              s.ingest.pings,
+                              s.mount,
+                              config.georef,
+                              origin,
+                              gbar.AsCallback(),
+                              s.refraction);
     gbar.Finish();
     log("georef: " + s.geo.message);
     if (const std::int64_t out = s.geo.counts.pings_outside_nav; out > 0) {

@@ -14,6 +14,9 @@
 //   report:    P -> P/report.html (the pitmap-report program beside the pitmap executable)
 //   run:       all of the above in memory, in that order (calibrate, SLAM and the report
 //              optional), plus P/mesh_initial.ply (the mesh before SLAM) for the report.
+// Refraction: with casts (config refraction.svp_files, `--svp FILE...`) georef ray-traces
+// every beam (processor/svp/refraction.hpp); summary.json "refraction" records the casts and
+// settings, and the later stages trace again with them.
 // summary.json: world_origin {latitude_deg, longitude_deg, height_m}, utm {zone, northern, epsg},
 // inputs, mount, stages -> name -> {seconds, peak_rss_mb, counts...}, stage_order, and after
 // `run` total_seconds. peak_rss_mb is the process's resident-memory high-water mark during
@@ -33,6 +36,7 @@
 #include "processor/io/ingest.hpp"
 #include "processor/mesh/surface.hpp"
 #include "processor/slam/slam.hpp"
+#include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -71,6 +75,7 @@ struct SlamStageConfig {
 struct PipelineConfig {
     io::IngestConfig ingest;
     georef::GeorefConfig georef;
+    svp::RefractionConfig refraction;  // sound-velocity casts; none = straight rays
     calib::BoresightConfig calibrate;
     slam::SlamConfig slam;
     SlamStageConfig slam_stage;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <chrono>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -24,7 +25,19 @@ struct Survey {
     Geodetic origin;
     georef::GeorefResult geo;
     nlohmann::json summary;
+    std::shared_ptr<const svp::Refraction> refraction;  // null = straight rays
 };
+
+// Refraction for a new georeference: the config's casts (none: straight rays, and
+// summary["refraction"] is removed) with the INS height above the water line from the config,
+// else from the vehicle file; records summary["refraction"]. An unreadable or bad cast file,
+// or no INS height, is an error.
+Status SetUpRefraction(Survey& s,
+                       const PipelineConfig& config,
+                       std::optional<double> vehicle_ins_height_m,
+                       const Log& log);
+// Refraction for a later stage: what summary["refraction"] recorded (the casts are read again).
+Status RestoreRefraction(Survey& s, const Log& log);
 
 // Loads P/summary.json and P/ingest.cache and georeferences with the recorded mount; with
 // `apply_trajectory`, moves the pings onto P/trajectory.csv when a SLAM stage wrote it.

@@ -24,6 +24,9 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 vehicle's track should be planar).
   points_rms_m, points_p95_m    RMS and 95th percentile of the distance of each point of
                                 P/points.ply to the true terrain surface; points_bias_m: mean signed.
+  points_rms_m_angle_A_B        points_rms_m of the beams with A <= |beam angle| < B degrees
+                                (bins 0 15 30 45 55 and beyond; beam angles from the points'
+                                "beam" property and truth/scenario.json's sonar fan).
   boresight_error_deg           angle between the estimated (P/boresight.json) and the true
                                 INS->sonar rotation, R = Rz(yaw) Ry(pitch) Rx(roll).
   mesh_mean_abs_m, mesh_rms_m, mesh_p95_m
@@ -131,6 +134,34 @@ int main(int argc, char** argv) {
         scores["points_p95_m"] = s.p95_m;
         scores["points_bias_m"] = s.bias_m;
         scores["points_scored"] = s.count;
+        // By beam angle, where the points carry their beam number and the truth its fan.
+        std::ifstream sin(fs::path(truth_dir) / "scenario.json");
+        const json sc = sin ? json::parse(sin, nullptr, false) : json();
+        if (cloud.vertex_beam.size() == cloud.vertices.size() && sc.is_object() &&
+            sc.contains("sonar") && sc["sonar"].is_object() &&
+            sc["sonar"].value("angle_increment_deg", json()).is_number() &&
+            sc["sonar"].value("start_angle_deg", json()).is_number()) {
+            const double start = sc["sonar"]["start_angle_deg"].get<double>();
+            const double inc = sc["sonar"]["angle_increment_deg"].get<double>();
+            const double edges[] = {0, 15, 30, 45, 55, 90.01};
+            for (int b = 0; b + 1 < 6; ++b) {
+                std::vector<Eigen::Vector3d> sel;
+                for (std::size_t i = 0; i < cloud.vertices.size(); ++i) {
+                    const double a = std::abs(start + cloud.vertex_beam[i] * inc);
+                    if (cloud.vertex_beam[i] >= 0 && a >= edges[b] && a < edges[b + 1])
+                        sel.push_back(cloud.vertices[i]);
+                }
+                if (sel.empty()) continue;
+                const auto sb = eval::ScorePoints(sel, T, world);
+                char key[64];
+                std::snprintf(key,
+                              sizeof key,
+                              "points_rms_m_angle_%.0f_%.0f",
+                              edges[b],
+                              b == 4 ? 90.0 : edges[b + 1]);
+                scores[key] = sb.rms_m;
+            }
+        }
     }
     if (fs::exists(P / "boresight.json")) {
         std::ifstream in(P / "boresight.json");

@@ -170,8 +170,9 @@ Expected<PlyData> ReadPly(const std::string& path) {
     for (const Element& e : elements) {
         const bool is_vertex = e.name == "vertex";
         const bool is_face = e.name == "face";
-        int ix = -1, iy = -1, iz = -1;
+        int ix = -1, iy = -1, iz = -1, ibeam = -1;
         for (std::size_t k = 0; k < e.props.size(); ++k) {
+            if (e.props[k].name == "beam" && !e.props[k].is_list) ibeam = static_cast<int>(k);
             if (e.props[k].name == "x") ix = static_cast<int>(k);
             if (e.props[k].name == "y") iy = static_cast<int>(k);
             if (e.props[k].name == "z") iz = static_cast<int>(k);
@@ -181,6 +182,7 @@ Expected<PlyData> ReadPly(const std::string& path) {
         const std::string where = path + ": " + e.name + " ";
         for (std::size_t n = 0; n < e.count; ++n) {
             Eigen::Vector3d v = Eigen::Vector3d::Zero();
+            double beam = -1;
             std::vector<int> face;
             std::istringstream ls;
             if (!binary) {
@@ -227,6 +229,7 @@ Expected<PlyData> ReadPly(const std::string& path) {
                     if (is_vertex && static_cast<int>(k) == ix) v.x() = val;
                     if (is_vertex && static_cast<int>(k) == iy) v.y() = val;
                     if (is_vertex && static_cast<int>(k) == iz) v.z() = val;
+                    if (is_vertex && static_cast<int>(k) == ibeam) beam = val;
                 }
             }
             if (binary ? !r.ok() : ls.fail()) return Error{where + "data truncated or malformed"};
@@ -236,6 +239,10 @@ Expected<PlyData> ReadPly(const std::string& path) {
                                  ": coordinate not finite or beyond 1e9 m"};
                 }
                 out.vertices.push_back(v);
+                if (ibeam >= 0) {
+                    out.vertex_beam.push_back(beam >= 0 && beam < 65536 ? static_cast<int>(beam)
+                                                                        : -1);
+                }
             }
             for (std::size_t j = 2; is_face && j < face.size(); ++j) {
                 out.triangles.push_back({face[0], face[j - 1], face[j]});

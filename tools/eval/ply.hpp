@@ -17,6 +17,7 @@ namespace pitmap::eval {
 struct PlyData {
     std::vector<Eigen::Vector3d> vertices;
     std::vector<std::array<int, 3>> triangles;  // polygons fan-triangulated
+    std::vector<int> vertex_beam;  // the vertices' "beam" property (points.ply), else empty
     std::vector<std::string> comments;
 };
 

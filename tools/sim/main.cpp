@@ -2,7 +2,8 @@
 // pitmap-sim: synthetic surveys with ground truth.
 //   pitmap-sim synth --scenario NAME --out DIR [--seed N] [--vendor-files]
 //                    [--topside-clock-offset S]             log files + truth (+ vendor files),
-//                                                           faster than real time
+//                    [--duration S] [--refraction]          faster than real time; --refraction:
+//                                                           a refracting water column
 //   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
@@ -128,6 +129,24 @@ int main(int argc, char** argv) {
                      "AT_S MS: from AT_S seconds after the survey start on, the decoded pings are "
                      "stamped MS ms late instead (a daemon clock that stepped mid-survey)")
         ->expected(2);
+    double duration_s = 0;
+    auto* duration_opt = synth->add_option(
+        "--duration", duration_s, "seconds of the survey to simulate (default: the scenario's)");
+    bool refraction = false;
+    double water_surface_speed = 0, water_deep_speed = 0;
+    std::vector<double> thermocline;
+    synth->add_flag("--refraction",
+                    refraction,
+                    "a refracting water column: warm mixed layer over a thermocline; the pings "
+                    "are ray traced through it and the true cast is written to "
+                    "DIR/truth/water_column.svp (and DIR/vendor/<scenario>.svp)");
+    auto* surface_speed_opt = synth->add_option(
+        "--water-surface-speed", water_surface_speed, "mixed layer sound speed, m/s (1496)");
+    auto* deep_speed_opt = synth->add_option(
+        "--water-deep-speed", water_deep_speed, "speed below the thermocline, m/s (1452)");
+    auto* thermocline_opt =
+        synth->add_option("--thermocline", thermocline, "its top and bottom depth, m (2 7)")
+            ->expected(2);
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -175,6 +194,14 @@ int main(int argc, char** argv) {
     if (stamp_step.size() == 2) {
         scenario->sonar.daemon_stamp_error_step_s = stamp_step[0];
         scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
+    }
+    if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
+    if (refraction) scenario->water.refraction = true;
+    if (surface_speed_opt->count() > 0) scenario->water.surface_speed_mps = water_surface_speed;
+    if (deep_speed_opt->count() > 0) scenario->water.deep_speed_mps = water_deep_speed;
+    if (thermocline_opt->count() > 0) {
+        scenario->water.mixed_layer_depth_m = thermocline[0];
+        scenario->water.thermocline_depth_m = thermocline[1];
     }
     sim::SynthOptions opt;
     opt.out_dir = out_dir;

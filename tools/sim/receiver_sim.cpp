@@ -418,8 +418,10 @@ TopsideDatagram SimulatedTopside::Encode(const SimPing& ping, double t_transmit)
     p.acoustic_range_m = static_cast<std::uint16_t>(so.max_range_m);
     p.frequency_khz = 260;
     p.sound_velocity_flag = true;
-    p.sound_velocity_header_mps = so.sound_speed_mps;
-    p.sound_velocity_mps = so.sound_speed_mps;
+    // The speed the sonar used (with a refracting water column: the speed at the head).
+    const double sv = ping.sound_speed_mps > 0 ? ping.sound_speed_mps : so.sound_speed_mps;
+    p.sound_velocity_header_mps = std::round(sv * 10.0) / 10.0;  // the field's 0.1 m/s
+    p.sound_velocity_mps = p.sound_velocity_header_mps;
     p.sound_velocity_valid = true;
     p.range_resolution_mm = static_cast<std::uint16_t>(std::lround(so.range_resolution_mm));
     p.repetition_rate_ms = static_cast<std::uint16_t>(std::lround(1000.0 / so.ping_rate_hz));

@@ -178,6 +178,20 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         if (i >= 2 && nav.outages_s[i] < nav.outages_s[i - 1])
             p.push_back("nav.outages_s must be sorted");
     }
+    if (water.refraction) {
+        for (double v : {water.surface_speed_mps, water.deep_speed_mps}) {
+            if (!(v >= 1300 && v <= 1800))
+                p.push_back("water: surface_speed_mps and deep_speed_mps must be in [1300, 1800]");
+        }
+        if (!(water.mixed_layer_depth_m >= 0 &&
+              water.thermocline_depth_m > water.mixed_layer_depth_m)) {
+            p.push_back("water: need 0 <= mixed_layer_depth_m < thermocline_depth_m");
+        }
+        if (!(std::abs(water.deep_gradient_per_s) <= 1.0))
+            p.push_back("water.deep_gradient_per_s must be within +-1");
+        if (!(water.cast_spacing_m >= 0.01 && water.cast_spacing_m <= 10))
+            p.push_back("water.cast_spacing_m must be in [0.01, 10]");
+    }
     CheckPositive(p, sonar.ping_rate_hz, "sonar.ping_rate_hz");
     if (sonar.num_beams < 1 || sonar.num_beams > 480) p.push_back("sonar.num_beams must be 1..480");
     if (sonar.footprint_rays < 1 || sonar.footprint_rays > 9)
@@ -284,7 +298,27 @@ std::string DescribeScenario(const ScenarioConfig& s) {
     if (s.sonar.internal_attitude_sensor)
         aux += std::string(aux.empty() ? "" : ", ") + "pitch/roll";
     d += "; 83P header: " + (aux.empty() ? std::string("no NMEA, no attitude") : aux);
+    if (s.water.refraction) {
+        std::snprintf(buf,
+                      sizeof buf,
+                      "; refracting water: %.0f m/s to %.1f m, thermocline to %.1f m, %.0f m/s",
+                      s.water.surface_speed_mps,
+                      s.water.mixed_layer_depth_m,
+                      s.water.thermocline_depth_m,
+                      s.water.deep_speed_mps);
+        d += buf;
+    }
     return d;
+}
+
+double WaterColumnConfig::SpeedAt(double z) const {
+    if (z <= mixed_layer_depth_m) return surface_speed_mps;
+    if (z >= thermocline_depth_m) {
+        return deep_speed_mps + deep_gradient_per_s * (z - thermocline_depth_m);
+    }
+    const double a = (z - mixed_layer_depth_m) / (thermocline_depth_m - mixed_layer_depth_m);
+    return surface_speed_mps + (deep_speed_mps - surface_speed_mps) * 0.5 *
+                                   (1.0 - std::cos(3.14159265358979323846 * a));
 }
 
 VehicleDescription NominalVehicle(const ScenarioConfig& sc) {
@@ -297,6 +331,7 @@ VehicleDescription NominalVehicle(const ScenarioConfig& sc) {
     v.orientation = SonarOrientation::kDown;
     v.connector = ConnectorDirection::kAft;
     v.gnss_antenna_lever_arms_m = {vec(sc.lever_arms.antenna_m)};
+    v.ins_height_above_waterline_m = 0.0;  // the INS point rides on the water line
     return v;
 }
 

@@ -155,6 +155,22 @@ struct SonarConfig {
     double internal_attitude_noise_deg = 0.05;  // white noise per ping, before quantisation
 };
 
+// The water column's sound speed (a flooded pit in summer): a warm mixed layer, a thermocline
+// where the speed falls along a half cosine, cold water below (pressure adds
+// deep_gradient_per_s per metre). With `refraction` the pings are ray traced through it
+// (tools/sim/water_column.hpp) and the 83P header's sound speed is the speed at the transducer;
+// without, rays are straight at sonar.sound_speed_mps.
+struct WaterColumnConfig {
+    bool refraction = false;
+    double surface_speed_mps = 1496.0;   // mixed layer
+    double mixed_layer_depth_m = 2.0;    // top of the thermocline
+    double thermocline_depth_m = 7.0;    // bottom of the thermocline
+    double deep_speed_mps = 1452.0;      // at the bottom of the thermocline
+    double deep_gradient_per_s = 0.017;  // below it, m/s per m
+    double cast_spacing_m = 0.5;         // depth step of the cast written to the truth
+    double SpeedAt(double depth_m) const;
+};
+
 struct ScenarioConfig {
     std::string name = "custom";
     std::uint64_t seed = 1;
@@ -171,6 +187,7 @@ struct ScenarioConfig {
     std::vector<double> boresight_deg = {0.5, 0.0, 1.0};
     NavErrorConfig nav;
     SonarConfig sonar;
+    WaterColumnConfig water;
     double ins_rate_hz = 50.0;   // INSPVAS
     double imu_rate_hz = 200.0;  // RAWIMUSX
     double gnss_rate_hz = 1.0;   // BESTPOS, INSPVAX, INSSTDEV, TIME

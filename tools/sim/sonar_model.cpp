@@ -4,14 +4,18 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 
 #include "common/frames.hpp"
 
 namespace pitmap::sim {
 
-SonarModel::SonarModel(const SonarConfig& config, const PitWorld& world, std::uint64_t seed)
-    : cfg_(config), world_(world), seed_(seed) {}
+SonarModel::SonarModel(const SonarConfig& config,
+                       const PitWorld& world,
+                       std::uint64_t seed,
+                       const WaterColumn* water)
+    : cfg_(config), world_(world), seed_(seed), water_(water) {}
 
 double SonarModel::BeamAngleDeg(int i) const {
     const long start = std::lround((cfg_.start_angle_deg + 180.0) * 100.0);
@@ -31,6 +35,7 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
     out.intensities.assign(cfg_.intensities ? nb : 0, 0);
     out.true_range_m.assign(nb, std::numeric_limits<float>::quiet_NaN());
     out.outcome.assign(nb, BeamOutcome::kNoHit);
+    out.true_hit_world.assign(nb, Eigen::Vector3d::Constant(std::nan("")));
     std::mt19937_64 rng(seed_ * 0x9E3779B97F4A7C15ull + static_cast<std::uint64_t>(ping_number));
     std::normal_distribution<double> gauss(0.0, 1.0);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
@@ -41,9 +46,30 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
     // Footprint pattern: the beam axis, then pairs across and along track at half the half-width.
     const int nsub = cfg_.footprint_rays;
     const double res_m = cfg_.range_resolution_mm / 1000.0;
+    // The sonar's sound speed: a probe at the head (the water column at the transducer), or the
+    // configured one. Ranges are that speed times the one-way travel time.
+    // The 83P field holds 0.1 m/s: the sonar works with what it reports.
+    const double c_assumed =
+        water_ ? std::round(water_->SpeedAt(-origin.z()) * 10.0) / 10.0 : cfg_.sound_speed_mps;
+    out.sound_speed_mps = c_assumed;
+    struct SubHit {
+        double range_m;
+        Eigen::Vector3d point;
+    };
+    const auto cast = [&](const Eigen::Vector3d& d_world) -> std::optional<SubHit> {
+        if (water_) {
+            auto h = water_->Cast(world_, origin, d_world, cfg_.max_range_m / c_assumed);
+            if (!h) return std::nullopt;
+            return SubHit{h->one_way_time_s * c_assumed, h->point};
+        }
+        auto r = world_.RayCast(origin, d_world, cfg_.max_range_m);
+        if (!r) return std::nullopt;
+        return SubHit{*r, origin + *r * d_world};
+    };
     for (std::size_t i = 0; i < nb; ++i) {
         const double theta = frames::DegToRad(BeamAngleDeg(static_cast<int>(i)));
         double hits_m[9];
+        SubHit sub[9];
         int hits = 0;
         for (int k = 0; k < nsub; ++k) {
             // Footprint pattern (across, along) in units of 0.6 half-widths: the axis, a cross,
@@ -64,7 +90,10 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
             const double t = theta + dtheta;
             const Eigen::Vector3d d_sonar(
                 std::sin(dphi) * std::cos(t), std::sin(t), std::cos(dphi) * std::cos(t));
-            if (auto r = world_.RayCast(origin, R * d_sonar, cfg_.max_range_m)) hits_m[hits++] = *r;
+            if (auto h = cast(R * d_sonar)) {
+                sub[hits] = *h;
+                hits_m[hits++] = h->range_m;
+            }
         }
         if (hits * 2 <= nsub) continue;  // most of the footprint saw nothing
         // The detection is the median range over the footprint: unbiased on a plane (a mean
@@ -73,6 +102,16 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
         std::nth_element(hits_m, hits_m + hits / 2, hits_m + hits);
         const double r_true = hits_m[hits / 2];
         out.true_range_m[i] = static_cast<float>(r_true);
+        // Where the detection lies: on the beam axis at the true range (straight rays), or the
+        // curved sub-ray whose range is the median.
+        if (water_) {
+            for (int k = 0; k < hits; ++k) {
+                if (sub[k].range_m == r_true) out.true_hit_world[i] = sub[k].point;
+            }
+        } else {
+            out.true_hit_world[i] =
+                origin + R * Eigen::Vector3d(0, std::sin(theta), std::cos(theta)) * r_true;
+        }
         double r = r_true + RangeSigma(r_true) * gauss(rng);
         const double u = uni(rng);
         out.outcome[i] = BeamOutcome::kValid;
@@ -88,8 +127,7 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
         out.range_counts[i] = static_cast<std::uint16_t>(std::clamp(counts, 1.0, 65535.0));
         if (cfg_.intensities) {
             // Amplitude falls with range (spreading + absorption) and with incidence.
-            const Eigen::Vector3d hit =
-                origin + R * Eigen::Vector3d(0, std::sin(theta), std::cos(theta)) * r_true;
+            const Eigen::Vector3d hit = out.true_hit_world[i];
             const Eigen::Vector3d n = world_.Normal(hit.x(), hit.y());
             const Eigen::Vector3d dir = (hit - origin).normalized();
             const double cos_inc = std::max(0.05, -dir.dot(n));

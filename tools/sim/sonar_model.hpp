@@ -10,6 +10,7 @@
 
 #include "common/se3.hpp"
 #include "tools/sim/scenario.hpp"
+#include "tools/sim/water_column.hpp"
 #include "tools/sim/world.hpp"
 
 namespace pitmap::sim {
@@ -22,12 +23,20 @@ struct SimPing {
     std::vector<std::uint16_t> intensities;   // raw normalised amplitude
     std::vector<float> true_range_m;          // noise-free footprint range; NaN = no hit
     std::vector<BeamOutcome> outcome;         // what the model did to each beam
+    std::vector<Eigen::Vector3d> true_hit_world;  // where the beam axis's detection lies
+    double sound_speed_mps = 0;                   // the speed the sonar assumed (83P header)
 };
 
 // Thread safety: const methods may be called concurrently.
 class SonarModel {
 public:
-    SonarModel(const SonarConfig& config, const PitWorld& world, std::uint64_t seed);
+    // `water`: with a WaterColumn the beams are ray traced through it, the ranges are the
+    // assumed speed (the speed at the transducer) times the one-way travel time, and that speed
+    // is the ping's sound_speed_mps; without, rays are straight at config.sound_speed_mps.
+    SonarModel(const SonarConfig& config,
+               const PitWorld& world,
+               std::uint64_t seed,
+               const WaterColumn* water = nullptr);
     // Simulates one ping from the sonar head pose (sonar frame: x fwd, y stbd, z down).
     SimPing Ping(const Pose& T_world_sonar, std::int64_t ping_number) const;
     // Beam i's angle from nadir, degrees, positive to starboard (integer 0.01 deg arithmetic,
@@ -39,6 +48,7 @@ private:
     SonarConfig cfg_;
     const PitWorld& world_;
     std::uint64_t seed_;
+    const WaterColumn* water_;
 };
 
 }  // namespace pitmap::sim

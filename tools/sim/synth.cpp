@@ -4,8 +4,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <thread>
 
@@ -20,6 +22,7 @@
 #include "tools/sim/sonar_model.hpp"
 #include "tools/sim/trajectory.hpp"
 #include "tools/sim/truth_io.hpp"
+#include "tools/sim/water_column.hpp"
 #include "tools/sim/world.hpp"
 
 namespace pitmap::sim {
@@ -58,6 +61,67 @@ std::vector<std::uint8_t> EncodeRaw(std::int64_t utime,
     extra.peer = peer;
     return acq::EncodeLcm(acq::MakeRawBytes(
         utime, source, protocol, transport, seq, std::span<const std::uint8_t>(bytes), extra));
+}
+
+// "DD:MM:SS.ss" with a leading '-' for south/west.
+std::string Dms(double deg, int width) {
+    const double a = std::abs(deg);
+    long hundredths = std::lround(a * 3600.0 * 100.0);
+    const long d = hundredths / (3600 * 100);
+    hundredths -= d * 3600 * 100;
+    const long m = hundredths / (60 * 100);
+    hundredths -= m * 60 * 100;
+    char buf[96];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%s%0*ld:%02ld:%02ld.%02ld",
+                  deg < 0 ? "-" : "",
+                  width,
+                  d,
+                  m,
+                  hundredths / 100,
+                  hundredths % 100);
+    return buf;
+}
+
+// The true sound-speed profile as a CARIS .svp cast (taken 10 minutes before the survey at the
+// pit centre): truth/water_column.svp, and vendor/<scenario>.svp with the vendor files.
+Status WriteTrueCast(const ScenarioConfig& sc,
+                     const WaterColumn& water,
+                     const fs::path& truth_dir,
+                     const fs::path& vendor_dir,
+                     std::int64_t start_gps) {
+    const std::int64_t unix = UnixFromGps(start_gps - 600LL * 1000000LL);
+    const UtcCalendar cal = UtcCalendarFromUnix(unix);
+    UtcCalendar jan1;
+    jan1.year = cal.year;
+    const std::int64_t day0 = UnixFromUtcCalendar(jan1).value_or(unix);
+    const long doy = static_cast<long>((unix - day0) / 86400000000LL) + 1;
+    std::string text = "[SVP_VERSION_2]\nwater_column.svp\n";
+    char buf[160];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "Section %04d-%03ld %02d:%02d:%02d %s %s true cast (pitmap-sim)\n",
+                  cal.year,
+                  doy,
+                  cal.hour,
+                  cal.minute,
+                  cal.second,
+                  Dms(sc.origin_latitude_deg, 2).c_str(),
+                  Dms(sc.origin_longitude_deg, 3).c_str());
+    text += buf;
+    for (const auto& [z, c] : water.Sampled(sc.water.cast_spacing_m, sc.pit.max_depth_m + 10.0)) {
+        std::snprintf(buf, sizeof buf, "%.2f %.3f\n", z, c);
+        text += buf;
+    }
+    std::vector<fs::path> paths = {truth_dir / "water_column.svp"};
+    if (!vendor_dir.empty()) paths.push_back(vendor_dir / (sc.name + ".svp"));
+    for (const fs::path& path : paths) {
+        std::ofstream out(path, std::ios::trunc);
+        out << text;
+        if (!out) return Error{path.string() + ": cannot write"};
+    }
+    return Ok{};
 }
 
 Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
@@ -121,7 +185,17 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     if (!track) return track.error();
     const TruthTrajectory truth(sc, *track);
     const NavErrorModel errors(sc.nav, truth.duration_s(), sc.seed);
-    const SonarModel sonar(sc.sonar, world, sc.seed);
+    std::optional<WaterColumn> water;
+    if (sc.water.refraction) {
+        // Deep enough for every beam: the deepest terrain plus a margin.
+        water.emplace(sc.water, sc.pit.max_depth_m + 10.0);
+        if (auto w = WriteTrueCast(
+                sc, *water, truth_dir, opt.vendor_files ? vendor_dir : fs::path(), *start_gps);
+            !w) {
+            return w.error();
+        }
+    }
+    const SonarModel sonar(sc.sonar, world, sc.seed, water ? &*water : nullptr);
     SimulatedReceiver receiver(sc, truth, errors, *start_gps);
     const SimulatedTopside topside(sc, truth, *start_gps);
     DecodedChannels decoded(sc);
@@ -236,13 +310,10 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         for (auto& th : pool) th.join();
         for (std::size_t i = 0; i < pings.size(); ++i) {
             const double t = static_cast<double>(ping_ids[i]) / sc.sonar.ping_rate_hz;
-            const Pose T_ws = truth.PoseAt(t) * T_vehicle_sonar;
             for (std::size_t b = 0; b < pings[i].true_range_m.size(); ++b) {
                 const float r = pings[i].true_range_m[b];
                 if (!std::isfinite(r)) continue;
-                const double th = frames::DegToRad(sonar.BeamAngleDeg(static_cast<int>(b)));
-                const Eigen::Vector3d hit =
-                    T_ws * Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th));
+                const Eigen::Vector3d& hit = pings[i].true_hit_world[b];
                 const long ix = std::lround((hit.x() - grid.x0_m) / grid.resolution_m);
                 const long iy = std::lround((hit.y() - grid.y0_m) / grid.resolution_m);
                 if (ix >= 0 && iy >= 0 && ix < grid.nx && iy < grid.ny)

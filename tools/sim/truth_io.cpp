@@ -82,6 +82,14 @@ json ScenarioToJson(const ScenarioConfig& s) {
                  n.outage_velocity_random_walk_mps_per_sqrt_s},
                 {"outage_vertical_fraction", n.outage_vertical_fraction},
                 {"recovery_time_s", n.recovery_time_s}};
+    const WaterColumnConfig& w = s.water;
+    j["water"] = {{"refraction", w.refraction},
+                  {"surface_speed_mps", w.surface_speed_mps},
+                  {"mixed_layer_depth_m", w.mixed_layer_depth_m},
+                  {"thermocline_depth_m", w.thermocline_depth_m},
+                  {"deep_speed_mps", w.deep_speed_mps},
+                  {"deep_gradient_per_s", w.deep_gradient_per_s},
+                  {"cast_spacing_m", w.cast_spacing_m}};
     const SonarConfig& o = s.sonar;
     j["sonar"] = {{"ping_rate_hz", o.ping_rate_hz},
                   {"num_beams", o.num_beams},

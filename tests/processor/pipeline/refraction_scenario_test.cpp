@@ -1,0 +1,173 @@
+// SPDX-License-Identifier: MIT
+// Scenario test of refraction (issue 17 item 1), scored against ground truth with pitmap-eval:
+// a short demo survey simulated twice with the same seed, once in a homogeneous water column
+// and once through a warm mixed layer over a thermocline (pitmap-sim --refraction). Both are
+// georeferenced with the true boresight:
+//   - the refracting survey with straight rays: its error at the outer beams (55-60 deg) is
+//     reported and must be clearly above the homogeneous survey's;
+//   - the refracting survey ray traced through the simulator's cast (truth/water_column.svp,
+//     CARIS .svp): points RMS within 5 % of the homogeneous survey's.
+// A malformed cast stops `pitmap georef` with an error naming the file and line.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kBin = PITMAP_BIN_DIR;
+
+int RunCommand(const std::string& command, std::string* out = nullptr) {
+    FILE* f = popen((command + " 2>&1").c_str(), "r");
+    if (f == nullptr) return -1;
+    char buf[4096];
+    std::string text;
+    while (std::fgets(buf, sizeof(buf), f) != nullptr) text += buf;
+    const int status = pclose(f);
+    if (out != nullptr) *out += text;
+    return status;
+}
+
+std::string Quote(const fs::path& p) {
+    return "'" + p.string() + "'";
+}
+
+json ReadJson(const fs::path& p) {
+    std::ifstream in(p);
+    return json::parse(in);
+}
+
+std::map<std::string, double> Scores(const std::string& text) {
+    std::map<std::string, double> s;
+    std::istringstream in(text);
+    std::string line, name;
+    double value = 0;
+    while (std::getline(in, line)) {
+        std::istringstream ls(line);
+        if (ls >> name >> value) s[name] = value;
+    }
+    return s;
+}
+
+// Puts the true boresight into a survey's vehicle.yaml (calibration is tested elsewhere).
+void SetTrueBoresight(const fs::path& sim) {
+    const json t = ReadJson(sim / "truth/boresight.json");
+    const fs::path yaml = sim / "log/vehicle.yaml";
+    std::ifstream in(yaml);
+    std::ostringstream out;
+    std::string line;
+    bool found = false;
+    while (std::getline(in, line)) {
+        if (line.rfind("  boresight_deg:", 0) == 0) {
+            char buf[128];
+            std::snprintf(buf,
+                          sizeof(buf),
+                          "  boresight_deg: [%.6f, %.6f, %.6f]",
+                          t["roll_deg"].get<double>(),
+                          t["pitch_deg"].get<double>(),
+                          t["yaw_deg"].get<double>());
+            line = buf;
+            found = true;
+        }
+        out << line << "\n";
+    }
+    in.close();
+    ASSERT_TRUE(found) << yaml << ": no sonar.boresight_deg line";
+    std::ofstream(yaml) << out.str();
+}
+
+TEST(RefractionScenario, RayTracingRecoversTheHomogeneousSurveysAccuracy) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("pitmap_refraction_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::string out;
+    const std::string synth = kBin + "/pitmap-sim synth --scenario demo --duration 60 --out ";
+    ASSERT_EQ(RunCommand(synth + Quote(dir / "flat"), &out), 0) << out;
+    ASSERT_EQ(RunCommand(synth + Quote(dir / "refr") + " --refraction --vendor-files", &out), 0)
+        << out;
+    ASSERT_TRUE(fs::exists(dir / "refr/truth/water_column.svp"));
+    ASSERT_TRUE(fs::exists(dir / "refr/vendor/demo.svp"));
+    SetTrueBoresight(dir / "flat");
+    SetTrueBoresight(dir / "refr");
+
+    const auto georef_eval = [&](const fs::path& sim,
+                                 const std::string& name,
+                                 const std::string& extra) {
+        const fs::path p = dir / name;
+        std::string text;
+        EXPECT_EQ(
+            RunCommand(kBin + "/pitmap georef " + Quote(sim / "log") + " --out " + Quote(p) + extra,
+                       &text),
+            0)
+            << text;
+        text.clear();
+        EXPECT_EQ(RunCommand(kBin + "/pitmap-eval --truth " + Quote(sim / "truth") +
+                                 " --products " + Quote(p),
+                             &text),
+                  0)
+            << text;
+        return Scores(text);
+    };
+    const auto flat = georef_eval(dir / "flat", "p_flat", "");
+    const auto straight = georef_eval(dir / "refr", "p_straight", "");
+    const auto traced = georef_eval(
+        dir / "refr", "p_traced", " --svp " + Quote(dir / "refr/truth/water_column.svp"));
+    for (const auto* s : {&flat, &straight, &traced}) {
+        ASSERT_TRUE(s->count("points_rms_m") && s->count("points_rms_m_angle_55_90"))
+            << "pitmap-eval printed no points_rms_m / points_rms_m_angle_55_90";
+    }
+    const double outer_flat = flat.at("points_rms_m_angle_55_90");
+    const double outer_straight = straight.at("points_rms_m_angle_55_90");
+    const double outer_traced = traced.at("points_rms_m_angle_55_90");
+    RecordProperty("points_rms_m_flat", std::to_string(flat.at("points_rms_m")));
+    RecordProperty("points_rms_m_straight", std::to_string(straight.at("points_rms_m")));
+    RecordProperty("points_rms_m_traced", std::to_string(traced.at("points_rms_m")));
+    RecordProperty("outer_beams_rms_m_flat", std::to_string(outer_flat));
+    RecordProperty("outer_beams_rms_m_straight", std::to_string(outer_straight));
+    RecordProperty("outer_beams_rms_m_traced", std::to_string(outer_traced));
+    std::printf(
+        "points RMS (m): homogeneous %.4f, refracting straight %.4f, ray traced %.4f\n"
+        "55-60 deg beams RMS (m): homogeneous %.4f, straight %.4f, ray traced %.4f\n",
+        flat.at("points_rms_m"),
+        straight.at("points_rms_m"),
+        traced.at("points_rms_m"),
+        outer_flat,
+        outer_straight,
+        outer_traced);
+    // Straight rays through the thermocline are measurably wrong at the outer beams ...
+    EXPECT_GT(outer_straight, 2.0 * outer_flat);
+    EXPECT_GT(straight.at("points_rms_m"), 1.5 * flat.at("points_rms_m"));
+    // ... and ray tracing brings the survey back to the homogeneous one's accuracy.
+    EXPECT_LT(traced.at("points_rms_m"), 1.05 * flat.at("points_rms_m"));
+    EXPECT_LT(outer_traced, 1.05 * outer_flat);
+    EXPECT_GT(traced.at("points_scored"), 0.97 * flat.at("points_scored"));
+    const json summary = ReadJson(dir / "p_traced/summary.json");
+    ASSERT_TRUE(summary.contains("refraction"));
+    EXPECT_EQ(summary["refraction"]["casts"].size(), 1u);
+    EXPECT_EQ(summary["stages"]["georef"]["refraction_failed"].get<int>(), 0);
+
+    // A bad cast: a clear error naming the file and the line, before any ingest.
+    const fs::path bad = dir / "bad.svp";
+    std::ofstream(bad) << "0 1496\n3 1490\n3 1480\n";
+    std::string text;
+    EXPECT_NE(RunCommand(kBin + "/pitmap georef " + Quote(dir / "refr/log") + " --out " +
+                             Quote(dir / "p_bad") + " --svp " + Quote(bad),
+                         &text),
+              0);
+    EXPECT_NE(text.find(bad.string() + ":3: depth 3.000 m is not below the previous depth"),
+              std::string::npos)
+        << text;
+    if (!HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
