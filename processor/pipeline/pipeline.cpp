@@ -1,20 +1,19 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/pipeline.hpp"
 
-#include <fcntl.h>
-#include <malloc.h>
-#include <unistd.h>
-
 #include <chrono>
 #include <filesystem>
 #include <sstream>
 
 #include "common/config.hpp"
 #include "common/frames.hpp"
+#include "common/gps_time.hpp"
+#include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -24,42 +23,21 @@ using nlohmann::json;
 
 namespace {
 
-json CountsJson(const io::IngestCounts& c) {
-    json j = {{"files", c.files},
-              {"bytes", c.bytes},
-              {"events", c.events},
-              {"corrupt_events", c.corrupt_events},
-              {"resync_bytes", c.resync_bytes},
-              {"truncated_events", c.truncated_events},
-              {"length_repairs", c.length_repairs},
-              {"files_skipped", c.files_skipped},
-              {"decode_failures", c.decode_failures},
-              {"nav_samples", c.nav_samples},
-              {"nav_without_time", c.nav_without_time},
-              {"nav_not_good", c.nav_not_good},
-              {"nav_duplicates", c.nav_duplicates},
-              {"stddev_samples", c.stddev_samples},
-              {"pings", c.pings},
-              {"pings_without_time", c.pings_without_time},
-              {"pings_bad", c.pings_bad},
-              {"ping_duplicates", c.ping_duplicates},
-              {"raw_chunks_decoded", c.raw_chunks_decoded},
-              {"raw_skipped_bytes", c.raw_skipped_bytes},
-              {"raw_decode_errors", c.raw_decode_errors}};
-    return j;
-}
-
-json CountsJson(const georef::GeorefCounts& c) {
-    return {{"pings_in", c.pings_in},
-            {"pings_georeferenced", c.pings_georeferenced},
-            {"pings_outside_nav", c.pings_outside_nav},
-            {"pings_in_nav_gap", c.pings_in_nav_gap},
-            {"pings_bad_header", c.pings_bad_header},
-            {"soundings_in", c.soundings_in},
-            {"no_detection", c.no_detection},
-            {"range_gate", c.range_gate},
-            {"spikes", c.spikes},
-            {"points", c.points}};
+// summary["time"]: GPS - UTC for the survey (the receiver's TIME log when it logged one, else
+// common/gps_time's leap-second table) and the pings' span in both scales. The report turns GPS
+// seconds into UTC with it, so the table exists once (in C++).
+json TimeJson(const io::IngestResult& ing) {
+    const std::int64_t t0 = ing.pings.pings.front().utime_gps;
+    const std::int64_t t1 = ing.pings.pings.back().utime_gps;
+    const bool receiver = ing.nav.leap_seconds >= 0;
+    const int leap = receiver ? ing.nav.leap_seconds : LeapSecondsAtGps(t0);
+    return {{"gps_minus_utc_s", leap},
+            {"gps_minus_utc_source", receiver ? "receiver TIME log" : "built-in leap-second table"},
+            {"leap_second_table_valid_until", LeapSecondTableValidUntil()},
+            {"first_ping_gps_s", static_cast<double>(t0) * 1e-6},
+            {"last_ping_gps_s", static_cast<double>(t1) * 1e-6},
+            {"first_ping_utc", FormatUnixIso8601(UnixFromGps(t0, leap))},
+            {"last_ping_utc", FormatUnixIso8601(UnixFromGps(t1, leap))}};
 }
 
 // The vehicle file: products.vehicle_yaml (--vehicle), else vehicle.yaml beside the first
@@ -86,38 +64,17 @@ void ApplyVehicle(const VehicleDescription& v, io::IngestConfig& icfg) {
 namespace detail {
 
 StageClock::StageClock() : start_(std::chrono::steady_clock::now()) {
-    // Hand the heap's free pages back first, so the stage's peak is not the previous stage's
-    // retained memory.
-    ::malloc_trim(0);
-    // "5" resets the peak resident set size (Linux >= 4.0); without it the peak is cumulative.
-    const int fd = ::open("/proc/self/clear_refs", O_WRONLY | O_CLOEXEC);
-    if (fd >= 0) {
-        const ssize_t n = ::write(fd, "5", 1);
-        (void)n;
-        ::close(fd);
-    }
+    // The stage's own peak, not the previous stage's retained memory (where the kernel allows).
+    ResetPeakRss();
 }
 
 double StageClock::seconds() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
-double StageClock::PeakRssMb() {
-    if (std::FILE* f = std::fopen("/proc/self/status", "r")) {
-        char line[256];
-        long kb = -1;
-        while (std::fgets(line, sizeof(line), f) != nullptr) {
-            if (std::sscanf(line, "VmHWM: %ld kB", &kb) == 1) break;
-        }
-        std::fclose(f);
-        if (kb >= 0) return static_cast<double>(kb) / 1024.0;
-    }
-    return io::PeakRssMb();
-}
-
 void RecordStage(json& summary, const std::string& name, json stage, const StageClock& clock) {
     stage["seconds"] = clock.seconds();
-    stage["peak_rss_mb"] = StageClock::PeakRssMb();
+    stage["peak_rss_mb"] = PeakRssMb();
     summary["stages"][name] = std::move(stage);
     json order = json::array();
     if (summary.contains("stage_order") && summary["stage_order"].is_array()) {
@@ -368,12 +325,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         {"termination", calib::ToString(cal.termination)},
         {"iterations", cal.iterations},
         {"message", cal.message},
-        {"segment",
-         {{"start_s", cal.segment.start_s},
-          {"end_s", cal.segment.end_s},
-          {"overlap_cells", cal.segment.overlap_cells},
-          {"max_position_stddev_m", cal.segment.max_position_stddev_m},
-          {"max_heading_stddev_deg", cal.segment.max_heading_stddev_deg}}},
+        {"segment", cal.segment},
         {"residual_before_rms_m", cal.before.rms_m},
         {"residual_after_rms_m", cal.after.rms_m},
         {"residual_expected_rms_m", cal.after.expected_rms_m},
@@ -541,7 +493,7 @@ Status GeorefSurvey(Survey& s,
     s.ingest = std::move(*ing);
     for (const auto& w : s.ingest.warnings) log("warning: " + w);
     log("ingest: " + s.ingest.message);
-    json ist = CountsJson(s.ingest.counts);
+    json ist = s.ingest.counts;
     ist["warnings"] = s.ingest.warnings;
     ist["nav_from_raw"] = s.ingest.nav_from_raw;
     ist["pings_from_raw"] = s.ingest.pings_from_raw;
@@ -580,12 +532,13 @@ Status GeorefSurvey(Survey& s,
         if (static_cast<double>(out) >
             config.quality.max_outside_nav_fraction * static_cast<double>(P.size())) {
             TripGate(s, "georef", "pings_outside_navigation", what, log);
+            s.summary["time"] = TimeJson(s.ingest);
         } else {
             log("warning: " + what);
         }
     }
     s.origin = s.geo.world_origin;
-    RecordStage(s.summary, "georef", CountsJson(s.geo.counts), georef_clock);
+    RecordStage(s.summary, "georef", s.geo.counts, georef_clock);
     s.summary["world_origin"] = {{"latitude_deg", s.origin.latitude_deg},
                                  {"longitude_deg", s.origin.longitude_deg},
                                  {"height_m", s.origin.height_m}};
@@ -595,14 +548,16 @@ Status GeorefSurvey(Survey& s,
 
     StageClock export_clock;
     if (auto st = WritePoints(out_dir, s.geo, config, s.summary); !st) return st;
-    if (auto st = io::WriteTrajectoryCsv(out_dir + "/trajectory.csv", s.ingest.nav, s.origin); !st)
+    if (auto st =
+            io::WriteInsTrajectoryCsv(out_dir + "/trajectory_ins.csv", s.ingest.nav, s.origin);
+        !st)
         return st;
     if (auto st = io::WriteJsonFile(out_dir + "/boresight.json", MountJson(s.mount)); !st)
         return st;
     if (auto st = io::WriteIngestCache(out_dir + "/ingest.cache", s.ingest); !st) return st;
     // Products of later stages made from an earlier georeference would now be stale.
-    for (const char* stale : {"trajectory_initial.csv",
-                              "trajectory_ins.csv",
+    for (const char* stale : {"trajectory.csv",
+                              "trajectory_initial.csv",
                               "points_initial.ply",
                               "tsdf.vdb",
                               "mesh.ply",
@@ -636,7 +591,7 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     for (const auto& f : *files) o << "file " << f << "\n";
     for (const auto& w : r->warnings) o << "warning: " << w << "\n";
     for (const auto& [ch, n] : r->counts.events_by_channel) o << "  " << ch << ": " << n << "\n";
-    o << CountsJson(r->counts).dump(2) << "\n";
+    o << json(r->counts).dump(2) << "\n";
     auto span = [](std::int64_t a, std::int64_t b) {
         char s[96];
         std::snprintf(

@@ -1,23 +1,28 @@
 // SPDX-License-Identifier: MIT
 // Composition of the stages on a products folder P (the `pitmap` subcommands):
-//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory.csv (INS rate),
-//              boresight.json (the mount used), ingest.cache, summary.json
+//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory_ins.csv (the
+//              INS at its own rate, with velocity and status), boresight.json (the mount used),
+//              ingest.cache, summary.json
 //   calibrate: P/ingest.cache + P/summary.json -> boresight calibration -> re-georeference ->
 //              P/boresight.json, points.ply, points.las, summary.json (stage "calibrate")
 //   slam:      re-georeference with the current mount -> continuous-time SLAM ->
 //              P/trajectory_initial.csv (per ping, before), trajectory.csv (per ping, after),
-//              points_initial.ply (before), points.ply, points.las (after); the INS-rate
-//              trajectory.csv of georef is kept as trajectory_ins.csv
+//              points_initial.ply (before), points.ply, points.las (after)
 //   fuse:      pings on the trajectory of the last stage (trajectory.csv) -> TSDF -> weight
 //              filter -> P/tsdf.vdb
 //   mesh:      P/tsdf.vdb -> P/mesh.{ply,obj,glb}, mesh_filled.{ply,obj,glb}
 //   report:    P -> P/report.html (the pitmap-report program beside the pitmap executable)
 //   run:       all of the above in memory, in that order (calibrate, SLAM and the report
 //              optional), plus P/mesh_initial.ply (the mesh before SLAM) for the report.
+// Trajectory files (common/formats/trajectory_csv.hpp) each have one meaning: trajectory_ins.csv
+// the INS rate, trajectory_initial.csv and trajectory.csv one pose per ping before and after
+// SLAM (absent when no SLAM ran).
 // summary.json: world_origin {latitude_deg, longitude_deg, height_m}, utm {zone, northern, epsg},
-// inputs, mount, stages -> name -> {seconds, peak_rss_mb, counts...}, stage_order, and after
-// `run` total_seconds. peak_rss_mb is the process's resident-memory high-water mark during
-// the stage (reset at each stage start where the kernel allows it).
+// time {gps_minus_utc_s, gps_minus_utc_source, leap_second_table_valid_until,
+// first/last_ping_gps_s, first/last_ping_utc}, inputs, mount, stages -> name -> {seconds,
+// peak_rss_mb, counts...}, stage_order, and after `run` total_seconds. peak_rss_mb is the process's
+// resident-memory high-water mark during the stage (reset at each stage start where the kernel
+// allows it).
 #pragma once
 
 #include <cmath>

@@ -18,6 +18,7 @@
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 
 extern char** environ;
@@ -40,10 +41,6 @@ std::string Fixed(double v, int digits) {
 namespace detail {
 
 namespace {
-
-const char* StageName(slam::SlamStage s) {
-    return s == slam::SlamStage::kRigid ? "rigid" : "semi_rigid";
-}
 
 // Position change between two per-ping trajectories: RMS and maximum, metres.
 std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::vector<Pose>& b) {
@@ -156,12 +153,11 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     const std::string& P = s.out_dir;
     std::error_code ec;
+    // A products folder of an older pitmap: its georef wrote the INS-rate trajectory as
+    // trajectory.csv; keep it under its own name before trajectory.csv becomes the per-ping one.
     const bool first_slam = !(s.summary.contains("stages") && s.summary["stages"].contains("slam"));
-    if (first_slam && fs::exists(P + "/trajectory.csv")) {
-        fs::copy_file(P + "/trajectory.csv",
-                      P + "/trajectory_ins.csv",
-                      fs::copy_options::overwrite_existing,
-                      ec);
+    if (first_slam && !fs::exists(P + "/trajectory_ins.csv") && fs::exists(P + "/trajectory.csv")) {
+        fs::rename(P + "/trajectory.csv", P + "/trajectory_ins.csv", ec);
         if (ec) return Error{P + "/trajectory_ins.csv: " + ec.message()};
     }
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
@@ -211,22 +207,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
              {"offset_enu_m",
               {sec.coarse_offset_m.x(), sec.coarse_offset_m.y(), sec.coarse_offset_m.z()}}});
     }
-    st["iterations"] = json::array();
-    for (const slam::SlamIteration& it : r.iterations) {
-        st["iterations"].push_back({{"stage", StageName(it.stage)},
-                                    {"iteration", it.iteration},
-                                    {"num_pairs", it.num_pairs},
-                                    {"cost", it.cost},
-                                    {"cost_after", it.cost_after},
-                                    {"rejected_steps", it.rejected_steps},
-                                    {"damping", it.damping},
-                                    {"pair_score_m", it.pair_score_m},
-                                    {"pair_rms_m", it.pair_rms_m},
-                                    {"consistency_m", it.consistency_m},
-                                    {"max_step_rotation_rad", it.max_step_rotation_rad},
-                                    {"max_step_translation_m", it.max_step_translation_m},
-                                    {"best", it.best}});
-    }
+    st["iterations"] = r.iterations;
     log("slam: trajectory moved by " + Fixed(change_rms, 3) + " m RMS, " + Fixed(change_max, 3) +
         " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) + " -> " +
         Fixed(r.final_pair_score_m, 4) + " m, consistency " + Fixed(r.initial_consistency_m, 4) +
@@ -255,24 +236,18 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
     log(stage + ": weight filter: " + wf.message);
     const fusion::VolumeStats vs = volume.Stats();
-    json st = {{"sensor_model", ToString(config.tsdf.sensor_model)},
+    json st = ir;  // the integration counts
+    st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
                {"voxel_size_m", config.tsdf.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
-               {"scans", ir.scans},
-               {"beams_used", ir.beams_used},
-               {"beams_no_detection", ir.beams_no_detection},
-               {"beams_out_of_range", ir.beams_out_of_range},
-               {"scans_out_of_bounds", ir.scans_out_of_bounds},
-               {"beams_inconsistent", ir.beams_inconsistent},
-               {"voxel_updates", ir.voxel_updates},
                {"integrate_seconds", ir.elapsed_s},
                {"min_weight", config.weight_filter.min_weight},
                {"voxels_before_filter", wf.voxels_before},
                {"voxels_removed", wf.voxels_removed},
                {"active_voxels", vs.active_voxels},
-               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)},
-               {"weight_histogram",
-                {{"edges", hist.edges}, {"counts", hist.counts}, {"before_filter", true}}}};
+               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)}});
+    st["weight_histogram"] = hist;
+    st["weight_histogram"]["before_filter"] = true;
     if (stage == "fuse") {
         const std::vector<std::pair<std::string, std::string>> meta = {
             {"pitmap_origin_latitude_deg", Fixed(s.origin.latitude_deg, 9)},

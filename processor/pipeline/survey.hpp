@@ -33,14 +33,13 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
                             bool apply_trajectory,
                             const Log& log);
 
-// Wall time and memory of one stage. Start resets the kernel's resident-memory high-water mark
-// (/proc/self/clear_refs), so peak_rss_mb is the stage's own peak where the kernel allows it
-// and the process's peak so far otherwise.
+// Wall time of one stage. Construction resets the resident-memory high-water mark
+// (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the
+// stage's own peak where the kernel allows it and the process's peak so far otherwise.
 class StageClock {
 public:
     StageClock();
     double seconds() const;
-    static double PeakRssMb();
 
 private:
     std::chrono::steady_clock::time_point start_;
