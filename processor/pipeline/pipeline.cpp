@@ -72,7 +72,8 @@ double StageClock::seconds() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
-void RecordStage(json& summary, const std::string& name, json stage, const StageClock& clock) {
+void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& clock) {
+    const std::string name = ToString(stage_id);
     stage["seconds"] = clock.seconds();
     stage["peak_rss_mb"] = PeakRssMb();
     summary["stages"][name] = std::move(stage);
@@ -142,17 +143,19 @@ Status SaveSummary(const Survey& s) {
 }
 
 void TripGate(Survey& s,
-              const std::string& stage,
+              Stage stage_id,
               const std::string& gate,
               const std::string& message,
               const Log& log) {
+    const std::string stage = ToString(stage_id);
     log("quality gate " + stage + "/" + gate + ": " + message);
     if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array())
         s.summary["quality_gates"] = json::array();
     s.summary["quality_gates"].push_back({{"stage", stage}, {"gate", gate}, {"message", message}});
 }
 
-void ClearGates(Survey& s, const std::string& stage) {
+void ClearGates(Survey& s, Stage stage_id) {
+    const std::string stage = ToString(stage_id);
     if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array()) return;
     json kept = json::array();
     for (const auto& g : s.summary["quality_gates"]) {
@@ -219,7 +222,7 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
             if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
                 TripGate(s,
-                         "georef",
+                         Stage::kGeoref,
                          "sonar_clock_disagrees",
                          "the configured sonar clock offset is " +
                              Num("%+.3f", config.ingest.sonar_clock_offset_s) + " s, the " +
@@ -288,7 +291,8 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     if (!ing) return ing.error();
     s.ingest = std::move(*ing);
     s.geo = georef::RunGeoref(s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin);
-    if (apply_trajectory && s.summary.contains("stages") && s.summary["stages"].contains("slam")) {
+    if (apply_trajectory && s.summary.contains("stages") &&
+        s.summary["stages"].contains(ToString(Stage::kSlam))) {
         auto traj = ReadTrajectoryCsv(out_dir + "/trajectory.csv");
         if (!traj) return traj.error();
         PoseLookup poses = PosesAtPings(s.geo, traj->gps_time_s, traj->T_world_vehicle);
@@ -303,7 +307,7 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
 
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
-    ClearGates(s, "calibrate");
+    ClearGates(s, Stage::kCalibrate);
     const georef::SonarMount before = s.mount;
     const QualityConfig& q = config.quality;
     calib::BoresightConfig bc = config.calibrate;
@@ -316,7 +320,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         bc.initial_latency_s = 0;
         bc.latency_scan_s = header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
     }
-    ProgressReporter bar("calibrate", 1000);
+    ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
     calib::BoresightResult cal =
         calib::CalibrateBoresight(s.geo, s.ingest.nav, s.mount, bc, bar.AsCallback());
     bar.Finish();
@@ -361,14 +365,14 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             verified = false;
     }
     if (cal.termination == calib::Termination::kNoOverlap) {
-        RecordStage(s.summary, "calibrate", st, clock);
+        RecordStage(s.summary, Stage::kCalibrate, st, clock);
         (void)SaveSummary(s);
         return Error{"calibrate: " + cal.message};
     }
     if (cal.after.pairs > 0 &&
         cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "calibration_residual",
                  "residual RMS " + Num("%.4f", cal.after.rms_m) + " m after calibration is " +
                      Num("%.1f", cal.after.rms_m / cal.after.expected_rms_m) +
@@ -379,7 +383,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     }
     if (cal.latency_unresolved) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "sonar_clock_unresolved",
                  "the sonar latency was still moving when the calibration ended (at " +
                      Num("%+.3f", cal.latency_s) +
@@ -390,7 +394,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     const bool keep_nominal = !verified || cal.latency_unresolved;
     if (!verified) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "calibration_not_verified",
                  "the calibrated mount fits other segments worse than the nominal one: the "
                  "nominal mount and sonar clock are kept",
@@ -426,7 +430,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             std::abs(cal.latency_s) >
                 std::max(q.clock_disagreement_s, 3 * cal.latency_formal_sd_s)) {
             TripGate(s,
-                     "calibrate",
+                     Stage::kCalibrate,
                      "sonar_clock_disagrees",
                      "the configured sonar clock offset is " + Num("%+.4f", configured_offset) +
                          " s, the soundings put it at " + Num("%+.4f", implied) +
@@ -439,7 +443,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     json bj = MountJson(cal.mount);
     bj["sonar_clock"] = clk;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
-    RecordStage(s.summary, "calibrate", st, clock);
+    RecordStage(s.summary, Stage::kCalibrate, st, clock);
     return SaveSummary(s);
 }
 
@@ -486,7 +490,7 @@ Status GeorefSurvey(Survey& s,
         icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
 
     StageClock ingest_clock;
-    ProgressReporter bar("ingest", 1000);
+    ProgressReporter bar(ToString(Stage::kIngest), 1000);
     auto ing = io::IngestFiles(*files, icfg, bar.AsCallback());
     bar.Finish();
     if (!ing) return ing.error();
@@ -497,7 +501,7 @@ Status GeorefSurvey(Survey& s,
     ist["warnings"] = s.ingest.warnings;
     ist["nav_from_raw"] = s.ingest.nav_from_raw;
     ist["pings_from_raw"] = s.ingest.pings_from_raw;
-    RecordStage(s.summary, "ingest", ist, ingest_clock);
+    RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);
     if (s.ingest.nav.samples.empty())
         return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
     if (s.ingest.pings.pings.empty())
@@ -516,7 +520,7 @@ Status GeorefSurvey(Survey& s,
         origin = Geodetic{
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
-    ProgressReporter gbar("georef", 1000);
+    ProgressReporter gbar(ToString(Stage::kGeoref), 1000);
     s.geo = georef::RunGeoref(
         s.ingest.nav, s.ingest.pings, s.mount, config.georef, origin, gbar.AsCallback());
     gbar.Finish();
@@ -531,17 +535,17 @@ Status GeorefSurvey(Survey& s,
             calib::SpanText(P.front().utime_gps, P.back().utime_gps);
         if (static_cast<double>(out) >
             config.quality.max_outside_nav_fraction * static_cast<double>(P.size())) {
-            TripGate(s, "georef", "pings_outside_navigation", what, log);
-            s.summary["time"] = TimeJson(s.ingest);
+            TripGate(s, Stage::kGeoref, "pings_outside_navigation", what, log);
         } else {
             log("warning: " + what);
         }
     }
     s.origin = s.geo.world_origin;
-    RecordStage(s.summary, "georef", s.geo.counts, georef_clock);
+    RecordStage(s.summary, Stage::kGeoref, s.geo.counts, georef_clock);
     s.summary["world_origin"] = {{"latitude_deg", s.origin.latitude_deg},
                                  {"longitude_deg", s.origin.longitude_deg},
                                  {"height_m", s.origin.height_m}};
+    s.summary["time"] = TimeJson(s.ingest);
     s.summary["inputs"] = json::array();
     for (const auto& f : *files) s.summary["inputs"].push_back(fs::absolute(f).string());
     s.summary["mount"] = MountJson(s.mount);
@@ -570,11 +574,37 @@ Status GeorefSurvey(Survey& s,
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }
-    RecordStage(s.summary, "export", {{"points", s.geo.counts.points}}, export_clock);
+    RecordStage(s.summary, Stage::kExport, {{"points", s.geo.counts.points}}, export_clock);
     return SaveSummary(s);
 }
 
 }  // namespace detail
+
+const char* ToString(Stage s) {
+    switch (s) {
+        case Stage::kIngest:
+            return "ingest";
+        case Stage::kGeoref:
+            return "georef";
+        case Stage::kExport:
+            return "export";
+        case Stage::kCalibrate:
+            return "calibrate";
+        case Stage::kSlam:
+            return "slam";
+        case Stage::kFuseInitial:
+            return "fuse_initial";
+        case Stage::kMeshInitial:
+            return "mesh_initial";
+        case Stage::kFuse:
+            return "fuse";
+        case Stage::kMesh:
+            return "mesh";
+        case Stage::kReport:
+            return "report";
+    }
+    return "?";
+}
 
 Expected<std::string> Info(const std::vector<std::string>& inputs, const PipelineConfig& config) {
     auto files = io::ExpandInputs(inputs);

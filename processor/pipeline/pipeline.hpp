@@ -96,16 +96,35 @@ struct PipelineConfig {
     std::vector<std::string> Validate() const;
 };
 
-// Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, products);
-// every problem listed.
+// Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, quality,
+// products; the key table in config.cpp); every problem listed: unknown keys, wrong types,
+// invalid values.
 Expected<PipelineConfig> LoadConfig(const std::string& path);
-// The YAML of every default, with a comment per key.
+// The YAML of every default, with a comment per key (`pitmap config --defaults`).
 std::string DefaultsYaml();
+// `config` as YAML that LoadConfig reads back to the same values (DefaultsYaml's body).
+std::string ConfigYaml(const PipelineConfig& config);
 
 // The YAML spellings of the stages' enums.
 const char* ToString(slam::CorrespondenceType t);
 const char* ToString(slam::RobustKernel k);
 const char* ToString(fusion::SensorModel m);
+
+// The stages, as summary.json names them (ToString: stages.<name>, stage_order,
+// quality_gates[].stage); `run` performs them in this order.
+enum class Stage {
+    kIngest,
+    kGeoref,
+    kExport,
+    kCalibrate,
+    kSlam,
+    kFuseInitial,
+    kMeshInitial,
+    kFuse,
+    kMesh,
+    kReport,
+};
+const char* ToString(Stage s);
 
 using Log = std::function<void(const std::string&)>;
 

@@ -48,7 +48,7 @@ private:
 // Records a stage in summary["stages"][name] (adding seconds and peak_rss_mb) and in
 // summary["stage_order"].
 void RecordStage(nlohmann::json& summary,
-                 const std::string& name,
+                 Stage name,
                  nlohmann::json stage,
                  const StageClock& clock);
 
@@ -68,12 +68,9 @@ Status SaveSummary(const Survey& s);
 // Quality gates (QualityConfig): a stage that cannot explain its data says so in the terminal
 // ("quality gate STAGE/GATE: ...") and in summary["quality_gates"] [{stage, gate, message}];
 // the report lists them. A stage clears its own before it runs again.
-void TripGate(Survey& s,
-              const std::string& stage,
-              const std::string& gate,
-              const std::string& message,
-              const Log& log);
-void ClearGates(Survey& s, const std::string& stage);
+void TripGate(
+    Survey& s, Stage stage, const std::string& gate, const std::string& message, const Log& log);
+void ClearGates(Survey& s, Stage stage);
 
 // The sonar clock after ingest: for .83P pings (topside clock) the coarse offset from the
 // header aids is found and applied, or a configured offset is checked against it; then the
@@ -87,18 +84,17 @@ Status GeorefSurvey(Survey& s,
                     const Log& log);
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
-// Integrates the pings on the current trajectory, applies the weight filter; `stage` names the
-// summary entry ("fuse", or "fuse_initial" for the mesh before SLAM).
+// Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
+// or kFuseInitial for the mesh before SLAM.
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const PipelineConfig& config,
-                                        const std::string& stage,
+                                        Stage stage,
                                         const Log& log);
-// Meshes a volume; "mesh" writes mesh.* and mesh_filled.*, "mesh_initial" only
-// mesh_initial.ply.
+// Meshes a volume; kMesh writes mesh.* and mesh_filled.*, kMeshInitial only mesh_initial.ply.
 Status MeshSurvey(Survey& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
-                  const std::string& stage,
+                  Stage stage,
                   const Log& log);
 Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 
