@@ -115,6 +115,12 @@ class PlyError(Exception):
 class Ply:
     """A binary PLY file: header facts plus one numpy structured array per element.
 
+    pitmap writes PLY in one place (common/formats/ply, C++); this reader stays in Python on
+    purpose: PLY is a public format, not one pitmap defines, and reading it here lets the
+    report memory-map multi-million-point clouds with numpy and run on a products folder with
+    Debian's python3 alone (no pitmap binary, no intermediate copy). pitmap's own convention
+    in it, the pitmap_origin comment, is checked against summary.json (CheckOrigin).
+
     Elements of fixed-size records are memory-mapped; a list property (faces) is read as a
     fixed-length array when every record has the same list length (triangles), which is
     checked. ASCII PLY and variable-length lists raise PlyError.
