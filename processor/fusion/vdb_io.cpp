@@ -9,6 +9,7 @@
 #include <exception>
 #include <fstream>
 
+#include "common/byte_io.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
 
@@ -22,16 +23,6 @@ namespace {
 constexpr char kTrailerMagic[8] = {'P', 'M', 'V', 'D', 'B', 'C', 'R', 'C'};
 constexpr std::uint32_t kTrailerVersion = 1;
 constexpr std::size_t kTrailerBytes = 24;
-
-std::uint64_t GetLe(const unsigned char* p, int n) {
-    std::uint64_t v = 0;
-    for (int i = n - 1; i >= 0; --i) v = (v << 8) | p[i];
-    return v;
-}
-
-void PutLe(unsigned char* p, std::uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) p[i] = static_cast<unsigned char>(v >> (8 * i));
-}
 
 // CRC-32 of the first `length` bytes of `in` (read from its current position), false on a
 // short read.
@@ -58,11 +49,12 @@ Status AppendTrailer(const std::string& path) {
     std::uint32_t crc = 0;
     if (!CrcOfStream(in, size, crc)) return Error{path + ": cannot re-read the written VDB"};
     in.close();
-    std::array<unsigned char, kTrailerBytes> t{};
-    std::copy(std::begin(kTrailerMagic), std::end(kTrailerMagic), t.begin());
-    PutLe(t.data() + 8, size, 8);
-    PutLe(t.data() + 16, crc, 4);
-    PutLe(t.data() + 20, kTrailerVersion, 4);
+    std::vector<std::uint8_t> t;
+    ByteWriter w(t);
+    w.FixedString({kTrailerMagic, sizeof kTrailerMagic}, sizeof kTrailerMagic);
+    w.U64Le(size);
+    w.U32Le(crc);
+    w.U32Le(kTrailerVersion);
     std::FILE* f = std::fopen(path.c_str(), "ab");
     if (f == nullptr) return Error{path + ": cannot append the checksum"};
     const bool ok = std::fwrite(t.data(), 1, t.size(), f) == t.size();
@@ -91,9 +83,10 @@ Status VerifyTrailer(const std::string& path) {
                      ": no pitmap checksum trailer (truncated, corrupted, or not written "
                      "by this pitmap version)"};
     }
-    const std::uint64_t length = GetLe(t.data() + 8, 8);
-    const auto stored = static_cast<std::uint32_t>(GetLe(t.data() + 16, 4));
-    const auto version = static_cast<std::uint32_t>(GetLe(t.data() + 20, 4));
+    ByteReader r(reinterpret_cast<const std::uint8_t*>(t.data()) + 8, kTrailerBytes - 8);
+    const std::uint64_t length = r.U64Le();
+    const std::uint32_t stored = r.U32Le();
+    const std::uint32_t version = r.U32Le();
     if (version != kTrailerVersion) {
         return Error{path + ": checksum trailer version " + std::to_string(version) +
                      " not supported"};

@@ -2,7 +2,8 @@
 // Products folder I/O: vehicle.yaml, point clouds (binary PLY, LAS 1.4), trajectory CSV, JSON
 // summaries, and the binary ingest cache that later stages (calibrate) re-read.
 //
-// PLY: binary_little_endian 1.0, vertex properties float x, y, z (world ENU metres), double
+// PLY (written with common/formats/ply): binary_little_endian 1.0, vertex properties float x, y, z
+// (world ENU metres), double
 //   gps_time_s (GPS seconds since 1980-01-06), float range_m, uint ping, ushort beam; a header
 //   comment "pitmap_origin LAT LON H" (degrees, degrees, ellipsoidal metres) names the origin.
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
@@ -48,11 +49,11 @@ std::string UtmWkt(int zone, bool northern);
 // The LAS file's CRS: COMPD_CS[UtmWkt, VERT_CS WGS 84 ellipsoidal height], WKT1.
 std::string LasWkt(int zone, bool northern);
 
-// Trajectory CSV: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU at `origin`),
-// then vel_e_mps,vel_n_mps,vel_u_mps,ins_status.
-Status WriteTrajectoryCsv(const std::string& path,
-                          const georef::NavSeries& nav,
-                          const Geodetic& origin);
+// trajectory_ins.csv: the INS solution at its own rate in the trajectory CSV format
+// (common/formats/trajectory_csv.hpp) with the INS columns, world ENU at `origin`.
+Status WriteInsTrajectoryCsv(const std::string& path,
+                             const georef::NavSeries& nav,
+                             const Geodetic& origin);
 
 // Reads a JSON file of at most kMaxJsonFileBytes. Errors name the file and, for a syntax error,
 // the line and column.
@@ -74,8 +75,5 @@ Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
 // truncated, corrupted or older file is an error naming the file.
 Status WriteIngestCache(const std::string& path, const IngestResult& r);
 Expected<IngestResult> ReadIngestCache(const std::string& path);
-
-// Peak resident set size of this process so far, MiB.
-double PeakRssMb();
 
 }  // namespace pitmap::proc::io

@@ -6,39 +6,17 @@
 
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <vector>
+
+#include "common/byte_io.hpp"
+#include "common/formats/byte_file.hpp"
+#include "common/formats/ply.hpp"
 
 namespace pitmap::proc::mesh {
 
 namespace {
-
-void PutU32(std::string& out, std::uint32_t v) {
-    for (int k = 0; k < 4; ++k) out.push_back(static_cast<char>((v >> (8 * k)) & 0xffu));
-}
-
-void PutF32(std::string& out, float f) {
-    std::uint32_t v = 0;
-    std::memcpy(&v, &f, sizeof v);
-    PutU32(out, v);
-}
-
-std::string OriginText(const Geodetic& g) {
-    char buf[128];
-    std::snprintf(buf, sizeof buf, "%.9f %.9f %.4f", g.latitude_deg, g.longitude_deg, g.height_m);
-    return buf;
-}
-
-Status WriteAll(const std::string& path, const std::string& bytes) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) return Error{path + ": cannot open for writing"};
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) return Error{path + ": write failed"};
-    return Ok{};
-}
 
 bool HasColours(const ColouredMesh& m) {
     return m.colours.size() == m.vertices.size();
@@ -49,27 +27,38 @@ bool HasColours(const ColouredMesh& m) {
 Status WritePly(const ColouredMesh& mesh,
                 const std::string& path,
                 const std::optional<Geodetic>& origin) {
+    namespace ply = formats::ply;
     const bool colours = HasColours(mesh);
-    std::string out;
-    out += "ply\nformat binary_little_endian 1.0\ncomment generator pitmap proc_mesh\n";
-    if (origin) out += "comment pitmap_origin " + OriginText(*origin) + "\n";
-    out += "element vertex " + std::to_string(mesh.vertices.size()) + "\n";
-    out += "property float x\nproperty float y\nproperty float z\n";
-    if (colours) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-    out += "element face " + std::to_string(mesh.triangles.size()) + "\n";
-    out += "property list uchar int vertex_indices\nend_header\n";
-    out.reserve(out.size() + mesh.vertices.size() * 15 + mesh.triangles.size() * 13);
+    ply::Header h;
+    h.comments.push_back("generator pitmap proc_mesh");
+    if (origin) h.comments.push_back(ply::OriginComment(*origin));
+    ply::Element vertex{
+        "vertex",
+        mesh.vertices.size(),
+        {{"x", ply::Type::kFloat32}, {"y", ply::Type::kFloat32}, {"z", ply::Type::kFloat32}}};
+    if (colours) {
+        for (const char* c : {"red", "green", "blue"}) {
+            vertex.properties.push_back({c, ply::Type::kUInt8});
+        }
+    }
+    h.elements.push_back(std::move(vertex));
+    h.elements.push_back({"face",
+                          mesh.triangles.size(),
+                          {{"vertex_indices", ply::Type::kInt32, ply::Type::kUInt8}}});
+    ply::Writer w(path, h);
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-        for (int k = 0; k < 3; ++k) PutF32(out, mesh.vertices[i][k]);
+        ByteWriter& o = w.Record();
+        for (int k = 0; k < 3; ++k) o.F32Le(mesh.vertices[i][k]);
         if (colours) {
-            for (std::uint8_t c : mesh.colours[i]) out.push_back(static_cast<char>(c));
+            for (std::uint8_t c : mesh.colours[i]) o.U8(c);
         }
     }
     for (const Eigen::Vector3i& t : mesh.triangles) {
-        out.push_back(3);
-        for (int k = 0; k < 3; ++k) PutU32(out, static_cast<std::uint32_t>(t[k]));
+        ByteWriter& o = w.Record();
+        o.U8(3);
+        for (int k = 0; k < 3; ++k) o.I32Le(t[k]);
     }
-    return WriteAll(path, out);
+    return w.Close();
 }
 
 Status WriteObj(const ColouredMesh& mesh,
@@ -78,7 +67,7 @@ Status WriteObj(const ColouredMesh& mesh,
     std::FILE* f = std::fopen(path.c_str(), "w");
     if (f == nullptr) return Error{path + ": cannot open for writing"};
     std::fprintf(f, "# pitmap proc_mesh: local ENU metres, vertex colours by depth\n");
-    if (origin) std::fprintf(f, "# pitmap_origin %s\n", OriginText(*origin).c_str());
+    if (origin) std::fprintf(f, "# %s\n", formats::ply::OriginComment(*origin).c_str());
     const bool colours = HasColours(mesh);
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
         const Eigen::Vector3f& p = mesh.vertices[i];
@@ -116,7 +105,8 @@ Status WriteGlb(const ColouredMesh& mesh,
                                                    {"height_m", origin->height_m}};
     }
     doc["scene"] = 0;
-    std::string bin;
+    std::vector<std::uint8_t> bin;
+    ByteWriter b(bin);
     if (mesh.empty()) {
         doc["scenes"] = json::array({json::object()});
     } else {
@@ -130,7 +120,7 @@ Status WriteGlb(const ColouredMesh& mesh,
         for (const Eigen::Vector3f& p : mesh.vertices) {
             const float g[3] = {p.x(), p.z(), -p.y()};  // ENU -> glTF y-up
             for (int k = 0; k < 3; ++k) {
-                PutF32(bin, g[k]);
+                b.F32Le(g[k]);
                 lo[k] = std::min(lo[k], g[k]);
                 hi[k] = std::max(hi[k], g[k]);
             }
@@ -139,13 +129,13 @@ Status WriteGlb(const ColouredMesh& mesh,
         std::size_t col_bytes = 0;
         if (colours) {
             for (const auto& c : mesh.colours) {
-                for (std::uint8_t v : c) PutF32(bin, static_cast<float>(v) / 255.0f);
+                for (std::uint8_t v : c) b.F32Le(static_cast<float>(v) / 255.0f);
             }
             col_bytes = bin.size() - pos_bytes;
         }
         const std::size_t idx_offset = bin.size();
         for (const Eigen::Vector3i& t : mesh.triangles) {
-            for (int k = 0; k < 3; ++k) PutU32(bin, static_cast<std::uint32_t>(t[k]));
+            for (int k = 0; k < 3; ++k) b.U32Le(static_cast<std::uint32_t>(t[k]));
         }
         const std::size_t idx_bytes = bin.size() - idx_offset;
         json views = json::array();
@@ -191,25 +181,26 @@ Status WriteGlb(const ColouredMesh& mesh,
     }
     std::string json_text = doc.dump();
     while (json_text.size() % 4 != 0) json_text.push_back(' ');
-    while (bin.size() % 4 != 0) bin.push_back('\0');
+    while (bin.size() % 4 != 0) b.U8(0);
     const std::size_t total = 12 + 8 + json_text.size() + (bin.empty() ? 0 : 8 + bin.size());
     if (total > std::numeric_limits<std::uint32_t>::max()) {
         return Error{path + ": mesh too large for a GLB file (4 GiB limit)"};
     }
-    std::string out;
+    std::vector<std::uint8_t> out;
     out.reserve(total);
-    PutU32(out, 0x46546C67u);  // "glTF"
-    PutU32(out, 2);
-    PutU32(out, static_cast<std::uint32_t>(total));
-    PutU32(out, static_cast<std::uint32_t>(json_text.size()));
-    PutU32(out, 0x4E4F534Au);  // "JSON"
-    out += json_text;
+    ByteWriter o(out);
+    o.U32Le(0x46546C67u);  // "glTF"
+    o.U32Le(2);
+    o.U32Le(static_cast<std::uint32_t>(total));
+    o.U32Le(static_cast<std::uint32_t>(json_text.size()));
+    o.U32Le(0x4E4F534Au);  // "JSON"
+    o.Bytes({reinterpret_cast<const std::uint8_t*>(json_text.data()), json_text.size()});
     if (!bin.empty()) {
-        PutU32(out, static_cast<std::uint32_t>(bin.size()));
-        PutU32(out, 0x004E4942u);  // "BIN\0"
-        out += bin;
+        o.U32Le(static_cast<std::uint32_t>(bin.size()));
+        o.U32Le(0x004E4942u);  // "BIN\0"
+        o.Bytes(bin);
     }
-    return WriteAll(path, out);
+    return formats::WriteFileBytes(path, out);
 }
 
 }  // namespace pitmap::proc::mesh

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -176,85 +177,24 @@ TimedPoses PingPoses(const georef::GeorefResult& geo) {
 }
 
 Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory) {
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) return Error{path + ": cannot create"};
-    std::fprintf(f, "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n");
+    formats::TrajectoryCsv csv;
     const std::size_t n = std::min(trajectory.gps_time_s.size(), trajectory.T_world_vehicle.size());
+    csv.rows.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
-        const Pose& T = trajectory.T_world_vehicle[i];
-        const frames::Rpy a = frames::RpyFromRotationWorld(T.linear());
-        std::fprintf(f,
-                     "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f\n",
-                     trajectory.gps_time_s[i],
-                     T.translation().x(),
-                     T.translation().y(),
-                     T.translation().z(),
-                     frames::RadToDeg(a.roll),
-                     frames::RadToDeg(a.pitch),
-                     frames::RadToDeg(a.yaw));
+        csv.rows.push_back(formats::RowOf(trajectory.gps_time_s[i], trajectory.T_world_vehicle[i]));
     }
-    const bool ok = std::ferror(f) == 0;
-    if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
-    return Ok{};
+    return formats::WriteTrajectoryCsv(path, csv);
 }
 
 Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) return Error{path + ": cannot open"};
-    std::string line;
-    if (!std::getline(in, line) ||
-        line.rfind("gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg", 0) != 0) {
-        return Error{path +
-                     ": not a trajectory CSV (header gps_time_s,x_m,y_m,z_m,roll_deg,"
-                     "pitch_deg,yaw_deg expected)"};
-    }
+    auto csv = formats::ReadTrajectoryCsv(path);
+    if (!csv) return csv.error();
     TimedPoses out;
-    std::size_t line_no = 1;
-    while (std::getline(in, line)) {
-        ++line_no;
-        if (line.empty()) continue;
-        double v[7];
-        int used = 0;
-        if (std::sscanf(line.c_str(),
-                        "%lf,%lf,%lf,%lf,%lf,%lf,%lf%n",
-                        &v[0],
-                        &v[1],
-                        &v[2],
-                        &v[3],
-                        &v[4],
-                        &v[5],
-                        &v[6],
-                        &used) != 7 ||
-            !std::all_of(std::begin(v), std::end(v), [](double x) { return std::isfinite(x); })) {
-            return Error{path + ":" + std::to_string(line_no) +
-                         ": malformed row (7 finite numbers expected)"};
-        }
-        static const char* const kNames[7] = {
-            "gps_time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"};
-        for (int k = 0; k < 7; ++k) {
-            const double limit = k == 0  ? kMaxGpsTimeS
-                                 : k < 4 ? kMaxTrajectoryOffsetM
-                                         : kMaxTrajectoryAngleDeg;
-            if (std::abs(v[k]) > limit) {
-                char msg[160];
-                std::snprintf(msg,
-                              sizeof msg,
-                              ": %s = %g is beyond +-%g%s",
-                              kNames[k],
-                              v[k],
-                              limit,
-                              k >= 1 && k < 4 ? " m of the world origin" : "");
-                return Error{path + ":" + std::to_string(line_no) + msg};
-            }
-        }
-        if (!out.gps_time_s.empty() && v[0] <= out.gps_time_s.back()) {
-            return Error{path + ":" + std::to_string(line_no) + ": times not increasing"};
-        }
-        out.gps_time_s.push_back(v[0]);
-        out.T_world_vehicle.push_back(
-            MakePose(frames::RotationWorldFromRpy(
-                         frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
-                     Eigen::Vector3d(v[1], v[2], v[3])));
+    out.gps_time_s.reserve(csv->rows.size());
+    out.T_world_vehicle.reserve(csv->rows.size());
+    for (const formats::TrajectoryRow& r : csv->rows) {
+        out.gps_time_s.push_back(r.gps_time_s);
+        out.T_world_vehicle.push_back(formats::PoseOf(r));
     }
     return out;
 }

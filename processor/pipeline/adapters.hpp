@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "common/formats/trajectory_csv.hpp"
 #include "common/result.hpp"
 #include "common/se3.hpp"
 #include "processor/fusion/tsdf.hpp"
@@ -81,16 +82,13 @@ struct TimedPoses {
 };
 TimedPoses PingPoses(const georef::GeorefResult& geo);
 
-// trajectory.csv: gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg (world ENU; attitude of the
-// vehicle FRD frame relative to NED, common/frames.hpp).
+// Per-ping trajectories (trajectory.csv, trajectory_initial.csv) as poses, through the one
+// trajectory CSV reader and writer (common/formats/trajectory_csv.hpp: columns, frames, and the
+// plausibility limits a read enforces).
+using formats::kMaxGpsTimeS;
+using formats::kMaxTrajectoryAngleDeg;
+using formats::kMaxTrajectoryOffsetM;
 Status WriteTrajectoryCsv(const std::string& path, const TimedPoses& trajectory);
-// Reads the first seven columns of a trajectory CSV (any further columns are ignored). Every
-// value must be finite and plausible for a survey, or the read fails naming the file and line:
-// positions within kMaxTrajectoryOffsetM of the world origin on each axis (the TSDF's extent
-// comes from them), angles within +-kMaxTrajectoryAngleDeg, times within +-kMaxGpsTimeS.
-inline constexpr double kMaxTrajectoryOffsetM = 50'000.0;
-inline constexpr double kMaxTrajectoryAngleDeg = 720.0;
-inline constexpr double kMaxGpsTimeS = 1e11;
 Expected<TimedPoses> ReadTrajectoryCsv(const std::string& path);
 
 }  // namespace pitmap::proc::pipeline

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <type_traits>
+#include <utility>
+#include <vector>
 
 #include "common/config.hpp"
 #include "common/vehicle.hpp"
@@ -14,10 +17,119 @@ namespace pitmap::proc::pipeline {
 
 namespace {
 
-// The keys of the 3-D stages, visited once for reading (ConfigReader) and once for printing
-// the defaults, so the two cannot drift apart. Enums are handled beside the visitors.
+// THE CONFIG KEY TABLE. Every key of every section is one entry, visited by the reader
+// (LoadConfig: types checked, unknown keys rejected, every problem listed) and by the printer
+// (ConfigYaml / `pitmap config --defaults`), so reading, the printed defaults and validation
+// cannot drift apart. An entry is one call on the visitor `v`:
+//   v("key", field, "comment")                a bool, int, double or string
+//   v.Enum("key", field, kAllValues, "comment") an enum spelled by its ToString names
+//   v.Optional("key", value, known, "comment")  a number or null (known = given)
+//   v.NanIsNull("key", value, "comment")        a number or null (NaN = not given)
+//   v.Section("name", [&](auto& s) { ... })     a nested map of entries
+// A comment may hold '\n' for more lines. To add a section: write a Visit<Name>(v, config)
+// with one entry per key (like VisitGeoref below) and add one v.Section line to VisitConfig;
+// validation stays in the config struct's Validate(), listed in PipelineConfig::Validate.
+
+constexpr slam::CorrespondenceType kCorrespondences[] = {slam::CorrespondenceType::kPointToPoint,
+                                                         slam::CorrespondenceType::kPointToPlane,
+                                                         slam::CorrespondenceType::kGicp};
+constexpr slam::RobustKernel kKernels[] = {
+    slam::RobustKernel::kNone, slam::RobustKernel::kHuber, slam::RobustKernel::kCauchy};
+constexpr fusion::SensorModel kSensorModels[] = {fusion::SensorModel::kBeamWidth,
+                                                 fusion::SensorModel::kRay};
+
+constexpr io::IngestSource kIngestSources[] = {
+    io::IngestSource::kAuto, io::IngestSource::kDecoded, io::IngestSource::kRaw};
+
+template <class V>
+void VisitIngest(V&& v, io::IngestConfig& c) {
+    v.Enum("source", c.source, kIngestSources, "auto | decoded | raw (re-decode RAW_* channels)");
+    v("nav_channel_id", c.nav_channel_id, "e.g. novatel_com1; \"\" = every INS channel");
+    v("sonar_channel_id", c.sonar_channel_id, "e.g. deltat_udp; \"\" = every sonar channel");
+    v.Optional("sonar_clock_offset_s",
+               c.sonar_clock_offset_s,
+               c.sonar_clock_offset_known,
+               ".83P files: sonar (header) clock minus UTC, s:\n"
+               "> 0 = the sonar clock is ahead, < 0 = behind;\n"
+               "null = vehicle.yaml's sonar.clock_offset_s, else 0");
+    v("require_good_ins", c.require_good_ins, "drop INS samples not INS_SOLUTION_GOOD");
+}
+
+template <class V>
+void VisitGeoref(V&& v, georef::GeorefConfig& c) {
+    v("max_nav_gap_s", c.max_nav_gap_s, "refuse pings across longer INS gaps, s");
+    v("min_range_m", c.min_range_m, "range gate, m");
+    v("max_range_m", c.max_range_m, "range gate, m");
+    v("sound_speed_scaling", c.sound_speed_scaling, "r *= c_header / nominal");
+    v("nominal_sound_speed_mps", c.nominal_sound_speed_mps, "the sound speed of the counts, m/s");
+    v("apply_profile_tilt", c.apply_profile_tilt, "rotate the fan by the header's profile tilt");
+    v("spike_half_window", c.spike_half_window, "beams each side of the median; 0 = off");
+    v("spike_abs_m", c.spike_abs_m, "spike if |r - median| > abs + rel * median");
+    v("spike_rel", c.spike_rel, "");
+    v("num_threads", c.num_threads, "0 = all cores");
+}
+
+constexpr svp::CastSelection kCastSelections[] = {svp::CastSelection::kNearestPreceding,
+                                                  svp::CastSelection::kNearestInTime,
+                                                  svp::CastSelection::kNearestInDistance};
+constexpr svp::SurfaceSpeedSource kSurfaceSpeeds[] = {svp::SurfaceSpeedSource::kProfile,
+                                                      svp::SurfaceSpeedSource::kHeader};
+
+template <class V>
+void VisitRefraction(V&& v, svp::RefractionConfig& c) {
+    v("svp_files", c.svp_files, "CARIS .svp, CSV or two-column casts (--svp); [] = straight rays");
+    v.Enum("selection",
+           c.selection,
+           kCastSelections,
+           "nearest_preceding | nearest_in_time | nearest_in_distance");
+    v.Enum("surface_speed",
+           c.surface_speed,
+           kSurfaceSpeeds,
+           "speed at the face: profile (the cast) | header (83P, no steering change)");
+    v.NanIsNull(
+        "ins_height_above_waterline_m", c.ins_height_above_waterline_m, "m; null = vehicle.yaml's");
+}
+
+template <class V>
+void VisitCalibrate(V&& v, calib::BoresightConfig& c) {
+    v("segment_start_s", c.segment_start_s, "GPS seconds; < 0 = automatic");
+    v("segment_duration_s", c.segment_duration_s, "s (clamped to the survey)");
+    v("part_duration_s", c.part_duration_s, "trajectory parts, s");
+    v("min_separation_s", c.min_separation_s, "pairs only between soundings this far apart, s");
+    v("beam_stride", c.beam_stride, "every n-th sounding of a ping");
+    v("max_distance_m", c.max_distance_m, "correspondence gate, first iteration, m");
+    v("min_distance_m", c.min_distance_m, "... last iteration, m");
+    v("normal_radius_m", c.normal_radius_m, "neighbourhood for the normals, m");
+    v("cauchy_scale_m", c.cauchy_scale_m, "robust kernel scale, m");
+    v("max_iterations", c.max_iterations, "outer (correspondence) iterations");
+    v("convergence_deg", c.convergence_deg, "stop below this update, deg");
+    v("max_position_stddev_m", c.max_position_stddev_m, "low-drift limit (horizontal 1 sigma), m");
+    v("max_heading_stddev_deg", c.max_heading_stddev_deg, "low-drift limit, deg");
+    v("num_verify_segments", c.num_verify_segments, "other segments to verify on");
+    v("estimate_height_offsets",
+      c.estimate_height_offsets,
+      "per-node INS height corrections (else parallel passes bias roll)");
+    v("height_offset_sigma_m", c.height_offset_sigma_m, "their prior, m");
+    v("range_noise_fraction",
+      c.range_noise_fraction,
+      "pair weights 1/sigma^2, sigma = fraction * range + constant");
+    v("range_noise_constant_m", c.range_noise_constant_m, "m");
+    v("estimate_latency",
+      c.estimate_latency,
+      "the sonar time offset as a 4th unknown (patch test latency)");
+    v("latency_sigma_s", c.latency_sigma_s, "its prior, 1 sigma, s");
+    v("latency_scan_step_s",
+      c.latency_scan_step_s,
+      "scan step when the clock is uncertain beyond the linear range, s");
+}
+
 template <class V>
 void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
+    v.Enum("correspondence",
+           c.correspondence,
+           kCorrespondences,
+           "point_to_point (the paper) | point_to_plane | gicp");
+    v.Enum("robust_kernel", c.robust_kernel, kKernels, "none | huber | cauchy");
     v("point_stride", s.point_stride, "every n-th kept sounding of a ping enters SLAM");
     v("min_time_separation_s",
       c.min_time_separation_s,
@@ -75,6 +187,7 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
 
 template <class V>
 void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
+    v.Enum("sensor_model", c.sensor_model, kSensorModels, "beam_width (May et al.) | ray");
     v("voxel_size_m", c.voxel_size_m, "voxel edge, m");
     v("truncation_m", c.truncation_m, "truncation band, m");
     v("weight_per_measurement", c.weight_per_measurement, "f (uniform weights)");
@@ -120,57 +233,132 @@ void VisitRun(V&& v, RunOptions& r) {
     v("report", r.report, "report.html");
 }
 
-struct ReadVisitor {
-    ConfigReader& in;
-    template <class T>
-    void operator()(const char* key, T& value, const char*) {
-        in.Read(key, value);
-    }
-};
-
-struct PrintVisitor {
-    std::ostringstream& out;
-    template <class T>
-    void operator()(const char* key, T& value, const char* comment) {
-        std::ostringstream line;
-        line << std::setprecision(10) << "  " << key << ": ";
-        if constexpr (std::is_same_v<T, bool>) {
-            line << (value ? "true" : "false");
-        } else {
-            line << value;
-        }
-        std::string text = line.str();
-        if (*comment != 0) {
-            text.resize(std::max<std::size_t>(text.size() + 1, 38), ' ');
-            text += std::string("# ") + comment;
-        }
-        out << text << "\n";
-    }
-};
-
-// Reads an enum spelled as one of its ToString names; a problem lists the valid ones.
-template <class E, std::size_t N>
-void ReadEnum(ConfigReader& in, const char* key, E& value, const E (&all)[N]) {
-    std::string text = ToString(value);
-    if (!in.Read(key, text)) return;
-    std::string valid;
-    for (E e : all) {
-        if (text == ToString(e)) {
-            value = e;
-            return;
-        }
-        valid += std::string(valid.empty() ? "" : ", ") + ToString(e);
-    }
-    in.AddProblem(in.Path(key) + ": '" + text + "' is not one of " + valid);
+template <class V>
+void VisitProducts(V&& v, PipelineConfig& c) {
+    v("write_las", c.write_las, "points.las (UTM) beside points.ply");
+    v("vehicle_yaml", c.vehicle_yaml, "\"\" = vehicle.yaml beside the first log (--vehicle)");
+    v.Section("origin", [&](auto& o) {
+        o.NanIsNull("latitude_deg", c.origin_latitude_deg, "world origin; null = first INS fix");
+        o.NanIsNull("longitude_deg", c.origin_longitude_deg, "");
+        o.NanIsNull("height_m", c.origin_height_m, "ellipsoidal, m");
+    });
 }
 
-constexpr slam::CorrespondenceType kCorrespondences[] = {slam::CorrespondenceType::kPointToPoint,
-                                                         slam::CorrespondenceType::kPointToPlane,
-                                                         slam::CorrespondenceType::kGicp};
-constexpr slam::RobustKernel kKernels[] = {
-    slam::RobustKernel::kNone, slam::RobustKernel::kHuber, slam::RobustKernel::kCauchy};
-constexpr fusion::SensorModel kSensorModels[] = {fusion::SensorModel::kBeamWidth,
-                                                 fusion::SensorModel::kRay};
+// The sections of the processor config, in file order.
+template <class V>
+void VisitConfig(V&& v, PipelineConfig& c) {
+    v.Section("ingest", [&](auto& s) { VisitIngest(s, c.ingest); });
+    v.Section("georef", [&](auto& s) { VisitGeoref(s, c.georef); });
+    v.Section("refraction", [&](auto& s) { VisitRefraction(s, c.refraction); });
+    v.Section("calibrate", [&](auto& s) { VisitCalibrate(s, c.calibrate); });
+    v.Section("slam", [&](auto& s) { VisitSlam(s, c.slam, c.slam_stage); });
+    v.Section("fuse", [&](auto& s) { VisitFuse(s, c.tsdf, c.weight_filter); });
+    v.Section("mesh", [&](auto& s) { VisitMesh(s, c.mesh); });
+    v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
+    v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
+    v.Section("products", [&](auto& s) { VisitProducts(s, c); });
+}
+
+// Reads every entry from a YAML map; problems are collected in the ConfigReader.
+class ReadVisitor {
+public:
+    explicit ReadVisitor(ConfigReader in) : in_(std::move(in)) {}
+    template <class T>
+    void operator()(const char* key, T& value, const char*) {
+        in_.Read(key, value);
+    }
+    // An enum spelled as one of its ToString names; a problem lists the valid ones.
+    template <class E, std::size_t N>
+    void Enum(const char* key, E& value, const E (&all)[N], const char*) {
+        std::string text = ToString(value);
+        if (!in_.Read(key, text)) return;
+        std::string valid;
+        for (E e : all) {
+            if (text == ToString(e)) {
+                value = e;
+                return;
+            }
+            valid += std::string(valid.empty() ? "" : ", ") + ToString(e);
+        }
+        in_.AddProblem(in_.Path(key) + ": '" + text + "' is not one of " + valid);
+    }
+    void Optional(const char* key, double& value, bool& known, const char*) {
+        if (in_.Read(key, value)) known = true;
+    }
+    void NanIsNull(const char* key, double& value, const char*) { in_.Read(key, value); }
+    template <class F>
+    void Section(const char* name, F&& entries) {
+        ReadVisitor child(in_.Child(name));
+        entries(child);
+        child.in_.RejectUnknownKeys();
+    }
+
+private:
+    ConfigReader in_;
+};
+
+// Prints every entry as YAML, "key: value  # comment", indented by section depth.
+class PrintVisitor {
+public:
+    PrintVisitor(std::ostringstream& out, int depth) : out_(out), depth_(depth) {}
+    template <class T>
+    void operator()(const char* key, T& value, const char* comment) {
+        std::ostringstream v;
+        v << std::setprecision(15);
+        if constexpr (std::is_same_v<T, bool>) {
+            v << (value ? "true" : "false");
+        } else if constexpr (std::is_same_v<T, std::string>) {
+            v << std::quoted(value);
+        } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
+            v << "[";
+            for (std::size_t i = 0; i < value.size(); ++i) {
+                v << (i > 0 ? ", " : "") << std::quoted(value[i]);
+            }
+            v << "]";
+        } else {
+            v << value;
+        }
+        Line(key, v.str(), comment);
+    }
+    template <class E, std::size_t N>
+    void Enum(const char* key, E& value, const E (&)[N], const char* comment) {
+        Line(key, ToString(value), comment);
+    }
+    void Optional(const char* key, double& value, bool& known, const char* comment) {
+        double v = known ? value : std::numeric_limits<double>::quiet_NaN();
+        NanIsNull(key, v, comment);
+    }
+    void NanIsNull(const char* key, double& value, const char* comment) {
+        std::ostringstream v;
+        v << std::setprecision(15);
+        if (std::isnan(value)) {
+            v << "null";
+        } else {
+            v << value;
+        }
+        Line(key, v.str(), comment);
+    }
+    template <class F>
+    void Section(const char* name, F&& entries) {
+        out_ << std::string(2 * depth_, ' ') << name << ":\n";
+        PrintVisitor child(out_, depth_ + 1);
+        entries(child);
+    }
+
+private:
+    void Line(const char* key, const std::string& value, const std::string& comment) {
+        std::string text = std::string(2 * depth_, ' ') + key + ": " + value;
+        std::istringstream lines(comment);
+        for (std::string c; std::getline(lines, c);) {
+            text.resize(std::max<std::size_t>(text.size() + 1, 38), ' ');
+            out_ << text << "# " << c << "\n";
+            text.clear();
+        }
+        if (!text.empty()) out_ << text << "\n";
+    }
+    std::ostringstream& out_;
+    int depth_;
+};
 
 }  // namespace
 
@@ -243,86 +431,7 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     auto reader = ConfigReader::FromFile(path);
     if (!reader) return reader.error();
     PipelineConfig c;
-    ConfigReader in = reader->Child("ingest");
-    std::string source = io::ToString(c.ingest.source);
-    in.Read("source", source);
-    if (!io::ParseIngestSource(source, c.ingest.source)) {
-        in.AddProblem(in.Path("source") + ": must be auto, decoded or raw");
-    }
-    in.Read("nav_channel_id", c.ingest.nav_channel_id);
-    in.Read("sonar_channel_id", c.ingest.sonar_channel_id);
-    if (in.Has("sonar_clock_offset_s")) c.ingest.sonar_clock_offset_known = true;
-    in.Read("sonar_clock_offset_s", c.ingest.sonar_clock_offset_s);
-    in.Read("require_good_ins", c.ingest.require_good_ins);
-    in.RejectUnknownKeys();
-    ConfigReader g = reader->Child("georef");
-    auto& gc = c.georef;
-    g.Read("max_nav_gap_s", gc.max_nav_gap_s);
-    g.Read("min_range_m", gc.min_range_m);
-    g.Read("max_range_m", gc.max_range_m);
-    g.Read("sound_speed_scaling", gc.sound_speed_scaling);
-    g.Read("nominal_sound_speed_mps", gc.nominal_sound_speed_mps);
-    g.Read("apply_profile_tilt", gc.apply_profile_tilt);
-    g.Read("spike_half_window", gc.spike_half_window);
-    g.Read("spike_abs_m", gc.spike_abs_m);
-    g.Read("spike_rel", gc.spike_rel);
-    g.Read("num_threads", gc.num_threads);
-    g.RejectUnknownKeys();
-    ConfigReader rf = reader->Child("refraction");
-    svp::ReadRefractionConfig(rf, c.refraction);
-    ConfigReader b = reader->Child("calibrate");
-    auto& bc = c.calibrate;
-    b.Read("segment_start_s", bc.segment_start_s);
-    b.Read("segment_duration_s", bc.segment_duration_s);
-    b.Read("part_duration_s", bc.part_duration_s);
-    b.Read("min_separation_s", bc.min_separation_s);
-    b.Read("beam_stride", bc.beam_stride);
-    b.Read("max_distance_m", bc.max_distance_m);
-    b.Read("min_distance_m", bc.min_distance_m);
-    b.Read("normal_radius_m", bc.normal_radius_m);
-    b.Read("cauchy_scale_m", bc.cauchy_scale_m);
-    b.Read("max_iterations", bc.max_iterations);
-    b.Read("convergence_deg", bc.convergence_deg);
-    b.Read("max_position_stddev_m", bc.max_position_stddev_m);
-    b.Read("max_heading_stddev_deg", bc.max_heading_stddev_deg);
-    b.Read("num_verify_segments", bc.num_verify_segments);
-    b.Read("estimate_height_offsets", bc.estimate_height_offsets);
-    b.Read("height_offset_sigma_m", bc.height_offset_sigma_m);
-    b.Read("range_noise_fraction", bc.range_noise_fraction);
-    b.Read("range_noise_constant_m", bc.range_noise_constant_m);
-    b.Read("estimate_latency", bc.estimate_latency);
-    b.Read("latency_sigma_s", bc.latency_sigma_s);
-    b.Read("latency_scan_step_s", bc.latency_scan_step_s);
-    b.RejectUnknownKeys();
-    {
-        ConfigReader sl = reader->Child("slam");
-        VisitSlam(ReadVisitor{sl}, c.slam, c.slam_stage);
-        ReadEnum(sl, "correspondence", c.slam.correspondence, kCorrespondences);
-        ReadEnum(sl, "robust_kernel", c.slam.robust_kernel, kKernels);
-        sl.RejectUnknownKeys();
-        ConfigReader fu = reader->Child("fuse");
-        VisitFuse(ReadVisitor{fu}, c.tsdf, c.weight_filter);
-        ReadEnum(fu, "sensor_model", c.tsdf.sensor_model, kSensorModels);
-        fu.RejectUnknownKeys();
-        ConfigReader me = reader->Child("mesh");
-        VisitMesh(ReadVisitor{me}, c.mesh);
-        me.RejectUnknownKeys();
-        ConfigReader ru = reader->Child("run");
-        VisitRun(ReadVisitor{ru}, c.run);
-        ru.RejectUnknownKeys();
-        ConfigReader qu = reader->Child("quality");
-        VisitQuality(ReadVisitor{qu}, c.quality);
-        qu.RejectUnknownKeys();
-    }
-    ConfigReader pr = reader->Child("products");
-    pr.Read("write_las", c.write_las);
-    pr.Read("vehicle_yaml", c.vehicle_yaml);
-    ConfigReader o = pr.Child("origin");
-    o.Read("latitude_deg", c.origin_latitude_deg);
-    o.Read("longitude_deg", c.origin_longitude_deg);
-    o.Read("height_m", c.origin_height_m);
-    o.RejectUnknownKeys();
-    pr.RejectUnknownKeys();
+    VisitConfig(ReadVisitor(*reader), c);
     reader->RejectUnknownKeys();
     std::vector<std::string> problems = reader->problems();
     for (auto& s : c.Validate()) problems.push_back(path + ": " + s);
@@ -330,90 +439,17 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     return c;
 }
 
-std::string DefaultsYaml() {
-    const PipelineConfig c;
+std::string ConfigYaml(const PipelineConfig& config) {
+    PipelineConfig c = config;
     std::ostringstream o;
-    auto b = [](bool v) { return v ? "true" : "false"; };
+    VisitConfig(PrintVisitor(o, 0), c);
+    return o.str();
+}
+
+std::string DefaultsYaml() {
+    std::ostringstream o;
     o << "# pitmap processor configuration: every key with its default.\n"
-      << "ingest:\n"
-      << "  source: " << io::ToString(c.ingest.source)
-      << "            # auto | decoded | raw (re-decode RAW_* channels)\n"
-      << "  nav_channel_id: \"\"        # e.g. novatel_com1; \"\" = every INS channel\n"
-      << "  sonar_channel_id: \"\"      # e.g. deltat_udp; \"\" = every sonar channel\n"
-      << "  sonar_clock_offset_s: null  # .83P files: sonar (header) clock minus UTC, s:\n"
-      << "                              # > 0 = the sonar clock is ahead, < 0 = behind;\n"
-      << "                              # null = vehicle.yaml's sonar.clock_offset_s, else 0\n"
-      << "  require_good_ins: " << b(c.ingest.require_good_ins)
-      << "   # drop INS samples not INS_SOLUTION_GOOD\n"
-      << "georef:\n"
-      << "  max_nav_gap_s: " << c.georef.max_nav_gap_s
-      << "          # refuse pings across longer INS gaps, s\n"
-      << "  min_range_m: " << c.georef.min_range_m << "            # range gate, m\n"
-      << "  max_range_m: " << c.georef.max_range_m << "            # range gate, m\n"
-      << "  sound_speed_scaling: " << b(c.georef.sound_speed_scaling)
-      << "  # r *= c_header / nominal\n"
-      << "  nominal_sound_speed_mps: " << c.georef.nominal_sound_speed_mps << "\n"
-      << "  apply_profile_tilt: " << b(c.georef.apply_profile_tilt) << "\n"
-      << "  spike_half_window: " << c.georef.spike_half_window
-      << "      # beams each side of the median; 0 = off\n"
-      << "  spike_abs_m: " << c.georef.spike_abs_m
-      << "            # spike if |r - median| > abs + rel * median\n"
-      << "  spike_rel: " << c.georef.spike_rel << "\n"
-      << "  num_threads: " << c.georef.num_threads << "              # 0 = all cores\n"
-      << svp::RefractionDefaultsYaml() << "calibrate:\n"
-      << "  segment_start_s: " << c.calibrate.segment_start_s
-      << "         # GPS seconds; < 0 = automatic\n"
-      << "  segment_duration_s: " << c.calibrate.segment_duration_s << "\n"
-      << "  part_duration_s: " << c.calibrate.part_duration_s << "\n"
-      << "  min_separation_s: " << c.calibrate.min_separation_s
-      << "      # pairs only between soundings this far apart\n"
-      << "  beam_stride: " << c.calibrate.beam_stride << "\n"
-      << "  max_distance_m: " << c.calibrate.max_distance_m
-      << "        # correspondence gate, first iteration\n"
-      << "  min_distance_m: " << c.calibrate.min_distance_m << "        # ... last iteration\n"
-      << "  normal_radius_m: " << c.calibrate.normal_radius_m << "\n"
-      << "  cauchy_scale_m: " << c.calibrate.cauchy_scale_m << "\n"
-      << "  max_iterations: " << c.calibrate.max_iterations << "\n"
-      << "  convergence_deg: " << c.calibrate.convergence_deg << "\n"
-      << "  max_position_stddev_m: " << c.calibrate.max_position_stddev_m << " # low-drift limit\n"
-      << "  max_heading_stddev_deg: " << c.calibrate.max_heading_stddev_deg << "\n"
-      << "  num_verify_segments: " << c.calibrate.num_verify_segments << "\n"
-      << "  estimate_height_offsets: " << b(c.calibrate.estimate_height_offsets)
-      << "  # per-node INS height corrections (else parallel passes bias roll)\n"
-      << "  height_offset_sigma_m: " << c.calibrate.height_offset_sigma_m << "  # their prior\n"
-      << "  range_noise_fraction: " << c.calibrate.range_noise_fraction
-      << "  # pair weights 1/sigma^2, sigma = fraction * range + constant\n"
-      << "  range_noise_constant_m: " << c.calibrate.range_noise_constant_m << "\n"
-      << "  estimate_latency: " << b(c.calibrate.estimate_latency)
-      << "      # the sonar time offset as a 4th unknown (patch test latency)\n"
-      << "  latency_sigma_s: " << c.calibrate.latency_sigma_s
-      << "         # its prior, 1 sigma, s\n"
-      << "  latency_scan_step_s: " << c.calibrate.latency_scan_step_s
-      << "  # scan step when the clock is uncertain beyond the linear range, s\n";
-    {
-        PipelineConfig d;
-        o << "slam:\n";
-        o << "  correspondence: " << ToString(d.slam.correspondence)
-          << "          # point_to_point (the paper) | point_to_plane | gicp\n";
-        o << "  robust_kernel: " << ToString(d.slam.robust_kernel)
-          << "            # none | huber | cauchy\n";
-        VisitSlam(PrintVisitor{o}, d.slam, d.slam_stage);
-        o << "fuse:\n";
-        o << "  sensor_model: " << ToString(d.tsdf.sensor_model)
-          << "       # beam_width (May et al.) | ray\n";
-        VisitFuse(PrintVisitor{o}, d.tsdf, d.weight_filter);
-        o << "mesh:\n";
-        VisitMesh(PrintVisitor{o}, d.mesh);
-        o << "run:\n";
-        VisitRun(PrintVisitor{o}, d.run);
-        o << "quality:\n";
-        VisitQuality(PrintVisitor{o}, d.quality);
-    }
-    o << "products:\n"
-      << "  write_las: " << b(c.write_las) << "\n"
-      << "  vehicle_yaml: \"\"          # \"\" = vehicle.yaml beside the first log (--vehicle)\n"
-      << "  origin:                    # world origin; absent = first INS position\n"
-      << "    latitude_deg: null\n    longitude_deg: null\n    height_m: null\n";
+      << ConfigYaml(PipelineConfig{});
     // The vehicle file is separate (products.vehicle_yaml, --vehicle): its schema as comments,
     // so that this output stays a valid processor config.
     o << "#\n# vehicle.yaml, a separate file (`pitmap config --vehicle` prints it uncommented):\n";

@@ -1,10 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/pipeline.hpp"
 
-#include <fcntl.h>
-#include <malloc.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -12,10 +8,13 @@
 
 #include "common/config.hpp"
 #include "common/frames.hpp"
+#include "common/gps_time.hpp"
+#include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -25,43 +24,21 @@ using nlohmann::json;
 
 namespace {
 
-json CountsJson(const io::IngestCounts& c) {
-    json j = {{"files", c.files},
-              {"bytes", c.bytes},
-              {"events", c.events},
-              {"corrupt_events", c.corrupt_events},
-              {"resync_bytes", c.resync_bytes},
-              {"truncated_events", c.truncated_events},
-              {"length_repairs", c.length_repairs},
-              {"files_skipped", c.files_skipped},
-              {"decode_failures", c.decode_failures},
-              {"nav_samples", c.nav_samples},
-              {"nav_without_time", c.nav_without_time},
-              {"nav_not_good", c.nav_not_good},
-              {"nav_duplicates", c.nav_duplicates},
-              {"stddev_samples", c.stddev_samples},
-              {"pings", c.pings},
-              {"pings_without_time", c.pings_without_time},
-              {"pings_bad", c.pings_bad},
-              {"ping_duplicates", c.ping_duplicates},
-              {"raw_chunks_decoded", c.raw_chunks_decoded},
-              {"raw_skipped_bytes", c.raw_skipped_bytes},
-              {"raw_decode_errors", c.raw_decode_errors}};
-    return j;
-}
-
-json CountsJson(const georef::GeorefCounts& c) {
-    return {{"pings_in", c.pings_in},
-            {"pings_georeferenced", c.pings_georeferenced},
-            {"pings_outside_nav", c.pings_outside_nav},
-            {"pings_in_nav_gap", c.pings_in_nav_gap},
-            {"pings_bad_header", c.pings_bad_header},
-            {"soundings_in", c.soundings_in},
-            {"no_detection", c.no_detection},
-            {"range_gate", c.range_gate},
-            {"spikes", c.spikes},
-            {"refraction_failed", c.refraction_failed},
-            {"points", c.points}};
+// summary["time"]: GPS - UTC for the survey (the receiver's TIME log when it logged one, else
+// common/gps_time's leap-second table) and the pings' span in both scales. The report turns GPS
+// seconds into UTC with it, so the table exists once (in C++).
+json TimeJson(const io::IngestResult& ing) {
+    const std::int64_t t0 = ing.pings.pings.front().utime_gps;
+    const std::int64_t t1 = ing.pings.pings.back().utime_gps;
+    const bool receiver = ing.nav.leap_seconds >= 0;
+    const int leap = receiver ? ing.nav.leap_seconds : LeapSecondsAtGps(t0);
+    return {{"gps_minus_utc_s", leap},
+            {"gps_minus_utc_source", receiver ? "receiver TIME log" : "built-in leap-second table"},
+            {"leap_second_table_valid_until", LeapSecondTableValidUntil()},
+            {"first_ping_gps_s", static_cast<double>(t0) * 1e-6},
+            {"last_ping_gps_s", static_cast<double>(t1) * 1e-6},
+            {"first_ping_utc", FormatUnixIso8601(UnixFromGps(t0, leap))},
+            {"last_ping_utc", FormatUnixIso8601(UnixFromGps(t1, leap))}};
 }
 
 // The vehicle file: products.vehicle_yaml (--vehicle), else vehicle.yaml beside the first
@@ -88,38 +65,18 @@ void ApplyVehicle(const VehicleDescription& v, io::IngestConfig& icfg) {
 namespace detail {
 
 StageClock::StageClock() : start_(std::chrono::steady_clock::now()) {
-    // Hand the heap's free pages back first, so the stage's peak is not the previous stage's
-    // retained memory.
-    ::malloc_trim(0);
-    // "5" resets the peak resident set size (Linux >= 4.0); without it the peak is cumulative.
-    const int fd = ::open("/proc/self/clear_refs", O_WRONLY | O_CLOEXEC);
-    if (fd >= 0) {
-        const ssize_t n = ::write(fd, "5", 1);
-        (void)n;
-        ::close(fd);
-    }
+    // The stage's own peak, not the previous stage's retained memory (where the kernel allows).
+    ResetPeakRss();
 }
 
 double StageClock::seconds() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
-double StageClock::PeakRssMb() {
-    if (std::FILE* f = std::fopen("/proc/self/status", "r")) {
-        char line[256];
-        long kb = -1;
-        while (std::fgets(line, sizeof(line), f) != nullptr) {
-            if (std::sscanf(line, "VmHWM: %ld kB", &kb) == 1) break;
-        }
-        std::fclose(f);
-        if (kb >= 0) return static_cast<double>(kb) / 1024.0;
-    }
-    return io::PeakRssMb();
-}
-
-void RecordStage(json& summary, const std::string& name, json stage, const StageClock& clock) {
+void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& clock) {
+    const std::string name = ToString(stage_id);
     stage["seconds"] = clock.seconds();
-    stage["peak_rss_mb"] = StageClock::PeakRssMb();
+    stage["peak_rss_mb"] = PeakRssMb();
     summary["stages"][name] = std::move(stage);
     json order = json::array();
     if (summary.contains("stage_order") && summary["stage_order"].is_array()) {
@@ -187,17 +144,19 @@ Status SaveSummary(const Survey& s) {
 }
 
 void TripGate(Survey& s,
-              const std::string& stage,
+              Stage stage_id,
               const std::string& gate,
               const std::string& message,
               const Log& log) {
+    const std::string stage = ToString(stage_id);
     log("quality gate " + stage + "/" + gate + ": " + message);
     if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array())
         s.summary["quality_gates"] = json::array();
     s.summary["quality_gates"].push_back({{"stage", stage}, {"gate", gate}, {"message", message}});
 }
 
-void ClearGates(Survey& s, const std::string& stage) {
+void ClearGates(Survey& s, Stage stage_id) {
+    const std::string stage = ToString(stage_id);
     if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array()) return;
     json kept = json::array();
     for (const auto& g : s.summary["quality_gates"]) {
@@ -264,7 +223,7 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
             if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
                 TripGate(s,
-                         "georef",
+                         Stage::kGeoref,
                          "sonar_clock_disagrees",
                          "the configured sonar clock offset is " +
                              Num("%+.3f", config.ingest.sonar_clock_offset_s) + " s, the " +
@@ -335,7 +294,8 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     if (auto r = RestoreRefraction(s, log); !r) return r.error();
     s.geo = georef::RunGeoref(
         s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin, {}, s.refraction);
-    if (apply_trajectory && s.summary.contains("stages") && s.summary["stages"].contains("slam")) {
+    if (apply_trajectory && s.summary.contains("stages") &&
+        s.summary["stages"].contains(ToString(Stage::kSlam))) {
         auto traj = ReadTrajectoryCsv(out_dir + "/trajectory.csv");
         if (!traj) return traj.error();
         PoseLookup poses = PosesAtPings(s.geo, traj->gps_time_s, traj->T_world_vehicle);
@@ -350,7 +310,7 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
 
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
-    ClearGates(s, "calibrate");
+    ClearGates(s, Stage::kCalibrate);
     const georef::SonarMount before = s.mount;
     const QualityConfig& q = config.quality;
     calib::BoresightConfig bc = config.calibrate;
@@ -363,7 +323,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         bc.initial_latency_s = 0;
         bc.latency_scan_s = header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
     }
-    ProgressReporter bar("calibrate", 1000);
+    ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
     calib::BoresightResult cal =
         calib::CalibrateBoresight(s.geo, s.ingest.nav, s.mount, bc, bar.AsCallback());
     bar.Finish();
@@ -372,12 +332,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         {"termination", calib::ToString(cal.termination)},
         {"iterations", cal.iterations},
         {"message", cal.message},
-        {"segment",
-         {{"start_s", cal.segment.start_s},
-          {"end_s", cal.segment.end_s},
-          {"overlap_cells", cal.segment.overlap_cells},
-          {"max_position_stddev_m", cal.segment.max_position_stddev_m},
-          {"max_heading_stddev_deg", cal.segment.max_heading_stddev_deg}}},
+        {"segment", cal.segment},
         {"residual_before_rms_m", cal.before.rms_m},
         {"residual_after_rms_m", cal.after.rms_m},
         {"residual_expected_rms_m", cal.after.expected_rms_m},
@@ -435,14 +390,14 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             Num("%.0f", bc.segment_duration_s) + " s); the result rests on its own window alone");
     }
     if (cal.termination == calib::Termination::kNoOverlap) {
-        RecordStage(s.summary, "calibrate", st, clock);
+        RecordStage(s.summary, Stage::kCalibrate, st, clock);
         (void)SaveSummary(s);
         return Error{"calibrate: " + cal.message};
     }
     if (cal.after.pairs > 0 &&
         cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "calibration_residual",
                  "residual RMS " + Num("%.4f", cal.after.rms_m) + " m after calibration is " +
                      Num("%.1f", cal.after.rms_m / cal.after.expected_rms_m) +
@@ -453,7 +408,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     }
     if (cal.latency_unresolved) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "sonar_clock_unresolved",
                  "the sonar latency was still moving when the calibration ended (at " +
                      Num("%+.3f", cal.latency_s) +
@@ -464,7 +419,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     const bool keep_nominal = !verified || cal.latency_unresolved;
     if (!verified) {
         TripGate(s,
-                 "calibrate",
+                 Stage::kCalibrate,
                  "calibration_not_verified",
                  "the calibrated mount or latency fits other segments worse than the nominal "
                  "one: the nominal mount and sonar clock are kept",
@@ -501,7 +456,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             std::abs(cal.latency_s) >
                 std::max(q.clock_disagreement_s, 3 * cal.latency_formal_sd_s)) {
             TripGate(s,
-                     "calibrate",
+                     Stage::kCalibrate,
                      "sonar_clock_disagrees",
                      "the configured sonar clock offset is " + Num("%+.4f", configured_offset) +
                          " s, the soundings put it at " + Num("%+.4f", implied) +
@@ -514,7 +469,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     json bj = MountJson(cal.mount);
     bj["sonar_clock"] = clk;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
-    RecordStage(s.summary, "calibrate", st, clock);
+    RecordStage(s.summary, Stage::kCalibrate, st, clock);
     return SaveSummary(s);
 }
 
@@ -564,18 +519,18 @@ Status GeorefSurvey(Survey& s,
         icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
 
     StageClock ingest_clock;
-    ProgressReporter bar("ingest", 1000);
+    ProgressReporter bar(ToString(Stage::kIngest), 1000);
     auto ing = io::IngestFiles(*files, icfg, bar.AsCallback());
     bar.Finish();
     if (!ing) return ing.error();
     s.ingest = std::move(*ing);
     for (const auto& w : s.ingest.warnings) log("warning: " + w);
     log("ingest: " + s.ingest.message);
-    json ist = CountsJson(s.ingest.counts);
+    json ist = s.ingest.counts;
     ist["warnings"] = s.ingest.warnings;
     ist["nav_from_raw"] = s.ingest.nav_from_raw;
     ist["pings_from_raw"] = s.ingest.pings_from_raw;
-    RecordStage(s.summary, "ingest", ist, ingest_clock);
+    RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);
     if (s.ingest.nav.samples.empty())
         return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
     if (s.ingest.pings.pings.empty())
@@ -594,7 +549,7 @@ Status GeorefSurvey(Survey& s,
         origin = Geodetic{
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
-    ProgressReporter gbar("georef", 1000);
+    ProgressReporter gbar(ToString(Stage::kGeoref), 1000);
     s.geo = georef::RunGeoref(s.ingest.nav,
                               s.ingest.pings,
                               s.mount,
@@ -614,30 +569,33 @@ Status GeorefSurvey(Survey& s,
             calib::SpanText(P.front().utime_gps, P.back().utime_gps);
         if (static_cast<double>(out) >
             config.quality.max_outside_nav_fraction * static_cast<double>(P.size())) {
-            TripGate(s, "georef", "pings_outside_navigation", what, log);
+            TripGate(s, Stage::kGeoref, "pings_outside_navigation", what, log);
         } else {
             log("warning: " + what);
         }
     }
     s.origin = s.geo.world_origin;
-    RecordStage(s.summary, "georef", CountsJson(s.geo.counts), georef_clock);
+    RecordStage(s.summary, Stage::kGeoref, s.geo.counts, georef_clock);
     s.summary["world_origin"] = {{"latitude_deg", s.origin.latitude_deg},
                                  {"longitude_deg", s.origin.longitude_deg},
                                  {"height_m", s.origin.height_m}};
+    s.summary["time"] = TimeJson(s.ingest);
     s.summary["inputs"] = json::array();
     for (const auto& f : *files) s.summary["inputs"].push_back(fs::absolute(f).string());
     s.summary["mount"] = MountJson(s.mount);
 
     StageClock export_clock;
     if (auto st = WritePoints(out_dir, s.geo, config, s.summary); !st) return st;
-    if (auto st = io::WriteTrajectoryCsv(out_dir + "/trajectory.csv", s.ingest.nav, s.origin); !st)
+    if (auto st =
+            io::WriteInsTrajectoryCsv(out_dir + "/trajectory_ins.csv", s.ingest.nav, s.origin);
+        !st)
         return st;
     if (auto st = io::WriteJsonFile(out_dir + "/boresight.json", MountJson(s.mount)); !st)
         return st;
     if (auto st = io::WriteIngestCache(out_dir + "/ingest.cache", s.ingest); !st) return st;
     // Products of later stages made from an earlier georeference would now be stale.
-    for (const char* stale : {"trajectory_initial.csv",
-                              "trajectory_ins.csv",
+    for (const char* stale : {"trajectory.csv",
+                              "trajectory_initial.csv",
                               "points_initial.ply",
                               "tsdf.vdb",
                               "mesh.ply",
@@ -650,11 +608,37 @@ Status GeorefSurvey(Survey& s,
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }
-    RecordStage(s.summary, "export", {{"points", s.geo.counts.points}}, export_clock);
+    RecordStage(s.summary, Stage::kExport, {{"points", s.geo.counts.points}}, export_clock);
     return SaveSummary(s);
 }
 
 }  // namespace detail
+
+const char* ToString(Stage s) {
+    switch (s) {
+        case Stage::kIngest:
+            return "ingest";
+        case Stage::kGeoref:
+            return "georef";
+        case Stage::kExport:
+            return "export";
+        case Stage::kCalibrate:
+            return "calibrate";
+        case Stage::kSlam:
+            return "slam";
+        case Stage::kFuseInitial:
+            return "fuse_initial";
+        case Stage::kMeshInitial:
+            return "mesh_initial";
+        case Stage::kFuse:
+            return "fuse";
+        case Stage::kMesh:
+            return "mesh";
+        case Stage::kReport:
+            return "report";
+    }
+    return "?";
+}
 
 Expected<std::string> Info(const std::vector<std::string>& inputs, const PipelineConfig& config) {
     auto files = io::ExpandInputs(inputs);
@@ -671,7 +655,7 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
     for (const auto& f : *files) o << "file " << f << "\n";
     for (const auto& w : r->warnings) o << "warning: " << w << "\n";
     for (const auto& [ch, n] : r->counts.events_by_channel) o << "  " << ch << ": " << n << "\n";
-    o << CountsJson(r->counts).dump(2) << "\n";
+    o << json(r->counts).dump(2) << "\n";
     auto span = [](std::int64_t a, std::int64_t b) {
         char s[96];
         std::snprintf(

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT
 // Composition of the stages on a products folder P (the `pitmap` subcommands):
-//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory.csv (INS rate),
-//              boresight.json (the mount used), ingest.cache, summary.json
+//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory_ins.csv (the
+//              INS at its own rate, with velocity and status), boresight.json (the mount used),
+//              ingest.cache, summary.json
 //   calibrate: P/ingest.cache + P/summary.json -> boresight calibration -> re-georeference ->
 //              P/boresight.json, points.ply, points.las, summary.json (stage "calibrate")
 //   slam:      re-georeference with the current mount -> continuous-time SLAM ->
 //              P/trajectory_initial.csv (per ping, before), trajectory.csv (per ping, after),
-//              points_initial.ply (before), points.ply, points.las (after); the INS-rate
-//              trajectory.csv of georef is kept as trajectory_ins.csv
+//              points_initial.ply (before), points.ply, points.las (after)
 //   fuse:      pings on the trajectory of the last stage (trajectory.csv) -> TSDF -> weight
 //              filter -> P/tsdf.vdb
 //   mesh:      P/tsdf.vdb -> P/mesh.{ply,obj,glb}, mesh_filled.{ply,obj,glb}
@@ -17,10 +17,15 @@
 // Refraction: with casts (config refraction.svp_files, `--svp FILE...`) georef ray-traces
 // every beam (processor/svp/refraction.hpp); summary.json "refraction" records the casts and
 // settings, and the later stages trace again with them.
+// Trajectory files (common/formats/trajectory_csv.hpp) each have one meaning: trajectory_ins.csv
+// the INS rate, trajectory_initial.csv and trajectory.csv one pose per ping before and after
+// SLAM (absent when no SLAM ran).
 // summary.json: world_origin {latitude_deg, longitude_deg, height_m}, utm {zone, northern, epsg},
-// inputs, mount, stages -> name -> {seconds, peak_rss_mb, counts...}, stage_order, and after
-// `run` total_seconds. peak_rss_mb is the process's resident-memory high-water mark during
-// the stage (reset at each stage start where the kernel allows it).
+// time {gps_minus_utc_s, gps_minus_utc_source, leap_second_table_valid_until,
+// first/last_ping_gps_s, first/last_ping_utc}, inputs, mount, stages -> name -> {seconds,
+// peak_rss_mb, counts...}, stage_order, and after `run` total_seconds. peak_rss_mb is the process's
+// resident-memory high-water mark during the stage (reset at each stage start where the kernel
+// allows it).
 #pragma once
 
 #include <cmath>
@@ -96,16 +101,35 @@ struct PipelineConfig {
     std::vector<std::string> Validate() const;
 };
 
-// Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, products);
-// every problem listed.
+// Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, quality,
+// products; the key table in config.cpp); every problem listed: unknown keys, wrong types,
+// invalid values.
 Expected<PipelineConfig> LoadConfig(const std::string& path);
-// The YAML of every default, with a comment per key.
+// The YAML of every default, with a comment per key (`pitmap config --defaults`).
 std::string DefaultsYaml();
+// `config` as YAML that LoadConfig reads back to the same values (DefaultsYaml's body).
+std::string ConfigYaml(const PipelineConfig& config);
 
 // The YAML spellings of the stages' enums.
 const char* ToString(slam::CorrespondenceType t);
 const char* ToString(slam::RobustKernel k);
 const char* ToString(fusion::SensorModel m);
+
+// The stages, as summary.json names them (ToString: stages.<name>, stage_order,
+// quality_gates[].stage); `run` performs them in this order.
+enum class Stage {
+    kIngest,
+    kGeoref,
+    kExport,
+    kCalibrate,
+    kSlam,
+    kFuseInitial,
+    kMeshInitial,
+    kFuse,
+    kMesh,
+    kReport,
+};
+const char* ToString(Stage s);
 
 using Log = std::function<void(const std::string&)>;
 

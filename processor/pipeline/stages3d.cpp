@@ -18,6 +18,7 @@
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 
 extern char** environ;
@@ -40,10 +41,6 @@ std::string Fixed(double v, int digits) {
 namespace detail {
 
 namespace {
-
-const char* StageName(slam::SlamStage s) {
-    return s == slam::SlamStage::kRigid ? "rigid" : "semi_rigid";
-}
 
 // Position change between two per-ping trajectories: RMS and maximum, metres.
 std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::vector<Pose>& b) {
@@ -100,7 +97,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     // Where the INS is good (GNSS, cm-level sigma) SLAM may not move a ping further than its
     // sigma allows: a correction beyond that is an inconsistency (a sonar clock or mount error
     // the calibration did not remove) and is reported, not absorbed into the trajectory.
-    ClearGates(s, "slam");
+    ClearGates(s, Stage::kSlam);
     json ins_check = json::object();
     {
         const QualityConfig& q = config.quality;
@@ -139,7 +136,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         if (!good.empty() &&
             static_cast<double>(beyond) > q.slam_max_fraction * static_cast<double>(good.size())) {
             TripGate(s,
-                     "slam",
+                     Stage::kSlam,
                      "slam_beyond_ins_sigma",
                      "SLAM moved " + std::to_string(beyond) + " of " + std::to_string(good.size()) +
                          " pings with good INS (horizontal sigma <= " +
@@ -156,12 +153,12 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     const std::string& P = s.out_dir;
     std::error_code ec;
-    const bool first_slam = !(s.summary.contains("stages") && s.summary["stages"].contains("slam"));
-    if (first_slam && fs::exists(P + "/trajectory.csv")) {
-        fs::copy_file(P + "/trajectory.csv",
-                      P + "/trajectory_ins.csv",
-                      fs::copy_options::overwrite_existing,
-                      ec);
+    // A products folder of an older pitmap: its georef wrote the INS-rate trajectory as
+    // trajectory.csv; keep it under its own name before trajectory.csv becomes the per-ping one.
+    const bool first_slam =
+        !(s.summary.contains("stages") && s.summary["stages"].contains(ToString(Stage::kSlam)));
+    if (first_slam && !fs::exists(P + "/trajectory_ins.csv") && fs::exists(P + "/trajectory.csv")) {
+        fs::rename(P + "/trajectory.csv", P + "/trajectory_ins.csv", ec);
         if (ec) return Error{P + "/trajectory_ins.csv: " + ec.message()};
     }
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
@@ -211,27 +208,12 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
              {"offset_enu_m",
               {sec.coarse_offset_m.x(), sec.coarse_offset_m.y(), sec.coarse_offset_m.z()}}});
     }
-    st["iterations"] = json::array();
-    for (const slam::SlamIteration& it : r.iterations) {
-        st["iterations"].push_back({{"stage", StageName(it.stage)},
-                                    {"iteration", it.iteration},
-                                    {"num_pairs", it.num_pairs},
-                                    {"cost", it.cost},
-                                    {"cost_after", it.cost_after},
-                                    {"rejected_steps", it.rejected_steps},
-                                    {"damping", it.damping},
-                                    {"pair_score_m", it.pair_score_m},
-                                    {"pair_rms_m", it.pair_rms_m},
-                                    {"consistency_m", it.consistency_m},
-                                    {"max_step_rotation_rad", it.max_step_rotation_rad},
-                                    {"max_step_translation_m", it.max_step_translation_m},
-                                    {"best", it.best}});
-    }
+    st["iterations"] = r.iterations;
     log("slam: trajectory moved by " + Fixed(change_rms, 3) + " m RMS, " + Fixed(change_max, 3) +
         " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) + " -> " +
         Fixed(r.final_pair_score_m, 4) + " m, consistency " + Fixed(r.initial_consistency_m, 4) +
         " -> " + Fixed(r.final_consistency_m, 4) + " m");
-    RecordStage(s.summary, "slam", st, clock);
+    RecordStage(s.summary, Stage::kSlam, st, clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};
@@ -241,39 +223,34 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const PipelineConfig& config,
-                                        const std::string& stage,
+                                        Stage stage,
                                         const Log& log) {
     StageClock clock;
+    const std::string name = ToString(stage);
     const std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.ingest.pings, s.mount);
     fusion::TsdfVolume volume(config.tsdf);
-    ProgressReporter bar(stage, 1000);
+    ProgressReporter bar(name, 1000);
     const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
     bar.Finish();
-    log(stage + ": " + ir.message);
+    log(name + ": " + ir.message);
     // Before the filter, so the report shows what the filter removes.
     const fusion::WeightHistogram hist = volume.ComputeWeightHistogram();
     const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
-    log(stage + ": weight filter: " + wf.message);
+    log(name + ": weight filter: " + wf.message);
     const fusion::VolumeStats vs = volume.Stats();
-    json st = {{"sensor_model", ToString(config.tsdf.sensor_model)},
+    json st = ir;  // the integration counts
+    st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
                {"voxel_size_m", config.tsdf.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
-               {"scans", ir.scans},
-               {"beams_used", ir.beams_used},
-               {"beams_no_detection", ir.beams_no_detection},
-               {"beams_out_of_range", ir.beams_out_of_range},
-               {"scans_out_of_bounds", ir.scans_out_of_bounds},
-               {"beams_inconsistent", ir.beams_inconsistent},
-               {"voxel_updates", ir.voxel_updates},
                {"integrate_seconds", ir.elapsed_s},
                {"min_weight", config.weight_filter.min_weight},
                {"voxels_before_filter", wf.voxels_before},
                {"voxels_removed", wf.voxels_removed},
                {"active_voxels", vs.active_voxels},
-               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)},
-               {"weight_histogram",
-                {{"edges", hist.edges}, {"counts", hist.counts}, {"before_filter", true}}}};
-    if (stage == "fuse") {
+               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)}});
+    st["weight_histogram"] = hist;
+    st["weight_histogram"]["before_filter"] = true;
+    if (stage == Stage::kFuse) {
         const std::vector<std::pair<std::string, std::string>> meta = {
             {"pitmap_origin_latitude_deg", Fixed(s.origin.latitude_deg, 9)},
             {"pitmap_origin_longitude_deg", Fixed(s.origin.longitude_deg, 9)},
@@ -283,21 +260,22 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     }
     RecordStage(s.summary, stage, st, clock);
     if (auto w = SaveSummary(s); !w) return w.error();
-    if (ir.cancelled) return Error{stage + ": cancelled"};
+    if (ir.cancelled) return Error{name + ": cancelled"};
     return volume;
 }
 
 Status MeshSurvey(Survey& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
-                  const std::string& stage,
+                  Stage stage,
                   const Log& log) {
     StageClock clock;
+    const std::string stage_name = ToString(stage);
     const mesh::MeshResult m = mesh::RunMesh(volume, config.mesh);
-    log(stage + ": " + m.message);
+    log(stage_name + ": " + m.message);
     const std::string& P = s.out_dir;
     const std::optional<Geodetic> origin = s.origin;
-    if (stage == "mesh") {
+    if (stage == Stage::kMesh) {
         for (const auto& [name, mm] :
              {std::pair<std::string, const mesh::ColouredMesh*>{"mesh", &m.mesh},
               {"mesh_filled", &m.mesh_filled}}) {
@@ -306,7 +284,7 @@ Status MeshSurvey(Survey& s,
             if (auto w = mesh::WriteGlb(*mm, P + "/" + name + ".glb", origin); !w) return w;
         }
     } else {
-        if (auto w = mesh::WritePly(m.mesh, P + "/" + stage + ".ply", origin); !w) return w;
+        if (auto w = mesh::WritePly(m.mesh, P + "/" + stage_name + ".ply", origin); !w) return w;
     }
     json st = {{"vertices", m.mesh.vertices.size()},
                {"triangles", m.mesh.triangles.size()},
@@ -350,9 +328,10 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")"};
     }
     log("report: " + s.out_dir + "/report.html");
-    RecordStage(s.summary, "report", {{"file", "report.html"}}, clock);
+    RecordStage(s.summary, Stage::kReport, {{"file", "report.html"}}, clock);
     // The work is the child's: its own high-water mark (ru_maxrss, kB).
-    s.summary["stages"]["report"]["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+    s.summary["stages"][ToString(Stage::kReport)]["peak_rss_mb"] =
+        static_cast<double>(usage.ru_maxrss) / 1024.0;
     return SaveSummary(s);
 }
 
@@ -367,7 +346,7 @@ Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, co
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/true, log);
     if (!s) return s.error();
-    auto v = detail::FuseSurvey(*s, config, "fuse", log);
+    auto v = detail::FuseSurvey(*s, config, Stage::kFuse, log);
     if (!v) return v.error();
     return Ok{};
 }
@@ -375,16 +354,17 @@ Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, co
 namespace {
 
 // A survey of which only summary.json and the origin are needed (mesh, report).
-Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run_first) {
+Expected<detail::Survey> LoadSummary(const std::string& out_dir, Stage run_first) {
     auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
-    if (!summary) return Error{summary.error().message + " (run `pitmap " + run_first + "` first)"};
+    if (!summary)
+        return Error{summary.error().message + " (run `pitmap " + ToString(run_first) + "` first)"};
     detail::Survey s;
     s.out_dir = out_dir;
     s.summary = std::move(*summary);
     auto origin = detail::OriginFromJson(s.summary);
     if (!origin) {
         return Error{out_dir + "/summary.json: " + origin.error().message + " (run `pitmap " +
-                     run_first + "` first)"};
+                     ToString(run_first) + "` first)"};
     }
     s.origin = *origin;
     return s;
@@ -393,15 +373,15 @@ Expected<detail::Survey> LoadSummary(const std::string& out_dir, const char* run
 }  // namespace
 
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = LoadSummary(out_dir, "fuse");
+    auto s = LoadSummary(out_dir, Stage::kFuse);
     if (!s) return s.error();
     auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb");
     if (!volume) return Error{volume.error().message + " (run `pitmap fuse` first)"};
-    return detail::MeshSurvey(*s, *volume, config, "mesh", log);
+    return detail::MeshSurvey(*s, *volume, config, Stage::kMesh, log);
 }
 
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = LoadSummary(out_dir, "georef");
+    auto s = LoadSummary(out_dir, Stage::kGeoref);
     if (!s) return s.error();
     return detail::ReportSurvey(*s, config, log);
 }
@@ -417,7 +397,7 @@ Status RunAll(const std::vector<std::string>& inputs,
     if (config.run.calibrate) {
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
-            const json& c = s.summary["stages"]["calibrate"];
+            const json& c = s.summary["stages"][ToString(Stage::kCalibrate)];
             if (!c.is_object() ||
                 c.value("termination", "") != calib::ToString(calib::Termination::kNoOverlap)) {
                 return st;
@@ -426,17 +406,17 @@ Status RunAll(const std::vector<std::string>& inputs,
         }
     }
     if (config.run.slam && config.run.mesh_before_slam) {
-        auto v = detail::FuseSurvey(s, config, "fuse_initial", log);
+        auto v = detail::FuseSurvey(s, config, Stage::kFuseInitial, log);
         if (!v) return v.error();
-        if (auto st = detail::MeshSurvey(s, *v, config, "mesh_initial", log); !st) return st;
+        if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMeshInitial, log); !st) return st;
     }
     if (config.run.slam) {
         if (auto st = detail::SlamSurvey(s, config, log); !st) return st;
     }
     {
-        auto v = detail::FuseSurvey(s, config, "fuse", log);
+        auto v = detail::FuseSurvey(s, config, Stage::kFuse, log);
         if (!v) return v.error();
-        if (auto st = detail::MeshSurvey(s, *v, config, "mesh", log); !st) return st;
+        if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMesh, log); !st) return st;
     }
     auto total = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

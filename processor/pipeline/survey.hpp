@@ -46,14 +46,13 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
                             bool apply_trajectory,
                             const Log& log);
 
-// Wall time and memory of one stage. Start resets the kernel's resident-memory high-water mark
-// (/proc/self/clear_refs), so peak_rss_mb is the stage's own peak where the kernel allows it
-// and the process's peak so far otherwise.
+// Wall time of one stage. Construction resets the resident-memory high-water mark
+// (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the
+// stage's own peak where the kernel allows it and the process's peak so far otherwise.
 class StageClock {
 public:
     StageClock();
     double seconds() const;
-    static double PeakRssMb();
 
 private:
     std::chrono::steady_clock::time_point start_;
@@ -62,7 +61,7 @@ private:
 // Records a stage in summary["stages"][name] (adding seconds and peak_rss_mb) and in
 // summary["stage_order"].
 void RecordStage(nlohmann::json& summary,
-                 const std::string& name,
+                 Stage name,
                  nlohmann::json stage,
                  const StageClock& clock);
 
@@ -82,12 +81,9 @@ Status SaveSummary(const Survey& s);
 // Quality gates (QualityConfig): a stage that cannot explain its data says so in the terminal
 // ("quality gate STAGE/GATE: ...") and in summary["quality_gates"] [{stage, gate, message}];
 // the report lists them. A stage clears its own before it runs again.
-void TripGate(Survey& s,
-              const std::string& stage,
-              const std::string& gate,
-              const std::string& message,
-              const Log& log);
-void ClearGates(Survey& s, const std::string& stage);
+void TripGate(
+    Survey& s, Stage stage, const std::string& gate, const std::string& message, const Log& log);
+void ClearGates(Survey& s, Stage stage);
 
 // The sonar clock after ingest: for .83P pings (topside clock) the coarse offset from the
 // header aids is found and applied, or a configured offset is checked against it; then the
@@ -101,18 +97,17 @@ Status GeorefSurvey(Survey& s,
                     const Log& log);
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
-// Integrates the pings on the current trajectory, applies the weight filter; `stage` names the
-// summary entry ("fuse", or "fuse_initial" for the mesh before SLAM).
+// Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
+// or kFuseInitial for the mesh before SLAM.
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const PipelineConfig& config,
-                                        const std::string& stage,
+                                        Stage stage,
                                         const Log& log);
-// Meshes a volume; "mesh" writes mesh.* and mesh_filled.*, "mesh_initial" only
-// mesh_initial.ply.
+// Meshes a volume; kMesh writes mesh.* and mesh_filled.*, kMeshInitial only mesh_initial.ply.
 Status MeshSurvey(Survey& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
-                  const std::string& stage,
+                  Stage stage,
                   const Log& log);
 Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 

@@ -57,34 +57,6 @@ std::vector<std::string> RefractionConfig::Validate() const {
     return p;
 }
 
-void ReadRefractionConfig(ConfigReader& r, RefractionConfig& c) {
-    r.Read("svp_files", c.svp_files);
-    std::string selection = ToString(c.selection);
-    if (r.Read("selection", selection) && !ParseCastSelection(selection, c.selection)) {
-        r.AddProblem(r.Path("selection") + ": '" + selection +
-                     "' is not one of nearest_preceding, nearest_in_time, nearest_in_distance");
-    }
-    std::string surface = ToString(c.surface_speed);
-    if (r.Read("surface_speed", surface) && !ParseSurfaceSpeedSource(surface, c.surface_speed)) {
-        r.AddProblem(r.Path("surface_speed") + ": '" + surface + "' is not one of profile, header");
-    }
-    r.Read("ins_height_above_waterline_m", c.ins_height_above_waterline_m);
-    r.RejectUnknownKeys();
-}
-
-std::string RefractionDefaultsYaml(const RefractionConfig& c) {
-    std::string o = "refraction:                 # sound-velocity casts and ray tracing\n";
-    o +=
-        "  svp_files: []              # CARIS .svp, CSV or two-column casts (--svp); [] = straight "
-        "rays\n";
-    o += std::string("  selection: ") + ToString(c.selection) +
-         "  # nearest_preceding | nearest_in_time | nearest_in_distance\n";
-    o += std::string("  surface_speed: ") + ToString(c.surface_speed) +
-         "     # speed at the face: profile (the cast) | header (83P, no steering change)\n";
-    o += "  ins_height_above_waterline_m: null  # m; null = vehicle.yaml's\n";
-    return o;
-}
-
 std::vector<std::string> Refraction::Check(const std::vector<SoundSpeedCast>& casts,
                                            CastSelection selection,
                                            double ins_height_above_waterline_m) {

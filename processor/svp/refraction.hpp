@@ -29,7 +29,6 @@
 #include <string>
 #include <vector>
 
-#include "common/config.hpp"
 #include "processor/svp/cast.hpp"
 #include "processor/svp/ray_trace.hpp"
 
@@ -63,10 +62,8 @@ struct RefractionConfig {
     std::vector<std::string> Validate() const;
 };
 
-// The `refraction:` section of the processor's YAML (keys above; every problem recorded in the
-// reader), and its defaults as YAML text with a comment per key.
-void ReadRefractionConfig(ConfigReader& r, RefractionConfig& c);
-std::string RefractionDefaultsYaml(const RefractionConfig& c = {});
+// The `refraction:` section of the processor's YAML is read and printed by the processor's one
+// config key table (processor/pipeline/config.cpp, VisitRefraction).
 
 // A cast ready for tracing.
 struct PreparedCast {

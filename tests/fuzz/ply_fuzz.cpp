@@ -1,23 +1,42 @@
 // SPDX-License-Identifier: MIT
-// libFuzzer target for the PLY reader of the evaluation tool (tools/eval/ply.cpp), which reads
+// libFuzzer target for the PLY reader (common/formats/ply.cpp), which the scorer uses on
 // points.ply and mesh.ply. A read either fails with an error naming the file or gives finite
-// vertices and triangles whose indices are in range.
+// vertices within the coordinate bound and triangles whose indices are in range; a header that
+// parses is formatted and parsed again to the same elements.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <string_view>
 
+#include "common/formats/ply.hpp"
 #include "tests/fuzz/fuzz_file.hpp"
-#include "tools/eval/ply.hpp"
+
+namespace ply = pitmap::formats::ply;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const std::string_view bytes(reinterpret_cast<const char*>(data), size);
+    std::size_t header_bytes = 0;
+    if (auto h = ply::ParseHeader(bytes, size, &header_bytes)) {
+        if (header_bytes > size) std::abort();
+        const std::string again = ply::FormatHeader(*h);
+        std::size_t again_bytes = 0;
+        const auto h2 = ply::ParseHeader(again, size, &again_bytes);
+        if (!h2 || again_bytes != again.size() || h2->elements.size() != h->elements.size())
+            std::abort();
+        for (std::size_t i = 0; i < h->elements.size(); ++i) {
+            if (h2->elements[i].count != h->elements[i].count ||
+                h2->elements[i].properties.size() != h->elements[i].properties.size())
+                std::abort();
+        }
+    }
     const pitmap::fuzz::MemFile file(data, size);
-    const auto r = pitmap::eval::ReadPly(file.path());
+    const auto r = ply::ReadMesh(file.path());
     if (!r) {
         pitmap::fuzz::CheckNamesFile(r.error().message, file.path());
         return 0;
     }
     for (const auto& v : r->vertices) {
-        if (!v.allFinite()) std::abort();
+        if (!v.allFinite() || v.cwiseAbs().maxCoeff() > ply::kMaxCoordinateM) std::abort();
     }
     for (const auto& t : r->triangles) {
         for (int i : t) {

@@ -12,7 +12,6 @@
 // Override below for the keys). ATE is also reported per phase: GNSS good, GNSS outage and
 // the 30 s after each outage (where the INS pulls its drift back). With SLAM_BENCH_SECTIONS set
 // in the environment, the mean position error per 15 s is printed before and after.
-#include <sys/resource.h>
 #include <tbb/parallel_for.h>
 
 #include <chrono>
@@ -22,6 +21,7 @@
 #include <string>
 
 #include "common/frames.hpp"
+#include "common/peak_memory.hpp"
 #include "processor/slam/slam.hpp"
 #include "tools/sim/nav_errors.hpp"
 #include "tools/sim/scenario.hpp"
@@ -273,8 +273,6 @@ int main(int argc, char** argv) {
         before[k] = slices[k].T_world_vehicle;
         after[k] = r.trajectory[i].T_world_vehicle;
     }
-    rusage ru{};
-    getrusage(RUSAGE_SELF, &ru);
     std::printf(
         "scenario %s: %zu slices, %zu points (beam stride %d), query stride %d, "
         "bins of %d slices, %s, kernel %s, %d threads (simulation %.1f s)\n",
@@ -427,6 +425,6 @@ int main(int argc, char** argv) {
         r.timings.solve_s,
         r.timings.score_s,
         r.timings.total_s,
-        static_cast<double>(ru.ru_maxrss) / 1024.0);
+        PeakRssMb());
     return 0;
 }

@@ -38,6 +38,7 @@
 
 #include "common/byte_io.hpp"
 #include "common/frames.hpp"
+#include "common/peak_memory.hpp"
 #include "processor/fusion/tsdf.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/mesh/export.hpp"
@@ -52,15 +53,6 @@ namespace {
 using namespace pitmap;
 namespace fusion = pitmap::proc::fusion;
 namespace pmesh = pitmap::proc::mesh;
-
-double PeakRssMb() {
-    std::ifstream in("/proc/self/status");
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
-    }
-    return 0;
-}
 
 double Seconds(std::chrono::steady_clock::time_point a) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();

@@ -7,7 +7,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "tools/eval/ply.hpp"
+#include "common/formats/ply.hpp"
+#include "common/formats/trajectory_csv.hpp"
 #include "tools/eval/scores.hpp"
 
 namespace fs = std::filesystem;
@@ -17,8 +18,9 @@ using namespace pitmap;
 namespace {
 
 constexpr const char* kDefinitions = R"(Scores (only those whose product exists are written):
-  trajectory_ate_rmse_m         RMS position error of P/trajectory.csv against the true trajectory
-                                at the same GPS times, in the truth's world frame, no alignment.
+  trajectory_ate_rmse_m         RMS position error of P/trajectory.csv (after SLAM; without SLAM
+                                P/trajectory_ins.csv) against the true trajectory at the same GPS
+                                times, in the truth's world frame, no alignment.
   trajectory_ate_rmse_before_m  the same for P/trajectory_initial.csv (before SLAM).
   trajectory_z_std_m            standard deviation of the product track height (a surface
                                 vehicle's track should be planar).
@@ -50,16 +52,7 @@ std::optional<Geodetic> ProductOrigin(const fs::path& products,
                             o.value("height_m", 0.0)};
         }
     }
-    for (const auto& c : ply_comments) {
-        Geodetic g;
-        if (std::sscanf(c.c_str(),
-                        "pitmap_origin %lf %lf %lf",
-                        &g.latitude_deg,
-                        &g.longitude_deg,
-                        &g.height_m) == 3)
-            return g;
-    }
-    return std::nullopt;
+    return formats::ply::OriginFromComments(ply_comments);
 }
 
 }  // namespace
@@ -87,10 +80,10 @@ int main(int argc, char** argv) {
     const sim::PitWorld world(truth->terrain);
     json scores;
     std::vector<std::string> comments;
-    eval::PlyData cloud;
+    formats::ply::Mesh cloud;
     bool have_cloud = false;
     if (fs::exists(P / "points.ply")) {
-        auto ply = eval::ReadPly((P / "points.ply").string());
+        auto ply = formats::ply::ReadMesh((P / "points.ply").string());
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
             return 2;
@@ -107,23 +100,28 @@ int main(int argc, char** argv) {
     }
     const Pose T = eval::ProductToTruthFrame(*origin, truth->origin);
 
+    // Without SLAM (georef only, or `run --no-slam`) the INS-rate trajectory is the final one.
+    const char* final_trajectory =
+        fs::exists(P / "trajectory.csv") || !fs::exists(P / "trajectory_ins.csv")
+            ? "trajectory.csv"
+            : "trajectory_ins.csv";
     for (const auto& [file, key] :
-         {std::pair{"trajectory.csv", "trajectory_ate_rmse_m"},
+         {std::pair{final_trajectory, "trajectory_ate_rmse_m"},
           std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
         if (!fs::exists(P / file)) continue;
-        auto traj = eval::ReadTrajectoryCsv((P / file).string());
+        auto traj = formats::ReadTrajectoryCsv((P / file).string());
         if (!traj) {
             std::fprintf(stderr, "pitmap-eval: %s\n", traj.error().message.c_str());
             return 2;
         }
-        const auto s = eval::ScoreTrajectory(*traj, T, truth->trajectory);
+        const auto s = eval::ScoreTrajectory(eval::ProductPoses(*traj), T, truth->trajectory);
         if (s.poses == 0) {
             std::fprintf(
                 stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
             continue;
         }
         scores[key] = s.ate_rmse_m;
-        if (std::string(file) == "trajectory.csv") {
+        if (std::string(key) == "trajectory_ate_rmse_m") {
             scores["trajectory_ate_max_m"] = s.ate_max_m;
             scores["trajectory_z_std_m"] = s.z_std_m;
         }
@@ -181,7 +179,7 @@ int main(int argc, char** argv) {
                                                                 truth->boresight.yaw_deg);
     }
     if (fs::exists(P / "mesh.ply")) {
-        auto mesh = eval::ReadPly((P / "mesh.ply").string());
+        auto mesh = formats::ply::ReadMesh((P / "mesh.ply").string());
         if (!mesh) {
             std::fprintf(stderr, "pitmap-eval: %s\n", mesh.error().message.c_str());
             return 2;

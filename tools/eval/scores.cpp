@@ -12,28 +12,11 @@
 
 namespace pitmap::eval {
 
-Expected<std::vector<ProductPose>> ReadTrajectoryCsv(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) return Error{path + ": cannot open"};
-    std::string line;
-    if (!std::getline(in, line) || line.rfind("gps_time_s,x_m,y_m,z_m", 0) != 0) {
-        return Error{path + ": header must start with gps_time_s,x_m,y_m,z_m"};
-    }
+std::vector<ProductPose> ProductPoses(const formats::TrajectoryCsv& trajectory) {
     std::vector<ProductPose> out;
-    int lineno = 1;
-    while (std::getline(in, line)) {
-        ++lineno;
-        if (line.empty()) continue;
-        ProductPose p;
-        if (std::sscanf(line.c_str(),
-                        "%lf,%lf,%lf,%lf",
-                        &p.gps_time_s,
-                        &p.position.x(),
-                        &p.position.y(),
-                        &p.position.z()) != 4) {
-            return Error{path + ":" + std::to_string(lineno) + ": expected numbers"};
-        }
-        out.push_back(p);
+    out.reserve(trajectory.rows.size());
+    for (const formats::TrajectoryRow& r : trajectory.rows) {
+        out.push_back({r.gps_time_s, r.position_world_m});
     }
     return out;
 }

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
 #include "common/result.hpp"
 #include "tools/sim/truth_io.hpp"
@@ -31,8 +32,8 @@ struct ProductPose {
     Eigen::Vector3d position = Eigen::Vector3d::Zero();  // product world frame
 };
 
-// Reads a trajectory CSV whose header starts gps_time_s,x_m,y_m,z_m (more columns allowed).
-Expected<std::vector<ProductPose>> ReadTrajectoryCsv(const std::string& path);
+// The positions of a product trajectory (common/formats/trajectory_csv reads the file).
+std::vector<ProductPose> ProductPoses(const formats::TrajectoryCsv& trajectory);
 
 // Maps product world coordinates (ENU at product_origin) to the truth's world frame. Two local
 // ENU frames are both rigid transforms of ECEF, so one rigid transform relates them exactly.

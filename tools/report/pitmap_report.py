@@ -4,7 +4,8 @@
 
 Usage: pitmap-report P [--scores FILE] [--title TEXT]
 
-Reads what `pitmap run --out P` wrote (summary.json, trajectory[_initial].csv,
+Reads what `pitmap run --out P` wrote (summary.json, trajectory[_initial].csv or, without
+SLAM, trajectory_ins.csv,
 points[_initial].ply, mesh[_initial].ply, boresight.json, optional scores.json from
 pitmap-eval --json) and writes P/report.html with the plots embedded as PNG data URIs
 (no external resource), and the same PNGs under P/report/. The figures follow the seed
@@ -49,15 +50,9 @@ START_TIME = time.monotonic()
 # Stage order of `pitmap run`; summary.json may give its own in "stage_order".
 PIPELINE_STAGES = ["ingest", "georef", "calibrate", "slam", "fuse", "mesh", "export", "report"]
 
-# GPS - UTC: the leap seconds since the GPS epoch, as (first UTC day it applies, GPS - UTC s).
-LEAP_SECONDS = [
-    ((1981, 7, 1), 1), ((1982, 7, 1), 2), ((1983, 7, 1), 3), ((1985, 7, 1), 4),
-    ((1988, 1, 1), 5), ((1990, 1, 1), 6), ((1991, 1, 1), 7), ((1992, 7, 1), 8),
-    ((1993, 7, 1), 9), ((1994, 7, 1), 10), ((1996, 1, 1), 11), ((1997, 7, 1), 12),
-    ((1999, 1, 1), 13), ((2006, 1, 1), 14), ((2009, 1, 1), 15), ((2012, 7, 1), 16),
-    ((2015, 7, 1), 17), ((2017, 1, 1), 18),
-]
 GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06 00:00:00 UTC
+# GPS - UTC comes from summary.json "time" (written by `pitmap georef` from the receiver's TIME
+# log or the C++ leap-second table, common/gps_time): the report keeps no table of its own.
 
 # What pitmap-eval's scores mean (pitmap-eval --help); unknown names are shown as they come.
 SCORE_MEANINGS = {
@@ -119,6 +114,12 @@ class PlyError(Exception):
 
 class Ply:
     """A binary PLY file: header facts plus one numpy structured array per element.
+
+    pitmap writes PLY in one place (common/formats/ply, C++); this reader stays in Python on
+    purpose: PLY is a public format, not one pitmap defines, and reading it here lets the
+    report memory-map multi-million-point clouds with numpy and run on a products folder with
+    Debian's python3 alone (no pitmap binary, no intermediate copy). pitmap's own convention
+    in it, the pitmap_origin comment, is checked against summary.json (CheckOrigin).
 
     Elements of fixed-size records are memory-mapped; a list property (faces) is read as a
     fixed-length array when every record has the same list length (triangles), which is
@@ -239,14 +240,10 @@ def ReadTrajectory(path):
     return {c: data[:, i] for i, c in enumerate(["t", "x", "y", "z"])}
 
 
-def GpsToUtc(gps_s):
-    approx = datetime.datetime.fromtimestamp(gps_s + GPS_EPOCH_UNIX_S, datetime.timezone.utc)
-    leap = 0
-    for (y, m, d), n in LEAP_SECONDS:
-        if approx >= datetime.datetime(y, m, d, tzinfo=datetime.timezone.utc) + \
-                datetime.timedelta(seconds=n):
-            leap = n
-    return approx - datetime.timedelta(seconds=leap)
+def GpsToUtc(gps_s, gps_minus_utc_s):
+    """GPS seconds since 1980-01-06 -> UTC datetime, with GPS - UTC as summary.json gives it."""
+    return datetime.datetime.fromtimestamp(gps_s + GPS_EPOCH_UNIX_S - gps_minus_utc_s,
+                                           datetime.timezone.utc)
 
 
 # ---------------------------------------------------------------------------------- helpers
@@ -461,7 +458,11 @@ class Report:
                                  f"{ref[2]:.2f}; its figures are offset")
 
     def LoadTrajectories(self):
-        for key, name in (("initial", "trajectory_initial.csv"), ("final", "trajectory.csv")):
+        names = [("initial", "trajectory_initial.csv"), ("final", "trajectory.csv")]
+        if not any(os.path.isfile(self.P(n)) for _, n in names):
+            # No SLAM ran (georef only, or `run --no-slam`): the INS trajectory is the final one.
+            names = [("final", "trajectory_ins.csv")]
+        for key, name in names:
             if os.path.isfile(self.P(name)):
                 try:
                     self.traj[key] = ReadTrajectory(self.P(name))
@@ -541,10 +542,20 @@ class Report:
         main = self.traj.get("final") or self.traj.get("initial")
         if main is not None:
             t_a, t_b = float(main["t"][0]), float(main["t"][-1])
-            u_a, u_b = GpsToUtc(t_a), GpsToUtc(t_b)
-            rows.append(("Survey time (UTC)",
-                         f"{u_a:%Y-%m-%d %H:%M:%S} to {u_b:%H:%M:%S} "
-                         f"({(t_b - t_a) / 60:.1f} min; GPS {t_a:.1f} to {t_b:.1f} s)"))
+            tm = s.get("time") if isinstance(s.get("time"), dict) else {}
+            leap = tm.get("gps_minus_utc_s")
+            if isinstance(leap, (int, float)) and not isinstance(leap, bool):
+                u_a, u_b = GpsToUtc(t_a, leap), GpsToUtc(t_b, leap)
+                rows.append(("Survey time (UTC)",
+                             f"{u_a:%Y-%m-%d %H:%M:%S} to {u_b:%H:%M:%S} "
+                             f"({(t_b - t_a) / 60:.1f} min; GPS {t_a:.1f} to {t_b:.1f} s; "
+                             f"GPS - UTC = {leap:g} s, "
+                             f"{Esc(tm.get('gps_minus_utc_source', '?'))})"))
+            else:
+                rows.append(("Survey time (GPS)",
+                             f"GPS {t_a:.1f} to {t_b:.1f} s ({(t_b - t_a) / 60:.1f} min); UTC "
+                             "unknown: summary.json has no time.gps_minus_utc_s (an older "
+                             "pitmap georef)"))
             length = float(np.sum(np.hypot(np.diff(main["x"]), np.diff(main["y"]))))
             which = self.after if "final" in self.traj else "before SLAM"
             rows.append(("Track length", f"{length:.0f} m ({which})"))

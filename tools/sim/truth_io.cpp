@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/byte_io.hpp"
+#include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
 
@@ -243,25 +244,11 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
         if (auto s = WriteText(dir + "/terrain.f32", std::string(bytes.begin(), bytes.end())); !s)
             return s;
     }
-    std::ostringstream csv;
-    csv << "gps_time_s,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg\n";
-    char line[256];
+    formats::TrajectoryCsv csv;
     for (const TruthPose& p : truth.trajectory) {
-        const auto rpy = frames::RpyFromRotationWorld(p.T_world_vehicle.linear());
-        const Eigen::Vector3d t = p.T_world_vehicle.translation();
-        std::snprintf(line,
-                      sizeof line,
-                      "%.6f,%.4f,%.4f,%.4f,%.5f,%.5f,%.5f\n",
-                      p.gps_time_s,
-                      t.x(),
-                      t.y(),
-                      t.z(),
-                      frames::RadToDeg(rpy.roll),
-                      frames::RadToDeg(rpy.pitch),
-                      frames::RadToDeg(rpy.yaw));
-        csv << line;
+        csv.rows.push_back(formats::RowOf(p.gps_time_s, p.T_world_vehicle));
     }
-    if (auto s = WriteText(dir + "/trajectory.csv", csv.str()); !s) return s;
+    if (auto s = formats::WriteTrajectoryCsv(dir + "/trajectory.csv", csv); !s) return s;
     if (!truth.coverage.empty()) {
         if (truth.coverage.size() != g.height_m.size())
             return Error{"coverage does not match the terrain grid"};
@@ -321,34 +308,11 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         for (std::size_t i = 0; i < n; ++i) t.terrain.height_m[i] = r.F32Le();
     }
     {
-        const std::string path = dir + "/trajectory.csv";
-        std::ifstream in(path);
-        if (!in) return Error{path + ": cannot open"};
-        std::string line;
-        std::getline(in, line);  // header
-        int lineno = 1;
-        while (std::getline(in, line)) {
-            ++lineno;
-            if (line.empty()) continue;
-            double v[7];
-            if (std::sscanf(line.c_str(),
-                            "%lf,%lf,%lf,%lf,%lf,%lf,%lf",
-                            &v[0],
-                            &v[1],
-                            &v[2],
-                            &v[3],
-                            &v[4],
-                            &v[5],
-                            &v[6]) != 7) {
-                return Error{path + ":" + std::to_string(lineno) + ": expected 7 numbers"};
-            }
-            TruthPose p;
-            p.gps_time_s = v[0];
-            p.T_world_vehicle = MakePose(
-                frames::RotationWorldFromRpy(
-                    frames::DegToRad(v[4]), frames::DegToRad(v[5]), frames::DegToRad(v[6])),
-                Eigen::Vector3d(v[1], v[2], v[3]));
-            t.trajectory.push_back(p);
+        auto csv = formats::ReadTrajectoryCsv(dir + "/trajectory.csv");
+        if (!csv) return csv.error();
+        t.trajectory.reserve(csv->rows.size());
+        for (const formats::TrajectoryRow& r : csv->rows) {
+            t.trajectory.push_back({r.gps_time_s, formats::PoseOf(r)});
         }
     }
     {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/frames.hpp"
+#include "common/peak_memory.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 #include "processor/io/products.hpp"
 

@@ -103,6 +103,7 @@ def WriteProducts(folder, full=True):
         "world_origin": {"latitude_deg": 40.4435, "longitude_deg": -7.7804, "height_m": 412.0},
         "utm": {"zone": 29, "northern": True, "epsg": 32629},
         "inputs": ["survey.lcmlog"],
+        "time": {"gps_minus_utc_s": 18, "gps_minus_utc_source": "built-in leap-second table"},
         "mount": {"roll_deg": 0.5, "pitch_deg": 0.0, "yaw_deg": 1.0},
         "stages": {
             "ingest": {"seconds": 0.5, "peak_rss_mb": 30.0, "pings": len(t)},
@@ -355,6 +356,30 @@ class ReportTest(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("summary.json", r.stderr)
 
+    def test_survey_time_without_gps_minus_utc_is_gps_time(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=False)
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        del summary["time"]
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            sec = Sections(f.read())
+        self.assertIn("Survey time (GPS)", sec["summary"])
+        self.assertIn("UTC unknown", sec["summary"])
+        self.assertNotIn("2026-06-15 09:00:00", sec["summary"])
+
+    def test_ins_trajectory_is_shown_when_no_slam_ran(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=False)
+        os.rename(os.path.join(p, "trajectory.csv"), os.path.join(p, "trajectory_ins.csv"))
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("trajectory_ins.csv: 600 poses", r.stderr)
+
 
 class HelperTest(unittest.TestCase):
     @classmethod
@@ -394,9 +419,12 @@ class HelperTest(unittest.TestCase):
                 self.m.Ply(path)
 
     def test_gps_to_utc(self):
-        self.assertEqual(str(self.m.GpsToUtc(GPS_T0)), "2026-06-15 09:00:00+00:00")
+        # GPS - UTC comes from summary.json (the C++ side's table or the receiver), not a copy.
+        self.assertFalse(hasattr(self.m, "LEAP_SECONDS"))
+        self.assertEqual(str(self.m.GpsToUtc(GPS_T0, 18)), "2026-06-15 09:00:00+00:00")
         # 2000-01-01 00:00:00 UTC, GPS - UTC = 13 s then.
-        self.assertEqual(str(self.m.GpsToUtc(630720013.0)), "2000-01-01 00:00:00+00:00")
+        self.assertEqual(str(self.m.GpsToUtc(630720013.0, 13)), "2000-01-01 00:00:00+00:00")
+
 
     def test_rasters(self):
         x = np.array([0.1, 0.2, 1.5, 5.0])

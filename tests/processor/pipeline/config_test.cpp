@@ -1,0 +1,142 @@
+// SPDX-License-Identifier: MIT
+// The processor config's key table (processor/pipeline/config.cpp): what `config --defaults`
+// prints reads back to the defaults, a config with every section changed reads back to itself,
+// and unknown keys, wrong types and invalid values are all listed at once.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "processor/pipeline/pipeline.hpp"
+
+namespace pitmap::proc::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Config : public ::testing::Test {
+protected:
+    void SetUp() override {
+        path_ = (fs::path(::testing::TempDir()) /
+                 ("pitmap_config_" + std::to_string(::getpid()) + ".yaml"))
+                    .string();
+    }
+    void TearDown() override { fs::remove(path_); }
+    Expected<PipelineConfig> Load(const std::string& yaml) {
+        std::ofstream(path_, std::ios::trunc) << yaml;
+        return LoadConfig(path_);
+    }
+    std::string path_;
+};
+
+// Every value of the config that the table covers, as text, to compare two configs.
+std::string Fingerprint(const PipelineConfig& c) {
+    return ConfigYaml(c);
+}
+
+TEST_F(Config, DefaultsReadBackToTheDefaults) {
+    const auto c = Load(DefaultsYaml());
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_EQ(Fingerprint(*c), Fingerprint(PipelineConfig{}));
+    EXPECT_FALSE(c->ingest.sonar_clock_offset_known) << "null keeps the offset unknown";
+    EXPECT_TRUE(std::isnan(c->origin_latitude_deg));
+    // Every section is printed.
+    const std::string d = DefaultsYaml();
+    for (const char* section : {"\ningest:\n",
+                                "\ngeoref:\n",
+                                "\ncalibrate:\n",
+                                "\nslam:\n",
+                                "\nfuse:\n",
+                                "\nmesh:\n",
+                                "\nrun:\n",
+                                "\nquality:\n",
+                                "\nproducts:\n",
+                                "\n  origin:\n"}) {
+        EXPECT_NE(d.find(section), std::string::npos) << section;
+    }
+}
+
+// A value changed in every section (of every kind: bool, int, double, string, enum, nullable)
+// is printed and read back: the reader and the printer visit the same keys.
+TEST_F(Config, EverySectionRoundTripsThroughTheTable) {
+    PipelineConfig c;
+    c.ingest.source = io::IngestSource::kRaw;
+    c.ingest.nav_channel_id = "novatel_com1";
+    c.ingest.sonar_clock_offset_s = -2.5;
+    c.ingest.sonar_clock_offset_known = true;
+    c.ingest.require_good_ins = true;
+    c.georef.max_range_m = 77.5;
+    c.georef.spike_half_window = 5;
+    c.calibrate.beam_stride = 7;
+    c.calibrate.estimate_latency = false;
+    c.calibrate.latency_scan_step_s = 0.025;
+    c.slam.correspondence = slam::CorrespondenceType::kGicp;
+    c.slam.robust_kernel = slam::RobustKernel::kHuber;
+    c.slam_stage.point_stride = 3;
+    c.tsdf.sensor_model = fusion::SensorModel::kRay;
+    c.tsdf.voxel_size_m = 0.2;
+    c.weight_filter.min_weight = 2.5;
+    c.mesh.max_hole_edges = 11;
+    c.run.slam = false;
+    c.quality.slam_max_fraction = 0.25;
+    c.write_las = false;
+    c.vehicle_yaml = "some dir/vehicle: \"a\".yaml";
+    c.origin_latitude_deg = 40.123456789;
+    c.origin_longitude_deg = -7.5;
+    c.origin_height_m = 412.25;
+    ASSERT_TRUE(c.Validate().empty());
+    const std::string yaml = ConfigYaml(c);
+    ASSERT_NE(yaml, ConfigYaml(PipelineConfig{}));
+    const auto back = Load(yaml);
+    ASSERT_TRUE(back.ok()) << back.error().message << "\n" << yaml;
+    EXPECT_EQ(Fingerprint(*back), yaml);
+    EXPECT_TRUE(back->ingest.sonar_clock_offset_known);
+    EXPECT_EQ(back->ingest.sonar_clock_offset_s, -2.5);
+    EXPECT_EQ(back->ingest.source, io::IngestSource::kRaw);
+    EXPECT_EQ(back->slam.correspondence, slam::CorrespondenceType::kGicp);
+    EXPECT_EQ(back->vehicle_yaml, c.vehicle_yaml);
+    EXPECT_EQ(back->origin_latitude_deg, 40.123456789);
+    EXPECT_EQ(back->calibrate.beam_stride, 7);
+}
+
+// Every problem is listed, in every section (ingest, georef and calibrate included), with the
+// file and the key.
+TEST_F(Config, EveryProblemIsListed) {
+    const auto r = Load(
+        "ingest:\n  source: sideways\n  colour: red\n"
+        "georef:\n  max_range_m: far\n  bogus: 1\n"
+        "calibrate:\n  beam_stride: 1.5\n  estimate_latency: maybe\n"
+        "slam:\n  robust_kernel: tukey\n"
+        "fuse:\n  voxel_size_m: -1\n"
+        "products:\n  origin:\n    latitude_deg: 40\n    altitude: 3\n"
+        "extra_section: {}\n");
+    ASSERT_FALSE(r.ok());
+    const std::string& m = r.error().message;
+    for (const char* expected :
+         {"ingest.source: 'sideways' is not one of auto, decoded, raw",
+          "ingest.colour",
+          "georef.max_range_m",
+          "georef.bogus",
+          "calibrate.beam_stride",
+          "calibrate.estimate_latency",
+          "slam.robust_kernel: 'tukey' is not one of none, huber, cauchy",
+          "products.origin.altitude",
+          "extra_section",
+          "fuse.voxel_size_m",
+          "products.origin needs latitude_deg, longitude_deg and height_m"}) {
+        EXPECT_NE(m.find(expected), std::string::npos) << expected << "\n" << m;
+    }
+    EXPECT_NE(m.find(path_), std::string::npos) << m;
+}
+
+TEST(Stage, NamesAreSummaryJsonKeys) {
+    EXPECT_STREQ(ToString(Stage::kFuse), "fuse");
+    EXPECT_STREQ(ToString(Stage::kMeshInitial), "mesh_initial");
+    EXPECT_STREQ(ToString(Stage::kExport), "export");
+}
+
+}  // namespace
+}  // namespace pitmap::proc::pipeline
