@@ -7,6 +7,8 @@
 #include <ogr_spatialref.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -250,6 +252,67 @@ Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) 
         g.layers.push_back(std::move(l));
     }
     return out;
+}
+
+Status WriteSoundingTpuPly(const std::string& path,
+                           const georef::GeorefResult& geo,
+                           const std::vector<float>& thu_95_m,
+                           const std::vector<float>& tvu_95_m) {
+    const std::size_t n = geo.points.size();
+    if (thu_95_m.size() != n || tvu_95_m.size() != n) {
+        return Error{path + ": uncertainties for " + std::to_string(thu_95_m.size()) +
+                     " soundings, " + std::to_string(n) + " soundings"};
+    }
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (f == nullptr) return Error{path + ": cannot create"};
+    char head[512];
+    const Geodetic& o = geo.world_origin;
+    std::snprintf(head,
+                  sizeof head,
+                  "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin %.10f %.10f %.4f\n"
+                  "comment pitmap per-sounding TPU, 95 %%: THU (horizontal), TVU (vertical)\n"
+                  "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+                  "property double gps_time_s\nproperty float angle_deg\n"
+                  "property float thu_95_m\nproperty float tvu_95_m\nend_header\n",
+                  o.latitude_deg,
+                  o.longitude_deg,
+                  o.height_m,
+                  n);
+    bool ok = std::fputs(head, f) >= 0;
+    // 28-byte records, little-endian (the host order on every platform pitmap builds for is
+    // checked below).
+    static_assert(sizeof(float) == 4 && sizeof(double) == 8);
+    const std::uint16_t probe = 1;
+    unsigned char first = 0;
+    std::memcpy(&first, &probe, 1);
+    if (first != 1) {
+        std::fclose(f);
+        return Error{path + ": big-endian hosts are not supported"};
+    }
+    std::vector<unsigned char> buf;
+    buf.reserve(28 * 65536);
+    const auto put = [&buf](const void* p, std::size_t k) {
+        const auto* b = static_cast<const unsigned char*>(p);
+        buf.insert(buf.end(), b, b + k);
+    };
+    for (std::size_t j = 0; j < n && ok; ++j) {
+        const Eigen::Vector3d& p = geo.points.position_world[j];
+        const float xyz[3] = {
+            static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};
+        const double t = static_cast<double>(geo.pings[geo.points.ping[j]].utime_gps) * 1e-6;
+        const float rest[3] = {
+            static_cast<float>(geo.points.angle_rad[j] * 180.0 / M_PI), thu_95_m[j], tvu_95_m[j]};
+        put(xyz, sizeof xyz);
+        put(&t, sizeof t);
+        put(rest, sizeof rest);
+        if (buf.size() >= 28 * 65536 || j + 1 == n) {
+            ok = std::fwrite(buf.data(), 1, buf.size(), f) == buf.size();
+            buf.clear();
+        }
+    }
+    ok = (std::fclose(f) == 0) && ok;
+    if (!ok) return Error{path + ": write error"};
+    return Ok{};
 }
 
 }  // namespace pitmap::proc::io

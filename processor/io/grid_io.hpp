@@ -17,7 +17,9 @@
 #include <string>
 #include <vector>
 
+#include "common/geodesy.hpp"
 #include "common/result.hpp"
+#include "processor/georef/georef.hpp"
 
 namespace pitmap::proc::io {
 
@@ -55,5 +57,14 @@ struct GridReadBack {
     std::string driver;           // GDAL short name ("GTiff", "BAG")
 };
 Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells = 200'000'000);
+
+// Per-sounding uncertainty beside the soundings: binary little-endian PLY, vertex properties
+// float x, y, z (world ENU, as points.ply), double gps_time_s, float angle_deg (beam angle,
+// sonar frame), float thu_95_m, float tvu_95_m; comment "pitmap_origin LAT LON H".
+// Precondition: thu/tvu have one value per sounding of `geo`.
+Status WriteSoundingTpuPly(const std::string& path,
+                           const georef::GeorefResult& geo,
+                           const std::vector<float>& thu_95_m,
+                           const std::vector<float>& tvu_95_m);
 
 }  // namespace pitmap::proc::io

@@ -226,6 +226,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : weight_filter.Validate()) p.push_back("fuse." + s);
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
     for (auto& s : quality.Validate()) p.push_back("quality." + s);
+    for (auto& s : grid.Validate()) p.push_back(s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");
     const bool any = !std::isnan(origin_latitude_deg) || !std::isnan(origin_longitude_deg) ||
@@ -310,6 +311,10 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
         ConfigReader qu = reader->Child("quality");
         VisitQuality(ReadVisitor{qu}, c.quality);
         qu.RejectUnknownKeys();
+    }
+    {
+        ConfigReader gr = reader->Child("grid");
+        ReadGridConfig(gr, c.grid);
     }
     ConfigReader pr = reader->Child("products");
     pr.Read("write_las", c.write_las);
@@ -406,6 +411,7 @@ std::string DefaultsYaml() {
         o << "quality:\n";
         VisitQuality(PrintVisitor{o}, d.quality);
     }
+    o << GridDefaultsYaml();
     o << "products:\n"
       << "  write_las: " << b(c.write_las) << "\n"
       << "  vehicle_yaml: \"\"          # \"\" = vehicle.yaml beside the first log (--vehicle)\n"

@@ -612,6 +612,9 @@ Status GeorefSurvey(Survey& s,
                               "mesh_filled.obj",
                               "mesh_filled.glb",
                               "mesh_initial.ply",
+                              "dem.tif",
+                              "dem.bag",
+                              "soundings_tpu.ply",
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }

@@ -1,0 +1,283 @@
+// SPDX-License-Identifier: MIT
+// The `grid` stage (grid_stage.hpp): its configuration and its run on a survey in memory.
+#include "processor/pipeline/grid_stage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+#include <type_traits>
+
+#include "common/frames.hpp"
+#include "common/vehicle.hpp"
+#include "processor/hydro/tpu.hpp"
+#include "processor/io/grid_io.hpp"
+#include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/survey.hpp"
+
+namespace pitmap::proc::pipeline {
+
+namespace {
+
+using hydro::Disambiguation;
+using nlohmann::json;
+
+constexpr Disambiguation kDisambiguations[] = {
+    Disambiguation::kDensity, Disambiguation::kLocale, Disambiguation::kPredictedSurface};
+
+// Every key of the section, visited once for reading and once for printing the defaults.
+template <class V>
+void Visit(V&& v, GridStageConfig& c) {
+    hydro::CubeConfig& q = c.cube;
+    v("in_run", c.in_run, "`pitmap run` makes the grid");
+    v("resolution_m", q.resolution_m, "node spacing, m; 0 = from the median depth");
+    v("resolution_depth_fraction", q.resolution_depth_fraction, "auto: depth * this, rounded down");
+    v("min_resolution_m", q.min_resolution_m, "auto resolution bounds, m");
+    v("max_resolution_m", q.max_resolution_m, "");
+    v("capture_distance_scale", q.capture_distance_scale, "capture distance, share of the depth");
+    v("min_capture_distance_res", q.min_capture_distance_res, "... at least, in resolutions");
+    v("max_capture_distance_res", q.max_capture_distance_res, "... at most, in resolutions");
+    v("distance_exponent", q.distance_exponent, "CUBE alpha: variance growth with distance");
+    v("horizontal_error_scale", q.horizontal_error_scale, "CUBE rho: THU sigmas added to d");
+    v("queue_length", q.queue_length, "median pre-filter queue; 1 = none");
+    v("hypothesis_gate", q.hypothesis_gate, "normalised innovation opening a hypothesis");
+    v("slope_correction", q.slope_correction, "carry soundings along the predicted surface");
+    v("predicted_surface_cells", q.predicted_surface_cells, "predicted surface cell, resolutions");
+    v("locale_radius", q.locale_radius, "locale disambiguation radius, nodes");
+    v("max_nodes", q.max_nodes, "refuse larger grids");
+    v("num_threads", q.num_threads, "0 = all cores");
+    v("tpu_sound_speed_mps", c.tpu_sound_speed_mps, "nominal sound speed of the TPU terms");
+    v("ins_sigma_max_age_s", c.ins_sigma_max_age_s, "INSSTDEV records used within this, s");
+    v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
+    v("write_bag", c.write_bag, "P/dem.bag");
+    v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");
+}
+
+struct Reader {
+    ConfigReader& in;
+    template <class T>
+    void operator()(const char* key, T& value, const char*) {
+        in.Read(key, value);
+    }
+};
+
+struct Printer {
+    std::ostringstream& out;
+    template <class T>
+    void operator()(const char* key, T& value, const char* comment) {
+        std::ostringstream line;
+        line << std::setprecision(10) << "  " << key << ": ";
+        if constexpr (std::is_same_v<T, bool>) {
+            line << (value ? "true" : "false");
+        } else {
+            line << value;
+        }
+        std::string text = line.str();
+        if (*comment != 0) {
+            text.resize(std::max<std::size_t>(text.size() + 1, 38), ' ');
+            text += std::string("# ") + comment;
+        }
+        out << text << "\n";
+    }
+};
+
+std::string Fixed(double v, int digits) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return b;
+}
+
+// The error model: vehicle.yaml's `uncertainty:` (the file summary.json names), else defaults.
+SensorErrorModel ErrorModel(const json& summary, const Log& log, std::string* source) {
+    const auto it = summary.find("vehicle_yaml");
+    if (it == summary.end() || !it->is_string()) {
+        *source = "defaults (no vehicle.yaml)";
+        return SensorErrorModel{};
+    }
+    const std::string path = it->get<std::string>();
+    auto v = ReadVehicleFile(path);
+    if (!v) {
+        log("warning: grid: " + v.error().message + "; the default sensor error model is used");
+        *source = "defaults (vehicle.yaml unreadable)";
+        return SensorErrorModel{};
+    }
+    *source = v->uncertainty ? path + " uncertainty:" : "defaults (" + path + " has none)";
+    return v->ErrorModel();
+}
+
+}  // namespace
+
+std::vector<std::string> GridStageConfig::Validate() const {
+    std::vector<std::string> out = cube.Validate();
+    if (!(tpu_sound_speed_mps >= 1300 && tpu_sound_speed_mps <= 1700)) {
+        out.push_back("grid.tpu_sound_speed_mps must be within 1300..1700");
+    }
+    if (!(ins_sigma_max_age_s > 0)) out.push_back("grid.ins_sigma_max_age_s must be > 0");
+    return out;
+}
+
+void ReadGridConfig(ConfigReader& section, GridStageConfig& c) {
+    Visit(Reader{section}, c);
+    std::string text = hydro::ToString(c.cube.disambiguation);
+    if (section.Read("disambiguation", text)) {
+        bool found = false;
+        std::string valid;
+        for (Disambiguation d : kDisambiguations) {
+            if (text == hydro::ToString(d)) {
+                c.cube.disambiguation = d;
+                found = true;
+            }
+            valid += std::string(valid.empty() ? "" : " | ") + hydro::ToString(d);
+        }
+        if (!found) {
+            section.AddProblem(section.Path("disambiguation") + ": '" + text + "' is not one of " +
+                               valid);
+        }
+    }
+    section.RejectUnknownKeys();
+}
+
+std::string GridDefaultsYaml() {
+    GridStageConfig d;
+    std::ostringstream o;
+    o << "grid:                       # per-sounding TPU and CUBE surface: dem.tif, dem.bag\n";
+    o << "  disambiguation: " << hydro::ToString(d.cube.disambiguation)
+      << "  # density | locale | predicted_surface\n";
+    Visit(Printer{o}, d);
+    return o.str();
+}
+
+namespace detail {
+
+Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    const GridStageConfig& gc = config.grid;
+    std::string model_source;
+    hydro::TpuConfig tcfg;
+    tcfg.model = ErrorModel(s.summary, log, &model_source);
+    tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
+    tcfg.num_threads = gc.cube.num_threads;
+    if (const auto c = s.summary.find("sonar_clock"); c != s.summary.end() && c->is_object()) {
+        const json& sig = c->value("sigma_s", json(0.0));
+        if (sig.is_number() && std::isfinite(sig.get<double>())) {
+            tcfg.clock_sigma_s = std::abs(sig.get<double>());
+        }
+    }
+    if (auto p = tcfg.Validate(); !p.empty()) {
+        return Error{"grid: invalid sensor error model (" + model_source + "):\n" +
+                     FormatProblems(p)};
+    }
+    if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
+
+    const SensorErrorModel& m = tcfg.model;
+    PoseSigma fallback;
+    fallback << frames::DegToRad(m.roll_pitch_sigma_deg), frames::DegToRad(m.roll_pitch_sigma_deg),
+        frames::DegToRad(m.heading_sigma_deg), m.position_sigma_h_m, m.position_sigma_h_m,
+        m.position_sigma_v_m;
+    std::vector<hydro::PingSigma> sig(s.geo.pings.size());
+    for (std::size_t k = 0; k < sig.size(); ++k) {
+        const PoseSigma p =
+            PoseSigmaAt(s.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
+        sig[k].attitude_rpy_rad = p.head<3>();
+        sig[k].position_enu_m = p.tail<3>();
+    }
+    const hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.mount, sig, tcfg);
+    log("grid: TPU (" + model_source + "): " + tpu.message);
+
+    auto utm = georef::ToUtm(s.geo);
+    if (!utm) return Error{"grid: UTM: " + utm.error().message};
+    std::vector<hydro::CubeSounding> snd(s.geo.points.size());
+    for (std::size_t j = 0; j < snd.size(); ++j) {
+        const Eigen::Vector3d& e = utm->easting_northing_height[j];
+        const double depth =
+            s.geo.pings[s.geo.points.ping[j]].sensor_world.z() - s.geo.points.position_world[j].z();
+        snd[j] = {e.x(),
+                  e.y(),
+                  e.z(),
+                  static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
+                  static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
+                  static_cast<float>(depth)};
+    }
+    const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    if (!cube.ok) return Error{cube.message};
+    log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
+
+    const hydro::CubeGrid& g = cube.grid;
+    io::GridRaster raster;
+    raster.x0 = g.x0;
+    raster.y0 = g.y0;
+    raster.resolution_m = g.resolution_m;
+    raster.nx = g.nx;
+    raster.ny = g.ny;
+    raster.utm_zone = utm->zone;
+    raster.northern = utm->northern;
+    raster.layers = {{"elevation", "metre", g.elevation_m},
+                     {"uncertainty", "metre", g.uncertainty_m},
+                     {"density", "", g.density},
+                     {"hypotheses", "", g.hypotheses}};
+    raster.metadata = {
+        {"pitmap_surface", "CUBE (Calder & Mayer 2003)"},
+        {"pitmap_disambiguation", hydro::ToString(gc.cube.disambiguation)},
+        {"pitmap_vertical_datum", "WGS 84 ellipsoidal height"},
+        {"pitmap_uncertainty", "95 %: 1.96 x max(posterior sd, sd of the hypothesis' soundings)"},
+        {"pitmap_density", "soundings in the chosen hypothesis"}};
+    const std::string& P = s.out_dir;
+    json files = json::array();
+    if (gc.write_geotiff) {
+        if (auto w = io::WriteCogGeoTiff(P + "/dem.tif", raster); !w) return w;
+        files.push_back("dem.tif");
+    }
+    if (gc.write_bag) {
+        if (auto w = io::WriteBag(P + "/dem.bag", raster); !w) return w;
+        files.push_back("dem.bag");
+    }
+    if (gc.write_sounding_tpu) {
+        if (auto w = io::WriteSoundingTpuPly(
+                P + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m);
+            !w) {
+            return w;
+        }
+        files.push_back("soundings_tpu.ply");
+    }
+    json shares = json::object();
+    for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
+        shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
+    }
+    const json st = {{"error_model", model_source},
+                     {"soundings", s.geo.points.size()},
+                     {"median_tvu_95_m", tpu.median_tvu_95_m},
+                     {"median_thu_95_m", tpu.median_thu_95_m},
+                     {"tvu_variance_share", shares},
+                     {"clock_sigma_s", tcfg.clock_sigma_s},
+                     {"resolution_m", g.resolution_m},
+                     {"median_depth_m", cube.median_depth_m},
+                     {"capture_distance_m", cube.capture_distance_m},
+                     {"nx", g.nx},
+                     {"ny", g.ny},
+                     {"x0_m", g.x0},
+                     {"y0_m", g.y0},
+                     {"utm_epsg", utm->epsg},
+                     {"vertical_crs", "WGS 84 ellipsoidal height"},
+                     {"disambiguation", hydro::ToString(gc.cube.disambiguation)},
+                     {"nodes_filled", cube.nodes_filled},
+                     {"nodes_multiple_hypotheses", cube.nodes_multiple},
+                     {"hypotheses", cube.hypotheses_total},
+                     {"node_updates", cube.node_updates},
+                     {"soundings_rejected", cube.soundings_rejected},
+                     {"files", files},
+                     {"message", cube.message}};
+    log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
+        " nodes; " + files.dump());
+    RecordStage(s.summary, "grid", st, clock);
+    return SaveSummary(s);
+}
+
+}  // namespace detail
+
+Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/true, log);
+    if (!s) return s.error();
+    return detail::GridSurvey(*s, config, log);
+}
+
+}  // namespace pitmap::proc::pipeline
