@@ -90,7 +90,8 @@ constexpr double kMaxCoordinate = 1e9;
 
 }  // namespace
 
-Expected<PlyData> ReadPly(const std::string& path) {
+Expected<PlyData> ReadPly(const std::string& path,
+                          const std::vector<std::string>& vertex_properties) {
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return Error{path + ": cannot open"};
     const auto file_size = static_cast<std::uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
@@ -178,6 +179,23 @@ Expected<PlyData> ReadPly(const std::string& path) {
         }
         if (is_vertex && (ix < 0 || iy < 0 || iz < 0))
             return Error{path + ": vertex without x, y, z"};
+        // Property index -> slot in out.vertex_properties (-1: not kept).
+        std::vector<int> keep(e.props.size(), -1);
+        if (is_vertex) {
+            if (out.vertex_properties.size() != vertex_properties.size()) {
+                out.vertex_properties.assign(vertex_properties.size(), {});
+            }
+            for (std::size_t w = 0; w < vertex_properties.size(); ++w) {
+                bool found = false;
+                for (std::size_t k = 0; k < e.props.size(); ++k) {
+                    if (e.props[k].name == vertex_properties[w] && !e.props[k].is_list) {
+                        keep[k] = static_cast<int>(w);
+                        found = true;
+                    }
+                }
+                if (!found) return Error{path + ": no vertex property " + vertex_properties[w]};
+            }
+        }
         const std::string where = path + ": " + e.name + " ";
         for (std::size_t n = 0; n < e.count; ++n) {
             Eigen::Vector3d v = Eigen::Vector3d::Zero();
@@ -227,6 +245,9 @@ Expected<PlyData> ReadPly(const std::string& path) {
                     if (is_vertex && static_cast<int>(k) == ix) v.x() = val;
                     if (is_vertex && static_cast<int>(k) == iy) v.y() = val;
                     if (is_vertex && static_cast<int>(k) == iz) v.z() = val;
+                    if (is_vertex && keep[k] >= 0) {
+                        out.vertex_properties[static_cast<std::size_t>(keep[k])].push_back(val);
+                    }
                 }
             }
             if (binary ? !r.ok() : ls.fail()) return Error{where + "data truncated or malformed"};

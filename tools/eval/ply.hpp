@@ -18,8 +18,13 @@ struct PlyData {
     std::vector<Eigen::Vector3d> vertices;
     std::vector<std::array<int, 3>> triangles;  // polygons fan-triangulated
     std::vector<std::string> comments;
+    // The vertex properties asked for, in the order asked, one value per vertex.
+    std::vector<std::vector<double>> vertex_properties;
 };
 
-Expected<PlyData> ReadPly(const std::string& path);
+// `vertex_properties`: further scalar vertex properties to keep (e.g. "gps_time_s"); a file
+// without one of them is an error naming it.
+Expected<PlyData> ReadPly(const std::string& path,
+                          const std::vector<std::string>& vertex_properties = {});
 
 }  // namespace pitmap::eval
