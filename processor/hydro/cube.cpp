@@ -187,16 +187,18 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
 }
 
 void CubeNode::Update(double z, double v, const CubeConfig& c) {
+    // The smallest squared normalised innovation (z - mu)^2 / (s^2 + sigma_n^2).
     int best = -1;
-    double best_e = std::numeric_limits<double>::infinity();
+    double best_e2 = std::numeric_limits<double>::infinity();
     for (std::size_t h = 0; h < hyps_.size(); ++h) {
-        const double e = std::abs(z - hyps_[h].mean_m) / std::sqrt(hyps_[h].variance_m2 + v);
-        if (e < best_e) {
-            best_e = e;
+        const double d = z - hyps_[h].mean_m;
+        const double e2 = d * d / (hyps_[h].variance_m2 + v);
+        if (e2 < best_e2) {
+            best_e2 = e2;
             best = static_cast<int>(h);
         }
     }
-    if (best < 0 || best_e > c.hypothesis_gate) {
+    if (best < 0 || best_e2 > c.hypothesis_gate * c.hypothesis_gate) {
         CubeHypothesis h;
         h.mean_m = z;
         h.variance_m2 = v;
@@ -207,9 +209,10 @@ void CubeNode::Update(double z, double v, const CubeConfig& c) {
     }
     CubeHypothesis& h = hyps_[static_cast<std::size_t>(best)];
     // Kalman step with the sounding as the observation of a constant depth.
-    const double post = 1.0 / (1.0 / h.variance_m2 + 1.0 / v);
-    h.mean_m += post / v * (z - h.mean_m);
-    h.variance_m2 = post;
+    // s'^2 = s^2 v / (s^2 + v), mu' = mu + s^2 / (s^2 + v) (z - mu).
+    const double gain = h.variance_m2 / (h.variance_m2 + v);
+    h.mean_m += gain * (z - h.mean_m);
+    h.variance_m2 *= (1.0 - gain);
     ++h.count;
     const double delta = z - h.sample_mean_m;
     h.sample_mean_m += delta / h.count;
@@ -359,12 +362,47 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
 
     std::vector<CubeNode> nodes(g.size());
     std::atomic<std::int64_t> updates{0};
+    const int Q = config.queue_length;
+    const bool square = config.distance_exponent == 2.0;
     tbb::parallel_for(0, nbands, [&](int band) {
         const int jb0 = band * kBandRows, jb1 = std::min(g.ny - 1, jb0 + kBandRows - 1);
-        std::int64_t local = 0;
+        // The band's median queues, (z, variance) sorted by z, Q slots a node: they live only
+        // while the band is processed.
+        const std::size_t band_nodes = static_cast<std::size_t>(jb1 - jb0 + 1) * g.nx;
+        std::vector<std::pair<float, float>> queue(Q > 1 ? band_nodes * Q : 0);
+        std::vector<std::uint8_t> queued(Q > 1 ? band_nodes : 0, 0);
+        const auto offer = [&](std::size_t n, double z, double v) {
+            CubeNode& node = nodes[n];
+            if (Q <= 1) {
+                node.Update(z, v, config);
+                return;
+            }
+            const std::size_t local = n - static_cast<std::size_t>(jb0) * g.nx;
+            auto* q = queue.data() + local * Q;
+            int k = queued[local];
+            const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+            // Insertion into the sorted queue.
+            int pos = k;
+            while (pos > 0 && q[pos - 1].first > e.first) {
+                q[pos] = q[pos - 1];
+                --pos;
+            }
+            q[pos] = e;
+            ++k;
+            if (k == Q) {
+                const int mid = k / 2;
+                const auto m = q[mid];
+                for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
+                --k;
+                node.Update(m.first, m.second, config);
+            }
+            queued[local] = static_cast<std::uint8_t>(k);
+        };
+        std::int64_t local_updates = 0;
         for (std::uint32_t p = band_start[band]; p < band_start[band + 1]; ++p) {
             const CubeSounding& s = soundings[band_items[p]];
             const double r = CaptureDistance(s.depth_m, res, config);
+            const double r2 = r * r;
             const int i0 = std::max(0, static_cast<int>(std::ceil((s.x - r - g.x0) / res)));
             const int i1 = std::min(g.nx - 1, static_cast<int>(std::floor((s.x + r - g.x0) / res)));
             const int j0 = std::max(jb0, static_cast<int>(std::ceil((s.y - r - g.y0) / res)));
@@ -383,21 +421,34 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                 const double dy = g.y0 + j * res - s.y;
                 for (int i = i0; i <= i1; ++i) {
                     const double dx = g.x0 + i * res - s.x;
-                    const double d = std::sqrt(dx * dx + dy * dy);
-                    if (d > r) continue;
-                    const double grow = std::pow((d + rho_sh) / res, config.distance_exponent);
+                    const double d2 = dx * dx + dy * dy;
+                    if (d2 > r2) continue;
+                    // C&M eq. 9: sigma_v^2 (1 + ((d + rho sigma_h) / resolution)^alpha).
+                    const double u = (std::sqrt(d2) + rho_sh) / res;
+                    const double grow = square ? u * u : std::pow(u, config.distance_exponent);
                     const double v = sv2 * (1.0 + grow) + slope_var;
-                    const double z = s.z + gx * dx + gy * dy;
-                    nodes[static_cast<std::size_t>(j) * g.nx + i].Add(z, v, config);
-                    ++local;
+                    offer(static_cast<std::size_t>(j) * g.nx + i, s.z + gx * dx + gy * dy, v);
+                    ++local_updates;
                 }
             }
         }
-        updates += local;
+        // Flush: the median first, until the queue is empty.
+        for (std::size_t local = 0; local < queued.size(); ++local) {
+            auto* q = queue.data() + local * Q;
+            int k = queued[local];
+            CubeNode& node = nodes[local + static_cast<std::size_t>(jb0) * g.nx];
+            while (k > 0) {
+                const int mid = k / 2;
+                const auto m = q[mid];
+                for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
+                --k;
+                node.Update(m.first, m.second, config);
+            }
+        }
+        updates += local_updates;
     });
     out.node_updates = updates.load();
     out.soundings_used = static_cast<std::int64_t>(idx.size());
-    tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t n) { nodes[n].Flush(config); });
 
     const std::size_t nn = g.size();
     g.elevation_m.assign(nn, static_cast<float>(kNaN));

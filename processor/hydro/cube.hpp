@@ -126,9 +126,11 @@ public:
     const std::vector<CubeHypothesis>& hypotheses() const { return hyps_; }
     // The hypothesis closest to `reference` (NaN: the densest); -1 if none.
     int Choose(double reference) const;
+    // A sounding that left the median queue: the Kalman update of the closest hypothesis, or a
+    // new one (RunCube keeps the queues itself, a band of nodes at a time).
+    void Update(double z, double variance, const CubeConfig& config);
 
 private:
-    void Update(double z, double variance, const CubeConfig& config);
     std::vector<std::pair<float, float>> queue_;  // (z, variance), sorted by z
     std::vector<CubeHypothesis> hyps_;
 };

@@ -108,11 +108,18 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
         Outer(dp_dtheta, Square(std::tan(th) * m.surface_sound_speed_sigma_mps / c));
 
     // Attitude: dR/dk = [a_k]x R for R = M Rz(yaw) Ry(pitch) Rx(roll).
-    const frames::Rpy rpy = frames::RpyFromRotationWorld(g.R_world_vehicle);
+    // a_pitch = M Rz(yaw) e_y = M (-sin yaw, cos yaw, 0); with R_ned = M^T R (M = M^T),
+    // R_ned(1,0) = sin(yaw) cos(pitch), R_ned(0,0) = cos(yaw) cos(pitch), cos(pitch) >= 0.
     const Eigen::Matrix3d M = frames::RotationEnuFromNed();
+    const Eigen::Matrix3d R_ned = M * g.R_world_vehicle;
+    const double h = std::hypot(R_ned(1, 0), R_ned(0, 0));
+    Eigen::Vector3d a_pitch_ned(-R_ned(1, 0) / h, R_ned(0, 0) / h, 0.0);
+    if (!(h > 1e-9)) {  // pitch at +-90 deg: yaw from the full decomposition
+        const frames::Rpy rpy = frames::RpyFromRotationWorld(g.R_world_vehicle);
+        a_pitch_ned = Eigen::Vector3d(-std::sin(rpy.yaw), std::cos(rpy.yaw), 0.0);
+    }
     const Eigen::Vector3d a_roll = g.R_world_vehicle * Eigen::Vector3d::UnitX();
-    const Eigen::Vector3d a_pitch =
-        M * Eigen::AngleAxisd(rpy.yaw, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d a_pitch = M * a_pitch_ned;
     const Eigen::Vector3d a_yaw = M * Eigen::Vector3d::UnitZ();
     const double bore2 = Square(frames::DegToRad(m.boresight_sigma_deg));
     at(TpuTerm::kAttitude) = Outer(a_roll.cross(d), Square(sigma.attitude_rpy_rad[0]) + bore2) +

@@ -2,7 +2,10 @@
 // The `grid` stage (grid_stage.hpp): its configuration and its run on a survey in memory.
 #include "processor/pipeline/grid_stage.hpp"
 
+#include <time.h>
 #include <algorithm>
+
+#include <chrono>
 #include <cmath>
 #include <iomanip>
 #include <sstream>
@@ -78,6 +81,26 @@ struct Printer {
             text += std::string("# ") + comment;
         }
         out << text << "\n";
+    }
+};
+
+// Wall and process CPU seconds of the parts of the stage (CPU time says what a part costs when
+// other processes share the cores).
+struct PartClock {
+    std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
+    double cpu = Cpu();
+    static double Cpu() {
+        timespec ts{};
+        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+    }
+    // Records the part that ends now as name -> [wall s, CPU s].
+    void Lap(nlohmann::json& out, const char* name) {
+        const auto now = std::chrono::steady_clock::now();
+        const double c = Cpu();
+        out[name] = {std::chrono::duration<double>(now - wall).count(), c - cpu};
+        wall = now;
+        cpu = c;
     }
 };
 
@@ -169,6 +192,8 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
 
+    PartClock part;
+    json timings = json::object();
     const SensorErrorModel& m = tcfg.model;
     PoseSigma fallback;
     fallback << frames::DegToRad(m.roll_pitch_sigma_deg), frames::DegToRad(m.roll_pitch_sigma_deg),
@@ -183,6 +208,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     const hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
+    part.Lap(timings, "tpu");
 
     auto utm = georef::ToUtm(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
@@ -198,7 +224,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                   static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
                   static_cast<float>(depth)};
     }
+    part.Lap(timings, "utm");
     const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    part.Lap(timings, "cube");
     if (!cube.ok) return Error{cube.message};
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
@@ -239,6 +267,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         }
         files.push_back("soundings_tpu.ply");
     }
+    part.Lap(timings, "write");
     json shares = json::object();
     for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
         shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
@@ -265,6 +294,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"node_updates", cube.node_updates},
                      {"soundings_rejected", cube.soundings_rejected},
                      {"files", files},
+                     {"timings_wall_cpu_s", timings},
                      {"message", cube.message}};
     log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
