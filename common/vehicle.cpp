@@ -40,6 +40,33 @@ double ConnectorYawDeg(ConnectorDirection c) {
     return 0;
 }
 
+// The keys of the `uncertainty:` section, in file order, with their comments.
+struct ErrorKey {
+    const char* key;
+    double SensorErrorModel::*field;
+    const char* comment;
+};
+constexpr ErrorKey kErrorKeys[] = {
+    {"range_sigma_m", &SensorErrorModel::range_sigma_m, "range noise, constant part, m"},
+    {"range_sigma_fraction", &SensorErrorModel::range_sigma_fraction, "range noise, share of r"},
+    {"beam_angle_sigma_deg", &SensorErrorModel::beam_angle_sigma_deg, "beam pointing, deg"},
+    {"surface_sound_speed_sigma_mps",
+     &SensorErrorModel::surface_sound_speed_sigma_mps,
+     "at the transducer, m/s"},
+    {"mean_sound_speed_sigma_mps",
+     &SensorErrorModel::mean_sound_speed_sigma_mps,
+     "water column mean, m/s"},
+    {"position_sigma_h_m", &SensorErrorModel::position_sigma_h_m, "INS, no INSSTDEV: per axis"},
+    {"position_sigma_v_m", &SensorErrorModel::position_sigma_v_m, "INS, no INSSTDEV: height"},
+    {"position_noise_m", &SensorErrorModel::position_noise_m, "INS output white noise, m"},
+    {"roll_pitch_sigma_deg", &SensorErrorModel::roll_pitch_sigma_deg, "INS, no INSSTDEV"},
+    {"heading_sigma_deg", &SensorErrorModel::heading_sigma_deg, "INS, no INSSTDEV"},
+    {"heave_sigma_m", &SensorErrorModel::heave_sigma_m, "0 = heights from the INS (RTK)"},
+    {"latency_sigma_s", &SensorErrorModel::latency_sigma_s, "sonar-INS timing, s"},
+    {"lever_arm_sigma_m", &SensorErrorModel::lever_arm_sigma_m, "per axis, m"},
+    {"boresight_sigma_deg", &SensorErrorModel::boresight_sigma_deg, "per axis, deg"},
+};
+
 // Reads an enum spelled as one of its ToString names; a problem lists the valid ones.
 template <class E, std::size_t N>
 bool ReadEnum(ConfigReader& in, const char* key, E& value, const E (&all)[N]) {
@@ -183,6 +210,14 @@ std::string Format(const VehicleDescription& v, int indent, bool comments) {
                                                : std::string("null")),
          "INS above the water line, m; null = unknown");
     line("  channel: " + Quoted(v.navigation_channel), "LCM channel id, \"\" = every one");
+    if (v.uncertainty) {
+        note("Sensor error model, 1 sigma (total propagated uncertainty per sounding);");
+        note("absent = these defaults (Imagenex Delta T, NovAtel SPAN with RTK).");
+        line("uncertainty:", "");
+        for (const ErrorKey& k : kErrorKeys) {
+            line(std::string("  ") + k.key + ": " + Num((*v.uncertainty).*k.field), k.comment);
+        }
+    }
     return o.str();
 }
 
@@ -216,6 +251,20 @@ const char* ToString(SoundVelocitySource s) {
             return "manual";
     }
     return "?";
+}
+
+std::vector<std::string> SensorErrorModel::Validate() const {
+    std::vector<std::string> out;
+    for (const ErrorKey& k : kErrorKeys) {
+        const double x = this->*k.field;
+        if (!std::isfinite(x) || x < 0) {
+            out.push_back(std::string("uncertainty.") + k.key + ": must be finite and >= 0");
+        }
+    }
+    if (range_sigma_fraction >= 0.1) {
+        out.push_back("uncertainty.range_sigma_fraction: must be < 0.1 (a share of the range)");
+    }
+    return out;
 }
 
 Eigen::Matrix3d VehicleDescription::R_vehicle_sonar_nominal() const {
@@ -312,6 +361,25 @@ void ReadVehicle(ConfigReader& r, VehicleDescription& v) {
         n.Read("channel", v.navigation_channel);
         n.RejectUnknownKeys();
     }
+    if (r.Has("uncertainty")) {
+        ConfigReader u = r.Child("uncertainty");
+        SensorErrorModel m;
+        for (const ErrorKey& k : kErrorKeys) {
+            double x = 0;
+            if (!u.Read(k.key, x)) continue;
+            if (!std::isfinite(x) || x < 0) {
+                u.AddProblem(u.Path(k.key) + ": must be a finite number >= 0, is " + Num(x));
+                continue;
+            }
+            m.*k.field = x;
+        }
+        if (m.range_sigma_fraction >= 0.1) {
+            u.AddProblem(u.Path("range_sigma_fraction") + ": " + Num(m.range_sigma_fraction) +
+                         " is a share of the range (0.002 = 0.2 %), must be < 0.1");
+        }
+        u.RejectUnknownKeys();
+        v.uncertainty = m;
+    }
     r.RejectUnknownKeys();
 }
 
@@ -365,6 +433,7 @@ std::string VehicleYamlTemplate() {
     v.sonar_lever_arm_m = Eigen::Vector3d(0.95, 0.0, 0.62);
     v.gnss_antenna_lever_arms_m = {Eigen::Vector3d(0.42, -0.31, -1.25)};
     v.ins_height_above_waterline_m = 0.35;
+    v.uncertainty = SensorErrorModel{};
     return Format(v, 0, true);
 }
 

@@ -19,6 +19,11 @@
 // processor subtracts it from header times. Used only for .83P files (logged pings are
 // stamped by the daemon's clock model).
 //
+// Uncertainty: the optional `uncertainty:` section is the sensor error model (1 sigma) that the
+// total propagated uncertainty of each sounding (processor/hydro/tpu.hpp) is computed from;
+// absent, SensorErrorModel's defaults (an Imagenex Delta T on a NovAtel SPAN RTK INS) apply, so
+// files written before the section existed read as before.
+//
 // Failure model: parsing lists every problem (missing required keys, wrong types, values out
 // of range, unknown keys) and never throws. A file without the `pitmap_vehicle` key is "not a
 // pitmap vehicle file" and only the required keys are listed as missing.
@@ -45,6 +50,35 @@ const char* ToString(SonarOrientation o);
 const char* ToString(ConnectorDirection c);
 const char* ToString(SoundVelocitySource s);
 
+// The sensor error model, 1 sigma (Hare, Godin & Mayer 1995: the terms of a multibeam sounding's
+// error budget). Defaults: an Imagenex Delta T (range noise as pitmap-sim models the head:
+// 0.2 % of the range plus 2 cm) on a NovAtel SPAN INS with RTK (1 cm horizontal, 1.5 cm
+// vertical, roll/pitch 0.015 deg, heading 0.04 deg: SPAN's RTK specification and pitmap-sim's
+// INS error model). The INS terms are fallbacks: the processor uses the INS's own standard
+// deviations (INSSTDEV) where the logs carry them.
+struct SensorErrorModel {
+    // Sonar.
+    double range_sigma_m = 0.02;                 // range noise, constant part, m
+    double range_sigma_fraction = 0.002;         // range noise, share of the range
+    double beam_angle_sigma_deg = 0.05;          // beam pointing (detection within the beam)
+    double surface_sound_speed_sigma_mps = 0.5;  // at the transducer (beam steering), m/s
+    double mean_sound_speed_sigma_mps = 1.0;     // of the water column (range scale), m/s
+    // INS (fallbacks where the logs carry no INSSTDEV) and the INS's output noise.
+    double position_sigma_h_m = 0.01;     // per horizontal axis
+    double position_sigma_v_m = 0.015;    // vertical
+    double position_noise_m = 0.005;      // white noise per output, beyond the reported sigma
+    double roll_pitch_sigma_deg = 0.015;  // roll and pitch
+    double heading_sigma_deg = 0.04;      // heading
+    double heave_sigma_m = 0.0;           // 0: heights come from the INS (RTK), heave included
+    double latency_sigma_s = 0.001;       // residual sonar-to-INS timing error
+    // Mount.
+    double lever_arm_sigma_m = 0.01;    // per axis, INS to transducer
+    double boresight_sigma_deg = 0.02;  // per axis, after calibration
+
+    // Every problem (a value negative or not finite, a fraction >= 0.1).
+    std::vector<std::string> Validate() const;
+};
+
 struct VehicleDescription {
     std::string name;
     // Sonar.
@@ -60,6 +94,10 @@ struct VehicleDescription {
     std::vector<Eigen::Vector3d> gnss_antenna_lever_arms_m;  // vehicle frame, one per antenna
     std::optional<double> ins_height_above_waterline_m;      // > 0 = INS above the water
     std::string navigation_channel;                          // "" = every INS channel
+    // The `uncertainty:` section; nullopt = absent (SensorErrorModel's defaults apply).
+    std::optional<SensorErrorModel> uncertainty;
+    // The error model to use: the section's, else the defaults.
+    SensorErrorModel ErrorModel() const { return uncertainty.value_or(SensorErrorModel{}); }
 
     // R_mount (orientation, connector, tilt) and R_boresight * R_mount, as above.
     Eigen::Matrix3d R_vehicle_sonar_nominal() const;

@@ -219,7 +219,8 @@ Writer::Writer(const std::string& path, const Header& header) : file_(path) {
     file_.Text(FormatHeader(header));
 }
 
-Expected<Mesh> ReadMesh(const std::string& path) {
+Expected<Mesh> ReadMesh(const std::string& path,
+                        const std::vector<std::string>& vertex_properties) {
     std::ifstream in(path, std::ios::binary);
     if (!in) return Error{path + ": cannot open"};
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -251,6 +252,22 @@ Expected<Mesh> ReadMesh(const std::string& path) {
         if (is_vertex && (ix < 0 || iy < 0 || iz < 0)) {
             return Error{path + ": vertex without x, y, z"};
         }
+        // Property index -> slot in out.vertex_properties (-1: not kept).
+        std::vector<int> keep(e.properties.size(), -1);
+        if (is_vertex) {
+            out.vertex_properties.assign(vertex_properties.size(), {});
+            for (std::size_t w = 0; w < vertex_properties.size(); ++w) {
+                bool found = false;
+                for (std::size_t k = 0; k < e.properties.size(); ++k) {
+                    if (e.properties[k].name == vertex_properties[w] &&
+                        !e.properties[k].list_count) {
+                        keep[k] = static_cast<int>(w);
+                        found = true;
+                    }
+                }
+                if (!found) return Error{path + ": no vertex property " + vertex_properties[w]};
+            }
+        }
         const std::string where = path + ": " + e.name + " ";
         std::vector<int> face;
         for (std::uint64_t n = 0; n < e.count; ++n) {
@@ -279,6 +296,9 @@ Expected<Mesh> ReadMesh(const std::string& path) {
                     if (is_vertex && static_cast<int>(k) == iy) v.y() = x;
                     if (is_vertex && static_cast<int>(k) == iz) v.z() = x;
                     if (is_vertex && static_cast<int>(k) == ibeam) beam = x;
+                    if (is_vertex && keep[k] >= 0) {
+                        out.vertex_properties[static_cast<std::size_t>(keep[k])].push_back(x);
+                    }
                     continue;
                 }
                 const double cnt = value(*p.list_count);

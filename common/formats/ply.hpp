@@ -107,7 +107,11 @@ struct Mesh {
     std::vector<int> vertex_beam;  // the vertices' "beam" property (points.ply: -1 if out of
                                    // 0..65535), else empty
     std::vector<std::string> comments;
+    // The vertex properties asked for, in the order asked, one value per vertex.
+    std::vector<std::vector<double>> vertex_properties;
 };
-Expected<Mesh> ReadMesh(const std::string& path);
+// `vertex_properties`: scalar vertex properties to keep (each must exist, else an error).
+Expected<Mesh> ReadMesh(const std::string& path,
+                        const std::vector<std::string>& vertex_properties = {});
 
 }  // namespace pitmap::formats::ply

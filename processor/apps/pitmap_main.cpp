@@ -5,6 +5,7 @@
 //                 [--sonar-clock-offset S] [--svp FILE...]
 //   pitmap calibrate --out P [--config FILE]
 //   pitmap slam --out P [--config FILE]
+//   pitmap grid --out P [--config FILE]
 //   pitmap fuse --out P [--config FILE]
 //   pitmap mesh --out P [--config FILE]
 //   pitmap report --out P
@@ -96,16 +97,18 @@ int main(int argc, char** argv) try {
     cal->add_option("--out", out_dir, "products folder written by pitmap georef")->required();
     cal->add_option("--config", config_path, "YAML config");
     auto* slam = app.add_subcommand("slam", "continuous-time SLAM on a georeferenced folder");
+    auto* grid = app.add_subcommand(
+        "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
     auto* fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
     auto* mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
     auto* report = app.add_subcommand("report", "report.html of a products folder");
-    for (auto* sub : {slam, fuse, mesh, report}) {
+    for (auto* sub : {slam, grid, fuse, mesh, report}) {
         sub->add_option("--out", out_dir, "products folder")->required();
         sub->add_option("--config", config_path, "YAML config");
     }
     bool no_calibrate = false, no_slam = false, no_report = false;
     auto* run = app.add_subcommand(
-        "run", "everything: ingest, georef, calibrate, SLAM, TSDF, mesh, report");
+        "run", "everything: ingest, georef, calibrate, SLAM, grid, TSDF, mesh, report");
     run->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
     run->add_option("--out", out_dir, "products folder")->required();
     run->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
@@ -125,7 +128,7 @@ int main(int argc, char** argv) try {
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
     bool strict = false;
-    for (auto* sub : {geo, cal, slam, fuse, mesh, run}) {
+    for (auto* sub : {geo, cal, slam, grid, fuse, mesh, run}) {
         sub->add_flag("--strict",
                       strict,
                       "exit with status 4 when a quality gate trips (the stage could not "
@@ -171,6 +174,7 @@ int main(int argc, char** argv) try {
     if (geo->parsed()) status = pp::RunGeorefStage(inputs, out_dir, config, log);
     if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);
     if (slam->parsed()) status = pp::RunSlamStage(out_dir, config, log);
+    if (grid->parsed()) status = pp::RunGridStage(out_dir, config, log);
     if (fuse->parsed()) status = pp::RunFuseStage(out_dir, config, log);
     if (mesh->parsed()) status = pp::RunMeshStage(out_dir, config, log);
     if (report->parsed()) status = pp::RunReportStage(out_dir, config, log);

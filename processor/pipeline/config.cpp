@@ -225,6 +225,41 @@ void VisitQuality(V&& v, QualityConfig& q) {
     v("max_outside_nav_fraction", q.max_outside_nav_fraction, "share of pings outside the nav");
 }
 
+constexpr hydro::Disambiguation kDisambiguations[] = {hydro::Disambiguation::kDensity,
+                                                      hydro::Disambiguation::kLocale,
+                                                      hydro::Disambiguation::kPredictedSurface};
+
+template <class V>
+void VisitGrid(V&& v, GridStageConfig& c) {
+    v.Enum("disambiguation",
+           c.cube.disambiguation,
+           kDisambiguations,
+           "density | locale | predicted_surface");
+    hydro::CubeConfig& q = c.cube;
+    v("in_run", c.in_run, "`pitmap run` makes the grid");
+    v("resolution_m", q.resolution_m, "node spacing, m; 0 = from the median depth");
+    v("resolution_depth_fraction", q.resolution_depth_fraction, "auto: depth * this, rounded down");
+    v("min_resolution_m", q.min_resolution_m, "auto resolution bounds, m");
+    v("max_resolution_m", q.max_resolution_m, "");
+    v("capture_distance_scale", q.capture_distance_scale, "capture distance, share of the depth");
+    v("min_capture_distance_res", q.min_capture_distance_res, "... at least, in resolutions");
+    v("max_capture_distance_res", q.max_capture_distance_res, "... at most, in resolutions");
+    v("distance_exponent", q.distance_exponent, "CUBE alpha: variance growth with distance");
+    v("horizontal_error_scale", q.horizontal_error_scale, "CUBE rho: THU sigmas added to d");
+    v("queue_length", q.queue_length, "median pre-filter queue; 1 = none");
+    v("hypothesis_gate", q.hypothesis_gate, "normalised innovation opening a hypothesis");
+    v("slope_correction", q.slope_correction, "carry soundings along the predicted surface");
+    v("predicted_surface_cells", q.predicted_surface_cells, "predicted surface cell, resolutions");
+    v("locale_radius", q.locale_radius, "locale disambiguation radius, nodes");
+    v("max_nodes", q.max_nodes, "refuse larger grids");
+    v("num_threads", q.num_threads, "0 = all cores");
+    v("tpu_sound_speed_mps", c.tpu_sound_speed_mps, "nominal sound speed of the TPU terms");
+    v("ins_sigma_max_age_s", c.ins_sigma_max_age_s, "INSSTDEV records used within this, s");
+    v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
+    v("write_bag", c.write_bag, "P/dem.bag");
+    v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");
+}
+
 template <class V>
 void VisitRun(V&& v, RunOptions& r) {
     v("calibrate", r.calibrate, "boresight calibration before SLAM");
@@ -254,6 +289,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("slam", [&](auto& s) { VisitSlam(s, c.slam, c.slam_stage); });
     v.Section("fuse", [&](auto& s) { VisitFuse(s, c.tsdf, c.weight_filter); });
     v.Section("mesh", [&](auto& s) { VisitMesh(s, c.mesh); });
+    v.Section("grid", [&](auto& s) { VisitGrid(s, c.grid); });
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });
@@ -415,6 +451,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : weight_filter.Validate()) p.push_back("fuse." + s);
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
     for (auto& s : quality.Validate()) p.push_back("quality." + s);
+    for (auto& s : grid.Validate()) p.push_back(s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");
     const bool any = !std::isnan(origin_latitude_deg) || !std::isnan(origin_longitude_deg) ||

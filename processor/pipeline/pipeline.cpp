@@ -605,6 +605,9 @@ Status GeorefSurvey(Survey& s,
                               "mesh_filled.obj",
                               "mesh_filled.glb",
                               "mesh_initial.ply",
+                              "dem.tif",
+                              "dem.bag",
+                              "soundings_tpu.ply",
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }
@@ -626,6 +629,8 @@ const char* ToString(Stage s) {
             return "calibrate";
         case Stage::kSlam:
             return "slam";
+        case Stage::kGrid:
+            return "grid";
         case Stage::kFuseInitial:
             return "fuse_initial";
         case Stage::kMeshInitial:

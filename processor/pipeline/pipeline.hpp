@@ -10,10 +10,13 @@
 //              points_initial.ply (before), points.ply, points.las (after)
 //   fuse:      pings on the trajectory of the last stage (trajectory.csv) -> TSDF -> weight
 //              filter -> P/tsdf.vdb
+//   grid:      soundings on the current trajectory -> per-sounding TPU -> CUBE surface ->
+//              P/dem.tif (COG), dem.bag (grid_stage.hpp)
 //   mesh:      P/tsdf.vdb -> P/mesh.{ply,obj,glb}, mesh_filled.{ply,obj,glb}
 //   report:    P -> P/report.html (the pitmap-report program beside the pitmap executable)
-//   run:       all of the above in memory, in that order (calibrate, SLAM and the report
-//              optional), plus P/mesh_initial.ply (the mesh before SLAM) for the report.
+//   run:       all of the above in memory (georef, calibrate, SLAM, grid, fuse, mesh, report;
+//              calibrate, SLAM, grid and the report optional), plus P/mesh_initial.ply (the mesh
+//              before SLAM) for the report.
 // Refraction: with casts (config refraction.svp_files, `--svp FILE...`) georef ray-traces
 // every beam (processor/svp/refraction.hpp); summary.json "refraction" records the casts and
 // settings, and the later stages trace again with them.
@@ -40,6 +43,7 @@
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
 #include "processor/mesh/surface.hpp"
+#include "processor/pipeline/grid_stage.hpp"
 #include "processor/slam/slam.hpp"
 #include "processor/svp/refraction.hpp"
 
@@ -89,6 +93,7 @@ struct PipelineConfig {
     mesh::MeshConfig mesh;
     RunOptions run;
     QualityConfig quality;
+    GridStageConfig grid;  // the `grid:` section (grid_stage.hpp)
     // The report program (pitmap-report); set by the command line, "" = no report.
     std::string report_program;
     // World origin; NaN = the first INS position.
@@ -123,6 +128,7 @@ enum class Stage {
     kExport,
     kCalibrate,
     kSlam,
+    kGrid,
     kFuseInitial,
     kMeshInitial,
     kFuse,
@@ -141,6 +147,7 @@ Status RunGeorefStage(const std::vector<std::string>& inputs,
                       const Log& log);
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);

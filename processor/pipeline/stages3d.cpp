@@ -413,6 +413,9 @@ Status RunAll(const std::vector<std::string>& inputs,
     if (config.run.slam) {
         if (auto st = detail::SlamSurvey(s, config, log); !st) return st;
     }
+    if (config.grid.in_run) {
+        if (auto st = detail::GridSurvey(s, config, log); !st) return st;
+    }
     {
         auto v = detail::FuseSurvey(s, config, Stage::kFuse, log);
         if (!v) return v.error();

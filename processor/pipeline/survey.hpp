@@ -97,6 +97,8 @@ Status GeorefSurvey(Survey& s,
                     const Log& log);
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+// Per-sounding TPU and the CUBE surface (grid_stage.hpp).
+Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
 // or kFuseInitial for the mesh before SLAM.
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,

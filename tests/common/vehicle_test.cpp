@@ -41,6 +41,8 @@ TEST(VehicleFile, TemplateParsesAndEveryKeyHasAComment) {
     ASSERT_EQ(v->gnss_antenna_lever_arms_m.size(), 1u);
     ASSERT_TRUE(v->ins_height_above_waterline_m.has_value());
     EXPECT_FALSE(v->sonar_clock_offset_s.has_value());
+    ASSERT_TRUE(v->uncertainty.has_value());
+    EXPECT_EQ(v->uncertainty->heading_sigma_deg, SensorErrorModel{}.heading_sigma_deg);
     for (const char* key : {"pitmap_vehicle:",
                             "lever_arm_m:",
                             "orientation:",
@@ -50,7 +52,10 @@ TEST(VehicleFile, TemplateParsesAndEveryKeyHasAComment) {
                             "clock_offset_s:",
                             "sound_velocity_source:",
                             "antenna_lever_arms_m:",
-                            "height_above_waterline_m:"}) {
+                            "height_above_waterline_m:",
+                            "range_sigma_m:",
+                            "latency_sigma_s:",
+                            "boresight_sigma_deg:"}) {
         // The line that sets the key (not a comment that names it).
         std::istringstream lines(t);
         bool found = false;
@@ -102,6 +107,53 @@ TEST(VehicleFile, WrittenFileReadsBackTheSameValues) {
     // Indented, as a daemon config's `vehicle` section.
     const std::string section = FormatVehicleYaml(v, 2);
     EXPECT_EQ(section.rfind("  pitmap_vehicle: 1\n", 0), 0u) << section;
+}
+
+TEST(VehicleFile, UncertaintySectionIsOptionalAndReadsBack) {
+    // Absent (every file before the section existed): the defaults.
+    auto plain = ParseVehicleYaml(kMinimal, "v.yaml");
+    ASSERT_TRUE(plain) << plain.error().message;
+    EXPECT_FALSE(plain->uncertainty.has_value());
+    EXPECT_EQ(plain->ErrorModel().range_sigma_m, SensorErrorModel{}.range_sigma_m);
+    EXPECT_EQ(FormatVehicleYaml(*plain).find("uncertainty"), std::string::npos);
+    // Partial: the keys given, the rest default.
+    auto partial = ParseVehicleYaml(std::string(kMinimal) +
+                                        "uncertainty:\n  range_sigma_m: 0.05\n"
+                                        "  heading_sigma_deg: 0.1\n",
+                                    "v.yaml");
+    ASSERT_TRUE(partial) << partial.error().message;
+    ASSERT_TRUE(partial->uncertainty.has_value());
+    EXPECT_EQ(partial->uncertainty->range_sigma_m, 0.05);
+    EXPECT_EQ(partial->uncertainty->heading_sigma_deg, 0.1);
+    EXPECT_EQ(partial->uncertainty->roll_pitch_sigma_deg, SensorErrorModel{}.roll_pitch_sigma_deg);
+    // Written and read back.
+    VehicleDescription v = *plain;
+    SensorErrorModel m;
+    m.range_sigma_m = 0.011;
+    m.range_sigma_fraction = 1.0 / 3000.0;
+    m.beam_angle_sigma_deg = 0;
+    m.latency_sigma_s = 0.0025;
+    m.boresight_sigma_deg = 0.07;
+    v.uncertainty = m;
+    auto back = ParseVehicleYaml(FormatVehicleYaml(v), "written");
+    ASSERT_TRUE(back) << back.error().message;
+    ASSERT_TRUE(back->uncertainty.has_value());
+    EXPECT_EQ(back->uncertainty->range_sigma_m, m.range_sigma_m);
+    EXPECT_EQ(back->uncertainty->range_sigma_fraction, m.range_sigma_fraction);
+    EXPECT_EQ(back->uncertainty->beam_angle_sigma_deg, 0.0);
+    EXPECT_EQ(back->uncertainty->latency_sigma_s, m.latency_sigma_s);
+    EXPECT_EQ(back->uncertainty->boresight_sigma_deg, m.boresight_sigma_deg);
+    // Bad values and unknown keys are problems, each named.
+    const std::string e = ErrorOf(std::string(kMinimal) +
+                                  "uncertainty:\n  range_sigma_m: -1\n"
+                                  "  range_sigma_fraction: 0.5\n  roll_sigma: 1\n");
+    EXPECT_TRUE(Contains(e, "uncertainty.range_sigma_m")) << e;
+    EXPECT_TRUE(Contains(e, "uncertainty.range_sigma_fraction")) << e;
+    EXPECT_TRUE(Contains(e, "roll_sigma")) << e;
+    EXPECT_TRUE(SensorErrorModel{}.Validate().empty());
+    SensorErrorModel bad;
+    bad.heave_sigma_m = std::nan("");
+    EXPECT_EQ(bad.Validate().size(), 1u);
 }
 
 TEST(VehicleFile, MinimalFileHasTheStandardMount) {

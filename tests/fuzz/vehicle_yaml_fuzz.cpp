@@ -21,7 +21,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         again->boresight_deg != v->boresight_deg || again->connector != v->connector ||
         again->orientation != v->orientation || again->tilt_deg != v->tilt_deg ||
         again->sonar_clock_offset_s != v->sonar_clock_offset_s || again->name != v->name ||
-        again->gnss_antenna_lever_arms_m != v->gnss_antenna_lever_arms_m) {
+        again->gnss_antenna_lever_arms_m != v->gnss_antenna_lever_arms_m ||
+        again->uncertainty.has_value() != v->uncertainty.has_value() ||
+        (v->uncertainty &&
+         (again->uncertainty->range_sigma_m != v->uncertainty->range_sigma_m ||
+          again->uncertainty->latency_sigma_s != v->uncertainty->latency_sigma_s))) {
         std::abort();
     }
     return 0;

@@ -9,7 +9,11 @@
 
 #include "common/formats/ply.hpp"
 #include "common/formats/trajectory_csv.hpp"
+#include "common/geodesy.hpp"
 #include "tools/eval/scores.hpp"
+#ifdef PITMAP_EVAL_GRID
+#include "processor/io/grid_io.hpp"
+#endif
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -36,6 +40,17 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 to the true surface.
   mesh_completeness             share of the insonified true surface (truth/coverage.u8) within
                                 0.2 m of a mesh vertex or triangle centroid.
+  dem_mean_abs_m, dem_rms_m, dem_p95_m, dem_bias_m
+                                vertical difference of the filled nodes of P/dem.tif (band 1,
+                                UTM, ellipsoidal heights) from the true terrain at each node;
+                                dem_mean_abs_insonified_m over the insonified nodes only.
+  dem_fill_insonified           share of the nodes on insonified truth cells that are filled.
+  tpu_within_tvu, tpu_within_thu
+                                share of the soundings of P/soundings_tpu.ply whose vertical
+                                (horizontal) error from the true beam-axis point (the same beam
+                                from the true sonar pose, cast into the true terrain) is within
+                                their 95 % TVU (THU); tpu_within_tvu_NN_MM_deg per |beam angle|
+                                bin.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
 either, the truth's origin is assumed (and said).)";
@@ -197,6 +212,99 @@ int main(int argc, char** argv) {
         scores["mesh_mean_abs_m"] = s.mean_abs_m;
         scores["mesh_rms_m"] = s.rms_m;
         scores["mesh_p95_m"] = s.p95_m;
+    }
+#ifdef PITMAP_EVAL_GRID
+    if (fs::exists(P / "dem.tif")) {
+        auto dem = proc::io::ReadGrid((P / "dem.tif").string());
+        if (!dem) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", dem.error().message.c_str());
+            return 2;
+        }
+        const int epsg = dem->horizontal_epsg;
+        if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760)) ||
+            dem->grid.layers.empty()) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s/dem.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
+                         products_dir.c_str(),
+                         epsg);
+            return 2;
+        }
+        const proc::io::GridRaster& g = dem->grid;
+        const LocalTangentFrame tf(truth->origin);
+        std::vector<Eigen::Vector3d> nodes;
+        nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
+        for (int j = 0; j < g.ny; ++j) {
+            for (int i = 0; i < g.nx; ++i) {
+                const float h = g.layers[0].values[static_cast<std::size_t>(j) * g.nx + i];
+                UtmCoordinate u;
+                u.zone = epsg % 100;
+                u.northern = epsg < 32700;
+                u.easting_m = g.x0 + i * g.resolution_m;
+                u.northing_m = g.y0 + j * g.resolution_m;
+                u.height_m = std::isfinite(h) ? h : 0.0;
+                auto geo = GeodeticFromUtm(u);
+                if (!geo) continue;
+                Eigen::Vector3d p = tf.ToEnu(*geo);
+                if (!std::isfinite(h)) p.z() = std::numeric_limits<double>::quiet_NaN();
+                nodes.push_back(p);
+            }
+        }
+        const auto s = eval::ScoreDem(nodes, *truth);
+        scores["dem_mean_abs_m"] = s.all.mean_abs_m;
+        scores["dem_rms_m"] = s.all.rms_m;
+        scores["dem_p95_m"] = s.all.p95_m;
+        scores["dem_bias_m"] = s.all.bias_m;
+        scores["dem_nodes_scored"] = s.all.count;
+        scores["dem_mean_abs_insonified_m"] = s.insonified.mean_abs_m;
+        scores["dem_resolution_m"] = g.resolution_m;
+        if (s.fill_insonified) scores["dem_fill_insonified"] = *s.fill_insonified;
+    }
+#endif
+    if (fs::exists(P / "soundings_tpu.ply")) {
+        auto ply = formats::ply::ReadMesh((P / "soundings_tpu.ply").string(),
+                                          {"gps_time_s", "angle_deg", "thu_95_m", "tvu_95_m"});
+        if (!ply) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
+            return 2;
+        }
+        std::vector<eval::TpuSounding> snd(ply->vertices.size());
+        for (std::size_t i = 0; i < snd.size(); ++i) {
+            snd[i].position = T * ply->vertices[i];
+            snd[i].gps_time_s = ply->vertex_properties[0][i];
+            snd[i].angle_deg = ply->vertex_properties[1][i];
+            snd[i].thu_95_m = ply->vertex_properties[2][i];
+            snd[i].tvu_95_m = ply->vertex_properties[3][i];
+        }
+        const auto s = eval::ScoreTpu(snd, *truth, world);
+        if (s.all.count > 0) {
+            scores["tpu_within_tvu"] = s.all.within_tvu;
+            scores["tpu_within_thu"] = s.all.within_thu;
+            scores["tpu_vertical_rms_m"] = s.all.vertical_rms_m;
+            scores["tpu_tvu_sigma_rms_m"] = s.all.tvu_rms_m;
+            scores["tpu_vertical_bias_m"] = s.all.vertical_bias_m;
+            scores["tpu_soundings_scored"] = s.all.count;
+            for (const auto& b : s.by_angle) {
+                if (b.count == 0) continue;
+                char key[64];
+                std::snprintf(
+                    key, sizeof key, "tpu_within_tvu_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.within_tvu;
+                std::snprintf(
+                    key, sizeof key, "tpu_within_thu_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.within_thu;
+                std::snprintf(
+                    key, sizeof key, "tpu_vertical_rms_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.vertical_rms_m;
+                std::snprintf(
+                    key, sizeof key, "tpu_tvu_sigma_rms_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.tvu_rms_m;
+                std::snprintf(
+                    key, sizeof key, "tpu_vertical_bias_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.vertical_bias_m;
+                std::snprintf(key, sizeof key, "tpu_count_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
+                scores[key] = b.count;
+            }
+        }
     }
 
     if (scores.empty()) {

@@ -154,4 +154,106 @@ double BoresightErrorDeg(double re, double pe, double ye, double rt, double pt, 
     return frames::RadToDeg(RotationAngleBetween(a, b));
 }
 
+DemScore ScoreDem(const std::vector<Eigen::Vector3d>& nodes, const sim::Truth& truth) {
+    DemScore out;
+    const sim::TerrainGrid& g = truth.terrain;
+    const sim::PitWorld world(g);
+    const bool have_cov = !truth.coverage.empty();
+    std::vector<double> all, inson;
+    std::size_t filled_inson = 0;
+    for (const Eigen::Vector3d& p : nodes) {
+        const double fx = (p.x() - g.x0_m) / g.resolution_m, fy = (p.y() - g.y0_m) / g.resolution_m;
+        const long ix = std::lround(fx), iy = std::lround(fy);
+        if (ix < 0 || iy < 0 || ix >= g.nx || iy >= g.ny) continue;
+        const bool covered =
+            have_cov &&
+            truth.coverage[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) +
+                           static_cast<std::size_t>(ix)] != 0;
+        out.insonified_nodes += covered;
+        if (!std::isfinite(p.z())) continue;
+        const double d = p.z() - world.Height(p.x(), p.y());
+        all.push_back(d);
+        if (covered) {
+            inson.push_back(d);
+            ++filled_inson;
+        }
+    }
+    out.all = SummariseDistances(std::move(all));
+    out.insonified = SummariseDistances(std::move(inson));
+    if (have_cov && out.insonified_nodes > 0) {
+        out.fill_insonified =
+            static_cast<double>(filled_inson) / static_cast<double>(out.insonified_nodes);
+    }
+    return out;
+}
+
+TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
+                  const sim::Truth& truth,
+                  const sim::PitWorld& world,
+                  std::size_t max_soundings) {
+    TpuScore out;
+    const auto& b = truth.boresight;
+    const double deg = M_PI / 180.0;
+    Eigen::Vector3d arm = Eigen::Vector3d::Zero();
+    if (b.lever_arm_sonar_m.size() == 3) {
+        arm =
+            Eigen::Vector3d(b.lever_arm_sonar_m[0], b.lever_arm_sonar_m[1], b.lever_arm_sonar_m[2]);
+    }
+    const Pose T_vehicle_sonar = MakePose(
+        frames::RotationNedFromRpy(b.roll_deg * deg, b.pitch_deg * deg, b.yaw_deg * deg), arm);
+    constexpr int kBins = 7;  // 0..70 deg
+    std::vector<TpuBin> bins(kBins);
+    std::vector<double> ss_err(kBins + 1, 0), ss_tvu(kBins + 1, 0), sum_err(kBins + 1, 0);
+    std::vector<std::size_t> in_tvu(kBins + 1, 0), in_thu(kBins + 1, 0), n(kBins + 1, 0);
+    const std::size_t stride = std::max<std::size_t>(
+        1, (snd.size() + max_soundings - 1) / std::max<std::size_t>(max_soundings, 1));
+    for (std::size_t i = 0; i < snd.size(); i += stride) {
+        const TpuSounding& s = snd[i];
+        auto pose = sim::InterpolateTruth(truth.trajectory, s.gps_time_s);
+        if (!pose) {
+            ++out.no_truth;
+            continue;
+        }
+        const Pose T_world_sonar = *pose * T_vehicle_sonar;
+        const double th = s.angle_deg * deg;
+        const Eigen::Vector3d dir =
+            T_world_sonar.linear() * Eigen::Vector3d(0, std::sin(th), std::cos(th));
+        const auto r = world.RayCast(T_world_sonar.translation(), dir, 500.0);
+        if (!r) {
+            ++out.no_truth;
+            continue;
+        }
+        const Eigen::Vector3d e = s.position - (T_world_sonar.translation() + *r * dir);
+        const int bin = std::min(kBins - 1, static_cast<int>(std::abs(s.angle_deg) / 10.0));
+        for (int k : {bin, kBins}) {
+            ++n[k];
+            in_tvu[k] += std::abs(e.z()) <= s.tvu_95_m;
+            in_thu[k] += e.head<2>().norm() <= s.thu_95_m;
+            ss_err[k] += e.z() * e.z();
+            sum_err[k] += e.z();
+            ss_tvu[k] += (s.tvu_95_m / 1.96) * (s.tvu_95_m / 1.96);
+        }
+    }
+    const auto fill = [&](int k, TpuBin& t) {
+        t.count = n[k];
+        if (n[k] == 0) return;
+        const auto c = static_cast<double>(n[k]);
+        t.within_tvu = static_cast<double>(in_tvu[k]) / c;
+        t.within_thu = static_cast<double>(in_thu[k]) / c;
+        t.vertical_rms_m = std::sqrt(ss_err[k] / c);
+        t.tvu_rms_m = std::sqrt(ss_tvu[k] / c);
+        t.vertical_bias_m = sum_err[k] / c;
+    };
+    for (int k = 0; k < kBins; ++k) {
+        bins[k].lo_deg = 10.0 * k;
+        bins[k].hi_deg = 10.0 * (k + 1);
+        fill(k, bins[k]);
+    }
+    out.all.lo_deg = 0;
+    out.all.hi_deg = 90;
+    fill(kBins, out.all);
+    out.by_angle = std::move(bins);
+    return out;
+}
+
 }  // namespace pitmap::eval

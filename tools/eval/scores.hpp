@@ -13,6 +13,17 @@
 //                           cells hit by a true beam) lying within 0.2 m of the mesh, the mesh
 //                           being sampled at its vertices and triangle centroids (for a 0.1 m
 //                           voxel mesh this overstates the distance by at most a few cm).
+//   dem_mean_abs_m, dem_rms_m, dem_p95_m, dem_bias_m  vertical difference of every filled node
+//                           of the gridded surface (P/dem.tif band 1) from the true terrain
+//                           height at the node; dem_mean_abs_insonified_m: the same over the
+//                           insonified nodes only.
+//   dem_fill_insonified     share of the nodes whose centre lies on an insonified truth cell
+//                           (truth/coverage.u8) that hold a value.
+//   tpu_within_tvu, tpu_within_thu  share of the soundings (P/soundings_tpu.ply) whose vertical
+//                           (horizontal) error lies within their 95 % TVU (THU); the error is
+//                           the sounding minus the true beam-axis point: the ray of the same
+//                           beam angle from the true sonar pose at the ping time, cast into the
+//                           true terrain. Also per 10-degree bin of |beam angle|.
 #pragma once
 
 #include <map>
@@ -64,6 +75,41 @@ DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& mesh_samples_truth,
                                        const sim::Truth& truth,
                                        double radius_m = 0.2);
+
+// A gridded surface's nodes in the truth frame: position (x, y, z = the node's elevation), or
+// z NaN for an empty node.
+struct DemScore {
+    DistanceStats all;         // every filled node over the true terrain grid
+    DistanceStats insonified;  // filled nodes on insonified cells
+    std::size_t insonified_nodes = 0;
+    std::optional<double> fill_insonified;  // nullopt without a coverage mask
+};
+DemScore ScoreDem(const std::vector<Eigen::Vector3d>& nodes_truth, const sim::Truth& truth);
+
+// One sounding of soundings_tpu.ply, position in the truth frame.
+struct TpuSounding {
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    double gps_time_s = 0;
+    double angle_deg = 0;
+    double thu_95_m = 0, tvu_95_m = 0;
+};
+struct TpuBin {
+    double lo_deg = 0, hi_deg = 0;  // |beam angle| range
+    std::size_t count = 0;
+    double within_tvu = 0, within_thu = 0;
+    double vertical_rms_m = 0, tvu_rms_m = 0;  // RMS of the error and of TVU / 1.96
+    double vertical_bias_m = 0;                // mean vertical error
+};
+struct TpuScore {
+    TpuBin all;
+    std::vector<TpuBin> by_angle;  // 10-degree bins
+    std::size_t no_truth = 0;      // outside the true trajectory or no terrain on the ray
+};
+// At most max_soundings (evenly strided) are scored.
+TpuScore ScoreTpu(const std::vector<TpuSounding>& soundings,
+                  const sim::Truth& truth,
+                  const sim::PitWorld& world,
+                  std::size_t max_soundings = 1'000'000);
 
 // Angle in degrees between two roll/pitch/yaw (degrees) rotations.
 double BoresightErrorDeg(double roll_est,

@@ -332,6 +332,23 @@ VehicleDescription NominalVehicle(const ScenarioConfig& sc) {
     v.connector = ConnectorDirection::kAft;
     v.gnss_antenna_lever_arms_m = {vec(sc.lever_arms.antenna_m)};
     v.ins_height_above_waterline_m = 0.0;  // the INS point rides on the water line
+    // The error model the simulator injects, as the `uncertainty:` a survey team would state.
+    SensorErrorModel m;
+    m.range_sigma_m = sc.sonar.range_noise_constant_m;
+    m.range_sigma_fraction = sc.sonar.range_noise_fraction;
+    m.beam_angle_sigma_deg = 0;           // beam angles are exact (0.01 deg 83P steps)
+    m.surface_sound_speed_sigma_mps = 0;  // the water's sound speed is the header's
+    m.mean_sound_speed_sigma_mps = 0;
+    m.position_sigma_h_m = sc.nav.position_gm_sigma_m;  // what INSSTDEV reports without GNSS
+    m.position_sigma_v_m = sc.nav.height_gm_sigma_m;    // outage (the logs carry it anyway)
+    m.position_noise_m = sc.nav.position_noise_m;       // white noise INSSTDEV leaves out
+    m.roll_pitch_sigma_deg = sc.nav.attitude_gm_sigma_deg;
+    m.heading_sigma_deg = sc.nav.heading_gm_sigma_deg;
+    m.heave_sigma_m = 0;  // heights are the INS's
+    m.latency_sigma_s = sc.sonar.daemon_stamp_error_ms * 1e-3;
+    m.lever_arm_sigma_m = 0;  // the lever arms above are the true ones
+    // boresight_sigma_deg: the default (what `pitmap calibrate` leaves of the true boresight).
+    v.uncertainty = m;
     return v;
 }
 

@@ -199,6 +199,8 @@ struct ScenarioConfig {
 // The vehicle.yaml a survey team would write for the scenario: the true lever arms, the
 // nominal mount (down, connector aft) with boresight 0 (the true boresight_deg is what
 // `pitmap calibrate` must find) and the sonar clock offset unknown. Channels are left "".
+// Its `uncertainty:` section states the errors the simulator injects (range noise, INS errors,
+// exact angles, sound speed and lever arms; SensorErrorModel's default boresight sigma).
 VehicleDescription NominalVehicle(const ScenarioConfig& sc);
 
 // The names of the built-in scenarios, in a stable order.

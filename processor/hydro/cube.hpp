@@ -1,0 +1,142 @@
+// SPDX-License-Identifier: MIT
+// CUBE, the Combined Uncertainty and Bathymetry Estimator (Calder & Mayer 2003, "Automatic
+// processing of high-rate, high-density multibeam echosounder data", G3 4(6); parameters as in
+// Calder & Wells 2007, the CUBE user's manual): a grid of estimation nodes, each tracking one or
+// more depth hypotheses.
+//   1. Each sounding (x, y, z, sigma_v, sigma_h) is offered to every node within its capture
+//      distance r_c = clamp(capture_distance_scale * depth, min, max) (times the resolution for
+//      min/max), with its vertical variance grown with the distance d from the node:
+//        sigma_n^2 = sigma_v^2 (1 + ((d + rho sigma_h) / resolution)^alpha)       [C&M eq. 9]
+//      (rho = horizontal_error_scale, alpha = distance_exponent). With slope_correction the
+//      sounding's height is first carried to the node along the predicted surface's gradient g
+//      (z_n = z + g . (x_n - x)), and (|g| sigma_h)^2 is added: on a steep pit wall a sounding
+//      a few decimetres away otherwise differs from the node by more than its uncertainty and
+//      opens a false hypothesis (plain CUBE assumes a locally flat seabed).
+//   2. Each node holds a median pre-filter queue of queue_length soundings (C&M §3.3); once full,
+//      the median leaves the queue and updates the node. At the end the queue is flushed,
+//      median first.
+//   3. Update (C&M §3.2, eq. 4-6): the hypothesis with the smallest normalised innovation
+//      |z - mu| / sqrt(s^2 + sigma_n^2) takes the sounding by a Kalman step
+//      (s'^2 = (1/s^2 + 1/sigma_n^2)^-1, mu' = mu + s'^2/sigma_n^2 (z - mu)); when that smallest
+//      innovation exceeds hypothesis_gate (CUBE's "estimate offset", 4), the sounding is not
+//      explained by any hypothesis and starts a new one (intervention).
+//   4. Disambiguation (C&M §3.4) picks one hypothesis per node: kDensity the one with the most
+//      soundings; kLocale the one closest to the median of the neighbouring nodes' (within
+//      locale_radius nodes) strongest hypotheses; kPredictedSurface the one closest to the
+//      predicted surface (the median height of the soundings in cells of
+//      predicted_surface_cells x resolution, bilinear). Ties go to the denser hypothesis.
+// Outputs per node: elevation (the chosen hypothesis' mean), uncertainty (95 %: 1.96 times the
+// greater of the hypothesis' posterior standard deviation and the standard deviation of its
+// soundings, the convention of CARIS's CUBE surfaces, since the posterior alone shrinks as
+// 1/sqrt(n) and ignores errors common to the soundings), density (soundings in the chosen
+// hypothesis), hypotheses (their number). Empty nodes are NaN / 0.
+// Horizontal coordinates are any metric, north-up plane (pitmap uses UTM); heights are up.
+// Thread safety: RunCube is reentrant; nodes are updated in row bands, each band taking the
+// soundings in input order, so results do not depend on the thread count.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pitmap::proc::hydro {
+
+struct CubeSounding {
+    double x = 0, y = 0;  // horizontal, m
+    double z = 0;         // height, m, up
+    float sigma_v_m = 0;  // vertical 1 sigma (TVU / 1.96)
+    float sigma_h_m = 0;  // horizontal 1 sigma, per axis (THU / 2.45)
+    float depth_m = 0;    // below the transducer, m (resolution and capture distance)
+};
+
+enum class Disambiguation { kDensity = 0, kLocale, kPredictedSurface };
+const char* ToString(Disambiguation d);
+
+struct CubeConfig {
+    double resolution_m = 0;                   // node spacing, m; 0 = from the depth (below)
+    double resolution_depth_fraction = 0.025;  // auto: median depth * this (~ a 1.5 deg beam's
+                                               // footprint), rounded down to 1, 2, 2.5 or 5 x 10^k
+    double min_resolution_m = 0.1;             // auto resolution bounds, m
+    double max_resolution_m = 10.0;
+    double capture_distance_scale = 0.05;    // capture distance, share of the depth (CUBE: 5 %)
+    double min_capture_distance_res = 0.71;  // ... at least this many resolutions (the node's
+                                             // cell half-diagonal) ...
+    double max_capture_distance_res = 1.5;   // ... and at most this many
+    double distance_exponent = 2.0;          // alpha
+    double horizontal_error_scale = 1.96;    // rho
+    int queue_length = 11;                   // median pre-filter; 1 = none
+    double hypothesis_gate = 4.0;            // normalised innovation that opens a hypothesis
+    bool slope_correction = true;            // carry soundings along the predicted surface
+    int predicted_surface_cells = 4;         // predicted-surface cell, in resolutions
+    Disambiguation disambiguation = Disambiguation::kPredictedSurface;
+    int locale_radius = 2;                // kLocale: neighbourhood radius, nodes
+    std::int64_t max_nodes = 20'000'000;  // refuse grids larger than this (~150 B a node)
+    int num_threads = 0;                  // 0 = all cores (TBB)
+
+    std::vector<std::string> Validate() const;
+};
+
+// One hypothesis of a node.
+struct CubeHypothesis {
+    double mean_m = 0;
+    double variance_m2 = 0;    // posterior variance of the mean
+    std::int32_t count = 0;    // soundings taken
+    double sample_mean_m = 0;  // unweighted mean of the soundings (Welford)
+    double m2 = 0;             // sum of their squared deviations (Welford)
+    double SampleSd() const;
+};
+
+// A north-up grid: node (i, j) at x0 + i * resolution, y0 + j * resolution; row j = 0 is the
+// southernmost. Arrays are row-major (j * nx + i).
+struct CubeGrid {
+    double x0 = 0, y0 = 0, resolution_m = 0;
+    int nx = 0, ny = 0;
+    std::vector<float> elevation_m;    // NaN = empty
+    std::vector<float> uncertainty_m;  // 95 %, NaN = empty
+    std::vector<float> density;        // soundings in the chosen hypothesis
+    std::vector<float> hypotheses;     // number of hypotheses
+    std::size_t size() const { return static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny); }
+};
+
+struct CubeResult {
+    CubeGrid grid;
+    double median_depth_m = 0;
+    double capture_distance_m = 0;  // at the median depth
+    std::int64_t soundings_used = 0;
+    std::int64_t soundings_rejected = 0;  // non-finite values or sigmas
+    std::int64_t node_updates = 0;
+    std::int64_t nodes_filled = 0;
+    std::int64_t nodes_multiple = 0;  // nodes with more than one hypothesis
+    std::int64_t hypotheses_total = 0;
+    bool ok = false;
+    std::string message;
+};
+
+// The auto resolution for a median depth (CubeConfig::resolution_depth_fraction and bounds).
+double ResolutionFromDepth(double median_depth_m, const CubeConfig& config);
+
+// The estimator of one node, exposed for tests: AddSounding in order, then Flush, then
+// Choose.
+class CubeNode {
+public:
+    // Offers a sounding already propagated to the node (height, variance at the node).
+    void Add(double z, double variance, const CubeConfig& config);
+    // Empties the median queue into the hypotheses.
+    void Flush(const CubeConfig& config);
+    const std::vector<CubeHypothesis>& hypotheses() const { return hyps_; }
+    // The hypothesis closest to `reference` (NaN: the densest); -1 if none.
+    int Choose(double reference) const;
+    // A sounding that left the median queue: the Kalman update of the closest hypothesis, or a
+    // new one (RunCube keeps the queues itself, a band of nodes at a time).
+    void Update(double z, double variance, const CubeConfig& config);
+
+private:
+    std::vector<std::pair<float, float>> queue_;  // (z, variance), sorted by z
+    std::vector<CubeHypothesis> hyps_;
+};
+
+// Grids the soundings. Fails (ok = false, message) without soundings or when the grid would
+// exceed max_nodes; preconditions: config.Validate() is empty.
+CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config);
+
+}  // namespace pitmap::proc::hydro

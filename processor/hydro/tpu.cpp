@@ -1,0 +1,226 @@
+// SPDX-License-Identifier: MIT
+#include "processor/hydro/tpu.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "common/frames.hpp"
+
+namespace pitmap::proc::hydro {
+
+namespace {
+
+Eigen::Matrix3d Outer(const Eigen::Vector3d& j, double variance) {
+    return j * j.transpose() * variance;
+}
+
+double Square(double x) {
+    return x * x;
+}
+
+// World-frame angular velocity that takes R0 to R1 in dt: R1 = exp([w dt]x) R0.
+Eigen::Vector3d AngularRate(const Eigen::Matrix3d& R0, const Eigen::Matrix3d& R1, double dt) {
+    const Eigen::AngleAxisd aa(R1 * R0.transpose());
+    return aa.axis() * (aa.angle() / dt);
+}
+
+double Median(std::vector<float> v) {
+    if (v.empty()) return 0;
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+}  // namespace
+
+const char* ToString(TpuTerm t) {
+    switch (t) {
+        case TpuTerm::kRange:
+            return "range";
+        case TpuTerm::kBeamAngle:
+            return "beam_angle";
+        case TpuTerm::kSoundSpeed:
+            return "sound_speed";
+        case TpuTerm::kAttitude:
+            return "attitude";
+        case TpuTerm::kPosition:
+            return "position";
+        case TpuTerm::kHeave:
+            return "heave";
+        case TpuTerm::kLeverArm:
+            return "lever_arm";
+        case TpuTerm::kLatency:
+            return "latency";
+        case TpuTerm::kCount:
+            break;
+    }
+    return "?";
+}
+
+std::vector<std::string> TpuConfig::Validate() const {
+    std::vector<std::string> out = model.Validate();
+    if (!(std::isfinite(clock_sigma_s) && clock_sigma_s >= 0)) {
+        out.push_back("tpu: clock_sigma_s must be finite and >= 0");
+    }
+    if (!(sound_speed_mps >= 1300 && sound_speed_mps <= 1700)) {
+        out.push_back("tpu: sound_speed_mps must be within 1300..1700");
+    }
+    if (num_threads < 0) out.push_back("tpu: num_threads must be >= 0 (0 = all cores)");
+    return out;
+}
+
+Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
+                                   const PingSigma& sigma,
+                                   const TpuConfig& config,
+                                   std::array<Eigen::Matrix3d, kNumTpuTerms>* terms) {
+    const SensorErrorModel& m = config.model;
+    const double c = config.sound_speed_mps;
+    const double r = g.range_m, th = g.angle_rad;
+    const double ct = std::cos(g.tilt_rad), st = std::sin(g.tilt_rad);
+    // Ry(tilt) applied to (0, r sin th, r cos th) and to its derivative in theta.
+    const auto tilt = [&](const Eigen::Vector3d& v) {
+        return Eigen::Vector3d(ct * v.x() + st * v.z(), v.y(), -st * v.x() + ct * v.z());
+    };
+    const Eigen::Vector3d b = tilt(Eigen::Vector3d(0, r * std::sin(th), r * std::cos(th)));
+    const Eigen::Vector3d db = tilt(Eigen::Vector3d(0, r * std::cos(th), -r * std::sin(th)));
+    const Eigen::Matrix3d R_ws = g.R_world_vehicle * g.R_vehicle_sonar;
+    const Eigen::Vector3d u = r > 0 ? Eigen::Vector3d(R_ws * b / r) : Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d dp_dtheta = R_ws * db;
+    const Eigen::Vector3d d = g.R_world_vehicle * g.lever_arm_m + R_ws * b;
+
+    std::array<Eigen::Matrix3d, kNumTpuTerms> t;
+    for (auto& x : t) x.setZero();
+    auto& T = t;
+    const auto at = [&T](TpuTerm k) -> Eigen::Matrix3d& { return T[static_cast<int>(k)]; };
+
+    at(TpuTerm::kRange) = Outer(u, Square(m.range_sigma_m + m.range_sigma_fraction * r));
+    at(TpuTerm::kBeamAngle) = Outer(dp_dtheta, Square(frames::DegToRad(m.beam_angle_sigma_deg)));
+    // Mean sound speed scales the range; the surface sound speed steers the beam.
+    at(TpuTerm::kSoundSpeed) =
+        Outer(u, Square(r * m.mean_sound_speed_sigma_mps / c)) +
+        Outer(dp_dtheta, Square(std::tan(th) * m.surface_sound_speed_sigma_mps / c));
+
+    // Attitude: dR/dk = [a_k]x R for R = M Rz(yaw) Ry(pitch) Rx(roll).
+    // a_pitch = M Rz(yaw) e_y = M (-sin yaw, cos yaw, 0); with R_ned = M^T R (M = M^T),
+    // R_ned(1,0) = sin(yaw) cos(pitch), R_ned(0,0) = cos(yaw) cos(pitch), cos(pitch) >= 0.
+    const Eigen::Matrix3d M = frames::RotationEnuFromNed();
+    const Eigen::Matrix3d R_ned = M * g.R_world_vehicle;
+    const double h = std::hypot(R_ned(1, 0), R_ned(0, 0));
+    Eigen::Vector3d a_pitch_ned(-R_ned(1, 0) / h, R_ned(0, 0) / h, 0.0);
+    if (!(h > 1e-9)) {  // pitch at +-90 deg: yaw from the full decomposition
+        const frames::Rpy rpy = frames::RpyFromRotationWorld(g.R_world_vehicle);
+        a_pitch_ned = Eigen::Vector3d(-std::sin(rpy.yaw), std::cos(rpy.yaw), 0.0);
+    }
+    const Eigen::Vector3d a_roll = g.R_world_vehicle * Eigen::Vector3d::UnitX();
+    const Eigen::Vector3d a_pitch = M * a_pitch_ned;
+    const Eigen::Vector3d a_yaw = M * Eigen::Vector3d::UnitZ();
+    const double bore2 = Square(frames::DegToRad(m.boresight_sigma_deg));
+    at(TpuTerm::kAttitude) = Outer(a_roll.cross(d), Square(sigma.attitude_rpy_rad[0]) + bore2) +
+                             Outer(a_pitch.cross(d), Square(sigma.attitude_rpy_rad[1]) + bore2) +
+                             Outer(a_yaw.cross(d), Square(sigma.attitude_rpy_rad[2]) + bore2);
+
+    Eigen::Matrix3d pos = Eigen::Matrix3d::Identity() * Square(m.position_noise_m);
+    for (int i = 0; i < 3; ++i) pos(i, i) += Square(sigma.position_enu_m[i]);
+    at(TpuTerm::kPosition) = pos;
+    at(TpuTerm::kHeave) = Outer(Eigen::Vector3d::UnitZ(), Square(m.heave_sigma_m));
+    at(TpuTerm::kLeverArm) = Eigen::Matrix3d::Identity() * Square(m.lever_arm_sigma_m);
+    at(TpuTerm::kLatency) = Outer(g.velocity_mps + g.angular_rate_radps.cross(d),
+                                  Square(m.latency_sigma_s) + Square(config.clock_sigma_s));
+
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (const auto& x : t) C += x;
+    if (terms != nullptr) *terms = t;
+    return C;
+}
+
+TpuResult ComputeTpu(const georef::GeorefResult& geo,
+                     const georef::SonarMount& mount,
+                     const std::vector<PingSigma>& ping_sigma,
+                     const TpuConfig& config) {
+    TpuResult out;
+    const std::size_t n = geo.points.size();
+    const std::size_t np = geo.pings.size();
+    out.thu_95_m.assign(n, 0.0f);
+    out.tvu_95_m.assign(n, 0.0f);
+    if (ping_sigma.size() != np) {
+        out.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
+                      std::to_string(np) + " pings";
+        return out;
+    }
+    // Velocity and angular rate at each ping from its neighbours (central differences).
+    std::vector<Eigen::Vector3d> vel(np, Eigen::Vector3d::Zero()),
+        rate(np, Eigen::Vector3d::Zero());
+    for (std::size_t k = 0; k < np; ++k) {
+        const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < np ? k + 1 : k;
+        const double dt =
+            static_cast<double>(geo.pings[b].utime_gps - geo.pings[a].utime_gps) * 1e-6;
+        if (a == b || !(dt > 0) || dt > 2.0) continue;
+        vel[k] = (geo.pings[b].T_world_vehicle.translation() -
+                  geo.pings[a].T_world_vehicle.translation()) /
+                 dt;
+        rate[k] = AngularRate(
+            geo.pings[a].T_world_vehicle.linear(), geo.pings[b].T_world_vehicle.linear(), dt);
+    }
+    const Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
+    std::unique_ptr<tbb::global_control> limit;
+    if (config.num_threads > 0) {
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      config.num_threads);
+    }
+    // Per-block sums of each term's share of the vertical variance, added in block order.
+    constexpr std::size_t kBlock = 8192;
+    const std::size_t nblocks = (n + kBlock - 1) / kBlock;
+    std::vector<std::array<double, kNumTpuTerms>> share(nblocks);
+    tbb::parallel_for(std::size_t{0}, nblocks, [&](std::size_t blk) {
+        std::array<double, kNumTpuTerms> s{};
+        std::array<Eigen::Matrix3d, kNumTpuTerms> terms;
+        const std::size_t end = std::min(n, (blk + 1) * kBlock);
+        for (std::size_t j = blk * kBlock; j < end; ++j) {
+            const std::uint32_t k = geo.points.ping[j];
+            const georef::GeorefPing& ping = geo.pings[k];
+            SoundingGeometry g;
+            g.R_world_vehicle = ping.T_world_vehicle.linear();
+            g.R_vehicle_sonar = R_vs;
+            g.lever_arm_m = mount.lever_arm_m;
+            g.range_m = geo.points.range_m[j];
+            g.angle_rad = geo.points.angle_rad[j];
+            g.tilt_rad = ping.profile_tilt_rad;
+            g.velocity_mps = vel[k];
+            g.angular_rate_radps = rate[k];
+            const Eigen::Matrix3d C = SoundingCovariance(g, ping_sigma[k], config, &terms);
+            out.tvu_95_m[j] = static_cast<float>(kTvu95 * std::sqrt(std::max(C(2, 2), 0.0)));
+            out.thu_95_m[j] =
+                static_cast<float>(kThu95 * std::sqrt(std::max((C(0, 0) + C(1, 1)) / 2.0, 0.0)));
+            if (C(2, 2) > 0) {
+                for (int t = 0; t < kNumTpuTerms; ++t) s[t] += terms[t](2, 2) / C(2, 2);
+            }
+        }
+        share[blk] = s;
+    });
+    for (const auto& s : share) {
+        for (int t = 0; t < kNumTpuTerms; ++t) out.tvu_variance_share[t] += s[t];
+    }
+    if (n > 0) {
+        for (double& s : out.tvu_variance_share) s /= static_cast<double>(n);
+    }
+    out.median_tvu_95_m = Median(out.tvu_95_m);
+    out.median_thu_95_m = Median(out.thu_95_m);
+    char buf[160];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%zu soundings: median TVU %.3f m, THU %.3f m (95 %%)",
+                  n,
+                  out.median_tvu_95_m,
+                  out.median_thu_95_m);
+    out.message = buf;
+    return out;
+}
+
+}  // namespace pitmap::proc::hydro

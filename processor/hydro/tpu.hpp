@@ -1,0 +1,114 @@
+// SPDX-License-Identifier: MIT
+// Total propagated uncertainty (TPU) of every georeferenced sounding, after Hare, Godin & Mayer
+// (1995, "Accuracy estimation of Canadian swath (multibeam) and sweep (multitransducer)
+// sounding systems") and IHO S-44 Ed. 6.1: the sensor error model (common/vehicle.hpp
+// SensorErrorModel) is propagated through the georeferencing equation to the sounding's
+// world-frame position by the law of propagation of variance (first order, independent
+// terms), in vector form rather than Hare's scalar depth/along/across equations, so that any
+// mount, tilt and attitude is handled.
+//
+// The georeferencing equation (processor/georef/georef.hpp):
+//   p = t + R (L + R_vs b(r, theta)),  R = R_world_vehicle(roll, pitch, yaw),
+//   b = Ry(tilt) (0, r sin theta, r cos theta).
+// With d = p - t (INS reference point to the sounding, world frame) and the unit beam vector
+// u = R R_vs b / r, each term adds J sigma^2 J^T to the 3x3 covariance of p:
+//   range         J = u;  sigma_r^2 = (a + f r)^2 + (r sigma_cbar / c)^2 (range noise; the
+//                 mean sound speed scales the range, Hare eq. for the sound-speed term)
+//   beam angle    J = R R_vs db/dtheta;  sigma^2 = sigma_theta^2 + (tan(theta) sigma_cs / c)^2
+//                 (pointing, and the steering error of a flat array from the surface sound
+//                 speed: Snell at the face, d theta = tan(theta) dc / c)
+//   attitude      J_k = a_k x d for the rotation axes a_roll = R e_x, a_pitch = M Rz(yaw) e_y,
+//                 a_yaw = M e_z (M: NED -> ENU), since dR/dk = [a_k]x R for R = M Rz Ry Rx;
+//                 sigma_k^2 = INS sigma_k^2 + boresight sigma^2
+//   position      diag(sigma_E^2, sigma_N^2, sigma_U^2) (INS) + position_noise^2 I
+//   heave         e_z e_z^T sigma_heave^2
+//   lever arm     R sigma_L^2 I R^T = sigma_L^2 I
+//   latency       J = v + w x d (vehicle velocity and angular rate at the ping, from the
+//                 neighbouring pings' poses); sigma_t^2 = latency^2 + clock sigma^2
+// TVU (95 %) = 1.96 sqrt(C_zz); THU (95 %) = 2.45 sqrt((C_xx + C_yy) / 2) (IHO S-44's 2-D
+// factor, exact for a circular error). Heights are ellipsoidal (WGS 84): no water-level or
+// datum term (those belong to the vertical reference when it is added).
+// Thread safety: ComputeTpu is reentrant; results do not depend on the thread count.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "common/vehicle.hpp"
+#include "processor/georef/georef.hpp"
+
+namespace pitmap::proc::hydro {
+
+// 95 % factors: 1-D normal, and the radius of a circular 2-D normal (sqrt(chi2_2(0.95))).
+inline constexpr double kTvu95 = 1.96;
+inline constexpr double kThu95 = 2.4477;
+
+// The INS's own 1-sigma at a ping.
+struct PingSigma {
+    Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();    // east, north, up
+    Eigen::Vector3d attitude_rpy_rad = Eigen::Vector3d::Zero();  // roll, pitch, yaw
+};
+
+struct TpuConfig {
+    SensorErrorModel model;           // 1-sigma sensor errors (vehicle.yaml `uncertainty:`)
+    double clock_sigma_s = 0.0;       // the sonar clock's remaining sigma (summary.json)
+    double sound_speed_mps = 1500.0;  // nominal speed for the sound-speed terms
+    int num_threads = 0;              // 0 = all cores (TBB)
+
+    std::vector<std::string> Validate() const;
+};
+
+// The error terms, in the order TpuResult reports them.
+enum class TpuTerm {
+    kRange = 0,
+    kBeamAngle,
+    kSoundSpeed,
+    kAttitude,
+    kPosition,
+    kHeave,
+    kLeverArm,
+    kLatency,
+    kCount
+};
+inline constexpr int kNumTpuTerms = static_cast<int>(TpuTerm::kCount);
+const char* ToString(TpuTerm t);
+
+// One sounding's geometry, all in the world frame (ENU) except b (sonar frame).
+struct SoundingGeometry {
+    Eigen::Matrix3d R_world_vehicle = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d R_vehicle_sonar = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();  // vehicle frame
+    double range_m = 0;
+    double angle_rad = 0;                                          // beam angle theta, sonar frame
+    double tilt_rad = 0;                                           // profile tilt
+    Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();        // world
+    Eigen::Vector3d angular_rate_radps = Eigen::Vector3d::Zero();  // world
+};
+
+// The 3x3 world-frame covariance of one sounding (m^2); `terms`, if given, receives each
+// term's share.
+Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
+                                   const PingSigma& sigma,
+                                   const TpuConfig& config,
+                                   std::array<Eigen::Matrix3d, kNumTpuTerms>* terms = nullptr);
+
+struct TpuResult {
+    std::vector<float> thu_95_m;  // one per sounding of GeorefResult::points
+    std::vector<float> tvu_95_m;
+    // Mean over the soundings of each term's share of the vertical variance (sums to 1).
+    std::array<double, kNumTpuTerms> tvu_variance_share{};
+    double median_tvu_95_m = 0, median_thu_95_m = 0;
+    std::string message;
+};
+
+// TPU of every sounding of `geo` on its current poses. `ping_sigma` has one entry per
+// GeorefResult::pings (the INS's 1 sigma there). Preconditions: config.Validate() is empty,
+// ping_sigma.size() == geo.pings.size().
+TpuResult ComputeTpu(const georef::GeorefResult& geo,
+                     const georef::SonarMount& mount,
+                     const std::vector<PingSigma>& ping_sigma,
+                     const TpuConfig& config);
+
+}  // namespace pitmap::proc::hydro

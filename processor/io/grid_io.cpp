@@ -1,0 +1,318 @@
+// SPDX-License-Identifier: MIT
+#include "processor/io/grid_io.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <mutex>
+
+namespace pitmap::proc::io {
+
+namespace {
+
+constexpr double kBagNoData = 1000000.0;
+// The heights' CRS (as io::LasWkt's vertical part): OGC 01-009 vertical datum type 2002,
+// ellipsoidal.
+constexpr const char* kVerticalWkt =
+    "VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[\"World Geodetic System 1984\",2002],"
+    "UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AXIS[\"Ellipsoidal height\",UP]]";
+
+void RegisterOnce() {
+    static std::once_flag once;
+    std::call_once(once, [] { GDALAllRegister(); });
+}
+
+// GDAL's errors go to its last-error slot instead of stderr while this lives.
+class QuietErrors {
+public:
+    QuietErrors() {
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        CPLErrorReset();
+    }
+    ~QuietErrors() { CPLPopErrorHandler(); }
+    QuietErrors(const QuietErrors&) = delete;
+    QuietErrors& operator=(const QuietErrors&) = delete;
+    static std::string Last() {
+        const char* m = CPLGetLastErrorMsg();
+        return m != nullptr && *m != 0 ? std::string(": ") + m : std::string();
+    }
+};
+
+struct DatasetCloser {
+    void operator()(GDALDataset* d) const {
+        if (d != nullptr) GDALClose(d);
+    }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+Status CheckGrid(const std::string& path, const GridRaster& g) {
+    if (g.nx <= 0 || g.ny <= 0) return Error{path + ": empty grid"};
+    if (!(g.resolution_m > 0) || !std::isfinite(g.x0) || !std::isfinite(g.y0)) {
+        return Error{path + ": grid without a valid geometry"};
+    }
+    if (g.utm_zone < 1 || g.utm_zone > 60) {
+        return Error{path + ": UTM zone " + std::to_string(g.utm_zone) + " is not 1..60"};
+    }
+    const std::size_t n = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+    for (const GridLayer& l : g.layers) {
+        if (l.values.size() != n) {
+            return Error{path + ": layer " + l.name + " has " + std::to_string(l.values.size()) +
+                         " values for " + std::to_string(n) + " nodes"};
+        }
+    }
+    return Ok{};
+}
+
+// An in-memory dataset of the given layers, north-up, with the compound CRS; `nodata` replaces
+// NaN when finite.
+Expected<DatasetPtr> MemDataset(const std::string& path,
+                                const GridRaster& g,
+                                const std::vector<const GridLayer*>& layers,
+                                double nodata,
+                                bool with_vertical) {
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    if (mem == nullptr) return Error{path + ": GDAL has no MEM driver"};
+    DatasetPtr ds(
+        mem->Create("", g.nx, g.ny, static_cast<int>(layers.size()), GDT_Float32, nullptr));
+    if (!ds) return Error{path + ": cannot create the in-memory raster" + QuietErrors::Last()};
+    const double r = g.resolution_m;
+    double gt[6] = {g.x0 - r / 2, r, 0, g.y0 + (g.ny - 1) * r + r / 2, 0, -r};
+    ds->SetGeoTransform(gt);
+    // PROJ reads an ellipsoidal VERT_CS inside a COMPD_CS as horizontal only (ISO 19111 allows
+    // no such compound), so the compound is assembled from its parts.
+    OGRSpatialReference horizontal, vertical, srs;
+    if (horizontal.importFromEPSG(static_cast<int>((g.northern ? 32600 : 32700) + g.utm_zone)) !=
+            OGRERR_NONE ||
+        vertical.importFromWkt(kVerticalWkt) != OGRERR_NONE ||
+        srs.SetCompoundCS((horizontal.GetName() + std::string(" + ") + vertical.GetName()).c_str(),
+                          &horizontal,
+                          &vertical) != OGRERR_NONE) {
+        return Error{path + ": cannot build the CRS" + QuietErrors::Last()};
+    }
+    OGRSpatialReference& used = with_vertical ? srs : horizontal;
+    used.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    ds->SetSpatialRef(&used);
+    std::vector<float> row(static_cast<std::size_t>(g.nx));
+    for (std::size_t b = 0; b < layers.size(); ++b) {
+        GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
+        band->SetDescription(layers[b]->name.c_str());
+        if (!layers[b]->unit.empty()) band->SetUnitType(layers[b]->unit.c_str());
+        band->SetNoDataValue(std::isfinite(nodata) ? nodata
+                                                   : std::numeric_limits<double>::quiet_NaN());
+        for (int y = 0; y < g.ny; ++y) {
+            const int j = g.ny - 1 - y;  // file row 0 is the north
+            const float* src = layers[b]->values.data() + static_cast<std::size_t>(j) * g.nx;
+            for (int i = 0; i < g.nx; ++i) {
+                row[static_cast<std::size_t>(i)] = std::isfinite(src[i]) || !std::isfinite(nodata)
+                                                       ? src[i]
+                                                       : static_cast<float>(nodata);
+            }
+            if (band->RasterIO(GF_Write, 0, y, g.nx, 1, row.data(), g.nx, 1, GDT_Float32, 0, 0) !=
+                CE_None) {
+                return Error{path + ": cannot fill the raster" + QuietErrors::Last()};
+            }
+        }
+    }
+    for (const auto& [k, v] : g.metadata) ds->SetMetadataItem(k.c_str(), v.c_str());
+    return ds;
+}
+
+Status Copy(const std::string& path, const char* driver_name, GDALDataset* src, char** options) {
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName(driver_name);
+    if (drv == nullptr) return Error{path + ": GDAL has no " + driver_name + " driver"};
+    DatasetPtr out(drv->CreateCopy(path.c_str(), src, FALSE, options, nullptr, nullptr));
+    if (!out) return Error{path + ": cannot write (" + driver_name + ")" + QuietErrors::Last()};
+    out.reset();  // flushes and closes
+    if (CPLGetLastErrorType() >= CE_Failure) {
+        return Error{path + ": error while writing" + QuietErrors::Last()};
+    }
+    return Ok{};
+}
+
+}  // namespace
+
+Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
+    if (auto s = CheckGrid(path, grid); !s) return s;
+    if (grid.layers.empty()) return Error{path + ": no layers"};
+    RegisterOnce();
+    QuietErrors quiet;
+    std::vector<const GridLayer*> layers;
+    for (const GridLayer& l : grid.layers) layers.push_back(&l);
+    auto mem =
+        MemDataset(path, grid, layers, std::numeric_limits<double>::quiet_NaN(), /*vertical=*/true);
+    if (!mem) return mem.error();
+    char** opts = nullptr;
+    opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
+    opts = CSLSetNameValue(opts, "PREDICTOR", "YES");
+    opts = CSLSetNameValue(opts, "BLOCKSIZE", "256");
+    opts = CSLSetNameValue(opts, "NUM_THREADS", "2");
+    Status s = Copy(path, "COG", mem->get(), opts);
+    CSLDestroy(opts);
+    return s;
+}
+
+Status WriteBag(const std::string& path, const GridRaster& grid) {
+    if (auto s = CheckGrid(path, grid); !s) return s;
+    const GridLayer* elevation = nullptr;
+    const GridLayer* uncertainty = nullptr;
+    for (const GridLayer& l : grid.layers) {
+        if (l.name == "elevation") elevation = &l;
+        if (l.name == "uncertainty") uncertainty = &l;
+    }
+    if (elevation == nullptr || uncertainty == nullptr) {
+        return Error{path + ": a BAG needs the layers elevation and uncertainty"};
+    }
+    RegisterOnce();
+    QuietErrors quiet;
+    // The BAG's XML holds the horizontal and the vertical CRS apart (VAR_VERT_WKT).
+    auto mem = MemDataset(path, grid, {elevation, uncertainty}, kBagNoData, /*vertical=*/false);
+    if (!mem) return mem.error();
+    char** opts = nullptr;
+    opts = CSLSetNameValue(opts, "VAR_VERT_WKT", kVerticalWkt);
+    opts = CSLSetNameValue(opts, "VAR_ABSTRACT", "pitmap CUBE surface (multibeam survey)");
+    opts = CSLSetNameValue(
+        opts,
+        "VAR_PROCESS_STEP_DESCRIPTION",
+        "pitmap: total propagated uncertainty per sounding (Hare et al. 1995), CUBE (Calder & "
+        "Mayer 2003); heights above the WGS 84 ellipsoid");
+    Status s = Copy(path, "BAG", mem->get(), opts);
+    CSLDestroy(opts);
+    return s;
+}
+
+Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) {
+    RegisterOnce();
+    QuietErrors quiet;
+    DatasetPtr ds(static_cast<GDALDataset*>(
+        GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr)));
+    if (!ds) return Error{path + ": cannot open as a raster" + QuietErrors::Last()};
+    GridReadBack out;
+    out.driver = ds->GetDriver() != nullptr ? ds->GetDriver()->GetDescription() : "";
+    GridRaster& g = out.grid;
+    g.nx = ds->GetRasterXSize();
+    g.ny = ds->GetRasterYSize();
+    if (g.nx <= 0 || g.ny <= 0) return Error{path + ": empty raster"};
+    if (static_cast<double>(g.nx) * g.ny * std::max(1, ds->GetRasterCount()) >
+        static_cast<double>(max_cells)) {
+        return Error{path + ": raster larger than " + std::to_string(max_cells) + " cells"};
+    }
+    double gt[6];
+    if (ds->GetGeoTransform(gt) != CE_None) return Error{path + ": no geotransform"};
+    if (gt[2] != 0 || gt[4] != 0 || !(gt[1] > 0) || !(gt[5] < 0) ||
+        std::abs(gt[1] + gt[5]) > 1e-9 * gt[1]) {
+        return Error{path + ": not a north-up raster with square cells"};
+    }
+    g.resolution_m = gt[1];
+    g.x0 = gt[0] + gt[1] / 2;
+    g.y0 = gt[3] + gt[5] * (g.ny - 1) + gt[5] / 2;
+    if (const OGRSpatialReference* srs = ds->GetSpatialRef(); srs != nullptr) {
+        char* wkt = nullptr;
+        if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out.crs_wkt = wkt;
+        CPLFree(wkt);
+        // WKT1 node names, searched through the tree (a compound CRS nests both).
+        if (const char* h = srs->GetAttrValue("PROJCS"); h != nullptr) out.horizontal_name = h;
+        if (const char* v = srs->GetAttrValue("VERT_CS"); v != nullptr) out.vertical_name = v;
+        OGRSpatialReference horiz(*srs);
+        if (horiz.IsCompound()) horiz.StripVertical();
+        horiz.AutoIdentifyEPSG();
+        const char* code = horiz.GetAuthorityCode(nullptr);
+        if (code != nullptr) out.horizontal_epsg = std::atoi(code);
+    }
+    const std::size_t n = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+    std::vector<float> row(static_cast<std::size_t>(g.nx));
+    for (int b = 1; b <= ds->GetRasterCount(); ++b) {
+        GDALRasterBand* band = ds->GetRasterBand(b);
+        GridLayer l;
+        l.name = band->GetDescription();
+        l.unit = band->GetUnitType() != nullptr ? band->GetUnitType() : "";
+        int has_nodata = 0;
+        const double nodata = band->GetNoDataValue(&has_nodata);
+        l.values.resize(n);
+        for (int y = 0; y < g.ny; ++y) {
+            if (band->RasterIO(GF_Read, 0, y, g.nx, 1, row.data(), g.nx, 1, GDT_Float32, 0, 0) !=
+                CE_None) {
+                return Error{path + ": cannot read band " + std::to_string(b) +
+                             QuietErrors::Last()};
+            }
+            float* dst = l.values.data() + static_cast<std::size_t>(g.ny - 1 - y) * g.nx;
+            for (int i = 0; i < g.nx; ++i) {
+                const float v = row[static_cast<std::size_t>(i)];
+                dst[i] = has_nodata && std::isfinite(nodata) && v == static_cast<float>(nodata)
+                             ? std::numeric_limits<float>::quiet_NaN()
+                             : v;
+            }
+        }
+        g.layers.push_back(std::move(l));
+    }
+    return out;
+}
+
+Status WriteSoundingTpuPly(const std::string& path,
+                           const georef::GeorefResult& geo,
+                           const std::vector<float>& thu_95_m,
+                           const std::vector<float>& tvu_95_m) {
+    const std::size_t n = geo.points.size();
+    if (thu_95_m.size() != n || tvu_95_m.size() != n) {
+        return Error{path + ": uncertainties for " + std::to_string(thu_95_m.size()) +
+                     " soundings, " + std::to_string(n) + " soundings"};
+    }
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (f == nullptr) return Error{path + ": cannot create"};
+    char head[512];
+    const Geodetic& o = geo.world_origin;
+    std::snprintf(head,
+                  sizeof head,
+                  "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin %.10f %.10f %.4f\n"
+                  "comment pitmap per-sounding TPU, 95 %%: THU (horizontal), TVU (vertical)\n"
+                  "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+                  "property double gps_time_s\nproperty float angle_deg\n"
+                  "property float thu_95_m\nproperty float tvu_95_m\nend_header\n",
+                  o.latitude_deg,
+                  o.longitude_deg,
+                  o.height_m,
+                  n);
+    bool ok = std::fputs(head, f) >= 0;
+    // 28-byte records, little-endian (the host order on every platform pitmap builds for is
+    // checked below).
+    static_assert(sizeof(float) == 4 && sizeof(double) == 8);
+    const std::uint16_t probe = 1;
+    unsigned char first = 0;
+    std::memcpy(&first, &probe, 1);
+    if (first != 1) {
+        std::fclose(f);
+        return Error{path + ": big-endian hosts are not supported"};
+    }
+    std::vector<unsigned char> buf;
+    buf.reserve(28 * 65536);
+    const auto put = [&buf](const void* p, std::size_t k) {
+        const auto* b = static_cast<const unsigned char*>(p);
+        buf.insert(buf.end(), b, b + k);
+    };
+    for (std::size_t j = 0; j < n && ok; ++j) {
+        const Eigen::Vector3d& p = geo.points.position_world[j];
+        const float xyz[3] = {
+            static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};
+        const double t = static_cast<double>(geo.pings[geo.points.ping[j]].utime_gps) * 1e-6;
+        const float rest[3] = {
+            static_cast<float>(geo.points.angle_rad[j] * 180.0 / M_PI), thu_95_m[j], tvu_95_m[j]};
+        put(xyz, sizeof xyz);
+        put(&t, sizeof t);
+        put(rest, sizeof rest);
+        if (buf.size() >= 28 * 65536 || j + 1 == n) {
+            ok = std::fwrite(buf.data(), 1, buf.size(), f) == buf.size();
+            buf.clear();
+        }
+    }
+    ok = (std::fclose(f) == 0) && ok;
+    if (!ok) return Error{path + ": write error"};
+    return Ok{};
+}
+
+}  // namespace pitmap::proc::io

@@ -1,0 +1,38 @@
+// SPDX-License-Identifier: MIT
+// The `grid` stage: total propagated uncertainty of every sounding (processor/hydro/tpu.hpp)
+// and a CUBE surface (processor/hydro/cube.hpp) in the survey's UTM zone, written as
+//   P/dem.tif          Cloud Optimized GeoTIFF, bands elevation, uncertainty (95 %), density,
+//                      hypotheses; WGS 84 / UTM zone + WGS 84 ellipsoidal height
+//   P/dem.bag          BAG: elevation and uncertainty, same CRS
+//   P/soundings_tpu.ply  (grid.write_sounding_tpu) per sounding: float x, y, z (world ENU, as
+//                      points.ply), double gps_time_s, float angle_deg (beam angle), float
+//                      thu_95_m, tvu_95_m; comment "pitmap_origin LAT LON H"
+// and summary.json stages.grid. It runs on the soundings of the last stage (after SLAM, or
+// after georef / calibrate when SLAM is off). The error model is vehicle.yaml's `uncertainty:`
+// section (summary.json vehicle_yaml), else SensorErrorModel's defaults; the INS sigmas are the
+// logs' INSSTDEV records nearest each ping (within ins_sigma_max_age_s), else the model's.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "processor/hydro/cube.hpp"
+
+namespace pitmap::proc::pipeline {
+
+struct GridStageConfig {
+    bool in_run = true;                 // `pitmap run` makes the grid
+    hydro::CubeConfig cube;             // CUBE parameters (resolution 0 = from the depth)
+    double tpu_sound_speed_mps = 1500;  // nominal sound speed for the TPU's sound-speed terms
+    double ins_sigma_max_age_s = 5.0;   // INSSTDEV records further from a ping are not used
+    bool write_geotiff = true;          // P/dem.tif
+    bool write_bag = true;              // P/dem.bag
+    bool write_sounding_tpu = false;    // P/soundings_tpu.ply (28 bytes a sounding)
+
+    std::vector<std::string> Validate() const;
+};
+
+// The `grid:` section of the config is read and printed by the one config key table
+// (config.cpp, VisitGrid).
+
+}  // namespace pitmap::proc::pipeline
