@@ -19,44 +19,18 @@
 #include <sstream>
 #include <string>
 
+#include "tests/processor/pipeline/program_runner.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const std::string kBin = PITMAP_BIN_DIR;
-
-int RunCommand(const std::string& command, std::string* out = nullptr) {
-    FILE* f = popen((command + " 2>&1").c_str(), "r");
-    if (f == nullptr) return -1;
-    char buf[4096];
-    std::string text;
-    while (std::fgets(buf, sizeof(buf), f) != nullptr) text += buf;
-    const int status = pclose(f);
-    if (out != nullptr) *out += text;
-    return status;
-}
-
-std::string Quote(const fs::path& p) {
-    return "'" + p.string() + "'";
-}
-
-json ReadJson(const fs::path& p) {
-    std::ifstream in(p);
-    return json::parse(in);
-}
-
-std::map<std::string, double> Scores(const std::string& text) {
-    std::map<std::string, double> s;
-    std::istringstream in(text);
-    std::string line, name;
-    double value = 0;
-    while (std::getline(in, line)) {
-        std::istringstream ls(line);
-        if (ls >> name >> value) s[name] = value;
-    }
-    return s;
-}
+using pitmap::test::kBin;
+using pitmap::test::Quote;
+using pitmap::test::ReadJson;
+using pitmap::test::RunCommand;
+using pitmap::test::Scores;
 
 // Puts the true boresight into a survey's vehicle.yaml (calibration is tested elsewhere).
 void SetTrueBoresight(const fs::path& sim) {

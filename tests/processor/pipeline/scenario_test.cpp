@@ -28,47 +28,18 @@
 
 #include "pitmap/raw_bytes_t.hpp"
 
+#include "tests/processor/pipeline/program_runner.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const std::string kBin = PITMAP_BIN_DIR;
-
-// Runs a command, returns its exit status and appends its output to `out`.
-int RunCommand(const std::string& command, std::string* out = nullptr) {
-    FILE* f = popen((command + " 2>&1").c_str(), "r");
-    if (f == nullptr) return -1;
-    char buf[4096];
-    std::string text;
-    while (std::fgets(buf, sizeof(buf), f) != nullptr) text += buf;
-    const int status = pclose(f);
-    if (out != nullptr) *out += text;
-    return status;
-}
-
-std::string Quote(const fs::path& p) {
-    return "'" + p.string() + "'";
-}
-
-json ReadJson(const fs::path& p) {
-    std::ifstream in(p);
-    return json::parse(in);
-}
-
-// pitmap-eval's "name value" table.
-std::map<std::string, double> Scores(const std::string& text) {
-    std::map<std::string, double> s;
-    std::istringstream in(text);
-    std::string name;
-    double value = 0;
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream ls(line);
-        if (ls >> name >> value) s[name] = value;
-    }
-    return s;
-}
+using pitmap::test::kBin;
+using pitmap::test::Quote;
+using pitmap::test::ReadJson;
+using pitmap::test::RunCommand;
+using pitmap::test::Scores;
 
 // RMS of sigma = 0.002 r + 0.02 over the points of a binary little-endian PLY product.
 double RangeNoiseRms(const fs::path& ply) {
