@@ -58,7 +58,12 @@ struct RunOptions {
     bool calibrate = true;         // boresight calibration before SLAM
     bool slam = true;              // continuous-time SLAM (else the INS trajectory is fused)
     bool mesh_before_slam = true;  // also mesh the survey before SLAM (mesh_initial.ply, report)
-    bool report = true;            // report.html through pitmap-report
+    // The mesh before SLAM is a picture for the report: its voxels are this many times the
+    // final ones (2 = an eighth of the voxels), and it gets no hole filling.
+    double initial_mesh_voxel_factor = 2.0;
+    bool report = true;  // report.html through pitmap-report
+
+    std::vector<std::string> Validate() const;
 };
 
 // Quality gates: where a stage says that it cannot explain its data (summary.json

@@ -224,7 +224,9 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     const std::string name = ToString(stage);
     const std::vector<fusion::SonarScan> scans =
         MakeScans(s.geo, s.model.ingest.pings, s.model.mount);
-    fusion::TsdfVolume volume(config.tsdf);
+    fusion::TsdfConfig tcfg = config.tsdf;
+    if (stage == Stage::kFuseInitial) tcfg.voxel_size_m *= config.run.initial_mesh_voxel_factor;
+    fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
     const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
     bar.Finish();
@@ -236,7 +238,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     const fusion::VolumeStats vs = volume.Stats();
     json st = ir;  // the integration counts
     st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
-               {"voxel_size_m", config.tsdf.voxel_size_m},
+               {"voxel_size_m", tcfg.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
                {"integrate_seconds", ir.elapsed_s},
                {"min_weight", config.weight_filter.min_weight},
@@ -267,7 +269,9 @@ Status MeshSurvey(Survey& s,
                   const Log& log) {
     StageClock clock;
     const std::string stage_name = ToString(stage);
-    const mesh::MeshResult m = mesh::RunMesh(volume, config.mesh);
+    mesh::MeshConfig mcfg = config.mesh;
+    if (stage == Stage::kMeshInitial) mcfg.max_hole_edges = 0;  // a picture: no display mesh
+    const mesh::MeshResult m = mesh::RunMesh(volume, mcfg);
     log(stage_name + ": " + m.message);
     const std::string& P = s.out_dir;
     const std::optional<Geodetic> origin = s.model.origin;
