@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/pipeline.hpp"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -65,9 +67,25 @@ void ApplyVehicle(const VehicleDescription& v, io::IngestConfig& icfg) {
 
 namespace detail {
 
-StageClock::StageClock() : start_(std::chrono::steady_clock::now()) {
+namespace {
+
+double ProcessCpuSeconds() {
+    struct rusage u {};
+    if (::getrusage(RUSAGE_SELF, &u) != 0) return 0.0;
+    auto s = [](const timeval& t) { return static_cast<double>(t.tv_sec) + t.tv_usec * 1e-6; };
+    return s(u.ru_utime) + s(u.ru_stime);
+}
+
+}  // namespace
+
+StageClock::StageClock()
+    : start_(std::chrono::steady_clock::now()), cpu_start_s_(ProcessCpuSeconds()) {
     // The stage's own peak, not the previous stage's retained memory (where the kernel allows).
     ResetPeakRss();
+}
+
+double StageClock::cpu_seconds() const {
+    return ProcessCpuSeconds() - cpu_start_s_;
 }
 
 double StageClock::seconds() const {
@@ -77,6 +95,7 @@ double StageClock::seconds() const {
 void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& clock) {
     const std::string name = ToString(stage_id);
     stage["seconds"] = clock.seconds();
+    stage["cpu_seconds"] = clock.cpu_seconds();
     stage["peak_rss_mb"] = PeakRssMb();
     summary["stages"][name] = std::move(stage);
     json order = json::array();

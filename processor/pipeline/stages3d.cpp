@@ -330,8 +330,10 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     log("report: " + s.out_dir + "/report.html");
     RecordStage(s.summary, Stage::kReport, {{"file", "report.html"}}, clock);
     // The work is the child's: its own high-water mark (ru_maxrss, kB).
-    s.summary["stages"][ToString(Stage::kReport)]["peak_rss_mb"] =
-        static_cast<double>(usage.ru_maxrss) / 1024.0;
+    json& rst = s.summary["stages"][ToString(Stage::kReport)];
+    rst["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+    rst["cpu_seconds"] = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                         (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
     return SaveSummary(s);
 }
 

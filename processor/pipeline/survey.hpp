@@ -65,17 +65,21 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config);
 // Wall time of one stage. Construction resets the resident-memory high-water mark
 // (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the
 // stage's own peak where the kernel allows it and the process's peak so far otherwise.
+// cpu_seconds() is the process's user + system CPU time since construction (all threads): on a
+// machine shared with other work it stays near what the stage costs, where wall time does not.
 class StageClock {
 public:
     StageClock();
     double seconds() const;
+    double cpu_seconds() const;
 
 private:
     std::chrono::steady_clock::time_point start_;
+    double cpu_start_s_;
 };
 
-// Records a stage in summary["stages"][name] (adding seconds and peak_rss_mb) and in
-// summary["stage_order"].
+// Records a stage in summary["stages"][name] (adding seconds, cpu_seconds and peak_rss_mb) and
+// in summary["stage_order"].
 void RecordStage(nlohmann::json& summary,
                  Stage name,
                  nlohmann::json stage,

@@ -56,9 +56,11 @@ ray_s = json.load(open(os.path.join(out, "ray", "summary.json")))
 ray_scores = {}
 if os.path.exists(os.path.join(out, "ray", "scores.json")):
     ray_scores = json.load(open(os.path.join(out, "ray", "scores.json")))
-stages = {n: {"seconds": s["stages"][n]["seconds"], "peak_rss_mb": s["stages"][n]["peak_rss_mb"]}
+stages = {n: {"seconds": s["stages"][n]["seconds"],
+              "cpu_seconds": s["stages"][n].get("cpu_seconds"),
+              "peak_rss_mb": s["stages"][n]["peak_rss_mb"]}
           for n in s["stage_order"]}
-stages["report"] = {"seconds": report_s, "peak_rss_mb": None}
+stages["report"] = {"seconds": report_s, "cpu_seconds": None, "peak_rss_mb": None}
 fuse = s["stages"]["fuse"]
 bench = {
     "scenario": scenario,
@@ -89,11 +91,16 @@ bench = {
 json.dump(bench, open(os.path.join(out, "bench.json"), "w"), indent=2)
 print(f"\n{scenario}: {bench['counts']['pings']} pings, {bench['counts']['points']} points, "
       f"{bench['cores']} cores\n")
-print("| stage | seconds | peak RSS (MB) |\n|---|---:|---:|")
+print("| stage | seconds | CPU seconds | peak RSS (MB) |\n|---|---:|---:|---:|")
 for n, v in stages.items():
     mb = f"{v['peak_rss_mb']:.0f}" if v["peak_rss_mb"] else "-"
-    print(f"| {n} | {v['seconds']:.1f} | {mb} |")
-print(f"| **pitmap run total** | **{s['total_seconds']:.1f}** | **{bench['peak_rss_mb']:.0f}** |")
+    cpu = f"{v['cpu_seconds']:.1f}" if v["cpu_seconds"] is not None else "-"
+    print(f"| {n} | {v['seconds']:.1f} | {cpu} | {mb} |")
+cpu_total = sum(v["cpu_seconds"] or 0 for v in stages.values())
+print(f"| **pitmap run total** | **{s['total_seconds']:.1f}** | **{cpu_total:.1f}** | "
+      f"**{bench['peak_rss_mb']:.0f}** |")
+# Load during the run: wall times on a shared machine are not the stages' cost.
+print(f"\nload average after the run: {os.getloadavg()[0]:.1f} (1 min) on {os.cpu_count()} cores")
 print("\n| TSDF sensor model | integration (s) | peak RSS (MB) | active voxels | mesh mean abs (m) | completeness |")
 print("|---|---:|---:|---:|---:|---:|")
 for m, v in bench["tsdf_modes"].items():
