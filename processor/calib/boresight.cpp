@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <unordered_map>
 
 #include "common/frames.hpp"
@@ -152,39 +153,111 @@ void Positions(const ShiftedPoses& poses,
     });
 }
 
-// Correspondences for every sample: normal of its own pass, closest point of another pass.
-// One radius search per sample serves both (the larger of the two radii), and the normal is
-// fitted only where another pass is close enough to make a pair.
+// The samples cut into blocks of min_separation_s / 2 of time, each with its own k-d tree and
+// box. For a sample at time t, a block entirely min_separation_s or more away in time holds
+// only other passes (a bounded nearest search, skipped by its box), a block entirely closer
+// holds only its own pass (the normal's neighbours), and the few blocks in between are searched
+// with the time of every hit checked. The pairs are those of one search over all samples with
+// the time filter; the own pass's neighbours come without the other passes' hits that made up
+// most of that search.
+struct PassBlock {
+    std::size_t p0 = 0, p1 = 0;
+    double t0 = 0, t1 = 0;
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
+    std::unique_ptr<reg::PointIndex3d> tree;
+};
+
+std::vector<PassBlock> MakePassBlocks(const std::vector<Eigen::Vector3d>& p,
+                                      const Samples& S,
+                                      double separation_s) {
+    std::vector<PassBlock> blocks;
+    const std::size_t n = p.size();
+    if (n == 0) return blocks;
+    const bool sorted = std::is_sorted(S.t_s.begin(), S.t_s.end());
+    const double len = sorted ? 0.5 * separation_s : std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < n;) {
+        PassBlock b;
+        b.p0 = k;
+        const double start = S.t_s[k];
+        while (k < n && (S.t_s[k] < start + len || k == b.p0)) ++k;
+        b.p1 = k;
+        blocks.push_back(std::move(b));
+    }
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
+        PassBlock& b = blocks[i];
+        b.t0 = std::numeric_limits<double>::infinity();
+        b.t1 = -b.t0;
+        b.lo.setConstant(std::numeric_limits<double>::infinity());
+        b.hi = -b.lo;
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            b.t0 = std::min(b.t0, S.t_s[k]);
+            b.t1 = std::max(b.t1, S.t_s[k]);
+            b.lo = b.lo.cwiseMin(p[k]);
+            b.hi = b.hi.cwiseMax(p[k]);
+        }
+        b.tree = std::make_unique<reg::PointIndex3d>(p.data() + b.p0, b.p1 - b.p0);
+    });
+    return blocks;
+}
+
+double BoxDistance2(const Eigen::Vector3d& q, const PassBlock& b) {
+    const Eigen::Vector3d d = (b.lo - q).cwiseMax(q - b.hi).cwiseMax(0.0);
+    return d.squaredNorm();
+}
+
+// Correspondences for every sample: normal of its own pass, closest point of another pass
+// (within d_max); the normal is fitted only where a pair is made.
 std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                             const Samples& S,
                             const BoresightConfig& cfg,
                             double d_max) {
-    const reg::PointIndex3d index(p.data(), p.size());
+    const double sep = cfg.min_separation_s;
+    const std::vector<PassBlock> blocks = MakePassBlocks(p, S, sep);
     // Normals from the sounding's own pass only (several pings: a single ping is a line).
-    const double nwin = cfg.min_separation_s;
     const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
     const double d2_max = d_max * d_max;
-    const double search2 = std::max(nr2, d2_max);
     std::vector<Pair> pairs(p.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& r) {
         std::vector<reg::PointIndex3d::Hit> hits;
-        for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            index.WithinRadius(p[k], search2, hits);
+        std::vector<std::size_t> own;  // the own pass's neighbours within the normal radius
+        for (std::size_t k = r.begin(); k != r.end(); ++k) {
+            const Eigen::Vector3d& q = p[k];
+            const double t = S.t_s[k];
             double best = d2_max;
             std::size_t best_j = 0;
             bool found = false;
-            for (const auto& [j, d2] : hits) {
-                if (std::abs(S.t_s[j] - S.t_s[k]) >= cfg.min_separation_s && d2 < best) {
-                    best = d2;
-                    best_j = j;
-                    found = true;
+            own.clear();
+            for (const PassBlock& b : blocks) {
+                const bool far = b.t1 <= t - sep || b.t0 >= t + sep;
+                if (far) {
+                    if (BoxDistance2(q, b) >= best) continue;
+                    std::size_t i = 0;
+                    double d2 = 0;
+                    if (b.tree->NearestWithin(q, best, &i, &d2)) {
+                        best = d2;
+                        best_j = b.p0 + i;
+                        found = true;
+                    }
+                    continue;
+                }
+                const bool inside = b.t0 > t - sep && b.t1 < t + sep;
+                const double r2 = inside ? nr2 : std::max(nr2, best);
+                if (BoxDistance2(q, b) >= r2) continue;
+                b.tree->WithinRadius(q, r2, hits);
+                for (const auto& [i, d2] : hits) {
+                    const std::size_t j = b.p0 + i;
+                    if (std::abs(S.t_s[j] - t) < sep) {
+                        if (d2 < nr2) own.push_back(j);
+                    } else if (d2 < best) {
+                        best = d2;
+                        best_j = j;
+                        found = true;
+                    }
                 }
             }
             if (!found) continue;
             reg::MomentAccumulator m;
-            for (const auto& [j, d2] : hits) {
-                if (d2 < nr2 && std::abs(S.t_s[j] - S.t_s[k]) < nwin) m.Add(p[j]);
-            }
+            for (std::size_t j : own) m.Add(p[j]);
             if (m.count() < 8) continue;
             const reg::PlaneFit f = reg::FitPlane(m);
             if (!f.Planar(0.1)) continue;  // not planar enough
@@ -193,7 +266,7 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
             pr.c.query = k;
             pr.c.target = best_j;
             pr.c.query_normal = f.normal;
-            pr.r = pr.c.query_normal.dot(p[k] - p[best_j]);
+            pr.r = pr.c.query_normal.dot(q - p[best_j]);
             // 1 / sigma^2 of the difference, sigma = fraction * range + constant per sounding.
             const double sp =
                 cfg.range_noise_fraction * S.s_sonar[k].norm() + cfg.range_noise_constant_m;
