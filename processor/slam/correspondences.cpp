@@ -302,10 +302,22 @@ Search SearchPairs(const Input& in,
         }
     }
     if (cfg.correspondence != CorrespondenceType::kPointToPoint) {
+        // A point is the target of several pairs: its normal is fitted once.
+        std::vector<std::pair<std::size_t, std::uint32_t>> targets(pairs.size());
+        for (std::size_t k = 0; k < pairs.size(); ++k)
+            targets[k] = {pairs[k].c.target, pairs[k].block_b};
+        std::sort(targets.begin(), targets.end());
+        targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
+        std::vector<Eigen::Vector3f> target_normal(targets.size());
+        tbb::parallel_for(std::size_t{0}, targets.size(), [&](std::size_t i) {
+            target_normal[i] =
+                LocalNormal(blocks[targets[i].second], pw, targets[i].first, cfg.normal_neighbours);
+        });
         tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
             Pair& pr = pairs[k];
-            pr.c.target_normal =
-                LocalNormal(blocks[pr.block_b], pw, pr.c.target, cfg.normal_neighbours);
+            const auto it = std::lower_bound(
+                targets.begin(), targets.end(), std::make_pair(pr.c.target, pr.block_b));
+            pr.c.target_normal = target_normal[static_cast<std::size_t>(it - targets.begin())];
             if (cfg.correspondence == CorrespondenceType::kGicp) {
                 pr.c.query_normal =
                     LocalNormal(blocks[pr.block_a], pw, pr.c.query, cfg.normal_neighbours);
