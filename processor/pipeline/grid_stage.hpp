@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "processor/hydro/cube.hpp"
+#include "processor/hydro/datum.hpp"
+#include "processor/hydro/s44.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -28,6 +30,10 @@ struct GridStageConfig {
     bool write_geotiff = true;          // P/dem.tif
     bool write_bag = true;              // P/dem.bag
     bool write_sounding_tpu = false;    // P/soundings_tpu.ply (28 bytes a sounding)
+    bool write_point_tpu = true;        // points.ply / points.las again with THU, TVU (and datum)
+    hydro::VerticalDatumConfig vertical;  // the `vertical:` section: the products' datum
+    bool s44 = true;                      // S-44 quality control (`s44:` section)
+    hydro::S44Config s44_config;
 
     std::vector<std::string> Validate() const;
 };
