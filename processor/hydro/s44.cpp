@@ -31,12 +31,6 @@ double LineAngleDeg(double a_rad, double b_rad) {
     return d;
 }
 
-double WrapPi(double a) {
-    a = std::fmod(a + kPi, 2 * kPi);
-    if (a < 0) a += 2 * kPi;
-    return a - kPi;
-}
-
 }  // namespace
 
 const char* ToString(S44Order o) {
@@ -68,8 +62,7 @@ double S44Limits::FeatureSize(double d) const {
 std::vector<std::string> S44Config::Validate() const {
     std::vector<std::string> p;
     if (min_holiday_nodes < 1) p.push_back("s44.min_holiday_nodes must be >= 1");
-    if (!(line_turn_deg > 0 && line_turn_deg < 180)) p.push_back("s44.line_turn_deg must be in (0, 180)");
-    if (min_line_pings < 2) p.push_back("s44.min_line_pings must be >= 2");
+    if (!(min_time_separation_s >= 0)) p.push_back("s44.min_time_separation_s must be >= 0");
     if (!(crossing_angle_deg > 0 && crossing_angle_deg <= 90)) {
         p.push_back("s44.crossing_angle_deg must be in (0, 90]");
     }
@@ -272,68 +265,48 @@ void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Re
         r.nodes_survey_area > 0 ? static_cast<double>(area) / r.nodes_survey_area : 0.0;
 }
 
-// Lines: runs of pings whose heading stays within line_turn_deg of the run's first heading.
-std::vector<int> Lines(const S44Soundings& s, const S44Config& c, std::vector<double>* line_yaw, int* lines) {
-    const std::size_t np = s.ping_yaw_rad.size();
-    std::vector<int> line(np, -1);
-    const double turn = c.line_turn_deg * kPi / 180.0;
-    std::size_t start = 0;
-    int id = 0;
-    line_yaw->clear();
-    auto close = [&](std::size_t end) {
-        if (end - start >= static_cast<std::size_t>(c.min_line_pings)) {
-            double sx = 0, sy = 0;
-            for (std::size_t k = start; k < end; ++k) {
-                line[k] = id;
-                sx += std::cos(s.ping_yaw_rad[k]);
-                sy += std::sin(s.ping_yaw_rad[k]);
-            }
-            line_yaw->push_back(std::atan2(sy, sx));
-            ++id;
-        }
-    };
-    for (std::size_t k = 1; k <= np; ++k) {
-        if (k == np || std::abs(WrapPi(s.ping_yaw_rad[k] - s.ping_yaw_rad[start])) > turn) {
-            close(k);
-            start = k;
-        }
-    }
-    *lines = id;
-    return line;
-}
-
 void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44Result& r) {
-    std::vector<double> line_yaw;
-    const std::vector<int> line = Lines(s, c, &line_yaw, &r.lines);
     const double cell = c.crossline_cell_m > 0 ? c.crossline_cell_m : 2.0 * g.resolution_m;
-    if (r.lines < 2 || !(cell > 0)) return;
+    if (!(cell > 0) || s.ping_t_s.empty()) return;
+    constexpr double kBlockS = 20.0;
+    constexpr int kHeadingBins = 12;  // 15 deg, modulo 180 deg
     struct Acc {
-        double sz = 0, sx = 0, sy = 0;
+        double sz = 0, sx = 0, sy = 0, st = 0;
         std::int32_t n = 0;
+        std::int32_t key = 0;  // time block * kHeadingBins + heading bin
     };
-    // Per (cell, line) sums; keyed by cell index * lines + line.
-    const double x0 = g.x0, y0 = g.y0;
+    const double t0 = s.ping_t_s.front();
+    auto heading_bin = [](double yaw) {
+        double d = std::fmod(yaw * 180.0 / kPi, 180.0);
+        if (d < 0) d += 180.0;
+        return std::min(kHeadingBins - 1, static_cast<int>(d / (180.0 / kHeadingBins)));
+    };
     const auto ncx = static_cast<std::int64_t>(std::ceil(g.nx * g.resolution_m / cell)) + 2;
     auto cell_of = [&](double x, double y) {
-        const auto i = static_cast<std::int64_t>(std::floor((x - x0) / cell)) + 1;
-        const auto j = static_cast<std::int64_t>(std::floor((y - y0) / cell)) + 1;
+        const auto i = static_cast<std::int64_t>(std::floor((x - g.x0) / cell)) + 1;
+        const auto j = static_cast<std::int64_t>(std::floor((y - g.y0) / cell)) + 1;
         return j * ncx + i;
     };
-    std::unordered_map<std::int64_t, std::vector<std::pair<int, Acc>>> cells;
+    std::unordered_map<std::int64_t, std::vector<Acc>> cells;
     cells.reserve(s.z.size() / 8 + 16);
     for (std::size_t j = 0; j < s.z.size(); ++j) {
-        const int L = line[s.ping[j]];
-        if (L < 0 || !std::isfinite(s.z[j])) continue;
+        if (!std::isfinite(s.z[j])) continue;
+        const std::uint32_t p = s.ping[j];
+        const auto key = static_cast<std::int32_t>(
+            static_cast<std::int32_t>((s.ping_t_s[p] - t0) / kBlockS) * kHeadingBins +
+            heading_bin(s.ping_yaw_rad[p]));
         auto& v = cells[cell_of(s.x[j], s.y[j])];
-        auto it = std::find_if(v.begin(), v.end(), [L](const auto& e) { return e.first == L; });
+        auto it = std::find_if(v.begin(), v.end(), [key](const Acc& e) { return e.key == key; });
         if (it == v.end()) {
-            v.push_back({L, Acc{}});
+            v.push_back(Acc{});
             it = v.end() - 1;
+            it->key = key;
         }
-        it->second.sz += s.z[j];
-        it->second.sx += s.x[j];
-        it->second.sy += s.y[j];
-        ++it->second.n;
+        it->sz += s.z[j];
+        it->sx += s.x[j];
+        it->sy += s.y[j];
+        it->st += s.ping_t_s[p];
+        ++it->n;
     }
     // The DEM's gradient at a point (central differences of the elevation; 0 where missing).
     auto gradient = [&](double x, double y, double* gx, double* gy) {
@@ -355,13 +328,16 @@ void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44
     double sum = 0, sumsq = 0;
     std::int64_t n = 0, ok = 0;
     for (std::size_t j = 0; j < s.z.size(); ++j) {
-        const int L = line[s.ping[j]];
-        if (L < 0 || !std::isfinite(s.z[j])) continue;
+        if (!std::isfinite(s.z[j])) continue;
         const auto it = cells.find(cell_of(s.x[j], s.y[j]));
         if (it == cells.end()) continue;
+        const double t = s.ping_t_s[s.ping[j]];
+        const double yaw = s.ping_yaw_rad[s.ping[j]];
         Acc ref;
-        for (const auto& [other, a] : it->second) {
-            if (other == L || LineAngleDeg(line_yaw[other], line_yaw[L]) < c.crossing_angle_deg) {
+        for (const Acc& a : it->second) {
+            const double bin_yaw = ((a.key % kHeadingBins) + 0.5) * (kPi / kHeadingBins);
+            if (a.st / a.n > t - c.min_time_separation_s ||
+                LineAngleDeg(bin_yaw, yaw) < c.crossing_angle_deg) {
                 continue;
             }
             ref.sz += a.sz;
@@ -429,7 +405,7 @@ S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
     std::snprintf(b,
                   sizeof b,
                   "order %s: %.1f %% of %lld soundings within TVU, %.1f %% within THU; %.1f %% of "
-                  "nodes within TVU; %zu holidays (feature %.2f m), coverage %.1f %%; %d lines, "
+                  "nodes within TVU; %zu holidays (feature %.2f m), coverage %.1f %%; "
                   "%lld crossline differences, RMS %.3f m",
                   ToString(c.order),
                   100 * r.soundings_within_tvu[static_cast<int>(c.order)],
@@ -439,7 +415,6 @@ S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
                   r.holidays.size(),
                   r.feature_size_m,
                   100 * r.coverage_share,
-                  r.lines,
                   static_cast<long long>(r.crossline_compared),
                   r.crossline_rms_m);
     r.message = b;

@@ -21,12 +21,13 @@
 // the survey's median depth) and at least min_holiday_nodes nodes on a side (NOAA's 3 x 3 node
 // rule). For 1b and 2 gaps are mapped but none is a holiday (5 % coverage).
 //
-// Crossline check: the survey is cut into lines where the heading turns by more than
-// line_turn_deg from the line's first heading (lines shorter than min_line_pings are dropped).
-// A sounding of line L is compared with the surface of the lines that cross L (headings more
-// than crossing_angle_deg apart, modulo 180 deg) in its cell (crossline_cell_m): their mean
-// height there, carried to the sounding along the DEM's gradient (slopes), with at least
-// min_reference_soundings of them. Differences are summarised by |beam angle| (10 deg bins):
+// Crossline check (any track shape: lines, circles, spirals): a sounding is compared with the
+// surface of the earlier soundings in its cell (crossline_cell_m) that were made at least
+// min_time_separation_s before it with a heading at least crossing_angle_deg away from its
+// ping's (as lines, modulo 180 deg): where the track crosses its own earlier lines. Their mean
+// height, carried to the sounding along the DEM's gradient (slopes), needs at least
+// min_reference_soundings soundings. The earlier soundings are pooled per cell, 20 s time
+// block and 15 deg heading bin. Differences are summarised by |beam angle| (10 deg bins):
 // count, mean, standard deviation, RMS, and the share within the order's TVU limit.
 // Pure code; RunS44 is reentrant.
 #pragma once
@@ -61,9 +62,8 @@ const S44Limits& LimitsOf(S44Order o);
 struct S44Config {
     S44Order order = S44Order::kOrder1a;
     int min_holiday_nodes = 3;             // a holiday is at least this many nodes on a side
-    double line_turn_deg = 30;             // a new line when the heading turns further
-    int min_line_pings = 50;               // shorter lines are not used by the crossline check
-    double crossing_angle_deg = 45;        // lines this far apart in heading cross
+    double crossing_angle_deg = 45;        // headings this far apart (modulo 180 deg) cross
+    double min_time_separation_s = 30;     // the earlier soundings are at least this older
     double crossline_cell_m = 0;           // 0 = 2 x the grid resolution
     int min_reference_soundings = 3;       // crossing soundings needed in a cell
     std::vector<std::string> Validate() const;
@@ -75,7 +75,7 @@ struct S44Soundings {
     std::vector<float> depth_m;        // below the water surface (or transducer), m
     std::vector<float> thu_95_m, tvu_95_m;
     std::vector<float> angle_deg;      // beam angle, sonar frame
-    std::vector<std::uint32_t> ping;   // index into ping_t_s / ping_yaw_rad
+    std::vector<std::uint32_t> ping;   // index into ping_t_s / ping_yaw_rad (time-sorted)
     std::vector<double> ping_t_s;      // GPS seconds
     std::vector<double> ping_yaw_rad;  // heading of the vehicle
 };
@@ -123,7 +123,6 @@ struct S44Result {
     // Per node: NaN outside the survey area, 0 covered, 1 in a gap, 2 in a holiday.
     std::vector<float> holiday_map;
     // Crossline check.
-    int lines = 0;
     std::int64_t crossline_compared = 0;
     double crossline_mean_m = 0, crossline_sd_m = 0, crossline_rms_m = 0;
     double crossline_within_tvu = 0;

@@ -302,9 +302,8 @@ void VisitS44(V&& v, GridStageConfig& g) {
     v("enabled", g.s44, "IHO S-44 Ed. 6.1 quality control in the grid stage");
     v.Enum("order", c.order, kOrders, "exclusive | special | 1a | 1b | 2");
     v("min_holiday_nodes", c.min_holiday_nodes, "a holiday is at least this many nodes a side");
-    v("line_turn_deg", c.line_turn_deg, "crossline: a new line when the heading turns further");
-    v("min_line_pings", c.min_line_pings, "crossline: shorter lines are not used");
-    v("crossing_angle_deg", c.crossing_angle_deg, "crossline: lines this far apart cross, deg");
+    v("crossing_angle_deg", c.crossing_angle_deg, "crossline: headings this far apart cross, deg");
+    v("min_time_separation_s", c.min_time_separation_s, "crossline: earlier soundings this older, s");
     v("crossline_cell_m", c.crossline_cell_m, "crossline cell, m; 0 = 2 x grid resolution");
     v("min_reference_soundings", c.min_reference_soundings, "crossing soundings needed a cell");
 }

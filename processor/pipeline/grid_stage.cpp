@@ -216,7 +216,6 @@ json S44Json(const hydro::S44Result& r, const std::string& holiday_file) {
             {"holiday_count", r.holidays.size()},
             {"holidays", holidays},
             {"holiday_map", holiday_file},
-            {"lines", r.lines},
             {"crossline",
              {{"compared", r.crossline_compared},
               {"mean_m", r.crossline_mean_m},
