@@ -163,13 +163,46 @@ json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
     return j;
 }
 
-json S44Json(const hydro::S44Result& r, const std::string& holiday_file) {
+// UTM easting/northing -> world east/north: an affine fit over soundings spread across the
+// survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
+Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm, const georef::GeorefResult& geo) {
+    const std::size_t n = utm.easting_northing_height.size();
+    const std::size_t step = std::max<std::size_t>(1, n / 2000);
+    Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+    Eigen::Matrix<double, 3, 2> Atb = Eigen::Matrix<double, 3, 2>::Zero();
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    if (n > 0) c = utm.easting_northing_height[0].head<2>();
+    for (std::size_t j = 0; j < n; j += step) {
+        const Eigen::Vector3d a(utm.easting_northing_height[j].x() - c.x(),
+                                utm.easting_northing_height[j].y() - c.y(),
+                                1.0);
+        AtA += a * a.transpose();
+        Atb += a * geo.points.position_world[j].head<2>().transpose();
+    }
+    Eigen::Matrix<double, 3, 2> X = AtA.ldlt().solve(Atb);
+    // world = X^T [e - c_e, n - c_n, 1]
+    Eigen::Matrix<double, 2, 3> M = X.transpose();
+    M.col(2) -= M.block<2, 2>(0, 0) * c;
+    return M;
+}
+
+json S44Json(const hydro::S44Result& r,
+             const std::string& holiday_file,
+             const Eigen::Matrix<double, 2, 3>& to_world) {
     json holidays = json::array();
+    const auto world = [&](double x, double y) {
+        const Eigen::Vector2d w = to_world * Eigen::Vector3d(x, y, 1.0);
+        return json{w.x(), w.y()};
+    };
     for (std::size_t k = 0; k < r.holidays.size() && k < 200; ++k) {
         const auto& h = r.holidays[k];
         holidays.push_back({{"x_m", h.x},
                             {"y_m", h.y},
+                            {"world_m", world(h.x, h.y)},
                             {"bbox_m", {h.x_min, h.y_min, h.x_max, h.y_max}},
+                            {"bbox_world_m",
+                             {world(h.x_min, h.y_min), world(h.x_max, h.y_min),
+                              world(h.x_max, h.y_max), world(h.x_min, h.y_max)}},
                             {"nodes", h.nodes},
                             {"area_m2", h.area_m2},
                             {"largest_square_m", h.largest_square_m}});
@@ -412,7 +445,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             holiday_file = "s44_holidays.tif";
             files.push_back(holiday_file);
         }
-        s44_json = S44Json(r44, holiday_file);
+        s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
         part.Lap(timings, "s44");
     }
     json shares = json::object();
