@@ -870,7 +870,7 @@ class Report:
                   f"{Num(q.get('gaps', 0))} gaps mapped in s44_holidays.tif")]
         out.append(Table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"))
         if hol:
-            out.append(Table([[str(i + 1), f"{Num(h['x_m'], 2)}", f"{Num(h['y_m'], 2)}",
+            out.append(Table([[str(i + 1), f"{float(h['x_m']):.2f}", f"{float(h['y_m']):.2f}",
                                Num(h.get("area_m2", 0), 2), Num(h.get("largest_square_m", 0), 2)]
                               for i, h in enumerate(hol[:20])],
                              header=["holiday", "UTM easting (m)", "UTM northing (m)",
