@@ -43,7 +43,9 @@ const char* ToString(VerticalDatum d) {
     return "?";
 }
 
-const char* ToString(WaterLevelSource s) { return s == WaterLevelSource::kFile ? "file" : "gnss"; }
+const char* ToString(WaterLevelSource s) {
+    return s == WaterLevelSource::kFile ? "file" : "gnss";
+}
 
 const GeoidCrs* FindGeoidCrs(int vertical_epsg) {
     for (const GeoidCrs& g : kGeoids) {
@@ -184,8 +186,9 @@ DatumBuild BuildDatum(const VerticalDatumConfig& c, const DatumInputs& in) {
                 }
                 m.datum_height_m[k] = in.geoid_n_m[k];
             }
-            m.description = std::string(g->crs_name) + " (EPSG:" +
-                            std::to_string(g->vertical_epsg) + "), geoid grid " + in.source_name;
+            m.description = std::string(g->crs_name) +
+                            " (EPSG:" + std::to_string(g->vertical_epsg) + "), geoid grid " +
+                            in.source_name;
             break;
         }
         case VerticalDatum::kWaterLevel: {
@@ -198,9 +201,10 @@ DatumBuild BuildDatum(const VerticalDatumConfig& c, const DatumInputs& in) {
                 const double level = Median(v);
                 m.datum_height_m.assign(n, level);
                 m.crs_name = "pit water level (GNSS, survey median)";
-                m.description = "depths below the pit's water level, the median of the water "
-                                "surface from the GNSS heights over the survey: " +
-                                Fixed(level, 3) + " m above the WGS 84 ellipsoid";
+                m.description =
+                    "depths below the pit's water level, the median of the water "
+                    "surface from the GNSS heights over the survey: " +
+                    Fixed(level, 3) + " m above the WGS 84 ellipsoid";
             } else {
                 if (in.levels.empty()) {
                     b.message = "vertical datum: the water-level file " + in.source_name +
@@ -224,8 +228,7 @@ DatumBuild BuildDatum(const VerticalDatumConfig& c, const DatumInputs& in) {
                     m.datum_height_m[k] = in.surface.At(t) - in.levels.At(t);
                 }
                 m.crs_name = "pit water level datum (gauge " + in.source_name + ")";
-                m.description = "depths below the datum of the water levels in " +
-                                in.source_name +
+                m.description = "depths below the datum of the water levels in " + in.source_name +
                                 " (the water surface from the GNSS heights minus the level)";
             }
             break;

@@ -38,9 +38,9 @@ const char* ToString(WaterLevelSource s);
 // The geoids pitmap can name (its vertical CRS and the WKT it writes).
 struct GeoidCrs {
     int vertical_epsg = 0;  // EPSG code of the gravity-related height (5773 EGM96, 3855 EGM2008)
-    const char* crs_name = "";     // "EGM96 height"
-    const char* datum_name = "";   // "EGM96 geoid"
-    int datum_epsg = 0;            // 5171
+    const char* crs_name = "";      // "EGM96 height"
+    const char* datum_name = "";    // "EGM96 geoid"
+    int datum_epsg = 0;             // 5171
     const char* default_grid = "";  // the PROJ grid (proj-data's egm96_15.gtx)
 };
 // nullptr for a code pitmap does not know.
@@ -51,7 +51,7 @@ struct VerticalDatumConfig {
     int geoid_vertical_epsg = 5773;  // geoid: the gravity-related height (5773, 3855)
     std::string geoid_grid;          // geoid: PROJ grid name or path; "" = the CRS's default
     WaterLevelSource water_level_source = WaterLevelSource::kGnss;
-    std::string water_level_file;  // source file: CSV time (UTC ISO 8601), level (m)
+    std::string water_level_file;     // source file: CSV time (UTC ISO 8601), level (m)
     double smoothing_window_s = 120;  // running median of the GNSS water surface, s
     double step_s = 1.0;              // the smoothed series' spacing, s
     // INS height above the water line, m; NaN = vehicle.yaml's.
@@ -78,7 +78,7 @@ struct HeightSample {
 
 struct WaterSurfaceStats {
     std::int64_t samples_used = 0;
-    std::int64_t samples_rejected = 0;  // non-finite
+    std::int64_t samples_rejected = 0;                                 // non-finite
     double level_median_m = std::numeric_limits<double>::quiet_NaN();  // of the smoothed series
     double level_min_m = std::numeric_limits<double>::quiet_NaN();
     double level_max_m = std::numeric_limits<double>::quiet_NaN();

@@ -49,10 +49,16 @@ const char* ToString(S44Order o) {
     return "?";
 }
 
-const S44Limits& LimitsOf(S44Order o) { return kLimits[static_cast<int>(o)]; }
+const S44Limits& LimitsOf(S44Order o) {
+    return kLimits[static_cast<int>(o)];
+}
 
-double S44Limits::Tvu(double d) const { return std::sqrt(tvu_a_m * tvu_a_m + tvu_b * tvu_b * d * d); }
-double S44Limits::Thu(double d) const { return thu_constant_m + thu_depth_fraction * d; }
+double S44Limits::Tvu(double d) const {
+    return std::sqrt(tvu_a_m * tvu_a_m + tvu_b * tvu_b * d * d);
+}
+double S44Limits::Thu(double d) const {
+    return thu_constant_m + thu_depth_fraction * d;
+}
 double S44Limits::FeatureSize(double d) const {
     if (feature_size_m <= 0) return 0;
     if (feature_depth_limit_m > 0 && d > feature_depth_limit_m) return feature_depth_fraction * d;
@@ -107,7 +113,8 @@ void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
             const long i = std::lround((s.x[j] - g.x0) / g.resolution_m);
             const long k = std::lround((s.y[j] - g.y0) / g.resolution_m);
             if (i >= 0 && k >= 0 && i < g.nx && k < g.ny) {
-                const std::size_t q = static_cast<std::size_t>(k) * g.nx + static_cast<std::size_t>(i);
+                const std::size_t q =
+                    static_cast<std::size_t>(k) * g.nx + static_cast<std::size_t>(i);
                 node_thu_sum[q] += s.thu_95_m[j];
                 ++node_thu_n[q];
             }
@@ -192,9 +199,8 @@ void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Re
         }
     }
     const double res = g.resolution_m;
-    const int min_side = std::max(
-        c.min_holiday_nodes,
-        static_cast<int>(std::ceil(r.feature_size_m / res - 1e-9)));
+    const int min_side =
+        std::max(c.min_holiday_nodes, static_cast<int>(std::ceil(r.feature_size_m / res - 1e-9)));
     std::vector<std::int32_t> comp(N, -1);
     std::int64_t in_gaps = 0, area = 0;
     std::vector<S44Holiday> holidays;
@@ -367,7 +373,8 @@ void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44
     const double nn = static_cast<double>(n);
     r.crossline_mean_m = sum / nn;
     r.crossline_rms_m = std::sqrt(sumsq / nn);
-    r.crossline_sd_m = std::sqrt(std::max(0.0, sumsq / nn - r.crossline_mean_m * r.crossline_mean_m));
+    r.crossline_sd_m =
+        std::sqrt(std::max(0.0, sumsq / nn - r.crossline_mean_m * r.crossline_mean_m));
     r.crossline_within_tvu = static_cast<double>(ok) / nn;
     for (int b = 0; b < kBins; ++b) {
         if (bn[b] == 0) continue;

@@ -48,31 +48,31 @@ struct S44Limits {
     double thu_depth_fraction = 0;
     double tvu_a_m = 0;
     double tvu_b = 0;
-    double feature_size_m = 0;             // cube to detect; 0 = not applicable
-    double feature_depth_fraction = 0;     // beyond feature_depth_limit_m (1a: 10 %)
-    double feature_depth_limit_m = 0;      // 1a: 40 m
-    double coverage_percent = 0;           // bathymetric coverage required
-    bool full_coverage = false;            // feature search >= 100 %: holidays apply
-    double Tvu(double depth_m) const;      // 95 %, m
-    double Thu(double depth_m) const;      // 95 %, m
+    double feature_size_m = 0;                 // cube to detect; 0 = not applicable
+    double feature_depth_fraction = 0;         // beyond feature_depth_limit_m (1a: 10 %)
+    double feature_depth_limit_m = 0;          // 1a: 40 m
+    double coverage_percent = 0;               // bathymetric coverage required
+    bool full_coverage = false;                // feature search >= 100 %: holidays apply
+    double Tvu(double depth_m) const;          // 95 %, m
+    double Thu(double depth_m) const;          // 95 %, m
     double FeatureSize(double depth_m) const;  // 0 = not applicable
 };
 const S44Limits& LimitsOf(S44Order o);
 
 struct S44Config {
     S44Order order = S44Order::kOrder1a;
-    int min_holiday_nodes = 3;             // a holiday is at least this many nodes on a side
-    double crossing_angle_deg = 45;        // headings this far apart (modulo 180 deg) cross
-    double min_time_separation_s = 30;     // the earlier soundings are at least this older
-    double crossline_cell_m = 0;           // 0 = 2 x the grid resolution
-    int min_reference_soundings = 3;       // crossing soundings needed in a cell
+    int min_holiday_nodes = 3;          // a holiday is at least this many nodes on a side
+    double crossing_angle_deg = 45;     // headings this far apart (modulo 180 deg) cross
+    double min_time_separation_s = 30;  // the earlier soundings are at least this older
+    double crossline_cell_m = 0;        // 0 = 2 x the grid resolution
+    int min_reference_soundings = 3;    // crossing soundings needed in a cell
     std::vector<std::string> Validate() const;
 };
 
 // The soundings (grid coordinates: UTM metres, heights up in the product's datum) and pings.
 struct S44Soundings {
     std::vector<double> x, y, z;
-    std::vector<float> depth_m;        // below the water surface (or transducer), m
+    std::vector<float> depth_m;  // below the water surface (or transducer), m
     std::vector<float> thu_95_m, tvu_95_m;
     std::vector<float> angle_deg;      // beam angle, sonar frame
     std::vector<std::uint32_t> ping;   // index into ping_t_s / ping_yaw_rad (time-sorted)
@@ -90,11 +90,11 @@ struct S44Grid {
 };
 
 struct S44Holiday {
-    double x = 0, y = 0;              // centre of the gap's largest empty square, m
+    double x = 0, y = 0;  // centre of the gap's largest empty square, m
     double x_min = 0, y_min = 0, x_max = 0, y_max = 0;  // the gap's bounding box, m
-    std::int64_t nodes = 0;           // empty nodes in the gap
+    std::int64_t nodes = 0;                             // empty nodes in the gap
     double area_m2 = 0;
-    double largest_square_m = 0;      // side of the largest empty square, m
+    double largest_square_m = 0;  // side of the largest empty square, m
 };
 
 struct S44AngleBin {
@@ -116,10 +116,10 @@ struct S44Result {
     // Coverage and holidays (the chosen order).
     std::int64_t nodes_survey_area = 0;  // covered + inside gaps
     std::int64_t nodes_in_gaps = 0;
-    double coverage_share = 0;            // covered / survey area
-    double feature_size_m = 0;            // used for holidays (0: not applicable)
-    std::vector<S44Holiday> holidays;     // largest first
-    std::int64_t gaps = 0;                // gaps of any size
+    double coverage_share = 0;         // covered / survey area
+    double feature_size_m = 0;         // used for holidays (0: not applicable)
+    std::vector<S44Holiday> holidays;  // largest first
+    std::int64_t gaps = 0;             // gaps of any size
     // Per node: NaN outside the survey area, 0 covered, 1 in a gap, 2 in a holiday.
     std::vector<float> holiday_map;
     // Crossline check.

@@ -25,7 +25,8 @@ Expected<GeoidGrid> GeoidGrid::Open(const std::string& grid) {
     if (grid.empty()) return Error{"geoid: no grid named"};
     for (char c : grid) {
         if (c == ' ' || c == '+' || c == '\n' || c == '\t' || c == '@' || c == ',') {
-            return Error{"geoid grid '" + grid + "': the name may not hold spaces, '+', '@' or ','"};
+            return Error{"geoid grid '" + grid +
+                         "': the name may not hold spaces, '+', '@' or ','"};
         }
     }
     GeoidGrid g;

@@ -59,9 +59,7 @@ nlohmann::json VehicleJson(const VehicleDescription& v) {
     return j;
 }
 
-Status WritePly(const std::string& path,
-                const georef::GeorefResult& r,
-                const PointExtras* extras) {
+Status WritePly(const std::string& path, const georef::GeorefResult& r, const PointExtras* extras) {
     namespace ply = formats::ply;
     const georef::GeorefPoints& P = r.points;
     const bool tpu = extras != nullptr && extras->thu_95_m.size() == P.size() &&
@@ -149,8 +147,8 @@ std::string LasWkt(int zone, bool northern, const std::string& vertical_wkt) {
             vname = vertical.substr(a + 1, b - a - 1);
         }
     }
-    return "COMPD_CS[\"WGS 84 / UTM zone " + std::to_string(zone) + (northern ? "N" : "S") +
-           " + " + vname + "\"," + UtmWkt(zone, northern) + "," + vertical + "]";
+    return "COMPD_CS[\"WGS 84 / UTM zone " + std::to_string(zone) + (northern ? "N" : "S") + " + " +
+           vname + "\"," + UtmWkt(zone, northern) + "," + vertical + "]";
 }
 
 namespace {
@@ -162,11 +160,11 @@ void ExtraBytesFloat(ByteWriter& w, const std::string& name, const std::string& 
     w.U8(9);  // data type: float
     w.U8(0);  // options: no no_data, min, max, scale or offset
     w.FixedString(name, 32);
-    for (int i = 0; i < 4; ++i) w.U8(0);      // unused
+    for (int i = 0; i < 4; ++i) w.U8(0);       // unused
     for (int i = 0; i < 8 + 16; ++i) w.U8(0);  // no_data, deprecated
     for (int i = 0; i < 8 + 16; ++i) w.U8(0);  // min, deprecated
     for (int i = 0; i < 8 + 16; ++i) w.U8(0);  // max, deprecated
-    w.F64Le(0);                                 // scale (unused: option bit 3 clear)
+    w.F64Le(0);                                // scale (unused: option bit 3 clear)
     for (int i = 0; i < 16; ++i) w.U8(0);
     w.F64Le(0);  // offset
     for (int i = 0; i < 16; ++i) w.U8(0);
@@ -208,9 +206,9 @@ Status WriteLas(const std::string& path,
     constexpr std::uint16_t kVlrHeaderSize = 54;
     constexpr std::uint16_t kExtraBytesVlrSize = 2 * 192;
     const std::uint16_t record_length = tpu ? 38 : 30;
-    const std::uint32_t point_offset =
-        kHeaderSize + kVlrHeaderSize + static_cast<std::uint32_t>(wkt.size()) +
-        (tpu ? kVlrHeaderSize + kExtraBytesVlrSize : 0);
+    const std::uint32_t point_offset = kHeaderSize + kVlrHeaderSize +
+                                       static_cast<std::uint32_t>(wkt.size()) +
+                                       (tpu ? kVlrHeaderSize + kExtraBytesVlrSize : 0);
     // File creation date: the survey's first ping, so the file depends only on the data.
     int day_of_year = 1, year = 1980;
     if (!r.pings.empty()) {

@@ -106,8 +106,8 @@ Expected<std::vector<WaterLevelSample>> ParseWaterLevelText(std::string_view tex
         std::string_view rest = line.substr(sep + 1);
         const std::size_t sep2 = rest.find_first_of(",;\t");
         const std::string_view f1 = Trim(rest.substr(0, sep2));
-        if (header_allowed && !f0.empty() && ((f0[0] >= 'a' && f0[0] <= 'z') ||
-                                              (f0[0] >= 'A' && f0[0] <= 'Z'))) {
+        if (header_allowed && !f0.empty() &&
+            ((f0[0] >= 'a' && f0[0] <= 'z') || (f0[0] >= 'A' && f0[0] <= 'Z'))) {
             header_allowed = false;
             continue;
         }
@@ -133,7 +133,8 @@ Expected<std::vector<WaterLevelSample>> ReadWaterLevelFile(const std::string& pa
     std::error_code ec;
     const auto size = std::filesystem::file_size(path, ec);
     if (ec) return Error{path + ": cannot read the water-level file (" + ec.message() + ")"};
-    if (size > kMaxWaterLevelFileBytes) return Error{path + ": water-level file larger than 256 MiB"};
+    if (size > kMaxWaterLevelFileBytes)
+        return Error{path + ": water-level file larger than 256 MiB"};
     std::ifstream in(path, std::ios::binary);
     if (!in) return Error{path + ": cannot open the water-level file"};
     std::ostringstream s;

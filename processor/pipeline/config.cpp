@@ -263,8 +263,9 @@ void VisitGrid(V&& v, GridStageConfig& c) {
       "points.ply/.las rewritten with THU, TVU (and the vertical datum)");
 }
 
-constexpr hydro::VerticalDatum kDatums[] = {
-    hydro::VerticalDatum::kEllipsoid, hydro::VerticalDatum::kGeoid, hydro::VerticalDatum::kWaterLevel};
+constexpr hydro::VerticalDatum kDatums[] = {hydro::VerticalDatum::kEllipsoid,
+                                            hydro::VerticalDatum::kGeoid,
+                                            hydro::VerticalDatum::kWaterLevel};
 constexpr hydro::WaterLevelSource kLevelSources[] = {hydro::WaterLevelSource::kGnss,
                                                      hydro::WaterLevelSource::kFile};
 
@@ -275,7 +276,9 @@ void VisitVertical(V&& v, hydro::VerticalDatumConfig& c) {
            kDatums,
            "vertical datum of dem.tif/.bag, points.las, the S-44 depths:\n"
            "ellipsoid (WGS 84) | geoid (PROJ grid) | water_level (the pit's surface)");
-    v("geoid_vertical_epsg", c.geoid_vertical_epsg, "geoid: 5773 EGM96 height | 3855 EGM2008 height");
+    v("geoid_vertical_epsg",
+      c.geoid_vertical_epsg,
+      "geoid: 5773 EGM96 height | 3855 EGM2008 height");
     v("geoid_grid", c.geoid_grid, "geoid: PROJ grid name or path; \"\" = egm96_15.gtx (proj-data)");
     v.Enum("water_level_source",
            c.water_level_source,
@@ -303,7 +306,9 @@ void VisitS44(V&& v, GridStageConfig& g) {
     v.Enum("order", c.order, kOrders, "exclusive | special | 1a | 1b | 2");
     v("min_holiday_nodes", c.min_holiday_nodes, "a holiday is at least this many nodes a side");
     v("crossing_angle_deg", c.crossing_angle_deg, "crossline: headings this far apart cross, deg");
-    v("min_time_separation_s", c.min_time_separation_s, "crossline: earlier soundings this older, s");
+    v("min_time_separation_s",
+      c.min_time_separation_s,
+      "crossline: earlier soundings this older, s");
     v("crossline_cell_m", c.crossline_cell_m, "crossline cell, m; 0 = 2 x grid resolution");
     v("min_reference_soundings", c.min_reference_soundings, "crossing soundings needed a cell");
 }

@@ -6,8 +6,8 @@
 #include <algorithm>
 
 #include <chrono>
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <sstream>
 #include <type_traits>
@@ -82,13 +82,14 @@ double MedianOf(std::vector<double> v) {
 // The vertical datum of the products (hydro/datum.hpp) at every ping, with its record for
 // summary.json. `ping_geo` are the transducers' geodetic positions.
 Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
-                                          const hydro::VerticalDatumConfig& vc,
-                                          const std::vector<Geodetic>& ping_geo,
-                                          json* record,
-                                          const Log& log) {
+                                         const hydro::VerticalDatumConfig& vc,
+                                         const std::vector<Geodetic>& ping_geo,
+                                         json* record,
+                                         const Log& log) {
     hydro::DatumInputs in;
     in.ping_t_s.reserve(s.geo.pings.size());
-    for (const auto& p : s.geo.pings) in.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+    for (const auto& p : s.geo.pings)
+        in.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
     *record = {{"datum", hydro::ToString(vc.datum)}};
     if (vc.datum == hydro::VerticalDatum::kGeoid) {
         const hydro::GeoidCrs* g = hydro::FindGeoidCrs(vc.geoid_vertical_epsg);
@@ -113,9 +114,10 @@ Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
             }
         }
         if (!std::isfinite(above)) {
-            return Error{"grid: vertical datum water_level needs the INS height above the water "
-                         "line: vehicle.yaml ins.height_above_waterline_m or "
-                         "vertical.ins_height_above_waterline_m"};
+            return Error{
+                "grid: vertical datum water_level needs the INS height above the water "
+                "line: vehicle.yaml ins.height_above_waterline_m or "
+                "vertical.ins_height_above_waterline_m"};
         }
         std::vector<hydro::HeightSample> h;
         h.reserve(s.ingest.nav.samples.size());
@@ -123,8 +125,7 @@ Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
             h.push_back({static_cast<double>(n.utime_gps) * 1e-6, n.position.height_m});
         }
         hydro::WaterSurfaceStats ws;
-        in.surface =
-            hydro::SmoothWaterSurface(h, above, vc.smoothing_window_s, vc.step_s, &ws);
+        in.surface = hydro::SmoothWaterSurface(h, above, vc.smoothing_window_s, vc.step_s, &ws);
         (*record)["water_level_source"] = hydro::ToString(vc.water_level_source);
         (*record)["ins_height_above_waterline_m"] = above;
         (*record)["ins_height_above_waterline_source"] = above_source;
@@ -159,13 +160,15 @@ Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
 
 json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
     json j = json::object();
-    for (int o = 0; o < hydro::kNumS44Orders; ++o) j[hydro::ToString(static_cast<hydro::S44Order>(o))] = a[o];
+    for (int o = 0; o < hydro::kNumS44Orders; ++o)
+        j[hydro::ToString(static_cast<hydro::S44Order>(o))] = a[o];
     return j;
 }
 
 // UTM easting/northing -> world east/north: an affine fit over soundings spread across the
 // survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
-Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm, const georef::GeorefResult& geo) {
+Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm,
+                                       const georef::GeorefResult& geo) {
     const std::size_t n = utm.easting_northing_height.size();
     const std::size_t step = std::max<std::size_t>(1, n / 2000);
     Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
@@ -201,8 +204,10 @@ json S44Json(const hydro::S44Result& r,
                             {"world_m", world(h.x, h.y)},
                             {"bbox_m", {h.x_min, h.y_min, h.x_max, h.y_max}},
                             {"bbox_world_m",
-                             {world(h.x_min, h.y_min), world(h.x_max, h.y_min),
-                              world(h.x_max, h.y_max), world(h.x_min, h.y_max)}},
+                             {world(h.x_min, h.y_min),
+                              world(h.x_max, h.y_min),
+                              world(h.x_max, h.y_max),
+                              world(h.x_min, h.y_max)}},
                             {"nodes", h.nodes},
                             {"area_m2", h.area_m2},
                             {"largest_square_m", h.largest_square_m}});
@@ -425,7 +430,8 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             ss.ping_yaw_rad.push_back(std::atan2(fwd.x(), fwd.y()));
             transducer[k] = ping_geo[k].height_m - D[k];
         }
-        hydro::S44Grid sg{g.x0, g.y0, g.resolution_m, g.nx, g.ny, g.elevation_m, g.uncertainty_m, {}};
+        hydro::S44Grid sg{
+            g.x0, g.y0, g.resolution_m, g.nx, g.ny, g.elevation_m, g.uncertainty_m, {}};
         // Node depth: below the datum (water level), else below the transducers' median height.
         const double ref = water ? 0.0 : MedianOf(transducer);
         sg.depth_m.resize(g.elevation_m.size());

@@ -16,7 +16,9 @@ namespace {
 
 // 50 Hz INS heights of a vehicle riding a water surface at `level(t)`, INS 0.35 m above the
 // water line, with 0.1 m heave and 1 % blunders of +-5 m.
-std::vector<HeightSample> Ins(double t0, double seconds, const std::function<double(double)>& level) {
+std::vector<HeightSample> Ins(double t0,
+                              double seconds,
+                              const std::function<double(double)>& level) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(0, 1);
     std::vector<HeightSample> out;

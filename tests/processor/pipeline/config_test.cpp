@@ -161,8 +161,8 @@ TEST_F(Config, VerticalAndS44SectionsRoundTripAndAreChecked) {
           "s44.order: '3' is not one of exclusive, special, 1a, 1b, 2",
           "vertical.smoothing_window_s must be within",
           "s44.crossing_angle_deg must be in (0, 90]"}) {
-        EXPECT_NE(bad.error().message.find(expected), std::string::npos)
-            << expected << "\n" << bad.error().message;
+        EXPECT_NE(bad.error().message.find(expected), std::string::npos) << expected << "\n"
+                                                                         << bad.error().message;
     }
     const auto geoid = Load("vertical:\n  datum: geoid\n  geoid_vertical_epsg: 4326\n");
     ASSERT_FALSE(geoid.ok());

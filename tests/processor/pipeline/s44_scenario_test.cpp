@@ -71,8 +71,7 @@ TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
     const double px = -2.0, py = 0.0, pr = 2.0;
     const std::string synth = kBin + "/pitmap-sim synth --scenario demo --duration 90 --out ";
     ASSERT_EQ(RunCommand(synth + Quote(dir / "clean"), &out), 0) << out;
-    ASSERT_EQ(RunCommand(synth + Quote(dir / "patch") + " --dropout-patch -2 0 2", &out), 0)
-        << out;
+    ASSERT_EQ(RunCommand(synth + Quote(dir / "patch") + " --dropout-patch -2 0 2", &out), 0) << out;
     SetTrueBoresight(dir / "clean");
     SetTrueBoresight(dir / "patch");
     std::ofstream(dir / "hydro.yaml") << "vertical:\n  datum: water_level\ns44:\n  order: 1a\n";
@@ -99,9 +98,8 @@ TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
     const json& vd = patch["vertical_datum"];
     EXPECT_EQ(vd["datum"], "water_level");
     EXPECT_EQ(vd["vertical_crs"], "pit water level (GNSS, survey median)");
-    EXPECT_NEAR(vd["mean_datum_height_m"].get<double>(),
-                truth["origin"]["height_m"].get<double>(),
-                0.05);
+    EXPECT_NEAR(
+        vd["mean_datum_height_m"].get<double>(), truth["origin"]["height_m"].get<double>(), 0.05);
 
     // Order 1a on a known survey: every sounding within its TVU and THU limits.
     const json& q = patch["stages"]["grid"]["s44"];
@@ -125,12 +123,12 @@ TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
     // pitmap's world origin is the first INS fix; the simulator's is the pit centre.
     const json& wo = patch["world_origin"];
     const double lat0 = truth["origin"]["latitude_deg"].get<double>() * M_PI / 180;
-    const double de = (wo["longitude_deg"].get<double>() -
-                       truth["origin"]["longitude_deg"].get<double>()) *
-                      M_PI / 180 * 6378137.0 * std::cos(lat0);
+    const double de =
+        (wo["longitude_deg"].get<double>() - truth["origin"]["longitude_deg"].get<double>()) *
+        M_PI / 180 * 6378137.0 * std::cos(lat0);
     const double dn =
-        (wo["latitude_deg"].get<double>() - truth["origin"]["latitude_deg"].get<double>()) *
-        M_PI / 180 * 6371000.0;
+        (wo["latitude_deg"].get<double>() - truth["origin"]["latitude_deg"].get<double>()) * M_PI /
+        180 * 6371000.0;
     const double hx = h["world_m"][0].get<double>() + de;
     const double hy = h["world_m"][1].get<double>() + dn;
     std::printf("holiday at (%.2f, %.2f) m (patch at (%.1f, %.1f)), %.2f m2, square %.2f m\n",
@@ -170,7 +168,8 @@ TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
     EXPECT_EQ(RunCommand(kBin + "/pitmap report --out " + Quote(dir / "p_patch"), &text), 0)
         << text;
     std::ifstream html(dir / "p_patch/report.html");
-    const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+    const std::string page((std::istreambuf_iterator<char>(html)),
+                           std::istreambuf_iterator<char>());
     EXPECT_NE(page.find("IHO S-44 Edition 6.1: order 1a"), std::string::npos);
     EXPECT_NE(page.find("pit water level (GNSS, survey median)"), std::string::npos);
     if (!HasFailure()) fs::remove_all(dir);
