@@ -897,7 +897,7 @@ class Report:
             fig, a = plt.subplots(figsize=(8, 3.4), layout="constrained")
             c = [0.5 * (b["angle_lo_deg"] + b["angle_hi_deg"]) for b in bins]
             a.errorbar(c, [b["mean_m"] for b in bins], yerr=[b["sd_m"] for b in bins],
-                       fmt="o-", capsize=3, label="mean &plusmn; sd".replace("&plusmn;", "+-"))
+                       fmt="o-", capsize=3, label="mean +- sd")
             a.axhline(0, color="k", lw=0.6)
             a.set_xlabel("|beam angle| (deg)")
             a.set_ylabel("sounding - crossing surface (m)")
