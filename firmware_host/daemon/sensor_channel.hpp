@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // SensorChannel: one byte source of the daemon (a NovAtel port or a Delta T 83P stream) from
-// bytes to published LCM messages.
+// bytes to published LCM messages. sensor_channel.cpp holds what both share (lifecycle,
+// dispatch, counters, status); sensor_channel_novatel.cpp and sensor_channel_deltat.cpp the
+// protocol handlers.
 //
 // Per chunk, in this order (style.md "What a daemon component looks like"):
 //   1. read with a timeout; the transport stamps utime_host at the read;

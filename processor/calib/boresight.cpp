@@ -153,6 +153,8 @@ void Positions(const ShiftedPoses& poses,
 }
 
 // Correspondences for every sample: normal of its own pass, closest point of another pass.
+// One radius search per sample serves both (the larger of the two radii), and the normal is
+// fitted only where another pass is close enough to make a pair.
 std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                             const Samples& S,
                             const BoresightConfig& cfg,
@@ -160,30 +162,15 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
     const reg::PointIndex3d index(p.data(), p.size());
     // Normals from the sounding's own pass only (several pings: a single ping is a line).
     const double nwin = cfg.min_separation_s;
-    std::vector<Eigen::Vector3d> normals(p.size(), Eigen::Vector3d::Zero());
-    std::vector<char> nok(p.size(), 0);
     const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
-        std::vector<reg::PointIndex3d::Hit> hits;
-        for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            index.WithinRadius(p[k], nr2, hits);
-            reg::MomentAccumulator m;
-            for (const auto& [j, d2] : hits) {
-                if (std::abs(S.t_s[j] - S.t_s[k]) < nwin) m.Add(p[j]);
-            }
-            if (m.count() < 8) continue;
-            const reg::PlaneFit f = reg::FitPlane(m);
-            if (!f.Planar(0.1)) continue;  // not planar enough
-            normals[k] = f.normal;
-            nok[k] = 1;
-        }
-    });
+    const double d2_max = d_max * d_max;
+    const double search2 = std::max(nr2, d2_max);
     std::vector<Pair> pairs(p.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
         std::vector<reg::PointIndex3d::Hit> hits;
         for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            index.WithinRadius(p[k], d_max * d_max, hits);
-            double best = d_max * d_max;
+            index.WithinRadius(p[k], search2, hits);
+            double best = d2_max;
             std::size_t best_j = 0;
             bool found = false;
             for (const auto& [j, d2] : hits) {
@@ -194,12 +181,18 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                 }
             }
             if (!found) continue;
-            if (!nok[k]) continue;
+            reg::MomentAccumulator m;
+            for (const auto& [j, d2] : hits) {
+                if (d2 < nr2 && std::abs(S.t_s[j] - S.t_s[k]) < nwin) m.Add(p[j]);
+            }
+            if (m.count() < 8) continue;
+            const reg::PlaneFit f = reg::FitPlane(m);
+            if (!f.Planar(0.1)) continue;  // not planar enough
             Pair& pr = pairs[k];
             pr.ok = true;
             pr.c.query = k;
             pr.c.target = best_j;
-            pr.c.query_normal = normals[k];
+            pr.c.query_normal = f.normal;
             pr.r = pr.c.query_normal.dot(p[k] - p[best_j]);
             // 1 / sigma^2 of the difference, sigma = fraction * range + constant per sounding.
             const double sp =

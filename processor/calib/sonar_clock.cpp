@@ -197,11 +197,6 @@ double ParabolaVertex(double c, double h, double a, double b, double d) {
 
 }  // namespace
 
-void ShiftPingTimes(georef::PingSeries& pings, double correction_s) {
-    const auto d = static_cast<std::int64_t>(std::llround(correction_s * 1e6));
-    for (auto& p : pings.pings) p.utime_gps += d;
-}
-
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime) {
     char s[96];
     std::snprintf(s,

@@ -71,9 +71,6 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
                                  const georef::NavSeries& nav,
                                  const ClockSearchConfig& config = {});
 
-// Adds `correction_s` to every ping's time (order is kept).
-void ShiftPingTimes(georef::PingSeries& pings, double correction_s);
-
 // "a .. b GPS s (n s)" of a time span in microseconds, for messages naming spans.
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime);
 

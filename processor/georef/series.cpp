@@ -2,6 +2,7 @@
 #include "processor/georef/series.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace pitmap::proc::georef {
 
@@ -37,6 +38,11 @@ void SortAndDeduplicate(PingSeries& s) {
         out.pings.push_back(c);
     }
     s = std::move(out);
+}
+
+void ShiftPingTimes(PingSeries& pings, double correction_s) {
+    const auto d = static_cast<std::int64_t>(std::llround(correction_s * 1e6));
+    for (auto& p : pings.pings) p.utime_gps += d;
 }
 
 }  // namespace pitmap::proc::georef

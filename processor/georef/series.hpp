@@ -83,4 +83,8 @@ struct PingSeries {
 void SortAndDeduplicate(NavSeries& nav);
 void SortAndDeduplicate(PingSeries& pings);
 
+// Adds `correction_s` (rounded to the microsecond) to every ping time: a sonar clock correction.
+// Shifting by -x undoes a shift by x exactly.
+void ShiftPingTimes(PingSeries& pings, double correction_s);
+
 }  // namespace pitmap::proc::georef

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Products folder I/O: vehicle.yaml, point clouds (binary PLY, LAS 1.4), trajectory CSV, JSON
-// summaries, and the binary ingest cache that later stages (calibrate) re-read.
+// summaries. The state the stages share is the survey model's file (processor/survey).
 //
 // PLY (written with common/formats/ply): binary_little_endian 1.0, vertex properties float x, y, z
 // (world ENU metres), double
@@ -88,12 +88,5 @@ Expected<nlohmann::json> ReadJsonFile(const std::string& path);
 // and the key.
 Expected<nlohmann::json> ReadSummaryJson(const std::string& path);
 Status WriteJsonFile(const std::string& path, const nlohmann::json& j);
-
-// The ingest result in a private, versioned binary file (layout in products.cpp), read only by
-// the build that wrote it. The reader checks every array count against the bytes left in the
-// file before allocating (memory stays bounded by the file size) and a trailing CRC-32; a
-// truncated, corrupted or older file is an error naming the file.
-Status WriteIngestCache(const std::string& path, const IngestResult& r);
-Expected<IngestResult> ReadIngestCache(const std::string& path);
 
 }  // namespace pitmap::proc::io

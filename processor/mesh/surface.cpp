@@ -166,12 +166,13 @@ MeshResult RunMesh(const fusion::TsdfVolume& volume, const MeshConfig& config) {
         hi = config.colour_max_z_m;
     }
     result.area_m2 = MeshArea(result.mesh.vertices, result.mesh.triangles);
-    result.mesh_filled.vertices = result.mesh.vertices;
-    result.mesh_filled.triangles = result.mesh.triangles;
-    result.holes = FillSmallHoles(
-        result.mesh_filled.vertices, result.mesh_filled.triangles, config.max_hole_edges);
     Colourise(result.mesh, lo, hi);
-    Colourise(result.mesh_filled, lo, hi);
+    result.mesh_filled = result.mesh;
+    if (config.max_hole_edges > 0) {
+        result.holes = FillSmallHoles(
+            result.mesh_filled.vertices, result.mesh_filled.triangles, config.max_hole_edges);
+        Colourise(result.mesh_filled, lo, hi);
+    }
     result.message = std::to_string(result.mesh.vertices.size()) + " vertices, " +
                      std::to_string(result.mesh.triangles.size()) +
                      " triangles; display mesh: " + std::to_string(result.holes.holes_filled) +

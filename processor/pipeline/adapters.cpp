@@ -66,6 +66,7 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
     if (!IsSortedByPing(geo)) return out;
     const std::vector<std::size_t> offset = PingOffsets(geo);
     const std::size_t stride = static_cast<std::size_t>(std::max(1, point_stride));
+    const Pose T_vehicle_sonar = geo.mount.T_vehicle_sonar();
     for (std::size_t k = 0; k < geo.pings.size(); ++k) {
         if (offset[k + 1] == offset[k]) continue;
         const georef::GeorefPing& ping = geo.pings[k];
@@ -73,11 +74,12 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
         s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
         s.T_world_vehicle = ping.T_world_vehicle;
         s.pose_sigma = PoseSigmaAt(nav, ping.utime_gps, sigma_max_age_s, fallback_sigma);
-        const Pose T_vehicle_world = ping.T_world_vehicle.inverse();
+        // In the vehicle frame straight from the sonar frame (lever arm and mount), not back
+        // from the world.
         s.points_vehicle.reserve((offset[k + 1] - offset[k] + stride - 1) / stride);
         for (std::size_t i = offset[k]; i < offset[k + 1]; i += stride) {
             s.points_vehicle.push_back(
-                (T_vehicle_world * geo.points.position_world[i]).cast<float>());
+                (T_vehicle_sonar * georef::SoundingVectorSonar(geo, i)).cast<float>());
         }
         out.slices.push_back(std::move(s));
         out.ping.push_back(static_cast<std::uint32_t>(k));

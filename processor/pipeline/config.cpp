@@ -318,6 +318,9 @@ void VisitRun(V&& v, RunOptions& r) {
     v("calibrate", r.calibrate, "boresight calibration before SLAM");
     v("slam", r.slam, "continuous-time SLAM (else the INS trajectory is fused)");
     v("mesh_before_slam", r.mesh_before_slam, "mesh_initial.ply: the mesh before SLAM");
+    v("initial_mesh_voxel_factor",
+      r.initial_mesh_voxel_factor,
+      "mesh_initial's voxel size / fuse.voxel_size_m (a picture for the report)");
     v("report", r.report, "report.html");
 }
 
@@ -496,8 +499,16 @@ std::vector<std::string> QualityConfig::Validate() const {
     return p;
 }
 
+std::vector<std::string> RunOptions::Validate() const {
+    std::vector<std::string> p;
+    if (!(initial_mesh_voxel_factor >= 1.0 && initial_mesh_voxel_factor <= 8.0))
+        p.push_back("run.initial_mesh_voxel_factor must be within 1..8");
+    return p;
+}
+
 std::vector<std::string> PipelineConfig::Validate() const {
     std::vector<std::string> p = ingest.Validate();
+    for (auto& s : run.Validate()) p.push_back(s);
     for (auto& s : georef.Validate()) p.push_back(s);
     for (auto& s : refraction.Validate()) p.push_back(s);
     for (auto& s : calibrate.Validate()) p.push_back(s);

@@ -54,14 +54,12 @@ std::string Fixed(double v, int digits) {
     return b;
 }
 
-// The error model: vehicle.yaml's `uncertainty:` (the file summary.json names), else defaults.
-SensorErrorModel ErrorModel(const json& summary, const Log& log, std::string* source) {
-    const auto it = summary.find("vehicle_yaml");
-    if (it == summary.end() || !it->is_string()) {
+// The error model: the vehicle file's `uncertainty:` (the file georef used), else defaults.
+SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string* source) {
+    if (path.empty()) {
         *source = "defaults (no vehicle.yaml)";
         return SensorErrorModel{};
     }
-    const std::string path = it->get<std::string>();
     auto v = ReadVehicleFile(path);
     if (!v) {
         log("warning: grid: " + v.error().message + "; the default sensor error model is used");
@@ -120,8 +118,8 @@ Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
                 "vertical.ins_height_above_waterline_m"};
         }
         std::vector<hydro::HeightSample> h;
-        h.reserve(s.ingest.nav.samples.size());
-        for (const auto& n : s.ingest.nav.samples) {
+        h.reserve(s.model.ingest.nav.samples.size());
+        for (const auto& n : s.model.ingest.nav.samples) {
             h.push_back({static_cast<double>(n.utime_gps) * 1e-6, n.position.height_m});
         }
         hydro::WaterSurfaceStats ws;
@@ -284,15 +282,10 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     const GridStageConfig& gc = config.grid;
     std::string model_source;
     hydro::TpuConfig tcfg;
-    tcfg.model = ErrorModel(s.summary, log, &model_source);
+    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &model_source);
     tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
     tcfg.num_threads = gc.cube.num_threads;
-    if (const auto c = s.summary.find("sonar_clock"); c != s.summary.end() && c->is_object()) {
-        const json& sig = c->value("sigma_s", json(0.0));
-        if (sig.is_number() && std::isfinite(sig.get<double>())) {
-            tcfg.clock_sigma_s = std::abs(sig.get<double>());
-        }
-    }
+    tcfg.clock_sigma_s = std::abs(s.model.clock.sigma_s());
     if (auto p = tcfg.Validate(); !p.empty()) {
         return Error{"grid: invalid sensor error model (" + model_source + "):\n" +
                      FormatProblems(p)};
@@ -308,18 +301,18 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         m.position_sigma_v_m;
     std::vector<hydro::PingSigma> sig(s.geo.pings.size());
     for (std::size_t k = 0; k < sig.size(); ++k) {
-        const PoseSigma p =
-            PoseSigmaAt(s.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
+        const PoseSigma p = PoseSigmaAt(
+            s.model.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
         sig[k].attitude_rpy_rad = p.head<3>();
         sig[k].position_enu_m = p.tail<3>();
     }
-    const hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.mount, sig, tcfg);
+    const hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");
 
     auto utm = georef::ToUtm(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
-    const LocalTangentFrame world(s.origin);
+    const LocalTangentFrame world(s.model.origin);
     std::vector<Geodetic> ping_geo(s.geo.pings.size());
     for (std::size_t k = 0; k < ping_geo.size(); ++k) {
         ping_geo[k] = world.FromEnu(s.geo.pings[k].sensor_world);
@@ -494,7 +487,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 }  // namespace detail
 
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/true, log);
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
     if (!s) return s.error();
     return detail::GridSurvey(*s, config, log);
 }

@@ -16,6 +16,7 @@
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
+#include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -88,43 +89,6 @@ void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& cl
     summary["stage_order"] = std::move(order);
 }
 
-json MountJson(const georef::SonarMount& m) {
-    return {{"roll_deg", m.boresight_roll_deg},
-            {"pitch_deg", m.boresight_pitch_deg},
-            {"yaw_deg", m.boresight_yaw_deg},
-            {"lever_arm_sonar_m", {m.lever_arm_m.x(), m.lever_arm_m.y(), m.lever_arm_m.z()}},
-            {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD"}};
-}
-
-Expected<georef::SonarMount> MountFromJson(const json& m) {
-    georef::SonarMount mount;
-    try {
-        mount.boresight_roll_deg = m.at("roll_deg").get<double>();
-        mount.boresight_pitch_deg = m.at("pitch_deg").get<double>();
-        mount.boresight_yaw_deg = m.at("yaw_deg").get<double>();
-        const auto arm = m.at("lever_arm_sonar_m").get<std::vector<double>>();
-        if (arm.size() != 3) return Error{"lever_arm_sonar_m needs 3 values"};
-        mount.lever_arm_m = Eigen::Vector3d(arm[0], arm[1], arm[2]);
-    } catch (const std::exception& e) {
-        return Error{std::string("malformed mount: ") + e.what()};
-    }
-    return mount;
-}
-
-Expected<Geodetic> OriginFromJson(const json& summary) {
-    if (!summary.is_object() || !summary.contains("world_origin")) {
-        return Error{"no world_origin"};
-    }
-    try {
-        const json& o = summary.at("world_origin");
-        return Geodetic{o.at("latitude_deg").get<double>(),
-                        o.at("longitude_deg").get<double>(),
-                        o.at("height_m").get<double>()};
-    } catch (const std::exception& e) {
-        return Error{std::string("malformed world_origin: ") + e.what()};
-    }
-}
-
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
@@ -182,8 +146,8 @@ double ImpliedClockOffset(double configured_offset_s, double correction_s) {
 }  // namespace
 
 Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
-    georef::PingSeries& pings = s.ingest.pings;
-    const georef::NavSeries& nav = s.ingest.nav;
+    georef::PingSeries& pings = s.model.ingest.pings;
+    const georef::NavSeries& nav = s.model.ingest.nav;
     const QualityConfig& q = config.quality;
     const bool header = pings.clock == georef::PingClock::kTopsideHeader;
     json clk = {{"source",
@@ -201,13 +165,8 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     if (header) {
         calib::ClockSearchConfig search;
         // The NMEA position in the headers is the (first) GNSS antenna's.
-        if (const auto v = s.summary.find("vehicle"); v != s.summary.end() && v->is_object()) {
-            const json& arms = v->value("gnss_antenna_lever_arms_m", json::array());
-            if (!arms.empty() && arms[0].is_array() && arms[0].size() == 3) {
-                search.antenna_lever_arm_m = Eigen::Vector3d(
-                    arms[0][0].get<double>(), arms[0][1].get<double>(), arms[0][2].get<double>());
-            }
-        }
+        if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+            search.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
         const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav, search);
         log("sonar clock: " + est.message);
         clk["coarse"] = {{"method", est.method},
@@ -247,7 +206,7 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                              Num("%.1f", q.max_clock_scan_s) +
                              " s the data can resolve (quality.max_clock_scan_s)" + give};
             }
-            calib::ShiftPingTimes(pings, est.correction_s);
+            georef::ShiftPingTimes(pings, est.correction_s);
             applied = est.correction_s;
             sigma = est.sigma_s;
         }
@@ -257,6 +216,12 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     clk["correction_s"] = applied;
     clk["sigma_s"] = sigma;
     s.summary["sonar_clock"] = clk;
+    s.model.clock = {};
+    s.model.clock.configured = config.ingest.sonar_clock_offset_known;
+    s.model.clock.configured_offset_s =
+        config.ingest.sonar_clock_offset_known ? config.ingest.sonar_clock_offset_s : 0.0;
+    s.model.clock.coarse_correction_s = applied;
+    s.model.clock.coarse_sigma_s = sigma;
     // The two recordings must overlap in time.
     const std::int64_t p0 = pings.pings.front().utime_gps, p1 = pings.pings.back().utime_gps;
     const std::int64_t n0 = nav.samples.front().utime_gps, n1 = nav.samples.back().utime_gps;
@@ -271,53 +236,74 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
 Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const PipelineConfig& config,
-                            bool apply_trajectory,
+                            StartFrom start,
                             const Log& log) {
     Survey s;
     s.out_dir = out_dir;
-    auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
-    if (!summary) return Error{summary.error().message + " (run `pitmap georef` first)"};
-    s.summary = std::move(*summary);
-    if (!s.summary.is_object() || !s.summary.contains("world_origin") ||
-        !s.summary.contains("mount")) {
-        return Error{out_dir + "/summary.json: no world_origin/mount (run `pitmap georef` first)"};
+    auto model = survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName);
+    if (!model) return model.error();
+    s.model = std::move(*model);
+    // The report this stage adds to; a damaged one is started again (it decides nothing).
+    if (auto summary = io::ReadSummaryJson(out_dir + "/summary.json"); summary) {
+        s.summary = std::move(*summary);
+    } else {
+        log("warning: " + summary.error().message + "; summary.json is written anew");
+        s.summary = json::object();
     }
-    auto mount = MountFromJson(s.summary["mount"]);
-    if (!mount) return Error{out_dir + "/summary.json: " + mount.error().message};
-    s.mount = *mount;
-    auto origin = OriginFromJson(s.summary);
-    if (!origin) return Error{out_dir + "/summary.json: " + origin.error().message};
-    s.origin = *origin;
-    auto ing = io::ReadIngestCache(out_dir + "/ingest.cache");
-    if (!ing) return ing.error();
-    s.ingest = std::move(*ing);
-    if (auto r = RestoreRefraction(s, log); !r) return r.error();
-    s.geo = georef::RunGeoref(
-        s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin, {}, s.refraction);
-    if (apply_trajectory && s.summary.contains("stages") &&
-        s.summary["stages"].contains(ToString(Stage::kSlam))) {
-        auto traj = ReadTrajectoryCsv(out_dir + "/trajectory.csv");
-        if (!traj) return traj.error();
-        PoseLookup poses = PosesAtPings(s.geo, traj->gps_time_s, traj->T_world_vehicle);
-        if (poses.outside_span > 0) {
-            log("warning: " + std::to_string(poses.outside_span) +
-                " pings outside trajectory.csv keep their INS pose");
-        }
-        ApplyVehiclePoses(s.geo, poses.T_world_vehicle, s.mount);
+    auto refraction = survey::BuildRefraction(s.model.refraction);
+    if (!refraction) {
+        return Error{out_dir + "/" + survey::kSurveyFileName +
+                     ": the sound-velocity casts georef used: " + refraction.error().message};
     }
+    s.refraction = *refraction;
+    if (s.refraction) {
+        log("refraction: " + std::to_string(s.refraction->casts().size()) +
+            " cast(s) as georef used them");
+    }
+    if (start == StartFrom::kNominal) s.model.ResetCalibration();
+    if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
+    s.geo = survey::Georeference(s.model, s.model.latest(), config.georef, s.refraction);
     return s;
+}
+
+Status SaveSurvey(const Survey& s) {
+    if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)
+        return w;
+    return SaveSummary(s);
+}
+
+Status ExportSurvey(Survey& s, const PipelineConfig& config) {
+    StageClock clock;
+    if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
+    json bj = MountJson(s.model.mount);
+    bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
+    if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
+    if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)
+        return w;
+    RecordStage(
+        s.summary,
+        Stage::kExport,
+        {{"points", s.geo.counts.points}, {"trajectory", survey::ToString(s.model.latest())}},
+        clock);
+    return SaveSummary(s);
 }
 
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     ClearGates(s, Stage::kCalibrate);
-    const georef::SonarMount before = s.mount;
+    // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
+    if (s.model.ResetCalibration()) {
+        log("calibrate: starting again from the nominal mount and sonar clock");
+        s.geo = survey::Georeference(
+            s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
+    }
+    const georef::SonarMount before = s.model.mount;
     const QualityConfig& q = config.quality;
     calib::BoresightConfig bc = config.calibrate;
-    const bool header = s.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+    const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
     json& clk = s.summary["sonar_clock"];
     if (!clk.is_object()) clk = json::object();
-    const double clock_sigma = clk.value("sigma_s", 0.0);
+    const double clock_sigma = s.model.clock.coarse_sigma_s;
     if (bc.estimate_latency) {
         // The pings carry the coarse correction already; scan what it leaves (4 sigma).
         bc.initial_latency_s = 0;
@@ -325,7 +311,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     }
     ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
     calib::BoresightResult cal =
-        calib::CalibrateBoresight(s.geo, s.ingest.nav, s.mount, bc, bar.AsCallback());
+        calib::CalibrateBoresight(s.geo, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
     bar.Finish();
     log("calibrate: " + cal.message);
     json st = {
@@ -390,8 +376,13 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             Num("%.0f", bc.segment_duration_s) + " s); the result rests on its own window alone");
     }
     if (cal.termination == calib::Termination::kNoOverlap) {
+        s.model.calibration = survey::CalibrationState::kNoOverlap;
         RecordStage(s.summary, Stage::kCalibrate, st, clock);
-        (void)SaveSummary(s);
+        if (s.defer_products) {
+            (void)SaveSummary(s);
+        } else {
+            (void)SaveSurvey(s);
+        }
         return Error{"calibrate: " + cal.message};
     }
     if (cal.after.pairs > 0 &&
@@ -430,47 +421,54 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         cal.latency_s = 0;
     }
     st["kept_nominal"] = keep_nominal;
-    s.mount = cal.mount;
-    if (cal.latency_estimated && !keep_nominal && cal.latency_s != 0.0) {
+    s.model.mount = cal.mount;
+    s.model.calibration = keep_nominal ? survey::CalibrationState::kKeptNominal
+                                       : survey::CalibrationState::kCalibrated;
+    survey::SonarClockState& mc = s.model.clock;
+    if (cal.latency_estimated && !keep_nominal) {
+        mc.latency_applied = true;
+        mc.latency_s = cal.latency_s;
+        mc.latency_formal_sd_s = cal.latency_formal_sd_s;
+    }
+    if (mc.latency_applied && cal.latency_s != 0.0) {
         // The ping times themselves change: georeference again from the ingested series.
-        calib::ShiftPingTimes(s.ingest.pings, cal.latency_s);
-        s.geo = georef::RunGeoref(
-            s.ingest.nav, s.ingest.pings, s.mount, config.georef, s.origin, {}, s.refraction);
-        if (auto w = io::WriteIngestCache(s.out_dir + "/ingest.cache", s.ingest); !w) return w;
+        georef::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
+        s.geo = georef::RunGeoref(s.model.ingest.nav,
+                                  s.model.ingest.pings,
+                                  s.model.mount,
+                                  config.georef,
+                                  s.model.origin,
+                                  {},
+                                  s.refraction);
     } else {
         georef::Regeoreference(s.geo, cal.mount);
     }
-    clk["latency_s"] = cal.latency_estimated && !keep_nominal ? cal.latency_s : 0.0;
+    if (!keep_nominal) {
+        s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
+            survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+    }
+    clk["latency_s"] = mc.latency_applied ? mc.latency_s : 0.0;
     clk["latency_formal_sd_s"] = cal.latency_formal_sd_s;
-    clk["correction_s"] = clk.value("correction_s", 0.0) + clk["latency_s"].get<double>();
-    if (cal.latency_estimated && !keep_nominal) clk["sigma_s"] = cal.latency_formal_sd_s;
-    // Configured by the command line, the config or the vehicle file (ClockSurvey's record, so
-    // that a stand-alone calibrate knows it too).
-    const double configured_offset = clk.value("configured_offset_s", 0.0);
-    if (clk.value("configured", false) && header) {
+    clk["correction_s"] = mc.correction_s();
+    clk["sigma_s"] = mc.sigma_s();
+    if (mc.configured && header) {
         // In the configured offset's own terms: the offset that would have needed no correction.
-        const double implied =
-            ImpliedClockOffset(configured_offset, clk["correction_s"].get<double>());
+        const double implied = ImpliedClockOffset(mc.configured_offset_s, mc.correction_s());
         clk["estimated_offset_s"] = implied;
-        if (cal.latency_estimated && !keep_nominal &&
-            std::abs(cal.latency_s) >
-                std::max(q.clock_disagreement_s, 3 * cal.latency_formal_sd_s)) {
+        if (mc.latency_applied && std::abs(cal.latency_s) > std::max(q.clock_disagreement_s,
+                                                                     3 * cal.latency_formal_sd_s)) {
             TripGate(s,
                      Stage::kCalibrate,
                      "sonar_clock_disagrees",
-                     "the configured sonar clock offset is " + Num("%+.4f", configured_offset) +
-                         " s, the soundings put it at " + Num("%+.4f", implied) +
-                         " s; the soundings' value is applied",
+                     "the configured sonar clock offset is " +
+                         Num("%+.4f", mc.configured_offset_s) + " s, the soundings put it at " +
+                         Num("%+.4f", implied) + " s; the soundings' value is applied",
                      log);
         }
     }
     s.summary["mount"] = MountJson(cal.mount);
-    if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
-    json bj = MountJson(cal.mount);
-    bj["sonar_clock"] = clk;
-    if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     RecordStage(s.summary, Stage::kCalibrate, st, clock);
-    return SaveSummary(s);
+    return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
 // inputs -> ingest -> georef -> products; the survey stays in memory for later stages.
@@ -487,27 +485,20 @@ Status GeorefSurvey(Survey& s,
     if (files->empty()) return Error{"no input files"};
     const std::string vpath = VehicleFilePath(*files, config);
     io::IngestConfig icfg = config.ingest;
-    if (auto old = io::ReadSummaryJson(out_dir + "/summary.json"); old && old->is_object()) {
-        s.summary = *old;
-    } else {
-        s.summary = json::object();
-    }
-    // A new georeference invalidates whatever later stages recorded.
-    s.summary.erase("stages");
-    s.summary.erase("stage_order");
-    s.summary.erase("total_seconds");
-    s.summary.erase("quality_gates");
-    s.summary.erase("sonar_clock");
+    // A new georeference starts a new survey model and a new report.
+    s.model = survey::SurveyModel{};
+    s.summary = json::object();
     std::optional<double> ins_height_m;
     if (vpath.empty()) {
         log("warning: no vehicle.yaml found beside " + files->front() +
             ": lever arm and boresight default to zero (give --vehicle FILE)");
-        s.summary.erase("vehicle_yaml");
-        s.summary.erase("vehicle");
     } else {
         auto v = io::ReadVehicleYaml(vpath);
         if (!v) return v.error();
-        s.mount = v->mount;
+        s.model.mount = v->mount;
+        s.model.nominal_mount = v->mount;
+        s.model.vehicle_yaml = fs::absolute(vpath).string();
+        s.vehicle = v->description;
         ins_height_m = v->description.ins_height_above_waterline_m;
         ApplyVehicle(v->description, icfg);
         s.summary["vehicle_yaml"] = fs::absolute(vpath).string();
@@ -523,17 +514,17 @@ Status GeorefSurvey(Survey& s,
     auto ing = io::IngestFiles(*files, icfg, bar.AsCallback());
     bar.Finish();
     if (!ing) return ing.error();
-    s.ingest = std::move(*ing);
-    for (const auto& w : s.ingest.warnings) log("warning: " + w);
-    log("ingest: " + s.ingest.message);
-    json ist = s.ingest.counts;
-    ist["warnings"] = s.ingest.warnings;
-    ist["nav_from_raw"] = s.ingest.nav_from_raw;
-    ist["pings_from_raw"] = s.ingest.pings_from_raw;
+    s.model.ingest = std::move(*ing);
+    for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
+    log("ingest: " + s.model.ingest.message);
+    json ist = s.model.ingest.counts;
+    ist["warnings"] = s.model.ingest.warnings;
+    ist["nav_from_raw"] = s.model.ingest.nav_from_raw;
+    ist["pings_from_raw"] = s.model.ingest.pings_from_raw;
     RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);
-    if (s.ingest.nav.samples.empty())
+    if (s.model.ingest.nav.samples.empty())
         return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
-    if (s.ingest.pings.pings.empty())
+    if (s.model.ingest.pings.pings.empty())
         return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
 
     PipelineConfig resolved = config;  // with what the vehicle file gave
@@ -550,9 +541,9 @@ Status GeorefSurvey(Survey& s,
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter gbar(ToString(Stage::kGeoref), 1000);
-    s.geo = georef::RunGeoref(s.ingest.nav,
-                              s.ingest.pings,
-                              s.mount,
+    s.geo = georef::RunGeoref(s.model.ingest.nav,
+                              s.model.ingest.pings,
+                              s.model.mount,
                               config.georef,
                               origin,
                               gbar.AsCallback(),
@@ -560,8 +551,8 @@ Status GeorefSurvey(Survey& s,
     gbar.Finish();
     log("georef: " + s.geo.message);
     if (const std::int64_t out = s.geo.counts.pings_outside_nav; out > 0) {
-        const auto& P = s.ingest.pings.pings;
-        const auto& N = s.ingest.nav.samples;
+        const auto& P = s.model.ingest.pings.pings;
+        const auto& N = s.model.ingest.nav.samples;
         const std::string what =
             std::to_string(out) + " of " + std::to_string(P.size()) +
             " pings lie outside the navigation span and are not georeferenced: navigation " +
@@ -574,27 +565,19 @@ Status GeorefSurvey(Survey& s,
             log("warning: " + what);
         }
     }
-    s.origin = s.geo.world_origin;
+    s.model.origin = s.geo.world_origin;
+    s.model.trajectory(survey::TrajectoryVersion::kIns) =
+        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     RecordStage(s.summary, Stage::kGeoref, s.geo.counts, georef_clock);
-    s.summary["world_origin"] = {{"latitude_deg", s.origin.latitude_deg},
-                                 {"longitude_deg", s.origin.longitude_deg},
-                                 {"height_m", s.origin.height_m}};
-    s.summary["time"] = TimeJson(s.ingest);
+    s.summary["world_origin"] = survey::OriginJson(s.model.origin);
+    s.summary["time"] = TimeJson(s.model.ingest);
     s.summary["inputs"] = json::array();
     for (const auto& f : *files) s.summary["inputs"].push_back(fs::absolute(f).string());
-    s.summary["mount"] = MountJson(s.mount);
+    s.summary["mount"] = MountJson(s.model.mount);
 
-    StageClock export_clock;
-    if (auto st = WritePoints(out_dir, s.geo, config, s.summary); !st) return st;
-    if (auto st =
-            io::WriteInsTrajectoryCsv(out_dir + "/trajectory_ins.csv", s.ingest.nav, s.origin);
-        !st)
-        return st;
-    if (auto st = io::WriteJsonFile(out_dir + "/boresight.json", MountJson(s.mount)); !st)
-        return st;
-    if (auto st = io::WriteIngestCache(out_dir + "/ingest.cache", s.ingest); !st) return st;
-    // Products of later stages made from an earlier georeference would now be stale.
-    for (const char* stale : {"trajectory.csv",
+    // Products of an earlier georeference, now stale (the survey file is replaced below).
+    for (const char* stale : {"ingest.cache",  // the survey file's predecessor
+                              "trajectory.csv",
                               "trajectory_initial.csv",
                               "points_initial.ply",
                               "tsdf.vdb",
@@ -611,8 +594,11 @@ Status GeorefSurvey(Survey& s,
                               "report.html"}) {
         fs::remove(fs::path(out_dir) / stale, ec);
     }
-    RecordStage(s.summary, Stage::kExport, {{"points", s.geo.counts.points}}, export_clock);
-    return SaveSummary(s);
+    if (auto st = io::WriteInsTrajectoryCsv(
+            out_dir + "/trajectory_ins.csv", s.model.ingest.nav, s.model.origin);
+        !st)
+        return st;
+    return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
 }  // namespace detail
@@ -689,7 +675,7 @@ Status RunGeorefStage(const std::vector<std::string>& inputs,
 }
 
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/false, log);
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kNominal, log);
     if (!s) return s.error();
     return detail::CalibrateSurvey(*s, config, log);
 }

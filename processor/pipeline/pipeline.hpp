@@ -1,34 +1,38 @@
 // SPDX-License-Identifier: MIT
-// Composition of the stages on a products folder P (the `pitmap` subcommands):
-//   georef:    inputs -> ingest -> georef -> P/points.ply, points.las, trajectory_ins.csv (the
-//              INS at its own rate, with velocity and status), boresight.json (the mount used),
-//              ingest.cache, summary.json
-//   calibrate: P/ingest.cache + P/summary.json -> boresight calibration -> re-georeference ->
-//              P/boresight.json, points.ply, points.las, summary.json (stage "calibrate")
-//   slam:      re-georeference with the current mount -> continuous-time SLAM ->
-//              P/trajectory_initial.csv (per ping, before), trajectory.csv (per ping, after),
-//              points_initial.ply (before), points.ply, points.las (after)
-//   fuse:      pings on the trajectory of the last stage (trajectory.csv) -> TSDF -> weight
-//              filter -> P/tsdf.vdb
-//   grid:      soundings on the current trajectory -> per-sounding TPU -> CUBE surface ->
+// Composition of the stages on a products folder P (the `pitmap` subcommands). The state the
+// stages share is the survey model (processor/survey), saved as P/survey.pitmap; every other
+// file in P is a product, and summary.json is a report no stage reads to decide what to do.
+//   georef:    inputs -> ingest -> sonar clock -> georef -> survey.pitmap (trajectory version
+//              "ins"), points.ply, points.las, trajectory_ins.csv (the INS at its own rate, with
+//              velocity and status), boresight.json (the mount used), summary.json
+//   calibrate: survey.pitmap from its nominal state -> boresight (and latency) calibration ->
+//              survey.pitmap (version "calibrated"), boresight.json, points.ply, points.las
+//   slam:      survey.pitmap (the calibrated trajectory) -> continuous-time SLAM ->
+//              survey.pitmap (version "slam"), trajectory_initial.csv and points_initial.ply
+//              (per ping, before), trajectory.csv, points.ply, points.las (after)
+//   fuse:      the pings on the newest trajectory -> TSDF -> weight filter -> P/tsdf.vdb
+//   grid:      the soundings on the newest trajectory -> per-sounding TPU -> CUBE surface ->
 //              P/dem.tif (COG), dem.bag (grid_stage.hpp)
 //   mesh:      P/tsdf.vdb -> P/mesh.{ply,obj,glb}, mesh_filled.{ply,obj,glb}
 //   report:    P -> P/report.html (the pitmap-report program beside the pitmap executable)
 //   run:       all of the above in memory (georef, calibrate, SLAM, grid, fuse, mesh, report;
 //              calibrate, SLAM, grid and the report optional), plus P/mesh_initial.ply (the mesh
-//              before SLAM) for the report.
+//              before SLAM) for the report. The survey is georeferenced once (again only where
+//              the calibration changes the ping times) and each product is written once:
+//              points, boresight.json and survey.pitmap by one export after the last stage
+//              that changes the survey (summary.json stage "export").
 // Refraction: with casts (config refraction.svp_files, `--svp FILE...`) georef ray-traces
-// every beam (processor/svp/refraction.hpp); summary.json "refraction" records the casts and
-// settings, and the later stages trace again with them.
+// every beam (processor/svp/refraction.hpp); the survey model records the casts and settings,
+// and the later stages trace again with them.
 // Trajectory files (common/formats/trajectory_csv.hpp) each have one meaning: trajectory_ins.csv
 // the INS rate, trajectory_initial.csv and trajectory.csv one pose per ping before and after
 // SLAM (absent when no SLAM ran).
 // summary.json: world_origin {latitude_deg, longitude_deg, height_m}, utm {zone, northern, epsg},
 // time {gps_minus_utc_s, gps_minus_utc_source, leap_second_table_valid_until,
-// first/last_ping_gps_s, first/last_ping_utc}, inputs, mount, stages -> name -> {seconds,
-// peak_rss_mb, counts...}, stage_order, and after `run` total_seconds. peak_rss_mb is the process's
-// resident-memory high-water mark during the stage (reset at each stage start where the kernel
-// allows it).
+// first/last_ping_gps_s, first/last_ping_utc}, inputs, mount, sonar_clock, stages -> name ->
+// {seconds, peak_rss_mb, counts...}, stage_order, quality_gates, and after `run` total_seconds.
+// peak_rss_mb is the process's resident-memory high-water mark during the stage (reset at each
+// stage start where the kernel allows it).
 #pragma once
 
 #include <cmath>
@@ -54,7 +58,12 @@ struct RunOptions {
     bool calibrate = true;         // boresight calibration before SLAM
     bool slam = true;              // continuous-time SLAM (else the INS trajectory is fused)
     bool mesh_before_slam = true;  // also mesh the survey before SLAM (mesh_initial.ply, report)
-    bool report = true;            // report.html through pitmap-report
+    // The mesh before SLAM is a picture for the report: its voxels are this many times the
+    // final ones (2 = an eighth of the voxels), and it gets no hole filling.
+    double initial_mesh_voxel_factor = 2.0;
+    bool report = true;  // report.html through pitmap-report
+
+    std::vector<std::string> Validate() const;
 };
 
 // Quality gates: where a stage says that it cannot explain its data (summary.json

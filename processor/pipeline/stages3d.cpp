@@ -20,6 +20,7 @@
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
+#include "processor/survey/survey_file.hpp"
 
 extern char** environ;
 
@@ -64,7 +65,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         frames::DegToRad(sc.fallback_attitude_deg[1]),
         frames::DegToRad(sc.fallback_attitude_deg[2]), sc.fallback_position_m[0],
         sc.fallback_position_m[1], sc.fallback_position_m[2];
-    SliceSet set = MakeSlices(s.geo, s.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
+    SliceSet set =
+        MakeSlices(s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
     std::size_t num_points = 0;
     for (const auto& sl : set.slices) num_points += sl.points_vehicle.size();
     log("slam: " + std::to_string(set.slices.size()) + " slices, " + std::to_string(num_points) +
@@ -101,7 +103,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     json ins_check = json::object();
     {
         const QualityConfig& q = config.quality;
-        const auto& sd = s.ingest.nav.stddevs;
+        const auto& sd = s.model.ingest.nav.stddevs;
         std::vector<std::size_t> good;
         std::int64_t beyond = 0;
         double worst = 0;
@@ -151,21 +153,14 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
 
+    // The per-ping products of this stage, written once: before and after.
     const std::string& P = s.out_dir;
-    std::error_code ec;
-    // A products folder of an older pitmap: its georef wrote the INS-rate trajectory as
-    // trajectory.csv; keep it under its own name before trajectory.csv becomes the per-ping one.
-    const bool first_slam =
-        !(s.summary.contains("stages") && s.summary["stages"].contains(ToString(Stage::kSlam)));
-    if (first_slam && !fs::exists(P + "/trajectory_ins.csv") && fs::exists(P + "/trajectory.csv")) {
-        fs::rename(P + "/trajectory.csv", P + "/trajectory_ins.csv", ec);
-        if (ec) return Error{P + "/trajectory_ins.csv: " + ec.message()};
-    }
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
     if (auto w = io::WritePly(P + "/points_initial.ply", s.geo); !w) return w;
-    ApplyVehiclePoses(s.geo, after, s.mount);
+    ApplyVehiclePoses(s.geo, after, s.model.mount);
+    s.model.trajectory(survey::TrajectoryVersion::kSlam) =
+        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
-    if (auto w = WritePoints(P, s.geo, config, s.summary); !w) return w;
 
     json st = {{"termination", slam::ToString(r.termination)},
                {"message", r.message},
@@ -218,7 +213,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};
     }
-    return SaveSummary(s);
+    return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
@@ -227,8 +222,11 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const Log& log) {
     StageClock clock;
     const std::string name = ToString(stage);
-    const std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.ingest.pings, s.mount);
-    fusion::TsdfVolume volume(config.tsdf);
+    const std::vector<fusion::SonarScan> scans =
+        MakeScans(s.geo, s.model.ingest.pings, s.model.mount);
+    fusion::TsdfConfig tcfg = config.tsdf;
+    if (stage == Stage::kFuseInitial) tcfg.voxel_size_m *= config.run.initial_mesh_voxel_factor;
+    fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
     const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
     bar.Finish();
@@ -240,7 +238,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     const fusion::VolumeStats vs = volume.Stats();
     json st = ir;  // the integration counts
     st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
-               {"voxel_size_m", config.tsdf.voxel_size_m},
+               {"voxel_size_m", tcfg.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
                {"integrate_seconds", ir.elapsed_s},
                {"min_weight", config.weight_filter.min_weight},
@@ -252,9 +250,9 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     st["weight_histogram"]["before_filter"] = true;
     if (stage == Stage::kFuse) {
         const std::vector<std::pair<std::string, std::string>> meta = {
-            {"pitmap_origin_latitude_deg", Fixed(s.origin.latitude_deg, 9)},
-            {"pitmap_origin_longitude_deg", Fixed(s.origin.longitude_deg, 9)},
-            {"pitmap_origin_height_m", Fixed(s.origin.height_m, 4)},
+            {"pitmap_origin_latitude_deg", Fixed(s.model.origin.latitude_deg, 9)},
+            {"pitmap_origin_longitude_deg", Fixed(s.model.origin.longitude_deg, 9)},
+            {"pitmap_origin_height_m", Fixed(s.model.origin.height_m, 4)},
             {"pitmap_frame", "local ENU at the origin, metres"}};
         if (auto w = fusion::WriteVdb(volume, s.out_dir + "/tsdf.vdb", meta); !w) return w.error();
     }
@@ -271,10 +269,12 @@ Status MeshSurvey(Survey& s,
                   const Log& log) {
     StageClock clock;
     const std::string stage_name = ToString(stage);
-    const mesh::MeshResult m = mesh::RunMesh(volume, config.mesh);
+    mesh::MeshConfig mcfg = config.mesh;
+    if (stage == Stage::kMeshInitial) mcfg.max_hole_edges = 0;  // a picture: no display mesh
+    const mesh::MeshResult m = mesh::RunMesh(volume, mcfg);
     log(stage_name + ": " + m.message);
     const std::string& P = s.out_dir;
-    const std::optional<Geodetic> origin = s.origin;
+    const std::optional<Geodetic> origin = s.model.origin;
     if (stage == Stage::kMesh) {
         for (const auto& [name, mm] :
              {std::pair<std::string, const mesh::ColouredMesh*>{"mesh", &m.mesh},
@@ -338,13 +338,13 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 }  // namespace detail
 
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/false, log);
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kBeforeSlam, log);
     if (!s) return s.error();
     return detail::SlamSurvey(*s, config, log);
 }
 
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, /*apply_trajectory=*/true, log);
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
     if (!s) return s.error();
     auto v = detail::FuseSurvey(*s, config, Stage::kFuse, log);
     if (!v) return v.error();
@@ -353,27 +353,28 @@ Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, co
 
 namespace {
 
-// A survey of which only summary.json and the origin are needed (mesh, report).
-Expected<detail::Survey> LoadSummary(const std::string& out_dir, Stage run_first) {
-    auto summary = io::ReadSummaryJson(out_dir + "/summary.json");
-    if (!summary)
-        return Error{summary.error().message + " (run `pitmap " + ToString(run_first) + "` first)"};
+// A survey of which only the model's state is needed (mesh, report): the world origin, and
+// summary.json to add the stage's record to.
+Expected<detail::Survey> LoadState(const std::string& out_dir, const Log& log) {
+    auto model =
+        survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName, survey::LoadParts::kState);
+    if (!model) return model.error();
     detail::Survey s;
     s.out_dir = out_dir;
-    s.summary = std::move(*summary);
-    auto origin = detail::OriginFromJson(s.summary);
-    if (!origin) {
-        return Error{out_dir + "/summary.json: " + origin.error().message + " (run `pitmap " +
-                     ToString(run_first) + "` first)"};
+    s.model = std::move(*model);
+    if (auto summary = io::ReadSummaryJson(out_dir + "/summary.json"); summary) {
+        s.summary = std::move(*summary);
+    } else {
+        log("warning: " + summary.error().message + "; summary.json is written anew");
+        s.summary = json::object();
     }
-    s.origin = *origin;
     return s;
 }
 
 }  // namespace
 
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = LoadSummary(out_dir, Stage::kFuse);
+    auto s = LoadState(out_dir, log);
     if (!s) return s.error();
     auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb");
     if (!volume) return Error{volume.error().message + " (run `pitmap fuse` first)"};
@@ -381,7 +382,7 @@ Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, co
 }
 
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = LoadSummary(out_dir, Stage::kGeoref);
+    auto s = LoadState(out_dir, log);
     if (!s) return s.error();
     return detail::ReportSurvey(*s, config, log);
 }
@@ -393,26 +394,32 @@ Status RunAll(const std::vector<std::string>& inputs,
     const auto start = std::chrono::steady_clock::now();
     detail::Survey s;
     s.out_dir = out_dir;
+    // The stages that change the survey (georef, calibrate, SLAM) leave points.ply/las,
+    // boresight.json and survey.pitmap to one export once the last of them has run.
+    s.defer_products = true;
+    auto export_now = [&](Status failed) -> Status {
+        s.defer_products = false;
+        if (auto w = detail::ExportSurvey(s, config); !w) return w;
+        return failed;
+    };
     if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;
     if (config.run.calibrate) {
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
-            const json& c = s.summary["stages"][ToString(Stage::kCalibrate)];
-            if (!c.is_object() ||
-                c.value("termination", "") != calib::ToString(calib::Termination::kNoOverlap)) {
-                return st;
-            }
+            if (s.model.calibration != survey::CalibrationState::kNoOverlap) return export_now(st);
             log("warning: " + st.error().message + "; keeping the mount of vehicle.yaml");
         }
     }
     if (config.run.slam && config.run.mesh_before_slam) {
         auto v = detail::FuseSurvey(s, config, Stage::kFuseInitial, log);
-        if (!v) return v.error();
-        if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMeshInitial, log); !st) return st;
+        if (!v) return export_now(v.error());
+        if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMeshInitial, log); !st)
+            return export_now(st);
     }
     if (config.run.slam) {
-        if (auto st = detail::SlamSurvey(s, config, log); !st) return st;
+        if (auto st = detail::SlamSurvey(s, config, log); !st) return export_now(st);
     }
+    if (auto st = export_now(Ok{}); !st) return st;
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) return st;
     }

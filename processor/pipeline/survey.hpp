@@ -9,42 +9,58 @@
 #include <optional>
 #include <string>
 
+#include "common/vehicle.hpp"
+
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
 #include "processor/pipeline/pipeline.hpp"
+#include "processor/survey/survey.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 
-// What a products folder holds, in memory: the ingested series, the mount, the world origin,
-// the georeferenced soundings on the current trajectory, and summary.json.
+// A survey being processed: the model the stages share (processor/survey: saved as
+// P/survey.pitmap, the only state a stage command loads), the georeferenced view the stages
+// work on, and summary.json, the report each stage adds its record to (never read to decide).
 struct Survey {
     std::string out_dir;
-    io::IngestResult ingest;
-    georef::SonarMount mount;
-    Geodetic origin;
-    georef::GeorefResult geo;
+    survey::SurveyModel model;
+    georef::GeorefResult geo;  // the model's soundings on its newest trajectory
     nlohmann::json summary;
-    std::shared_ptr<const svp::Refraction> refraction;  // null = straight rays
+    std::shared_ptr<const svp::Refraction> refraction;  // the model's casts; null = straight rays
+    // The vehicle file as read by georef (the coarse sonar clock search needs its antennas).
+    std::optional<VehicleDescription> vehicle;
+    // `run`: the stages leave points.ply/las, boresight.json and survey.pitmap to one export at
+    // the end (ExportSurvey), so that each product is written once. Stage commands write their
+    // products themselves.
+    bool defer_products = false;
 };
 
-// Refraction for a new georeference: the config's casts (none: straight rays, and
-// summary["refraction"] is removed) with the INS height above the water line from the config,
-// else from the vehicle file; records summary["refraction"]. An unreadable or bad cast file,
-// or no INS height, is an error.
+// Refraction for a new georeference: the config's casts (none: straight rays) with the INS
+// height above the water line from the config, else from the vehicle file; sets the model's
+// record and summary["refraction"]. An unreadable or bad cast file, or no INS height, is an
+// error.
 Status SetUpRefraction(Survey& s,
                        const PipelineConfig& config,
                        std::optional<double> vehicle_ins_height_m,
                        const Log& log);
-// Refraction for a later stage: what summary["refraction"] recorded (the casts are read again).
-Status RestoreRefraction(Survey& s, const Log& log);
 
-// Loads P/summary.json and P/ingest.cache and georeferences with the recorded mount; with
-// `apply_trajectory`, moves the pings onto P/trajectory.csv when a SLAM stage wrote it.
+// What a stage command starts from.
+enum class StartFrom {
+    kLatest,      // the newest trajectory (fuse, grid)
+    kNominal,     // the state before any calibration (calibrate)
+    kBeforeSlam,  // the calibrated trajectory, an earlier SLAM's dropped (slam)
+};
+// Loads P/survey.pitmap (and P/summary.json, to add to the report; a missing or unreadable one
+// starts a new report), moves the model to `start` and georeferences it once.
 Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const PipelineConfig& config,
-                            bool apply_trajectory,
+                            StartFrom start,
                             const Log& log);
+// Saves the model (P/survey.pitmap) and summary.json.
+Status SaveSurvey(const Survey& s);
+// points.ply, points.las and boresight.json of the current view, then SaveSurvey.
+Status ExportSurvey(Survey& s, const PipelineConfig& config);
 
 // Wall time of one stage. Construction resets the resident-memory high-water mark
 // (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the
@@ -65,10 +81,7 @@ void RecordStage(nlohmann::json& summary,
                  nlohmann::json stage,
                  const StageClock& clock);
 
-nlohmann::json MountJson(const georef::SonarMount& m);
-Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
-// summary["world_origin"] {latitude_deg, longitude_deg, height_m}; an error names what is wrong.
-Expected<Geodetic> OriginFromJson(const nlohmann::json& summary);
+using survey::MountJson;
 
 // points.ply, points.las (when configured) and summary["utm"] for the current soundings.
 Status WritePoints(const std::string& dir,

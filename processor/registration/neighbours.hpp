@@ -33,6 +33,19 @@ public:
     std::size_t Nearest(const Point& q, std::size_t k, std::size_t* idx, Scalar* d2) const {
         return tree_.knnSearch(q.data(), k, idx, d2);
     }
+    // The nearest point strictly closer than sqrt(bound2): true and its index and squared
+    // distance, or false. The bound prunes the descent, so that asking a tree whose points all
+    // lie beyond it costs a few node visits (a k = 1 search with no bound walks down to the
+    // nearest point however far it is). Ties go to the point the descent meets first, as in
+    // Nearest(q, 1).
+    bool NearestWithin(const Point& q, Scalar bound2, std::size_t* idx, Scalar* d2) const {
+        Closest r(bound2);
+        tree_.findNeighbors(r, q.data(), nanoflann::SearchParams());
+        if (!r.found) return false;
+        *idx = r.index;
+        *d2 = r.dist;
+        return true;
+    }
     // Every point within sqrt(radius2) of q, unsorted; `hits` is cleared first.
     void WithinRadius(const Point& q, Scalar radius2, std::vector<Hit>& hits) const {
         hits.clear();
@@ -41,6 +54,23 @@ public:
 
 private:
     static constexpr std::size_t kLeafSize = 16;
+    // nanoflann result set keeping the closest point under a bound that shrinks as it is met.
+    struct Closest {
+        explicit Closest(Scalar bound) : dist(bound) {}
+        Scalar worstDist() const { return dist; }
+        bool full() const { return true; }
+        bool addPoint(Scalar d, std::size_t i) {
+            if (d < dist) {
+                dist = d;
+                index = i;
+                found = true;
+            }
+            return true;
+        }
+        Scalar dist;
+        std::size_t index = 0;
+        bool found = false;
+    };
     struct View {
         const Point* pts = nullptr;
         std::size_t n = 0;

@@ -115,8 +115,28 @@ std::vector<Pair> FindPairs(const Input& in,
         tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
         [&](const tbb::blocked_range<std::size_t>& range) {
             auto& out = local.local();
+            const float sm = static_cast<float>(score_m);
+            std::vector<const Block*> near;  // the slice's candidates for the score
             for (std::size_t s = range.begin(); s != range.end(); ++s) {
                 const double t = in.t_s[s];
+                // Time-separated blocks whose box comes within score_m of the slice's box: the
+                // only ones whose box can come within score_m of one of its points.
+                Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+                Eigen::Vector3f hi =
+                    Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest());
+                for (std::size_t q = in.offset[s]; q < in.offset[s + 1]; ++q) {
+                    lo = lo.cwiseMin(pw[q]);
+                    hi = hi.cwiseMax(pw[q]);
+                }
+                near.clear();
+                for (const Block& b : blocks) {
+                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
+                    if ((hi.array() < b.lo.array() - sm).any() ||
+                        (lo.array() > b.hi.array() + sm).any()) {
+                        continue;
+                    }
+                    near.push_back(&b);
+                }
                 for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
                     const Eigen::Vector3f& p = pw[q];
                     float best = dmax2;
@@ -124,11 +144,9 @@ std::vector<Pair> FindPairs(const Input& in,
                     std::uint32_t best_block = 0;
                     bool found = false, candidate = false;
                     // Score bookkeeping: does any time-separated block's box come within score_m?
-                    const float sm = static_cast<float>(score_m);
-                    for (const Block& b : blocks) {
-                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
-                        if (!((p.array() < b.lo.array() - sm).any() ||
-                              (p.array() > b.hi.array() + sm).any())) {
+                    for (const Block* b : near) {
+                        if (!((p.array() < b->lo.array() - sm).any() ||
+                              (p.array() > b->hi.array() + sm).any())) {
                             candidate = true;
                             break;
                         }
@@ -144,7 +162,7 @@ std::vector<Pair> FindPairs(const Input& in,
                         }
                         std::size_t idx = 0;
                         float d2 = 0;
-                        if (b.tree->Nearest(p, 1, &idx, &d2) == 1 && d2 < best) {
+                        if (b.tree->NearestWithin(p, best, &idx, &d2)) {
                             best = d2;
                             best_idx = b.p0 + idx;
                             best_block = bi;

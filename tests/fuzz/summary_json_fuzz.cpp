@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // libFuzzer target for the summary.json reader (processor/io/products.cpp) and the readers of
-// its world origin and mount (processor/pipeline). A read either fails with an error naming
+// its world origin and mount (processor/survey). A read either fails with an error naming
 // the file, or the keys the stages use have their types, so that reading them cannot throw.
 #include <cmath>
 #include <cstddef>
@@ -8,7 +8,7 @@
 #include <cstdlib>
 
 #include "processor/io/products.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/survey/survey.hpp"
 #include "tests/fuzz/fuzz_file.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -18,11 +18,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         pitmap::fuzz::CheckNamesFile(r.error().message, file.path());
         return 0;
     }
-    namespace detail = pitmap::proc::pipeline::detail;
+    namespace survey = pitmap::proc::survey;
     if (r->contains("world_origin")) {
-        const auto o = detail::OriginFromJson(*r);
+        const auto o = survey::OriginFromJson(r->at("world_origin"));
         if (!o || !std::isfinite(o->latitude_deg)) std::abort();
     }
-    if (r->contains("mount") && !detail::MountFromJson(r->at("mount"))) std::abort();
+    if (r->contains("mount") && !survey::MountFromJson(r->at("mount"))) std::abort();
     return 0;
 }

@@ -40,7 +40,7 @@ report_s=$(awk -v a="$report_start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }
 
 echo "=== run-e2e-bench: ray-mode TSDF on the same trajectory"
 mkdir -p "$out/ray"
-cp "$out/products"/{summary.json,ingest.cache,trajectory.csv} "$out/ray/"
+cp "$out/products"/{summary.json,survey.pitmap} "$out/ray/"
 printf 'fuse:\n  sensor_model: ray\n' > "$out/ray.yaml"
 "$bin/pitmap" fuse --out "$out/ray" --config "$out/ray.yaml" 2>&1 | grep -v '%  \[' || true
 "$bin/pitmap" mesh --out "$out/ray" 2>&1 | grep -v '%  \[' || true

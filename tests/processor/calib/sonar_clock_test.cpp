@@ -86,7 +86,7 @@ TEST(SonarClock, ShiftKeepsOrder) {
     o.duration_s = 5;
     auto sv = MakeSurvey(o);
     const auto t0 = sv.pings.pings.front().utime_gps;
-    ShiftPingTimes(sv.pings, -1.25);
+    georef::ShiftPingTimes(sv.pings, -1.25);
     EXPECT_EQ(sv.pings.pings.front().utime_gps, t0 - 1'250'000);
     EXPECT_EQ(SpanText(0, 2'500'000), "0.000 .. 2.500 GPS s (2.5 s)");
 }

@@ -3,10 +3,12 @@
 // and GLB writers read back (GLB: header, chunks, JSON parsed with nlohmann_json, positions).
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 
 #include "processor/mesh/export.hpp"
@@ -158,6 +160,53 @@ TEST_F(ExportTest, PlyReadsBackWithOriginComment) {
                 mesh_.triangles[f][k]);
         }
     }
+}
+
+// The OBJ writer formats with std::to_chars into 1 MB blocks: every line is what printf's
+// "%.4f" and "%d" write, across block boundaries, for coordinates of either sign and any colour.
+TEST_F(ExportTest, ObjTextEqualsPrintfAcrossBlocks) {
+    ColouredMesh m;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> coord(-2000.0f, 2000.0f);
+    for (int i = 0; i < 60000; ++i) {
+        m.vertices.emplace_back(coord(rng), coord(rng), i % 7 == 0 ? -0.00001f : coord(rng));
+        m.colours.push_back({static_cast<std::uint8_t>(rng() & 0xff),
+                             static_cast<std::uint8_t>(rng() & 0xff),
+                             static_cast<std::uint8_t>(rng() & 0xff)});
+    }
+    for (int i = 0; i + 2 < 60000; i += 3) m.triangles.emplace_back(i, i + 1, i + 2);
+    const std::string path = dir_ + "/printf.obj";
+    ASSERT_TRUE(WriteObj(m, path));
+    std::ifstream in(path);
+    std::string line;
+    std::size_t v = 0, f = 0;
+    char want[256];
+    while (std::getline(in, line)) {
+        if (line.rfind("v ", 0) == 0) {
+            ASSERT_LT(v, m.vertices.size());
+            const auto& p = m.vertices[v];
+            const auto& c = m.colours[v];
+            std::snprintf(want,
+                          sizeof want,
+                          "v %.4f %.4f %.4f %.4f %.4f %.4f",
+                          p.x(),
+                          p.y(),
+                          p.z(),
+                          c[0] / 255.0,
+                          c[1] / 255.0,
+                          c[2] / 255.0);
+            ASSERT_EQ(line, want) << "vertex " << v;
+            ++v;
+        } else if (line.rfind("f ", 0) == 0) {
+            ASSERT_LT(f, m.triangles.size());
+            const auto& t = m.triangles[f];
+            std::snprintf(want, sizeof want, "f %d %d %d", t[0] + 1, t[1] + 1, t[2] + 1);
+            ASSERT_EQ(line, want) << "face " << f;
+            ++f;
+        }
+    }
+    EXPECT_EQ(v, m.vertices.size());
+    EXPECT_EQ(f, m.triangles.size());
 }
 
 TEST_F(ExportTest, ObjReadsBack) {

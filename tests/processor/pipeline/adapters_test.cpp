@@ -43,6 +43,7 @@ struct Survey {
 
 Survey MakeSurvey(const georef::SonarMount& mount) {
     Survey s;
+    s.geo.mount = mount;  // as RunGeoref records it
     for (int k = 0; k < 4; ++k) {
         georef::PingHeader h;
         h.utime_gps = 1'400'000'000'000'000 + k * 100'000;

@@ -23,8 +23,8 @@ Survey FromSynthetic(double clock_error_s, bool header_position) {
     o.header_position = header_position;
     auto sv = MakeSurvey(o);
     Survey s;
-    s.ingest.nav = std::move(sv.nav);
-    s.ingest.pings = std::move(sv.pings);
+    s.model.ingest.nav = std::move(sv.nav);
+    s.model.ingest.pings = std::move(sv.pings);
     s.summary = nlohmann::json::object();
     return s;
 }
@@ -38,14 +38,18 @@ struct Collect {
 
 TEST(ClockStage, AnUnknownOffsetIsFoundAndApplied) {
     Survey s = FromSynthetic(3600 + 2.35, true);
-    const std::int64_t true_first = s.ingest.pings.pings.front().utime_gps - 3'602'350'000;
+    const std::int64_t true_first = s.model.ingest.pings.pings.front().utime_gps - 3'602'350'000;
     Collect c;
     ASSERT_TRUE(ClockSurvey(s, PipelineConfig{}, c.log()));
     const auto& clk = s.summary["sonar_clock"];
     EXPECT_EQ(clk["coarse"]["method"], "header position");
     EXPECT_NEAR(clk["correction_s"].get<double>(), -3602.35, 0.3);
-    EXPECT_NEAR((s.ingest.pings.pings.front().utime_gps - true_first) * 1e-6, 0.0, 0.3);
+    EXPECT_NEAR((s.model.ingest.pings.pings.front().utime_gps - true_first) * 1e-6, 0.0, 0.3);
     EXPECT_FALSE(s.summary.contains("quality_gates"));
+    // The survey model, which the later stages read, holds the same correction.
+    EXPECT_DOUBLE_EQ(s.model.clock.correction_s(), clk["correction_s"].get<double>());
+    EXPECT_DOUBLE_EQ(s.model.clock.sigma_s(), clk["sigma_s"].get<double>());
+    EXPECT_FALSE(s.model.clock.configured);
 }
 
 TEST(ClockStage, AConfiguredOffsetThatDisagreesTripsAGateWithBothNumbers) {
@@ -79,7 +83,7 @@ TEST(ClockStage, AConfiguredOffsetThatAgreesIsQuiet) {
 TEST(ClockStage, NoOverlapIsAnErrorNamingBothSpans) {
     // A daemon-stamped survey whose navigation ended before the sonar started.
     Survey s = FromSynthetic(500.0, false);
-    s.ingest.pings.clock = georef::PingClock::kGpsStamped;
+    s.model.ingest.pings.clock = georef::PingClock::kGpsStamped;
     Collect c;
     const Status st = ClockSurvey(s, PipelineConfig{}, c.log());
     ASSERT_FALSE(st);
@@ -94,7 +98,7 @@ TEST(ClockStage, NoOverlapIsAnErrorNamingBothSpans) {
 TEST(ClockStage, HeadersThatCannotPlaceTheSonarAreAnErrorAskingForTheOffset) {
     // No aids, and a sonar file much shorter than the navigation: the span is too uncertain.
     Survey s = FromSynthetic(30.0, false);
-    s.ingest.pings.pings.resize(300);  // 30 s of a 120 s navigation
+    s.model.ingest.pings.pings.resize(300);  // 30 s of a 120 s navigation
     Collect c;
     const Status st = ClockSurvey(s, PipelineConfig{}, c.log());
     ASSERT_FALSE(st);

@@ -56,6 +56,39 @@ TEST(PointIndex, NearestAndRadiusMatchBruteForce) {
     }
 }
 
+// The bounded nearest search finds the nearest point exactly when it lies strictly inside the
+// bound, and agrees with Nearest(q, 1) there (same point on ties: a grid has many).
+TEST(PointIndex, NearestWithinABoundMatchesBruteForceAndNearest) {
+    auto pts = RandomPoints(3000, 3, 10.0);
+    for (int i = 0; i < 500; ++i) pts.emplace_back(i % 10, (i / 10) % 10, i / 100);  // ties
+    const PointIndex3d index(pts.data(), pts.size());
+    auto queries = RandomPoints(200, 4, 14.0);
+    for (int i = 0; i < 50; ++i) queries.emplace_back(i % 10 + 0.5, (i / 10) % 10, 0.0);
+    int found = 0, missed = 0;
+    for (const auto& q : queries) {
+        double best = 1e300;
+        for (const auto& x : pts) best = std::min(best, (x - q).squaredNorm());
+        std::size_t knn_idx = 0;
+        double knn_d2 = 0;
+        ASSERT_EQ(index.Nearest(q, 1, &knn_idx, &knn_d2), 1u);
+        for (const double bound : {0.01, 0.3, 1.0, 4.0, 1e9}) {
+            std::size_t idx = 0;
+            double d2 = 0;
+            const bool hit = index.NearestWithin(q, bound, &idx, &d2);
+            ASSERT_EQ(hit, best < bound) << "bound " << bound;
+            if (!hit) {
+                ++missed;
+                continue;
+            }
+            ++found;
+            EXPECT_DOUBLE_EQ(d2, best);
+            EXPECT_EQ(idx, knn_idx);
+        }
+    }
+    EXPECT_GT(found, 100);
+    EXPECT_GT(missed, 100);
+}
+
 TEST(PointIndex, FloatPointsAndFewerThanAsked) {
     std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {1, 0, 0}};
     const PointIndex3f index(pts.data(), pts.size());

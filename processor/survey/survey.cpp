@@ -1,0 +1,181 @@
+// SPDX-License-Identifier: MIT
+#include "processor/survey/survey.hpp"
+
+#include <exception>
+#include <utility>
+
+#include "processor/io/svp_files.hpp"
+
+namespace pitmap::proc::survey {
+
+using nlohmann::json;
+
+const char* ToString(TrajectoryVersion v) {
+    switch (v) {
+        case TrajectoryVersion::kIns:
+            return "ins";
+        case TrajectoryVersion::kCalibrated:
+            return "calibrated";
+        case TrajectoryVersion::kSlam:
+            return "slam";
+    }
+    return "?";
+}
+
+const char* ToString(CalibrationState s) {
+    switch (s) {
+        case CalibrationState::kNotRun:
+            return "not_run";
+        case CalibrationState::kCalibrated:
+            return "calibrated";
+        case CalibrationState::kKeptNominal:
+            return "kept_nominal";
+        case CalibrationState::kNoOverlap:
+            return "no_overlap";
+    }
+    return "?";
+}
+
+TrajectoryVersion SurveyModel::latest() const {
+    for (int v = kNumTrajectoryVersions - 1; v > 0; --v) {
+        if (!trajectories[v].empty()) return static_cast<TrajectoryVersion>(v);
+    }
+    return TrajectoryVersion::kIns;
+}
+
+void SurveyModel::DropFrom(TrajectoryVersion v) {
+    for (int i = static_cast<int>(v); i < kNumTrajectoryVersions; ++i) trajectories[i] = {};
+}
+
+bool SurveyModel::ResetCalibration() {
+    bool changed = calibration != CalibrationState::kNotRun ||
+                   has(TrajectoryVersion::kCalibrated) || has(TrajectoryVersion::kSlam);
+    if (clock.latency_applied) {
+        georef::ShiftPingTimes(ingest.pings, -clock.latency_s);
+        changed = true;
+    }
+    clock.latency_applied = false;
+    clock.latency_s = 0;
+    clock.latency_formal_sd_s = 0;
+    const auto same = [](const georef::SonarMount& a, const georef::SonarMount& b) {
+        return a.lever_arm_m == b.lever_arm_m && a.boresight_roll_deg == b.boresight_roll_deg &&
+               a.boresight_pitch_deg == b.boresight_pitch_deg &&
+               a.boresight_yaw_deg == b.boresight_yaw_deg;
+    };
+    if (!same(mount, nominal_mount)) changed = true;
+    mount = nominal_mount;
+    calibration = CalibrationState::kNotRun;
+    DropFrom(TrajectoryVersion::kCalibrated);
+    return changed;
+}
+
+Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r) {
+    if (!r.enabled()) return std::shared_ptr<const svp::Refraction>();
+    auto casts = io::ReadSoundSpeedFiles(r.svp_files);
+    if (!casts) return casts.error();
+    if (auto p = svp::Refraction::Check(*casts, r.selection, r.ins_height_above_waterline_m);
+        !p.empty()) {
+        std::string text;
+        for (const auto& line : p) text += (text.empty() ? "" : "\n") + line;
+        return Error{text};
+    }
+    return std::shared_ptr<const svp::Refraction>(std::make_shared<const svp::Refraction>(
+        std::move(*casts), r.selection, r.surface_speed, r.ins_height_above_waterline_m));
+}
+
+PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings) {
+    PingTrajectory t;
+    t.T_world_vehicle.assign(num_pings, Pose::Identity());
+    t.valid.assign(num_pings, 0);
+    for (const georef::GeorefPing& p : geo.pings) {
+        if (p.header_index >= num_pings) continue;
+        t.T_world_vehicle[p.header_index] = p.T_world_vehicle;
+        t.valid[p.header_index] = 1;
+    }
+    return t;
+}
+
+std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t) {
+    std::vector<Pose> delta(geo.pings.size(), Pose::Identity());
+    std::size_t kept = 0;
+    const Pose T_vehicle_sonar = geo.mount.T_vehicle_sonar();
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        georef::GeorefPing& p = geo.pings[k];
+        const std::size_t i = p.header_index;
+        if (i >= t.T_world_vehicle.size() || i >= t.valid.size() || t.valid[i] == 0) {
+            ++kept;
+            continue;
+        }
+        delta[k] = t.T_world_vehicle[i] * p.T_world_vehicle.inverse();
+        p.T_world_vehicle = t.T_world_vehicle[i];
+        p.sensor_world = (p.T_world_vehicle * T_vehicle_sonar).translation();
+    }
+    for (std::size_t j = 0; j < geo.points.size(); ++j) {
+        geo.points.position_world[j] = delta[geo.points.ping[j]] * geo.points.position_world[j];
+    }
+    return kept;
+}
+
+georef::GeorefResult Georeference(const SurveyModel& m,
+                                  TrajectoryVersion v,
+                                  const georef::GeorefConfig& config,
+                                  std::shared_ptr<const svp::Refraction> refraction,
+                                  const ProgressCallback& progress) {
+    georef::GeorefResult geo = georef::RunGeoref(
+        m.ingest.nav, m.ingest.pings, m.mount, config, m.origin, progress, std::move(refraction));
+    // RunGeoref puts each ping on the navigation at its current time: the calibrated version
+    // once the calibration ran, else the INS one. Any other version moves the pings.
+    int chosen = -1;
+    for (int i = static_cast<int>(v); i >= 0; --i) {
+        if (!m.trajectories[i].empty()) {
+            chosen = i;
+            break;
+        }
+    }
+    const int current =
+        static_cast<int>(m.has(TrajectoryVersion::kCalibrated) ? TrajectoryVersion::kCalibrated
+                                                               : TrajectoryVersion::kIns);
+    if (chosen >= 0 && chosen != current) ApplyTrajectory(geo, m.trajectories[chosen]);
+    return geo;
+}
+
+json MountJson(const georef::SonarMount& m) {
+    return {{"roll_deg", m.boresight_roll_deg},
+            {"pitch_deg", m.boresight_pitch_deg},
+            {"yaw_deg", m.boresight_yaw_deg},
+            {"lever_arm_sonar_m", {m.lever_arm_m.x(), m.lever_arm_m.y(), m.lever_arm_m.z()}},
+            {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD"}};
+}
+
+Expected<georef::SonarMount> MountFromJson(const json& m) {
+    georef::SonarMount mount;
+    try {
+        mount.boresight_roll_deg = m.at("roll_deg").get<double>();
+        mount.boresight_pitch_deg = m.at("pitch_deg").get<double>();
+        mount.boresight_yaw_deg = m.at("yaw_deg").get<double>();
+        const auto arm = m.at("lever_arm_sonar_m").get<std::vector<double>>();
+        if (arm.size() != 3) return Error{"lever_arm_sonar_m needs 3 values"};
+        mount.lever_arm_m = Eigen::Vector3d(arm[0], arm[1], arm[2]);
+    } catch (const std::exception& e) {
+        return Error{std::string("malformed mount: ") + e.what()};
+    }
+    return mount;
+}
+
+json OriginJson(const Geodetic& g) {
+    return {{"latitude_deg", g.latitude_deg},
+            {"longitude_deg", g.longitude_deg},
+            {"height_m", g.height_m}};
+}
+
+Expected<Geodetic> OriginFromJson(const json& o) {
+    try {
+        return Geodetic{o.at("latitude_deg").get<double>(),
+                        o.at("longitude_deg").get<double>(),
+                        o.at("height_m").get<double>()};
+    } catch (const std::exception& e) {
+        return Error{std::string("malformed world_origin: ") + e.what()};
+    }
+}
+
+}  // namespace pitmap::proc::survey

@@ -1,0 +1,137 @@
+// SPDX-License-Identifier: MIT
+// The survey model: the state the processing stages share, in memory and in one versioned
+// binary file in the products folder (survey_file.hpp). The products folder holds outputs;
+// summary.json is a report that no stage reads to decide what to do; the stages decide on this.
+//
+//   ingest        the navigation and the pings in GPS time, after the sonar clock correction
+//                 (the ping series keeps the sonar-frame ranges; the range gate and the spike
+//                 filter are the georeferencing's and are applied once per view)
+//   vehicle       the vehicle file's path and the nominal mount; the current mount (calibrated)
+//   origin        the world frame (local ENU at this point)
+//   clock         what the sonar clock correction has applied and how sure it is
+//   refraction    the sound-velocity casts and settings the georeferencing traces with
+//   trajectories  one vehicle pose per ping in named versions: INS (the navigation at the
+//                 nominal ping times), calibrated (the navigation at the calibrated times, with
+//                 the calibrated mount), SLAM (after continuous-time SLAM)
+//
+// Georeferencing is a view (Georeference): the soundings of a trajectory version with the
+// current mount. Nothing here writes a product.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "common/geodesy.hpp"
+#include "common/progress.hpp"
+#include "common/result.hpp"
+#include "common/se3.hpp"
+#include "processor/georef/georef.hpp"
+#include "processor/io/ingest.hpp"
+#include "processor/svp/refraction.hpp"
+
+namespace pitmap::proc::survey {
+
+// The named versions of the per-ping trajectory, in the order the stages make them.
+enum class TrajectoryVersion : std::uint8_t { kIns = 0, kCalibrated = 1, kSlam = 2 };
+inline constexpr int kNumTrajectoryVersions = 3;
+const char* ToString(TrajectoryVersion v);
+
+// One vehicle pose per ping of the survey's PingSeries (index = the ping's index in it);
+// valid[i] == 0 where the georeferencing refused ping i (outside the navigation, in a gap).
+struct PingTrajectory {
+    std::vector<Pose> T_world_vehicle;
+    std::vector<std::uint8_t> valid;
+    bool empty() const { return T_world_vehicle.empty(); }
+};
+
+// What has been done to the sonar's clock. The coarse correction (found from the 83P headers at
+// georef) and, once applied, the latency the calibration found are in the ping times already.
+struct SonarClockState {
+    bool configured = false;         // an offset was given (command line, config, vehicle file)
+    double configured_offset_s = 0;  // that offset (sonar clock minus UTC)
+    double coarse_correction_s = 0;  // applied at georef
+    double coarse_sigma_s = 0;       // its 1-sigma (what the calibration's latency scan covers)
+    bool latency_applied = false;    // the calibration's latency is in the ping times
+    double latency_s = 0;
+    double latency_formal_sd_s = 0;
+    // Everything applied to the ping times, and the 1-sigma of what remains.
+    double correction_s() const { return coarse_correction_s + (latency_applied ? latency_s : 0); }
+    double sigma_s() const { return latency_applied ? latency_formal_sd_s : coarse_sigma_s; }
+};
+
+// The sound-velocity casts the georeferencing traces through (svp/refraction.hpp); no files =
+// straight rays. The casts are read again from the files on load.
+struct RefractionRecord {
+    std::vector<std::string> svp_files;
+    svp::CastSelection selection = svp::CastSelection::kNearestPreceding;
+    svp::SurfaceSpeedSource surface_speed = svp::SurfaceSpeedSource::kProfile;
+    double ins_height_above_waterline_m = 0;
+    bool enabled() const { return !svp_files.empty(); }
+};
+
+// How the boresight calibration ended; `run` goes on without it after kNoOverlap.
+enum class CalibrationState : std::uint8_t {
+    kNotRun = 0,
+    kCalibrated = 1,   // the mount (and latency) found were applied
+    kKeptNominal = 2,  // a quality gate rejected them; the nominal mount was kept
+    kNoOverlap = 3,    // no overlapping passes to calibrate on
+};
+const char* ToString(CalibrationState s);
+
+struct SurveyModel {
+    io::IngestResult ingest;
+    std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
+    georef::SonarMount nominal_mount;
+    georef::SonarMount mount;  // the current one
+    Geodetic origin;
+    SonarClockState clock;
+    RefractionRecord refraction;
+    CalibrationState calibration = CalibrationState::kNotRun;
+    std::array<PingTrajectory, kNumTrajectoryVersions> trajectories;
+
+    const PingTrajectory& trajectory(TrajectoryVersion v) const {
+        return trajectories[static_cast<int>(v)];
+    }
+    PingTrajectory& trajectory(TrajectoryVersion v) { return trajectories[static_cast<int>(v)]; }
+    bool has(TrajectoryVersion v) const { return !trajectory(v).empty(); }
+    // The newest version present (kIns when none is).
+    TrajectoryVersion latest() const;
+    // Drops `v` and every later version (a new georeference or calibration makes them stale).
+    void DropFrom(TrajectoryVersion v);
+    // Back to the state before any calibration: the nominal mount, the ping times without the
+    // calibration's latency, no calibrated or SLAM trajectory. Returns whether anything changed
+    // (then any view of the survey must be made again).
+    bool ResetCalibration();
+};
+
+// The casts of a refraction record (read from its files); null for straight rays. A missing or
+// bad cast file is an error naming it.
+Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r);
+
+// The view: the survey's soundings on trajectory version `v` (the newest present at or before
+// it) with the current mount. Pings without a valid pose in that version keep the INS pose.
+georef::GeorefResult Georeference(const SurveyModel& m,
+                                  TrajectoryVersion v,
+                                  const georef::GeorefConfig& config,
+                                  std::shared_ptr<const svp::Refraction> refraction,
+                                  const ProgressCallback& progress = {});
+
+// The per-ping trajectory of a georeferenced survey of `num_pings` pings.
+PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);
+
+// Moves the soundings and pings of `geo` onto trajectory `t` (indexed by the ping series).
+// Pings without a valid pose in `t` keep theirs; returns how many kept theirs.
+std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t);
+
+// The mount as summary.json and boresight.json write it, and back (an error names what is
+// wrong); the world origin likewise.
+nlohmann::json MountJson(const georef::SonarMount& m);
+Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
+nlohmann::json OriginJson(const Geodetic& g);
+Expected<Geodetic> OriginFromJson(const nlohmann::json& o);
+
+}  // namespace pitmap::proc::survey

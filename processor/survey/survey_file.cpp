@@ -1,0 +1,487 @@
+// SPDX-License-Identifier: MIT
+#include "processor/survey/survey_file.hpp"
+
+#include <sys/stat.h>
+
+#include <bit>
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "common/protocol/novatel/crc32.hpp"
+
+namespace pitmap::proc::survey {
+
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr char kMagic[8] = {'P', 'M', 'S', 'U', 'R', 'V', 'E', 'Y'};
+constexpr std::uint32_t kByteOrder = std::endian::native == std::endian::little ? 1u : 2u;
+constexpr std::size_t kTagBytes = 16;
+constexpr std::size_t kHeadBytes = sizeof(kMagic) + 3 * 4;
+constexpr std::size_t kSectionHeadBytes = kTagBytes + 8 + 4;
+constexpr const char* kTrajectoryTags[kNumTrajectoryVersions] = {
+    "traj.ins", "traj.calibrated", "traj.slam"};
+
+struct DiskNav {
+    std::int64_t utime_gps;
+    double v[9];
+    std::int32_t ins_status, position_type;
+};
+static_assert(std::is_trivially_copyable_v<DiskNav>);
+
+struct DiskPose {
+    double v[7];  // x, y, z, qw, qx, qy, qz
+    std::uint32_t valid;
+    std::uint32_t zero;
+};
+
+DiskNav ToDisk(const georef::NavSample& s) {
+    return {s.utime_gps,
+            {s.position.latitude_deg,
+             s.position.longitude_deg,
+             s.position.height_m,
+             s.roll_rad,
+             s.pitch_rad,
+             s.yaw_rad,
+             s.velocity_enu_mps.x(),
+             s.velocity_enu_mps.y(),
+             s.velocity_enu_mps.z()},
+            s.ins_status,
+            s.position_type};
+}
+
+georef::NavSample FromDisk(const DiskNav& d) {
+    georef::NavSample s;
+    s.utime_gps = d.utime_gps;
+    s.position = {d.v[0], d.v[1], d.v[2]};
+    s.roll_rad = d.v[3];
+    s.pitch_rad = d.v[4];
+    s.yaw_rad = d.v[5];
+    s.velocity_enu_mps = Eigen::Vector3d(d.v[6], d.v[7], d.v[8]);
+    s.ins_status = d.ins_status;
+    s.position_type = d.position_type;
+    return s;
+}
+
+// A section payload being built in memory.
+class Payload {
+public:
+    void Bytes(const void* p, std::size_t n) {
+        const auto* b = static_cast<const std::uint8_t*>(p);
+        bytes_.insert(bytes_.end(), b, b + n);
+    }
+    template <typename T>
+    void Value(const T& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        Bytes(&v, sizeof v);
+    }
+    template <typename T>
+    void Vec(const std::vector<T>& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        Value(static_cast<std::uint64_t>(v.size()));
+        Value(static_cast<std::uint64_t>(sizeof(T)));
+        Bytes(v.data(), v.size() * sizeof(T));
+    }
+    const std::vector<std::uint8_t>& bytes() const { return bytes_; }
+
+private:
+    std::vector<std::uint8_t> bytes_;
+};
+
+// Reads a section payload held in memory; the first problem is kept in `error`.
+class Cursor {
+public:
+    Cursor(const std::vector<std::uint8_t>& b, std::string section)
+        : b_(b), section_(std::move(section)) {}
+    bool Bytes(void* p, std::size_t n, const char* what) {
+        if (!error.empty()) return false;
+        if (n > b_.size() - pos_) return Fail(std::string("truncated in ") + what);
+        if (n > 0) std::memcpy(p, b_.data() + pos_, n);
+        pos_ += n;
+        return true;
+    }
+    template <typename T>
+    bool Value(T& v, const char* what) {
+        return Bytes(&v, sizeof v, what);
+    }
+    template <typename T>
+    bool Vec(std::vector<T>& v, const char* what) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        std::uint64_t n = 0, sz = 0;
+        if (!Value(n, what) || !Value(sz, what)) return false;
+        if (sz != sizeof(T)) {
+            return Fail(std::string(what) + ": element size " + std::to_string(sz) + ", expected " +
+                        std::to_string(sizeof(T)));
+        }
+        const std::size_t left = b_.size() - pos_;
+        if (n > left / sizeof(T)) {
+            return Fail(std::string(what) + ": count " + std::to_string(n) + " needs " +
+                        std::to_string(n) + " x " + std::to_string(sizeof(T)) + " bytes but only " +
+                        std::to_string(left) + " remain");
+        }
+        v.resize(n);
+        return Bytes(v.data(), n * sizeof(T), what);
+    }
+    bool Finish() {
+        if (!error.empty()) return false;
+        if (pos_ != b_.size()) {
+            return Fail(std::to_string(b_.size() - pos_) + " unexpected bytes at the end");
+        }
+        return true;
+    }
+    bool Fail(const std::string& message) {
+        if (error.empty()) error = "section " + section_ + ": " + message;
+        return false;
+    }
+    std::string error;
+
+private:
+    const std::vector<std::uint8_t>& b_;
+    std::string section_;
+    std::size_t pos_ = 0;
+};
+
+std::uint32_t Crc(const std::vector<std::uint8_t>& b) {
+    return protocol::novatel::Crc32({b.data(), b.size()});
+}
+
+// ---- state ----
+
+json StateJson(const SurveyModel& m) {
+    const SonarClockState& c = m.clock;
+    json refraction = nullptr;
+    if (m.refraction.enabled()) {
+        refraction = {{"svp_files", m.refraction.svp_files},
+                      {"selection", svp::ToString(m.refraction.selection)},
+                      {"surface_speed", svp::ToString(m.refraction.surface_speed)},
+                      {"ins_height_above_waterline_m", m.refraction.ins_height_above_waterline_m}};
+    }
+    return {{"vehicle_yaml", m.vehicle_yaml},
+            {"nominal_mount", MountJson(m.nominal_mount)},
+            {"mount", MountJson(m.mount)},
+            {"world_origin", OriginJson(m.origin)},
+            {"sonar_clock",
+             {{"configured", c.configured},
+              {"configured_offset_s", c.configured_offset_s},
+              {"coarse_correction_s", c.coarse_correction_s},
+              {"coarse_sigma_s", c.coarse_sigma_s},
+              {"latency_applied", c.latency_applied},
+              {"latency_s", c.latency_s},
+              {"latency_formal_sd_s", c.latency_formal_sd_s}}},
+            {"refraction", refraction},
+            {"calibration", ToString(m.calibration)}};
+}
+
+// The state section into `m`; an error says which key is wrong.
+Status StateFromJson(const json& j, SurveyModel& m) {
+    try {
+        m.vehicle_yaml = j.at("vehicle_yaml").get<std::string>();
+        auto nominal = MountFromJson(j.at("nominal_mount"));
+        if (!nominal) return Error{"nominal_mount: " + nominal.error().message};
+        m.nominal_mount = *nominal;
+        auto mount = MountFromJson(j.at("mount"));
+        if (!mount) return Error{"mount: " + mount.error().message};
+        m.mount = *mount;
+        auto origin = OriginFromJson(j.at("world_origin"));
+        if (!origin) return Error{"world_origin: " + origin.error().message};
+        if (!std::isfinite(origin->latitude_deg) || std::abs(origin->latitude_deg) > 90 ||
+            !std::isfinite(origin->longitude_deg) || !std::isfinite(origin->height_m)) {
+            return Error{"world_origin: not a position on the Earth"};
+        }
+        m.origin = *origin;
+        const json& c = j.at("sonar_clock");
+        m.clock.configured = c.at("configured").get<bool>();
+        m.clock.configured_offset_s = c.at("configured_offset_s").get<double>();
+        m.clock.coarse_correction_s = c.at("coarse_correction_s").get<double>();
+        m.clock.coarse_sigma_s = c.at("coarse_sigma_s").get<double>();
+        m.clock.latency_applied = c.at("latency_applied").get<bool>();
+        m.clock.latency_s = c.at("latency_s").get<double>();
+        m.clock.latency_formal_sd_s = c.at("latency_formal_sd_s").get<double>();
+        for (double v : {m.clock.configured_offset_s,
+                         m.clock.coarse_correction_s,
+                         m.clock.coarse_sigma_s,
+                         m.clock.latency_s,
+                         m.clock.latency_formal_sd_s}) {
+            if (!std::isfinite(v)) return Error{"sonar_clock: not a finite number"};
+        }
+        m.refraction = {};
+        if (const json& r = j.at("refraction"); !r.is_null()) {
+            m.refraction.svp_files = r.at("svp_files").get<std::vector<std::string>>();
+            if (!svp::ParseCastSelection(r.at("selection").get<std::string>(),
+                                         m.refraction.selection)) {
+                return Error{"refraction.selection: not a known cast selection"};
+            }
+            if (!svp::ParseSurfaceSpeedSource(r.at("surface_speed").get<std::string>(),
+                                              m.refraction.surface_speed)) {
+                return Error{"refraction.surface_speed: not profile or header"};
+            }
+            m.refraction.ins_height_above_waterline_m =
+                r.at("ins_height_above_waterline_m").get<double>();
+        }
+        const std::string cal = j.at("calibration").get<std::string>();
+        bool known = false;
+        for (auto s : {CalibrationState::kNotRun,
+                       CalibrationState::kCalibrated,
+                       CalibrationState::kKeptNominal,
+                       CalibrationState::kNoOverlap}) {
+            if (cal == ToString(s)) {
+                m.calibration = s;
+                known = true;
+            }
+        }
+        if (!known) return Error{"calibration: unknown state \"" + cal + "\""};
+    } catch (const std::exception& e) {
+        return Error{e.what()};
+    }
+    return Ok{};
+}
+
+// ---- ingest ----
+
+Payload IngestPayload(const io::IngestResult& r) {
+    Payload p;
+    p.Value(static_cast<std::int32_t>(r.nav.leap_seconds));
+    p.Value(static_cast<std::uint32_t>(r.pings.clock));
+    std::vector<DiskNav> nav(r.nav.samples.size());
+    for (std::size_t i = 0; i < nav.size(); ++i) nav[i] = ToDisk(r.nav.samples[i]);
+    p.Vec(nav);
+    p.Vec(r.nav.stddevs);
+    p.Vec(r.pings.pings);
+    p.Vec(r.pings.range_counts);
+    return p;
+}
+
+Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResult& r) {
+    Cursor in(bytes, "ingest");
+    std::int32_t leap = -1;
+    std::uint32_t clock = 0;
+    std::vector<DiskNav> nav;
+    in.Value(leap, "header");
+    in.Value(clock, "header");
+    if (in.error.empty() && clock > static_cast<std::uint32_t>(georef::PingClock::kTopsideHeader))
+        in.Fail("ping clock " + std::to_string(clock) + " unknown");
+    in.Vec(nav, "nav samples");
+    in.Vec(r.nav.stddevs, "nav stddevs");
+    in.Vec(r.pings.pings, "pings");
+    in.Vec(r.pings.range_counts, "range counts");
+    if (!in.Finish()) return Error{in.error};
+    r.pings.clock = static_cast<georef::PingClock>(clock);
+    for (auto& p : r.pings.pings) {
+        // A bool read from bytes must hold 0 or 1 (the CRC does not stop crafted files).
+        auto* flag =
+            reinterpret_cast<unsigned char*>(&p) + offsetof(georef::PingHeader, sound_speed_valid);
+        *flag = *flag != 0 ? 1 : 0;
+        if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size())
+            return Error{"section ingest: inconsistent beam offsets"};
+    }
+    r.nav.leap_seconds = leap;
+    r.nav.samples.resize(nav.size());
+    for (std::size_t i = 0; i < nav.size(); ++i) r.nav.samples[i] = FromDisk(nav[i]);
+    r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
+    r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
+    return Ok{};
+}
+
+// ---- trajectories ----
+
+Payload TrajectoryPayload(const PingTrajectory& t) {
+    std::vector<DiskPose> d(t.T_world_vehicle.size());
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        const Eigen::Vector3d x = t.T_world_vehicle[i].translation();
+        const Eigen::Quaterniond q(t.T_world_vehicle[i].rotation());
+        d[i] = {{x.x(), x.y(), x.z(), q.w(), q.x(), q.y(), q.z()},
+                i < t.valid.size() ? t.valid[i] : 0u,
+                0u};
+    }
+    Payload p;
+    p.Vec(d);
+    return p;
+}
+
+Status TrajectoryFromPayload(const std::vector<std::uint8_t>& bytes,
+                             const std::string& tag,
+                             PingTrajectory& t) {
+    Cursor in(bytes, tag);
+    std::vector<DiskPose> d;
+    in.Vec(d, "poses");
+    if (!in.Finish()) return Error{in.error};
+    t.T_world_vehicle.resize(d.size());
+    t.valid.resize(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        for (double v : d[i].v) {
+            if (!std::isfinite(v)) return Error{"section " + tag + ": a pose is not finite"};
+        }
+        Eigen::Quaterniond q(d[i].v[3], d[i].v[4], d[i].v[5], d[i].v[6]);
+        if (std::abs(q.norm() - 1.0) > 1e-6)
+            return Error{"section " + tag + ": a rotation is not a unit quaternion"};
+        Pose T = Pose::Identity();
+        T.linear() = q.normalized().toRotationMatrix();
+        T.translation() = Eigen::Vector3d(d[i].v[0], d[i].v[1], d[i].v[2]);
+        t.T_world_vehicle[i] = T;
+        t.valid[i] = d[i].valid != 0 ? 1 : 0;
+    }
+    return Ok{};
+}
+
+std::uint64_t FileSize(std::FILE* f) {
+    struct stat st {};
+    if (fstat(fileno(f), &st) != 0 || st.st_size < 0) return 0;
+    return static_cast<std::uint64_t>(st.st_size);
+}
+
+bool WriteSection(std::FILE* f, const char* tag, const std::vector<std::uint8_t>& payload) {
+    if (std::strlen(tag) >= kTagBytes) return false;  // a tag the reader would not recognise
+    char t[kTagBytes] = {};
+    std::strncpy(t, tag, kTagBytes - 1);
+    const std::uint64_t n = payload.size();
+    const std::uint32_t crc = Crc(payload);
+    return std::fwrite(t, 1, kTagBytes, f) == kTagBytes && std::fwrite(&n, sizeof n, 1, f) == 1 &&
+           std::fwrite(&crc, sizeof crc, 1, f) == 1 &&
+           (n == 0 || std::fwrite(payload.data(), 1, n, f) == n);
+}
+
+}  // namespace
+
+Status SaveSurvey(const std::string& path, const SurveyModel& m) {
+    std::vector<std::pair<const char*, Payload>> sections;
+    {
+        Payload state;
+        const std::string text = StateJson(m).dump();
+        state.Bytes(text.data(), text.size());
+        sections.emplace_back("state", std::move(state));
+    }
+    sections.emplace_back("ingest", IngestPayload(m.ingest));
+    for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+        if (!m.trajectories[v].empty())
+            sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
+    }
+    const std::string partial = path + ".partial";
+    std::FILE* f = std::fopen(partial.c_str(), "wb");
+    if (f == nullptr) return Error{partial + ": cannot create"};
+    const std::uint32_t head[3] = {
+        kSurveyFormatVersion, kByteOrder, static_cast<std::uint32_t>(sections.size())};
+    bool ok = std::fwrite(kMagic, 1, sizeof kMagic, f) == sizeof kMagic &&
+              std::fwrite(head, sizeof head, 1, f) == 1;
+    for (const auto& [tag, payload] : sections) ok = ok && WriteSection(f, tag, payload.bytes());
+    ok = ok && std::fflush(f) == 0 && std::ferror(f) == 0;
+    if (std::fclose(f) != 0 || !ok) {
+        std::error_code ec;
+        fs::remove(partial, ec);
+        return Error{path + ": write failed (disk full?); the previous survey file is kept"};
+    }
+    std::error_code ec;
+    fs::rename(partial, path, ec);
+    if (ec) return Error{path + ": cannot replace: " + ec.message()};
+    return Ok{};
+}
+
+Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
+    const std::string rerun = " (run `pitmap georef` again)";
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (f == nullptr) return Error{path + ": cannot open (run `pitmap georef` first)"};
+    struct Closer {
+        std::FILE* f;
+        ~Closer() { std::fclose(f); }
+    } closer{f};
+    const std::uint64_t size = FileSize(f);
+    if (size < kHeadBytes) {
+        return Error{path + ": not a pitmap survey file (" + std::to_string(size) + " bytes)" +
+                     rerun};
+    }
+    char magic[sizeof kMagic];
+    std::uint32_t head[3] = {0, 0, 0};
+    if (std::fread(magic, 1, sizeof magic, f) != sizeof magic ||
+        std::fread(head, sizeof head, 1, f) != 1) {
+        return Error{path + ": read error" + rerun};
+    }
+    if (std::memcmp(magic, kMagic, sizeof kMagic) != 0)
+        return Error{path + ": not a pitmap survey file (bad magic)" + rerun};
+    if (head[0] != kSurveyFormatVersion || head[1] != kByteOrder) {
+        return Error{path + ": survey file format " + std::to_string(head[0]) +
+                     " or byte order not of this build (format " +
+                     std::to_string(kSurveyFormatVersion) + ")" + rerun};
+    }
+    const std::uint32_t count = head[2];
+    std::uint64_t pos = kHeadBytes;
+    SurveyModel m;
+    bool seen_state = false, seen_ingest = false;
+    bool seen_trajectory[kNumTrajectoryVersions] = {};
+    auto corrupt = [&](const std::string& what) {
+        return Error{path + ": corrupt survey file: " + what + rerun};
+    };
+    for (std::uint32_t s = 0; s < count; ++s) {
+        if (size - pos < kSectionHeadBytes) return corrupt("truncated in a section header");
+        char raw_tag[kTagBytes + 1] = {};
+        std::uint64_t n = 0;
+        std::uint32_t crc = 0;
+        if (std::fread(raw_tag, 1, kTagBytes, f) != kTagBytes ||
+            std::fread(&n, sizeof n, 1, f) != 1 || std::fread(&crc, sizeof crc, 1, f) != 1) {
+            return Error{path + ": read error" + rerun};
+        }
+        pos += kSectionHeadBytes;
+        const std::string tag(raw_tag, strnlen(raw_tag, kTagBytes));
+        if (n > size - pos) {
+            return corrupt("section " + tag + " claims " + std::to_string(n) + " bytes, " +
+                           std::to_string(size - pos) + " remain");
+        }
+        int trajectory = -1;
+        for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+            if (tag == kTrajectoryTags[v]) trajectory = v;
+        }
+        bool* seen = tag == "state"    ? &seen_state
+                     : tag == "ingest" ? &seen_ingest
+                     : trajectory >= 0 ? &seen_trajectory[trajectory]
+                                       : nullptr;
+        if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
+        if (*seen) return corrupt("section " + tag + " twice");
+        *seen = true;
+        if (parts == LoadParts::kState && tag != "state") {
+            if (std::fseek(f, static_cast<long>(n), SEEK_CUR) != 0)
+                return Error{path + ": read error" + rerun};
+            pos += n;
+            continue;
+        }
+        std::vector<std::uint8_t> payload(n);
+        if (n > 0 && std::fread(payload.data(), 1, n, f) != n)
+            return Error{path + ": read error" + rerun};
+        pos += n;
+        if (Crc(payload) != crc) return corrupt("section " + tag + ": checksum mismatch");
+        Status st = Ok{};
+        if (tag == "state") {
+            const json j = json::parse(payload.begin(), payload.end(), nullptr, false);
+            st = j.is_discarded() || !j.is_object() ? Status(Error{"not a JSON object"})
+                                                    : StateFromJson(j, m);
+            if (!st) st = Error{"section state: " + st.error().message};
+        } else if (tag == "ingest") {
+            st = IngestFromPayload(payload, m.ingest);
+        } else {
+            st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
+        }
+        if (!st) return corrupt(st.error().message);
+    }
+    if (pos != size) return corrupt(std::to_string(size - pos) + " bytes after the last section");
+    if (!seen_state) return corrupt("no state section");
+    if (!seen_ingest) return corrupt("no ingest section");
+    if (parts == LoadParts::kAll) {
+        for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+            if (seen_trajectory[v] &&
+                m.trajectories[v].T_world_vehicle.size() != m.ingest.pings.pings.size()) {
+                return corrupt(std::string("section ") + kTrajectoryTags[v] + " has " +
+                               std::to_string(m.trajectories[v].T_world_vehicle.size()) +
+                               " poses for " + std::to_string(m.ingest.pings.pings.size()) +
+                               " pings");
+            }
+        }
+    }
+    return m;
+}
+
+}  // namespace pitmap::proc::survey

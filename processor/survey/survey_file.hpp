@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: MIT
+// The survey model in one binary file, P/survey.pitmap: what `pitmap georef` makes and every
+// later stage command loads and saves (survey.hpp says what it holds).
+//
+// Layout (native byte order and struct layout; read only by a build of the same format
+// version, on the same byte order):
+//   u8[8] magic "PMSURVEY", u32 format version (kSurveyFormatVersion), u32 byte order (1 little,
+//   2 big), u32 number of sections; then each section as
+//   char[16] tag (NUL padded), u64 payload bytes, u32 CRC-32 of the payload, the payload.
+// Sections (each once; "state" and "ingest" are required):
+//   state                 JSON text: vehicle file, nominal and current mount, world origin,
+//                         sonar clock, refraction record, calibration state
+//   ingest                i32 leap seconds, u32 ping clock, then nav samples, nav stddevs, ping
+//                         headers and range counts, each as u64 count, u64 element size, bytes
+//   traj.ins, traj.calibrated, traj.slam
+//                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,
+//                         qz (T_world_vehicle), u32 valid, u32 zero
+// The reader checks every length and count against the bytes left before allocating (memory
+// stays bounded by the file size), every section's CRC, and the consistency of what it read
+// (beam offsets inside the range counts, one pose per ping, finite poses); anything else is an
+// error naming the file and what is wrong.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/result.hpp"
+#include "processor/survey/survey.hpp"
+
+namespace pitmap::proc::survey {
+
+inline constexpr std::uint32_t kSurveyFormatVersion = 1;
+inline constexpr const char* kSurveyFileName = "survey.pitmap";
+
+// Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the
+// previous file whole.
+Status SaveSurvey(const std::string& path, const SurveyModel& m);
+
+enum class LoadParts {
+    kAll,    // everything
+    kState,  // the state section only: no ingest, no trajectories (mesh, report)
+};
+Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts = LoadParts::kAll);
+
+}  // namespace pitmap::proc::survey

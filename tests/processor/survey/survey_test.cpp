@@ -1,0 +1,437 @@
+// SPDX-License-Identifier: MIT
+// The survey model and its file (processor/survey): a round trip keeps every part; the state
+// alone loads without the big sections; truncated, overwritten (20 seeds), crafted (right
+// CRCs, wrong content) and foreign files are clear errors naming the file, in memory bounded by
+// the file's size; the georeferencing view puts soundings on the trajectory version asked for;
+// a calibration is undone exactly.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/peak_memory.hpp"
+#include "common/protocol/novatel/crc32.hpp"
+#include "processor/survey/survey.hpp"
+#include "processor/survey/survey_file.hpp"
+
+namespace pitmap::proc::survey {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::uint8_t> ReadBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void WriteBytes(const std::string& path, const std::vector<std::uint8_t>& b) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc)
+        .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+}
+
+// Where each section's payload starts in a survey file, by tag (the layout of survey_file.hpp).
+struct SectionAt {
+    std::size_t crc_at = 0;
+    std::size_t payload_at = 0;
+    std::size_t bytes = 0;
+};
+std::map<std::string, SectionAt> Sections(const std::vector<std::uint8_t>& b) {
+    std::map<std::string, SectionAt> out;
+    std::uint32_t count = 0;
+    std::memcpy(&count, b.data() + 16, 4);
+    std::size_t pos = 20;
+    for (std::uint32_t i = 0; i < count && pos + 28 <= b.size(); ++i) {
+        const std::string tag(reinterpret_cast<const char*>(b.data() + pos),
+                              strnlen(reinterpret_cast<const char*>(b.data() + pos), 16));
+        std::uint64_t n = 0;
+        std::memcpy(&n, b.data() + pos + 16, 8);
+        out[tag] = {pos + 24, pos + 28, static_cast<std::size_t>(n)};
+        pos += 28 + n;
+    }
+    return out;
+}
+
+// Recomputes every section's CRC (a crafted file whose checksums are right, so that the
+// structural checks behind them are exercised).
+void FixCrcs(std::vector<std::uint8_t>& b) {
+    for (const auto& [tag, s] : Sections(b)) {
+        if (s.payload_at + s.bytes > b.size()) continue;
+        const std::uint32_t crc = protocol::novatel::Crc32({b.data() + s.payload_at, s.bytes});
+        std::memcpy(b.data() + s.crc_at, &crc, 4);
+    }
+}
+
+// Offsets of the four arrays' u64 count fields in the ingest section's payload.
+std::vector<std::size_t> IngestArrays(const std::vector<std::uint8_t>& b) {
+    const SectionAt s = Sections(b).at("ingest");
+    std::vector<std::size_t> at;
+    std::size_t pos = s.payload_at + 8;  // leap seconds, ping clock
+    for (int array = 0; array < 4; ++array) {
+        at.push_back(pos);
+        std::uint64_t count = 0, size = 0;
+        std::memcpy(&count, b.data() + pos, 8);
+        std::memcpy(&size, b.data() + pos + 8, 8);
+        pos += 16 + count * size;
+    }
+    EXPECT_EQ(pos, s.payload_at + s.bytes) << "the layout walked is the file's";
+    return at;
+}
+
+SurveyModel SmallSurvey() {
+    SurveyModel m;
+    io::IngestResult& r = m.ingest;
+    r.nav.leap_seconds = 18;
+    for (int i = 0; i < 40; ++i) {
+        georef::NavSample s;
+        s.utime_gps = 1'400'000'000'000'000 + i * 10'000;
+        s.position = {40.4435 + i * 1e-6, -7.7806, 412.0};
+        s.yaw_rad = 0.01 * i;
+        s.ins_status = 3;
+        s.position_type = 56;
+        r.nav.samples.push_back(s);
+        georef::NavStdDev d;
+        d.utime_gps = s.utime_gps;
+        d.north_m = d.east_m = d.up_m = 0.02f;
+        r.nav.stddevs.push_back(d);
+    }
+    for (int p = 0; p < 10; ++p) {
+        georef::PingHeader h;
+        h.utime_gps = 1'400'000'000'010'000 + p * 30'000;
+        h.ping_number = p;
+        h.sound_speed_valid = p % 2 == 0;
+        h.range_resolution_m = 0.01;
+        h.start_angle_deg = -60;
+        h.angle_increment_deg = 1.0;
+        h.beam_offset = static_cast<std::uint32_t>(r.pings.range_counts.size());
+        h.num_beams = 121;
+        r.pings.pings.push_back(h);
+        for (int b = 0; b < 121; ++b) r.pings.range_counts.push_back(1000u + b);
+    }
+    m.vehicle_yaml = "vehicle.yaml";
+    m.nominal_mount.boresight_roll_deg = 0.5;
+    m.nominal_mount.lever_arm_m = Eigen::Vector3d(0.3, 0.0, 0.8);
+    m.mount = m.nominal_mount;
+    m.origin = {40.4435, -7.7806, 412.0};
+    m.clock.configured = true;
+    m.clock.configured_offset_s = 2.35;
+    m.clock.coarse_sigma_s = 0.1;
+    m.refraction.svp_files = {"cast.svp"};
+    m.refraction.selection = svp::CastSelection::kNearestInTime;
+    m.refraction.ins_height_above_waterline_m = 0.4;
+    return m;
+}
+
+class SurveyFile : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = fs::path(::testing::TempDir()) / ("pitmap_survey_" + std::to_string(::getpid()));
+        fs::create_directories(dir_);
+        path_ = (dir_ / kSurveyFileName).string();
+        SurveyModel m = SmallSurvey();
+        m.refraction = {};  // Georeference would read the cast file
+        const georef::GeorefResult geo = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+        ASSERT_GT(geo.pings.size(), 0u);
+        m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(geo, m.ingest.pings.pings.size());
+        m.refraction = SmallSurvey().refraction;
+        ASSERT_TRUE(SaveSurvey(path_, m));
+        good_ = ReadBytes(path_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    void ExpectError(const std::vector<std::uint8_t>& bytes, const std::string& what) {
+        WriteBytes(path_, bytes);
+        const auto r = LoadSurvey(path_);
+        ASSERT_FALSE(r.ok()) << what;
+        EXPECT_NE(r.error().message.find(path_), std::string::npos)
+            << what << ": " << r.error().message;
+    }
+
+    fs::path dir_;
+    std::string path_;
+    std::vector<std::uint8_t> good_;
+};
+
+TEST_F(SurveyFile, RoundTripsEveryPart) {
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const SurveyModel w = SmallSurvey();
+    EXPECT_EQ(r->ingest.nav.leap_seconds, 18);
+    ASSERT_EQ(r->ingest.nav.samples.size(), w.ingest.nav.samples.size());
+    EXPECT_EQ(r->ingest.nav.samples[7].utime_gps, w.ingest.nav.samples[7].utime_gps);
+    EXPECT_DOUBLE_EQ(r->ingest.nav.samples[7].yaw_rad, w.ingest.nav.samples[7].yaw_rad);
+    EXPECT_EQ(r->ingest.nav.stddevs.size(), w.ingest.nav.stddevs.size());
+    ASSERT_EQ(r->ingest.pings.pings.size(), 10u);
+    EXPECT_TRUE(r->ingest.pings.pings[4].sound_speed_valid);
+    EXPECT_FALSE(r->ingest.pings.pings[5].sound_speed_valid);
+    EXPECT_EQ(r->ingest.pings.range_counts, w.ingest.pings.range_counts);
+    EXPECT_EQ(r->vehicle_yaml, "vehicle.yaml");
+    EXPECT_DOUBLE_EQ(r->nominal_mount.boresight_roll_deg, 0.5);
+    EXPECT_DOUBLE_EQ(r->mount.lever_arm_m.z(), 0.8);
+    EXPECT_DOUBLE_EQ(r->origin.latitude_deg, 40.4435);
+    EXPECT_TRUE(r->clock.configured);
+    EXPECT_DOUBLE_EQ(r->clock.configured_offset_s, 2.35);
+    EXPECT_DOUBLE_EQ(r->clock.sigma_s(), 0.1);
+    ASSERT_EQ(r->refraction.svp_files.size(), 1u);
+    EXPECT_EQ(r->refraction.selection, svp::CastSelection::kNearestInTime);
+    EXPECT_DOUBLE_EQ(r->refraction.ins_height_above_waterline_m, 0.4);
+    EXPECT_EQ(r->calibration, CalibrationState::kNotRun);
+    ASSERT_TRUE(r->has(TrajectoryVersion::kIns));
+    EXPECT_FALSE(r->has(TrajectoryVersion::kSlam));
+    EXPECT_EQ(r->latest(), TrajectoryVersion::kIns);
+    const PingTrajectory& t = r->trajectory(TrajectoryVersion::kIns);
+    ASSERT_EQ(t.T_world_vehicle.size(), 10u);
+    for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(t.valid[i], 1) << i;
+    EXPECT_NEAR(t.T_world_vehicle[3].translation().y(),
+                TrajectoryOf(Georeference(
+                                 [] {
+                                     SurveyModel m = SmallSurvey();
+                                     m.refraction = {};
+                                     return m;
+                                 }(),
+                                 TrajectoryVersion::kIns,
+                                 {},
+                                 nullptr),
+                             10)
+                    .T_world_vehicle[3]
+                    .translation()
+                    .y(),
+                1e-12);
+}
+
+TEST_F(SurveyFile, EveryTrajectoryVersionRoundTrips) {
+    auto m = LoadSurvey(path_);
+    ASSERT_TRUE(m.ok()) << m.error().message;
+    const PingTrajectory ins = m->trajectory(TrajectoryVersion::kIns);
+    for (int v = 1; v < kNumTrajectoryVersions; ++v) {
+        PingTrajectory t = ins;
+        for (auto& T : t.T_world_vehicle) T.translation().z() += 0.1 * v;
+        t.valid[static_cast<std::size_t>(v)] = 0;
+        m->trajectories[v] = t;
+    }
+    m->calibration = CalibrationState::kKeptNominal;
+    ASSERT_TRUE(SaveSurvey(path_, *m));
+    const auto back = LoadSurvey(path_);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(back->calibration, CalibrationState::kKeptNominal);
+    for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+        const PingTrajectory& t = back->trajectories[v];
+        ASSERT_EQ(t.T_world_vehicle.size(), ins.T_world_vehicle.size()) << v;
+        for (std::size_t i = 0; i < t.T_world_vehicle.size(); ++i) {
+            EXPECT_NEAR(t.T_world_vehicle[i].translation().z(),
+                        ins.T_world_vehicle[i].translation().z() + 0.1 * v,
+                        1e-12);
+            EXPECT_TRUE(t.T_world_vehicle[i].linear().isApprox(ins.T_world_vehicle[i].linear()));
+            EXPECT_EQ(t.valid[i], v > 0 && i == static_cast<std::size_t>(v) ? 0 : 1);
+        }
+    }
+    EXPECT_EQ(back->latest(), TrajectoryVersion::kSlam);
+}
+
+TEST_F(SurveyFile, TheStateLoadsWithoutTheBigSections) {
+    // Damage the ingest payload: a state-only load never reads it.
+    std::vector<std::uint8_t> bad = good_;
+    bad[Sections(bad).at("ingest").payload_at + 40] ^= 0xff;
+    WriteBytes(path_, bad);
+    const auto state = LoadSurvey(path_, LoadParts::kState);
+    ASSERT_TRUE(state.ok()) << state.error().message;
+    EXPECT_DOUBLE_EQ(state->origin.longitude_deg, -7.7806);
+    EXPECT_TRUE(state->ingest.pings.pings.empty());
+    const auto all = LoadSurvey(path_);
+    ASSERT_FALSE(all.ok());
+    EXPECT_NE(all.error().message.find("checksum"), std::string::npos) << all.error().message;
+}
+
+TEST_F(SurveyFile, TruncatedFilesAreCleanErrors) {
+    const std::size_t n = good_.size();
+    for (std::size_t keep : {std::size_t{0},
+                             std::size_t{3},
+                             std::size_t{8},
+                             std::size_t{19},
+                             std::size_t{20},
+                             std::size_t{31},
+                             std::size_t{100},
+                             n / 3,
+                             n / 2,
+                             n - 5,
+                             n - 1}) {
+        ExpectError({good_.begin(), good_.begin() + static_cast<long>(keep)},
+                    "truncated to " + std::to_string(keep));
+    }
+    std::vector<std::uint8_t> longer = good_;
+    longer.push_back(0);
+    ExpectError(longer, "one byte appended");
+}
+
+TEST_F(SurveyFile, OverwrittenBytesAreCleanErrorsOverTwentySeeds) {
+    for (unsigned seed = 1; seed <= 20; ++seed) {
+        std::mt19937 rng(seed);
+        std::vector<std::uint8_t> bad = good_;
+        std::uniform_int_distribution<std::size_t> at(0, bad.size() - 1);
+        for (int k = 0; k < 20; ++k) bad[at(rng)] ^= static_cast<std::uint8_t>(1 + rng() % 255);
+        ExpectError(bad, "seed " + std::to_string(seed));
+    }
+}
+
+// An array count edited to 3 GiB must not allocate 3 GiB before the error: every count is
+// checked against the bytes that remain, whether or not the CRC is right.
+TEST_F(SurveyFile, HugeCountsFailWithoutAllocating) {
+    const double rss_before_mb = PeakRssMb();
+    const std::vector<std::size_t> offsets = IngestArrays(good_);
+    for (std::size_t array = 0; array < 4; ++array) {
+        const std::size_t at = offsets[array];
+        std::uint64_t count = 0, size = 0;
+        std::memcpy(&count, good_.data() + at, 8);
+        std::memcpy(&size, good_.data() + at + 8, 8);
+        for (std::uint64_t huge : std::vector<std::uint64_t>{
+                 3ull << 30, (3ull << 30) / size, ~0ull, ~0ull / size, count + 1}) {
+            for (bool fix_crc : {false, true}) {
+                std::vector<std::uint8_t> bad = good_;
+                std::memcpy(bad.data() + at, &huge, 8);
+                if (fix_crc) FixCrcs(bad);
+                ExpectError(bad,
+                            "array " + std::to_string(array) + " count " + std::to_string(huge));
+            }
+        }
+        std::vector<std::uint8_t> bad = good_;
+        bad[at + 8] ^= 0x40;
+        ExpectError(bad, "array " + std::to_string(array) + " element size");
+    }
+    // A section length past the end of the file.
+    std::vector<std::uint8_t> bad = good_;
+    const std::uint64_t huge = 3ull << 30;
+    std::memcpy(bad.data() + Sections(bad).at("ingest").crc_at - 8, &huge, 8);
+    ExpectError(bad, "section length");
+    EXPECT_LT(PeakRssMb() - rss_before_mb, 64.0) << "memory stays bounded by the file size";
+}
+
+TEST_F(SurveyFile, CraftedContentWithRightCrcsIsCheckedToo) {
+    // Beam offsets pointing past the range counts.
+    std::vector<std::uint8_t> bad = good_;
+    const std::size_t first = IngestArrays(good_)[2] + 16;
+    const std::uint32_t offset = 1u << 30;
+    std::memcpy(bad.data() + first + offsetof(georef::PingHeader, beam_offset), &offset, 4);
+    FixCrcs(bad);
+    ExpectError(bad, "beam offset");
+    // An unknown ping clock.
+    bad = good_;
+    bad[Sections(bad).at("ingest").payload_at + 4] = 9;
+    FixCrcs(bad);
+    ExpectError(bad, "ping clock");
+    // A pose that is not finite, and a rotation that is not one.
+    for (std::size_t field : {std::size_t{0}, std::size_t{3}}) {
+        bad = good_;
+        const std::size_t pose = Sections(bad).at("traj.ins").payload_at + 16;
+        const double v = field == 0 ? std::nan("") : 2.0;
+        std::memcpy(bad.data() + pose + field * 8, &v, 8);
+        FixCrcs(bad);
+        ExpectError(bad, "pose field " + std::to_string(field));
+    }
+    // A state that is not JSON, or lacks a key.
+    for (const char* text : {"{", "[]", "{\"vehicle_yaml\": 3}"}) {
+        bad = good_;
+        const SectionAt st = Sections(bad).at("state");
+        std::vector<std::uint8_t> payload(text, text + std::strlen(text));
+        bad.erase(bad.begin() + static_cast<long>(st.payload_at),
+                  bad.begin() + static_cast<long>(st.payload_at + st.bytes));
+        bad.insert(bad.begin() + static_cast<long>(st.payload_at), payload.begin(), payload.end());
+        const std::uint64_t n = payload.size();
+        std::memcpy(bad.data() + st.crc_at - 8, &n, 8);
+        FixCrcs(bad);
+        ExpectError(bad, std::string("state ") + text);
+    }
+    // A bool byte of 7 reads as true (no undefined bool value reaches the stages).
+    bad = good_;
+    bad[first + offsetof(georef::PingHeader, sound_speed_valid)] = 7;
+    FixCrcs(bad);
+    WriteBytes(path_, bad);
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->ingest.pings.pings[0].sound_speed_valid);
+}
+
+TEST_F(SurveyFile, EmptyForeignAndOtherVersionFilesAreCleanErrors) {
+    ExpectError({}, "empty");
+    ExpectError(std::vector<std::uint8_t>(4096, 0), "zeros");
+    std::vector<std::uint8_t> other = good_;
+    other[8] = 99;  // format version
+    WriteBytes(path_, other);
+    const auto r = LoadSurvey(path_);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("format 99"), std::string::npos) << r.error().message;
+    EXPECT_NE(r.error().message.find("georef"), std::string::npos) << r.error().message;
+    const auto missing = LoadSurvey((dir_ / "none.pitmap").string());
+    ASSERT_FALSE(missing.ok());
+    EXPECT_NE(missing.error().message.find("none.pitmap"), std::string::npos);
+}
+
+TEST_F(SurveyFile, AFailedSaveKeepsThePreviousFile) {
+    // A folder in the way of the temporary file: the save fails, the old file stays whole.
+    fs::create_directories(path_ + ".partial");
+    const Status st = SaveSurvey(path_, SmallSurvey());
+    EXPECT_FALSE(st.ok());
+    EXPECT_EQ(ReadBytes(path_), good_);
+}
+
+TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
+    SurveyModel m = SmallSurvey();
+    m.refraction = {};
+    georef::GeorefResult ins = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+    ASSERT_EQ(ins.pings.size(), 10u);
+    const std::size_t n = m.ingest.pings.pings.size();
+    m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(ins, n);
+    // A SLAM version 0.5 m east of the INS for every ping but ping 2 (no valid pose).
+    PingTrajectory slam = m.trajectory(TrajectoryVersion::kIns);
+    for (auto& T : slam.T_world_vehicle) T.translation().x() += 0.5;
+    slam.valid[2] = 0;
+    m.trajectory(TrajectoryVersion::kSlam) = slam;
+    EXPECT_EQ(m.latest(), TrajectoryVersion::kSlam);
+    const georef::GeorefResult moved = Georeference(m, TrajectoryVersion::kSlam, {}, nullptr);
+    const georef::GeorefResult still = Georeference(m, TrajectoryVersion::kCalibrated, {}, nullptr);
+    ASSERT_EQ(moved.points.size(), ins.points.size());
+    for (std::size_t j = 0; j < ins.points.size(); ++j) {
+        const double want = moved.pings[moved.points.ping[j]].header_index == 2 ? 0.0 : 0.5;
+        EXPECT_NEAR(
+            moved.points.position_world[j].x() - ins.points.position_world[j].x(), want, 1e-9);
+        EXPECT_NEAR(still.points.position_world[j].x(), ins.points.position_world[j].x(), 1e-12);
+    }
+    m.DropFrom(TrajectoryVersion::kCalibrated);
+    EXPECT_FALSE(m.has(TrajectoryVersion::kSlam));
+    EXPECT_TRUE(m.has(TrajectoryVersion::kIns));
+}
+
+TEST(SurveyModel, ResetCalibrationUndoesTheLatencyAndTheMountExactly) {
+    SurveyModel m = SmallSurvey();
+    const std::vector<georef::PingHeader> nominal = m.ingest.pings.pings;
+    EXPECT_FALSE(m.ResetCalibration()) << "nothing to undo";
+    m.mount.boresight_yaw_deg = 1.5;
+    m.clock.latency_applied = true;
+    m.clock.latency_s = 0.0123456;
+    m.clock.latency_formal_sd_s = 0.001;
+    georef::ShiftPingTimes(m.ingest.pings, m.clock.latency_s);
+    m.calibration = CalibrationState::kCalibrated;
+    m.trajectory(TrajectoryVersion::kCalibrated).T_world_vehicle.assign(10, Pose::Identity());
+    m.trajectory(TrajectoryVersion::kCalibrated).valid.assign(10, 1);
+    EXPECT_DOUBLE_EQ(m.clock.correction_s(), 0.0123456);
+    EXPECT_DOUBLE_EQ(m.clock.sigma_s(), 0.001);
+    EXPECT_TRUE(m.ResetCalibration());
+    for (std::size_t i = 0; i < nominal.size(); ++i)
+        EXPECT_EQ(m.ingest.pings.pings[i].utime_gps, nominal[i].utime_gps) << i;
+    EXPECT_DOUBLE_EQ(m.mount.boresight_yaw_deg, 0.0);
+    EXPECT_DOUBLE_EQ(m.mount.boresight_roll_deg, 0.5);
+    EXPECT_EQ(m.calibration, CalibrationState::kNotRun);
+    EXPECT_FALSE(m.has(TrajectoryVersion::kCalibrated));
+    EXPECT_DOUBLE_EQ(m.clock.sigma_s(), 0.1);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::survey
