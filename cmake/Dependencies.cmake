@@ -18,6 +18,7 @@ if(PITMAP_BUILD_PROCESSOR)
   list(APPEND CMAKE_MODULE_PATH /usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB)
   find_package(OpenVDB REQUIRED)
   find_package(GDAL CONFIG REQUIRED)  # GeoTIFF (COG) and BAG grids -> GDAL::GDAL
+  find_package(PROJ CONFIG REQUIRED)  # geoid grids (proj-data's egm96_15.gtx) -> PROJ::proj
   # Clang's UBSan reports a downcast of oneTBB's sentinel pointer inside every OpenVDB tree
   # merge (third-party, harmless; cmake/ubsan-ignorelist.txt says what and where): whatever
   # compiles OpenVDB headers leaves that one check of that one TBB header out.

@@ -18,7 +18,7 @@ processor_pkgs=(
   libsuitesparse-dev libblas-dev liblapack-dev
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev libassimp-dev
-  libgdal-dev
+  libgdal-dev libproj-dev proj-data
   python3-numpy python3-matplotlib
 )
 tool_pkgs=(

@@ -18,11 +18,15 @@ namespace pitmap::proc::io {
 namespace {
 
 constexpr double kBagNoData = 1000000.0;
-// The heights' CRS (as io::LasWkt's vertical part): OGC 01-009 vertical datum type 2002,
-// ellipsoidal.
-constexpr const char* kVerticalWkt =
+// The heights' CRS when the grid names none (as io::LasWkt's vertical part): OGC 01-009
+// vertical datum type 2002, ellipsoidal.
+constexpr const char* kEllipsoidalWkt =
     "VERT_CS[\"WGS 84 ellipsoidal height\",VERT_DATUM[\"World Geodetic System 1984\",2002],"
     "UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AXIS[\"Ellipsoidal height\",UP]]";
+
+std::string VerticalWkt(const GridRaster& g) {
+    return g.vertical_wkt.empty() ? std::string(kEllipsoidalWkt) : g.vertical_wkt;
+}
 
 void RegisterOnce() {
     static std::once_flag once;
@@ -90,7 +94,7 @@ Expected<DatasetPtr> MemDataset(const std::string& path,
     OGRSpatialReference horizontal, vertical, srs;
     if (horizontal.importFromEPSG(static_cast<int>((g.northern ? 32600 : 32700) + g.utm_zone)) !=
             OGRERR_NONE ||
-        vertical.importFromWkt(kVerticalWkt) != OGRERR_NONE ||
+        vertical.importFromWkt(VerticalWkt(g).c_str()) != OGRERR_NONE ||
         srs.SetCompoundCS((horizontal.GetName() + std::string(" + ") + vertical.GetName()).c_str(),
                           &horizontal,
                           &vertical) != OGRERR_NONE) {
@@ -175,13 +179,14 @@ Status WriteBag(const std::string& path, const GridRaster& grid) {
     auto mem = MemDataset(path, grid, {elevation, uncertainty}, kBagNoData, /*vertical=*/false);
     if (!mem) return mem.error();
     char** opts = nullptr;
-    opts = CSLSetNameValue(opts, "VAR_VERT_WKT", kVerticalWkt);
+    const std::string vertical_wkt = VerticalWkt(grid);
+    opts = CSLSetNameValue(opts, "VAR_VERT_WKT", vertical_wkt.c_str());
     opts = CSLSetNameValue(opts, "VAR_ABSTRACT", "pitmap CUBE surface (multibeam survey)");
     opts = CSLSetNameValue(
         opts,
         "VAR_PROCESS_STEP_DESCRIPTION",
         "pitmap: total propagated uncertainty per sounding (Hare et al. 1995), CUBE (Calder & "
-        "Mayer 2003); heights above the WGS 84 ellipsoid");
+        "Mayer 2003); vertical datum in the vertical CRS");
     Status s = Copy(path, "BAG", mem->get(), opts);
     CSLDestroy(opts);
     return s;

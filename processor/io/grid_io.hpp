@@ -6,9 +6,9 @@
 // Geometry: node (i, j) lies at x0 + i * resolution, y0 + j * resolution (row j = 0 is the
 // southernmost) and is the centre of its pixel; the files are north-up (the first row is the
 // northernmost). CRS: WGS 84 / UTM zone (EPSG 326zz / 327zz) compound with the vertical CRS
-// "WGS 84 ellipsoidal height" (the heights pitmap computes, as io::LasWkt). GeoTIFF stores the
-// vertical CRS by name (GeoTIFF has no code for an ellipsoidal vertical datum); BAG stores it
-// in its XML metadata.
+// GridRaster::vertical_wkt (the vertical datum of the heights, hydro/datum.hpp; default "WGS 84
+// ellipsoidal height", as io::LasWkt). GeoTIFF stores the vertical CRS by its EPSG code where it
+// has one (EGM96 height 5773) and by name otherwise; BAG stores it in its XML metadata.
 // No data: NaN in the GeoTIFF (every band), 1000000 in the BAG (the BAG convention); reading
 // back gives NaN for both.
 // Failure model: every function returns an error naming the file and GDAL's message.
@@ -36,6 +36,9 @@ struct GridRaster {
     int utm_zone = 0;  // 1..60
     bool northern = true;
     std::vector<GridLayer> layers;
+    // The heights' vertical CRS as OGC WKT1 VERT_CS (hydro::DatumModel::VerticalWkt); "" = WGS 84
+    // ellipsoidal height.
+    std::string vertical_wkt;
     // Free-form dataset metadata (key, value).
     std::vector<std::pair<std::string, std::string>> metadata;
 };

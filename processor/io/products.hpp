@@ -9,9 +9,9 @@
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
 //   coordinates with scale 0.001 m, GPS time as Adjusted Standard GPS time (GPS s - 1e9,
 //   global encoding bit 0), CRS as an OGC WKT VLR (LASF_Projection / 2112, global encoding
-//   bit 4): a COMPD_CS of the UTM PROJCS and VERT_CS "WGS 84 ellipsoidal height" (OGC 01-009
-//   vertical datum type 2002, ellipsoidal), since heights are WGS 84 ellipsoidal: pitmap
-//   applies no geoid (one that does must declare its geoid's VERT_CS here instead).
+//   bit 4): a COMPD_CS of the UTM PROJCS and the heights' VERT_CS: "WGS 84 ellipsoidal height"
+//   (OGC 01-009 vertical datum type 2002) as georef writes it, the vertical datum's (geoid,
+//   water level; hydro/datum.hpp) when the grid stage writes the file again (PointExtras).
 // Failure model: every function returns an error naming the file.
 #pragma once
 
@@ -40,14 +40,34 @@ Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
 // summary.json's record of the vehicle file.
 nlohmann::json VehicleJson(const VehicleDescription& v);
 
-Status WritePly(const std::string& path, const georef::GeorefResult& result);
+// What the grid stage adds to the point files (issue 17): per-sounding uncertainty and the
+// vertical datum. Empty vectors are not written.
+struct PointExtras {
+    std::vector<float> thu_95_m;         // one per sounding: THU, 95 %, m
+    std::vector<float> tvu_95_m;         // one per sounding: TVU, 95 %, m
+    std::vector<double> datum_height_m;  // one per ping: the datum's ellipsoidal height D, m
+    std::string vertical_wkt;            // the datum's VERT_CS (WKT1); "" = WGS 84 ellipsoidal
+    std::string vertical_name;           // its name, for the PLY comment
+};
+
+// With extras, PLY adds float thu_95_m, tvu_95_m (when given) and, with datum heights, float
+// depth_m (D - h: below the datum, m) and a comment "pitmap_vertical_datum NAME"; x, y, z stay
+// world ENU (ellipsoidal).
+Status WritePly(const std::string& path,
+                const georef::GeorefResult& result,
+                const PointExtras* extras = nullptr);
+// With extras, LAS heights are h - D (above the datum; the WKT's VERT_CS names it) and THU/TVU
+// are LAS 1.4 extra bytes (two float32 after the format-6 fields, record length 38), described
+// in an Extra Bytes VLR (LASF_Spec / 4: names "THU 95%" and "TVU 95%", metres).
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& result,
-                const georef::UtmPoints& utm);
+                const georef::UtmPoints& utm,
+                const PointExtras* extras = nullptr);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.
 std::string UtmWkt(int zone, bool northern);
-// The LAS file's CRS: COMPD_CS[UtmWkt, VERT_CS WGS 84 ellipsoidal height], WKT1.
-std::string LasWkt(int zone, bool northern);
+// The LAS file's CRS: COMPD_CS[UtmWkt, vertical], WKT1; vertical_wkt "" = VERT_CS WGS 84
+// ellipsoidal height.
+std::string LasWkt(int zone, bool northern, const std::string& vertical_wkt = "");
 
 // trajectory_ins.csv: the INS solution at its own rate in the trajectory CSV format
 // (common/formats/trajectory_csv.hpp) with the INS columns, world ENU at `origin`.

@@ -258,6 +258,59 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
     v("write_bag", c.write_bag, "P/dem.bag");
     v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");
+    v("write_point_tpu",
+      c.write_point_tpu,
+      "points.ply/.las rewritten with THU, TVU (and the vertical datum)");
+}
+
+constexpr hydro::VerticalDatum kDatums[] = {hydro::VerticalDatum::kEllipsoid,
+                                            hydro::VerticalDatum::kGeoid,
+                                            hydro::VerticalDatum::kWaterLevel};
+constexpr hydro::WaterLevelSource kLevelSources[] = {hydro::WaterLevelSource::kGnss,
+                                                     hydro::WaterLevelSource::kFile};
+
+template <class V>
+void VisitVertical(V&& v, hydro::VerticalDatumConfig& c) {
+    v.Enum("datum",
+           c.datum,
+           kDatums,
+           "vertical datum of dem.tif/.bag, points.las, the S-44 depths:\n"
+           "ellipsoid (WGS 84) | geoid (PROJ grid) | water_level (the pit's surface)");
+    v("geoid_vertical_epsg",
+      c.geoid_vertical_epsg,
+      "geoid: 5773 EGM96 height | 3855 EGM2008 height");
+    v("geoid_grid", c.geoid_grid, "geoid: PROJ grid name or path; \"\" = egm96_15.gtx (proj-data)");
+    v.Enum("water_level_source",
+           c.water_level_source,
+           kLevelSources,
+           "water_level: gnss (INS heights, survey median) | file (levels above the datum)");
+    v("water_level_file", c.water_level_file, "file: CSV time (UTC ISO 8601), level (m)");
+    v("smoothing_window_s", c.smoothing_window_s, "running median of the GNSS water surface, s");
+    v("step_s", c.step_s, "its time step, s");
+    v.NanIsNull("ins_height_above_waterline_m",
+                c.ins_height_above_waterline_m,
+                "INS above the water line, m; null = vehicle.yaml's");
+    v("max_level_gap_s", c.max_level_gap_s, "file: a ping further from any level is an error, s");
+}
+
+constexpr hydro::S44Order kOrders[] = {hydro::S44Order::kExclusive,
+                                       hydro::S44Order::kSpecial,
+                                       hydro::S44Order::kOrder1a,
+                                       hydro::S44Order::kOrder1b,
+                                       hydro::S44Order::kOrder2};
+
+template <class V>
+void VisitS44(V&& v, GridStageConfig& g) {
+    hydro::S44Config& c = g.s44_config;
+    v("enabled", g.s44, "IHO S-44 Ed. 6.1 quality control in the grid stage");
+    v.Enum("order", c.order, kOrders, "exclusive | special | 1a | 1b | 2");
+    v("min_holiday_nodes", c.min_holiday_nodes, "a holiday is at least this many nodes a side");
+    v("crossing_angle_deg", c.crossing_angle_deg, "crossline: headings this far apart cross, deg");
+    v("min_time_separation_s",
+      c.min_time_separation_s,
+      "crossline: earlier soundings this older, s");
+    v("crossline_cell_m", c.crossline_cell_m, "crossline cell, m; 0 = 2 x grid resolution");
+    v("min_reference_soundings", c.min_reference_soundings, "crossing soundings needed a cell");
 }
 
 template <class V>
@@ -293,6 +346,8 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("fuse", [&](auto& s) { VisitFuse(s, c.tsdf, c.weight_filter); });
     v.Section("mesh", [&](auto& s) { VisitMesh(s, c.mesh); });
     v.Section("grid", [&](auto& s) { VisitGrid(s, c.grid); });
+    v.Section("vertical", [&](auto& s) { VisitVertical(s, c.grid.vertical); });
+    v.Section("s44", [&](auto& s) { VisitS44(s, c.grid); });
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <sstream>
 #include <type_traits>
@@ -14,7 +15,10 @@
 #include "common/frames.hpp"
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
+#include "processor/io/geoid.hpp"
 #include "processor/io/grid_io.hpp"
+#include "processor/io/products.hpp"
+#include "processor/io/water_level.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/survey.hpp"
 
@@ -66,6 +70,198 @@ SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string
     return v->ErrorModel();
 }
 
+double MedianOf(std::vector<double> v) {
+    if (v.empty()) return 0;
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+// The vertical datum of the products (hydro/datum.hpp) at every ping, with its record for
+// summary.json. `ping_geo` are the transducers' geodetic positions.
+Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
+                                         const hydro::VerticalDatumConfig& vc,
+                                         const std::vector<Geodetic>& ping_geo,
+                                         json* record,
+                                         const Log& log) {
+    hydro::DatumInputs in;
+    in.ping_t_s.reserve(s.geo.pings.size());
+    for (const auto& p : s.geo.pings)
+        in.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+    *record = {{"datum", hydro::ToString(vc.datum)}};
+    if (vc.datum == hydro::VerticalDatum::kGeoid) {
+        const hydro::GeoidCrs* g = hydro::FindGeoidCrs(vc.geoid_vertical_epsg);
+        const std::string grid = vc.geoid_grid.empty() ? g->default_grid : vc.geoid_grid;
+        auto geoid = io::GeoidGrid::Open(grid);
+        if (!geoid) return Error{"grid: vertical datum: " + geoid.error().message};
+        auto n = geoid->Undulations(ping_geo);
+        if (!n) return Error{"grid: vertical datum: " + n.error().message};
+        in.geoid_n_m = std::move(*n);
+        in.source_name = grid;
+        (*record)["geoid_grid"] = grid;
+    }
+    if (vc.datum == hydro::VerticalDatum::kWaterLevel) {
+        double above = vc.ins_height_above_waterline_m;
+        std::string above_source = "vertical.ins_height_above_waterline_m";
+        if (std::isnan(above)) {
+            above_source = "vehicle.yaml ins.height_above_waterline_m";
+            const auto v = s.summary.find("vehicle");
+            if (v != s.summary.end() && v->is_object() &&
+                v->value("ins_height_above_waterline_m", json()).is_number()) {
+                above = (*v)["ins_height_above_waterline_m"].get<double>();
+            }
+        }
+        if (!std::isfinite(above)) {
+            return Error{
+                "grid: vertical datum water_level needs the INS height above the water "
+                "line: vehicle.yaml ins.height_above_waterline_m or "
+                "vertical.ins_height_above_waterline_m"};
+        }
+        std::vector<hydro::HeightSample> h;
+        h.reserve(s.model.ingest.nav.samples.size());
+        for (const auto& n : s.model.ingest.nav.samples) {
+            h.push_back({static_cast<double>(n.utime_gps) * 1e-6, n.position.height_m});
+        }
+        hydro::WaterSurfaceStats ws;
+        in.surface = hydro::SmoothWaterSurface(h, above, vc.smoothing_window_s, vc.step_s, &ws);
+        (*record)["water_level_source"] = hydro::ToString(vc.water_level_source);
+        (*record)["ins_height_above_waterline_m"] = above;
+        (*record)["ins_height_above_waterline_source"] = above_source;
+        (*record)["gnss_water_surface"] = {{"samples", ws.samples_used},
+                                           {"rejected", ws.samples_rejected},
+                                           {"median_m", ws.level_median_m},
+                                           {"min_m", ws.level_min_m},
+                                           {"max_m", ws.level_max_m},
+                                           {"raw_sd_mad_m", ws.raw_mad_m},
+                                           {"smoothing_window_s", vc.smoothing_window_s}};
+        if (vc.water_level_source == hydro::WaterLevelSource::kFile) {
+            auto levels = io::ReadWaterLevelFile(vc.water_level_file);
+            if (!levels) return Error{"grid: vertical datum: " + levels.error().message};
+            for (const auto& l : *levels) {
+                in.levels.t_s.push_back(static_cast<double>(l.utime_gps) * 1e-6);
+                in.levels.level_m.push_back(l.level_m);
+            }
+            in.source_name = std::filesystem::path(vc.water_level_file).filename().string();
+            (*record)["water_level_file"] = vc.water_level_file;
+            (*record)["water_levels"] = levels->size();
+        }
+    }
+    hydro::DatumBuild b = hydro::BuildDatum(vc, in);
+    if (!b.ok) return Error{"grid: " + b.message};
+    (*record)["vertical_crs"] = b.model.crs_name;
+    (*record)["vertical_epsg"] = b.model.vertical_epsg > 0 ? json(b.model.vertical_epsg) : json();
+    (*record)["description"] = b.model.description;
+    (*record)["mean_datum_height_m"] = b.model.mean_datum_height_m;
+    log("grid: vertical datum: " + b.model.description);
+    return std::move(b.model);
+}
+
+json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
+    json j = json::object();
+    for (int o = 0; o < hydro::kNumS44Orders; ++o)
+        j[hydro::ToString(static_cast<hydro::S44Order>(o))] = a[o];
+    return j;
+}
+
+// UTM easting/northing -> world east/north: an affine fit over soundings spread across the
+// survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
+Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm,
+                                       const georef::GeorefResult& geo) {
+    const std::size_t n = utm.easting_northing_height.size();
+    const std::size_t step = std::max<std::size_t>(1, n / 2000);
+    Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+    Eigen::Matrix<double, 3, 2> Atb = Eigen::Matrix<double, 3, 2>::Zero();
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    if (n > 0) c = utm.easting_northing_height[0].head<2>();
+    for (std::size_t j = 0; j < n; j += step) {
+        const Eigen::Vector3d a(utm.easting_northing_height[j].x() - c.x(),
+                                utm.easting_northing_height[j].y() - c.y(),
+                                1.0);
+        AtA += a * a.transpose();
+        Atb += a * geo.points.position_world[j].head<2>().transpose();
+    }
+    Eigen::Matrix<double, 3, 2> X = AtA.ldlt().solve(Atb);
+    // world = X^T [e - c_e, n - c_n, 1]
+    Eigen::Matrix<double, 2, 3> M = X.transpose();
+    M.col(2) -= M.block<2, 2>(0, 0) * c;
+    return M;
+}
+
+json S44Json(const hydro::S44Result& r,
+             const std::string& holiday_file,
+             const Eigen::Matrix<double, 2, 3>& to_world) {
+    json holidays = json::array();
+    const auto world = [&](double x, double y) {
+        const Eigen::Vector2d w = to_world * Eigen::Vector3d(x, y, 1.0);
+        return json{w.x(), w.y()};
+    };
+    for (std::size_t k = 0; k < r.holidays.size() && k < 200; ++k) {
+        const auto& h = r.holidays[k];
+        holidays.push_back({{"x_m", h.x},
+                            {"y_m", h.y},
+                            {"world_m", world(h.x, h.y)},
+                            {"bbox_m", {h.x_min, h.y_min, h.x_max, h.y_max}},
+                            {"bbox_world_m",
+                             {world(h.x_min, h.y_min),
+                              world(h.x_max, h.y_min),
+                              world(h.x_max, h.y_max),
+                              world(h.x_min, h.y_max)}},
+                            {"nodes", h.nodes},
+                            {"area_m2", h.area_m2},
+                            {"largest_square_m", h.largest_square_m}});
+    }
+    json bins = json::array();
+    for (const auto& b : r.crossline_by_angle) {
+        bins.push_back({{"angle_lo_deg", b.angle_lo_deg},
+                        {"angle_hi_deg", b.angle_hi_deg},
+                        {"count", b.count},
+                        {"mean_m", b.mean_m},
+                        {"sd_m", b.sd_m},
+                        {"rms_m", b.rms_m},
+                        {"within_tvu", b.within_tvu}});
+    }
+    json limits = json::object();
+    for (int o = 0; o < hydro::kNumS44Orders; ++o) {
+        const auto& L = hydro::LimitsOf(static_cast<hydro::S44Order>(o));
+        limits[hydro::ToString(static_cast<hydro::S44Order>(o))] = {
+            {"thu_m", L.thu_constant_m},
+            {"thu_depth_fraction", L.thu_depth_fraction},
+            {"tvu_a_m", L.tvu_a_m},
+            {"tvu_b", L.tvu_b},
+            {"feature_m", L.feature_size_m},
+            {"coverage_percent", L.coverage_percent}};
+    }
+    const int met = hydro::StrictestOrderMet(r);
+    return {{"standard", "IHO S-44 Edition 6.1.0"},
+            {"order", hydro::ToString(r.order)},
+            {"limits", limits},
+            {"soundings", r.soundings},
+            {"nodes", r.nodes},
+            {"soundings_within_tvu", OrderShares(r.soundings_within_tvu)},
+            {"soundings_within_thu", OrderShares(r.soundings_within_thu)},
+            {"soundings_within_both", OrderShares(r.soundings_within_both)},
+            {"nodes_within_tvu", OrderShares(r.nodes_within_tvu)},
+            {"nodes_within_thu", OrderShares(r.nodes_within_thu)},
+            {"strictest_order_met_95",
+             met >= 0 ? json(hydro::ToString(static_cast<hydro::S44Order>(met))) : json()},
+            {"coverage_share", r.coverage_share},
+            {"nodes_survey_area", r.nodes_survey_area},
+            {"nodes_in_gaps", r.nodes_in_gaps},
+            {"gaps", r.gaps},
+            {"feature_size_m", r.feature_size_m},
+            {"holiday_count", r.holidays.size()},
+            {"holidays", holidays},
+            {"holiday_map", holiday_file},
+            {"crossline",
+             {{"compared", r.crossline_compared},
+              {"mean_m", r.crossline_mean_m},
+              {"sd_m", r.crossline_sd_m},
+              {"rms_m", r.crossline_rms_m},
+              {"within_tvu", r.crossline_within_tvu},
+              {"by_angle", bins}}},
+            {"message", r.message}};
+}
+
 }  // namespace
 
 std::vector<std::string> GridStageConfig::Validate() const {
@@ -74,6 +270,8 @@ std::vector<std::string> GridStageConfig::Validate() const {
         out.push_back("grid.tpu_sound_speed_mps must be within 1300..1700");
     }
     if (!(ins_sigma_max_age_s > 0)) out.push_back("grid.ins_sigma_max_age_s must be > 0");
+    for (auto& p : vertical.Validate()) out.push_back(p);
+    for (auto& p : s44_config.Validate()) out.push_back(p);
     return out;
 }
 
@@ -114,6 +312,16 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     auto utm = georef::ToUtm(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
+    const LocalTangentFrame world(s.model.origin);
+    std::vector<Geodetic> ping_geo(s.geo.pings.size());
+    for (std::size_t k = 0; k < ping_geo.size(); ++k) {
+        ping_geo[k] = world.FromEnu(s.geo.pings[k].sensor_world);
+    }
+    json datum_record;
+    auto datum = ProductDatum(s, gc.vertical, ping_geo, &datum_record, log);
+    if (!datum) return datum.error();
+    const std::vector<double>& D = datum->datum_height_m;
+    const bool water = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
     std::vector<hydro::CubeSounding> snd(s.geo.points.size());
     for (std::size_t j = 0; j < snd.size(); ++j) {
         const Eigen::Vector3d& e = utm->easting_northing_height[j];
@@ -121,12 +329,12 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             s.geo.pings[s.geo.points.ping[j]].sensor_world.z() - s.geo.points.position_world[j].z();
         snd[j] = {e.x(),
                   e.y(),
-                  e.z(),
+                  e.z() - D[s.geo.points.ping[j]],
                   static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
                   static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
                   static_cast<float>(depth)};
     }
-    part.Lap(timings, "utm");
+    part.Lap(timings, "utm_datum");
     const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
     part.Lap(timings, "cube");
     if (!cube.ok) return Error{cube.message};
@@ -141,6 +349,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     raster.ny = g.ny;
     raster.utm_zone = utm->zone;
     raster.northern = utm->northern;
+    raster.vertical_wkt = datum->VerticalWkt();
     raster.layers = {{"elevation", "metre", g.elevation_m},
                      {"uncertainty", "metre", g.uncertainty_m},
                      {"density", "", g.density},
@@ -148,7 +357,8 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     raster.metadata = {
         {"pitmap_surface", "CUBE (Calder & Mayer 2003)"},
         {"pitmap_disambiguation", hydro::ToString(gc.cube.disambiguation)},
-        {"pitmap_vertical_datum", "WGS 84 ellipsoidal height"},
+        {"pitmap_vertical_datum", datum->crs_name},
+        {"pitmap_vertical_datum_description", datum->description},
         {"pitmap_uncertainty", "95 %: 1.96 x max(posterior sd, sd of the hypothesis' soundings)"},
         {"pitmap_density", "soundings in the chosen hypothesis"}};
     const std::string& P = s.out_dir;
@@ -169,7 +379,74 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         }
         files.push_back("soundings_tpu.ply");
     }
+    if (gc.write_point_tpu) {
+        io::PointExtras extras;
+        extras.thu_95_m = tpu.thu_95_m;
+        extras.tvu_95_m = tpu.tvu_95_m;
+        if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
+        extras.vertical_wkt = datum->VerticalWkt();
+        extras.vertical_name = datum->crs_name;
+        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras); !w) return w;
+        files.push_back("points.ply");
+        if (config.write_las) {
+            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras); !w) return w;
+            files.push_back("points.las");
+        }
+    }
     part.Lap(timings, "write");
+
+    json s44_json;
+    if (gc.s44) {
+        hydro::S44Soundings ss;
+        const std::size_t n = snd.size();
+        ss.x.resize(n);
+        ss.y.resize(n);
+        ss.z.resize(n);
+        ss.depth_m.resize(n);
+        ss.angle_deg.resize(n);
+        for (std::size_t j = 0; j < n; ++j) {
+            ss.x[j] = snd[j].x;
+            ss.y[j] = snd[j].y;
+            ss.z[j] = snd[j].z;
+            // Depth for the limits: below the water-level datum, else below the transducer.
+            ss.depth_m[j] = water ? static_cast<float>(-snd[j].z) : snd[j].depth_m;
+            ss.angle_deg[j] = static_cast<float>(frames::RadToDeg(s.geo.points.angle_rad[j]));
+        }
+        ss.thu_95_m = tpu.thu_95_m;
+        ss.tvu_95_m = tpu.tvu_95_m;
+        ss.ping = s.geo.points.ping;
+        std::vector<double> transducer(s.geo.pings.size());
+        for (std::size_t k = 0; k < s.geo.pings.size(); ++k) {
+            const auto& p = s.geo.pings[k];
+            ss.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+            const Eigen::Vector3d fwd = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
+            ss.ping_yaw_rad.push_back(std::atan2(fwd.x(), fwd.y()));
+            transducer[k] = ping_geo[k].height_m - D[k];
+        }
+        hydro::S44Grid sg{
+            g.x0, g.y0, g.resolution_m, g.nx, g.ny, g.elevation_m, g.uncertainty_m, {}};
+        // Node depth: below the datum (water level), else below the transducers' median height.
+        const double ref = water ? 0.0 : MedianOf(transducer);
+        sg.depth_m.resize(g.elevation_m.size());
+        for (std::size_t q = 0; q < sg.depth_m.size(); ++q) {
+            sg.depth_m[q] = static_cast<float>(ref - g.elevation_m[q]);
+        }
+        const hydro::S44Result r44 = hydro::RunS44(ss, sg, gc.s44_config);
+        log("grid: S-44: " + r44.message);
+        io::GridRaster hol = raster;
+        hol.layers = {{"holiday", "", r44.holiday_map}};
+        hol.metadata = {{"pitmap_holidays",
+                         "IHO S-44 order " + std::string(hydro::ToString(r44.order)) +
+                             ": 0 covered, 1 gap, 2 holiday, nodata outside the survey"}};
+        std::string holiday_file;
+        if (gc.write_geotiff) {
+            if (auto w = io::WriteCogGeoTiff(P + "/s44_holidays.tif", hol); !w) return w;
+            holiday_file = "s44_holidays.tif";
+            files.push_back(holiday_file);
+        }
+        s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
+        part.Lap(timings, "s44");
+    }
     json shares = json::object();
     for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
         shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
@@ -188,7 +465,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"x0_m", g.x0},
                      {"y0_m", g.y0},
                      {"utm_epsg", utm->epsg},
-                     {"vertical_crs", "WGS 84 ellipsoidal height"},
+                     {"vertical_crs", datum->crs_name},
                      {"disambiguation", hydro::ToString(gc.cube.disambiguation)},
                      {"nodes_filled", cube.nodes_filled},
                      {"nodes_multiple_hypotheses", cube.nodes_multiple},
@@ -198,9 +475,12 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"files", files},
                      {"timings_wall_cpu_s", timings},
                      {"message", cube.message}};
+    json stage = st;
+    if (!s44_json.is_null()) stage["s44"] = s44_json;
+    s.summary["vertical_datum"] = datum_record;
     log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
-    RecordStage(s.summary, Stage::kGrid, st, clock);
+    RecordStage(s.summary, Stage::kGrid, stage, clock);
     return SaveSummary(s);
 }
 

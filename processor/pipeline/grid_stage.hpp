@@ -17,17 +17,23 @@
 #include <vector>
 
 #include "processor/hydro/cube.hpp"
+#include "processor/hydro/datum.hpp"
+#include "processor/hydro/s44.hpp"
 
 namespace pitmap::proc::pipeline {
 
 struct GridStageConfig {
-    bool in_run = true;                 // `pitmap run` makes the grid
-    hydro::CubeConfig cube;             // CUBE parameters (resolution 0 = from the depth)
-    double tpu_sound_speed_mps = 1500;  // nominal sound speed for the TPU's sound-speed terms
-    double ins_sigma_max_age_s = 5.0;   // INSSTDEV records further from a ping are not used
-    bool write_geotiff = true;          // P/dem.tif
-    bool write_bag = true;              // P/dem.bag
-    bool write_sounding_tpu = false;    // P/soundings_tpu.ply (28 bytes a sounding)
+    bool in_run = true;                   // `pitmap run` makes the grid
+    hydro::CubeConfig cube;               // CUBE parameters (resolution 0 = from the depth)
+    double tpu_sound_speed_mps = 1500;    // nominal sound speed for the TPU's sound-speed terms
+    double ins_sigma_max_age_s = 5.0;     // INSSTDEV records further from a ping are not used
+    bool write_geotiff = true;            // P/dem.tif
+    bool write_bag = true;                // P/dem.bag
+    bool write_sounding_tpu = false;      // P/soundings_tpu.ply (28 bytes a sounding)
+    bool write_point_tpu = true;          // points.ply / points.las again with THU, TVU (and datum)
+    hydro::VerticalDatumConfig vertical;  // the `vertical:` section: the products' datum
+    bool s44 = true;                      // S-44 quality control (`s44:` section)
+    hydro::S44Config s44_config;
 
     std::vector<std::string> Validate() const;
 };

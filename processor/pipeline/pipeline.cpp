@@ -291,9 +291,13 @@ Status SaveSurvey(const Survey& s) {
     return SaveSummary(s);
 }
 
-Status ExportSurvey(Survey& s, const PipelineConfig& config) {
+Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
     StageClock clock;
-    if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
+    if (points) {
+        if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
+    } else if (auto utm = georef::ToUtm(s.geo); utm) {
+        s.summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
+    }
     json bj = MountJson(s.model.mount);
     bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;

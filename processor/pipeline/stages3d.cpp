@@ -399,9 +399,11 @@ Status RunAll(const std::vector<std::string>& inputs,
     // The stages that change the survey (georef, calibrate, SLAM) leave points.ply/las,
     // boresight.json and survey.pitmap to one export once the last of them has run.
     s.defer_products = true;
-    auto export_now = [&](Status failed) -> Status {
+    // With the grid in the run and its points with THU/TVU, the grid stage writes the points.
+    const bool grid_points = config.grid.in_run && config.grid.write_point_tpu;
+    auto export_now = [&](Status failed, bool points = true) -> Status {
         s.defer_products = false;
-        if (auto w = detail::ExportSurvey(s, config); !w) return w;
+        if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
     if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;
@@ -421,9 +423,13 @@ Status RunAll(const std::vector<std::string>& inputs,
     if (config.run.slam) {
         if (auto st = detail::SlamSurvey(s, config, log); !st) return export_now(st);
     }
-    if (auto st = export_now(Ok{}); !st) return st;
+    if (auto st = export_now(Ok{}, !grid_points); !st) return st;
     if (config.grid.in_run) {
-        if (auto st = detail::GridSurvey(s, config, log); !st) return st;
+        if (auto st = detail::GridSurvey(s, config, log); !st) {
+            // The points without THU/TVU rather than none.
+            if (grid_points) (void)detail::WritePoints(out_dir, s.geo, config, s.summary);
+            return st;
+        }
     }
     {
         auto v = detail::FuseSurvey(s, config, Stage::kFuse, log);

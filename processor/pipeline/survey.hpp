@@ -59,8 +59,9 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const Log& log);
 // Saves the model (P/survey.pitmap) and summary.json.
 Status SaveSurvey(const Survey& s);
-// points.ply, points.las and boresight.json of the current view, then SaveSurvey.
-Status ExportSurvey(Survey& s, const PipelineConfig& config);
+// points.ply, points.las (unless `points` is false: the grid stage writes them with THU/TVU)
+// and boresight.json of the current view, then SaveSurvey.
+Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points = true);
 
 // Wall time of one stage. Construction resets the resident-memory high-water mark
 // (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the

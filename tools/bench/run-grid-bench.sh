@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Hydrographic products benchmark (issue 17): a simulated survey (default bejanca) through
-# `pitmap run` with the per-sounding TPU written (grid.write_sounding_tpu), then pitmap-eval:
-# the grid stage's time, the CUBE surface against the true terrain (dem_*) and the share of
-# soundings within their 95 % TVU / THU (tpu_*), overall and by |beam angle|.
+# `pitmap run` with the per-sounding TPU written (grid.write_sounding_tpu), the water-level
+# datum from the GNSS heights and IHO S-44 order 1a QC, then pitmap-eval: the grid stage's
+# time, the CUBE surface against the true terrain (dem_*) and the share of soundings within
+# their 95 % TVU / THU (tpu_*), overall and by |beam angle|; the S-44 figures (share within
+# TVU/THU per order, holidays, crosslines); and the time the datum, the THU/TVU point files
+# and S-44 add: `pitmap grid` again on the same products without them (ellipsoidal heights,
+# s44.enabled false, grid.write_point_tpu false) and with them.
 #   tools/bench/run-grid-bench.sh [SCENARIO] [OUT]   (defaults: bejanca, out/bench/grid-SCENARIO)
 # SIM=DIR reuses a simulation made before (DIR/log, DIR/truth) instead of simulating again.
 set -euo pipefail
@@ -23,12 +27,22 @@ if [[ -z ${SIM:-} ]]; then
     tail -20 "$out/sim.log"; exit 1; }
 fi
 rm -rf "$out/products"
-printf 'grid:\n  write_sounding_tpu: true\n' > "$out/grid.yaml"
+printf 'grid:\n  write_sounding_tpu: true\nvertical:\n  datum: water_level\ns44:\n  order: 1a\n' \
+  > "$out/grid.yaml"
+printf 'grid:\n  write_point_tpu: false\ns44:\n  enabled: false\n' > "$out/grid-base.yaml"
+printf 'vertical:\n  datum: water_level\ns44:\n  order: 1a\n' > "$out/grid-full.yaml"
 echo "=== run-grid-bench: pitmap run"
 "$bin/pitmap" run "$sim/log" --out "$out/products" --config "$out/grid.yaml" --no-report \
   > "$out/run.log" 2>&1 || { grep -v '%  \[' "$out/run.log" | tail -20; exit 1; }
 "$bin/pitmap-eval" --truth "$sim/truth" --products "$out/products" \
   --json "$out/products/scores.json" > "$out/eval.txt"
+cp "$out/products/summary.json" "$out/summary-run.json"
+echo "=== run-grid-bench: pitmap grid without and with datum, point THU/TVU and S-44"
+for k in base full; do
+  "$bin/pitmap" grid --out "$out/products" --config "$out/grid-$k.yaml" > "$out/grid-$k.log" 2>&1
+  cp "$out/products/summary.json" "$out/summary-grid-$k.json"
+done
+cp "$out/summary-run.json" "$out/products/summary.json"
 
 python3 - "$out" "$scenario" <<'PY'
 import json, os, sys
@@ -62,5 +76,31 @@ if "tpu_within_tvu" in sc:
     print(f"| all | {sc['tpu_soundings_scored']:.0f} | {100 * sc['tpu_within_tvu']:.1f} % | "
           f"{100 * sc['tpu_within_thu']:.1f} % | {sc['tpu_vertical_rms_m']:.4f} | "
           f"{sc['tpu_tvu_sigma_rms_m']:.4f} |")
+q = g.get("s44")
+if q:
+    vd = s.get("vertical_datum", {})
+    print(f"\nvertical datum: {vd.get('description', '?')}")
+    print(f"\nIHO S-44 (order {q['order']} chosen; strictest met by 95 %: "
+          f"{q['strictest_order_met_95']})\n| order | soundings within TVU | within THU | "
+          "nodes within TVU |\n|---|---:|---:|---:|")
+    for o in ("exclusive", "special", "1a", "1b", "2"):
+        print(f"| {o} | {100 * q['soundings_within_tvu'][o]:.2f} % | "
+              f"{100 * q['soundings_within_thu'][o]:.2f} % | {100 * q['nodes_within_tvu'][o]:.2f} % |")
+    print(f"holidays (order {q['order']}, feature {q['feature_size_m']:.2f} m): "
+          f"{q['holiday_count']}; gaps {q['gaps']}, coverage {100 * q['coverage_share']:.2f} %")
+    cl = q["crossline"]
+    print(f"crossline: {cl['compared']} soundings, mean {cl['mean_m']:.4f} m, sd {cl['sd_m']:.4f} m, "
+          f"RMS {cl['rms_m']:.4f} m, within TVU {100 * cl['within_tvu']:.2f} %\n"
+          "| abs beam angle | soundings | mean (m) | sd (m) | RMS (m) | within TVU |\n|---|---:|---:|---:|---:|---:|")
+    for b in cl["by_angle"]:
+        print(f"| {b['angle_lo_deg']:.0f}-{b['angle_hi_deg']:.0f} | {b['count']} | {b['mean_m']:.4f} | "
+              f"{b['sd_m']:.4f} | {b['rms_m']:.4f} | {100 * b['within_tvu']:.1f} % |")
+print("\n| pitmap grid | seconds | CPU s | parts (wall, CPU s) |\n|---|---:|---:|---|")
+for k in ("base", "full"):
+    gs = json.load(open(os.path.join(out, f"summary-grid-{k}.json")))["stages"]["grid"]
+    t = gs["timings_wall_cpu_s"]
+    cpu = sum(v[1] for v in t.values())
+    print(f"| {k} | {gs['seconds']:.1f} | {cpu:.1f} | " +
+          ", ".join(f"{n} {v[0]:.1f}/{v[1]:.1f}" for n, v in t.items()) + " |")
 print(f"\nrun total {s['total_seconds']:.1f} s; scores: {os.path.join(out, 'products', 'scores.json')}")
 PY

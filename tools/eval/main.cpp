@@ -42,7 +42,10 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 0.2 m of a mesh vertex or triangle centroid.
   dem_mean_abs_m, dem_rms_m, dem_p95_m, dem_bias_m
                                 vertical difference of the filled nodes of P/dem.tif (band 1,
-                                UTM, ellipsoidal heights) from the true terrain at each node;
+                                UTM; heights in a vertical datum other than the ellipsoid are
+                                put back on it with summary.json vertical_datum
+                                mean_datum_height_m, exact for the GNSS water level, within
+                                millimetres for a geoid over a pit) from the true terrain;
                                 dem_mean_abs_insonified_m over the insonified nodes only.
   dem_fill_insonified           share of the nodes on insonified truth cells that are filled.
   tpu_within_tvu, tpu_within_thu
@@ -68,6 +71,20 @@ std::optional<Geodetic> ProductOrigin(const fs::path& products,
         }
     }
     return formats::ply::OriginFromComments(ply_comments);
+}
+
+// The datum's mean ellipsoidal height (summary.json vertical_datum), 0 for ellipsoidal heights.
+double DatumHeight(const fs::path& products) {
+    std::ifstream in(products / "summary.json");
+    if (!in) return 0.0;
+    const json j = json::parse(in, nullptr, false);
+    if (j.is_discarded() || !j.contains("vertical_datum") || !j["vertical_datum"].is_object()) {
+        return 0.0;
+    }
+    const json& v = j["vertical_datum"];
+    if (v.value("datum", std::string("ellipsoid")) == "ellipsoid") return 0.0;
+    const json& h = v.value("mean_datum_height_m", json());
+    return h.is_number() ? h.get<double>() : 0.0;
 }
 
 }  // namespace
@@ -230,6 +247,7 @@ int main(int argc, char** argv) {
             return 2;
         }
         const proc::io::GridRaster& g = dem->grid;
+        const double datum_height_m = DatumHeight(P);
         const LocalTangentFrame tf(truth->origin);
         std::vector<Eigen::Vector3d> nodes;
         nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
@@ -241,7 +259,7 @@ int main(int argc, char** argv) {
                 u.northern = epsg < 32700;
                 u.easting_m = g.x0 + i * g.resolution_m;
                 u.northing_m = g.y0 + j * g.resolution_m;
-                u.height_m = std::isfinite(h) ? h : 0.0;
+                u.height_m = std::isfinite(h) ? h + datum_height_m : 0.0;
                 auto geo = GeodeticFromUtm(u);
                 if (!geo) continue;
                 Eigen::Vector3d p = tf.ToEnu(*geo);

@@ -129,6 +129,12 @@ int main(int argc, char** argv) {
                      "AT_S MS: from AT_S seconds after the survey start on, the decoded pings are "
                      "stamped MS ms late instead (a daemon clock that stepped mid-survey)")
         ->expected(2);
+    std::vector<double> dropout_patch;
+    synth
+        ->add_option("--dropout-patch",
+                     dropout_patch,
+                     "X Y R: beams hitting within R m of world (X, Y) return nothing (a holiday)")
+        ->expected(3);
     double duration_s = 0;
     auto* duration_opt = synth->add_option(
         "--duration", duration_s, "seconds of the survey to simulate (default: the scenario's)");
@@ -196,6 +202,11 @@ int main(int argc, char** argv) {
         scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
     }
     if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
+    if (dropout_patch.size() == 3) {
+        scenario->sonar.dropout_patch_x_m = dropout_patch[0];
+        scenario->sonar.dropout_patch_y_m = dropout_patch[1];
+        scenario->sonar.dropout_patch_radius_m = dropout_patch[2];
+    }
     if (refraction) scenario->water.refraction = true;
     if (surface_speed_opt->count() > 0) scenario->water.surface_speed_mps = water_surface_speed;
     if (deep_speed_opt->count() > 0) scenario->water.deep_speed_mps = water_deep_speed;

@@ -109,6 +109,9 @@ struct SonarConfig {
     double range_noise_fraction = 0.002;  // sigma = fraction * range + constant
     double range_noise_constant_m = 0.02;
     double dropout_probability = 0.02;  // beam reports 0 (no detection)
+    // A patch that returns nothing (soft mud, a shadow): beams whose true hit lies within
+    // dropout_patch_radius_m of (x, y) (world ENU) report no detection; 0 = none.
+    double dropout_patch_x_m = 0, dropout_patch_y_m = 0, dropout_patch_radius_m = 0;
     double outlier_probability = 0.02;  // beam reports a coarse outlier
     double sound_speed_mps = 1480.0;
     bool intensities = true;

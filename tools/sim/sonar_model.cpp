@@ -119,6 +119,13 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
             out.outcome[i] = BeamOutcome::kDropout;
             continue;
         }
+        if (cfg_.dropout_patch_radius_m > 0 &&
+            std::hypot(out.true_hit_world[i].x() - cfg_.dropout_patch_x_m,
+                       out.true_hit_world[i].y() - cfg_.dropout_patch_y_m) <
+                cfg_.dropout_patch_radius_m) {
+            out.outcome[i] = BeamOutcome::kDropout;
+            continue;
+        }
         if (u < cfg_.dropout_probability + cfg_.outlier_probability) {
             out.outcome[i] = BeamOutcome::kOutlier;
             r = r_true * (0.3 + 1.0 * uni(rng));  // coarse: 30 % .. 130 % of the true range

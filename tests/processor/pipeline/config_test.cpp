@@ -134,6 +134,46 @@ TEST_F(Config, EveryProblemIsListed) {
     EXPECT_NE(m.find(path_), std::string::npos) << m;
 }
 
+// The vertical datum and S-44 sections (issue 17): round trip, and their problems listed.
+TEST_F(Config, VerticalAndS44SectionsRoundTripAndAreChecked) {
+    const auto r = Load(
+        "vertical:\n  datum: water_level\n  water_level_source: file\n"
+        "  water_level_file: gauge.csv\n  ins_height_above_waterline_m: 0.4\n"
+        "s44:\n  order: special\n  crossing_angle_deg: 60\n  enabled: false\n");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->grid.vertical.datum, hydro::VerticalDatum::kWaterLevel);
+    EXPECT_EQ(r->grid.vertical.water_level_source, hydro::WaterLevelSource::kFile);
+    EXPECT_EQ(r->grid.vertical.water_level_file, "gauge.csv");
+    EXPECT_EQ(r->grid.vertical.ins_height_above_waterline_m, 0.4);
+    EXPECT_EQ(r->grid.s44_config.order, hydro::S44Order::kSpecial);
+    EXPECT_EQ(r->grid.s44_config.crossing_angle_deg, 60);
+    EXPECT_FALSE(r->grid.s44);
+    const auto back = Load(ConfigYaml(*r));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(Fingerprint(*back), ConfigYaml(*r));
+    const std::string defaults = DefaultsYaml();
+    EXPECT_NE(defaults.find("vertical:\n  datum: ellipsoid"), std::string::npos) << defaults;
+    EXPECT_NE(defaults.find("s44:\n  enabled: true"), std::string::npos) << defaults;
+    const auto bad = Load(
+        "vertical:\n  datum: chart\n  geoid_vertical_epsg: 4326\n  smoothing_window_s: -1\n"
+        "s44:\n  order: 3\n  crossing_angle_deg: 120\n");
+    ASSERT_FALSE(bad.ok());
+    for (const char* expected :
+         {"vertical.datum: 'chart' is not one of ellipsoid, geoid, water_level",
+          "s44.order: '3' is not one of exclusive, special, 1a, 1b, 2",
+          "vertical.smoothing_window_s must be within",
+          "s44.crossing_angle_deg must be in (0, 90]"}) {
+        EXPECT_NE(bad.error().message.find(expected), std::string::npos) << expected << "\n"
+                                                                         << bad.error().message;
+    }
+    const auto geoid = Load("vertical:\n  datum: geoid\n  geoid_vertical_epsg: 4326\n");
+    ASSERT_FALSE(geoid.ok());
+    EXPECT_NE(geoid.error().message.find("vertical.geoid_vertical_epsg 4326"), std::string::npos);
+    const auto file = Load("vertical:\n  datum: water_level\n  water_level_source: file\n");
+    ASSERT_FALSE(file.ok());
+    EXPECT_NE(file.error().message.find("vertical.water_level_file is needed"), std::string::npos);
+}
+
 TEST(Stage, NamesAreSummaryJsonKeys) {
     EXPECT_STREQ(ToString(Stage::kFuse), "fuse");
     EXPECT_STREQ(ToString(Stage::kMeshInitial), "mesh_initial");

@@ -24,8 +24,8 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "mesh", "boresight",
-            "clock", "tsdf", "slam", "stages", "scores"]
+SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mesh",
+            "boresight", "clock", "tsdf", "slam", "stages", "scores"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
 
@@ -166,7 +166,47 @@ def WriteProducts(folder, full=True):
                                  "counts": [0] + [1000 // k for k in range(1, 21)]}}
         summary["stages"]["mesh"] = {"seconds": 0.2, "peak_rss_mb": 210.0,
                                      "triangles": len(faces)}
-        summary["stage_order"] = ["ingest", "georef", "calibrate", "slam", "fuse", "mesh"]
+        # The grid stage: points.ply again with THU/TVU, the vertical datum and S-44.
+        WritePly(os.path.join(folder, "points.ply"),
+                 POINT_PROPS + [("thu_95_m", "float", "f4"), ("tvu_95_m", "float", "f4")],
+                 dict(arrays, thu_95_m=np.full(len(px), 0.05),
+                      tvu_95_m=0.04 + 0.002 * np.abs(px)), comments=[origin])
+        summary["vertical_datum"] = {
+            "datum": "water_level", "vertical_crs": "pit water level (GNSS, survey median)",
+            "vertical_epsg": None, "description": "depths below the pit's water level",
+            "mean_datum_height_m": 411.98,
+            "gnss_water_surface": {"samples": 5000, "median_m": 411.98, "min_m": 411.95,
+                                   "max_m": 412.01, "raw_sd_mad_m": 0.04}}
+        orders = ["exclusive", "special", "1a", "1b", "2"]
+        share = {o: v for o, v in zip(orders, [0.61, 0.93, 0.999, 0.999, 1.0])}
+        summary["stages"]["grid"] = {
+            "seconds": 2.0, "peak_rss_mb": 90.0, "median_tvu_95_m": 0.061,
+            "median_thu_95_m": 0.038, "error_model": "defaults", "resolution_m": 0.1,
+            "nodes_filled": 80000,
+            "s44": {"order": "1a", "strictest_order_met_95": "1a",
+                    "limits": {o: {"thu_m": t, "thu_depth_fraction": k, "tvu_a_m": a,
+                                   "tvu_b": b, "feature_m": f, "coverage_percent": c}
+                               for o, t, k, a, b, f, c in zip(
+                                   orders, [0.5, 2, 5, 5, 20], [0, 0, 0.05, 0.05, 0.1],
+                                   [0.15, 0.25, 0.5, 0.5, 1.0],
+                                   [0.0075, 0.0075, 0.013, 0.013, 0.023], [0.5, 1, 2, 0, 0],
+                                   [200, 100, 100, 5, 5])},
+                    "soundings": len(px), "nodes": 80000,
+                    "soundings_within_tvu": share, "soundings_within_thu": share,
+                    "soundings_within_both": share, "nodes_within_tvu": share,
+                    "nodes_within_thu": share, "coverage_share": 0.987,
+                    "nodes_in_gaps": 900, "gaps": 12, "feature_size_m": 2.0,
+                    "holiday_count": 1,
+                    "holidays": [{"x_m": 603410.2, "y_m": 4477697.3, "world_m": [-3.0, 1.0],
+                                  "bbox_world_m": [[-4, 0], [-2, 0], [-2, 2], [-4, 2]],
+                                  "area_m2": 8.73, "largest_square_m": 2.3, "nodes": 873}],
+                    "crossline": {"compared": 20062, "mean_m": -0.0169, "sd_m": 0.05,
+                                  "rms_m": 0.053, "within_tvu": 1.0,
+                                  "by_angle": [{"angle_lo_deg": 10 * i, "angle_hi_deg": 10 * i + 10,
+                                                "count": 1000, "mean_m": 0.01 * i, "sd_m": 0.02,
+                                                "rms_m": 0.03, "within_tvu": 0.99}
+                                               for i in range(6)]}}}
+        summary["stage_order"] = ["ingest", "georef", "calibrate", "slam", "grid", "fuse", "mesh"]
         with open(os.path.join(folder, "scores.json"), "w") as f:
             json.dump({"trajectory_ate_rmse_m": 0.0306, "trajectory_ate_rmse_before_m": 1.3468,
                        "points_rms_m": 0.0391, "boresight_error_deg": 0.0316}, f)
@@ -218,9 +258,17 @@ class ReportTest(unittest.TestCase):
         self.assertNotIn("not produced", page)
         self.assertNotIn("could not draw", page)
         self.assertNotIn('class="problem"', page)
-        for s in ("trajectory", "cross-sections", "depth", "mesh", "tsdf", "slam", "stages"):
+        for s in ("trajectory", "cross-sections", "depth", "hydro", "mesh", "tsdf", "slam",
+                  "stages"):
             self.assertIn("data:image/png", sec[s], s)
         self.assertIn("2026-06-15 09:00:00", sec["summary"])
+        # The S-44 section: datum, the orders' table, the holiday, the crossline table.
+        self.assertIn("pit water level (GNSS, survey median)", sec["hydro"])
+        self.assertIn("IHO S-44 Edition 6.1: order 1a", sec["hydro"])
+        self.assertIn("<td><b>1a</b></td><td>5 + 5 % d</td>", sec["hydro"])
+        self.assertIn("99.9", sec["hydro"])
+        self.assertIn("<td>603410.20</td><td>4477697.30</td>", sec["hydro"])
+        self.assertIn("100.0 % within the order 1a TVU limit", sec["hydro"])
         self.assertIn("0.5200", sec["boresight"])      # roll after
         self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
         self.assertIn("No quality gate tripped", sec["quality"])
@@ -233,12 +281,12 @@ class ReportTest(unittest.TestCase):
         self.assertIn("1.347 &rarr; 0.031 m", sec["trajectory"])
         # Stage table in stage_order, then the total.
         order = [m for m in re.findall(r"<td><b>([a-z]+)</b></td>", sec["stages"])]
-        self.assertEqual(order, ["ingest", "georef", "calibrate", "slam", "fuse", "mesh",
+        self.assertEqual(order, ["ingest", "georef", "calibrate", "slam", "grid", "fuse", "mesh",
                                  "total"])
         pngs = sorted(os.listdir(os.path.join(p, "report")))
         for name in ("trajectory.png", "cross_sections.png", "depth_top_view.png",
                      "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
-                     "stages.png"):
+                     "stages.png", "s44_compliance.png", "s44_crossline.png"):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
@@ -276,7 +324,7 @@ class ReportTest(unittest.TestCase):
         self.assertNotIn("could not draw", page)
         expect = {"trajectory": "trajectory_initial.csv", "cross-sections": "points_initial.ply",
                   "mesh": "mesh.ply", "boresight": "boresight.json", "tsdf": "TSDF",
-                  "slam": "SLAM", "scores": "scores.json"}
+                  "slam": "SLAM", "scores": "scores.json", "hydro": "grid stage"}
         for s, name in expect.items():
             self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
         self.assertIn("mesh_initial.ply", sec["mesh"])

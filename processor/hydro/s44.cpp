@@ -1,0 +1,431 @@
+// SPDX-License-Identifier: MIT
+#include "processor/hydro/s44.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <unordered_map>
+
+namespace pitmap::proc::hydro {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kPi = 3.14159265358979323846;
+
+// S-44 Ed. 6.1.0 Table 1 (the header's table).
+const S44Limits kLimits[kNumS44Orders] = {
+    // THU c, k; TVU a, b; feature, beyond-limit fraction, limit depth; coverage; full
+    {0.5, 0.0, 0.15, 0.0075, 0.5, 0.0, 0.0, 200, true},
+    {2.0, 0.0, 0.25, 0.0075, 1.0, 0.0, 0.0, 100, true},
+    {5.0, 0.05, 0.5, 0.013, 2.0, 0.10, 40.0, 100, true},
+    {5.0, 0.05, 0.5, 0.013, 0.0, 0.0, 0.0, 5, false},
+    {20.0, 0.10, 1.0, 0.023, 0.0, 0.0, 0.0, 5, false},
+};
+
+// Angle difference of two headings as lines (modulo 180 deg), in [0, 90] deg.
+double LineAngleDeg(double a_rad, double b_rad) {
+    double d = std::fmod(std::abs(a_rad - b_rad) * 180.0 / kPi, 180.0);
+    if (d > 90) d = 180 - d;
+    return d;
+}
+
+}  // namespace
+
+const char* ToString(S44Order o) {
+    switch (o) {
+        case S44Order::kExclusive:
+            return "exclusive";
+        case S44Order::kSpecial:
+            return "special";
+        case S44Order::kOrder1a:
+            return "1a";
+        case S44Order::kOrder1b:
+            return "1b";
+        case S44Order::kOrder2:
+            return "2";
+    }
+    return "?";
+}
+
+const S44Limits& LimitsOf(S44Order o) {
+    return kLimits[static_cast<int>(o)];
+}
+
+double S44Limits::Tvu(double d) const {
+    return std::sqrt(tvu_a_m * tvu_a_m + tvu_b * tvu_b * d * d);
+}
+double S44Limits::Thu(double d) const {
+    return thu_constant_m + thu_depth_fraction * d;
+}
+double S44Limits::FeatureSize(double d) const {
+    if (feature_size_m <= 0) return 0;
+    if (feature_depth_limit_m > 0 && d > feature_depth_limit_m) return feature_depth_fraction * d;
+    return feature_size_m;
+}
+
+std::vector<std::string> S44Config::Validate() const {
+    std::vector<std::string> p;
+    if (min_holiday_nodes < 1) p.push_back("s44.min_holiday_nodes must be >= 1");
+    if (!(min_time_separation_s >= 0)) p.push_back("s44.min_time_separation_s must be >= 0");
+    if (!(crossing_angle_deg > 0 && crossing_angle_deg <= 90)) {
+        p.push_back("s44.crossing_angle_deg must be in (0, 90]");
+    }
+    if (!(crossline_cell_m >= 0)) p.push_back("s44.crossline_cell_m must be >= 0");
+    if (min_reference_soundings < 1) p.push_back("s44.min_reference_soundings must be >= 1");
+    return p;
+}
+
+int StrictestOrderMet(const S44Result& r, double share) {
+    for (int o = 0; o < kNumS44Orders; ++o) {
+        if (r.soundings > 0 && r.soundings_within_tvu[o] >= share &&
+            r.soundings_within_thu[o] >= share) {
+            return o;
+        }
+    }
+    return -1;
+}
+
+namespace {
+
+void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
+    const std::size_t n = s.z.size();
+    std::array<std::int64_t, kNumS44Orders> tvu{}, thu{}, both{}, ntvu{}, nthu{};
+    std::int64_t used = 0;
+    // Node THU: the mean THU of the soundings nearest each node (CUBE carries no THU).
+    std::vector<float> node_thu_sum(g.elevation_m.size(), 0.0f);
+    std::vector<std::int32_t> node_thu_n(g.elevation_m.size(), 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        const double d = s.depth_m[j];
+        if (!std::isfinite(d) || !std::isfinite(s.tvu_95_m[j]) || !std::isfinite(s.thu_95_m[j])) {
+            continue;
+        }
+        ++used;
+        for (int o = 0; o < kNumS44Orders; ++o) {
+            const bool v = s.tvu_95_m[j] <= kLimits[o].Tvu(d);
+            const bool h = s.thu_95_m[j] <= kLimits[o].Thu(d);
+            tvu[o] += v;
+            thu[o] += h;
+            both[o] += v && h;
+        }
+        if (g.nx > 0) {
+            const long i = std::lround((s.x[j] - g.x0) / g.resolution_m);
+            const long k = std::lround((s.y[j] - g.y0) / g.resolution_m);
+            if (i >= 0 && k >= 0 && i < g.nx && k < g.ny) {
+                const std::size_t q =
+                    static_cast<std::size_t>(k) * g.nx + static_cast<std::size_t>(i);
+                node_thu_sum[q] += s.thu_95_m[j];
+                ++node_thu_n[q];
+            }
+        }
+    }
+    std::int64_t nodes = 0;
+    for (std::size_t q = 0; q < g.elevation_m.size(); ++q) {
+        const double d = g.depth_m[q];
+        if (!std::isfinite(g.elevation_m[q]) || !std::isfinite(d) ||
+            !std::isfinite(g.uncertainty_m[q])) {
+            continue;
+        }
+        ++nodes;
+        const double node_thu =
+            node_thu_n[q] > 0 ? node_thu_sum[q] / static_cast<double>(node_thu_n[q]) : kNaN;
+        for (int o = 0; o < kNumS44Orders; ++o) {
+            ntvu[o] += g.uncertainty_m[q] <= kLimits[o].Tvu(d);
+            nthu[o] += std::isfinite(node_thu) ? node_thu <= kLimits[o].Thu(d) : 0;
+        }
+    }
+    r.soundings = used;
+    r.nodes = nodes;
+    for (int o = 0; o < kNumS44Orders; ++o) {
+        const double sn = used > 0 ? static_cast<double>(used) : 1.0;
+        const double nn = nodes > 0 ? static_cast<double>(nodes) : 1.0;
+        r.soundings_within_tvu[o] = static_cast<double>(tvu[o]) / sn;
+        r.soundings_within_thu[o] = static_cast<double>(thu[o]) / sn;
+        r.soundings_within_both[o] = static_cast<double>(both[o]) / sn;
+        r.nodes_within_tvu[o] = static_cast<double>(ntvu[o]) / nn;
+        r.nodes_within_thu[o] = static_cast<double>(nthu[o]) / nn;
+    }
+}
+
+void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Result& r) {
+    const int nx = g.nx, ny = g.ny;
+    const std::size_t N = g.elevation_m.size();
+    r.holiday_map.assign(N, std::numeric_limits<float>::quiet_NaN());
+    if (N == 0) return;
+    const S44Limits& L = LimitsOf(c.order);
+    r.feature_size_m = L.full_coverage ? L.FeatureSize(median_depth_m) : 0.0;
+    auto idx = [nx](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
+    // 0 = covered, 1 = empty not yet reached, 2 = outside (empty, reached from the border).
+    std::vector<std::uint8_t> st(N);
+    for (std::size_t q = 0; q < N; ++q) st[q] = std::isfinite(g.elevation_m[q]) ? 0 : 1;
+    std::vector<std::size_t> stack;
+    auto seed = [&](int i, int j) {
+        const std::size_t q = idx(i, j);
+        if (st[q] == 1) {
+            st[q] = 2;
+            stack.push_back(q);
+        }
+    };
+    for (int i = 0; i < nx; ++i) {
+        seed(i, 0);
+        seed(i, ny - 1);
+    }
+    for (int j = 0; j < ny; ++j) {
+        seed(0, j);
+        seed(nx - 1, j);
+    }
+    // The outside grows through 4-neighbours (a diagonal between two covered nodes is no way
+    // out); gaps are then 8-connected.
+    while (!stack.empty()) {
+        const std::size_t q = stack.back();
+        stack.pop_back();
+        const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx);
+        if (i > 0) seed(i - 1, j);
+        if (i + 1 < nx) seed(i + 1, j);
+        if (j > 0) seed(i, j - 1);
+        if (j + 1 < ny) seed(i, j + 1);
+    }
+    // Largest empty square ending at each node (dynamic programme over inside-empty nodes).
+    std::vector<std::int32_t> sq(N, 0);
+    for (int j = 0; j < ny; ++j) {
+        for (int i = 0; i < nx; ++i) {
+            const std::size_t q = idx(i, j);
+            if (st[q] != 1) continue;
+            const int a = i > 0 ? sq[idx(i - 1, j)] : 0;
+            const int b = j > 0 ? sq[idx(i, j - 1)] : 0;
+            const int d = i > 0 && j > 0 ? sq[idx(i - 1, j - 1)] : 0;
+            sq[q] = 1 + std::min({a, b, d});
+        }
+    }
+    const double res = g.resolution_m;
+    const int min_side =
+        std::max(c.min_holiday_nodes, static_cast<int>(std::ceil(r.feature_size_m / res - 1e-9)));
+    std::vector<std::int32_t> comp(N, -1);
+    std::int64_t in_gaps = 0, area = 0;
+    std::vector<S44Holiday> holidays;
+    std::vector<std::vector<std::size_t>> holiday_nodes;
+    for (std::size_t q0 = 0; q0 < N; ++q0) {
+        if (st[q0] == 0) ++area;
+        if (st[q0] != 1 || comp[q0] >= 0) continue;
+        const std::int32_t id = static_cast<std::int32_t>(r.gaps++);
+        std::vector<std::size_t> nodes;
+        stack.assign(1, q0);
+        comp[q0] = id;
+        int best = 0;
+        std::size_t best_q = q0;
+        int i_lo = nx, i_hi = -1, j_lo = ny, j_hi = -1;
+        while (!stack.empty()) {
+            const std::size_t q = stack.back();
+            stack.pop_back();
+            nodes.push_back(q);
+            const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx);
+            i_lo = std::min(i_lo, i);
+            i_hi = std::max(i_hi, i);
+            j_lo = std::min(j_lo, j);
+            j_hi = std::max(j_hi, j);
+            if (sq[q] > best) {
+                best = sq[q];
+                best_q = q;
+            }
+            for (int dj = -1; dj <= 1; ++dj) {
+                for (int di = -1; di <= 1; ++di) {
+                    const int a = i + di, b = j + dj;
+                    if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+                    const std::size_t p = idx(a, b);
+                    if (st[p] == 1 && comp[p] < 0) {
+                        comp[p] = id;
+                        stack.push_back(p);
+                    }
+                }
+            }
+        }
+        in_gaps += static_cast<std::int64_t>(nodes.size());
+        const bool holiday = L.full_coverage && best >= min_side;
+        for (std::size_t q : nodes) r.holiday_map[q] = holiday ? 2.0f : 1.0f;
+        if (!holiday) continue;
+        S44Holiday h;
+        // best_q is the top-right (largest i, j) corner of the square.
+        const int bi = static_cast<int>(best_q % nx), bj = static_cast<int>(best_q / nx);
+        h.x = g.x0 + (bi - (best - 1) / 2.0) * res;
+        h.y = g.y0 + (bj - (best - 1) / 2.0) * res;
+        h.x_min = g.x0 + (i_lo - 0.5) * res;
+        h.x_max = g.x0 + (i_hi + 0.5) * res;
+        h.y_min = g.y0 + (j_lo - 0.5) * res;
+        h.y_max = g.y0 + (j_hi + 0.5) * res;
+        h.nodes = static_cast<std::int64_t>(nodes.size());
+        h.area_m2 = static_cast<double>(h.nodes) * res * res;
+        h.largest_square_m = best * res;
+        holidays.push_back(h);
+    }
+    for (std::size_t q = 0; q < N; ++q) {
+        if (st[q] == 0) r.holiday_map[q] = 0.0f;
+    }
+    std::sort(holidays.begin(), holidays.end(), [](const auto& a, const auto& b) {
+        return a.nodes > b.nodes;
+    });
+    r.holidays = std::move(holidays);
+    r.nodes_in_gaps = in_gaps;
+    r.nodes_survey_area = area + in_gaps;
+    r.coverage_share =
+        r.nodes_survey_area > 0 ? static_cast<double>(area) / r.nodes_survey_area : 0.0;
+}
+
+void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44Result& r) {
+    const double cell = c.crossline_cell_m > 0 ? c.crossline_cell_m : 2.0 * g.resolution_m;
+    if (!(cell > 0) || s.ping_t_s.empty()) return;
+    constexpr double kBlockS = 20.0;
+    constexpr int kHeadingBins = 12;  // 15 deg, modulo 180 deg
+    struct Acc {
+        double sz = 0, sx = 0, sy = 0, st = 0;
+        std::int32_t n = 0;
+        std::int32_t key = 0;  // time block * kHeadingBins + heading bin
+    };
+    const double t0 = s.ping_t_s.front();
+    auto heading_bin = [](double yaw) {
+        double d = std::fmod(yaw * 180.0 / kPi, 180.0);
+        if (d < 0) d += 180.0;
+        return std::min(kHeadingBins - 1, static_cast<int>(d / (180.0 / kHeadingBins)));
+    };
+    const auto ncx = static_cast<std::int64_t>(std::ceil(g.nx * g.resolution_m / cell)) + 2;
+    auto cell_of = [&](double x, double y) {
+        const auto i = static_cast<std::int64_t>(std::floor((x - g.x0) / cell)) + 1;
+        const auto j = static_cast<std::int64_t>(std::floor((y - g.y0) / cell)) + 1;
+        return j * ncx + i;
+    };
+    std::unordered_map<std::int64_t, std::vector<Acc>> cells;
+    cells.reserve(s.z.size() / 8 + 16);
+    for (std::size_t j = 0; j < s.z.size(); ++j) {
+        if (!std::isfinite(s.z[j])) continue;
+        const std::uint32_t p = s.ping[j];
+        const auto key = static_cast<std::int32_t>(
+            static_cast<std::int32_t>((s.ping_t_s[p] - t0) / kBlockS) * kHeadingBins +
+            heading_bin(s.ping_yaw_rad[p]));
+        auto& v = cells[cell_of(s.x[j], s.y[j])];
+        auto it = std::find_if(v.begin(), v.end(), [key](const Acc& e) { return e.key == key; });
+        if (it == v.end()) {
+            v.push_back(Acc{});
+            it = v.end() - 1;
+            it->key = key;
+        }
+        it->sz += s.z[j];
+        it->sx += s.x[j];
+        it->sy += s.y[j];
+        it->st += s.ping_t_s[p];
+        ++it->n;
+    }
+    // The DEM's gradient at a point (central differences of the elevation; 0 where missing).
+    auto gradient = [&](double x, double y, double* gx, double* gy) {
+        *gx = *gy = 0;
+        const long i = std::lround((x - g.x0) / g.resolution_m);
+        const long k = std::lround((y - g.y0) / g.resolution_m);
+        if (i < 1 || k < 1 || i + 1 >= g.nx || k + 1 >= g.ny) return;
+        auto e = [&](long a, long b) {
+            return g.elevation_m[static_cast<std::size_t>(b) * g.nx + static_cast<std::size_t>(a)];
+        };
+        const double ex = e(i + 1, k) - e(i - 1, k), ey = e(i, k + 1) - e(i, k - 1);
+        if (std::isfinite(ex)) *gx = ex / (2 * g.resolution_m);
+        if (std::isfinite(ey)) *gy = ey / (2 * g.resolution_m);
+    };
+    const S44Limits& lim = LimitsOf(c.order);
+    constexpr int kBins = 7;  // 0-10 ... 60-70 deg
+    std::array<double, kBins> bs{}, bss{};
+    std::array<std::int64_t, kBins> bn{}, bin_ok{};
+    double sum = 0, sumsq = 0;
+    std::int64_t n = 0, ok = 0;
+    for (std::size_t j = 0; j < s.z.size(); ++j) {
+        if (!std::isfinite(s.z[j])) continue;
+        const auto it = cells.find(cell_of(s.x[j], s.y[j]));
+        if (it == cells.end()) continue;
+        const double t = s.ping_t_s[s.ping[j]];
+        const double yaw = s.ping_yaw_rad[s.ping[j]];
+        Acc ref;
+        for (const Acc& a : it->second) {
+            const double bin_yaw = ((a.key % kHeadingBins) + 0.5) * (kPi / kHeadingBins);
+            if (a.st / a.n > t - c.min_time_separation_s ||
+                LineAngleDeg(bin_yaw, yaw) < c.crossing_angle_deg) {
+                continue;
+            }
+            ref.sz += a.sz;
+            ref.sx += a.sx;
+            ref.sy += a.sy;
+            ref.n += a.n;
+        }
+        if (ref.n < c.min_reference_soundings) continue;
+        const double mx = ref.sx / ref.n, my = ref.sy / ref.n;
+        double gx = 0, gy = 0;
+        gradient(s.x[j], s.y[j], &gx, &gy);
+        const double zref = ref.sz / ref.n + gx * (s.x[j] - mx) + gy * (s.y[j] - my);
+        const double d = s.z[j] - zref;
+        const bool within = std::abs(d) <= lim.Tvu(s.depth_m[j]);
+        sum += d;
+        sumsq += d * d;
+        ++n;
+        ok += within;
+        const int b = std::clamp(static_cast<int>(std::abs(s.angle_deg[j]) / 10.0), 0, kBins - 1);
+        bs[b] += d;
+        bss[b] += d * d;
+        ++bn[b];
+        bin_ok[b] += within;
+    }
+    r.crossline_compared = n;
+    if (n == 0) return;
+    const double nn = static_cast<double>(n);
+    r.crossline_mean_m = sum / nn;
+    r.crossline_rms_m = std::sqrt(sumsq / nn);
+    r.crossline_sd_m =
+        std::sqrt(std::max(0.0, sumsq / nn - r.crossline_mean_m * r.crossline_mean_m));
+    r.crossline_within_tvu = static_cast<double>(ok) / nn;
+    for (int b = 0; b < kBins; ++b) {
+        if (bn[b] == 0) continue;
+        S44AngleBin a;
+        a.angle_lo_deg = 10.0 * b;
+        a.angle_hi_deg = 10.0 * (b + 1);
+        a.count = bn[b];
+        const double m = static_cast<double>(bn[b]);
+        a.mean_m = bs[b] / m;
+        a.rms_m = std::sqrt(bss[b] / m);
+        a.sd_m = std::sqrt(std::max(0.0, bss[b] / m - a.mean_m * a.mean_m));
+        a.within_tvu = static_cast<double>(bin_ok[b]) / m;
+        r.crossline_by_angle.push_back(a);
+    }
+}
+
+}  // namespace
+
+S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
+    S44Result r;
+    r.order = c.order;
+    Compliance(s, g, r);
+    std::vector<float> d;
+    for (float v : s.depth_m) {
+        if (std::isfinite(v)) d.push_back(v);
+    }
+    double median_depth = 0;
+    if (!d.empty()) {
+        std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+        median_depth = d[d.size() / 2];
+    }
+    Holidays(g, c, median_depth, r);
+    Crosslines(s, g, c, r);
+    char b[320];
+    std::snprintf(b,
+                  sizeof b,
+                  "order %s: %.1f %% of %lld soundings within TVU, %.1f %% within THU; %.1f %% of "
+                  "nodes within TVU; %zu holidays (feature %.2f m), coverage %.1f %%; "
+                  "%lld crossline differences, RMS %.3f m",
+                  ToString(c.order),
+                  100 * r.soundings_within_tvu[static_cast<int>(c.order)],
+                  static_cast<long long>(r.soundings),
+                  100 * r.soundings_within_thu[static_cast<int>(c.order)],
+                  100 * r.nodes_within_tvu[static_cast<int>(c.order)],
+                  r.holidays.size(),
+                  r.feature_size_m,
+                  100 * r.coverage_share,
+                  static_cast<long long>(r.crossline_compared),
+                  r.crossline_rms_m);
+    r.message = b;
+    return r;
+}
+
+}  // namespace pitmap::proc::hydro
