@@ -68,6 +68,37 @@ TEST(FillSmallHoles, FillsASmallHoleAndLeavesTheBorderOpen) {
     }
 }
 
+// Holes of 4, 6 and 12 edges in one grid: the two small ones are filled, the large one and the
+// border stay open; the filled area is that of the small holes.
+TEST(FillSmallHoles, HolesOfSeveralSizes) {
+    const int n = 14;
+    std::vector<Eigen::Vector3f> v;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            v.emplace_back(static_cast<float>(i), static_cast<float>(j), 0.f);
+    auto removed = [](int i, int j) {
+        return (i == 2 && j == 2) ||                    // one cell: 4 edges
+               (j == 2 && (i == 6 || i == 7)) ||        // two cells: 6 edges
+               (i >= 4 && i <= 6 && j >= 7 && j <= 9);  // 3 x 3 cells: 12 edges
+    };
+    std::vector<Eigen::Vector3i> t;
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n; ++i) {
+            if (removed(i, j)) continue;
+            const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+            t.emplace_back(a, b, d);
+            t.emplace_back(a, d, c);
+        }
+    const double area_before = MeshArea(v, t);
+    const HoleFillResult r = FillSmallHoles(v, t, 8);
+    EXPECT_EQ(r.holes_found, 4);
+    EXPECT_EQ(r.holes_filled, 2);
+    EXPECT_EQ(r.holes_too_large, 2);
+    EXPECT_EQ(r.loops_ambiguous, 0);
+    EXPECT_EQ(r.triangles_added, 4 + 6);
+    EXPECT_NEAR(MeshArea(v, t) - area_before, 3.0, 1e-4);
+}
+
 TEST(RunMesh, PlaneFromTheVolumeWithColoursAndAFilledCopy) {
     fusion::testing::SyntheticWorld world;
     fusion::testing::LineSurvey survey;
