@@ -434,6 +434,11 @@ Status RunAll(const std::vector<std::string>& inputs,
     {
         auto v = detail::FuseSurvey(s, config, Stage::kFuse, log);
         if (!v) return v.error();
+        // The soundings and the ingested series are saved (survey.pitmap, the points): free
+        // them before the mesh, the run's largest stage (~0.4 GB on bejanca).
+        s.geo = georef::GeorefResult{};
+        s.model.ingest = io::IngestResult{};
+        s.model.trajectories = {};
         if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMesh, log); !st) return st;
     }
     auto total = [&] {
