@@ -45,7 +45,7 @@ void CoverageGrid::Add(double easting_m,
                        double northing_m,
                        double elevation_m,
                        double depth_m,
-                       std::uint64_t version) {
+                       std::uint64_t batch) {
     // Tile indices must fit 32 bits (Key): |x / cell| < 2^31 * 32 is far beyond any UTM value.
     constexpr double kLimit = 1e9;
     if (!std::isfinite(easting_m) || !std::isfinite(northing_m) || !std::isfinite(elevation_m) ||
@@ -81,7 +81,12 @@ void CoverageGrid::Add(double easting_m,
     c.sum_depth_m += static_cast<float>(depth_m);
     c.sum_elevation_m += elevation_m;
     c.sum_elevation2_m2 += elevation_m * elevation_m;
-    tile.version = std::max(tile.version, version);
+    // A fresh stamp per tile per batch: no two tiles share a version, so a client that got
+    // the tiles up to version V asks for the rest with since = V and misses none.
+    if (tile.batch != batch || tile.version == 0) {
+        tile.batch = batch;
+        tile.version = ++stamp_;
+    }
     ++soundings_;
 }
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The live coverage grid: soundings binned into square UTM cells as they arrive, kept in
-// tiles of kTileCells x kTileCells cells that carry the version of their last change, so a
-// client fetches only what changed since it last asked.
+// tiles of kTileCells x kTileCells cells that carry the version of their last change (a stamp
+// unique to the tile, increasing), so a client fetches only what changed since it last asked.
 //
 // Per cell: sounding count (density), mean elevation (ellipsoidal height, as the soundings),
 // mean depth below the transducer, elevation standard deviation.
@@ -41,7 +41,8 @@ struct GridCell {
 
 struct GridTile {
     int tx = 0, ty = 0;          // tile index: cells [tx * kTileCells, (tx + 1) * kTileCells)
-    std::uint64_t version = 0;   // grid version of the last change
+    std::uint64_t version = 0;   // stamp of the last change, unique among tiles
+    std::uint64_t batch = 0;     // the caller's batch of the last change
     int filled = 0;              // cells with at least one sounding
     std::vector<GridCell> cells;  // kTileCells^2, row-major from the south (j * kTileCells + i)
 };
@@ -63,9 +64,12 @@ public:
     explicit CoverageGrid(const CoverageGridConfig& config);
 
     // Adds one sounding at UTM (easting, northing), with its ellipsoidal height and its depth
-    // below the transducer; `version` stamps the tile (non-decreasing across calls).
+    // below the transducer. `batch` groups soundings (non-decreasing across calls): a tile
+    // gets a new version once per batch that changes it.
     void Add(double easting_m, double northing_m, double elevation_m, double depth_m,
-             std::uint64_t version);
+             std::uint64_t batch);
+    // The newest tile version (0 = empty).
+    std::uint64_t version() const { return stamp_; }
 
     const CoverageGridConfig& config() const { return config_; }
     // Cell index of a coordinate (floor(x / cell_size)).
@@ -95,6 +99,7 @@ private:
     CoverageGridConfig config_;
     std::unordered_map<std::int64_t, GridTile> tiles_;
     std::int64_t soundings_ = 0, dropped_ = 0, filled_ = 0;
+    std::uint64_t stamp_ = 0;
 };
 
 }  // namespace pitmap::proc::live

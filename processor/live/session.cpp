@@ -415,7 +415,7 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
                    {"spikes", g.georef.spikes},
                    {"mount_known", mount_known_}};
     const CoverageStats& c = stats_cache_;
-    j["grid"] = {{"version", version_},
+    j["grid"] = {{"version", grid_.version()},
                  {"cell_size_m", config_.grid.cell_size_m},
                  {"soundings", c.soundings},
                  {"soundings_dropped", c.soundings_dropped},
@@ -489,12 +489,7 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
         next_since = t->version;
     }
     const bool complete = sent == changed.size();
-    if (complete) {
-        next_since = std::max<std::uint64_t>(since, version_);
-    } else if (sent > 0 && changed[sent]->version == next_since) {
-        // Tiles of that version are still to come: ask for it again.
-        next_since -= 1;
-    }
+    if (complete) next_since = std::max<std::uint64_t>(since, grid_.version());
     json holidays = json::array();
     std::size_t n_holidays = 0;
     for (const auto& [ix, iy] : holidays_) {
@@ -504,7 +499,7 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
         ++n_holidays;
     }
     const bool thinned = !complete || n_holidays < holidays_.size();
-    return {{"version", version_},
+    return {{"version", grid_.version()},
             {"next_since", next_since},
             {"tile_cells", kTileCells},
             {"cell_size_m", config_.grid.cell_size_m},
@@ -591,7 +586,7 @@ CoverageStats LiveSession::GridStats() const {
 
 std::uint64_t LiveSession::grid_version() const {
     std::lock_guard<std::mutex> lock(mutex_);
-    return version_;
+    return grid_.version();
 }
 
 }  // namespace pitmap::proc::live

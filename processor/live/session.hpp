@@ -74,7 +74,7 @@ public:
 
     SessionCounts counts() const;
     CoverageStats GridStats() const;
-    std::uint64_t grid_version() const;
+    std::uint64_t grid_version() const;  // the newest tile version
 
 private:
     void ProcessLocked();
