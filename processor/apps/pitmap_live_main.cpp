@@ -131,7 +131,8 @@ int main(int argc, char** argv) try {
         }
         lcm.subscribeFunction(".*", &OnLcm, &session);
         while (!g_stop.load()) {
-            if (lcm.handleTimeout(50) < 0) {
+            // A signal interrupts the wait (-1 with g_stop set): a normal stop.
+            if (lcm.handleTimeout(50) < 0 && !g_stop.load()) {
                 std::fprintf(stderr, "pitmap-live: LCM failed on %s\n", lcm_url.c_str());
                 code = 1;
                 break;
@@ -141,7 +142,8 @@ int main(int argc, char** argv) try {
     }
     if (!status_json.empty()) {
         std::ofstream f(status_json);
-        f << session.StatusJson(WallUtime()).dump(2) << "\n";
+        f << session.StatusJson(WallUtime()).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+          << "\n";
         if (!f) {
             std::fprintf(stderr, "pitmap-live: cannot write %s\n", status_json.c_str());
             code = 1;

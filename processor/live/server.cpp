@@ -51,7 +51,8 @@ LiveServer::~LiveServer() { Stop(); }
 Status LiveServer::Start() {
     httplib::Server& s = impl_->server;
     const auto send_json = [this](httplib::Response& res, const nlohmann::json& j, int code = 200) {
-        std::string body = j.dump();
+        // Text from the wire (host and channel names) may be any bytes: replaced, never thrown.
+        std::string body = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
         budget_.Spend(static_cast<std::int64_t>(body.size()), SteadyUtime());
         res.status = code;
         res.set_header("Cache-Control", "no-store");
