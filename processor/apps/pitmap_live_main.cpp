@@ -3,6 +3,7 @@
 // replays LCM logs through the same path, and serves the live page (processor/live/server.hpp).
 //   pitmap-live [--lcm-url URL] [--bind ADDR] [--port N] [--vehicle FILE] [--out DIR] ...
 //   pitmap-live --replay LOG... [--speed S] [--no-serve] [--hold] [--status-json FILE]
+//               [--snapshot-on-exit --out DIR]
 // Exit: 0 done (SIGINT/SIGTERM, or the replay's end), 1 run failure, 2 bad arguments.
 #include <lcm/lcm-cpp.hpp>
 
@@ -49,7 +50,7 @@ int main(int argc, char** argv) try {
     std::string vehicle_path, status_json;
     std::vector<std::string> replay;
     double speed = 0;
-    bool no_serve = false, hold = false;
+    bool no_serve = false, hold = false, snapshot_on_exit = false;
     live::LiveConfig config;
     live::ServerConfig server_config;
     double budget_kbps = 50;
@@ -70,12 +71,15 @@ int main(int argc, char** argv) try {
     app.add_flag("--no-serve", no_serve, "replay only: no HTTP server");
     app.add_flag("--hold", hold, "replay only: keep serving after the end until SIGTERM");
     app.add_option("--status-json", status_json, "write the final status JSON here at the end");
+    app.add_flag("--snapshot-on-exit", snapshot_on_exit, "write the grid into --out at the end");
     CLI11_PARSE(app, argc, argv);
     server_config.budget_bytes_per_s = budget_kbps * 1000.0;
 
     std::vector<std::string> problems = config.Validate();
     for (auto& p : server_config.Validate()) problems.push_back(p);
     if (!(speed >= 0)) problems.push_back("--speed must be >= 0");
+    if (snapshot_on_exit && server_config.snapshot_dir.empty())
+        problems.push_back("--snapshot-on-exit needs --out DIR");
     if (!problems.empty()) return Usage(problems);
 
     pitmap::proc::georef::SonarMount mount;
@@ -150,6 +154,14 @@ int main(int argc, char** argv) try {
         }
     }
     if (server) server->Stop();
+    if (snapshot_on_exit) {
+        auto path = session.WriteSnapshot(server_config.snapshot_dir);
+        if (path) {
+            std::printf("pitmap-live: wrote %s\n", path->c_str());
+        } else {
+            std::fprintf(stderr, "pitmap-live: no snapshot: %s\n", path.error().message.c_str());
+        }
+    }
     return code;
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap-live: %s\n", e.what());
