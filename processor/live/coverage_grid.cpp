@@ -141,7 +141,7 @@ std::vector<std::pair<std::int64_t, std::int64_t>> CoverageGrid::Holidays(
     return out;
 }
 
-CoverageStats CoverageGrid::Stats() const {
+CoverageStats CoverageGrid::Stats(bool with_holidays) const {
     CoverageStats s;
     s.soundings = soundings_;
     s.soundings_dropped = dropped_;
@@ -173,7 +173,7 @@ CoverageStats CoverageGrid::Stats() const {
             }
         }
     }
-    Holidays(0, &s.holidays);
+    if (with_holidays) Holidays(0, &s.holidays);
     return s;
 }
 

@@ -80,7 +80,9 @@ public:
     // Every holiday cell (ix, iy), at most `limit`; `total` receives how many there are.
     std::vector<std::pair<std::int64_t, std::int64_t>> Holidays(std::size_t limit,
                                                                std::int64_t* total) const;
-    CoverageStats Stats() const;
+    // With holidays = false, CoverageStats::holidays stays 0 (counting them visits every empty
+    // cell of every tile).
+    CoverageStats Stats(bool with_holidays = true) const;
     // Tiles changed after `since`, oldest change first.
     std::vector<const GridTile*> TilesSince(std::uint64_t since) const;
     std::size_t num_tiles() const { return tiles_.size(); }

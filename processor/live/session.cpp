@@ -2,6 +2,7 @@
 #include "processor/live/session.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <ctime>
@@ -98,6 +99,8 @@ std::vector<std::string> LiveConfig::Validate() const {
     if (max_track_points < 1) p.push_back("live.max_track_points must be >= 1");
     if (!(process_interval_s >= 0) || !std::isfinite(process_interval_s))
         p.push_back("live.process_interval_s must be >= 0");
+    if (!(holiday_refresh_s >= 0) || !std::isfinite(holiday_refresh_s))
+        p.push_back("live.holiday_refresh_s must be >= 0");
     return p;
 }
 
@@ -152,7 +155,7 @@ void LiveSession::OnEvent(const std::string& channel,
             n.heading_sigma_deg = std::isfinite(m.azimuth_stddev_deg) ? m.azimuth_stddev_deg : -1.f;
         } else {
             // INSPVAS carries no sigmas: keep the last ones (from INSPVAX or INSSTDEV).
-            const NavStatusIn last = status_.Snapshot().nav;
+            const NavStatusIn& last = status_.nav();
             n.north_sigma_m = last.north_sigma_m;
             n.east_sigma_m = last.east_sigma_m;
             n.up_sigma_m = last.up_sigma_m;
@@ -163,7 +166,7 @@ void LiveSession::OnEvent(const std::string& channel,
         pitmap::ins_stddev_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
         utime = m.utime;
-        NavStatusIn n = status_.Snapshot().nav;
+        NavStatusIn n = status_.nav();
         if (n.utime != 0) {
             n.north_sigma_m = m.latitude_stddev_m;
             n.east_sigma_m = m.longitude_stddev_m;
@@ -248,11 +251,17 @@ void LiveSession::OnEvent(const std::string& channel,
 void LiveSession::Tick(std::int64_t wall_utime, bool force) {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto interval = static_cast<std::int64_t>(config_.process_interval_s * 1e6);
-    if (force || data_utime_ - last_process_data_utime_ >= interval) {
+    const bool process = force || data_utime_ - last_process_data_utime_ >= interval;
+    if (process) {
         last_process_data_utime_ = data_utime_;
         ProcessLocked();
     }
-    status_.Evaluate(wall_utime);
+    // The alarms at most every 100 ms of wall time, or with every batch.
+    if (process || wall_utime - last_evaluate_wall_utime_ >= 100'000 ||
+        wall_utime < last_evaluate_wall_utime_) {
+        last_evaluate_wall_utime_ = wall_utime;
+        status_.Evaluate(wall_utime);
+    }
 }
 
 void LiveSession::ProcessLocked() {
@@ -314,10 +323,19 @@ void LiveSession::ProcessLocked() {
 }
 
 void LiveSession::RefreshHolidaysLocked() {
+    // Holidays visit every empty cell of the grid: at most once per holiday_refresh_s of wall
+    // time, so the page's polls cost little.
     if (holidays_version_ == version_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (holidays_version_ != ~0ULL &&
+        now - holidays_computed_ < std::chrono::duration<double>(config_.holiday_refresh_s)) {
+        return;
+    }
     holidays_version_ = version_;
-    stats_cache_ = grid_.Stats();
+    holidays_computed_ = now;
+    stats_cache_ = grid_.Stats(false);
     holidays_ = grid_.Holidays(5000, &holidays_total_);
+    stats_cache_.holidays = holidays_total_;
 }
 
 json LiveSession::StatusJson(std::int64_t wall_utime) {

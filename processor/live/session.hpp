@@ -16,6 +16,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -41,6 +42,7 @@ struct LiveConfig {
     std::size_t max_recent_soundings = 200'000;  // ring for the 3D view
     std::size_t max_track_points = 20'000;       // vehicle track ring (one per georeferenced ping)
     double process_interval_s = 0.1;             // data time between georeferencing batches
+    double holiday_refresh_s = 1.0;  // wall time between holiday counts (visit every cell)
     std::vector<std::string> Validate() const;
 };
 
@@ -58,7 +60,8 @@ public:
     void OnEvent(const std::string& channel, const void* data, std::size_t size,
                  std::int64_t wall_utime);
     // Georeferences what is ready (at most once per process_interval_s of data time unless
-    // `force`), then evaluates the alarms at `wall_utime`.
+    // `force`), then evaluates the alarms at `wall_utime` (with every batch, else at most every
+    // 100 ms of wall time).
     void Tick(std::int64_t wall_utime, bool force = false);
 
     // JSON documents for the page (budget in bytes: the caller's share; < 0 = unlimited).
@@ -89,6 +92,7 @@ private:
     SessionCounts counts_;
     std::uint64_t version_ = 0;
     std::int64_t last_process_data_utime_ = 0;
+    std::int64_t last_evaluate_wall_utime_ = 0;
     std::int64_t data_utime_ = 0;
     int utm_zone_ = 0;
     bool utm_northern_ = true;
@@ -100,8 +104,10 @@ private:
     std::deque<Sounding> recent_;
     std::uint64_t sounding_seq_ = 0;  // soundings ever added; recent_.back() has this number
     std::deque<std::array<float, 3>> track_;
-    // Holidays are recomputed at most once per grid version.
+    // Holidays (and the grid statistics) are recomputed at most once per grid version and per
+    // holiday_refresh_s.
     std::uint64_t holidays_version_ = ~0ULL;
+    std::chrono::steady_clock::time_point holidays_computed_;
     std::vector<std::pair<std::int64_t, std::int64_t>> holidays_;
     std::int64_t holidays_total_ = 0;
     CoverageStats stats_cache_;

@@ -134,6 +134,7 @@ public:
     void Evaluate(std::int64_t wall_utime);
     StatusSnapshot Snapshot() const;
     const std::vector<Alarm>& alarms() const { return active_; }
+    const NavStatusIn& nav() const { return nav_; }
 
 private:
     void Set(std::vector<Alarm>& next, const std::string& id, bool on, const std::string& reason);

@@ -81,6 +81,7 @@ LiveConfig Config() {
     LiveConfig c;
     c.grid.cell_size_m = 1.0;
     c.process_interval_s = 0;
+    c.holiday_refresh_s = 0;
     return c;
 }
 
