@@ -25,7 +25,9 @@ namespace live = pitmap::proc::live;
 namespace {
 
 std::atomic<bool> g_stop{false};
-void OnSignal(int) { g_stop.store(true); }
+void OnSignal(int) {
+    g_stop.store(true);
+}
 
 std::int64_t WallUtime() {
     return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -55,19 +57,24 @@ int main(int argc, char** argv) try {
     live::ServerConfig server_config;
     double budget_kbps = 50;
     app.add_option("--lcm-url", lcm_url, "LCM URL to subscribe on")->capture_default_str();
-    app.add_option("--bind", server_config.bind_address, "address to serve on")->capture_default_str();
+    app.add_option("--bind", server_config.bind_address, "address to serve on")
+        ->capture_default_str();
     app.add_option("--port", server_config.port, "TCP port (0 = any free one, printed)")
         ->capture_default_str();
-    app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")->capture_default_str();
+    app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")
+        ->capture_default_str();
     app.add_option("--vehicle", vehicle_path, "vehicle.yaml: lever arm and mount (default: zero)");
     app.add_option("--out", server_config.snapshot_dir, "snapshot directory (POST /api/snapshot)");
-    app.add_option("--cell-size", config.grid.cell_size_m, "coverage cell size, m")->capture_default_str();
+    app.add_option("--cell-size", config.grid.cell_size_m, "coverage cell size, m")
+        ->capture_default_str();
     app.add_option("--holiday-cells", config.grid.holiday_search_cells, "holiday search, cells")
         ->capture_default_str();
     app.add_option("--nav-channel", config.nav_channel_id, "INS channel id (default: every one)");
-    app.add_option("--sonar-channel", config.sonar_channel_id, "sonar channel id (default: every one)");
+    app.add_option(
+        "--sonar-channel", config.sonar_channel_id, "sonar channel id (default: every one)");
     app.add_option("--replay", replay, "LCM log files to replay instead of subscribing");
-    app.add_option("--speed", speed, "replay speed (0 = as fast as possible)")->capture_default_str();
+    app.add_option("--speed", speed, "replay speed (0 = as fast as possible)")
+        ->capture_default_str();
     app.add_flag("--no-serve", no_serve, "replay only: no HTTP server");
     app.add_flag("--hold", hold, "replay only: keep serving after the end until SIGTERM");
     app.add_option("--status-json", status_json, "write the final status JSON here at the end");
@@ -102,7 +109,9 @@ int main(int argc, char** argv) try {
             std::fprintf(stderr, "pitmap-live: %s\n", s.error().message.c_str());
             return 1;
         }
-        std::printf("pitmap-live: open http://%s:%d/\n", server_config.bind_address.c_str(), server->port());
+        std::printf("pitmap-live: open http://%s:%d/\n",
+                    server_config.bind_address.c_str(),
+                    server->port());
         std::fflush(stdout);
     }
 
@@ -116,11 +125,17 @@ int main(int argc, char** argv) try {
             const auto c = session.GridStats();
             std::printf(
                 "pitmap-live: replayed %lld events of %lld file(s): %.1f s of data in %.2f s "
-                "(%.0fx real time), %lld soundings in %lld cells, %lld holidays, peak RSS %.0f MB\n",
-                static_cast<long long>(r->events), static_cast<long long>(r->files), r->data_seconds,
-                r->wall_seconds, r->wall_seconds > 0 ? r->data_seconds / r->wall_seconds : 0.0,
-                static_cast<long long>(c.soundings), static_cast<long long>(c.filled_cells),
-                static_cast<long long>(c.holidays), pitmap::PeakRssMb());
+                "(%.0fx real time), %lld soundings in %lld cells, %lld holidays, peak RSS %.0f "
+                "MB\n",
+                static_cast<long long>(r->events),
+                static_cast<long long>(r->files),
+                r->data_seconds,
+                r->wall_seconds,
+                r->wall_seconds > 0 ? r->data_seconds / r->wall_seconds : 0.0,
+                static_cast<long long>(c.soundings),
+                static_cast<long long>(c.filled_cells),
+                static_cast<long long>(c.holidays),
+                pitmap::PeakRssMb());
             std::fflush(stdout);
         }
         while (hold && server && !g_stop.load()) {
@@ -146,7 +161,8 @@ int main(int argc, char** argv) try {
     }
     if (!status_json.empty()) {
         std::ofstream f(status_json);
-        f << session.StatusJson(WallUtime()).dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+        f << session.StatusJson(WallUtime())
+                 .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
           << "\n";
         if (!f) {
             std::fprintf(stderr, "pitmap-live: cannot write %s\n", status_json.c_str());

@@ -43,7 +43,9 @@ std::string SiblingProgram(const char* name) {
     if (ec) return "";
     return (self.parent_path() / name).string();
 }
-std::string ReportProgram() { return SiblingProgram("pitmap-report"); }
+std::string ReportProgram() {
+    return SiblingProgram("pitmap-report");
+}
 
 // The quality gates summary.json records (processor/pipeline/survey.hpp), one line each.
 std::vector<std::string> TrippedGates(const std::string& out_dir) {

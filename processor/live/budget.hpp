@@ -40,9 +40,9 @@ private:
 // The parameters of the page's requests, checked. Unknown keys are ignored; a known key with a
 // bad value is an error naming it.
 struct LiveQuery {
-    std::uint64_t since = 0;         // tiles / soundings newer than this version or sequence
-    std::int64_t max_bytes = -1;     // the client's own cap, -1 = none
-    std::string error;               // non-empty: refuse the request (HTTP 400) with this text
+    std::uint64_t since = 0;      // tiles / soundings newer than this version or sequence
+    std::int64_t max_bytes = -1;  // the client's own cap, -1 = none
+    std::string error;            // non-empty: refuse the request (HTTP 400) with this text
 };
 // Parses values of `since` (0..2^63-1) and `max_bytes` (0..2^31-1); decimal digits only.
 LiveQuery ParseLiveQuery(const std::multimap<std::string, std::string>& params);

@@ -41,11 +41,8 @@ std::int64_t CoverageGrid::CellIndex(double coordinate_m) const {
     return static_cast<std::int64_t>(std::floor(coordinate_m / config_.cell_size_m));
 }
 
-void CoverageGrid::Add(double easting_m,
-                       double northing_m,
-                       double elevation_m,
-                       double depth_m,
-                       std::uint64_t batch) {
+void CoverageGrid::Add(
+    double easting_m, double northing_m, double elevation_m, double depth_m, std::uint64_t batch) {
     // Tile indices must fit 32 bits (Key): |x / cell| < 2^31 * 32 is far beyond any UTM value.
     constexpr double kLimit = 1e9;
     if (!std::isfinite(easting_m) || !std::isfinite(northing_m) || !std::isfinite(elevation_m) ||

@@ -40,10 +40,10 @@ struct GridCell {
 };
 
 struct GridTile {
-    int tx = 0, ty = 0;          // tile index: cells [tx * kTileCells, (tx + 1) * kTileCells)
-    std::uint64_t version = 0;   // stamp of the last change, unique among tiles
-    std::uint64_t batch = 0;     // the caller's batch of the last change
-    int filled = 0;              // cells with at least one sounding
+    int tx = 0, ty = 0;           // tile index: cells [tx * kTileCells, (tx + 1) * kTileCells)
+    std::uint64_t version = 0;    // stamp of the last change, unique among tiles
+    std::uint64_t batch = 0;      // the caller's batch of the last change
+    int filled = 0;               // cells with at least one sounding
     std::vector<GridCell> cells;  // kTileCells^2, row-major from the south (j * kTileCells + i)
 };
 
@@ -53,7 +53,7 @@ struct CoverageStats {
     std::int64_t filled_cells = 0;
     std::int64_t holidays = 0;
     std::int64_t tiles = 0;
-    double covered_area_m2 = 0;            // filled_cells * cell area
+    double covered_area_m2 = 0;               // filled_cells * cell area
     double min_depth_m = 0, max_depth_m = 0;  // over the filled cells' means; 0 when empty
     // Cell index bounds of the filled cells (inclusive); empty when filled_cells == 0.
     std::int64_t min_ix = 0, min_iy = 0, max_ix = 0, max_iy = 0;
@@ -66,7 +66,10 @@ public:
     // Adds one sounding at UTM (easting, northing), with its ellipsoidal height and its depth
     // below the transducer. `batch` groups soundings (non-decreasing across calls): a tile
     // gets a new version once per batch that changes it.
-    void Add(double easting_m, double northing_m, double elevation_m, double depth_m,
+    void Add(double easting_m,
+             double northing_m,
+             double elevation_m,
+             double depth_m,
              std::uint64_t batch);
     // The newest tile version (0 = empty).
     std::uint64_t version() const { return stamp_; }
@@ -79,7 +82,7 @@ public:
     bool IsHoliday(std::int64_t ix, std::int64_t iy) const;
     // Every holiday cell (ix, iy), at most `limit`; `total` receives how many there are.
     std::vector<std::pair<std::int64_t, std::int64_t>> Holidays(std::size_t limit,
-                                                               std::int64_t* total) const;
+                                                                std::int64_t* total) const;
     // With holidays = false, CoverageStats::holidays stays 0 (counting them visits every empty
     // cell of every tile).
     CoverageStats Stats(bool with_holidays = true) const;
@@ -91,7 +94,8 @@ public:
     // transducer), elevation (m, ellipsoidal), elevation_stddev (m), density (soundings per
     // cell) and holiday (1 = holiday, 0 = not); NaN = empty. Error when empty or larger than
     // max_cells.
-    Expected<io::GridRaster> ToRaster(int utm_zone, bool northern,
+    Expected<io::GridRaster> ToRaster(int utm_zone,
+                                      bool northern,
                                       std::size_t max_cells = 100'000'000) const;
 
 private:

@@ -8,7 +8,8 @@ namespace pitmap::proc::live {
 
 std::vector<std::string> LiveGeorefConfig::Validate() const {
     std::vector<std::string> p = georef.Validate();
-    if (!(nav_keep_s >= 1) || !std::isfinite(nav_keep_s)) p.push_back("live.nav_keep_s must be >= 1");
+    if (!(nav_keep_s >= 1) || !std::isfinite(nav_keep_s))
+        p.push_back("live.nav_keep_s must be >= 1");
     if (max_pending < 1) p.push_back("live.max_pending must be >= 1");
     return p;
 }
@@ -19,12 +20,11 @@ LiveGeoref::LiveGeoref(const LiveGeorefConfig& config, const georef::SonarMount&
 }
 
 void LiveGeoref::AddNav(const georef::NavSample& s) {
-    const bool finite = std::isfinite(s.position.latitude_deg) &&
-                        std::abs(s.position.latitude_deg) <= 90 &&
-                        std::isfinite(s.position.longitude_deg) &&
-                        std::abs(s.position.longitude_deg) <= 360 &&
-                        std::isfinite(s.position.height_m) && std::isfinite(s.roll_rad) &&
-                        std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
+    const bool finite =
+        std::isfinite(s.position.latitude_deg) && std::abs(s.position.latitude_deg) <= 90 &&
+        std::isfinite(s.position.longitude_deg) && std::abs(s.position.longitude_deg) <= 360 &&
+        std::isfinite(s.position.height_m) && std::isfinite(s.roll_rad) &&
+        std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
     // INSPVAS and INSPVAX of one epoch share a time: the first is kept (as SortAndDeduplicate).
     if (s.utime_gps <= 0 || !finite || (!nav_.empty() && s.utime_gps <= nav_.back().utime_gps)) {
         ++counts_.nav_refused;
@@ -47,12 +47,13 @@ void LiveGeoref::AddPing(const georef::PingHeader& h, const std::int32_t* counts
     p.header = h;
     p.header.num_beams = static_cast<std::uint16_t>(n);
     p.counts.resize(n);
-    for (std::size_t i = 0; i < n; ++i) p.counts[i] = counts[i] > 0 ? static_cast<std::uint32_t>(counts[i]) : 0u;
+    for (std::size_t i = 0; i < n; ++i)
+        p.counts[i] = counts[i] > 0 ? static_cast<std::uint32_t>(counts[i]) : 0u;
     // Pings arrive in time order; a late one is inserted in place.
-    auto at = std::upper_bound(pending_.begin(),
-                               pending_.end(),
-                               h.utime_gps,
-                               [](std::int64_t t, const Pending& q) { return t < q.header.utime_gps; });
+    auto at = std::upper_bound(
+        pending_.begin(), pending_.end(), h.utime_gps, [](std::int64_t t, const Pending& q) {
+            return t < q.header.utime_gps;
+        });
     pending_.insert(at, std::move(p));
     while (pending_.size() > config_.max_pending) {
         pending_.pop_front();

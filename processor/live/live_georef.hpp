@@ -22,8 +22,8 @@
 namespace pitmap::proc::live {
 
 struct LiveGeorefConfig {
-    georef::GeorefConfig georef;    // num_threads is forced to 1
-    double nav_keep_s = 30.0;       // INS history kept behind the newest sample
+    georef::GeorefConfig georef;     // num_threads is forced to 1
+    double nav_keep_s = 30.0;        // INS history kept behind the newest sample
     std::size_t max_pending = 2000;  // pings waiting for navigation
     std::vector<std::string> Validate() const;
 };
@@ -32,7 +32,7 @@ struct LiveGeorefCounts {
     std::int64_t nav_samples = 0;
     std::int64_t nav_refused = 0;  // no time, not finite, or older than the newest sample
     std::int64_t pings_in = 0;
-    std::int64_t pings_refused = 0;  // no time, no beams
+    std::int64_t pings_refused = 0;          // no time, no beams
     std::int64_t pings_dropped_waiting = 0;  // beyond max_pending
     std::int64_t batches = 0;
     georef::GeorefCounts georef;  // summed over the batches

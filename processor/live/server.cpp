@@ -66,7 +66,9 @@ LiveServer::LiveServer(LiveSession& session, const ServerConfig& config)
       budget_(config.budget_bytes_per_s, config.budget_burst_s),
       impl_(std::make_unique<Impl>()) {}
 
-LiveServer::~LiveServer() { Stop(); }
+LiveServer::~LiveServer() {
+    Stop();
+}
 
 Status LiveServer::Start() {
     httplib::Server& s = impl_->server;
@@ -89,15 +91,15 @@ Status LiveServer::Start() {
         res.set_header("Cache-Control", "no-store");
         res.set_content(std::move(body), kJsonType);
     };
-    const auto bad_request = [send_json](const httplib::Request& req,
-                                         httplib::Response& res,
-                                         const std::string& why) {
-        send_json(req, res, {{"error", why}}, 400);
-    };
+    const auto bad_request =
+        [send_json](const httplib::Request& req, httplib::Response& res, const std::string& why) {
+            send_json(req, res, {{"error", why}}, 400);
+        };
     s.Get("/", [](const httplib::Request&, httplib::Response& res) {
         res.set_content(LivePageHtml(), "text/html; charset=utf-8");
     });
-    s.Get("/favicon.ico", [](const httplib::Request&, httplib::Response& res) { res.status = 204; });
+    s.Get("/favicon.ico",
+          [](const httplib::Request&, httplib::Response& res) { res.status = 204; });
     s.Get("/api/status", [this, send_json](const httplib::Request& req, httplib::Response& res) {
         nlohmann::json j = session_.StatusJson(WallUtime());
         j["budget"] = {{"rate_bytes_per_s", budget_.rate_bytes_per_s()},
@@ -108,26 +110,29 @@ Status LiveServer::Start() {
     s.Get("/api/alarms", [this, send_json](const httplib::Request& req, httplib::Response& res) {
         send_json(req, res, session_.AlarmsJson());
     });
-    s.Get("/api/tiles", [this, send_json, bad_request](const httplib::Request& req,
-                                                        httplib::Response& res) {
-        const LiveQuery q = ParseLiveQuery(req.params);
-        if (!q.error.empty()) return bad_request(req, res, q.error);
-        std::int64_t share = budget_.Available(SteadyUtime()) * 6 / 10;
-        if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
-        send_json(req, res, session_.TilesJson(q.since, share));
-    });
-    s.Get("/api/soundings", [this, send_json, bad_request](const httplib::Request& req,
-                                                            httplib::Response& res) {
-        const LiveQuery q = ParseLiveQuery(req.params);
-        if (!q.error.empty()) return bad_request(req, res, q.error);
-        std::int64_t share = budget_.Available(SteadyUtime());
-        if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
-        send_json(req, res, session_.SoundingsJson(q.since, share));
-    });
+    s.Get("/api/tiles",
+          [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
+              const LiveQuery q = ParseLiveQuery(req.params);
+              if (!q.error.empty()) return bad_request(req, res, q.error);
+              std::int64_t share = budget_.Available(SteadyUtime()) * 6 / 10;
+              if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
+              send_json(req, res, session_.TilesJson(q.since, share));
+          });
+    s.Get("/api/soundings",
+          [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
+              const LiveQuery q = ParseLiveQuery(req.params);
+              if (!q.error.empty()) return bad_request(req, res, q.error);
+              std::int64_t share = budget_.Available(SteadyUtime());
+              if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
+              send_json(req, res, session_.SoundingsJson(q.since, share));
+          });
     s.Post("/api/snapshot", [this, send_json](const httplib::Request& req, httplib::Response& res) {
         if (config_.snapshot_dir.empty()) {
             return send_json(
-                req, res, {{"error", "no snapshot directory configured (pitmap-live --out DIR)"}}, 409);
+                req,
+                res,
+                {{"error", "no snapshot directory configured (pitmap-live --out DIR)"}},
+                409);
         }
         auto path = session_.WriteSnapshot(config_.snapshot_dir);
         if (!path) return send_json(req, res, {{"error", path.error().message}}, 409);
@@ -139,7 +144,8 @@ Status LiveServer::Start() {
         if (port_ < 0) return Error{"cannot bind " + config_.bind_address + " (any port)"};
     } else {
         if (!s.bind_to_port(config_.bind_address, config_.port)) {
-            return Error{"cannot bind " + config_.bind_address + ":" + std::to_string(config_.port) +
+            return Error{"cannot bind " + config_.bind_address + ":" +
+                         std::to_string(config_.port) +
                          " (in use, or not an address of this machine)"};
         }
         port_ = config_.port;

@@ -78,7 +78,9 @@ void PutF32(std::vector<std::uint8_t>& b, float f) {
 }
 
 // A finite JSON number or null.
-json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json Num(double v) {
+    return std::isfinite(v) ? json(v) : json(nullptr);
+}
 
 std::string UtcStamp(std::int64_t utime) {
     const std::time_t t = static_cast<std::time_t>(utime / 1'000'000);
@@ -104,7 +106,9 @@ std::vector<std::string> LiveConfig::Validate() const {
     return p;
 }
 
-LiveSession::LiveSession(const LiveConfig& config, const georef::SonarMount& mount, bool mount_known)
+LiveSession::LiveSession(const LiveConfig& config,
+                         const georef::SonarMount& mount,
+                         bool mount_known)
     : config_(config),
       mount_known_(mount_known),
       georef_(config.georef, mount),
@@ -347,19 +351,20 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
     j["data_utime"] = s.data_utime;
     j["pings"] = s.pings;
     j["ping_rate_hz"] = s.ping_rate_hz;
-    j["last_ping_age_s"] =
-        s.last_ping_utime > 0 ? json(static_cast<double>(s.data_utime - s.last_ping_utime) * 1e-6)
-                              : json(nullptr);
+    j["last_ping_age_s"] = s.last_ping_utime > 0
+                               ? json(static_cast<double>(s.data_utime - s.last_ping_utime) * 1e-6)
+                               : json(nullptr);
     if (s.have_nav) {
-        j["ins"] = {{"status", InsStatusName(s.nav.ins_status)},
-                    {"status_code", s.nav.ins_status},
-                    {"position_type", s.nav.position_type},
-                    {"north_sigma_m", s.nav.north_sigma_m >= 0 ? Num(s.nav.north_sigma_m) : json(nullptr)},
-                    {"east_sigma_m", s.nav.east_sigma_m >= 0 ? Num(s.nav.east_sigma_m) : json(nullptr)},
-                    {"up_sigma_m", s.nav.up_sigma_m >= 0 ? Num(s.nav.up_sigma_m) : json(nullptr)},
-                    {"heading_sigma_deg",
-                     s.nav.heading_sigma_deg >= 0 ? Num(s.nav.heading_sigma_deg) : json(nullptr)},
-                    {"age_s", static_cast<double>(s.data_utime - s.nav.utime) * 1e-6}};
+        j["ins"] = {
+            {"status", InsStatusName(s.nav.ins_status)},
+            {"status_code", s.nav.ins_status},
+            {"position_type", s.nav.position_type},
+            {"north_sigma_m", s.nav.north_sigma_m >= 0 ? Num(s.nav.north_sigma_m) : json(nullptr)},
+            {"east_sigma_m", s.nav.east_sigma_m >= 0 ? Num(s.nav.east_sigma_m) : json(nullptr)},
+            {"up_sigma_m", s.nav.up_sigma_m >= 0 ? Num(s.nav.up_sigma_m) : json(nullptr)},
+            {"heading_sigma_deg",
+             s.nav.heading_sigma_deg >= 0 ? Num(s.nav.heading_sigma_deg) : json(nullptr)},
+            {"age_s", static_cast<double>(s.data_utime - s.nav.utime) * 1e-6}};
     } else {
         j["ins"] = nullptr;
     }
@@ -410,12 +415,13 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
     }
     json lcm = json::object();
     for (const auto& [name, c] : s.lcm_channels) {
-        lcm[name] = {{"messages", c.messages},
-                     {"bytes", c.bytes},
-                     {"decode_failures", c.decode_failures},
-                     {"age_s",
-                      c.last_utime > 0 ? json(static_cast<double>(s.data_utime - c.last_utime) * 1e-6)
-                                       : json(nullptr)}};
+        lcm[name] = {
+            {"messages", c.messages},
+            {"bytes", c.bytes},
+            {"decode_failures", c.decode_failures},
+            {"age_s",
+             c.last_utime > 0 ? json(static_cast<double>(s.data_utime - c.last_utime) * 1e-6)
+                              : json(nullptr)}};
     }
     j["lcm_channels"] = lcm;
     const LiveGeorefCounts& g = georef_.counts();
@@ -487,11 +493,11 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
                 PutU16(depth_bytes, 0xFFFF);
                 count_bytes.push_back(0);
             } else {
-                const double d = std::clamp(c.sum_depth_m / static_cast<double>(c.count) * 100.0,
-                                            0.0,
-                                            65534.0);
+                const double d =
+                    std::clamp(c.sum_depth_m / static_cast<double>(c.count) * 100.0, 0.0, 65534.0);
                 PutU16(depth_bytes, static_cast<std::uint16_t>(std::lround(d)));
-                count_bytes.push_back(static_cast<std::uint8_t>(std::min<std::uint32_t>(c.count, 255)));
+                count_bytes.push_back(
+                    static_cast<std::uint8_t>(std::min<std::uint32_t>(c.count, 255)));
             }
         }
         json tj = {{"tx", t->tx},
@@ -517,27 +523,28 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
         ++n_holidays;
     }
     const bool thinned = !complete || n_holidays < holidays_.size();
-    return {{"version", grid_.version()},
-            {"next_since", next_since},
-            {"tile_cells", kTileCells},
-            {"cell_size_m", config_.grid.cell_size_m},
-            {"ref_ix", ref_ix_},
-            {"ref_iy", ref_iy_},
-            {"tiles", tiles},
-            {"pending_tiles", changed.size() - sent},
-            {"holidays", holidays},
-            {"holidays_total", holidays_total_},
-            {"thinned", thinned},
-            {"stats",
-             {{"filled_cells", stats_cache_.filled_cells},
-              {"min_depth_m", stats_cache_.min_depth_m},
-              {"max_depth_m", stats_cache_.max_depth_m},
-              {"min_x", static_cast<double>(stats_cache_.min_ix - ref_ix_) * config_.grid.cell_size_m},
-              {"max_x",
-               static_cast<double>(stats_cache_.max_ix - ref_ix_ + 1) * config_.grid.cell_size_m},
-              {"min_y", static_cast<double>(stats_cache_.min_iy - ref_iy_) * config_.grid.cell_size_m},
-              {"max_y",
-               static_cast<double>(stats_cache_.max_iy - ref_iy_ + 1) * config_.grid.cell_size_m}}}};
+    return {
+        {"version", grid_.version()},
+        {"next_since", next_since},
+        {"tile_cells", kTileCells},
+        {"cell_size_m", config_.grid.cell_size_m},
+        {"ref_ix", ref_ix_},
+        {"ref_iy", ref_iy_},
+        {"tiles", tiles},
+        {"pending_tiles", changed.size() - sent},
+        {"holidays", holidays},
+        {"holidays_total", holidays_total_},
+        {"thinned", thinned},
+        {"stats",
+         {{"filled_cells", stats_cache_.filled_cells},
+          {"min_depth_m", stats_cache_.min_depth_m},
+          {"max_depth_m", stats_cache_.max_depth_m},
+          {"min_x", static_cast<double>(stats_cache_.min_ix - ref_ix_) * config_.grid.cell_size_m},
+          {"max_x",
+           static_cast<double>(stats_cache_.max_ix - ref_ix_ + 1) * config_.grid.cell_size_m},
+          {"min_y", static_cast<double>(stats_cache_.min_iy - ref_iy_) * config_.grid.cell_size_m},
+          {"max_y",
+           static_cast<double>(stats_cache_.max_iy - ref_iy_ + 1) * config_.grid.cell_size_m}}}};
 }
 
 json LiveSession::SoundingsJson(std::uint64_t since, std::int64_t budget_bytes) {
@@ -545,15 +552,17 @@ json LiveSession::SoundingsJson(std::uint64_t since, std::int64_t budget_bytes) 
     // Soundings newer than `since` that the ring still holds.
     const std::uint64_t oldest = sounding_seq_ - recent_.size();  // sequence before recent_[0]
     const std::uint64_t from = std::max(since, oldest);
-    const std::size_t n_new = static_cast<std::size_t>(sounding_seq_ - std::min(from, sounding_seq_));
+    const std::size_t n_new =
+        static_cast<std::size_t>(sounding_seq_ - std::min(from, sounding_seq_));
     // 12 bytes per sounding, 16 in base64; the track's last 500 points, 16 bytes in base64 each.
     const std::size_t n_track = std::min<std::size_t>(track_.size(), 500);
-    std::int64_t room = budget_bytes < 0 ? INT64_MAX : budget_bytes - 300 - static_cast<std::int64_t>(n_track) * 16;
+    std::int64_t room =
+        budget_bytes < 0 ? INT64_MAX : budget_bytes - 300 - static_cast<std::int64_t>(n_track) * 16;
     std::size_t stride = 1;
     if (n_new > 0 && room < static_cast<std::int64_t>(n_new) * 16) {
         stride = room <= 16 ? n_new + 1
-                            : static_cast<std::size_t>(
-                                  std::ceil(static_cast<double>(n_new) * 16.0 / static_cast<double>(room)));
+                            : static_cast<std::size_t>(std::ceil(static_cast<double>(n_new) * 16.0 /
+                                                                 static_cast<double>(room)));
     }
     std::vector<std::uint8_t> pts;
     std::size_t n_sent = 0;

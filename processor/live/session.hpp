@@ -37,8 +37,8 @@ struct LiveConfig {
     CoverageGridConfig grid;
     StatusConfig status;
     LiveGeorefConfig georef;
-    std::string nav_channel_id;    // "" = every INS channel
-    std::string sonar_channel_id;  // "" = every sonar channel
+    std::string nav_channel_id;                  // "" = every INS channel
+    std::string sonar_channel_id;                // "" = every sonar channel
     std::size_t max_recent_soundings = 200'000;  // ring for the 3D view
     std::size_t max_track_points = 20'000;       // vehicle track ring (one per georeferenced ping)
     double process_interval_s = 0.1;             // data time between georeferencing batches
@@ -57,7 +57,9 @@ public:
     LiveSession(const LiveConfig& config, const georef::SonarMount& mount, bool mount_known);
 
     // One LCM event; `wall_utime` is the receiving machine's clock (Unix microseconds).
-    void OnEvent(const std::string& channel, const void* data, std::size_t size,
+    void OnEvent(const std::string& channel,
+                 const void* data,
+                 std::size_t size,
                  std::int64_t wall_utime);
     // Georeferences what is ready (at most once per process_interval_s of data time unless
     // `force`), then evaluates the alarms at `wall_utime` (with every batch, else at most every

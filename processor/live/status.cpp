@@ -25,14 +25,17 @@ std::string Fmt(const char* f, double a, double b = 0) {
     return buf;
 }
 
-double Seconds(std::int64_t us) { return static_cast<double>(us) * 1e-6; }
+double Seconds(std::int64_t us) {
+    return static_cast<double>(us) * 1e-6;
+}
 
 }  // namespace
 
 std::vector<std::string> StatusConfig::Validate() const {
     std::vector<std::string> p;
     const auto positive = [&](double v, const char* name) {
-        if (!(v > 0) || !std::isfinite(v)) p.push_back(std::string("live.") + name + " must be > 0");
+        if (!(v > 0) || !std::isfinite(v))
+            p.push_back(std::string("live.") + name + " must be > 0");
     };
     positive(sonar_silent_s, "sonar_silent_s");
     positive(gnss_outage_s, "gnss_outage_s");
@@ -153,7 +156,9 @@ void StatusTracker::OnPing(const PingStatusIn& p) {
     ping_times_.push_back(p.utime);
 }
 
-void StatusTracker::OnClock(const ClockStatusIn& c) { clocks_[c.source] = c; }
+void StatusTracker::OnClock(const ClockStatusIn& c) {
+    clocks_[c.source] = c;
+}
 
 void StatusTracker::OnDaemon(const DaemonStatusIn& d) {
     daemon_ = d;
@@ -167,9 +172,8 @@ void StatusTracker::Set(std::vector<Alarm>& next,
                         const std::string& id,
                         bool on,
                         const std::string& reason) {
-    auto was = std::find_if(active_.begin(), active_.end(), [&](const Alarm& a) {
-        return a.id == id;
-    });
+    auto was =
+        std::find_if(active_.begin(), active_.end(), [&](const Alarm& a) { return a.id == id; });
     if (on) {
         Alarm a{id, reason, was != active_.end() ? was->since_utime : data_utime_};
         if (was == active_.end()) history_.push_back({id, reason, true, data_utime_});
@@ -199,8 +203,9 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
         const double quiet_s =
             Seconds(now - (last_ping_utime_ > 0 ? last_ping_utime_ : first_utime_));
         if (quiet_s > config_.sonar_silent_s) {
-            reason = last_ping_utime_ > 0 ? Fmt("no ping for %.1f s", quiet_s)
-                                          : Fmt("no ping since the first message (%.1f s)", quiet_s);
+            reason = last_ping_utime_ > 0
+                         ? Fmt("no ping for %.1f s", quiet_s)
+                         : Fmt("no ping since the first message (%.1f s)", quiet_s);
         }
         if (have_daemon_) {
             for (const ChannelStatusIn& c : daemon_.channels) {
@@ -223,7 +228,8 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
             const double h = std::hypot(nav_.north_sigma_m, nav_.east_sigma_m);
             if (h > config_.ins_position_sigma_max_m) {
                 if (!reason.empty()) reason += "; ";
-                reason += Fmt("horizontal sigma %.2f m > %.2f m", h, config_.ins_position_sigma_max_m);
+                reason +=
+                    Fmt("horizontal sigma %.2f m > %.2f m", h, config_.ins_position_sigma_max_m);
             }
         }
         if (nav_.heading_sigma_deg > config_.ins_heading_sigma_max_deg) {
@@ -261,8 +267,7 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
             if (c.state != kClockLocked) {
                 if (!reason.empty()) reason += "; ";
                 reason += std::string(ClockSourceName(source)) + " clock " +
-                          ClockStateName(c.state) +
-                          Fmt(" (sigma %.0f us)", c.stddev_us);
+                          ClockStateName(c.state) + Fmt(" (sigma %.0f us)", c.stddev_us);
             }
         }
         Set(next, "clock_not_locked", !reason.empty(), reason);

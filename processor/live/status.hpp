@@ -41,7 +41,8 @@ struct StatusConfig {
 struct NavStatusIn {
     std::int64_t utime = 0, utime_gps = 0;
     int ins_status = -1, position_type = -1;
-    float north_sigma_m = -1, east_sigma_m = -1, up_sigma_m = -1, heading_sigma_deg = -1;  // <0 none
+    float north_sigma_m = -1, east_sigma_m = -1, up_sigma_m = -1,
+          heading_sigma_deg = -1;  // <0 none
 };
 struct GnssStatusIn {
     std::int64_t utime = 0;
@@ -75,8 +76,8 @@ struct DaemonStatusIn {
 };
 
 struct Alarm {
-    std::string id;      // "sonar_silent", ...
-    std::string reason;  // what tripped it, with the numbers
+    std::string id;                // "sonar_silent", ...
+    std::string reason;            // what tripped it, with the numbers
     std::int64_t since_utime = 0;  // data time it became active
 };
 struct AlarmEvent {
@@ -100,14 +101,14 @@ struct StatusSnapshot {
     bool have_gnss = false;
     GnssStatusIn gnss;
     bool gnss_outage = false;
-    double gnss_outage_s = 0;  // length of the current outage, 0 when none
+    double gnss_outage_s = 0;           // length of the current outage, 0 when none
     std::vector<ClockStatusIn> clocks;  // latest per source
     bool have_daemon = false;
     DaemonStatusIn daemon;
     std::int64_t daemon_drops_total = 0;
     std::map<std::string, ChannelCounter> lcm_channels;
-    std::vector<Alarm> alarms;          // active now
-    std::vector<AlarmEvent> history;    // latest transitions, newest last
+    std::vector<Alarm> alarms;        // active now
+    std::vector<AlarmEvent> history;  // latest transitions, newest last
 };
 
 std::string InsStatusName(int status);
@@ -121,7 +122,9 @@ public:
     explicit StatusTracker(const StatusConfig& config) : config_(config) {}
 
     // Every message, before decoding: the data clock and the channel counters.
-    void OnMessage(const std::string& channel, std::int64_t utime, std::size_t bytes,
+    void OnMessage(const std::string& channel,
+                   std::int64_t utime,
+                   std::size_t bytes,
                    std::int64_t wall_utime);
     void OnDecodeFailure(const std::string& channel);
     void OnNav(const NavStatusIn& n);

@@ -42,7 +42,15 @@ TEST(LiveQuery, ParsesKnownKeysAndIgnoresOthers) {
 }
 
 TEST(LiveQuery, RefusesBadNumbersWithTheKeyNamed) {
-    for (const char* bad : {"", "-1", "+1", " 1", "1 ", "0x10", "1e3", "abc", "99999999999999999999",
+    for (const char* bad : {"",
+                            "-1",
+                            "+1",
+                            " 1",
+                            "1 ",
+                            "0x10",
+                            "1e3",
+                            "abc",
+                            "99999999999999999999",
                             "9223372036854775808"}) {
         const LiveQuery q = ParseLiveQuery({{"since", bad}});
         EXPECT_NE(q.error.find("since"), std::string::npos) << bad;

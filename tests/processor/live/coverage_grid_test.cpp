@@ -64,9 +64,9 @@ TEST(CoverageGrid, HolidaysAreGapsInsideTheCoverageNotItsEdges) {
     Fill(g, 12, 21, 0, 19, 10.0, 2);
     EXPECT_TRUE(g.IsHoliday(10, 5));
     EXPECT_TRUE(g.IsHoliday(11, 5));
-    EXPECT_FALSE(g.IsHoliday(-1, 5));   // the open west edge
-    EXPECT_FALSE(g.IsHoliday(5, 20));   // beyond the northern end
-    EXPECT_FALSE(g.IsHoliday(22, 5));   // the open east edge
+    EXPECT_FALSE(g.IsHoliday(-1, 5));  // the open west edge
+    EXPECT_FALSE(g.IsHoliday(5, 20));  // beyond the northern end
+    EXPECT_FALSE(g.IsHoliday(22, 5));  // the open east edge
     std::int64_t total = 0;
     auto list = g.Holidays(1000, &total);
     EXPECT_EQ(total, 2 * 20);  // the gap's two columns along the whole swath length
@@ -94,10 +94,10 @@ TEST(CoverageGrid, HolidayAcrossATileBorder) {
 
 TEST(CoverageGrid, TilesSinceReturnsOnlyChangedTilesOldestFirst) {
     CoverageGrid g(Config());
-    g.Add(1, 1, 0, 1, 1);      // tile (0, 0)
-    g.Add(40, 1, 0, 1, 2);     // tile (1, 0)
-    g.Add(1, 40, 0, 1, 3);     // tile (0, 1)
-    g.Add(2, 2, 0, 1, 4);      // tile (0, 0) again
+    g.Add(1, 1, 0, 1, 1);   // tile (0, 0)
+    g.Add(40, 1, 0, 1, 2);  // tile (1, 0)
+    g.Add(1, 40, 0, 1, 3);  // tile (0, 1)
+    g.Add(2, 2, 0, 1, 4);   // tile (0, 0) again
     auto t = g.TilesSince(0);
     ASSERT_EQ(t.size(), 3u);
     EXPECT_EQ(t[0]->version, 2u);

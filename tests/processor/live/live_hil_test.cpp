@@ -101,7 +101,8 @@ std::string HttpGet(int port, const std::string& path) {
                 resp.append(buf, static_cast<std::size_t>(n));
             }
             const std::size_t at = resp.find("\r\n\r\n");
-            if (resp.rfind("HTTP/1.1 200", 0) == 0 && at != std::string::npos) body = resp.substr(at + 4);
+            if (resp.rfind("HTTP/1.1 200", 0) == 0 && at != std::string::npos)
+                body = resp.substr(at + 4);
         }
     }
     ::close(fd);
@@ -167,8 +168,8 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     // Poll while the survey runs: the filled cells seen, in order.
     std::vector<std::int64_t> cells;
     int sim_rc = -2;
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(
-                                                                 static_cast<int>(kDurationS) + 90);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(kDurationS) + 90);
     while (std::chrono::steady_clock::now() < deadline) {
         int st = 0;
         if (::waitpid(sim_pid, &st, WNOHANG) == sim_pid) {

@@ -9,10 +9,10 @@
 
 #include <cmath>
 #include <filesystem>
-#include <set>
 #include <pitmap/daemon_status_t.hpp>
 #include <pitmap/ins_pva_t.hpp>
 #include <pitmap/multibeam_ping_t.hpp>
+#include <set>
 
 #include "common/geodesy.hpp"
 #include "lcmtypes/log/channels.hpp"
@@ -171,9 +171,9 @@ TEST(LiveSession, GarbageIsCountedPerChannelNeverFatal) {
     LiveSession s(Config(), {}, true);
     const std::vector<std::uint8_t> junk = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
     for (const std::string& ch : {std::string(lcmlog::kChannelInsPva) + "X",
-                                 std::string(lcmlog::kChannelMultibeamPing) + "Y",
-                                 std::string(lcmlog::kChannelDaemonStatus),
-                                 std::string(lcmlog::kChannelClockSync)}) {
+                                  std::string(lcmlog::kChannelMultibeamPing) + "Y",
+                                  std::string(lcmlog::kChannelDaemonStatus),
+                                  std::string(lcmlog::kChannelClockSync)}) {
         s.OnEvent(ch, junk.data(), junk.size(), kHost0);
         s.OnEvent(ch, junk.data(), 0, kHost0);
     }

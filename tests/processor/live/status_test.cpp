@@ -14,9 +14,8 @@ constexpr std::int64_t kT0 = 1'781'500'000'000'000;  // host time, Unix microsec
 constexpr std::int64_t kS = 1'000'000;
 
 const Alarm* Find(const StatusTracker& t, const std::string& id) {
-    auto it = std::find_if(t.alarms().begin(), t.alarms().end(), [&](const Alarm& a) {
-        return a.id == id;
-    });
+    auto it = std::find_if(
+        t.alarms().begin(), t.alarms().end(), [&](const Alarm& a) { return a.id == id; });
     return it == t.alarms().end() ? nullptr : &*it;
 }
 
