@@ -213,7 +213,8 @@ void LiveSession::OnEvent(const std::string& channel,
                          m.state,
                          static_cast<double>(m.offset_us),
                          m.offset_stddev_us,
-                         m.drift_ppm});
+                         m.drift_ppm,
+                         m.leap_seconds});
     } else if (ch == lcmlog::kChannelDaemonStatus) {
         pitmap::daemon_status_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
@@ -246,7 +247,8 @@ void LiveSession::OnEvent(const std::string& channel,
                          m.host_clock.state,
                          static_cast<double>(m.host_clock.offset_us),
                          m.host_clock.offset_stddev_us,
-                         m.host_clock.drift_ppm});
+                         m.host_clock.drift_ppm,
+                         m.host_clock.leap_seconds});
     }
     status_.OnMessage(channel, utime, size, wall_utime);
     data_utime_ = std::max(data_utime_, utime > 1'000'000'000'000'000LL ? utime : 0);
@@ -381,11 +383,16 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
     }
     json clocks = json::array();
     for (const ClockStatusIn& c : s.clocks) {
-        clocks.push_back({{"source", ClockSourceName(c.source)},
-                          {"state", ClockStateName(c.state)},
-                          {"offset_us", c.offset_us},
-                          {"stddev_us", Num(c.stddev_us)},
-                          {"drift_ppm", Num(c.drift_ppm)}});
+        // clock_sync_t's offset maps Unix microseconds to GPS microseconds since 1980: without
+        // the epochs and the leap seconds it is what the crew wants, UTC minus the input clock.
+        constexpr double kGpsEpochUnixUs = 315'964'800e6;
+        clocks.push_back(
+            {{"source", ClockSourceName(c.source)},
+             {"state", ClockStateName(c.state)},
+             {"offset_us", c.offset_us},
+             {"utc_minus_clock_us", c.offset_us + kGpsEpochUnixUs - c.leap_seconds * 1e6},
+             {"stddev_us", Num(c.stddev_us)},
+             {"drift_ppm", Num(c.drift_ppm)}});
     }
     j["clocks"] = clocks;
     if (s.have_daemon) {

@@ -59,6 +59,7 @@ struct ClockStatusIn {
     int source = 0;  // clock_sync_t SOURCE_*
     int state = 0;   // clock_sync_t STATE_*
     double offset_us = 0, stddev_us = 0, drift_ppm = 0;
+    int leap_seconds = 0;  // GPS - UTC, s
 };
 struct ChannelStatusIn {
     std::string name, protocol;

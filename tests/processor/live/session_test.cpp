@@ -196,6 +196,9 @@ TEST(LiveSession, DaemonStatusDrivesDiskAndClockAlarms) {
     d.host_clock.utime = kHost0;
     d.host_clock.source = 1;
     d.host_clock.state = 1;
+    d.host_clock.leap_seconds = 18;
+    // 2.5 ms behind UTC: GPS us since 1980 = Unix us - 315964800 s + 18 s (+ 2500 us).
+    d.host_clock.offset_us = -315'964'800'000'000LL + 18'000'000LL + 2'500;
     d.sonar_clock.source = 3;
     d.num_channels = 0;
     const auto b = Encode(d);
@@ -207,7 +210,10 @@ TEST(LiveSession, DaemonStatusDrivesDiskAndClockAlarms) {
     for (const auto& a : alarms["active"]) ids.insert(a["id"].get<std::string>());
     EXPECT_TRUE(ids.count("disk_low"));
     EXPECT_TRUE(ids.count("clock_not_locked"));
-    EXPECT_EQ(s.StatusJson(kHost0)["daemon"]["logging"], "disk_guard");
+    const nlohmann::json st = s.StatusJson(kHost0);
+    EXPECT_EQ(st["daemon"]["logging"], "disk_guard");
+    ASSERT_EQ(st["clocks"].size(), 1u);
+    EXPECT_NEAR(st["clocks"][0]["utc_minus_clock_us"].get<double>(), 2500.0, 1e-3);
 }
 
 TEST(LiveSession, SnapshotReadsBackAsAGeoTiff) {
