@@ -63,8 +63,9 @@ def main():
                 "errors: pitmapLive.errors, points: pitmapLive.nPoints})"
         # The first observation once the page has polled twice, the second 4 s later: the
         # replay (40 s of survey at 2x) is still sending pings in between.
-        first = None
-        for _ in range(80):
+        first, s = None, None
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
             browser.pump(0.1)
             try:
                 s = browser.evaluate(state)
