@@ -18,8 +18,13 @@ processor_pkgs=(
   libsuitesparse-dev libblas-dev liblapack-dev
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev libassimp-dev
-  libgdal-dev libproj-dev proj-data
+  libgdal-dev libproj-dev proj-data libcpp-httplib-dev
   python3-numpy python3-matplotlib
+)
+# The browser tests (headless Chromium loads the live page and report.html) and the report's
+# 3D viewer (three.js, inlined into report.html).
+browser_pkgs=(
+  chromium libjs-three
 )
 tool_pkgs=(
   clang libclang-rt-14-dev clang-format llvm-14 ccache
@@ -27,7 +32,7 @@ tool_pkgs=(
 
 pkgs=("${common_pkgs[@]}")
 if [[ "${1:-}" != "--minimal" ]]; then
-  pkgs+=("${processor_pkgs[@]}" "${tool_pkgs[@]}")
+  pkgs+=("${processor_pkgs[@]}" "${browser_pkgs[@]}" "${tool_pkgs[@]}")
 fi
 
 missing=()

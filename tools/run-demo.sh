@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # The main job: installs dependencies, builds, then runs the demo survey end to end:
-#   1. the simulated sensors (tools/, HIL rig) feed the real daemon (pitmap-acqd) -> LCM log
+#   1. the simulated sensors (tools/, HIL rig) feed the real daemon (pitmap-acqd) -> LCM log,
+#      while pitmap-live shows the coverage and alarms on http://127.0.0.1:8765/ (LIVE_PORT)
 #   2. the processor (pitmap run) turns the log into products and a report
 #   3. the scorer (pitmap-eval) compares the products with the simulator's ground truth
 # Products land in out/demo/. Each step runs when its program exists; a missing one is named.
@@ -16,7 +17,7 @@ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release > "$build.confi
   cat "$build.configure.log"; echo "run-demo: configure failed" >&2; exit 1; }
 # Only what the demo runs (the tests and benchmarks are built by tools/run-tests.sh).
 targets=()
-for t in pitmap pitmap-acqd pitmap-sim pitmap-eval pitmap-inspect pitmap-report; do
+for t in pitmap pitmap-acqd pitmap-sim pitmap-eval pitmap-inspect pitmap-report pitmap-live; do
   ninja -C "$build" -t query "$t" > /dev/null 2>&1 && targets+=(--target "$t")
 done
 start=$(date +%s)
@@ -39,8 +40,39 @@ fi
 
 if [[ -x $bin/pitmap-sim && -x $bin/pitmap-acqd ]]; then
   step "simulated survey 'demo' through the real daemon"
-  rm -rf "$out/sim" "$out/products"   # the demo's own output of an earlier run
-  "$bin/pitmap-sim" hil --scenario demo --out "$out/sim" --acqd "$bin/pitmap-acqd"
+  rm -rf "$out/sim" "$out/products" "$out/live"   # the demo's own output of an earlier run
+  # The live view beside the daemon: the daemon publishes on a multicast URL of its own (ttl=0:
+  # nothing leaves this machine) and pitmap-live serves the page on 127.0.0.1. Without a
+  # multicast route (a machine with no network) the daemon keeps memq:// and the demo runs
+  # without the live view.
+  live_url="udpm://239.255.76.67:7671?ttl=0&recv_buf_size=4194304"
+  live_port=${LIVE_PORT:-8765}
+  hil_lcm=(--lcm-url "memq://")
+  live_pid=
+  trap '[[ -n ${live_pid:-} ]] && kill -TERM "$live_pid" 2> /dev/null; true' EXIT
+  if [[ -x $bin/pitmap-live ]] && ip route get 239.255.76.67 > /dev/null 2>&1; then
+    mkdir -p "$out/live"
+    "$bin/pitmap-live" --lcm-url "$live_url" --port "$live_port" --out "$out/live" \
+      --cell-size 0.5 --snapshot-on-exit --status-json "$out/live/status.json" \
+      > "$out/live/pitmap-live.out" 2>&1 &
+    live_pid=$!
+    sleep 0.5
+    if kill -0 "$live_pid" 2> /dev/null; then
+      hil_lcm=(--lcm-url "$live_url")
+      echo "run-demo: live view of the survey: open http://127.0.0.1:$live_port/ now"
+    else
+      echo "run-demo: pitmap-live did not start (see $out/live/pitmap-live.out); no live view"
+      live_pid=
+    fi
+  else
+    echo "run-demo: no multicast route here: the survey runs without the live view"
+  fi
+  "$bin/pitmap-sim" hil --scenario demo --out "$out/sim" --acqd "$bin/pitmap-acqd" "${hil_lcm[@]}"
+  if [[ -n $live_pid ]]; then
+    kill -TERM "$live_pid"; wait "$live_pid" || true
+    live_pid=
+    echo "run-demo: live view stopped; its last grid and status are in $out/live"
+  fi
 else
   [[ -x $bin/pitmap-acqd ]] || missing+=("pitmap-acqd (acquisition daemon, issue 4)")
   [[ -x $bin/pitmap-sim ]] || missing+=("pitmap-sim (simulated sensors and HIL rig, issue 5)")
@@ -74,4 +106,7 @@ else
   echo "  products: $out/products (points.ply/.las, trajectory.csv, tsdf.vdb, mesh.ply/.obj/.glb)"
   echo "  report:   $out/products/report.html"
   echo "  scores:   $out/products/scores.json"
+  if [[ -d $out/live ]]; then
+    echo "  live:     $out/live (the live view's last coverage grid and status)"
+  fi
 fi

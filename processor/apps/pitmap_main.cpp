@@ -12,6 +12,7 @@
 //   pitmap run LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
 //              [--sonar-clock-offset S] [--svp FILE...] [--no-calibrate] [--no-slam]
 //   pitmap config --defaults | --vehicle
+//   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 #include <unistd.h>
 
@@ -34,12 +35,16 @@ int Fail(const std::string& message) {
     return 1;
 }
 
-// pitmap-report lives beside the pitmap executable (build/bin, or the install's bin).
-std::string ReportProgram() {
+// pitmap-report and pitmap-live live beside the pitmap executable (build/bin, or the install's
+// bin).
+std::string SiblingProgram(const char* name) {
     std::error_code ec;
     const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
     if (ec) return "";
-    return (self.parent_path() / "pitmap-report").string();
+    return (self.parent_path() / name).string();
+}
+std::string ReportProgram() {
+    return SiblingProgram("pitmap-report");
 }
 
 // The quality gates summary.json records (processor/pipeline/survey.hpp), one line each.
@@ -60,6 +65,13 @@ constexpr int kExitQualityGate = 4;
 }  // namespace
 
 int main(int argc, char** argv) try {
+    // `pitmap live ARGS` is pitmap-live ARGS (its own program: it links the HTTP server).
+    if (argc >= 2 && std::string(argv[1]) == "live") {
+        const std::string live = SiblingProgram("pitmap-live");
+        argv[1] = const_cast<char*>(live.c_str());
+        ::execv(live.c_str(), argv + 1);
+        return Fail("cannot run " + live + " (build the pitmap-live target)");
+    }
     CLI::App app{"pitmap: flooded open-pit mine mapping, shore-side processor"};
     app.require_subcommand(1);
     std::vector<std::string> inputs, svp_files;

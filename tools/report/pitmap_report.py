@@ -32,6 +32,7 @@ import io
 import json
 import math
 import os
+import re
 import resource
 import sys
 import time
@@ -45,6 +46,12 @@ from matplotlib.colors import LightSource, Normalize  # noqa: E402
 from matplotlib.ticker import EngFormatter, LogLocator, MaxNLocator  # noqa: E402
 
 PROG = "pitmap-report"
+# The interactive 3D view: three.js from Debian's libjs-three, inlined into report.html with
+# viewer3d.js (installed beside this script as pitmap-report-viewer3d.js).
+THREE_DIR = os.environ.get("PITMAP_THREE_DIR", "/usr/share/javascript/three")
+VIEWER_MAX_TRIANGLES = 250_000  # what a laptop's integrated GPU turns smoothly
+VIEWER_MAX_POINTS = 150_000
+VIEWER_MAX_TRAJECTORY = 5_000
 START_TIME = time.monotonic()
 
 # Stage order of `pitmap run`; summary.json may give its own in "stage_order".
@@ -221,6 +228,49 @@ class Ply:
             if len(w) == 4 and w[0] == "pitmap_origin":
                 return tuple(float(v) for v in w[1:])
         return None
+
+
+def DecimateMesh(xyz, tri, max_triangles):
+    """Vertex clustering: vertices snapped to a cubic grid, each cluster merged into its mean,
+    collapsed and duplicate triangles dropped; the cell grows by 1.25x until the triangles fit
+    `max_triangles`. Returns (vertices, triangles) with only the vertices still used."""
+    if len(tri) <= max_triangles:
+        return xyz, tri
+    lo = xyz.min(axis=0)
+    edge = np.linalg.norm(xyz[tri[:, 0]] - xyz[tri[:, 1]], axis=1)
+    cell = max(float(np.median(edge)), 1e-6) * math.sqrt(len(tri) / max_triangles)
+    for _ in range(40):
+        q = np.floor((xyz - lo) / cell).astype(np.int64)
+        n = q.max(axis=0) + 1
+        key = (q[:, 0] * n[1] + q[:, 1]) * n[2] + q[:, 2]
+        uniq, cluster = np.unique(key, return_inverse=True)
+        t = cluster[tri]
+        keep = (t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2])
+        t = t[keep]
+        # The same triangle twice (any rotation of its corners) once.
+        r = np.argmin(t, axis=1)
+        t = np.stack([t[np.arange(len(t)), (r + k) % 3] for k in range(3)], axis=1)
+        t = np.unique(t, axis=0)
+        if len(t) <= max_triangles:
+            counts = np.bincount(cluster, minlength=len(uniq)).astype(np.float64)
+            v = np.stack([np.bincount(cluster, weights=xyz[:, c], minlength=len(uniq)) / counts
+                          for c in range(3)], axis=1)
+            used, t = np.unique(t, return_inverse=True)
+            return v[used], t.reshape(-1, 3).astype(np.uint32)
+        cell *= 1.25
+    raise ValueError("mesh decimation did not reach the triangle budget")
+
+
+def InlineScript(js):
+    """JavaScript made safe to inline in <script>: no "</script", and no http(s) URL in the
+    report (three.js has a namespace string and comments with URLs; none is fetched)."""
+    js = re.sub(r"(?i)</script", r"<\\/script", js)
+    js = js.replace('"http://www.w3.org/1999/xhtml"', '"htt"+"p://www.w3.org/1999/xhtml"')
+    return re.sub(r"(?i)\bhttp(s?):", r"hxxp\1:", js)
+
+
+def B64(a):
+    return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")
 
 
 def ReadTrajectory(path):
@@ -957,6 +1007,79 @@ class Report:
         cb.set_label("TVU (95 %) / limit")
         return self.Figure(fig, "s44_compliance", "S-44 TVU compliance map with holidays")
 
+    def SectionViewer(self):
+        """The interactive WebGL view: decimated mesh, trajectories before and after SLAM, a
+        subset of the soundings, coloured by depth; three.js inlined (no network)."""
+        libs = [os.path.join(THREE_DIR, "three.min.js"),
+                os.path.join(THREE_DIR, "examples", "js", "controls", "OrbitControls.js"),
+                os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                             "pitmap-report-viewer3d.js")]
+        if not os.path.isfile(libs[2]):  # run from the source tree
+            libs[2] = os.path.join(os.path.dirname(os.path.abspath(__file__)), "viewer3d.js")
+        absent = [f for f in libs if not os.path.isfile(f)]
+        if absent:
+            return self.Missing("3D view", "not found: " + ", ".join(absent) +
+                                " (Debian's libjs-three: tools/install-deps.sh)")
+        mesh = None
+        for name in ("mesh_filled.ply", "mesh.ply"):
+            try:
+                m = self.LoadMesh(name)
+            except (OSError, PlyError) as e:
+                self.problems.append(f"3D view: {e}")
+                continue
+            if m is not None and len(m[1]):
+                mesh = m
+                break
+        pts = self.points.get("final") if "final" in self.points else self.points.get("initial")
+        if mesh is None and pts is None:
+            return self.Missing("3D view", "no mesh and no soundings")
+        parts = []
+        if mesh is not None:
+            parts.append(mesh[0])
+        if pts is not None:
+            idx = Subsample(len(pts), min(len(pts), 20000))
+            parts.append(np.stack([np.asarray(pts[c][idx], dtype=np.float64)
+                                   for c in ("x", "y", "z")], axis=1))
+        allp = np.concatenate(parts)
+        lo, hi = np.percentile(allp, 0.5, axis=0), np.percentile(allp, 99.5, axis=0)
+        centre = (lo + hi) / 2.0
+        radius = float(max(1.0, np.max(hi - lo) / 2.0))
+        zlim = [float(lo[2] - centre[2]), float(hi[2] - centre[2])]
+        data = {"centre_enu_m": centre.tolist(), "radius": radius, "zlim": zlim}
+        facts = []
+        if mesh is not None:
+            v, t = DecimateMesh(mesh[0], mesh[1], VIEWER_MAX_TRIANGLES)
+            data["mesh"] = {"positions": B64((v - centre).astype("<f4")),
+                            "indices": B64(np.asarray(t, dtype="<u4"))}
+            facts.append(f"mesh {Num(len(t))} of {Num(len(mesh[1]))} triangles")
+        if pts is not None:
+            idx = Subsample(len(pts), min(len(pts), VIEWER_MAX_POINTS))
+            xyz = np.stack([np.asarray(pts[c][idx], dtype=np.float64) for c in ("x", "y", "z")],
+                           axis=1)
+            data["points"] = B64((xyz - centre).astype("<f4"))
+            facts.append(f"{Num(len(idx))} of {Num(len(pts))} soundings")
+        for key, name in (("final", "trajectory_after"), ("initial", "trajectory_before")):
+            tr = self.traj.get(key)
+            if tr is None:
+                continue
+            step = max(1, len(tr["x"]) // VIEWER_MAX_TRAJECTORY)
+            xyz = np.stack([tr[c][::step] for c in ("x", "y", "z")], axis=1)
+            data[name] = B64((xyz - centre).astype("<f4"))
+        if "initial" in self.traj:
+            facts.append("trajectory before SLAM (orange) and after (white)")
+        scripts = []
+        for f in libs:
+            with open(f, encoding="utf-8") as fh:
+                scripts.append(f"<script>{InlineScript(fh.read())}</script>")
+        blob = json.dumps(data).replace("</", "<\\/")
+        return (f'<p class="caption">Drag to turn, wheel to zoom, right-drag to pan; '
+                f'{Esc(", ".join(facts))}; coloured by depth. Local ENU metres about '
+                f'({centre[0]:.1f}, {centre[1]:.1f}, {centre[2]:.1f}).</p>\n'
+                f'<div id="viewer3d"></div><div id="viewer3d-bar"></div>'
+                f'<div id="viewer3d-info" class="caption"></div>\n'
+                f'<script type="application/json" id="viewer-data">{blob}</script>\n'
+                + "\n".join(scripts))
+
     def SectionMesh(self):
         meshes = {}
         out = []
@@ -1360,6 +1483,7 @@ class Report:
             ("depth", "Depth-coloured top view", self.SectionDepth),
             ("hydro", "Vertical datum and IHO S-44 quality control", self.SectionHydro),
             ("mesh", "Mesh before and after SLAM", self.SectionMesh),
+            ("viewer", "Interactive 3D view", self.SectionViewer),
             ("boresight", "Boresight calibration", self.SectionBoresight),
             ("clock", "Sonar clock and latency", self.SectionClock),
             ("tsdf", "TSDF weight histogram", self.SectionTsdf),
@@ -1408,6 +1532,9 @@ img { max-width: 100%; height: auto; display: block; margin: 8px 0; }
 .missing { color: #8a5a00; background: #fff6e0; padding: 4px 8px; border-left: 4px solid #e0a000; }
 .problem { color: #900; background: #fde8e8; padding: 4px 8px; border-left: 4px solid #c00; }
 footer { margin-top: 40px; font-size: 12px; color: #777; }
+#viewer3d { width: 100%; height: 620px; background: #15191d; }
+#viewer3d-bar { margin: 6px 0; font-size: 14px; }
+#viewer3d-bar button { margin-right: 8px; }
 """
 
 PAGE = """<!DOCTYPE html>

@@ -24,7 +24,7 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mesh",
+SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mesh", "viewer",
             "boresight", "clock", "tsdf", "slam", "stages", "scores"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)

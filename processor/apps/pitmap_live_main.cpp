@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: MIT
+// pitmap-live (also `pitmap live`): live survey QC. Subscribes to the daemon's LCM channels, or
+// replays LCM logs through the same path, and serves the live page (processor/live/server.hpp).
+//   pitmap-live [--lcm-url URL] [--bind ADDR] [--port N] [--vehicle FILE] [--out DIR] ...
+//   pitmap-live --replay LOG... [--speed S] [--no-serve] [--hold] [--status-json FILE]
+//               [--snapshot-on-exit --out DIR]
+// Exit: 0 done (SIGINT/SIGTERM, or the replay's end), 1 run failure, 2 bad arguments.
+#include <lcm/lcm-cpp.hpp>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "common/peak_memory.hpp"
+#include "processor/io/products.hpp"
+#include "processor/live/replay.hpp"
+#include "processor/live/server.hpp"
+
+namespace live = pitmap::proc::live;
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) {
+    g_stop.store(true);
+}
+
+std::int64_t WallUtime() {
+    return std::chrono::duration_cast<std::chrono::microseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+void OnLcm(const lcm::ReceiveBuffer* rbuf, const std::string& channel, live::LiveSession* s) {
+    s->OnEvent(channel, rbuf->data, rbuf->data_size, WallUtime());
+}
+
+int Usage(const std::vector<std::string>& problems) {
+    for (const auto& p : problems) std::fprintf(stderr, "pitmap-live: %s\n", p.c_str());
+    return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+    CLI::App app{"pitmap-live: live coverage, status and alarms from the daemon's LCM channels"};
+    std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608";
+    std::string vehicle_path, status_json;
+    std::vector<std::string> replay;
+    double speed = 0;
+    bool no_serve = false, hold = false, snapshot_on_exit = false;
+    live::LiveConfig config;
+    live::ServerConfig server_config;
+    double budget_kbps = 50;
+    app.add_option("--lcm-url", lcm_url, "LCM URL to subscribe on")->capture_default_str();
+    app.add_option("--bind", server_config.bind_address, "address to serve on")
+        ->capture_default_str();
+    app.add_option("--port", server_config.port, "TCP port (0 = any free one, printed)")
+        ->capture_default_str();
+    app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")
+        ->capture_default_str();
+    app.add_option("--vehicle", vehicle_path, "vehicle.yaml: lever arm and mount (default: zero)");
+    app.add_option("--out", server_config.snapshot_dir, "snapshot directory (POST /api/snapshot)");
+    app.add_option("--cell-size", config.grid.cell_size_m, "coverage cell size, m")
+        ->capture_default_str();
+    app.add_option("--holiday-cells", config.grid.holiday_search_cells, "holiday search, cells")
+        ->capture_default_str();
+    app.add_option("--nav-channel", config.nav_channel_id, "INS channel id (default: every one)");
+    app.add_option(
+        "--sonar-channel", config.sonar_channel_id, "sonar channel id (default: every one)");
+    app.add_option("--replay", replay, "LCM log files to replay instead of subscribing");
+    app.add_option("--speed", speed, "replay speed (0 = as fast as possible)")
+        ->capture_default_str();
+    app.add_flag("--no-serve", no_serve, "replay only: no HTTP server");
+    app.add_flag("--hold", hold, "replay only: keep serving after the end until SIGTERM");
+    app.add_option("--status-json", status_json, "write the final status JSON here at the end");
+    app.add_flag("--snapshot-on-exit", snapshot_on_exit, "write the grid into --out at the end");
+    CLI11_PARSE(app, argc, argv);
+    server_config.budget_bytes_per_s = budget_kbps * 1000.0;
+
+    std::vector<std::string> problems = config.Validate();
+    for (auto& p : server_config.Validate()) problems.push_back(p);
+    if (!(speed >= 0)) problems.push_back("--speed must be >= 0");
+    if (snapshot_on_exit && server_config.snapshot_dir.empty())
+        problems.push_back("--snapshot-on-exit needs --out DIR");
+    if (!problems.empty()) return Usage(problems);
+
+    pitmap::proc::georef::SonarMount mount;
+    const bool mount_known = !vehicle_path.empty();
+    if (mount_known) {
+        auto v = pitmap::proc::io::ReadVehicleYaml(vehicle_path);
+        if (!v) return Usage({v.error().message});
+        mount = v->mount;
+    } else {
+        std::fprintf(stderr, "pitmap-live: warning: no --vehicle: lever arm and mount are zero\n");
+    }
+    live::LiveSession session(config, mount, mount_known);
+    std::signal(SIGINT, OnSignal);
+    std::signal(SIGTERM, OnSignal);
+
+    std::unique_ptr<live::LiveServer> server;
+    if (replay.empty() || !no_serve) {
+        server = std::make_unique<live::LiveServer>(session, server_config);
+        if (auto s = server->Start(); !s) {
+            std::fprintf(stderr, "pitmap-live: %s\n", s.error().message.c_str());
+            return 1;
+        }
+        std::printf("pitmap-live: open http://%s:%d/\n",
+                    server_config.bind_address.c_str(),
+                    server->port());
+        std::fflush(stdout);
+    }
+
+    int code = 0;
+    if (!replay.empty()) {
+        auto r = live::ReplayLogs(session, replay, speed, g_stop);
+        if (!r) {
+            std::fprintf(stderr, "pitmap-live: %s\n", r.error().message.c_str());
+            code = 1;
+        } else {
+            const auto c = session.GridStats();
+            std::printf(
+                "pitmap-live: replayed %lld events of %lld file(s): %.1f s of data in %.2f s "
+                "(%.0fx real time), %lld soundings in %lld cells, %lld holidays, peak RSS %.0f "
+                "MB\n",
+                static_cast<long long>(r->events),
+                static_cast<long long>(r->files),
+                r->data_seconds,
+                r->wall_seconds,
+                r->wall_seconds > 0 ? r->data_seconds / r->wall_seconds : 0.0,
+                static_cast<long long>(c.soundings),
+                static_cast<long long>(c.filled_cells),
+                static_cast<long long>(c.holidays),
+                pitmap::PeakRssMb());
+            std::fflush(stdout);
+        }
+        while (hold && server && !g_stop.load()) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            session.Tick(WallUtime());
+        }
+    } else {
+        lcm::LCM lcm(lcm_url);
+        if (!lcm.good()) {
+            std::fprintf(stderr, "pitmap-live: cannot open LCM %s\n", lcm_url.c_str());
+            return 1;
+        }
+        lcm.subscribeFunction(".*", &OnLcm, &session);
+        while (!g_stop.load()) {
+            // A signal interrupts the wait (-1 with g_stop set): a normal stop.
+            if (lcm.handleTimeout(50) < 0 && !g_stop.load()) {
+                std::fprintf(stderr, "pitmap-live: LCM failed on %s\n", lcm_url.c_str());
+                code = 1;
+                break;
+            }
+            session.Tick(WallUtime());
+        }
+    }
+    if (!status_json.empty()) {
+        std::ofstream f(status_json);
+        f << session.StatusJson(WallUtime())
+                 .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+          << "\n";
+        if (!f) {
+            std::fprintf(stderr, "pitmap-live: cannot write %s\n", status_json.c_str());
+            code = 1;
+        }
+    }
+    if (server) server->Stop();
+    if (snapshot_on_exit) {
+        auto path = session.WriteSnapshot(server_config.snapshot_dir);
+        if (path) {
+            std::printf("pitmap-live: wrote %s\n", path->c_str());
+        } else {
+            std::fprintf(stderr, "pitmap-live: no snapshot: %s\n", path.error().message.c_str());
+        }
+    }
+    return code;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "pitmap-live: %s\n", e.what());
+    return 1;
+}

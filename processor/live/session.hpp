@@ -1,0 +1,118 @@
+// SPDX-License-Identifier: MIT
+// The live survey state behind `pitmap live`: LCM events in (from a subscription or a log
+// file, the same path), JSON documents and grid products out.
+//
+// OnEvent() takes one LCM event (channel, encoded bytes): every message is bounds-checked
+// (lcmlog::DecodeChecked) before it is decoded, counted per channel, and routed by the channel
+// names of the vehicle-shore contract (lcmtypes/log/channels.hpp): INS_PVA_ and MULTIBEAM_PING_
+// feed the incremental georeferencing (live_georef.hpp), INS_STDDEV_, GNSS_POSITION_,
+// CLOCK_SYNC and DAEMON_STATUS the status and alarms (status.hpp). Tick() georeferences what
+// navigation now brackets into the coverage grid (coverage_grid.hpp) and the recent-soundings
+// ring, and re-evaluates the alarms.
+// The JSON documents (status, alarms, tiles, soundings) fit a byte budget given by the caller
+// (budget.hpp) and say when they were thinned.
+// Thread safety: every public member locks one mutex; the LCM thread and the HTTP threads may
+// call concurrently.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/result.hpp"
+#include "processor/live/coverage_grid.hpp"
+#include "processor/live/live_georef.hpp"
+#include "processor/live/status.hpp"
+
+namespace pitmap::proc::live {
+
+struct LiveConfig {
+    CoverageGridConfig grid;
+    StatusConfig status;
+    LiveGeorefConfig georef;
+    std::string nav_channel_id;                  // "" = every INS channel
+    std::string sonar_channel_id;                // "" = every sonar channel
+    std::size_t max_recent_soundings = 200'000;  // ring for the 3D view
+    std::size_t max_track_points = 20'000;       // vehicle track ring (one per georeferenced ping)
+    double process_interval_s = 0.1;             // data time between georeferencing batches
+    double holiday_refresh_s = 1.0;  // wall time between holiday counts (visit every cell)
+    std::vector<std::string> Validate() const;
+};
+
+struct SessionCounts {
+    std::int64_t events = 0;
+    std::int64_t decode_failures = 0;
+    std::int64_t utm_failures = 0;
+};
+
+class LiveSession {
+public:
+    LiveSession(const LiveConfig& config, const georef::SonarMount& mount, bool mount_known);
+
+    // One LCM event; `wall_utime` is the receiving machine's clock (Unix microseconds).
+    void OnEvent(const std::string& channel,
+                 const void* data,
+                 std::size_t size,
+                 std::int64_t wall_utime);
+    // Georeferences what is ready (at most once per process_interval_s of data time unless
+    // `force`), then evaluates the alarms at `wall_utime` (with every batch, else at most every
+    // 100 ms of wall time).
+    void Tick(std::int64_t wall_utime, bool force = false);
+
+    // JSON documents for the page (budget in bytes: the caller's share; < 0 = unlimited).
+    nlohmann::json StatusJson(std::int64_t wall_utime);
+    nlohmann::json AlarmsJson();
+    nlohmann::json TilesJson(std::uint64_t since, std::int64_t budget_bytes);
+    nlohmann::json SoundingsJson(std::uint64_t since, std::int64_t budget_bytes);
+
+    // Writes the coverage grid as a COG GeoTIFF (processor/io/grid_io) into `dir` as
+    // live_grid_<UTC of the data clock>.tif (layers: coverage_grid.hpp ToRaster); the path
+    // written, or an error.
+    Expected<std::string> WriteSnapshot(const std::string& dir);
+
+    SessionCounts counts() const;
+    CoverageStats GridStats() const;
+    std::uint64_t grid_version() const;  // the newest tile version
+
+private:
+    void ProcessLocked();
+    void RefreshHolidaysLocked();
+
+    mutable std::mutex mutex_;
+    LiveConfig config_;
+    bool mount_known_;
+    LiveGeoref georef_;
+    CoverageGrid grid_;
+    StatusTracker status_;
+    SessionCounts counts_;
+    std::uint64_t version_ = 0;
+    std::int64_t last_process_data_utime_ = 0;
+    std::int64_t last_evaluate_wall_utime_ = 0;
+    std::int64_t data_utime_ = 0;
+    int utm_zone_ = 0;
+    bool utm_northern_ = true;
+    bool have_ref_ = false;
+    std::int64_t ref_ix_ = 0, ref_iy_ = 0;  // the local frame of the page: this cell's corner
+    struct Sounding {
+        float x, y, z;  // metres from the reference corner (UTM east, north; ellipsoidal height)
+    };
+    std::deque<Sounding> recent_;
+    std::uint64_t sounding_seq_ = 0;  // soundings ever added; recent_.back() has this number
+    std::deque<std::array<float, 3>> track_;
+    // Holidays (and the grid statistics) are recomputed at most once per grid version and per
+    // holiday_refresh_s.
+    std::uint64_t holidays_version_ = ~0ULL;
+    std::chrono::steady_clock::time_point holidays_computed_;
+    std::vector<std::pair<std::int64_t, std::int64_t>> holidays_;
+    std::int64_t holidays_total_ = 0;
+    CoverageStats stats_cache_;
+};
+
+}  // namespace pitmap::proc::live
