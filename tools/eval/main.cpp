@@ -73,6 +73,7 @@ std::optional<Geodetic> ProductOrigin(const fs::path& products,
     return formats::ply::OriginFromComments(ply_comments);
 }
 
+#ifdef PITMAP_EVAL_GRID
 // The datum's mean ellipsoidal height (summary.json vertical_datum), 0 for ellipsoidal heights.
 double DatumHeight(const fs::path& products) {
     std::ifstream in(products / "summary.json");
@@ -86,6 +87,7 @@ double DatumHeight(const fs::path& products) {
     const json& h = v.value("mean_datum_height_m", json());
     return h.is_number() ? h.get<double>() : 0.0;
 }
+#endif  // PITMAP_EVAL_GRID
 
 }  // namespace
 
