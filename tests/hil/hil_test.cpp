@@ -301,8 +301,35 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
             const std::string h = pitmap::sim::hil::HexU64(
                 pitmap::sim::hil::Fnv1a64(std::span<const std::uint8_t>(stream.data() + pos, len)));
             if (h != item["fnv64"].get<std::string>()) {
-                ADD_FAILURE() << source << ": " << kind << " at byte " << pos << " (t "
-                              << item["t_s"] << " s) differs from what the emulator sent";
+                // Diagnosis: where the item's bytes are in the log (bytes missing or extra
+                // before it), and the log's bytes here.
+                std::string where = "not within 4096 bytes of it";
+                for (long d = 1; d <= 4096; ++d) {
+                    bool found = false;
+                    for (const long off :
+                         {static_cast<long>(pos) + d, static_cast<long>(pos) - d}) {
+                        if (off < 0 || static_cast<std::size_t>(off) + len > stream.size())
+                            continue;
+                        const std::string hd = pitmap::sim::hil::HexU64(pitmap::sim::hil::Fnv1a64(
+                            std::span<const std::uint8_t>(stream.data() + off, len)));
+                        if (hd == item["fnv64"].get<std::string>()) {
+                            where = "found at byte " + std::to_string(off) + " (" +
+                                    std::to_string(off - static_cast<long>(pos)) + " bytes away)";
+                            found = true;
+                            break;
+                        }
+                    }
+                    if (found) break;
+                }
+                std::string hex;
+                for (std::size_t i = pos; i < std::min(stream.size(), pos + 32); ++i) {
+                    char b[4];
+                    std::snprintf(b, sizeof b, "%02x", stream[i]);
+                    hex += b;
+                }
+                ADD_FAILURE() << source << ": " << kind << " (len " << len << ") at byte " << pos
+                              << " (t " << item["t_s"] << " s) differs from what the emulator "
+                              << "sent; its bytes are " << where << "; the log there: " << hex;
                 mismatches = 1;
                 break;
             }
