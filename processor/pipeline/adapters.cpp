@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/adapters.hpp"
 
+#include "processor/survey/survey.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -87,22 +89,22 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
     return out;
 }
 
-void ApplyVehiclePoses(georef::GeorefResult& geo,
-                       const std::vector<Pose>& T_world_vehicle,
-                       const georef::SonarMount& mount) {
-    if (T_world_vehicle.size() != geo.pings.size()) return;
-    std::vector<Pose> delta(geo.pings.size());
+Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle) {
+    if (T_world_vehicle.size() != geo.pings.size()) {
+        return Error{"internal: " + std::to_string(T_world_vehicle.size()) + " poses for " +
+                     std::to_string(geo.pings.size()) + " georeferenced pings"};
+    }
+    std::size_t n = 0;
+    for (const auto& p : geo.pings) n = std::max<std::size_t>(n, p.header_index + 1);
+    survey::PingTrajectory t;
+    t.T_world_vehicle.assign(n, Pose::Identity());
+    t.valid.assign(n, 0);
     for (std::size_t k = 0; k < geo.pings.size(); ++k) {
-        delta[k] = T_world_vehicle[k] * geo.pings[k].T_world_vehicle.inverse();
+        t.T_world_vehicle[geo.pings[k].header_index] = T_world_vehicle[k];
+        t.valid[geo.pings[k].header_index] = 1;
     }
-    for (std::size_t i = 0; i < geo.points.size(); ++i) {
-        geo.points.position_world[i] = delta[geo.points.ping[i]] * geo.points.position_world[i];
-    }
-    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
-    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
-        geo.pings[k].T_world_vehicle = T_world_vehicle[k];
-        geo.pings[k].sensor_world = (T_world_vehicle[k] * T_vehicle_sonar).translation();
-    }
+    survey::ApplyTrajectory(geo, t);
+    return Ok{};
 }
 
 PoseLookup PosesAtPings(const georef::GeorefResult& geo,

@@ -51,11 +51,9 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
                     const PoseSigma& fallback_sigma);
 
 // Moves every sounding and ping of `geo` to new vehicle poses, one per ping
-// (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p. Precondition:
-// T_world_vehicle.size() == geo.pings.size().
-void ApplyVehiclePoses(georef::GeorefResult& geo,
-                       const std::vector<Pose>& T_world_vehicle,
-                       const georef::SonarMount& mount);
+// (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p, through
+// survey::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
+Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle);
 
 // New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the
 // SLAM stage): interpolated between the bracketing samples (position linear, attitude slerp);

@@ -281,7 +281,12 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     }
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
-    s.geo = survey::Georeference(s.model, s.model.latest(), config.georef, s.refraction);
+    std::size_t kept = 0;
+    s.geo = survey::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    if (kept > 0) {
+        log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
+            survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
+    }
     return s;
 }
 

@@ -157,7 +157,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     const std::string& P = s.out_dir;
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
     if (auto w = io::WritePly(P + "/points_initial.ply", s.geo); !w) return w;
-    ApplyVehiclePoses(s.geo, after, s.model.mount);
+    if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;

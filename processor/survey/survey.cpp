@@ -120,7 +120,8 @@ georef::GeorefResult Georeference(const SurveyModel& m,
                                   TrajectoryVersion v,
                                   const georef::GeorefConfig& config,
                                   std::shared_ptr<const svp::Refraction> refraction,
-                                  const ProgressCallback& progress) {
+                                  const ProgressCallback& progress,
+                                  std::size_t* kept) {
     georef::GeorefResult geo = georef::RunGeoref(
         m.ingest.nav, m.ingest.pings, m.mount, config, m.origin, progress, std::move(refraction));
     // RunGeoref puts each ping on the navigation at its current time: the calibrated version
@@ -135,7 +136,9 @@ georef::GeorefResult Georeference(const SurveyModel& m,
     const int current =
         static_cast<int>(m.has(TrajectoryVersion::kCalibrated) ? TrajectoryVersion::kCalibrated
                                                                : TrajectoryVersion::kIns);
-    if (chosen >= 0 && chosen != current) ApplyTrajectory(geo, m.trajectories[chosen]);
+    std::size_t k = 0;
+    if (chosen >= 0 && chosen != current) k = ApplyTrajectory(geo, m.trajectories[chosen]);
+    if (kept != nullptr) *kept = k;
     return geo;
 }
 

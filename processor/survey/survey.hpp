@@ -113,12 +113,14 @@ struct SurveyModel {
 Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r);
 
 // The view: the survey's soundings on trajectory version `v` (the newest present at or before
-// it) with the current mount. Pings without a valid pose in that version keep the INS pose.
+// it) with the current mount. Pings without a valid pose in that version keep the navigation's
+// pose; `kept` (when given) receives their number, for the caller to report.
 georef::GeorefResult Georeference(const SurveyModel& m,
                                   TrajectoryVersion v,
                                   const georef::GeorefConfig& config,
                                   std::shared_ptr<const svp::Refraction> refraction,
-                                  const ProgressCallback& progress = {});
+                                  const ProgressCallback& progress = {},
+                                  std::size_t* kept = nullptr);
 
 // The per-ping trajectory of a georeferenced survey of `num_pings` pings.
 PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);

@@ -305,24 +305,18 @@ int main(int argc, char** argv) {
             scores["tpu_soundings_scored"] = s.all.count;
             for (const auto& b : s.by_angle) {
                 if (b.count == 0) continue;
-                char key[64];
-                std::snprintf(
-                    key, sizeof key, "tpu_within_tvu_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.within_tvu;
-                std::snprintf(
-                    key, sizeof key, "tpu_within_thu_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.within_thu;
-                std::snprintf(
-                    key, sizeof key, "tpu_vertical_rms_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.vertical_rms_m;
-                std::snprintf(
-                    key, sizeof key, "tpu_tvu_sigma_rms_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.tvu_rms_m;
-                std::snprintf(
-                    key, sizeof key, "tpu_vertical_bias_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.vertical_bias_m;
-                std::snprintf(key, sizeof key, "tpu_count_%02.0f_%02.0f_deg", b.lo_deg, b.hi_deg);
-                scores[key] = b.count;
+                auto put = [&](const char* name, const json& value) {
+                    char key[64];
+                    std::snprintf(
+                        key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo_deg, b.hi_deg);
+                    scores[key] = value;
+                };
+                put("tpu_within_tvu", b.within_tvu);
+                put("tpu_within_thu", b.within_thu);
+                put("tpu_vertical_rms", b.vertical_rms_m);
+                put("tpu_tvu_sigma_rms", b.tvu_rms_m);
+                put("tpu_vertical_bias", b.vertical_bias_m);
+                put("tpu_count", b.count);
             }
         }
     }

@@ -152,7 +152,11 @@ TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
     poses[1].translation() += Eigen::Vector3d(1.0, -2.0, 0.5);
     poses[3].linear() =
         poses[3].linear() * Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    ApplyVehiclePoses(s.geo, poses, mount);
+    ASSERT_TRUE(ApplyVehiclePoses(s.geo, poses));
+    // A pose count that is not one per ping moves nothing and says so.
+    Survey short_of_one = before;
+    EXPECT_FALSE(ApplyVehiclePoses(short_of_one.geo, {poses.begin(), poses.end() - 1}));
+    EXPECT_EQ(short_of_one.geo.points.position_world, before.geo.points.position_world);
     for (std::size_t i = 0; i < s.geo.points.size(); ++i) {
         const std::uint32_t k = s.geo.points.ping[i];
         const Eigen::Vector3d expected = poses[k] * before.geo.pings[k].T_world_vehicle.inverse() *
