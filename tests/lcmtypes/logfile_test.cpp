@@ -2,6 +2,7 @@
 // Every pitmap lcmtype survives encode -> lcm::LogFile -> decode, and lcm-logplayer replays a
 // log written by the project into another log (file:// provider: no network needed).
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <lcm/lcm-cpp.hpp>
 
 #include <cmath>
@@ -68,8 +69,15 @@ pitmap::novatel_header_t Header(int id) {
 
 class LcmTypesLog : public ::testing::Test {
 protected:
-    std::string path_ = ::testing::TempDir() + "/pitmap_lcmtypes_test.lcmlog";
-    std::string replay_ = ::testing::TempDir() + "/pitmap_lcmtypes_replay.lcmlog";
+    // One file pair per test and process: ctest runs these tests as separate processes at the
+    // same time, and one test's TearDown must not remove the log another is replaying.
+    static std::string TestPath(const char* what) {
+        return ::testing::TempDir() + "/pitmap_lcmtypes_" +
+               ::testing::UnitTest::GetInstance()->current_test_info()->name() + "_" +
+               std::to_string(::getpid()) + "_" + what + ".lcmlog";
+    }
+    std::string path_ = TestPath("test");
+    std::string replay_ = TestPath("replay");
     void TearDown() override {
         std::remove(path_.c_str());
         std::remove(replay_.c_str());
