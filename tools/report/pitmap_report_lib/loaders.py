@@ -1,21 +1,18 @@
 # SPDX-License-Identifier: MIT
-"""Inputs of pitmap-report: summary.json, scores.json, trajectory CSV and PLY products, and the
-Products base of the Report that loads them and keeps what is missing or unusable."""
+"""Inputs of pitmap-report: summary.json, scores.json, trajectory CSV and PLY products (PLY
+through the project's C++ reader), and the Products base of the Report that loads them and keeps
+what is missing or unusable."""
 
 import json
 import os
+import subprocess
 
 import numpy as np
 
-from .util import Log, NotProduced, ReportError
+from .util import PROGRAM_DIR, Log, NotProduced, ReportError
 
-PLY_TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
-}
-
+# pitmap's one PLY reader (common/formats/ply, C++), as a program beside pitmap-report.
+PLY_LAYOUT = "pitmap-ply-layout"
 
 
 class PlyError(Exception):
@@ -25,112 +22,55 @@ class PlyError(Exception):
 class Ply:
     """A binary PLY file: header facts plus one numpy structured array per element.
 
-    pitmap writes PLY in one place (common/formats/ply, C++); this reader stays in Python on
-    purpose: PLY is a public format, not one pitmap defines, and reading it here lets the
-    report memory-map multi-million-point clouds with numpy and run on a products folder with
-    Debian's python3 alone (no pitmap binary, no intermediate copy). pitmap's own convention
-    in it, the pitmap_origin comment, is checked against summary.json (CheckOrigin).
-
-    Elements of fixed-size records are memory-mapped; a list property (faces) is read as a
-    fixed-length array when every record has the same list length (triangles), which is
-    checked. ASCII PLY and variable-length lists raise PlyError.
+    The PLY is parsed and checked once, by the project's C++ reader (common/formats/ply,
+    DescribeFile) through the pitmap-ply-layout program beside this report: it says where each
+    element's records lie and their numpy dtype, having checked that the file holds them all
+    and that every list has the same length in every record (triangles). The records are then
+    memory-mapped, so multi-million-point clouds cost no copy and no parsing in Python. Errors
+    (not a PLY, ASCII or big-endian, truncated, lists of varying length) raise PlyError naming
+    the file; a missing pitmap-ply-layout raises ReportError.
     """
 
     def __init__(self, path):
         self.path = path
         fname = os.path.basename(path)
-        self.comments = []
+        tool = os.path.join(PROGRAM_DIR, PLY_LAYOUT)
+        if not os.access(tool, os.X_OK):
+            raise ReportError(f"{tool}: not found (build the pitmap-report target, which "
+                              "builds it)")
+        r = subprocess.run([tool, path], capture_output=True, text=True, errors="replace")
+        if r.returncode != 0:
+            msg = r.stderr.strip() or f"{PLY_LAYOUT} exit status {r.returncode}"
+            if msg.startswith(path + ": "):
+                msg = fname + msg[len(path):]
+            raise PlyError(msg)
+        try:
+            layout = json.loads(r.stdout)
+        except ValueError as e:
+            raise PlyError(f"{fname}: {PLY_LAYOUT} output unreadable: {e}")
+        self.comments = layout["comments"]
+        o = layout["origin"]
+        self._origin = None if o is None else (o["latitude_deg"], o["longitude_deg"],
+                                                o["height_m"])
         self.elements = {}  # name -> structured array
         self.counts = {}    # name -> count from the header
-        with open(path, "rb") as f:
-            head = f.read(1 << 16)
-        end = head.find(b"end_header")
-        if not head.startswith(b"ply") or end < 0:
-            raise PlyError(f"{fname}: not a PLY file (no 'ply' magic or no end_header)")
-        nl = head.find(b"\n", end)
-        if nl < 0:
-            raise PlyError(f"{fname}: header not terminated")
-        data_offset = nl + 1
-        fmt = None
-        elements = []  # (name, count, [prop]) with prop = (name, type) or (name, count_t, item_t)
-        for raw in head[:end].decode("ascii", "replace").splitlines()[1:]:
-            words = raw.split()
-            if not words:
-                continue
-            if words[0] == "format":
-                fmt = words[1]
-            elif words[0] == "comment":
-                self.comments.append(raw.strip()[len("comment"):].strip())
-            elif words[0] == "element":
-                elements.append((words[1], int(words[2]), []))
-            elif words[0] == "property":
-                if not elements:
-                    raise PlyError(f"{fname}: property before any element")
-                if words[1] == "list":
-                    elements[-1][2].append((words[4], words[2], words[3]))
-                else:
-                    elements[-1][2].append((words[2], words[1]))
-        if fmt == "binary_little_endian":
-            endian = "<"
-        elif fmt == "binary_big_endian":
-            endian = ">"
-        else:
-            raise PlyError(f"{fname}: format {fmt} not supported (binary PLY only)")
-
-        def T(type_name):
-            if type_name not in PLY_TYPES:
-                raise PlyError(f"{fname}: unknown property type {type_name}")
-            return endian + PLY_TYPES[type_name]
-
-        file_size = os.path.getsize(path)
-        offset = data_offset
-        for name, count, props in elements:
-            self.counts[name] = count
-            fields = []
-            lists = [p for p in props if len(p) == 3]
-            list_lengths = {}
-            if lists and count > 0:
-                # The first record fixes every list's length; all records are checked below.
-                with open(path, "rb") as f:
-                    f.seek(offset)
-                    first = f.read(4096)
-                pos = 0
-                for p in props:
-                    if len(p) == 2:
-                        pos += np.dtype(T(p[1])).itemsize
-                    else:
-                        ct = np.dtype(T(p[1]))
-                        n = int(np.frombuffer(first, ct, count=1, offset=pos)[0])
-                        list_lengths[p[0]] = n
-                        pos += ct.itemsize + n * np.dtype(T(p[2])).itemsize
-            for p in props:
-                if len(p) == 2:
-                    fields.append((p[0], T(p[1])))
-                else:
-                    fields.append((p[0] + "__count", T(p[1])))
-                    fields.append((p[0], T(p[2]), (list_lengths.get(p[0], 0),)))
-            dtype = np.dtype(fields)
-            size = dtype.itemsize * count
-            if offset + size > file_size:
-                raise PlyError(f"{fname}: truncated (element {name} needs {offset + size} bytes, "
-                               f"file has {file_size})")
-            if count == 0:
-                arr = np.zeros(0, dtype)
+        for e in layout["elements"]:
+            dtype = np.dtype([(f["name"], f["dtype"], tuple(f["shape"])) if "shape" in f
+                              else (f["name"], f["dtype"]) for f in e["fields"]])
+            count = e["count"]
+            if dtype.itemsize != e["record_bytes"]:  # the two sides disagree: a bug
+                raise PlyError(f"{fname}: element {e['name']}: record of {e['record_bytes']} "
+                               f"bytes, dtype of {dtype.itemsize}")
+            self.counts[e["name"]] = count
+            if count == 0 or dtype.itemsize == 0:
+                self.elements[e["name"]] = np.zeros(count, dtype)
             else:
-                arr = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=(count,))
-            for p in lists:
-                if count > 0 and np.any(arr[p[0] + "__count"] != list_lengths[p[0]]):
-                    raise PlyError(f"{fname}: element {name}: lists of varying length "
-                                   "are not supported")
-            self.elements[name] = arr
-            offset += size
+                self.elements[e["name"]] = np.memmap(path, dtype=dtype, mode="r",
+                                                     offset=e["offset"], shape=(count,))
 
     def origin(self):
-        for c in self.comments:
-            w = c.split()
-            if len(w) == 4 and w[0] == "pitmap_origin":
-                return tuple(float(v) for v in w[1:])
-        return None
+        """pitmap_origin (lat, lon, h) of the header comments, None without one."""
+        return self._origin
 
 
 def ReadTrajectory(path):
