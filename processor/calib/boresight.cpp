@@ -13,6 +13,7 @@
 #include <unordered_map>
 
 #include "common/frames.hpp"
+#include "processor/calib/boresight_residual.hpp"
 #include "processor/registration/correspondence.hpp"
 #include "processor/registration/grid_key.hpp"
 #include "processor/registration/neighbours.hpp"
@@ -494,6 +495,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                               });
         }
         // Normal equations in scalar blocks: [roll, pitch, yaw, (tau), height offsets...].
+        const Pose T_vs_now = MakePose(R_vs, m.T_vehicle_sonar().translation());
         reg::BlockSystem<1> sys(static_cast<std::size_t>(dim));
         std::int64_t n = 0;
         std::vector<int> idx;
@@ -507,10 +509,14 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             if (!pr.ok) continue;
             const std::size_t q = pr.c.target;
             const Eigen::Vector3d& nrm = pr.c.query_normal;
-            const Eigen::Matrix3d A_p = poses.At(S.ping[k], tau).linear() * R_vs;
-            const Eigen::Matrix3d A_q = poses.At(S.ping[q], tau).linear() * R_vs;
-            const Eigen::RowVector3d Jr =
-                nrm.transpose() * (-A_p * Hat(S.s_sonar[k]) + A_q * Hat(S.s_sonar[q]));
+            Eigen::RowVector3d Jr;
+            BoresightPairResidual(poses.At(S.ping[k], tau),
+                                  poses.At(S.ping[q], tau),
+                                  T_vs_now,
+                                  S.s_sonar[k],
+                                  S.s_sonar[q],
+                                  nrm,
+                                  &Jr);
             idx.clear();
             J.clear();
             for (int j = 0; j < 3; ++j) push(j, Jr[j]);
