@@ -126,32 +126,13 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
     const fs::path acqd = bin / "pitmap-acqd", sim = bin / "pitmap-sim";
     if (!fs::exists(acqd)) GTEST_SKIP() << "pitmap-acqd is not built: HIL test skipped";
     if (!fs::exists(sim)) GTEST_SKIP() << "pitmap-sim is not built: HIL test skipped";
-    const fs::path dir =
-        fs::path(::testing::TempDir()) / ("pitmap_hil_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = pitmap::test::FreshDir("pitmap_hil");
     const int tcp_port = FreePort(SOCK_STREAM), udp_port = FreePort(SOCK_DGRAM);
     ASSERT_GT(tcp_port, 0);
     ASSERT_GT(udp_port, 0);
     const fs::path out = dir / "run";
-    const std::vector<std::string> args = {sim.string(),
-                                           "hil",
-                                           "--scenario",
-                                           "demo",
-                                           "--duration",
-                                           std::to_string(kDurationS),
-                                           "--out",
-                                           out.string(),
-                                           "--acqd",
-                                           acqd.string(),
-                                           "--pty",
-                                           (dir / "com1").string(),
-                                           "--tcp-port",
-                                           std::to_string(tcp_port),
-                                           "--udp-port",
-                                           std::to_string(udp_port),
-                                           "--faults",
-                                           kFaults};
+    const std::vector<std::string> args = pitmap::test::HilRigArgs(
+        bin, kDurationS, out, dir / "com1", tcp_port, udp_port, {"--faults", kFaults});
     // Stopped with SIGTERM and 5 s to finish when it overruns.
     const int rc = pitmap::test::Wait(
         pitmap::test::Spawn(args, (dir / "sim.out").string()), kDurationS + 120, 5);

@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: MIT
 // What the tests that run pitmap's programs as real processes share (the HIL test, the live HIL
-// test): a free loopback port, a child process with its output in a file, waiting for it with a
-// deadline, and reading that output back.
+// test, the scenario tests): a fresh work folder, a free loopback port, the HIL rig's command
+// line, a child process with its output in a file, waiting for it with a deadline, and reading
+// that output back.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
@@ -21,6 +23,15 @@
 
 namespace pitmap::test {
 
+// TempDir()/NAME_PID, emptied and created.
+inline std::filesystem::path FreshDir(const std::string& name) {
+    const auto dir =
+        std::filesystem::path(::testing::TempDir()) / (name + "_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
 // A port on 127.0.0.1 that was free a moment ago (SOCK_STREAM or SOCK_DGRAM); -1 on failure.
 inline int FreePort(int type) {
     const int fd = ::socket(AF_INET, type, 0);
@@ -36,6 +47,36 @@ inline int FreePort(int type) {
     }
     ::close(fd);
     return port;
+}
+
+// `pitmap-sim hil`: the demo survey for duration_s in real time, NovAtel on the pseudo-terminal
+// `pty` and TCP tcp_port, Delta T on UDP udp_port, logged by pitmap-acqd into `out`; `extra`
+// arguments appended (faults, an LCM URL).
+inline std::vector<std::string> HilRigArgs(const std::filesystem::path& bin,
+                                           double duration_s,
+                                           const std::filesystem::path& out,
+                                           const std::filesystem::path& pty,
+                                           int tcp_port,
+                                           int udp_port,
+                                           const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {(bin / "pitmap-sim").string(),
+                                     "hil",
+                                     "--scenario",
+                                     "demo",
+                                     "--duration",
+                                     std::to_string(duration_s),
+                                     "--out",
+                                     out.string(),
+                                     "--acqd",
+                                     (bin / "pitmap-acqd").string(),
+                                     "--pty",
+                                     pty.string(),
+                                     "--tcp-port",
+                                     std::to_string(tcp_port),
+                                     "--udp-port",
+                                     std::to_string(udp_port)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
 }
 
 // Starts args[0] (a path) with args, stdout and stderr to the file `output`.

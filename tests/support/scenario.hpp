@@ -1,11 +1,10 @@
 // SPDX-License-Identifier: MIT
 // What the scenario tests share to run pitmap's programs and read what they write: the
-// programs' folder, a fresh work folder, a shell command with its output, quoting, JSON files,
+// programs' folder, a shell command with its output, quoting, JSON files,
 // the boresight of a simulated survey's vehicle.yaml, and pitmap-eval's "name value" scores.
 #pragma once
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -14,6 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+
+#include "tests/support/process.hpp"
 
 namespace pitmap::test {
 
@@ -51,15 +52,6 @@ inline std::map<std::string, double> Scores(const std::string& text) {
         if (ls >> name >> value) s[name] = value;
     }
     return s;
-}
-
-// temp/NAME_PID, emptied and created.
-inline std::filesystem::path FreshDir(const std::string& name) {
-    const auto dir =
-        std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
 }
 
 // Sets sonar.boresight_deg (degrees) in a vehicle.yaml as pitmap-sim writes it.

@@ -70,10 +70,7 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     for (const fs::path& p : {acqd, sim, live}) {
         if (!fs::exists(p)) GTEST_SKIP() << p.filename() << " is not built: test skipped";
     }
-    const fs::path dir =
-        fs::path(::testing::TempDir()) / ("pitmap_live_hil_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = pitmap::test::FreshDir("pitmap_live_hil");
     const int lcm_port = FreePort(SOCK_DGRAM), http_port = FreePort(SOCK_STREAM);
     const int tcp_port = FreePort(SOCK_STREAM), udp_port = FreePort(SOCK_DGRAM);
     ASSERT_GT(lcm_port, 0);
@@ -101,25 +98,10 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     ASSERT_FALSE(status.is_null()) << ReadText(dir / "live.out");
     EXPECT_EQ(status["grid"]["filled_cells"], 0);
 
-    const pid_t sim_pid = Spawn({sim.string(),
-                                 "hil",
-                                 "--scenario",
-                                 "demo",
-                                 "--duration",
-                                 std::to_string(kDurationS),
-                                 "--out",
-                                 (dir / "run").string(),
-                                 "--acqd",
-                                 acqd.string(),
-                                 "--pty",
-                                 (dir / "com1").string(),
-                                 "--tcp-port",
-                                 std::to_string(tcp_port),
-                                 "--udp-port",
-                                 std::to_string(udp_port),
-                                 "--lcm-url",
-                                 url},
-                                (dir / "sim.out").string());
+    const pid_t sim_pid = Spawn(
+        pitmap::test::HilRigArgs(
+            bin, kDurationS, dir / "run", dir / "com1", tcp_port, udp_port, {"--lcm-url", url}),
+        (dir / "sim.out").string());
     // Poll while the survey runs: the filled cells seen, in order.
     std::vector<std::int64_t> cells;
     int sim_rc = -2;
