@@ -158,6 +158,10 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     auto c = MeshCompleteness(samples, truth);
     ASSERT_TRUE(c.has_value());
     EXPECT_NEAR(*c, 55.0 / 105.0, 1e-12);
+    // By slope class: a flat floor is all in the first class, none in the steep ones.
+    EXPECT_NEAR(*MeshCompleteness(samples, truth, 0.2, 0, 20), 55.0 / 105.0, 1e-12);
+    EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 45, 91).has_value());
+    EXPECT_NEAR(SlopeDeg(sim::PitWorld(truth.terrain), 1.0, 1.0), 0.0, 1e-9);
     // Lifted 0.3 m above the surface, nothing is within 0.2 m.
     for (auto& p : samples) p.z() += 0.3;
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
