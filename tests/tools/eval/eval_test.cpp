@@ -167,6 +167,19 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
 }
 
+// The common surface of two meshes: the samples with one of the others within the radius,
+// across cell boundaries and in every direction.
+TEST(Scores, SamplesNearKeepsOnlyTheCommonSurface) {
+    std::vector<Eigen::Vector3d> mine, theirs;
+    for (int i = 0; i < 100; ++i) mine.emplace_back(0.1 * i, 0.0, 0.0);      // x = 0 .. 9.9
+    for (int i = 0; i < 50; ++i) theirs.emplace_back(0.1 * i, 0.15, -0.05);  // x = 0 .. 4.9
+    const auto near = SamplesNear(mine, theirs, 0.2);
+    ASSERT_EQ(near.size(), 51u);  // x = 0 .. 5.0 (5.0 is 0.19 m from 4.9, 0.05 below)
+    for (const auto& p : near) EXPECT_LE(p.x(), 5.0 + 1e-9);
+    EXPECT_TRUE(SamplesNear(mine, {}, 0.2).empty());
+    EXPECT_TRUE(SamplesNear(mine, {Eigen::Vector3d(0, 0, 0.21)}, 0.2).empty());
+}
+
 TEST_F(Eval, MissingTruthIsAClearError) {
     const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" +
                             (dir_ / "nothing").string() + "' --products '" +
