@@ -19,10 +19,12 @@ Exit 0 when the report was written (every missing optional product is named in i
 "not produced: ..."); 1 when P is not a usable products folder (no readable
 summary.json) or the report cannot be written; 2 on bad arguments.
 
-Runs with Debian's python3, python3-numpy and python3-matplotlib (Agg backend) only. The
-work is done by the package pitmap_report_lib beside this script (see its __init__.py).
-Large products stay cheap: PLY data is memory-mapped through numpy structured dtypes and
-plots use rasters or subsamples, never every point.
+Runs with Debian's python3, python3-numpy and python3-matplotlib (Agg backend). The work is
+done by the package pitmap_report_lib beside this script (see its __init__.py); PLY products
+are read through pitmap-ply-layout, also beside it (the project's C++ PLY reader, built with
+the pitmap-report target), so run the copy in the build's bin folder. Large products stay
+cheap: PLY records are memory-mapped through numpy structured dtypes and plots use rasters or
+subsamples, never every point.
 """
 
 import argparse
