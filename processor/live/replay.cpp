@@ -22,7 +22,8 @@ std::int64_t WallUtime() {
 Expected<ReplayResult> ReplayLogs(LiveSession& session,
                                   const std::vector<std::string>& paths,
                                   double speed,
-                                  const std::atomic<bool>& stop) {
+                                  const std::atomic<bool>& stop,
+                                  const ReplayObserver& observer) {
     ReplayResult r;
     const auto t_start = std::chrono::steady_clock::now();
     std::int64_t first_utime = 0, last_utime = 0;
@@ -46,6 +47,7 @@ Expected<ReplayResult> ReplayLogs(LiveSession& session,
             const std::int64_t wall = WallUtime();
             session.OnEvent(channel, ev.data.data(), ev.data.size(), wall);
             session.Tick(wall);
+            if (observer) observer(channel, wall);
             ++r.events;
         }
         r.corrupt_headers += (*reader)->counts().corrupt_headers;

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -24,10 +25,15 @@ struct ReplayResult {
     std::int64_t truncated_events = 0;
 };
 
+// Called after each event has been fed and the session ticked: the event's channel and the
+// wall clock (Unix microseconds) it was fed at (the latency bench times pings with it).
+using ReplayObserver = std::function<void(const std::string& channel, std::int64_t wall_utime)>;
+
 // Stops early when `stop` becomes true. An unreadable file is an error naming it.
 Expected<ReplayResult> ReplayLogs(LiveSession& session,
                                   const std::vector<std::string>& paths,
                                   double speed,
-                                  const std::atomic<bool>& stop);
+                                  const std::atomic<bool>& stop,
+                                  const ReplayObserver& observer = {});
 
 }  // namespace pitmap::proc::live
