@@ -272,6 +272,7 @@ std::vector<std::string> GridStageConfig::Validate() const {
     if (!(ins_sigma_max_age_s > 0)) out.push_back("grid.ins_sigma_max_age_s must be > 0");
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
+    for (auto& p : mosaic_config.Validate()) out.push_back(p);
     return out;
 }
 
@@ -477,6 +478,14 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"message", cube.message}};
     json stage = st;
     if (!s44_json.is_null()) stage["s44"] = s44_json;
+    if (gc.mosaic) {
+        auto mosaic = detail::MosaicSurvey(s, gc, raster, *utm, UtmToWorld(*utm, s.geo), log);
+        if (!mosaic) return mosaic.error();
+        if (mosaic->contains("file")) stage["files"].push_back((*mosaic)["file"]);
+        part.Lap(timings, "mosaic");
+        stage["timings_wall_cpu_s"] = timings;
+        stage["mosaic"] = std::move(*mosaic);
+    }
     s.summary["vertical_datum"] = datum_record;
     log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
