@@ -75,8 +75,12 @@ georef::NavSample FromDisk(const DiskNav& d) {
 class Payload {
 public:
     void Bytes(const void* p, std::size_t n) {
-        const auto* b = static_cast<const std::uint8_t*>(p);
-        bytes_.insert(bytes_.end(), b, b + n);
+        // resize + memcpy: gcc 12's -Wstringop-overflow misreads vector::insert into an empty
+        // vector once SaveSurvey inlines the intensity section's payload.
+        if (n == 0) return;
+        const std::size_t at = bytes_.size();
+        bytes_.resize(at + n);
+        std::memcpy(bytes_.data() + at, p, n);
     }
     template <typename T>
     void Value(const T& v) {
