@@ -124,10 +124,12 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
     EXPECT_GT(s["mosaic_nodes"], 5000);
     EXPECT_GE(s["mosaic_patches"], 15);
     // The corrected mosaic: the seabed, patch by patch.
-    EXPECT_GT(s["mosaic_correlation"], 0.93);
+    // (Measured: correlation 0.98, RMS 1.5 dB (2 dB speckle over a few soundings a node),
+    // patch mean |error| 0.38 dB, largest 1.3 dB, material means within 0.3 dB.)
+    EXPECT_GT(s["mosaic_correlation"], 0.95);
     EXPECT_LT(s["mosaic_rms_db"], 2.0);
     EXPECT_LT(s["mosaic_patch_mean_abs_db"], 0.6);
-    EXPECT_LT(s["mosaic_patch_max_abs_db"], 1.5);
+    EXPECT_LT(s["mosaic_patch_max_abs_db"], 2.0);
     EXPECT_LT(s["mosaic_level_max_abs_db"], 0.6);
     // Without the corrections the range and angle terms (tens of dB) swamp the 18 dB seabed.
     EXPECT_LT(s["mosaic_uncorrected_correlation"], s["mosaic_correlation"] - 0.3);
@@ -145,7 +147,9 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
     EXPECT_EQ(ReadJson(P / "summary.json")["stages"]["grid"]["mosaic"]["angular"], "lambert");
     auto l = Eval(dir / "sim/truth", P);
     Print("corrected (lambert):", l, "mosaic_");
-    EXPECT_GT(l["mosaic_rms_db"], s["mosaic_rms_db"] + 0.2);
+    // (Measured: RMS 1.8 dB, patch mean |error| 0.65 dB.)
+    EXPECT_GT(l["mosaic_rms_db"], s["mosaic_rms_db"] + 0.15);
+    EXPECT_GT(l["mosaic_patch_mean_abs_db"], s["mosaic_patch_mean_abs_db"] + 0.15);
     EXPECT_LT(l["mosaic_correlation"], s["mosaic_correlation"]);
 
     // The report shows it.
