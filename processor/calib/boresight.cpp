@@ -74,6 +74,14 @@ struct Samples {
     std::vector<std::uint32_t> ping;
     std::vector<Eigen::Vector3d> s_sonar;  // beam vectors, sonar frame
     std::vector<double> t_s;               // seconds since the segment start
+    // The neighbours of sample k in its own pass (closer than min_separation_s in time and
+    // normal_radius_m in space, itself included) are own[own_begin[k] .. own_begin[k + 1]).
+    // Found once (IndexOwnPasses), at the positions of the mount and latency the segment is
+    // first seen with: a boresight or latency update moves a sounding and its own pass's
+    // neighbours (the same and adjacent pings) alike, so the neighbourhood holds while the
+    // normal is fitted to the current positions at every iteration.
+    std::vector<std::size_t> own_begin;
+    std::vector<std::uint32_t> own;
 };
 
 Samples Collect(const GeorefResult& geo, double t0, double t1, int stride) {
@@ -122,9 +130,17 @@ public:
     // samples, so that their white position noise (mm at 50 Hz would be dm/s within one
     // sample interval) does not enter the Jacobian; wave motion (periods of seconds) bends
     // the difference by well under 1 %.
-    Eigen::Vector3d Rate(std::uint32_t ping, double tau, const Eigen::Vector3d& x) const {
+    // As an affine map of the sonar point x in the vehicle frame: Rate = A x + b.
+    struct RateMap {
+        Eigen::Matrix3d A;
+        Eigen::Vector3d b;
+        Eigen::Vector3d operator()(const Eigen::Vector3d& x) const { return A * x + b; }
+    };
+    RateMap Rate(std::uint32_t ping, double tau) const {
         constexpr double h = 0.1;
-        return ((At(ping, tau + h) * x) - (At(ping, tau - h) * x)) / (2 * h);
+        const Pose plus = At(ping, tau + h), minus = At(ping, tau - h);
+        return {(plus.linear() - minus.linear()) / (2 * h),
+                (plus.translation() - minus.translation()) / (2 * h)};
     }
 
 private:
@@ -156,10 +172,9 @@ void Positions(const ShiftedPoses& poses,
 // The samples cut into blocks of min_separation_s / 2 of time, each with its own k-d tree and
 // box. For a sample at time t, a block entirely min_separation_s or more away in time holds
 // only other passes (a bounded nearest search, skipped by its box), a block entirely closer
-// holds only its own pass (the normal's neighbours), and the few blocks in between are searched
-// with the time of every hit checked. The pairs are those of one search over all samples with
-// the time filter; the own pass's neighbours come without the other passes' hits that made up
-// most of that search.
+// holds only its own pass (searched once, by IndexOwnPasses, for the normal's neighbours), and
+// the few blocks in between are searched with the time of every candidate checked. The pairs
+// are those of one search over all samples with the time filter.
 struct PassBlock {
     std::size_t p0 = 0, p1 = 0;
     double t0 = 0, t1 = 0;
@@ -205,59 +220,90 @@ double BoxDistance2(const Eigen::Vector3d& q, const PassBlock& b) {
     return d.squaredNorm();
 }
 
-// Correspondences for every sample: normal of its own pass, closest point of another pass
-// (within d_max); the normal is fitted only where a pair is made.
+// The own pass's neighbours of every sample (Samples::own), from a radius search of the blocks
+// not entirely min_separation_s or more away in time.
+void IndexOwnPasses(const std::vector<Eigen::Vector3d>& p, Samples& S, const BoresightConfig& cfg) {
+    const double sep = cfg.min_separation_s;
+    const std::vector<PassBlock> blocks = MakePassBlocks(p, S, sep);
+    const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
+    // Chunks of samples, each filling its own compact list, joined in order afterwards.
+    constexpr std::size_t kChunk = 512;
+    const std::size_t n_chunks = (p.size() + kChunk - 1) / kChunk;
+    std::vector<std::vector<std::uint32_t>> chunk_own(n_chunks);
+    S.own_begin.assign(p.size() + 1, 0);
+    tbb::parallel_for(std::size_t{0}, n_chunks, [&](std::size_t c) {
+        std::vector<reg::PointIndex3d::Hit> hits;
+        std::vector<std::uint32_t>& own = chunk_own[c];
+        const std::size_t k1 = std::min(p.size(), (c + 1) * kChunk);
+        for (std::size_t k = c * kChunk; k < k1; ++k) {
+            const Eigen::Vector3d& q = p[k];
+            const double t = S.t_s[k];
+            const std::size_t first = own.size();
+            for (const PassBlock& b : blocks) {
+                if (b.t1 <= t - sep || b.t0 >= t + sep) continue;  // other passes only
+                if (BoxDistance2(q, b) >= nr2) continue;
+                b.tree->WithinRadius(q, nr2, hits);
+                for (const auto& [i, d2] : hits) {
+                    const std::size_t j = b.p0 + i;
+                    if (d2 < nr2 && std::abs(S.t_s[j] - t) < sep)
+                        own.push_back(static_cast<std::uint32_t>(j));
+                }
+            }
+            std::sort(own.begin() + static_cast<std::ptrdiff_t>(first), own.end());
+            S.own_begin[k + 1] = own.size() - first;  // a count until the prefix sum below
+        }
+        own.shrink_to_fit();
+    });
+    for (std::size_t k = 0; k < p.size(); ++k) S.own_begin[k + 1] += S.own_begin[k];
+    S.own.clear();
+    S.own.reserve(S.own_begin.back());
+    for (auto& own : chunk_own) {
+        S.own.insert(S.own.end(), own.begin(), own.end());
+        std::vector<std::uint32_t>().swap(own);
+    }
+}
+
+// Correspondences for every sample: normal of its own pass (its neighbours of
+// IndexOwnPasses at the current positions), closest point of another pass (within d_max); the
+// normal is fitted only where a pair is made.
 std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                             const Samples& S,
                             const BoresightConfig& cfg,
                             double d_max) {
     const double sep = cfg.min_separation_s;
     const std::vector<PassBlock> blocks = MakePassBlocks(p, S, sep);
-    // Normals from the sounding's own pass only (several pings: a single ping is a line).
-    const double nr2 = cfg.normal_radius_m * cfg.normal_radius_m;
     const double d2_max = d_max * d_max;
     std::vector<Pair> pairs(p.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& r) {
-        std::vector<reg::PointIndex3d::Hit> hits;
-        std::vector<std::size_t> own;  // the own pass's neighbours within the normal radius
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             const Eigen::Vector3d& q = p[k];
             const double t = S.t_s[k];
             double best = d2_max;
             std::size_t best_j = 0;
             bool found = false;
-            own.clear();
             for (const PassBlock& b : blocks) {
+                if (b.t0 > t - sep && b.t1 < t + sep) continue;  // its own pass only
+                if (BoxDistance2(q, b) >= best) continue;
                 const bool far = b.t1 <= t - sep || b.t0 >= t + sep;
-                if (far) {
-                    if (BoxDistance2(q, b) >= best) continue;
-                    std::size_t i = 0;
-                    double d2 = 0;
-                    if (b.tree->NearestWithin(q, best, &i, &d2)) {
-                        best = d2;
-                        best_j = b.p0 + i;
-                        found = true;
-                    }
-                    continue;
-                }
-                const bool inside = b.t0 > t - sep && b.t1 < t + sep;
-                const double r2 = inside ? nr2 : std::max(nr2, best);
-                if (BoxDistance2(q, b) >= r2) continue;
-                b.tree->WithinRadius(q, r2, hits);
-                for (const auto& [i, d2] : hits) {
-                    const std::size_t j = b.p0 + i;
-                    if (std::abs(S.t_s[j] - t) < sep) {
-                        if (d2 < nr2) own.push_back(j);
-                    } else if (d2 < best) {
-                        best = d2;
-                        best_j = j;
-                        found = true;
-                    }
+                std::size_t i = 0;
+                double d2 = 0;
+                const bool hit =
+                    far ? b.tree->NearestWithin(q, best, &i, &d2)
+                        : b.tree->NearestWithinIf(
+                              q,
+                              best,
+                              [&](std::size_t c) { return std::abs(S.t_s[b.p0 + c] - t) >= sep; },
+                              &i,
+                              &d2);
+                if (hit) {
+                    best = d2;
+                    best_j = b.p0 + i;
+                    found = true;
                 }
             }
             if (!found) continue;
             reg::MomentAccumulator m;
-            for (std::size_t j : own) m.Add(p[j]);
+            for (std::size_t o = S.own_begin[k]; o < S.own_begin[k + 1]; ++o) m.Add(p[S.own[o]]);
             if (m.count() < 8) continue;
             const reg::PlaneFit f = reg::FitPlane(m);
             if (!f.Planar(0.1)) continue;  // not planar enough
@@ -295,6 +341,21 @@ ResidualStats Stats(const std::vector<Pair>& pairs) {
     std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
     s.median_abs_m = a[a.size() / 2];
     return s;
+}
+
+// The soundings of [t0, t1) with their own passes indexed at the given mount and latency.
+Samples CollectIndexed(const GeorefResult& geo,
+                       const ShiftedPoses& poses,
+                       const SonarMount& m,
+                       double tau,
+                       double t0,
+                       double t1,
+                       const BoresightConfig& cfg) {
+    Samples S = Collect(geo, t0, t1, cfg.beam_stride);
+    std::vector<Eigen::Vector3d> p;
+    Positions(poses, S, m, tau, p);
+    IndexOwnPasses(p, S, cfg);
+    return S;
 }
 
 // Residuals of the pairs within `d_max` (default: the last iteration's gate) at a latency.
@@ -403,10 +464,10 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     } else {
         res.segment = *std::min_element(res.candidates.begin(), res.candidates.end(), better);
     }
-    const Samples S = Collect(geo, res.segment.start_s, res.segment.end_s, cfg.beam_stride);
     const ShiftedPoses poses(geo, nav);
-
     const double tau0 = cfg.estimate_latency ? cfg.initial_latency_s : 0.0;
+    const Samples S =
+        CollectIndexed(geo, poses, mount, tau0, res.segment.start_s, res.segment.end_s, cfg);
     res.before = Evaluate(poses, S, mount, tau0, cfg);
     double tau = tau0;
     if (cfg.estimate_latency && cfg.latency_scan_s > 0) {
@@ -485,13 +546,20 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
                 if (pairs[k].ok) need[k] = need[pairs[k].c.target] = 1;
             }
             const Pose T_vs = m.T_vehicle_sonar();
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512),
-                              [&](const auto& b) {
-                                  for (std::size_t k = b.begin(); k != b.end(); ++k) {
-                                      if (need[k])
-                                          rate[k] = poses.Rate(S.ping[k], tau, T_vs * S.s_sonar[k]);
-                                  }
-                              });
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
+                    // One rate map per ping (the samples are in ping order).
+                    std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
+                    ShiftedPoses::RateMap R{Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()};
+                    for (std::size_t k = b.begin(); k != b.end(); ++k) {
+                        if (!need[k]) continue;
+                        if (S.ping[k] != last) {
+                            last = S.ping[k];
+                            R = poses.Rate(last, tau);
+                        }
+                        rate[k] = R(T_vs * S.s_sonar[k]);
+                    }
+                });
         }
         // Normal equations in scalar blocks: [roll, pitch, yaw, (tau), height offsets...].
         reg::BlockSystem<1> sys(static_cast<std::size_t>(dim));
@@ -614,7 +682,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         if (!clash && c.overlap_cells > 0) chosen.push_back(c);
     }
     for (const auto& c : chosen) {
-        const Samples V = Collect(geo, c.start_s, c.end_s, cfg.beam_stride);
+        const Samples V = CollectIndexed(geo, poses, mount, tau0, c.start_s, c.end_s, cfg);
         VerifyResult v{
             c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg), {}};
         if (res.latency_estimated) v.after_nominal_latency = Evaluate(poses, V, m, tau0, cfg);

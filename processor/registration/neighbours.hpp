@@ -46,6 +46,18 @@ public:
         *d2 = r.dist;
         return true;
     }
+    // NearestWithin among the points whose index `accept(i)` admits (a time or pass filter):
+    // the rejected points cost a distance each but never shrink the bound.
+    template <class Accept>
+    bool NearestWithinIf(
+        const Point& q, Scalar bound2, const Accept& accept, std::size_t* idx, Scalar* d2) const {
+        ClosestIf<Accept> r(bound2, accept);
+        tree_.findNeighbors(r, q.data(), nanoflann::SearchParams());
+        if (!r.found) return false;
+        *idx = r.index;
+        *d2 = r.dist;
+        return true;
+    }
     // Every point within sqrt(radius2) of q, unsorted; `hits` is cleared first.
     void WithinRadius(const Point& q, Scalar radius2, std::vector<Hit>& hits) const {
         hits.clear();
@@ -70,6 +82,19 @@ private:
         Scalar dist;
         std::size_t index = 0;
         bool found = false;
+    };
+    template <class Accept>
+    struct ClosestIf : Closest {
+        ClosestIf(Scalar bound, const Accept& a) : Closest(bound), accept(a) {}
+        bool addPoint(Scalar d, std::size_t i) {
+            if (d < this->dist && accept(i)) {
+                this->dist = d;
+                this->index = i;
+                this->found = true;
+            }
+            return true;
+        }
+        const Accept& accept;
     };
     struct View {
         const Point* pts = nullptr;

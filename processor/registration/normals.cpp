@@ -5,14 +5,6 @@
 
 namespace pitmap::proc::reg {
 
-void MomentAccumulator::Add(const Eigen::Vector3d& p) {
-    if (n_ == 0) ref_ = p;
-    const Eigen::Vector3d d = p - ref_;
-    sum_ += d;
-    sum_sq_ += d * d.transpose();
-    ++n_;
-}
-
 Eigen::Vector3d MomentAccumulator::Mean() const {
     return n_ > 0 ? Eigen::Vector3d(ref_ + sum_ / n_) : Eigen::Vector3d::Zero();
 }

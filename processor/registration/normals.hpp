@@ -12,7 +12,14 @@ namespace pitmap::proc::reg {
 // world coordinates of hundreds of metres lose no digits against centimetre neighbourhoods).
 class MomentAccumulator {
 public:
-    void Add(const Eigen::Vector3d& p);
+    // Inline: calibration and SLAM add tens of neighbours per point, every iteration.
+    void Add(const Eigen::Vector3d& p) {
+        if (n_ == 0) ref_ = p;
+        const Eigen::Vector3d d = p - ref_;
+        sum_ += d;
+        sum_sq_ += d * d.transpose();
+        ++n_;
+    }
     int count() const { return n_; }
     Eigen::Vector3d Mean() const;
     // Population covariance (divided by the count); zero for fewer than 2 points.

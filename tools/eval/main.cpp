@@ -40,6 +40,14 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 to the true surface.
   mesh_completeness             share of the insonified true surface (truth/coverage.u8) within
                                 0.2 m of a mesh vertex or triangle centroid.
+  mesh_mean_abs_m_common, mesh_common_share
+                                with --mesh-common-with Q: mesh_mean_abs_m over the samples of
+                                P/mesh.ply within 0.2 m of a sample of Q/mesh.ply, and their share
+                                (two sensor models compared on the surface both hold).
+  mesh_mean_abs_m_slope_A_B, mesh_completeness_slope_A_B
+                                the same where the true surface's slope is A <= slope < B
+                                degrees (classes 0 20 45 91: floors and benches, faces and the
+                                ramp, steep walls).
   dem_mean_abs_m, dem_rms_m, dem_p95_m, dem_bias_m
                                 vertical difference of the filled nodes of P/dem.tif (band 1,
                                 UTM; heights in a vertical datum other than the ellipsoid are
@@ -82,6 +90,18 @@ std::optional<Geodetic> ProductOrigin(const fs::path& products,
     return formats::ply::OriginFromComments(ply_comments);
 }
 
+// A mesh sampled at its vertices and triangle centroids.
+std::vector<Eigen::Vector3d> MeshSamples(const formats::ply::Mesh& mesh) {
+    std::vector<Eigen::Vector3d> samples = mesh.vertices;
+    for (const auto& t : mesh.triangles) {
+        samples.push_back((mesh.vertices[static_cast<std::size_t>(t[0])] +
+                           mesh.vertices[static_cast<std::size_t>(t[1])] +
+                           mesh.vertices[static_cast<std::size_t>(t[2])]) /
+                          3.0);
+    }
+    return samples;
+}
+
 #ifdef PITMAP_EVAL_GRID
 // The datum's mean ellipsoidal height (summary.json vertical_datum), 0 for ellipsoidal heights.
 double DatumHeight(const fs::path& products) {
@@ -107,6 +127,11 @@ int main(int argc, char** argv) {
         ->required();
     app.add_option("--products", products_dir, "products folder (pitmap ... --out P)")->required();
     app.add_option("--json", json_path, "write the scores as one JSON object to this file");
+    std::string common_with;
+    app.add_option("--mesh-common-with",
+                   common_with,
+                   "another products folder: also score P/mesh.ply where that folder's mesh.ply "
+                   "lies within 0.2 m (mesh_mean_abs_m_common, mesh_common_share)");
     app.footer(kDefinitions);
     CLI11_PARSE(app, argc, argv);
 
@@ -227,19 +252,61 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "pitmap-eval: %s\n", mesh.error().message.c_str());
             return 2;
         }
-        std::vector<Eigen::Vector3d> samples = mesh->vertices;
-        for (const auto& t : mesh->triangles) {
-            samples.push_back((mesh->vertices[static_cast<std::size_t>(t[0])] +
-                               mesh->vertices[static_cast<std::size_t>(t[1])] +
-                               mesh->vertices[static_cast<std::size_t>(t[2])]) /
-                              3.0);
-        }
+        std::vector<Eigen::Vector3d> samples = MeshSamples(*mesh);
         const auto s = eval::ScorePoints(samples, T, world);
         for (auto& p : samples) p = T * p;
         if (auto c = eval::MeshCompleteness(samples, *truth)) scores["mesh_completeness"] = *c;
         scores["mesh_mean_abs_m"] = s.mean_abs_m;
         scores["mesh_rms_m"] = s.rms_m;
         scores["mesh_p95_m"] = s.p95_m;
+        // The same by the true slope under the sample: floors, faces, walls.
+        const auto& edges = eval::kSlopeClassEdgesDeg;
+        const std::size_t n_classes = std::size(edges) - 1;
+        std::vector<std::vector<double>> by_class(n_classes);
+        for (const auto& p : samples) {
+            const double slope = eval::SlopeDeg(world, p.x(), p.y());
+            for (std::size_t c = 0; c < n_classes; ++c) {
+                if (slope >= edges[c] && slope < edges[c + 1]) {
+                    by_class[c].push_back(world.SignedDistance(p));
+                    break;
+                }
+            }
+        }
+        for (std::size_t c = 0; c < n_classes; ++c) {
+            const std::string suffix = "_slope_" + std::to_string(static_cast<int>(edges[c])) +
+                                       "_" + std::to_string(static_cast<int>(edges[c + 1]));
+            if (!by_class[c].empty()) {
+                scores["mesh_mean_abs_m" + suffix] =
+                    eval::SummariseDistances(std::move(by_class[c])).mean_abs_m;
+            }
+            if (auto cc = eval::MeshCompleteness(samples, *truth, 0.2, edges[c], edges[c + 1]))
+                scores["mesh_completeness" + suffix] = *cc;
+        }
+        if (!common_with.empty()) {
+            // Error on the part of the surface both meshes hold: a mesh that keeps only what
+            // was seen often is not more accurate for having dropped the rest.
+            const fs::path Q(common_with);
+            auto other = formats::ply::ReadMesh((Q / "mesh.ply").string());
+            if (!other) {
+                std::fprintf(stderr, "pitmap-eval: %s\n", other.error().message.c_str());
+                return 2;
+            }
+            const auto other_origin = ProductOrigin(Q, other->comments);
+            const Pose T_other = eval::ProductToTruthFrame(
+                other_origin ? *other_origin : truth->origin, truth->origin);
+            std::vector<Eigen::Vector3d> theirs = MeshSamples(*other);
+            for (auto& p : theirs) p = T_other * p;
+            std::vector<Eigen::Vector3d> common = eval::SamplesNear(samples, theirs, 0.2);
+            scores["mesh_common_share"] = samples.empty() ? 0.0
+                                                          : static_cast<double>(common.size()) /
+                                                                static_cast<double>(samples.size());
+            std::vector<double> d;
+            d.reserve(common.size());
+            for (const auto& p : common) d.push_back(world.SignedDistance(p));
+            if (!d.empty())
+                scores["mesh_mean_abs_m_common"] =
+                    eval::SummariseDistances(std::move(d)).mean_abs_m;
+        }
     }
 #ifdef PITMAP_EVAL_GRID
     if (fs::exists(P / "dem.tif")) {

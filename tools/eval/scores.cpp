@@ -93,26 +93,72 @@ DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts,
     return SummariseDistances(std::move(d));
 }
 
+double SlopeDeg(const sim::PitWorld& world, double x, double y) {
+    const double nz = std::clamp(std::abs(world.Normal(x, y).z()), 0.0, 1.0);
+    return frames::RadToDeg(std::acos(nz));
+}
+
+namespace {
+
+// Points hashed by cells of the search radius: a query looks at its 27 neighbouring cells,
+// which hold every point within the radius.
+class RadiusGrid {
+public:
+    RadiusGrid(const std::vector<Eigen::Vector3d>& points, double radius_m)
+        : points_(points), radius_(radius_m) {
+        keyed_.reserve(points.size());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const Eigen::Vector3d& p = points[i];
+            keyed_.emplace_back(Key(Cell(p.x()), Cell(p.y()), Cell(p.z())),
+                                static_cast<std::uint32_t>(i));
+        }
+        std::sort(keyed_.begin(), keyed_.end());
+    }
+    bool AnyWithin(const Eigen::Vector3d& q) const {
+        const std::int64_t cx = Cell(q.x()), cy = Cell(q.y()), cz = Cell(q.z());
+        for (std::int64_t dx = -1; dx <= 1; ++dx)
+            for (std::int64_t dy = -1; dy <= 1; ++dy)
+                for (std::int64_t dz = -1; dz <= 1; ++dz) {
+                    const std::int64_t k = Key(cx + dx, cy + dy, cz + dz);
+                    auto it = std::lower_bound(
+                        keyed_.begin(), keyed_.end(), std::make_pair(k, std::uint32_t{0}));
+                    for (; it != keyed_.end() && it->first == k; ++it) {
+                        if ((points_[it->second] - q).norm() <= radius_) return true;
+                    }
+                }
+        return false;
+    }
+
+private:
+    std::int64_t Cell(double v) const { return static_cast<std::int64_t>(std::floor(v / radius_)); }
+    static std::int64_t Key(std::int64_t x, std::int64_t y, std::int64_t z) {
+        return ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
+    }
+    const std::vector<Eigen::Vector3d>& points_;
+    double radius_;
+    std::vector<std::pair<std::int64_t, std::uint32_t>> keyed_;
+};
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> SamplesNear(const std::vector<Eigen::Vector3d>& samples,
+                                         const std::vector<Eigen::Vector3d>& others,
+                                         double radius_m) {
+    const RadiusGrid grid(others, radius_m);
+    std::vector<Eigen::Vector3d> near;
+    for (const auto& p : samples) {
+        if (grid.AnyWithin(p)) near.push_back(p);
+    }
+    return near;
+}
+
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& samples,
                                        const sim::Truth& truth,
-                                       double radius_m) {
+                                       double radius_m,
+                                       double min_slope_deg,
+                                       double max_slope_deg) {
     if (truth.coverage.empty()) return std::nullopt;
-    // Sorted cell keys of the mesh samples (cells of radius_m): a query looks at its 27
-    // neighbouring cells, which hold every sample within radius_m.
-    auto cell = [radius_m](double v) {
-        return static_cast<std::int64_t>(std::floor(v / radius_m));
-    };
-    auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
-        return ((x & 0x1FFFFF) << 42) | ((y & 0x1FFFFF) << 21) | (z & 0x1FFFFF);
-    };
-    std::vector<std::pair<std::int64_t, std::uint32_t>> keyed;
-    keyed.reserve(samples.size());
-    for (std::size_t i = 0; i < samples.size(); ++i) {
-        const Eigen::Vector3d& p = samples[i];
-        keyed.emplace_back(key(cell(p.x()), cell(p.y()), cell(p.z())),
-                           static_cast<std::uint32_t>(i));
-    }
-    std::sort(keyed.begin(), keyed.end());
+    const RadiusGrid grid(samples, radius_m);
     const sim::TerrainGrid& g = truth.terrain;
     const sim::PitWorld world(g);
     std::size_t covered = 0, found = 0;
@@ -121,26 +167,13 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
             if (truth.coverage[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) +
                                static_cast<std::size_t>(ix)] == 0)
                 continue;
+            const double sx = g.x0_m + ix * g.resolution_m, sy = g.y0_m + iy * g.resolution_m;
+            if (min_slope_deg > 0 || max_slope_deg <= 90) {
+                const double slope = SlopeDeg(world, sx, sy);
+                if (slope < min_slope_deg || slope >= max_slope_deg) continue;
+            }
             ++covered;
-            const Eigen::Vector3d q(
-                g.x0_m + ix * g.resolution_m, g.y0_m + iy * g.resolution_m, 0.0);
-            const Eigen::Vector3d s(q.x(), q.y(), world.Height(q.x(), q.y()));
-            const std::int64_t cx = cell(s.x()), cy = cell(s.y()), cz = cell(s.z());
-            bool hit = false;
-            for (std::int64_t dx = -1; dx <= 1 && !hit; ++dx)
-                for (std::int64_t dy = -1; dy <= 1 && !hit; ++dy)
-                    for (std::int64_t dz = -1; dz <= 1 && !hit; ++dz) {
-                        const std::int64_t k = key(cx + dx, cy + dy, cz + dz);
-                        auto it = std::lower_bound(
-                            keyed.begin(), keyed.end(), std::make_pair(k, std::uint32_t{0}));
-                        for (; it != keyed.end() && it->first == k; ++it) {
-                            if ((samples[it->second] - s).norm() <= radius_m) {
-                                hit = true;
-                                break;
-                            }
-                        }
-                    }
-            if (hit) ++found;
+            if (grid.AnyWithin(Eigen::Vector3d(sx, sy, world.Height(sx, sy)))) ++found;
         }
     }
     if (covered == 0) return std::nullopt;

@@ -73,10 +73,24 @@ DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
                           std::size_t max_points = 3'000'000);
 
 // Share of the covered true-surface cells whose surface point has a mesh sample within
-// radius_m (mesh samples already in the truth frame). nullopt without a coverage mask.
+// radius_m (mesh samples already in the truth frame). nullopt without a coverage mask, or when
+// no covered cell has a true slope in [min_slope_deg, max_slope_deg).
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& mesh_samples_truth,
                                        const sim::Truth& truth,
-                                       double radius_m = 0.2);
+                                       double radius_m = 0.2,
+                                       double min_slope_deg = 0,
+                                       double max_slope_deg = 91);
+
+// The samples that have one of `others` within radius_m (two meshes' common area).
+std::vector<Eigen::Vector3d> SamplesNear(const std::vector<Eigen::Vector3d>& samples,
+                                         const std::vector<Eigen::Vector3d>& others,
+                                         double radius_m);
+
+// The true surface's slope under (x, y), degrees from horizontal.
+double SlopeDeg(const sim::PitWorld& world, double x, double y);
+// Slope classes [edge i, edge i + 1) that the mesh is also scored in: floors and benches, the
+// ramp and bench faces, steep walls (a sensor model that smears a footprint shows it there).
+inline constexpr double kSlopeClassEdgesDeg[] = {0, 20, 45, 91};
 
 // A gridded surface's nodes in the truth frame: position (x, y, z = the node's elevation), or
 // z NaN for an empty node.

@@ -89,6 +89,43 @@ TEST(PointIndex, NearestWithinABoundMatchesBruteForceAndNearest) {
     EXPECT_GT(missed, 100);
 }
 
+// With a filter, the nearest admitted point within the bound, as a brute force over the
+// admitted points finds it; rejected points never shrink the bound (the nearest point of all
+// is often a rejected one here).
+TEST(PointIndex, NearestWithinIfFindsTheNearestAdmittedPoint) {
+    const auto pts = RandomPoints(4000, 5, 10.0);
+    const PointIndex3d index(pts.data(), pts.size());
+    const auto queries = RandomPoints(300, 6, 12.0);
+    auto admit = [](std::size_t i) { return i % 3 == 0; };  // a third of the points
+    int found = 0, nearest_rejected = 0;
+    for (const auto& q : queries) {
+        double best_all = 1e300, best = 1e300;
+        std::size_t best_i = 0;
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+            const double d2 = (pts[i] - q).squaredNorm();
+            best_all = std::min(best_all, d2);
+            if (admit(i) && d2 < best) {
+                best = d2;
+                best_i = i;
+            }
+        }
+        nearest_rejected += best_all < best;
+        for (const double bound : {0.05, 0.5, 2.0, 1e9}) {
+            std::size_t idx = 0;
+            double d2 = 0;
+            const bool hit = index.NearestWithinIf(q, bound, admit, &idx, &d2);
+            ASSERT_EQ(hit, best < bound) << "bound " << bound;
+            if (!hit) continue;
+            ++found;
+            EXPECT_TRUE(admit(idx));
+            EXPECT_EQ(idx, best_i);
+            EXPECT_DOUBLE_EQ(d2, best);
+        }
+    }
+    EXPECT_GT(found, 300);
+    EXPECT_GT(nearest_rejected, 100);
+}
+
 TEST(PointIndex, FloatPointsAndFewerThanAsked) {
     std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {1, 0, 0}};
     const PointIndex3f index(pts.data(), pts.size());

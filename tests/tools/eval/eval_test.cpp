@@ -158,9 +158,26 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     auto c = MeshCompleteness(samples, truth);
     ASSERT_TRUE(c.has_value());
     EXPECT_NEAR(*c, 55.0 / 105.0, 1e-12);
+    // By slope class: a flat floor is all in the first class, none in the steep ones.
+    EXPECT_NEAR(*MeshCompleteness(samples, truth, 0.2, 0, 20), 55.0 / 105.0, 1e-12);
+    EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 45, 91).has_value());
+    EXPECT_NEAR(SlopeDeg(sim::PitWorld(truth.terrain), 1.0, 1.0), 0.0, 1e-9);
     // Lifted 0.3 m above the surface, nothing is within 0.2 m.
     for (auto& p : samples) p.z() += 0.3;
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
+}
+
+// The common surface of two meshes: the samples with one of the others within the radius,
+// across cell boundaries and in every direction.
+TEST(Scores, SamplesNearKeepsOnlyTheCommonSurface) {
+    std::vector<Eigen::Vector3d> mine, theirs;
+    for (int i = 0; i < 100; ++i) mine.emplace_back(0.1 * i, 0.0, 0.0);      // x = 0 .. 9.9
+    for (int i = 0; i < 50; ++i) theirs.emplace_back(0.1 * i, 0.15, -0.05);  // x = 0 .. 4.9
+    const auto near = SamplesNear(mine, theirs, 0.2);
+    ASSERT_EQ(near.size(), 51u);  // x = 0 .. 5.0 (5.0 is 0.19 m from 4.9, 0.05 below)
+    for (const auto& p : near) EXPECT_LE(p.x(), 5.0 + 1e-9);
+    EXPECT_TRUE(SamplesNear(mine, {}, 0.2).empty());
+    EXPECT_TRUE(SamplesNear(mine, {Eigen::Vector3d(0, 0, 0.21)}, 0.2).empty());
 }
 
 TEST_F(Eval, MissingTruthIsAClearError) {
