@@ -377,6 +377,8 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         } catch (const json::exception& e) {
             return Error{dir + "/backscatter.json: " + e.what()};
         }
+        if (!(t.backscatter.patch_size_m > 0) || !std::isfinite(t.backscatter.patch_size_m))
+            return Error{dir + "/backscatter.json: patch_size_m must be > 0"};
         const std::string path = dir + "/backscatter.f32";
         std::ifstream in(path, std::ios::binary);
         if (!in) return Error{path + ": cannot open"};
