@@ -20,7 +20,8 @@ Expected<json> MosaicSurvey(const Survey& s,
     const georef::PingSeries& series = s.model.ingest.pings;
     if (!series.has_intensities()) {
         const std::string why =
-            "the pings carry no intensities (83P v1.00, or v1.10 without them): no mosaic";
+            "the pings carry no intensities (83P v1.00, v1.10 without them, or a survey.pitmap "
+            "of format 1: run `pitmap georef` again): no mosaic";
         log("grid: mosaic: " + why);
         return json{{"made", false}, {"reason", why}};
     }
