@@ -59,6 +59,13 @@ double ReadBinary(ByteReader& r, Type t) {
     return 0;
 }
 
+// An integer read as a double, as the header would write it.
+std::string CountText(double v) {
+    char s[32];
+    std::snprintf(s, sizeof s, "%.0f", v);
+    return s;
+}
+
 // One header line's words.
 std::vector<std::string> Words(std::string_view line) {
     std::vector<std::string> w;
@@ -340,6 +347,115 @@ Expected<Mesh> ReadMesh(const std::string& path,
             }
         }
     }
+    return out;
+}
+
+Expected<Layout> DescribeFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Error{path + ": cannot open"};
+    in.seekg(0, std::ios::end);
+    const std::streamoff end = in.tellg();
+    if (end < 0) return Error{path + ": cannot find the file's size"};
+    const std::uint64_t file_size = static_cast<std::uint64_t>(end);
+    in.seekg(0);
+    std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(file_size, kMaxHeaderBytes)),
+                     '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    if (!in) return Error{path + ": read error"};
+    std::size_t data_offset = 0;
+    auto header = ParseHeader(head, file_size, &data_offset);
+    if (!header) return Error{path + ": " + header.error().message};
+    if (header->format != Format::kBinaryLittleEndian) {
+        return Error{path + ": format ascii: only binary_little_endian PLY has records to map"};
+    }
+    Layout out;
+    out.origin = OriginFromComments(header->comments);
+    std::uint64_t offset = data_offset;
+    // Reads `n` bytes at `at` into `buf`; false at the end of the file.
+    std::vector<std::uint8_t> buf;
+    auto read_at = [&](std::uint64_t at, std::size_t n) {
+        buf.resize(n);
+        in.clear();
+        in.seekg(static_cast<std::streamoff>(at));
+        in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(n));
+        return static_cast<std::size_t>(in.gcount()) == n;
+    };
+    for (const Element& e : header->elements) {
+        ElementLayout el;
+        el.offset = offset;
+        el.list_entries.assign(e.properties.size(), 0);
+        const std::string where = path + ": element " + e.name;
+        // Fixed part of a record and, for lists, the entry counts of the first record.
+        std::uint64_t pos = 0;
+        bool lists = false;
+        for (std::size_t k = 0; k < e.properties.size(); ++k) {
+            const Property& p = e.properties[k];
+            if (!p.list_count) {
+                pos += TypeSize(p.type);
+                continue;
+            }
+            lists = true;
+            if (e.count == 0) continue;
+            const std::size_t cs = TypeSize(*p.list_count);
+            if (offset + pos + cs > file_size || !read_at(offset + pos, cs)) {
+                return Error{path + ": truncated (element " + e.name + ": no list count in " +
+                             "its first record)"};
+            }
+            ByteReader r(buf.data(), cs);
+            const double n = ReadBinary(r, *p.list_count);
+            if (!(n >= 0) || n > static_cast<double>(file_size)) {
+                return Error{where + ": list count " + CountText(n) + " beyond the file"};
+            }
+            el.list_entries[k] = static_cast<std::uint64_t>(n);
+            pos += cs + el.list_entries[k] * TypeSize(p.type);
+        }
+        el.record_bytes = pos;
+        // A list count near 2^64 / 8 could make count * record_bytes wrap: checked first.
+        const bool overflow =
+            el.record_bytes != 0 && e.count > (UINT64_MAX - offset) / el.record_bytes;
+        const std::uint64_t need = overflow ? 0 : offset + e.count * el.record_bytes;
+        if (overflow || need > file_size) {
+            return Error{path + ": truncated (element " + e.name + " needs " +
+                         (overflow ? std::string("more than 2^64") : std::to_string(need)) +
+                         " bytes, file has " + std::to_string(file_size) + ")"};
+        }
+        if (lists && e.count > 1) {
+            // Every record's list counts must equal the first record's: checked in chunks of
+            // whole records (at most about 1 MiB).
+            const std::uint64_t per_chunk =
+                std::max<std::uint64_t>(1, (std::uint64_t{1} << 20) / el.record_bytes);
+            for (std::uint64_t first = 0; first < e.count; first += per_chunk) {
+                const std::uint64_t n = std::min(per_chunk, e.count - first);
+                if (!read_at(offset + first * el.record_bytes,
+                             static_cast<std::size_t>(n * el.record_bytes))) {
+                    return Error{where + ": read error"};
+                }
+                for (std::uint64_t i = 0; i < n; ++i) {
+                    ByteReader r(buf.data() + i * el.record_bytes,
+                                 static_cast<std::size_t>(el.record_bytes));
+                    for (std::size_t k = 0; k < e.properties.size(); ++k) {
+                        const Property& p = e.properties[k];
+                        if (!p.list_count) {
+                            r.Skip(TypeSize(p.type));
+                            continue;
+                        }
+                        const double c = ReadBinary(r, *p.list_count);
+                        if (c != static_cast<double>(el.list_entries[k])) {
+                            return Error{where + ": record " + std::to_string(first + i) +
+                                         ": list " + p.name + " has " + CountText(c) +
+                                         " entries, the first record " +
+                                         std::to_string(el.list_entries[k]) +
+                                         " (lists of varying length are not supported)"};
+                        }
+                        r.Skip(el.list_entries[k] * TypeSize(p.type));
+                    }
+                }
+            }
+        }
+        offset = need;
+        out.elements.push_back(std::move(el));
+    }
+    out.header = std::move(*header);
     return out;
 }
 

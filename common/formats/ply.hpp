@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // PLY (Stanford polygon file format, version 1.0): the one place pitmap writes and reads it.
-// Writers: points.ply (processor/io/products), mesh*.ply (processor/mesh/export); reader: the
-// scorer (tools/eval). Writing is binary_little_endian; reading takes ascii and
+// Writers: points.ply (processor/io/products), mesh*.ply (processor/mesh/export); readers: the
+// scorer (tools/eval, ReadMesh) and the report (tools/report, through pitmap-ply-layout's
+// DescribeFile, which it memory-maps). Writing is binary_little_endian; reading takes ascii and
 // binary_little_endian (big endian is refused with a clear error).
 //
 // pitmap's own convention: a header comment "pitmap_origin LAT LON H" (degrees, degrees,
@@ -113,5 +114,26 @@ struct Mesh {
 // `vertex_properties`: scalar vertex properties to keep (each must exist, else an error).
 Expected<Mesh> ReadMesh(const std::string& path,
                         const std::vector<std::string>& vertex_properties = {});
+
+// Where each element's records lie in a binary_little_endian file, for a reader that maps the
+// bytes itself (the report memory-maps them with numpy; tools/report/ply_layout_main.cpp).
+// Every element must have fixed-size records: a list property must hold the same number of
+// entries in every record (a triangle mesh's faces), which is checked record by record.
+struct ElementLayout {
+    std::uint64_t offset = 0;        // the first record's byte offset in the file
+    std::uint64_t record_bytes = 0;  // bytes per record (> 0 for an element with properties)
+    // Per property of the header's element: the entries of every record's list (0 for a
+    // scalar property).
+    std::vector<std::uint64_t> list_entries;
+};
+struct Layout {
+    Header header;
+    std::vector<ElementLayout> elements;  // one per header element, in file order
+    std::optional<Geodetic> origin;       // OriginFromComments(header.comments)
+};
+// Reads the header and walks the list counts with a bounded buffer (never the whole file).
+// Errors name the path: not binary_little_endian, truncated (an element's records beyond the
+// file's end), lists of varying length, a list with no count in its first record.
+Expected<Layout> DescribeFile(const std::string& path);
 
 }  // namespace pitmap::formats::ply

@@ -2,7 +2,9 @@
 // libFuzzer target for the PLY reader (common/formats/ply.cpp), which the scorer uses on
 // points.ply and mesh.ply. A read either fails with an error naming the file or gives finite
 // vertices within the coordinate bound and triangles whose indices are in range; a header that
-// parses is formatted and parsed again to the same elements.
+// parses is formatted and parsed again to the same elements. DescribeFile (what the report
+// memory-maps) either fails naming the file or gives elements that follow each other within the
+// file, one layout per header element.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -30,6 +32,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         }
     }
     const pitmap::fuzz::MemFile file(data, size);
+    if (const auto layout = ply::DescribeFile(file.path()); !layout) {
+        pitmap::fuzz::CheckNamesFile(layout.error().message, file.path());
+    } else {
+        if (layout->elements.size() != layout->header.elements.size()) std::abort();
+        std::uint64_t end = 0;
+        for (std::size_t i = 0; i < layout->elements.size(); ++i) {
+            const auto& el = layout->elements[i];
+            const std::uint64_t count = layout->header.elements[i].count;
+            if (el.offset < end || el.offset > size) std::abort();
+            if (el.record_bytes != 0 && count > (size - el.offset) / el.record_bytes) std::abort();
+            end = el.offset + count * el.record_bytes;
+        }
+    }
     // With the soundings_tpu.ply properties asked for on odd sizes, so both paths are fuzzed.
     const auto r = size % 2 == 0 ? ply::ReadMesh(file.path())
                                  : ply::ReadMesh(file.path(), {"gps_time_s", "tvu_95_m"});

@@ -44,6 +44,7 @@
 #include "pitmap/multibeam_ping_t.hpp"
 #include "pitmap/raw_bytes_t.hpp"
 #include "processor/io/ingest.hpp"
+#include "tests/support/process.hpp"
 #include "tools/sim/hil/manifest.hpp"
 #include "tools/sim/hil/novatel_emulator.hpp"
 #include "tools/sim/hil/realtime.hpp"
@@ -52,6 +53,8 @@
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using pitmap::test::FreePort;
+using pitmap::test::ReadText;
 
 namespace {
 
@@ -60,55 +63,6 @@ constexpr double kDurationS = 40.0;
 // fits its sonar clock from below, so jitter shows in the first pings only, before the envelope
 // has seen a fast datagram.
 constexpr const char* kFaults = "garbage=3,crc=3,unplug=1,tcp-drop=1,jitter-ms=1";
-
-int FreePort(int type) {
-    const int fd = ::socket(AF_INET, type, 0);
-    if (fd < 0) return -1;
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t len = sizeof(a);
-    int port = -1;
-    if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0) {
-        port = ntohs(a.sin_port);
-    }
-    ::close(fd);
-    return port;
-}
-
-// Runs argv with stdout+stderr to `output`; the exit code, or -1 after `timeout_s` (killed).
-int RunProcess(const std::vector<std::string>& args, const std::string& output, double timeout_s) {
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-        std::FILE* f = std::freopen(output.c_str(), "w", stdout);
-        if (f != nullptr) ::dup2(::fileno(stdout), 2);
-        std::vector<char*> argv;
-        for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-        argv.push_back(nullptr);
-        ::execv(argv[0], argv.data());
-        ::_exit(127);
-    }
-    const auto deadline =
-        std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    int status = 0;
-    while (std::chrono::steady_clock::now() < deadline) {
-        if (::waitpid(pid, &status, WNOHANG) == pid) {
-            return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    ::kill(pid, SIGTERM);
-    std::this_thread::sleep_for(std::chrono::seconds(5));
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-    return -1;
-}
-
-std::string ReadText(const fs::path& p) {
-    std::ifstream in(p);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 struct Event {
     std::string channel;
@@ -172,33 +126,16 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
     const fs::path acqd = bin / "pitmap-acqd", sim = bin / "pitmap-sim";
     if (!fs::exists(acqd)) GTEST_SKIP() << "pitmap-acqd is not built: HIL test skipped";
     if (!fs::exists(sim)) GTEST_SKIP() << "pitmap-sim is not built: HIL test skipped";
-    const fs::path dir =
-        fs::path(::testing::TempDir()) / ("pitmap_hil_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = pitmap::test::FreshDir("pitmap_hil");
     const int tcp_port = FreePort(SOCK_STREAM), udp_port = FreePort(SOCK_DGRAM);
     ASSERT_GT(tcp_port, 0);
     ASSERT_GT(udp_port, 0);
     const fs::path out = dir / "run";
-    const std::vector<std::string> args = {sim.string(),
-                                           "hil",
-                                           "--scenario",
-                                           "demo",
-                                           "--duration",
-                                           std::to_string(kDurationS),
-                                           "--out",
-                                           out.string(),
-                                           "--acqd",
-                                           acqd.string(),
-                                           "--pty",
-                                           (dir / "com1").string(),
-                                           "--tcp-port",
-                                           std::to_string(tcp_port),
-                                           "--udp-port",
-                                           std::to_string(udp_port),
-                                           "--faults",
-                                           kFaults};
-    const int rc = RunProcess(args, (dir / "sim.out").string(), kDurationS + 120);
+    const std::vector<std::string> args = pitmap::test::HilRigArgs(
+        bin, kDurationS, out, dir / "com1", tcp_port, udp_port, {"--faults", kFaults});
+    // Stopped with SIGTERM and 5 s to finish when it overruns.
+    const int rc = pitmap::test::Wait(
+        pitmap::test::Spawn(args, (dir / "sim.out").string()), kDurationS + 120, 5);
     const std::string sim_out = ReadText(dir / "sim.out");
     if (rc != 0 && sim_out.find("no pseudo-terminal") != std::string::npos) {
         GTEST_SKIP() << "no pty support on this machine: " << sim_out;

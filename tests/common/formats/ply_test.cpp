@@ -280,5 +280,70 @@ TEST(Ply, CorruptedFilesAreCleanErrors) {
     fs::remove(p);
 }
 
+// DescribeFile, what the report maps: each element's offset and record size, list lengths, the
+// origin; a truncated file, varying list lengths and ASCII as errors naming the file.
+TEST(PlyLayout, DescribesWhereTheRecordsLie) {
+    const fs::path p = TempPath("pitmap_ply_layout");
+    const std::string path = p.string();
+    const std::vector<float> xyz = {0, 0, 0, 1, 0, 0, 0, 2, -1.5f};
+    const std::string good = MeshPly(3, xyz);
+    std::ofstream(p, std::ios::binary | std::ios::trunc) << good;
+    const std::size_t header = good.find("end_header\n") + 11;
+    auto layout = DescribeFile(path);
+    ASSERT_TRUE(layout.ok()) << layout.error().message;
+    ASSERT_EQ(layout->elements.size(), 2u);
+    EXPECT_EQ(layout->elements[0].offset, header);
+    EXPECT_EQ(layout->elements[0].record_bytes, 12u);
+    EXPECT_EQ(layout->elements[0].list_entries, (std::vector<std::uint64_t>{0, 0, 0}));
+    EXPECT_EQ(layout->elements[1].offset, header + 36);
+    EXPECT_EQ(layout->elements[1].record_bytes, 13u);  // uchar count + 3 int indices
+    EXPECT_EQ(layout->elements[1].list_entries, (std::vector<std::uint64_t>{3}));
+    ASSERT_TRUE(layout->origin.has_value());
+    EXPECT_EQ(layout->origin->latitude_deg, 1.0);
+    EXPECT_EQ(layout->header.elements[1].name, "face");
+
+    auto expect_error = [&](const std::string& bytes, const std::string& says) {
+        std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
+        const auto r = DescribeFile(path);
+        ASSERT_FALSE(r.ok()) << says;
+        EXPECT_NE(r.error().message.find(path + ": "), std::string::npos) << r.error().message;
+        EXPECT_NE(r.error().message.find(says), std::string::npos) << r.error().message;
+    };
+    expect_error(good.substr(0, good.size() - 1),
+                 "truncated (element face needs " + std::to_string(good.size()) + " bytes");
+    expect_error(good.substr(0, header + 20), "truncated (element vertex needs");
+    expect_error(good.substr(0, header + 36), "truncated (element face: no list count");
+    // Two faces, the second a quad: records of varying length cannot be mapped.
+    std::string two = MeshPly(3, xyz);
+    two.replace(two.find("face 1"), 6, "face 2");
+    two.push_back(4);
+    for (int i : {0, 1, 2, 0}) two.append(reinterpret_cast<const char*>(&i), 4);
+    expect_error(two, "record 1: list vertex_indices has 4");
+    expect_error("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+                 "format ascii");
+    expect_error("ply\nformat binary_big_endian 1.0\nend_header\n", "binary_big_endian");
+    expect_error("", "not a PLY file");
+    fs::remove(p);
+    const auto absent = DescribeFile(path);
+    ASSERT_FALSE(absent.ok());
+    EXPECT_NE(absent.error().message.find(path + ": cannot open"), std::string::npos);
+
+    // A large element is checked chunk by chunk: 200 000 triangles (2.6 MB, three 1 MiB
+    // chunks) with one bad count near the end.
+    std::string big =
+        "ply\nformat binary_little_endian 1.0\nelement face 200000\n"
+        "property list uchar uint vertex_indices\nend_header\n";
+    const std::size_t data = big.size();
+    for (int f = 0; f < 200000; ++f) {
+        big.push_back(3);
+        for (std::uint32_t i : {0u, 1u, 2u}) big.append(reinterpret_cast<const char*>(&i), 4);
+    }
+    std::ofstream(p, std::ios::binary | std::ios::trunc) << big;
+    ASSERT_TRUE(DescribeFile(path).ok());
+    big[data + 13 * 199998] = 2;
+    expect_error(big, "record 199998: list vertex_indices has 2");
+    fs::remove(p);
+}
+
 }  // namespace
 }  // namespace pitmap::formats::ply

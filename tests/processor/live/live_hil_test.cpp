@@ -22,63 +22,18 @@
 #include <thread>
 #include <vector>
 
+#include "tests/support/process.hpp"
+
 namespace fs = std::filesystem;
 using nlohmann::json;
+using pitmap::test::FreePort;
+using pitmap::test::ReadText;
+using pitmap::test::Spawn;
+using pitmap::test::Wait;
 
 namespace {
 
 constexpr double kDurationS = 16.0;
-
-int FreePort(int type) {
-    const int fd = ::socket(AF_INET, type, 0);
-    if (fd < 0) return -1;
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t len = sizeof(a);
-    int port = -1;
-    if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0) {
-        port = ntohs(a.sin_port);
-    }
-    ::close(fd);
-    return port;
-}
-
-pid_t Spawn(const std::vector<std::string>& args, const std::string& output) {
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-        std::FILE* f = std::freopen(output.c_str(), "w", stdout);
-        if (f != nullptr) ::dup2(::fileno(stdout), 2);
-        std::vector<char*> argv;
-        for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-        argv.push_back(nullptr);
-        ::execv(argv[0], argv.data());
-        ::_exit(127);
-    }
-    return pid;
-}
-
-// The exit code after waiting up to timeout_s, else -1 (then killed).
-int Wait(pid_t pid, double timeout_s) {
-    const auto deadline =
-        std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    int status = 0;
-    while (std::chrono::steady_clock::now() < deadline) {
-        if (::waitpid(pid, &status, WNOHANG) == pid) {
-            return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-    return -1;
-}
-
-std::string ReadText(const fs::path& p) {
-    std::ifstream in(p);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 // GET http://127.0.0.1:port/path; the body, or "" on any failure.
 std::string HttpGet(int port, const std::string& path) {
@@ -115,10 +70,7 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     for (const fs::path& p : {acqd, sim, live}) {
         if (!fs::exists(p)) GTEST_SKIP() << p.filename() << " is not built: test skipped";
     }
-    const fs::path dir =
-        fs::path(::testing::TempDir()) / ("pitmap_live_hil_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = pitmap::test::FreshDir("pitmap_live_hil");
     const int lcm_port = FreePort(SOCK_DGRAM), http_port = FreePort(SOCK_STREAM);
     const int tcp_port = FreePort(SOCK_STREAM), udp_port = FreePort(SOCK_DGRAM);
     ASSERT_GT(lcm_port, 0);
@@ -146,25 +98,10 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     ASSERT_FALSE(status.is_null()) << ReadText(dir / "live.out");
     EXPECT_EQ(status["grid"]["filled_cells"], 0);
 
-    const pid_t sim_pid = Spawn({sim.string(),
-                                 "hil",
-                                 "--scenario",
-                                 "demo",
-                                 "--duration",
-                                 std::to_string(kDurationS),
-                                 "--out",
-                                 (dir / "run").string(),
-                                 "--acqd",
-                                 acqd.string(),
-                                 "--pty",
-                                 (dir / "com1").string(),
-                                 "--tcp-port",
-                                 std::to_string(tcp_port),
-                                 "--udp-port",
-                                 std::to_string(udp_port),
-                                 "--lcm-url",
-                                 url},
-                                (dir / "sim.out").string());
+    const pid_t sim_pid = Spawn(
+        pitmap::test::HilRigArgs(
+            bin, kDurationS, dir / "run", dir / "com1", tcp_port, udp_port, {"--lcm-url", url}),
+        (dir / "sim.out").string());
     // Poll while the survey runs: the filled cells seen, in order.
     std::vector<std::int64_t> cells;
     int sim_rc = -2;

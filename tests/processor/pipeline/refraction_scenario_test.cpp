@@ -19,51 +19,23 @@
 #include <sstream>
 #include <string>
 
-#include "tests/processor/pipeline/program_runner.hpp"
+#include "tests/support/scenario.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using pitmap::test::EvalScores;
+using pitmap::test::FreshDir;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
 using pitmap::test::ReadJson;
 using pitmap::test::RunCommand;
-using pitmap::test::Scores;
-
-// Puts the true boresight into a survey's vehicle.yaml (calibration is tested elsewhere).
-void SetTrueBoresight(const fs::path& sim) {
-    const json t = ReadJson(sim / "truth/boresight.json");
-    const fs::path yaml = sim / "log/vehicle.yaml";
-    std::ifstream in(yaml);
-    std::ostringstream out;
-    std::string line;
-    bool found = false;
-    while (std::getline(in, line)) {
-        if (line.rfind("  boresight_deg:", 0) == 0) {
-            char buf[128];
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "  boresight_deg: [%.6f, %.6f, %.6f]",
-                          t["roll_deg"].get<double>(),
-                          t["pitch_deg"].get<double>(),
-                          t["yaw_deg"].get<double>());
-            line = buf;
-            found = true;
-        }
-        out << line << "\n";
-    }
-    in.close();
-    ASSERT_TRUE(found) << yaml << ": no sonar.boresight_deg line";
-    std::ofstream(yaml) << out.str();
-}
+using pitmap::test::SetTrueBoresight;
 
 TEST(RefractionScenario, RayTracingRecoversTheHomogeneousSurveysAccuracy) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("pitmap_refraction_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = FreshDir("pitmap_refraction");
     std::string out;
     const std::string synth = kBin + "/pitmap-sim synth --scenario demo --duration 60 --out ";
     ASSERT_EQ(RunCommand(synth + Quote(dir / "flat"), &out), 0) << out;
@@ -71,8 +43,8 @@ TEST(RefractionScenario, RayTracingRecoversTheHomogeneousSurveysAccuracy) {
         << out;
     ASSERT_TRUE(fs::exists(dir / "refr/truth/water_column.svp"));
     ASSERT_TRUE(fs::exists(dir / "refr/vendor/demo.svp"));
-    SetTrueBoresight(dir / "flat");
-    SetTrueBoresight(dir / "refr");
+    ASSERT_TRUE(SetTrueBoresight(dir / "flat"));
+    ASSERT_TRUE(SetTrueBoresight(dir / "refr"));
 
     const auto georef_eval = [&](const fs::path& sim,
                                  const std::string& name,
@@ -84,13 +56,7 @@ TEST(RefractionScenario, RayTracingRecoversTheHomogeneousSurveysAccuracy) {
                        &text),
             0)
             << text;
-        text.clear();
-        EXPECT_EQ(RunCommand(kBin + "/pitmap-eval --truth " + Quote(sim / "truth") +
-                                 " --products " + Quote(p),
-                             &text),
-                  0)
-            << text;
-        return Scores(text);
+        return EvalScores(sim / "truth", p);
     };
     const auto flat = georef_eval(dir / "flat", "p_flat", "");
     const auto straight = georef_eval(dir / "refr", "p_straight", "");

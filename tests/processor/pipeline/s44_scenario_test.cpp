@@ -24,56 +24,31 @@
 #include <sstream>
 #include <string>
 
-#include "tests/processor/pipeline/program_runner.hpp"
+#include "tests/support/scenario.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using pitmap::test::FreshDir;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
 using pitmap::test::ReadJson;
 using pitmap::test::RunCommand;
 using pitmap::test::Scores;
-
-void SetTrueBoresight(const fs::path& sim) {
-    const json t = ReadJson(sim / "truth/boresight.json");
-    const fs::path yaml = sim / "log/vehicle.yaml";
-    std::ifstream in(yaml);
-    std::ostringstream out;
-    bool found = false;
-    for (std::string line; std::getline(in, line);) {
-        if (line.rfind("  boresight_deg:", 0) == 0) {
-            char buf[128];
-            std::snprintf(buf,
-                          sizeof buf,
-                          "  boresight_deg: [%.6f, %.6f, %.6f]",
-                          t["roll_deg"].get<double>(),
-                          t["pitch_deg"].get<double>(),
-                          t["yaw_deg"].get<double>());
-            line = buf;
-            found = true;
-        }
-        out << line << "\n";
-    }
-    in.close();
-    ASSERT_TRUE(found) << yaml;
-    std::ofstream(yaml) << out.str();
-}
+using pitmap::test::SetTrueBoresight;
 
 TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
-    const fs::path dir = fs::temp_directory_path() / ("pitmap_s44_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = FreshDir("pitmap_s44");
     std::string out;
     // The patch, in the simulator's world frame (pit centre on the water surface).
     const double px = -2.0, py = 0.0, pr = 2.0;
     const std::string synth = kBin + "/pitmap-sim synth --scenario demo --duration 90 --out ";
     ASSERT_EQ(RunCommand(synth + Quote(dir / "clean"), &out), 0) << out;
     ASSERT_EQ(RunCommand(synth + Quote(dir / "patch") + " --dropout-patch -2 0 2", &out), 0) << out;
-    SetTrueBoresight(dir / "clean");
-    SetTrueBoresight(dir / "patch");
+    ASSERT_TRUE(SetTrueBoresight(dir / "clean"));
+    ASSERT_TRUE(SetTrueBoresight(dir / "patch"));
     std::ofstream(dir / "hydro.yaml") << "vertical:\n  datum: water_level\ns44:\n  order: 1a\n";
 
     const auto run = [&](const std::string& name) {

@@ -26,82 +26,36 @@
 #include <string>
 #include <vector>
 
+#include "common/formats/ply.hpp"
 #include "pitmap/raw_bytes_t.hpp"
 
-#include "tests/processor/pipeline/program_runner.hpp"
+#include "tests/support/scenario.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using pitmap::test::EvalScores;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
 using pitmap::test::ReadJson;
 using pitmap::test::RunCommand;
 using pitmap::test::Scores;
+using pitmap::test::SetTrueBoresight;
 
-// RMS of sigma = 0.002 r + 0.02 over the points of a binary little-endian PLY product.
+// RMS of sigma = 0.002 r + 0.02 over the points of a PLY product (the project's PLY reader).
 double RangeNoiseRms(const fs::path& ply) {
-    std::ifstream in(ply, std::ios::binary);
-    std::string line;
-    std::size_t count = 0, stride = 0, range_offset = 0;
-    bool has_range = false;
-    const std::map<std::string, std::size_t> sizes = {{"char", 1},
-                                                      {"uchar", 1},
-                                                      {"short", 2},
-                                                      {"ushort", 2},
-                                                      {"int", 4},
-                                                      {"uint", 4},
-                                                      {"float", 4},
-                                                      {"double", 8}};
-    while (std::getline(in, line) && line != "end_header") {
-        std::istringstream ls(line);
-        std::string word, type, name;
-        ls >> word;
-        if (word == "element") ls >> name >> count;
-        if (word == "property") {
-            ls >> type >> name;
-            if (name == "range_m") {
-                EXPECT_EQ(type, "float");
-                range_offset = stride;
-                has_range = true;
-            }
-            stride += sizes.at(type);
-        }
-    }
-    EXPECT_TRUE(has_range) << ply << ": no range_m property";
-    std::vector<char> data(count * stride);
-    in.read(data.data(), static_cast<std::streamsize>(data.size()));
-    EXPECT_EQ(static_cast<std::size_t>(in.gcount()), data.size()) << ply << ": truncated";
+    const auto mesh = pitmap::formats::ply::ReadMesh(ply.string(), {"range_m"});
+    EXPECT_TRUE(mesh.ok()) << (mesh.ok() ? "" : mesh.error().message);
+    if (!mesh.ok()) return 0.0;
+    const std::vector<double>& range_m = mesh->vertex_properties.at(0);
     double ss = 0;
-    for (std::size_t i = 0; i < count; ++i) {
-        float r = 0;
-        std::memcpy(&r, data.data() + i * stride + range_offset, sizeof(r));
+    for (const double r : range_m) {
         const double s = 0.002 * r + 0.02;
         ss += s * s;
     }
-    return count > 0 ? std::sqrt(ss / static_cast<double>(count)) : 0.0;
-}
-
-void SetBoresight(const fs::path& vehicle_yaml, double roll, double pitch, double yaw) {
-    std::ifstream in(vehicle_yaml);
-    std::ostringstream out;
-    std::string line;
-    bool found = false;
-    while (std::getline(in, line)) {
-        if (line.rfind("  boresight_deg:", 0) == 0) {
-            char buf[128];
-            std::snprintf(
-                buf, sizeof(buf), "  boresight_deg: [%.6f, %.6f, %.6f]", roll, pitch, yaw);
-            line = buf;
-            found = true;
-        }
-        out << line << "\n";
-    }
-    in.close();
-    ASSERT_TRUE(found) << vehicle_yaml << ": no sonar.boresight_deg line";
-    std::ofstream(vehicle_yaml) << out.str();
+    return range_m.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(range_m.size()));
 }
 
 class DemoScenario : public ::testing::Test {
@@ -124,21 +78,14 @@ protected:
         if (!HasFailure()) fs::remove_all(dir_);
     }
     std::map<std::string, double> Eval(const fs::path& products) {
-        std::string out;
-        EXPECT_EQ(RunCommand(kBin + "/pitmap-eval --truth " + Quote(dir_ / "sim/truth") +
-                                 " --products " + Quote(products),
-                             &out),
-                  0)
-            << out;
-        return Scores(out);
+        return EvalScores(dir_ / "sim/truth", products);
     }
     fs::path dir_;
     json truth_;
 };
 
 TEST_F(DemoScenario, GeorefWithTrueBoresightIsWithinTheRangeNoise) {
-    SetBoresight(
-        dir_ / "sim/log/vehicle.yaml", truth_["roll_deg"], truth_["pitch_deg"], truth_["yaw_deg"]);
+    ASSERT_TRUE(SetTrueBoresight(dir_ / "sim"));
     const fs::path p = dir_ / "products";
     std::string out;
     ASSERT_EQ(
@@ -160,8 +107,7 @@ TEST_F(DemoScenario, GeorefWithTrueBoresightIsWithinTheRangeNoise) {
 // height error (sigma 1.5 cm) shifts every sounding alike: the share within TVU is checked
 // loosely here; the 93-97 % figure is measured on bejanca (README, benchmark command).
 TEST_F(DemoScenario, GridTpuIsHonestAndTheDemLiesOnTheTruth) {
-    SetBoresight(
-        dir_ / "sim/log/vehicle.yaml", truth_["roll_deg"], truth_["pitch_deg"], truth_["yaw_deg"]);
+    ASSERT_TRUE(SetTrueBoresight(dir_ / "sim"));
     const fs::path p = dir_ / "products";
     std::string out;
     ASSERT_EQ(
@@ -221,8 +167,7 @@ TEST_F(DemoScenario, CalibrateRecoversTheBoresightFromTheNominal) {
 }  // namespace
 
 TEST_F(DemoScenario, VendorFilesGiveTheSoundingsTheLogGives) {
-    SetBoresight(
-        dir_ / "sim/log/vehicle.yaml", truth_["roll_deg"], truth_["pitch_deg"], truth_["yaw_deg"]);
+    ASSERT_TRUE(SetTrueBoresight(dir_ / "sim"));
     // The raw streams of the log, as the receiver and the topside program would have written
     // them to disk: a NovAtel binary file and a .83P file (records concatenated).
     const fs::path vendor = dir_ / "vendor";

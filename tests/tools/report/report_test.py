@@ -466,22 +466,28 @@ class HelperTest(unittest.TestCase):
         cls.m = LoadModule()
 
     def test_ply_reader_follows_the_header(self):
+        # Read through the project's C++ PLY reader (pitmap-ply-layout), then memory-mapped.
         with tempfile.TemporaryDirectory() as d:
-            for endian in ("<", ">"):
-                path = os.path.join(d, "p.ply")
-                props = [("beam", "ushort", "u2"), ("z", "double", "f8"), ("x", "float", "f4"),
-                         ("y", "int", "i4")]
-                WritePly(path, props, {"beam": [7, 8], "z": [-1.5, 2.25], "x": [3.0, 4.0],
-                                       "y": [-5, 6]}, faces=np.array([[0, 1, 0]]),
-                         comments=["pitmap_origin 1.5 -2.5 3.25"], endian=endian)
-                ply = self.m.Ply(path)
-                v = ply.elements["vertex"]
-                self.assertEqual(list(v["beam"]), [7, 8])
-                self.assertEqual(list(v["z"]), [-1.5, 2.25])
-                self.assertEqual(list(v["x"]), [3.0, 4.0])
-                self.assertEqual(list(v["y"]), [-5, 6])
-                self.assertEqual(ply.elements["face"]["vertex_indices"].tolist(), [[0, 1, 0]])
-                self.assertEqual(ply.origin(), (1.5, -2.5, 3.25))
+            path = os.path.join(d, "p.ply")
+            props = [("beam", "ushort", "u2"), ("z", "double", "f8"), ("x", "float", "f4"),
+                     ("y", "int", "i4")]
+            values = {"beam": [7, 8], "z": [-1.5, 2.25], "x": [3.0, 4.0], "y": [-5, 6]}
+            WritePly(path, props, values, faces=np.array([[0, 1, 0]]),
+                     comments=["pitmap_origin 1.5 -2.5 3.25"])
+            ply = self.m.Ply(path)
+            v = ply.elements["vertex"]
+            self.assertIsInstance(v, np.memmap)
+            self.assertEqual(list(v["beam"]), [7, 8])
+            self.assertEqual(list(v["z"]), [-1.5, 2.25])
+            self.assertEqual(list(v["x"]), [3.0, 4.0])
+            self.assertEqual(list(v["y"]), [-5, 6])
+            self.assertEqual(ply.elements["face"]["vertex_indices"].tolist(), [[0, 1, 0]])
+            self.assertEqual(ply.counts, {"vertex": 2, "face": 1})
+            self.assertEqual(ply.origin(), (1.5, -2.5, 3.25))
+            # pitmap writes little-endian only; big-endian is refused with a clear error.
+            WritePly(path, props, values, endian=">")
+            with self.assertRaisesRegex(self.m.PlyError, r"^p\.ply: .*binary_big_endian"):
+                self.m.Ply(path)
 
     def test_ply_reader_rejects_bad_files(self):
         with tempfile.TemporaryDirectory() as d:
@@ -496,6 +502,38 @@ class HelperTest(unittest.TestCase):
                 f.truncate(os.path.getsize(path) - 4)
             with self.assertRaisesRegex(self.m.PlyError, r"^a\.ply: truncated \(element vertex"):
                 self.m.Ply(path)
+            # Faces: a quad after a triangle, and the faces cut short.
+            WritePly(path, [("x", "float", "f4")], {"x": np.arange(4.0)},
+                     faces=np.array([[0, 1, 2], [1, 2, 3]]))
+            with open(path, "rb") as f:
+                data = f.read()
+            body = data.index(b"end_header\n") + len(b"end_header\n") + 4 * 4
+            with open(path, "wb") as f:
+                f.write(data[:body + 13] + b"\x04" + data[body + 14:])
+            with self.assertRaisesRegex(self.m.PlyError, r"^a\.ply: element face: record 1: "
+                                        "list vertex_indices has 4 entries.*varying length"):
+                self.m.Ply(path)
+            with open(path, "wb") as f:
+                f.write(data[:-3])
+            with self.assertRaisesRegex(self.m.PlyError, r"^a\.ply: truncated \(element face"):
+                self.m.Ply(path)
+            with open(path, "wb") as f:
+                f.write(b"not a ply at all\n")
+            with self.assertRaisesRegex(self.m.PlyError, r"^a\.ply: not a PLY file"):
+                self.m.Ply(path)
+
+    def test_ply_reader_missing_is_a_clear_error(self):
+        loaders = sys.modules["pitmap_report_lib.loaders"]
+        saved = loaders.PROGRAM_DIR
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "p.ply")
+            WritePly(path, [("x", "float", "f4")], {"x": np.arange(3.0)})
+            loaders.PROGRAM_DIR = d
+            try:
+                with self.assertRaisesRegex(self.m.ReportError, "pitmap-ply-layout: not found"):
+                    self.m.Ply(path)
+            finally:
+                loaders.PROGRAM_DIR = saved
 
     def test_gps_to_utc(self):
         # GPS - UTC comes from summary.json (the C++ side's table or the receiver), not a copy.

@@ -1,0 +1,319 @@
+// SPDX-License-Identifier: MIT
+// The sensor-model stages: the sonar clock check at georeference time (ClockSurvey) and the
+// calibration of the mount and the ping latency (CalibrateSurvey, `pitmap calibrate`). Both end
+// in the survey model's calibrated state and a regeoreference; the stage bodies around them
+// (ingest, georef, export) are in pipeline.cpp.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "common/progress.hpp"
+#include "processor/calib/sonar_clock.hpp"
+#include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/result_json.hpp"
+#include "processor/pipeline/survey.hpp"
+
+namespace pitmap::proc::pipeline {
+
+using nlohmann::json;
+
+namespace detail {
+
+namespace {
+
+std::string Num(const char* fmt, double v) {
+    char b[64];
+    std::snprintf(b, sizeof(b), fmt, v);
+    return b;
+}
+
+// The offset (sonar clock minus UTC, as configured) that would have needed no further
+// correction: ingest subtracts the offset from the header time, the correction is added.
+double ImpliedClockOffset(double configured_offset_s, double correction_s) {
+    return configured_offset_s - correction_s;
+}
+
+}  // namespace
+
+Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    georef::PingSeries& pings = s.model.ingest.pings;
+    const georef::NavSeries& nav = s.model.ingest.nav;
+    const QualityConfig& q = config.quality;
+    const bool header = pings.clock == georef::PingClock::kTopsideHeader;
+    json clk = {{"source",
+                 header ? "83P header: the topside PC clock (offset unknown)"
+                        : "pitmap-acqd: GPS-disciplined receive stamps"},
+                {"configured", config.ingest.sonar_clock_offset_known}};
+    if (config.ingest.sonar_clock_offset_known)
+        clk["configured_offset_s"] = config.ingest.sonar_clock_offset_s;
+    double applied = 0;
+    // What is left for the calibration's latency scan: the coarse estimate's uncertainty, or
+    // half a second around a configured offset or the daemon's stamps.
+    double sigma = 0.0;
+    const std::string nav_span =
+        calib::SpanText(nav.samples.front().utime_gps, nav.samples.back().utime_gps);
+    if (header) {
+        calib::ClockSearchConfig search;
+        // The NMEA position in the headers is the (first) GNSS antenna's.
+        if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+            search.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
+        const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav, search);
+        log("sonar clock: " + est.message);
+        clk["coarse"] = {{"method", est.method},
+                         {"found", est.found},
+                         {"correction_s", est.correction_s},
+                         {"sigma_s", est.sigma_s},
+                         {"misfit", est.misfit},
+                         {"samples", est.samples},
+                         {"message", est.message}};
+        const std::string sonar_span =
+            calib::SpanText(pings.pings.front().utime_gps, pings.pings.back().utime_gps);
+        if (config.ingest.sonar_clock_offset_known) {
+            const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
+            if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
+                TripGate(s,
+                         Stage::kGeoref,
+                         "sonar_clock_disagrees",
+                         "the configured sonar clock offset is " +
+                             Num("%+.3f", config.ingest.sonar_clock_offset_s) + " s, the " +
+                             est.method + " in the 83P headers implies " +
+                             Num("%+.3f",
+                                 ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
+                                                    est.correction_s)) +
+                             " s (+- " + Num("%.3f", est.sigma_s) +
+                             " s); the configured value is used",
+                         log);
+            }
+            sigma = 0.1;
+        } else {
+            const std::string give =
+                "; give the offset (--sonar-clock-offset S, or sonar.clock_offset_s in "
+                "vehicle.yaml: the sonar clock minus UTC). Navigation: " +
+                nav_span + "; sonar, on its own clock: " + sonar_span;
+            if (!est.found) return Error{"sonar clock: " + est.message + give};
+            if (est.sigma_s > q.max_clock_scan_s) {
+                return Error{"sonar clock: " + est.message + ": more uncertain than the " +
+                             Num("%.1f", q.max_clock_scan_s) +
+                             " s the data can resolve (quality.max_clock_scan_s)" + give};
+            }
+            georef::ShiftPingTimes(pings, est.correction_s);
+            applied = est.correction_s;
+            sigma = est.sigma_s;
+        }
+    } else {
+        sigma = 0.0;  // ms: the calibration's linear range covers it
+    }
+    clk["correction_s"] = applied;
+    clk["sigma_s"] = sigma;
+    s.summary["sonar_clock"] = clk;
+    s.model.clock = {};
+    s.model.clock.configured = config.ingest.sonar_clock_offset_known;
+    s.model.clock.configured_offset_s =
+        config.ingest.sonar_clock_offset_known ? config.ingest.sonar_clock_offset_s : 0.0;
+    s.model.clock.coarse_correction_s = applied;
+    s.model.clock.coarse_sigma_s = sigma;
+    // The two recordings must overlap in time.
+    const std::int64_t p0 = pings.pings.front().utime_gps, p1 = pings.pings.back().utime_gps;
+    const std::int64_t n0 = nav.samples.front().utime_gps, n1 = nav.samples.back().utime_gps;
+    if (p1 < n0 || p0 > n1) {
+        return Error{"navigation and sonar do not overlap in time: navigation " + nav_span +
+                     ", sonar " + calib::SpanText(p0, p1) +
+                     (header ? " (sonar clock corrected by " + Num("%+.3f", applied) + " s)"
+                             : std::string())};
+    }
+    return Ok{};
+}
+
+Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    ClearGates(s, Stage::kCalibrate);
+    // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
+    if (s.model.ResetCalibration()) {
+        log("calibrate: starting again from the nominal mount and sonar clock");
+        s.geo = survey::Georeference(
+            s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
+    }
+    const georef::SonarMount before = s.model.mount;
+    const QualityConfig& q = config.quality;
+    calib::BoresightConfig bc = config.calibrate;
+    const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+    json& clk = s.summary["sonar_clock"];
+    if (!clk.is_object()) clk = json::object();
+    const double clock_sigma = s.model.clock.coarse_sigma_s;
+    if (bc.estimate_latency) {
+        // The pings carry the coarse correction already; scan what it leaves (4 sigma).
+        bc.initial_latency_s = 0;
+        bc.latency_scan_s = header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
+    }
+    ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
+    calib::BoresightResult cal =
+        calib::CalibrateBoresight(s.geo, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
+    bar.Finish();
+    log("calibrate: " + cal.message);
+    json st = {
+        {"termination", calib::ToString(cal.termination)},
+        {"iterations", cal.iterations},
+        {"message", cal.message},
+        {"segment", cal.segment},
+        {"residual_before_rms_m", cal.before.rms_m},
+        {"residual_after_rms_m", cal.after.rms_m},
+        {"residual_expected_rms_m", cal.after.expected_rms_m},
+        {"pairs", cal.after.pairs},
+        {"formal_sd_deg", {cal.formal_sd_deg[0], cal.formal_sd_deg[1], cal.formal_sd_deg[2]}},
+        {"height_offsets_rms_m", cal.height_offsets_rms_m},
+        {"latency_estimated", cal.latency_estimated},
+        {"latency_s", cal.latency_s},
+        {"latency_formal_sd_s", cal.latency_formal_sd_s},
+        {"latency_scan_s", bc.latency_scan_s},
+        {"latency_scan_best_s", cal.latency_scan_best_s},
+        {"boresight_before", MountJson(before)},
+        {"boresight_after", MountJson(cal.mount)}};
+    st["verify"] = json::array();
+    // The calibrated latency must not fit another segment worse than the nominal one by more
+    // than this fraction (pair sampling moves the RMS by ~1 %; a 100 ms clock step on the demo
+    // moves it by 18 %).
+    constexpr double kLatencyVerifyMargin = 0.02;
+    bool verified = true;
+    for (const auto& v : cal.verify) {
+        st["verify"].push_back({{"start_s", v.segment.start_s},
+                                {"end_s", v.segment.end_s},
+                                {"rms_before_m", v.before.rms_m},
+                                {"rms_after_m", v.after.rms_m},
+                                {"pairs", v.after.pairs}});
+        char buf[160];
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "verify %.1f..%.1f s: residual RMS %.4f -> %.4f m (%lld pairs)",
+                      v.segment.start_s,
+                      v.segment.end_s,
+                      v.before.rms_m,
+                      v.after.rms_m,
+                      static_cast<long long>(v.after.pairs));
+        log(buf);
+        if (v.after.pairs > 0 && v.before.pairs > 0 && v.after.rms_m > v.before.rms_m)
+            verified = false;
+        if (v.after.pairs > 0 && v.after_nominal_latency.pairs > 0 &&
+            v.after.rms_m > (1.0 + kLatencyVerifyMargin) * v.after_nominal_latency.rms_m) {
+            st["verify"].back()["rms_nominal_latency_m"] = v.after_nominal_latency.rms_m;
+            log("verify: the calibrated latency fits this segment worse than the nominal one (" +
+                Num("%.4f", v.after.rms_m) + " m against " +
+                Num("%.4f", v.after_nominal_latency.rms_m) +
+                " m): the sonar clock is not the same across the survey");
+            verified = false;
+        }
+    }
+    const bool checked = std::any_of(cal.verify.begin(), cal.verify.end(), [](const auto& v) {
+        return v.after.pairs > 0 && v.before.pairs > 0;
+    });
+    st["verified_on_other_segments"] = checked;
+    if (!checked && cal.termination != calib::Termination::kNoOverlap) {
+        log("calibrate: not verified: no other segment of the survey with overlapping passes "
+            "lies outside the calibration window (calibrate.segment_duration_s " +
+            Num("%.0f", bc.segment_duration_s) + " s); the result rests on its own window alone");
+    }
+    if (cal.termination == calib::Termination::kNoOverlap) {
+        s.model.calibration = survey::CalibrationState::kNoOverlap;
+        RecordStage(s.summary, Stage::kCalibrate, st, clock);
+        if (s.defer_products) {
+            (void)SaveSummary(s);
+        } else {
+            (void)SaveSurvey(s);
+        }
+        return Error{"calibrate: " + cal.message};
+    }
+    if (cal.after.pairs > 0 &&
+        cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "calibration_residual",
+                 "residual RMS " + Num("%.4f", cal.after.rms_m) + " m after calibration is " +
+                     Num("%.1f", cal.after.rms_m / cal.after.expected_rms_m) +
+                     "x what the range noise leaves (" + Num("%.4f", cal.after.expected_rms_m) +
+                     " m): the overlapping passes disagree in a way the boresight and latency "
+                     "do not explain (sonar clock, lever arm, sound speed or navigation)",
+                 log);
+    }
+    if (cal.latency_unresolved) {
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "sonar_clock_unresolved",
+                 "the sonar latency was still moving when the calibration ended (at " +
+                     Num("%+.3f", cal.latency_s) +
+                     " s): the sonar clock is off by more than the soundings can resolve; the "
+                     "nominal mount and clock are kept (give --sonar-clock-offset)",
+                 log);
+    }
+    const bool keep_nominal = !verified || cal.latency_unresolved;
+    if (!verified) {
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "calibration_not_verified",
+                 "the calibrated mount or latency fits other segments worse than the nominal "
+                 "one: the nominal mount and sonar clock are kept",
+                 log);
+    }
+    if (keep_nominal) {
+        cal.mount = before;
+        cal.latency_s = 0;
+    }
+    st["kept_nominal"] = keep_nominal;
+    s.model.mount = cal.mount;
+    s.model.calibration = keep_nominal ? survey::CalibrationState::kKeptNominal
+                                       : survey::CalibrationState::kCalibrated;
+    survey::SonarClockState& mc = s.model.clock;
+    if (cal.latency_estimated && !keep_nominal) {
+        mc.latency_applied = true;
+        mc.latency_s = cal.latency_s;
+        mc.latency_formal_sd_s = cal.latency_formal_sd_s;
+    }
+    if (mc.latency_applied && cal.latency_s != 0.0) {
+        // The ping times themselves change: georeference again from the ingested series.
+        georef::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
+        s.geo = georef::RunGeoref(s.model.ingest.nav,
+                                  s.model.ingest.pings,
+                                  s.model.mount,
+                                  config.georef,
+                                  s.model.origin,
+                                  {},
+                                  s.refraction);
+    } else {
+        georef::Regeoreference(s.geo, cal.mount);
+    }
+    if (!keep_nominal) {
+        s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
+            survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+    }
+    clk["latency_s"] = mc.latency_applied ? mc.latency_s : 0.0;
+    clk["latency_formal_sd_s"] = cal.latency_formal_sd_s;
+    clk["correction_s"] = mc.correction_s();
+    clk["sigma_s"] = mc.sigma_s();
+    if (mc.configured && header) {
+        // In the configured offset's own terms: the offset that would have needed no correction.
+        const double implied = ImpliedClockOffset(mc.configured_offset_s, mc.correction_s());
+        clk["estimated_offset_s"] = implied;
+        if (mc.latency_applied && std::abs(cal.latency_s) > std::max(q.clock_disagreement_s,
+                                                                     3 * cal.latency_formal_sd_s)) {
+            TripGate(s,
+                     Stage::kCalibrate,
+                     "sonar_clock_disagrees",
+                     "the configured sonar clock offset is " +
+                         Num("%+.4f", mc.configured_offset_s) + " s, the soundings put it at " +
+                         Num("%+.4f", implied) + " s; the soundings' value is applied",
+                     log);
+        }
+    }
+    s.summary["mount"] = MountJson(cal.mount);
+    RecordStage(s.summary, Stage::kCalibrate, st, clock);
+    return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
+}
+
+}  // namespace detail
+
+Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kNominal, log);
+    if (!s) return s.error();
+    return detail::CalibrateSurvey(*s, config, log);
+}
+
+}  // namespace pitmap::proc::pipeline

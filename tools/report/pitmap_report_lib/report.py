@@ -1,0 +1,122 @@
+# SPDX-License-Identifier: MIT
+"""The Report: a products folder (loaders.Products) and its sections (the sections_* mixins)
+made into one self-contained HTML page."""
+
+import os
+
+import numpy as np
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
+
+from .loaders import Products  # noqa: E402
+from .rasters import SaveFigure  # noqa: E402
+from .sections_geometry import GeometrySections  # noqa: E402
+from .sections_hydro import HydroSections  # noqa: E402
+from .sections_stats import StatsSections  # noqa: E402
+from .sections_survey import SurveySections  # noqa: E402
+from .sections_viewer import ViewerSection  # noqa: E402
+from .util import Esc, Log  # noqa: E402
+
+
+class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSection,
+             StatsSections):
+    def __init__(self, folder, scores_path, title):
+        super().__init__(folder, scores_path)
+        self.title = title
+        self.fig_dir = os.path.join(folder, "report")
+        os.makedirs(self.fig_dir, exist_ok=True)
+
+    # ---- figures
+    def Figure(self, fig, name, alt):
+        return SaveFigure(fig, self.fig_dir, name, alt)
+
+    def MinutesOf(self, t):
+        return (np.asarray(t, dtype=np.float64) - (self.t0 or 0.0)) / 60.0
+
+    # ---- page
+    def Build(self):
+        self.LoadTrajectories()
+        self.LoadPoints()
+        self.LoadScores()
+        sections = [
+            ("summary", "Survey", self.SectionHeader),
+            ("quality", "Quality gates", self.SectionQuality),
+            ("trajectory", "Trajectory before and after SLAM", self.SectionTrajectory),
+            ("cross-sections", "Cross-sections of the point cloud", self.SectionCrossSections),
+            ("depth", "Depth-coloured top view", self.SectionDepth),
+            ("hydro", "Vertical datum and IHO S-44 quality control", self.SectionHydro),
+            ("mosaic", "Backscatter mosaic", self.SectionMosaic),
+            ("mesh", "Mesh before and after SLAM", self.SectionMesh),
+            ("viewer", "Interactive 3D view", self.SectionViewer),
+            ("boresight", "Boresight calibration", self.SectionBoresight),
+            ("clock", "Sonar clock and latency", self.SectionClock),
+            ("tsdf", "TSDF weight histogram", self.SectionTsdf),
+            ("slam", "SLAM per iteration", self.SectionSlam),
+            ("stages", "Stages: time and memory", self.SectionStages),
+            ("scores", "Scores against ground truth", self.SectionScores),
+        ]
+        body = []
+        for sid, heading, fn in sections:
+            Log(f"section {sid}")
+            try:
+                frag = fn()
+            except Exception as e:  # a broken product must not cost the whole report
+                Log(f"section {sid} failed: {type(e).__name__}: {e}")
+                self.problems.append(f"{heading}: {type(e).__name__}: {e}")
+                frag = f'<p class="problem">could not draw: {Esc(type(e).__name__)}: {Esc(e)}</p>'
+                plt.close("all")
+            body.append(f'<section id="{sid}"><h2>{Esc(heading)}</h2>\n{frag}\n</section>')
+        toc = " &middot; ".join(f'<a href="#{sid}">{Esc(h)}</a>' for sid, h, _ in sections)
+        notes = []
+        if self.missing:
+            notes.append('<p class="missing">not produced: ' +
+                         ", ".join(Esc(m) for m in self.missing) + "</p>")
+        for p in self.problems:
+            notes.append(f'<p class="problem">{Esc(p)}</p>')
+        return PAGE.format(title=Esc(self.title), toc=toc, notes="\n".join(notes),
+                           body="\n".join(body), css=CSS)
+
+
+CSS = """
+body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; margin: 0 auto;
+       max-width: 1400px; padding: 0 24px 48px; color: #222; background: #fff; }
+h1 { margin: 24px 0 4px; font-size: 26px; }
+h2 { margin-top: 36px; border-bottom: 2px solid #2a6f97; padding-bottom: 4px; color: #1d4e6b; }
+h3 { margin-bottom: 6px; }
+nav { font-size: 14px; margin: 8px 0 16px; line-height: 1.7; }
+nav a { color: #2a6f97; text-decoration: none; }
+table { border-collapse: collapse; margin: 8px 0; font-size: 14px; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: left; vertical-align: top; }
+th { background: #eef3f7; }
+td:nth-child(n+2) { font-variant-numeric: tabular-nums; }
+table.facts td:first-child { white-space: nowrap; background: #f7f9fb; }
+table.stages .counts { font-size: 12px; color: #444; }
+img { max-width: 100%; height: auto; display: block; margin: 8px 0; }
+.caption { font-size: 13px; color: #555; max-width: 1100px; }
+.missing { color: #8a5a00; background: #fff6e0; padding: 4px 8px; border-left: 4px solid #e0a000; }
+.problem { color: #900; background: #fde8e8; padding: 4px 8px; border-left: 4px solid #c00; }
+footer { margin-top: 40px; font-size: 12px; color: #777; }
+#viewer3d { width: 100%; height: 620px; background: #15191d; }
+#viewer3d-bar { margin: 6px 0; font-size: 14px; }
+#viewer3d-bar button { margin-right: 8px; }
+"""
+
+PAGE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>{title}</title>
+<style>{css}</style>
+</head>
+<body>
+<h1>{title}</h1>
+<nav>{toc}</nav>
+{notes}
+{body}
+<footer>pitmap-report. Local frame: East, North, Up metres at the world origin;
+times in GPS seconds since 1980-01-06 unless marked UTC.</footer>
+</body>
+</html>
+"""

@@ -1,0 +1,95 @@
+# SPDX-License-Identifier: MIT
+"""The report's interactive 3D view: a decimated mesh, the trajectories and a subset of the
+soundings for viewer3d.js, with three.js from Debian's libjs-three inlined (no network)."""
+
+import json
+import os
+
+import numpy as np
+
+from .loaders import PlyError
+from .rasters import DecimateMesh, Subsample
+from .util import B64, Esc, InlineScript, Num, PROGRAM_DIR
+
+# The interactive 3D view: three.js from Debian's libjs-three, inlined into report.html with
+# viewer3d.js (installed beside this script as pitmap-report-viewer3d.js).
+THREE_DIR = os.environ.get("PITMAP_THREE_DIR", "/usr/share/javascript/three")
+VIEWER_MAX_TRIANGLES = 250_000  # what a laptop's integrated GPU turns smoothly
+VIEWER_MAX_POINTS = 150_000
+VIEWER_MAX_TRAJECTORY = 5_000
+
+
+class ViewerSection:
+    """Mixin of report.Report (needs the loaded products of loaders.Products)."""
+
+    def SectionViewer(self):
+        """The interactive WebGL view: decimated mesh, trajectories before and after SLAM, a
+        subset of the soundings, coloured by depth; three.js inlined (no network)."""
+        libs = [os.path.join(THREE_DIR, "three.min.js"),
+                os.path.join(THREE_DIR, "examples", "js", "controls", "OrbitControls.js"),
+                os.path.join(PROGRAM_DIR, "pitmap-report-viewer3d.js")]
+        if not os.path.isfile(libs[2]):  # run from the source tree
+            libs[2] = os.path.join(PROGRAM_DIR, "viewer3d.js")
+        absent = [f for f in libs if not os.path.isfile(f)]
+        if absent:
+            return self.Missing("3D view", "not found: " + ", ".join(absent) +
+                                " (Debian's libjs-three: tools/install-deps.sh)")
+        mesh = None
+        for name in ("mesh_filled.ply", "mesh.ply"):
+            try:
+                m = self.LoadMesh(name)
+            except (OSError, PlyError) as e:
+                self.problems.append(f"3D view: {e}")
+                continue
+            if m is not None and len(m[1]):
+                mesh = m
+                break
+        pts = self.points.get("final") if "final" in self.points else self.points.get("initial")
+        if mesh is None and pts is None:
+            return self.Missing("3D view", "no mesh and no soundings")
+        parts = []
+        if mesh is not None:
+            parts.append(mesh[0])
+        if pts is not None:
+            idx = Subsample(len(pts), min(len(pts), 20000))
+            parts.append(np.stack([np.asarray(pts[c][idx], dtype=np.float64)
+                                   for c in ("x", "y", "z")], axis=1))
+        allp = np.concatenate(parts)
+        lo, hi = np.percentile(allp, 0.5, axis=0), np.percentile(allp, 99.5, axis=0)
+        centre = (lo + hi) / 2.0
+        radius = float(max(1.0, np.max(hi - lo) / 2.0))
+        zlim = [float(lo[2] - centre[2]), float(hi[2] - centre[2])]
+        data = {"centre_enu_m": centre.tolist(), "radius": radius, "zlim": zlim}
+        facts = []
+        if mesh is not None:
+            v, t = DecimateMesh(mesh[0], mesh[1], VIEWER_MAX_TRIANGLES)
+            data["mesh"] = {"positions": B64((v - centre).astype("<f4")),
+                            "indices": B64(np.asarray(t, dtype="<u4"))}
+            facts.append(f"mesh {Num(len(t))} of {Num(len(mesh[1]))} triangles")
+        if pts is not None:
+            idx = Subsample(len(pts), min(len(pts), VIEWER_MAX_POINTS))
+            xyz = np.stack([np.asarray(pts[c][idx], dtype=np.float64) for c in ("x", "y", "z")],
+                           axis=1)
+            data["points"] = B64((xyz - centre).astype("<f4"))
+            facts.append(f"{Num(len(idx))} of {Num(len(pts))} soundings")
+        for key, name in (("final", "trajectory_after"), ("initial", "trajectory_before")):
+            tr = self.traj.get(key)
+            if tr is None:
+                continue
+            step = max(1, len(tr["x"]) // VIEWER_MAX_TRAJECTORY)
+            xyz = np.stack([tr[c][::step] for c in ("x", "y", "z")], axis=1)
+            data[name] = B64((xyz - centre).astype("<f4"))
+        if "initial" in self.traj:
+            facts.append("trajectory before SLAM (orange) and after (white)")
+        scripts = []
+        for f in libs:
+            with open(f, encoding="utf-8") as fh:
+                scripts.append(f"<script>{InlineScript(fh.read())}</script>")
+        blob = json.dumps(data).replace("</", "<\\/")
+        return (f'<p class="caption">Drag to turn, wheel to zoom, right-drag to pan; '
+                f'{Esc(", ".join(facts))}; coloured by depth. Local ENU metres about '
+                f'({centre[0]:.1f}, {centre[1]:.1f}, {centre[2]:.1f}).</p>\n'
+                f'<div id="viewer3d"></div><div id="viewer3d-bar"></div>'
+                f'<div id="viewer3d-info" class="caption"></div>\n'
+                f'<script type="application/json" id="viewer-data">{blob}</script>\n'
+                + "\n".join(scripts))
