@@ -11,7 +11,6 @@
 //     lobe: worse than the empirical response;
 //   - the same survey in 83P v1.00 (no intensities): no mosaic, said so, no error.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -19,56 +18,23 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
 
-#include "tests/processor/pipeline/program_runner.hpp"
+#include "tests/support/process.hpp"
+#include "tests/support/scenario.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using pitmap::test::EvalScores;
+using pitmap::test::FreshDir;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
 using pitmap::test::ReadJson;
 using pitmap::test::RunCommand;
-using pitmap::test::Scores;
-
-void SetTrueBoresight(const fs::path& sim) {
-    const json t = ReadJson(sim / "truth/boresight.json");
-    const fs::path yaml = sim / "log/vehicle.yaml";
-    std::ifstream in(yaml);
-    std::ostringstream out;
-    bool found = false;
-    for (std::string line; std::getline(in, line);) {
-        if (line.rfind("  boresight_deg:", 0) == 0) {
-            char buf[128];
-            std::snprintf(buf,
-                          sizeof buf,
-                          "  boresight_deg: [%.6f, %.6f, %.6f]",
-                          t["roll_deg"].get<double>(),
-                          t["pitch_deg"].get<double>(),
-                          t["yaw_deg"].get<double>());
-            line = buf;
-            found = true;
-        }
-        out << line << "\n";
-    }
-    in.close();
-    ASSERT_TRUE(found) << yaml;
-    std::ofstream(yaml) << out.str();
-}
-
-std::map<std::string, double> Eval(const fs::path& truth, const fs::path& products) {
-    std::string text;
-    EXPECT_EQ(
-        RunCommand(kBin + "/pitmap-eval --truth " + Quote(truth) + " --products " + Quote(products),
-                   &text),
-        0)
-        << text;
-    return Scores(text);
-}
+using pitmap::test::SetTrueBoresight;
 
 void Print(const char* what, std::map<std::string, double>& s, const std::string& k) {
     std::printf(
@@ -85,17 +51,14 @@ void Print(const char* what, std::map<std::string, double>& s, const std::string
 }
 
 TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("pitmap_mosaic_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const fs::path dir = FreshDir("pitmap_mosaic");
     std::string out;
     ASSERT_EQ(RunCommand(kBin + "/pitmap-sim synth --scenario demo --duration 90 --out " +
                              Quote(dir / "sim"),
                          &out),
               0)
         << out;
-    SetTrueBoresight(dir / "sim");
+    ASSERT_TRUE(SetTrueBoresight(dir / "sim"));
     ASSERT_TRUE(fs::exists(dir / "sim/truth/backscatter.f32"));
     const json truth_model = ReadJson(dir / "sim/truth/backscatter.json");
     EXPECT_EQ(truth_model["spreading_db_per_decade"].get<double>(), 40.0);
@@ -116,7 +79,7 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
     const auto files = summary["stages"]["grid"]["files"];
     EXPECT_NE(std::find(files.begin(), files.end(), "mosaic.tif"), files.end());
 
-    auto s = Eval(dir / "sim/truth", P);
+    auto s = EvalScores(dir / "sim/truth", P);
     ASSERT_TRUE(s.count("mosaic_correlation")) << "pitmap-eval scored no mosaic";
     ASSERT_TRUE(s.count("mosaic_uncorrected_correlation"));
     Print("corrected (empirical):", s, "mosaic_");
@@ -145,7 +108,7 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
               0)
         << out;
     EXPECT_EQ(ReadJson(P / "summary.json")["stages"]["grid"]["mosaic"]["angular"], "lambert");
-    auto l = Eval(dir / "sim/truth", P);
+    auto l = EvalScores(dir / "sim/truth", P);
     Print("corrected (lambert):", l, "mosaic_");
     // (Measured: RMS 1.8 dB, patch mean |error| 0.65 dB.)
     EXPECT_GT(l["mosaic_rms_db"], s["mosaic_rms_db"] + 0.15);
