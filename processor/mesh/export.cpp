@@ -129,6 +129,9 @@ Status WriteObj(const ColouredMesh& mesh,
     return Ok{};
 }
 
+// The binary chunk is streamed to the file (ByteFileWriter) after the JSON chunk, whose
+// offsets are known from the counts: the file is never held in memory (on bejanca a 77 MB GLB
+// was built in a growing buffer and copied once more, 220 MB at the mesh stage's peak).
 Status WriteGlb(const ColouredMesh& mesh,
                 const std::string& path,
                 const std::optional<Geodetic>& origin) {
@@ -141,39 +144,30 @@ Status WriteGlb(const ColouredMesh& mesh,
                                                    {"height_m", origin->height_m}};
     }
     doc["scene"] = 0;
-    std::vector<std::uint8_t> bin;
-    ByteWriter b(bin);
+    const bool colours = !mesh.empty() && HasColours(mesh);
+    const std::size_t nv = mesh.vertices.size();
+    const std::size_t pos_bytes = mesh.empty() ? 0 : nv * 12;
+    const std::size_t col_bytes = colours ? nv * 12 : 0;
+    const std::size_t idx_bytes = mesh.empty() ? 0 : mesh.triangles.size() * 12;
+    const std::size_t bin_bytes = pos_bytes + col_bytes + idx_bytes;  // a multiple of 4
+    auto gltf = [](const Eigen::Vector3f& p) {
+        return std::array<float, 3>{p.x(), p.z(), -p.y()};  // ENU -> glTF y-up
+    };
     if (mesh.empty()) {
         doc["scenes"] = json::array({json::object()});
     } else {
-        const bool colours = HasColours(mesh);
-        const std::size_t nv = mesh.vertices.size();
         float lo[3], hi[3];
         for (int k = 0; k < 3; ++k) {
             lo[k] = std::numeric_limits<float>::max();
             hi[k] = -std::numeric_limits<float>::max();
         }
         for (const Eigen::Vector3f& p : mesh.vertices) {
-            const float g[3] = {p.x(), p.z(), -p.y()};  // ENU -> glTF y-up
+            const auto g = gltf(p);
             for (int k = 0; k < 3; ++k) {
-                b.F32Le(g[k]);
                 lo[k] = std::min(lo[k], g[k]);
                 hi[k] = std::max(hi[k], g[k]);
             }
         }
-        const std::size_t pos_bytes = bin.size();
-        std::size_t col_bytes = 0;
-        if (colours) {
-            for (const auto& c : mesh.colours) {
-                for (std::uint8_t v : c) b.F32Le(static_cast<float>(v) / 255.0f);
-            }
-            col_bytes = bin.size() - pos_bytes;
-        }
-        const std::size_t idx_offset = bin.size();
-        for (const Eigen::Vector3i& t : mesh.triangles) {
-            for (int k = 0; k < 3; ++k) b.U32Le(static_cast<std::uint32_t>(t[k]));
-        }
-        const std::size_t idx_bytes = bin.size() - idx_offset;
         json views = json::array();
         json accessors = json::array();
         views.push_back(
@@ -196,7 +190,7 @@ Status WriteGlb(const ColouredMesh& mesh,
         }
         const int idx_view = static_cast<int>(views.size());
         views.push_back({{"buffer", 0},
-                         {"byteOffset", idx_offset},
+                         {"byteOffset", pos_bytes + col_bytes},
                          {"byteLength", idx_bytes},
                          {"target", 34963}});
         accessors.push_back({{"bufferView", idx_view},
@@ -213,30 +207,42 @@ Status WriteGlb(const ColouredMesh& mesh,
                    {{{"attributes", attributes}, {"indices", idx_accessor}, {"mode", 4}}})}}});
         doc["bufferViews"] = views;
         doc["accessors"] = accessors;
-        doc["buffers"] = json::array({{{"byteLength", bin.size()}}});
+        doc["buffers"] = json::array({{{"byteLength", bin_bytes}}});
     }
     std::string json_text = doc.dump();
     while (json_text.size() % 4 != 0) json_text.push_back(' ');
-    while (bin.size() % 4 != 0) b.U8(0);
-    const std::size_t total = 12 + 8 + json_text.size() + (bin.empty() ? 0 : 8 + bin.size());
+    const std::size_t total = 12 + 8 + json_text.size() + (bin_bytes == 0 ? 0 : 8 + bin_bytes);
     if (total > std::numeric_limits<std::uint32_t>::max()) {
         return Error{path + ": mesh too large for a GLB file (4 GiB limit)"};
     }
-    std::vector<std::uint8_t> out;
-    out.reserve(total);
-    ByteWriter o(out);
-    o.U32Le(0x46546C67u);  // "glTF"
-    o.U32Le(2);
-    o.U32Le(static_cast<std::uint32_t>(total));
-    o.U32Le(static_cast<std::uint32_t>(json_text.size()));
-    o.U32Le(0x4E4F534Au);  // "JSON"
-    o.Bytes({reinterpret_cast<const std::uint8_t*>(json_text.data()), json_text.size()});
-    if (!bin.empty()) {
-        o.U32Le(static_cast<std::uint32_t>(bin.size()));
-        o.U32Le(0x004E4942u);  // "BIN\0"
-        o.Bytes(bin);
+    formats::ByteFileWriter f(path);
+    ByteWriter& h = f.out();
+    h.U32Le(0x46546C67u);  // "glTF"
+    h.U32Le(2);
+    h.U32Le(static_cast<std::uint32_t>(total));
+    h.U32Le(static_cast<std::uint32_t>(json_text.size()));
+    h.U32Le(0x4E4F534Au);  // "JSON"
+    f.Text(json_text);
+    if (bin_bytes > 0) {
+        ByteWriter& b = f.out();
+        b.U32Le(static_cast<std::uint32_t>(bin_bytes));
+        b.U32Le(0x004E4942u);  // "BIN\0"
+        for (const Eigen::Vector3f& p : mesh.vertices) {
+            ByteWriter& o = f.out();
+            for (const float v : gltf(p)) o.F32Le(v);
+        }
+        if (colours) {
+            for (const auto& c : mesh.colours) {
+                ByteWriter& o = f.out();
+                for (const std::uint8_t v : c) o.F32Le(static_cast<float>(v) / 255.0f);
+            }
+        }
+        for (const Eigen::Vector3i& t : mesh.triangles) {
+            ByteWriter& o = f.out();
+            for (int k = 0; k < 3; ++k) o.U32Le(static_cast<std::uint32_t>(t[k]));
+        }
     }
-    return formats::WriteFileBytes(path, out);
+    return f.Close();
 }
 
 }  // namespace pitmap::proc::mesh

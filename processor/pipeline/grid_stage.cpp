@@ -307,7 +307,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         sig[k].attitude_rpy_rad = p.head<3>();
         sig[k].position_enu_m = p.tail<3>();
     }
-    const hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
+    hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");
 
@@ -337,6 +337,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     part.Lap(timings, "utm_datum");
     const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
+    // S-44 takes its soundings from the UTM positions, as snd did.
+    std::vector<hydro::CubeSounding>().swap(snd);
     part.Lap(timings, "cube");
     if (!cube.ok) return Error{cube.message};
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
@@ -381,9 +384,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         files.push_back("soundings_tpu.ply");
     }
     if (gc.write_point_tpu) {
-        io::PointExtras extras;
-        extras.thu_95_m = tpu.thu_95_m;
-        extras.tvu_95_m = tpu.tvu_95_m;
+        io::PointExtras extras;  // borrows the THU/TVU (moved in, moved back after the writes)
+        extras.thu_95_m = std::move(tpu.thu_95_m);
+        extras.tvu_95_m = std::move(tpu.tvu_95_m);
         if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
         extras.vertical_wkt = datum->VerticalWkt();
         extras.vertical_name = datum->crs_name;
@@ -393,28 +396,35 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras); !w) return w;
             files.push_back("points.las");
         }
+        tpu.thu_95_m = std::move(extras.thu_95_m);
+        tpu.tvu_95_m = std::move(extras.tvu_95_m);
     }
     part.Lap(timings, "write");
 
     json s44_json;
     if (gc.s44) {
         hydro::S44Soundings ss;
-        const std::size_t n = snd.size();
+        const std::size_t n = s.geo.points.size();
         ss.x.resize(n);
         ss.y.resize(n);
         ss.z.resize(n);
         ss.depth_m.resize(n);
         ss.angle_deg.resize(n);
         for (std::size_t j = 0; j < n; ++j) {
-            ss.x[j] = snd[j].x;
-            ss.y[j] = snd[j].y;
-            ss.z[j] = snd[j].z;
+            const Eigen::Vector3d& e = utm->easting_northing_height[j];
+            const std::uint32_t k = s.geo.points.ping[j];
+            ss.x[j] = e.x();
+            ss.y[j] = e.y();
+            ss.z[j] = e.z() - D[k];
             // Depth for the limits: below the water-level datum, else below the transducer.
-            ss.depth_m[j] = water ? static_cast<float>(-snd[j].z) : snd[j].depth_m;
+            ss.depth_m[j] = water ? static_cast<float>(-ss.z[j])
+                                  : static_cast<float>(s.geo.pings[k].sensor_world.z() -
+                                                       s.geo.points.position_world[j].z());
             ss.angle_deg[j] = static_cast<float>(frames::RadToDeg(s.geo.points.angle_rad[j]));
         }
-        ss.thu_95_m = tpu.thu_95_m;
-        ss.tvu_95_m = tpu.tvu_95_m;
+        // The last users of the per-sounding THU/TVU: moved, not copied.
+        ss.thu_95_m = std::move(tpu.thu_95_m);
+        ss.tvu_95_m = std::move(tpu.tvu_95_m);
         ss.ping = s.geo.points.ping;
         std::vector<double> transducer(s.geo.pings.size());
         for (std::size_t k = 0; k < s.geo.pings.size(); ++k) {
