@@ -19,7 +19,7 @@ processor_pkgs=(
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev libassimp-dev
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
-  python3-numpy python3-matplotlib
+  python3-numpy python3-matplotlib python3-gdal
 )
 # The browser tests (headless Chromium loads the live page and report.html) and the report's
 # 3D viewer (three.js, inlined into report.html).

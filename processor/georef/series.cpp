@@ -27,6 +27,9 @@ void SortAndDeduplicate(PingSeries& s) {
     out.clock = s.clock;
     out.pings.reserve(s.pings.size());
     out.range_counts.reserve(s.range_counts.size());
+    const bool with_intensities =
+        s.intensities.size() == s.range_counts.size() && !s.intensities.empty();
+    if (with_intensities) out.intensities.reserve(s.intensities.size());
     for (std::size_t k = 0; k < order.size(); ++k) {
         const PingHeader& h = s.pings[order[k]];
         if (!out.pings.empty() && out.pings.back().utime_gps == h.utime_gps) continue;
@@ -35,6 +38,11 @@ void SortAndDeduplicate(PingSeries& s) {
         out.range_counts.insert(out.range_counts.end(),
                                 s.range_counts.begin() + h.beam_offset,
                                 s.range_counts.begin() + h.beam_offset + h.num_beams);
+        if (with_intensities) {
+            out.intensities.insert(out.intensities.end(),
+                                   s.intensities.begin() + h.beam_offset,
+                                   s.intensities.begin() + h.beam_offset + h.num_beams);
+        }
         out.pings.push_back(c);
     }
     s = std::move(out);

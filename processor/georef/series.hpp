@@ -76,7 +76,12 @@ struct PingSeries {
     std::vector<PingHeader> pings;
     std::vector<std::uint32_t> range_counts;   // 0 = no detection
     PingClock clock = PingClock::kGpsStamped;  // kTopsideHeader if any ping came from a .83P file
+    // The 83P per-beam intensities (normalised amplitude, raw counts, no physical unit), beside
+    // range_counts: empty when no ping carried any (83P v1.00, or v1.10 without them), else one
+    // per range count, 0 where a ping had none.
+    std::vector<std::uint16_t> intensities;
     std::size_t num_soundings() const { return range_counts.size(); }
+    bool has_intensities() const { return !intensities.empty(); }
 };
 
 // Sorts by time, drops exact duplicate times (the first kept), rebuilds beam offsets.

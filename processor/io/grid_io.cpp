@@ -149,8 +149,8 @@ Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
     QuietErrors quiet;
     std::vector<const GridLayer*> layers;
     for (const GridLayer& l : grid.layers) layers.push_back(&l);
-    auto mem =
-        MemDataset(path, grid, layers, std::numeric_limits<double>::quiet_NaN(), /*vertical=*/true);
+    auto mem = MemDataset(
+        path, grid, layers, std::numeric_limits<double>::quiet_NaN(), !grid.horizontal_only);
     if (!mem) return mem.error();
     char** opts = nullptr;
     opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");

@@ -39,6 +39,9 @@ struct GridRaster {
     // The heights' vertical CRS as OGC WKT1 VERT_CS (hydro::DatumModel::VerticalWkt); "" = WGS 84
     // ellipsoidal height.
     std::string vertical_wkt;
+    // The values are not heights (a backscatter mosaic): the file names the horizontal CRS only
+    // and vertical_wkt is not used.
+    bool horizontal_only = false;
     // Free-form dataset metadata (key, value).
     std::vector<std::pair<std::string, std::string>> metadata;
 };

@@ -115,6 +115,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
     pitmap::ins_stddev_t sd;
     pitmap::gps_time_t gt;
     pitmap::multibeam_ping_t mb;
+    std::vector<std::uint16_t> intensity_buf;  // a ping's intensities, clamped to 0..65535
     pitmap::raw_bytes_t raw;
     dt::Ping83P ping83;
     for (const std::string& path : paths) {
@@ -203,7 +204,19 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 h.start_angle_deg = mb.start_angle_deg;
                 h.angle_increment_deg = mb.angle_increment_deg;
                 h.profile_tilt_deg = mb.profile_tilt_deg;
-                col.AddPing(h, mb.range_counts.data(), mb.range_counts.size());
+                // Intensities only when the ping says so and they match the beams (a log
+                // that disagrees with itself keeps its ranges, without intensities).
+                const bool with = mb.intensity_included != 0 && mb.num_intensities > 0 &&
+                                  mb.intensities.size() == mb.range_counts.size();
+                intensity_buf.resize(with ? mb.intensities.size() : 0);
+                for (std::size_t i = 0; i < intensity_buf.size(); ++i) {
+                    intensity_buf[i] = static_cast<std::uint16_t>(
+                        std::clamp<std::int32_t>(mb.intensities[i], 0, 65535));
+                }
+                col.AddPing(h,
+                            mb.range_counts.data(),
+                            mb.range_counts.size(),
+                            with ? intensity_buf.data() : nullptr);
             } else if (StartsWith(ch, lcmlog::kChannelRaw)) {
                 const std::string_view raw_id = ch.substr(lcmlog::kChannelRaw.size());
                 const bool nav_ok = nav_id.empty() || raw_id == nav_id;

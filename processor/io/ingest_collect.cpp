@@ -103,7 +103,10 @@ void Collector::AddLeapSeconds(double utc_offset_s, int utc_status) {
         r_.nav.leap_seconds = static_cast<int>(std::lround(-utc_offset_s));
     }
 }
-void Collector::AddPing(const PingHeader& h_in, const std::int32_t* counts, std::size_t n) {
+void Collector::AddPing(const PingHeader& h_in,
+                        const std::int32_t* counts,
+                        std::size_t n,
+                        const std::uint16_t* intensities) {
     if (h_in.utime_gps <= 0) {
         ++r_.counts.pings_without_time;
         return;
@@ -117,6 +120,15 @@ void Collector::AddPing(const PingHeader& h_in, const std::int32_t* counts, std:
     h.num_beams = static_cast<std::uint16_t>(n);
     for (std::size_t i = 0; i < n; ++i) {
         r_.pings.range_counts.push_back(counts[i] > 0 ? static_cast<std::uint32_t>(counts[i]) : 0u);
+    }
+    // Intensities beside the counts: the first ping with some gives the earlier pings zeros
+    // ("none"); a ping without any after that gets zeros too.
+    auto& in = r_.pings.intensities;
+    if (intensities != nullptr && in.empty()) in.assign(h.beam_offset, 0);
+    if (intensities != nullptr) {
+        in.insert(in.end(), intensities, intensities + n);
+    } else if (!in.empty()) {
+        in.resize(in.size() + n, 0);
     }
     r_.pings.pings.push_back(h);
 }
@@ -147,7 +159,8 @@ void Collector::AddPing83P(const dt::Ping83P& p, std::int64_t utime_gps) {
                             ? p.internal_heading_deg
                             : ext(dt::kExternalHeadingValid, p.external_heading_deg);
     counts_buf_.assign(p.range_counts.begin(), p.range_counts.end());
-    AddPing(h, counts_buf_.data(), counts_buf_.size());
+    const bool with = p.intensity_included && p.intensities.size() == p.range_counts.size();
+    AddPing(h, counts_buf_.data(), counts_buf_.size(), with ? p.intensities.data() : nullptr);
 }
 
 void Collector::AddNovatel(const nv::DecodeResult& d) {

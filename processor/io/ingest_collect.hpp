@@ -46,7 +46,11 @@ public:
     void AddNav(const georef::NavSample& s);
     void AddStdDev(const georef::NavStdDev& s);
     void AddLeapSeconds(double utc_offset_s, int utc_status);
-    void AddPing(const georef::PingHeader& h_in, const std::int32_t* counts, std::size_t n);
+    // `intensities`: n per-beam intensities, or null when the ping has none.
+    void AddPing(const georef::PingHeader& h_in,
+                 const std::int32_t* counts,
+                 std::size_t n,
+                 const std::uint16_t* intensities = nullptr);
     void AddPing83P(const dt::Ping83P& p, std::int64_t utime_gps);
     // NovAtel messages decoded from bytes (raw channels and files).
     void AddNovatel(const nv::DecodeResult& d);

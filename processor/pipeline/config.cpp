@@ -313,6 +313,35 @@ void VisitS44(V&& v, GridStageConfig& g) {
     v("min_reference_soundings", c.min_reference_soundings, "crossing soundings needed a cell");
 }
 
+constexpr hydro::AngularCorrection kAngularCorrections[] = {hydro::AngularCorrection::kNone,
+                                                            hydro::AngularCorrection::kLambert,
+                                                            hydro::AngularCorrection::kEmpirical};
+
+template <class V>
+void VisitMosaic(V&& v, GridStageConfig& g) {
+    hydro::MosaicConfig& c = g.mosaic_config;
+    v("enabled", g.mosaic, "P/mosaic.tif from the 83P intensities in the grid stage");
+    v("spreading_db_per_decade",
+      c.spreading_db_per_decade,
+      "range correction k log10(R): 40 = two-way spherical spreading\n"
+      "(40 minus the slope of a TVG the head applied)");
+    v("absorption_db_per_m",
+      c.absorption_db_per_m,
+      "one-way absorption, dB/m (2 a R removed); 0.021 = fresh water, 260 kHz, 10 degC");
+    v.Enum("angular",
+           c.angular,
+           kAngularCorrections,
+           "incidence correction: none | lambert (cos^2) | empirical (the survey's mean\n"
+           "angular response, incidence from the DEM's slopes)");
+    v("reference_angle_deg", c.reference_angle_deg, "corrected to this incidence, deg");
+    v("angle_bin_deg", c.angle_bin_deg, "empirical angular response bin, deg");
+    v("min_bin_soundings", c.min_bin_soundings, "thinner bins interpolated");
+    v("empirical_iterations",
+      c.empirical_iterations,
+      "refinements of the empirical response against the nodes' means (0 = bin mean)");
+    v("max_incidence_deg", c.max_incidence_deg, "soundings beyond are not used, deg");
+}
+
 template <class V>
 void VisitRun(V&& v, RunOptions& r) {
     v("calibrate", r.calibrate, "boresight calibration before SLAM");
@@ -348,6 +377,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("grid", [&](auto& s) { VisitGrid(s, c.grid); });
     v.Section("vertical", [&](auto& s) { VisitVertical(s, c.grid.vertical); });
     v.Section("s44", [&](auto& s) { VisitS44(s, c.grid); });
+    v.Section("mosaic", [&](auto& s) { VisitMosaic(s, c.grid); });
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });

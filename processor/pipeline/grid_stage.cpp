@@ -272,6 +272,7 @@ std::vector<std::string> GridStageConfig::Validate() const {
     if (!(ins_sigma_max_age_s > 0)) out.push_back("grid.ins_sigma_max_age_s must be > 0");
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
+    for (auto& p : mosaic_config.Validate()) out.push_back(p);
     return out;
 }
 
@@ -457,6 +458,14 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
         part.Lap(timings, "s44");
     }
+    json mosaic_json;
+    if (gc.mosaic) {
+        auto mosaic = detail::MosaicSurvey(s, gc, raster, *utm, UtmToWorld(*utm, s.geo), log);
+        if (!mosaic) return mosaic.error();
+        if (mosaic->contains("file")) files.push_back((*mosaic)["file"]);
+        mosaic_json = std::move(*mosaic);
+        part.Lap(timings, "mosaic");
+    }
     json shares = json::object();
     for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
         shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
@@ -487,6 +496,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"message", cube.message}};
     json stage = st;
     if (!s44_json.is_null()) stage["s44"] = s44_json;
+    if (!mosaic_json.is_null()) stage["mosaic"] = std::move(mosaic_json);
     s.summary["vertical_datum"] = datum_record;
     log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());

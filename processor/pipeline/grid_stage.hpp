@@ -7,10 +7,15 @@
 //   P/soundings_tpu.ply  (grid.write_sounding_tpu) per sounding: float x, y, z (world ENU, as
 //                      points.ply), double gps_time_s, float angle_deg (beam angle), float
 //                      thu_95_m, tvu_95_m; comment "pitmap_origin LAT LON H"
-// and summary.json stages.grid. It runs on the soundings of the last stage (after SLAM, or
-// after georef / calibrate when SLAM is off). The error model is vehicle.yaml's `uncertainty:`
-// section (summary.json vehicle_yaml), else SensorErrorModel's defaults; the INS sigmas are the
-// logs' INSSTDEV records nearest each ping (within ins_sigma_max_age_s), else the model's.
+//   P/mosaic.tif       (mosaic.enabled, when the pings carry 83P intensities) Cloud Optimized
+//                      GeoTIFF on the DEM's grid, WGS 84 / UTM zone only: bands backscatter (dB,
+//                      relative, corrected for range and incidence: hydro/mosaic.hpp),
+//                      uncorrected (mean 20 log10 intensity, dB) and count
+// and summary.json stages.grid (stages.grid.mosaic). It runs on the soundings of the last stage
+// (after SLAM, or after georef / calibrate when SLAM is off). The error model is vehicle.yaml's
+// `uncertainty:` section (summary.json vehicle_yaml), else SensorErrorModel's defaults; the INS
+// sigmas are the logs' INSSTDEV records nearest each ping (within ins_sigma_max_age_s), else the
+// model's.
 #pragma once
 
 #include <string>
@@ -18,6 +23,7 @@
 
 #include "processor/hydro/cube.hpp"
 #include "processor/hydro/datum.hpp"
+#include "processor/hydro/mosaic.hpp"
 #include "processor/hydro/s44.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -34,6 +40,9 @@ struct GridStageConfig {
     hydro::VerticalDatumConfig vertical;  // the `vertical:` section: the products' datum
     bool s44 = true;                      // S-44 quality control (`s44:` section)
     hydro::S44Config s44_config;
+    bool mosaic = true;  // backscatter mosaic (`mosaic:` section), when the
+                         // pings carry intensities
+    hydro::MosaicConfig mosaic_config;
 
     std::vector<std::string> Validate() const;
 };

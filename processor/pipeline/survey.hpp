@@ -13,6 +13,7 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/survey/survey.hpp"
@@ -117,6 +118,15 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+// The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
+// its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm` are
+// the soundings' UTM coordinates, `utm_to_world` the affine map of UTM into the world frame.
+Expected<nlohmann::json> MosaicSurvey(const Survey& s,
+                                      const GridStageConfig& gc,
+                                      const io::GridRaster& dem,
+                                      const georef::UtmPoints& utm,
+                                      const Eigen::Matrix<double, 2, 3>& utm_to_world,
+                                      const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
 // or kFuseInitial for the mesh before SLAM.
 Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,

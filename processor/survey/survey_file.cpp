@@ -75,8 +75,12 @@ georef::NavSample FromDisk(const DiskNav& d) {
 class Payload {
 public:
     void Bytes(const void* p, std::size_t n) {
-        const auto* b = static_cast<const std::uint8_t*>(p);
-        bytes_.insert(bytes_.end(), b, b + n);
+        // resize + memcpy: gcc 12's -Wstringop-overflow misreads vector::insert into an empty
+        // vector once SaveSurvey inlines the intensity section's payload.
+        if (n == 0) return;
+        const std::size_t at = bytes_.size();
+        bytes_.resize(at + n);
+        std::memcpy(bytes_.data() + at, p, n);
     }
     template <typename T>
     void Value(const T& v) {
@@ -290,6 +294,21 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResul
     return Ok{};
 }
 
+// ---- intensities ----
+
+Payload IntensityPayload(const georef::PingSeries& p) {
+    Payload out;
+    out.Vec(p.intensities);
+    return out;
+}
+
+Status IntensityFromPayload(const std::vector<std::uint8_t>& bytes, georef::PingSeries& p) {
+    Cursor in(bytes, "intensity");
+    in.Vec(p.intensities, "intensities");
+    if (!in.Finish()) return Error{in.error};
+    return Ok{};
+}
+
 // ---- trajectories ----
 
 Payload TrajectoryPayload(const PingTrajectory& t) {
@@ -359,6 +378,8 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
         sections.emplace_back("state", std::move(state));
     }
     sections.emplace_back("ingest", IngestPayload(m.ingest));
+    if (m.ingest.pings.has_intensities())
+        sections.emplace_back("intensity", IntensityPayload(m.ingest.pings));
     for (int v = 0; v < kNumTrajectoryVersions; ++v) {
         if (!m.trajectories[v].empty())
             sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
@@ -404,15 +425,17 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     }
     if (std::memcmp(magic, kMagic, sizeof kMagic) != 0)
         return Error{path + ": not a pitmap survey file (bad magic)" + rerun};
-    if (head[0] != kSurveyFormatVersion || head[1] != kByteOrder) {
+    // Format 1 differs only by having no intensity section: it is read, without intensities.
+    if ((head[0] != kSurveyFormatVersion && head[0] != 1) || head[1] != kByteOrder) {
         return Error{path + ": survey file format " + std::to_string(head[0]) +
                      " or byte order not of this build (format " +
                      std::to_string(kSurveyFormatVersion) + ")" + rerun};
     }
+    const std::uint32_t format = head[0];
     const std::uint32_t count = head[2];
     std::uint64_t pos = kHeadBytes;
     SurveyModel m;
-    bool seen_state = false, seen_ingest = false;
+    bool seen_state = false, seen_ingest = false, seen_intensity = false;
     bool seen_trajectory[kNumTrajectoryVersions] = {};
     auto corrupt = [&](const std::string& what) {
         return Error{path + ": corrupt survey file: " + what + rerun};
@@ -436,10 +459,11 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (tag == kTrajectoryTags[v]) trajectory = v;
         }
-        bool* seen = tag == "state"    ? &seen_state
-                     : tag == "ingest" ? &seen_ingest
-                     : trajectory >= 0 ? &seen_trajectory[trajectory]
-                                       : nullptr;
+        bool* seen = tag == "state"                      ? &seen_state
+                     : tag == "ingest"                   ? &seen_ingest
+                     : tag == "intensity" && format >= 2 ? &seen_intensity
+                     : trajectory >= 0                   ? &seen_trajectory[trajectory]
+                                                         : nullptr;
         if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
         if (*seen) return corrupt("section " + tag + " twice");
         *seen = true;
@@ -462,6 +486,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             if (!st) st = Error{"section state: " + st.error().message};
         } else if (tag == "ingest") {
             st = IngestFromPayload(payload, m.ingest);
+        } else if (tag == "intensity") {
+            st = IntensityFromPayload(payload, m.ingest.pings);
         } else {
             st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
         }
@@ -471,6 +497,12 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     if (!seen_state) return corrupt("no state section");
     if (!seen_ingest) return corrupt("no ingest section");
     if (parts == LoadParts::kAll) {
+        const auto& pings = m.ingest.pings;
+        if (seen_intensity && pings.intensities.size() != pings.range_counts.size()) {
+            return corrupt("section intensity has " + std::to_string(pings.intensities.size()) +
+                           " intensities for " + std::to_string(pings.range_counts.size()) +
+                           " range counts");
+        }
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (seen_trajectory[v] &&
                 m.trajectories[v].T_world_vehicle.size() != m.ingest.pings.pings.size()) {

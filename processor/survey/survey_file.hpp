@@ -12,6 +12,9 @@
 //                         sonar clock, refraction record, calibration state
 //   ingest                i32 leap seconds, u32 ping clock, then nav samples, nav stddevs, ping
 //                         headers and range counts, each as u64 count, u64 element size, bytes
+//   intensity             (format 2; only when the pings carry intensities) u16 per-beam 83P
+//                         intensities beside the range counts (one per count, 0 = none), as
+//                         u64 count, u64 element size, bytes
 //   traj.ins, traj.calibrated, traj.slam
 //                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,
 //                         qz (T_world_vehicle), u32 valid, u32 zero
@@ -29,7 +32,9 @@
 
 namespace pitmap::proc::survey {
 
-inline constexpr std::uint32_t kSurveyFormatVersion = 1;
+// 2: the optional intensity section. A format 1 file is still read (without intensities);
+// any other format is an error that says to run `pitmap georef` again.
+inline constexpr std::uint32_t kSurveyFormatVersion = 2;
 inline constexpr const char* kSurveyFileName = "survey.pitmap";
 
 // Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the

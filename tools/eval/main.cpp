@@ -56,6 +56,15 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 millimetres for a geoid over a pit) from the true terrain;
                                 dem_mean_abs_insonified_m over the insonified nodes only.
   dem_fill_insonified           share of the nodes on insonified truth cells that are filled.
+  mosaic_correlation, mosaic_rms_db, mosaic_patch_mean_abs_db, mosaic_patch_max_abs_db,
+  mosaic_level_max_abs_db, mosaic_offset_db, mosaic_nodes, mosaic_patches
+                                P/mosaic.tif band "backscatter" against truth/backscatter.f32:
+                                Pearson correlation over the nodes whose footprint lies on one
+                                truth value; after removing offset_db = median(mosaic - truth)
+                                (the sonar's gain is unknown), the RMS error, the mean and
+                                largest |mean error| per patch (truth square, >= 20 nodes), the
+                                largest |mean error| per truth level. mosaic_uncorrected_*: the
+                                same for band "uncorrected" (20 log10 intensity, no correction).
   tpu_within_tvu, tpu_within_thu
                                 share of the soundings of P/soundings_tpu.ply whose vertical
                                 (horizontal) error from the true beam-axis point (the same beam
@@ -345,6 +354,59 @@ int main(int argc, char** argv) {
         scores["dem_mean_abs_insonified_m"] = s.insonified.mean_abs_m;
         scores["dem_resolution_m"] = g.resolution_m;
         if (s.fill_insonified) scores["dem_fill_insonified"] = *s.fill_insonified;
+    }
+    if (fs::exists(P / "mosaic.tif") && !truth->backscatter_db.empty()) {
+        auto mosaic = proc::io::ReadGrid((P / "mosaic.tif").string());
+        if (!mosaic) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", mosaic.error().message.c_str());
+            return 2;
+        }
+        const int epsg = mosaic->horizontal_epsg;
+        if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760))) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s/mosaic.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
+                         products_dir.c_str(),
+                         epsg);
+            return 2;
+        }
+        const proc::io::GridRaster& g = mosaic->grid;
+        const LocalTangentFrame tf(truth->origin);
+        for (const auto& layer : g.layers) {
+            if (layer.name != "backscatter" && layer.name != "uncorrected") continue;
+            std::vector<Eigen::Vector3d> nodes;
+            for (int j = 0; j < g.ny; ++j) {
+                for (int i = 0; i < g.nx; ++i) {
+                    const float v = layer.values[static_cast<std::size_t>(j) * g.nx + i];
+                    if (!std::isfinite(v)) continue;
+                    UtmCoordinate u;
+                    u.zone = epsg % 100;
+                    u.northern = epsg < 32700;
+                    u.easting_m = g.x0 + i * g.resolution_m;
+                    u.northing_m = g.y0 + j * g.resolution_m;
+                    u.height_m = truth->origin.height_m;
+                    auto geo = GeodeticFromUtm(u);
+                    if (!geo) continue;
+                    Eigen::Vector3d p = tf.ToEnu(*geo);
+                    p.z() = v;
+                    nodes.push_back(p);
+                }
+            }
+            const auto sc = eval::ScoreMosaic(nodes, g.resolution_m, *truth);
+            if (!sc) continue;
+            const std::string k = layer.name == "backscatter" ? "mosaic_" : "mosaic_uncorrected_";
+            scores[k + "nodes"] = sc->nodes;
+            scores[k + "correlation"] = sc->correlation;
+            scores[k + "offset_db"] = sc->offset_db;
+            scores[k + "rms_db"] = sc->rms_db;
+            scores[k + "patches"] = sc->patches;
+            scores[k + "patch_mean_abs_db"] = sc->patch_mean_abs_db;
+            scores[k + "patch_max_abs_db"] = sc->patch_max_abs_db;
+            double level_max = 0;
+            for (const auto& [level, err, n] : sc->by_level) {
+                if (n >= 20) level_max = std::max(level_max, std::abs(err));
+            }
+            scores[k + "level_max_abs_db"] = level_max;
+        }
     }
 #endif
     if (fs::exists(P / "soundings_tpu.ply")) {

@@ -220,6 +220,92 @@ DemScore ScoreDem(const std::vector<Eigen::Vector3d>& nodes, const sim::Truth& t
     return out;
 }
 
+std::optional<MosaicScore> ScoreMosaic(const std::vector<Eigen::Vector3d>& nodes,
+                                       double resolution_m,
+                                       const sim::Truth& truth,
+                                       std::size_t min_patch_nodes) {
+    if (truth.backscatter_db.empty()) return std::nullopt;
+    const sim::TerrainGrid& g = truth.terrain;
+    const auto truth_at = [&](double x, double y) -> double {
+        const long ix = std::lround((x - g.x0_m) / g.resolution_m);
+        const long iy = std::lround((y - g.y0_m) / g.resolution_m);
+        if (ix < 0 || iy < 0 || ix >= g.nx || iy >= g.ny) return std::nan("");
+        return truth.backscatter_db[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g.nx) +
+                                    static_cast<std::size_t>(ix)];
+    };
+    const double h = 0.75 * resolution_m;
+    const double patch = truth.backscatter.patch_size_m;
+    struct Node {
+        double est, tru;
+        long px, py;
+    };
+    std::vector<Node> kept;
+    for (const Eigen::Vector3d& p : nodes) {
+        if (!std::isfinite(p.z())) continue;
+        const double t = truth_at(p.x(), p.y());
+        if (!std::isfinite(t)) continue;
+        bool uniform = true;
+        for (const auto& [dx, dy] : {std::pair{-h, -h}, {h, -h}, {-h, h}, {h, h}, {0.0, 0.0}}) {
+            if (truth_at(p.x() + dx, p.y() + dy) != t) uniform = false;
+        }
+        if (!uniform) continue;
+        kept.push_back({p.z(),
+                        t,
+                        static_cast<long>(std::floor(p.x() / patch)),
+                        static_cast<long>(std::floor(p.y() / patch))});
+    }
+    MosaicScore out;
+    out.nodes = kept.size();
+    if (kept.size() < 2) return out;
+    std::vector<double> diff(kept.size());
+    double me = 0, mt = 0;
+    for (std::size_t k = 0; k < kept.size(); ++k) {
+        diff[k] = kept[k].est - kept[k].tru;
+        me += kept[k].est;
+        mt += kept[k].tru;
+    }
+    me /= static_cast<double>(kept.size());
+    mt /= static_cast<double>(kept.size());
+    double see = 0, stt = 0, set = 0;
+    for (const Node& n : kept) {
+        see += (n.est - me) * (n.est - me);
+        stt += (n.tru - mt) * (n.tru - mt);
+        set += (n.est - me) * (n.tru - mt);
+    }
+    out.correlation = see > 0 && stt > 0 ? set / std::sqrt(see * stt) : 0.0;
+    std::vector<double> sorted = diff;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    out.offset_db = sorted[sorted.size() / 2];
+    double ss = 0;
+    // Patches keyed by square and truth level (boulders in a square are their own patch).
+    std::map<std::tuple<long, long, double>, std::pair<double, std::size_t>> patches;
+    std::map<double, std::pair<double, std::size_t>> levels;
+    for (std::size_t k = 0; k < kept.size(); ++k) {
+        const double e = diff[k] - out.offset_db;
+        ss += e * e;
+        auto& pa = patches[{kept[k].px, kept[k].py, kept[k].tru}];
+        pa.first += e;
+        ++pa.second;
+        auto& le = levels[kept[k].tru];
+        le.first += e;
+        ++le.second;
+    }
+    out.rms_db = std::sqrt(ss / static_cast<double>(kept.size()));
+    double sum_abs = 0;
+    for (const auto& [key, v] : patches) {
+        if (v.second < min_patch_nodes) continue;
+        const double m = std::abs(v.first / static_cast<double>(v.second));
+        sum_abs += m;
+        out.patch_max_abs_db = std::max(out.patch_max_abs_db, m);
+        ++out.patches;
+    }
+    if (out.patches > 0) out.patch_mean_abs_db = sum_abs / static_cast<double>(out.patches);
+    for (const auto& [level, v] : levels) {
+        out.by_level.emplace_back(level, v.first / static_cast<double>(v.second), v.second);
+    }
+    return out;
+}
+
 TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
                   const sim::Truth& truth,
                   const sim::PitWorld& world,

@@ -19,6 +19,7 @@
 //                           insonified nodes only.
 //   dem_fill_insonified     share of the nodes whose centre lies on an insonified truth cell
 //                           (truth/coverage.u8) that hold a value.
+//   mosaic_*                P/mosaic.tif against truth/backscatter.f32 (ScoreMosaic).
 //   tpu_within_tvu, tpu_within_thu  share of the soundings (P/soundings_tpu.ply) whose vertical
 //                           (horizontal) error lies within their 95 % TVU (THU); the error is
 //                           the sounding minus the true beam-axis point: the ray of the same
@@ -29,6 +30,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "common/formats/trajectory_csv.hpp"
@@ -99,6 +101,28 @@ struct DemScore {
     std::optional<double> fill_insonified;  // nullopt without a coverage mask
 };
 DemScore ScoreDem(const std::vector<Eigen::Vector3d>& nodes_truth, const sim::Truth& truth);
+
+// A backscatter mosaic's nodes in the truth frame: (x, y, z = the node's dB, NaN = empty).
+// Only nodes whose footprint (the node +- 0.75 resolution) lies on one truth value are scored,
+// so that a patch edge inside a node does not count as an error. The mosaic is relative (the
+// sonar's gain is unknown): offset_db = median(mosaic - truth) is removed before the errors.
+// A patch is one square of the truth (BackscatterConfig patch_size_m) or the boulders in it.
+struct MosaicScore {
+    std::size_t nodes = 0;         // scored
+    double correlation = 0;        // Pearson, mosaic vs truth dB
+    double offset_db = 0;          // median(mosaic - truth)
+    double rms_db = 0;             // RMS of mosaic - truth - offset
+    std::size_t patches = 0;       // patches with at least min_patch_nodes nodes
+    double patch_mean_abs_db = 0;  // mean over them of |mean(mosaic - truth - offset)|
+    double patch_max_abs_db = 0;   // the largest of those
+    // Per truth level (material): (truth dB, mean error dB after the offset, nodes).
+    std::vector<std::tuple<double, double, std::size_t>> by_level;
+};
+// nullopt when the truth has no backscatter. Precondition: resolution_m > 0.
+std::optional<MosaicScore> ScoreMosaic(const std::vector<Eigen::Vector3d>& nodes_truth,
+                                       double resolution_m,
+                                       const sim::Truth& truth,
+                                       std::size_t min_patch_nodes = 20);
 
 // One sounding of soundings_tpu.ply, position in the truth frame.
 struct TpuSounding {

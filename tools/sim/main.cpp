@@ -135,6 +135,13 @@ int main(int argc, char** argv) {
                      dropout_patch,
                      "X Y R: beams hitting within R m of world (X, Y) return nothing (a holiday)")
         ->expected(3);
+    std::string sonar_format;
+    synth
+        ->add_option("--sonar-format",
+                     sonar_format,
+                     "83P format of the pings: 1.10 (default, with intensities) or 1.00 (no field "
+                     "for intensities)")
+        ->check(CLI::IsMember({"1.00", "1.10"}));
     double duration_s = 0;
     auto* duration_opt = synth->add_option(
         "--duration", duration_s, "seconds of the survey to simulate (default: the scenario's)");
@@ -202,6 +209,7 @@ int main(int argc, char** argv) {
         scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
     }
     if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
+    if (!sonar_format.empty()) scenario->sonar.format_version = sonar_format == "1.00" ? 0 : 10;
     if (dropout_patch.size() == 3) {
         scenario->sonar.dropout_patch_x_m = dropout_patch[0];
         scenario->sonar.dropout_patch_y_m = dropout_patch[1];

@@ -212,6 +212,20 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         p.push_back("sonar.daemon_stamp_error_after_ms must be within +-1000");
     if (!std::isfinite(sonar.daemon_stamp_error_step_s))
         p.push_back("sonar.daemon_stamp_error_step_s must be finite");
+    if (backscatter.patch_levels_db.empty() || backscatter.patch_levels_db.size() > 250)
+        p.push_back("backscatter.patch_levels_db must hold 1..250 levels");
+    for (double v : backscatter.patch_levels_db) {
+        if (!(v >= -80 && v <= 0)) p.push_back("backscatter.patch_levels_db must be within -80..0");
+    }
+    if (!(backscatter.boulder_db >= -80 && backscatter.boulder_db <= 0))
+        p.push_back("backscatter.boulder_db must be within -80..0");
+    CheckPositive(p, backscatter.patch_size_m, "backscatter.patch_size_m");
+    if (!(backscatter.spreading_db_per_decade >= 0 && backscatter.absorption_db_per_m >= 0 &&
+          backscatter.speckle_db >= 0 && backscatter.specular_db >= 0 &&
+          std::isfinite(backscatter.source_level_db))) {
+        p.push_back("backscatter: spreading, absorption, speckle and specular must be >= 0");
+    }
+    CheckPositive(p, backscatter.specular_width_deg, "backscatter.specular_width_deg");
     if (sonar.format_version != 0 && sonar.format_version != 10)
         p.push_back("sonar.format_version must be 0 or 10");
     if (sonar.dropout_probability < 0 || sonar.outlier_probability < 0 ||

@@ -174,6 +174,28 @@ struct WaterColumnConfig {
     double SpeedAt(double depth_m) const;
 };
 
+// The seabed's backscatter and the sonar's echo amplitude (the 83P intensities). The seabed
+// is tiled in squares of patch_size_m (world x, y), each of one material drawn from the seed
+// among patch_levels_db; boulders are boulder_db. BS(x, y) is the backscatter strength
+// without the angular response. The echo level of a beam, dB re one intensity count:
+//   L = source_level_db - spreading_db_per_decade log10(R) - 2 absorption_db_per_m R
+//       + BS(x, y) + AR(theta) + speckle_db N(0, 1)
+//   AR(theta) = 10 log10(cos^2 theta) + specular_db exp(-(theta / specular_width_deg)^2)
+// (R slant range, theta incidence on the true terrain), and the 83P intensity is the
+// amplitude round(10^(L / 20)) in 1..65535 (65535 = saturated). The truth writes BS on the
+// terrain grid (truth_io.hpp backscatter.f32) and these parameters (backscatter.json).
+struct BackscatterConfig {
+    std::vector<double> patch_levels_db = {-14.0, -20.0, -26.0, -32.0};
+    double patch_size_m = 5.0;
+    double boulder_db = -8.0;  // rock: harder than any sediment patch
+    double source_level_db = 110.0;
+    double spreading_db_per_decade = 40.0;  // two-way spherical spreading
+    double absorption_db_per_m = 0.021;     // one way (fresh water, 260 kHz, 10 degC)
+    double specular_db = 6.0;               // specular lobe at normal incidence
+    double specular_width_deg = 10.0;
+    double speckle_db = 2.0;  // per-beam fluctuation (1 sigma, dB)
+};
+
 struct ScenarioConfig {
     std::string name = "custom";
     std::uint64_t seed = 1;
@@ -191,6 +213,7 @@ struct ScenarioConfig {
     NavErrorConfig nav;
     SonarConfig sonar;
     WaterColumnConfig water;
+    BackscatterConfig backscatter;
     double ins_rate_hz = 50.0;   // INSPVAS
     double imu_rate_hz = 200.0;  // RAWIMUSX
     double gnss_rate_hz = 1.0;   // BESTPOS, INSPVAX, INSSTDEV, TIME

@@ -14,8 +14,13 @@ namespace pitmap::sim {
 SonarModel::SonarModel(const SonarConfig& config,
                        const PitWorld& world,
                        std::uint64_t seed,
-                       const WaterColumn* water)
-    : cfg_(config), world_(world), seed_(seed), water_(water) {}
+                       const WaterColumn* water,
+                       const BackscatterConfig& backscatter)
+    : cfg_(config),
+      world_(world),
+      seed_(seed),
+      water_(water),
+      seabed_(backscatter, seed, world.boulders()) {}
 
 double SonarModel::BeamAngleDeg(int i) const {
     const long start = std::lround((cfg_.start_angle_deg + 180.0) * 100.0);
@@ -133,14 +138,19 @@ SimPing SonarModel::Ping(const Pose& T_world_sonar, std::int64_t ping_number) co
         const double counts = std::round(std::clamp(r, 0.0, cfg_.max_range_m) / res_m);
         out.range_counts[i] = static_cast<std::uint16_t>(std::clamp(counts, 1.0, 65535.0));
         if (cfg_.intensities) {
-            // Amplitude falls with range (spreading + absorption) and with incidence.
+            // The echo level (BackscatterConfig): the seabed's backscatter at the true hit, its
+            // angular response at the true incidence, two-way spreading and absorption over
+            // the true range, speckle; the 83P value is the amplitude.
             const Eigen::Vector3d hit = out.true_hit_world[i];
             const Eigen::Vector3d n = world_.Normal(hit.x(), hit.y());
             const Eigen::Vector3d dir = (hit - origin).normalized();
-            const double cos_inc = std::max(0.05, -dir.dot(n));
-            const double amp = 20000.0 * cos_inc * std::exp(-0.03 * r_true) / (1.0 + 0.05 * r_true);
+            const double incidence_deg =
+                std::acos(std::clamp(-dir.dot(n), 0.0, 1.0)) * 180.0 / 3.14159265358979323846;
+            const double level =
+                seabed_.LevelDb(r_true, incidence_deg, seabed_.At(hit.x(), hit.y())) +
+                seabed_.config().speckle_db * gauss(rng);
             out.intensities[i] = static_cast<std::uint16_t>(
-                std::clamp(amp * (1.0 + 0.1 * gauss(rng)), 1.0, 65535.0));
+                std::clamp(std::round(std::pow(10.0, level / 20.0)), 1.0, 65535.0));
         }
     }
     return out;

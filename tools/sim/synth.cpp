@@ -195,7 +195,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
             return w.error();
         }
     }
-    const SonarModel sonar(sc.sonar, world, sc.seed, water ? &*water : nullptr);
+    const SonarModel sonar(sc.sonar, world, sc.seed, water ? &*water : nullptr, sc.backscatter);
     SimulatedReceiver receiver(sc, truth, errors, *start_gps);
     const SimulatedTopside topside(sc, truth, *start_gps);
     DecodedChannels decoded(sc);
@@ -418,6 +418,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     t.boresight = {
         sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
     t.coverage = std::move(coverage);
+    t.backscatter_db =
+        SeabedBackscatter(sc.backscatter, sc.seed, world.boulders()).Sample(world.grid());
+    t.backscatter = sc.backscatter;
     t.sonar_clock = MakeSonarClockTruth(sc, *start_gps, truth.duration_s());
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
     return result;

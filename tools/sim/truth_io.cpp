@@ -18,6 +18,18 @@ namespace {
 
 using nlohmann::json;
 
+json BackscatterToJson(const BackscatterConfig& b) {
+    return {{"patch_levels_db", b.patch_levels_db},
+            {"patch_size_m", b.patch_size_m},
+            {"boulder_db", b.boulder_db},
+            {"source_level_db", b.source_level_db},
+            {"spreading_db_per_decade", b.spreading_db_per_decade},
+            {"absorption_db_per_m", b.absorption_db_per_m},
+            {"specular_db", b.specular_db},
+            {"specular_width_deg", b.specular_width_deg},
+            {"speckle_db", b.speckle_db}};
+}
+
 json ScenarioToJson(const ScenarioConfig& s) {
     json j;
     j["name"] = s.name;
@@ -124,6 +136,7 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"nmea_heading_noise_deg", o.nmea_heading_noise_deg},
                   {"internal_attitude_sensor", o.internal_attitude_sensor},
                   {"internal_attitude_noise_deg", o.internal_attitude_noise_deg}};
+    j["backscatter"] = BackscatterToJson(s.backscatter);
     j["ins_rate_hz"] = s.ins_rate_hz;
     j["imu_rate_hz"] = s.imu_rate_hz;
     j["gnss_rate_hz"] = s.gnss_rate_hz;
@@ -249,6 +262,29 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
         csv.rows.push_back(formats::RowOf(p.gps_time_s, p.T_world_vehicle));
     }
     if (auto s = formats::WriteTrajectoryCsv(dir + "/trajectory.csv", csv); !s) return s;
+    if (!truth.backscatter_db.empty()) {
+        if (truth.backscatter_db.size() != g.height_m.size())
+            return Error{"backscatter does not match the terrain grid"};
+        json bj = BackscatterToJson(truth.backscatter);
+        bj["data"] = "backscatter.f32";
+        bj["layout"] = "float32 little-endian, row-major iy*nx+ix as terrain.f32, dB";
+        bj["model"] =
+            "BS(x, y): squares of patch_size_m (world x, y) of one of patch_levels_db each, "
+            "boulders boulder_db. Echo level L = source_level_db - spreading_db_per_decade "
+            "log10(R) - 2 absorption_db_per_m R + BS + AR(theta) + speckle_db N(0, 1), "
+            "AR(theta) = 10 log10(cos^2 theta) + specular_db exp(-(theta / "
+            "specular_width_deg)^2), theta the incidence on the true terrain; 83P intensity = "
+            "round(10^(L / 20)) in 1..65535";
+        if (auto s = WriteText(dir + "/backscatter.json", bj.dump(2) + "\n"); !s) return s;
+        std::vector<std::uint8_t> bytes;
+        bytes.reserve(truth.backscatter_db.size() * 4);
+        ByteWriter w(bytes);
+        for (const float v : truth.backscatter_db) w.F32Le(v);
+        if (auto s = WriteText(dir + "/backscatter.f32", std::string(bytes.begin(), bytes.end()));
+            !s) {
+            return s;
+        }
+    }
     if (!truth.coverage.empty()) {
         if (truth.coverage.size() != g.height_m.size())
             return Error{"coverage does not match the terrain grid"};
@@ -323,6 +359,36 @@ Expected<Truth> ReadTruth(const std::string& dir) {
             if (t.coverage.size() != t.terrain.height_m.size())
                 return Error{path + ": size does not match terrain.json"};
         }
+    }
+    if (std::ifstream probe(dir + "/backscatter.json"); probe) {
+        auto bj = ReadJson(dir + "/backscatter.json");
+        if (!bj) return bj.error();
+        try {
+            BackscatterConfig& b = t.backscatter;
+            b.patch_levels_db = bj->at("patch_levels_db").get<std::vector<double>>();
+            b.patch_size_m = bj->at("patch_size_m").get<double>();
+            b.boulder_db = bj->at("boulder_db").get<double>();
+            b.source_level_db = bj->at("source_level_db").get<double>();
+            b.spreading_db_per_decade = bj->at("spreading_db_per_decade").get<double>();
+            b.absorption_db_per_m = bj->at("absorption_db_per_m").get<double>();
+            b.specular_db = bj->at("specular_db").get<double>();
+            b.specular_width_deg = bj->at("specular_width_deg").get<double>();
+            b.speckle_db = bj->at("speckle_db").get<double>();
+        } catch (const json::exception& e) {
+            return Error{dir + "/backscatter.json: " + e.what()};
+        }
+        if (!(t.backscatter.patch_size_m > 0) || !std::isfinite(t.backscatter.patch_size_m))
+            return Error{dir + "/backscatter.json: patch_size_m must be > 0"};
+        const std::string path = dir + "/backscatter.f32";
+        std::ifstream in(path, std::ios::binary);
+        if (!in) return Error{path + ": cannot open"};
+        const std::string bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+        if (bytes.size() != t.terrain.height_m.size() * 4)
+            return Error{path + ": size does not match terrain.json"};
+        t.backscatter_db.resize(t.terrain.height_m.size());
+        ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+        for (auto& v : t.backscatter_db) v = r.F32Le();
     }
     if (std::ifstream probe(dir + "/sonar_clock.json"); probe) {
         auto cj = ReadJson(dir + "/sonar_clock.json");

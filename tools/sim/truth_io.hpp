@@ -9,6 +9,10 @@
 // <dir>/boresight.json    true R_vehicle_sonar as roll/pitch/yaw degrees, lever arms
 // <dir>/coverage.u8       optional: 1 byte per terrain cell (same grid), 1 where a true beam
 //                         hit that cell (the insonified area), else 0
+// <dir>/backscatter.json  optional: the seabed backscatter and the echo amplitude model of the
+//                         83P intensities (BackscatterConfig, every parameter), the layout of
+// <dir>/backscatter.f32   BS(x, y) at the terrain grid's nodes, dB, float32 little-endian,
+//                         row-major as terrain.f32 (the truth a backscatter mosaic is scored on)
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
 #pragma once
@@ -79,6 +83,8 @@ struct Truth {
     TruthBoresight boresight;
     std::vector<std::uint8_t> coverage;  // empty, or one byte per terrain cell (insonified = 1)
     std::optional<SonarClockTruth> sonar_clock;  // written when set; read when present
+    std::vector<float> backscatter_db;           // empty, or BS per terrain cell, dB
+    BackscatterConfig backscatter;               // its parameters (with backscatter_db)
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);

@@ -102,6 +102,26 @@ TEST_F(GridIo, CogGeoTiffReadsBackTheSameValuesAndCrs) {
     EXPECT_NE(head.find("LAYOUT=IFDS_BEFORE_DATA"), std::string::npos);
 }
 
+// A mosaic's values are not heights: its GeoTIFF names the horizontal CRS only, and the
+// bands keep their dB unit.
+TEST_F(GridIo, AHorizontalOnlyGeoTiffHasNoVerticalCrs) {
+    GridRaster g = Sample(29, true);
+    g.horizontal_only = true;
+    g.layers[0].name = "backscatter";
+    g.layers[0].unit = "dB";
+    const std::string path = (dir_ / "mosaic.tif").string();
+    const Status w = WriteCogGeoTiff(path, g);
+    ASSERT_TRUE(w) << w.error().message;
+    auto r = ReadGrid(path);
+    ASSERT_TRUE(r) << r.error().message;
+    ExpectSameGeometry(g, r->grid);
+    ExpectSameLayer(g.layers[0], r->grid.layers[0]);
+    EXPECT_EQ(r->grid.layers[0].name, "backscatter");
+    EXPECT_EQ(r->grid.layers[0].unit, "dB");
+    EXPECT_EQ(r->horizontal_epsg, 32629);
+    EXPECT_EQ(r->vertical_name, "") << r->crs_wkt;
+}
+
 TEST_F(GridIo, BagReadsBackElevationUncertaintyAndCrs) {
     const GridRaster g = Sample(33, false);
     const std::string path = (dir_ / "dem.bag").string();

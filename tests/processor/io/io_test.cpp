@@ -365,6 +365,87 @@ TEST(IngestFiles, MixOf83PNovatelAndLcmKeepsEveryCount) {
     }
 }
 
+// Issue 17 item 6: the per-beam intensities reach the ping series from LCM logs and .83P
+// files, beside the range counts; a ping without any gets zeros, and a survey whose pings have
+// none (83P v1.00) has no intensities at all.
+TEST(Ingest, IntensitiesComeThroughBesideTheRanges) {
+    std::vector<std::uint8_t> log;
+    for (int i = 0; i < 6; ++i) {
+        pitmap::multibeam_ping_t m{};
+        m.utime = 1'700'000'000'000'000 + i * 100'000;
+        m.utime_gps = 1'400'000'000'000'000 + i * 100'000;
+        m.ping_number = i;
+        m.range_resolution_m = 0.01f;
+        m.start_angle_deg = -60;
+        m.angle_increment_deg = 1;
+        m.num_beams = 8;
+        m.range_counts.assign(8, 1000);
+        // Ping 0: none; ping 3 claims intensities of the wrong count (kept without them);
+        // ping 5: a value beyond 16 bits and a negative one (clamped).
+        if (i != 0) {
+            m.intensity_included = 1;
+            m.num_intensities = static_cast<std::int16_t>(i == 3 ? 7 : 8);
+            for (int b = 0; b < m.num_intensities; ++b) m.intensities.push_back(100 * i + b);
+            if (i == 5) {
+                m.intensities[0] = 70000;
+                m.intensities[1] = -4;
+            }
+        }
+        const auto e = EventWith(i, "MULTIBEAM_PING_DELTAT_UDP", Encode(m));
+        log.insert(log.end(), e.begin(), e.end());
+    }
+    auto a = IngestLcmLogs({WriteFile("intensity.lcmlog", log)}, {});
+    ASSERT_TRUE(a.ok()) << a.error().message;
+    const auto& p = a->pings;
+    ASSERT_EQ(p.pings.size(), 6u);
+    ASSERT_EQ(p.intensities.size(), p.range_counts.size());
+    for (int i = 0; i < 6; ++i) {
+        for (int b = 0; b < 8; ++b) {
+            const std::uint16_t got = p.intensities[p.pings[i].beam_offset + b];
+            std::uint16_t want = (i == 0 || i == 3) ? 0 : static_cast<std::uint16_t>(100 * i + b);
+            if (i == 5 && b == 0) want = 65535;
+            if (i == 5 && b == 1) want = 0;
+            EXPECT_EQ(got, want) << "ping " << i << " beam " << b;
+        }
+    }
+
+    // .83P: v1.10 with intensities, v1.00 (which has no field for them) without.
+    const auto file = [](std::uint8_t version, bool with) {
+        std::vector<std::uint8_t> out;
+        for (int i = 0; i < 5; ++i) {
+            dt::Ping83P q;
+            q.format_version = version;
+            dt::SetHeaderTime(q, 1'709'300'000'000'000 + i * 100'000);
+            q.sector_size_deg = 120;
+            q.start_angle_cdeg = -6000;
+            q.angle_increment_cdeg = 50;
+            q.range_resolution_mm = 10;
+            q.ping_number = static_cast<std::uint32_t>(i);
+            q.range_counts.assign(240, 900);
+            q.intensity_included = with;
+            if (with) {
+                for (int b = 0; b < 240; ++b)
+                    q.intensities.push_back(static_cast<std::uint16_t>(5000 + 10 * i + b));
+            }
+            const auto rec = dt::EncodeRecord83P(q);
+            out.insert(out.end(), rec.begin(), rec.end());
+        }
+        return out;
+    };
+    IngestResult v110;
+    ASSERT_TRUE(
+        Ingest83PFiles({WriteFile("i110.83P", file(dt::kVersion110, true))}, {}, 18, v110).ok());
+    ASSERT_EQ(v110.pings.pings.size(), 5u);
+    ASSERT_EQ(v110.pings.intensities.size(), v110.pings.range_counts.size());
+    EXPECT_EQ(v110.pings.intensities[0], 5000);
+    EXPECT_EQ(v110.pings.intensities[v110.pings.pings[4].beam_offset + 239], 5000 + 40 + 239);
+    IngestResult v100;
+    ASSERT_TRUE(
+        Ingest83PFiles({WriteFile("i100.83P", file(dt::kVersion100, false))}, {}, 18, v100).ok());
+    EXPECT_EQ(v100.pings.pings.size(), 5u);
+    EXPECT_FALSE(v100.pings.has_intensities());
+}
+
 // IngestFiles on LCM logs alone equals IngestLcmLogs, and the same NovAtel file twice counts
 // its samples as duplicates while keeping the other counts doubled.
 TEST(IngestFiles, LcmLogsAndRepeatedVendorFiles) {

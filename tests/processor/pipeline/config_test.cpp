@@ -174,6 +174,35 @@ TEST_F(Config, VerticalAndS44SectionsRoundTripAndAreChecked) {
     EXPECT_NE(file.error().message.find("vertical.water_level_file is needed"), std::string::npos);
 }
 
+// The mosaic section (issue 17 item 6): round trip, defaults printed, problems listed.
+TEST_F(Config, MosaicSectionRoundTripsAndIsChecked) {
+    const auto r = Load(
+        "mosaic:\n  angular: lambert\n  spreading_db_per_decade: 30\n"
+        "  absorption_db_per_m: 0.05\n  reference_angle_deg: 40\n  enabled: false\n");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->grid.mosaic_config.angular, hydro::AngularCorrection::kLambert);
+    EXPECT_EQ(r->grid.mosaic_config.spreading_db_per_decade, 30);
+    EXPECT_EQ(r->grid.mosaic_config.absorption_db_per_m, 0.05);
+    EXPECT_EQ(r->grid.mosaic_config.reference_angle_deg, 40);
+    EXPECT_FALSE(r->grid.mosaic);
+    const auto back = Load(ConfigYaml(*r));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(Fingerprint(*back), ConfigYaml(*r));
+    const std::string defaults = DefaultsYaml();
+    EXPECT_NE(defaults.find("mosaic:\n  enabled: true"), std::string::npos) << defaults;
+    EXPECT_NE(defaults.find("angular: empirical"), std::string::npos) << defaults;
+    EXPECT_NE(defaults.find("absorption_db_per_m: 0.021"), std::string::npos) << defaults;
+    const auto bad =
+        Load("mosaic:\n  angular: phong\n  spreading_db_per_decade: -3\n  max_incidence_deg: 95\n");
+    ASSERT_FALSE(bad.ok());
+    for (const char* expected : {"mosaic.angular: 'phong' is not one of none, lambert, empirical",
+                                 "mosaic.spreading_db_per_decade must be within 0..80",
+                                 "mosaic.max_incidence_deg must be within 10..89"}) {
+        EXPECT_NE(bad.error().message.find(expected), std::string::npos) << expected << "\n"
+                                                                         << bad.error().message;
+    }
+}
+
 TEST(Stage, NamesAreSummaryJsonKeys) {
     EXPECT_STREQ(ToString(Stage::kFuse), "fuse");
     EXPECT_STREQ(ToString(Stage::kMeshInitial), "mesh_initial");

@@ -116,6 +116,10 @@ SurveyModel SmallSurvey() {
         h.num_beams = 121;
         r.pings.pings.push_back(h);
         for (int b = 0; b < 121; ++b) r.pings.range_counts.push_back(1000u + b);
+        // Intensities on all but the first ping (which has none: zeros).
+        for (int b = 0; b < 121; ++b)
+            r.pings.intensities.push_back(
+                static_cast<std::uint16_t>(p == 0 ? 0 : 2000 + 7 * b + p));
     }
     m.vehicle_yaml = "vehicle.yaml";
     m.nominal_mount.boresight_roll_deg = 0.5;
@@ -372,6 +376,78 @@ TEST_F(SurveyFile, EmptyForeignAndOtherVersionFilesAreCleanErrors) {
     const auto missing = LoadSurvey((dir_ / "none.pitmap").string());
     ASSERT_FALSE(missing.ok());
     EXPECT_NE(missing.error().message.find("none.pitmap"), std::string::npos);
+}
+
+TEST_F(SurveyFile, IntensitiesRoundTripAndAreOnlyWrittenWhenThere) {
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->ingest.pings.intensities, SmallSurvey().ingest.pings.intensities);
+    ASSERT_TRUE(Sections(good_).count("intensity"));
+    std::uint32_t version = 0;
+    std::memcpy(&version, good_.data() + 8, 4);
+    EXPECT_EQ(version, kSurveyFormatVersion);
+    EXPECT_EQ(version, 2u);
+
+    SurveyModel none = SmallSurvey();
+    none.ingest.pings.intensities.clear();
+    ASSERT_TRUE(SaveSurvey(path_, none));
+    EXPECT_FALSE(Sections(ReadBytes(path_)).count("intensity"));
+    const auto back = LoadSurvey(path_);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_FALSE(back->ingest.pings.has_intensities());
+}
+
+// The file of the format before intensities: the same file without the intensity section.
+std::vector<std::uint8_t> AsFormat1(const std::vector<std::uint8_t>& b) {
+    const SectionAt s = Sections(b).at("intensity");
+    std::vector<std::uint8_t> out(b.begin(),
+                                  b.begin() + static_cast<std::ptrdiff_t>(s.crc_at - 24));
+    out.insert(out.end(), b.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes), b.end());
+    const std::uint32_t version = 1;
+    std::memcpy(out.data() + 8, &version, 4);
+    std::uint32_t count = 0;
+    std::memcpy(&count, out.data() + 16, 4);
+    --count;
+    std::memcpy(out.data() + 16, &count, 4);
+    return out;
+}
+
+TEST_F(SurveyFile, AFormat1FileIsReadWithoutIntensities) {
+    WriteBytes(path_, AsFormat1(good_));
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_FALSE(r->ingest.pings.has_intensities());
+    EXPECT_EQ(r->ingest.pings.range_counts, SmallSurvey().ingest.pings.range_counts);
+    EXPECT_TRUE(r->has(TrajectoryVersion::kIns));
+    // A format 1 file cannot hold the section (a crafted one is an error, not a guess).
+    std::vector<std::uint8_t> crafted = good_;
+    const std::uint32_t version = 1;
+    std::memcpy(crafted.data() + 8, &version, 4);
+    WriteBytes(path_, crafted);
+    const auto c = LoadSurvey(path_);
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.error().message.find("unknown section \"intensity\""), std::string::npos)
+        << c.error().message;
+}
+
+TEST_F(SurveyFile, IntensitiesThatDoNotMatchTheRangeCountsAreAnError) {
+    // One intensity fewer, with the right CRCs: the count field says n - 1 and the payload
+    // ends two bytes early.
+    std::vector<std::uint8_t> bad = good_;
+    const SectionAt s = Sections(bad).at("intensity");
+    std::uint64_t count = 0;
+    std::memcpy(&count, bad.data() + s.payload_at, 8);
+    --count;
+    std::memcpy(bad.data() + s.payload_at, &count, 8);
+    bad.erase(bad.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes - 2),
+              bad.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes));
+    const std::uint64_t bytes = s.bytes - 2;
+    std::memcpy(bad.data() + s.crc_at - 8, &bytes, 8);
+    FixCrcs(bad);
+    WriteBytes(path_, bad);
+    const auto r = LoadSurvey(path_);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("intensities for"), std::string::npos) << r.error().message;
 }
 
 TEST_F(SurveyFile, AFailedSaveKeepsThePreviousFile) {

@@ -24,8 +24,8 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mesh", "viewer",
-            "boresight", "clock", "tsdf", "slam", "stages", "scores"]
+SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mosaic",
+            "mesh", "viewer", "boresight", "clock", "tsdf", "slam", "stages", "scores"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
 
@@ -71,6 +71,33 @@ def WritePly(path, header_props, arrays, faces=None, comments=(), endian="<"):
 POINT_PROPS = [("x", "float", "f4"), ("y", "float", "f4"), ("z", "float", "f4"),
                ("gps_time_s", "double", "f8"), ("range_m", "float", "f4"),
                ("ping", "uint", "u4"), ("beam", "ushort", "u2")]
+
+
+def WriteMosaic(folder, grid):
+    """mosaic.tif (3 bands as the grid stage writes them, UTM 29N) and its summary record."""
+    from osgeo import gdal, osr
+    nx, ny = 40, 30
+    ds = gdal.GetDriverByName("GTiff").Create(os.path.join(folder, "mosaic.tif"), nx, ny, 3,
+                                              gdal.GDT_Float32)
+    ds.SetGeoTransform((603390.0, 0.5, 0, 4477710.0, 0, -0.5))
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(32629)
+    ds.SetProjection(srs.ExportToWkt())
+    gx, gy = np.meshgrid(np.arange(nx), np.arange(ny))
+    level = np.where((gx // 10 + gy // 10) % 2 == 0, -14.0, -26.0) + 100
+    for b, (name, v) in enumerate((("backscatter", level), ("uncorrected", level - 40 - gx * 0.3),
+                                   ("count", np.full((ny, nx), 4.0))), start=1):
+        band = ds.GetRasterBand(b)
+        band.SetDescription(name)
+        band.WriteArray(v.astype(np.float32))
+    ds = None
+    grid["mosaic"] = {
+        "made": True, "file": "mosaic.tif", "soundings": 50000, "used": 49000,
+        "no_intensity": 0, "saturated": 12, "beyond_incidence": 988, "nodes_filled": nx * ny,
+        "angular": "empirical", "reference_angle_deg": 45.0, "spreading_db_per_decade": 40.0,
+        "absorption_db_per_m": 0.021, "median_incidence_deg": 30.1, "corrected_p05_db": 74.0,
+        "corrected_p95_db": 86.0,
+        "angular_response_deg_db_count": [[k + 0.5, 6.0 - 0.2 * k, 100] for k in range(80)]}
 
 
 def WriteProducts(folder, full=True):
@@ -206,6 +233,7 @@ def WriteProducts(folder, full=True):
                                                 "count": 1000, "mean_m": 0.01 * i, "sd_m": 0.02,
                                                 "rms_m": 0.03, "within_tvu": 0.99}
                                                for i in range(6)]}}}
+        WriteMosaic(folder, summary["stages"]["grid"])
         summary["stage_order"] = ["ingest", "georef", "calibrate", "slam", "grid", "fuse", "mesh"]
         with open(os.path.join(folder, "scores.json"), "w") as f:
             json.dump({"trajectory_ate_rmse_m": 0.0306, "trajectory_ate_rmse_before_m": 1.3468,
@@ -258,9 +286,11 @@ class ReportTest(unittest.TestCase):
         self.assertNotIn("not produced", page)
         self.assertNotIn("could not draw", page)
         self.assertNotIn('class="problem"', page)
-        for s in ("trajectory", "cross-sections", "depth", "hydro", "mesh", "tsdf", "slam",
-                  "stages"):
+        for s in ("trajectory", "cross-sections", "depth", "hydro", "mosaic", "mesh", "tsdf",
+                  "slam", "stages"):
             self.assertIn("data:image/png", sec[s], s)
+        self.assertIn("40.0 log10(R) + 2 &times; 0.0210 dB/m", sec["mosaic"])
+        self.assertIn("empirical, referenced to 45 deg", sec["mosaic"])
         self.assertIn("2026-06-15 09:00:00", sec["summary"])
         # The S-44 section: datum, the orders' table, the holiday, the crossline table.
         self.assertIn("pit water level (GNSS, survey median)", sec["hydro"])
@@ -286,7 +316,7 @@ class ReportTest(unittest.TestCase):
         pngs = sorted(os.listdir(os.path.join(p, "report")))
         for name in ("trajectory.png", "cross_sections.png", "depth_top_view.png",
                      "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
-                     "stages.png", "s44_compliance.png", "s44_crossline.png"):
+                     "stages.png", "s44_compliance.png", "s44_crossline.png", "mosaic.png"):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
@@ -324,7 +354,8 @@ class ReportTest(unittest.TestCase):
         self.assertNotIn("could not draw", page)
         expect = {"trajectory": "trajectory_initial.csv", "cross-sections": "points_initial.ply",
                   "mesh": "mesh.ply", "boresight": "boresight.json", "tsdf": "TSDF",
-                  "slam": "SLAM", "scores": "scores.json", "hydro": "grid stage"}
+                  "slam": "SLAM", "scores": "scores.json", "hydro": "grid stage",
+                  "mosaic": "mosaic.tif"}
         for s, name in expect.items():
             self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
         self.assertIn("mesh_initial.ply", sec["mesh"])

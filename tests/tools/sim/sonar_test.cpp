@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 
 #include "common/frames.hpp"
 
@@ -95,6 +96,65 @@ TEST(SonarModel, BeamsPastTheShoreOrOutOfRangeReportNothing) {
         EXPECT_EQ(p.range_counts[i], 0);
         EXPECT_EQ(p.outcome[i], BeamOutcome::kNoHit);
     }
+}
+
+// The intensities follow BackscatterConfig's sonar equation: without speckle, every beam's
+// 20 log10(intensity) is the level the model states, within the amplitude's rounding.
+TEST(SonarModel, IntensitiesFollowTheSonarEquation) {
+    const PitWorld world(FlatGrid(-10.25));
+    SonarConfig cfg;
+    cfg.range_noise_fraction = 0;
+    cfg.range_noise_constant_m = 0;
+    cfg.dropout_probability = 0;
+    cfg.outlier_probability = 0;
+    cfg.footprint_rays = 1;
+    BackscatterConfig bs;
+    bs.speckle_db = 0;
+    bs.patch_levels_db = {-20.0};  // one material everywhere
+    SonarModel sonar(cfg, world, 1, nullptr, bs);
+    const SeabedBackscatter seabed(bs, 1);
+    const SimPing p = sonar.Ping(LevelSonar(), 0);
+    for (int i : {0, 60, 200, 240, 300, 479}) {
+        const auto k = static_cast<std::size_t>(i);
+        const double theta = std::abs(sonar.BeamAngleDeg(i));
+        const double r = 10.0 / std::cos(frames::DegToRad(theta));
+        const double want = bs.source_level_db - 40 * std::log10(r) - 2 * 0.021 * r - 20.0 +
+                            20 * std::log10(std::cos(frames::DegToRad(theta))) +
+                            6.0 * std::exp(-std::pow(theta / 10.0, 2));
+        EXPECT_NEAR(seabed.LevelDb(r, theta, -20.0), want, 1e-9);
+        // Rounding the amplitude: at most half a count.
+        EXPECT_NEAR(
+            p.intensities[k], std::pow(10.0, want / 20), 0.5 + 1e-3 * std::pow(10.0, want / 20))
+            << i;
+    }
+    // The specular lobe: nadir is brighter than Lambert's law says, by specular_db.
+    EXPECT_NEAR(seabed.AngularResponseDb(0.0), 6.0, 1e-12);
+    EXPECT_NEAR(seabed.AngularResponseDb(60.0), 20 * std::log10(0.5), 1e-6);
+}
+
+TEST(SeabedBackscatter, PatchesAreSquaresOfTheLevelsAndBouldersAreHarder) {
+    BackscatterConfig c;
+    const SeabedBackscatter a(c, 5, {Boulder{Eigen::Vector2d(12.0, 3.0), 2.0, 0.8}});
+    // Constant inside a square, every level used, deterministic in the seed.
+    std::map<double, int> seen;
+    for (int ix = -10; ix < 10; ++ix) {
+        for (int iy = -10; iy < 10; ++iy) {
+            const double x = ix * c.patch_size_m, y = iy * c.patch_size_m;
+            if (std::hypot(x + 2.5 - 12.0, y + 2.5 - 3.0) < 5) continue;  // the boulder's square
+            const double v = a.At(x + 0.1, y + 0.1);
+            EXPECT_EQ(a.At(x + c.patch_size_m - 0.1, y + c.patch_size_m - 0.1), v);
+            ++seen[v];
+        }
+    }
+    EXPECT_EQ(seen.size(), c.patch_levels_db.size());
+    for (const auto& [v, n] : seen) EXPECT_GT(n, 50) << v;  // 400 squares, 4 levels
+    EXPECT_EQ(a.At(12.3, 3.4), c.boulder_db);
+    EXPECT_NE(a.At(14.5, 3.0), c.boulder_db);
+    const SeabedBackscatter b(c, 6);
+    int differ = 0;
+    for (int k = 0; k < 50; ++k)
+        differ += a.PatchIndex(k * 5.0 + 1, 1) != b.PatchIndex(k * 5.0 + 1, 1);
+    EXPECT_GT(differ, 20);
 }
 
 }  // namespace

@@ -101,6 +101,35 @@ TEST_F(TruthIo, SonarClockIsStatedAndReadBack) {
     EXPECT_FALSE(back->sonar_clock.has_value());
 }
 
+// The seabed backscatter and the amplitude model's parameters: written, read back; a truth
+// without them reads as none; a short data file is a named error.
+TEST_F(TruthIo, BackscatterIsStatedAndReadBack) {
+    Truth t = SmallTruth();
+    ASSERT_TRUE(WriteTruth(dir_.string(), *BuiltinScenario("demo"), t).ok());
+    auto none = ReadTruth(dir_.string());
+    ASSERT_TRUE(none.ok()) << none.error().message;
+    EXPECT_TRUE(none->backscatter_db.empty());
+    EXPECT_FALSE(fs::exists(dir_ / "backscatter.json"));
+
+    for (int i = 0; i < 45; ++i) t.backscatter_db.push_back(i % 2 ? -14.0f : -32.0f);
+    t.backscatter.source_level_db = 104.5;
+    t.backscatter.absorption_db_per_m = 0.03;
+    t.backscatter.patch_levels_db = {-14.0, -32.0};
+    ASSERT_TRUE(WriteTruth(dir_.string(), *BuiltinScenario("demo"), t).ok());
+    auto back = ReadTruth(dir_.string());
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(back->backscatter_db, t.backscatter_db);
+    EXPECT_EQ(back->backscatter.source_level_db, 104.5);
+    EXPECT_EQ(back->backscatter.absorption_db_per_m, 0.03);
+    EXPECT_EQ(back->backscatter.patch_levels_db, t.backscatter.patch_levels_db);
+    EXPECT_EQ(back->backscatter.spreading_db_per_decade, 40.0);
+
+    fs::resize_file(dir_ / "backscatter.f32", 40);
+    auto bad = ReadTruth(dir_.string());
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find("backscatter.f32"), std::string::npos);
+}
+
 TEST_F(TruthIo, InterpolationAndItsBounds) {
     const Truth t = SmallTruth();
     auto mid = InterpolateTruth(t.trajectory, 1.4e9 + 0.05);

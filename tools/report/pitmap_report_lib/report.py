@@ -47,6 +47,7 @@ class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSe
             ("cross-sections", "Cross-sections of the point cloud", self.SectionCrossSections),
             ("depth", "Depth-coloured top view", self.SectionDepth),
             ("hydro", "Vertical datum and IHO S-44 quality control", self.SectionHydro),
+            ("mosaic", "Backscatter mosaic", self.SectionMosaic),
             ("mesh", "Mesh before and after SLAM", self.SectionMesh),
             ("viewer", "Interactive 3D view", self.SectionViewer),
             ("boresight", "Boresight calibration", self.SectionBoresight),

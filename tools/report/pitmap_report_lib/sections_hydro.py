@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: MIT
 """The report's hydrographic section: vertical datum, TPU and the IHO S-44 Ed. 6.1 quality
-control of the grid stage (orders, holidays, compliance map, crossline check)."""
+control of the grid stage (orders, holidays, compliance map, crossline check), and its
+backscatter mosaic."""
 
 import math
 
@@ -11,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
 from .rasters import Limits, RasterMax  # noqa: E402
-from .util import Esc, Num, Table  # noqa: E402
+from .util import Esc, NotProduced, Num, Table  # noqa: E402
 
 
 class HydroSections:
@@ -180,3 +181,58 @@ class HydroSections:
         cb = fig.colorbar(im, ax=a, shrink=0.9, pad=0.01)
         cb.set_label("TVU (95 %) / limit")
         return self.Figure(fig, "s44_compliance", "S-44 TVU compliance map with holidays")
+
+    def SectionMosaic(self):
+        """The backscatter mosaic of the grid stage (mosaic.tif): corrected and uncorrected side
+        by side, with the angular response the correction used (issue 17 item 6)."""
+        g = self.stages.get("grid")
+        m = g.get("mosaic") if isinstance(g, dict) else None
+        if not isinstance(m, dict):
+            return self.Missing("mosaic.tif", "no mosaic in the grid stage (mosaic.enabled)")
+        if not m.get("made"):
+            return NotProduced("mosaic.tif", m.get("reason") or m.get("message") or "")
+        try:
+            from osgeo import gdal  # python3-gdal: read only here, so the rest needs no GDAL
+        except ImportError:
+            return self.Missing("mosaic.tif", "python3-gdal is not installed")
+        gdal.UseExceptions()
+        ds = gdal.Open(self.P("mosaic.tif"))
+        gt = ds.GetGeoTransform()
+        bands = {ds.GetRasterBand(b).GetDescription(): ds.GetRasterBand(b).ReadAsArray()
+                 for b in range(1, ds.RasterCount + 1)}
+        ext = (gt[0], gt[0] + gt[1] * ds.RasterXSize, gt[3] + gt[5] * ds.RasterYSize, gt[3])
+        fig, axes = plt.subplots(1, 3, figsize=(15, 5.2), layout="constrained",
+                                 gridspec_kw={"width_ratios": [1, 1, 0.8]})
+        for a, name, title in ((axes[0], "backscatter", "corrected (range, incidence)"),
+                               (axes[1], "uncorrected", "uncorrected: 20 log10(intensity)")):
+            v = np.asarray(bands.get(name), dtype=np.float64)
+            ok = v[np.isfinite(v)]
+            lo, hi = np.percentile(ok, [2, 98]) if len(ok) else (0, 1)
+            im = a.imshow(v, extent=ext, cmap="gray", vmin=lo, vmax=hi, interpolation="nearest")
+            a.set_title(title, fontsize=10)
+            a.set_xlabel("UTM easting (m)")
+            a.set_aspect("equal")
+            a.ticklabel_format(useOffset=False, style="plain")
+            a.tick_params(labelsize=7)
+            fig.colorbar(im, ax=a, shrink=0.8, pad=0.01).set_label("dB (relative)")
+        axes[0].set_ylabel("UTM northing (m)")
+        curve = np.asarray(m.get("angular_response_deg_db_count") or [[0, 0, 0]], dtype=float)
+        axes[2].plot(curve[:, 0], curve[:, 1], "o-", ms=2)
+        axes[2].set_xlabel("incidence (deg)")
+        axes[2].set_ylabel("angular response removed (dB, 0 at the reference)")
+        axes[2].set_title(f"{m.get('angular', '?')} angular response", fontsize=10)
+        axes[2].grid(alpha=0.3)
+        facts = [("soundings used", f"{Num(m.get('used', 0))} of {Num(m.get('soundings', 0))} "
+                  f"(no intensity {Num(m.get('no_intensity', 0))}, saturated "
+                  f"{Num(m.get('saturated', 0))}, incidence beyond the limit "
+                  f"{Num(m.get('beyond_incidence', 0))})"),
+                 ("range correction", f"{Num(m.get('spreading_db_per_decade', 0), 1)} log10(R) + "
+                  f"2 &times; {Num(m.get('absorption_db_per_m', 0), 4)} dB/m &times; R"),
+                 ("incidence correction", f"{Esc(m.get('angular', '?'))}, referenced to "
+                  f"{Num(m.get('reference_angle_deg', 0), 0)} deg (incidence from the DEM's "
+                  f"slopes; median {Num(m.get('median_incidence_deg', 0), 1)} deg)"),
+                 ("corrected, 5-95 %", f"{Num(m.get('corrected_p05_db', 0), 1)} to "
+                  f"{Num(m.get('corrected_p95_db', 0), 1)} dB on {Num(m.get('nodes_filled', 0))} "
+                  "nodes (mosaic.tif: backscatter, uncorrected, count)")]
+        return "\n".join([Table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"),
+                          self.Figure(fig, "mosaic", "backscatter mosaic")])

@@ -209,7 +209,7 @@ Expected<HilResult> RunHil(ScenarioConfig sc,
     const TruthTrajectory truth(sc, *track);
     const double duration = truth.duration_s();
     const NavErrorModel errors(sc.nav, duration, sc.seed);
-    const SonarModel sonar(sc.sonar, world, sc.seed);
+    const SonarModel sonar(sc.sonar, world, sc.seed, nullptr, sc.backscatter);
     const Eigen::Matrix3d R_vehicle_sonar =
         frames::RotationNedFromRpy(frames::DegToRad(sc.boresight_deg[0]),
                                    frames::DegToRad(sc.boresight_deg[1]),

@@ -1,0 +1,309 @@
+// SPDX-License-Identifier: MIT
+#include "processor/hydro/mosaic.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/result.hpp"
+
+namespace pitmap::proc::hydro {
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr double kPi = 3.14159265358979323846;
+
+double Percentile(std::vector<float> v, double q) {
+    if (v.empty()) return 0;
+    const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k];
+}
+
+int NumBins(double bin_deg, double max_incidence_deg) {
+    return std::max(1, static_cast<int>(std::ceil(max_incidence_deg / bin_deg)));
+}
+
+}  // namespace
+
+const char* ToString(AngularCorrection a) {
+    switch (a) {
+        case AngularCorrection::kNone:
+            return "none";
+        case AngularCorrection::kLambert:
+            return "lambert";
+        case AngularCorrection::kEmpirical:
+            return "empirical";
+    }
+    return "?";
+}
+
+std::vector<std::string> MosaicConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(spreading_db_per_decade >= 0 && spreading_db_per_decade <= 80))
+        p.push_back("mosaic.spreading_db_per_decade must be within 0..80");
+    if (!(absorption_db_per_m >= 0 && absorption_db_per_m <= 1))
+        p.push_back("mosaic.absorption_db_per_m must be within 0..1");
+    if (!(max_incidence_deg > 10 && max_incidence_deg <= 89))
+        p.push_back("mosaic.max_incidence_deg must be within 10..89");
+    if (!(reference_angle_deg >= 0 && reference_angle_deg < max_incidence_deg))
+        p.push_back("mosaic.reference_angle_deg must be within 0..max_incidence_deg");
+    if (!(angle_bin_deg >= 0.1 && angle_bin_deg <= 10))
+        p.push_back("mosaic.angle_bin_deg must be within 0.1..10");
+    if (min_bin_soundings < 1) p.push_back("mosaic.min_bin_soundings must be >= 1");
+    if (empirical_iterations < 0 || empirical_iterations > 20)
+        p.push_back("mosaic.empirical_iterations must be within 0..20");
+    return p;
+}
+
+double AngularResponse::At(double incidence_deg) const {
+    if (level_db.empty()) return 0;
+    // Bin k's value sits at its centre (k + 0.5) * bin_deg.
+    const double u = incidence_deg / bin_deg - 0.5;
+    if (u <= 0) return level_db.front();
+    const auto last = static_cast<double>(level_db.size() - 1);
+    if (u >= last) return level_db.back();
+    const auto k = static_cast<std::size_t>(u);
+    const double f = u - static_cast<double>(k);
+    return (1 - f) * level_db[k] + f * level_db[k + 1];
+}
+
+double IntensityDb(std::uint16_t intensity) {
+    return 20.0 * std::log10(std::max<double>(1.0, intensity));
+}
+
+double RangeLossDb(double range_m, const MosaicConfig& c) {
+    return c.spreading_db_per_decade * std::log10(range_m) + 2.0 * c.absorption_db_per_m * range_m;
+}
+
+double IncidenceDeg(const Eigen::Vector3d& beam_dir, const Eigen::Vector3d& normal_up) {
+    const double c = -beam_dir.dot(normal_up);
+    if (!(c > 0)) return 90.0;
+    return std::acos(std::min(1.0, c)) * 180.0 / kPi;
+}
+
+Eigen::Vector3d DemNormal(const MosaicGrid& g, int i, int j) {
+    const std::vector<float>& z = *g.elevation_m;
+    const auto at = [&](int a, int b) -> double {
+        if (a < 0 || b < 0 || a >= g.nx || b >= g.ny) return std::nan("");
+        return z[static_cast<std::size_t>(b) * static_cast<std::size_t>(g.nx) +
+                 static_cast<std::size_t>(a)];
+    };
+    // Slope along one axis: central where both neighbours are there, else one-sided.
+    const auto slope = [&](double lo, double mid, double hi) {
+        if (std::isfinite(lo) && std::isfinite(hi)) return (hi - lo) / (2 * g.resolution_m);
+        if (std::isfinite(mid) && std::isfinite(hi)) return (hi - mid) / g.resolution_m;
+        if (std::isfinite(mid) && std::isfinite(lo)) return (mid - lo) / g.resolution_m;
+        return 0.0;
+    };
+    const double c = at(i, j);
+    const double dx = slope(at(i - 1, j), c, at(i + 1, j));
+    const double dy = slope(at(i, j - 1), c, at(i, j + 1));
+    return Eigen::Vector3d(-dx, -dy, 1.0).normalized();
+}
+
+AngularResponse LambertResponse(double bin_deg, double max_incidence_deg) {
+    AngularResponse r;
+    r.bin_deg = bin_deg;
+    const int n = NumBins(bin_deg, max_incidence_deg);
+    r.level_db.resize(static_cast<std::size_t>(n));
+    r.counts.assign(static_cast<std::size_t>(n), 0);
+    for (int k = 0; k < n; ++k) {
+        const double t = std::min(89.0, (k + 0.5) * bin_deg) * kPi / 180.0;
+        r.level_db[static_cast<std::size_t>(k)] = 20.0 * std::log10(std::cos(t));
+    }
+    return r;
+}
+
+AngularResponse EstimateAngularResponse(const std::vector<float>& level_db,
+                                        const std::vector<float>& incidence_deg,
+                                        const MosaicConfig& c) {
+    AngularResponse r;
+    r.bin_deg = c.angle_bin_deg;
+    const int n = NumBins(c.angle_bin_deg, c.max_incidence_deg);
+    std::vector<double> sum(static_cast<std::size_t>(n), 0.0);
+    r.counts.assign(static_cast<std::size_t>(n), 0);
+    for (std::size_t j = 0; j < level_db.size(); ++j) {
+        const double t = incidence_deg[j];
+        if (!(t >= 0 && t <= c.max_incidence_deg) || !std::isfinite(level_db[j])) continue;
+        const int k = std::min(n - 1, static_cast<int>(t / c.angle_bin_deg));
+        sum[static_cast<std::size_t>(k)] += level_db[j];
+        ++r.counts[static_cast<std::size_t>(k)];
+    }
+    r.level_db.assign(static_cast<std::size_t>(n), std::nan(""));
+    std::vector<int> good;
+    for (int k = 0; k < n; ++k) {
+        const auto kk = static_cast<std::size_t>(k);
+        if (r.counts[kk] >= c.min_bin_soundings) {
+            r.level_db[kk] = sum[kk] / static_cast<double>(r.counts[kk]);
+            good.push_back(k);
+        }
+    }
+    if (good.empty()) {
+        r.level_db.assign(static_cast<std::size_t>(n), 0.0);
+        return r;
+    }
+    // Thin bins: linear between the nearest good ones, constant beyond the end ones.
+    for (int k = 0; k < n; ++k) {
+        const auto kk = static_cast<std::size_t>(k);
+        if (std::isfinite(r.level_db[kk])) continue;
+        const auto hi = std::lower_bound(good.begin(), good.end(), k);
+        if (hi == good.begin()) {
+            r.level_db[kk] = r.level_db[static_cast<std::size_t>(good.front())];
+        } else if (hi == good.end()) {
+            r.level_db[kk] = r.level_db[static_cast<std::size_t>(good.back())];
+        } else {
+            const int a = *(hi - 1), b = *hi;
+            const double f = static_cast<double>(k - a) / static_cast<double>(b - a);
+            r.level_db[kk] = (1 - f) * r.level_db[static_cast<std::size_t>(a)] +
+                             f * r.level_db[static_cast<std::size_t>(b)];
+        }
+    }
+    return r;
+}
+
+AngularResponse RefineAngularResponse(const AngularResponse& response,
+                                      const std::vector<float>& level_db,
+                                      const std::vector<float>& incidence_deg,
+                                      const std::vector<std::uint32_t>& node,
+                                      std::size_t num_nodes,
+                                      const MosaicConfig& c) {
+    std::vector<double> sum(num_nodes, 0.0);
+    std::vector<std::uint32_t> cnt(num_nodes, 0);
+    for (std::size_t j = 0; j < level_db.size(); ++j) {
+        if (node[j] >= num_nodes || !std::isfinite(level_db[j])) continue;
+        sum[node[j]] += level_db[j] - response.At(incidence_deg[j]);
+        ++cnt[node[j]];
+    }
+    std::vector<float> residual(level_db.size(), kNaN);
+    for (std::size_t j = 0; j < level_db.size(); ++j) {
+        if (node[j] >= num_nodes || !std::isfinite(level_db[j])) continue;
+        residual[j] = static_cast<float>(level_db[j] - sum[node[j]] / cnt[node[j]]);
+    }
+    return EstimateAngularResponse(residual, incidence_deg, c);
+}
+
+MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const MosaicConfig& c) {
+    PITMAP_CHECK(g.elevation_m != nullptr && g.nx > 0 && g.ny > 0 && g.resolution_m > 0 &&
+                     g.elevation_m->size() ==
+                         static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny),
+                 "RunMosaic: bad grid");
+    const std::size_t n = s.size();
+    PITMAP_CHECK(s.y.size() == n && s.intensity.size() == n && s.range_m.size() == n &&
+                     s.beam_dir.size() == n,
+                 "RunMosaic: soundings arrays differ in size");
+    MosaicResult r;
+    r.soundings_in = static_cast<std::int64_t>(n);
+    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+
+    // Pass 1: node, range-corrected level and incidence of every usable sounding.
+    std::vector<std::uint32_t> node(n, std::numeric_limits<std::uint32_t>::max());
+    std::vector<float> level(n, kNaN), raw(n, kNaN), incidence(n, kNaN);
+    std::vector<Eigen::Vector3d> normals(cells, Eigen::Vector3d::Zero());
+    std::vector<char> have_normal(cells, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        const std::uint16_t I = s.intensity[j];
+        if (I == 0) {
+            ++r.no_intensity;
+            continue;
+        }
+        if (I == 65535) {
+            ++r.saturated;
+            continue;
+        }
+        const long i = std::lround((s.x[j] - g.x0) / g.resolution_m);
+        const long k = std::lround((s.y[j] - g.y0) / g.resolution_m);
+        if (i < 0 || k < 0 || i >= g.nx || k >= g.ny || !(s.range_m[j] > 0)) {
+            ++r.outside_grid;
+            continue;
+        }
+        const std::size_t q = static_cast<std::size_t>(k) * static_cast<std::size_t>(g.nx) +
+                              static_cast<std::size_t>(i);
+        if (!have_normal[q]) {
+            normals[q] = DemNormal(g, static_cast<int>(i), static_cast<int>(k));
+            have_normal[q] = 1;
+        }
+        const double t = IncidenceDeg(s.beam_dir[j].cast<double>().normalized(), normals[q]);
+        if (t > c.max_incidence_deg) {
+            ++r.beyond_incidence;
+            continue;
+        }
+        node[j] = static_cast<std::uint32_t>(q);
+        raw[j] = static_cast<float>(IntensityDb(I));
+        level[j] = static_cast<float>(raw[j] + RangeLossDb(s.range_m[j], c));
+        incidence[j] = static_cast<float>(t);
+    }
+
+    switch (c.angular) {
+        case AngularCorrection::kEmpirical:
+            r.response = EstimateAngularResponse(level, incidence, c);
+            for (int it = 0; it < c.empirical_iterations; ++it)
+                r.response = RefineAngularResponse(r.response, level, incidence, node, cells, c);
+            break;
+        case AngularCorrection::kLambert:
+            r.response = LambertResponse(c.angle_bin_deg, c.max_incidence_deg);
+            break;
+        case AngularCorrection::kNone: {
+            r.response.bin_deg = c.angle_bin_deg;
+            const int nb = NumBins(c.angle_bin_deg, c.max_incidence_deg);
+            r.response.level_db.assign(static_cast<std::size_t>(nb), 0.0);
+            r.response.counts.assign(static_cast<std::size_t>(nb), 0);
+            break;
+        }
+    }
+    const double ref = r.response.At(c.reference_angle_deg);
+
+    // Pass 2: grid the means.
+    std::vector<double> sum_c(cells, 0.0), sum_u(cells, 0.0);
+    std::vector<std::uint32_t> cnt(cells, 0);
+    std::vector<float> used_incidence;
+    used_incidence.reserve(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        const std::uint32_t q = node[j];
+        if (q == std::numeric_limits<std::uint32_t>::max()) continue;
+        sum_c[q] += level[j] - r.response.At(incidence[j]) + ref;
+        sum_u[q] += raw[j];
+        ++cnt[q];
+        used_incidence.push_back(incidence[j]);
+        ++r.used;
+    }
+    r.corrected_db.assign(cells, kNaN);
+    r.uncorrected_db.assign(cells, kNaN);
+    r.count.assign(cells, 0.0f);
+    std::vector<float> filled;
+    for (std::size_t q = 0; q < cells; ++q) {
+        if (cnt[q] == 0) continue;
+        r.corrected_db[q] = static_cast<float>(sum_c[q] / cnt[q]);
+        r.uncorrected_db[q] = static_cast<float>(sum_u[q] / cnt[q]);
+        r.count[q] = static_cast<float>(cnt[q]);
+        filled.push_back(r.corrected_db[q]);
+    }
+    r.nodes_filled = static_cast<std::int64_t>(filled.size());
+    r.median_incidence_deg = Percentile(used_incidence, 0.5);
+    r.corrected_p05_db = Percentile(filled, 0.05);
+    r.corrected_p95_db = Percentile(filled, 0.95);
+    r.ok = r.used > 0;
+    char buf[320];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%lld of %lld soundings on %lld nodes (no intensity %lld, saturated %lld, "
+                  "outside %lld, incidence > %.0f deg %lld); %s angular response; corrected "
+                  "5-95 %% %.1f..%.1f dB",
+                  static_cast<long long>(r.used),
+                  static_cast<long long>(r.soundings_in),
+                  static_cast<long long>(r.nodes_filled),
+                  static_cast<long long>(r.no_intensity),
+                  static_cast<long long>(r.saturated),
+                  static_cast<long long>(r.outside_grid),
+                  c.max_incidence_deg,
+                  static_cast<long long>(r.beyond_incidence),
+                  ToString(c.angular),
+                  r.corrected_p05_db,
+                  r.corrected_p95_db);
+    r.message = buf;
+    if (!r.ok) r.message = "no usable intensity: " + r.message;
+    return r;
+}
+
+}  // namespace pitmap::proc::hydro
