@@ -184,7 +184,7 @@ AngularResponse RefineAngularResponse(const AngularResponse& response,
     return EstimateAngularResponse(residual, incidence_deg, c);
 }
 
-MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const MosaicConfig& c) {
+MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& c) {
     PITMAP_CHECK(g.elevation_m != nullptr && g.nx > 0 && g.ny > 0 && g.resolution_m > 0 &&
                      g.elevation_m->size() ==
                          static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny),
@@ -197,9 +197,11 @@ MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const Mosa
     r.soundings_in = static_cast<std::int64_t>(n);
     const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
 
-    // Pass 1: node, range-corrected level and incidence of every usable sounding.
+    // Pass 1: node, range-corrected level and incidence of every usable sounding; the
+    // uncorrected mean's sum per node.
     std::vector<std::uint32_t> node(n, std::numeric_limits<std::uint32_t>::max());
-    std::vector<float> level(n, kNaN), raw(n, kNaN), incidence(n, kNaN);
+    std::vector<float> level(n, kNaN), incidence(n, kNaN);
+    std::vector<double> sum_u(cells, 0.0);
     std::vector<Eigen::Vector3d> normals(cells, Eigen::Vector3d::Zero());
     std::vector<char> have_normal(cells, 0);
     for (std::size_t j = 0; j < n; ++j) {
@@ -230,10 +232,12 @@ MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const Mosa
             continue;
         }
         node[j] = static_cast<std::uint32_t>(q);
-        raw[j] = static_cast<float>(IntensityDb(I));
-        level[j] = static_cast<float>(raw[j] + RangeLossDb(s.range_m[j], c));
+        const float raw = static_cast<float>(IntensityDb(I));
+        sum_u[q] += raw;
+        level[j] = static_cast<float>(raw + RangeLossDb(s.range_m[j], c));
         incidence[j] = static_cast<float>(t);
     }
+    s = MosaicSoundings{};  // what follows needs only node, level and incidence
 
     switch (c.angular) {
         case AngularCorrection::kEmpirical:
@@ -255,7 +259,7 @@ MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const Mosa
     const double ref = r.response.At(c.reference_angle_deg);
 
     // Pass 2: grid the means.
-    std::vector<double> sum_c(cells, 0.0), sum_u(cells, 0.0);
+    std::vector<double> sum_c(cells, 0.0);
     std::vector<std::uint32_t> cnt(cells, 0);
     std::vector<float> used_incidence;
     used_incidence.reserve(n);
@@ -263,7 +267,6 @@ MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const Mosa
         const std::uint32_t q = node[j];
         if (q == std::numeric_limits<std::uint32_t>::max()) continue;
         sum_c[q] += level[j] - r.response.At(incidence[j]) + ref;
-        sum_u[q] += raw[j];
         ++cnt[q];
         used_incidence.push_back(incidence[j]);
         ++r.used;

@@ -124,7 +124,9 @@ AngularResponse RefineAngularResponse(const AngularResponse& response,
                                       std::size_t num_nodes,
                                       const MosaicConfig& c);
 
-// Preconditions: config.Validate() is empty; every array of `s` has s.size() entries.
-MosaicResult RunMosaic(const MosaicSoundings& s, const MosaicGrid& g, const MosaicConfig& config);
+// Preconditions: config.Validate() is empty; every array of `s` has s.size() entries. The
+// soundings are taken by value and released after the first pass (~34 bytes each, 200 MB on
+// bejanca): pass them with std::move where the caller has no further use for them.
+MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& config);
 
 }  // namespace pitmap::proc::hydro

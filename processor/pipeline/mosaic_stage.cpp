@@ -3,6 +3,8 @@
 // 83P intensities on the DEM's grid, written as P/mosaic.tif.
 #include <cmath>
 #include <cstdio>
+#include <utility>
+#include <vector>
 
 #include "processor/io/grid_io.hpp"
 #include "processor/pipeline/survey.hpp"
@@ -14,7 +16,7 @@ using nlohmann::json;
 Expected<json> MosaicSurvey(const Survey& s,
                             const GridStageConfig& gc,
                             const io::GridRaster& dem,
-                            const georef::UtmPoints& utm,
+                            georef::UtmPoints& utm,
                             const Eigen::Matrix<double, 2, 3>& utm_to_world,
                             const Log& log) {
     const georef::PingSeries& series = s.model.ingest.pings;
@@ -55,7 +57,8 @@ Expected<json> MosaicSurvey(const Survey& s,
     }
     if (elevation == nullptr) return Error{"grid: mosaic: the DEM has no elevation layer"};
     const hydro::MosaicGrid grid{dem.x0, dem.y0, dem.resolution_m, dem.nx, dem.ny, elevation};
-    const hydro::MosaicResult r = hydro::RunMosaic(m, grid, gc.mosaic_config);
+    std::vector<Eigen::Vector3d>().swap(utm.easting_northing_height);
+    const hydro::MosaicResult r = hydro::RunMosaic(std::move(m), grid, gc.mosaic_config);
     log("grid: mosaic: " + r.message);
     json rec = {{"made", r.ok},
                 {"message", r.message},

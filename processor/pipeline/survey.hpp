@@ -121,10 +121,12 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
 // its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm` are
 // the soundings' UTM coordinates, `utm_to_world` the affine map of UTM into the world frame.
+// The mosaic is the UTM positions' last user: once it has read them into its soundings it
+// releases utm.easting_northing_height (141 MB on bejanca).
 Expected<nlohmann::json> MosaicSurvey(const Survey& s,
                                       const GridStageConfig& gc,
                                       const io::GridRaster& dem,
-                                      const georef::UtmPoints& utm,
+                                      georef::UtmPoints& utm,
                                       const Eigen::Matrix<double, 2, 3>& utm_to_world,
                                       const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
