@@ -9,20 +9,14 @@
 #include <sstream>
 
 #include "common/gps_time.hpp"
+#include "common/text.hpp"
 
 namespace pitmap::proc::io {
 
 namespace {
 
-std::string_view Trim(std::string_view s) {
-    while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
-        s.remove_prefix(1);
-    }
-    while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) {
-        s.remove_suffix(1);
-    }
-    return s;
-}
+using text::ParseNumber;
+using text::TrimBlanks;
 
 std::optional<int> Digits(std::string_view s, std::size_t n) {
     if (s.size() != n) return std::nullopt;
@@ -34,18 +28,9 @@ std::optional<int> Digits(std::string_view s, std::size_t n) {
     return v;
 }
 
-std::optional<double> Number(std::string_view s) {
-    s = Trim(s);
-    if (s.empty() || s.size() > 40) return std::nullopt;
-    double v = 0;
-    const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || p != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
-    return v;
-}
-
 // "YYYY-MM-DDTHH:MM:SS[.fff]Z" -> GPS microseconds.
 std::optional<std::int64_t> GpsFromIsoUtc(std::string_view s) {
-    s = Trim(s);
+    s = TrimBlanks(s);
     if (s.size() < 20 || s.size() > 40 || s.back() != 'Z') return std::nullopt;
     if (s[4] != '-' || s[7] != '-' || (s[10] != 'T' && s[10] != ' ') || s[13] != ':' ||
         s[16] != ':') {
@@ -58,7 +43,7 @@ std::optional<std::int64_t> GpsFromIsoUtc(std::string_view s) {
     const auto mi = Digits(s.substr(14, 2), 2);
     const std::string_view sec_text = s.substr(17, s.size() - 18);
     if (sec_text.size() < 2 || sec_text[0] < '0' || sec_text[0] > '9') return std::nullopt;
-    const auto sec = Number(sec_text);
+    const auto sec = ParseNumber(sec_text);
     if (!y || !mo || !d || !h || !mi || !sec || *y < 1980 || *y > 2200 || *h > 23 || *mi > 59 ||
         *sec < 0 || *sec >= 61) {
         return std::nullopt;
@@ -91,7 +76,7 @@ Expected<std::vector<WaterLevelSample>> ParseWaterLevelText(std::string_view tex
     while (pos < text.size()) {
         std::size_t end = text.find('\n', pos);
         if (end == std::string_view::npos) end = text.size();
-        const std::string_view line = Trim(text.substr(pos, end - pos));
+        const std::string_view line = TrimBlanks(text.substr(pos, end - pos));
         pos = end + 1;
         ++line_no;
         const auto fail = [&](const std::string& what) {
@@ -102,10 +87,10 @@ Expected<std::vector<WaterLevelSample>> ParseWaterLevelText(std::string_view tex
         if (sep == std::string_view::npos) {
             return fail("expected 'time,level', got " + Quoted(line));
         }
-        const std::string_view f0 = Trim(line.substr(0, sep));
+        const std::string_view f0 = TrimBlanks(line.substr(0, sep));
         std::string_view rest = line.substr(sep + 1);
         const std::size_t sep2 = rest.find_first_of(",;\t");
-        const std::string_view f1 = Trim(rest.substr(0, sep2));
+        const std::string_view f1 = TrimBlanks(rest.substr(0, sep2));
         if (header_allowed && !f0.empty() &&
             ((f0[0] >= 'a' && f0[0] <= 'z') || (f0[0] >= 'A' && f0[0] <= 'Z'))) {
             header_allowed = false;
@@ -114,7 +99,7 @@ Expected<std::vector<WaterLevelSample>> ParseWaterLevelText(std::string_view tex
         header_allowed = false;
         const auto t = GpsFromIsoUtc(f0);
         if (!t) return fail("time must be UTC as YYYY-MM-DDTHH:MM:SS[.fff]Z, got " + Quoted(f0));
-        const auto level = Number(f1);
+        const auto level = ParseNumber(f1);
         if (!level) return fail("level must be a number (m), got " + Quoted(f1));
         if (std::abs(*level) > 10000) return fail("level " + Quoted(f1) + " is beyond 10 km");
         if (!out.empty() && *t <= out.back().utime_gps) {

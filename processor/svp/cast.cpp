@@ -8,20 +8,14 @@
 #include <optional>
 
 #include "common/gps_time.hpp"
+#include "common/text.hpp"
 
 namespace pitmap::proc::svp {
 
 namespace {
 
-std::string_view Trim(std::string_view s) {
-    while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
-        s.remove_prefix(1);
-    }
-    while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) {
-        s.remove_suffix(1);
-    }
-    return s;
-}
+using text::ParseNumber;
+using text::TrimBlanks;
 
 std::vector<std::string_view> SplitWhitespace(std::string_view s) {
     std::vector<std::string_view> out;
@@ -41,22 +35,11 @@ std::vector<std::string_view> SplitAny(std::string_view s, std::string_view seps
     std::size_t start = 0;
     for (std::size_t i = 0; i <= s.size(); ++i) {
         if (i == s.size() || seps.find(s[i]) != std::string_view::npos) {
-            out.push_back(Trim(s.substr(start, i - start)));
+            out.push_back(TrimBlanks(s.substr(start, i - start)));
             start = i + 1;
         }
     }
     return out;
-}
-
-// A whole field as a finite double ("+" and a leading "." accepted, nothing left over).
-std::optional<double> Number(std::string_view s) {
-    s = Trim(s);
-    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-    if (s.empty()) return std::nullopt;
-    double v = 0;
-    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || ptr != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
-    return v;
 }
 
 std::optional<int> Integer(std::string_view s, std::size_t digits_min, std::size_t digits_max) {
@@ -84,7 +67,7 @@ std::optional<double> TimeOfDay(std::string_view s) {
     const auto m = Integer(parts[1], 1, 2);
     double sec = 0;
     if (parts.size() == 3) {
-        const auto v = Number(parts[2]);
+        const auto v = ParseNumber(parts[2]);
         if (!v || *v < 0 || *v >= 61) return std::nullopt;
         sec = *v;
     }
@@ -120,7 +103,7 @@ std::optional<std::int64_t> GpsFromYearDay(std::string_view date, std::string_vi
 
 // ISO 8601 "YYYY-MM-DDTHH:MM:SS[.fff]Z" (or a space for T) -> GPS microseconds.
 std::optional<std::int64_t> GpsFromIso(std::string_view s) {
-    s = Trim(s);
+    s = TrimBlanks(s);
     if (s.size() < 17 || s.back() != 'Z') return std::nullopt;
     s.remove_suffix(1);
     const std::size_t t = s.find_first_of("T ");
@@ -139,7 +122,7 @@ std::optional<std::int64_t> GpsFromIso(std::string_view s) {
 
 // "DD:MM:SS.ss" / "-DDD:MM:SS" / "DD:MM.mmm" or decimal degrees.
 std::optional<double> Angle(std::string_view s, double limit) {
-    s = Trim(s);
+    s = TrimBlanks(s);
     double sign = 1;
     if (!s.empty() && (s.front() == '-' || s.front() == '+')) {
         sign = s.front() == '-' ? -1 : 1;
@@ -148,15 +131,15 @@ std::optional<double> Angle(std::string_view s, double limit) {
     if (s.empty() || s.front() == '-' || s.front() == '+') return std::nullopt;
     double v = 0;
     if (s.find(':') == std::string_view::npos) {
-        const auto d = Number(s);
+        const auto d = ParseNumber(s);
         if (!d) return std::nullopt;
         v = *d;
     } else {
         const auto parts = SplitAny(s, ":");
         if (parts.size() < 2 || parts.size() > 3) return std::nullopt;
         const auto d = Integer(parts[0], 1, 3);
-        const auto m = Number(parts[1]);
-        const auto sec = parts.size() == 3 ? Number(parts[2]) : std::optional<double>(0.0);
+        const auto m = ParseNumber(parts[1]);
+        const auto sec = parts.size() == 3 ? ParseNumber(parts[2]) : std::optional<double>(0.0);
         if (!d || !m || !sec || *m < 0 || *m >= 60 || *sec < 0 || *sec >= 60) return std::nullopt;
         v = *d + *m / 60.0 + *sec / 3600.0;
     }
@@ -193,8 +176,8 @@ private:
 std::optional<std::string> AddPoint(SoundSpeedCast& c,
                                     std::string_view depth_text,
                                     std::string_view speed_text) {
-    const auto d = Number(depth_text);
-    const auto v = Number(speed_text);
+    const auto d = ParseNumber(depth_text);
+    const auto v = ParseNumber(speed_text);
     if (!d) return "depth " + Quoted(depth_text) + " is not a number";
     if (!v) return "sound speed " + Quoted(speed_text) + " is not a number";
     if (*d < -1.0 || *d > 12000.0) {
@@ -232,10 +215,10 @@ Expected<std::vector<SoundSpeedCast>> ParseCaris(std::string_view text, const st
     Parser p(text, name);
     std::vector<SoundSpeedCast> casts;
     auto first = p.NextLine();
-    if (!first || Trim(*first).rfind("[SVP_VERSION_", 0) != 0) {
+    if (!first || TrimBlanks(*first).rfind("[SVP_VERSION_", 0) != 0) {
         return p.Fail("not a CARIS .svp file: the first line must be [SVP_VERSION_2]");
     }
-    const std::string_view version = Trim(*first);
+    const std::string_view version = TrimBlanks(*first);
     if (version != "[SVP_VERSION_1]" && version != "[SVP_VERSION_2]") {
         return p.Fail("unsupported CARIS version " + Quoted(version) +
                       " (known: [SVP_VERSION_1], [SVP_VERSION_2])");
@@ -249,7 +232,7 @@ Expected<std::vector<SoundSpeedCast>> ParseCaris(std::string_view text, const st
         return std::nullopt;
     };
     while (auto line = p.NextLine()) {
-        const std::string_view l = Trim(*line);
+        const std::string_view l = TrimBlanks(*line);
         if (l.empty()) continue;
         const auto f = SplitWhitespace(l);
         if (f.front() == "Section" || f.front() == "section") {
@@ -303,15 +286,15 @@ Expected<std::vector<SoundSpeedCast>> ParseColumns(std::string_view text,
     c.name = name;
     bool header_allowed = csv;
     while (auto line = p.NextLine()) {
-        std::string_view l = Trim(*line);
+        std::string_view l = TrimBlanks(*line);
         if (l.empty()) continue;
         if (l.front() == '#') {
-            l = Trim(l.substr(1));
+            l = TrimBlanks(l.substr(1));
             if (l.rfind("time:", 0) == 0) {
                 const auto t = GpsFromIso(l.substr(5));
                 if (!t) {
                     return p.Fail("'# time:' needs UTC as YYYY-MM-DDTHH:MM:SSZ, got " +
-                                  Quoted(Trim(l.substr(5))));
+                                  Quoted(TrimBlanks(l.substr(5))));
                 }
                 c.utime_gps = *t;
             } else if (l.rfind("position:", 0) == 0) {
@@ -320,7 +303,7 @@ Expected<std::vector<SoundSpeedCast>> ParseColumns(std::string_view text,
                 const auto lon = f.size() == 2 ? Angle(f[1], 180.0) : std::nullopt;
                 if (!lat || !lon) {
                     return p.Fail("'# position:' needs 'LAT LON' in degrees, got " +
-                                  Quoted(Trim(l.substr(9))));
+                                  Quoted(TrimBlanks(l.substr(9))));
                 }
                 c.latitude_deg = *lat;
                 c.longitude_deg = *lon;
@@ -328,7 +311,7 @@ Expected<std::vector<SoundSpeedCast>> ParseColumns(std::string_view text,
             continue;
         }
         const auto f = csv ? SplitAny(l, ",;") : SplitWhitespace(l);
-        if (header_allowed && !f.empty() && !Number(f[0])) {
+        if (header_allowed && !f.empty() && !ParseNumber(f[0])) {
             std::string first(f[0]);
             for (char& ch : first)
                 ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
@@ -380,7 +363,7 @@ Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,
         while (pos < text.size()) {
             std::size_t end = text.find('\n', pos);
             if (end == std::string_view::npos) end = text.size();
-            const std::string_view l = Trim(text.substr(pos, end - pos));
+            const std::string_view l = TrimBlanks(text.substr(pos, end - pos));
             pos = end + 1;
             if (l.empty()) continue;
             if (first && l.rfind("[SVP_VERSION", 0) == 0) {
