@@ -24,6 +24,7 @@
 #include "lcmtypes/log/lcm_log_reader.hpp"
 #include "lcmtypes/log/lcm_wire.hpp"
 #include "processor/io/ingest_collect.hpp"
+#include "processor/io/lcm_messages.hpp"
 
 namespace pitmap::proc::io {
 
@@ -147,18 +148,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     ++c.decode_failures;
                     continue;
                 }
-                col.AddNav(FromPva(pva.utime_gps,
-                                   pva.latitude_deg,
-                                   pva.longitude_deg,
-                                   pva.height_ellipsoid_m,
-                                   pva.velocity_north_mps,
-                                   pva.velocity_east_mps,
-                                   pva.velocity_up_mps,
-                                   pva.roll_deg,
-                                   pva.pitch_deg,
-                                   pva.azimuth_deg,
-                                   pva.ins_status,
-                                   pva.position_type));
+                col.AddNav(NavSampleOf(pva));
                 if (pva.has_stddev) {
                     col.AddStdDev({pva.utime_gps,
                                    pva.latitude_stddev_m,
@@ -195,15 +185,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     ++c.decode_failures;
                     continue;
                 }
-                PingHeader h;
-                h.utime_gps = mb.utime_gps;
-                h.ping_number = mb.ping_number;
-                h.sound_speed_mps = mb.sound_speed_mps;
-                h.sound_speed_valid = mb.sound_speed_valid != 0;
-                h.range_resolution_m = mb.range_resolution_m;
-                h.start_angle_deg = mb.start_angle_deg;
-                h.angle_increment_deg = mb.angle_increment_deg;
-                h.profile_tilt_deg = mb.profile_tilt_deg;
+                PingHeader h = PingHeaderOf(mb);
                 // Intensities only when the ping says so and they match the beams (a log
                 // that disagrees with itself keeps its ranges, without intensities).
                 const bool with = mb.intensity_included != 0 && mb.num_intensities > 0 &&

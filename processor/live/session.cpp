@@ -15,10 +15,10 @@
 #include <pitmap/ins_stddev_t.hpp>
 #include <pitmap/multibeam_ping_t.hpp>
 
-#include "common/frames.hpp"
 #include "lcmtypes/log/channels.hpp"
 #include "lcmtypes/log/lcm_wire.hpp"
 #include "processor/io/grid_io.hpp"
+#include "processor/io/lcm_messages.hpp"
 
 namespace pitmap::proc::live {
 
@@ -137,16 +137,7 @@ void LiveSession::OnEvent(const std::string& channel,
         pitmap::ins_pva_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
         utime = m.utime;
-        georef::NavSample s;
-        s.utime_gps = m.utime_gps;
-        s.position = {m.latitude_deg, m.longitude_deg, m.height_ellipsoid_m};
-        s.roll_rad = frames::DegToRad(m.roll_deg);
-        s.pitch_rad = frames::DegToRad(m.pitch_deg);
-        s.yaw_rad = frames::WrapPi(frames::DegToRad(m.azimuth_deg));
-        s.velocity_enu_mps = {m.velocity_east_mps, m.velocity_north_mps, m.velocity_up_mps};
-        s.ins_status = m.ins_status;
-        s.position_type = m.position_type;
-        georef_.AddNav(s);
+        georef_.AddNav(io::NavSampleOf(m));
         NavStatusIn n;
         n.utime = m.utime;
         n.utime_gps = m.utime_gps;
@@ -193,16 +184,7 @@ void LiveSession::OnEvent(const std::string& channel,
         pitmap::multibeam_ping_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
         utime = m.utime;
-        georef::PingHeader h;
-        h.utime_gps = m.utime_gps;
-        h.ping_number = m.ping_number;
-        h.sound_speed_mps = m.sound_speed_mps;
-        h.sound_speed_valid = m.sound_speed_valid != 0;
-        h.range_resolution_m = m.range_resolution_m;
-        h.start_angle_deg = m.start_angle_deg;
-        h.angle_increment_deg = m.angle_increment_deg;
-        h.profile_tilt_deg = m.profile_tilt_deg;
-        georef_.AddPing(h, m.range_counts.data(), m.range_counts.size());
+        georef_.AddPing(io::PingHeaderOf(m), m.range_counts.data(), m.range_counts.size());
         status_.OnPing({m.utime, m.utime_gps, m.num_beams});
     } else if (ch == lcmlog::kChannelClockSync) {
         pitmap::clock_sync_t m;
