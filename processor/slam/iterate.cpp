@@ -156,7 +156,8 @@ StageOutcome RunStage(const Input& in,
             out.termination =
                 solved ? SlamTermination::kNoImprovement : SlamTermination::kSolverFailed;
             out.message = solved ? "no step lowered the cost on the current pairs (damping up to " +
-                                       std::to_string(lambda / 10.0) + "); last accepted iterate kept unless worse than the best"
+                                       std::to_string(lambda / 10.0) +
+                                       "); last accepted iterate kept unless worse than the best"
                                  : "CHOLMOD could not factorise the normal equations";
             break;
         }
