@@ -45,7 +45,8 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", w.error().message.c_str());
         return 1;
     }
-    std::printf("{\"vertices\": %zu, \"triangles\": %zu}\n", m.mesh.vertices.size(),
+    std::printf("{\"vertices\": %zu, \"triangles\": %zu}\n",
+                m.mesh.vertices.size(),
                 m.mesh.triangles.size());
     return 0;
 }

@@ -121,9 +121,10 @@ def WaitFor(browser, expression, what, tries=300):
     for _ in range(tries):
         browser.pump(0.1)
         try:
-            value = json.loads(browser.evaluate("JSON.stringify(%s)" % expression))
+            text = browser.evaluate("JSON.stringify(%s)" % expression)
         except RuntimeError:
             continue
+        value = json.loads(text) if text is not None else None
         if value:
             return value
     fail("%s: %r; errors: %s" % (what, value, browser.errors()))
