@@ -13,8 +13,9 @@
 // back to z-up on loading.
 //
 // Exposes window.pitmapViewer for the browser test: ready, frames, triangles, points, gltf
-// (name, status, message, triangles), profile (the last cross-section) and crossSection(a, b)
-// (a cross-section between two ENU points [x, y], as the tool's two clicks make it).
+// (name, status, message, triangles), profile (the last cross-section), crossSection(a, b)
+// (a cross-section between two ENU points [x, y], as the tool's two clicks make it) and
+// openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes).
 (function () {
   "use strict";
   const el = document.getElementById("viewer3d");
@@ -416,27 +417,39 @@
     ShowProblem("glTF " + name + ": " + why);
     info.textContent = "";
   }
+  // Reads a .glb (ArrayBuffer) into the view; the promise resolves with state.gltf once it
+  // is shown or refused (a message in the page either way).
   function LoadGltf(buffer, name) {
     ShowProblem("");
     const bad = GlbProblem(buffer);
     if (bad) {
       GltfFailed(name, bad);
-      return;
+      return Promise.resolve(state.gltf);
     }
     state.gltf = { name: name, status: "loading", message: "", triangles: 0 };
     info.textContent = "reading " + name + " ...";
-    try {
-      new THREE.GLTFLoader().parse(buffer, "", g => {
-        try {
-          AddGltf(g, name);
-        } catch (e) {
-          GltfFailed(name, "cannot show it: " + (e && e.message ? e.message : e));
-        }
-      }, e => GltfFailed(name, "cannot read it: " + (e && e.message ? e.message : e)));
-    } catch (e) {  // GLTFLoader throws some errors (bad JSON) instead of calling back
-      GltfFailed(name, "cannot read it: " + (e && e.message ? e.message : e));
-    }
+    const why = (e) => (e && e.message ? e.message : String(e));
+    return new Promise(resolve => {
+      const done = () => resolve(state.gltf);
+      try {
+        new THREE.GLTFLoader().parse(buffer, "", g => {
+          try {
+            AddGltf(g, name);
+          } catch (e) {
+            GltfFailed(name, "cannot show it: " + why(e));
+          }
+          done();
+        }, e => {
+          GltfFailed(name, "cannot read it: " + why(e));
+          done();
+        });
+      } catch (e) {  // GLTFLoader throws some errors (bad JSON) instead of calling back
+        GltfFailed(name, "cannot read it: " + why(e));
+        done();
+      }
+    });
   }
+  state.openGltf = LoadGltf;  // for scripts and the browser test: (ArrayBuffer, name)
   function AddGltf(gltf, name) {
     if (!gltf.scene) throw new Error("the file has no scene");
     const root = new THREE.Group();

@@ -16,7 +16,9 @@ Checks, failing on any console error or uncaught exception:
 - the glTF page draws a non-blank view with the file's triangle count, and its cross-section
   cuts the loaded mesh;
 - "open glTF...": the same .glb loads into report.html; a truncated one and one whose header
-  was patched to the truncated length give a message in the page.
+  was patched to the truncated length give a message in the page; so does each of 300
+  mutations (truncations, flipped bytes, overwritten words) of a small valid .glb, and the
+  view keeps drawing.
 Exit 77 (ctest skip) only when Chromium cannot start here.
 
 Usage: viewer_browser_test.py --report BIN/pitmap-report --source SOURCE_DIR
@@ -228,12 +230,77 @@ def CheckReport(browser, page, fixture):
         if g["status"] != "error" or words not in shown:
             fail("%s: expected a message with %r in the page, got %r (%s)"
                  % (path, words, shown, g))
+    CheckGltfMutations(browser)
     state = json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer)"))
     frames = state["frames"]
     browser.pump(0.5)
     if json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer)"))["frames"] <= frames:
         fail("the view stopped drawing after the broken files")
     CheckNoErrors(browser, "report.html with glTF files")
+
+
+def SmallGlb():
+    """A valid glTF 2.0 binary of a tetrahedron: positions, colours, uint32 indices."""
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype="<f4")
+    col = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], dtype="<f4")
+    idx = np.array([0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3], dtype="<u4")
+    binary = pos.tobytes() + col.tobytes() + idx.tobytes()
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1},
+                                       "indices": 2, "mode": 4}]}],
+           "buffers": [{"byteLength": len(binary)}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                           {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+                           {"buffer": 0, "byteOffset": 96, "byteLength": 48}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 1]},
+                         {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+                         {"bufferView": 2, "componentType": 5125, "count": 12,
+                          "type": "SCALAR"}]}
+    text = json.dumps(doc).encode()
+    text += b" " * ((4 - len(text) % 4) % 4)
+    body = (struct.pack("<II", len(text), 0x4E4F534A) + text +
+            struct.pack("<II", len(binary), 0x004E4942) + binary)
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+# In the page: 300 mutations of a .glb (seeded), each opened as "open glTF..." opens a file,
+# with 5 s to finish; returns how many loaded, failed with a message, or never finished.
+MUTATE_JS = """(async () => {
+  const src = Uint8Array.from(atob(%s), c => c.charCodeAt(0));
+  let seed = 12345;
+  const rand = (n) => { seed = (seed * 1103515245 + 12345) %% 2147483648; return seed %% n; };
+  const tally = { loaded: 0, error: 0, hung: 0, silent: 0, original: "" };
+  tally.original = (await window.pitmapViewer.openGltf(src.slice().buffer, "original.glb")).status;
+  for (let i = 0; i < 300; ++i) {
+    let b = src.slice();
+    const kind = i %% 3;
+    if (kind === 0) b = b.slice(0, rand(b.length));
+    else if (kind === 1) for (let k = 0; k <= rand(4); ++k) b[rand(b.length)] ^= 1 + rand(255);
+    else new DataView(b.buffer).setUint32(4 * rand(b.length >> 2), rand(2147483647) * 2, true);
+    const timeout = new Promise(r => setTimeout(() => r(null), 5000));
+    const g = await Promise.race([window.pitmapViewer.openGltf(b.buffer, "m" + i + ".glb"), timeout]);
+    if (g === null) tally.hung += 1;
+    else if (g.status === "loaded") tally.loaded += 1;
+    else if (g.status === "error" && !document.getElementById("viewer3d-problem").hidden &&
+             g.message) tally.error += 1;
+    else tally.silent += 1;
+  }
+  return tally;
+})()"""
+
+
+def CheckGltfMutations(browser):
+    glb = SmallGlb()
+    tally = browser.call("Runtime.evaluate", {
+        "expression": MUTATE_JS % json.dumps(base64.b64encode(glb).decode()),
+        "returnByValue": True, "awaitPromise": True}, timeout=120)["result"]["value"]
+    print("300 mutated .glb files: %s" % tally)
+    if tally["original"] != "loaded":
+        fail("the small valid .glb did not load: %s" % tally)
+    if tally["hung"] or tally["silent"] or tally["error"] < 150:
+        fail("mutated .glb files: some never finished or failed without a message: %s" % tally)
 
 
 def CheckGltfPage(browser, page, fixture):
