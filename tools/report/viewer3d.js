@@ -26,13 +26,13 @@
   window.pitmapViewer = state;
   if (!el || typeof THREE === "undefined") return;
 
-  function Bytes(b64) {
+  function bytes(b64) {
     const s = atob(b64);
     const out = new Uint8Array(s.length);
     for (let i = 0; i < s.length; ++i) out[i] = s.charCodeAt(i);
     return out.buffer;
   }
-  function ShowProblem(text) {
+  function showProblem(text) {
     state.error = text;
     if (!problem) return;
     problem.textContent = text;
@@ -53,16 +53,16 @@
   };
 
   // Depth colours: shallow yellow to deep blue, as the report's figures (z is up).
-  function ColourOf(z, out, k) {
+  function colourOf(z, out, k) {
     const [zDeep, zShallow] = view.zlim;
     const t = Math.min(1, Math.max(0, (zShallow - z) / Math.max(1e-6, zShallow - zDeep)));
     out[k] = 0.98 * (1 - t) + 0.08 * t;
     out[k + 1] = 0.9 * (1 - t) + 0.24 * t + 0.32 * Math.sin(Math.PI * t);
     out[k + 2] = 0.24 * (1 - t) + 0.8 * t;
   }
-  function Coloured(pos) {
+  function coloured(pos) {
     const c = new Float32Array(pos.length);
-    for (let k = 0; k < pos.length; k += 3) ColourOf(pos[k + 2], c, k);
+    for (let k = 0; k < pos.length; k += 3) colourOf(pos[k + 2], c, k);
     return c;
   }
 
@@ -81,10 +81,10 @@
   const layers = {};
   if (data.mesh) {
     const g = new THREE.BufferGeometry();
-    const pos = new Float32Array(Bytes(data.mesh.positions));
+    const pos = new Float32Array(bytes(data.mesh.positions));
     g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
-    g.setAttribute("color", new THREE.BufferAttribute(Coloured(pos), 3));
-    g.setIndex(new THREE.BufferAttribute(new Uint32Array(Bytes(data.mesh.indices)), 1));
+    g.setAttribute("color", new THREE.BufferAttribute(coloured(pos), 3));
+    g.setIndex(new THREE.BufferAttribute(new Uint32Array(bytes(data.mesh.indices)), 1));
     g.computeVertexNormals();
     const m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({
       vertexColors: THREE.VertexColors, side: THREE.DoubleSide }));
@@ -94,9 +94,9 @@
   }
   if (data.points) {
     const g = new THREE.BufferGeometry();
-    const pos = new Float32Array(Bytes(data.points));
+    const pos = new Float32Array(bytes(data.points));
     g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
-    g.setAttribute("color", new THREE.BufferAttribute(Coloured(pos), 3));
+    g.setAttribute("color", new THREE.BufferAttribute(coloured(pos), 3));
     const p = new THREE.Points(g, new THREE.PointsMaterial({
       size: 2, sizeAttenuation: false, vertexColors: THREE.VertexColors }));
     scene.add(p);
@@ -106,7 +106,7 @@
   let track = null;  // the vehicle's track (after SLAM when there is one): the water surface
   for (const [key, colour] of [["trajectory_after", 0xffffff], ["trajectory_before", 0xff8c1a]]) {
     if (!data[key]) continue;
-    const pos = new Float32Array(Bytes(data[key]));
+    const pos = new Float32Array(bytes(data[key]));
     const g = new THREE.BufferGeometry();
     g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
     const l = new THREE.Line(g, new THREE.LineBasicMaterial({ color: colour }));
@@ -128,7 +128,7 @@
   camera.up.set(0, 0, 1);
   const orbit = new THREE.OrbitControls(camera, renderer.domElement);
   const ray = new THREE.Raycaster();
-  function FrameView(centre, radius) {
+  function frameView(centre, radius) {
     view.radius = Math.max(1, radius);
     const r = view.radius;
     camera.near = Math.max(0.01, r / 2000);
@@ -139,18 +139,18 @@
     orbit.update();
     ray.params.Points.threshold = r / 300;
   }
-  FrameView(new THREE.Vector3(0, 0, 0), view.radius);
+  frameView(new THREE.Vector3(0, 0, 0), view.radius);
 
   // First-person navigation (own): drag to look, W/S forward and back, A/D sideways,
   // R/F up and down; speed scales with the survey's size.
   const fp = { on: false, yaw: 0, pitch: 0, keys: new Set(), drag: null };
-  function FpFromCamera() {
+  function fpFromCamera() {
     const d = new THREE.Vector3();
     camera.getWorldDirection(d);
     fp.yaw = Math.atan2(d.y, d.x);
     fp.pitch = Math.asin(Math.max(-1, Math.min(1, d.z)));
   }
-  function FpApply() {
+  function fpApply() {
     const d = new THREE.Vector3(Math.cos(fp.pitch) * Math.cos(fp.yaw),
                                 Math.cos(fp.pitch) * Math.sin(fp.yaw), Math.sin(fp.pitch));
     camera.lookAt(camera.position.clone().add(d));
@@ -162,13 +162,13 @@
     fp.yaw -= 0.004 * (e.clientX - fp.drag[0]);
     fp.pitch = Math.max(-1.5, Math.min(1.5, fp.pitch - 0.004 * (e.clientY - fp.drag[1])));
     fp.drag = [e.clientX, e.clientY];
-    FpApply();
+    fpApply();
   });
   window.addEventListener("keydown", e => {
     if (fp.on && e.target === document.body) fp.keys.add(e.key.toLowerCase());
   });
   window.addEventListener("keyup", e => fp.keys.delete(e.key.toLowerCase()));
-  function FpStep(dt) {
+  function fpStep(dt) {
     if (!fp.on || fp.keys.size === 0) return;
     const v = 0.15 * view.radius * dt;
     const f = new THREE.Vector3(Math.cos(fp.yaw), Math.sin(fp.yaw), 0);
@@ -179,11 +179,11 @@
     if (fp.keys.has("a")) camera.position.addScaledVector(s, -v);
     if (fp.keys.has("r")) camera.position.z += v;
     if (fp.keys.has("f")) camera.position.z -= v;
-    FpApply();
+    fpApply();
   }
 
   // The surfaces the tools work on: the report's mesh and a loaded glTF, when shown.
-  function SurfaceMeshes() {
+  function surfaceMeshes() {
     const out = [];
     if (layers.mesh && layers.mesh.visible) out.push(layers.mesh);
     if (layers.gltf && layers.gltf.visible) {
@@ -192,7 +192,7 @@
     return out;
   }
   // A mesh's vertices in view coordinates (its world matrix applied) and its triangles.
-  function WorldTriangles(mesh) {
+  function worldTriangles(mesh) {
     mesh.updateMatrixWorld(true);
     const a = mesh.geometry.attributes.position;
     const pos = new Float32Array(a.count * 3);
@@ -208,12 +208,12 @@
 
   // The tools' two clicks: "distance" or "section", on the mesh, a glTF or the soundings.
   const tool = { kind: null, picks: [], objects: [] };
-  function ClearTool() {
+  function clearTool() {
     for (const o of tool.objects) scene.remove(o);
     tool.objects = [];
     tool.picks = [];
   }
-  function Marker(p) {
+  function marker(p) {
     const g = new THREE.SphereGeometry(view.radius / 250, 12, 8);
     const m = new THREE.Mesh(g, new THREE.MeshBasicMaterial({ color: 0xff2222 }));
     m.position.copy(p);
@@ -221,7 +221,7 @@
     tool.objects.push(m);
   }
   // Tool lines are drawn over everything: a profile lies on the surface it was cut from.
-  function Line3d(points, colour, segments) {
+  function line3d(points, colour, segments) {
     const g = new THREE.BufferGeometry().setFromPoints(points);
     const material = new THREE.LineBasicMaterial({ color: colour, depthTest: false });
     const l = segments ? new THREE.LineSegments(g, material) : new THREE.Line(g, material);
@@ -236,13 +236,13 @@
     const b = renderer.domElement.getBoundingClientRect();
     ray.setFromCamera(new THREE.Vector2(((e.clientX - b.left) / b.width) * 2 - 1,
                                         -((e.clientY - b.top) / b.height) * 2 + 1), camera);
-    const targets = SurfaceMeshes();
+    const targets = surfaceMeshes();
     if (layers.points && layers.points.visible) targets.push(layers.points);
     const hit = ray.intersectObjects(targets, false)[0];
     if (!hit) return;
-    if (tool.picks.length === 2) ClearTool();
+    if (tool.picks.length === 2) clearTool();
     tool.picks.push(hit.point.clone());
-    Marker(hit.point);
+    marker(hit.point);
     const what = tool.kind === "distance" ? "distance" : "cross-section";
     if (tool.picks.length < 2) {
       info.textContent = what + ": click the second point";
@@ -250,12 +250,12 @@
     }
     const [a, c] = tool.picks;
     if (tool.kind === "distance") {
-      Line3d([a, c], 0xff2222);
+      line3d([a, c], 0xff2222);
       info.textContent = "distance " + a.distanceTo(c).toFixed(2) + " m (horizontal " +
         Math.hypot(a.x - c.x, a.y - c.y).toFixed(2) + " m, vertical " +
         Math.abs(a.z - c.z).toFixed(2) + " m)";
     } else {
-      CrossSection(a, c);
+      cutProfile(a, c);
     }
   });
 
@@ -268,58 +268,58 @@
   const corridorInput = document.getElementById("viewer3d-corridor");
   const trueScale = document.getElementById("viewer3d-truescale");
   let profile = null;  // { a, b, line, mesh, points, plot }
-  function Corridor() {
+  function corridor() {
     const w = parseFloat(corridorInput ? corridorInput.value : "0.5");
     return isFinite(w) && w >= 0 ? w : 0.5;
   }
-  function CrossSection(a, b) {
+  function cutProfile(a, b) {
     const P = window.PitmapProfile;
-    const line = P.LineOf([a.x, a.y], [b.x, b.y]);
+    const line = P.lineOf([a.x, a.y], [b.x, b.y]);
     if (!line) {
       info.textContent = "cross-section: the two points are less than 1 mm apart; click again";
       return;
     }
-    const parts = SurfaceMeshes().map(m => {
-      const t = WorldTriangles(m);
-      return P.MeshSection(t.positions, t.index, line);
+    const parts = surfaceMeshes().map(m => {
+      const t = worldTriangles(m);
+      return P.meshSection(t.positions, t.index, line);
     });
     const mesh = new Float64Array(parts.reduce((n, p) => n + p.length, 0));
     parts.reduce((at, p) => { mesh.set(p, at); return at + p.length; }, 0);
     const pts = layers.points && layers.points.visible
-      ? P.CorridorPoints(layers.points.geometry.attributes.position.array, line, Corridor())
+      ? P.corridorPoints(layers.points.geometry.attributes.position.array, line, corridor())
       : new Float64Array(0);
     profile = { a: a, b: b, line: line, mesh: mesh, points: pts, plot: null };
     const ends = [];
     for (let i = 0; i < mesh.length; i += 2) {
       ends.push(new THREE.Vector3(a.x + line.ux * mesh[i], a.y + line.uy * mesh[i], mesh[i + 1]));
     }
-    Line3d([new THREE.Vector3(a.x, a.y, a.z), new THREE.Vector3(b.x, b.y, b.z)], 0xff2222);
-    if (ends.length) Line3d(ends, 0xffe14d, true);
-    DrawProfile();
+    line3d([new THREE.Vector3(a.x, a.y, a.z), new THREE.Vector3(b.x, b.y, b.z)], 0xff2222);
+    if (ends.length) line3d(ends, 0xffe14d, true);
+    drawProfile();
     const zc = view.centre ? view.centre[2] : 0;
     const enu = (p) => [p.x + (view.centre ? view.centre[0] : 0),
                         p.y + (view.centre ? view.centre[1] : 0), p.z + zc];
     state.profile = {
-      a: enu(a), b: enu(b), length: line.length, corridor: Corridor(),
+      a: enu(a), b: enu(b), length: line.length, corridor: corridor(),
       segments: Array.from(mesh, (v, i) => (i % 2 ? v + zc : v)),
       points: pts.length / 2,
     };
     info.textContent = "cross-section " + line.length.toFixed(2) + " m: " + mesh.length / 4 +
-      " mesh segments, " + pts.length / 2 + " soundings within \u00b1" + Corridor() + " m" +
+      " mesh segments, " + pts.length / 2 + " soundings within \u00b1" + corridor() + " m" +
       (mesh.length ? "" : " (the line misses the mesh)");
   }
-  function DrawProfile() {
+  function drawProfile() {
     if (!profile || !profileBox) return;
     profileBox.hidden = false;
     const zc = view.centre ? view.centre[2] : 0;
-    profile.plot = window.PitmapProfile.Draw(profileCanvas, {
+    profile.plot = window.PitmapProfile.draw(profileCanvas, {
       length: profile.line.length, mesh: profile.mesh, points: profile.points, zOffset: zc,
       water: waterZ, trueScale: trueScale && trueScale.checked });
     const ab = (p) => "(" + (p.x + (view.centre ? view.centre[0] : 0)).toFixed(1) + ", " +
                       (p.y + (view.centre ? view.centre[1] : 0)).toFixed(1) + ")";
     profileCaption.textContent = "Profile A " + ab(profile.a) + " \u2192 B " + ab(profile.b) +
       " (ENU m), " + profile.line.length.toFixed(2) + " m: mesh (black line), soundings within " +
-      "\u00b1" + Corridor() + " m of the plane (orange)" +
+      "\u00b1" + corridor() + " m of the plane (orange)" +
       (waterZ !== null ? ", water surface = median track height (blue dashes)" : "") +
       "; vertical exaggeration \u00d7" + profile.plot.exaggeration.toFixed(2) +
       ". Point at the line to read height, depth and slope.";
@@ -330,7 +330,7 @@
       if (!profile || !profile.plot) return;
       const b = profileCanvas.getBoundingClientRect();
       const s = profile.plot.toS(e.clientX - b.left), z = profile.plot.toZ(e.clientY - b.top);
-      const near = window.PitmapProfile.Nearest(profile.mesh, s, z, profile.plot, 12);
+      const near = window.PitmapProfile.nearest(profile.mesh, s, z, profile.plot, 12);
       const zc = view.centre ? view.centre[2] : 0;
       if (!near) {
         profileReadout.textContent = "s " + s.toFixed(2) + " m, z " + (z + zc).toFixed(2) + " m";
@@ -343,15 +343,15 @@
     });
   }
   if (corridorInput) {
-    corridorInput.addEventListener("change", () => { if (profile) CrossSection(profile.a, profile.b); });
+    corridorInput.addEventListener("change", () => { if (profile) cutProfile(profile.a, profile.b); });
   }
-  if (trueScale) trueScale.addEventListener("change", DrawProfile);
+  if (trueScale) trueScale.addEventListener("change", drawProfile);
   // For scripts and the browser test: the cross-section between two ENU points [x, y] (the
   // vertical plane needs no heights).
   state.crossSection = (a, b) => {
     const c = view.centre || [0, 0, 0];
-    ClearTool();
-    CrossSection(new THREE.Vector3(a[0] - c[0], a[1] - c[1], 0),
+    clearTool();
+    cutProfile(new THREE.Vector3(a[0] - c[0], a[1] - c[1], 0),
                  new THREE.Vector3(b[0] - c[0], b[1] - c[1], 0));
     return state.profile;
   };
@@ -366,9 +366,9 @@
   const vrCamera = new THREE.PerspectiveCamera(50, 1, 0.05, 5000);
   rig.add(vrCamera);
   scene.add(rig);
-  function PlaceRig() {
+  function placeRig() {
     const box = new THREE.Box3();
-    for (const o of SurfaceMeshes().concat(layers.points && layers.points.visible ? [layers.points] : [])) {
+    for (const o of surfaceMeshes().concat(layers.points && layers.points.visible ? [layers.points] : [])) {
       box.expandByObject(o);
     }
     if (box.isEmpty()) box.set(new THREE.Vector3(-1, -1, -1), new THREE.Vector3(1, 1, 1));
@@ -376,7 +376,7 @@
     rig.position.set((box.min.x + box.max.x) / 2, box.min.y, top);
   }
   renderer.vr.addEventListener("sessionstart", () => {
-    PlaceRig();
+    placeRig();
     const session = renderer.vr.getSession();
     if (session) session.updateRenderState({ depthNear: 0.05, depthFar: 50 * view.radius });
     info.textContent = "VR: real size; trigger (select) moves you a tenth of the survey " +
@@ -396,7 +396,7 @@
   // glTF binary (.glb) files: the page's own (pitmap-report --view-gltf) or one opened here.
   // The 12-byte header is checked first (magic "glTF", version 2, length = the file's size),
   // then GLTFLoader reads it; every failure is a message in the page.
-  function GlbProblem(buffer) {
+  function glbProblem(buffer) {
     const n = buffer.byteLength;
     if (n < 20) return "too short for a glTF binary (" + n + " bytes)";
     const h = new DataView(buffer, 0, 20);
@@ -412,18 +412,18 @@
     return null;
   }
   let gltfCheckbox = null;
-  function GltfFailed(name, why) {
+  function gltfFailed(name, why) {
     state.gltf = { name: name, status: "error", message: why, triangles: 0 };
-    ShowProblem("glTF " + name + ": " + why);
+    showProblem("glTF " + name + ": " + why);
     info.textContent = "";
   }
   // Reads a .glb (ArrayBuffer) into the view; the promise resolves with state.gltf once it
   // is shown or refused (a message in the page either way).
-  function LoadGltf(buffer, name) {
-    ShowProblem("");
-    const bad = GlbProblem(buffer);
+  function loadGltf(buffer, name) {
+    showProblem("");
+    const bad = glbProblem(buffer);
     if (bad) {
-      GltfFailed(name, bad);
+      gltfFailed(name, bad);
       return Promise.resolve(state.gltf);
     }
     state.gltf = { name: name, status: "loading", message: "", triangles: 0 };
@@ -434,23 +434,23 @@
       try {
         new THREE.GLTFLoader().parse(buffer, "", g => {
           try {
-            AddGltf(g, name);
+            addGltf(g, name);
           } catch (e) {
-            GltfFailed(name, "cannot show it: " + why(e));
+            gltfFailed(name, "cannot show it: " + why(e));
           }
           done();
         }, e => {
-          GltfFailed(name, "cannot read it: " + why(e));
+          gltfFailed(name, "cannot read it: " + why(e));
           done();
         });
       } catch (e) {  // GLTFLoader throws some errors (bad JSON) instead of calling back
-        GltfFailed(name, "cannot read it: " + why(e));
+        gltfFailed(name, "cannot read it: " + why(e));
         done();
       }
     });
   }
-  state.openGltf = LoadGltf;  // for scripts and the browser test: (ArrayBuffer, name)
-  function AddGltf(gltf, name) {
+  state.openGltf = loadGltf;  // for scripts and the browser test: (ArrayBuffer, name)
+  function addGltf(gltf, name) {
     if (!gltf.scene) throw new Error("the file has no scene");
     const root = new THREE.Group();
     root.rotation.x = Math.PI / 2;  // glTF y-up (E, U, -N) back to ENU z-up
@@ -474,7 +474,7 @@
         const a = g.attributes.position, v = new THREE.Vector3();
         const c = new Float32Array(a.count * 3);
         for (let i = 0; i < a.count; ++i) {
-          ColourOf(v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(o.matrixWorld).z, c, 3 * i);
+          colourOf(v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(o.matrixWorld).z, c, 3 * i);
         }
         g.setAttribute("color", new THREE.BufferAttribute(c, 3));
       }
@@ -492,17 +492,17 @@
     scene.add(root);
     layers.gltf = root;
     const shown = new THREE.Box3().setFromObject(root);
-    if (first || !shown.intersectsBox(ExtentOfReport())) {
-      FrameView(shown.getCenter(new THREE.Vector3()), shown.getSize(new THREE.Vector3()).length() / 2);
+    if (first || !shown.intersectsBox(extentOfReport())) {
+      frameView(shown.getCenter(new THREE.Vector3()), shown.getSize(new THREE.Vector3()).length() / 2);
     }
-    if (layers.mesh && layers.mesh.visible) SetLayerVisible("mesh", false);  // replaces it
-    if (!gltfCheckbox) gltfCheckbox = Checkbox("glTF", "gltf");
+    if (layers.mesh && layers.mesh.visible) setLayerVisible("mesh", false);  // replaces it
+    if (!gltfCheckbox) gltfCheckbox = checkbox("glTF", "gltf");
     gltfCheckbox.lastChild.textContent = " glTF " + name + " ";
     state.gltf = { name: name, status: "loaded", message: "", triangles: triangles };
     info.textContent = "glTF " + name + ": " + triangles + " triangles" +
       (layers.mesh ? " (it replaces the report's mesh; tick \"mesh\" to see both)" : "");
   }
-  function ExtentOfReport() {
+  function extentOfReport() {
     const box = new THREE.Box3();
     for (const key of ["mesh", "points"]) if (layers[key]) box.expandByObject(layers[key]);
     return box;
@@ -511,7 +511,7 @@
   // The controls under the view.
   const bar = document.getElementById("viewer3d-bar");
   const checkboxes = {};
-  function Checkbox(label, key) {
+  function checkbox(label, key) {
     if (!layers[key]) return null;
     const l = document.createElement("label");
     const c = document.createElement("input");
@@ -524,27 +524,27 @@
     checkboxes[key] = c;
     return l;
   }
-  function SetLayerVisible(key, on) {
+  function setLayerVisible(key, on) {
     layers[key].visible = on;
     if (checkboxes[key]) checkboxes[key].checked = on;
   }
-  function Button(label, fn) {
+  function button(label, fn) {
     const b = document.createElement("button");
     b.textContent = label;
     b.addEventListener("click", () => fn(b));
     bar.appendChild(b);
     return b;
   }
-  Checkbox("mesh", "mesh");
-  Checkbox("soundings", "points");
-  Checkbox("trajectory after SLAM (white)", "trajectory_after");
-  Checkbox("trajectory before SLAM (orange)", "trajectory_before");
-  Button("first person", b => {
+  checkbox("mesh", "mesh");
+  checkbox("soundings", "points");
+  checkbox("trajectory after SLAM (white)", "trajectory_after");
+  checkbox("trajectory before SLAM (orange)", "trajectory_before");
+  button("first person", b => {
     fp.on = !fp.on;
     orbit.enabled = !fp.on;
     b.textContent = fp.on ? "orbit" : "first person";
     if (fp.on) {
-      FpFromCamera();
+      fpFromCamera();
       info.textContent = "first person: drag to look, W/S/A/D to move, R/F up and down";
     } else {
       orbit.target.set(0, 0, 0);
@@ -553,19 +553,19 @@
     }
   });
   const toolButtons = {};
-  function ToolButton(kind, label, stopLabel, prompt) {
-    toolButtons[kind] = Button(label, b => {
+  function toolButton(kind, label, stopLabel, prompt) {
+    toolButtons[kind] = button(label, b => {
       const on = tool.kind !== kind;
       for (const k in toolButtons) toolButtons[k].textContent = toolButtons[k].dataset.label;
-      ClearTool();
+      clearTool();
       tool.kind = on ? kind : null;
       if (on) b.textContent = stopLabel;
       info.textContent = on ? prompt : "";
     });
     toolButtons[kind].dataset.label = label;
   }
-  ToolButton("distance", "measure distance", "stop measuring", "distance: click the first point");
-  ToolButton("section", "cross-section", "stop cross-section",
+  toolButton("distance", "measure distance", "stop measuring", "distance: click the first point");
+  toolButton("section", "cross-section", "stop cross-section",
              "cross-section: click the first point (A) on the mesh or the soundings");
   const fileInput = document.createElement("input");
   fileInput.type = "file";
@@ -575,12 +575,12 @@
   fileInput.addEventListener("change", () => {
     const f = fileInput.files[0];
     if (!f) return;
-    f.arrayBuffer().then(buffer => LoadGltf(buffer, f.name),
-                         e => GltfFailed(f.name, "cannot read the file: " + e));
+    f.arrayBuffer().then(buffer => loadGltf(buffer, f.name),
+                         e => gltfFailed(f.name, "cannot read the file: " + e));
     fileInput.value = "";
   });
   bar.appendChild(fileInput);
-  Button("open glTF...", () => fileInput.click()).title =
+  button("open glTF...", () => fileInput.click()).title =
     "show a local .glb (pitmap's mesh.glb, glTF 2.0 binary) in this view";
 
   window.addEventListener("resize", () => {
@@ -588,16 +588,16 @@
     camera.aspect = W() / H();
     camera.updateProjectionMatrix();
     renderer.setSize(W(), H());
-    if (profile) DrawProfile();
+    if (profile) drawProfile();
   });
   let last = performance.now();
   renderer.setAnimationLoop(now => {
-    FpStep(Math.min(0.1, (now - last) / 1000));
+    fpStep(Math.min(0.1, (now - last) / 1000));
     last = now;
     renderer.render(scene, renderer.vr.isPresenting() ? vrCamera : camera);
     state.frames += 1;
     state.ready = true;
   });
 
-  if (data.gltf) LoadGltf(Bytes(data.gltf.glb), data.gltf.name);
+  if (data.gltf) loadGltf(bytes(data.gltf.glb), data.gltf.name);
 })();

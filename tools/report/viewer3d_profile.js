@@ -12,7 +12,7 @@
 
   // The horizontal line A->B: origin, unit direction u, unit normal n (u turned +90 deg about
   // z) and length. A and B closer than 1 mm apart give null (no plane).
-  function LineOf(a, b) {
+  function lineOf(a, b) {
     const dx = b[0] - a[0], dy = b[1] - a[1];
     const length = Math.hypot(dx, dy);
     if (!(length > 1e-3)) return null;
@@ -27,7 +27,7 @@
   // triangle that the plane crosses. Each vertex's signed distance d to the plane decides
   // its side (d >= 0 or d < 0); an edge whose ends lie on different sides is cut at
   // t = d_p / (d_p - d_q), so a triangle with a vertex on the plane is cut once, not twice.
-  function MeshSection(positions, index, line) {
+  function meshSection(positions, index, line) {
     const nv = positions.length / 3;
     const d = new Float64Array(nv), s = new Float64Array(nv);
     for (let i = 0; i < nv; ++i) {
@@ -51,14 +51,14 @@
         cut[k++] = s[p] + f * (s[q] - s[p]);
         cut[k++] = positions[3 * p + 2] + f * (positions[3 * q + 2] - positions[3 * p + 2]);
       }
-      const seg = ClipToLine(cut, line.length);
+      const seg = clipToLine(cut, line.length);
       if (seg) out.push(seg[0], seg[1], seg[2], seg[3]);
     }
     return Float64Array.from(out);
   }
 
   // The part of segment [s0, z0, s1, z1] with 0 <= s <= length, or null.
-  function ClipToLine(c, length) {
+  function clipToLine(c, length) {
     let [s0, z0, s1, z1] = c;
     if (s0 > s1) [s0, z0, s1, z1] = [s1, z1, s0, z0];
     if (s1 < 0 || s0 > length) return null;
@@ -68,7 +68,7 @@
   }
 
   // Soundings within halfWidth of the plane and between A and B: [s, z, s, z, ...].
-  function CorridorPoints(positions, line, halfWidth) {
+  function corridorPoints(positions, line, halfWidth) {
     const out = [];
     for (let i = 0; i < positions.length; i += 3) {
       const x = positions[i] - line.ax, y = positions[i + 1] - line.ay;
@@ -80,7 +80,7 @@
   }
 
   // Tick step for about `count` ticks over `span`: 1, 2 or 5 times a power of ten.
-  function TickStep(span, count) {
+  function tickStep(span, count) {
     const raw = span / Math.max(1, count);
     const p = Math.pow(10, Math.floor(Math.log10(raw)));
     for (const m of [1, 2, 5]) if (m * p >= raw) return m * p;
@@ -93,7 +93,7 @@
   // (added to every z for the labels), water (height of the water surface or null),
   // trueScale (1 m across = 1 m up) }. Returns the plot's mapping { sx, sz, toS, toZ,
   // exaggeration } for the hover read-out.
-  function Draw(canvas, p) {
+  function draw(canvas, p) {
     const ratio = window.devicePixelRatio || 1;
     const w = canvas.clientWidth, h = canvas.clientHeight;
     canvas.width = Math.round(w * ratio);
@@ -134,7 +134,7 @@
     g.strokeStyle = "#dde3e8";
     g.fillStyle = "#333";
     g.lineWidth = 1;
-    const sStep = TickStep(sSpan, pw / 90);
+    const sStep = tickStep(sSpan, pw / 90);
     g.textAlign = "center";
     g.textBaseline = "top";
     for (let s = 0; s <= sSpan + 1e-9; s += sStep) {
@@ -142,9 +142,9 @@
       g.moveTo(X(s), kMargin.top);
       g.lineTo(X(s), kMargin.top + ph);
       g.stroke();
-      g.fillText(FormatTick(s, sStep), X(s), kMargin.top + ph + 4);
+      g.fillText(formatTick(s, sStep), X(s), kMargin.top + ph + 4);
     }
-    const zStep = TickStep(zMax - zMin, ph / 40);
+    const zStep = tickStep(zMax - zMin, ph / 40);
     g.textAlign = "right";
     g.textBaseline = "middle";
     const zFirst = Math.ceil((zMin + p.zOffset) / zStep) * zStep - p.zOffset;
@@ -153,7 +153,7 @@
       g.moveTo(kMargin.left, Y(z));
       g.lineTo(kMargin.left + pw, Y(z));
       g.stroke();
-      g.fillText(FormatTick(z + p.zOffset, zStep), kMargin.left - 6, Y(z));
+      g.fillText(formatTick(z + p.zOffset, zStep), kMargin.left - 6, Y(z));
     }
     g.strokeStyle = "#555";
     g.strokeRect(kMargin.left, kMargin.top, pw, ph);
@@ -200,14 +200,14 @@
     };
   }
 
-  function FormatTick(v, step) {
+  function formatTick(v, step) {
     const digits = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
     return (Math.abs(v) < step / 1e6 ? 0 : v).toFixed(digits);
   }
 
   // The mesh segment nearest to (s, z) within maxDistance (in the plot's pixels, through the
   // mapping m), as { s, z, slopeDeg } at the nearest point, or null.
-  function Nearest(mesh, s, z, m, maxDistance) {
+  function nearest(mesh, s, z, m, maxDistance) {
     let best = null, bestD = maxDistance;
     for (let i = 0; i < mesh.length; i += 4) {
       const ax = mesh[i] * m.sx, ay = mesh[i + 1] * m.sz;
@@ -227,5 +227,5 @@
     return best;
   }
 
-  window.PitmapProfile = { LineOf, MeshSection, CorridorPoints, Draw, Nearest, TickStep };
+  window.PitmapProfile = { lineOf, meshSection, corridorPoints, draw, nearest, tickStep };
 })();
