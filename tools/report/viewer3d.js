@@ -228,6 +228,7 @@
     l.renderOrder = 1;
     scene.add(l);
     tool.objects.push(l);
+    return l;
   }
   let down = null;
   renderer.domElement.addEventListener("pointerdown", e => { down = [e.clientX, e.clientY]; });
@@ -268,6 +269,7 @@
   const corridorInput = document.getElementById("viewer3d-corridor");
   const trueScale = document.getElementById("viewer3d-truescale");
   let profile = null;  // { a, b, line, mesh, points, plot }
+  let profileLines = [];  // the profile's 3D lines (redrawn when the corridor changes)
   function corridor() {
     const w = parseFloat(corridorInput ? corridorInput.value : "0.5");
     return isFinite(w) && w >= 0 ? w : 0.5;
@@ -293,8 +295,10 @@
     for (let i = 0; i < mesh.length; i += 2) {
       ends.push(new THREE.Vector3(a.x + line.ux * mesh[i], a.y + line.uy * mesh[i], mesh[i + 1]));
     }
-    line3d([new THREE.Vector3(a.x, a.y, a.z), new THREE.Vector3(b.x, b.y, b.z)], 0xff2222);
-    if (ends.length) line3d(ends, 0xffe14d, true);
+    for (const o of profileLines) scene.remove(o);
+    profileLines = [line3d([new THREE.Vector3(a.x, a.y, a.z), new THREE.Vector3(b.x, b.y, b.z)],
+                           0xff2222)];
+    if (ends.length) profileLines.push(line3d(ends, 0xffe14d, true));
     drawProfile();
     const zc = view.centre ? view.centre[2] : 0;
     const enu = (p) => [p.x + (view.centre ? view.centre[0] : 0),

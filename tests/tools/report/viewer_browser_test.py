@@ -202,6 +202,14 @@ def CheckReport(browser, page, fixture):
     print("profile plot: %.1f %% drawn, %d colours" % (100 * share, colours))
     if share < 0.01 or colours < 4:
         fail("the profile plot is blank (%.2f %% drawn, %d colours)" % (100 * share, colours))
+    # A wider corridor (the input's change event) redraws the same profile.
+    browser.evaluate("(() => { const c = document.getElementById('viewer3d-corridor'); "
+                     "c.value = '1.0'; c.dispatchEvent(new Event('change')); })()")
+    wider = json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer.profile)"))
+    if wider["corridor"] != 1.0 or wider["a"] != profile["a"] or wider["points"] <= profile["points"]:
+        fail("the corridor input did not redraw the profile: %s" % {
+            k: wider[k] for k in ("a", "corridor", "points")})
+    CheckProfile(wider, vertices, triangles, points, "clicked profile, corridor 1 m")
     # A known oblique line across the bowl and its bench, with a wider corridor.
     browser.evaluate("document.getElementById('viewer3d-corridor').value = '1.5'")
     known = json.loads(browser.evaluate(
