@@ -65,8 +65,8 @@ private:
 struct LiveQuery {
     std::uint64_t since = 0;      // tiles / soundings newer than this version or sequence
     std::int64_t max_bytes = -1;  // the client's own cap, -1 = none
-    std::string client;           // the page's id, "" = none; 1..kMaxClientIdLength of [A-Za-z0-9_-]
-    std::string error;            // non-empty: refuse the request (HTTP 400) with this text
+    std::string client;  // the page's id, "" = none; 1..kMaxClientIdLength of [A-Za-z0-9_-]
+    std::string error;   // non-empty: refuse the request (HTTP 400) with this text
 };
 inline constexpr std::size_t kMaxClientIdLength = 32;
 // Parses values of `since` (0..2^63-1) and `max_bytes` (0..2^31-1), decimal digits only, and

@@ -273,8 +273,9 @@ Expected<io::GridRaster> CoverageGrid::ToRaster(int utm_zone,
     g.metadata = {{"pitmap_product", "live coverage grid"},
                   {"pitmap_holiday_search_cells", std::to_string(config_.holiday_search_cells)},
                   {"pitmap_s44_order", hydro::ToString(order_)},
-                  {"pitmap_tvu_limit", "sqrt(" + std::to_string(limits_.tvu_a_m) + "^2 + (" +
-                                           std::to_string(limits_.tvu_b) + " d)^2) m at depth d"},
+                  {"pitmap_tvu_limit",
+                   "sqrt(" + std::to_string(limits_.tvu_a_m) + "^2 + (" +
+                       std::to_string(limits_.tvu_b) + " d)^2) m at depth d"},
                   {"pitmap_tvu_min_share", std::to_string(config_.tvu_min_share)}};
     return g;
 }

@@ -66,8 +66,8 @@ struct CoverageStats {
     std::int64_t filled_cells = 0;
     std::int64_t holidays = 0;
     std::int64_t tiles = 0;
-    std::int64_t cells_tvu_failing = 0;  // filled cells that do not meet the order's TVU
-    std::int64_t soundings_tvu_over = 0;  // gridded soundings over the order's TVU limit
+    std::int64_t cells_tvu_failing = 0;       // filled cells that do not meet the order's TVU
+    std::int64_t soundings_tvu_over = 0;      // gridded soundings over the order's TVU limit
     double covered_area_m2 = 0;               // filled_cells * cell area
     double min_depth_m = 0, max_depth_m = 0;  // over the filled cells' means; 0 when empty
     // Cell index bounds of the filled cells (inclusive); empty when filled_cells == 0.
@@ -113,8 +113,8 @@ public:
     // The filled extent as a raster in the UTM zone given: layers depth (m, below the
     // transducer), elevation (m, ellipsoidal), elevation_stddev (m), density (soundings per
     // cell), holiday (1 = holiday, 0 = not), tvu_95 (the cell's mean TVU, m) and
-    // tvu_meets_order (1 = meets the order, 0 = fails); NaN = empty. Error when empty or larger than
-    // max_cells.
+    // tvu_meets_order (1 = meets the order, 0 = fails); NaN = empty. Error when empty or larger
+    // than max_cells.
     Expected<io::GridRaster> ToRaster(int utm_zone,
                                       bool northern,
                                       std::size_t max_cells = 100'000'000) const;

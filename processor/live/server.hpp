@@ -35,7 +35,7 @@ struct ServerConfig {
     double budget_burst_s = 2.0;
     std::size_t max_clients = 16;  // clients with a budget of their own; beyond: LRU evicted
     double client_idle_s = 10.0;   // a client silent this long no longer takes a share
-    std::string snapshot_dir;  // "" = snapshots refused
+    std::string snapshot_dir;      // "" = snapshots refused
     std::vector<std::string> Validate() const;
 };
 

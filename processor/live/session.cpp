@@ -86,7 +86,8 @@ void PutF32(std::vector<std::uint8_t>& b, float f) {
 constexpr double kTvuStepM = 0.02;
 std::uint8_t TvuByte(const GridCell& c, bool meets) {
     const double mean = static_cast<double>(c.sum_tvu_m) / static_cast<double>(c.count);
-    const long q = std::isfinite(mean) ? std::lround(std::clamp(mean / kTvuStepM, 1.0, 127.0)) : 127;
+    const long q =
+        std::isfinite(mean) ? std::lround(std::clamp(mean / kTvuStepM, 1.0, 127.0)) : 127;
     return static_cast<std::uint8_t>(q | (meets ? 0 : 0x80));
 }
 
@@ -154,11 +155,10 @@ void LiveSession::AddStdDevLocked(const georef::NavStdDev& s) {
     const auto keep =
         static_cast<std::int64_t>((config_.georef.nav_keep_s + config_.ins_sigma_max_age_s) * 1e6);
     const std::int64_t oldest = stddevs_.back().utime_gps - keep;
-    auto stale =
-        std::lower_bound(stddevs_.begin(),
-                         stddevs_.end(),
-                         oldest,
-                         [](const auto& d, std::int64_t t) { return d.utime_gps < t; });
+    auto stale = std::lower_bound(
+        stddevs_.begin(), stddevs_.end(), oldest, [](const auto& d, std::int64_t t) {
+            return d.utime_gps < t;
+        });
     if (static_cast<std::size_t>(stale - stddevs_.begin()) * 2 > stddevs_.size() ||
         stddevs_.size() > 100'000) {
         stddevs_.erase(stddevs_.begin(), std::max(stale, stddevs_.end() - 100'000));
@@ -530,21 +530,20 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
                  {"northern", utm_northern_}};
     const hydro::S44Limits& L = hydro::LimitsOf(grid_.order());
     const std::int64_t meeting = c.filled_cells - c.cells_tvu_failing;
-    j["grid"]["tvu"] = {
-        {"order", hydro::ToString(grid_.order())},
-        {"limit_a_m", L.tvu_a_m},
-        {"limit_b", L.tvu_b},
-        {"min_share", config_.grid.tvu_min_share},
-        {"cells_meeting", meeting},
-        {"cells_failing", c.cells_tvu_failing},
-        {"share_meeting",
-         c.filled_cells > 0
-             ? json(static_cast<double>(meeting) / static_cast<double>(c.filled_cells))
-             : json(nullptr)},
-        {"soundings_over", c.soundings_tvu_over},
-        {"last_batch_median_tvu_m", last_batch_median_tvu_m_},
-        {"pings_with_ins_sigma", pings_with_ins_sigma_},
-        {"pings_with_model_sigma", pings_with_model_sigma_}};
+    j["grid"]["tvu"] = {{"order", hydro::ToString(grid_.order())},
+                        {"limit_a_m", L.tvu_a_m},
+                        {"limit_b", L.tvu_b},
+                        {"min_share", config_.grid.tvu_min_share},
+                        {"cells_meeting", meeting},
+                        {"cells_failing", c.cells_tvu_failing},
+                        {"share_meeting",
+                         c.filled_cells > 0 ? json(static_cast<double>(meeting) /
+                                                   static_cast<double>(c.filled_cells))
+                                            : json(nullptr)},
+                        {"soundings_over", c.soundings_tvu_over},
+                        {"last_batch_median_tvu_m", last_batch_median_tvu_m_},
+                        {"pings_with_ins_sigma", pings_with_ins_sigma_},
+                        {"pings_with_model_sigma", pings_with_model_sigma_}};
     j["counts"] = {{"events", counts_.events},
                    {"decode_failures", counts_.decode_failures},
                    {"utm_failures", counts_.utm_failures}};

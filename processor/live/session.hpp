@@ -47,8 +47,8 @@ struct LiveConfig {
     // speed; num_threads is forced to 1 (the LCM thread computes it).
     hydro::TpuConfig tpu;
     double ins_sigma_max_age_s = 5.0;  // INS sigma records further from a ping: the model's
-    std::string nav_channel_id;                  // "" = every INS channel
-    std::string sonar_channel_id;                // "" = every sonar channel
+    std::string nav_channel_id;        // "" = every INS channel
+    std::string sonar_channel_id;      // "" = every sonar channel
     std::size_t max_recent_soundings = 200'000;  // ring for the 3D view
     std::size_t max_track_points = 20'000;       // vehicle track ring (one per georeferenced ping)
     double process_interval_s = 0.1;             // data time between georeferencing batches

@@ -37,7 +37,7 @@ struct StatusConfig {
     std::int64_t disk_low_bytes = 1LL << 30;
     double drops_window_s = 10.0;
     double no_messages_s = 5.0;
-    double rate_window_s = 5.0;  // ping rate over this much data time
+    double rate_window_s = 5.0;       // ping rate over this much data time
     double tvu_alarm_percent = 10.0;  // new cells failing the order's TVU, % (0..100)
     double tvu_window_s = 30.0;       // "new": first filled within this much data time
     int tvu_min_new_cells = 20;       // fewer new cells in the window: no verdict

@@ -105,12 +105,12 @@ TEST(LiveQuery, ParsesKnownKeysAndIgnoresOthers) {
 
 TEST(LiveQuery, RefusesABadClientId) {
     for (const std::string& bad : {std::string(""),
-                                  std::string(33, 'a'),
-                                  std::string("a b"),
-                                  std::string("a/b"),
-                                  std::string("a\0b", 3),
-                                  std::string("\xc3\xa9t\xc3\xa9"),
-                                  std::string("a%20b")}) {
+                                   std::string(33, 'a'),
+                                   std::string("a b"),
+                                   std::string("a/b"),
+                                   std::string("a\0b", 3),
+                                   std::string("\xc3\xa9t\xc3\xa9"),
+                                   std::string("a%20b")}) {
         const LiveQuery q = ParseLiveQuery({{"client", bad}});
         EXPECT_NE(q.error.find("client"), std::string::npos) << bad;
     }

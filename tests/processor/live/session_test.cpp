@@ -348,7 +348,8 @@ TEST(LiveSession, TvuOfTheDefaultModelMeetsOrder1a) {
     EXPECT_EQ(tiles["stats"]["cells_tvu_failing"], 0);
     // Every filled cell: mean TVU 0.08..0.10 m -> 4 or 5 steps of 2 cm, bit 7 clear (meets).
     const auto cells = FilledTvuBytes(tiles);
-    EXPECT_EQ(static_cast<std::int64_t>(cells.size()), st["grid"]["filled_cells"].get<std::int64_t>());
+    EXPECT_EQ(static_cast<std::int64_t>(cells.size()),
+              st["grid"]["filled_cells"].get<std::int64_t>());
     for (const auto& [count, tvu] : cells) {
         EXPECT_TRUE(tvu == 4 || tvu == 5) << tvu;
     }
