@@ -180,7 +180,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("score_patience",
       c.score_patience,
       "stop after this many iterations without a better pair score");
-    v("score_tolerance", c.score_tolerance, "a gain counts above this fraction");
+    v("score_tolerance",
+      c.score_tolerance,
+      "a gain counts above this fraction; the last iterate is kept unless this much worse");
     v("num_threads", c.num_threads, "0 = all cores");
     v("sigma_max_age_s", s.sigma_max_age_s, "INS stddev records further from a ping are unused, s");
 }

@@ -26,8 +26,9 @@
 // Guards ("must not get worse"): a step is taken only if it lowers the total cost (INS terms and
 // robust pair terms) on the pairs it was computed from, else the Levenberg damping grows; the
 // pair score of every iterate (closest-point distance over the overlap, truncated at
-// max_pair_distance_m, RMS) is measured, the best iterate is kept and a stage stops after
-// score_patience iterations without a better one. A plane-fit consistency score (vertical RMS
+// max_pair_distance_m, RMS) is measured, a stage stops after score_patience iterations without
+// a better one, and its last iterate is kept unless its score is worse than the best iterate's
+// by more than score_tolerance (then the best one is). A plane-fit consistency score (vertical RMS
 // over grid cells seen by passes at least min_time_separation_s apart) is reported too; it is
 // no stopping criterion, since multi-metre drift can make it rise while the alignment improves.
 //
@@ -130,7 +131,7 @@ struct SlamConfig {
     // Stop after this many iterations without a better pair score (the rigid stage: only once
     // its pair distance has come down to max_pair_distance_m).
     int score_patience = 2;
-    double score_tolerance = 1e-3;  // patience: a gain counts if above this fraction
+    double score_tolerance = 1e-3;  // a gain counts above this fraction; see the guards above
     int num_threads = 0;            // 0 = TBB default
     // Called after every iteration with (stage, iteration); return false to cancel.
     std::function<bool(int, int)> progress;
@@ -144,11 +145,11 @@ enum class SlamStage { kRigid, kSemiRigid };
 enum class SlamTermination {
     kConverged,      // pose updates below the thresholds
     kMaxIterations,  // iteration budget spent
-    kScoreStalled,   // pair score did not improve for score_patience iterations; best kept
-    kNoImprovement,  // no damped step lowered the cost on the current pairs; best kept
+    kScoreStalled,   // pair score did not improve for score_patience iterations
+    kNoImprovement,  // no damped step lowered the cost on the current pairs
     kNoOverlap,      // no point pairs at all: the trajectory is returned unchanged
-    kSolverFailed,   // the normal equations could not be factorised; best iterate kept
-    kCancelled,      // the progress callback returned false; best iterate kept
+    kSolverFailed,   // the normal equations could not be factorised
+    kCancelled,      // the progress callback returned false
     kInvalidInput,   // empty input, non-finite values or an invalid config
 };
 const char* ToString(SlamTermination t);
@@ -210,7 +211,7 @@ struct SlamResult {
     double initial_consistency_m = 0;       // plane-fit score of the input trajectory
     double final_consistency_m = 0;         // ... and of the result
     double initial_pair_score_m = 0;        // pair score of the input trajectory
-    double final_pair_score_m = 0;          // ... and of the result (the best iterate)
+    double final_pair_score_m = 0;          // ... and of the result (the kept iterate)
     SlamTimings timings;
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;
