@@ -204,17 +204,51 @@ std::vector<Pair> FindPairs(const Input& in,
 
 // Unit normal of the points around pw[k] in its block (smallest eigenvector of the local
 // covariance of its num_neighbours nearest); zero if fewer than 3 neighbours.
-Eigen::Vector3f LocalNormal(const Block& b,
-                            const std::vector<Eigen::Vector3f>& pw,
-                            std::size_t k,
-                            int num_neighbours) {
-    std::vector<std::size_t> idx(static_cast<std::size_t>(num_neighbours));
-    std::vector<float> d2(idx.size());
-    const std::size_t n = b.tree->Nearest(pw[k], idx.size(), idx.data(), d2.data());
-    reg::MomentAccumulator m;
-    for (std::size_t i = 0; i < n; ++i) m.Add(pw[b.p0 + idx[i]].cast<double>());
-    const reg::PlaneFit f = reg::FitPlane(m);
-    return f.valid ? Eigen::Vector3f(f.normal.cast<float>()) : Eigen::Vector3f::Zero();
+// Normals of the points items[i] = (global point index, block), each fitted to the current
+// world positions of its normal_neighbours nearest points of its own block. The neighbours are
+// searched once per run and kept in the block: a block is 15 s of one pass, which SLAM moves as
+// a whole or bends smoothly, so its points keep their neighbours while their positions (and
+// normals) change (bejanca: the k-NN search was 14 % of SLAM's CPU, a search per iteration).
+// Zero where no plane fits.
+std::vector<Eigen::Vector3f> LocalNormals(
+    std::vector<Block>& blocks,
+    const std::vector<Eigen::Vector3f>& pw,
+    const std::vector<std::pair<std::size_t, std::uint32_t>>& items,
+    int num_neighbours) {
+    const auto k = static_cast<std::size_t>(num_neighbours);
+    // Slots for the points seen for the first time (sequential: it grows the blocks' tables).
+    std::vector<std::pair<std::size_t, std::uint32_t>> todo;
+    for (const auto& [point, bi] : items) {
+        Block& b = blocks[bi];
+        if (b.neighbour_slot.empty()) b.neighbour_slot.assign(b.p1 - b.p0, Block::kNoSlot);
+        std::uint32_t& slot = b.neighbour_slot[point - b.p0];
+        if (slot != Block::kNoSlot) continue;
+        slot = static_cast<std::uint32_t>(b.neighbours.size() / k);
+        b.neighbours.resize(b.neighbours.size() + k, Block::kNoSlot);
+        todo.emplace_back(point, bi);
+    }
+    tbb::parallel_for(std::size_t{0}, todo.size(), [&](std::size_t i) {
+        const auto [point, bi] = todo[i];
+        Block& b = blocks[bi];
+        std::size_t idx[kMaxNormalNeighbours];
+        float d2[kMaxNormalNeighbours];
+        const std::size_t n = b.tree->Nearest(pw[point], k, idx, d2);
+        std::uint32_t* out = b.neighbours.data() + std::size_t{b.neighbour_slot[point - b.p0]} * k;
+        for (std::size_t j = 0; j < n; ++j) out[j] = static_cast<std::uint32_t>(idx[j]);
+    });
+    std::vector<Eigen::Vector3f> normals(items.size());
+    tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
+        const auto [point, bi] = items[i];
+        const Block& b = blocks[bi];
+        const std::uint32_t* nb =
+            b.neighbours.data() + std::size_t{b.neighbour_slot[point - b.p0]} * k;
+        reg::MomentAccumulator m;
+        for (std::size_t j = 0; j < k && nb[j] != Block::kNoSlot; ++j)
+            m.Add(pw[b.p0 + nb[j]].cast<double>());
+        const reg::PlaneFit f = reg::FitPlane(m);
+        normals[i] = f.valid ? Eigen::Vector3f(f.normal.cast<float>()) : Eigen::Vector3f::Zero();
+    });
+    return normals;
 }
 
 }  // namespace
@@ -308,20 +342,21 @@ Search SearchPairs(const Input& in,
             targets[k] = {pairs[k].c.target, pairs[k].block_b};
         std::sort(targets.begin(), targets.end());
         targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
-        std::vector<Eigen::Vector3f> target_normal(targets.size());
-        tbb::parallel_for(std::size_t{0}, targets.size(), [&](std::size_t i) {
-            target_normal[i] =
-                LocalNormal(blocks[targets[i].second], pw, targets[i].first, cfg.normal_neighbours);
-        });
+        const std::vector<Eigen::Vector3f> target_normal =
+            LocalNormals(blocks, pw, targets, cfg.normal_neighbours);
+        std::vector<Eigen::Vector3f> query_normal;
+        if (cfg.correspondence == CorrespondenceType::kGicp) {
+            std::vector<std::pair<std::size_t, std::uint32_t>> queries(pairs.size());
+            for (std::size_t k = 0; k < pairs.size(); ++k)
+                queries[k] = {pairs[k].c.query, pairs[k].block_a};
+            query_normal = LocalNormals(blocks, pw, queries, cfg.normal_neighbours);
+        }
         tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
             Pair& pr = pairs[k];
             const auto it = std::lower_bound(
                 targets.begin(), targets.end(), std::make_pair(pr.c.target, pr.block_b));
             pr.c.target_normal = target_normal[static_cast<std::size_t>(it - targets.begin())];
-            if (cfg.correspondence == CorrespondenceType::kGicp) {
-                pr.c.query_normal =
-                    LocalNormal(blocks[pr.block_a], pw, pr.c.query, cfg.normal_neighbours);
-            }
+            if (!query_normal.empty()) pr.c.query_normal = query_normal[k];
         });
         std::erase_if(pairs, [&](const Pair& pr) {
             return pr.c.target_normal.isZero() ||

@@ -90,6 +90,12 @@ struct Block {
     Eigen::Vector3f lo = Eigen::Vector3f::Zero();  // bounding box of the world points
     Eigen::Vector3f hi = Eigen::Vector3f::Zero();
     std::unique_ptr<reg::PointIndex3f> tree;  // over the block's world points
+    // The normal-fit neighbours of block points, found once per run (see LocalNormals in
+    // correspondences.cpp): per block point its slot in `neighbours` (kNoSlot until first
+    // needed); per slot normal_neighbours block-local indices (kNoSlot past the last found).
+    std::vector<std::uint32_t> neighbour_slot;
+    std::vector<std::uint32_t> neighbours;
+    static constexpr std::uint32_t kNoSlot = 0xFFFFFFFFu;
 };
 
 std::vector<Block> MakeBlocks(const Input& in, double length_s);

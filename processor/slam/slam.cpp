@@ -81,7 +81,9 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (max_iterations < 0) p.push_back("max_iterations must be >= 0");
     if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");
     if (!(convergence_translation_m >= 0)) p.push_back("convergence_translation_m must be >= 0");
-    if (normal_neighbours < 3) p.push_back("normal_neighbours must be >= 3");
+    if (normal_neighbours < 3 || normal_neighbours > kMaxNormalNeighbours)
+        p.push_back("normal_neighbours must be in [3, " + std::to_string(kMaxNormalNeighbours) +
+                    "]");
     if (!(point_sigma_m > 0)) p.push_back("point_sigma_m must be > 0");
     if (!(gicp_tangent_sigma_m > 0)) p.push_back("gicp_tangent_sigma_m must be > 0");
     if (!(robust_width > 0)) p.push_back("robust_width must be > 0");

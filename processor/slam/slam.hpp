@@ -66,6 +66,8 @@ struct Slice {
 // Correspondence types (point-to-point, point-to-plane, GICP): the registration core's.
 using reg::CorrespondenceType;
 
+inline constexpr int kMaxNormalNeighbours = 64;  // SlamConfig::normal_neighbours bound
+
 struct SlamConfig {
     double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart
     double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
@@ -98,8 +100,8 @@ struct SlamConfig {
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;
     CorrespondenceType correspondence = CorrespondenceType::kGicp;
-    int normal_neighbours = 10;         // neighbours for normals / covariances
-    double point_sigma_m = 0.05;        // 1-sigma of a point along the surface normal
+    int normal_neighbours = 10;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
+    double point_sigma_m = 0.05;  // 1-sigma of a point along the surface normal
     double gicp_tangent_sigma_m = 0.5;  // GICP: 1-sigma along the surface (plane-like C)
     RobustKernel robust_kernel = RobustKernel::kHuber;  // gps-outage ATE 0.56 -> 0.52 m
     double robust_width = 2.0;                          // kernel width, in point sigmas

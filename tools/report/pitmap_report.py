@@ -3,6 +3,7 @@
 """pitmap-report: a self-contained HTML report of a products folder.
 
 Usage: pitmap-report P [--scores FILE] [--title TEXT]
+       pitmap-report --view-gltf FILE.glb [-o PAGE.html] [--title TEXT]
 
 Reads what `pitmap run --out P` wrote (summary.json, trajectory[_initial].csv or, without
 SLAM, trajectory_ins.csv,
@@ -15,9 +16,15 @@ depth-coloured top view and mesh renders before/after SLAM (Fig. 4).
 Frames: products are in the local world frame (East, North, Up metres at the summary's
 world_origin); gps_time_s counts seconds since 1980-01-06 on the GPS time scale.
 
+--view-gltf writes a self-contained page with the report's 3D viewer and FILE.glb embedded
+(base64, read by three.js's GLTFLoader): pitmap's mesh.glb or any self-contained glTF 2.0
+binary. Default page: FILE.html beside it. A file that is not a glTF binary (12-byte header:
+magic "glTF", version 2, length = the file's size; then a JSON chunk) is refused.
+
 Exit 0 when the report was written (every missing optional product is named in it as
 "not produced: ..."); 1 when P is not a usable products folder (no readable
-summary.json) or the report cannot be written; 2 on bad arguments.
+summary.json) or the report cannot be written, or (--view-gltf) the file is not a usable glTF
+binary or the page cannot be written; 2 on bad arguments.
 
 Runs with Debian's python3, python3-numpy and python3-matplotlib (Agg backend). The work is
 done by the package pitmap_report_lib beside this script (see its __init__.py); PLY products
@@ -34,7 +41,9 @@ import sys
 # The package beside this script (tools/report in the source tree; build/bin when built).
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 
-# Ply, PlyError, GpsToUtc and the rasters are also what report_test.py checks through this module.
+# Ply, PlyError, GpsToUtc, the rasters and the glb check are also what report_test.py checks
+# through this module.
+from pitmap_report_lib.gltf import CheckGlb, GlbError, GltfPage  # noqa: E402,F401
 from pitmap_report_lib.loaders import Ply, PlyError  # noqa: E402,F401
 from pitmap_report_lib.rasters import RasteriseMesh, RasterMax, RasterMean  # noqa: E402,F401
 from pitmap_report_lib.report import Report  # noqa: E402
@@ -45,11 +54,25 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog=PROG, description="Write P/report.html (self-contained, "
                                  "PNG plots embedded) and P/report/*.png from a pitmap products "
                                  "folder P.")
-    ap.add_argument("products", metavar="P", help="products folder (pitmap run --out P)")
+    ap.add_argument("products", metavar="P", nargs="?",
+                    help="products folder (pitmap run --out P)")
     ap.add_argument("--scores", metavar="FILE",
                     help="scores JSON from pitmap-eval --json (default: P/scores.json)")
-    ap.add_argument("--title", metavar="TEXT", help="report title")
+    ap.add_argument("--title", metavar="TEXT", help="report (or page) title")
+    ap.add_argument("--view-gltf", metavar="GLB",
+                    help="instead of a report: a self-contained page showing GLB (glTF 2.0 "
+                    "binary, e.g. P/mesh.glb) in the report's 3D viewer")
+    ap.add_argument("-o", "--output", metavar="HTML",
+                    help="the page of --view-gltf (default: GLB with .html)")
     args = ap.parse_args(argv)
+    if args.view_gltf is not None:
+        if args.products is not None or args.scores is not None:
+            ap.error("--view-gltf takes no products folder and no --scores")
+        return ViewGltf(args.view_gltf, args.output, args.title)
+    if args.products is None:
+        ap.error("give a products folder P (or --view-gltf GLB)")
+    if args.output is not None:
+        ap.error("-o/--output goes with --view-gltf (the report is always P/report.html)")
     folder = os.path.abspath(args.products)
     if not os.path.isdir(folder):
         print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
@@ -66,17 +89,40 @@ def main(argv=None):
         print(f"{PROG}: {e}", file=sys.stderr)
         return 1
     out = os.path.join(folder, "report.html")
-    tmp = out + ".tmp"
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(page)
-        os.replace(tmp, out)
+        WriteAtomically(out, page)
     except OSError as e:
         print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
         return 1
     Log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)"
         + (f"; not produced: {', '.join(report.missing)}" if report.missing else "")
         + (f"; {len(report.problems)} problem(s)" if report.problems else ""))
+    return 0
+
+
+def WriteAtomically(out, page):
+    tmp = out + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(page)
+    os.replace(tmp, out)
+
+
+def ViewGltf(glb, output, title):
+    out = output or os.path.splitext(glb)[0] + ".html"
+    try:
+        page = GltfPage(glb, title)
+    except GlbError as e:
+        print(f"{PROG}: {glb}: {e}", file=sys.stderr)
+        return 1
+    except OSError as e:  # unreadable file, missing viewer scripts
+        print(f"{PROG}: {glb}: {e}", file=sys.stderr)
+        return 1
+    try:
+        WriteAtomically(out, page)
+    except OSError as e:
+        print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
+        return 1
+    Log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)")
     return 0
 
 

@@ -1,15 +1,28 @@
 // SPDX-License-Identifier: MIT
-// pitmap-report's interactive 3D view (WebGL through three.js, Debian's libjs-three, inlined
-// into report.html with this file, so the report needs no network). Reads the JSON in
-// #viewer-data (written by pitmap_report.py: the decimated mesh, the trajectories before and
-// after SLAM, a subset of the soundings, all in local ENU metres about `centre`) and shows them
-// coloured by depth, with orbit or first-person navigation and a distance tool.
-// Exposes window.pitmapViewer (ready, frames, triangles, points) for the browser test.
+// pitmap's interactive 3D view (WebGL through three.js r111, Debian's libjs-three, inlined into
+// the page with OrbitControls, VRButton, GLTFLoader and viewer3d_profile.js, so the page needs
+// no network). Reads the JSON in #viewer-data, written by pitmap-report: in report.html the
+// decimated mesh, the trajectories before and after SLAM and a subset of the soundings, in
+// local ENU metres about `centre_enu_m`; in a glTF page (pitmap-report --view-gltf) a .glb
+// (base64) instead. Shows them coloured by depth, with orbit or first-person navigation, a
+// distance tool, a cross-section tool (profile of the mesh and the soundings along a vertical
+// plane), WebXR "enter VR" at real size, and "open glTF..." for a local .glb.
+//
+// Frames: the view's coordinates are the products' local ENU (x east, y north, z up, metres)
+// minus view.centre. glTF files are y-up, (E, U, -N) in pitmap's mesh.glb; they are turned
+// back to z-up on loading.
+//
+// Exposes window.pitmapViewer for the browser test: ready, frames, triangles, points, gltf
+// (name, status, message, triangles), profile (the last cross-section), crossSection(a, b)
+// (a cross-section between two ENU points [x, y], as the tool's two clicks make it) and
+// openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes).
 (function () {
   "use strict";
   const el = document.getElementById("viewer3d");
   const info = document.getElementById("viewer3d-info");
-  const state = { ready: false, frames: 0, triangles: 0, points: 0, error: null };
+  const problem = document.getElementById("viewer3d-problem");
+  const state = { ready: false, frames: 0, triangles: 0, points: 0, error: null, gltf: null,
+                  profile: null };
   window.pitmapViewer = state;
   if (!el || typeof THREE === "undefined") return;
 
@@ -19,6 +32,12 @@
     for (let i = 0; i < s.length; ++i) out[i] = s.charCodeAt(i);
     return out.buffer;
   }
+  function showProblem(text) {
+    state.error = text;
+    if (!problem) return;
+    problem.textContent = text;
+    problem.hidden = !text;
+  }
   const data = JSON.parse(document.getElementById("viewer-data").textContent);
   const canvasTest = document.createElement("canvas");
   if (!(canvasTest.getContext("webgl") || canvasTest.getContext("experimental-webgl"))) {
@@ -26,9 +45,16 @@
     return;
   }
 
+  // What the view is framed on; a glTF page learns it from the file once loaded.
+  const view = {
+    centre: data.centre_enu_m || null,  // ENU of the view's origin
+    radius: data.radius || 1,           // half the survey's largest extent, m
+    zlim: data.zlim || [-1, 1],         // deep and shallow ends of the depth colours
+  };
+
   // Depth colours: shallow yellow to deep blue, as the report's figures (z is up).
-  const [zDeep, zShallow] = data.zlim;
   function colourOf(z, out, k) {
+    const [zDeep, zShallow] = view.zlim;
     const t = Math.min(1, Math.max(0, (zShallow - z) / Math.max(1e-6, zShallow - zDeep)));
     out[k] = 0.98 * (1 - t) + 0.08 * t;
     out[k + 1] = 0.9 * (1 - t) + 0.24 * t + 0.32 * Math.sin(Math.PI * t);
@@ -77,23 +103,43 @@
     layers.points = p;
     state.points = pos.length / 3;
   }
+  let track = null;  // the vehicle's track (after SLAM when there is one): the water surface
   for (const [key, colour] of [["trajectory_after", 0xffffff], ["trajectory_before", 0xff8c1a]]) {
     if (!data[key]) continue;
+    const pos = new Float32Array(bytes(data[key]));
     const g = new THREE.BufferGeometry();
-    g.setAttribute("position", new THREE.BufferAttribute(new Float32Array(bytes(data[key])), 3));
+    g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
     const l = new THREE.Line(g, new THREE.LineBasicMaterial({ color: colour }));
     scene.add(l);
     layers[key] = l;
+    if (!track) track = pos;
   }
+  // Height of the water surface in view coordinates: the track's median height, or null.
+  const waterZ = (() => {
+    if (!track || track.length < 3) return null;
+    const z = [];
+    for (let i = 2; i < track.length; i += 3) z.push(track[i]);
+    z.sort((a, b) => a - b);
+    return z[z.length >> 1];
+  })();
 
   // Camera: looking at the survey from the south-west, above.
-  const r = data.radius;
-  const camera = new THREE.PerspectiveCamera(50, W() / H(), Math.max(0.01, r / 2000), r * 50);
+  const camera = new THREE.PerspectiveCamera(50, W() / H(), 0.01, 100);
   camera.up.set(0, 0, 1);
-  camera.position.set(-0.9 * r, -1.2 * r, 1.0 * r);
   const orbit = new THREE.OrbitControls(camera, renderer.domElement);
-  orbit.target.set(0, 0, 0);
-  orbit.update();
+  const ray = new THREE.Raycaster();
+  function frameView(centre, radius) {
+    view.radius = Math.max(1, radius);
+    const r = view.radius;
+    camera.near = Math.max(0.01, r / 2000);
+    camera.far = r * 50;
+    camera.position.set(centre.x - 0.9 * r, centre.y - 1.2 * r, centre.z + 1.0 * r);
+    camera.updateProjectionMatrix();
+    orbit.target.copy(centre);
+    orbit.update();
+    ray.params.Points.threshold = r / 300;
+  }
+  frameView(new THREE.Vector3(0, 0, 0), view.radius);
 
   // First-person navigation (own): drag to look, W/S forward and back, A/D sideways,
   // R/F up and down; speed scales with the survey's size.
@@ -118,11 +164,13 @@
     fp.drag = [e.clientX, e.clientY];
     fpApply();
   });
-  window.addEventListener("keydown", e => { if (fp.on) fp.keys.add(e.key.toLowerCase()); });
+  window.addEventListener("keydown", e => {
+    if (fp.on && e.target === document.body) fp.keys.add(e.key.toLowerCase());
+  });
   window.addEventListener("keyup", e => fp.keys.delete(e.key.toLowerCase()));
   function fpStep(dt) {
     if (!fp.on || fp.keys.size === 0) return;
-    const v = 0.15 * r * dt;
+    const v = 0.15 * view.radius * dt;
     const f = new THREE.Vector3(Math.cos(fp.yaw), Math.sin(fp.yaw), 0);
     const s = new THREE.Vector3(Math.sin(fp.yaw), -Math.cos(fp.yaw), 0);
     if (fp.keys.has("w")) camera.position.addScaledVector(f, v);
@@ -134,53 +182,341 @@
     fpApply();
   }
 
-  // Distance tool: two clicks on the mesh or the soundings.
-  const ray = new THREE.Raycaster();
-  ray.params.Points.threshold = r / 300;
-  const measure = { on: false, picks: [], objects: [] };
-  function clearMeasure() {
-    for (const o of measure.objects) scene.remove(o);
-    measure.objects = [];
-    measure.picks = [];
+  // The surfaces the tools work on: the report's mesh and a loaded glTF, when shown.
+  function surfaceMeshes() {
+    const out = [];
+    if (layers.mesh && layers.mesh.visible) out.push(layers.mesh);
+    if (layers.gltf && layers.gltf.visible) {
+      layers.gltf.traverse(o => { if (o.isMesh && o.visible) out.push(o); });
+    }
+    return out;
+  }
+  // A mesh's vertices in view coordinates (its world matrix applied) and its triangles.
+  function worldTriangles(mesh) {
+    mesh.updateMatrixWorld(true);
+    const a = mesh.geometry.attributes.position;
+    const pos = new Float32Array(a.count * 3);
+    const v = new THREE.Vector3();
+    for (let i = 0; i < a.count; ++i) {
+      v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(mesh.matrixWorld);
+      pos[3 * i] = v.x;
+      pos[3 * i + 1] = v.y;
+      pos[3 * i + 2] = v.z;
+    }
+    return { positions: pos, index: mesh.geometry.index ? mesh.geometry.index.array : null };
+  }
+
+  // The tools' two clicks: "distance" or "section", on the mesh, a glTF or the soundings.
+  const tool = { kind: null, picks: [], objects: [] };
+  function clearTool() {
+    for (const o of tool.objects) scene.remove(o);
+    tool.objects = [];
+    tool.picks = [];
   }
   function marker(p) {
-    const g = new THREE.SphereGeometry(r / 250, 12, 8);
+    const g = new THREE.SphereGeometry(view.radius / 250, 12, 8);
     const m = new THREE.Mesh(g, new THREE.MeshBasicMaterial({ color: 0xff2222 }));
     m.position.copy(p);
     scene.add(m);
-    measure.objects.push(m);
+    tool.objects.push(m);
+  }
+  // Tool lines are drawn over everything: a profile lies on the surface it was cut from.
+  function line3d(points, colour, segments) {
+    const g = new THREE.BufferGeometry().setFromPoints(points);
+    const material = new THREE.LineBasicMaterial({ color: colour, depthTest: false });
+    const l = segments ? new THREE.LineSegments(g, material) : new THREE.Line(g, material);
+    l.renderOrder = 1;
+    scene.add(l);
+    tool.objects.push(l);
+    return l;
   }
   let down = null;
   renderer.domElement.addEventListener("pointerdown", e => { down = [e.clientX, e.clientY]; });
   renderer.domElement.addEventListener("pointerup", e => {
-    if (!measure.on || !down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return;
+    if (!tool.kind || !down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return;
     const b = renderer.domElement.getBoundingClientRect();
     ray.setFromCamera(new THREE.Vector2(((e.clientX - b.left) / b.width) * 2 - 1,
                                         -((e.clientY - b.top) / b.height) * 2 + 1), camera);
-    const targets = [layers.mesh, layers.points].filter(o => o && o.visible);
-    const hit = ray.intersectObjects(targets)[0];
+    const targets = surfaceMeshes();
+    if (layers.points && layers.points.visible) targets.push(layers.points);
+    const hit = ray.intersectObjects(targets, false)[0];
     if (!hit) return;
-    if (measure.picks.length === 2) clearMeasure();
-    measure.picks.push(hit.point.clone());
+    if (tool.picks.length === 2) clearTool();
+    tool.picks.push(hit.point.clone());
     marker(hit.point);
-    if (measure.picks.length === 2) {
-      const [a, c] = measure.picks;
-      const g = new THREE.BufferGeometry().setFromPoints([a, c]);
-      const l = new THREE.Line(g, new THREE.LineBasicMaterial({ color: 0xff2222 }));
-      scene.add(l);
-      measure.objects.push(l);
+    const what = tool.kind === "distance" ? "distance" : "cross-section";
+    if (tool.picks.length < 2) {
+      info.textContent = what + ": click the second point";
+      return;
+    }
+    const [a, c] = tool.picks;
+    if (tool.kind === "distance") {
+      line3d([a, c], 0xff2222);
       info.textContent = "distance " + a.distanceTo(c).toFixed(2) + " m (horizontal " +
         Math.hypot(a.x - c.x, a.y - c.y).toFixed(2) + " m, vertical " +
         Math.abs(a.z - c.z).toFixed(2) + " m)";
     } else {
-      info.textContent = "distance: click the second point";
+      cutProfile(a, c);
     }
   });
 
+  // Cross-section: the mesh cut by the vertical plane through A and B, and the soundings
+  // within the corridor, as a 2D profile under the view and as lines in 3D.
+  const profileBox = document.getElementById("viewer3d-profile");
+  const profileCanvas = document.getElementById("viewer3d-profile-canvas");
+  const profileCaption = document.getElementById("viewer3d-profile-caption");
+  const profileReadout = document.getElementById("viewer3d-profile-readout");
+  const corridorInput = document.getElementById("viewer3d-corridor");
+  const trueScale = document.getElementById("viewer3d-truescale");
+  let profile = null;  // { a, b, line, mesh, points, plot }
+  let profileLines = [];  // the profile's 3D lines (redrawn when the corridor changes)
+  function corridor() {
+    const w = parseFloat(corridorInput ? corridorInput.value : "0.5");
+    return isFinite(w) && w >= 0 ? w : 0.5;
+  }
+  function cutProfile(a, b) {
+    const P = window.PitmapProfile;
+    const line = P.lineOf([a.x, a.y], [b.x, b.y]);
+    if (!line) {
+      info.textContent = "cross-section: the two points are less than 1 mm apart; click again";
+      return;
+    }
+    const parts = surfaceMeshes().map(m => {
+      const t = worldTriangles(m);
+      return P.meshSection(t.positions, t.index, line);
+    });
+    const mesh = new Float64Array(parts.reduce((n, p) => n + p.length, 0));
+    parts.reduce((at, p) => { mesh.set(p, at); return at + p.length; }, 0);
+    const pts = layers.points && layers.points.visible
+      ? P.corridorPoints(layers.points.geometry.attributes.position.array, line, corridor())
+      : new Float64Array(0);
+    profile = { a: a, b: b, line: line, mesh: mesh, points: pts, plot: null };
+    const ends = [];
+    for (let i = 0; i < mesh.length; i += 2) {
+      ends.push(new THREE.Vector3(a.x + line.ux * mesh[i], a.y + line.uy * mesh[i], mesh[i + 1]));
+    }
+    for (const o of profileLines) scene.remove(o);
+    profileLines = [line3d([new THREE.Vector3(a.x, a.y, a.z), new THREE.Vector3(b.x, b.y, b.z)],
+                           0xff2222)];
+    if (ends.length) profileLines.push(line3d(ends, 0xffe14d, true));
+    drawProfile();
+    const zc = view.centre ? view.centre[2] : 0;
+    const enu = (p) => [p.x + (view.centre ? view.centre[0] : 0),
+                        p.y + (view.centre ? view.centre[1] : 0), p.z + zc];
+    state.profile = {
+      a: enu(a), b: enu(b), length: line.length, corridor: corridor(),
+      segments: Array.from(mesh, (v, i) => (i % 2 ? v + zc : v)),
+      points: pts.length / 2,
+    };
+    info.textContent = "cross-section " + line.length.toFixed(2) + " m: " + mesh.length / 4 +
+      " mesh segments, " + pts.length / 2 + " soundings within \u00b1" + corridor() + " m" +
+      (mesh.length ? "" : " (the line misses the mesh)");
+  }
+  function drawProfile() {
+    if (!profile || !profileBox) return;
+    profileBox.hidden = false;
+    const zc = view.centre ? view.centre[2] : 0;
+    profile.plot = window.PitmapProfile.draw(profileCanvas, {
+      length: profile.line.length, mesh: profile.mesh, points: profile.points, zOffset: zc,
+      water: waterZ, trueScale: trueScale && trueScale.checked });
+    const ab = (p) => "(" + (p.x + (view.centre ? view.centre[0] : 0)).toFixed(1) + ", " +
+                      (p.y + (view.centre ? view.centre[1] : 0)).toFixed(1) + ")";
+    profileCaption.textContent = "Profile A " + ab(profile.a) + " \u2192 B " + ab(profile.b) +
+      " (ENU m), " + profile.line.length.toFixed(2) + " m: mesh (black line), soundings within " +
+      "\u00b1" + corridor() + " m of the plane (orange)" +
+      (waterZ !== null ? ", water surface = median track height (blue dashes)" : "") +
+      "; vertical exaggeration \u00d7" + profile.plot.exaggeration.toFixed(2) +
+      ". Point at the line to read height, depth and slope.";
+    profileReadout.textContent = "";
+  }
+  if (profileCanvas) {
+    profileCanvas.addEventListener("mousemove", e => {
+      if (!profile || !profile.plot) return;
+      const b = profileCanvas.getBoundingClientRect();
+      const s = profile.plot.toS(e.clientX - b.left), z = profile.plot.toZ(e.clientY - b.top);
+      const near = window.PitmapProfile.nearest(profile.mesh, s, z, profile.plot, 12);
+      const zc = view.centre ? view.centre[2] : 0;
+      if (!near) {
+        profileReadout.textContent = "s " + s.toFixed(2) + " m, z " + (z + zc).toFixed(2) + " m";
+        return;
+      }
+      profileReadout.textContent = "mesh at s " + near.s.toFixed(2) + " m: z " +
+        (near.z + zc).toFixed(2) + " m" +
+        (waterZ !== null ? ", depth " + (waterZ - near.z).toFixed(2) + " m below the water" : "") +
+        ", slope " + near.slopeDeg.toFixed(1) + "\u00b0";
+    });
+  }
+  if (corridorInput) {
+    corridorInput.addEventListener("change", () => { if (profile) cutProfile(profile.a, profile.b); });
+  }
+  if (trueScale) trueScale.addEventListener("change", drawProfile);
+  // For scripts and the browser test: the cross-section between two ENU points [x, y] (the
+  // vertical plane needs no heights).
+  state.crossSection = (a, b) => {
+    const c = view.centre || [0, 0, 0];
+    clearTool();
+    cutProfile(new THREE.Vector3(a[0] - c[0], a[1] - c[1], 0),
+                 new THREE.Vector3(b[0] - c[0], b[1] - c[1], 0));
+    return state.profile;
+  };
+
+  // WebXR: three.js r111's VRButton and renderer.vr (renamed renderer.xr in r112). The scene
+  // is in metres, so VR shows the pit at real size; the rig stands at the south edge of the
+  // survey, on the water surface (the highest of the track and the surfaces), facing north.
+  // WebXR is y-up: the rig is turned so that its y is the scene's z (up) and its -z is north.
+  renderer.vr.enabled = true;
+  const rig = new THREE.Group();
+  rig.rotation.x = Math.PI / 2;
+  const vrCamera = new THREE.PerspectiveCamera(50, 1, 0.05, 5000);
+  rig.add(vrCamera);
+  scene.add(rig);
+  function placeRig() {
+    const box = new THREE.Box3();
+    for (const o of surfaceMeshes().concat(layers.points && layers.points.visible ? [layers.points] : [])) {
+      box.expandByObject(o);
+    }
+    if (box.isEmpty()) box.set(new THREE.Vector3(-1, -1, -1), new THREE.Vector3(1, 1, 1));
+    const top = Math.max(box.max.z, waterZ !== null ? waterZ : -Infinity);
+    rig.position.set((box.min.x + box.max.x) / 2, box.min.y, top);
+  }
+  renderer.vr.addEventListener("sessionstart", () => {
+    placeRig();
+    const session = renderer.vr.getSession();
+    if (session) session.updateRenderState({ depthNear: 0.05, depthFar: 50 * view.radius });
+    info.textContent = "VR: real size; trigger (select) moves you a tenth of the survey " +
+      "where you look";
+  });
+  // A controller's select (trigger) moves the rig along the gaze, a tenth of the survey.
+  renderer.vr.getController(0).addEventListener("select", () => {
+    const d = new THREE.Vector3().setFromMatrixColumn(vrCamera.matrixWorld, 2).negate();
+    rig.position.addScaledVector(d.normalize(), 0.1 * view.radius);
+  });
+  const vrButton = THREE.VRButton.createButton(renderer);
+  vrButton.id = "viewer3d-vr";
+  if (vrButton.tagName === "A") vrButton.removeAttribute("href");  // no link out of the page
+  vrButton.title = "WebXR immersive VR at real size (needs a headset and a browser with WebXR)";
+  el.appendChild(vrButton);
+
+  // glTF binary (.glb) files: the page's own (pitmap-report --view-gltf) or one opened here.
+  // The 12-byte header is checked first (magic "glTF", version 2, length = the file's size),
+  // then GLTFLoader reads it; every failure is a message in the page.
+  function glbProblem(buffer) {
+    const n = buffer.byteLength;
+    if (n < 20) return "too short for a glTF binary (" + n + " bytes)";
+    const h = new DataView(buffer, 0, 20);
+    if (h.getUint32(0, true) !== 0x46546c67) return "not a glTF binary (it does not start with \"glTF\")";
+    const version = h.getUint32(4, true);
+    if (version !== 2) return "glTF binary version " + version + " (only version 2 is read)";
+    const length = h.getUint32(8, true);
+    if (length > n) return "truncated: its header says " + length + " bytes, the file has " + n;
+    if (length < n) return "its header says " + length + " bytes, the file has " + n;
+    if (h.getUint32(16, true) !== 0x4e4f534a || 20 + h.getUint32(12, true) > n) {
+      return "no JSON chunk after the header";
+    }
+    return null;
+  }
+  let gltfCheckbox = null;
+  function gltfFailed(name, why) {
+    state.gltf = { name: name, status: "error", message: why, triangles: 0 };
+    showProblem("glTF " + name + ": " + why);
+    info.textContent = "";
+  }
+  // Reads a .glb (ArrayBuffer) into the view; the promise resolves with state.gltf once it
+  // is shown or refused (a message in the page either way).
+  function loadGltf(buffer, name) {
+    showProblem("");
+    const bad = glbProblem(buffer);
+    if (bad) {
+      gltfFailed(name, bad);
+      return Promise.resolve(state.gltf);
+    }
+    state.gltf = { name: name, status: "loading", message: "", triangles: 0 };
+    info.textContent = "reading " + name + " ...";
+    const why = (e) => (e && e.message ? e.message : String(e));
+    return new Promise(resolve => {
+      const done = () => resolve(state.gltf);
+      try {
+        new THREE.GLTFLoader().parse(buffer, "", g => {
+          try {
+            addGltf(g, name);
+          } catch (e) {
+            gltfFailed(name, "cannot show it: " + why(e));
+          }
+          done();
+        }, e => {
+          gltfFailed(name, "cannot read it: " + why(e));
+          done();
+        });
+      } catch (e) {  // GLTFLoader throws some errors (bad JSON) instead of calling back
+        gltfFailed(name, "cannot read it: " + why(e));
+        done();
+      }
+    });
+  }
+  state.openGltf = loadGltf;  // for scripts and the browser test: (ArrayBuffer, name)
+  function addGltf(gltf, name) {
+    if (!gltf.scene) throw new Error("the file has no scene");
+    const root = new THREE.Group();
+    root.rotation.x = Math.PI / 2;  // glTF y-up (E, U, -N) back to ENU z-up
+    root.add(gltf.scene);
+    root.updateMatrixWorld(true);
+    const box = new THREE.Box3().setFromObject(root);
+    if (box.isEmpty()) throw new Error("the file has no geometry");
+    const first = !view.centre;  // a glTF page: frame the view on the file
+    if (first) {
+      const c = box.getCenter(new THREE.Vector3());
+      view.centre = [c.x, c.y, c.z];
+      view.zlim = [box.min.z - c.z, box.max.z - c.z];
+    }
+    root.position.set(-view.centre[0], -view.centre[1], -view.centre[2]);
+    root.updateMatrixWorld(true);
+    let triangles = 0;
+    root.traverse(o => {
+      if (!o.isMesh && !o.isPoints) return;
+      const g = o.geometry;
+      if (!g.attributes.color) {  // no colours of its own: by depth, as the report's mesh
+        const a = g.attributes.position, v = new THREE.Vector3();
+        const c = new Float32Array(a.count * 3);
+        for (let i = 0; i < a.count; ++i) {
+          colourOf(v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(o.matrixWorld).z, c, 3 * i);
+        }
+        g.setAttribute("color", new THREE.BufferAttribute(c, 3));
+      }
+      if (o.isPoints) {
+        o.material = new THREE.PointsMaterial({ size: 2, sizeAttenuation: false,
+                                                vertexColors: THREE.VertexColors });
+        return;
+      }
+      if (!g.attributes.normal) g.computeVertexNormals();
+      o.material = new THREE.MeshLambertMaterial({ vertexColors: THREE.VertexColors,
+                                                   side: THREE.DoubleSide });
+      triangles += (g.index ? g.index.count : g.attributes.position.count) / 3;
+    });
+    if (layers.gltf) scene.remove(layers.gltf);
+    scene.add(root);
+    layers.gltf = root;
+    const shown = new THREE.Box3().setFromObject(root);
+    if (first || !shown.intersectsBox(extentOfReport())) {
+      frameView(shown.getCenter(new THREE.Vector3()), shown.getSize(new THREE.Vector3()).length() / 2);
+    }
+    if (layers.mesh && layers.mesh.visible) setLayerVisible("mesh", false);  // replaces it
+    if (!gltfCheckbox) gltfCheckbox = checkbox("glTF", "gltf");
+    gltfCheckbox.lastChild.textContent = " glTF " + name + " ";
+    state.gltf = { name: name, status: "loaded", message: "", triangles: triangles };
+    info.textContent = "glTF " + name + ": " + triangles + " triangles" +
+      (layers.mesh ? " (it replaces the report's mesh; tick \"mesh\" to see both)" : "");
+  }
+  function extentOfReport() {
+    const box = new THREE.Box3();
+    for (const key of ["mesh", "points"]) if (layers[key]) box.expandByObject(layers[key]);
+    return box;
+  }
+
   // The controls under the view.
   const bar = document.getElementById("viewer3d-bar");
+  const checkboxes = {};
   function checkbox(label, key) {
-    if (!layers[key]) return;
+    if (!layers[key]) return null;
     const l = document.createElement("label");
     const c = document.createElement("input");
     c.type = "checkbox";
@@ -188,18 +524,25 @@
     c.addEventListener("change", () => { layers[key].visible = c.checked; });
     l.appendChild(c);
     l.appendChild(document.createTextNode(" " + label + " "));
-    bar.appendChild(l);
+    bar.insertBefore(l, bar.querySelector("button"));
+    checkboxes[key] = c;
+    return l;
   }
-  checkbox("mesh", "mesh");
-  checkbox("soundings", "points");
-  checkbox("trajectory after SLAM (white)", "trajectory_after");
-  checkbox("trajectory before SLAM (orange)", "trajectory_before");
+  function setLayerVisible(key, on) {
+    layers[key].visible = on;
+    if (checkboxes[key]) checkboxes[key].checked = on;
+  }
   function button(label, fn) {
     const b = document.createElement("button");
     b.textContent = label;
     b.addEventListener("click", () => fn(b));
     bar.appendChild(b);
+    return b;
   }
+  checkbox("mesh", "mesh");
+  checkbox("soundings", "points");
+  checkbox("trajectory after SLAM (white)", "trajectory_after");
+  checkbox("trajectory before SLAM (orange)", "trajectory_before");
   button("first person", b => {
     fp.on = !fp.on;
     orbit.enabled = !fp.on;
@@ -213,26 +556,52 @@
       info.textContent = "";
     }
   });
-  button("measure distance", b => {
-    measure.on = !measure.on;
-    b.textContent = measure.on ? "stop measuring" : "measure distance";
-    if (!measure.on) clearMeasure();
-    info.textContent = measure.on ? "distance: click the first point" : "";
+  const toolButtons = {};
+  function toolButton(kind, label, stopLabel, prompt) {
+    toolButtons[kind] = button(label, b => {
+      const on = tool.kind !== kind;
+      for (const k in toolButtons) toolButtons[k].textContent = toolButtons[k].dataset.label;
+      clearTool();
+      tool.kind = on ? kind : null;
+      if (on) b.textContent = stopLabel;
+      info.textContent = on ? prompt : "";
+    });
+    toolButtons[kind].dataset.label = label;
+  }
+  toolButton("distance", "measure distance", "stop measuring", "distance: click the first point");
+  toolButton("section", "cross-section", "stop cross-section",
+             "cross-section: click the first point (A) on the mesh or the soundings");
+  const fileInput = document.createElement("input");
+  fileInput.type = "file";
+  fileInput.accept = ".glb,model/gltf-binary";
+  fileInput.id = "viewer3d-open-gltf";
+  fileInput.hidden = true;
+  fileInput.addEventListener("change", () => {
+    const f = fileInput.files[0];
+    if (!f) return;
+    f.arrayBuffer().then(buffer => loadGltf(buffer, f.name),
+                         e => gltfFailed(f.name, "cannot read the file: " + e));
+    fileInput.value = "";
   });
+  bar.appendChild(fileInput);
+  button("open glTF...", () => fileInput.click()).title =
+    "show a local .glb (pitmap's mesh.glb, glTF 2.0 binary) in this view";
 
   window.addEventListener("resize", () => {
+    if (renderer.vr.isPresenting()) return;
     camera.aspect = W() / H();
     camera.updateProjectionMatrix();
     renderer.setSize(W(), H());
+    if (profile) drawProfile();
   });
   let last = performance.now();
-  function frame(now) {
+  renderer.setAnimationLoop(now => {
     fpStep(Math.min(0.1, (now - last) / 1000));
     last = now;
-    renderer.render(scene, camera);
+    renderer.render(scene, renderer.vr.isPresenting() ? vrCamera : camera);
     state.frames += 1;
     state.ready = true;
-    requestAnimationFrame(frame);
-  }
-  requestAnimationFrame(frame);
+  });
+
+  if (data.gltf) loadGltf(bytes(data.gltf.glb), data.gltf.name);
 })();

@@ -16,6 +16,7 @@ import importlib.util
 import json
 import os
 import re
+import struct
 import subprocess
 import sys
 import tempfile
@@ -563,6 +564,125 @@ class HelperTest(unittest.TestCase):
         self.assertTrue(np.all(g[inside] == 1.0))
         self.assertTrue(np.all(np.isnan(g[(cx[None, :] + cx[:, None]) > 10.5])))
 
+
+
+def Glb(doc=None, binary=b"\0" * 12):
+    """A glTF 2.0 binary: header, JSON chunk (padded with blanks), BIN chunk (padded)."""
+    if doc is None:
+        doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": len(binary)}],
+               "bufferViews": [{"buffer": 0, "byteLength": len(binary)}],
+               "accessors": [{"bufferView": 0, "componentType": 5126, "count": 1,
+                              "type": "VEC3"}],
+               "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 0}]}],
+               "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0}
+    text = json.dumps(doc).encode()
+    text += b" " * ((4 - len(text) % 4) % 4)
+    binary += b"\0" * ((4 - len(binary) % 4) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text
+    if binary:
+        body += struct.pack("<II", len(binary), 0x004E4942) + binary
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+class GlbCheckTest(unittest.TestCase):
+    """The .glb container check of --view-gltf (pitmap_report_lib/gltf.py) on crafted bytes."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.m = LoadModule()
+
+    def AssertRefused(self, data, words):
+        with self.assertRaises(self.m.GlbError) as c:
+            self.m.CheckGlb(data)
+        self.assertIn(words, str(c.exception))
+
+    def test_a_valid_file_passes(self):
+        doc = self.m.CheckGlb(Glb())
+        self.assertEqual(doc["asset"]["version"], "2.0")
+        self.m.CheckGlb(Glb(binary=b""))  # a JSON chunk alone is a valid file
+
+    def test_header_faults(self):
+        good = Glb()
+        self.AssertRefused(b"", "too short")
+        self.AssertRefused(good[:11], "too short")
+        self.AssertRefused(b"PK\x03\x04" + good[4:], "not a glTF binary")
+        self.AssertRefused(good[:4] + struct.pack("<I", 1) + good[8:], "version 1")
+        self.AssertRefused(good[:4] + struct.pack("<I", 3) + good[8:], "version 3")
+        self.AssertRefused(good[:-8], "truncated: its header says")
+        self.AssertRefused(good + b"\0" * 4, "bytes after the end")
+        self.AssertRefused(good[:8] + struct.pack("<I", 12) + good[12:], "bytes after the end")
+
+    def test_chunk_faults(self):
+        good = Glb()
+        n = len(good)
+        self.AssertRefused(good[:8] + struct.pack("<I", 12) + good[12:12], "no JSON chunk")
+        bad_type = bytearray(good)
+        struct.pack_into("<I", bad_type, 16, 0x004E4942)
+        self.AssertRefused(bytes(bad_type), "not JSON")
+        long_json = bytearray(good)
+        struct.pack_into("<I", long_json, 12, n)
+        self.AssertRefused(bytes(long_json), "the JSON chunk says")
+        # The BIN chunk cut short, with the header's length made to match.
+        cut = bytearray(good[:-4])
+        struct.pack_into("<I", cut, 8, len(cut))
+        self.AssertRefused(bytes(cut), "the BIN chunk says")
+        self.AssertRefused(Glb(doc=[1, 2]), "not a JSON object")
+        self.AssertRefused(Glb(doc={"asset": {"version": "1.0"}}), "asset.version 2")
+        not_json = bytearray(Glb(doc={"asset": {"version": "2.0"}}))
+        not_json[20] = ord("?")
+        self.AssertRefused(bytes(not_json), "not JSON")
+        self.AssertRefused(Glb(doc={"asset": {"version": "2.0"},
+                                    "buffers": [{"uri": "mesh.bin", "byteLength": 4}]}),
+                           "refers to a file outside it")
+
+    def test_mutations_are_refused_or_accepted_never_a_crash(self):
+        # Every byte of a valid file changed, and every truncation: GlbError or a document.
+        good = Glb()
+        rng = np.random.default_rng(3)
+        cases = [good[:k] for k in range(len(good))]
+        for i in range(len(good)):
+            b = bytearray(good)
+            b[i] = (b[i] + 1 + int(rng.integers(255))) % 256
+            cases.append(bytes(b))
+        for data in cases:
+            try:
+                self.assertIsInstance(self.m.CheckGlb(data), dict)
+            except self.m.GlbError:
+                pass
+
+    def test_view_gltf_command(self):
+        with tempfile.TemporaryDirectory() as d:
+            glb = os.path.join(d, "mesh.glb")
+            with open(glb, "wb") as f:
+                f.write(Glb())
+            r = Run("--view-gltf", glb)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(d, "mesh.html"), encoding="utf-8") as f:
+                page = f.read()
+            self.assertNotRegex(page, r"(?i)https?:")
+            self.assertIn("GLTFLoader", page)
+            self.assertIn("VRButton", page)
+            self.assertIn(base64.b64encode(Glb()).decode(), page)
+            out = os.path.join(d, "view.html")
+            self.assertEqual(Run("--view-gltf", glb, "-o", out).returncode, 0)
+            self.assertTrue(os.path.isfile(out))
+            for name, data, words in (("points.ply", b"ply\nformat ascii 1.0\n", "not a glTF"),
+                                      ("cut.glb", Glb()[:30], "truncated"),
+                                      ("empty.glb", b"", "too short")):
+                path = os.path.join(d, name)
+                with open(path, "wb") as f:
+                    f.write(data)
+                r = Run("--view-gltf", path, "-o", os.path.join(d, "bad.html"))
+                self.assertEqual(r.returncode, 1, name)
+                self.assertIn(f"{path}: ", r.stderr)
+                self.assertIn(words, r.stderr)
+                self.assertFalse(os.path.exists(os.path.join(d, "bad.html")))
+            r = Run("--view-gltf", os.path.join(d, "absent.glb"))
+            self.assertEqual(r.returncode, 1)
+            self.assertIn("absent.glb", r.stderr)
+            self.assertEqual(Run("--view-gltf", glb, d).returncode, 2)  # and a products folder
+            self.assertEqual(Run(d, "-o", out).returncode, 2)
+            self.assertEqual(Run().returncode, 2)
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()

@@ -8,4 +8,5 @@
   sections_survey, sections_geometry, sections_hydro, sections_viewer, sections_stats
             each report section's HTML, as mixins of report.Report
   report    the Report: products + sections -> one HTML page
+  gltf      the .glb container check and the glTF page (--view-gltf) with the same viewer
 """

@@ -96,11 +96,15 @@ table.stages .counts { font-size: 12px; color: #444; }
 img { max-width: 100%; height: auto; display: block; margin: 8px 0; }
 .caption { font-size: 13px; color: #555; max-width: 1100px; }
 .missing { color: #8a5a00; background: #fff6e0; padding: 4px 8px; border-left: 4px solid #e0a000; }
-.problem { color: #900; background: #fde8e8; padding: 4px 8px; border-left: 4px solid #c00; }
+.problem, .viewer-problem { color: #900; background: #fde8e8; padding: 4px 8px;
+                           border-left: 4px solid #c00; }
 footer { margin-top: 40px; font-size: 12px; color: #777; }
-#viewer3d { width: 100%; height: 620px; background: #15191d; }
+#viewer3d { position: relative; width: 100%; height: 620px; background: #15191d; }
 #viewer3d-bar { margin: 6px 0; font-size: 14px; }
 #viewer3d-bar button { margin-right: 8px; }
+#viewer3d-profile { margin: 8px 0; font-size: 14px; }
+#viewer3d-profile-canvas { display: block; width: 100%; height: 340px; margin: 6px 0;
+                           border: 1px solid #ccc; cursor: crosshair; }
 """
 
 PAGE = """<!DOCTYPE html>

@@ -12,11 +12,54 @@ from .rasters import DecimateMesh, Subsample
 from .util import B64, Esc, InlineScript, Num, PROGRAM_DIR
 
 # The interactive 3D view: three.js from Debian's libjs-three, inlined into report.html with
-# viewer3d.js (installed beside this script as pitmap-report-viewer3d.js).
+# viewer3d.js and viewer3d_profile.js (installed beside this script as pitmap-report-viewer3d.js
+# and pitmap-report-viewer3d-profile.js).
 THREE_DIR = os.environ.get("PITMAP_THREE_DIR", "/usr/share/javascript/three")
 VIEWER_MAX_TRIANGLES = 250_000  # what a laptop's integrated GPU turns smoothly
 VIEWER_MAX_POINTS = 150_000
 VIEWER_MAX_TRAJECTORY = 5_000
+
+
+def ViewerScriptFiles():
+    """The JavaScript files of the viewer, in page order: three.js r111 and its OrbitControls,
+    VRButton and GLTFLoader (libjs-three), then the profile maths and the viewer (ours)."""
+    ours = []
+    for installed, source in (("pitmap-report-viewer3d-profile.js", "viewer3d_profile.js"),
+                              ("pitmap-report-viewer3d.js", "viewer3d.js")):
+        path = os.path.join(PROGRAM_DIR, installed)
+        ours.append(path if os.path.isfile(path) else os.path.join(PROGRAM_DIR, source))
+    examples = os.path.join(THREE_DIR, "examples", "js")
+    return [os.path.join(THREE_DIR, "three.min.js"),
+            os.path.join(examples, "controls", "OrbitControls.js"),
+            os.path.join(examples, "webxr", "VRButton.js"),
+            os.path.join(examples, "loaders", "GLTFLoader.js")] + ours
+
+
+def MissingViewerFiles():
+    return [f for f in ViewerScriptFiles() if not os.path.isfile(f)]
+
+
+def ViewerHtml(data, caption):
+    """The viewer's HTML: caption, WebGL view, control bar, messages, the cross-section panel,
+    the data as JSON and every script inlined. data: what viewer3d.js reads (#viewer-data)."""
+    scripts = []
+    for f in ViewerScriptFiles():
+        with open(f, encoding="utf-8") as fh:
+            scripts.append(f"<script>{InlineScript(fh.read())}</script>")
+    blob = json.dumps(data).replace("</", "<\\/")
+    return (f'<p class="caption">{caption}</p>\n'
+            '<div id="viewer3d"></div><div id="viewer3d-bar"></div>'
+            '<div id="viewer3d-info" class="caption"></div>\n'
+            '<p id="viewer3d-problem" class="viewer-problem" hidden></p>\n'
+            '<div id="viewer3d-profile" hidden>'
+            '<div id="viewer3d-profile-caption" class="caption"></div>'
+            '<label>corridor &plusmn; <input type="number" id="viewer3d-corridor" value="0.5" '
+            'min="0" step="0.1"> m</label> '
+            '<label><input type="checkbox" id="viewer3d-truescale"> true scale (1:1)</label>'
+            '<canvas id="viewer3d-profile-canvas"></canvas>'
+            '<div id="viewer3d-profile-readout" class="caption"></div></div>\n'
+            f'<script type="application/json" id="viewer-data">{blob}</script>\n'
+            + "\n".join(scripts))
 
 
 class ViewerSection:
@@ -25,12 +68,7 @@ class ViewerSection:
     def SectionViewer(self):
         """The interactive WebGL view: decimated mesh, trajectories before and after SLAM, a
         subset of the soundings, coloured by depth; three.js inlined (no network)."""
-        libs = [os.path.join(THREE_DIR, "three.min.js"),
-                os.path.join(THREE_DIR, "examples", "js", "controls", "OrbitControls.js"),
-                os.path.join(PROGRAM_DIR, "pitmap-report-viewer3d.js")]
-        if not os.path.isfile(libs[2]):  # run from the source tree
-            libs[2] = os.path.join(PROGRAM_DIR, "viewer3d.js")
-        absent = [f for f in libs if not os.path.isfile(f)]
+        absent = MissingViewerFiles()
         if absent:
             return self.Missing("3D view", "not found: " + ", ".join(absent) +
                                 " (Debian's libjs-three: tools/install-deps.sh)")
@@ -81,15 +119,10 @@ class ViewerSection:
             data[name] = B64((xyz - centre).astype("<f4"))
         if "initial" in self.traj:
             facts.append("trajectory before SLAM (orange) and after (white)")
-        scripts = []
-        for f in libs:
-            with open(f, encoding="utf-8") as fh:
-                scripts.append(f"<script>{InlineScript(fh.read())}</script>")
-        blob = json.dumps(data).replace("</", "<\\/")
-        return (f'<p class="caption">Drag to turn, wheel to zoom, right-drag to pan; '
-                f'{Esc(", ".join(facts))}; coloured by depth. Local ENU metres about '
-                f'({centre[0]:.1f}, {centre[1]:.1f}, {centre[2]:.1f}).</p>\n'
-                f'<div id="viewer3d"></div><div id="viewer3d-bar"></div>'
-                f'<div id="viewer3d-info" class="caption"></div>\n'
-                f'<script type="application/json" id="viewer-data">{blob}</script>\n'
-                + "\n".join(scripts))
+        return ViewerHtml(data, "Drag to turn, wheel to zoom, right-drag to pan; "
+                          f'{Esc(", ".join(facts))}; coloured by depth. Local ENU metres about '
+                          f"({centre[0]:.1f}, {centre[1]:.1f}, {centre[2]:.1f}). "
+                          "Cross-section: two clicks give the profile of the mesh and the "
+                          "soundings along the vertical plane through them. Enter VR shows the "
+                          "pit at real size from its south edge; open glTF... shows a .glb "
+                          "(mesh.glb) in this view.")
