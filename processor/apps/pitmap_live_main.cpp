@@ -69,6 +69,22 @@ int main(int argc, char** argv) try {
         ->capture_default_str();
     app.add_option("--holiday-cells", config.grid.holiday_search_cells, "holiday search, cells")
         ->capture_default_str();
+    app.add_option("--s44-order",
+                   config.grid.s44_order,
+                   "TVU status: IHO S-44 order (exclusive, special, 1a, 1b, 2)")
+        ->capture_default_str();
+    app.add_option("--tvu-min-share",
+                   config.grid.tvu_min_share,
+                   "a cell meets the order with this share of soundings within its TVU limit")
+        ->capture_default_str();
+    app.add_option("--tvu-alarm-percent",
+                   config.status.tvu_alarm_percent,
+                   "alarm when more new cells than this (%) fail the order's TVU")
+        ->capture_default_str();
+    app.add_option("--tvu-window", config.status.tvu_window_s, "new cells: the last S s of data")
+        ->capture_default_str();
+    app.add_option("--max-clients", server_config.max_clients, "pages with a budget of their own")
+        ->capture_default_str();
     app.add_option("--nav-channel", config.nav_channel_id, "INS channel id (default: every one)");
     app.add_option(
         "--sonar-channel", config.sonar_channel_id, "sonar channel id (default: every one)");
@@ -82,6 +98,26 @@ int main(int argc, char** argv) try {
     CLI11_PARSE(app, argc, argv);
     server_config.budget_bytes_per_s = budget_kbps * 1000.0;
 
+    // The vehicle: mount and lever arm for the georeferencing, the sensor error model for TVU.
+    pitmap::proc::georef::SonarMount mount;
+    const bool mount_known = !vehicle_path.empty();
+    if (mount_known) {
+        auto v = pitmap::proc::io::ReadVehicleYaml(vehicle_path);
+        if (!v) return Usage({v.error().message});
+        mount = v->mount;
+        config.tpu.model = v->description.ErrorModel();
+        if (!v->description.uncertainty) {
+            std::fprintf(stderr,
+                         "pitmap-live: %s has no uncertainty: section: TVU from the default "
+                         "sensor error model\n",
+                         vehicle_path.c_str());
+        }
+    } else {
+        std::fprintf(stderr,
+                     "pitmap-live: warning: no --vehicle: lever arm and mount are zero, TVU from "
+                     "the default sensor error model\n");
+    }
+
     std::vector<std::string> problems = config.Validate();
     for (auto& p : server_config.Validate()) problems.push_back(p);
     if (!(speed >= 0)) problems.push_back("--speed must be >= 0");
@@ -89,15 +125,6 @@ int main(int argc, char** argv) try {
         problems.push_back("--snapshot-on-exit needs --out DIR");
     if (!problems.empty()) return Usage(problems);
 
-    pitmap::proc::georef::SonarMount mount;
-    const bool mount_known = !vehicle_path.empty();
-    if (mount_known) {
-        auto v = pitmap::proc::io::ReadVehicleYaml(vehicle_path);
-        if (!v) return Usage({v.error().message});
-        mount = v->mount;
-    } else {
-        std::fprintf(stderr, "pitmap-live: warning: no --vehicle: lever arm and mount are zero\n");
-    }
     live::LiveSession session(config, mount, mount_known);
     std::signal(SIGINT, OnSignal);
     std::signal(SIGTERM, OnSignal);

@@ -49,6 +49,16 @@ const char* ToString(S44Order o) {
     return "?";
 }
 
+bool S44OrderFromString(const std::string& name, S44Order* o) {
+    for (int k = 0; k < kNumS44Orders; ++k) {
+        if (name == ToString(static_cast<S44Order>(k))) {
+            *o = static_cast<S44Order>(k);
+            return true;
+        }
+    }
+    return false;
+}
+
 const S44Limits& LimitsOf(S44Order o) {
     return kLimits[static_cast<int>(o)];
 }

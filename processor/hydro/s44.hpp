@@ -42,6 +42,8 @@ namespace pitmap::proc::hydro {
 enum class S44Order { kExclusive = 0, kSpecial, kOrder1a, kOrder1b, kOrder2 };
 inline constexpr int kNumS44Orders = 5;
 const char* ToString(S44Order o);  // "exclusive", "special", "1a", "1b", "2"
+// The order named as ToString names it; false (o untouched) for any other text.
+bool S44OrderFromString(const std::string& name, S44Order* o);
 
 struct S44Limits {
     double thu_constant_m = 0;

@@ -64,6 +64,44 @@ const char* ToString(TpuTerm t) {
     return "?";
 }
 
+PingSigma FallbackSigma(const SensorErrorModel& m) {
+    PingSigma s;
+    s.attitude_rpy_rad << frames::DegToRad(m.roll_pitch_sigma_deg),
+        frames::DegToRad(m.roll_pitch_sigma_deg), frames::DegToRad(m.heading_sigma_deg);
+    s.position_enu_m << m.position_sigma_h_m, m.position_sigma_h_m, m.position_sigma_v_m;
+    return s;
+}
+
+PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& s,
+                     std::int64_t utime_gps,
+                     double max_age_s,
+                     const PingSigma& fallback,
+                     bool* from_ins) {
+    if (from_ins != nullptr) *from_ins = false;
+    if (s.empty()) return fallback;
+    auto it = std::lower_bound(
+        s.begin(), s.end(), utime_gps, [](const georef::NavStdDev& d, std::int64_t t) {
+            return d.utime_gps < t;
+        });
+    if (it == s.end() ||
+        (it != s.begin() && utime_gps - std::prev(it)->utime_gps < it->utime_gps - utime_gps)) {
+        it = std::prev(it);
+    }
+    if (std::abs(static_cast<double>(it->utime_gps - utime_gps)) * 1e-6 > max_age_s) {
+        return fallback;
+    }
+    if (from_ins != nullptr) *from_ins = true;
+    const double deg = frames::DegToRad(1.0);
+    const auto pick = [](double v, double fb) { return std::isfinite(v) && v > 0 ? v : fb; };
+    PingSigma out;
+    out.attitude_rpy_rad << pick(it->roll_deg * deg, fallback.attitude_rpy_rad[0]),
+        pick(it->pitch_deg * deg, fallback.attitude_rpy_rad[1]),
+        pick(it->yaw_deg * deg, fallback.attitude_rpy_rad[2]);
+    out.position_enu_m << pick(it->east_m, fallback.position_enu_m[0]),
+        pick(it->north_m, fallback.position_enu_m[1]), pick(it->up_m, fallback.position_enu_m[2]);
+    return out;
+}
+
 std::vector<std::string> TpuConfig::Validate() const {
     std::vector<std::string> out = model.Validate();
     if (!(std::isfinite(clock_sigma_s) && clock_sigma_s >= 0)) {

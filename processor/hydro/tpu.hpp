@@ -38,6 +38,7 @@
 
 #include "common/vehicle.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/georef/series.hpp"
 
 namespace pitmap::proc::hydro {
 
@@ -50,6 +51,20 @@ struct PingSigma {
     Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();    // east, north, up
     Eigen::Vector3d attitude_rpy_rad = Eigen::Vector3d::Zero();  // roll, pitch, yaw
 };
+
+// The error model's INS terms as a PingSigma: what applies where the INS reports no sigma.
+PingSigma FallbackSigma(const SensorErrorModel& model);
+
+// The INS's own 1 sigma at `utime_gps`: the stddev record (INSSTDEV, or INSPVAX's) nearest in
+// time (records are ~1 Hz; the INS error changes slowly). Components the receiver did not
+// report (NaN, <= 0), and all of them when no record lies within max_age_s, take `fallback`.
+// `stddevs` is time-sorted; `from_ins`, if given, says whether a record was used. Shared by the
+// shore grid stage (through pipeline::PoseSigmaAt) and pitmap live.
+PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& stddevs,
+                     std::int64_t utime_gps,
+                     double max_age_s,
+                     const PingSigma& fallback,
+                     bool* from_ins = nullptr);
 
 struct TpuConfig {
     SensorErrorModel model;           // 1-sigma sensor errors (vehicle.yaml `uncertainty:`)

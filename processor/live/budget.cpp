@@ -7,36 +7,99 @@
 
 namespace pitmap::proc::live {
 
-ByteBudget::ByteBudget(double rate_bytes_per_s, double burst_s)
-    : rate_(rate_bytes_per_s), burst_s_(burst_s), tokens_(rate_bytes_per_s * burst_s) {}
+ClientBudgets::ClientBudgets(double rate_bytes_per_s,
+                             double burst_s,
+                             std::size_t max_clients,
+                             double idle_s)
+    : rate_(rate_bytes_per_s),
+      burst_s_(burst_s),
+      max_clients_(std::max<std::size_t>(1, max_clients)),
+      idle_us_(static_cast<std::int64_t>(idle_s * 1e6)) {}
 
-void ByteBudget::Refill(std::int64_t utime) {
-    if (last_utime_ == 0) last_utime_ = utime;
-    if (utime > last_utime_) {
-        tokens_ = std::min(rate_ * burst_s_,
-                           tokens_ + rate_ * static_cast<double>(utime - last_utime_) * 1e-6);
-        last_utime_ = utime;
+std::size_t ClientBudgets::ActiveLocked(std::int64_t utime) const {
+    std::size_t n = 0;
+    for (const auto& [key, b] : clients_) n += utime - b.last_seen <= idle_us_ ? 1 : 0;
+    return std::max<std::size_t>(n, 1);
+}
+
+ClientBudgets::Bucket& ClientBudgets::TouchLocked(const std::string& client, std::int64_t utime) {
+    auto it = clients_.find(client);
+    if (it == clients_.end()) {
+        if (clients_.size() >= max_clients_) {
+            auto oldest = clients_.begin();
+            for (auto c = clients_.begin(); c != clients_.end(); ++c) {
+                if (c->second.last_seen < oldest->second.last_seen) oldest = c;
+            }
+            clients_.erase(oldest);
+            ++evicted_;
+        }
+        Bucket b;
+        b.last_refill = b.last_seen = utime;
+        it = clients_.emplace(client, b).first;
+        // One burst of the share it has now that it counts.
+        it->second.tokens = rate_ / static_cast<double>(ActiveLocked(utime)) * burst_s_;
     }
+    Bucket& b = it->second;
+    // The share at this moment applies since the last refill (clients come and go slowly
+    // against the refills, which happen at every request).
+    const double share = rate_ / static_cast<double>(ActiveLocked(utime));
+    if (utime > b.last_refill) {
+        b.tokens = std::min(share * burst_s_,
+                            b.tokens + share * static_cast<double>(utime - b.last_refill) * 1e-6);
+        b.last_refill = utime;
+    }
+    b.last_seen = std::max(b.last_seen, utime);
+    return b;
 }
 
-std::int64_t ByteBudget::Available(std::int64_t utime) {
+std::int64_t ClientBudgets::Available(const std::string& client, std::int64_t utime) {
     std::lock_guard<std::mutex> lock(mutex_);
-    Refill(utime);
-    return tokens_ > 0 ? static_cast<std::int64_t>(tokens_) : 0;
+    const Bucket& b = TouchLocked(client, utime);
+    return b.tokens > 0 ? static_cast<std::int64_t>(b.tokens) : 0;
 }
 
-void ByteBudget::Spend(std::int64_t bytes, std::int64_t utime) {
+void ClientBudgets::Spend(const std::string& client, std::int64_t bytes, std::int64_t utime) {
     std::lock_guard<std::mutex> lock(mutex_);
-    Refill(utime);
-    tokens_ -= static_cast<double>(bytes);
+    Bucket& b = TouchLocked(client, utime);
+    const double share = rate_ / static_cast<double>(ActiveLocked(utime));
+    b.tokens -= static_cast<double>(bytes);
     // Debt is capped at one burst, so one huge response cannot silence the page for long.
-    tokens_ = std::max(tokens_, -rate_ * burst_s_);
+    b.tokens = std::max(b.tokens, -share * burst_s_);
+    b.spent += bytes;
     spent_ += bytes;
 }
 
-std::int64_t ByteBudget::spent() const {
+double ClientBudgets::ShareBytesPerS(std::int64_t utime) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return rate_ / static_cast<double>(ActiveLocked(utime));
+}
+
+std::size_t ClientBudgets::ActiveClients(std::int64_t utime) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::size_t n = 0;
+    for (const auto& [key, b] : clients_) n += utime - b.last_seen <= idle_us_ ? 1 : 0;
+    return n;
+}
+
+std::size_t ClientBudgets::tracked() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return clients_.size();
+}
+
+std::int64_t ClientBudgets::evicted() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return evicted_;
+}
+
+std::int64_t ClientBudgets::spent() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return spent_;
+}
+
+std::int64_t ClientBudgets::spent(const std::string& client) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = clients_.find(client);
+    return it == clients_.end() ? 0 : it->second.spent;
 }
 
 std::optional<std::uint64_t> ParseDecimal(const std::string& text, std::uint64_t max) {
@@ -68,6 +131,17 @@ LiveQuery ParseLiveQuery(const std::multimap<std::string, std::string>& params) 
                 return q;
             }
             q.max_bytes = static_cast<std::int64_t>(*v);
+        } else if (key == "client") {
+            const bool ok = !value.empty() && value.size() <= kMaxClientIdLength &&
+                            std::all_of(value.begin(), value.end(), [](char c) {
+                                return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                                       (c >= '0' && c <= '9') || c == '_' || c == '-';
+                            });
+            if (!ok) {
+                q.error = "client must be 1 to 32 characters of A-Z a-z 0-9 _ -";
+                return q;
+            }
+            q.client = value;
         }
     }
     return q;

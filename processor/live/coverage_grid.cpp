@@ -27,10 +27,27 @@ std::vector<std::string> CoverageGridConfig::Validate() const {
     if (holiday_search_cells < 1 || holiday_search_cells > kTileCells / 2)
         p.push_back("live.holiday_search_cells must lie in [1, 16]");
     if (max_tiles < 1) p.push_back("live.max_tiles must be at least 1");
+    hydro::S44Order o;
+    if (!hydro::S44OrderFromString(s44_order, &o)) {
+        p.push_back("live.s44_order must be one of exclusive, special, 1a, 1b, 2 (not \"" +
+                    s44_order + "\")");
+    }
+    if (!(tvu_min_share > 0 && tvu_min_share <= 1))
+        p.push_back("live.tvu_min_share must lie in (0, 1]");
     return p;
 }
 
-CoverageGrid::CoverageGrid(const CoverageGridConfig& config) : config_(config) {}
+CoverageGrid::CoverageGrid(const CoverageGridConfig& config) : config_(config) {
+    // Validate() names a bad order; a grid built without it holds cells to 1a.
+    hydro::S44OrderFromString(config_.s44_order, &order_);
+    limits_ = hydro::LimitsOf(order_);
+}
+
+bool CoverageGrid::MeetsTvu(const GridCell& c) const {
+    // over <= (1 - share) count, with a little slack for share = 0.95 exactly and count = 20.
+    return c.count > 0 && static_cast<double>(c.tvu_over) <=
+                              (1.0 - config_.tvu_min_share) * static_cast<double>(c.count) + 1e-9;
+}
 
 std::int64_t CoverageGrid::Key(std::int64_t tx, std::int64_t ty) {
     return static_cast<std::int64_t>((static_cast<std::uint64_t>(tx) << 32) ^
@@ -41,15 +58,19 @@ std::int64_t CoverageGrid::CellIndex(double coordinate_m) const {
     return static_cast<std::int64_t>(std::floor(coordinate_m / config_.cell_size_m));
 }
 
-void CoverageGrid::Add(
-    double easting_m, double northing_m, double elevation_m, double depth_m, std::uint64_t batch) {
+bool CoverageGrid::Add(double easting_m,
+                       double northing_m,
+                       double elevation_m,
+                       double depth_m,
+                       double tvu_95_m,
+                       std::uint64_t batch) {
     // Tile indices must fit 32 bits (Key): |x / cell| < 2^31 * 32 is far beyond any UTM value.
     constexpr double kLimit = 1e9;
     if (!std::isfinite(easting_m) || !std::isfinite(northing_m) || !std::isfinite(elevation_m) ||
         !std::isfinite(depth_m) || std::abs(easting_m / config_.cell_size_m) > kLimit ||
         std::abs(northing_m / config_.cell_size_m) > kLimit) {
         ++dropped_;
-        return;
+        return false;
     }
     const std::int64_t ix = CellIndex(easting_m), iy = CellIndex(northing_m);
     const std::int64_t tx = FloorDiv(ix, kTileCells), ty = FloorDiv(iy, kTileCells);
@@ -58,7 +79,7 @@ void CoverageGrid::Add(
     if (it == tiles_.end()) {
         if (tiles_.size() >= config_.max_tiles) {
             ++dropped_;
-            return;
+            return false;
         }
         GridTile t;
         t.tx = static_cast<int>(tx);
@@ -70,14 +91,28 @@ void CoverageGrid::Add(
     const auto i = static_cast<std::size_t>(ix - tx * kTileCells);
     const auto j = static_cast<std::size_t>(iy - ty * kTileCells);
     GridCell& c = tile.cells[j * kTileCells + i];
-    if (c.count == 0) {
+    const bool first = c.count == 0;
+    if (first) {
         ++tile.filled;
         ++filled_;
     }
-    if (c.count < std::numeric_limits<std::uint32_t>::max()) ++c.count;
+    const bool met = first || MeetsTvu(c);
+    if (c.count < std::numeric_limits<std::uint32_t>::max()) {
+        ++c.count;
+        // The order's TVU limit at the sounding's own depth (S-44 Table 1).
+        const bool within = std::isfinite(tvu_95_m) && tvu_95_m <= limits_.Tvu(std::abs(depth_m));
+        if (!within) {
+            ++c.tvu_over;
+            ++tvu_over_;
+        }
+        if (std::isfinite(tvu_95_m)) c.sum_tvu_m += static_cast<float>(tvu_95_m);
+    }
     c.sum_depth_m += static_cast<float>(depth_m);
     c.sum_elevation_m += elevation_m;
     c.sum_elevation2_m2 += elevation_m * elevation_m;
+    const bool meets = MeetsTvu(c);
+    if (met && !meets) ++tvu_failing_;
+    if (!met && meets) --tvu_failing_;
     // A fresh stamp per tile per batch: no two tiles share a version, so a client that got
     // the tiles up to version V asks for the rest with since = V and misses none.
     if (tile.batch != batch || tile.version == 0) {
@@ -85,6 +120,7 @@ void CoverageGrid::Add(
         tile.version = ++stamp_;
     }
     ++soundings_;
+    return first;
 }
 
 const GridCell* CoverageGrid::Cell(std::int64_t ix, std::int64_t iy) const {
@@ -144,6 +180,8 @@ CoverageStats CoverageGrid::Stats(bool with_holidays) const {
     s.soundings_dropped = dropped_;
     s.filled_cells = filled_;
     s.tiles = static_cast<std::int64_t>(tiles_.size());
+    s.cells_tvu_failing = tvu_failing_;
+    s.soundings_tvu_over = tvu_over_;
     s.covered_area_m2 = static_cast<double>(filled_) * config_.cell_size_m * config_.cell_size_m;
     bool first = true;
     for (const auto& [key, tile] : tiles_) {
@@ -209,7 +247,9 @@ Expected<io::GridRaster> CoverageGrid::ToRaster(int utm_zone,
                 {"elevation", "metre", std::vector<float>(n, kNaN)},
                 {"elevation_stddev", "metre", std::vector<float>(n, kNaN)},
                 {"density", "", std::vector<float>(n, kNaN)},
-                {"holiday", "", std::vector<float>(n, kNaN)}};
+                {"holiday", "", std::vector<float>(n, kNaN)},
+                {"tvu_95", "metre", std::vector<float>(n, kNaN)},
+                {"tvu_meets_order", "", std::vector<float>(n, kNaN)}};
     for (std::int64_t j = 0; j < ny; ++j) {
         for (std::int64_t i = 0; i < nx; ++i) {
             const auto k = static_cast<std::size_t>(j * nx + i);
@@ -223,13 +263,20 @@ Expected<io::GridRaster> CoverageGrid::ToRaster(int utm_zone,
                 g.layers[2].values[k] = static_cast<float>(std::sqrt(var));
                 g.layers[3].values[k] = static_cast<float>(c->count);
                 g.layers[4].values[k] = 0.f;
+                g.layers[5].values[k] = c->sum_tvu_m / static_cast<float>(c->count);
+                g.layers[6].values[k] = MeetsTvu(*c) ? 1.f : 0.f;
             } else if (IsHoliday(ix, iy)) {
                 g.layers[4].values[k] = 1.f;
             }
         }
     }
     g.metadata = {{"pitmap_product", "live coverage grid"},
-                  {"pitmap_holiday_search_cells", std::to_string(config_.holiday_search_cells)}};
+                  {"pitmap_holiday_search_cells", std::to_string(config_.holiday_search_cells)},
+                  {"pitmap_s44_order", hydro::ToString(order_)},
+                  {"pitmap_tvu_limit",
+                   "sqrt(" + std::to_string(limits_.tvu_a_m) + "^2 + (" +
+                       std::to_string(limits_.tvu_b) + " d)^2) m at depth d"},
+                  {"pitmap_tvu_min_share", std::to_string(config_.tvu_min_share)}};
     return g;
 }
 

@@ -40,6 +40,17 @@ std::string Gzip(const std::string& in) {
     return rc == Z_STREAM_END ? out : std::string();
 }
 
+// The budget key of a request: the peer address, plus the page's id when it is well formed
+// (ParseLiveQuery's check; bounded length and characters).
+std::string ClientKey(const httplib::Request& req) {
+    std::string key = req.remote_addr;
+    if (req.has_param("client")) {
+        const LiveQuery q = ParseLiveQuery({{"client", req.get_param_value("client")}});
+        if (q.error.empty()) key += "/" + q.client;
+    }
+    return key;
+}
+
 // The type httplib does not compress again (it compresses application/json itself).
 constexpr const char* kJsonType = "application/vnd.pitmap+json";
 
@@ -53,6 +64,10 @@ std::vector<std::string> ServerConfig::Validate() const {
         p.push_back("live: the byte budget must be at least 1000 bytes/s");
     if (!(budget_burst_s > 0) || !std::isfinite(budget_burst_s))
         p.push_back("live: the budget burst must be > 0 s");
+    if (max_clients < 1 || max_clients > 1000)
+        p.push_back("live: max_clients must lie in [1, 1000]");
+    if (!(client_idle_s > 0) || !std::isfinite(client_idle_s))
+        p.push_back("live: client_idle_s must be > 0");
     return p;
 }
 
@@ -63,7 +78,10 @@ struct LiveServer::Impl {
 LiveServer::LiveServer(LiveSession& session, const ServerConfig& config)
     : session_(session),
       config_(config),
-      budget_(config.budget_bytes_per_s, config.budget_burst_s),
+      budget_(config.budget_bytes_per_s,
+              config.budget_burst_s,
+              config.max_clients,
+              config.client_idle_s),
       impl_(std::make_unique<Impl>()) {}
 
 LiveServer::~LiveServer() {
@@ -72,11 +90,13 @@ LiveServer::~LiveServer() {
 
 Status LiveServer::Start() {
     httplib::Server& s = impl_->server;
-    // The budget is spent by what goes on the wire: gzip-compressed when the client takes it.
+    // The client's budget is spent by what goes on the wire: gzip-compressed when the client
+    // takes it. A request whose `client` is malformed spends from its address's budget.
     const auto send_json = [this](const httplib::Request& req,
                                   httplib::Response& res,
                                   const nlohmann::json& j,
                                   int code = 200) {
+        const std::string client = ClientKey(req);
         // Text from the wire (host and channel names) may be any bytes: replaced, never thrown.
         std::string body = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
         if (req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos) {
@@ -86,7 +106,7 @@ Status LiveServer::Start() {
                 res.set_header("Content-Encoding", "gzip");
             }
         }
-        budget_.Spend(static_cast<std::int64_t>(body.size()), SteadyUtime());
+        budget_.Spend(client, static_cast<std::int64_t>(body.size()), SteadyUtime());
         res.status = code;
         res.set_header("Cache-Control", "no-store");
         res.set_content(std::move(body), kJsonType);
@@ -102,8 +122,14 @@ Status LiveServer::Start() {
           [](const httplib::Request&, httplib::Response& res) { res.status = 204; });
     s.Get("/api/status", [this, send_json](const httplib::Request& req, httplib::Response& res) {
         nlohmann::json j = session_.StatusJson(WallUtime());
+        const std::string client = ClientKey(req);
+        const std::int64_t now = SteadyUtime();
         j["budget"] = {{"rate_bytes_per_s", budget_.rate_bytes_per_s()},
-                       {"available_bytes", budget_.Available(SteadyUtime())},
+                       {"client_rate_bytes_per_s", budget_.ShareBytesPerS(now)},
+                       {"clients", budget_.ActiveClients(now)},
+                       {"clients_evicted", budget_.evicted()},
+                       {"available_bytes", budget_.Available(client, now)},
+                       {"client_spent_bytes", budget_.spent(client)},
                        {"spent_bytes", budget_.spent()}};
         send_json(req, res, j);
     });
@@ -114,7 +140,7 @@ Status LiveServer::Start() {
           [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
               const LiveQuery q = ParseLiveQuery(req.params);
               if (!q.error.empty()) return bad_request(req, res, q.error);
-              std::int64_t share = budget_.Available(SteadyUtime()) * 6 / 10;
+              std::int64_t share = budget_.Available(ClientKey(req), SteadyUtime()) * 6 / 10;
               if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
               send_json(req, res, session_.TilesJson(q.since, share));
           });
@@ -122,7 +148,7 @@ Status LiveServer::Start() {
           [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
               const LiveQuery q = ParseLiveQuery(req.params);
               if (!q.error.empty()) return bad_request(req, res, q.error);
-              std::int64_t share = budget_.Available(SteadyUtime());
+              std::int64_t share = budget_.Available(ClientKey(req), SteadyUtime());
               if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
               send_json(req, res, session_.SoundingsJson(q.since, share));
           });

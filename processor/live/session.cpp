@@ -8,6 +8,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <pitmap/clock_sync_t.hpp>
 #include <pitmap/daemon_status_t.hpp>
 #include <pitmap/gnss_position_t.hpp>
@@ -40,6 +41,8 @@ bool Matches(std::string_view channel, std::string_view prefix, const std::strin
     if (!StartsWith(channel, prefix)) return false;
     return want_upper.empty() || channel.substr(prefix.size()) == want_upper;
 }
+
+constexpr double kNaNd = std::numeric_limits<double>::quiet_NaN();
 
 constexpr char kB64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
 
@@ -77,6 +80,17 @@ void PutF32(std::vector<std::uint8_t>& b, float f) {
     for (int k = 0; k < 4; ++k) b.push_back(static_cast<std::uint8_t>(v >> (8 * k)));
 }
 
+// The tiles' TVU byte per cell: 0 = empty; else bit 7 set = the cell fails the order, bits 0-6
+// = its mean TVU in kTvuStepM steps (rounded, at least 1 so a filled cell is never 0, at most
+// 127 = 2.54 m or more).
+constexpr double kTvuStepM = 0.02;
+std::uint8_t TvuByte(const GridCell& c, bool meets) {
+    const double mean = static_cast<double>(c.sum_tvu_m) / static_cast<double>(c.count);
+    const long q =
+        std::isfinite(mean) ? std::lround(std::clamp(mean / kTvuStepM, 1.0, 127.0)) : 127;
+    return static_cast<std::uint8_t>(q | (meets ? 0 : 0x80));
+}
+
 // A finite JSON number or null.
 json Num(double v) {
     return std::isfinite(v) ? json(v) : json(nullptr);
@@ -103,6 +117,9 @@ std::vector<std::string> LiveConfig::Validate() const {
         p.push_back("live.process_interval_s must be >= 0");
     if (!(holiday_refresh_s >= 0) || !std::isfinite(holiday_refresh_s))
         p.push_back("live.holiday_refresh_s must be >= 0");
+    for (auto& s : tpu.Validate()) p.push_back("live." + s);
+    if (!(ins_sigma_max_age_s > 0) || !std::isfinite(ins_sigma_max_age_s))
+        p.push_back("live.ins_sigma_max_age_s must be > 0");
     return p;
 }
 
@@ -113,9 +130,39 @@ LiveSession::LiveSession(const LiveConfig& config,
       mount_known_(mount_known),
       georef_(config.georef, mount),
       grid_(config.grid),
-      status_(config.status) {
+      status_(config.status),
+      fallback_sigma_(hydro::FallbackSigma(config.tpu.model)) {
     config_.nav_channel_id = Upper(config_.nav_channel_id);
     config_.sonar_channel_id = Upper(config_.sonar_channel_id);
+    config_.tpu.num_threads = 1;
+}
+
+void LiveSession::AddStdDevLocked(const georef::NavStdDev& s) {
+    if (s.utime_gps <= 0) return;
+    if (stddevs_.empty() || s.utime_gps > stddevs_.back().utime_gps) {
+        stddevs_.push_back(s);
+    } else {
+        // INSPVAX and INSSTDEV of one epoch: the first is kept; a late record goes in place.
+        auto at = std::lower_bound(
+            stddevs_.begin(), stddevs_.end(), s.utime_gps, [](const auto& d, std::int64_t t) {
+                return d.utime_gps < t;
+            });
+        if (at != stddevs_.end() && at->utime_gps == s.utime_gps) return;
+        stddevs_.insert(at, s);
+    }
+    // Records older than the navigation the georeferencing keeps (plus the sigma's reach) can
+    // no longer be used: dropped once they are half of the vector (amortised O(1)).
+    const auto keep =
+        static_cast<std::int64_t>((config_.georef.nav_keep_s + config_.ins_sigma_max_age_s) * 1e6);
+    const std::int64_t oldest = stddevs_.back().utime_gps - keep;
+    auto stale = std::lower_bound(
+        stddevs_.begin(), stddevs_.end(), oldest, [](const auto& d, std::int64_t t) {
+            return d.utime_gps < t;
+        });
+    if (static_cast<std::size_t>(stale - stddevs_.begin()) * 2 > stddevs_.size() ||
+        stddevs_.size() > 100'000) {
+        stddevs_.erase(stddevs_.begin(), std::max(stale, stddevs_.end() - 100'000));
+    }
 }
 
 void LiveSession::OnEvent(const std::string& channel,
@@ -144,6 +191,13 @@ void LiveSession::OnEvent(const std::string& channel,
         n.ins_status = m.ins_status;
         n.position_type = m.position_type;
         if (m.has_stddev) {
+            AddStdDevLocked({m.utime_gps,
+                             m.latitude_stddev_m,
+                             m.longitude_stddev_m,
+                             m.height_stddev_m,
+                             m.roll_stddev_deg,
+                             m.pitch_stddev_deg,
+                             m.azimuth_stddev_deg});
             n.north_sigma_m = std::isfinite(m.latitude_stddev_m) ? m.latitude_stddev_m : -1.f;
             n.east_sigma_m = std::isfinite(m.longitude_stddev_m) ? m.longitude_stddev_m : -1.f;
             n.up_sigma_m = std::isfinite(m.height_stddev_m) ? m.height_stddev_m : -1.f;
@@ -161,6 +215,13 @@ void LiveSession::OnEvent(const std::string& channel,
         pitmap::ins_stddev_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
         utime = m.utime;
+        AddStdDevLocked({m.utime_gps,
+                         m.latitude_stddev_m,
+                         m.longitude_stddev_m,
+                         m.height_stddev_m,
+                         m.roll_stddev_deg,
+                         m.pitch_stddev_deg,
+                         m.azimuth_stddev_deg});
         NavStatusIn n = status_.nav();
         if (n.utime != 0) {
             n.north_sigma_m = m.latitude_stddev_m;
@@ -268,11 +329,27 @@ void LiveSession::ProcessLocked() {
             utm_zone_ = batch.utm.zone;
             utm_northern_ = batch.utm.northern;
         }
+        // TVU of every sounding: the shore's TPU model on this batch, with the INS's own sigma
+        // nearest each ping (else the error model's).
+        const auto& pings = batch.result.pings;
+        ping_sigma_.resize(pings.size());
+        for (std::size_t k = 0; k < pings.size(); ++k) {
+            bool own = false;
+            ping_sigma_[k] = hydro::InsSigmaAt(
+                stddevs_, pings[k].utime_gps, config_.ins_sigma_max_age_s, fallback_sigma_, &own);
+            ++(own ? pings_with_ins_sigma_ : pings_with_model_sigma_);
+        }
+        const hydro::TpuResult tpu =
+            hydro::ComputeTpu(batch.result, batch.result.mount, ping_sigma_, config_.tpu);
+        if (P.size() > 0) last_batch_median_tvu_m_ = tpu.median_tvu_95_m;
+        new_cells_.clear();
         for (std::size_t j = 0; j < P.size(); ++j) {
             const Eigen::Vector3d& u = batch.utm.easting_northing_height[j];
-            const double depth =
-                batch.result.pings[P.ping[j]].sensor_world.z() - P.position_world[j].z();
-            grid_.Add(u.x(), u.y(), u.z(), depth, version_);
+            const double depth = pings[P.ping[j]].sensor_world.z() - P.position_world[j].z();
+            const double tvu = j < tpu.tvu_95_m.size() ? tpu.tvu_95_m[j] : kNaNd;
+            if (grid_.Add(u.x(), u.y(), u.z(), depth, tvu, version_)) {
+                new_cells_.emplace_back(grid_.CellIndex(u.x()), grid_.CellIndex(u.y()));
+            }
             if (!have_ref_) {
                 // The page's frame: the corner of the first sounding's cell.
                 ref_ix_ = grid_.CellIndex(u.x());
@@ -287,6 +364,17 @@ void LiveSession::ProcessLocked() {
             ++sounding_seq_;
         }
         while (recent_.size() > config_.max_recent_soundings) recent_.pop_front();
+        // The new cells' TVU status once the whole batch is in them.
+        TvuCellsIn t;
+        t.utime = data_utime_;
+        t.order = hydro::ToString(grid_.order());
+        for (const auto& [ix, iy] : new_cells_) {
+            const GridCell* c = grid_.Cell(ix, iy);
+            if (c == nullptr || c->count == 0) continue;
+            ++t.new_cells;
+            if (!grid_.MeetsTvu(*c)) ++t.failing;
+        }
+        status_.OnTvuCells(t);
         if (have_ref_) {
             const double x0 = static_cast<double>(ref_ix_) * config_.grid.cell_size_m;
             const double y0 = static_cast<double>(ref_iy_) * config_.grid.cell_size_m;
@@ -440,6 +528,22 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
                  {"max_depth_m", c.max_depth_m},
                  {"utm_zone", utm_zone_},
                  {"northern", utm_northern_}};
+    const hydro::S44Limits& L = hydro::LimitsOf(grid_.order());
+    const std::int64_t meeting = c.filled_cells - c.cells_tvu_failing;
+    j["grid"]["tvu"] = {{"order", hydro::ToString(grid_.order())},
+                        {"limit_a_m", L.tvu_a_m},
+                        {"limit_b", L.tvu_b},
+                        {"min_share", config_.grid.tvu_min_share},
+                        {"cells_meeting", meeting},
+                        {"cells_failing", c.cells_tvu_failing},
+                        {"share_meeting",
+                         c.filled_cells > 0 ? json(static_cast<double>(meeting) /
+                                                   static_cast<double>(c.filled_cells))
+                                            : json(nullptr)},
+                        {"soundings_over", c.soundings_tvu_over},
+                        {"last_batch_median_tvu_m", last_batch_median_tvu_m_},
+                        {"pings_with_ins_sigma", pings_with_ins_sigma_},
+                        {"pings_with_model_sigma", pings_with_model_sigma_}};
     j["counts"] = {{"events", counts_.events},
                    {"decode_failures", counts_.decode_failures},
                    {"utm_failures", counts_.utm_failures}};
@@ -470,18 +574,21 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
     RefreshHolidaysLocked();
     json tiles = json::array();
     const auto changed = grid_.TilesSince(since);
-    std::int64_t used = 400;  // the envelope
+    std::int64_t used = 600;  // the envelope
     std::size_t sent = 0;
     std::uint64_t next_since = since;
-    std::vector<std::uint8_t> depth_bytes, count_bytes;
+    std::vector<std::uint8_t> depth_bytes, count_bytes, tvu_bytes;
     for (const GridTile* t : changed) {
         depth_bytes.clear();
         count_bytes.clear();
+        tvu_bytes.clear();
         for (const GridCell& c : t->cells) {
             if (c.count == 0) {
                 PutU16(depth_bytes, 0xFFFF);
                 count_bytes.push_back(0);
+                tvu_bytes.push_back(0);
             } else {
+                tvu_bytes.push_back(TvuByte(c, grid_.MeetsTvu(c)));
                 const double d =
                     std::clamp(c.sum_depth_m / static_cast<double>(c.count) * 100.0, 0.0, 65534.0);
                 PutU16(depth_bytes, static_cast<std::uint16_t>(std::lround(d)));
@@ -493,7 +600,8 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
                    {"ty", t->ty},
                    {"v", t->version},
                    {"depth_cm", Base64(depth_bytes)},
-                   {"count", Base64(count_bytes)}};
+                   {"count", Base64(count_bytes)},
+                   {"tvu", Base64(tvu_bytes)}};
         const auto size = static_cast<std::int64_t>(tj.dump().size()) + 1;
         if (budget_bytes >= 0 && used + size > budget_bytes) break;
         used += size;
@@ -524,8 +632,15 @@ json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {
         {"holidays", holidays},
         {"holidays_total", holidays_total_},
         {"thinned", thinned},
+        {"tvu",
+         {{"order", hydro::ToString(grid_.order())},
+          {"limit_a_m", hydro::LimitsOf(grid_.order()).tvu_a_m},
+          {"limit_b", hydro::LimitsOf(grid_.order()).tvu_b},
+          {"min_share", config_.grid.tvu_min_share},
+          {"step_m", kTvuStepM}}},
         {"stats",
          {{"filled_cells", stats_cache_.filled_cells},
+          {"cells_tvu_failing", stats_cache_.cells_tvu_failing},
           {"min_depth_m", stats_cache_.min_depth_m},
           {"max_depth_m", stats_cache_.max_depth_m},
           {"min_x", static_cast<double>(stats_cache_.min_ix - ref_ix_) * config_.grid.cell_size_m},

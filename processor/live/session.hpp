@@ -7,8 +7,13 @@
 // names of the vehicle-shore contract (lcmtypes/log/channels.hpp): INS_PVA_ and MULTIBEAM_PING_
 // feed the incremental georeferencing (live_georef.hpp), INS_STDDEV_, GNSS_POSITION_,
 // CLOCK_SYNC and DAEMON_STATUS the status and alarms (status.hpp). Tick() georeferences what
-// navigation now brackets into the coverage grid (coverage_grid.hpp) and the recent-soundings
-// ring, and re-evaluates the alarms.
+// navigation now brackets, computes each sounding's TVU with the shore processor's TPU model
+// (processor/hydro/tpu.hpp ComputeTpu, the vehicle's error model, the INS's own sigmas from
+// INSPVAX / INSSTDEV nearest each ping, as the grid stage does), puts the soundings into the
+// coverage grid (coverage_grid.hpp: depth, density, TVU status against the S-44 order) and the
+// recent-soundings ring, and re-evaluates the alarms (tvu_over_limit among them). The TPU's
+// latency term takes the vehicle's motion from the neighbouring pings of the same batch (a
+// batch of one ping has none: that term is then zero; a few millimetres at survey speed).
 // The JSON documents (status, alarms, tiles, soundings) fit a byte budget given by the caller
 // (budget.hpp) and say when they were thinned.
 // Thread safety: every public member locks one mutex; the LCM thread and the HTTP threads may
@@ -27,6 +32,7 @@
 #include <vector>
 
 #include "common/result.hpp"
+#include "processor/hydro/tpu.hpp"
 #include "processor/live/coverage_grid.hpp"
 #include "processor/live/live_georef.hpp"
 #include "processor/live/status.hpp"
@@ -37,8 +43,12 @@ struct LiveConfig {
     CoverageGridConfig grid;
     StatusConfig status;
     LiveGeorefConfig georef;
-    std::string nav_channel_id;                  // "" = every INS channel
-    std::string sonar_channel_id;                // "" = every sonar channel
+    // TPU: the vehicle's sensor error model (vehicle.yaml `uncertainty:`), the nominal sound
+    // speed; num_threads is forced to 1 (the LCM thread computes it).
+    hydro::TpuConfig tpu;
+    double ins_sigma_max_age_s = 5.0;  // INS sigma records further from a ping: the model's
+    std::string nav_channel_id;        // "" = every INS channel
+    std::string sonar_channel_id;      // "" = every sonar channel
     std::size_t max_recent_soundings = 200'000;  // ring for the 3D view
     std::size_t max_track_points = 20'000;       // vehicle track ring (one per georeferenced ping)
     double process_interval_s = 0.1;             // data time between georeferencing batches
@@ -84,6 +94,7 @@ public:
 private:
     void ProcessLocked();
     void RefreshHolidaysLocked();
+    void AddStdDevLocked(const georef::NavStdDev& s);
 
     mutable std::mutex mutex_;
     LiveConfig config_;
@@ -113,6 +124,14 @@ private:
     std::vector<std::pair<std::int64_t, std::int64_t>> holidays_;
     std::int64_t holidays_total_ = 0;
     CoverageStats stats_cache_;
+    // TVU: the INS sigma records (time-sorted, trimmed to the georeferencing's navigation
+    // window), the fallback from the error model, and running figures.
+    std::vector<georef::NavStdDev> stddevs_;
+    hydro::PingSigma fallback_sigma_;
+    std::vector<hydro::PingSigma> ping_sigma_;
+    std::vector<std::pair<std::int64_t, std::int64_t>> new_cells_;
+    double last_batch_median_tvu_m_ = 0;
+    std::int64_t pings_with_ins_sigma_ = 0, pings_with_model_sigma_ = 0;
 };
 
 }  // namespace pitmap::proc::live

@@ -44,7 +44,11 @@ std::vector<std::string> StatusConfig::Validate() const {
     positive(drops_window_s, "drops_window_s");
     positive(no_messages_s, "no_messages_s");
     positive(rate_window_s, "rate_window_s");
+    positive(tvu_window_s, "tvu_window_s");
     if (disk_low_bytes < 0) p.push_back("live.disk_low_bytes must be >= 0");
+    if (!(tvu_alarm_percent >= 0 && tvu_alarm_percent <= 100))
+        p.push_back("live.tvu_alarm_percent must lie in [0, 100]");
+    if (tvu_min_new_cells < 1) p.push_back("live.tvu_min_new_cells must be >= 1");
     return p;
 }
 
@@ -166,6 +170,13 @@ void StatusTracker::OnDaemon(const DaemonStatusIn& d) {
     std::int64_t total = d.log_events_dropped;
     for (const ChannelStatusIn& c : d.channels) total += c.queue_drops + c.kernel_drops;
     drops_.emplace_back(d.utime, total);
+}
+
+void StatusTracker::OnTvuCells(const TvuCellsIn& t) {
+    if (t.new_cells <= 0) return;
+    tvu_.push_back(t);
+    // Bounded even when the data clock stands still (Evaluate prunes by data time).
+    while (tvu_.size() > 10'000) tvu_.pop_front();
 }
 
 void StatusTracker::Set(std::vector<Alarm>& next,
@@ -292,6 +303,34 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
                         Seconds(drops_.back().first - drops_.front().first));
         }
         Set(next, "drops_rising", !drops.empty(), drops);
+    }
+    // TVU of the new coverage.
+    {
+        const auto tvu_window = static_cast<std::int64_t>(config_.tvu_window_s * 1e6);
+        while (!tvu_.empty() && tvu_.front().utime < now - tvu_window) tvu_.pop_front();
+        std::int64_t fresh = 0, failing = 0;
+        for (const TvuCellsIn& t : tvu_) {
+            fresh += t.new_cells;
+            failing += t.failing;
+        }
+        const double pct =
+            fresh > 0 ? 100.0 * static_cast<double>(failing) / static_cast<double>(fresh) : 0.0;
+        const bool on = fresh >= config_.tvu_min_new_cells && pct > config_.tvu_alarm_percent;
+        std::string reason;
+        if (on) {
+            char buf[200];
+            std::snprintf(buf,
+                          sizeof buf,
+                          " limit in %.0f %% of new cells (%lld of %lld first filled in the last "
+                          "%.0f s; alarm above %.0f %%)",
+                          pct,
+                          static_cast<long long>(failing),
+                          static_cast<long long>(fresh),
+                          config_.tvu_window_s,
+                          config_.tvu_alarm_percent);
+            reason = "TVU over the order " + tvu_.back().order + buf;
+        }
+        Set(next, "tvu_over_limit", on, reason);
     }
     // The feed itself.
     {

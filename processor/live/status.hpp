@@ -15,6 +15,9 @@
 //                     or a write error
 //   drops_rising      queue, kernel or log-writer drops grew within drops_window_s
 //   no_messages       nothing arrived for no_messages_s of wall time
+//   tvu_over_limit    of the cells first filled within tvu_window_s of data time (at least
+//                     tvu_min_new_cells of them), more than tvu_alarm_percent fail the S-44
+//                     order's TVU (coverage_grid.hpp: their status once their batch is in)
 // Thread safety: none; LiveSession serialises access.
 #pragma once
 
@@ -34,7 +37,10 @@ struct StatusConfig {
     std::int64_t disk_low_bytes = 1LL << 30;
     double drops_window_s = 10.0;
     double no_messages_s = 5.0;
-    double rate_window_s = 5.0;  // ping rate over this much data time
+    double rate_window_s = 5.0;       // ping rate over this much data time
+    double tvu_alarm_percent = 10.0;  // new cells failing the order's TVU, % (0..100)
+    double tvu_window_s = 30.0;       // "new": first filled within this much data time
+    int tvu_min_new_cells = 20;       // fewer new cells in the window: no verdict
     std::vector<std::string> Validate() const;
 };
 
@@ -60,6 +66,13 @@ struct ClockStatusIn {
     int state = 0;   // clock_sync_t STATE_*
     double offset_us = 0, stddev_us = 0, drift_ppm = 0;
     int leap_seconds = 0;  // GPS - UTC, s
+};
+// One georeferencing batch's new cells: how many were first filled, and how many of them fail
+// the order's TVU.
+struct TvuCellsIn {
+    std::int64_t utime = 0;  // data clock
+    std::int64_t new_cells = 0, failing = 0;
+    std::string order;  // "1a", for the reason
 };
 struct ChannelStatusIn {
     std::string name, protocol;
@@ -133,6 +146,7 @@ public:
     void OnPing(const PingStatusIn& p);
     void OnClock(const ClockStatusIn& c);
     void OnDaemon(const DaemonStatusIn& d);
+    void OnTvuCells(const TvuCellsIn& t);
 
     // Re-evaluates the alarms at the data clock and the given wall time; keeps the transitions.
     void Evaluate(std::int64_t wall_utime);
@@ -155,6 +169,7 @@ private:
     std::map<int, ClockStatusIn> clocks_;
     DaemonStatusIn daemon_;
     std::deque<std::pair<std::int64_t, std::int64_t>> drops_;  // (utime, total drops)
+    std::deque<TvuCellsIn> tvu_;                               // within tvu_window_s
     std::map<std::string, ChannelCounter> channels_;
     std::vector<Alarm> active_;
     std::deque<AlarmEvent> history_;

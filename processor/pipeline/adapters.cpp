@@ -11,6 +11,7 @@
 
 #include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
+#include "processor/hydro/tpu.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -34,28 +35,12 @@ PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
                       std::int64_t utime_gps,
                       double max_age_s,
                       const PoseSigma& fallback) {
-    const auto& s = nav.stddevs;
-    if (s.empty()) return fallback;
-    auto it = std::lower_bound(
-        s.begin(), s.end(), utime_gps, [](const georef::NavStdDev& d, std::int64_t t) {
-            return d.utime_gps < t;
-        });
-    if (it == s.end() ||
-        (it != s.begin() && utime_gps - std::prev(it)->utime_gps < it->utime_gps - utime_gps)) {
-        it = std::prev(it);
-    }
-    if (std::abs(static_cast<double>(it->utime_gps - utime_gps)) * 1e-6 > max_age_s) {
-        return fallback;
-    }
-    const double deg = frames::DegToRad(1.0);
-    const double v[6] = {it->roll_deg * deg,
-                         it->pitch_deg * deg,
-                         it->yaw_deg * deg,
-                         it->east_m,
-                         it->north_m,
-                         it->up_m};
+    hydro::PingSigma fb;
+    fb.attitude_rpy_rad = fallback.head<3>();
+    fb.position_enu_m = fallback.tail<3>();
+    const hydro::PingSigma s = hydro::InsSigmaAt(nav.stddevs, utime_gps, max_age_s, fb);
     PoseSigma out;
-    for (int i = 0; i < 6; ++i) out[i] = std::isfinite(v[i]) && v[i] > 0 ? v[i] : fallback[i];
+    out << s.attitude_rpy_rad, s.position_enu_m;
     return out;
 }
 

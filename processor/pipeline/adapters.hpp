@@ -32,7 +32,8 @@ using PoseSigma = Eigen::Matrix<double, 6, 1>;
 
 // The INS's own 1-sigma at a time: the stddev record nearest in time (records are ~1 Hz; the
 // INS error changes slowly). Components the receiver did not report (NaN), and all of them when
-// there is no record within max_age_s, take `fallback`.
+// there is no record within max_age_s, take `fallback` (hydro::InsSigmaAt, which pitmap live
+// uses too).
 PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
                       std::int64_t utime_gps,
                       double max_age_s,

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: MIT
 // libFuzzer target for what pitmap-live reads from outside: the page's query parameters
-// (processor/live/budget.hpp ParseLiveQuery) and LCM events on the daemon's channels
-// (processor/live/session.hpp OnEvent), followed by every JSON document the server sends.
-// The first byte picks the mode. Invariants: nothing throws, a query without an error holds
-// values in range, the JSON documents serialise (non-UTF-8 text from the wire is replaced).
+// (processor/live/budget.hpp ParseLiveQuery, the client id that keys the byte budgets) and LCM
+// events on the daemon's channels (processor/live/session.hpp OnEvent), followed by every JSON
+// document the server sends. The first byte picks the mode. Invariants: nothing throws, a query
+// without an error holds values in range, the JSON documents serialise (non-UTF-8 text from the
+// wire is replaced).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -40,7 +41,19 @@ void FuzzQuery(const std::uint8_t* data, std::size_t size) {
     if (q.error.empty()) {
         Check(q.since <= static_cast<std::uint64_t>(INT64_MAX));
         Check(q.max_bytes >= -1 && q.max_bytes <= INT32_MAX);
+        Check(q.client.size() <= live::kMaxClientIdLength);
+        for (char c : q.client) {
+            Check((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                  c == '_' || c == '-');
+        }
     }
+    // Every key a page may send reaches the budgets' keying: bounded whatever the bytes.
+    live::ClientBudgets budgets(1000, 1.0, 4);
+    for (const auto& [key, value] : params) {
+        const live::LiveQuery one = live::ParseLiveQuery({{"client", value}});
+        if (one.error.empty()) budgets.Spend(one.client, 10, 1);
+    }
+    Check(budgets.tracked() <= 4);
 }
 
 void FuzzEvents(const std::uint8_t* data, std::size_t size) {

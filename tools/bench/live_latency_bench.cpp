@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
     }
 
     georef::SonarMount mount;
+    live::LiveConfig config;
     if (!vehicle.empty()) {
         auto v = io::ReadVehicleYaml(vehicle);
         if (!v) {
@@ -76,8 +77,8 @@ int main(int argc, char** argv) {
             return 2;
         }
         mount = v->mount;
+        config.tpu.model = v->description.ErrorModel();  // TVU as pitmap-live computes it
     }
-    live::LiveConfig config;
     live::LiveSession session(config, mount, !vehicle.empty());
 
     std::deque<std::int64_t> fed;  // wall times of the pings not yet georeferenced

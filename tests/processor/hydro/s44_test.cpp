@@ -217,5 +217,18 @@ TEST(S44, ValidateListsEveryProblem) {
     EXPECT_EQ(c.Validate().size(), 5u);
 }
 
+TEST(S44, OrderNamesRoundTrip) {
+    for (int k = 0; k < kNumS44Orders; ++k) {
+        S44Order o = S44Order::kOrder2;
+        ASSERT_TRUE(S44OrderFromString(ToString(static_cast<S44Order>(k)), &o));
+        EXPECT_EQ(static_cast<int>(o), k);
+    }
+    S44Order o = S44Order::kSpecial;
+    EXPECT_FALSE(S44OrderFromString("1A", &o));
+    EXPECT_FALSE(S44OrderFromString("", &o));
+    EXPECT_FALSE(S44OrderFromString("3", &o));
+    EXPECT_EQ(o, S44Order::kSpecial);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::hydro

@@ -162,5 +162,34 @@ TEST(Tpu, ComputeTpuGivesOneValuePerSoundingAndTermSharesSumToOne) {
     EXPECT_EQ(invalid.Validate().size(), 2u);
 }
 
+TEST(Tpu, InsSigmaIsTheNearestRecordElseTheModels) {
+    SensorErrorModel m;
+    const PingSigma fb = FallbackSigma(m);
+    EXPECT_NEAR(fb.attitude_rpy_rad[0], frames::DegToRad(0.015), 1e-15);
+    EXPECT_NEAR(fb.attitude_rpy_rad[2], frames::DegToRad(0.04), 1e-15);
+    EXPECT_DOUBLE_EQ(fb.position_enu_m[0], 0.01);
+    EXPECT_DOUBLE_EQ(fb.position_enu_m[2], 0.015);
+    const float nan = std::nanf("");
+    // Records at 1 s and 2 s; the one at 2 s reports no height sigma.
+    const std::vector<georef::NavStdDev> s = {{1'000'000, 0.1f, 0.2f, 0.3f, 1.f, 2.f, 3.f},
+                                              {2'000'000, 0.4f, 0.5f, nan, 4.f, 5.f, 6.f}};
+    bool from_ins = false;
+    PingSigma a = InsSigmaAt(s, 1'400'000, 5.0, fb, &from_ins);
+    EXPECT_TRUE(from_ins);
+    EXPECT_NEAR(a.position_enu_m[0], 0.2, 1e-6);  // east = longitude sigma
+    EXPECT_NEAR(a.position_enu_m[1], 0.1, 1e-6);
+    EXPECT_NEAR(a.position_enu_m[2], 0.3, 1e-6);
+    EXPECT_NEAR(a.attitude_rpy_rad[2], frames::DegToRad(3.0), 1e-7);
+    a = InsSigmaAt(s, 1'600'000, 5.0, fb);
+    EXPECT_NEAR(a.position_enu_m[0], 0.5, 1e-6);
+    EXPECT_DOUBLE_EQ(a.position_enu_m[2], fb.position_enu_m[2]);  // not reported: the model's
+    a = InsSigmaAt(s, 60'000'000, 5.0, fb, &from_ins);            // too far from any record
+    EXPECT_FALSE(from_ins);
+    EXPECT_EQ(a.position_enu_m, fb.position_enu_m);
+    EXPECT_EQ(a.attitude_rpy_rad, fb.attitude_rpy_rad);
+    InsSigmaAt({}, 0, 5.0, fb, &from_ins);
+    EXPECT_FALSE(from_ins);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::hydro

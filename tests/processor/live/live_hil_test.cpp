@@ -135,8 +135,10 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     // Let pitmap-live take the last messages, then read its final state.
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     status = json::parse(HttpGet(http_port, "/api/status"));
-    const json tiles = json::parse(HttpGet(http_port, "/api/tiles?since=0"));
+    const json tiles = json::parse(HttpGet(http_port, "/api/tiles?since=0&client=hil1"));
     const std::string bad = HttpGet(http_port, "/api/tiles?since=-1");
+    const std::string bad_client = HttpGet(http_port, "/api/tiles?since=0&client=a%20b");
+    const json budget = json::parse(HttpGet(http_port, "/api/status?client=hil2"))["budget"];
     ::kill(live_pid, SIGTERM);
     const int live_rc = Wait(live_pid, 10);
     EXPECT_EQ(live_rc, 0) << ReadText(dir / "live.out");
@@ -151,7 +153,27 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
     EXPECT_GE(status["georef"]["pings_georeferenced"].get<std::int64_t>(), pings - 5);
     EXPECT_GT(status["grid"]["filled_cells"].get<std::int64_t>(), 500);
     EXPECT_FALSE(tiles["tiles"].empty());
-    EXPECT_TRUE(bad.empty());  // refused (HTTP 400)
+    EXPECT_TRUE(bad.empty());         // refused (HTTP 400)
+    EXPECT_TRUE(bad_client.empty());  // refused (HTTP 400)
+    // Two page ids seen within the idle time: each has half the link.
+    EXPECT_GE(budget["clients"].get<int>(), 2) << budget.dump();
+    EXPECT_LE(budget["client_rate_bytes_per_s"].get<double>(),
+              budget["rate_bytes_per_s"].get<double>() / 2 + 1e-6);
+    // TVU status (the default sensor error model: no --vehicle): nearly every cell meets S-44
+    // order 1a, every georeferenced ping had an INS sigma (the INS's or the model's), no alarm.
+    const json& tvu = status["grid"]["tvu"];
+    EXPECT_EQ(tvu["order"], "1a");
+    ASSERT_TRUE(tvu["share_meeting"].is_number()) << tvu.dump();
+    EXPECT_GT(tvu["share_meeting"].get<double>(), 0.9) << tvu.dump();
+    EXPECT_GT(tvu["last_batch_median_tvu_m"].get<double>(), 0.01) << tvu.dump();
+    EXPECT_LT(tvu["last_batch_median_tvu_m"].get<double>(), 0.5) << tvu.dump();
+    EXPECT_EQ(tvu["pings_with_ins_sigma"].get<std::int64_t>() +
+                  tvu["pings_with_model_sigma"].get<std::int64_t>(),
+              status["georef"]["pings_georeferenced"].get<std::int64_t>());
+    for (const json& a : status["alarms"]) EXPECT_NE(a["id"], "tvu_over_limit") << a.dump();
+    ASSERT_FALSE(tiles["tiles"].empty());
+    EXPECT_TRUE(tiles["tiles"][0]["tvu"].is_string());
+    EXPECT_EQ(tiles["tvu"]["order"], "1a");
     // The daemon's own status arrived: its channels, its host clock model.
     ASSERT_TRUE(status["daemon"].is_object()) << status.dump(1);
     EXPECT_GE(status["daemon"]["channels"].size(), 2u);

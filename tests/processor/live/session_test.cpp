@@ -37,6 +37,8 @@ std::vector<std::uint8_t> Encode(const M& m) {
 class Feeder {
 public:
     explicit Feeder(LiveSession& s) : s_(s), world_(kStart) {}
+    // Reported INS height sigma (INSPVAX), m; <= 0 = none (INSPVAS).
+    double height_sigma_m = 0;
     void Nav(std::int64_t dt_us) {
         pitmap::ins_pva_t m{};
         m.utime = kHost0 + dt_us;
@@ -48,7 +50,13 @@ public:
         m.velocity_north_mps = 1.0;
         m.ins_status = 3;
         m.position_type = -1;
-        m.has_stddev = 0;
+        m.has_stddev = height_sigma_m > 0 ? 1 : 0;
+        if (m.has_stddev) {
+            m.latitude_stddev_m = m.longitude_stddev_m = 0.01f;
+            m.height_stddev_m = static_cast<float>(height_sigma_m);
+            m.roll_stddev_deg = m.pitch_stddev_deg = 0.015f;
+            m.azimuth_stddev_deg = 0.04f;
+        }
         Send(std::string(lcmlog::kChannelInsPva) + "NOVATEL_COM1", Encode(m), m.utime);
     }
     void Ping(std::int64_t dt_us) {
@@ -230,8 +238,10 @@ TEST(LiveSession, SnapshotReadsBackAsAGeoTiff) {
     ASSERT_TRUE(path) << path.error().message;
     auto back = io::ReadGrid(*path);
     ASSERT_TRUE(back) << back.error().message;
-    EXPECT_EQ(back->grid.layers.size(), 5u);
+    ASSERT_EQ(back->grid.layers.size(), 7u);
     EXPECT_EQ(back->grid.layers[0].name, "depth");
+    EXPECT_EQ(back->grid.layers[5].name, "tvu_95");
+    EXPECT_EQ(back->grid.layers[6].name, "tvu_meets_order");
     EXPECT_NE(back->horizontal_name.find("UTM zone 29N"), std::string::npos)
         << back->horizontal_name;
     const CoverageStats g = s.GridStats();
@@ -239,7 +249,156 @@ TEST(LiveSession, SnapshotReadsBackAsAGeoTiff) {
     int filled = 0;
     for (float v : back->grid.layers[3].values) filled += std::isfinite(v) ? 1 : 0;
     EXPECT_EQ(filled, g.filled_cells);
+    int meets = 0, tvu = 0;
+    for (std::size_t k = 0; k < back->grid.layers[5].values.size(); ++k) {
+        const float t = back->grid.layers[5].values[k];
+        if (!std::isfinite(t)) continue;
+        ++tvu;
+        EXPECT_GT(t, 0.05f);
+        EXPECT_LT(t, 0.2f);
+        meets += back->grid.layers[6].values[k] == 1.0f ? 1 : 0;
+    }
+    EXPECT_EQ(tvu, g.filled_cells);
+    EXPECT_EQ(meets, g.filled_cells);
     std::filesystem::remove_all(dir);
+}
+
+std::vector<std::uint8_t> FromBase64(const std::string& in) {
+    std::vector<std::uint8_t> out;
+    std::uint32_t acc = 0;
+    int bits = 0;
+    for (char c : in) {
+        int v = -1;
+        if (c >= 'A' && c <= 'Z') v = c - 'A';
+        if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
+        if (c >= '0' && c <= '9') v = c - '0' + 52;
+        if (c == '+') v = 62;
+        if (c == '/') v = 63;
+        if (v < 0) continue;  // '=' padding
+        acc = (acc << 6) | static_cast<std::uint32_t>(v);
+        bits += 6;
+        if (bits >= 8) {
+            bits -= 8;
+            out.push_back(static_cast<std::uint8_t>((acc >> bits) & 0xFF));
+        }
+    }
+    return out;
+}
+
+// Every tile's TVU bytes, with its count bytes: (count, tvu) for every filled cell.
+std::vector<std::pair<int, int>> FilledTvuBytes(const nlohmann::json& tiles) {
+    std::vector<std::pair<int, int>> out;
+    for (const auto& tile : tiles["tiles"]) {
+        const auto tvu = FromBase64(tile["tvu"]);
+        const auto count = FromBase64(tile["count"]);
+        EXPECT_EQ(tvu.size(), static_cast<std::size_t>(kTileCells * kTileCells));
+        EXPECT_EQ(count.size(), tvu.size());
+        for (std::size_t k = 0; k < std::min(tvu.size(), count.size()); ++k) {
+            EXPECT_EQ(count[k] == 0, tvu[k] == 0) << k;  // 0 = empty, and only then
+            if (count[k] > 0) out.emplace_back(count[k], tvu[k]);
+        }
+    }
+    return out;
+}
+
+// 20 s of the flat 10 m survey with a given sensor error model (and reported INS height sigma);
+// the session afterwards.
+void Survey(LiveSession& s, double height_sigma_m = 0) {
+    Feeder f(s);
+    f.height_sigma_m = height_sigma_m;
+    for (std::int64_t t = 0; t <= 20 * kS; t += 50'000) {
+        f.Nav(t);
+        if (t % 100'000 == 0) f.Ping(t);
+        s.Tick(kHost0 + t);
+    }
+    s.Tick(kHost0 + 20 * kS, true);
+}
+
+std::set<std::string> AlarmIds(LiveSession& s) {
+    std::set<std::string> ids;
+    const nlohmann::json alarms = s.AlarmsJson();
+    for (const auto& a : alarms["active"]) ids.insert(a["id"].get<std::string>());
+    return ids;
+}
+
+TEST(LiveSession, TvuOfTheDefaultModelMeetsOrder1a) {
+    LiveSession s(Config(), {}, true);
+    Survey(s);
+    const nlohmann::json st = s.StatusJson(kHost0 + 20 * kS);
+    const nlohmann::json& t = st["grid"]["tvu"];
+    EXPECT_EQ(t["order"], "1a");
+    EXPECT_EQ(t["cells_failing"], 0);
+    EXPECT_EQ(t["cells_meeting"], st["grid"]["filled_cells"]);
+    EXPECT_DOUBLE_EQ(t["share_meeting"].get<double>(), 1.0);
+    // By hand at nadir (level vehicle, 10 m, default SensorErrorModel, no INS sigma reported:
+    // the model's): range (0.02 + 0.002 * 10)^2 + mean sound speed (10 * 1 / 1500)^2 + INS height
+    // 0.015^2 + noise 0.005^2 + lever arm 0.01^2 = 0.0019944 m^2 -> 1.96 * 0.04466 = 0.0875 m;
+    // the outer beams (60 deg, 20 m range) come to about 0.08 m.
+    EXPECT_NEAR(t["last_batch_median_tvu_m"].get<double>(), 0.0875, 0.01);
+    EXPECT_EQ(t["pings_with_ins_sigma"], 0);
+    EXPECT_EQ(t["pings_with_model_sigma"], 201);
+    EXPECT_FALSE(AlarmIds(s).count("tvu_over_limit"));
+
+    // The tiles carry one TVU byte per cell: 0 empty, else mean TVU in 2 cm steps, bit 7 = fails.
+    const nlohmann::json tiles = s.TilesJson(0, -1);
+    EXPECT_EQ(tiles["tvu"]["order"], "1a");
+    EXPECT_DOUBLE_EQ(tiles["tvu"]["limit_a_m"].get<double>(), 0.5);
+    EXPECT_DOUBLE_EQ(tiles["tvu"]["limit_b"].get<double>(), 0.013);
+    EXPECT_DOUBLE_EQ(tiles["tvu"]["step_m"].get<double>(), 0.02);
+    EXPECT_EQ(tiles["stats"]["cells_tvu_failing"], 0);
+    // Every filled cell: mean TVU 0.08..0.10 m -> 4 or 5 steps of 2 cm, bit 7 clear (meets).
+    const auto cells = FilledTvuBytes(tiles);
+    EXPECT_EQ(static_cast<std::int64_t>(cells.size()),
+              st["grid"]["filled_cells"].get<std::int64_t>());
+    for (const auto& [count, tvu] : cells) {
+        EXPECT_TRUE(tvu == 4 || tvu == 5) << tvu;
+    }
+}
+
+TEST(LiveSession, ABadErrorModelFailsTheOrderAndRaisesTheAlarm) {
+    LiveConfig c = Config();
+    c.tpu.model.position_noise_m = 0.3;  // 1.96 * 0.3 = 0.59 m > 0.517 m (1a at 10 m)
+    LiveSession s(c, {}, true);
+    Survey(s);
+    const nlohmann::json st = s.StatusJson(kHost0 + 20 * kS);
+    const nlohmann::json& t = st["grid"]["tvu"];
+    EXPECT_EQ(t["cells_meeting"], 0);
+    EXPECT_EQ(t["cells_failing"], st["grid"]["filled_cells"]);
+    EXPECT_EQ(t["soundings_over"], 201 * 121);
+    EXPECT_GT(t["last_batch_median_tvu_m"].get<double>(), 0.59);
+    bool found = false;
+    for (const auto& a : st["alarms"]) {
+        if (a["id"] != "tvu_over_limit") continue;
+        found = true;
+        const std::string reason = a["reason"];
+        EXPECT_NE(reason.find("order 1a"), std::string::npos) << reason;
+        EXPECT_NE(reason.find("100 % of new cells"), std::string::npos) << reason;
+    }
+    EXPECT_TRUE(found) << st["alarms"].dump();
+    // The tiles say every cell fails: bit 7 set, mean TVU >= 0.59 m (30 steps).
+    const nlohmann::json tiles = s.TilesJson(0, -1);
+    EXPECT_EQ(tiles["stats"]["cells_tvu_failing"], st["grid"]["filled_cells"]);
+    for (const auto& [count, tvu] : FilledTvuBytes(tiles)) {
+        EXPECT_GE(tvu, 0x80 + 29) << tvu;
+    }
+    // Held to order 2 (1.026 m at 10 m) the same survey passes.
+    c.grid.s44_order = "2";
+    LiveSession lax(c, {}, true);
+    Survey(lax);
+    EXPECT_EQ(lax.StatusJson(kHost0)["grid"]["tvu"]["cells_failing"], 0);
+    EXPECT_FALSE(AlarmIds(lax).count("tvu_over_limit"));
+}
+
+TEST(LiveSession, TheInsSigmaComesFromTheLiveNavigation) {
+    // INSPVAX reports a height sigma of 0.3 m: 1.96 * 0.3 = 0.59 m > the 1a limit, although the
+    // error model is the default one.
+    LiveSession s(Config(), {}, true);
+    Survey(s, 0.3);
+    const nlohmann::json t = s.StatusJson(kHost0)["grid"]["tvu"];
+    EXPECT_EQ(t["pings_with_ins_sigma"], 201);
+    EXPECT_EQ(t["pings_with_model_sigma"], 0);
+    EXPECT_EQ(t["cells_meeting"], 0);
+    EXPECT_TRUE(AlarmIds(s).count("tvu_over_limit")) << s.AlarmsJson().dump();
 }
 
 }  // namespace

@@ -260,5 +260,45 @@ TEST(StatusConfig, Validation) {
     EXPECT_EQ(c.Validate().size(), 2u);
 }
 
+TEST(StatusTracker, TvuOverLimitOnTheShareOfNewCellsWithinTheWindow) {
+    StatusTracker t(StatusConfig{});  // 10 %, 30 s, at least 20 new cells
+    Healthy(t, kT0, kT0 + 2 * kS);
+    // 15 new cells, all failing: too few for a verdict.
+    t.OnTvuCells({kT0 + 1 * kS, 15, 15, "1a"});
+    t.Evaluate(kT0 + 2 * kS);
+    EXPECT_EQ(Find(t, "tvu_over_limit"), nullptr);
+    // 85 more, 5 failing: 20 of 100 = 20 % > 10 %.
+    t.OnTvuCells({kT0 + 2 * kS, 85, 5, "1a"});
+    t.Evaluate(kT0 + 2 * kS);
+    const Alarm* a = Find(t, "tvu_over_limit");
+    ASSERT_NE(a, nullptr);
+    EXPECT_NE(a->reason.find("TVU over the order 1a limit in 20 % of new cells (20 of 100"),
+              std::string::npos)
+        << a->reason;
+    // 31 s later the first batch has left the window: 5 of 85 = 5.9 %, cleared.
+    Healthy(t, kT0 + 2 * kS, kT0 + 31'500'000);
+    t.Evaluate(kT0 + 31'500'000);
+    EXPECT_EQ(Find(t, "tvu_over_limit"), nullptr);
+    // Exactly at the threshold is not over it: 2 of 20 = 10 %.
+    StatusTracker u(StatusConfig{});
+    Healthy(u, kT0, kT0 + kS);
+    u.OnTvuCells({kT0 + kS, 20, 2, "special"});
+    u.Evaluate(kT0 + kS);
+    EXPECT_EQ(Find(u, "tvu_over_limit"), nullptr);
+    u.OnTvuCells({kT0 + kS, 1, 1, "special"});
+    u.Evaluate(kT0 + kS);
+    ASSERT_NE(Find(u, "tvu_over_limit"), nullptr);  // 3 of 21 = 14 %
+    EXPECT_NE(Find(u, "tvu_over_limit")->reason.find("order special"), std::string::npos);
+}
+
+TEST(StatusTracker, TvuAlarmConfigIsValidated) {
+    StatusConfig c;
+    EXPECT_TRUE(c.Validate().empty());
+    c.tvu_alarm_percent = 101;
+    c.tvu_window_s = 0;
+    c.tvu_min_new_cells = 0;
+    EXPECT_EQ(c.Validate().size(), 3u);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::live
