@@ -104,6 +104,7 @@ std::vector<Pair> FindPairs(const Input& in,
         }
         std::sort(keys.begin(), keys.end());
         keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+        keys.shrink_to_fit();  // all blocks' lists live at once: keep what is used, not the peak
     });
     std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cell_blocks;
     for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
@@ -217,15 +218,29 @@ std::vector<Eigen::Vector3f> LocalNormals(
     int num_neighbours) {
     const auto k = static_cast<std::size_t>(num_neighbours);
     // Slots for the points seen for the first time (sequential: it grows the blocks' tables).
-    std::vector<std::pair<std::size_t, std::uint32_t>> todo;
+    std::vector<std::vector<std::uint32_t>> fresh(blocks.size());
     for (const auto& [point, bi] : items) {
+        const Block& b = blocks[bi];
+        const auto local = static_cast<std::uint32_t>(point - b.p0);
+        if (b.NeighbourSlot(local) == Block::kNoSlot) fresh[bi].push_back(local);
+    }
+    std::vector<std::pair<std::size_t, std::uint32_t>> todo;  // (point, block)
+    for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+        std::vector<std::uint32_t>& f = fresh[bi];
+        if (f.empty()) continue;
+        std::sort(f.begin(), f.end());
+        f.erase(std::unique(f.begin(), f.end()), f.end());
         Block& b = blocks[bi];
-        if (b.neighbour_slot.empty()) b.neighbour_slot.assign(b.p1 - b.p0, Block::kNoSlot);
-        std::uint32_t& slot = b.neighbour_slot[point - b.p0];
-        if (slot != Block::kNoSlot) continue;
-        slot = static_cast<std::uint32_t>(b.neighbours.size() / k);
-        b.neighbours.resize(b.neighbours.size() + k, Block::kNoSlot);
-        todo.emplace_back(point, bi);
+        auto& slots = b.neighbour_slots;
+        const std::size_t old_size = slots.size();
+        auto next = static_cast<std::uint32_t>(b.neighbours.size() / k);
+        for (const std::uint32_t local : f) {
+            slots.emplace_back(local, next++);
+            todo.emplace_back(b.p0 + local, bi);
+        }
+        std::inplace_merge(
+            slots.begin(), slots.begin() + static_cast<std::ptrdiff_t>(old_size), slots.end());
+        b.neighbours.resize(std::size_t{next} * k, Block::kNoSlot);
     }
     tbb::parallel_for(std::size_t{0}, todo.size(), [&](std::size_t i) {
         const auto [point, bi] = todo[i];
@@ -233,15 +248,16 @@ std::vector<Eigen::Vector3f> LocalNormals(
         std::size_t idx[kMaxNormalNeighbours];
         float d2[kMaxNormalNeighbours];
         const std::size_t n = b.tree->Nearest(pw[point], k, idx, d2);
-        std::uint32_t* out = b.neighbours.data() + std::size_t{b.neighbour_slot[point - b.p0]} * k;
+        const std::uint32_t slot = b.NeighbourSlot(static_cast<std::uint32_t>(point - b.p0));
+        std::uint32_t* out = b.neighbours.data() + std::size_t{slot} * k;
         for (std::size_t j = 0; j < n; ++j) out[j] = static_cast<std::uint32_t>(idx[j]);
     });
     std::vector<Eigen::Vector3f> normals(items.size());
     tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
         const auto [point, bi] = items[i];
         const Block& b = blocks[bi];
-        const std::uint32_t* nb =
-            b.neighbours.data() + std::size_t{b.neighbour_slot[point - b.p0]} * k;
+        const std::uint32_t slot = b.NeighbourSlot(static_cast<std::uint32_t>(point - b.p0));
+        const std::uint32_t* nb = b.neighbours.data() + std::size_t{slot} * k;
         reg::MomentAccumulator m;
         for (std::size_t j = 0; j < k && nb[j] != Block::kNoSlot; ++j)
             m.Add(pw[b.p0 + nb[j]].cast<double>());

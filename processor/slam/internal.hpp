@@ -91,10 +91,18 @@ struct Block {
     Eigen::Vector3f hi = Eigen::Vector3f::Zero();
     std::unique_ptr<reg::PointIndex3f> tree;  // over the block's world points
     // The normal-fit neighbours of block points, found once per run (see LocalNormals in
-    // correspondences.cpp): per block point its slot in `neighbours` (kNoSlot until first
-    // needed); per slot normal_neighbours block-local indices (kNoSlot past the last found).
-    std::vector<std::uint32_t> neighbour_slot;
+    // correspondences.cpp): (block-local point, slot) sorted by point, for the points that
+    // needed a normal so far; per slot normal_neighbours block-local indices (kNoSlot past the
+    // last found).
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> neighbour_slots;
     std::vector<std::uint32_t> neighbours;
+    // The slot of block-local point `local`, kNoSlot when it has none.
+    std::uint32_t NeighbourSlot(std::uint32_t local) const {
+        const auto it = std::lower_bound(neighbour_slots.begin(),
+                                         neighbour_slots.end(),
+                                         std::make_pair(local, std::uint32_t{0}));
+        return it != neighbour_slots.end() && it->first == local ? it->second : kNoSlot;
+    }
     static constexpr std::uint32_t kNoSlot = 0xFFFFFFFFu;
 };
 
