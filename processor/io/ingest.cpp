@@ -150,13 +150,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 }
                 col.AddNav(NavSampleOf(pva));
                 if (pva.has_stddev) {
-                    col.AddStdDev({pva.utime_gps,
-                                   pva.latitude_stddev_m,
-                                   pva.longitude_stddev_m,
-                                   pva.height_stddev_m,
-                                   pva.roll_stddev_deg,
-                                   pva.pitch_stddev_deg,
-                                   pva.azimuth_stddev_deg});
+                    col.AddStdDev(NavStdDevOf(pva));
                 }
             } else if (Matches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
                 if (!want_decoded) continue;
@@ -164,13 +158,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     ++c.decode_failures;
                     continue;
                 }
-                col.AddStdDev({sd.utime_gps,
-                               sd.latitude_stddev_m,
-                               sd.longitude_stddev_m,
-                               sd.height_stddev_m,
-                               sd.roll_stddev_deg,
-                               sd.pitch_stddev_deg,
-                               sd.azimuth_stddev_deg});
+                col.AddStdDev(NavStdDevOf(sd));
             } else if (StartsWith(ch, lcmlog::kChannelGpsTime)) {
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(gt, buf, len)) {

@@ -7,6 +7,7 @@
 
 namespace pitmap {
 class ins_pva_t;
+class ins_stddev_t;
 class multibeam_ping_t;
 }  // namespace pitmap
 
@@ -14,6 +15,9 @@ namespace pitmap::proc::io {
 
 // Position, attitude (radians, yaw wrapped to (-pi, pi]), ENU velocity and status.
 georef::NavSample NavSampleOf(const pitmap::ins_pva_t& m);
+// The standard deviations INSPVAX (has_stddev) and INSSTDEV carry, at their GPS time.
+georef::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m);
+georef::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m);
 // Time, ping number, sound speed, range resolution and fan geometry; beam_offset and
 // num_beams are the caller's (they depend on where the ranges go).
 georef::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m);

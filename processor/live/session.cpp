@@ -191,13 +191,7 @@ void LiveSession::OnEvent(const std::string& channel,
         n.ins_status = m.ins_status;
         n.position_type = m.position_type;
         if (m.has_stddev) {
-            AddStdDevLocked({m.utime_gps,
-                             m.latitude_stddev_m,
-                             m.longitude_stddev_m,
-                             m.height_stddev_m,
-                             m.roll_stddev_deg,
-                             m.pitch_stddev_deg,
-                             m.azimuth_stddev_deg});
+            AddStdDevLocked(io::NavStdDevOf(m));
             n.north_sigma_m = std::isfinite(m.latitude_stddev_m) ? m.latitude_stddev_m : -1.f;
             n.east_sigma_m = std::isfinite(m.longitude_stddev_m) ? m.longitude_stddev_m : -1.f;
             n.up_sigma_m = std::isfinite(m.height_stddev_m) ? m.height_stddev_m : -1.f;
@@ -215,13 +209,7 @@ void LiveSession::OnEvent(const std::string& channel,
         pitmap::ins_stddev_t m;
         if (!lcmlog::DecodeChecked(m, data, size)) return reject();
         utime = m.utime;
-        AddStdDevLocked({m.utime_gps,
-                         m.latitude_stddev_m,
-                         m.longitude_stddev_m,
-                         m.height_stddev_m,
-                         m.roll_stddev_deg,
-                         m.pitch_stddev_deg,
-                         m.azimuth_stddev_deg});
+        AddStdDevLocked(io::NavStdDevOf(m));
         NavStatusIn n = status_.nav();
         if (n.utime != 0) {
             n.north_sigma_m = m.latitude_stddev_m;
