@@ -175,7 +175,9 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(ranges[i])) continue;
         const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
-        const double u_x = ps.R(0, 1) * std::sin(theta) + ps.R(0, 2) * std::cos(theta);
+        const double sin_t = std::sin(theta), cos_t = std::cos(theta);
+        const double u_x = ps.R(0, 1) * sin_t + ps.R(0, 2) * cos_t;
+        const double u_y = ps.R(1, 1) * sin_t + ps.R(1, 2) * cos_t;
         PreparedBeam pb;
         pb.range_vox = ranges[i];
         // Interpolate towards a neighbour only on the same surface: its footprint range must lie
@@ -202,14 +204,21 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
         }
         const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
         const double q1 = r_hi + geo.trunc_vox;
-        // x extent of the frustum: along the axis plus the cross-section's reach.
-        const double reach = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
+        // x and y extent of the frustum: along the axis plus the cross-section's reach.
+        const double reach_x = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
         const double xa = ps.p_vox.x() + q0 * u_x;
         const double xb = ps.p_vox.x() + q1 * u_x;
-        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach));
-        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach));
+        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach_x));
+        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach_x));
+        const double reach_y = q1 * spread * (std::abs(ps.R(1, 0)) + 1.0) + 1.0;
+        const double ya = ps.p_vox.y() + q0 * u_y;
+        const double yb = ps.p_vox.y() + q1 * u_y;
+        pb.y_lo = static_cast<std::int32_t>(std::floor(std::min(ya, yb) - reach_y));
+        pb.y_hi = static_cast<std::int32_t>(std::ceil(std::max(ya, yb) + reach_y));
         ps.x_lo = std::min(ps.x_lo, pb.x_lo);
         ps.x_hi = std::max(ps.x_hi, pb.x_hi);
+        ps.y_lo = std::min(ps.y_lo, pb.y_lo);
+        ps.y_hi = std::max(ps.y_hi, pb.y_hi);
         ps.beams.push_back(pb);
     }
     return ps;

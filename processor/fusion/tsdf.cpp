@@ -20,6 +20,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <mutex>
 
@@ -39,6 +40,17 @@ using LeafT = FloatTree::LeafNodeType;
 using openvdb::Coord;
 
 constexpr int kSlabVoxels = 64;  // multiple of LeafT::DIM (8)
+// Inside a slab, runs of kBatchScans scans are replayed band by band along y (kBandVoxels wide):
+// a ping's fan crosses the whole swath, and walking it band by band keeps the leaves of the
+// last few pings in the core's cache instead of streaming the swath's leaves for every ping.
+// Each voxel lies in one band, so it still sees its updates in input order.
+constexpr int kBandVoxels = 64;
+constexpr std::size_t kBatchScans = 64;
+
+// The voxels one task may touch: x in [x_min, x_max], y in [y_min, y_max].
+struct ClipBox {
+    int x_min, x_max, y_min, y_max;
+};
 
 // floor(a / b) for b > 0.
 int FloorDiv(int a, int b) {
@@ -52,7 +64,10 @@ openvdb::FloatGrid::Ptr MakeGrid(float background, double voxel_size_m, const ch
     return grid;
 }
 
-// Running weighted average on a pair of leaves (Eq. 5-6), with the last leaf cached.
+// Running weighted average on a pair of leaves (Eq. 5-6). The leaves' value buffers and masks
+// are written directly; a small direct-mapped cache keyed by leaf origin keeps the pairs of
+// recently used leaves, so a voxel walk that steps back and forth between neighbouring leaves
+// (short columns of a thin, oblique frustum) rarely goes through the tree accessors.
 class VoxelUpdater {
 public:
     VoxelUpdater(openvdb::FloatGrid& distance, openvdb::FloatGrid& weight, float f, float w_max)
@@ -61,28 +76,51 @@ public:
     void Update(const Coord& ijk, float d) { Update(ijk, d, f_); }
 
     // One measurement of weight f (Eq. 5-6 with f in place of the uniform weight).
-    void Update(const Coord& ijk, float d, float f) {
-        const Coord origin(ijk.x() & ~7, ijk.y() & ~7, ijk.z() & ~7);
-        if (dleaf_ == nullptr || origin != origin_) {
-            dleaf_ = dacc_.touchLeaf(ijk);
-            wleaf_ = wacc_.touchLeaf(ijk);
-            origin_ = origin;
-        }
+    inline void Update(const Coord& ijk, float d, float f) {
+        const Slot& slot = SlotOf(ijk);
         const openvdb::Index off = LeafT::coordToOffset(ijk);
-        const float w = wleaf_->getValue(off);  // 0 (background) when unobserved
-        const float s = w > 0.0f ? dleaf_->getValue(off) : 0.0f;
-        dleaf_->setValueOn(off, (w * s + f * d) / (w + f));  // Eq. 5
-        wleaf_->setValueOn(off, std::min(w + f, w_max_));    // Eq. 6
+        const float w = slot.w[off];  // 0 (background) when unobserved
+        const float s = w > 0.0f ? slot.d[off] : 0.0f;
+        slot.d[off] = (w * s + f * d) / (w + f);  // Eq. 5
+        slot.w[off] = std::min(w + f, w_max_);    // Eq. 6
+        slot.dmask->setOn(off);
+        slot.wmask->setOn(off);
         ++updates_;
     }
     std::int64_t updates() const { return updates_; }
 
 private:
+    struct Slot {
+        Coord origin;
+        float* d = nullptr;
+        float* w = nullptr;
+        LeafT::NodeMaskType* dmask = nullptr;
+        LeafT::NodeMaskType* wmask = nullptr;
+    };
+    static constexpr int kSlots = 64;
+
+    inline const Slot& SlotOf(const Coord& ijk) {
+        const Coord origin(ijk.x() & ~7, ijk.y() & ~7, ijk.z() & ~7);
+        const unsigned h = (static_cast<unsigned>(origin.x()) * 73856093u) ^
+                           (static_cast<unsigned>(origin.y()) * 19349663u) ^
+                           (static_cast<unsigned>(origin.z()) * 83492791u);
+        Slot& slot = slots_[(h >> 3) & (kSlots - 1)];
+        if (slot.d == nullptr || slot.origin != origin) Fill(slot, ijk, origin);
+        return slot;
+    }
+    void Fill(Slot& slot, const Coord& ijk, const Coord& origin) {
+        LeafT* dl = dacc_.touchLeaf(ijk);
+        LeafT* wl = wacc_.touchLeaf(ijk);
+        slot.origin = origin;
+        slot.d = dl->buffer().data();
+        slot.w = wl->buffer().data();
+        slot.dmask = &dl->getValueMask();
+        slot.wmask = &wl->getValueMask();
+    }
+
     openvdb::FloatGrid::Accessor dacc_;
     openvdb::FloatGrid::Accessor wacc_;
-    LeafT* dleaf_ = nullptr;
-    LeafT* wleaf_ = nullptr;
-    Coord origin_;
+    std::array<Slot, kSlots> slots_{};
     float f_;
     float w_max_;
     std::int64_t updates_ = 0;
@@ -100,8 +138,7 @@ void IntegrateBeamWidth(const PreparedScan& scan,
                         float theta,
                         float increment,
                         const Geometry& g,
-                        int x_min,
-                        int x_max,
+                        const ClipBox& box,
                         VoxelUpdater& up) {
     const double r = beam.range_vox;
     const double r_prev = beam.range_prev_vox;  // NaN = no neighbour
@@ -181,9 +218,11 @@ void IntegrateBeamWidth(const PreparedScan& scan,
         ilo[k] = static_cast<int>(std::ceil(lo[k] - kEps));
         ihi[k] = static_cast<int>(std::floor(hi[k] + kEps));
     }
-    ilo[0] = std::max(ilo[0], x_min);
-    ihi[0] = std::min(ihi[0], x_max);
-    if (ilo[0] > ihi[0]) return;
+    ilo[0] = std::max(ilo[0], box.x_min);
+    ihi[0] = std::min(ihi[0], box.x_max);
+    ilo[1] = std::max(ilo[1], box.y_min);
+    ihi[1] = std::min(ihi[1], box.y_max);
+    if (ilo[0] > ihi[0] || ilo[1] > ihi[1]) return;
 
     // Columns along the axis that crosses the frustum longest: it is thin across the fan plane
     // (w_e, about a voxel), wider out of it (w_n) and long along the beam (w_u); a column along
@@ -231,6 +270,21 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     }
     --nh;  // the last point repeats the first
     if (nh < 1) return;
+    // Hull edges as (b0, b1, c0, dc/db); vertices apart (a row crossing exactly one).
+    struct Edge {
+        double b0, b1, c0, slope;
+    };
+    std::array<Edge, 17> edges;
+    std::array<Eigen::Vector2d, 17> verts;
+    int ne = 0;
+    for (int k = 0; k < nh; ++k) {
+        const Eigen::Vector2d& h0 = hv(k);
+        const Eigen::Vector2d& h1 = hv((k + 1) % nh);
+        verts[static_cast<std::size_t>(k)] = h0;
+        if (h0.x() == h1.x()) continue;
+        edges[static_cast<std::size_t>(ne++)] = {
+            h0.x(), h1.x(), h0.y(), (h1.y() - h0.y()) / (h1.x() - h0.x())};
+    }
     const double lo_y = a_lo_s.y(), lo_z = a_lo_s.z(), hi_y = a_hi_s.y(), hi_z = a_hi_s.z();
     const double b_y = b_s.y(), b_z = b_s.z(), e_y = e_s.y(), e_z = e_s.z();
     const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
@@ -238,10 +292,26 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     // Range change towards each neighbour (0 = no interpolation on that side).
     const double dr_prev = std::isfinite(r_prev) ? r_prev - r : 0.0;
     const double dr_next = std::isfinite(r_next) ? r_next - r : 0.0;
-    double inv_ga[6];  // 1 / G[k][a], 0 when the plane is parallel to the columns
-    for (int k = 0; k < 6; ++k) inv_ga[k] = std::abs(G[k][a]) < 1e-12 ? 0.0 : 1.0 / G[k][a];
+    // The column a in [ilo, ihi] clipped by the six half-spaces: plane k bounds a from above
+    // (G[k][a] > 0) or below (< 0) at (H[k] - G[k][b] jb - G[k][c] jc) / G[k][a]; a plane
+    // parallel to the columns empties those whose (jb, jc) lie outside it.
+    int n_up = 0, n_lo = 0, n_par = 0;
+    int up_k[6], lo_k[6], par_k[6];
+    double inv_ga[6];
+    for (int k = 0; k < 6; ++k) {
+        inv_ga[k] = std::abs(G[k][a]) < 1e-12 ? 0.0 : 1.0 / G[k][a];
+        if (inv_ga[k] > 0.0) {
+            up_k[n_up++] = k;
+        } else if (inv_ga[k] < 0.0) {
+            lo_k[n_lo++] = k;
+        } else {
+            par_k[n_par++] = k;
+        }
+    }
     const Eigen::Matrix3d Rt = R.transpose();
     const Eigen::Vector3d step_s = Rt.col(a);  // sonar-frame change per voxel along axis a
+    const Eigen::Vector3d step_c = Rt.col(c_ax);
+    const double a_lo0 = ilo[a], a_hi0 = ihi[a];
 
     for (int jb = ilo[b_ax]; jb <= ihi[b_ax]; ++jb) {
         // Columns of this row that meet the frustum: where the row line b = jb crosses the
@@ -249,48 +319,54 @@ void IntegrateBeamWidth(const PreparedScan& scan,
         double c_min = std::numeric_limits<double>::infinity();
         double c_max = -c_min;
         for (int k = 0; k < nh; ++k) {
-            const Eigen::Vector2d& h0 = hv(k);
-            const Eigen::Vector2d& h1 = hv((k + 1) % nh);
-            const double b0 = h0.x() - jb;
-            const double b1 = h1.x() - jb;
-            if (std::abs(b0) <= kEps) {
+            const Eigen::Vector2d& h0 = verts[static_cast<std::size_t>(k)];
+            if (std::abs(h0.x() - jb) <= kEps) {
                 c_min = std::min(c_min, h0.y());
                 c_max = std::max(c_max, h0.y());
             }
-            if ((b0 < 0.0) == (b1 < 0.0) || b0 == b1) continue;
-            const double cc = h0.y() + (h1.y() - h0.y()) * (b0 / (b0 - b1));
+        }
+        for (int k = 0; k < ne; ++k) {
+            const Edge& ed = edges[static_cast<std::size_t>(k)];
+            const double b0 = ed.b0 - jb;
+            const double b1 = ed.b1 - jb;
+            if ((b0 < 0.0) == (b1 < 0.0)) continue;
+            const double cc = ed.c0 - ed.slope * b0;
             c_min = std::min(c_min, cc);
             c_max = std::max(c_max, cc);
         }
         const int jc0 = std::max(ilo[c_ax], static_cast<int>(std::ceil(c_min - kEps)));
         const int jc1 = std::min(ihi[c_ax], static_cast<int>(std::floor(c_max + kEps)));
+        if (jc0 > jc1) continue;
         double row_h[6];
         for (int k = 0; k < 6; ++k) row_h[k] = H[k] - G[k][b_ax] * jb;
-        for (int jc = jc0; jc <= jc1; ++jc) {
-            // Clip the column a in [ilo, ihi] by the six half-spaces.
-            double lo_a = ilo[a];
-            double hi_a = ihi[a];
+        Eigen::Vector3d v;
+        v[a] = 0.0;
+        v[b_ax] = jb;
+        v[c_ax] = jc0;
+        Eigen::Vector3d xs_c = Rt * (v - p);  // sonar frame of (a = 0, jb, jc)
+        Coord ijk;
+        ijk[b_ax] = jb;
+        for (int jc = jc0; jc <= jc1; ++jc, xs_c += step_c) {
             bool empty = false;
-            for (int k = 0; k < 6; ++k) {
-                const double rhs = row_h[k] - G[k][c_ax] * jc;
-                if (inv_ga[k] > 0.0) {
-                    hi_a = std::min(hi_a, rhs * inv_ga[k]);
-                } else if (inv_ga[k] < 0.0) {
-                    lo_a = std::max(lo_a, rhs * inv_ga[k]);
-                } else {
-                    empty |= rhs < 0.0;
-                }
+            for (int t = 0; t < n_par; ++t) {
+                empty |= row_h[par_k[t]] - G[par_k[t]][c_ax] * jc < 0.0;
+            }
+            double lo_a = a_lo0;
+            double hi_a = a_hi0;
+            for (int t = 0; t < n_up; ++t) {
+                const int k = up_k[t];
+                hi_a = std::min(hi_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
+            }
+            for (int t = 0; t < n_lo; ++t) {
+                const int k = lo_k[t];
+                lo_a = std::max(lo_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
             }
             if (empty || lo_a > hi_a) continue;
             const int ja0 = static_cast<int>(std::ceil(lo_a));
             const int ja1 = static_cast<int>(std::floor(hi_a));
             if (ja0 > ja1) continue;
-            Eigen::Vector3d v;
-            v[a] = ja0;
-            v[b_ax] = jb;
-            v[c_ax] = jc;
-            Eigen::Vector3d xs = Rt * (v - p);
-            Coord ijk(static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2]));
+            Eigen::Vector3d xs = xs_c + static_cast<double>(ja0) * step_s;
+            ijk[c_ax] = jc;
             for (int ja = ja0; ja <= ja1; ++ja, xs += step_s) {
                 // Sector of this beam (same planes as the candidate test, half-open); the
                 // in-plane vectors have no x component.
@@ -318,8 +394,7 @@ void IntegrateRay(const PreparedScan& scan,
                   const PreparedBeam& beam,
                   float theta,
                   const Geometry& g,
-                  int x_min,
-                  int x_max,
+                  const ClipBox& box,
                   VoxelUpdater& up) {
     const double r = beam.range_vox;
     const double T = g.trunc_vox;
@@ -335,7 +410,8 @@ void IntegrateRay(const PreparedScan& scan,
     openvdb::math::DDA<Ray, 0> dda(ray, 0.0, length);
     do {
         const Coord& c = dda.voxel();
-        if (c.x() >= x_min && c.x() <= x_max) {
+        if (c.x() >= box.x_min && c.x() <= box.x_max && c.y() >= box.y_min &&
+            c.y() <= box.y_max) {
             const Eigen::Vector3d v(c.x(), c.y(), c.z());
             const double d = r - (v - scan.p_vox).norm();  // Eq. 4
             if (d > -T && d <= T)
@@ -404,6 +480,10 @@ TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                                       const ProgressCallback& progress) {
     const auto t_start = std::chrono::steady_clock::now();
+    const std::clock_t cpu_start = std::clock();
+    auto since = [](std::chrono::steady_clock::time_point t) {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    };
     IntegrateResult result;
     result.scans = static_cast<std::int64_t>(scans.size());
     const double inv_s = 1.0 / config_.voxel_size_m;
@@ -427,6 +507,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                               }
                           });
     });
+    result.prepare_s = since(t_start);
     std::size_t total_beams = 0;
     for (const PreparedScan& ps : prepared) {
         result.beams_used += ps.beams_used;
@@ -490,20 +571,43 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         const int sx1 = sx0 + kSlabVoxels - 1;
         {
             VoxelUpdater up(*gd, *gw, f, w_max);
-            for (std::size_t si = 0; si < prepared.size(); ++si) {
-                if ((si & 255u) == 0 && cancel.load(std::memory_order_relaxed)) break;
-                const PreparedScan& ps = prepared[si];
-                if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
-                const SonarScan& scan = scans[si];
-                for (const PreparedBeam& pb : ps.beams) {
-                    if (pb.x_hi < sx0 || pb.x_lo > sx1) continue;
-                    const float theta = scan.start_angle_rad +
-                                        static_cast<float>(pb.beam) * scan.angle_increment_rad;
-                    if (beam_width) {
-                        IntegrateBeamWidth(
-                            ps, pb, theta, scan.angle_increment_rad, geo, sx0, sx1, up);
-                    } else {
-                        IntegrateRay(ps, pb, theta, geo, sx0, sx1, up);
+            for (std::size_t s0 = 0; s0 < prepared.size(); s0 += kBatchScans) {
+                if (cancel.load(std::memory_order_relaxed)) break;
+                const std::size_t s1 = std::min(prepared.size(), s0 + kBatchScans);
+                int y_lo = std::numeric_limits<int>::max();
+                int y_hi = std::numeric_limits<int>::min();
+                for (std::size_t si = s0; si < s1; ++si) {
+                    const PreparedScan& ps = prepared[si];
+                    if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
+                    y_lo = std::min(y_lo, ps.y_lo);
+                    y_hi = std::max(y_hi, ps.y_hi);
+                }
+                if (y_lo > y_hi) continue;
+                for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels);
+                     ++band) {
+                    const ClipBox box{sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
+                    for (std::size_t si = s0; si < s1; ++si) {
+                        const PreparedScan& ps = prepared[si];
+                        if (ps.beams.empty() || ps.x_hi < box.x_min || ps.x_lo > box.x_max ||
+                            ps.y_hi < box.y_min || ps.y_lo > box.y_max) {
+                            continue;
+                        }
+                        const SonarScan& scan = scans[si];
+                        for (const PreparedBeam& pb : ps.beams) {
+                            if (pb.x_hi < box.x_min || pb.x_lo > box.x_max ||
+                                pb.y_hi < box.y_min || pb.y_lo > box.y_max) {
+                                continue;
+                            }
+                            const float theta =
+                                scan.start_angle_rad +
+                                static_cast<float>(pb.beam) * scan.angle_increment_rad;
+                            if (beam_width) {
+                                IntegrateBeamWidth(
+                                    ps, pb, theta, scan.angle_increment_rad, geo, box, up);
+                            } else {
+                                IntegrateRay(ps, pb, theta, geo, box, up);
+                            }
+                        }
                     }
                 }
             }
@@ -518,6 +622,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         }
     };
 
+    const auto t_raster = std::chrono::steady_clock::now();
     arena.execute([&] {
         tbb::parallel_for(
             tbb::blocked_range<int>(0, num_slabs, 1),
@@ -527,6 +632,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             tbb::simple_partitioner());
     });
 
+    result.rasterise_s = since(t_raster);
+    const auto t_merge = std::chrono::steady_clock::now();
     // 4. Rebuild the global trees: untouched old leaves plus every slab's leaves.
     auto new_d = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
     auto new_w = MakeGrid(0.0f, config_.voxel_size_m, "weight");
@@ -548,6 +655,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     impl_->distance = new_d;
     impl_->weight = new_w;
 
+    result.merge_s = since(t_merge);
+    result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
     result.cancelled = cancel.load();
     result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
     result.elapsed_s =

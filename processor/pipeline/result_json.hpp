@@ -88,6 +88,10 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(IntegrateResult,
                                    beams_out_of_range,
                                    scans_out_of_bounds,
                                    beams_inconsistent,
-                                   voxel_updates)
+                                   voxel_updates,
+                                   prepare_s,
+                                   rasterise_s,
+                                   merge_s,
+                                   cpu_s)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(WeightHistogram, edges, counts)
 }  // namespace pitmap::proc::fusion

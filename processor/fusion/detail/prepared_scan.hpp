@@ -22,6 +22,8 @@ struct PreparedBeam {
     float weight;          // f of one update (beam-width mode: f times the footprint support)
     std::int32_t x_lo;     // voxel x index range the beam can touch
     std::int32_t x_hi;
+    std::int32_t y_lo;  // voxel y index range the beam can touch
+    std::int32_t y_hi;
     std::uint16_t beam;  // beam index
 };
 
@@ -31,6 +33,8 @@ struct PreparedScan {
     std::vector<PreparedBeam> beams;
     std::int32_t x_lo = std::numeric_limits<std::int32_t>::max();
     std::int32_t x_hi = std::numeric_limits<std::int32_t>::min();
+    std::int32_t y_lo = std::numeric_limits<std::int32_t>::max();
+    std::int32_t y_hi = std::numeric_limits<std::int32_t>::min();
     // Counters of this scan (summed into IntegrateResult).
     std::int64_t beams_used = 0;
     std::int64_t beams_no_detection = 0;
