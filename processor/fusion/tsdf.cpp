@@ -14,6 +14,7 @@
 #include <openvdb/openvdb.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
@@ -22,7 +23,8 @@
 #include <cmath>
 #include <ctime>
 #include <limits>
-#include <mutex>
+#include <map>
+#include <ranges>
 
 #include "common/result.hpp"
 #include "processor/fusion/detail/prepared_scan.hpp"
@@ -46,6 +48,8 @@ constexpr int kSlabVoxels = 64;  // multiple of LeafT::DIM (8)
 // Each voxel lies in one band, so it still sees its updates in input order.
 constexpr int kBandVoxels = 64;
 constexpr std::size_t kBatchScans = 64;
+// Scans prepared at a time (their beams, ~36 bytes each, are held until the chunk is done).
+constexpr std::size_t kChunkScans = 2048;
 
 // The voxels one task may touch: x in [x_min, x_max], y in [y_min, y_max].
 struct ClipBox {
@@ -497,160 +501,180 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         config_.num_threads > 0 ? config_.num_threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
 
-    // 1. Prepare: valid beams (beam-width mode: footprint ranges) and the x range each can touch.
-    std::vector<PreparedScan> prepared(scans.size());
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scans.size(), 64),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                  prepared[si] = detail::PrepareScan(scans[si], config_, geo);
-                              }
-                          });
-    });
-    result.prepare_s = since(t_start);
-    std::size_t total_beams = 0;
-    for (const PreparedScan& ps : prepared) {
-        result.beams_used += ps.beams_used;
-        result.beams_no_detection += ps.beams_no_detection;
-        result.beams_out_of_range += ps.beams_out_of_range;
-        result.scans_out_of_bounds += ps.out_of_bounds ? 1 : 0;
-        result.beams_inconsistent += ps.beams_inconsistent;
-        total_beams += ps.beams.size();
-    }
+    const float f = config_.weight_per_measurement;
+    const float w_max = config_.max_weight;
+    const float trunc = static_cast<float>(config_.truncation_m);
 
-    int x_lo = std::numeric_limits<int>::max();
-    int x_hi = std::numeric_limits<int>::min();
-    for (const PreparedScan& ps : prepared) {
-        if (ps.beams.empty()) continue;
-        x_lo = std::min(x_lo, ps.x_lo);
-        x_hi = std::max(x_hi, ps.x_hi);
-    }
-    if (total_beams == 0) {
-        result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
-        result.elapsed_s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-        result.message = "no valid beams";
-        return result;
-    }
-    const int slab_first = FloorDiv(x_lo, kSlabVoxels);
-    const int slab_last = FloorDiv(x_hi, kSlabVoxels);
-    const int num_slabs = slab_last - slab_first + 1;
-
-    // 2. Existing leaves of the slabs about to be rebuilt.
-    std::vector<std::vector<const LeafT*>> old_d(static_cast<std::size_t>(num_slabs));
-    std::vector<std::vector<const LeafT*>> old_w(static_cast<std::size_t>(num_slabs));
-    auto bucket = [&](const FloatTree& tree, std::vector<std::vector<const LeafT*>>& out) {
+    // Existing leaves by slab: a slab's grid starts from copies of them when first touched.
+    std::map<int, std::vector<const LeafT*>> old_d, old_w;
+    auto bucket = [&](const FloatTree& tree, std::map<int, std::vector<const LeafT*>>& out) {
         for (auto it = tree.cbeginLeaf(); it; ++it) {
-            const int slab = FloorDiv(it->origin().x(), kSlabVoxels);
-            if (slab >= slab_first && slab <= slab_last) {
-                out[static_cast<std::size_t>(slab - slab_first)].push_back(&*it);
-            }
+            out[FloorDiv(it->origin().x(), kSlabVoxels)].push_back(&*it);
         }
     };
     bucket(impl_->distance->tree(), old_d);
     bucket(impl_->weight->tree(), old_w);
 
-    // 3. One task per slab.
-    std::vector<openvdb::FloatGrid::Ptr> slab_d(static_cast<std::size_t>(num_slabs));
-    std::vector<openvdb::FloatGrid::Ptr> slab_w(static_cast<std::size_t>(num_slabs));
-    std::vector<std::int64_t> slab_updates(static_cast<std::size_t>(num_slabs), 0);
+    struct Slab {
+        openvdb::FloatGrid::Ptr d, w;
+        std::int64_t updates = 0;
+        std::int64_t work = 0;  // beams of the current chunk that reach the slab
+    };
+    std::map<int, Slab> slabs;  // by slab index; std::map keeps references stable
     std::atomic<bool> cancel{false};
-    std::atomic<int> slabs_done{0};
-    std::mutex progress_mutex;
-    const float f = config_.weight_per_measurement;
-    const float w_max = config_.max_weight;
-    const float trunc = static_cast<float>(config_.truncation_m);
+    std::size_t total_beams = 0;
+    std::vector<PreparedScan> prepared;
 
-    auto run_slab = [&](int k) {
-        const std::size_t ks = static_cast<std::size_t>(k);
-        auto gd = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
-        auto gw = MakeGrid(0.0f, config_.voxel_size_m, "weight");
-        for (const LeafT* leaf : old_d[ks]) gd->tree().addLeaf(new LeafT(*leaf));
-        for (const LeafT* leaf : old_w[ks]) gw->tree().addLeaf(new LeafT(*leaf));
-        const int sx0 = (slab_first + k) * kSlabVoxels;
+    // Integrates the chunk's scans [0, prepared.size()) into one slab, scan by scan in order.
+    auto run_slab = [&](int k, std::size_t scan_offset) {
+        Slab& slab = slabs.at(k);
+        const int sx0 = k * kSlabVoxels;
         const int sx1 = sx0 + kSlabVoxels - 1;
-        {
-            VoxelUpdater up(*gd, *gw, f, w_max);
-            for (std::size_t s0 = 0; s0 < prepared.size(); s0 += kBatchScans) {
-                if (cancel.load(std::memory_order_relaxed)) break;
-                const std::size_t s1 = std::min(prepared.size(), s0 + kBatchScans);
-                int y_lo = std::numeric_limits<int>::max();
-                int y_hi = std::numeric_limits<int>::min();
+        VoxelUpdater up(*slab.d, *slab.w, f, w_max);
+        for (std::size_t s0 = 0; s0 < prepared.size(); s0 += kBatchScans) {
+            if (cancel.load(std::memory_order_relaxed)) break;
+            const std::size_t s1 = std::min(prepared.size(), s0 + kBatchScans);
+            int y_lo = std::numeric_limits<int>::max();
+            int y_hi = std::numeric_limits<int>::min();
+            for (std::size_t si = s0; si < s1; ++si) {
+                const PreparedScan& ps = prepared[si];
+                if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
+                y_lo = std::min(y_lo, ps.y_lo);
+                y_hi = std::max(y_hi, ps.y_hi);
+            }
+            if (y_lo > y_hi) continue;
+            for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels);
+                 ++band) {
+                const ClipBox box{
+                    sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
                 for (std::size_t si = s0; si < s1; ++si) {
                     const PreparedScan& ps = prepared[si];
-                    if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
-                    y_lo = std::min(y_lo, ps.y_lo);
-                    y_hi = std::max(y_hi, ps.y_hi);
-                }
-                if (y_lo > y_hi) continue;
-                for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels);
-                     ++band) {
-                    const ClipBox box{sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
-                    for (std::size_t si = s0; si < s1; ++si) {
-                        const PreparedScan& ps = prepared[si];
-                        if (ps.beams.empty() || ps.x_hi < box.x_min || ps.x_lo > box.x_max ||
-                            ps.y_hi < box.y_min || ps.y_lo > box.y_max) {
+                    if (ps.beams.empty() || ps.x_hi < box.x_min || ps.x_lo > box.x_max ||
+                        ps.y_hi < box.y_min || ps.y_lo > box.y_max) {
+                        continue;
+                    }
+                    const SonarScan& scan = scans[scan_offset + si];
+                    for (const PreparedBeam& pb : ps.beams) {
+                        if (pb.x_hi < box.x_min || pb.x_lo > box.x_max || pb.y_hi < box.y_min ||
+                            pb.y_lo > box.y_max) {
                             continue;
                         }
-                        const SonarScan& scan = scans[si];
-                        for (const PreparedBeam& pb : ps.beams) {
-                            if (pb.x_hi < box.x_min || pb.x_lo > box.x_max ||
-                                pb.y_hi < box.y_min || pb.y_lo > box.y_max) {
-                                continue;
-                            }
-                            const float theta =
-                                scan.start_angle_rad +
-                                static_cast<float>(pb.beam) * scan.angle_increment_rad;
-                            if (beam_width) {
-                                IntegrateBeamWidth(
-                                    ps, pb, theta, scan.angle_increment_rad, geo, box, up);
-                            } else {
-                                IntegrateRay(ps, pb, theta, geo, box, up);
-                            }
+                        const float theta = scan.start_angle_rad +
+                                            static_cast<float>(pb.beam) * scan.angle_increment_rad;
+                        if (beam_width) {
+                            IntegrateBeamWidth(
+                                ps, pb, theta, scan.angle_increment_rad, geo, box, up);
+                        } else {
+                            IntegrateRay(ps, pb, theta, geo, box, up);
                         }
                     }
                 }
             }
-            slab_updates[ks] = up.updates();
         }
-        slab_d[ks] = gd;
-        slab_w[ks] = gw;
-        const int done = ++slabs_done;
-        if (progress) {
-            std::lock_guard<std::mutex> lock(progress_mutex);
-            if (!progress(static_cast<double>(done) / num_slabs)) cancel = true;
-        }
+        slab.updates += up.updates();
     };
 
-    const auto t_raster = std::chrono::steady_clock::now();
-    arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, num_slabs, 1),
-            [&](const tbb::blocked_range<int>& range) {
-                for (int k = range.begin(); k != range.end(); ++k) run_slab(k);
-            },
-            tbb::simple_partitioner());
-    });
+    // Chunk by chunk: prepare the chunk's scans (valid beams, footprint ranges, the x and y
+    // range of every beam) in parallel, then integrate it slab by slab. Only one chunk's
+    // prepared beams are held at a time; the slab grids persist across chunks.
+    for (std::size_t c0 = 0; c0 < scans.size() && !cancel.load(); c0 += kChunkScans) {
+        const std::size_t c1 = std::min(scans.size(), c0 + kChunkScans);
+        const auto t_prepare = std::chrono::steady_clock::now();
+        prepared.assign(c1 - c0, PreparedScan{});
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 64),
+                              [&](const tbb::blocked_range<std::size_t>& range) {
+                                  for (std::size_t si = range.begin(); si != range.end(); ++si) {
+                                      prepared[si - c0] =
+                                          detail::PrepareScan(scans[si], config_, geo);
+                                  }
+                              });
+        });
+        for (Slab& slab : slabs | std::views::values) slab.work = 0;
+        int last_k = std::numeric_limits<int>::min();
+        Slab* last = nullptr;
+        for (const PreparedScan& ps : prepared) {
+            result.beams_used += ps.beams_used;
+            result.beams_no_detection += ps.beams_no_detection;
+            result.beams_out_of_range += ps.beams_out_of_range;
+            result.scans_out_of_bounds += ps.out_of_bounds ? 1 : 0;
+            result.beams_inconsistent += ps.beams_inconsistent;
+            total_beams += ps.beams.size();
+            for (const PreparedBeam& pb : ps.beams) {
+                for (int k = FloorDiv(pb.x_lo, kSlabVoxels); k <= FloorDiv(pb.x_hi, kSlabVoxels);
+                     ++k) {
+                    if (k != last_k) {
+                        last = &slabs[k];
+                        last_k = k;
+                    }
+                    Slab& slab = *last;
+                    if (!slab.d) {
+                        slab.d = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
+                        slab.w = MakeGrid(0.0f, config_.voxel_size_m, "weight");
+                        for (const LeafT* leaf : old_d[k]) slab.d->tree().addLeaf(new LeafT(*leaf));
+                        for (const LeafT* leaf : old_w[k]) slab.w->tree().addLeaf(new LeafT(*leaf));
+                    }
+                    ++slab.work;
+                }
+            }
+        }
+        result.prepare_s += since(t_prepare);
+        // Largest slabs first, each worker taking the next (greedy longest-processing-time
+        // order, so the last slab of a chunk is a small one).
+        std::vector<std::pair<std::int64_t, int>> order;
+        for (const auto& [k, slab] : slabs) {
+            if (slab.work > 0) order.emplace_back(-slab.work, k);
+        }
+        std::sort(order.begin(), order.end());
+        const auto t_raster = std::chrono::steady_clock::now();
+        std::atomic<std::size_t> next{0};
+        arena.execute([&] {
+            tbb::task_group tasks;
+            for (int t = 0; t < threads; ++t) {
+                tasks.run([&] {
+                    for (std::size_t i = next++; i < order.size(); i = next++) {
+                        run_slab(order[i].second, c0);
+                    }
+                });
+            }
+            tasks.wait();
+        });
+        result.rasterise_s += since(t_raster);
+        if (progress && !progress(static_cast<double>(c1) / static_cast<double>(scans.size()))) {
+            cancel = true;
+        }
+    }
+    prepared = {};
+    if (total_beams == 0) {
+        result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
+        result.elapsed_s = since(t_start);
+        result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
+        result.message = "no valid beams";
+        return result;
+    }
 
-    result.rasterise_s = since(t_raster);
     const auto t_merge = std::chrono::steady_clock::now();
-    // 4. Rebuild the global trees: untouched old leaves plus every slab's leaves.
+    // Rebuild the global trees: the old leaves of untouched slabs plus every slab's leaves
+    // (moved, not copied).
     auto new_d = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
     auto new_w = MakeGrid(0.0f, config_.voxel_size_m, "weight");
     auto keep_outside = [&](const FloatTree& from, FloatTree& to) {
         for (auto it = from.cbeginLeaf(); it; ++it) {
-            const int slab = FloorDiv(it->origin().x(), kSlabVoxels);
-            if (slab < slab_first || slab > slab_last) to.addLeaf(new LeafT(*it));
+            if (!slabs.contains(FloorDiv(it->origin().x(), kSlabVoxels))) {
+                to.addLeaf(new LeafT(*it));
+            }
         }
     };
     keep_outside(impl_->distance->tree(), new_d->tree());
     keep_outside(impl_->weight->tree(), new_w->tree());
-    for (int k = 0; k < num_slabs; ++k) {
-        const std::size_t ks = static_cast<std::size_t>(k);
-        if (!slab_d[ks]) continue;
-        new_d->tree().merge(slab_d[ks]->tree());
-        new_w->tree().merge(slab_w[ks]->tree());
-        result.voxel_updates += slab_updates[ks];
+    impl_->distance.reset();
+    impl_->weight.reset();
+    for (auto& [k, slab] : slabs) {
+        new_d->tree().merge(slab.d->tree());
+        new_w->tree().merge(slab.w->tree());
+        slab.d.reset();
+        slab.w.reset();
+        result.voxel_updates += slab.updates;
     }
     impl_->distance = new_d;
     impl_->weight = new_w;

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "common/frames.hpp"
+#include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/io/products.hpp"
@@ -228,7 +229,13 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     if (stage == Stage::kFuseInitial) tcfg.voxel_size_m *= config.run.initial_mesh_voxel_factor;
     fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
+    // What integration itself holds at its peak beyond its inputs (the scans are built above):
+    // the resident high-water mark is reset here (where the kernel allows; else it stays the
+    // stage's) and compared with the memory the finished grids hold.
+    ResetPeakRss();
+    const double rss_before_integrate_mb = PeakRssMb();
     const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
+    const double integrate_peak_mb = PeakRssMb() - rss_before_integrate_mb;
     bar.Finish();
     log(name + ": " + ir.message);
     // Before the filter, so the report shows what the filter removes.
@@ -241,6 +248,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                {"voxel_size_m", tcfg.voxel_size_m},
                {"truncation_m", config.tsdf.truncation_m},
                {"integrate_seconds", ir.elapsed_s},
+               {"integrate_peak_rss_growth_mb", integrate_peak_mb},
                {"min_weight", config.weight_filter.min_weight},
                {"voxels_before_filter", wf.voxels_before},
                {"voxels_removed", wf.voxels_removed},
