@@ -293,6 +293,7 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     const double b_y = b_s.y(), b_z = b_s.z(), e_y = e_s.y(), e_z = e_s.z();
     const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
     const double h_cube2 = h_cube * h_cube;
+    const double far2 = (r_max + T + 1e-6) * (r_max + T + 1e-6);  // slack for rounding
     // Range change towards each neighbour (0 = no interpolation on that side).
     const double dr_prev = std::isfinite(r_prev) ? r_prev - r : 0.0;
     const double dr_next = std::isfinite(r_next) ? r_next - r : 0.0;
@@ -379,6 +380,8 @@ void IntegrateBeamWidth(const PreparedScan& scan,
                 const double rho2 = y * y + z * z;
                 // Beam width: |x| <= max(tan(bw / 2) rho, h_cube).
                 if (x2 > tan2_bw * rho2 && x2 > h_cube2) continue;
+                // Beyond r_max + T from the sonar d <= -T whatever the interpolated range.
+                if (rho2 + x2 >= far2) continue;
                 // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
                 // as a signed fraction of the increment: > 0 towards beam i + 1.
                 const double frac = (e_y * y + e_z * z) / (b_y * y + b_z * z) * inv_inc;
