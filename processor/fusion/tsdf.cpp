@@ -3,10 +3,18 @@
 // May et al. (2014), on OpenVDB grids: the voxel rasteriser and the integration loop. The
 // footprint model is in footprint.cpp, queries of the volume in tsdf_queries.cpp.
 //
-// Work is cut into slabs of kSlabVoxels along the world x index. One TBB task owns one slab:
-// it replays every scan in input order but touches only voxels of its slab, in a grid of its
-// own. Slabs are aligned to leaf nodes, so the per-slab trees are disjoint and are merged by
-// moving leaves; each voxel sees the same updates in the same order for any thread count.
+// Work is cut into slabs of kSlabVoxels along the world x index, and the scans into chunks of
+// kChunkScans (prepared together, then integrated). One TBB task owns one slab for a chunk: it
+// replays the chunk's scans in input order but touches only voxels of its slab, in a grid of
+// its own that persists across chunks. Slabs are aligned to leaf nodes, so the per-slab trees
+// are disjoint and are merged by moving leaves; each voxel sees the same updates in the same
+// order for any thread count.
+//
+// Where the beam-width time goes (bejanca, 502 M voxel updates, perf): about half in the
+// per-voxel test and update (a division for the in-plane angle, a square root, the running
+// average's division, two leaf writes whose cache lines often come from L3), the rest in the
+// per-beam frustum set-up and its row and column clipping (columns are short: ~3.6 candidate
+// voxels, since the frustum is about one voxel thick across the fan and oblique to the axes).
 #include "processor/fusion/tsdf.hpp"
 
 #include <openvdb/math/DDA.h>

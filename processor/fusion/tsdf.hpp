@@ -141,9 +141,11 @@ struct WeightHistogram {
 };
 
 // THREADING: Integrate uses up to num_threads TBB workers internally. Space is cut into slabs
-// along world x; each slab is integrated by one task over all scans in input order, so the
-// result is identical for any thread count (bit for bit). The object itself is not thread safe:
-// do not call methods concurrently.
+// along world x; the scans are taken in chunks of consecutive scans, and each slab integrates
+// a chunk's scans in input order in one task, so the result is identical for any thread count
+// (bit for bit). The object itself is not thread safe: do not call methods concurrently.
+// MEMORY: besides the grids, Integrate holds one chunk's prepared beams (2048 scans, ~36 bytes
+// per beam) and, while merging, nothing more: slab leaves are moved into the volume.
 class TsdfVolume {
 public:
     // Precondition: config.Validate() is empty.

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "tests/processor/fusion/synthetic_scans.hpp"
@@ -378,6 +379,49 @@ TEST(TsdfVolume, RepeatedIntegrateCallsMatchOneCall) {
     for (double x = -4.0; x <= 4.0; x += 0.5) {
         const Eigen::Vector3d p(x, 0.3, -10.05);
         EXPECT_FLOAT_EQ(once.DistanceAt(p), twice.DistanceAt(p));
+    }
+}
+
+// Integrate prepares and integrates the scans in chunks of 2048: a survey longer than a chunk,
+// integrated in one call, equals the same survey in two calls split elsewhere, voxel for voxel.
+TEST(TsdfVolume, ChunksOfScansDoNotChangeTheResult) {
+    SyntheticWorld world;
+    world.spheres.push_back({Eigen::Vector3d(0.5, 0.0, -9.5), 0.8});
+    LineSurvey survey;
+    survey.x0_m = -3.0;
+    survey.x1_m = 3.0;
+    survey.spacing_m = 0.005;  // 1201 pings a line, 2402 in all
+    survey.lines_y_m = {-0.5, 0.5};
+    survey.num_beams = 41;
+    survey.start_angle_rad = -5.0 * std::numbers::pi / 180.0;
+    survey.noise_sigma_m = 0.02;
+    const auto scans = MakeScans(world, survey);
+    ASSERT_GT(scans.size(), 2048u);
+    const std::size_t split = 700;
+    for (SensorModel model : {SensorModel::kBeamWidth, SensorModel::kRay}) {
+        TsdfVolume once(SmallConfig(model));
+        const IntegrateResult r1 = once.Integrate(scans);
+        TsdfVolume twice(SmallConfig(model));
+        const IntegrateResult ra =
+            twice.Integrate(std::vector<SonarScan>(scans.begin(), scans.begin() + split));
+        const IntegrateResult rb =
+            twice.Integrate(std::vector<SonarScan>(scans.begin() + split, scans.end()));
+        EXPECT_EQ(r1.voxel_updates, ra.voxel_updates + rb.voxel_updates);
+        EXPECT_EQ(r1.beams_used, ra.beams_used + rb.beams_used);
+        EXPECT_EQ(once.Stats().active_voxels, twice.Stats().active_voxels);
+        int observed = 0;
+        for (int i = -35; i <= 35; ++i) {
+            for (int j = -12; j <= 12; ++j) {
+                for (int k = -106; k <= -84; ++k) {
+                    const Eigen::Vector3d p = Eigen::Vector3d(i, j, k) * 0.1;
+                    const float w = once.WeightAt(p);
+                    ASSERT_EQ(w, twice.WeightAt(p)) << i << " " << j << " " << k;
+                    ASSERT_EQ(once.DistanceAt(p), twice.DistanceAt(p)) << i << " " << j << " " << k;
+                    observed += w > 0.0f ? 1 : 0;
+                }
+            }
+        }
+        EXPECT_GT(observed, 5000);
     }
 }
 
