@@ -425,8 +425,7 @@ void IntegrateRay(const PreparedScan& scan,
     openvdb::math::DDA<Ray, 0> dda(ray, 0.0, length);
     do {
         const Coord& c = dda.voxel();
-        if (c.x() >= box.x_min && c.x() <= box.x_max && c.y() >= box.y_min &&
-            c.y() <= box.y_max) {
+        if (c.x() >= box.x_min && c.x() <= box.x_max && c.y() >= box.y_min && c.y() <= box.y_max) {
             const Eigen::Vector3d v(c.x(), c.y(), c.z());
             const double d = r - (v - scan.p_vox).norm();  // Eq. 4
             if (d > -T && d <= T)

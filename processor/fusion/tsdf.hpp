@@ -85,11 +85,11 @@ struct IntegrateResult {
     std::int64_t voxel_updates = 0;        // (voxel, measurement) updates applied
     std::int64_t active_voxels = 0;        // active voxels of the volume afterwards
     double elapsed_s = 0;                  // wall time of the call
-    double prepare_s = 0;    // of which footprints and beam bounds (wall time)
-    double rasterise_s = 0;  // of which the slab tasks' voxel updates (wall time)
+    double prepare_s = 0;                  // of which footprints and beam bounds (wall time)
+    double rasterise_s = 0;                // of which the slab tasks' voxel updates (wall time)
     double merge_s = 0;      // of which gathering the slabs' leaves into the volume (wall time)
     double cpu_s = 0;        // CPU time of the whole process during the call (all threads)
-    bool cancelled = false;                // the progress callback asked to stop
+    bool cancelled = false;  // the progress callback asked to stop
     std::string message;
 };
 

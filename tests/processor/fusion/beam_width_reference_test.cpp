@@ -38,10 +38,8 @@ using Key = std::tuple<int, int, int>;
 std::map<Key, RefVoxel> ReferenceIntegrate(const std::vector<SonarScan>& scans,
                                            const TsdfConfig& c) {
     const double s = c.voxel_size_m;
-    const detail::Geometry geo{c.truncation_m / s,
-                               std::tan(0.5 * c.beam_width_rad),
-                               std::cos(0.5 * c.beam_width_rad),
-                               s};
+    const detail::Geometry geo{
+        c.truncation_m / s, std::tan(0.5 * c.beam_width_rad), std::cos(0.5 * c.beam_width_rad), s};
     const double T = geo.trunc_vox;
     std::map<Key, RefVoxel> grid;
     for (const SonarScan& scan : scans) {
@@ -83,8 +81,8 @@ std::map<Key, RefVoxel> ReferenceIntegrate(const std::vector<SonarScan>& scans,
                     const double frac = (phi - theta) / inc;  // > 0 towards beam k + 1
                     const double rn = frac >= 0 ? pb->range_next_vox : pb->range_prev_vox;
                     const double r_at =
-                        pb->range_vox + (std::isfinite(rn) ? std::abs(frac) * (rn - pb->range_vox)
-                                                           : 0.0);
+                        pb->range_vox +
+                        (std::isfinite(rn) ? std::abs(frac) * (rn - pb->range_vox) : 0.0);
                     const double d = r_at - xs.norm();
                     if (!(d > -T && d <= T)) continue;
                     RefVoxel& v = grid[{x, y, z}];
