@@ -8,6 +8,10 @@ set(CMAKE_POSITION_INDEPENDENT_CODE ON)
 if(PITMAP_SANITIZE)
   string(REPLACE "," ";" _pitmap_san_list "${PITMAP_SANITIZE}")
   add_compile_options(-fsanitize=${PITMAP_SANITIZE} -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  # After -fsanitize=, so that it wins (clang and GCC read these flags left to right).
+  if(PITMAP_SANITIZE_EXCLUDE)
+    add_compile_options(-fno-sanitize=${PITMAP_SANITIZE_EXCLUDE})
+  endif()
   # GCC's sanitizer instrumentation makes -Wmaybe-uninitialized report false positives inside
   # libstdc++ (std::regex, std::function in GCC 12); the Release build keeps the warning.
   if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")

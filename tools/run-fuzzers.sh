@@ -42,8 +42,13 @@ if [[ ${#targets[@]} -eq 0 ]]; then
 fi
 cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" --target "${targets[@]}"
 
-status=0
-for t in "${targets[@]}"; do
+# One fuzz target per core at a time (FUZZ_JOBS, default nproc): each libFuzzer run is a single
+# process on one core, so 14 targets x 20 s take 140 s of wall time on 2 cores instead of 280 s.
+jobs=${FUZZ_JOBS:-$(nproc 2>/dev/null || echo 2)}
+(( jobs >= 1 )) || jobs=1
+
+run_one() {  # $1 = target; its log is $build/fuzz/$1.log, its verdict the exit status
+  local t=$1 corpus seeds label rc=0
   corpus=$(mktemp -d)
   seeds="$root/tests/fuzz/seeds/${t%_fuzz}"
   [[ -d $seeds ]] || seeds="$root/tests/data/fuzz/${t%_fuzz}"
@@ -52,14 +57,36 @@ for t in "${targets[@]}"; do
   label=none
   [[ -n $seeds ]] && label=${seeds#"$root"/}
   echo "run-fuzzers: $t for ${seconds} s (seeds: $label)"
-  if ! "$build/fuzz/$t" -max_total_time="$seconds" -max_len=65536 -print_final_stats=1 \
-        -artifact_prefix="$build/fuzz/$t-" "$corpus" ${seeds:+"$seeds"} > "$build/fuzz/$t.log" 2>&1; then
-    status=1
-    echo "run-fuzzers: $t FAILED; last lines of its log:"
+  "$build/fuzz/$t" -max_total_time="$seconds" -max_len=65536 -print_final_stats=1 \
+      -artifact_prefix="$build/fuzz/$t-" "$corpus" ${seeds:+"$seeds"} > "$build/fuzz/$t.log" 2>&1 ||
+    rc=$?
+  rm -rf "$corpus"
+  return $rc
+}
+
+report() {  # $1 = target, $2 = its exit status; prints the verdict in one block
+  local t=$1
+  if [[ $2 -ne 0 ]]; then
+    echo "run-fuzzers: $t FAILED (exit $2); last lines of its log:"
     tail -n 40 "$build/fuzz/$t.log"
   else
     grep -E 'stat::number_of_executed_units|stat::peak_rss_mb' "$build/fuzz/$t.log" | sed "s/^/  $t /"
   fi
-  rm -rf "$corpus"
+}
+
+status=0
+declare -A running=()  # pid -> target
+wait_one() {
+  local pid rc=0
+  wait -n -p pid "${!running[@]}" || rc=$?
+  report "${running[$pid]}" "$rc"
+  [[ $rc -eq 0 ]] || status=1
+  unset "running[$pid]"
+}
+for t in "${targets[@]}"; do
+  while (( ${#running[@]} >= jobs )); do wait_one; done
+  run_one "$t" &
+  running[$!]=$t
 done
+while (( ${#running[@]} > 0 )); do wait_one; done
 exit $status

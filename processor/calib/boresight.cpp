@@ -116,23 +116,35 @@ private:
     georef::Trajectory traj_;
 };
 
-void Positions(const ShiftedPoses& poses,
+// The vehicle poses of the pings of S (which come in ping order) at one latency, each
+// interpolated once: the positions and the pair Jacobians of an iteration both read them.
+class PingPoses {
+public:
+    PingPoses(const ShiftedPoses& poses, const Samples& S, double tau) {
+        if (S.ping.empty()) return;
+        const auto [lo, hi] = std::minmax_element(S.ping.begin(), S.ping.end());
+        first_ = *lo;
+        T_.resize(static_cast<std::size_t>(*hi - *lo) + 1);
+        tbb::parallel_for(std::size_t{0}, T_.size(), [&](std::size_t i) {
+            T_[i] = poses.At(first_ + static_cast<std::uint32_t>(i), tau);
+        });
+    }
+    const Pose& operator[](std::uint32_t ping) const { return T_[ping - first_]; }
+
+private:
+    std::uint32_t first_ = 0;
+    std::vector<Pose> T_;
+};
+
+void Positions(const PingPoses& T,
                const Samples& S,
                const SonarMount& m,
-               double tau,
                std::vector<Eigen::Vector3d>& p) {
     const Pose T_vs = m.T_vehicle_sonar();
     p.resize(S.ping.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 1024), [&](const auto& b) {
-        std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
-        Pose T = Pose::Identity();
-        for (std::size_t k = b.begin(); k != b.end(); ++k) {
-            if (S.ping[k] != last) {
-                last = S.ping[k];
-                T = poses.At(last, tau);
-            }
-            p[k] = T * (T_vs * S.s_sonar[k]);
-        }
+        for (std::size_t k = b.begin(); k != b.end(); ++k)
+            p[k] = T[S.ping[k]] * (T_vs * S.s_sonar[k]);
     });
 }
 
@@ -146,7 +158,7 @@ Samples CollectIndexed(const GeorefResult& geo,
                        const BoresightConfig& cfg) {
     Samples S = Collect(geo, t0, t1, cfg.beam_stride);
     std::vector<Eigen::Vector3d> p;
-    Positions(poses, S, m, tau, p);
+    Positions(PingPoses(poses, S, tau), S, m, p);
     IndexOwnPasses(p, S, cfg);
     return S;
 }
@@ -159,7 +171,7 @@ ResidualStats Evaluate(const ShiftedPoses& poses,
                        const BoresightConfig& cfg,
                        double d_max = 0) {
     std::vector<Eigen::Vector3d> p;
-    Positions(poses, S, m, tau, p);
+    Positions(PingPoses(poses, S, tau), S, m, p);
     return Stats(FindPairs(p, S, cfg, d_max > 0 ? d_max : cfg.min_distance_m));
 }
 
@@ -328,7 +340,8 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
         const double d_max =
             std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
-        Positions(poses, S, m, tau, p);
+        const PingPoses T(poses, S, tau);
+        Positions(T, S, m, p);
         for (std::size_t k = 0; k < p.size(); ++k) p[k] += offset_at(S.t_s[k]);
         const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
         if (ldim > 0) {
@@ -370,13 +383,8 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             const std::size_t q = pr.c.target;
             const Eigen::Vector3d& nrm = pr.c.query_normal;
             Eigen::RowVector3d Jr;
-            BoresightPairResidual(poses.At(S.ping[k], tau),
-                                  poses.At(S.ping[q], tau),
-                                  T_vs_now,
-                                  S.s_sonar[k],
-                                  S.s_sonar[q],
-                                  nrm,
-                                  &Jr);
+            BoresightPairResidual(
+                T[S.ping[k]], T[S.ping[q]], T_vs_now, S.s_sonar[k], S.s_sonar[q], nrm, &Jr);
             idx.clear();
             J.clear();
             for (int j = 0; j < 3; ++j) push(j, Jr[j]);

@@ -140,12 +140,25 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
     const double d2_max = d_max * d_max;
     std::vector<Pair> pairs(p.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& r) {
+        // The previous sample's match (the next beam of the same ping, mostly) is a candidate
+        // of this one too: starting from its distance, the searches below prune with a tight
+        // bound from the first block on. They return only points strictly closer, so the
+        // result is the nearest point all the same.
+        std::size_t hint = p.size();
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             const Eigen::Vector3d& q = p[k];
             const double t = S.t_s[k];
             double best = d2_max;
             std::size_t best_j = 0;
             bool found = false;
+            if (hint < p.size() && std::abs(S.t_s[hint] - t) >= sep) {
+                const double d2 = (q - p[hint]).squaredNorm();
+                if (d2 < best) {
+                    best = d2;
+                    best_j = hint;
+                    found = true;
+                }
+            }
             for (const PassBlock& b : blocks) {
                 if (b.t0 > t - sep && b.t1 < t + sep) continue;  // its own pass only
                 if (BoxDistance2(q, b) >= best) continue;
@@ -167,6 +180,7 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
                 }
             }
             if (!found) continue;
+            hint = best_j;
             reg::MomentAccumulator m;
             for (std::size_t o = S.own_begin[k]; o < S.own_begin[k + 1]; ++o) m.Add(p[S.own[o]]);
             if (m.count() < 8) continue;

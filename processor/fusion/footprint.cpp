@@ -105,7 +105,11 @@ bool FitFootprint(const std::vector<float>& r,
 
 }  // namespace
 
-PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo) {
+PreparedScan PrepareScan(const SonarScan& scan,
+                         const TsdfConfig& config,
+                         const Geometry& geo,
+                         const SonarScan* prev,
+                         const SonarScan* next) {
     const double inv_s = 1.0 / config.voxel_size_m;
     const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
     PreparedScan ps;
@@ -171,6 +175,21 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
         }
     }
     const std::vector<float>& ranges = beam_width ? fr : r;
+    // Fan planes of the neighbouring pings (point, normal = their sonar x axis), world metres.
+    struct Fan {
+        Eigen::Vector3d p, n;
+    };
+    Fan fans[2];
+    int num_fans = 0;
+    if (beam_width && config.ping_gap_fill_m > 0.0) {
+        for (const SonarScan* nb : {prev, next}) {
+            if (nb == nullptr) continue;
+            const Eigen::Vector3d q = nb->T_world_sonar.translation();
+            const Eigen::Vector3d nn = nb->T_world_sonar.linear().col(0);
+            if (!q.allFinite() || !nn.allFinite() || !(nn.norm() > 0.5)) continue;
+            fans[num_fans++] = {q, nn.normalized()};
+        }
+    }
     ps.beams.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(ranges[i])) continue;
@@ -196,6 +215,19 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
         pb.weight = beam_width ? config.weight_per_measurement * static_cast<float>(support[i])
                                : config.weight_per_measurement;
         pb.beam = static_cast<std::uint16_t>(i);
+        // Gap to the neighbouring fans at the footprint: |n' . (X - p')|, X on the beam axis at
+        // the footprint range; a neighbour further than ping_gap_fill_m is not bridged.
+        double gap_m = 0.0;
+        if (num_fans > 0) {
+            const Eigen::Vector3d x_world =
+                p_world + ps.R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta)) *
+                              (static_cast<double>(pb.range_vox) * config.voxel_size_m);
+            for (int k = 0; k < num_fans; ++k) {
+                const double s_m = std::abs(fans[k].n.dot(x_world - fans[k].p));
+                if (s_m <= config.ping_gap_fill_m) gap_m = std::max(gap_m, s_m);
+            }
+        }
+        pb.half_gap_vox = static_cast<float>(0.5 * gap_m * inv_s);
         double r_lo = pb.range_vox, r_hi = pb.range_vox;
         for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
             if (!std::isfinite(rn)) continue;
@@ -204,13 +236,15 @@ PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const 
         }
         const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
         const double q1 = r_hi + geo.trunc_vox;
-        // x and y extent of the frustum: along the axis plus the cross-section's reach.
-        const double reach_x = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0;
+        // x and y extent of the frustum: along the axis plus the cross-section's reach (and
+        // the widening towards the neighbouring pings).
+        const double half_gap = static_cast<double>(pb.half_gap_vox);
+        const double reach_x = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0 + half_gap;
         const double xa = ps.p_vox.x() + q0 * u_x;
         const double xb = ps.p_vox.x() + q1 * u_x;
         pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach_x));
         pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach_x));
-        const double reach_y = q1 * spread * (std::abs(ps.R(1, 0)) + 1.0) + 1.0;
+        const double reach_y = q1 * spread * (std::abs(ps.R(1, 0)) + 1.0) + 1.0 + half_gap;
         const double ya = ps.p_vox.y() + q0 * u_y;
         const double yb = ps.p_vox.y() + q1 * u_y;
         pb.y_lo = static_cast<std::int32_t>(std::floor(std::min(ya, yb) - reach_y));

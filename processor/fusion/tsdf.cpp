@@ -199,14 +199,16 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     H[4] = -q_lo - u.dot(p);
     H[5] = q_hi + u.dot(p);
     constexpr double kEps = 1e-6;
-    // Out of the plane a voxel is in the beam if its cube reaches into the beam's width: its
-    // centre within the cone, or within the cube's half-extent along n of the fan plane (near
-    // the sonar the cone is narrower than a voxel and than the ping spacing).
-    const double h_cube = 0.5 * (std::abs(n.x()) + std::abs(n.y()) + std::abs(n.z()));
+    // Out of the plane a voxel is in the beam if its centre lies within the cone, within the
+    // cube's half-extent along n of the fan plane (near the sonar the cone is narrower than a
+    // voxel), or within half the gap to the neighbouring pings' fans (the cone is narrower
+    // than the ping spacing there too: without this, planes between pings stay unobserved).
+    const double h_out = std::max(0.5 * (std::abs(n.x()) + std::abs(n.y()) + std::abs(n.z())),
+                                  static_cast<double>(beam.half_gap_vox));
     H[0] += kEps;
     H[1] += kEps;
-    H[2] += kEps + h_cube;
-    H[3] += kEps + h_cube;
+    H[2] += kEps + h_out;
+    H[3] += kEps + h_out;
 
     // The frustum's 8 corners (its vertices) and their bounding box.
     const double tan_half_inc = std::tan(half_inc);
@@ -218,7 +220,7 @@ void IntegrateBeamWidth(const PreparedScan& scan,
         for (double se : {-1.0, 1.0}) {
             for (double sn : {-1.0, 1.0}) {
                 const Eigen::Vector3d c =
-                    p + q * (u + se * tan_half_inc * e + sn * t * n) + sn * h_cube * n;
+                    p + q * (u + se * tan_half_inc * e + sn * t * n) + sn * h_out * n;
                 corner[nc++] = c;
                 lo = lo.cwiseMin(c);
                 hi = hi.cwiseMax(c);
@@ -242,7 +244,7 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     int a = 0;
     {
         const double w_e = 2.0 * q_hi * tan_half_inc + 1.0;
-        const double w_n = 2.0 * (t * q_hi + h_cube) + 1.0;
+        const double w_n = 2.0 * (t * q_hi + h_out) + 1.0;
         const double w_u = q_hi - q_lo + 1.0;
         double best = -1.0;
         for (int k = 0; k < 3; ++k) {
@@ -300,7 +302,7 @@ void IntegrateBeamWidth(const PreparedScan& scan,
     const double lo_y = a_lo_s.y(), lo_z = a_lo_s.z(), hi_y = a_hi_s.y(), hi_z = a_hi_s.z();
     const double b_y = b_s.y(), b_z = b_s.z(), e_y = e_s.y(), e_z = e_s.z();
     const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
-    const double h_cube2 = h_cube * h_cube;
+    const double h_out2 = h_out * h_out;
     const double far2 = (r_max + T + 1e-6) * (r_max + T + 1e-6);  // slack for rounding
     // Range change towards each neighbour (0 = no interpolation on that side).
     const double dr_prev = std::isfinite(r_prev) ? r_prev - r : 0.0;
@@ -386,8 +388,8 @@ void IntegrateBeamWidth(const PreparedScan& scan,
                 const double y = xs.y(), z = xs.z(), x2 = xs.x() * xs.x();
                 if (lo_y * y + lo_z * z < 0.0 || hi_y * y + hi_z * z >= 0.0) continue;
                 const double rho2 = y * y + z * z;
-                // Beam width: |x| <= max(tan(bw / 2) rho, h_cube).
-                if (x2 > tan2_bw * rho2 && x2 > h_cube2) continue;
+                // Beam width: |x| <= max(tan(bw / 2) rho, h_out).
+                if (x2 > tan2_bw * rho2 && x2 > h_out2) continue;
                 // Beyond r_max + T from the sonar d <= -T whatever the interpolated range.
                 if (rho2 + x2 >= far2) continue;
                 // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
@@ -467,6 +469,9 @@ std::vector<std::string> TsdfConfig::Validate() const {
     }
     if (!(footprint_gate_fraction >= 0.0) || !std::isfinite(footprint_gate_fraction)) {
         problems.push_back("footprint_gate_fraction must be >= 0");
+    }
+    if (!(ping_gap_fill_m >= 0.0) || !std::isfinite(ping_gap_fill_m)) {
+        problems.push_back("ping_gap_fill_m must be >= 0 (0 = off)");
     }
     if (num_threads < 0) problems.push_back("num_threads must be >= 0 (0 = all cores)");
     return problems;
@@ -595,8 +600,12 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 64),
                               [&](const tbb::blocked_range<std::size_t>& range) {
                                   for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                      prepared[si - c0] =
-                                          detail::PrepareScan(scans[si], config_, geo);
+                                      prepared[si - c0] = detail::PrepareScan(
+                                          scans[si],
+                                          config_,
+                                          geo,
+                                          si > 0 ? &scans[si - 1] : nullptr,
+                                          si + 1 < scans.size() ? &scans[si + 1] : nullptr);
                                   }
                               });
         });

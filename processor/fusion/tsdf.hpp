@@ -13,7 +13,10 @@
 // (not across a range jump, e.g. a bench crest and the floor behind it), and is updated once
 // per ping with weight f times the number of beams in the footprint (so single coverage at
 // short range still carries a weight a filter can use). Out of the plane a voxel is in the
-// beam when its centre lies within the cone or within half a voxel of the fan plane.
+// beam when its centre lies within the cone, within half a voxel of the fan plane, or within
+// half the gap to the neighbouring pings' fans (TsdfConfig::ping_gap_fill_m): at short range
+// the cone is narrower than the ping spacing, and without that every third voxel plane along
+// the track would stay unobserved and the iso-surface would break up there.
 //
 // Frames: sonar x forward, y starboard, z down; beam i points at theta_i = start + i * increment
 // from nadir towards starboard, a hit lies at (0, r sin theta, r cos theta) in the sonar frame.
@@ -61,6 +64,14 @@ struct TsdfConfig {
     // footprint_gate_m + footprint_gate_fraction * range; the others are outliers (counted).
     double footprint_gate_m = 0.15;
     double footprint_gate_fraction = 0.01;
+    // Beam-width mode: consecutive scans of the input are consecutive pings of one head. Where
+    // a beam's footprint lies at most this far from the fan plane of the previous or next
+    // scan, the beam is widened out of its plane to half that distance (never narrowed), so
+    // the voxels between two pings are updated. At short range the beam is narrower than the
+    // ping spacing (2 r tan(bw / 2) = 8 cm at 3 m against 15 cm at 1.5 m/s and 10 Hz), and a
+    // 0.1 m voxel grid would keep every third plane across the track unobserved. Wider gaps
+    // (missing pings, the turn between lines) stay holes. 0 = off.
+    double ping_gap_fill_m = 0.3;
     int num_threads = 0;  // 0 = all cores (TBB default)
 
     // Every problem with the configuration (empty when valid).
@@ -157,7 +168,10 @@ public:
     TsdfVolume& operator=(const TsdfVolume&) = delete;
 
     // Integrates the scans in order. progress (optional) gets the fraction done; returning false
-    // cancels (the volume then holds a partial integration).
+    // cancels (the volume then holds a partial integration). Beam-width mode takes the scans
+    // before and after each scan in `scans` as its neighbouring pings (ping_gap_fill_m), so the
+    // first and last scan of a call see one neighbour each: a survey cut into several calls
+    // can differ from one call at the cuts where pings are sparser than the beam.
     IntegrateResult Integrate(const std::vector<SonarScan>& scans,
                               const ProgressCallback& progress = nullptr);
 

@@ -197,6 +197,7 @@ void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v("beam_width_rad", c.beam_width_rad, "out-of-plane beam width, rad");
     v("footprint_gate_m", c.footprint_gate_m, "beam-width: a footprint beam agrees within this");
     v("footprint_gate_fraction", c.footprint_gate_fraction, "... plus this share of the range");
+    v("ping_gap_fill_m", c.ping_gap_fill_m, "beam-width: bridge gaps between pings up to this, m");
     v("min_range_m", c.min_range_m, "shorter ranges are not detections, m");
     v("max_range_m", c.max_range_m, "longer ranges are not detections, m");
     v("num_threads", c.num_threads, "0 = all cores");

@@ -6,13 +6,16 @@
 namespace pitmap::proc::reg {
 
 Eigen::Vector3d MomentAccumulator::Mean() const {
-    return n_ > 0 ? Eigen::Vector3d(ref_ + sum_ / n_) : Eigen::Vector3d::Zero();
+    return n_ > 0 ? Eigen::Vector3d(ref_ + Eigen::Vector3d(sx_, sy_, sz_) / n_)
+                  : Eigen::Vector3d::Zero();
 }
 
 Eigen::Matrix3d MomentAccumulator::Covariance() const {
     if (n_ < 2) return Eigen::Matrix3d::Zero();
-    const Eigen::Vector3d m = sum_ / n_;
-    return sum_sq_ / n_ - m * m.transpose();
+    const Eigen::Vector3d m = Eigen::Vector3d(sx_, sy_, sz_) / n_;
+    Eigen::Matrix3d sq;
+    sq << sxx_, sxy_, sxz_, sxy_, syy_, syz_, sxz_, syz_, szz_;
+    return sq / n_ - m * m.transpose();
 }
 
 PlaneFit FitPlane(const MomentAccumulator& m) {

@@ -12,12 +12,22 @@ namespace pitmap::proc::reg {
 // world coordinates of hundreds of metres lose no digits against centimetre neighbourhoods).
 class MomentAccumulator {
 public:
-    // Inline: calibration and SLAM add tens of neighbours per point, every iteration.
+    // Inline: calibration and SLAM add tens of neighbours per point, every iteration. The six
+    // distinct second moments are plain doubles, so they stay in registers: an Eigen outer
+    // product here went through a temporary on the stack, and the loads that read it back
+    // stalled on the stores (half of calibration's pair search). Same sums, same order.
     void Add(const Eigen::Vector3d& p) {
         if (n_ == 0) ref_ = p;
-        const Eigen::Vector3d d = p - ref_;
-        sum_ += d;
-        sum_sq_ += d * d.transpose();
+        const double x = p.x() - ref_.x(), y = p.y() - ref_.y(), z = p.z() - ref_.z();
+        sx_ += x;
+        sy_ += y;
+        sz_ += z;
+        sxx_ += x * x;
+        sxy_ += x * y;
+        sxz_ += x * z;
+        syy_ += y * y;
+        syz_ += y * z;
+        szz_ += z * z;
         ++n_;
     }
     int count() const { return n_; }
@@ -28,8 +38,8 @@ public:
 private:
     int n_ = 0;
     Eigen::Vector3d ref_ = Eigen::Vector3d::Zero();
-    Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d sum_sq_ = Eigen::Matrix3d::Zero();
+    double sx_ = 0, sy_ = 0, sz_ = 0;                                   // sums of p - ref
+    double sxx_ = 0, sxy_ = 0, sxz_ = 0, syy_ = 0, syz_ = 0, szz_ = 0;  // and of their products
 };
 
 struct PlaneFit {

@@ -2,6 +2,7 @@
 // pitmap-eval: scores survey products against the simulator's ground truth.
 //   pitmap-eval --truth DIR/truth --products P --json scores.json
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -48,6 +49,10 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 the same where the true surface's slope is A <= slope < B
                                 degrees (classes 0 20 45 91: floors and benches, faces and the
                                 ramp, steep walls).
+  mesh_completeness_depth_A_B   mesh_completeness where the true water depth (below the water
+                                line, z = 0 of the truth) is A <= depth < B metres (classes 0 1
+                                2 4 8 12 inf: the shore near the water line is seen at the
+                                shortest ranges).
   dem_mean_abs_m, dem_rms_m, dem_p95_m, dem_bias_m
                                 vertical difference of the filled nodes of P/dem.tif (band 1,
                                 UTM; heights in a vertical datum other than the ellipsoid are
@@ -281,6 +286,18 @@ int main(int argc, char** argv) {
             }
             if (auto cc = eval::MeshCompleteness(samples, *truth, 0.2, edges[c], edges[c + 1]))
                 scores["mesh_completeness" + suffix] = *cc;
+        }
+        // By the true water depth: the shore near the water line is seen at short range.
+        const auto& depths = eval::kDepthClassEdgesM;
+        for (std::size_t c = 0; c + 1 < std::size(depths); ++c) {
+            const std::string hi = std::isfinite(depths[c + 1])
+                                       ? std::to_string(static_cast<int>(depths[c + 1]))
+                                       : std::string("inf");
+            const std::string key =
+                "mesh_completeness_depth_" + std::to_string(static_cast<int>(depths[c])) + "_" + hi;
+            if (auto cd =
+                    eval::MeshCompleteness(samples, *truth, 0.2, 0, 91, depths[c], depths[c + 1]))
+                scores[key] = *cd;
         }
         if (!common_with.empty()) {
             // Error on the part of the surface both meshes hold: a mesh that keeps only what

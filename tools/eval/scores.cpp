@@ -156,7 +156,9 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
                                        const sim::Truth& truth,
                                        double radius_m,
                                        double min_slope_deg,
-                                       double max_slope_deg) {
+                                       double max_slope_deg,
+                                       double min_depth_m,
+                                       double max_depth_m) {
     if (truth.coverage.empty()) return std::nullopt;
     const RadiusGrid grid(samples, radius_m);
     const sim::TerrainGrid& g = truth.terrain;
@@ -171,6 +173,10 @@ std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& sampl
             if (min_slope_deg > 0 || max_slope_deg <= 90) {
                 const double slope = SlopeDeg(world, sx, sy);
                 if (slope < min_slope_deg || slope >= max_slope_deg) continue;
+            }
+            if (min_depth_m > 0 || max_depth_m < std::numeric_limits<double>::infinity()) {
+                const double depth = world.Depth(sx, sy);
+                if (depth < min_depth_m || depth >= max_depth_m) continue;
             }
             ++covered;
             if (grid.AnyWithin(Eigen::Vector3d(sx, sy, world.Height(sx, sy)))) ++found;

@@ -27,6 +27,7 @@
 //                           true terrain. Also per 10-degree bin of |beam angle|.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -74,12 +75,16 @@ DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
 
 // Share of the covered true-surface cells whose surface point has a mesh sample within
 // radius_m (mesh samples already in the truth frame). nullopt without a coverage mask, or when
-// no covered cell has a true slope in [min_slope_deg, max_slope_deg).
-std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& mesh_samples_truth,
-                                       const sim::Truth& truth,
-                                       double radius_m = 0.2,
-                                       double min_slope_deg = 0,
-                                       double max_slope_deg = 91);
+// no covered cell has a true slope in [min_slope_deg, max_slope_deg) and a true water depth
+// (PitWorld::Depth, below the water line z = 0) in [min_depth_m, max_depth_m).
+std::optional<double> MeshCompleteness(
+    const std::vector<Eigen::Vector3d>& mesh_samples_truth,
+    const sim::Truth& truth,
+    double radius_m = 0.2,
+    double min_slope_deg = 0,
+    double max_slope_deg = 91,
+    double min_depth_m = 0,
+    double max_depth_m = std::numeric_limits<double>::infinity());
 
 // The samples that have one of `others` within radius_m (two meshes' common area).
 std::vector<Eigen::Vector3d> SamplesNear(const std::vector<Eigen::Vector3d>& samples,
@@ -91,6 +96,11 @@ double SlopeDeg(const sim::PitWorld& world, double x, double y);
 // Slope classes [edge i, edge i + 1) that the mesh is also scored in: floors and benches, the
 // ramp and bench faces, steep walls (a sensor model that smears a footprint shows it there).
 inline constexpr double kSlopeClassEdgesDeg[] = {0, 20, 45, 91};
+// True water depth classes [edge i, edge i + 1), m, that the mesh completeness is also scored
+// in: the shore near the water line is seen at the shortest ranges, where the beam is
+// narrowest and the pings' footprints do not overlap along the track.
+inline constexpr double kDepthClassEdgesM[] = {
+    0, 1, 2, 4, 8, 12, std::numeric_limits<double>::infinity()};
 
 // A gridded surface's nodes in the truth frame: position (x, y, z = the node's elevation), or
 // z NaN for an empty node.

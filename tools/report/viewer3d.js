@@ -12,7 +12,11 @@
 // minus view.centre. glTF files are y-up, (E, U, -N) in pitmap's mesh.glb; they are turned
 // back to z-up on loading.
 //
-// Exposes window.pitmapViewer for the browser test: ready, frames, triangles, points, gltf
+// The view is drawn on demand: when the camera moves, for a moment after any input (a click, a
+// key, a checkbox, the wheel), after a glTF is shown and while "enter VR" or the first-person
+// keys are on. A report left open does not redraw a mesh of millions 60 times a second.
+// Exposes window.pitmapViewer for the browser test: ready, frames (drawn), ticks (the animation
+// loop's turns, drawn or not), triangles, points, gltf
 // (name, status, message, triangles), profile (the last cross-section), crossSection(a, b)
 // (a cross-section between two ENU points [x, y], as the tool's two clicks make it) and
 // openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes).
@@ -21,8 +25,8 @@
   const el = document.getElementById("viewer3d");
   const info = document.getElementById("viewer3d-info");
   const problem = document.getElementById("viewer3d-problem");
-  const state = { ready: false, frames: 0, triangles: 0, points: 0, error: null, gltf: null,
-                  profile: null };
+  const state = { ready: false, frames: 0, ticks: 0, triangles: 0, points: 0, error: null,
+                  gltf: null, profile: null };
   window.pitmapViewer = state;
   if (!el || typeof THREE === "undefined") return;
 
@@ -127,6 +131,18 @@
   const camera = new THREE.PerspectiveCamera(50, W() / H(), 0.01, 100);
   camera.up.set(0, 0, 1);
   const orbit = new THREE.OrbitControls(camera, renderer.domElement);
+  // Drawing on demand: requestRender() draws the next frame, an input keeps drawing 300 ms.
+  let renderWanted = true;
+  let renderUntil = 0;
+  function requestRender(ms) {
+    renderWanted = true;
+    if (ms) renderUntil = Math.max(renderUntil, performance.now() + ms);
+  }
+  orbit.addEventListener("change", () => requestRender());
+  for (const type of ["pointerdown", "pointermove", "pointerup", "wheel", "keydown", "keyup",
+                      "click", "change", "input", "touchstart", "touchmove", "resize"]) {
+    window.addEventListener(type, () => requestRender(300), { capture: true, passive: true });
+  }
   const ray = new THREE.Raycaster();
   function frameView(centre, radius) {
     view.radius = Math.max(1, radius);
@@ -209,6 +225,7 @@
   // The tools' two clicks: "distance" or "section", on the mesh, a glTF or the soundings.
   const tool = { kind: null, picks: [], objects: [] };
   function clearTool() {
+    requestRender();
     for (const o of tool.objects) scene.remove(o);
     tool.objects = [];
     tool.picks = [];
@@ -275,6 +292,7 @@
     return isFinite(w) && w >= 0 ? w : 0.5;
   }
   function cutProfile(a, b) {
+    requestRender();
     const P = window.PitmapProfile;
     const line = P.lineOf([a.x, a.y], [b.x, b.y]);
     if (!line) {
@@ -428,13 +446,17 @@
     const bad = glbProblem(buffer);
     if (bad) {
       gltfFailed(name, bad);
+      requestRender();
       return Promise.resolve(state.gltf);
     }
     state.gltf = { name: name, status: "loading", message: "", triangles: 0 };
     info.textContent = "reading " + name + " ...";
     const why = (e) => (e && e.message ? e.message : String(e));
     return new Promise(resolve => {
-      const done = () => resolve(state.gltf);
+      const done = () => {
+        requestRender(300);  // parsed asynchronously: no input event follows it
+        resolve(state.gltf);
+      };
       try {
         new THREE.GLTFLoader().parse(buffer, "", g => {
           try {
@@ -598,7 +620,12 @@
   renderer.setAnimationLoop(now => {
     fpStep(Math.min(0.1, (now - last) / 1000));
     last = now;
-    renderer.render(scene, renderer.vr.isPresenting() ? vrCamera : camera);
+    state.ticks += 1;
+    const vr = renderer.vr.isPresenting();
+    const moving = fp.on && fp.keys.size > 0;
+    if (!(vr || moving || renderWanted || now < renderUntil || state.frames < 3)) return;
+    renderWanted = false;
+    renderer.render(scene, vr ? vrCamera : camera);
     state.frames += 1;
     state.ready = true;
   });

@@ -20,6 +20,8 @@ struct PreparedBeam {
     float range_prev_vox;  // beam-width mode: footprint range of beam - 1 (NaN = none)
     float range_next_vox;  // beam-width mode: footprint range of beam + 1 (NaN = none)
     float weight;          // f of one update (beam-width mode: f times the footprint support)
+    float half_gap_vox;    // beam-width mode: half the gap to the neighbouring pings' fans at
+                           // the footprint (TsdfConfig::ping_gap_fill_m), 0 = none
     std::int32_t x_lo;     // voxel x index range the beam can touch
     std::int32_t x_hi;
     std::int32_t y_lo;  // voxel y index range the beam can touch
@@ -52,7 +54,12 @@ struct Geometry {
 };
 
 // The beams of one scan in voxel units; beam-width mode fits each beam's footprint (a robust
-// line through the ranges of the beams inside its cone) first.
-PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo);
+// line through the ranges of the beams inside its cone) first, and measures the gap from each
+// footprint to the fan planes of the previous and next scans (nullptr = none).
+PreparedScan PrepareScan(const SonarScan& scan,
+                         const TsdfConfig& config,
+                         const Geometry& geo,
+                         const SonarScan* prev = nullptr,
+                         const SonarScan* next = nullptr);
 
 }  // namespace pitmap::proc::fusion::detail

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -284,6 +285,90 @@ TEST(TsdfVolume, FootprintOutvotesIsolatedOutliers) {
     EXPECT_GT(n, 15000u);
 }
 
+// Area of the mesh triangles whose centroid lies in |x| <= x_half, |y| <= y_half, m^2.
+double AreaInside(const TriangleMesh& m, double x_half, double y_half) {
+    double area = 0;
+    for (const Eigen::Vector3i& t : m.triangles) {
+        const Eigen::Vector3f a = m.vertices[static_cast<std::size_t>(t[0])];
+        const Eigen::Vector3f b = m.vertices[static_cast<std::size_t>(t[1])];
+        const Eigen::Vector3f c = m.vertices[static_cast<std::size_t>(t[2])];
+        const Eigen::Vector3f g = (a + b + c) / 3.0f;
+        if (std::abs(g.x()) > x_half || std::abs(g.y()) > y_half) continue;
+        area += 0.5 * static_cast<double>((b - a).cross(c - a).norm());
+    }
+    return area;
+}
+
+// Shallow water: 3 m under the head the beam is 2 * 3 m * tan(0.75 deg) = 8 cm wide, less than
+// the ping spacing (1.5 m/s at 10 Hz = 15 cm) and less than a voxel. Each ping then updates one
+// voxel plane across the track, two pings three planes, and every third plane stays unobserved:
+// the iso-surface, which needs observed voxels on both sides of the level, breaks up into
+// strips. Widening each fan to half the gap to its neighbours closes it.
+TEST(TsdfVolume, PingsSparserThanTheBeamWidthStillMeshTheFloorBetweenThem) {
+    SyntheticWorld world;
+    world.plane_z_m = -3.0;
+    LineSurvey survey;
+    survey.x0_m = -4.0;
+    survey.x1_m = 4.0;
+    survey.spacing_m = 0.15;
+    TsdfConfig off = SmallConfig(SensorModel::kBeamWidth);
+    off.ping_gap_fill_m = 0.0;
+    const TsdfConfig on = SmallConfig(SensorModel::kBeamWidth);
+    ASSERT_GE(on.ping_gap_fill_m, 0.15);
+    const auto scans = MakeScans(world, survey);
+    TsdfVolume without(off);
+    without.Integrate(scans);
+    TsdfVolume with(on);
+    with.Integrate(scans);
+
+    // Voxel centres on the floor along the track under the line: unobserved planes without the
+    // fill, none with it.
+    int unobserved_without = 0, unobserved_with = 0, n = 0;
+    for (double x = -3.0; x <= 3.0 + 1e-9; x += 0.1) {
+        const Eigen::Vector3d p(x, 0.0, -3.0);
+        unobserved_without += without.WeightAt(p) == 0.0f ? 1 : 0;
+        unobserved_with += with.WeightAt(p) == 0.0f ? 1 : 0;
+        ++n;
+    }
+    EXPECT_GE(unobserved_without, n / 10);
+    EXPECT_EQ(unobserved_with, 0);
+
+    // The swath is +-45 deg: +-3 m across at 3 m; the middle 4 m of it over 6 m of track is
+    // 24 m^2 of floor. Without the fill only the cell layers between two observed planes keep
+    // their polygons (strips); with it the floor is whole.
+    const IsoSurfaceResult iso_without = without.ExtractIsoSurface();
+    const IsoSurfaceResult iso_with = with.ExtractIsoSurface();
+    const double area_without = AreaInside(iso_without.mesh, 3.0, 2.0);
+    const double area_with = AreaInside(iso_with.mesh, 3.0, 2.0);
+    EXPECT_LT(area_without, 0.7 * 24.0);
+    EXPECT_NEAR(area_with, 24.0, 0.5) << "without the fill: " << area_without << " m^2";
+    const auto [err, num_vertices] = PlaneError(iso_with.mesh, world.plane_z_m);
+    EXPECT_LT(err, 0.05);
+    EXPECT_GT(num_vertices, 0u);
+}
+
+// A gap wider than ping_gap_fill_m (missing pings, a turn) is not bridged.
+TEST(TsdfVolume, GapsWiderThanTheFillLimitStayUnobserved) {
+    SyntheticWorld world;
+    world.plane_z_m = -3.0;
+    LineSurvey survey;
+    survey.x0_m = -4.0;
+    survey.x1_m = 4.0;
+    survey.spacing_m = 0.5;
+    TsdfConfig config = SmallConfig(SensorModel::kBeamWidth);
+    config.ping_gap_fill_m = 0.3;
+    TsdfVolume volume(config);
+    volume.Integrate(MakeScans(world, survey));
+    // Pings at x = -4 + 0.5 k: the voxel planes 0.2 m from the nearest fan stay unobserved, the
+    // ones on a fan are observed.
+    for (double x : {-1.8, -0.8, 0.2, 1.2}) {
+        EXPECT_EQ(volume.WeightAt(Eigen::Vector3d(x, 0.0, -3.0)), 0.0f) << x;
+    }
+    for (double x : {-2.0, -1.0, 0.0, 1.0}) {
+        EXPECT_GT(volume.WeightAt(Eigen::Vector3d(x, 0.0, -3.0)), 0.0f) << x;
+    }
+}
+
 TEST(TsdfVolume, EmptyInputGivesAnEmptyValidVolume) {
     TsdfVolume volume(TsdfConfig{});
     const IntegrateResult r = volume.Integrate({});
@@ -508,6 +593,11 @@ TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     bad.footprint_gate_m = 0;
     bad.footprint_gate_fraction = -0.1;
     EXPECT_EQ(bad.Validate().size(), 8u);
+    EXPECT_DOUBLE_EQ(defaults.ping_gap_fill_m, 0.3);
+    bad.ping_gap_fill_m = -0.1;
+    EXPECT_EQ(bad.Validate().size(), 9u);
+    bad.ping_gap_fill_m = std::numeric_limits<double>::infinity();
+    EXPECT_EQ(bad.Validate().size(), 9u);
     EXPECT_FLOAT_EQ(WeightFilterConfig{}.min_weight, 3.0f);
     WeightFilterConfig wf;
     wf.min_weight = -1;

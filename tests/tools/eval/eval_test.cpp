@@ -162,6 +162,12 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     EXPECT_NEAR(*MeshCompleteness(samples, truth, 0.2, 0, 20), 55.0 / 105.0, 1e-12);
     EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 45, 91).has_value());
     EXPECT_NEAR(SlopeDeg(sim::PitWorld(truth.terrain), 1.0, 1.0), 0.0, 1e-9);
+    // By true depth: the floor is 10 m deep, in the 8-12 m class only.
+    EXPECT_NEAR(*MeshCompleteness(samples, truth, 0.2, 0, 91, 8, 12), 55.0 / 105.0, 1e-12);
+    EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 0, 91, 0, 8).has_value());
+    EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 0, 91, 12).has_value());
+    EXPECT_TRUE(MeshCompleteness(samples, truth, 0.2, 0, 91, 10, 10.5).has_value());  // [A, B)
+    EXPECT_FALSE(MeshCompleteness(samples, truth, 0.2, 0, 91, 9, 10).has_value());
     // Lifted 0.3 m above the surface, nothing is within 0.2 m.
     for (auto& p : samples) p.z() += 0.3;
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);

@@ -239,11 +239,25 @@ def CheckReport(browser, page, fixture):
             fail("%s: expected a message with %r in the page, got %r (%s)"
                  % (path, words, shown, g))
     CheckGltfMutations(browser)
-    state = json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer)"))
-    frames = state["frames"]
+    # Drawn on demand: the animation loop still turns after the broken files, the view is not
+    # redrawn while nothing happens, and an input draws it again.
+    def Viewer():
+        return json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer)"))
+    browser.pump(0.6)  # past the 300 ms an input keeps drawing
+    state = Viewer()
     browser.pump(0.5)
-    if json.loads(browser.evaluate("JSON.stringify(window.pitmapViewer)"))["frames"] <= frames:
-        fail("the view stopped drawing after the broken files")
+    idle = Viewer()
+    if idle["ticks"] <= state["ticks"]:
+        fail("the view's animation loop stopped after the broken files")
+    if idle["frames"] != state["frames"]:
+        fail("the view was redrawn %d times in 0.5 s with nothing happening"
+             % (idle["frames"] - state["frames"]))
+    browser.evaluate("window.dispatchEvent(new Event('resize'))")
+    browser.pump(0.3)
+    if Viewer()["frames"] <= idle["frames"]:
+        fail("the view was not redrawn after an input (resize)")
+    print("drawn on demand: %d loop turns and no redraw in 0.5 s idle, redrawn after a resize"
+          % (idle["ticks"] - state["ticks"]))
     CheckNoErrors(browser, "report.html with glTF files")
 
 
