@@ -32,7 +32,6 @@
 #include <ctime>
 #include <limits>
 #include <map>
-#include <ranges>
 
 #include "common/result.hpp"
 #include "processor/fusion/detail/prepared_scan.hpp"
@@ -363,17 +362,17 @@ void IntegrateBeamWidth(const PreparedScan& scan,
         ijk[b_ax] = jb;
         for (int jc = jc0; jc <= jc1; ++jc, xs_c += step_c) {
             bool empty = false;
-            for (int t = 0; t < n_par; ++t) {
-                empty |= row_h[par_k[t]] - G[par_k[t]][c_ax] * jc < 0.0;
+            for (int i = 0; i < n_par; ++i) {
+                empty |= row_h[par_k[i]] - G[par_k[i]][c_ax] * jc < 0.0;
             }
             double lo_a = a_lo0;
             double hi_a = a_hi0;
-            for (int t = 0; t < n_up; ++t) {
-                const int k = up_k[t];
+            for (int i = 0; i < n_up; ++i) {
+                const int k = up_k[i];
                 hi_a = std::min(hi_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
             }
-            for (int t = 0; t < n_lo; ++t) {
-                const int k = lo_k[t];
+            for (int i = 0; i < n_lo; ++i) {
+                const int k = lo_k[i];
                 lo_a = std::max(lo_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
             }
             if (empty || lo_a > hi_a) continue;
@@ -609,7 +608,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                                   }
                               });
         });
-        for (Slab& slab : slabs | std::views::values) slab.work = 0;
+        for (auto& entry : slabs) entry.second.work = 0;  // (views::values: not with clang 14)
         int last_k = std::numeric_limits<int>::min();
         Slab* last = nullptr;
         for (const PreparedScan& ps : prepared) {
