@@ -16,7 +16,3 @@ set(CMAKE_CXX_FLAGS_RELWITHDEBINFO "-O1 -gline-tables-only -DNDEBUG" CACHE STRIN
 # checks (clang 14, -O1, CPU s: processor/fusion/tsdf.cpp 55.4 -> 49.2, registration_test.cpp
 # 44.6 -> 35.0; ASan alone 36.8 and 26.4).
 set(PITMAP_SANITIZE_EXCLUDE "object-size,alignment" CACHE STRING "")
-# The gtest files themselves at -O0: they set up inputs and compare results, the code they test
-# (compiled at -O1 above) does the work; half their compile time goes (registration_test.cpp
-# 39.3 -> 21.3 CPU s). The test files are about a fifth of this build's compile time.
-set(PITMAP_TEST_COMPILE_OPTIONS "-O0" CACHE STRING "")
