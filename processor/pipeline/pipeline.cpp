@@ -88,6 +88,15 @@ double StageClock::cpu_seconds() const {
     return ProcessCpuSeconds() - cpu_start_s_;
 }
 
+void StageClock::ResetPeakWithinStage() {
+    peak_before_reset_mb_ = peak_rss_mb();
+    ResetPeakRss();
+}
+
+double StageClock::peak_rss_mb() const {
+    return std::max(peak_before_reset_mb_, PeakRssMb());
+}
+
 double StageClock::seconds() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
@@ -96,7 +105,7 @@ void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& cl
     const std::string name = ToString(stage_id);
     stage["seconds"] = clock.seconds();
     stage["cpu_seconds"] = clock.cpu_seconds();
-    stage["peak_rss_mb"] = PeakRssMb();
+    stage["peak_rss_mb"] = clock.peak_rss_mb();
     summary["stages"][name] = std::move(stage);
     json order = json::array();
     if (summary.contains("stage_order") && summary["stage_order"].is_array()) {

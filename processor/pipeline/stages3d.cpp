@@ -231,8 +231,9 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     ProgressReporter bar(name, 1000);
     // What integration itself holds at its peak beyond its inputs (the scans are built above):
     // the resident high-water mark is reset here (where the kernel allows; else it stays the
-    // stage's) and compared with the memory the finished grids hold.
-    ResetPeakRss();
+    // stage's) and compared with the memory the finished grids hold. The clock keeps the peak
+    // before the reset for the stage's own peak_rss_mb.
+    clock.ResetPeakWithinStage();
     const double rss_before_integrate_mb = PeakRssMb();
     const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
     const double integrate_peak_mb = PeakRssMb() - rss_before_integrate_mb;

@@ -74,10 +74,16 @@ public:
     StageClock();
     double seconds() const;
     double cpu_seconds() const;
+    // Resets the resident high-water mark inside the stage (to measure one part of it) and
+    // keeps the stage's peak so far, so that peak_rss_mb is still the whole stage's.
+    void ResetPeakWithinStage();
+    // The stage's peak resident memory so far, MB.
+    double peak_rss_mb() const;
 
 private:
     std::chrono::steady_clock::time_point start_;
     double cpu_start_s_;
+    double peak_before_reset_mb_ = 0;
 };
 
 // Records a stage in summary["stages"][name] (adding seconds, cpu_seconds and peak_rss_mb) and
