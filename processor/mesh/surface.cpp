@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 #include <vector>
 
 #include <tbb/parallel_sort.h>
@@ -12,11 +11,6 @@
 namespace pitmap::proc::mesh {
 
 namespace {
-
-std::uint64_t EdgeKey(int a, int b) {
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
-           static_cast<std::uint32_t>(b);
-}
 
 void Colourise(ColouredMesh& m, double lo, double hi) {
     m.colours.resize(m.vertices.size());
@@ -74,52 +68,71 @@ HoleFillResult FillSmallHoles(std::vector<Eigen::Vector3f>& vertices,
                               std::vector<Eigen::Vector3i>& triangles,
                               int max_edges) {
     HoleFillResult r;
-    // Directed edges of the mesh, sorted (a hash map of them took ~0.5 GB on bejanca's 3 M
-    // triangles); a boundary edge a->b has no b->a.
+    std::size_t nv = vertices.size();
+    for (const Eigen::Vector3i& t : triangles) {
+        nv = std::max(nv, static_cast<std::size_t>(t.maxCoeff()) + 1);
+    }
+    // Directed edges a->b as (min, max, a > b), sorted: both directions of an edge are
+    // neighbours there, so a boundary edge (a->b without b->a) is one without its twin, found in
+    // one pass (a hash map of the edges took ~0.5 GB on bejanca's 3 M triangles, a binary search
+    // for each twin was most of this function's time). Vertex ids are below 2^31.
     std::vector<std::uint64_t> directed;
     directed.reserve(triangles.size() * 3);
     for (const Eigen::Vector3i& t : triangles) {
-        for (int k = 0; k < 3; ++k) directed.push_back(EdgeKey(t[k], t[(k + 1) % 3]));
+        for (int k = 0; k < 3; ++k) {
+            const auto a = static_cast<std::uint64_t>(t[k]);
+            const auto b = static_cast<std::uint64_t>(t[(k + 1) % 3]);
+            if (a == b) continue;  // a degenerate edge bounds nothing
+            directed.push_back(a < b ? (a << 32) | (b << 1) : (b << 32) | (a << 1) | 1u);
+        }
     }
     tbb::parallel_sort(directed.begin(), directed.end());
     directed.erase(std::unique(directed.begin(), directed.end()), directed.end());
     // The fill must contain the reverse of each boundary edge: walk b -> a. A start vertex with
-    // several boundary edges (non-manifold) keeps the last in edge order; its loop is ambiguous.
-    std::unordered_map<int, int> next;  // start vertex -> end vertex (reversed edge)
-    std::unordered_map<int, int> out_count;
-    for (const std::uint64_t key : directed) {
-        const int a = static_cast<int>(key >> 32);
-        const int b = static_cast<int>(key & 0xffffffffu);
-        if (std::binary_search(directed.begin(), directed.end(), EdgeKey(b, a))) continue;
-        next[b] = a;
-        ++out_count[b];
+    // several boundary edges (non-manifold) keeps the one from the largest a; its loop is
+    // ambiguous. Flat arrays by vertex id.
+    constexpr int kNone = -1;
+    std::vector<int> next(nv, kNone);            // start vertex -> end vertex (reversed edge)
+    std::vector<std::uint8_t> out_count(nv, 0);  // boundary edges from it, saturating at 2
+    for (std::size_t i = 0; i < directed.size(); ++i) {
+        const std::uint64_t key = directed[i];
+        if (i + 1 < directed.size() && (directed[i + 1] >> 1) == (key >> 1)) {
+            ++i;  // both directions: an interior edge
+            continue;
+        }
+        const auto lo = static_cast<int>(key >> 32);
+        const auto hi = static_cast<int>((key >> 1) & 0x7fffffffu);
+        const int a = (key & 1u) != 0 ? hi : lo;
+        const int b = (key & 1u) != 0 ? lo : hi;
+        auto& nb = next[static_cast<std::size_t>(b)];
+        nb = std::max(nb, a);
+        auto& oc = out_count[static_cast<std::size_t>(b)];
+        oc = static_cast<std::uint8_t>(std::min(2, oc + 1));
     }
     std::vector<std::uint64_t>().swap(directed);
-    std::unordered_map<int, char> visited;
+    std::vector<char> visited(nv, 0);
     const std::size_t n_triangles_before = triangles.size();
-    // Deterministic order: sorted start vertices.
-    std::vector<int> starts;
-    starts.reserve(next.size());
-    for (const auto& kv : next) starts.push_back(kv.first);
-    std::sort(starts.begin(), starts.end());
-    for (int s : starts) {
-        if (visited[s]) continue;
-        std::vector<int> loop;
+    std::vector<int> loop;
+    // Deterministic order: start vertices by id.
+    for (std::size_t s0 = 0; s0 < nv; ++s0) {
+        if (next[s0] == kNone || visited[s0] != 0) continue;
+        const auto s = static_cast<int>(s0);
+        loop.clear();
         bool ambiguous = false;
         bool closed = false;
         int v = s;
         while (true) {
-            if (out_count[v] > 1) ambiguous = true;
-            visited[v] = 1;
+            const auto vi = static_cast<std::size_t>(v);
+            if (out_count[vi] > 1) ambiguous = true;
+            visited[vi] = 1;
             loop.push_back(v);
-            auto it = next.find(v);
-            if (it == next.end()) break;
-            v = it->second;
+            if (next[vi] == kNone) break;
+            v = next[vi];
             if (v == s) {
                 closed = true;
                 break;
             }
-            if (visited[v]) break;  // ran into another loop (non-manifold)
+            if (visited[static_cast<std::size_t>(v)] != 0) break;  // ran into another loop
         }
         if (ambiguous || !closed) {
             ++r.loops_ambiguous;
