@@ -99,6 +99,32 @@ TEST(FillSmallHoles, HolesOfSeveralSizes) {
     EXPECT_NEAR(MeshArea(v, t) - area_before, 3.0, 1e-4);
 }
 
+// Two one-cell holes that touch at a corner: the shared vertex starts two boundary edges, so
+// the loop through it is ambiguous and left open (a fan could cross the other hole); the border
+// is still found. A triangle listed twice adds no boundary.
+TEST(FillSmallHoles, HolesSharingAVertexAreLeftOpen) {
+    std::vector<Eigen::Vector3f> v;
+    std::vector<Eigen::Vector3i> t;
+    const int n = 8;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            v.emplace_back(static_cast<float>(i), static_cast<float>(j), 0.f);
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n; ++i) {
+            if ((i == 2 && j == 2) || (i == 3 && j == 3)) continue;
+            const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+            t.emplace_back(a, b, d);
+            t.emplace_back(a, d, c);
+        }
+    t.push_back(t.front());
+    const std::size_t before = t.size();
+    const HoleFillResult r = FillSmallHoles(v, t, 8);
+    EXPECT_GE(r.loops_ambiguous, 1);
+    EXPECT_EQ(r.holes_found, 1);  // the border
+    EXPECT_EQ(r.holes_filled, 0);
+    EXPECT_EQ(t.size(), before);
+}
+
 TEST(RunMesh, PlaneFromTheVolumeWithColoursAndAFilledCopy) {
     fusion::testing::SyntheticWorld world;
     fusion::testing::LineSurvey survey;
