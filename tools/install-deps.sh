@@ -14,8 +14,11 @@ common_pkgs=(
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 socat util-linux pps-tools
 )
+# libopenblas0-pthread: an optimised BLAS/LAPACK that Debian's alternatives put in place of the
+# reference libblas.so.3 and liblapack.so.3 that CHOLMOD loads; SLAM's supernodal
+# factorisation runs its dense blocks there (the reference BLAS was ~20 % of SLAM's CPU).
 processor_pkgs=(
-  libsuitesparse-dev libblas-dev liblapack-dev
+  libsuitesparse-dev libblas-dev liblapack-dev libopenblas0-pthread
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev libassimp-dev
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
