@@ -96,13 +96,15 @@ inline ::testing::AssertionResult SetTrueBoresight(const std::filesystem::path& 
 
 // pitmap-eval's scores of a products folder against a simulator's truth folder; a failed run is
 // a test failure with its output.
+// extra: further pitmap-eval options, e.g. "--ate-window 30".
 inline std::map<std::string, double> EvalScores(const std::filesystem::path& truth,
-                                                const std::filesystem::path& products) {
+                                                const std::filesystem::path& products,
+                                                const std::string& extra = "") {
     std::string out;
-    EXPECT_EQ(
-        RunCommand(kBin + "/pitmap-eval --truth " + Quote(truth) + " --products " + Quote(products),
-                   &out),
-        0)
+    EXPECT_EQ(RunCommand(kBin + "/pitmap-eval --truth " + Quote(truth) + " --products " +
+                             Quote(products) + (extra.empty() ? "" : " " + extra),
+                         &out),
+              0)
         << out;
     return Scores(out);
 }

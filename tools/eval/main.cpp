@@ -2,10 +2,12 @@
 // pitmap-eval: scores survey products against the simulator's ground truth.
 //   pitmap-eval --truth DIR/truth --products P --json scores.json
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "common/formats/ply.hpp"
@@ -27,6 +29,9 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 P/trajectory_ins.csv) against the true trajectory at the same GPS
                                 times, in the truth's world frame, no alignment.
   trajectory_ate_rmse_before_m  the same for P/trajectory_initial.csv (before SLAM).
+  trajectory_ate_windows        with --ate-window S: both RMS errors per window of S seconds from
+                                the first true pose (before_m: trajectory_initial.csv, after_m);
+                                trajectory_ate_worst_window_increase_m: the largest after - before.
   trajectory_z_std_m            standard deviation of the product track height (a surface
                                 vehicle's track should be planar).
   points_rms_m, points_p95_m    RMS and 95th percentile of the distance of each point of
@@ -137,6 +142,12 @@ int main(int argc, char** argv) {
                    common_with,
                    "another products folder: also score P/mesh.ply where that folder's mesh.ply "
                    "lies within 0.2 m (mesh_mean_abs_m_common, mesh_common_share)");
+    double ate_window_s = 0;
+    app.add_option("--ate-window",
+                   ate_window_s,
+                   "also score both trajectories per window of this many seconds "
+                   "(trajectory_ate_windows, trajectory_ate_worst_window_increase_m)")
+        ->check(CLI::NonNegativeNumber);
     app.footer(kDefinitions);
     CLI11_PARSE(app, argc, argv);
 
@@ -178,6 +189,7 @@ int main(int argc, char** argv) {
         fs::exists(P / "trajectory.csv") || !fs::exists(P / "trajectory_ins.csv")
             ? "trajectory.csv"
             : "trajectory_ins.csv";
+    std::vector<eval::ProductPose> windowed[2];  // after, before
     for (const auto& [file, key] :
          {std::pair{final_trajectory, "trajectory_ate_rmse_m"},
           std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
@@ -187,7 +199,9 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "pitmap-eval: %s\n", traj.error().message.c_str());
             return 2;
         }
-        const auto s = eval::ScoreTrajectory(eval::ProductPoses(*traj), T, truth->trajectory);
+        const std::vector<eval::ProductPose> poses = eval::ProductPoses(*traj);
+        windowed[std::string(key) == "trajectory_ate_rmse_m" ? 0 : 1] = poses;
+        const auto s = eval::ScoreTrajectory(poses, T, truth->trajectory);
         if (s.poses == 0) {
             std::fprintf(
                 stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
@@ -197,6 +211,24 @@ int main(int argc, char** argv) {
         if (std::string(key) == "trajectory_ate_rmse_m") {
             scores["trajectory_ate_max_m"] = s.ate_max_m;
             scores["trajectory_z_std_m"] = s.z_std_m;
+        }
+    }
+    if (ate_window_s > 0) {
+        json windows = json::array();
+        // The worst increase is what "SLAM never made a segment worse" is judged by.
+        double worst = -std::numeric_limits<double>::infinity();
+        for (const eval::AteWindow& w : eval::ScoreTrajectoryWindows(
+                 windowed[0], windowed[1], T, truth->trajectory, ate_window_s)) {
+            windows.push_back({{"t0_s", w.t0_s},
+                               {"t1_s", w.t1_s},
+                               {"poses", w.poses},
+                               {"before_m", w.before_m},
+                               {"after_m", w.after_m}});
+            worst = std::max(worst, w.after_m - w.before_m);
+        }
+        if (!windows.empty()) {
+            scores["trajectory_ate_windows"] = windows;
+            scores["trajectory_ate_worst_window_increase_m"] = worst;
         }
     }
     if (have_cloud) {
@@ -472,8 +504,22 @@ int main(int argc, char** argv) {
         return 1;
     }
     std::printf("%-32s %12s\n", "score", "value");
-    for (const auto& [k, v] : scores.items())
-        std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
+    for (const auto& [k, v] : scores.items()) {
+        if (v.is_number()) std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
+    }
+    if (scores.contains("trajectory_ate_windows")) {
+        std::printf("\n%-16s %8s %12s %12s\n", "window (s)", "poses", "before (m)", "after (m)");
+        for (const json& w : scores["trajectory_ate_windows"]) {
+            char span[32];
+            std::snprintf(
+                span, sizeof span, "%.0f-%.0f", w["t0_s"].get<double>(), w["t1_s"].get<double>());
+            std::printf("%-16s %8zu %12.4f %12.4f\n",
+                        span,
+                        w["poses"].get<std::size_t>(),
+                        w["before_m"].get<double>(),
+                        w["after_m"].get<double>());
+        }
+    }
     if (!json_path.empty()) {
         std::ofstream out(json_path);
         out << scores.dump(2) << "\n";

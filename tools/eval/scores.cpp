@@ -80,6 +80,34 @@ TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est,
     return s;
 }
 
+std::vector<AteWindow> ScoreTrajectoryWindows(const std::vector<ProductPose>& after,
+                                              const std::vector<ProductPose>& before,
+                                              const Pose& T,
+                                              const std::vector<sim::TruthPose>& truth,
+                                              double window_s) {
+    std::vector<AteWindow> out;
+    if (!(window_s > 0) || truth.empty()) return out;
+    const double t0 = truth.front().gps_time_s;
+    const double t_end = truth.back().gps_time_s;
+    auto slice = [](const std::vector<ProductPose>& v, double a, double b) {
+        std::vector<ProductPose> s;
+        for (const ProductPose& p : v) {
+            if (p.gps_time_s >= a && p.gps_time_s < b) s.push_back(p);
+        }
+        return s;
+    };
+    const auto n = static_cast<std::size_t>(std::ceil((t_end - t0) / window_s));
+    for (std::size_t k = 0; k < n; ++k) {
+        const double a = t0 + static_cast<double>(k) * window_s;
+        const double b = a + window_s;
+        const TrajectoryScore sa = ScoreTrajectory(slice(after, a, b), T, truth);
+        const TrajectoryScore sb = ScoreTrajectory(slice(before, a, b), T, truth);
+        if (sa.poses == 0 || sb.poses == 0) continue;
+        out.push_back({a - t0, b - t0, sa.poses, sb.ate_rmse_m, sa.ate_rmse_m});
+    }
+    return out;
+}
+
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts,
                           const Pose& T,
                           const sim::PitWorld& world,

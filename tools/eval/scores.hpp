@@ -68,6 +68,19 @@ TrajectoryScore ScoreTrajectory(const std::vector<ProductPose>& est,
                                 const Pose& T_truth_product,
                                 const std::vector<sim::TruthPose>& truth);
 
+// Both trajectories scored per window of window_s seconds from the first true pose; a window
+// where either has no pose inside the truth's span is left out.
+struct AteWindow {
+    double t0_s = 0, t1_s = 0;  // from the first true pose
+    std::size_t poses = 0;      // of `after` in the window
+    double before_m = 0, after_m = 0;
+};
+std::vector<AteWindow> ScoreTrajectoryWindows(const std::vector<ProductPose>& after,
+                                              const std::vector<ProductPose>& before,
+                                              const Pose& T_truth_product,
+                                              const std::vector<sim::TruthPose>& truth,
+                                              double window_s);
+
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
                           const Pose& T_truth_product,
                           const sim::PitWorld& world,

@@ -136,6 +136,35 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
     }
 }
 
+// Per-window ATE: "before" 0.1 m off in the first 50 s, "after" 0.03 m off in 50-75 s only;
+// windows of 25 s from the first true pose (101 poses over 100 s: the last window holds one).
+TEST(Scores, TrajectoryWindowsScoreEachWindowOnItsOwn) {
+    const sim::Truth truth = FlatTruth();
+    std::vector<ProductPose> before, after;
+    for (const auto& p : truth.trajectory) {
+        const double t = p.gps_time_s - truth.trajectory.front().gps_time_s;
+        const Eigen::Vector3d x = p.T_world_vehicle.translation();
+        before.push_back({p.gps_time_s, x + Eigen::Vector3d(0, t < 50 ? 0.1 : 0.0, 0)});
+        after.push_back({p.gps_time_s, x + Eigen::Vector3d(0, 0, t >= 50 && t < 75 ? 0.03 : 0.0)});
+    }
+    const Pose I = Pose::Identity();
+    const auto w = ScoreTrajectoryWindows(after, before, I, truth.trajectory, 25.0);
+    ASSERT_EQ(w.size(), 4u);
+    EXPECT_DOUBLE_EQ(w[0].t0_s, 0.0);
+    EXPECT_DOUBLE_EQ(w[3].t1_s, 100.0);
+    EXPECT_EQ(w[0].poses, 25u);
+    EXPECT_NEAR(w[0].before_m, 0.1, 1e-9);
+    EXPECT_NEAR(w[0].after_m, 0.0, 1e-9);
+    EXPECT_NEAR(w[2].before_m, 0.0, 1e-9);
+    EXPECT_NEAR(w[2].after_m, 0.03, 1e-9);
+    EXPECT_NEAR(w[3].after_m, 0.0, 1e-9);
+    // A window without poses on one side is left out; no window without a truth.
+    after.erase(after.begin() + 25, after.begin() + 50);
+    EXPECT_EQ(ScoreTrajectoryWindows(after, before, I, truth.trajectory, 25.0).size(), 3u);
+    EXPECT_TRUE(ScoreTrajectoryWindows(after, before, I, {}, 25.0).empty());
+    EXPECT_TRUE(ScoreTrajectoryWindows(after, before, I, truth.trajectory, 0.0).empty());
+}
+
 TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     sim::Truth truth = FlatTruth();                         // 1 m cells, floor at z = -10
     EXPECT_FALSE(MeshCompleteness({}, truth).has_value());  // no coverage mask
