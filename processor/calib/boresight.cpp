@@ -331,6 +331,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     res.termination = Termination::kMaxIterations;
     bool solve_failed = false;
     std::vector<Eigen::Vector3d> rate;
+    Eigen::Vector3d prev_delta = Eigen::Vector3d::Zero();
     for (int it = 0; it < cfg.max_iterations; ++it) {
         if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
             res.termination = Termination::kCancelled;
@@ -453,7 +454,20 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         if (ldim > 0) res.latency_formal_sd_s = std::sqrt(std::max(0.0, C(3, 3)));
         res.height_offsets_rms_m =
             off.size() ? std::sqrt(off.squaredNorm() / static_cast<double>(off.size())) : 0.0;
-        R_vs = R_vs * ExpSO3(delta);
+        // Accelerated ICP (Besl & McKay 1992, section IV): with correspondences found again
+        // every iteration the rotation converges linearly, its steps shrinking by a steady
+        // ratio r along one direction (bejanca: r ~ 0.7, still 0.0035 deg at the 12th
+        // iteration). When two steps agree in direction within 10 deg, the rest of that series,
+        // delta r / (1 - r) (at most 5 delta), is taken at once.
+        Eigen::Vector3d step = delta;
+        const double np = prev_delta.norm(), nd = delta.norm();
+        if (cfg.accelerate && np > 0 && nd > 0 && nd < np &&
+            delta.dot(prev_delta) > std::cos(frames::DegToRad(10.0)) * nd * np) {
+            const double r = nd / np;
+            step += delta * std::min(r / (1.0 - r), 5.0);
+        }
+        prev_delta = delta;
+        R_vs = R_vs * ExpSO3(step);
         const frames::Rpy rpy = frames::RpyFromRotationNed(R_vs);
         m.boresight_roll_deg = frames::RadToDeg(rpy.roll);
         m.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
