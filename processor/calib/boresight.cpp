@@ -332,6 +332,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     bool solve_failed = false;
     std::vector<Eigen::Vector3d> rate;
     Eigen::Vector3d prev_delta = Eigen::Vector3d::Zero();
+    double prev_dtau = 0;
     for (int it = 0; it < cfg.max_iterations; ++it) {
         if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
             res.termination = Termination::kCancelled;
@@ -445,7 +446,17 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
             // that an early step from far away cannot jump into another wave period.
             dtau = std::clamp(x[3], -cfg.latency_scan_step_s, cfg.latency_scan_step_s);
             res.latency_unresolved = std::abs(x[3]) >= cfg.latency_scan_step_s;
-            tau += dtau;
+            // The latency converges linearly as well: the same extrapolation (below), its total
+            // step capped like the step itself.
+            double tau_step = dtau;
+            if (cfg.accelerate && prev_dtau * dtau > 0 && std::abs(dtau) < std::abs(prev_dtau)) {
+                const double r = dtau / prev_dtau;
+                tau_step = std::clamp(dtau * (1.0 + std::min(r / (1.0 - r), 5.0)),
+                                      -cfg.latency_scan_step_s,
+                                      cfg.latency_scan_step_s);
+            }
+            prev_dtau = dtau;
+            tau += tau_step;
         }
         off += x.tail(n_nodes * odim);
         const Eigen::MatrixXd C = solver.InverseLeadingBlock(base);
