@@ -68,10 +68,12 @@ HoleFillResult FillSmallHoles(std::vector<Eigen::Vector3f>& vertices,
                               std::vector<Eigen::Vector3i>& triangles,
                               int max_edges) {
     HoleFillResult r;
-    std::size_t nv = vertices.size();
-    for (const Eigen::Vector3i& t : triangles) {
-        nv = std::max(nv, static_cast<std::size_t>(t.maxCoeff()) + 1);
-    }
+    // Per-vertex arrays below: a triangle with an index outside the vertices (not one the
+    // iso-surface makes) is left out of the boundary search rather than read out of bounds.
+    const std::size_t nv = vertices.size();
+    auto valid = [nv](const Eigen::Vector3i& t) {
+        return t.minCoeff() >= 0 && static_cast<std::size_t>(t.maxCoeff()) < nv;
+    };
     // Directed edges a->b as (min, max, a > b), sorted: both directions of an edge are
     // neighbours there, so a boundary edge (a->b without b->a) is one without its twin, found in
     // one pass (a hash map of the edges took ~0.5 GB on bejanca's 3 M triangles, a binary search
@@ -79,6 +81,7 @@ HoleFillResult FillSmallHoles(std::vector<Eigen::Vector3f>& vertices,
     std::vector<std::uint64_t> directed;
     directed.reserve(triangles.size() * 3);
     for (const Eigen::Vector3i& t : triangles) {
+        if (!valid(t)) continue;
         for (int k = 0; k < 3; ++k) {
             const auto a = static_cast<std::uint64_t>(t[k]);
             const auto b = static_cast<std::uint64_t>(t[(k + 1) % 3]);

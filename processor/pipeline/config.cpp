@@ -102,7 +102,9 @@ void VisitCalibrate(V&& v, calib::BoresightConfig& c) {
     v("normal_radius_m", c.normal_radius_m, "neighbourhood for the normals, m");
     v("cauchy_scale_m", c.cauchy_scale_m, "robust kernel scale, m");
     v("max_iterations", c.max_iterations, "outer (correspondence) iterations");
-    v("accelerate", c.accelerate, "extrapolate the rotation along aligned steps (Besl & McKay)");
+    v("accelerate",
+      c.accelerate,
+      "extrapolate rotation and latency along aligned steps (Besl & McKay)");
     v("convergence_deg", c.convergence_deg, "stop below this update, deg");
     v("max_position_stddev_m", c.max_position_stddev_m, "low-drift limit (horizontal 1 sigma), m");
     v("max_heading_stddev_deg", c.max_heading_stddev_deg, "low-drift limit, deg");

@@ -229,6 +229,12 @@ int main(int argc, char** argv) {
         if (!windows.empty()) {
             scores["trajectory_ate_windows"] = windows;
             scores["trajectory_ate_worst_window_increase_m"] = worst;
+        } else {
+            std::fprintf(stderr,
+                         "pitmap-eval: --ate-window: no window holds poses of both %s and "
+                         "trajectory_initial.csv inside the true trajectory's span; no per-window "
+                         "score\n",
+                         final_trajectory);
         }
     }
     if (have_cloud) {

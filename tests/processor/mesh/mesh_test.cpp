@@ -125,6 +125,20 @@ TEST(FillSmallHoles, HolesSharingAVertexAreLeftOpen) {
     EXPECT_EQ(t.size(), before);
 }
 
+// A triangle whose index lies outside the vertices (or is negative) is left out, not read.
+TEST(FillSmallHoles, TrianglesWithBadIndicesAreLeftOut) {
+    std::vector<Eigen::Vector3f> v;
+    std::vector<Eigen::Vector3i> t;
+    GridMesh(6, v, t, 12);
+    t.emplace_back(0, 1, 1000000);
+    t.emplace_back(-5, 2, 3);
+    const std::size_t before = t.size();
+    const HoleFillResult r = FillSmallHoles(v, t, 8);
+    EXPECT_EQ(r.holes_found, 2);
+    EXPECT_EQ(r.holes_filled, 1);
+    EXPECT_EQ(t.size(), before + 4);
+}
+
 TEST(RunMesh, PlaneFromTheVolumeWithColoursAndAFilledCopy) {
     fusion::testing::SyntheticWorld world;
     fusion::testing::LineSurvey survey;
