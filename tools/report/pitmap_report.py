@@ -59,6 +59,9 @@ def main(argv=None):
     ap.add_argument("--scores", metavar="FILE",
                     help="scores JSON from pitmap-eval --json (default: P/scores.json)")
     ap.add_argument("--title", metavar="TEXT", help="report (or page) title")
+    ap.add_argument("-j", "--jobs", metavar="N", type=int, default=None,
+                    help="sections drawn by N processes at once (default: the CPUs this "
+                    "process may run on, at most 4; 1 draws them one after the other)")
     ap.add_argument("--view-gltf", metavar="GLB",
                     help="instead of a report: a self-contained page showing GLB (glTF 2.0 "
                     "binary, e.g. P/mesh.glb) in the report's 3D viewer")
@@ -73,6 +76,9 @@ def main(argv=None):
         ap.error("give a products folder P (or --view-gltf GLB)")
     if args.output is not None:
         ap.error("-o/--output goes with --view-gltf (the report is always P/report.html)")
+    if args.jobs is not None and args.jobs < 1:
+        ap.error("--jobs must be at least 1")
+    jobs = args.jobs if args.jobs is not None else min(4, len(os.sched_getaffinity(0)))
     folder = os.path.abspath(args.products)
     if not os.path.isdir(folder):
         print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
@@ -81,7 +87,7 @@ def main(argv=None):
     scores = args.scores or os.path.join(folder, "scores.json")
     try:
         report = Report(folder, scores, title)
-        page = report.Build()
+        page = report.Build(jobs)
     except ReportError as e:
         print(f"{PROG}: {e}", file=sys.stderr)
         return 1

@@ -389,6 +389,26 @@ class ReportTest(unittest.TestCase):
         self.assertIn("data:image/png", sec["mesh"])  # the mesh before SLAM is still drawn
         self.assertRegex(sec["scores"], r"not produced: scores\.json \(unreadable")
 
+    def test_sections_drawn_in_parallel_give_the_same_page(self):
+        # Problems and missing products from sections drawn by other processes are merged in
+        # page order: a folder with both gives the page of the sequential run.
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        with open(os.path.join(p, "mesh.ply"), "r+b") as f:
+            f.truncate(os.path.getsize(os.path.join(p, "mesh.ply")) // 2)
+        os.remove(os.path.join(p, "trajectory_initial.csv"))
+        os.remove(os.path.join(p, "boresight.json"))
+        pages = {}
+        for jobs in ("1", "3"):
+            r = Run(p, "--jobs", jobs)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+                pages[jobs] = re.sub(r"Report written \(UTC\)</b></td><td>[^<]*", "", f.read())
+        self.assertIn('class="problem">mesh.ply', pages["1"])
+        self.assertRegex(pages["1"], r'class="missing">not produced: [^<]*trajectory_initial')
+        self.assertEqual(pages["1"], pages["3"])
+        self.assertNotEqual(Run(p, "--jobs", "0").returncode, 0)
+
     def test_unusable_points_and_trajectory_are_named_with_the_reason(self):
         p = os.path.join(self.dir, "P")
         WriteProducts(p, full=True)

@@ -105,10 +105,11 @@ def RasterMax(x, y, v, x0, y0, cell, nx, ny):
     vv = v[ok]
     grid = np.full(nx * ny, np.nan)
     if len(flat):
-        order = np.lexsort((vv, flat))
+        # Grouped by cell (one sort key, not two), the largest of each group by reduceat.
+        order = np.argsort(flat)
         fs = flat[order]
-        last = np.r_[fs[1:] != fs[:-1], True]
-        grid[fs[last]] = vv[order][last]
+        first = np.flatnonzero(np.r_[True, fs[1:] != fs[:-1]])
+        grid[fs[first]] = np.maximum.reduceat(vv[order], first)
     return grid.reshape(ny, nx)
 
 

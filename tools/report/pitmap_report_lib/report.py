@@ -2,7 +2,10 @@
 """The Report: a products folder (loaders.Products) and its sections (the sections_* mixins)
 made into one self-contained HTML page."""
 
+import multiprocessing
 import os
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 import matplotlib
@@ -36,39 +39,84 @@ class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSe
         return (np.asarray(t, dtype=np.float64) - (self.t0 or 0.0)) / 60.0
 
     # ---- page
-    def Build(self):
+    SECTIONS = (
+        ("summary", "Survey", "SectionHeader"),
+        ("quality", "Quality gates", "SectionQuality"),
+        ("trajectory", "Trajectory before and after SLAM", "SectionTrajectory"),
+        ("cross-sections", "Cross-sections of the point cloud", "SectionCrossSections"),
+        ("depth", "Depth-coloured top view", "SectionDepth"),
+        ("hydro", "Vertical datum and IHO S-44 quality control", "SectionHydro"),
+        ("mosaic", "Backscatter mosaic", "SectionMosaic"),
+        ("mesh", "Mesh before and after SLAM", "SectionMesh"),
+        ("viewer", "Interactive 3D view", "SectionViewer"),
+        ("boresight", "Boresight calibration", "SectionBoresight"),
+        ("clock", "Sonar clock and latency", "SectionClock"),
+        ("tsdf", "TSDF weight histogram", "SectionTsdf"),
+        ("slam", "SLAM per iteration", "SectionSlam"),
+        ("stages", "Stages: time and memory", "SectionStages"),
+        ("scores", "Scores against ground truth", "SectionScores"),
+    )
+    # Drawn first when sections run in parallel: the mesh section (two meshes read and
+    # rasterised, two figures) costs about as much as all the others together.
+    HEAVY_FIRST = ("mesh", "viewer", "cross-sections", "depth")
+
+    def RunSection(self, index):
+        """One section drawn: (its HTML, the problems and missing products it added). What
+        it added is returned and taken out of self.problems and self.missing again, so that
+        sections drawn here and in other processes are merged the same way, in page order."""
+        sid, heading, method = self.SECTIONS[index]
+        n_problems, n_missing = len(self.problems), len(self.missing)
+        Log(f"section {sid}")
+        try:
+            frag = getattr(self, method)()
+        except Exception as e:  # a broken product must not cost the whole report
+            Log(f"section {sid} failed: {type(e).__name__}: {e}")
+            self.problems.append(f"{heading}: {type(e).__name__}: {e}")
+            frag = f'<p class="problem">could not draw: {Esc(type(e).__name__)}: {Esc(e)}</p>'
+            plt.close("all")
+        added = (self.problems[n_problems:], self.missing[n_missing:])
+        del self.problems[n_problems:]
+        del self.missing[n_missing:]
+        return (frag,) + added
+
+    def Build(self, jobs=1):
+        """The page. With jobs > 1 the sections are drawn by that many forked processes
+        (the loaded trajectories and points are shared, copy-on-write); the page, its
+        problems and its missing products are the same as when drawn one after the other,
+        in page order."""
         self.LoadTrajectories()
         self.LoadPoints()
         self.LoadScores()
-        sections = [
-            ("summary", "Survey", self.SectionHeader),
-            ("quality", "Quality gates", self.SectionQuality),
-            ("trajectory", "Trajectory before and after SLAM", self.SectionTrajectory),
-            ("cross-sections", "Cross-sections of the point cloud", self.SectionCrossSections),
-            ("depth", "Depth-coloured top view", self.SectionDepth),
-            ("hydro", "Vertical datum and IHO S-44 quality control", self.SectionHydro),
-            ("mosaic", "Backscatter mosaic", self.SectionMosaic),
-            ("mesh", "Mesh before and after SLAM", self.SectionMesh),
-            ("viewer", "Interactive 3D view", self.SectionViewer),
-            ("boresight", "Boresight calibration", self.SectionBoresight),
-            ("clock", "Sonar clock and latency", self.SectionClock),
-            ("tsdf", "TSDF weight histogram", self.SectionTsdf),
-            ("slam", "SLAM per iteration", self.SectionSlam),
-            ("stages", "Stages: time and memory", self.SectionStages),
-            ("scores", "Scores against ground truth", self.SectionScores),
-        ]
-        body = []
-        for sid, heading, fn in sections:
-            Log(f"section {sid}")
+        n = len(self.SECTIONS)
+        results = [None] * n
+        if jobs > 1 and "fork" in multiprocessing.get_all_start_methods():
+            global _REPORT
+            _REPORT = self
+            heavy = self.HEAVY_FIRST
+            order = sorted(range(n), key=lambda i: heavy.index(self.SECTIONS[i][0])
+                           if self.SECTIONS[i][0] in heavy else len(heavy) + i)
             try:
-                frag = fn()
-            except Exception as e:  # a broken product must not cost the whole report
-                Log(f"section {sid} failed: {type(e).__name__}: {e}")
-                self.problems.append(f"{heading}: {type(e).__name__}: {e}")
-                frag = f'<p class="problem">could not draw: {Esc(type(e).__name__)}: {Esc(e)}</p>'
-                plt.close("all")
+                with ProcessPoolExecutor(max_workers=jobs,
+                                         mp_context=multiprocessing.get_context("fork")) as ex:
+                    futures = {i: ex.submit(_RunSectionOfReport, i) for i in order}
+                    for i, fut in futures.items():
+                        results[i] = fut.result()
+            except BrokenProcessPool as e:
+                # A worker killed (out of memory, a signal): the sections it did not return
+                # are drawn here, one after the other.
+                Log(f"a section process died ({e}); drawing the rest in this process")
+            finally:
+                _REPORT = None
+        for i in range(n):
+            if results[i] is None:
+                results[i] = self.RunSection(i)
+        body = []
+        for (sid, heading, _), (frag, added_problems, added_missing) in zip(self.SECTIONS,
+                                                                           results):
+            self.problems.extend(added_problems)
+            self.missing.extend(m for m in added_missing if m not in self.missing)
             body.append(f'<section id="{sid}"><h2>{Esc(heading)}</h2>\n{frag}\n</section>')
-        toc = " &middot; ".join(f'<a href="#{sid}">{Esc(h)}</a>' for sid, h, _ in sections)
+        toc = " &middot; ".join(f'<a href="#{sid}">{Esc(h)}</a>' for sid, h, _ in self.SECTIONS)
         notes = []
         if self.missing:
             notes.append('<p class="missing">not produced: ' +
@@ -77,6 +125,14 @@ class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSe
             notes.append(f'<p class="problem">{Esc(p)}</p>')
         return PAGE.format(title=Esc(self.title), toc=toc, notes="\n".join(notes),
                            body="\n".join(body), css=CSS)
+
+
+# The report whose sections forked workers draw (set by Build only while they run).
+_REPORT = None
+
+
+def _RunSectionOfReport(index):
+    return _REPORT.RunSection(index)
 
 
 CSS = """
