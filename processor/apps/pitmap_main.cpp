@@ -22,6 +22,7 @@
 #include <filesystem>
 
 #include "common/config.hpp"
+#include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -65,6 +66,8 @@ constexpr int kExitQualityGate = 4;
 }  // namespace
 
 int main(int argc, char** argv) try {
+    // Large arrays on transparent huge pages (re-executes once; see common/peak_memory.hpp).
+    pitmap::ReexecWithHugePageMalloc(argv);
     // `pitmap live ARGS` is pitmap-live ARGS (its own program: it links the HTTP server).
     if (argc >= 2 && std::string(argv[1]) == "live") {
         const std::string live = SiblingProgram("pitmap-live");

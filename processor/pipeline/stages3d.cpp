@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
+#include <sched.h>
 #include <spawn.h>
+#include <unistd.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/blocked_range.h>
@@ -10,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 
@@ -406,6 +409,14 @@ Expected<detail::Survey> LoadState(const std::string& out_dir, const Log& log) {
     return s;
 }
 
+// The CPUs this process may run on (its affinity mask), else the machine's.
+int CoresAvailable() {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    if (::sched_getaffinity(0, sizeof set, &set) == 0) return CPU_COUNT(&set);
+    return static_cast<int>(::sysconf(_SC_NPROCESSORS_ONLN));
+}
+
 }  // namespace
 
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
@@ -478,6 +489,14 @@ Status RunAll(const std::vector<std::string>& inputs,
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     s.summary["total_seconds"] = total();
+    // What the figures were measured on: the cores this process could use, and whether malloc
+    // put large blocks on transparent huge pages (ReexecWithHugePageMalloc in common/).
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    s.summary["process"] = {
+        {"cores", CoresAvailable()},
+        {"malloc_huge_pages",
+         tunables != nullptr && std::string(tunables).find("glibc.malloc.hugetlb=1") !=
+                                    std::string::npos}};
     if (auto st = detail::SaveSummary(s); !st) return st;
     if (config.run.report) {
         auto st = detail::ReportSurvey(s, config, log);
