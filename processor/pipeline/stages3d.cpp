@@ -2,11 +2,11 @@
 // The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
 #include <sched.h>
 #include <spawn.h>
-#include <unistd.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -495,8 +495,8 @@ Status RunAll(const std::vector<std::string>& inputs,
     s.summary["process"] = {
         {"cores", CoresAvailable()},
         {"malloc_huge_pages",
-         tunables != nullptr && std::string(tunables).find("glibc.malloc.hugetlb=1") !=
-                                    std::string::npos}};
+         tunables != nullptr &&
+             std::string(tunables).find("glibc.malloc.hugetlb=1") != std::string::npos}};
     if (auto st = detail::SaveSummary(s); !st) return st;
     if (config.run.report) {
         auto st = detail::ReportSurvey(s, config, log);
