@@ -425,7 +425,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         // The last users of the per-sounding THU/TVU: moved, not copied.
         ss.thu_95_m = std::move(tpu.thu_95_m);
         ss.tvu_95_m = std::move(tpu.tvu_95_m);
-        ss.ping = s.geo.points.ping;
+        // The soundings' ping indices are borrowed (24 MB on bejanca; the S-44 part sets the
+        // stage's peak) and handed back after RunS44.
+        ss.ping = std::move(s.geo.points.ping);
         std::vector<double> transducer(s.geo.pings.size());
         for (std::size_t k = 0; k < s.geo.pings.size(); ++k) {
             const auto& p = s.geo.pings[k];
@@ -443,6 +445,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             sg.depth_m[q] = static_cast<float>(ref - g.elevation_m[q]);
         }
         const hydro::S44Result r44 = hydro::RunS44(ss, sg, gc.s44_config);
+        s.geo.points.ping = std::move(ss.ping);
         log("grid: S-44: " + r44.message);
         io::GridRaster hol = raster;
         hol.layers = {{"holiday", "", r44.holiday_map}};
