@@ -66,6 +66,7 @@ std::vector<std::string> BoresightConfig::Validate() const {
     if (!(max_position_stddev_m > 0)) p.push_back("calibrate.max_position_stddev_m must be > 0");
     if (!(max_heading_stddev_deg > 0)) p.push_back("calibrate.max_heading_stddev_deg must be > 0");
     if (num_verify_segments < 0) p.push_back("calibrate.num_verify_segments must be >= 0");
+    if (verify_query_every < 1) p.push_back("calibrate.verify_query_every must be >= 1");
     if (!(height_offset_sigma_m > 0)) p.push_back("calibrate.height_offset_sigma_m must be > 0");
     if (!(range_noise_fraction >= 0)) p.push_back("calibrate.range_noise_fraction must be >= 0");
     if (!(range_noise_constant_m > 0)) p.push_back("calibrate.range_noise_constant_m must be > 0");
@@ -148,15 +149,18 @@ void Positions(const PingPoses& T,
     });
 }
 
-// The soundings of [t0, t1) with their own passes indexed at the given mount and latency.
+// The soundings of [t0, t1) with their own passes indexed at the given mount and latency;
+// every query_every-th of them seeks pairs.
 Samples CollectIndexed(const GeorefResult& geo,
                        const ShiftedPoses& poses,
                        const SonarMount& m,
                        double tau,
                        double t0,
                        double t1,
+                       int query_every,
                        const BoresightConfig& cfg) {
     Samples S = Collect(geo, t0, t1, cfg.beam_stride);
+    S.query_every = query_every;
     std::vector<Eigen::Vector3d> p;
     Positions(PingPoses(poses, S, tau), S, m, p);
     IndexOwnPasses(p, S, cfg);
@@ -272,7 +276,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     const ShiftedPoses poses(geo, nav);
     const double tau0 = cfg.estimate_latency ? cfg.initial_latency_s : 0.0;
     const Samples S =
-        CollectIndexed(geo, poses, mount, tau0, res.segment.start_s, res.segment.end_s, cfg);
+        CollectIndexed(geo, poses, mount, tau0, res.segment.start_s, res.segment.end_s, 1, cfg);
     res.before = Evaluate(poses, S, mount, tau0, cfg);
     double tau = tau0;
     if (cfg.estimate_latency && cfg.latency_scan_s > 0) {
@@ -513,7 +517,8 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         if (!clash && c.overlap_cells > 0) chosen.push_back(c);
     }
     for (const auto& c : chosen) {
-        const Samples V = CollectIndexed(geo, poses, mount, tau0, c.start_s, c.end_s, cfg);
+        const Samples V = CollectIndexed(
+            geo, poses, mount, tau0, c.start_s, c.end_s, cfg.verify_query_every, cfg);
         VerifyResult v{
             c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg), {}};
         if (res.latency_estimated) v.after_nominal_latency = Evaluate(poses, V, m, tau0, cfg);

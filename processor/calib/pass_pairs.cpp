@@ -104,6 +104,10 @@ void IndexOwnPasses(const std::vector<Eigen::Vector3d>& p, Samples& S, const Bor
             const Eigen::Vector3d& q = p[k];
             const double t = S.t_s[k];
             const std::size_t first = own.size();
+            if (!S.IsQuery(k)) {
+                S.own_begin[k + 1] = 0;
+                continue;
+            }
             for (const PassBlock& b : blocks) {
                 if (b.t1 <= t - sep || b.t0 >= t + sep) continue;  // other passes only
                 if (BoxDistance2(q, b) >= nr2) continue;
@@ -146,6 +150,7 @@ std::vector<Pair> FindPairs(const std::vector<Eigen::Vector3d>& p,
         // result is the nearest point all the same.
         std::size_t hint = p.size();
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
+            if (!S.IsQuery(k)) continue;
             const Eigen::Vector3d& q = p[k];
             const double t = S.t_s[k];
             double best = d2_max;

@@ -31,6 +31,12 @@ struct Samples {
     // normal is fitted to the current positions at every iteration.
     std::vector<std::size_t> own_begin;
     std::vector<std::uint32_t> own;
+    // Only samples k with k % query_every == 0 seek a pair (and get their own pass indexed);
+    // all of them can be paired with.
+    int query_every = 1;
+    bool IsQuery(std::size_t k) const {
+        return query_every <= 1 || k % static_cast<std::size_t>(query_every) == 0;
+    }
 };
 
 // The soundings of pings in [t0, t1) (GPS seconds), every stride-th beam.

@@ -109,6 +109,9 @@ void VisitCalibrate(V&& v, calib::BoresightConfig& c) {
     v("max_position_stddev_m", c.max_position_stddev_m, "low-drift limit (horizontal 1 sigma), m");
     v("max_heading_stddev_deg", c.max_heading_stddev_deg, "low-drift limit, deg");
     v("num_verify_segments", c.num_verify_segments, "other segments to verify on");
+    v("verify_query_every",
+      c.verify_query_every,
+      "on the verification segments, pairs sought from every n-th sample only");
     v("estimate_height_offsets",
       c.estimate_height_offsets,
       "per-node INS height corrections (else parallel passes bias roll)");

@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "common/frames.hpp"
+#include "processor/calib/pass_pairs.hpp"
 
 namespace pitmap::proc::calib {
 namespace {
@@ -125,13 +126,51 @@ TEST(Boresight, OnePassHasNoOverlapAndSaysSo) {
     EXPECT_EQ(res.mount.boresight_roll_deg, 0.0);  // unchanged
 }
 
+// Verification seeks pairs from every other sample only (verify_query_every): those it finds
+// are the very pairs the full search finds for the same samples, against all the samples.
+TEST(PassPairs, QueryingEveryOtherSampleGivesTheSamePairsForThoseSamples) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const GeorefResult geo =
+        Survey({{0.0, {0, -20}, {0, 1}, 40}, {60.0, {4, 20}, {0, -1}, 40}}, truth, nominal);
+    const BoresightConfig cfg;
+    detail::Samples all = detail::Collect(geo, 0.0, 1e9, cfg.beam_stride);
+    const Pose T_vs = nominal.T_vehicle_sonar();
+    std::vector<Eigen::Vector3d> p(all.ping.size());
+    for (std::size_t k = 0; k < p.size(); ++k)
+        p[k] = geo.pings[all.ping[k]].T_world_vehicle * (T_vs * all.s_sonar[k]);
+    detail::Samples half = all;
+    half.query_every = 2;
+    detail::IndexOwnPasses(p, all, cfg);
+    detail::IndexOwnPasses(p, half, cfg);
+    const auto a = detail::FindPairs(p, all, cfg, 0.5);
+    const auto h = detail::FindPairs(p, half, cfg, 0.5);
+    ASSERT_EQ(a.size(), h.size());
+    std::size_t found = 0, odd_targets = 0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        if (k % 2 == 1) {
+            EXPECT_FALSE(h[k].ok) << k;
+            EXPECT_EQ(half.own_begin[k + 1], half.own_begin[k]) << "not indexed: " << k;
+            continue;
+        }
+        ASSERT_EQ(h[k].ok, a[k].ok) << k;
+        if (!h[k].ok) continue;
+        ++found;
+        odd_targets += h[k].c.target % 2;
+        EXPECT_EQ(h[k].c.target, a[k].c.target) << k;
+        EXPECT_DOUBLE_EQ(h[k].r, a[k].r) << k;
+    }
+    EXPECT_GT(found, 1000u);
+    EXPECT_GT(odd_targets, found / 4) << "the samples that seek no pair are still paired with";
+}
+
 TEST(Boresight, ConfigValidationListsEveryProblem) {
     BoresightConfig c;
     c.segment_duration_s = 0;
     c.beam_stride = 0;
     c.height_offset_sigma_m = -1;
+    c.verify_query_every = 0;
     const auto p = c.Validate();
-    EXPECT_EQ(p.size(), 3u);
+    EXPECT_EQ(p.size(), 4u);
     EXPECT_TRUE(BoresightConfig{}.Validate().empty());
 }
 
