@@ -359,6 +359,9 @@ void VisitRun(V&& v, RunOptions& r) {
     v("initial_mesh_voxel_factor",
       r.initial_mesh_voxel_factor,
       "mesh_initial's voxel size / fuse.voxel_size_m (a picture for the report)");
+    v("initial_mesh_ping_stride",
+      r.initial_mesh_ping_stride,
+      "mesh_initial is fused from every n-th ping");
     v("report", r.report, "report.html");
 }
 
@@ -542,6 +545,8 @@ std::vector<std::string> RunOptions::Validate() const {
     std::vector<std::string> p;
     if (!(initial_mesh_voxel_factor >= 1.0 && initial_mesh_voxel_factor <= 8.0))
         p.push_back("run.initial_mesh_voxel_factor must be within 1..8");
+    if (initial_mesh_ping_stride < 1 || initial_mesh_ping_stride > 8)
+        p.push_back("run.initial_mesh_ping_stride must be within 1..8");
     return p;
 }
 

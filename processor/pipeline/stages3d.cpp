@@ -228,10 +228,22 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const Log& log) {
     StageClock clock;
     const std::string name = ToString(stage);
-    const std::vector<fusion::SonarScan> scans =
-        MakeScans(s.geo, s.model.ingest.pings, s.model.mount);
+    std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.model.ingest.pings, s.model.mount);
     fusion::TsdfConfig tcfg = config.tsdf;
-    if (stage == Stage::kFuseInitial) tcfg.voxel_size_m *= config.run.initial_mesh_voxel_factor;
+    int ping_stride = 1;
+    if (stage == Stage::kFuseInitial) {
+        // A picture for the report: coarser voxels, fewer pings (RunOptions).
+        tcfg.voxel_size_m *= config.run.initial_mesh_voxel_factor;
+        ping_stride = std::max(1, config.run.initial_mesh_ping_stride);
+        // The kept pings are ping_stride times as far apart: bridged as the full set would be.
+        tcfg.ping_gap_fill_m *= ping_stride;
+        std::size_t kept = 0;
+        for (std::size_t k = 0; k < scans.size(); k += static_cast<std::size_t>(ping_stride)) {
+            if (kept != k) scans[kept] = std::move(scans[k]);
+            ++kept;
+        }
+        scans.resize(kept);
+    }
     fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
     // What integration itself holds at its peak beyond its inputs (the scans are built above):
@@ -252,6 +264,7 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     json st = ir;  // the integration counts
     st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
                {"voxel_size_m", tcfg.voxel_size_m},
+               {"ping_stride", ping_stride},
                {"truncation_m", config.tsdf.truncation_m},
                {"integrate_seconds", ir.elapsed_s},
                {"integrate_peak_rss_growth_mb", integrate_peak_mb},
