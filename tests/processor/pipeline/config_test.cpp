@@ -111,7 +111,7 @@ TEST_F(Config, EveryProblemIsListed) {
         "calibrate:\n  beam_stride: 1.5\n  estimate_latency: maybe\n"
         "slam:\n  robust_kernel: tukey\n"
         "fuse:\n  voxel_size_m: -1\n"
-        "run:\n  initial_mesh_voxel_factor: 0.5\n"
+        "run:\n  initial_mesh_voxel_factor: 0.5\n  initial_mesh_ping_stride: 0\n"
         "products:\n  origin:\n    latitude_deg: 40\n    altitude: 3\n"
         "extra_section: {}\n");
     ASSERT_FALSE(r.ok());
@@ -128,6 +128,7 @@ TEST_F(Config, EveryProblemIsListed) {
           "extra_section",
           "fuse.voxel_size_m",
           "run.initial_mesh_voxel_factor must be within 1..8",
+          "run.initial_mesh_ping_stride must be within 1..8",
           "products.origin needs latitude_deg, longitude_deg and height_m"}) {
         EXPECT_NE(m.find(expected), std::string::npos) << expected << "\n" << m;
     }

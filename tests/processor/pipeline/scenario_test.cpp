@@ -324,6 +324,17 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
         EXPECT_GT(st.at("peak_rss_mb").get<double>(), 1.0) << n;
     }
     EXPECT_GT(summary.at("total_seconds").get<double>(), 0.0);
+    EXPECT_GE(summary.at("process").at("cores").get<int>(), 1);
+    EXPECT_TRUE(summary.at("process").at("malloc_huge_pages").is_boolean());
+    // The mesh before SLAM is a picture: every 2nd ping at twice the voxel size, yet the whole
+    // surface (voxels twice as large: about a quarter of the final mesh's triangles; holes
+    // between the kept pings would make it fewer).
+    const json& fi = summary.at("stages").at("fuse_initial");
+    EXPECT_EQ(fi.at("ping_stride").get<int>(), 2);
+    EXPECT_LT(fi.at("voxel_updates").get<double>(),
+              0.25 * summary.at("stages").at("fuse").at("voxel_updates").get<double>());
+    EXPECT_GT(summary.at("stages").at("mesh_initial").at("triangles").get<double>(),
+              0.15 * summary.at("stages").at("mesh").at("triangles").get<double>());
     EXPECT_EQ(summary.at("stages").at("export").at("trajectory"), "slam");
     const json& slam = summary.at("stages").at("slam");
     EXPECT_EQ(slam.at("slices").get<int>(), 1200);
