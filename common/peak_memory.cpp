@@ -3,6 +3,7 @@
 
 #include <fcntl.h>
 #include <malloc.h>
+#include <sys/auxv.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -61,6 +62,8 @@ void ReexecWithHugePageMalloc(char** argv) {
 #define PITMAP_SANITIZED_ALLOCATOR 1
 #endif
 #if defined(__linux__) && defined(__GLIBC__) && !defined(PITMAP_SANITIZED_ALLOCATOR)
+    // A set-user-ID start drops GLIBC_TUNABLES at exec: it would never be seen set (a loop).
+    if (::getauxval(AT_SECURE) != 0) return;
     std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
     const std::string thp((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
     const auto tunables =

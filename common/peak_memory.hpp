@@ -27,7 +27,8 @@ void ResetPeakRss();
 //     "never" there are none to have),
 //   - GLIBC_TUNABLES does not already say glibc.malloc.hugetlb (the user's choice, or ours on
 //     the second start), and PITMAP_HUGEPAGES is not 0 (to turn it off, e.g. under a debugger),
-//   - the build is not a sanitizer build (its allocator is not glibc's).
+//   - the build is not a sanitizer build (its allocator is not glibc's),
+//   - the process was not started set-user-ID (the loader drops GLIBC_TUNABLES then).
 // It returns when it did not re-execute (or the exec failed): the program then runs as before.
 // Call it first in main(), before any thread or output.
 void ReexecWithHugePageMalloc(char** argv);
