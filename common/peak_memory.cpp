@@ -51,7 +51,32 @@ std::optional<std::string> HugePageTunables(const char* glibc_tunables,
                            : current + ":glibc.malloc.hugetlb=1";
 }
 
-void ReexecWithHugePageMalloc(char** argv) {
+namespace {
+
+std::string ThpEnabled() {
+    std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+bool MallocOnHugePages(const char* glibc_tunables, const std::string& thp_enabled) {
+    if (thp_enabled.find("[always]") != std::string::npos) return true;
+    if (thp_enabled.find("[never]") != std::string::npos || glibc_tunables == nullptr) {
+        return false;
+    }
+    const std::string t = glibc_tunables;
+    const std::string key = "glibc.malloc.hugetlb=";
+    const std::size_t at = t.rfind(key);  // the last setting wins
+    if (at == std::string::npos || (at > 0 && t[at - 1] != ':')) return false;
+    const std::size_t v = at + key.size();
+    return v < t.size() && t[v] >= '1' && t[v] <= '9';
+}
+
+bool MallocOnHugePages() {
+    return MallocOnHugePages(std::getenv("GLIBC_TUNABLES"), ThpEnabled());
+}
+
 #if defined(__has_feature)
 #if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
     __has_feature(memory_sanitizer)
@@ -62,16 +87,35 @@ void ReexecWithHugePageMalloc(char** argv) {
 #define PITMAP_SANITIZED_ALLOCATOR 1
 #endif
 #if defined(__linux__) && defined(__GLIBC__) && !defined(PITMAP_SANITIZED_ALLOCATOR)
+#define PITMAP_HUGE_PAGE_RESTART 1
+#endif
+
+bool HugePageRestartBuiltIn() {
+#ifdef PITMAP_HUGE_PAGE_RESTART
+    return true;
+#else
+    return false;
+#endif
+}
+
+void ReexecWithHugePageMalloc(char** argv) {
+#ifdef PITMAP_HUGE_PAGE_RESTART
     // A set-user-ID start drops GLIBC_TUNABLES at exec: it would never be seen set (a loop).
     if (::getauxval(AT_SECURE) != 0) return;
-    std::ifstream f("/sys/kernel/mm/transparent_hugepage/enabled");
-    const std::string thp((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    const auto tunables =
-        HugePageTunables(std::getenv("GLIBC_TUNABLES"), std::getenv("PITMAP_HUGEPAGES"), thp);
+    const char* before = std::getenv("GLIBC_TUNABLES");
+    const auto tunables = HugePageTunables(before, std::getenv("PITMAP_HUGEPAGES"), ThpEnabled());
     if (!tunables || argv == nullptr || argv[0] == nullptr) return;
+    const std::optional<std::string> saved =
+        before != nullptr ? std::optional<std::string>(before) : std::nullopt;
     if (::setenv("GLIBC_TUNABLES", tunables->c_str(), 1) != 0) return;
     ::execv("/proc/self/exe", argv);
-    // No exec: carry on as we are (the variable stays set, for programs started from here).
+    // No exec: carry on as we are, with the variable as it was (this process does not have
+    // what it says, and what it starts should not be told it does).
+    if (saved) {
+        ::setenv("GLIBC_TUNABLES", saved->c_str(), 1);
+    } else {
+        ::unsetenv("GLIBC_TUNABLES");
+    }
 #else
     (void)argv;
 #endif

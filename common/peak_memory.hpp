@@ -32,11 +32,19 @@ void ResetPeakRss();
 // It returns when it did not re-execute (or the exec failed): the program then runs as before.
 // Call it first in main(), before any thread or output.
 void ReexecWithHugePageMalloc(char** argv);
+// Whether this build re-executes at all (glibc on Linux, no sanitizer).
+bool HugePageRestartBuiltIn();
 // The decision above without its effects: the GLIBC_TUNABLES to re-execute with, or nothing.
 // thp_enabled is the text of /sys/kernel/mm/transparent_hugepage/enabled ("always [madvise]
 // never"); a null pointer is an unset variable.
 std::optional<std::string> HugePageTunables(const char* glibc_tunables,
                                             const char* pitmap_hugepages,
                                             const std::string& thp_enabled);
+// Whether malloc's large blocks go on huge pages in a process with these GLIBC_TUNABLES and
+// that THP mode: the kernel's "always", or glibc.malloc.hugetlb set to a non-zero value (1:
+// transparent huge pages, 2: hugetlbfs) where THP is not "never". MallocOnHugePages() asks for
+// this process (summary.json `process.malloc_huge_pages`).
+bool MallocOnHugePages(const char* glibc_tunables, const std::string& thp_enabled);
+bool MallocOnHugePages();
 
 }  // namespace pitmap

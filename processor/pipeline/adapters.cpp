@@ -127,15 +127,17 @@ PoseLookup PosesAtPings(const georef::GeorefResult& geo,
 
 std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
                                          const georef::PingSeries& pings,
-                                         const georef::SonarMount& mount) {
+                                         const georef::SonarMount& mount,
+                                         int ping_stride) {
     std::vector<fusion::SonarScan> scans;
     if (!IsSortedByPing(geo)) return scans;
     const std::vector<std::size_t> offset = PingOffsets(geo);
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
-    scans.resize(geo.pings.size());
-    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+    const auto stride = static_cast<std::size_t>(std::max(1, ping_stride));
+    scans.resize((geo.pings.size() + stride - 1) / stride);
+    for (std::size_t k = 0; k < geo.pings.size(); k += stride) {
         const georef::GeorefPing& ping = geo.pings[k];
-        fusion::SonarScan& s = scans[k];
+        fusion::SonarScan& s = scans[k / stride];
         s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
         Pose tilt = Pose::Identity();
         tilt.linear() =

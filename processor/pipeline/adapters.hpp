@@ -67,12 +67,13 @@ PoseLookup PosesAtPings(const georef::GeorefResult& geo,
                         const std::vector<double>& gps_time_s,
                         const std::vector<Pose>& T_world_vehicle);
 
-// TSDF input: one scan per georeferenced ping; a beam's range is the kept sounding's range, 0
-// where the georeferencing dropped it (no detection, range gate, spike). The fan's angles come
-// from the ping header (theta_i = start + i * increment).
+// TSDF input: one scan per georeferenced ping (every ping_stride-th of them); a beam's range is
+// the kept sounding's range, 0 where the georeferencing dropped it (no detection, range gate,
+// spike). The fan's angles come from the ping header (theta_i = start + i * increment).
 std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
                                          const georef::PingSeries& pings,
-                                         const georef::SonarMount& mount);
+                                         const georef::SonarMount& mount,
+                                         int ping_stride = 1);
 
 // A vehicle trajectory in the world frame with GPS times (seconds), for trajectory CSVs.
 struct TimedPoses {

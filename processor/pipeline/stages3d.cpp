@@ -228,7 +228,6 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
                                         const Log& log) {
     StageClock clock;
     const std::string name = ToString(stage);
-    std::vector<fusion::SonarScan> scans = MakeScans(s.geo, s.model.ingest.pings, s.model.mount);
     fusion::TsdfConfig tcfg = config.tsdf;
     int ping_stride = 1;
     if (stage == Stage::kFuseInitial) {
@@ -237,13 +236,9 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
         ping_stride = std::max(1, config.run.initial_mesh_ping_stride);
         // The kept pings are ping_stride times as far apart: bridged as the full set would be.
         tcfg.ping_gap_fill_m *= ping_stride;
-        std::size_t kept = 0;
-        for (std::size_t k = 0; k < scans.size(); k += static_cast<std::size_t>(ping_stride)) {
-            if (kept != k) scans[kept] = std::move(scans[k]);
-            ++kept;
-        }
-        scans.resize(kept);
     }
+    const std::vector<fusion::SonarScan> scans =
+        MakeScans(s.geo, s.model.ingest.pings, s.model.mount, ping_stride);
     fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
     // What integration itself holds at its peak beyond its inputs (the scans are built above):
@@ -503,13 +498,9 @@ Status RunAll(const std::vector<std::string>& inputs,
     };
     s.summary["total_seconds"] = total();
     // What the figures were measured on: the cores this process could use, and whether malloc
-    // put large blocks on transparent huge pages (ReexecWithHugePageMalloc in common/).
-    const char* tunables = std::getenv("GLIBC_TUNABLES");
-    s.summary["process"] = {
-        {"cores", CoresAvailable()},
-        {"malloc_huge_pages",
-         tunables != nullptr &&
-             std::string(tunables).find("glibc.malloc.hugetlb=1") != std::string::npos}};
+    // put large blocks on huge pages (ReexecWithHugePageMalloc in common/peak_memory.hpp).
+    s.summary["process"] = {{"cores", CoresAvailable()},
+                            {"malloc_huge_pages", MallocOnHugePages()}};
     if (auto st = detail::SaveSummary(s); !st) return st;
     if (config.run.report) {
         auto st = detail::ReportSurvey(s, config, log);

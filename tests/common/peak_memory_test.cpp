@@ -44,5 +44,18 @@ TEST(HugePageTunables, LeftAloneOtherwise) {
     EXPECT_FALSE(HugePageTunables(nullptr, nullptr, ""));
 }
 
+TEST(MallocOnHugePages, FollowsTheKernelAndTheTunable) {
+    const std::string madvise = "always [madvise] never\n";
+    EXPECT_TRUE(MallocOnHugePages("glibc.malloc.hugetlb=1", madvise));
+    EXPECT_TRUE(MallocOnHugePages("glibc.malloc.arena_max=2:glibc.malloc.hugetlb=2", madvise));
+    EXPECT_FALSE(MallocOnHugePages("glibc.malloc.hugetlb=0", madvise));
+    EXPECT_FALSE(MallocOnHugePages("glibc.malloc.hugetlb=1:glibc.malloc.hugetlb=0", madvise));
+    EXPECT_FALSE(MallocOnHugePages("glibc.malloc.hugetlb=", madvise));
+    EXPECT_FALSE(MallocOnHugePages("xglibc.malloc.hugetlb=1", madvise));
+    EXPECT_FALSE(MallocOnHugePages(nullptr, madvise));
+    EXPECT_TRUE(MallocOnHugePages(nullptr, "[always] madvise never\n"));
+    EXPECT_FALSE(MallocOnHugePages("glibc.malloc.hugetlb=1", "always madvise [never]\n"));
+}
+
 }  // namespace
 }  // namespace pitmap

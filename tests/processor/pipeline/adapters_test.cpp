@@ -141,6 +141,14 @@ TEST(Adapters, ScansReproduceTheSoundingsAndMarkDroppedBeams) {
     }
     EXPECT_EQ(scans[0].ranges_m[1], 0.0f) << "beam 1 has no sounding";
     for (float r : scans[2].ranges_m) EXPECT_EQ(r, 0.0f);
+    // Every 3rd ping (the picture before SLAM): pings 0 and 3, the same scans as above.
+    const auto thinned = MakeScans(s.geo, s.pings, mount, 3);
+    ASSERT_EQ(thinned.size(), 2u);
+    for (std::size_t k = 0; k < thinned.size(); ++k) {
+        EXPECT_EQ(thinned[k].gps_time_s, scans[3 * k].gps_time_s) << k;
+        EXPECT_EQ(thinned[k].ranges_m, scans[3 * k].ranges_m) << k;
+        EXPECT_TRUE(thinned[k].T_world_sonar.isApprox(scans[3 * k].T_world_sonar)) << k;
+    }
 }
 
 TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
