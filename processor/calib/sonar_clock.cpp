@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include "processor/calib/sonar_clock.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <optional>
 
@@ -195,7 +197,224 @@ double ParabolaVertex(double c, double h, double a, double b, double d) {
     return c + 0.5 * h * (a - d) / den;
 }
 
+// The head's roll and pitch (deg) the INS predicts at t: its attitude composed with the mount.
+std::optional<Eigen::Vector2d> HeadRollPitch(const NavTrack& nav,
+                                             double t,
+                                             const Eigen::Matrix3d& R_vs,
+                                             bool identity_mount) {
+    const auto n = nav.Interpolate(t);
+    if (!n) return std::nullopt;
+    if (identity_mount) return Eigen::Vector2d(n->roll, n->pitch);
+    const Eigen::Matrix3d R =
+        frames::RotationWorldFromRpy(
+            frames::DegToRad(n->roll), frames::DegToRad(n->pitch), frames::DegToRad(n->yaw)) *
+        R_vs;
+    const frames::Rpy rpy = frames::RpyFromRotationWorld(R);
+    return Eigen::Vector2d(frames::RadToDeg(rpy.roll), frames::RadToDeg(rpy.pitch));
+}
+
 }  // namespace
+
+ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
+                                         const georef::NavSeries& nav,
+                                         const ClockRateConfig& cfg) {
+    ClockRateEstimate est;
+    char buf[320];
+    if (nav.samples.size() < 2) {
+        est.message = "clock rate: no navigation";
+        return est;
+    }
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    struct Sample {
+        double t;  // seconds since t_ref on the pings' clock
+        Eigen::Vector2d head;
+    };
+    std::vector<Sample> all;
+    for (const auto& h : pings.pings) {
+        if (!h.aid_attitude_at_ping || !std::isfinite(h.aid_roll_deg) ||
+            !std::isfinite(h.aid_pitch_deg))
+            continue;
+        all.push_back({static_cast<double>(h.utime_gps - t_ref) * 1e-6,
+                       Eigen::Vector2d(h.aid_roll_deg, h.aid_pitch_deg)});
+    }
+    const double span = all.size() > 1 ? all.back().t - all.front().t : 0.0;
+    if (static_cast<std::int64_t>(all.size()) < cfg.min_samples || span < cfg.min_span_s) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "clock rate: not estimated: %lld pings over %.0f s carry the head's own "
+                      "attitude (at least %lld over %.0f s needed)",
+                      static_cast<long long>(all.size()),
+                      span,
+                      static_cast<long long>(cfg.min_samples),
+                      cfg.min_span_s);
+        est.message = buf;
+        return est;
+    }
+    std::vector<Sample> S;
+    if (static_cast<std::int64_t>(all.size()) > cfg.max_samples) {
+        const auto n = static_cast<std::size_t>(cfg.max_samples);
+        for (std::size_t i = 0; i < n; ++i) S.push_back(all[i * all.size() / n]);
+    } else {
+        S = std::move(all);
+    }
+    const double t_mid = 0.5 * (S.front().t + S.back().t);
+    est.reference_utime = t_ref + std::llround(t_mid * 1e6);
+    est.samples = static_cast<std::int64_t>(S.size());
+    const NavTrack track(nav, t_ref, Eigen::Vector3d::Zero());
+    const bool identity = cfg.R_vehicle_sonar.isIdentity(1e-12);
+    const auto head = [&](double t) {
+        return HeadRollPitch(track, t, cfg.R_vehicle_sonar, identity);
+    };
+    const auto diff = [](const Eigen::Vector2d& measured, const Eigen::Vector2d& predicted) {
+        return Eigen::Vector2d(WrapDeg(measured.x() - predicted.x()),
+                               WrapDeg(measured.y() - predicted.y()));
+    };
+
+    // d at rate 0: the de-biased RMS over a scan (waves of seconds: a step of 10 ms is fine).
+    double best_d = 0, best = std::numeric_limits<double>::infinity();
+    const int n_scan = static_cast<int>(std::floor(cfg.scan_s / cfg.scan_step_s));
+    for (int i = -n_scan; i <= n_scan; ++i) {
+        const double d = i * cfg.scan_step_s;
+        Eigen::Vector2d sum = Eigen::Vector2d::Zero(), sq = Eigen::Vector2d::Zero();
+        std::size_t n = 0;
+        for (const auto& x : S) {
+            const auto p = head(x.t + d);
+            if (!p) continue;
+            const Eigen::Vector2d r = diff(x.head, *p);
+            sum += r;
+            sq += r.cwiseProduct(r);
+            ++n;
+        }
+        if (n < S.size() / 2) continue;
+        const Eigen::Vector2d mean = sum / static_cast<double>(n);
+        const double v = (sq / static_cast<double>(n) - mean.cwiseProduct(mean)).sum();
+        if (v < best) {
+            best = v;
+            best_d = d;
+        }
+    }
+    if (!std::isfinite(best)) {
+        est.message = "clock rate: not estimated: the pings lie outside the navigation span";
+        return est;
+    }
+
+    // Gauss-Newton on x = [d (s), rate (ppm), bias roll, bias pitch (deg)].
+    Eigen::Vector4d x(best_d, 0, 0, 0);
+    {
+        Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+        std::size_t n = 0;
+        for (const auto& s : S) {
+            if (const auto p = head(s.t + best_d)) {
+                sum += diff(s.head, *p);
+                ++n;
+            }
+        }
+        x.tail<2>() = sum / static_cast<double>(std::max<std::size_t>(n, 1));
+    }
+    constexpr double kH = 0.05;                      // central difference for the attitude rate, s
+    Eigen::Matrix4d info = Eigen::Matrix4d::Zero();  // data and prior, 1 / sigma^2 units
+    std::vector<Eigen::Vector2d> res(S.size());
+    std::vector<char> valid(S.size());
+    std::size_t n_res = 0;
+    double ss = 0;  // unweighted residual squares (roll and pitch)
+    // The residuals at x, with the robust scale and the residual variance inflated for their
+    // correlation from ping to ping (AR(1): (1 + rho) / (1 - rho)).
+    struct Noise {
+        double scale = 0, variance = 0;
+    };
+    const auto residuals = [&] {
+        std::vector<double> abs_r;
+        double lag0 = 0, lag1 = 0;
+        ss = 0;
+        for (std::size_t i = 0; i < S.size(); ++i) {
+            const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
+            const auto p = head(S[i].t + tau);
+            valid[i] = p.has_value();
+            if (!p) continue;
+            res[i] = diff(S[i].head, *p) - x.tail<2>();
+            abs_r.push_back(std::abs(res[i].x()));
+            abs_r.push_back(std::abs(res[i].y()));
+            ss += res[i].squaredNorm();
+            lag0 += res[i].squaredNorm();
+            if (i > 0 && valid[i - 1]) lag1 += res[i].dot(res[i - 1]);
+        }
+        Noise n;
+        if (abs_r.size() < 8) return n;
+        const double robust_sigma = 1.4826 * Median(abs_r);
+        n.scale = std::max(cfg.cauchy_scale_deg, 2.5 * robust_sigma);
+        const double rho = std::clamp(lag0 > 0 ? lag1 / lag0 : 0.0, 0.0, 0.95);
+        n.variance = std::max(robust_sigma * robust_sigma, 1e-12) * (1 + rho) / (1 - rho);
+        return n;
+    };
+    for (int it = 0; it < cfg.max_iterations; ++it) {
+        const Noise noise = residuals();
+        if (noise.scale <= 0) break;
+        info.setZero();
+        Eigen::Vector4d g = Eigen::Vector4d::Zero();
+        n_res = 0;
+        for (std::size_t i = 0; i < S.size(); ++i) {
+            if (!valid[i]) continue;
+            const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
+            const auto plus = head(S[i].t + tau + kH), minus = head(S[i].t + tau - kH);
+            if (!plus || !minus) continue;
+            const Eigen::Vector2d rate = diff(*plus, *minus) / (2 * kH);
+            for (int a = 0; a < 2; ++a) {
+                Eigen::Vector4d J(-rate[a], -rate[a] * 1e-6 * (S[i].t - t_mid), 0, 0);
+                J[2 + a] = -1;
+                const double r = res[i][a];
+                const double w =
+                    1.0 / (1.0 + (r / noise.scale) * (r / noise.scale)) / noise.variance;
+                info += w * J * J.transpose();
+                g += w * J * r;
+                ++n_res;
+            }
+        }
+        if (n_res < 8) break;
+        const double prior = 1.0 / (cfg.rate_prior_sigma_ppm * cfg.rate_prior_sigma_ppm);
+        info(1, 1) += prior;
+        g[1] += prior * x[1];
+        const Eigen::Vector4d step = info.ldlt().solve(-g);
+        if (!step.allFinite()) break;
+        x += step;
+        if (std::abs(step[0]) < 1e-6 && std::abs(step[1]) < 1e-3) break;
+    }
+    if (n_res < 8 || !x.allFinite()) {
+        est.message = "clock rate: not estimated: the head's attitude could not be fitted";
+        return est;
+    }
+    residuals();
+    const Eigen::Matrix4d C = info.ldlt().solve(Eigen::Matrix4d::Identity());
+    const std::size_t n_ok = static_cast<std::size_t>(std::count(valid.begin(), valid.end(), 1));
+    est.offset_s = x[0];
+    est.rate_ppm = x[1];
+    est.offset_sigma_s = std::sqrt(std::max(0.0, C(0, 0)));
+    est.rate_sigma_ppm = std::sqrt(std::max(0.0, C(1, 1)));
+    est.residual_rms_deg = n_ok > 0 ? std::sqrt(ss / static_cast<double>(2 * n_ok)) : 0.0;
+    const bool certain = est.rate_sigma_ppm <= cfg.max_rate_sigma_ppm;
+    const bool plausible = std::abs(est.rate_ppm) <= cfg.max_abs_rate_ppm;
+    const bool fits = est.residual_rms_deg <= cfg.max_residual_rms_deg;
+    est.found = certain && plausible && fits;
+    std::snprintf(buf,
+                  sizeof(buf),
+                  "clock rate %+.1f ppm +- %.1f ppm from the head's attitude (%lld pings over "
+                  "%.0f s, residual %.3f deg; it matches the INS %+.4f s +- %.4f s from the "
+                  "ping times)",
+                  est.rate_ppm,
+                  est.rate_sigma_ppm,
+                  static_cast<long long>(est.samples),
+                  S.back().t - S.front().t,
+                  est.residual_rms_deg,
+                  est.offset_s,
+                  est.offset_sigma_s);
+    est.message = buf;
+    if (!est.found) {
+        est.message = "clock rate: not used: " + est.message.substr(std::strlen("clock rate ")) +
+                      (!fits      ? ": the head's attitude does not follow the INS"
+                       : !certain ? ": too uncertain"
+                                  : ": beyond any clock crystal");
+    }
+    return est;
+}
 
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime) {
     char s[96];

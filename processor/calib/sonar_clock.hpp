@@ -71,6 +71,55 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
                                  const georef::NavSeries& nav,
                                  const ClockSearchConfig& config = {});
 
+// The sonar clock's rate. A PC clock runs tens of ppm fast or slow (35 ppm is 7 ms over a
+// 200 s calibration window and 126 ms over an hour), which one offset cannot follow: on the
+// quarry's 83P files the boresight's pitch came out 0.04 deg off from it, and the soundings of
+// one window resolve the rate only to some 30 ppm. The head's own roll/pitch sensor is sampled
+// at every interrogation on that clock (PingHeader::aid_attitude_at_ping), so matching it to
+// the INS attitude along the whole survey times the clock at every ping. Gauss-Newton on
+//   r_i = a_head(t_i) - a_ins(t_i + d + rate (t_i - t_mid)) - bias_a,   a = roll, pitch,
+// with the INS attitude composed with the nominal mount, one bias per axis (the boresight, the
+// sensor's own alignment), t_mid the middle of the pings, Cauchy weights (scale: the larger of
+// cauchy_scale_deg and 2.5 robust sigmas) against glitches, started from a scan of d. The
+// sigmas are the fit's, its residual sigma robust (MAD) and inflated for the residuals'
+// correlation from ping to ping (AR(1)). A
+// prior of rate_prior_sigma_ppm (what PC crystals do) keeps a short survey's rate from
+// following the noise: it is applied whenever the data have at least halved that sigma.
+// d (what the coarse match left plus the sensor's own lag) is reported only: the soundings
+// find the latency in the calibration.
+struct ClockRateConfig {
+    double min_span_s = 60;  // of pings with the head's attitude
+    std::int64_t min_samples = 300;
+    std::int64_t max_samples = 20000;  // evenly thinned beyond
+    double scan_s = 0.5;               // d scanned over +- this first (the coarse sigma)
+    double scan_step_s = 0.01;
+    double cauchy_scale_deg = 0.2;
+    int max_iterations = 10;
+    double rate_prior_sigma_ppm = 50;   // around 0, 1 sigma
+    double max_rate_sigma_ppm = 25;     // less certain: not used, and said
+    double max_abs_rate_ppm = 1000;     // beyond any crystal: a misfit, not a clock
+    double max_residual_rms_deg = 1.0;  // the head's attitude does not follow the INS: not used
+    // R_vehicle_sonar of the nominal mount: the head's attitude is the INS's composed with it.
+    Eigen::Matrix3d R_vehicle_sonar = Eigen::Matrix3d::Identity();
+};
+
+struct ClockRateEstimate {
+    bool found = false;
+    double rate_ppm = 0;  // the ping times gain rate_ppm * 1e-6 * (t - reference_utime)
+    double rate_sigma_ppm = 0;
+    double offset_s = 0;  // d: add to the ping times at the reference (not applied)
+    double offset_sigma_s = 0;
+    std::int64_t reference_utime = 0;  // t_mid, on the pings' clock
+    std::int64_t samples = 0;
+    double residual_rms_deg = 0;  // after the fit (roll and pitch together)
+    std::string message;
+};
+
+// `pings` on GPS time to within the scan (after the coarse correction or a configured offset).
+ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
+                                         const georef::NavSeries& nav,
+                                         const ClockRateConfig& config = {});
+
 // "a .. b GPS s (n s)" of a time span in microseconds, for messages naming spans.
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime);
 

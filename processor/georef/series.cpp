@@ -53,4 +53,21 @@ void ShiftPingTimes(PingSeries& pings, double correction_s) {
     for (auto& p : pings.pings) p.utime_gps += d;
 }
 
+namespace {
+
+std::int64_t LineShiftUs(std::int64_t t, double correction_s, double rate, std::int64_t ref) {
+    return static_cast<std::int64_t>(
+        std::llround(correction_s * 1e6 + rate * static_cast<double>(t - ref)));
+}
+
+}  // namespace
+
+void ShiftPingTimes(PingSeries& pings,
+                    double correction_s,
+                    double rate,
+                    std::int64_t reference_utime) {
+    for (auto& p : pings.pings)
+        p.utime_gps += LineShiftUs(p.utime_gps, correction_s, rate, reference_utime);
+}
+
 }  // namespace pitmap::proc::georef

@@ -54,6 +54,11 @@ struct PingHeader {
     double profile_tilt_deg = 0;    // fore/aft fan tilt
     std::uint32_t beam_offset = 0;  // first beam in PingSeries::range_counts
     std::uint16_t num_beams = 0;
+    // aid_roll_deg and aid_pitch_deg (below) are the head's own sensor's, sampled at the
+    // interrogation on the sonar's clock (the external fields are NMEA-fed, as stale as the
+    // position): they time the clock's rate (calib::EstimateSonarClockRate). Sits in what was
+    // padding, so the survey file's ping records keep their size.
+    bool aid_attitude_at_ping = false;
     // What the topside program wrote beside its clock, NaN when absent: a position from its
     // NMEA feed (the last fix it had, so up to a fix interval stale), and the head's attitude
     // (internal sensor, else the external fields). Only used to find an unknown sonar clock
@@ -91,5 +96,14 @@ void SortAndDeduplicate(PingSeries& pings);
 // Adds `correction_s` (rounded to the microsecond) to every ping time: a sonar clock correction.
 // Shifting by -x undoes a shift by x exactly.
 void ShiftPingTimes(PingSeries& pings, double correction_s);
+
+// A sonar clock that also runs at the wrong rate (a PC crystal is tens of ppm off): every ping
+// time t (microseconds) gains correction_s + rate * (t - reference_utime), rounded to the
+// microsecond. Unlike the constant shift this one is not undone exactly by its opposite (two
+// neighbouring microseconds can round to one), so it is applied once, at georef.
+void ShiftPingTimes(PingSeries& pings,
+                    double correction_s,
+                    double rate,
+                    std::int64_t reference_utime);
 
 }  // namespace pitmap::proc::georef

@@ -155,6 +155,7 @@ void Collector::AddPing83P(const dt::Ping83P& p, std::int64_t utime_gps) {
                                            : ext(dt::kExternalRollValid, p.external_roll_deg);
     h.aid_pitch_deg = p.internal_pitch_valid ? p.internal_pitch_deg
                                              : ext(dt::kExternalPitchValid, p.external_pitch_deg);
+    h.aid_attitude_at_ping = p.internal_roll_valid && p.internal_pitch_valid;
     h.aid_heading_deg = p.internal_heading_valid
                             ? p.internal_heading_deg
                             : ext(dt::kExternalHeadingValid, p.external_heading_deg);

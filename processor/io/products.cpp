@@ -395,6 +395,9 @@ std::string CheckSummary(const nlohmann::json& j) {
                               "sigma_s",
                               "latency_s",
                               "latency_formal_sd_s",
+                              "rate_ppm",
+                              "rate_sigma_ppm",
+                              "rate_reference_gps_s",
                               "configured_offset_s",
                               "estimated_offset_s"}) {
             if (c->contains(k)) {

@@ -104,10 +104,39 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     } else {
         sigma = 0.0;  // ms: the calibration's linear range covers it
     }
+    // The topside PC's clock also runs at a rate of its own: timed by the head's attitude
+    // sensor along the whole survey, and taken out before anything looks at the soundings.
+    calib::ClockRateEstimate rate;
+    if (header) {
+        calib::ClockRateConfig rc;
+        rc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
+        rate = calib::EstimateSonarClockRate(pings, nav, rc);
+        log("sonar clock: " + rate.message);
+        clk["rate"] = {{"found", rate.found},
+                       {"rate_ppm", rate.rate_ppm},
+                       {"rate_sigma_ppm", rate.rate_sigma_ppm},
+                       {"offset_s", rate.offset_s},
+                       {"offset_sigma_s", rate.offset_sigma_s},
+                       {"reference_gps_s", static_cast<double>(rate.reference_utime) * 1e-6},
+                       {"samples", rate.samples},
+                       {"residual_rms_deg", rate.residual_rms_deg},
+                       {"message", rate.message}};
+        if (rate.found) {
+            georef::ShiftPingTimes(pings, 0.0, rate.rate_ppm * 1e-6, rate.reference_utime);
+            clk["rate_ppm"] = rate.rate_ppm;
+            clk["rate_sigma_ppm"] = rate.rate_sigma_ppm;
+            clk["rate_reference_gps_s"] = static_cast<double>(rate.reference_utime) * 1e-6;
+        }
+    }
     clk["correction_s"] = applied;
     clk["sigma_s"] = sigma;
     s.summary["sonar_clock"] = clk;
     s.model.clock = {};
+    if (rate.found) {
+        s.model.clock.rate_ppm = rate.rate_ppm;
+        s.model.clock.rate_sigma_ppm = rate.rate_sigma_ppm;
+        s.model.clock.rate_reference_utime = rate.reference_utime;
+    }
     s.model.clock.configured = config.ingest.sonar_clock_offset_known;
     s.model.clock.configured_offset_s =
         config.ingest.sonar_clock_offset_known ? config.ingest.sonar_clock_offset_s : 0.0;

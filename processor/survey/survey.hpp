@@ -58,7 +58,13 @@ struct SonarClockState {
     bool latency_applied = false;    // the calibration's latency is in the ping times
     double latency_s = 0;
     double latency_formal_sd_s = 0;
-    // Everything applied to the ping times, and the 1-sigma of what remains.
+    // The topside clock's rate error (from the head's attitude sensor), applied at georef with
+    // the coarse correction: a ping at t gained rate_ppm * 1e-6 * (t - rate_reference_utime).
+    double rate_ppm = 0;
+    double rate_sigma_ppm = 0;
+    std::int64_t rate_reference_utime = 0;
+    // Everything applied to the ping times (at the rate's reference time), and the 1-sigma of
+    // what remains.
     double correction_s() const { return coarse_correction_s + (latency_applied ? latency_s : 0); }
     double sigma_s() const { return latency_applied ? latency_formal_sd_s : coarse_sigma_s; }
 };

@@ -36,6 +36,10 @@ struct DiskNav {
     std::int32_t ins_status, position_type;
 };
 static_assert(std::is_trivially_copyable_v<DiskNav>);
+// The ping records are written as they are in memory: a field that changes their size
+// changes the file format.
+static_assert(sizeof(georef::PingHeader) == 112 &&
+              std::is_trivially_copyable_v<georef::PingHeader>);
 
 struct DiskPose {
     double v[7];  // x, y, z, qw, qx, qy, qz
@@ -179,7 +183,10 @@ json StateJson(const SurveyModel& m) {
               {"coarse_sigma_s", c.coarse_sigma_s},
               {"latency_applied", c.latency_applied},
               {"latency_s", c.latency_s},
-              {"latency_formal_sd_s", c.latency_formal_sd_s}}},
+              {"latency_formal_sd_s", c.latency_formal_sd_s},
+              {"rate_ppm", c.rate_ppm},
+              {"rate_sigma_ppm", c.rate_sigma_ppm},
+              {"rate_reference_utime", c.rate_reference_utime}}},
             {"refraction", refraction},
             {"calibration", ToString(m.calibration)}};
 }
@@ -209,11 +216,17 @@ Status StateFromJson(const json& j, SurveyModel& m) {
         m.clock.latency_applied = c.at("latency_applied").get<bool>();
         m.clock.latency_s = c.at("latency_s").get<double>();
         m.clock.latency_formal_sd_s = c.at("latency_formal_sd_s").get<double>();
+        // Surveys written before the clock rate was estimated have none.
+        m.clock.rate_ppm = c.value("rate_ppm", 0.0);
+        m.clock.rate_sigma_ppm = c.value("rate_sigma_ppm", 0.0);
+        m.clock.rate_reference_utime = c.value("rate_reference_utime", std::int64_t{0});
         for (double v : {m.clock.configured_offset_s,
                          m.clock.coarse_correction_s,
                          m.clock.coarse_sigma_s,
                          m.clock.latency_s,
-                         m.clock.latency_formal_sd_s}) {
+                         m.clock.latency_formal_sd_s,
+                         m.clock.rate_ppm,
+                         m.clock.rate_sigma_ppm}) {
             if (!std::isfinite(v)) return Error{"sonar_clock: not a finite number"};
         }
         m.refraction = {};
@@ -280,9 +293,11 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResul
     r.pings.clock = static_cast<georef::PingClock>(clock);
     for (auto& p : r.pings.pings) {
         // A bool read from bytes must hold 0 or 1 (the CRC does not stop crafted files).
-        auto* flag =
-            reinterpret_cast<unsigned char*>(&p) + offsetof(georef::PingHeader, sound_speed_valid);
-        *flag = *flag != 0 ? 1 : 0;
+        for (const std::size_t at : {offsetof(georef::PingHeader, sound_speed_valid),
+                                     offsetof(georef::PingHeader, aid_attitude_at_ping)}) {
+            auto* flag = reinterpret_cast<unsigned char*>(&p) + at;
+            *flag = *flag != 0 ? 1 : 0;
+        }
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size())
             return Error{"section ingest: inconsistent beam offsets"};
     }

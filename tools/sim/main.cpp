@@ -117,6 +117,12 @@ int main(int argc, char** argv) {
                           clock_offset_s,
                           "seconds: sonar header time minus UTC at the survey start (default: "
                           "the scenario's); GPS = header + (GPS-UTC) - offset");
+    double clock_drift_ppm = 0;
+    auto* clock_drift_opt = synth->add_option(
+        "--topside-clock-drift",
+        clock_drift_ppm,
+        "ppm: how fast the topside PC clock runs against UTC (default: the scenario's; a PC "
+        "crystal is good to some tens of ppm)");
     auto* stamp_error_opt =
         synth->add_option("--sonar-stamp-error-ms",
                           stamp_error_ms,
@@ -203,6 +209,7 @@ int main(int argc, char** argv) {
     }
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
+    if (clock_drift_opt->count() > 0) scenario->sonar.topside_clock_drift_ppm = clock_drift_ppm;
     if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;
     if (stamp_step.size() == 2) {
         scenario->sonar.daemon_stamp_error_step_s = stamp_step[0];

@@ -91,6 +91,79 @@ TEST(SonarClock, ShiftKeepsOrder) {
     EXPECT_EQ(SpanText(0, 2'500'000), "0.000 .. 2.500 GPS s (2.5 s)");
 }
 
+TEST(SonarClock, ALineShiftAddsTheRateFromTheReference) {
+    SurveyOptions o;
+    o.duration_s = 50;
+    o.num_beams = 3;
+    auto sv = MakeSurvey(o);
+    const georef::PingSeries before = sv.pings;
+    const std::int64_t ref = sv.pings.pings[100].utime_gps;
+    georef::ShiftPingTimes(sv.pings, 1.2345, -47e-6, ref);
+    for (std::size_t i : {0, 100, 499}) {
+        const auto t0 = before.pings[i].utime_gps;
+        EXPECT_NEAR(static_cast<double>(sv.pings.pings[i].utime_gps - t0),
+                    1.2345e6 - 47e-6 * static_cast<double>(t0 - ref),
+                    0.5)
+            << i;
+    }
+}
+
+// A topside clock 40 ppm fast (16 ms over the survey): the head's attitude sensor, sampled at
+// every ping on that clock, times it along the survey.
+TEST(SonarClockRate, FortyPpmAreFoundFromTheHeadsAttitude) {
+    SurveyOptions o;
+    o.duration_s = 400;
+    o.num_beams = 3;
+    o.clock_error_s = 0.02;
+    o.clock_rate_ppm = 40;
+    o.header_attitude = true;
+    const auto sv = MakeSurvey(o);
+    const ClockRateEstimate e = EstimateSonarClockRate(sv.pings, sv.nav);
+    ASSERT_TRUE(e.found) << e.message;
+    // The correction is minus the clock's error: -40 ppm.
+    EXPECT_NEAR(e.rate_ppm, -40.0, std::max(3 * e.rate_sigma_ppm, 1.0)) << e.message;
+    EXPECT_LT(e.rate_sigma_ppm, 5.0) << e.message;
+    const double t_mid = static_cast<double>(e.reference_utime - sv.t0_utime) * 1e-6;
+    EXPECT_NEAR(e.offset_s, -(0.02 + 40e-6 * t_mid), 0.002) << e.message;
+    EXPECT_EQ(e.samples, 4000);
+}
+
+// Through a mount rolled 25 deg (a side-looking head): the INS attitude is composed with it.
+TEST(SonarClockRate, ATiltedMountIsComposedWithTheInsAttitude) {
+    SurveyOptions o;
+    o.duration_s = 400;
+    o.num_beams = 3;
+    o.clock_rate_ppm = -30;
+    o.header_attitude = true;
+    o.truth.boresight_roll_deg = 25;
+    o.truth.boresight_yaw_deg = 2;
+    const auto sv = MakeSurvey(o);
+    ClockRateConfig cfg;
+    cfg.R_vehicle_sonar = o.truth.R_vehicle_sonar();
+    const ClockRateEstimate e = EstimateSonarClockRate(sv.pings, sv.nav, cfg);
+    ASSERT_TRUE(e.found) << e.message;
+    EXPECT_NEAR(e.rate_ppm, 30.0, std::max(3 * e.rate_sigma_ppm, 1.0)) << e.message;
+}
+
+TEST(SonarClockRate, WithoutTheHeadsOwnAttitudeItSaysWhy) {
+    SurveyOptions o;
+    o.duration_s = 100;
+    o.num_beams = 3;
+    o.header_position = true;
+    const ClockRateEstimate none = EstimateSonarClockRate(MakeSurvey(o).pings, MakeSurvey(o).nav);
+    EXPECT_FALSE(none.found);
+    EXPECT_NE(none.message.find("carry the head's own attitude"), std::string::npos)
+        << none.message;
+    // An attitude that is not the INS's (a sensor on another head): too poor a fit to time.
+    o.header_attitude = true;
+    auto sv = MakeSurvey(o);
+    for (std::size_t i = 0; i < sv.pings.pings.size(); ++i)
+        sv.pings.pings[i].aid_roll_deg = 3.0 * std::sin(0.37 * static_cast<double>(i));
+    const ClockRateEstimate wrong = EstimateSonarClockRate(sv.pings, sv.nav);
+    EXPECT_FALSE(wrong.found) << wrong.message;
+    EXPECT_NE(wrong.message.find("not used"), std::string::npos) << wrong.message;
+}
+
 // The sonar's stamps are late by `error`: the joint calibration finds the latency (and the
 // boresight) from the soundings alone.
 BoresightResult CalibrateWithClockError(double error, double scan_s, georef::SonarMount* truth) {

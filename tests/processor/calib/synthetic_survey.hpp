@@ -29,10 +29,11 @@ struct SurveyOptions {
     double duration_s = 200;
     int num_beams = 121;  // over +-60 deg
     double clock_error_s = 0;
+    double clock_rate_ppm = 0;  // ... and it runs this fast: + clock_rate_ppm * 1e-6 * t
     double roll_amplitude_deg = 2.0;
     double pitch_amplitude_deg = 1.0;
     bool header_position = false;  // 1 Hz NMEA fixes, stale by up to a ping + 0.15 s
-    bool header_attitude = false;  // roll, pitch and heading of the head at the ping
+    bool header_attitude = false;  // roll, pitch (head's own sensor) and heading at the ping
     georef::SonarMount truth;      // the mount the ranges are made with
 };
 
@@ -84,7 +85,8 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
         const VehicleState v = StateAt(t, o);
         const Pose T_wv = MakePose(frames::RotationWorldFromRpy(v.roll, v.pitch, v.yaw), v.enu);
         georef::PingHeader h;
-        h.utime_gps = sv.t0_utime + std::llround((t + o.clock_error_s) * 1e6);
+        h.utime_gps =
+            sv.t0_utime + std::llround((t + o.clock_error_s + o.clock_rate_ppm * 1e-6 * t) * 1e6);
         h.ping_number = k;
         h.range_resolution_m = 0.001;
         const double step = 120.0 / (o.num_beams - 1);
@@ -115,10 +117,12 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
             h.aid_longitude_deg = fix_lon;
         }
         if (o.header_attitude) {
-            // The head's sensor at 0.1 deg resolution (mount ~ identity here).
+            // The head's sensor at 0.1 deg resolution: the vehicle's attitude through the mount.
             auto q = [](double rad) { return std::round(frames::RadToDeg(rad) * 10.0) / 10.0; };
-            h.aid_roll_deg = q(v.roll);
-            h.aid_pitch_deg = q(v.pitch);
+            const frames::Rpy head = frames::RpyFromRotationWorld(T_wv.linear() * T_vs.linear());
+            h.aid_roll_deg = q(head.roll);
+            h.aid_pitch_deg = q(head.pitch);
+            h.aid_attitude_at_ping = true;
             double hd = q(v.yaw);
             if (hd < 0) hd += 360.0;
             h.aid_heading_deg = hd;

@@ -503,6 +503,18 @@ TEST_F(DemoScenario, VendorFilesWithAnUnknownClockAreTimedFromTheirHeaders) {
     const json& coarse = summary.at("sonar_clock").at("coarse");
     EXPECT_EQ(coarse.at("method"), "header position") << out;
     EXPECT_NEAR(coarse.at("correction_s").get<double>(), truth, 1.0) << out;
+    // The topside clock runs 35 ppm fast; the head's attitude sensor times its rate, and the
+    // correction is minus that.
+    const json& rate = summary.at("sonar_clock").at("rate");
+    const double drift = clock_truth.at("topside_clock_drift_ppm").get<double>();
+    EXPECT_TRUE(rate.at("found").get<bool>()) << rate.dump();
+    RecordProperty("clock_rate_error_ppm",
+                   std::to_string(rate.at("rate_ppm").get<double>() + drift));
+    EXPECT_NEAR(rate.at("rate_ppm").get<double>(),
+                -drift,
+                std::max(3 * rate.at("rate_sigma_ppm").get<double>(), 5.0))
+        << rate.dump();
+    EXPECT_LT(rate.at("rate_sigma_ppm").get<double>(), 25.0) << rate.dump();  // 120 s only
     ASSERT_EQ(ExitCode(RunCommand(kBin + "/pitmap calibrate --strict --out " + Quote(p) +
                                       " --config " + Quote(FastCalibrationConfig(dir_)),
                                   &out)),

@@ -139,13 +139,23 @@ class SurveySections:
         if isinstance(co, dict):
             facts.append(("coarse estimate (" + Esc(co.get("method", "?")) + ")",
                           Esc(co.get("message", ""))))
+        rate = clk.get("rate")
+        if isinstance(rate, dict) and rate.get("message"):
+            facts.append(("clock rate (" + ("applied" if rate.get("found") else "not applied") +
+                          ")", Esc(rate["message"])))
         if "latency_s" in clk:
             facts.append(("latency from the soundings",
                           f"{Num(1e3 * float(clk['latency_s']), 2)} ms (formal sd "
                           f"{Num(1e3 * float(clk.get('latency_formal_sd_s', 0)), 2)} ms)"))
-        facts.append(("correction applied to the ping times",
-                      f"{Num(float(clk.get('correction_s', 0)), 4)} s &plusmn; "
-                      f"{Num(float(clk.get('sigma_s', 0)), 4)} s"))
+        correction = (f"{Num(float(clk.get('correction_s', 0)), 4)} s &plusmn; "
+                      f"{Num(float(clk.get('sigma_s', 0)), 4)} s")
+        if "rate_ppm" in clk:
+            ref = float(clk.get("rate_reference_gps_s", 0))
+            when = (f"{(ref - self.t0) / 60:.2f} min since start" if self.t0
+                    else f"{ref:.3f} GPS s")
+            correction += (f" at {when}, {Num(float(clk['rate_ppm']), 1)} ppm of the time "
+                           "since then added")
+        facts.append(("correction applied to the ping times", correction))
         if "estimated_offset_s" in clk:
             facts.append(("offset the data imply", f"{Num(clk['estimated_offset_s'], 4)} s"))
         return Table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts")
