@@ -305,7 +305,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     // Nuisance: a height correction per node (every part_duration_s, linear in between) absorbs
     // the INS height error, which differs from pass to pass. Without it a height difference
     // between two parallel passes d apart reads as a roll of dz / d (1.5 cm over 3 m = 0.3 deg).
-    const int odim = cfg.estimate_height_offsets ? 1 : 0;
+    const int odim = cfg.estimate_horizontal_offsets ? 3 : cfg.estimate_height_offsets ? 1 : 0;
     const int ldim = cfg.estimate_latency ? 1 : 0;
     const int base = 3 + ldim;  // [roll, pitch, yaw, (tau), height offsets...]
     const double seg_len = res.segment.end_s - res.segment.start_s;
@@ -313,7 +313,12 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         odim > 0 ? static_cast<int>(std::ceil(seg_len / cfg.part_duration_s)) + 1 : 0;
     const int dim = base + n_nodes * odim;
     Eigen::VectorXd off = Eigen::VectorXd::Zero(n_nodes * odim);
-    const double sig_o = cfg.height_offset_sigma_m;
+    const auto sig_of = [&](int d) {
+        return odim == 3 && d < 2 ? cfg.horizontal_offset_sigma_m : cfg.height_offset_sigma_m;
+    };
+    const double phi = cfg.offset_correlation_time_s > 0
+                           ? std::exp(-cfg.part_duration_s / cfg.offset_correlation_time_s)
+                           : 0.0;
     auto node_of = [&](double t, int& i, double& f) {
         const double u =
             std::clamp(t / cfg.part_duration_s, 0.0, static_cast<double>(n_nodes - 1) - 1e-9);
@@ -424,9 +429,22 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         }
         using Scalar1 = Eigen::Matrix<double, 1, 1>;
         for (int j = 0; j < n_nodes * odim; ++j) {
-            sys.AddPrior(static_cast<std::size_t>(base + j),
-                         Scalar1::Constant(1.0 / (sig_o * sig_o)),
-                         Scalar1::Constant(off[j]));
+            const int d = j % odim;
+            const double sig_o = sig_of(d);
+            if (phi == 0.0 || j < odim) {
+                sys.AddPrior(static_cast<std::size_t>(base + j),
+                             Scalar1::Constant(1.0 / (sig_o * sig_o)),
+                             Scalar1::Constant(off[j]));
+                continue;
+            }
+            // Gauss-Markov: o_k - phi o_(k-1) ~ N(0, sigma^2 (1 - phi^2)).
+            const int ids[2] = {base + j - odim, base + j};
+            const Scalar1 Jc[2] = {Scalar1::Constant(-phi), Scalar1::Constant(1.0)};
+            sys.Add<1>(ids,
+                       Jc,
+                       2,
+                       Scalar1::Constant(1.0 / (sig_o * sig_o * (1 - phi * phi))),
+                       Scalar1::Constant(off[j] - phi * off[j - odim]));
         }
         if (ldim > 0) {
             const double sl = cfg.latency_sigma_s;

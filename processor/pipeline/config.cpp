@@ -116,6 +116,11 @@ void VisitCalibrate(V&& v, calib::BoresightConfig& c) {
       c.estimate_height_offsets,
       "per-node INS height corrections (else parallel passes bias roll)");
     v("height_offset_sigma_m", c.height_offset_sigma_m, "their prior, m");
+    v("estimate_horizontal_offsets",
+      c.estimate_horizontal_offsets,
+      "per-node INS horizontal corrections too");
+    v("horizontal_offset_sigma_m", c.horizontal_offset_sigma_m, "their prior, m");
+    v("offset_correlation_time_s", c.offset_correlation_time_s, "GM correlation time, s");
     v("range_noise_fraction",
       c.range_noise_fraction,
       "pair weights 1/sigma^2, sigma = fraction * range + constant");
