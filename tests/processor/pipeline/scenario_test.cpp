@@ -364,15 +364,14 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     RecordProperty("ate_after_m", std::to_string(s.at("trajectory_ate_rmse_m")));
     RecordProperty("mesh_mean_abs_m", std::to_string(s.at("mesh_mean_abs_m")));
     EXPECT_LT(s.at("boresight_error_deg"), 0.1);
-    // The demo's INS is RTK grade: SLAM must not make it worse overall. Per 30 s window issue
-    // 15 asks for at most 5 mm worse; today the first window (the fewest revisits) is 9.7 mm
-    // worse (0.0154 -> 0.0251 m) while the later ones improve: SLAM places the aligned passes
-    // where the INS priors put them on average. This bound only keeps it from growing.
+    // The demo's INS is RTK grade: SLAM must not make it worse overall, nor any 30 s window by
+    // more than 5 mm (issue 15). The first window (the fewest revisits, the best INS) was 9.5 mm
+    // worse until the absolute terms were weighted up (slam.absolute_sigma_scale 0.4): 4.8 mm.
     EXPECT_LT(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.01);
     ASSERT_TRUE(s.count("trajectory_ate_worst_window_increase_m"));
     RecordProperty("ate_worst_window_increase_m",
                    std::to_string(s.at("trajectory_ate_worst_window_increase_m")));
-    EXPECT_LT(s.at("trajectory_ate_worst_window_increase_m"), 0.015);
+    EXPECT_LT(s.at("trajectory_ate_worst_window_increase_m"), 0.005);
     EXPECT_LT(s.at("points_rms_m"), 1.2 * RangeNoiseRms(p / "points.ply"));
     EXPECT_LT(s.at("mesh_mean_abs_m"), 0.05);
     ASSERT_TRUE(s.count("dem_mean_abs_m")) << "pitmap-eval scored no dem.tif";
