@@ -186,7 +186,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("min_relative_translation_sigma_m", c.min_relative_translation_sigma_m, "floor, m");
     v("absolute_position_terms", c.absolute_position_terms, "GNSS/INS position prior per pose");
     v("absolute_attitude_terms", c.absolute_attitude_terms, "INS attitude prior per pose");
-    v("absolute_sigma_scale", c.absolute_sigma_scale, "scales the absolute priors' sigmas");
+    v("absolute_sigma_scale",
+      c.absolute_sigma_scale,
+      "scales the steady part of the absolute priors' sigmas (not an outage's drift)");
     v("score_cell_m", c.score_cell_m, "plane-fit consistency score grid cell (reported), m");
     v("score_patience",
       c.score_patience,
@@ -236,6 +238,9 @@ void VisitQuality(V&& v, QualityConfig& q) {
     v("slam_min_allowance_m", q.slam_min_allowance_m, "... or this far, m");
     v("slam_good_ins_sigma_m", q.slam_good_ins_sigma_m, "INS horizontal sigma below: good, m");
     v("slam_max_fraction", q.slam_max_fraction, "share of good pings moved further: gate");
+    v("slam_consistency_ratio",
+      q.slam_consistency_ratio,
+      "passes' consistency after SLAM / the range noise's, above: gate");
     v("max_outside_nav_fraction", q.max_outside_nav_fraction, "share of pings outside the nav");
 }
 
@@ -541,6 +546,7 @@ std::vector<std::string> QualityConfig::Validate() const {
     if (!(slam_good_ins_sigma_m > 0)) p.push_back("slam_good_ins_sigma_m must be > 0");
     if (!(slam_max_fraction >= 0 && slam_max_fraction <= 1))
         p.push_back("slam_max_fraction must be in [0, 1]");
+    if (!(slam_consistency_ratio >= 1)) p.push_back("slam_consistency_ratio must be >= 1");
     if (!(max_outside_nav_fraction >= 0 && max_outside_nav_fraction <= 1))
         p.push_back("max_outside_nav_fraction must be in [0, 1]");
     return p;

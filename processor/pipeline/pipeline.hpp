@@ -80,6 +80,10 @@ struct QualityConfig {
     double slam_min_allowance_m = 0.05;       // ... or this far, whichever is larger
     double slam_good_ins_sigma_m = 0.10;      // pings whose INS horizontal sigma is below: "good"
     double slam_max_fraction = 0.05;          // more good pings moved further trips the gate
+    // The passes' plane-fit consistency after SLAM / what the range noise leaves (calibrate's
+    // range noise model over the soundings): above, the soundings disagree in a way SLAM did
+    // not explain (the demo: 1.4; the demo with its sonar clock 1.5 s off: 15.7).
+    double slam_consistency_ratio = 3.0;
     double max_outside_nav_fraction = 0.01;   // pings outside the navigation span
 
     std::vector<std::string> Validate() const;

@@ -158,6 +158,34 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         }
     }
     const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
+    // What the range noise alone would leave of the plane-fit consistency (calibrate's model,
+    // sigma = constant + fraction * range, over the soundings): far above it, the passes still
+    // disagree in a way SLAM did not (and should not) explain.
+    double noise_ss = 0;
+    std::size_t noise_n = 0;
+    const auto& ranges = s.geo.points.range_m;
+    for (std::size_t k = 0; k < ranges.size(); k += 16) {
+        const double sr = config.calibrate.range_noise_constant_m +
+                          config.calibrate.range_noise_fraction * static_cast<double>(ranges[k]);
+        if (!std::isfinite(sr)) continue;
+        noise_ss += sr * sr;
+        ++noise_n;
+    }
+    const double expected_consistency =
+        noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
+    if (expected_consistency > 0 &&
+        r.final_consistency_m > config.quality.slam_consistency_ratio * expected_consistency) {
+        TripGate(s,
+                 Stage::kSlam,
+                 "slam_inconsistent",
+                 "after SLAM the overlapping passes still disagree by " +
+                     Fixed(r.final_consistency_m, 3) + " m RMS (plane fits), " +
+                     Fixed(r.final_consistency_m / expected_consistency, 1) +
+                     "x what the range noise leaves (" + Fixed(expected_consistency, 3) +
+                     " m): the soundings disagree in a way the trajectory within the INS sigma "
+                     "does not explain (sonar clock, mount or sound speed?)",
+                 log);
+    }
 
     // The per-ping products of this stage, written once: before and after.
     const std::string& P = s.out_dir;
@@ -184,6 +212,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"sections_shifted", r.num_sections_shifted},
                {"initial_consistency_m", r.initial_consistency_m},
                {"final_consistency_m", r.final_consistency_m},
+               {"expected_consistency_m", expected_consistency},
                {"position_change_rms_m", change_rms},
                {"position_change_max_m", change_max},
                {"ins_check", ins_check},

@@ -175,7 +175,17 @@ void AddPoseTerms(const Input& in,
         const Vector6d r = AbsolutePoseResidual(T[i], in.T_ins[i], &Ja);
         Vector6d info = Vector6d::Zero();
         if (abs_any) {
-            const Vector6d sig = SigmaVector(in.sigma[i], cfg.absolute_sigma_scale);
+            // The scale applies to the steady part of the sigma (the survey's smallest, what
+            // the INS holds with GNSS); the part above it (an outage's drift) is as reported.
+            Vector6d scaled;
+            for (int c = 0; c < 6; ++c) {
+                const double steady = std::min(in.sigma[i](c), in.sigma_floor(c));
+                const double growing2 =
+                    std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - steady * steady);
+                const double st = cfg.absolute_sigma_scale * steady;
+                scaled(c) = std::sqrt(st * st + growing2);
+            }
+            const Vector6d sig = SigmaVector(scaled, 1.0);
             if (cfg.absolute_attitude_terms)
                 info.head<3>() = sig.head<3>().cwiseInverse().cwiseAbs2();
             if (cfg.absolute_position_terms)

@@ -560,13 +560,19 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
         std::find(gates.begin(), gates.end(), "calibrate/calibration_residual") != gates.end() ||
         std::find(gates.begin(), gates.end(), "calibrate/calibration_not_verified") != gates.end())
         << out;
-    // SLAM on a trajectory whose pings are 1.5 s off would bend a good RTK track: the gate
-    // trips and the INS is kept where it is good.
+    // SLAM on a trajectory whose pings are 1.5 s off must not bend a good RTK track to fit
+    // them: it stays within the INS sigma (or the INS is restored there, slam_beyond_ins_sigma),
+    // and the passes' disagreement that is left is a gate, not a quiet success.
     EXPECT_EQ(ExitCode(RunCommand(kBin + "/pitmap slam --strict --out " + Quote(wrong), &out)), 4)
         << out;
-    gates = Gates(ReadJson(wrong / "summary.json"));
-    EXPECT_NE(std::find(gates.begin(), gates.end(), "slam/slam_beyond_ins_sigma"), gates.end())
+    const json wrong_summary = ReadJson(wrong / "summary.json");
+    gates = Gates(wrong_summary);
+    EXPECT_NE(std::find(gates.begin(), gates.end(), "slam/slam_inconsistent"), gates.end())
         << out;
+    const json& ins_check = wrong_summary.at("stages").at("slam").at("ins_check");
+    EXPECT_TRUE(ins_check.at("reverted").get<bool>() ||
+                ins_check.at("moved_beyond_allowance").get<int>() == 0)
+        << ins_check.dump();
     // Without --strict the same run finishes (exit 0) and says so.
     out.clear();
     EXPECT_EQ(
