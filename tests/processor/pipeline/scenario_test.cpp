@@ -567,8 +567,7 @@ TEST_F(DemoScenario, GeorefGatesTripOnAWrongClockAndOnMissingNavigation) {
         << out;
     const json wrong_summary = ReadJson(wrong / "summary.json");
     gates = Gates(wrong_summary);
-    EXPECT_NE(std::find(gates.begin(), gates.end(), "slam/slam_inconsistent"), gates.end())
-        << out;
+    EXPECT_NE(std::find(gates.begin(), gates.end(), "slam/slam_inconsistent"), gates.end()) << out;
     const json& ins_check = wrong_summary.at("stages").at("slam").at("ins_check");
     EXPECT_TRUE(ins_check.at("reverted").get<bool>() ||
                 ins_check.at("moved_beyond_allowance").get<int>() == 0)
