@@ -84,7 +84,7 @@ struct QualityConfig {
     // range noise model over the soundings): above, the soundings disagree in a way SLAM did
     // not explain (the demo: 1.4; the demo with its sonar clock 1.5 s off: 15.7).
     double slam_consistency_ratio = 3.0;
-    double max_outside_nav_fraction = 0.01;   // pings outside the navigation span
+    double max_outside_nav_fraction = 0.01;  // pings outside the navigation span
 
     std::vector<std::string> Validate() const;
 };
