@@ -9,26 +9,27 @@
 // right perturbation R_vs Exp(delta): dp/d delta = -R_wv R_vs [s]x. The residual of a pair
 // (p from part a, q from part b) is r = n_p . (p - q), n_p the normal of p's own part (PCA of
 // its neighbours within normal_radius_m), so dr/d delta = n_p^T (-A_p [s_p]x + A_q [s_q]x),
-// A = R_wv R_vs. Unknowns besides the boresight: a position correction per node (one every
-// part_duration_s, linear in between, priors height_offset_sigma_m and horizontal_offset_sigma_m
-// chained as a Gauss-Markov process of offset_correlation_time_s): the INS error differs between
-// passes and would otherwise bias roll (parallel passes see a roll error only as a height step)
-// and pitch (an along-track shift). On six seeds of the quarry, the demo and bejanca the
-// horizontal terms took the mean boresight error from 0.062 to 0.039 deg and the worst from
-// 0.141 to 0.075 deg, and made the formal sd honest (pitch: 0.011 claimed, 0.07 found; now
-// 0.025 against 0.027). Pairs are weighted by 1 / (sigma_p^2 + sigma_q^2), sigma = fraction * range
-// + constant. Latency (estimate_latency): the sonar's time offset tau is a fourth unknown, the
-// automatic patch test's "latency": p(t + tau), dp/dtau from the INS poses at t + tau +- 5 ms, so
-// the pair Jacobian gains n_p . (dp_p/dtau - dp_q/dtau). It is observable through the vehicle's
-// rotation rate (wave roll and pitch, turns) and, on slopes, its speed. Starting values further
-// than the linear range (about a tenth of the roll period) need latency_scan_s: the residual RMS is
-// first scanned over initial +- latency_scan_s in latency_scan_step_s at the nominal mount. Segment
-// choice (when not given): windows of segment_duration_s, stepped by a quarter; a window is
-// eligible when its INS 1-sigma horizontal position and heading stay under the limits (low drift);
-// among those the one with the most overlap (1 m cells seen by parts at least min_separation_s
-// apart) wins. When no window is low drift, windows of half and then a quarter of the length are
-// tried before the best drifting window is taken. Thread safety: reentrant. Results do not depend
-// on the thread count.
+// A = R_wv R_vs.
+// Unknowns besides the boresight: a position correction per node (one every part_duration_s,
+// linear in between; priors height_offset_sigma_m and horizontal_offset_sigma_m, chained as a
+// Gauss-Markov process of offset_correlation_time_s): the INS error differs between passes and
+// would otherwise bias roll (parallel passes see a roll error only as a height step) and pitch
+// (an along-track shift). On six seeds of the quarry, the demo and bejanca the horizontal terms
+// took the mean boresight error from 0.062 to 0.039 deg and the worst from 0.141 to 0.075 deg,
+// and made the formal sd honest (pitch: 0.011 claimed, 0.07 found; now 0.025 against 0.027).
+// Pairs are weighted by 1 / (sigma_p^2 + sigma_q^2), sigma = fraction * range + constant.
+// Latency (estimate_latency): the sonar's time offset tau is a fourth unknown, the automatic
+// patch test's "latency": p(t + tau), dp/dtau from the INS poses at t + tau +- 5 ms, so the pair
+// Jacobian gains n_p . (dp_p/dtau - dp_q/dtau). It is observable through the vehicle's rotation
+// rate (wave roll and pitch, turns) and, on slopes, its speed. Starting values further than the
+// linear range (about a tenth of the roll period) need latency_scan_s: the residual RMS is first
+// scanned over initial +- latency_scan_s in latency_scan_step_s at the nominal mount.
+// Segment choice (when not given): windows of segment_duration_s, stepped by a quarter; a
+// window is eligible when its INS 1-sigma horizontal position and heading stay under the limits
+// (low drift); among those the one with the most overlap (1 m cells seen by parts at least
+// min_separation_s apart) wins. When no window is low drift, windows of half and then a quarter
+// of the length are tried before the best drifting window is taken.
+// Thread safety: reentrant. Results do not depend on the thread count.
 #pragma once
 
 #include <cstdint>

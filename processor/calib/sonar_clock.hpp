@@ -82,9 +82,9 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
 // sensor's own alignment), t_mid the middle of the pings, Cauchy weights (scale: the larger of
 // cauchy_scale_deg and 2.5 robust sigmas) against glitches, started from a scan of d. The
 // sigmas are the fit's, its residual sigma robust (MAD) and inflated for the residuals'
-// correlation from ping to ping (AR(1)). A
-// prior of rate_prior_sigma_ppm (what PC crystals do) keeps a short survey's rate from
-// following the noise: it is applied whenever the data have at least halved that sigma.
+// correlation from ping to ping (AR(1)). A prior of rate_prior_sigma_ppm (what PC crystals do)
+// keeps a short survey's rate from following the noise; the rate is used (found) when the data
+// have at least halved that sigma (max_rate_sigma_ppm), the fit is good and the rate plausible.
 // d (what the coarse match left plus the sensor's own lag) is reported only: the soundings
 // find the latency in the calibration.
 struct ClockRateConfig {

@@ -179,10 +179,9 @@ void AddPoseTerms(const Input& in,
             // the INS holds with GNSS); the part above it (an outage's drift) is as reported.
             Vector6d scaled;
             for (int c = 0; c < 6; ++c) {
-                const double steady = std::min(in.sigma[i](c), in.sigma_floor(c));
-                const double growing2 =
-                    std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - steady * steady);
-                const double st = cfg.absolute_sigma_scale * steady;
+                const double fl = in.sigma_floor(c);  // <= in.sigma[i](c): the survey's minimum
+                const double growing2 = std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - fl * fl);
+                const double st = cfg.absolute_sigma_scale * fl;
                 scaled(c) = std::sqrt(st * st + growing2);
             }
             const Vector6d sig = SigmaVector(scaled, 1.0);
