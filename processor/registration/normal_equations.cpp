@@ -19,10 +19,9 @@ DampedSolver<B>::DampedSolver(const BlockSystem<B>& system) : impl_(std::make_un
     const std::size_t n = system.num_blocks();
     const auto& diag = system.diag();
     const auto& grad = system.grad();
-    const auto& off = system.off_diagonal();
     std::vector<Eigen::Triplet<double>> trip;
     trip.reserve(n * static_cast<std::size_t>(B * (B + 1) / 2) +
-                 off.size() * static_cast<std::size_t>(B * B));
+                 system.num_off_diagonal() * static_cast<std::size_t>(B * B));
     impl_->rhs.resize(static_cast<Eigen::Index>(B * n));
     for (std::size_t i = 0; i < n; ++i) {
         const auto o = static_cast<int>(B * i);
@@ -31,12 +30,12 @@ DampedSolver<B>::DampedSolver(const BlockSystem<B>& system) : impl_(std::make_un
         }
         impl_->rhs.template segment<B>(o) = -grad[i];
     }
-    for (const auto& [key, m] : off) {
-        const auto i = static_cast<int>(key / n), j = static_cast<int>(key % n);
+    system.ForEachOffDiagonal([&](std::size_t bi, std::size_t bj, const auto& m) {
+        const auto i = static_cast<int>(bi), j = static_cast<int>(bj);
         for (int r = 0; r < B; ++r) {
             for (int c = 0; c < B; ++c) trip.emplace_back(B * i + r, B * j + c, m(r, c));
         }
-    }
+    });
     const auto dim = static_cast<Eigen::Index>(B * n);
     impl_->H.resize(dim, dim);
     impl_->H.setFromTriplets(trip.begin(), trip.end());

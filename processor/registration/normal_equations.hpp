@@ -23,7 +23,14 @@ public:
     using BlockVector = Eigen::Matrix<double, B, 1>;
 
     explicit BlockSystem(std::size_t num_blocks = 0)
-        : diag_(num_blocks, BlockMatrix::Zero()), grad_(num_blocks, BlockVector::Zero()) {}
+        : diag_(num_blocks, BlockMatrix::Zero()),
+          grad_(num_blocks, BlockVector::Zero()),
+          dense_(num_blocks * B <= kDenseUnknowns) {
+        if (dense_) {
+            dense_off_.assign(num_blocks * num_blocks, BlockMatrix::Zero());
+            touched_.assign(num_blocks * num_blocks, 0);
+        }
+    }
 
     std::size_t num_blocks() const { return diag_.size(); }
 
@@ -35,7 +42,6 @@ public:
              int count,
              const Eigen::Matrix<double, M, M>& W,
              const Eigen::Matrix<double, M, 1>& r) {
-        const std::size_t n = diag_.size();
         for (int i = 0; i < count; ++i) {
             const Eigen::Matrix<double, B, M> JtW = J[i].transpose() * W;
             const auto bi = static_cast<std::size_t>(blocks[i]);
@@ -44,11 +50,7 @@ public:
                 if (blocks[i] == blocks[j]) {
                     diag_[bi] += JtW * J[j];
                 } else if (blocks[i] < blocks[j]) {
-                    const std::uint64_t key =
-                        static_cast<std::uint64_t>(bi) * n + static_cast<std::uint64_t>(blocks[j]);
-                    auto it = off_.find(key);
-                    if (it == off_.end()) it = off_.emplace(key, BlockMatrix::Zero()).first;
-                    it->second += JtW * J[j];
+                    OffDiagonal(bi, static_cast<std::size_t>(blocks[j])) += JtW * J[j];
                 }
             }
         }
@@ -66,24 +68,54 @@ public:
             diag_[i] += o.diag_[i];
             grad_[i] += o.grad_[i];
         }
-        for (const auto& [key, m] : o.off_) {
-            auto it = off_.find(key);
-            if (it == off_.end())
-                off_.emplace(key, m);
-            else
-                it->second += m;
-        }
+        o.ForEachOffDiagonal(
+            [&](std::size_t i, std::size_t j, const BlockMatrix& m) { OffDiagonal(i, j) += m; });
     }
 
     const std::vector<BlockMatrix>& diag() const { return diag_; }
     const std::vector<BlockVector>& grad() const { return grad_; }
-    // Upper off-diagonal blocks, key i * num_blocks + j with i < j.
-    const std::unordered_map<std::uint64_t, BlockMatrix>& off_diagonal() const { return off_; }
+    // Calls f(i, j, H_ij) for every upper off-diagonal block (i < j) that a term touched.
+    template <class F>
+    void ForEachOffDiagonal(F&& f) const {
+        const std::size_t n = diag_.size();
+        if (dense_) {
+            for (std::size_t k = 0; k < touched_.size(); ++k) {
+                if (touched_[k] != 0) f(k / n, k % n, dense_off_[k]);
+            }
+            return;
+        }
+        for (const auto& [key, m] : off_) f(key / n, key % n, m);
+    }
+    std::size_t num_off_diagonal() const {
+        if (!dense_) return off_.size();
+        std::size_t c = 0;
+        for (const char t : touched_) c += t != 0 ? 1 : 0;
+        return c;
+    }
 
 private:
+    // Systems of up to this many unknowns keep their off-diagonal blocks in a dense array: the
+    // calibration's (a hundred scalar unknowns, 16 per pair term) spent most of its
+    // accumulation in hash lookups. SLAM's thousands of pose blocks stay sparse.
+    static constexpr std::size_t kDenseUnknowns = 512;
+
+    BlockMatrix& OffDiagonal(std::size_t i, std::size_t j) {
+        const std::size_t key = i * diag_.size() + j;
+        if (dense_) {
+            touched_[key] = 1;
+            return dense_off_[key];
+        }
+        auto it = off_.find(key);
+        if (it == off_.end()) it = off_.emplace(key, BlockMatrix::Zero()).first;
+        return it->second;
+    }
+
     std::vector<BlockMatrix> diag_;
     std::vector<BlockVector> grad_;
-    std::unordered_map<std::uint64_t, BlockMatrix> off_;
+    bool dense_;
+    std::vector<BlockMatrix> dense_off_;  // dense_: n x n, upper part used
+    std::vector<char> touched_;           // dense_: which of dense_off_ a term reached
+    std::unordered_map<std::uint64_t, BlockMatrix> off_;  // sparse: key i * n + j, i < j
 };
 
 template <int B>

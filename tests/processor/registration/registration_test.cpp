@@ -188,17 +188,20 @@ TEST(Gicp, InformationAlongAndAcrossTheSurface) {
 }
 
 // A random sparse least-squares problem: residuals on 1-3 blocks each, some blocks repeated.
+// Small systems hold their off-diagonal blocks densely, large ones (over 512 unknowns) in a
+// hash map; the terms are also split over two systems and merged, as SLAM's threads do.
 template <int B>
-void CheckAgainstDense(unsigned seed) {
-    constexpr int kBlocks = 7;
+void CheckAgainstDense(unsigned seed, int kBlocks = 7) {
     constexpr int M = 2;
     std::mt19937 rng(seed);
     std::normal_distribution<double> g;
     std::uniform_int_distribution<int> pick(0, kBlocks - 1);
-    BlockSystem<B> sys(kBlocks);
+    BlockSystem<B> sys(static_cast<std::size_t>(kBlocks));
+    BlockSystem<B> half_a(static_cast<std::size_t>(kBlocks));
+    BlockSystem<B> half_b(static_cast<std::size_t>(kBlocks));
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(B * kBlocks, B * kBlocks);
     Eigen::VectorXd grad = Eigen::VectorXd::Zero(B * kBlocks);
-    for (int t = 0; t < 60; ++t) {
+    for (int t = 0; t < 9 * kBlocks; ++t) {
         const int count = 1 + t % 3;
         int blocks[3];
         Eigen::Matrix<double, M, B> J[3];
@@ -212,6 +215,7 @@ void CheckAgainstDense(unsigned seed) {
         W << 2.0, 0.3, 0.3, 1.0;
         const Eigen::Matrix<double, M, 1> r(g(rng), g(rng));
         sys.template Add<M>(blocks, J, count, W, r);
+        (t % 2 == 0 ? half_a : half_b).template Add<M>(blocks, J, count, W, r);
         Eigen::MatrixXd Jd = Eigen::MatrixXd::Zero(M, B * kBlocks);
         for (int i = 0; i < count; ++i) Jd.middleCols(B * blocks[i], B) += J[i];
         H += Jd.transpose() * W * Jd;
@@ -221,6 +225,9 @@ void CheckAgainstDense(unsigned seed) {
         sys.AddPrior(static_cast<std::size_t>(b),
                      Eigen::Matrix<double, B, B>::Identity(),
                      Eigen::Matrix<double, B, 1>::Constant(0.5));
+        half_b.AddPrior(static_cast<std::size_t>(b),
+                        Eigen::Matrix<double, B, B>::Identity(),
+                        Eigen::Matrix<double, B, 1>::Constant(0.5));
         H.block(B * b, B * b, B, B) += Eigen::MatrixXd::Identity(B, B);
         grad.segment(B * b, B) += Eigen::VectorXd::Constant(B, 0.5);
     }
@@ -230,6 +237,12 @@ void CheckAgainstDense(unsigned seed) {
     ASSERT_TRUE(solver.Solve(0.0, &x));
     const Eigen::VectorXd want = -H.ldlt().solve(grad);
     EXPECT_LT((x - want).norm(), 1e-7 * (1 + want.norm()));
+    half_a.Merge(half_b);
+    EXPECT_EQ(half_a.num_off_diagonal(), sys.num_off_diagonal());
+    DampedSolver<B> merged(half_a);
+    Eigen::VectorXd xm;
+    ASSERT_TRUE(merged.Solve(0.0, &xm));
+    EXPECT_LT((xm - want).norm(), 1e-7 * (1 + want.norm()));
     const Eigen::MatrixXd C = solver.InverseLeadingBlock(B + 1);
     const Eigen::MatrixXd Cd = H.inverse().topLeftCorner(B + 1, B + 1);
     EXPECT_LT((C - Cd).norm(), 1e-7 * Cd.norm());
@@ -247,6 +260,10 @@ TEST(DampedSolver, ScalarBlocksMatchADenseSolve) {
 }
 TEST(DampedSolver, PoseBlocksMatchADenseSolve) {
     CheckAgainstDense<6>(6);
+}
+TEST(DampedSolver, LargeSystemsHeldSparselyMatchADenseSolve) {
+    CheckAgainstDense<1>(8, 520);
+    CheckAgainstDense<6>(9, 86);
 }
 
 TEST(DampedSolver, NonFiniteSystemFailsCleanly) {
