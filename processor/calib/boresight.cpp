@@ -68,6 +68,9 @@ std::vector<std::string> BoresightConfig::Validate() const {
     if (num_verify_segments < 0) p.push_back("calibrate.num_verify_segments must be >= 0");
     if (verify_query_every < 1) p.push_back("calibrate.verify_query_every must be >= 1");
     if (!(height_offset_sigma_m > 0)) p.push_back("calibrate.height_offset_sigma_m must be > 0");
+    if (!(ins_attitude_correlation_time_s >= 0)) {
+        p.push_back("calibrate.ins_attitude_correlation_time_s must be >= 0");
+    }
     if (!(range_noise_fraction >= 0)) p.push_back("calibrate.range_noise_fraction must be >= 0");
     if (!(range_noise_constant_m > 0)) p.push_back("calibrate.range_noise_constant_m must be > 0");
     if (!(latency_sigma_s > 0)) p.push_back("calibrate.latency_sigma_s must be > 0");
@@ -227,6 +230,49 @@ SegmentScore ScoreSegment(const GeorefResult& geo,
     s.low_drift = s.max_position_stddev_m <= cfg.max_position_stddev_m &&
                   s.max_heading_stddev_deg <= cfg.max_heading_stddev_deg;
     return s;
+}
+
+// The part of the boresight's uncertainty that comes from the INS: a vehicle-frame attitude
+// error delta (roll, pitch, heading; Gauss-Markov, the INS's reported 1-sigma averaged over
+// [t0, t1), correlation time tau) averaged over the window, as the data see it. Its variance is
+// sigma^2 g(T / tau), g(x) = 2 (x - 1 + e^-x) / x^2 (1 for a window much shorter than tau,
+// tau / T for a much longer one). R_wv Exp(delta) R_vs moves the boresight's Euler angles
+// (R_vs = Rz(yaw) Ry(pitch) Rx(roll)) by M^-1 delta, M = [Rz Ry x, Rz y, z].
+void InsAttitudeSd(const georef::NavSeries& nav,
+                   double t0,
+                   double t1,
+                   const SonarMount& m,
+                   double tau,
+                   double out_deg[3]) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Vector3i n = Eigen::Vector3i::Zero();
+    for (const auto& sd : nav.stddevs) {
+        const double t = static_cast<double>(sd.utime_gps) * 1e-6;
+        if (t < t0 || t >= t1) continue;
+        const float v[3] = {sd.roll_deg, sd.pitch_deg, sd.yaw_deg};
+        for (int j = 0; j < 3; ++j) {
+            if (!std::isfinite(v[j])) continue;
+            sum[j] += v[j];
+            ++n[j];
+        }
+    }
+    const double T = t1 - t0;
+    const double x = tau > 0 ? T / tau : std::numeric_limits<double>::infinity();
+    const double g = x < 1e-6 ? 1.0 : std::isinf(x) ? 0.0 : 2 * (x - 1 + std::exp(-x)) / (x * x);
+    Eigen::Vector3d sigma;
+    for (int j = 0; j < 3; ++j) sigma[j] = n[j] > 0 ? sum[j] / n[j] * std::sqrt(g) : 0.0;
+    const double yaw = frames::DegToRad(m.boresight_yaw_deg);
+    const double pitch = frames::DegToRad(m.boresight_pitch_deg);
+    const Eigen::Matrix3d Rz = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Matrix3d Ry =
+        Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    Eigen::Matrix3d M;
+    M.col(0) = Rz * Ry * Eigen::Vector3d::UnitX();
+    M.col(1) = Rz * Eigen::Vector3d::UnitY();
+    M.col(2) = Eigen::Vector3d::UnitZ();
+    const Eigen::Matrix3d Minv = M.inverse();
+    const Eigen::Matrix3d C = Minv * sigma.cwiseAbs2().asDiagonal() * Minv.transpose();
+    for (int j = 0; j < 3; ++j) out_deg[j] = std::sqrt(std::max(0.0, C(j, j)));
 }
 
 }  // namespace
@@ -520,6 +566,14 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         return res;
     }
     res.mount = m;
+    InsAttitudeSd(nav,
+                  res.segment.start_s,
+                  res.segment.end_s,
+                  m,
+                  cfg.ins_attitude_correlation_time_s,
+                  res.ins_attitude_sd_deg);
+    for (int j = 0; j < 3; ++j)
+        res.sd_deg[j] = std::hypot(res.formal_sd_deg[j], res.ins_attitude_sd_deg[j]);
     res.after = Evaluate(poses, S, m, res.latency_s, cfg);
     // Verification on other segments, preferring low drift and overlap, not overlapping ours.
     std::vector<SegmentScore> others;

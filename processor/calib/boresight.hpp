@@ -77,6 +77,10 @@ struct BoresightConfig {
     // The node corrections follow the INS error's own correlation (Gauss-Markov: o_k - phi
     // o_(k-1) with phi = exp(-part_duration_s / this), the first node absolute); 0 = independent.
     double offset_correlation_time_s = 120;
+    // Correlation time of the INS's attitude error, for the boresight's stated uncertainty: over a
+    // window much shorter than it the INS's error passes into the mount whole (0 = white: it
+    // averages out).
+    double ins_attitude_correlation_time_s = 120;
     double range_noise_fraction = 0.002;   // pair weight 1/sigma^2, sigma = fraction * range
     double range_noise_constant_m = 0.02;  //   + constant, per sounding
     bool estimate_latency = true;          // the sonar time offset as a fourth unknown
@@ -121,7 +125,12 @@ struct BoresightResult {
     std::vector<VerifyResult> verify;  // other segments
     int iterations = 0;
     double formal_sd_deg[3] = {0, 0, 0};  // roll, pitch, yaw (range noise only: optimistic)
-    double height_offsets_rms_m = 0;      // RMS of the estimated height corrections
+    // The INS attitude error the boresight takes in: the average over the window of an error
+    // the INS reports (its roll, pitch and heading 1-sigma) and that wanders with correlation
+    // time ins_attitude_correlation_time_s; a calibration cannot tell it from the mount.
+    double ins_attitude_sd_deg[3] = {0, 0, 0};
+    double sd_deg[3] = {0, 0, 0};     // both together, 1 sigma
+    double height_offsets_rms_m = 0;  // RMS of the estimated height corrections
     bool latency_estimated = false;
     double latency_s = 0;            // add to the ping times (t_gps = t_ping + latency_s)
     double latency_formal_sd_s = 0;  // range noise only: optimistic

@@ -121,6 +121,9 @@ void VisitCalibrate(V&& v, calib::BoresightConfig& c) {
       "per-node INS horizontal corrections too");
     v("horizontal_offset_sigma_m", c.horizontal_offset_sigma_m, "their prior, m");
     v("offset_correlation_time_s", c.offset_correlation_time_s, "GM correlation time, s");
+    v("ins_attitude_correlation_time_s",
+      c.ins_attitude_correlation_time_s,
+      "the INS attitude error's correlation time, s (the boresight's stated uncertainty)");
     v("range_noise_fraction",
       c.range_noise_fraction,
       "pair weights 1/sigma^2, sigma = fraction * range + constant");

@@ -208,6 +208,12 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
         s.summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     }
     json bj = MountJson(s.model.mount);
+    if (s.model.calibration == survey::CalibrationState::kCalibrated) {
+        // The calibrated boresight's 1-sigma uncertainty: range noise and the INS's attitude.
+        const json stages = s.summary.value("stages", json::object());
+        const json cal = stages.is_object() ? stages.value("calibrate", json::object()) : json();
+        if (cal.is_object() && cal.contains("sd_deg")) bj["sd_deg"] = cal["sd_deg"];
+    }
     bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)

@@ -130,6 +130,50 @@ TEST(Boresight, HorizontalInsErrorsBetweenPassesAreNotTakenForTheMount) {
     EXPECT_GT(ErrorDeg(without.mount, truth), 2 * ErrorDeg(with.mount, truth)) << without.message;
 }
 
+// The boresight's stated uncertainty adds the INS's attitude error averaged over the window:
+// the INS's reported 1-sigma times sqrt(g(T / tau)), g(x) = 2 (x - 1 + e^-x) / x^2; none when
+// the error is taken as white (tau 0).
+TEST(Boresight, StatedUncertaintyAddsTheInsAttitudeErrorOverTheWindow) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const std::vector<Pass> passes = {
+        {0.0, {0, -20}, {0, 1}, 40}, {60.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
+    const GeorefResult geo = Survey(passes, truth, nominal);
+    georef::NavSeries nav;
+    for (int t = 0; t <= 170; ++t) {
+        georef::NavStdDev sd;
+        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
+        sd.east_m = sd.north_m = 0.01f;
+        sd.up_m = 0.02f;
+        sd.roll_deg = 0.01f;
+        sd.pitch_deg = 0.02f;
+        sd.yaw_deg = 0.05f;
+        nav.stddevs.push_back(sd);
+    }
+    BoresightConfig cfg;
+    const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
+    ASSERT_NE(res.termination, Termination::kNoOverlap) << res.message;
+    const double x =
+        (res.segment.end_s - res.segment.start_s) / cfg.ins_attitude_correlation_time_s;
+    const double g = std::sqrt(2 * (x - 1 + std::exp(-x)) / (x * x));
+    const double reported[3] = {0.01, 0.02, 0.05};
+    for (int j = 0; j < 3; ++j) {
+        // The mount is within 2 deg of level: the axes map nearly one to one.
+        EXPECT_NEAR(res.ins_attitude_sd_deg[j], reported[j] * g, 0.04 * reported[j] * g) << j;
+        EXPECT_NEAR(
+            res.sd_deg[j], std::hypot(res.formal_sd_deg[j], res.ins_attitude_sd_deg[j]), 1e-12);
+    }
+    cfg.ins_attitude_correlation_time_s = 0;
+    const BoresightResult white = CalibrateBoresight(geo, nav, nominal, cfg);
+    for (int j = 0; j < 3; ++j) {
+        EXPECT_EQ(white.ins_attitude_sd_deg[j], 0.0);
+        EXPECT_EQ(white.sd_deg[j], white.formal_sd_deg[j]);
+    }
+    // No attitude sigmas from the INS: nothing to add.
+    for (auto& sd : nav.stddevs) sd.roll_deg = sd.pitch_deg = sd.yaw_deg = NAN;
+    const BoresightResult none = CalibrateBoresight(geo, nav, nominal, BoresightConfig{});
+    EXPECT_EQ(none.sd_deg[2], none.formal_sd_deg[2]);
+}
+
 TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
     const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
     const std::vector<Pass> passes = {

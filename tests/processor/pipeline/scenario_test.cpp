@@ -154,13 +154,24 @@ TEST_F(DemoScenario, CalibrateRecoversTheBoresightFromTheNominal) {
     ASSERT_EQ(RunCommand(kBin + "/pitmap calibrate --out " + Quote(p), &out), 0) << out;
     const auto s = Eval(p);
     const json b = ReadJson(p / "boresight.json");
+    const json summary = ReadJson(p / "summary.json");
+    const json& st = summary.at("stages").at("calibrate");
+    // The stated uncertainty covers the error: range noise alone (formal) would not, the INS's
+    // attitude error over the window (the simulator's INS reports its 1-sigma) does.
+    ASSERT_TRUE(b.contains("sd_deg")) << b.dump();
+    int i = 0;
     for (const char* axis : {"roll_deg", "pitch_deg", "yaw_deg"}) {
+        const double err = b.at(axis).get<double>() - truth_.at(axis).get<double>();
+        const double sd = b.at("sd_deg").at(i).get<double>();
+        EXPECT_NEAR(sd, st.at("sd_deg").at(i).get<double>(), 1e-12);
+        EXPECT_GT(sd, st.at("formal_sd_deg").at(i).get<double>()) << axis;
+        EXPECT_GT(st.at("ins_attitude_sd_deg").at(i).get<double>(), 0.005) << axis;
+        EXPECT_LT(std::abs(err), 3 * sd) << axis << " sd " << sd;
         EXPECT_NEAR(b.at(axis).get<double>(), truth_.at(axis).get<double>(), 0.05) << axis;
+        ++i;
     }
     EXPECT_GT(before, 1.0);
     EXPECT_LT(s.at("boresight_error_deg"), 0.05);
-    const json summary = ReadJson(p / "summary.json");
-    const json& st = summary.at("stages").at("calibrate");
     EXPECT_LT(st.at("residual_after_rms_m").get<double>(),
               st.at("residual_before_rms_m").get<double>());
 }

@@ -185,14 +185,22 @@ class SurveySections:
         b0 = cal.get("boresight_before") or {}
         b1 = cal.get("boresight_after") or mount or {}
         sd = cal.get("formal_sd_deg") or [float("nan")] * 3
+        # 1 sigma with the INS's own attitude error over the window (older summaries: none).
+        sd_all = cal.get("sd_deg") or [float("nan")] * 3
+
+        def At(v, i):
+            try:
+                return float(v[i])
+            except (IndexError, TypeError, ValueError):
+                return float("nan")
         rows = []
         for i, axis in enumerate(("roll", "pitch", "yaw")):
             a0 = float(b0.get(f"{axis}_deg", float("nan")))
             a1 = float(b1.get(f"{axis}_deg", float("nan")))
             rows.append([axis, Num(a0, 4), Num(a1, 4), Num(a1 - a0, 4),
-                         Num(float(sd[i]) if i < len(sd) else float("nan"), 4)])
+                         Num(At(sd, i), 4), Num(At(sd_all, i), 4)])
         out.append(Table(rows, header=["axis", "before (deg)", "after (deg)", "change (deg)",
-                                       "formal sd (deg)"]))
+                                       "formal sd (deg)", "sd with the INS attitude (deg)"]))
         facts = []
         if "residual_before_rms_m" in cal or "residual_after_rms_m" in cal:
             r0 = cal.get("residual_before_rms_m", float("nan"))
