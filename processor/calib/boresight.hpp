@@ -17,6 +17,9 @@
 // (an along-track shift). On six seeds of the quarry, the demo and bejanca the horizontal terms
 // took the mean boresight error from 0.062 to 0.039 deg and the worst from 0.141 to 0.075 deg,
 // and made the formal sd honest (pitch: 0.011 claimed, 0.07 found; now 0.025 against 0.027).
+// The stated uncertainty (sd_deg) adds to the fit's formal sd the INS attitude error that a
+// window cannot tell from the mount: the INS's reported 1-sigma averaged over the window as a
+// Gauss-Markov error (on eight surveys the errors were then -2.0..+2.1 sd, RMS 1.13).
 // Pairs are weighted by 1 / (sigma_p^2 + sigma_q^2), sigma = fraction * range + constant.
 // Latency (estimate_latency): the sonar's time offset tau is a fourth unknown, the automatic
 // patch test's "latency": p(t + tau), dp/dtau from the INS poses at t + tau +- 5 ms, so the pair
