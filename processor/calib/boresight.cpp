@@ -575,7 +575,9 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     for (int j = 0; j < 3; ++j)
         res.sd_deg[j] = std::hypot(res.formal_sd_deg[j], res.ins_attitude_sd_deg[j]);
     res.after = Evaluate(poses, S, m, res.latency_s, cfg);
-    // Verification on other segments, preferring low drift and overlap, not overlapping ours.
+    // Verification on other low-drift segments with overlap, not overlapping ours. A drifting
+    // segment verifies nothing: its INS error moves the passes by more than any boresight, and
+    // on gps-outage (seeds 1, 3, 4) a window inside the GNSS outage rejected good calibrations.
     std::vector<SegmentScore> others;
     for (const auto& c : res.candidates) {
         if (c.end_s <= res.segment.start_s || c.start_s >= res.segment.end_s) others.push_back(c);
@@ -586,7 +588,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         if (static_cast<int>(chosen.size()) >= cfg.num_verify_segments) break;
         bool clash = false;
         for (const auto& o : chosen) clash |= !(c.end_s <= o.start_s || c.start_s >= o.end_s);
-        if (!clash && c.overlap_cells > 0) chosen.push_back(c);
+        if (!clash && c.overlap_cells > 0 && c.low_drift) chosen.push_back(c);
     }
     for (const auto& c : chosen) {
         const Samples V = CollectIndexed(

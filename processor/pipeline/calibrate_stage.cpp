@@ -240,8 +240,8 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     });
     st["verified_on_other_segments"] = checked;
     if (!checked && cal.termination != calib::Termination::kNoOverlap) {
-        log("calibrate: not verified: no other segment of the survey with overlapping passes "
-            "lies outside the calibration window (calibrate.segment_duration_s " +
+        log("calibrate: not verified: no other low-drift segment of the survey with overlapping "
+            "passes lies outside the calibration window (calibrate.segment_duration_s " +
             Num("%.0f", bc.segment_duration_s) + " s); the result rests on its own window alone");
     }
     if (cal.termination == calib::Termination::kNoOverlap) {

@@ -198,6 +198,41 @@ TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
     EXPECT_NEAR(res.segment.end_s - res.segment.start_s, 80.0, 1e-6);
 }
 
+// Verification only on low-drift segments: the INS drifts (GNSS outage) from 100 s on, so the
+// crossing passes there say nothing about the mount (their positions are metres off) and the
+// calibration on the first two passes is not verified instead of being checked against them.
+TEST(Boresight, DriftingSegmentsAreNotUsedForVerification) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const std::vector<Pass> passes = {{0.0, {0, -20}, {0, 1}, 40},
+                                      {40.0, {4, 20}, {0, -1}, 40},
+                                      {120.0, {-20, 2}, {1, 0}, 40},
+                                      {160.0, {20, -3}, {-1, 0}, 40}};
+    const GeorefResult geo = Survey(passes, truth, nominal);
+    georef::NavSeries nav;
+    for (int t = 0; t <= 210; ++t) {
+        georef::NavStdDev sd;
+        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
+        sd.east_m = sd.north_m = t >= 100 ? 5.0f : 0.01f;
+        sd.up_m = 0.02f;
+        sd.yaw_deg = 0.02f;
+        nav.stddevs.push_back(sd);
+    }
+    BoresightConfig cfg;
+    cfg.segment_duration_s = 80;
+    cfg.num_verify_segments = 2;
+    const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
+    ASSERT_NE(res.termination, Termination::kNoOverlap) << res.message;
+    EXPECT_LE(res.segment.end_s, 100.0 + 1e-6);
+    bool drifting_candidate = false;
+    for (const auto& c : res.candidates) {
+        const bool apart = c.end_s <= res.segment.start_s || c.start_s >= res.segment.end_s;
+        drifting_candidate |= apart && !c.low_drift && c.overlap_cells > 0;
+    }
+    EXPECT_TRUE(drifting_candidate) << "the survey must offer a drifting segment with overlap";
+    for (const auto& v : res.verify) EXPECT_TRUE(v.segment.low_drift) << v.segment.start_s;
+    EXPECT_TRUE(res.verify.empty());
+}
+
 TEST(Boresight, OnePassHasNoOverlapAndSaysSo) {
     const SonarMount truth = Mount(1.0, 0, 0), nominal = Mount(0, 0, 0);
     const GeorefResult geo = Survey({{0.0, {0, -20}, {0, 1}, 15}}, truth, nominal);
