@@ -238,7 +238,9 @@ SegmentScore ScoreSegment(const GeorefResult& geo,
 // sigma^2 g(T / tau), g(x) = 2 (x - 1 + e^-x) / x^2 (1 for a window much shorter than tau,
 // tau / T for a much longer one). R_wv Exp(delta) R_vs moves the boresight's Euler angles
 // (R_vs = Rz(yaw) Ry(pitch) Rx(roll)) by M^-1 delta, M = [Rz Ry x, Rz y, z].
-void InsAttitudeSd(const georef::NavSeries& nav,
+// Returns false when the INS reported no attitude sigma (of some axis) in the window: that
+// axis then has none added.
+bool InsAttitudeSd(const georef::NavSeries& nav,
                    double t0,
                    double t1,
                    const SonarMount& m,
@@ -273,6 +275,7 @@ void InsAttitudeSd(const georef::NavSeries& nav,
     const Eigen::Matrix3d Minv = M.inverse();
     const Eigen::Matrix3d C = Minv * sigma.cwiseAbs2().asDiagonal() * Minv.transpose();
     for (int j = 0; j < 3; ++j) out_deg[j] = std::sqrt(std::max(0.0, C(j, j)));
+    return n.minCoeff() > 0;
 }
 
 }  // namespace
@@ -566,12 +569,12 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         return res;
     }
     res.mount = m;
-    InsAttitudeSd(nav,
-                  res.segment.start_s,
-                  res.segment.end_s,
-                  m,
-                  cfg.ins_attitude_correlation_time_s,
-                  res.ins_attitude_sd_deg);
+    res.ins_attitude_reported = InsAttitudeSd(nav,
+                                              res.segment.start_s,
+                                              res.segment.end_s,
+                                              m,
+                                              cfg.ins_attitude_correlation_time_s,
+                                              res.ins_attitude_sd_deg);
     for (int j = 0; j < 3; ++j)
         res.sd_deg[j] = std::hypot(res.formal_sd_deg[j], res.ins_attitude_sd_deg[j]);
     res.after = Evaluate(poses, S, m, res.latency_s, cfg);

@@ -132,8 +132,9 @@ struct BoresightResult {
     // the INS reports (its roll, pitch and heading 1-sigma) and that wanders with correlation
     // time ins_attitude_correlation_time_s; a calibration cannot tell it from the mount.
     double ins_attitude_sd_deg[3] = {0, 0, 0};
-    double sd_deg[3] = {0, 0, 0};     // both together, 1 sigma
-    double height_offsets_rms_m = 0;  // RMS of the estimated height corrections
+    bool ins_attitude_reported = false;  // the INS gave roll, pitch and heading sigmas
+    double sd_deg[3] = {0, 0, 0};        // both together, 1 sigma
+    double height_offsets_rms_m = 0;     // RMS of the estimated height corrections
     bool latency_estimated = false;
     double latency_s = 0;            // add to the ping times (t_gps = t_ping + latency_s)
     double latency_formal_sd_s = 0;  // range noise only: optimistic

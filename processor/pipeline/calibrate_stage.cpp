@@ -193,6 +193,7 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         {"ins_attitude_sd_deg",
          {cal.ins_attitude_sd_deg[0], cal.ins_attitude_sd_deg[1], cal.ins_attitude_sd_deg[2]}},
         {"sd_deg", {cal.sd_deg[0], cal.sd_deg[1], cal.sd_deg[2]}},
+        {"ins_attitude_sd_reported", cal.ins_attitude_reported},
         {"height_offsets_rms_m", cal.height_offsets_rms_m},
         {"latency_estimated", cal.latency_estimated},
         {"latency_s", cal.latency_s},
@@ -201,6 +202,11 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         {"latency_scan_best_s", cal.latency_scan_best_s},
         {"boresight_before", MountJson(before)},
         {"boresight_after", MountJson(cal.mount)}};
+    if (!cal.ins_attitude_reported && cal.termination != calib::Termination::kNoOverlap) {
+        log("calibrate: the navigation reports no roll, pitch or heading sigma in the calibration "
+            "window: the boresight's stated sd (sd_deg) is the fit's alone and optimistic (it "
+            "leaves out the INS's own attitude error)");
+    }
     st["verify"] = json::array();
     // The calibrated latency must not fit another segment worse than the nominal one by more
     // than this fraction (pair sampling moves the RMS by ~1 %; a 100 ms clock step on the demo

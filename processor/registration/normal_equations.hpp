@@ -94,9 +94,10 @@ public:
     }
 
 private:
-    // Systems of up to this many unknowns keep their off-diagonal blocks in a dense array: the
-    // calibration's (a hundred scalar unknowns, 16 per pair term) spent most of its
-    // accumulation in hash lookups. SLAM's thousands of pose blocks stay sparse.
+    // Systems of up to this many unknowns keep their off-diagonal blocks in a dense array (at
+    // most 2 MB) instead of a hash map: the calibration's pair terms touch 16 of its ~100 scalar
+    // unknowns, 120 hash lookups each (measured: 1.5 % of the stage's CPU on bejanca). SLAM's
+    // thousands of pose blocks stay sparse.
     static constexpr std::size_t kDenseUnknowns = 512;
 
     BlockMatrix& OffDiagonal(std::size_t i, std::size_t j) {

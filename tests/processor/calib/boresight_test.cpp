@@ -86,6 +86,27 @@ SonarMount Mount(double roll, double pitch, double yaw) {
     return m;
 }
 
+// The INS's reported 1-sigma once a second over [0, t_end] s: horizontal 0.01 m, or 5 m from
+// outage_from_s on (a GNSS outage); attitude as given (NaN = not reported).
+georef::NavSeries InsSigmas(int t_end,
+                            double outage_from_s,
+                            float roll_deg = NAN,
+                            float pitch_deg = NAN,
+                            float yaw_deg = 0.02f) {
+    georef::NavSeries nav;
+    for (int t = 0; t <= t_end; ++t) {
+        georef::NavStdDev sd;
+        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
+        sd.east_m = sd.north_m = t >= outage_from_s ? 5.0f : 0.01f;
+        sd.up_m = 0.02f;
+        sd.roll_deg = roll_deg;
+        sd.pitch_deg = pitch_deg;
+        sd.yaw_deg = yaw_deg;
+        nav.stddevs.push_back(sd);
+    }
+    return nav;
+}
+
 TEST(Boresight, RecoversAKnownErrorFromOppositeAndCrossingPasses) {
     const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
     const std::vector<Pass> passes = {
@@ -138,20 +159,11 @@ TEST(Boresight, StatedUncertaintyAddsTheInsAttitudeErrorOverTheWindow) {
     const std::vector<Pass> passes = {
         {0.0, {0, -20}, {0, 1}, 40}, {60.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
-    georef::NavSeries nav;
-    for (int t = 0; t <= 170; ++t) {
-        georef::NavStdDev sd;
-        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
-        sd.east_m = sd.north_m = 0.01f;
-        sd.up_m = 0.02f;
-        sd.roll_deg = 0.01f;
-        sd.pitch_deg = 0.02f;
-        sd.yaw_deg = 0.05f;
-        nav.stddevs.push_back(sd);
-    }
+    georef::NavSeries nav = InsSigmas(170, 1e9, 0.01f, 0.02f, 0.05f);
     BoresightConfig cfg;
     const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
     ASSERT_NE(res.termination, Termination::kNoOverlap) << res.message;
+    EXPECT_TRUE(res.ins_attitude_reported);
     const double x =
         (res.segment.end_s - res.segment.start_s) / cfg.ins_attitude_correlation_time_s;
     const double g = std::sqrt(2 * (x - 1 + std::exp(-x)) / (x * x));
@@ -172,6 +184,7 @@ TEST(Boresight, StatedUncertaintyAddsTheInsAttitudeErrorOverTheWindow) {
     for (auto& sd : nav.stddevs) sd.roll_deg = sd.pitch_deg = sd.yaw_deg = NAN;
     const BoresightResult none = CalibrateBoresight(geo, nav, nominal, BoresightConfig{});
     EXPECT_EQ(none.sd_deg[2], none.formal_sd_deg[2]);
+    EXPECT_FALSE(none.ins_attitude_reported);
 }
 
 TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
@@ -180,15 +193,7 @@ TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
         {0.0, {0, -20}, {0, 1}, 40}, {40.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
     // The INS drifts (GNSS outage) from 100 s on: no 160 s window is low drift, 80 s ones are.
-    georef::NavSeries nav;
-    for (int t = 0; t <= 170; ++t) {
-        georef::NavStdDev sd;
-        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
-        sd.east_m = sd.north_m = t >= 100 ? 5.0f : 0.01f;
-        sd.up_m = 0.02f;
-        sd.yaw_deg = 0.02f;
-        nav.stddevs.push_back(sd);
-    }
+    const georef::NavSeries nav = InsSigmas(170, 100.0);
     BoresightConfig cfg;
     cfg.segment_duration_s = 160;
     const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
@@ -208,15 +213,7 @@ TEST(Boresight, DriftingSegmentsAreNotUsedForVerification) {
                                       {120.0, {-20, 2}, {1, 0}, 40},
                                       {160.0, {20, -3}, {-1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
-    georef::NavSeries nav;
-    for (int t = 0; t <= 210; ++t) {
-        georef::NavStdDev sd;
-        sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
-        sd.east_m = sd.north_m = t >= 100 ? 5.0f : 0.01f;
-        sd.up_m = 0.02f;
-        sd.yaw_deg = 0.02f;
-        nav.stddevs.push_back(sd);
-    }
+    const georef::NavSeries nav = InsSigmas(210, 100.0);
     BoresightConfig cfg;
     cfg.segment_duration_s = 80;
     cfg.num_verify_segments = 2;
