@@ -86,8 +86,11 @@ public:
 
     void Update(const Coord& ijk, float d) { Update(ijk, d, f_); }
 
-    // One measurement of weight f (Eq. 5-6 with f in place of the uniform weight).
-    inline void Update(const Coord& ijk, float d, float f) {
+    // One measurement of weight f (Eq. 5-6 with f in place of the uniform weight). Forced
+    // inline: GCC kept it an out-of-line call with its arguments spilled to the stack, a third
+    // of the beam-width integration's samples (bejanca, 1 thread: 20.7 -> 19.9 s, the same
+    // updates bit for bit).
+    __attribute__((always_inline)) inline void Update(const Coord& ijk, float d, float f) {
         const Slot& slot = SlotOf(ijk);
         const openvdb::Index off = LeafT::coordToOffset(ijk);
         const float w = slot.w[off];  // 0 (background) when unobserved
@@ -110,7 +113,7 @@ private:
     };
     static constexpr int kSlots = 64;
 
-    inline const Slot& SlotOf(const Coord& ijk) {
+    __attribute__((always_inline)) inline const Slot& SlotOf(const Coord& ijk) {
         const Coord origin(ijk.x() & ~7, ijk.y() & ~7, ijk.z() & ~7);
         const unsigned h = (static_cast<unsigned>(origin.x()) * 73856093u) ^
                            (static_cast<unsigned>(origin.y()) * 19349663u) ^
