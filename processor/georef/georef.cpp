@@ -161,10 +161,17 @@ GeorefResult RunGeoref(const NavSeries& nav,
 
     const std::size_t n_pings = series.pings.size();
     std::vector<PingWork> work(n_pings);
-    // Provisional per-beam outputs in the input's flat layout; compacted below.
-    std::vector<Eigen::Vector3d> pos(series.range_counts.size());
-    std::vector<float> rng(series.range_counts.size(), -1.0f);
-    std::vector<float> ang(series.range_counts.size(), 0.0f);
+    // The outputs are written in the input's flat layout (one slot per input beam, range -1 =
+    // no point) and compacted in place below: no provisional copy of every beam. On bejanca
+    // that is 195 MB less memory first touched; the kernel zeroing those pages took a tenth of
+    // the calibrate stage's CPU time (stage 4.9 -> 4.5 s, its peak 775 -> 602 MB).
+    GeorefPoints& P = result.points;
+    P.position_world.resize(series.range_counts.size());
+    P.range_m.assign(series.range_counts.size(), -1.0f);
+    P.angle_rad.resize(series.range_counts.size());
+    std::vector<Eigen::Vector3d>& pos = P.position_world;
+    std::vector<float>& rng = P.range_m;
+    std::vector<float>& ang = P.angle_rad;
 
     std::unique_ptr<tbb::global_control> limit;
     if (config.num_threads > 0) {
@@ -270,24 +277,38 @@ GeorefResult RunGeoref(const NavSeries& nav,
         }
     });
     if (cancel) {
+        result.points = GeorefPoints{};
         result.cancelled = true;
         result.message = "cancelled";
         return result;
     }
 
-    // Compact in ping order (deterministic, independent of the thread count).
+    // Compact in ping order (deterministic, independent of the thread count). In place when
+    // the pings' beams follow each other in the flat array (every reader builds it so): the
+    // write index then never passes the read index. Otherwise into fresh arrays.
     std::size_t n_points = 0;
+    bool in_place = true;
+    std::size_t next_offset = 0;
     for (std::size_t k = 0; k < n_pings; ++k) {
-        if (!work[k].ok) continue;
         const PingHeader& h = series.pings[k];
+        in_place = in_place && h.beam_offset >= next_offset;
+        next_offset = std::size_t{h.beam_offset} + h.num_beams;
+        if (!work[k].ok) continue;
         for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[h.beam_offset + i] > 0;
     }
-    GeorefPoints& P = result.points;
-    P.position_world.reserve(n_points);
+    std::vector<Eigen::Vector3d> pos_out;
+    std::vector<float> rng_out, ang_out;
+    if (!in_place) {
+        pos_out.resize(n_points);
+        rng_out.resize(n_points);
+        ang_out.resize(n_points);
+    }
+    Eigen::Vector3d* pos_to = in_place ? pos.data() : pos_out.data();
+    float* rng_to = in_place ? rng.data() : rng_out.data();
+    float* ang_to = in_place ? ang.data() : ang_out.data();
     P.ping.reserve(n_points);
     P.beam.reserve(n_points);
-    P.range_m.reserve(n_points);
-    P.angle_rad.reserve(n_points);
+    std::size_t out = 0;
     GeorefCounts& c = result.counts;
     for (std::size_t k = 0; k < n_pings; ++k) {
         PingWork& w = work[k];
@@ -307,13 +328,22 @@ GeorefResult RunGeoref(const NavSeries& nav,
         for (std::size_t i = 0; i < h.num_beams; ++i) {
             const std::size_t j = h.beam_offset + i;
             if (!(rng[j] > 0)) continue;
-            P.position_world.push_back(pos[j]);
+            pos_to[out] = pos[j];
+            rng_to[out] = rng[j];
+            ang_to[out] = ang[j];
+            ++out;
             P.ping.push_back(ping_index);
             P.beam.push_back(static_cast<std::uint16_t>(i));
-            P.range_m.push_back(rng[j]);
-            P.angle_rad.push_back(ang[j]);
         }
     }
+    if (!in_place) {
+        pos.swap(pos_out);
+        rng.swap(rng_out);
+        ang.swap(ang_out);
+    }
+    pos.resize(out);
+    rng.resize(out);
+    ang.resize(out);
     c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
     c.points = static_cast<std::int64_t>(P.size());
     result.message = std::to_string(c.points) + " points from " +

@@ -64,6 +64,45 @@ TEST(Georef, FlatSeabedPointsLieOnThePlane) {
     EXPECT_GT((last - first).dot(stbd), 30.0);
 }
 
+// The points are compacted in place when the pings' beams follow each other in the flat
+// array; a series laid out otherwise (here the last ping's beams first, with some beams out of
+// range so that compaction moves data) must give the same points.
+TEST(Georef, PingsWhoseBeamsAreNotInOrderGiveTheSamePoints) {
+    const NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
+    PingSeries ordered;
+    for (int k = 0; k < 4; ++k) {
+        AddFlatPing(ordered, 1'000'000'000 + 5'000 + k * 100'000, 0.25);
+    }
+    for (std::size_t j = 0; j < ordered.range_counts.size(); j += 7) ordered.range_counts[j] = 0;
+    PingSeries reversed;
+    reversed.pings = ordered.pings;
+    for (int k = 3; k >= 0; --k) {
+        const PingHeader& h = ordered.pings[static_cast<std::size_t>(k)];
+        reversed.pings[static_cast<std::size_t>(k)].beam_offset =
+            static_cast<std::uint32_t>(reversed.range_counts.size());
+        reversed.range_counts.insert(reversed.range_counts.end(),
+                                     ordered.range_counts.begin() + h.beam_offset,
+                                     ordered.range_counts.begin() + h.beam_offset + h.num_beams);
+    }
+    SonarMount mount;
+    mount.lever_arm_m = Eigen::Vector3d(0.8, 0, 0.25);
+    GeorefConfig cfg;
+    cfg.max_range_m = 50;
+    const GeorefResult a = RunGeoref(nav, ordered, mount, cfg);
+    const GeorefResult b = RunGeoref(nav, reversed, mount, cfg);
+    ASSERT_EQ(a.counts.no_detection, 4 * 121 / 7 + 1);
+    ASSERT_GT(a.points.size(), 400u);
+    ASSERT_EQ(a.points.size(), b.points.size());
+    EXPECT_EQ(a.points.ping, b.points.ping);
+    EXPECT_EQ(a.points.beam, b.points.beam);
+    EXPECT_EQ(a.points.range_m, b.points.range_m);
+    EXPECT_EQ(a.points.angle_rad, b.points.angle_rad);
+    for (std::size_t i = 0; i < a.points.size(); ++i) {
+        EXPECT_EQ(a.points.position_world[i], b.points.position_world[i]) << i;
+        EXPECT_NEAR(a.points.position_world[i].z(), -kDepthM, 2e-3) << i;
+    }
+}
+
 TEST(Georef, RefusesPingsInNavGapsAndOutsideTheSpan) {
     NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
     NavSeries later = LevelNav(0.0, 2'000'000, 10, 20'000);
