@@ -65,8 +65,8 @@ TEST(Georef, FlatSeabedPointsLieOnThePlane) {
 }
 
 // The points are compacted in place when the pings' beams follow each other in the flat
-// array; a series laid out otherwise (here the last ping's beams first, with some beams out of
-// range so that compaction moves data) must give the same points.
+// array; a series laid out otherwise (here the last ping's beams first, with some beams without
+// a detection so that compaction moves data) must give the same points.
 TEST(Georef, PingsWhoseBeamsAreNotInOrderGiveTheSamePoints) {
     const NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
     PingSeries ordered;
