@@ -22,7 +22,6 @@ using pitmap::test::kBin;
 using pitmap::test::Quote;
 using pitmap::test::ReadJson;
 using pitmap::test::RunCommand;
-using pitmap::test::Scores;
 
 TEST(GpsOutageScenario, SlamRecoversTheDriftAndKeepsTheGoodStretches) {
     const fs::path dir = pitmap::test::FreshDir("pitmap_gps_outage_scenario");
@@ -45,17 +44,11 @@ TEST(GpsOutageScenario, SlamRecoversTheDriftAndKeepsTheGoodStretches) {
     EXPECT_GT(slam["sections_shifted"].get<int>(), 0) << "the coarse search moved no section";
     EXPECT_GT(slam["rigid_iterations"].get<int>(), 10) << "the rigid stage stopped early";
 
-    std::string text;
-    ASSERT_EQ(RunCommand(kBin + "/pitmap-eval --truth " + Quote(dir / "sim/truth") +
-                             " --products " + Quote(p) + " --ate-window 30",
-                         &text),
-              0)
-        << text;
-    const auto s = Scores(text);
+    const auto s = pitmap::test::EvalScores(dir / "sim/truth", p, "--ate-window 30");
     for (const char* k : {"trajectory_ate_rmse_before_m",
                           "trajectory_ate_rmse_m",
                           "trajectory_ate_worst_window_increase_m"}) {
-        ASSERT_TRUE(s.count(k)) << k << "\n" << text;
+        ASSERT_TRUE(s.count(k)) << k;
         RecordProperty(k, std::to_string(s.at(k)));
     }
     EXPECT_GT(s.at("trajectory_ate_rmse_before_m"), 1.0) << "the scenario no longer drifts";
