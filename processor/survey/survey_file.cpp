@@ -291,6 +291,7 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResul
     in.Vec(r.pings.range_counts, "range counts");
     if (!in.Finish()) return Error{in.error};
     r.pings.clock = static_cast<georef::PingClock>(clock);
+    std::uint64_t next_offset = 0;  // the writer lays each ping's beams after the previous's
     for (auto& p : r.pings.pings) {
         // A bool read from bytes must hold 0 or 1 (the CRC does not stop crafted files).
         for (const std::size_t at : {offsetof(georef::PingHeader, sound_speed_valid),
@@ -300,6 +301,10 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResul
         }
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size())
             return Error{"section ingest: inconsistent beam offsets"};
+        // Two pings sharing range counts would be georeferenced into the same slots at once.
+        if (p.beam_offset < next_offset)
+            return Error{"section ingest: overlapping or out-of-order beam offsets"};
+        next_offset = static_cast<std::uint64_t>(p.beam_offset) + p.num_beams;
     }
     r.nav.leap_seconds = leap;
     r.nav.samples.resize(nav.size());

@@ -20,7 +20,8 @@
 //                         qz (T_world_vehicle), u32 valid, u32 zero
 // The reader checks every length and count against the bytes left before allocating (memory
 // stays bounded by the file size), every section's CRC, and the consistency of what it read
-// (beam offsets inside the range counts, one pose per ping, finite poses); anything else is an
+// (beam offsets inside the range counts and in ping order without overlap, one pose per
+// ping, finite poses); anything else is an
 // error naming the file and what is wrong.
 #pragma once
 

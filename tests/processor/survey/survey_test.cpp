@@ -326,6 +326,16 @@ TEST_F(SurveyFile, CraftedContentWithRightCrcsIsCheckedToo) {
     std::memcpy(bad.data() + first + offsetof(georef::PingHeader, beam_offset), &offset, 4);
     FixCrcs(bad);
     ExpectError(bad, "beam offset");
+    // The second ping's beams on the first's (in range, but shared: georef would write both
+    // pings' soundings into the same slots).
+    bad = good_;
+    std::uint64_t header_size = 0;
+    std::memcpy(&header_size, good_.data() + IngestArrays(good_)[2] + 8, 8);
+    const std::uint32_t zero = 0;
+    std::memcpy(
+        bad.data() + first + header_size + offsetof(georef::PingHeader, beam_offset), &zero, 4);
+    FixCrcs(bad);
+    ExpectError(bad, "overlapping beam offsets");
     // An unknown ping clock.
     bad = good_;
     bad[Sections(bad).at("ingest").payload_at + 4] = 9;
