@@ -255,6 +255,7 @@ PreparedScan PrepareScan(const SonarScan& scan,
         ps.y_hi = std::max(ps.y_hi, pb.y_hi);
         ps.beams.push_back(pb);
     }
+    if (beam_width) BuildFanColumns(ps, scan, n, geo);
     return ps;
 }
 

@@ -115,11 +115,14 @@ private:
 
     __attribute__((always_inline)) inline const Slot& SlotOf(const Coord& ijk) {
         const Coord origin(ijk.x() & ~7, ijk.y() & ~7, ijk.z() & ~7);
+        // Columns run along one axis: most updates land in the leaf of the previous one.
+        if (last_ != nullptr && last_->origin == origin) return *last_;
         const unsigned h = (static_cast<unsigned>(origin.x()) * 73856093u) ^
                            (static_cast<unsigned>(origin.y()) * 19349663u) ^
                            (static_cast<unsigned>(origin.z()) * 83492791u);
         Slot& slot = slots_[(h >> 3) & (kSlots - 1)];
         if (slot.d == nullptr || slot.origin != origin) Fill(slot, ijk, origin);
+        last_ = &slot;
         return slot;
     }
     void Fill(Slot& slot, const Coord& ijk, const Coord& origin) {
@@ -135,273 +138,193 @@ private:
     openvdb::FloatGrid::Accessor dacc_;
     openvdb::FloatGrid::Accessor wacc_;
     std::array<Slot, kSlots> slots_{};
+    const Slot* last_ = nullptr;
     float f_;
     float w_max_;
     std::int64_t updates_ = 0;
 };
 
-// Beam-width mode for one sector, restricted to x in [x_min, x_max].
-// The sector of beam i is theta in [theta_i - inc/2, theta_i + inc/2) (each voxel belongs to
-// the beam it back-projects into), out-of-plane angle |phi| <= beam_width / 2. The range at
-// the voxel's in-plane angle is interpolated linearly between the footprint ranges of beam i
-// and its neighbour on that side, and the update band is d = r - |v - p| in (-T, T].
-// Candidates are voxel centres inside a six-plane pyramid frustum that contains that set; each
-// is then tested exactly in the sensor's polar frame.
-void IntegrateBeamWidth(const PreparedScan& scan,
-                        const PreparedBeam& beam,
-                        float theta,
-                        float increment,
-                        const Geometry& g,
-                        const ClipBox& box,
-                        VoxelUpdater& up) {
-    const double r = beam.range_vox;
-    const double r_prev = beam.range_prev_vox;  // NaN = no neighbour
-    const double r_next = beam.range_next_vox;
-    const double T = g.trunc_vox;
-    // Radial reach: the interpolated range stays between r and the midpoints to the neighbours.
-    double r_min = r, r_max = r;
-    for (double rn : {r_prev, r_next}) {
-        if (!std::isfinite(rn)) continue;
-        r_min = std::min(r_min, 0.5 * (r + rn));
-        r_max = std::max(r_max, 0.5 * (r + rn));
-    }
-    const double inv_inc = 1.0 / static_cast<double>(increment);
-    const float f = beam.weight;
-    const double half_inc = 0.5 * std::abs(static_cast<double>(increment));
-    const double th_lo = theta - half_inc;
-    const double th_hi = theta + half_inc;
-    // Sonar-frame directions: beam axis b, across-fan e, out-of-plane n = x.
-    const Eigen::Vector3d b_s(0.0, std::sin(theta), std::cos(theta));
-    const Eigen::Vector3d e_s(0.0, std::cos(theta), -std::sin(theta));
-    const Eigen::Vector3d a_lo_s(0.0, std::cos(th_lo), -std::sin(th_lo));  // . x >= 0
-    const Eigen::Vector3d a_hi_s(0.0, std::cos(th_hi), -std::sin(th_hi));  // . x < 0
-    const Eigen::Matrix3d& R = scan.R;
-    const Eigen::Vector3d u = R * b_s;
-    const Eigen::Vector3d e = R * e_s;
-    const Eigen::Vector3d n = R.col(0);
-    // rho <= (b . x) / cos(inc/2) inside the sector, so |x_s| <= t (b . x) contains the wedge.
-    const double cos_half_inc = std::cos(half_inc);
-    const double t = g.tan_half_bw / cos_half_inc;
-    const double q_lo = std::max(0.0, (r_min - T) * cos_half_inc * g.cos_half_bw);
-    const double q_hi = r_max + T;
-    const Eigen::Vector3d& p = scan.p_vox;
-
-    // Half-spaces g_k . v <= h_k in world voxel coordinates.
-    Eigen::Vector3d G[6];
-    double H[6];
-    const Eigen::Vector3d a_lo = R * a_lo_s;
-    const Eigen::Vector3d a_hi = R * a_hi_s;
-    G[0] = -a_lo;
-    G[1] = a_hi;
-    G[2] = n - t * u;
-    G[3] = -n - t * u;
-    G[4] = -u;
-    G[5] = u;
-    for (int k = 0; k < 4; ++k) H[k] = G[k].dot(p);
-    H[4] = -q_lo - u.dot(p);
-    H[5] = q_hi + u.dot(p);
-    constexpr double kEps = 1e-6;
-    // Out of the plane a voxel is in the beam if its centre lies within the cone, within the
-    // cube's half-extent along n of the fan plane (near the sonar the cone is narrower than a
-    // voxel), or within half the gap to the neighbouring pings' fans (the cone is narrower
-    // than the ping spacing there too: without this, planes between pings stay unobserved).
-    const double h_out = std::max(0.5 * (std::abs(n.x()) + std::abs(n.y()) + std::abs(n.z())),
-                                  static_cast<double>(beam.half_gap_vox));
-    H[0] += kEps;
-    H[1] += kEps;
-    H[2] += kEps + h_out;
-    H[3] += kEps + h_out;
-
-    // The frustum's 8 corners (its vertices) and their bounding box.
-    const double tan_half_inc = std::tan(half_inc);
-    Eigen::Vector3d corner[8];
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-    Eigen::Vector3d hi = -lo;
-    int nc = 0;
-    for (double q : {q_lo, q_hi}) {
-        for (double se : {-1.0, 1.0}) {
-            for (double sn : {-1.0, 1.0}) {
-                const Eigen::Vector3d c =
-                    p + q * (u + se * tan_half_inc * e + sn * t * n) + sn * h_out * n;
-                corner[nc++] = c;
-                lo = lo.cwiseMin(c);
-                hi = hi.cwiseMax(c);
-            }
+// Constraint alpha + beta * j <= 0 on an integer j in [lo, hi] (tightened in place; a slack of
+// 1e-7 keeps the bounds conservative against rounding).
+void ClipLinear(double alpha, double beta, int& lo, int& hi) {
+    if (beta > 1e-12) {
+        const double j = -alpha / beta + 1e-7;
+        if (j < static_cast<double>(lo)) {
+            hi = lo - 1;
+        } else if (j < static_cast<double>(hi)) {
+            hi = static_cast<int>(std::floor(j));
         }
-    }
-    int ilo[3], ihi[3];
-    for (int k = 0; k < 3; ++k) {
-        ilo[k] = static_cast<int>(std::ceil(lo[k] - kEps));
-        ihi[k] = static_cast<int>(std::floor(hi[k] + kEps));
-    }
-    ilo[0] = std::max(ilo[0], box.x_min);
-    ihi[0] = std::min(ihi[0], box.x_max);
-    ilo[1] = std::max(ilo[1], box.y_min);
-    ihi[1] = std::min(ihi[1], box.y_max);
-    if (ilo[0] > ihi[0] || ilo[1] > ihi[1]) return;
-
-    // Columns along the axis that crosses the frustum longest: it is thin across the fan plane
-    // (w_e, about a voxel), wider out of it (w_n) and long along the beam (w_u); a column along
-    // axis k crosses it over at most min(w_e / |e_k|, w_n / |n_k|, w_u / |u_k|).
-    int a = 0;
-    {
-        const double w_e = 2.0 * q_hi * tan_half_inc + 1.0;
-        const double w_n = 2.0 * (t * q_hi + h_out) + 1.0;
-        const double w_u = q_hi - q_lo + 1.0;
-        double best = -1.0;
-        for (int k = 0; k < 3; ++k) {
-            const double len = std::min({w_e / (std::abs(e[k]) + 1e-9),
-                                         w_n / (std::abs(n[k]) + 1e-9),
-                                         w_u / (std::abs(u[k]) + 1e-9)});
-            if (len > best) {
-                best = len;
-                a = k;
-            }
+    } else if (beta < -1e-12) {
+        const double j = -alpha / beta - 1e-7;
+        if (j > static_cast<double>(hi)) {
+            lo = hi + 1;
+        } else if (j > static_cast<double>(lo)) {
+            lo = static_cast<int>(std::ceil(j));
         }
+    } else if (alpha > 1e-7) {
+        hi = lo - 1;
     }
+}
+
+// Beam-width mode for one ping, restricted to the voxels of box (x and y). Each voxel belongs
+// to the sector of its in-plane angle, [theta_k - inc/2, theta_k + inc/2), and is updated when
+// its out-of-plane angle is within the beam (|phi| <= beam_width / 2; see h_out below) and
+// d = r_at - |v - p| lies in (-T, T], where r_at is interpolated linearly between the footprint
+// range of sector k and its neighbour on the voxel's side. Candidates come in columns along the
+// axis closest to the fan plane (FanColumns, fan_columns.cpp): rows and columns whose line
+// cannot meet the ping are skipped by linear bounds, and each column is cut to its bin's tau
+// and out-of-plane bounds. The sector is tracked along the column by half-plane tests against
+// the sector boundaries (exact; atan2 only to start a column).
+void IntegrateFan(const PreparedScan& scan,
+                  const Geometry& g,
+                  const ClipBox& box,
+                  VoxelUpdater& up) {
+    const detail::FanColumns& fan = scan.fan;
+    if (fan.sectors.empty() || fan.tau_lo.empty()) return;
+    const int a = fan.axis;
     const int b_ax = (a + 1) % 3;
     const int c_ax = (a + 2) % 3;
-    // Convex hull of the corners projected on (b, c) (Andrew's monotone chain).
-    std::array<Eigen::Vector2d, 8> pts;
-    for (int k = 0; k < 8; ++k) {
-        pts[static_cast<std::size_t>(k)] = {corner[k][b_ax], corner[k][c_ax]};
+    int lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = fan.lo[k];
+        hi[k] = fan.hi[k];
     }
-    std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& p0, const Eigen::Vector2d& p1) {
-        return p0.x() < p1.x() || (p0.x() == p1.x() && p0.y() < p1.y());
-    });
-    std::array<Eigen::Vector2d, 17> hull;
-    int nh = 0;
-    auto turn = [](const Eigen::Vector2d& o, const Eigen::Vector2d& p1, const Eigen::Vector2d& p2) {
-        return (p1.x() - o.x()) * (p2.y() - o.y()) - (p1.y() - o.y()) * (p2.x() - o.x());
-    };
-    auto hv = [&](int k) -> Eigen::Vector2d& { return hull[static_cast<std::size_t>(k)]; };
-    for (const Eigen::Vector2d& q : pts) {
-        while (nh >= 2 && turn(hv(nh - 2), hv(nh - 1), q) <= 0.0) --nh;
-        hv(nh++) = q;
-    }
-    for (int k = 6, lower = nh + 1; k >= 0; --k) {
-        const Eigen::Vector2d& q = pts[static_cast<std::size_t>(k)];
-        while (nh >= lower && turn(hv(nh - 2), hv(nh - 1), q) <= 0.0) --nh;
-        hv(nh++) = q;
-    }
-    --nh;  // the last point repeats the first
-    if (nh < 1) return;
-    // Hull edges as (b0, b1, c0, dc/db); vertices apart (a row crossing exactly one).
-    struct Edge {
-        double b0, b1, c0, slope;
-    };
-    std::array<Edge, 17> edges;
-    std::array<Eigen::Vector2d, 17> verts;
-    int ne = 0;
-    for (int k = 0; k < nh; ++k) {
-        const Eigen::Vector2d& h0 = hv(k);
-        const Eigen::Vector2d& h1 = hv((k + 1) % nh);
-        verts[static_cast<std::size_t>(k)] = h0;
-        if (h0.x() == h1.x()) continue;
-        edges[static_cast<std::size_t>(ne++)] = {
-            h0.x(), h1.x(), h0.y(), (h1.y() - h0.y()) / (h1.x() - h0.x())};
-    }
-    const double lo_y = a_lo_s.y(), lo_z = a_lo_s.z(), hi_y = a_hi_s.y(), hi_z = a_hi_s.z();
-    const double b_y = b_s.y(), b_z = b_s.z(), e_y = e_s.y(), e_z = e_s.z();
-    const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
-    const double h_out2 = h_out * h_out;
-    const double far2 = (r_max + T + 1e-6) * (r_max + T + 1e-6);  // slack for rounding
-    // Range change towards each neighbour (0 = no interpolation on that side).
-    const double dr_prev = std::isfinite(r_prev) ? r_prev - r : 0.0;
-    const double dr_next = std::isfinite(r_next) ? r_next - r : 0.0;
-    // The column a in [ilo, ihi] clipped by the six half-spaces: plane k bounds a from above
-    // (G[k][a] > 0) or below (< 0) at (H[k] - G[k][b] jb - G[k][c] jc) / G[k][a]; a plane
-    // parallel to the columns empties those whose (jb, jc) lie outside it.
-    int n_up = 0, n_lo = 0, n_par = 0;
-    int up_k[6], lo_k[6], par_k[6];
-    double inv_ga[6];
-    for (int k = 0; k < 6; ++k) {
-        inv_ga[k] = std::abs(G[k][a]) < 1e-12 ? 0.0 : 1.0 / G[k][a];
-        if (inv_ga[k] > 0.0) {
-            up_k[n_up++] = k;
-        } else if (inv_ga[k] < 0.0) {
-            lo_k[n_lo++] = k;
-        } else {
-            par_k[n_par++] = k;
-        }
-    }
-    const Eigen::Matrix3d Rt = R.transpose();
-    const Eigen::Vector3d step_s = Rt.col(a);  // sonar-frame change per voxel along axis a
-    const Eigen::Vector3d step_c = Rt.col(c_ax);
-    const double a_lo0 = ilo[a], a_hi0 = ihi[a];
+    lo[0] = std::max(lo[0], box.x_min);
+    hi[0] = std::min(hi[0], box.x_max);
+    lo[1] = std::max(lo[1], box.y_min);
+    hi[1] = std::min(hi[1], box.y_max);
+    if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) return;
 
-    for (int jb = ilo[b_ax]; jb <= ihi[b_ax]; ++jb) {
-        // Columns of this row that meet the frustum: where the row line b = jb crosses the
-        // convex hull of the corners projected along a.
-        double c_min = std::numeric_limits<double>::infinity();
-        double c_max = -c_min;
-        for (int k = 0; k < nh; ++k) {
-            const Eigen::Vector2d& h0 = verts[static_cast<std::size_t>(k)];
-            if (std::abs(h0.x() - jb) <= kEps) {
-                c_min = std::min(c_min, h0.y());
-                c_max = std::max(c_max, h0.y());
+    const Eigen::Matrix3d& R = scan.R;
+    const Eigen::Vector3d q0 = -(R.transpose() * scan.p_vox);  // sonar frame of voxel (0,0,0)
+    const Eigen::Vector3d rb(R(b_ax, 0), R(b_ax, 1), R(b_ax, 2));
+    const Eigen::Vector3d rc(R(c_ax, 0), R(c_ax, 1), R(c_ax, 2));
+    const Eigen::Vector3d& ra = fan.step;
+    const double nx = ra.x();
+    const bool in_plane = std::abs(nx) < 1e-9;  // columns parallel to the fan plane
+    const double inv_nx = in_plane ? 0.0 : 1.0 / nx;
+    const double sgn_nx = nx >= 0.0 ? 1.0 : -1.0;
+    const double inv_g = 1.0 / fan.g;
+    const double om_end = fan.omega0 + static_cast<double>(fan.tau_lo.size());
+    const double X = fan.x_max_all;
+    const double T = g.trunc_vox;
+    const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
+    const int n_sect = static_cast<int>(fan.sectors.size());
+    const double* side_y = fan.side_y.data();
+    const double* side_z = fan.side_z.data();
+    // Index >= k (k in [0, n_sect]) when the voxel lies on the far side of boundary k.
+    auto at_or_above = [&](int k, double y, double z) {
+        return side_y[k] * y + side_z[k] * z >= 0.0;
+    };
+    // Sector of (y, z) from a guess k in [-1, n_sect] (-1 and n_sect: outside the fan); the
+    // state is exact when both boundary tests agree, which the walk reaches in a step or two.
+    auto sector = [&](int k, double y, double z, bool& exact) {
+        for (int it = 0; it < 4; ++it) {
+            if (k < n_sect && at_or_above(k + 1, y, z)) {
+                ++k;
+            } else if (k >= 0 && !at_or_above(k, y, z)) {
+                --k;
+            } else {
+                exact = true;
+                return k;
             }
         }
-        for (int k = 0; k < ne; ++k) {
-            const Edge& ed = edges[static_cast<std::size_t>(k)];
-            const double b0 = ed.b0 - jb;
-            const double b1 = ed.b1 - jb;
-            if ((b0 < 0.0) == (b1 < 0.0)) continue;
-            const double cc = ed.c0 - ed.slope * b0;
-            c_min = std::min(c_min, cc);
-            c_max = std::max(c_max, cc);
+        exact = false;
+        return k;
+    };
+    auto sector_from_angle = [&](double y, double z) {
+        const double k =
+            std::floor((std::atan2(y, z) - fan.start_angle) * fan.inv_increment + 0.5);
+        return static_cast<int>(std::clamp(k, -1.0, static_cast<double>(n_sect)));
+    };
+
+    Coord ijk;
+    for (int jb = lo[b_ax]; jb <= hi[b_ax]; ++jb) {
+        const Eigen::Vector3d base = q0 + static_cast<double>(jb) * rb;  // (a, c) = (0, 0)
+        const double om_row = fan.w_y * base.y() + fan.w_z * base.z();
+        const double om_c = fan.w_y * rc.y() + fan.w_z * rc.z();
+        const double tau_row = fan.c_y * base.y() + fan.c_z * base.z();
+        const double tau_c = fan.c_y * rc.y() + fan.c_z * rc.z();
+        const double x_row = base.x();
+        const double x_c = rc.x();
+        int jc0 = lo[c_ax], jc1 = hi[c_ax];
+        // omega within the bins.
+        ClipLinear(fan.omega0 - om_row, -om_c, jc0, jc1);
+        ClipLinear(om_row - om_end, om_c, jc0, jc1);
+        if (in_plane) {
+            // |x| <= X along the whole column.
+            ClipLinear(x_row - X, x_c, jc0, jc1);
+            ClipLinear(-X - x_row, -x_c, jc0, jc1);
+        } else {
+            // The column's stretch within |x| <= X must meet its stretch within the ping's tau
+            // range: [(-X sgn - x0) / nx, (X sgn - x0) / nx] against [(tau_min - tau0) / g,
+            // (tau_max - tau0) / g], with x0 and tau0 linear in jc.
+            ClipLinear((-X * sgn_nx - x_row) * inv_nx - (fan.tau_max - tau_row) * inv_g,
+                       -x_c * inv_nx + tau_c * inv_g,
+                       jc0,
+                       jc1);
+            ClipLinear((fan.tau_min - tau_row) * inv_g - (X * sgn_nx - x_row) * inv_nx,
+                       -tau_c * inv_g + x_c * inv_nx,
+                       jc0,
+                       jc1);
         }
-        const int jc0 = std::max(ilo[c_ax], static_cast<int>(std::ceil(c_min - kEps)));
-        const int jc1 = std::min(ihi[c_ax], static_cast<int>(std::floor(c_max + kEps)));
-        if (jc0 > jc1) continue;
-        double row_h[6];
-        for (int k = 0; k < 6; ++k) row_h[k] = H[k] - G[k][b_ax] * jb;
-        Eigen::Vector3d v;
-        v[a] = 0.0;
-        v[b_ax] = jb;
-        v[c_ax] = jc0;
-        Eigen::Vector3d xs_c = Rt * (v - p);  // sonar frame of (a = 0, jb, jc)
-        Coord ijk;
         ijk[b_ax] = jb;
-        for (int jc = jc0; jc <= jc1; ++jc, xs_c += step_c) {
-            bool empty = false;
-            for (int i = 0; i < n_par; ++i) {
-                empty |= row_h[par_k[i]] - G[par_k[i]][c_ax] * jc < 0.0;
+        for (int jc = jc0; jc <= jc1; ++jc) {
+            const Eigen::Vector3d xs0 = base + static_cast<double>(jc) * rc;  // a = 0
+            const double om = fan.w_y * xs0.y() + fan.w_z * xs0.z();
+            const double jf = std::floor(om - fan.omega0);
+            if (!(jf >= 0.0 && jf < static_cast<double>(fan.tau_lo.size()))) continue;
+            const auto j = static_cast<std::size_t>(jf);
+            const double tl = fan.tau_lo[j], th = fan.tau_hi[j];
+            if (!(tl <= th)) continue;
+            const double tau0 = fan.c_y * xs0.y() + fan.c_z * xs0.z();
+            double t_lo = (tl - tau0) * inv_g;
+            double t_hi = (th - tau0) * inv_g;
+            const double xj = fan.x_max[j];
+            if (in_plane) {
+                if (std::abs(xs0.x()) > xj) continue;
+            } else {
+                const double t1 = (-xj - xs0.x()) * inv_nx;
+                const double t2 = (xj - xs0.x()) * inv_nx;
+                t_lo = std::max(t_lo, std::min(t1, t2));
+                t_hi = std::min(t_hi, std::max(t1, t2));
             }
-            double lo_a = a_lo0;
-            double hi_a = a_hi0;
-            for (int i = 0; i < n_up; ++i) {
-                const int k = up_k[i];
-                hi_a = std::min(hi_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
-            }
-            for (int i = 0; i < n_lo; ++i) {
-                const int k = lo_k[i];
-                lo_a = std::max(lo_a, (row_h[k] - G[k][c_ax] * jc) * inv_ga[k]);
-            }
-            if (empty || lo_a > hi_a) continue;
-            const int ja0 = static_cast<int>(std::ceil(lo_a));
-            const int ja1 = static_cast<int>(std::floor(hi_a));
+            t_lo = std::max(t_lo, static_cast<double>(lo[a]));
+            t_hi = std::min(t_hi, static_cast<double>(hi[a]));
+            if (!(t_lo <= t_hi)) continue;
+            const int ja0 = static_cast<int>(std::ceil(t_lo - 1e-9));
+            const int ja1 = static_cast<int>(std::floor(t_hi + 1e-9));
             if (ja0 > ja1) continue;
-            Eigen::Vector3d xs = xs_c + static_cast<double>(ja0) * step_s;
             ijk[c_ax] = jc;
-            for (int ja = ja0; ja <= ja1; ++ja, xs += step_s) {
-                // Sector of this beam (same planes as the candidate test, half-open); the
-                // in-plane vectors have no x component.
-                const double y = xs.y(), z = xs.z(), x2 = xs.x() * xs.x();
-                if (lo_y * y + lo_z * z < 0.0 || hi_y * y + hi_z * z >= 0.0) continue;
+            Eigen::Vector3d xs = xs0 + static_cast<double>(ja0) * ra;
+            int k = sector_from_angle(xs.y(), xs.z());
+            for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
+                const double x = xs.x(), y = xs.y(), z = xs.z();
+                bool exact = false;
+                k = sector(k, y, z, exact);
+                if (!exact) {
+                    k = sector(sector_from_angle(y, z), y, z, exact);
+                    if (!exact) continue;  // only off a degenerate fan; not in any sector
+                }
+                if (k < 0 || k >= n_sect) continue;
+                const detail::FanSector& fs = fan.sectors[static_cast<std::size_t>(k)];
+                if (!(fs.weight > 0.0f)) continue;  // no footprint range in this sector
+                const double x2 = x * x;
                 const double rho2 = y * y + z * z;
                 // Beam width: |x| <= max(tan(bw / 2) rho, h_out).
-                if (x2 > tan2_bw * rho2 && x2 > h_out2) continue;
-                // Beyond r_max + T from the sonar d <= -T whatever the interpolated range.
-                if (rho2 + x2 >= far2) continue;
+                if (x2 > tan2_bw * rho2 && x2 > fs.h_out2) continue;
+                const double dist2 = rho2 + x2;
+                if (dist2 >= fs.far2) continue;
                 // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
-                // as a signed fraction of the increment: > 0 towards beam i + 1.
-                const double frac = (e_y * y + e_z * z) / (b_y * y + b_z * z) * inv_inc;
-                const double r_at = r + std::abs(frac) * (frac >= 0.0 ? dr_next : dr_prev);
-                const double d = r_at - std::sqrt(rho2 + x2);  // Eq. 4
+                // as a signed fraction of the increment: > 0 towards sector k + 1.
+                const double frac = (fs.cos_theta * y - fs.sin_theta * z) /
+                                    (fs.sin_theta * y + fs.cos_theta * z) * fan.inv_increment;
+                const double r_at =
+                    fs.range + std::abs(frac) * (frac >= 0.0 ? fs.dr_next : fs.dr_prev);
+                const double d = r_at - std::sqrt(dist2);  // Eq. 4
                 if (!(d > -T && d <= T)) continue;
                 ijk[a] = ja;
-                up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel), f);
+                up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel), fs.weight);
             }
         }
     }
@@ -570,6 +493,10 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                         ps.y_hi < box.y_min || ps.y_lo > box.y_max) {
                         continue;
                     }
+                    if (beam_width) {
+                        IntegrateFan(ps, geo, box, up);
+                        continue;
+                    }
                     const SonarScan& scan = scans[scan_offset + si];
                     for (const PreparedBeam& pb : ps.beams) {
                         if (pb.x_hi < box.x_min || pb.x_lo > box.x_max || pb.y_hi < box.y_min ||
@@ -578,12 +505,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                         }
                         const float theta = scan.start_angle_rad +
                                             static_cast<float>(pb.beam) * scan.angle_increment_rad;
-                        if (beam_width) {
-                            IntegrateBeamWidth(
-                                ps, pb, theta, scan.angle_increment_rad, geo, box, up);
-                        } else {
-                            IntegrateRay(ps, pb, theta, geo, box, up);
-                        }
+                        IntegrateRay(ps, pb, theta, geo, box, up);
                     }
                 }
             }

@@ -29,6 +29,46 @@ struct PreparedBeam {
     std::uint16_t beam;  // beam index
 };
 
+// Beam-width mode: what the per-voxel test needs of one sector (beam index k of the scan),
+// in voxel units. weight 0 = no footprint range (the sector is not integrated).
+struct FanSector {
+    double cos_theta = 0, sin_theta = 0;  // beam axis theta_k (as float start + k * increment)
+    double far2 = 0;     // (r_max + T)^2: beyond, d <= -T whatever the interpolated range
+    double h_out2 = 0;   // square of the out-of-plane half-thickness off the cone (a voxel's
+                         // half-extent or half the gap to the neighbouring pings' fans)
+    float range = 0;     // footprint range
+    float dr_prev = 0;   // range change towards sector k - 1 (0 = no interpolation that side)
+    float dr_next = 0;   // range change towards sector k + 1
+    float weight = 0;    // f times the footprint's support
+};
+
+// Beam-width mode: a ping rasterised as a whole, in columns of voxels along the world axis that
+// lies closest to the fan plane (z for a level, downward-looking head). In the sonar frame a
+// column moves along a fixed in-plane direction c (and slowly out of the plane); columns are
+// binned by their in-plane offset omega across c, and each bin holds bounds on the position
+// tau along c, and on the out-of-plane distance, that contain every voxel a sector of the ping
+// can update. The walk then tests each candidate exactly (sector by half-plane tests against
+// the sector boundaries, cone, band).
+struct FanColumns {
+    int axis = 2;                                  // world axis of the columns
+    Eigen::Vector3d step = Eigen::Vector3d::Zero();  // sonar-frame change per voxel along axis
+    double c_y = 0, c_z = 0;      // in-plane unit direction of the columns (sonar y, z)
+    double w_y = 0, w_z = 0;      // in-plane unit normal to it: omega = w . (y, z)
+    double g = 0;                 // in-plane length of one step, |(step.y, step.z)|
+    double omega0 = 0;            // omega of bin 0's lower edge (bins are one voxel wide)
+    std::vector<float> tau_lo, tau_hi;  // per bin; tau_lo > tau_hi = empty
+    std::vector<float> x_max;           // per bin: largest |x| a sector there can update
+    double tau_min = 0, tau_max = 0, x_max_all = 0;  // over all bins
+    std::int32_t lo[3] = {0, 0, 0};  // world voxel bounds of every voxel the ping can update
+    std::int32_t hi[3] = {-1, -1, -1};
+    // Sector k is [beta_k, beta_{k+1}) of the in-plane angle in index order, beta_k = start +
+    // (k - 1/2) increment; a voxel lies at index >= k when side_y[k] y + side_z[k] z >= 0.
+    std::vector<double> side_y, side_z;  // num_beams + 1 boundaries
+    std::vector<FanSector> sectors;      // num_beams
+    double inv_increment = 0;            // 1 / increment (signed)
+    double start_angle = 0, increment = 0;
+};
+
 struct PreparedScan {
     Eigen::Matrix3d R;      // R_world_sonar
     Eigen::Vector3d p_vox;  // sonar position in voxel index units
@@ -43,6 +83,7 @@ struct PreparedScan {
     std::int64_t beams_out_of_range = 0;
     std::int64_t beams_inconsistent = 0;
     bool out_of_bounds = false;  // pose non-finite or beyond kMaxSonarOffsetM: no beams
+    FanColumns fan;              // beam-width mode (empty sectors in ray mode)
 };
 
 // Geometry shared by both sensor models, in voxel index units (voxel centres at integers).
@@ -61,5 +102,12 @@ PreparedScan PrepareScan(const SonarScan& scan,
                          const Geometry& geo,
                          const SonarScan* prev = nullptr,
                          const SonarScan* next = nullptr);
+
+// Beam-width mode: fills ps.fan from the prepared beams (ps.beams, ps.R, ps.p_vox) of a scan
+// with num_beams beams (fan_columns.cpp).
+void BuildFanColumns(PreparedScan& ps,
+                     const SonarScan& scan,
+                     std::size_t num_beams,
+                     const Geometry& geo);
 
 }  // namespace pitmap::proc::fusion::detail

@@ -1,0 +1,206 @@
+// SPDX-License-Identifier: MIT
+// The beam-width rasteriser's per-ping set-up (tsdf.cpp walks the columns): sector table,
+// sector boundaries, and per column bin the bounds that contain every voxel a sector of the
+// ping can update. Pure arithmetic on one ping; no OpenVDB here.
+//
+// Why a ping and not a beam: the sectors of one ping tile its fan, and a voxel belongs to at
+// most one of them, so one walk per ping visits each candidate voxel once. Walking beam by beam
+// needs a frustum per beam (about a voxel thick across the fan, oblique to the axes: ~3.6
+// candidates per column) and spent a third of the integration on set-up and clipping.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "processor/fusion/detail/prepared_scan.hpp"
+
+namespace pitmap::proc::fusion::detail {
+
+namespace {
+
+// The world axis most parallel to the fan plane (smallest component of the fan normal); z
+// unless another axis is clearly better, so a level head gets vertical columns, which cross a
+// floor's band along its whole length and run along z inside OpenVDB leaves.
+int ColumnAxis(const Eigen::Vector3d& n) {
+    int best = 2;
+    double best_v = std::abs(n.z());
+    for (int k = 0; k < 2; ++k) {
+        if (std::abs(n[k]) < best_v - 1e-9) {
+            best = k;
+            best_v = std::abs(n[k]);
+        }
+    }
+    return best;
+}
+
+}  // namespace
+
+void BuildFanColumns(PreparedScan& ps,
+                     const SonarScan& scan,
+                     std::size_t num_beams,
+                     const Geometry& geo) {
+    FanColumns& fan = ps.fan;
+    fan = FanColumns{};
+    const double inc = static_cast<double>(scan.angle_increment_rad);
+    const double start = static_cast<double>(scan.start_angle_rad);
+    const double n_beams = static_cast<double>(num_beams);
+    // A fan must be a proper wedge for the half-plane sector tests; sonar fans are at most
+    // ~180 deg. Scans beyond that (corrupt angles) integrate nothing: their beams are counted
+    // in beams_used but no sector exists (the footprint has no geometry to map).
+    if (ps.beams.empty() || !std::isfinite(inc) || !std::isfinite(start) || inc == 0.0 ||
+        std::abs(inc) * n_beams >= 3.14159265358979323846) {
+        return;
+    }
+    const double T = geo.trunc_vox;
+    const Eigen::Matrix3d& R = ps.R;
+    const Eigen::Vector3d n = R.col(0);
+    const double h_cube = 0.5 * (std::abs(n.x()) + std::abs(n.y()) + std::abs(n.z()));
+    const double half_inc = 0.5 * std::abs(inc);
+    const double sin_h = std::sin(half_inc), cos_h = std::cos(half_inc);
+
+    fan.start_angle = start;
+    fan.increment = inc;
+    fan.inv_increment = 1.0 / inc;
+    const double sgn = inc > 0.0 ? 1.0 : -1.0;
+    fan.side_y.resize(num_beams + 1);
+    fan.side_z.resize(num_beams + 1);
+    for (std::size_t k = 0; k <= num_beams; ++k) {
+        const double beta = start + (static_cast<double>(k) - 0.5) * inc;
+        fan.side_y[k] = sgn * std::cos(beta);
+        fan.side_z[k] = -sgn * std::sin(beta);
+    }
+
+    fan.axis = ColumnAxis(n);
+    const int a = fan.axis;
+    fan.step = Eigen::Vector3d(R(a, 0), R(a, 1), R(a, 2));
+    fan.g = std::hypot(fan.step.y(), fan.step.z());  // >= sqrt(2/3): |n_a| <= 1/sqrt(3)
+    fan.c_y = fan.step.y() / fan.g;
+    fan.c_z = fan.step.z() / fan.g;
+    fan.w_y = -fan.c_z;
+    fan.w_z = fan.c_y;
+
+    // Each sector's in-plane region lies in a segment along its mid axis (from rho_lo cos(h)
+    // to rho_hi) widened by hw = rho_hi sin(h) across it (h = inc / 2), out of the plane within
+    // x_max. rho_hi: the far test (|v - p| < r_max + T); rho_lo: d <= T needs |v - p| >=
+    // r_min - T, and the in-plane part of that is at least (r_min - T) cos(bw / 2) inside the
+    // cone and sqrt((r_min - T)^2 - h_out^2) off it. Small slacks cover rounding and the
+    // interpolation's |frac| reaching tan(h) / inc, a hair above 1/2.
+    struct Seg {
+        double om_a, tau_a, om_b, tau_b, hw, x_max;
+    };
+    std::vector<Seg> segs;
+    segs.reserve(ps.beams.size());
+    fan.sectors.assign(num_beams, FanSector{});
+    double om_lo = std::numeric_limits<double>::infinity();
+    double om_hi = -om_lo;
+    for (const PreparedBeam& pb : ps.beams) {
+        const double r = pb.range_vox;
+        const double r_prev = pb.range_prev_vox, r_next = pb.range_next_vox;
+        double r_min = r, r_max = r;
+        for (double rn : {r_prev, r_next}) {
+            if (!std::isfinite(rn)) continue;
+            r_min = std::min(r_min, 0.5 * (r + rn));
+            r_max = std::max(r_max, 0.5 * (r + rn));
+        }
+        const double h_out = std::max(h_cube, static_cast<double>(pb.half_gap_vox));
+        FanSector& fs = fan.sectors[pb.beam];
+        // The beam axis as the beam-by-beam rasteriser and the reference take it: theta in
+        // float, as every reader of the scan computes it.
+        const float theta = scan.start_angle_rad +
+                            static_cast<float>(pb.beam) * scan.angle_increment_rad;
+        fs.cos_theta = std::cos(static_cast<double>(theta));
+        fs.sin_theta = std::sin(static_cast<double>(theta));
+        fs.far2 = (r_max + T + 1e-6) * (r_max + T + 1e-6);
+        fs.h_out2 = h_out * h_out;
+        fs.range = pb.range_vox;
+        fs.dr_prev = std::isfinite(r_prev) ? static_cast<float>(r_prev - r) : 0.0f;
+        fs.dr_next = std::isfinite(r_next) ? static_cast<float>(r_next - r) : 0.0f;
+        fs.weight = pb.weight;
+
+        const double rho_hi = r_max + T + 1e-3;
+        const double q = r_min - T - 1e-3 - 1e-4 * r_max;
+        const double rho_lo =
+            q > 0.0 ? std::min(q * geo.cos_half_bw, std::sqrt(std::max(0.0, q * q - h_out * h_out)))
+                    : 0.0;
+        const double mid = start + static_cast<double>(pb.beam) * inc;
+        const double uy = std::sin(mid), uz = std::cos(mid);
+        const double a_y = rho_lo * cos_h * uy, a_z = rho_lo * cos_h * uz;
+        const double b_y = rho_hi * uy, b_z = rho_hi * uz;
+        Seg sg;
+        sg.om_a = fan.w_y * a_y + fan.w_z * a_z;
+        sg.tau_a = fan.c_y * a_y + fan.c_z * a_z;
+        sg.om_b = fan.w_y * b_y + fan.w_z * b_z;
+        sg.tau_b = fan.c_y * b_y + fan.c_z * b_z;
+        sg.hw = rho_hi * sin_h + 0.01;
+        sg.x_max = std::max(geo.tan_half_bw * rho_hi, h_out) + 1e-6;
+        om_lo = std::min(om_lo, std::min(sg.om_a, sg.om_b) - sg.hw);
+        om_hi = std::max(om_hi, std::max(sg.om_a, sg.om_b) + sg.hw);
+        segs.push_back(sg);
+
+        // World bounds: both ends, widened by the cross-section (norm <= hw + x_max).
+        const double reach = sg.hw + sg.x_max + 1.0;
+        for (const Eigen::Vector3d& e :
+             {Eigen::Vector3d(0.0, a_y, a_z), Eigen::Vector3d(0.0, b_y, b_z)}) {
+            const Eigen::Vector3d v = ps.p_vox + R * e;
+            for (int k = 0; k < 3; ++k) {
+                const auto lo = static_cast<std::int32_t>(std::floor(v[k] - reach));
+                const auto hi = static_cast<std::int32_t>(std::ceil(v[k] + reach));
+                if (fan.hi[k] < fan.lo[k]) {
+                    fan.lo[k] = lo;
+                    fan.hi[k] = hi;
+                } else {
+                    fan.lo[k] = std::min(fan.lo[k], lo);
+                    fan.hi[k] = std::max(fan.hi[k], hi);
+                }
+            }
+        }
+    }
+
+    fan.omega0 = std::floor(om_lo);
+    const auto num_bins = static_cast<std::size_t>(std::floor(om_hi) - fan.omega0) + 1;
+    const float inf = std::numeric_limits<float>::infinity();
+    fan.tau_lo.assign(num_bins, inf);
+    fan.tau_hi.assign(num_bins, -inf);
+    fan.x_max.assign(num_bins, 0.0f);
+    fan.tau_min = std::numeric_limits<double>::infinity();
+    fan.tau_max = -fan.tau_min;
+    for (const Seg& sg : segs) {
+        const double d_om = sg.om_b - sg.om_a;
+        const double d_tau = sg.tau_b - sg.tau_a;
+        const auto j0 = static_cast<std::size_t>(
+            std::floor(std::min(sg.om_a, sg.om_b) - sg.hw - fan.omega0));
+        const auto j1 = std::min(
+            num_bins - 1,
+            static_cast<std::size_t>(std::floor(std::max(sg.om_a, sg.om_b) + sg.hw - fan.omega0)));
+        for (std::size_t j = j0; j <= j1; ++j) {
+            // The part of the segment whose omega lies within hw of the bin.
+            const double lo = fan.omega0 + static_cast<double>(j) - sg.hw;
+            const double hi = lo + 1.0 + 2.0 * sg.hw;
+            double s0 = 0.0, s1 = 1.0;
+            if (std::abs(d_om) > 1e-12) {
+                const double sa = (lo - sg.om_a) / d_om;
+                const double sb = (hi - sg.om_a) / d_om;
+                s0 = std::max(s0, std::min(sa, sb));
+                s1 = std::min(s1, std::max(sa, sb));
+                if (s0 > s1) continue;
+            } else if (sg.om_a < lo || sg.om_a > hi) {
+                continue;
+            }
+            const double t0 = sg.tau_a + s0 * d_tau;
+            const double t1 = sg.tau_a + s1 * d_tau;
+            const auto tl = static_cast<float>(std::min(t0, t1) - sg.hw);
+            const auto th = static_cast<float>(std::max(t0, t1) + sg.hw);
+            // Floats: round outwards by a relative 1e-6 so the bounds stay conservative.
+            const float tl_out = tl - 1e-6f * std::abs(tl) - 1e-6f;
+            const float th_out = th + 1e-6f * std::abs(th) + 1e-6f;
+            fan.tau_lo[j] = std::min(fan.tau_lo[j], tl_out);
+            fan.tau_hi[j] = std::max(fan.tau_hi[j], th_out);
+            fan.x_max[j] =
+                std::max(fan.x_max[j], static_cast<float>(sg.x_max) * (1.0f + 1e-6f) + 1e-6f);
+            fan.tau_min = std::min(fan.tau_min, static_cast<double>(tl_out));
+            fan.tau_max = std::max(fan.tau_max, static_cast<double>(th_out));
+            fan.x_max_all = std::max(fan.x_max_all, static_cast<double>(fan.x_max[j]));
+        }
+    }
+}
+
+}  // namespace pitmap::proc::fusion::detail
