@@ -130,7 +130,8 @@ void BuildFanColumns(PreparedScan& ps,
         sg.tau_a = fan.c_y * a_y + fan.c_z * a_z;
         sg.om_b = fan.w_y * b_y + fan.w_z * b_z;
         sg.tau_b = fan.c_y * b_y + fan.c_z * b_z;
-        sg.hw = rho_hi * sin_h + 0.01;
+        // (+ 0.01 + 1e-6 rho_hi: the bins are floats; rounding to them stays inside this)
+        sg.hw = rho_hi * sin_h + 0.01 + 1e-6 * rho_hi;
         sg.x_max = std::max(geo.tan_half_bw * rho_hi, h_out) + 1e-6;
         om_lo = std::min(om_lo, std::min(sg.om_a, sg.om_b) - sg.hw);
         om_hi = std::max(om_hi, std::max(sg.om_a, sg.om_b) + sg.hw);
@@ -165,6 +166,9 @@ void BuildFanColumns(PreparedScan& ps,
     fan.tau_max = -fan.tau_min;
     for (const Seg& sg : segs) {
         const double d_om = sg.om_b - sg.om_a;
+        const auto x_max = static_cast<float>(sg.x_max * (1.0 + 1e-6));
+        const bool along = std::abs(d_om) > 1e-12;  // the segment crosses bins
+        const double inv_d_om = along ? 1.0 / d_om : 0.0;
         const double d_tau = sg.tau_b - sg.tau_a;
         const auto j0 = static_cast<std::size_t>(
             std::floor(std::min(sg.om_a, sg.om_b) - sg.hw - fan.omega0));
@@ -176,9 +180,9 @@ void BuildFanColumns(PreparedScan& ps,
             const double lo = fan.omega0 + static_cast<double>(j) - sg.hw;
             const double hi = lo + 1.0 + 2.0 * sg.hw;
             double s0 = 0.0, s1 = 1.0;
-            if (std::abs(d_om) > 1e-12) {
-                const double sa = (lo - sg.om_a) / d_om;
-                const double sb = (hi - sg.om_a) / d_om;
+            if (along) {
+                const double sa = (lo - sg.om_a) * inv_d_om;
+                const double sb = (hi - sg.om_a) * inv_d_om;
                 s0 = std::max(s0, std::min(sa, sb));
                 s1 = std::min(s1, std::max(sa, sb));
                 if (s0 > s1) continue;
@@ -187,19 +191,16 @@ void BuildFanColumns(PreparedScan& ps,
             }
             const double t0 = sg.tau_a + s0 * d_tau;
             const double t1 = sg.tau_a + s1 * d_tau;
-            const auto tl = static_cast<float>(std::min(t0, t1) - sg.hw);
-            const auto th = static_cast<float>(std::max(t0, t1) + sg.hw);
-            // Floats: round outwards by a relative 1e-6 so the bounds stay conservative.
-            const float tl_out = tl - 1e-6f * std::abs(tl) - 1e-6f;
-            const float th_out = th + 1e-6f * std::abs(th) + 1e-6f;
-            fan.tau_lo[j] = std::min(fan.tau_lo[j], tl_out);
-            fan.tau_hi[j] = std::max(fan.tau_hi[j], th_out);
-            fan.x_max[j] =
-                std::max(fan.x_max[j], static_cast<float>(sg.x_max) * (1.0f + 1e-6f) + 1e-6f);
-            fan.tau_min = std::min(fan.tau_min, static_cast<double>(tl_out));
-            fan.tau_max = std::max(fan.tau_max, static_cast<double>(th_out));
-            fan.x_max_all = std::max(fan.x_max_all, static_cast<double>(fan.x_max[j]));
+            fan.tau_lo[j] = std::min(fan.tau_lo[j], static_cast<float>(std::min(t0, t1) - sg.hw));
+            fan.tau_hi[j] = std::max(fan.tau_hi[j], static_cast<float>(std::max(t0, t1) + sg.hw));
+            fan.x_max[j] = std::max(fan.x_max[j], x_max);
         }
+    }
+    for (std::size_t j = 0; j < num_bins; ++j) {
+        if (!(fan.tau_lo[j] <= fan.tau_hi[j])) continue;
+        fan.tau_min = std::min(fan.tau_min, static_cast<double>(fan.tau_lo[j]));
+        fan.tau_max = std::max(fan.tau_max, static_cast<double>(fan.tau_hi[j]));
+        fan.x_max_all = std::max(fan.x_max_all, static_cast<double>(fan.x_max[j]));
     }
 }
 

@@ -218,8 +218,8 @@ void IntegrateFan(const PreparedScan& scan,
     };
     // Sector of (y, z) from a guess k in [-1, n_sect] (-1 and n_sect: outside the fan); the
     // state is exact when both boundary tests agree, which the walk reaches in a step or two.
-    auto sector = [&](int k, double y, double z, bool& exact) {
-        for (int it = 0; it < 4; ++it) {
+    auto sector = [&](int k, double y, double z, int max_steps, bool& exact) {
+        for (int it = 0; it < max_steps; ++it) {
             if (k < n_sect && at_or_above(k + 1, y, z)) {
                 ++k;
             } else if (k >= 0 && !at_or_above(k, y, z)) {
@@ -238,6 +238,7 @@ void IntegrateFan(const PreparedScan& scan,
         return static_cast<int>(std::clamp(k, -1.0, static_cast<double>(n_sect)));
     };
 
+    int k_column = -2;  // sector of the previous column's first voxel (-2: none yet)
     Coord ijk;
     for (int jb = lo[b_ax]; jb <= hi[b_ax]; ++jb) {
         const Eigen::Vector3d base = q0 + static_cast<double>(jb) * rb;  // (a, c) = (0, 0)
@@ -297,13 +298,21 @@ void IntegrateFan(const PreparedScan& scan,
             if (ja0 > ja1) continue;
             ijk[c_ax] = jc;
             Eigen::Vector3d xs = xs0 + static_cast<double>(ja0) * ra;
-            int k = sector_from_angle(xs.y(), xs.z());
+            // The first voxel's sector from the previous column's (neighbouring columns start
+            // a sector or two apart), else from its angle.
+            int k = k_column;
+            {
+                bool exact = false;
+                if (k >= -1) k = sector(k, xs.y(), xs.z(), 8, exact);
+                if (!exact) k = sector_from_angle(xs.y(), xs.z());
+            }
+            k_column = k;
             for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
                 const double x = xs.x(), y = xs.y(), z = xs.z();
                 bool exact = false;
-                k = sector(k, y, z, exact);
+                k = sector(k, y, z, 4, exact);
                 if (!exact) {
-                    k = sector(sector_from_angle(y, z), y, z, exact);
+                    k = sector(sector_from_angle(y, z), y, z, 4, exact);
                     if (!exact) continue;  // only off a degenerate fan; not in any sector
                 }
                 if (k < 0 || k >= n_sect) continue;
