@@ -10,11 +10,14 @@
 // are disjoint and are merged by moving leaves; each voxel sees the same updates in the same
 // order for any thread count.
 //
-// Where the beam-width time goes (bejanca, 502 M voxel updates, perf): about half in the
-// per-voxel test and update (a division for the in-plane angle, a square root, the running
-// average's division, two leaf writes whose cache lines often come from L3), the rest in the
-// per-beam frustum set-up and its row and column clipping (columns are short: ~3.6 candidate
-// voxels, since the frustum is about one voxel thick across the fan and oblique to the axes).
+// Beam-width mode walks each ping as a whole (IntegrateFan): one pass over columns of voxels
+// along the axis closest to the fan plane, each voxel tested once in the sector of its angle.
+// Where its time goes (bejanca, 1 thread, perf, 2026-11-29): most in the per-voxel work
+// (tracking the sector, the in-plane angle's division, the square root, the running average's
+// division and its leaf writes), ~7 % in the per-ping set-up (fan_columns.cpp); 675 M
+// candidates for 502 M updates, 28.5 M columns. The per-beam frustum walk it replaced spent a
+// third of its time on frustum set-up and clipping (7.7 M frusta, 177 M columns of ~3.6
+// candidates).
 #include "processor/fusion/tsdf.hpp"
 
 #include <openvdb/math/DDA.h>
@@ -55,8 +58,10 @@ constexpr int kSlabVoxels = 64;  // multiple of LeafT::DIM (8)
 // Each voxel lies in one band, so it still sees its updates in input order.
 constexpr int kBandVoxels = 64;
 constexpr std::size_t kBatchScans = 64;
-// Scans prepared at a time (their beams, ~36 bytes each, are held until the chunk is done).
-constexpr std::size_t kChunkScans = 2048;
+// Scans prepared at a time (held until the chunk is done: ~36 bytes per beam, and in
+// beam-width mode ~40 KB of sectors, boundaries and column bins per ping). 512 keeps the
+// integration's memory within the grids + 16 % on bejanca (2048: + 36 %) at the same speed.
+constexpr std::size_t kChunkScans = 512;
 
 // The voxels one task may touch: x in [x_min, x_max], y in [y_min, y_max].
 struct ClipBox {
@@ -77,8 +82,9 @@ openvdb::FloatGrid::Ptr MakeGrid(float background, double voxel_size_m, const ch
 
 // Running weighted average on a pair of leaves (Eq. 5-6). The leaves' value buffers and masks
 // are written directly; a small direct-mapped cache keyed by leaf origin keeps the pairs of
-// recently used leaves, so a voxel walk that steps back and forth between neighbouring leaves
-// (short columns of a thin, oblique frustum) rarely goes through the tree accessors.
+// recently used leaves, so a walk that comes back to neighbouring leaves (a ping's neighbouring
+// columns, a ray) rarely goes through the tree accessors, and consecutive updates in one leaf
+// (a column inside it) skip even the cache lookup.
 class VoxelUpdater {
 public:
     VoxelUpdater(openvdb::FloatGrid& distance, openvdb::FloatGrid& weight, float f, float w_max)

@@ -155,8 +155,9 @@ struct WeightHistogram {
 // along world x; the scans are taken in chunks of consecutive scans, and each slab integrates
 // a chunk's scans in input order in one task, so the result is identical for any thread count
 // (bit for bit). The object itself is not thread safe: do not call methods concurrently.
-// MEMORY: besides the grids, Integrate holds one chunk's prepared beams (2048 scans, ~36 bytes
-// per beam) and, while merging, nothing more: slab leaves are moved into the volume.
+// MEMORY: besides the grids, Integrate holds one chunk's prepared scans (512 scans: ~36 bytes
+// per beam, and in beam-width mode ~40 KB per ping for its column set-up) and, while merging,
+// nothing more: slab leaves are moved into the volume.
 class TsdfVolume {
 public:
     // Precondition: config.Validate() is empty.

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// The beam-width rasteriser (tsdf.cpp: frustum columns, leaf cache, slabs and bands) against a
+// The beam-width rasteriser (tsdf.cpp: per-ping columns, leaf cache, slabs and bands) against a
 // straightforward evaluation of the same model: every voxel of a box, for every scan in order,
 // is back-projected into the sonar frame, given the sector of its in-plane angle (atan2), tested
 // against the beam's width and the truncation band, and updated with the running average
