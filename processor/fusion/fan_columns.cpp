@@ -43,13 +43,16 @@ void BuildFanColumns(PreparedScan& ps,
     const double inc = static_cast<double>(scan.angle_increment_rad);
     const double start = static_cast<double>(scan.start_angle_rad);
     const double n_beams = static_cast<double>(num_beams);
-    // A fan must be a proper wedge for the half-plane sector tests; sonar fans are at most
-    // ~180 deg. Scans beyond that (corrupt angles) integrate nothing: their beams are counted
-    // in beams_used but no sector exists (the footprint has no geometry to map).
+    // A sector must be a proper wedge (under 180 deg) for the half-plane tests; beams further
+    // apart than that are not a multibeam (the per-beam footprint has no geometry either).
+    constexpr double kPi = 3.14159265358979323846;
     if (ps.beams.empty() || !std::isfinite(inc) || !std::isfinite(start) || inc == 0.0 ||
-        std::abs(inc) * n_beams >= 3.14159265358979323846) {
+        std::abs(inc) >= kPi) {
         return;
     }
+    // Tracking a voxel's sector by the boundary tests alone needs the whole fan within 180 deg
+    // (the Delta T's is 120 deg); wider fans take each voxel's sector from its angle.
+    fan.wide = std::abs(inc) * n_beams >= kPi;
     const double T = geo.trunc_vox;
     const Eigen::Matrix3d& R = ps.R;
     const Eigen::Vector3d n = R.col(0);

@@ -224,7 +224,15 @@ void IntegrateFan(const PreparedScan& scan,
     };
     // Sector of (y, z) from a guess k in [-1, n_sect] (-1 and n_sect: outside the fan); the
     // state is exact when both boundary tests agree, which the walk reaches in a step or two.
+    // Off a fan of 180 deg or more the tests are not monotone across sectors: only the angle's
+    // own sector is checked (exact: a sector's two tests bound it alone).
+    const int track_steps = fan.wide ? 0 : 4;
     auto sector = [&](int k, double y, double z, int max_steps, bool& exact) {
+        if (fan.wide) max_steps = 0;
+        if (max_steps == 0) {
+            exact = k >= 0 && k < n_sect && at_or_above(k, y, z) && !at_or_above(k + 1, y, z);
+            return k;
+        }
         for (int it = 0; it < max_steps; ++it) {
             if (k < n_sect && at_or_above(k + 1, y, z)) {
                 ++k;
@@ -316,9 +324,9 @@ void IntegrateFan(const PreparedScan& scan,
             for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
                 const double x = xs.x(), y = xs.y(), z = xs.z();
                 bool exact = false;
-                k = sector(k, y, z, 4, exact);
+                k = sector(k, y, z, track_steps, exact);
                 if (!exact) {
-                    k = sector(sector_from_angle(y, z), y, z, 4, exact);
+                    k = sector(sector_from_angle(y, z), y, z, track_steps, exact);
                     if (!exact) continue;  // only off a degenerate fan; not in any sector
                 }
                 if (k < 0 || k >= n_sect) continue;

@@ -67,6 +67,7 @@ struct FanColumns {
     std::vector<FanSector> sectors;      // num_beams
     double inv_increment = 0;            // 1 / increment (signed)
     double start_angle = 0, increment = 0;
+    bool wide = false;  // the fan spans 180 deg or more: sectors from the angle, not tracked
 };
 
 struct PreparedScan {

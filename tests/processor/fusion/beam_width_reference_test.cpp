@@ -181,5 +181,73 @@ TEST(BeamWidthRasteriser, MatchesVoxelByVoxelReference) {
     }
 }
 
+// A fan wider than a half turn (161 beams 1.25 deg apart, 200 deg), its outer beams looking up
+// at boulders beside the head: a voxel's sector then comes from its angle, since the boundary
+// tests of such a fan are not monotone from one sector to the next. Ranges beyond 4 m are out
+// of range so the reference's box stays small.
+std::vector<SonarScan> WideFanScene() {
+    SyntheticWorld world;
+    world.plane_z_m = -2.5;
+    world.spheres.push_back({Eigen::Vector3d(0.1, -1.9, 0.3), 0.8});
+    world.spheres.push_back({Eigen::Vector3d(-0.2, 2.0, 0.4), 0.8});
+    LineSurvey survey;
+    survey.x0_m = -0.5;
+    survey.x1_m = 0.5;
+    survey.spacing_m = 0.07;
+    survey.lines_y_m = {0.0};
+    survey.num_beams = 161;
+    survey.start_angle_rad = -100.0 * std::numbers::pi / 180.0;
+    survey.increment_rad = 1.25 * std::numbers::pi / 180.0;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.23, Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(-0.05, Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()))
+                                     .toRotationMatrix();
+    for (SonarScan& scan : scans) {
+        scan.T_world_sonar.linear() = tilt * scan.T_world_sonar.linear();
+        for (std::size_t b = 0; b < scan.ranges_m.size(); ++b) {
+            const double th = scan.start_angle_rad + static_cast<double>(b) * survey.increment_rad;
+            const Eigen::Vector3d dir =
+                scan.T_world_sonar.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
+            const double r = world.Cast(scan.T_world_sonar.translation(), dir);
+            scan.ranges_m[b] = std::isfinite(r) ? static_cast<float>(r) : 0.0f;
+        }
+    }
+    return scans;
+}
+
+TEST(BeamWidthRasteriser, FanWiderThanAHalfTurnMatchesTheReference) {
+    TsdfConfig c;
+    c.truncation_m = 0.3;
+    c.max_range_m = 4.0;
+    c.sensor_model = SensorModel::kBeamWidth;
+    const std::vector<SonarScan> scans = WideFanScene();
+    TsdfVolume volume(c);
+    const IntegrateResult ir = volume.Integrate(scans);
+    const std::map<Key, RefVoxel> ref = ReferenceIntegrate(scans, c);
+    ASSERT_GT(ref.size(), 1000u);
+    // Beams beyond +-90 deg (upwards) reach the boulders beside the head.
+    std::size_t above_head = 0;
+    for (const auto& [key, rv] : ref) {
+        if (std::get<2>(key) >= 0) ++above_head;
+    }
+    EXPECT_GT(above_head, 100u);
+    EXPECT_EQ(ir.active_voxels, static_cast<std::int64_t>(ref.size()));
+    std::size_t missing = 0;
+    double worst_d = 0;
+    for (const auto& [key, rv] : ref) {
+        const auto [x, y, z] = key;
+        const Eigen::Vector3d p_world = Eigen::Vector3d(x, y, z) * c.voxel_size_m;
+        if (volume.WeightAt(p_world) == 0.0f) {
+            ++missing;
+            continue;
+        }
+        worst_d = std::max(
+            worst_d, static_cast<double>(std::abs(volume.DistanceAt(p_world) - rv.distance_m)));
+    }
+    EXPECT_EQ(missing, 0u);
+    EXPECT_LT(worst_d, 1e-5);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::fusion
