@@ -108,8 +108,8 @@ void BuildFanColumns(PreparedScan& ps,
         FanSector& fs = fan.sectors[pb.beam];
         // The beam axis as the beam-by-beam rasteriser and the reference take it: theta in
         // float, as every reader of the scan computes it.
-        const float theta = scan.start_angle_rad +
-                            static_cast<float>(pb.beam) * scan.angle_increment_rad;
+        const float theta =
+            scan.start_angle_rad + static_cast<float>(pb.beam) * scan.angle_increment_rad;
         fs.cos_theta = std::cos(static_cast<double>(theta));
         fs.sin_theta = std::sin(static_cast<double>(theta));
         fs.far2 = (r_max + T + 1e-6) * (r_max + T + 1e-6);
@@ -173,8 +173,8 @@ void BuildFanColumns(PreparedScan& ps,
         const bool along = std::abs(d_om) > 1e-12;  // the segment crosses bins
         const double inv_d_om = along ? 1.0 / d_om : 0.0;
         const double d_tau = sg.tau_b - sg.tau_a;
-        const auto j0 = static_cast<std::size_t>(
-            std::floor(std::min(sg.om_a, sg.om_b) - sg.hw - fan.omega0));
+        const auto j0 =
+            static_cast<std::size_t>(std::floor(std::min(sg.om_a, sg.om_b) - sg.hw - fan.omega0));
         const auto j1 = std::min(
             num_bins - 1,
             static_cast<std::size_t>(std::floor(std::max(sg.om_a, sg.om_b) + sg.hw - fan.omega0)));

@@ -247,8 +247,7 @@ void IntegrateFan(const PreparedScan& scan,
         return k;
     };
     auto sector_from_angle = [&](double y, double z) {
-        const double k =
-            std::floor((std::atan2(y, z) - fan.start_angle) * fan.inv_increment + 0.5);
+        const double k = std::floor((std::atan2(y, z) - fan.start_angle) * fan.inv_increment + 0.5);
         return static_cast<int>(std::clamp(k, -1.0, static_cast<double>(n_sect)));
     };
 

@@ -33,13 +33,13 @@ struct PreparedBeam {
 // in voxel units. weight 0 = no footprint range (the sector is not integrated).
 struct FanSector {
     double cos_theta = 0, sin_theta = 0;  // beam axis theta_k (as float start + k * increment)
-    double far2 = 0;     // (r_max + T)^2: beyond, d <= -T whatever the interpolated range
-    double h_out2 = 0;   // square of the out-of-plane half-thickness off the cone (a voxel's
-                         // half-extent or half the gap to the neighbouring pings' fans)
-    float range = 0;     // footprint range
-    float dr_prev = 0;   // range change towards sector k - 1 (0 = no interpolation that side)
-    float dr_next = 0;   // range change towards sector k + 1
-    float weight = 0;    // f times the footprint's support
+    double far2 = 0;    // (r_max + T)^2: beyond, d <= -T whatever the interpolated range
+    double h_out2 = 0;  // square of the out-of-plane half-thickness off the cone (a voxel's
+                        // half-extent or half the gap to the neighbouring pings' fans)
+    float range = 0;    // footprint range
+    float dr_prev = 0;  // range change towards sector k - 1 (0 = no interpolation that side)
+    float dr_next = 0;  // range change towards sector k + 1
+    float weight = 0;   // f times the footprint's support
 };
 
 // Beam-width mode: a ping rasterised as a whole, in columns of voxels along the world axis that
@@ -50,12 +50,12 @@ struct FanSector {
 // can update. The walk then tests each candidate exactly (sector by half-plane tests against
 // the sector boundaries, cone, band).
 struct FanColumns {
-    int axis = 2;                                  // world axis of the columns
+    int axis = 2;                                    // world axis of the columns
     Eigen::Vector3d step = Eigen::Vector3d::Zero();  // sonar-frame change per voxel along axis
-    double c_y = 0, c_z = 0;      // in-plane unit direction of the columns (sonar y, z)
-    double w_y = 0, w_z = 0;      // in-plane unit normal to it: omega = w . (y, z)
-    double g = 0;                 // in-plane length of one step, |(step.y, step.z)|
-    double omega0 = 0;            // omega of bin 0's lower edge (bins are one voxel wide)
+    double c_y = 0, c_z = 0;            // in-plane unit direction of the columns (sonar y, z)
+    double w_y = 0, w_z = 0;            // in-plane unit normal to it: omega = w . (y, z)
+    double g = 0;                       // in-plane length of one step, |(step.y, step.z)|
+    double omega0 = 0;                  // omega of bin 0's lower edge (bins are one voxel wide)
     std::vector<float> tau_lo, tau_hi;  // per bin; tau_lo > tau_hi = empty
     std::vector<float> x_max;           // per bin: largest |x| a sector there can update
     double tau_min = 0, tau_max = 0, x_max_all = 0;  // over all bins
