@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <map>
 #include <numbers>
+#include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -214,6 +215,88 @@ std::vector<SonarScan> WideFanScene() {
         }
     }
     return scans;
+}
+
+// A head pitched most of the way up (a forward-looking mount: the fan nearly horizontal), so the
+// rasteriser's columns run along a horizontal world axis and leave the fan plane as they go,
+// over boulders in front of it and the floor.
+std::vector<SonarScan> ForwardLookingScene(double yaw_rad) {
+    SyntheticWorld world;
+    world.plane_z_m = -0.9;
+    // Before the yaw the head looks towards -x; the boulders turn with it.
+    const Eigen::AngleAxisd turn(yaw_rad, Eigen::Vector3d::UnitZ());
+    world.spheres.push_back({turn * Eigen::Vector3d(-2.2, 0.4, -0.5), 0.8});
+    world.spheres.push_back({turn * Eigen::Vector3d(-1.5, -1.8, -0.4), 0.6});
+    world.spheres.push_back({turn * Eigen::Vector3d(-1.6, 1.7, -0.7), 0.7});
+    LineSurvey survey;
+    survey.x0_m = -0.4;
+    survey.x1_m = 0.4;
+    survey.spacing_m = 0.1;
+    survey.lines_y_m = {0.0};
+    survey.num_beams = 241;
+    survey.start_angle_rad = -60.0 * std::numbers::pi / 180.0;
+    survey.increment_rad = 0.5 * std::numbers::pi / 180.0;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(1.25, Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(0.07, Eigen::Vector3d::UnitX()))
+                                     .toRotationMatrix();
+    for (SonarScan& scan : scans) {
+        scan.T_world_sonar.linear() = tilt * scan.T_world_sonar.linear();
+        for (std::size_t b = 0; b < scan.ranges_m.size(); ++b) {
+            const double th = scan.start_angle_rad + static_cast<double>(b) * survey.increment_rad;
+            const Eigen::Vector3d dir =
+                scan.T_world_sonar.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
+            const double r = world.Cast(scan.T_world_sonar.translation(), dir);
+            scan.ranges_m[b] = std::isfinite(r) ? static_cast<float>(r) : 0.0f;
+        }
+    }
+    return scans;
+}
+
+// Voxel-by-voxel comparison of the volume with the reference; returns the reference size.
+std::size_t ExpectMatchesReference(const std::vector<SonarScan>& scans,
+                                   const TsdfConfig& c,
+                                   const std::string& what) {
+    TsdfVolume volume(c);
+    const IntegrateResult ir = volume.Integrate(scans);
+    const std::map<Key, RefVoxel> ref = ReferenceIntegrate(scans, c);
+    EXPECT_EQ(ir.active_voxels, static_cast<std::int64_t>(ref.size())) << what;
+    std::size_t missing = 0;
+    double worst_d = 0, worst_w = 0;
+    for (const auto& [key, rv] : ref) {
+        const auto [x, y, z] = key;
+        const Eigen::Vector3d p_world = Eigen::Vector3d(x, y, z) * c.voxel_size_m;
+        const float w = volume.WeightAt(p_world);
+        if (w == 0.0f) {
+            ++missing;
+            continue;
+        }
+        worst_w = std::max(worst_w, static_cast<double>(std::abs(w - rv.weight)));
+        worst_d = std::max(
+            worst_d, static_cast<double>(std::abs(volume.DistanceAt(p_world) - rv.distance_m)));
+    }
+    EXPECT_EQ(missing, 0u) << what;
+    EXPECT_LT(worst_d, 1e-5) << what;
+    EXPECT_LT(worst_w, 1e-5) << what;
+    return ref.size();
+}
+
+TEST(BeamWidthRasteriser, ForwardLookingHeadMatchesTheReference) {
+    TsdfConfig c;
+    c.truncation_m = 0.4;
+    c.max_range_m = 3.5;
+    c.sensor_model = SensorModel::kBeamWidth;
+    // The fan normal is mostly vertical: columns along y (yaw 0.2) and along x (yaw 1.3).
+    const double s = c.voxel_size_m;
+    const detail::Geometry geo{
+        c.truncation_m / s, std::tan(0.5 * c.beam_width_rad), std::cos(0.5 * c.beam_width_rad), s};
+    for (auto [yaw, axis] : {std::pair{0.2, 1}, std::pair{1.3, 0}}) {
+        const std::vector<SonarScan> scans = ForwardLookingScene(yaw);
+        EXPECT_EQ(detail::PrepareScan(scans[0], c, geo).fan.axis, axis) << yaw;
+        const std::size_t n = ExpectMatchesReference(scans, c, "yaw " + std::to_string(yaw));
+        EXPECT_GT(n, 500u) << yaw;
+    }
 }
 
 TEST(BeamWidthRasteriser, FanWiderThanAHalfTurnMatchesTheReference) {
