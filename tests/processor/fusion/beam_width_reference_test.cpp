@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <map>
 #include <numbers>
+#include <random>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -297,6 +298,48 @@ TEST(BeamWidthRasteriser, ForwardLookingHeadMatchesTheReference) {
         const std::size_t n = ExpectMatchesReference(scans, c, "yaw " + std::to_string(yaw));
         EXPECT_GT(n, 500u) << yaw;
     }
+}
+
+// Single pings in random orientations (any world axis can be the column axis, columns cross
+// the fan plane at any angle), with increments of either sign, wavy ranges with range jumps and
+// dropouts: every voxel the model updates must lie inside the column bounds.
+TEST(BeamWidthRasteriser, PingsInRandomOrientationsMatchTheReference) {
+    TsdfConfig c;
+    c.truncation_m = 0.3;
+    c.sensor_model = SensorModel::kBeamWidth;
+    std::mt19937 rng(20261129);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    int axis_seen[3] = {0, 0, 0};
+    for (int trial = 0; trial < 40; ++trial) {
+        SonarScan scan;
+        const Eigen::Quaterniond q =
+            Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+        scan.T_world_sonar.linear() = q.toRotationMatrix();
+        scan.T_world_sonar.translation() = Eigen::Vector3d(3.0 * u(rng), 3.0 * u(rng), u(rng));
+        const int n = 96;
+        const double inc =
+            (trial % 2 == 0 ? 1.0 : -1.0) * (0.4 + 0.3 * (u(rng) + 1.0)) * std::numbers::pi / 180.0;
+        scan.angle_increment_rad = static_cast<float>(inc);
+        scan.start_angle_rad = static_cast<float>(-0.5 * (n - 1) * inc + 0.2 * u(rng));
+        const double a = 1.2 + 0.4 * u(rng), b = 0.3 * u(rng), ph = 3.0 * u(rng);
+        scan.ranges_m.resize(n);
+        for (int i = 0; i < n; ++i) {
+            double r = a + b * std::sin(0.15 * i + ph);
+            if (i > 60 && i < 70) r += 0.5;      // a range jump (a ledge)
+            if ((i + trial) % 17 == 0) r = 0.0;  // a dropout
+            scan.ranges_m[static_cast<std::size_t>(i)] = static_cast<float>(r);
+        }
+        const double s = c.voxel_size_m;
+        const detail::Geometry geo{c.truncation_m / s,
+                                   std::tan(0.5 * c.beam_width_rad),
+                                   std::cos(0.5 * c.beam_width_rad),
+                                   s};
+        ++axis_seen[detail::PrepareScan(scan, c, geo).fan.axis];
+        const std::size_t voxels =
+            ExpectMatchesReference({scan}, c, "trial " + std::to_string(trial));
+        EXPECT_GT(voxels, 50u) << trial;
+    }
+    for (int k = 0; k < 3; ++k) EXPECT_GT(axis_seen[k], 0) << "axis " << k;
 }
 
 TEST(BeamWidthRasteriser, FanWiderThanAHalfTurnMatchesTheReference) {
