@@ -88,7 +88,7 @@ void BuildFanColumns(PreparedScan& ps,
     // cone and sqrt((r_min - T)^2 - h_out^2) off it. Small slacks cover rounding and the
     // interpolation's |frac| reaching tan(h) / inc, a hair above 1/2.
     struct Seg {
-        double om_a, tau_a, om_b, tau_b, hw, x_max;
+        double om_a, tau_a, om_b, tau_b, hw, x_max, h_out;
     };
     std::vector<Seg> segs;
     segs.reserve(ps.beams.size());
@@ -136,6 +136,7 @@ void BuildFanColumns(PreparedScan& ps,
         // (+ 0.01 + 1e-6 rho_hi: the bins are floats; rounding to them stays inside this)
         sg.hw = rho_hi * sin_h + 0.01 + 1e-6 * rho_hi;
         sg.x_max = std::max(geo.tan_half_bw * rho_hi, h_out) + 1e-6;
+        sg.h_out = h_out;
         om_lo = std::min(om_lo, std::min(sg.om_a, sg.om_b) - sg.hw);
         om_hi = std::max(om_hi, std::max(sg.om_a, sg.om_b) + sg.hw);
         segs.push_back(sg);
@@ -165,11 +166,13 @@ void BuildFanColumns(PreparedScan& ps,
     fan.tau_lo.assign(num_bins, inf);
     fan.tau_hi.assign(num_bins, -inf);
     fan.x_max.assign(num_bins, 0.0f);
+    fan.h_max.assign(num_bins, 0.0f);
     fan.tau_min = std::numeric_limits<double>::infinity();
     fan.tau_max = -fan.tau_min;
     for (const Seg& sg : segs) {
         const double d_om = sg.om_b - sg.om_a;
         const auto x_max = static_cast<float>(sg.x_max * (1.0 + 1e-6));
+        const auto h_max = static_cast<float>(sg.h_out * (1.0 + 1e-6) + 1e-6);
         const bool along = std::abs(d_om) > 1e-12;  // the segment crosses bins
         const double inv_d_om = along ? 1.0 / d_om : 0.0;
         const double d_tau = sg.tau_b - sg.tau_a;
@@ -197,6 +200,7 @@ void BuildFanColumns(PreparedScan& ps,
             fan.tau_lo[j] = std::min(fan.tau_lo[j], static_cast<float>(std::min(t0, t1) - sg.hw));
             fan.tau_hi[j] = std::max(fan.tau_hi[j], static_cast<float>(std::max(t0, t1) + sg.hw));
             fan.x_max[j] = std::max(fan.x_max[j], x_max);
+            fan.h_max[j] = std::max(fan.h_max[j], h_max);
         }
     }
     for (std::size_t j = 0; j < num_bins; ++j) {

@@ -306,6 +306,28 @@ void IntegrateFan(const PreparedScan& scan,
             t_lo = std::max(t_lo, static_cast<double>(lo[a]));
             t_hi = std::min(t_hi, static_cast<double>(hi[a]));
             if (!(t_lo <= t_hi)) continue;
+            // The cone: further from the fan plane than any sector's h_out here, a voxel needs
+            // its in-plane distance rho >= |x| / tan(bw / 2), and rho^2 = omega^2 + tau^2
+            // (omega and tau are orthonormal in the plane): |tau| >= sqrt(x^2 / tan^2 -
+            // omega^2), with |x| at its smallest over the column's stretch.
+            {
+                const double x_a = xs0.x() + nx * t_lo;
+                const double x_b = xs0.x() + nx * t_hi;
+                const double ax =
+                    (x_a > 0.0) == (x_b > 0.0) ? std::min(std::abs(x_a), std::abs(x_b)) : 0.0;
+                const double q = ax * ax / tan2_bw - om * om;
+                if (ax > fan.h_max[j] && q > 0.0) {
+                    const double tq = std::sqrt(q) * (1.0 - 1e-9) - 1e-6;
+                    const double tau_a = tau0 + fan.g * t_lo;
+                    const double tau_b = tau0 + fan.g * t_hi;
+                    if (tau_a > -tq && tau_b < tq) continue;  // all of it inside the cut
+                    if (tau_a > -tq) {
+                        t_lo = std::max(t_lo, (tq - tau0) * inv_g);
+                    } else if (tau_b < tq) {
+                        t_hi = std::min(t_hi, (-tq - tau0) * inv_g);
+                    }
+                }
+            }
             const int ja0 = static_cast<int>(std::ceil(t_lo - 1e-9));
             const int ja1 = static_cast<int>(std::floor(t_hi + 1e-9));
             if (ja0 > ja1) continue;

@@ -58,6 +58,7 @@ struct FanColumns {
     double omega0 = 0;                  // omega of bin 0's lower edge (bins are one voxel wide)
     std::vector<float> tau_lo, tau_hi;  // per bin; tau_lo > tau_hi = empty
     std::vector<float> x_max;           // per bin: largest |x| a sector there can update
+    std::vector<float> h_max;  // per bin: largest off-cone half-thickness h_out of its sectors
     double tau_min = 0, tau_max = 0, x_max_all = 0;  // over all bins
     std::int32_t lo[3] = {0, 0, 0};  // world voxel bounds of every voxel the ping can update
     std::int32_t hi[3] = {-1, -1, -1};
