@@ -97,8 +97,17 @@ public:
     // of the beam-width integration's samples (bejanca, 1 thread: 20.7 -> 19.9 s, the same
     // updates bit for bit).
     __attribute__((always_inline)) inline void Update(const Coord& ijk, float d, float f) {
-        const Slot& slot = SlotOf(ijk);
-        const openvdb::Index off = LeafT::coordToOffset(ijk);
+        UpdateIn(SlotOf(ijk), LeafT::coordToOffset(ijk), d, f);
+    }
+    struct Slot;
+    // The leaf pair of ijk, for a run of updates inside one leaf (UpdateIn).
+    __attribute__((always_inline)) inline const Slot& LeafOf(const Coord& ijk) {
+        return SlotOf(ijk);
+    }
+    __attribute__((always_inline)) inline void UpdateIn(const Slot& slot,
+                                                        openvdb::Index off,
+                                                        float d,
+                                                        float f) {
         const float w = slot.w[off];  // 0 (background) when unobserved
         const float s = w > 0.0f ? slot.d[off] : 0.0f;
         slot.d[off] = (w * s + f * d) / (w + f);  // Eq. 5
@@ -109,7 +118,6 @@ public:
     }
     std::int64_t updates() const { return updates_; }
 
-private:
     struct Slot {
         Coord origin;
         float* d = nullptr;
@@ -117,6 +125,8 @@ private:
         LeafT::NodeMaskType* dmask = nullptr;
         LeafT::NodeMaskType* wmask = nullptr;
     };
+
+private:
     static constexpr int kSlots = 64;
 
     __attribute__((always_inline)) inline const Slot& SlotOf(const Coord& ijk) {
@@ -342,6 +352,10 @@ void IntegrateFan(const PreparedScan& scan,
                 if (!exact) k = sector_from_angle(xs.y(), xs.z());
             }
             k_column = k;
+            // The leaf pair of the current stretch of the column (a column enters a new leaf
+            // every 8 voxels) and the offset step along the column inside a leaf.
+            const VoxelUpdater::Slot* leaf = nullptr;
+            int leaf_index = std::numeric_limits<int>::min();
             for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
                 const double x = xs.x(), y = xs.y(), z = xs.z();
                 bool exact = false;
@@ -368,7 +382,14 @@ void IntegrateFan(const PreparedScan& scan,
                 const double d = r_at - std::sqrt(dist2);  // Eq. 4
                 if (!(d > -T && d <= T)) continue;
                 ijk[a] = ja;
-                up.Update(ijk, static_cast<float>(std::min(d, T) * g.metres_per_voxel), fs.weight);
+                if ((ja >> 3) != leaf_index) {
+                    leaf = &up.LeafOf(ijk);
+                    leaf_index = ja >> 3;
+                }
+                up.UpdateIn(*leaf,
+                            LeafT::coordToOffset(ijk),
+                            static_cast<float>(std::min(d, T) * g.metres_per_voxel),
+                            fs.weight);
             }
         }
     }
