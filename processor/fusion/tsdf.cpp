@@ -190,7 +190,8 @@ void ClipLinear(double alpha, double beta, int& lo, int& hi) {
 // axis closest to the fan plane (FanColumns, fan_columns.cpp): rows and columns whose line
 // cannot meet the ping are skipped by linear bounds, and each column is cut to its bin's tau
 // and out-of-plane bounds. The sector is tracked along the column by half-plane tests against
-// the sector boundaries (exact; atan2 only to start a column).
+// the sector boundaries (exact); a column starts from the previous column's sector, and atan2
+// is used only where tracking fails and for fans of 180 deg or more.
 void IntegrateFan(const PreparedScan& scan,
                   const Geometry& g,
                   const ClipBox& box,
@@ -353,7 +354,7 @@ void IntegrateFan(const PreparedScan& scan,
             }
             k_column = k;
             // The leaf pair of the current stretch of the column (a column enters a new leaf
-            // every 8 voxels) and the offset step along the column inside a leaf.
+            // every 8 voxels), looked up once per leaf.
             const VoxelUpdater::Slot* leaf = nullptr;
             int leaf_index = std::numeric_limits<int>::min();
             for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
@@ -454,6 +455,16 @@ std::vector<std::string> TsdfConfig::Validate() const {
     }
     if (!(min_range_m >= 0.0)) problems.push_back("min_range_m must be >= 0");
     if (!(max_range_m > min_range_m)) problems.push_back("max_range_m must be > min_range_m");
+    // The beam-width rasteriser bins each ping's fan per voxel across its columns (~16 bytes
+    // a bin, 4 x the range in voxels); a range gate of more than kMaxRangeVoxels would let a
+    // file of absurd ranges take gigabytes per chunk of pings.
+    if (voxel_size_m > 0.0 && std::isfinite(voxel_size_m) &&
+        !(max_range_m <= kMaxRangeVoxels * voxel_size_m)) {
+        problems.push_back("max_range_m must be at most " +
+                           std::to_string(static_cast<int>(kMaxRangeVoxels)) + " voxels (" +
+                           std::to_string(kMaxRangeVoxels * voxel_size_m) + " m at voxel_size_m " +
+                           std::to_string(voxel_size_m) + ")");
+    }
     if (!(footprint_gate_m > 0.0) || !std::isfinite(footprint_gate_m)) {
         problems.push_back("footprint_gate_m must be > 0");
     }

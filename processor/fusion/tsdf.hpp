@@ -50,6 +50,9 @@ enum class SensorModel : std::uint8_t {
     kRay,        // one ray per beam through the beam centre (vdbfusion-style)
 };
 
+// Longest range gate, in voxels (TsdfConfig::max_range_m / voxel_size_m): 2 km at 0.1 m.
+inline constexpr double kMaxRangeVoxels = 20000.0;
+
 struct TsdfConfig {
     double voxel_size_m = 0.10;           // edge length of a voxel
     double truncation_m = 1.5;            // |d| band: voxels with d in (-T, T] are updated
@@ -58,7 +61,8 @@ struct TsdfConfig {
     SensorModel sensor_model = SensorModel::kBeamWidth;
     double beam_width_rad = 1.5 * 3.14159265358979323846 / 180.0;  // full out-of-plane width
     double min_range_m = 0.3;    // ranges below are not detections (counted)
-    double max_range_m = 120.0;  // ranges above are not detections (counted)
+    double max_range_m = 120.0;  // ranges above are not detections (counted); at most
+                                 // kMaxRangeVoxels voxels
     // Beam-width mode: the beams of one footprint (those whose axes lie within beam_width / 2
     // of a beam's axis) agree with the footprint's robust range line within
     // footprint_gate_m + footprint_gate_fraction * range; the others are outliers (counted).

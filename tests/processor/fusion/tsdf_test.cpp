@@ -598,6 +598,13 @@ TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     EXPECT_EQ(bad.Validate().size(), 9u);
     bad.ping_gap_fill_m = std::numeric_limits<double>::infinity();
     EXPECT_EQ(bad.Validate().size(), 9u);
+    TsdfConfig far;
+    far.max_range_m = 2001.0;  // 20 010 voxels of 0.1 m
+    ASSERT_EQ(far.Validate().size(), 1u);
+    EXPECT_NE(far.Validate()[0].find("max_range_m must be at most 20000 voxels"),
+              std::string::npos);
+    far.max_range_m = 2000.0;
+    EXPECT_TRUE(far.Validate().empty());
     EXPECT_FLOAT_EQ(WeightFilterConfig{}.min_weight, 3.0f);
     WeightFilterConfig wf;
     wf.min_weight = -1;
