@@ -50,10 +50,14 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 with --mesh-common-with Q: mesh_mean_abs_m over the samples of
                                 P/mesh.ply within 0.2 m of a sample of Q/mesh.ply, and their share
                                 (two sensor models compared on the surface both hold).
-  mesh_mean_abs_m_slope_A_B, mesh_completeness_slope_A_B
+  mesh_bias_m, mesh_bias_m_common
+                                signed mean of the same distances (> 0: the mesh lies in the
+                                water, above or in front of the true surface).
+  mesh_mean_abs_m_slope_A_B, mesh_bias_m_slope_A_B, mesh_completeness_slope_A_B
                                 the same where the true surface's slope is A <= slope < B
                                 degrees (classes 0 20 45 91: floors and benches, faces and the
-                                ramp, steep walls).
+                                ramp, steep walls); mesh_common_mean_abs_m_slope_A_B and
+                                mesh_common_bias_m_slope_A_B on the common surface.
   mesh_completeness_depth_A_B   mesh_completeness where the true water depth (below the water
                                 line, z = 0 of the truth) is A <= depth < B metres (classes 0 1
                                 2 4 8 12 inf: the shore near the water line is seen at the
@@ -302,28 +306,38 @@ int main(int argc, char** argv) {
         scores["mesh_mean_abs_m"] = s.mean_abs_m;
         scores["mesh_rms_m"] = s.rms_m;
         scores["mesh_p95_m"] = s.p95_m;
-        // The same by the true slope under the sample: floors, faces, walls.
+        scores["mesh_bias_m"] = s.bias_m;
+        // The same by the true slope under the sample: floors, faces, walls (mean abs error
+        // and signed mean, truth to mesh positive when the mesh lies outside the rock).
         const auto& edges = eval::kSlopeClassEdgesDeg;
         const std::size_t n_classes = std::size(edges) - 1;
-        std::vector<std::vector<double>> by_class(n_classes);
-        for (const auto& p : samples) {
-            const double slope = eval::SlopeDeg(world, p.x(), p.y());
-            for (std::size_t c = 0; c < n_classes; ++c) {
-                if (slope >= edges[c] && slope < edges[c + 1]) {
-                    by_class[c].push_back(world.SignedDistance(p));
-                    break;
+        auto slope_suffix = [&](std::size_t c) {
+            return "_slope_" + std::to_string(static_cast<int>(edges[c])) + "_" +
+                   std::to_string(static_cast<int>(edges[c + 1]));
+        };
+        auto score_by_slope = [&](const std::vector<Eigen::Vector3d>& pts,
+                                  const std::string& prefix) {
+            std::vector<std::vector<double>> by_class(n_classes);
+            for (const auto& p : pts) {
+                const double slope = eval::SlopeDeg(world, p.x(), p.y());
+                for (std::size_t c = 0; c < n_classes; ++c) {
+                    if (slope >= edges[c] && slope < edges[c + 1]) {
+                        by_class[c].push_back(world.SignedDistance(p));
+                        break;
+                    }
                 }
             }
-        }
-        for (std::size_t c = 0; c < n_classes; ++c) {
-            const std::string suffix = "_slope_" + std::to_string(static_cast<int>(edges[c])) +
-                                       "_" + std::to_string(static_cast<int>(edges[c + 1]));
-            if (!by_class[c].empty()) {
-                scores["mesh_mean_abs_m" + suffix] =
-                    eval::SummariseDistances(std::move(by_class[c])).mean_abs_m;
+            for (std::size_t c = 0; c < n_classes; ++c) {
+                if (by_class[c].empty()) continue;
+                const auto sc = eval::SummariseDistances(std::move(by_class[c]));
+                scores[prefix + "mean_abs_m" + slope_suffix(c)] = sc.mean_abs_m;
+                scores[prefix + "bias_m" + slope_suffix(c)] = sc.bias_m;
             }
+        };
+        score_by_slope(samples, "mesh_");
+        for (std::size_t c = 0; c < n_classes; ++c) {
             if (auto cc = eval::MeshCompleteness(samples, *truth, 0.2, edges[c], edges[c + 1]))
-                scores["mesh_completeness" + suffix] = *cc;
+                scores["mesh_completeness" + slope_suffix(c)] = *cc;
         }
         // By the true water depth: the shore near the water line is seen at short range.
         const auto& depths = eval::kDepthClassEdgesM;
@@ -358,9 +372,12 @@ int main(int argc, char** argv) {
             std::vector<double> d;
             d.reserve(common.size());
             for (const auto& p : common) d.push_back(world.SignedDistance(p));
-            if (!d.empty())
-                scores["mesh_mean_abs_m_common"] =
-                    eval::SummariseDistances(std::move(d)).mean_abs_m;
+            if (!d.empty()) {
+                const auto sc = eval::SummariseDistances(std::move(d));
+                scores["mesh_mean_abs_m_common"] = sc.mean_abs_m;
+                scores["mesh_bias_m_common"] = sc.bias_m;
+            }
+            score_by_slope(common, "mesh_common_");
         }
     }
 #ifdef PITMAP_EVAL_GRID
