@@ -105,6 +105,10 @@ void BuildFanColumns(PreparedScan& ps,
             r_max = std::max(r_max, 0.5 * (r + rn));
         }
         const double h_out = std::max(h_cube, static_cast<double>(pb.half_gap_vox));
+        // The along-track slope moves the range by up to dev over the voxels the beam updates.
+        const double dev = AlongTrackReach(pb);
+        r_min -= dev;
+        r_max += dev;
         FanSector& fs = fan.sectors[pb.beam];
         // The beam axis as the beam-by-beam rasteriser and the reference take it: theta in
         // float, as every reader of the scan computes it.
@@ -118,6 +122,9 @@ void BuildFanColumns(PreparedScan& ps,
         fs.dr_prev = std::isfinite(r_prev) ? static_cast<float>(r_prev - r) : 0.0f;
         fs.dr_next = std::isfinite(r_next) ? static_cast<float>(r_next - r) : 0.0f;
         fs.weight = pb.weight;
+        fs.dr_dx = pb.dr_dx;
+        fs.x_fit_lo = pb.x_fit_lo;
+        fs.x_fit_hi = pb.x_fit_hi;
 
         const double rho_hi = r_max + T + 1e-3;
         const double q = r_min - T - 1e-3 - 1e-4 * r_max;

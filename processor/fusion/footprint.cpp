@@ -13,6 +13,8 @@ namespace pitmap::proc::fusion::detail {
 namespace {
 
 constexpr int kMaxFootprintHalf = 32;  // beams on each side of a footprint considered at most
+// Steepest incidence a footprint's slope may imply, across the fan or along the track: tan(80 deg).
+const double kTanMaxIncidence = std::tan(80.0 * 3.14159265358979323846 / 180.0);
 
 // Median of a small array (reorders it); the mean of the two middle values for even n.
 double SmallMedian(double* v, int n) {
@@ -105,11 +107,159 @@ bool FitFootprint(const std::vector<float>& r,
 
 }  // namespace
 
+ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
+    const double inv_s = 1.0 / config.voxel_size_m;
+    const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
+    ScanFootprints out;
+    const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    out.r.assign(n, nan);
+    for (std::size_t i = 0; i < n; ++i) {
+        const float range = scan.ranges_m[i];
+        if (!std::isfinite(range) || range == 0.0f) {
+            ++out.no_detection;
+        } else if (range < config.min_range_m || range > config.max_range_m) {
+            ++out.out_of_range;
+        } else {
+            out.r[i] = static_cast<float>(range * inv_s);
+        }
+    }
+    if (!beam_width) return out;
+    const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
+    // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
+    const int half =
+        inc > 1e-9
+            ? std::min(kMaxFootprintHalf,
+                       static_cast<int>(std::floor(0.5 * config.beam_width_rad / inc + 1e-6)))
+            : 0;
+    out.half = half;
+    out.range.assign(n, nan);
+    out.point_y.assign(n, nan);
+    out.point_z.assign(n, nan);
+    out.support.assign(n, 0);
+    out.slope.assign(n, 0.0f);
+    out.gate.assign(n, 0.0f);
+    const double gate_vox = config.footprint_gate_m * inv_s;
+    // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
+    const double max_slope = inc * kTanMaxIncidence;
+    for (std::size_t i = 0; i < n; ++i) {
+        FootprintRange fp;
+        if (!FitFootprint(out.r,
+                          static_cast<int>(i),
+                          half,
+                          gate_vox,
+                          config.footprint_gate_fraction,
+                          max_slope,
+                          fp)) {
+            continue;
+        }
+        out.range[i] = fp.range;
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        out.point_y[i] = static_cast<float>(fp.range * std::sin(static_cast<double>(theta)));
+        out.point_z[i] = static_cast<float>(fp.range * std::cos(static_cast<double>(theta)));
+        out.support[i] = fp.support;
+        out.slope[i] = fp.slope;
+        out.gate[i] = fp.gate;
+        if (std::isfinite(out.r[i]) && !fp.self_inlier) ++out.inconsistent;
+    }
+    return out;
+}
+
+namespace {
+
+// Along-track slope of beam i's footprint: dr/dx, the range change per voxel out of the fan
+// plane, from the footprints of beam i in the neighbouring pings. Each neighbour's footprint
+// point X (its beam axis at its footprint range) is seen from this ping at out-of-plane offset
+// x_k and range |X - p|; the part of that range this ping's in-plane line explains (X's
+// in-plane angle off the beam axis, times the line's slope) is taken off, and what remains,
+// delta_k, is fitted by delta = s x through the origin (this ping's own footprint).
+//  - Robust: the median of delta_k / x_k, then least squares over the neighbours within the
+//    footprint's gate of it (a neighbour on another surface, past a crest, drops out); two
+//    are needed.
+//  - Local: a neighbour further out of the plane than kMaxNeighbourReach times the offsets the
+//    slope is applied at (x_half), or whose point lies further off the beam axis in the plane
+//    than the footprint's half-width (a roll between pings), is not used.
+//  - Not extrapolated: the slope holds over the span of offsets it was fitted to; beyond (the
+//    far side of the cone at long range, the last ping of a line) the range stays at the
+//    span's end. Extrapolated, a slope from pings 0.15 m apart put rock 2-3 m behind bench
+//    faces at 50 m range on bejanca (0.05 % of the mesh, rms error 0.041 -> 0.080 m).
+//  - Plausible: |s| <= s_max (tan of 80 deg incidence, as across the fan).
+constexpr double kMaxNeighbourReach = 4.0;
+
+struct NeighbourFrame {
+    const ScanFootprints* fp;
+    Eigen::Matrix3d M;  // this ping's sonar frame from the neighbour's: R^T R_nb
+    Eigen::Vector3d t;  // the neighbour's position in this ping's sonar frame, voxels
+};
+
+struct AlongTrack {
+    double s = 0;               // dr/dx; 0 = no fit
+    double x_lo = 0, x_hi = 0;  // the span of offsets it was fitted over (contains 0)
+};
+
+AlongTrack AlongTrackSlope(std::size_t i,
+                           const ScanFootprints& own,
+                           const std::vector<NeighbourFrame>& nbs,
+                           double theta_i,
+                           double inc,
+                           double x_half,
+                           double s_max) {
+    double xs[2 * kMaxFootprintNeighbourPings];
+    double ds[2 * kMaxFootprintNeighbourPings];
+    double tmp[2 * kMaxFootprintNeighbourPings];
+    int m = 0;
+    const double ci = std::cos(theta_i), si = std::sin(theta_i);
+    const double max_x = kMaxNeighbourReach * x_half;
+    const double max_dtheta = std::tan(std::max(0.5, static_cast<double>(own.half)) * std::abs(inc));
+    for (const NeighbourFrame& nb : nbs) {
+        if (m == 2 * kMaxFootprintNeighbourPings) break;
+        if (i >= nb.fp->range.size() || !std::isfinite(nb.fp->range[i])) continue;
+        // X in this ping's sonar frame: M (0, y, z) + t, (y, z) the footprint point in the
+        // neighbour's.
+        const double y = static_cast<double>(nb.fp->point_y[i]);
+        const double z = static_cast<double>(nb.fp->point_z[i]);
+        const Eigen::Vector3d q = nb.M.col(1) * y + nb.M.col(2) * z + nb.t;
+        const double x = q.x();
+        if (!(std::abs(x) > 1e-3 && std::abs(x) <= max_x)) continue;
+        const double along = si * q.y() + ci * q.z();
+        if (!(along > 0.0)) continue;
+        const double dtheta = (ci * q.y() - si * q.z()) / along;  // tan of the in-plane angle
+        if (!(std::abs(dtheta) <= max_dtheta)) continue;
+        const double r_line =
+            static_cast<double>(own.range[i]) + static_cast<double>(own.slope[i]) * dtheta / inc;
+        xs[m] = x;
+        ds[m] = q.norm() - r_line;
+        ++m;
+    }
+    if (m < 2) return {};
+    for (int k = 0; k < m; ++k) tmp[k] = ds[k] / xs[k];
+    const double s0 = SmallMedian(tmp, m);
+    const double gate = static_cast<double>(own.gate[i]);
+    double sxd = 0, sxx = 0;
+    int used = 0;
+    AlongTrack out;
+    for (int k = 0; k < m; ++k) {
+        if (!(std::abs(ds[k] - s0 * xs[k]) <= gate)) continue;
+        sxd += xs[k] * ds[k];
+        sxx += xs[k] * xs[k];
+        ++used;
+        out.x_lo = std::min(out.x_lo, xs[k]);
+        out.x_hi = std::max(out.x_hi, xs[k]);
+    }
+    if (used < 2) return {};
+    const double s = sxd / sxx;
+    if (!(std::abs(s) <= s_max)) return {};
+    out.s = s;
+    return out;
+}
+
+}  // namespace
+
 PreparedScan PrepareScan(const SonarScan& scan,
+                         const ScanFootprints& footprints,
                          const TsdfConfig& config,
                          const Geometry& geo,
-                         const SonarScan* prev,
-                         const SonarScan* next) {
+                         const std::vector<ScanNeighbour>& neighbours) {
     const double inv_s = 1.0 / config.voxel_size_m;
     const bool beam_width = config.sensor_model == SensorModel::kBeamWidth;
     PreparedScan ps;
@@ -121,60 +271,47 @@ PreparedScan PrepareScan(const SonarScan& scan,
         return ps;
     }
     ps.p_vox = p_world * inv_s;
-    const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    std::vector<float> r(n, nan);  // valid ranges in voxel units
-    for (std::size_t i = 0; i < n; ++i) {
-        const float range = scan.ranges_m[i];
-        if (!std::isfinite(range) || range == 0.0f) {
-            ++ps.beams_no_detection;
-        } else if (range < config.min_range_m || range > config.max_range_m) {
-            ++ps.beams_out_of_range;
-        } else {
-            r[i] = static_cast<float>(range * inv_s);
-            ++ps.beams_used;
-        }
+    const std::vector<float>& r = footprints.r;
+    const std::size_t n = r.size();
+    ps.beams_no_detection = footprints.no_detection;
+    ps.beams_out_of_range = footprints.out_of_range;
+    ps.beams_inconsistent = footprints.inconsistent;
+    for (float v : r) ps.beams_used += std::isfinite(v) ? 1 : 0;
+    const SonarScan* prev = nullptr;
+    const SonarScan* next = nullptr;
+    for (const ScanNeighbour& nb : neighbours) {
+        if (nb.offset == -1) prev = nb.scan;
+        if (nb.offset == 1) next = nb.scan;
     }
+    const float nan = std::numeric_limits<float>::quiet_NaN();
     const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
     const double half_inc = 0.5 * inc;
     const double spread =
         beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc) : 0.0;
-    // Footprint: the beams whose axes lie inside the cone of beam i (beam_width / 2 around it).
-    const int half =
-        inc > 1e-9
-            ? std::min(kMaxFootprintHalf,
-                       static_cast<int>(std::floor(0.5 * config.beam_width_rad / inc + 1e-6)))
-            : 0;
-    std::vector<float> fr;  // footprint ranges (beam-width mode)
-    std::vector<int> support;
-    std::vector<float> slope, gate;
-    if (beam_width) {
-        fr.assign(n, nan);
-        support.assign(n, 0);
-        slope.assign(n, 0.0f);
-        gate.assign(n, 0.0f);
-        const double gate_vox = config.footprint_gate_m * inv_s;
-        // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
-        const double max_slope = inc * std::tan(80.0 * 3.14159265358979323846 / 180.0);
-        for (std::size_t i = 0; i < n; ++i) {
-            FootprintRange fp;
-            if (!FitFootprint(r,
-                              static_cast<int>(i),
-                              half,
-                              gate_vox,
-                              config.footprint_gate_fraction,
-                              max_slope,
-                              fp)) {
+    const std::vector<float>& fr = footprints.range;
+    const std::vector<float>& slope = footprints.slope;
+    const std::vector<float>& gate = footprints.gate;
+    const std::vector<int>& support = footprints.support;
+    const std::vector<float>& ranges = beam_width ? fr : r;
+    // The neighbours the along-track slopes are fitted to.
+    std::vector<NeighbourFrame> slope_nbs;
+    if (beam_width && config.footprint_neighbour_pings > 0) {
+        for (const ScanNeighbour& nb : neighbours) {
+            if (nb.scan == nullptr || nb.footprints == nullptr ||
+                std::abs(nb.offset) > config.footprint_neighbour_pings ||
+                nb.footprints->range.empty()) {
                 continue;
             }
-            fr[i] = fp.range;
-            support[i] = fp.support;
-            slope[i] = fp.slope;
-            gate[i] = fp.gate;
-            if (std::isfinite(r[i]) && !fp.self_inlier) ++ps.beams_inconsistent;
+            const Eigen::Matrix3d R_nb = nb.scan->T_world_sonar.linear();
+            const Eigen::Vector3d p_nb = nb.scan->T_world_sonar.translation() * inv_s;
+            if (!R_nb.allFinite() || !p_nb.allFinite() ||
+                nb.footprints->point_y.size() != nb.footprints->range.size()) {
+                continue;
+            }
+            slope_nbs.push_back(
+                {nb.footprints, ps.R.transpose() * R_nb, ps.R.transpose() * (p_nb - ps.p_vox)});
         }
     }
-    const std::vector<float>& ranges = beam_width ? fr : r;
     // Fan planes of the neighbouring pings (point, normal = their sonar x axis), world metres.
     struct Fan {
         Eigen::Vector3d p, n;
@@ -228,12 +365,34 @@ PreparedScan PrepareScan(const SonarScan& scan,
             }
         }
         pb.half_gap_vox = static_cast<float>(0.5 * gap_m * inv_s);
+        if (!slope_nbs.empty()) {
+            // The offsets out of the plane the slope is applied at: the cone's half-width at the
+            // footprint, half the gap to the neighbouring pings, or a voxel.
+            const double x_half = std::max({geo.tan_half_bw * static_cast<double>(fr[i]),
+                                            static_cast<double>(pb.half_gap_vox),
+                                            1.0});
+            const AlongTrack at = AlongTrackSlope(i,
+                                                  footprints,
+                                                  slope_nbs,
+                                                  static_cast<double>(theta),
+                                                  scan.angle_increment_rad,
+                                                  x_half,
+                                                  kTanMaxIncidence);
+            if (at.s != 0.0) {
+                pb.dr_dx = static_cast<float>(at.s);
+                pb.x_fit_lo = static_cast<float>(at.x_lo);
+                pb.x_fit_hi = static_cast<float>(at.x_hi);
+            }
+        }
         double r_lo = pb.range_vox, r_hi = pb.range_vox;
         for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
             if (!std::isfinite(rn)) continue;
             r_lo = std::min(r_lo, static_cast<double>(rn));
             r_hi = std::max(r_hi, static_cast<double>(rn));
         }
+        const double dev = AlongTrackReach(pb);
+        r_lo -= dev;
+        r_hi += dev;
         const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
         const double q1 = r_hi + geo.trunc_vox;
         // x and y extent of the frustum: along the axis plus the cross-section's reach (and
@@ -257,6 +416,28 @@ PreparedScan PrepareScan(const SonarScan& scan,
     }
     if (beam_width) BuildFanColumns(ps, scan, n, geo);
     return ps;
+}
+
+PreparedScan PrepareScan(const std::vector<SonarScan>& scans,
+                         std::size_t index,
+                         const TsdfConfig& config,
+                         const Geometry& geo) {
+    const int k_max = std::max(1, config.footprint_neighbour_pings);
+    std::vector<ScanFootprints> fps;
+    fps.reserve(static_cast<std::size_t>(2 * k_max));  // the neighbours point into it
+    std::vector<ScanNeighbour> nbs;
+    for (int off = -k_max; off <= k_max; ++off) {
+        const auto j = static_cast<std::ptrdiff_t>(index) + off;
+        if (off == 0 || j < 0 || j >= static_cast<std::ptrdiff_t>(scans.size())) continue;
+        const SonarScan& nb = scans[static_cast<std::size_t>(j)];
+        fps.push_back(FitFootprints(nb, config));
+        nbs.push_back({&nb, &fps.back(), off});
+    }
+    return PrepareScan(scans[index], FitFootprints(scans[index], config), config, geo, nbs);
+}
+
+PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo) {
+    return PrepareScan(scan, FitFootprints(scan, config), config, geo, {});
 }
 
 }  // namespace pitmap::proc::fusion::detail

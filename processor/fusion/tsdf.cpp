@@ -378,8 +378,11 @@ void IntegrateFan(const PreparedScan& scan,
                 // as a signed fraction of the increment: > 0 towards sector k + 1.
                 const double frac = (fs.cos_theta * y - fs.sin_theta * z) /
                                     (fs.sin_theta * y + fs.cos_theta * z) * fan.inv_increment;
-                const double r_at =
-                    fs.range + std::abs(frac) * (frac >= 0.0 ? fs.dr_next : fs.dr_prev);
+                const double r_at = fs.range +
+                                    std::abs(frac) * (frac >= 0.0 ? fs.dr_next : fs.dr_prev) +
+                                    fs.dr_dx * std::clamp(x,
+                                                          static_cast<double>(fs.x_fit_lo),
+                                                          static_cast<double>(fs.x_fit_hi));
                 const double d = r_at - std::sqrt(dist2);  // Eq. 4
                 if (!(d > -T && d <= T)) continue;
                 ijk[a] = ja;
@@ -474,6 +477,10 @@ std::vector<std::string> TsdfConfig::Validate() const {
     if (!(ping_gap_fill_m >= 0.0) || !std::isfinite(ping_gap_fill_m)) {
         problems.push_back("ping_gap_fill_m must be >= 0 (0 = off)");
     }
+    if (footprint_neighbour_pings < 0 || footprint_neighbour_pings > kMaxFootprintNeighbourPings) {
+        problems.push_back("footprint_neighbour_pings must be in [0, " +
+                           std::to_string(kMaxFootprintNeighbourPings) + "] (0 = off)");
+    }
     if (num_threads < 0) problems.push_back("num_threads must be >= 0 (0 = all cores)");
     return problems;
 }
@@ -499,13 +506,22 @@ TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 
 IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                                       const ProgressCallback& progress) {
+    return Integrate(scans, 0, scans.size(), progress);
+}
+
+IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
+                                      std::size_t begin,
+                                      std::size_t end,
+                                      const ProgressCallback& progress) {
+    end = std::min(end, scans.size());
+    begin = std::min(begin, end);
     const auto t_start = std::chrono::steady_clock::now();
     const std::clock_t cpu_start = std::clock();
     auto since = [](std::chrono::steady_clock::time_point t) {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     };
     IntegrateResult result;
-    result.scans = static_cast<std::int64_t>(scans.size());
+    result.scans = static_cast<std::int64_t>(end - begin);
     const double inv_s = 1.0 / config_.voxel_size_m;
     const Geometry geo{config_.truncation_m * inv_s,
                        std::tan(0.5 * config_.beam_width_rad),
@@ -540,6 +556,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     std::atomic<bool> cancel{false};
     std::size_t total_beams = 0;
     std::vector<PreparedScan> prepared;
+    std::vector<detail::ScanFootprints> footprints;  // of one chunk and its neighbours
+    const auto reach = static_cast<std::size_t>(std::max(1, config_.footprint_neighbour_pings));
 
     // Integrates the chunk's scans [0, prepared.size()) into one slab, scan by scan in order.
     auto run_slab = [&](int k, std::size_t scan_offset) {
@@ -592,22 +610,42 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     // Chunk by chunk: prepare the chunk's scans (valid beams, footprint ranges, the x and y
     // range of every beam) in parallel, then integrate it slab by slab. Only one chunk's
     // prepared beams are held at a time; the slab grids persist across chunks.
-    for (std::size_t c0 = 0; c0 < scans.size() && !cancel.load(); c0 += kChunkScans) {
-        const std::size_t c1 = std::min(scans.size(), c0 + kChunkScans);
+    for (std::size_t c0 = begin; c0 < end && !cancel.load(); c0 += kChunkScans) {
+        const std::size_t c1 = std::min(end, c0 + kChunkScans);
         const auto t_prepare = std::chrono::steady_clock::now();
         prepared.assign(c1 - c0, PreparedScan{});
+        // Footprints of the chunk's scans and of the neighbours each one needs (the previous and
+        // next for the gap between pings, footprint_neighbour_pings each side for the
+        // along-track slope), fitted once.
+        const std::size_t f0 = c0 - std::min(c0, reach);
+        const std::size_t f1 = std::min(scans.size(), c1 + reach);
+        footprints.assign(f1 - f0, detail::ScanFootprints{});
         arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 64),
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(f0, f1, 64),
                               [&](const tbb::blocked_range<std::size_t>& range) {
                                   for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                      prepared[si - c0] = detail::PrepareScan(
-                                          scans[si],
-                                          config_,
-                                          geo,
-                                          si > 0 ? &scans[si - 1] : nullptr,
-                                          si + 1 < scans.size() ? &scans[si + 1] : nullptr);
+                                      footprints[si - f0] = detail::FitFootprints(scans[si], config_);
                                   }
                               });
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(c0, c1, 64),
+                [&](const tbb::blocked_range<std::size_t>& range) {
+                    std::vector<detail::ScanNeighbour> nbs;
+                    for (std::size_t si = range.begin(); si != range.end(); ++si) {
+                        nbs.clear();
+                        for (std::size_t j = std::max(f0, si - std::min(si, reach));
+                             j < std::min(f1, si + reach + 1);
+                             ++j) {
+                            if (j == si) continue;
+                            nbs.push_back({&scans[j],
+                                           &footprints[j - f0],
+                                           static_cast<int>(static_cast<std::ptrdiff_t>(j) -
+                                                            static_cast<std::ptrdiff_t>(si))});
+                        }
+                        prepared[si - c0] = detail::PrepareScan(
+                            scans[si], footprints[si - f0], config_, geo, nbs);
+                    }
+                });
         });
         for (auto& entry : slabs) entry.second.work = 0;  // (views::values: not with clang 14)
         int last_k = std::numeric_limits<int>::min();
@@ -659,11 +697,13 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             tasks.wait();
         });
         result.rasterise_s += since(t_raster);
-        if (progress && !progress(static_cast<double>(c1) / static_cast<double>(scans.size()))) {
+        if (progress && !progress(static_cast<double>(c1 - begin) /
+                                  static_cast<double>(end - begin))) {
             cancel = true;
         }
     }
     prepared = {};
+    footprints = {};
     if (total_beams == 0) {
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
         result.elapsed_s = since(t_start);

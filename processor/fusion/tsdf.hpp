@@ -50,6 +50,9 @@ enum class SensorModel : std::uint8_t {
     kRay,        // one ray per beam through the beam centre (vdbfusion-style)
 };
 
+// Most pings on each side a footprint's along-track slope is fitted to.
+inline constexpr int kMaxFootprintNeighbourPings = 8;
+
 // Longest range gate, in voxels (TsdfConfig::max_range_m / voxel_size_m): 2 km at 0.1 m.
 inline constexpr double kMaxRangeVoxels = 20000.0;
 
@@ -76,6 +79,13 @@ struct TsdfConfig {
     // 0.1 m voxel grid would keep every third plane across the track unobserved. Wider gaps
     // (missing pings, the turn between lines) stay holes. 0 = off.
     double ping_gap_fill_m = 0.3;
+    // Beam-width mode: the footprint's range varies across the beam's width along the track as
+    // well as across the fan. That slope is fitted to the footprints of the same beam in up to
+    // this many pings before and after (consecutive scans of the input), so a face or wall the
+    // track runs towards is placed where it is across the whole out-of-plane width, not smeared
+    // over it as a sphere of one range (2.5 r tan(incidence) tan(bw / 2) off at the cone's edge).
+    // 0 = the range is the same across the width.
+    int footprint_neighbour_pings = 2;
     int num_threads = 0;  // 0 = all cores (TBB default)
 
     // Every problem with the configuration (empty when valid).
@@ -174,10 +184,17 @@ public:
 
     // Integrates the scans in order. progress (optional) gets the fraction done; returning false
     // cancels (the volume then holds a partial integration). Beam-width mode takes the scans
-    // before and after each scan in `scans` as its neighbouring pings (ping_gap_fill_m), so the
-    // first and last scan of a call see one neighbour each: a survey cut into several calls
-    // can differ from one call at the cuts where pings are sparser than the beam.
+    // before and after each scan in `scans` as its neighbouring pings (ping_gap_fill_m,
+    // footprint_neighbour_pings), so the first and last scans of a call see neighbours on one
+    // side only.
     IntegrateResult Integrate(const std::vector<SonarScan>& scans,
+                              const ProgressCallback& progress = nullptr);
+    // Integrates scans[begin, end) (clamped to the vector); the scans around that range are
+    // only its neighbouring pings. A survey integrated part by part this way, each call given
+    // the whole sequence, equals one call voxel for voxel.
+    IntegrateResult Integrate(const std::vector<SonarScan>& scans,
+                              std::size_t begin,
+                              std::size_t end,
                               const ProgressCallback& progress = nullptr);
 
     // Removes voxels observed too rarely (outlier surfaces), from both grids.

@@ -17,10 +17,13 @@
 // --cache FILE keeps the simulated scans and surface samples in FILE (written when missing or
 // when its header does not match scenario, --max-pings and --stride), to repeat runs quickly.
 // --diag prints where the error is (|error| bins, error by voxel weight) and, with --out,
-// writes the vertices off by more than 0.5 m; --beam-width-deg overrides the sonar's width.
+// writes the vertices off by more than 0.5 m; --beam-width-deg overrides the sonar's width,
+// --footprint-neighbours K the pings each side the along-track footprint slope is fitted to
+// (TsdfConfig::footprint_neighbour_pings; 0 = off).
 // Usage: pitmap-bench-tsdf [--scenario bejanca] [--mode beam|ray] [--threads 2]
 //                          [--min-weight W[,W2,...]] [--max-pings N] [--stride 4] [--out DIR]
 //                          [--cache FILE] [--diag] [--beam-width-deg D]
+//                          [--footprint-neighbours K]
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -154,6 +157,7 @@ struct Options {
     int stride = 4;
     bool diag = false;
     double beam_width_deg = 0;  // 0 = the scenario's sonar beam width
+    int footprint_neighbours = -1;  // -1 = TsdfConfig's default
     std::string out;
     std::string cache;
 };
@@ -266,12 +270,14 @@ bool ParseArgs(int argc, char** argv, Options& o) {
             o.diag = true;
         else if (a == "--beam-width-deg" && has)
             o.beam_width_deg = std::atof(argv[++i]);
+        else if (a == "--footprint-neighbours" && has)
+            o.footprint_neighbours = std::atoi(argv[++i]);
         else {
             std::fprintf(stderr,
                          "usage: pitmap-bench-tsdf [--scenario S] [--mode beam|ray] "
                          "[--threads N] [--min-weight W[,W2,...]] [--max-pings N] "
                          "[--stride K] [--out DIR] [--cache FILE] [--diag] "
-                         "[--beam-width-deg D]\n");
+                         "[--beam-width-deg D] [--footprint-neighbours K]\n");
             return false;
         }
     }
@@ -430,6 +436,11 @@ int main(int argc, char** argv) {
     config.beam_width_rad =
         frames::DegToRad(opt.beam_width_deg > 0 ? opt.beam_width_deg : sc.sonar.beam_width_deg);
     config.num_threads = opt.threads;
+    if (opt.footprint_neighbours >= 0) config.footprint_neighbour_pings = opt.footprint_neighbours;
+    if (const auto problems = config.Validate(); !problems.empty()) {
+        for (const auto& p : problems) std::fprintf(stderr, "pitmap-bench-tsdf: %s\n", p.c_str());
+        return 2;
+    }
     fusion::TsdfVolume volume(config);
     const double cpu0 = CpuSeconds();
     const fusion::IntegrateResult ir = volume.Integrate(scans);

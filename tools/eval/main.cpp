@@ -48,8 +48,9 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 0.2 m of a mesh vertex or triangle centroid.
   mesh_mean_abs_m_common, mesh_common_share
                                 with --mesh-common-with Q: mesh_mean_abs_m over the samples of
-                                P/mesh.ply within 0.2 m of a sample of Q/mesh.ply, and their share
-                                (two sensor models compared on the surface both hold).
+                                P/mesh.ply in the 0.2 m cubes that hold samples of both meshes,
+                                and their share (two sensor models compared on the surface both
+                                hold, each on the same cubes).
   mesh_bias_m, mesh_bias_m_common
                                 signed mean of the same distances (> 0: the mesh lies in the
                                 water, above or in front of the true surface).
@@ -365,7 +366,7 @@ int main(int argc, char** argv) {
                 other_origin ? *other_origin : truth->origin, truth->origin);
             std::vector<Eigen::Vector3d> theirs = MeshSamples(*other);
             for (auto& p : theirs) p = T_other * p;
-            std::vector<Eigen::Vector3d> common = eval::SamplesNear(samples, theirs, 0.2);
+            std::vector<Eigen::Vector3d> common = eval::SamplesInSharedCells(samples, theirs, 0.2);
             scores["mesh_common_share"] = samples.empty() ? 0.0
                                                           : static_cast<double>(common.size()) /
                                                                 static_cast<double>(samples.size());

@@ -2,6 +2,7 @@
 #include "tools/eval/scores.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -169,15 +170,24 @@ private:
 
 }  // namespace
 
-std::vector<Eigen::Vector3d> SamplesNear(const std::vector<Eigen::Vector3d>& samples,
-                                         const std::vector<Eigen::Vector3d>& others,
-                                         double radius_m) {
-    const RadiusGrid grid(others, radius_m);
-    std::vector<Eigen::Vector3d> near;
+std::vector<Eigen::Vector3d> SamplesInSharedCells(const std::vector<Eigen::Vector3d>& samples,
+                                                  const std::vector<Eigen::Vector3d>& others,
+                                                  double cell_m) {
+    auto key = [cell_m](const Eigen::Vector3d& p) {
+        return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(p.x() / cell_m)),
+                                           static_cast<std::int64_t>(std::floor(p.y() / cell_m)),
+                                           static_cast<std::int64_t>(std::floor(p.z() / cell_m))};
+    };
+    std::vector<std::array<std::int64_t, 3>> cells;
+    cells.reserve(others.size());
+    for (const auto& q : others) cells.push_back(key(q));
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    std::vector<Eigen::Vector3d> shared;
     for (const auto& p : samples) {
-        if (grid.AnyWithin(p)) near.push_back(p);
+        if (std::binary_search(cells.begin(), cells.end(), key(p))) shared.push_back(p);
     }
-    return near;
+    return shared;
 }
 
 std::optional<double> MeshCompleteness(const std::vector<Eigen::Vector3d>& samples,

@@ -99,10 +99,14 @@ std::optional<double> MeshCompleteness(
     double min_depth_m = 0,
     double max_depth_m = std::numeric_limits<double>::infinity());
 
-// The samples that have one of `others` within radius_m (two meshes' common area).
-std::vector<Eigen::Vector3d> SamplesNear(const std::vector<Eigen::Vector3d>& samples,
-                                         const std::vector<Eigen::Vector3d>& others,
-                                         double radius_m);
+// The samples that lie in a cube of cell_m (a grid from the origin) holding one of `others`:
+// two meshes' common surface. Both meshes keep their samples in the same set of cells, so
+// both are scored on the same surface in the same mix of floors and walls. (A radius test
+// around the other mesh's samples is not symmetric: around a patchy mesh it keeps a rim of the
+// fuller one, and the rims of small patches on walls are mostly wall.)
+std::vector<Eigen::Vector3d> SamplesInSharedCells(const std::vector<Eigen::Vector3d>& samples,
+                                                  const std::vector<Eigen::Vector3d>& others,
+                                                  double cell_m);
 
 // The true surface's slope under (x, y), degrees from horizontal.
 double SlopeDeg(const sim::PitWorld& world, double x, double y);

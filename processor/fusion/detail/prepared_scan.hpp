@@ -5,6 +5,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -12,6 +14,14 @@
 #include "processor/fusion/tsdf.hpp"
 
 namespace pitmap::proc::fusion::detail {
+
+// Geometry shared by both sensor models, in voxel index units (voxel centres at integers).
+struct Geometry {
+    double trunc_vox;
+    double tan_half_bw;
+    double cos_half_bw;
+    double metres_per_voxel;
+};
 
 // A beam (beam-width mode: a sector) of a scan, prepared once for all slabs. Ranges are in
 // voxel units.
@@ -27,6 +37,10 @@ struct PreparedBeam {
     std::int32_t y_lo;  // voxel y index range the beam can touch
     std::int32_t y_hi;
     std::uint16_t beam;  // beam index
+    float dr_dx = 0;     // beam-width mode: range change per voxel out of the fan plane (the
+                         // footprint's along-track slope, from the neighbouring pings)
+    float x_fit_lo = 0;  // the out-of-plane offsets it was fitted over (voxels): beyond, the
+    float x_fit_hi = 0;  // range is held at the span's end, not extrapolated
 };
 
 // Beam-width mode: what the per-voxel test needs of one sector (beam index k of the scan),
@@ -40,6 +54,8 @@ struct FanSector {
     float dr_prev = 0;  // range change towards sector k - 1 (0 = no interpolation that side)
     float dr_next = 0;  // range change towards sector k + 1
     float weight = 0;   // f times the footprint's support
+    float dr_dx = 0;    // range change per voxel out of the plane (PreparedBeam::dr_dx)
+    float x_fit_lo = 0, x_fit_hi = 0;  // applied over this span of offsets (held beyond)
 };
 
 // Beam-width mode: a ping rasterised as a whole, in columns of voxels along the world axis that
@@ -88,22 +104,57 @@ struct PreparedScan {
     FanColumns fan;              // beam-width mode (empty sectors in ray mode)
 };
 
-// Geometry shared by both sensor models, in voxel index units (voxel centres at integers).
-struct Geometry {
-    double trunc_vox;
-    double tan_half_bw;
-    double cos_half_bw;
-    double metres_per_voxel;
+
+// The valid ranges of one scan and, in beam-width mode, every beam's footprint across the fan:
+// a robust line through the ranges of the beams inside its cone (FitFootprints).
+struct ScanFootprints {
+    std::vector<float> r;      // valid ranges in voxel units, NaN otherwise
+    std::vector<float> range;  // beam-width mode: footprint range per beam, NaN = none
+    std::vector<float> slope;  // range change per beam of the footprint's line
+    std::vector<float> gate;   // inlier gate of that line (voxels)
+    std::vector<int> support;  // inliers of that line
+    std::vector<float> point_y, point_z;  // the footprint point (beam axis at its range) in the
+                                          // scan's sonar frame, voxels
+    int half = 0;  // beams on each side of a footprint
+    std::int64_t no_detection = 0;
+    std::int64_t out_of_range = 0;
+    std::int64_t inconsistent = 0;  // valid beams outvoted by their footprint
+};
+ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config);
+
+// Beam-width mode: how far the along-track slope can move a footprint's range (|dr_dx| times
+// the largest offset of its fitted span).
+inline double AlongTrackReach(const PreparedBeam& pb) {
+    return std::abs(static_cast<double>(pb.dr_dx)) *
+           std::max(std::abs(static_cast<double>(pb.x_fit_lo)),
+                    std::abs(static_cast<double>(pb.x_fit_hi)));
+}
+
+// A scan near the one being prepared, in input order (offset -1: the previous ping).
+struct ScanNeighbour {
+    const SonarScan* scan = nullptr;
+    const ScanFootprints* footprints = nullptr;  // FitFootprints of *scan
+    int offset = 0;
 };
 
-// The beams of one scan in voxel units; beam-width mode fits each beam's footprint (a robust
-// line through the ranges of the beams inside its cone) first, and measures the gap from each
-// footprint to the fan planes of the previous and next scans (nullptr = none).
+// The beams of one scan in voxel units, from its footprints. Beam-width mode also measures the
+// gap from each footprint to the fan planes of the neighbours at offsets -1 and +1, and fits
+// each footprint's along-track slope (PreparedBeam::dr_dx) to the footprints of the same beam
+// in the neighbours within TsdfConfig::footprint_neighbour_pings.
 PreparedScan PrepareScan(const SonarScan& scan,
+                         const ScanFootprints& footprints,
                          const TsdfConfig& config,
                          const Geometry& geo,
-                         const SonarScan* prev = nullptr,
-                         const SonarScan* next = nullptr);
+                         const std::vector<ScanNeighbour>& neighbours);
+
+// The same for scans[index], its neighbours taken from scans (footprints fitted here).
+PreparedScan PrepareScan(const std::vector<SonarScan>& scans,
+                         std::size_t index,
+                         const TsdfConfig& config,
+                         const Geometry& geo);
+
+// A scan on its own (no neighbours).
+PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo);
 
 // Beam-width mode: fills ps.fan from the prepared beams (ps.beams, ps.R, ps.p_vox) of a scan
 // with num_beams beams (fan_columns.cpp).

@@ -53,19 +53,14 @@ std::map<Key, RefVoxel> ReferenceIntegrate(const std::vector<SonarScan>& scans,
     std::map<Key, RefVoxel> grid;
     for (std::size_t si = 0; si < scans.size(); ++si) {
         const SonarScan& scan = scans[si];
-        const detail::PreparedScan ps =
-            detail::PrepareScan(scan,
-                                c,
-                                geo,
-                                si > 0 ? &scans[si - 1] : nullptr,
-                                si + 1 < scans.size() ? &scans[si + 1] : nullptr);
+        const detail::PreparedScan ps = detail::PrepareScan(scans, si, c, geo);
         if (ps.beams.empty()) continue;
         std::vector<const detail::PreparedBeam*> by_index(scan.ranges_m.size(), nullptr);
         double r_max = 0;
         for (const detail::PreparedBeam& pb : ps.beams) {
             by_index[pb.beam] = &pb;
             for (double rr : {pb.range_vox, pb.range_prev_vox, pb.range_next_vox}) {
-                if (std::isfinite(rr)) r_max = std::max(r_max, rr);
+                if (std::isfinite(rr)) r_max = std::max(r_max, rr + detail::AlongTrackReach(pb));
             }
         }
         const double reach = r_max + T + 1.0;
@@ -98,9 +93,13 @@ std::map<Key, RefVoxel> ReferenceIntegrate(const std::vector<SonarScan>& scans,
                         scan.start_angle_rad + static_cast<float>(k) * scan.angle_increment_rad);
                     const double frac = (phi - theta) / inc;  // > 0 towards beam k + 1
                     const double rn = frac >= 0 ? pb->range_next_vox : pb->range_prev_vox;
+                    // Along the track: the footprint's slope over its fitted span, held beyond.
                     const double r_at =
                         pb->range_vox +
-                        (std::isfinite(rn) ? std::abs(frac) * (rn - pb->range_vox) : 0.0);
+                        (std::isfinite(rn) ? std::abs(frac) * (rn - pb->range_vox) : 0.0) +
+                        pb->dr_dx * std::clamp(xs.x(),
+                                               static_cast<double>(pb->x_fit_lo),
+                                               static_cast<double>(pb->x_fit_hi));
                     const double d = r_at - xs.norm();
                     if (!(d > -T && d <= T)) continue;
                     RefVoxel& v = grid[{x, y, z}];
@@ -201,10 +200,82 @@ TEST(BeamWidthRasteriser, MatchesVoxelByVoxelReference) {
     c.sensor_model = SensorModel::kBeamWidth;
     for (auto [spacing_m, threads] : {std::pair{0.07, 1}, std::pair{0.07, 2}, std::pair{0.2, 1}}) {
         c.num_threads = threads;
+        const std::vector<SonarScan> scans = Scene(spacing_m);
         const std::size_t n =
-            ExpectMatchesReference(Scene(spacing_m), c, std::to_string(threads) + " threads")
-                .size();
+            ExpectMatchesReference(scans, c, std::to_string(threads) + " threads").size();
         ASSERT_GT(n, 1500u);
+        // The scene's footprints slope along the track (the tilt, the boulder): the model's
+        // along-track term is exercised.
+        std::size_t sloped = 0, beams = 0;
+        for (std::size_t si = 0; si < scans.size(); ++si) {
+            for (const detail::PreparedBeam& pb :
+                 detail::PrepareScan(scans, si, c, GeometryOf(c)).beams) {
+                sloped += pb.dr_dx != 0.0f ? 1 : 0;
+                ++beams;
+            }
+        }
+        EXPECT_GT(sloped, beams / 3);
+    }
+}
+
+// The footprint's along-track slope (PreparedBeam::dr_dx) against the plane it sees: a head
+// pitched and turned over a level floor, the range's derivative out of the fan plane cast from
+// the ping's own pose. Noise-free ranges, so the fit to the neighbouring pings' footprints
+// must find the plane's slope; without neighbours there is none.
+TEST(BeamWidthFootprint, AlongTrackSlopeIsThePlanesSlope) {
+    SyntheticWorld world;
+    world.plane_z_m = -5.0;
+    LineSurvey survey;
+    survey.x0_m = -0.3;
+    survey.x1_m = 0.3;
+    survey.spacing_m = 0.1;
+    survey.num_beams = 161;
+    survey.start_angle_rad = -20.0 * std::numbers::pi / 180.0;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX()))
+                                     .toRotationMatrix();
+    Tilt(scans, world, survey.increment_rad, tilt);
+    TsdfConfig c;
+    const detail::Geometry geo = GeometryOf(c);
+    const std::size_t mid = scans.size() / 2;
+    const detail::PreparedScan ps = detail::PrepareScan(scans, mid, c, geo);
+    ASSERT_EQ(ps.beams.size(), 161u);
+    const SonarScan& scan = scans[mid];
+    std::size_t fitted = 0;
+    double worst = 0;
+    for (const detail::PreparedBeam& pb : ps.beams) {
+        const double th = scan.start_angle_rad + pb.beam * scan.angle_increment_rad;
+        // Range and out-of-plane offset along the beam turned by +-phi out of the plane.
+        auto cast = [&](double phi) {
+            const Eigen::Vector3d u(
+                std::sin(phi) * std::cos(th), std::sin(th), std::cos(phi) * std::cos(th));
+            const double r = world.Cast(scan.T_world_sonar.translation(),
+                                        scan.T_world_sonar.linear() * u);
+            return std::pair{r, r * u.x()};
+        };
+        const auto [r_plus, x_plus] = cast(1e-4);
+        const auto [r_minus, x_minus] = cast(-1e-4);
+        const double expected = (r_plus - r_minus) / (x_plus - x_minus);
+        ASSERT_GT(std::abs(expected), 0.3);  // the pitch: ~tan(0.4) along the track
+        if (pb.dr_dx == 0.0f) continue;
+        ++fitted;
+        worst = std::max(worst, std::abs(pb.dr_dx - expected) / std::abs(expected));
+        // Fitted over the neighbours on both sides, two pings (~2 voxels) each way.
+        EXPECT_LT(pb.x_fit_lo, -1.0f);
+        EXPECT_GT(pb.x_fit_hi, 1.0f);
+        EXPECT_LT(pb.x_fit_hi - pb.x_fit_lo, 6.0f);
+    }
+    EXPECT_EQ(fitted, ps.beams.size());
+    EXPECT_LT(worst, 0.01);
+    c.footprint_neighbour_pings = 0;
+    for (const detail::PreparedBeam& pb : detail::PrepareScan(scans, mid, c, geo).beams) {
+        EXPECT_EQ(pb.dr_dx, 0.0f);
+    }
+    // A scan on its own has no neighbours to fit to.
+    for (const detail::PreparedBeam& pb : detail::PrepareScan(scan, c, geo).beams) {
+        EXPECT_EQ(pb.dr_dx, 0.0f);
     }
 }
 

@@ -202,17 +202,25 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
 }
 
-// The common surface of two meshes: the samples with one of the others within the radius,
-// across cell boundaries and in every direction.
-TEST(Scores, SamplesNearKeepsOnlyTheCommonSurface) {
+// The common surface of two meshes: the samples in cells that hold samples of both, the same
+// cells for either mesh.
+TEST(Scores, SharedCellsKeepOnlyTheCommonSurfaceOfBothMeshes) {
     std::vector<Eigen::Vector3d> mine, theirs;
-    for (int i = 0; i < 100; ++i) mine.emplace_back(0.1 * i, 0.0, 0.0);      // x = 0 .. 9.9
-    for (int i = 0; i < 50; ++i) theirs.emplace_back(0.1 * i, 0.15, -0.05);  // x = 0 .. 4.9
-    const auto near = SamplesNear(mine, theirs, 0.2);
-    ASSERT_EQ(near.size(), 51u);  // x = 0 .. 5.0 (5.0 is 0.19 m from 4.9, 0.05 below)
-    for (const auto& p : near) EXPECT_LE(p.x(), 5.0 + 1e-9);
-    EXPECT_TRUE(SamplesNear(mine, {}, 0.2).empty());
-    EXPECT_TRUE(SamplesNear(mine, {Eigen::Vector3d(0, 0, 0.21)}, 0.2).empty());
+    for (int i = 0; i < 100; ++i) mine.emplace_back(0.1 * i + 0.05, 0.05, 0.05);  // x 0.05..9.95
+    for (int i = 0; i < 25; ++i) theirs.emplace_back(0.2 * i + 0.1, 0.15, 0.1);  // x 0.1..4.9
+    const auto shared = SamplesInSharedCells(mine, theirs, 0.2);
+    ASSERT_EQ(shared.size(), 50u);  // the cells x in [0, 5): two of mine each
+    for (const auto& p : shared) EXPECT_LT(p.x(), 5.0);
+    // Either way round, the same cells: all of theirs lie in cells of mine.
+    EXPECT_EQ(SamplesInSharedCells(theirs, mine, 0.2).size(), theirs.size());
+    EXPECT_TRUE(SamplesInSharedCells(mine, {}, 0.2).empty());
+    // Another cell: 0.2 m above the first sample's, and at negative coordinates.
+    EXPECT_TRUE(SamplesInSharedCells(mine, {Eigen::Vector3d(0.05, 0.05, 0.25)}, 0.2).empty());
+    EXPECT_EQ(SamplesInSharedCells({Eigen::Vector3d(-0.05, -0.1, -0.19)},
+                                   {Eigen::Vector3d(-0.15, -0.01, -0.01)},
+                                   0.2)
+                  .size(),
+              1u);
 }
 
 TEST_F(Eval, MissingTruthIsAClearError) {
