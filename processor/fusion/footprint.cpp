@@ -25,7 +25,8 @@ double SmallMedian(double* v, int n) {
 // The range the footprint of beam i sees, from the beams whose axes lie inside its cone
 // (|k| <= half, k = j - i): a robust line r(k) = c + s k (s the median slope between
 // neighbouring valid beams, c the median of r_j - s k), the beams within the gate of that line
-// are inliers, and the footprint range is the least-squares line through the inliers at k = 0.
+// are inliers, and the footprint range is the weighted least-squares line through the inliers
+// at k = 0.
 // On a planar patch the ranges vary almost linearly across the cone, so this is unbiased; an
 // isolated coarse outlier (or a dropout) inside the cone is outvoted. The line must hold a
 // strict majority of the cone's valid beams and a plausible slope (|dr/dk| <= max_slope * r,
@@ -63,19 +64,24 @@ bool FitFootprint(const std::vector<float>& r,
         for (int t = 0; t < m; ++t) tmp[t] = rs[t] - slope * ks[t];
         const double c = SmallMedian(tmp, m);
         const double gate = gate_vox + gate_fraction * c;
-        // Least squares over the inliers: r = a + b k.
+        // Least squares over the inliers, r = a + b k, each weighted by how near its axis lies
+        // to beam i's (1 - |k| / (half + 1): the beams at the cone's edge see half their
+        // footprint outside this one's). Unweighted, the line smoothed bench faces and rubble
+        // across the whole cone (quarry, common surface with rays: 0.0136 -> 0.0132 m).
         double sw = 0, sk = 0, sr = 0, skk = 0, skr = 0;
         bool self_inlier = false;
+        int support = 0;
         for (int t = 0; t < m; ++t) {
             if (std::abs(rs[t] - (c + slope * ks[t])) > gate) continue;
-            sw += 1;
-            sk += ks[t];
-            sr += rs[t];
-            skk += ks[t] * ks[t];
-            skr += ks[t] * rs[t];
+            const double w = 1.0 - std::abs(ks[t]) / (half + 1.0);
+            sw += w;
+            sk += w * ks[t];
+            sr += w * rs[t];
+            skk += w * ks[t] * ks[t];
+            skr += w * ks[t] * rs[t];
+            ++support;
             if (ks[t] == 0) self_inlier = true;
         }
-        const int support = static_cast<int>(sw);
         if (2 * support <= m) return false;
         const double det = sw * skk - sk * sk;
         double a = c;
@@ -84,7 +90,7 @@ bool FitFootprint(const std::vector<float>& r,
             a = (skk * sr - sk * skr) / det;
             b = (sw * skr - sk * sr) / det;
         } else if (support == 1) {
-            a = sr - slope * sk;  // the single inlier moved along the slope to k = 0
+            a = (sr - slope * sk) / sw;  // the single inlier moved along the slope to k = 0
         } else {
             a = sr / sw;  // several inliers on one beam position cannot happen; mean for safety
         }
@@ -210,7 +216,8 @@ AlongTrack AlongTrackSlope(std::size_t i,
     int m = 0;
     const double ci = std::cos(theta_i), si = std::sin(theta_i);
     const double max_x = kMaxNeighbourReach * x_half;
-    const double max_dtheta = std::tan(std::max(0.5, static_cast<double>(own.half)) * std::abs(inc));
+    const double max_dtheta =
+        std::tan(std::max(0.5, static_cast<double>(own.half)) * std::abs(inc));
     for (const NeighbourFrame& nb : nbs) {
         if (m == 2 * kMaxFootprintNeighbourPings) break;
         if (i >= nb.fp->range.size() || !std::isfinite(nb.fp->range[i])) continue;

@@ -624,7 +624,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             tbb::parallel_for(tbb::blocked_range<std::size_t>(f0, f1, 64),
                               [&](const tbb::blocked_range<std::size_t>& range) {
                                   for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                      footprints[si - f0] = detail::FitFootprints(scans[si], config_);
+                                      footprints[si - f0] =
+                                          detail::FitFootprints(scans[si], config_);
                                   }
                               });
             tbb::parallel_for(
@@ -642,8 +643,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                                            static_cast<int>(static_cast<std::ptrdiff_t>(j) -
                                                             static_cast<std::ptrdiff_t>(si))});
                         }
-                        prepared[si - c0] = detail::PrepareScan(
-                            scans[si], footprints[si - f0], config_, geo, nbs);
+                        prepared[si - c0] =
+                            detail::PrepareScan(scans[si], footprints[si - f0], config_, geo, nbs);
                     }
                 });
         });
@@ -697,8 +698,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
             tasks.wait();
         });
         result.rasterise_s += since(t_raster);
-        if (progress && !progress(static_cast<double>(c1 - begin) /
-                                  static_cast<double>(end - begin))) {
+        if (progress &&
+            !progress(static_cast<double>(c1 - begin) / static_cast<double>(end - begin))) {
             cancel = true;
         }
     }

@@ -156,7 +156,7 @@ struct Options {
     long max_pings = 0;
     int stride = 4;
     bool diag = false;
-    double beam_width_deg = 0;  // 0 = the scenario's sonar beam width
+    double beam_width_deg = 0;      // 0 = the scenario's sonar beam width
     int footprint_neighbours = -1;  // -1 = TsdfConfig's default
     std::string out;
     std::string cache;

@@ -104,18 +104,17 @@ struct PreparedScan {
     FanColumns fan;              // beam-width mode (empty sectors in ray mode)
 };
 
-
 // The valid ranges of one scan and, in beam-width mode, every beam's footprint across the fan:
 // a robust line through the ranges of the beams inside its cone (FitFootprints).
 struct ScanFootprints {
-    std::vector<float> r;      // valid ranges in voxel units, NaN otherwise
-    std::vector<float> range;  // beam-width mode: footprint range per beam, NaN = none
-    std::vector<float> slope;  // range change per beam of the footprint's line
-    std::vector<float> gate;   // inlier gate of that line (voxels)
-    std::vector<int> support;  // inliers of that line
+    std::vector<float> r;                 // valid ranges in voxel units, NaN otherwise
+    std::vector<float> range;             // beam-width mode: footprint range per beam, NaN = none
+    std::vector<float> slope;             // range change per beam of the footprint's line
+    std::vector<float> gate;              // inlier gate of that line (voxels)
+    std::vector<int> support;             // inliers of that line
     std::vector<float> point_y, point_z;  // the footprint point (beam axis at its range) in the
                                           // scan's sonar frame, voxels
-    int half = 0;  // beams on each side of a footprint
+    int half = 0;                         // beams on each side of a footprint
     std::int64_t no_detection = 0;
     std::int64_t out_of_range = 0;
     std::int64_t inconsistent = 0;  // valid beams outvoted by their footprint

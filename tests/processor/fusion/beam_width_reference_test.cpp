@@ -251,8 +251,8 @@ TEST(BeamWidthFootprint, AlongTrackSlopeIsThePlanesSlope) {
         auto cast = [&](double phi) {
             const Eigen::Vector3d u(
                 std::sin(phi) * std::cos(th), std::sin(th), std::cos(phi) * std::cos(th));
-            const double r = world.Cast(scan.T_world_sonar.translation(),
-                                        scan.T_world_sonar.linear() * u);
+            const double r =
+                world.Cast(scan.T_world_sonar.translation(), scan.T_world_sonar.linear() * u);
             return std::pair{r, r * u.x()};
         };
         const auto [r_plus, x_plus] = cast(1e-4);

@@ -207,7 +207,7 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
 TEST(Scores, SharedCellsKeepOnlyTheCommonSurfaceOfBothMeshes) {
     std::vector<Eigen::Vector3d> mine, theirs;
     for (int i = 0; i < 100; ++i) mine.emplace_back(0.1 * i + 0.05, 0.05, 0.05);  // x 0.05..9.95
-    for (int i = 0; i < 25; ++i) theirs.emplace_back(0.2 * i + 0.1, 0.15, 0.1);  // x 0.1..4.9
+    for (int i = 0; i < 25; ++i) theirs.emplace_back(0.2 * i + 0.1, 0.15, 0.1);   // x 0.1..4.9
     const auto shared = SamplesInSharedCells(mine, theirs, 0.2);
     ASSERT_EQ(shared.size(), 50u);  // the cells x in [0, 5): two of mine each
     for (const auto& p : shared) EXPECT_LT(p.x(), 5.0);
@@ -216,11 +216,11 @@ TEST(Scores, SharedCellsKeepOnlyTheCommonSurfaceOfBothMeshes) {
     EXPECT_TRUE(SamplesInSharedCells(mine, {}, 0.2).empty());
     // Another cell: 0.2 m above the first sample's, and at negative coordinates.
     EXPECT_TRUE(SamplesInSharedCells(mine, {Eigen::Vector3d(0.05, 0.05, 0.25)}, 0.2).empty());
-    EXPECT_EQ(SamplesInSharedCells({Eigen::Vector3d(-0.05, -0.1, -0.19)},
-                                   {Eigen::Vector3d(-0.15, -0.01, -0.01)},
-                                   0.2)
-                  .size(),
-              1u);
+    EXPECT_EQ(
+        SamplesInSharedCells(
+            {Eigen::Vector3d(-0.05, -0.1, -0.19)}, {Eigen::Vector3d(-0.15, -0.01, -0.01)}, 0.2)
+            .size(),
+        1u);
 }
 
 TEST_F(Eval, MissingTruthIsAClearError) {
