@@ -23,19 +23,26 @@ double SmallMedian(double* v, int n) {
 }
 
 // The range the footprint of beam i sees, from the beams whose axes lie inside its cone
-// (|k| <= half, k = j - i): a robust line r(k) = c + s k (s the median slope between
-// neighbouring valid beams, c the median of r_j - s k), the beams within the gate of that line
-// are inliers, and the footprint range is the weighted least-squares line through the inliers
-// at k = 0.
-// On a planar patch the ranges vary almost linearly across the cone, so this is unbiased; an
-// isolated coarse outlier (or a dropout) inside the cone is outvoted. The line must hold a
-// strict majority of the cone's valid beams and a plausible slope (|dr/dk| <= max_slope * r,
-// i.e. incidence below ~80 deg); otherwise a constant model is tried, and a footprint that
-// straddles several surfaces with no majority gives no range. r holds the measured ranges,
-// NaN for invalid beams. Returns false when there is no range.
+// (|k| <= half, k = j - i, at angle delta_k = k inc off beam i's axis): a robust straight line
+// in the fan plane through their echoes, and where beam i's axis meets it. A line in the plane
+// is linear in the inverse range, 1 / r(delta) = B cos(delta) + A sin(delta), so it is fitted
+// there. (The range itself is not linear across the cone: on a plane at incidence alpha it is
+// convex in the beam angle, and a straight line through the ranges put a level floor too deep
+// by ~2 h inc^2 (1 + 2 tan^2 alpha) / cos(alpha): 4 mm at 45 deg and 14 mm at 60 deg under
+// 27 m of water.) Robust: A from the median of the neighbouring pairs' exact lines, B from the
+// median of (1 / r_k - A sin) / cos; the beams within the gate of that line (in range) are
+// inliers, and the weighted least-squares line through them gives the footprint range 1 / B.
+// Each beam is weighted by how near its axis lies to beam i's (1 - |k| / (half + 1): the beams
+// at the cone's edge see half their footprint outside this one's; unweighted, the line
+// smoothed bench faces and rubble across the whole cone). An isolated coarse outlier (or a
+// dropout) inside the cone is outvoted. The line must hold a strict majority of the cone's
+// valid beams and a plausible slope (|dr/dk| <= max_slope * r, i.e. incidence below ~80 deg);
+// otherwise a line of constant range is tried, and a footprint that straddles several surfaces
+// with no majority gives no range. r holds the measured ranges, NaN for invalid beams. Returns
+// false when there is no range.
 struct FootprintRange {
     float range = 0;
-    float slope = 0;           // range change per beam of the inlier line
+    float slope = 0;           // range change per beam of the inlier line at beam i
     float gate = 0;            // inlier gate used
     int support = 0;           // inliers
     bool self_inlier = false;  // beam i itself is valid and an inlier
@@ -43,71 +50,81 @@ struct FootprintRange {
 bool FitFootprint(const std::vector<float>& r,
                   int i,
                   int half,
+                  double inc,
                   double gate_vox,
                   double gate_fraction,
                   double max_slope,
                   FootprintRange& out) {
     const int n = static_cast<int>(r.size());
-    double ks[2 * kMaxFootprintHalf + 1];
-    double rs[2 * kMaxFootprintHalf + 1];
-    double tmp[2 * kMaxFootprintHalf + 1];
+    constexpr int kMax = 2 * kMaxFootprintHalf + 1;
+    double ks[kMax], rs[kMax], us[kMax], cs[kMax], ss[kMax], tmp[kMax];
     int m = 0;
     for (int k = -half; k <= half; ++k) {
         const int j = i + k;
         if (j < 0 || j >= n || !std::isfinite(r[static_cast<std::size_t>(j)])) continue;
         ks[m] = k;
         rs[m] = r[static_cast<std::size_t>(j)];
+        us[m] = 1.0 / rs[m];
+        cs[m] = std::cos(k * inc);
+        ss[m] = std::sin(k * inc);
         ++m;
     }
     if (m == 0) return false;
-    auto attempt = [&](double slope) {
-        for (int t = 0; t < m; ++t) tmp[t] = rs[t] - slope * ks[t];
-        const double c = SmallMedian(tmp, m);
-        const double gate = gate_vox + gate_fraction * c;
-        // Least squares over the inliers, r = a + b k, each weighted by how near its axis lies
-        // to beam i's (1 - |k| / (half + 1): the beams at the cone's edge see half their
-        // footprint outside this one's). Unweighted, the line smoothed bench faces and rubble
-        // across the whole cone (quarry, common surface with rays: 0.0136 -> 0.0132 m).
-        double sw = 0, sk = 0, sr = 0, skk = 0, skr = 0;
+    // Inliers of the line (A, B0) with B0 the median intercept, then the weighted fit.
+    auto attempt = [&](double a0) {
+        for (int t = 0; t < m; ++t) tmp[t] = (us[t] - a0 * ss[t]) / cs[t];
+        const double b0 = SmallMedian(tmp, m);
+        if (!(b0 > 0.0)) return false;
+        const double gate = gate_vox + gate_fraction / b0;
+        double scc = 0, scs = 0, sss = 0, suc = 0, sus = 0, sw = 0;
         bool self_inlier = false;
-        int support = 0;
+        int support = 0, last = -1;
         for (int t = 0; t < m; ++t) {
-            if (std::abs(rs[t] - (c + slope * ks[t])) > gate) continue;
+            const double u_line = b0 * cs[t] + a0 * ss[t];
+            if (!(u_line > 0.0) || std::abs(rs[t] - 1.0 / u_line) > gate) continue;
             const double w = 1.0 - std::abs(ks[t]) / (half + 1.0);
+            scc += w * cs[t] * cs[t];
+            scs += w * cs[t] * ss[t];
+            sss += w * ss[t] * ss[t];
+            suc += w * us[t] * cs[t];
+            sus += w * us[t] * ss[t];
             sw += w;
-            sk += w * ks[t];
-            sr += w * rs[t];
-            skk += w * ks[t] * ks[t];
-            skr += w * ks[t] * rs[t];
             ++support;
+            last = t;
             if (ks[t] == 0) self_inlier = true;
         }
         if (2 * support <= m) return false;
-        const double det = sw * skk - sk * sk;
-        double a = c;
-        double b = slope;
-        if (support >= 2 && det > 1e-9) {
-            a = (skk * sr - sk * skr) / det;
-            b = (sw * skr - sk * sr) / det;
-        } else if (support == 1) {
-            a = (sr - slope * sk) / sw;  // the single inlier moved along the slope to k = 0
+        double a = a0, b = 0;
+        const double det = scc * sss - scs * scs;
+        if (support >= 2 && det > 1e-12 * sw * sw * inc * inc) {
+            b = (suc * sss - sus * scs) / det;
+            a = (sus * scc - suc * scs) / det;
         } else {
-            a = sr / sw;  // several inliers on one beam position cannot happen; mean for safety
+            // One inlier (or inliers at one angle): moved along the robust line to the axis.
+            b = (us[last] - a0 * ss[last]) / cs[last];
         }
-        if (!(a > 0.0) || std::abs(b) > max_slope * a) return false;
-        out.range = static_cast<float>(a);
-        out.slope = static_cast<float>(b);
+        if (!(b > 0.0)) return false;
+        const double range = 1.0 / b;
+        const double slope = -a / (b * b) * inc;  // dr/dk at k = 0
+        if (std::abs(slope) > max_slope * range) return false;
+        out.range = static_cast<float>(range);
+        out.slope = static_cast<float>(slope);
         out.gate = static_cast<float>(gate);
         out.support = support;
         out.self_inlier = self_inlier;
         return true;
     };
-    double slope = 0;
+    double a0 = 0;
     if (m >= 2) {
-        for (int t = 0; t + 1 < m; ++t) tmp[t] = (rs[t + 1] - rs[t]) / (ks[t + 1] - ks[t]);
-        slope = SmallMedian(tmp, m - 1);
+        // A of the exact line through each neighbouring pair (B cos d + A sin d = u at both):
+        // (u2 cos d1 - u1 cos d2) / sin(d2 - d1).
+        for (int t = 0; t + 1 < m; ++t) {
+            const double den = ss[t + 1] * cs[t] - ss[t] * cs[t + 1];  // sin(d2 - d1)
+            tmp[t] = (us[t + 1] * cs[t] - us[t] * cs[t + 1]) / den;
+        }
+        a0 = SmallMedian(tmp, m - 1);
     }
-    if (slope != 0.0 && attempt(slope)) return true;
+    if (a0 != 0.0 && attempt(a0)) return true;
     return attempt(0.0);
 }
 
@@ -153,6 +170,7 @@ ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
         if (!FitFootprint(out.r,
                           static_cast<int>(i),
                           half,
+                          static_cast<double>(scan.angle_increment_rad),
                           gate_vox,
                           config.footprint_gate_fraction,
                           max_slope,

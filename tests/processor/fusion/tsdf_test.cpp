@@ -27,6 +27,7 @@ using testing::SyntheticWorld;
 TsdfConfig SmallConfig(SensorModel model) {
     TsdfConfig c;
     c.truncation_m = 0.5;  // keeps the tests fast; the default is exercised below
+    c.max_weight = 20.0f;  // the weights below reach the cap within a few pings
     c.sensor_model = model;
     return c;
 }
@@ -491,7 +492,7 @@ TEST(TsdfVolume, DefaultConfigIntegratesWithFullTruncation) {
     // d is truncated to [-T, T]: in the band at 1.2 m above the floor, d ~ 1.2 m.
     EXPECT_NEAR(volume.DistanceAt(Eigen::Vector3d(0.0, 0.0, -8.8)), 1.2, 0.02);
     EXPECT_NEAR(volume.DistanceAt(Eigen::Vector3d(0.0, 0.0, -11.2)), -1.2, 0.02);
-    EXPECT_LE(volume.Stats().max_weight, 20.0f);
+    EXPECT_LE(volume.Stats().max_weight, 140.0f);
     EXPECT_LT(PlaneError(volume.ExtractIsoSurface().mesh, world.plane_z_m).first, 0.05);
 }
 
@@ -638,7 +639,7 @@ TEST(TsdfVolume, WeightHistogramCountsEveryActiveVoxelOncePerUnitWeight) {
 TEST(TsdfVolume, WeightHistogramOfAnEmptyVolumeIsAllZero) {
     TsdfVolume volume(TsdfConfig{});
     const WeightHistogram h = volume.ComputeWeightHistogram();
-    EXPECT_EQ(h.counts.size(), 21u);
+    EXPECT_EQ(h.counts.size(), 141u);  // unit bins over [0, w_max] and one for w_max
     EXPECT_EQ(h.total, 0);
     for (std::int64_t n : h.counts) EXPECT_EQ(n, 0);
 }
@@ -649,7 +650,7 @@ TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     EXPECT_DOUBLE_EQ(defaults.voxel_size_m, 0.10);
     EXPECT_DOUBLE_EQ(defaults.truncation_m, 1.5);
     EXPECT_FLOAT_EQ(defaults.weight_per_measurement, 1.0f);
-    EXPECT_FLOAT_EQ(defaults.max_weight, 20.0f);
+    EXPECT_FLOAT_EQ(defaults.max_weight, 140.0f);
     EXPECT_NEAR(defaults.beam_width_rad * 180.0 / std::numbers::pi, 1.5, 1e-12);
     TsdfConfig bad;
     bad.voxel_size_m = -1;

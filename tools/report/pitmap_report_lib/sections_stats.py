@@ -47,7 +47,8 @@ class StatsSections:
             # 1-2-5 steps with k/M labels: a histogram spanning one decade still gets labels.
             a.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
             a.yaxis.set_major_formatter(EngFormatter(sep=" "))
-            a.set_xlabel("voxel weight (number of updates, capped at w_max)")
+            a.set_xlabel("voxel weight (measurements: rays, or the beams of each footprint; "
+                         "capped at w_max)")
             a.set_ylabel("active voxels")
             a.xaxis.set_major_locator(MaxNLocator(integer=True))
             a.grid(alpha=0.3, which="both", axis="y")
