@@ -4,14 +4,18 @@
 // the same georeferenced survey (true boresight, RTK INS) is fused twice at the same weight
 // threshold, with the beam-width footprint model (the default) and with plain rays, and both
 // meshes are scored against the simulator's terrain, overall, by slope class and on the surface
-// both meshes hold. Measured on 2026-11-26 (pitmap run, SLAM trajectory): completeness 0.922
-// vs 0.635 (walls >= 45 deg: 0.915 vs 0.449), mean abs error on the common surface 0.016 vs
-// 0.0125 m. The beam-width model stays the default because it keeps the walls and faces that
-// rays leave as holes at the same threshold, for millimetres of error on 0.1 m voxels; this
-// test fails when that trade changes. Since the gap between pings is bridged at short range
-// (fuse.ping_gap_fill_m, 2026-11-27) the shallow shore is whole too; this test's survey
-// (georef, true boresight): completeness 0.922 -> 0.993, at true depth < 1 / 1-2 / 2-4 m
-// 0.457 / 0.331 / 0.618 -> 0.979 / 0.984 / 0.993, mesh mean abs 0.0171 -> 0.0158 m.
+// both meshes hold (the 0.2 m cubes holding samples of both). The beam-width model is the
+// default because it keeps the walls and faces that rays leave as holes at the same threshold,
+// and since 2026-11-29 it does so at the rays' error on the surface both hold. This survey:
+//   - completeness 0.993 vs 0.636, walls >= 45 deg 0.976 vs 0.448, the shore at true depth
+//     < 1 / 1-2 / 2-4 m 0.973 / 0.983 / 0.993 vs 0.446 / 0.351 / 0.525;
+//   - mean abs error on the common surface 0.0128 vs 0.0127 m; floors 0.0088 vs 0.0102 m,
+//     faces 0.0113 vs 0.0108 m, walls 0.0195 vs 0.0195 m.
+// History of the error on the common surface: 0.016 vs 0.0125 m on 2026-11-26 (radius-based
+// common surface, SLAM trajectory); the footprint's along-track slope, its straight line in the
+// plane and w_max in measurements closed it (README, sensor model). The test fails when the
+// trade changes: completeness gaps under 15 points (25 on walls), or the beam-width error on the
+// common surface more than 1 mm over the rays' (on floors: not under them).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -75,6 +79,9 @@ TEST(SensorModelScenario, BeamWidthKeepsTheWallsThatRaysLoseAtTheSameThreshold) 
                           "mesh_completeness_depth_2_4",
                           "mesh_mean_abs_m",
                           "mesh_mean_abs_m_common",
+                          "mesh_common_mean_abs_m_slope_0_20",
+                          "mesh_common_mean_abs_m_slope_20_45",
+                          "mesh_common_mean_abs_m_slope_45_91",
                           "mesh_common_share"}) {
         ASSERT_TRUE(b.count(k) && r.count(k)) << k;
         RecordProperty(std::string("beam_") + k, std::to_string(b.at(k)));
@@ -91,9 +98,13 @@ TEST(SensorModelScenario, BeamWidthKeepsTheWallsThatRaysLoseAtTheSameThreshold) 
     EXPECT_GT(b.at("mesh_completeness_depth_2_4"), 0.95);
     EXPECT_GT(b.at("mesh_completeness"), r.at("mesh_completeness") + 0.15);
     EXPECT_GT(b.at("mesh_completeness_slope_45_91"), r.at("mesh_completeness_slope_45_91") + 0.25);
-    // Error: on the surface both hold, within 1 cm of the rays' (0.1 m voxels), and small.
-    EXPECT_LT(b.at("mesh_mean_abs_m_common"), 0.025);
-    EXPECT_LT(b.at("mesh_mean_abs_m_common"), r.at("mesh_mean_abs_m_common") + 0.01);
+    // Error: on the surface both hold, the rays' to within a millimetre, and below it on the
+    // floors (where the footprint averages the most beams); small.
+    EXPECT_LT(b.at("mesh_mean_abs_m_common"), 0.02);
+    EXPECT_LT(b.at("mesh_mean_abs_m_common"), r.at("mesh_mean_abs_m_common") + 0.001);
+    EXPECT_LT(b.at("mesh_common_mean_abs_m_slope_0_20"), r.at("mesh_common_mean_abs_m_slope_0_20"));
+    EXPECT_LT(b.at("mesh_common_mean_abs_m_slope_45_91"),
+              r.at("mesh_common_mean_abs_m_slope_45_91") + 0.001);
     // The ray mesh lies almost entirely on surface the beam-width mesh also holds.
     EXPECT_GT(r.at("mesh_common_share"), 0.95);
     if (!HasFailure()) fs::remove_all(dir);
