@@ -47,14 +47,26 @@ struct FootprintRange {
     int support = 0;           // inliers
     bool self_inlier = false;  // beam i itself is valid and an inlier
 };
-bool FitFootprint(const std::vector<float>& r,
+// What FitFootprint needs of a scan: the ranges, their inverses, and cos and sin of k inc for
+// k in [-half, half].
+struct FootprintInputs {
+    const std::vector<float>& r;
+    std::vector<double> inv_r;     // 1 / r (NaN where r is)
+    std::vector<double> cos_k;     // cos(k inc) at k + half
+    std::vector<double> sin_k;     // sin(k inc) at k + half
+    int half;
+    double inc;
+};
+
+bool FitFootprint(const FootprintInputs& in,
                   int i,
-                  int half,
-                  double inc,
                   double gate_vox,
                   double gate_fraction,
                   double max_slope,
                   FootprintRange& out) {
+    const std::vector<float>& r = in.r;
+    const int half = in.half;
+    const double inc = in.inc;
     const int n = static_cast<int>(r.size());
     constexpr int kMax = 2 * kMaxFootprintHalf + 1;
     double ks[kMax], rs[kMax], us[kMax], cs[kMax], ss[kMax], tmp[kMax];
@@ -64,9 +76,9 @@ bool FitFootprint(const std::vector<float>& r,
         if (j < 0 || j >= n || !std::isfinite(r[static_cast<std::size_t>(j)])) continue;
         ks[m] = k;
         rs[m] = r[static_cast<std::size_t>(j)];
-        us[m] = 1.0 / rs[m];
-        cs[m] = std::cos(k * inc);
-        ss[m] = std::sin(k * inc);
+        us[m] = in.inv_r[static_cast<std::size_t>(j)];
+        cs[m] = in.cos_k[static_cast<std::size_t>(k + half)];
+        ss[m] = in.sin_k[static_cast<std::size_t>(k + half)];
         ++m;
     }
     if (m == 0) return false;
@@ -165,12 +177,17 @@ ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
     const double gate_vox = config.footprint_gate_m * inv_s;
     // Range change per beam on a plane at incidence alpha: r tan(alpha) inc; up to 80 deg.
     const double max_slope = inc * kTanMaxIncidence;
+    FootprintInputs in{out.r, {}, {}, {}, half, static_cast<double>(scan.angle_increment_rad)};
+    in.inv_r.resize(n);
+    for (std::size_t j = 0; j < n; ++j) in.inv_r[j] = 1.0 / static_cast<double>(out.r[j]);
+    for (int k = -half; k <= half; ++k) {
+        in.cos_k.push_back(std::cos(k * in.inc));
+        in.sin_k.push_back(std::sin(k * in.inc));
+    }
     for (std::size_t i = 0; i < n; ++i) {
         FootprintRange fp;
-        if (!FitFootprint(out.r,
+        if (!FitFootprint(in,
                           static_cast<int>(i),
-                          half,
-                          static_cast<double>(scan.angle_increment_rad),
                           gate_vox,
                           config.footprint_gate_fraction,
                           max_slope,
