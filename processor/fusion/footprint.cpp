@@ -51,9 +51,9 @@ struct FootprintRange {
 // k in [-half, half].
 struct FootprintInputs {
     const std::vector<float>& r;
-    std::vector<double> inv_r;     // 1 / r (NaN where r is)
-    std::vector<double> cos_k;     // cos(k inc) at k + half
-    std::vector<double> sin_k;     // sin(k inc) at k + half
+    std::vector<double> inv_r;  // 1 / r (NaN where r is)
+    std::vector<double> cos_k;  // cos(k inc) at k + half
+    std::vector<double> sin_k;  // sin(k inc) at k + half
     int half;
     double inc;
 };
@@ -186,12 +186,8 @@ ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
     }
     for (std::size_t i = 0; i < n; ++i) {
         FootprintRange fp;
-        if (!FitFootprint(in,
-                          static_cast<int>(i),
-                          gate_vox,
-                          config.footprint_gate_fraction,
-                          max_slope,
-                          fp)) {
+        if (!FitFootprint(
+                in, static_cast<int>(i), gate_vox, config.footprint_gate_fraction, max_slope, fp)) {
             continue;
         }
         out.range[i] = fp.range;
