@@ -149,6 +149,13 @@ ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
     const std::size_t n = std::min<std::size_t>(scan.ranges_m.size(), 65536);
     const float nan = std::numeric_limits<float>::quiet_NaN();
     out.r.assign(n, nan);
+    out.sin_theta.resize(n);
+    out.cos_theta.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        out.sin_theta[i] = std::sin(static_cast<double>(theta));
+        out.cos_theta[i] = std::cos(static_cast<double>(theta));
+    }
     for (std::size_t i = 0; i < n; ++i) {
         const float range = scan.ranges_m[i];
         if (!std::isfinite(range) || range == 0.0f) {
@@ -191,9 +198,8 @@ ScanFootprints FitFootprints(const SonarScan& scan, const TsdfConfig& config) {
             continue;
         }
         out.range[i] = fp.range;
-        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
-        out.point_y[i] = static_cast<float>(fp.range * std::sin(static_cast<double>(theta)));
-        out.point_z[i] = static_cast<float>(fp.range * std::cos(static_cast<double>(theta)));
+        out.point_y[i] = static_cast<float>(fp.range * out.sin_theta[i]);
+        out.point_z[i] = static_cast<float>(fp.range * out.cos_theta[i]);
         out.support[i] = fp.support;
         out.slope[i] = fp.slope;
         out.gate[i] = fp.gate;
@@ -237,7 +243,8 @@ struct AlongTrack {
 AlongTrack AlongTrackSlope(std::size_t i,
                            const ScanFootprints& own,
                            const std::vector<NeighbourFrame>& nbs,
-                           double theta_i,
+                           double si,
+                           double ci,
                            double inc,
                            double x_half,
                            double s_max) {
@@ -245,7 +252,6 @@ AlongTrack AlongTrackSlope(std::size_t i,
     double ds[2 * kMaxFootprintNeighbourPings];
     double tmp[2 * kMaxFootprintNeighbourPings];
     int m = 0;
-    const double ci = std::cos(theta_i), si = std::sin(theta_i);
     const double max_x = kMaxNeighbourReach * x_half;
     const double max_dtheta =
         std::tan(std::max(0.5, static_cast<double>(own.half)) * std::abs(inc));
@@ -368,8 +374,7 @@ PreparedScan PrepareScan(const SonarScan& scan,
     ps.beams.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(ranges[i])) continue;
-        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
-        const double sin_t = std::sin(theta), cos_t = std::cos(theta);
+        const double sin_t = footprints.sin_theta[i], cos_t = footprints.cos_theta[i];
         const double u_x = ps.R(0, 1) * sin_t + ps.R(0, 2) * cos_t;
         const double u_y = ps.R(1, 1) * sin_t + ps.R(1, 2) * cos_t;
         PreparedBeam pb;
@@ -395,7 +400,7 @@ PreparedScan PrepareScan(const SonarScan& scan,
         double gap_m = 0.0;
         if (num_fans > 0) {
             const Eigen::Vector3d x_world =
-                p_world + ps.R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta)) *
+                p_world + ps.R * Eigen::Vector3d(0.0, sin_t, cos_t) *
                               (static_cast<double>(pb.range_vox) * config.voxel_size_m);
             for (int k = 0; k < num_fans; ++k) {
                 const double s_m = std::abs(fans[k].n.dot(x_world - fans[k].p));
@@ -412,7 +417,8 @@ PreparedScan PrepareScan(const SonarScan& scan,
             const AlongTrack at = AlongTrackSlope(i,
                                                   footprints,
                                                   slope_nbs,
-                                                  static_cast<double>(theta),
+                                                  footprints.sin_theta[i],
+                                                  footprints.cos_theta[i],
                                                   scan.angle_increment_rad,
                                                   x_half,
                                                   kTanMaxIncidence);
@@ -452,7 +458,7 @@ PreparedScan PrepareScan(const SonarScan& scan,
         ps.y_hi = std::max(ps.y_hi, pb.y_hi);
         ps.beams.push_back(pb);
     }
-    if (beam_width) BuildFanColumns(ps, scan, n, geo);
+    if (beam_width) BuildFanColumns(ps, scan, footprints, geo);
     return ps;
 }
 

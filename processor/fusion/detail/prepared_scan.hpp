@@ -107,7 +107,10 @@ struct PreparedScan {
 // The valid ranges of one scan and, in beam-width mode, every beam's footprint across the fan:
 // a robust line through the ranges of the beams inside its cone (FitFootprints).
 struct ScanFootprints {
-    std::vector<float> r;                 // valid ranges in voxel units, NaN otherwise
+    std::vector<float> r;  // valid ranges in voxel units, NaN otherwise
+    // sin and cos of each beam's axis angle, start + i * increment in float as every reader of
+    // the scan computes it
+    std::vector<double> sin_theta, cos_theta;
     std::vector<float> range;             // beam-width mode: footprint range per beam, NaN = none
     std::vector<float> slope;             // range change per beam of the footprint's line
     std::vector<float> gate;              // inlier gate of that line (voxels)
@@ -156,10 +159,10 @@ PreparedScan PrepareScan(const std::vector<SonarScan>& scans,
 PreparedScan PrepareScan(const SonarScan& scan, const TsdfConfig& config, const Geometry& geo);
 
 // Beam-width mode: fills ps.fan from the prepared beams (ps.beams, ps.R, ps.p_vox) of a scan
-// with num_beams beams (fan_columns.cpp).
+// and its footprints (fan_columns.cpp).
 void BuildFanColumns(PreparedScan& ps,
                      const SonarScan& scan,
-                     std::size_t num_beams,
+                     const ScanFootprints& footprints,
                      const Geometry& geo);
 
 }  // namespace pitmap::proc::fusion::detail
