@@ -21,15 +21,14 @@
 #include <thread>
 #include <vector>
 
+#include "tests/support/work_dir.hpp"
+
 namespace pitmap::test {
 
-// TempDir()/NAME_PID, emptied and created.
+// TempDir()/NAME_PID, emptied and created; removed after the test program if all passed.
 inline std::filesystem::path FreshDir(const std::string& name) {
-    const auto dir =
-        std::filesystem::path(::testing::TempDir()) / (name + "_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
+    return MakeWorkDir(std::filesystem::path(::testing::TempDir()) /
+                       (name + "_" + std::to_string(::getpid())));
 }
 
 // A port on 127.0.0.1 that was free a moment ago (SOCK_STREAM or SOCK_DGRAM); -1 on failure.

@@ -19,6 +19,7 @@
 
 #include "common/protocol/deltat/record83p.hpp"
 #include "firmware_host/io/byte_source.hpp"
+#include "tests/support/work_dir.hpp"
 
 namespace pitmap::acq::testing {
 
@@ -145,11 +146,9 @@ inline std::vector<std::uint8_t> ReadBytes(const std::string& path) {
     return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {});
 }
 
+// TempDir()/NAME, emptied and created; removed after the test program if all passed.
 inline std::string FreshDir(const std::string& name) {
-    const std::string dir = ::testing::TempDir() + "/" + name;
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
+    return pitmap::test::MakeWorkDir(::testing::TempDir() + "/" + name).string();
 }
 
 // A UDP socket bound to a free port on 127.0.0.1, closed at the end of the scope.

@@ -137,10 +137,12 @@ TEST(AcqdConfigCheckTest, StartUpChecksTheHostBeforeStartingAndListsEverything) 
 }
 
 TEST(AcqdConfigCheckTest, ConfigThatIsADirectory) {
-    const std::string dir = testing::FreshDir("acqd_check_dir");
-    const pid_t pid = testing::SpawnAcqd({"--config", dir, "--check-config"}, dir + "_err.txt");
+    const std::string work = testing::FreshDir("acqd_check_dir");
+    const std::string dir = work + "/config.d";  // the "config": a directory
+    std::filesystem::create_directories(dir);
+    const pid_t pid = testing::SpawnAcqd({"--config", dir, "--check-config"}, work + "/err.txt");
     EXPECT_EQ(testing::WaitExit(pid), 2);
-    const std::string err = testing::ReadText(dir + "_err.txt");
+    const std::string err = testing::ReadText(work + "/err.txt");
     EXPECT_NE(err.find(dir + ": is a directory"), std::string::npos) << err;
     EXPECT_EQ(err.find("log: required"), std::string::npos) << err;
 }

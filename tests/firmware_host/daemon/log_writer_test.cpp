@@ -3,6 +3,7 @@
 // directory deleted under the writer (issue 14), file modes.
 #include "firmware_host/daemon/log_writer.hpp"
 #include "firmware_host/daemon/rate_limited_log.hpp"
+#include "tests/support/work_dir.hpp"
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -59,11 +60,9 @@ std::vector<std::string> LogFiles(const std::string& dir) {
 }
 
 std::string FreshDir(const std::string& name) {
-    const std::string dir =
-        ::testing::TempDir() + "log_writer_" + name + "_" + std::to_string(::getpid());
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
+    return pitmap::test::MakeWorkDir(::testing::TempDir() + "log_writer_" + name + "_" +
+                                     std::to_string(::getpid()))
+        .string();
 }
 
 std::vector<std::uint8_t> Payload(int i, std::size_t size) {
