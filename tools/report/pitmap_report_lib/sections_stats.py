@@ -44,6 +44,7 @@ class StatsSections:
                 a.stairs(np.where(h0[1] > 0, h0[1], np.nan), h0[0], color="k", ls="--", lw=1.2,
                          label="before SLAM (fuse_initial)")
             a.set_yscale("log")
+            a.set_ylim(bottom=0.8)  # counts are whole: no "500 m" (milli-voxel) tick below 1
             # 1-2-5 steps with k/M labels: a histogram spanning one decade still gets labels.
             a.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
             a.yaxis.set_major_formatter(EngFormatter(sep=" "))
