@@ -135,6 +135,7 @@ TEST(SerialSourceTest, NotATerminalIsAnError) {
     }
     SerialSource src(Config(path));
     auto s = src.Open();
+    fs::remove(path);
     ASSERT_FALSE(s.ok());
     EXPECT_NE(s.error().message.find("not a terminal"), std::string::npos);
     EXPECT_EQ(src.state(), SourceState::kDisconnected);
