@@ -96,4 +96,22 @@ inline std::vector<SonarScan> MakeScans(const SyntheticWorld& world, const LineS
     return scans;
 }
 
+// Turns every scan's head by tilt (world frame) and casts its beams again from the new pose, so
+// the ranges stay consistent with the geometry.
+inline void Tilt(std::vector<SonarScan>& scans,
+                 const SyntheticWorld& world,
+                 double increment_rad,
+                 const Eigen::Matrix3d& tilt) {
+    for (SonarScan& scan : scans) {
+        scan.T_world_sonar.linear() = tilt * scan.T_world_sonar.linear();
+        for (std::size_t b = 0; b < scan.ranges_m.size(); ++b) {
+            const double th = scan.start_angle_rad + static_cast<double>(b) * increment_rad;
+            const Eigen::Vector3d dir =
+                scan.T_world_sonar.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th));
+            const double r = world.Cast(scan.T_world_sonar.translation(), dir);
+            scan.ranges_m[b] = std::isfinite(r) ? static_cast<float>(r) : 0.0f;
+        }
+    }
+}
+
 }  // namespace pitmap::proc::fusion::testing

@@ -390,19 +390,10 @@ TEST(TsdfVolume, FloorSlopingAlongTheTrackIsPlacedAcrossTheBeamWidth) {
     survey.num_beams = 121;
     survey.start_angle_rad = -15.0 * std::numbers::pi / 180.0;
     std::vector<SonarScan> scans = MakeScans(world, survey);
-    const Eigen::Matrix3d pitch =
-        Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    for (SonarScan& scan : scans) {
-        scan.T_world_sonar.linear() = pitch * scan.T_world_sonar.linear();
-        for (std::size_t b = 0; b < scan.ranges_m.size(); ++b) {
-            const double th =
-                survey.start_angle_rad + static_cast<double>(b) * survey.increment_rad;
-            const double r = world.Cast(
-                scan.T_world_sonar.translation(),
-                scan.T_world_sonar.linear() * Eigen::Vector3d(0.0, std::sin(th), std::cos(th)));
-            scan.ranges_m[b] = std::isfinite(r) ? static_cast<float>(r) : 0.0f;
-        }
-    }
+    testing::Tilt(scans,
+                  world,
+                  survey.increment_rad,
+                  Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()).toRotationMatrix());
     // Mean |distance| of the field on the floor under the middle pings' swaths (the first and
     // last two pings have neighbours on one side only). The beams look back by the pitch: a
     // ping at x sees the floor at x - 5 tan(0.6).
