@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "common/config.hpp"
 #include "common/frames.hpp"
@@ -17,6 +18,16 @@ namespace {
 
 // Boresight angles beyond this are a mount, not a residual: they belong in sonar.mount.
 constexpr double kMaxBoresightDeg = 15.0;
+
+// Physical bounds of a surface vehicle's layout. A lever arm is a few metres on an ASV and
+// some tens on a survey ship: beyond kMaxLeverArmM it is a unit mistake (cm or mm), not a
+// vehicle. A transducer deeper than kMaxDraftM below the water line is not on a surface
+// vehicle's hull (a towed or ROV-mounted head is not what pitmap georeferences).
+constexpr double kMaxLeverArmM = 50.0;
+constexpr double kMaxDraftM = 10.0;
+// Without the INS height above the water line, the transducer may lie this far above the INS
+// reference point (an INS mounted low in a hull) before the sign of z is suspect.
+constexpr double kMaxSonarAboveInsM = 2.0;
 
 constexpr SonarOrientation kOrientations[] = {SonarOrientation::kDown, SonarOrientation::kTilted};
 constexpr ConnectorDirection kConnectors[] = {ConnectorDirection::kAft,
@@ -134,6 +145,74 @@ std::string Num(double v) {
 
 std::string Vec(const Eigen::Vector3d& v) {
     return "[" + Num(v.x()) + ", " + Num(v.y()) + ", " + Num(v.z()) + "]";
+}
+
+// What a lever arm beyond kMaxLeverArmM most likely is: the same numbers in cm or mm, each
+// unit named when it gives a vehicle-sized arm.
+std::string UnitHint(const Eigen::Vector3d& v) {
+    const double m = v.cwiseAbs().maxCoeff();
+    std::vector<std::string> units;
+    if (m / 100.0 <= kMaxDraftM) units.push_back("centimetres (" + Vec(v / 100.0) + " m)");
+    if (m / 1000.0 <= kMaxDraftM) units.push_back("millimetres (" + Vec(v / 1000.0) + " m)");
+    if (units.empty()) return "";
+    return "; in " + units[0] + (units.size() > 1 ? " or in " + units[1] : "") + "?";
+}
+
+// Lever arms within physical bounds, and the transducer in the water: a value that cannot be
+// a surface vehicle's is a problem naming the key, the value and the likely mistake (a sign
+// or a unit). z is down in the vehicle frame (docs/conventions.md).
+void CheckLayout(ConfigReader& r, const VehicleDescription& v) {
+    ConfigReader s = r.Child("sonar");
+    ConfigReader g = r.Child("gnss");
+    const Eigen::Vector3d& a = v.sonar_lever_arm_m;
+    bool sonar_in_bounds = true;
+    if (a.cwiseAbs().maxCoeff() > kMaxLeverArmM) {
+        sonar_in_bounds = false;
+        s.AddProblem(s.Path("lever_arm_m") + ": " + Vec(a) + " is beyond " + Num(kMaxLeverArmM) +
+                     " m, not a surface vehicle's lever arm (metres, INS to transducer)" +
+                     UnitHint(a));
+    }
+    for (std::size_t i = 0; i < v.gnss_antenna_lever_arms_m.size(); ++i) {
+        const Eigen::Vector3d& b = v.gnss_antenna_lever_arms_m[i];
+        if (b.cwiseAbs().maxCoeff() > kMaxLeverArmM) {
+            g.AddProblem(g.Path("antenna_lever_arms_m") + "[" + std::to_string(i) + "]: " + Vec(b) +
+                         " is beyond " + Num(kMaxLeverArmM) + " m" + UnitHint(b));
+        }
+    }
+    if (!sonar_in_bounds) return;
+    const std::string key = s.Path("lever_arm_m");
+    if (v.ins_height_above_waterline_m) {
+        const double h = *v.ins_height_above_waterline_m;
+        const double draft = a.z() - h;  // transducer depth below the water line
+        const std::string where = " (z " + Num(a.z()) + " m down from the INS, which is " + Num(h) +
+                                  " m above the water line: ins.height_above_waterline_m)";
+        if (draft < 0) {
+            s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(-draft) +
+                         " m above the water line" + where +
+                         ": z points down in the vehicle frame (x forward, y starboard); is its "
+                         "sign flipped?");
+        } else if (draft > kMaxDraftM) {
+            s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(draft) +
+                         " m below the water line" + where + ", deeper than a surface vehicle's "
+                         "hull (" + Num(kMaxDraftM) + " m); z in centimetres? " + Num(a.z()) +
+                         " cm is " + Num(a.z() / 100.0) + " m");
+        }
+        for (std::size_t i = 0; i < v.gnss_antenna_lever_arms_m.size(); ++i) {
+            const Eigen::Vector3d& b = v.gnss_antenna_lever_arms_m[i];
+            if (b.cwiseAbs().maxCoeff() <= kMaxLeverArmM && b.z() - h > 0) {
+                g.AddProblem(g.Path("antenna_lever_arms_m") + "[" + std::to_string(i) + "]: " +
+                             Vec(b) + " puts the antenna " + Num(b.z() - h) +
+                             " m below the water line: z points down; is its sign flipped?");
+            }
+        }
+    } else if (a.z() < -kMaxSonarAboveInsM) {
+        s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(-a.z()) +
+                     " m above the INS: z points down in the vehicle frame; is its sign flipped?");
+    } else if (a.z() > kMaxDraftM + kMaxSonarAboveInsM) {
+        s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(a.z()) +
+                     " m below the INS, deeper than a surface vehicle's hull; z in "
+                     "centimetres? " + Num(a.z()) + " cm is " + Num(a.z() / 100.0) + " m");
+    }
 }
 
 // A YAML double-quoted scalar that reads back as `s` (control characters escaped).
@@ -380,6 +459,7 @@ void ReadVehicle(ConfigReader& r, VehicleDescription& v) {
         u.RejectUnknownKeys();
         v.uncertainty = m;
     }
+    CheckLayout(r, v);
     r.RejectUnknownKeys();
 }
 

@@ -25,7 +25,10 @@
 // files written before the section existed read as before.
 //
 // Failure model: parsing lists every problem (missing required keys, wrong types, values out
-// of range, unknown keys) and never throws. A file without the `pitmap_vehicle` key is "not a
+// of range, unknown keys) and never throws. Values no surface vehicle has are problems too,
+// each naming the likely mistake: a lever arm beyond 50 m (in cm or mm?), a transducer above
+// the water line or more than 10 m below it (z is down: a flipped sign, or cm), a GNSS antenna
+// under the water line. A file without the `pitmap_vehicle` key is "not a
 // pitmap vehicle file" and only the required keys are listed as missing.
 #pragma once
 

@@ -241,6 +241,49 @@ TEST(VehicleFile, EveryProblemIsListedWithItsLine) {
                          "0 < |tilt| <= 90"));
 }
 
+// The issue-34 layouts a surveyor mistypes: a lever arm in cm or mm, the sign of z flipped.
+// Each is a problem that names the key, the value and the likely mistake; the real layouts
+// (the simulator's, the template's, ROAZ's) are accepted.
+TEST(VehicleFile, LayoutsNoSurfaceVehicleHasAreProblemsNamingTheMistake) {
+    const auto with = [](const std::string& arm, const std::string& more = "") {
+        return ErrorOf("pitmap_vehicle: 1\nsonar:\n  lever_arm_m: " + arm +
+                       "\n  mount: {orientation: down, connector: aft}\n" + more);
+    };
+    const std::string water = "ins: {height_above_waterline_m: 0.0}\n";
+    EXPECT_EQ(with("[0.8, 0.0, 0.25]", water), "(accepted)");
+    EXPECT_EQ(with("[0.95, 0.0, 0.62]", "ins: {height_above_waterline_m: 0.35}\n"), "(accepted)");
+    EXPECT_EQ(with("[0.8, 0.0, -0.25]"), "(accepted)");  // no water line: INS low in the hull
+
+    // Sign of z flipped: the transducer above the water line.
+    const std::string flipped = with("[-0.8, 0, -0.25]", water);
+    EXPECT_TRUE(Contains(flipped, "sonar.lever_arm_m: [-0.8, 0, -0.25] puts the transducer 0.25 "
+                                  "m above the water line"))
+        << flipped;
+    EXPECT_TRUE(Contains(flipped, "is its sign flipped?")) << flipped;
+    // Without the water line: only far above the INS is a sign.
+    EXPECT_TRUE(Contains(with("[0.8, 0, -3]"), "3 m above the INS")) << with("[0.8, 0, -3]");
+
+    // z in centimetres: 25 m under the water.
+    const std::string cm = with("[0.8, 0, 25]", water);
+    EXPECT_TRUE(Contains(cm, "puts the transducer 25 m below the water line")) << cm;
+    EXPECT_TRUE(Contains(cm, "z in centimetres? 25 cm is 0.25 m")) << cm;
+    // The whole arm in millimetres.
+    const std::string mm = with("[800, 0, 250]", water);
+    EXPECT_TRUE(Contains(mm, "sonar.lever_arm_m: [800, 0, 250] is beyond 50 m")) << mm;
+    EXPECT_TRUE(Contains(mm, "or in millimetres ([0.8, 0, 0.25] m)?")) << mm;
+    const std::string cm_all = with("[80, 0, 25]", water);
+    EXPECT_TRUE(Contains(cm_all, "in centimetres ([0.8, 0, 0.25] m)")) << cm_all;
+
+    // GNSS antennas: in bounds, and above the water.
+    const std::string antenna =
+        with("[0.8, 0, 0.25]", water + "gnss: {antenna_lever_arms_m: [[-0.5, 0, 1.2], [0, 0, -1200]]}\n");
+    EXPECT_TRUE(Contains(antenna, "gnss.antenna_lever_arms_m[0]: [-0.5, 0, 1.2] puts the antenna "
+                                  "1.2 m below the water line"))
+        << antenna;
+    EXPECT_TRUE(Contains(antenna, "gnss.antenna_lever_arms_m[1]: [0, 0, -1200] is beyond 50 m"))
+        << antenna;
+}
+
 TEST(VehicleFile, MissingFileIsNamed) {
     auto v = ReadVehicleFile("/nonexistent/vehicle.yaml");
     ASSERT_FALSE(v);
