@@ -13,6 +13,10 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "common/progress.hpp"
 #include "tools/sim/hil/hil_run.hpp"
@@ -166,6 +170,40 @@ int main(int argc, char** argv) {
     auto* thermocline_opt =
         synth->add_option("--thermocline", thermocline, "its top and bottom depth, m (2 7)")
             ->expected(2);
+    // Fault cases (issue 34): what real surveys break.
+    std::string start_utc;
+    synth->add_option("--start-utc",
+                      start_utc,
+                      "survey start, UTC ISO 8601 (default: the scenario's, 2026-06-15T09:00:00Z)");
+    std::vector<double> origin;
+    synth
+        ->add_option("--origin",
+                     origin,
+                     "LAT LON: the pit's position, degrees WGS 84 (default: the scenario's)")
+        ->expected(2);
+    std::vector<double> clock_step;
+    synth
+        ->add_option("--topside-clock-step",
+                     clock_step,
+                     "AT_S S: from AT_S seconds after the survey start on, the topside clock in "
+                     "the .83P headers is S seconds further ahead (an NTP correction)")
+        ->expected(2);
+    std::vector<std::string> ins_status_windows;
+    synth
+        ->add_option("--ins-status-window",
+                     ins_status_windows,
+                     "START END STATUS: the INS reports STATUS (aligning, high_variance, "
+                     "solution_free, inactive, or a NovAtel number) from START to END s; the "
+                     "solution itself stays good (repeatable)")
+        ->expected(3)
+        ->allow_extra_args(false);
+    std::vector<double> ins_drift;
+    synth
+        ->add_option("--ins-drift",
+                     ins_drift,
+                     "START END EAST NORTH: the INS position drifts to (EAST, NORTH) m over START "
+                     "to END s with its status good and its stddevs unchanged, then recovers")
+        ->expected(4);
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -216,6 +254,46 @@ int main(int argc, char** argv) {
         scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
     }
     if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
+    if (!start_utc.empty()) scenario->start_utc = start_utc;
+    if (origin.size() == 2) {
+        scenario->origin_latitude_deg = origin[0];
+        scenario->origin_longitude_deg = origin[1];
+    }
+    if (clock_step.size() == 2) {
+        scenario->sonar.topside_clock_step_at_s = clock_step[0];
+        scenario->sonar.topside_clock_step_s = clock_step[1];
+    }
+    for (std::size_t i = 0; i + 2 < ins_status_windows.size(); i += 3) {
+        const std::string& name = ins_status_windows[i + 2];
+        const std::map<std::string, double> statuses = {
+            {"inactive", 0}, {"aligning", 1}, {"high_variance", 2}, {"solution_free", 6}};
+        double status = -1;
+        if (auto it = statuses.find(name); it != statuses.end()) {
+            status = it->second;
+        } else {
+            char* end = nullptr;
+            status = std::strtod(name.c_str(), &end);
+            if (end == name.c_str() || *end != '\0') status = -1;
+        }
+        char* e0 = nullptr;
+        char* e1 = nullptr;
+        const double a = std::strtod(ins_status_windows[i].c_str(), &e0);
+        const double b = std::strtod(ins_status_windows[i + 1].c_str(), &e1);
+        if (status < 0 || *e0 != '\0' || *e1 != '\0') {
+            std::fprintf(stderr,
+                         "pitmap-sim: --ins-status-window %s %s %s: START END in seconds, STATUS "
+                         "aligning | high_variance | solution_free | inactive | a number\n",
+                         ins_status_windows[i].c_str(),
+                         ins_status_windows[i + 1].c_str(),
+                         name.c_str());
+            return 2;
+        }
+        scenario->nav.status_windows.insert(scenario->nav.status_windows.end(), {a, b, status});
+    }
+    if (ins_drift.size() == 4) {
+        scenario->nav.drift_windows.insert(
+            scenario->nav.drift_windows.end(), ins_drift.begin(), ins_drift.end());
+    }
     if (!sonar_format.empty()) scenario->sonar.format_version = sonar_format == "1.00" ? 0 : 10;
     if (dropout_patch.size() == 3) {
         scenario->sonar.dropout_patch_x_m = dropout_patch[0];

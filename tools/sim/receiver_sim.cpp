@@ -151,7 +151,7 @@ std::vector<std::uint8_t> SimulatedReceiver::InsPvaS(double t) const {
     m.roll_deg = frames::RadToDeg(r.rpy.roll);
     m.pitch_deg = frames::RadToDeg(r.rpy.pitch);
     m.azimuth_deg = AzimuthDeg(r.rpy.yaw);
-    m.ins_status = nv::InsStatus::kSolutionGood;
+    m.ins_status = static_cast<nv::InsStatus>(r.error.ins_status);
     return Encode(m);
 }
 
@@ -160,7 +160,7 @@ std::vector<std::uint8_t> SimulatedReceiver::InsPvaX(double t) const {
     const Reported r = Report(truth_, errors_, world_, t);
     nv::InsPvaX m;
     m.header = MakeHeader(nv::msg_id::kInsPvaX, false, ug);
-    m.ins_status = nv::InsStatus::kSolutionGood;
+    m.ins_status = static_cast<nv::InsStatus>(r.error.ins_status);
     m.position_type =
         r.error.gnss_available ? nv::PositionType::kInsRtkFixed : nv::PositionType::kPropagated;
     m.latitude_deg = r.geo.latitude_deg;
@@ -348,8 +348,9 @@ TopsideDatagram SimulatedTopside::Encode(const SimPing& ping, double t_transmit)
     d.t_sent_s = t_interrogate + so.data_latency_ms * 1e-3;
     // Topside PC clock: UTC plus an offset (time zone and error) that drifts.
     const std::int64_t ug = start_utime_gps_ + std::llround(t_interrogate * 1e6);
-    const double clock_s =
-        so.topside_clock_offset_s + so.topside_clock_drift_ppm * 1e-6 * t_interrogate;
+    double clock_s = so.topside_clock_offset_s + so.topside_clock_drift_ppm * 1e-6 * t_interrogate;
+    if (so.topside_clock_step_at_s >= 0 && t_interrogate >= so.topside_clock_step_at_s)
+        clock_s += so.topside_clock_step_s;
     const std::int64_t header_unix = UnixFromGps(ug) + std::llround(clock_s * 1e6);
 
     dt::Ping83P p;

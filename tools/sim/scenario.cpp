@@ -172,6 +172,25 @@ std::vector<std::string> ScenarioConfig::Validate() const {
     if (boresight_deg.size() != 3)
         p.push_back("boresight_deg must have 3 elements (roll, pitch, yaw)");
     if (nav.outages_s.size() % 2 != 0) p.push_back("nav.outages_s must hold [start, end) pairs");
+    if (nav.status_windows.size() % 3 != 0)
+        p.push_back("nav.status_windows must hold [start, end, status] triples");
+    for (std::size_t i = 0; i + 2 < nav.status_windows.size(); i += 3) {
+        if (!(nav.status_windows[i] < nav.status_windows[i + 1]))
+            p.push_back("nav.status_windows: start must be < end");
+        const double st = nav.status_windows[i + 2];
+        if (!(st >= 0 && st <= 14 && st == std::floor(st)))
+            p.push_back("nav.status_windows: the status must be a NovAtel INS status (0-14)");
+    }
+    if (nav.drift_windows.size() % 4 != 0)
+        p.push_back("nav.drift_windows must hold [start, end, east, north] quadruples");
+    for (std::size_t i = 0; i + 3 < nav.drift_windows.size(); i += 4) {
+        if (!(nav.drift_windows[i] < nav.drift_windows[i + 1]))
+            p.push_back("nav.drift_windows: start must be < end");
+        if (!std::isfinite(nav.drift_windows[i + 2]) || !std::isfinite(nav.drift_windows[i + 3]))
+            p.push_back("nav.drift_windows: the drift must be finite");
+    }
+    if (!std::isfinite(sonar.topside_clock_step_s) || std::abs(sonar.topside_clock_step_s) > 3600)
+        p.push_back("sonar.topside_clock_step_s must be finite and within +-3600");
     for (std::size_t i = 0; i + 1 < nav.outages_s.size(); i += 2) {
         if (!(nav.outages_s[i] < nav.outages_s[i + 1]))
             p.push_back("nav.outages_s: start must be < end");

@@ -95,6 +95,14 @@ struct NavErrorConfig {
     double outage_velocity_random_walk_mps_per_sqrt_s = 0.003;  // drift growth in outages
     double outage_vertical_fraction = 0.4;  // vertical drift relative to horizontal
     double recovery_time_s = 8.0;           // time to pull back after the outage
+    // Fault cases (issue 34). INS status windows: [start_s, end_s, status] triples, the
+    // NovAtel INS status (e.g. 1 INS_ALIGNING, 2 INS_HIGH_VARIANCE, 6 INS_SOLUTION_FREE) the
+    // receiver reports inside them; the solution itself stays as good as outside.
+    std::vector<double> status_windows;
+    // Drifts the INS does not know of: [start_s, end_s, east_m, north_m] quadruples; the
+    // position error grows linearly to (east, north) over the window, then is pulled back over
+    // recovery_time_s; the status stays INS_SOLUTION_GOOD and the stddevs unchanged.
+    std::vector<double> drift_windows;
 };
 
 struct SonarConfig {
@@ -120,6 +128,11 @@ struct SonarConfig {
     // vehicle.yaml sonar.clock_offset_s) and drift (not to be trusted).
     double topside_clock_offset_s = 3600.0 + 2.37;
     double topside_clock_drift_ppm = 35.0;
+    // A step of the topside clock (an NTP correction, a user setting the PC's time): from
+    // topside_clock_step_at_s after the survey start on, the header clock is
+    // topside_clock_step_s further ahead (< 0 at: no step).
+    double topside_clock_step_at_s = -1.0;
+    double topside_clock_step_s = 0.0;
     double ping_latency_ms = 2.0;   // interrogation -> transmit
     double data_latency_ms = 35.0;  // interrogation -> datagram sent
     // The daemon's stamping error: decoded pings in the log are stamped this much late (a

@@ -94,7 +94,9 @@ json ScenarioToJson(const ScenarioConfig& s) {
                 {"outage_velocity_random_walk_mps_per_sqrt_s",
                  n.outage_velocity_random_walk_mps_per_sqrt_s},
                 {"outage_vertical_fraction", n.outage_vertical_fraction},
-                {"recovery_time_s", n.recovery_time_s}};
+                {"recovery_time_s", n.recovery_time_s},
+                {"status_windows", n.status_windows},
+                {"drift_windows", n.drift_windows}};
     const WaterColumnConfig& w = s.water;
     j["water"] = {{"refraction", w.refraction},
                   {"surface_speed_mps", w.surface_speed_mps},
@@ -121,6 +123,8 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"format_version", o.format_version},
                   {"topside_clock_offset_s", o.topside_clock_offset_s},
                   {"topside_clock_drift_ppm", o.topside_clock_drift_ppm},
+                  {"topside_clock_step_at_s", o.topside_clock_step_at_s},
+                  {"topside_clock_step_s", o.topside_clock_step_s},
                   {"ping_latency_ms", o.ping_latency_ms},
                   {"daemon_stamp_error_ms", o.daemon_stamp_error_ms},
                   {"daemon_stamp_error_step_s", o.daemon_stamp_error_step_s},
