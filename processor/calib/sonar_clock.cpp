@@ -416,6 +416,281 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
     return est;
 }
 
+namespace {
+
+// The header aids of pings [begin, end) on GPS time (seconds since t_ref): the positions of
+// the first ping carrying each new fix, and the head's roll and pitch.
+struct SegmentAids {
+    std::vector<AidSample> pos, att;
+};
+
+SegmentAids AidsOf(const std::vector<georef::PingHeader>& P,
+                   std::size_t begin,
+                   std::size_t end,
+                   std::int64_t t_ref,
+                   const NavTrack& track) {
+    SegmentAids a;
+    double last_lat = std::numeric_limits<double>::quiet_NaN(), last_lon = last_lat;
+    for (std::size_t k = begin; k < end; ++k) {
+        const auto& h = P[k];
+        const double t = static_cast<double>(h.utime_gps - t_ref) * 1e-6;
+        if (std::isfinite(h.aid_latitude_deg) && std::isfinite(h.aid_longitude_deg) &&
+            (h.aid_latitude_deg != last_lat || h.aid_longitude_deg != last_lon)) {
+            const Eigen::Vector3d e =
+                track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, 0.0});
+            a.pos.push_back({t, e.x(), e.y(), 0, 0, 0});
+        }
+        last_lat = h.aid_latitude_deg;
+        last_lon = h.aid_longitude_deg;
+        if (std::isfinite(h.aid_roll_deg) && std::isfinite(h.aid_pitch_deg))
+            a.att.push_back({t, 0, 0, h.aid_roll_deg, h.aid_pitch_deg, 0});
+    }
+    return a;
+}
+
+// The de-biased RMS (deg) of the head's roll/pitch against the INS composed with the mount,
+// with c added to the ping times; +inf when too few fall in the navigation span.
+double HeadAttitudeMisfit(const std::vector<AidSample>& s,
+                          const NavTrack& nav,
+                          double c,
+                          const Eigen::Matrix3d& R_vs,
+                          bool identity) {
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero(), sq = Eigen::Vector2d::Zero();
+    std::size_t n = 0;
+    for (const auto& x : s) {
+        const auto p = HeadRollPitch(nav, x.t + c, R_vs, identity);
+        if (!p) continue;
+        const Eigen::Vector2d r(WrapDeg(x.roll - p->x()), WrapDeg(x.pitch - p->y()));
+        sum += r;
+        sq += r.cwiseProduct(r);
+        ++n;
+    }
+    if (n < std::max<std::size_t>(5, s.size() / 2)) return std::numeric_limits<double>::infinity();
+    const Eigen::Vector2d mean = sum / static_cast<double>(n);
+    return std::sqrt(std::max(0.0, (sq / static_cast<double>(n) - mean.cwiseProduct(mean)).sum()));
+}
+
+double MedianInterval(const std::vector<georef::PingHeader>& P) {
+    std::vector<double> per, all;
+    for (std::size_t k = 1; k < P.size(); ++k) {
+        const double dt = static_cast<double>(P[k].utime_gps - P[k - 1].utime_gps) * 1e-6;
+        const std::int64_t dn = P[k].ping_number - P[k - 1].ping_number;
+        all.push_back(dt);
+        if (dn >= 1 && dn <= 10) per.push_back(dt / static_cast<double>(dn));
+    }
+    return Median(per.size() >= all.size() / 2 ? per : all);
+}
+
+}  // namespace
+
+ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
+                                    const georef::NavSeries& nav,
+                                    const ClockStepConfig& cfg) {
+    ClockStepResult r;
+    const auto& P = pings.pings;
+    char buf[400];
+    if (P.size() < 20 || nav.samples.size() < 2) {
+        r.message = "clock steps: not checked (too few pings or navigation samples)";
+        return r;
+    }
+    // Ping numbers that run back by a little, in time order: a clock set back.
+    std::size_t first_back = 0;
+    for (std::size_t k = 1; k < P.size(); ++k) {
+        const std::int64_t dn = P[k].ping_number - P[k - 1].ping_number;
+        if (dn < 0 && dn > -1000) {
+            if (r.backward == 0) first_back = k;
+            ++r.backward;
+        }
+    }
+    if (r.backward > 0) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "clock steps: the header times run backwards: %lld pings come before "
+                      "pings of lower number (first near ping number %lld, %s): the topside "
+                      "clock was set back and the pings on both sides interleave",
+                      static_cast<long long>(r.backward),
+                      static_cast<long long>(P[first_back].ping_number),
+                      SpanText(P[first_back].utime_gps, P[first_back].utime_gps).c_str());
+        r.message = buf;
+        return r;
+    }
+    const double T = MedianInterval(P);
+    struct Jump {
+        std::size_t k;
+        double jump_s;
+    };
+    std::vector<Jump> jumps;
+    for (std::size_t k = 1; k < P.size(); ++k) {
+        const std::int64_t dn = P[k].ping_number - P[k - 1].ping_number;
+        if (dn < 1 || dn > 50) continue;  // a reset or a long dropout: nothing to compare
+        const double dt = static_cast<double>(P[k].utime_gps - P[k - 1].utime_gps) * 1e-6;
+        const double jump = dt - static_cast<double>(dn) * T;
+        if (jump > std::max(cfg.min_jump_s, 2 * T)) jumps.push_back({k, jump});
+    }
+    if (jumps.empty()) {
+        r.message = "clock steps: none (the header times follow the ping numbers)";
+        return r;
+    }
+    if (static_cast<int>(jumps.size()) > cfg.max_candidates) {
+        std::partial_sort(jumps.begin(),
+                          jumps.begin() + cfg.max_candidates,
+                          jumps.end(),
+                          [](const Jump& a, const Jump& b) { return a.jump_s > b.jump_s; });
+        jumps.resize(static_cast<std::size_t>(cfg.max_candidates));
+    }
+    std::sort(jumps.begin(), jumps.end(), [](const Jump& a, const Jump& b) { return a.k < b.k; });
+
+    // Each segment's offset against the INS.
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
+    const bool identity = cfg.R_vehicle_sonar.isIdentity(1e-12);
+    std::vector<std::size_t> bounds = {0};
+    for (const auto& j : jumps) bounds.push_back(j.k);
+    bounds.push_back(P.size());
+    const std::size_t num_seg = bounds.size() - 1;
+    std::vector<SegmentAids> aids(num_seg);
+    std::int64_t att_total = 0;
+    for (std::size_t i = 0; i < num_seg; ++i) {
+        aids[i] = AidsOf(P, bounds[i], bounds[i + 1], t_ref, track);
+        att_total += static_cast<std::int64_t>(aids[i].att.size());
+    }
+    const bool use_attitude = att_total >= cfg.min_aid_samples * static_cast<std::int64_t>(2);
+    r.method = use_attitude ? "header attitude" : "header position";
+    struct Offset {
+        bool ok = false;
+        double d = 0, sigma = 0;
+    };
+    std::vector<Offset> off(num_seg);
+    const double scan = std::max(cfg.scan_s, 1.5 * jumps.back().jump_s);
+    for (std::size_t i = 0; i < num_seg; ++i) {
+        std::vector<AidSample> a = Thin(use_attitude ? aids[i].att : aids[i].pos, 3000);
+        if (static_cast<std::int64_t>(a.size()) <
+            (use_attitude ? cfg.min_aid_samples : cfg.min_aid_samples / 3))
+            continue;
+        const auto score = [&](double c) {
+            return use_attitude ? HeadAttitudeMisfit(a, track, c, cfg.R_vehicle_sonar, identity)
+                                : PositionMisfit(a, track, c, 0.5);
+        };
+        const ScanResult sr = Scan(score, -scan, scan, cfg.scan_step_s, 1e9);
+        if (!std::isfinite(sr.best)) continue;
+        const double h = cfg.scan_step_s;
+        off[i].ok = true;
+        off[i].d = ParabolaVertex(sr.best_c, h, score(sr.best_c - h), sr.best, score(sr.best_c + h));
+        // Waves resolve a segment's timing to about a scan step; a position fix to its age's
+        // spread (a ping interval and the serial latency).
+        off[i].sigma = use_attitude ? h : std::hypot(T / std::sqrt(12.0), 0.1) /
+                                              std::sqrt(std::max(1.0, a.size() / 10.0));
+    }
+    // Consecutive segments on one clock form a group; the longest group is the reference.
+    std::vector<int> group(num_seg, 0);
+    for (std::size_t i = 1; i < num_seg; ++i) {
+        ClockStep st;
+        st.ping_index = bounds[i];
+        st.ping_number = P[bounds[i]].ping_number;
+        st.utime = P[bounds[i]].utime_gps;
+        st.jump_s = jumps[i - 1].jump_s;
+        group[i] = group[i - 1];
+        if (!off[i - 1].ok || !off[i].ok) {
+            r.steps.push_back(st);  // unresolved
+            continue;
+        }
+        st.step_s = off[i - 1].d - off[i].d;
+        st.sigma_s = std::hypot(off[i - 1].sigma, off[i].sigma);
+        if (std::abs(st.step_s) > std::max(cfg.min_step_s, 4 * st.sigma_s)) {
+            st.resolved = true;
+            r.steps.push_back(st);
+            group[i] = group[i - 1] + 1;
+        } else {
+            ++r.pauses;
+        }
+    }
+    // Each group's offset: its longest resolved segment's.
+    const int num_groups = group.back() + 1;
+    std::vector<double> gd(static_cast<std::size_t>(num_groups), 0.0);
+    std::vector<std::size_t> glen(static_cast<std::size_t>(num_groups), 0);
+    std::vector<std::size_t> gsize(static_cast<std::size_t>(num_groups), 0);
+    for (std::size_t i = 0; i < num_seg; ++i) {
+        const auto g = static_cast<std::size_t>(group[i]);
+        const std::size_t len = bounds[i + 1] - bounds[i];
+        gsize[g] += len;
+        if (off[i].ok && len > glen[g]) {
+            glen[g] = len;
+            gd[g] = off[i].d;
+        }
+    }
+    const auto ref = static_cast<std::size_t>(
+        std::max_element(gsize.begin(), gsize.end()) - gsize.begin());
+    if (num_groups > 1) {
+        for (std::size_t i = 0; i < num_seg; ++i) {
+            if (i > 0 && group[i] == group[i - 1]) continue;
+            const auto g = static_cast<std::size_t>(group[i]);
+            r.segment_shift_s.push_back({bounds[i], g == ref ? 0.0 : gd[g] - gd[ref]});
+        }
+    }
+    std::int64_t resolved = 0, unresolved = 0;
+    std::string first;
+    for (const auto& st : r.steps) {
+        (st.resolved ? resolved : unresolved) += 1;
+        if (st.resolved && first.empty()) {
+            std::snprintf(buf,
+                          sizeof(buf),
+                          "%+.3f s +- %.3f s at ping number %lld (ping %zu, %.3f GPS s)",
+                          st.step_s,
+                          st.sigma_s,
+                          static_cast<long long>(st.ping_number),
+                          st.ping_index,
+                          static_cast<double>(st.utime) * 1e-6);
+            first = buf;
+        }
+    }
+    std::snprintf(buf,
+                  sizeof(buf),
+                  "clock steps (%s): %zu jumps of the header times beyond the %.3f s ping "
+                  "interval: %lld steps of the topside clock, %lld pauses, %lld unresolved",
+                  r.method.c_str(),
+                  jumps.size(),
+                  T,
+                  static_cast<long long>(resolved),
+                  static_cast<long long>(r.pauses),
+                  static_cast<long long>(unresolved));
+    r.message = buf;
+    if (!first.empty()) r.message += "; first: " + first;
+    return r;
+}
+
+void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps) {
+    auto& P = pings.pings;
+    for (std::size_t i = 0; i < steps.segment_shift_s.size(); ++i) {
+        const std::size_t b = steps.segment_shift_s[i].first;
+        const std::size_t e =
+            i + 1 < steps.segment_shift_s.size() ? steps.segment_shift_s[i + 1].first : P.size();
+        const auto d = static_cast<std::int64_t>(std::llround(steps.segment_shift_s[i].second * 1e6));
+        for (std::size_t k = b; k < e && k < P.size(); ++k) P[k].utime_gps += d;
+    }
+    // A shift may move a segment's pings past its neighbour's: keep the series sorted.
+    std::stable_sort(P.begin(), P.end(), [](const auto& a, const auto& b) {
+        return a.utime_gps < b.utime_gps;
+    });
+}
+
+double HeaderPositionMisfit(const georef::PingSeries& pings,
+                            const georef::NavSeries& nav,
+                            double correction_s,
+                            const ClockSearchConfig& cfg) {
+    const auto& P = pings.pings;
+    if (P.size() < 2 || nav.samples.size() < 2) return std::numeric_limits<double>::infinity();
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
+    const SegmentAids a = AidsOf(P, 0, P.size(), t_ref, track);
+    if (a.pos.size() < 10) return std::numeric_limits<double>::infinity();
+    const double p0 = static_cast<double>(P.front().utime_gps - t_ref) * 1e-6;
+    const double p1 = static_cast<double>(P.back().utime_gps - t_ref) * 1e-6;
+    const double age =
+        cfg.assumed_fix_latency_s + 0.5 * (p1 - p0) / static_cast<double>(P.size() - 1);
+    return PositionMisfit(
+        Thin(a.pos, cfg.max_samples), track, correction_s - age, cfg.min_overlap_fraction);
+}
+
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime) {
     char s[96];
     std::snprintf(s,
@@ -497,7 +772,20 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
         const bool ambiguous = coarse.alias > 0 && coarse.alias < cfg.alias_ratio * coarse.best;
         const bool poor = !(est.misfit <= limit);
         est.found = !ambiguous && !poor;
-        if (ambiguous) {
+        // No offset fitting at all says more than two that fit equally badly: the aids of
+        // another survey (or a broken feed) fit nowhere, whatever the clock.
+        if (poor) {
+            std::snprintf(buf,
+                          sizeof(buf),
+                          "%s: no offset fits: the best, %+.3f s, still leaves a misfit of %.3g "
+                          "%s (limit %.3g): the 83P headers match this navigation nowhere (a "
+                          "file of another survey, or another vehicle's aids?)",
+                          est.method.c_str(),
+                          est.correction_s,
+                          est.misfit,
+                          unit,
+                          limit);
+        } else if (ambiguous) {
             std::snprintf(buf,
                           sizeof(buf),
                           "%s: ambiguous: %+.3f s (misfit %.3g %s) and %+.3f s (%.3g %s) fit "
@@ -509,16 +797,6 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
                           coarse.alias_c,
                           coarse.alias,
                           unit);
-        } else if (poor) {
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "%s: no offset fits: best %+.3f s leaves a misfit of %.3g %s (limit "
-                          "%.3g)",
-                          est.method.c_str(),
-                          est.correction_s,
-                          est.misfit,
-                          unit,
-                          limit);
         } else {
             std::snprintf(buf,
                           sizeof(buf),

@@ -29,6 +29,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "processor/georef/series.hpp"
@@ -119,6 +120,64 @@ struct ClockRateEstimate {
 ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
                                          const georef::NavSeries& nav,
                                          const ClockRateConfig& config = {});
+
+// Steps of the topside clock (an NTP correction or a user setting the PC's time mid-survey):
+// one offset cannot serve both sides. A step shows in the header times as an interval between
+// consecutive pings (by ping number) that differs from the ping rate by more than
+// min_jump_s; so does a pause of the pinging. The two are told apart by the aids: the pings
+// between candidate jumps are segments, and each segment's own offset against the INS is
+// scanned over +- scan_s around the coarse correction (the head's roll/pitch against the INS
+// attitude composed with the mount, de-biased; else the header positions' median distance).
+// Segments whose offsets differ by more than max(min_step_s, 4 sigma) are on different clocks:
+// a step, and each segment is shifted onto the longest one's clock (ApplyClockSteps); equal
+// offsets were a pause. A jump the aids cannot resolve (too few aids in a segment) is listed as
+// unresolved. Header times that run backwards (the clock set back: pings before and after the
+// step interleave, by ping number) cannot be ordered: `backward` > 0.
+// `pings` on GPS time to within scan_s (after the coarse correction).
+struct ClockStepConfig {
+    double min_jump_s = 0.25;      // interval beyond the ping rate: a candidate
+    double scan_s = 3.0;           // each segment's offset is scanned over +- this
+    double scan_step_s = 0.02;
+    double min_step_s = 0.1;       // offsets differing less: one clock
+    std::int64_t min_aid_samples = 30;  // per segment, to resolve its offset
+    int max_candidates = 20;       // largest jumps examined
+    Eigen::Matrix3d R_vehicle_sonar = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d antenna_lever_arm_m = Eigen::Vector3d::Zero();
+};
+
+struct ClockStep {
+    std::size_t ping_index = 0;  // first ping on the new clock (sorted pings)
+    std::int64_t ping_number = 0;
+    std::int64_t utime = 0;  // its time (GPS after the coarse correction)
+    double jump_s = 0;       // what the header times jumped beyond the ping rate
+    double step_s = 0;       // the clock's step measured by the aids (> 0: ahead afterwards)
+    double sigma_s = 0;
+    bool resolved = false;  // the aids resolved the segments on both sides
+};
+
+struct ClockStepResult {
+    std::vector<ClockStep> steps;  // confirmed steps, and unresolved jumps (resolved = false)
+    std::int64_t pauses = 0;       // jumps both sides of which share one clock
+    std::int64_t backward = 0;     // pings whose number runs back in time
+    // Per segment between steps: add to its ping times to put it on the reference clock.
+    std::vector<std::pair<std::size_t, double>> segment_shift_s;  // (first ping, shift)
+    std::string method;   // "header attitude" or "header position"
+    std::string message;  // one line
+};
+
+ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
+                                    const georef::NavSeries& nav,
+                                    const ClockStepConfig& config = {});
+// Shifts each segment of confirmed steps onto the reference clock.
+void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps);
+
+// The median distance (m) between the header positions and the INS antenna with `correction_s`
+// added to the ping times (the fixes' mean age taken into account as EstimateSonarClock does);
+// +inf when the headers carry no positions or too few fall in the navigation span.
+double HeaderPositionMisfit(const georef::PingSeries& pings,
+                            const georef::NavSeries& nav,
+                            double correction_s,
+                            const ClockSearchConfig& config = {});
 
 // "a .. b GPS s (n s)" of a time span in microseconds, for messages naming spans.
 std::string SpanText(std::int64_t first_utime, std::int64_t last_utime);

@@ -89,9 +89,13 @@ struct PingSeries {
     bool has_intensities() const { return !intensities.empty(); }
 };
 
-// Sorts by time, drops exact duplicate times (the first kept), rebuilds beam offsets.
-void SortAndDeduplicate(NavSeries& nav);
-void SortAndDeduplicate(PingSeries& pings);
+// Sorts by time, drops repeated messages (the same time and the same content: the first kept)
+// and rebuilds beam offsets. Two samples or pings of one time whose content differs (beyond
+// float rounding: 5 cm, 0.05 deg; for pings any range or the ping number) are not repeats but
+// two recordings of different things at one time: the first is kept and the time is appended
+// to `conflicts` when given (the caller decides: ingest names the files and stops).
+void SortAndDeduplicate(NavSeries& nav, std::vector<std::int64_t>* conflicts = nullptr);
+void SortAndDeduplicate(PingSeries& pings, std::vector<std::int64_t>* conflicts = nullptr);
 
 // Adds `correction_s` (rounded to the microsecond) to every ping time: a sonar clock correction.
 // Shifting by -x undoes a shift by x exactly.

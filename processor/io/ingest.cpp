@@ -24,6 +24,7 @@
 #include "lcmtypes/log/lcm_log_reader.hpp"
 #include "lcmtypes/log/lcm_wire.hpp"
 #include "processor/io/ingest_collect.hpp"
+#include "processor/io/ingest_sessions.hpp"
 #include "processor/io/lcm_messages.hpp"
 
 namespace pitmap::proc::io {
@@ -64,6 +65,17 @@ std::vector<std::string> IngestConfig::Validate() const {
     if (!std::isfinite(sonar_clock_offset_s))
         p.push_back("ingest.sonar_clock_offset_s must be finite");
     for (const std::string& problem : sonar_clock.Validate()) p.push_back("ingest." + problem);
+    if (!(degraded_ins_sigma_m >= 0 && degraded_ins_sigma_m <= 1000))
+        p.push_back("ingest.degraded_ins_sigma_m must lie in [0, 1000]");
+    if (!(degraded_ins_sigma_deg >= 0 && degraded_ins_sigma_deg <= 180))
+        p.push_back("ingest.degraded_ins_sigma_deg must lie in [0, 180]");
+    if (!(session_gap_s >= 1 && session_gap_s <= 30 * 86400.0))
+        p.push_back("ingest.session_gap_s must lie in [1, 2592000]");
+    if (!(max_session_speed_mps > 0 && std::isfinite(max_session_speed_mps)))
+        p.push_back("ingest.max_session_speed_mps must be > 0");
+    if (!(report_gap_s > 0 && std::isfinite(report_gap_s)))
+        p.push_back("ingest.report_gap_s must be > 0");
+    if (session < 0) p.push_back("ingest.session must be >= 0 (0 = the inputs hold one)");
     for (const std::string* id : {&nav_channel_id, &sonar_channel_id}) {
         for (char c : *id) {
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') {
@@ -122,6 +134,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
     for (const std::string& path : paths) {
         auto reader = lcmlog::LcmLogReader::Open(path);
         if (!reader) return reader.error();
+        const detail::SpanMark mark = detail::MarkSpan(r);
         lcmlog::LcmEvent ev;
         std::uint64_t last_pos = 0;
         std::int64_t n = 0;
@@ -238,6 +251,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
             }
         }
         bytes_done += (*reader)->size() - last_pos;
+        detail::RecordSpan(r, path, mark);
         if (options.count_events) {
             const lcmlog::LcmLogCounts& lc = (*reader)->counts();
             ++r.counts.files;
@@ -267,6 +281,8 @@ Status ReadLogs(const std::vector<std::string>& paths,
     return Ok{};
 }
 
+void SetTotals(IngestResult& r);
+
 void Finish(IngestResult& r) {
     // Prefer INSPVA(S) samples over INSPVAX ones at the same time (the latter carry a float
     // undulation).
@@ -276,10 +292,23 @@ void Finish(IngestResult& r) {
     });
     const std::size_t nav_before = r.nav.samples.size();
     const std::size_t pings_before = r.pings.pings.size();
-    georef::SortAndDeduplicate(r.nav);
-    georef::SortAndDeduplicate(r.pings);
-    r.counts.nav_duplicates += static_cast<std::int64_t>(nav_before - r.nav.samples.size());
-    r.counts.ping_duplicates += static_cast<std::int64_t>(pings_before - r.pings.pings.size());
+    std::vector<std::int64_t> nav_conflicts, ping_conflicts;
+    georef::SortAndDeduplicate(r.nav, &nav_conflicts);
+    georef::SortAndDeduplicate(r.pings, &ping_conflicts);
+    r.counts.nav_conflicts += static_cast<std::int64_t>(nav_conflicts.size());
+    r.counts.ping_conflicts += static_cast<std::int64_t>(ping_conflicts.size());
+    r.counts.nav_duplicates += static_cast<std::int64_t>(nav_before - r.nav.samples.size()) -
+                               static_cast<std::int64_t>(nav_conflicts.size());
+    r.counts.ping_duplicates += static_cast<std::int64_t>(pings_before - r.pings.pings.size()) -
+                                static_cast<std::int64_t>(ping_conflicts.size());
+    for (const auto* c : {&nav_conflicts, &ping_conflicts}) {
+        r.conflict_times.insert(r.conflict_times.end(), c->begin(), c->end());
+    }
+    SetTotals(r);
+}
+
+// The sample totals and the one-line message, after anything that changed the series.
+void SetTotals(IngestResult& r) {
     r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
     r.counts.stddev_samples = static_cast<std::int64_t>(r.nav.stddevs.size());
     r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
@@ -322,6 +351,13 @@ IngestCounts& IngestCounts::operator+=(const IngestCounts& o) {
     nav_samples += o.nav_samples;
     nav_without_time += o.nav_without_time;
     nav_not_good += o.nav_not_good;
+    nav_not_navigating += o.nav_not_navigating;
+    nav_degraded += o.nav_degraded;
+    nav_conflicts += o.nav_conflicts;
+    ping_conflicts += o.ping_conflicts;
+    nav_gaps += o.nav_gaps;
+    ping_gaps += o.ping_gaps;
+    sessions += o.sessions;
     nav_duplicates += o.nav_duplicates;
     stddev_samples += o.stddev_samples;
     pings += o.pings;
@@ -383,6 +419,7 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
                 !s) {
                 return s.error();
             }
+            detail::TakeSpans(r, extra, need_nav, need_sonar);
             if (need_nav) {
                 r.nav.samples = std::move(extra.nav.samples);
                 r.nav.stddevs = std::move(extra.nav.stddevs);
@@ -413,6 +450,7 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
     for (const std::string& path : paths) {
         std::ifstream in(path, std::ios::binary);
         if (!in) return Error{path + ": cannot open"};
+        const detail::SpanMark mark = detail::MarkSpan(r);
         RawStream s;
         s.novatel = std::make_unique<nv::Framer>();
         std::vector<std::uint8_t> buf(1 << 16);
@@ -428,6 +466,7 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
             r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
             DrainNovatel(s, col, r.counts);
         }
+        detail::RecordSpan(r, path, mark);
         ++r.counts.files;
     }
     r.nav_from_raw = true;
@@ -444,6 +483,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
     for (const std::string& path : paths) {
         std::ifstream in(path, std::ios::binary);
         if (!in) return Error{path + ": cannot open"};
+        const detail::SpanMark mark = detail::MarkSpan(into);
         RawStream s;
         s.deltat = std::make_unique<dt::StreamFramer>();
         std::vector<std::uint8_t> buf(1 << 16);
@@ -485,6 +525,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
             into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
             drain();
         }
+        detail::RecordSpan(into, path, mark);
         ++into.counts.files;
     }
     into.pings_from_raw = true;
@@ -563,6 +604,9 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
         // Every count, not a chosen few: the merged result is re-finished below, which
         // recomputes the sample totals and adds the duplicates found across inputs.
         r.counts += b->counts;
+        r.files.insert(r.files.end(), b->files.begin(), b->files.end());
+        r.conflict_times.insert(
+            r.conflict_times.end(), b->conflict_times.begin(), b->conflict_times.end());
         r.nav_from_raw = true;
     }
     if (!p83.empty()) {
@@ -571,6 +615,12 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
     r.counts.files_skipped += static_cast<std::int64_t>(skipped.size());
     r.warnings.insert(r.warnings.end(), skipped.begin(), skipped.end());
     Finish(r);
+    // Two recordings in one set of inputs are never merged or dropped in silence.
+    if (auto c = detail::CheckConflicts(r); !c) return c.error();
+    if (auto c = detail::SplitSessions(r, config); !c) return c.error();
+    detail::ReportGaps(r, config);
+    detail::ApplyInsStatusRule(r, config);
+    SetTotals(r);
     // Damage is not only counted in the summary: the run says so where it is read.
     const IngestCounts& c = r.counts;
     if (c.corrupt_events + c.length_repairs + c.truncated_events + c.decode_failures > 0 ||

@@ -43,7 +43,23 @@ struct IngestConfig {
     // checked against the 83P headers; else searched for (processor/calib/sonar_clock.hpp).
     double sonar_clock_offset_s = 0;
     bool sonar_clock_offset_known = false;
-    bool require_good_ins = false;  // drop INS samples whose status is not SOLUTION_GOOD
+    // INS status (NovAtel INSPVA/INSPVAX): samples in no navigating state (INACTIVE, ALIGNING,
+    // the WAITING/DETERMINING/INITIALIZING states, MOTION_DETECT, unknown values) are no
+    // solution and are always dropped; degraded ones (HIGH_VARIANCE, SOLUTION_FREE,
+    // ALIGNMENT_COMPLETE) are kept with their standard deviations raised to at least
+    // degraded_ins_sigma_m / _deg, so that SLAM and the TPU weigh them as what they are;
+    // require_good_ins drops them too. Every such window is counted, listed and a georef gate.
+    bool require_good_ins = false;  // also drop degraded samples (only SOLUTION_GOOD kept)
+    double degraded_ins_sigma_m = 0.5;     // floor of a degraded sample's position sigma
+    double degraded_ins_sigma_deg = 0.2;   // ... and of its attitude sigmas
+    // Sessions: a gap longer than session_gap_s in the navigation or in the pings, or a jump
+    // faster than max_session_speed_mps, separates two recordings (surveys). More than one is
+    // an error naming the files of each, unless `session` picks one (1-based; 0 = there must be
+    // one). Gaps longer than report_gap_s within a session are reported.
+    double session_gap_s = 600;
+    double max_session_speed_mps = 20;
+    double report_gap_s = 2.0;
+    int session = 0;
     // Re-decoded raw 83P: the sonar clock model; must equal the daemon's (its `clock:`
     // settings, e.g. sonar_header_resolution_us) for re-decoded pings to get its times.
     clock::SonarClockConfig sonar_clock{};
@@ -63,7 +79,14 @@ struct IngestCounts {
     std::int64_t decode_failures = 0;   // events whose lcmtype did not decode
     std::int64_t nav_samples = 0;
     std::int64_t nav_without_time = 0;  // utime_gps = 0
-    std::int64_t nav_not_good = 0;      // dropped by require_good_ins
+    std::int64_t nav_not_good = 0;      // degraded, dropped by require_good_ins
+    std::int64_t nav_not_navigating = 0;  // INS in no navigating state (always dropped)
+    std::int64_t nav_degraded = 0;      // degraded INS status (kept, sigmas raised)
+    std::int64_t nav_conflicts = 0;     // one time, different content (two recordings)
+    std::int64_t ping_conflicts = 0;
+    std::int64_t nav_gaps = 0;          // gaps over report_gap_s within the session
+    std::int64_t ping_gaps = 0;
+    std::int64_t sessions = 0;          // recordings found in the inputs
     std::int64_t nav_duplicates = 0;
     std::int64_t stddev_samples = 0;
     std::int64_t pings = 0;
@@ -79,6 +102,22 @@ struct IngestCounts {
     IngestCounts& operator+=(const IngestCounts& o);
 };
 
+// A run of INS samples whose status is not INS_SOLUTION_GOOD (first and last sample time).
+struct InsStatusWindow {
+    std::int64_t first_utime = 0, last_utime = 0;
+    bool navigating = true;  // false: no solution (dropped)
+    bool dropped = false;    // removed from the series (not navigating, or require_good_ins)
+    std::int64_t samples = 0;
+    std::string statuses;  // the status names seen, e.g. "INS_HIGH_VARIANCE"
+};
+
+// What one input file held (time spans of the samples and pings read from it; 0 = none).
+struct InputFileSpan {
+    std::string path;
+    std::int64_t nav_first = 0, nav_last = 0, nav_samples = 0;
+    std::int64_t ping_first = 0, ping_last = 0, pings = 0;
+};
+
 struct IngestResult {
     georef::NavSeries nav;
     georef::PingSeries pings;
@@ -88,6 +127,9 @@ struct IngestResult {
     std::string message;
     std::vector<std::string>
         warnings;  // files skipped and why: print them, keep them in the summary
+    std::vector<InputFileSpan> files;          // per input file, in the order read
+    std::vector<InsStatusWindow> ins_windows;  // INS status not good, in time order
+    std::vector<std::int64_t> conflict_times;  // nav and ping times held twice, differently
 };
 
 // Reads LCM log files in order. An empty list or an unreadable file is an error.

@@ -63,8 +63,6 @@ bool PlausibleNav(const NavSample& s) {
            std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
 }
 
-constexpr int kInsSolutionGood = 3;
-
 // INSPVAX and INSSTDEV carry the same standard deviations.
 template <class M>
 NavStdDev StdDevOf(const M& m) {
@@ -88,10 +86,8 @@ void Collector::AddNav(const NavSample& s) {
         ++r_.counts.decode_failures;
         return;
     }
-    if (config_.require_good_ins && s.ins_status != kInsSolutionGood) {
-        ++r_.counts.nav_not_good;
-        return;
-    }
+    // The INS status rule is applied to the whole series (ApplyInsStatusRule), which knows
+    // the windows.
     r_.nav.samples.push_back(s);
 }
 void Collector::AddStdDev(const NavStdDev& s) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "common/frames.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/pipeline/adapters.hpp"
@@ -32,6 +33,34 @@ std::string Num(const char* fmt, double v) {
 // correction: ingest subtracts the offset from the header time, the correction is added.
 double ImpliedClockOffset(double configured_offset_s, double correction_s) {
     return configured_offset_s - correction_s;
+}
+
+// The rotation a calibration added to the nominal mount, as roll, pitch, yaw (deg) about the
+// vehicle's axes: R_after = R_change * R_before.
+Eigen::Vector3d MountChangeDeg(const georef::SonarMount& before, const georef::SonarMount& after) {
+    const Eigen::Matrix3d R = after.R_vehicle_sonar() * before.R_vehicle_sonar().transpose();
+    const frames::Rpy d = frames::RpyFromRotationNed(R);
+    return {frames::RadToDeg(d.roll), frames::RadToDeg(d.pitch), frames::RadToDeg(d.yaw)};
+}
+
+// What a boresight change beyond a mount's tolerance most likely comes from, by its largest
+// axis: pitch is an along-track disagreement of opposite passes, roll an across-track tilt,
+// yaw a turned head.
+std::string LikelyMountCause(const Eigen::Vector3d& change_deg) {
+    Eigen::Index axis = 0;
+    change_deg.cwiseAbs().maxCoeff(&axis);
+    switch (axis) {
+        case 0:
+            return "an across-track tilt between passes: the connector direction "
+                   "(sonar.mount.connector: a head turned by 180 deg mirrors the fan), the lever "
+                   "arm's y, or the sound speed";
+        case 1:
+            return "an along-track disagreement between opposite passes: the lever arm's x (its "
+                   "sign or its value, sonar.lever_arm_m), or the sonar clock";
+        default:
+            return "a turned head: the connector direction (sonar.mount.connector) or an INS "
+                   "heading offset";
+    }
 }
 
 }  // namespace
@@ -70,6 +99,26 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         const std::string sonar_span =
             calib::SpanText(pings.pings.front().utime_gps, pings.pings.back().utime_gps);
         if (config.ingest.sonar_clock_offset_known) {
+            // A given offset is still checked against the header positions: with it, they
+            // must lie where the INS antenna was.
+            const double at_configured = calib::HeaderPositionMisfit(pings, nav, 0.0, search);
+            if (std::isfinite(at_configured) && at_configured > search.max_position_misfit_m) {
+                return Error{
+                    "sonar clock: with the configured offset (" +
+                    Num("%+.3f", config.ingest.sonar_clock_offset_s) +
+                    " s) the 83P header positions lie a median " + Num("%.1f", at_configured) +
+                    " m from the INS antenna (limit " + Num("%.1f", search.max_position_misfit_m) +
+                    " m); " +
+                    (est.found ? "the headers put the offset at " +
+                                     Num("%+.3f",
+                                         ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
+                                                            est.correction_s)) +
+                                     " s"
+                               : "at no offset do they match the navigation (best " +
+                                     Num("%.1f", est.misfit) +
+                                     " m): is this .83P of this survey?") +
+                    ". Navigation: " + nav_span};
+            }
             const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
             if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
                 TripGate(s,
@@ -103,6 +152,51 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         }
     } else {
         sigma = 0.0;  // ms: the calibration's linear range covers it
+    }
+    // A step of the topside clock mid-survey (an NTP correction): each side on its own offset.
+    if (header) {
+        calib::ClockStepConfig sc;
+        sc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
+        if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+            sc.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
+        const calib::ClockStepResult steps = calib::FindSonarClockSteps(pings, nav, sc);
+        log("sonar clock: " + steps.message);
+        json js = json::array();
+        for (const auto& st : steps.steps) {
+            js.push_back({{"ping_index", st.ping_index},
+                          {"ping_number", st.ping_number},
+                          {"gps_s", static_cast<double>(st.utime) * 1e-6},
+                          {"jump_s", st.jump_s},
+                          {"step_s", st.step_s},
+                          {"sigma_s", st.sigma_s},
+                          {"resolved", st.resolved}});
+        }
+        clk["steps"] = {{"method", steps.method},
+                        {"steps", js},
+                        {"pauses", steps.pauses},
+                        {"backward", steps.backward},
+                        {"message", steps.message}};
+        if (steps.backward > 0) {
+            s.summary["sonar_clock"] = clk;
+            return Error{"sonar clock: " + steps.message +
+                         ": pitmap cannot order them; split the .83P at the step (or give the "
+                         "pings before and after it as separate surveys)"};
+        }
+        if (!steps.segment_shift_s.empty()) {
+            calib::ApplyClockSteps(pings, steps);
+            for (const auto& st : steps.steps) {
+                if (!st.resolved) continue;
+                log("warning: the topside clock steps " + Num("%+.3f", st.step_s) + " s at ping " +
+                    std::to_string(st.ping_index) + " (number " + std::to_string(st.ping_number) +
+                    "): the pings on each side get their own offset");
+            }
+        }
+        for (const auto& st : steps.steps) {
+            if (st.resolved) continue;
+            log("warning: the 83P header times jump " + Num("%+.3f", st.jump_s) + " s at ping " +
+                std::to_string(st.ping_index) + " (number " + std::to_string(st.ping_number) +
+                "): a pause or a clock step the header aids cannot tell apart");
+        }
     }
     // The topside PC's clock also runs at a rate of its own: timed by the head's attitude
     // sensor along the whole survey, and taken out before anything looks at the soundings.
@@ -252,6 +346,12 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     }
     if (cal.termination == calib::Termination::kNoOverlap) {
         s.model.calibration = survey::CalibrationState::kNoOverlap;
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "calibration_no_overlap",
+                 cal.message + ": the boresight cannot be calibrated on this survey; the nominal "
+                               "mount of vehicle.yaml is kept",
+                 log);
         RecordStage(s.summary, Stage::kCalibrate, st, clock);
         if (s.defer_products) {
             (void)SaveSummary(s);
@@ -259,6 +359,32 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             (void)SaveSurvey(s);
         }
         return Error{"calibrate: " + cal.message};
+    }
+    // A mount bracket is off by a degree or two: a calibration that turns the head further is
+    // absorbing a wrong input (a lever arm's sign, the connector, the clock), not measuring a
+    // residual. Its result is not applied; the run stops naming the likely input.
+    const Eigen::Vector3d change = MountChangeDeg(before, cal.mount);
+    st["change_from_nominal_deg"] = {change.x(), change.y(), change.z()};
+    if (change.cwiseAbs().maxCoeff() > q.max_boresight_change_deg) {
+        s.model.calibration = survey::CalibrationState::kKeptNominal;
+        const std::string what =
+            "the calibrated boresight turns the nominal mount by roll " +
+            Num("%+.2f", change.x()) + ", pitch " + Num("%+.2f", change.y()) + ", yaw " +
+            Num("%+.2f", change.z()) + " deg (sd " + Num("%.2f", cal.sd_deg[0]) + ", " +
+            Num("%.2f", cal.sd_deg[1]) + ", " + Num("%.2f", cal.sd_deg[2]) +
+            " deg), beyond the " + Num("%.1f", q.max_boresight_change_deg) +
+            " deg a mount can be off (quality.max_boresight_change_deg): not a residual but " +
+            LikelyMountCause(change) + ". Check vehicle.yaml" +
+            (s.model.vehicle_yaml.empty() ? std::string() : " (" + s.model.vehicle_yaml + ")");
+        TripGate(s, Stage::kCalibrate, "boresight_implausible", what, log);
+        st["kept_nominal"] = true;
+        RecordStage(s.summary, Stage::kCalibrate, st, clock);
+        if (s.defer_products) {
+            (void)SaveSummary(s);
+        } else {
+            (void)SaveSurvey(s);
+        }
+        return Error{"calibrate: " + what};
     }
     if (cal.after.pairs > 0 &&
         cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {

@@ -52,7 +52,15 @@ void VisitIngest(V&& v, io::IngestConfig& c) {
                ".83P files: sonar (header) clock minus UTC, s:\n"
                "> 0 = the sonar clock is ahead, < 0 = behind;\n"
                "null = vehicle.yaml's sonar.clock_offset_s, else 0");
-    v("require_good_ins", c.require_good_ins, "drop INS samples not INS_SOLUTION_GOOD");
+    v("require_good_ins",
+      c.require_good_ins,
+      "also drop degraded INS samples (only INS_SOLUTION_GOOD kept)");
+    v("degraded_ins_sigma_m", c.degraded_ins_sigma_m, "degraded INS: position sigma floor, m");
+    v("degraded_ins_sigma_deg", c.degraded_ins_sigma_deg, "... attitude sigma floor, deg");
+    v("session_gap_s", c.session_gap_s, "a longer gap separates two recordings, s");
+    v("max_session_speed_mps", c.max_session_speed_mps, "a faster jump separates them, m/s");
+    v("report_gap_s", c.report_gap_s, "gaps within a recording reported beyond, s");
+    v("session", c.session, "the recording to process when there are several (1-based)");
 }
 
 template <class V>
@@ -244,10 +252,20 @@ void VisitQuality(V&& v, QualityConfig& q) {
     v("slam_min_allowance_m", q.slam_min_allowance_m, "... or this far, m");
     v("slam_good_ins_sigma_m", q.slam_good_ins_sigma_m, "INS horizontal sigma below: good, m");
     v("slam_max_fraction", q.slam_max_fraction, "share of good pings moved further: gate");
+    v("slam_drift_window_s",
+      q.slam_drift_window_s,
+      "window in which most good pings moved further: drift gate, s");
     v("slam_consistency_ratio",
       q.slam_consistency_ratio,
       "passes' consistency after SLAM / the range noise's, above: gate");
     v("max_outside_nav_fraction", q.max_outside_nav_fraction, "share of pings outside the nav");
+    v("max_boresight_change_deg",
+      q.max_boresight_change_deg,
+      "calibration turning the mount further (deg): error");
+    v("crossline_tvu_ratio",
+      q.crossline_tvu_ratio,
+      "crossline RMS / the median TVU's prediction, above: gate");
+    v("check_mount", q.check_mount, "georef: the mount against the roll in the soundings");
 }
 
 constexpr hydro::Disambiguation kDisambiguations[] = {hydro::Disambiguation::kDensity,
@@ -553,8 +571,13 @@ std::vector<std::string> QualityConfig::Validate() const {
     if (!(slam_max_fraction >= 0 && slam_max_fraction <= 1))
         p.push_back("slam_max_fraction must be in [0, 1]");
     if (!(slam_consistency_ratio >= 1)) p.push_back("slam_consistency_ratio must be >= 1");
+    if (!(slam_drift_window_s >= 1 && slam_drift_window_s <= 3600))
+        p.push_back("slam_drift_window_s must be in [1, 3600]");
     if (!(max_outside_nav_fraction >= 0 && max_outside_nav_fraction <= 1))
         p.push_back("max_outside_nav_fraction must be in [0, 1]");
+    if (!(max_boresight_change_deg > 0 && max_boresight_change_deg <= 90))
+        p.push_back("max_boresight_change_deg must be in (0, 90]");
+    if (!(crossline_tvu_ratio >= 1)) p.push_back("crossline_tvu_ratio must be >= 1");
     return p;
 }
 

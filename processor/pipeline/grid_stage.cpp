@@ -278,8 +278,61 @@ std::vector<std::string> GridStageConfig::Validate() const {
 
 namespace detail {
 
+// The crossline check against the stated uncertainty: two soundings of one spot differ by
+// sqrt(2) sigma on average, sigma = TVU95 / 1.96. Lines that disagree far beyond it are a gate
+// naming the likely input from the shape of the disagreement: growing with the beam angle is
+// the across-track geometry, a constant offset the heights, neither the navigation or clock.
+void CheckCrosslines(Survey& s,
+                     const hydro::S44Result& r,
+                     double median_tvu_95_m,
+                     const QualityConfig& q,
+                     const Log& log) {
+    constexpr std::int64_t kMinCompared = 200;
+    if (r.crossline_compared < kMinCompared || !(median_tvu_95_m > 0)) return;
+    const double expected = std::sqrt(2.0) * median_tvu_95_m / 1.96;
+    if (!(r.crossline_rms_m > q.crossline_tvu_ratio * expected)) return;
+    // Inner (< 20 deg) and outer (>= 45 deg) beams' RMS.
+    double inner_ss = 0, outer_ss = 0;
+    std::int64_t inner_n = 0, outer_n = 0;
+    for (const auto& b : r.crossline_by_angle) {
+        const double mid = 0.5 * (std::abs(b.angle_lo_deg) + std::abs(b.angle_hi_deg));
+        if (mid < 20) {
+            inner_ss += b.rms_m * b.rms_m * static_cast<double>(b.count);
+            inner_n += b.count;
+        } else if (mid >= 45) {
+            outer_ss += b.rms_m * b.rms_m * static_cast<double>(b.count);
+            outer_n += b.count;
+        }
+    }
+    const double inner = inner_n > 0 ? std::sqrt(inner_ss / static_cast<double>(inner_n)) : 0.0;
+    const double outer = outer_n > 0 ? std::sqrt(outer_ss / static_cast<double>(outer_n)) : 0.0;
+    std::string cause;
+    if (inner > 0 && outer > 2 * inner) {
+        cause = "it grows with the beam angle (" + Fixed(inner, 3) + " m under 20 deg, " +
+                Fixed(outer, 3) +
+                " m beyond 45 deg): the across-track geometry: the sound speed (no cast, or the "
+                "wrong one), the mount's roll or connector, the lever arm's y";
+    } else if (std::abs(r.crossline_mean_m) > 0.5 * r.crossline_rms_m) {
+        cause = "most of it is a constant offset (mean " + Fixed(r.crossline_mean_m, 3) +
+                " m): the heights: the navigation's, the lever arm's z, the vertical datum";
+    } else {
+        cause = "it is neither a beam-angle trend nor an offset: the navigation (drift between "
+                "lines), the sonar clock, or the lever arm's x";
+    }
+    TripGate(s,
+             Stage::kGrid,
+             "crossline_rms",
+             "crossline RMS " + Fixed(r.crossline_rms_m, 3) + " m over " +
+                 std::to_string(r.crossline_compared) + " soundings is " +
+                 Fixed(r.crossline_rms_m / expected, 1) +
+                 "x what the median TVU (" + Fixed(median_tvu_95_m, 3) +
+                 " m, 95 %) predicts for two soundings (" + Fixed(expected, 3) + " m); " + cause,
+             log);
+}
+
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
+    ClearGates(s, Stage::kGrid);
     const GridStageConfig& gc = config.grid;
     std::string model_source;
     hydro::TpuConfig tcfg;
@@ -459,6 +512,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             files.push_back(holiday_file);
         }
         s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
+        CheckCrosslines(s, r44, tpu.median_tvu_95_m, config.quality, log);
         part.Lap(timings, "s44");
     }
     json mosaic_json;

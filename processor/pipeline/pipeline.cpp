@@ -14,6 +14,7 @@
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/sonar_clock.hpp"
+#include "processor/georef/mount_check.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/result_json.hpp"
@@ -226,6 +227,61 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
     return SaveSummary(s);
 }
 
+// The windows the INS marked not good (ingest's status rule): each with the pings it holds,
+// in summary["ingest_ins_windows"]; any window with pings is a georef gate.
+void InsWindowGate(Survey& s, const Log& log) {
+    const auto& windows = s.model.ingest.ins_windows;
+    if (windows.empty()) return;
+    const auto& P = s.model.ingest.pings.pings;
+    json list = json::array();
+    std::int64_t pings_total = 0;
+    std::string text;
+    for (const auto& w : windows) {
+        const auto lo = std::lower_bound(
+            P.begin(), P.end(), w.first_utime, [](const auto& p, std::int64_t t) {
+                return p.utime_gps < t;
+            });
+        const auto hi = std::upper_bound(
+            P.begin(), P.end(), w.last_utime, [](std::int64_t t, const auto& p) {
+                return t < p.utime_gps;
+            });
+        const auto n = static_cast<std::int64_t>(hi - lo);
+        pings_total += n;
+        list.push_back({{"first_gps_s", static_cast<double>(w.first_utime) * 1e-6},
+                        {"last_gps_s", static_cast<double>(w.last_utime) * 1e-6},
+                        {"statuses", w.statuses},
+                        {"navigating", w.navigating},
+                        {"dropped", w.dropped},
+                        {"samples", w.samples},
+                        {"pings", n}});
+        if (n > 0 && text.size() < 600) {
+            char b[200];
+            std::snprintf(b,
+                          sizeof(b),
+                          "%s%s for %.1f s from ping %lld (%lld pings, %s)",
+                          text.empty() ? "" : "; ",
+                          w.statuses.c_str(),
+                          static_cast<double>(w.last_utime - w.first_utime) * 1e-6,
+                          static_cast<long long>(lo - P.begin()),
+                          static_cast<long long>(n),
+                          !w.navigating ? "not georeferenced"
+                          : w.dropped   ? "dropped by ingest.require_good_ins"
+                                        : "kept, down-weighted");
+            text += b;
+        }
+    }
+    s.summary["ingest_ins_windows"] = list;
+    if (pings_total > 0) {
+        TripGate(s,
+                 Stage::kGeoref,
+                 "ins_not_good",
+                 "the INS marks " + std::to_string(pings_total) +
+                     " pings' navigation as not good: " + text +
+                     "; the products there rest on a degraded or missing solution (navigation)",
+                 log);
+    }
+}
+
 // inputs -> ingest -> georef -> products; the survey stays in memory for later stages.
 Status GeorefSurvey(Survey& s,
                     const std::vector<std::string>& inputs,
@@ -318,6 +374,28 @@ Status GeorefSurvey(Survey& s,
             TripGate(s, Stage::kGeoref, "pings_outside_navigation", what, log);
         } else {
             log("warning: " + what);
+        }
+    }
+    InsWindowGate(s, log);
+    if (config.quality.check_mount) {
+        const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
+        log("georef: " + mc.message);
+        s.summary["mount_check"] = {{"checked", mc.checked},
+                                    {"consistent", mc.consistent},
+                                    {"roll_gain", mc.roll_gain},
+                                    {"roll_gain_sd", mc.roll_gain_sd},
+                                    {"pitch_gain", mc.pitch_gain},
+                                    {"pitch_gain_sd", mc.pitch_gain_sd},
+                                    {"pings", mc.pings},
+                                    {"message", mc.message}};
+        if (!mc.consistent) {
+            TripGate(s, Stage::kGeoref, "mount_inconsistent", mc.message, log);
+            (void)SaveSummary(s);
+            return Error{"georef: the sonar mount of " +
+                         (s.model.vehicle_yaml.empty() ? std::string("the vehicle file")
+                                                       : s.model.vehicle_yaml) +
+                         " does not explain the soundings: " + mc.likely_cause + " (" +
+                         mc.message + "; quality.check_mount: false skips this check)"};
         }
     }
     s.model.origin = s.geo.world_origin;

@@ -80,11 +80,22 @@ struct QualityConfig {
     double slam_min_allowance_m = 0.05;       // ... or this far, whichever is larger
     double slam_good_ins_sigma_m = 0.10;      // pings whose INS horizontal sigma is below: "good"
     double slam_max_fraction = 0.05;          // more good pings moved further trips the gate
+    double slam_drift_window_s = 30.0;        // ... and per window: most moved = drift gate
     // The passes' plane-fit consistency after SLAM / what the range noise leaves (calibrate's
     // range noise model over the soundings): above, the soundings disagree in a way SLAM did
     // not explain (the demo: 1.4; the demo with its sonar clock 1.5 s off: 15.7).
     double slam_consistency_ratio = 3.0;
     double max_outside_nav_fraction = 0.01;  // pings outside the navigation span
+    // A calibration that turns the nominal mount further than this (deg, any axis) is absorbing
+    // a wrong input (lever arm sign, connector, clock): an error naming it, not a result.
+    double max_boresight_change_deg = 5.0;
+    // Crossline RMS / what the soundings' median TVU predicts for a difference of two
+    // soundings (sqrt(2) TVU95 / 1.96): above, the lines disagree beyond their stated
+    // uncertainty (grid gate naming the likely input).
+    double crossline_tvu_ratio = 3.0;
+    // Georef checks the mount against the data (georef/mount_check.hpp): soundings that follow
+    // the vehicle's roll or pitch are an error naming sonar.mount.
+    bool check_mount = true;
 
     std::vector<std::string> Validate() const;
 };

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <map>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -106,6 +107,15 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     // sigma allows: a correction beyond that is an inconsistency (a sonar clock or mount error
     // the calibration did not remove) and is reported, not absorbed into the trajectory.
     ClearGates(s, Stage::kSlam);
+    if (r.termination == slam::SlamTermination::kNoOverlap) {
+        TripGate(s,
+                 Stage::kSlam,
+                 "slam_no_overlap",
+                 "SLAM found no overlapping passes to register (" + r.message +
+                     "): the trajectory is the " + survey::ToString(s.model.latest()) +
+                     " one, uncorrected; survey crosslines or overlapping lines to use SLAM",
+                 log);
+    }
     json ins_check = json::object();
     {
         const QualityConfig& q = config.quality;
@@ -113,6 +123,16 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         std::vector<std::size_t> good;
         std::int64_t beyond = 0;
         double worst = 0;
+        // The same per window of quality.slam_drift_window_s: a drift of the INS that it does
+        // not report shows as one stretch whose pings SLAM moves beyond their sigma together.
+        struct Window {
+            std::int64_t good = 0, beyond = 0;
+            double worst = 0;
+            Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        };
+        std::map<std::int64_t, Window> windows;
+        const auto window_us = static_cast<std::int64_t>(q.slam_drift_window_s * 1e6);
+        const std::int64_t t_first = s.geo.pings.empty() ? 0 : s.geo.pings.front().utime_gps;
         for (std::size_t i = 0; i < after.size() && i < s.geo.pings.size(); ++i) {
             const std::int64_t t = s.geo.pings[i].utime_gps;
             auto it = std::lower_bound(sd.begin(), sd.end(), t, [](const auto& a, std::int64_t b) {
@@ -136,6 +156,11 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             const double allowed = std::max(q.slam_sigma_multiple * sigma, q.slam_min_allowance_m);
             if (moved > allowed) ++beyond;
             worst = std::max(worst, moved);
+            Window& w = windows[(t - t_first) / window_us];
+            ++w.good;
+            if (moved > allowed) ++w.beyond;
+            w.worst = std::max(w.worst, moved);
+            w.sum += after[i].translation() - before.T_world_vehicle[i].translation();
         }
         ins_check = {{"good_ins_pings", good.size()},
                      {"moved_beyond_allowance", beyond},
@@ -155,6 +180,40 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      log);
             for (std::size_t i : good) after[i] = before.T_world_vehicle[i];
             ins_check["reverted"] = true;
+        } else {
+            // Not the whole survey: windows where most good pings moved beyond their sigma.
+            json drift = json::array();
+            std::string text;
+            for (const auto& [index, w] : windows) {
+                if (w.good < 20 || 2 * w.beyond <= w.good) continue;
+                const double a = static_cast<double>(t_first + index * window_us) * 1e-6;
+                const Eigen::Vector3d mean = w.sum / static_cast<double>(w.good);
+                drift.push_back({{"start_gps_s", a},
+                                 {"end_gps_s", a + q.slam_drift_window_s},
+                                 {"good_ins_pings", w.good},
+                                 {"moved_beyond_allowance", w.beyond},
+                                 {"max_move_m", w.worst},
+                                 {"mean_move_enu_m", {mean.x(), mean.y(), mean.z()}}});
+                if (text.size() < 500) {
+                    text += (text.empty() ? "" : "; ") + Fixed(a, 1) + ".." +
+                            Fixed(a + q.slam_drift_window_s, 1) + " GPS s: up to " +
+                            Fixed(w.worst, 2) + " m (mean east " + Fixed(mean.x(), 2) +
+                            ", north " + Fixed(mean.y(), 2) + ", up " + Fixed(mean.z(), 2) + " m)";
+                }
+            }
+            ins_check["drift_windows"] = drift;
+            if (!drift.empty()) {
+                TripGate(s,
+                         Stage::kSlam,
+                         "navigation_drift",
+                         "SLAM moved most pings of " + std::to_string(drift.size()) +
+                             " window(s) beyond the INS's own sigma, while the INS reported a "
+                             "good solution: " +
+                             text +
+                             ": the navigation drifted there (SLAM's correction is kept; check "
+                             "the INS and GNSS logs of those times)",
+                         log);
+            }
         }
     }
     const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
@@ -491,8 +550,8 @@ Status RunAll(const std::vector<std::string>& inputs,
     if (config.run.calibrate) {
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
+            // (the stage's gate says so and keeps the mount of vehicle.yaml).
             if (s.model.calibration != survey::CalibrationState::kNoOverlap) return export_now(st);
-            log("warning: " + st.error().message + "; keeping the mount of vehicle.yaml");
         }
     }
     if (config.run.slam && config.run.mesh_before_slam) {

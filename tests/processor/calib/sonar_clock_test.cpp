@@ -221,5 +221,93 @@ TEST(SonarLatency, WithoutLatencyTheBoresightAbsorbsTheClockError) {
     EXPECT_NEAR(joint.latency_s, -0.1, 0.002) << joint.message;
 }
 
+// Issue 34: a step of the topside clock. The pings from number 300 on carry header times 1 s
+// ahead of their aids; the head's attitude against the INS tells the step (each side scanned on
+// its own) from a pause, and the pings before it are put on the later clock.
+TEST(SonarClockSteps, AStepIsFoundAtItsPingAndEachSideGetsItsOffset) {
+    SurveyOptions o;
+    o.duration_s = 120;
+    o.num_beams = 3;
+    o.header_attitude = true;
+    auto sv = MakeSurvey(o);
+    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k) sv.pings.pings[k].utime_gps += 1'000'000;
+    const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
+    ASSERT_EQ(r.steps.size(), 1u) << r.message;
+    EXPECT_TRUE(r.steps[0].resolved) << r.message;
+    EXPECT_EQ(r.steps[0].ping_index, 300u);
+    EXPECT_EQ(r.steps[0].ping_number, sv.pings.pings[300].ping_number);
+    EXPECT_NEAR(r.steps[0].step_s, 1.0, 0.02) << r.message;
+    EXPECT_EQ(r.method, "header attitude");
+    // After the shift every ping is on one clock: the later one (most pings), 1 s ahead.
+    georef::PingSeries fixed = sv.pings;
+    ApplyClockSteps(fixed, r);
+    const auto t0 = MakeSurvey(o).pings;
+    for (std::size_t k : {0u, 150u, 299u, 300u, 800u}) {
+        EXPECT_NEAR(static_cast<double>(fixed.pings[k].utime_gps - t0.pings[k].utime_gps), 1e6,
+                    0.03e6)
+            << k;
+    }
+}
+
+TEST(SonarClockSteps, APauseIsNotAStepAndTheHeaderPositionsTellItToo) {
+    SurveyOptions o;
+    o.duration_s = 150;
+    o.num_beams = 3;
+    o.header_position = true;
+    auto sv = MakeSurvey(o);
+    // Pinging paused for 1 s: the ping numbers go on, the times jump, the aids agree.
+    sv.pings.pings.erase(sv.pings.pings.begin() + 600, sv.pings.pings.begin() + 610);
+    for (std::size_t k = 600; k < sv.pings.pings.size(); ++k) sv.pings.pings[k].ping_number -= 10;
+    const ClockStepResult pause = FindSonarClockSteps(sv.pings, sv.nav);
+    EXPECT_EQ(pause.pauses, 1) << pause.message;
+    EXPECT_TRUE(pause.segment_shift_s.empty()) << pause.message;
+    for (const auto& st : pause.steps) EXPECT_FALSE(st.resolved) << pause.message;
+    // The same jump with the aids 2 s off on one side: a step, found from the positions.
+    auto stepped = MakeSurvey(o);
+    for (std::size_t k = 600; k < stepped.pings.pings.size(); ++k)
+        stepped.pings.pings[k].utime_gps += 2'000'000;
+    const ClockStepResult step = FindSonarClockSteps(stepped.pings, stepped.nav);
+    EXPECT_EQ(step.method, "header position");
+    ASSERT_EQ(step.steps.size(), 1u) << step.message;
+    EXPECT_TRUE(step.steps[0].resolved) << step.message;
+    EXPECT_NEAR(step.steps[0].step_s, 2.0, 0.2) << step.message;
+}
+
+TEST(SonarClockSteps, AClockSetBackCannotBeOrderedAndSaysSo) {
+    SurveyOptions o;
+    o.duration_s = 60;
+    o.num_beams = 3;
+    o.header_attitude = true;
+    auto sv = MakeSurvey(o);
+    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k) sv.pings.pings[k].utime_gps -= 1'050'000;
+    georef::SortAndDeduplicate(sv.pings);
+    const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
+    EXPECT_GT(r.backward, 0) << r.message;
+    EXPECT_NE(r.message.find("set back"), std::string::npos) << r.message;
+    // A clean survey has neither steps nor pauses.
+    const ClockStepResult clean = FindSonarClockSteps(MakeSurvey(o).pings, sv.nav);
+    EXPECT_TRUE(clean.steps.empty()) << clean.message;
+    EXPECT_EQ(clean.backward, 0);
+}
+
+// A .83P of another survey: its header positions are metres from this navigation at every
+// offset, and the message says so before it says "ambiguous".
+TEST(SonarClock, HeaderPositionsOfAnotherSurveyMatchNowhere) {
+    SurveyOptions o;
+    o.duration_s = 120;
+    o.num_beams = 3;
+    o.header_position = true;
+    auto sv = MakeSurvey(o);
+    for (auto& h : sv.pings.pings) {
+        if (std::isfinite(h.aid_latitude_deg)) h.aid_latitude_deg += 0.0002;  // 22 m north
+    }
+    const ClockEstimate e = EstimateSonarClock(sv.pings, sv.nav);
+    EXPECT_FALSE(e.found) << e.message;
+    EXPECT_NE(e.message.find("match this navigation nowhere"), std::string::npos) << e.message;
+    EXPECT_GT(HeaderPositionMisfit(sv.pings, sv.nav, 0.0), 15.0);
+    const auto own = MakeSurvey(o);
+    EXPECT_LT(HeaderPositionMisfit(own.pings, own.nav, 0.0), 1.0);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::calib
