@@ -147,6 +147,26 @@ float Floor(float v, double floor) {
     return std::isfinite(v) ? std::max(v, static_cast<float>(floor)) : static_cast<float>(floor);
 }
 
+// Keeps the pings of one session (their beams and intensities rebuilt).
+void KeepPings(georef::PingSeries& pings, const Session& s) {
+    georef::PingSeries out;
+    out.clock = pings.clock;
+    const bool with = pings.has_intensities();
+    for (std::size_t k = s.begin; k < s.end; ++k) {
+        PingHeader h = pings.pings[k];
+        const std::uint32_t from = h.beam_offset;
+        h.beam_offset = static_cast<std::uint32_t>(out.range_counts.size());
+        const auto b = pings.range_counts.begin() + from;
+        out.range_counts.insert(out.range_counts.end(), b, b + h.num_beams);
+        if (with) {
+            const auto bi = pings.intensities.begin() + from;
+            out.intensities.insert(out.intensities.end(), bi, bi + h.num_beams);
+        }
+        out.pings.push_back(h);
+    }
+    pings = std::move(out);
+}
+
 }  // namespace
 
 SpanMark MarkSpan(const IngestResult& r) {
@@ -253,24 +273,23 @@ Status SplitSessions(IngestResult& r, const IngestConfig& c) {
         }
         r.nav.stddevs = std::move(sd);
     }
-    if (ping_sessions.size() > 1) {
-        const Session& s = ping_sessions.at(std::min(pick, ping_sessions.size() - 1));
-        georef::PingSeries out;
-        out.clock = r.pings.clock;
-        const bool with = r.pings.has_intensities();
-        for (std::size_t k = s.begin; k < s.end; ++k) {
-            PingHeader h = r.pings.pings[k];
-            const auto b = r.pings.range_counts.begin() + h.beam_offset;
-            h.beam_offset = static_cast<std::uint32_t>(out.range_counts.size());
-            out.range_counts.insert(out.range_counts.end(), b, b + h.num_beams);
-            if (with) {
-                const auto bi =
-                    r.pings.intensities.begin() + r.pings.pings[k].beam_offset;
-                out.intensities.insert(out.intensities.end(), bi, bi + h.num_beams);
-            }
-            out.pings.push_back(h);
-        }
-        r.pings = std::move(out);
+    // Pings on GPS time (logged by pitmap-acqd) belong to the navigation session they fall in;
+    // pings on the sonar's own clock can only be told apart by their own gaps.
+    const bool gps_pings = r.pings.clock != georef::PingClock::kTopsideHeader;
+    if (gps_pings && nav_sessions.size() > 1) {
+        const Session& ns = nav_sessions.at(std::min(pick, nav_sessions.size() - 1));
+        Session s;
+        s.begin = static_cast<std::size_t>(
+            std::lower_bound(r.pings.pings.begin(), r.pings.pings.end(), ns.first,
+                             [](const PingHeader& h, std::int64_t t) { return h.utime_gps < t; }) -
+            r.pings.pings.begin());
+        s.end = static_cast<std::size_t>(
+            std::upper_bound(r.pings.pings.begin(), r.pings.pings.end(), ns.last,
+                             [](std::int64_t t, const PingHeader& h) { return t < h.utime_gps; }) -
+            r.pings.pings.begin());
+        KeepPings(r.pings, s);
+    } else if (ping_sessions.size() > 1) {
+        KeepPings(r.pings, ping_sessions.at(std::min(pick, ping_sessions.size() - 1)));
     }
     r.warnings.push_back("ingest.session " + std::to_string(c.session) + " of " +
                          std::to_string(n) + " recordings kept; the others are left out:" + list);

@@ -64,6 +64,86 @@ std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::
 
 }  // namespace
 
+// The passes' disagreement after SLAM per window of quality.slam_drift_window_s (the slices'
+// plane residuals, slam::SlamResult::final_slice_consistency_m), each with its figures; those
+// over slam_consistency_ratio x the range noise's and over twice the median window's are marked
+// "drift" and described in `text`.
+json ConsistencyWindows(const slam::SlamResult& r,
+                        const QualityConfig& q,
+                        double expected_m,
+                        std::string* text) {
+    json out = json::array();
+    if (r.trajectory.empty() || r.final_slice_consistency_m.size() != r.trajectory.size() ||
+        !(expected_m > 0))
+        return out;
+    const double t0 = r.trajectory.front().gps_time_s;
+    std::map<std::int64_t, std::pair<double, std::int64_t>> w;  // window -> (sum sq, n)
+    for (std::size_t i = 0; i < r.trajectory.size(); ++i) {
+        const double c = r.final_slice_consistency_m[i];
+        if (!std::isfinite(c)) continue;
+        auto& [ss, n] = w[static_cast<std::int64_t>((r.trajectory[i].gps_time_s - t0) /
+                                                    q.slam_drift_window_s)];
+        ss += c * c;
+        ++n;
+    }
+    std::vector<double> rms;
+    for (const auto& [k, v] : w) {
+        if (v.second >= 20) rms.push_back(std::sqrt(v.first / static_cast<double>(v.second)));
+    }
+    if (rms.size() < 3) return out;
+    std::vector<double> sorted = rms;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                     sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    std::string t;
+    std::size_t suspects = 0;
+    for (const auto& [k, v] : w) {
+        if (v.second < 20) continue;
+        const double m = std::sqrt(v.first / static_cast<double>(v.second));
+        const double a = t0 + static_cast<double>(k) * q.slam_drift_window_s;
+        const bool suspect = m > q.slam_consistency_ratio * expected_m && m > 2.0 * median;
+        out.push_back({{"start_gps_s", a},
+                       {"end_gps_s", a + q.slam_drift_window_s},
+                       {"consistency_m", m},
+                       {"slices", v.second},
+                       {"drift", suspect}});
+        if (!suspect) continue;
+        ++suspects;
+        if (t.size() < 500) {
+            t += (t.empty() ? "" : "; ") + Fixed(a, 1) + ".." + Fixed(a + q.slam_drift_window_s, 1) +
+                 " GPS s: " + Fixed(m, 3) + " m";
+        }
+    }
+    if (suspects > 0) {
+        *text += (text->empty() ? "" : "; ") + std::string("after SLAM the passes disagree in ") +
+                 std::to_string(suspects) + " window(s) far more than in the rest of the survey (" +
+                 Fixed(median, 3) + " m RMS per window, the range noise leaves " +
+                 Fixed(expected_m, 3) + " m): " + t;
+    }
+    return out;
+}
+
+// "; worst windows: +60..+90 s 0.244 m (7.2x), ..." of ConsistencyWindows' figures (seconds
+// from the first ping), the three worst over the range noise's figure.
+std::string WorstWindows(const json& windows, double expected_m) {
+    std::vector<const json*> w;
+    for (const auto& x : windows) w.push_back(&x);
+    std::sort(w.begin(), w.end(), [](const json* a, const json* b) {
+        return a->value("consistency_m", 0.0) > b->value("consistency_m", 0.0);
+    });
+    if (w.empty() || !(expected_m > 0)) return "";
+    double t0 = 1e300;
+    for (const auto& x : windows) t0 = std::min(t0, x.value("start_gps_s", 0.0));
+    std::string s = "; worst windows (from the first ping):";
+    for (std::size_t i = 0; i < w.size() && i < 3; ++i) {
+        const double c = w[i]->value("consistency_m", 0.0);
+        s += std::string(i ? "," : "") + " +" + Fixed(w[i]->value("start_gps_s", 0.0) - t0, 0) +
+             "..+" + Fixed(w[i]->value("end_gps_s", 0.0) - t0, 0) + " s " + Fixed(c, 3) + " m (" +
+             Fixed(c / expected_m, 1) + "x)";
+    }
+    return s;
+}
+
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     const SlamStageConfig& sc = config.slam_stage;
@@ -107,6 +187,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     // sigma allows: a correction beyond that is an inconsistency (a sonar clock or mount error
     // the calibration did not remove) and is reported, not absorbed into the trajectory.
     ClearGates(s, Stage::kSlam);
+    std::string drift_text;  // where the navigation drifted, by either test below
     if (r.termination == slam::SlamTermination::kNoOverlap) {
         TripGate(s,
                  Stage::kSlam,
@@ -203,16 +284,10 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             }
             ins_check["drift_windows"] = drift;
             if (!drift.empty()) {
-                TripGate(s,
-                         Stage::kSlam,
-                         "navigation_drift",
-                         "SLAM moved most pings of " + std::to_string(drift.size()) +
+                drift_text = "SLAM moved most pings of " + std::to_string(drift.size()) +
                              " window(s) beyond the INS's own sigma, while the INS reported a "
                              "good solution: " +
-                             text +
-                             ": the navigation drifted there (SLAM's correction is kept; check "
-                             "the INS and GNSS logs of those times)",
-                         log);
+                             text + " (SLAM's correction is kept)";
             }
         }
     }
@@ -232,6 +307,13 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     const double expected_consistency =
         noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
+    // Where the passes still disagree, per window: a stretch far worse than the rest of the
+    // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
+    const json windows_json = ConsistencyWindows(
+        r, config.quality, expected_consistency, &drift_text);
+    const bool concentrated = std::any_of(windows_json.begin(), windows_json.end(), [](const json& w) {
+        return w.value("drift", false);
+    });
     if (expected_consistency > 0 &&
         r.final_consistency_m > config.quality.slam_consistency_ratio * expected_consistency) {
         TripGate(s,
@@ -241,8 +323,22 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      Fixed(r.final_consistency_m, 3) + " m RMS (plane fits), " +
                      Fixed(r.final_consistency_m / expected_consistency, 1) +
                      "x what the range noise leaves (" + Fixed(expected_consistency, 3) +
-                     " m): the soundings disagree in a way the trajectory within the INS sigma "
-                     "does not explain (sonar clock, mount or sound speed?)",
+                     " m): " +
+                     (concentrated
+                          ? std::string("most of it in a few stretches (slam/navigation_drift): "
+                                        "the navigation there")
+                          : std::string("the soundings disagree in a way the trajectory within "
+                                        "the INS sigma does not explain (navigation drift, "
+                                        "sonar clock, mount or sound speed?)")) +
+                     WorstWindows(windows_json, expected_consistency),
+                 log);
+    }
+    if (!drift_text.empty()) {
+        TripGate(s,
+                 Stage::kSlam,
+                 "navigation_drift",
+                 drift_text + ": the navigation drifted there while it reported a good solution "
+                              "(check the INS and GNSS logs of those times)",
                  log);
     }
 
@@ -275,6 +371,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"position_change_rms_m", change_rms},
                {"position_change_max_m", change_max},
                {"ins_check", ins_check},
+               {"consistency_windows", windows_json},
                {"correspondence", ToString(cfg.correspondence)},
                {"robust_kernel", ToString(cfg.robust_kernel)},
                {"timings_s",

@@ -307,47 +307,97 @@ std::vector<Eigen::Vector3f> LocalNormals(
 
 // Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart:
 // per cell, z = a + b x + c y by least squares; score = sqrt(sum SSR / sum (n - 3)).
-double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
-    struct Cell {
-        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-        Eigen::Vector3d b = Eigen::Vector3d::Zero();
-        double zz = 0;
-        double t_min = std::numeric_limits<double>::max();
-        double t_max = std::numeric_limits<double>::lowest();
-        int n = 0;
-    };
+namespace {
+
+// The plane-fit cells of the consistency score: per cell of score_cell_m, the least-squares
+// plane z = beta . (1, dx, dy) of the points of every slice in it, kept where at least six
+// points of passes min_time_separation_s apart fall.
+struct ScoreCell {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    double zz = 0;
+    double t_min = std::numeric_limits<double>::max();
+    double t_max = std::numeric_limits<double>::lowest();
+    int n = 0;
+    bool used = false;
+    Eigen::Vector3d beta = Eigen::Vector3d::Zero();
+};
+
+template <class F>
+void ForEachScorePoint(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg, F&& f) {
     const double h = cfg.score_cell_m;
     const auto stride = static_cast<std::size_t>(cfg.query_stride);
-    std::unordered_map<std::uint64_t, Cell> cells;
     for (std::size_t s = 0; s < in.num_slices(); ++s) {
         for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
             const Eigen::Vector3d p = T[s] * in.points[q].cast<double>();
             const double fx = std::floor(p.x() / h), fy = std::floor(p.y() / h);
-            const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
-            const std::uint64_t key = reg::CellKey(ix, iy);
-            Cell& c = cells[key];
+            const std::uint64_t key =
+                reg::CellKey(static_cast<std::int64_t>(fx), static_cast<std::int64_t>(fy));
             const Eigen::Vector3d u(1.0, p.x() - (fx + 0.5) * h, p.y() - (fy + 0.5) * h);
-            c.A += u * u.transpose();
-            c.b += u * p.z();
-            c.zz += p.z() * p.z();
-            c.t_min = std::min(c.t_min, in.t_s[s]);
-            c.t_max = std::max(c.t_max, in.t_s[s]);
-            ++c.n;
+            f(s, key, u, p.z());
         }
     }
-    double ssr = 0, dof = 0;
-    for (const auto& [key, c] : cells) {
+}
+
+std::unordered_map<std::uint64_t, ScoreCell> ScoreCells(const Input& in,
+                                                        const std::vector<Pose>& T,
+                                                        const SlamConfig& cfg) {
+    std::unordered_map<std::uint64_t, ScoreCell> cells;
+    ForEachScorePoint(in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u,
+                                      double z) {
+        ScoreCell& c = cells[key];
+        c.A += u * u.transpose();
+        c.b += u * z;
+        c.zz += z * z;
+        c.t_min = std::min(c.t_min, in.t_s[s]);
+        c.t_max = std::max(c.t_max, in.t_s[s]);
+        ++c.n;
+    });
+    for (auto& [key, c] : cells) {
         if (c.n < 6 || c.t_max - c.t_min < cfg.min_time_separation_s) continue;
         Eigen::LDLT<Eigen::Matrix3d> ldlt(c.A);
         if (ldlt.info() != Eigen::Success) continue;
-        const Eigen::Vector3d beta = ldlt.solve(c.b);
+        c.beta = ldlt.solve(c.b);
+        c.used = c.beta.allFinite();
+    }
+    return cells;
+}
+
+}  // namespace
+
+double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
+    const auto cells = ScoreCells(in, T, cfg);
+    double ssr = 0, dof = 0;
+    for (const auto& [key, c] : cells) {
+        if (!c.used) continue;
         // Mean-centre z first: zz - b^T beta loses digits at large |z|.
-        const double v = std::max(0.0, c.zz - c.b.dot(beta));
+        const double v = std::max(0.0, c.zz - c.b.dot(c.beta));
         if (!std::isfinite(v)) continue;
         ssr += v;
         dof += c.n - 3;
     }
     return dof > 0 ? std::sqrt(ssr / dof) : 0.0;
+}
+
+std::vector<double> ConsistencyBySlice(const Input& in,
+                                       const std::vector<Pose>& T,
+                                       const SlamConfig& cfg) {
+    const auto cells = ScoreCells(in, T, cfg);
+    std::vector<double> ss(in.num_slices(), 0.0);
+    std::vector<std::int64_t> n(in.num_slices(), 0);
+    ForEachScorePoint(in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u,
+                                      double z) {
+        const auto it = cells.find(key);
+        if (it == cells.end() || !it->second.used) return;
+        const double r = z - u.dot(it->second.beta);
+        ss[s] += r * r;
+        ++n[s];
+    });
+    std::vector<double> out(in.num_slices(), std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t s = 0; s < out.size(); ++s) {
+        if (n[s] > 0) out[s] = std::sqrt(ss[s] / static_cast<double>(n[s]));
+    }
+    return out;
 }
 
 Search SearchPairs(const Input& in,

@@ -137,6 +137,11 @@ Search SearchPairs(const Input& in,
 
 // Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart.
 double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg);
+// The same cells' plane residuals, as an RMS per slice (NaN where a slice has no point in a
+// cell that several passes share): where along the survey the passes disagree.
+std::vector<double> ConsistencyBySlice(const Input& in,
+                                       const std::vector<Pose>& T,
+                                       const SlamConfig& cfg);
 
 // ---- residual terms (terms.cpp) --------------------------------------------------------------
 

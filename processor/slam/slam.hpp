@@ -241,6 +241,9 @@ struct SlamResult {
     std::size_t num_pairs = 0;              // pairs of the last iteration
     double initial_consistency_m = 0;       // plane-fit score of the input trajectory
     double final_consistency_m = 0;         // ... and of the result
+    // The result's plane residuals per slice, as `trajectory` (NaN: in no shared cell): where
+    // the passes still disagree (a drift the INS did not report shows as one stretch).
+    std::vector<double> final_slice_consistency_m;
     double initial_pair_score_m = 0;        // pair score of the input trajectory
     double final_pair_score_m = 0;          // ... and of the result (the kept iterate)
     SlamTimings timings;
