@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // pitmap-live (also `pitmap live`): live survey QC. Subscribes to the daemon's LCM channels, or
 // replays LCM logs through the same path, and serves the live page (processor/live/server.hpp).
-//   pitmap-live [--lcm-url URL] [--bind ADDR] [--port N] [--vehicle FILE] [--out DIR] ...
+//   pitmap-live [--lcm-url URL] [--bind ADDR] [--port N] [--allow-host NAME]... [--vehicle FILE]
+//               [--out DIR] ...
 //   pitmap-live --replay LOG... [--speed S] [--no-serve] [--hold] [--status-json FILE]
 //               [--snapshot-on-exit --out DIR]
 // Exit: 0 done (SIGINT/SIGTERM, or the replay's end), 1 run failure, 2 bad arguments.
@@ -61,6 +62,21 @@ int main(int argc, char** argv) try {
         ->capture_default_str();
     app.add_option("--port", server_config.port, "TCP port (0 = any free one, printed)")
         ->capture_default_str();
+    app.add_option("--allow-host",
+                   server_config.allowed_hosts,
+                   "a further Host name the page may be opened by (DNS rebinding guard)");
+    app.add_option("--max-connections",
+                   server_config.limits.max_connections,
+                   "open HTTP connections in all")
+        ->capture_default_str();
+    app.add_option("--max-connections-per-address",
+                   server_config.limits.max_connections_per_address,
+                   "open HTTP connections from one address")
+        ->capture_default_str();
+    app.add_option("--request-timeout",
+                   server_config.limits.header_timeout_s,
+                   "a request's header (and its body) must arrive within this, s")
+        ->capture_default_str();
     app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")
         ->capture_default_str();
     app.add_option("--vehicle", vehicle_path, "vehicle.yaml: lever arm and mount (default: zero)");
@@ -97,6 +113,7 @@ int main(int argc, char** argv) try {
     app.add_flag("--snapshot-on-exit", snapshot_on_exit, "write the grid into --out at the end");
     CLI11_PARSE(app, argc, argv);
     server_config.budget_bytes_per_s = budget_kbps * 1000.0;
+    server_config.limits.body_timeout_s = server_config.limits.header_timeout_s;
 
     // The vehicle: mount and lever arm for the georeferencing, the sensor error model for TVU.
     pitmap::proc::georef::SonarMount mount;

@@ -2,11 +2,19 @@
 #include "processor/live/server.hpp"
 
 #include <httplib.h>
+#include <ifaddrs.h>
+#include <netinet/in.h>
+#include <sys/random.h>
 #include <zlib.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <mutex>
+
+#include "processor/live/http_rules.hpp"
 
 namespace pitmap::proc::live {
 
@@ -54,6 +62,115 @@ std::string ClientKey(const httplib::Request& req) {
 // The type httplib does not compress again (it compresses application/json itself).
 constexpr const char* kJsonType = "application/vnd.pitmap+json";
 
+// `bytes` random bytes from the kernel as hex: the page token and the CSP nonces.
+std::string RandomHex(std::size_t bytes) {
+    std::string raw(bytes, '\0');
+    std::size_t got = 0;
+    while (got < bytes) {
+        const ssize_t n = getrandom(raw.data() + got, bytes - got, 0);
+        PITMAP_CHECK(n > 0 || errno == EINTR, "getrandom failed");
+        if (n > 0) got += static_cast<std::size_t>(n);
+    }
+    static const char* kHex = "0123456789abcdef";
+    std::string out;
+    for (unsigned char c : raw) {
+        out += kHex[c >> 4];
+        out += kHex[c & 15];
+    }
+    return out;
+}
+
+void ReplaceAll(std::string& s, const std::string& from, const std::string& to) {
+    for (std::size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size()))
+        s.replace(at, from.size(), to);
+}
+
+bool IsWildcard(const std::string& address) {
+    return address == "0.0.0.0" || address == "::" || address == "[::]";
+}
+
+// The addresses of this machine's interfaces as a Host header gives them (IPv6 in brackets;
+// link-local IPv6 left out: a browser's Host never carries its zone).
+std::vector<std::string> InterfaceAddresses() {
+    std::vector<std::string> out;
+    ifaddrs* list = nullptr;
+    if (getifaddrs(&list) != 0) return out;
+    for (ifaddrs* a = list; a; a = a->ifa_next) {
+        if (!a->ifa_addr) continue;
+        char buf[INET6_ADDRSTRLEN] = {};
+        if (a->ifa_addr->sa_family == AF_INET) {
+            inet_ntop(AF_INET,
+                      &reinterpret_cast<const sockaddr_in*>(a->ifa_addr)->sin_addr,
+                      buf,
+                      sizeof(buf));
+            out.emplace_back(buf);
+        } else if (a->ifa_addr->sa_family == AF_INET6) {
+            const auto* v6 = reinterpret_cast<const sockaddr_in6*>(a->ifa_addr);
+            if (IN6_IS_ADDR_LINKLOCAL(&v6->sin6_addr)) continue;
+            inet_ntop(AF_INET6, &v6->sin6_addr, buf, sizeof(buf));
+            out.push_back("[" + std::string(buf) + "]");
+        }
+    }
+    freeifaddrs(list);
+    return out;
+}
+
+// One complete request (from HttpFront) in, httplib's answer out.
+class BufferStream : public httplib::Stream {
+public:
+    explicit BufferStream(const FrontRequest& r) : r_(r) {}
+    bool is_readable() const override { return true; }
+    bool is_writable() const override { return true; }
+    ssize_t read(char* ptr, size_t size) override {
+        const std::size_t n = std::min(size, r_.bytes.size() - pos_);
+        std::copy_n(r_.bytes.data() + pos_, n, ptr);
+        pos_ += n;
+        return static_cast<ssize_t>(n);
+    }
+    ssize_t write(const char* ptr, size_t size) override {
+        out_.append(ptr, size);
+        return static_cast<ssize_t>(size);
+    }
+    void get_remote_ip_and_port(std::string& ip, int& port) const override {
+        ip = r_.peer_ip;
+        port = r_.peer_port;
+    }
+    void get_local_ip_and_port(std::string& ip, int& port) const override {
+        ip.clear();
+        port = 0;
+    }
+    socket_t socket() const override { return INVALID_SOCKET; }
+    std::string& out() { return out_; }
+
+private:
+    const FrontRequest& r_;
+    std::size_t pos_ = 0;
+    std::string out_;
+};
+
+// httplib's request parser, routing and response writer, without its listener.
+class RoutedServer : public httplib::Server {
+public:
+    FrontAnswer Process(const FrontRequest& r) {
+        BufferStream s(r);
+        bool closed = false;
+        process_request(s, r.last, closed, nullptr);
+        FrontAnswer a;
+        a.bytes = std::move(s.out());
+        const std::size_t end = a.bytes.find("\r\n\r\n");
+        std::string header = a.bytes.substr(0, end);
+        std::transform(header.begin(), header.end(), header.begin(), [](unsigned char c) {
+            return static_cast<char>(std::tolower(c));
+        });
+        // httplib answers a request it cannot parse with 400 but keeps the connection: what
+        // follows on it is not to be trusted either.
+        a.close = r.last || closed || end == std::string::npos ||
+                  header.rfind("http/1.1 400 ", 0) == 0 ||
+                  header.find("\r\nconnection: close") != std::string::npos;
+        return a;
+    }
+};
+
 }  // namespace
 
 std::vector<std::string> ServerConfig::Validate() const {
@@ -68,11 +185,44 @@ std::vector<std::string> ServerConfig::Validate() const {
         p.push_back("live: max_clients must lie in [1, 1000]");
     if (!(client_idle_s > 0) || !std::isfinite(client_idle_s))
         p.push_back("live: client_idle_s must be > 0");
+    for (const auto& h : allowed_hosts) {
+        if (HostName(h).empty() && HostName("[" + h + "]").empty())
+            p.push_back("live: --allow-host " + h + " is not a host name or address");
+    }
+    for (auto& l : limits.Validate()) p.push_back(std::move(l));
     return p;
 }
 
 struct LiveServer::Impl {
-    httplib::Server server;
+    RoutedServer server;
+    std::unique_ptr<HttpFront> front;
+    std::string token;  // the page's, for POST (random per start)
+    std::string page;   // the page with its token, a nonce placeholder left
+    mutable std::mutex hosts_mutex;
+    std::vector<std::string> hosts;
+    std::chrono::steady_clock::time_point hosts_read;
+    bool wildcard = false;
+    std::vector<std::string> base_hosts;
+
+    // Bound to a wildcard, a Host not known may be an address the machine got since: the
+    // interfaces are read again, at most every 5 s (a rebinding attacker cannot make it cost).
+    bool HostKnown(const std::string& host_header) {
+        std::lock_guard<std::mutex> lock(hosts_mutex);
+        if (HostAllowed(host_header, hosts)) return true;
+        const auto now = std::chrono::steady_clock::now();
+        if (!wildcard || now - hosts_read < std::chrono::seconds(5)) return false;
+        ReadHostsLocked(now);
+        return HostAllowed(host_header, hosts);
+    }
+    void ReadHostsLocked(std::chrono::steady_clock::time_point now) {
+        hosts = base_hosts;
+        if (wildcard) {
+            for (auto& a : InterfaceAddresses()) {
+                if (std::find(hosts.begin(), hosts.end(), a) == hosts.end()) hosts.push_back(a);
+            }
+        }
+        hosts_read = now;
+    }
 };
 
 LiveServer::LiveServer(LiveSession& session, const ServerConfig& config)
@@ -89,7 +239,26 @@ LiveServer::~LiveServer() {
 }
 
 Status LiveServer::Start() {
-    httplib::Server& s = impl_->server;
+    Impl& m = *impl_;
+    RoutedServer& s = m.server;
+    m.token = RandomHex(16);
+    m.page = LivePageHtml();
+    ReplaceAll(m.page, "PITMAP_PAGE_TOKEN", m.token);
+    m.wildcard = IsWildcard(config_.bind_address);
+    m.base_hosts = AllowedHosts(config_.bind_address, config_.allowed_hosts);
+    {
+        std::lock_guard<std::mutex> lock(m.hosts_mutex);
+        m.ReadHostsLocked(std::chrono::steady_clock::now());
+    }
+    // httplib writes Keep-Alive: timeout, max from these; the front enforces them.
+    s.set_keep_alive_timeout(
+        static_cast<time_t>(std::max(1.0, std::floor(config_.limits.idle_timeout_s))));
+    s.set_keep_alive_max_count(static_cast<size_t>(config_.limits.max_requests_per_connection));
+    s.set_payload_max_length(config_.limits.max_body_bytes);
+    httplib::Headers security;
+    for (const auto& h : SecurityHeaders()) security.emplace(h.name, h.value);
+    s.set_default_headers(security);
+
     // The client's budget is spent by what goes on the wire: gzip-compressed when the client
     // takes it. A request whose `client` is malformed spends from its address's budget.
     const auto send_json = [this](const httplib::Request& req,
@@ -115,8 +284,47 @@ Status LiveServer::Start() {
         [send_json](const httplib::Request& req, httplib::Response& res, const std::string& why) {
             send_json(req, res, {{"error", why}}, 400);
         };
-    s.Get("/", [](const httplib::Request&, httplib::Response& res) {
-        res.set_content(LivePageHtml(), "text/html; charset=utf-8");
+    // Before any route: the Host, `client=` on every endpoint, the token and origin of writes.
+    s.set_pre_routing_handler(
+        [this, send_json](const httplib::Request& req, httplib::Response& res) {
+            using R = httplib::Server::HandlerResponse;
+            const std::string host = req.get_header_value("Host");
+            if (!impl_->HostKnown(host)) {
+                send_json(req,
+                          res,
+                          {{"error",
+                            "Host '" + host +
+                                "' is not a name of this server (refused against DNS rebinding; "
+                                "pitmap-live --allow-host NAME adds one)"}},
+                          403);
+                return R::Handled;
+            }
+            if (const std::string why = CheckClientParams(req.params); !why.empty()) {
+                send_json(req, res, {{"error", why}}, 400);
+                return R::Handled;
+            }
+            if (req.method != "GET" && req.method != "HEAD") {
+                const std::string why = CheckWriteRequest({req.get_header_value(kTokenHeader),
+                                                           req.get_header_value("Origin"),
+                                                           req.get_header_value("Sec-Fetch-Site"),
+                                                           host},
+                                                          impl_->token);
+                if (!why.empty()) {
+                    send_json(req, res, {{"error", why}}, 403);
+                    return R::Handled;
+                }
+            }
+            return R::Unhandled;
+        });
+    s.Get("/", [this](const httplib::Request&, httplib::Response& res) {
+        // A nonce per load: the CSP admits the page's own inline script and style only.
+        const std::string nonce = RandomHex(16);
+        std::string page = impl_->page;
+        ReplaceAll(page, "PITMAP_PAGE_NONCE", nonce);
+        res.headers.erase("Content-Security-Policy");
+        res.set_header("Content-Security-Policy", PageCsp(nonce));
+        res.set_header("Cache-Control", "no-store");
+        res.set_content(std::move(page), "text/html; charset=utf-8");
     });
     s.Get("/favicon.ico",
           [](const httplib::Request&, httplib::Response& res) { res.status = 204; });
@@ -131,6 +339,15 @@ Status LiveServer::Start() {
                        {"available_bytes", budget_.Available(client, now)},
                        {"client_spent_bytes", budget_.spent(client)},
                        {"spent_bytes", budget_.spent()}};
+        const FrontStats c = connections();
+        j["http"] = {{"open", c.open},
+                     {"accepted", c.accepted},
+                     {"requests", c.requests},
+                     {"evicted", c.evicted},
+                     {"refused", c.refused},
+                     {"timed_out", c.header_timeouts + c.write_timeouts},
+                     {"idle_closed", c.idle_closed},
+                     {"bad_requests", c.bad_requests}};
         send_json(req, res, j);
     });
     s.Get("/api/alarms", [this, send_json](const httplib::Request& req, httplib::Response& res) {
@@ -160,29 +377,35 @@ Status LiveServer::Start() {
                 {{"error", "no snapshot directory configured (pitmap-live --out DIR)"}},
                 409);
         }
+        // The answer names the file only: the server's directories are none of the page's
+        // business (and its errors say "the snapshot directory" instead).
         auto path = session_.WriteSnapshot(config_.snapshot_dir);
-        if (!path) return send_json(req, res, {{"error", path.error().message}}, 409);
-        send_json(req, res, {{"path", *path}});
+        if (!path) {
+            std::string why = path.error().message;
+            ReplaceAll(why, config_.snapshot_dir, "the snapshot directory");
+            return send_json(req, res, {{"error", why}}, 409);
+        }
+        send_json(req, res, {{"file", std::filesystem::path(*path).filename().string()}});
     });
 
-    if (config_.port == 0) {
-        port_ = s.bind_to_any_port(config_.bind_address);
-        if (port_ < 0) return Error{"cannot bind " + config_.bind_address + " (any port)"};
-    } else {
-        if (!s.bind_to_port(config_.bind_address, config_.port)) {
-            return Error{"cannot bind " + config_.bind_address + ":" +
-                         std::to_string(config_.port) +
-                         " (in use, or not an address of this machine)"};
-        }
-        port_ = config_.port;
-    }
-    thread_ = std::thread([this] { impl_->server.listen_after_bind(); });
+    m.front = std::make_unique<HttpFront>(
+        config_.limits, [this](const FrontRequest& r) { return impl_->server.Process(r); });
+    if (auto st = m.front->Start(config_.bind_address, config_.port); !st) return st;
+    port_ = m.front->port();
     return Ok{};
 }
 
 void LiveServer::Stop() {
-    if (impl_) impl_->server.stop();
-    if (thread_.joinable()) thread_.join();
+    if (impl_ && impl_->front) impl_->front->Stop();
+}
+
+FrontStats LiveServer::connections() const {
+    return impl_->front ? impl_->front->stats() : FrontStats{};
+}
+
+std::vector<std::string> LiveServer::allowed_hosts() const {
+    std::lock_guard<std::mutex> lock(impl_->hosts_mutex);
+    return impl_->hosts;
 }
 
 }  // namespace pitmap::proc::live

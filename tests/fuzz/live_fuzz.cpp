@@ -1,18 +1,23 @@
 // SPDX-License-Identifier: MIT
 // libFuzzer target for what pitmap-live reads from outside: the page's query parameters
-// (processor/live/budget.hpp ParseLiveQuery, the client id that keys the byte budgets) and LCM
+// (processor/live/budget.hpp ParseLiveQuery, the client id that keys the byte budgets), LCM
 // events on the daemon's channels (processor/live/session.hpp OnEvent), followed by every JSON
-// document the server sends. The first byte picks the mode. Invariants: nothing throws, a query
-// without an error holds values in range, the JSON documents serialise (non-UTF-8 text from the
-// wire is replaced).
+// document the server sends, and the bytes of an HTTP request (processor/live/http_rules.hpp:
+// FrameRequest, the Host and write checks). The first byte picks the mode: odd the query, 2
+// mod 4 HTTP, else events. Invariants: nothing throws, a query without an error holds values
+// in range, the JSON documents serialise (non-UTF-8 text from the wire is replaced), a framed
+// request lies inside the bytes and frames the same on its own.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <map>
 #include <string>
+#include <string_view>
 
 #include "lcmtypes/log/channels.hpp"
 #include "processor/live/budget.hpp"
+#include "processor/live/http_rules.hpp"
 #include "processor/live/session.hpp"
 
 namespace {
@@ -92,12 +97,38 @@ void FuzzEvents(const std::uint8_t* data, std::size_t size) {
     Check(!dump(session.SoundingsJson(0, 20'000)).empty());
 }
 
+void FuzzHttp(const std::uint8_t* data, std::size_t size) {
+    using Kind = live::RequestFrame::Kind;
+    const std::string_view bytes(reinterpret_cast<const char*>(data), size);
+    const live::RequestFrame f = live::FrameRequest(bytes, 1024, 256);
+    Check(f.skipped <= size);
+    if (f.kind == Kind::kComplete) {
+        Check(f.header_bytes <= f.total_bytes && f.skipped + f.total_bytes <= size);
+        Check(f.header_bytes <= 1024 && f.total_bytes - f.header_bytes <= 256);
+        // What the front hands on, framed again: the same request, whole.
+        const live::RequestFrame again =
+            live::FrameRequest(bytes.substr(f.skipped, f.total_bytes), 1024, 256);
+        Check(again.kind == Kind::kComplete && again.skipped == 0 &&
+              again.total_bytes == f.total_bytes);
+    } else if (f.kind == Kind::kError) {
+        Check(f.status >= 400 && f.status < 600 && !f.reason.empty());
+    }
+    // A Host that parses is allowed once its name is listed; the write check never throws.
+    const std::string host(bytes.substr(0, std::min<std::size_t>(size, 300)));
+    const std::string name = live::HostName(host);
+    if (!name.empty()) Check(live::HostAllowed(host, {name}));
+    (void)live::CheckWriteRequest({host, host, host, host}, "0123456789abcdef");
+    (void)live::CheckClientParams({{"client", host}});
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     if (size == 0) return 0;
     if (data[0] & 1) {
         FuzzQuery(data + 1, size - 1);
+    } else if (data[0] % 4 == 2) {
+        FuzzHttp(data + 1, size - 1);
     } else {
         FuzzEvents(data + 1, size - 1);
     }

@@ -5,7 +5,9 @@
 A simulated survey's LCM log is replayed into pitmap-live at 2x (the same event path as a live
 subscription) while Chromium shows the page. Fails on any console error or uncaught exception,
 when the coverage the page shows does not grow while pings are sent, or when the 2D map or the
-3D canvas is blank in a screenshot (pixel statistics). Then the TVU status layer: on the
+3D canvas is blank in a screenshot (pixel statistics), or when the snapshot button (a POST
+with the page's token, under the page's Content-Security-Policy) does not write a file whose
+name alone it shows. Then the TVU status layer: on the
 simulated survey (its vehicle.yaml's error model) most cells meet IHO S-44 order 1a (green on
 the map); replayed again with a deliberately bad error model (position noise 0.5 m: TVU >= 0.98
 m, over the 1a limit at any depth here) most cells fail (red) and the page shows the
@@ -79,11 +81,11 @@ def tvu_layer(browser, want_meeting, label):
     return s
 
 
-def start_live(bin_dir, logs, vehicle, speed, out_path):
+def start_live(bin_dir, logs, vehicle, speed, out_path, snapshots):
     live_out = open(out_path, "w+")
     live = subprocess.Popen([os.path.join(bin_dir, "pitmap-live"), "--replay"] + logs +
                             ["--speed", speed, "--hold", "--port", "0", "--cell-size", "0.5",
-                             "--vehicle", vehicle],
+                             "--vehicle", vehicle, "--out", snapshots],
                             stdout=live_out, stderr=subprocess.STDOUT)
     port = None
     for _ in range(100):
@@ -120,8 +122,9 @@ def main():
         print("SKIP: %s" % e)
         sys.exit(cdp.SKIP)
 
+    snapshots = os.path.join(work, "snapshots")
     live, live_out, port = start_live(bin_dir, logs, os.path.join(sim, "log", "vehicle.yaml"), "2",
-                                      os.path.join(work, "live.out"))
+                                      os.path.join(work, "live.out"), snapshots)
     try:
         try:
             if port is None:
@@ -165,6 +168,22 @@ def main():
                       (cid, img[0], img[1], 100 * share, colours))
                 if share < min_share or colours < 8:
                     fail("canvas %s is blank (%.2f %% drawn, %d colours)" % (cid, 100 * share, colours))
+            # The snapshot button: the page's POST carries its token past the server's check
+            # (under its Content-Security-Policy: a violation is a console error), the answer
+            # names the file only, and the file is there.
+            browser.evaluate("document.getElementById('snapshot').click()")
+            msg = ""
+            for _ in range(50):
+                browser.pump(0.2)
+                msg = browser.evaluate("document.getElementById('snapmsg').textContent")
+                if msg:
+                    break
+            print("snapshot: %s" % msg)
+            m = re.fullmatch(r"written: (live_grid_[0-9A-Za-z_.-]+\.tif)", msg or "")
+            if not m:
+                fail("the snapshot button did not write a file (or named a path): %r" % msg)
+            if not os.path.exists(os.path.join(snapshots, m.group(1))):
+                fail("the snapshot %s is not in %s" % (m.group(1), snapshots))
             # The TVU status layer on the simulated survey: most cells meet 1a, no TVU alarm.
             s = tvu_layer(browser, True, "good model")
             if "tvu_over_limit" in s["alarms"]:
@@ -189,7 +208,8 @@ def main():
         bad = os.path.join(work, "vehicle_bad.yaml")
         with open(bad, "w") as f:
             f.write(bad_text)
-        live, live_out, port = start_live(bin_dir, logs, bad, "8", os.path.join(work, "live_bad.out"))
+        live, live_out, port = start_live(bin_dir, logs, bad, "8", os.path.join(work, "live_bad.out"),
+                                          snapshots)
         try:
             if port is None:
                 fail("pitmap-live (bad model) did not start")

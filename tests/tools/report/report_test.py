@@ -4,7 +4,7 @@
 Usage: python3 report_test.py --report PATH_TO_pitmap-report [unittest args]
 
 Checks: the report is written and self-contained (no http(s) link, every image a data URI,
-no reference to a file), holds every section, names each missing optional product
+no reference to a file, a Content-Security-Policy that allows no network), holds every section, names each missing optional product
 ("not produced: ...") instead of failing, refuses a folder without summary.json, and the
 PLY reader and raster helpers give known values.
 """
@@ -270,6 +270,14 @@ class ReportTest(unittest.TestCase):
         for h in re.findall(r'href="([^"]*)"', page):
             self.assertTrue(h.startswith("#"), h)
         self.assertNotIn("<link", page)
+        # Its policy, first in <head>: no network, nothing beyond its own inline code.
+        m = re.search(r'<head>\s*<meta charset="utf-8">\s*<meta http-equiv="Content-Security-'
+                      r'Policy" content="([^"]*)">', page)
+        self.assertTrue(m, "no Content-Security-Policy <meta> at the top of <head>")
+        csp = m.group(1)
+        self.assertIn("default-src 'none'", csp)
+        self.assertNotIn("'self'", csp)
+        self.assertNotIn("unsafe-eval", csp)
         self.assertNotIn("url(", page)
 
     def test_full_folder(self):

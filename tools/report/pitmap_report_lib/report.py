@@ -163,10 +163,18 @@ footer { margin-top: 40px; font-size: 12px; color: #777; }
                            border: 1px solid #ccc; cursor: crosshair; }
 """
 
+# The report is one self-contained file: its policy admits its own inline scripts and styles
+# (the viewer with three.js inlined), images and glTF textures from data: and blob: URLs (what
+# GLTFLoader makes of a .glb opened locally), and no network at all. A <meta> policy cannot
+# say frame-ancestors; a file opened from disk has no headers to say it.
+CSP = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+       "img-src data: blob:; connect-src data: blob:; base-uri 'none'; form-action 'none'")
+
 PAGE = """<!DOCTYPE html>
 <html lang="en">
 <head>
 <meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy" content="@CSP@">
 <title>{title}</title>
 <style>{css}</style>
 </head>
@@ -179,4 +187,4 @@ PAGE = """<!DOCTYPE html>
 times in GPS seconds since 1980-01-06 unless marked UTC.</footer>
 </body>
 </html>
-"""
+""".replace("@CSP@", CSP)
