@@ -27,10 +27,9 @@ std::string HolderText(int fd) {
         at += n;
     }
     while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
-    for (char& c : text) {
-        if (c == '\n') c = ';';
-    }
-    return text;
+    std::string line;
+    for (char c : text) line += c == '\n' ? std::string("; ") : std::string(1, c);
+    return line;
 }
 
 std::string NowUtc() {
