@@ -2,8 +2,9 @@
 // Binary file output through common's ByteWriter: fields are appended to an in-memory buffer
 // with an explicit byte order, and the buffer goes to the file whenever it passes 1 MiB and at
 // Close(), so a multi-gigabyte product needs only the buffer's memory. The bytes go to
-// PATH.partial, renamed over PATH by a successful Close() (replace_file.hpp): a writer that fails
-// or is destroyed without Close() leaves PATH as it was and removes the partial file.
+// a partial file beside PATH, renamed over PATH by a successful Close() (replace_file.hpp): a
+// writer that fails or is destroyed without Close() leaves PATH as it was and removes the partial
+// file.
 #pragma once
 
 #include <cstdint>
@@ -19,7 +20,7 @@ namespace pitmap::formats {
 
 class ByteFileWriter {
 public:
-    // Opens (truncates) PATH.partial; a failure to open is reported by Close().
+    // Opens (truncates) the partial file of `path`; a failure to open is reported by Close().
     explicit ByteFileWriter(std::string path);
     ~ByteFileWriter();
     ByteFileWriter(const ByteFileWriter&) = delete;

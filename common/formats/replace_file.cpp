@@ -8,7 +8,15 @@
 namespace pitmap::formats {
 
 std::string PartialPath(const std::string& path) {
-    return path + kPartialSuffix;
+    const std::filesystem::path p(path);
+    return (p.parent_path() / (kPartialPrefix + p.filename().string())).string();
+}
+
+bool IsPartialName(const std::string& name) {
+    const std::string suffix = ".partial";
+    return name.rfind(kPartialPrefix, 0) == 0 ||
+           (name.size() > suffix.size() &&
+            name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0);
 }
 
 std::string ErrnoMessage(const std::string& path, const std::string& what, int err) {

@@ -210,10 +210,7 @@ Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>
     }
     // What a killed writer left (common/formats/replace_file.hpp).
     for (const auto& e : fs::directory_iterator(out_dir, ec)) {
-        const std::string name = e.path().filename().string();
-        const std::string suffix = formats::kPartialSuffix;
-        if (name.size() > suffix.size() &&
-            name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+        if (formats::IsPartialName(e.path().filename().string())) {
             std::error_code rec;
             fs::remove(e.path(), rec);
         }

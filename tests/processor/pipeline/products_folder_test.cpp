@@ -143,7 +143,7 @@ TEST_F(ProductsOfTwoRuns, EachRunHasItsIdInTheSurveyTheSummaryAndTheProducts) {
     EXPECT_EQ(std::string(hex, 32), id);
     // No temporary file is left beside the products.
     for (const auto& e : fs::directory_iterator(a)) {
-        EXPECT_FALSE(Contains(e.path().filename().string(), ".partial")) << e.path();
+        EXPECT_FALSE(Contains(e.path().filename().string(), "partial")) << e.path();
     }
     // A second georef is a new run.
     const fs::path b = Georef("b");
@@ -198,7 +198,7 @@ TEST_F(ProductsOfTwoRuns, AGeorefThatFailsHalfWayLeavesNothingOfTheEarlierSurvey
     ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(p), &out), 0) << out;
     ASSERT_TRUE(fs::exists(p / "tsdf.vdb"));
     std::ofstream(p / "mesh.ply") << "an earlier mesh";
-    std::ofstream(p / "points.ply.partial") << "a killed writer's file";
+    std::ofstream(p / ".partial-points.ply") << "a killed writer's file";
     std::ofstream(*dir_ / "broken_vehicle.yaml") << "pitmap_vehicle: 1\n";
     out.clear();
     EXPECT_NE(RunCommand(kBin + "/pitmap georef " + Quote(*dir_ / "sim" / "log") + " --out " +
@@ -214,7 +214,7 @@ TEST_F(ProductsOfTwoRuns, AGeorefThatFailsHalfWayLeavesNothingOfTheEarlierSurvey
                               "trajectory_ins.csv",
                               "tsdf.vdb",
                               "mesh.ply",
-                              "points.ply.partial"}) {
+                              ".partial-points.ply"}) {
         EXPECT_FALSE(fs::exists(p / stale)) << stale << " of the earlier survey is still there";
     }
     // ... and the report says the folder is unusable rather than drawing anything.
