@@ -203,6 +203,18 @@ std::string OriginComment(const Geodetic& g) {
     return s;
 }
 
+std::string RunIdComment(const std::string& run_id) {
+    return "pitmap_run_id " + run_id;
+}
+
+std::string RunIdFromComments(const std::vector<std::string>& comments) {
+    constexpr std::string_view kTag = "pitmap_run_id ";
+    for (const std::string& c : comments) {
+        if (c.rfind(kTag, 0) == 0) return c.substr(kTag.size());
+    }
+    return "";
+}
+
 std::optional<Geodetic> OriginFromComments(const std::vector<std::string>& comments) {
     for (const std::string& c : comments) {
         std::istringstream in(c);

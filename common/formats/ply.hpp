@@ -85,6 +85,10 @@ Expected<Header> ParseHeader(std::string_view bytes,
 std::string OriginComment(const Geodetic& origin);
 // The first well-formed pitmap_origin comment (finite, |lat| <= 90, |lon| <= 360).
 std::optional<Geodetic> OriginFromComments(const std::vector<std::string>& comments);
+// "pitmap_run_id ID": the run of the survey the file belongs to (processor/survey/survey.hpp).
+std::string RunIdComment(const std::string& run_id);
+// The first pitmap_run_id comment's id, "" without one.
+std::string RunIdFromComments(const std::vector<std::string>& comments);
 
 // A binary_little_endian file: the header at construction, then each record's fields through
 // Record() (common's ByteWriter) in the header's order, element by element.

@@ -2,10 +2,12 @@
 #include "common/formats/trajectory_csv.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 
 namespace pitmap::formats {
@@ -35,9 +37,11 @@ TrajectoryRow RowOf(double gps_time_s, const Pose& T_world_vehicle) {
     return r;
 }
 
-Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& t) {
+namespace {
+
+Status WriteTrajectoryCsvTo(const std::string& path, const TrajectoryCsv& t) {
     std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) return Error{path + ": cannot create"};
+    if (f == nullptr) return Error{ErrnoMessage(path, "cannot create", errno)};
     std::fprintf(f, "%s%s\n", kPoseHeader, t.ins_columns ? kInsHeader : "");
     for (const TrajectoryRow& r : t.rows) {
         std::fprintf(f,
@@ -59,9 +63,17 @@ Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& t) {
         }
         std::fputc('\n', f);
     }
-    const bool ok = std::ferror(f) == 0;
-    if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
+    const bool ok = std::ferror(f) == 0 && std::fflush(f) == 0;
+    const int err = errno;
+    if (std::fclose(f) != 0 || !ok) return Error{ErrnoMessage(path, "write failed", err)};
     return Ok{};
+}
+
+}  // namespace
+
+Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& t) {
+    return WriteReplacing(
+        path, [&](const std::string& partial) { return WriteTrajectoryCsvTo(partial, t); });
 }
 
 Expected<TrajectoryCsv> ReadTrajectoryCsv(const std::string& path) {

@@ -196,6 +196,25 @@ std::vector<std::string> CheckLogDirectory(const std::string& dir) {
     return p;
 }
 
+namespace {
+
+// "" when `path` opens as a terminal (isatty, which is tcgetattr), else why not. Opened
+// non-blocking and without becoming the controlling terminal, and closed again at once.
+std::string NotATerminal(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        // Busy or gone since the stat: the channel's own open reports it (a warning here).
+        return "";
+    }
+    const bool tty = ::isatty(fd) == 1;
+    const int err = errno;
+    ::close(fd);
+    if (tty) return "";
+    return " is not a terminal device (" + ErrnoText(err) + "): not a serial port";
+}
+
+}  // namespace
+
 HostCheck CheckHost(const DaemonConfig& config) {
     HostCheck out;
     for (const std::string& e : CheckLogDirectory(config.log.directory)) {
@@ -217,11 +236,15 @@ HostCheck CheckHost(const DaemonConfig& config) {
                                        " (the channel retries until it "
                                        "appears)");
             } else if (!S_ISCHR(st.st_mode)) {
-                out.warnings.push_back(where + "serial device " + path +
-                                       " is not a character device");
+                out.errors.push_back(where + "serial device " + path +
+                                     " is not a character device (not a serial port)");
             } else if (::access(path.c_str(), R_OK | W_OK) != 0) {
                 out.warnings.push_back(where + "serial device " + path + ": " + ErrnoText(errno) +
                                        " (is this user in its group?)");
+            } else if (const std::string tty = NotATerminal(path); !tty.empty()) {
+                // /dev/null, /dev/zero: character devices that are no serial port. The channel
+                // would open them, read nothing or junk and retry for ever.
+                out.errors.push_back(where + "serial device " + path + tty);
             }
         }
         if (spec.kind == SourceKind::kUdp && spec.udp.port > 0) {

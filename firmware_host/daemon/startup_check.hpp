@@ -9,8 +9,10 @@
 //     creates it for good) and a file can be created and removed in it (a regular file, /proc or
 //     /sys, a read-only file system are errors); the fallback directory likewise, as warnings; a
 //     serial device that does not exist or cannot be opened read-write by this user is a warning
-//     (USB may come later, the channel keeps retrying); a UDP port that cannot be bound (in use) is
-//     a warning (the channel keeps retrying).
+//     (USB may come later, the channel keeps retrying); a serial path that exists but is not a
+//     terminal device (a regular file, /dev/null: S_ISCHR, then isatty on a non-blocking open)
+//     is an error (no serial port will ever be there); a UDP port that cannot be bound (in use)
+//     is a warning (the channel keeps retrying).
 #pragma once
 
 #include <string>

@@ -14,6 +14,8 @@
 //   pitmap config --defaults | --vehicle
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
+// Every command with --out holds P/.pitmap.lock while it runs (processor/io/products_lock.hpp):
+// a second command on the same P fails at once naming the first.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -25,6 +27,7 @@
 #include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/products_lock.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
 namespace pp = pitmap::proc::pipeline;
@@ -185,6 +188,12 @@ int main(int argc, char** argv) try {
         std::fputs(text->c_str(), stdout);
         return 0;
     }
+    // One command at a time on P; creating P and its lock file is also the check that P can be
+    // written, before any work.
+    std::string command_line;
+    for (int i = 0; i < argc; ++i) command_line += (i > 0 ? " " : "") + std::string(argv[i]);
+    auto lock = pitmap::proc::io::ProductsLock::Acquire(out_dir, command_line);
+    if (!lock) return Fail(lock.error().message);
     pitmap::Status status = pitmap::Ok{};
     if (geo->parsed()) status = pp::RunGeorefStage(inputs, out_dir, config, log);
     if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);

@@ -4,12 +4,14 @@
 #include <openvdb/io/File.h>
 
 #include <array>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <exception>
 #include <fstream>
 
 #include "common/byte_io.hpp"
+#include "common/formats/replace_file.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
 
@@ -56,7 +58,8 @@ Status AppendTrailer(const std::string& path) {
     w.U32Le(crc);
     w.U32Le(kTrailerVersion);
     std::FILE* f = std::fopen(path.c_str(), "ab");
-    if (f == nullptr) return Error{path + ": cannot append the checksum"};
+    if (f == nullptr)
+        return Error{formats::ErrnoMessage(path, "cannot append the checksum", errno)};
     const bool ok = std::fwrite(t.data(), 1, t.size(), f) == t.size();
     if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed (disk full?)"};
     return Ok{};
@@ -136,9 +139,11 @@ Status CheckGridMetadata(openvdb::io::File& file, const std::string& path) {
 
 }  // namespace
 
-Status WriteVdb(const TsdfVolume& volume,
-                const std::string& path,
-                const std::vector<std::pair<std::string, std::string>>& metadata) {
+namespace {
+
+Status WriteVdbTo(const TsdfVolume& volume,
+                  const std::string& path,
+                  const std::vector<std::pair<std::string, std::string>>& metadata) {
     try {
         openvdb::initialize();
         openvdb::GridPtrVec grids;
@@ -155,6 +160,15 @@ Status WriteVdb(const TsdfVolume& volume,
         return Error{path + ": cannot write VDB: " + e.what()};
     }
     return AppendTrailer(path);
+}
+
+}  // namespace
+
+Status WriteVdb(const TsdfVolume& volume,
+                const std::string& path,
+                const std::vector<std::pair<std::string, std::string>>& metadata) {
+    return formats::WriteReplacing(
+        path, [&](const std::string& partial) { return WriteVdbTo(volume, partial, metadata); });
 }
 
 Expected<VdbFileInfo> ReadVdbInfo(const std::string& path) {
@@ -181,7 +195,9 @@ Expected<VdbFileInfo> ReadVdbInfo(const std::string& path) {
     return info;
 }
 
-Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config) {
+Expected<TsdfVolume> ReadVdb(const std::string& path,
+                             const TsdfConfig& config,
+                             std::vector<std::pair<std::string, std::string>>* metadata) {
     if (auto st = VerifyTrailer(path); !st) return st.error();
     openvdb::FloatGrid::Ptr distance;
     openvdb::FloatGrid::Ptr weight;
@@ -190,6 +206,12 @@ Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config) 
         openvdb::io::File file(path);
         file.open(/*delayLoad=*/false);
         if (auto st = CheckGridMetadata(file, path); !st) return st.error();
+        if (metadata != nullptr) {
+            openvdb::MetaMap::Ptr meta = file.getMetadata();
+            for (auto it = meta->beginMeta(); it != meta->endMeta(); ++it) {
+                metadata->emplace_back(it->first, it->second->str());
+            }
+        }
         openvdb::GridPtrVecPtr grids = file.getGrids();
         file.close();
         for (const openvdb::GridBase::Ptr& g : *grids) {

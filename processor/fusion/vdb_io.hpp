@@ -32,7 +32,8 @@ struct VdbFileInfo {
 };
 
 // Writes both grids, with the file metadata given as key/value strings (e.g. the world
-// origin). Fails (no throw) when the file cannot be written.
+// origin, the run id "pitmap_run_id"). The file is written under a temporary name and renamed
+// (common/formats/replace_file.hpp). Fails (no throw) when the file cannot be written.
 Status WriteVdb(const TsdfVolume& volume,
                 const std::string& path,
                 const std::vector<std::pair<std::string, std::string>>& metadata = {});
@@ -50,6 +51,9 @@ Expected<VdbFileInfo> ReadVdbInfo(const std::string& path);
 // "weight", its metadata claims far more memory than the file size allows, the two grids
 // disagree in their transform, the transform is not a uniform scale without rotation, or the
 // resulting config is invalid.
-Expected<TsdfVolume> ReadVdb(const std::string& path, const TsdfConfig& config = {});
+// `metadata` (when given) receives the file metadata as key/value strings.
+Expected<TsdfVolume> ReadVdb(const std::string& path,
+                             const TsdfConfig& config = {},
+                             std::vector<std::pair<std::string, std::string>>* metadata = nullptr);
 
 }  // namespace pitmap::proc::fusion

@@ -6,12 +6,16 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
 #include <memory>
 #include <mutex>
+
+#include "common/formats/ply.hpp"
+#include "common/formats/replace_file.hpp"
 
 namespace pitmap::proc::io {
 
@@ -140,9 +144,7 @@ Status Copy(const std::string& path, const char* driver_name, GDALDataset* src, 
     return Ok{};
 }
 
-}  // namespace
-
-Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
+Status WriteCogGeoTiffTo(const std::string& path, const GridRaster& grid) {
     if (auto s = CheckGrid(path, grid); !s) return s;
     if (grid.layers.empty()) return Error{path + ": no layers"};
     RegisterOnce();
@@ -162,7 +164,7 @@ Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
     return s;
 }
 
-Status WriteBag(const std::string& path, const GridRaster& grid) {
+Status WriteBagTo(const std::string& path, const GridRaster& grid) {
     if (auto s = CheckGrid(path, grid); !s) return s;
     const GridLayer* elevation = nullptr;
     const GridLayer* uncertainty = nullptr;
@@ -190,6 +192,19 @@ Status WriteBag(const std::string& path, const GridRaster& grid) {
     Status s = Copy(path, "BAG", mem->get(), opts);
     CSLDestroy(opts);
     return s;
+}
+
+}  // namespace
+
+// Each product is written under a temporary name and renamed (common/formats/replace_file.hpp).
+Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
+    return formats::WriteReplacing(
+        path, [&](const std::string& partial) { return WriteCogGeoTiffTo(partial, grid); });
+}
+
+Status WriteBag(const std::string& path, const GridRaster& grid) {
+    return formats::WriteReplacing(
+        path, [&](const std::string& partial) { return WriteBagTo(partial, grid); });
 }
 
 Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) {
@@ -259,22 +274,27 @@ Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) 
     return out;
 }
 
-Status WriteSoundingTpuPly(const std::string& path,
-                           const georef::GeorefResult& geo,
-                           const std::vector<float>& thu_95_m,
-                           const std::vector<float>& tvu_95_m) {
+namespace {
+
+Status WriteSoundingTpuPlyTo(const std::string& path,
+                             const georef::GeorefResult& geo,
+                             const std::vector<float>& thu_95_m,
+                             const std::vector<float>& tvu_95_m,
+                             const std::string& run_id) {
     const std::size_t n = geo.points.size();
     if (thu_95_m.size() != n || tvu_95_m.size() != n) {
         return Error{path + ": uncertainties for " + std::to_string(thu_95_m.size()) +
                      " soundings, " + std::to_string(n) + " soundings"};
     }
     std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (f == nullptr) return Error{path + ": cannot create"};
-    char head[512];
+    if (f == nullptr) return Error{formats::ErrnoMessage(path, "cannot create", errno)};
+    char head[640];
+    const std::string run_comment =
+        run_id.empty() ? std::string() : "comment " + formats::ply::RunIdComment(run_id) + "\n";
     const Geodetic& o = geo.world_origin;
     std::snprintf(head,
                   sizeof head,
-                  "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin %.10f %.10f %.4f\n"
+                  "ply\nformat binary_little_endian 1.0\ncomment pitmap_origin %.10f %.10f %.4f\n%s"
                   "comment pitmap per-sounding TPU, 95 %%: THU (horizontal), TVU (vertical)\n"
                   "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
                   "property double gps_time_s\nproperty float angle_deg\n"
@@ -282,6 +302,7 @@ Status WriteSoundingTpuPly(const std::string& path,
                   o.latitude_deg,
                   o.longitude_deg,
                   o.height_m,
+                  run_comment.c_str(),
                   n);
     bool ok = std::fputs(head, f) >= 0;
     // 28-byte records, little-endian (the host order on every platform pitmap builds for is
@@ -315,9 +336,23 @@ Status WriteSoundingTpuPly(const std::string& path,
             buf.clear();
         }
     }
+    ok = ok && std::fflush(f) == 0;
+    const int err = errno;
     ok = (std::fclose(f) == 0) && ok;
-    if (!ok) return Error{path + ": write error"};
+    if (!ok) return Error{formats::ErrnoMessage(path, "write failed", err)};
     return Ok{};
+}
+
+}  // namespace
+
+Status WriteSoundingTpuPly(const std::string& path,
+                           const georef::GeorefResult& geo,
+                           const std::vector<float>& thu_95_m,
+                           const std::vector<float>& tvu_95_m,
+                           const std::string& run_id) {
+    return formats::WriteReplacing(path, [&](const std::string& partial) {
+        return WriteSoundingTpuPlyTo(partial, geo, thu_95_m, tvu_95_m, run_id);
+    });
 }
 
 }  // namespace pitmap::proc::io

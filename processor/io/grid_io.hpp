@@ -66,11 +66,13 @@ Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells =
 
 // Per-sounding uncertainty beside the soundings: binary little-endian PLY, vertex properties
 // float x, y, z (world ENU, as points.ply), double gps_time_s, float angle_deg (beam angle,
-// sonar frame), float thu_95_m, float tvu_95_m; comment "pitmap_origin LAT LON H".
+// sonar frame), float thu_95_m, float tvu_95_m; comment "pitmap_origin LAT LON H" and, when
+// given, "pitmap_run_id ID".
 // Precondition: thu/tvu have one value per sounding of `geo`.
 Status WriteSoundingTpuPly(const std::string& path,
                            const georef::GeorefResult& geo,
                            const std::vector<float>& thu_95_m,
-                           const std::vector<float>& tvu_95_m);
+                           const std::vector<float>& tvu_95_m,
+                           const std::string& run_id = "");
 
 }  // namespace pitmap::proc::io

@@ -487,12 +487,31 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
         RawStream s;
         s.deltat = std::make_unique<dt::StreamFramer>();
         std::vector<std::uint8_t> buf(1 << 16);
+        // A vendor file is written whole: every skipped byte is damage (a record cut short by a
+        // full disk or a copy, garbage between records), so each is a warning with its offset
+        // (the first few of a file, then their total), besides the count.
+        constexpr int kMaxSkipWarnings = 5;
+        int skip_events = 0;
+        std::uint64_t skipped_unwarned = 0;
+        const auto skipped = [&](const protocol::Skipped& sk) {
+            into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk.bytes);
+            if (++skip_events > kMaxSkipWarnings) {
+                skipped_unwarned += sk.bytes;
+                return;
+            }
+            const std::string what = sk.reason == protocol::SkipReason::kTruncated
+                                         ? "a record cut short at the end of the file"
+                                         : "bytes that are no 83P record (" +
+                                               std::string(protocol::ToString(sk.reason)) + ")";
+            into.warnings.push_back(path + ": " + what + ": " + std::to_string(sk.bytes) +
+                                    " bytes skipped at byte offset " + std::to_string(sk.offset));
+        };
         const auto drain = [&] {
             while (true) {
                 auto ev = s.deltat->Next();
                 if (std::holds_alternative<protocol::NeedMore>(ev)) break;
                 if (auto* sk = std::get_if<protocol::Skipped>(&ev)) {
-                    into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                    skipped(*sk);
                     continue;
                 }
                 auto d =
@@ -522,10 +541,15 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
             drain();
         }
         while (auto sk = s.deltat->Flush()) {
-            into.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+            skipped(*sk);
             drain();
         }
         detail::RecordSpan(into, path, mark);
+        if (skip_events > kMaxSkipWarnings) {
+            into.warnings.push_back(path + ": " + std::to_string(skip_events - kMaxSkipWarnings) +
+                                    " more damaged places, " + std::to_string(skipped_unwarned) +
+                                    " bytes skipped (raw_skipped_bytes counts them all)");
+        }
         ++into.counts.files;
     }
     into.pings_from_raw = true;

@@ -59,7 +59,10 @@ nlohmann::json VehicleJson(const VehicleDescription& v) {
     return j;
 }
 
-Status WritePly(const std::string& path, const georef::GeorefResult& r, const PointExtras* extras) {
+Status WritePly(const std::string& path,
+                const georef::GeorefResult& r,
+                const PointExtras* extras,
+                const std::string& run_id) {
     namespace ply = formats::ply;
     const georef::GeorefPoints& P = r.points;
     const bool tpu = extras != nullptr && extras->thu_95_m.size() == P.size() &&
@@ -70,6 +73,7 @@ Status WritePly(const std::string& path, const georef::GeorefResult& r, const Po
                   ply::OriginComment(r.world_origin),
                   "frame world: East-North-Up metres at pitmap_origin; gps_time_s since "
                   "1980-01-06"};
+    if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
     std::vector<ply::Property> props = {{"x", ply::Type::kFloat32},
                                         {"y", ply::Type::kFloat32},
                                         {"z", ply::Type::kFloat32},
@@ -176,7 +180,8 @@ void ExtraBytesFloat(ByteWriter& w, const std::string& name, const std::string& 
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& r,
                 const georef::UtmPoints& utm,
-                const PointExtras* extras) {
+                const PointExtras* extras,
+                const std::string& run_id) {
     const std::size_t n = utm.easting_northing_height.size();
     const bool tpu = extras != nullptr && extras->thu_95_m.size() == n &&
                      extras->tvu_95_m.size() == n && r.points.size() == n;
@@ -225,10 +230,8 @@ Status WriteLas(const std::string& path,
     w.FixedString("LASF", 4);
     w.U16Le(0);                      // file source id
     w.U16Le((1u << 0) | (1u << 4));  // adjusted standard GPS time, WKT CRS
-    w.U32Le(0);                      // GUID 1..4
-    w.U16Le(0);
-    w.U16Le(0);
-    w.FixedString("", 8);
+    // Project ID (GUID 1..4): the run id's 16 bytes in the order of its hex digits.
+    for (std::uint8_t b : RunIdBytes(run_id)) w.U8(b);
     w.U8(1);  // version 1.4
     w.U8(4);
     w.FixedString("pitmap ASV multibeam", 32);
@@ -429,11 +432,27 @@ Expected<nlohmann::json> ReadSummaryJson(const std::string& path) {
 }
 
 Status WriteJsonFile(const std::string& path, const nlohmann::json& j) {
-    std::ofstream out(path);
-    if (!out) return Error{path + ": cannot create"};
-    out << j.dump(2) << "\n";
-    if (!out) return Error{path + ": write failed"};
-    return Ok{};
+    const std::string text = j.dump(2) + "\n";
+    return formats::WriteFileBytes(path, std::vector<std::uint8_t>(text.begin(), text.end()));
+}
+
+std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id) {
+    std::array<std::uint8_t, 16> out{};
+    if (run_id.size() != 32) return out;
+    for (std::size_t i = 0; i < 16; ++i) {
+        unsigned v = 0;
+        for (std::size_t k = 0; k < 2; ++k) {
+            const char c = run_id[2 * i + k];
+            const int d = c >= '0' && c <= '9'   ? c - '0'
+                          : c >= 'a' && c <= 'f' ? c - 'a' + 10
+                          : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                                 : -1;
+            if (d < 0) return {};
+            v = v * 16 + static_cast<unsigned>(d);
+        }
+        out[i] = static_cast<std::uint8_t>(v);
+    }
+    return out;
 }
 
 }  // namespace pitmap::proc::io

@@ -12,9 +12,14 @@
 //   bit 4): a COMPD_CS of the UTM PROJCS and the heights' VERT_CS: "WGS 84 ellipsoidal height"
 //   (OGC 01-009 vertical datum type 2002) as georef writes it, the vertical datum's (geoid,
 //   water level; hydro/datum.hpp) when the grid stage writes the file again (PointExtras).
-// Failure model: every function returns an error naming the file.
+// Run id (processor/survey/survey.hpp): when given, PLY has a comment "pitmap_run_id ID" and LAS
+// the id's 16 bytes as its Project ID (GUID) (RunIdBytes).
+// Every file is written under a temporary name and renamed into place
+// (common/formats/replace_file.hpp): a reader never sees half a file.
+// Failure model: every function returns an error naming the file and the system's reason.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -55,14 +60,18 @@ struct PointExtras {
 // world ENU (ellipsoidal).
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& result,
-                const PointExtras* extras = nullptr);
+                const PointExtras* extras = nullptr,
+                const std::string& run_id = "");
 // With extras, LAS heights are h - D (above the datum; the WKT's VERT_CS names it) and THU/TVU
 // are LAS 1.4 extra bytes (two float32 after the format-6 fields, record length 38), described
 // in an Extra Bytes VLR (LASF_Spec / 4: names "THU 95%" and "TVU 95%", metres).
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& result,
                 const georef::UtmPoints& utm,
-                const PointExtras* extras = nullptr);
+                const PointExtras* extras = nullptr,
+                const std::string& run_id = "");
+// The 16 bytes of a 32-hex-digit run id, in the order of its digits; zeros for anything else.
+std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.
 std::string UtmWkt(int zone, bool northern);
 // The LAS file's CRS: COMPD_CS[UtmWkt, vertical], WKT1; vertical_wkt "" = VERT_CS WGS 84

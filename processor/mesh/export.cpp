@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <charconv>
 #include <cstddef>
 #include <cstdint>
@@ -18,6 +19,7 @@
 #include "common/byte_io.hpp"
 #include "common/formats/byte_file.hpp"
 #include "common/formats/ply.hpp"
+#include "common/formats/replace_file.hpp"
 
 namespace pitmap::proc::mesh {
 
@@ -31,12 +33,14 @@ bool HasColours(const ColouredMesh& m) {
 
 Status WritePly(const ColouredMesh& mesh,
                 const std::string& path,
-                const std::optional<Geodetic>& origin) {
+                const std::optional<Geodetic>& origin,
+                const std::string& run_id) {
     namespace ply = formats::ply;
     const bool colours = HasColours(mesh);
     ply::Header h;
     h.comments.push_back("generator pitmap proc_mesh");
     if (origin) h.comments.push_back(ply::OriginComment(*origin));
+    if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
     ply::Element vertex{
         "vertex",
         mesh.vertices.size(),
@@ -66,15 +70,19 @@ Status WritePly(const ColouredMesh& mesh,
     return w.Close();
 }
 
+namespace {
+
 // OBJ text, formatted with std::to_chars into a buffer written in large blocks: printf's float
 // formatting was a third of the mesh stage on bejanca (two 150 MB files).
-Status WriteObj(const ColouredMesh& mesh,
-                const std::string& path,
-                const std::optional<Geodetic>& origin) {
+Status WriteObjTo(const ColouredMesh& mesh,
+                  const std::string& path,
+                  const std::optional<Geodetic>& origin,
+                  const std::string& run_id) {
     std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) return Error{path + ": cannot open for writing"};
+    if (f == nullptr) return Error{formats::ErrnoMessage(path, "cannot create", errno)};
     std::string head = "# pitmap proc_mesh: local ENU metres, vertex colours by depth\n";
     if (origin) head += "# " + formats::ply::OriginComment(*origin) + "\n";
+    if (!run_id.empty()) head += "# " + formats::ply::RunIdComment(run_id) + "\n";
     bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
     constexpr std::size_t kBlock = 1 << 20;
     constexpr std::size_t kLineMax = 160;  // longer than any line below
@@ -124,9 +132,21 @@ Status WriteObj(const ColouredMesh& mesh,
         if (out - buf.data() >= static_cast<std::ptrdiff_t>(kBlock)) flush();
     }
     flush();
-    ok = ok && std::ferror(f) == 0;
-    if (std::fclose(f) != 0 || !ok) return Error{path + ": write failed"};
+    ok = ok && std::ferror(f) == 0 && std::fflush(f) == 0;
+    const int err = errno;
+    if (std::fclose(f) != 0 || !ok) return Error{formats::ErrnoMessage(path, "write failed", err)};
     return Ok{};
+}
+
+}  // namespace
+
+Status WriteObj(const ColouredMesh& mesh,
+                const std::string& path,
+                const std::optional<Geodetic>& origin,
+                const std::string& run_id) {
+    return formats::WriteReplacing(path, [&](const std::string& partial) {
+        return WriteObjTo(mesh, partial, origin, run_id);
+    });
 }
 
 // The binary chunk is streamed to the file (ByteFileWriter) after the JSON chunk, whose
@@ -134,7 +154,8 @@ Status WriteObj(const ColouredMesh& mesh,
 // was built in a growing buffer and copied once more, 220 MB at the mesh stage's peak).
 Status WriteGlb(const ColouredMesh& mesh,
                 const std::string& path,
-                const std::optional<Geodetic>& origin) {
+                const std::optional<Geodetic>& origin,
+                const std::string& run_id) {
     using nlohmann::json;
     json doc;
     doc["asset"] = {{"version", "2.0"}, {"generator", "pitmap proc_mesh"}};
@@ -143,6 +164,7 @@ Status WriteGlb(const ColouredMesh& mesh,
                                                    {"longitude_deg", origin->longitude_deg},
                                                    {"height_m", origin->height_m}};
     }
+    if (!run_id.empty()) doc["asset"]["extras"]["pitmap_run_id"] = run_id;
     doc["scene"] = 0;
     const bool colours = !mesh.empty() && HasColours(mesh);
     const std::size_t nv = mesh.vertices.size();

@@ -477,6 +477,8 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kNominal, log);
     if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate)); !r)
+        return r;
     return detail::CalibrateSurvey(*s, config, log);
 }
 

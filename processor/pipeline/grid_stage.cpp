@@ -418,6 +418,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         {"pitmap_vertical_datum_description", datum->description},
         {"pitmap_uncertainty", "95 %: 1.96 x max(posterior sd, sd of the hypothesis' soundings)"},
         {"pitmap_density", "soundings in the chosen hypothesis"}};
+    // The run the grid belongs to: a GeoTIFF metadata item (for the BAG, GDAL's driver keeps
+    // only its own XML).
+    if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
     const std::string& P = s.out_dir;
     json files = json::array();
     if (gc.write_geotiff) {
@@ -430,7 +433,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     if (gc.write_sounding_tpu) {
         if (auto w = io::WriteSoundingTpuPly(
-                P + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m);
+                P + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m, s.model.run_id);
             !w) {
             return w;
         }
@@ -443,10 +446,11 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
         extras.vertical_wkt = datum->VerticalWkt();
         extras.vertical_name = datum->crs_name;
-        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras); !w) return w;
+        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras, s.model.run_id); !w) return w;
         files.push_back("points.ply");
         if (config.write_las) {
-            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras); !w) return w;
+            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras, s.model.run_id); !w)
+                return w;
             files.push_back("points.las");
         }
         tpu.thu_95_m = std::move(extras.thu_95_m);
@@ -505,6 +509,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         hol.metadata = {{"pitmap_holidays",
                          "IHO S-44 order " + std::string(hydro::ToString(r44.order)) +
                              ": 0 covered, 1 gap, 2 holiday, nodata outside the survey"}};
+        if (!s.model.run_id.empty()) hol.metadata.emplace_back("pitmap_run_id", s.model.run_id);
         std::string holiday_file;
         if (gc.write_geotiff) {
             if (auto w = io::WriteCogGeoTiff(P + "/s44_holidays.tif", hol); !w) return w;
@@ -566,6 +571,8 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
     if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kGrid)); !r)
+        return r;
     return detail::GridSurvey(*s, config, log);
 }
 

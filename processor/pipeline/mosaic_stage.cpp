@@ -104,6 +104,7 @@ Expected<json> MosaicSurvey(const Survey& s,
         {"pitmap_angular_correction",
          std::string(hydro::ToString(gc.mosaic_config.angular)) + ", referenced to " +
              std::to_string(gc.mosaic_config.reference_angle_deg) + " deg incidence"}};
+    if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
     if (auto w = io::WriteCogGeoTiff(s.out_dir + "/mosaic.tif", raster); !w) return w.error();
     rec["file"] = "mosaic.tif";
     return rec;

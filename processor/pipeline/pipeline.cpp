@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/config.hpp"
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
 #include "common/peak_memory.hpp"
@@ -121,15 +122,132 @@ void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& cl
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
-                   json& summary) {
-    if (auto s = io::WritePly(dir + "/points.ply", geo); !s) return s;
+                   json& summary,
+                   const std::string& run_id) {
+    if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm); !s) return s;
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id); !s) return s;
     }
     return Ok{};
+}
+
+std::vector<std::string> ProductsReplacedBy(Stage stage) {
+    const std::vector<std::string> slam = {
+        "trajectory_initial.csv", "trajectory.csv", "points_initial.ply"};
+    const std::vector<std::string> grid = {
+        "dem.tif", "dem.bag", "soundings_tpu.ply", "s44_holidays.tif", "mosaic.tif"};
+    const std::vector<std::string> mesh = {"mesh.ply",
+                                           "mesh.obj",
+                                           "mesh.glb",
+                                           "mesh_filled.ply",
+                                           "mesh_filled.obj",
+                                           "mesh_filled.glb"};
+    const std::vector<std::string> report = {"report.html", "report"};
+    std::vector<std::string> out;
+    const auto add = [&out](const std::vector<std::string>& names) {
+        out.insert(out.end(), names.begin(), names.end());
+    };
+    switch (stage) {
+        case Stage::kIngest:
+        case Stage::kGeoref:
+        case Stage::kExport:
+            add({survey::kSurveyFileName,
+                 "summary.json",
+                 "ingest.cache",  // the survey file's predecessor
+                 "points.ply",
+                 "points.las",
+                 "boresight.json",
+                 "trajectory_ins.csv",
+                 "tsdf.vdb",
+                 "mesh_initial.ply"});
+            add(slam);
+            add(grid);
+            add(mesh);
+            add(report);
+            break;
+        case Stage::kCalibrate:
+        case Stage::kSlam:
+            add(slam);
+            add(grid);
+            add({"tsdf.vdb", "mesh_initial.ply"});
+            add(mesh);
+            add(report);
+            break;
+        case Stage::kGrid:
+            add(grid);
+            add(report);
+            break;
+        case Stage::kFuse:
+        case Stage::kFuseInitial:
+            add({"tsdf.vdb"});
+            add(mesh);
+            add(report);
+            break;
+        case Stage::kMesh:
+        case Stage::kMeshInitial:
+            add(mesh);
+            add(report);
+            break;
+        case Stage::kReport:
+            add(report);
+            break;
+    }
+    return out;
+}
+
+std::vector<std::string> AllProducts() {
+    return ProductsReplacedBy(Stage::kGeoref);
+}
+
+Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>& names) {
+    std::error_code ec;
+    for (const std::string& name : names) {
+        const fs::path p = fs::path(out_dir) / name;
+        fs::remove_all(p, ec);
+        if (ec) return Error{p.string() + ": cannot remove the earlier product: " + ec.message()};
+    }
+    // What a killed writer left (common/formats/replace_file.hpp).
+    for (const auto& e : fs::directory_iterator(out_dir, ec)) {
+        if (formats::IsPartialName(e.path().filename().string())) {
+            std::error_code rec;
+            fs::remove(e.path(), rec);
+        }
+    }
+    return Ok{};
+}
+
+std::string ForeignProduct(const Survey& s,
+                           const std::string& file,
+                           const std::string& product_run_id) {
+    const std::string& run = s.model.run_id;
+    if (run.empty() || product_run_id == run) return "";
+    return s.out_dir + "/" + file + " is from another run (" +
+           (product_run_id.empty() ? std::string("no run id") : "run id " + product_run_id) + "; " +
+           survey::kSurveyFileName + " has run id " + run + ")";
+}
+
+json LoadSummaryOfRun(const std::string& out_dir,
+                      const survey::SurveyModel& model,
+                      const Log& log) {
+    json summary = json::object();
+    if (auto read = io::ReadSummaryJson(out_dir + "/summary.json"); !read) {
+        log("warning: " + read.error().message + "; summary.json is written anew");
+    } else if (const std::string theirs = read->value("run_id", std::string());
+               !model.run_id.empty() && theirs != model.run_id) {
+        // The report of another survey (a survey.pitmap copied in, a re-run killed half-way):
+        // nothing of it describes this survey, so it is started again rather than mixed.
+        log("warning: " + out_dir + "/summary.json is of another run (" +
+            (theirs.empty() ? std::string("no run id") : "run id " + theirs) + "; " +
+            survey::kSurveyFileName + " has run id " + model.run_id +
+            "); summary.json is written anew");
+    } else {
+        summary = std::move(*read);
+    }
+    if (!model.run_id.empty()) summary["run_id"] = model.run_id;
+    return summary;
 }
 
 Status SaveSummary(const Survey& s) {
@@ -167,13 +285,9 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     auto model = survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName);
     if (!model) return model.error();
     s.model = std::move(*model);
-    // The report this stage adds to; a damaged one is started again (it decides nothing).
-    if (auto summary = io::ReadSummaryJson(out_dir + "/summary.json"); summary) {
-        s.summary = std::move(*summary);
-    } else {
-        log("warning: " + summary.error().message + "; summary.json is written anew");
-        s.summary = json::object();
-    }
+    // The report this stage adds to; a damaged one, or one of another run, is started again
+    // (it decides nothing).
+    s.summary = LoadSummaryOfRun(out_dir, s.model, log);
     auto refraction = survey::BuildRefraction(s.model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
@@ -204,7 +318,7 @@ Status SaveSurvey(const Survey& s) {
 Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
     StageClock clock;
     if (points) {
-        if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary); !w) return w;
+        if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary, s.model.run_id); !w) return w;
     } else if (auto utm = georef::ToUtm(s.geo); utm) {
         s.summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     }
@@ -216,6 +330,7 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
         if (cal.is_object() && cal.contains("sd_deg")) bj["sd_deg"] = cal["sd_deg"];
     }
     bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
+    if (!s.model.run_id.empty()) bj["run_id"] = s.model.run_id;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)
         return w;
@@ -296,9 +411,15 @@ Status GeorefSurvey(Survey& s,
     if (files->empty()) return Error{"no input files"};
     const std::string vpath = VehicleFilePath(*files, config);
     io::IngestConfig icfg = config.ingest;
-    // A new georeference starts a new survey model and a new report.
+    // A new georeference starts a new survey model (a new run) and a new report; every product
+    // of an earlier one goes first, so that a failed or killed georef leaves nothing of the
+    // earlier survey beside what it wrote.
+    if (auto r = RemoveProducts(out_dir, AllProducts()); !r) return r;
     s.model = survey::SurveyModel{};
+    s.model.run_id = survey::NewRunId();
     s.summary = json::object();
+    s.summary["run_id"] = s.model.run_id;
+    log("run id " + s.model.run_id);
     std::optional<double> ins_height_m;
     if (vpath.empty()) {
         log("warning: no vehicle.yaml found beside " + files->front() +
@@ -408,25 +529,6 @@ Status GeorefSurvey(Survey& s,
     for (const auto& f : *files) s.summary["inputs"].push_back(fs::absolute(f).string());
     s.summary["mount"] = MountJson(s.model.mount);
 
-    // Products of an earlier georeference, now stale (the survey file is replaced below).
-    for (const char* stale : {"ingest.cache",  // the survey file's predecessor
-                              "trajectory.csv",
-                              "trajectory_initial.csv",
-                              "points_initial.ply",
-                              "tsdf.vdb",
-                              "mesh.ply",
-                              "mesh.obj",
-                              "mesh.glb",
-                              "mesh_filled.ply",
-                              "mesh_filled.obj",
-                              "mesh_filled.glb",
-                              "mesh_initial.ply",
-                              "dem.tif",
-                              "dem.bag",
-                              "soundings_tpu.ply",
-                              "report.html"}) {
-        fs::remove(fs::path(out_dir) / stale, ec);
-    }
     if (auto st = io::WriteInsTrajectoryCsv(
             out_dir + "/trajectory_ins.csv", s.model.ingest.nav, s.model.origin);
         !st)

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
 #include <sched.h>
-#include <spawn.h>
+#include <signal.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/blocked_range.h>
@@ -14,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 
@@ -37,6 +39,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
+
+// The file metadata key of tsdf.vdb that holds the survey's run id.
+constexpr const char* kRunIdKey = "pitmap_run_id";
 
 std::string Fixed(double v, int digits) {
     char b[64];
@@ -345,7 +350,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     // The per-ping products of this stage, written once: before and after.
     const std::string& P = s.out_dir;
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
-    if (auto w = io::WritePly(P + "/points_initial.ply", s.geo); !w) return w;
+    if (auto w = io::WritePly(P + "/points_initial.ply", s.geo, nullptr, s.model.run_id); !w)
+        return w;
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
@@ -460,7 +466,8 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
             {"pitmap_origin_latitude_deg", Fixed(s.model.origin.latitude_deg, 9)},
             {"pitmap_origin_longitude_deg", Fixed(s.model.origin.longitude_deg, 9)},
             {"pitmap_origin_height_m", Fixed(s.model.origin.height_m, 4)},
-            {"pitmap_frame", "local ENU at the origin, metres"}};
+            {"pitmap_frame", "local ENU at the origin, metres"},
+            {kRunIdKey, s.model.run_id}};
         if (auto w = fusion::WriteVdb(volume, s.out_dir + "/tsdf.vdb", meta); !w) return w.error();
     }
     RecordStage(s.summary, stage, st, clock);
@@ -486,8 +493,10 @@ Status MeshSurvey(Survey& s,
         // Six independent files (two meshes in three formats), written concurrently, largest
         // first: the OBJ text is most of the stage's export time. The first failure in this
         // fixed order is reported, whatever the threads' timing.
-        using Writer = Status (*)(
-            const mesh::ColouredMesh&, const std::string&, const std::optional<Geodetic>&);
+        using Writer = Status (*)(const mesh::ColouredMesh&,
+                                  const std::string&,
+                                  const std::optional<Geodetic>&,
+                                  const std::string&);
         struct Job {
             const mesh::ColouredMesh* mesh;
             std::string path;
@@ -505,7 +514,7 @@ Status MeshSurvey(Survey& s,
             tbb::blocked_range<std::size_t>(0, jobs.size(), 1),
             [&](const tbb::blocked_range<std::size_t>& range) {
                 for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                    written[i] = jobs[i].write(*jobs[i].mesh, jobs[i].path, origin);
+                    written[i] = jobs[i].write(*jobs[i].mesh, jobs[i].path, origin, s.model.run_id);
                 }
             },
             tbb::simple_partitioner());
@@ -513,7 +522,9 @@ Status MeshSurvey(Survey& s,
             if (!w) return w;
         }
     } else {
-        if (auto w = mesh::WritePly(m.mesh, P + "/" + stage_name + ".ply", origin); !w) return w;
+        if (auto w = mesh::WritePly(m.mesh, P + "/" + stage_name + ".ply", origin, s.model.run_id);
+            !w)
+            return w;
     }
     json st = {{"vertices", m.mesh.vertices.size()},
                {"triangles", m.mesh.triangles.size()},
@@ -543,9 +554,27 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
-    pid_t pid = 0;
-    if (posix_spawn(&pid, program.c_str(), nullptr, nullptr, argv.data(), environ) != 0) {
-        return Error{"report: cannot start " + program};
+    // fork + exec rather than posix_spawn: the child asks the kernel for SIGTERM when this
+    // process dies (PR_SET_PDEATHSIG, kept across exec), so a pitmap killed with -9 during the
+    // report takes pitmap-report (and through it its workers) along instead of leaving them
+    // running. The child also starts with SIGTERM unblocked and at its default action, whatever
+    // this process inherited (a blocked or ignored SIGTERM passes through exec). Between fork
+    // and exec only async-signal-safe calls.
+    const pid_t parent = ::getpid();
+    const pid_t pid = ::fork();
+    if (pid < 0) return Error{"report: cannot start " + program + ": " + std::strerror(errno)};
+    if (pid == 0) {
+        sigset_t none;
+        ::sigemptyset(&none);
+        ::sigprocmask(SIG_SETMASK, &none, nullptr);
+        struct sigaction dfl {};
+        dfl.sa_handler = SIG_DFL;
+        ::sigaction(SIGTERM, &dfl, nullptr);
+        ::sigaction(SIGINT, &dfl, nullptr);
+        ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+        if (::getppid() != parent) ::_exit(127);  // the parent died before the prctl
+        ::execve(program.c_str(), argv.data(), environ);
+        ::_exit(127);
     }
     int status = 0;
     struct rusage usage {};
@@ -571,12 +600,16 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kBeforeSlam, log);
     if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
+        return r;
     return detail::SlamSurvey(*s, config, log);
 }
 
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
     if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kFuse)); !r)
+        return r;
     auto v = detail::FuseSurvey(*s, config, Stage::kFuse, log);
     if (!v) return v.error();
     return Ok{};
@@ -593,12 +626,7 @@ Expected<detail::Survey> LoadState(const std::string& out_dir, const Log& log) {
     detail::Survey s;
     s.out_dir = out_dir;
     s.model = std::move(*model);
-    if (auto summary = io::ReadSummaryJson(out_dir + "/summary.json"); summary) {
-        s.summary = std::move(*summary);
-    } else {
-        log("warning: " + summary.error().message + "; summary.json is written anew");
-        s.summary = json::object();
-    }
+    s.summary = detail::LoadSummaryOfRun(out_dir, s.model, log);
     return s;
 }
 
@@ -615,14 +643,29 @@ int CoresAvailable() {
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = LoadState(out_dir, log);
     if (!s) return s.error();
-    auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb");
+    std::vector<std::pair<std::string, std::string>> meta;
+    auto volume = fusion::ReadVdb(out_dir + "/tsdf.vdb", {}, &meta);
     if (!volume) return Error{volume.error().message + " (run `pitmap fuse` first)"};
+    // A volume of another survey (or of a run killed before it replaced the volume) would mesh
+    // the wrong seabed under this survey's name.
+    std::string volume_run;
+    for (const auto& [k, v] : meta) {
+        if (k == kRunIdKey) volume_run = v;
+    }
+    if (const std::string foreign = detail::ForeignProduct(*s, "tsdf.vdb", volume_run);
+        !foreign.empty()) {
+        return Error{foreign + ": run `pitmap fuse` again"};
+    }
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kMesh)); !r)
+        return r;
     return detail::MeshSurvey(*s, *volume, config, Stage::kMesh, log);
 }
 
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = LoadState(out_dir, log);
     if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kReport)); !r)
+        return r;
     return detail::ReportSurvey(*s, config, log);
 }
 
@@ -664,7 +707,8 @@ Status RunAll(const std::vector<std::string>& inputs,
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) {
             // The points without THU/TVU rather than none.
-            if (grid_points) (void)detail::WritePoints(out_dir, s.geo, config, s.summary);
+            if (grid_points)
+                (void)detail::WritePoints(out_dir, s.geo, config, s.summary, s.model.run_id);
             return st;
         }
     }

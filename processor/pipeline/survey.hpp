@@ -46,14 +46,34 @@ Status SetUpRefraction(Survey& s,
                        std::optional<double> vehicle_ins_height_m,
                        const Log& log);
 
+// The products (file names in P) a stage command replaces: removed before it runs, with those
+// of the stages that depend on its output (calibrate and slam: every later product; fuse: the
+// meshes) and report.html, so that a stage that fails or is killed half-way leaves no product
+// of the previous state beside the new one. kGeoref: every product of the folder, the survey
+// file and summary.json included (AllProducts). kReport: the report only.
+std::vector<std::string> ProductsReplacedBy(Stage stage);
+// Every product a pitmap command writes in P (not P/.pitmap.lock, not scores.json).
+std::vector<std::string> AllProducts();
+// Removes `names` (files or folders) from P and any *.partial file a killed writer left; an
+// error names what could not be removed and why.
+Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>& names);
+
+// The run id check of a product: "" when `product_run_id` is this survey's run id (or the
+// survey has none, written before run ids), else why it does not belong
+// ("P/tsdf.vdb is from another run (id X; survey.pitmap has Y)").
+std::string ForeignProduct(const Survey& s,
+                           const std::string& file,
+                           const std::string& product_run_id);
+
 // What a stage command starts from.
 enum class StartFrom {
     kLatest,      // the newest trajectory (fuse, grid)
     kNominal,     // the state before any calibration (calibrate)
     kBeforeSlam,  // the calibrated trajectory, an earlier SLAM's dropped (slam)
 };
-// Loads P/survey.pitmap (and P/summary.json, to add to the report; a missing or unreadable one
-// starts a new report), moves the model to `start` and georeferences it once.
+// Loads P/survey.pitmap (and P/summary.json, to add to the report; a missing or unreadable one,
+// or one of another run than survey.pitmap (its run_id differs), starts a new report with a
+// warning), moves the model to `start` and georeferences it once.
 Expected<Survey> LoadSurvey(const std::string& out_dir,
                             const PipelineConfig& config,
                             StartFrom start,
@@ -95,11 +115,19 @@ void RecordStage(nlohmann::json& summary,
 
 using survey::MountJson;
 
-// points.ply, points.las (when configured) and summary["utm"] for the current soundings.
+// points.ply, points.las (when configured, both with the run id) and summary["utm"] for the
+// current soundings.
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
-                   nlohmann::json& summary);
+                   nlohmann::json& summary,
+                   const std::string& run_id);
+
+// summary.json of P for the survey `model`: the file when it is readable and of the same run,
+// else a new report {run_id} with a warning saying why.
+nlohmann::json LoadSummaryOfRun(const std::string& out_dir,
+                                const survey::SurveyModel& model,
+                                const Log& log);
 
 Status SaveSummary(const Survey& s);
 

@@ -1,12 +1,33 @@
 // SPDX-License-Identifier: MIT
 #include "processor/survey/survey.hpp"
 
+#include <cstdio>
 #include <exception>
+#include <random>
 #include <utility>
 
 #include "processor/io/svp_files.hpp"
 
 namespace pitmap::proc::survey {
+
+std::string NewRunId() {
+    std::random_device rd;
+    std::string id;
+    for (int i = 0; i < 4; ++i) {
+        char b[9];
+        std::snprintf(b, sizeof b, "%08x", static_cast<unsigned>(rd()));
+        id += b;
+    }
+    return id;
+}
+
+bool IsRunId(const std::string& id) {
+    if (id.size() != 32) return false;
+    for (char c : id) {
+        if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
+    }
+    return true;
+}
 
 using nlohmann::json;
 

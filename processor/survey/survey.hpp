@@ -89,6 +89,10 @@ enum class CalibrationState : std::uint8_t {
 const char* ToString(CalibrationState s);
 
 struct SurveyModel {
+    // The run: a random 128-bit id (32 lower-case hex digits, NewRunId) made when georef starts
+    // a new model; every product and summary.json of this survey carries it, so a stage or the
+    // report can tell a product of another run. "" = a survey written before run ids.
+    std::string run_id;
     io::IngestResult ingest;
     std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
     georef::SonarMount nominal_mount;
@@ -113,6 +117,11 @@ struct SurveyModel {
     // (then any view of the survey must be made again).
     bool ResetCalibration();
 };
+
+// A new run id: 128 random bits (std::random_device) as 32 lower-case hex digits.
+std::string NewRunId();
+// Whether `id` is a run id as NewRunId makes them.
+bool IsRunId(const std::string& id);
 
 // The casts of a refraction record (read from its files); null for straight rays. A missing or
 // bad cast file is an error naming it.

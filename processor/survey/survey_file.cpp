@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <bit>
+#include <cerrno>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/formats/replace_file.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 
 namespace pitmap::proc::survey {
@@ -172,29 +174,37 @@ json StateJson(const SurveyModel& m) {
                       {"surface_speed", svp::ToString(m.refraction.surface_speed)},
                       {"ins_height_above_waterline_m", m.refraction.ins_height_above_waterline_m}};
     }
-    return {{"vehicle_yaml", m.vehicle_yaml},
-            {"nominal_mount", MountJson(m.nominal_mount)},
-            {"mount", MountJson(m.mount)},
-            {"world_origin", OriginJson(m.origin)},
-            {"sonar_clock",
-             {{"configured", c.configured},
-              {"configured_offset_s", c.configured_offset_s},
-              {"coarse_correction_s", c.coarse_correction_s},
-              {"coarse_sigma_s", c.coarse_sigma_s},
-              {"latency_applied", c.latency_applied},
-              {"latency_s", c.latency_s},
-              {"latency_formal_sd_s", c.latency_formal_sd_s},
-              {"rate_ppm", c.rate_ppm},
-              {"rate_sigma_ppm", c.rate_sigma_ppm},
-              {"rate_reference_utime", c.rate_reference_utime}}},
-            {"refraction", refraction},
-            {"calibration", ToString(m.calibration)}};
+    json state = {{"vehicle_yaml", m.vehicle_yaml},
+                  {"nominal_mount", MountJson(m.nominal_mount)},
+                  {"mount", MountJson(m.mount)},
+                  {"world_origin", OriginJson(m.origin)},
+                  {"sonar_clock",
+                   {{"configured", c.configured},
+                    {"configured_offset_s", c.configured_offset_s},
+                    {"coarse_correction_s", c.coarse_correction_s},
+                    {"coarse_sigma_s", c.coarse_sigma_s},
+                    {"latency_applied", c.latency_applied},
+                    {"latency_s", c.latency_s},
+                    {"latency_formal_sd_s", c.latency_formal_sd_s},
+                    {"rate_ppm", c.rate_ppm},
+                    {"rate_sigma_ppm", c.rate_sigma_ppm},
+                    {"rate_reference_utime", c.rate_reference_utime}}},
+                  {"refraction", refraction},
+                  {"calibration", ToString(m.calibration)}};
+    // Optional (surveys written before run ids have none): no format version change.
+    if (!m.run_id.empty()) state["run_id"] = m.run_id;
+    return state;
 }
 
 // The state section into `m`; an error says which key is wrong.
 Status StateFromJson(const json& j, SurveyModel& m) {
     try {
         m.vehicle_yaml = j.at("vehicle_yaml").get<std::string>();
+        m.run_id.clear();
+        if (const auto id = j.find("run_id"); id != j.end()) {
+            m.run_id = id->get<std::string>();
+            if (!IsRunId(m.run_id)) return Error{"run_id: not 32 lower-case hex digits"};
+        }
         auto nominal = MountFromJson(j.at("nominal_mount"));
         if (!nominal) return Error{"nominal_mount: " + nominal.error().message};
         m.nominal_mount = *nominal;
@@ -406,17 +416,20 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
     }
     const std::string partial = path + ".partial";
     std::FILE* f = std::fopen(partial.c_str(), "wb");
-    if (f == nullptr) return Error{partial + ": cannot create"};
+    if (f == nullptr) return Error{formats::ErrnoMessage(partial, "cannot create", errno)};
     const std::uint32_t head[3] = {
         kSurveyFormatVersion, kByteOrder, static_cast<std::uint32_t>(sections.size())};
     bool ok = std::fwrite(kMagic, 1, sizeof kMagic, f) == sizeof kMagic &&
               std::fwrite(head, sizeof head, 1, f) == 1;
     for (const auto& [tag, payload] : sections) ok = ok && WriteSection(f, tag, payload.bytes());
     ok = ok && std::fflush(f) == 0 && std::ferror(f) == 0;
+    int err = errno;
     if (std::fclose(f) != 0 || !ok) {
+        if (ok) err = errno;
         std::error_code ec;
         fs::remove(partial, ec);
-        return Error{path + ": write failed (disk full?); the previous survey file is kept"};
+        return Error{formats::ErrnoMessage(path, "write failed", err) +
+                     "; the previous survey file is kept"};
     }
     std::error_code ec;
     fs::rename(partial, path, ec);

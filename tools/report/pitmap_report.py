@@ -47,10 +47,14 @@ from pitmap_report_lib.gltf import CheckGlb, GlbError, GltfPage  # noqa: E402,F4
 from pitmap_report_lib.loaders import Ply, PlyError  # noqa: E402,F401
 from pitmap_report_lib.rasters import RasteriseMesh, RasterMax, RasterMean  # noqa: E402,F401
 from pitmap_report_lib.report import Report  # noqa: E402
-from pitmap_report_lib.util import PROG, GpsToUtc, Log, ReportError  # noqa: E402,F401
+from pitmap_report_lib.util import (  # noqa: E402,F401
+    PROG, DieWithParent, GpsToUtc, Log, ReportError)
 
 
 def main(argv=None):
+    # Ends with whatever started it (pitmap run, a shell), and on SIGTERM; its section workers
+    # likewise end with it (Report.Build).
+    DieWithParent()
     ap = argparse.ArgumentParser(prog=PROG, description="Write P/report.html (self-contained, "
                                  "PNG plots embedded) and P/report/*.png from a pitmap products "
                                  "folder P.")

@@ -120,6 +120,37 @@ TEST(AcqdConfigCheckTest, WarningsAloneDoNotFailTheCheck) {
     EXPECT_NE(testing::ReadText(dir + "/err.txt").find("warning: channels[0]"), std::string::npos);
 }
 
+// Issue 34: /dev/null is a character device but no serial port: the daemon would open it, read
+// nothing and retry for ever. --check-config refuses it (exit 2), start-up too (exit 1).
+TEST(AcqdConfigCheckTest, SerialPathThatIsNotATerminalIsAProblem) {
+    const std::string dir = testing::FreshDir("acqd_check_notty");
+    testing::WriteText(dir + "/plain", "not a device");
+    testing::WriteText(dir + "/c.yaml",
+                       "lcm_url: \"memq://\"\nlog:\n  directory: " + dir +
+                           "/logs\nchannels:\n  - id: nov\n    protocol: novatel\n"
+                           "    serial: {path: /dev/null, baud: 115200}\n"
+                           "  - id: nov2\n    protocol: novatel\n"
+                           "    serial: {path: " +
+                           dir + "/plain, baud: 115200}\n");
+    pid_t pid =
+        testing::SpawnAcqd({"--config", dir + "/c.yaml", "--check-config"}, dir + "/err.txt");
+    EXPECT_EQ(testing::WaitExit(pid), 2);
+    std::string err = testing::ReadText(dir + "/err.txt");
+    EXPECT_NE(err.find("2 problem(s)"), std::string::npos) << err;
+    EXPECT_NE(err.find("channels[0] (nov): serial device /dev/null is not a terminal device"),
+              std::string::npos)
+        << err;
+    EXPECT_NE(err.find("channels[1] (nov2): serial device " + dir + "/plain is not a character"),
+              std::string::npos)
+        << err;
+    EXPECT_EQ(err.find("warning: channels[0]"), std::string::npos) << err;
+    pid = testing::SpawnAcqd({"--config", dir + "/c.yaml"}, dir + "/err2.txt");
+    EXPECT_EQ(testing::WaitExit(pid), 1);
+    err = testing::ReadText(dir + "/err2.txt");
+    EXPECT_NE(err.find("/dev/null is not a terminal device"), std::string::npos) << err;
+    EXPECT_EQ(err.find("running"), std::string::npos) << err;
+}
+
 TEST(AcqdConfigCheckTest, StartUpChecksTheHostBeforeStartingAndListsEverything) {
     const std::string dir = testing::FreshDir("acqd_check_start");
     // Valid YAML, but the log directory is under /proc and the fallback too: exit 1 at

@@ -297,6 +297,40 @@ void ExpectSum(const IngestCounts& all, const std::vector<const IngestCounts*>& 
     EXPECT_EQ(all.events_by_channel, by_channel);
 }
 
+// Issue 34: a .83P record cut short (a file copied before the sonar PC finished writing it) is
+// a warning naming the file and the byte offset where the record starts, besides the count;
+// the whole records before it are kept.
+TEST(Ingest83PFiles, RecordCutShortIsAWarningWithTheOffset) {
+    std::vector<std::uint8_t> bytes;
+    std::size_t last_start = 0;
+    for (int i = 0; i < 4; ++i) {
+        dt::Ping83P p;
+        p.format_version = dt::kVersion110;
+        dt::SetHeaderTime(p, 1'709'300'000'000'000 + i * 100'000);
+        p.sector_size_deg = 120;
+        p.start_angle_cdeg = -6000;
+        p.angle_increment_cdeg = 50;
+        p.range_resolution_mm = 10;
+        p.ping_number = static_cast<std::uint32_t>(i);
+        p.range_counts.assign(240, 900);
+        const auto rec = dt::EncodeRecord83P(p);
+        last_start = bytes.size();
+        bytes.insert(bytes.end(), rec.begin(), rec.end());
+    }
+    const std::size_t cut = (bytes.size() - last_start) / 2;
+    bytes.resize(bytes.size() - cut);
+    const std::string path = WriteFile("cut.83P", bytes);
+    IngestResult r;
+    ASSERT_TRUE(Ingest83PFiles({path}, {}, -1, r).ok());
+    EXPECT_EQ(r.pings.pings.size(), 3u);
+    EXPECT_EQ(r.counts.raw_skipped_bytes, static_cast<std::int64_t>(bytes.size() - last_start));
+    ASSERT_EQ(r.warnings.size(), 1u);
+    const std::string& w = r.warnings[0];
+    EXPECT_NE(w.find(path), std::string::npos) << w;
+    EXPECT_NE(w.find("cut short"), std::string::npos) << w;
+    EXPECT_NE(w.find("byte offset " + std::to_string(last_start)), std::string::npos) << w;
+}
+
 // Issue 16: IngestFiles on a mix of a .83P file, a NovAtel file and an LCM log keeps every
 // count of each input (and each is non-zero, so a dropped one shows).
 TEST(IngestFiles, MixOf83PNovatelAndLcmKeepsEveryCount) {

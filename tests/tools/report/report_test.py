@@ -16,10 +16,12 @@ import importlib.util
 import json
 import os
 import re
+import signal
 import struct
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import numpy as np
@@ -101,7 +103,7 @@ def WriteMosaic(folder, grid):
         "angular_response_deg_db_count": [[k + 0.5, 6.0 - 0.2 * k, 100] for k in range(80)]}
 
 
-def WriteProducts(folder, full=True):
+def WriteProducts(folder, full=True, points_per_pose=21):
     """A tiny survey: two laps around a bowl; before SLAM the track drifts in height."""
     os.makedirs(folder, exist_ok=True)
     t = GPS_T0 + np.arange(0, 120, 0.2)
@@ -117,7 +119,7 @@ def WriteProducts(folder, full=True):
 
     Traj(os.path.join(folder, "trajectory.csv"), np.zeros_like(t))
     # Points: a fan of beams across the track at every pose.
-    beams = np.linspace(-10, 10, 21)
+    beams = np.linspace(-10, 10, points_per_pose)
     px = (x[:, None] + beams[None, :] * np.cos(ang)[:, None]).ravel()
     py = (y[:, None] + beams[None, :] * np.sin(ang)[:, None]).ravel()
     pt = np.repeat(t, len(beams))
@@ -436,6 +438,104 @@ class ReportTest(unittest.TestCase):
                          r"not produced: trajectory_initial\.csv \(unreadable: [^<]*gps_time_s")
         # The before-SLAM cloud is still cut.
         self.assertIn("data:image/png", sec["cross-sections"])
+
+    def test_products_of_another_run_are_left_out_with_a_line(self):
+        # Issue 34: summary.json names its run; points.ply and mesh.ply of another run (a
+        # re-run killed half-way, a survey.pitmap copied in) are not drawn, and the page says so.
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        run, other = "a" * 32, "b" * 32
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        summary["run_id"] = run
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        pts = LoadModule().Ply(os.path.join(p, "points.ply")).elements["vertex"]
+        arrays = {name: np.array(pts[name]) for name, _, _ in POINT_PROPS}
+        origin = "pitmap_origin 40.4435 -7.7804 412.0"
+        WritePly(os.path.join(p, "points.ply"), POINT_PROPS, arrays,
+                 comments=[origin, "pitmap_run_id " + other])
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            page = f.read()
+        sec = Sections(page)
+        self.assertIn(f"points.ply is from another run (id {other}); not drawn", page)
+        self.assertIn(f"mesh.ply is from another run (it has no run id); not drawn", page)
+        self.assertRegex(sec["depth"], r"not produced: points\.ply \(points\.ply is from another")
+        self.assertNotIn("data:image/png", sec["depth"])
+        # The same points with this run's id are drawn.
+        WritePly(os.path.join(p, "points.ply"), POINT_PROPS, arrays,
+                 comments=[origin, "pitmap_run_id " + run])
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
+            page = f.read()
+        self.assertNotIn("points.ply is from another run", page)
+        self.assertIn("data:image/png", Sections(page)["depth"])
+
+    def test_report_and_its_workers_end_when_their_parent_is_killed(self):
+        # Issue 34: `pitmap run` killed with -9 during the report left two section workers
+        # running for hours. Here a parent starts pitmap-report with two workers and is killed
+        # while they draw; within a few seconds neither the report nor a worker is left.
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True, points_per_pose=400)
+        parent = subprocess.Popen(
+            [sys.executable, "-c",
+             "import subprocess, sys\n"
+             "c = subprocess.Popen([sys.argv[1], sys.argv[2], '--jobs', '2'],\n"
+             "                     stderr=subprocess.DEVNULL)\n"
+             "print(c.pid, flush=True)\n"
+             "c.wait()\n", REPORT, p],
+            stdout=subprocess.PIPE, text=True)
+        report_pid = int(parent.stdout.readline())
+
+        def Children(pid):
+            out = []
+            for d in os.listdir("/proc"):
+                if d.isdigit():
+                    try:
+                        with open(f"/proc/{d}/stat") as f:
+                            fields = f.read().rsplit(")", 1)[1].split()
+                    except OSError:
+                        continue
+                    if int(fields[1]) == pid and fields[0] != "Z":
+                        out.append(int(d))
+            return out
+
+        def Alive(pid):
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+            except OSError:
+                return False
+
+        def Command(pid):
+            try:
+                with open(f"/proc/{pid}/cmdline") as f:
+                    return f.read()
+            except OSError:
+                return ""
+
+        deadline = time.monotonic() + 120
+        workers = []
+        while time.monotonic() < deadline and len(workers) < 2 and Alive(report_pid):
+            workers = [w for w in Children(report_pid)
+                       if "pitmap-ply-layout" not in Command(w)]
+            time.sleep(0.02)
+        self.assertEqual(len(workers), 2, "the report started no two section workers")
+        parent.kill()
+        parent.wait()
+        parent.stdout.close()
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and any(Alive(q) for q in [report_pid] + workers):
+            time.sleep(0.05)
+        left = [q for q in [report_pid] + workers if Alive(q)]
+        for q in left:
+            os.kill(q, signal.SIGKILL)
+        self.assertEqual(left, [], "still running 5 s after their parent was killed")
+        self.assertFalse(os.path.exists(os.path.join(p, "report.html")),
+                         "the report finished before the kill: the test proved nothing")
 
     def test_scores_option(self):
         p = os.path.join(self.dir, "P")

@@ -19,6 +19,10 @@ class PlyError(Exception):
     pass
 
 
+class ForeignProductError(PlyError):
+    """A product of another run than summary.json's (its pitmap_run_id differs): not drawn."""
+
+
 class Ply:
     """A binary PLY file: header facts plus one numpy structured array per element.
 
@@ -72,6 +76,13 @@ class Ply:
         """pitmap_origin (lat, lon, h) of the header comments, None without one."""
         return self._origin
 
+    def run_id(self):
+        """The pitmap_run_id comment's id (the survey run that wrote the file), None without."""
+        for c in self.comments:
+            if c.startswith("pitmap_run_id "):
+                return c[len("pitmap_run_id "):].strip()
+        return None
+
 
 def ReadTrajectory(path):
     """gps_time_s, x_m, y_m, z_m columns of a trajectory CSV as a dict of float arrays."""
@@ -111,6 +122,10 @@ class Products:
             raise ReportError(f"{path}: cannot read: {e}")
         if not isinstance(self.summary, dict):
             raise ReportError(f"{path}: not a JSON object")
+        # The run summary.json describes (pitmap georef makes one per survey); a product that
+        # names another run is left out (ForeignRun). None: a folder written before run ids.
+        rid = self.summary.get("run_id")
+        self.run_id = rid if isinstance(rid, str) and rid else None
         self.stages = self.summary.get("stages") or {}
         if not isinstance(self.stages, dict):
             self.stages = {}
@@ -130,6 +145,20 @@ class Products:
         if name not in self.missing:
             self.missing.append(name)
         return NotProduced(name, self.unusable.get(name, why))
+
+    def ForeignRun(self, name, product_run_id):
+        """Why `name` is not drawn when it names another run than summary.json (a product left
+        by an earlier survey, or a survey.pitmap copied in), else None. The line is added to
+        the report's problems once."""
+        if self.run_id is None or product_run_id == self.run_id:
+            return None
+        what = f"(id {product_run_id})" if product_run_id else "(it has no run id)"
+        msg = (f"{name} is from another run {what}; not drawn (summary.json run id "
+               f"{self.run_id})")
+        if msg not in self.problems:
+            self.problems.append(msg)
+        Log(msg)
+        return msg
 
     def CheckOrigin(self, ply, name):
         """A product whose pitmap_origin differs from summary.json's world_origin would be
@@ -171,6 +200,10 @@ class Products:
                 continue
             try:
                 ply = Ply(self.P(name))
+                foreign = self.ForeignRun(name, ply.run_id())
+                if foreign:
+                    self.unusable[name] = foreign
+                    continue
                 v = ply.elements.get("vertex")
                 if v is None or not all(c in v.dtype.names for c in ("x", "y", "z")):
                     raise PlyError(f"{name}: no vertex x, y, z")
@@ -192,6 +225,10 @@ class Products:
         if not os.path.isfile(self.P(name)):
             return None
         ply = Ply(self.P(name))
+        if self.run_id is not None and ply.run_id() != self.run_id:
+            what = f"(id {ply.run_id()})" if ply.run_id() else "(it has no run id)"
+            raise ForeignProductError(f"{name} is from another run {what}; not drawn "
+                                      f"(summary.json run id {self.run_id})")
         v = ply.elements.get("vertex")
         f = ply.elements.get("face")
         if v is None or f is None:

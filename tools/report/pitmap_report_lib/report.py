@@ -20,7 +20,7 @@ from .sections_hydro import HydroSections  # noqa: E402
 from .sections_stats import StatsSections  # noqa: E402
 from .sections_survey import SurveySections  # noqa: E402
 from .sections_viewer import ViewerSection  # noqa: E402
-from .util import Esc, Log  # noqa: E402
+from .util import DieWithParent, Esc, Log  # noqa: E402
 
 
 class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSection,
@@ -97,7 +97,9 @@ class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSe
                            if self.SECTIONS[i][0] in heavy else len(heavy) + i)
             try:
                 with ProcessPoolExecutor(max_workers=jobs,
-                                         mp_context=multiprocessing.get_context("fork")) as ex:
+                                         mp_context=multiprocessing.get_context("fork"),
+                                         initializer=DieWithParent,
+                                         initargs=(os.getpid(),)) as ex:
                     futures = {i: ex.submit(_RunSectionOfReport, i) for i in order}
                     for i, fut in futures.items():
                         results[i] = fut.result()

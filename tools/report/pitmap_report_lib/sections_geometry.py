@@ -205,7 +205,8 @@ class GeometrySections:
                 m = self.LoadMesh(name)
             except (OSError, PlyError) as e:
                 out.append(NotProduced(name, str(e)))
-                self.problems.append(str(e))
+                if str(e) not in self.problems:
+                    self.problems.append(str(e))
                 continue
             if m is None:
                 out.append(self.Missing(name, "no mesh before SLAM" if key == "initial"

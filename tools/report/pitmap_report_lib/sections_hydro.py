@@ -197,6 +197,9 @@ class HydroSections:
             return self.Missing("mosaic.tif", "python3-gdal is not installed")
         gdal.UseExceptions()
         ds = gdal.Open(self.P("mosaic.tif"))
+        foreign = self.ForeignRun("mosaic.tif", ds.GetMetadataItem("pitmap_run_id"))
+        if foreign:
+            return NotProduced("mosaic.tif", foreign)
         gt = ds.GetGeoTransform()
         bands = {ds.GetRasterBand(b).GetDescription(): ds.GetRasterBand(b).ReadAsArray()
                  for b in range(1, ds.RasterCount + 1)}

@@ -83,7 +83,9 @@ class SurveySections:
             if os.path.isfile(self.P(name)):
                 try:
                     ply = Ply(self.P(name))
-                    rows.append((f"Mesh {name}", f"{Num(ply.counts.get('vertex', 0))} vertices, "
+                    foreign = self.ForeignRun(name, ply.run_id())
+                    rows.append((f"Mesh {name}", Esc(foreign) if foreign else
+                                 f"{Num(ply.counts.get('vertex', 0))} vertices, "
                                  f"{Num(ply.counts.get('face', 0))} triangles"))
                 except (OSError, PlyError) as e:
                     rows.append((f"Mesh {name}", Esc(e)))
@@ -169,6 +171,11 @@ class SurveySections:
             try:
                 with open(bs_file) as f:
                     mount = json.load(f)
+                foreign = self.ForeignRun("boresight.json", mount.get("run_id")
+                                          if isinstance(mount, dict) else None)
+                if foreign:
+                    out.append(NotProduced("boresight.json", foreign))
+                    mount = None
             except (OSError, ValueError) as e:
                 out.append(NotProduced("boresight.json", f"unreadable: {e}"))
         else:

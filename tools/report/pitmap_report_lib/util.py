@@ -2,12 +2,14 @@
 """Logging, errors and HTML helpers shared by every part of pitmap-report."""
 
 import base64
+import ctypes
 import datetime
 import html
 import math
 import os
 import re
 import resource
+import signal
 import sys
 import time
 
@@ -21,6 +23,27 @@ START_TIME = time.monotonic()
 GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06 00:00:00 UTC
 # GPS - UTC comes from summary.json "time" (written by `pitmap georef` from the receiver's TIME
 # log or the C++ leap-second table, common/gps_time): the report keeps no table of its own.
+
+
+PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
+
+
+def DieWithParent(parent_pid=None):
+    """SIGTERM unblocked and at its default action (an inherited blocked or ignored SIGTERM
+    passes through fork and exec: such a process is deaf to `kill`), and SIGTERM from the kernel
+    when the parent dies (prctl PR_SET_PDEATHSIG), so that a report whose pitmap was killed, or
+    a section worker whose report was, does not run on alone. With `parent_pid`, a parent that
+    died before the prctl (the process was re-parented already) ends this process at once.
+    Linux only; elsewhere a no-op."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if parent_pid is not None and os.getppid() != parent_pid:
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def PeakRssMb():
