@@ -193,15 +193,17 @@ void CheckLayout(ConfigReader& r, const VehicleDescription& v) {
                          "sign flipped?");
         } else if (draft > kMaxDraftM) {
             s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(draft) +
-                         " m below the water line" + where + ", deeper than a surface vehicle's "
-                         "hull (" + Num(kMaxDraftM) + " m); z in centimetres? " + Num(a.z()) +
-                         " cm is " + Num(a.z() / 100.0) + " m");
+                         " m below the water line" + where +
+                         ", deeper than a surface vehicle's "
+                         "hull (" +
+                         Num(kMaxDraftM) + " m); z in centimetres? " + Num(a.z()) + " cm is " +
+                         Num(a.z() / 100.0) + " m");
         }
         for (std::size_t i = 0; i < v.gnss_antenna_lever_arms_m.size(); ++i) {
             const Eigen::Vector3d& b = v.gnss_antenna_lever_arms_m[i];
             if (b.cwiseAbs().maxCoeff() <= kMaxLeverArmM && b.z() - h > 0) {
-                g.AddProblem(g.Path("antenna_lever_arms_m") + "[" + std::to_string(i) + "]: " +
-                             Vec(b) + " puts the antenna " + Num(b.z() - h) +
+                g.AddProblem(g.Path("antenna_lever_arms_m") + "[" + std::to_string(i) +
+                             "]: " + Vec(b) + " puts the antenna " + Num(b.z() - h) +
                              " m below the water line: z points down; is its sign flipped?");
             }
         }
@@ -211,7 +213,8 @@ void CheckLayout(ConfigReader& r, const VehicleDescription& v) {
     } else if (a.z() > kMaxDraftM + kMaxSonarAboveInsM) {
         s.AddProblem(key + ": " + Vec(a) + " puts the transducer " + Num(a.z()) +
                      " m below the INS, deeper than a surface vehicle's hull; z in "
-                     "centimetres? " + Num(a.z()) + " cm is " + Num(a.z() / 100.0) + " m");
+                     "centimetres? " +
+                     Num(a.z()) + " cm is " + Num(a.z() / 100.0) + " m");
     }
 }
 

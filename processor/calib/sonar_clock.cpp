@@ -575,11 +575,13 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
         if (!std::isfinite(sr.best)) continue;
         const double h = cfg.scan_step_s;
         off[i].ok = true;
-        off[i].d = ParabolaVertex(sr.best_c, h, score(sr.best_c - h), sr.best, score(sr.best_c + h));
+        off[i].d =
+            ParabolaVertex(sr.best_c, h, score(sr.best_c - h), sr.best, score(sr.best_c + h));
         // Waves resolve a segment's timing to about a scan step; a position fix to its age's
         // spread (a ping interval and the serial latency).
-        off[i].sigma = use_attitude ? h : std::hypot(T / std::sqrt(12.0), 0.1) /
-                                              std::sqrt(std::max(1.0, a.size() / 10.0));
+        off[i].sigma = use_attitude ? h
+                                    : std::hypot(T / std::sqrt(12.0), 0.1) /
+                                          std::sqrt(std::max(1.0, a.size() / 10.0));
     }
     // Consecutive segments on one clock form a group; the longest group is the reference.
     std::vector<int> group(num_seg, 0);
@@ -618,8 +620,8 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
             gd[g] = off[i].d;
         }
     }
-    const auto ref = static_cast<std::size_t>(
-        std::max_element(gsize.begin(), gsize.end()) - gsize.begin());
+    const auto ref =
+        static_cast<std::size_t>(std::max_element(gsize.begin(), gsize.end()) - gsize.begin());
     if (num_groups > 1) {
         for (std::size_t i = 0; i < num_seg; ++i) {
             if (i > 0 && group[i] == group[i - 1]) continue;
@@ -664,13 +666,13 @@ void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps) {
         const std::size_t b = steps.segment_shift_s[i].first;
         const std::size_t e =
             i + 1 < steps.segment_shift_s.size() ? steps.segment_shift_s[i + 1].first : P.size();
-        const auto d = static_cast<std::int64_t>(std::llround(steps.segment_shift_s[i].second * 1e6));
+        const auto d =
+            static_cast<std::int64_t>(std::llround(steps.segment_shift_s[i].second * 1e6));
         for (std::size_t k = b; k < e && k < P.size(); ++k) P[k].utime_gps += d;
     }
     // A shift may move a segment's pings past its neighbour's: keep the series sorted.
-    std::stable_sort(P.begin(), P.end(), [](const auto& a, const auto& b) {
-        return a.utime_gps < b.utime_gps;
-    });
+    std::stable_sort(
+        P.begin(), P.end(), [](const auto& a, const auto& b) { return a.utime_gps < b.utime_gps; });
 }
 
 double HeaderPositionMisfit(const georef::PingSeries& pings,

@@ -135,12 +135,12 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
 // step interleave, by ping number) cannot be ordered: `backward` > 0.
 // `pings` on GPS time to within scan_s (after the coarse correction).
 struct ClockStepConfig {
-    double min_jump_s = 0.25;      // interval beyond the ping rate: a candidate
-    double scan_s = 3.0;           // each segment's offset is scanned over +- this
+    double min_jump_s = 0.25;  // interval beyond the ping rate: a candidate
+    double scan_s = 3.0;       // each segment's offset is scanned over +- this
     double scan_step_s = 0.02;
-    double min_step_s = 0.1;       // offsets differing less: one clock
+    double min_step_s = 0.1;            // offsets differing less: one clock
     std::int64_t min_aid_samples = 30;  // per segment, to resolve its offset
-    int max_candidates = 20;       // largest jumps examined
+    int max_candidates = 20;            // largest jumps examined
     Eigen::Matrix3d R_vehicle_sonar = Eigen::Matrix3d::Identity();
     Eigen::Vector3d antenna_lever_arm_m = Eigen::Vector3d::Zero();
 };

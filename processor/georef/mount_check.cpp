@@ -114,8 +114,7 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
         const double b = suz / suu;
         const double rms = std::sqrt(std::max(0.0, (szz - b * suz) / n));
         if (!(rms <= cfg.max_fit_rms_m)) continue;
-        const frames::Rpy a =
-            frames::RpyFromRotationWorld(geo.pings[k].T_world_vehicle.rotation());
+        const frames::Rpy a = frames::RpyFromRotationWorld(geo.pings[k].T_world_vehicle.rotation());
         slopes.push_back({static_cast<double>(geo.pings[k].utime_gps) * 1e-6,
                           frames::RadToDeg(std::atan(b)),
                           frames::RadToDeg(a.roll),
@@ -133,9 +132,8 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
         r.message = buf;
         return r;
     }
-    std::sort(slopes.begin(), slopes.end(), [](const auto& a, const auto& b) {
-        return a.t_s < b.t_s;
-    });
+    std::sort(
+        slopes.begin(), slopes.end(), [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
     HighPass(slopes, 0.5 * cfg.window_s);
     r.roll_sd_deg = Sd(slopes, &PingSlope::roll_deg);
     r.pitch_sd_deg = Sd(slopes, &PingSlope::pitch_deg);
@@ -204,7 +202,8 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
     if (!r.consistent) {
         // The nearer of the two mistakes a connector makes, if either is near.
         const double ar = std::abs(r.roll_gain), ap = std::abs(r.pitch_gain);
-        const double to_mirror = std::hypot(ar - 2.0, ap), to_turned = std::hypot(ar - 1.0, ap - 1.0);
+        const double to_mirror = std::hypot(ar - 2.0, ap),
+                     to_turned = std::hypot(ar - 1.0, ap - 1.0);
         if (to_mirror < 0.8 && to_mirror <= to_turned) {
             r.likely_cause =
                 "the fan is mirrored (a flat floor tilts by twice the roll): the head is turned "

@@ -29,23 +29,23 @@
 namespace pitmap::proc::georef {
 
 struct MountCheckConfig {
-    double max_angle_deg = 25;     // floor line over |u| <= nadir depth x tan(this)
-    std::int64_t min_beams = 20;   // per ping
-    double min_spread_m = 2.0;     // horizontal spread of those soundings along the fan
-    double max_fit_rms_m = 0.3;    // floor line residual; above: not a plane (left out)
-    double window_s = 4.0;         // moving-mean high-pass of slope, roll and pitch
-    std::int64_t min_pings = 200;  // with a floor line
+    double max_angle_deg = 25;       // floor line over |u| <= nadir depth x tan(this)
+    std::int64_t min_beams = 20;     // per ping
+    double min_spread_m = 2.0;       // horizontal spread of those soundings along the fan
+    double max_fit_rms_m = 0.3;      // floor line residual; above: not a plane (left out)
+    double window_s = 4.0;           // moving-mean high-pass of slope, roll and pitch
+    std::int64_t min_pings = 200;    // with a floor line
     double min_motion_sd_deg = 0.2;  // roll (or pitch) sd after the high-pass: enough motion
     double max_gain = 0.5;           // a gain beyond this, and ...
     double min_significance = 4.0;   // ... both gains this many sigmas from 0: the mount is wrong
 };
 
 struct MountCheck {
-    bool checked = false;     // the data could resolve the gains
-    bool consistent = true;   // the mount explains the soundings (or not checked)
+    bool checked = false;                  // the data could resolve the gains
+    bool consistent = true;                // the mount explains the soundings (or not checked)
     double roll_gain = 0, pitch_gain = 0;  // d(slope) / d(roll), d(slope) / d(pitch)
     double roll_gain_sd = 0, pitch_gain_sd = 0;
-    double significance = 0;  // sqrt(g' C^-1 g) of the two gains
+    double significance = 0;                   // sqrt(g' C^-1 g) of the two gains
     double roll_sd_deg = 0, pitch_sd_deg = 0;  // the motion, after the high-pass
     std::int64_t pings = 0;                    // with a floor line
     std::string likely_cause;                  // when not consistent: which key, which mistake

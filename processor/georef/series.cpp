@@ -65,11 +65,10 @@ void SortAndDeduplicate(PingSeries& s, std::vector<std::int64_t>* conflicts) {
         const PingHeader& h = s.pings[order[k]];
         if (!out.pings.empty() && out.pings.back().utime_gps == h.utime_gps) {
             const PingHeader& a = s.pings[last_kept];
-            const bool same =
-                a.ping_number == h.ping_number && a.num_beams == h.num_beams &&
-                std::equal(s.range_counts.begin() + a.beam_offset,
-                           s.range_counts.begin() + a.beam_offset + a.num_beams,
-                           s.range_counts.begin() + h.beam_offset);
+            const bool same = a.ping_number == h.ping_number && a.num_beams == h.num_beams &&
+                              std::equal(s.range_counts.begin() + a.beam_offset,
+                                         s.range_counts.begin() + a.beam_offset + a.num_beams,
+                                         s.range_counts.begin() + h.beam_offset);
             if (conflicts && !same && (conflicts->empty() || conflicts->back() != h.utime_gps))
                 conflicts->push_back(h.utime_gps);
             continue;

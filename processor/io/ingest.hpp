@@ -49,9 +49,9 @@ struct IngestConfig {
     // ALIGNMENT_COMPLETE) are kept with their standard deviations raised to at least
     // degraded_ins_sigma_m / _deg, so that SLAM and the TPU weigh them as what they are;
     // require_good_ins drops them too. Every such window is counted, listed and a georef gate.
-    bool require_good_ins = false;  // also drop degraded samples (only SOLUTION_GOOD kept)
-    double degraded_ins_sigma_m = 0.5;     // floor of a degraded sample's position sigma
-    double degraded_ins_sigma_deg = 0.2;   // ... and of its attitude sigmas
+    bool require_good_ins = false;        // also drop degraded samples (only SOLUTION_GOOD kept)
+    double degraded_ins_sigma_m = 0.5;    // floor of a degraded sample's position sigma
+    double degraded_ins_sigma_deg = 0.2;  // ... and of its attitude sigmas
     // Sessions: a gap longer than session_gap_s in the navigation or in the pings, or a jump
     // faster than max_session_speed_mps, separates two recordings (surveys). More than one is
     // an error naming the files of each, unless `session` picks one (1-based; 0 = there must be
@@ -78,15 +78,15 @@ struct IngestCounts {
     std::int64_t files_skipped = 0;     // empty or too short to be a log
     std::int64_t decode_failures = 0;   // events whose lcmtype did not decode
     std::int64_t nav_samples = 0;
-    std::int64_t nav_without_time = 0;  // utime_gps = 0
-    std::int64_t nav_not_good = 0;      // degraded, dropped by require_good_ins
+    std::int64_t nav_without_time = 0;    // utime_gps = 0
+    std::int64_t nav_not_good = 0;        // degraded, dropped by require_good_ins
     std::int64_t nav_not_navigating = 0;  // INS in no navigating state (always dropped)
-    std::int64_t nav_degraded = 0;      // degraded INS status (kept, sigmas raised)
-    std::int64_t nav_conflicts = 0;     // one time, different content (two recordings)
+    std::int64_t nav_degraded = 0;        // degraded INS status (kept, sigmas raised)
+    std::int64_t nav_conflicts = 0;       // one time, different content (two recordings)
     std::int64_t ping_conflicts = 0;
-    std::int64_t nav_gaps = 0;          // gaps over report_gap_s within the session
+    std::int64_t nav_gaps = 0;  // gaps over report_gap_s within the session
     std::int64_t ping_gaps = 0;
-    std::int64_t sessions = 0;          // recordings found in the inputs
+    std::int64_t sessions = 0;  // recordings found in the inputs
     std::int64_t nav_duplicates = 0;
     std::int64_t stddev_samples = 0;
     std::int64_t pings = 0;

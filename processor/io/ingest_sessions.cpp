@@ -113,8 +113,8 @@ std::string DescribeSessions(const IngestResult& r,
     for (std::size_t i = 0; i < sessions.size(); ++i) {
         const Session& x = sessions[i];
         s += "\n  " + std::string(nav ? "navigation" : "pings") + " session " +
-             std::to_string(i + 1) + (x.why_split.empty() ? "" : " (" + x.why_split + ")") +
-             ": " + Utc(x.first) + " .. " + Utc(x.last) +
+             std::to_string(i + 1) + (x.why_split.empty() ? "" : " (" + x.why_split + ")") + ": " +
+             Utc(x.first) + " .. " + Utc(x.last) +
              (sonar_clock ? " on the sonar's own clock" : "") + ", " +
              std::to_string(x.end - x.begin) + (nav ? " samples" : " pings") + ", from " +
              FileList(FilesIn(r, x.first, x.last, nav));
@@ -225,9 +225,8 @@ Status CheckConflicts(const IngestResult& r) {
     }
     return Error{
         "ingest: " + std::to_string(r.counts.nav_conflicts) + " navigation samples and " +
-        std::to_string(r.counts.ping_conflicts) +
-        " pings are held twice with different content, " + Utc(*lo) + " .. " + Utc(*hi) +
-        ", in " + FileList({files.begin(), files.end()}) +
+        std::to_string(r.counts.ping_conflicts) + " pings are held twice with different content, " +
+        Utc(*lo) + " .. " + Utc(*hi) + ", in " + FileList({files.begin(), files.end()}) +
         ": two recordings over the same times (two surveys on one clock?), not a repeated "
         "message (those are dropped as duplicates). Nothing is merged or dropped: process each "
         "recording on its own (pitmap run FILES --out P)"};
@@ -254,9 +253,8 @@ Status SplitSessions(IngestResult& r, const IngestConfig& c) {
         DescribeSessions(r, nav_sessions, true) + DescribeSessions(r, ping_sessions, false);
     if (c.session < 1 || static_cast<std::size_t>(c.session) > n) {
         return Error{"ingest: the inputs hold " + std::to_string(n) +
-                     " recordings (sessions separated by more than " +
-                     Duration(c.session_gap_s) + " or a jump over " +
-                     Fmt("%.0f", c.max_session_speed_mps) + " m/s):" + list +
+                     " recordings (sessions separated by more than " + Duration(c.session_gap_s) +
+                     " or a jump over " + Fmt("%.0f", c.max_session_speed_mps) + " m/s):" + list +
                      "\nThey are not merged into one survey: process each on its own (pitmap run "
                      "FILES --out P), or choose one with ingest.session: N in the config"};
     }
@@ -280,11 +278,15 @@ Status SplitSessions(IngestResult& r, const IngestConfig& c) {
         const Session& ns = nav_sessions.at(std::min(pick, nav_sessions.size() - 1));
         Session s;
         s.begin = static_cast<std::size_t>(
-            std::lower_bound(r.pings.pings.begin(), r.pings.pings.end(), ns.first,
+            std::lower_bound(r.pings.pings.begin(),
+                             r.pings.pings.end(),
+                             ns.first,
                              [](const PingHeader& h, std::int64_t t) { return h.utime_gps < t; }) -
             r.pings.pings.begin());
         s.end = static_cast<std::size_t>(
-            std::upper_bound(r.pings.pings.begin(), r.pings.pings.end(), ns.last,
+            std::upper_bound(r.pings.pings.begin(),
+                             r.pings.pings.end(),
+                             ns.last,
                              [](std::int64_t t, const PingHeader& h) { return t < h.utime_gps; }) -
             r.pings.pings.begin());
         KeepPings(r.pings, s);

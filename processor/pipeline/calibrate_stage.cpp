@@ -103,21 +103,21 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             // must lie where the INS antenna was.
             const double at_configured = calib::HeaderPositionMisfit(pings, nav, 0.0, search);
             if (std::isfinite(at_configured) && at_configured > search.max_position_misfit_m) {
-                return Error{
-                    "sonar clock: with the configured offset (" +
-                    Num("%+.3f", config.ingest.sonar_clock_offset_s) +
-                    " s) the 83P header positions lie a median " + Num("%.1f", at_configured) +
-                    " m from the INS antenna (limit " + Num("%.1f", search.max_position_misfit_m) +
-                    " m); " +
-                    (est.found ? "the headers put the offset at " +
-                                     Num("%+.3f",
-                                         ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
-                                                            est.correction_s)) +
-                                     " s"
-                               : "at no offset do they match the navigation (best " +
-                                     Num("%.1f", est.misfit) +
-                                     " m): is this .83P of this survey?") +
-                    ". Navigation: " + nav_span};
+                return Error{"sonar clock: with the configured offset (" +
+                             Num("%+.3f", config.ingest.sonar_clock_offset_s) +
+                             " s) the 83P header positions lie a median " +
+                             Num("%.1f", at_configured) + " m from the INS antenna (limit " +
+                             Num("%.1f", search.max_position_misfit_m) + " m); " +
+                             (est.found
+                                  ? "the headers put the offset at " +
+                                        Num("%+.3f",
+                                            ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
+                                                               est.correction_s)) +
+                                        " s"
+                                  : "at no offset do they match the navigation (best " +
+                                        Num("%.1f", est.misfit) +
+                                        " m): is this .83P of this survey?") +
+                             ". Navigation: " + nav_span};
             }
             const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
             if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
@@ -349,8 +349,9 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         TripGate(s,
                  Stage::kCalibrate,
                  "calibration_no_overlap",
-                 cal.message + ": the boresight cannot be calibrated on this survey; the nominal "
-                               "mount of vehicle.yaml is kept",
+                 cal.message +
+                     ": the boresight cannot be calibrated on this survey; the nominal "
+                     "mount of vehicle.yaml is kept",
                  log);
         RecordStage(s.summary, Stage::kCalibrate, st, clock);
         if (s.defer_products) {
@@ -368,11 +369,11 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
     if (change.cwiseAbs().maxCoeff() > q.max_boresight_change_deg) {
         s.model.calibration = survey::CalibrationState::kKeptNominal;
         const std::string what =
-            "the calibrated boresight turns the nominal mount by roll " +
-            Num("%+.2f", change.x()) + ", pitch " + Num("%+.2f", change.y()) + ", yaw " +
-            Num("%+.2f", change.z()) + " deg (sd " + Num("%.2f", cal.sd_deg[0]) + ", " +
-            Num("%.2f", cal.sd_deg[1]) + ", " + Num("%.2f", cal.sd_deg[2]) +
-            " deg), beyond the " + Num("%.1f", q.max_boresight_change_deg) +
+            "the calibrated boresight turns the nominal mount by roll " + Num("%+.2f", change.x()) +
+            ", pitch " + Num("%+.2f", change.y()) + ", yaw " + Num("%+.2f", change.z()) +
+            " deg (sd " + Num("%.2f", cal.sd_deg[0]) + ", " + Num("%.2f", cal.sd_deg[1]) + ", " +
+            Num("%.2f", cal.sd_deg[2]) + " deg), beyond the " +
+            Num("%.1f", q.max_boresight_change_deg) +
             " deg a mount can be off (quality.max_boresight_change_deg): not a residual but " +
             LikelyMountCause(change) + ". Check vehicle.yaml" +
             (s.model.vehicle_yaml.empty() ? std::string() : " (" + s.model.vehicle_yaml + ")");

@@ -316,17 +316,18 @@ void CheckCrosslines(Survey& s,
         cause = "most of it is a constant offset (mean " + Fixed(r.crossline_mean_m, 3) +
                 " m): the heights: the navigation's, the lever arm's z, the vertical datum";
     } else {
-        cause = "it is neither a beam-angle trend nor an offset: the navigation (drift between "
-                "lines), the sonar clock, or the lever arm's x";
+        cause =
+            "it is neither a beam-angle trend nor an offset: the navigation (drift between "
+            "lines), the sonar clock, or the lever arm's x";
     }
     TripGate(s,
              Stage::kGrid,
              "crossline_rms",
              "crossline RMS " + Fixed(r.crossline_rms_m, 3) + " m over " +
                  std::to_string(r.crossline_compared) + " soundings is " +
-                 Fixed(r.crossline_rms_m / expected, 1) +
-                 "x what the median TVU (" + Fixed(median_tvu_95_m, 3) +
-                 " m, 95 %) predicts for two soundings (" + Fixed(expected, 3) + " m); " + cause,
+                 Fixed(r.crossline_rms_m / expected, 1) + "x what the median TVU (" +
+                 Fixed(median_tvu_95_m, 3) + " m, 95 %) predicts for two soundings (" +
+                 Fixed(expected, 3) + " m); " + cause,
              log);
 }
 

@@ -352,12 +352,12 @@ void InsWindowGate(Survey& s, const Log& log) {
     std::int64_t pings_total = 0;
     std::string text;
     for (const auto& w : windows) {
-        const auto lo = std::lower_bound(
-            P.begin(), P.end(), w.first_utime, [](const auto& p, std::int64_t t) {
+        const auto lo =
+            std::lower_bound(P.begin(), P.end(), w.first_utime, [](const auto& p, std::int64_t t) {
                 return p.utime_gps < t;
             });
-        const auto hi = std::upper_bound(
-            P.begin(), P.end(), w.last_utime, [](std::int64_t t, const auto& p) {
+        const auto hi =
+            std::upper_bound(P.begin(), P.end(), w.last_utime, [](std::int64_t t, const auto& p) {
                 return t < p.utime_gps;
             });
         const auto n = static_cast<std::int64_t>(hi - lo);
@@ -515,8 +515,8 @@ Status GeorefSurvey(Survey& s,
             return Error{"georef: the sonar mount of " +
                          (s.model.vehicle_yaml.empty() ? std::string("the vehicle file")
                                                        : s.model.vehicle_yaml) +
-                         " does not explain the soundings: " + mc.likely_cause + " (" +
-                         mc.message + "; quality.check_mount: false skips this check)"};
+                         " does not explain the soundings: " + mc.likely_cause + " (" + mc.message +
+                         "; quality.check_mount: false skips this check)"};
         }
     }
     s.model.origin = s.geo.world_origin;

@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <map>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -18,6 +17,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <map>
 
 #include "common/frames.hpp"
 #include "common/peak_memory.hpp"
@@ -86,8 +86,8 @@ json ConsistencyWindows(const slam::SlamResult& r,
     for (std::size_t i = 0; i < r.trajectory.size(); ++i) {
         const double c = r.final_slice_consistency_m[i];
         if (!std::isfinite(c)) continue;
-        auto& [ss, n] = w[static_cast<std::int64_t>((r.trajectory[i].gps_time_s - t0) /
-                                                    q.slam_drift_window_s)];
+        auto& [ss, n] =
+            w[static_cast<std::int64_t>((r.trajectory[i].gps_time_s - t0) / q.slam_drift_window_s)];
         ss += c * c;
         ++n;
     }
@@ -97,7 +97,8 @@ json ConsistencyWindows(const slam::SlamResult& r,
     }
     if (rms.size() < 3) return out;
     std::vector<double> sorted = rms;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+    std::nth_element(sorted.begin(),
+                     sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
                      sorted.end());
     const double median = sorted[sorted.size() / 2];
     std::string t;
@@ -115,8 +116,8 @@ json ConsistencyWindows(const slam::SlamResult& r,
         if (!suspect) continue;
         ++suspects;
         if (t.size() < 500) {
-            t += (t.empty() ? "" : "; ") + Fixed(a, 1) + ".." + Fixed(a + q.slam_drift_window_s, 1) +
-                 " GPS s: " + Fixed(m, 3) + " m";
+            t += (t.empty() ? "" : "; ") + Fixed(a, 1) + ".." +
+                 Fixed(a + q.slam_drift_window_s, 1) + " GPS s: " + Fixed(m, 3) + " m";
         }
     }
     if (suspects > 0) {
@@ -283,8 +284,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                 if (text.size() < 500) {
                     text += (text.empty() ? "" : "; ") + Fixed(a, 1) + ".." +
                             Fixed(a + q.slam_drift_window_s, 1) + " GPS s: up to " +
-                            Fixed(w.worst, 2) + " m (mean east " + Fixed(mean.x(), 2) +
-                            ", north " + Fixed(mean.y(), 2) + ", up " + Fixed(mean.z(), 2) + " m)";
+                            Fixed(w.worst, 2) + " m (mean east " + Fixed(mean.x(), 2) + ", north " +
+                            Fixed(mean.y(), 2) + ", up " + Fixed(mean.z(), 2) + " m)";
                 }
             }
             ins_check["drift_windows"] = drift;
@@ -314,11 +315,11 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
     // Where the passes still disagree, per window: a stretch far worse than the rest of the
     // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
-    const json windows_json = ConsistencyWindows(
-        r, config.quality, expected_consistency, &drift_text);
-    const bool concentrated = std::any_of(windows_json.begin(), windows_json.end(), [](const json& w) {
-        return w.value("drift", false);
-    });
+    const json windows_json =
+        ConsistencyWindows(r, config.quality, expected_consistency, &drift_text);
+    const bool concentrated = std::any_of(windows_json.begin(),
+                                          windows_json.end(),
+                                          [](const json& w) { return w.value("drift", false); });
     if (expected_consistency > 0 &&
         r.final_consistency_m > config.quality.slam_consistency_ratio * expected_consistency) {
         TripGate(s,
@@ -327,8 +328,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  "after SLAM the overlapping passes still disagree by " +
                      Fixed(r.final_consistency_m, 3) + " m RMS (plane fits), " +
                      Fixed(r.final_consistency_m / expected_consistency, 1) +
-                     "x what the range noise leaves (" + Fixed(expected_consistency, 3) +
-                     " m): " +
+                     "x what the range noise leaves (" + Fixed(expected_consistency, 3) + " m): " +
                      (concentrated
                           ? std::string("most of it in a few stretches (slam/navigation_drift): "
                                         "the navigation there")
@@ -342,8 +342,9 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         TripGate(s,
                  Stage::kSlam,
                  "navigation_drift",
-                 drift_text + ": the navigation drifted there while it reported a good solution "
-                              "(check the INS and GNSS logs of those times)",
+                 drift_text +
+                     ": the navigation drifted there while it reported a good solution "
+                     "(check the INS and GNSS logs of those times)",
                  log);
     }
 

@@ -343,16 +343,16 @@ std::unordered_map<std::uint64_t, ScoreCell> ScoreCells(const Input& in,
                                                         const std::vector<Pose>& T,
                                                         const SlamConfig& cfg) {
     std::unordered_map<std::uint64_t, ScoreCell> cells;
-    ForEachScorePoint(in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u,
-                                      double z) {
-        ScoreCell& c = cells[key];
-        c.A += u * u.transpose();
-        c.b += u * z;
-        c.zz += z * z;
-        c.t_min = std::min(c.t_min, in.t_s[s]);
-        c.t_max = std::max(c.t_max, in.t_s[s]);
-        ++c.n;
-    });
+    ForEachScorePoint(
+        in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u, double z) {
+            ScoreCell& c = cells[key];
+            c.A += u * u.transpose();
+            c.b += u * z;
+            c.zz += z * z;
+            c.t_min = std::min(c.t_min, in.t_s[s]);
+            c.t_max = std::max(c.t_max, in.t_s[s]);
+            ++c.n;
+        });
     for (auto& [key, c] : cells) {
         if (c.n < 6 || c.t_max - c.t_min < cfg.min_time_separation_s) continue;
         Eigen::LDLT<Eigen::Matrix3d> ldlt(c.A);
@@ -385,14 +385,14 @@ std::vector<double> ConsistencyBySlice(const Input& in,
     const auto cells = ScoreCells(in, T, cfg);
     std::vector<double> ss(in.num_slices(), 0.0);
     std::vector<std::int64_t> n(in.num_slices(), 0);
-    ForEachScorePoint(in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u,
-                                      double z) {
-        const auto it = cells.find(key);
-        if (it == cells.end() || !it->second.used) return;
-        const double r = z - u.dot(it->second.beta);
-        ss[s] += r * r;
-        ++n[s];
-    });
+    ForEachScorePoint(
+        in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u, double z) {
+            const auto it = cells.find(key);
+            if (it == cells.end() || !it->second.used) return;
+            const double r = z - u.dot(it->second.beta);
+            ss[s] += r * r;
+            ++n[s];
+        });
     std::vector<double> out(in.num_slices(), std::numeric_limits<double>::quiet_NaN());
     for (std::size_t s = 0; s < out.size(); ++s) {
         if (n[s] > 0) out[s] = std::sqrt(ss[s] / static_cast<double>(n[s]));

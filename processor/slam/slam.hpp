@@ -244,8 +244,8 @@ struct SlamResult {
     // The result's plane residuals per slice, as `trajectory` (NaN: in no shared cell): where
     // the passes still disagree (a drift the INS did not report shows as one stretch).
     std::vector<double> final_slice_consistency_m;
-    double initial_pair_score_m = 0;        // pair score of the input trajectory
-    double final_pair_score_m = 0;          // ... and of the result (the kept iterate)
+    double initial_pair_score_m = 0;  // pair score of the input trajectory
+    double final_pair_score_m = 0;    // ... and of the result (the kept iterate)
     SlamTimings timings;
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;

@@ -256,8 +256,9 @@ TEST(VehicleFile, LayoutsNoSurfaceVehicleHasAreProblemsNamingTheMistake) {
 
     // Sign of z flipped: the transducer above the water line.
     const std::string flipped = with("[-0.8, 0, -0.25]", water);
-    EXPECT_TRUE(Contains(flipped, "sonar.lever_arm_m: [-0.8, 0, -0.25] puts the transducer 0.25 "
-                                  "m above the water line"))
+    EXPECT_TRUE(Contains(flipped,
+                         "sonar.lever_arm_m: [-0.8, 0, -0.25] puts the transducer 0.25 "
+                         "m above the water line"))
         << flipped;
     EXPECT_TRUE(Contains(flipped, "is its sign flipped?")) << flipped;
     // Without the water line: only far above the INS is a sign.
@@ -276,9 +277,11 @@ TEST(VehicleFile, LayoutsNoSurfaceVehicleHasAreProblemsNamingTheMistake) {
 
     // GNSS antennas: in bounds, and above the water.
     const std::string antenna =
-        with("[0.8, 0, 0.25]", water + "gnss: {antenna_lever_arms_m: [[-0.5, 0, 1.2], [0, 0, -1200]]}\n");
-    EXPECT_TRUE(Contains(antenna, "gnss.antenna_lever_arms_m[0]: [-0.5, 0, 1.2] puts the antenna "
-                                  "1.2 m below the water line"))
+        with("[0.8, 0, 0.25]",
+             water + "gnss: {antenna_lever_arms_m: [[-0.5, 0, 1.2], [0, 0, -1200]]}\n");
+    EXPECT_TRUE(Contains(antenna,
+                         "gnss.antenna_lever_arms_m[0]: [-0.5, 0, 1.2] puts the antenna "
+                         "1.2 m below the water line"))
         << antenna;
     EXPECT_TRUE(Contains(antenna, "gnss.antenna_lever_arms_m[1]: [0, 0, -1200] is beyond 50 m"))
         << antenna;

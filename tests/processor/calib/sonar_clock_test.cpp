@@ -230,7 +230,8 @@ TEST(SonarClockSteps, AStepIsFoundAtItsPingAndEachSideGetsItsOffset) {
     o.num_beams = 3;
     o.header_attitude = true;
     auto sv = MakeSurvey(o);
-    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k) sv.pings.pings[k].utime_gps += 1'000'000;
+    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k)
+        sv.pings.pings[k].utime_gps += 1'000'000;
     const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
     ASSERT_EQ(r.steps.size(), 1u) << r.message;
     EXPECT_TRUE(r.steps[0].resolved) << r.message;
@@ -243,8 +244,8 @@ TEST(SonarClockSteps, AStepIsFoundAtItsPingAndEachSideGetsItsOffset) {
     ApplyClockSteps(fixed, r);
     const auto t0 = MakeSurvey(o).pings;
     for (std::size_t k : {0u, 150u, 299u, 300u, 800u}) {
-        EXPECT_NEAR(static_cast<double>(fixed.pings[k].utime_gps - t0.pings[k].utime_gps), 1e6,
-                    0.03e6)
+        EXPECT_NEAR(
+            static_cast<double>(fixed.pings[k].utime_gps - t0.pings[k].utime_gps), 1e6, 0.03e6)
             << k;
     }
 }
@@ -279,7 +280,8 @@ TEST(SonarClockSteps, AClockSetBackCannotBeOrderedAndSaysSo) {
     o.num_beams = 3;
     o.header_attitude = true;
     auto sv = MakeSurvey(o);
-    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k) sv.pings.pings[k].utime_gps -= 1'050'000;
+    for (std::size_t k = 300; k < sv.pings.pings.size(); ++k)
+        sv.pings.pings[k].utime_gps -= 1'050'000;
     georef::SortAndDeduplicate(sv.pings);
     const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
     EXPECT_GT(r.backward, 0) << r.message;

@@ -46,7 +46,8 @@ GeorefResult Survey(const SonarMount& configured, const Motion& m = {}) {
             const Eigen::Vector3d dir_sonar(0.0, std::sin(a), std::cos(a));
             const Eigen::Vector3d d = R_true * dir_sonar;  // world, where the beam went
             // Floor: z = -20 + slope * x.
-            const double r = (-20.0 + floor_slope * pos.x() - pos.z()) / (d.z() - floor_slope * d.x());
+            const double r =
+                (-20.0 + floor_slope * pos.x() - pos.z()) / (d.z() - floor_slope * d.x());
             if (!(r > 0)) continue;
             g.points.position_world.push_back(pos + R_conf * (r * dir_sonar));
             g.points.ping.push_back(static_cast<std::uint32_t>(k));

@@ -25,7 +25,11 @@ bool Contains(const std::string& text, const std::string& what) {
 }
 
 // `n` INS samples at 50 Hz from t0 moving north at 1.5 m/s, status `status`, read from `path`.
-void AddNav(IngestResult& r, const std::string& path, std::int64_t t0, int n, double lat0,
+void AddNav(IngestResult& r,
+            const std::string& path,
+            std::int64_t t0,
+            int n,
+            double lat0,
             std::int32_t status = 3) {
     const SpanMark mark = MarkSpan(r);
     for (int i = 0; i < n; ++i) {
@@ -34,12 +38,14 @@ void AddNav(IngestResult& r, const std::string& path, std::int64_t t0, int n, do
         s.position = {lat0 + i * 0.03 / 111000.0, -7.78, 412.0};
         s.ins_status = status;
         r.nav.samples.push_back(s);
-        if (i % 50 == 0) r.nav.stddevs.push_back({s.utime_gps, 0.01f, 0.01f, 0.015f, 0.01f, 0.01f, 0.03f});
+        if (i % 50 == 0)
+            r.nav.stddevs.push_back({s.utime_gps, 0.01f, 0.01f, 0.015f, 0.01f, 0.01f, 0.03f});
     }
     RecordSpan(r, path, mark);
 }
 
-void AddPings(IngestResult& r, const std::string& path, std::int64_t t0, int n, std::int32_t range) {
+void AddPings(
+    IngestResult& r, const std::string& path, std::int64_t t0, int n, std::int32_t range) {
     const SpanMark mark = MarkSpan(r);
     for (int i = 0; i < n; ++i) {
         PingHeader h;
@@ -77,7 +83,8 @@ TEST(IngestSessions, ARepeatedMessageIsADuplicateAndTwoRecordingsAreAConflict) {
     two.counts.ping_conflicts = 100;
     const Status s = CheckConflicts(two);
     ASSERT_FALSE(s);
-    EXPECT_TRUE(Contains(s.error().message, "held twice with different content")) << s.error().message;
+    EXPECT_TRUE(Contains(s.error().message, "held twice with different content"))
+        << s.error().message;
     EXPECT_TRUE(Contains(s.error().message, "a.lcmlog, b.lcmlog")) << s.error().message;
 }
 
@@ -123,15 +130,16 @@ TEST(IngestSessions, AJumpNoVehicleMakesIsTwoRecordings) {
     EXPECT_EQ(one.counts.sessions, 1);
     ReportGaps(one, IngestConfig{});
     EXPECT_EQ(one.counts.nav_gaps, 1);
-    EXPECT_TRUE(Contains(one.warnings.back(), "1 gap(s) over 2.0 s in the navigation: 30.0 s after"))
+    EXPECT_TRUE(
+        Contains(one.warnings.back(), "1 gap(s) over 2.0 s in the navigation: 30.0 s after"))
         << one.warnings.back();
 }
 
 TEST(IngestSessions, InsStatusWindowsAreDroppedOrDownWeightedAndListed) {
     IngestResult r;
-    AddNav(r, "a.lcmlog", kT0, 500, 40.44);                     // good
-    AddNav(r, "a.lcmlog", kT0 + 10'000'000, 500, 40.44, 1);     // ALIGNING 10 s
-    AddNav(r, "a.lcmlog", kT0 + 20'000'000, 500, 40.44, 2);     // HIGH_VARIANCE 10 s
+    AddNav(r, "a.lcmlog", kT0, 500, 40.44);                  // good
+    AddNav(r, "a.lcmlog", kT0 + 10'000'000, 500, 40.44, 1);  // ALIGNING 10 s
+    AddNav(r, "a.lcmlog", kT0 + 20'000'000, 500, 40.44, 2);  // HIGH_VARIANCE 10 s
     AddNav(r, "a.lcmlog", kT0 + 30'000'000, 500, 40.44);
     IngestConfig c;
     IngestResult keep = r;

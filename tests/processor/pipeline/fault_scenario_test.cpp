@@ -46,8 +46,8 @@ std::string Gates(const fs::path& products) {
     if (!fs::exists(products / "summary.json")) return s;
     const json j = ReadJson(products / "summary.json");
     for (const auto& g : j.value("quality_gates", json::array())) {
-        s += g.value("stage", "") + "/" + g.value("gate", "") + ": " + g.value("message", "") +
-             "\n";
+        s +=
+            g.value("stage", "") + "/" + g.value("gate", "") + ": " + g.value("message", "") + "\n";
     }
     return s;
 }
@@ -65,9 +65,8 @@ protected:
         if (fs::exists(dir / "log/vehicle.yaml")) return dir;
         fs::create_directories(dir);
         std::string out;
-        const int rc = RunCommand(kBin + "/pitmap-sim synth --scenario demo --out " + Quote(dir) +
-                                      " " + options,
-                                  &out);
+        const int rc = RunCommand(
+            kBin + "/pitmap-sim synth --scenario demo --out " + Quote(dir) + " " + options, &out);
         EXPECT_EQ(rc, 0) << out;
         return dir;
     }
@@ -81,7 +80,9 @@ protected:
         return p;
     }
     // Replaces the line starting with `key` (after its indentation) in a vehicle.yaml.
-    static void SetVehicleLine(const fs::path& yaml, const std::string& key, const std::string& value) {
+    static void SetVehicleLine(const fs::path& yaml,
+                               const std::string& key,
+                               const std::string& value) {
         std::ifstream in(yaml);
         std::ostringstream out;
         bool found = false;
@@ -118,8 +119,9 @@ TEST_F(FaultScenario, LeverArmWithItsSignFlippedStopsAtStartNamingTheSign) {
     const fs::path log = EditedLog("flipped", "lever_arm_m", "[-0.8, 0, -0.25]", Sim("base"));
     std::string out;
     EXPECT_NE(Pitmap("run " + Quote(log) + " --out " + Quote(log.parent_path() / "P"), &out), 0);
-    EXPECT_TRUE(Contains(out, "sonar.lever_arm_m: [-0.8, 0, -0.25] puts the transducer 0.25 m "
-                              "above the water line"))
+    EXPECT_TRUE(Contains(out,
+                         "sonar.lever_arm_m: [-0.8, 0, -0.25] puts the transducer 0.25 m "
+                         "above the water line"))
         << out;
     EXPECT_TRUE(Contains(out, "is its sign flipped?")) << out;
     // Found before any work: no survey model was written.
@@ -172,8 +174,7 @@ TEST_F(FaultScenario, LeverArmXOfTheWrongSignIsACalibrationErrorNamingTheLeverAr
               0);
     EXPECT_TRUE(Contains(out, "beyond the 5.0 deg a mount can be off")) << out;
     EXPECT_TRUE(Contains(out, "the lever arm's x")) << out;
-    EXPECT_TRUE(Contains(Gates(log.parent_path() / "P"), "calibrate/boresight_implausible"))
-        << out;
+    EXPECT_TRUE(Contains(Gates(log.parent_path() / "P"), "calibrate/boresight_implausible")) << out;
 }
 
 // ---- Clocks and navigation ----
@@ -260,10 +261,10 @@ TEST_F(FaultScenario, InsDriftTheInsDoesNotReportIsANavigationDriftGate) {
     ASSERT_TRUE(SetTrueBoresight(sim));
     const fs::path p = Fresh("drift") / "P";
     std::string out;
-    ASSERT_EQ(Pitmap("run " + Quote(sim / "log") + " --out " + Quote(p) +
-                         " --no-calibrate --no-report",
-                     &out),
-              0)
+    ASSERT_EQ(
+        Pitmap("run " + Quote(sim / "log") + " --out " + Quote(p) + " --no-calibrate --no-report",
+               &out),
+        0)
         << out;
     // SLAM holds the trajectory to the INS's 1 cm sigma: it sees the drift as passes that
     // disagree, worst in the window of the drift (50..88 s with the INS's recovery).
@@ -298,7 +299,8 @@ TEST_F(FaultScenario, TwoRecordingsWithTheSameTimeStampsAreAnErrorNamingBoth) {
     for (const auto& [sim, name] : {std::pair{a, "a"}, {b, "b"}}) {
         for (const auto& e : fs::directory_iterator(sim / "log")) {
             if (e.path().extension() == ".lcmlog")
-                fs::copy_file(e.path(), in / (std::string(name) + "_" + e.path().filename().string()));
+                fs::copy_file(e.path(),
+                              in / (std::string(name) + "_" + e.path().filename().string()));
         }
     }
     fs::copy_file(a / "log/vehicle.yaml", in / "vehicle.yaml");
@@ -337,11 +339,11 @@ TEST_F(FaultScenario, TwoSurveysADayOrKilometresApartAreSessionsNotOneSurvey) {
         // Asked for one of them, it is processed as its own survey.
         std::ofstream(in.parent_path() / "session.yaml") << "ingest:\n  session: 2\n";
         out.clear();
-        ASSERT_EQ(Pitmap("georef " + Quote(in) + " --config " +
-                             Quote(in.parent_path() / "session.yaml") + " --out " +
-                             Quote(in.parent_path() / "P2"),
-                         &out),
-                  0)
+        ASSERT_EQ(
+            Pitmap("georef " + Quote(in) + " --config " + Quote(in.parent_path() / "session.yaml") +
+                       " --out " + Quote(in.parent_path() / "P2"),
+                   &out),
+            0)
             << out;
         const json ing = ReadJson(in.parent_path() / "P2/summary.json").at("stages").at("ingest");
         EXPECT_EQ(ing.at("sessions").get<std::int64_t>(), 2);
