@@ -48,7 +48,10 @@ void ByteFileWriter::Drain() {
 }
 
 Status ByteFileWriter::Close() {
-    if (file_ == nullptr) return Error{ErrnoMessage(partial_, "cannot create", open_errno_)};
+    if (file_ == nullptr) {
+        return Error{ErrnoMessage(
+            path_, "cannot create (written first as " + partial_ + ")", open_errno_)};
+    }
     Drain();
     if (std::fflush(file_) != 0 && ok_) {
         write_errno_ = errno;

@@ -91,9 +91,11 @@ struct PingSeries {
 
 // Sorts by time, drops repeated messages (the same time and the same content: the first kept)
 // and rebuilds beam offsets. Two samples or pings of one time whose content differs (beyond
-// float rounding: 5 cm, 0.05 deg; for pings any range or the ping number) are not repeats but
-// two recordings of different things at one time: the first is kept and the time is appended
-// to `conflicts` when given (the caller decides: ingest names the files and stops).
+// float rounding: 5 cm, 0.05 deg; for pings any range or the ping number) are not repeats: a
+// logger's clock that stepped back, or two recordings of different things at one time. Their
+// time is appended to `conflicts` when given (ingest names the files and stops when they are
+// many). Of two nav samples the first is kept; two pings are both kept, the later one a
+// microsecond later (ping times stay strictly increasing).
 void SortAndDeduplicate(NavSeries& nav, std::vector<std::int64_t>* conflicts = nullptr);
 void SortAndDeduplicate(PingSeries& pings, std::vector<std::int64_t>* conflicts = nullptr);
 

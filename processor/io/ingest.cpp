@@ -283,13 +283,16 @@ Status ReadLogs(const std::vector<std::string>& paths,
 
 void SetTotals(IngestResult& r);
 
-void Finish(IngestResult& r) {
+// Sorts and deduplicates the series; with `config` the INS status rule is applied first, to
+// every message read (IngestLcmLogs and IngestNovatelFiles; IngestFiles merges what they did).
+void Finish(IngestResult& r, const IngestConfig* config = nullptr) {
     // Prefer INSPVA(S) samples over INSPVAX ones at the same time (the latter carry a float
     // undulation).
     std::stable_sort(r.nav.samples.begin(), r.nav.samples.end(), [](const auto& a, const auto& b) {
         if (a.utime_gps != b.utime_gps) return a.utime_gps < b.utime_gps;
         return (a.position_type == -1) > (b.position_type == -1);
     });
+    if (config) detail::ApplyInsStatusRule(r, *config);
     const std::size_t nav_before = r.nav.samples.size();
     const std::size_t pings_before = r.pings.pings.size();
     std::vector<std::int64_t> nav_conflicts, ping_conflicts;
@@ -299,8 +302,7 @@ void Finish(IngestResult& r) {
     r.counts.ping_conflicts += static_cast<std::int64_t>(ping_conflicts.size());
     r.counts.nav_duplicates += static_cast<std::int64_t>(nav_before - r.nav.samples.size()) -
                                static_cast<std::int64_t>(nav_conflicts.size());
-    r.counts.ping_duplicates += static_cast<std::int64_t>(pings_before - r.pings.pings.size()) -
-                                static_cast<std::int64_t>(ping_conflicts.size());
+    r.counts.ping_duplicates += static_cast<std::int64_t>(pings_before - r.pings.pings.size());
     for (const auto* c : {&nav_conflicts, &ping_conflicts}) {
         r.conflict_times.insert(r.conflict_times.end(), c->begin(), c->end());
     }
@@ -439,7 +441,7 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
         }
     }
     if (progress) progress(1.0);
-    Finish(r);
+    Finish(r, &config);
     return r;
 }
 
@@ -470,7 +472,7 @@ Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
         ++r.counts.files;
     }
     r.nav_from_raw = true;
-    Finish(r);
+    Finish(r, &config);
     return r;
 }
 
@@ -631,8 +633,13 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
         r.files.insert(r.files.end(), b->files.begin(), b->files.end());
         r.conflict_times.insert(
             r.conflict_times.end(), b->conflict_times.begin(), b->conflict_times.end());
+        r.ins_windows.insert(r.ins_windows.end(), b->ins_windows.begin(), b->ins_windows.end());
+        r.warnings.insert(r.warnings.end(), b->warnings.begin(), b->warnings.end());
         r.nav_from_raw = true;
     }
+    // Pings of a log (GPS time) and of .83P files (the sonar's own clock) are on two clocks
+    // until the sonar clock is found: their gaps say nothing about sessions together.
+    const bool pings_on_one_clock = r.pings.pings.empty() || p83.empty();
     if (!p83.empty()) {
         if (auto s = Ingest83PFiles(p83, config, r.nav.leap_seconds, r); !s) return s.error();
     }
@@ -641,9 +648,13 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
     Finish(r);
     // Two recordings in one set of inputs are never merged or dropped in silence.
     if (auto c = detail::CheckConflicts(r); !c) return c.error();
-    if (auto c = detail::SplitSessions(r, config); !c) return c.error();
+    if (auto c = detail::SplitSessions(r, config, pings_on_one_clock); !c) return c.error();
     detail::ReportGaps(r, config);
-    detail::ApplyInsStatusRule(r, config);
+    // The INS status rule was applied by each reader (IngestLcmLogs, IngestNovatelFiles), to
+    // every message it read.
+    std::stable_sort(r.ins_windows.begin(), r.ins_windows.end(), [](const auto& a, const auto& b) {
+        return a.first_utime < b.first_utime;
+    });
     SetTotals(r);
     // Damage is not only counted in the summary: the run says so where it is read.
     const IngestCounts& c = r.counts;

@@ -210,8 +210,24 @@ void TakeSpans(IngestResult& r, const IngestResult& from, bool nav, bool pings) 
     }
 }
 
-Status CheckConflicts(const IngestResult& r) {
+Status CheckConflicts(IngestResult& r) {
     if (r.conflict_times.empty()) return Ok{};
+    // A few: a logger's clock that stepped back (the pings are both kept, a nav sample is
+    // dropped), said. Many: two recordings.
+    const auto many = [](std::int64_t conflicts, std::size_t items) {
+        return conflicts > std::max<std::int64_t>(10, static_cast<std::int64_t>(items) / 100);
+    };
+    if (!many(r.counts.nav_conflicts, r.nav.samples.size()) &&
+        !many(r.counts.ping_conflicts, r.pings.pings.size())) {
+        r.warnings.push_back(
+            std::to_string(r.counts.nav_conflicts) + " navigation samples and " +
+            std::to_string(r.counts.ping_conflicts) +
+            " pings share their time stamp with a different one (a logger's clock that stepped "
+            "back?), first at " +
+            Utc(*std::min_element(r.conflict_times.begin(), r.conflict_times.end())) +
+            ": of two samples the first is kept, both pings are kept");
+        return Ok{};
+    }
     const auto [lo, hi] = std::minmax_element(r.conflict_times.begin(), r.conflict_times.end());
     std::set<std::string> files;
     for (const auto& f : r.files) {
@@ -232,15 +248,19 @@ Status CheckConflicts(const IngestResult& r) {
         "recording on its own (pitmap run FILES --out P)"};
 }
 
-Status SplitSessions(IngestResult& r, const IngestConfig& c) {
+Status SplitSessions(IngestResult& r, const IngestConfig& c, bool pings_on_one_clock) {
     const auto nav_sessions =
         FindSessions(r.nav.samples, c, [](const NavSample& a, const NavSample& b) {
             return std::optional<double>(DistanceM(a.position, b.position));
         });
-    const auto ping_sessions = FindSessions(
-        r.pings.pings, c, [](const PingHeader&, const PingHeader&) -> std::optional<double> {
-            return std::nullopt;
-        });
+    const auto ping_sessions =
+        pings_on_one_clock
+            ? FindSessions(r.pings.pings,
+                           c,
+                           [](const PingHeader&, const PingHeader&) -> std::optional<double> {
+                               return std::nullopt;
+                           })
+            : std::vector<Session>{};
     const std::size_t n = std::max(nav_sessions.size(), ping_sessions.size());
     r.counts.sessions = static_cast<std::int64_t>(n);
     if (n <= 1) {
@@ -325,12 +345,8 @@ void ApplyInsStatusRule(IngestResult& r, const IngestConfig& c) {
         i = j;
     }
     for (const auto& w : r.ins_windows) {
-        if (!w.navigating) {
-            r.counts.nav_not_navigating += w.samples;
-        } else {
-            r.counts.nav_degraded += w.samples;
-            if (w.dropped) r.counts.nav_not_good += w.samples;
-        }
+        (w.navigating ? r.counts.nav_degraded : r.counts.nav_not_navigating) += w.samples;
+        if (w.dropped) r.counts.nav_not_good += w.samples;
     }
     if (r.ins_windows.empty()) return;
     std::size_t out = 0;

@@ -509,7 +509,22 @@ Status GeorefSurvey(Survey& s,
                                     {"pitch_gain_sd", mc.pitch_gain_sd},
                                     {"pings", mc.pings},
                                     {"message", mc.message}};
-        if (!mc.consistent) {
+        // A sonar clock in doubt leaves the roll in the soundings too (the attitude of another
+        // time is applied): then the check cannot blame the mount, and says both.
+        bool clock_in_doubt = false;
+        for (const auto& g : s.summary.value("quality_gates", json::array())) {
+            clock_in_doubt |= g.is_object() && g.value("stage", "") == ToString(Stage::kGeoref) &&
+                              g.value("gate", "").rfind("sonar_clock", 0) == 0;
+        }
+        if (!mc.consistent && clock_in_doubt) {
+            TripGate(s,
+                     Stage::kGeoref,
+                     "mount_inconsistent",
+                     mc.message + "; or the sonar clock, which is in doubt (a sonar_clock gate "
+                                  "tripped): the attitude of another time leaves the roll in "
+                                  "the soundings too",
+                     log);
+        } else if (!mc.consistent) {
             TripGate(s, Stage::kGeoref, "mount_inconsistent", mc.message, log);
             (void)SaveSummary(s);
             return Error{"georef: the sonar mount of " +

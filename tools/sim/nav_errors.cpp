@@ -90,13 +90,14 @@ NavError NavErrorModel::At(double t) const {
                                                 frames::DegToRad(cfg_.attitude_gm_sigma_deg),
                                                 frames::DegToRad(cfg_.heading_gm_sigma_deg));
     e.gnss_available = !InOutage(t);
-    for (std::size_t i = 0; i + 2 < cfg_.status_windows.size(); i += 3) {
-        if (t >= cfg_.status_windows[i] && t < cfg_.status_windows[i + 1])
-            e.ins_status = static_cast<std::uint32_t>(cfg_.status_windows[i + 2]);
+    const std::vector<double>& sw = cfg_.status_windows;
+    for (std::size_t w = 0; w + 2 < sw.size(); w += 3) {
+        if (t >= sw[w] && t < sw[w + 1]) e.ins_status = static_cast<std::uint32_t>(sw[w + 2]);
     }
-    for (std::size_t i = 0; i + 3 < cfg_.drift_windows.size(); i += 4) {
-        const double a = cfg_.drift_windows[i], b = cfg_.drift_windows[i + 1];
-        const Eigen::Vector3d full(cfg_.drift_windows[i + 2], cfg_.drift_windows[i + 3], 0.0);
+    const std::vector<double>& dw = cfg_.drift_windows;
+    for (std::size_t w = 0; w + 3 < dw.size(); w += 4) {
+        const double a = dw[w], b = dw[w + 1];
+        const Eigen::Vector3d full(dw[w + 2], dw[w + 3], 0.0);
         if (t >= a && t < b) {
             e.position_enu_m += full * ((t - a) / (b - a));
         } else if (t >= b && t < b + cfg_.recovery_time_s) {

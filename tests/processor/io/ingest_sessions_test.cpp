@@ -152,6 +152,7 @@ TEST(IngestSessions, InsStatusWindowsAreDroppedOrDownWeightedAndListed) {
     EXPECT_FALSE(keep.ins_windows[1].dropped);
     EXPECT_EQ(keep.counts.nav_not_navigating, 500);
     EXPECT_EQ(keep.counts.nav_degraded, 500);
+    EXPECT_EQ(keep.counts.nav_not_good, 500);  // dropped for its status
     EXPECT_EQ(keep.nav.samples.size(), 1500u);
     // The degraded window's sigmas are raised to the floors; the good ones are not.
     for (const NavStdDev& s : keep.nav.stddevs) {
@@ -167,7 +168,7 @@ TEST(IngestSessions, InsStatusWindowsAreDroppedOrDownWeightedAndListed) {
     c.require_good_ins = true;
     ApplyInsStatusRule(r, c);
     EXPECT_EQ(r.nav.samples.size(), 1000u);
-    EXPECT_EQ(r.counts.nav_not_good, 500);
+    EXPECT_EQ(r.counts.nav_not_good, 1000);
 }
 
 }  // namespace

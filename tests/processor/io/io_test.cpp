@@ -360,6 +360,9 @@ TEST(IngestFiles, MixOf83PNovatelAndLcmKeepsEveryCount) {
 
     IngestConfig cfg;
     cfg.require_good_ins = true;
+    // The fixtures' positions are not one vehicle's track (the log's lie 1.4 km from the
+    // NovAtel file's, 10 s later): only their counts are under test here, not the sessions.
+    cfg.max_session_speed_mps = 1e6;
     auto a = IngestLcmLogs({lcm}, cfg);
     ASSERT_TRUE(a.ok()) << a.error().message;
     auto b = IngestNovatelFiles({nov}, cfg);
@@ -493,6 +496,9 @@ TEST(IngestFiles, LcmLogsAndRepeatedVendorFiles) {
     const std::string seg1 = WriteFile("lcm-only-1.lcmlog", Event(99, "OTHER", 5));
     IngestConfig cfg;
     cfg.require_good_ins = true;
+    // The fixtures' positions are not one vehicle's track (the log's lie 1.4 km from the
+    // NovAtel file's, 10 s later): only their counts are under test here, not the sessions.
+    cfg.max_session_speed_mps = 1e6;
     auto direct = IngestLcmLogs({seg0, seg1}, cfg);
     ASSERT_TRUE(direct.ok());
     auto files = IngestFiles({seg1, seg0}, cfg);
