@@ -247,8 +247,7 @@ GeorefResult RunGeoref(const NavSeries& nav,
                 r, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
             for (std::size_t i = 0; i < h.num_beams; ++i) {
                 if (!(r[i] > 0) || !keep[i]) continue;
-                const double theta = frames::DegToRad(
-                    h.start_angle_deg + static_cast<double>(i) * h.angle_increment_deg);
+                const double theta = frames::DegToRad(series.BeamAngleDeg(h, i));
                 const std::size_t j = h.beam_offset + i;
                 if (refraction) {
                     const svp::BeamGeometry b = refraction->Beam(w.ping.cast,

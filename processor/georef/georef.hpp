@@ -3,7 +3,8 @@
 // world frame (local ENU at an origin, GeographicLib LocalCartesian) and their UTM coordinates.
 //
 // Geometry (docs/conventions.md, shared/specs/imagenex_deltat.md §1.5):
-//   theta_i = start + i * increment (positive to starboard), r_i = count_i * range_resolution_m
+//   theta_i = start + i * increment (positive to starboard; PingSeries::beam_angles_deg instead
+//   when the ping has its own), r_i = count_i * range_resolution_m
 //   (times c_header / nominal_sound_speed_mps when sound_speed_scaling is on),
 //   p_sonar = Ry(tilt) (0, r sin theta, r cos theta),
 //   p_world = t_world_vehicle(t) + R_world_vehicle(t) (lever_arm_m + R_vehicle_sonar p_sonar),

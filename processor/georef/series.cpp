@@ -60,6 +60,9 @@ void SortAndDeduplicate(PingSeries& s, std::vector<std::int64_t>* conflicts) {
     const bool with_intensities =
         s.intensities.size() == s.range_counts.size() && !s.intensities.empty();
     if (with_intensities) out.intensities.reserve(s.intensities.size());
+    const bool with_angles =
+        s.beam_angles_deg.size() == s.range_counts.size() && !s.beam_angles_deg.empty();
+    if (with_angles) out.beam_angles_deg.reserve(s.beam_angles_deg.size());
     std::size_t last_kept = 0;  // index into s.pings of out.pings.back()
     for (std::size_t k = 0; k < order.size(); ++k) {
         const PingHeader& h = s.pings[order[k]];
@@ -83,6 +86,11 @@ void SortAndDeduplicate(PingSeries& s, std::vector<std::int64_t>* conflicts) {
             out.intensities.insert(out.intensities.end(),
                                    s.intensities.begin() + h.beam_offset,
                                    s.intensities.begin() + h.beam_offset + h.num_beams);
+        }
+        if (with_angles) {
+            out.beam_angles_deg.insert(out.beam_angles_deg.end(),
+                                       s.beam_angles_deg.begin() + h.beam_offset,
+                                       s.beam_angles_deg.begin() + h.beam_offset + h.num_beams);
         }
         out.pings.push_back(c);
     }

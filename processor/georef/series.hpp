@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -85,8 +86,22 @@ struct PingSeries {
     // range_counts: empty when no ping carried any (83P v1.00, or v1.10 without them), else one
     // per range count, 0 where a ping had none.
     std::vector<std::uint16_t> intensities;
+    // Per-beam angles (degrees from the head's normal, positive to starboard) of sonars whose
+    // beams are not equally spaced (R2Sonic equi-distant mode, from XTF): empty when every
+    // ping's beams are at start_angle_deg + i * angle_increment_deg, else one per range count,
+    // NaN for the beams of a ping that has none (its header's angles then hold).
+    std::vector<float> beam_angles_deg;
     std::size_t num_soundings() const { return range_counts.size(); }
     bool has_intensities() const { return !intensities.empty(); }
+    bool has_beam_angles() const { return !beam_angles_deg.empty(); }
+    // Beam i of ping h: its own angle when it has one, else the header's start + i * increment.
+    double BeamAngleDeg(const PingHeader& h, std::size_t i) const {
+        if (!beam_angles_deg.empty()) {
+            const float a = beam_angles_deg[h.beam_offset + i];
+            if (std::isfinite(a)) return static_cast<double>(a);
+        }
+        return h.start_angle_deg + static_cast<double>(i) * h.angle_increment_deg;
+    }
 };
 
 // Sorts by time, drops repeated messages (the same time and the same content: the first kept)

@@ -26,6 +26,7 @@
 #include "processor/io/ingest_collect.hpp"
 #include "processor/io/ingest_sessions.hpp"
 #include "processor/io/lcm_messages.hpp"
+#include "processor/io/xtf.hpp"
 
 namespace pitmap::proc::io {
 
@@ -320,7 +321,7 @@ void SetTotals(IngestResult& r) {
                 std::to_string(r.pings.num_soundings()) + " soundings";
 }
 
-enum class FileKind { kLcm, k83P, kNovatel, kUnknown };
+enum class FileKind { kLcm, k83P, kXtf, kNovatel, kUnknown };
 
 FileKind Sniff(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -331,6 +332,7 @@ FileKind Sniff(const std::string& path) {
         return FileKind::kLcm;
     }
     if (b[0] == '8' && b[1] == '3' && b[2] == 'P') return FileKind::k83P;
+    if (IsXtfFile(path)) return FileKind::kXtf;
     std::string ext = fs::path(path).extension().string();
     for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (ext == ".lcmlog") return FileKind::kLcm;
@@ -570,14 +572,14 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
                 for (char& ch : ext)
                     ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
                 if (ext == ".lcmlog" || ext == ".83p" || ext == ".gps" || ext == ".asc" ||
-                    ext == ".bin") {
+                    ext == ".bin" || ext == ".xtf") {
                     files.push_back(e.path().string());
                 }
             }
             if (ec) return Error{in + ": cannot list: " + ec.message()};
             std::sort(files.begin(), files.end());
             if (files.empty())
-                return Error{in + ": no .lcmlog, .83P or NovAtel files in this folder"};
+                return Error{in + ": no .lcmlog, .83P, .xtf or NovAtel files in this folder"};
             out.insert(out.end(), files.begin(), files.end());
         } else if (fs::is_regular_file(in, ec)) {
             out.push_back(in);
@@ -591,7 +593,7 @@ Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& 
 Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
                                    const IngestConfig& config,
                                    const ProgressCallback& progress) {
-    std::vector<std::string> lcm, p83, novatel, skipped;
+    std::vector<std::string> lcm, p83, xtf, novatel, skipped;
     for (const auto& f : files) {
         switch (Sniff(f)) {
             case FileKind::kLcm:
@@ -599,6 +601,9 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
                 break;
             case FileKind::k83P:
                 p83.push_back(f);
+                break;
+            case FileKind::kXtf:
+                xtf.push_back(f);
                 break;
             case FileKind::kNovatel:
                 novatel.push_back(f);
@@ -610,7 +615,7 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
                 break;
         }
     }
-    if (lcm.empty() && p83.empty() && novatel.empty()) {
+    if (lcm.empty() && p83.empty() && xtf.empty() && novatel.empty()) {
         return Error{files.empty() ? std::string("no input files")
                                    : files.front() + (files.size() > 1 ? " and the others" : "") +
                                          ": empty or too short to be log files"};
@@ -642,6 +647,9 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
     const bool pings_on_one_clock = r.pings.pings.empty() || p83.empty();
     if (!p83.empty()) {
         if (auto s = Ingest83PFiles(p83, config, r.nav.leap_seconds, r); !s) return s.error();
+    }
+    if (!xtf.empty()) {
+        if (auto s = IngestXtfFiles(xtf, config, r.nav.leap_seconds, r); !s) return s.error();
     }
     r.counts.files_skipped += static_cast<std::int64_t>(skipped.size());
     r.warnings.insert(r.warnings.end(), skipped.begin(), skipped.end());

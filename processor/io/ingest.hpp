@@ -127,6 +127,9 @@ struct IngestResult {
     std::string message;
     std::vector<std::string>
         warnings;  // files skipped and why: print them, keep them in the summary
+    // What a vendor file did not say and had to be assumed (XTF: sigmas, height datum, ...):
+    // print them, keep them in the summary.
+    std::vector<std::string> assumed;
     std::vector<InputFileSpan> files;          // per input file, in the order read
     std::vector<InsStatusWindow> ins_windows;  // INS status not good, in time order
     std::vector<std::int64_t> conflict_times;  // nav and ping times held twice, differently
@@ -147,11 +150,12 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
                       int leap_seconds,
                       IngestResult& into);
 
-// Expands directories (their *.lcmlog, *.83P, *.gps/*.asc/*.bin files, sorted by name) and keeps
-// files as given. Fails for a path that does not exist.
+// Expands directories (their *.lcmlog, *.83P, *.xtf, *.gps/*.asc/*.bin files, sorted by name) and
+// keeps files as given. Fails for a path that does not exist.
 Expected<std::vector<std::string>> ExpandInputs(const std::vector<std::string>& inputs);
 
-// Dispatches by content: LCM logs, .83P files, NovAtel files; sorts and deduplicates.
+// Dispatches by content: LCM logs, .83P files, XTF files (processor/io/xtf.hpp), NovAtel files;
+// sorts and deduplicates.
 Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
                                    const IngestConfig& config,
                                    const ProgressCallback& progress = {});

@@ -102,12 +102,13 @@ void Collector::AddLeapSeconds(double utc_offset_s, int utc_status) {
 void Collector::AddPing(const PingHeader& h_in,
                         const std::int32_t* counts,
                         std::size_t n,
-                        const std::uint16_t* intensities) {
+                        const std::uint16_t* intensities,
+                        const float* angles_deg) {
     if (h_in.utime_gps <= 0) {
         ++r_.counts.pings_without_time;
         return;
     }
-    if (n == 0 || n > dt::kMaxBeams) {
+    if (n == 0 || n > kMaxPingBeams) {
         ++r_.counts.pings_bad;
         return;
     }
@@ -125,6 +126,14 @@ void Collector::AddPing(const PingHeader& h_in,
         in.insert(in.end(), intensities, intensities + n);
     } else if (!in.empty()) {
         in.resize(in.size() + n, 0);
+    }
+    // Per-beam angles likewise, NaN ("the header's") for the pings without.
+    auto& an = r_.pings.beam_angles_deg;
+    if (angles_deg != nullptr && an.empty()) an.assign(h.beam_offset, georef::kNaNf);
+    if (angles_deg != nullptr) {
+        an.insert(an.end(), angles_deg, angles_deg + n);
+    } else if (!an.empty()) {
+        an.resize(an.size() + n, georef::kNaNf);
     }
     r_.pings.pings.push_back(h);
 }

@@ -21,6 +21,9 @@ namespace pitmap::proc::io::detail {
 namespace nv = pitmap::protocol::novatel;
 namespace dt = pitmap::protocol::deltat;
 
+// Most beams a ping may have (R2Sonic: 1024; the 83P: dt::kMaxBeams).
+inline constexpr std::size_t kMaxPingBeams = 1024;
+
 std::string Upper(std::string s);
 bool StartsWith(std::string_view s, std::string_view prefix);
 // Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
@@ -46,11 +49,13 @@ public:
     void AddNav(const georef::NavSample& s);
     void AddStdDev(const georef::NavStdDev& s);
     void AddLeapSeconds(double utc_offset_s, int utc_status);
-    // `intensities`: n per-beam intensities, or null when the ping has none.
+    // `intensities`: n per-beam intensities, or null when the ping has none; `angles_deg`: n
+    // per-beam angles (georef::PingSeries::beam_angles_deg), or null for the header's.
     void AddPing(const georef::PingHeader& h_in,
                  const std::int32_t* counts,
                  std::size_t n,
-                 const std::uint16_t* intensities = nullptr);
+                 const std::uint16_t* intensities = nullptr,
+                 const float* angles_deg = nullptr);
     void AddPing83P(const dt::Ping83P& p, std::int64_t utime_gps);
     // NovAtel messages decoded from bytes (raw channels and files).
     void AddNovatel(const nv::DecodeResult& d);

@@ -147,11 +147,12 @@ float Floor(float v, double floor) {
     return std::isfinite(v) ? std::max(v, static_cast<float>(floor)) : static_cast<float>(floor);
 }
 
-// Keeps the pings of one session (their beams and intensities rebuilt).
+// Keeps the pings of one session (their beams, intensities and beam angles rebuilt).
 void KeepPings(georef::PingSeries& pings, const Session& s) {
     georef::PingSeries out;
     out.clock = pings.clock;
     const bool with = pings.has_intensities();
+    const bool with_angles = pings.has_beam_angles();
     for (std::size_t k = s.begin; k < s.end; ++k) {
         PingHeader h = pings.pings[k];
         const std::uint32_t from = h.beam_offset;
@@ -161,6 +162,10 @@ void KeepPings(georef::PingSeries& pings, const Session& s) {
         if (with) {
             const auto bi = pings.intensities.begin() + from;
             out.intensities.insert(out.intensities.end(), bi, bi + h.num_beams);
+        }
+        if (with_angles) {
+            const auto ba = pings.beam_angles_deg.begin() + from;
+            out.beam_angles_deg.insert(out.beam_angles_deg.end(), ba, ba + h.num_beams);
         }
         out.pings.push_back(h);
     }

@@ -25,6 +25,42 @@ std::vector<std::size_t> PingOffsets(const georef::GeorefResult& geo) {
     return offset;
 }
 
+// MakeScans: a ping with its own beam angles onto equally spaced ones (adapters.hpp).
+void ResampleToEqualAngles(const georef::PingSeries& pings,
+                           const georef::PingHeader& h,
+                           fusion::SonarScan& s) {
+    const std::size_t n = h.num_beams;
+    if (n < 2 || s.ranges_m.size() != n) return;
+    std::vector<double> a(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const float deg = pings.beam_angles_deg[h.beam_offset + i];
+        if (!std::isfinite(deg)) return;  // the header's equal spacing holds
+        a[i] = frames::DegToRad(deg);
+        if (i > 0 && !(a[i] > a[i - 1])) return;  // not increasing: left as the header says
+    }
+    const double start = a.front();
+    const double inc = (a.back() - a.front()) / static_cast<double>(n - 1);
+    const std::vector<float> src = s.ranges_m;
+    const auto valid = [&](std::size_t i) { return std::isfinite(src[i]) && src[i] > 0.0f; };
+    std::size_t i = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double th = start + inc * static_cast<double>(j);
+        while (i + 2 < n && a[i + 1] <= th) ++i;
+        const double w = std::clamp((th - a[i]) / (a[i + 1] - a[i]), 0.0, 1.0);
+        float r = 0.0f;
+        if (valid(i) && valid(i + 1) &&
+            std::abs(src[i + 1] - src[i]) <= 0.1f * std::min(src[i], src[i + 1])) {
+            r = static_cast<float>(src[i] + w * (src[i + 1] - src[i]));
+        } else {
+            const std::size_t near = w < 0.5 ? i : i + 1;
+            if (valid(near) && std::abs(th - a[near]) <= 0.5 * inc) r = src[near];
+        }
+        s.ranges_m[j] = r;
+    }
+    s.start_angle_rad = static_cast<float>(start);
+    s.angle_increment_rad = static_cast<float>(inc);
+}
+
 bool IsSortedByPing(const georef::GeorefResult& geo) {
     return std::is_sorted(geo.points.ping.begin(), geo.points.ping.end());
 }
@@ -152,6 +188,7 @@ std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
             const std::uint16_t b = geo.points.beam[i];
             if (b < s.ranges_m.size()) s.ranges_m[b] = geo.points.range_m[i];
         }
+        if (pings.has_beam_angles()) ResampleToEqualAngles(pings, h, s);
     }
     return scans;
 }

@@ -69,7 +69,12 @@ PoseLookup PosesAtPings(const georef::GeorefResult& geo,
 
 // TSDF input: one scan per georeferenced ping (every ping_stride-th of them); a beam's range is
 // the kept sounding's range, 0 where the georeferencing dropped it (no detection, range gate,
-// spike). The fan's angles come from the ping header (theta_i = start + i * increment).
+// spike). The fan's angles come from the ping header (theta_i = start + i * increment); a ping
+// with its own beam angles (PingSeries::beam_angles_deg, R2Sonic equi-distant beams) is
+// resampled onto as many equally spaced beams from its first to its last angle (the TSDF's
+// footprint model needs equal spacing): a slot's range is interpolated linearly in angle
+// between the two beams around it when both have one within 10% of each other, else taken from
+// the nearer beam within half a slot, else none.
 std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
                                          const georef::PingSeries& pings,
                                          const georef::SonarMount& mount,

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
@@ -448,9 +449,28 @@ Status GeorefSurvey(Survey& s,
     if (!ing) return ing.error();
     s.model.ingest = std::move(*ing);
     for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
+    if (!s.model.ingest.assumed.empty()) {
+        // A vendor file that does not say everything: the mount is the vehicle file's.
+        const georef::SonarMount& m = s.model.mount;
+        char mount[200];
+        std::snprintf(mount,
+                      sizeof mount,
+                      "lever arm %.3f %.3f %.3f m, boresight roll %.2f pitch %.2f yaw %.2f deg",
+                      m.lever_arm_m.x(),
+                      m.lever_arm_m.y(),
+                      m.lever_arm_m.z(),
+                      m.boresight_roll_deg,
+                      m.boresight_pitch_deg,
+                      m.boresight_yaw_deg);
+        s.model.ingest.assumed.push_back(
+            "mount: " + std::string(mount) + " from " +
+            (vpath.empty() ? std::string("no vehicle file (zero)") : "the vehicle file"));
+    }
+    for (const auto& a : s.model.ingest.assumed) log("assumed: " + a);
     log("ingest: " + s.model.ingest.message);
     json ist = s.model.ingest.counts;
     ist["warnings"] = s.model.ingest.warnings;
+    ist["assumed"] = s.model.ingest.assumed;
     ist["nav_from_raw"] = s.model.ingest.nav_from_raw;
     ist["pings_from_raw"] = s.model.ingest.pings_from_raw;
     RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);

@@ -339,6 +339,21 @@ Status IntensityFromPayload(const std::vector<std::uint8_t>& bytes, georef::Ping
     return Ok{};
 }
 
+// ---- beam angles ----
+
+Payload BeamAnglePayload(const georef::PingSeries& p) {
+    Payload out;
+    out.Vec(p.beam_angles_deg);
+    return out;
+}
+
+Status BeamAngleFromPayload(const std::vector<std::uint8_t>& bytes, georef::PingSeries& p) {
+    Cursor in(bytes, "beam_angle");
+    in.Vec(p.beam_angles_deg, "beam angles");
+    if (!in.Finish()) return Error{in.error};
+    return Ok{};
+}
+
 // ---- trajectories ----
 
 Payload TrajectoryPayload(const PingTrajectory& t) {
@@ -410,6 +425,8 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
     sections.emplace_back("ingest", IngestPayload(m.ingest));
     if (m.ingest.pings.has_intensities())
         sections.emplace_back("intensity", IntensityPayload(m.ingest.pings));
+    if (m.ingest.pings.has_beam_angles())
+        sections.emplace_back("beam_angle", BeamAnglePayload(m.ingest.pings));
     for (int v = 0; v < kNumTrajectoryVersions; ++v) {
         if (!m.trajectories[v].empty())
             sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
@@ -458,8 +475,9 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     }
     if (std::memcmp(magic, kMagic, sizeof kMagic) != 0)
         return Error{path + ": not a pitmap survey file (bad magic)" + rerun};
-    // Format 1 differs only by having no intensity section: it is read, without intensities.
-    if ((head[0] != kSurveyFormatVersion && head[0] != 1) || head[1] != kByteOrder) {
+    // Formats 1 and 2 differ only by lacking the intensity and beam_angle sections: they are
+    // read without them.
+    if (head[0] < 1 || head[0] > kSurveyFormatVersion || head[1] != kByteOrder) {
         return Error{path + ": survey file format " + std::to_string(head[0]) +
                      " or byte order not of this build (format " +
                      std::to_string(kSurveyFormatVersion) + ")" + rerun};
@@ -468,7 +486,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     const std::uint32_t count = head[2];
     std::uint64_t pos = kHeadBytes;
     SurveyModel m;
-    bool seen_state = false, seen_ingest = false, seen_intensity = false;
+    bool seen_state = false, seen_ingest = false, seen_intensity = false, seen_angles = false;
     bool seen_trajectory[kNumTrajectoryVersions] = {};
     auto corrupt = [&](const std::string& what) {
         return Error{path + ": corrupt survey file: " + what + rerun};
@@ -492,11 +510,12 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (tag == kTrajectoryTags[v]) trajectory = v;
         }
-        bool* seen = tag == "state"                      ? &seen_state
-                     : tag == "ingest"                   ? &seen_ingest
-                     : tag == "intensity" && format >= 2 ? &seen_intensity
-                     : trajectory >= 0                   ? &seen_trajectory[trajectory]
-                                                         : nullptr;
+        bool* seen = tag == "state"                       ? &seen_state
+                     : tag == "ingest"                    ? &seen_ingest
+                     : tag == "intensity" && format >= 2  ? &seen_intensity
+                     : tag == "beam_angle" && format >= 3 ? &seen_angles
+                     : trajectory >= 0                    ? &seen_trajectory[trajectory]
+                                                          : nullptr;
         if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
         if (*seen) return corrupt("section " + tag + " twice");
         *seen = true;
@@ -521,6 +540,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             st = IngestFromPayload(payload, m.ingest);
         } else if (tag == "intensity") {
             st = IntensityFromPayload(payload, m.ingest.pings);
+        } else if (tag == "beam_angle") {
+            st = BeamAngleFromPayload(payload, m.ingest.pings);
         } else {
             st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
         }
@@ -535,6 +556,11 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             return corrupt("section intensity has " + std::to_string(pings.intensities.size()) +
                            " intensities for " + std::to_string(pings.range_counts.size()) +
                            " range counts");
+        }
+        if (seen_angles && pings.beam_angles_deg.size() != pings.range_counts.size()) {
+            return corrupt("section beam_angle has " +
+                           std::to_string(pings.beam_angles_deg.size()) + " angles for " +
+                           std::to_string(pings.range_counts.size()) + " range counts");
         }
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (seen_trajectory[v] &&

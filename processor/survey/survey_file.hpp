@@ -15,6 +15,9 @@
 //   intensity             (format 2; only when the pings carry intensities) u16 per-beam 83P
 //                         intensities beside the range counts (one per count, 0 = none), as
 //                         u64 count, u64 element size, bytes
+//   beam_angle            (format 3; only when the pings carry their own beam angles) f32
+//                         per-beam angles in degrees beside the range counts (one per count,
+//                         NaN = the header's), as u64 count, u64 element size, bytes
 //   traj.ins, traj.calibrated, traj.slam
 //                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,
 //                         qz (T_world_vehicle), u32 valid, u32 zero
@@ -33,9 +36,10 @@
 
 namespace pitmap::proc::survey {
 
-// 2: the optional intensity section. A format 1 file is still read (without intensities);
-// any other format is an error that says to run `pitmap georef` again.
-inline constexpr std::uint32_t kSurveyFormatVersion = 2;
+// 2: the optional intensity section. 3: the optional beam_angle section (a format 2 reader
+// would call it an unknown section). Formats 1 and 2 are still read (without the sections
+// they lack); any other format is an error that says to run `pitmap georef` again.
+inline constexpr std::uint32_t kSurveyFormatVersion = 3;
 inline constexpr const char* kSurveyFileName = "survey.pitmap";
 
 // Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the

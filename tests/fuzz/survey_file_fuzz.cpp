@@ -32,6 +32,8 @@ void ReadOne(const std::vector<std::uint8_t>& bytes) {
     const auto& pings = r->ingest.pings;
     if (pings.has_intensities() && pings.intensities.size() != pings.range_counts.size())
         std::abort();
+    if (pings.has_beam_angles() && pings.beam_angles_deg.size() != pings.range_counts.size())
+        std::abort();
     for (const auto& p : pings.pings) {
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > pings.range_counts.size())
             std::abort();

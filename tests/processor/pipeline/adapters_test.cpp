@@ -76,6 +76,56 @@ Survey MakeSurvey(const georef::SonarMount& mount) {
     return s;
 }
 
+// R2Sonic-like equi-distant beams (PingSeries::beam_angles_deg) over a flat seabed 10 m down:
+// the scan is equally spaced from the first to the last angle and its ranges are the seabed's
+// at the new angles (linear interpolation in angle between neighbouring beams).
+TEST(Adapters, ScansOfUnequallySpacedBeamsAreResampledToEqualSpacing) {
+    constexpr int n = 101;
+    constexpr double kDepth = 10.0;
+    Survey s;
+    georef::PingHeader h;
+    h.utime_gps = 1'400'000'000'000'000;
+    h.num_beams = n;
+    std::vector<double> angle(n);
+    for (int b = 0; b < n; ++b) {
+        angle[b] = std::atan((-17.0 + 34.0 * b / (n - 1)) / kDepth);
+        s.pings.beam_angles_deg.push_back(static_cast<float>(frames::RadToDeg(angle[b])));
+    }
+    h.start_angle_deg = frames::RadToDeg(angle.front());
+    h.angle_increment_deg = frames::RadToDeg(angle.back() - angle.front()) / (n - 1);
+    s.pings.pings.push_back(h);
+    s.pings.range_counts.assign(n, 1);
+    georef::GeorefPing p;
+    p.utime_gps = h.utime_gps;
+    s.geo.pings.push_back(p);
+    for (int b = 0; b < n; ++b) {
+        if (b == 50) continue;  // a beam without a sounding at nadir
+        s.geo.points.position_world.push_back(Eigen::Vector3d::Zero());
+        s.geo.points.ping.push_back(0);
+        s.geo.points.beam.push_back(static_cast<std::uint16_t>(b));
+        s.geo.points.range_m.push_back(static_cast<float>(kDepth / std::cos(angle[b])));
+        s.geo.points.angle_rad.push_back(static_cast<float>(angle[b]));
+    }
+    const auto scans = MakeScans(s.geo, s.pings, georef::SonarMount{});
+    ASSERT_EQ(scans.size(), 1u);
+    const auto& scan = scans[0];
+    ASSERT_EQ(scan.ranges_m.size(), static_cast<std::size_t>(n));
+    EXPECT_NEAR(scan.start_angle_rad, angle.front(), 1e-6);
+    EXPECT_NEAR(scan.angle_increment_rad, (angle.back() - angle.front()) / (n - 1), 1e-6);
+    int empty = 0;
+    for (int j = 0; j < n; ++j) {
+        const double th = scan.start_angle_rad + j * static_cast<double>(scan.angle_increment_rad);
+        const float r = scan.ranges_m[static_cast<std::size_t>(j)];
+        if (r == 0.0f) {
+            ++empty;
+            EXPECT_LT(std::abs(th), frames::DegToRad(3.0)) << "only around the missing beam";
+            continue;
+        }
+        EXPECT_NEAR(r * std::cos(th), kDepth, 0.02) << "slot " << j;
+    }
+    EXPECT_LE(empty, 3);
+}
+
 TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
     const auto mount = Mount();
     const Survey s = MakeSurvey(mount);

@@ -120,6 +120,10 @@ SurveyModel SmallSurvey() {
         for (int b = 0; b < 121; ++b)
             r.pings.intensities.push_back(
                 static_cast<std::uint16_t>(p == 0 ? 0 : 2000 + 7 * b + p));
+        // Per-beam angles (R2Sonic-like, closer together at the edges).
+        for (int b = 0; b < 121; ++b)
+            r.pings.beam_angles_deg.push_back(
+                static_cast<float>(-60.0 + b - 0.002 * b * (120 - b)));
     }
     m.vehicle_yaml = "vehicle.yaml";
     m.nominal_mount.boresight_roll_deg = 0.5;
@@ -396,7 +400,7 @@ TEST_F(SurveyFile, IntensitiesRoundTripAndAreOnlyWrittenWhenThere) {
     std::uint32_t version = 0;
     std::memcpy(&version, good_.data() + 8, 4);
     EXPECT_EQ(version, kSurveyFormatVersion);
-    EXPECT_EQ(version, 2u);
+    EXPECT_EQ(version, 3u);
 
     SurveyModel none = SmallSurvey();
     none.ingest.pings.intensities.clear();
@@ -407,19 +411,74 @@ TEST_F(SurveyFile, IntensitiesRoundTripAndAreOnlyWrittenWhenThere) {
     EXPECT_FALSE(back->ingest.pings.has_intensities());
 }
 
-// The file of the format before intensities: the same file without the intensity section.
-std::vector<std::uint8_t> AsFormat1(const std::vector<std::uint8_t>& b) {
-    const SectionAt s = Sections(b).at("intensity");
+// The file without one section, marked as of format `version`.
+std::vector<std::uint8_t> Without(const std::vector<std::uint8_t>& b,
+                                  const std::string& tag,
+                                  std::uint32_t version) {
+    const SectionAt s = Sections(b).at(tag);
     std::vector<std::uint8_t> out(b.begin(),
                                   b.begin() + static_cast<std::ptrdiff_t>(s.crc_at - 24));
     out.insert(out.end(), b.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes), b.end());
-    const std::uint32_t version = 1;
     std::memcpy(out.data() + 8, &version, 4);
     std::uint32_t count = 0;
     std::memcpy(&count, out.data() + 16, 4);
     --count;
     std::memcpy(out.data() + 16, &count, 4);
     return out;
+}
+
+// The file of the format before intensities: without the intensity and beam_angle sections.
+std::vector<std::uint8_t> AsFormat1(const std::vector<std::uint8_t>& b) {
+    return Without(Without(b, "beam_angle", 2), "intensity", 1);
+}
+
+TEST_F(SurveyFile, BeamAnglesRoundTripAndAreOnlyWrittenWhenThere) {
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->ingest.pings.beam_angles_deg, SmallSurvey().ingest.pings.beam_angles_deg);
+    ASSERT_TRUE(Sections(good_).count("beam_angle"));
+
+    SurveyModel none = SmallSurvey();
+    none.ingest.pings.beam_angles_deg.clear();
+    ASSERT_TRUE(SaveSurvey(path_, none));
+    EXPECT_FALSE(Sections(ReadBytes(path_)).count("beam_angle"));
+    const auto back = LoadSurvey(path_);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_FALSE(back->ingest.pings.has_beam_angles());
+}
+
+TEST_F(SurveyFile, AFormat2FileIsReadWithoutBeamAnglesAndCannotHoldThem) {
+    WriteBytes(path_, Without(good_, "beam_angle", 2));
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_FALSE(r->ingest.pings.has_beam_angles());
+    EXPECT_TRUE(r->ingest.pings.has_intensities());
+    std::vector<std::uint8_t> crafted = good_;
+    const std::uint32_t version = 2;
+    std::memcpy(crafted.data() + 8, &version, 4);
+    WriteBytes(path_, crafted);
+    const auto c = LoadSurvey(path_);
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.error().message.find("unknown section \"beam_angle\""), std::string::npos)
+        << c.error().message;
+}
+
+TEST_F(SurveyFile, BeamAnglesThatDoNotMatchTheRangeCountsAreAnError) {
+    std::vector<std::uint8_t> bad = good_;
+    const SectionAt s = Sections(bad).at("beam_angle");
+    std::uint64_t count = 0;
+    std::memcpy(&count, bad.data() + s.payload_at, 8);
+    --count;
+    std::memcpy(bad.data() + s.payload_at, &count, 8);
+    bad.erase(bad.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes - 4),
+              bad.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes));
+    const std::uint64_t bytes = s.bytes - 4;
+    std::memcpy(bad.data() + s.crc_at - 8, &bytes, 8);
+    FixCrcs(bad);
+    WriteBytes(path_, bad);
+    const auto r = LoadSurvey(path_);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("angles for"), std::string::npos) << r.error().message;
 }
 
 TEST_F(SurveyFile, AFormat1FileIsReadWithoutIntensities) {
