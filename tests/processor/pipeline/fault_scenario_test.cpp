@@ -108,6 +108,20 @@ protected:
         SetVehicleLine(log / "vehicle.yaml", key, value);
         return log;
     }
+    // One input folder holding the logs of two simulated surveys (a_*.lcmlog from `a`,
+    // b_*.lcmlog from `b`) and the vehicle file of `a`.
+    fs::path TwoRecordings(const std::string& name, const fs::path& a, const fs::path& b) {
+        const fs::path in = Fresh(name) / "in";
+        fs::create_directories(in);
+        for (const auto& [sim, prefix] : {std::pair{a, "a_"}, {b, "b_"}}) {
+            for (const auto& e : fs::directory_iterator(sim / "log")) {
+                if (e.path().extension() == ".lcmlog")
+                    fs::copy_file(e.path(), in / (prefix + e.path().filename().string()));
+            }
+        }
+        fs::copy_file(a / "log/vehicle.yaml", in / "vehicle.yaml");
+        return in;
+    }
     int Pitmap(const std::string& args, std::string* out) {
         return RunCommand(kBin + "/pitmap " + args, out);
     }
@@ -294,16 +308,7 @@ TEST_F(FaultScenario, InsDriftTheInsDoesNotReportIsANavigationDriftGate) {
 TEST_F(FaultScenario, TwoRecordingsWithTheSameTimeStampsAreAnErrorNamingBoth) {
     const fs::path a = Sim("base");
     const fs::path b = Sim("other_seed", "--seed 77");
-    const fs::path in = Fresh("same_times") / "in";
-    fs::create_directories(in);
-    for (const auto& [sim, name] : {std::pair{a, "a"}, {b, "b"}}) {
-        for (const auto& e : fs::directory_iterator(sim / "log")) {
-            if (e.path().extension() == ".lcmlog")
-                fs::copy_file(e.path(),
-                              in / (std::string(name) + "_" + e.path().filename().string()));
-        }
-    }
-    fs::copy_file(a / "log/vehicle.yaml", in / "vehicle.yaml");
+    const fs::path in = TwoRecordings("same_times", a, b);
     std::string out;
     EXPECT_NE(Pitmap("georef " + Quote(in) + " --out " + Quote(in.parent_path() / "P"), &out), 0);
     EXPECT_TRUE(Contains(out, "held twice with different content")) << out;
@@ -319,16 +324,7 @@ TEST_F(FaultScenario, TwoSurveysADayOrKilometresApartAreSessionsNotOneSurvey) {
     for (const auto& [other, words] :
          {std::pair<fs::path, std::string>{day, "1.0 days later"}, {away, "km away"}}) {
         SCOPED_TRACE(words);
-        const fs::path in = Fresh("sessions_" + other.filename().string()) / "in";
-        fs::create_directories(in);
-        for (const auto& [sim, name] : {std::pair{a, "a"}, {other, "b"}}) {
-            for (const auto& e : fs::directory_iterator(sim / "log")) {
-                if (e.path().extension() == ".lcmlog")
-                    fs::copy_file(e.path(),
-                                  in / (std::string(name) + "_" + e.path().filename().string()));
-            }
-        }
-        fs::copy_file(a / "log/vehicle.yaml", in / "vehicle.yaml");
+        const fs::path in = TwoRecordings("sessions_" + other.filename().string(), a, other);
         std::string out;
         EXPECT_NE(Pitmap("georef " + Quote(in) + " --out " + Quote(in.parent_path() / "P"), &out),
                   0);
