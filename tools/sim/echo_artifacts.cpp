@@ -213,6 +213,9 @@ void EchoArtifactModel::Apply(SimPing& ping,
         std::vector<School> schools;
         for (int s = 0; s < cfg_.num_schools; ++s) {
             School sc = SchoolAt(s, t_s);
+            // Patchy: a school answers a ping as a whole or not at all (its echo spans
+            // neighbouring beams, which a median over a few beams keeps).
+            if (uni(rng_) >= cfg_.school_fill) continue;
             if (!std::isfinite(sc.centre.x())) continue;
             // Only schools within reach of the fan (cheap pre-test).
             if ((sc.centre - origin).norm() > sonar_.max_range_m + sc.radius_m) continue;
@@ -232,8 +235,7 @@ void EchoArtifactModel::Apply(SimPing& ping,
                 const double s = -b - std::sqrt(disc);
                 if (s > 0.5 && s < bottom) best = std::min(best, s);
             }
-            if (std::isfinite(best) && uni(rng_) < cfg_.school_fill)
-                set(i, best, EchoArtifactKind::kMidWater, kMidWaterDb);
+            if (std::isfinite(best)) set(i, best, EchoArtifactKind::kMidWater, kMidWaterDb);
         }
     }
 
@@ -256,21 +258,26 @@ void EchoArtifactModel::Apply(SimPing& ping,
             }
         }
         if (bubble_.last_ping >= k) {
-            for (int b = bubble_.first_beam; b < bubble_.first_beam + bubble_.num_beams; ++b) {
-                const auto i = static_cast<std::size_t>(b);
+            // The sector in bubble clouds of 4-16 beams: each a near-field echo at one range
+            // (a cloud), no detection, or left alone.
+            std::uniform_int_distribution<int> cloud(4, 16);
+            for (int b0 = bubble_.first_beam; b0 < bubble_.first_beam + bubble_.num_beams;) {
+                const int b1 = std::min(b0 + cloud(rng_), bubble_.first_beam + bubble_.num_beams);
                 const double u = uni(rng_);
-                if (u < cfg_.bubble_return_share) {
-                    set(i,
-                        cfg_.bubble_min_range_m +
-                            (cfg_.bubble_max_range_m - cfg_.bubble_min_range_m) * uni(rng_),
-                        EchoArtifactKind::kBubble,
-                        kBubbleDb);
-                } else if (u < cfg_.bubble_return_share + cfg_.bubble_dropout_share &&
-                           ping.range_counts[i] > 0) {
-                    ping.range_counts[i] = 0;
-                    if (!ping.intensities.empty()) ping.intensities[i] = 0;
-                    ping.artifact[i] = EchoArtifactKind::kDropout;
+                const double r = cfg_.bubble_min_range_m +
+                                 (cfg_.bubble_max_range_m - cfg_.bubble_min_range_m) * uni(rng_);
+                for (int b = b0; b < b1; ++b) {
+                    const auto i = static_cast<std::size_t>(b);
+                    if (u < cfg_.bubble_return_share) {
+                        set(i, r + 0.05 * gauss(rng_), EchoArtifactKind::kBubble, kBubbleDb);
+                    } else if (u < cfg_.bubble_return_share + cfg_.bubble_dropout_share &&
+                               ping.range_counts[i] > 0) {
+                        ping.range_counts[i] = 0;
+                        if (!ping.intensities.empty()) ping.intensities[i] = 0;
+                        ping.artifact[i] = EchoArtifactKind::kDropout;
+                    }
                 }
+                b0 = b1;
             }
         }
     }

@@ -5,12 +5,14 @@
 //
 //   mid-water     fish schools and vegetation: spheres in the water column (centre at least
 //                 school_min_depth_m down and 1 m above the bottom), alive school_lifetime_s,
-//                 drifting slowly; a beam whose axis enters a school before the bottom returns
-//                 the entry range (with probability school_fill: a school is patchy).
+//                 drifting slowly; in a ping, a school answers with probability school_fill
+//                 (it is patchy), and then every beam whose axis enters it before the bottom
+//                 returns the entry range.
 //   bubble        bubble sweep-down and aeration: episodes of bubble_min..max_pings pings,
 //                 started at random (bubble_episodes_per_min) and bubble_manoeuvre_factor times
-//                 as often while the vehicle turns or pitches hard; in a sector of the fan the
-//                 beams return a near-field echo (bubble_min..max_range_m) or nothing.
+//                 as often while the vehicle turns or pitches hard; a sector of the fan is cut
+//                 into clouds of 4-16 beams, each returning a near-field echo at one range
+//                 (bubble_min..max_range_m), nothing, or left alone.
 //   dropout       the beams of a bubble episode that return nothing (no sounding: counted, but
 //                 not an artifact sounding).
 //   multipath     multipath and side-lobe ghosts at grazing incidence and under steep walls: an

@@ -403,10 +403,10 @@ Expected<EchoArtifactConfig> EchoArtifactsAt(const std::string& level) {
     if (k == 0)
         return Error{"unknown echo artifact level '" + level +
                      "' (valid: none, light, typical, heavy)"};
-    a.num_schools = static_cast<int>(std::lround(9 * k));
-    a.bubble_episodes_per_min = 0.4 * k;
-    a.multipath_probability = 9.5e-5 * k;
-    a.smile_probability = 0.0047 * k;
+    a.num_schools = static_cast<int>(std::lround(12 * k));
+    a.bubble_episodes_per_min = 0.35 * k;
+    a.multipath_probability = 4.7e-5 * k;
+    a.smile_probability = 0.0048 * k;
     return a;
 }
 

@@ -219,11 +219,11 @@ struct EchoArtifactConfig {
     // Mid-water targets (fish schools, vegetation): blobs alive at any time, each living
     // school_lifetime_s then reborn elsewhere, drifting at up to school_drift_mps.
     int num_schools = 0;
-    double school_min_radius_m = 0.6;
-    double school_max_radius_m = 1.8;
+    double school_min_radius_m = 0.35;
+    double school_max_radius_m = 0.9;
     double school_lifetime_s = 45.0;
     double school_drift_mps = 0.08;
-    double school_fill = 0.6;         // share of the beams crossing a school that return from it
+    double school_fill = 0.5;         // share of the beams crossing a school that return from it
     double school_min_depth_m = 1.5;  // shallowest centre below the water surface
     // Bubble sweep-down / aeration: episodes of consecutive pings in which a sector of beams
     // returns near-field echoes or nothing.
@@ -233,8 +233,8 @@ struct EchoArtifactConfig {
     double bubble_manoeuvre_factor = 15.0;  // episode rate multiplier while turning/pitching
     int bubble_min_pings = 3;
     int bubble_max_pings = 12;
-    double bubble_sector_min = 0.2;  // share of the fan the episode's sector spans, min..max
-    double bubble_sector_max = 0.7;
+    double bubble_sector_min = 0.1;  // share of the fan the episode's sector spans, min..max
+    double bubble_sector_max = 0.4;
     double bubble_return_share = 0.35;   // of the sector's beams: a near-field return
     double bubble_dropout_share = 0.35;  // of the sector's beams: no detection
     double bubble_min_range_m = 0.4;     // near-field returns, uniform in min..max
@@ -245,8 +245,8 @@ struct EchoArtifactConfig {
     double multipath_probability = 0;
     double multipath_grazing_deg = 70.0;     // incidence from the surface normal above which
     double multipath_wall_slope_deg = 50.0;  // or true slope above which a beam is a candidate
-    int multipath_min_beams = 2;
-    int multipath_max_beams = 8;
+    int multipath_min_beams = 4;
+    int multipath_max_beams = 12;
     int multipath_min_pings = 10;
     int multipath_max_pings = 40;
     double multipath_min_excess = 0.08;  // fraction of the true range, uniform in min..max
