@@ -190,13 +190,12 @@ int main(int argc, char** argv) {
     // With the truth of the echo artifacts, the points' ping times are needed to match them.
     bool have_times = false;
     if (fs::exists(P / "points.ply")) {
-        auto ply = formats::ply::ReadMesh((P / "points.ply").string());
-        if (ply && truth->artifacts) {
-            if (auto timed = formats::ply::ReadMesh((P / "points.ply").string(), {"gps_time_s"})) {
-                ply = std::move(timed);
-                have_times = true;
-            }
-        }
+        // One read with the times where they are needed (a file without them: read again).
+        auto ply = truth->artifacts
+                       ? formats::ply::ReadMesh((P / "points.ply").string(), {"gps_time_s"})
+                       : formats::ply::ReadMesh((P / "points.ply").string());
+        have_times = truth->artifacts && ply;
+        if (!ply && truth->artifacts) ply = formats::ply::ReadMesh((P / "points.ply").string());
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
             return 2;
