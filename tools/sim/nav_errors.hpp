@@ -19,7 +19,7 @@ struct NavError {
     Eigen::Vector3d position_stddev_enu_m =
         Eigen::Vector3d::Zero();  // what the INS claims (1 sigma)
     Eigen::Vector3d attitude_stddev_rpy_rad = Eigen::Vector3d::Zero();
-    bool gnss_available = true;    // false inside an outage
+    bool gnss_available = true;  // false inside an outage
     std::uint32_t ins_status = 3;  // NovAtel INS status reported (3 INS_SOLUTION_GOOD)
 };
 
