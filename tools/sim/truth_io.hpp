@@ -24,7 +24,8 @@
 //                         number (the 83P's), u16 first beam, u16 number of beams, u8 kind
 //                         (tools/sim/echo_artifacts.hpp EchoArtifactKind: 1 mid-water, 2 bubble,
 //                         3 dropout, 4 multipath, 5 smile, 6 coarse outlier), little-endian,
-//                         9 bytes a run (bejanca at "typical": some hundreds of kB)
+//                         9 bytes a run (the quarry: 185 kB, 90 % of it the coarse
+//                         outliers, single beams; bejanca about 1.1 MB)
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
 #pragma once
