@@ -51,6 +51,7 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 P/mesh.ply in the 0.2 m cubes that hold samples of both meshes,
                                 and their share (two sensor models compared on the surface both
                                 hold, each on the same cubes).
+  mesh_share_beyond_1m          share of those samples more than 1 m from the true surface.
   mesh_bias_m, mesh_bias_m_common
                                 signed mean of the same distances (> 0: the mesh lies in the
                                 water, above or in front of the true surface).
@@ -86,6 +87,21 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 from the true sonar pose, cast into the true terrain) is within
                                 their 95 % TVU (THU); tpu_within_tvu_NN_MM_deg per |beam angle|
                                 bin.
+  artifact_soundings, artifact_beams_KIND, good_soundings
+                                with truth/artifacts.* (pitmap-sim synth): the beams whose
+                                range an echo artifact replaced (KIND mid_water, bubble,
+                                multipath, smile; dropout: no detection; outlier: the
+                                uncorrelated coarse outliers) and the other beams with a
+                                detection.
+  artifact_in_points[_KIND], artifact_rejected_share[_KIND]
+                                those found in P/points.ply, each point matched to its (ping,
+                                beam) by its beam and gps_time_s (ping k at truth
+                                first_ping_gps_s + k / ping_rate_hz, within a quarter period;
+                                points_unmatched: the others), and the share not found.
+  good_in_points, good_rejected_share, good_rejected_share_slope_A_B
+                                the good soundings found in P/points.ply and the share not
+                                found, also by the true slope (classes 0 20 45 91);
+                                points_rms_m_good: points_rms_m over the good points only.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
 either, the truth's origin is assumed (and said).)";
@@ -171,8 +187,15 @@ int main(int argc, char** argv) {
     std::vector<std::string> comments;
     formats::ply::Mesh cloud;
     bool have_cloud = false;
+    // With the truth of the echo artifacts, the points' ping times are needed to match them.
+    bool have_times = false;
     if (fs::exists(P / "points.ply")) {
-        auto ply = formats::ply::ReadMesh((P / "points.ply").string());
+        // One read with the times where they are needed (a file without them: read again).
+        auto ply = truth->artifacts
+                       ? formats::ply::ReadMesh((P / "points.ply").string(), {"gps_time_s"})
+                       : formats::ply::ReadMesh((P / "points.ply").string());
+        have_times = truth->artifacts && ply;
+        if (!ply && truth->artifacts) ply = formats::ply::ReadMesh((P / "points.ply").string());
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
             return 2;
@@ -277,6 +300,69 @@ int main(int argc, char** argv) {
             }
         }
     }
+    if (have_cloud && truth->artifacts) {
+        const sim::ArtifactTruth& a = *truth->artifacts;
+        const auto total = [&](sim::EchoArtifactKind k) {
+            return a.beams_by_kind[static_cast<int>(k)];
+        };
+        scores["artifact_soundings"] = a.artifact_soundings();
+        for (int k = 1; k < sim::kNumEchoArtifactKinds; ++k) {
+            scores[std::string("artifact_beams_") +
+                   sim::EchoArtifactName(static_cast<sim::EchoArtifactKind>(k))] =
+                a.beams_by_kind[k];
+        }
+        scores["good_soundings"] = a.good_soundings;
+        if (!have_times || cloud.vertex_beam.size() != cloud.vertices.size()) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s/points.ply has no gps_time_s or beam: the artifact "
+                         "soundings are not scored\n",
+                         products_dir.c_str());
+        } else {
+            std::vector<Eigen::Vector3d> pts(cloud.vertices.size());
+            for (std::size_t i = 0; i < pts.size(); ++i) pts[i] = T * cloud.vertices[i];
+            const auto s =
+                eval::ScoreArtifacts(pts, cloud.vertex_properties[0], cloud.vertex_beam, a, world);
+            std::int64_t artifacts_in = 0;
+            for (const auto k : {sim::EchoArtifactKind::kMidWater,
+                                 sim::EchoArtifactKind::kBubble,
+                                 sim::EchoArtifactKind::kMultipath,
+                                 sim::EchoArtifactKind::kSmile,
+                                 sim::EchoArtifactKind::kOutlier}) {
+                const std::string name = sim::EchoArtifactName(k);
+                const std::int64_t in = s.in_points[static_cast<int>(k)];
+                if (k != sim::EchoArtifactKind::kOutlier) artifacts_in += in;
+                scores["artifact_in_points_" + name] = in;
+                if (total(k) > 0) {
+                    scores["artifact_rejected_share_" + name] =
+                        1.0 - static_cast<double>(in) / static_cast<double>(total(k));
+                }
+            }
+            scores["artifact_in_points"] = artifacts_in;
+            if (a.artifact_soundings() > 0) {
+                scores["artifact_rejected_share"] =
+                    1.0 -
+                    static_cast<double>(artifacts_in) / static_cast<double>(a.artifact_soundings());
+            }
+            scores["points_unmatched"] = s.unmatched;
+            scores["good_in_points"] = s.good_in_points;
+            if (a.good_soundings > 0) {
+                scores["good_rejected_share"] = 1.0 - static_cast<double>(s.good_in_points) /
+                                                          static_cast<double>(a.good_soundings);
+            }
+            for (int c = 0; c < sim::kNumArtifactSlopeClasses; ++c) {
+                if (a.good_by_slope[c] == 0) continue;
+                char key[64];
+                std::snprintf(key,
+                              sizeof key,
+                              "good_rejected_share_slope_%.0f_%.0f",
+                              sim::kArtifactSlopeEdgesDeg[c],
+                              sim::kArtifactSlopeEdgesDeg[c + 1]);
+                scores[key] = 1.0 - static_cast<double>(s.good_in_points_by_slope[c]) /
+                                        static_cast<double>(a.good_by_slope[c]);
+            }
+            if (s.good.count > 0) scores["points_rms_m_good"] = s.good.rms_m;
+        }
+    }
     if (fs::exists(P / "boresight.json")) {
         std::ifstream in(P / "boresight.json");
         const json b = json::parse(in, nullptr, false);
@@ -308,6 +394,14 @@ int main(int argc, char** argv) {
         scores["mesh_rms_m"] = s.rms_m;
         scores["mesh_p95_m"] = s.p95_m;
         scores["mesh_bias_m"] = s.bias_m;
+        {
+            // Issue 35's damage figure: the share of the mesh samples more than 1 m off.
+            std::size_t far = 0;
+            for (const auto& p : samples) far += std::abs(world.SignedDistance(p)) > 1.0;
+            scores["mesh_share_beyond_1m"] =
+                samples.empty() ? 0.0
+                                : static_cast<double>(far) / static_cast<double>(samples.size());
+        }
         // The same by the true slope under the sample: floors, faces, walls (mean abs error
         // and signed mean, truth to mesh positive when the mesh lies outside the rock).
         const auto& edges = eval::kSlopeClassEdgesDeg;

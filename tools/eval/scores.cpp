@@ -419,4 +419,38 @@ TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
     return out;
 }
 
+ArtifactScore ScoreArtifacts(const std::vector<Eigen::Vector3d>& points,
+                             const std::vector<double>& gps_time_s,
+                             const std::vector<int>& beam,
+                             const sim::ArtifactTruth& truth,
+                             const sim::PitWorld& world) {
+    ArtifactScore out;
+    out.points = points.size();
+    std::vector<double> good;
+    good.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const double k_real = (gps_time_s[i] - truth.first_ping_gps_s) * truth.ping_rate_hz;
+        const double k = std::round(k_real);
+        if (std::abs(k_real - k) > 0.25 || k < 0 || beam[i] < 0) {
+            ++out.unmatched;
+            continue;
+        }
+        const sim::EchoArtifactKind kind = truth.KindOf(static_cast<std::int64_t>(k), beam[i]);
+        if (kind != sim::EchoArtifactKind::kNone) {
+            ++out.in_points[static_cast<int>(kind)];
+            continue;
+        }
+        ++out.good_in_points;
+        const double slope = SlopeDeg(world, points[i].x(), points[i].y());
+        for (int c = 0; c < sim::kNumArtifactSlopeClasses; ++c) {
+            if (slope >= sim::kArtifactSlopeEdgesDeg[c] &&
+                slope < sim::kArtifactSlopeEdgesDeg[c + 1])
+                ++out.good_in_points_by_slope[c];
+        }
+        good.push_back(world.SignedDistance(points[i]));
+    }
+    out.good = SummariseDistances(std::move(good));
+    return out;
+}
+
 }  // namespace pitmap::eval

@@ -176,6 +176,27 @@ TpuScore ScoreTpu(const std::vector<TpuSounding>& soundings,
                   const sim::PitWorld& world,
                   std::size_t max_soundings = 1'000'000);
 
+// The echo artifacts (truth/artifacts.*, tools/sim/echo_artifacts.hpp) found in a point cloud:
+// each point is matched to its (ping, beam) by its beam number and its ping time (ping k
+// transmits at first_ping_gps_s + k / ping_rate_hz; a point further than a quarter of a ping
+// period from every ping is unmatched), then looked up in the truth's runs.
+struct ArtifactScore {
+    std::size_t points = 0;
+    std::size_t unmatched = 0;
+    std::int64_t in_points[sim::kNumEchoArtifactKinds] = {};  // [kind]: points of that kind
+    std::int64_t good_in_points = 0;                          // points not listed
+    // Good points per slope class (sim::kArtifactSlopeEdgesDeg) of the true surface under the
+    // point (the truth counts them under the beam's true hit: the same for a good sounding).
+    std::int64_t good_in_points_by_slope[sim::kNumArtifactSlopeClasses] = {};
+    DistanceStats good;  // distances of the good points to the true surface
+};
+// Preconditions: gps_time_s and beam hold one value per point; points in the truth frame.
+ArtifactScore ScoreArtifacts(const std::vector<Eigen::Vector3d>& points_truth,
+                             const std::vector<double>& gps_time_s,
+                             const std::vector<int>& beam,
+                             const sim::ArtifactTruth& truth,
+                             const sim::PitWorld& world);
+
 // Angle in degrees between two roll/pitch/yaw (degrees) rotations.
 double BoresightErrorDeg(double roll_est,
                          double pitch_est,

@@ -4,6 +4,7 @@
 //                    [--topside-clock-offset S]             log files + truth (+ vendor files),
 //                    [--duration S] [--refraction]          faster than real time; --refraction:
 //                                                           a refracting water column
+//                    [--echo-artifacts LEVEL]               fish, bubbles, multipath, smile
 //   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
@@ -170,6 +171,14 @@ int main(int argc, char** argv) {
     auto* thermocline_opt =
         synth->add_option("--thermocline", thermocline, "its top and bottom depth, m (2 7)")
             ->expected(2);
+    std::string echo_level;
+    synth
+        ->add_option("--echo-artifacts",
+                     echo_level,
+                     "correlated echo artifacts (fish schools, bubble sweep-down, multipath "
+                     "ghosts, the nadir smile): none (default), light (~0.3 % of the beams), "
+                     "typical (~1 %), heavy (~3 %); truth per beam in DIR/truth/artifacts.*")
+        ->check(CLI::IsMember({"none", "light", "typical", "heavy"}));
     // Fault cases (issue 34): what real surveys break.
     std::string start_utc;
     synth->add_option("--start-utc",
@@ -301,6 +310,14 @@ int main(int argc, char** argv) {
         scenario->sonar.dropout_patch_radius_m = dropout_patch[2];
     }
     if (refraction) scenario->water.refraction = true;
+    if (!echo_level.empty()) {
+        auto a = sim::EchoArtifactsAt(echo_level);
+        if (!a) {
+            std::fprintf(stderr, "pitmap-sim: %s\n", a.error().message.c_str());
+            return 2;
+        }
+        scenario->echo_artifacts = *a;
+    }
     if (surface_speed_opt->count() > 0) scenario->water.surface_speed_mps = water_surface_speed;
     if (deep_speed_opt->count() > 0) scenario->water.deep_speed_mps = water_deep_speed;
     if (thermocline_opt->count() > 0) {
@@ -324,7 +341,7 @@ int main(int argc, char** argv) {
     std::printf(
         "pitmap-sim: %s: %.1f s simulated (%.0f m) in %.1f s: %lld pings, %lld NovAtel frames "
         "(%lld bytes); log: %lld events, %.1f MB in %d file(s) under %s/log; truth in %s/truth"
-        "%s\n",
+        "%s; echo artifacts (%s): %lld beams (%.2f %%)\n",
         scenario_name.c_str(),
         result->duration_s,
         result->track_length_m,
@@ -337,6 +354,9 @@ int main(int argc, char** argv) {
         result->log_files,
         out_dir.c_str(),
         out_dir.c_str(),
-        vendor_files ? "; vendor files in DIR/vendor" : "");
+        vendor_files ? "; vendor files in DIR/vendor" : "",
+        scenario->echo_artifacts.level.c_str(),
+        static_cast<long long>(result->artifact_soundings),
+        100.0 * result->artifact_share);
     return 0;
 }

@@ -276,6 +276,41 @@ std::vector<std::string> ScenarioConfig::Validate() const {
         std::abs(sonar.topside_clock_drift_ppm) > 1000) {
         p.push_back("sonar.topside_clock_drift_ppm must be within +-1000");
     }
+    {
+        const EchoArtifactConfig& a = echo_artifacts;
+        if (a.num_schools < 0 || a.num_schools > 10000)
+            p.push_back("echo_artifacts.num_schools must be 0..10000");
+        if (!(a.school_min_radius_m > 0 && a.school_max_radius_m >= a.school_min_radius_m))
+            p.push_back("echo_artifacts: need 0 < school_min_radius_m <= school_max_radius_m");
+        if (!(a.school_lifetime_s > 0) || !(a.school_drift_mps >= 0) ||
+            !(a.school_fill >= 0 && a.school_fill <= 1) || !(a.school_min_depth_m >= 0))
+            p.push_back("echo_artifacts: school lifetime > 0, drift >= 0, fill in [0, 1]");
+        if (!(a.bubble_episodes_per_min >= 0) || !(a.bubble_manoeuvre_factor >= 1) ||
+            !(a.bubble_turn_rate_deg_s > 0) || !(a.bubble_pitch_rate_deg_s > 0))
+            p.push_back("echo_artifacts: bubble rates >= 0, manoeuvre factor >= 1");
+        if (a.bubble_min_pings < 1 || a.bubble_max_pings < a.bubble_min_pings)
+            p.push_back("echo_artifacts: need 1 <= bubble_min_pings <= bubble_max_pings");
+        if (!(a.bubble_sector_min > 0 && a.bubble_sector_max >= a.bubble_sector_min &&
+              a.bubble_sector_max <= 1))
+            p.push_back("echo_artifacts: need 0 < bubble_sector_min <= bubble_sector_max <= 1");
+        if (!(a.bubble_return_share >= 0 && a.bubble_dropout_share >= 0 &&
+              a.bubble_return_share + a.bubble_dropout_share <= 1))
+            p.push_back("echo_artifacts: bubble return and dropout shares >= 0, sum <= 1");
+        if (!(a.bubble_min_range_m > 0 && a.bubble_max_range_m >= a.bubble_min_range_m))
+            p.push_back("echo_artifacts: need 0 < bubble_min_range_m <= bubble_max_range_m");
+        if (!(a.multipath_probability >= 0 && a.multipath_probability <= 1) ||
+            !(a.smile_probability >= 0 && a.smile_probability <= 1))
+            p.push_back("echo_artifacts: multipath and smile probabilities in [0, 1]");
+        if (a.multipath_min_beams < 1 || a.multipath_max_beams < a.multipath_min_beams ||
+            a.multipath_min_pings < 1 || a.multipath_max_pings < a.multipath_min_pings)
+            p.push_back("echo_artifacts: multipath beams and pings: 1 <= min <= max");
+        if (!(a.multipath_min_excess > 0 && a.multipath_max_excess >= a.multipath_min_excess))
+            p.push_back("echo_artifacts: need 0 < multipath_min_excess <= multipath_max_excess");
+        if (a.smile_min_pings < 1 || a.smile_max_pings < a.smile_min_pings ||
+            !(a.smile_max_angle_deg > a.smile_min_angle_deg && a.smile_min_angle_deg >= 0) ||
+            !(a.smile_max_nadir_range_m > 0))
+            p.push_back("echo_artifacts: smile pings 1 <= min <= max, 0 <= min < max angle");
+    }
     CheckPositive(p, ins_rate_hz, "ins_rate_hz");
     CheckPositive(p, imu_rate_hz, "imu_rate_hz");
     CheckPositive(p, gnss_rate_hz, "gnss_rate_hz");
@@ -341,6 +376,7 @@ std::string DescribeScenario(const ScenarioConfig& s) {
                       s.water.deep_speed_mps);
         d += buf;
     }
+    if (s.echo_artifacts.enabled()) d += "; echo artifacts: " + s.echo_artifacts.level;
     return d;
 }
 
@@ -352,6 +388,26 @@ double WaterColumnConfig::SpeedAt(double z) const {
     const double a = (z - mixed_layer_depth_m) / (thermocline_depth_m - mixed_layer_depth_m);
     return surface_speed_mps + (deep_speed_mps - surface_speed_mps) * 0.5 *
                                    (1.0 - std::cos(3.14159265358979323846 * a));
+}
+
+Expected<EchoArtifactConfig> EchoArtifactsAt(const std::string& level) {
+    EchoArtifactConfig a;
+    a.level = level;
+    // The rates scale together; the shares they give on the quarry survey are measured in
+    // docs/echo_artifacts.md (tuned so that "typical" is about 1 % of the beams).
+    double k = 0;
+    if (level == "none") return a;
+    if (level == "light") k = 0.3;
+    if (level == "typical") k = 1.0;
+    if (level == "heavy") k = 3.0;
+    if (k == 0)
+        return Error{"unknown echo artifact level '" + level +
+                     "' (valid: none, light, typical, heavy)"};
+    a.num_schools = static_cast<int>(std::lround(12 * k));
+    a.bubble_episodes_per_min = 0.35 * k;
+    a.multipath_probability = 4.7e-5 * k;
+    a.smile_probability = 0.0048 * k;
+    return a;
 }
 
 VehicleDescription NominalVehicle(const ScenarioConfig& sc) {

@@ -209,6 +209,66 @@ struct BackscatterConfig {
     double speckle_db = 2.0;  // per-beam fluctuation (1 sigma, dB)
 };
 
+// Correlated echo artifacts of a real multibeam in a flooded pit (issue 35), on top of the
+// uncorrelated dropouts and coarse outliers of SonarConfig: what a per-ping median filter
+// cannot see. tools/sim/echo_artifacts.hpp describes each kind; EchoArtifactsAt(level) gives
+// the presets (`pitmap-sim synth --echo-artifacts none|light|typical|heavy`). Probabilities
+// are per ping (10 Hz) unless stated; every draw comes from the seed.
+struct EchoArtifactConfig {
+    std::string level = "none";  // the preset's name (none, light, typical, heavy, custom)
+    // Mid-water targets (fish schools, vegetation): blobs alive at any time, each living
+    // school_lifetime_s then reborn elsewhere, drifting at up to school_drift_mps.
+    int num_schools = 0;
+    double school_min_radius_m = 0.35;
+    double school_max_radius_m = 0.9;
+    double school_lifetime_s = 45.0;
+    double school_drift_mps = 0.08;
+    double school_fill = 0.5;         // share of the beams crossing a school that return from it
+    double school_min_depth_m = 1.5;  // shallowest centre below the water surface
+    // Bubble sweep-down / aeration: episodes of consecutive pings in which a sector of beams
+    // returns near-field echoes or nothing.
+    double bubble_episodes_per_min = 0;     // at random, steady running
+    double bubble_turn_rate_deg_s = 6.0;    // |yaw rate| above which the vehicle "turns"
+    double bubble_pitch_rate_deg_s = 1.5;   // |pitch rate| above which it "pitches hard"
+    double bubble_manoeuvre_factor = 15.0;  // episode rate multiplier while turning/pitching
+    int bubble_min_pings = 3;
+    int bubble_max_pings = 12;
+    double bubble_sector_min = 0.1;  // share of the fan the episode's sector spans, min..max
+    double bubble_sector_max = 0.4;
+    double bubble_return_share = 0.35;   // of the sector's beams: a near-field return
+    double bubble_dropout_share = 0.35;  // of the sector's beams: no detection
+    double bubble_min_range_m = 0.4;     // near-field returns, uniform in min..max
+    double bubble_max_range_m = 4.0;
+    // Multipath / side-lobe ghosts: beams at grazing incidence or on steep walls start an
+    // episode (probability per candidate beam and ping); it holds a few neighbouring beams for
+    // tens of pings, returning the true range times (1 + excess), behind the surface.
+    double multipath_probability = 0;
+    double multipath_grazing_deg = 70.0;     // incidence from the surface normal above which
+    double multipath_wall_slope_deg = 50.0;  // or true slope above which a beam is a candidate
+    int multipath_min_beams = 4;
+    int multipath_max_beams = 12;
+    int multipath_min_pings = 10;
+    int multipath_max_pings = 40;
+    double multipath_min_excess = 0.08;  // fraction of the true range, uniform in min..max
+    double multipath_max_excess = 0.45;
+    // Nadir side-lobe "smile": at short nadir range, episodes in which the beams within
+    // smile_min..max_angle_deg of nadir whose true range exceeds the nadir range by more
+    // than 5 % return the nadir range instead.
+    double smile_probability = 0;  // per ping, at short range
+    double smile_max_nadir_range_m = 9.0;
+    double smile_min_angle_deg = 3.0;
+    double smile_max_angle_deg = 25.0;
+    int smile_min_pings = 2;
+    int smile_max_pings = 8;
+    bool enabled() const {
+        return num_schools > 0 || bubble_episodes_per_min > 0 || multipath_probability > 0 ||
+               smile_probability > 0;
+    }
+};
+// The presets: "none", "light" (about 0.3 % of the beams), "typical" (about 1 %), "heavy"
+// (about 3 %); an unknown name is an error listing the valid ones.
+Expected<EchoArtifactConfig> EchoArtifactsAt(const std::string& level);
+
 struct ScenarioConfig {
     std::string name = "custom";
     std::uint64_t seed = 1;
@@ -227,9 +287,10 @@ struct ScenarioConfig {
     SonarConfig sonar;
     WaterColumnConfig water;
     BackscatterConfig backscatter;
-    double ins_rate_hz = 50.0;   // INSPVAS
-    double imu_rate_hz = 200.0;  // RAWIMUSX
-    double gnss_rate_hz = 1.0;   // BESTPOS, INSPVAX, INSSTDEV, TIME
+    EchoArtifactConfig echo_artifacts;  // none by default
+    double ins_rate_hz = 50.0;          // INSPVAS
+    double imu_rate_hz = 200.0;         // RAWIMUSX
+    double gnss_rate_hz = 1.0;          // BESTPOS, INSPVAX, INSSTDEV, TIME
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;

@@ -12,6 +12,7 @@
 
 #include "common/se3.hpp"
 #include "tools/sim/backscatter.hpp"
+#include "tools/sim/echo_artifacts.hpp"
 #include "tools/sim/scenario.hpp"
 #include "tools/sim/water_column.hpp"
 #include "tools/sim/world.hpp"
@@ -28,6 +29,8 @@ struct SimPing {
     std::vector<BeamOutcome> outcome;         // what the model did to each beam
     std::vector<Eigen::Vector3d> true_hit_world;  // where the beam axis's detection lies
     double sound_speed_mps = 0;                   // the speed the sonar assumed (83P header)
+    // What EchoArtifactModel made of each beam (empty if it was not applied).
+    std::vector<EchoArtifactKind> artifact;
 };
 
 // Thread safety: const methods may be called concurrently.

@@ -17,6 +17,7 @@
 #include "firmware_host/daemon/to_lcm.hpp"
 #include "lcmtypes/log/channels.hpp"
 #include "tools/sim/decoded_channels.hpp"
+#include "tools/sim/echo_artifacts.hpp"
 #include "tools/sim/nav_errors.hpp"
 #include "tools/sim/receiver_sim.hpp"
 #include "tools/sim/sonar_model.hpp"
@@ -196,6 +197,12 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         }
     }
     const SonarModel sonar(sc.sonar, world, sc.seed, water ? &*water : nullptr, sc.backscatter);
+    // Echo artifacts (issue 35): applied in ping order, after the parallel ray casting.
+    EchoArtifactModel echoes(sc.echo_artifacts, sc.sonar, sc.backscatter, world, sc.seed);
+    ArtifactTruth artifact_truth;
+    artifact_truth.config = sc.echo_artifacts;
+    artifact_truth.ping_rate_hz = sc.sonar.ping_rate_hz;
+    artifact_truth.first_ping_gps_s = static_cast<double>(*start_gps) * 1e-6;
     SimulatedReceiver receiver(sc, truth, errors, *start_gps);
     const SimulatedTopside topside(sc, truth, *start_gps);
     DecodedChannels decoded(sc);
@@ -310,6 +317,14 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         for (auto& th : pool) th.join();
         for (std::size_t i = 0; i < pings.size(); ++i) {
             const double t = static_cast<double>(ping_ids[i]) / sc.sonar.ping_rate_hz;
+            {
+                const TruthState st = truth.StateAt(t);
+                // Body rates, vehicle FRD: z is the yaw rate, y the pitch rate.
+                const PingMotion motion{frames::RadToDeg(st.angular_rate_vehicle.z()),
+                                        frames::RadToDeg(st.angular_rate_vehicle.y())};
+                echoes.Apply(pings[i], st.T_world_vehicle * T_vehicle_sonar, t, motion);
+                artifact_truth.Add(pings[i], world);
+            }
             for (std::size_t b = 0; b < pings[i].true_range_m.size(); ++b) {
                 const float r = pings[i].true_range_m[b];
                 if (!std::isfinite(r)) continue;
@@ -422,6 +437,13 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
         SeabedBackscatter(sc.backscatter, sc.seed, world.boulders()).Sample(world.grid());
     t.backscatter = sc.backscatter;
     t.sonar_clock = MakeSonarClockTruth(sc, *start_gps, truth.duration_s());
+    result.artifact_soundings = artifact_truth.artifact_soundings();
+    if (artifact_truth.pings > 0 && artifact_truth.beams_per_ping > 0) {
+        result.artifact_share =
+            static_cast<double>(result.artifact_soundings) /
+            (static_cast<double>(artifact_truth.pings) * artifact_truth.beams_per_ping);
+    }
+    t.artifacts = std::move(artifact_truth);
     if (auto s = WriteTruth(truth_dir.string(), sc, t); !s) return s.error();
     return result;
 }

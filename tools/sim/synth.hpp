@@ -3,7 +3,9 @@
 //   <out>/log/    LCM log files exactly as pitmap-acqd would write them (raw chunks of the
 //                 NovAtel serial stream and of the 83P datagrams, plus the decoded channels),
 //                 rotated by size, and vehicle.yaml (lever arms, nominal boresight)
-//   <out>/truth/  the ground truth (tools/sim/truth_io.hpp), with sonar_clock.json
+//   <out>/truth/  the ground truth (tools/sim/truth_io.hpp), with sonar_clock.json and the
+//                 truth per beam of the echo artifacts and coarse outliers (artifacts.json,
+//                 artifacts.bin; ScenarioConfig::echo_artifacts, tools/sim/echo_artifacts.hpp)
 //   <out>/vendor/ with SynthOptions::vendor_files: the files the instruments' own software
 //                 would record: <scenario>.gps, the NovAtel binary stream exactly as the
 //                 receiver sends it on COM1 (every frame, in emission order), and
@@ -42,10 +44,12 @@ struct SynthResult {
     std::int64_t log_events = 0;
     std::int64_t log_bytes = 0;
     int log_files = 0;
-    double duration_s = 0;              // simulated
-    double track_length_m = 0;          // travelled
-    std::int64_t vendor_gps_bytes = 0;  // <out>/vendor/<scenario>.gps (0 without vendor_files)
-    std::int64_t vendor_83p_bytes = 0;  // <out>/vendor/<scenario>.83P
+    double duration_s = 0;                // simulated
+    double track_length_m = 0;            // travelled
+    std::int64_t vendor_gps_bytes = 0;    // <out>/vendor/<scenario>.gps (0 without vendor_files)
+    std::int64_t vendor_83p_bytes = 0;    // <out>/vendor/<scenario>.83P
+    std::int64_t artifact_soundings = 0;  // beams whose range an echo artifact replaced
+    double artifact_share = 0;            // of all beams
 };
 
 Expected<SynthResult> RunSynth(const ScenarioConfig& scenario,

@@ -30,6 +30,69 @@ json BackscatterToJson(const BackscatterConfig& b) {
             {"speckle_db", b.speckle_db}};
 }
 
+json EchoArtifactsToJson(const EchoArtifactConfig& a) {
+    return {{"level", a.level},
+            {"num_schools", a.num_schools},
+            {"school_min_radius_m", a.school_min_radius_m},
+            {"school_max_radius_m", a.school_max_radius_m},
+            {"school_lifetime_s", a.school_lifetime_s},
+            {"school_drift_mps", a.school_drift_mps},
+            {"school_fill", a.school_fill},
+            {"school_min_depth_m", a.school_min_depth_m},
+            {"bubble_episodes_per_min", a.bubble_episodes_per_min},
+            {"bubble_turn_rate_deg_s", a.bubble_turn_rate_deg_s},
+            {"bubble_pitch_rate_deg_s", a.bubble_pitch_rate_deg_s},
+            {"bubble_manoeuvre_factor", a.bubble_manoeuvre_factor},
+            {"bubble_min_pings", a.bubble_min_pings},
+            {"bubble_max_pings", a.bubble_max_pings},
+            {"bubble_sector_min", a.bubble_sector_min},
+            {"bubble_sector_max", a.bubble_sector_max},
+            {"bubble_return_share", a.bubble_return_share},
+            {"bubble_dropout_share", a.bubble_dropout_share},
+            {"bubble_min_range_m", a.bubble_min_range_m},
+            {"bubble_max_range_m", a.bubble_max_range_m},
+            {"multipath_probability", a.multipath_probability},
+            {"multipath_grazing_deg", a.multipath_grazing_deg},
+            {"multipath_wall_slope_deg", a.multipath_wall_slope_deg},
+            {"multipath_min_beams", a.multipath_min_beams},
+            {"multipath_max_beams", a.multipath_max_beams},
+            {"multipath_min_pings", a.multipath_min_pings},
+            {"multipath_max_pings", a.multipath_max_pings},
+            {"multipath_min_excess", a.multipath_min_excess},
+            {"multipath_max_excess", a.multipath_max_excess},
+            {"smile_probability", a.smile_probability},
+            {"smile_max_nadir_range_m", a.smile_max_nadir_range_m},
+            {"smile_min_angle_deg", a.smile_min_angle_deg},
+            {"smile_max_angle_deg", a.smile_max_angle_deg},
+            {"smile_min_pings", a.smile_min_pings},
+            {"smile_max_pings", a.smile_max_pings}};
+}
+
+// "0_20", "20_45", "45_91": slope class c's key.
+std::string SlopeKey(int c) {
+    return std::to_string(static_cast<int>(kArtifactSlopeEdgesDeg[c])) + "_" +
+           std::to_string(static_cast<int>(kArtifactSlopeEdgesDeg[c + 1]));
+}
+
+json ArtifactCountsToJson(const ArtifactTruth& a) {
+    json beams;
+    for (int k = 1; k < kNumEchoArtifactKinds; ++k) {
+        beams[EchoArtifactName(static_cast<EchoArtifactKind>(k))] = a.beams_by_kind[k];
+    }
+    json slope = json::object();
+    for (int c = 0; c < kNumArtifactSlopeClasses; ++c) {
+        slope[SlopeKey(c)] = a.good_by_slope[c];
+    }
+    const double total = static_cast<double>(a.pings) * a.beams_per_ping;
+    return {{"pings", a.pings},
+            {"beams_per_ping", a.beams_per_ping},
+            {"beams", beams},
+            {"artifact_soundings", a.artifact_soundings()},
+            {"artifact_share", total > 0 ? static_cast<double>(a.artifact_soundings()) / total : 0},
+            {"good_soundings", a.good_soundings},
+            {"good_soundings_by_slope_deg", slope}};
+}
+
 json ScenarioToJson(const ScenarioConfig& s) {
     json j;
     j["name"] = s.name;
@@ -141,6 +204,7 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"internal_attitude_sensor", o.internal_attitude_sensor},
                   {"internal_attitude_noise_deg", o.internal_attitude_noise_deg}};
     j["backscatter"] = BackscatterToJson(s.backscatter);
+    j["echo_artifacts"] = EchoArtifactsToJson(s.echo_artifacts);
     j["ins_rate_hz"] = s.ins_rate_hz;
     j["imu_rate_hz"] = s.imu_rate_hz;
     j["gnss_rate_hz"] = s.gnss_rate_hz;
@@ -203,6 +267,65 @@ json SonarClockToJson(const SonarClockTruth& c) {
            "(lever_arms.antenna_m) plus nmea_position_noise_m"}}}};
 }
 
+Expected<ArtifactTruth> ReadArtifacts(const std::string& dir) {
+    auto aj = ReadJson(dir + "/artifacts.json");
+    if (!aj) return aj.error();
+    ArtifactTruth a;
+    try {
+        a.first_ping_gps_s = aj->at("first_ping_gps_s").get<double>();
+        a.ping_rate_hz = aj->at("ping_rate_hz").get<double>();
+        const json& c = aj->at("counts");
+        a.pings = c.at("pings").get<std::int64_t>();
+        a.beams_per_ping = c.at("beams_per_ping").get<int>();
+        for (int k = 1; k < kNumEchoArtifactKinds; ++k) {
+            a.beams_by_kind[k] = c.at("beams")
+                                     .at(EchoArtifactName(static_cast<EchoArtifactKind>(k)))
+                                     .get<std::int64_t>();
+        }
+        a.good_soundings = c.at("good_soundings").get<std::int64_t>();
+        for (int i = 0; i < kNumArtifactSlopeClasses; ++i) {
+            a.good_by_slope[i] =
+                c.at("good_soundings_by_slope_deg").at(SlopeKey(i)).get<std::int64_t>();
+        }
+        a.config.level = aj->at("model").at("level").get<std::string>();
+    } catch (const json::exception& e) {
+        return Error{dir + "/artifacts.json: " + e.what()};
+    }
+    if (!(a.ping_rate_hz > 0)) return Error{dir + "/artifacts.json: ping_rate_hz must be > 0"};
+    const std::string path = dir + "/artifacts.bin";
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Error{path + ": cannot open"};
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    if (bytes.size() < 16 || bytes.compare(0, 4, "PMEA") != 0)
+        return Error{path + ": not an artifact truth file (no PMEA header)"};
+    r.Skip(4);
+    if (const std::uint16_t version = r.U16Le(); version != 1)
+        return Error{path + ": version " + std::to_string(version) + " (this reader knows 1)"};
+    a.beams_per_ping = r.U16Le();
+    const std::uint64_t n = r.U64Le();
+    if (n > r.remaining() / 9 || r.remaining() != n * 9)
+        return Error{path + ": size does not match its number of runs"};
+    a.runs.resize(n);
+    for (ArtifactRun& run : a.runs) {
+        run.ping_number = r.U32Le();
+        run.first_beam = r.U16Le();
+        run.num_beams = r.U16Le();
+        const std::uint8_t kind = r.U8();
+        if (kind == 0 || kind >= kNumEchoArtifactKinds)
+            return Error{path + ": unknown kind " + std::to_string(kind)};
+        run.kind = static_cast<EchoArtifactKind>(kind);
+    }
+    for (std::size_t i = 1; i < a.runs.size(); ++i) {
+        const ArtifactRun& p = a.runs[i - 1];
+        const ArtifactRun& q = a.runs[i];
+        if (q.ping_number < p.ping_number ||
+            (q.ping_number == p.ping_number && q.first_beam < p.first_beam + p.num_beams))
+            return Error{path + ": runs out of order or overlapping"};
+    }
+    return a;
+}
+
 }  // namespace
 
 SonarClockTruth MakeSonarClockTruth(const ScenarioConfig& sc,
@@ -238,7 +361,52 @@ Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc) {
 }
 
 Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth& truth) {
-    if (auto s = WriteScenarioJson(dir + "/scenario.json", sc); !s) return s;
+    {
+        json j = ScenarioToJson(sc);
+        if (truth.artifacts) j["echo_artifacts"]["counts"] = ArtifactCountsToJson(*truth.artifacts);
+        if (auto s = WriteText(dir + "/scenario.json", j.dump(2) + "\n"); !s) return s;
+    }
+    if (truth.artifacts) {
+        const ArtifactTruth& a = *truth.artifacts;
+        json aj = {{"model", EchoArtifactsToJson(a.config)},
+                   {"first_ping_gps_s", a.first_ping_gps_s},
+                   {"ping_rate_hz", a.ping_rate_hz},
+                   {"counts", ArtifactCountsToJson(a)},
+                   {"data", "artifacts.bin"},
+                   {"kinds",
+                    {{"1", "mid_water"},
+                     {"2", "bubble"},
+                     {"3", "dropout"},
+                     {"4", "multipath"},
+                     {"5", "smile"},
+                     {"6", "outlier"}}},
+                   {"layout",
+                    "\"PMEA\", u16 version 1, u16 beams per ping, u64 runs; per run u32 ping "
+                    "number, u16 first beam, u16 beams, u8 kind; little-endian"},
+                   {"definition",
+                    "every beam that is not its own echo: artifact soundings (mid_water, bubble, "
+                    "multipath, smile) whose range replaced the true one, bubble dropouts (no "
+                    "detection) and the uncorrelated coarse outliers (outlier). good_soundings: "
+                    "the beams with a detection not listed, by the true slope under the beam"}};
+        if (auto s = WriteText(dir + "/artifacts.json", aj.dump(2) + "\n"); !s) return s;
+        std::vector<std::uint8_t> bytes;
+        bytes.reserve(16 + a.runs.size() * 9);
+        ByteWriter w(bytes);
+        for (const char c : std::string("PMEA")) w.U8(static_cast<std::uint8_t>(c));
+        w.U16Le(1);
+        w.U16Le(static_cast<std::uint16_t>(a.beams_per_ping));
+        w.U64Le(a.runs.size());
+        for (const ArtifactRun& r : a.runs) {
+            w.U32Le(r.ping_number);
+            w.U16Le(r.first_beam);
+            w.U16Le(r.num_beams);
+            w.U8(static_cast<std::uint8_t>(r.kind));
+        }
+        if (auto s = WriteText(dir + "/artifacts.bin", std::string(bytes.begin(), bytes.end()));
+            !s) {
+            return s;
+        }
+    }
     const TerrainGrid& g = truth.terrain;
     json th = {{"x0_m", g.x0_m},
                {"y0_m", g.y0_m},
@@ -420,6 +588,11 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         } catch (const json::exception& e) {
             return Error{dir + "/sonar_clock.json: " + e.what()};
         }
+    }
+    if (std::ifstream probe(dir + "/artifacts.json"); probe) {
+        auto r = ReadArtifacts(dir);
+        if (!r) return r.error();
+        t.artifacts = std::move(*r);
     }
     auto bj = ReadJson(dir + "/boresight.json");
     if (!bj) return bj.error();

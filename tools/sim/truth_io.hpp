@@ -13,6 +13,19 @@
 //                         83P intensities (BackscatterConfig, every parameter), the layout of
 // <dir>/backscatter.f32   BS(x, y) at the terrain grid's nodes, dB, float32 little-endian,
 //                         row-major as terrain.f32 (the truth a backscatter mosaic is scored on)
+// <dir>/artifacts.json    optional (pitmap-sim synth): the echo artifact model
+//                         (EchoArtifactConfig, every parameter), the survey's ping timing
+//                         (first_ping_gps_s, ping_rate_hz: ping k transmits at first + k / rate),
+//                         the beams per kind and the good soundings (detections not listed) per
+//                         slope class of the true surface; the counts are also in
+//                         scenario.json "echo_artifacts"
+// <dir>/artifacts.bin     the beams listed, as runs: "PMEA", u16 version (1), u16 beams per
+//                         ping, u64 number of runs, then per run (sorted by ping, beam) u32 ping
+//                         number (the 83P's), u16 first beam, u16 number of beams, u8 kind
+//                         (tools/sim/echo_artifacts.hpp EchoArtifactKind: 1 mid-water, 2 bubble,
+//                         3 dropout, 4 multipath, 5 smile, 6 coarse outlier), little-endian,
+//                         9 bytes a run (the quarry: 185 kB, 90 % of it the coarse
+//                         outliers, single beams; bejanca about 1.1 MB)
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
 #pragma once
@@ -25,6 +38,7 @@
 #include "common/geodesy.hpp"
 #include "common/result.hpp"
 #include "common/se3.hpp"
+#include "tools/sim/echo_artifacts.hpp"
 #include "tools/sim/scenario.hpp"
 #include "tools/sim/world.hpp"
 
@@ -85,6 +99,7 @@ struct Truth {
     std::optional<SonarClockTruth> sonar_clock;  // written when set; read when present
     std::vector<float> backscatter_db;           // empty, or BS per terrain cell, dB
     BackscatterConfig backscatter;               // its parameters (with backscatter_db)
+    std::optional<ArtifactTruth> artifacts;      // written when set; read when present
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);

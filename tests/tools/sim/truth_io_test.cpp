@@ -10,6 +10,7 @@
 #include <string>
 
 #include "common/frames.hpp"
+#include "tools/sim/sonar_model.hpp"
 
 namespace pitmap::sim {
 namespace {
@@ -128,6 +129,64 @@ TEST_F(TruthIo, BackscatterIsStatedAndReadBack) {
     auto bad = ReadTruth(dir_.string());
     ASSERT_FALSE(bad.ok());
     EXPECT_NE(bad.error().message.find("backscatter.f32"), std::string::npos);
+}
+
+// The truth per beam of the echo artifacts: runs merged per ping and kind, written, read back
+// and looked up; the counts are in scenario.json; a truncated run list is a named error.
+TEST_F(TruthIo, EchoArtifactsAreStatedPerBeamAndReadBack) {
+    Truth t = SmallTruth();
+    const PitWorld world(t.terrain);
+    ArtifactTruth a;
+    a.config = *EchoArtifactsAt("typical");
+    a.ping_rate_hz = 10;
+    a.first_ping_gps_s = 1.4e9;
+    for (std::int64_t k = 0; k < 3; ++k) {
+        SimPing p;
+        p.ping_number = k;
+        p.range_counts.assign(6, 100);
+        p.true_hit_world.assign(6, Eigen::Vector3d(0, 0, -10.5));
+        p.artifact.assign(6, EchoArtifactKind::kNone);
+        if (k == 1) {
+            p.artifact[1] = p.artifact[2] = EchoArtifactKind::kMidWater;
+            p.artifact[3] = EchoArtifactKind::kMultipath;
+            p.artifact[5] = EchoArtifactKind::kDropout;
+            p.range_counts[5] = 0;
+        }
+        if (k == 2) p.range_counts[0] = 0;  // no detection: not a good sounding
+        a.Add(p, world);
+    }
+    ASSERT_EQ(a.runs.size(), 3u);
+    EXPECT_EQ(a.runs[0].num_beams, 2);
+    EXPECT_EQ(a.artifact_soundings(), 3);
+    EXPECT_EQ(a.good_soundings, 6 + 2 + 5);
+    EXPECT_EQ(a.good_by_slope[0] + a.good_by_slope[1] + a.good_by_slope[2], 13);
+    t.artifacts = a;
+    ASSERT_TRUE(WriteTruth(dir_.string(), *BuiltinScenario("demo"), t).ok());
+    auto back = ReadTruth(dir_.string());
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    ASSERT_TRUE(back->artifacts.has_value());
+    const ArtifactTruth& b = *back->artifacts;
+    EXPECT_EQ(b.runs.size(), 3u);
+    EXPECT_EQ(b.pings, 3);
+    EXPECT_EQ(b.beams_per_ping, 6);
+    EXPECT_EQ(b.good_soundings, 13);
+    EXPECT_DOUBLE_EQ(b.first_ping_gps_s, 1.4e9);
+    EXPECT_EQ(b.KindOf(1, 0), EchoArtifactKind::kNone);
+    EXPECT_EQ(b.KindOf(1, 1), EchoArtifactKind::kMidWater);
+    EXPECT_EQ(b.KindOf(1, 2), EchoArtifactKind::kMidWater);
+    EXPECT_EQ(b.KindOf(1, 3), EchoArtifactKind::kMultipath);
+    EXPECT_EQ(b.KindOf(1, 4), EchoArtifactKind::kNone);
+    EXPECT_EQ(b.KindOf(1, 5), EchoArtifactKind::kDropout);
+    EXPECT_EQ(b.KindOf(2, 1), EchoArtifactKind::kNone);
+    EXPECT_EQ(b.KindOf(0, 1), EchoArtifactKind::kNone);
+    std::ifstream in(dir_ / "scenario.json");
+    const std::string sc((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(sc.find("\"artifact_soundings\": 3"), std::string::npos) << sc;
+
+    fs::resize_file(dir_ / "artifacts.bin", 20);
+    auto bad = ReadTruth(dir_.string());
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find("artifacts.bin"), std::string::npos);
 }
 
 TEST_F(TruthIo, InterpolationAndItsBounds) {
