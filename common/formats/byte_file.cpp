@@ -49,8 +49,8 @@ void ByteFileWriter::Drain() {
 
 Status ByteFileWriter::Close() {
     if (file_ == nullptr) {
-        return Error{ErrnoMessage(
-            path_, "cannot create (written first as " + partial_ + ")", open_errno_)};
+        return Error{
+            ErrnoMessage(path_, "cannot create (written first as " + partial_ + ")", open_errno_)};
     }
     Drain();
     if (std::fflush(file_) != 0 && ok_) {

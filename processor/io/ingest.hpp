@@ -79,7 +79,7 @@ struct IngestCounts {
     std::int64_t decode_failures = 0;   // events whose lcmtype did not decode
     std::int64_t nav_samples = 0;
     std::int64_t nav_without_time = 0;    // utime_gps = 0
-    std::int64_t nav_not_good = 0;  // dropped for their INS status (either reason below)
+    std::int64_t nav_not_good = 0;        // dropped for their INS status (either reason below)
     std::int64_t nav_not_navigating = 0;  // INS in no navigating state (always dropped)
     std::int64_t nav_degraded = 0;        // degraded INS status (kept, sigmas raised)
     std::int64_t nav_conflicts = 0;       // one time, different content (two recordings)

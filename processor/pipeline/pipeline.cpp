@@ -540,9 +540,10 @@ Status GeorefSurvey(Survey& s,
             TripGate(s,
                      Stage::kGeoref,
                      "mount_inconsistent",
-                     mc.message + "; or the sonar clock, which is in doubt (a sonar_clock gate "
-                                  "tripped): the attitude of another time leaves the roll in "
-                                  "the soundings too",
+                     mc.message +
+                         "; or the sonar clock, which is in doubt (a sonar_clock gate "
+                         "tripped): the attitude of another time leaves the roll in "
+                         "the soundings too",
                      log);
         } else if (!mc.consistent) {
             TripGate(s, Stage::kGeoref, "mount_inconsistent", mc.message, log);
