@@ -121,7 +121,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
     const bool want_raw_sonar = options.raw_sonar;
     const ProgressCallback& progress = options.progress;
     std::uint64_t bytes_done = 0;
-    Collector col(config, r);
+    Collector col(r);
     const std::string nav_id = Upper(config.nav_channel_id);
     const std::string sonar_id = Upper(config.sonar_channel_id);
     std::map<std::string, RawStream, std::less<>> raw_streams;
@@ -450,7 +450,7 @@ Expected<IngestResult> IngestLcmLogs(const std::vector<std::string>& paths,
 Expected<IngestResult> IngestNovatelFiles(const std::vector<std::string>& paths,
                                           const IngestConfig& config) {
     IngestResult r;
-    Collector col(config, r);
+    Collector col(r);
     for (const std::string& path : paths) {
         std::ifstream in(path, std::ios::binary);
         if (!in) return Error{path + ": cannot open"};
@@ -482,7 +482,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
                       const IngestConfig& config,
                       int leap_seconds,
                       IngestResult& into) {
-    Collector col(config, into);
+    Collector col(into);
     dt::Ping83P ping;
     for (const std::string& path : paths) {
         std::ifstream in(path, std::ios::binary);
@@ -649,7 +649,7 @@ Expected<IngestResult> IngestFiles(const std::vector<std::string>& files,
         if (auto s = Ingest83PFiles(p83, config, r.nav.leap_seconds, r); !s) return s.error();
     }
     if (!xtf.empty()) {
-        if (auto s = IngestXtfFiles(xtf, config, r.nav.leap_seconds, r); !s) return s.error();
+        if (auto s = IngestXtfFiles(xtf, r.nav.leap_seconds, r); !s) return s.error();
     }
     r.counts.files_skipped += static_cast<std::int64_t>(skipped.size());
     r.warnings.insert(r.warnings.end(), skipped.begin(), skipped.end());

@@ -42,10 +42,11 @@ georef::NavSample FromPva(std::int64_t utime_gps,
                           int position_type);
 
 // Accumulates into an IngestResult, shared by the LCM and vendor-file paths: counts what it
-// refuses (no time, implausible, not INS_SOLUTION_GOOD, no beams) and keeps the rest.
+// refuses (no time, implausible, no beams) and keeps the rest (the INS status rule is
+// applied to the whole series: ingest_sessions.hpp).
 class Collector {
 public:
-    Collector(const IngestConfig& config, IngestResult& r) : config_(config), r_(r) {}
+    explicit Collector(IngestResult& r) : r_(r) {}
     void AddNav(const georef::NavSample& s);
     void AddStdDev(const georef::NavStdDev& s);
     void AddLeapSeconds(double utc_offset_s, int utc_status);
@@ -61,7 +62,6 @@ public:
     void AddNovatel(const nv::DecodeResult& d);
 
 private:
-    const IngestConfig& config_;
     IngestResult& r_;
     std::vector<std::int32_t> counts_buf_;
 };

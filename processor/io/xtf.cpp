@@ -471,7 +471,6 @@ std::string Fixed(double v, int digits) {
 
 Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
                                        const std::string& path,
-                                       const IngestConfig& config,
                                        const XtfAssumptions& as,
                                        int leap_seconds,
                                        IngestResult& into) {
@@ -486,7 +485,7 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
     const auto gps = [&](std::int64_t unix_us) {
         return leap_seconds >= 0 ? GpsFromUnix(unix_us, leap_seconds) : GpsFromUnix(unix_us);
     };
-    detail::Collector col(config, into);
+    detail::Collector col(into);
     const detail::SpanMark mark = detail::MarkSpan(into);
 
     // Navigation: each position with the attitude interpolated at its time.
@@ -691,15 +690,12 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
     return cv;
 }
 
-Status IngestXtfFiles(const std::vector<std::string>& paths,
-                      const IngestConfig& config,
-                      int leap_seconds,
-                      IngestResult& into) {
+Status IngestXtfFiles(const std::vector<std::string>& paths, int leap_seconds, IngestResult& into) {
     const XtfAssumptions assumptions;
     for (const std::string& path : paths) {
         auto f = ReadXtfFile(path);
         if (!f) return f.error();
-        auto cv = AddXtfToIngest(*f, path, config, assumptions, leap_seconds, into);
+        auto cv = AddXtfToIngest(*f, path, assumptions, leap_seconds, into);
         if (!cv) return cv.error();
     }
     return Ok{};

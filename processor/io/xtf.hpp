@@ -164,15 +164,11 @@ struct XtfConversion {
 // which pitmap cannot place without the projection.
 Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
                                        const std::string& path,
-                                       const IngestConfig& config,
                                        const XtfAssumptions& assumptions,
                                        int leap_seconds,
                                        IngestResult& into);
 
 // Reads .xtf files into `into` (IngestFiles calls it for the files Sniff finds to be XTF).
-Status IngestXtfFiles(const std::vector<std::string>& paths,
-                      const IngestConfig& config,
-                      int leap_seconds,
-                      IngestResult& into);
+Status IngestXtfFiles(const std::vector<std::string>& paths, int leap_seconds, IngestResult& into);
 
 }  // namespace pitmap::proc::io

@@ -35,7 +35,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (!p.quality.empty() && p.quality.size() != n) std::abort();
     }
     io::IngestResult r;
-    const auto cv = io::AddXtfToIngest(*f, name, io::IngestConfig{}, io::XtfAssumptions{}, -1, r);
+    const auto cv = io::AddXtfToIngest(*f, name, io::XtfAssumptions{}, -1, r);
     if (!cv) {
         pitmap::fuzz::CheckNamesFile(cv.error().message, name);
         return 0;

@@ -118,9 +118,8 @@ TEST_F(XtfLine, ReadsWhatTheReadmeSays) {
 }
 
 TEST_F(XtfLine, IngestGivesNavigationAndPingsInGpsTime) {
-    IngestConfig config;
     IngestResult r;
-    ASSERT_TRUE(IngestXtfFiles({kLine}, config, -1, r));
+    ASSERT_TRUE(IngestXtfFiles({kLine}, -1, r));
     EXPECT_EQ(r.pings.pings.size(), 923u);
     EXPECT_EQ(r.pings.range_counts.size(), 923u * 256u);
     ASSERT_TRUE(r.pings.has_beam_angles());
@@ -263,7 +262,7 @@ TEST(Xtf, NotXtfAndProjectedNavigationAreErrorsNamingTheFile) {
     const auto g = DecodeXtf(ByteSpan(b.data(), b.size()), "metres.xtf");
     ASSERT_TRUE(g.ok());
     IngestResult r;
-    const auto c = AddXtfToIngest(*g, "metres.xtf", IngestConfig{}, XtfAssumptions{}, -1, r);
+    const auto c = AddXtfToIngest(*g, "metres.xtf", XtfAssumptions{}, -1, r);
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.error().message.find("metres.xtf"), std::string::npos);
     EXPECT_NE(c.error().message.find("nav units 0"), std::string::npos);
@@ -290,7 +289,7 @@ TEST(Xtf, EveryPrefixAndEveryFlippedByteIsSafe) {
         const auto f = DecodeXtf(ByteSpan(b.data(), b.size()), "flip.xtf");
         if (!f.ok()) continue;
         IngestResult r;
-        (void)AddXtfToIngest(*f, "flip.xtf", IngestConfig{}, XtfAssumptions{}, -1, r);
+        (void)AddXtfToIngest(*f, "flip.xtf", XtfAssumptions{}, -1, r);
     }
 }
 
