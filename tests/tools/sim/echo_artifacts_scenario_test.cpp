@@ -9,12 +9,8 @@
 //   - the same seed gives the same artifacts, another seed others;
 //   - `pitmap georef` of the typical level shows the damage issue 35 measured: points RMS
 //     against the truth clearly worse than the clean survey's, nearly every artifact sounding
-//     in points.ply. The figures of the uncleaned processor (before) are printed and recorded
-//     so that the cleaning can tighten the bounds (>= 98 % of the artifact soundings rejected).
-// Before (2026-12-06, quarry's seed, first 120 s): artifact soundings light 0.229 %, typical
-// 0.759 %, heavy 2.164 % of the beams; georef with the true boresight: points RMS 0.033 m
-// clean, 0.192 m typical (good points alone 0.028 m), 4315 of the 4370 artifact soundings in
-// points.ply (the spike filter takes 55), 0.05 % of the good soundings rejected.
+//     in points.ply. The figures of the uncleaned processor are printed and recorded so that
+//     the cleaning can tighten the bounds; they are in docs/decisions/echo-artifacts.md.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -256,8 +252,8 @@ TEST(EchoArtifactsScenario, GeorefShowsTheDamageOfTypicalArtifacts) {
     EXPECT_EQ(clean.at("points_unmatched"), 0);
     EXPECT_EQ(dirty.at("points_unmatched"), 0);
     EXPECT_EQ(clean.at("artifact_soundings"), 0);
-    // Before any cleaning (issue 35 measured 0.045 -> 0.605 m on the quarry): the artifacts
-    // are in the points and the points' RMS is several times the clean survey's.
+    // Before any cleaning the artifacts are in the points and the points' RMS is several times
+    // the clean survey's.
     EXPECT_GT(dirty.at("artifact_in_points"), 0.9 * dirty.at("artifact_soundings"));
     EXPECT_GT(dirty.at("points_rms_m"), 4.0 * clean.at("points_rms_m"));
     // The good soundings alone are as good as the clean survey's.
