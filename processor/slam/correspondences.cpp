@@ -365,8 +365,9 @@ std::unordered_map<std::uint64_t, ScoreCell> ScoreCells(const Input& in,
 
 }  // namespace
 
-double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
-    const auto cells = ScoreCells(in, T, cfg);
+namespace {
+
+double ScoreOf(const std::unordered_map<std::uint64_t, ScoreCell>& cells) {
     double ssr = 0, dof = 0;
     for (const auto& [key, c] : cells) {
         if (!c.used) continue;
@@ -379,9 +380,13 @@ double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamC
     return dof > 0 ? std::sqrt(ssr / dof) : 0.0;
 }
 
-std::vector<double> ConsistencyBySlice(const Input& in,
-                                       const std::vector<Pose>& T,
-                                       const SlamConfig& cfg) {
+}  // namespace
+
+double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
+    return ScoreOf(ScoreCells(in, T, cfg));
+}
+
+Consistency ConsistencyBySlice(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg) {
     const auto cells = ScoreCells(in, T, cfg);
     std::vector<double> ss(in.num_slices(), 0.0);
     std::vector<std::int64_t> n(in.num_slices(), 0);
@@ -393,9 +398,11 @@ std::vector<double> ConsistencyBySlice(const Input& in,
             ss[s] += r * r;
             ++n[s];
         });
-    std::vector<double> out(in.num_slices(), std::numeric_limits<double>::quiet_NaN());
-    for (std::size_t s = 0; s < out.size(); ++s) {
-        if (n[s] > 0) out[s] = std::sqrt(ss[s] / static_cast<double>(n[s]));
+    Consistency out;
+    out.score_m = ScoreOf(cells);
+    out.by_slice_m.assign(in.num_slices(), std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t s = 0; s < out.by_slice_m.size(); ++s) {
+        if (n[s] > 0) out.by_slice_m[s] = std::sqrt(ss[s] / static_cast<double>(n[s]));
     }
     return out;
 }

@@ -137,11 +137,14 @@ Search SearchPairs(const Input& in,
 
 // Plane-fit vertical RMS over grid cells that hold query points of passes at least t_d apart.
 double ConsistencyScore(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg);
-// The same cells' plane residuals, as an RMS per slice (NaN where a slice has no point in a
-// cell that several passes share): where along the survey the passes disagree.
-std::vector<double> ConsistencyBySlice(const Input& in,
-                                       const std::vector<Pose>& T,
-                                       const SlamConfig& cfg);
+// The same score, and the same cells' plane residuals as an RMS per slice (NaN where a slice
+// has no point in a cell that several passes share): where along the survey the passes
+// disagree. One pass over the cells for both.
+struct Consistency {
+    double score_m = 0;
+    std::vector<double> by_slice_m;
+};
+Consistency ConsistencyBySlice(const Input& in, const std::vector<Pose>& T, const SlamConfig& cfg);
 
 // ---- residual terms (terms.cpp) --------------------------------------------------------------
 

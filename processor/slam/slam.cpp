@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numeric>
 #include <optional>
+#include <utility>
 
 #include "processor/slam/internal.hpp"
 
@@ -226,8 +227,9 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
     }
     res.final_pair_score_m = res.iterations.empty() ? res.initial_pair_score_m : best_score;
     t0 = Clock::now();
-    res.final_consistency_m = ConsistencyScore(in, current, cfg);
-    res.final_slice_consistency_m = ConsistencyBySlice(in, current, cfg);
+    Consistency final_consistency = ConsistencyBySlice(in, current, cfg);
+    res.final_consistency_m = final_consistency.score_m;
+    res.final_slice_consistency_m = std::move(final_consistency.by_slice_m);
     res.timings.score_s += Seconds(t0);
     res.trajectory.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) {
