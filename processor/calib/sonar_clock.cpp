@@ -493,11 +493,20 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
         r.message = "clock steps: not checked (too few pings or navigation samples)";
         return r;
     }
-    // Ping numbers that run back by a little, in time order: a clock set back.
+    // A clock set back interleaves the pings of both sides in time order: the ping numbers drop
+    // and climb back above where they were within a few pings, dropping again on the way. A
+    // reset of the numbers (a restarted sonar) drops once and climbs from zero.
+    constexpr std::size_t kInterleaveWindow = 50;
     std::size_t first_back = 0;
     for (std::size_t k = 1; k < P.size(); ++k) {
-        const std::int64_t dn = P[k].ping_number - P[k - 1].ping_number;
-        if (dn < 0 && dn > -1000) {
+        if (P[k].ping_number >= P[k - 1].ping_number) continue;
+        std::int64_t drops = 0;
+        bool back_above = false;
+        for (std::size_t j = k; j < P.size() && j < k + kInterleaveWindow; ++j) {
+            drops += P[j].ping_number < P[j - 1].ping_number ? 1 : 0;
+            back_above |= P[j].ping_number > P[k - 1].ping_number;
+        }
+        if (drops >= 2 && back_above) {
             if (r.backward == 0) first_back = k;
             ++r.backward;
         }

@@ -286,6 +286,13 @@ TEST(SonarClockSteps, AClockSetBackCannotBeOrderedAndSaysSo) {
     const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
     EXPECT_GT(r.backward, 0) << r.message;
     EXPECT_NE(r.message.find("set back"), std::string::npos) << r.message;
+    // A reset of the ping numbers (a restarted sonar) is neither.
+    auto reset = MakeSurvey(o);
+    for (std::size_t k = 300; k < reset.pings.pings.size(); ++k)
+        reset.pings.pings[k].ping_number = static_cast<std::int64_t>(k - 300);
+    const ClockStepResult after_reset = FindSonarClockSteps(reset.pings, reset.nav);
+    EXPECT_EQ(after_reset.backward, 0) << after_reset.message;
+    EXPECT_TRUE(after_reset.steps.empty()) << after_reset.message;
     // A clean survey has neither steps nor pauses.
     const ClockStepResult clean = FindSonarClockSteps(MakeSurvey(o).pings, sv.nav);
     EXPECT_TRUE(clean.steps.empty()) << clean.message;
