@@ -13,6 +13,22 @@
 
 namespace pitmap::proc::georef {
 
+std::string_view ToString(SoundingStatus s) {
+    switch (s) {
+        case SoundingStatus::kAccepted: return "accepted";
+        case SoundingStatus::kNoDetection: return "no_detection";
+        case SoundingStatus::kRangeGate: return "range_gate";
+        case SoundingStatus::kSpike: return "spike";
+        case SoundingStatus::kRefraction: return "refraction";
+        case SoundingStatus::kSurfaceFilter: return "surface_filter";
+        case SoundingStatus::kFreeSpace: return "free_space";
+        case SoundingStatus::kMultipath: return "multipath";
+        case SoundingStatus::kCluster: return "cluster";
+        case SoundingStatus::kManual: return "manual";
+    }
+    return "unknown";
+}
+
 Eigen::Matrix3d SonarMount::R_vehicle_sonar() const {
     return frames::RotationNedFromRpy(frames::DegToRad(boresight_roll_deg),
                                       frames::DegToRad(boresight_pitch_deg),
@@ -106,8 +122,25 @@ struct PingWork {
     bool ok = false;
     int reason = 0;  // 1 outside, 2 gap, 3 bad header
     GeorefPing ping;
-    std::int64_t no_detection = 0, range_gate = 0, spikes = 0, refraction_failed = 0;
 };
+
+// Whether a sounding of status `s` (Resolve) belongs to the view; `georef` is georef's own
+// verdict.
+bool InView(SoundingStatus s, SoundingStatus georef, SoundingView view) {
+    switch (view) {
+        case SoundingView::kAccepted:
+            return s == SoundingStatus::kAccepted;
+        case SoundingView::kRejected:
+            return s != SoundingStatus::kAccepted && s != SoundingStatus::kNoDetection &&
+                   s != SoundingStatus::kRefraction;
+        case SoundingView::kCandidates: {
+            if (s == SoundingStatus::kAccepted) return true;
+            if (!IsCleaningStatus(s)) return false;
+            return georef == SoundingStatus::kAccepted;
+        }
+    }
+    return false;
+}
 
 // What refraction needs per ping: transducer depth and the speed at the face.
 struct PingWater {
@@ -143,7 +176,9 @@ GeorefResult RunGeoref(const NavSeries& nav,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin,
                        const ProgressCallback& progress,
-                       std::shared_ptr<const svp::Refraction> refraction) {
+                       std::shared_ptr<const svp::Refraction> refraction,
+                       const SoundingFlags* flags,
+                       SoundingView view) {
     GeorefResult result;
     result.mount = mount;
     result.refraction = refraction;
@@ -172,6 +207,9 @@ GeorefResult RunGeoref(const NavSeries& nav,
     std::vector<Eigen::Vector3d>& pos = P.position_world;
     std::vector<float>& rng = P.range_m;
     std::vector<float>& ang = P.angle_rad;
+    // Every sounding's status (SoundingStatus), in the same flat layout.
+    std::vector<std::uint8_t> status(series.range_counts.size(),
+                                     static_cast<std::uint8_t>(SoundingStatus::kAccepted));
 
     std::unique_ptr<tbb::global_control> limit;
     if (config.num_threads > 0) {
@@ -181,7 +219,7 @@ GeorefResult RunGeoref(const NavSeries& nav,
     std::atomic<std::size_t> done{0};
     std::atomic<bool> cancel{false};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_pings, 64), [&](const auto& block) {
-        std::vector<double> r;
+        std::vector<double> r, keep_range;
         std::vector<char> keep;
         for (std::size_t k = block.begin(); k != block.end(); ++k) {
             if (cancel.load(std::memory_order_relaxed)) return;
@@ -231,24 +269,36 @@ GeorefResult RunGeoref(const NavSeries& nav,
             }
             r.assign(h.num_beams, -1.0);
             for (std::size_t i = 0; i < h.num_beams; ++i) {
-                const std::uint32_t c = series.range_counts[h.beam_offset + i];
+                const std::size_t j = h.beam_offset + i;
+                const std::uint32_t c = series.range_counts[j];
                 if (c == 0) {
-                    ++w.no_detection;
+                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kNoDetection);
                     continue;
                 }
                 const double range = c * scale;
-                if (range < config.min_range_m || range > config.max_range_m) {
-                    ++w.range_gate;
-                    continue;
-                }
                 r[i] = range;
+                if (range < config.min_range_m || range > config.max_range_m) {
+                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kRangeGate);
+                }
             }
-            w.spikes = SpikeFilter(
-                r, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
+            // The median runs over the ranges inside the gate.
+            keep_range = r;
             for (std::size_t i = 0; i < h.num_beams; ++i) {
-                if (!(r[i] > 0) || !keep[i]) continue;
-                const double theta = frames::DegToRad(series.BeamAngleDeg(h, i));
+                if (status[h.beam_offset + i] != 0) keep_range[i] = -1.0;
+            }
+            SpikeFilter(
+                keep_range, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
+            for (std::size_t i = 0; i < h.num_beams; ++i) {
                 const std::size_t j = h.beam_offset + i;
+                if (keep_range[i] > 0 && !keep[i]) {
+                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kSpike);
+                }
+                if (!(r[i] > 0)) continue;
+                const auto own = static_cast<SoundingStatus>(status[j]);
+                const SoundingStatus s = flags ? Resolve(own, *flags, j) : own;
+                status[j] = static_cast<std::uint8_t>(s);
+                if (!InView(s, own, view)) continue;
+                const double theta = frames::DegToRad(series.BeamAngleDeg(h, i));
                 if (refraction) {
                     const svp::BeamGeometry b = refraction->Beam(w.ping.cast,
                                                                  T_world_sonar.linear(),
@@ -259,7 +309,7 @@ GeorefResult RunGeoref(const NavSeries& nav,
                                                                  water.transducer_depth_m,
                                                                  water.face_speed_mps);
                     if (b.steering_failed || b.status != svp::RayStatus::kOk) {
-                        ++w.refraction_failed;
+                        status[j] = static_cast<std::uint8_t>(SoundingStatus::kRefraction);
                         continue;
                     }
                     pos[j] = w.ping.sensor_world + b.offset_world;
@@ -307,6 +357,8 @@ GeorefResult RunGeoref(const NavSeries& nav,
     float* ang_to = in_place ? ang.data() : ang_out.data();
     P.ping.reserve(n_points);
     P.beam.reserve(n_points);
+    const bool with_status = view != SoundingView::kAccepted;
+    if (with_status) P.status.reserve(n_points);
     std::size_t out = 0;
     GeorefCounts& c = result.counts;
     for (std::size_t k = 0; k < n_pings; ++k) {
@@ -317,19 +369,19 @@ GeorefResult RunGeoref(const NavSeries& nav,
             if (w.reason == 3) ++c.pings_bad_header;
             continue;
         }
-        c.no_detection += w.no_detection;
-        c.range_gate += w.range_gate;
-        c.spikes += w.spikes;
-        c.refraction_failed += w.refraction_failed;
+        const PingHeader& h = series.pings[k];
+        for (std::size_t i = 0; i < h.num_beams; ++i) {
+            ++c.status[status[h.beam_offset + i]];
+        }
         const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
         result.pings.push_back(w.ping);
-        const PingHeader& h = series.pings[k];
         for (std::size_t i = 0; i < h.num_beams; ++i) {
             const std::size_t j = h.beam_offset + i;
             if (!(rng[j] > 0)) continue;
             pos_to[out] = pos[j];
             rng_to[out] = rng[j];
             ang_to[out] = ang[j];
+            if (with_status) P.status.push_back(status[j]);
             ++out;
             P.ping.push_back(ping_index);
             P.beam.push_back(static_cast<std::uint16_t>(i));
@@ -343,6 +395,15 @@ GeorefResult RunGeoref(const NavSeries& nav,
     pos.resize(out);
     rng.resize(out);
     ang.resize(out);
+    c.no_detection = c.status[static_cast<int>(SoundingStatus::kNoDetection)];
+    c.range_gate = c.status[static_cast<int>(SoundingStatus::kRangeGate)];
+    c.spikes = c.status[static_cast<int>(SoundingStatus::kSpike)];
+    c.refraction_failed = c.status[static_cast<int>(SoundingStatus::kRefraction)];
+    c.cleaned = 0;
+    for (int code = 0; code < kNumSoundingStatus; ++code) {
+        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) c.cleaned += c.status[code];
+    }
+    c.manual = c.status[static_cast<int>(SoundingStatus::kManual)];
     c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
     c.points = static_cast<std::int64_t>(P.size());
     result.message = std::to_string(c.points) + " points from " +

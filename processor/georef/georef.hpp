@@ -33,6 +33,7 @@
 #include "common/progress.hpp"
 #include "common/se3.hpp"
 #include "processor/georef/series.hpp"
+#include "processor/georef/sounding_status.hpp"
 #include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::georef {
@@ -83,6 +84,9 @@ struct GeorefPoints {
     std::vector<std::uint16_t> beam;              // beam number in its ping
     std::vector<float> range_m;                   // slant range used
     std::vector<float> angle_rad;                 // beam angle theta (sonar frame)
+    // SoundingStatus per point in the views kRejected and kCandidates (the latter: accepted or
+    // the cleaning's earlier verdict); empty in the accepted view.
+    std::vector<std::uint8_t> status;
     std::size_t size() const { return position_world.size(); }
 };
 
@@ -110,7 +114,11 @@ struct GeorefCounts {
     std::int64_t range_gate = 0;
     std::int64_t spikes = 0;
     std::int64_t refraction_failed = 0;  // ray turned, surfaced or beam not steerable
-    std::int64_t points = 0;
+    std::int64_t cleaned = 0;            // rejected by the cleaning (SoundingFlags::cleaning)
+    std::int64_t manual = 0;             // rejected by hand (SoundingFlags::manual)
+    std::int64_t points = 0;             // soundings in the view
+    // Soundings of the georeferenced pings per status (index = SoundingStatus code).
+    StatusCounts status{};
 };
 
 struct GeorefResult {
@@ -141,6 +149,8 @@ int SpikeFilter(const std::vector<double>& range_m,
                 std::vector<char>& keep);
 
 // Georeferences every ping. `origin`: world frame origin; nullopt = the first INS position.
+// `flags` (optional): the statuses decided outside georef (the cleaning, hand edits); `view`:
+// which soundings to return.
 // Preconditions: config.Validate() is empty.
 GeorefResult RunGeoref(const NavSeries& nav,
                        const PingSeries& pings,
@@ -148,7 +158,9 @@ GeorefResult RunGeoref(const NavSeries& nav,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin = std::nullopt,
                        const ProgressCallback& progress = {},
-                       std::shared_ptr<const svp::Refraction> refraction = nullptr);
+                       std::shared_ptr<const svp::Refraction> refraction = nullptr,
+                       const SoundingFlags* flags = nullptr,
+                       SoundingView view = SoundingView::kAccepted);
 
 // Re-applies a mount (boresight) to already georeferenced soundings, in place; the pings keep
 // their poses (with refraction, each beam is traced again). Used after calibration.

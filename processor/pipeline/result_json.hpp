@@ -58,6 +58,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(GeorefCounts,
                                    range_gate,
                                    spikes,
                                    refraction_failed,
+                                   cleaned,
+                                   manual,
                                    points)
 }  // namespace pitmap::proc::georef
 

@@ -142,9 +142,17 @@ georef::GeorefResult Georeference(const SurveyModel& m,
                                   const georef::GeorefConfig& config,
                                   std::shared_ptr<const svp::Refraction> refraction,
                                   const ProgressCallback& progress,
-                                  std::size_t* kept) {
-    georef::GeorefResult geo = georef::RunGeoref(
-        m.ingest.nav, m.ingest.pings, m.mount, config, m.origin, progress, std::move(refraction));
+                                  std::size_t* kept,
+                                  georef::SoundingView which) {
+    georef::GeorefResult geo = georef::RunGeoref(m.ingest.nav,
+                                                 m.ingest.pings,
+                                                 m.mount,
+                                                 config,
+                                                 m.origin,
+                                                 progress,
+                                                 std::move(refraction),
+                                                 &m.flags,
+                                                 which);
     // RunGeoref puts each ping on the navigation at its current time: the calibrated version
     // once the calibration ran, else the INS one. Any other version moves the pings.
     int chosen = -1;

@@ -13,6 +13,9 @@
 //   trajectories  one vehicle pose per ping in named versions: INS (the navigation at the
 //                 nominal ping times), calibrated (the navigation at the calibrated times, with
 //                 the calibrated mount), SLAM (after continuous-time SLAM)
+//   flags         each sounding's status beyond georef's own filters (georef/sounding_status.hpp):
+//                 what the cleaning decided (saved here) and the hand edits (the edit log,
+//                 P/edits.json, read again by every stage command: edit_log.hpp)
 //
 // Georeferencing is a view (Georeference): the soundings of a trajectory version with the
 // current mount. Nothing here writes a product.
@@ -102,6 +105,9 @@ struct SurveyModel {
     RefractionRecord refraction;
     CalibrationState calibration = CalibrationState::kNotRun;
     std::array<PingTrajectory, kNumTrajectoryVersions> trajectories;
+    // cleaning: the cleaning's verdict per sounding of ingest.pings (empty = none yet);
+    // manual: the edit log applied (not saved in survey.pitmap: the edit log is the record).
+    georef::SoundingFlags flags;
 
     const PingTrajectory& trajectory(TrajectoryVersion v) const {
         return trajectories[static_cast<int>(v)];
@@ -128,14 +134,16 @@ bool IsRunId(const std::string& id);
 Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r);
 
 // The view: the survey's soundings on trajectory version `v` (the newest present at or before
-// it) with the current mount. Pings without a valid pose in that version keep the navigation's
+// it) with the current mount, those of `which` status (the accepted ones by default; the
+// model's flags decide). Pings without a valid pose in that version keep the navigation's
 // pose; `kept` (when given) receives their number, for the caller to report.
 georef::GeorefResult Georeference(const SurveyModel& m,
                                   TrajectoryVersion v,
                                   const georef::GeorefConfig& config,
                                   std::shared_ptr<const svp::Refraction> refraction,
                                   const ProgressCallback& progress = {},
-                                  std::size_t* kept = nullptr);
+                                  std::size_t* kept = nullptr,
+                                  georef::SoundingView which = georef::SoundingView::kAccepted);
 
 // The per-ping trajectory of a georeferenced survey of `num_pings` pings.
 PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);

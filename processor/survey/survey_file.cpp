@@ -354,6 +354,53 @@ Status BeamAngleFromPayload(const std::vector<std::uint8_t>& bytes, georef::Ping
     return Ok{};
 }
 
+// ---- the cleaning's flags ----
+
+// Sparse: the indices (in the range counts) of the soundings the cleaning rejected, ascending,
+// and their status.
+Payload CleaningPayload(const std::vector<std::uint8_t>& cleaning) {
+    std::vector<std::uint32_t> index;
+    std::vector<std::uint8_t> code;
+    for (std::size_t j = 0; j < cleaning.size(); ++j) {
+        if (cleaning[j] == 0) continue;
+        index.push_back(static_cast<std::uint32_t>(j));
+        code.push_back(cleaning[j]);
+    }
+    Payload out;
+    out.Value(static_cast<std::uint64_t>(cleaning.size()));
+    out.Vec(index);
+    out.Vec(code);
+    return out;
+}
+
+Status CleaningFromPayload(const std::vector<std::uint8_t>& bytes,
+                           std::vector<std::uint8_t>& cleaning) {
+    Cursor in(bytes, "cleaning");
+    std::uint64_t n = 0;
+    std::vector<std::uint32_t> index;
+    std::vector<std::uint8_t> code;
+    in.Value(n, "sounding count");
+    in.Vec(index, "indices");
+    in.Vec(code, "statuses");
+    if (!in.Finish()) return Error{in.error};
+    if (index.size() != code.size())
+        return Error{"section cleaning: " + std::to_string(index.size()) + " indices for " +
+                     std::to_string(code.size()) + " statuses"};
+    if (n > (std::uint64_t{1} << 32)) return Error{"section cleaning: sounding count too large"};
+    cleaning.assign(n, 0);
+    for (std::size_t i = 0; i < index.size(); ++i) {
+        if (index[i] >= n || (i > 0 && index[i] <= index[i - 1]))
+            return Error{"section cleaning: index " + std::to_string(index[i]) +
+                         " out of order or beyond " + std::to_string(n) + " soundings"};
+        if (!georef::IsSoundingStatus(code[i]) ||
+            !georef::IsCleaningStatus(static_cast<georef::SoundingStatus>(code[i])))
+            return Error{"section cleaning: status " + std::to_string(code[i]) +
+                         " is not a cleaning status"};
+        cleaning[index[i]] = code[i];
+    }
+    return Ok{};
+}
+
 // ---- trajectories ----
 
 Payload TrajectoryPayload(const PingTrajectory& t) {
@@ -427,6 +474,8 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
         sections.emplace_back("intensity", IntensityPayload(m.ingest.pings));
     if (m.ingest.pings.has_beam_angles())
         sections.emplace_back("beam_angle", BeamAnglePayload(m.ingest.pings));
+    if (!m.flags.cleaning.empty())
+        sections.emplace_back("cleaning", CleaningPayload(m.flags.cleaning));
     for (int v = 0; v < kNumTrajectoryVersions; ++v) {
         if (!m.trajectories[v].empty())
             sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
@@ -475,8 +524,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     }
     if (std::memcmp(magic, kMagic, sizeof kMagic) != 0)
         return Error{path + ": not a pitmap survey file (bad magic)" + rerun};
-    // Formats 1 and 2 differ only by lacking the intensity and beam_angle sections: they are
-    // read without them.
+    // Formats 1 to 3 differ only by lacking the intensity, beam_angle and cleaning sections:
+    // they are read without them.
     if (head[0] < 1 || head[0] > kSurveyFormatVersion || head[1] != kByteOrder) {
         return Error{path + ": survey file format " + std::to_string(head[0]) +
                      " or byte order not of this build (format " +
@@ -486,7 +535,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     const std::uint32_t count = head[2];
     std::uint64_t pos = kHeadBytes;
     SurveyModel m;
-    bool seen_state = false, seen_ingest = false, seen_intensity = false, seen_angles = false;
+    bool seen_state = false, seen_ingest = false, seen_intensity = false, seen_angles = false,
+         seen_cleaning = false;
     bool seen_trajectory[kNumTrajectoryVersions] = {};
     auto corrupt = [&](const std::string& what) {
         return Error{path + ": corrupt survey file: " + what + rerun};
@@ -514,6 +564,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
                      : tag == "ingest"                    ? &seen_ingest
                      : tag == "intensity" && format >= 2  ? &seen_intensity
                      : tag == "beam_angle" && format >= 3 ? &seen_angles
+                     : tag == "cleaning" && format >= 4   ? &seen_cleaning
                      : trajectory >= 0                    ? &seen_trajectory[trajectory]
                                                           : nullptr;
         if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
@@ -542,6 +593,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             st = IntensityFromPayload(payload, m.ingest.pings);
         } else if (tag == "beam_angle") {
             st = BeamAngleFromPayload(payload, m.ingest.pings);
+        } else if (tag == "cleaning") {
+            st = CleaningFromPayload(payload, m.flags.cleaning);
         } else {
             st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
         }
@@ -561,6 +614,11 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             return corrupt("section beam_angle has " +
                            std::to_string(pings.beam_angles_deg.size()) + " angles for " +
                            std::to_string(pings.range_counts.size()) + " range counts");
+        }
+        if (seen_cleaning && m.flags.cleaning.size() != pings.range_counts.size()) {
+            return corrupt("section cleaning has " + std::to_string(m.flags.cleaning.size()) +
+                           " soundings for " + std::to_string(pings.range_counts.size()) +
+                           " range counts");
         }
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (seen_trajectory[v] &&

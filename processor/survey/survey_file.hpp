@@ -18,6 +18,10 @@
 //   beam_angle            (format 3; only when the pings carry their own beam angles) f32
 //                         per-beam angles in degrees beside the range counts (one per count,
 //                         NaN = the header's), as u64 count, u64 element size, bytes
+//   cleaning              (format 4; only once the cleaning ran) the soundings it rejected:
+//                         u64 number of soundings (= range counts), then the rejected ones'
+//                         u32 indices (ascending) and u8 statuses (georef/sounding_status.hpp),
+//                         each as u64 count, u64 element size, bytes
 //   traj.ins, traj.calibrated, traj.slam
 //                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,
 //                         qz (T_world_vehicle), u32 valid, u32 zero
@@ -37,9 +41,10 @@
 namespace pitmap::proc::survey {
 
 // 2: the optional intensity section. 3: the optional beam_angle section (a format 2 reader
-// would call it an unknown section). Formats 1 and 2 are still read (without the sections
-// they lack); any other format is an error that says to run `pitmap georef` again.
-inline constexpr std::uint32_t kSurveyFormatVersion = 3;
+// would call it an unknown section). 4: the optional cleaning section. Formats 1 to 3 are still
+// read (without the sections they lack); any other format is an error that says to run
+// `pitmap georef` again.
+inline constexpr std::uint32_t kSurveyFormatVersion = 4;
 inline constexpr const char* kSurveyFileName = "survey.pitmap";
 
 // Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the
