@@ -25,22 +25,24 @@ namespace pitmap::proc::georef {
 
 enum class SoundingStatus : std::uint8_t {
     kAccepted = 0,
-    kNoDetection = 1,   // the sonar returned no range
-    kRangeGate = 2,     // outside the configured range gate
-    kSpike = 3,         // the per-ping median filter
-    kRefraction = 4,    // the ray turned, surfaced or could not be steered
-    kSurfaceFilter = 5, // does not support the CUBE node's chosen hypothesis
-    kFreeSpace = 6,     // lies in water other pings observed as free (fish, bubbles)
-    kMultipath = 7,     // lies behind a well-observed surface along its own beam
-    kCluster = 8,       // in a persistent cluster off the surface
-    kManual = 9,        // rejected by hand (pitmap edit)
+    kNoDetection = 1,    // the sonar returned no range
+    kRangeGate = 2,      // outside the configured range gate
+    kSpike = 3,          // the per-ping median filter
+    kRefraction = 4,     // the ray turned, surfaced or could not be steered
+    kSurfaceFilter = 5,  // does not support the CUBE node's chosen hypothesis
+    kFreeSpace = 6,      // lies in water other pings observed as free (fish, bubbles)
+    kMultipath = 7,      // lies behind a well-observed surface along its own beam
+    kCluster = 8,        // in a persistent cluster off the surface
+    kManual = 9,         // rejected by hand (pitmap edit)
 };
 inline constexpr int kNumSoundingStatus = 10;
 
 // The stored name ("accepted", "no_detection", ..., "manual").
 std::string_view ToString(SoundingStatus s);
 // Whether a stored code is a known status.
-inline bool IsSoundingStatus(std::uint8_t code) { return code < kNumSoundingStatus; }
+inline bool IsSoundingStatus(std::uint8_t code) {
+    return code < kNumSoundingStatus;
+}
 // Rejections that the cleaning decides (stored per sounding in the survey model).
 inline bool IsCleaningStatus(SoundingStatus s) {
     return s == SoundingStatus::kSurfaceFilter || s == SoundingStatus::kFreeSpace ||
@@ -52,11 +54,11 @@ enum class ManualEdit : std::uint8_t { kNone = 0, kReject = 1, kRestore = 2 };
 
 // Which soundings a georeference returns, by status.
 enum class SoundingView : std::uint8_t {
-    kAccepted,   // what the stages use (the default)
-    kRejected,   // the rejected soundings that have a position (everything but no detection and
-                 // failed rays), with GeorefPoints::status: for the exports and the editor
-    kCandidates, // accepted by georef's own filters (and by a manual restore), whatever the
-                 // cleaning said, without the manual rejections: what the cleaning decides on
+    kAccepted,    // what the stages use (the default)
+    kRejected,    // the rejected soundings that have a position (everything but no detection and
+                  // failed rays), with GeorefPoints::status: for the exports and the editor
+    kCandidates,  // accepted by georef's own filters (and by a manual restore), whatever the
+                  // cleaning said, without the manual rejections: what the cleaning decides on
 };
 
 // Statuses decided outside georef, per sounding of the PingSeries (index = beam_offset + beam);

@@ -24,7 +24,9 @@ std::string Hex64(std::uint64_t v) {
     return buf;
 }
 
-const char* ActionName(ManualEdit a) { return a == ManualEdit::kRestore ? "restore" : "reject"; }
+const char* ActionName(ManualEdit a) {
+    return a == ManualEdit::kRestore ? "restore" : "reject";
+}
 
 }  // namespace
 
@@ -51,8 +53,7 @@ std::size_t EditLog::num_soundings() const {
     return n;
 }
 
-std::vector<SoundingRun> RunsOf(const georef::PingSeries& pings,
-                                std::vector<std::uint32_t> index) {
+std::vector<SoundingRun> RunsOf(const georef::PingSeries& pings, std::vector<std::uint32_t> index) {
     std::sort(index.begin(), index.end());
     index.erase(std::unique(index.begin(), index.end()), index.end());
     std::vector<SoundingRun> runs;
@@ -124,9 +125,8 @@ Expected<EditLog> ReadEditLog(const std::string& path) {
                 r[0].get<std::uint64_t>() > UINT32_MAX || r[1].get<std::uint64_t>() > UINT32_MAX ||
                 r[2].get<std::uint64_t>() > UINT32_MAX)
                 return bad(at + ": a run is not [ping, first_beam, count]: " + r.dump());
-            edit.runs.push_back({r[0].get<std::uint32_t>(),
-                                 r[1].get<std::uint32_t>(),
-                                 r[2].get<std::uint32_t>()});
+            edit.runs.push_back(
+                {r[0].get<std::uint32_t>(), r[1].get<std::uint32_t>(), r[2].get<std::uint32_t>()});
         }
         log.edits.push_back(std::move(edit));
     }
