@@ -115,26 +115,35 @@ int main(int argc, char** argv) try {
     cal->add_option("--out", out_dir, "products folder written by pitmap georef")->required();
     cal->add_option("--config", config_path, "YAML config");
     auto* slam = app.add_subcommand("slam", "continuous-time SLAM on a georeferenced folder");
+    auto* clean = app.add_subcommand(
+        "clean", "flag fish, bubbles, ghosts: the automatic 3D cleaning of the soundings");
     auto* grid = app.add_subcommand(
         "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
     auto* fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
     auto* mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
     auto* report = app.add_subcommand("report", "report.html of a products folder");
-    for (auto* sub : {slam, grid, fuse, mesh, report}) {
+    auto* rerun = app.add_subcommand(
+        "rerun",
+        "the stages after georef again (calibrate, SLAM, clean, grid, TSDF, mesh, report) on a "
+        "products folder, e.g. after pitmap edit");
+    for (auto* sub : {slam, clean, grid, fuse, mesh, report, rerun}) {
         sub->add_option("--out", out_dir, "products folder")->required();
         sub->add_option("--config", config_path, "YAML config");
     }
-    bool no_calibrate = false, no_slam = false, no_report = false;
+    bool no_calibrate = false, no_slam = false, no_report = false, no_clean = false;
     auto* run = app.add_subcommand(
-        "run", "everything: ingest, georef, calibrate, SLAM, grid, TSDF, mesh, report");
+        "run", "everything: ingest, georef, calibrate, SLAM, clean, grid, TSDF, mesh, report");
     run->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
     run->add_option("--out", out_dir, "products folder")->required();
     run->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
     run->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
     input_options(run);
-    run->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
-    run->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
-    run->add_flag("--no-report", no_report, "no report.html");
+    for (auto* sub : {run, rerun}) {
+        sub->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
+        sub->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
+        sub->add_flag("--no-clean", no_clean, "no automatic cleaning of the soundings");
+        sub->add_flag("--no-report", no_report, "no report.html");
+    }
     // The commands that georeference take sound-velocity casts.
     for (auto* sub : {geo, run}) {
         sub->add_option("--svp",
@@ -146,7 +155,7 @@ int main(int argc, char** argv) try {
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
     bool strict = false;
-    for (auto* sub : {geo, cal, slam, grid, fuse, mesh, run}) {
+    for (auto* sub : {geo, cal, slam, clean, grid, fuse, mesh, run, rerun}) {
         sub->add_flag("--strict",
                       strict,
                       "exit with status 4 when a quality gate trips (the stage could not "
@@ -175,6 +184,7 @@ int main(int argc, char** argv) try {
     if (no_calibrate) config.run.calibrate = false;
     if (no_slam) config.run.slam = false;
     if (no_report) config.run.report = false;
+    if (no_clean) config.clean.enabled = false;
     config.report_program = ReportProgram();
     if (auto problems = config.Validate(); !problems.empty()) {
         return Fail("invalid config:\n" + pitmap::FormatProblems(problems));
@@ -198,6 +208,8 @@ int main(int argc, char** argv) try {
     if (geo->parsed()) status = pp::RunGeorefStage(inputs, out_dir, config, log);
     if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);
     if (slam->parsed()) status = pp::RunSlamStage(out_dir, config, log);
+    if (clean->parsed()) status = pp::RunCleanStage(out_dir, config, log);
+    if (rerun->parsed()) status = pp::RunFromSurvey(out_dir, config, log);
     if (grid->parsed()) status = pp::RunGridStage(out_dir, config, log);
     if (fuse->parsed()) status = pp::RunFuseStage(out_dir, config, log);
     if (mesh->parsed()) status = pp::RunMeshStage(out_dir, config, log);

@@ -441,7 +441,8 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
                                   config.georef,
                                   s.model.origin,
                                   {},
-                                  s.refraction);
+                                  s.refraction,
+                                  &s.model.flags);
     } else {
         georef::Regeoreference(s.geo, cal.mount);
     }

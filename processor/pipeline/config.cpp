@@ -212,6 +212,21 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
 }
 
 template <class V>
+void VisitClean(V&& v, clean::CleanConfig& c) {
+    v("enabled", c.enabled, "clean the soundings in 3D before the grid and the TSDF (run, rerun)");
+    v("voxel_m", c.voxel_m, "the evidence grid's voxel, m");
+    v("cluster_max_voxels", c.cluster_max_voxels, "smaller connected sets of voxels are clusters");
+    v("margin_m", c.margin_m, "a ray stops this far before its own end, m ...");
+    v("margin_rel", c.margin_rel, "... or this share of its range, whichever is larger");
+    v("free_min_rays", c.free_min_rays, "free space: other rays through a cluster voxel, at least");
+    v("free_ratio", c.free_ratio, "... and this many times its own soundings");
+    v("surface_min_hits", c.surface_min_hits, "multipath: soundings in a surface patch, at least");
+    v("surface_max_thickness_m", c.surface_max_thickness_m, "... its 1-sigma thickness, m");
+    v("multipath_behind_m", c.multipath_behind_m, "a ghost lies this far behind the patch, m");
+    v("num_threads", c.num_threads, "0 = all cores");
+}
+
+template <class V>
 void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v.Enum("sensor_model", c.sensor_model, kSensorModels, "beam_width (May et al.) | ray");
     v("voxel_size_m", c.voxel_size_m, "voxel edge, m");
@@ -259,6 +274,9 @@ void VisitQuality(V&& v, QualityConfig& q) {
       q.slam_consistency_ratio,
       "passes' consistency after SLAM / the range noise's, above: gate");
     v("max_outside_nav_fraction", q.max_outside_nav_fraction, "share of pings outside the nav");
+    v("max_cleaned_share",
+      q.max_cleaned_share,
+      "the cleaning rejecting a larger share of the soundings is a gate");
     v("max_boresight_change_deg",
       q.max_boresight_change_deg,
       "calibration turning the mount further (deg): error");
@@ -418,6 +436,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("refraction", [&](auto& s) { VisitRefraction(s, c.refraction); });
     v.Section("calibrate", [&](auto& s) { VisitCalibrate(s, c.calibrate); });
     v.Section("slam", [&](auto& s) { VisitSlam(s, c.slam, c.slam_stage); });
+    v.Section("clean", [&](auto& s) { VisitClean(s, c.clean); });
     v.Section("fuse", [&](auto& s) { VisitFuse(s, c.tsdf, c.weight_filter); });
     v.Section("mesh", [&](auto& s) { VisitMesh(s, c.mesh); });
     v.Section("grid", [&](auto& s) { VisitGrid(s, c.grid); });
@@ -575,6 +594,8 @@ std::vector<std::string> QualityConfig::Validate() const {
         p.push_back("slam_drift_window_s must be in [1, 3600]");
     if (!(max_outside_nav_fraction >= 0 && max_outside_nav_fraction <= 1))
         p.push_back("max_outside_nav_fraction must be in [0, 1]");
+    if (!(max_cleaned_share > 0 && max_cleaned_share <= 1))
+        p.push_back("max_cleaned_share must be in (0, 1]");
     if (!(max_boresight_change_deg > 0 && max_boresight_change_deg <= 90))
         p.push_back("max_boresight_change_deg must be in (0, 90]");
     if (!(crossline_tvu_ratio >= 1)) p.push_back("crossline_tvu_ratio must be >= 1");
@@ -597,6 +618,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : refraction.Validate()) p.push_back(s);
     for (auto& s : calibrate.Validate()) p.push_back(s);
     for (auto& s : slam.Validate()) p.push_back("slam." + s);
+    for (auto& s : clean.Validate()) p.push_back(s);
     for (auto& s : tsdf.Validate()) p.push_back("fuse." + s);
     for (auto& s : weight_filter.Validate()) p.push_back("fuse." + s);
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);

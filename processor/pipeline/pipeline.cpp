@@ -21,6 +21,7 @@
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
+#include "processor/survey/edit_log.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -29,6 +30,17 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
+
+// "edits: N soundings rejected and M restored by hand (P/edits.json)".
+std::string EditsText(const std::vector<std::uint8_t>& manual) {
+    std::size_t rejected = 0, restored = 0;
+    for (const std::uint8_t m : manual) {
+        rejected += m == static_cast<std::uint8_t>(georef::ManualEdit::kReject);
+        restored += m == static_cast<std::uint8_t>(georef::ManualEdit::kRestore);
+    }
+    return "edits: " + std::to_string(rejected) + " soundings rejected and " +
+           std::to_string(restored) + " restored by hand (" + survey::kEditLogFileName + ")";
+}
 
 // summary["time"]: GPS - UTC for the survey (the receiver's TIME log when it logged one, else
 // common/gps_time's leap-second table) and the pings' span in both scales. The report turns GPS
@@ -177,6 +189,13 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
             add(mesh);
             add(report);
             break;
+        case Stage::kClean:
+            add({"points.ply", "points.las"});
+            add(grid);
+            add({"tsdf.vdb"});
+            add(mesh);
+            add(report);
+            break;
         case Stage::kGrid:
             add(grid);
             add(report);
@@ -299,6 +318,10 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
         log("refraction: " + std::to_string(s.refraction->casts().size()) +
             " cast(s) as georef used them");
     }
+    auto manual = survey::LoadEdits(out_dir, s.model.ingest.pings);
+    if (!manual) return manual.error();
+    s.model.flags.manual = std::move(*manual);
+    if (!s.model.flags.manual.empty()) log(EditsText(s.model.flags.manual));
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
     std::size_t kept = 0;
@@ -479,6 +502,13 @@ Status GeorefSurvey(Survey& s,
     if (s.model.ingest.pings.pings.empty())
         return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
 
+    // The hand edits (P/edits.json) survive a new georeference: applied on top of georef's and
+    // the cleaning's verdicts. One of another survey, or a damaged one, stops here.
+    auto manual = survey::LoadEdits(out_dir, s.model.ingest.pings);
+    if (!manual) return manual.error();
+    s.model.flags.manual = std::move(*manual);
+    if (!s.model.flags.manual.empty()) log(EditsText(s.model.flags.manual));
+
     PipelineConfig resolved = config;  // with what the vehicle file gave
     resolved.ingest = icfg;
     if (auto c = ClockSurvey(s, resolved, log); !c) {
@@ -499,7 +529,8 @@ Status GeorefSurvey(Survey& s,
                               config.georef,
                               origin,
                               gbar.AsCallback(),
-                              s.refraction);
+                              s.refraction,
+                              &s.model.flags);
     gbar.Finish();
     log("georef: " + s.geo.message);
     if (const std::int64_t out = s.geo.counts.pings_outside_nav; out > 0) {
@@ -586,6 +617,8 @@ const char* ToString(Stage s) {
             return "calibrate";
         case Stage::kSlam:
             return "slam";
+        case Stage::kClean:
+            return "clean";
         case Stage::kGrid:
             return "grid";
         case Stage::kFuseInitial:

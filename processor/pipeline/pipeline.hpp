@@ -43,6 +43,7 @@
 
 #include "common/result.hpp"
 #include "processor/calib/boresight.hpp"
+#include "processor/clean/clean.hpp"
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
 #include "processor/io/ingest.hpp"
@@ -89,6 +90,9 @@ struct QualityConfig {
     // A calibration that turns the nominal mount further than this (deg, any axis) is absorbing
     // a wrong input (lever arm sign, connector, clock): an error naming it, not a result.
     double max_boresight_change_deg = 5.0;
+    // The cleaning rejecting more than this share of the soundings is not cleaning echoes but
+    // absorbing a disagreement of the swaths (a gate naming the likely inputs).
+    double max_cleaned_share = 0.05;
     // Crossline RMS / what the soundings' median TVU predicts for a difference of two
     // soundings (sqrt(2) TVU95 / 1.96): above, the lines disagree beyond their stated
     // uncertainty (grid gate naming the likely input).
@@ -116,6 +120,7 @@ struct PipelineConfig {
     calib::BoresightConfig calibrate;
     slam::SlamConfig slam;
     SlamStageConfig slam_stage;
+    clean::CleanConfig clean;
     fusion::TsdfConfig tsdf;
     fusion::WeightFilterConfig weight_filter;
     mesh::MeshConfig mesh;
@@ -156,6 +161,7 @@ enum class Stage {
     kExport,
     kCalibrate,
     kSlam,
+    kClean,
     kGrid,
     kFuseInitial,
     kMeshInitial,
@@ -175,6 +181,13 @@ Status RunGeorefStage(const std::vector<std::string>& inputs,
                       const Log& log);
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `clean`: the automatic cleaning (processor/clean) on the newest trajectory; points.ply/las
+// again, the later products removed.
+Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `rerun`: the stages after georef again on P/survey.pitmap (after hand edits or a new config):
+// calibrate, SLAM, clean, grid, fuse, mesh, report as `run` does them, without reading the
+// inputs again.
+Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);

@@ -670,14 +670,16 @@ Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, 
     return detail::ReportSurvey(*s, config, log);
 }
 
-Status RunAll(const std::vector<std::string>& inputs,
-              const std::string& out_dir,
-              const PipelineConfig& config,
-              const Log& log) {
-    const auto start = std::chrono::steady_clock::now();
-    detail::Survey s;
-    s.out_dir = out_dir;
-    // The stages that change the survey (georef, calibrate, SLAM) leave points.ply/las,
+namespace {
+
+// `run` after georef, and `rerun`: calibrate, the mesh before SLAM, SLAM, clean, the export,
+// grid, fuse, mesh, report, on a survey georeferenced (s.geo) on its newest trajectory.
+Status RunAfterGeoref(detail::Survey& s,
+                      const PipelineConfig& config,
+                      const Log& log,
+                      std::chrono::steady_clock::time_point start) {
+    const std::string& out_dir = s.out_dir;
+    // The stages that change the survey (georef, calibrate, SLAM, clean) leave points.ply/las,
     // boresight.json and survey.pitmap to one export once the last of them has run.
     s.defer_products = true;
     // With the grid in the run and its points with THU/TVU, the grid stage writes the points.
@@ -687,7 +689,6 @@ Status RunAll(const std::vector<std::string>& inputs,
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
-    if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;
     if (config.run.calibrate) {
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
@@ -703,6 +704,9 @@ Status RunAll(const std::vector<std::string>& inputs,
     }
     if (config.run.slam) {
         if (auto st = detail::SlamSurvey(s, config, log); !st) return export_now(st);
+    }
+    if (config.clean.enabled) {
+        if (auto st = detail::CleanSurvey(s, config, log); !st) return export_now(st);
     }
     if (auto st = export_now(Ok{}, !grid_points); !st) return st;
     if (config.grid.in_run) {
@@ -740,6 +744,36 @@ Status RunAll(const std::vector<std::string>& inputs,
     }
     log("done in " + Fixed(total(), 1) + " s; products in " + out_dir);
     return Ok{};
+}
+
+}  // namespace
+
+Status RunAll(const std::vector<std::string>& inputs,
+              const std::string& out_dir,
+              const PipelineConfig& config,
+              const Log& log) {
+    const auto start = std::chrono::steady_clock::now();
+    detail::Survey s;
+    s.out_dir = out_dir;
+    s.defer_products = true;
+    if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;
+    return RunAfterGeoref(s, config, log, start);
+}
+
+Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    const auto start = std::chrono::steady_clock::now();
+    // From the state georef left: the calibration (when it runs) starts from the nominal
+    // mount, and every later version goes.
+    auto s = detail::LoadSurvey(
+        out_dir,
+        config,
+        config.run.calibrate ? detail::StartFrom::kNominal : detail::StartFrom::kBeforeSlam,
+        log);
+    if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate)); !r)
+        return r;
+    log("rerun: the stages after georef on " + out_dir + "/" + survey::kSurveyFileName);
+    return RunAfterGeoref(*s, config, log, start);
 }
 
 }  // namespace pitmap::proc::pipeline

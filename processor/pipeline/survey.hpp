@@ -150,6 +150,8 @@ Status GeorefSurvey(Survey& s,
                     const Log& log);
 Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+// The automatic cleaning (clean_stage.cpp): flags in the model, the view keeps the accepted.
+Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and

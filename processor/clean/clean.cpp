@@ -1,0 +1,415 @@
+// SPDX-License-Identifier: MIT
+#include "processor/clean/clean.hpp"
+
+#include <openvdb/math/DDA.h>
+#include <openvdb/math/Ray.h>
+#include <openvdb/openvdb.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <numeric>
+
+namespace pitmap::proc::clean {
+
+namespace {
+
+using georef::SoundingStatus;
+using openvdb::Coord;
+using IndexTree = openvdb::Int32Tree;
+using RayT = openvdb::math::Ray<double>;
+// The hierarchical DDA enters at the root's children and descends to the leaves.
+using Hdda =
+    openvdb::math::VolumeHDDA<IndexTree, RayT, IndexTree::RootNodeType::ChildNodeType::LEVEL>;
+
+constexpr std::int32_t kNone = -1;
+
+// Per voxel: soundings, their moments, the component, the plane patch.
+struct Voxels {
+    std::vector<Coord> coord;
+    std::vector<std::int32_t> count;
+    std::vector<std::int32_t> component;  // after Components
+    // Plane patches (terrain voxels with enough soundings), after Patches.
+    std::vector<Eigen::Vector3d> centroid, normal;
+    std::vector<double> thickness, radius;
+    std::vector<char> patch;
+    std::size_t size() const { return coord.size(); }
+};
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Union-find with path halving.
+std::int32_t Find(std::vector<std::int32_t>& parent, std::int32_t i) {
+    while (parent[i] != i) {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    return i;
+}
+
+// Calls visit(voxel index, t_enter) for every voxel of `grid` (active) the segment
+// [t0, t1] (index units) of `ray` passes through, in order; visit returns false to stop.
+template <typename Visit>
+void MarchVoxels(
+    const RayT& ray_in, const openvdb::Int32Grid& grid, double t0, double t1, Visit&& visit) {
+    if (!(t1 > t0)) return;
+    RayT ray = ray_in;
+    ray.setTimes(t0, t1);
+    auto acc = grid.getConstAccessor();
+    Hdda hdda;
+    std::vector<RayT::TimeSpan> spans;
+    hdda.hits(ray, acc, spans);
+    for (const RayT::TimeSpan& span : spans) {
+        RayT segment = ray_in;
+        segment.setTimes(std::max(t0, span.t0), std::min(t1, span.t1));
+        if (!segment.valid()) continue;
+        openvdb::math::DDA<RayT, 0> dda(segment);
+        do {
+            std::int32_t v = kNone;
+            if (acc.probeValue(dda.voxel(), v) && !visit(v, dda.time())) return;
+        } while (dda.step());
+    }
+}
+
+}  // namespace
+
+std::vector<std::string> CleanConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(voxel_m > 0.01 && voxel_m < 100)) p.push_back("clean.voxel_m must be in (0.01, 100)");
+    if (cluster_max_voxels < 1) p.push_back("clean.cluster_max_voxels must be >= 1");
+    if (!(margin_m >= 0)) p.push_back("clean.margin_m must be >= 0");
+    if (!(margin_rel >= 0 && margin_rel < 1)) p.push_back("clean.margin_rel must be in [0, 1)");
+    if (free_min_rays < 1) p.push_back("clean.free_min_rays must be >= 1");
+    if (!(free_ratio >= 0)) p.push_back("clean.free_ratio must be >= 0");
+    if (surface_min_hits < 3) p.push_back("clean.surface_min_hits must be >= 3");
+    if (!(surface_max_thickness_m > 0)) p.push_back("clean.surface_max_thickness_m must be > 0");
+    if (!(multipath_behind_m >= 0)) p.push_back("clean.multipath_behind_m must be >= 0");
+    return p;
+}
+
+CleanResult Clean(const georef::GeorefResult& geo,
+                  const CleanConfig& config,
+                  const ProgressCallback& progress) {
+    openvdb::initialize();
+    CleanResult result;
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    result.status.assign(n, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
+    CleanCounts& c = result.counts;
+    c.soundings = static_cast<std::int64_t>(n);
+    if (n == 0) return result;
+    std::unique_ptr<tbb::global_control> limit;
+    if (config.num_threads > 0) {
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      static_cast<std::size_t>(config.num_threads));
+    }
+    const double v = config.voxel_m;
+    auto report = [&](double share) { return !progress || progress(share); };
+
+    // ---- 1. voxels, moments, components ----
+    auto t_start = std::chrono::steady_clock::now();
+    auto index = openvdb::Int32Grid::create(kNone);
+    Voxels X;
+    std::vector<std::int32_t> voxel_of(n);
+    {
+        auto acc = index->getAccessor();
+        for (std::size_t j = 0; j < n; ++j) {
+            const Eigen::Vector3d& p = P.position_world[j];
+            const Coord ijk = Coord::floor(openvdb::Vec3d(p.x() / v, p.y() / v, p.z() / v));
+            std::int32_t id = kNone;
+            if (!acc.probeValue(ijk, id)) {
+                id = static_cast<std::int32_t>(X.size());
+                acc.setValue(ijk, id);
+                X.coord.push_back(ijk);
+                X.count.push_back(0);
+            }
+            voxel_of[j] = id;
+            ++X.count[id];
+        }
+    }
+    const std::size_t nv = X.size();
+    c.voxels = static_cast<std::int64_t>(nv);
+    std::vector<std::int32_t> parent(nv);
+    std::iota(parent.begin(), parent.end(), 0);
+    {
+        auto acc = index->getConstAccessor();
+        for (std::size_t i = 0; i < nv; ++i) {
+            for (int dx = -1; dx <= 1; ++dx) {
+                for (int dy = -1; dy <= 1; ++dy) {
+                    for (int dz = -1; dz <= 1; ++dz) {
+                        // Each pair once: the 13 neighbours after this voxel in (x, y, z) order.
+                        if (dx < 0 || (dx == 0 && (dy < 0 || (dy == 0 && dz <= 0)))) continue;
+                        std::int32_t k = kNone;
+                        if (!acc.probeValue(X.coord[i].offsetBy(dx, dy, dz), k)) continue;
+                        const std::int32_t a = Find(parent, static_cast<std::int32_t>(i));
+                        const std::int32_t b = Find(parent, k);
+                        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                    }
+                }
+            }
+        }
+    }
+    std::vector<std::int32_t> comp_voxels(nv, 0);
+    X.component.resize(nv);
+    for (std::size_t i = 0; i < nv; ++i) {
+        X.component[i] = Find(parent, static_cast<std::int32_t>(i));
+        ++comp_voxels[X.component[i]];
+    }
+    auto terrain = [&](std::int32_t voxel) {
+        return comp_voxels[X.component[voxel]] >= config.cluster_max_voxels;
+    };
+    for (std::size_t i = 0; i < nv; ++i) {
+        if (X.component[i] != static_cast<std::int32_t>(i)) continue;
+        (comp_voxels[i] >= config.cluster_max_voxels ? c.terrain_components : c.clusters) += 1;
+    }
+    // The terrain's voxels, for the marches behind clusters and through surfaces.
+    auto terrain_grid = openvdb::Int32Grid::create(kNone);
+    {
+        auto ta = terrain_grid->getAccessor();
+        for (std::size_t i = 0; i < nv; ++i) {
+            if (terrain(static_cast<std::int32_t>(i)))
+                ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
+        }
+    }
+    // Each voxel's soundings together (a counting sort by voxel).
+    std::vector<std::uint32_t> first(nv + 1, 0), members(n);
+    for (std::size_t j = 0; j < n; ++j) ++first[voxel_of[j] + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    {
+        std::vector<std::uint32_t> at(first.begin(), first.end() - 1);
+        for (std::size_t j = 0; j < n; ++j)
+            members[at[voxel_of[j]]++] = static_cast<std::uint32_t>(j);
+    }
+    // A plane patch per voxel with enough soundings: a robust fit (Cauchy-weighted PCA), so
+    // that the echoes in a voxel do not tilt the surface they are judged against.
+    X.centroid.resize(nv);
+    X.normal.resize(nv);
+    X.thickness.assign(nv, 0);
+    X.radius.assign(nv, 0);
+    X.patch.assign(nv, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 1024), [&](const auto& r) {
+        std::vector<double> w;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const std::size_t m = first[i + 1] - first[i];
+            if (static_cast<int>(m) < config.surface_min_hits) continue;
+            w.assign(m, 1.0);
+            Eigen::Vector3d mean, normal;
+            Eigen::Vector3d ev;
+            for (int iter = 0; iter < 4; ++iter) {
+                double sw = 0;
+                mean.setZero();
+                for (std::size_t k = 0; k < m; ++k) {
+                    mean += w[k] * P.position_world[members[first[i] + k]];
+                    sw += w[k];
+                }
+                mean /= sw;
+                Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+                for (std::size_t k = 0; k < m; ++k) {
+                    const Eigen::Vector3d d = P.position_world[members[first[i] + k]] - mean;
+                    cov += w[k] * d * d.transpose();
+                }
+                cov /= sw;
+                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+                es.computeDirect(cov);
+                ev = es.eigenvalues().cwiseMax(0.0);
+                normal = es.eigenvectors().col(0);
+                // Cauchy weights on the distance to the plane, scale: the range noise's order.
+                const double scale = std::max(0.05, std::sqrt(ev[0]));
+                for (std::size_t k = 0; k < m; ++k) {
+                    const double d =
+                        normal.dot(P.position_world[members[first[i] + k]] - mean) / scale;
+                    w[k] = 1.0 / (1.0 + d * d);
+                }
+            }
+            // Thickness: the weighted spread across the plane of the soundings that support it.
+            double sw = 0, s2 = 0;
+            for (std::size_t k = 0; k < m; ++k) {
+                if (w[k] < 0.2) continue;
+                const double d = normal.dot(P.position_world[members[first[i] + k]] - mean);
+                s2 += d * d;
+                sw += 1;
+            }
+            X.centroid[i] = mean;
+            X.normal[i] = normal;
+            X.thickness[i] = sw > 0 ? std::sqrt(s2 / sw) : 1e9;
+            X.radius[i] = std::sqrt(ev[1]);
+            X.patch[i] =
+                sw >= config.surface_min_hits && X.thickness[i] <= config.surface_max_thickness_m;
+        }
+    });
+    c.seconds_voxels = Seconds(t_start);
+    if (!report(0.1)) return result.cancelled = true, result;
+
+    auto sensor = [&](std::size_t j) -> const Eigen::Vector3d& {
+        return geo.pings[P.ping[j]].sensor_world;
+    };
+    auto margin = [&](double range) {
+        return std::max(config.margin_m, config.margin_rel * range);
+    };
+    // A point's ray in index space (unit direction: t is in voxels) and its length in voxels.
+    auto ray_of = [&](std::size_t j, double* length_vox) {
+        const Eigen::Vector3d s = sensor(j) / v;
+        Eigen::Vector3d d = P.position_world[j] / v - s;
+        *length_vox = d.norm();
+        if (*length_vox > 0) d /= *length_vox;
+        return RayT(openvdb::Vec3d(s.x(), s.y(), s.z()), openvdb::Vec3d(d.x(), d.y(), d.z()));
+    };
+
+    // ---- 2. rays through the voxels: free space and crossings of plane patches ----
+    // Every sounding's ray, from the transducer to `margin` before its end, through every voxel
+    // it passes (not its own): free_rays counts them per voxel; where it goes through a plane
+    // patch (into the plane at more than 15 deg, within the patch's extent) that is a crossing
+    // of that patch, and the ray's first crossing is kept.
+    t_start = std::chrono::steady_clock::now();
+    std::vector<std::atomic<std::int32_t>> free_rays(nv), crossed(nv);
+    std::vector<std::int32_t> first_crossing(n, kNone);
+    const double min_sin = std::sin(15.0 * M_PI / 180.0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            double len = 0;
+            const RayT ray = ray_of(j, &len);
+            if (!(len > 0)) continue;
+            const double range = len * v;
+            const double stop = range - margin(range);
+            const std::int32_t own_id = voxel_of[j];
+            const Coord own = X.coord[own_id];
+            const Eigen::Vector3d& s = sensor(j);
+            const Eigen::Vector3d d = (P.position_world[j] - s) / range;
+            MarchVoxels(ray, *index, 0.0, stop / v, [&](std::int32_t vox, double) {
+                if (vox == own_id) return true;
+                free_rays[vox].fetch_add(1, std::memory_order_relaxed);
+                if (!X.patch[vox]) return true;
+                const Coord& q = X.coord[vox];
+                if (std::abs(q.x() - own.x()) <= 1 && std::abs(q.y() - own.y()) <= 1 &&
+                    std::abs(q.z() - own.z()) <= 1)
+                    return true;  // the surface the sounding lies on
+                const Eigen::Vector3d& m = X.centroid[vox];
+                const Eigen::Vector3d& nrm = X.normal[vox];
+                const double dn = nrm.dot(d);
+                if (std::abs(dn) < min_sin) return true;  // grazing
+                const double t_cross = nrm.dot(m - s) / dn;
+                if (!(t_cross > 0 && t_cross < stop)) return true;
+                // Inside this voxel: through the patch, not past its edge.
+                const Eigen::Vector3d x = (s + t_cross * d) / v;
+                if (Coord::floor(openvdb::Vec3d(x.x(), x.y(), x.z())) != q) return true;
+                crossed[vox].fetch_add(1, std::memory_order_relaxed);
+                if (first_crossing[j] == kNone) first_crossing[j] = vox;
+                return true;
+            });
+        }
+    });
+    // Per patch: its soundings whose rays crossed no patch (the surface's own support).
+    std::vector<std::int32_t> clean_hits(nv, 0);
+    for (std::size_t j = 0; j < n; ++j) clean_hits[voxel_of[j]] += first_crossing[j] == kNone;
+    auto transient_patch = [&](std::int32_t vox) {
+        const std::int32_t x = crossed[vox].load(std::memory_order_relaxed);
+        return X.patch[vox] && x >= config.free_min_rays &&
+               x >= config.free_ratio * clean_hits[vox];
+    };
+    auto solid_patch = [&](std::int32_t vox) {
+        const std::int32_t x = crossed[vox].load(std::memory_order_relaxed);
+        return X.patch[vox] && clean_hits[vox] >= config.surface_min_hits &&
+               x < config.solid_ratio * clean_hits[vox];
+    };
+    c.seconds_free_space = Seconds(t_start);
+    if (!report(0.4)) return result.cancelled = true, result;
+
+    // ---- 3. clusters in front of the terrain ----
+    t_start = std::chrono::steady_clock::now();
+    // A cluster is judged by its soundings: off the surface when most of them have terrain
+    // behind them along their rays, as far as the survey's longest range.
+    double max_range = 0;
+    for (std::size_t j = 0; j < n; ++j) max_range = std::max(max_range, double{P.range_m[j]});
+    const double behind_vox = 1.5 * max_range / v;
+    std::vector<std::atomic<std::int32_t>> comp_behind(nv), comp_points(nv);
+    if (c.clusters > 0) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                const std::int32_t own = voxel_of[j];
+                if (terrain(own)) continue;
+                comp_points[X.component[own]].fetch_add(1, std::memory_order_relaxed);
+                double len = 0;
+                const RayT ray = ray_of(j, &len);
+                if (!(len > 0)) continue;
+                const double from = len + margin(len * v) / v;
+                bool behind = false;
+                MarchVoxels(ray, *terrain_grid, from, from + behind_vox, [&](std::int32_t, double) {
+                    behind = true;
+                    return false;
+                });
+                if (behind) comp_behind[X.component[own]].fetch_add(1, std::memory_order_relaxed);
+            }
+        });
+    }
+    c.seconds_clusters = Seconds(t_start);
+
+    // ---- 4. each sounding: its voxel, its ray ----
+    t_start = std::chrono::steady_clock::now();
+    auto free_voxel = [&](std::int32_t vox, double ratio) {
+        const std::int32_t f = free_rays[vox].load(std::memory_order_relaxed);
+        return f >= config.free_min_rays && f >= ratio * X.count[vox];
+    };
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const std::int32_t own = voxel_of[j];
+            SoundingStatus st = SoundingStatus::kAccepted;
+            if (transient_patch(own)) {
+                // A "surface" other rays went through: echoes in the water.
+                st = SoundingStatus::kFreeSpace;
+            } else if (first_crossing[j] != kNone && solid_patch(first_crossing[j])) {
+                // The ray went through a surface observed from elsewhere: a ghost behind it.
+                st = SoundingStatus::kMultipath;
+            } else if (!terrain(own)) {
+                const std::int32_t k = X.component[own];
+                if (free_voxel(own, config.free_ratio)) {
+                    st = SoundingStatus::kFreeSpace;
+                } else if (2 * comp_behind[k].load() > comp_points[k].load()) {
+                    st = SoundingStatus::kCluster;
+                }
+            }
+            result.status[j] = static_cast<std::uint8_t>(st);
+        }
+    });
+    if (const char* dump = std::getenv("PITMAP_CLEAN_DUMP")) {  // DEBUG-ONLY
+        std::FILE* f = std::fopen(dump, "wb");
+        for (std::size_t j = 0; j < n; ++j) {
+            const std::int32_t own = voxel_of[j];
+            float rec[6] = {float(comp_voxels[X.component[own]]),
+                            float(free_rays[own].load()),
+                            float(X.count[own]),
+                            float(X.patch[own]),
+                            float(crossed[own].load()),
+                            float(clean_hits[own])};
+            std::fwrite(rec, sizeof rec, 1, f);
+        }
+        std::fclose(f);
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+        switch (static_cast<SoundingStatus>(result.status[j])) {
+            case SoundingStatus::kFreeSpace:
+                ++c.free_space;
+                break;
+            case SoundingStatus::kCluster:
+                ++c.cluster;
+                break;
+            case SoundingStatus::kMultipath:
+                ++c.multipath;
+                break;
+            default:
+                break;
+        }
+    }
+    c.seconds_multipath = Seconds(t_start);
+    report(1.0);
+    return result;
+}
+
+}  // namespace pitmap::proc::clean

@@ -1,0 +1,172 @@
+// SPDX-License-Identifier: MIT
+// The clean stage (issue 35): the automatic cleaning in 3D (processor/clean) on the survey's
+// newest trajectory. It decides on every candidate sounding (what georef's own filters and the
+// hand edits accept, whatever an earlier cleaning said), stores its verdicts in the survey
+// model (flags.cleaning: survey.pitmap keeps them) and leaves the stages after it (grid, fuse,
+// mesh, the exports) the accepted soundings only. A hand restore wins over its verdict.
+#include <cstdio>
+
+#include "common/progress.hpp"
+#include "processor/clean/clean.hpp"
+#include "processor/pipeline/result_json.hpp"
+#include "processor/pipeline/survey.hpp"
+
+namespace pitmap::proc::pipeline::detail {
+
+using georef::SoundingStatus;
+using nlohmann::json;
+
+namespace {
+
+// The index of point j of `geo` in the survey's range counts.
+std::size_t FlatIndex(const georef::GeorefResult& geo,
+                      const georef::PingSeries& pings,
+                      std::size_t j) {
+    return pings.pings[geo.pings[geo.points.ping[j]].header_index].beam_offset +
+           std::size_t{geo.points.beam[j]};
+}
+
+// Keeps the points with keep[j] != 0 (in order); the pings stay.
+void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
+    std::size_t out = 0;
+    for (std::size_t j = 0; j < P.size(); ++j) {
+        if (!keep[j]) continue;
+        P.position_world[out] = P.position_world[j];
+        P.ping[out] = P.ping[j];
+        P.beam[out] = P.beam[j];
+        P.range_m[out] = P.range_m[j];
+        P.angle_rad[out] = P.angle_rad[j];
+        ++out;
+    }
+    P.position_world.resize(out);
+    P.ping.resize(out);
+    P.beam.resize(out);
+    P.range_m.resize(out);
+    P.angle_rad.resize(out);
+    P.status.clear();
+}
+
+std::string Percent(double share) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f %%", 100.0 * share);
+    return buf;
+}
+
+bool AnyManualReject(const georef::SoundingFlags& f) {
+    for (const std::uint8_t m : f.manual) {
+        if (m == static_cast<std::uint8_t>(georef::ManualEdit::kReject)) return true;
+    }
+    return false;
+}
+
+}  // namespace
+
+Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    ClearGates(s, Stage::kClean);
+    georef::SoundingFlags& flags = s.model.flags;
+    const georef::PingSeries& pings = s.model.ingest.pings;
+    // The candidates: the current view is them when nothing was cleaned before and nothing is
+    // rejected by hand (a new run); otherwise the survey is viewed again.
+    bool cleaned_before = false;
+    for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
+    if (cleaned_before || AnyManualReject(flags)) {
+        s.geo = survey::Georeference(s.model,
+                                     s.model.latest(),
+                                     config.georef,
+                                     s.refraction,
+                                     {},
+                                     nullptr,
+                                     georef::SoundingView::kCandidates);
+    }
+    ProgressReporter bar(ToString(Stage::kClean), 1000);
+    const clean::CleanResult r = clean::Clean(s.geo, config.clean, bar.AsCallback());
+    bar.Finish();
+    if (r.cancelled) return Error{"clean: cancelled"};
+
+    std::vector<std::uint8_t> before = std::move(flags.cleaning);
+    flags.cleaning.assign(pings.range_counts.size(), 0);
+    std::vector<char> keep(s.geo.points.size(), 1);
+    std::int64_t restored_by_hand = 0;
+    for (std::size_t j = 0; j < s.geo.points.size(); ++j) {
+        if (r.status[j] == 0) continue;
+        const std::size_t flat = FlatIndex(s.geo, pings, j);
+        flags.cleaning[flat] = r.status[j];
+        if (flags.Manual(flat) == georef::ManualEdit::kRestore) {
+            ++restored_by_hand;
+            continue;
+        }
+        keep[j] = 0;
+    }
+    std::int64_t changed = 0;
+    for (std::size_t i = 0; i < flags.cleaning.size(); ++i) {
+        changed += flags.cleaning[i] != (i < before.size() ? before[i] : 0);
+    }
+    KeepPoints(s.geo.points, keep);
+    s.geo.counts.points = static_cast<std::int64_t>(s.geo.points.size());
+
+    const clean::CleanCounts& c = r.counts;
+    const std::int64_t rejected = c.free_space + c.cluster + c.multipath;
+    const double share = c.soundings > 0 ? static_cast<double>(rejected) / c.soundings : 0.0;
+    char line[256];
+    std::snprintf(line,
+                  sizeof line,
+                  "clean: %lld of %lld soundings rejected (%.2f %%): free space %lld, cluster "
+                  "%lld, multipath %lld; %lld flags changed",
+                  static_cast<long long>(rejected),
+                  static_cast<long long>(c.soundings),
+                  100.0 * share,
+                  static_cast<long long>(c.free_space),
+                  static_cast<long long>(c.cluster),
+                  static_cast<long long>(c.multipath),
+                  static_cast<long long>(changed));
+    log(line);
+    if (share > config.quality.max_cleaned_share) {
+        TripGate(s,
+                 Stage::kClean,
+                 "cleaning_rejects_many",
+                 "the cleaning rejected " + Percent(share) + " of the soundings (more than " +
+                     "quality.max_cleaned_share " + Percent(config.quality.max_cleaned_share) +
+                     "): the soundings do not agree between pings beyond what echoes explain "
+                     "(a wrong mount, sonar clock or sound speed moves whole swaths); check "
+                     "calibrate's and SLAM's gates, or clean.voxel_m for this survey's scale",
+                 log);
+    }
+    RecordStage(s.summary,
+                Stage::kClean,
+                {{"soundings", c.soundings},
+                 {"rejected", rejected},
+                 {"free_space", c.free_space},
+                 {"cluster", c.cluster},
+                 {"multipath", c.multipath},
+                 {"restored_by_hand", restored_by_hand},
+                 {"flags_changed", changed},
+                 {"voxels", c.voxels},
+                 {"terrain_components", c.terrain_components},
+                 {"clusters", c.clusters},
+                 {"trajectory", survey::ToString(s.model.latest())},
+                 {"seconds_voxels", c.seconds_voxels},
+                 {"seconds_free_space", c.seconds_free_space},
+                 {"seconds_clusters", c.seconds_clusters},
+                 {"seconds_multipath", c.seconds_multipath}},
+                clock);
+    return Ok{};
+}
+
+}  // namespace pitmap::proc::pipeline::detail
+
+namespace pitmap::proc::pipeline {
+
+Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kClean)); !r)
+        return r;
+    if (auto st = detail::CleanSurvey(*s, config, log); !st) {
+        (void)detail::SaveSummary(*s);
+        return st;
+    }
+    return detail::ExportSurvey(*s, config);
+}
+
+}  // namespace pitmap::proc::pipeline
