@@ -4,7 +4,9 @@
 //
 // PLY (written with common/formats/ply): binary_little_endian 1.0, vertex properties float x, y, z
 // (world ENU metres), double
-//   gps_time_s (GPS seconds since 1980-01-06), float range_m, uint ping, ushort beam; a header
+//   gps_time_s (GPS seconds since 1980-01-06), float range_m, uint ping, ushort beam, then the
+//   extras (PointExtras) and last uchar status (georef::SoundingStatus: 0 accepted, else the
+//   reason the sounding was rejected; a header comment lists the codes' names); a header
 //   comment "pitmap_origin LAT LON H" (degrees, degrees, ellipsoidal metres) names the origin.
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
 //   coordinates with scale 0.001 m, GPS time as Adjusted Standard GPS time (GPS s - 1e9,
@@ -12,6 +14,16 @@
 //   bit 4): a COMPD_CS of the UTM PROJCS and the heights' VERT_CS: "WGS 84 ellipsoidal height"
 //   (OGC 01-009 vertical datum type 2002) as georef writes it, the vertical datum's (geoid,
 //   water level; hydro/datum.hpp) when the grid stage writes the file again (PointExtras).
+//   Classification: accepted soundings class 40 (bathymetric point, "submerged topography":
+//   the ASPRS topo-bathy lidar domain profile's class, in R15's range reserved for ASPRS
+//   definitions), rejected ones 7 (low noise) or 18 (high noise) (R15 Table 17; the rule is
+//   LasNoiseClasses') with the withheld flag (classification flags bit 2) set.
+// Rejected soundings (issue 35): both files hold, after the accepted soundings in their order,
+// the rejected soundings of the same survey that have a position (a georeference in the view
+// georef::SoundingView::kRejected: every status but no detection and refraction) when the
+// writer is given them; a reader that wants the surface keeps status 0 (PLY) or drops the
+// withheld points (LAS). THU, TVU of a rejected sounding are NaN (the grid stage computes them
+// for the accepted soundings only).
 // Run id (processor/survey/survey.hpp): when given, PLY has a comment "pitmap_run_id ID" and LAS
 // the id's 16 bytes as its Project ID (GUID) (RunIdBytes).
 // Every file is written under a temporary name and renamed into place
@@ -57,19 +69,40 @@ struct PointExtras {
 
 // With extras, PLY adds float thu_95_m, tvu_95_m (when given) and, with datum heights, float
 // depth_m (D - h: below the datum, m) and a comment "pitmap_vertical_datum NAME"; x, y, z stay
-// world ENU (ellipsoidal).
+// world ENU (ellipsoidal). `rejected` (optional): the kRejected view of the same survey
+// (GeorefPoints::status filled, its pings those of `result`, as survey::Georeference gives both),
+// written after the accepted soundings with their status; without it every status is 0.
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& result,
                 const PointExtras* extras = nullptr,
-                const std::string& run_id = "");
+                const std::string& run_id = "",
+                const georef::GeorefResult* rejected = nullptr);
 // With extras, LAS heights are h - D (above the datum; the WKT's VERT_CS names it) and THU/TVU
 // are LAS 1.4 extra bytes (two float32 after the format-6 fields, record length 38), described
-// in an Extra Bytes VLR (LASF_Spec / 4: names "THU 95%" and "TVU 95%", metres).
+// in an Extra Bytes VLR (LASF_Spec / 4: names "THU 95%" and "TVU 95%", metres). `rejected` as
+// WritePly's (its UTM positions in `utm`'s zone), classified by LasNoiseClasses and withheld.
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& result,
                 const georef::UtmPoints& utm,
                 const PointExtras* extras = nullptr,
-                const std::string& run_id = "");
+                const std::string& run_id = "",
+                const georef::GeorefResult* rejected = nullptr);
+
+// LAS classes of the point records (ASPRS LAS 1.4 R15 Table 17; 40: topo-bathy domain profile).
+inline constexpr std::uint8_t kLasClassBathymetry = 40;    // accepted sounding
+inline constexpr std::uint8_t kLasClassLowNoise = 7;       // rejected, below the surface
+inline constexpr std::uint8_t kLasClassHighNoise = 18;     // rejected, above the surface
+inline constexpr std::uint8_t kLasFlagWithheld = 1u << 2;  // classification flags, format 6
+// The LAS class of each rejected sounding: 7 (low noise) when it lies below the accepted
+// surface there, else 18 (high noise). The surface: the median height (world z) of the
+// accepted soundings in the rejected sounding's horizontal cell of cell_m (a grid from the
+// world origin); in a cell without any, the median of the medians of its eight neighbours
+// that have them; where none of those nine has an accepted sounding, by the reason: multipath
+// (an echo from behind a surface) 7, every other reason 18 (fish, bubbles and spikes are
+// mostly in the water above the floor).
+std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
+                                          const georef::GeorefPoints& rejected,
+                                          double cell_m = 2.0);
 // The 16 bytes of a 32-hex-digit run id, in the order of its digits; zeros for anything else.
 std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.

@@ -420,6 +420,9 @@ void VisitRun(V&& v, RunOptions& r) {
 template <class V>
 void VisitProducts(V&& v, PipelineConfig& c) {
     v("write_las", c.write_las, "points.las (UTM) beside points.ply");
+    v("write_rejected",
+      c.write_rejected,
+      "points.ply/las also hold the rejected soundings (PLY status, LAS withheld noise)");
     v("vehicle_yaml", c.vehicle_yaml, "\"\" = vehicle.yaml beside the first log (--vehicle)");
     v.Section("origin", [&](auto& o) {
         o.NanIsNull("latitude_deg", c.origin_latitude_deg, "world origin; null = first INS fix");

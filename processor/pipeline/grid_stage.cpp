@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <type_traits>
 
@@ -447,10 +448,17 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
         extras.vertical_wkt = datum->VerticalWkt();
         extras.vertical_name = datum->crs_name;
-        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras, s.model.run_id); !w) return w;
+        // The rejected soundings after the accepted ones (THU/TVU NaN: not computed for them).
+        std::optional<georef::GeorefResult> rejected;
+        if (config.write_rejected) rejected = RejectedView(s, config);
+        const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
+        s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
+            return w;
         files.push_back("points.ply");
         if (config.write_las) {
-            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras, s.model.run_id); !w)
+            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras, s.model.run_id, rej);
+                !w)
                 return w;
             files.push_back("points.las");
         }

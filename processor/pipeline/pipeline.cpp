@@ -136,15 +136,50 @@ Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
                    json& summary,
-                   const std::string& run_id) {
-    if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id); !s) return s;
+                   const std::string& run_id,
+                   const georef::GeorefResult* rejected) {
+    if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id, rejected); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id); !s) return s;
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected); !s)
+            return s;
     }
     return Ok{};
+}
+
+georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
+    return survey::Georeference(s.model,
+                                s.model.latest(),
+                                c.georef,
+                                s.refraction,
+                                {},
+                                nullptr,
+                                georef::SoundingView::kRejected);
+}
+
+Status WritePoints(Survey& s, const PipelineConfig& c) {
+    s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    if (!c.write_rejected) {
+        return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id);
+    }
+    const georef::GeorefResult rejected = RejectedView(s, c);
+    return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected);
+}
+
+json SoundingsJson(const georef::StatusCounts& counts) {
+    std::int64_t total = 0;
+    json rejected = json::object();
+    for (int k = 0; k < georef::kNumSoundingStatus; ++k) {
+        total += counts[static_cast<std::size_t>(k)];
+        if (k == static_cast<int>(georef::SoundingStatus::kAccepted)) continue;
+        rejected[std::string(georef::ToString(static_cast<georef::SoundingStatus>(k)))] =
+            counts[static_cast<std::size_t>(k)];
+    }
+    return {{"total", total},
+            {"accepted", counts[static_cast<std::size_t>(georef::SoundingStatus::kAccepted)]},
+            {"rejected", std::move(rejected)}};
 }
 
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
@@ -342,9 +377,13 @@ Status SaveSurvey(const Survey& s) {
 Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
     StageClock clock;
     if (points) {
-        if (auto w = WritePoints(s.out_dir, s.geo, config, s.summary, s.model.run_id); !w) return w;
-    } else if (auto utm = georef::ToUtm(s.geo); utm) {
-        s.summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
+        if (auto w = WritePoints(s, config); !w) return w;
+    } else {
+        s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+        if (auto utm = georef::ToUtm(s.geo); utm) {
+            s.summary["utm"] = {
+                {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
+        }
     }
     json bj = MountJson(s.model.mount);
     if (s.model.calibration == survey::CalibrationState::kCalibrated) {

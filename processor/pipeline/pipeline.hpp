@@ -133,7 +133,10 @@ struct PipelineConfig {
     double origin_latitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_longitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_height_m = std::numeric_limits<double>::quiet_NaN();
-    bool write_las = true;     // points.las (UTM) beside points.ply
+    bool write_las = true;  // points.las (UTM) beside points.ply
+    // points.ply/las also hold the rejected soundings (after the accepted ones, with their
+    // status; io/products.hpp); false = the accepted soundings only.
+    bool write_rejected = true;
     std::string vehicle_yaml;  // "" = vehicle.yaml beside the first log
 
     std::vector<std::string> Validate() const;

@@ -116,12 +116,26 @@ void RecordStage(nlohmann::json& summary,
 using survey::MountJson;
 
 // points.ply, points.las (when configured, both with the run id) and summary["utm"] for the
-// current soundings.
+// current soundings; `rejected` (optional): the rejected soundings of the same view
+// (RejectedView), written after them.
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
                    nlohmann::json& summary,
-                   const std::string& run_id);
+                   const std::string& run_id,
+                   const georef::GeorefResult* rejected = nullptr);
+// The same for the survey: its soundings (s.geo) and, with products.write_rejected, the
+// rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson).
+Status WritePoints(Survey& s, const PipelineConfig& c);
+
+// The rejected soundings of the survey's current view (georef::SoundingView::kRejected on the
+// model's newest trajectory, with s.refraction): what the point files carry beside s.geo.
+georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c);
+
+// summary.json's "soundings": {total, accepted, rejected: {reason: count}} from georef's counts
+// per status (every status's name, 0 included; total: the soundings of the georeferenced pings,
+// no detection included).
+nlohmann::json SoundingsJson(const georef::StatusCounts& counts);
 
 // summary.json of P for the survey `model`: the file when it is readable and of the same run,
 // else a new report {run_id} with a warning saying why.

@@ -36,6 +36,9 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 vehicle's track should be planar).
   points_rms_m, points_p95_m    RMS and 95th percentile of the distance of each point of
                                 P/points.ply to the true terrain surface; points_bias_m: mean signed.
+                                Every points_*, artifact_* and good_* score counts only the
+                                accepted soundings (status 0) of a points.ply with a "status"
+                                property (issue 35); points_accepted, points_rejected: how many.
   points_rms_m_angle_A_B        points_rms_m of the beams with A <= |beam angle| < B degrees
                                 (bins 0 15 30 45 55 and beyond; beam angles from the points'
                                 "beam" property and truth/scenario.json's sonar fan).
@@ -94,13 +97,14 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 uncorrelated coarse outliers) and the other beams with a
                                 detection.
   artifact_in_points[_KIND], artifact_rejected_share[_KIND]
-                                those found in P/points.ply, each point matched to its (ping,
+                                those accepted in P/points.ply (status 0; a rejected point is
+                                not "in points"), each point matched to its (ping,
                                 beam) by its beam and gps_time_s (ping k at truth
                                 first_ping_gps_s + k / ping_rate_hz, within a quarter period;
                                 points_unmatched: the others), and the share not found.
   good_in_points, good_rejected_share, good_rejected_share_slope_A_B
-                                the good soundings found in P/points.ply and the share not
-                                found, also by the true slope (classes 0 20 45 91);
+                                the good soundings accepted in P/points.ply and the share not
+                                accepted, also by the true slope (classes 0 20 45 91);
                                 points_rms_m_good: points_rms_m over the good points only.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
@@ -189,18 +193,32 @@ int main(int argc, char** argv) {
     bool have_cloud = false;
     // With the truth of the echo artifacts, the points' ping times are needed to match them.
     bool have_times = false;
+    std::size_t points_rejected = 0;
+    bool have_status = false;
     if (fs::exists(P / "points.ply")) {
-        // One read with the times where they are needed (a file without them: read again).
-        auto ply = truth->artifacts
-                       ? formats::ply::ReadMesh((P / "points.ply").string(), {"gps_time_s"})
-                       : formats::ply::ReadMesh((P / "points.ply").string());
-        have_times = truth->artifacts && ply;
-        if (!ply && truth->artifacts) ply = formats::ply::ReadMesh((P / "points.ply").string());
+        // One read with the properties that are there: the ping times where the artifacts need
+        // them, the status to keep the accepted soundings (issue 35).
+        const std::string path = (P / "points.ply").string();
+        auto names = eval::PlyVertexProperties(path);
+        if (!names) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", names.error().message.c_str());
+            return 2;
+        }
+        const auto has = [&](const char* n) {
+            return std::find(names->begin(), names->end(), n) != names->end();
+        };
+        std::vector<std::string> props;
+        have_times = truth->artifacts && has("gps_time_s");
+        if (have_times) props.push_back("gps_time_s");  // vertex_properties[0]
+        have_status = has("status");
+        if (have_status) props.push_back("status");
+        auto ply = formats::ply::ReadMesh(path, props);
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
             return 2;
         }
         cloud = std::move(*ply);
+        if (have_status) points_rejected = eval::KeepAccepted(cloud, props.size() - 1);
         comments = cloud.comments;
         have_cloud = true;
     }
@@ -271,6 +289,8 @@ int main(int argc, char** argv) {
         scores["points_p95_m"] = s.p95_m;
         scores["points_bias_m"] = s.bias_m;
         scores["points_scored"] = s.count;
+        scores["points_accepted"] = cloud.vertices.size();
+        if (have_status) scores["points_rejected"] = points_rejected;
         // By beam angle, where the points carry their beam number and the truth its fan.
         std::ifstream sin(fs::path(truth_dir) / "scenario.json");
         const json sc = sin ? json::parse(sin, nullptr, false) : json();

@@ -453,4 +453,47 @@ ArtifactScore ScoreArtifacts(const std::vector<Eigen::Vector3d>& points,
     return out;
 }
 
+std::size_t KeepAccepted(formats::ply::Mesh& cloud, std::size_t status_index) {
+    auto& props = cloud.vertex_properties;
+    if (status_index >= props.size()) return 0;
+    const std::vector<double> status = std::move(props[status_index]);
+    props.erase(props.begin() + static_cast<std::ptrdiff_t>(status_index));
+    const bool beams = cloud.vertex_beam.size() == cloud.vertices.size();
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < cloud.vertices.size(); ++i) {
+        if (!(i < status.size() && status[i] == 0.0)) continue;
+        cloud.vertices[out] = cloud.vertices[i];
+        if (beams) cloud.vertex_beam[out] = cloud.vertex_beam[i];
+        for (auto& p : props) {
+            if (i < p.size()) p[out] = p[i];
+        }
+        ++out;
+    }
+    const std::size_t dropped = cloud.vertices.size() - out;
+    cloud.vertices.resize(out);
+    if (beams) cloud.vertex_beam.resize(out);
+    for (auto& p : props) p.resize(std::min(p.size(), out));
+    return dropped;
+}
+
+Expected<std::vector<std::string>> PlyVertexProperties(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Error{path + ": cannot open"};
+    std::string head(formats::ply::kMaxHeaderBytes, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    in.clear();
+    in.seekg(0, std::ios::end);
+    const auto size = static_cast<std::uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
+    std::size_t header_bytes = 0;
+    auto h = formats::ply::ParseHeader(head, size, &header_bytes);
+    if (!h) return Error{path + ": " + h.error().message};
+    std::vector<std::string> names;
+    for (const auto& e : h->elements) {
+        if (e.name != "vertex") continue;
+        for (const auto& p : e.properties) names.push_back(p.name);
+    }
+    return names;
+}
+
 }  // namespace pitmap::eval

@@ -6,6 +6,10 @@
 //                           error). ..._before_m: the same for trajectory_initial.csv.
 //   points_rms_m, points_p95_m  RMS and 95th percentile of the unsigned distance of each point
 //                           to the true terrain surface (points_bias_m: mean signed distance).
+//                           Only the accepted soundings count: points.ply also holds the
+//                           rejected ones (issue 35), told by its "status" property (0 =
+//                           accepted); every points_*, artifact_* and good_* score is of the
+//                           status-0 points (KeepAccepted).
 //   boresight_error_deg     angle of R_true^T R_est, R = Rz(yaw) Ry(pitch) Rx(roll).
 //   mesh_mean_abs_m, mesh_rms_m, mesh_p95_m  distance of mesh vertices and triangle centroids to
 //                           the true surface.
@@ -34,6 +38,7 @@
 #include <tuple>
 #include <vector>
 
+#include "common/formats/ply.hpp"
 #include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
 #include "common/result.hpp"
@@ -196,6 +201,18 @@ ArtifactScore ScoreArtifacts(const std::vector<Eigen::Vector3d>& points_truth,
                              const std::vector<int>& beam,
                              const sim::ArtifactTruth& truth,
                              const sim::PitWorld& world);
+
+// The accepted soundings of points.ply read with its "status" vertex property (issue 35; the
+// writer is processor/io/products.hpp: 0 = accepted, else the reason of the rejection) at
+// `status_index` of cloud.vertex_properties: keeps the vertices (with their beams and every
+// other vertex property) of status 0, removes the status property itself (the properties
+// after it move down by one) and returns how many vertices it dropped. A status that is not a
+// finite 0 is a rejection.
+std::size_t KeepAccepted(formats::ply::Mesh& cloud, std::size_t status_index);
+
+// The names of the vertex properties in a PLY file's header ({} for a file without a vertex
+// element); an unreadable file or header is an error naming the path.
+Expected<std::vector<std::string>> PlyVertexProperties(const std::string& path);
 
 // Angle in degrees between two roll/pitch/yaw (degrees) rotations.
 double BoresightErrorDeg(double roll_est,

@@ -215,7 +215,7 @@ TEST_F(DatumIo, PlyCarriesTheUncertaintyAndTheDepth) {
                           "tvu_95_m\nproperty float depth_m\n"),
               std::string::npos)
         << header;
-    const std::size_t rec = 4 * 3 + 8 + 4 + 4 + 2 + 3 * 4;
+    const std::size_t rec = 4 * 3 + 8 + 4 + 4 + 2 + 3 * 4 + 1;  // ... depth_m, uchar status
     ASSERT_EQ(b.size(), end + 11 + 2 * rec);
     for (int k = 0; k < 2; ++k) {
         const std::size_t at = end + 11 + rec * static_cast<std::size_t>(k) + 30;

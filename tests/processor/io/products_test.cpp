@@ -3,7 +3,9 @@
 // empty files (the survey file's own tests are in tests/processor/survey). Every failure is a clear
 // error naming the file, in memory bounded by the file's size; nothing crashes. vehicle.yaml: each
 // sonar mount georeferences its beams where that mount looks; a foreign file is an error.
-// points.las: its CRS VLR is a compound WKT with the vertical datum.
+// points.las: its CRS VLR is a compound WKT with the vertical datum. Issue 35: points.ply and
+// points.las carry the rejected soundings after the accepted ones, with their status (PLY) and
+// as withheld low or high noise (LAS), the accepted ones as bathymetry.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -18,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "common/formats/ply.hpp"
 #include "common/frames.hpp"
 #include "processor/io/products.hpp"
 
@@ -255,6 +258,145 @@ TEST_F(ProductReaders, LasDeclaresItsVerticalDatum) {
     }
     EXPECT_EQ(depth, 0);
     EXPECT_EQ(min_depth_before_end, 1) << "one COMPD_CS holds everything";
+}
+
+// A floor at z = -10 around x, y in [0, 4): two accepted soundings per 2 m cell.
+georef::GeorefResult FloorSoundings(georef::SoundingView view) {
+    georef::GeorefResult r;
+    r.world_origin = {40.4435, -7.7806, 412.0};
+    georef::GeorefPing ping;
+    ping.utime_gps = 1'400'000'000'000'000;
+    r.pings = {ping, ping};
+    r.pings[1].utime_gps += 100'000;
+    const auto add = [&](Eigen::Vector3d p, std::uint32_t k, std::uint16_t beam, int status) {
+        r.points.position_world.push_back(p);
+        r.points.ping.push_back(k);
+        r.points.beam.push_back(beam);
+        r.points.range_m.push_back(static_cast<float>(-p.z()));
+        r.points.angle_rad.push_back(0.0f);
+        if (view != georef::SoundingView::kAccepted) {
+            r.points.status.push_back(static_cast<std::uint8_t>(status));
+        }
+    };
+    using S = georef::SoundingStatus;
+    if (view == georef::SoundingView::kAccepted) {
+        std::uint16_t b = 0;
+        for (const double x : {0.5, 1.5, 2.5, 3.5}) {
+            for (const double y : {0.5, 1.5, 2.5, 3.5}) {
+                add({x, y, -10.0 + 0.01 * b}, b % 2, b, 0);
+                ++b;
+            }
+        }
+    } else {
+        add({0.7, 0.7, -6.0}, 0, 40, static_cast<int>(S::kFreeSpace));  // fish above the floor
+        add({1.2, 3.1, -14.0}, 1, 41, static_cast<int>(S::kSpike));     // below the floor
+        add({5.0, 1.0, -15.0}, 1, 42, static_cast<int>(S::kManual));    // a cell beside the floor
+        add({40, 40, -20.0}, 0, 43, static_cast<int>(S::kMultipath));   // no floor near: reason
+        add({40, 44, -20.0}, 0, 44, static_cast<int>(S::kCluster));     // no floor near: reason
+    }
+    return r;
+}
+
+TEST(LasNoise, BelowTheLocalAcceptedMedianIsLowNoiseAboveIsHighNoise) {
+    const auto a = FloorSoundings(georef::SoundingView::kAccepted);
+    const auto r = FloorSoundings(georef::SoundingView::kRejected);
+    const std::vector<std::uint8_t> c = LasNoiseClasses(a.points, r.points);
+    ASSERT_EQ(c.size(), 5u);
+    EXPECT_EQ(c[0], kLasClassHighNoise) << "above its cell's floor";
+    EXPECT_EQ(c[1], kLasClassLowNoise) << "below its cell's floor";
+    EXPECT_EQ(c[2], kLasClassLowNoise) << "below the neighbouring cells' floor";
+    EXPECT_EQ(c[3], kLasClassLowNoise) << "no floor near: multipath lies behind a surface";
+    EXPECT_EQ(c[4], kLasClassHighNoise) << "no floor near: any other reason";
+    // Relative to the local surface, not an absolute height: a floor at -20 makes -14 high.
+    auto deep = a;
+    for (auto& p : deep.points.position_world) p.z() = -20;
+    EXPECT_EQ(LasNoiseClasses(deep.points, r.points)[1], kLasClassHighNoise);
+}
+
+TEST_F(ProductReaders, PointFilesCarryTheRejectedSoundingsWithTheirStatus) {
+    const auto a = FloorSoundings(georef::SoundingView::kAccepted);
+    const auto r = FloorSoundings(georef::SoundingView::kRejected);
+    const std::size_t na = a.points.size(), nr = r.points.size();
+    // PLY: the accepted soundings first (status 0), then the rejected with their codes; THU and
+    // TVU NaN for the rejected.
+    PointExtras x;
+    x.thu_95_m.assign(na, 0.1f);
+    x.tvu_95_m.assign(na, 0.2f);
+    const std::string ply = (dir_ / "points.ply").string();
+    ASSERT_TRUE(WritePly(ply, a, &x, "", &r));
+    const auto m = formats::ply::ReadMesh(ply, {"status", "thu_95_m", "gps_time_s", "beam"});
+    ASSERT_TRUE(m) << m.error().message;
+    ASSERT_EQ(m->vertices.size(), na + nr);
+    for (std::size_t j = 0; j < na + nr; ++j) {
+        const bool accepted = j < na;
+        const double status = m->vertex_properties[0][j];
+        EXPECT_EQ(status, accepted ? 0.0 : static_cast<double>(r.points.status[j - na])) << j;
+        EXPECT_EQ(std::isnan(m->vertex_properties[1][j]), !accepted) << j;
+        const auto& src = accepted ? a : r;
+        const std::size_t i = accepted ? j : j - na;
+        EXPECT_NEAR((m->vertices[j] - src.points.position_world[i]).norm(), 0, 1e-5) << j;
+        EXPECT_EQ(m->vertex_beam[j], src.points.beam[i]) << j;
+        EXPECT_DOUBLE_EQ(m->vertex_properties[2][j],
+                         static_cast<double>(src.pings[src.points.ping[i]].utime_gps) * 1e-6);
+    }
+    bool names = false;
+    for (const auto& c : m->comments) {
+        names = names || (c.find("3 spike") != std::string::npos &&
+                          c.find("6 free_space") != std::string::npos &&
+                          c.find("9 manual") != std::string::npos);
+    }
+    EXPECT_TRUE(names) << "a comment names the codes";
+    // Without the rejected view: the accepted soundings only, all status 0.
+    ASSERT_TRUE(WritePly(ply, a));
+    const auto only = formats::ply::ReadMesh(ply, {"status"});
+    ASSERT_TRUE(only) << only.error().message;
+    ASSERT_EQ(only->vertices.size(), na);
+    for (double s : only->vertex_properties[0]) EXPECT_EQ(s, 0.0);
+
+    // LAS: class 40 for the accepted, 7 or 18 withheld for the rejected, in the same order.
+    const auto utm = georef::ToUtm(a);
+    ASSERT_TRUE(utm) << utm.error().message;
+    const std::string las = (dir_ / "points.las").string();
+    ASSERT_TRUE(WriteLas(las, a, *utm, &x, "", &r));
+    const std::vector<std::uint8_t> b = ReadBytes(las);
+    auto u16 = [&](std::size_t at) { return static_cast<unsigned>(b[at] | (b[at + 1] << 8)); };
+    auto u32 = [&](std::size_t at) {
+        return static_cast<std::uint32_t>(u16(at) | (u16(at + 2) << 16));
+    };
+    std::uint64_t count = 0;
+    std::memcpy(&count, &b[247], 8);
+    ASSERT_EQ(count, na + nr) << "number of point records";
+    const std::size_t rec_len = u16(105), first = u32(96);
+    ASSERT_EQ(rec_len, 38u);
+    ASSERT_EQ(b.size(), first + rec_len * (na + nr));
+    const std::vector<std::uint8_t> noise = LasNoiseClasses(a.points, r.points);
+    const double sz = [&] {
+        double v;
+        std::memcpy(&v, &b[131 + 16], 8);
+        return v;
+    }();
+    const double oz = [&] {
+        double v;
+        std::memcpy(&v, &b[131 + 40], 8);
+        return v;
+    }();
+    double min_z = 0;
+    std::memcpy(&min_z, &b[131 + 88], 8);
+    EXPECT_LT(min_z, -15.0 + 412.0 + 0.01) << "the bounds hold the rejected soundings";
+    for (std::size_t j = 0; j < na + nr; ++j) {
+        const std::size_t at = first + rec_len * j;
+        const bool accepted = j < na;
+        EXPECT_EQ(b[at + 15] & kLasFlagWithheld, accepted ? 0 : kLasFlagWithheld) << j;
+        EXPECT_EQ(b[at + 16], accepted ? kLasClassBathymetry : noise[j - na]) << j;
+        float thu;
+        std::memcpy(&thu, &b[at + 30], 4);
+        EXPECT_EQ(std::isnan(thu), !accepted) << j;
+        std::int32_t z;
+        std::memcpy(&z, &b[at + 8], 4);
+        const double h = accepted ? utm->easting_northing_height[j].z()
+                                  : 412.0 + r.points.position_world[j - na].z();
+        EXPECT_NEAR(z * sz + oz, h, accepted ? 1e-3 : 0.01) << j;
+    }
 }
 
 }  // namespace

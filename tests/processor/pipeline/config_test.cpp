@@ -83,6 +83,7 @@ TEST_F(Config, EverySectionRoundTripsThroughTheTable) {
     c.run.slam = false;
     c.quality.slam_max_fraction = 0.25;
     c.write_las = false;
+    c.write_rejected = false;
     c.vehicle_yaml = "some dir/vehicle: \"a\".yaml";
     c.origin_latitude_deg = 40.123456789;
     c.origin_longitude_deg = -7.5;
@@ -98,6 +99,7 @@ TEST_F(Config, EverySectionRoundTripsThroughTheTable) {
     EXPECT_EQ(back->ingest.source, io::IngestSource::kRaw);
     EXPECT_EQ(back->slam.correspondence, slam::CorrespondenceType::kGicp);
     EXPECT_EQ(back->vehicle_yaml, c.vehicle_yaml);
+    EXPECT_FALSE(back->write_rejected);
     EXPECT_EQ(back->origin_latitude_deg, 40.123456789);
     EXPECT_EQ(back->calibrate.beam_stride, 7);
 }

@@ -47,16 +47,21 @@ using pitmap::test::SetTrueBoresight;
 
 // RMS of sigma = 0.002 r + 0.02 over the points of a PLY product (the project's PLY reader).
 double RangeNoiseRms(const fs::path& ply) {
-    const auto mesh = pitmap::formats::ply::ReadMesh(ply.string(), {"range_m"});
+    // The accepted soundings (status 0): points.ply also holds the rejected ones (issue 35).
+    const auto mesh = pitmap::formats::ply::ReadMesh(ply.string(), {"range_m", "status"});
     EXPECT_TRUE(mesh.ok()) << (mesh.ok() ? "" : mesh.error().message);
     if (!mesh.ok()) return 0.0;
     const std::vector<double>& range_m = mesh->vertex_properties.at(0);
+    const std::vector<double>& status = mesh->vertex_properties.at(1);
     double ss = 0;
-    for (const double r : range_m) {
-        const double s = 0.002 * r + 0.02;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < range_m.size(); ++i) {
+        if (status[i] != 0) continue;
+        const double s = 0.002 * range_m[i] + 0.02;
         ss += s * s;
+        ++n;
     }
-    return range_m.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(range_m.size()));
+    return n == 0 ? 0.0 : std::sqrt(ss / static_cast<double>(n));
 }
 
 class DemoScenario : public ::testing::Test {

@@ -111,15 +111,17 @@ TEST(XtfScenario, PitmapRunProcessesTheR2SonicLineEndToEnd) {
     // Plausible soundings: heights below the first navigation position (the world origin, at
     // the water line within the boat's heave) between a few metres and the 31.9 m range setting;
     // none NaN.
-    const auto points = pitmap::formats::ply::ReadMesh((P / "points.ply").string());
+    // The accepted ones (status 0; points.ply also holds the rejected soundings, issue 35).
+    const auto points = pitmap::formats::ply::ReadMesh((P / "points.ply").string(), {"status"});
     ASSERT_TRUE(points.ok()) << points.error().message;
-    ASSERT_GT(points->vertices.size(), 923u * 200u);
     std::vector<double> depth;
     depth.reserve(points->vertices.size());
-    for (const auto& v : points->vertices) {
+    for (std::size_t i = 0; i < points->vertices.size(); ++i) {
+        const auto& v = points->vertices[i];
         ASSERT_TRUE(std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()));
-        depth.push_back(-v.z());
+        if (points->vertex_properties[0][i] == 0) depth.push_back(-v.z());
     }
+    ASSERT_GT(depth.size(), 923u * 200u);
     std::sort(depth.begin(), depth.end());
     const double median = depth[depth.size() / 2];
     std::printf("points %zu, depth below the origin: min %.2f median %.2f max %.2f m\n",

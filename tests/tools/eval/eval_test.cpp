@@ -136,6 +136,90 @@ TEST_F(Eval, TruthScoresZeroAndAKnownShiftScoresThatShift) {
     }
 }
 
+TEST(Scores, KeepAcceptedKeepsStatusZeroWithTheirBeamsAndProperties) {
+    formats::ply::Mesh m;
+    m.vertices = {Eigen::Vector3d(0, 0, 0),
+                  Eigen::Vector3d(1, 0, 0),
+                  Eigen::Vector3d(2, 0, 0),
+                  Eigen::Vector3d(3, 0, 0)};
+    m.vertex_beam = {10, 11, 12, 13};
+    m.vertex_properties = {
+        {100, 101, 102, 103}, {0, 6, 0, std::numeric_limits<double>::quiet_NaN()}, {7, 8, 9, 10}};
+    EXPECT_EQ(KeepAccepted(m, 1), 2u);
+    ASSERT_EQ(m.vertices.size(), 2u);
+    EXPECT_EQ(m.vertices[1].x(), 2.0);
+    EXPECT_EQ(m.vertex_beam, (std::vector<int>{10, 12}));
+    ASSERT_EQ(m.vertex_properties.size(), 2u) << "the status property is removed";
+    EXPECT_EQ(m.vertex_properties[0], (std::vector<double>{100, 102}));
+    EXPECT_EQ(m.vertex_properties[1], (std::vector<double>{7, 9}));
+    EXPECT_EQ(KeepAccepted(m, 5), 0u) << "no such property: nothing dropped";
+    EXPECT_EQ(m.vertices.size(), 2u);
+}
+
+// Issue 35: points.ply holds the rejected soundings too (status != 0). Only the accepted count
+// as "in points": an artifact rejected by the cleaning scores as rejected, a good sounding
+// rejected by mistake as a good one lost, and the rejected soundings far off the floor do not
+// enter points_rms_m.
+TEST_F(Eval, RejectedSoundingsInPointsPlyAreNotInPoints) {
+    sim::Truth truth = FlatTruth();
+    sim::ArtifactTruth a;
+    a.beams_per_ping = 10;
+    a.pings = 10;
+    a.first_ping_gps_s = 1.4e9;
+    a.ping_rate_hz = 1;
+    // Ping 2, beams 3 and 4: mid-water (a fish); ping 5, beam 0: multipath.
+    a.runs = {{2, 3, 2, sim::EchoArtifactKind::kMidWater},
+              {5, 0, 1, sim::EchoArtifactKind::kMultipath}};
+    a.beams_by_kind[static_cast<int>(sim::EchoArtifactKind::kMidWater)] = 2;
+    a.beams_by_kind[static_cast<int>(sim::EchoArtifactKind::kMultipath)] = 1;
+    a.good_soundings = 97;
+    a.good_by_slope[0] = 97;
+    truth.artifacts = a;
+    ASSERT_TRUE(
+        sim::WriteTruth((dir_ / "truth").string(), *sim::BuiltinScenario("demo"), truth).ok());
+    {
+        std::ofstream out(dir_ / "products" / "points.ply");
+        out << "ply\nformat ascii 1.0\ncomment pitmap_origin 40.4435 -7.7806 412.0\n"
+            << "element vertex 100\nproperty float x\nproperty float y\nproperty float z\n"
+            << "property double gps_time_s\nproperty ushort beam\nproperty uchar status\n"
+            << "end_header\n";
+        out.precision(12);
+        for (int k = 0; k < 10; ++k) {
+            for (int b = 0; b < 10; ++b) {
+                const bool fish = k == 2 && (b == 3 || b == 4);
+                const bool multipath = k == 5 && b == 0;
+                const bool lost = k == 7 && b == 9;  // a good sounding rejected (a spike)
+                // The fish are rejected (free space), the multipath is accepted.
+                const int status = fish ? 6 : lost ? 3 : 0;
+                const double z = fish ? -5.0 : multipath ? -12.0 : lost ? -10.0 : -10.0;
+                out << b - 5.0 << " " << k - 5.0 << " " << z << " " << 1.4e9 + k << " " << b << " "
+                    << status << "\n";
+            }
+        }
+    }
+    const fs::path json_path = dir_ / "scores.json";
+    const std::string cmd = std::string(PITMAP_BIN_DIR) + "/pitmap-eval --truth '" +
+                            (dir_ / "truth").string() + "' --products '" +
+                            (dir_ / "products").string() + "' --json '" + json_path.string() +
+                            "' > /dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    std::ifstream in(json_path);
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j.at("points_accepted").get<int>(), 97);
+    EXPECT_EQ(j.at("points_rejected").get<int>(), 3);
+    EXPECT_EQ(j.at("points_scored").get<int>(), 97);
+    EXPECT_EQ(j.at("artifact_in_points_mid_water").get<int>(), 0);
+    EXPECT_EQ(j.at("artifact_in_points_multipath").get<int>(), 1);
+    EXPECT_EQ(j.at("artifact_in_points").get<int>(), 1);
+    EXPECT_DOUBLE_EQ(j.at("artifact_rejected_share_mid_water").get<double>(), 1.0);
+    EXPECT_NEAR(j.at("artifact_rejected_share").get<double>(), 2.0 / 3.0, 1e-12);
+    EXPECT_EQ(j.at("good_in_points").get<int>(), 96);
+    EXPECT_NEAR(j.at("good_rejected_share").get<double>(), 1.0 / 97.0, 1e-12);
+    EXPECT_NEAR(j.at("points_rms_m_good").get<double>(), 0.0, 1e-4);
+    // The one accepted multipath point, 2 m deep of the floor, among 97.
+    EXPECT_NEAR(j.at("points_rms_m").get<double>(), std::sqrt(4.0 / 97.0), 1e-4);
+}
+
 // Per-window ATE: "before" 0.1 m off in the first 50 s, "after" 0.03 m off in 50-75 s only;
 // windows of 25 s from the first true pose (101 poses over 100 s: the last window holds one).
 TEST(Scores, TrajectoryWindowsScoreEachWindowOnItsOwn) {

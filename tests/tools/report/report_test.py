@@ -27,8 +27,8 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "mosaic",
-            "mesh", "viewer", "boresight", "clock", "tsdf", "slam", "stages", "scores"]
+SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "rejections",
+            "mosaic", "mesh", "viewer", "boresight", "clock", "tsdf", "slam", "stages", "scores"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
 
@@ -74,6 +74,19 @@ def WritePly(path, header_props, arrays, faces=None, comments=(), endian="<"):
 POINT_PROPS = [("x", "float", "f4"), ("y", "float", "f4"), ("z", "float", "f4"),
                ("gps_time_s", "double", "f8"), ("range_m", "float", "f4"),
                ("ping", "uint", "u4"), ("beam", "ushort", "u2")]
+
+
+def RejectedSoundings(arrays):
+    """Rejected soundings for points.ply: a fish school (free space, 6) 3 m above the floor in
+    pings 10-14, all beams; a spike (3) 4 m below on the first beam of every 7th ping."""
+    ping, beam = arrays["ping"], arrays["beam"]
+    fish = (ping >= 10) & (ping <= 14)
+    spike = (ping % 7 == 0) & (beam == 0) & ~fish
+    out = {k: np.concatenate([v[fish], v[spike]]) for k, v in arrays.items()}
+    n_fish = int(fish.sum())
+    out["z"] = out["z"] + np.where(np.arange(len(out["z"])) < n_fish, 3.0, -4.0)
+    out["status"] = np.where(np.arange(len(out["z"])) < n_fish, 6, 3)
+    return out
 
 
 def WriteMosaic(folder, grid):
@@ -196,11 +209,25 @@ def WriteProducts(folder, full=True, points_per_pose=21):
                                  "counts": [0] + [1000 // k for k in range(1, 21)]}}
         summary["stages"]["mesh"] = {"seconds": 0.2, "peak_rss_mb": 210.0,
                                      "triangles": len(faces)}
-        # The grid stage: points.ply again with THU/TVU, the vertical datum and S-44.
+        # The grid stage: points.ply again with THU/TVU, the vertical datum and S-44, and the
+        # rejected soundings after the accepted ones (issue 35): a fish school over pings 10-14
+        # (free space, 6), spikes on every 7th ping's outer beam (3).
+        rej = RejectedSoundings(arrays)
+        both = {k: np.concatenate([arrays[k], rej[k]]) for k in arrays}
+        n_acc, n_rej = len(px), len(rej["x"])
+        both["thu_95_m"] = np.concatenate([np.full(n_acc, 0.05), np.full(n_rej, np.nan)])
+        both["tvu_95_m"] = np.concatenate([0.04 + 0.002 * np.abs(px), np.full(n_rej, np.nan)])
+        both["status"] = np.concatenate([np.zeros(n_acc), rej["status"]])
         WritePly(os.path.join(folder, "points.ply"),
-                 POINT_PROPS + [("thu_95_m", "float", "f4"), ("tvu_95_m", "float", "f4")],
-                 dict(arrays, thu_95_m=np.full(len(px), 0.05),
-                      tvu_95_m=0.04 + 0.002 * np.abs(px)), comments=[origin])
+                 POINT_PROPS + [("thu_95_m", "float", "f4"), ("tvu_95_m", "float", "f4"),
+                                ("status", "uchar", "u1")], both, comments=[origin])
+        summary["soundings"] = {
+            "total": n_acc + n_rej + 40, "accepted": n_acc,
+            "rejected": {"no_detection": 40, "range_gate": 0,
+                         "spike": int(np.sum(rej["status"] == 3)), "refraction": 0,
+                         "surface_filter": 0,
+                         "free_space": int(np.sum(rej["status"] == 6)), "multipath": 0,
+                         "cluster": 0, "manual": 0}}
         summary["vertical_datum"] = {
             "datum": "water_level", "vertical_crs": "pit water level (GNSS, survey median)",
             "vertical_epsg": None, "description": "depths below the pit's water level",
@@ -310,6 +337,16 @@ class ReportTest(unittest.TestCase):
         self.assertIn("99.9", sec["hydro"])
         self.assertIn("<td>603410.20</td><td>4477697.30</td>", sec["hydro"])
         self.assertIn("100.0 % within the order 1a TVU limit", sec["hydro"])
+        # Rejected soundings: the table by reason, the map, the worst ping runs (the fish
+        # school, pings 10-14, first; the spikes one ping each).
+        self.assertIn("<td>free_space</td>", sec["rejections"])
+        self.assertIn("<td>no_detection</td><td>40</td>", sec["rejections"])
+        self.assertNotIn("<td>multipath</td>", sec["rejections"])  # none: not listed
+        self.assertIn("data:image/png", sec["rejections"])
+        runs = re.findall(r"<td>(\d+)&ndash;(\d+)</td>", sec["rejections"])
+        self.assertEqual(runs[0], ("10", "14"))
+        self.assertIn("09:0", sec["rejections"])  # a UTC start time
+        self.assertIn("free_space", sec["rejections"].split("10&ndash;14")[1].split("</tr>")[0])
         self.assertIn("0.5200", sec["boresight"])      # roll after
         self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
         self.assertIn("No quality gate tripped", sec["quality"])
@@ -327,7 +364,8 @@ class ReportTest(unittest.TestCase):
         pngs = sorted(os.listdir(os.path.join(p, "report")))
         for name in ("trajectory.png", "cross_sections.png", "depth_top_view.png",
                      "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
-                     "stages.png", "s44_compliance.png", "s44_crossline.png", "mosaic.png"):
+                     "stages.png", "s44_compliance.png", "s44_crossline.png", "mosaic.png",
+                     "rejections_map.png"):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
@@ -366,7 +404,7 @@ class ReportTest(unittest.TestCase):
         expect = {"trajectory": "trajectory_initial.csv", "cross-sections": "points_initial.ply",
                   "mesh": "mesh.ply", "boresight": "boresight.json", "tsdf": "TSDF",
                   "slam": "SLAM", "scores": "scores.json", "hydro": "grid stage",
-                  "mosaic": "mosaic.tif"}
+                  "mosaic": "mosaic.tif", "rejections": "soundings"}
         for s, name in expect.items():
             self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
         self.assertIn("mesh_initial.ply", sec["mesh"])

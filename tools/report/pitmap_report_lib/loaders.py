@@ -131,6 +131,9 @@ class Products:
             self.stages = {}
         self.traj = {}
         self.points = {}
+        # The rejected soundings of points.ply (status != 0, issue 35): "final" only; every
+        # figure of self.points draws the accepted soundings alone.
+        self.rejected = {}
         self.t0 = None
         self.ref_z = 0.0
         # The final products are "after SLAM" only when SLAM ran (pitmap run --no-slam).
@@ -210,9 +213,21 @@ class Products:
                 if len(v) == 0:
                     self.unusable[name] = "no points"
                     continue
+                if "status" in v.dtype.names:
+                    # Accepted first, then rejected (processor/io/products.hpp); a mask keeps
+                    # any order. Copies only when there are rejected soundings.
+                    status = np.asarray(v["status"])
+                    bad = status != 0
+                    if bad.any():
+                        self.rejected[key] = v[bad]
+                        v = v[~bad]
+                    if len(v) == 0:
+                        self.unusable[name] = "no accepted points"
+                        continue
                 self.points[key] = v
                 self.CheckOrigin(ply, name)
-                Log(f"{name}: {len(v)} points")
+                Log(f"{name}: {len(v)} accepted points, "
+                    f"{len(self.rejected.get(key, ()))} rejected")
             except (OSError, PlyError) as e:
                 Log(f"{name}: unreadable: {e}")
                 self.unusable[name] = f"unreadable: {e}"

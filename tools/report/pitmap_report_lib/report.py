@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
 from .loaders import Products  # noqa: E402
 from .rasters import SaveFigure  # noqa: E402
+from .sections_clean import CleanSections  # noqa: E402
 from .sections_geometry import GeometrySections  # noqa: E402
 from .sections_hydro import HydroSections  # noqa: E402
 from .sections_stats import StatsSections  # noqa: E402
@@ -23,8 +24,8 @@ from .sections_viewer import ViewerSection  # noqa: E402
 from .util import DieWithParent, Esc, Log  # noqa: E402
 
 
-class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSection,
-             StatsSections):
+class Report(Products, SurveySections, GeometrySections, HydroSections, CleanSections,
+             ViewerSection, StatsSections):
     def __init__(self, folder, scores_path, title):
         super().__init__(folder, scores_path)
         self.title = title
@@ -46,6 +47,7 @@ class Report(Products, SurveySections, GeometrySections, HydroSections, ViewerSe
         ("cross-sections", "Cross-sections of the point cloud", "SectionCrossSections"),
         ("depth", "Depth-coloured top view", "SectionDepth"),
         ("hydro", "Vertical datum and IHO S-44 quality control", "SectionHydro"),
+        ("rejections", "Rejected soundings", "SectionRejections"),
         ("mosaic", "Backscatter mosaic", "SectionMosaic"),
         ("mesh", "Mesh before and after SLAM", "SectionMesh"),
         ("viewer", "Interactive 3D view", "SectionViewer"),
