@@ -8,11 +8,13 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <numeric>
 
@@ -77,6 +79,65 @@ void MarchVoxels(
             if (acc.probeValue(dda.voxel(), v) && !visit(v, dda.time())) return;
         } while (dda.step());
     }
+}
+
+double Median(std::vector<double>& v) {
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+// Along track: each beam's range against the same beam over the neighbouring pings. A robust
+// line through the neighbours' ranges (Theil-Sen over symmetric pairs, median intercept) and
+// the spread of their residuals (MAD); a range off that line by more than along_track_sigmas
+// spreads and the absolute and relative floors, where the neighbours agree (spread below
+// along_track_max_spread of the range), is a run of echoes a ping-by-ping median cannot see.
+std::vector<char> AlongTrack(const georef::GeorefResult& geo, const CleanConfig& config) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    std::vector<char> off(n, 0);
+    const int w = config.along_track_pings;
+    if (w <= 0 || n == 0) return off;
+    std::size_t beams = 0;
+    for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
+    const std::size_t np = geo.pings.size();
+    std::vector<float> range(np * beams, std::numeric_limits<float>::quiet_NaN());
+    for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
+        std::vector<double> slopes, icept, res;
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const auto k = static_cast<std::int64_t>(P.ping[j]);
+            const std::size_t b = P.beam[j];
+            auto at = [&](std::int64_t q) -> double {
+                if (q < 0 || q >= static_cast<std::int64_t>(np)) return std::nan("");
+                return range[static_cast<std::size_t>(q) * beams + b];
+            };
+            slopes.clear();
+            for (int d = 1; d <= w; ++d) {
+                const double a = at(k - d), c = at(k + d);
+                if (std::isfinite(a) && std::isfinite(c)) slopes.push_back((c - a) / (2.0 * d));
+            }
+            if (static_cast<int>(slopes.size()) < w / 2) continue;
+            const double slope = Median(slopes);
+            icept.clear();
+            for (int d = -w; d <= w; ++d) {
+                const double a = at(k + d);
+                if (d != 0 && std::isfinite(a)) icept.push_back(a - slope * d);
+            }
+            const double line = Median(icept);
+            res.clear();
+            for (const double x : icept) res.push_back(std::abs(x - line));
+            const double spread = 1.4826 * Median(res);
+            if (spread > config.along_track_max_spread * line) continue;
+            const double dr = std::abs(double{P.range_m[j]} - line);
+            if (dr > std::max({config.along_track_min_m,
+                               config.margin_rel * line,
+                               config.along_track_sigmas * spread})) {
+                off[j] = 1;
+            }
+        }
+    });
+    return off;
 }
 
 }  // namespace
@@ -392,8 +453,17 @@ CleanResult Clean(const georef::GeorefResult& geo,
         }
         std::fclose(f);
     }
+    // ---- 5. along track: what the 3D tests left ----
+    const std::vector<char> along = AlongTrack(geo, config);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (along[j] && result.status[j] == 0)
+            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kAlongTrack);
+    }
     for (std::size_t j = 0; j < n; ++j) {
         switch (static_cast<SoundingStatus>(result.status[j])) {
+            case SoundingStatus::kAlongTrack:
+                ++c.along_track;
+                break;
             case SoundingStatus::kFreeSpace:
                 ++c.free_space;
                 break;

@@ -57,6 +57,10 @@ struct CleanConfig {
     double solid_ratio = 0.3;               // a patch crossed by fewer rays than this share of
                                             // its own support is solid (a ghost's ray crossed it)
     double scatter_free_ratio = 2.0;        // voxels without a plane: free rays / soundings
+    int along_track_pings = 15;             // along track: neighbouring pings each side; 0 = off
+    double along_track_sigmas = 5.0;        // off the neighbours' line by this many spreads ...
+    double along_track_min_m = 0.3;         // ... and this far (and margin_rel of the range)
+    double along_track_max_spread = 0.03;   // where the neighbours agree: spread / range
     int num_threads = 0;                    // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;
@@ -70,6 +74,7 @@ struct CleanCounts {
     std::int64_t free_space = 0;
     std::int64_t cluster = 0;
     std::int64_t multipath = 0;
+    std::int64_t along_track = 0;
     double seconds_voxels = 0, seconds_free_space = 0, seconds_clusters = 0, seconds_multipath = 0;
 };
 

@@ -7,7 +7,8 @@
 //   georef       no detection, range gate, spike (per ping, every time it georeferences) and
 //                rays that could not be traced (refraction)
 //   clean        free-space conflict, multipath (behind an observed surface), cluster off the
-//                surface (processor/clean, on the soundings in 3D)
+//                surface (processor/clean, on the soundings in 3D), along-track (a beam's range
+//                against the same beam over the neighbouring pings)
 //   grid         surface filter (against the CUBE surface's chosen hypothesis)
 //   the editor   manual (pitmap edit's edit log, processor/survey/edit_log.hpp); a manual
 //                restore also overrides the range gate, the spike filter and the automatic
@@ -34,8 +35,9 @@ enum class SoundingStatus : std::uint8_t {
     kMultipath = 7,      // lies behind a well-observed surface along its own beam
     kCluster = 8,        // in a persistent cluster off the surface
     kManual = 9,         // rejected by hand (pitmap edit)
+    kAlongTrack = 10,    // off its beam's range over the neighbouring pings (a run of echoes)
 };
-inline constexpr int kNumSoundingStatus = 10;
+inline constexpr int kNumSoundingStatus = 11;
 
 // The stored name ("accepted", "no_detection", ..., "manual").
 std::string_view ToString(SoundingStatus s);
@@ -46,7 +48,8 @@ inline bool IsSoundingStatus(std::uint8_t code) {
 // Rejections that the cleaning decides (stored per sounding in the survey model).
 inline bool IsCleaningStatus(SoundingStatus s) {
     return s == SoundingStatus::kSurfaceFilter || s == SoundingStatus::kFreeSpace ||
-           s == SoundingStatus::kMultipath || s == SoundingStatus::kCluster;
+           s == SoundingStatus::kMultipath || s == SoundingStatus::kCluster ||
+           s == SoundingStatus::kAlongTrack;
 }
 
 // A hand edit of one sounding, applied on top of the automatic status.

@@ -18,7 +18,21 @@ using nlohmann::json;
 
 namespace {
 
-// The index of point j of `geo` in the survey's range counts.
+std::string Percent(double share) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f %%", 100.0 * share);
+    return buf;
+}
+
+bool AnyManualReject(const georef::SoundingFlags& f) {
+    for (const std::uint8_t m : f.manual) {
+        if (m == static_cast<std::uint8_t>(georef::ManualEdit::kReject)) return true;
+    }
+    return false;
+}
+
+}  // namespace
+
 std::size_t FlatIndex(const georef::GeorefResult& geo,
                       const georef::PingSeries& pings,
                       std::size_t j) {
@@ -26,7 +40,6 @@ std::size_t FlatIndex(const georef::GeorefResult& geo,
            std::size_t{geo.points.beam[j]};
 }
 
-// Keeps the points with keep[j] != 0 (in order); the pings stay.
 void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
     std::size_t out = 0;
     for (std::size_t j = 0; j < P.size(); ++j) {
@@ -46,20 +59,27 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
     P.status.clear();
 }
 
-std::string Percent(double share) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.1f %%", 100.0 * share);
-    return buf;
-}
-
-bool AnyManualReject(const georef::SoundingFlags& f) {
-    for (const std::uint8_t m : f.manual) {
-        if (m == static_cast<std::uint8_t>(georef::ManualEdit::kReject)) return true;
+std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status) {
+    georef::SoundingFlags& flags = s.model.flags;
+    const georef::PingSeries& pings = s.model.ingest.pings;
+    if (flags.cleaning.size() != pings.range_counts.size())
+        flags.cleaning.assign(pings.range_counts.size(), 0);
+    std::vector<char> keep(s.geo.points.size(), 1);
+    georef::GeorefCounts& c = s.geo.counts;
+    for (std::size_t j = 0; j < s.geo.points.size(); ++j) {
+        if (status[j] == 0) continue;
+        const std::size_t flat = FlatIndex(s.geo, pings, j);
+        flags.cleaning[flat] = status[j];
+        if (flags.Manual(flat) == georef::ManualEdit::kRestore) continue;
+        keep[j] = 0;
+        --c.status[0];
+        ++c.status[status[j]];
+        ++c.cleaned;
     }
-    return false;
+    KeepPoints(s.geo.points, keep);
+    c.points = static_cast<std::int64_t>(s.geo.points.size());
+    return keep;
 }
-
-}  // namespace
 
 Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
@@ -86,25 +106,21 @@ Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     std::vector<std::uint8_t> before = std::move(flags.cleaning);
     flags.cleaning.assign(pings.range_counts.size(), 0);
-    std::vector<char> keep(s.geo.points.size(), 1);
-    std::int64_t restored_by_hand = 0;
-    for (std::size_t j = 0; j < s.geo.points.size(); ++j) {
-        if (r.status[j] == 0) continue;
-        const std::size_t flat = FlatIndex(s.geo, pings, j);
-        flags.cleaning[flat] = r.status[j];
-        if (flags.Manual(flat) == georef::ManualEdit::kRestore) {
-            ++restored_by_hand;
-            continue;
-        }
-        keep[j] = 0;
+    // The candidates' earlier verdicts are decided again: counted as accepted until then.
+    georef::GeorefCounts& counts = s.geo.counts;
+    for (int code = 0; code < georef::kNumSoundingStatus; ++code) {
+        if (!georef::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
+        counts.status[0] += counts.status[code];
+        counts.status[code] = 0;
     }
+    counts.cleaned = 0;
+    const std::vector<char> keep = RejectPoints(s, r.status);
+    std::int64_t restored_by_hand = 0;
+    for (std::size_t j = 0; j < keep.size(); ++j) restored_by_hand += keep[j] && r.status[j] != 0;
     std::int64_t changed = 0;
     for (std::size_t i = 0; i < flags.cleaning.size(); ++i) {
         changed += flags.cleaning[i] != (i < before.size() ? before[i] : 0);
     }
-    KeepPoints(s.geo.points, keep);
-    s.geo.counts.points = static_cast<std::int64_t>(s.geo.points.size());
-
     const clean::CleanCounts& c = r.counts;
     const std::int64_t rejected = c.free_space + c.cluster + c.multipath;
     const double share = c.soundings > 0 ? static_cast<double>(rejected) / c.soundings : 0.0;

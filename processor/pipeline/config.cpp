@@ -298,6 +298,10 @@ void VisitGrid(V&& v, GridStageConfig& c) {
            "density | locale | predicted_surface");
     hydro::CubeConfig& q = c.cube;
     v("in_run", c.in_run, "`pitmap run` makes the grid");
+    v("surface_filter", c.surface_filter, "reject soundings off the CUBE surface (floors)");
+    v("surface_filter_gate", c.surface_filter_gate, "... beyond this many combined sigmas");
+    v("surface_filter_min_m", c.surface_filter_min_m, "... and this far, m");
+    v("surface_filter_max_slope_deg", c.surface_filter_max_slope_deg, "... where not steeper, deg");
     v("resolution_m", q.resolution_m, "node spacing, m; 0 = from the median depth");
     v("resolution_depth_fraction", q.resolution_depth_fraction, "auto: depth * this, rounded down");
     v("min_resolution_m", q.min_resolution_m, "auto resolution bounds, m");

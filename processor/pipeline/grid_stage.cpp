@@ -271,6 +271,10 @@ std::vector<std::string> GridStageConfig::Validate() const {
         out.push_back("grid.tpu_sound_speed_mps must be within 1300..1700");
     }
     if (!(ins_sigma_max_age_s > 0)) out.push_back("grid.ins_sigma_max_age_s must be > 0");
+    if (!(surface_filter_gate > 0)) out.push_back("grid.surface_filter_gate must be > 0");
+    if (!(surface_filter_min_m >= 0)) out.push_back("grid.surface_filter_min_m must be >= 0");
+    if (!(surface_filter_max_slope_deg > 0 && surface_filter_max_slope_deg <= 90))
+        out.push_back("grid.surface_filter_max_slope_deg must be in (0, 90]");
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
     for (auto& p : mosaic_config.Validate()) out.push_back(p);
@@ -330,6 +334,45 @@ void CheckCrosslines(Survey& s,
                  Fixed(median_tvu_95_m, 3) + " m, 95 %) predicts for two soundings (" +
                  Fixed(expected, 3) + " m); " + cause,
              log);
+}
+
+// CUBE's own test, after it has chosen: a sounding whose height differs from the chosen
+// hypothesis of its node by more than surface_filter_gate times the combined 1-sigma
+// (sounding TVU and node uncertainty) and by more than surface_filter_min_m is rejected, on
+// floors only (the surface between the neighbouring nodes no steeper than
+// surface_filter_max_slope_deg: on walls a node's height says little about a sounding beside
+// it, and the 3D cleaning judges there).
+std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& snd,
+                                        const hydro::CubeGrid& g,
+                                        const GridStageConfig& gc) {
+    std::vector<std::uint8_t> verdict(snd.size(), 0);
+    const double max_tan = std::tan(gc.surface_filter_max_slope_deg * M_PI / 180.0);
+    auto at = [&](int i, int j) -> double {
+        if (i < 0 || j < 0 || i >= g.nx || j >= g.ny) return std::nan("");
+        return g.elevation_m[static_cast<std::size_t>(j) * g.nx + i];
+    };
+    for (std::size_t k = 0; k < snd.size(); ++k) {
+        const hydro::CubeSounding& q = snd[k];
+        const int i = static_cast<int>(std::lround((q.x - g.x0) / g.resolution_m));
+        const int j = static_cast<int>(std::lround((q.y - g.y0) / g.resolution_m));
+        const double z = at(i, j);
+        if (!std::isfinite(z)) continue;
+        const double u = g.uncertainty_m[static_cast<std::size_t>(j) * g.nx + i] / 1.96;
+        // The slope from the neighbouring nodes (any missing: not a floor to judge on).
+        const double zx0 = at(i - 1, j), zx1 = at(i + 1, j), zy0 = at(i, j - 1), zy1 = at(i, j + 1);
+        if (!std::isfinite(zx0) || !std::isfinite(zx1) || !std::isfinite(zy0) ||
+            !std::isfinite(zy1))
+            continue;
+        const double gx = (zx1 - zx0) / (2 * g.resolution_m);
+        const double gy = (zy1 - zy0) / (2 * g.resolution_m);
+        if (std::hypot(gx, gy) > max_tan) continue;
+        const double dz = std::abs(q.z - z);
+        const double sigma = std::sqrt(u * u + double{q.sigma_v_m} * q.sigma_v_m);
+        if (dz > gc.surface_filter_min_m && dz > gc.surface_filter_gate * sigma) {
+            verdict[k] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
+        }
+    }
+    return verdict;
 }
 
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
@@ -392,11 +435,35 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     }
     part.Lap(timings, "utm_datum");
     const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    if (!cube.ok) return Error{cube.message};
+    part.Lap(timings, "cube");
+    // The surface filter: soundings that do not support the node's chosen hypothesis are
+    // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
+    std::int64_t surface_rejected = 0;
+    if (gc.surface_filter) {
+        const std::vector<std::uint8_t> verdict = SurfaceFilter(snd, cube.grid, gc);
+        std::vector<char> keep = RejectPoints(s, verdict);
+        std::size_t out = 0;
+        for (std::size_t j = 0; j < keep.size(); ++j) {
+            if (!keep[j]) {
+                ++surface_rejected;
+                continue;
+            }
+            utm->easting_northing_height[out] = utm->easting_northing_height[j];
+            tpu.thu_95_m[out] = tpu.thu_95_m[j];
+            tpu.tvu_95_m[out] = tpu.tvu_95_m[j];
+            ++out;
+        }
+        utm->easting_northing_height.resize(out);
+        tpu.thu_95_m.resize(out);
+        tpu.tvu_95_m.resize(out);
+        log("grid: surface filter: " + std::to_string(surface_rejected) +
+            " soundings off the CUBE surface rejected");
+        part.Lap(timings, "surface_filter");
+    }
     // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
     // S-44 takes its soundings from the UTM positions, as snd did.
     std::vector<hydro::CubeSounding>().swap(snd);
-    part.Lap(timings, "cube");
-    if (!cube.ok) return Error{cube.message};
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
     const hydro::CubeGrid& g = cube.grid;
@@ -562,6 +629,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"hypotheses", cube.hypotheses_total},
                      {"node_updates", cube.node_updates},
                      {"soundings_rejected", cube.soundings_rejected},
+                     {"surface_filter_rejected", surface_rejected},
                      {"files", files},
                      {"timings_wall_cpu_s", timings},
                      {"message", cube.message}};

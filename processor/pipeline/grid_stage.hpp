@@ -29,16 +29,22 @@
 namespace pitmap::proc::pipeline {
 
 struct GridStageConfig {
-    bool in_run = true;                   // `pitmap run` makes the grid
-    hydro::CubeConfig cube;               // CUBE parameters (resolution 0 = from the depth)
-    double tpu_sound_speed_mps = 1500;    // nominal sound speed for the TPU's sound-speed terms
-    double ins_sigma_max_age_s = 5.0;     // INSSTDEV records further from a ping are not used
-    bool write_geotiff = true;            // P/dem.tif
-    bool write_bag = true;                // P/dem.bag
-    bool write_sounding_tpu = false;      // P/soundings_tpu.ply (28 bytes a sounding)
-    bool write_point_tpu = true;          // points.ply / points.las again with THU, TVU (and datum)
-    hydro::VerticalDatumConfig vertical;  // the `vertical:` section: the products' datum
-    bool s44 = true;                      // S-44 quality control (`s44:` section)
+    bool in_run = true;                 // `pitmap run` makes the grid
+    hydro::CubeConfig cube;             // CUBE parameters (resolution 0 = from the depth)
+    double tpu_sound_speed_mps = 1500;  // nominal sound speed for the TPU's sound-speed terms
+    double ins_sigma_max_age_s = 5.0;   // INSSTDEV records further from a ping are not used
+    bool write_geotiff = true;          // P/dem.tif
+    bool write_bag = true;              // P/dem.bag
+    bool write_sounding_tpu = false;    // P/soundings_tpu.ply (28 bytes a sounding)
+    bool write_point_tpu = true;        // points.ply / points.las again with THU, TVU (and datum)
+    // The surface filter (issue 35): soundings off the CUBE surface's chosen hypothesis on
+    // floors are rejected (grid_stage.cpp SurfaceFilter).
+    bool surface_filter = true;
+    double surface_filter_gate = 4.0;            // combined 1-sigma multiple (CUBE's own gate)
+    double surface_filter_min_m = 0.15;          // ... and at least this far, m
+    double surface_filter_max_slope_deg = 30.0;  // floors only: steeper is the 3D cleaning's
+    hydro::VerticalDatumConfig vertical;         // the `vertical:` section: the products' datum
+    bool s44 = true;                             // S-44 quality control (`s44:` section)
     hydro::S44Config s44_config;
     bool mosaic = true;  // backscatter mosaic (`mosaic:` section), when the
                          // pings carry intensities

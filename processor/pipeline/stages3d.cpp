@@ -712,8 +712,7 @@ Status RunAfterGeoref(detail::Survey& s,
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) {
             // The points without THU/TVU rather than none.
-            if (grid_points)
-                (void)detail::WritePoints(out_dir, s.geo, config, s.summary, s.model.run_id);
+            if (grid_points) (void)detail::WritePoints(s, config);
             return st;
         }
     }

@@ -166,6 +166,16 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The automatic cleaning (clean_stage.cpp): flags in the model, the view keeps the accepted.
 Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+// The index of point j of `geo` in the survey's range counts.
+std::size_t FlatIndex(const georef::GeorefResult& geo,
+                      const georef::PingSeries& pings,
+                      std::size_t j);
+// Keeps the points with keep[j] != 0 (in order); the pings stay.
+void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep);
+// The points of s.geo with status[j] != 0 (a cleaning status) are rejected: recorded in the
+// model's flags.cleaning and taken out of the view (its counts follow), except those a hand
+// edit restored. Returns which points stayed (index = the point before).
+std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and

@@ -17,7 +17,8 @@ from .util import Esc, GpsToUtc, Num, Table  # noqa: E402
 # georef::SoundingStatus (processor/georef/sounding_status.hpp): codes are stored, never
 # renumbered.
 STATUS_NAMES = ("accepted", "no_detection", "range_gate", "spike", "refraction",
-                "surface_filter", "free_space", "multipath", "cluster", "manual")
+                "surface_filter", "free_space", "multipath", "cluster", "manual",
+                "along_track")
 
 # A ping belongs to a run when at least this share of its soundings in points.ply is rejected.
 RUN_MIN_REJECTED_SHARE = 0.1
