@@ -121,7 +121,8 @@ TEST_F(EditLogTest, DamagedFilesAreErrorsNamingTheFile) {
     const std::vector<std::string> bad = {
         "",
         "{",
-        R"({"pitmap_edit_log": 1, )" + survey + R"(, "edits": [{"action": "reject", "runs": [[0, 1)",
+        R"({"pitmap_edit_log": 1, )" + survey +
+            R"(, "edits": [{"action": "reject", "runs": [[0, 1)",
         "[]",
         R"({"edits": []})",
         R"({"pitmap_edit_log": 2, )" + survey + R"(, "edits": []})",
