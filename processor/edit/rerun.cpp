@@ -47,9 +47,9 @@ RerunProcess::~RerunProcess() {
         if (kind_ == RerunState::Kind::kRunning) pid = pid_;
     }
     if (pid > 0) {
-        ::kill(pid, SIGTERM);
+        ::kill(-pid, SIGTERM);  // its process group
         for (int i = 0; i < 50 && running(); ++i) ::usleep(100000);
-        if (running()) ::kill(pid, SIGKILL);
+        if (running()) ::kill(-pid, SIGKILL);
     }
     if (reader_.joinable()) reader_.join();
 }
@@ -71,7 +71,14 @@ Status RerunProcess::Start(const std::string& program, const std::vector<std::st
     for (auto& a : argv_s) argv.push_back(a.data());
     argv.push_back(nullptr);
     pid_t pid = -1;
-    const int rc = ::posix_spawn(&pid, program.c_str(), &actions, nullptr, argv.data(), environ);
+    // Its own process group: stopping it stops what it started too (pitmap-report), which
+    // would otherwise hold the pipe open.
+    posix_spawnattr_t attr;
+    posix_spawnattr_init(&attr);
+    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attr, 0);
+    const int rc = ::posix_spawn(&pid, program.c_str(), &actions, &attr, argv.data(), environ);
+    posix_spawnattr_destroy(&attr);
     posix_spawn_file_actions_destroy(&actions);
     ::close(fds[1]);
     if (rc != 0) {

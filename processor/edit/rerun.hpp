@@ -5,7 +5,7 @@
 // exit status. One child at a time.
 // Failure model: a program that cannot be started is an error from Start (naming it); a child
 // killed by a signal reports exit_code 128 + signal. The destructor kills a child still running
-// (SIGTERM, then SIGKILL after 5 s) and reaps it.
+// and its process group (SIGTERM, then SIGKILL after 5 s) and reaps it.
 // Thread safety: every member may be called from any thread.
 #pragma once
 
