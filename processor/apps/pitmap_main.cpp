@@ -158,6 +158,9 @@ int main(int argc, char** argv) try {
     edit->add_option("--port", edit_port, "port on 127.0.0.1 (0 = any free one)");
     edit->add_flag("--no-open", no_open, "only print the URL (do not start a browser)");
     edit->add_option("--config", config_path, "YAML config (the georeferencing's settings)");
+    std::string rerun_program;
+    edit->add_option("--rerun-program", rerun_program, "(tests) what the re-run button starts")
+        ->group("");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
@@ -207,7 +210,7 @@ int main(int argc, char** argv) try {
         e.session.tpu_sound_speed_mps = config.grid.tpu_sound_speed_mps;
         e.session.ins_sigma_max_age_s = config.grid.ins_sigma_max_age_s;
         e.server.port = edit_port;
-        e.server.rerun_program = SiblingProgram("pitmap");
+        e.server.rerun_program = rerun_program.empty() ? SiblingProgram("pitmap") : rerun_program;
         e.open_browser = !no_open;
         std::signal(SIGINT, OnSignal);
         std::signal(SIGTERM, OnSignal);
