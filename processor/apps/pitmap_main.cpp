@@ -13,12 +13,15 @@
 //              [--sonar-clock-offset S] [--svp FILE...] [--no-calibrate] [--no-slam]
 //   pitmap config --defaults | --vehicle
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
+//   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 // Every command with --out holds P/.pitmap.lock while it runs (processor/io/products_lock.hpp):
 // a second command on the same P fails at once naming the first.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -26,6 +29,7 @@
 #include "common/config.hpp"
 #include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
+#include "processor/edit/edit_command.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/products_lock.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -65,6 +69,11 @@ std::vector<std::string> TrippedGates(const std::string& out_dir) {
 }
 
 constexpr int kExitQualityGate = 4;
+
+std::atomic<bool> g_stop{false};
+extern "C" void OnSignal(int) {
+    g_stop = true;
+}
 
 }  // namespace
 
@@ -151,6 +160,16 @@ int main(int argc, char** argv) try {
                         "sound-velocity casts (CARIS .svp, CSV or two-column depth/speed): ray "
                         "trace every beam through them (config refraction.svp_files)");
     }
+    int edit_port = 8767;
+    bool no_open = false;
+    auto* edit = app.add_subcommand("edit", "review and edit soundings by hand on a local page");
+    edit->add_option("P", out_dir, "products folder (survey.pitmap)")->required();
+    edit->add_option("--port", edit_port, "port on 127.0.0.1 (0 = any free one)");
+    edit->add_flag("--no-open", no_open, "only print the URL (do not start a browser)");
+    edit->add_option("--config", config_path, "YAML config (the georeferencing's settings)");
+    std::string rerun_program;
+    edit->add_option("--rerun-program", rerun_program, "(tests) what the re-run button starts")
+        ->group("");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
@@ -192,6 +211,21 @@ int main(int argc, char** argv) try {
     const pp::Log log = [](const std::string& m) {
         std::fprintf(stderr, "pitmap: %s\n", m.c_str());
     };
+    if (edit->parsed()) {
+        // No lock on P: the page's re-run (pitmap rerun P) takes it.
+        namespace pe = pitmap::proc::edit;
+        pe::EditCommand e;
+        e.out_dir = out_dir;
+        e.session.georef = config.georef;
+        e.session.tpu_sound_speed_mps = config.grid.tpu_sound_speed_mps;
+        e.session.ins_sigma_max_age_s = config.grid.ins_sigma_max_age_s;
+        e.server.port = edit_port;
+        e.server.rerun_program = rerun_program.empty() ? SiblingProgram("pitmap") : rerun_program;
+        e.open_browser = !no_open;
+        std::signal(SIGINT, OnSignal);
+        std::signal(SIGTERM, OnSignal);
+        return pe::RunEditCommand(e, [] { return g_stop.load(); });
+    }
     if (info->parsed()) {
         auto text = pp::Info(inputs, config);
         if (!text) return Fail(text.error().message);
