@@ -13,7 +13,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -38,7 +37,8 @@ struct Voxels {
     std::vector<std::int32_t> count;
     std::vector<std::int32_t> component;  // after Components
     // Plane patches (terrain voxels with enough soundings), after Patches.
-    std::vector<Eigen::Vector3d> centroid, normal;
+    std::vector<Eigen::Vector3d> centroid, normal, axis_major, axis_minor;  // the plane's axes
+    std::vector<double> sigma_major, sigma_minor;  // the soundings' spread along them
     std::vector<double> thickness, radius;
     std::vector<char> patch;
     std::size_t size() const { return coord.size(); }
@@ -137,7 +137,23 @@ std::vector<char> AlongTrack(const georef::GeorefResult& geo, const CleanConfig&
             }
         }
     });
-    return off;
+    // Echoes come in runs (of beams, of pings); a lone range off its line is the terrain's
+    // (an edge the line does not follow) or the per-ping spike filter's to judge.
+    std::vector<std::int32_t> at(np * beams, -1);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (off[j]) at[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
+    }
+    std::vector<char> run(n, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (!off[j]) continue;
+        const std::size_t k = P.ping[j], b = P.beam[j];
+        const bool beside = (b > 0 && at[k * beams + b - 1] >= 0) ||
+                            (b + 1 < beams && at[k * beams + b + 1] >= 0) ||
+                            (k > 0 && at[(k - 1) * beams + b] >= 0) ||
+                            (k + 1 < np && at[(k + 1) * beams + b] >= 0);
+        run[j] = beside;
+    }
+    return run;
 }
 
 }  // namespace
@@ -152,7 +168,12 @@ std::vector<std::string> CleanConfig::Validate() const {
     if (!(free_ratio >= 0)) p.push_back("clean.free_ratio must be >= 0");
     if (surface_min_hits < 3) p.push_back("clean.surface_min_hits must be >= 3");
     if (!(surface_max_thickness_m > 0)) p.push_back("clean.surface_max_thickness_m must be > 0");
-    if (!(multipath_behind_m >= 0)) p.push_back("clean.multipath_behind_m must be >= 0");
+    if (!(solid_ratio > 0 && solid_ratio <= free_ratio))
+        p.push_back("clean.solid_ratio must be in (0, free_ratio]");
+    if (along_track_pings < 0) p.push_back("clean.along_track_pings must be >= 0");
+    if (!(along_track_sigmas > 0)) p.push_back("clean.along_track_sigmas must be > 0");
+    if (!(along_track_min_m >= 0)) p.push_back("clean.along_track_min_m must be >= 0");
+    if (!(along_track_max_spread > 0)) p.push_back("clean.along_track_max_spread must be > 0");
     return p;
 }
 
@@ -253,6 +274,10 @@ CleanResult Clean(const georef::GeorefResult& geo,
     // that the echoes in a voxel do not tilt the surface they are judged against.
     X.centroid.resize(nv);
     X.normal.resize(nv);
+    X.axis_major.resize(nv);
+    X.axis_minor.resize(nv);
+    X.sigma_major.assign(nv, 0);
+    X.sigma_minor.assign(nv, 0);
     X.thickness.assign(nv, 0);
     X.radius.assign(nv, 0);
     X.patch.assign(nv, 0);
@@ -264,6 +289,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
             w.assign(m, 1.0);
             Eigen::Vector3d mean, normal;
             Eigen::Vector3d ev;
+            Eigen::Matrix3d axes;
             for (int iter = 0; iter < 4; ++iter) {
                 double sw = 0;
                 mean.setZero();
@@ -281,7 +307,8 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
                 es.computeDirect(cov);
                 ev = es.eigenvalues().cwiseMax(0.0);
-                normal = es.eigenvectors().col(0);
+                axes = es.eigenvectors();
+                normal = axes.col(0);
                 // Cauchy weights on the distance to the plane, scale: the range noise's order.
                 const double scale = std::max(0.05, std::sqrt(ev[0]));
                 for (std::size_t k = 0; k < m; ++k) {
@@ -302,8 +329,14 @@ CleanResult Clean(const georef::GeorefResult& geo,
             X.normal[i] = normal;
             X.thickness[i] = sw > 0 ? std::sqrt(s2 / sw) : 1e9;
             X.radius[i] = std::sqrt(ev[1]);
-            X.patch[i] =
-                sw >= config.surface_min_hits && X.thickness[i] <= config.surface_max_thickness_m;
+            X.axis_major[i] = axes.col(2);
+            X.axis_minor[i] = axes.col(1);
+            X.sigma_major[i] = std::sqrt(ev[2]);
+            X.sigma_minor[i] = std::sqrt(ev[1]);
+            // One surface: most of the voxel's soundings on it (a floor's toe, with the wall's
+            // soundings beside the floor's, is two).
+            X.patch[i] = sw >= config.surface_min_hits && sw >= 0.8 * static_cast<double>(m) &&
+                         X.thickness[i] <= config.surface_max_thickness_m;
         }
     });
     c.seconds_voxels = Seconds(t_start);
@@ -341,7 +374,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
             const double range = len * v;
             const double stop = range - margin(range);
             const std::int32_t own_id = voxel_of[j];
-            const Coord own = X.coord[own_id];
             const Eigen::Vector3d& s = sensor(j);
             const Eigen::Vector3d d = (P.position_world[j] - s) / range;
             MarchVoxels(ray, *index, 0.0, stop / v, [&](std::int32_t vox, double) {
@@ -349,9 +381,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 free_rays[vox].fetch_add(1, std::memory_order_relaxed);
                 if (!X.patch[vox]) return true;
                 const Coord& q = X.coord[vox];
-                if (std::abs(q.x() - own.x()) <= 1 && std::abs(q.y() - own.y()) <= 1 &&
-                    std::abs(q.z() - own.z()) <= 1)
-                    return true;  // the surface the sounding lies on
                 const Eigen::Vector3d& m = X.centroid[vox];
                 const Eigen::Vector3d& nrm = X.normal[vox];
                 const double dn = nrm.dot(d);
@@ -359,8 +388,15 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 const double t_cross = nrm.dot(m - s) / dn;
                 if (!(t_cross > 0 && t_cross < stop)) return true;
                 // Inside this voxel: through the patch, not past its edge.
-                const Eigen::Vector3d x = (s + t_cross * d) / v;
-                if (Coord::floor(openvdb::Vec3d(x.x(), x.y(), x.z())) != q) return true;
+                const Eigen::Vector3d x = s + t_cross * d;
+                const Eigen::Vector3d xi = x / v;
+                if (Coord::floor(openvdb::Vec3d(xi.x(), xi.y(), xi.z())) != q) return true;
+                // ... and within the patch's own extent (2 sigma of its soundings along each
+                // axis of the plane), not across the part of the voxel it does not cover.
+                const Eigen::Vector3d u = x - m;
+                if (std::abs(u.dot(X.axis_major[vox])) > 2.0 * X.sigma_major[vox] + 0.05 ||
+                    std::abs(u.dot(X.axis_minor[vox])) > 2.0 * X.sigma_minor[vox] + 0.05)
+                    return true;
                 crossed[vox].fetch_add(1, std::memory_order_relaxed);
                 if (first_crossing[j] == kNone) first_crossing[j] = vox;
                 return true;
@@ -370,13 +406,21 @@ CleanResult Clean(const georef::GeorefResult& geo,
     // Per patch: its soundings whose rays crossed no patch (the surface's own support).
     std::vector<std::int32_t> clean_hits(nv, 0);
     for (std::size_t j = 0; j < n; ++j) clean_hits[voxel_of[j]] += first_crossing[j] == kNone;
+    // A crossing is evidence of water only when the crossing ray ends on a supported surface:
+    // a floor sounding whose ray went through a fish school is; a ghost, whose ray went through
+    // the floor, ends where no ray ends without crossing something, and is not.
+    std::vector<std::int32_t> credible(nv, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (first_crossing[j] != kNone && 2 * clean_hits[voxel_of[j]] >= config.surface_min_hits)
+            ++credible[first_crossing[j]];
+    }
     auto transient_patch = [&](std::int32_t vox) {
-        const std::int32_t x = crossed[vox].load(std::memory_order_relaxed);
+        const std::int32_t x = credible[vox];
         return X.patch[vox] && x >= config.free_min_rays &&
                x >= config.free_ratio * clean_hits[vox];
     };
     auto solid_patch = [&](std::int32_t vox) {
-        const std::int32_t x = crossed[vox].load(std::memory_order_relaxed);
+        const std::int32_t x = credible[vox];
         return X.patch[vox] && clean_hits[vox] >= config.surface_min_hits &&
                x < config.solid_ratio * clean_hits[vox];
     };
@@ -439,20 +483,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
             result.status[j] = static_cast<std::uint8_t>(st);
         }
     });
-    if (const char* dump = std::getenv("PITMAP_CLEAN_DUMP")) {  // DEBUG-ONLY
-        std::FILE* f = std::fopen(dump, "wb");
-        for (std::size_t j = 0; j < n; ++j) {
-            const std::int32_t own = voxel_of[j];
-            float rec[6] = {float(comp_voxels[X.component[own]]),
-                            float(free_rays[own].load()),
-                            float(X.count[own]),
-                            float(X.patch[own]),
-                            float(crossed[own].load()),
-                            float(clean_hits[own])};
-            std::fwrite(rec, sizeof rec, 1, f);
-        }
-        std::fclose(f);
-    }
     // ---- 5. along track: what the 3D tests left ----
     const std::vector<char> along = AlongTrack(geo, config);
     for (std::size_t j = 0; j < n; ++j) {

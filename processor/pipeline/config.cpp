@@ -222,7 +222,19 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
     v("free_ratio", c.free_ratio, "... and this many times its own soundings");
     v("surface_min_hits", c.surface_min_hits, "multipath: soundings in a surface patch, at least");
     v("surface_max_thickness_m", c.surface_max_thickness_m, "... its 1-sigma thickness, m");
-    v("multipath_behind_m", c.multipath_behind_m, "a ghost lies this far behind the patch, m");
+    v("solid_ratio",
+      c.solid_ratio,
+      "a patch crossed by fewer rays than this share of its support is solid");
+    v("along_track_pings",
+      c.along_track_pings,
+      "along track: neighbouring pings each side; 0 = off");
+    v("along_track_sigmas",
+      c.along_track_sigmas,
+      "... off the neighbours' line by this many spreads");
+    v("along_track_min_m", c.along_track_min_m, "... and this far, m");
+    v("along_track_max_spread",
+      c.along_track_max_spread,
+      "... where their spread / range is below");
     v("num_threads", c.num_threads, "0 = all cores");
 }
 

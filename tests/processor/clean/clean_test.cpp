@@ -1,0 +1,139 @@
+// SPDX-License-Identifier: MIT
+// The 3D cleaning on a survey built here: two overlapping lines over a flat floor 10 m down,
+// with a fish school in the water seen by some beams of some pings, a near-field bubble cloud
+// over a run of pings, and a multipath ghost behind the floor over a run of pings on the same
+// beams. The echoes must be rejected, the floor kept.
+#include "processor/clean/clean.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace {
+
+using pitmap::proc::clean::Clean;
+using pitmap::proc::clean::CleanConfig;
+using pitmap::proc::georef::GeorefResult;
+using pitmap::proc::georef::SoundingStatus;
+
+constexpr double kDepth = 10.0;
+constexpr int kBeams = 481;  // -60 .. 60 deg, 0.25 deg apart (a Delta T's 480 beams)
+
+enum Truth : std::uint8_t { kGood = 0, kFish, kBubble, kGhost };
+
+struct Survey {
+    GeorefResult geo;
+    std::vector<std::uint8_t> truth;
+};
+
+// Adds one sounding of ping k from the sensor s along the unit direction d at range r.
+void Add(Survey& out, std::uint32_t k, int beam, const Eigen::Vector3d& d, double r, Truth t) {
+    const Eigen::Vector3d s = out.geo.pings[k].sensor_world;
+    out.geo.points.position_world.push_back(s + r * d);
+    out.geo.points.ping.push_back(k);
+    out.geo.points.beam.push_back(static_cast<std::uint16_t>(beam));
+    out.geo.points.range_m.push_back(static_cast<float>(r));
+    out.geo.points.angle_rad.push_back(0.0f);
+    out.truth.push_back(t);
+}
+
+// Two lines along x (y = 0 and y = 8, so that each sees the floor under the other's ghosts), pings
+// 0.15 m apart, a flat floor at z = -10 with 2 cm noise, and the echoes.
+Survey MakeSurvey(bool echoes) {
+    Survey out;
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    const Eigen::Vector3d fish(15.0, 3.0, -5.0);
+    const double fish_radius = 0.7;
+    for (int line = 0; line < 2; ++line) {
+        for (int i = 0; i < 200; ++i) {
+            const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+            pitmap::proc::georef::GeorefPing ping;
+            ping.sensor_world = Eigen::Vector3d(0.15 * i, 8.0 * line, 0.0);
+            out.geo.pings.push_back(ping);
+            const bool bubbles = echoes && line == 0 && i >= 60 && i < 70;
+            const bool ghost = echoes && line == 1 && i >= 100 && i < 130;
+            for (int b = 0; b < kBeams; ++b) {
+                const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+                const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+                const double r_floor = kDepth / std::cos(theta) + noise(rng);
+                if (bubbles && b >= 200 && b < 248) {
+                    Add(out, k, b, d, 0.6 + 0.25 * ((b * 7 + i * 3) % 11), kBubble);
+                    continue;
+                }
+                if (ghost && b >= 80 && b < 112) {
+                    Add(out, k, b, d, r_floor * 1.25, kGhost);
+                    continue;
+                }
+                // The school: a beam whose axis enters the sphere returns the entry range on
+                // every other beam (a school is patchy).
+                if (echoes && (b + i) % 2 == 0) {
+                    const Eigen::Vector3d s = ping.sensor_world;
+                    const double tc = (fish - s).dot(d);
+                    const double miss2 = (s + tc * d - fish).squaredNorm();
+                    if (tc > 0 && miss2 < fish_radius * fish_radius) {
+                        Add(out, k, b, d, tc - std::sqrt(fish_radius * fish_radius - miss2), kFish);
+                        continue;
+                    }
+                }
+                Add(out, k, b, d, r_floor, kGood);
+            }
+        }
+    }
+    return out;
+}
+
+struct Tally {
+    std::int64_t total[4] = {}, rejected[4] = {};
+};
+
+Tally Score(const Survey& s, const std::vector<std::uint8_t>& status) {
+    Tally t;
+    for (std::size_t j = 0; j < status.size(); ++j) {
+        ++t.total[s.truth[j]];
+        t.rejected[s.truth[j]] += status[j] != 0;
+    }
+    return t;
+}
+
+TEST(Clean, RejectsTheEchoesAndKeepsTheFloor) {
+    const Survey s = MakeSurvey(true);
+    const auto r = Clean(s.geo, CleanConfig{});
+    ASSERT_EQ(r.status.size(), s.truth.size());
+    const Tally t = Score(s, r.status);
+    ASSERT_GT(t.total[kFish], 100);
+    ASSERT_GT(t.total[kBubble], 400);
+    ASSERT_GT(t.total[kGhost], 900);
+    EXPECT_EQ(t.rejected[kFish], t.total[kFish]);
+    EXPECT_EQ(t.rejected[kBubble], t.total[kBubble]);
+    EXPECT_GE(t.rejected[kGhost], 0.98 * t.total[kGhost]);
+    EXPECT_LE(t.rejected[kGood], 0.001 * t.total[kGood]);
+    EXPECT_EQ(r.counts.free_space + r.counts.cluster + r.counts.multipath + r.counts.along_track,
+              t.rejected[kGood] + t.rejected[kFish] + t.rejected[kBubble] + t.rejected[kGhost]);
+}
+
+TEST(Clean, ACleanFloorKeepsEverySounding) {
+    const Survey s = MakeSurvey(false);
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    EXPECT_EQ(t.rejected[kGood], 0);
+}
+
+TEST(Clean, SameVerdictsOnOneThreadAndOnAll) {
+    const Survey s = MakeSurvey(true);
+    CleanConfig one;
+    one.num_threads = 1;
+    EXPECT_EQ(Clean(s.geo, one).status, Clean(s.geo, CleanConfig{}).status);
+}
+
+TEST(Clean, EmptyViewAndInvalidConfig) {
+    EXPECT_TRUE(Clean(GeorefResult{}, CleanConfig{}).status.empty());
+    CleanConfig bad;
+    bad.voxel_m = 0;
+    bad.free_min_rays = 0;
+    EXPECT_EQ(bad.Validate().size(), 2u);
+    EXPECT_TRUE(CleanConfig{}.Validate().empty());
+}
+
+}  // namespace
