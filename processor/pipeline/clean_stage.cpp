@@ -83,6 +83,18 @@ std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& statu
 
 Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
+    // A pass before this one in the same run (run: before the calibration) stays in the
+    // record, as "earlier_pass", so that the stage's whole cost is in the summary.
+    nlohmann::json earlier;
+    if (s.summary.contains("stages") && s.summary["stages"].contains("clean") &&
+        s.summary["stages"]["clean"].value("run_id", std::string()) == s.model.run_id &&
+        s.summary["stages"]["clean"].contains("seconds")) {
+        const nlohmann::json& e = s.summary["stages"]["clean"];
+        earlier = {{"seconds", e["seconds"]},
+                   {"cpu_seconds", e.value("cpu_seconds", 0.0)},
+                   {"rejected", e.value("rejected", 0)},
+                   {"trajectory", e.value("trajectory", "")}};
+    }
     ClearGates(s, Stage::kClean);
     georef::SoundingFlags& flags = s.model.flags;
     const georef::PingSeries& pings = s.model.ingest.pings;
@@ -163,6 +175,8 @@ Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  {"terrain_components", c.terrain_components},
                  {"clusters", c.clusters},
                  {"trajectory", survey::ToString(s.model.latest())},
+                 {"run_id", s.model.run_id},
+                 {"earlier_pass", earlier},
                  {"seconds_voxels", c.seconds_voxels},
                  {"seconds_free_space", c.seconds_free_space},
                  {"seconds_clusters", c.seconds_clusters},

@@ -434,7 +434,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                   static_cast<float>(depth)};
     }
     part.Lap(timings, "utm_datum");
-    const hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
     if (!cube.ok) return Error{cube.message};
     part.Lap(timings, "cube");
     // The surface filter: soundings that do not support the node's chosen hypothesis are
@@ -457,6 +457,17 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         utm->easting_northing_height.resize(out);
         tpu.thu_95_m.resize(out);
         tpu.tvu_95_m.resize(out);
+        if (surface_rejected > 0) {
+            // CUBE again without them: a node whose chosen hypothesis they made (an echo held
+            // long enough over one node to outvote the seabed) is decided on the rest.
+            std::size_t k = 0;
+            for (std::size_t j = 0; j < keep.size(); ++j) {
+                if (keep[j]) snd[k++] = snd[j];
+            }
+            snd.resize(k);
+            cube = hydro::RunCube(snd, gc.cube);
+            if (!cube.ok) return Error{cube.message};
+        }
         log("grid: surface filter: " + std::to_string(surface_rejected) +
             " soundings off the CUBE surface rejected");
         part.Lap(timings, "surface_filter");

@@ -689,6 +689,13 @@ Status RunAfterGeoref(detail::Survey& s,
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
+    // The cleaning runs twice: on the navigation's trajectory, so that the calibration and SLAM
+    // register accepted soundings only, and after them on the final trajectory, where its
+    // verdicts are decided again (and kept) for the grid, the TSDF and the products.
+    const bool clean_first = config.clean.enabled && (config.run.calibrate || config.run.slam);
+    if (clean_first) {
+        if (auto st = detail::CleanSurvey(s, config, log); !st) return export_now(st);
+    }
     if (config.run.calibrate) {
         if (auto st = detail::CalibrateSurvey(s, config, log); !st) {
             // No overlap to calibrate on is a property of the survey, not a failure of the run.
