@@ -87,17 +87,20 @@ double Median(std::vector<double>& v) {
     return *mid;
 }
 
-// Along track: each beam's range against the same beam over the neighbouring pings. A robust
-// line through the neighbours' ranges (Theil-Sen over symmetric pairs, median intercept) and
-// the spread of their residuals (MAD); a range off that line by more than along_track_sigmas
-// spreads and the absolute and relative floors, where the neighbours agree (spread below
-// along_track_max_spread of the range), is a run of echoes a ping-by-ping median cannot see.
-std::vector<char> AlongTrack(const georef::GeorefResult& geo, const CleanConfig& config) {
+// The range profiles: each sounding's range against a robust line through its neighbours'
+// ranges, along track (the same beam over `profile_pings` pings each side) and across the
+// fan (the same ping over `profile_beams` beams each side). The line is Theil-Sen over
+// symmetric pairs with the median intercept, its spread the MAD of the neighbours' residuals.
+// A range off either line by more than profile_sigmas spreads, profile_min_m and margin_rel
+// of the range, where the neighbours agree (spread below profile_max_spread of the range), is
+// off its profile. Echoes come in runs (of beams, of pings): only a sounding with a neighbour
+// (beam or ping) also off is rejected; a lone one is the terrain's (an edge the line does not
+// follow) or the per-ping spike filter's to judge.
+std::vector<char> Profiles(const georef::GeorefResult& geo, const CleanConfig& config) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     std::vector<char> off(n, 0);
-    const int w = config.along_track_pings;
-    if (w <= 0 || n == 0) return off;
+    if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0)) return off;
     std::size_t beams = 0;
     for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
     const std::size_t np = geo.pings.size();
@@ -105,40 +108,46 @@ std::vector<char> AlongTrack(const georef::GeorefResult& geo, const CleanConfig&
     for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
         std::vector<double> slopes, icept, res;
-        for (std::size_t j = r.begin(); j != r.end(); ++j) {
-            const auto k = static_cast<std::int64_t>(P.ping[j]);
-            const std::size_t b = P.beam[j];
-            auto at = [&](std::int64_t q) -> double {
-                if (q < 0 || q >= static_cast<std::int64_t>(np)) return std::nan("");
-                return range[static_cast<std::size_t>(q) * beams + b];
-            };
+        // Off the line through the neighbours at(-w..w) (without 0)?
+        auto off_line = [&](int w, const auto& at, double r0) {
+            if (w <= 0) return false;
             slopes.clear();
             for (int d = 1; d <= w; ++d) {
-                const double a = at(k - d), c = at(k + d);
+                const double a = at(-d), c = at(d);
                 if (std::isfinite(a) && std::isfinite(c)) slopes.push_back((c - a) / (2.0 * d));
             }
-            if (static_cast<int>(slopes.size()) < w / 2) continue;
+            if (static_cast<int>(slopes.size()) < std::max(2, w / 2)) return false;
             const double slope = Median(slopes);
             icept.clear();
             for (int d = -w; d <= w; ++d) {
-                const double a = at(k + d);
+                const double a = at(d);
                 if (d != 0 && std::isfinite(a)) icept.push_back(a - slope * d);
             }
             const double line = Median(icept);
             res.clear();
             for (const double x : icept) res.push_back(std::abs(x - line));
             const double spread = 1.4826 * Median(res);
-            if (spread > config.along_track_max_spread * line) continue;
-            const double dr = std::abs(double{P.range_m[j]} - line);
-            if (dr > std::max({config.along_track_min_m,
-                               config.margin_rel * line,
-                               config.along_track_sigmas * spread})) {
-                off[j] = 1;
-            }
+            if (spread > config.profile_max_spread * line) return false;
+            return std::abs(r0 - line) > std::max({config.profile_min_m,
+                                                   config.margin_rel * line,
+                                                   config.profile_sigmas * spread});
+        };
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const auto k = static_cast<std::int64_t>(P.ping[j]);
+            const auto b = static_cast<std::int64_t>(P.beam[j]);
+            auto value = [&](std::int64_t q, std::int64_t c) -> double {
+                if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
+                    c >= static_cast<std::int64_t>(beams))
+                    return std::nan("");
+                return range[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
+            };
+            const double r0 = P.range_m[j];
+            off[j] = off_line(
+                         config.profile_pings, [&](int d) { return value(k + d, b); }, r0) ||
+                     off_line(
+                         config.profile_beams, [&](int d) { return value(k, b + d); }, r0);
         }
     });
-    // Echoes come in runs (of beams, of pings); a lone range off its line is the terrain's
-    // (an edge the line does not follow) or the per-ping spike filter's to judge.
     std::vector<std::int32_t> at(np * beams, -1);
     for (std::size_t j = 0; j < n; ++j) {
         if (off[j]) at[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
@@ -147,11 +156,10 @@ std::vector<char> AlongTrack(const georef::GeorefResult& geo, const CleanConfig&
     for (std::size_t j = 0; j < n; ++j) {
         if (!off[j]) continue;
         const std::size_t k = P.ping[j], b = P.beam[j];
-        const bool beside = (b > 0 && at[k * beams + b - 1] >= 0) ||
-                            (b + 1 < beams && at[k * beams + b + 1] >= 0) ||
-                            (k > 0 && at[(k - 1) * beams + b] >= 0) ||
-                            (k + 1 < np && at[(k + 1) * beams + b] >= 0);
-        run[j] = beside;
+        run[j] = (b > 0 && at[k * beams + b - 1] >= 0) ||
+                 (b + 1 < beams && at[k * beams + b + 1] >= 0) ||
+                 (k > 0 && at[(k - 1) * beams + b] >= 0) ||
+                 (k + 1 < np && at[(k + 1) * beams + b] >= 0);
     }
     return run;
 }
@@ -170,10 +178,11 @@ std::vector<std::string> CleanConfig::Validate() const {
     if (!(surface_max_thickness_m > 0)) p.push_back("clean.surface_max_thickness_m must be > 0");
     if (!(solid_ratio > 0 && solid_ratio <= free_ratio))
         p.push_back("clean.solid_ratio must be in (0, free_ratio]");
-    if (along_track_pings < 0) p.push_back("clean.along_track_pings must be >= 0");
-    if (!(along_track_sigmas > 0)) p.push_back("clean.along_track_sigmas must be > 0");
-    if (!(along_track_min_m >= 0)) p.push_back("clean.along_track_min_m must be >= 0");
-    if (!(along_track_max_spread > 0)) p.push_back("clean.along_track_max_spread must be > 0");
+    if (profile_pings < 0) p.push_back("clean.profile_pings must be >= 0");
+    if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
+    if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
+    if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
+    if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
     return p;
 }
 
@@ -365,7 +374,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
     t_start = std::chrono::steady_clock::now();
     std::vector<std::atomic<std::int32_t>> free_rays(nv), crossed(nv);
     std::vector<std::int32_t> first_crossing(n, kNone);
-    const double min_sin = std::sin(15.0 * M_PI / 180.0);
+    const double min_sin = std::sin(config.min_crossing_deg * M_PI / 180.0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             double len = 0;
@@ -483,16 +492,16 @@ CleanResult Clean(const georef::GeorefResult& geo,
             result.status[j] = static_cast<std::uint8_t>(st);
         }
     });
-    // ---- 5. along track: what the 3D tests left ----
-    const std::vector<char> along = AlongTrack(geo, config);
+    // ---- 5. the range profiles: what the 3D tests left ----
+    const std::vector<char> along = Profiles(geo, config);
     for (std::size_t j = 0; j < n; ++j) {
         if (along[j] && result.status[j] == 0)
-            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kAlongTrack);
+            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
     for (std::size_t j = 0; j < n; ++j) {
         switch (static_cast<SoundingStatus>(result.status[j])) {
-            case SoundingStatus::kAlongTrack:
-                ++c.along_track;
+            case SoundingStatus::kProfile:
+                ++c.profile;
                 break;
             case SoundingStatus::kFreeSpace:
                 ++c.free_space;

@@ -24,9 +24,10 @@
 //   5. Clusters (kCluster): a cluster whose soundings mostly have terrain behind them along
 //      their rays floats in front of the observed surface (persistent mid-water targets,
 //      near-field returns).
-//   6. Along track (kAlongTrack): what is left is judged across pings, each beam's range
-//      against the same beam over `along_track_pings` pings each side (a robust line and its
-//      spread); only runs (a neighbouring beam or ping also off) are rejected.
+//   6. Range profiles (kProfile): what is left is judged on its range against a robust line
+//      through the same beam over `profile_pings` pings each side and through the same ping
+//      over `profile_beams` beams each side; only runs (a neighbouring beam or ping also off)
+//      are rejected: the per-ping median filter's idea, over runs longer than its window.
 // What it does not see: a sounding within `margin` of the surface (it is on it), a ghost behind
 // a surface no other ping observed, an echo held in one place so long that it is the only
 // evidence there (then it is terrain here; on floors the grid stage's surface filter against
@@ -34,7 +35,7 @@
 //
 // Input: a georeferenced view (the candidates: what georef's own filters accept); output: a
 // status per point (georef::SoundingStatus: kAccepted, kFreeSpace, kMultipath, kCluster,
-// kAlongTrack). Deterministic: the verdicts do not depend on the thread count.
+// kProfile). Deterministic: the verdicts do not depend on the thread count.
 // Failure model: none beyond memory (the grid holds one voxel per occupied `voxel_m` cube, a
 // few tens of bytes each); an empty view gives empty results.
 #pragma once
@@ -58,13 +59,15 @@ struct CleanConfig {
     double free_ratio = 0.5;       // ... and this many times its own soundings
     int surface_min_hits = 8;      // a plane patch for the multipath test: soundings in it
     double surface_max_thickness_m = 0.12;  // its 1-sigma across the plane, at most
+    double min_crossing_deg = 15.0;         // a ray crosses a patch at more than this to its plane
     double solid_ratio = 0.3;               // a patch crossed by fewer rays than this share of
                                             // its own support is solid (a ghost's ray crossed it)
-    int along_track_pings = 10;             // along track: neighbouring pings each side; 0 = off
-    double along_track_sigmas = 5.0;        // off the neighbours' line by this many spreads ...
-    double along_track_min_m = 0.3;         // ... and this far (and margin_rel of the range)
-    double along_track_max_spread = 0.03;   // where the neighbours agree: spread / range
-    int num_threads = 0;                    // 0 = all cores (TBB)
+    int profile_pings = 10;       // range profiles: neighbouring pings each side (along track) ...
+    int profile_beams = 8;        // ... and beams each side (across the fan); 0 = off
+    double profile_sigmas = 5.0;  // off the neighbours' line by this many spreads ...
+    double profile_min_m = 0.3;   // ... and this far (and margin_rel of the range)
+    double profile_max_spread = 0.03;  // where the neighbours agree: spread / range
+    int num_threads = 0;               // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;
 };
@@ -77,7 +80,7 @@ struct CleanCounts {
     std::int64_t free_space = 0;
     std::int64_t cluster = 0;
     std::int64_t multipath = 0;
-    std::int64_t along_track = 0;
+    std::int64_t profile = 0;
     double seconds_voxels = 0, seconds_free_space = 0, seconds_clusters = 0, seconds_multipath = 0;
 };
 

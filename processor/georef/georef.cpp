@@ -35,8 +35,8 @@ std::string_view ToString(SoundingStatus s) {
             return "cluster";
         case SoundingStatus::kManual:
             return "manual";
-        case SoundingStatus::kAlongTrack:
-            return "along_track";
+        case SoundingStatus::kProfile:
+            return "profile";
     }
     return "unknown";
 }

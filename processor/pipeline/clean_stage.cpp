@@ -134,20 +134,20 @@ Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         changed += flags.cleaning[i] != (i < before.size() ? before[i] : 0);
     }
     const clean::CleanCounts& c = r.counts;
-    const std::int64_t rejected = c.free_space + c.cluster + c.multipath + c.along_track;
+    const std::int64_t rejected = c.free_space + c.cluster + c.multipath + c.profile;
     const double share = c.soundings > 0 ? static_cast<double>(rejected) / c.soundings : 0.0;
     char line[256];
     std::snprintf(line,
                   sizeof line,
                   "clean: %lld of %lld soundings rejected (%.2f %%): free space %lld, cluster "
-                  "%lld, multipath %lld, along track %lld; %lld flags changed",
+                  "%lld, multipath %lld, off profile %lld; %lld flags changed",
                   static_cast<long long>(rejected),
                   static_cast<long long>(c.soundings),
                   100.0 * share,
                   static_cast<long long>(c.free_space),
                   static_cast<long long>(c.cluster),
                   static_cast<long long>(c.multipath),
-                  static_cast<long long>(c.along_track),
+                  static_cast<long long>(c.profile),
                   static_cast<long long>(changed));
     log(line);
     if (share > config.quality.max_cleaned_share) {
@@ -168,7 +168,7 @@ Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  {"free_space", c.free_space},
                  {"cluster", c.cluster},
                  {"multipath", c.multipath},
-                 {"along_track", c.along_track},
+                 {"profile", c.profile},
                  {"restored_by_hand", restored_by_hand},
                  {"flags_changed", changed},
                  {"voxels", c.voxels},

@@ -222,19 +222,15 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
     v("free_ratio", c.free_ratio, "... and this many times its own soundings");
     v("surface_min_hits", c.surface_min_hits, "multipath: soundings in a surface patch, at least");
     v("surface_max_thickness_m", c.surface_max_thickness_m, "... its 1-sigma thickness, m");
+    v("min_crossing_deg", c.min_crossing_deg, "a ray crosses a patch at more than this, deg");
     v("solid_ratio",
       c.solid_ratio,
       "a patch crossed by fewer rays than this share of its support is solid");
-    v("along_track_pings",
-      c.along_track_pings,
-      "along track: neighbouring pings each side; 0 = off");
-    v("along_track_sigmas",
-      c.along_track_sigmas,
-      "... off the neighbours' line by this many spreads");
-    v("along_track_min_m", c.along_track_min_m, "... and this far, m");
-    v("along_track_max_spread",
-      c.along_track_max_spread,
-      "... where their spread / range is below");
+    v("profile_pings", c.profile_pings, "range profiles: neighbouring pings each side; 0 = off");
+    v("profile_beams", c.profile_beams, "... and beams each side; 0 = off");
+    v("profile_sigmas", c.profile_sigmas, "... off the neighbours' line by this many spreads");
+    v("profile_min_m", c.profile_min_m, "... and this far, m");
+    v("profile_max_spread", c.profile_max_spread, "... where their spread / range is below");
     v("num_threads", c.num_threads, "0 = all cores");
 }
 

@@ -109,7 +109,7 @@ TEST(Clean, RejectsTheEchoesAndKeepsTheFloor) {
     EXPECT_EQ(t.rejected[kBubble], t.total[kBubble]);
     EXPECT_GE(t.rejected[kGhost], 0.98 * t.total[kGhost]);
     EXPECT_LE(t.rejected[kGood], 0.001 * t.total[kGood]);
-    EXPECT_EQ(r.counts.free_space + r.counts.cluster + r.counts.multipath + r.counts.along_track,
+    EXPECT_EQ(r.counts.free_space + r.counts.cluster + r.counts.multipath + r.counts.profile,
               t.rejected[kGood] + t.rejected[kFish] + t.rejected[kBubble] + t.rejected[kGhost]);
 }
 

@@ -18,7 +18,7 @@ from .util import Esc, GpsToUtc, Num, Table  # noqa: E402
 # renumbered.
 STATUS_NAMES = ("accepted", "no_detection", "range_gate", "spike", "refraction",
                 "surface_filter", "free_space", "multipath", "cluster", "manual",
-                "along_track")
+                "profile")
 
 # A ping belongs to a run when at least this share of its soundings in points.ply is rejected.
 RUN_MIN_REJECTED_SHARE = 0.1
