@@ -63,7 +63,7 @@ struct CleanConfig {
     double solid_ratio = 0.3;               // a patch crossed by fewer rays than this share of
                                             // its own support is solid (a ghost's ray crossed it)
     int profile_pings = 10;       // range profiles: neighbouring pings each side (along track) ...
-    int profile_beams = 8;        // ... and beams each side (across the fan); 0 = off
+    int profile_beams = 0;        // ... and beams each side (across the fan); 0 = off
     double profile_sigmas = 5.0;  // off the neighbours' line by this many spreads ...
     double profile_min_m = 0.3;   // ... and this far (and margin_rel of the range)
     double profile_max_spread = 0.03;  // where the neighbours agree: spread / range
