@@ -57,29 +57,37 @@ std::int32_t Find(std::vector<std::int32_t>& parent, std::int32_t i) {
     return i;
 }
 
-// Calls visit(voxel index, t_enter) for every voxel of `grid` (active) the segment
-// [t0, t1] (index units) of `ray` passes through, in order; visit returns false to stop.
-template <typename Visit>
-void MarchVoxels(
-    const RayT& ray_in, const openvdb::Int32Grid& grid, double t0, double t1, Visit&& visit) {
-    if (!(t1 > t0)) return;
-    RayT ray = ray_in;
-    ray.setTimes(t0, t1);
-    auto acc = grid.getConstAccessor();
-    Hdda hdda;
-    std::vector<RayT::TimeSpan> spans;
-    hdda.hits(ray, acc, spans);
-    for (const RayT::TimeSpan& span : spans) {
-        RayT segment = ray_in;
-        segment.setTimes(std::max(t0, span.t0), std::min(t1, span.t1));
-        if (!segment.valid()) continue;
-        openvdb::math::DDA<RayT, 0> dda(segment);
-        do {
-            std::int32_t v = kNone;
-            if (acc.probeValue(dda.voxel(), v) && !visit(v, dda.time())) return;
-        } while (dda.step());
+// Marches rays through the active voxels of one grid: visit(voxel index, t_enter) for every
+// voxel the segment [t0, t1] (index units) of a ray passes through, in order; visit returns
+// false to stop. One per thread: it keeps its accessor (the tree's node cache) and its list of
+// spans between rays.
+class Marcher {
+public:
+    explicit Marcher(const openvdb::Int32Grid& grid) : acc_(grid.getConstAccessor()) {}
+
+    template <typename Visit>
+    void operator()(const RayT& ray_in, double t0, double t1, Visit&& visit) {
+        if (!(t1 > t0)) return;
+        RayT ray = ray_in;
+        ray.setTimes(t0, t1);
+        hdda_.hits(ray, acc_, spans_);
+        for (const RayT::TimeSpan& span : spans_) {
+            RayT segment = ray_in;
+            segment.setTimes(std::max(t0, span.t0), std::min(t1, span.t1));
+            if (!segment.valid()) continue;
+            openvdb::math::DDA<RayT, 0> dda(segment);
+            do {
+                std::int32_t v = kNone;
+                if (acc_.probeValue(dda.voxel(), v) && !visit(v, dda.time())) return;
+            } while (dda.step());
+        }
     }
-}
+
+private:
+    openvdb::Int32Grid::ConstAccessor acc_;
+    Hdda hdda_;
+    std::vector<RayT::TimeSpan> spans_;
+};
 
 double Median(std::vector<double>& v) {
     const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -96,7 +104,9 @@ double Median(std::vector<double>& v) {
 // off its profile. Echoes come in runs (of beams, of pings): only a sounding with a neighbour
 // (beam or ping) also off is rejected; a lone one is the terrain's (an edge the line does not
 // follow) or the per-ping spike filter's to judge.
-std::vector<char> Profiles(const georef::GeorefResult& geo, const CleanConfig& config) {
+std::vector<char> Profiles(const georef::GeorefResult& geo,
+                           const CleanConfig& config,
+                           const std::vector<std::uint8_t>& decided) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     std::vector<char> off(n, 0);
@@ -111,6 +121,17 @@ std::vector<char> Profiles(const georef::GeorefResult& geo, const CleanConfig& c
         // Off the line through the neighbours at(-w..w) (without 0)?
         auto off_line = [&](int w, const auto& at, double r0) {
             if (w <= 0) return false;
+            // Most soundings lie on a smooth profile: halfway between the window's ends and
+            // between its half-way points (an echo run shorter than the window cannot hold
+            // both pairs), they are not off it.
+            {
+                const double a = at(-w), c = at(w), a2 = at(-w / 2), c2 = at(w / 2);
+                const double tol = 0.5 * config.profile_min_m;
+                if (std::isfinite(a) && std::isfinite(c) && std::isfinite(a2) &&
+                    std::isfinite(c2) && std::abs(r0 - 0.5 * (a + c)) < tol &&
+                    std::abs(r0 - 0.5 * (a2 + c2)) < tol)
+                    return false;
+            }
             slopes.clear();
             for (int d = 1; d <= w; ++d) {
                 const double a = at(-d), c = at(d);
@@ -133,6 +154,11 @@ std::vector<char> Profiles(const georef::GeorefResult& geo, const CleanConfig& c
                                                    config.profile_sigmas * spread});
         };
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            // Rejected already: off for the runs below, not judged again.
+            if (decided[j] != 0) {
+                off[j] = 1;
+                continue;
+            }
             const auto k = static_cast<std::int64_t>(P.ping[j]);
             const auto b = static_cast<std::int64_t>(P.beam[j]);
             auto value = [&](std::int64_t q, std::int64_t c) -> double {
@@ -154,7 +180,7 @@ std::vector<char> Profiles(const georef::GeorefResult& geo, const CleanConfig& c
     }
     std::vector<char> run(n, 0);
     for (std::size_t j = 0; j < n; ++j) {
-        if (!off[j]) continue;
+        if (!off[j] || decided[j] != 0) continue;
         const std::size_t k = P.ping[j], b = P.beam[j];
         run[j] = (b > 0 && at[k * beams + b - 1] >= 0) ||
                  (b + 1 < beams && at[k * beams + b + 1] >= 0) ||
@@ -376,6 +402,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
     std::vector<std::int32_t> first_crossing(n, kNone);
     const double min_sin = std::sin(config.min_crossing_deg * M_PI / 180.0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        Marcher march(*index);
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             double len = 0;
             const RayT ray = ray_of(j, &len);
@@ -385,7 +412,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
             const std::int32_t own_id = voxel_of[j];
             const Eigen::Vector3d& s = sensor(j);
             const Eigen::Vector3d d = (P.position_world[j] - s) / range;
-            MarchVoxels(ray, *index, 0.0, stop / v, [&](std::int32_t vox, double) {
+            march(ray, 0.0, stop / v, [&](std::int32_t vox, double) {
                 if (vox == own_id) return true;
                 free_rays[vox].fetch_add(1, std::memory_order_relaxed);
                 if (!X.patch[vox]) return true;
@@ -433,7 +460,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
         return X.patch[vox] && clean_hits[vox] >= config.surface_min_hits &&
                x < config.solid_ratio * clean_hits[vox];
     };
-    c.seconds_free_space = Seconds(t_start);
+    c.seconds_rays = Seconds(t_start);
     if (!report(0.4)) return result.cancelled = true, result;
 
     // ---- 3. clusters in front of the terrain ----
@@ -446,6 +473,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
     std::vector<std::atomic<std::int32_t>> comp_behind(nv), comp_points(nv);
     if (c.clusters > 0) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+            Marcher march(*terrain_grid);
             for (std::size_t j = r.begin(); j != r.end(); ++j) {
                 const std::int32_t own = voxel_of[j];
                 if (terrain(own)) continue;
@@ -455,7 +483,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 if (!(len > 0)) continue;
                 const double from = len + margin(len * v) / v;
                 bool behind = false;
-                MarchVoxels(ray, *terrain_grid, from, from + behind_vox, [&](std::int32_t, double) {
+                march(ray, from, from + behind_vox, [&](std::int32_t, double) {
                     behind = true;
                     return false;
                 });
@@ -492,8 +520,10 @@ CleanResult Clean(const georef::GeorefResult& geo,
             result.status[j] = static_cast<std::uint8_t>(st);
         }
     });
+    c.seconds_verdicts = Seconds(t_start);
     // ---- 5. the range profiles: what the 3D tests left ----
-    const std::vector<char> along = Profiles(geo, config);
+    t_start = std::chrono::steady_clock::now();
+    const std::vector<char> along = Profiles(geo, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
         if (along[j] && result.status[j] == 0)
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
@@ -516,7 +546,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 break;
         }
     }
-    c.seconds_multipath = Seconds(t_start);
+    c.seconds_profiles = Seconds(t_start);
     report(1.0);
     return result;
 }

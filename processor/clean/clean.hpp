@@ -81,7 +81,10 @@ struct CleanCounts {
     std::int64_t cluster = 0;
     std::int64_t multipath = 0;
     std::int64_t profile = 0;
-    double seconds_voxels = 0, seconds_free_space = 0, seconds_clusters = 0, seconds_multipath = 0;
+    // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
+    // voxels and rays, the range profiles.
+    double seconds_voxels = 0, seconds_rays = 0, seconds_clusters = 0, seconds_verdicts = 0,
+           seconds_profiles = 0;
 };
 
 struct CleanResult {

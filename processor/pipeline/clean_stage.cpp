@@ -178,9 +178,10 @@ Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  {"run_id", s.model.run_id},
                  {"earlier_pass", earlier},
                  {"seconds_voxels", c.seconds_voxels},
-                 {"seconds_free_space", c.seconds_free_space},
+                 {"seconds_rays", c.seconds_rays},
                  {"seconds_clusters", c.seconds_clusters},
-                 {"seconds_multipath", c.seconds_multipath}},
+                 {"seconds_verdicts", c.seconds_verdicts},
+                 {"seconds_profiles", c.seconds_profiles}},
                 clock);
     return Ok{};
 }
