@@ -373,7 +373,10 @@ Payload CleaningPayload(const std::vector<std::uint8_t>& cleaning) {
     return out;
 }
 
+// `max_soundings`: the most range counts the file could hold (each takes 4 bytes of it): a
+// larger count is corrupt, and is refused before the flags are allocated.
 Status CleaningFromPayload(const std::vector<std::uint8_t>& bytes,
+                           std::uint64_t max_soundings,
                            std::vector<std::uint8_t>& cleaning) {
     Cursor in(bytes, "cleaning");
     std::uint64_t n = 0;
@@ -386,7 +389,9 @@ Status CleaningFromPayload(const std::vector<std::uint8_t>& bytes,
     if (index.size() != code.size())
         return Error{"section cleaning: " + std::to_string(index.size()) + " indices for " +
                      std::to_string(code.size()) + " statuses"};
-    if (n > (std::uint64_t{1} << 32)) return Error{"section cleaning: sounding count too large"};
+    if (n > (std::uint64_t{1} << 32) || n > max_soundings)
+        return Error{"section cleaning: sounding count " + std::to_string(n) +
+                     " too large for the file"};
     cleaning.assign(n, 0);
     for (std::size_t i = 0; i < index.size(); ++i) {
         if (index[i] >= n || (i > 0 && index[i] <= index[i - 1]))
@@ -594,7 +599,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
         } else if (tag == "beam_angle") {
             st = BeamAngleFromPayload(payload, m.ingest.pings);
         } else if (tag == "cleaning") {
-            st = CleaningFromPayload(payload, m.flags.cleaning);
+            st = CleaningFromPayload(payload, size / sizeof(std::uint32_t), m.flags.cleaning);
         } else {
             st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
         }

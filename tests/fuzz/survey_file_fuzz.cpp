@@ -2,8 +2,9 @@
 // libFuzzer target for the survey file reader (processor/survey/survey_file.cpp). The input is
 // read as the file, then again with every section's CRC-32 recomputed, so that the fuzzer
 // reaches the count, JSON and consistency checks behind the checksums too. A read either fails
-// with an error naming the file or gives a consistent survey; a state-only read never fails
-// where a full read succeeds.
+// with an error naming the file or gives a consistent survey (the cleaning's flags included: one
+// per sounding, each a cleaning status or 0); a state-only read never fails where a full read
+// succeeds.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -34,6 +35,15 @@ void ReadOne(const std::vector<std::uint8_t>& bytes) {
         std::abort();
     if (pings.has_beam_angles() && pings.beam_angles_deg.size() != pings.range_counts.size())
         std::abort();
+    // The cleaning's flags: one per sounding, each accepted or a cleaning status.
+    const auto& cleaning = r->flags.cleaning;
+    if (!cleaning.empty() && cleaning.size() != pings.range_counts.size()) std::abort();
+    for (const std::uint8_t c : cleaning) {
+        if (c != 0 && !pitmap::proc::georef::IsCleaningStatus(
+                          static_cast<pitmap::proc::georef::SoundingStatus>(c)))
+            std::abort();
+    }
+    if (!r->flags.manual.empty()) std::abort();  // the hand edits are never in the file
     for (const auto& p : pings.pings) {
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > pings.range_counts.size())
             std::abort();

@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <optional>
+#include <utility>
 
 #include "common/frames.hpp"
 
@@ -224,6 +227,251 @@ TEST(Georef, RefractionCorrectsSteeringAndRange) {
     for (std::size_t j = 0; j < before.size(); ++j) {
         EXPECT_NEAR((traced.points.position_world[j] - before[j]).norm(), 0.0, 1e-5);
     }
+}
+
+}  // namespace
+}  // namespace pitmap::proc::georef
+
+// Issue 35: the statuses of soundings. Georef's own verdicts (no detection, range gate, spike)
+// and the flags decided elsewhere (the cleaning, the hand edits) resolve into one status per
+// sounding (Resolve); the views return the soundings by that status.
+namespace pitmap::proc::georef {
+namespace {
+
+constexpr std::size_t kBeams = 121;
+constexpr std::size_t kNoDetectionBeam = 10;
+constexpr std::size_t kRangeGateBeam = 20;
+constexpr std::size_t kSpikeBeam = 60;
+
+// Two pings over the flat seabed with one sounding of each of georef's own rejections, and a
+// third ping after the end of the navigation (never georeferenced).
+struct StatusSurvey {
+    NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
+    PingSeries pings;
+    StatusSurvey() {
+        for (std::int64_t t : {10'000, 50'000, 9'000'000}) {
+            const std::size_t at = pings.range_counts.size();
+            AddFlatPing(pings, t, 0.0, static_cast<int>(kBeams));
+            pings.range_counts[at + kNoDetectionBeam] = 0;  // no detection
+            pings.range_counts[at + kRangeGateBeam] = 100;  // 0.1 m: range gate
+            pings.range_counts[at + kSpikeBeam] = 5000;     // 5 m among 10 m: a spike
+        }
+    }
+    SoundingFlags NoFlags() const {
+        SoundingFlags f;
+        f.cleaning.assign(pings.range_counts.size(), 0);
+        f.manual.assign(pings.range_counts.size(), 0);
+        return f;
+    }
+    GeorefResult Run(const SoundingFlags* flags, SoundingView view) const {
+        return RunGeoref(nav, pings, SonarMount{}, GeorefConfig{}, {}, {}, nullptr, flags, view);
+    }
+};
+
+// The soundings of a view: (ping, beam) -> status (0 in the accepted view, which has none).
+std::map<std::pair<std::uint32_t, std::uint16_t>, int> Soundings(const GeorefResult& r) {
+    std::map<std::pair<std::uint32_t, std::uint16_t>, int> out;
+    for (std::size_t j = 0; j < r.points.size(); ++j) {
+        const int status = r.points.status.empty() ? 0 : r.points.status[j];
+        const bool fresh =
+            out.emplace(std::pair{r.points.ping[j], r.points.beam[j]}, status).second;
+        EXPECT_TRUE(fresh) << "ping " << r.points.ping[j] << " beam " << r.points.beam[j];
+    }
+    return out;
+}
+
+std::optional<int> StatusOf(const GeorefResult& r, std::uint32_t ping, std::size_t beam) {
+    const auto s = Soundings(r);
+    const auto it = s.find({ping, static_cast<std::uint16_t>(beam)});
+    if (it == s.end()) return std::nullopt;
+    return it->second;
+}
+
+constexpr int Code(SoundingStatus s) {
+    return static_cast<int>(s);
+}
+
+// The counts per status cover every sounding of the georeferenced pings (not the refused one)
+// once, and the named counters are their sums.
+void ExpectCountsAddUp(const GeorefResult& r) {
+    std::int64_t total = 0;
+    for (const std::int64_t n : r.counts.status) total += n;
+    EXPECT_EQ(r.counts.pings_georeferenced, 2);
+    EXPECT_EQ(total, 2 * static_cast<std::int64_t>(kBeams));
+    EXPECT_EQ(r.counts.no_detection, r.counts.status[Code(SoundingStatus::kNoDetection)]);
+    EXPECT_EQ(r.counts.range_gate, r.counts.status[Code(SoundingStatus::kRangeGate)]);
+    EXPECT_EQ(r.counts.spikes, r.counts.status[Code(SoundingStatus::kSpike)]);
+    EXPECT_EQ(r.counts.manual, r.counts.status[Code(SoundingStatus::kManual)]);
+    std::int64_t cleaned = 0;
+    for (int code = 0; code < kNumSoundingStatus; ++code) {
+        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) cleaned += r.counts.status[code];
+    }
+    EXPECT_EQ(r.counts.cleaned, cleaned);
+    EXPECT_EQ(r.counts.points, static_cast<std::int64_t>(r.points.size()));
+}
+
+TEST(GeorefViews, ASpikeIsRejectedNotAccepted) {
+    const StatusSurvey s;
+    const GeorefResult acc = s.Run(nullptr, SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(nullptr, SoundingView::kRejected);
+    EXPECT_TRUE(acc.points.status.empty());
+    ASSERT_EQ(rej.points.status.size(), rej.points.size());
+    for (std::uint32_t ping : {0u, 1u}) {
+        EXPECT_FALSE(StatusOf(acc, ping, kSpikeBeam)) << ping;
+        EXPECT_EQ(StatusOf(rej, ping, kSpikeBeam), Code(SoundingStatus::kSpike)) << ping;
+        EXPECT_EQ(StatusOf(rej, ping, kRangeGateBeam), Code(SoundingStatus::kRangeGate)) << ping;
+        // Without a range there is no position: in neither view.
+        EXPECT_FALSE(StatusOf(acc, ping, kNoDetectionBeam)) << ping;
+        EXPECT_FALSE(StatusOf(rej, ping, kNoDetectionBeam)) << ping;
+    }
+    EXPECT_EQ(rej.points.size(), 4u);
+    EXPECT_EQ(acc.points.size(), 2 * (kBeams - 3));
+    // The two views are the same soundings at the same places, split by status.
+    for (std::size_t j = 0; j < rej.points.size(); ++j) {
+        EXPECT_FALSE(StatusOf(acc, rej.points.ping[j], rej.points.beam[j]));
+    }
+    for (const GeorefResult* r : {&acc, &rej}) {
+        ExpectCountsAddUp(*r);
+        EXPECT_EQ(r->counts.spikes, 2);
+        EXPECT_EQ(r->counts.range_gate, 2);
+        EXPECT_EQ(r->counts.no_detection, 2);
+        EXPECT_EQ(r->counts.status[0], 2 * static_cast<std::int64_t>(kBeams - 3));
+    }
+}
+
+TEST(GeorefViews, AManualRestoreOverridesTheSpikeAndTheRangeGateNeverNoDetection) {
+    const StatusSurvey s;
+    SoundingFlags f = s.NoFlags();
+    for (std::size_t beam : {kNoDetectionBeam, kRangeGateBeam, kSpikeBeam}) {
+        f.manual[beam] = static_cast<std::uint8_t>(ManualEdit::kRestore);  // ping 0 only
+    }
+    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+    for (const GeorefResult* r : {&acc, &cand}) {
+        EXPECT_EQ(StatusOf(*r, 0, kSpikeBeam), 0);
+        EXPECT_EQ(StatusOf(*r, 0, kRangeGateBeam), 0);
+        EXPECT_FALSE(StatusOf(*r, 0, kNoDetectionBeam));
+        // The other ping's are not restored.
+        EXPECT_FALSE(StatusOf(*r, 1, kSpikeBeam));
+        EXPECT_FALSE(StatusOf(*r, 1, kRangeGateBeam));
+    }
+    EXPECT_FALSE(StatusOf(rej, 0, kSpikeBeam));
+    EXPECT_FALSE(StatusOf(rej, 0, kRangeGateBeam));
+    EXPECT_EQ(StatusOf(rej, 1, kSpikeBeam), Code(SoundingStatus::kSpike));
+    EXPECT_EQ(acc.points.size(), 2 * (kBeams - 3) + 2);
+    for (const GeorefResult* r : {&acc, &rej, &cand}) {
+        ExpectCountsAddUp(*r);
+        EXPECT_EQ(r->counts.spikes, 1);
+        EXPECT_EQ(r->counts.range_gate, 1);
+        EXPECT_EQ(r->counts.no_detection, 2);
+        EXPECT_EQ(r->counts.manual, 0);
+    }
+}
+
+TEST(GeorefViews, AManualRejectMovesAnAcceptedSoundingToTheRejectedView) {
+    const StatusSurvey s;
+    SoundingFlags f = s.NoFlags();
+    const std::size_t beam = 30;
+    f.manual[kBeams + beam] = static_cast<std::uint8_t>(ManualEdit::kReject);  // ping 1
+    // A manual reject of a spike: georef's own verdict stays the reason.
+    f.manual[kSpikeBeam] = static_cast<std::uint8_t>(ManualEdit::kReject);
+    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+    EXPECT_FALSE(StatusOf(acc, 1, beam));
+    EXPECT_EQ(StatusOf(acc, 0, beam), 0);
+    EXPECT_EQ(StatusOf(rej, 1, beam), Code(SoundingStatus::kManual));
+    EXPECT_FALSE(StatusOf(rej, 0, beam));
+    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(SoundingStatus::kSpike));
+    // What the cleaning decides on leaves out what was rejected by hand.
+    EXPECT_FALSE(StatusOf(cand, 1, beam));
+    EXPECT_EQ(StatusOf(cand, 0, beam), 0);
+    // The rejected sounding is georeferenced like the others (on the seabed).
+    for (std::size_t j = 0; j < rej.points.size(); ++j) {
+        if (rej.points.status[j] == Code(SoundingStatus::kManual)) {
+            EXPECT_NEAR(rej.points.position_world[j].z(), -kDepthM, 2e-3);
+        }
+    }
+    for (const GeorefResult* r : {&acc, &rej, &cand}) {
+        ExpectCountsAddUp(*r);
+        EXPECT_EQ(r->counts.manual, 1);
+        EXPECT_EQ(r->counts.spikes, 2);
+    }
+}
+
+TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
+    const StatusSurvey s;
+    SoundingFlags f = s.NoFlags();
+    f.cleaning[40] = static_cast<std::uint8_t>(SoundingStatus::kFreeSpace);
+    f.cleaning[kBeams + 41] = static_cast<std::uint8_t>(SoundingStatus::kAlongTrack);
+    // The cleaning's verdict on a spike: georef's own verdict stays, and it is no candidate.
+    f.cleaning[kSpikeBeam] = static_cast<std::uint8_t>(SoundingStatus::kCluster);
+    // A sounding both cleaned and rejected by hand: the hand wins, and it is no candidate.
+    f.cleaning[50] = static_cast<std::uint8_t>(SoundingStatus::kMultipath);
+    f.manual[50] = static_cast<std::uint8_t>(ManualEdit::kReject);
+    // A sounding cleaned and restored by hand: accepted.
+    f.cleaning[kBeams + 51] = static_cast<std::uint8_t>(SoundingStatus::kMultipath);
+    f.manual[kBeams + 51] = static_cast<std::uint8_t>(ManualEdit::kRestore);
+    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+
+    EXPECT_FALSE(StatusOf(acc, 0, 40));
+    EXPECT_FALSE(StatusOf(acc, 1, 41));
+    EXPECT_EQ(StatusOf(rej, 0, 40), Code(SoundingStatus::kFreeSpace));
+    EXPECT_EQ(StatusOf(rej, 1, 41), Code(SoundingStatus::kAlongTrack));
+    EXPECT_EQ(StatusOf(cand, 0, 40), Code(SoundingStatus::kFreeSpace));
+    EXPECT_EQ(StatusOf(cand, 1, 41), Code(SoundingStatus::kAlongTrack));
+
+    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(SoundingStatus::kSpike));
+    EXPECT_FALSE(StatusOf(cand, 0, kSpikeBeam));
+
+    EXPECT_EQ(StatusOf(rej, 0, 50), Code(SoundingStatus::kManual));
+    EXPECT_FALSE(StatusOf(cand, 0, 50));
+    EXPECT_FALSE(StatusOf(acc, 0, 50));
+
+    EXPECT_EQ(StatusOf(acc, 1, 51), 0);
+    EXPECT_EQ(StatusOf(cand, 1, 51), 0);
+    EXPECT_FALSE(StatusOf(rej, 1, 51));
+
+    // Candidates: every accepted sounding and the two cleaned ones, nothing else.
+    EXPECT_EQ(cand.points.size(), acc.points.size() + 2);
+    for (std::size_t j = 0; j < acc.points.size(); ++j) {
+        EXPECT_EQ(StatusOf(cand, acc.points.ping[j], acc.points.beam[j]), 0);
+    }
+    for (const GeorefResult* r : {&acc, &rej, &cand}) {
+        ExpectCountsAddUp(*r);
+        EXPECT_EQ(r->counts.cleaned, 2);
+        EXPECT_EQ(r->counts.manual, 1);
+        EXPECT_EQ(r->counts.spikes, 2);
+        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kFreeSpace)], 1);
+        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kAlongTrack)], 1);
+        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kCluster)], 0);
+        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kMultipath)], 0);
+    }
+}
+
+// Resolve on its own, over every pair of a georef verdict and the flags.
+TEST(GeorefViews, ResolveOrdersTheVerdicts) {
+    SoundingFlags f;
+    f.cleaning = {0, static_cast<std::uint8_t>(SoundingStatus::kCluster)};
+    f.manual = {0, 0, static_cast<std::uint8_t>(ManualEdit::kReject)};
+    using S = SoundingStatus;
+    // Beyond the vectors: nothing decided.
+    EXPECT_EQ(Resolve(S::kAccepted, f, 7), S::kAccepted);
+    EXPECT_EQ(Resolve(S::kAccepted, f, 1), S::kCluster);
+    EXPECT_EQ(Resolve(S::kSpike, f, 1), S::kSpike);
+    EXPECT_EQ(Resolve(S::kAccepted, f, 2), S::kManual);
+    EXPECT_EQ(Resolve(S::kRangeGate, f, 2), S::kRangeGate);
+    f.manual = {static_cast<std::uint8_t>(ManualEdit::kRestore),
+                static_cast<std::uint8_t>(ManualEdit::kRestore)};
+    for (S own : {S::kAccepted, S::kRangeGate, S::kSpike}) {
+        EXPECT_EQ(Resolve(own, f, 0), S::kAccepted) << ToString(own);
+        EXPECT_EQ(Resolve(own, f, 1), S::kAccepted) << ToString(own);
+    }
+    EXPECT_EQ(Resolve(S::kNoDetection, f, 0), S::kNoDetection);
+    EXPECT_EQ(Resolve(S::kRefraction, f, 1), S::kRefraction);
 }
 
 }  // namespace

@@ -3,7 +3,8 @@
 // alone loads without the big sections; truncated, overwritten (20 seeds), crafted (right
 // CRCs, wrong content) and foreign files are clear errors naming the file, in memory bounded by
 // the file's size; the georeferencing view puts soundings on the trajectory version asked for;
-// a calibration is undone exactly.
+// a calibration is undone exactly; the cleaning's flags round trip sparse, are checked, and a
+// format-3 file (without them) still loads.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -400,7 +401,7 @@ TEST_F(SurveyFile, IntensitiesRoundTripAndAreOnlyWrittenWhenThere) {
     std::uint32_t version = 0;
     std::memcpy(&version, good_.data() + 8, 4);
     EXPECT_EQ(version, kSurveyFormatVersion);
-    EXPECT_EQ(version, 3u);
+    EXPECT_EQ(version, 4u);
 
     SurveyModel none = SmallSurvey();
     none.ingest.pings.intensities.clear();
@@ -525,6 +526,186 @@ TEST_F(SurveyFile, AFailedSaveKeepsThePreviousFile) {
     const Status st = SaveSurvey(path_, SmallSurvey());
     EXPECT_FALSE(st.ok());
     EXPECT_EQ(ReadBytes(path_), good_);
+}
+
+// ---- the cleaning's flags (issue 35: format 4's optional cleaning section) ----
+
+// Cleaning statuses on some soundings of SmallSurvey (1210 of them), hand edits on others.
+SurveyModel CleanedSurvey() {
+    SurveyModel m = SmallSurvey();
+    const std::size_t n = m.ingest.pings.range_counts.size();
+    m.flags.cleaning.assign(n, 0);
+    m.flags.cleaning[0] = static_cast<std::uint8_t>(georef::SoundingStatus::kFreeSpace);
+    m.flags.cleaning[17] = static_cast<std::uint8_t>(georef::SoundingStatus::kMultipath);
+    m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(georef::SoundingStatus::kCluster);
+    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(georef::SoundingStatus::kAlongTrack);
+    m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
+    m.flags.manual.assign(n, 0);
+    m.flags.manual[5] = static_cast<std::uint8_t>(georef::ManualEdit::kReject);
+    return m;
+}
+
+// A cleaning payload as survey_file.cpp lays it out: the sounding count, then the indices
+// (u32) and the statuses (u8), each as a count, an element size and the elements.
+std::vector<std::uint8_t> CleaningBytes(std::uint64_t soundings,
+                                        const std::vector<std::uint32_t>& index,
+                                        const std::vector<std::uint8_t>& code) {
+    std::vector<std::uint8_t> b;
+    const auto put = [&b](const void* p, std::size_t n) {
+        const auto* c = static_cast<const std::uint8_t*>(p);
+        b.insert(b.end(), c, c + n);
+    };
+    const auto put_u64 = [&put](std::uint64_t v) { put(&v, 8); };
+    put_u64(soundings);
+    put_u64(index.size());
+    put_u64(4);
+    put(index.data(), index.size() * 4);
+    put_u64(code.size());
+    put_u64(1);
+    put(code.data(), code.size());
+    return b;
+}
+
+// The file with its cleaning section's payload replaced (length and CRC right).
+std::vector<std::uint8_t> WithCleaning(const std::vector<std::uint8_t>& file,
+                                       const std::vector<std::uint8_t>& payload) {
+    const SectionAt s = Sections(file).at("cleaning");
+    std::vector<std::uint8_t> out(file.begin(),
+                                  file.begin() + static_cast<std::ptrdiff_t>(s.payload_at));
+    out.insert(out.end(), payload.begin(), payload.end());
+    out.insert(
+        out.end(), file.begin() + static_cast<std::ptrdiff_t>(s.payload_at + s.bytes), file.end());
+    const std::uint64_t n = payload.size();
+    std::memcpy(out.data() + s.crc_at - 8, &n, 8);
+    FixCrcs(out);
+    return out;
+}
+
+TEST_F(SurveyFile, TheCleaningRoundTripsWithoutTheHandEdits) {
+    const SurveyModel m = CleanedSurvey();
+    ASSERT_TRUE(SaveSurvey(path_, m));
+    const std::vector<std::uint8_t> bytes = ReadBytes(path_);
+    ASSERT_TRUE(Sections(bytes).count("cleaning"));
+    // Sparse: five soundings, not one byte per sounding.
+    EXPECT_EQ(Sections(bytes).at("cleaning").bytes, 8 + 16 + 5 * 4 + 16 + 5);
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->flags.cleaning, m.flags.cleaning);
+    // The hand edits live in P/edits.json (edit_log.hpp), never in the survey file.
+    EXPECT_TRUE(r->flags.manual.empty());
+    // A state-only load reads no flags.
+    const auto state = LoadSurvey(path_, LoadParts::kState);
+    ASSERT_TRUE(state.ok()) << state.error().message;
+    EXPECT_TRUE(state->flags.cleaning.empty());
+    // Saved again, the same bytes.
+    ASSERT_TRUE(SaveSurvey(path_, *r));
+    EXPECT_EQ(ReadBytes(path_), bytes);
+}
+
+TEST_F(SurveyFile, AModelWithoutCleaningWritesNoSection) {
+    EXPECT_FALSE(Sections(good_).count("cleaning"));
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->flags.cleaning.empty());
+    // A cleaning that rejected nothing is kept as such (the stage ran): every sounding 0.
+    SurveyModel none = SmallSurvey();
+    none.flags.cleaning.assign(none.ingest.pings.range_counts.size(), 0);
+    ASSERT_TRUE(SaveSurvey(path_, none));
+    const auto back = LoadSurvey(path_);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(back->flags.cleaning, none.flags.cleaning);
+}
+
+TEST_F(SurveyFile, ACorruptCleaningSectionIsAnErrorNamingTheFile) {
+    ASSERT_TRUE(SaveSurvey(path_, CleanedSurvey()));
+    const std::vector<std::uint8_t> cleaned = ReadBytes(path_);
+    const std::uint64_t n = SmallSurvey().ingest.pings.range_counts.size();
+    const auto n32 = static_cast<std::uint32_t>(n);
+    const std::uint8_t free_space = 6, spike = 3, manual = 9;
+    // The crafting itself is right: a well-formed payload loads.
+    WriteBytes(path_, WithCleaning(cleaned, CleaningBytes(n, {3, 9}, {free_space, 7})));
+    const auto ok = LoadSurvey(path_);
+    ASSERT_TRUE(ok.ok()) << ok.error().message;
+    EXPECT_EQ(ok->flags.cleaning[9], 7);
+
+    const struct {
+        const char* what;
+        std::vector<std::uint8_t> payload;
+        const char* says;
+    } cases[] = {
+        {"indices out of order",
+         CleaningBytes(n, {9, 3}, {free_space, free_space}),
+         "out of order"},
+        {"an index twice", CleaningBytes(n, {9, 9}, {free_space, free_space}), "out of order"},
+        {"an index beyond the soundings",
+         CleaningBytes(n, {3, n32}, {free_space, free_space}),
+         "beyond"},
+        {"a spike (georef's own status)", CleaningBytes(n, {3}, {spike}), "not a cleaning"},
+        {"a manual status", CleaningBytes(n, {3}, {manual}), "not a cleaning"},
+        {"accepted, listed", CleaningBytes(n, {3}, {0}), "not a cleaning"},
+        {"an unknown status", CleaningBytes(n, {3}, {200}), "not a cleaning"},
+        {"more indices than statuses", CleaningBytes(n, {3, 4}, {free_space}), "indices for"},
+        {"fewer soundings than the range counts",
+         CleaningBytes(n - 1, {3}, {free_space}),
+         "range counts"},
+        {"more soundings than the range counts",
+         CleaningBytes(n + 1, {3}, {free_space}),
+         "range counts"},
+        {"a truncated payload",
+         [&] {
+             std::vector<std::uint8_t> b = CleaningBytes(n, {3}, {free_space});
+             b.pop_back();
+             return b;
+         }(),
+         "remain"},
+    };
+    for (const auto& c : cases) {
+        const std::vector<std::uint8_t> bad = WithCleaning(cleaned, c.payload);
+        ExpectError(bad, c.what);
+        const auto r = LoadSurvey(path_);
+        ASSERT_FALSE(r.ok());
+        EXPECT_NE(r.error().message.find("cleaning"), std::string::npos)
+            << c.what << ": " << r.error().message;
+        EXPECT_NE(r.error().message.find(c.says), std::string::npos)
+            << c.what << ": " << r.error().message;
+    }
+}
+
+// A sounding count of 4 Gi in a small file must not allocate 4 GiB before the error (the
+// count cannot exceed what the file's range counts could hold).
+TEST_F(SurveyFile, AHugeCleaningCountFailsWithoutAllocating) {
+    ASSERT_TRUE(SaveSurvey(path_, CleanedSurvey()));
+    const std::vector<std::uint8_t> cleaned = ReadBytes(path_);
+    const double rss_before_mb = PeakRssMb();
+    for (std::uint64_t huge : {std::uint64_t{1} << 32,
+                               (std::uint64_t{1} << 32) - 1,
+                               std::uint64_t{1} << 31,
+                               ~std::uint64_t{0}}) {
+        ExpectError(WithCleaning(cleaned, CleaningBytes(huge, {3}, {6})),
+                    "sounding count " + std::to_string(huge));
+    }
+    EXPECT_LT(PeakRssMb() - rss_before_mb, 64.0) << "memory stays bounded by the file size";
+}
+
+TEST_F(SurveyFile, AFormat3FileIsReadWithoutCleaningAndCannotHoldIt) {
+    std::vector<std::uint8_t> v3 = good_;
+    const std::uint32_t three = 3;
+    std::memcpy(v3.data() + 8, &three, 4);
+    WriteBytes(path_, v3);
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->flags.cleaning.empty());
+    EXPECT_TRUE(r->ingest.pings.has_beam_angles());
+    EXPECT_EQ(r->ingest.pings.range_counts, SmallSurvey().ingest.pings.range_counts);
+    // A format 3 file with the section is an error, not a guess.
+    ASSERT_TRUE(SaveSurvey(path_, CleanedSurvey()));
+    std::vector<std::uint8_t> crafted = ReadBytes(path_);
+    std::memcpy(crafted.data() + 8, &three, 4);
+    ExpectError(crafted, "format 3 with a cleaning section");
+    const auto c = LoadSurvey(path_);
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.error().message.find("unknown section \"cleaning\""), std::string::npos)
+        << c.error().message;
 }
 
 TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
