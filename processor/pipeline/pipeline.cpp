@@ -477,6 +477,11 @@ Status GeorefSurvey(Survey& s,
     // A new georeference starts a new survey model (a new run) and a new report; every product
     // of an earlier one goes first, so that a failed or killed georef leaves nothing of the
     // earlier survey beside what it wrote.
+    // A damaged edit log stops here, before anything of the folder is removed (whether it is
+    // this survey's is known once the inputs are read).
+    if (const std::string edits = out_dir + "/" + survey::kEditLogFileName; fs::exists(edits, ec)) {
+        if (auto e = survey::ReadEditLog(edits); !e) return e.error();
+    }
     if (auto r = RemoveProducts(out_dir, AllProducts()); !r) return r;
     s.model = survey::SurveyModel{};
     s.model.run_id = survey::NewRunId();
