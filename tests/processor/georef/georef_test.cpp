@@ -404,7 +404,7 @@ TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
     const StatusSurvey s;
     SoundingFlags f = s.NoFlags();
     f.cleaning[40] = static_cast<std::uint8_t>(SoundingStatus::kFreeSpace);
-    f.cleaning[kBeams + 41] = static_cast<std::uint8_t>(SoundingStatus::kAlongTrack);
+    f.cleaning[kBeams + 41] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     // The cleaning's verdict on a spike: georef's own verdict stays, and it is no candidate.
     f.cleaning[kSpikeBeam] = static_cast<std::uint8_t>(SoundingStatus::kCluster);
     // A sounding both cleaned and rejected by hand: the hand wins, and it is no candidate.
@@ -420,9 +420,9 @@ TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
     EXPECT_FALSE(StatusOf(acc, 0, 40));
     EXPECT_FALSE(StatusOf(acc, 1, 41));
     EXPECT_EQ(StatusOf(rej, 0, 40), Code(SoundingStatus::kFreeSpace));
-    EXPECT_EQ(StatusOf(rej, 1, 41), Code(SoundingStatus::kAlongTrack));
+    EXPECT_EQ(StatusOf(rej, 1, 41), Code(SoundingStatus::kProfile));
     EXPECT_EQ(StatusOf(cand, 0, 40), Code(SoundingStatus::kFreeSpace));
-    EXPECT_EQ(StatusOf(cand, 1, 41), Code(SoundingStatus::kAlongTrack));
+    EXPECT_EQ(StatusOf(cand, 1, 41), Code(SoundingStatus::kProfile));
 
     EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(SoundingStatus::kSpike));
     EXPECT_FALSE(StatusOf(cand, 0, kSpikeBeam));
@@ -446,7 +446,7 @@ TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
         EXPECT_EQ(r->counts.manual, 1);
         EXPECT_EQ(r->counts.spikes, 2);
         EXPECT_EQ(r->counts.status[Code(SoundingStatus::kFreeSpace)], 1);
-        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kAlongTrack)], 1);
+        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kProfile)], 1);
         EXPECT_EQ(r->counts.status[Code(SoundingStatus::kCluster)], 0);
         EXPECT_EQ(r->counts.status[Code(SoundingStatus::kMultipath)], 0);
     }

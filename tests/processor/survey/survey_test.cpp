@@ -538,7 +538,7 @@ SurveyModel CleanedSurvey() {
     m.flags.cleaning[0] = static_cast<std::uint8_t>(georef::SoundingStatus::kFreeSpace);
     m.flags.cleaning[17] = static_cast<std::uint8_t>(georef::SoundingStatus::kMultipath);
     m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(georef::SoundingStatus::kCluster);
-    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(georef::SoundingStatus::kAlongTrack);
+    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(georef::SoundingStatus::kProfile);
     m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
     m.flags.manual.assign(n, 0);
     m.flags.manual[5] = static_cast<std::uint8_t>(georef::ManualEdit::kReject);
