@@ -146,6 +146,28 @@ protected:
         return P;
     }
 
+    // A bad edit log in georeferenced folder P: clean stops naming it and leaves the survey and
+    // the points as they were; georef there stops too and leaves no survey with the log applied;
+    // the log (the user's) is kept as it is.
+    static void ExpectTheLogStopsCleanAndGeoref(const fs::path& P) {
+        const std::string log_before = ReadText(P / survey::kEditLogFileName);
+        const std::string survey_before = ReadText(P / survey::kSurveyFileName);
+        const std::string points_before = ReadText(P / "points.ply");
+        for (const char* command : {"clean", "georef"}) {
+            SCOPED_TRACE(command);
+            std::string out;
+            EXPECT_NE(Pitmap(command, P, &out), 0) << out;
+            EXPECT_TRUE(Contains(out, (P / survey::kEditLogFileName).string())) << out;
+            if (fs::exists(P / survey::kSurveyFileName)) {
+                EXPECT_EQ(ReadText(P / survey::kSurveyFileName), survey_before);
+            }
+            if (std::string(command) == "clean") {
+                EXPECT_EQ(ReadText(P / "points.ply"), points_before);
+            }
+        }
+        EXPECT_EQ(ReadText(P / survey::kEditLogFileName), log_before);
+    }
+
     // A run of 20 consecutive beams of one ping in the middle of the survey that georef
     // accepted (so that a manual reject is their only rejection).
     static survey::SoundingRun AcceptedRun(const fs::path& P) {
@@ -235,22 +257,8 @@ TEST_F(EditFlags, AnEditLogOfAnotherSurveyStopsTheCommandAndNothingIsApplied) {
 
     // Into a georeferenced folder: clean stops and the survey and points stay as they were.
     const fs::path P = Georef("foreign_existing");
-    const std::string survey_before = ReadText(P / survey::kSurveyFileName);
-    const std::string points_before = ReadText(P / "points.ply");
     fs::copy_file(Q / survey::kEditLogFileName, P / survey::kEditLogFileName);
-    out.clear();
-    EXPECT_NE(Pitmap("clean", P, &out), 0) << out;
-    EXPECT_TRUE(Contains(out, (P / survey::kEditLogFileName).string())) << out;
-    EXPECT_EQ(ReadText(P / survey::kSurveyFileName), survey_before);
-    EXPECT_EQ(ReadText(P / "points.ply"), points_before);
-    // georef again there stops too, and leaves no survey with the log applied.
-    out.clear();
-    EXPECT_NE(Pitmap("georef", P, &out), 0) << out;
-    EXPECT_TRUE(Contains(out, (P / survey::kEditLogFileName).string())) << out;
-    if (fs::exists(P / survey::kSurveyFileName)) {
-        EXPECT_EQ(ReadText(P / survey::kSurveyFileName), survey_before);
-    }
-    EXPECT_EQ(ReadText(P / survey::kEditLogFileName), foreign);
+    ExpectTheLogStopsCleanAndGeoref(P);
 }
 
 TEST_F(EditFlags, ADamagedEditLogStopsTheCommandAndNothingIsApplied) {
@@ -260,20 +268,7 @@ TEST_F(EditFlags, ADamagedEditLogStopsTheCommandAndNothingIsApplied) {
     const std::string whole = ReadText(P / survey::kEditLogFileName);
     const std::string half = whole.substr(0, whole.size() / 2);
     std::ofstream(P / survey::kEditLogFileName, std::ios::binary | std::ios::trunc) << half;
-    const std::string survey_before = ReadText(P / survey::kSurveyFileName);
-    const std::string points_before = ReadText(P / "points.ply");
-    std::string out;
-    EXPECT_NE(Pitmap("clean", P, &out), 0) << out;
-    EXPECT_TRUE(Contains(out, (P / survey::kEditLogFileName).string())) << out;
-    EXPECT_EQ(ReadText(P / survey::kSurveyFileName), survey_before);
-    EXPECT_EQ(ReadText(P / "points.ply"), points_before);
-    out.clear();
-    EXPECT_NE(Pitmap("georef", P, &out), 0) << out;
-    EXPECT_TRUE(Contains(out, (P / survey::kEditLogFileName).string())) << out;
-    if (fs::exists(P / survey::kSurveyFileName)) {
-        EXPECT_EQ(ReadText(P / survey::kSurveyFileName), survey_before);
-    }
-    EXPECT_EQ(ReadText(P / survey::kEditLogFileName), half) << "the log is the user's: kept";
+    ExpectTheLogStopsCleanAndGeoref(P);
 }
 
 TEST_F(EditFlags, RerunKeepsTheManualFlags) {
