@@ -99,45 +99,51 @@ double Median(std::vector<double>& v) {
 // ranges, along track (the same beam over `profile_pings` pings each side) and across the
 // fan (the same ping over `profile_beams` beams each side). The line is Theil-Sen over
 // symmetric pairs with the median intercept, its spread the MAD of the neighbours' residuals.
-// A range off either line by more than profile_sigmas spreads, profile_min_m and margin_rel
-// of the range, where the neighbours agree (spread below profile_max_spread of the range), is
-// off its profile. Echoes come in runs (of beams, of pings): only a sounding with a neighbour
-// (beam or ping) also off is rejected; a lone one is the terrain's (an edge the line does not
-// follow) or the per-ping spike filter's to judge.
+// A sounding's score is its distance to the line over the threshold max(profile_min_m,
+// margin_rel of the range, profile_sigmas spreads), where the neighbours agree (spread below
+// profile_max_spread of the range). Hysteresis, as an edge detector does it: soundings scoring
+// 1 or more (and those the 3D tests rejected) seed runs, which grow over neighbours (beams and
+// pings, across up to 3 dropouts) scoring half of it; an echo run's edge pings, where the line
+// is pulled towards it, are taken with it. What the 3D tests rejected joins runs but does not
+// grow them. Only runs of 2 or more are rejected: a lone range
+// off its line is the terrain's (an edge the line does not follow) or the spike filter's.
 std::vector<char> Profiles(const georef::GeorefResult& geo,
                            const CleanConfig& config,
                            const std::vector<std::uint8_t>& decided) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
-    std::vector<char> off(n, 0);
-    if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0)) return off;
+    std::vector<char> result(n, 0);
+    if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0)) return result;
     std::size_t beams = 0;
     for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
     const std::size_t np = geo.pings.size();
     std::vector<float> range(np * beams, std::numeric_limits<float>::quiet_NaN());
     for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    constexpr float kDecided = 1e9f;
+    std::vector<float> score(n, 0.0f);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
         std::vector<double> slopes, icept, res;
-        // Off the line through the neighbours at(-w..w) (without 0)?
-        auto off_line = [&](int w, const auto& at, double r0) {
-            if (w <= 0) return false;
+        // The distance to the line through the neighbours at(-w..w) (without 0) over the
+        // threshold; 0 where it cannot be judged.
+        auto line_score = [&](int w, const auto& at, double r0) -> double {
+            if (w <= 0) return 0.0;
             // Most soundings lie on a smooth profile: halfway between the window's ends and
             // between its half-way points (an echo run shorter than the window cannot hold
-            // both pairs), they are not off it.
+            // both pairs), they are far from off it.
             {
                 const double a = at(-w), c = at(w), a2 = at(-w / 2), c2 = at(w / 2);
-                const double tol = 0.5 * config.profile_min_m;
+                const double tol = 0.25 * config.profile_min_m;
                 if (std::isfinite(a) && std::isfinite(c) && std::isfinite(a2) &&
                     std::isfinite(c2) && std::abs(r0 - 0.5 * (a + c)) < tol &&
                     std::abs(r0 - 0.5 * (a2 + c2)) < tol)
-                    return false;
+                    return 0.0;
             }
             slopes.clear();
             for (int d = 1; d <= w; ++d) {
                 const double a = at(-d), c = at(d);
                 if (std::isfinite(a) && std::isfinite(c)) slopes.push_back((c - a) / (2.0 * d));
             }
-            if (static_cast<int>(slopes.size()) < std::max(2, w / 2)) return false;
+            if (static_cast<int>(slopes.size()) < std::max(2, w / 2)) return 0.0;
             const double slope = Median(slopes);
             icept.clear();
             for (int d = -w; d <= w; ++d) {
@@ -148,15 +154,14 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
             res.clear();
             for (const double x : icept) res.push_back(std::abs(x - line));
             const double spread = 1.4826 * Median(res);
-            if (spread > config.profile_max_spread * line) return false;
-            return std::abs(r0 - line) > std::max({config.profile_min_m,
+            if (spread > config.profile_max_spread * line) return 0.0;
+            return std::abs(r0 - line) / std::max({config.profile_min_m,
                                                    config.margin_rel * line,
                                                    config.profile_sigmas * spread});
         };
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
-            // Rejected already: off for the runs below, not judged again.
             if (decided[j] != 0) {
-                off[j] = 1;
+                score[j] = kDecided;
                 continue;
             }
             const auto k = static_cast<std::int64_t>(P.ping[j]);
@@ -168,26 +173,63 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
                 return range[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
             };
             const double r0 = P.range_m[j];
-            off[j] = off_line(
-                         config.profile_pings, [&](int d) { return value(k + d, b); }, r0) ||
-                     off_line(
-                         config.profile_beams, [&](int d) { return value(k, b + d); }, r0);
+            score[j] = static_cast<float>(
+                std::max(line_score(
+                             config.profile_pings, [&](int d) { return value(k + d, b); }, r0),
+                         line_score(
+                             config.profile_beams, [&](int d) { return value(k, b + d); }, r0)));
         }
     });
-    std::vector<std::int32_t> at(np * beams, -1);
+    // The grid of soundings (index per ping and beam), and the nearest sounding in a direction
+    // over up to 3 missing ones (echo runs have dropouts).
+    std::vector<std::int32_t> cell(np * beams, -1);
+    for (std::size_t j = 0; j < n; ++j)
+        cell[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
+    constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+    auto neighbour = [&](std::size_t j, int dir) -> std::int32_t {
+        const auto k = static_cast<std::int64_t>(P.ping[j]);
+        const auto b = static_cast<std::int64_t>(P.beam[j]);
+        for (int step = 1; step <= 4; ++step) {
+            const std::int64_t q = k + step * kDirections[dir][0];
+            const std::int64_t c = b + step * kDirections[dir][1];
+            if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
+                c >= static_cast<std::int64_t>(beams))
+                return -1;
+            const std::int32_t at =
+                cell[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
+            if (at >= 0) return at;
+        }
+        return -1;
+    };
+    // Grow the runs from the seeds over the weak.
+    std::vector<char> in_run(n, 0);
+    std::vector<std::int32_t> stack;
     for (std::size_t j = 0; j < n; ++j) {
-        if (off[j]) at[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
+        if (score[j] >= kDecided) {
+            in_run[j] = 1;  // in a run, not a seed: what the 3D tests rejected does not grow
+        } else if (score[j] >= 1.0f) {
+            in_run[j] = 1;
+            stack.push_back(static_cast<std::int32_t>(j));
+        }
     }
-    std::vector<char> run(n, 0);
+    while (!stack.empty()) {
+        const auto j = static_cast<std::size_t>(stack.back());
+        stack.pop_back();
+        for (int dir = 0; dir < 4; ++dir) {
+            const std::int32_t q = neighbour(j, dir);
+            if (q < 0 || in_run[q] || score[q] < 0.75f) continue;
+            in_run[q] = 1;
+            stack.push_back(q);
+        }
+    }
     for (std::size_t j = 0; j < n; ++j) {
-        if (!off[j] || decided[j] != 0) continue;
-        const std::size_t k = P.ping[j], b = P.beam[j];
-        run[j] = (b > 0 && at[k * beams + b - 1] >= 0) ||
-                 (b + 1 < beams && at[k * beams + b + 1] >= 0) ||
-                 (k > 0 && at[(k - 1) * beams + b] >= 0) ||
-                 (k + 1 < np && at[(k + 1) * beams + b] >= 0);
+        if (!in_run[j] || decided[j] != 0) continue;
+        for (int dir = 0; dir < 4 && !result[j]; ++dir) {
+            const std::int32_t q = neighbour(j, dir);
+            result[j] = q >= 0 && in_run[q];
+        }
     }
-    return run;
+    return result;
 }
 
 }  // namespace
