@@ -230,6 +230,8 @@ Expected<SoundSpeedCast> ParseAml(std::string_view text,
     std::vector<std::pair<double, int>> pressures;  // pressure, line (depth needs the latitude)
     std::vector<double> speeds;
     std::optional<std::int64_t> first_row_time;
+    int first_row_line = 0;
+    std::size_t first_row_fields = 0;
     bool data = false;
     for (const Line& l : SplitLines(text)) {
         if (l.text.empty()) continue;
@@ -259,6 +261,17 @@ Expected<SoundSpeedCast> ParseAml(std::string_view text,
             continue;
         }
         const auto f = Split(l.text, ',');
+        if (first_row_line > 0 && f.size() != first_row_fields) {
+            return At(name,
+                      l.number,
+                      std::to_string(f.size()) + " fields, the first row (line " +
+                          std::to_string(first_row_line) + ") has " +
+                          std::to_string(first_row_fields));
+        }
+        if (first_row_line == 0) {
+            first_row_line = l.number;
+            first_row_fields = f.size();
+        }
         if (f.size() < 4) {
             return At(
                 name, l.number, "expected 'date,time,speed,pressure[,...]', got " + Quoted(l.text));
@@ -929,6 +942,9 @@ CastFormat SniffProbeFormat(std::string_view text) {
             }
         }
         if (StartsWith(l, "Date / Time\t")) return CastFormat::kValeportMidas;
+        if (StartsWith(l, "Model Name :") && l.find("MIDAS") != std::string_view::npos) {
+            return CastFormat::kValeportMidas;
+        }
         if (StartsWith(l, "# nquan")) return CastFormat::kSeaBirdCnv;
         if (StartsWith(l, "% Cast time (UTC)")) return CastFormat::kCastAway;
     }
