@@ -513,7 +513,7 @@ Expected<SoundSpeedCast> ParseAsvp(std::string_view text,
     if (h.size() < 8 || h[0] != "(" || h[1] != "SoundVelocity" || h.back() != ")") {
         return At(name, 1, "expected '( SoundVelocity 1.0 0 YYYYMMDDHHMM LAT LON ... N )'");
     }
-    const std::string_view ts = h[4];
+    const std::string_view ts = h[4].size() == 12 ? h[4] : std::string_view("x           ");
     const auto y = Digits(ts.substr(0, 4), 4, 4);
     const auto mo = Digits(ts.substr(4, 2), 2, 2);
     const auto d = Digits(ts.substr(6, 2), 2, 2);
@@ -582,7 +582,8 @@ Expected<SoundSpeedCast> ParseSimrad(std::string_view text,
     if (!n || *n == 0)
         return At(
             name, tok[2].second, "number of points " + Quoted(tok[2].first) + " is not a count");
-    const std::string_view hms = tok[3].first;
+    const std::string_view hms =
+        tok[3].first.size() == 6 ? tok[3].first : std::string_view("x     ");
     const auto hh = Digits(hms.substr(0, 2), 2, 2);
     const auto mm = Digits(hms.substr(2, 2), 2, 2);
     const auto ss = Digits(hms.substr(4), 2, 2);

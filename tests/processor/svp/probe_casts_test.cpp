@@ -143,6 +143,14 @@ TEST(ProbeCasts, CorruptedValuesNameTheLine) {
                 "no depth");
 }
 
+TEST(ProbeCasts, ShortTimeFieldsAreErrors) {
+    // Found by the fuzz target: a time field shorter than its layout (no exception).
+    ExpectError("$AAS10,011900,25,04,2009,0.70,1482.67,,,,\n1.3,1480,,,,\n\\\n", "f.x:1:", "time");
+    ExpectError("( SoundVelocity 1.0 0 20 22.5 -156.5 -1 0 0 X P 0001 )\n0 1500\n",
+                "f.x:1:",
+                "YYYYMMDDHHMM");
+}
+
 TEST(ProbeCasts, AllRowsImplausibleIsAnError) {
     ExpectError("FTP NEW 3\n0.0 0.0\n1.0 0.0\n", "f.x", "none of the 2 rows");
 }
