@@ -1,5 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Sound-velocity files (CARIS .svp, CSV, two-column text; processor/svp/cast.hpp) from disk.
+// Sound-velocity files from disk: CARIS .svp, CSV, two-column text (processor/svp/cast.hpp) and the
+// probes' own files, AML, CastAway, HYPACK .vel, Kongsberg .asvp, MVP .s12, Sea-Bird .cnv,
+// Simrad .ssp, Valeport MIDAS (processor/svp/probe_casts.hpp), each recognised by content.
 #pragma once
 
 #include <string>
@@ -11,7 +13,8 @@
 namespace pitmap::proc::io {
 
 // Reads every file in order; the casts of all files, in file order. An unreadable, empty,
-// over-large (> 64 MiB) or malformed file is an error naming it (and the line).
+// over-large (> 64 MiB) or malformed file is an error naming it (and the line); a file in none of
+// the formats is an error listing them.
 Expected<std::vector<svp::SoundSpeedCast>> ReadSoundSpeedFiles(
     const std::vector<std::string>& paths);
 

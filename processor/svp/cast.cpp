@@ -9,6 +9,7 @@
 
 #include "common/gps_time.hpp"
 #include "common/text.hpp"
+#include "processor/svp/probe_casts.hpp"
 
 namespace pitmap::proc::svp {
 
@@ -346,8 +347,31 @@ const char* ToString(CastFormat f) {
             return "csv";
         case CastFormat::kTwoColumn:
             return "two_column";
+        case CastFormat::kAml:
+            return "aml";
+        case CastFormat::kCastAway:
+            return "castaway";
+        case CastFormat::kHypackVel:
+            return "hypack_vel";
+        case CastFormat::kKongsbergAsvp:
+            return "kongsberg_asvp";
+        case CastFormat::kSimradS12:
+            return "simrad_s12";
+        case CastFormat::kSeaBirdCnv:
+            return "seabird_cnv";
+        case CastFormat::kSimradS10:
+            return "simrad_s10";
+        case CastFormat::kValeportMidas:
+            return "valeport_midas";
     }
     return "?";
+}
+
+std::string KnownCastFormats() {
+    return "CARIS .svp ([SVP_VERSION_2]), CSV (depth,speed), two-column text (depth speed), "
+           "AML .csv ([cast header]), CastAway .csv (% Device), HYPACK .vel (FTP NEW), "
+           "Kongsberg .asvp (( SoundVelocity), MVP .s12 ($xxS12), Sea-Bird .cnv (* Sea-Bird, "
+           "# nquan), Simrad .ssp ($xxS10), Valeport MIDAS .000 (Date / Time columns)";
 }
 
 Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,
@@ -356,6 +380,7 @@ Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,
     if (text.find('\0') != std::string_view::npos) {
         return Error{name + ": binary data (a NUL byte) in a sound-velocity text file"};
     }
+    if (format == CastFormat::kAuto) format = SniffProbeFormat(text);
     if (format == CastFormat::kAuto) {
         format = CastFormat::kTwoColumn;
         std::size_t pos = 0;
@@ -372,7 +397,12 @@ Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,
             }
             first = false;
             if (l.front() == '#') continue;
-            if (l.find_first_of(",;") != std::string_view::npos) format = CastFormat::kCsv;
+            if (l.find_first_of(",;") != std::string_view::npos) {
+                format = CastFormat::kCsv;
+            } else if (!ParseNumber(SplitWhitespace(l).front())) {
+                return Error{name + ": not a sound-velocity cast format pitmap reads (line " +
+                             Quoted(l) + "); known: " + KnownCastFormats()};
+            }
             break;
         }
     }
@@ -381,8 +411,13 @@ Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,
             return ParseCaris(text, name);
         case CastFormat::kCsv:
             return ParseColumns(text, name, true);
-        default:
+        case CastFormat::kTwoColumn:
             return ParseColumns(text, name, false);
+        default: {
+            auto cast = ParseProbeCast(text, name, format);
+            if (!cast) return cast.error();
+            return std::vector<SoundSpeedCast>{std::move(*cast)};
+        }
     }
 }
 

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Sound-velocity casts and their text formats. Pure: the caller reads the file.
 //
-// Formats (ParseCastText, `format` kAuto picks one from the text):
+// Formats (ParseCastText, `format` kAuto picks one from the text; the probes' own formats are
+// described in processor/svp/probe_casts.hpp):
 //  - CARIS .svp (HIPS and SIPS "SVP Files"): line 1 `[SVP_VERSION_2]` (or _1), line 2 the file
 //    name, then one or more sections, each a heading
 //      Section YYYY-DDD HH:MM[:SS] LAT LON [comment]
@@ -13,6 +14,9 @@
 // In CSV and two-column files, '#' starts a comment; two comment keys give the cast's time and
 // place: `# time: 2026-06-15T09:00:00Z` (UTC) and `# position: LAT LON` (decimal degrees).
 // A cast without a time is valid from the start of the survey.
+//
+// Text whose first line is none of these (nor a probe format) is an error "NAME: not a
+// sound-velocity cast format pitmap reads (known: ...)".
 //
 // Checks (each a clear error "NAME:LINE: what"): numbers parse and are finite, depth in
 // [-1, 12000] m strictly increasing within a cast, speed in [1300, 1800] m/s, at least one
@@ -45,8 +49,25 @@ struct SoundSpeedCast {
     bool has_position() const { return latitude_deg == latitude_deg; }
 };
 
-enum class CastFormat { kAuto = 0, kCaris, kCsv, kTwoColumn };
+// Text formats pitmap writes or takes from other software (above), then the probes' own files
+// (processor/svp/probe_casts.hpp: what each carries, the down-cast rule, the equations).
+enum class CastFormat {
+    kAuto = 0,
+    kCaris,
+    kCsv,
+    kTwoColumn,
+    kAml,            // AML Oceanographic Base.X2 .csv ([cast header] ... [data])
+    kCastAway,       // SonTek CastAway CTD .csv ('%' header)
+    kHypackVel,      // HYPACK .vel (FTP NEW header)
+    kKongsbergAsvp,  // Kongsberg SIS .asvp (( SoundVelocity ... ) header)
+    kSimradS12,      // $xxS12 sentence (MVP .s12)
+    kSeaBirdCnv,     // Sea-Bird SBE Data Processing .cnv
+    kSimradS10,      // $xxS10 sentence (Simrad .ssp)
+    kValeportMidas,  // Valeport MIDAS SVX2 / CTD .000 (tab-separated, 'Date / Time' columns)
+};
 const char* ToString(CastFormat f);
+// Every format ParseCastText recognises by content, for messages ("caris, csv, ...").
+std::string KnownCastFormats();
 
 // Parses one file's text (`name` names it in messages and in the casts).
 Expected<std::vector<SoundSpeedCast>> ParseCastText(std::string_view text,

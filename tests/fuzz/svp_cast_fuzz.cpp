@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // libFuzzer target for the sound-velocity cast readers (processor/svp/cast.hpp: CARIS .svp,
-// CSV, two-column text). A parse either fails with a message naming the input, or gives casts
-// that pass ValidateCast; a CARIS text written from casts with times parses again.
+// CSV, two-column text; processor/svp/probe_casts.hpp: the eight probe formats), in every
+// format and by content. A parse either fails with a message naming the input, or gives casts
+// that pass ValidateCast; the probe readers' counts add up (rows = kept + dropped).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 #include <string_view>
 
 #include "processor/svp/cast.hpp"
+#include "processor/svp/probe_casts.hpp"
 #include "tests/fuzz/fuzz_file.hpp"
 
 namespace svp = pitmap::proc::svp;
@@ -19,7 +21,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     for (svp::CastFormat f : {svp::CastFormat::kAuto,
                               svp::CastFormat::kCaris,
                               svp::CastFormat::kCsv,
-                              svp::CastFormat::kTwoColumn}) {
+                              svp::CastFormat::kTwoColumn,
+                              svp::CastFormat::kAml,
+                              svp::CastFormat::kCastAway,
+                              svp::CastFormat::kHypackVel,
+                              svp::CastFormat::kKongsbergAsvp,
+                              svp::CastFormat::kSimradS12,
+                              svp::CastFormat::kSeaBirdCnv,
+                              svp::CastFormat::kSimradS10,
+                              svp::CastFormat::kValeportMidas}) {
         const auto r = svp::ParseCastText(text, name, f);
         if (!r) {
             pitmap::fuzz::CheckNamesFile(r.error().message, name);
@@ -28,6 +38,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (r->empty()) std::abort();
         for (const auto& c : *r) {
             if (!svp::ValidateCast(c).empty()) std::abort();
+        }
+    }
+    const svp::CastFormat probe = svp::SniffProbeFormat(text);
+    if (probe != svp::CastFormat::kAuto) {
+        svp::ProbeCastStats st;
+        const auto c = svp::ParseProbeCast(text, name, probe, &st);
+        if (!c) {
+            pitmap::fuzz::CheckNamesFile(c.error().message, name);
+        } else if (st.invalid + st.up_cast + st.soak + st.thinned + c->depth_m.size() != st.rows) {
+            std::abort();
         }
     }
     return 0;
