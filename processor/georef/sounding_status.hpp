@@ -35,7 +35,7 @@ enum class SoundingStatus : std::uint8_t {
     kMultipath = 7,      // lies behind a well-observed surface along its own beam
     kCluster = 8,        // in a persistent cluster off the surface
     kManual = 9,         // rejected by hand (pitmap edit)
-    kProfile = 10,    // off its beam's range over the neighbouring pings (a run of echoes)
+    kProfile = 10,       // off its beam's range over the neighbouring pings (a run of echoes)
 };
 inline constexpr int kNumSoundingStatus = 11;
 
