@@ -132,7 +132,7 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
             // both pairs), they are far from off it.
             {
                 const double a = at(-w), c = at(w), a2 = at(-w / 2), c2 = at(w / 2);
-                const double tol = 0.25 * config.profile_min_m;
+                const double tol = 0.5 * config.profile_min_m;
                 if (std::isfinite(a) && std::isfinite(c) && std::isfinite(a2) &&
                     std::isfinite(c2) && std::abs(r0 - 0.5 * (a + c)) < tol &&
                     std::abs(r0 - 0.5 * (a2 + c2)) < tol)

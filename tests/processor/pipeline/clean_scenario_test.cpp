@@ -76,7 +76,7 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
             At(s[level], "dem_mean_abs_m"));
     }
     const Scores& none = s["none"];
-    // Measured (docs/cleaning.md): light 0.61, typical 0.88, heavy 0.74 of the artifact
+    // Measured (docs/cleaning.md): light 0.65, typical 0.89, heavy 0.74 of the artifact
     // soundings rejected; without the cleaning typical is 0.12 (the spike filter's share).
     EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.55);
     EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.84);
