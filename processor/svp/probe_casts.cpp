@@ -322,6 +322,28 @@ struct CtdRow {
         conductivity_ms_cm;
 };
 
+// The row's values from the fields: col[k] is the field of depth, pressure, speed, temperature,
+// salinity, conductivity (k = 0..5; -1 = no such column), read from k = first on. "" or the
+// problem.
+std::string ReadColumns(const std::vector<std::string_view>& f,
+                        const int (&col)[6],
+                        int first,
+                        CtdRow& r) {
+    std::optional<double>* dst[6] = {&r.depth_m,
+                                     &r.pressure_dbar,
+                                     &r.speed_mps,
+                                     &r.temperature_c,
+                                     &r.salinity,
+                                     &r.conductivity_ms_cm};
+    for (int k = first; k < 6; ++k) {
+        if (col[k] < 0) continue;
+        const std::string_view v = f[static_cast<std::size_t>(col[k])];
+        *dst[k] = ParseNumber(v);
+        if (!*dst[k]) return "value " + Quoted(v) + " is not a number";
+    }
+    return "";
+}
+
 // Depth and speed of a row (UNESCO and Chen & Millero where a column is missing), or nullopt
 // when a needed value is missing.
 std::optional<std::pair<double, double>> DepthSpeed(const CtdRow& r, double latitude_deg) {
@@ -420,18 +442,8 @@ Expected<SoundSpeedCast> ParseCastAway(std::string_view text,
                           std::to_string(header_line) + ") has " + std::to_string(columns));
         }
         CtdRow r;
-        std::optional<double>* dst[6] = {&r.depth_m,
-                                         &r.pressure_dbar,
-                                         &r.speed_mps,
-                                         &r.temperature_c,
-                                         &r.salinity,
-                                         &r.conductivity_ms_cm};
-        for (int k = 0; k < 6; ++k) {
-            if (col[k] < 0) continue;
-            const std::string_view v = f[static_cast<std::size_t>(col[k])];
-            *dst[k] = ParseNumber(v);
-            if (!*dst[k]) return At(name, l.number, "value " + Quoted(v) + " is not a number");
-        }
+        if (const std::string bad = ReadColumns(f, col, 0, r); !bad.empty())
+            return At(name, l.number, bad);
         if (r.conductivity_ms_cm) *r.conductivity_ms_cm /= 1000.0;  // uS/cm
         if (lat && lon && !c.has_position() && !SetPosition(c, *lat, *lon)) {
             return At(name, lat_line, "start position out of range");
@@ -887,18 +899,8 @@ Expected<SoundSpeedCast> ParseValeport(std::string_view text,
                 name, l.number, "date and time " + Quoted(f[0]) + " are not DD/MM/YYYY HH:MM:SS");
         if (!stamp) stamp = t;
         CtdRow r;
-        std::optional<double>* dst[6] = {&r.depth_m,
-                                         &r.pressure_dbar,
-                                         &r.speed_mps,
-                                         &r.temperature_c,
-                                         &r.salinity,
-                                         &r.conductivity_ms_cm};
-        for (int k = 1; k < 6; ++k) {
-            if (col[k] < 0) continue;
-            const std::string_view v = f[static_cast<std::size_t>(col[k])];
-            *dst[k] = ParseNumber(v);
-            if (!*dst[k]) return At(name, l.number, "value " + Quoted(v) + " is not a number");
-        }
+        if (const std::string bad = ReadColumns(f, col, 1, r); !bad.empty())
+            return At(name, l.number, bad);
         const auto ds = DepthSpeed(r, kDefaultLatitudeDeg);
         if (ds) {
             s.Add(ds->first, ds->second);
