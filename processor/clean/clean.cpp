@@ -232,6 +232,67 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
     return result;
 }
 
+// Holes in an echo run: a sounding accepted between two soundings of one rejection status (the
+// nearest on each side, along track or across the fan, over up to 3 dropouts) and on the line
+// between their ranges (within hole_tolerance of the range, and 0.1 m) is of their run: a ghost
+// whose ray happened to cross no patch between two that did, a smile's ping the profile's
+// line passed. Two passes (a hole of two soundings closes from both ends).
+void FillHoles(const georef::GeorefResult& geo,
+               const CleanConfig& config,
+               std::vector<std::uint8_t>& status) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    if (n == 0 || !(config.hole_tolerance > 0)) return;
+    std::size_t beams = 0;
+    for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
+    const std::size_t np = geo.pings.size();
+    std::vector<std::int32_t> cell(np * beams, -1);
+    for (std::size_t j = 0; j < n; ++j)
+        cell[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
+    // The nearest sounding `step` cells away in direction (dk, db), over up to 3 missing; its
+    // distance in cells in *at.
+    auto nearest = [&](std::size_t j, int dk, int db, int* at) -> std::int32_t {
+        const auto k = static_cast<std::int64_t>(P.ping[j]);
+        const auto b = static_cast<std::int64_t>(P.beam[j]);
+        for (int step = 1; step <= 4; ++step) {
+            const std::int64_t q = k + step * dk, c = b + step * db;
+            if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
+                c >= static_cast<std::int64_t>(beams))
+                return -1;
+            const std::int32_t x =
+                cell[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
+            if (x >= 0) {
+                *at = step;
+                return x;
+            }
+        }
+        return -1;
+    };
+    for (int pass = 0; pass < 2; ++pass) {
+        std::vector<std::uint8_t> next = status;
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                if (status[j] != 0) continue;
+                for (int axis = 0; axis < 2; ++axis) {
+                    const int dk = axis == 0 ? 1 : 0, db = axis == 0 ? 0 : 1;
+                    int da = 0, dc = 0;
+                    const std::int32_t a = nearest(j, -dk, -db, &da);
+                    const std::int32_t c = nearest(j, dk, db, &dc);
+                    if (a < 0 || c < 0 || status[a] == 0 || status[a] != status[c]) continue;
+                    const double ra = P.range_m[a], rc = P.range_m[c];
+                    const double line = ra + (rc - ra) * da / static_cast<double>(da + dc);
+                    const double r0 = P.range_m[j];
+                    if (std::abs(r0 - line) <= std::max(0.1, config.hole_tolerance * r0)) {
+                        next[j] = status[a];
+                        break;
+                    }
+                }
+            }
+        });
+        status.swap(next);
+    }
+}
+
 }  // namespace
 
 std::vector<std::string> CleanConfig::Validate() const {
@@ -248,6 +309,8 @@ std::vector<std::string> CleanConfig::Validate() const {
         p.push_back("clean.solid_ratio must be in (0, free_ratio]");
     if (profile_pings < 0) p.push_back("clean.profile_pings must be >= 0");
     if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
+    if (!(hole_tolerance >= 0 && hole_tolerance < 1))
+        p.push_back("clean.hole_tolerance must be in [0, 1)");
     if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
     if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
     if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
@@ -570,6 +633,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
         if (along[j] && result.status[j] == 0)
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
+    FillHoles(geo, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
         switch (static_cast<SoundingStatus>(result.status[j])) {
             case SoundingStatus::kProfile:

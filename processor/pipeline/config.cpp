@@ -222,6 +222,9 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
     v("free_ratio", c.free_ratio, "... and this many times its own soundings");
     v("surface_min_hits", c.surface_min_hits, "multipath: soundings in a surface patch, at least");
     v("surface_max_thickness_m", c.surface_max_thickness_m, "... its 1-sigma thickness, m");
+    v("hole_tolerance",
+      c.hole_tolerance,
+      "a hole in a run of rejections: on the line, share of range; 0 = off");
     v("min_crossing_deg", c.min_crossing_deg, "a ray crosses a patch at more than this, deg");
     v("solid_ratio",
       c.solid_ratio,
