@@ -131,12 +131,19 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
             // between its half-way points (an echo run shorter than the window cannot hold
             // both pairs), they are far from off it.
             {
-                const double a = at(-w), c = at(w), a2 = at(-w / 2), c2 = at(w / 2);
+                // The midpoint of the first symmetric pair at d, d - 1, d + 1 with both ranges
+                // (a dropout moves the pair by one); NaN when none has.
+                auto midpoint = [&](int d) {
+                    for (const int e : {d, d - 1, d + 1}) {
+                        if (e < 1 || e > w) continue;
+                        const double a = at(-e), c = at(e);
+                        if (std::isfinite(a) && std::isfinite(c)) return 0.5 * (a + c);
+                    }
+                    return std::nan("");
+                };
                 const double tol = 0.5 * config.profile_min_m;
-                if (std::isfinite(a) && std::isfinite(c) && std::isfinite(a2) &&
-                    std::isfinite(c2) && std::abs(r0 - 0.5 * (a + c)) < tol &&
-                    std::abs(r0 - 0.5 * (a2 + c2)) < tol)
-                    return 0.0;
+                const double outer = midpoint(w), inner = midpoint(w / 2);
+                if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
             }
             slopes.clear();
             for (int d = 1; d <= w; ++d) {
