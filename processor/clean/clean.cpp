@@ -239,11 +239,13 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
     return result;
 }
 
-// Holes in an echo run: a sounding accepted between two soundings of one rejection status (the
-// nearest on each side, along track or across the fan, over up to 3 dropouts) and on the line
-// between their ranges (within hole_tolerance of the range, and 0.1 m) is of their run: a ghost
-// whose ray happened to cross no patch between two that did, a smile's ping the profile's
-// line passed. Two passes (a hole of two soundings closes from both ends).
+// Holes and edges of an echo run: a sounding accepted between two soundings of one rejection
+// status (the nearest on each side, along track or across the fan, over up to 3 dropouts) and
+// on the line between their ranges (within hole_tolerance of the range, and 0.1 m) is of their
+// run: a ghost whose ray happened to cross no patch between two that did, a smile's ping the
+// profile's line passed. So is one at a run's edge: continuous with a rejected neighbour, with
+// a break in the range (profile_min_m, margin_rel) within 3 soundings on its other side. Two
+// passes (a hole of two soundings closes from both ends).
 void FillHoles(const georef::GeorefResult& geo,
                const CleanConfig& config,
                std::vector<std::uint8_t>& status) {
@@ -292,6 +294,36 @@ void FillHoles(const georef::GeorefResult& geo,
                     if (std::abs(r0 - line) <= std::max(0.1, config.hole_tolerance * r0)) {
                         next[j] = status[a];
                         break;
+                    }
+                }
+                if (next[j] != 0) continue;
+                // The edge of a run: continuous with a rejected neighbour on one side, and on
+                // the other side a break in the range within 3 soundings (where the run's
+                // echo ends and the seabed resumes).
+                for (int dir = 0; dir < 4 && next[j] == 0; ++dir) {
+                    const int dk = dir < 2 ? (dir == 0 ? -1 : 1) : 0;
+                    const int db = dir < 2 ? 0 : (dir == 2 ? -1 : 1);
+                    int da = 0;
+                    const std::int32_t a = nearest(j, dk, db, &da);
+                    if (a < 0 || status[a] == 0) continue;
+                    const double r0 = P.range_m[j];
+                    const double cont = std::max(0.1, config.hole_tolerance * r0);
+                    if (std::abs(double{P.range_m[a]} - r0) > cont) continue;
+                    const double jump = std::max(config.profile_min_m, config.margin_rel * r0);
+                    std::size_t from = j;
+                    double prev = r0;
+                    for (int walk = 0; walk < 3; ++walk) {
+                        int dc = 0;
+                        const std::int32_t c = nearest(from, -dk, -db, &dc);
+                        if (c < 0 || status[c] != 0) break;
+                        const double rc = P.range_m[c];
+                        if (std::abs(rc - prev) > jump) {
+                            next[j] = status[a];
+                            break;
+                        }
+                        if (std::abs(rc - prev) > cont) break;
+                        from = static_cast<std::size_t>(c);
+                        prev = rc;
                     }
                 }
             }
