@@ -39,7 +39,7 @@ struct Voxels {
     // Plane patches (terrain voxels with enough soundings), after Patches.
     std::vector<Eigen::Vector3d> centroid, normal, axis_major, axis_minor;  // the plane's axes
     std::vector<double> sigma_major, sigma_minor;  // the soundings' spread along them
-    std::vector<double> thickness, radius;
+    std::vector<double> thickness;
     std::vector<char> patch;
     std::size_t size() const { return coord.size(); }
 };
@@ -458,7 +458,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
     X.sigma_major.assign(nv, 0);
     X.sigma_minor.assign(nv, 0);
     X.thickness.assign(nv, 0);
-    X.radius.assign(nv, 0);
     X.patch.assign(nv, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 1024), [&](const auto& r) {
         std::vector<double> w;
@@ -507,7 +506,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
             X.centroid[i] = mean;
             X.normal[i] = normal;
             X.thickness[i] = sw > 0 ? std::sqrt(s2 / sw) : 1e9;
-            X.radius[i] = std::sqrt(ev[1]);
             X.axis_major[i] = axes.col(2);
             X.axis_minor[i] = axes.col(1);
             X.sigma_major[i] = std::sqrt(ev[2]);
@@ -542,7 +540,7 @@ CleanResult Clean(const georef::GeorefResult& geo,
     // patch (into the plane at more than 15 deg, within the patch's extent) that is a crossing
     // of that patch, and the ray's first crossing is kept.
     t_start = std::chrono::steady_clock::now();
-    std::vector<std::atomic<std::int32_t>> free_rays(nv), crossed(nv);
+    std::vector<std::atomic<std::int32_t>> free_rays(nv);
     std::vector<std::int32_t> first_crossing(n, kNone);
     const double min_sin = std::sin(config.min_crossing_deg * M_PI / 180.0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
@@ -559,7 +557,8 @@ CleanResult Clean(const georef::GeorefResult& geo,
             march(ray, 0.0, stop / v, [&](std::int32_t vox, double) {
                 if (vox == own_id) return true;
                 free_rays[vox].fetch_add(1, std::memory_order_relaxed);
-                if (!X.patch[vox]) return true;
+                // Only the first crossing counts: after it, only the rays through.
+                if (!X.patch[vox] || first_crossing[j] != kNone) return true;
                 const Coord& q = X.coord[vox];
                 const Eigen::Vector3d& m = X.centroid[vox];
                 const Eigen::Vector3d& nrm = X.normal[vox];
@@ -577,7 +576,6 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 if (std::abs(u.dot(X.axis_major[vox])) > 2.0 * X.sigma_major[vox] + 0.05 ||
                     std::abs(u.dot(X.axis_minor[vox])) > 2.0 * X.sigma_minor[vox] + 0.05)
                     return true;
-                crossed[vox].fetch_add(1, std::memory_order_relaxed);
                 if (first_crossing[j] == kNone) first_crossing[j] = vox;
                 return true;
             });
