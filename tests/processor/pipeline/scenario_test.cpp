@@ -383,9 +383,10 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     RecordProperty("mesh_mean_abs_m", std::to_string(s.at("mesh_mean_abs_m")));
     EXPECT_LT(s.at("boresight_error_deg"), 0.1);
     // The demo's INS is RTK grade: SLAM must not make it worse overall, nor any 30 s window by
-    // more than 5 mm (issue 15). The first window (the fewest revisits, the best INS) was 9.5 mm
-    // worse until the absolute terms were weighted up (slam.absolute_sigma_scale 0.4): 4.8 mm.
-    EXPECT_LT(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.01);
+    // more than 5 mm (issue 15; docs/decisions/003-absolute-sigma-scale.md). Overall "not worse"
+    // within 1 mm, about 3 % of the demo's ATE: the INS's own error re-estimated from thousands
+    // of pairs moves by a few tenths of a millimetre between seeds, either way.
+    EXPECT_LE(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.001);
     ASSERT_TRUE(s.count("trajectory_ate_worst_window_increase_m"));
     RecordProperty("ate_worst_window_increase_m",
                    std::to_string(s.at("trajectory_ate_worst_window_increase_m")));
