@@ -63,18 +63,6 @@ bool PlausibleNav(const NavSample& s) {
            std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
 }
 
-// INSPVAX and INSSTDEV carry the same standard deviations.
-template <class M>
-NavStdDev StdDevOf(const M& m) {
-    return {m.utime_gps(),
-            m.latitude_stddev_m,
-            m.longitude_stddev_m,
-            m.height_stddev_m,
-            m.roll_stddev_deg,
-            m.pitch_stddev_deg,
-            m.azimuth_stddev_deg};
-}
-
 }  // namespace
 
 void Collector::AddNav(const NavSample& s) {
@@ -199,9 +187,9 @@ void Collector::AddNovatel(const nv::DecodeResult& d) {
                                m.azimuth_deg,
                                static_cast<int>(m.ins_status),
                                static_cast<int>(m.position_type)));
-                AddStdDev(StdDevOf(m));
+                AddStdDev(StdDevOf(m.utime_gps(), m));
             } else if constexpr (std::is_same_v<T, nv::InsStdDev>) {
-                AddStdDev(StdDevOf(m));
+                AddStdDev(StdDevOf(m.utime_gps(), m));
             } else if constexpr (std::is_same_v<T, nv::Time>) {
                 AddLeapSeconds(m.utc_offset_s, static_cast<int>(m.utc_status));
             } else if constexpr (std::is_same_v<T, nv::DecodeError>) {

@@ -40,6 +40,18 @@ georef::NavSample FromPva(std::int64_t utime_gps,
                           double azimuth_deg,
                           int status,
                           int position_type);
+// The standard deviations of INSPVAX and INSSTDEV (the decoded structs and their LCM types name
+// the fields alike), stamped utime_gps.
+template <class M>
+georef::NavStdDev StdDevOf(std::int64_t utime_gps, const M& m) {
+    return {utime_gps,
+            m.latitude_stddev_m,
+            m.longitude_stddev_m,
+            m.height_stddev_m,
+            m.roll_stddev_deg,
+            m.pitch_stddev_deg,
+            m.azimuth_stddev_deg};
+}
 
 // Accumulates into an IngestResult, shared by the LCM and vendor-file paths: counts what it
 // refuses (no time, implausible, no beams) and keeps the rest (the INS status rule is
