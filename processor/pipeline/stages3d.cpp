@@ -165,13 +165,13 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     log("slam: " + std::to_string(set.slices.size()) + " slices, " + std::to_string(num_points) +
         " points");
 
-    slam::SlamConfig cfg = config.slam;
-    cfg.progress = [&log](int stage, int iteration) {
-        log(std::string("slam: ") + (stage == 0 ? "rigid" : "semi-rigid") + " iteration " +
-            std::to_string(iteration));
-        return true;
-    };
-    const slam::SlamResult r = slam::RunSlam(set.slices, cfg);
+    const slam::SlamResult r =
+        slam::RunSlam(set.slices, config.slam, [&log](const slam::SlamIteration& it) {
+            log(std::string("slam: ") +
+                (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") + " iteration " +
+                std::to_string(it.iteration));
+            return true;
+        });
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
 
     // The trajectory before, per ping, and the optimised one: slice poses where SLAM has them,
@@ -379,8 +379,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"position_change_max_m", change_max},
                {"ins_check", ins_check},
                {"consistency_windows", windows_json},
-               {"correspondence", ToString(cfg.correspondence)},
-               {"robust_kernel", ToString(cfg.robust_kernel)},
+               {"correspondence", ToString(config.slam.correspondence)},
+               {"robust_kernel", ToString(config.slam.robust_kernel)},
                {"timings_s",
                 {{"trees", r.timings.trees_s},
                  {"coarse_search", r.timings.coarse_search_s},

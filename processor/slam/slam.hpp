@@ -164,8 +164,6 @@ struct SlamConfig {
     int score_patience = 2;
     double score_tolerance = 1e-3;  // a gain counts above this fraction; see the guards above
     int num_threads = 0;            // 0 = TBB default
-    // Called after every iteration with (stage, iteration); return false to cancel.
-    std::function<bool(int, int)> progress;
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
@@ -251,9 +249,15 @@ struct SlamResult {
     std::string message;
 };
 
+// Told after every iteration of either stage, with its record (stage, iteration, pairs,
+// cost, ...); returning false cancels the run (SlamTermination::kCancelled).
+using SlamProgress = std::function<bool(const SlamIteration&)>;
+
 // Runs both stages. Never throws for bad data; degenerate input ends with a termination
 // reason and the initial trajectory.
-SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& config);
+SlamResult RunSlam(const std::vector<Slice>& slices,
+                   const SlamConfig& config,
+                   const SlamProgress& progress = {});
 
 // Applies a trajectory to the slices' points (world frame), for scoring and export.
 std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,
