@@ -30,6 +30,7 @@ import tempfile
 import time
 
 DEFAULT_DOCS = ["README.md", "docs/user-guide.md", "docs/reference.md"]
+LINKED_DOCS = DEFAULT_DOCS + ["docs/development.md", "docs/benchmarks.md", "docs/accuracy.md"]
 MARKER = re.compile(r"^<!--\s*(not-run|output-of):\s*(.*?)\s*-->$")
 FENCE = re.compile(r"^```(\S*)\s*$")
 PROGRAM = re.compile(r"^(?:\./)?(?:build/bin/)?(pitmap(?:-[a-z0-9_]+)*)$")
@@ -274,6 +275,48 @@ def check_docs(source, bindir, docs, work, update=False, run=True):
     return problems
 
 
+def anchors(text):
+    """GitHub's anchors of a Markdown text's headings (outside fenced blocks)."""
+    result, fenced = set(), False
+    for line in text.split("\n"):
+        if line.startswith("```"):
+            fenced = not fenced
+        m = None if fenced else re.match(r"^#{1,6}\s+(.*?)\s*$", line)
+        if m:
+            a = re.sub(r"[^\w\- ]", "", m.group(1).lower()).replace(" ", "-")
+            n, base = 1, a
+            while a in result:
+                a, n = f"{base}-{n}", n + 1
+            result.add(a)
+    return result
+
+
+def check_links(source, docs):
+    """Relative links of the documents: the file exists and, for a Markdown file, the anchor."""
+    problems = []
+    for doc in docs:
+        count = 0
+        with open(os.path.join(source, doc)) as f:
+            text = f.read()
+        prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+        for m in re.finditer(r"\]\(([^)\s]+)\)", prose):
+            target = m.group(1)
+            if re.match(r"^[a-z]+:", target):
+                continue  # http:, https:, mailto:
+            count += 1
+            path, _, anchor = target.partition("#")
+            full = os.path.normpath(os.path.join(source, os.path.dirname(doc), path)) if path \
+                else os.path.join(source, doc)
+            if not os.path.exists(full):
+                problems.append(f"{doc}: link to {target}: no such file")
+            elif anchor and full.endswith(".md"):
+                with open(full) as f:
+                    if anchor not in anchors(f.read()):
+                        problems.append(f"{doc}: link to {target}: no such heading")
+        print(f"{doc}: {count} relative link(s) checked")
+    return problems
+
+
 SELF_TEST_DOC = """# fixture
 
 ```sh
@@ -338,6 +381,16 @@ def self_test(bindir, work):
     if any("config --vehicle" in p for p in after):
         print("self-test: --update did not rewrite the output-of block")
         failed = True
+    # Links: a missing file and a missing heading are found, good ones pass.
+    with open(os.path.join(src, "links.md"), "w") as f:
+        f.write("# Links\n\n## The report's 3D view\n\n[a](#the-reports-3d-view) "
+                "[b](fixture.md#fixture) [c](#no-such-heading) [d](no-such-file.md) "
+                "[e](https://example.org/x)\n```text\n[f](not-a-link.md)\n```\n")
+    links = check_links(src, ["links.md"])
+    if sorted(links) != ["links.md: link to #no-such-heading: no such heading",
+                         "links.md: link to no-such-file.md: no such file"]:
+        print("self-test: link check found", links)
+        failed = True
     print("self-test:", "FAILED" if failed else "every planted problem found")
     return 1 if failed else 0
 
@@ -352,12 +405,19 @@ def main():
     ap.add_argument("--update", action="store_true", help="rewrite the output-of blocks")
     ap.add_argument("--no-run", action="store_true", help="check options and outputs only")
     ap.add_argument("--self-test", action="store_true", help="check the checker on a fixture")
+    ap.add_argument("--links", action="store_true",
+                    help="check only the relative links (files and headings) of the documents")
     a = ap.parse_args()
     work = a.work or tempfile.mkdtemp(prefix="pitmap-docs-")
     os.makedirs(work, exist_ok=True)
     if a.self_test:
         return self_test(a.bin, work)
     start = time.monotonic()
+    if a.links:
+        problems = check_links(a.source, a.docs if a.docs != DEFAULT_DOCS else LINKED_DOCS)
+        for p in problems:
+            print("PROBLEM:", p)
+        return 1 if problems else 0
     problems = check_docs(a.source, a.bin, a.docs, work, update=a.update,
                           run=not (a.no_run or a.update))
     for p in problems:
