@@ -111,7 +111,7 @@ TEST_F(DemoScenario, GeorefWithTrueBoresightIsWithinTheRangeNoise) {
 // Issue 17: the per-sounding TPU is honest and the CUBE surface lies on the true terrain. The
 // demo lasts 120 s, two INS height-error correlation times (60 s), so one draw of the INS
 // height error (sigma 1.5 cm) shifts every sounding alike: the share within TVU is checked
-// loosely here; the 93-97 % figure is measured on bejanca (README, benchmark command).
+// loosely here; the 93-97 % figure is measured on bejanca (docs/benchmarks.md, benchmark command).
 TEST_F(DemoScenario, GridTpuIsHonestAndTheDemLiesOnTheTruth) {
     ASSERT_TRUE(SetTrueBoresight(dir_ / "sim"));
     const fs::path p = dir_ / "products";

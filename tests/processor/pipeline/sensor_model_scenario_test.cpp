@@ -13,9 +13,9 @@
 //     faces 0.0113 vs 0.0108 m, walls 0.0195 vs 0.0195 m.
 // History of the error on the common surface: 0.016 vs 0.0125 m on 2026-11-26 (radius-based
 // common surface, SLAM trajectory); the footprint's along-track slope, its straight line in the
-// plane and w_max in measurements closed it (README, sensor model). The test fails when the
-// trade changes: completeness gaps under 15 points (25 on walls), or the beam-width error on the
-// common surface more than 1 mm over the rays' (on floors: not under them).
+// plane and w_max in measurements closed it (docs/accuracy.md, sensor models). The test fails when
+// the trade changes: completeness gaps under 15 points (25 on walls), or the beam-width error on
+// the common surface more than 1 mm over the rays' (on floors: not under them).
 #include <gtest/gtest.h>
 
 #include <filesystem>
