@@ -136,6 +136,7 @@ RoutedServer::RoutedServer() {
     set_error_handler(HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
         if (!res.body.empty()) return HandlerResponse::Unhandled;
         std::string why = std::to_string(res.status) + " " + ReasonPhrase(res.status);
+        if (res.status == 400) why += ": the request line, a header or the body cannot be read";
         if (res.status == 404) why += ": no " + req.method + " " + req.path + " here";
         if (res.status == 405) why += ": " + req.method + " is not allowed on " + req.path;
         res.set_content(nlohmann::json{{"error", why}}.dump(
