@@ -2,11 +2,13 @@
 // pitmap-eval: scores survey products against the simulator's ground truth.
 //   pitmap-eval --truth DIR/truth --products P --json scores.json
 // Exit (common/exit_codes.hpp): 0 scored, 1 a product or the truth unreadable (or nothing to
-// score, or --json not written), 2 usage (a folder that is not there, bad arguments).
+// score, or --json not written), 2 usage (a folder that is not there, bad arguments), 3
+// internal error.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -161,7 +163,7 @@ double DatumHeight(const fs::path& products) {
 
 namespace codes = pitmap::exit_code;
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
     CLI::App app{"pitmap-eval: score survey products against simulator ground truth"};
     std::string truth_dir, products_dir, json_path;
     app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")
@@ -674,5 +676,8 @@ int main(int argc, char** argv) {
             return codes::kFailure;
         }
     }
-    return 0;
+    return codes::kOk;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "pitmap-eval: internal error: %s\n", e.what());
+    return codes::kInternal;
 }

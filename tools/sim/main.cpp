@@ -11,13 +11,14 @@
 //   pitmap-sim scenarios                                    the built-in scenarios
 //   pitmap-sim --version
 // Exit (common/exit_codes.hpp): 0 ok, 1 run failure (or the daemon's), 2 usage (bad arguments,
-// an unknown scenario, --acqd not there: checked before --out is created).
+// an unknown scenario, --acqd not there: checked before --out is created), 3 internal error.
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <map>
 #include <string>
 #include <vector>
@@ -101,7 +102,7 @@ int RunHilCommand(const std::string& scenario_name,
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
     CLI::App app{"pitmap-sim: simulated sensors, synthetic surveys with ground truth"};
     app.require_subcommand(1);
     std::string scenario_name, out_dir;
@@ -365,5 +366,8 @@ int main(int argc, char** argv) {
         scenario->echo_artifacts.level.c_str(),
         static_cast<long long>(result->artifact_soundings),
         100.0 * result->artifact_share);
-    return 0;
+    return codes::kOk;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "pitmap-sim: internal error: %s\n", e.what());
+    return codes::kInternal;
 }
