@@ -88,9 +88,15 @@ int main(int argc, char** argv) try {
                    server_config.limits.header_timeout_s,
                    "a request's header (and its body) must arrive within this, s")
         ->capture_default_str();
-    app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")
+    app.add_option("--budget-kbps",
+                   budget_kbps,
+                   "bytes the pages on the radio link may pull, kB/s (pages on this machine: "
+                   "none, unless --budget-loopback)")
         ->capture_default_str();
-    app.add_option("--vehicle", vehicle_path, "vehicle.yaml: lever arm and mount (default: zero)");
+    app.add_option("--vehicle",
+                   vehicle_path,
+                   "vehicle.yaml: lever arm, mount, error model (default: vehicle.yaml beside "
+                   "the first --replay log, as pitmap run; else zero)");
     app.add_option("--out", server_config.snapshot_dir, "snapshot directory (POST /api/snapshot)");
     app.add_option("--cell-size", config.grid.cell_size_m, "coverage cell size, m")
         ->capture_default_str();

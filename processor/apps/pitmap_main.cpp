@@ -245,7 +245,9 @@ int main(int argc, char** argv) try {
             missing = MissingInput({out_dir}, "products folder");
             if (!missing.empty()) missing += " (pitmap georef or pitmap run writes it)";
         }
-        if (!missing.empty()) return Fail(missing + "; nothing written", codes::kUsage);
+        if (!missing.empty()) {
+            return Fail(missing + (out_dir.empty() ? "" : "; nothing written"), codes::kUsage);
+        }
     }
     const pp::Log log = [](const std::string& m) {
         std::fprintf(stderr, "pitmap: %s\n", m.c_str());
