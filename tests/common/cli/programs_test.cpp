@@ -6,6 +6,7 @@
 // pitmap-live reads the vehicle.yaml beside the replayed log as pitmap run does.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -41,7 +42,9 @@ struct Outcome {
 
 // Runs bin/PROGRAM ARGS... (through the shell, arguments quoted); its exit status and output.
 Outcome RunProgram(const std::string& program, const std::vector<std::string>& args) {
-    const fs::path dir = fs::path(testing::TempDir()) / "cli_programs_io";
+    // One folder per test process: ctest -j runs this file's tests at once.
+    const fs::path dir =
+        fs::path(testing::TempDir()) / ("cli_programs_io_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     std::string cmd = Quote((kBin / program).string());
     for (const auto& a : args) cmd += " " + Quote(a);
@@ -65,7 +68,8 @@ std::vector<std::string> Programs() {
 }
 
 fs::path Fresh(const std::string& name) {
-    const fs::path p = fs::path(testing::TempDir()) / ("cli_programs_" + name);
+    const fs::path p =
+        fs::path(testing::TempDir()) / ("cli_programs_" + std::to_string(::getpid()) + "_" + name);
     fs::remove_all(p);
     return p;
 }
