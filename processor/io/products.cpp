@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <optional>
@@ -24,6 +25,15 @@
 #include "common/protocol/novatel/crc32.hpp"
 
 namespace pitmap::proc::io {
+
+std::string VehicleFilePath(const std::vector<std::string>& files,
+                            const std::string& explicit_path) {
+    if (!explicit_path.empty() || files.empty()) return explicit_path;
+    const std::filesystem::path beside =
+        std::filesystem::path(files.front()).parent_path() / "vehicle.yaml";
+    std::error_code err;
+    return std::filesystem::exists(beside, err) ? beside.string() : "";
+}
 
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path) {
     auto d = ReadVehicleFile(path);

@@ -54,6 +54,12 @@ struct VehicleConfig {
     georef::SonarMount mount;
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
+// Which vehicle file a command reads: `explicit_path` (--vehicle, the config's vehicle_yaml)
+// when given, else vehicle.yaml beside the first of `files` (the logs, as pitmap-sim and the
+// daemon write them) when it exists, else "". `pitmap run`, `pitmap georef` and `pitmap live`
+// all decide it here.
+std::string VehicleFilePath(const std::vector<std::string>& files,
+                            const std::string& explicit_path);
 // summary.json's record of the vehicle file.
 nlohmann::json VehicleJson(const VehicleDescription& v);
 

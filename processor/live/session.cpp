@@ -402,12 +402,25 @@ void LiveSession::RefreshHolidaysLocked() {
     stats_cache_.holidays = holidays_total_;
 }
 
+void LiveSession::MarkReplay() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    replay_ = true;
+}
+
+void LiveSession::MarkReplayFinished() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    replay_ = true;
+    replay_finished_ = true;
+    status_.SetFeedEnded();
+}
+
 json LiveSession::StatusJson(std::int64_t wall_utime) {
     std::lock_guard<std::mutex> lock(mutex_);
     RefreshHolidaysLocked();
     const StatusSnapshot s = status_.Snapshot();
     json j;
     j["wall_utime"] = wall_utime;
+    j["source"] = {{"kind", replay_ ? "replay" : "lcm"}, {"finished", replay_finished_}};
     j["data_utime"] = s.data_utime;
     j["pings"] = s.pings;
     j["ping_rate_hz"] = s.ping_rate_hz;

@@ -60,11 +60,9 @@ json TimeJson(const io::IngestResult& ing) {
 }
 
 // The vehicle file: products.vehicle_yaml (--vehicle), else vehicle.yaml beside the first
-// input, else "".
+// input, else "" (io::VehicleFilePath, shared with pitmap live).
 std::string VehicleFilePath(const std::vector<std::string>& files, const PipelineConfig& config) {
-    if (!config.vehicle_yaml.empty() || files.empty()) return config.vehicle_yaml;
-    const fs::path beside = fs::path(files.front()).parent_path() / "vehicle.yaml";
-    return fs::exists(beside) ? beside.string() : "";
+    return io::VehicleFilePath(files, config.vehicle_yaml);
 }
 
 // What the vehicle file sets for ingest where the config and command line left it unset:
