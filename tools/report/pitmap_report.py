@@ -56,7 +56,7 @@ sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 from pitmap_report_lib.gltf import GlbError, check_glb, gltf_page  # noqa: E402,F401
 from pitmap_report_lib.loaders import Ply, PlyError, Products  # noqa: E402,F401
 from pitmap_report_lib.rasters import raster_max, raster_mean, rasterise_mesh  # noqa: E402,F401
-from pitmap_report_lib import maps, report, sections_client  # noqa: E402,F401
+from pitmap_report_lib import maps, report, sections_client, util  # noqa: E402,F401
 from pitmap_report_lib.util import (  # noqa: E402,F401
     PROG, ReportError, die_with_parent, gps_to_utc, log)
 

@@ -127,5 +127,6 @@ def gltf_page(path, title=None):
                "report.")
     data_json = {"gltf": {"name": name, "glb": base64.b64encode(data).decode("ascii")}}
     title = title or f"pitmap glTF view: {name}"
-    return PAGE.format(title=esc(title), toc="", notes="", body=viewer_html(data_json, caption),
-                       css=CSS)
+    return PAGE.format(title=esc(title), subtitle="glTF 2.0 binary in pitmap's 3D viewer", toc="",
+                       notes="", body=viewer_html(data_json, caption), css=CSS,
+                       footer="pitmap-report --view-gltf.")

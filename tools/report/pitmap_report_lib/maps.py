@@ -82,7 +82,8 @@ def add_scale_bar(ax, extent, units="m"):
     ax.add_patch(Rectangle((x0 - 0.015 * width, y0 - 0.6 * bar_h - 0.045 * height),
                            length + 0.03 * width, 0.045 * height + 2.2 * bar_h,
                            facecolor="white", edgecolor="0.4", lw=0.6, alpha=0.85, zorder=9))
-    parts = 4 if (length / 4) == int(length / 4) or length < 4 else 2
+    # 5 -> five segments of 1, 1 and 2 -> four of 0.25 and 0.5 (times 10^k).
+    parts = 5 if round(length / 10.0 ** math.floor(math.log10(length))) == 5 else 4
     seg = length / parts
     for i in range(parts):
         ax.add_patch(Rectangle((x0 + i * seg, y0), seg, bar_h,

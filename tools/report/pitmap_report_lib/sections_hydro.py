@@ -25,7 +25,7 @@ def hydrography(p):
     metres is on the engineering page, tvu_map.)"""
     g = p.stages.get("grid")
     if not isinstance(g, dict):
-        return p.missing_product("grid stage", "no grid stage in summary.json (pitmap grid)")
+        return None  # no grid stage: the summary says there is no S-44 assessment
     out = []
     facts = []
     facts.append(("TPU per sounding (95 %)",
@@ -37,7 +37,7 @@ def hydrography(p):
     out.append(table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"))
     q = g.get("s44")
     if not isinstance(q, dict):
-        out.append(p.missing_product("S-44 quality control", "s44.enabled is false"))
+        out.append("<p>No IHO S-44 assessment was made (s44.enabled is false).</p>")
         return "\n".join(out)
     order = q.get("order", "?")
     met = q.get("strictest_order_met_95")
