@@ -286,15 +286,15 @@ def _dem(p):
 
 
 def _depth_sense(p, dem):
-    """(values of the elevation band as shown, their label): depths below a water-level datum
-    (positive down), else heights in the vertical CRS."""
+    """(values of the elevation band as shown, what they are, whether depths): depths below a
+    water-level datum (positive down), else heights in the vertical CRS."""
     vd = p.summary.get("vertical_datum") if isinstance(p.summary.get("vertical_datum"),
                                                        dict) else {}
     z = dem["bands"].get("elevation")
-    name = vd.get("vertical_crs") or dem["metadata"].get("pitmap_vertical_datum") or "height"
+    name = vd.get("vertical_crs") or dem["metadata"].get("pitmap_vertical_datum") or "the datum"
     if vd.get("datum") == "water_level":
-        return -z, f"depth below {name} (m)", True
-    return z, f"height (m, {name})", False
+        return -z, f"depth below {name}", True
+    return z, f"height in {name}", False
 
 
 def summary(p):
@@ -327,7 +327,7 @@ def summary(p):
             lo, hi = float(np.min(ok)), float(np.max(ok))
             what = "Depth" if is_depth else "Height"
             rows.append((f"{what} range", f"{num(lo, 2)} to {num(hi, 2)} m, median "
-                         f"{num(float(np.median(ok)), 2)} m ({esc(label)}, depth grid)"))
+                         f"{num(float(np.median(ok)), 2)} m: {esc(label)}, of the depth grid"))
     g = p.stages.get("grid")
     if isinstance(g, dict):
         rows.append(("Depth grid", f"{num(g.get('resolution_m', float('nan')), 2)} m nodes, "
@@ -538,14 +538,14 @@ def maps(p):
     if legend:
         a.legend(handles=legend, loc="upper left", fontsize=8, framealpha=0.85)
     cb = fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=a, shrink=0.85, pad=0.01)
-    cb.set_label(label)
+    cb.set_label(f"{label} (m)")
     if is_depth:
         cb.ax.invert_yaxis()
     a.set_title(f"{'Depths' if is_depth else 'Heights'} of the CUBE surface "
                 f"({dem['gt'][1]:g} m grid), hill-shaded")
     out.append(p.figure(fig, "map_depth", "depth map in grid coordinates"))
     out.append(f'<p class="caption">Grid: {esc(crs or "not recorded")}; north arrow: grid '
-               f"north; scale bar {bar[2]:g} m. Colours: {esc(label)}; white: no data.</p>")
+               f"north; scale bar {bar[2]:g} m. Colours: {esc(label)} in metres; white: no data.</p>")
     out.append(_uncertainty_coverage_map(p, dem, extent, crs, hol))
     return "\n".join(out)
 
