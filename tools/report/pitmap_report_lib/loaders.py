@@ -56,7 +56,7 @@ class Ply:
         self.comments = layout["comments"]
         o = layout["origin"]
         self._origin = None if o is None else (o["latitude_deg"], o["longitude_deg"],
-                                                o["height_m"])
+                                               o["height_m"])
         self.elements = {}  # name -> structured array
         self.counts = {}    # name -> count from the header
         for e in layout["elements"]:

@@ -162,10 +162,8 @@ def rasterise_mesh(v, t, x0, y0, cell, nx, ny, chunk=300_000):
             ys.append(p[:, 1])
             zs.append(p[:, 2])
         grid = np.fmax(grid, raster_max(np.concatenate(xs), np.concatenate(ys),
-                                       np.concatenate(zs), x0, y0, cell, nx, ny))
+                                        np.concatenate(zs), x0, y0, cell, nx, ny))
     return grid
-
-
 
 
 def save_figure(fig, fig_dir, name, alt):

@@ -57,7 +57,6 @@ def ping_runs(ping, rejected, min_share=RUN_MIN_REJECTED_SHARE):
     return runs
 
 
-
 def sounding_counts(p):
     """The soundings kept and rejected, by reason (summary.json "soundings"); None when the
     products have no counts."""
@@ -133,6 +132,7 @@ def rejection_map(p, rej):
     return (p.figure(fig, "rejections_map", "where the rejected soundings lie") +
             "<p>Plan view of the rejected soundings by reason over the accepted ones "
             "(grey).</p>")
+
 
 def worst_ping_runs(p, rej):
     """The ten runs of consecutive pings with the most rejected soundings."""

@@ -545,7 +545,8 @@ def maps(p):
                 f"({dem['gt'][1]:g} m grid), hill-shaded")
     out.append(p.figure(fig, "map_depth", "depth map in grid coordinates"))
     out.append(f'<p class="caption">Grid: {esc(crs or "not recorded")}; north arrow: grid '
-               f"north; scale bar {bar[2]:g} m. Colours: {esc(label)} in metres; white: no data.</p>")
+               f"north; scale bar {bar[2]:g} m. Colours: {esc(label)} in metres; white: no "
+               "data.</p>")
     out.append(_uncertainty_coverage_map(p, dem, extent, crs, hol))
     return "\n".join(out)
 

@@ -13,10 +13,9 @@ from matplotlib.colors import LightSource, Normalize  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from .loaders import PlyError  # noqa: E402
-from .rasters import (MAX_SCATTER_POINTS, empty_panel, fill_holes, limits, rasterise_mesh,  # noqa: E402
-                      raster_mean, subsample)
+from .rasters import (MAX_SCATTER_POINTS, empty_panel, fill_holes, limits,  # noqa: E402
+                      rasterise_mesh, raster_mean, subsample)
 from .util import log, num, not_produced  # noqa: E402
-
 
 
 def trajectory(p):
@@ -76,11 +75,12 @@ def trajectory(p):
         a_z.legend(loc="best", fontsize=8)
     out.append(p.figure(fig, "trajectory", "trajectory before and after SLAM"))
     ate = p.score_text("trajectory_ate_rmse_before_m", "trajectory_ate_rmse_m",
-                         " Trajectory error (RMS vs truth):")
+                       " Trajectory error (RMS vs truth):")
     out.append('<p class="caption">Top: the track seen from above; bottom: its height over '
                "time. A surface vehicle moves on a plane: after SLAM the height should be "
                f"flat. Both columns share their axis limits.{ate}</p>")
     return "\n".join(out)
+
 
 def cross_sections(p):
     if not p.points:
@@ -155,6 +155,7 @@ def cross_sections(p):
                "show as doubled walls or floors in different colours (paper Fig. 3 c/d).</p>")
     return "\n".join(out)
 
+
 def depth_top_view(p):
     if "final" not in p.points:
         return p.missing_product("points.ply", "no after-SLAM point cloud")
@@ -195,6 +196,7 @@ def depth_top_view(p):
                       "hold no point (single empty cells are filled from their "
                       "neighbours).</p>"])
 
+
 def mesh(p):
     meshes = {}
     out = []
@@ -208,7 +210,7 @@ def mesh(p):
             continue
         if m is None:
             out.append(p.missing_product(name, "no mesh before SLAM" if key == "initial"
-                                    else "no mesh after SLAM"))
+                                         else "no mesh after SLAM"))
         elif len(m[1]) == 0:
             out.append(not_produced(name, "empty mesh"))
         else:
@@ -265,6 +267,7 @@ def mesh(p):
                "show passes that disagree.</p>")
     out.append(oblique_view(p, grids, meshes, xl, yl, cell, norm, cmap, ls))
     return "\n".join(out)
+
 
 def oblique_view(p, grids, meshes, xl, yl, cell, norm, cmap, ls):
     """An oblique 3-D view of the rasterised meshes (coarse, lit), as a surveyor would

@@ -17,7 +17,6 @@ from .sections_client import survey_metadata  # noqa: E402
 from .util import esc, not_produced, num, strip_paths, table  # noqa: E402
 
 
-
 def hydrography(p):
     """TPU and IHO S-44 Ed. 6.1 quality control (the grid stage): tables a surveyor can hand to
     a client, the holidays in grid coordinates, the crossline check by beam angle. (The
@@ -114,6 +113,7 @@ def hydrography(p):
         out.append(p.figure(fig, "s44_crossline", "crossline differences by beam angle"))
     return "\n".join(out)
 
+
 def tvu_map(p):
     """Engineering: the soundings coloured by TVU over the order's limit, holidays outlined,
     in local world metres (points.ply)."""
@@ -125,7 +125,7 @@ def tvu_map(p):
     pts = p.points.get("final")
     if pts is None or "tvu_95_m" not in pts.dtype.names:
         return p.missing_product("points.ply tvu_95_m", "points.ply without THU/TVU "
-                            "(grid.write_point_tpu)")
+                                 "(grid.write_point_tpu)")
     lim = (q.get("limits") or {}).get(order) or {}
     step = max(1, len(pts) // 400000)
     x = np.asarray(pts["x"][::step], dtype=np.float64)
@@ -170,6 +170,7 @@ def tvu_map(p):
     cb = fig.colorbar(im, ax=a, shrink=0.9, pad=0.01)
     cb.set_label("TVU (95 %) / limit")
     return p.figure(fig, "s44_compliance", "S-44 TVU compliance map with holidays")
+
 
 def mosaic(p):
     """The backscatter mosaic of the grid stage (mosaic.tif): corrected and uncorrected side

@@ -15,7 +15,6 @@ from .util import esc, num, table  # noqa: E402
 PIPELINE_STAGES = ["ingest", "georef", "calibrate", "slam", "fuse", "mesh", "export", "report"]
 
 
-
 def tsdf(p):
     fuse = p.stages.get("fuse")
     if not isinstance(fuse, dict):
@@ -63,7 +62,7 @@ def tsdf(p):
                    "bin holds the voxels at the weight cap.</p>")
     else:
         out.append(p.missing_product("TSDF weight histogram",
-                                "no stages.fuse.weight_histogram {edges, counts}"))
+                                     "no stages.fuse.weight_histogram {edges, counts}"))
     facts = [(k.replace("_", " "), num(v, 4)) for k, v in fuse.items()
              if isinstance(v, (int, float, str, bool)) and k not in ("seconds", "peak_rss_mb")]
     for k, v in fuse.items():
@@ -73,6 +72,7 @@ def tsdf(p):
     if facts:
         out.append(table([(f"<b>{esc(k)}</b>", v) for k, v in facts], cls="facts"))
     return "\n".join(out)
+
 
 def slam(p):
     rec = p.stages.get("slam")
@@ -122,6 +122,7 @@ def slam(p):
         out.append(table([(f"<b>{esc(k)}</b>", v) for k, v in facts], cls="facts"))
     return "\n".join(out)
 
+
 def stage_order(p):
     order = p.summary.get("stage_order")
     if isinstance(order, list) and order:
@@ -129,6 +130,7 @@ def stage_order(p):
     else:
         names = [n for n in PIPELINE_STAGES if n in p.stages]
     return names + [n for n in p.stages if n not in names]
+
 
 def stages(p):
     names = stage_order(p)

@@ -30,8 +30,6 @@ SCORE_MEANINGS = {
 }
 
 
-
-
 def survey_facts(p):
     s = p.summary
     rows = []
@@ -115,6 +113,7 @@ def survey_facts(p):
                  f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M:%S}"))
     return table([(f"<b>{k}</b>", v) for k, v in rows], cls="facts")
 
+
 def quality_gates(p):
     """The quality gates: where a stage said it could not explain its data."""
     gates = p.summary.get("quality_gates")
@@ -127,6 +126,7 @@ def quality_gates(p):
             "products below are what the processing could make, but these stages could not "
             "explain their data. Read the reasons before using the results.</p>" +
             table(rows, header=["stage", "gate", "what was found"]))
+
 
 def sonar_clock(p):
     clk = p.summary.get("sonar_clock")
@@ -160,6 +160,7 @@ def sonar_clock(p):
         facts.append(("offset the data imply", f"{num(clk['estimated_offset_s'], 4)} s"))
     return table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts")
 
+
 def boresight(p):
     out = []
     cal = p.stages.get("calibrate")
@@ -170,7 +171,7 @@ def boresight(p):
             with open(bs_file) as f:
                 mount = json.load(f)
             foreign = p.foreign_run("boresight.json", mount.get("run_id")
-                                      if isinstance(mount, dict) else None)
+                                    if isinstance(mount, dict) else None)
             if foreign:
                 out.append(not_produced("boresight.json", foreign))
                 mount = None
@@ -180,8 +181,8 @@ def boresight(p):
         out.append(p.missing_product("boresight.json"))
     if not isinstance(cal, dict):
         out.append(p.missing_product("boresight calibration",
-                                "no calibrate stage in summary.json; the mount was used "
-                                "as configured"))
+                                     "no calibrate stage in summary.json; the mount was used "
+                                     "as configured"))
         if isinstance(mount, dict):
             out.append(table([[esc(a), num(float(mount.get(f"{a}_deg", float("nan"))), 4)]
                               for a in ("roll", "pitch", "yaw")],
@@ -240,6 +241,7 @@ def boresight(p):
     else:
         out.append(not_produced("verification segments", "calibrate reported none"))
     return "\n".join(out)
+
 
 def scores(p):
     """The scores against a ground truth (pitmap-eval --json): a simulated survey's, or a

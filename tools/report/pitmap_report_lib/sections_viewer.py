@@ -62,14 +62,13 @@ def viewer_html(data, caption):
             + "\n".join(scripts))
 
 
-
 def viewer(p):
     """The interactive WebGL view: decimated mesh, trajectories before and after SLAM, a
     subset of the soundings, coloured by depth; three.js inlined (no network)."""
     absent = missing_viewer_files()
     if absent:
         return p.missing_product("3D view", "not found: " + ", ".join(absent) +
-                            " (Debian's libjs-three: tools/install-deps.sh)")
+                                 " (Debian's libjs-three: tools/install-deps.sh)")
     mesh = None
     for name in ("mesh_filled.ply", "mesh.ply"):
         try:
