@@ -24,8 +24,9 @@ processor_pkgs=(
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
   python3-numpy python3-matplotlib python3-gdal
 )
-# The browser tests (headless Chromium loads the live page and report.html) and the report's
-# 3D viewer (three.js, inlined into report.html).
+# The browser tests (headless Chromium loads the live page and report.html), report.pdf
+# (pitmap-report --pdf prints through Chromium) and the report's 3D viewer (three.js, inlined
+# into report.html). The report's maps read the GeoTIFFs through python3-gdal (above).
 browser_pkgs=(
   chromium libjs-three
 )

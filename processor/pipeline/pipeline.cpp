@@ -191,7 +191,8 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "mesh_filled.ply",
                                            "mesh_filled.obj",
                                            "mesh_filled.glb"};
-    const std::vector<std::string> report = {"report.html", "report"};
+    const std::vector<std::string> report = {
+        "report.html", "report_engineering.html", "report.pdf", "report"};
     std::vector<std::string> out;
     const auto add = [&out](const std::vector<std::string>& names) {
         out.insert(out.end(), names.begin(), names.end());

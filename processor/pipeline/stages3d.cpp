@@ -587,7 +587,10 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")"};
     }
     log("report: " + s.out_dir + "/report.html");
-    RecordStage(s.summary, Stage::kReport, {{"file", "report.html"}}, clock);
+    RecordStage(s.summary,
+                Stage::kReport,
+                {{"file", "report.html"}, {"engineering_file", "report_engineering.html"}},
+                clock);
     // The work is the child's: its own high-water mark (ru_maxrss, kB).
     json& rst = s.summary["stages"][ToString(Stage::kReport)];
     rst["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;

@@ -315,7 +315,10 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
                                          "mesh_initial.ply",
                                          "dem.tif",
                                          "dem.bag"};
-    if (with_report) products.push_back("report.html");
+    if (with_report) {
+        products.push_back("report.html");
+        products.push_back("report_engineering.html");
+    }
     for (const auto& f : products) {
         EXPECT_TRUE(fs::exists(p / f) && fs::file_size(p / f) > 0) << f << " missing or empty";
     }
