@@ -185,8 +185,12 @@ json SoundingsJson(const georef::StatusCounts& counts) {
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
     const std::vector<std::string> slam = {
         "trajectory_initial.csv", "trajectory.csv", "points_initial.ply"};
-    const std::vector<std::string> grid = {
-        "dem.tif", "dem.bag", "soundings_tpu.ply", "s44_holidays.tif", "mosaic.tif"};
+    const std::vector<std::string> grid = {"dem.tif",
+                                           "dem.bag",
+                                           "soundings_tpu.ply",
+                                           "s44_holidays.tif",
+                                           "s44_holidays.tif.aux.xml",
+                                           "mosaic.tif"};
     const std::vector<std::string> mesh = {"mesh.ply",
                                            "mesh.obj",
                                            "mesh.glb",
