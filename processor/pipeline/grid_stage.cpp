@@ -553,6 +553,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
         extras.vertical_wkt = datum->VerticalWkt();
         extras.vertical_name = datum->crs_name;
+        extras.pings = &s.model.ingest.pings;
         // The rejected soundings after the accepted ones (THU/TVU NaN: not computed for them).
         std::optional<georef::GeorefResult> rejected;
         if (config.write_rejected) rejected = RejectedView(s, config);
