@@ -135,13 +135,16 @@ Status WritePoints(const std::string& dir,
                    const PipelineConfig& c,
                    json& summary,
                    const std::string& run_id,
-                   const georef::GeorefResult* rejected) {
-    if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id, rejected); !s) return s;
+                   const georef::GeorefResult* rejected,
+                   const georef::PingSeries* pings) {
+    io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
+    extras.pings = pings;
+    if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected); !s)
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected); !s)
             return s;
     }
     return Ok{};
@@ -160,10 +163,12 @@ georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
 Status WritePoints(Survey& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
     if (!c.write_rejected) {
-        return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id);
+        return WritePoints(
+            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings);
     }
     const georef::GeorefResult rejected = RejectedView(s, c);
-    return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected);
+    return WritePoints(
+        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings);
 }
 
 json SoundingsJson(const georef::StatusCounts& counts) {
@@ -183,8 +188,12 @@ json SoundingsJson(const georef::StatusCounts& counts) {
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
     const std::vector<std::string> slam = {
         "trajectory_initial.csv", "trajectory.csv", "points_initial.ply"};
-    const std::vector<std::string> grid = {
-        "dem.tif", "dem.bag", "soundings_tpu.ply", "s44_holidays.tif", "mosaic.tif"};
+    const std::vector<std::string> grid = {"dem.tif",
+                                           "dem.bag",
+                                           "soundings_tpu.ply",
+                                           "s44_holidays.tif",
+                                           "s44_holidays.tif.aux.xml",
+                                           "mosaic.tif"};
     const std::vector<std::string> mesh = {"mesh.ply",
                                            "mesh.obj",
                                            "mesh.glb",
