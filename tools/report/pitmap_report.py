@@ -45,7 +45,9 @@ through numpy structured dtypes and plots use rasters or subsamples, never every
 """
 
 import argparse
+import difflib
 import os
+import subprocess
 import sys
 
 # The package beside this script (tools/report in the source tree; build/bin when built).
@@ -61,11 +63,41 @@ from pitmap_report_lib.util import (  # noqa: E402,F401
     PROG, ReportError, die_with_parent, gps_to_utc, log)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's usage errors: exit 2 (docs/cli.md), and the closest option
+    named for a mistyped one."""
+
+    def error(self, message):
+        options = [o for a in self._actions for o in a.option_strings if o.startswith("--")]
+        if "unrecognized arguments:" in message:
+            for word in message.split(":", 1)[1].split():
+                close = difflib.get_close_matches(word.split("=")[0], options, n=1, cutoff=0.6)
+                if close:
+                    message += f" (did you mean '{close[0]}'?)"
+                    break
+        super().error(message)
+
+
+class _Version(argparse.Action):
+    """--version: the build's version and git commit, as pitmap-ply-layout (built with this
+    script, beside it) states them."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        exe = os.path.join(os.path.dirname(os.path.realpath(__file__)), "pitmap-ply-layout")
+        try:
+            line = subprocess.run([exe, "--version"], capture_output=True, text=True,
+                                  check=True).stdout.strip()
+            print(PROG + line[len("pitmap-ply-layout"):])
+        except (OSError, subprocess.CalledProcessError):
+            print(PROG + " unknown (no pitmap-ply-layout beside it)")
+        parser.exit(0)
+
+
 def main(argv=None):
     # Ends with whatever started it (pitmap run, a shell), and on SIGTERM; its section workers
     # likewise end with it (report.draw_sections).
     die_with_parent()
-    ap = argparse.ArgumentParser(prog=PROG, description="Write P/report.html (the client's "
+    ap = _Parser(prog=PROG, description="Write P/report.html (the client's "
                                  "report) and P/report_engineering.html (self-contained, PNG "
                                  "plots embedded) and P/report/*.png from a pitmap products "
                                  "folder P.")
@@ -86,6 +118,8 @@ def main(argv=None):
                     "binary, e.g. P/mesh.glb) in the report's 3D viewer")
     ap.add_argument("-o", "--output", metavar="HTML",
                     help="the page of --view-gltf (default: GLB with .html)")
+    ap.add_argument("--version", action=_Version, nargs=0,
+                    help="print the version and git commit, then exit")
     args = ap.parse_args(argv)
     if args.view_gltf is not None:
         if args.products is not None or args.scores is not None or args.pdf:
@@ -101,7 +135,7 @@ def main(argv=None):
     folder = os.path.abspath(args.products)
     if not os.path.isdir(folder):
         print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
-        return 1
+        return 2  # a usage error (docs/cli.md): nothing written
     scores = args.scores or os.path.join(folder, "scores.json")
     try:
         products = Products(folder, scores)

@@ -831,13 +831,21 @@ class ReportTest(unittest.TestCase):
         self.assertIn("0.8765", sec["scores"])
         self.assertNotIn("not produced", sec["scores"])
 
+    def test_version_and_a_mistyped_option(self):
+        r = Run("--version")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertRegex(r.stdout, r"^pitmap-report [0-9.]+ \(git ")
+        r = Run(self.dir, "--pfd")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("did you mean '--pdf'", r.stderr)
+
     def test_unusable_folder_fails_clearly(self):
         r = Run(self.dir)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("summary.json", r.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "report.html")))
         r = Run(os.path.join(self.dir, "does-not-exist"))
-        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.returncode, 2)  # usage (docs/cli.md)
         self.assertIn("not a folder", r.stderr)
         with open(os.path.join(self.dir, "summary.json"), "w") as f:
             f.write("[1, 2")
