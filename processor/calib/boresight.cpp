@@ -278,6 +278,463 @@ bool InsAttitudeSd(const georef::NavSeries& nav,
     return n.minCoeff() > 0;
 }
 
+// Which window is the better one to calibrate on: low drift first, then more overlap.
+bool BetterSegment(const SegmentScore& a, const SegmentScore& b) {
+    if (a.low_drift != b.low_drift) return a.low_drift;
+    return a.overlap_cells > b.overlap_cells;
+}
+
+// Candidate windows, overlapping by 3/4. When no window of the configured length is low drift (a
+// GNSS outage longer than the survey's quiet stretches), shorter ones are tried, down to a
+// quarter of it, before settling for the best drifting one.
+std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
+                                            const georef::NavSeries& nav,
+                                            const BoresightConfig& cfg) {
+    const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
+    const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
+    std::vector<SegmentScore> candidates;
+    const double full = std::min(cfg.segment_duration_s, t_last - t_first);
+    for (double dur = full; dur >= full / 4 - 1e-9; dur /= 2) {
+        const double step = dur / 4;
+        for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
+            candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
+            if (step <= 0) break;
+        }
+        if (std::any_of(candidates.begin(),
+                        candidates.end(),
+                        [](const SegmentScore& c) { return c.low_drift; }) ||
+            step <= 0) {
+            break;
+        }
+    }
+    if (candidates.empty()) candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
+    return candidates;
+}
+
+// The configured window, else the best candidate.
+SegmentScore ChooseSegment(const GeorefResult& geo,
+                           const georef::NavSeries& nav,
+                           const std::vector<SegmentScore>& candidates,
+                           const BoresightConfig& cfg) {
+    if (cfg.segment_start_s >= 0) {
+        return ScoreSegment(
+            geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
+    }
+    return *std::min_element(candidates.begin(), candidates.end(), BetterSegment);
+}
+
+// Beyond the linear range: the latency within tau0 +- latency_scan_s whose pairs fit best at the
+// nominal mount.
+double ScanLatency(const ShiftedPoses& poses,
+                   const Samples& S,
+                   const SonarMount& mount,
+                   double tau0,
+                   const BoresightConfig& cfg) {
+    double tau = tau0;
+    double best = std::numeric_limits<double>::infinity();
+    std::int64_t most_pairs = 0;
+    std::vector<std::pair<double, std::pair<double, std::int64_t>>> costs;
+    const int n = static_cast<int>(std::floor(cfg.latency_scan_s / cfg.latency_scan_step_s));
+    for (int i = -n; i <= n; ++i) {
+        const double t = tau0 + i * cfg.latency_scan_step_s;
+        costs.push_back({t, ScanCost(poses, S, mount, t, cfg)});
+        most_pairs = std::max(most_pairs, costs.back().second.second);
+    }
+    for (const auto& [t, c] : costs) {
+        // Too few pairs means the passes were pushed apart, not that they fit.
+        if (2 * c.second >= most_pairs && c.first < best) {
+            best = c.first;
+            tau = t;
+        }
+    }
+    return tau;
+}
+
+// Nuisance: a height correction per node (every part_duration_s, linear in between) absorbs the
+// INS height error, which differs from pass to pass. Without it a height difference between two
+// parallel passes d apart reads as a roll of dz / d (1.5 cm over 3 m = 0.3 deg). With
+// estimate_horizontal_offsets each node also has a north and an east correction.
+class NodeOffsets {
+public:
+    NodeOffsets(const BoresightConfig& cfg, double seg_len)
+        : cfg_(cfg),
+          dims_(cfg.estimate_horizontal_offsets ? 3
+                : cfg.estimate_height_offsets   ? 1
+                                                : 0),
+          nodes_(dims_ > 0 ? static_cast<int>(std::ceil(seg_len / cfg.part_duration_s)) + 1 : 0),
+          phi_(cfg.offset_correlation_time_s > 0
+                   ? std::exp(-cfg.part_duration_s / cfg.offset_correlation_time_s)
+                   : 0.0),
+          off_(Eigen::VectorXd::Zero(nodes_ * dims_)) {}
+
+    int size() const { return nodes_ * dims_; }
+    bool empty() const { return nodes_ == 0; }
+
+    // The node before t (seconds into the segment) and the fraction of the way to the next.
+    void Locate(double t, int& i, double& f) const {
+        const double u =
+            std::clamp(t / cfg_.part_duration_s, 0.0, static_cast<double>(nodes_ - 1) - 1e-9);
+        i = static_cast<int>(u);
+        f = u - i;
+    }
+    // The world axis that unknown d of a node corrects.
+    int Axis(int d) const { return dims_ == 1 ? 2 : d; }
+
+    Eigen::Vector3d At(double t) const {
+        Eigen::Vector3d o = Eigen::Vector3d::Zero();
+        if (nodes_ == 0) return o;
+        int i;
+        double f;
+        Locate(t, i, f);
+        for (int d = 0; d < dims_; ++d)
+            o[Axis(d)] = (1 - f) * off_[i * dims_ + d] + f * off_[(i + 1) * dims_ + d];
+        return o;
+    }
+
+    // The rows of the offsets in d r / d x for sample time t on one side (sgn = +1 query,
+    // -1 target) of a pair with normal nrm; the offsets' unknowns start at block `base`.
+    template <class Push>
+    void Rows(double t, double sgn, const Eigen::Vector3d& nrm, int base, Push push) const {
+        int i;
+        double f;
+        Locate(t, i, f);
+        for (int d = 0; d < dims_; ++d) {
+            push(base + i * dims_ + d, sgn * (1 - f) * nrm[Axis(d)]);
+            push(base + (i + 1) * dims_ + d, sgn * f * nrm[Axis(d)]);
+        }
+    }
+
+    // The priors: the first node (or every node when white) ~ N(0, sigma^2); after it
+    // Gauss-Markov, o_k - phi o_(k-1) ~ N(0, sigma^2 (1 - phi^2)).
+    void AddPriors(int base, reg::BlockSystem<1>& sys) const {
+        using Scalar1 = Eigen::Matrix<double, 1, 1>;
+        for (int j = 0; j < size(); ++j) {
+            const double sig_o = Sigma(j % dims_);
+            if (phi_ == 0.0 || j < dims_) {
+                sys.AddPrior(static_cast<std::size_t>(base + j),
+                             Scalar1::Constant(1.0 / (sig_o * sig_o)),
+                             Scalar1::Constant(off_[j]));
+                continue;
+            }
+            const int ids[2] = {base + j - dims_, base + j};
+            const Scalar1 Jc[2] = {Scalar1::Constant(-phi_), Scalar1::Constant(1.0)};
+            sys.Add<1>(ids,
+                       Jc,
+                       2,
+                       Scalar1::Constant(1.0 / (sig_o * sig_o * (1 - phi_ * phi_))),
+                       Scalar1::Constant(off_[j] - phi_ * off_[j - dims_]));
+        }
+    }
+
+    void Update(const Eigen::VectorXd& step) { off_ += step; }
+    double Rms() const {
+        return off_.size() ? std::sqrt(off_.squaredNorm() / static_cast<double>(off_.size())) : 0.0;
+    }
+
+private:
+    double Sigma(int d) const {
+        return dims_ == 3 && d < 2 ? cfg_.horizontal_offset_sigma_m : cfg_.height_offset_sigma_m;
+    }
+
+    const BoresightConfig& cfg_;
+    const int dims_;   // unknowns per node: 3 (north, east, down), 1 (down) or 0
+    const int nodes_;  // nodes over the segment (0 without offsets)
+    const double phi_;
+    Eigen::VectorXd off_;
+};
+
+// The correspondence gate of iteration it: from max_distance_m down to min_distance_m by the
+// last iteration.
+double CorrespondenceGate(int it, const BoresightConfig& cfg) {
+    const double a =
+        cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
+    return std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
+}
+
+// dp/dtau of every sample that takes part in a pair (zero for the others).
+std::vector<Eigen::Vector3d> LatencyRates(const ShiftedPoses& poses,
+                                          const Samples& S,
+                                          const std::vector<Pair>& pairs,
+                                          const SonarMount& m,
+                                          double tau) {
+    std::vector<Eigen::Vector3d> rate(pairs.size(), Eigen::Vector3d::Zero());
+    std::vector<char> need(pairs.size(), 0);
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+        if (pairs[k].ok) need[k] = need[pairs[k].c.target] = 1;
+    }
+    const Pose T_vs = m.T_vehicle_sonar();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rate.size(), 512), [&](const auto& b) {
+        // One rate map per ping (the samples are in ping order).
+        std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
+        ShiftedPoses::RateMap R{Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()};
+        for (std::size_t k = b.begin(); k != b.end(); ++k) {
+            if (!need[k]) continue;
+            if (S.ping[k] != last) {
+                last = S.ping[k];
+                R = poses.Rate(last, tau);
+            }
+            rate[k] = R(T_vs * S.s_sonar[k]);
+        }
+    });
+    return rate;
+}
+
+// The pairs' rows of the normal equations in scalar blocks: [roll, pitch, yaw, (tau), offsets...]
+// (the offsets from block `base` on; tau when `rate` is not empty). Returns the pair count.
+std::int64_t AddPairRows(const PingPoses& T,
+                         const Samples& S,
+                         const std::vector<Pair>& pairs,
+                         const std::vector<Eigen::Vector3d>& rate,
+                         const Pose& T_vs,
+                         const NodeOffsets& offsets,
+                         int base,
+                         const BoresightConfig& cfg,
+                         reg::BlockSystem<1>& sys) {
+    std::int64_t n = 0;
+    std::vector<int> idx;
+    std::vector<Eigen::Matrix<double, 1, 1>> J;
+    auto push = [&](int i, double v) {
+        idx.push_back(i);
+        J.push_back(Eigen::Matrix<double, 1, 1>::Constant(v));
+    };
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+        const Pair& pr = pairs[k];
+        if (!pr.ok) continue;
+        const std::size_t q = pr.c.target;
+        const Eigen::Vector3d& nrm = pr.c.query_normal;
+        Eigen::RowVector3d Jr;
+        BoresightPairResidual(
+            T[S.ping[k]], T[S.ping[q]], T_vs, S.s_sonar[k], S.s_sonar[q], nrm, &Jr);
+        idx.clear();
+        J.clear();
+        for (int j = 0; j < 3; ++j) push(j, Jr[j]);
+        if (!rate.empty()) push(3, nrm.dot(rate[k] - rate[q]));
+        if (!offsets.empty()) {
+            offsets.Rows(S.t_s[k], 1.0, nrm, base, push);
+            offsets.Rows(S.t_s[q], -1.0, nrm, base, push);
+        }
+        const Eigen::Matrix<double, 1, 1> W = Eigen::Matrix<double, 1, 1>::Constant(
+            pr.w *
+            reg::RobustWeight(reg::RobustKernel::kCauchy, std::abs(pr.r), cfg.cauchy_scale_m));
+        sys.Add<1>(idx.data(),
+                   J.data(),
+                   static_cast<int>(idx.size()),
+                   W,
+                   Eigen::Matrix<double, 1, 1>::Constant(pr.r));
+        ++n;
+    }
+    return n;
+}
+
+// The latency's step from the solution's x_tau.
+struct LatencyStep {
+    double dtau = 0;          // the Gauss-Newton step, capped at the scan step
+    double tau_step = 0;      // what is added to tau (dtau, extrapolated)
+    bool unresolved = false;  // the uncapped step was at least the scan step
+};
+LatencyStep StepLatency(double x_tau, double prev_dtau, const BoresightConfig& cfg) {
+    LatencyStep s;
+    // A Gauss-Newton step is linear in the rotation rates: cap it at the scan step so that an
+    // early step from far away cannot jump into another wave period.
+    s.dtau = std::clamp(x_tau, -cfg.latency_scan_step_s, cfg.latency_scan_step_s);
+    s.unresolved = std::abs(x_tau) >= cfg.latency_scan_step_s;
+    // The latency converges linearly as well: the same extrapolation as the rotation's
+    // (RotationStep), its total step capped like the step itself.
+    s.tau_step = s.dtau;
+    if (cfg.accelerate && prev_dtau * s.dtau > 0 && std::abs(s.dtau) < std::abs(prev_dtau)) {
+        const double r = s.dtau / prev_dtau;
+        s.tau_step = std::clamp(s.dtau * (1.0 + std::min(r / (1.0 - r), 5.0)),
+                                -cfg.latency_scan_step_s,
+                                cfg.latency_scan_step_s);
+    }
+    return s;
+}
+
+// Accelerated ICP (Besl & McKay 1992, section IV): with correspondences found again every
+// iteration the rotation converges linearly, its steps shrinking by a steady ratio r along one
+// direction (bejanca: r ~ 0.7, still 0.0035 deg at the 12th iteration). When two steps agree in
+// direction within 10 deg, the rest of that series, delta r / (1 - r) (at most 5 delta), is taken
+// at once.
+Eigen::Vector3d RotationStep(const Eigen::Vector3d& delta,
+                             const Eigen::Vector3d& prev_delta,
+                             const BoresightConfig& cfg) {
+    Eigen::Vector3d step = delta;
+    const double np = prev_delta.norm(), nd = delta.norm();
+    if (cfg.accelerate && np > 0 && nd > 0 && nd < np &&
+        delta.dot(prev_delta) > std::cos(frames::DegToRad(10.0)) * nd * np) {
+        const double r = nd / np;
+        step += delta * std::min(r / (1.0 - r), 5.0);
+    }
+    return step;
+}
+
+// What the iterations found.
+struct MountFit {
+    SonarMount mount;  // with the fitted boresight angles
+    double tau = 0;    // the fitted latency (the start value without latency estimation)
+    Termination termination = Termination::kMaxIterations;
+    int iterations = 0;
+    bool solve_failed = false;  // non-finite data: the previous iterate is kept
+    bool latency_unresolved = false;
+    double formal_sd_deg[3] = {0, 0, 0};
+    double latency_formal_sd_s = 0;
+    double height_offsets_rms_m = 0;
+};
+
+// Gauss-Newton over the boresight angles, the latency (estimate_latency; prior around tau0,
+// starting at tau_start) and the node offsets, the pairs found again every iteration.
+MountFit FitMount(const ShiftedPoses& poses,
+                  const Samples& S,
+                  const SonarMount& mount,
+                  double tau0,
+                  double tau_start,
+                  double seg_len,
+                  const BoresightConfig& cfg,
+                  const ProgressCallback& progress) {
+    MountFit fit;
+    fit.mount = mount;
+    fit.tau = tau_start;
+    Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
+    NodeOffsets offsets(cfg, seg_len);
+    const int ldim = cfg.estimate_latency ? 1 : 0;
+    const int base = 3 + ldim;  // [roll, pitch, yaw, (tau), offsets...]
+    const int dim = base + offsets.size();
+    using Scalar1 = Eigen::Matrix<double, 1, 1>;
+    std::vector<Eigen::Vector3d> p;
+    Eigen::Vector3d prev_delta = Eigen::Vector3d::Zero();
+    double prev_dtau = 0;
+    for (int it = 0; it < cfg.max_iterations; ++it) {
+        if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
+            fit.termination = Termination::kCancelled;
+            break;
+        }
+        const double d_max = CorrespondenceGate(it, cfg);
+        const PingPoses T(poses, S, fit.tau);
+        Positions(T, S, fit.mount, p);
+        for (std::size_t k = 0; k < p.size(); ++k) p[k] += offsets.At(S.t_s[k]);
+        const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
+        const std::vector<Eigen::Vector3d> rate =
+            ldim > 0 ? LatencyRates(poses, S, pairs, fit.mount, fit.tau)
+                     : std::vector<Eigen::Vector3d>{};
+        reg::BlockSystem<1> sys(static_cast<std::size_t>(dim));
+        const Pose T_vs_now = MakePose(R_vs, fit.mount.T_vehicle_sonar().translation());
+        if (AddPairRows(T, S, pairs, rate, T_vs_now, offsets, base, cfg, sys) < 50) {
+            fit.termination = Termination::kNoOverlap;
+            break;
+        }
+        offsets.AddPriors(base, sys);
+        if (ldim > 0) {
+            const double sl = cfg.latency_sigma_s;
+            sys.AddPrior(3, Scalar1::Constant(1.0 / (sl * sl)), Scalar1::Constant(fit.tau - tau0));
+        }
+        const double rot_trace = sys.diag()[0](0) + sys.diag()[1](0) + sys.diag()[2](0);
+        for (std::size_t j = 0; j < 3; ++j)
+            sys.AddPrior(j, Scalar1::Constant(1e-9 * rot_trace), Scalar1::Zero());
+        // Gauss-Newton (no damping): the step is capped below where it matters (latency).
+        reg::DampedSolver<1> solver(sys);
+        Eigen::VectorXd x;
+        if (!solver.Solve(0.0, &x)) {
+            fit.solve_failed = true;
+            break;
+        }
+        const Eigen::Vector3d delta = x.head<3>();
+        double dtau = 0;
+        if (ldim > 0) {
+            const LatencyStep ls = StepLatency(x[3], prev_dtau, cfg);
+            dtau = ls.dtau;
+            fit.latency_unresolved = ls.unresolved;
+            prev_dtau = dtau;
+            fit.tau += ls.tau_step;
+        }
+        offsets.Update(x.tail(offsets.size()));
+        const Eigen::MatrixXd C = solver.InverseLeadingBlock(base);
+        for (int j = 0; j < 3; ++j)
+            fit.formal_sd_deg[j] = frames::RadToDeg(std::sqrt(std::max(0.0, C(j, j))));
+        if (ldim > 0) fit.latency_formal_sd_s = std::sqrt(std::max(0.0, C(3, 3)));
+        fit.height_offsets_rms_m = offsets.Rms();
+        R_vs = R_vs * ExpSO3(RotationStep(delta, prev_delta, cfg));
+        prev_delta = delta;
+        const frames::Rpy rpy = frames::RpyFromRotationNed(R_vs);
+        fit.mount.boresight_roll_deg = frames::RadToDeg(rpy.roll);
+        fit.mount.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
+        fit.mount.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
+        fit.iterations = it + 1;
+        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg && std::abs(dtau) < 1e-4 &&
+            d_max <= cfg.min_distance_m + 1e-9) {
+            fit.termination = Termination::kConverged;
+            break;
+        }
+    }
+    return fit;
+}
+
+// Verification on up to num_verify_segments other low-drift candidates with overlap, apart from
+// the segment and from each other. A drifting segment verifies nothing: its INS error moves the
+// passes by more than any boresight, and on gps-outage (seeds 1, 3, 4) a window inside the GNSS
+// outage rejected good calibrations.
+std::vector<SegmentScore> VerifySegments(const std::vector<SegmentScore>& candidates,
+                                         const SegmentScore& segment,
+                                         const BoresightConfig& cfg) {
+    std::vector<SegmentScore> others;
+    for (const auto& c : candidates) {
+        if (c.end_s <= segment.start_s || c.start_s >= segment.end_s) others.push_back(c);
+    }
+    std::sort(others.begin(), others.end(), BetterSegment);
+    std::vector<SegmentScore> chosen;
+    for (const auto& c : others) {
+        if (static_cast<int>(chosen.size()) >= cfg.num_verify_segments) break;
+        bool clash = false;
+        for (const auto& o : chosen) clash |= !(c.end_s <= o.start_s || c.start_s >= o.end_s);
+        if (!clash && c.overlap_cells > 0 && c.low_drift) chosen.push_back(c);
+    }
+    return chosen;
+}
+
+// The residuals on segment c before (nominal mount and latency) and after the calibration.
+VerifyResult VerifyOn(const GeorefResult& geo,
+                      const ShiftedPoses& poses,
+                      const SegmentScore& c,
+                      const SonarMount& mount,
+                      double tau0,
+                      const BoresightResult& res,
+                      const BoresightConfig& cfg) {
+    const Samples V =
+        CollectIndexed(geo, poses, mount, tau0, c.start_s, c.end_s, cfg.verify_query_every, cfg);
+    VerifyResult v{c,
+                   Evaluate(poses, V, mount, tau0, cfg),
+                   Evaluate(poses, V, res.mount, res.latency_s, cfg),
+                   {}};
+    if (res.latency_estimated) v.after_nominal_latency = Evaluate(poses, V, res.mount, tau0, cfg);
+    return v;
+}
+
+std::string Summary(const BoresightResult& res, bool solve_failed) {
+    char buf[256];
+    std::snprintf(buf,
+                  sizeof(buf),
+                  "boresight roll %.3f pitch %.3f yaw %.3f deg (%s after %d iterations); "
+                  "residual RMS %.4f -> %.4f m over %lld pairs",
+                  res.mount.boresight_roll_deg,
+                  res.mount.boresight_pitch_deg,
+                  res.mount.boresight_yaw_deg,
+                  ToString(res.termination),
+                  res.iterations,
+                  res.before.rms_m,
+                  res.after.rms_m,
+                  static_cast<long long>(res.after.pairs));
+    std::string message = buf;
+    if (solve_failed) message += "; stopped: the normal equations could not be solved";
+    if (res.latency_estimated) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "; latency %+.4f s (formal sd %.4f s)",
+                      res.latency_s,
+                      res.latency_formal_sd_s);
+        message += buf;
+    }
+    return message;
+}
+
 }  // namespace
 
 BoresightResult CalibrateBoresight(const GeorefResult& geo,
@@ -291,37 +748,9 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         res.message = "too few georeferenced pings";
         return res;
     }
-    const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
-    const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
-    // Candidate windows, overlapping by 3/4. When no window of the configured length is low
-    // drift (a GNSS outage longer than the survey's quiet stretches), shorter ones are tried,
-    // down to a quarter of it, before settling for the best drifting one.
-    const double full = std::min(cfg.segment_duration_s, t_last - t_first);
-    for (double dur = full; dur >= full / 4 - 1e-9; dur /= 2) {
-        const double step = dur / 4;
-        for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
-            res.candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
-            if (step <= 0) break;
-        }
-        if (std::any_of(res.candidates.begin(),
-                        res.candidates.end(),
-                        [](const SegmentScore& c) { return c.low_drift; }) ||
-            step <= 0) {
-            break;
-        }
-    }
-    if (res.candidates.empty())
-        res.candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
-    auto better = [](const SegmentScore& a, const SegmentScore& b) {
-        if (a.low_drift != b.low_drift) return a.low_drift;
-        return a.overlap_cells > b.overlap_cells;
-    };
-    if (cfg.segment_start_s >= 0) {
-        res.segment = ScoreSegment(
-            geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
-    } else {
-        res.segment = *std::min_element(res.candidates.begin(), res.candidates.end(), better);
-    }
+    res.candidates = CandidateSegments(geo, nav, cfg);
+    res.segment = ChooseSegment(geo, nav, res.candidates, cfg);
+
     const ShiftedPoses poses(geo, nav);
     const double tau0 = cfg.estimate_latency ? cfg.initial_latency_s : 0.0;
     const Samples S =
@@ -329,301 +758,39 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     res.before = Evaluate(poses, S, mount, tau0, cfg);
     double tau = tau0;
     if (cfg.estimate_latency && cfg.latency_scan_s > 0) {
-        // Beyond the linear range: the latency whose pairs fit best at the nominal mount.
-        double best = std::numeric_limits<double>::infinity();
-        std::int64_t most_pairs = 0;
-        std::vector<std::pair<double, std::pair<double, std::int64_t>>> costs;
-        const int n = static_cast<int>(std::floor(cfg.latency_scan_s / cfg.latency_scan_step_s));
-        for (int i = -n; i <= n; ++i) {
-            const double t = tau0 + i * cfg.latency_scan_step_s;
-            costs.push_back({t, ScanCost(poses, S, mount, t, cfg)});
-            most_pairs = std::max(most_pairs, costs.back().second.second);
-        }
-        for (const auto& [t, c] : costs) {
-            // Too few pairs means the passes were pushed apart, not that they fit.
-            if (2 * c.second >= most_pairs && c.first < best) {
-                best = c.first;
-                tau = t;
-            }
-        }
+        tau = ScanLatency(poses, S, mount, tau0, cfg);
         res.latency_scan_best_s = tau;
     }
-    SonarMount m = mount;
-    Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
-    std::vector<Eigen::Vector3d> p;
-    // Nuisance: a height correction per node (every part_duration_s, linear in between) absorbs
-    // the INS height error, which differs from pass to pass. Without it a height difference
-    // between two parallel passes d apart reads as a roll of dz / d (1.5 cm over 3 m = 0.3 deg).
-    const int odim = cfg.estimate_horizontal_offsets ? 3 : cfg.estimate_height_offsets ? 1 : 0;
-    const int ldim = cfg.estimate_latency ? 1 : 0;
-    const int base = 3 + ldim;  // [roll, pitch, yaw, (tau), height offsets...]
-    const double seg_len = res.segment.end_s - res.segment.start_s;
-    const int n_nodes =
-        odim > 0 ? static_cast<int>(std::ceil(seg_len / cfg.part_duration_s)) + 1 : 0;
-    const int dim = base + n_nodes * odim;
-    Eigen::VectorXd off = Eigen::VectorXd::Zero(n_nodes * odim);
-    const auto sig_of = [&](int d) {
-        return odim == 3 && d < 2 ? cfg.horizontal_offset_sigma_m : cfg.height_offset_sigma_m;
-    };
-    const double phi = cfg.offset_correlation_time_s > 0
-                           ? std::exp(-cfg.part_duration_s / cfg.offset_correlation_time_s)
-                           : 0.0;
-    auto node_of = [&](double t, int& i, double& f) {
-        const double u =
-            std::clamp(t / cfg.part_duration_s, 0.0, static_cast<double>(n_nodes - 1) - 1e-9);
-        i = static_cast<int>(u);
-        f = u - i;
-    };
-    auto offset_at = [&](double t) {
-        Eigen::Vector3d o = Eigen::Vector3d::Zero();
-        if (n_nodes == 0) return o;
-        int i;
-        double f;
-        node_of(t, i, f);
-        for (int d = 0; d < odim; ++d) {
-            const int axis = odim == 1 ? 2 : d;
-            o[axis] = (1 - f) * off[i * odim + d] + f * off[(i + 1) * odim + d];
-        }
-        return o;
-    };
-    res.termination = Termination::kMaxIterations;
-    bool solve_failed = false;
-    std::vector<Eigen::Vector3d> rate;
-    Eigen::Vector3d prev_delta = Eigen::Vector3d::Zero();
-    double prev_dtau = 0;
-    for (int it = 0; it < cfg.max_iterations; ++it) {
-        if (progress && !progress(static_cast<double>(it) / cfg.max_iterations)) {
-            res.termination = Termination::kCancelled;
-            break;
-        }
-        const double a =
-            cfg.max_iterations > 1 ? static_cast<double>(it) / (cfg.max_iterations - 1) : 1.0;
-        const double d_max =
-            std::max(cfg.min_distance_m, cfg.max_distance_m * (1 - a) + cfg.min_distance_m * a);
-        const PingPoses T(poses, S, tau);
-        Positions(T, S, m, p);
-        for (std::size_t k = 0; k < p.size(); ++k) p[k] += offset_at(S.t_s[k]);
-        const std::vector<Pair> pairs = FindPairs(p, S, cfg, d_max);
-        if (ldim > 0) {
-            // dp/dtau of every sample that takes part in a pair.
-            rate.assign(p.size(), Eigen::Vector3d::Zero());
-            std::vector<char> need(p.size(), 0);
-            for (std::size_t k = 0; k < p.size(); ++k) {
-                if (pairs[k].ok) need[k] = need[pairs[k].c.target] = 1;
-            }
-            const Pose T_vs = m.T_vehicle_sonar();
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, p.size(), 512), [&](const auto& b) {
-                    // One rate map per ping (the samples are in ping order).
-                    std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
-                    ShiftedPoses::RateMap R{Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()};
-                    for (std::size_t k = b.begin(); k != b.end(); ++k) {
-                        if (!need[k]) continue;
-                        if (S.ping[k] != last) {
-                            last = S.ping[k];
-                            R = poses.Rate(last, tau);
-                        }
-                        rate[k] = R(T_vs * S.s_sonar[k]);
-                    }
-                });
-        }
-        // Normal equations in scalar blocks: [roll, pitch, yaw, (tau), height offsets...].
-        const Pose T_vs_now = MakePose(R_vs, m.T_vehicle_sonar().translation());
-        reg::BlockSystem<1> sys(static_cast<std::size_t>(dim));
-        std::int64_t n = 0;
-        std::vector<int> idx;
-        std::vector<Eigen::Matrix<double, 1, 1>> J;
-        auto push = [&](int i, double v) {
-            idx.push_back(i);
-            J.push_back(Eigen::Matrix<double, 1, 1>::Constant(v));
-        };
-        for (std::size_t k = 0; k < pairs.size(); ++k) {
-            const Pair& pr = pairs[k];
-            if (!pr.ok) continue;
-            const std::size_t q = pr.c.target;
-            const Eigen::Vector3d& nrm = pr.c.query_normal;
-            Eigen::RowVector3d Jr;
-            BoresightPairResidual(
-                T[S.ping[k]], T[S.ping[q]], T_vs_now, S.s_sonar[k], S.s_sonar[q], nrm, &Jr);
-            idx.clear();
-            J.clear();
-            for (int j = 0; j < 3; ++j) push(j, Jr[j]);
-            if (ldim > 0) push(3, nrm.dot(rate[k] - rate[q]));
-            if (n_nodes > 0) {
-                for (int side = 0; side < 2; ++side) {
-                    int i;
-                    double f;
-                    node_of(S.t_s[side == 0 ? k : q], i, f);
-                    const double sgn = side == 0 ? 1.0 : -1.0;
-                    for (int d = 0; d < odim; ++d) {
-                        const int axis = odim == 1 ? 2 : d;
-                        push(base + i * odim + d, sgn * (1 - f) * nrm[axis]);
-                        push(base + (i + 1) * odim + d, sgn * f * nrm[axis]);
-                    }
-                }
-            }
-            const Eigen::Matrix<double, 1, 1> W = Eigen::Matrix<double, 1, 1>::Constant(
-                pr.w *
-                reg::RobustWeight(reg::RobustKernel::kCauchy, std::abs(pr.r), cfg.cauchy_scale_m));
-            sys.Add<1>(idx.data(),
-                       J.data(),
-                       static_cast<int>(idx.size()),
-                       W,
-                       Eigen::Matrix<double, 1, 1>::Constant(pr.r));
-            ++n;
-        }
-        if (n < 50) {
-            res.termination = Termination::kNoOverlap;
-            break;
-        }
-        using Scalar1 = Eigen::Matrix<double, 1, 1>;
-        for (int j = 0; j < n_nodes * odim; ++j) {
-            const int d = j % odim;
-            const double sig_o = sig_of(d);
-            if (phi == 0.0 || j < odim) {
-                sys.AddPrior(static_cast<std::size_t>(base + j),
-                             Scalar1::Constant(1.0 / (sig_o * sig_o)),
-                             Scalar1::Constant(off[j]));
-                continue;
-            }
-            // Gauss-Markov: o_k - phi o_(k-1) ~ N(0, sigma^2 (1 - phi^2)).
-            const int ids[2] = {base + j - odim, base + j};
-            const Scalar1 Jc[2] = {Scalar1::Constant(-phi), Scalar1::Constant(1.0)};
-            sys.Add<1>(ids,
-                       Jc,
-                       2,
-                       Scalar1::Constant(1.0 / (sig_o * sig_o * (1 - phi * phi))),
-                       Scalar1::Constant(off[j] - phi * off[j - odim]));
-        }
-        if (ldim > 0) {
-            const double sl = cfg.latency_sigma_s;
-            sys.AddPrior(3, Scalar1::Constant(1.0 / (sl * sl)), Scalar1::Constant(tau - tau0));
-        }
-        const double rot_trace = sys.diag()[0](0) + sys.diag()[1](0) + sys.diag()[2](0);
-        for (std::size_t j = 0; j < 3; ++j) {
-            sys.AddPrior(j, Scalar1::Constant(1e-9 * rot_trace), Scalar1::Zero());
-        }
-        // Gauss-Newton (no damping): the step is capped below where it matters (latency).
-        reg::DampedSolver<1> solver(sys);
-        Eigen::VectorXd x;
-        if (!solver.Solve(0.0, &x)) {
-            solve_failed = true;  // non-finite data: the previous iterate is kept
-            break;
-        }
-        const Eigen::Vector3d delta = x.head<3>();
-        double dtau = 0;
-        if (ldim > 0) {
-            // A Gauss-Newton step is linear in the rotation rates: cap it at the scan step so
-            // that an early step from far away cannot jump into another wave period.
-            dtau = std::clamp(x[3], -cfg.latency_scan_step_s, cfg.latency_scan_step_s);
-            res.latency_unresolved = std::abs(x[3]) >= cfg.latency_scan_step_s;
-            // The latency converges linearly as well: the same extrapolation (below), its total
-            // step capped like the step itself.
-            double tau_step = dtau;
-            if (cfg.accelerate && prev_dtau * dtau > 0 && std::abs(dtau) < std::abs(prev_dtau)) {
-                const double r = dtau / prev_dtau;
-                tau_step = std::clamp(dtau * (1.0 + std::min(r / (1.0 - r), 5.0)),
-                                      -cfg.latency_scan_step_s,
-                                      cfg.latency_scan_step_s);
-            }
-            prev_dtau = dtau;
-            tau += tau_step;
-        }
-        off += x.tail(n_nodes * odim);
-        const Eigen::MatrixXd C = solver.InverseLeadingBlock(base);
-        for (int j = 0; j < 3; ++j)
-            res.formal_sd_deg[j] = frames::RadToDeg(std::sqrt(std::max(0.0, C(j, j))));
-        if (ldim > 0) res.latency_formal_sd_s = std::sqrt(std::max(0.0, C(3, 3)));
-        res.height_offsets_rms_m =
-            off.size() ? std::sqrt(off.squaredNorm() / static_cast<double>(off.size())) : 0.0;
-        // Accelerated ICP (Besl & McKay 1992, section IV): with correspondences found again
-        // every iteration the rotation converges linearly, its steps shrinking by a steady
-        // ratio r along one direction (bejanca: r ~ 0.7, still 0.0035 deg at the 12th
-        // iteration). When two steps agree in direction within 10 deg, the rest of that series,
-        // delta r / (1 - r) (at most 5 delta), is taken at once.
-        Eigen::Vector3d step = delta;
-        const double np = prev_delta.norm(), nd = delta.norm();
-        if (cfg.accelerate && np > 0 && nd > 0 && nd < np &&
-            delta.dot(prev_delta) > std::cos(frames::DegToRad(10.0)) * nd * np) {
-            const double r = nd / np;
-            step += delta * std::min(r / (1.0 - r), 5.0);
-        }
-        prev_delta = delta;
-        R_vs = R_vs * ExpSO3(step);
-        const frames::Rpy rpy = frames::RpyFromRotationNed(R_vs);
-        m.boresight_roll_deg = frames::RadToDeg(rpy.roll);
-        m.boresight_pitch_deg = frames::RadToDeg(rpy.pitch);
-        m.boresight_yaw_deg = frames::RadToDeg(rpy.yaw);
-        res.iterations = it + 1;
-        if (frames::RadToDeg(delta.norm()) < cfg.convergence_deg && std::abs(dtau) < 1e-4 &&
-            d_max <= cfg.min_distance_m + 1e-9) {
-            res.termination = Termination::kConverged;
-            break;
-        }
-    }
-    res.latency_estimated = ldim > 0 && res.termination != Termination::kNoOverlap;
-    res.latency_s = res.latency_estimated ? tau : tau0;
+
+    const MountFit fit = FitMount(
+        poses, S, mount, tau0, tau, res.segment.end_s - res.segment.start_s, cfg, progress);
+    res.termination = fit.termination;
+    res.iterations = fit.iterations;
+    res.latency_unresolved = fit.latency_unresolved;
+    std::copy_n(fit.formal_sd_deg, 3, res.formal_sd_deg);
+    res.latency_formal_sd_s = fit.latency_formal_sd_s;
+    res.height_offsets_rms_m = fit.height_offsets_rms_m;
+    res.latency_estimated = cfg.estimate_latency && res.termination != Termination::kNoOverlap;
+    res.latency_s = res.latency_estimated ? fit.tau : tau0;
     if (res.termination == Termination::kNoOverlap) {
         res.message = "no overlap between passes in the segment: boresight unchanged";
-        res.mount = mount;
         return res;
     }
-    res.mount = m;
+    res.mount = fit.mount;
+
     res.ins_attitude_reported = InsAttitudeSd(nav,
                                               res.segment.start_s,
                                               res.segment.end_s,
-                                              m,
+                                              res.mount,
                                               cfg.ins_attitude_correlation_time_s,
                                               res.ins_attitude_sd_deg);
     for (int j = 0; j < 3; ++j)
         res.sd_deg[j] = std::hypot(res.formal_sd_deg[j], res.ins_attitude_sd_deg[j]);
-    res.after = Evaluate(poses, S, m, res.latency_s, cfg);
-    // Verification on other low-drift segments with overlap, not overlapping ours. A drifting
-    // segment verifies nothing: its INS error moves the passes by more than any boresight, and
-    // on gps-outage (seeds 1, 3, 4) a window inside the GNSS outage rejected good calibrations.
-    std::vector<SegmentScore> others;
-    for (const auto& c : res.candidates) {
-        if (c.end_s <= res.segment.start_s || c.start_s >= res.segment.end_s) others.push_back(c);
-    }
-    std::sort(others.begin(), others.end(), better);
-    std::vector<SegmentScore> chosen;
-    for (const auto& c : others) {
-        if (static_cast<int>(chosen.size()) >= cfg.num_verify_segments) break;
-        bool clash = false;
-        for (const auto& o : chosen) clash |= !(c.end_s <= o.start_s || c.start_s >= o.end_s);
-        if (!clash && c.overlap_cells > 0 && c.low_drift) chosen.push_back(c);
-    }
-    for (const auto& c : chosen) {
-        const Samples V = CollectIndexed(
-            geo, poses, mount, tau0, c.start_s, c.end_s, cfg.verify_query_every, cfg);
-        VerifyResult v{
-            c, Evaluate(poses, V, mount, tau0, cfg), Evaluate(poses, V, m, res.latency_s, cfg), {}};
-        if (res.latency_estimated) v.after_nominal_latency = Evaluate(poses, V, m, tau0, cfg);
-        res.verify.push_back(v);
-    }
-    char buf[256];
-    std::snprintf(buf,
-                  sizeof(buf),
-                  "boresight roll %.3f pitch %.3f yaw %.3f deg (%s after %d iterations); "
-                  "residual RMS %.4f -> %.4f m over %lld pairs",
-                  m.boresight_roll_deg,
-                  m.boresight_pitch_deg,
-                  m.boresight_yaw_deg,
-                  ToString(res.termination),
-                  res.iterations,
-                  res.before.rms_m,
-                  res.after.rms_m,
-                  static_cast<long long>(res.after.pairs));
-    res.message = buf;
-    if (solve_failed) res.message += "; stopped: the normal equations could not be solved";
-    if (res.latency_estimated) {
-        std::snprintf(buf,
-                      sizeof(buf),
-                      "; latency %+.4f s (formal sd %.4f s)",
-                      res.latency_s,
-                      res.latency_formal_sd_s);
-        res.message += buf;
-    }
+    res.after = Evaluate(poses, S, res.mount, res.latency_s, cfg);
+
+    for (const auto& c : VerifySegments(res.candidates, res.segment, cfg))
+        res.verify.push_back(VerifyOn(geo, poses, c, mount, tau0, res, cfg));
+    res.message = Summary(res, fit.solve_failed);
     return res;
 }
 
