@@ -23,6 +23,7 @@
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/fusion/vdb_io.hpp"
+#include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
@@ -65,6 +66,13 @@ std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::
         worst = std::max(worst, d);
     }
     return {n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0, worst};
+}
+
+// The points of all slices.
+std::size_t PointCount(const SliceSet& set) {
+    std::size_t n = 0;
+    for (const auto& sl : set.slices) n += sl.points_vehicle.size();
+    return n;
 }
 
 }  // namespace
@@ -150,9 +158,10 @@ std::string WorstWindows(const json& windows, double expected_m) {
     return s;
 }
 
-Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
-    StageClock clock;
-    const SlamStageConfig& sc = config.slam_stage;
+namespace {
+
+// SLAM's input from the georeferenced survey, logged.
+SliceSet SlamSlices(const Survey& s, const SlamStageConfig& sc, const Log& log) {
     PoseSigma fallback;
     fallback << frames::DegToRad(sc.fallback_attitude_deg[0]),
         frames::DegToRad(sc.fallback_attitude_deg[1]),
@@ -160,195 +169,220 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         sc.fallback_position_m[1], sc.fallback_position_m[2];
     SliceSet set =
         MakeSlices(s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
-    std::size_t num_points = 0;
-    for (const auto& sl : set.slices) num_points += sl.points_vehicle.size();
-    log("slam: " + std::to_string(set.slices.size()) + " slices, " + std::to_string(num_points) +
-        " points");
+    log("slam: " + std::to_string(set.slices.size()) + " slices, " +
+        std::to_string(PointCount(set)) + " points");
+    return set;
+}
 
-    const slam::SlamResult r =
-        slam::RunSlam(set.slices, config.slam, [&log](const slam::SlamIteration& it) {
-            log(std::string("slam: ") +
-                (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") + " iteration " +
-                std::to_string(it.iteration));
-            return true;
-        });
+// SLAM on the slices, each iteration logged.
+slam::SlamResult RunSlamLogged(const SliceSet& set, const slam::SlamConfig& cfg, const Log& log) {
+    slam::SlamResult r = slam::RunSlam(set.slices, cfg, [&log](const slam::SlamIteration& it) {
+        log(std::string("slam: ") + (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") +
+            " iteration " + std::to_string(it.iteration));
+        return true;
+    });
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
+    return r;
+}
 
-    // The trajectory before, per ping, and the optimised one: slice poses where SLAM has them,
-    // interpolated between slices for pings that kept no sounding.
-    const TimedPoses before = PingPoses(s.geo);
+// The optimised trajectory per ping: slice poses where SLAM has them, interpolated between
+// slices for pings that kept no sounding; `before` where SLAM returned no pose.
+std::vector<Pose> SlamPingPoses(const georef::GeorefResult& geo,
+                                const SliceSet& set,
+                                const slam::SlamResult& r,
+                                const TimedPoses& before) {
     TimedPoses slices_after;
     for (const slam::SlamPose& p : r.trajectory) {
         if (p.input_index >= set.ping.size()) continue;
         slices_after.gps_time_s.push_back(
-            static_cast<double>(s.geo.pings[set.ping[p.input_index]].utime_gps) * 1e-6);
+            static_cast<double>(geo.pings[set.ping[p.input_index]].utime_gps) * 1e-6);
         slices_after.T_world_vehicle.push_back(p.T_world_vehicle);
     }
-    std::vector<Pose> after = before.T_world_vehicle;
-    if (!slices_after.gps_time_s.empty()) {
-        after = PosesAtPings(s.geo, slices_after.gps_time_s, slices_after.T_world_vehicle)
-                    .T_world_vehicle;
+    if (slices_after.gps_time_s.empty()) return before.T_world_vehicle;
+    return PosesAtPings(geo, slices_after.gps_time_s, slices_after.T_world_vehicle).T_world_vehicle;
+}
+
+// The INS's own horizontal 1-sigma at a ping (hydro::InsSigmaAt: the nearest stddev record),
+// metres; NaN when no record lies within max_age_s or the record lacks north or east (NaN or
+// <= 0: not reported).
+double InsHorizontalSigma(const std::vector<georef::NavStdDev>& sd,
+                          std::int64_t utime_gps,
+                          double max_age_s) {
+    constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+    hydro::PingSigma unreported;
+    unreported.position_enu_m.setConstant(kNaN);
+    unreported.attitude_rpy_rad.setConstant(kNaN);
+    bool from_ins = false;
+    const hydro::PingSigma sigma =
+        hydro::InsSigmaAt(sd, utime_gps, max_age_s, unreported, &from_ins);
+    if (!from_ins) return kNaN;
+    return std::hypot(sigma.position_enu_m.y(), sigma.position_enu_m.x());
+}
+
+// How far SLAM moved the pings where the INS is good (horizontal sigma <= slam_good_ins_sigma_m),
+// over the survey and per window of quality.slam_drift_window_s.
+struct GoodInsMoves {
+    // A drift of the INS that it does not report shows as one stretch whose pings SLAM moves
+    // beyond their sigma together.
+    struct Window {
+        std::int64_t good = 0, beyond = 0;
+        double worst = 0;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the moves, east north up, m
+    };
+    std::vector<std::size_t> good;  // the pings with good INS
+    std::int64_t beyond = 0;        // of them moved beyond slam_sigma_multiple x sigma
+    double worst = 0;               // their largest move, m
+    std::int64_t t_first = 0;       // GPS us of the first ping: window 0 starts there
+    std::int64_t window_us = 0;
+    std::map<std::int64_t, Window> windows;
+};
+
+GoodInsMoves MovesAtGoodIns(const georef::GeorefResult& geo,
+                            const georef::NavSeries& nav,
+                            const std::vector<Pose>& before,
+                            const std::vector<Pose>& after,
+                            double sigma_max_age_s,
+                            const QualityConfig& q) {
+    GoodInsMoves out;
+    out.window_us = static_cast<std::int64_t>(q.slam_drift_window_s * 1e6);
+    out.t_first = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
+    for (std::size_t i = 0; i < after.size() && i < geo.pings.size(); ++i) {
+        const std::int64_t t = geo.pings[i].utime_gps;
+        const double sigma = InsHorizontalSigma(nav.stddevs, t, sigma_max_age_s);
+        if (!(sigma <= q.slam_good_ins_sigma_m)) continue;
+        out.good.push_back(i);
+        const double moved = (after[i].translation() - before[i].translation()).norm();
+        const double allowed = std::max(q.slam_sigma_multiple * sigma, q.slam_min_allowance_m);
+        if (moved > allowed) ++out.beyond;
+        out.worst = std::max(out.worst, moved);
+        GoodInsMoves::Window& w = out.windows[(t - out.t_first) / out.window_us];
+        ++w.good;
+        if (moved > allowed) ++w.beyond;
+        w.worst = std::max(w.worst, moved);
+        w.sum += after[i].translation() - before[i].translation();
     }
-    // Where the INS is good (GNSS, cm-level sigma) SLAM may not move a ping further than its
-    // sigma allows: a correction beyond that is an inconsistency (a sonar clock or mount error
-    // the calibration did not remove) and is reported, not absorbed into the trajectory.
-    ClearGates(s, Stage::kSlam);
-    std::string drift_text;  // where the navigation drifted, by either test below
-    if (r.termination == slam::SlamTermination::kNoOverlap) {
+    return out;
+}
+
+// The windows where most good pings moved beyond their sigma (not the whole survey), as JSON,
+// and described in `text`.
+json DriftWindows(const GoodInsMoves& moves, const QualityConfig& q, std::string* text) {
+    json drift = json::array();
+    for (const auto& [index, w] : moves.windows) {
+        if (w.good < 20 || 2 * w.beyond <= w.good) continue;
+        const double a = static_cast<double>(moves.t_first + index * moves.window_us) * 1e-6;
+        const Eigen::Vector3d mean = w.sum / static_cast<double>(w.good);
+        drift.push_back({{"start_gps_s", a},
+                         {"end_gps_s", a + q.slam_drift_window_s},
+                         {"good_ins_pings", w.good},
+                         {"moved_beyond_allowance", w.beyond},
+                         {"max_move_m", w.worst},
+                         {"mean_move_enu_m", {mean.x(), mean.y(), mean.z()}}});
+        if (text->size() < 500) {
+            *text += (text->empty() ? "" : "; ") + Fixed(a, 1) + ".." +
+                     Fixed(a + q.slam_drift_window_s, 1) + " GPS s: up to " + Fixed(w.worst, 2) +
+                     " m (mean east " + Fixed(mean.x(), 2) + ", north " + Fixed(mean.y(), 2) +
+                     ", up " + Fixed(mean.z(), 2) + " m)";
+        }
+    }
+    return drift;
+}
+
+// Where the INS is good (GNSS, cm-level sigma) SLAM may not move a ping further than its sigma
+// allows: a correction beyond that is an inconsistency (a sonar clock or mount error the
+// calibration did not remove) and is reported, not absorbed into the trajectory. When too many
+// good pings moved, the gate trips and they get their INS poses back in `after`; otherwise the
+// windows that drifted are described in `drift_text`. Returns summary.json's "ins_check".
+json CheckAgainstGoodIns(Survey& s,
+                         const std::vector<Pose>& before,
+                         std::vector<Pose>& after,
+                         double sigma_max_age_s,
+                         const QualityConfig& q,
+                         std::string* drift_text,
+                         const Log& log) {
+    const GoodInsMoves moves =
+        MovesAtGoodIns(s.geo, s.model.ingest.nav, before, after, sigma_max_age_s, q);
+    json ins_check = {{"good_ins_pings", moves.good.size()},
+                      {"moved_beyond_allowance", moves.beyond},
+                      {"max_move_good_ins_m", moves.worst},
+                      {"reverted", false}};
+    if (!moves.good.empty() && static_cast<double>(moves.beyond) >
+                                   q.slam_max_fraction * static_cast<double>(moves.good.size())) {
         TripGate(s,
                  Stage::kSlam,
-                 "slam_no_overlap",
-                 "SLAM found no overlapping passes to register (" + r.message +
-                     "): the trajectory is the " + survey::ToString(s.model.latest()) +
-                     " one, uncorrected; survey crosslines or overlapping lines to use SLAM",
+                 "slam_beyond_ins_sigma",
+                 "SLAM moved " + std::to_string(moves.beyond) + " of " +
+                     std::to_string(moves.good.size()) +
+                     " pings with good INS (horizontal sigma <= " +
+                     Fixed(q.slam_good_ins_sigma_m, 2) + " m) by more than " +
+                     Fixed(q.slam_sigma_multiple, 1) + " sigma (up to " + Fixed(moves.worst, 3) +
+                     " m): the soundings disagree with a good INS (sonar clock, mount or "
+                     "sound speed?); the INS trajectory is kept at those pings",
                  log);
+        for (std::size_t i : moves.good) after[i] = before[i];
+        ins_check["reverted"] = true;
+        return ins_check;
     }
-    json ins_check = json::object();
-    {
-        const QualityConfig& q = config.quality;
-        const auto& sd = s.model.ingest.nav.stddevs;
-        std::vector<std::size_t> good;
-        std::int64_t beyond = 0;
-        double worst = 0;
-        // The same per window of quality.slam_drift_window_s: a drift of the INS that it does
-        // not report shows as one stretch whose pings SLAM moves beyond their sigma together.
-        struct Window {
-            std::int64_t good = 0, beyond = 0;
-            double worst = 0;
-            Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        };
-        std::map<std::int64_t, Window> windows;
-        const auto window_us = static_cast<std::int64_t>(q.slam_drift_window_s * 1e6);
-        const std::int64_t t_first = s.geo.pings.empty() ? 0 : s.geo.pings.front().utime_gps;
-        for (std::size_t i = 0; i < after.size() && i < s.geo.pings.size(); ++i) {
-            const std::int64_t t = s.geo.pings[i].utime_gps;
-            auto it = std::lower_bound(sd.begin(), sd.end(), t, [](const auto& a, std::int64_t b) {
-                return a.utime_gps < b;
-            });
-            double sigma = std::numeric_limits<double>::quiet_NaN();
-            double age = 1e300;
-            for (auto c : {it, it == sd.begin() ? it : it - 1}) {
-                if (c == sd.end()) continue;
-                const double a = std::abs(static_cast<double>(c->utime_gps - t)) * 1e-6;
-                if (a < age) {
-                    age = a;
-                    sigma =
-                        std::hypot(static_cast<double>(c->north_m), static_cast<double>(c->east_m));
-                }
-            }
-            if (!(age <= sc.sigma_max_age_s && sigma <= q.slam_good_ins_sigma_m)) continue;
-            good.push_back(i);
-            const double moved =
-                (after[i].translation() - before.T_world_vehicle[i].translation()).norm();
-            const double allowed = std::max(q.slam_sigma_multiple * sigma, q.slam_min_allowance_m);
-            if (moved > allowed) ++beyond;
-            worst = std::max(worst, moved);
-            Window& w = windows[(t - t_first) / window_us];
-            ++w.good;
-            if (moved > allowed) ++w.beyond;
-            w.worst = std::max(w.worst, moved);
-            w.sum += after[i].translation() - before.T_world_vehicle[i].translation();
-        }
-        ins_check = {{"good_ins_pings", good.size()},
-                     {"moved_beyond_allowance", beyond},
-                     {"max_move_good_ins_m", worst},
-                     {"reverted", false}};
-        if (!good.empty() &&
-            static_cast<double>(beyond) > q.slam_max_fraction * static_cast<double>(good.size())) {
-            TripGate(s,
-                     Stage::kSlam,
-                     "slam_beyond_ins_sigma",
-                     "SLAM moved " + std::to_string(beyond) + " of " + std::to_string(good.size()) +
-                         " pings with good INS (horizontal sigma <= " +
-                         Fixed(q.slam_good_ins_sigma_m, 2) + " m) by more than " +
-                         Fixed(q.slam_sigma_multiple, 1) + " sigma (up to " + Fixed(worst, 3) +
-                         " m): the soundings disagree with a good INS (sonar clock, mount or "
-                         "sound speed?); the INS trajectory is kept at those pings",
-                     log);
-            for (std::size_t i : good) after[i] = before.T_world_vehicle[i];
-            ins_check["reverted"] = true;
-        } else {
-            // Not the whole survey: windows where most good pings moved beyond their sigma.
-            json drift = json::array();
-            std::string text;
-            for (const auto& [index, w] : windows) {
-                if (w.good < 20 || 2 * w.beyond <= w.good) continue;
-                const double a = static_cast<double>(t_first + index * window_us) * 1e-6;
-                const Eigen::Vector3d mean = w.sum / static_cast<double>(w.good);
-                drift.push_back({{"start_gps_s", a},
-                                 {"end_gps_s", a + q.slam_drift_window_s},
-                                 {"good_ins_pings", w.good},
-                                 {"moved_beyond_allowance", w.beyond},
-                                 {"max_move_m", w.worst},
-                                 {"mean_move_enu_m", {mean.x(), mean.y(), mean.z()}}});
-                if (text.size() < 500) {
-                    text += (text.empty() ? "" : "; ") + Fixed(a, 1) + ".." +
-                            Fixed(a + q.slam_drift_window_s, 1) + " GPS s: up to " +
-                            Fixed(w.worst, 2) + " m (mean east " + Fixed(mean.x(), 2) + ", north " +
-                            Fixed(mean.y(), 2) + ", up " + Fixed(mean.z(), 2) + " m)";
-                }
-            }
-            ins_check["drift_windows"] = drift;
-            if (!drift.empty()) {
-                drift_text = "SLAM moved most pings of " + std::to_string(drift.size()) +
-                             " window(s) beyond the INS's own sigma, while the INS reported a "
-                             "good solution: " +
-                             text + " (SLAM's correction is kept)";
-            }
-        }
+    std::string text;
+    const json drift = DriftWindows(moves, q, &text);
+    ins_check["drift_windows"] = drift;
+    if (!drift.empty()) {
+        *drift_text = "SLAM moved most pings of " + std::to_string(drift.size()) +
+                      " window(s) beyond the INS's own sigma, while the INS reported a good "
+                      "solution: " +
+                      text + " (SLAM's correction is kept)";
     }
-    const auto [change_rms, change_max] = PositionChange(before.T_world_vehicle, after);
-    // What the range noise alone would leave of the plane-fit consistency (calibrate's model,
-    // sigma = constant + fraction * range, over the soundings): far above it, the passes still
-    // disagree in a way SLAM did not (and should not) explain.
+    return ins_check;
+}
+
+// What the range noise alone would leave of the plane-fit consistency (calibrate's model,
+// sigma = constant + fraction * range, over every 16th sounding), m RMS; 0 without soundings.
+double ExpectedConsistency(const georef::GeorefResult& geo, const calib::BoresightConfig& cal) {
     double noise_ss = 0;
     std::size_t noise_n = 0;
-    const auto& ranges = s.geo.points.range_m;
+    const auto& ranges = geo.points.range_m;
     for (std::size_t k = 0; k < ranges.size(); k += 16) {
-        const double sr = config.calibrate.range_noise_constant_m +
-                          config.calibrate.range_noise_fraction * static_cast<double>(ranges[k]);
+        const double sr =
+            cal.range_noise_constant_m + cal.range_noise_fraction * static_cast<double>(ranges[k]);
         if (!std::isfinite(sr)) continue;
         noise_ss += sr * sr;
         ++noise_n;
     }
-    const double expected_consistency =
-        noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
-    // Where the passes still disagree, per window: a stretch far worse than the rest of the
-    // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
-    const json windows_json =
-        ConsistencyWindows(r, config.quality, expected_consistency, &drift_text);
-    const bool concentrated = std::any_of(windows_json.begin(),
-                                          windows_json.end(),
-                                          [](const json& w) { return w.value("drift", false); });
-    if (expected_consistency > 0 &&
-        r.final_consistency_m > config.quality.slam_consistency_ratio * expected_consistency) {
-        TripGate(s,
-                 Stage::kSlam,
-                 "slam_inconsistent",
-                 "after SLAM the overlapping passes still disagree by " +
-                     Fixed(r.final_consistency_m, 3) + " m RMS (plane fits), " +
-                     Fixed(r.final_consistency_m / expected_consistency, 1) +
-                     "x what the range noise leaves (" + Fixed(expected_consistency, 3) + " m): " +
-                     (concentrated
-                          ? std::string("most of it in a few stretches (slam/navigation_drift): "
-                                        "the navigation there")
-                          : std::string("the soundings disagree in a way the trajectory within "
-                                        "the INS sigma does not explain (navigation drift, "
-                                        "sonar clock, mount or sound speed?)")) +
-                     WorstWindows(windows_json, expected_consistency),
-                 log);
-    }
-    if (!drift_text.empty()) {
-        TripGate(s,
-                 Stage::kSlam,
-                 "navigation_drift",
-                 drift_text +
-                     ": the navigation drifted there while it reported a good solution "
-                     "(check the INS and GNSS logs of those times)",
-                 log);
-    }
+    return noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
+}
 
-    // The per-ping products of this stage, written once: before and after.
+// Far above the expected consistency, the passes still disagree in a way SLAM did not (and
+// should not) explain: gate slam_inconsistent, saying whether the disagreement sits in a few
+// windows (the navigation of those stretches) or everywhere (a survey-wide input).
+void GateConsistency(Survey& s,
+                     const slam::SlamResult& r,
+                     const QualityConfig& q,
+                     double expected_m,
+                     const json& windows,
+                     const Log& log) {
+    if (!(expected_m > 0) || !(r.final_consistency_m > q.slam_consistency_ratio * expected_m))
+        return;
+    const bool concentrated = std::any_of(
+        windows.begin(), windows.end(), [](const json& w) { return w.value("drift", false); });
+    TripGate(s,
+             Stage::kSlam,
+             "slam_inconsistent",
+             "after SLAM the overlapping passes still disagree by " +
+                 Fixed(r.final_consistency_m, 3) + " m RMS (plane fits), " +
+                 Fixed(r.final_consistency_m / expected_m, 1) + "x what the range noise leaves (" +
+                 Fixed(expected_m, 3) + " m): " +
+                 (concentrated ? std::string("most of it in a few stretches "
+                                             "(slam/navigation_drift): the navigation there")
+                               : std::string("the soundings disagree in a way the trajectory "
+                                             "within the INS sigma does not explain (navigation "
+                                             "drift, sonar clock, mount or sound speed?)")) +
+                 WorstWindows(windows, expected_m),
+             log);
+}
+
+// The per-ping products of this stage, written once: before and after; `after` becomes the
+// survey's trajectory.
+Status WriteSlamProducts(Survey& s, const TimedPoses& before, const std::vector<Pose>& after) {
     const std::string& P = s.out_dir;
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
     if (auto w = io::WritePly(P + "/points_initial.ply", s.geo, nullptr, s.model.run_id); !w)
@@ -356,12 +390,22 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
-    if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
+    return WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo));
+}
 
+// summary.json's "slam": SLAM's result, the checks' figures and the coarse search's sections
+// (INS unsure: GNSS outages) with what it did.
+json SlamSummary(const slam::SlamResult& r,
+                 const SliceSet& set,
+                 const slam::SlamConfig& cfg,
+                 double expected_consistency,
+                 std::pair<double, double> change,
+                 json ins_check,
+                 json windows) {
     json st = {{"termination", slam::ToString(r.termination)},
                {"message", r.message},
                {"slices", set.slices.size()},
-               {"points", num_points},
+               {"points", PointCount(set)},
                {"sections", r.num_sections},
                {"section_links", r.num_section_links},
                {"poses", r.num_poses},
@@ -375,12 +419,12 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"initial_consistency_m", r.initial_consistency_m},
                {"final_consistency_m", r.final_consistency_m},
                {"expected_consistency_m", expected_consistency},
-               {"position_change_rms_m", change_rms},
-               {"position_change_max_m", change_max},
-               {"ins_check", ins_check},
-               {"consistency_windows", windows_json},
-               {"correspondence", ToString(config.slam.correspondence)},
-               {"robust_kernel", ToString(config.slam.robust_kernel)},
+               {"position_change_rms_m", change.first},
+               {"position_change_max_m", change.second},
+               {"ins_check", std::move(ins_check)},
+               {"consistency_windows", std::move(windows)},
+               {"correspondence", ToString(cfg.correspondence)},
+               {"robust_kernel", ToString(cfg.robust_kernel)},
                {"timings_s",
                 {{"trees", r.timings.trees_s},
                  {"coarse_search", r.timings.coarse_search_s},
@@ -389,7 +433,6 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  {"solve", r.timings.solve_s},
                  {"score", r.timings.score_s},
                  {"total", r.timings.total_s}}}};
-    // The sections the coarse search looked at (INS unsure: GNSS outages) and what it did.
     st["coarse_search"] = json::array();
     for (const slam::SlamSection& sec : r.sections) {
         if (!sec.searched) continue;
@@ -402,11 +445,63 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
               {sec.coarse_offset_m.x(), sec.coarse_offset_m.y(), sec.coarse_offset_m.z()}}});
     }
     st["iterations"] = r.iterations;
-    log("slam: trajectory moved by " + Fixed(change_rms, 3) + " m RMS, " + Fixed(change_max, 3) +
-        " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) + " -> " +
-        Fixed(r.final_pair_score_m, 4) + " m, consistency " + Fixed(r.initial_consistency_m, 4) +
-        " -> " + Fixed(r.final_consistency_m, 4) + " m");
-    RecordStage(s.summary, Stage::kSlam, st, clock);
+    return st;
+}
+
+}  // namespace
+
+Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    const QualityConfig& q = config.quality;
+    const SliceSet set = SlamSlices(s, config.slam_stage, log);
+    const slam::SlamResult r = RunSlamLogged(set, config.slam, log);
+    const TimedPoses before = PingPoses(s.geo);
+    std::vector<Pose> after = SlamPingPoses(s.geo, set, r, before);
+
+    ClearGates(s, Stage::kSlam);
+    if (r.termination == slam::SlamTermination::kNoOverlap) {
+        TripGate(s,
+                 Stage::kSlam,
+                 "slam_no_overlap",
+                 "SLAM found no overlapping passes to register (" + r.message +
+                     "): the trajectory is the " + survey::ToString(s.model.latest()) +
+                     " one, uncorrected; survey crosslines or overlapping lines to use SLAM",
+                 log);
+    }
+    std::string drift_text;  // where the navigation drifted, by either test below
+    json ins_check = CheckAgainstGoodIns(
+        s, before.T_world_vehicle, after, config.slam_stage.sigma_max_age_s, q, &drift_text, log);
+    const auto change = PositionChange(before.T_world_vehicle, after);
+    // Where the passes still disagree, per window: a stretch far worse than the rest of the
+    // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
+    const double expected_consistency = ExpectedConsistency(s.geo, config.calibrate);
+    json windows_json = ConsistencyWindows(r, q, expected_consistency, &drift_text);
+    GateConsistency(s, r, q, expected_consistency, windows_json, log);
+    if (!drift_text.empty()) {
+        TripGate(s,
+                 Stage::kSlam,
+                 "navigation_drift",
+                 drift_text +
+                     ": the navigation drifted there while it reported a good solution "
+                     "(check the INS and GNSS logs of those times)",
+                 log);
+    }
+
+    if (auto w = WriteSlamProducts(s, before, after); !w) return w;
+    log("slam: trajectory moved by " + Fixed(change.first, 3) + " m RMS, " +
+        Fixed(change.second, 3) + " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) +
+        " -> " + Fixed(r.final_pair_score_m, 4) + " m, consistency " +
+        Fixed(r.initial_consistency_m, 4) + " -> " + Fixed(r.final_consistency_m, 4) + " m");
+    RecordStage(s.summary,
+                Stage::kSlam,
+                SlamSummary(r,
+                            set,
+                            config.slam,
+                            expected_consistency,
+                            change,
+                            std::move(ins_check),
+                            std::move(windows_json)),
+                clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};
