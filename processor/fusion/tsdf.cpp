@@ -178,25 +178,231 @@ void ClipLinear(double alpha, double beta, int& lo, int& hi) {
     }
 }
 
+// The sector of a voxel of one ping's fan. Sector k is [beta_k, beta_{k+1}) of the in-plane
+// angle (FanColumns); -1 and n_sect are outside the fan.
+class SectorTracker {
+public:
+    explicit SectorTracker(const detail::FanColumns& fan)
+        : fan_(fan),
+          n_sect_(static_cast<int>(fan.sectors.size())),
+          side_y_(fan.side_y.data()),
+          side_z_(fan.side_z.data()) {}
+
+    int count() const { return n_sect_; }
+    // Steps of tracking along a column before falling back to the angle.
+    int column_steps() const { return fan_.wide ? 0 : 4; }
+
+    // Index >= k (k in [0, n_sect]) when the voxel lies on the far side of boundary k.
+    __attribute__((always_inline)) inline bool AtOrAbove(int k, double y, double z) const {
+        return side_y_[k] * y + side_z_[k] * z >= 0.0;
+    }
+    // Sector of (y, z) from a guess k in [-1, n_sect]; `exact` when both boundary tests agree,
+    // which the walk reaches in a step or two. Off a fan of 180 deg or more the tests are not
+    // monotone across sectors: only the guess's own sector is checked (exact: a sector's two
+    // tests bound it alone).
+    __attribute__((always_inline)) inline int Track(
+        int k, double y, double z, int max_steps, bool& exact) const {
+        if (fan_.wide) max_steps = 0;
+        if (max_steps == 0) {
+            exact = k >= 0 && k < n_sect_ && AtOrAbove(k, y, z) && !AtOrAbove(k + 1, y, z);
+            return k;
+        }
+        for (int it = 0; it < max_steps; ++it) {
+            if (k < n_sect_ && AtOrAbove(k + 1, y, z)) {
+                ++k;
+            } else if (k >= 0 && !AtOrAbove(k, y, z)) {
+                --k;
+            } else {
+                exact = true;
+                return k;
+            }
+        }
+        exact = false;
+        return k;
+    }
+    // Sector of (y, z) from its angle (atan2), clamped to [-1, n_sect].
+    int FromAngle(double y, double z) const {
+        const double k =
+            std::floor((std::atan2(y, z) - fan_.start_angle) * fan_.inv_increment + 0.5);
+        return static_cast<int>(std::clamp(k, -1.0, static_cast<double>(n_sect_)));
+    }
+
+private:
+    const detail::FanColumns& fan_;
+    const int n_sect_;
+    const double* side_y_;
+    const double* side_z_;
+};
+
+// The constants of one ping's column walk. The columns run along world axis a (the fan's axis);
+// rows along axis b, the voxels of a row along axis c. Positions are in the sonar frame, voxel
+// units: x out of the fan plane, (y, z) in it; omega and tau are the in-plane coordinates
+// across and along the columns (FanColumns).
+struct FanWalk {
+    FanWalk(const PreparedScan& scan, const Geometry& g)
+        : fan(scan.fan),
+          a(fan.axis),
+          b(axis_after(a, 1)),
+          c(axis_after(a, 2)),
+          origin(-(scan.R.transpose() * scan.p_vox)),
+          step_b(scan.R(b, 0), scan.R(b, 1), scan.R(b, 2)),
+          step_c(scan.R(c, 0), scan.R(c, 1), scan.R(c, 2)),
+          step_a(fan.step),
+          nx(step_a.x()),
+          in_plane(std::abs(nx) < 1e-9),
+          inv_nx(in_plane ? 0.0 : 1.0 / nx),
+          sgn_nx(nx >= 0.0 ? 1.0 : -1.0),
+          inv_g(1.0 / fan.g),
+          omega_end(fan.omega0 + static_cast<double>(fan.tau_lo.size())),
+          x_max(fan.x_max_all),
+          trunc(g.trunc_vox),
+          tan2_bw(g.tan_half_bw * g.tan_half_bw) {}
+
+    static int axis_after(int axis, int n) { return (axis + n) % 3; }
+
+    const detail::FanColumns& fan;
+    const int a, b, c;              // world axes of the columns, rows and voxels of a row
+    const Eigen::Vector3d origin;   // sonar frame of voxel (0, 0, 0)
+    const Eigen::Vector3d step_b;   // sonar-frame change per voxel along b
+    const Eigen::Vector3d step_c;   // ... along c
+    const Eigen::Vector3d& step_a;  // ... along a (the columns)
+    const double nx;                // out-of-plane change per column step
+    const bool in_plane;            // columns parallel to the fan plane
+    const double inv_nx, sgn_nx;
+    const double inv_g;      // 1 / in-plane length of a column step
+    const double omega_end;  // omega of the last bin's upper edge
+    const double x_max;      // largest |x| any sector can update
+    const double trunc;      // T, voxels
+    const double tan2_bw;    // tan^2(beam width / 2)
+};
+
+// The voxels [jc0, jc1] along c of row jb whose column can meet the ping: omega within the
+// bins, and |x| <= x_max within the ping's tau range. Returns the row's voxel (a, c) = (0, 0).
+Eigen::Vector3d ClipRow(const FanWalk& w, int jb, int& jc0, int& jc1) {
+    const detail::FanColumns& fan = w.fan;
+    const Eigen::Vector3d base = w.origin + static_cast<double>(jb) * w.step_b;
+    const double om_row = fan.w_y * base.y() + fan.w_z * base.z();
+    const double om_c = fan.w_y * w.step_c.y() + fan.w_z * w.step_c.z();
+    const double tau_row = fan.c_y * base.y() + fan.c_z * base.z();
+    const double tau_c = fan.c_y * w.step_c.y() + fan.c_z * w.step_c.z();
+    const double x_row = base.x();
+    const double x_c = w.step_c.x();
+    const double X = w.x_max;
+    // omega within the bins.
+    ClipLinear(fan.omega0 - om_row, -om_c, jc0, jc1);
+    ClipLinear(om_row - w.omega_end, om_c, jc0, jc1);
+    if (w.in_plane) {
+        // |x| <= X along the whole column.
+        ClipLinear(x_row - X, x_c, jc0, jc1);
+        ClipLinear(-X - x_row, -x_c, jc0, jc1);
+    } else {
+        // The column's stretch within |x| <= X must meet its stretch within the ping's tau
+        // range: [(-X sgn - x0) / nx, (X sgn - x0) / nx] against [(tau_min - tau0) / g,
+        // (tau_max - tau0) / g], with x0 and tau0 linear in jc.
+        ClipLinear((-X * w.sgn_nx - x_row) * w.inv_nx - (fan.tau_max - tau_row) * w.inv_g,
+                   -x_c * w.inv_nx + tau_c * w.inv_g,
+                   jc0,
+                   jc1);
+        ClipLinear((fan.tau_min - tau_row) * w.inv_g - (X * w.sgn_nx - x_row) * w.inv_nx,
+                   -tau_c * w.inv_g + x_c * w.inv_nx,
+                   jc0,
+                   jc1);
+    }
+    return base;
+}
+
+// The stretch [ja0, ja1] (within [lo_a, hi_a]) of the column starting at xs0 (its voxel a = 0)
+// that can meet the ping: inside its bin's tau range and |x| <= the bin's x_max, and outside
+// the cone cut. False when the column misses the ping.
+bool ClipColumn(
+    const FanWalk& w, const Eigen::Vector3d& xs0, int lo_a, int hi_a, int& ja0, int& ja1) {
+    const detail::FanColumns& fan = w.fan;
+    const double om = fan.w_y * xs0.y() + fan.w_z * xs0.z();
+    const double jf = std::floor(om - fan.omega0);
+    if (!(jf >= 0.0 && jf < static_cast<double>(fan.tau_lo.size()))) return false;
+    const auto j = static_cast<std::size_t>(jf);
+    const double tl = fan.tau_lo[j], th = fan.tau_hi[j];
+    if (!(tl <= th)) return false;
+    const double tau0 = fan.c_y * xs0.y() + fan.c_z * xs0.z();
+    double t_lo = (tl - tau0) * w.inv_g;
+    double t_hi = (th - tau0) * w.inv_g;
+    const double xj = fan.x_max[j];
+    if (w.in_plane) {
+        if (std::abs(xs0.x()) > xj) return false;
+    } else {
+        const double t1 = (-xj - xs0.x()) * w.inv_nx;
+        const double t2 = (xj - xs0.x()) * w.inv_nx;
+        t_lo = std::max(t_lo, std::min(t1, t2));
+        t_hi = std::min(t_hi, std::max(t1, t2));
+    }
+    t_lo = std::max(t_lo, static_cast<double>(lo_a));
+    t_hi = std::min(t_hi, static_cast<double>(hi_a));
+    if (!(t_lo <= t_hi)) return false;
+    // The cone: further from the fan plane than any sector's h_out here, a voxel needs its
+    // in-plane distance rho >= |x| / tan(bw / 2), and rho^2 = omega^2 + tau^2 (omega and tau are
+    // orthonormal in the plane): |tau| >= sqrt(x^2 / tan^2 - omega^2), with |x| at its smallest
+    // over the column's stretch.
+    const double x_a = xs0.x() + w.nx * t_lo;
+    const double x_b = xs0.x() + w.nx * t_hi;
+    const double ax = (x_a > 0.0) == (x_b > 0.0) ? std::min(std::abs(x_a), std::abs(x_b)) : 0.0;
+    const double q = ax * ax / w.tan2_bw - om * om;
+    if (ax > fan.h_max[j] && q > 0.0) {
+        const double tq = std::sqrt(q) * (1.0 - 1e-9) - 1e-6;
+        const double tau_a = tau0 + fan.g * t_lo;
+        const double tau_b = tau0 + fan.g * t_hi;
+        if (tau_a > -tq && tau_b < tq) return false;  // all of it inside the cut
+        if (tau_a > -tq) {
+            t_lo = std::max(t_lo, (tq - tau0) * w.inv_g);
+        } else if (tau_b < tq) {
+            t_hi = std::min(t_hi, (-tq - tau0) * w.inv_g);
+        }
+    }
+    ja0 = static_cast<int>(std::ceil(t_lo - 1e-9));
+    ja1 = static_cast<int>(std::floor(t_hi + 1e-9));
+    return ja0 <= ja1;
+}
+
+// The signed distance d (Eq. 4, voxels) of the voxel at sonar-frame (x, y, z) in sector fs:
+// false when it lies outside the beam width or beyond the sector's reach, or |d| beyond T. The
+// range at the voxel is interpolated linearly between the footprint range of the sector and its
+// neighbour on the voxel's side, and along x by the footprint's along-track slope.
+__attribute__((always_inline)) inline bool SectorDistance(
+    const detail::FanSector& fs, const FanWalk& w, double x, double y, double z, double& d) {
+    const double x2 = x * x;
+    const double rho2 = y * y + z * z;
+    // Beam width: |x| <= max(tan(bw / 2) rho, h_out).
+    if (x2 > w.tan2_bw * rho2 && x2 > fs.h_out2) return false;
+    const double dist2 = rho2 + x2;
+    if (dist2 >= fs.far2) return false;
+    // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6), as a signed
+    // fraction of the increment: > 0 towards sector k + 1.
+    const double frac = (fs.cos_theta * y - fs.sin_theta * z) /
+                        (fs.sin_theta * y + fs.cos_theta * z) * w.fan.inv_increment;
+    const double r_at =
+        fs.range + std::abs(frac) * (frac >= 0.0 ? fs.dr_next : fs.dr_prev) +
+        fs.dr_dx *
+            std::clamp(x, static_cast<double>(fs.x_fit_lo), static_cast<double>(fs.x_fit_hi));
+    d = r_at - std::sqrt(dist2);  // Eq. 4
+    return d > -w.trunc && d <= w.trunc;
+}
+
 // Beam-width mode for one ping, restricted to the voxels of box (x and y). Each voxel belongs
 // to the sector of its in-plane angle, [theta_k - inc/2, theta_k + inc/2), and is updated when
-// its out-of-plane angle is within the beam (|phi| <= beam_width / 2; see h_out below) and
-// d = r_at - |v - p| lies in (-T, T], where r_at is interpolated linearly between the footprint
-// range of sector k and its neighbour on the voxel's side. Candidates come in columns along the
+// its out-of-plane angle is within the beam (|phi| <= beam_width / 2; see h_out) and
+// d = r_at - |v - p| lies in (-T, T] (SectorDistance). Candidates come in columns along the
 // axis closest to the fan plane (FanColumns, fan_columns.cpp): rows and columns whose line
-// cannot meet the ping are skipped by linear bounds, and each column is cut to its bin's tau
-// and out-of-plane bounds. The sector is tracked along the column by half-plane tests against
-// the sector boundaries (exact); a column starts from the previous column's sector, and atan2
-// is used only where tracking fails and for fans of 180 deg or more.
+// cannot meet the ping are skipped by linear bounds (ClipRow), and each column is cut to its
+// bin's tau and out-of-plane bounds (ClipColumn). The sector is tracked along the column by
+// half-plane tests against the sector boundaries (SectorTracker, exact); a column starts from
+// the previous column's sector, and atan2 is used only where tracking fails and for fans of
+// 180 deg or more.
 void IntegrateFan(const PreparedScan& scan,
                   const Geometry& g,
                   const ClipBox& box,
                   VoxelUpdater& up) {
     const detail::FanColumns& fan = scan.fan;
     if (fan.sectors.empty() || fan.tau_lo.empty()) return;
-    const int a = fan.axis;
-    const int b_ax = (a + 1) % 3;
-    const int c_ax = (a + 2) % 3;
+    const FanWalk w(scan, g);
     int lo[3], hi[3];
     for (int k = 0; k < 3; ++k) {
         lo[k] = fan.lo[k];
@@ -207,188 +413,55 @@ void IntegrateFan(const PreparedScan& scan,
     lo[1] = std::max(lo[1], box.y_min);
     hi[1] = std::min(hi[1], box.y_max);
     if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) return;
-
-    const Eigen::Matrix3d& R = scan.R;
-    const Eigen::Vector3d q0 = -(R.transpose() * scan.p_vox);  // sonar frame of voxel (0,0,0)
-    const Eigen::Vector3d rb(R(b_ax, 0), R(b_ax, 1), R(b_ax, 2));
-    const Eigen::Vector3d rc(R(c_ax, 0), R(c_ax, 1), R(c_ax, 2));
-    const Eigen::Vector3d& ra = fan.step;
-    const double nx = ra.x();
-    const bool in_plane = std::abs(nx) < 1e-9;  // columns parallel to the fan plane
-    const double inv_nx = in_plane ? 0.0 : 1.0 / nx;
-    const double sgn_nx = nx >= 0.0 ? 1.0 : -1.0;
-    const double inv_g = 1.0 / fan.g;
-    const double om_end = fan.omega0 + static_cast<double>(fan.tau_lo.size());
-    const double X = fan.x_max_all;
-    const double T = g.trunc_vox;
-    const double tan2_bw = g.tan_half_bw * g.tan_half_bw;
-    const int n_sect = static_cast<int>(fan.sectors.size());
-    const double* side_y = fan.side_y.data();
-    const double* side_z = fan.side_z.data();
-    // Index >= k (k in [0, n_sect]) when the voxel lies on the far side of boundary k.
-    auto at_or_above = [&](int k, double y, double z) {
-        return side_y[k] * y + side_z[k] * z >= 0.0;
-    };
-    // Sector of (y, z) from a guess k in [-1, n_sect] (-1 and n_sect: outside the fan); the
-    // state is exact when both boundary tests agree, which the walk reaches in a step or two.
-    // Off a fan of 180 deg or more the tests are not monotone across sectors: only the angle's
-    // own sector is checked (exact: a sector's two tests bound it alone).
-    const int track_steps = fan.wide ? 0 : 4;
-    auto sector = [&](int k, double y, double z, int max_steps, bool& exact) {
-        if (fan.wide) max_steps = 0;
-        if (max_steps == 0) {
-            exact = k >= 0 && k < n_sect && at_or_above(k, y, z) && !at_or_above(k + 1, y, z);
-            return k;
-        }
-        for (int it = 0; it < max_steps; ++it) {
-            if (k < n_sect && at_or_above(k + 1, y, z)) {
-                ++k;
-            } else if (k >= 0 && !at_or_above(k, y, z)) {
-                --k;
-            } else {
-                exact = true;
-                return k;
-            }
-        }
-        exact = false;
-        return k;
-    };
-    auto sector_from_angle = [&](double y, double z) {
-        const double k = std::floor((std::atan2(y, z) - fan.start_angle) * fan.inv_increment + 0.5);
-        return static_cast<int>(std::clamp(k, -1.0, static_cast<double>(n_sect)));
-    };
+    const SectorTracker sectors(fan);
+    const int track_steps = sectors.column_steps();
 
     int k_column = -2;  // sector of the previous column's first voxel (-2: none yet)
     Coord ijk;
-    for (int jb = lo[b_ax]; jb <= hi[b_ax]; ++jb) {
-        const Eigen::Vector3d base = q0 + static_cast<double>(jb) * rb;  // (a, c) = (0, 0)
-        const double om_row = fan.w_y * base.y() + fan.w_z * base.z();
-        const double om_c = fan.w_y * rc.y() + fan.w_z * rc.z();
-        const double tau_row = fan.c_y * base.y() + fan.c_z * base.z();
-        const double tau_c = fan.c_y * rc.y() + fan.c_z * rc.z();
-        const double x_row = base.x();
-        const double x_c = rc.x();
-        int jc0 = lo[c_ax], jc1 = hi[c_ax];
-        // omega within the bins.
-        ClipLinear(fan.omega0 - om_row, -om_c, jc0, jc1);
-        ClipLinear(om_row - om_end, om_c, jc0, jc1);
-        if (in_plane) {
-            // |x| <= X along the whole column.
-            ClipLinear(x_row - X, x_c, jc0, jc1);
-            ClipLinear(-X - x_row, -x_c, jc0, jc1);
-        } else {
-            // The column's stretch within |x| <= X must meet its stretch within the ping's tau
-            // range: [(-X sgn - x0) / nx, (X sgn - x0) / nx] against [(tau_min - tau0) / g,
-            // (tau_max - tau0) / g], with x0 and tau0 linear in jc.
-            ClipLinear((-X * sgn_nx - x_row) * inv_nx - (fan.tau_max - tau_row) * inv_g,
-                       -x_c * inv_nx + tau_c * inv_g,
-                       jc0,
-                       jc1);
-            ClipLinear((fan.tau_min - tau_row) * inv_g - (X * sgn_nx - x_row) * inv_nx,
-                       -tau_c * inv_g + x_c * inv_nx,
-                       jc0,
-                       jc1);
-        }
-        ijk[b_ax] = jb;
+    for (int jb = lo[w.b]; jb <= hi[w.b]; ++jb) {
+        int jc0 = lo[w.c], jc1 = hi[w.c];
+        const Eigen::Vector3d base = ClipRow(w, jb, jc0, jc1);  // (a, c) = (0, 0)
+        ijk[w.b] = jb;
         for (int jc = jc0; jc <= jc1; ++jc) {
-            const Eigen::Vector3d xs0 = base + static_cast<double>(jc) * rc;  // a = 0
-            const double om = fan.w_y * xs0.y() + fan.w_z * xs0.z();
-            const double jf = std::floor(om - fan.omega0);
-            if (!(jf >= 0.0 && jf < static_cast<double>(fan.tau_lo.size()))) continue;
-            const auto j = static_cast<std::size_t>(jf);
-            const double tl = fan.tau_lo[j], th = fan.tau_hi[j];
-            if (!(tl <= th)) continue;
-            const double tau0 = fan.c_y * xs0.y() + fan.c_z * xs0.z();
-            double t_lo = (tl - tau0) * inv_g;
-            double t_hi = (th - tau0) * inv_g;
-            const double xj = fan.x_max[j];
-            if (in_plane) {
-                if (std::abs(xs0.x()) > xj) continue;
-            } else {
-                const double t1 = (-xj - xs0.x()) * inv_nx;
-                const double t2 = (xj - xs0.x()) * inv_nx;
-                t_lo = std::max(t_lo, std::min(t1, t2));
-                t_hi = std::min(t_hi, std::max(t1, t2));
-            }
-            t_lo = std::max(t_lo, static_cast<double>(lo[a]));
-            t_hi = std::min(t_hi, static_cast<double>(hi[a]));
-            if (!(t_lo <= t_hi)) continue;
-            // The cone: further from the fan plane than any sector's h_out here, a voxel needs
-            // its in-plane distance rho >= |x| / tan(bw / 2), and rho^2 = omega^2 + tau^2
-            // (omega and tau are orthonormal in the plane): |tau| >= sqrt(x^2 / tan^2 -
-            // omega^2), with |x| at its smallest over the column's stretch.
-            {
-                const double x_a = xs0.x() + nx * t_lo;
-                const double x_b = xs0.x() + nx * t_hi;
-                const double ax =
-                    (x_a > 0.0) == (x_b > 0.0) ? std::min(std::abs(x_a), std::abs(x_b)) : 0.0;
-                const double q = ax * ax / tan2_bw - om * om;
-                if (ax > fan.h_max[j] && q > 0.0) {
-                    const double tq = std::sqrt(q) * (1.0 - 1e-9) - 1e-6;
-                    const double tau_a = tau0 + fan.g * t_lo;
-                    const double tau_b = tau0 + fan.g * t_hi;
-                    if (tau_a > -tq && tau_b < tq) continue;  // all of it inside the cut
-                    if (tau_a > -tq) {
-                        t_lo = std::max(t_lo, (tq - tau0) * inv_g);
-                    } else if (tau_b < tq) {
-                        t_hi = std::min(t_hi, (-tq - tau0) * inv_g);
-                    }
-                }
-            }
-            const int ja0 = static_cast<int>(std::ceil(t_lo - 1e-9));
-            const int ja1 = static_cast<int>(std::floor(t_hi + 1e-9));
-            if (ja0 > ja1) continue;
-            ijk[c_ax] = jc;
-            Eigen::Vector3d xs = xs0 + static_cast<double>(ja0) * ra;
+            const Eigen::Vector3d xs0 = base + static_cast<double>(jc) * w.step_c;  // a = 0
+            int ja0, ja1;
+            if (!ClipColumn(w, xs0, lo[w.a], hi[w.a], ja0, ja1)) continue;
+            ijk[w.c] = jc;
+            Eigen::Vector3d xs = xs0 + static_cast<double>(ja0) * w.step_a;
             // The first voxel's sector from the previous column's (neighbouring columns start
             // a sector or two apart), else from its angle.
             int k = k_column;
             {
                 bool exact = false;
-                if (k >= -1) k = sector(k, xs.y(), xs.z(), 8, exact);
-                if (!exact) k = sector_from_angle(xs.y(), xs.z());
+                if (k >= -1) k = sectors.Track(k, xs.y(), xs.z(), 8, exact);
+                if (!exact) k = sectors.FromAngle(xs.y(), xs.z());
             }
             k_column = k;
             // The leaf pair of the current stretch of the column (a column enters a new leaf
             // every 8 voxels), looked up once per leaf.
             const VoxelUpdater::Slot* leaf = nullptr;
             int leaf_index = std::numeric_limits<int>::min();
-            for (int ja = ja0; ja <= ja1; ++ja, xs += ra) {
+            for (int ja = ja0; ja <= ja1; ++ja, xs += w.step_a) {
                 const double x = xs.x(), y = xs.y(), z = xs.z();
                 bool exact = false;
-                k = sector(k, y, z, track_steps, exact);
+                k = sectors.Track(k, y, z, track_steps, exact);
                 if (!exact) {
-                    k = sector(sector_from_angle(y, z), y, z, track_steps, exact);
+                    k = sectors.Track(sectors.FromAngle(y, z), y, z, track_steps, exact);
                     if (!exact) continue;  // only off a degenerate fan; not in any sector
                 }
-                if (k < 0 || k >= n_sect) continue;
+                if (k < 0 || k >= sectors.count()) continue;
                 const detail::FanSector& fs = fan.sectors[static_cast<std::size_t>(k)];
                 if (!(fs.weight > 0.0f)) continue;  // no footprint range in this sector
-                const double x2 = x * x;
-                const double rho2 = y * y + z * z;
-                // Beam width: |x| <= max(tan(bw / 2) rho, h_out).
-                if (x2 > tan2_bw * rho2 && x2 > fs.h_out2) continue;
-                const double dist2 = rho2 + x2;
-                if (dist2 >= fs.far2) continue;
-                // In-plane angle from the beam axis (|angle| <= inc/2, so tan = angle to 1e-6),
-                // as a signed fraction of the increment: > 0 towards sector k + 1.
-                const double frac = (fs.cos_theta * y - fs.sin_theta * z) /
-                                    (fs.sin_theta * y + fs.cos_theta * z) * fan.inv_increment;
-                const double r_at = fs.range +
-                                    std::abs(frac) * (frac >= 0.0 ? fs.dr_next : fs.dr_prev) +
-                                    fs.dr_dx * std::clamp(x,
-                                                          static_cast<double>(fs.x_fit_lo),
-                                                          static_cast<double>(fs.x_fit_hi));
-                const double d = r_at - std::sqrt(dist2);  // Eq. 4
-                if (!(d > -T && d <= T)) continue;
-                ijk[a] = ja;
+                double d;
+                if (!SectorDistance(fs, w, x, y, z, d)) continue;
+                ijk[w.a] = ja;
                 if ((ja >> 3) != leaf_index) {
                     leaf = &up.LeafOf(ijk);
                     leaf_index = ja >> 3;
                 }
                 up.UpdateIn(*leaf,
                             LeafT::coordToOffset(ijk),
-                            static_cast<float>(std::min(d, T) * g.metres_per_voxel),
+                            static_cast<float>(std::min(d, w.trunc) * g.metres_per_voxel),
                             fs.weight);
             }
         }
@@ -424,6 +497,247 @@ void IntegrateRay(const PreparedScan& scan,
                 up.Update(c, static_cast<float>(std::min(d, T) * g.metres_per_voxel));
         }
     } while (dda.step());
+}
+
+// The volume's existing leaves by slab: a slab's grid starts from copies of them when first
+// touched.
+struct OldLeaves {
+    std::map<int, std::vector<const LeafT*>> distance, weight;
+};
+std::map<int, std::vector<const LeafT*>> LeavesBySlab(const FloatTree& tree) {
+    std::map<int, std::vector<const LeafT*>> out;
+    for (auto it = tree.cbeginLeaf(); it; ++it) {
+        out[FloorDiv(it->origin().x(), kSlabVoxels)].push_back(&*it);
+    }
+    return out;
+}
+
+// One slab's own grids, persisting across chunks.
+struct Slab {
+    openvdb::FloatGrid::Ptr d, w;
+    std::int64_t updates = 0;
+    std::int64_t work = 0;  // beams of the current chunk that reach the slab
+};
+using SlabMap = std::map<int, Slab>;  // by slab index; std::map keeps references stable
+
+// The scans [c0, c1) prepared (valid beams, footprint ranges, the x and y range of every beam),
+// in parallel. Footprints of the chunk's scans and of the neighbours each one needs (the
+// previous and next for the gap between pings, `reach` each side for the along-track slope)
+// are fitted once, into `footprints` (reused across chunks).
+void PrepareChunk(const std::vector<SonarScan>& scans,
+                  std::size_t c0,
+                  std::size_t c1,
+                  std::size_t reach,
+                  const TsdfConfig& config,
+                  const Geometry& geo,
+                  tbb::task_arena& arena,
+                  std::vector<detail::ScanFootprints>& footprints,
+                  std::vector<PreparedScan>& prepared) {
+    prepared.assign(c1 - c0, PreparedScan{});
+    const std::size_t f0 = c0 - std::min(c0, reach);
+    const std::size_t f1 = std::min(scans.size(), c1 + reach);
+    footprints.assign(f1 - f0, detail::ScanFootprints{});
+    arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(f0, f1, 64),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t si = range.begin(); si != range.end(); ++si) {
+                                  footprints[si - f0] = detail::FitFootprints(scans[si], config);
+                              }
+                          });
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(c0, c1, 64),
+            [&](const tbb::blocked_range<std::size_t>& range) {
+                std::vector<detail::ScanNeighbour> nbs;
+                for (std::size_t si = range.begin(); si != range.end(); ++si) {
+                    nbs.clear();
+                    for (std::size_t j = std::max(f0, si - std::min(si, reach));
+                         j < std::min(f1, si + reach + 1);
+                         ++j) {
+                        if (j == si) continue;
+                        nbs.push_back({&scans[j],
+                                       &footprints[j - f0],
+                                       static_cast<int>(static_cast<std::ptrdiff_t>(j) -
+                                                        static_cast<std::ptrdiff_t>(si))});
+                    }
+                    prepared[si - c0] =
+                        detail::PrepareScan(scans[si], footprints[si - f0], config, geo, nbs);
+                }
+            });
+    });
+}
+
+// Adds the prepared scans' counters to `result`; returns their beams.
+std::size_t CountPrepared(const std::vector<PreparedScan>& prepared, IntegrateResult& result) {
+    std::size_t beams = 0;
+    for (const PreparedScan& ps : prepared) {
+        result.beams_used += ps.beams_used;
+        result.beams_no_detection += ps.beams_no_detection;
+        result.beams_out_of_range += ps.beams_out_of_range;
+        result.scans_out_of_bounds += ps.out_of_bounds ? 1 : 0;
+        result.beams_inconsistent += ps.beams_inconsistent;
+        beams += ps.beams.size();
+    }
+    return beams;
+}
+
+// Each slab's work for the chunk: the beams that reach it. A slab reached for the first time
+// gets its grids, from copies of the volume's old leaves there.
+void AssignSlabs(const std::vector<PreparedScan>& prepared,
+                 const OldLeaves& old,
+                 float trunc,
+                 double voxel_size_m,
+                 SlabMap& slabs) {
+    for (auto& entry : slabs) entry.second.work = 0;  // (views::values: not with clang 14)
+    int last_k = std::numeric_limits<int>::min();
+    Slab* last = nullptr;
+    for (const PreparedScan& ps : prepared) {
+        for (const PreparedBeam& pb : ps.beams) {
+            for (int k = FloorDiv(pb.x_lo, kSlabVoxels); k <= FloorDiv(pb.x_hi, kSlabVoxels); ++k) {
+                if (k != last_k) {
+                    last = &slabs[k];
+                    last_k = k;
+                }
+                Slab& slab = *last;
+                if (!slab.d) {
+                    slab.d = MakeGrid(trunc, voxel_size_m, "tsdf");
+                    slab.w = MakeGrid(0.0f, voxel_size_m, "weight");
+                    if (auto it = old.distance.find(k); it != old.distance.end()) {
+                        for (const LeafT* leaf : it->second)
+                            slab.d->tree().addLeaf(new LeafT(*leaf));
+                    }
+                    if (auto it = old.weight.find(k); it != old.weight.end()) {
+                        for (const LeafT* leaf : it->second)
+                            slab.w->tree().addLeaf(new LeafT(*leaf));
+                    }
+                }
+                ++slab.work;
+            }
+        }
+    }
+}
+
+// What a slab task needs besides its slab: the chunk's scans and how to integrate them.
+struct ChunkWork {
+    const std::vector<PreparedScan>& prepared;
+    const std::vector<SonarScan>& scans;
+    std::size_t scan_offset;  // scans[scan_offset + i] is prepared[i]
+    const Geometry& geo;
+    bool beam_width;  // IntegrateFan, else IntegrateRay per beam
+    float f, w_max;
+    const std::atomic<bool>& cancel;
+};
+
+// One scan's voxels inside box.
+void IntegrateScanInBox(const ChunkWork& work,
+                        std::size_t si,
+                        const ClipBox& box,
+                        VoxelUpdater& up) {
+    const PreparedScan& ps = work.prepared[si];
+    if (ps.beams.empty() || ps.x_hi < box.x_min || ps.x_lo > box.x_max || ps.y_hi < box.y_min ||
+        ps.y_lo > box.y_max) {
+        return;
+    }
+    if (work.beam_width) {
+        IntegrateFan(ps, work.geo, box, up);
+        return;
+    }
+    const SonarScan& scan = work.scans[work.scan_offset + si];
+    for (const PreparedBeam& pb : ps.beams) {
+        if (pb.x_hi < box.x_min || pb.x_lo > box.x_max || pb.y_hi < box.y_min ||
+            pb.y_lo > box.y_max) {
+            continue;
+        }
+        const float theta =
+            scan.start_angle_rad + static_cast<float>(pb.beam) * scan.angle_increment_rad;
+        IntegrateRay(ps, pb, theta, work.geo, box, up);
+    }
+}
+
+// Integrates the chunk's scans into slab k, scan by scan in input order: runs of kBatchScans
+// scans, band by band along y.
+void IntegrateSlab(const ChunkWork& work, int k, Slab& slab) {
+    const int sx0 = k * kSlabVoxels;
+    const int sx1 = sx0 + kSlabVoxels - 1;
+    const std::vector<PreparedScan>& prepared = work.prepared;
+    VoxelUpdater up(*slab.d, *slab.w, work.f, work.w_max);
+    for (std::size_t s0 = 0; s0 < prepared.size(); s0 += kBatchScans) {
+        if (work.cancel.load(std::memory_order_relaxed)) break;
+        const std::size_t s1 = std::min(prepared.size(), s0 + kBatchScans);
+        int y_lo = std::numeric_limits<int>::max();
+        int y_hi = std::numeric_limits<int>::min();
+        for (std::size_t si = s0; si < s1; ++si) {
+            const PreparedScan& ps = prepared[si];
+            if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
+            y_lo = std::min(y_lo, ps.y_lo);
+            y_hi = std::max(y_hi, ps.y_hi);
+        }
+        if (y_lo > y_hi) continue;
+        for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels); ++band) {
+            const ClipBox box{sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
+            for (std::size_t si = s0; si < s1; ++si) IntegrateScanInBox(work, si, box, up);
+        }
+    }
+    slab.updates += up.updates();
+}
+
+// The chunk's slabs in parallel, largest first, each worker taking the next (greedy
+// longest-processing-time order, so the last slab of a chunk is a small one).
+void RasteriseChunk(const ChunkWork& work, SlabMap& slabs, tbb::task_arena& arena, int threads) {
+    std::vector<std::pair<std::int64_t, int>> order;
+    for (const auto& [k, slab] : slabs) {
+        if (slab.work > 0) order.emplace_back(-slab.work, k);
+    }
+    std::sort(order.begin(), order.end());
+    std::atomic<std::size_t> next{0};
+    arena.execute([&] {
+        tbb::task_group tasks;
+        for (int t = 0; t < threads; ++t) {
+            tasks.run([&] {
+                for (std::size_t i = next++; i < order.size(); i = next++) {
+                    const int k = order[i].second;
+                    IntegrateSlab(work, k, slabs.at(k));
+                }
+            });
+        }
+        tasks.wait();
+    });
+}
+
+// The volume's new grids: the old leaves of untouched slabs plus every slab's leaves (moved,
+// not copied). Returns the slabs' voxel updates.
+std::int64_t MergeSlabs(SlabMap& slabs,
+                        float trunc,
+                        double voxel_size_m,
+                        openvdb::FloatGrid::Ptr& distance,
+                        openvdb::FloatGrid::Ptr& weight) {
+    auto new_d = MakeGrid(trunc, voxel_size_m, "tsdf");
+    auto new_w = MakeGrid(0.0f, voxel_size_m, "weight");
+    auto keep_outside = [&](const FloatTree& from, FloatTree& to) {
+        for (auto it = from.cbeginLeaf(); it; ++it) {
+            if (!slabs.contains(FloorDiv(it->origin().x(), kSlabVoxels))) {
+                to.addLeaf(new LeafT(*it));
+            }
+        }
+    };
+    keep_outside(distance->tree(), new_d->tree());
+    keep_outside(weight->tree(), new_w->tree());
+    distance.reset();
+    weight.reset();
+    std::int64_t updates = 0;
+    for (auto& [k, slab] : slabs) {
+        new_d->tree().merge(slab.d->tree());
+        new_w->tree().merge(slab.w->tree());
+        slab.d.reset();
+        slab.w.reset();
+        updates += slab.updates;
+    }
+    distance = new_d;
+    weight = new_w;
+    return updates;
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 // Valid beams of one scan with the x range of world voxel indices each can touch. Beam-width
@@ -513,9 +827,6 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     begin = std::min(begin, end);
     const auto t_start = std::chrono::steady_clock::now();
     const std::clock_t cpu_start = std::clock();
-    auto since = [](std::chrono::steady_clock::time_point t) {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-    };
     IntegrateResult result;
     result.scans = static_cast<std::int64_t>(end - begin);
     const double inv_s = 1.0 / config_.voxel_size_m;
@@ -523,177 +834,39 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                        std::tan(0.5 * config_.beam_width_rad),
                        std::cos(0.5 * config_.beam_width_rad),
                        config_.voxel_size_m};
-    const bool beam_width = config_.sensor_model == SensorModel::kBeamWidth;
-
     const int threads =
         config_.num_threads > 0 ? config_.num_threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
-
-    const float f = config_.weight_per_measurement;
-    const float w_max = config_.max_weight;
     const float trunc = static_cast<float>(config_.truncation_m);
+    const OldLeaves old{LeavesBySlab(impl_->distance->tree()), LeavesBySlab(impl_->weight->tree())};
+    const auto reach = static_cast<std::size_t>(std::max(1, config_.footprint_neighbour_pings));
 
-    // Existing leaves by slab: a slab's grid starts from copies of them when first touched.
-    std::map<int, std::vector<const LeafT*>> old_d, old_w;
-    auto bucket = [&](const FloatTree& tree, std::map<int, std::vector<const LeafT*>>& out) {
-        for (auto it = tree.cbeginLeaf(); it; ++it) {
-            out[FloorDiv(it->origin().x(), kSlabVoxels)].push_back(&*it);
-        }
-    };
-    bucket(impl_->distance->tree(), old_d);
-    bucket(impl_->weight->tree(), old_w);
-
-    struct Slab {
-        openvdb::FloatGrid::Ptr d, w;
-        std::int64_t updates = 0;
-        std::int64_t work = 0;  // beams of the current chunk that reach the slab
-    };
-    std::map<int, Slab> slabs;  // by slab index; std::map keeps references stable
+    // Chunk by chunk: prepare the chunk's scans in parallel, then integrate it slab by slab.
+    // Only one chunk's prepared beams are held at a time; the slab grids persist across chunks.
+    SlabMap slabs;
     std::atomic<bool> cancel{false};
     std::size_t total_beams = 0;
     std::vector<PreparedScan> prepared;
     std::vector<detail::ScanFootprints> footprints;  // of one chunk and its neighbours
-    const auto reach = static_cast<std::size_t>(std::max(1, config_.footprint_neighbour_pings));
-
-    // Integrates the chunk's scans [0, prepared.size()) into one slab, scan by scan in order.
-    auto run_slab = [&](int k, std::size_t scan_offset) {
-        Slab& slab = slabs.at(k);
-        const int sx0 = k * kSlabVoxels;
-        const int sx1 = sx0 + kSlabVoxels - 1;
-        VoxelUpdater up(*slab.d, *slab.w, f, w_max);
-        for (std::size_t s0 = 0; s0 < prepared.size(); s0 += kBatchScans) {
-            if (cancel.load(std::memory_order_relaxed)) break;
-            const std::size_t s1 = std::min(prepared.size(), s0 + kBatchScans);
-            int y_lo = std::numeric_limits<int>::max();
-            int y_hi = std::numeric_limits<int>::min();
-            for (std::size_t si = s0; si < s1; ++si) {
-                const PreparedScan& ps = prepared[si];
-                if (ps.beams.empty() || ps.x_hi < sx0 || ps.x_lo > sx1) continue;
-                y_lo = std::min(y_lo, ps.y_lo);
-                y_hi = std::max(y_hi, ps.y_hi);
-            }
-            if (y_lo > y_hi) continue;
-            for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels);
-                 ++band) {
-                const ClipBox box{
-                    sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
-                for (std::size_t si = s0; si < s1; ++si) {
-                    const PreparedScan& ps = prepared[si];
-                    if (ps.beams.empty() || ps.x_hi < box.x_min || ps.x_lo > box.x_max ||
-                        ps.y_hi < box.y_min || ps.y_lo > box.y_max) {
-                        continue;
-                    }
-                    if (beam_width) {
-                        IntegrateFan(ps, geo, box, up);
-                        continue;
-                    }
-                    const SonarScan& scan = scans[scan_offset + si];
-                    for (const PreparedBeam& pb : ps.beams) {
-                        if (pb.x_hi < box.x_min || pb.x_lo > box.x_max || pb.y_hi < box.y_min ||
-                            pb.y_lo > box.y_max) {
-                            continue;
-                        }
-                        const float theta = scan.start_angle_rad +
-                                            static_cast<float>(pb.beam) * scan.angle_increment_rad;
-                        IntegrateRay(ps, pb, theta, geo, box, up);
-                    }
-                }
-            }
-        }
-        slab.updates += up.updates();
-    };
-
-    // Chunk by chunk: prepare the chunk's scans (valid beams, footprint ranges, the x and y
-    // range of every beam) in parallel, then integrate it slab by slab. Only one chunk's
-    // prepared beams are held at a time; the slab grids persist across chunks.
     for (std::size_t c0 = begin; c0 < end && !cancel.load(); c0 += kChunkScans) {
         const std::size_t c1 = std::min(end, c0 + kChunkScans);
         const auto t_prepare = std::chrono::steady_clock::now();
-        prepared.assign(c1 - c0, PreparedScan{});
-        // Footprints of the chunk's scans and of the neighbours each one needs (the previous and
-        // next for the gap between pings, footprint_neighbour_pings each side for the
-        // along-track slope), fitted once.
-        const std::size_t f0 = c0 - std::min(c0, reach);
-        const std::size_t f1 = std::min(scans.size(), c1 + reach);
-        footprints.assign(f1 - f0, detail::ScanFootprints{});
-        arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(f0, f1, 64),
-                              [&](const tbb::blocked_range<std::size_t>& range) {
-                                  for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                                      footprints[si - f0] =
-                                          detail::FitFootprints(scans[si], config_);
-                                  }
-                              });
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(c0, c1, 64),
-                [&](const tbb::blocked_range<std::size_t>& range) {
-                    std::vector<detail::ScanNeighbour> nbs;
-                    for (std::size_t si = range.begin(); si != range.end(); ++si) {
-                        nbs.clear();
-                        for (std::size_t j = std::max(f0, si - std::min(si, reach));
-                             j < std::min(f1, si + reach + 1);
-                             ++j) {
-                            if (j == si) continue;
-                            nbs.push_back({&scans[j],
-                                           &footprints[j - f0],
-                                           static_cast<int>(static_cast<std::ptrdiff_t>(j) -
-                                                            static_cast<std::ptrdiff_t>(si))});
-                        }
-                        prepared[si - c0] =
-                            detail::PrepareScan(scans[si], footprints[si - f0], config_, geo, nbs);
-                    }
-                });
-        });
-        for (auto& entry : slabs) entry.second.work = 0;  // (views::values: not with clang 14)
-        int last_k = std::numeric_limits<int>::min();
-        Slab* last = nullptr;
-        for (const PreparedScan& ps : prepared) {
-            result.beams_used += ps.beams_used;
-            result.beams_no_detection += ps.beams_no_detection;
-            result.beams_out_of_range += ps.beams_out_of_range;
-            result.scans_out_of_bounds += ps.out_of_bounds ? 1 : 0;
-            result.beams_inconsistent += ps.beams_inconsistent;
-            total_beams += ps.beams.size();
-            for (const PreparedBeam& pb : ps.beams) {
-                for (int k = FloorDiv(pb.x_lo, kSlabVoxels); k <= FloorDiv(pb.x_hi, kSlabVoxels);
-                     ++k) {
-                    if (k != last_k) {
-                        last = &slabs[k];
-                        last_k = k;
-                    }
-                    Slab& slab = *last;
-                    if (!slab.d) {
-                        slab.d = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
-                        slab.w = MakeGrid(0.0f, config_.voxel_size_m, "weight");
-                        for (const LeafT* leaf : old_d[k]) slab.d->tree().addLeaf(new LeafT(*leaf));
-                        for (const LeafT* leaf : old_w[k]) slab.w->tree().addLeaf(new LeafT(*leaf));
-                    }
-                    ++slab.work;
-                }
-            }
-        }
-        result.prepare_s += since(t_prepare);
-        // Largest slabs first, each worker taking the next (greedy longest-processing-time
-        // order, so the last slab of a chunk is a small one).
-        std::vector<std::pair<std::int64_t, int>> order;
-        for (const auto& [k, slab] : slabs) {
-            if (slab.work > 0) order.emplace_back(-slab.work, k);
-        }
-        std::sort(order.begin(), order.end());
+        PrepareChunk(scans, c0, c1, reach, config_, geo, arena, footprints, prepared);
+        total_beams += CountPrepared(prepared, result);
+        AssignSlabs(prepared, old, trunc, config_.voxel_size_m, slabs);
+        result.prepare_s += SecondsSince(t_prepare);
+
         const auto t_raster = std::chrono::steady_clock::now();
-        std::atomic<std::size_t> next{0};
-        arena.execute([&] {
-            tbb::task_group tasks;
-            for (int t = 0; t < threads; ++t) {
-                tasks.run([&] {
-                    for (std::size_t i = next++; i < order.size(); i = next++) {
-                        run_slab(order[i].second, c0);
-                    }
-                });
-            }
-            tasks.wait();
-        });
-        result.rasterise_s += since(t_raster);
+        const ChunkWork work{prepared,
+                             scans,
+                             c0,
+                             geo,
+                             config_.sensor_model == SensorModel::kBeamWidth,
+                             config_.weight_per_measurement,
+                             config_.max_weight,
+                             cancel};
+        RasteriseChunk(work, slabs, arena, threads);
+        result.rasterise_s += SecondsSince(t_raster);
         if (progress &&
             !progress(static_cast<double>(c1 - begin) / static_cast<double>(end - begin))) {
             cancel = true;
@@ -703,44 +876,20 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     footprints = {};
     if (total_beams == 0) {
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
-        result.elapsed_s = since(t_start);
+        result.elapsed_s = SecondsSince(t_start);
         result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
         result.message = "no valid beams";
         return result;
     }
 
     const auto t_merge = std::chrono::steady_clock::now();
-    // Rebuild the global trees: the old leaves of untouched slabs plus every slab's leaves
-    // (moved, not copied).
-    auto new_d = MakeGrid(trunc, config_.voxel_size_m, "tsdf");
-    auto new_w = MakeGrid(0.0f, config_.voxel_size_m, "weight");
-    auto keep_outside = [&](const FloatTree& from, FloatTree& to) {
-        for (auto it = from.cbeginLeaf(); it; ++it) {
-            if (!slabs.contains(FloorDiv(it->origin().x(), kSlabVoxels))) {
-                to.addLeaf(new LeafT(*it));
-            }
-        }
-    };
-    keep_outside(impl_->distance->tree(), new_d->tree());
-    keep_outside(impl_->weight->tree(), new_w->tree());
-    impl_->distance.reset();
-    impl_->weight.reset();
-    for (auto& [k, slab] : slabs) {
-        new_d->tree().merge(slab.d->tree());
-        new_w->tree().merge(slab.w->tree());
-        slab.d.reset();
-        slab.w.reset();
-        result.voxel_updates += slab.updates;
-    }
-    impl_->distance = new_d;
-    impl_->weight = new_w;
-
-    result.merge_s = since(t_merge);
+    result.voxel_updates +=
+        MergeSlabs(slabs, trunc, config_.voxel_size_m, impl_->distance, impl_->weight);
+    result.merge_s = SecondsSince(t_merge);
     result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
     result.cancelled = cancel.load();
     result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
-    result.elapsed_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    result.elapsed_s = SecondsSince(t_start);
     result.message = std::string(result.cancelled ? "cancelled: " : "") +
                      std::to_string(result.beams_used) + " beams (" +
                      std::to_string(result.beams_inconsistent) + " outvoted by footprints), " +
