@@ -170,6 +170,292 @@ PingWater WaterAt(const svp::Refraction& refr,
     return w;
 }
 
+// The soundings in the input's flat layout (one slot per input beam; range -1 = no point), as
+// the per-ping work writes them: positions, ranges and angles straight into the result's
+// arrays (compacted in place afterwards, CompactSoundings), and every sounding's status.
+struct FlatSoundings {
+    std::vector<Eigen::Vector3d>& pos;
+    std::vector<float>& rng;
+    std::vector<float>& ang;
+    std::vector<std::uint8_t>& status;  // SoundingStatus
+};
+
+// What every ping's work reads.
+struct PingContext {
+    const PingSeries& series;
+    const Trajectory& trajectory;
+    const LocalTangentFrame& world;
+    const SonarMount& mount;
+    const Pose& T_vehicle_sonar;
+    const GeorefConfig& config;
+    const svp::Refraction* refraction;  // null: straight rays
+    const SoundingFlags* flags;
+    SoundingView view;
+};
+
+// The ping's pose and its refraction set-up, or why it has none (bad header, outside the
+// navigation, in a navigation gap).
+PingWork PlacePing(const PingContext& ctx, std::size_t k, PingWater& water) {
+    const PingHeader& h = ctx.series.pings[k];
+    const GeorefConfig& config = ctx.config;
+    PingWork w;
+    if (!(h.range_resolution_m > 0) || !std::isfinite(h.start_angle_deg) ||
+        !std::isfinite(h.angle_increment_deg) || !std::isfinite(h.profile_tilt_deg)) {
+        w.reason = 3;
+        return w;
+    }
+    const std::int64_t t = h.utime_gps;
+    const auto& times = ctx.trajectory.times();
+    if (times.empty() || t < times.front() || t > times.back()) {
+        w.reason = 1;
+        return w;
+    }
+    const auto T_world_vehicle = ctx.trajectory.PoseAt(t, config.max_nav_gap_s);
+    if (!T_world_vehicle) {
+        w.reason = 2;
+        return w;
+    }
+    w.ok = true;
+    w.ping.utime_gps = t;
+    w.ping.ping_number = h.ping_number;
+    w.ping.header_index = static_cast<std::uint32_t>(k);
+    w.ping.T_world_vehicle = *T_world_vehicle;
+    w.ping.sensor_world = (*T_world_vehicle * ctx.T_vehicle_sonar).translation();
+    w.ping.profile_tilt_rad =
+        config.apply_profile_tilt ? frames::DegToRad(h.profile_tilt_deg) : 0.0;
+    if (ctx.refraction) {
+        w.ping.assumed_sound_speed_mps =
+            h.sound_speed_mps > 0 ? h.sound_speed_mps : config.nominal_sound_speed_mps;
+        double lat = 0, lon = 0;
+        if (ctx.refraction->selection() == svp::CastSelection::kNearestInDistance) {
+            const Geodetic g = ctx.world.FromEnu(w.ping.sensor_world);
+            lat = g.latitude_deg;
+            lon = g.longitude_deg;
+        }
+        w.ping.cast = ctx.refraction->SelectCast(t, lat, lon);
+        water = WaterAt(*ctx.refraction, w.ping, ctx.mount, w.ping.assumed_sound_speed_mps);
+    }
+    return w;
+}
+
+// The ping's ranges (-1 where the beam has none, with status kNoDetection), the range gate's
+// verdicts in `status`.
+void GateRanges(const PingContext& ctx,
+                const PingHeader& h,
+                std::vector<double>& r,
+                std::vector<std::uint8_t>& status) {
+    const GeorefConfig& config = ctx.config;
+    double scale = h.range_resolution_m;
+    if (config.sound_speed_scaling && h.sound_speed_valid) {
+        scale *= h.sound_speed_mps / config.nominal_sound_speed_mps;
+    }
+    r.assign(h.num_beams, -1.0);
+    for (std::size_t i = 0; i < h.num_beams; ++i) {
+        const std::size_t j = h.beam_offset + i;
+        const std::uint32_t c = ctx.series.range_counts[j];
+        if (c == 0) {
+            status[j] = static_cast<std::uint8_t>(SoundingStatus::kNoDetection);
+            continue;
+        }
+        const double range = c * scale;
+        r[i] = range;
+        if (range < config.min_range_m || range > config.max_range_m) {
+            status[j] = static_cast<std::uint8_t>(SoundingStatus::kRangeGate);
+        }
+    }
+}
+
+// Marks the ping's spikes (SpikeFilter; the median runs over the ranges inside the gate).
+// `keep_range` and `keep` are scratch.
+void FlagSpikes(const GeorefConfig& config,
+                const PingHeader& h,
+                const std::vector<double>& r,
+                std::vector<double>& keep_range,
+                std::vector<char>& keep,
+                std::vector<std::uint8_t>& status) {
+    keep_range = r;
+    for (std::size_t i = 0; i < h.num_beams; ++i) {
+        if (status[h.beam_offset + i] != 0) keep_range[i] = -1.0;
+    }
+    SpikeFilter(keep_range, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
+    for (std::size_t i = 0; i < h.num_beams; ++i) {
+        if (keep_range[i] > 0 && !keep[i]) {
+            status[h.beam_offset + i] = static_cast<std::uint8_t>(SoundingStatus::kSpike);
+        }
+    }
+}
+
+// Every beam with a range: its final status (georef's own, resolved against the edit flags),
+// and, when it belongs to the view, its world position (traced through the water column with
+// refraction, else a straight ray; a beam that does not trace gets kRefraction).
+void PositionBeams(const PingContext& ctx,
+                   const PingHeader& h,
+                   const GeorefPing& ping,
+                   const PingWater& water,
+                   const std::vector<double>& r,
+                   FlatSoundings& out) {
+    const Pose T_world_sonar = ping.T_world_vehicle * ctx.T_vehicle_sonar;
+    for (std::size_t i = 0; i < h.num_beams; ++i) {
+        const std::size_t j = h.beam_offset + i;
+        if (!(r[i] > 0)) continue;
+        const auto own = static_cast<SoundingStatus>(out.status[j]);
+        const SoundingStatus s = ctx.flags ? Resolve(own, *ctx.flags, j) : own;
+        out.status[j] = static_cast<std::uint8_t>(s);
+        if (!InView(s, own, ctx.view)) continue;
+        const double theta = frames::DegToRad(ctx.series.BeamAngleDeg(h, i));
+        if (ctx.refraction) {
+            const svp::BeamGeometry b = ctx.refraction->Beam(ping.cast,
+                                                             T_world_sonar.linear(),
+                                                             theta,
+                                                             ping.profile_tilt_rad,
+                                                             r[i],
+                                                             ping.assumed_sound_speed_mps,
+                                                             water.transducer_depth_m,
+                                                             water.face_speed_mps);
+            if (b.steering_failed || b.status != svp::RayStatus::kOk) {
+                out.status[j] = static_cast<std::uint8_t>(SoundingStatus::kRefraction);
+                continue;
+            }
+            out.pos[j] = ping.sensor_world + b.offset_world;
+        } else {
+            out.pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, ping.profile_tilt_rad);
+        }
+        out.rng[j] = static_cast<float>(r[i]);
+        out.ang[j] = static_cast<float>(theta);
+    }
+}
+
+// Georeferences every ping into `flat`, in parallel (tbb; config.num_threads). Returns the
+// pings' work; `cancelled` when the progress callback asked to stop.
+std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
+                                        FlatSoundings& flat,
+                                        const ProgressCallback& progress,
+                                        bool& cancelled) {
+    const std::size_t n_pings = ctx.series.pings.size();
+    std::vector<PingWork> work(n_pings);
+    std::unique_ptr<tbb::global_control> limit;
+    if (ctx.config.num_threads > 0) {
+        limit =
+            std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<std::size_t>(ctx.config.num_threads));
+    }
+    std::atomic<std::size_t> done{0};
+    std::atomic<bool> cancel{false};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_pings, 64), [&](const auto& block) {
+        std::vector<double> r, keep_range;
+        std::vector<char> keep;
+        for (std::size_t k = block.begin(); k != block.end(); ++k) {
+            if (cancel.load(std::memory_order_relaxed)) return;
+            PingWater water;
+            work[k] = PlacePing(ctx, k, water);
+            if (!work[k].ok) continue;
+            const PingHeader& h = ctx.series.pings[k];
+            GateRanges(ctx, h, r, flat.status);
+            FlagSpikes(ctx.config, h, r, keep_range, keep, flat.status);
+            PositionBeams(ctx, h, work[k].ping, water, r, flat);
+        }
+        const std::size_t d = done.fetch_add(block.size()) + block.size();
+        if (progress && !progress(static_cast<double>(d) / static_cast<double>(n_pings))) {
+            cancel = true;
+        }
+    });
+    cancelled = cancel;
+    return work;
+}
+
+// Compacts the georeferenced pings' soundings in ping order (deterministic, independent of the
+// thread count) into result.points and result.pings, counting statuses and lost pings. In
+// place when the pings' beams follow each other in the flat array (every reader builds it so):
+// the write index then never passes the read index. Otherwise into fresh arrays.
+void CompactSoundings(const PingSeries& series,
+                      const std::vector<PingWork>& work,
+                      const std::vector<std::uint8_t>& status,
+                      SoundingView view,
+                      GeorefResult& result) {
+    GeorefPoints& P = result.points;
+    std::vector<Eigen::Vector3d>& pos = P.position_world;
+    std::vector<float>& rng = P.range_m;
+    std::vector<float>& ang = P.angle_rad;
+    const std::size_t n_pings = series.pings.size();
+    std::size_t n_points = 0;
+    bool in_place = true;
+    std::size_t next_offset = 0;
+    for (std::size_t k = 0; k < n_pings; ++k) {
+        const PingHeader& h = series.pings[k];
+        in_place = in_place && h.beam_offset >= next_offset;
+        next_offset = std::size_t{h.beam_offset} + h.num_beams;
+        if (!work[k].ok) continue;
+        for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[h.beam_offset + i] > 0;
+    }
+    std::vector<Eigen::Vector3d> pos_out;
+    std::vector<float> rng_out, ang_out;
+    if (!in_place) {
+        pos_out.resize(n_points);
+        rng_out.resize(n_points);
+        ang_out.resize(n_points);
+    }
+    Eigen::Vector3d* pos_to = in_place ? pos.data() : pos_out.data();
+    float* rng_to = in_place ? rng.data() : rng_out.data();
+    float* ang_to = in_place ? ang.data() : ang_out.data();
+    P.ping.reserve(n_points);
+    P.beam.reserve(n_points);
+    const bool with_status = view != SoundingView::kAccepted;
+    if (with_status) P.status.reserve(n_points);
+    std::size_t out = 0;
+    GeorefCounts& c = result.counts;
+    for (std::size_t k = 0; k < n_pings; ++k) {
+        const PingWork& w = work[k];
+        if (!w.ok) {
+            if (w.reason == 1) ++c.pings_outside_nav;
+            if (w.reason == 2) ++c.pings_in_nav_gap;
+            if (w.reason == 3) ++c.pings_bad_header;
+            continue;
+        }
+        const PingHeader& h = series.pings[k];
+        for (std::size_t i = 0; i < h.num_beams; ++i) ++c.status[status[h.beam_offset + i]];
+        const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
+        result.pings.push_back(w.ping);
+        for (std::size_t i = 0; i < h.num_beams; ++i) {
+            const std::size_t j = h.beam_offset + i;
+            if (!(rng[j] > 0)) continue;
+            pos_to[out] = pos[j];
+            rng_to[out] = rng[j];
+            ang_to[out] = ang[j];
+            if (with_status) P.status.push_back(status[j]);
+            ++out;
+            P.ping.push_back(ping_index);
+            P.beam.push_back(static_cast<std::uint16_t>(i));
+        }
+    }
+    if (!in_place) {
+        pos.swap(pos_out);
+        rng.swap(rng_out);
+        ang.swap(ang_out);
+    }
+    pos.resize(out);
+    rng.resize(out);
+    ang.resize(out);
+}
+
+// The summary counters from the per-status counts, and the result's message.
+void FinishCounts(GeorefResult& result) {
+    GeorefCounts& c = result.counts;
+    c.no_detection = c.status[static_cast<int>(SoundingStatus::kNoDetection)];
+    c.range_gate = c.status[static_cast<int>(SoundingStatus::kRangeGate)];
+    c.spikes = c.status[static_cast<int>(SoundingStatus::kSpike)];
+    c.refraction_failed = c.status[static_cast<int>(SoundingStatus::kRefraction)];
+    c.cleaned = 0;
+    for (int code = 0; code < kNumSoundingStatus; ++code) {
+        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) c.cleaned += c.status[code];
+    }
+    c.manual = c.status[static_cast<int>(SoundingStatus::kManual)];
+    c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
+    c.points = static_cast<std::int64_t>(result.points.size());
+    result.message = std::to_string(c.points) + " points from " +
+                     std::to_string(c.pings_georeferenced) + " of " + std::to_string(c.pings_in) +
+                     " pings";
+}
+
 }  // namespace
 
 Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result, std::size_t j) {
@@ -206,220 +492,28 @@ GeorefResult RunGeoref(const NavSeries& nav,
     const Trajectory trajectory(nav, world);
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
 
-    const std::size_t n_pings = series.pings.size();
-    std::vector<PingWork> work(n_pings);
-    // The outputs are written in the input's flat layout (one slot per input beam, range -1 =
-    // no point) and compacted in place below: no provisional copy of every beam, whose pages
-    // the kernel would zero (docs/benchmarks.md, the georef and calibrate stages).
+    // The outputs are written in the input's flat layout and compacted in place below: no
+    // provisional copy of every beam, whose pages the kernel would zero (docs/benchmarks.md, the
+    // georef and calibrate stages).
+    const std::size_t n_beams = series.range_counts.size();
     GeorefPoints& P = result.points;
-    P.position_world.resize(series.range_counts.size());
-    P.range_m.assign(series.range_counts.size(), -1.0f);
-    P.angle_rad.resize(series.range_counts.size());
-    std::vector<Eigen::Vector3d>& pos = P.position_world;
-    std::vector<float>& rng = P.range_m;
-    std::vector<float>& ang = P.angle_rad;
-    // Every sounding's status (SoundingStatus), in the same flat layout.
-    std::vector<std::uint8_t> status(series.range_counts.size(),
-                                     static_cast<std::uint8_t>(SoundingStatus::kAccepted));
-
-    std::unique_ptr<tbb::global_control> limit;
-    if (config.num_threads > 0) {
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      static_cast<std::size_t>(config.num_threads));
-    }
-    std::atomic<std::size_t> done{0};
-    std::atomic<bool> cancel{false};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_pings, 64), [&](const auto& block) {
-        std::vector<double> r, keep_range;
-        std::vector<char> keep;
-        for (std::size_t k = block.begin(); k != block.end(); ++k) {
-            if (cancel.load(std::memory_order_relaxed)) return;
-            const PingHeader& h = series.pings[k];
-            PingWork& w = work[k];
-            if (!(h.range_resolution_m > 0) || !std::isfinite(h.start_angle_deg) ||
-                !std::isfinite(h.angle_increment_deg) || !std::isfinite(h.profile_tilt_deg)) {
-                w.reason = 3;
-                continue;
-            }
-            const std::int64_t t = h.utime_gps;
-            if (trajectory.times().empty() || t < trajectory.times().front() ||
-                t > trajectory.times().back()) {
-                w.reason = 1;
-                continue;
-            }
-            const auto T_world_vehicle = trajectory.PoseAt(t, config.max_nav_gap_s);
-            if (!T_world_vehicle) {
-                w.reason = 2;
-                continue;
-            }
-            w.ok = true;
-            const Pose T_world_sonar = *T_world_vehicle * T_vehicle_sonar;
-            w.ping.utime_gps = t;
-            w.ping.ping_number = h.ping_number;
-            w.ping.header_index = static_cast<std::uint32_t>(k);
-            w.ping.T_world_vehicle = *T_world_vehicle;
-            w.ping.sensor_world = T_world_sonar.translation();
-            w.ping.profile_tilt_rad =
-                config.apply_profile_tilt ? frames::DegToRad(h.profile_tilt_deg) : 0.0;
-            PingWater water;
-            if (refraction) {
-                w.ping.assumed_sound_speed_mps =
-                    h.sound_speed_mps > 0 ? h.sound_speed_mps : config.nominal_sound_speed_mps;
-                double lat = 0, lon = 0;
-                if (refraction->selection() == svp::CastSelection::kNearestInDistance) {
-                    const Geodetic g = world.FromEnu(w.ping.sensor_world);
-                    lat = g.latitude_deg;
-                    lon = g.longitude_deg;
-                }
-                w.ping.cast = refraction->SelectCast(t, lat, lon);
-                water = WaterAt(*refraction, w.ping, mount, w.ping.assumed_sound_speed_mps);
-            }
-            double scale = h.range_resolution_m;
-            if (config.sound_speed_scaling && h.sound_speed_valid) {
-                scale *= h.sound_speed_mps / config.nominal_sound_speed_mps;
-            }
-            r.assign(h.num_beams, -1.0);
-            for (std::size_t i = 0; i < h.num_beams; ++i) {
-                const std::size_t j = h.beam_offset + i;
-                const std::uint32_t c = series.range_counts[j];
-                if (c == 0) {
-                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kNoDetection);
-                    continue;
-                }
-                const double range = c * scale;
-                r[i] = range;
-                if (range < config.min_range_m || range > config.max_range_m) {
-                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kRangeGate);
-                }
-            }
-            // The median runs over the ranges inside the gate.
-            keep_range = r;
-            for (std::size_t i = 0; i < h.num_beams; ++i) {
-                if (status[h.beam_offset + i] != 0) keep_range[i] = -1.0;
-            }
-            SpikeFilter(
-                keep_range, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
-            for (std::size_t i = 0; i < h.num_beams; ++i) {
-                const std::size_t j = h.beam_offset + i;
-                if (keep_range[i] > 0 && !keep[i]) {
-                    status[j] = static_cast<std::uint8_t>(SoundingStatus::kSpike);
-                }
-                if (!(r[i] > 0)) continue;
-                const auto own = static_cast<SoundingStatus>(status[j]);
-                const SoundingStatus s = flags ? Resolve(own, *flags, j) : own;
-                status[j] = static_cast<std::uint8_t>(s);
-                if (!InView(s, own, view)) continue;
-                const double theta = frames::DegToRad(series.BeamAngleDeg(h, i));
-                if (refraction) {
-                    const svp::BeamGeometry b = refraction->Beam(w.ping.cast,
-                                                                 T_world_sonar.linear(),
-                                                                 theta,
-                                                                 w.ping.profile_tilt_rad,
-                                                                 r[i],
-                                                                 w.ping.assumed_sound_speed_mps,
-                                                                 water.transducer_depth_m,
-                                                                 water.face_speed_mps);
-                    if (b.steering_failed || b.status != svp::RayStatus::kOk) {
-                        status[j] = static_cast<std::uint8_t>(SoundingStatus::kRefraction);
-                        continue;
-                    }
-                    pos[j] = w.ping.sensor_world + b.offset_world;
-                } else {
-                    pos[j] = T_world_sonar * BeamVectorSonar(r[i], theta, w.ping.profile_tilt_rad);
-                }
-                rng[j] = static_cast<float>(r[i]);
-                ang[j] = static_cast<float>(theta);
-            }
-        }
-        const std::size_t d = done.fetch_add(block.size()) + block.size();
-        if (progress && !progress(static_cast<double>(d) / static_cast<double>(n_pings))) {
-            cancel = true;
-        }
-    });
-    if (cancel) {
+    P.position_world.resize(n_beams);
+    P.range_m.assign(n_beams, -1.0f);
+    P.angle_rad.resize(n_beams);
+    std::vector<std::uint8_t> status(n_beams, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
+    FlatSoundings flat{P.position_world, P.range_m, P.angle_rad, status};
+    const PingContext ctx{
+        series, trajectory, world, mount, T_vehicle_sonar, config, refraction.get(), flags, view};
+    bool cancelled = false;
+    const std::vector<PingWork> work = GeoreferencePings(ctx, flat, progress, cancelled);
+    if (cancelled) {
         result.points = GeorefPoints{};
         result.cancelled = true;
         result.message = "cancelled";
         return result;
     }
-
-    // Compact in ping order (deterministic, independent of the thread count). In place when
-    // the pings' beams follow each other in the flat array (every reader builds it so): the
-    // write index then never passes the read index. Otherwise into fresh arrays.
-    std::size_t n_points = 0;
-    bool in_place = true;
-    std::size_t next_offset = 0;
-    for (std::size_t k = 0; k < n_pings; ++k) {
-        const PingHeader& h = series.pings[k];
-        in_place = in_place && h.beam_offset >= next_offset;
-        next_offset = std::size_t{h.beam_offset} + h.num_beams;
-        if (!work[k].ok) continue;
-        for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[h.beam_offset + i] > 0;
-    }
-    std::vector<Eigen::Vector3d> pos_out;
-    std::vector<float> rng_out, ang_out;
-    if (!in_place) {
-        pos_out.resize(n_points);
-        rng_out.resize(n_points);
-        ang_out.resize(n_points);
-    }
-    Eigen::Vector3d* pos_to = in_place ? pos.data() : pos_out.data();
-    float* rng_to = in_place ? rng.data() : rng_out.data();
-    float* ang_to = in_place ? ang.data() : ang_out.data();
-    P.ping.reserve(n_points);
-    P.beam.reserve(n_points);
-    const bool with_status = view != SoundingView::kAccepted;
-    if (with_status) P.status.reserve(n_points);
-    std::size_t out = 0;
-    GeorefCounts& c = result.counts;
-    for (std::size_t k = 0; k < n_pings; ++k) {
-        PingWork& w = work[k];
-        if (!w.ok) {
-            if (w.reason == 1) ++c.pings_outside_nav;
-            if (w.reason == 2) ++c.pings_in_nav_gap;
-            if (w.reason == 3) ++c.pings_bad_header;
-            continue;
-        }
-        const PingHeader& h = series.pings[k];
-        for (std::size_t i = 0; i < h.num_beams; ++i) {
-            ++c.status[status[h.beam_offset + i]];
-        }
-        const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
-        result.pings.push_back(w.ping);
-        for (std::size_t i = 0; i < h.num_beams; ++i) {
-            const std::size_t j = h.beam_offset + i;
-            if (!(rng[j] > 0)) continue;
-            pos_to[out] = pos[j];
-            rng_to[out] = rng[j];
-            ang_to[out] = ang[j];
-            if (with_status) P.status.push_back(status[j]);
-            ++out;
-            P.ping.push_back(ping_index);
-            P.beam.push_back(static_cast<std::uint16_t>(i));
-        }
-    }
-    if (!in_place) {
-        pos.swap(pos_out);
-        rng.swap(rng_out);
-        ang.swap(ang_out);
-    }
-    pos.resize(out);
-    rng.resize(out);
-    ang.resize(out);
-    c.no_detection = c.status[static_cast<int>(SoundingStatus::kNoDetection)];
-    c.range_gate = c.status[static_cast<int>(SoundingStatus::kRangeGate)];
-    c.spikes = c.status[static_cast<int>(SoundingStatus::kSpike)];
-    c.refraction_failed = c.status[static_cast<int>(SoundingStatus::kRefraction)];
-    c.cleaned = 0;
-    for (int code = 0; code < kNumSoundingStatus; ++code) {
-        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) c.cleaned += c.status[code];
-    }
-    c.manual = c.status[static_cast<int>(SoundingStatus::kManual)];
-    c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
-    c.points = static_cast<std::int64_t>(P.size());
-    result.message = std::to_string(c.points) + " points from " +
-                     std::to_string(c.pings_georeferenced) + " of " + std::to_string(c.pings_in) +
-                     " pings";
+    CompactSoundings(series, work, status, view, result);
+    FinishCounts(result);
     return result;
 }
 
