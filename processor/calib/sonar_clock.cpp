@@ -713,25 +713,19 @@ std::string SpanText(std::int64_t first_utime, std::int64_t last_utime) {
     return s;
 }
 
-ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
-                                 const georef::NavSeries& nav,
-                                 const ClockSearchConfig& cfg) {
-    ClockEstimate est;
-    est.method = "none";
-    if (pings.pings.size() < 2 || nav.samples.size() < 2) {
-        est.message = "too few pings or navigation samples to find the sonar clock";
-        return est;
-    }
-    const std::int64_t t_ref = nav.samples.front().utime_gps;
-    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
-    const double p0 = static_cast<double>(pings.pings.front().utime_gps - t_ref) * 1e-6;
-    const double p1 = static_cast<double>(pings.pings.back().utime_gps - t_ref) * 1e-6;
-    // Every c that overlaps the two spans at all.
-    const double lo = track.first() - p1, hi = track.last() - p0;
-    const double ping_interval = (p1 - p0) / static_cast<double>(pings.pings.size() - 1);
+namespace {
 
+// The header aids of all pings on the sonar's clock (seconds since t_ref): the positions of the
+// first ping carrying each new fix, and the attitudes (roll and pitch, heading, either).
+struct HeaderAids {
     std::vector<AidSample> pos, att;
     bool have_heading = false, have_roll_pitch = false;
+};
+
+HeaderAids HeaderAidsOf(const georef::PingSeries& pings,
+                        std::int64_t t_ref,
+                        const NavTrack& track) {
+    HeaderAids a;
     double last_lat = std::numeric_limits<double>::quiet_NaN(), last_lon = last_lat;
     for (const auto& h : pings.pings) {
         const double t = static_cast<double>(h.utime_gps - t_ref) * 1e-6;
@@ -740,168 +734,211 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
             // First ping that carries this fix: the fix is at most a ping interval old.
             const Eigen::Vector3d e =
                 track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, 0.0});
-            pos.push_back({t, e.x(), e.y(), 0, 0, 0});
+            a.pos.push_back({t, e.x(), e.y(), 0, 0, 0});
         }
         last_lat = h.aid_latitude_deg;
         last_lon = h.aid_longitude_deg;
         const bool rp = std::isfinite(h.aid_roll_deg) && std::isfinite(h.aid_pitch_deg);
         const bool hd = std::isfinite(h.aid_heading_deg);
         if (rp || hd) {
-            att.push_back({t,
-                           0,
-                           0,
-                           rp ? h.aid_roll_deg : 0.0,
-                           rp ? h.aid_pitch_deg : 0.0,
-                           hd ? h.aid_heading_deg : 0.0});
-            have_roll_pitch |= rp;
-            have_heading |= hd;
+            a.att.push_back({t,
+                             0,
+                             0,
+                             rp ? h.aid_roll_deg : 0.0,
+                             rp ? h.aid_pitch_deg : 0.0,
+                             hd ? h.aid_heading_deg : 0.0});
+            a.have_roll_pitch |= rp;
+            a.have_heading |= hd;
         }
     }
-    const double step = std::max(cfg.scan_step_s, (hi - lo) / 200000.0);
-    char buf[320];
-    auto finish = [&](const ScanResult& coarse,
-                      const auto& score,
-                      double limit,
-                      const char* unit,
-                      double stale_s) {
-        // Fine scan around the coarse minimum, then a parabola through the best three.
-        const ScanResult fine = Scan(score,
-                                     coarse.best_c - cfg.fine_window_s,
-                                     coarse.best_c + cfg.fine_window_s,
-                                     cfg.fine_step_s,
-                                     1e9);
-        const double h = cfg.fine_step_s;
-        est.correction_s = ParabolaVertex(
-            fine.best_c, h, score(fine.best_c - h), fine.best, score(fine.best_c + h));
-        est.misfit = score(est.correction_s);
-        if (!std::isfinite(est.misfit)) est.misfit = fine.best;
-        est.alias_misfit = coarse.alias;
-        est.alias_correction_s = coarse.alias_c;
-        // The aids' own age is the systematic part; the statistical part is small beside it.
-        est.sigma_s = std::hypot(stale_s, cfg.fine_step_s);
-        // Both on the coarse grid: a refined best against an unrefined alias would hide it.
-        const bool ambiguous = coarse.alias > 0 && coarse.alias < cfg.alias_ratio * coarse.best;
-        const bool poor = !(est.misfit <= limit);
-        est.found = !ambiguous && !poor;
-        // No offset fitting at all says more than two that fit equally badly: the aids of
-        // another survey (or a broken feed) fit nowhere, whatever the clock.
-        if (poor) {
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "%s: no offset fits: the best, %+.3f s, still leaves a misfit of %.3g "
-                          "%s (limit %.3g): the 83P headers match this navigation nowhere (a "
-                          "file of another survey, or another vehicle's aids?)",
-                          est.method.c_str(),
-                          est.correction_s,
-                          est.misfit,
-                          unit,
-                          limit);
-        } else if (ambiguous) {
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "%s: ambiguous: %+.3f s (misfit %.3g %s) and %+.3f s (%.3g %s) fit "
-                          "almost equally",
-                          est.method.c_str(),
-                          est.correction_s,
-                          est.misfit,
-                          unit,
-                          coarse.alias_c,
-                          coarse.alias,
-                          unit);
-        } else {
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "%s: correction %+.3f s +- %.3f s (misfit %.3g %s over %lld samples)",
-                          est.method.c_str(),
-                          est.correction_s,
-                          est.sigma_s,
-                          est.misfit,
-                          unit,
-                          static_cast<long long>(est.samples));
-        }
-        est.message = buf;
-    };
+    return a;
+}
 
-    if (pos.size() >= 10) {
-        est.method = "header position";
-        pos = Thin(std::move(pos), cfg.max_samples);
-        est.samples = static_cast<std::int64_t>(pos.size());
-        const auto score = [&](double c) {
-            return PositionMisfit(pos, track, c, cfg.min_overlap_fraction);
-        };
-        // The scan over the whole overlap range (hours for a PC clock on local time) on fewer
-        // fixes; the fine scan uses all of them.
-        const std::vector<AidSample> few = Thin(pos, cfg.max_coarse_samples);
-        const ScanResult coarse =
-            Scan([&](double c) { return PositionMisfit(few, track, c, cfg.min_overlap_fraction); },
-                 lo,
-                 hi,
-                 step,
-                 cfg.min_alias_separation_s);
-        // A fix reaches the topside a serial latency (~0.1-0.2 s) after its epoch and shows in
-        // the next ping: up to a ping interval later.
-        finish(coarse,
-               score,
-               cfg.max_position_misfit_m,
-               "m",
-               std::hypot(ping_interval / std::sqrt(12.0), cfg.fix_latency_sigma_s));
-        // The fix a ping carries is older than the ping: the match found the fix's epoch,
-        // which is `age` before the ping.
-        const double age = cfg.assumed_fix_latency_s + 0.5 * ping_interval;
-        est.correction_s += age;
-        if (est.found) {
-            std::snprintf(buf,
-                          sizeof(buf),
-                          "%s: correction %+.3f s +- %.3f s (misfit %.3g m over %lld fixes, "
-                          "their mean age of %.3f s taken off)",
-                          est.method.c_str(),
-                          est.correction_s,
-                          est.sigma_s,
-                          est.misfit,
-                          static_cast<long long>(est.samples),
-                          age);
-            est.message = buf;
-        }
-        return est;
+// The span of clock corrections c to scan: every c that overlaps the pings' and the
+// navigation's spans at all, on the coarse step.
+struct ClockScan {
+    double lo = 0, hi = 0, step = 0;
+    double p0 = 0, p1 = 0;     // first and last ping, seconds since t_ref
+    double ping_interval = 0;  // mean, s
+};
+
+ClockScan ScanRange(const georef::PingSeries& pings,
+                    std::int64_t t_ref,
+                    const NavTrack& track,
+                    const ClockSearchConfig& cfg) {
+    ClockScan r;
+    r.p0 = static_cast<double>(pings.pings.front().utime_gps - t_ref) * 1e-6;
+    r.p1 = static_cast<double>(pings.pings.back().utime_gps - t_ref) * 1e-6;
+    r.lo = track.first() - r.p1;
+    r.hi = track.last() - r.p0;
+    r.ping_interval = (r.p1 - r.p0) / static_cast<double>(pings.pings.size() - 1);
+    r.step = std::max(cfg.scan_step_s, (r.hi - r.lo) / 200000.0);
+    return r;
+}
+
+// The estimate from a coarse scan: a fine scan of `score` around the coarse minimum, then a
+// parabola through the best three; found unless the fit is poor (misfit over `limit`) or
+// ambiguous (an alias almost as good). stale_s is the aids' own age (the systematic part of the
+// sigma); `unit` the misfit's, for the message.
+template <class Score>
+void Refine(const ScanResult& coarse,
+            const Score& score,
+            double limit,
+            const char* unit,
+            double stale_s,
+            const ClockSearchConfig& cfg,
+            ClockEstimate& est) {
+    const ScanResult fine = Scan(score,
+                                 coarse.best_c - cfg.fine_window_s,
+                                 coarse.best_c + cfg.fine_window_s,
+                                 cfg.fine_step_s,
+                                 1e9);
+    const double h = cfg.fine_step_s;
+    est.correction_s =
+        ParabolaVertex(fine.best_c, h, score(fine.best_c - h), fine.best, score(fine.best_c + h));
+    est.misfit = score(est.correction_s);
+    if (!std::isfinite(est.misfit)) est.misfit = fine.best;
+    est.alias_misfit = coarse.alias;
+    est.alias_correction_s = coarse.alias_c;
+    // The statistical part is small beside the aids' age.
+    est.sigma_s = std::hypot(stale_s, cfg.fine_step_s);
+    // Both on the coarse grid: a refined best against an unrefined alias would hide it.
+    const bool ambiguous = coarse.alias > 0 && coarse.alias < cfg.alias_ratio * coarse.best;
+    const bool poor = !(est.misfit <= limit);
+    est.found = !ambiguous && !poor;
+    char buf[320];
+    // No offset fitting at all says more than two that fit equally badly: the aids of another
+    // survey (or a broken feed) fit nowhere, whatever the clock.
+    if (poor) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "%s: no offset fits: the best, %+.3f s, still leaves a misfit of %.3g "
+                      "%s (limit %.3g): the 83P headers match this navigation nowhere (a "
+                      "file of another survey, or another vehicle's aids?)",
+                      est.method.c_str(),
+                      est.correction_s,
+                      est.misfit,
+                      unit,
+                      limit);
+    } else if (ambiguous) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "%s: ambiguous: %+.3f s (misfit %.3g %s) and %+.3f s (%.3g %s) fit "
+                      "almost equally",
+                      est.method.c_str(),
+                      est.correction_s,
+                      est.misfit,
+                      unit,
+                      coarse.alias_c,
+                      coarse.alias,
+                      unit);
+    } else {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "%s: correction %+.3f s +- %.3f s (misfit %.3g %s over %lld samples)",
+                      est.method.c_str(),
+                      est.correction_s,
+                      est.sigma_s,
+                      est.misfit,
+                      unit,
+                      static_cast<long long>(est.samples));
     }
-    if (att.size() >= 10) {
-        est.method = "header attitude";
-        att = Thin(std::move(att), cfg.max_samples);
-        est.samples = static_cast<std::int64_t>(att.size());
-        const AttitudeUse coarse_use =
-            have_heading ? AttitudeUse::kHeading : AttitudeUse::kRollPitch;
-        const auto coarse_score = [&](double c) {
-            return AttitudeMisfit(att, track, c, cfg.min_overlap_fraction, coarse_use);
-        };
-        const std::vector<AidSample> few = Thin(att, cfg.max_coarse_samples);
-        const ScanResult coarse = Scan(
-            [&](double c) {
-                return AttitudeMisfit(few, track, c, cfg.min_overlap_fraction, coarse_use);
-            },
-            lo,
-            hi,
-            step,
-            cfg.min_alias_separation_s);
-        if (have_heading && have_roll_pitch) {
-            // Heading placed it (and decides ambiguity: turns are unique); the roll and pitch
-            // of the waves are sharper locally, so the fine scan uses them.
-            const auto rp_score = [&](double c) {
-                return AttitudeMisfit(
-                    att, track, c, cfg.min_overlap_fraction, AttitudeUse::kRollPitch);
-            };
-            finish(coarse, rp_score, cfg.max_attitude_misfit_deg, "deg", 0.5 * ping_interval);
-            return est;
-        }
-        finish(coarse, coarse_score, cfg.max_attitude_misfit_deg, "deg", 0.5 * ping_interval);
-        return est;
+    est.message = buf;
+}
+
+// The correction that puts the headers' fixes on the navigation's track.
+ClockEstimate FromHeaderPositions(std::vector<AidSample> pos,
+                                  const NavTrack& track,
+                                  const ClockScan& range,
+                                  const ClockSearchConfig& cfg) {
+    ClockEstimate est;
+    est.method = "header position";
+    pos = Thin(std::move(pos), cfg.max_samples);
+    est.samples = static_cast<std::int64_t>(pos.size());
+    const auto score = [&](double c) {
+        return PositionMisfit(pos, track, c, cfg.min_overlap_fraction);
+    };
+    // The scan over the whole overlap range (hours for a PC clock on local time) on fewer
+    // fixes; the fine scan uses all of them.
+    const std::vector<AidSample> few = Thin(pos, cfg.max_coarse_samples);
+    const ScanResult coarse =
+        Scan([&](double c) { return PositionMisfit(few, track, c, cfg.min_overlap_fraction); },
+             range.lo,
+             range.hi,
+             range.step,
+             cfg.min_alias_separation_s);
+    // A fix reaches the topside a serial latency (~0.1-0.2 s) after its epoch and shows in the
+    // next ping: up to a ping interval later.
+    Refine(coarse,
+           score,
+           cfg.max_position_misfit_m,
+           "m",
+           std::hypot(range.ping_interval / std::sqrt(12.0), cfg.fix_latency_sigma_s),
+           cfg,
+           est);
+    // The fix a ping carries is older than the ping: the match found the fix's epoch, which is
+    // `age` before the ping.
+    const double age = cfg.assumed_fix_latency_s + 0.5 * range.ping_interval;
+    est.correction_s += age;
+    if (est.found) {
+        char buf[320];
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "%s: correction %+.3f s +- %.3f s (misfit %.3g m over %lld fixes, "
+                      "their mean age of %.3f s taken off)",
+                      est.method.c_str(),
+                      est.correction_s,
+                      est.sigma_s,
+                      est.misfit,
+                      static_cast<long long>(est.samples),
+                      age);
+        est.message = buf;
     }
-    // Nothing but the clock: assume the two recordings ran at the same time.
+    return est;
+}
+
+// The correction that matches the headers' attitudes to the INS's: heading places it (turns
+// are unique), roll and pitch refine it where both are there.
+ClockEstimate FromHeaderAttitudes(HeaderAids aids,
+                                  const NavTrack& track,
+                                  const ClockScan& range,
+                                  const ClockSearchConfig& cfg) {
+    ClockEstimate est;
+    est.method = "header attitude";
+    const std::vector<AidSample> att = Thin(std::move(aids.att), cfg.max_samples);
+    est.samples = static_cast<std::int64_t>(att.size());
+    const AttitudeUse coarse_use =
+        aids.have_heading ? AttitudeUse::kHeading : AttitudeUse::kRollPitch;
+    const std::vector<AidSample> few = Thin(att, cfg.max_coarse_samples);
+    const ScanResult coarse = Scan(
+        [&](double c) {
+            return AttitudeMisfit(few, track, c, cfg.min_overlap_fraction, coarse_use);
+        },
+        range.lo,
+        range.hi,
+        range.step,
+        cfg.min_alias_separation_s);
+    // The roll and pitch of the waves are sharper locally than heading: the fine scan uses
+    // them when the headers have both.
+    const AttitudeUse fine_use =
+        aids.have_heading && aids.have_roll_pitch ? AttitudeUse::kRollPitch : coarse_use;
+    const auto score = [&](double c) {
+        return AttitudeMisfit(att, track, c, cfg.min_overlap_fraction, fine_use);
+    };
+    Refine(coarse, score, cfg.max_attitude_misfit_deg, "deg", 0.5 * range.ping_interval, cfg, est);
+    return est;
+}
+
+// Nothing but the clock: assume the two recordings ran at the same time.
+ClockEstimate FromSpans(const NavTrack& track, const ClockScan& range) {
+    ClockEstimate est;
     est.method = "span";
     const double nav_len = track.last() - track.first();
-    const double ping_len = p1 - p0;
-    est.correction_s = 0.5 * (track.first() + track.last()) - 0.5 * (p0 + p1);
+    const double ping_len = range.p1 - range.p0;
+    est.correction_s = 0.5 * (track.first() + track.last()) - 0.5 * (range.p0 + range.p1);
     est.sigma_s = std::abs(nav_len - ping_len) / (2.0 * std::sqrt(3.0));
     est.found = true;
+    char buf[320];
     std::snprintf(buf,
                   sizeof(buf),
                   "span: the 83P headers carry no position or attitude; centring the sonar's "
@@ -912,6 +949,26 @@ ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
                   est.sigma_s);
     est.message = buf;
     return est;
+}
+
+}  // namespace
+
+ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
+                                 const georef::NavSeries& nav,
+                                 const ClockSearchConfig& cfg) {
+    if (pings.pings.size() < 2 || nav.samples.size() < 2) {
+        ClockEstimate est;
+        est.method = "none";
+        est.message = "too few pings or navigation samples to find the sonar clock";
+        return est;
+    }
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
+    const ClockScan range = ScanRange(pings, t_ref, track, cfg);
+    HeaderAids aids = HeaderAidsOf(pings, t_ref, track);
+    if (aids.pos.size() >= 10) return FromHeaderPositions(std::move(aids.pos), track, range, cfg);
+    if (aids.att.size() >= 10) return FromHeaderAttitudes(std::move(aids), track, range, cfg);
+    return FromSpans(track, range);
 }
 
 }  // namespace pitmap::proc::calib
