@@ -213,23 +213,14 @@ std::optional<Eigen::Vector2d> HeadRollPitch(const NavTrack& nav,
     return Eigen::Vector2d(frames::RadToDeg(rpy.roll), frames::RadToDeg(rpy.pitch));
 }
 
-}  // namespace
+// A ping whose header carries the head's own attitude at the ping.
+struct HeadSample {
+    double t;              // seconds since t_ref on the pings' clock
+    Eigen::Vector2d head;  // roll, pitch, deg
+};
 
-ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
-                                         const georef::NavSeries& nav,
-                                         const ClockRateConfig& cfg) {
-    ClockRateEstimate est;
-    char buf[320];
-    if (nav.samples.size() < 2) {
-        est.message = "clock rate: no navigation";
-        return est;
-    }
-    const std::int64_t t_ref = nav.samples.front().utime_gps;
-    struct Sample {
-        double t;  // seconds since t_ref on the pings' clock
-        Eigen::Vector2d head;
-    };
-    std::vector<Sample> all;
+std::vector<HeadSample> HeadSamples(const georef::PingSeries& pings, std::int64_t t_ref) {
+    std::vector<HeadSample> all;
     for (const auto& h : pings.pings) {
         if (!h.aid_attitude_at_ping || !std::isfinite(h.aid_roll_deg) ||
             !std::isfinite(h.aid_pitch_deg))
@@ -237,40 +228,45 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
         all.push_back({static_cast<double>(h.utime_gps - t_ref) * 1e-6,
                        Eigen::Vector2d(h.aid_roll_deg, h.aid_pitch_deg)});
     }
-    const double span = all.size() > 1 ? all.back().t - all.front().t : 0.0;
-    if (static_cast<std::int64_t>(all.size()) < cfg.min_samples || span < cfg.min_span_s) {
-        std::snprintf(buf,
-                      sizeof(buf),
-                      "clock rate: not estimated: %lld pings over %.0f s carry the head's own "
-                      "attitude (at least %lld over %.0f s needed)",
-                      static_cast<long long>(all.size()),
-                      span,
-                      static_cast<long long>(cfg.min_samples),
-                      cfg.min_span_s);
-        est.message = buf;
-        return est;
+    return all;
+}
+
+// At most n of the samples, evenly.
+std::vector<HeadSample> ThinHeadSamples(std::vector<HeadSample> all, std::int64_t n_max) {
+    if (static_cast<std::int64_t>(all.size()) <= n_max) return all;
+    std::vector<HeadSample> S;
+    const auto n = static_cast<std::size_t>(n_max);
+    for (std::size_t i = 0; i < n; ++i) S.push_back(all[i * all.size() / n]);
+    return S;
+}
+
+// The head's roll and pitch the INS predicts (HeadRollPitch), and measured minus predicted.
+class HeadModel {
+public:
+    HeadModel(const georef::NavSeries& nav, std::int64_t t_ref, const Eigen::Matrix3d& R_vs)
+        : track_(nav, t_ref, Eigen::Vector3d::Zero()),
+          R_vs_(R_vs),
+          identity_(R_vs.isIdentity(1e-12)) {}
+    std::optional<Eigen::Vector2d> At(double t) const {
+        return HeadRollPitch(track_, t, R_vs_, identity_);
     }
-    std::vector<Sample> S;
-    if (static_cast<std::int64_t>(all.size()) > cfg.max_samples) {
-        const auto n = static_cast<std::size_t>(cfg.max_samples);
-        for (std::size_t i = 0; i < n; ++i) S.push_back(all[i * all.size() / n]);
-    } else {
-        S = std::move(all);
-    }
-    const double t_mid = 0.5 * (S.front().t + S.back().t);
-    est.reference_utime = t_ref + std::llround(t_mid * 1e6);
-    est.samples = static_cast<std::int64_t>(S.size());
-    const NavTrack track(nav, t_ref, Eigen::Vector3d::Zero());
-    const bool identity = cfg.R_vehicle_sonar.isIdentity(1e-12);
-    const auto head = [&](double t) {
-        return HeadRollPitch(track, t, cfg.R_vehicle_sonar, identity);
-    };
-    const auto diff = [](const Eigen::Vector2d& measured, const Eigen::Vector2d& predicted) {
+    static Eigen::Vector2d Diff(const Eigen::Vector2d& measured, const Eigen::Vector2d& predicted) {
         return Eigen::Vector2d(WrapDeg(measured.x() - predicted.x()),
                                WrapDeg(measured.y() - predicted.y()));
-    };
+    }
 
-    // d at rate 0: the de-biased RMS over a scan (waves of seconds: a step of 10 ms is fine).
+private:
+    NavTrack track_;
+    Eigen::Matrix3d R_vs_;
+    bool identity_;
+};
+
+// The offset d at rate 0: the de-biased RMS over a scan of +- scan_s (waves of seconds: a step
+// of 10 ms is fine). Returns (d, its variance); the variance is +inf when no offset puts half
+// the samples inside the navigation.
+std::pair<double, double> ScanOffset(const std::vector<HeadSample>& S,
+                                     const HeadModel& head,
+                                     const ClockRateConfig& cfg) {
     double best_d = 0, best = std::numeric_limits<double>::infinity();
     const int n_scan = static_cast<int>(std::floor(cfg.scan_s / cfg.scan_step_s));
     for (int i = -n_scan; i <= n_scan; ++i) {
@@ -278,9 +274,9 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
         Eigen::Vector2d sum = Eigen::Vector2d::Zero(), sq = Eigen::Vector2d::Zero();
         std::size_t n = 0;
         for (const auto& x : S) {
-            const auto p = head(x.t + d);
+            const auto p = head.At(x.t + d);
             if (!p) continue;
-            const Eigen::Vector2d r = diff(x.head, *p);
+            const Eigen::Vector2d r = HeadModel::Diff(x.head, *p);
             sum += r;
             sq += r.cwiseProduct(r);
             ++n;
@@ -293,107 +289,131 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
             best_d = d;
         }
     }
-    if (!std::isfinite(best)) {
-        est.message = "clock rate: not estimated: the pings lie outside the navigation span";
-        return est;
-    }
+    return {best_d, best};
+}
 
-    // Gauss-Newton on x = [d (s), rate (ppm), bias roll, bias pitch (deg)].
-    Eigen::Vector4d x(best_d, 0, 0, 0);
-    {
-        Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-        std::size_t n = 0;
-        for (const auto& s : S) {
-            if (const auto p = head(s.t + best_d)) {
-                sum += diff(s.head, *p);
-                ++n;
-            }
+// The mean roll and pitch difference at offset d: the biases' start values.
+Eigen::Vector2d MeanDifference(const std::vector<HeadSample>& S, const HeadModel& head, double d) {
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    std::size_t n = 0;
+    for (const auto& s : S) {
+        if (const auto p = head.At(s.t + d)) {
+            sum += HeadModel::Diff(s.head, *p);
+            ++n;
         }
-        x.tail<2>() = sum / static_cast<double>(std::max<std::size_t>(n, 1));
     }
-    constexpr double kH = 0.05;                      // central difference for the attitude rate, s
+    return sum / static_cast<double>(std::max<std::size_t>(n, 1));
+}
+
+// The clock model's fit: x = [d (s), rate (ppm), bias roll, bias pitch (deg)]; a ping at t is at
+// t + d + rate 1e-6 (t - t_mid) on the INS's clock.
+struct RateFit {
+    Eigen::Vector4d x;
     Eigen::Matrix4d info = Eigen::Matrix4d::Zero();  // data and prior, 1 / sigma^2 units
-    std::vector<Eigen::Vector2d> res(S.size());
-    std::vector<char> valid(S.size());
-    std::size_t n_res = 0;
-    double ss = 0;  // unweighted residual squares (roll and pitch)
-    // The residuals at x, with the robust scale and the residual variance inflated for their
-    // correlation from ping to ping (AR(1): (1 + rho) / (1 - rho)).
-    struct Noise {
-        double scale = 0, variance = 0;
-    };
-    const auto residuals = [&] {
-        std::vector<double> abs_r;
-        double lag0 = 0, lag1 = 0;
-        ss = 0;
-        for (std::size_t i = 0; i < S.size(); ++i) {
-            const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
-            const auto p = head(S[i].t + tau);
-            valid[i] = p.has_value();
-            if (!p) continue;
-            res[i] = diff(S[i].head, *p) - x.tail<2>();
-            abs_r.push_back(std::abs(res[i].x()));
-            abs_r.push_back(std::abs(res[i].y()));
-            ss += res[i].squaredNorm();
-            lag0 += res[i].squaredNorm();
-            if (i > 0 && valid[i - 1]) lag1 += res[i].dot(res[i - 1]);
+    std::vector<Eigen::Vector2d> res;                // residuals at x, per sample
+    std::vector<char> valid;                         // the sample's time is inside the INS
+    std::size_t n_res = 0;                           // residuals in info
+    double ss = 0;                                   // unweighted residual squares (roll and pitch)
+};
+
+// The residuals' robust scale, and their variance inflated for their correlation from ping to
+// ping (AR(1): (1 + rho) / (1 - rho)). Zero scale: too few residuals.
+struct Noise {
+    double scale = 0, variance = 0;
+};
+
+// The residuals at fit.x (res, valid, ss) and their noise.
+Noise Residuals(const std::vector<HeadSample>& S,
+                const HeadModel& head,
+                double t_mid,
+                const ClockRateConfig& cfg,
+                RateFit& fit) {
+    const Eigen::Vector4d& x = fit.x;
+    std::vector<double> abs_r;
+    double lag0 = 0, lag1 = 0;
+    fit.ss = 0;
+    for (std::size_t i = 0; i < S.size(); ++i) {
+        const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
+        const auto p = head.At(S[i].t + tau);
+        fit.valid[i] = p.has_value();
+        if (!p) continue;
+        fit.res[i] = HeadModel::Diff(S[i].head, *p) - x.tail<2>();
+        abs_r.push_back(std::abs(fit.res[i].x()));
+        abs_r.push_back(std::abs(fit.res[i].y()));
+        fit.ss += fit.res[i].squaredNorm();
+        lag0 += fit.res[i].squaredNorm();
+        if (i > 0 && fit.valid[i - 1]) lag1 += fit.res[i].dot(fit.res[i - 1]);
+    }
+    Noise n;
+    if (abs_r.size() < 8) return n;
+    const double robust_sigma = 1.4826 * Median(abs_r);
+    n.scale = std::max(cfg.cauchy_scale_deg, 2.5 * robust_sigma);
+    const double rho = std::clamp(lag0 > 0 ? lag1 / lag0 : 0.0, 0.0, 0.95);
+    n.variance = std::max(robust_sigma * robust_sigma, 1e-12) * (1 + rho) / (1 - rho);
+    return n;
+}
+
+// The data's normal equations at fit.x (Cauchy weights) into fit.info and fit.n_res; returns
+// the gradient. The attitude rate by central differences over +- 0.05 s.
+Eigen::Vector4d NormalEquations(const std::vector<HeadSample>& S,
+                                const HeadModel& head,
+                                double t_mid,
+                                const Noise& noise,
+                                RateFit& fit) {
+    constexpr double kH = 0.05;
+    const Eigen::Vector4d& x = fit.x;
+    fit.info.setZero();
+    Eigen::Vector4d g = Eigen::Vector4d::Zero();
+    fit.n_res = 0;
+    for (std::size_t i = 0; i < S.size(); ++i) {
+        if (!fit.valid[i]) continue;
+        const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
+        const auto plus = head.At(S[i].t + tau + kH), minus = head.At(S[i].t + tau - kH);
+        if (!plus || !minus) continue;
+        const Eigen::Vector2d rate = HeadModel::Diff(*plus, *minus) / (2 * kH);
+        for (int a = 0; a < 2; ++a) {
+            Eigen::Vector4d J(-rate[a], -rate[a] * 1e-6 * (S[i].t - t_mid), 0, 0);
+            J[2 + a] = -1;
+            const double r = fit.res[i][a];
+            const double w = 1.0 / (1.0 + (r / noise.scale) * (r / noise.scale)) / noise.variance;
+            fit.info += w * J * J.transpose();
+            g += w * J * r;
+            ++fit.n_res;
         }
-        Noise n;
-        if (abs_r.size() < 8) return n;
-        const double robust_sigma = 1.4826 * Median(abs_r);
-        n.scale = std::max(cfg.cauchy_scale_deg, 2.5 * robust_sigma);
-        const double rho = std::clamp(lag0 > 0 ? lag1 / lag0 : 0.0, 0.0, 0.95);
-        n.variance = std::max(robust_sigma * robust_sigma, 1e-12) * (1 + rho) / (1 - rho);
-        return n;
-    };
+    }
+    return g;
+}
+
+// Gauss-Newton on the clock model from x0, with a prior on the rate (rate_prior_sigma_ppm).
+// On return res, valid and ss are those at the last step's start; info is that step's.
+RateFit FitClockRate(const std::vector<HeadSample>& S,
+                     const HeadModel& head,
+                     double t_mid,
+                     const Eigen::Vector4d& x0,
+                     const ClockRateConfig& cfg) {
+    RateFit fit;
+    fit.x = x0;
+    fit.res.resize(S.size());
+    fit.valid.resize(S.size());
     for (int it = 0; it < cfg.max_iterations; ++it) {
-        const Noise noise = residuals();
+        const Noise noise = Residuals(S, head, t_mid, cfg, fit);
         if (noise.scale <= 0) break;
-        info.setZero();
-        Eigen::Vector4d g = Eigen::Vector4d::Zero();
-        n_res = 0;
-        for (std::size_t i = 0; i < S.size(); ++i) {
-            if (!valid[i]) continue;
-            const double tau = x[0] + x[1] * 1e-6 * (S[i].t - t_mid);
-            const auto plus = head(S[i].t + tau + kH), minus = head(S[i].t + tau - kH);
-            if (!plus || !minus) continue;
-            const Eigen::Vector2d rate = diff(*plus, *minus) / (2 * kH);
-            for (int a = 0; a < 2; ++a) {
-                Eigen::Vector4d J(-rate[a], -rate[a] * 1e-6 * (S[i].t - t_mid), 0, 0);
-                J[2 + a] = -1;
-                const double r = res[i][a];
-                const double w =
-                    1.0 / (1.0 + (r / noise.scale) * (r / noise.scale)) / noise.variance;
-                info += w * J * J.transpose();
-                g += w * J * r;
-                ++n_res;
-            }
-        }
-        if (n_res < 8) break;
+        Eigen::Vector4d g = NormalEquations(S, head, t_mid, noise, fit);
+        if (fit.n_res < 8) break;
         const double prior = 1.0 / (cfg.rate_prior_sigma_ppm * cfg.rate_prior_sigma_ppm);
-        info(1, 1) += prior;
-        g[1] += prior * x[1];
-        const Eigen::Vector4d step = info.ldlt().solve(-g);
+        fit.info(1, 1) += prior;
+        g[1] += prior * fit.x[1];
+        const Eigen::Vector4d step = fit.info.ldlt().solve(-g);
         if (!step.allFinite()) break;
-        x += step;
+        fit.x += step;
         if (std::abs(step[0]) < 1e-6 && std::abs(step[1]) < 1e-3) break;
     }
-    if (n_res < 8 || !x.allFinite()) {
-        est.message = "clock rate: not estimated: the head's attitude could not be fitted";
-        return est;
-    }
-    residuals();
-    const Eigen::Matrix4d C = info.ldlt().solve(Eigen::Matrix4d::Identity());
-    const std::size_t n_ok = static_cast<std::size_t>(std::count(valid.begin(), valid.end(), 1));
-    est.offset_s = x[0];
-    est.rate_ppm = x[1];
-    est.offset_sigma_s = std::sqrt(std::max(0.0, C(0, 0)));
-    est.rate_sigma_ppm = std::sqrt(std::max(0.0, C(1, 1)));
-    est.residual_rms_deg = n_ok > 0 ? std::sqrt(ss / static_cast<double>(2 * n_ok)) : 0.0;
-    const bool certain = est.rate_sigma_ppm <= cfg.max_rate_sigma_ppm;
-    const bool plausible = std::abs(est.rate_ppm) <= cfg.max_abs_rate_ppm;
-    const bool fits = est.residual_rms_deg <= cfg.max_residual_rms_deg;
-    est.found = certain && plausible && fits;
+    return fit;
+}
+
+// The estimate's message: the rate, and why it is not used when it is not.
+std::string RateMessage(const ClockRateEstimate& est, double span_s, bool certain, bool fits) {
+    char buf[320];
     std::snprintf(buf,
                   sizeof(buf),
                   "clock rate %+.1f ppm +- %.1f ppm from the head's attitude (%lld pings over "
@@ -402,17 +422,77 @@ ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
                   est.rate_ppm,
                   est.rate_sigma_ppm,
                   static_cast<long long>(est.samples),
-                  S.back().t - S.front().t,
+                  span_s,
                   est.residual_rms_deg,
                   est.offset_s,
                   est.offset_sigma_s);
-    est.message = buf;
+    std::string message = buf;
     if (!est.found) {
-        est.message = "clock rate: not used: " + est.message.substr(std::strlen("clock rate ")) +
-                      (!fits      ? ": the head's attitude does not follow the INS"
-                       : !certain ? ": too uncertain"
-                                  : ": beyond any clock crystal");
+        message = "clock rate: not used: " + message.substr(std::strlen("clock rate ")) +
+                  (!fits      ? ": the head's attitude does not follow the INS"
+                   : !certain ? ": too uncertain"
+                              : ": beyond any clock crystal");
     }
+    return message;
+}
+
+}  // namespace
+
+ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
+                                         const georef::NavSeries& nav,
+                                         const ClockRateConfig& cfg) {
+    ClockRateEstimate est;
+    if (nav.samples.size() < 2) {
+        est.message = "clock rate: no navigation";
+        return est;
+    }
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    std::vector<HeadSample> all = HeadSamples(pings, t_ref);
+    const double span = all.size() > 1 ? all.back().t - all.front().t : 0.0;
+    if (static_cast<std::int64_t>(all.size()) < cfg.min_samples || span < cfg.min_span_s) {
+        char buf[320];
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "clock rate: not estimated: %lld pings over %.0f s carry the head's own "
+                      "attitude (at least %lld over %.0f s needed)",
+                      static_cast<long long>(all.size()),
+                      span,
+                      static_cast<long long>(cfg.min_samples),
+                      cfg.min_span_s);
+        est.message = buf;
+        return est;
+    }
+    const std::vector<HeadSample> S = ThinHeadSamples(std::move(all), cfg.max_samples);
+    const double t_mid = 0.5 * (S.front().t + S.back().t);
+    est.reference_utime = t_ref + std::llround(t_mid * 1e6);
+    est.samples = static_cast<std::int64_t>(S.size());
+    const HeadModel head(nav, t_ref, cfg.R_vehicle_sonar);
+
+    const auto [best_d, best] = ScanOffset(S, head, cfg);
+    if (!std::isfinite(best)) {
+        est.message = "clock rate: not estimated: the pings lie outside the navigation span";
+        return est;
+    }
+    Eigen::Vector4d x0(best_d, 0, 0, 0);
+    x0.tail<2>() = MeanDifference(S, head, best_d);
+    RateFit fit = FitClockRate(S, head, t_mid, x0, cfg);
+    if (fit.n_res < 8 || !fit.x.allFinite()) {
+        est.message = "clock rate: not estimated: the head's attitude could not be fitted";
+        return est;
+    }
+    Residuals(S, head, t_mid, cfg, fit);
+    const Eigen::Matrix4d C = fit.info.ldlt().solve(Eigen::Matrix4d::Identity());
+    const auto n_ok = static_cast<std::size_t>(std::count(fit.valid.begin(), fit.valid.end(), 1));
+    est.offset_s = fit.x[0];
+    est.rate_ppm = fit.x[1];
+    est.offset_sigma_s = std::sqrt(std::max(0.0, C(0, 0)));
+    est.rate_sigma_ppm = std::sqrt(std::max(0.0, C(1, 1)));
+    est.residual_rms_deg = n_ok > 0 ? std::sqrt(fit.ss / static_cast<double>(2 * n_ok)) : 0.0;
+    const bool certain = est.rate_sigma_ppm <= cfg.max_rate_sigma_ppm;
+    const bool plausible = std::abs(est.rate_ppm) <= cfg.max_abs_rate_ppm;
+    const bool fits = est.residual_rms_deg <= cfg.max_residual_rms_deg;
+    est.found = certain && plausible && fits;
+    est.message = RateMessage(est, S.back().t - S.front().t, certain, fits);
     return est;
 }
 
