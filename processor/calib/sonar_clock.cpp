@@ -561,23 +561,13 @@ double MedianInterval(const std::vector<georef::PingHeader>& P) {
     return Median(per.size() >= all.size() / 2 ? per : all);
 }
 
-}  // namespace
-
-ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
-                                    const georef::NavSeries& nav,
-                                    const ClockStepConfig& cfg) {
-    ClockStepResult r;
-    const auto& P = pings.pings;
-    char buf[400];
-    if (P.size() < 20 || nav.samples.size() < 2) {
-        r.message = "clock steps: not checked (too few pings or navigation samples)";
-        return r;
-    }
-    // A clock set back interleaves the pings of both sides in time order: the ping numbers drop
-    // and climb back above where they were within a few pings, dropping again on the way. A
-    // reset of the numbers (a restarted sonar) drops once and climbs from zero.
+// Pings that come before pings of lower number. A clock set back interleaves the pings of both
+// sides in time order: the ping numbers drop and climb back above where they were within a few
+// pings, dropping again on the way. A reset of the numbers (a restarted sonar) drops once and
+// climbs from zero. Returns the count; `first` the first such ping.
+std::int64_t InterleavedPings(const std::vector<georef::PingHeader>& P, std::size_t* first) {
     constexpr std::size_t kInterleaveWindow = 50;
-    std::size_t first_back = 0;
+    std::int64_t backward = 0;
     for (std::size_t k = 1; k < P.size(); ++k) {
         if (P[k].ping_number >= P[k - 1].ping_number) continue;
         std::int64_t drops = 0;
@@ -587,28 +577,26 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
             back_above |= P[j].ping_number > P[k - 1].ping_number;
         }
         if (drops >= 2 && back_above) {
-            if (r.backward == 0) first_back = k;
-            ++r.backward;
+            if (backward == 0) *first = k;
+            ++backward;
         }
     }
-    if (r.backward > 0) {
-        std::snprintf(buf,
-                      sizeof(buf),
-                      "clock steps: the header times run backwards: %lld pings come before "
-                      "pings of lower number (first near ping number %lld, %s): the topside "
-                      "clock was set back and the pings on both sides interleave",
-                      static_cast<long long>(r.backward),
-                      static_cast<long long>(P[first_back].ping_number),
-                      SpanText(P[first_back].utime_gps, P[first_back].utime_gps).c_str());
-        r.message = buf;
-        return r;
-    }
-    const double T = MedianInterval(P);
-    struct Jump {
-        std::size_t k;
-        double jump_s;
-    };
-    std::vector<Jump> jumps;
+    return backward;
+}
+
+// A jump of the header times beyond what the ping numbers say: before ping k, jump_s more than
+// dn ping intervals.
+struct TimeJump {
+    std::size_t k;
+    double jump_s;
+};
+
+// The jumps over max(min_jump_s, 2 T) (T the ping interval), at most max_candidates of them
+// (the largest), in ping order.
+std::vector<TimeJump> TimeJumps(const std::vector<georef::PingHeader>& P,
+                                double T,
+                                const ClockStepConfig& cfg) {
+    std::vector<TimeJump> jumps;
     for (std::size_t k = 1; k < P.size(); ++k) {
         const std::int64_t dn = P[k].ping_number - P[k - 1].ping_number;
         if (dn < 1 || dn > 50) continue;  // a reset or a long dropout: nothing to compare
@@ -616,26 +604,36 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
         const double jump = dt - static_cast<double>(dn) * T;
         if (jump > std::max(cfg.min_jump_s, 2 * T)) jumps.push_back({k, jump});
     }
-    if (jumps.empty()) {
-        r.message = "clock steps: none (the header times follow the ping numbers)";
-        return r;
-    }
     if (static_cast<int>(jumps.size()) > cfg.max_candidates) {
         std::partial_sort(jumps.begin(),
                           jumps.begin() + cfg.max_candidates,
                           jumps.end(),
-                          [](const Jump& a, const Jump& b) { return a.jump_s > b.jump_s; });
+                          [](const TimeJump& a, const TimeJump& b) { return a.jump_s > b.jump_s; });
         jumps.resize(static_cast<std::size_t>(cfg.max_candidates));
     }
-    std::sort(jumps.begin(), jumps.end(), [](const Jump& a, const Jump& b) { return a.k < b.k; });
+    std::sort(
+        jumps.begin(), jumps.end(), [](const TimeJump& a, const TimeJump& b) { return a.k < b.k; });
+    return jumps;
+}
 
-    // Each segment's offset against the INS.
-    const std::int64_t t_ref = nav.samples.front().utime_gps;
-    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
+// A segment's clock offset against the INS, s.
+struct SegmentOffset {
+    bool ok = false;
+    double d = 0, sigma = 0;
+};
+
+// Each segment [bounds[i], bounds[i + 1]) of pings matched against the INS on its own: by the
+// head's attitude where the segments carry enough of it, else by the header fixes (`method`
+// says which). The scan spans +- scan_s.
+std::vector<SegmentOffset> SegmentOffsets(const std::vector<georef::PingHeader>& P,
+                                          const std::vector<std::size_t>& bounds,
+                                          const NavTrack& track,
+                                          std::int64_t t_ref,
+                                          double T,
+                                          double scan_s,
+                                          const ClockStepConfig& cfg,
+                                          std::string* method) {
     const bool identity = cfg.R_vehicle_sonar.isIdentity(1e-12);
-    std::vector<std::size_t> bounds = {0};
-    for (const auto& j : jumps) bounds.push_back(j.k);
-    bounds.push_back(P.size());
     const std::size_t num_seg = bounds.size() - 1;
     std::vector<SegmentAids> aids(num_seg);
     std::int64_t att_total = 0;
@@ -644,13 +642,8 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
         att_total += static_cast<std::int64_t>(aids[i].att.size());
     }
     const bool use_attitude = att_total >= cfg.min_aid_samples * static_cast<std::int64_t>(2);
-    r.method = use_attitude ? "header attitude" : "header position";
-    struct Offset {
-        bool ok = false;
-        double d = 0, sigma = 0;
-    };
-    std::vector<Offset> off(num_seg);
-    const double scan = std::max(cfg.scan_s, 1.5 * jumps.back().jump_s);
+    *method = use_attitude ? "header attitude" : "header position";
+    std::vector<SegmentOffset> off(num_seg);
     for (std::size_t i = 0; i < num_seg; ++i) {
         std::vector<AidSample> a = Thin(use_attitude ? aids[i].att : aids[i].pos, 3000);
         if (static_cast<std::int64_t>(a.size()) <
@@ -660,7 +653,7 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
             return use_attitude ? HeadAttitudeMisfit(a, track, c, cfg.R_vehicle_sonar, identity)
                                 : PositionMisfit(a, track, c, 0.5);
         };
-        const ScanResult sr = Scan(score, -scan, scan, cfg.scan_step_s, 1e9);
+        const ScanResult sr = Scan(score, -scan_s, scan_s, cfg.scan_step_s, 1e9);
         if (!std::isfinite(sr.best)) continue;
         const double h = cfg.scan_step_s;
         off[i].ok = true;
@@ -672,9 +665,20 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
                                     : std::hypot(T / std::sqrt(12.0), 0.1) /
                                           std::sqrt(std::max(1.0, a.size() / 10.0));
     }
-    // Consecutive segments on one clock form a group; the longest group is the reference.
-    std::vector<int> group(num_seg, 0);
-    for (std::size_t i = 1; i < num_seg; ++i) {
+    return off;
+}
+
+// Each jump as a step (the offsets on its two sides differ beyond their sigma: r.steps,
+// resolved), a pause (they agree: r.pauses) or unresolved (a side without an offset: r.steps).
+// Consecutive segments on one clock form a group: returns each segment's group.
+std::vector<int> ClassifyJumps(const std::vector<georef::PingHeader>& P,
+                               const std::vector<std::size_t>& bounds,
+                               const std::vector<TimeJump>& jumps,
+                               const std::vector<SegmentOffset>& off,
+                               const ClockStepConfig& cfg,
+                               ClockStepResult& r) {
+    std::vector<int> group(bounds.size() - 1, 0);
+    for (std::size_t i = 1; i < group.size(); ++i) {
         ClockStep st;
         st.ping_index = bounds[i];
         st.ping_number = P[bounds[i]].ping_number;
@@ -695,7 +699,15 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
             ++r.pauses;
         }
     }
-    // Each group's offset: its longest resolved segment's.
+    return group;
+}
+
+// The shift of each group's first ping against the reference group (the one with the most
+// pings); each group's offset is its longest resolved segment's. Empty with one group.
+std::vector<std::pair<std::size_t, double>> GroupShifts(const std::vector<std::size_t>& bounds,
+                                                        const std::vector<int>& group,
+                                                        const std::vector<SegmentOffset>& off) {
+    const std::size_t num_seg = group.size();
     const int num_groups = group.back() + 1;
     std::vector<double> gd(static_cast<std::size_t>(num_groups), 0.0);
     std::vector<std::size_t> glen(static_cast<std::size_t>(num_groups), 0);
@@ -711,13 +723,18 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
     }
     const auto ref =
         static_cast<std::size_t>(std::max_element(gsize.begin(), gsize.end()) - gsize.begin());
-    if (num_groups > 1) {
-        for (std::size_t i = 0; i < num_seg; ++i) {
-            if (i > 0 && group[i] == group[i - 1]) continue;
-            const auto g = static_cast<std::size_t>(group[i]);
-            r.segment_shift_s.push_back({bounds[i], g == ref ? 0.0 : gd[g] - gd[ref]});
-        }
+    std::vector<std::pair<std::size_t, double>> shifts;
+    if (num_groups <= 1) return shifts;
+    for (std::size_t i = 0; i < num_seg; ++i) {
+        if (i > 0 && group[i] == group[i - 1]) continue;
+        const auto g = static_cast<std::size_t>(group[i]);
+        shifts.push_back({bounds[i], g == ref ? 0.0 : gd[g] - gd[ref]});
     }
+    return shifts;
+}
+
+std::string StepsMessage(const ClockStepResult& r, std::size_t num_jumps, double T) {
+    char buf[400];
     std::int64_t resolved = 0, unresolved = 0;
     std::string first;
     for (const auto& st : r.steps) {
@@ -739,13 +756,61 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
                   "clock steps (%s): %zu jumps of the header times beyond the %.3f s ping "
                   "interval: %lld steps of the topside clock, %lld pauses, %lld unresolved",
                   r.method.c_str(),
-                  jumps.size(),
+                  num_jumps,
                   T,
                   static_cast<long long>(resolved),
                   static_cast<long long>(r.pauses),
                   static_cast<long long>(unresolved));
-    r.message = buf;
-    if (!first.empty()) r.message += "; first: " + first;
+    std::string message = buf;
+    if (!first.empty()) message += "; first: " + first;
+    return message;
+}
+
+}  // namespace
+
+ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
+                                    const georef::NavSeries& nav,
+                                    const ClockStepConfig& cfg) {
+    ClockStepResult r;
+    const auto& P = pings.pings;
+    if (P.size() < 20 || nav.samples.size() < 2) {
+        r.message = "clock steps: not checked (too few pings or navigation samples)";
+        return r;
+    }
+    std::size_t first_back = 0;
+    r.backward = InterleavedPings(P, &first_back);
+    if (r.backward > 0) {
+        char buf[400];
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "clock steps: the header times run backwards: %lld pings come before "
+                      "pings of lower number (first near ping number %lld, %s): the topside "
+                      "clock was set back and the pings on both sides interleave",
+                      static_cast<long long>(r.backward),
+                      static_cast<long long>(P[first_back].ping_number),
+                      SpanText(P[first_back].utime_gps, P[first_back].utime_gps).c_str());
+        r.message = buf;
+        return r;
+    }
+    const double T = MedianInterval(P);
+    const std::vector<TimeJump> jumps = TimeJumps(P, T, cfg);
+    if (jumps.empty()) {
+        r.message = "clock steps: none (the header times follow the ping numbers)";
+        return r;
+    }
+
+    // Each segment's offset against the INS; the jumps between them classified.
+    const std::int64_t t_ref = nav.samples.front().utime_gps;
+    const NavTrack track(nav, t_ref, cfg.antenna_lever_arm_m);
+    std::vector<std::size_t> bounds = {0};
+    for (const auto& j : jumps) bounds.push_back(j.k);
+    bounds.push_back(P.size());
+    const double scan_s = std::max(cfg.scan_s, 1.5 * jumps.back().jump_s);
+    const std::vector<SegmentOffset> off =
+        SegmentOffsets(P, bounds, track, t_ref, T, scan_s, cfg, &r.method);
+    const std::vector<int> group = ClassifyJumps(P, bounds, jumps, off, cfg, r);
+    r.segment_shift_s = GroupShifts(bounds, group, off);
+    r.message = StepsMessage(r, jumps.size(), T);
     return r;
 }
 
