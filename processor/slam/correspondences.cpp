@@ -63,6 +63,147 @@ void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& 
     });
 }
 
+// Horizontal cells for the lists of blocks per cell.
+struct CellGrid {
+    float cell;  // m
+    std::int64_t Index(float v) const { return static_cast<std::int64_t>(std::floor(v / cell)); }
+    std::uint64_t Key(float x, float y) const { return reg::CellKey(Index(x), Index(y)); }
+};
+
+// The cells block b's points come within dmax of (corners of the point's dmax square; cells
+// are at least 2 dmax). They are marked in a bitmap over the block's bounding box (a few
+// hundred cells; the sort of four keys per point it replaces was 5 % of SLAM's CPU on
+// bejanca); a box too large for one (non-finite or runaway poses) falls back to sorting the
+// keys.
+std::vector<std::uint64_t> BlockCellKeys(const Block& b,
+                                         const std::vector<Eigen::Vector3f>& pw,
+                                         float dmax,
+                                         const CellGrid& grid) {
+    constexpr std::int64_t kMaxBitmapCells = std::int64_t{1} << 22;
+    std::vector<std::uint64_t> keys;
+    if (b.p1 == b.p0) return keys;
+    const bool finite_box = b.lo.allFinite() && b.hi.allFinite();
+    const std::int64_t x0 = finite_box ? grid.Index(b.lo.x() - dmax) : 0;
+    const std::int64_t y0 = finite_box ? grid.Index(b.lo.y() - dmax) : 0;
+    const std::int64_t nx = finite_box ? grid.Index(b.hi.x() + dmax) - x0 + 1 : 0;
+    const std::int64_t ny = finite_box ? grid.Index(b.hi.y() + dmax) - y0 + 1 : 0;
+    if (finite_box && nx > 0 && ny > 0 && nx <= kMaxBitmapCells / ny) {
+        std::vector<char> mark(static_cast<std::size_t>(nx * ny), 0);
+        for (std::size_t k = b.p0; k < b.p1; ++k) {
+            const Eigen::Vector3f& p = pw[k];
+            for (const float dx : {-dmax, dmax}) {
+                for (const float dy : {-dmax, dmax}) {
+                    const std::int64_t ix = grid.Index(p.x() + dx) - x0;
+                    const std::int64_t iy = grid.Index(p.y() + dy) - y0;
+                    mark[static_cast<std::size_t>(iy * nx + ix)] = 1;
+                }
+            }
+        }
+        for (std::int64_t iy = 0; iy < ny; ++iy) {
+            for (std::int64_t ix = 0; ix < nx; ++ix) {
+                if (mark[static_cast<std::size_t>(iy * nx + ix)] != 0) {
+                    keys.push_back(reg::CellKey(x0 + ix, y0 + iy));
+                }
+            }
+        }
+        return keys;
+    }
+    for (std::size_t k = b.p0; k < b.p1; ++k) {
+        const Eigen::Vector3f& p = pw[k];
+        for (const float dx : {-dmax, dmax}) {
+            for (const float dy : {-dmax, dmax}) {
+                const std::uint64_t key = grid.Key(p.x() + dx, p.y() + dy);
+                if (keys.empty() || keys.back() != key) keys.push_back(key);
+            }
+        }
+    }
+    std::sort(keys.begin(), keys.end());
+    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+    keys.shrink_to_fit();  // all blocks' lists live at once: keep what is used, not the peak
+    return keys;
+}
+
+// Blocks per horizontal cell: a block is listed in every cell its points come within dmax of,
+// so that a query visits only the trees that can hold its partner, not every tree whose
+// bounding box it touches.
+using CellBlocks = std::unordered_map<std::uint64_t, std::vector<std::uint32_t>>;
+CellBlocks ListBlocksByCell(const std::vector<Block>& blocks,
+                            const std::vector<Eigen::Vector3f>& pw,
+                            float dmax,
+                            const CellGrid& grid) {
+    std::vector<std::vector<std::uint64_t>> block_cells(blocks.size());
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t bi) {
+        block_cells[bi] = BlockCellKeys(blocks[bi], pw, dmax, grid);
+    });
+    CellBlocks cell_blocks;
+    for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+        for (const std::uint64_t key : block_cells[bi]) cell_blocks[key].push_back(bi);
+    }
+    return cell_blocks;
+}
+
+// Whether block b was recorded entirely at least td away from time t.
+bool TimeSeparated(const Block& b, double t, double td) {
+    return b.t1 <= t - td || b.t0 >= t + td;
+}
+
+// The time-separated blocks (from t, by td) whose box comes within margin of the box
+// [lo, hi]: the only ones whose box can come within margin of a point inside it.
+void BlocksNearBox(const std::vector<Block>& blocks,
+                   const Eigen::Vector3f& lo,
+                   const Eigen::Vector3f& hi,
+                   double t,
+                   double td,
+                   float margin,
+                   std::vector<const Block*>& near) {
+    near.clear();
+    for (const Block& b : blocks) {
+        if (!b.tree || !TimeSeparated(b, t, td)) continue;
+        if ((hi.array() < b.lo.array() - margin).any() ||
+            (lo.array() > b.hi.array() + margin).any()) {
+            continue;
+        }
+        near.push_back(&b);
+    }
+}
+
+// The closest point to p in the time-separated blocks listed in p's cell, within
+// sqrt(best_d2) (dmax on entry).
+struct Closest {
+    bool found = false;
+    float d2;                 // squared distance (the bound when not found)
+    std::size_t index = 0;    // into pw
+    std::uint32_t block = 0;  // its block
+};
+Closest ClosestTimeSeparated(const Eigen::Vector3f& p,
+                             double t,
+                             double td,
+                             float dmax,
+                             const std::vector<Block>& blocks,
+                             const CellBlocks& cell_blocks,
+                             const CellGrid& grid) {
+    static const std::vector<std::uint32_t> no_blocks;
+    Closest c;
+    c.d2 = dmax * dmax;
+    const auto cb = cell_blocks.find(grid.Key(p.x(), p.y()));
+    for (const std::uint32_t bi : cb == cell_blocks.end() ? no_blocks : cb->second) {
+        const Block& b = blocks[bi];
+        if (!b.tree || !TimeSeparated(b, t, td)) continue;
+        if ((p.array() < b.lo.array() - dmax).any() || (p.array() > b.hi.array() + dmax).any()) {
+            continue;
+        }
+        std::size_t idx = 0;
+        float d2 = 0;
+        if (b.tree->NearestWithin(p, c.d2, &idx, &d2)) {
+            c.d2 = d2;
+            c.index = b.p0 + idx;
+            c.block = bi;
+            c.found = true;
+        }
+    }
+    return c;
+}
+
 // Closest point of pw[q] among blocks entirely at least t_d away in time, within d_max.
 // Also the pair score of the current poses: sqrt(mean(min(d, score_m)^2)) over the query
 // points that have a partner block (time and bounding box), d the distance to the closest
@@ -75,76 +216,13 @@ std::vector<Pair> FindPairs(const Input& in,
                             double score_m,
                             double* score) {
     const float dmax = static_cast<float>(cfg.max_pair_distance_m);
-    const float dmax2 = dmax * dmax;
     const double score2 = score_m * score_m;
     std::vector<double> slice_sum(in.num_slices(), 0.0);
     std::vector<std::uint32_t> slice_count(in.num_slices(), 0);
     const double td = cfg.min_time_separation_s;
     const auto stride = static_cast<std::size_t>(cfg.query_stride);
-    // Blocks per horizontal cell (cells of at least 2 dmax): a block is listed in every cell
-    // its points come within dmax of, so that a query visits only the trees that can hold its
-    // partner, not every tree whose bounding box it touches.
-    const float cell = std::max(2.0f * dmax, 2.0f);
-    auto cell_key = [cell](float x, float y) {
-        return reg::CellKey(static_cast<std::int64_t>(std::floor(x / cell)),
-                            static_cast<std::int64_t>(std::floor(y / cell)));
-    };
-    // A block's cells are marked in a bitmap over its bounding box (a few hundred cells; the
-    // sort of four keys per point it replaces was 5 % of SLAM's CPU on bejanca); a box too large
-    // for one (non-finite or runaway poses) falls back to sorting the keys.
-    constexpr std::int64_t kMaxBitmapCells = std::int64_t{1} << 22;
-    std::vector<std::vector<std::uint64_t>> block_cells(blocks.size());
-    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t bi) {
-        const Block& b = blocks[bi];
-        auto& keys = block_cells[bi];
-        if (b.p1 == b.p0) return;
-        auto cell_index = [cell](float v) {
-            return static_cast<std::int64_t>(std::floor(v / cell));
-        };
-        const bool finite_box = b.lo.allFinite() && b.hi.allFinite();
-        const std::int64_t x0 = finite_box ? cell_index(b.lo.x() - dmax) : 0;
-        const std::int64_t y0 = finite_box ? cell_index(b.lo.y() - dmax) : 0;
-        const std::int64_t nx = finite_box ? cell_index(b.hi.x() + dmax) - x0 + 1 : 0;
-        const std::int64_t ny = finite_box ? cell_index(b.hi.y() + dmax) - y0 + 1 : 0;
-        if (finite_box && nx > 0 && ny > 0 && nx <= kMaxBitmapCells / ny) {
-            std::vector<char> mark(static_cast<std::size_t>(nx * ny), 0);
-            for (std::size_t k = b.p0; k < b.p1; ++k) {
-                const Eigen::Vector3f& p = pw[k];
-                for (const float dx : {-dmax, dmax}) {
-                    for (const float dy : {-dmax, dmax}) {
-                        const std::int64_t ix = cell_index(p.x() + dx) - x0;
-                        const std::int64_t iy = cell_index(p.y() + dy) - y0;
-                        mark[static_cast<std::size_t>(iy * nx + ix)] = 1;
-                    }
-                }
-            }
-            for (std::int64_t iy = 0; iy < ny; ++iy) {
-                for (std::int64_t ix = 0; ix < nx; ++ix) {
-                    if (mark[static_cast<std::size_t>(iy * nx + ix)] != 0) {
-                        keys.push_back(reg::CellKey(x0 + ix, y0 + iy));
-                    }
-                }
-            }
-            return;
-        }
-        for (std::size_t k = b.p0; k < b.p1; ++k) {
-            const Eigen::Vector3f& p = pw[k];
-            for (const float dx : {-dmax, dmax}) {
-                for (const float dy : {-dmax, dmax}) {
-                    const std::uint64_t key = cell_key(p.x() + dx, p.y() + dy);
-                    if (keys.empty() || keys.back() != key) keys.push_back(key);
-                }
-            }
-        }
-        std::sort(keys.begin(), keys.end());
-        keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-        keys.shrink_to_fit();  // all blocks' lists live at once: keep what is used, not the peak
-    });
-    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cell_blocks;
-    for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
-        for (const std::uint64_t key : block_cells[bi]) cell_blocks[key].push_back(bi);
-    }
-    const std::vector<std::uint32_t> no_blocks;
+    const CellGrid grid{std::max(2.0f * dmax, 2.0f)};
+    const CellBlocks cell_blocks = ListBlocksByCell(blocks, pw, dmax, grid);
     tbb::enumerable_thread_specific<std::vector<Pair>> local;
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
@@ -154,8 +232,6 @@ std::vector<Pair> FindPairs(const Input& in,
             std::vector<const Block*> near;  // the slice's candidates for the score
             for (std::size_t s = range.begin(); s != range.end(); ++s) {
                 const double t = in.t_s[s];
-                // Time-separated blocks whose box comes within score_m of the slice's box: the
-                // only ones whose box can come within score_m of one of its points.
                 Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
                 Eigen::Vector3f hi =
                     Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest());
@@ -163,60 +239,29 @@ std::vector<Pair> FindPairs(const Input& in,
                     lo = lo.cwiseMin(pw[q]);
                     hi = hi.cwiseMax(pw[q]);
                 }
-                near.clear();
-                for (const Block& b : blocks) {
-                    if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
-                    if ((hi.array() < b.lo.array() - sm).any() ||
-                        (lo.array() > b.hi.array() + sm).any()) {
-                        continue;
-                    }
-                    near.push_back(&b);
-                }
+                BlocksNearBox(blocks, lo, hi, t, td, sm, near);
                 for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
                     const Eigen::Vector3f& p = pw[q];
-                    float best = dmax2;
-                    std::size_t best_idx = 0;
-                    std::uint32_t best_block = 0;
-                    bool found = false, candidate = false;
                     // Score bookkeeping: does any time-separated block's box come within score_m?
-                    for (const Block* b : near) {
-                        if (!((p.array() < b->lo.array() - sm).any() ||
-                              (p.array() > b->hi.array() + sm).any())) {
-                            candidate = true;
-                            break;
-                        }
-                    }
-                    const auto cb = cell_blocks.find(cell_key(p.x(), p.y()));
-                    for (const std::uint32_t bi :
-                         cb == cell_blocks.end() ? no_blocks : cb->second) {
-                        const Block& b = blocks[bi];
-                        if (!b.tree || !(b.t1 <= t - td || b.t0 >= t + td)) continue;
-                        if ((p.array() < b.lo.array() - dmax).any() ||
-                            (p.array() > b.hi.array() + dmax).any()) {
-                            continue;
-                        }
-                        std::size_t idx = 0;
-                        float d2 = 0;
-                        if (b.tree->NearestWithin(p, best, &idx, &d2)) {
-                            best = d2;
-                            best_idx = b.p0 + idx;
-                            best_block = bi;
-                            found = true;
-                        }
-                    }
+                    const bool candidate = std::any_of(near.begin(), near.end(), [&](auto* b) {
+                        return !((p.array() < b->lo.array() - sm).any() ||
+                                 (p.array() > b->hi.array() + sm).any());
+                    });
+                    const Closest c =
+                        ClosestTimeSeparated(p, t, td, dmax, blocks, cell_blocks, grid);
                     if (candidate) {
                         slice_sum[s] +=
-                            found ? std::min(static_cast<double>(best), score2) : score2;
+                            c.found ? std::min(static_cast<double>(c.d2), score2) : score2;
                         ++slice_count[s];
                     }
-                    if (!found) continue;
+                    if (!c.found) continue;
                     Pair pr;
                     pr.slice_a = static_cast<std::uint32_t>(s);
                     pr.c.query = q;
                     pr.block_a = slice_block[s];
-                    pr.c.target = best_idx;
-                    pr.block_b = best_block;
-                    const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), best_idx);
+                    pr.c.target = c.index;
+                    pr.block_b = c.block;
+                    const auto it = std::upper_bound(in.offset.begin(), in.offset.end(), c.index);
                     pr.slice_b = static_cast<std::uint32_t>(it - in.offset.begin() - 1);
                     out.push_back(pr);
                 }
