@@ -297,6 +297,120 @@ AlongTrack AlongTrackSlope(std::size_t i,
     return out;
 }
 
+// The neighbours the along-track slopes are fitted to (within footprint_neighbour_pings, with
+// footprints and finite poses), in this scan's sonar frame, voxels.
+std::vector<NeighbourFrame> SlopeNeighbours(const std::vector<ScanNeighbour>& neighbours,
+                                            const PreparedScan& ps,
+                                            const TsdfConfig& config) {
+    const double inv_s = 1.0 / config.voxel_size_m;
+    std::vector<NeighbourFrame> slope_nbs;
+    for (const ScanNeighbour& nb : neighbours) {
+        if (nb.scan == nullptr || nb.footprints == nullptr ||
+            std::abs(nb.offset) > config.footprint_neighbour_pings ||
+            nb.footprints->range.empty()) {
+            continue;
+        }
+        const Eigen::Matrix3d R_nb = nb.scan->T_world_sonar.linear();
+        const Eigen::Vector3d p_nb = nb.scan->T_world_sonar.translation() * inv_s;
+        if (!R_nb.allFinite() || !p_nb.allFinite() ||
+            nb.footprints->point_y.size() != nb.footprints->range.size()) {
+            continue;
+        }
+        slope_nbs.push_back(
+            {nb.footprints, ps.R.transpose() * R_nb, ps.R.transpose() * (p_nb - ps.p_vox)});
+    }
+    return slope_nbs;
+}
+
+// The fan planes of the previous and next pings (point, normal = their sonar x axis), world
+// metres, for the gap between pings.
+struct NeighbourFans {
+    struct Plane {
+        Eigen::Vector3d p, n;
+    };
+    Plane fans[2];
+    int count = 0;
+
+    // The largest distance, within fill_m, from x_world to a neighbouring fan; 0 if none.
+    double GapAt(const Eigen::Vector3d& x_world, double fill_m) const {
+        double gap_m = 0.0;
+        for (int k = 0; k < count; ++k) {
+            const double s_m = std::abs(fans[k].n.dot(x_world - fans[k].p));
+            if (s_m <= fill_m) gap_m = std::max(gap_m, s_m);
+        }
+        return gap_m;
+    }
+};
+
+NeighbourFans FansOf(const std::vector<ScanNeighbour>& neighbours) {
+    const SonarScan* prev = nullptr;
+    const SonarScan* next = nullptr;
+    for (const ScanNeighbour& nb : neighbours) {
+        if (nb.offset == -1) prev = nb.scan;
+        if (nb.offset == 1) next = nb.scan;
+    }
+    NeighbourFans out;
+    for (const SonarScan* nb : {prev, next}) {
+        if (nb == nullptr) continue;
+        const Eigen::Vector3d q = nb->T_world_sonar.translation();
+        const Eigen::Vector3d nn = nb->T_world_sonar.linear().col(0);
+        if (!q.allFinite() || !nn.allFinite() || !(nn.norm() > 0.5)) continue;
+        out.fans[out.count++] = {q, nn.normalized()};
+    }
+    return out;
+}
+
+// Beam-width mode: the neighbouring sectors' footprint ranges that pb interpolates towards,
+// only on the same surface: a neighbour's range must lie on this footprint's line (a bench
+// crest next to the floor below would otherwise span a false surface across the shadow).
+void SameSurfaceNeighbours(std::size_t i,
+                           std::size_t n,
+                           const ScanFootprints& footprints,
+                           PreparedBeam& pb) {
+    const std::vector<float>& fr = footprints.range;
+    const std::vector<float>& slope = footprints.slope;
+    const std::vector<float>& gate = footprints.gate;
+    if (i > 0 && std::abs(fr[i - 1] - (fr[i] - slope[i])) <= gate[i]) {
+        pb.range_prev_vox = fr[i - 1];
+    }
+    if (i + 1 < n && std::abs(fr[i + 1] - (fr[i] + slope[i])) <= gate[i]) {
+        pb.range_next_vox = fr[i + 1];
+    }
+}
+
+// The world x and y voxel range of beam pb's frustum: along the axis u (its x and y
+// components) from r_lo - T to r_hi + T plus the cross-section's reach (spread per voxel of
+// range) and the widening towards the neighbouring pings.
+void BeamBounds(const PreparedScan& ps,
+                double u_x,
+                double u_y,
+                double spread,
+                const Geometry& geo,
+                PreparedBeam& pb) {
+    double r_lo = pb.range_vox, r_hi = pb.range_vox;
+    for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
+        if (!std::isfinite(rn)) continue;
+        r_lo = std::min(r_lo, static_cast<double>(rn));
+        r_hi = std::max(r_hi, static_cast<double>(rn));
+    }
+    const double dev = AlongTrackReach(pb);
+    r_lo -= dev;
+    r_hi += dev;
+    const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
+    const double q1 = r_hi + geo.trunc_vox;
+    const double half_gap = static_cast<double>(pb.half_gap_vox);
+    const double reach_x = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0 + half_gap;
+    const double xa = ps.p_vox.x() + q0 * u_x;
+    const double xb = ps.p_vox.x() + q1 * u_x;
+    pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach_x));
+    pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach_x));
+    const double reach_y = q1 * spread * (std::abs(ps.R(1, 0)) + 1.0) + 1.0 + half_gap;
+    const double ya = ps.p_vox.y() + q0 * u_y;
+    const double yb = ps.p_vox.y() + q1 * u_y;
+    pb.y_lo = static_cast<std::int32_t>(std::floor(std::min(ya, yb) - reach_y));
+    pb.y_hi = static_cast<std::int32_t>(std::ceil(std::max(ya, yb) + reach_y));
+}
+
 }  // namespace
 
 PreparedScan PrepareScan(const SonarScan& scan,
@@ -321,99 +435,45 @@ PreparedScan PrepareScan(const SonarScan& scan,
     ps.beams_out_of_range = footprints.out_of_range;
     ps.beams_inconsistent = footprints.inconsistent;
     for (float v : r) ps.beams_used += std::isfinite(v) ? 1 : 0;
-    const SonarScan* prev = nullptr;
-    const SonarScan* next = nullptr;
-    for (const ScanNeighbour& nb : neighbours) {
-        if (nb.offset == -1) prev = nb.scan;
-        if (nb.offset == 1) next = nb.scan;
-    }
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    const double inc = std::abs(static_cast<double>(scan.angle_increment_rad));
-    const double half_inc = 0.5 * inc;
+    const double half_inc = 0.5 * std::abs(static_cast<double>(scan.angle_increment_rad));
     const double spread =
         beam_width ? std::tan(half_inc) + geo.tan_half_bw / std::cos(half_inc) : 0.0;
-    const std::vector<float>& fr = footprints.range;
-    const std::vector<float>& slope = footprints.slope;
-    const std::vector<float>& gate = footprints.gate;
-    const std::vector<int>& support = footprints.support;
-    const std::vector<float>& ranges = beam_width ? fr : r;
-    // The neighbours the along-track slopes are fitted to.
-    std::vector<NeighbourFrame> slope_nbs;
-    if (beam_width && config.footprint_neighbour_pings > 0) {
-        for (const ScanNeighbour& nb : neighbours) {
-            if (nb.scan == nullptr || nb.footprints == nullptr ||
-                std::abs(nb.offset) > config.footprint_neighbour_pings ||
-                nb.footprints->range.empty()) {
-                continue;
-            }
-            const Eigen::Matrix3d R_nb = nb.scan->T_world_sonar.linear();
-            const Eigen::Vector3d p_nb = nb.scan->T_world_sonar.translation() * inv_s;
-            if (!R_nb.allFinite() || !p_nb.allFinite() ||
-                nb.footprints->point_y.size() != nb.footprints->range.size()) {
-                continue;
-            }
-            slope_nbs.push_back(
-                {nb.footprints, ps.R.transpose() * R_nb, ps.R.transpose() * (p_nb - ps.p_vox)});
-        }
-    }
-    // Fan planes of the neighbouring pings (point, normal = their sonar x axis), world metres.
-    struct Fan {
-        Eigen::Vector3d p, n;
-    };
-    Fan fans[2];
-    int num_fans = 0;
-    if (beam_width && config.ping_gap_fill_m > 0.0) {
-        for (const SonarScan* nb : {prev, next}) {
-            if (nb == nullptr) continue;
-            const Eigen::Vector3d q = nb->T_world_sonar.translation();
-            const Eigen::Vector3d nn = nb->T_world_sonar.linear().col(0);
-            if (!q.allFinite() || !nn.allFinite() || !(nn.norm() > 0.5)) continue;
-            fans[num_fans++] = {q, nn.normalized()};
-        }
-    }
+    const std::vector<float>& ranges = beam_width ? footprints.range : r;
+    const std::vector<NeighbourFrame> slope_nbs = beam_width && config.footprint_neighbour_pings > 0
+                                                      ? SlopeNeighbours(neighbours, ps, config)
+                                                      : std::vector<NeighbourFrame>{};
+    const NeighbourFans fans =
+        beam_width && config.ping_gap_fill_m > 0.0 ? FansOf(neighbours) : NeighbourFans{};
     ps.beams.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(ranges[i])) continue;
         const double sin_t = footprints.sin_theta[i], cos_t = footprints.cos_theta[i];
-        const double u_x = ps.R(0, 1) * sin_t + ps.R(0, 2) * cos_t;
-        const double u_y = ps.R(1, 1) * sin_t + ps.R(1, 2) * cos_t;
         PreparedBeam pb;
         pb.range_vox = ranges[i];
-        // Interpolate towards a neighbour only on the same surface: its footprint range must lie
-        // on this footprint's line (a bench crest next to the floor below would otherwise
-        // span a false surface across the shadow).
-        pb.range_prev_vox = nan;
-        pb.range_next_vox = nan;
-        if (beam_width) {
-            if (i > 0 && std::abs(fr[i - 1] - (fr[i] - slope[i])) <= gate[i]) {
-                pb.range_prev_vox = fr[i - 1];
-            }
-            if (i + 1 < n && std::abs(fr[i + 1] - (fr[i] + slope[i])) <= gate[i]) {
-                pb.range_next_vox = fr[i + 1];
-            }
-        }
-        pb.weight = beam_width ? config.weight_per_measurement * static_cast<float>(support[i])
-                               : config.weight_per_measurement;
+        pb.range_prev_vox = std::numeric_limits<float>::quiet_NaN();
+        pb.range_next_vox = std::numeric_limits<float>::quiet_NaN();
+        if (beam_width) SameSurfaceNeighbours(i, n, footprints, pb);
+        pb.weight = beam_width
+                        ? config.weight_per_measurement * static_cast<float>(footprints.support[i])
+                        : config.weight_per_measurement;
         pb.beam = static_cast<std::uint16_t>(i);
-        // Gap to the neighbouring fans at the footprint: |n' . (X - p')|, X on the beam axis at
-        // the footprint range; a neighbour further than ping_gap_fill_m is not bridged.
+        // Gap to the neighbouring fans at the footprint (X on the beam axis at the footprint
+        // range); a neighbour further than ping_gap_fill_m is not bridged.
         double gap_m = 0.0;
-        if (num_fans > 0) {
+        if (fans.count > 0) {
             const Eigen::Vector3d x_world =
                 p_world + ps.R * Eigen::Vector3d(0.0, sin_t, cos_t) *
                               (static_cast<double>(pb.range_vox) * config.voxel_size_m);
-            for (int k = 0; k < num_fans; ++k) {
-                const double s_m = std::abs(fans[k].n.dot(x_world - fans[k].p));
-                if (s_m <= config.ping_gap_fill_m) gap_m = std::max(gap_m, s_m);
-            }
+            gap_m = fans.GapAt(x_world, config.ping_gap_fill_m);
         }
         pb.half_gap_vox = static_cast<float>(0.5 * gap_m * inv_s);
         if (!slope_nbs.empty()) {
             // The offsets out of the plane the slope is applied at: the cone's half-width at the
             // footprint, half the gap to the neighbouring pings, or a voxel.
-            const double x_half = std::max({geo.tan_half_bw * static_cast<double>(fr[i]),
-                                            static_cast<double>(pb.half_gap_vox),
-                                            1.0});
+            const double x_half =
+                std::max({geo.tan_half_bw * static_cast<double>(footprints.range[i]),
+                          static_cast<double>(pb.half_gap_vox),
+                          1.0});
             const AlongTrack at = AlongTrackSlope(i,
                                                   footprints,
                                                   slope_nbs,
@@ -428,30 +488,9 @@ PreparedScan PrepareScan(const SonarScan& scan,
                 pb.x_fit_hi = static_cast<float>(at.x_hi);
             }
         }
-        double r_lo = pb.range_vox, r_hi = pb.range_vox;
-        for (float rn : {pb.range_prev_vox, pb.range_next_vox}) {
-            if (!std::isfinite(rn)) continue;
-            r_lo = std::min(r_lo, static_cast<double>(rn));
-            r_hi = std::max(r_hi, static_cast<double>(rn));
-        }
-        const double dev = AlongTrackReach(pb);
-        r_lo -= dev;
-        r_hi += dev;
-        const double q0 = std::max(0.0, r_lo - geo.trunc_vox);
-        const double q1 = r_hi + geo.trunc_vox;
-        // x and y extent of the frustum: along the axis plus the cross-section's reach (and
-        // the widening towards the neighbouring pings).
-        const double half_gap = static_cast<double>(pb.half_gap_vox);
-        const double reach_x = q1 * spread * (std::abs(ps.R(0, 0)) + 1.0) + 1.0 + half_gap;
-        const double xa = ps.p_vox.x() + q0 * u_x;
-        const double xb = ps.p_vox.x() + q1 * u_x;
-        pb.x_lo = static_cast<std::int32_t>(std::floor(std::min(xa, xb) - reach_x));
-        pb.x_hi = static_cast<std::int32_t>(std::ceil(std::max(xa, xb) + reach_x));
-        const double reach_y = q1 * spread * (std::abs(ps.R(1, 0)) + 1.0) + 1.0 + half_gap;
-        const double ya = ps.p_vox.y() + q0 * u_y;
-        const double yb = ps.p_vox.y() + q1 * u_y;
-        pb.y_lo = static_cast<std::int32_t>(std::floor(std::min(ya, yb) - reach_y));
-        pb.y_hi = static_cast<std::int32_t>(std::ceil(std::max(ya, yb) + reach_y));
+        const double u_x = ps.R(0, 1) * sin_t + ps.R(0, 2) * cos_t;
+        const double u_y = ps.R(1, 1) * sin_t + ps.R(1, 2) * cos_t;
+        BeamBounds(ps, u_x, u_y, spread, geo, pb);
         ps.x_lo = std::min(ps.x_lo, pb.x_lo);
         ps.x_hi = std::max(ps.x_hi, pb.x_hi);
         ps.y_lo = std::min(ps.y_lo, pb.y_lo);
