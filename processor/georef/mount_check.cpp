@@ -66,10 +66,12 @@ double Sd(const std::vector<PingSlope>& s, double PingSlope::*field) {
     return s.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(s.size()));
 }
 
-}  // namespace
-
-MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckConfig& cfg) {
-    MountCheck r;
+// Each ping's floor-line sums over the soundings near the point under the sensor. The window
+// is fixed on the ground, not in the fan: |u| <= depth x tan(max_angle) around that point,
+// depth the mean of the beams within 5 deg of nadir. A window of beam angles would slide across
+// the floor with the roll, and the floor's curvature would then turn the roll into a slope. u
+// runs along the fan's horizontal direction; pings whose fan stands on end have none.
+std::vector<LineSums> FloorLineSums(const GeorefResult& geo, const MountCheckConfig& cfg) {
     const std::size_t num_pings = geo.pings.size();
     std::vector<LineSums> sums(num_pings);
     std::vector<Eigen::Vector2d> fan_dir(num_pings, Eigen::Vector2d::Zero());
@@ -79,9 +81,6 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
         const Eigen::Vector2d h(y.x(), y.y());
         if (h.norm() > 0.5) fan_dir[k] = h.normalized();  // fan not standing on end
     }
-    // The window is fixed on the ground, not in the fan: |u| <= depth x tan(max_angle) around
-    // the point under the sensor. A window of beam angles would slide across the floor with the
-    // roll, and the floor's curvature would then turn the roll into a slope.
     std::vector<double> nadir_sum(num_pings, 0.0);
     std::vector<int> nadir_n(num_pings, 0);
     const double nadir = frames::DegToRad(5.0);
@@ -102,9 +101,17 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
         if (std::abs(u) > tan_max * nadir_sum[k] / nadir_n[k]) continue;
         sums[k].Add(u, d.z());
     }
+    return sums;
+}
+
+// The pings whose floor line is good (enough beams, spread and fit): its slope with the
+// vehicle's roll and pitch, in time order.
+std::vector<PingSlope> FloorSlopes(const GeorefResult& geo,
+                                   const std::vector<LineSums>& sums,
+                                   const MountCheckConfig& cfg) {
     std::vector<PingSlope> slopes;
-    slopes.reserve(num_pings);
-    for (std::size_t k = 0; k < num_pings; ++k) {
+    slopes.reserve(sums.size());
+    for (std::size_t k = 0; k < sums.size(); ++k) {
         const LineSums& s = sums[k];
         if (s.n < cfg.min_beams) continue;
         const double n = static_cast<double>(s.n);
@@ -120,37 +127,16 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
                           frames::RadToDeg(a.roll),
                           frames::RadToDeg(a.pitch)});
     }
-    r.pings = static_cast<std::int64_t>(slopes.size());
-    char buf[400];
-    if (r.pings < cfg.min_pings) {
-        std::snprintf(buf,
-                      sizeof(buf),
-                      "mount check: not made: %lld pings have a floor line (%lld needed: floors "
-                      "under the fan's centre, not walls)",
-                      static_cast<long long>(r.pings),
-                      static_cast<long long>(cfg.min_pings));
-        r.message = buf;
-        return r;
-    }
     std::sort(
         slopes.begin(), slopes.end(), [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
-    HighPass(slopes, 0.5 * cfg.window_s);
-    r.roll_sd_deg = Sd(slopes, &PingSlope::roll_deg);
-    r.pitch_sd_deg = Sd(slopes, &PingSlope::pitch_deg);
-    if (std::max(r.roll_sd_deg, r.pitch_sd_deg) < cfg.min_motion_sd_deg) {
-        std::snprintf(buf,
-                      sizeof(buf),
-                      "mount check: not made: the vehicle hardly moved (roll %.2f, pitch %.2f deg "
-                      "sd at wave rate; %.2f needed)",
-                      r.roll_sd_deg,
-                      r.pitch_sd_deg,
-                      cfg.min_motion_sd_deg);
-        r.message = buf;
-        return r;
-    }
-    // slope = g_r roll + g_p pitch (+ terrain, the noise), Huber-weighted least squares.
+    return slopes;
+}
+
+// slope = g_r roll + g_p pitch (+ terrain, the noise) by Huber-weighted least squares (4
+// passes); `cov` is the gains' covariance.
+Eigen::Vector2d FitGains(const std::vector<PingSlope>& slopes, Eigen::Matrix2d& cov) {
     Eigen::Vector2d g = Eigen::Vector2d::Zero();
-    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    cov.setZero();
     std::vector<double> w(slopes.size(), 1.0);
     for (int iter = 0; iter < 4; ++iter) {
         Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
@@ -188,6 +174,61 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
         const double rho = std::clamp(lag0 > 0 ? lag1 / lag0 : 0.0, 0.0, 0.95);
         cov = A.inverse() * (ss / std::max(sw - 2, 1.0)) * (1 + rho) / (1 - rho);
     }
+    return g;
+}
+
+// The nearer of the two mistakes a connector makes, if either is near; else the mount as a
+// whole.
+const char* LikelyCause(double roll_gain, double pitch_gain) {
+    const double ar = std::abs(roll_gain), ap = std::abs(pitch_gain);
+    const double to_mirror = std::hypot(ar - 2.0, ap), to_turned = std::hypot(ar - 1.0, ap - 1.0);
+    if (to_mirror < 0.8 && to_mirror <= to_turned) {
+        return "the fan is mirrored (a flat floor tilts by twice the roll): the head is turned "
+               "180 deg from sonar.mount.connector (forward where aft was given, or port where "
+               "starboard was; or the reverse)";
+    }
+    if (to_turned < 0.8) {
+        return "the fan is placed along the track (it keeps the roll and gains the pitch): the "
+               "head is turned 90 deg from sonar.mount.connector (port or starboard where aft or "
+               "forward was given; or the reverse)";
+    }
+    return "the soundings keep part of the vehicle's motion: sonar.mount (connector, "
+           "orientation, tilt_deg) does not describe how the head is mounted";
+}
+
+}  // namespace
+
+MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckConfig& cfg) {
+    MountCheck r;
+    std::vector<PingSlope> slopes = FloorSlopes(geo, FloorLineSums(geo, cfg), cfg);
+    r.pings = static_cast<std::int64_t>(slopes.size());
+    char buf[400];
+    if (r.pings < cfg.min_pings) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "mount check: not made: %lld pings have a floor line (%lld needed: floors "
+                      "under the fan's centre, not walls)",
+                      static_cast<long long>(r.pings),
+                      static_cast<long long>(cfg.min_pings));
+        r.message = buf;
+        return r;
+    }
+    HighPass(slopes, 0.5 * cfg.window_s);
+    r.roll_sd_deg = Sd(slopes, &PingSlope::roll_deg);
+    r.pitch_sd_deg = Sd(slopes, &PingSlope::pitch_deg);
+    if (std::max(r.roll_sd_deg, r.pitch_sd_deg) < cfg.min_motion_sd_deg) {
+        std::snprintf(buf,
+                      sizeof(buf),
+                      "mount check: not made: the vehicle hardly moved (roll %.2f, pitch %.2f deg "
+                      "sd at wave rate; %.2f needed)",
+                      r.roll_sd_deg,
+                      r.pitch_sd_deg,
+                      cfg.min_motion_sd_deg);
+        r.message = buf;
+        return r;
+    }
+    Eigen::Matrix2d cov;
+    const Eigen::Vector2d g = FitGains(slopes, cov);
     r.checked = true;
     r.roll_gain = g.x();
     r.pitch_gain = g.y();
@@ -199,27 +240,7 @@ MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckCo
     r.significance = std::sqrt(std::max(0.0, chi2));
     r.consistent = !(std::max(std::abs(g.x()), std::abs(g.y())) > cfg.max_gain &&
                      r.significance > cfg.min_significance);
-    if (!r.consistent) {
-        // The nearer of the two mistakes a connector makes, if either is near.
-        const double ar = std::abs(r.roll_gain), ap = std::abs(r.pitch_gain);
-        const double to_mirror = std::hypot(ar - 2.0, ap),
-                     to_turned = std::hypot(ar - 1.0, ap - 1.0);
-        if (to_mirror < 0.8 && to_mirror <= to_turned) {
-            r.likely_cause =
-                "the fan is mirrored (a flat floor tilts by twice the roll): the head is turned "
-                "180 deg from sonar.mount.connector (forward where aft was given, or port where "
-                "starboard was; or the reverse)";
-        } else if (to_turned < 0.8) {
-            r.likely_cause =
-                "the fan is placed along the track (it keeps the roll and gains the pitch): the "
-                "head is turned 90 deg from sonar.mount.connector (port or starboard where aft or "
-                "forward was given; or the reverse)";
-        } else {
-            r.likely_cause =
-                "the soundings keep part of the vehicle's motion: sonar.mount (connector, "
-                "orientation, tilt_deg) does not describe how the head is mounted";
-        }
-    }
+    if (!r.consistent) r.likely_cause = LikelyCause(r.roll_gain, r.pitch_gain);
     std::snprintf(buf,
                   sizeof(buf),
                   "mount check: the floor's across-fan slope follows roll x %.2f +- %.2f and "
