@@ -332,88 +332,49 @@ void FillHoles(const georef::GeorefResult& geo,
     }
 }
 
-}  // namespace
-
-std::vector<std::string> CleanConfig::Validate() const {
-    std::vector<std::string> p;
-    if (!(voxel_m > 0.01 && voxel_m < 100)) p.push_back("clean.voxel_m must be in (0.01, 100)");
-    if (cluster_max_voxels < 1) p.push_back("clean.cluster_max_voxels must be >= 1");
-    if (!(margin_m >= 0)) p.push_back("clean.margin_m must be >= 0");
-    if (!(margin_rel >= 0 && margin_rel < 1)) p.push_back("clean.margin_rel must be in [0, 1)");
-    if (free_min_rays < 1) p.push_back("clean.free_min_rays must be >= 1");
-    if (!(free_ratio >= 0)) p.push_back("clean.free_ratio must be >= 0");
-    if (surface_min_hits < 3) p.push_back("clean.surface_min_hits must be >= 3");
-    if (!(surface_max_thickness_m > 0)) p.push_back("clean.surface_max_thickness_m must be > 0");
-    if (!(solid_ratio > 0 && solid_ratio <= free_ratio))
-        p.push_back("clean.solid_ratio must be in (0, free_ratio]");
-    if (profile_pings < 0) p.push_back("clean.profile_pings must be >= 0");
-    if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
-    if (!(hole_tolerance >= 0 && hole_tolerance < 1))
-        p.push_back("clean.hole_tolerance must be in [0, 1)");
-    if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
-    if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
-    if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
-    return p;
+// The soundings' voxels in an index grid (voxel id per active voxel), each voxel's coordinate
+// and sounding count in X; voxel_of per sounding.
+openvdb::Int32Grid::Ptr IndexVoxels(const georef::GeorefPoints& P,
+                                    double v,
+                                    Voxels& X,
+                                    std::vector<std::int32_t>& voxel_of) {
+    auto index = openvdb::Int32Grid::create(kNone);
+    voxel_of.resize(P.size());
+    auto acc = index->getAccessor();
+    for (std::size_t j = 0; j < P.size(); ++j) {
+        const Eigen::Vector3d& p = P.position_world[j];
+        const Coord ijk = Coord::floor(openvdb::Vec3d(p.x() / v, p.y() / v, p.z() / v));
+        std::int32_t id = kNone;
+        if (!acc.probeValue(ijk, id)) {
+            id = static_cast<std::int32_t>(X.size());
+            acc.setValue(ijk, id);
+            X.coord.push_back(ijk);
+            X.count.push_back(0);
+        }
+        voxel_of[j] = id;
+        ++X.count[id];
+    }
+    return index;
 }
 
-CleanResult Clean(const georef::GeorefResult& geo,
-                  const CleanConfig& config,
-                  const ProgressCallback& progress) {
-    openvdb::initialize();
-    CleanResult result;
-    const georef::GeorefPoints& P = geo.points;
-    const std::size_t n = P.size();
-    result.status.assign(n, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
-    CleanCounts& c = result.counts;
-    c.soundings = static_cast<std::int64_t>(n);
-    if (n == 0) return result;
-    std::unique_ptr<tbb::global_control> limit;
-    if (config.num_threads > 0) {
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      static_cast<std::size_t>(config.num_threads));
-    }
-    const double v = config.voxel_m;
-    auto report = [&](double share) { return !progress || progress(share); };
-
-    // ---- 1. voxels, moments, components ----
-    auto t_start = std::chrono::steady_clock::now();
-    auto index = openvdb::Int32Grid::create(kNone);
-    Voxels X;
-    std::vector<std::int32_t> voxel_of(n);
-    {
-        auto acc = index->getAccessor();
-        for (std::size_t j = 0; j < n; ++j) {
-            const Eigen::Vector3d& p = P.position_world[j];
-            const Coord ijk = Coord::floor(openvdb::Vec3d(p.x() / v, p.y() / v, p.z() / v));
-            std::int32_t id = kNone;
-            if (!acc.probeValue(ijk, id)) {
-                id = static_cast<std::int32_t>(X.size());
-                acc.setValue(ijk, id);
-                X.coord.push_back(ijk);
-                X.count.push_back(0);
-            }
-            voxel_of[j] = id;
-            ++X.count[id];
-        }
-    }
+// The 26-connected components of the voxels (X.component: the smallest voxel id of each);
+// returns the voxel count per component root.
+std::vector<std::int32_t> Components(const openvdb::Int32Grid& index, Voxels& X) {
     const std::size_t nv = X.size();
-    c.voxels = static_cast<std::int64_t>(nv);
     std::vector<std::int32_t> parent(nv);
     std::iota(parent.begin(), parent.end(), 0);
-    {
-        auto acc = index->getConstAccessor();
-        for (std::size_t i = 0; i < nv; ++i) {
-            for (int dx = -1; dx <= 1; ++dx) {
-                for (int dy = -1; dy <= 1; ++dy) {
-                    for (int dz = -1; dz <= 1; ++dz) {
-                        // Each pair once: the 13 neighbours after this voxel in (x, y, z) order.
-                        if (dx < 0 || (dx == 0 && (dy < 0 || (dy == 0 && dz <= 0)))) continue;
-                        std::int32_t k = kNone;
-                        if (!acc.probeValue(X.coord[i].offsetBy(dx, dy, dz), k)) continue;
-                        const std::int32_t a = Find(parent, static_cast<std::int32_t>(i));
-                        const std::int32_t b = Find(parent, k);
-                        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-                    }
+    auto acc = index.getConstAccessor();
+    for (std::size_t i = 0; i < nv; ++i) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            for (int dy = -1; dy <= 1; ++dy) {
+                for (int dz = -1; dz <= 1; ++dz) {
+                    // Each pair once: the 13 neighbours after this voxel in (x, y, z) order.
+                    if (dx < 0 || (dx == 0 && (dy < 0 || (dy == 0 && dz <= 0)))) continue;
+                    std::int32_t k = kNone;
+                    if (!acc.probeValue(X.coord[i].offsetBy(dx, dy, dz), k)) continue;
+                    const std::int32_t a = Find(parent, static_cast<std::int32_t>(i));
+                    const std::int32_t b = Find(parent, k);
+                    if (a != b) parent[std::max(a, b)] = std::min(a, b);
                 }
             }
         }
@@ -424,33 +385,32 @@ CleanResult Clean(const georef::GeorefResult& geo,
         X.component[i] = Find(parent, static_cast<std::int32_t>(i));
         ++comp_voxels[X.component[i]];
     }
-    auto terrain = [&](std::int32_t voxel) {
-        return comp_voxels[X.component[voxel]] >= config.cluster_max_voxels;
-    };
-    for (std::size_t i = 0; i < nv; ++i) {
-        if (X.component[i] != static_cast<std::int32_t>(i)) continue;
-        (comp_voxels[i] >= config.cluster_max_voxels ? c.terrain_components : c.clusters) += 1;
-    }
-    // The terrain's voxels, for the marches behind clusters and through surfaces.
-    auto terrain_grid = openvdb::Int32Grid::create(kNone);
-    {
-        auto ta = terrain_grid->getAccessor();
-        for (std::size_t i = 0; i < nv; ++i) {
-            if (terrain(static_cast<std::int32_t>(i)))
-                ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
-        }
-    }
-    // Each voxel's soundings together (a counting sort by voxel).
-    std::vector<std::uint32_t> first(nv + 1, 0), members(n);
-    for (std::size_t j = 0; j < n; ++j) ++first[voxel_of[j] + 1];
-    std::partial_sum(first.begin(), first.end(), first.begin());
-    {
-        std::vector<std::uint32_t> at(first.begin(), first.end() - 1);
-        for (std::size_t j = 0; j < n; ++j)
-            members[at[voxel_of[j]]++] = static_cast<std::uint32_t>(j);
-    }
-    // A plane patch per voxel with enough soundings: a robust fit (Cauchy-weighted PCA), so
-    // that the echoes in a voxel do not tilt the surface they are judged against.
+    return comp_voxels;
+}
+
+// Each voxel's soundings together (a counting sort by voxel): voxel i's are
+// members[first[i] .. first[i + 1]).
+struct VoxelMembers {
+    std::vector<std::uint32_t> first, members;
+};
+VoxelMembers MembersByVoxel(const std::vector<std::int32_t>& voxel_of, std::size_t nv) {
+    const std::size_t n = voxel_of.size();
+    VoxelMembers out{std::vector<std::uint32_t>(nv + 1, 0), std::vector<std::uint32_t>(n)};
+    for (std::size_t j = 0; j < n; ++j) ++out.first[voxel_of[j] + 1];
+    std::partial_sum(out.first.begin(), out.first.end(), out.first.begin());
+    std::vector<std::uint32_t> at(out.first.begin(), out.first.end() - 1);
+    for (std::size_t j = 0; j < n; ++j)
+        out.members[at[voxel_of[j]]++] = static_cast<std::uint32_t>(j);
+    return out;
+}
+
+// A plane patch per voxel with enough soundings: a robust fit (Cauchy-weighted PCA), so that
+// the echoes in a voxel do not tilt the surface they are judged against.
+void FitPatches(const georef::GeorefPoints& P,
+                const VoxelMembers& vm,
+                const CleanConfig& config,
+                Voxels& X) {
+    const std::size_t nv = X.size();
     X.centroid.resize(nv);
     X.normal.resize(nv);
     X.axis_major.resize(nv);
@@ -459,6 +419,8 @@ CleanResult Clean(const georef::GeorefResult& geo,
     X.sigma_minor.assign(nv, 0);
     X.thickness.assign(nv, 0);
     X.patch.assign(nv, 0);
+    const auto& first = vm.first;
+    const auto& members = vm.members;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 1024), [&](const auto& r) {
         std::vector<double> w;
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -516,43 +478,65 @@ CleanResult Clean(const georef::GeorefResult& geo,
                          X.thickness[i] <= config.surface_max_thickness_m;
         }
     });
-    c.seconds_voxels = Seconds(t_start);
-    if (!report(0.1)) return result.cancelled = true, result;
+}
 
-    auto sensor = [&](std::size_t j) -> const Eigen::Vector3d& {
-        return geo.pings[P.ping[j]].sensor_world;
-    };
-    auto margin = [&](double range) {
+// The soundings' rays: from the transducer to the sounding, in index space.
+struct SoundingRays {
+    const georef::GeorefResult& geo;
+    const CleanConfig& config;
+    double v;  // voxel size, m
+
+    const Eigen::Vector3d& Sensor(std::size_t j) const {
+        return geo.pings[geo.points.ping[j]].sensor_world;
+    }
+    // How far short of its end a ray counts as free space, m.
+    double Margin(double range) const {
         return std::max(config.margin_m, config.margin_rel * range);
-    };
-    // A point's ray in index space (unit direction: t is in voxels) and its length in voxels.
-    auto ray_of = [&](std::size_t j, double* length_vox) {
-        const Eigen::Vector3d s = sensor(j) / v;
-        Eigen::Vector3d d = P.position_world[j] / v - s;
+    }
+    // Sounding j's ray in index space (unit direction: t is in voxels) and its length in
+    // voxels.
+    RayT Ray(std::size_t j, double* length_vox) const {
+        const Eigen::Vector3d s = Sensor(j) / v;
+        Eigen::Vector3d d = geo.points.position_world[j] / v - s;
         *length_vox = d.norm();
         if (*length_vox > 0) d /= *length_vox;
         return RayT(openvdb::Vec3d(s.x(), s.y(), s.z()), openvdb::Vec3d(d.x(), d.y(), d.z()));
-    };
+    }
+};
 
-    // ---- 2. rays through the voxels: free space and crossings of plane patches ----
-    // Every sounding's ray, from the transducer to `margin` before its end, through every voxel
-    // it passes (not its own): free_rays counts them per voxel; where it goes through a plane
-    // patch (into the plane at more than 15 deg, within the patch's extent) that is a crossing
-    // of that patch, and the ray's first crossing is kept.
-    t_start = std::chrono::steady_clock::now();
-    std::vector<std::atomic<std::int32_t>> free_rays(nv);
-    std::vector<std::int32_t> first_crossing(n, kNone);
-    const double min_sin = std::sin(config.min_crossing_deg * M_PI / 180.0);
+// What the rays say of each voxel: how many went through it, and each ray's first crossing of
+// a plane patch (kNone: none).
+struct RayEvidence {
+    std::vector<std::atomic<std::int32_t>> free_rays;
+    std::vector<std::int32_t> first_crossing;
+};
+
+// Every sounding's ray, from the transducer to `margin` before its end, through every voxel it
+// passes (not its own): free_rays counts them per voxel; where it goes through a plane patch
+// (into the plane at more than min_crossing_deg, within the patch's extent) that is a crossing
+// of that patch, and the ray's first crossing is kept.
+RayEvidence MarchRays(const SoundingRays& rays,
+                      const openvdb::Int32Grid& index,
+                      const Voxels& X,
+                      const std::vector<std::int32_t>& voxel_of) {
+    const georef::GeorefPoints& P = rays.geo.points;
+    const std::size_t n = P.size();
+    const double v = rays.v;
+    RayEvidence ev{std::vector<std::atomic<std::int32_t>>(X.size()),
+                   std::vector<std::int32_t>(n, kNone)};
+    auto& free_rays = ev.free_rays;
+    auto& first_crossing = ev.first_crossing;
+    const double min_sin = std::sin(rays.config.min_crossing_deg * M_PI / 180.0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
-        Marcher march(*index);
+        Marcher march(index);
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             double len = 0;
-            const RayT ray = ray_of(j, &len);
+            const RayT ray = rays.Ray(j, &len);
             if (!(len > 0)) continue;
             const double range = len * v;
-            const double stop = range - margin(range);
+            const double stop = range - rays.Margin(range);
             const std::int32_t own_id = voxel_of[j];
-            const Eigen::Vector3d& s = sensor(j);
+            const Eigen::Vector3d& s = rays.Sensor(j);
             const Eigen::Vector3d d = (P.position_world[j] - s) / range;
             march(ray, 0.0, stop / v, [&](std::int32_t vox, double) {
                 if (vox == own_id) return true;
@@ -581,98 +565,128 @@ CleanResult Clean(const georef::GeorefResult& geo,
             });
         }
     });
-    // Per patch: its soundings whose rays crossed no patch (the surface's own support).
-    std::vector<std::int32_t> clean_hits(nv, 0);
-    for (std::size_t j = 0; j < n; ++j) clean_hits[voxel_of[j]] += first_crossing[j] == kNone;
-    // A crossing is evidence of water only when the crossing ray ends on a supported surface:
-    // a floor sounding whose ray went through a fish school is; a ghost, whose ray went through
-    // the floor, ends where no ray ends without crossing something, and is not.
-    std::vector<std::int32_t> credible(nv, 0);
-    for (std::size_t j = 0; j < n; ++j) {
-        if (first_crossing[j] != kNone && 2 * clean_hits[voxel_of[j]] >= config.surface_min_hits)
-            ++credible[first_crossing[j]];
-    }
-    auto transient_patch = [&](std::int32_t vox) {
-        const std::int32_t x = credible[vox];
-        return X.patch[vox] && x >= config.free_min_rays &&
-               x >= config.free_ratio * clean_hits[vox];
-    };
-    auto solid_patch = [&](std::int32_t vox) {
-        const std::int32_t x = credible[vox];
-        return X.patch[vox] && clean_hits[vox] >= config.surface_min_hits &&
-               x < config.solid_ratio * clean_hits[vox];
-    };
-    c.seconds_rays = Seconds(t_start);
-    if (!report(0.4)) return result.cancelled = true, result;
+    return ev;
+}
 
-    // ---- 3. clusters in front of the terrain ----
-    t_start = std::chrono::steady_clock::now();
-    // A cluster is judged by its soundings: off the surface when most of them have terrain
-    // behind them along their rays, as far as the survey's longest range.
+// The patches judged by the crossings: per patch its soundings whose rays crossed no patch
+// (the surface's own support), and the credible crossings of it. A crossing is evidence of
+// water only when the crossing ray ends on a supported surface: a floor sounding whose ray went
+// through a fish school is; a ghost, whose ray went through the floor, ends where no ray ends
+// without crossing something, and is not.
+class PatchVerdicts {
+public:
+    PatchVerdicts(const Voxels& X,
+                  const std::vector<std::int32_t>& voxel_of,
+                  const std::vector<std::int32_t>& first_crossing,
+                  const CleanConfig& config)
+        : X_(X), config_(config), clean_hits_(X.size(), 0), credible_(X.size(), 0) {
+        const std::size_t n = voxel_of.size();
+        for (std::size_t j = 0; j < n; ++j) clean_hits_[voxel_of[j]] += first_crossing[j] == kNone;
+        for (std::size_t j = 0; j < n; ++j) {
+            if (first_crossing[j] != kNone &&
+                2 * clean_hits_[voxel_of[j]] >= config.surface_min_hits)
+                ++credible_[first_crossing[j]];
+        }
+    }
+    // A "surface" other rays went through: echoes in the water.
+    bool Transient(std::int32_t vox) const {
+        const std::int32_t x = credible_[vox];
+        return X_.patch[vox] && x >= config_.free_min_rays &&
+               x >= config_.free_ratio * clean_hits_[vox];
+    }
+    // A surface observed from elsewhere and hardly crossed.
+    bool Solid(std::int32_t vox) const {
+        const std::int32_t x = credible_[vox];
+        return X_.patch[vox] && clean_hits_[vox] >= config_.surface_min_hits &&
+               x < config_.solid_ratio * clean_hits_[vox];
+    }
+
+private:
+    const Voxels& X_;
+    const CleanConfig& config_;
+    std::vector<std::int32_t> clean_hits_, credible_;
+};
+
+// Per cluster (component root): its soundings, and those with terrain behind them along their
+// rays, as far as 1.5 x the survey's longest range.
+struct ClusterRays {
+    std::vector<std::atomic<std::int32_t>> behind, points;
+};
+ClusterRays RaysBehindClusters(const SoundingRays& rays,
+                               const openvdb::Int32Grid& terrain_grid,
+                               const Voxels& X,
+                               const std::vector<std::int32_t>& voxel_of,
+                               const std::vector<char>& terrain_voxel) {
+    const georef::GeorefPoints& P = rays.geo.points;
+    const std::size_t n = P.size();
     double max_range = 0;
     for (std::size_t j = 0; j < n; ++j) max_range = std::max(max_range, double{P.range_m[j]});
-    const double behind_vox = 1.5 * max_range / v;
-    std::vector<std::atomic<std::int32_t>> comp_behind(nv), comp_points(nv);
-    if (c.clusters > 0) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
-            Marcher march(*terrain_grid);
-            for (std::size_t j = r.begin(); j != r.end(); ++j) {
-                const std::int32_t own = voxel_of[j];
-                if (terrain(own)) continue;
-                comp_points[X.component[own]].fetch_add(1, std::memory_order_relaxed);
-                double len = 0;
-                const RayT ray = ray_of(j, &len);
-                if (!(len > 0)) continue;
-                const double from = len + margin(len * v) / v;
-                bool behind = false;
-                march(ray, from, from + behind_vox, [&](std::int32_t, double) {
-                    behind = true;
-                    return false;
-                });
-                if (behind) comp_behind[X.component[own]].fetch_add(1, std::memory_order_relaxed);
-            }
-        });
-    }
-    c.seconds_clusters = Seconds(t_start);
-
-    // ---- 4. each sounding: its voxel, its ray ----
-    t_start = std::chrono::steady_clock::now();
-    auto free_voxel = [&](std::int32_t vox, double ratio) {
-        const std::int32_t f = free_rays[vox].load(std::memory_order_relaxed);
-        return f >= config.free_min_rays && f >= ratio * X.count[vox];
-    };
+    const double behind_vox = 1.5 * max_range / rays.v;
+    ClusterRays out{std::vector<std::atomic<std::int32_t>>(X.size()),
+                    std::vector<std::atomic<std::int32_t>>(X.size())};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        Marcher march(terrain_grid);
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             const std::int32_t own = voxel_of[j];
-            SoundingStatus st = SoundingStatus::kAccepted;
-            if (transient_patch(own)) {
-                // A "surface" other rays went through: echoes in the water.
-                st = SoundingStatus::kFreeSpace;
-            } else if (first_crossing[j] != kNone && solid_patch(first_crossing[j])) {
-                // The ray went through a surface observed from elsewhere: a ghost behind it.
-                st = SoundingStatus::kMultipath;
-            } else if (!terrain(own)) {
-                const std::int32_t k = X.component[own];
-                if (free_voxel(own, config.free_ratio)) {
-                    st = SoundingStatus::kFreeSpace;
-                } else if (2 * comp_behind[k].load() > comp_points[k].load()) {
-                    st = SoundingStatus::kCluster;
-                }
-            }
-            result.status[j] = static_cast<std::uint8_t>(st);
+            if (terrain_voxel[own]) continue;
+            out.points[X.component[own]].fetch_add(1, std::memory_order_relaxed);
+            double len = 0;
+            const RayT ray = rays.Ray(j, &len);
+            if (!(len > 0)) continue;
+            const double from = len + rays.Margin(len * rays.v) / rays.v;
+            bool behind = false;
+            march(ray, from, from + behind_vox, [&](std::int32_t, double) {
+                behind = true;
+                return false;
+            });
+            if (behind) out.behind[X.component[own]].fetch_add(1, std::memory_order_relaxed);
         }
     });
-    c.seconds_verdicts = Seconds(t_start);
-    // ---- 5. the range profiles: what the 3D tests left ----
-    t_start = std::chrono::steady_clock::now();
-    const std::vector<char> along = Profiles(geo, config, result.status);
-    for (std::size_t j = 0; j < n; ++j) {
-        if (along[j] && result.status[j] == 0)
-            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
-    }
-    FillHoles(geo, config, result.status);
-    for (std::size_t j = 0; j < n; ++j) {
-        switch (static_cast<SoundingStatus>(result.status[j])) {
+    return out;
+}
+
+// Each sounding's verdict from its voxel and its ray.
+void Verdicts(const Voxels& X,
+              const std::vector<std::int32_t>& voxel_of,
+              const std::vector<char>& terrain_voxel,
+              const RayEvidence& rays,
+              const PatchVerdicts& patches,
+              const ClusterRays& clusters,
+              const CleanConfig& config,
+              std::vector<std::uint8_t>& status) {
+    auto free_voxel = [&](std::int32_t vox, double ratio) {
+        const std::int32_t f = rays.free_rays[vox].load(std::memory_order_relaxed);
+        return f >= config.free_min_rays && f >= ratio * X.count[vox];
+    };
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, voxel_of.size(), 8192), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                const std::int32_t own = voxel_of[j];
+                const std::int32_t crossed = rays.first_crossing[j];
+                SoundingStatus st = SoundingStatus::kAccepted;
+                if (patches.Transient(own)) {
+                    // A "surface" other rays went through: echoes in the water.
+                    st = SoundingStatus::kFreeSpace;
+                } else if (crossed != kNone && patches.Solid(crossed)) {
+                    // The ray went through a surface observed from elsewhere: a ghost behind it.
+                    st = SoundingStatus::kMultipath;
+                } else if (!terrain_voxel[own]) {
+                    const std::int32_t k = X.component[own];
+                    if (free_voxel(own, config.free_ratio)) {
+                        st = SoundingStatus::kFreeSpace;
+                    } else if (2 * clusters.behind[k].load() > clusters.points[k].load()) {
+                        st = SoundingStatus::kCluster;
+                    }
+                }
+                status[j] = static_cast<std::uint8_t>(st);
+            }
+        });
+}
+
+// The counts of the cleaning statuses.
+void CountVerdicts(const std::vector<std::uint8_t>& status, CleanCounts& c) {
+    for (const std::uint8_t s : status) {
+        switch (static_cast<SoundingStatus>(s)) {
             case SoundingStatus::kProfile:
                 ++c.profile;
                 break;
@@ -689,6 +703,111 @@ CleanResult Clean(const georef::GeorefResult& geo,
                 break;
         }
     }
+}
+
+}  // namespace
+
+std::vector<std::string> CleanConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(voxel_m > 0.01 && voxel_m < 100)) p.push_back("clean.voxel_m must be in (0.01, 100)");
+    if (cluster_max_voxels < 1) p.push_back("clean.cluster_max_voxels must be >= 1");
+    if (!(margin_m >= 0)) p.push_back("clean.margin_m must be >= 0");
+    if (!(margin_rel >= 0 && margin_rel < 1)) p.push_back("clean.margin_rel must be in [0, 1)");
+    if (free_min_rays < 1) p.push_back("clean.free_min_rays must be >= 1");
+    if (!(free_ratio >= 0)) p.push_back("clean.free_ratio must be >= 0");
+    if (surface_min_hits < 3) p.push_back("clean.surface_min_hits must be >= 3");
+    if (!(surface_max_thickness_m > 0)) p.push_back("clean.surface_max_thickness_m must be > 0");
+    if (!(solid_ratio > 0 && solid_ratio <= free_ratio))
+        p.push_back("clean.solid_ratio must be in (0, free_ratio]");
+    if (profile_pings < 0) p.push_back("clean.profile_pings must be >= 0");
+    if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
+    if (!(hole_tolerance >= 0 && hole_tolerance < 1))
+        p.push_back("clean.hole_tolerance must be in [0, 1)");
+    if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
+    if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
+    if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
+    return p;
+}
+
+CleanResult Clean(const georef::GeorefResult& geo,
+                  const CleanConfig& config,
+                  const ProgressCallback& progress) {
+    openvdb::initialize();
+    CleanResult result;
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    result.status.assign(n, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
+    CleanCounts& c = result.counts;
+    c.soundings = static_cast<std::int64_t>(n);
+    if (n == 0) return result;
+    std::unique_ptr<tbb::global_control> limit;
+    if (config.num_threads > 0) {
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      static_cast<std::size_t>(config.num_threads));
+    }
+    const double v = config.voxel_m;
+    auto report = [&](double share) { return !progress || progress(share); };
+
+    // ---- 1. voxels, moments, components ----
+    auto t_start = std::chrono::steady_clock::now();
+    Voxels X;
+    std::vector<std::int32_t> voxel_of;
+    const auto index = IndexVoxels(P, v, X, voxel_of);
+    const std::size_t nv = X.size();
+    c.voxels = static_cast<std::int64_t>(nv);
+    const std::vector<std::int32_t> comp_voxels = Components(*index, X);
+    // Terrain: the voxels of components of cluster_max_voxels or more.
+    std::vector<char> terrain_voxel(nv);
+    for (std::size_t i = 0; i < nv; ++i)
+        terrain_voxel[i] = comp_voxels[X.component[i]] >= config.cluster_max_voxels;
+    for (std::size_t i = 0; i < nv; ++i) {
+        if (X.component[i] != static_cast<std::int32_t>(i)) continue;
+        (comp_voxels[i] >= config.cluster_max_voxels ? c.terrain_components : c.clusters) += 1;
+    }
+    // The terrain's voxels, for the marches behind clusters.
+    auto terrain_grid = openvdb::Int32Grid::create(kNone);
+    {
+        auto ta = terrain_grid->getAccessor();
+        for (std::size_t i = 0; i < nv; ++i) {
+            if (terrain_voxel[i]) ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
+        }
+    }
+    FitPatches(P, MembersByVoxel(voxel_of, nv), config, X);
+    c.seconds_voxels = Seconds(t_start);
+    if (!report(0.1)) return result.cancelled = true, result;
+
+    // ---- 2. rays through the voxels: free space and crossings of plane patches ----
+    t_start = std::chrono::steady_clock::now();
+    const SoundingRays rays{geo, config, v};
+    const RayEvidence evidence = MarchRays(rays, *index, X, voxel_of);
+    const PatchVerdicts patches(X, voxel_of, evidence.first_crossing, config);
+    c.seconds_rays = Seconds(t_start);
+    if (!report(0.4)) return result.cancelled = true, result;
+
+    // ---- 3. clusters in front of the terrain ----
+    // A cluster is judged by its soundings: off the surface when most of them have terrain
+    // behind them along their rays.
+    t_start = std::chrono::steady_clock::now();
+    const ClusterRays clusters =
+        c.clusters > 0 ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel)
+                       : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
+                                     std::vector<std::atomic<std::int32_t>>(nv)};
+    c.seconds_clusters = Seconds(t_start);
+
+    // ---- 4. each sounding: its voxel, its ray ----
+    t_start = std::chrono::steady_clock::now();
+    Verdicts(X, voxel_of, terrain_voxel, evidence, patches, clusters, config, result.status);
+    c.seconds_verdicts = Seconds(t_start);
+
+    // ---- 5. the range profiles: what the 3D tests left ----
+    t_start = std::chrono::steady_clock::now();
+    const std::vector<char> along = Profiles(geo, config, result.status);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (along[j] && result.status[j] == 0)
+            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    }
+    FillHoles(geo, config, result.status);
+    CountVerdicts(result.status, c);
     c.seconds_profiles = Seconds(t_start);
     report(1.0);
     return result;
