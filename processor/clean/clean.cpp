@@ -95,77 +95,115 @@ double Median(std::vector<double>& v) {
     return *mid;
 }
 
-// The range profiles: each sounding's range against a robust line through its neighbours'
-// ranges, along track (the same beam over `profile_pings` pings each side) and across the
-// fan (the same ping over `profile_beams` beams each side). The line is Theil-Sen over
+// The soundings on their (ping, beam) grid, and the nearest sounding in a direction over up to
+// 3 missing ones (echo runs have dropouts).
+class SoundingGrid {
+public:
+    explicit SoundingGrid(const georef::GeorefResult& geo)
+        : P_(geo.points), pings_(geo.pings.size()) {
+        for (const std::uint16_t b : P_.beam) beams_ = std::max<std::size_t>(beams_, b + 1u);
+        cell_.assign(pings_ * beams_, -1);
+        for (std::size_t j = 0; j < P_.size(); ++j)
+            cell_[P_.ping[j] * beams_ + P_.beam[j]] = static_cast<std::int32_t>(j);
+    }
+    std::size_t pings() const { return pings_; }
+    std::size_t beams() const { return beams_; }
+    bool Inside(std::int64_t q, std::int64_t c) const {
+        return q >= 0 && q < static_cast<std::int64_t>(pings_) && c >= 0 &&
+               c < static_cast<std::int64_t>(beams_);
+    }
+    // The nearest sounding to j in direction (dk, db) (pings, beams), up to 4 cells away; -1
+    // when none. Its distance in cells in *at.
+    std::int32_t Nearest(std::size_t j, int dk, int db, int* at = nullptr) const {
+        const auto k = static_cast<std::int64_t>(P_.ping[j]);
+        const auto b = static_cast<std::int64_t>(P_.beam[j]);
+        for (int step = 1; step <= 4; ++step) {
+            const std::int64_t q = k + step * dk, c = b + step * db;
+            if (!Inside(q, c)) return -1;
+            const std::int32_t x =
+                cell_[static_cast<std::size_t>(q) * beams_ + static_cast<std::size_t>(c)];
+            if (x >= 0) {
+                if (at != nullptr) *at = step;
+                return x;
+            }
+        }
+        return -1;
+    }
+
+private:
+    const georef::GeorefPoints& P_;
+    std::size_t pings_;
+    std::size_t beams_ = 0;
+    std::vector<std::int32_t> cell_;
+};
+
+// Scratch of LineScore, one per thread.
+struct LineScratch {
+    std::vector<double> slopes, icept, res;
+};
+
+// A sounding's distance (range r0) to the robust line through its neighbours at(-w..w)
+// (without 0) over the threshold; 0 where it cannot be judged. The line is Theil-Sen over
 // symmetric pairs with the median intercept, its spread the MAD of the neighbours' residuals.
-// A sounding's score is its distance to the line over the threshold max(profile_min_m,
-// margin_rel of the range, profile_sigmas spreads), where the neighbours agree (spread below
-// profile_max_spread of the range). Hysteresis, as an edge detector does it: soundings scoring
-// 1 or more (and those the 3D tests rejected) seed runs, which grow over neighbours (beams and
-// pings, across up to 3 dropouts) scoring half of it; an echo run's edge pings, where the line
-// is pulled towards it, are taken with it. What the 3D tests rejected joins runs but does not
-// grow them. Only runs of 2 or more are rejected: a lone range
-// off its line is the terrain's (an edge the line does not follow) or the spike filter's.
-std::vector<char> Profiles(const georef::GeorefResult& geo,
-                           const CleanConfig& config,
-                           const std::vector<std::uint8_t>& decided) {
+template <class At>
+double LineScore(int w, const At& at, double r0, const CleanConfig& config, LineScratch& s) {
+    if (w <= 0) return 0.0;
+    // Most soundings lie on a smooth profile: halfway between the window's ends and between its
+    // half-way points (an echo run shorter than the window cannot hold both pairs), they are
+    // far from off it.
+    {
+        // The midpoint of the first symmetric pair at d, d - 1, d + 1 with both ranges (a
+        // dropout moves the pair by one); NaN when none has.
+        auto midpoint = [&](int d) {
+            for (const int e : {d, d - 1, d + 1}) {
+                if (e < 1 || e > w) continue;
+                const double a = at(-e), c = at(e);
+                if (std::isfinite(a) && std::isfinite(c)) return 0.5 * (a + c);
+            }
+            return std::nan("");
+        };
+        const double tol = 0.5 * config.profile_min_m;
+        const double outer = midpoint(w), inner = midpoint(w / 2);
+        if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
+    }
+    s.slopes.clear();
+    for (int d = 1; d <= w; ++d) {
+        const double a = at(-d), c = at(d);
+        if (std::isfinite(a) && std::isfinite(c)) s.slopes.push_back((c - a) / (2.0 * d));
+    }
+    if (static_cast<int>(s.slopes.size()) < std::max(2, w / 2)) return 0.0;
+    const double slope = Median(s.slopes);
+    s.icept.clear();
+    for (int d = -w; d <= w; ++d) {
+        const double a = at(d);
+        if (d != 0 && std::isfinite(a)) s.icept.push_back(a - slope * d);
+    }
+    const double line = Median(s.icept);
+    s.res.clear();
+    for (const double x : s.icept) s.res.push_back(std::abs(x - line));
+    const double spread = 1.4826 * Median(s.res);
+    if (spread > config.profile_max_spread * line) return 0.0;
+    return std::abs(r0 - line) /
+           std::max(
+               {config.profile_min_m, config.margin_rel * line, config.profile_sigmas * spread});
+}
+
+constexpr float kDecided = 1e9f;  // the score of a sounding the 3D tests rejected
+
+// Every sounding's profile score: the larger of the along-track and across-fan LineScore;
+// kDecided for those already rejected.
+std::vector<float> ProfileScores(const georef::GeorefResult& geo,
+                                 const SoundingGrid& grid,
+                                 const CleanConfig& config,
+                                 const std::vector<std::uint8_t>& decided) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
-    std::vector<char> result(n, 0);
-    if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0)) return result;
-    std::size_t beams = 0;
-    for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
-    const std::size_t np = geo.pings.size();
-    std::vector<float> range(np * beams, std::numeric_limits<float>::quiet_NaN());
+    const std::size_t beams = grid.beams();
+    std::vector<float> range(grid.pings() * beams, std::numeric_limits<float>::quiet_NaN());
     for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
-    constexpr float kDecided = 1e9f;
     std::vector<float> score(n, 0.0f);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
-        std::vector<double> slopes, icept, res;
-        // The distance to the line through the neighbours at(-w..w) (without 0) over the
-        // threshold; 0 where it cannot be judged.
-        auto line_score = [&](int w, const auto& at, double r0) -> double {
-            if (w <= 0) return 0.0;
-            // Most soundings lie on a smooth profile: halfway between the window's ends and
-            // between its half-way points (an echo run shorter than the window cannot hold
-            // both pairs), they are far from off it.
-            {
-                // The midpoint of the first symmetric pair at d, d - 1, d + 1 with both ranges
-                // (a dropout moves the pair by one); NaN when none has.
-                auto midpoint = [&](int d) {
-                    for (const int e : {d, d - 1, d + 1}) {
-                        if (e < 1 || e > w) continue;
-                        const double a = at(-e), c = at(e);
-                        if (std::isfinite(a) && std::isfinite(c)) return 0.5 * (a + c);
-                    }
-                    return std::nan("");
-                };
-                const double tol = 0.5 * config.profile_min_m;
-                const double outer = midpoint(w), inner = midpoint(w / 2);
-                if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
-            }
-            slopes.clear();
-            for (int d = 1; d <= w; ++d) {
-                const double a = at(-d), c = at(d);
-                if (std::isfinite(a) && std::isfinite(c)) slopes.push_back((c - a) / (2.0 * d));
-            }
-            if (static_cast<int>(slopes.size()) < std::max(2, w / 2)) return 0.0;
-            const double slope = Median(slopes);
-            icept.clear();
-            for (int d = -w; d <= w; ++d) {
-                const double a = at(d);
-                if (d != 0 && std::isfinite(a)) icept.push_back(a - slope * d);
-            }
-            const double line = Median(icept);
-            res.clear();
-            for (const double x : icept) res.push_back(std::abs(x - line));
-            const double spread = 1.4826 * Median(res);
-            if (spread > config.profile_max_spread * line) return 0.0;
-            return std::abs(r0 - line) / std::max({config.profile_min_m,
-                                                   config.margin_rel * line,
-                                                   config.profile_sigmas * spread});
-        };
+        LineScratch scratch;
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             if (decided[j] != 0) {
                 score[j] = kDecided;
@@ -174,41 +212,36 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
             const auto k = static_cast<std::int64_t>(P.ping[j]);
             const auto b = static_cast<std::int64_t>(P.beam[j]);
             auto value = [&](std::int64_t q, std::int64_t c) -> double {
-                if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
-                    c >= static_cast<std::int64_t>(beams))
-                    return std::nan("");
+                if (!grid.Inside(q, c)) return std::nan("");
                 return range[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
             };
             const double r0 = P.range_m[j];
-            score[j] = static_cast<float>(
-                std::max(line_score(
-                             config.profile_pings, [&](int d) { return value(k + d, b); }, r0),
-                         line_score(
-                             config.profile_beams, [&](int d) { return value(k, b + d); }, r0)));
+            score[j] = static_cast<float>(std::max(LineScore(
+                                                       config.profile_pings,
+                                                       [&](int d) { return value(k + d, b); },
+                                                       r0,
+                                                       config,
+                                                       scratch),
+                                                   LineScore(
+                                                       config.profile_beams,
+                                                       [&](int d) { return value(k, b + d); },
+                                                       r0,
+                                                       config,
+                                                       scratch)));
         }
     });
-    // The grid of soundings (index per ping and beam), and the nearest sounding in a direction
-    // over up to 3 missing ones (echo runs have dropouts).
-    std::vector<std::int32_t> cell(np * beams, -1);
-    for (std::size_t j = 0; j < n; ++j)
-        cell[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
+    return score;
+}
+
+// Hysteresis: soundings scoring 1 or more (and those the 3D tests rejected) seed runs, which
+// grow over neighbours (beams and pings, across up to 3 dropouts) scoring 0.75 or more; what
+// the 3D tests rejected joins runs but does not grow them. Returns the soundings of a run with
+// a neighbour in a run (runs of 2 or more), not already rejected.
+std::vector<char> RunsOfTwoOrMore(const std::vector<float>& score,
+                                  const SoundingGrid& grid,
+                                  const std::vector<std::uint8_t>& decided) {
     constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
-    auto neighbour = [&](std::size_t j, int dir) -> std::int32_t {
-        const auto k = static_cast<std::int64_t>(P.ping[j]);
-        const auto b = static_cast<std::int64_t>(P.beam[j]);
-        for (int step = 1; step <= 4; ++step) {
-            const std::int64_t q = k + step * kDirections[dir][0];
-            const std::int64_t c = b + step * kDirections[dir][1];
-            if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
-                c >= static_cast<std::int64_t>(beams))
-                return -1;
-            const std::int32_t at =
-                cell[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
-            if (at >= 0) return at;
-        }
-        return -1;
-    };
-    // Grow the runs from the seeds over the weak.
+    const std::size_t n = score.size();
     std::vector<char> in_run(n, 0);
     std::vector<std::int32_t> stack;
     for (std::size_t j = 0; j < n; ++j) {
@@ -223,20 +256,40 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
         const auto j = static_cast<std::size_t>(stack.back());
         stack.pop_back();
         for (int dir = 0; dir < 4; ++dir) {
-            const std::int32_t q = neighbour(j, dir);
+            const std::int32_t q = grid.Nearest(j, kDirections[dir][0], kDirections[dir][1]);
             if (q < 0 || in_run[q] || score[q] < 0.75f) continue;
             in_run[q] = 1;
             stack.push_back(q);
         }
     }
+    std::vector<char> result(n, 0);
     for (std::size_t j = 0; j < n; ++j) {
         if (!in_run[j] || decided[j] != 0) continue;
         for (int dir = 0; dir < 4 && !result[j]; ++dir) {
-            const std::int32_t q = neighbour(j, dir);
+            const std::int32_t q = grid.Nearest(j, kDirections[dir][0], kDirections[dir][1]);
             result[j] = q >= 0 && in_run[q];
         }
     }
     return result;
+}
+
+// The range profiles: each sounding's range against a robust line through its neighbours'
+// ranges, along track (the same beam over `profile_pings` pings each side) and across the
+// fan (the same ping over `profile_beams` beams each side) (ProfileScores). A sounding's score
+// is its distance to the line over the threshold max(profile_min_m, margin_rel of the range,
+// profile_sigmas spreads), where the neighbours agree (spread below profile_max_spread of the
+// range). Hysteresis, as an edge detector does it (RunsOfTwoOrMore); an echo run's edge pings,
+// where the line is pulled towards it, are taken with it. Only runs of 2 or more are rejected:
+// a lone range off its line is the terrain's (an edge the line does not follow) or the spike
+// filter's.
+std::vector<char> Profiles(const georef::GeorefResult& geo,
+                           const CleanConfig& config,
+                           const std::vector<std::uint8_t>& decided) {
+    const std::size_t n = geo.points.size();
+    if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0))
+        return std::vector<char>(n, 0);
+    const SoundingGrid grid(geo);
+    return RunsOfTwoOrMore(ProfileScores(geo, grid, config, decided), grid, decided);
 }
 
 // Holes and edges of an echo run: a sounding accepted between two soundings of one rejection
@@ -252,30 +305,9 @@ void FillHoles(const georef::GeorefResult& geo,
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || !(config.hole_tolerance > 0)) return;
-    std::size_t beams = 0;
-    for (const std::uint16_t b : P.beam) beams = std::max<std::size_t>(beams, b + 1u);
-    const std::size_t np = geo.pings.size();
-    std::vector<std::int32_t> cell(np * beams, -1);
-    for (std::size_t j = 0; j < n; ++j)
-        cell[P.ping[j] * beams + P.beam[j]] = static_cast<std::int32_t>(j);
-    // The nearest sounding `step` cells away in direction (dk, db), over up to 3 missing; its
-    // distance in cells in *at.
-    auto nearest = [&](std::size_t j, int dk, int db, int* at) -> std::int32_t {
-        const auto k = static_cast<std::int64_t>(P.ping[j]);
-        const auto b = static_cast<std::int64_t>(P.beam[j]);
-        for (int step = 1; step <= 4; ++step) {
-            const std::int64_t q = k + step * dk, c = b + step * db;
-            if (q < 0 || q >= static_cast<std::int64_t>(np) || c < 0 ||
-                c >= static_cast<std::int64_t>(beams))
-                return -1;
-            const std::int32_t x =
-                cell[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(c)];
-            if (x >= 0) {
-                *at = step;
-                return x;
-            }
-        }
-        return -1;
+    const SoundingGrid grid(geo);
+    auto nearest = [&grid](std::size_t j, int dk, int db, int* at) {
+        return grid.Nearest(j, dk, db, at);
     };
     for (int pass = 0; pass < 2; ++pass) {
         std::vector<std::uint8_t> next = status;
