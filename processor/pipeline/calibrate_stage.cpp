@@ -63,168 +63,185 @@ std::string LikelyMountCause(const Eigen::Vector3d& change_deg) {
     }
 }
 
-}  // namespace
+// The header clock search's settings for this vehicle: the NMEA position in the headers is
+// the (first) GNSS antenna's.
+calib::ClockSearchConfig HeaderSearch(const Survey& s) {
+    calib::ClockSearchConfig search;
+    if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+        search.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
+    return search;
+}
 
-Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+// A configured offset checked against the 83P headers' aids: with it, the header positions
+// must lie where the INS antenna was (an error otherwise), and an estimate that disagrees trips
+// sonar_clock_disagrees (the configured value is used).
+Status CheckConfiguredOffset(Survey& s,
+                             const PipelineConfig& config,
+                             const calib::ClockEstimate& est,
+                             const calib::ClockSearchConfig& search,
+                             const std::string& nav_span,
+                             const Log& log) {
+    const double offset = config.ingest.sonar_clock_offset_s;
+    const double at_configured =
+        calib::HeaderPositionMisfit(s.model.ingest.pings, s.model.ingest.nav, 0.0, search);
+    if (std::isfinite(at_configured) && at_configured > search.max_position_misfit_m) {
+        return Error{"sonar clock: with the configured offset (" + Num("%+.3f", offset) +
+                     " s) the 83P header positions lie a median " + Num("%.1f", at_configured) +
+                     " m from the INS antenna (limit " + Num("%.1f", search.max_position_misfit_m) +
+                     " m); " +
+                     (est.found
+                          ? "the headers put the offset at " +
+                                Num("%+.3f", ImpliedClockOffset(offset, est.correction_s)) + " s"
+                          : "at no offset do they match the navigation (best " +
+                                Num("%.1f", est.misfit) + " m): is this .83P of this survey?") +
+                     ". Navigation: " + nav_span};
+    }
+    const double tol = std::max(3 * est.sigma_s, config.quality.clock_disagreement_s);
+    if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
+        TripGate(s,
+                 Stage::kGeoref,
+                 "sonar_clock_disagrees",
+                 "the configured sonar clock offset is " + Num("%+.3f", offset) + " s, the " +
+                     est.method + " in the 83P headers implies " +
+                     Num("%+.3f", ImpliedClockOffset(offset, est.correction_s)) + " s (+- " +
+                     Num("%.3f", est.sigma_s) + " s); the configured value is used",
+                 log);
+    }
+    return Ok{};
+}
+
+// The coarse clock from the 83P headers' aids (calib::EstimateSonarClock): with a configured
+// offset, checked against it; without, applied to the pings (an error when not found or more
+// uncertain than max_clock_scan_s). `applied` and `sigma` are the correction and what is left
+// for the calibration's latency scan.
+Status CoarseHeaderClock(Survey& s,
+                         const PipelineConfig& config,
+                         const std::string& nav_span,
+                         const Log& log,
+                         json& clk,
+                         double& applied,
+                         double& sigma) {
     georef::PingSeries& pings = s.model.ingest.pings;
-    const georef::NavSeries& nav = s.model.ingest.nav;
-    const QualityConfig& q = config.quality;
-    const bool header = pings.clock == georef::PingClock::kTopsideHeader;
-    json clk = {{"source",
-                 header ? "83P header: the topside PC clock (offset unknown)"
-                        : "pitmap-acqd: GPS-disciplined receive stamps"},
-                {"configured", config.ingest.sonar_clock_offset_known}};
-    if (config.ingest.sonar_clock_offset_known)
-        clk["configured_offset_s"] = config.ingest.sonar_clock_offset_s;
-    double applied = 0;
-    // What is left for the calibration's latency scan: the coarse estimate's uncertainty, or
-    // half a second around a configured offset or the daemon's stamps.
-    double sigma = 0.0;
-    const std::string nav_span =
-        calib::SpanText(nav.samples.front().utime_gps, nav.samples.back().utime_gps);
-    if (header) {
-        calib::ClockSearchConfig search;
-        // The NMEA position in the headers is the (first) GNSS antenna's.
-        if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
-            search.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
-        const calib::ClockEstimate est = calib::EstimateSonarClock(pings, nav, search);
-        log("sonar clock: " + est.message);
-        clk["coarse"] = {{"method", est.method},
-                         {"found", est.found},
-                         {"correction_s", est.correction_s},
-                         {"sigma_s", est.sigma_s},
-                         {"misfit", est.misfit},
-                         {"samples", est.samples},
-                         {"message", est.message}};
-        const std::string sonar_span =
-            calib::SpanText(pings.pings.front().utime_gps, pings.pings.back().utime_gps);
-        if (config.ingest.sonar_clock_offset_known) {
-            // A given offset is still checked against the header positions: with it, they
-            // must lie where the INS antenna was.
-            const double at_configured = calib::HeaderPositionMisfit(pings, nav, 0.0, search);
-            if (std::isfinite(at_configured) && at_configured > search.max_position_misfit_m) {
-                return Error{"sonar clock: with the configured offset (" +
-                             Num("%+.3f", config.ingest.sonar_clock_offset_s) +
-                             " s) the 83P header positions lie a median " +
-                             Num("%.1f", at_configured) + " m from the INS antenna (limit " +
-                             Num("%.1f", search.max_position_misfit_m) + " m); " +
-                             (est.found
-                                  ? "the headers put the offset at " +
-                                        Num("%+.3f",
-                                            ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
-                                                               est.correction_s)) +
-                                        " s"
-                                  : "at no offset do they match the navigation (best " +
-                                        Num("%.1f", est.misfit) +
-                                        " m): is this .83P of this survey?") +
-                             ". Navigation: " + nav_span};
-            }
-            const double tol = std::max(3 * est.sigma_s, q.clock_disagreement_s);
-            if (est.found && est.method != "span" && std::abs(est.correction_s) > tol) {
-                TripGate(s,
-                         Stage::kGeoref,
-                         "sonar_clock_disagrees",
-                         "the configured sonar clock offset is " +
-                             Num("%+.3f", config.ingest.sonar_clock_offset_s) + " s, the " +
-                             est.method + " in the 83P headers implies " +
-                             Num("%+.3f",
-                                 ImpliedClockOffset(config.ingest.sonar_clock_offset_s,
-                                                    est.correction_s)) +
-                             " s (+- " + Num("%.3f", est.sigma_s) +
-                             " s); the configured value is used",
-                         log);
-            }
-            sigma = 0.1;
-        } else {
-            const std::string give =
-                "; give the offset (--sonar-clock-offset S, or sonar.clock_offset_s in "
-                "vehicle.yaml: the sonar clock minus UTC). Navigation: " +
-                nav_span + "; sonar, on its own clock: " + sonar_span;
-            if (!est.found) return Error{"sonar clock: " + est.message + give};
-            if (est.sigma_s > q.max_clock_scan_s) {
-                return Error{"sonar clock: " + est.message + ": more uncertain than the " +
-                             Num("%.1f", q.max_clock_scan_s) +
-                             " s the data can resolve (quality.max_clock_scan_s)" + give};
-            }
-            georef::ShiftPingTimes(pings, est.correction_s);
-            applied = est.correction_s;
-            sigma = est.sigma_s;
-        }
-    } else {
-        sigma = 0.0;  // ms: the calibration's linear range covers it
+    const calib::ClockSearchConfig search = HeaderSearch(s);
+    const calib::ClockEstimate est = calib::EstimateSonarClock(pings, s.model.ingest.nav, search);
+    log("sonar clock: " + est.message);
+    clk["coarse"] = {{"method", est.method},
+                     {"found", est.found},
+                     {"correction_s", est.correction_s},
+                     {"sigma_s", est.sigma_s},
+                     {"misfit", est.misfit},
+                     {"samples", est.samples},
+                     {"message", est.message}};
+    const std::string sonar_span =
+        calib::SpanText(pings.pings.front().utime_gps, pings.pings.back().utime_gps);
+    if (config.ingest.sonar_clock_offset_known) {
+        if (auto c = CheckConfiguredOffset(s, config, est, search, nav_span, log); !c) return c;
+        sigma = 0.1;
+        return Ok{};
     }
-    // A step of the topside clock mid-survey (an NTP correction): each side on its own offset.
-    if (header) {
-        calib::ClockStepConfig sc;
-        sc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
-        if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
-            sc.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
-        const calib::ClockStepResult steps = calib::FindSonarClockSteps(pings, nav, sc);
-        log("sonar clock: " + steps.message);
-        json js = json::array();
+    const std::string give =
+        "; give the offset (--sonar-clock-offset S, or sonar.clock_offset_s in "
+        "vehicle.yaml: the sonar clock minus UTC). Navigation: " +
+        nav_span + "; sonar, on its own clock: " + sonar_span;
+    if (!est.found) return Error{"sonar clock: " + est.message + give};
+    if (est.sigma_s > config.quality.max_clock_scan_s) {
+        return Error{"sonar clock: " + est.message + ": more uncertain than the " +
+                     Num("%.1f", config.quality.max_clock_scan_s) +
+                     " s the data can resolve (quality.max_clock_scan_s)" + give};
+    }
+    georef::ShiftPingTimes(pings, est.correction_s);
+    applied = est.correction_s;
+    sigma = est.sigma_s;
+    return Ok{};
+}
+
+// A step of the topside clock mid-survey (an NTP correction): each side on its own offset
+// (calib::FindSonarClockSteps); an error when the header times run backwards.
+Status HeaderClockSteps(Survey& s, const Log& log, json& clk) {
+    georef::PingSeries& pings = s.model.ingest.pings;
+    calib::ClockStepConfig sc;
+    sc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
+    if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+        sc.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
+    const calib::ClockStepResult steps = calib::FindSonarClockSteps(pings, s.model.ingest.nav, sc);
+    log("sonar clock: " + steps.message);
+    json js = json::array();
+    for (const auto& st : steps.steps) {
+        js.push_back({{"ping_index", st.ping_index},
+                      {"ping_number", st.ping_number},
+                      {"gps_s", static_cast<double>(st.utime) * 1e-6},
+                      {"jump_s", st.jump_s},
+                      {"step_s", st.step_s},
+                      {"sigma_s", st.sigma_s},
+                      {"resolved", st.resolved}});
+    }
+    clk["steps"] = {{"method", steps.method},
+                    {"steps", js},
+                    {"pauses", steps.pauses},
+                    {"backward", steps.backward},
+                    {"message", steps.message}};
+    if (steps.backward > 0) {
+        s.summary["sonar_clock"] = clk;
+        return Error{"sonar clock: " + steps.message +
+                     ": pitmap cannot order them; split the .83P at the step (or give the "
+                     "pings before and after it as separate surveys)"};
+    }
+    if (!steps.segment_shift_s.empty()) {
+        calib::ApplyClockSteps(pings, steps);
         for (const auto& st : steps.steps) {
-            js.push_back({{"ping_index", st.ping_index},
-                          {"ping_number", st.ping_number},
-                          {"gps_s", static_cast<double>(st.utime) * 1e-6},
-                          {"jump_s", st.jump_s},
-                          {"step_s", st.step_s},
-                          {"sigma_s", st.sigma_s},
-                          {"resolved", st.resolved}});
-        }
-        clk["steps"] = {{"method", steps.method},
-                        {"steps", js},
-                        {"pauses", steps.pauses},
-                        {"backward", steps.backward},
-                        {"message", steps.message}};
-        if (steps.backward > 0) {
-            s.summary["sonar_clock"] = clk;
-            return Error{"sonar clock: " + steps.message +
-                         ": pitmap cannot order them; split the .83P at the step (or give the "
-                         "pings before and after it as separate surveys)"};
-        }
-        if (!steps.segment_shift_s.empty()) {
-            calib::ApplyClockSteps(pings, steps);
-            for (const auto& st : steps.steps) {
-                if (!st.resolved) continue;
-                log("warning: the topside clock steps " + Num("%+.3f", st.step_s) + " s at ping " +
-                    std::to_string(st.ping_index) + " (number " + std::to_string(st.ping_number) +
-                    "): the pings on each side get their own offset");
-            }
-        }
-        for (const auto& st : steps.steps) {
-            if (st.resolved) continue;
-            log("warning: the 83P header times jump " + Num("%+.3f", st.jump_s) + " s at ping " +
+            if (!st.resolved) continue;
+            log("warning: the topside clock steps " + Num("%+.3f", st.step_s) + " s at ping " +
                 std::to_string(st.ping_index) + " (number " + std::to_string(st.ping_number) +
-                "): a pause or a clock step the header aids cannot tell apart");
+                "): the pings on each side get their own offset");
         }
     }
-    // The topside PC's clock also runs at a rate of its own: timed by the head's attitude
-    // sensor along the whole survey, and taken out before anything looks at the soundings.
-    calib::ClockRateEstimate rate;
-    if (header) {
-        calib::ClockRateConfig rc;
-        rc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
-        rate = calib::EstimateSonarClockRate(pings, nav, rc);
-        log("sonar clock: " + rate.message);
-        clk["rate"] = {{"found", rate.found},
-                       {"rate_ppm", rate.rate_ppm},
-                       {"rate_sigma_ppm", rate.rate_sigma_ppm},
-                       {"offset_s", rate.offset_s},
-                       {"offset_sigma_s", rate.offset_sigma_s},
-                       {"reference_gps_s", static_cast<double>(rate.reference_utime) * 1e-6},
-                       {"samples", rate.samples},
-                       {"residual_rms_deg", rate.residual_rms_deg},
-                       {"message", rate.message}};
-        if (rate.found) {
-            georef::ShiftPingTimes(pings, 0.0, rate.rate_ppm * 1e-6, rate.reference_utime);
-            clk["rate_ppm"] = rate.rate_ppm;
-            clk["rate_sigma_ppm"] = rate.rate_sigma_ppm;
-            clk["rate_reference_gps_s"] = static_cast<double>(rate.reference_utime) * 1e-6;
-        }
+    for (const auto& st : steps.steps) {
+        if (st.resolved) continue;
+        log("warning: the 83P header times jump " + Num("%+.3f", st.jump_s) + " s at ping " +
+            std::to_string(st.ping_index) + " (number " + std::to_string(st.ping_number) +
+            "): a pause or a clock step the header aids cannot tell apart");
     }
+    return Ok{};
+}
+
+// The topside PC's clock also runs at a rate of its own: timed by the head's attitude sensor
+// along the whole survey (calib::EstimateSonarClockRate), and taken out of the ping times
+// before anything looks at the soundings.
+calib::ClockRateEstimate HeaderClockRate(Survey& s, const Log& log, json& clk) {
+    calib::ClockRateConfig rc;
+    rc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
+    const calib::ClockRateEstimate rate =
+        calib::EstimateSonarClockRate(s.model.ingest.pings, s.model.ingest.nav, rc);
+    log("sonar clock: " + rate.message);
+    clk["rate"] = {{"found", rate.found},
+                   {"rate_ppm", rate.rate_ppm},
+                   {"rate_sigma_ppm", rate.rate_sigma_ppm},
+                   {"offset_s", rate.offset_s},
+                   {"offset_sigma_s", rate.offset_sigma_s},
+                   {"reference_gps_s", static_cast<double>(rate.reference_utime) * 1e-6},
+                   {"samples", rate.samples},
+                   {"residual_rms_deg", rate.residual_rms_deg},
+                   {"message", rate.message}};
+    if (rate.found) {
+        georef::ShiftPingTimes(
+            s.model.ingest.pings, 0.0, rate.rate_ppm * 1e-6, rate.reference_utime);
+        clk["rate_ppm"] = rate.rate_ppm;
+        clk["rate_sigma_ppm"] = rate.rate_sigma_ppm;
+        clk["rate_reference_gps_s"] = static_cast<double>(rate.reference_utime) * 1e-6;
+    }
+    return rate;
+}
+
+// The clock as found, in the summary and in the survey model.
+void RecordClock(Survey& s,
+                 const PipelineConfig& config,
+                 json clk,
+                 double applied,
+                 double sigma,
+                 const calib::ClockRateEstimate& rate) {
     clk["correction_s"] = applied;
     clk["sigma_s"] = sigma;
-    s.summary["sonar_clock"] = clk;
+    s.summary["sonar_clock"] = std::move(clk);
     s.model.clock = {};
     if (rate.found) {
         s.model.clock.rate_ppm = rate.rate_ppm;
@@ -236,76 +253,60 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         config.ingest.sonar_clock_offset_known ? config.ingest.sonar_clock_offset_s : 0.0;
     s.model.clock.coarse_correction_s = applied;
     s.model.clock.coarse_sigma_s = sigma;
-    // The two recordings must overlap in time.
-    const std::int64_t p0 = pings.pings.front().utime_gps, p1 = pings.pings.back().utime_gps;
-    const std::int64_t n0 = nav.samples.front().utime_gps, n1 = nav.samples.back().utime_gps;
-    if (p1 < n0 || p0 > n1) {
-        return Error{"navigation and sonar do not overlap in time: navigation " + nav_span +
-                     ", sonar " + calib::SpanText(p0, p1) +
-                     (header ? " (sonar clock corrected by " + Num("%+.3f", applied) + " s)"
-                             : std::string())};
-    }
-    return Ok{};
 }
 
-Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
-    StageClock clock;
-    ClearGates(s, Stage::kCalibrate);
-    // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
-    if (s.model.ResetCalibration()) {
-        log("calibrate: starting again from the nominal mount and sonar clock");
-        s.geo = survey::Georeference(
-            s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
-    }
-    const georef::SonarMount before = s.model.mount;
-    const QualityConfig& q = config.quality;
+// The calibration's settings for this survey: the pings carry the coarse clock correction
+// already, so the latency scan covers what it leaves (4 sigma; none on the daemon's stamps).
+calib::BoresightConfig CalibrationConfig(const Survey& s, const PipelineConfig& config) {
     calib::BoresightConfig bc = config.calibrate;
-    const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
-    json& clk = s.summary["sonar_clock"];
-    if (!clk.is_object()) clk = json::object();
-    const double clock_sigma = s.model.clock.coarse_sigma_s;
     if (bc.estimate_latency) {
-        // The pings carry the coarse correction already; scan what it leaves (4 sigma).
+        const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
         bc.initial_latency_s = 0;
-        bc.latency_scan_s = header ? std::clamp(4 * clock_sigma, 0.25, q.max_clock_scan_s) : 0.0;
+        bc.latency_scan_s =
+            header ? std::clamp(
+                         4 * s.model.clock.coarse_sigma_s, 0.25, config.quality.max_clock_scan_s)
+                   : 0.0;
     }
-    ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
-    calib::BoresightResult cal =
-        calib::CalibrateBoresight(s.geo, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
-    bar.Finish();
-    log("calibrate: " + cal.message);
-    json st = {
-        {"termination", calib::ToString(cal.termination)},
-        {"iterations", cal.iterations},
-        {"message", cal.message},
-        {"segment", cal.segment},
-        {"residual_before_rms_m", cal.before.rms_m},
-        {"residual_after_rms_m", cal.after.rms_m},
-        {"residual_expected_rms_m", cal.after.expected_rms_m},
-        {"pairs", cal.after.pairs},
-        {"formal_sd_deg", {cal.formal_sd_deg[0], cal.formal_sd_deg[1], cal.formal_sd_deg[2]}},
-        {"ins_attitude_sd_deg",
-         {cal.ins_attitude_sd_deg[0], cal.ins_attitude_sd_deg[1], cal.ins_attitude_sd_deg[2]}},
-        {"sd_deg", {cal.sd_deg[0], cal.sd_deg[1], cal.sd_deg[2]}},
-        {"ins_attitude_sd_reported", cal.ins_attitude_reported},
-        {"height_offsets_rms_m", cal.height_offsets_rms_m},
-        {"latency_estimated", cal.latency_estimated},
-        {"latency_s", cal.latency_s},
-        {"latency_formal_sd_s", cal.latency_formal_sd_s},
-        {"latency_scan_s", bc.latency_scan_s},
-        {"latency_scan_best_s", cal.latency_scan_best_s},
-        {"boresight_before", MountJson(before)},
-        {"boresight_after", MountJson(cal.mount)}};
-    if (!cal.ins_attitude_reported && cal.termination != calib::Termination::kNoOverlap) {
-        log("calibrate: the navigation reports no roll, pitch or heading sigma in the calibration "
-            "window: the boresight's stated sd (sd_deg) is the fit's alone and optimistic (it "
-            "leaves out the INS's own attitude error)");
-    }
-    st["verify"] = json::array();
-    // The calibrated latency must not fit another segment worse than the nominal one by more
-    // than this fraction (pair sampling moves the RMS by ~1 %; a 100 ms clock step on the demo
-    // moves it by 18 %).
+    return bc;
+}
+
+// summary.json's "calibrate": the fit's figures and the mount before and after.
+json CalibrationJson(const calib::BoresightResult& cal,
+                     const calib::BoresightConfig& bc,
+                     const georef::SonarMount& before) {
+    return {{"termination", calib::ToString(cal.termination)},
+            {"iterations", cal.iterations},
+            {"message", cal.message},
+            {"segment", cal.segment},
+            {"residual_before_rms_m", cal.before.rms_m},
+            {"residual_after_rms_m", cal.after.rms_m},
+            {"residual_expected_rms_m", cal.after.expected_rms_m},
+            {"pairs", cal.after.pairs},
+            {"formal_sd_deg", {cal.formal_sd_deg[0], cal.formal_sd_deg[1], cal.formal_sd_deg[2]}},
+            {"ins_attitude_sd_deg",
+             {cal.ins_attitude_sd_deg[0], cal.ins_attitude_sd_deg[1], cal.ins_attitude_sd_deg[2]}},
+            {"sd_deg", {cal.sd_deg[0], cal.sd_deg[1], cal.sd_deg[2]}},
+            {"ins_attitude_sd_reported", cal.ins_attitude_reported},
+            {"height_offsets_rms_m", cal.height_offsets_rms_m},
+            {"latency_estimated", cal.latency_estimated},
+            {"latency_s", cal.latency_s},
+            {"latency_formal_sd_s", cal.latency_formal_sd_s},
+            {"latency_scan_s", bc.latency_scan_s},
+            {"latency_scan_best_s", cal.latency_scan_best_s},
+            {"boresight_before", MountJson(before)},
+            {"boresight_after", MountJson(cal.mount)}};
+}
+
+// The verification on other segments, into st["verify"] and the log: false when the
+// calibrated mount fits one of them worse than the nominal one, or the calibrated latency fits
+// it worse than the nominal latency by more than kLatencyVerifyMargin (pair sampling moves the
+// RMS by ~1 %; a 100 ms clock step on the demo moves it by 18 %).
+bool Verified(const calib::BoresightResult& cal,
+              const calib::BoresightConfig& bc,
+              json& st,
+              const Log& log) {
     constexpr double kLatencyVerifyMargin = 0.02;
+    st["verify"] = json::array();
     bool verified = true;
     for (const auto& v : cal.verify) {
         st["verify"].push_back({{"start_s", v.segment.start_s},
@@ -344,49 +345,42 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
             "passes lies outside the calibration window (calibrate.segment_duration_s " +
             Num("%.0f", bc.segment_duration_s) + " s); the result rests on its own window alone");
     }
-    if (cal.termination == calib::Termination::kNoOverlap) {
-        s.model.calibration = survey::CalibrationState::kNoOverlap;
-        TripGate(s,
-                 Stage::kCalibrate,
-                 "calibration_no_overlap",
-                 cal.message +
-                     ": the boresight cannot be calibrated on this survey; the nominal "
-                     "mount of vehicle.yaml is kept",
-                 log);
-        RecordStage(s.summary, Stage::kCalibrate, st, clock);
-        if (s.defer_products) {
-            (void)SaveSummary(s);
-        } else {
-            (void)SaveSurvey(s);
-        }
-        return Error{"calibrate: " + cal.message};
+    return verified;
+}
+
+// A calibration that cannot be used: the stage recorded, the survey saved, the run stopped.
+Status StopCalibration(Survey& s, const json& st, const StageClock& clock, const std::string& why) {
+    RecordStage(s.summary, Stage::kCalibrate, st, clock);
+    if (s.defer_products) {
+        (void)SaveSummary(s);
+    } else {
+        (void)SaveSurvey(s);
     }
-    // A mount bracket is off by a degree or two: a calibration that turns the head further is
-    // absorbing a wrong input (a lever arm's sign, the connector, the clock), not measuring a
-    // residual. Its result is not applied; the run stops naming the likely input.
-    const Eigen::Vector3d change = MountChangeDeg(before, cal.mount);
-    st["change_from_nominal_deg"] = {change.x(), change.y(), change.z()};
-    if (change.cwiseAbs().maxCoeff() > q.max_boresight_change_deg) {
-        s.model.calibration = survey::CalibrationState::kKeptNominal;
-        const std::string what =
-            "the calibrated boresight turns the nominal mount by roll " + Num("%+.2f", change.x()) +
-            ", pitch " + Num("%+.2f", change.y()) + ", yaw " + Num("%+.2f", change.z()) +
-            " deg (sd " + Num("%.2f", cal.sd_deg[0]) + ", " + Num("%.2f", cal.sd_deg[1]) + ", " +
-            Num("%.2f", cal.sd_deg[2]) + " deg), beyond the " +
-            Num("%.1f", q.max_boresight_change_deg) +
-            " deg a mount can be off (quality.max_boresight_change_deg): not a residual but " +
-            LikelyMountCause(change) + ". Check vehicle.yaml" +
-            (s.model.vehicle_yaml.empty() ? std::string() : " (" + s.model.vehicle_yaml + ")");
-        TripGate(s, Stage::kCalibrate, "boresight_implausible", what, log);
-        st["kept_nominal"] = true;
-        RecordStage(s.summary, Stage::kCalibrate, st, clock);
-        if (s.defer_products) {
-            (void)SaveSummary(s);
-        } else {
-            (void)SaveSurvey(s);
-        }
-        return Error{"calibrate: " + what};
-    }
+    return Error{"calibrate: " + why};
+}
+
+// Why a boresight change beyond quality.max_boresight_change_deg is not applied (a mount
+// bracket is off by a degree or two: a calibration that turns the head further is absorbing a
+// wrong input, a lever arm's sign, the connector, the clock), naming the likely input.
+std::string ImplausibleChange(const Survey& s,
+                              const Eigen::Vector3d& change,
+                              const calib::BoresightResult& cal,
+                              double max_change_deg) {
+    return "the calibrated boresight turns the nominal mount by roll " + Num("%+.2f", change.x()) +
+           ", pitch " + Num("%+.2f", change.y()) + ", yaw " + Num("%+.2f", change.z()) +
+           " deg (sd " + Num("%.2f", cal.sd_deg[0]) + ", " + Num("%.2f", cal.sd_deg[1]) + ", " +
+           Num("%.2f", cal.sd_deg[2]) + " deg), beyond the " + Num("%.1f", max_change_deg) +
+           " deg a mount can be off (quality.max_boresight_change_deg): not a residual but " +
+           LikelyMountCause(change) + ". Check vehicle.yaml" +
+           (s.model.vehicle_yaml.empty() ? std::string() : " (" + s.model.vehicle_yaml + ")");
+}
+
+// The gates of a usable calibration: the residual against the range noise, and a latency
+// still moving at the end.
+void GateCalibration(Survey& s,
+                     const calib::BoresightResult& cal,
+                     const QualityConfig& q,
+                     const Log& log) {
     if (cal.after.pairs > 0 &&
         cal.after.rms_m > q.calibration_residual_ratio * cal.after.expected_rms_m) {
         TripGate(s,
@@ -409,20 +403,14 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
                      "nominal mount and clock are kept (give --sonar-clock-offset)",
                  log);
     }
-    const bool keep_nominal = !verified || cal.latency_unresolved;
-    if (!verified) {
-        TripGate(s,
-                 Stage::kCalibrate,
-                 "calibration_not_verified",
-                 "the calibrated mount or latency fits other segments worse than the nominal "
-                 "one: the nominal mount and sonar clock are kept",
-                 log);
-    }
-    if (keep_nominal) {
-        cal.mount = before;
-        cal.latency_s = 0;
-    }
-    st["kept_nominal"] = keep_nominal;
+}
+
+// The calibration (or the nominal mount, kept) into the survey model, and the soundings
+// georeferenced again: from the ingested series when the ping times change, else in place.
+void ApplyCalibration(Survey& s,
+                      const PipelineConfig& config,
+                      const calib::BoresightResult& cal,
+                      bool keep_nominal) {
     s.model.mount = cal.mount;
     s.model.calibration = keep_nominal ? survey::CalibrationState::kKeptNominal
                                        : survey::CalibrationState::kCalibrated;
@@ -433,7 +421,6 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         mc.latency_formal_sd_s = cal.latency_formal_sd_s;
     }
     if (mc.latency_applied && cal.latency_s != 0.0) {
-        // The ping times themselves change: georeference again from the ingested series.
         georef::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
         s.geo = georef::RunGeoref(s.model.ingest.nav,
                                   s.model.ingest.pings,
@@ -450,25 +437,139 @@ Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) 
         s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
             survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     }
+}
+
+// The sonar clock after the calibration, in summary.json's "sonar_clock"; with a configured
+// offset on header time, in its own terms too (the offset that would have needed no
+// correction), and a gate when the soundings' latency disagrees with it.
+void RecordCalibratedClock(Survey& s,
+                           const calib::BoresightResult& cal,
+                           const QualityConfig& q,
+                           const Log& log) {
+    const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+    const survey::SonarClockState& mc = s.model.clock;
+    json& clk = s.summary["sonar_clock"];
     clk["latency_s"] = mc.latency_applied ? mc.latency_s : 0.0;
     clk["latency_formal_sd_s"] = cal.latency_formal_sd_s;
     clk["correction_s"] = mc.correction_s();
     clk["sigma_s"] = mc.sigma_s();
-    if (mc.configured && header) {
-        // In the configured offset's own terms: the offset that would have needed no correction.
-        const double implied = ImpliedClockOffset(mc.configured_offset_s, mc.correction_s());
-        clk["estimated_offset_s"] = implied;
-        if (mc.latency_applied && std::abs(cal.latency_s) > std::max(q.clock_disagreement_s,
-                                                                     3 * cal.latency_formal_sd_s)) {
-            TripGate(s,
-                     Stage::kCalibrate,
-                     "sonar_clock_disagrees",
-                     "the configured sonar clock offset is " +
-                         Num("%+.4f", mc.configured_offset_s) + " s, the soundings put it at " +
-                         Num("%+.4f", implied) + " s; the soundings' value is applied",
-                     log);
-        }
+    if (!mc.configured || !header) return;
+    const double implied = ImpliedClockOffset(mc.configured_offset_s, mc.correction_s());
+    clk["estimated_offset_s"] = implied;
+    if (mc.latency_applied &&
+        std::abs(cal.latency_s) > std::max(q.clock_disagreement_s, 3 * cal.latency_formal_sd_s)) {
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "sonar_clock_disagrees",
+                 "the configured sonar clock offset is " + Num("%+.4f", mc.configured_offset_s) +
+                     " s, the soundings put it at " + Num("%+.4f", implied) +
+                     " s; the soundings' value is applied",
+                 log);
     }
+}
+
+}  // namespace
+
+Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    const georef::PingSeries& pings = s.model.ingest.pings;
+    const georef::NavSeries& nav = s.model.ingest.nav;
+    const bool header = pings.clock == georef::PingClock::kTopsideHeader;
+    json clk = {{"source",
+                 header ? "83P header: the topside PC clock (offset unknown)"
+                        : "pitmap-acqd: GPS-disciplined receive stamps"},
+                {"configured", config.ingest.sonar_clock_offset_known}};
+    if (config.ingest.sonar_clock_offset_known)
+        clk["configured_offset_s"] = config.ingest.sonar_clock_offset_s;
+    double applied = 0;
+    // What is left for the calibration's latency scan: the coarse estimate's uncertainty, or
+    // half a second around a configured offset; 0 for the daemon's stamps (ms: the
+    // calibration's linear range covers it).
+    double sigma = 0.0;
+    const std::string nav_span =
+        calib::SpanText(nav.samples.front().utime_gps, nav.samples.back().utime_gps);
+    calib::ClockRateEstimate rate;
+    if (header) {
+        if (auto c = CoarseHeaderClock(s, config, nav_span, log, clk, applied, sigma); !c) return c;
+        if (auto c = HeaderClockSteps(s, log, clk); !c) return c;
+        rate = HeaderClockRate(s, log, clk);
+    }
+    RecordClock(s, config, std::move(clk), applied, sigma, rate);
+    // The two recordings must overlap in time.
+    const std::int64_t p0 = pings.pings.front().utime_gps, p1 = pings.pings.back().utime_gps;
+    const std::int64_t n0 = nav.samples.front().utime_gps, n1 = nav.samples.back().utime_gps;
+    if (p1 < n0 || p0 > n1) {
+        return Error{"navigation and sonar do not overlap in time: navigation " + nav_span +
+                     ", sonar " + calib::SpanText(p0, p1) +
+                     (header ? " (sonar clock corrected by " + Num("%+.3f", applied) + " s)"
+                             : std::string())};
+    }
+    return Ok{};
+}
+
+Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    ClearGates(s, Stage::kCalibrate);
+    // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
+    if (s.model.ResetCalibration()) {
+        log("calibrate: starting again from the nominal mount and sonar clock");
+        s.geo = survey::Georeference(
+            s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
+    }
+    const georef::SonarMount before = s.model.mount;
+    const QualityConfig& q = config.quality;
+    json& clk = s.summary["sonar_clock"];
+    if (!clk.is_object()) clk = json::object();
+    const calib::BoresightConfig bc = CalibrationConfig(s, config);
+    ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
+    calib::BoresightResult cal =
+        calib::CalibrateBoresight(s.geo, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
+    bar.Finish();
+    log("calibrate: " + cal.message);
+    json st = CalibrationJson(cal, bc, before);
+    if (!cal.ins_attitude_reported && cal.termination != calib::Termination::kNoOverlap) {
+        log("calibrate: the navigation reports no roll, pitch or heading sigma in the calibration "
+            "window: the boresight's stated sd (sd_deg) is the fit's alone and optimistic (it "
+            "leaves out the INS's own attitude error)");
+    }
+    const bool verified = Verified(cal, bc, st, log);
+
+    if (cal.termination == calib::Termination::kNoOverlap) {
+        s.model.calibration = survey::CalibrationState::kNoOverlap;
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "calibration_no_overlap",
+                 cal.message +
+                     ": the boresight cannot be calibrated on this survey; the nominal "
+                     "mount of vehicle.yaml is kept",
+                 log);
+        return StopCalibration(s, st, clock, cal.message);
+    }
+    const Eigen::Vector3d change = MountChangeDeg(before, cal.mount);
+    st["change_from_nominal_deg"] = {change.x(), change.y(), change.z()};
+    if (change.cwiseAbs().maxCoeff() > q.max_boresight_change_deg) {
+        s.model.calibration = survey::CalibrationState::kKeptNominal;
+        const std::string what = ImplausibleChange(s, change, cal, q.max_boresight_change_deg);
+        TripGate(s, Stage::kCalibrate, "boresight_implausible", what, log);
+        st["kept_nominal"] = true;
+        return StopCalibration(s, st, clock, what);
+    }
+    GateCalibration(s, cal, q, log);
+    const bool keep_nominal = !verified || cal.latency_unresolved;
+    if (!verified) {
+        TripGate(s,
+                 Stage::kCalibrate,
+                 "calibration_not_verified",
+                 "the calibrated mount or latency fits other segments worse than the nominal "
+                 "one: the nominal mount and sonar clock are kept",
+                 log);
+    }
+    if (keep_nominal) {
+        cal.mount = before;
+        cal.latency_s = 0;
+    }
+    st["kept_nominal"] = keep_nominal;
+    ApplyCalibration(s, config, cal, keep_nominal);
+    RecordCalibratedClock(s, cal, q, log);
     s.summary["mount"] = MountJson(cal.mount);
     RecordStage(s.summary, Stage::kCalibrate, st, clock);
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
