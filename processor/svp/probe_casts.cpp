@@ -674,23 +674,79 @@ std::optional<std::int64_t> SeaBirdTime(const std::vector<std::string_view>& f, 
     return GpsAt(*y, *mo, *d, std::get<0>(*t), std::get<1>(*t), std::get<2>(*t));
 }
 
-Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
-                                      const std::string& name,
-                                      ProbeCastStats& st) {
-    const auto lines = SplitLines(text);
-    SoundSpeedCast c;
+// What a .cnv header says: position and times, the columns, and where the data start.
+struct SeaBirdHeader {
     std::optional<std::int64_t> nmea_time, cast_time, start_time;
     std::optional<double> lat, lon;
     int lat_line = 0;
     std::optional<int> nquan;
     std::optional<double> bad_flag;
     std::vector<std::pair<int, std::string>> names;  // index, short name
+    bool end = false;                                // the '*END*' line was seen
+    std::size_t data_line = 0;                       // the first line after it
+};
+
+// One '*' or '#' header line's key and value into h; an error for a malformed value.
+std::optional<Error> ReadSeaBirdHeaderLine(const Line& l,
+                                           const std::string& name,
+                                           SeaBirdHeader& h) {
+    const std::string_view body = TrimBlanks(l.text.substr(1));
+    const std::size_t eq = body.find('=');
+    const std::string_view key =
+        eq == std::string_view::npos ? body : TrimBlanks(body.substr(0, eq));
+    const std::string_view value =
+        eq == std::string_view::npos ? std::string_view() : TrimBlanks(body.substr(eq + 1));
+    if (key == "NMEA Latitude" || key == "NMEA Longitude") {
+        const auto v = NmeaAngle(value);
+        if (!v)
+            return At(
+                name, l.number, std::string(key) + " " + Quoted(value) + " is not 'dd mm.mm N'");
+        (key == "NMEA Latitude" ? h.lat : h.lon) = v;
+        h.lat_line = l.number;
+    } else if (key == "NMEA UTC (Time)") {
+        h.nmea_time = SeaBirdTime(SplitWhitespace(value), 0);
+        if (!h.nmea_time)
+            return At(name, l.number, "NMEA UTC time " + Quoted(value) + " does not parse");
+    } else if (key == "nquan") {
+        const auto v = Digits(value, 1, 3);
+        if (!v || *v == 0) return At(name, l.number, "nquan " + Quoted(value) + " is not a count");
+        h.nquan = *v;
+    } else if (key == "bad_flag") {
+        h.bad_flag = ParseNumber(value);
+    } else if (StartsWith(key, "name ")) {
+        const auto idx = Digits(TrimBlanks(key.substr(5)), 1, 3);
+        const std::size_t colon = value.find(':');
+        if (!idx || colon == std::string_view::npos) {
+            return At(name,
+                      l.number,
+                      "column name line " + Quoted(l.text) + " is not 'name i = short: long'");
+        }
+        h.names.push_back({*idx, std::string(TrimBlanks(value.substr(0, colon)))});
+    } else if (key == "start_time") {
+        if (Upper(value).find("UPLOAD") == std::string::npos) {
+            h.start_time = SeaBirdTime(SplitWhitespace(value), 0);
+        }
+    } else if (l.text.front() == '*' && !h.cast_time) {
+        // "* S>* cast   2 07 Mar 2013 20:01:53 samples 722 to 2030, ..."
+        const auto f = SplitWhitespace(body);
+        for (std::size_t k = 0; k + 1 < f.size(); ++k) {
+            if (f[k] == "cast" || StartsWith(f[k], "S>*cast")) {
+                h.cast_time = SeaBirdTime(f, k + 2);
+                break;
+            }
+        }
+    }
+    return std::nullopt;
+}
+
+// The header up to '*END*'; an error for data before it or a malformed line.
+Expected<SeaBirdHeader> ReadSeaBirdHeader(const std::vector<Line>& lines, const std::string& name) {
+    SeaBirdHeader h;
     std::size_t i = 0;
-    bool end = false;
     for (; i < lines.size(); ++i) {
         const Line& l = lines[i];
         if (l.text == "*END*") {
-            end = true;
+            h.end = true;
             ++i;
             break;
         }
@@ -698,71 +754,24 @@ Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
         if (l.text.front() != '*' && l.text.front() != '#') {
             return At(name, l.number, "data before '*END*': " + Quoted(l.text));
         }
-        const std::string_view body = TrimBlanks(l.text.substr(1));
-        const std::size_t eq = body.find('=');
-        const std::string_view key =
-            eq == std::string_view::npos ? body : TrimBlanks(body.substr(0, eq));
-        const std::string_view value =
-            eq == std::string_view::npos ? std::string_view() : TrimBlanks(body.substr(eq + 1));
-        if (key == "NMEA Latitude" || key == "NMEA Longitude") {
-            const auto v = NmeaAngle(value);
-            if (!v)
-                return At(name,
-                          l.number,
-                          std::string(key) + " " + Quoted(value) + " is not 'dd mm.mm N'");
-            (key == "NMEA Latitude" ? lat : lon) = v;
-            lat_line = l.number;
-        } else if (key == "NMEA UTC (Time)") {
-            nmea_time = SeaBirdTime(SplitWhitespace(value), 0);
-            if (!nmea_time)
-                return At(name, l.number, "NMEA UTC time " + Quoted(value) + " does not parse");
-        } else if (key == "nquan") {
-            const auto v = Digits(value, 1, 3);
-            if (!v || *v == 0)
-                return At(name, l.number, "nquan " + Quoted(value) + " is not a count");
-            nquan = *v;
-        } else if (key == "bad_flag") {
-            bad_flag = ParseNumber(value);
-        } else if (StartsWith(key, "name ")) {
-            const auto idx = Digits(TrimBlanks(key.substr(5)), 1, 3);
-            const std::size_t colon = value.find(':');
-            if (!idx || colon == std::string_view::npos) {
-                return At(name,
-                          l.number,
-                          "column name line " + Quoted(l.text) + " is not 'name i = short: long'");
-            }
-            names.push_back({*idx, std::string(TrimBlanks(value.substr(0, colon)))});
-        } else if (key == "start_time") {
-            if (Upper(value).find("UPLOAD") == std::string::npos) {
-                start_time = SeaBirdTime(SplitWhitespace(value), 0);
-            }
-        } else if (l.text.front() == '*' && !cast_time) {
-            // "* S>* cast   2 07 Mar 2013 20:01:53 samples 722 to 2030, ..."
-            const auto f = SplitWhitespace(body);
-            for (std::size_t k = 0; k + 1 < f.size(); ++k) {
-                if (f[k] == "cast" || StartsWith(f[k], "S>*cast")) {
-                    cast_time = SeaBirdTime(f, k + 2);
-                    break;
-                }
-            }
-        }
+        if (auto e = ReadSeaBirdHeaderLine(l, name, h)) return *e;
     }
-    if (!end) return Error{name + ": no '*END*' line: the header is truncated"};
-    if (!nquan) return Error{name + ": no '# nquan' in the header"};
-    if (lat && lon && !SetPosition(c, *lat, *lon))
-        return At(name, lat_line, "position out of range");
-    if (nmea_time) {
-        c.utime_gps = *nmea_time;
-    } else if (cast_time) {
-        c.utime_gps = *cast_time;
-    } else if (start_time) {
-        c.utime_gps = *start_time;
-    }
-    // Columns: depth, pressure, speed, temperature, salinity, conductivity, flag.
+    h.data_line = i;
+    return h;
+}
+
+// The columns a cast is made of: depth, pressure, speed, temperature, salinity, conductivity,
+// flag (-1: absent), with the temperature's scale to ITS-90 and the conductivity's to mS/cm.
+struct SeaBirdColumns {
     int col[7] = {-1, -1, -1, -1, -1, -1, -1};
     double t_scale = 1.0, c_scale = 1.0;
-    for (const auto& [idx, sn] : names) {
-        if (idx >= *nquan) return Error{name + ": column " + std::to_string(idx) + " >= nquan"};
+};
+
+Expected<SeaBirdColumns> FindSeaBirdColumns(const SeaBirdHeader& h, const std::string& name) {
+    SeaBirdColumns sc;
+    int* col = sc.col;
+    for (const auto& [idx, sn] : h.names) {
+        if (idx >= *h.nquan) return Error{name + ": column " + std::to_string(idx) + " >= nquan"};
         if (StartsWith(sn, "depS") || StartsWith(sn, "depF")) col[0] = idx;
         if (StartsWith(sn, "pr")) col[1] = idx;
         if (StartsWith(sn, "sv") && col[2] < 0) col[2] = idx;
@@ -770,14 +779,14 @@ Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
              StartsWith(sn, "t068")) &&
             col[3] < 0) {
             col[3] = idx;
-            t_scale = StartsWith(sn, "t068") ? 1.0 / 1.00024 : 1.0;
+            sc.t_scale = StartsWith(sn, "t068") ? 1.0 / 1.00024 : 1.0;
         }
         if (StartsWith(sn, "sal") && col[4] < 0) col[4] = idx;
         if ((StartsWith(sn, "c0") || StartsWith(sn, "c1")) && col[5] < 0) {
             col[5] = idx;
-            c_scale = sn.find("uS/cm") != std::string::npos   ? 1e-3
-                      : sn.find("mS/cm") != std::string::npos ? 1.0
-                                                              : 10.0;  // S/m
+            sc.c_scale = sn.find("uS/cm") != std::string::npos   ? 1e-3
+                         : sn.find("mS/cm") != std::string::npos ? 1.0
+                                                                 : 10.0;  // S/m
         }
         if (sn == "flag") col[6] = idx;
     }
@@ -788,18 +797,28 @@ Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
                      ": no sound speed (sv*) column, and no temperature with salinity or "
                      "conductivity to compute it"};
     }
-    st.speed_computed = col[2] < 0;
-    st.depth_from_pressure = col[0] < 0;
-    Samples s{{}, {}, st};
-    for (; i < lines.size(); ++i) {
+    return sc;
+}
+
+// The data rows into s: each row's depth and speed (computed from the CTD columns where the
+// file has no speed), bad-flagged rows counted invalid. An error for a row of the wrong width or
+// a value that is not a number.
+std::optional<Error> ReadSeaBirdRows(const std::vector<Line>& lines,
+                                     const SeaBirdHeader& h,
+                                     const SeaBirdColumns& sc,
+                                     double latitude,
+                                     const std::string& name,
+                                     Samples& s) {
+    const int* col = sc.col;
+    for (std::size_t i = h.data_line; i < lines.size(); ++i) {
         const Line& l = lines[i];
         if (l.text.empty()) continue;
         const auto f = SplitWhitespace(l.text);
-        if (f.size() != static_cast<std::size_t>(*nquan)) {
+        if (f.size() != static_cast<std::size_t>(*h.nquan)) {
             return At(name,
                       l.number,
                       std::to_string(f.size()) + " values, the header names " +
-                          std::to_string(*nquan) + " (a truncated row?)");
+                          std::to_string(*h.nquan) + " (a truncated row?)");
         }
         std::vector<double> v(f.size());
         bool bad = false;
@@ -807,7 +826,7 @@ Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
             const auto x = ParseNumber(f[k]);
             if (!x) return At(name, l.number, "value " + Quoted(f[k]) + " is not a number");
             v[k] = *x;
-            if (bad_flag && *x == *bad_flag) bad = true;
+            if (h.bad_flag && *x == *h.bad_flag) bad = true;
         }
         if (col[6] >= 0 && v[static_cast<std::size_t>(col[6])] != 0.0) bad = true;
         if (bad) {
@@ -819,15 +838,43 @@ Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
             return v[static_cast<std::size_t>(k)];
         };
         CtdRow r{get(col[0]), get(col[1]), get(col[2]), get(col[3]), get(col[4]), get(col[5])};
-        if (r.temperature_c) *r.temperature_c *= t_scale;
-        if (r.conductivity_ms_cm) *r.conductivity_ms_cm *= c_scale;
-        const auto ds = DepthSpeed(r, Latitude(c));
+        if (r.temperature_c) *r.temperature_c *= sc.t_scale;
+        if (r.conductivity_ms_cm) *r.conductivity_ms_cm *= sc.c_scale;
+        const auto ds = DepthSpeed(r, latitude);
         if (ds) {
             s.Add(ds->first, ds->second);
         } else {
             s.AddInvalid();
         }
     }
+    return std::nullopt;
+}
+
+Expected<SoundSpeedCast> ParseSeaBird(std::string_view text,
+                                      const std::string& name,
+                                      ProbeCastStats& st) {
+    const auto lines = SplitLines(text);
+    auto header = ReadSeaBirdHeader(lines, name);
+    if (!header) return header.error();
+    const SeaBirdHeader& h = *header;
+    if (!h.end) return Error{name + ": no '*END*' line: the header is truncated"};
+    if (!h.nquan) return Error{name + ": no '# nquan' in the header"};
+    SoundSpeedCast c;
+    if (h.lat && h.lon && !SetPosition(c, *h.lat, *h.lon))
+        return At(name, h.lat_line, "position out of range");
+    if (h.nmea_time) {
+        c.utime_gps = *h.nmea_time;
+    } else if (h.cast_time) {
+        c.utime_gps = *h.cast_time;
+    } else if (h.start_time) {
+        c.utime_gps = *h.start_time;
+    }
+    const auto columns = FindSeaBirdColumns(h, name);
+    if (!columns) return columns.error();
+    st.speed_computed = columns->col[2] < 0;
+    st.depth_from_pressure = columns->col[0] < 0;
+    Samples s{{}, {}, st};
+    if (auto e = ReadSeaBirdRows(lines, h, *columns, Latitude(c), name, s)) return *e;
     return Finish(std::move(c), s, name);
 }
 
