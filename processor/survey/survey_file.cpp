@@ -499,6 +499,85 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
     return Ok{};
 }
 
+namespace {
+
+// The sections a file held so far (each at most once).
+struct SeenSections {
+    bool state = false, ingest = false, intensity = false, angles = false, cleaning = false;
+    bool trajectory[kNumTrajectoryVersions] = {};
+
+    // The flag of section `tag` in a file of `format`; null for a section unknown there.
+    bool* Of(const std::string& tag, std::uint32_t format, int trajectory_index) {
+        return tag == "state"                       ? &state
+               : tag == "ingest"                    ? &ingest
+               : tag == "intensity" && format >= 2  ? &intensity
+               : tag == "beam_angle" && format >= 3 ? &angles
+               : tag == "cleaning" && format >= 4   ? &cleaning
+               : trajectory_index >= 0              ? &trajectory[trajectory_index]
+                                                    : nullptr;
+    }
+};
+
+// The trajectory version a section tag names, -1 for none.
+int TrajectoryIndex(const std::string& tag) {
+    int trajectory = -1;
+    for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+        if (tag == kTrajectoryTags[v]) trajectory = v;
+    }
+    return trajectory;
+}
+
+// One section's payload into the model (file_size bounds the cleaning section's count).
+Status DecodeSection(const std::string& tag,
+                     const std::vector<std::uint8_t>& payload,
+                     std::uint32_t format,
+                     std::uint64_t file_size,
+                     SurveyModel& m) {
+    if (tag == "state") {
+        const json j = json::parse(payload.begin(), payload.end(), nullptr, false);
+        Status st = j.is_discarded() || !j.is_object() ? Status(Error{"not a JSON object"})
+                                                       : StateFromJson(j, m);
+        if (!st) st = Error{"section state: " + st.error().message};
+        return st;
+    }
+    if (tag == "ingest") return IngestFromPayload(payload, format, m.ingest);
+    if (tag == "intensity") return IntensityFromPayload(payload, m.ingest.pings);
+    if (tag == "beam_angle") return BeamAngleFromPayload(payload, m.ingest.pings);
+    if (tag == "cleaning") {
+        return CleaningFromPayload(payload, file_size / sizeof(std::uint32_t), m.flags.cleaning);
+    }
+    return TrajectoryFromPayload(payload, tag, m.trajectories[TrajectoryIndex(tag)]);
+}
+
+// The per-sounding and per-ping sections against the ingested series: what does not match,
+// empty when all do.
+std::string SectionSizeMismatch(const SurveyModel& m, const SeenSections& seen) {
+    const auto& pings = m.ingest.pings;
+    if (seen.intensity && pings.intensities.size() != pings.range_counts.size()) {
+        return "section intensity has " + std::to_string(pings.intensities.size()) +
+               " intensities for " + std::to_string(pings.range_counts.size()) + " range counts";
+    }
+    if (seen.angles && pings.beam_angles_deg.size() != pings.range_counts.size()) {
+        return "section beam_angle has " + std::to_string(pings.beam_angles_deg.size()) +
+               " angles for " + std::to_string(pings.range_counts.size()) + " range counts";
+    }
+    if (seen.cleaning && m.flags.cleaning.size() != pings.range_counts.size()) {
+        return "section cleaning has " + std::to_string(m.flags.cleaning.size()) +
+               " soundings for " + std::to_string(pings.range_counts.size()) + " range counts";
+    }
+    for (int v = 0; v < kNumTrajectoryVersions; ++v) {
+        if (seen.trajectory[v] &&
+            m.trajectories[v].T_world_vehicle.size() != m.ingest.pings.pings.size()) {
+            return std::string("section ") + kTrajectoryTags[v] + " has " +
+                   std::to_string(m.trajectories[v].T_world_vehicle.size()) + " poses for " +
+                   std::to_string(m.ingest.pings.pings.size()) + " pings";
+        }
+    }
+    return "";
+}
+
+}  // namespace
+
 Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     const std::string rerun = " (run `pitmap georef` again)";
     std::FILE* f = std::fopen(path.c_str(), "rb");
@@ -531,9 +610,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     const std::uint32_t count = head[2];
     std::uint64_t pos = kHeadBytes;
     SurveyModel m;
-    bool seen_state = false, seen_ingest = false, seen_intensity = false, seen_angles = false,
-         seen_cleaning = false;
-    bool seen_trajectory[kNumTrajectoryVersions] = {};
+    SeenSections seen;
     auto corrupt = [&](const std::string& what) {
         return Error{path + ": corrupt survey file: " + what + rerun};
     };
@@ -552,20 +629,10 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             return corrupt("section " + tag + " claims " + std::to_string(n) + " bytes, " +
                            std::to_string(size - pos) + " remain");
         }
-        int trajectory = -1;
-        for (int v = 0; v < kNumTrajectoryVersions; ++v) {
-            if (tag == kTrajectoryTags[v]) trajectory = v;
-        }
-        bool* seen = tag == "state"                       ? &seen_state
-                     : tag == "ingest"                    ? &seen_ingest
-                     : tag == "intensity" && format >= 2  ? &seen_intensity
-                     : tag == "beam_angle" && format >= 3 ? &seen_angles
-                     : tag == "cleaning" && format >= 4   ? &seen_cleaning
-                     : trajectory >= 0                    ? &seen_trajectory[trajectory]
-                                                          : nullptr;
-        if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
-        if (*seen) return corrupt("section " + tag + " twice");
-        *seen = true;
+        bool* seen_flag = seen.Of(tag, format, TrajectoryIndex(tag));
+        if (seen_flag == nullptr) return corrupt("unknown section \"" + tag + "\"");
+        if (*seen_flag) return corrupt("section " + tag + " twice");
+        *seen_flag = true;
         if (parts == LoadParts::kState && tag != "state") {
             if (std::fseek(f, static_cast<long>(n), SEEK_CUR) != 0)
                 return Error{path + ": read error" + rerun};
@@ -577,54 +644,14 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             return Error{path + ": read error" + rerun};
         pos += n;
         if (Crc(payload) != crc) return corrupt("section " + tag + ": checksum mismatch");
-        Status st = Ok{};
-        if (tag == "state") {
-            const json j = json::parse(payload.begin(), payload.end(), nullptr, false);
-            st = j.is_discarded() || !j.is_object() ? Status(Error{"not a JSON object"})
-                                                    : StateFromJson(j, m);
-            if (!st) st = Error{"section state: " + st.error().message};
-        } else if (tag == "ingest") {
-            st = IngestFromPayload(payload, format, m.ingest);
-        } else if (tag == "intensity") {
-            st = IntensityFromPayload(payload, m.ingest.pings);
-        } else if (tag == "beam_angle") {
-            st = BeamAngleFromPayload(payload, m.ingest.pings);
-        } else if (tag == "cleaning") {
-            st = CleaningFromPayload(payload, size / sizeof(std::uint32_t), m.flags.cleaning);
-        } else {
-            st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
-        }
-        if (!st) return corrupt(st.error().message);
+        if (Status st = DecodeSection(tag, payload, format, size, m); !st)
+            return corrupt(st.error().message);
     }
     if (pos != size) return corrupt(std::to_string(size - pos) + " bytes after the last section");
-    if (!seen_state) return corrupt("no state section");
-    if (!seen_ingest) return corrupt("no ingest section");
+    if (!seen.state) return corrupt("no state section");
+    if (!seen.ingest) return corrupt("no ingest section");
     if (parts == LoadParts::kAll) {
-        const auto& pings = m.ingest.pings;
-        if (seen_intensity && pings.intensities.size() != pings.range_counts.size()) {
-            return corrupt("section intensity has " + std::to_string(pings.intensities.size()) +
-                           " intensities for " + std::to_string(pings.range_counts.size()) +
-                           " range counts");
-        }
-        if (seen_angles && pings.beam_angles_deg.size() != pings.range_counts.size()) {
-            return corrupt("section beam_angle has " +
-                           std::to_string(pings.beam_angles_deg.size()) + " angles for " +
-                           std::to_string(pings.range_counts.size()) + " range counts");
-        }
-        if (seen_cleaning && m.flags.cleaning.size() != pings.range_counts.size()) {
-            return corrupt("section cleaning has " + std::to_string(m.flags.cleaning.size()) +
-                           " soundings for " + std::to_string(pings.range_counts.size()) +
-                           " range counts");
-        }
-        for (int v = 0; v < kNumTrajectoryVersions; ++v) {
-            if (seen_trajectory[v] &&
-                m.trajectories[v].T_world_vehicle.size() != m.ingest.pings.pings.size()) {
-                return corrupt(std::string("section ") + kTrajectoryTags[v] + " has " +
-                               std::to_string(m.trajectories[v].T_world_vehicle.size()) +
-                               " poses for " + std::to_string(m.ingest.pings.pings.size()) +
-                               " pings");
-            }
-        }
+        if (const std::string bad = SectionSizeMismatch(m, seen); !bad.empty()) return corrupt(bad);
     }
     return m;
 }
