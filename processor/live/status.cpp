@@ -195,6 +195,138 @@ void StatusTracker::Set(std::vector<Alarm>& next,
     while (history_.size() > kHistory) history_.pop_front();
 }
 
+namespace {
+
+// "a" + "; " + "b": the reasons of one alarm.
+void Append(std::string& reason, const std::string& more) {
+    if (!reason.empty()) reason += "; ";
+    reason += more;
+}
+
+// Sonar: no ping for sonar_silent_s (since the last, or since the first message), or the
+// daemon's sonar channel silent or disconnected.
+std::string SonarSilence(std::int64_t now,
+                         std::int64_t last_ping_utime,
+                         std::int64_t first_utime,
+                         const DaemonStatusIn* daemon,
+                         const StatusConfig& config) {
+    std::string reason;
+    const double quiet_s = Seconds(now - (last_ping_utime > 0 ? last_ping_utime : first_utime));
+    if (quiet_s > config.sonar_silent_s) {
+        reason = last_ping_utime > 0 ? Fmt("no ping for %.1f s", quiet_s)
+                                     : Fmt("no ping since the first message (%.1f s)", quiet_s);
+    }
+    if (daemon != nullptr) {
+        for (const ChannelStatusIn& c : daemon->channels) {
+            if (c.protocol.rfind("deltat", 0) != 0) continue;
+            if (c.state == kChannelSilent || c.state == kChannelDisconnected)
+                Append(reason,
+                       "daemon reports channel " + c.name + " " + ChannelStateName(c.state));
+        }
+    }
+    return reason;
+}
+
+// INS: its status, its horizontal and heading sigmas, its age.
+std::string InsDegraded(const NavStatusIn& nav, std::int64_t now, const StatusConfig& config) {
+    std::string reason;
+    if (nav.ins_status != kInsSolutionGood) {
+        reason = std::string("INS status ") + InsStatusName(nav.ins_status);
+    }
+    if (nav.north_sigma_m >= 0 && nav.east_sigma_m >= 0) {
+        const double h = std::hypot(nav.north_sigma_m, nav.east_sigma_m);
+        if (h > config.ins_position_sigma_max_m)
+            Append(reason,
+                   Fmt("horizontal sigma %.2f m > %.2f m", h, config.ins_position_sigma_max_m));
+    }
+    if (nav.heading_sigma_deg > config.ins_heading_sigma_max_deg) {
+        Append(reason,
+               Fmt("heading sigma %.2f deg > %.2f deg",
+                   nav.heading_sigma_deg,
+                   config.ins_heading_sigma_max_deg));
+    }
+    const double age_s = Seconds(now - nav.utime);
+    if (age_s > config.sonar_silent_s) Append(reason, Fmt("no INS solution for %.1f s", age_s));
+    return reason;
+}
+
+// GNSS: no position, or no computed solution, for gnss_outage_s.
+std::string GnssOutage(const GnssStatusIn& gnss,
+                       std::int64_t bad_since,
+                       std::int64_t now,
+                       const StatusConfig& config) {
+    const double age_s = Seconds(now - gnss.utime);
+    if (age_s > config.gnss_outage_s) return Fmt("no GNSS position for %.1f s", age_s);
+    if (bad_since != 0 && Seconds(now - bad_since) > config.gnss_outage_s) {
+        return Fmt("GNSS solution not computed for %.1f s (solution status %.0f)",
+                   Seconds(now - bad_since),
+                   gnss.solution_status);
+    }
+    return "";
+}
+
+// Clocks: every model the daemon runs that is not locked, except the sonar header clock of a
+// daemon that stamps pings on receipt (it reports NO_TIME for it by design).
+std::string ClocksNotLocked(const std::map<int, ClockStatusIn>& clocks) {
+    std::string reason;
+    for (const auto& [source, c] : clocks) {
+        if (source == kSourceSonarHeader && c.state == 0) continue;
+        if (c.state != kClockLocked) {
+            Append(reason,
+                   std::string(ClockSourceName(source)) + " clock " + ClockStateName(c.state) +
+                       Fmt(" (sigma %.0f us)", c.stddev_us));
+        }
+    }
+    return reason;
+}
+
+// Disk: little free space, or the daemon's logging stopped.
+std::string DiskLow(const DaemonStatusIn& daemon, const StatusConfig& config) {
+    std::string reason;
+    if (daemon.disk_free_bytes >= 0 && daemon.disk_free_bytes < config.disk_low_bytes) {
+        reason = Fmt("%.0f MB free < %.0f MB",
+                     static_cast<double>(daemon.disk_free_bytes) / 1e6,
+                     static_cast<double>(config.disk_low_bytes) / 1e6);
+    }
+    if (daemon.logging == kLoggingDiskGuard || daemon.logging == kLoggingError)
+        Append(reason, std::string("logging stopped: ") + LoggingName(daemon.logging));
+    return reason;
+}
+
+// Drops: the daemon's drop count rose within the window (the first sample its baseline).
+std::string DropsRising(const std::deque<std::pair<std::int64_t, std::int64_t>>& drops) {
+    if (drops.size() < 2 || drops.back().second <= drops.front().second) return "";
+    return Fmt("%.0f drops in the last %.0f s",
+               static_cast<double>(drops.back().second - drops.front().second),
+               Seconds(drops.back().first - drops.front().first));
+}
+
+// TVU: the share of the cells first filled within the window that fail the order's TVU, when
+// enough were filled and it is over tvu_alarm_percent; empty otherwise.
+std::string TvuOverLimit(const std::deque<TvuCellsIn>& tvu, const StatusConfig& config) {
+    std::int64_t fresh = 0, failing = 0;
+    for (const TvuCellsIn& t : tvu) {
+        fresh += t.new_cells;
+        failing += t.failing;
+    }
+    const double pct =
+        fresh > 0 ? 100.0 * static_cast<double>(failing) / static_cast<double>(fresh) : 0.0;
+    if (!(fresh >= config.tvu_min_new_cells && pct > config.tvu_alarm_percent)) return "";
+    char buf[200];
+    std::snprintf(buf,
+                  sizeof buf,
+                  " limit in %.0f %% of new cells (%lld of %lld first filled in the last "
+                  "%.0f s; alarm above %.0f %%)",
+                  pct,
+                  static_cast<long long>(failing),
+                  static_cast<long long>(fresh),
+                  config.tvu_window_s,
+                  config.tvu_alarm_percent);
+    return "TVU over the order " + tvu.back().order + buf;
+}
+
+}  // namespace
+
 void StatusTracker::Evaluate(std::int64_t wall_utime) {
     const std::int64_t now = data_utime_;
     const auto window = static_cast<std::int64_t>(config_.rate_window_s * 1e6);
@@ -202,142 +334,39 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
     const auto drops_window = static_cast<std::int64_t>(config_.drops_window_s * 1e6);
     // Keep one sample older than the window as the baseline.
     while (drops_.size() > 1 && drops_[1].first <= now - drops_window) drops_.pop_front();
+    const auto tvu_window = static_cast<std::int64_t>(config_.tvu_window_s * 1e6);
 
     std::vector<Alarm> next;
     if (now == 0) {
         active_.clear();
         return;
     }
-    // Sonar.
-    {
-        std::string reason;
-        const double quiet_s =
-            Seconds(now - (last_ping_utime_ > 0 ? last_ping_utime_ : first_utime_));
-        if (quiet_s > config_.sonar_silent_s) {
-            reason = last_ping_utime_ > 0
-                         ? Fmt("no ping for %.1f s", quiet_s)
-                         : Fmt("no ping since the first message (%.1f s)", quiet_s);
-        }
-        if (have_daemon_) {
-            for (const ChannelStatusIn& c : daemon_.channels) {
-                if (c.protocol.rfind("deltat", 0) != 0) continue;
-                if (c.state == kChannelSilent || c.state == kChannelDisconnected) {
-                    if (!reason.empty()) reason += "; ";
-                    reason += "daemon reports channel " + c.name + " " + ChannelStateName(c.state);
-                }
-            }
-        }
-        Set(next, "sonar_silent", !reason.empty(), reason);
-    }
-    // INS.
+    const std::string sonar = SonarSilence(
+        now, last_ping_utime_, first_utime_, have_daemon_ ? &daemon_ : nullptr, config_);
+    Set(next, "sonar_silent", !sonar.empty(), sonar);
     if (have_nav_) {
-        std::string reason;
-        if (nav_.ins_status != kInsSolutionGood) {
-            reason = std::string("INS status ") + InsStatusName(nav_.ins_status);
-        }
-        if (nav_.north_sigma_m >= 0 && nav_.east_sigma_m >= 0) {
-            const double h = std::hypot(nav_.north_sigma_m, nav_.east_sigma_m);
-            if (h > config_.ins_position_sigma_max_m) {
-                if (!reason.empty()) reason += "; ";
-                reason +=
-                    Fmt("horizontal sigma %.2f m > %.2f m", h, config_.ins_position_sigma_max_m);
-            }
-        }
-        if (nav_.heading_sigma_deg > config_.ins_heading_sigma_max_deg) {
-            if (!reason.empty()) reason += "; ";
-            reason += Fmt("heading sigma %.2f deg > %.2f deg",
-                          nav_.heading_sigma_deg,
-                          config_.ins_heading_sigma_max_deg);
-        }
-        const double age_s = Seconds(now - nav_.utime);
-        if (age_s > config_.sonar_silent_s) {
-            if (!reason.empty()) reason += "; ";
-            reason += Fmt("no INS solution for %.1f s", age_s);
-        }
-        Set(next, "ins_degraded", !reason.empty(), reason);
+        const std::string ins = InsDegraded(nav_, now, config_);
+        Set(next, "ins_degraded", !ins.empty(), ins);
     }
-    // GNSS.
     if (have_gnss_) {
-        std::string reason;
-        const double age_s = Seconds(now - gnss_.utime);
-        if (age_s > config_.gnss_outage_s) {
-            reason = Fmt("no GNSS position for %.1f s", age_s);
-        } else if (gnss_bad_since_ != 0 && Seconds(now - gnss_bad_since_) > config_.gnss_outage_s) {
-            reason = Fmt("GNSS solution not computed for %.1f s (solution status %.0f)",
-                         Seconds(now - gnss_bad_since_),
-                         gnss_.solution_status);
-        }
-        Set(next, "gnss_outage", !reason.empty(), reason);
+        const std::string gnss = GnssOutage(gnss_, gnss_bad_since_, now, config_);
+        Set(next, "gnss_outage", !gnss.empty(), gnss);
     }
-    // Clocks: every model the daemon runs, except the sonar header clock of a daemon that
-    // stamps pings on receipt (it reports NO_TIME for it by design).
-    {
-        std::string reason;
-        for (const auto& [source, c] : clocks_) {
-            if (source == kSourceSonarHeader && c.state == 0) continue;
-            if (c.state != kClockLocked) {
-                if (!reason.empty()) reason += "; ";
-                reason += std::string(ClockSourceName(source)) + " clock " +
-                          ClockStateName(c.state) + Fmt(" (sigma %.0f us)", c.stddev_us);
-            }
-        }
-        Set(next, "clock_not_locked", !reason.empty(), reason);
-    }
-    // Disk and drops.
+    const std::string clocks = ClocksNotLocked(clocks_);
+    Set(next, "clock_not_locked", !clocks.empty(), clocks);
     if (have_daemon_) {
-        std::string reason;
-        if (daemon_.disk_free_bytes >= 0 && daemon_.disk_free_bytes < config_.disk_low_bytes) {
-            reason = Fmt("%.0f MB free < %.0f MB",
-                         static_cast<double>(daemon_.disk_free_bytes) / 1e6,
-                         static_cast<double>(config_.disk_low_bytes) / 1e6);
-        }
-        if (daemon_.logging == kLoggingDiskGuard || daemon_.logging == kLoggingError) {
-            if (!reason.empty()) reason += "; ";
-            reason += std::string("logging stopped: ") + LoggingName(daemon_.logging);
-        }
-        Set(next, "disk_low", !reason.empty(), reason);
-        std::string drops;
-        if (drops_.size() >= 2 && drops_.back().second > drops_.front().second) {
-            drops = Fmt("%.0f drops in the last %.0f s",
-                        static_cast<double>(drops_.back().second - drops_.front().second),
-                        Seconds(drops_.back().first - drops_.front().first));
-        }
+        const std::string disk = DiskLow(daemon_, config_);
+        Set(next, "disk_low", !disk.empty(), disk);
+        const std::string drops = DropsRising(drops_);
         Set(next, "drops_rising", !drops.empty(), drops);
     }
-    // TVU of the new coverage.
-    {
-        const auto tvu_window = static_cast<std::int64_t>(config_.tvu_window_s * 1e6);
-        while (!tvu_.empty() && tvu_.front().utime < now - tvu_window) tvu_.pop_front();
-        std::int64_t fresh = 0, failing = 0;
-        for (const TvuCellsIn& t : tvu_) {
-            fresh += t.new_cells;
-            failing += t.failing;
-        }
-        const double pct =
-            fresh > 0 ? 100.0 * static_cast<double>(failing) / static_cast<double>(fresh) : 0.0;
-        const bool on = fresh >= config_.tvu_min_new_cells && pct > config_.tvu_alarm_percent;
-        std::string reason;
-        if (on) {
-            char buf[200];
-            std::snprintf(buf,
-                          sizeof buf,
-                          " limit in %.0f %% of new cells (%lld of %lld first filled in the last "
-                          "%.0f s; alarm above %.0f %%)",
-                          pct,
-                          static_cast<long long>(failing),
-                          static_cast<long long>(fresh),
-                          config_.tvu_window_s,
-                          config_.tvu_alarm_percent);
-            reason = "TVU over the order " + tvu_.back().order + buf;
-        }
-        Set(next, "tvu_over_limit", on, reason);
-    }
+    while (!tvu_.empty() && tvu_.front().utime < now - tvu_window) tvu_.pop_front();
+    const std::string tvu = TvuOverLimit(tvu_, config_);
+    Set(next, "tvu_over_limit", !tvu.empty(), tvu);
     // The feed itself.
-    {
-        const double quiet_s = Seconds(wall_utime - last_wall_utime_);
-        const bool on = !feed_ended_ && last_wall_utime_ > 0 && quiet_s > config_.no_messages_s;
-        Set(next, "no_messages", on, Fmt("no LCM message for %.1f s", quiet_s));
-    }
+    const double quiet_s = Seconds(wall_utime - last_wall_utime_);
+    const bool quiet = !feed_ended_ && last_wall_utime_ > 0 && quiet_s > config_.no_messages_s;
+    Set(next, "no_messages", quiet, Fmt("no LCM message for %.1f s", quiet_s));
     active_ = std::move(next);
 }
 
