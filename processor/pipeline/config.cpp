@@ -446,6 +446,19 @@ void VisitProducts(V&& v, PipelineConfig& c) {
     });
 }
 
+template <class V>
+void VisitMetadata(V&& v, SurveyMetadataConfig& c) {
+    v("project", c.project, "project name (the products' title)");
+    v("client", c.client, "who the survey is for");
+    v("site", c.site, "the pit's name (also names a water-level vertical datum)");
+    v("survey_id", c.survey_id, "the survey's reference");
+    v("surveyor", c.surveyor, "the person responsible for the survey");
+    v("organisation", c.organisation, "the surveyor's organisation");
+    v("vessel", c.vessel, "\"\" = vehicle.yaml's name");
+    v("s44_order_target", c.s44_order_target, "\"\" | exclusive | special | 1a | 1b | 2");
+    v("notes", c.notes, "free text (several lines allowed)");
+}
+
 // The sections of the processor config, in file order.
 template <class V>
 void VisitConfig(V&& v, PipelineConfig& c) {
@@ -464,6 +477,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });
+    v.Section("metadata", [&](auto& s) { VisitMetadata(s, c.metadata); });
 }
 
 // Reads every entry from a YAML map; problems are collected in the ConfigReader.
@@ -642,6 +656,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
     for (auto& s : quality.Validate()) p.push_back("quality." + s);
     for (auto& s : grid.Validate()) p.push_back(s);
+    for (auto& s : metadata.Validate()) p.push_back(s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");
     const bool any = !std::isnan(origin_latitude_deg) || !std::isnan(origin_longitude_deg) ||

@@ -137,13 +137,15 @@ Status WritePoints(const std::string& dir,
                    const PipelineConfig& c,
                    json& summary,
                    const std::string& run_id,
-                   const georef::GeorefResult* rejected) {
+                   const georef::GeorefResult* rejected,
+                   const ProductMetadata* meta) {
     if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id, rejected); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected); !s)
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected, meta);
+            !s)
             return s;
     }
     return Ok{};
@@ -161,11 +163,12 @@ georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
 
 Status WritePoints(Survey& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
     if (!c.write_rejected) {
-        return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id);
+        return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &meta);
     }
     const georef::GeorefResult rejected = RejectedView(s, c);
-    return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected);
+    return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &meta);
 }
 
 json SoundingsJson(const georef::StatusCounts& counts) {

@@ -13,6 +13,7 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -123,9 +124,12 @@ Status WritePoints(const std::string& dir,
                    const PipelineConfig& c,
                    nlohmann::json& summary,
                    const std::string& run_id,
-                   const georef::GeorefResult* rejected = nullptr);
+                   const georef::GeorefResult* rejected = nullptr,
+                   const ProductMetadata* meta = nullptr);
 // The same for the survey: its soundings (s.geo) and, with products.write_rejected, the
-// rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson).
+// rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson) and
+// summary["metadata"] (ellipsoidal heights: the grid stage writes the points again in the
+// vertical datum).
 Status WritePoints(Survey& s, const PipelineConfig& c);
 
 // The rejected soundings of the survey's current view (georef::SoundingView::kRejected on the
@@ -176,6 +180,20 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep);
 // model's flags.cleaning and taken out of the view (its counts follow), except those a hand
 // edit restored. Returns which points stayed (index = the point before).
 std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status);
+// The products' vertical datum (config.grid.vertical, hydro/datum.hpp) at every ping of s.geo
+// (the grid stage's; the mesh stage's georeferenced files use it too). Fails as the grid stage
+// would (no geoid grid, no INS height above the water line, a water-level file that does not
+// cover the survey).
+Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
+                                        const PipelineConfig& config,
+                                        nlohmann::json* record,
+                                        const Log& log);
+// The products' metadata (metadata.hpp) of this survey: the config's section, the vehicle file's
+// equipment, the first and last ping, the UTM zone of the world origin and `datum` (nullptr =
+// ellipsoidal heights); also sets summary["metadata"] to it.
+ProductMetadata SurveyProductMetadata(Survey& s,
+                                      const PipelineConfig& config,
+                                      const hydro::DatumModel* datum);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
