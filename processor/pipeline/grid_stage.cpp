@@ -504,6 +504,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     const hydro::CubeGrid& g = cube.grid;
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
+    s.datum = *datum;
     io::GridRaster raster;
     raster.product = meta;
     raster.x0 = g.x0;
@@ -567,6 +568,10 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                 !w)
                 return w;
             files.push_back("points.las");
+            if (auto w = WriteProjectedPoints(P, s.geo, *utm, rej, *datum, meta, s.model.run_id);
+                !w)
+                return w;
+            files.push_back("points_utm.ply");
         }
         tpu.thu_95_m = std::move(extras.thu_95_m);
         tpu.tvu_95_m = std::move(extras.tvu_95_m);

@@ -150,6 +150,20 @@ ProductMetadata SurveyProductMetadata(Survey& s,
     }
     in.datum = datum;
     ProductMetadata m = BuildProductMetadata(config.metadata, in);
+    if (pings.empty()) {
+        // The pings freed (`run` before the mesh) or not loaded: the span georef recorded
+        // (summary.json "time", microseconds cut to the second).
+        const auto t = s.summary.find("time");
+        const auto cut = [](const nlohmann::json& v) {
+            return v.is_string() && v.get<std::string>().size() >= 19
+                       ? v.get<std::string>().substr(0, 19) + "Z"
+                       : std::string();
+        };
+        if (t != s.summary.end() && t->is_object()) {
+            m.survey_start_utc = cut(t->value("first_ping_utc", nlohmann::json()));
+            m.survey_end_utc = cut(t->value("last_ping_utc", nlohmann::json()));
+        }
+    }
     s.summary["metadata"] = MetadataJson(m);
     return m;
 }

@@ -147,6 +147,16 @@ Status WritePoints(const std::string& dir,
         if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected, meta);
             !s)
             return s;
+        // Heights above the ellipsoid here: the grid stage writes them again in the datum.
+        if (auto s = WriteProjectedPoints(dir,
+                                          geo,
+                                          *utm,
+                                          rejected,
+                                          hydro::DatumModel{},
+                                          meta != nullptr ? *meta : ProductMetadata{},
+                                          run_id);
+            !s)
+            return s;
     }
     return Ok{};
 }
@@ -195,7 +205,10 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "mesh.glb",
                                            "mesh_filled.ply",
                                            "mesh_filled.obj",
-                                           "mesh_filled.glb"};
+                                           "mesh_filled.glb",
+                                           "mesh_utm.ply",
+                                           "mesh_utm.glb",
+                                           "mesh_utm.prj"};
     const std::vector<std::string> report = {"report.html", "report"};
     std::vector<std::string> out;
     const auto add = [&out](const std::vector<std::string>& names) {
@@ -210,6 +223,8 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                  "ingest.cache",  // the survey file's predecessor
                  "points.ply",
                  "points.las",
+                 "points_utm.ply",
+                 "points_utm.prj",
                  "boresight.json",
                  "trajectory_ins.csv",
                  "tsdf.vdb",
@@ -228,7 +243,7 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
             add(report);
             break;
         case Stage::kClean:
-            add({"points.ply", "points.las"});
+            add({"points.ply", "points.las", "points_utm.ply", "points_utm.prj"});
             add(grid);
             add({"tsdf.vdb"});
             add(mesh);

@@ -24,6 +24,7 @@
 #include "common/progress.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -477,6 +478,46 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     return volume;
 }
 
+namespace {
+
+// mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp). The datum is
+// the grid stage's; without it, built from the pings, or the ellipsoid's when the config names
+// it; a mesh stage without pings and with another datum skips the files with a warning.
+Status WriteProjectedMeshes(Survey& s,
+                            const mesh::ColouredMesh& m,
+                            const PipelineConfig& config,
+                            const Log& log) {
+    if (!s.datum) {
+        if (!s.geo.pings.empty()) {
+            auto d = SurveyDatum(s, config, nullptr, [](const std::string&) {});
+            if (!d) {
+                log("warning: mesh: mesh_utm.* not written: " + d.error().message);
+                return Ok{};
+            }
+            s.datum = std::move(*d);
+        } else if (config.grid.vertical.datum == hydro::VerticalDatum::kEllipsoid) {
+            s.datum = hydro::DatumModel{};
+        } else {
+            log("warning: mesh: mesh_utm.* not written: the vertical datum needs the pings "
+                "(pitmap grid, or pitmap run)");
+            return Ok{};
+        }
+    }
+    auto projected = ProjectMesh(m, s.model.origin, *s.datum, config);
+    if (!projected) return projected.error();
+    const ProductMetadata meta = SurveyProductMetadata(s, config, &*s.datum);
+    const std::string& P = s.out_dir;
+    if (auto w = mesh::WriteProjectedPly(m, *projected, P + "/mesh_utm.ply", &meta, s.model.run_id);
+        !w)
+        return w;
+    if (auto w = mesh::WriteProjectedGlb(m, *projected, P + "/mesh_utm.glb", &meta, s.model.run_id);
+        !w)
+        return w;
+    return io::WritePrj(P + "/mesh_utm.prj", projected->crs_wkt);
+}
+
+}  // namespace
+
 Status MeshSurvey(Survey& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
@@ -522,6 +563,7 @@ Status MeshSurvey(Survey& s,
         for (Status& w : written) {
             if (!w) return w;
         }
+        if (auto w = WriteProjectedMeshes(s, m.mesh, config, log); !w) return w;
     } else {
         if (auto w = mesh::WritePly(m.mesh, P + "/" + stage_name + ".ply", origin, s.model.run_id);
             !w)
@@ -733,6 +775,12 @@ Status RunAfterGeoref(detail::Survey& s,
         if (!v) return v.error();
         // The soundings and the ingested series are saved (survey.pitmap, the points): free
         // them before the mesh, the run's largest stage (~0.4 GB on bejanca).
+        if (!s.datum) {
+            // The georeferenced mesh's vertical datum needs the pings freed here (no grid
+            // stage ran); without it the mesh stage says why mesh_utm.* is missing.
+            if (auto d = SurveyDatum(s, config, nullptr, [](const std::string&) {}); d)
+                s.datum = std::move(*d);
+        }
         s.geo = georef::GeorefResult{};
         s.model.ingest = io::IngestResult{};
         s.model.trajectories = {};

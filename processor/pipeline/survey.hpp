@@ -16,6 +16,7 @@
 #include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/mesh/export.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/survey/survey.hpp"
 
@@ -36,6 +37,8 @@ struct Survey {
     // the end (ExportSurvey), so that each product is written once. Stage commands write their
     // products themselves.
     bool defer_products = false;
+    // The products' vertical datum, once the grid stage (or the mesh stage) built it.
+    std::optional<hydro::DatumModel> datum;
 };
 
 // Refraction for a new georeference: the config's casts (none: straight rays) with the INS
@@ -194,6 +197,22 @@ Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
 ProductMetadata SurveyProductMetadata(Survey& s,
                                       const PipelineConfig& config,
                                       const hydro::DatumModel* datum);
+// points_utm.ply and points_utm.prj (projected_products.cpp): the soundings (and the rejected
+// ones after them) in the products' CRS, heights h - D of `datum` at their ping.
+Status WriteProjectedPoints(const std::string& dir,
+                            const georef::GeorefResult& geo,
+                            const georef::UtmPoints& utm,
+                            const georef::GeorefResult* rejected,
+                            const hydro::DatumModel& datum,
+                            const ProductMetadata& meta,
+                            const std::string& run_id);
+// A mesh's vertices (world ENU at `origin`) in the products' CRS: UTM in the origin's zone
+// (exact, GeographicLib, per vertex), heights in `datum`'s vertical CRS (the geoid at each
+// vertex; a water level's mean over the survey).
+Expected<mesh::ProjectedMesh> ProjectMesh(const mesh::ColouredMesh& m,
+                                          const Geodetic& origin,
+                                          const hydro::DatumModel& datum,
+                                          const PipelineConfig& config);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
