@@ -2,6 +2,7 @@
 // The processor's YAML configuration: reading with every problem listed, validation, defaults.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <sstream>
@@ -518,6 +519,29 @@ private:
     ConfigReader in_;
 };
 
+// A YAML double-quoted scalar: backslash, quote and control characters escaped (a newline
+// printed as such would fold into a space when read back).
+std::string YamlQuoted(const std::string& s) {
+    std::string o = "\"";
+    for (const char c : s) {
+        if (c == '"' || c == '\\') {
+            o += '\\';
+            o += c;
+        } else if (c == '\n') {
+            o += "\\n";
+        } else if (c == '\t') {
+            o += "\\t";
+        } else if (static_cast<unsigned char>(c) < 0x20) {
+            char b[8];
+            std::snprintf(b, sizeof b, "\\x%02x", static_cast<unsigned>(c));
+            o += b;
+        } else {
+            o += c;
+        }
+    }
+    return o + "\"";
+}
+
 // Prints every entry as YAML, "key: value  # comment", indented by section depth.
 class PrintVisitor {
 public:
@@ -529,11 +553,11 @@ public:
         if constexpr (std::is_same_v<T, bool>) {
             v << (value ? "true" : "false");
         } else if constexpr (std::is_same_v<T, std::string>) {
-            v << std::quoted(value);
+            v << YamlQuoted(value);
         } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
             v << "[";
             for (std::size_t i = 0; i < value.size(); ++i) {
-                v << (i > 0 ? ", " : "") << std::quoted(value[i]);
+                v << (i > 0 ? ", " : "") << YamlQuoted(value[i]);
             }
             v << "]";
         } else {
