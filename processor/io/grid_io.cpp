@@ -407,9 +407,11 @@ CrsIdentity DescribeCrs(const OGRSpatialReference& srs) {
         }
     } else if (srs.IsProjected() && srs.GetAxesCount() == 3) {
         // UTM promoted to 3D: the third axis is the ellipsoidal height of its datum.
-        const char* base = srs.GetAttrValue("GEOGCS");
-        id.vertical_name = std::string(base != nullptr ? base : "?") + " ellipsoidal height";
-        if (const char* datum = srs.GetAttrValue("DATUM"); datum != nullptr) {
+        std::unique_ptr<OGRSpatialReference> base(srs.CloneGeogCS());
+        const char* name = base != nullptr ? base->GetName() : nullptr;
+        id.vertical_name = std::string(name != nullptr ? name : "?") + " ellipsoidal height";
+        if (const char* datum = base != nullptr ? base->GetAttrValue("DATUM") : nullptr;
+            datum != nullptr) {
             id.vertical_datum = datum;
         }
     }
