@@ -334,6 +334,8 @@ Status WriteCogGeoTiffTo(const std::string& path, const GridRaster& grid) {
             layer_names += (layer_names.empty() ? "" : ", ") + l.name;
         }
         SetTiffMetadata(**mem, *grid.product, layer_names);
+        // A raster of values that are not heights (the mosaic) has no vertical CRS.
+        if (grid.horizontal_only) (*mem)->SetMetadataItem("pitmap_vertical_crs", nullptr);
     }
     char** opts = nullptr;
     opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");

@@ -480,9 +480,30 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
 
 namespace {
 
+// The datum the grid stage of this run applied (summary.json "vertical_datum", this run's:
+// LoadSummaryOfRun), when it is the config's: its CRS and mean height, what the mesh needs.
+std::optional<hydro::DatumModel> DatumOfGridStage(const json& summary,
+                                                  const PipelineConfig& config) {
+    const auto r = summary.find("vertical_datum");
+    if (r == summary.end() || !r->is_object()) return std::nullopt;
+    if (r->value("datum", "") != hydro::ToString(config.grid.vertical.datum)) return std::nullopt;
+    if (!r->value("vertical_crs", json()).is_string() ||
+        !r->value("mean_datum_height_m", json()).is_number()) {
+        return std::nullopt;
+    }
+    hydro::DatumModel d;
+    d.datum = config.grid.vertical.datum;
+    d.crs_name = (*r)["vertical_crs"].get<std::string>();
+    const json epsg = r->value("vertical_epsg", json());
+    d.vertical_epsg = epsg.is_number_integer() ? epsg.get<int>() : 0;
+    d.description = r->value("description", "");
+    d.mean_datum_height_m = (*r)["mean_datum_height_m"].get<double>();
+    return d;
+}
+
 // mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp). The datum is
 // the grid stage's; without it, built from the pings, or the ellipsoid's when the config names
-// it; a mesh stage without pings and with another datum skips the files with a warning.
+// it, or the one this run's grid stage recorded; else the files are skipped with a warning.
 Status WriteProjectedMeshes(Survey& s,
                             const mesh::ColouredMesh& m,
                             const PipelineConfig& config,
@@ -497,9 +518,12 @@ Status WriteProjectedMeshes(Survey& s,
             s.datum = std::move(*d);
         } else if (config.grid.vertical.datum == hydro::VerticalDatum::kEllipsoid) {
             s.datum = hydro::DatumModel{};
+        } else if (auto d = DatumOfGridStage(s.summary, config); d) {
+            s.datum = std::move(*d);
         } else {
-            log("warning: mesh: mesh_utm.* not written: the vertical datum needs the pings "
-                "(pitmap grid, or pitmap run)");
+            log("warning: mesh: mesh_utm.* not written: the vertical datum " +
+                std::string(hydro::ToString(config.grid.vertical.datum)) +
+                " needs the grid stage of this run (pitmap grid, or pitmap run)");
             return Ok{};
         }
     }
