@@ -501,32 +501,19 @@ std::optional<hydro::DatumModel> DatumOfGridStage(const json& summary,
     return d;
 }
 
-// mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp). The datum is
-// the grid stage's; without it, built from the pings, or the ellipsoid's when the config names
-// it, or the one this run's grid stage recorded; else the files are skipped with a warning.
+// mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp), in the
+// vertical datum of this run's points and DEM: the grid stage's (in memory, else as it recorded
+// it), the ellipsoid when no grid stage applied one.
 Status WriteProjectedMeshes(Survey& s,
                             const mesh::ColouredMesh& m,
                             const PipelineConfig& config,
                             const Log& log) {
     if (!s.datum) {
-        if (!s.geo.pings.empty()) {
-            auto d = SurveyDatum(s, config, nullptr, [](const std::string&) {});
-            if (!d) {
-                log("warning: mesh: mesh_utm.* not written: " + d.error().message);
-                return Ok{};
-            }
-            s.datum = std::move(*d);
-        } else if (config.grid.vertical.datum == hydro::VerticalDatum::kEllipsoid) {
-            s.datum = hydro::DatumModel{};
-        } else if (auto d = DatumOfGridStage(s.summary, config); d) {
-            s.datum = std::move(*d);
-        } else {
-            log("warning: mesh: mesh_utm.* not written: the vertical datum " +
-                std::string(hydro::ToString(config.grid.vertical.datum)) +
-                " needs the grid stage of this run (pitmap grid, or pitmap run)");
-            return Ok{};
-        }
+        // The datum of this run's points and DEM: the grid stage's, else none was applied
+        // (the points are ellipsoidal) and the mesh follows them.
+        s.datum = DatumOfGridStage(s.summary, config).value_or(hydro::DatumModel{});
     }
+    const auto start = std::chrono::steady_clock::now();
     auto projected = ProjectMesh(m, s.model.origin, *s.datum, config);
     if (!projected) return projected.error();
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*s.datum);
@@ -537,7 +524,11 @@ Status WriteProjectedMeshes(Survey& s,
     if (auto w = mesh::WriteProjectedGlb(m, *projected, P + "/mesh_utm.glb", &meta, s.model.run_id);
         !w)
         return w;
-    return io::WritePrj(P + "/mesh_utm.prj", projected->crs_wkt);
+    if (auto w = io::WritePrj(P + "/mesh_utm.prj", projected->crs_wkt); !w) return w;
+    log("mesh: mesh_utm.{ply,glb} in " + projected->crs_name + " (" +
+        Fixed(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2) +
+        " s)");
+    return Ok{};
 }
 
 }  // namespace
@@ -799,12 +790,6 @@ Status RunAfterGeoref(detail::Survey& s,
         if (!v) return v.error();
         // The soundings and the ingested series are saved (survey.pitmap, the points): free
         // them before the mesh, the run's largest stage (~0.4 GB on bejanca).
-        if (!s.datum) {
-            // The georeferenced mesh's vertical datum needs the pings freed here (no grid
-            // stage ran); without it the mesh stage says why mesh_utm.* is missing.
-            if (auto d = SurveyDatum(s, config, nullptr, [](const std::string&) {}); d)
-                s.datum = std::move(*d);
-        }
         s.geo = georef::GeorefResult{};
         s.model.ingest = io::IngestResult{};
         s.model.trajectories = {};
