@@ -436,6 +436,9 @@ void VisitRun(V&& v, RunOptions& r) {
 template <class V>
 void VisitProducts(V&& v, PipelineConfig& c) {
     v("write_las", c.write_las, "points.las (UTM) beside points.ply");
+    v("write_points_utm",
+      c.write_points_utm,
+      "points_utm.ply (+ .prj) beside points.las: absolute UTM doubles for PLY readers");
     v("write_rejected",
       c.write_rejected,
       "points.ply/las also hold the rejected soundings (PLY status, LAS withheld noise)");

@@ -568,10 +568,13 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                 !w)
                 return w;
             files.push_back("points.las");
-            if (auto w = WriteProjectedPoints(P, s.geo, *utm, rej, *datum, meta, s.model.run_id);
-                !w)
-                return w;
-            files.push_back("points_utm.ply");
+            if (config.write_points_utm) {
+                if (auto w =
+                        WriteProjectedPoints(P, s.geo, *utm, rej, *datum, meta, s.model.run_id);
+                    !w)
+                    return w;
+                files.push_back("points_utm.ply");
+            }
         }
         tpu.thu_95_m = std::move(extras.thu_95_m);
         tpu.tvu_95_m = std::move(extras.tvu_95_m);

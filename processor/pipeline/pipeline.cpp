@@ -148,6 +148,7 @@ Status WritePoints(const std::string& dir,
             !s)
             return s;
         // Heights above the ellipsoid here: the grid stage writes them again in the datum.
+        if (!c.write_points_utm) return Ok{};
         if (auto s = WriteProjectedPoints(dir,
                                           geo,
                                           *utm,

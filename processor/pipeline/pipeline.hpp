@@ -135,6 +135,9 @@ struct PipelineConfig {
     double origin_longitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_height_m = std::numeric_limits<double>::quiet_NaN();
     bool write_las = true;  // points.las (UTM) beside points.ply
+    // points_utm.ply (+ .prj) beside points.las: the soundings as absolute UTM doubles for PLY
+    // readers (docs/georeferencing.md); about 33 bytes a sounding.
+    bool write_points_utm = true;
     // points.ply/las also hold the rejected soundings (after the accepted ones, with their
     // status; io/products.hpp); false = the accepted soundings only.
     bool write_rejected = true;
