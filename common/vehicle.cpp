@@ -279,7 +279,11 @@ std::string Format(const VehicleDescription& v, int indent, bool comments) {
     line(std::string("  sound_velocity_source: ") + ToString(v.sound_velocity_source),
          "probe (at the head) | manual (topside) | unknown");
     line("  channel: " + Quoted(v.sonar_channel), "LCM channel id, \"\" = every one");
-    line("  model: " + Quoted(v.sonar_model), "make and model (products' metadata); optional");
+    // Optional (issue 39: the products' metadata), written when given: the template printed by
+    // `pitmap config --vehicle` is README's block, which does not show them.
+    if (!v.sonar_model.empty()) {
+        line("  model: " + Quoted(v.sonar_model), "make and model (products' metadata)");
+    }
     line("gnss:", "");
     if (v.gnss_antenna_lever_arms_m.empty()) {
         line("  antenna_lever_arms_m: []", "one [x, y, z] per antenna, m");
@@ -293,7 +297,9 @@ std::string Format(const VehicleDescription& v, int indent, bool comments) {
                                                : std::string("null")),
          "INS above the water line, m; null = unknown");
     line("  channel: " + Quoted(v.navigation_channel), "LCM channel id, \"\" = every one");
-    line("  model: " + Quoted(v.ins_model), "GNSS/INS make and model (metadata); optional");
+    if (!v.ins_model.empty()) {
+        line("  model: " + Quoted(v.ins_model), "GNSS/INS make and model (products' metadata)");
+    }
     if (v.uncertainty) {
         note("Sensor error model, 1 sigma (total propagated uncertainty per sounding);");
         note("absent = these defaults (Imagenex Delta T, NovAtel SPAN with RTK).");
@@ -520,8 +526,6 @@ std::string VehicleYamlTemplate() {
     v.sonar_lever_arm_m = Eigen::Vector3d(0.95, 0.0, 0.62);
     v.gnss_antenna_lever_arms_m = {Eigen::Vector3d(0.42, -0.31, -1.25)};
     v.ins_height_above_waterline_m = 0.35;
-    v.sonar_model = "Imagenex Delta T";
-    v.ins_model = "NovAtel SPAN";
     v.uncertainty = SensorErrorModel{};
     return Format(v, 0, true);
 }
