@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -393,14 +394,15 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
                 {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
         }
     }
+    // The mount used and what is known of it, from the model (summary.json is written, never
+    // read back for a product).
     json bj = MountJson(s.model.mount);
-    if (s.model.calibration == survey::CalibrationState::kCalibrated) {
+    if (s.model.calibration == survey::CalibrationState::kCalibrated &&
+        std::isfinite(s.model.boresight_sd_deg[0])) {
         // The calibrated boresight's 1-sigma uncertainty: range noise and the INS's attitude.
-        const json stages = s.summary.value("stages", json::object());
-        const json cal = stages.is_object() ? stages.value("calibrate", json::object()) : json();
-        if (cal.is_object() && cal.contains("sd_deg")) bj["sd_deg"] = cal["sd_deg"];
+        bj["sd_deg"] = s.model.boresight_sd_deg;
     }
-    bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
+    bj["sonar_clock"] = survey::ClockJson(s.model.clock);
     if (!s.model.run_id.empty()) bj["run_id"] = s.model.run_id;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)
