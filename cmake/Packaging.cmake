@@ -86,9 +86,9 @@ during a survey, pitmap edit cleans soundings by hand. Also pitmap-sim (syntheti
 surveys), pitmap-eval (scores against ground truth) and pitmap-inspect (log contents).")
 # What dpkg-shlibdeps cannot see: pitmap-report's Python modules, and three.js read at run time
 # by the report's 3D view and the edit page (/usr/share/javascript/three). python3-gdal: the
-# report's sonar mosaic section only.
+# report's sonar mosaic section only; libopenblas0-pthread: the fast BLAS under CHOLMOD (SLAM).
 set(CPACK_DEBIAN_SHORE_PACKAGE_DEPENDS "python3, python3-numpy, python3-matplotlib, libjs-three")
-set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal")
+set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal, libopenblas0-pthread")
 _pitmap_control_files(pitmap CPACK_DEBIAN_SHORE_PACKAGE_CONTROL_EXTRA)
 
 include(CPack)
