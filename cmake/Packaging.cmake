@@ -33,7 +33,17 @@ set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)  # <name>_<version>_<arch>.deb
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 # Shared-library dependencies computed by dpkg-shlibdeps (dpkg-dev), appended to the ones below.
-set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# A cross build computes them itself against its sysroot (dpkg-shlibdeps reads the installed
+# packages' symbols files, which a sysroot is not: tools/build-arm64.sh) and gives them here.
+set(PITMAP_PACKAGE_SHLIBS_DEPENDS "" CACHE STRING
+    "shared-library Depends computed outside CPack (cross builds); empty = dpkg-shlibdeps")
+if(PITMAP_PACKAGE_SHLIBS_DEPENDS)
+  set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS OFF)
+  set(_shlibs_depends ", ${PITMAP_PACKAGE_SHLIBS_DEPENDS}")
+else()
+  set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+  set(_shlibs_depends "")
+endif()
 # A cross build (cmake/toolchain-aarch64-linux-gnu.cmake) says which architecture it builds for;
 # otherwise CPack asks dpkg (the build machine's).
 if(PITMAP_DEBIAN_ARCHITECTURE)
@@ -73,6 +83,9 @@ with its sysusers.d, tmpfiles.d and sysctl.d snippets. Configuration: /etc/pitma
 # systemd-sysusers/systemd-tmpfiles when there (the vehicle); the postinst falls back to
 # useradd and install -d (passwd, coreutils) in a container without systemd.
 set(CPACK_DEBIAN_ACQD_PACKAGE_RECOMMENDS "systemd")
+if(_shlibs_depends)
+  string(SUBSTRING "${_shlibs_depends}" 2 -1 CPACK_DEBIAN_ACQD_PACKAGE_DEPENDS)
+endif()
 _pitmap_control_files(pitmap-acqd CPACK_DEBIAN_ACQD_PACKAGE_CONTROL_EXTRA)
 
 # pitmap (component shore).
@@ -87,7 +100,8 @@ surveys), pitmap-eval (scores against ground truth) and pitmap-inspect (log cont
 # What dpkg-shlibdeps cannot see: pitmap-report's Python modules, and three.js read at run time
 # by the report's 3D view and the edit page (/usr/share/javascript/three). python3-gdal: the
 # report's sonar mosaic section only; libopenblas0-pthread: the fast BLAS under CHOLMOD (SLAM).
-set(CPACK_DEBIAN_SHORE_PACKAGE_DEPENDS "python3, python3-numpy, python3-matplotlib, libjs-three")
+set(CPACK_DEBIAN_SHORE_PACKAGE_DEPENDS
+    "python3, python3-numpy, python3-matplotlib, libjs-three${_shlibs_depends}")
 set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal, libopenblas0-pthread")
 _pitmap_control_files(pitmap CPACK_DEBIAN_SHORE_PACKAGE_CONTROL_EXTRA)
 
