@@ -70,16 +70,49 @@ function(_pitmap_control_files package out_var)
   set(${out_var} ${_files} PARENT_SCOPE)
 endfunction()
 
+# Each package's /usr/share/doc/<package>/: the copyright (MIT) and a changelog naming the
+# version and the commit it was built from (Debian policy 12.5 and 12.7).
+find_package(Git QUIET)
+set(_commit "unknown commit")
+if(GIT_FOUND)
+  execute_process(COMMAND ${GIT_EXECUTABLE} -C ${PROJECT_SOURCE_DIR} rev-parse --short=12 HEAD
+                  OUTPUT_VARIABLE _git_head OUTPUT_STRIP_TRAILING_WHITESPACE
+                  RESULT_VARIABLE _git_rc ERROR_QUIET)
+  if(_git_rc EQUAL 0)
+    set(_commit "commit ${_git_head}")
+  endif()
+endif()
+string(TIMESTAMP _changelog_date "%a, %d %b %Y %H:%M:%S +0000" UTC)  # honours SOURCE_DATE_EPOCH
+foreach(_pkg_comp pitmap-acqd:acqd pitmap:shore)
+  string(REPLACE ":" ";" _pc ${_pkg_comp})
+  list(GET _pc 0 _pkg)
+  list(GET _pc 1 _comp)
+  set(_doc ${CMAKE_BINARY_DIR}/debian/${_pkg}/doc)
+  file(MAKE_DIRECTORY ${_doc})
+  file(CONFIGURE OUTPUT ${_doc}/changelog CONTENT
+"${_pkg} (${PITMAP_PACKAGE_VERSION}) unstable; urgency=medium
+
+  * Built with CPack from ${_commit} (docs/packages.md).
+
+ -- ${CPACK_PACKAGE_CONTACT}  ${_changelog_date}
+" @ONLY)
+  file(ARCHIVE_CREATE OUTPUT ${_doc}/changelog.gz PATHS ${_doc}/changelog FORMAT raw
+       COMPRESSION GZip COMPRESSION_LEVEL 9)
+  install(FILES ${CMAKE_CURRENT_LIST_DIR}/debian/copyright ${_doc}/changelog.gz
+          DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/${_pkg} COMPONENT ${_comp})
+endforeach()
+
 # pitmap-acqd (component acqd).
 set(CPACK_COMPONENT_ACQD_DISPLAY_NAME "pitmap-acqd")
 set(CPACK_DEBIAN_ACQD_PACKAGE_NAME pitmap-acqd)
+# Extended descriptions: lines of at most 79 characters (CPack indents them by one).
 set(CPACK_DEBIAN_ACQD_DESCRIPTION
-    "pitmap onboard acquisition daemon
-pitmap-acqd reads the NovAtel SPAN receiver (serial, TCP) and the Imagenex Delta T
-multibeam (UDP), stamps everything in GPS time, writes rotated LCM logs and publishes
-them on LCM. Installed as a sandboxed systemd service (user pitmap, no capabilities),
-with its sysusers.d, tmpfiles.d and sysctl.d snippets. Configuration: /etc/pitmap/acqd.yaml
-(example: /etc/pitmap/acqd.yaml.example).")
+    "onboard acquisition daemon of pitmap (sonar and GNSS/INS to GPS-timed logs)
+pitmap-acqd reads the NovAtel SPAN receiver (serial, TCP) and the Imagenex
+Delta T multibeam (UDP), stamps everything in GPS time, writes rotated LCM
+logs and publishes them on LCM. A sandboxed systemd service (user pitmap, no
+capabilities) with its sysusers.d, tmpfiles.d and sysctl.d snippets.
+Configuration: /etc/pitmap/acqd.yaml (example: /etc/pitmap/acqd.yaml.example).")
 # systemd-sysusers/systemd-tmpfiles when there (the vehicle); the postinst falls back to
 # useradd and install -d (passwd, coreutils) in a container without systemd.
 set(CPACK_DEBIAN_ACQD_PACKAGE_RECOMMENDS "systemd")
@@ -92,11 +125,12 @@ _pitmap_control_files(pitmap-acqd CPACK_DEBIAN_ACQD_PACKAGE_CONTROL_EXTRA)
 set(CPACK_COMPONENT_SHORE_DISPLAY_NAME "pitmap")
 set(CPACK_DEBIAN_SHORE_PACKAGE_NAME pitmap)
 set(CPACK_DEBIAN_SHORE_DESCRIPTION
-    "pitmap shore processor: flooded open-pit mine maps from survey logs
-pitmap turns the logs of pitmap-acqd into calibrated, SLAM-corrected soundings, a
-mesh, grids and an HTML report (pitmap run); pitmap live shows coverage and alarms
-during a survey, pitmap edit cleans soundings by hand. Also pitmap-sim (synthetic
-surveys), pitmap-eval (scores against ground truth) and pitmap-inspect (log contents).")
+    "shore processor of pitmap: flooded open-pit mine maps from survey logs
+pitmap turns the logs of pitmap-acqd into calibrated, SLAM-corrected
+soundings, a mesh, grids and an HTML report (pitmap run); pitmap live shows
+coverage and alarms during a survey, pitmap edit cleans soundings by hand.
+Also pitmap-sim (synthetic surveys), pitmap-eval (scores against ground
+truth) and pitmap-inspect (log contents).")
 # What dpkg-shlibdeps cannot see: pitmap-report's Python modules, and three.js read at run time
 # by the report's 3D view and the edit page (/usr/share/javascript/three). python3-gdal: the
 # report's sonar mosaic section only; libopenblas0-pthread: the fast BLAS under CHOLMOD (SLAM).

@@ -64,12 +64,30 @@ configure_and_package() {
   for deb in "$dir"/packages/*.deb; do
     echo "build-packages: $label: ${deb#"$root"/} ($(($(stat -c %s "$deb") / 1024)) KiB)"
     dpkg-deb -f "$deb" Depends | sed 's/^/  Depends: /'
+    debs+=("$deb")
   done
 }
+debs=()
 
 if [[ $which != shore ]]; then
   configure_and_package "$vehicle" "vehicle" -DPITMAP_BUILD_PROCESSOR=OFF
 fi
 if [[ $which != acqd ]]; then
   configure_and_package "$build" "shore"
+fi
+
+# Debian policy checks (lintian, from tools/install-deps.sh; not in --minimal): an error fails.
+# Left: no-manual-page (the programs' --help is their manual).
+if command -v lintian > /dev/null 2>&1; then
+  log=$(mktemp)
+  trap 'rm -f "$log"' EXIT
+  if ! lintian --fail-on error --suppress-tags no-manual-page "${debs[@]}" > "$log" 2>&1; then
+    grep -v "root privileges" "$log" >&2
+    echo "build-packages: lintian found errors" >&2
+    exit 1
+  fi
+  grep -v "root privileges" "$log" || true
+  echo "build-packages: lintian: no errors in ${#debs[@]} package(s)"
+else
+  echo "build-packages: lintian not installed: the packages are not checked against Debian policy"
 fi

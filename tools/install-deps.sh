@@ -32,8 +32,9 @@ processor_pkgs=(
 browser_pkgs=(
   chromium libjs-three
 )
+# lintian: Debian policy checks of the packages (tools/build-packages.sh).
 tool_pkgs=(
-  clang libclang-rt-14-dev clang-format llvm-14 ccache
+  clang libclang-rt-14-dev clang-format llvm-14 ccache lintian
 )
 
 pkgs=("${common_pkgs[@]}")
