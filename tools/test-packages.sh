@@ -19,7 +19,8 @@
 #   pitmap       pitmap-sim synth (a 30 s demo survey) -> pitmap run -> the products and
 #                report.html with its 3D view (three.js from libjs-three inlined);
 #                pitmap-eval scores them; pitmap-report from /usr/bin re-writes the report
-#                with the scores; pitmap-live --help.
+#                with the scores; `pitmap live` finds pitmap-live; `pitmap edit` serves
+#                three.js from libjs-three.
 #   purge        both packages gone, none of their files, the enablement links and
 #                deb-systemd-helper state gone, /var/log/pitmap gone; the user pitmap is
 #                removed here only if this script's install created it (Debian keeps system
@@ -72,7 +73,9 @@ fail() {
 }
 ok() { echo "test-packages: ok: $*"; }
 
+edit_pid=
 cleanup() {
+  if [[ -n $edit_pid ]]; then kill "$edit_pid" 2> /dev/null || true; fi
   rm -f /etc/pitmap/acqd.yaml
   rm -rf /var/log/pitmap/pkgtest
   dpkg --purge pitmap pitmap-acqd > "$tmp/purge-on-exit.out" 2>&1 || cat "$tmp/purge-on-exit.out"
@@ -190,7 +193,12 @@ echo "=== pitmap"
 [[ $(readlink -f "$(command -v pitmap)") == /usr/lib/pitmap/pitmap ]] ||
   fail "pitmap is not a link to /usr/lib/pitmap/pitmap"
 pitmap --help > /dev/null || fail "pitmap --help"
-pitmap-live --help > /dev/null || fail "pitmap-live --help"
+# `pitmap live` runs pitmap-live from pitmap's own folder (through the /usr/bin link).
+if pitmap live --help 2>&1 | grep -q "^pitmap-live:"; then
+  ok "pitmap live runs /usr/lib/pitmap/pitmap-live"
+else
+  fail "pitmap live --help: $(pitmap live --help 2>&1 | head -n 3)"
+fi
 run_start=$(date +%s)
 if (cd "$tmp" && pitmap run sim/log --out P > run.out 2>&1); then
   ok "pitmap run on the 30 s demo in $(($(date +%s) - run_start)) s"
@@ -220,6 +228,29 @@ if pitmap-report "$tmp/P" --scores "$tmp/scores.json" > "$tmp/report.out" 2>&1 &
 else
   fail "pitmap-report: $(tail -n 5 "$tmp/report.out")"
 fi
+
+# The edit page serves three.js from libjs-three (the installed path the program reads).
+pitmap edit "$tmp/P" --port 0 --no-open > "$tmp/edit.out" 2>&1 &
+edit_pid=$!
+url=
+for _ in $(seq 60); do  # up to 30 s for the URL (it loads the survey first)
+  url=$(grep -o 'http://127\.0\.0\.1:[0-9]*' "$tmp/edit.out" | head -n 1 || true)
+  [[ -n $url ]] && break
+  kill -0 "$edit_pid" 2> /dev/null || break
+  sleep 0.5
+done
+three=/usr/share/javascript/three/three.min.js
+got=$(python3 -c 'import sys, urllib.request
+print(len(urllib.request.urlopen(sys.argv[1] + "/three.min.js", timeout=30).read()))' \
+  "$url" 2> /dev/null || true)
+if [[ -n $url && $got == "$(stat -c %s "$three")" ]]; then
+  ok "pitmap edit serves $three ($got bytes)"
+else
+  fail "pitmap edit: url '$url', three.min.js '$got' bytes: $(tail -n 5 "$tmp/edit.out")"
+fi
+kill "$edit_pid" 2> /dev/null || true
+wait "$edit_pid" 2> /dev/null || true
+edit_pid=
 
 echo "=== purge"
 rm -f /etc/pitmap/acqd.yaml
