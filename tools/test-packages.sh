@@ -10,7 +10,7 @@
 #   default: build-vehicle/packages/pitmap-acqd_*.deb and build/packages/pitmap_*.deb
 #
 # What it checks:
-#   pitmap-acqd  --help; --version (when the binary has it); --check-config of the installed
+#   pitmap-acqd  --help; --version names the package's version; --check-config of the installed
 #                example (exit 0) and of a broken copy (exit 2, the problem named); the user and
 #                group pitmap, /var/log/pitmap 0750 pitmap:pitmap; the unit names the installed
 #                binary (systemd-analyze verify when there); not enabled without
@@ -19,8 +19,8 @@
 #   pitmap       pitmap-sim synth (a 30 s demo survey) -> pitmap run -> the products and
 #                report.html with its 3D view (three.js from libjs-three inlined);
 #                pitmap-eval scores them; pitmap-report from /usr/bin re-writes the report
-#                with the scores; `pitmap live` finds pitmap-live; `pitmap edit` serves
-#                three.js from libjs-three.
+#                with the scores (and --pdf when chromium is there); `pitmap live` finds
+#                pitmap-live; `pitmap edit` serves three.js from libjs-three.
 #   purge        both packages gone, none of their files, the enablement links and
 #                deb-systemd-helper state gone, /var/log/pitmap gone; the user pitmap is
 #                removed here only if this script's install created it (Debian keeps system
@@ -107,12 +107,14 @@ if pitmap-acqd --help > "$tmp/help.out" 2>&1 && grep -q -- "--check-config" "$tm
 else
   fail "pitmap-acqd --help: $(cat "$tmp/help.out")"
 fi
-if grep -q -- "--version" "$tmp/help.out"; then
-  if pitmap-acqd --version > "$tmp/version.out" 2>&1 && [[ -s $tmp/version.out ]]; then
-    ok "pitmap-acqd --version: $(head -n 1 "$tmp/version.out")"
-  else
-    fail "pitmap-acqd --version: $(cat "$tmp/version.out")"
-  fi
+# --version names the package's upstream version (its Debian version less any -revision).
+upstream=$(dpkg-query -W -f='${Version}' pitmap-acqd)
+upstream=${upstream%-*}
+if pitmap-acqd --version > "$tmp/version.out" 2>&1 &&
+  [[ $(head -n 1 "$tmp/version.out") == "pitmap-acqd $upstream"* ]]; then
+  ok "pitmap-acqd --version: $(head -n 1 "$tmp/version.out")"
+else
+  fail "pitmap-acqd --version (want pitmap-acqd $upstream): $(cat "$tmp/version.out")"
 fi
 example=/etc/pitmap/acqd.yaml.example
 if pitmap-acqd --config "$example" --check-config > "$tmp/check.out" 2>&1; then
@@ -222,11 +224,22 @@ else
   fail "pitmap-eval: $(tail -n 5 "$tmp/eval.out")"
 fi
 rm -f "$tmp/P/report.html"
-if pitmap-report "$tmp/P" --scores "$tmp/scores.json" > "$tmp/report.out" 2>&1 &&
+# --pdf prints through chromium (a Suggests of the package; tools/install-deps.sh installs it)
+# with the DevTools client installed in pitmap_report_lib.
+pdf=()
+if command -v chromium > /dev/null 2>&1; then pdf=(--pdf); fi
+if pitmap-report "$tmp/P" --scores "$tmp/scores.json" "${pdf[@]}" > "$tmp/report.out" 2>&1 &&
   [[ -s $tmp/P/report.html ]]; then
   ok "pitmap-report (/usr/bin link) with the scores"
 else
   fail "pitmap-report: $(tail -n 5 "$tmp/report.out")"
+fi
+if [[ ${#pdf[@]} -gt 0 ]]; then
+  if [[ $(head -c 4 "$tmp/P/report.pdf" 2> /dev/null) == "%PDF" ]]; then
+    ok "pitmap-report --pdf: report.pdf ($(stat -c %s "$tmp/P/report.pdf") bytes)"
+  else
+    fail "pitmap-report --pdf wrote no PDF: $(tail -n 5 "$tmp/report.out")"
+  fi
 fi
 
 # The edit page serves three.js from libjs-three (the installed path the program reads).
