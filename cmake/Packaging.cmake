@@ -133,7 +133,8 @@ Also pitmap-sim (synthetic surveys), pitmap-eval (scores against ground
 truth) and pitmap-inspect (log contents).")
 # What dpkg-shlibdeps cannot see: pitmap-report's Python modules, and three.js read at run time
 # by the report's 3D view and the edit page (/usr/share/javascript/three). python3-gdal: the
-# report's sonar mosaic section and its grid coordinates only; libopenblas0-pthread: the fast BLAS under CHOLMOD (SLAM).
+# report's sonar mosaic section and its grid coordinates only; libopenblas0-pthread: the fast
+# BLAS under CHOLMOD (SLAM).
 set(CPACK_DEBIAN_SHORE_PACKAGE_DEPENDS
     "python3, python3-numpy, python3-matplotlib, libjs-three${_shlibs_depends}")
 set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal, libopenblas0-pthread")

@@ -65,7 +65,8 @@ CONF
   # Absolute links (libfoo.so -> /lib/aarch64-linux-gnu/libfoo.so.1) point into the sysroot.
   find "$sysroot" -type l -lname '/*' -print0 |
     while IFS= read -r -d '' link; do
-      ln -sfn "$(realpath -m --relative-to="$(dirname "$link")" "$sysroot$(readlink "$link")")" "$link"
+      target=$sysroot$(readlink "$link")
+      ln -sfn "$(realpath -m --relative-to="$(dirname "$link")" "$target")" "$link"
     done
   # Every package's symbols and shlibs files, as if the sysroot were one package being built:
   # dpkg-shlibdeps -S reads them there (it finds nothing in this machine's dpkg database).
@@ -77,7 +78,8 @@ CONF
     dpkg-deb --info "$deb" shlibs >> "$sysroot/DEBIAN/shlibs" 2> /dev/null || true
   done
   echo "$want" > "$stamp"
-  echo "build-arm64: sysroot $(du -sh "$sysroot" | cut -f1), $(find "$aptdir/archives" -name '*.deb' | wc -l) packages"
+  n=$(find "$aptdir/archives" -name '*.deb' | wc -l)
+  echo "build-arm64: sysroot $(du -sh "$sysroot" | cut -f1), $n packages"
 fi
 
 # shellcheck disable=SC2086  # PITMAP_CMAKE_ARGS: several words

@@ -32,8 +32,8 @@ start=$(date +%s)
 acqd_deb=${1:-}
 shore_deb=${2:-}
 if [[ -z $acqd_deb ]]; then
-  acqd_deb=$(find "$root/build-vehicle/packages" -maxdepth 1 -name 'pitmap-acqd_*.deb' 2> /dev/null |
-    sort | tail -n 1)
+  acqd_deb=$(find "$root/build-vehicle/packages" -maxdepth 1 -name 'pitmap-acqd_*.deb' \
+    2> /dev/null | sort | tail -n 1)
   shore_deb=$(find "$root/build/packages" -maxdepth 1 -name 'pitmap_*.deb' 2> /dev/null |
     sort | tail -n 1)
 fi
@@ -101,7 +101,8 @@ for p in pitmap pitmap-acqd; do
 done
 
 echo "=== pitmap-acqd"
-[[ $(command -v pitmap-acqd) == /usr/bin/pitmap-acqd ]] || fail "pitmap-acqd is not /usr/bin/pitmap-acqd"
+[[ $(command -v pitmap-acqd) == /usr/bin/pitmap-acqd ]] ||
+  fail "pitmap-acqd is not /usr/bin/pitmap-acqd"
 if pitmap-acqd --help > "$tmp/help.out" 2>&1 && grep -q -- "--check-config" "$tmp/help.out"; then
   ok "pitmap-acqd --help"
 else
@@ -183,9 +184,11 @@ if runuser -u pitmap -- pitmap-acqd --config "$tmp/replay.yaml" > "$tmp/acqd.out
   logfile=$(find /var/log/pitmap/pkgtest -maxdepth 1 -name 'pkgtest*' -type f | head -n 1)
   if [[ -n $logfile && $(stat -c '%a %U' "$logfile") == "640 pitmap" ]] &&
     pitmap-inspect "$logfile" > "$tmp/inspect.out" 2>&1; then
-    ok "pitmap-acqd as user pitmap logged $(stat -c %s "$logfile") bytes (0640), pitmap-inspect reads it"
+    ok "pitmap-acqd as user pitmap logged $(stat -c %s "$logfile") bytes (0640)," \
+      "pitmap-inspect reads it"
   else
-    fail "the replay's log: '${logfile}' $(stat -c '%a %U' "$logfile" 2>&1); $(cat "$tmp/inspect.out" 2>&1)"
+    fail "the replay's log: '${logfile}' $(stat -c '%a %U' "$logfile" 2>&1);" \
+      "$(cat "$tmp/inspect.out" 2>&1)"
   fi
 else
   fail "pitmap-acqd replay as user pitmap: $(cat "$tmp/acqd.out")"
@@ -268,7 +271,10 @@ edit_pid=
 echo "=== purge"
 rm -f /etc/pitmap/acqd.yaml
 rm -rf /var/log/pitmap/pkgtest
-dpkg --purge pitmap pitmap-acqd > "$tmp/purge.out" 2>&1 || { cat "$tmp/purge.out"; fail "dpkg --purge"; }
+if ! dpkg --purge pitmap pitmap-acqd > "$tmp/purge.out" 2>&1; then
+  cat "$tmp/purge.out"
+  fail "dpkg --purge"
+fi
 for p in pitmap pitmap-acqd; do
   if dpkg-query -W -f='${Status}' "$p" 2> /dev/null | grep -q "installed"; then
     fail "$p still installed"
@@ -277,7 +283,10 @@ for p in pitmap pitmap-acqd; do
   while read -r path; do
     [[ -e $path || -L $path ]] || continue
     if [[ -d $path && ! -L $path ]]; then
-      case $path in /usr/lib/pitmap | /etc/pitmap | /usr/share/doc/pitmap-acqd*) ;; *) continue ;; esac
+      case $path in
+        /usr/lib/pitmap | /etc/pitmap | /usr/share/doc/pitmap*) ;;
+        *) continue ;;
+      esac
     fi
     fail "$p left $path"
   done < "$tmp/$p.files"
