@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The vehicle description, vehicle.yaml: the one schema written by the simulator, recorded by
 // pitmap-acqd (its config's `vehicle` section, copied into the log folder at start) and read by
-// the processor. VehicleYamlTemplate() is the documented schema (README "Vehicle description",
+// the processor. VehicleYamlTemplate() is the documented schema (docs/reference.md "vehicle.yaml",
 // `pitmap config --vehicle`); docs/conventions.md defines the frames it uses.
 //
 // Frames and angles: lever arms in the vehicle frame (x forward, y starboard, z down) from the

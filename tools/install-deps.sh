@@ -5,6 +5,7 @@
 # Usage: tools/install-deps.sh [--minimal]   (--minimal: the vehicle side only, no OpenVDB)
 set -euo pipefail
 
+# dpkg-dev, file: the Debian packages' shared-library dependencies (cpack; tools/build-packages.sh).
 common_pkgs=(
   cmake ninja-build g++ pkg-config git ca-certificates
   libeigen3-dev libgeographiclib-dev
@@ -13,6 +14,7 @@ common_pkgs=(
   libpcap-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 socat util-linux pps-tools
+  dpkg-dev file
 )
 # libopenblas0-pthread: an optimised BLAS/LAPACK that Debian's alternatives put in place of the
 # reference libblas.so.3 and liblapack.so.3 that CHOLMOD loads; SLAM's supernodal
@@ -24,13 +26,15 @@ processor_pkgs=(
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
   python3-numpy python3-matplotlib python3-gdal
 )
-# The browser tests (headless Chromium loads the live page and report.html) and the report's
-# 3D viewer (three.js, inlined into report.html).
+# The browser tests (headless Chromium loads the live page and report.html), report.pdf
+# (pitmap-report --pdf prints through Chromium) and the report's 3D viewer (three.js, inlined
+# into report.html). The report's maps read the GeoTIFFs through python3-gdal (above).
 browser_pkgs=(
   chromium libjs-three
 )
+# lintian: Debian policy checks of the packages (tools/build-packages.sh).
 tool_pkgs=(
-  clang libclang-rt-14-dev clang-format llvm-14 ccache
+  clang libclang-rt-14-dev clang-format llvm-14 ccache lintian
 )
 
 pkgs=("${common_pkgs[@]}")

@@ -4,10 +4,13 @@
 // new log file. With file sources only, it exits once every file is replayed.
 //
 //   pitmap-acqd --config FILE [--check-config]
+//   pitmap-acqd --version | --help
 //
-// Exit codes: 0 ok, 1 start-up failure (the host checks of startup_check.hpp, the log
-// directory, LCM), 2 usage or invalid config (with --check-config: any problem, host checks
-// included). Warnings (a serial device not there yet, a UDP port in use) do not stop it.
+// Exit codes (common/exit_codes.hpp, docs/cli.md): 0 ok, 1 start-up failure (the host checks
+// of startup_check.hpp, the log directory, LCM), 2 usage or invalid config (with
+// --check-config: any problem, host checks included; an unknown argument names the closest
+// known one), 3 internal error. Warnings (a serial device not there yet, a UDP port in use) do
+// not stop it.
 // Signals are blocked in every thread and taken synchronously here (sigtimedwait), so only
 // main handles them.
 #include <signal.h>
@@ -18,6 +21,9 @@
 #include <string>
 #include <vector>
 
+#include "common/cli/suggest.hpp"
+#include "common/exit_codes.hpp"
+#include "common/version.hpp"
 #include "firmware_host/daemon/clock.hpp"
 #include "firmware_host/daemon/daemon.hpp"
 #include "firmware_host/daemon/daemon_config.hpp"
@@ -25,11 +31,15 @@
 
 namespace {
 
-void Usage() {
-    std::fprintf(stderr,
+namespace codes = pitmap::exit_code;
+
+void Usage(std::FILE* to) {
+    std::fprintf(to,
                  "usage: pitmap-acqd --config FILE [--check-config]\n"
                  "  --config FILE     daemon configuration (YAML)\n"
-                 "  --check-config    validate FILE, list every problem, exit\n");
+                 "  --check-config    validate FILE, list every problem, exit\n"
+                 "  --version         print the version and git commit\n"
+                 "  -h, --help        print this help\n");
 }
 
 int Run(int argc, char** argv) {
@@ -39,20 +49,35 @@ int Run(int argc, char** argv) {
         const std::string a = argv[i];
         if (a == "--config" && i + 1 < argc) {
             config_path = argv[++i];
+        } else if (a.rfind("--config=", 0) == 0) {
+            config_path = a.substr(9);
         } else if (a == "--check-config") {
             check_only = true;
         } else if (a == "--help" || a == "-h") {
-            Usage();
-            return 0;
+            Usage(stdout);
+            return codes::kOk;
+        } else if (a == "--version") {
+            std::printf("%s\n", pitmap::VersionLine("pitmap-acqd").c_str());
+            return codes::kOk;
+        } else if (a == "--config") {
+            std::fprintf(stderr, "pitmap-acqd: --config needs a FILE\n");
+            Usage(stderr);
+            return codes::kUsage;
         } else {
-            std::fprintf(stderr, "pitmap-acqd: unknown argument '%s'\n", a.c_str());
-            Usage();
-            return 2;
+            const std::string name = a.substr(0, a.find('='));
+            std::fprintf(
+                stderr,
+                "pitmap-acqd: unknown argument '%s'%s\n",
+                a.c_str(),
+                pitmap::cli::DidYouMean(name, {"--config", "--check-config", "--version", "--help"})
+                    .c_str());
+            Usage(stderr);
+            return codes::kUsage;
         }
     }
     if (config_path.empty()) {
-        Usage();
-        return 2;
+        Usage(stderr);
+        return codes::kUsage;
     }
     pitmap::acq::LoadedConfig loaded = pitmap::acq::LoadDaemonConfig(config_path);
     // What the host must offer (log directory, devices, ports): checked here too, before any
@@ -67,7 +92,7 @@ int Run(int argc, char** argv) {
         std::fprintf(
             stderr, "pitmap-acqd: %s: %zu problem(s):\n", config_path.c_str(), problems.size());
         for (const auto& p : problems) std::fprintf(stderr, "  - %s\n", p.c_str());
-        return check_only || !loaded.problems.empty() ? 2 : 1;
+        return check_only || !loaded.problems.empty() ? codes::kUsage : codes::kFailure;
     }
     if (check_only) {
         std::printf("%s: ok (%zu channels%s)\n",
@@ -89,7 +114,7 @@ int Run(int argc, char** argv) {
     pitmap::acq::Daemon daemon(std::move(loaded.config), clock);
     if (auto s = daemon.Start(); !s) {
         std::fprintf(stderr, "pitmap-acqd: %s\n", s.error().message.c_str());
-        return 1;
+        return codes::kFailure;
     }
     std::fprintf(stderr,
                  "pitmap-acqd: running with %zu channels, logging to %s\n",
@@ -121,7 +146,7 @@ int Run(int argc, char** argv) {
         }
     }
     daemon.Stop();
-    return 0;
+    return codes::kOk;
 }
 
 }  // namespace
@@ -130,7 +155,7 @@ int main(int argc, char** argv) {
     try {
         return Run(argc, argv);
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "pitmap-acqd: fatal: %s\n", e.what());
-        return 1;
+        std::fprintf(stderr, "pitmap-acqd: internal error: %s\n", e.what());
+        return codes::kInternal;
     }
 }

@@ -5,7 +5,13 @@
 //               [--out DIR] ...
 //   pitmap-live --replay LOG... [--speed S] [--no-serve] [--hold] [--status-json FILE]
 //               [--snapshot-on-exit --out DIR]
-// Exit: 0 done (SIGINT/SIGTERM, or the replay's end), 1 run failure, 2 bad arguments.
+//   pitmap-live --version
+// Without --vehicle, vehicle.yaml beside the first replayed log is read, as pitmap run does
+// (processor/io/products.hpp VehicleFilePath). Replayed logs (and --vehicle) are checked before
+// anything is created.
+// Exit (common/exit_codes.hpp, docs/cli.md): 0 done (SIGINT/SIGTERM, or the replay's end),
+// 1 run failure, 2 usage (bad arguments, invalid config, a file that does not exist),
+// 3 internal error.
 #include <lcm/lcm-cpp.hpp>
 
 #include <CLI/CLI.hpp>
@@ -13,9 +19,12 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
+#include "common/cli/parse.hpp"
+#include "common/exit_codes.hpp"
 #include "common/peak_memory.hpp"
 #include "processor/io/products.hpp"
 #include "processor/live/replay.hpp"
@@ -40,9 +49,11 @@ void OnLcm(const lcm::ReceiveBuffer* rbuf, const std::string& channel, live::Liv
     s->OnEvent(channel, rbuf->data, rbuf->data_size, WallUtime());
 }
 
+namespace codes = pitmap::exit_code;
+
 int Usage(const std::vector<std::string>& problems) {
     for (const auto& p : problems) std::fprintf(stderr, "pitmap-live: %s\n", p.c_str());
-    return 2;
+    return codes::kUsage;
 }
 
 }  // namespace
@@ -77,9 +88,15 @@ int main(int argc, char** argv) try {
                    server_config.limits.header_timeout_s,
                    "a request's header (and its body) must arrive within this, s")
         ->capture_default_str();
-    app.add_option("--budget-kbps", budget_kbps, "bytes the page may pull, kB/s")
+    app.add_option("--budget-kbps",
+                   budget_kbps,
+                   "bytes the pages on the radio link may pull, kB/s (pages on this machine: "
+                   "none, unless --budget-loopback)")
         ->capture_default_str();
-    app.add_option("--vehicle", vehicle_path, "vehicle.yaml: lever arm and mount (default: zero)");
+    app.add_option("--vehicle",
+                   vehicle_path,
+                   "vehicle.yaml: lever arm, mount, error model (default: vehicle.yaml beside "
+                   "the first --replay log, as pitmap run; else zero)");
     app.add_option("--out", server_config.snapshot_dir, "snapshot directory (POST /api/snapshot)");
     app.add_option("--cell-size", config.grid.cell_size_m, "coverage cell size, m")
         ->capture_default_str();
@@ -111,8 +128,18 @@ int main(int argc, char** argv) try {
     app.add_flag("--hold", hold, "replay only: keep serving after the end until SIGTERM");
     app.add_option("--status-json", status_json, "write the final status JSON here at the end");
     app.add_flag("--snapshot-on-exit", snapshot_on_exit, "write the grid into --out at the end");
-    CLI11_PARSE(app, argc, argv);
+    app.add_flag("--budget-loopback",
+                 server_config.budget_loopback,
+                 "apply --budget-kbps to pages on this machine too (loopback is not budgeted "
+                 "by default: it is not the radio link; to see the thinning locally)");
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-live")) return *code;
     server_config.budget_bytes_per_s = budget_kbps * 1000.0;
+    for (const auto& f : replay) {
+        std::error_code err;
+        if (!std::filesystem::exists(f, err)) return Usage({"--replay " + f + " does not exist"});
+    }
+    // As pitmap run: --vehicle, else vehicle.yaml beside the first log.
+    vehicle_path = pitmap::proc::io::VehicleFilePath(replay, vehicle_path);
     server_config.limits.body_timeout_s = server_config.limits.header_timeout_s;
 
     // The vehicle: mount and lever arm for the georeferencing, the sensor error model for TVU.
@@ -121,6 +148,7 @@ int main(int argc, char** argv) try {
     if (mount_known) {
         auto v = pitmap::proc::io::ReadVehicleYaml(vehicle_path);
         if (!v) return Usage({v.error().message});
+        std::fprintf(stderr, "pitmap-live: vehicle: %s\n", vehicle_path.c_str());
         mount = v->mount;
         config.tpu.model = v->description.ErrorModel();
         if (!v->description.uncertainty) {
@@ -131,8 +159,9 @@ int main(int argc, char** argv) try {
         }
     } else {
         std::fprintf(stderr,
-                     "pitmap-live: warning: no --vehicle: lever arm and mount are zero, TVU from "
-                     "the default sensor error model\n");
+                     "pitmap-live: warning: no --vehicle (and no vehicle.yaml beside the first "
+                     "replayed log): lever arm and mount are zero, TVU from the default sensor "
+                     "error model\n");
     }
 
     std::vector<std::string> problems = config.Validate();
@@ -143,6 +172,7 @@ int main(int argc, char** argv) try {
     if (!problems.empty()) return Usage(problems);
 
     live::LiveSession session(config, mount, mount_known);
+    if (!replay.empty()) session.MarkReplay();
     std::signal(SIGINT, OnSignal);
     std::signal(SIGTERM, OnSignal);
 
@@ -151,7 +181,7 @@ int main(int argc, char** argv) try {
         server = std::make_unique<live::LiveServer>(session, server_config);
         if (auto s = server->Start(); !s) {
             std::fprintf(stderr, "pitmap-live: %s\n", s.error().message.c_str());
-            return 1;
+            return codes::kFailure;
         }
         std::printf("pitmap-live: open http://%s:%d/\n",
                     server_config.bind_address.c_str(),
@@ -164,8 +194,10 @@ int main(int argc, char** argv) try {
         auto r = live::ReplayLogs(session, replay, speed, g_stop);
         if (!r) {
             std::fprintf(stderr, "pitmap-live: %s\n", r.error().message.c_str());
-            code = 1;
+            code = codes::kFailure;
         } else {
+            // The page says "replay finished" from here on, not a silent feed.
+            session.MarkReplayFinished();
             const auto c = session.GridStats();
             std::printf(
                 "pitmap-live: replayed %lld events of %lld file(s): %.1f s of data in %.2f s "
@@ -190,14 +222,14 @@ int main(int argc, char** argv) try {
         lcm::LCM lcm(lcm_url);
         if (!lcm.good()) {
             std::fprintf(stderr, "pitmap-live: cannot open LCM %s\n", lcm_url.c_str());
-            return 1;
+            return codes::kFailure;
         }
         lcm.subscribeFunction(".*", &OnLcm, &session);
         while (!g_stop.load()) {
             // A signal interrupts the wait (-1 with g_stop set): a normal stop.
             if (lcm.handleTimeout(50) < 0 && !g_stop.load()) {
                 std::fprintf(stderr, "pitmap-live: LCM failed on %s\n", lcm_url.c_str());
-                code = 1;
+                code = codes::kFailure;
                 break;
             }
             session.Tick(WallUtime());
@@ -210,7 +242,7 @@ int main(int argc, char** argv) try {
           << "\n";
         if (!f) {
             std::fprintf(stderr, "pitmap-live: cannot write %s\n", status_json.c_str());
-            code = 1;
+            code = codes::kFailure;
         }
     }
     if (server) server->Stop();
@@ -224,6 +256,6 @@ int main(int argc, char** argv) try {
     }
     return code;
 } catch (const std::exception& e) {
-    std::fprintf(stderr, "pitmap-live: %s\n", e.what());
-    return 1;
+    std::fprintf(stderr, "pitmap-live: internal error: %s\n", e.what());
+    return codes::kInternal;
 }

@@ -14,9 +14,13 @@
 //   pitmap config --defaults | --vehicle
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
+//   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 // Every command with --out holds P/.pitmap.lock while it runs (processor/io/products_lock.hpp):
-// a second command on the same P fails at once naming the first.
+// a second command on the same P fails at once naming the first. Inputs are checked before P is
+// created: a missing input or products folder creates nothing.
+// Exit status (common/exit_codes.hpp, docs/cli.md): 0 ok, 1 run failure, 2 usage (unknown
+// command or option, bad value, invalid config, missing input), 3 internal error, 4 --strict gate.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -26,7 +30,9 @@
 #include <exception>
 #include <filesystem>
 
+#include "common/cli/parse.hpp"
 #include "common/config.hpp"
+#include "common/exit_codes.hpp"
 #include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
 #include "processor/edit/edit_command.hpp"
@@ -38,9 +44,21 @@ namespace pp = pitmap::proc::pipeline;
 
 namespace {
 
-int Fail(const std::string& message) {
+namespace codes = pitmap::exit_code;
+
+int Fail(const std::string& message, int code = codes::kFailure) {
     std::fprintf(stderr, "pitmap: %s\n", message.c_str());
-    return 1;
+    return code;
+}
+
+// What a command reads must exist before anything is created (P and its lock among them): a
+// typo in a path is a usage error that leaves nothing behind.
+std::string MissingInput(const std::vector<std::string>& paths, const char* what) {
+    for (const auto& p : paths) {
+        std::error_code ec;
+        if (!std::filesystem::exists(p, ec)) return std::string(what) + " " + p + " does not exist";
+    }
+    return "";
 }
 
 // pitmap-report and pitmap-live live beside the pitmap executable (build/bin, or the install's
@@ -68,8 +86,6 @@ std::vector<std::string> TrippedGates(const std::string& out_dir) {
     return out;
 }
 
-constexpr int kExitQualityGate = 4;
-
 std::atomic<bool> g_stop{false};
 extern "C" void OnSignal(int) {
     g_stop = true;
@@ -89,6 +105,12 @@ int main(int argc, char** argv) try {
     }
     CLI::App app{"pitmap: flooded open-pit mine mapping, shore-side processor"};
     app.require_subcommand(1);
+    // Run before parsing (above); here for --help and the did-you-mean of a mistyped command.
+    app.add_subcommand("live",
+                       "live coverage, status and alarms from the daemon's LCM channels or a "
+                       "replayed log, on a local page (runs pitmap-live; pitmap live --help)")
+        ->allow_extras()
+        ->prefix_command();
     std::vector<std::string> inputs, svp_files;
     std::string out_dir, config_path, vehicle_path;
     bool from_raw = false, defaults = false, vehicle_template = false;
@@ -180,17 +202,22 @@ int main(int argc, char** argv) try {
                       "exit with status 4 when a quality gate trips (the stage could not "
                       "explain its data; the products are still written and say why)");
     }
-    CLI11_PARSE(app, argc, argv);
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap")) return *code;
 
     if (cfg->parsed()) {
-        if (defaults == vehicle_template) return Fail("config: give --defaults or --vehicle");
+        if (defaults == vehicle_template) {
+            return Fail("config: give --defaults or --vehicle", codes::kUsage);
+        }
         std::fputs((defaults ? pp::DefaultsYaml() : pitmap::VehicleYamlTemplate()).c_str(), stdout);
         return 0;
     }
     pp::PipelineConfig config;
     if (!config_path.empty()) {
+        if (auto m = MissingInput({config_path}, "config"); !m.empty()) {
+            return Fail(m, codes::kUsage);
+        }
         auto c = pp::LoadConfig(config_path);
-        if (!c) return Fail(c.error().message);
+        if (!c) return Fail(c.error().message, codes::kUsage);
         config = *c;
     }
     if (from_raw) config.ingest.source = pitmap::proc::io::IngestSource::kRaw;
@@ -206,7 +233,21 @@ int main(int argc, char** argv) try {
     if (no_clean) config.clean.enabled = false;
     config.report_program = ReportProgram();
     if (auto problems = config.Validate(); !problems.empty()) {
-        return Fail("invalid config:\n" + pitmap::FormatProblems(problems));
+        return Fail("invalid config:\n" + pitmap::FormatProblems(problems), codes::kUsage);
+    }
+    {
+        std::string missing = MissingInput(inputs, "input");
+        if (missing.empty() && !vehicle_path.empty())
+            missing = MissingInput({vehicle_path}, "vehicle file");
+        if (missing.empty()) missing = MissingInput(svp_files, "sound-velocity file");
+        // The stages after georef read P itself: it must be there already.
+        if (missing.empty() && !(info->parsed() || geo->parsed() || run->parsed())) {
+            missing = MissingInput({out_dir}, "products folder");
+            if (!missing.empty()) missing += " (pitmap georef or pitmap run writes it)";
+        }
+        if (!missing.empty()) {
+            return Fail(missing + (out_dir.empty() ? "" : "; nothing written"), codes::kUsage);
+        }
     }
     const pp::Log log = [](const std::string& m) {
         std::fprintf(stderr, "pitmap: %s\n", m.c_str());
@@ -258,10 +299,10 @@ int main(int argc, char** argv) try {
                      gates.size(),
                      list.c_str(),
                      strict ? "" : "; --strict makes this an error");
-        if (strict) return kExitQualityGate;
+        if (strict) return codes::kQualityGate;
     }
     return 0;
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap: internal error: %s\n", e.what());
-    return 3;
+    return codes::kInternal;
 }

@@ -224,8 +224,8 @@ namespace {
 //    than the footprint's half-width (a roll between pings), is not used.
 //  - Not extrapolated: the slope holds over the span of offsets it was fitted to; beyond (the
 //    far side of the cone at long range, the last ping of a line) the range stays at the
-//    span's end. Extrapolated, a slope from pings 0.15 m apart put rock 2-3 m behind bench
-//    faces at 50 m range on bejanca (0.05 % of the mesh, rms error 0.041 -> 0.080 m).
+//    span's end (extrapolated, it put rock metres behind bench faces at long range:
+//    docs/decisions/008).
 //  - Plausible: |s| <= s_max (tan of 80 deg incidence, as across the fan).
 constexpr double kMaxNeighbourReach = 4.0;
 

@@ -11,13 +11,9 @@
 // order for any thread count.
 //
 // Beam-width mode walks each ping as a whole (IntegrateFan): one pass over columns of voxels
-// along the axis closest to the fan plane, each voxel tested once in the sector of its angle.
-// Where its time goes (bejanca, 1 thread, perf, 2026-11-29): most in the per-voxel work
-// (tracking the sector, the in-plane angle's division, the square root, the running average's
-// division and its leaf writes), ~7 % in the per-ping set-up (fan_columns.cpp); 675 M
-// candidates for 502 M updates, 28.5 M columns. The per-beam frustum walk it replaced spent a
-// third of its time on frustum set-up and clipping (7.7 M frusta, 177 M columns of ~3.6
-// candidates).
+// along the axis closest to the fan plane, each voxel tested once in the sector of its angle;
+// most of its time is the per-voxel work, the per-ping set-up is in fan_columns.cpp.
+// docs/decisions/004 (and why not a frustum per beam).
 #include "processor/fusion/tsdf.hpp"
 
 #include <openvdb/math/DDA.h>

@@ -61,12 +61,12 @@ struct TsdfConfig {
     double truncation_m = 1.5;            // |d| band: voxels with d in (-T, T] are updated
     float weight_per_measurement = 1.0f;  // f in Eq. 5-6 (uniform weights)
     // w_max in Eq. 6, in measurements of weight f: a ray through a voxel is one, a beam-width
-    // footprint as many as its beams (7 at 1.5 deg and 0.25 deg spacing). 140 lets a voxel
-    // average about the 20 pings in both modes. At 20, beam-width voxels kept little more than
-    // their last three pings, so the last line over a floor brought its navigation error
-    // alone (bejanca, SLAM trajectory: floors 0.0103 -> 0.0076 m mean abs, bias -0.003 ->
-    // +0.0015 m, the soundings' own +0.002 m); rays never reach 20 there either way.
+    // footprint as many as its beams (7 at 1.5 deg and 0.25 deg spacing). Larger averages more
+    // passes (about 20 pings at 140), smaller follows change sooner but keeps the last line's
+    // navigation error. docs/decisions/006.
     float max_weight = 140.0f;
+    // Beam-width keeps the walls and shores that rays leave as holes at the same weight
+    // threshold, at the rays' error. docs/decisions/001.
     SensorModel sensor_model = SensorModel::kBeamWidth;
     double beam_width_rad = 1.5 * 3.14159265358979323846 / 180.0;  // full out-of-plane width
     double min_range_m = 0.3;    // ranges below are not detections (counted)
@@ -127,7 +127,8 @@ struct IntegrateResult {
 struct WeightFilterConfig {
     // Voxels with weight below are removed. In beam-width mode a ping adds f per beam of the
     // footprint (7 at 1.5 deg / 0.25 deg), so 3 removes voxels seen by fewer than 3 beams and
-    // keeps single coverage; 8 would demand two pings (bejanca: completeness 0.999 -> 0.909).
+    // keeps single coverage; higher trades completeness for fewer stray voxels.
+    // docs/decisions/007.
     float min_weight = 3.0f;
 
     std::vector<std::string> Validate() const;

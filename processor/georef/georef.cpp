@@ -209,9 +209,8 @@ GeorefResult RunGeoref(const NavSeries& nav,
     const std::size_t n_pings = series.pings.size();
     std::vector<PingWork> work(n_pings);
     // The outputs are written in the input's flat layout (one slot per input beam, range -1 =
-    // no point) and compacted in place below: no provisional copy of every beam. On bejanca
-    // that is 195 MB less memory first touched; the kernel zeroing those pages took a tenth of
-    // the calibrate stage's CPU time (stage 4.9 -> 4.5 s, its peak 775 -> 602 MB).
+    // no point) and compacted in place below: no provisional copy of every beam, whose pages
+    // the kernel would zero (docs/benchmarks.md, the georef and calibrate stages).
     GeorefPoints& P = result.points;
     P.position_world.resize(series.range_counts.size());
     P.range_m.assign(series.range_counts.size(), -1.0f);

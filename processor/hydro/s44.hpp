@@ -83,12 +83,21 @@ struct S44Soundings {
 };
 
 // The CUBE grid as S-44 needs it (CubeGrid geometry; row j = 0 the southernmost).
+// A node's THU (CUBE carries none): the mean THU of the soundings CUBE offered it, those within
+// their capture distance of the node, r_c = clamp(capture_depth_fraction * depth,
+// capture_min_res * resolution, capture_max_res * resolution) (CubeConfig's rule and defaults;
+// the grid stage copies its CubeConfig's). Every node CUBE filled has such soundings; one that
+// has none (a grid from elsewhere) is counted in S44Result::nodes_without_thu and left out of
+// the nodes' THU share rather than counted as failing it.
 struct S44Grid {
     double x0 = 0, y0 = 0, resolution_m = 0;
     int nx = 0, ny = 0;
-    std::vector<float> elevation_m;    // NaN = empty
-    std::vector<float> uncertainty_m;  // 95 %
-    std::vector<float> depth_m;        // node depth for the limits (NaN where empty)
+    std::vector<float> elevation_m;        // NaN = empty
+    std::vector<float> uncertainty_m;      // 95 %
+    std::vector<float> depth_m;            // node depth for the limits (NaN where empty)
+    double capture_depth_fraction = 0.05;  // CubeConfig::capture_distance_scale
+    double capture_min_res = 0.71;         // CubeConfig::min_capture_distance_res
+    double capture_max_res = 1.5;          // CubeConfig::max_capture_distance_res
 };
 
 struct S44Holiday {
@@ -113,8 +122,9 @@ struct S44Result {
     std::array<double, kNumS44Orders> soundings_within_thu{};
     std::array<double, kNumS44Orders> soundings_within_both{};
     std::array<double, kNumS44Orders> nodes_within_tvu{};
-    std::array<double, kNumS44Orders> nodes_within_thu{};
+    std::array<double, kNumS44Orders> nodes_within_thu{};  // of the nodes with a THU
     std::int64_t soundings = 0, nodes = 0;
+    std::int64_t nodes_without_thu = 0;  // filled nodes no sounding reaches (S44Grid)
     // Coverage and holidays (the chosen order).
     std::int64_t nodes_survey_area = 0;  // covered + inside gaps
     std::int64_t nodes_in_gaps = 0;

@@ -231,8 +231,102 @@ Status CheckGrid(const std::string& path, const GridRaster& g) {
             return Error{path + ": layer " + l.name + " has " + std::to_string(l.values.size()) +
                          " values for " + std::to_string(n) + " nodes"};
         }
+        const bool byte = g.sample_type == GridSampleType::kByte;
+        if (!byte && (!l.class_names.empty() || !l.class_colours.empty())) {
+            return Error{path + ": layer " + l.name +
+                         ": class names or colours need a Byte raster"};
+        }
+        if (l.class_names.size() > kByteNoData || l.class_colours.size() > kByteNoData) {
+            return Error{path + ": layer " + l.name + ": more than 255 classes"};
+        }
+        if (!byte) continue;
+        for (const float v : l.values) {
+            if (std::isfinite(v) && (v < 0 || v >= kByteNoData || v != std::floor(v))) {
+                return Error{path + ": layer " + l.name + ": value " + std::to_string(v) +
+                             " is not a whole number 0..254 (a Byte band)"};
+            }
+        }
     }
     return Ok{};
+}
+
+// The overview factors the COG driver would choose: halve until both sides are at most the
+// tile size.
+std::vector<int> OverviewFactors(int nx, int ny, int tile) {
+    std::vector<int> f;
+    for (int k = 1; nx > tile || ny > tile;) {
+        k *= 2;
+        f.push_back(k);
+        nx = (nx + 1) / 2;
+        ny = (ny + 1) / 2;
+    }
+    return f;
+}
+
+// GDAL's resampling of a band kind's overviews.
+const char* OverviewResampling(GridBandKind k) {
+    switch (k) {
+        case GridBandKind::kContinuous:
+            return "AVERAGE";
+        case GridBandKind::kCount:
+            return "NEAREST";
+        case GridBandKind::kClass:
+            return "MODE";
+    }
+    return "NEAREST";
+}
+
+// Overviews of every band of `ds` at `factors`, each band by its layer's kind. The MEM driver
+// builds overviews of all bands at once (nearest), then each non-nearest band's are redone.
+Status BuildBandOverviews(const std::string& path,
+                          GDALDataset* ds,
+                          const std::vector<const GridLayer*>& layers,
+                          const std::vector<int>& factors) {
+    if (factors.empty()) return Ok{};
+    const int n = static_cast<int>(factors.size());
+    if (GDALBuildOverviews(ds, "NEAREST", n, factors.data(), 0, nullptr, nullptr, nullptr) !=
+        CE_None) {
+        return Error{path + ": cannot build the overviews" + QuietErrors::Last()};
+    }
+    for (std::size_t b = 0; b < layers.size(); ++b) {
+        const char* how = OverviewResampling(layers[b]->kind);
+        if (std::strcmp(how, "NEAREST") == 0) continue;
+        GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
+        std::vector<GDALRasterBandH> ovr;
+        for (int k = 0; k < band->GetOverviewCount(); ++k) ovr.push_back(band->GetOverview(k));
+        if (ovr.size() != factors.size() ||
+            GDALRegenerateOverviews(
+                band, static_cast<int>(ovr.size()), ovr.data(), how, nullptr, nullptr) != CE_None) {
+            return Error{path + ": cannot build the overviews of " + layers[b]->name +
+                         QuietErrors::Last()};
+        }
+    }
+    return Ok{};
+}
+
+// Category names, colour table and the classes as band metadata of a kClass band.
+void SetClasses(GDALRasterBand* band, const GridLayer& l) {
+    if (!l.class_names.empty()) {
+        CPLStringList names;
+        std::string listed;
+        for (std::size_t v = 0; v < l.class_names.size(); ++v) {
+            names.AddString(l.class_names[v].c_str());
+            listed += (v > 0 ? ", " : "") + std::to_string(v) + " " + l.class_names[v];
+        }
+        band->SetCategoryNames(names.List());
+        band->SetMetadataItem("pitmap_classes", listed.c_str());
+    }
+    if (!l.class_colours.empty()) {
+        GDALColorTable table(GPI_RGB);
+        for (int v = 0; v <= kByteNoData; ++v) {
+            std::array<std::uint8_t, 4> c{0, 0, 0, 0};  // unused values and no data: clear
+            if (static_cast<std::size_t>(v) < l.class_colours.size()) c = l.class_colours[v];
+            const GDALColorEntry e{c[0], c[1], c[2], c[3]};
+            table.SetColorEntry(v, &e);
+        }
+        band->SetColorTable(&table);
+        band->SetColorInterpretation(GCI_PaletteIndex);
+    }
 }
 
 // An in-memory dataset of the given layers, north-up, with the compound CRS; `nodata` replaces
@@ -244,8 +338,9 @@ Expected<DatasetPtr> MemDataset(const std::string& path,
                                 bool with_vertical) {
     GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
     if (mem == nullptr) return Error{path + ": GDAL has no MEM driver"};
-    DatasetPtr ds(
-        mem->Create("", g.nx, g.ny, static_cast<int>(layers.size()), GDT_Float32, nullptr));
+    const bool byte = g.sample_type == GridSampleType::kByte;
+    DatasetPtr ds(mem->Create(
+        "", g.nx, g.ny, static_cast<int>(layers.size()), byte ? GDT_Byte : GDT_Float32, nullptr));
     if (!ds) return Error{path + ": cannot create the in-memory raster" + QuietErrors::Last()};
     const double r = g.resolution_m;
     double gt[6] = {g.x0 - r / 2, r, 0, g.y0 + (g.ny - 1) * r + r / 2, 0, -r};
@@ -282,24 +377,39 @@ Expected<DatasetPtr> MemDataset(const std::string& path,
         CPLFree(text);
     }
     std::vector<float> row(static_cast<std::size_t>(g.nx));
+    std::vector<std::uint8_t> row8(static_cast<std::size_t>(g.nx));
     for (std::size_t b = 0; b < layers.size(); ++b) {
         GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
         band->SetDescription(layers[b]->name.c_str());
         if (!layers[b]->unit.empty()) band->SetUnitType(layers[b]->unit.c_str());
-        band->SetNoDataValue(std::isfinite(nodata) ? nodata
-                                                   : std::numeric_limits<double>::quiet_NaN());
+        for (const auto& [k, v] : layers[b]->metadata) band->SetMetadataItem(k.c_str(), v.c_str());
+        if (byte) {
+            band->SetNoDataValue(kByteNoData);
+            SetClasses(band, *layers[b]);
+        } else {
+            band->SetNoDataValue(std::isfinite(nodata) ? nodata
+                                                       : std::numeric_limits<double>::quiet_NaN());
+        }
         for (int y = 0; y < g.ny; ++y) {
             const int j = g.ny - 1 - y;  // file row 0 is the north
             const float* src = layers[b]->values.data() + static_cast<std::size_t>(j) * g.nx;
-            for (int i = 0; i < g.nx; ++i) {
-                row[static_cast<std::size_t>(i)] = std::isfinite(src[i]) || !std::isfinite(nodata)
-                                                       ? src[i]
-                                                       : static_cast<float>(nodata);
+            CPLErr e = CE_None;
+            if (byte) {
+                for (int i = 0; i < g.nx; ++i) {
+                    row8[static_cast<std::size_t>(i)] =
+                        std::isfinite(src[i]) ? static_cast<std::uint8_t>(src[i]) : kByteNoData;
+                }
+                e = band->RasterIO(GF_Write, 0, y, g.nx, 1, row8.data(), g.nx, 1, GDT_Byte, 0, 0);
+            } else {
+                for (int i = 0; i < g.nx; ++i) {
+                    row[static_cast<std::size_t>(i)] =
+                        std::isfinite(src[i]) || !std::isfinite(nodata)
+                            ? src[i]
+                            : static_cast<float>(nodata);
+                }
+                e = band->RasterIO(GF_Write, 0, y, g.nx, 1, row.data(), g.nx, 1, GDT_Float32, 0, 0);
             }
-            if (band->RasterIO(GF_Write, 0, y, g.nx, 1, row.data(), g.nx, 1, GDT_Float32, 0, 0) !=
-                CE_None) {
-                return Error{path + ": cannot fill the raster" + QuietErrors::Last()};
-            }
+            if (e != CE_None) return Error{path + ": cannot fill the raster" + QuietErrors::Last()};
         }
     }
     for (const auto& [k, v] : g.metadata) ds->SetMetadataItem(k.c_str(), v.c_str());
@@ -337,11 +447,19 @@ Status WriteCogGeoTiffTo(const std::string& path, const GridRaster& grid) {
         // A raster of values that are not heights (the mosaic) has no vertical CRS.
         if (grid.horizontal_only) (*mem)->SetMetadataItem("pitmap_vertical_crs", nullptr);
     }
+    constexpr int kTile = 256;
+    if (auto o =
+            BuildBandOverviews(path, mem->get(), layers, OverviewFactors(grid.nx, grid.ny, kTile));
+        !o) {
+        return o;
+    }
     char** opts = nullptr;
     opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
     opts = CSLSetNameValue(opts, "PREDICTOR", "YES");
-    opts = CSLSetNameValue(opts, "BLOCKSIZE", "256");
+    opts = CSLSetNameValue(opts, "BLOCKSIZE", std::to_string(kTile).c_str());
     opts = CSLSetNameValue(opts, "NUM_THREADS", "2");
+    // The overviews built above, per band (the driver's own would resample every band alike).
+    opts = CSLSetNameValue(opts, "OVERVIEWS", "FORCE_USE_EXISTING");
     Status s = Copy(path, "COG", mem->get(), opts);
     CSLDestroy(opts);
     return s;
@@ -358,6 +476,7 @@ Status WriteBagTo(const std::string& path, const GridRaster& grid) {
     if (elevation == nullptr || uncertainty == nullptr) {
         return Error{path + ": a BAG needs the layers elevation and uncertainty"};
     }
+    if (grid.sample_type != GridSampleType::kFloat32) return Error{path + ": a BAG is Float32"};
     RegisterOnce();
     QuietErrors quiet;
     // The BAG's XML holds the horizontal and the vertical CRS apart (VAR_VERT_WKT).
@@ -383,9 +502,24 @@ Status WriteBagTo(const std::string& path, const GridRaster& grid) {
 }  // namespace
 
 // Each product is written under a temporary name and renamed (common/formats/replace_file.hpp).
+// GDAL's side file of what a GeoTIFF cannot hold (category names): PATH.aux.xml.
 Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid) {
-    return formats::WriteReplacing(
+    const std::string aux = path + ".aux.xml";
+    const std::string partial_aux = formats::PartialPath(path) + ".aux.xml";
+    std::remove(partial_aux.c_str());  // a killed writer's
+    Status s = formats::WriteReplacing(
         path, [&](const std::string& partial) { return WriteCogGeoTiffTo(partial, grid); });
+    std::FILE* f = std::fopen(partial_aux.c_str(), "rb");
+    if (f == nullptr) {
+        std::remove(aux.c_str());  // an earlier file's, which would describe this one
+        return s;
+    }
+    std::fclose(f);
+    if (!s) {
+        std::remove(partial_aux.c_str());
+        return s;
+    }
+    return formats::CommitPartial(partial_aux, aux);
 }
 
 Status WriteBag(const std::string& path, const GridRaster& grid) {
@@ -490,6 +624,10 @@ Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) 
         GridLayer l;
         l.name = band->GetDescription();
         l.unit = band->GetUnitType() != nullptr ? band->GetUnitType() : "";
+        if (b == 1 && band->GetRasterDataType() == GDT_Byte) g.sample_type = GridSampleType::kByte;
+        if (char** names = band->GetCategoryNames(); names != nullptr) {
+            for (int k = 0; names[k] != nullptr; ++k) l.class_names.emplace_back(names[k]);
+        }
         int has_nodata = 0;
         const double nodata = band->GetNoDataValue(&has_nodata);
         l.values.resize(n);

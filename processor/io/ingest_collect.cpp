@@ -24,12 +24,6 @@ bool StartsWith(std::string_view s, std::string_view prefix) {
     return s.size() >= prefix.size() && s.substr(0, prefix.size()) == prefix;
 }
 
-// Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
-bool Matches(std::string_view channel, std::string_view prefix, const std::string& want_upper) {
-    if (!StartsWith(channel, prefix)) return false;
-    return want_upper.empty() || channel.substr(prefix.size()) == want_upper;
-}
-
 NavSample FromPva(std::int64_t utime_gps,
                   double lat,
                   double lon,
@@ -61,18 +55,6 @@ bool PlausibleNav(const NavSample& s) {
            std::isfinite(s.position.longitude_deg) && std::abs(s.position.longitude_deg) <= 360 &&
            std::isfinite(s.position.height_m) && std::isfinite(s.roll_rad) &&
            std::isfinite(s.pitch_rad) && std::isfinite(s.yaw_rad);
-}
-
-// INSPVAX and INSSTDEV carry the same standard deviations.
-template <class M>
-NavStdDev StdDevOf(const M& m) {
-    return {m.utime_gps(),
-            m.latitude_stddev_m,
-            m.longitude_stddev_m,
-            m.height_stddev_m,
-            m.roll_stddev_deg,
-            m.pitch_stddev_deg,
-            m.azimuth_stddev_deg};
 }
 
 }  // namespace
@@ -199,9 +181,9 @@ void Collector::AddNovatel(const nv::DecodeResult& d) {
                                m.azimuth_deg,
                                static_cast<int>(m.ins_status),
                                static_cast<int>(m.position_type)));
-                AddStdDev(StdDevOf(m));
+                AddStdDev(StdDevOf(m.utime_gps(), m));
             } else if constexpr (std::is_same_v<T, nv::InsStdDev>) {
-                AddStdDev(StdDevOf(m));
+                AddStdDev(StdDevOf(m.utime_gps(), m));
             } else if constexpr (std::is_same_v<T, nv::Time>) {
                 AddLeapSeconds(m.utc_offset_s, static_cast<int>(m.utc_status));
             } else if constexpr (std::is_same_v<T, nv::DecodeError>) {

@@ -26,8 +26,6 @@ inline constexpr std::size_t kMaxPingBeams = 1024;
 
 std::string Upper(std::string s);
 bool StartsWith(std::string_view s, std::string_view prefix);
-// Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
-bool Matches(std::string_view channel, std::string_view prefix, const std::string& want_upper);
 georef::NavSample FromPva(std::int64_t utime_gps,
                           double lat,
                           double lon,
@@ -40,6 +38,18 @@ georef::NavSample FromPva(std::int64_t utime_gps,
                           double azimuth_deg,
                           int status,
                           int position_type);
+// The standard deviations of INSPVAX and INSSTDEV (the decoded structs and their LCM types name
+// the fields alike), stamped utime_gps.
+template <class M>
+georef::NavStdDev StdDevOf(std::int64_t utime_gps, const M& m) {
+    return {utime_gps,
+            m.latitude_stddev_m,
+            m.longitude_stddev_m,
+            m.height_stddev_m,
+            m.roll_stddev_deg,
+            m.pitch_stddev_deg,
+            m.azimuth_stddev_deg};
+}
 
 // Accumulates into an IngestResult, shared by the LCM and vendor-file paths: counts what it
 // refuses (no time, implausible, no beams) and keeps the rest (the INS status rule is

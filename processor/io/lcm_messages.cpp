@@ -9,26 +9,11 @@
 
 namespace pitmap::proc::io {
 
-namespace {
-
-template <class M>
-georef::NavStdDev StdDevFields(const M& m) {
-    return {m.utime_gps,
-            m.latitude_stddev_m,
-            m.longitude_stddev_m,
-            m.height_stddev_m,
-            m.roll_stddev_deg,
-            m.pitch_stddev_deg,
-            m.azimuth_stddev_deg};
-}
-
-}  // namespace
-
 georef::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m) {
-    return StdDevFields(m);
+    return detail::StdDevOf(m.utime_gps, m);
 }
 georef::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m) {
-    return StdDevFields(m);
+    return detail::StdDevOf(m.utime_gps, m);
 }
 
 georef::NavSample NavSampleOf(const pitmap::ins_pva_t& m) {

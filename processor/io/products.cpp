@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <optional>
@@ -25,6 +26,15 @@
 #include "common/protocol/novatel/crc32.hpp"
 
 namespace pitmap::proc::io {
+
+std::string VehicleFilePath(const std::vector<std::string>& files,
+                            const std::string& explicit_path) {
+    if (!explicit_path.empty() || files.empty()) return explicit_path;
+    const std::filesystem::path beside =
+        std::filesystem::path(files.front()).parent_path() / "vehicle.yaml";
+    std::error_code err;
+    return std::filesystem::exists(beside, err) ? beside.string() : "";
+}
 
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path) {
     auto d = ReadVehicleFile(path);
@@ -85,7 +95,28 @@ const georef::GeorefResult* UsableRejected(const georef::GeorefResult* rejected)
     return rejected;
 }
 
+// The pings to take intensities from: none unless they carry intensities.
+const georef::PingSeries* IntensityPings(const PointExtras* extras) {
+    if (extras == nullptr || extras->pings == nullptr) return nullptr;
+    return extras->pings->has_intensities() ? extras->pings : nullptr;
+}
+
 }  // namespace
+
+std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
+                                std::size_t i,
+                                const georef::PingSeries& pings) {
+    if (!pings.has_intensities() || i >= g.points.size()) return 0;
+    const std::uint32_t k = g.points.ping[i];
+    if (k >= g.pings.size()) return 0;
+    const std::uint32_t h = g.pings[k].header_index;
+    if (h >= pings.pings.size()) return 0;
+    const georef::PingHeader& head = pings.pings[h];
+    const std::uint16_t beam = g.points.beam[i];
+    if (beam >= head.num_beams) return 0;
+    const std::size_t at = static_cast<std::size_t>(head.beam_offset) + beam;
+    return at < pings.intensities.size() ? pings.intensities[at] : 0;
+}
 
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& r,
@@ -113,6 +144,13 @@ Status WritePly(const std::string& path,
                                         {"range_m", ply::Type::kFloat32},
                                         {"ping", ply::Type::kUInt32},
                                         {"beam", ply::Type::kUInt16}};
+    const georef::PingSeries* intensities = IntensityPings(extras);
+    if (intensities != nullptr) {
+        props.push_back({"intensity", ply::Type::kUInt16});
+        h.comments.push_back(
+            "intensity: the 83P per-beam intensity as recorded (u16 normalized amplitude, no "
+            "physical unit; 0 none)");
+    }
     if (tpu) {
         props.push_back({"thu_95_m", ply::Type::kFloat32});
         props.push_back({"tvu_95_m", ply::Type::kFloat32});
@@ -145,6 +183,7 @@ Status WritePly(const std::string& path,
             o.F32Le(Q.range_m[j]);
             o.U32Le(Q.ping[j]);
             o.U16Le(Q.beam[j]);
+            if (intensities != nullptr) o.U16Le(SoundingIntensity(g, j, *intensities));
             if (tpu) {
                 o.F32Le(accepted ? extras->thu_95_m[j] : kNaN);
                 o.F32Le(accepted ? extras->tvu_95_m[j] : kNaN);
@@ -280,6 +319,8 @@ Status WriteLas(const std::string& path,
     };
     std::vector<std::uint8_t> noise;
     if (rej != nullptr) noise = LasNoiseClasses(r.points, rej->points);
+    // LAS 1.4 R15 asks for the sensor's intensity scaled to 16 bits: the 83P's is 16 bits.
+    const georef::PingSeries* intensities = IntensityPings(extras);
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
     Eigen::Vector3d hi = -lo;
     for (std::size_t j = 0; j < n; ++j) {
@@ -366,8 +407,8 @@ Status WriteLas(const std::string& path,
         w.U16Le(4);
         w.U16Le(kExtraBytesVlrSize);
         w.FixedString("pitmap TPU: THU, TVU 95 %, m", 32);
-        ExtraBytesFloat(w, "THU 95%", "horizontal uncertainty 95 %, m");
-        ExtraBytesFloat(w, "TVU 95%", "vertical uncertainty 95 %, m");
+        ExtraBytesFloat(w, kLasThuName, "horizontal uncertainty 95 %, m");
+        ExtraBytesFloat(w, kLasTvuName, "vertical uncertainty 95 %, m");
     }
     if (!meta_vlr.empty()) {
         // VLR: the survey's metadata as JSON (pitmap's own record, ProductMetadataJson).
@@ -389,7 +430,7 @@ Status WriteLas(const std::string& path,
         for (int a = 0; a < 3; ++a) {
             rec.I32Le(static_cast<std::int32_t>(std::llround((e[a] - offset[a]) / scale)));
         }
-        rec.U16Le(0);                                       // intensity
+        rec.U16Le(intensities != nullptr ? SoundingIntensity(*g, i, *intensities) : 0);
         rec.U8(1 | (1 << 4));                               // return 1 of 1
         rec.U8(accepted ? 0 : kLasFlagWithheld);            // flags, channel, scan direction, edge
         rec.U8(accepted ? kLasClassBathymetry : noise[i]);  // classification

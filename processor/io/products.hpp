@@ -17,7 +17,8 @@
 //   Classification: accepted soundings class 40 (bathymetric point, "submerged topography":
 //   the ASPRS topo-bathy lidar domain profile's class, in R15's range reserved for ASPRS
 //   definitions), rejected ones 7 (low noise) or 18 (high noise) (R15 Table 17; the rule is
-//   LasNoiseClasses') with the withheld flag (classification flags bit 2) set.
+//   LasNoiseClasses') with the withheld flag (classification flags bit 2) set. Intensity: the
+//   sounding's 83P intensity as recorded (SoundingIntensity), 0 where the pings have none.
 // Rejected soundings (issue 35): both files hold, after the accepted soundings in their order,
 // the rejected soundings of the same survey that have a position (a georeference in the view
 // georef::SoundingView::kRejected: every status but no detection and refraction) when the
@@ -55,6 +56,12 @@ struct VehicleConfig {
     georef::SonarMount mount;
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
+// Which vehicle file a command reads: `explicit_path` (--vehicle, the config's vehicle_yaml)
+// when given, else vehicle.yaml beside the first of `files` (the logs, as pitmap-sim and the
+// daemon write them) when it exists, else "". `pitmap run`, `pitmap georef` and `pitmap live`
+// all decide it here.
+std::string VehicleFilePath(const std::vector<std::string>& files,
+                            const std::string& explicit_path);
 // summary.json's record of the vehicle file.
 nlohmann::json VehicleJson(const VehicleDescription& v);
 
@@ -66,9 +73,25 @@ struct PointExtras {
     std::vector<double> datum_height_m;  // one per ping: the datum's ellipsoidal height D, m
     std::string vertical_wkt;            // the datum's VERT_CS (WKT1); "" = WGS 84 ellipsoidal
     std::string vertical_name;           // its name, for the PLY comment
+    // The pings the soundings came from (GeorefPing::header_index into it), for the 83P
+    // intensity of each sounding: LAS intensity and PLY ushort intensity (SoundingIntensity).
+    // Not written when null or when the pings carry no intensities.
+    const georef::PingSeries* pings = nullptr;
 };
 
-// With extras, PLY adds float thu_95_m, tvu_95_m (when given) and, with datum heights, float
+// The 83P intensity of sounding i of `g`: PingSeries::intensities of its ping's beam, as
+// recorded (u16 "normalized amplitude", no physical unit; the LAS intensity's 16 bits need no
+// scaling); 0 (none) when the pings carry no intensities or the beam is outside its ping.
+std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
+                                std::size_t i,
+                                const georef::PingSeries& pings);
+// The names of the LAS extra bytes of THU and TVU: PDAL keeps a dimension name that starts with
+// a letter and holds only letters, digits and '_' (others it replaces by '_').
+inline constexpr const char* kLasThuName = "thu_95_m";
+inline constexpr const char* kLasTvuName = "tvu_95_m";
+
+// With extras, PLY adds ushort intensity (with extras->pings carrying intensities, after beam:
+// SoundingIntensity), float thu_95_m, tvu_95_m (when given) and, with datum heights, float
 // depth_m (D - h: below the datum, m) and a comment "pitmap_vertical_datum NAME"; x, y, z stay
 // world ENU (ellipsoidal). `rejected` (optional): the kRejected view of the same survey
 // (GeorefPoints::status filled, its pings those of `result`, as survey::Georeference gives both),
@@ -80,7 +103,8 @@ Status WritePly(const std::string& path,
                 const georef::GeorefResult* rejected = nullptr);
 // With extras, LAS heights are h - D (above the datum; the WKT's VERT_CS names it) and THU/TVU
 // are LAS 1.4 extra bytes (two float32 after the format-6 fields, record length 38), described
-// in an Extra Bytes VLR (LASF_Spec / 4: names "THU 95%" and "TVU 95%", metres). `rejected` as
+// in an Extra Bytes VLR (LASF_Spec / 4: names kLasThuName and kLasTvuName, metres); with
+// extras->pings, the intensity of each record is SoundingIntensity (else 0). `rejected` as
 // WritePly's (its UTM positions in `utm`'s zone), classified by LasNoiseClasses and withheld.
 // `meta` (optional, common/product_metadata.hpp): the header's System Identifier is the vessel
 // and its multibeam, Generating Software the software's name and version, and a VLR (user id

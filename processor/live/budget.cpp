@@ -147,4 +147,27 @@ LiveQuery ParseLiveQuery(const std::multimap<std::string, std::string>& params) 
     return q;
 }
 
+bool IsLoopbackAddress(const std::string& ip) {
+    // 127.0.0.0/8, also as an IPv4-mapped IPv6 address, and ::1 (RFC 1122 3.2.1.3, RFC 4291
+    // 2.5.3 and 2.5.5.2).
+    const auto v4_loopback = [](const std::string& a) {
+        if (a.rfind("127.", 0) != 0) return false;
+        int dots = 0;
+        for (char c : a) {
+            if (c == '.') {
+                ++dots;
+            } else if (c < '0' || c > '9') {
+                return false;
+            }
+        }
+        return dots == 3;
+    };
+    if (v4_loopback(ip)) return true;
+    if (ip == "::1" || ip == "0:0:0:0:0:0:0:1") return true;
+    for (const char* prefix : {"::ffff:", "::FFFF:"}) {
+        if (ip.rfind(prefix, 0) == 0) return v4_loopback(ip.substr(7));
+    }
+    return false;
+}
+
 }  // namespace pitmap::proc::live

@@ -60,6 +60,11 @@ private:
     std::int64_t spent_ = 0, evicted_ = 0;
 };
 
+// Whether a peer address (as the server gives it: "127.0.0.1", "::1", "::ffff:127.0.0.2") is
+// this machine's loopback: a page there does not share the radio link, so by default it is not
+// budgeted (ServerConfig::budget_loopback).
+bool IsLoopbackAddress(const std::string& ip);
+
 // The parameters of the page's requests, checked. Unknown keys are ignored; a known key with a
 // bad value is an error naming it.
 struct LiveQuery {

@@ -243,13 +243,18 @@ Expected<io::GridRaster> CoverageGrid::ToRaster(int utm_zone,
     g.utm_zone = utm_zone;
     g.northern = northern;
     const auto n = static_cast<std::size_t>(nx * ny);
-    g.layers = {{"depth", "metre", std::vector<float>(n, kNaN)},
-                {"elevation", "metre", std::vector<float>(n, kNaN)},
-                {"elevation_stddev", "metre", std::vector<float>(n, kNaN)},
-                {"density", "", std::vector<float>(n, kNaN)},
-                {"holiday", "", std::vector<float>(n, kNaN)},
-                {"tvu_95", "metre", std::vector<float>(n, kNaN)},
-                {"tvu_meets_order", "", std::vector<float>(n, kNaN)}};
+    // Overviews: counts by the nearest cell, the 0/1 flags by the mode (io::GridBandKind).
+    using K = io::GridBandKind;
+    const auto layer = [n](const char* name, const char* unit, K kind) {
+        return io::GridLayer(name, unit, std::vector<float>(n, kNaN), kind);
+    };
+    g.layers = {layer("depth", "metre", K::kContinuous),
+                layer("elevation", "metre", K::kContinuous),
+                layer("elevation_stddev", "metre", K::kContinuous),
+                layer("density", "count", K::kCount),
+                layer("holiday", "", K::kClass),
+                layer("tvu_95", "metre", K::kContinuous),
+                layer("tvu_meets_order", "", K::kClass)};
     for (std::int64_t j = 0; j < ny; ++j) {
         for (std::int64_t i = 0; i < nx; ++i) {
             const auto k = static_cast<std::size_t>(j * nx + i);

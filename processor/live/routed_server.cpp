@@ -7,6 +7,8 @@
 #include <cctype>
 #include <cerrno>
 
+#include <nlohmann/json.hpp>
+
 #include "common/result.hpp"
 
 namespace pitmap::proc::live {
@@ -46,6 +48,70 @@ private:
     std::string out_;
 };
 
+// `r` without its Range header lines: every answer here is whole (RFC 9110 14.2 lets a server
+// ignore Range). httplib 0.11.4 answers a range past the end of a handler's body with 416 and
+// an empty body, after its error handler has run.
+FrontRequest WithoutRange(const FrontRequest& r) {
+    const std::size_t head_end = r.bytes.find("\r\n\r\n");
+    if (head_end == std::string::npos) return r;
+    std::string lower = r.bytes.substr(0, head_end);
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) {
+        return static_cast<char>(std::tolower(c));
+    });
+    if (lower.find("\r\nrange:") == std::string::npos) return r;
+    // The request line and every header line but Range's, then "\r\n\r\n" and the body.
+    FrontRequest out = r;
+    out.bytes.clear();
+    for (std::size_t at = 0; at < head_end;) {
+        const std::size_t eol = std::min(r.bytes.find("\r\n", at), head_end);
+        if (at == 0 || lower.compare(at, 6, "range:") != 0) {
+            if (at > 0) out.bytes += "\r\n";
+            out.bytes.append(r.bytes, at, eol - at);
+        }
+        at = eol + 2;
+    }
+    out.bytes.append(r.bytes, head_end, std::string::npos);
+    return out;
+}
+
+// RFC 9110 section 15's reason phrases of the answers httplib gives by itself.
+const char* ReasonPhrase(int status) {
+    switch (status) {
+        case 400:
+            return "Bad Request";
+        case 403:
+            return "Forbidden";
+        case 404:
+            return "Not Found";
+        case 405:
+            return "Method Not Allowed";
+        case 408:
+            return "Request Timeout";
+        case 411:
+            return "Length Required";
+        case 413:
+            return "Content Too Large";
+        case 414:
+            return "URI Too Long";
+        case 415:
+            return "Unsupported Media Type";
+        case 416:
+            return "Range Not Satisfiable";
+        case 417:
+            return "Expectation Failed";
+        case 431:
+            return "Request Header Fields Too Large";
+        case 500:
+            return "Internal Server Error";
+        case 501:
+            return "Not Implemented";
+        case 503:
+            return "Service Unavailable";
+        default:
+            return status >= 500 ? "Server Error" : "Client Error";
+    }
+}
+
 }  // namespace
 
 // `bytes` random bytes from the kernel as hex: the page token and the CSP nonces.
@@ -66,7 +132,23 @@ std::string RandomHex(std::size_t bytes) {
     return out;
 }
 
-FrontAnswer RoutedServer::Process(const FrontRequest& r) {
+RoutedServer::RoutedServer() {
+    set_error_handler(HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) return HandlerResponse::Unhandled;
+        std::string why = std::to_string(res.status) + " " + ReasonPhrase(res.status);
+        if (res.status == 400) why += ": the request line, a header or the body cannot be read";
+        if (res.status == 404) why += ": no " + req.method + " " + req.path + " here";
+        if (res.status == 405) why += ": " + req.method + " is not allowed on " + req.path;
+        res.set_content(nlohmann::json{{"error", why}}.dump(
+                            -1, ' ', false, nlohmann::json::error_handler_t::replace),
+                        "application/vnd.pitmap+json");
+        res.set_header("Cache-Control", "no-store");
+        return HandlerResponse::Handled;
+    }));
+}
+
+FrontAnswer RoutedServer::Process(const FrontRequest& request) {
+    const FrontRequest r = WithoutRange(request);
     BufferStream s(r);
     bool closed = false;
     process_request(s, r.last, closed, nullptr);

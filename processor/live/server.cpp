@@ -59,6 +59,11 @@ std::string ClientKey(const httplib::Request& req) {
     return key;
 }
 
+// Whether the request spends from a budget: not a page on this machine unless asked.
+bool Budgeted(const ServerConfig& config, const httplib::Request& req) {
+    return config.budget_loopback || !IsLoopbackAddress(req.remote_addr);
+}
+
 // The type httplib does not compress again (it compresses application/json itself).
 constexpr const char* kJsonType = "application/vnd.pitmap+json";
 
@@ -201,7 +206,11 @@ Status LiveServer::Start() {
                 res.set_header("Content-Encoding", "gzip");
             }
         }
-        budget_.Spend(client, static_cast<std::int64_t>(body.size()), SteadyUtime());
+        if (Budgeted(config_, req)) {
+            budget_.Spend(client, static_cast<std::int64_t>(body.size()), SteadyUtime());
+        } else {
+            unbudgeted_bytes_.fetch_add(static_cast<std::int64_t>(body.size()));
+        }
         res.status = code;
         res.set_header("Cache-Control", "no-store");
         res.set_content(std::move(body), kJsonType);
@@ -258,7 +267,8 @@ Status LiveServer::Start() {
         nlohmann::json j = session_.StatusJson(WallUtime());
         const std::string client = ClientKey(req);
         const std::int64_t now = SteadyUtime();
-        j["budget"] = {{"rate_bytes_per_s", budget_.rate_bytes_per_s()},
+        j["budget"] = {{"applies", Budgeted(config_, req)},
+                       {"rate_bytes_per_s", budget_.rate_bytes_per_s()},
                        {"client_rate_bytes_per_s", budget_.ShareBytesPerS(now)},
                        {"clients", budget_.ActiveClients(now)},
                        {"clients_evicted", budget_.evicted()},
@@ -283,16 +293,19 @@ Status LiveServer::Start() {
           [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
               const LiveQuery q = ParseLiveQuery(req.params);
               if (!q.error.empty()) return bad_request(req, res, q.error);
-              std::int64_t share = budget_.Available(ClientKey(req), SteadyUtime()) * 6 / 10;
-              if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
+              std::int64_t share = Budgeted(config_, req)
+                                       ? budget_.Available(ClientKey(req), SteadyUtime()) * 6 / 10
+                                       : -1;
+              if (q.max_bytes >= 0) share = share < 0 ? q.max_bytes : std::min(share, q.max_bytes);
               send_json(req, res, session_.TilesJson(q.since, share));
           });
     s.Get("/api/soundings",
           [this, send_json, bad_request](const httplib::Request& req, httplib::Response& res) {
               const LiveQuery q = ParseLiveQuery(req.params);
               if (!q.error.empty()) return bad_request(req, res, q.error);
-              std::int64_t share = budget_.Available(ClientKey(req), SteadyUtime());
-              if (q.max_bytes >= 0) share = std::min(share, q.max_bytes);
+              std::int64_t share =
+                  Budgeted(config_, req) ? budget_.Available(ClientKey(req), SteadyUtime()) : -1;
+              if (q.max_bytes >= 0) share = share < 0 ? q.max_bytes : std::min(share, q.max_bytes);
               send_json(req, res, session_.SoundingsJson(q.since, share));
           });
     s.Post("/api/snapshot", [this, send_json](const httplib::Request& req, httplib::Response& res) {

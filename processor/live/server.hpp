@@ -12,8 +12,12 @@
 // of A-Z a-z 0-9 _ -, else HTTP 400 on every endpoint). Every response spends from the budget
 // of its client, the peer address plus that id (ClientBudgets, budget.hpp: the link rate shared
 // equally among the active clients, max_clients tracked): the tiles may take 60 % of what the
-// client has, the soundings what remains; both say when they were thinned. A bad query
-// parameter is HTTP 400 with the reason.
+// client has, the soundings what remains; both say when they were thinned. Pages on this
+// machine (a loopback peer: 127.0.0.0/8, ::1) are not budgeted unless budget_loopback (pitmap-live
+// --budget-loopback): the budget stands for the radio link, which they do not use, and at the
+// default rate a fast replay thinned a local page for nothing. A bad query parameter is HTTP 400
+// with the reason. Every 4xx and 5xx answer, httplib's own included (no route, a request it
+// cannot read), has a JSON body {"error": "..."}.
 //
 // Design: the public socket belongs to HttpFront (front.hpp), an epoll loop that reads
 // requests without blocking, enforces ConnectionLimits (header, body, idle and write deadlines;
@@ -41,6 +45,7 @@
 // through LiveSession's lock.
 #pragma once
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -57,6 +62,7 @@ struct ServerConfig {
     int port = 8765;  // 0 = any free port (see LiveServer::port)
     double budget_bytes_per_s = 50'000;
     double budget_burst_s = 2.0;
+    bool budget_loopback = false;  // loopback pages budgeted too (else they take what they ask)
     std::size_t max_clients = 16;  // clients with a budget of their own; beyond: LRU evicted
     double client_idle_s = 10.0;   // a client silent this long no longer takes a share
     std::string snapshot_dir;      // "" = snapshots refused
@@ -79,7 +85,8 @@ public:
     Status Start();
     void Stop();
     int port() const { return port_; }
-    std::int64_t bytes_served() const { return budget_.spent(); }
+    // Bytes of every JSON answer, budgeted or not.
+    std::int64_t bytes_served() const { return budget_.spent() + unbudgeted_bytes_.load(); }
     const ClientBudgets& budgets() const { return budget_; }
     FrontStats connections() const;
     // The names a Host header may give now (lower case, IPv6 in brackets).
@@ -90,6 +97,7 @@ private:
     LiveSession& session_;
     ServerConfig config_;
     ClientBudgets budget_;
+    std::atomic<std::int64_t> unbudgeted_bytes_{0};
     std::unique_ptr<Impl> impl_;
     int port_ = 0;
 };

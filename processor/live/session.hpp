@@ -76,7 +76,14 @@ public:
     // 100 ms of wall time).
     void Tick(std::int64_t wall_utime, bool force = false);
 
-    // JSON documents for the page (budget in bytes: the caller's share; < 0 = unlimited).
+    // Where the events come from: a replay of log files (MarkReplay, before the first event),
+    // else a live subscription. At the replay's end (MarkReplayFinished) the status says
+    // source.finished and the silence that follows raises no no_messages alarm.
+    void MarkReplay();
+    void MarkReplayFinished();
+
+    // JSON documents for the page (documents.cpp; budget in bytes: the caller's share; < 0 =
+    // unlimited).
     nlohmann::json StatusJson(std::int64_t wall_utime);
     nlohmann::json AlarmsJson();
     nlohmann::json TilesJson(std::uint64_t since, std::int64_t budget_bytes);
@@ -99,6 +106,7 @@ private:
     mutable std::mutex mutex_;
     LiveConfig config_;
     bool mount_known_;
+    bool replay_ = false, replay_finished_ = false;
     LiveGeoref georef_;
     CoverageGrid grid_;
     StatusTracker status_;

@@ -335,7 +335,7 @@ void StatusTracker::Evaluate(std::int64_t wall_utime) {
     // The feed itself.
     {
         const double quiet_s = Seconds(wall_utime - last_wall_utime_);
-        const bool on = last_wall_utime_ > 0 && quiet_s > config_.no_messages_s;
+        const bool on = !feed_ended_ && last_wall_utime_ > 0 && quiet_s > config_.no_messages_s;
         Set(next, "no_messages", on, Fmt("no LCM message for %.1f s", quiet_s));
     }
     active_ = std::move(next);

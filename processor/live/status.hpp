@@ -148,6 +148,10 @@ public:
     void OnDaemon(const DaemonStatusIn& d);
     void OnTvuCells(const TvuCellsIn& t);
 
+    // The feed has ended on purpose (a replayed log reached its end): silence is expected, so
+    // the no_messages alarm stays off from now on.
+    void SetFeedEnded() { feed_ended_ = true; }
+    bool feed_ended() const { return feed_ended_; }
     // Re-evaluates the alarms at the data clock and the given wall time; keeps the transitions.
     void Evaluate(std::int64_t wall_utime);
     StatusSnapshot Snapshot() const;
@@ -160,6 +164,7 @@ private:
     StatusConfig config_;
     std::int64_t data_utime_ = 0;
     std::int64_t last_wall_utime_ = 0;  // wall time of the last message
+    bool feed_ended_ = false;
     std::deque<std::int64_t> ping_times_;
     std::int64_t pings_ = 0, last_ping_utime_ = 0, first_utime_ = 0;
     bool have_nav_ = false, have_gnss_ = false, have_daemon_ = false;

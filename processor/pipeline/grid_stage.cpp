@@ -240,6 +240,7 @@ json S44Json(const hydro::S44Result& r,
             {"limits", limits},
             {"soundings", r.soundings},
             {"nodes", r.nodes},
+            {"nodes_without_thu", r.nodes_without_thu},
             {"soundings_within_tvu", OrderShares(r.soundings_within_tvu)},
             {"soundings_within_thu", OrderShares(r.soundings_within_thu)},
             {"soundings_within_both", OrderShares(r.soundings_within_both)},
@@ -263,6 +264,35 @@ json S44Json(const hydro::S44Result& r,
               {"within_tvu", r.crossline_within_tvu},
               {"by_angle", bins}}},
             {"message", r.message}};
+}
+
+// dem.tif's bands (io::GridLayer): heights and uncertainty in metres, averaged when zoomed out;
+// density and hypotheses counts ("count": without a unit of their own GDAL would report the
+// vertical CRS's metre), the nearest node's when zoomed out.
+std::vector<io::GridLayer> DemLayers(const hydro::CubeGrid& g) {
+    using K = io::GridBandKind;
+    return {{"elevation", "metre", g.elevation_m, K::kContinuous},
+            {"uncertainty", "metre", g.uncertainty_m, K::kContinuous},
+            {"density", "count", g.density, K::kCount},
+            {"hypotheses", "count", g.hypotheses, K::kCount}};
+}
+
+// s44_holidays.tif: the holiday map as an 8-bit class raster (0 covered, 1 gap, 2 holiday,
+// 255 outside the survey) with category names and colours, on the DEM's grid and horizontal
+// CRS (classes are not heights: no vertical CRS, no unit).
+io::GridRaster HolidayRaster(const io::GridRaster& dem, const hydro::S44Result& r) {
+    io::GridRaster hol = dem;
+    hol.horizontal_only = true;
+    hol.vertical_wkt.clear();
+    hol.sample_type = io::GridSampleType::kByte;
+    io::GridLayer l("holiday", "", r.holiday_map, io::GridBandKind::kClass);
+    l.class_names = {"covered", "gap", "holiday"};
+    l.class_colours = {{{190, 190, 190, 255}, {255, 190, 0, 255}, {220, 0, 0, 255}}};
+    hol.layers = {std::move(l)};
+    hol.metadata = {{"pitmap_holidays",
+                     "IHO S-44 order " + std::string(hydro::ToString(r.order)) +
+                         ": 0 covered, 1 gap, 2 holiday, 255 (nodata) outside the survey"}};
+    return hol;
 }
 
 }  // namespace
@@ -515,10 +545,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     raster.utm_zone = utm->zone;
     raster.northern = utm->northern;
     raster.vertical_wkt = datum->VerticalWkt();
-    raster.layers = {{"elevation", "metre", g.elevation_m},
-                     {"uncertainty", "metre", g.uncertainty_m},
-                     {"density", "", g.density},
-                     {"hypotheses", "", g.hypotheses}};
+    raster.layers = DemLayers(g);
     raster.metadata = {
         {"pitmap_surface", "CUBE (Calder & Mayer 2003)"},
         {"pitmap_disambiguation", hydro::ToString(gc.cube.disambiguation)},
@@ -554,6 +581,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
         extras.vertical_wkt = datum->VerticalWkt();
         extras.vertical_name = datum->crs_name;
+        extras.pings = &s.model.ingest.pings;
         // The rejected soundings after the accepted ones (THU/TVU NaN: not computed for them).
         std::optional<georef::GeorefResult> rejected;
         if (config.write_rejected) rejected = RejectedView(s, config);
@@ -616,8 +644,18 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             ss.ping_yaw_rad.push_back(std::atan2(fwd.x(), fwd.y()));
             transducer[k] = ping_geo[k].height_m - D[k];
         }
-        hydro::S44Grid sg{
-            g.x0, g.y0, g.resolution_m, g.nx, g.ny, g.elevation_m, g.uncertainty_m, {}};
+        // The nodes' THU from the soundings CUBE offered them (its capture distance rule).
+        hydro::S44Grid sg{.x0 = g.x0,
+                          .y0 = g.y0,
+                          .resolution_m = g.resolution_m,
+                          .nx = g.nx,
+                          .ny = g.ny,
+                          .elevation_m = g.elevation_m,
+                          .uncertainty_m = g.uncertainty_m,
+                          .depth_m = {},
+                          .capture_depth_fraction = gc.cube.capture_distance_scale,
+                          .capture_min_res = gc.cube.min_capture_distance_res,
+                          .capture_max_res = gc.cube.max_capture_distance_res};
         // Node depth: below the datum (water level), else below the transducers' median height.
         const double ref = water ? 0.0 : MedianOf(transducer);
         sg.depth_m.resize(g.elevation_m.size());
@@ -627,11 +665,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         const hydro::S44Result r44 = hydro::RunS44(ss, sg, gc.s44_config);
         s.geo.points.ping = std::move(ss.ping);
         log("grid: S-44: " + r44.message);
-        io::GridRaster hol = raster;
-        hol.layers = {{"holiday", "", r44.holiday_map}};
-        hol.metadata = {{"pitmap_holidays",
-                         "IHO S-44 order " + std::string(hydro::ToString(r44.order)) +
-                             ": 0 covered, 1 gap, 2 holiday, nodata outside the survey"}};
+        io::GridRaster hol = HolidayRaster(raster, r44);
         if (!s.model.run_id.empty()) hol.metadata.emplace_back("pitmap_run_id", s.model.run_id);
         std::string holiday_file;
         if (gc.write_geotiff) {

@@ -7,13 +7,10 @@
 #include "common/geodesy.hpp"
 #include "common/gps_time.hpp"
 #include "common/product_metadata_json.hpp"
+#include "common/version.hpp"
 #include "processor/hydro/datum.hpp"
 #include "processor/hydro/s44.hpp"
 #include "processor/pipeline/survey.hpp"
-
-#ifndef PITMAP_VERSION
-#define PITMAP_VERSION "unknown"
-#endif
 
 namespace pitmap::proc::pipeline {
 
@@ -69,7 +66,7 @@ std::string IsoUtcSeconds(std::int64_t utime_unix) {
 }
 
 std::string SoftwareName() {
-    return std::string("pitmap ") + PITMAP_VERSION;
+    return std::string("pitmap ") + Version();
 }
 
 ProductMetadata BuildProductMetadata(const SurveyMetadataConfig& c, const MetadataInputs& in) {

@@ -13,6 +13,65 @@ namespace pitmap::proc::pipeline::detail {
 
 using nlohmann::json;
 
+namespace {
+
+// What the mosaic's dB are relative to (docs/products-typing.md). The 83P intensity is a u16
+// "normalized amplitude" with no physical scaling (Imagenex 83P v1.10, bytes 256 + 2B on;
+// the head's source level, receiver gain, start gain and normalisation are not in the record).
+constexpr const char* kDbReference =
+    "dB re 1 unit of the 83P intensity (u16 normalized amplitude, no physical scaling): 20 log10 "
+    "of the intensity plus the range loss added back (levels carried to 1 m) and the angular "
+    "response referred to the reference incidence; not calibrated (the head's source level, "
+    "gain and normalisation are unknown and not removed): compare values within one survey of "
+    "one head and settings only";
+
+std::vector<io::GridLayer> MosaicLayers(const hydro::MosaicResult& r,
+                                        const hydro::MosaicConfig& c) {
+    char range[200];
+    std::snprintf(range,
+                  sizeof range,
+                  "20 log10(I) + %.1f log10(R / 1 m) + 2 x %.4f dB/m x R",
+                  c.spreading_db_per_decade,
+                  c.absorption_db_per_m);
+    char angular[200];
+    std::snprintf(angular,
+                  sizeof angular,
+                  "%s, referred to %.1f deg incidence",
+                  hydro::ToString(c.angular),
+                  c.reference_angle_deg);
+    using K = io::GridBandKind;
+    io::GridLayer corrected{"backscatter", "dB", r.corrected_db, K::kContinuous};
+    corrected.metadata = {{"pitmap_reference", kDbReference},
+                          {"pitmap_formula", std::string(range) + " - AR(theta) + AR(ref)"},
+                          {"pitmap_angular_correction", angular}};
+    io::GridLayer uncorrected{"uncorrected", "dB", r.uncorrected_db, K::kContinuous};
+    uncorrected.metadata = {
+        {"pitmap_reference",
+         "dB re 1 unit of the 83P intensity (u16 normalized amplitude, no physical scaling), as "
+         "received: no range or angular correction; not calibrated"},
+        {"pitmap_formula", "20 log10(I)"}};
+    io::GridLayer count{"count", "count", r.count, K::kCount};
+    count.metadata = {{"pitmap_count", "soundings averaged in the node"}};
+    return {std::move(corrected), std::move(uncorrected), std::move(count)};
+}
+
+std::vector<std::pair<std::string, std::string>> MosaicMetadata(const hydro::MosaicConfig& c) {
+    char range_note[160];
+    std::snprintf(range_note,
+                  sizeof range_note,
+                  "%.1f log10(R) + 2 x %.4f dB/m x R",
+                  c.spreading_db_per_decade,
+                  c.absorption_db_per_m);
+    return {{"pitmap_mosaic", "relative seabed backscatter, dB (83P intensity as amplitude)"},
+            {"pitmap_db_reference", kDbReference},
+            {"pitmap_range_correction", range_note},
+            {"pitmap_angular_correction",
+             std::string(hydro::ToString(c.angular)) + ", referenced to " +
+                 std::to_string(c.reference_angle_deg) + " deg incidence"}};
+}
+
+}  // namespace
+
 Expected<json> MosaicSurvey(const Survey& s,
                             const GridStageConfig& gc,
                             const io::GridRaster& dem,
@@ -89,21 +148,8 @@ Expected<json> MosaicSurvey(const Survey& s,
     io::GridRaster raster = dem;
     raster.horizontal_only = true;
     raster.vertical_wkt.clear();
-    raster.layers = {{"backscatter", "dB", r.corrected_db},
-                     {"uncorrected", "dB", r.uncorrected_db},
-                     {"count", "", r.count}};
-    char range_note[160];
-    std::snprintf(range_note,
-                  sizeof range_note,
-                  "%.1f log10(R) + 2 x %.4f dB/m x R",
-                  gc.mosaic_config.spreading_db_per_decade,
-                  gc.mosaic_config.absorption_db_per_m);
-    raster.metadata = {
-        {"pitmap_mosaic", "relative seabed backscatter, dB (83P intensity as amplitude)"},
-        {"pitmap_range_correction", range_note},
-        {"pitmap_angular_correction",
-         std::string(hydro::ToString(gc.mosaic_config.angular)) + ", referenced to " +
-             std::to_string(gc.mosaic_config.reference_angle_deg) + " deg incidence"}};
+    raster.layers = MosaicLayers(r, gc.mosaic_config);
+    raster.metadata = MosaicMetadata(gc.mosaic_config);
     if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
     if (auto w = io::WriteCogGeoTiff(s.out_dir + "/mosaic.tif", raster); !w) return w.error();
     rec["file"] = "mosaic.tif";

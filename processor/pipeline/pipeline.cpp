@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -60,11 +61,9 @@ json TimeJson(const io::IngestResult& ing) {
 }
 
 // The vehicle file: products.vehicle_yaml (--vehicle), else vehicle.yaml beside the first
-// input, else "".
+// input, else "" (io::VehicleFilePath, shared with pitmap live).
 std::string VehicleFilePath(const std::vector<std::string>& files, const PipelineConfig& config) {
-    if (!config.vehicle_yaml.empty() || files.empty()) return config.vehicle_yaml;
-    const fs::path beside = fs::path(files.front()).parent_path() / "vehicle.yaml";
-    return fs::exists(beside) ? beside.string() : "";
+    return io::VehicleFilePath(files, config.vehicle_yaml);
 }
 
 // What the vehicle file sets for ingest where the config and command line left it unset:
@@ -138,13 +137,16 @@ Status WritePoints(const std::string& dir,
                    json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected,
+                   const georef::PingSeries* pings,
                    const ProductMetadata* meta) {
-    if (auto s = io::WritePly(dir + "/points.ply", geo, nullptr, run_id, rejected); !s) return s;
+    io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
+    extras.pings = pings;
+    if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
     auto utm = georef::ToUtm(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, nullptr, run_id, rejected, meta);
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected, meta);
             !s)
             return s;
         // Heights above the ellipsoid here: the grid stage writes them again in the datum.
@@ -176,10 +178,12 @@ Status WritePoints(Survey& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
     if (!c.write_rejected) {
-        return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &meta);
+        return WritePoints(
+            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings, &meta);
     }
     const georef::GeorefResult rejected = RejectedView(s, c);
-    return WritePoints(s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &meta);
+    return WritePoints(
+        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
 }
 
 json SoundingsJson(const georef::StatusCounts& counts) {
@@ -199,8 +203,12 @@ json SoundingsJson(const georef::StatusCounts& counts) {
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
     const std::vector<std::string> slam = {
         "trajectory_initial.csv", "trajectory.csv", "points_initial.ply"};
-    const std::vector<std::string> grid = {
-        "dem.tif", "dem.bag", "soundings_tpu.ply", "s44_holidays.tif", "mosaic.tif"};
+    const std::vector<std::string> grid = {"dem.tif",
+                                           "dem.bag",
+                                           "soundings_tpu.ply",
+                                           "s44_holidays.tif",
+                                           "s44_holidays.tif.aux.xml",
+                                           "mosaic.tif"};
     const std::vector<std::string> mesh = {"mesh.ply",
                                            "mesh.obj",
                                            "mesh.glb",
@@ -210,7 +218,8 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "mesh_utm.ply",
                                            "mesh_utm.glb",
                                            "mesh_utm.prj"};
-    const std::vector<std::string> report = {"report.html", "report"};
+    const std::vector<std::string> report = {
+        "report.html", "report_engineering.html", "report.pdf", "report"};
     std::vector<std::string> out;
     const auto add = [&out](const std::vector<std::string>& names) {
         out.insert(out.end(), names.begin(), names.end());
@@ -404,14 +413,15 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
                 {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
         }
     }
+    // The mount used and what is known of it, from the model (summary.json is written, never
+    // read back for a product).
     json bj = MountJson(s.model.mount);
-    if (s.model.calibration == survey::CalibrationState::kCalibrated) {
+    if (s.model.calibration == survey::CalibrationState::kCalibrated &&
+        std::isfinite(s.model.boresight_sd_deg[0])) {
         // The calibrated boresight's 1-sigma uncertainty: range noise and the INS's attitude.
-        const json stages = s.summary.value("stages", json::object());
-        const json cal = stages.is_object() ? stages.value("calibrate", json::object()) : json();
-        if (cal.is_object() && cal.contains("sd_deg")) bj["sd_deg"] = cal["sd_deg"];
+        bj["sd_deg"] = s.model.boresight_sd_deg;
     }
-    bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
+    bj["sonar_clock"] = survey::ClockJson(s.model.clock);
     if (!s.model.run_id.empty()) bj["run_id"] = s.model.run_id;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Refraction set-up for a new georeference: the config's casts, with the INS height above the
 // water line; the later stages build it again from the survey model's record.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -14,6 +15,26 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
+
+// The cast profiles in summary.json are for the report's speed-against-depth plot: at most this
+// many points each (every k-th, the deepest kept), so a CTD's thousands of samples stay small.
+constexpr std::size_t kMaxRecordedProfilePoints = 200;
+
+json Profile(const svp::SoundSpeedCast& c) {
+    json depth = json::array(), speed = json::array();
+    const std::size_t n = c.depth_m.size();
+    const std::size_t step =
+        std::max<std::size_t>(1, (n + kMaxRecordedProfilePoints - 1) / kMaxRecordedProfilePoints);
+    for (std::size_t i = 0; i < n; i += step) {
+        depth.push_back(c.depth_m[i]);
+        speed.push_back(c.speed_mps[i]);
+    }
+    if (n > 0 && (n - 1) % step != 0) {
+        depth.push_back(c.depth_m.back());
+        speed.push_back(c.speed_mps.back());
+    }
+    return {{"depth_m", std::move(depth)}, {"speed_mps", std::move(speed)}};
+}
 
 json Record(const svp::Refraction& r, const std::vector<std::string>& files) {
     json j = {{"svp_files", json::array()},
@@ -32,7 +53,8 @@ json Record(const svp::Refraction& r, const std::vector<std::string>& files) {
              {"longitude_deg", c.has_position() ? json(c.longitude_deg) : json(nullptr)},
              {"points", c.depth_m.size()},
              {"max_depth_m", c.depth_m.back()},
-             {"surface_speed_mps", c.speed_mps.front()}});
+             {"surface_speed_mps", c.speed_mps.front()},
+             {"profile", Profile(c)}});
     }
     return j;
 }

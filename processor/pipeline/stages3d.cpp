@@ -166,13 +166,13 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     log("slam: " + std::to_string(set.slices.size()) + " slices, " + std::to_string(num_points) +
         " points");
 
-    slam::SlamConfig cfg = config.slam;
-    cfg.progress = [&log](int stage, int iteration) {
-        log(std::string("slam: ") + (stage == 0 ? "rigid" : "semi-rigid") + " iteration " +
-            std::to_string(iteration));
-        return true;
-    };
-    const slam::SlamResult r = slam::RunSlam(set.slices, cfg);
+    const slam::SlamResult r =
+        slam::RunSlam(set.slices, config.slam, [&log](const slam::SlamIteration& it) {
+            log(std::string("slam: ") +
+                (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") + " iteration " +
+                std::to_string(it.iteration));
+            return true;
+        });
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
 
     // The trajectory before, per ping, and the optimised one: slice poses where SLAM has them,
@@ -380,8 +380,8 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"position_change_max_m", change_max},
                {"ins_check", ins_check},
                {"consistency_windows", windows_json},
-               {"correspondence", ToString(cfg.correspondence)},
-               {"robust_kernel", ToString(cfg.robust_kernel)},
+               {"correspondence", ToString(config.slam.correspondence)},
+               {"robust_kernel", ToString(config.slam.robust_kernel)},
                {"timings_s",
                 {{"trees", r.timings.trees_s},
                  {"coarse_search", r.timings.coarse_search_s},
@@ -644,7 +644,10 @@ Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")"};
     }
     log("report: " + s.out_dir + "/report.html");
-    RecordStage(s.summary, Stage::kReport, {{"file", "report.html"}}, clock);
+    RecordStage(s.summary,
+                Stage::kReport,
+                {{"file", "report.html"}, {"engineering_file", "report_engineering.html"}},
+                clock);
     // The work is the child's: its own high-water mark (ru_maxrss, kB).
     json& rst = s.summary["stages"][ToString(Stage::kReport)];
     rst["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;

@@ -121,13 +121,15 @@ using survey::MountJson;
 
 // points.ply, points.las (when configured, both with the run id) and summary["utm"] for the
 // current soundings; `rejected` (optional): the rejected soundings of the same view
-// (RejectedView), written after them.
+// (RejectedView), written after them; `pings` (optional): the pings they came from, for their
+// 83P intensities (io::PointExtras::pings).
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
                    nlohmann::json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected = nullptr,
+                   const georef::PingSeries* pings = nullptr,
                    const ProductMetadata* meta = nullptr);
 // The same for the survey: its soundings (s.geo) and, with products.write_rejected, the
 // rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson) and

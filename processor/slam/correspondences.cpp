@@ -310,11 +310,14 @@ std::vector<Eigen::Vector3f> LocalNormals(
 namespace {
 
 // The plane-fit cells of the consistency score: per cell of score_cell_m, the least-squares
-// plane z = beta . (1, dx, dy) of the points of every slice in it, kept where at least six
-// points of passes min_time_separation_s apart fall.
+// plane z - z0 = beta . (1, dx, dy) of the points of every slice in it, kept where at least six
+// points of passes min_time_separation_s apart fall. z0 is the cell's first z: the sums then
+// hold heights of a few metres at most, so the residual sum zz - b . beta keeps its digits at
+// any |z| (with raw heights of 1e3 m and millimetre residuals it would cancel to noise).
 struct ScoreCell {
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    double z0 = std::numeric_limits<double>::quiet_NaN();
     double zz = 0;
     double t_min = std::numeric_limits<double>::max();
     double t_max = std::numeric_limits<double>::lowest();
@@ -346,9 +349,11 @@ std::unordered_map<std::uint64_t, ScoreCell> ScoreCells(const Input& in,
     ForEachScorePoint(
         in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u, double z) {
             ScoreCell& c = cells[key];
+            if (c.n == 0) c.z0 = z;
+            const double dz = z - c.z0;
             c.A += u * u.transpose();
-            c.b += u * z;
-            c.zz += z * z;
+            c.b += u * dz;
+            c.zz += dz * dz;
             c.t_min = std::min(c.t_min, in.t_s[s]);
             c.t_max = std::max(c.t_max, in.t_s[s]);
             ++c.n;
@@ -371,7 +376,6 @@ double ScoreOf(const std::unordered_map<std::uint64_t, ScoreCell>& cells) {
     double ssr = 0, dof = 0;
     for (const auto& [key, c] : cells) {
         if (!c.used) continue;
-        // Mean-centre z first: zz - b^T beta loses digits at large |z|.
         const double v = std::max(0.0, c.zz - c.b.dot(c.beta));
         if (!std::isfinite(v)) continue;
         ssr += v;
@@ -394,7 +398,7 @@ Consistency ConsistencyBySlice(const Input& in, const std::vector<Pose>& T, cons
         in, T, cfg, [&](std::size_t s, std::uint64_t key, const Eigen::Vector3d& u, double z) {
             const auto it = cells.find(key);
             if (it == cells.end() || !it->second.used) return;
-            const double r = z - u.dot(it->second.beta);
+            const double r = (z - it->second.z0) - u.dot(it->second.beta);
             ss[s] += r * r;
             ++n[s];
         });

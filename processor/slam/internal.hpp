@@ -204,6 +204,7 @@ StageOutcome RunStage(const Input& in,
                       std::vector<Block>& blocks,
                       const std::vector<std::uint32_t>& slice_block,
                       const SlamConfig& cfg,
+                      const SlamProgress& progress,
                       double* best_score,
                       SlamResult& res);
 
@@ -212,6 +213,7 @@ StageOutcome RunRigidStage(const Input& in,
                            std::vector<Block>& blocks,
                            const std::vector<std::uint32_t>& slice_block,
                            const SlamConfig& cfg,
+                           const SlamProgress& progress,
                            std::vector<Pose>& current,
                            double* best_score,
                            SlamResult& res);
@@ -221,6 +223,7 @@ StageOutcome RunSemiRigidStage(const Input& in,
                                std::vector<Block>& blocks,
                                const std::vector<std::uint32_t>& slice_block,
                                const SlamConfig& cfg,
+                               const SlamProgress& progress,
                                std::vector<Pose>& current,
                                double* best_score,
                                SlamResult& res);

@@ -34,6 +34,7 @@ StageOutcome RunStage(const Input& in,
                       std::vector<Block>& blocks,
                       const std::vector<std::uint32_t>& slice_block,
                       const SlamConfig& cfg,
+                      const SlamProgress& progress,
                       double* best_score,
                       SlamResult& res) {
     constexpr int kMaxDampingRetries = 8;
@@ -174,7 +175,7 @@ StageOutcome RunStage(const Input& in,
             out.termination = SlamTermination::kConverged;
             out.message = "pose updates below the convergence thresholds";
             stop = true;  // score this iterate, then stop
-        } else if (cfg.progress && !cfg.progress(static_cast<int>(stage), it)) {
+        } else if (progress && !progress(res.iterations.back())) {
             out.termination = SlamTermination::kCancelled;
             out.message = "cancelled";
             stop = true;

@@ -14,6 +14,7 @@ StageOutcome RunRigidStage(const Input& in,
                            std::vector<Block>& blocks,
                            const std::vector<std::uint32_t>& slice_block,
                            const SlamConfig& cfg,
+                           const SlamProgress& progress,
                            std::vector<Pose>& current,
                            double* best_score,
                            SlamResult& res) {
@@ -88,6 +89,7 @@ StageOutcome RunRigidStage(const Input& in,
                          blocks,
                          slice_block,
                          cfg,
+                         progress,
                          best_score,
                          res);
         res.rigid_iterations = rigid.iterations;

@@ -12,6 +12,7 @@ StageOutcome RunSemiRigidStage(const Input& in,
                                std::vector<Block>& blocks,
                                const std::vector<std::uint32_t>& slice_block,
                                const SlamConfig& cfg,
+                               const SlamProgress& progress,
                                std::vector<Pose>& current,
                                double* best_score,
                                SlamResult& res) {
@@ -52,6 +53,7 @@ StageOutcome RunSemiRigidStage(const Input& in,
                                  blocks,
                                  slice_block,
                                  cfg,
+                                 progress,
                                  best_score,
                                  res);
     res.semi_rigid_iterations = semi.iterations;

@@ -128,7 +128,9 @@ std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,
     return out;
 }
 
-SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
+SlamResult RunSlam(const std::vector<Slice>& slices,
+                   const SlamConfig& cfg,
+                   const SlamProgress& progress) {
     const auto t_start = Clock::now();
     SlamResult res;
     const auto problems = cfg.Validate();
@@ -211,13 +213,13 @@ SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& cfg) {
 
     // Stage 1: rigid sections (rigid_stage.cpp); stage 2: semi-rigid (semi_rigid_stage.cpp).
     const StageOutcome rigid =
-        RunRigidStage(in, blocks, slice_block, cfg, current, &best_score, res);
+        RunRigidStage(in, blocks, slice_block, cfg, progress, current, &best_score, res);
     StageOutcome semi;
     semi.termination = rigid.termination;
     semi.message = rigid.message;
     if (cfg.max_iterations > 0 && rigid.termination != SlamTermination::kNoOverlap &&
         rigid.termination != SlamTermination::kCancelled) {
-        semi = RunSemiRigidStage(in, blocks, slice_block, cfg, current, &best_score, res);
+        semi = RunSemiRigidStage(in, blocks, slice_block, cfg, progress, current, &best_score, res);
     }
     res.num_pairs = semi.num_pairs != 0 ? semi.num_pairs : rigid.num_pairs;
     res.termination = semi.termination;

@@ -72,18 +72,14 @@ struct SlamConfig {
     double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart
     double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
     double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
-    // Rigid stage iterations (0: skip the stage). After a GNSS outage the rigid stage creeps:
-    // where the terrain constrains a section weakly along the track (a pass along a wall),
-    // closest-point pairs re-found at its current place hold it there, and each iteration
-    // moves it a few cm. gps-outage seeds 0-4, mean ATE: 10 iterations 0.0746 m, 20 0.0633,
-    // 30 0.0594, 40 0.0579 m (SLAM 8 / 13 / 17 / 21.5 s). With good GNSS the stage stops after
-    // a few iterations (score_patience), so the budget costs nothing there.
+    // Rigid stage iterations (0: skip the stage): after an outage the stage creeps a few cm per
+    // iteration along weakly constrained walls, so more iterations recover more drift for more
+    // time; with good GNSS it stops early (score_patience). docs/decisions/005.
     int rigid_iterations = 30;
     // Rigid stage pair distance at most, shrunk geometrically to max_pair_distance_m over its
-    // iterations (coarse to fine). The first distance is 3 x the largest section median INS
-    // horizontal sigma, within [max_pair_distance_m, this]. Multi-metre drift is the coarse
-    // search's job; a long first distance drags sections along smooth terrain (gps-outage ATE
-    // 0.157 m at 1 m, 0.183 m at 2 m).
+    // iterations (coarse to fine); the first is 3 x the largest section median INS horizontal
+    // sigma, within [max_pair_distance_m, this]. Longer reaches further but drags sections
+    // along smooth terrain (multi-metre drift is the coarse search's job). docs/decisions/005.
     double rigid_max_pair_distance_m = 1.0;
     int min_section_link_pairs = 50;  // pairs needed to link two sections (rigid graph)
     // Rigid stage: true = one correction per section centre, slices interpolated in time between
@@ -109,23 +105,14 @@ struct SlamConfig {
     int normal_neighbours = 10;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
     double point_sigma_m = 0.05;  // 1-sigma of a point along the surface normal
     // GICP: 1-sigma along the surface (plane-like C). A pair's offset along the surface is
-    // mostly where the nearest sounding of the other pass happens to lie, and thousands of
-    // pairs taken as independent pinned the passes along the surface: where the track follows
-    // a depth contour (gps-outage), that set the along-track position the soundings cannot
-    // see. `pitmap slam` on the same folders, 0.5 -> 1.0: gps-outage ATE 0.1014 -> 0.0852 m
-    // (worst 30 s window +4.6 -> +1.7 mm), bejanca 0.0150 -> 0.0152 m, demo 0.0292 m both
-    // (worst window +9.6 -> +9.4 mm); pitmap-bench-slam gps-outage 8, seeds 0-5: mean ATE
-    // 0.111 -> 0.096 m. 1.0 -> 3.0 (2026-11-28, once calibration stopped verifying on windows
-    // inside the outage): gps-outage seeds 0-4 0.084 / 0.111 / 0.083 / 0.050 / 0.193 ->
-    // 0.068 / 0.073 / 0.063 / 0.046 / 0.123 m (mean 0.104 -> 0.075; 2.0: 0.082), worst window
-    // at most +1.2 mm; demo seeds 0-3 0.0295 / 0.0183 / 0.0240 / 0.0171 -> 0.0299 / 0.0184 /
-    // 0.0250 / 0.0180 m (the INS 0.0306 / 0.0193 / 0.0255 / 0.0182), worst window +4.8 -> +2.2
-    // mm; bejanca seeds 0 / 2 0.0164 / 0.0181 -> 0.0179 / 0.0193 m (INS 0.0199 / 0.0210).
-    // 5.0: gps-outage 0.082 m.
+    // mostly where the other pass's nearest sounding happens to lie; looser frees the
+    // along-track position the soundings cannot see (outage drift recovered) for a few tenths
+    // of a mm on surveys whose INS is good. docs/decisions/002.
     double gicp_tangent_sigma_m = 3.0;
-    RobustKernel robust_kernel = RobustKernel::kHuber;  // gps-outage ATE 0.56 -> 0.52 m
-    double robust_width = 2.0;                          // kernel width, in point sigmas
-    int query_stride = 16;  // every n-th sounding of a slice is a query point
+    // Down-weights wrong pairs (other surfaces within d_max, clutter). docs/decisions/009.
+    RobustKernel robust_kernel = RobustKernel::kHuber;
+    double robust_width = 2.0;  // kernel width, in point sigmas
+    int query_stride = 16;      // every n-th sounding of a slice is a query point
     // INS relative-motion terms between consecutive poses i, j: per component the sigma of the
     // motion over dt is sqrt(f^2 * 2 dt / ins_correlation_time_s (at most 1) + (g_j - g_i)^2)
     // * ins_sigma_scale, with f the survey's smallest sigma (a first-order Gauss-Markov error)
@@ -150,13 +137,9 @@ struct SlamConfig {
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     // The absolute terms' sigmas are the INS's with their steady part (the survey's smallest
     // sigma, what the INS holds with GNSS) times this; the part above it (an outage's drift) is
-    // as reported. Thousands of pair terms taken as independent outweigh one absolute term per
-    // pose, and pulled a pass whose INS was good onto the passes it overlaps: demo, first 30 s,
-    // INS 0.0154 m -> SLAM 0.0248 m. `pitmap slam` on the same folders, 1.0 -> 0.4: demo ATE
-    // 0.0292 -> 0.0295 m, worst 30 s window above the INS +9.5 -> +4.7 mm; demo seeds 1 / 2 / 3
-    // ATE 0.0184 / 0.0242 / 0.0170 -> 0.0183 / 0.0240 / 0.0171 m, worst window +4.6 / +3.5 /
-    // -0.4 -> +2.2 / +1.4 / -0.3 mm; bejanca 0.0153 -> 0.0164 m (INS 0.0199 m); gps-outage
-    // 0.0856 -> 0.0839 m (scaling the whole sigma instead: 0.0875 m, the rest the same).
+    // as reported. Smaller holds passes whose INS was good against the thousands of pair terms
+    // that pull them onto the passes they overlap, at a little of the pairs' averaging.
+    // docs/decisions/003.
     double absolute_sigma_scale = 0.4;
     double score_cell_m = 0.5;  // plane-fit consistency score grid cell (reported only)
     // Stop after this many iterations without a better pair score (the rigid stage: only once
@@ -164,8 +147,6 @@ struct SlamConfig {
     int score_patience = 2;
     double score_tolerance = 1e-3;  // a gain counts above this fraction; see the guards above
     int num_threads = 0;            // 0 = TBB default
-    // Called after every iteration with (stage, iteration); return false to cancel.
-    std::function<bool(int, int)> progress;
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
@@ -251,9 +232,15 @@ struct SlamResult {
     std::string message;
 };
 
+// Told after every iteration of either stage, with its record (stage, iteration, pairs,
+// cost, ...); returning false cancels the run (SlamTermination::kCancelled).
+using SlamProgress = std::function<bool(const SlamIteration&)>;
+
 // Runs both stages. Never throws for bad data; degenerate input ends with a termination
 // reason and the initial trajectory.
-SlamResult RunSlam(const std::vector<Slice>& slices, const SlamConfig& config);
+SlamResult RunSlam(const std::vector<Slice>& slices,
+                   const SlamConfig& config,
+                   const SlamProgress& progress = {});
 
 // Applies a trajectory to the slices' points (world frame), for scoring and export.
 std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,

@@ -16,6 +16,7 @@
 
 #include "common/formats/replace_file.hpp"
 #include "common/protocol/novatel/crc32.hpp"
+#include "processor/survey/survey_records.hpp"
 
 namespace pitmap::proc::survey {
 
@@ -32,50 +33,11 @@ constexpr std::size_t kSectionHeadBytes = kTagBytes + 8 + 4;
 constexpr const char* kTrajectoryTags[kNumTrajectoryVersions] = {
     "traj.ins", "traj.calibrated", "traj.slam"};
 
-struct DiskNav {
-    std::int64_t utime_gps;
-    double v[9];
-    std::int32_t ins_status, position_type;
-};
-static_assert(std::is_trivially_copyable_v<DiskNav>);
-// The ping records are written as they are in memory: a field that changes their size
-// changes the file format.
-static_assert(sizeof(georef::PingHeader) == 112 &&
-              std::is_trivially_copyable_v<georef::PingHeader>);
-
 struct DiskPose {
     double v[7];  // x, y, z, qw, qx, qy, qz
     std::uint32_t valid;
     std::uint32_t zero;
 };
-
-DiskNav ToDisk(const georef::NavSample& s) {
-    return {s.utime_gps,
-            {s.position.latitude_deg,
-             s.position.longitude_deg,
-             s.position.height_m,
-             s.roll_rad,
-             s.pitch_rad,
-             s.yaw_rad,
-             s.velocity_enu_mps.x(),
-             s.velocity_enu_mps.y(),
-             s.velocity_enu_mps.z()},
-            s.ins_status,
-            s.position_type};
-}
-
-georef::NavSample FromDisk(const DiskNav& d) {
-    georef::NavSample s;
-    s.utime_gps = d.utime_gps;
-    s.position = {d.v[0], d.v[1], d.v[2]};
-    s.roll_rad = d.v[3];
-    s.pitch_rad = d.v[4];
-    s.yaw_rad = d.v[5];
-    s.velocity_enu_mps = Eigen::Vector3d(d.v[6], d.v[7], d.v[8]);
-    s.ins_status = d.ins_status;
-    s.position_type = d.position_type;
-    return s;
-}
 
 // A section payload being built in memory.
 class Payload {
@@ -99,6 +61,15 @@ public:
         Value(static_cast<std::uint64_t>(v.size()));
         Value(static_cast<std::uint64_t>(sizeof(T)));
         Bytes(v.data(), v.size() * sizeof(T));
+    }
+    // u64 count, u64 record bytes, then each record as write(ByteWriter&, record) lays it.
+    template <typename T, typename Write>
+    void Records(const std::vector<T>& v, std::size_t record_bytes, Write write) {
+        Value(static_cast<std::uint64_t>(v.size()));
+        Value(static_cast<std::uint64_t>(record_bytes));
+        bytes_.reserve(bytes_.size() + v.size() * record_bytes);
+        ByteWriter w(bytes_);
+        for (const T& x : v) write(w, x);
     }
     const std::vector<std::uint8_t>& bytes() const { return bytes_; }
 
@@ -140,6 +111,30 @@ public:
         v.resize(n);
         return Bytes(v.data(), n * sizeof(T), what);
     }
+    // Records as Payload::Records wrote them, each read by read(ByteReader&) from exactly
+    // record_bytes.
+    template <typename T, typename Read>
+    bool Records(std::vector<T>& v, std::size_t record_bytes, Read read, const char* what) {
+        std::uint64_t n = 0, sz = 0;
+        if (!Value(n, what) || !Value(sz, what)) return false;
+        if (sz != record_bytes) {
+            return Fail(std::string(what) + ": record size " + std::to_string(sz) + ", expected " +
+                        std::to_string(record_bytes));
+        }
+        const std::size_t left = b_.size() - pos_;
+        if (n > left / record_bytes) {
+            return Fail(std::string(what) + ": count " + std::to_string(n) + " needs " +
+                        std::to_string(n) + " x " + std::to_string(record_bytes) +
+                        " bytes but only " + std::to_string(left) + " remain");
+        }
+        v.resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            ByteReader r(b_.data() + pos_, record_bytes);
+            v[i] = read(r);
+            pos_ += record_bytes;
+        }
+        return true;
+    }
     bool Finish() {
         if (!error.empty()) return false;
         if (pos_ != b_.size()) {
@@ -178,21 +173,15 @@ json StateJson(const SurveyModel& m) {
                   {"nominal_mount", MountJson(m.nominal_mount)},
                   {"mount", MountJson(m.mount)},
                   {"world_origin", OriginJson(m.origin)},
-                  {"sonar_clock",
-                   {{"configured", c.configured},
-                    {"configured_offset_s", c.configured_offset_s},
-                    {"coarse_correction_s", c.coarse_correction_s},
-                    {"coarse_sigma_s", c.coarse_sigma_s},
-                    {"latency_applied", c.latency_applied},
-                    {"latency_s", c.latency_s},
-                    {"latency_formal_sd_s", c.latency_formal_sd_s},
-                    {"rate_ppm", c.rate_ppm},
-                    {"rate_sigma_ppm", c.rate_sigma_ppm},
-                    {"rate_reference_utime", c.rate_reference_utime}}},
+                  {"sonar_clock", ClockJson(c)},
                   {"refraction", refraction},
                   {"calibration", ToString(m.calibration)}};
     // Optional (surveys written before run ids have none): no format version change.
     if (!m.run_id.empty()) state["run_id"] = m.run_id;
+    // Optional likewise (only a calibrated survey has one; older files have none).
+    if (std::isfinite(m.boresight_sd_deg[0]))
+        state["boresight_sd_deg"] = {
+            m.boresight_sd_deg[0], m.boresight_sd_deg[1], m.boresight_sd_deg[2]};
     return state;
 }
 
@@ -211,6 +200,14 @@ Status StateFromJson(const json& j, SurveyModel& m) {
         auto mount = MountFromJson(j.at("mount"));
         if (!mount) return Error{"mount: " + mount.error().message};
         m.mount = *mount;
+        m.boresight_sd_deg = kNoBoresightSd;
+        if (const auto sd = j.find("boresight_sd_deg"); sd != j.end()) {
+            const auto v = sd->get<std::vector<double>>();
+            if (v.size() != 3 || !std::isfinite(v[0]) || !std::isfinite(v[1]) ||
+                !std::isfinite(v[2]) || v[0] < 0 || v[1] < 0 || v[2] < 0)
+                return Error{"boresight_sd_deg: not three finite sigmas"};
+            m.boresight_sd_deg = {v[0], v[1], v[2]};
+        }
         auto origin = OriginFromJson(j.at("world_origin"));
         if (!origin) return Error{"world_origin: " + origin.error().message};
         if (!std::isfinite(origin->latitude_deg) || std::abs(origin->latitude_deg) > 90 ||
@@ -277,38 +274,36 @@ Payload IngestPayload(const io::IngestResult& r) {
     Payload p;
     p.Value(static_cast<std::int32_t>(r.nav.leap_seconds));
     p.Value(static_cast<std::uint32_t>(r.pings.clock));
-    std::vector<DiskNav> nav(r.nav.samples.size());
-    for (std::size_t i = 0; i < nav.size(); ++i) nav[i] = ToDisk(r.nav.samples[i]);
-    p.Vec(nav);
-    p.Vec(r.nav.stddevs);
-    p.Vec(r.pings.pings);
+    p.Records(r.nav.samples, records::kNavBytes, records::WriteNav);
+    p.Records(r.nav.stddevs, records::kStdDevBytes, records::WriteStdDev);
+    p.Records(r.pings.pings, records::kPingBytes, records::WritePing);
     p.Vec(r.pings.range_counts);
     return p;
 }
 
-Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResult& r) {
+// `format`: the file's; formats 1-4 held the ping records in their old layout.
+Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
+                         std::uint32_t format,
+                         io::IngestResult& r) {
     Cursor in(bytes, "ingest");
     std::int32_t leap = -1;
     std::uint32_t clock = 0;
-    std::vector<DiskNav> nav;
     in.Value(leap, "header");
     in.Value(clock, "header");
     if (in.error.empty() && clock > static_cast<std::uint32_t>(georef::PingClock::kTopsideHeader))
         in.Fail("ping clock " + std::to_string(clock) + " unknown");
-    in.Vec(nav, "nav samples");
-    in.Vec(r.nav.stddevs, "nav stddevs");
-    in.Vec(r.pings.pings, "pings");
+    in.Records(r.nav.samples, records::kNavBytes, records::ReadNav, "nav samples");
+    in.Records(r.nav.stddevs, records::kStdDevBytes, records::ReadStdDev, "nav stddevs");
+    if (format >= 5) {
+        in.Records(r.pings.pings, records::kPingBytes, records::ReadPing, "pings");
+    } else {
+        in.Records(r.pings.pings, records::kLegacyPingBytes, records::ReadLegacyPing, "pings");
+    }
     in.Vec(r.pings.range_counts, "range counts");
     if (!in.Finish()) return Error{in.error};
     r.pings.clock = static_cast<georef::PingClock>(clock);
     std::uint64_t next_offset = 0;  // the writer lays each ping's beams after the previous's
-    for (auto& p : r.pings.pings) {
-        // A bool read from bytes must hold 0 or 1 (the CRC does not stop crafted files).
-        for (const std::size_t at : {offsetof(georef::PingHeader, sound_speed_valid),
-                                     offsetof(georef::PingHeader, aid_attitude_at_ping)}) {
-            auto* flag = reinterpret_cast<unsigned char*>(&p) + at;
-            *flag = *flag != 0 ? 1 : 0;
-        }
+    for (const auto& p : r.pings.pings) {
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size())
             return Error{"section ingest: inconsistent beam offsets"};
         // Two pings sharing range counts would be georeferenced into the same slots at once.
@@ -317,8 +312,6 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes, io::IngestResul
         next_offset = static_cast<std::uint64_t>(p.beam_offset) + p.num_beams;
     }
     r.nav.leap_seconds = leap;
-    r.nav.samples.resize(nav.size());
-    for (std::size_t i = 0; i < nav.size(); ++i) r.nav.samples[i] = FromDisk(nav[i]);
     r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
     r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
     return Ok{};
@@ -593,7 +586,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
                                                     : StateFromJson(j, m);
             if (!st) st = Error{"section state: " + st.error().message};
         } else if (tag == "ingest") {
-            st = IngestFromPayload(payload, m.ingest);
+            st = IngestFromPayload(payload, format, m.ingest);
         } else if (tag == "intensity") {
             st = IntensityFromPayload(payload, m.ingest.pings);
         } else if (tag == "beam_angle") {

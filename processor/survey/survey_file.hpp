@@ -2,8 +2,9 @@
 // The survey model in one binary file, P/survey.pitmap: what `pitmap georef` makes and every
 // later stage command loads and saves (survey.hpp says what it holds).
 //
-// Layout (native byte order and struct layout; read only by a build of the same format
-// version, on the same byte order):
+// Layout (native byte order for the framing and the arrays of numbers; the ping and navigation
+// records field by field in the little-endian layout of survey_records.hpp; read only by a
+// build that knows the format version, on the same byte order):
 //   u8[8] magic "PMSURVEY", u32 format version (kSurveyFormatVersion), u32 byte order (1 little,
 //   2 big), u32 number of sections; then each section as
 //   char[16] tag (NUL padded), u64 payload bytes, u32 CRC-32 of the payload, the payload.
@@ -11,7 +12,8 @@
 //   state                 JSON text: vehicle file, nominal and current mount, world origin,
 //                         sonar clock, refraction record, calibration state
 //   ingest                i32 leap seconds, u32 ping clock, then nav samples, nav stddevs, ping
-//                         headers and range counts, each as u64 count, u64 element size, bytes
+//                         headers (records of survey_records.hpp) and u32 range counts, each
+//                         as u64 count, u64 element (record) size, bytes
 //   intensity             (format 2; only when the pings carry intensities) u16 per-beam 83P
 //                         intensities beside the range counts (one per count, 0 = none), as
 //                         u64 count, u64 element size, bytes
@@ -41,10 +43,11 @@
 namespace pitmap::proc::survey {
 
 // 2: the optional intensity section. 3: the optional beam_angle section (a format 2 reader
-// would call it an unknown section). 4: the optional cleaning section. Formats 1 to 3 are still
-// read (without the sections they lack); any other format is an error that says to run
-// `pitmap georef` again.
-inline constexpr std::uint32_t kSurveyFormatVersion = 4;
+// would call it an unknown section). 4: the optional cleaning section. 5: the ping records field
+// by field (survey_records.hpp), no longer PingHeader's memory layout. Formats 1 to 4 are still
+// read (without the sections they lack; their ping records in the old layout); any other format
+// is an error that says to run `pitmap georef` again.
+inline constexpr std::uint32_t kSurveyFormatVersion = 5;
 inline constexpr const char* kSurveyFileName = "survey.pitmap";
 
 // Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the

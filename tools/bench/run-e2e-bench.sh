@@ -4,7 +4,7 @@
 # and peak memory of every stage, the scores against ground truth, and a ray-mode TSDF run of
 # the same trajectory for comparison with the beam-width sensor model.
 #   tools/bench/run-e2e-bench.sh [SCENARIO] [OUT]      (defaults: bejanca, out/bench/SCENARIO)
-# Writes OUT/bench.json and prints a Markdown table (the one in README.md).
+# Writes OUT/bench.json and prints a Markdown table (the one in docs/benchmarks.md).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 scenario=${1:-bejanca}

@@ -1,15 +1,21 @@
 // SPDX-License-Identifier: MIT
 // pitmap-eval: scores survey products against the simulator's ground truth.
 //   pitmap-eval --truth DIR/truth --products P --json scores.json
+// Exit (common/exit_codes.hpp): 0 scored, 1 a product or the truth unreadable (or nothing to
+// score, or --json not written), 2 usage (a folder that is not there, bad arguments), 3
+// internal error.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "common/cli/parse.hpp"
+#include "common/exit_codes.hpp"
 #include "common/formats/ply.hpp"
 #include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
@@ -155,7 +161,9 @@ double DatumHeight(const fs::path& products) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+namespace codes = pitmap::exit_code;
+
+int main(int argc, char** argv) try {
     CLI::App app{"pitmap-eval: score survey products against simulator ground truth"};
     std::string truth_dir, products_dir, json_path;
     app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")
@@ -174,18 +182,20 @@ int main(int argc, char** argv) {
                    "(trajectory_ate_windows, trajectory_ate_worst_window_increase_m)")
         ->check(CLI::NonNegativeNumber);
     app.footer(kDefinitions);
-    CLI11_PARSE(app, argc, argv);
-
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-eval")) return *code;
+    // Both folders must be there before anything is read or --json written.
+    for (const std::string& dir : {truth_dir, products_dir}) {
+        if (!fs::is_directory(dir)) {
+            std::fprintf(stderr, "pitmap-eval: %s: not a folder\n", dir.c_str());
+            return codes::kUsage;
+        }
+    }
     auto truth = sim::ReadTruth(truth_dir);
     if (!truth) {
         std::fprintf(stderr, "pitmap-eval: %s\n", truth.error().message.c_str());
-        return 2;
+        return codes::kFailure;
     }
     const fs::path P(products_dir);
-    if (!fs::is_directory(P)) {
-        std::fprintf(stderr, "pitmap-eval: %s: not a folder\n", products_dir.c_str());
-        return 2;
-    }
     const sim::PitWorld world(truth->terrain);
     json scores;
     std::vector<std::string> comments;
@@ -202,7 +212,7 @@ int main(int argc, char** argv) {
         auto names = eval::PlyVertexProperties(path);
         if (!names) {
             std::fprintf(stderr, "pitmap-eval: %s\n", names.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         const auto has = [&](const char* n) {
             return std::find(names->begin(), names->end(), n) != names->end();
@@ -215,7 +225,7 @@ int main(int argc, char** argv) {
         auto ply = formats::ply::ReadMesh(path, props);
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         cloud = std::move(*ply);
         if (have_status) points_rejected = eval::KeepAccepted(cloud, props.size() - 1);
@@ -243,7 +253,7 @@ int main(int argc, char** argv) {
         auto traj = formats::ReadTrajectoryCsv((P / file).string());
         if (!traj) {
             std::fprintf(stderr, "pitmap-eval: %s\n", traj.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         const std::vector<eval::ProductPose> poses = eval::ProductPoses(*traj);
         windowed[std::string(key) == "trajectory_ate_rmse_m" ? 0 : 1] = poses;
@@ -391,7 +401,7 @@ int main(int argc, char** argv) {
             std::fprintf(stderr,
                          "pitmap-eval: %s/boresight.json: needs roll_deg, pitch_deg, yaw_deg\n",
                          products_dir.c_str());
-            return 2;
+            return codes::kFailure;
         }
         scores["boresight_error_deg"] = eval::BoresightErrorDeg(b["roll_deg"].get<double>(),
                                                                 b["pitch_deg"].get<double>(),
@@ -404,7 +414,7 @@ int main(int argc, char** argv) {
         auto mesh = formats::ply::ReadMesh((P / "mesh.ply").string());
         if (!mesh) {
             std::fprintf(stderr, "pitmap-eval: %s\n", mesh.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         std::vector<Eigen::Vector3d> samples = MeshSamples(*mesh);
         const auto s = eval::ScorePoints(samples, T, world);
@@ -473,7 +483,7 @@ int main(int argc, char** argv) {
             auto other = formats::ply::ReadMesh((Q / "mesh.ply").string());
             if (!other) {
                 std::fprintf(stderr, "pitmap-eval: %s\n", other.error().message.c_str());
-                return 2;
+                return codes::kFailure;
             }
             const auto other_origin = ProductOrigin(Q, other->comments);
             const Pose T_other = eval::ProductToTruthFrame(
@@ -500,7 +510,7 @@ int main(int argc, char** argv) {
         auto dem = proc::io::ReadGrid((P / "dem.tif").string());
         if (!dem) {
             std::fprintf(stderr, "pitmap-eval: %s\n", dem.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         const int epsg = dem->horizontal_epsg;
         if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760)) ||
@@ -509,7 +519,7 @@ int main(int argc, char** argv) {
                          "pitmap-eval: %s/dem.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
                          products_dir.c_str(),
                          epsg);
-            return 2;
+            return codes::kFailure;
         }
         const proc::io::GridRaster& g = dem->grid;
         const double datum_height_m = DatumHeight(P);
@@ -546,7 +556,7 @@ int main(int argc, char** argv) {
         auto mosaic = proc::io::ReadGrid((P / "mosaic.tif").string());
         if (!mosaic) {
             std::fprintf(stderr, "pitmap-eval: %s\n", mosaic.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         const int epsg = mosaic->horizontal_epsg;
         if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760))) {
@@ -554,7 +564,7 @@ int main(int argc, char** argv) {
                          "pitmap-eval: %s/mosaic.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
                          products_dir.c_str(),
                          epsg);
-            return 2;
+            return codes::kFailure;
         }
         const proc::io::GridRaster& g = mosaic->grid;
         const LocalTangentFrame tf(truth->origin);
@@ -601,7 +611,7 @@ int main(int argc, char** argv) {
                                           {"gps_time_s", "angle_deg", "thu_95_m", "tvu_95_m"});
         if (!ply) {
             std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
-            return 2;
+            return codes::kFailure;
         }
         std::vector<eval::TpuSounding> snd(ply->vertices.size());
         for (std::size_t i = 0; i < snd.size(); ++i) {
@@ -639,7 +649,7 @@ int main(int argc, char** argv) {
 
     if (scores.empty()) {
         std::fprintf(stderr, "pitmap-eval: %s holds no product to score\n", products_dir.c_str());
-        return 1;
+        return codes::kFailure;
     }
     std::printf("%-32s %12s\n", "score", "value");
     for (const auto& [k, v] : scores.items()) {
@@ -663,8 +673,11 @@ int main(int argc, char** argv) {
         out << scores.dump(2) << "\n";
         if (!out) {
             std::fprintf(stderr, "pitmap-eval: %s: cannot write\n", json_path.c_str());
-            return 2;
+            return codes::kFailure;
         }
     }
-    return 0;
+    return codes::kOk;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "pitmap-eval: internal error: %s\n", e.what());
+    return codes::kInternal;
 }

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // pitmap-inspect: frame counts, CRC failures, skipped bytes and time span of a raw NovAtel file,
 // a .83P file, a pcap/pcapng(.gz) capture or a pitmap LCM log. See inspect.hpp.
+// Exit (common/exit_codes.hpp): 0 ok, 1 the file unreadable, 2 usage, 3 internal error.
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -8,6 +9,8 @@
 #include <iostream>
 #include <string>
 
+#include "common/cli/parse.hpp"
+#include "common/exit_codes.hpp"
 #include "tools/inspect/inspect.hpp"
 
 int main(int argc, char** argv) {
@@ -32,7 +35,8 @@ int main(int argc, char** argv) {
                    dump_first,
                    "decoded fields of the first N (and the last) BESTPOS, BESTVEL, INSPVA(S), "
                    "INSPVAX, INSATTX, HEADING2 and TIME messages");
-    CLI11_PARSE(app, argc, argv);
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-inspect")) return *code;
+    namespace codes = pitmap::exit_code;
 
     try {
         inspect::InspectOptions options;
@@ -41,7 +45,7 @@ int main(int argc, char** argv) {
         if (!parsed_format || !parsed_protocol) {
             std::cerr << "pitmap-inspect: unknown "
                       << (!parsed_format ? "--format " + format : "--protocol " + protocol) << "\n";
-            return 2;
+            return codes::kUsage;
         }
         options.format = *parsed_format;
         options.protocol = *parsed_protocol;
@@ -52,16 +56,16 @@ int main(int argc, char** argv) {
         const auto report = inspect::InspectFile(path, options);
         if (!report) {
             std::cerr << "pitmap-inspect: " << report.error().message << "\n";
-            return 1;
+            return codes::kFailure;
         }
         if (json) {
             std::cout << inspect::ToJson(*report).dump(2) << "\n";
         } else {
             std::cout << inspect::ToText(*report);
         }
-        return 0;
+        return codes::kOk;
     } catch (const std::exception& e) {
-        std::cerr << "pitmap-inspect: " << path << ": " << e.what() << "\n";
-        return 1;
+        std::cerr << "pitmap-inspect: internal error: " << path << ": " << e.what() << "\n";
+        return codes::kInternal;
     }
 }

@@ -1,81 +1,130 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""pitmap-report: a self-contained HTML report of a products folder.
+"""pitmap-report: the report of a products folder, as self-contained HTML pages.
 
-Usage: pitmap-report P [--scores FILE] [--title TEXT]
+Usage: pitmap-report P [--scores FILE] [--title TEXT] [--jobs N] [--pdf]
        pitmap-report --view-gltf FILE.glb [-o PAGE.html] [--title TEXT]
 
-Reads what `pitmap run --out P` wrote (summary.json, trajectory[_initial].csv or, without
-SLAM, trajectory_ins.csv,
+Reads what `pitmap run --out P` wrote (summary.json with the survey's metadata, dem.tif,
+s44_holidays.tif, mosaic.tif, trajectory[_initial].csv or, without SLAM, trajectory_ins.csv,
 points[_initial].ply, mesh[_initial].ply, boresight.json, optional scores.json from
-pitmap-eval --json) and writes P/report.html with the plots embedded as PNG data URIs
-(no external resource), and the same PNGs under P/report/. The figures follow the seed
-paper: trajectory before/after SLAM and point-cloud cross-sections (Fig. 3), a
-depth-coloured top view and mesh renders before/after SLAM (Fig. 4).
+pitmap-eval --json) and writes two pages with the plots embedded as PNG data URIs (no external
+resource), and the same PNGs under P/report/:
 
-Frames: products are in the local world frame (East, North, Up metres at the summary's
-world_origin); gps_time_s counts seconds since 1980-01-06 on the GPS time scale.
+  P/report.html              the client's report: cover (metadata), summary (the IHO S-44
+                             compliance statement in words, coverage, key figures, datums and
+                             units, caveats), datums with the water level and the sound-speed
+                             casts applied, maps in the projected CRS (grid coordinates, scale
+                             bar, north arrow), S-44 quality control, soundings kept, the
+                             backscatter mosaic, the 3D view, scores only when a truth is given.
+                             No path of this machine: inputs by file name.
+  P/report_engineering.html  the processing details: trajectories and point-cloud sections
+                             before/after SLAM (the seed paper's Figs. 3 and 4) in local metres,
+                             rejections, meshes, boresight, sonar clock, TSDF weights, SLAM per
+                             iteration, stage times and memory.
+  P/report.pdf               with --pdf: report.html printed by headless Chromium (A4).
+
+The title is the metadata's project, site and survey id (--title replaces it).
 
 --view-gltf writes a self-contained page with the report's 3D viewer and FILE.glb embedded
 (base64, read by three.js's GLTFLoader): pitmap's mesh.glb or any self-contained glTF 2.0
 binary. Default page: FILE.html beside it. A file that is not a glTF binary (12-byte header:
 magic "glTF", version 2, length = the file's size; then a JSON chunk) is refused.
 
-Exit 0 when the report was written (every missing optional product is named in it as
-"not produced: ..."); 1 when P is not a usable products folder (no readable
-summary.json) or the report cannot be written, or (--view-gltf) the file is not a usable glTF
-binary or the page cannot be written; 2 on bad arguments.
+Exit 0 when the pages were written (every missing optional product is named on the
+engineering page as "not produced: ..."); 1 when P is not a usable products folder (no
+readable summary.json), a page cannot be written or --pdf fails, or (--view-gltf) the file is
+not a usable glTF binary or the page cannot be written; 2 on bad arguments.
 
-Runs with Debian's python3, python3-numpy and python3-matplotlib (Agg backend). The work is
-done by the package pitmap_report_lib beside this script (see its __init__.py); PLY products
-are read through pitmap-ply-layout, also beside it (the project's C++ PLY reader, built with
-the pitmap-report target), so run the copy in the build's bin folder. Large products stay
-cheap: PLY records are memory-mapped through numpy structured dtypes and plots use rasters or
-subsamples, never every point.
+Runs with Debian's python3, python3-numpy, python3-matplotlib (Agg backend) and python3-gdal
+(the maps); --pdf needs chromium. The work is done by the package pitmap_report_lib beside
+this script (see its __init__.py); PLY products are read through pitmap-ply-layout, also
+beside it (the project's C++ PLY reader, built with the pitmap-report target), so run the
+copy in the build's bin folder. Large products stay cheap: PLY records are memory-mapped
+through numpy structured dtypes and plots use rasters or subsamples, never every point.
 """
 
 import argparse
+import difflib
 import os
+import subprocess
 import sys
 
 # The package beside this script (tools/report in the source tree; build/bin when built).
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 
-# Ply, PlyError, GpsToUtc, the rasters and the glb check are also what report_test.py checks
-# through this module.
-from pitmap_report_lib.gltf import CheckGlb, GlbError, GltfPage  # noqa: E402,F401
-from pitmap_report_lib.loaders import Ply, PlyError  # noqa: E402,F401
-from pitmap_report_lib.rasters import RasteriseMesh, RasterMax, RasterMean  # noqa: E402,F401
-from pitmap_report_lib.report import Report  # noqa: E402
+# Ply, PlyError, gps_to_utc, the rasters and the glb check are also what report_test.py
+# checks through this module.
+from pitmap_report_lib.gltf import GlbError, check_glb, gltf_page  # noqa: E402,F401
+from pitmap_report_lib.loaders import Ply, PlyError, Products  # noqa: E402,F401
+from pitmap_report_lib.rasters import raster_max, raster_mean, rasterise_mesh  # noqa: E402,F401
+from pitmap_report_lib import maps, report, sections_client, util  # noqa: E402,F401
 from pitmap_report_lib.util import (  # noqa: E402,F401
-    PROG, DieWithParent, GpsToUtc, Log, ReportError)
+    PROG, ReportError, die_with_parent, gps_to_utc, log)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's usage errors: exit 2 (docs/cli.md), and the closest option
+    named for a mistyped one."""
+
+    def error(self, message):
+        options = [o for a in self._actions for o in a.option_strings if o.startswith("--")]
+        if "unrecognized arguments:" in message:
+            for word in message.split(":", 1)[1].split():
+                close = difflib.get_close_matches(word.split("=")[0], options, n=1, cutoff=0.6)
+                if close:
+                    message += f" (did you mean '{close[0]}'?)"
+                    break
+        super().error(message)
+
+
+class _Version(argparse.Action):
+    """--version: the build's version and git commit, as pitmap-ply-layout (built with this
+    script, beside it) states them."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        exe = os.path.join(os.path.dirname(os.path.realpath(__file__)), "pitmap-ply-layout")
+        try:
+            line = subprocess.run([exe, "--version"], capture_output=True, text=True,
+                                  check=True).stdout.strip()
+            print(PROG + line[len("pitmap-ply-layout"):])
+        except (OSError, subprocess.CalledProcessError):
+            print(PROG + " unknown (no pitmap-ply-layout beside it)")
+        parser.exit(0)
 
 
 def main(argv=None):
     # Ends with whatever started it (pitmap run, a shell), and on SIGTERM; its section workers
-    # likewise end with it (Report.Build).
-    DieWithParent()
-    ap = argparse.ArgumentParser(prog=PROG, description="Write P/report.html (self-contained, "
-                                 "PNG plots embedded) and P/report/*.png from a pitmap products "
+    # likewise end with it (report.draw_sections).
+    die_with_parent()
+    ap = _Parser(prog=PROG, description="Write P/report.html (the client's "
+                                 "report) and P/report_engineering.html (self-contained, PNG "
+                                 "plots embedded) and P/report/*.png from a pitmap products "
                                  "folder P.")
     ap.add_argument("products", metavar="P", nargs="?",
                     help="products folder (pitmap run --out P)")
     ap.add_argument("--scores", metavar="FILE",
-                    help="scores JSON from pitmap-eval --json (default: P/scores.json)")
-    ap.add_argument("--title", metavar="TEXT", help="report (or page) title")
+                    help="scores JSON from pitmap-eval --json (default: P/scores.json; the "
+                    "scores section is there only when a truth is given)")
+    ap.add_argument("--title", metavar="TEXT", help="report (or page) title (default: the "
+                    "metadata's project, site and survey id)")
     ap.add_argument("-j", "--jobs", metavar="N", type=int, default=None,
                     help="sections drawn by N processes at once (default: the CPUs this "
                     "process may run on, at most 4; 1 draws them one after the other)")
+    ap.add_argument("--pdf", action="store_true",
+                    help="also P/report.pdf: report.html printed by headless Chromium (A4)")
     ap.add_argument("--view-gltf", metavar="GLB",
                     help="instead of a report: a self-contained page showing GLB (glTF 2.0 "
                     "binary, e.g. P/mesh.glb) in the report's 3D viewer")
     ap.add_argument("-o", "--output", metavar="HTML",
                     help="the page of --view-gltf (default: GLB with .html)")
+    ap.add_argument("--version", action=_Version, nargs=0,
+                    help="print the version and git commit, then exit")
     args = ap.parse_args(argv)
     if args.view_gltf is not None:
-        if args.products is not None or args.scores is not None:
-            ap.error("--view-gltf takes no products folder and no --scores")
-        return ViewGltf(args.view_gltf, args.output, args.title)
+        if args.products is not None or args.scores is not None or args.pdf:
+            ap.error("--view-gltf takes no products folder, no --scores and no --pdf")
+        return view_gltf(args.view_gltf, args.output, args.title)
     if args.products is None:
         ap.error("give a products folder P (or --view-gltf GLB)")
     if args.output is not None:
@@ -86,41 +135,50 @@ def main(argv=None):
     folder = os.path.abspath(args.products)
     if not os.path.isdir(folder):
         print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
-        return 1
-    title = args.title or f"pitmap survey report: {os.path.basename(folder)}"
+        return 2  # a usage error (docs/cli.md): nothing written
     scores = args.scores or os.path.join(folder, "scores.json")
     try:
-        report = Report(folder, scores, title)
-        page = report.Build(jobs)
-    except ReportError as e:
+        products = Products(folder, scores)
+        title = args.title or sections_client.report_title(products.summary)
+        pages = report.build(products, title, jobs)
+    except (ReportError, OSError) as e:
         print(f"{PROG}: {e}", file=sys.stderr)
         return 1
-    except OSError as e:
-        print(f"{PROG}: {e}", file=sys.stderr)
-        return 1
-    out = os.path.join(folder, "report.html")
-    try:
-        WriteAtomically(out, page)
-    except OSError as e:
-        print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
-        return 1
-    Log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)"
-        + (f"; not produced: {', '.join(report.missing)}" if report.missing else "")
-        + (f"; {len(report.problems)} problem(s)" if report.problems else ""))
+    written = []
+    for name in (report.ENGINEERING_PAGE, report.CLIENT_PAGE):
+        out = os.path.join(folder, name)
+        try:
+            write_atomically(out, pages[name])
+        except OSError as e:
+            print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
+            return 1
+        written.append(f"{out} ({os.path.getsize(out) // 1024} kB)")
+    log("wrote " + ", ".join(written)
+        + (f"; not produced: {', '.join(products.missing)}" if products.missing else "")
+        + (f"; {len(products.problems)} problem(s)" if products.problems else ""))
+    if args.pdf:
+        from pitmap_report_lib.pdf import write_pdf
+        out = os.path.join(folder, "report.pdf")
+        try:
+            size = write_pdf(os.path.join(folder, report.CLIENT_PAGE), out)
+        except (ReportError, OSError) as e:
+            print(f"{PROG}: {e}", file=sys.stderr)
+            return 1
+        log(f"wrote {out} ({size // 1024} kB)")
     return 0
 
 
-def WriteAtomically(out, page):
+def write_atomically(out, page):
     tmp = out + ".tmp"
     with open(tmp, "w", encoding="utf-8") as f:
         f.write(page)
     os.replace(tmp, out)
 
 
-def ViewGltf(glb, output, title):
+def view_gltf(glb, output, title):
     out = output or os.path.splitext(glb)[0] + ".html"
     try:
-        page = GltfPage(glb, title)
+        page = gltf_page(glb, title)
     except GlbError as e:
         print(f"{PROG}: {glb}: {e}", file=sys.stderr)
         return 1
@@ -128,11 +186,11 @@ def ViewGltf(glb, output, title):
         print(f"{PROG}: {glb}: {e}", file=sys.stderr)
         return 1
     try:
-        WriteAtomically(out, page)
+        write_atomically(out, page)
     except OSError as e:
         print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
         return 1
-    Log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)")
+    log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)")
     return 0
 
 

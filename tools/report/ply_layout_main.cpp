@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: MIT
 // pitmap-ply-layout FILE: where the records of a binary PLY lie, as one JSON object on stdout, so
 // that pitmap-report memory-maps them with numpy while the PLY itself is parsed and checked only
-// by common/formats/ply (DescribeFile). Exit 0 with the JSON, 1 with "FILE: reason" on stderr
-// (not binary_little_endian, truncated, lists of varying length), 2 on bad arguments.
+// by common/formats/ply (DescribeFile). Exit (common/exit_codes.hpp): 0 with the JSON, 1 with
+// "FILE: reason" on stderr (not binary_little_endian, truncated, lists of varying length), 2 on
+// bad arguments, 3 internal error. `pitmap-ply-layout --version` prints the version (and
+// pitmap-report's --version asks it: the Python script has no build stamp of its own).
 //
 // The JSON: {"comments": [...], "origin": {"latitude_deg", "longitude_deg", "height_m"} | null,
 //            "elements": [{"name", "count", "offset", "record_bytes",
@@ -14,7 +16,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "common/cli/suggest.hpp"
+#include "common/exit_codes.hpp"
 #include "common/formats/ply.hpp"
+#include "common/version.hpp"
 
 namespace ply = pitmap::formats::ply;
 using nlohmann::json;
@@ -77,24 +82,42 @@ json LayoutJson(const ply::Layout& layout) {
 
 }  // namespace
 
+namespace codes = pitmap::exit_code;
+
 int main(int argc, char** argv) try {
-    if (argc != 2 || std::string(argv[1]).rfind("-", 0) == 0) {
-        std::fprintf(stderr,
-                     "usage: pitmap-ply-layout FILE.ply\n"
-                     "Prints where the records of a binary little-endian PLY lie, as JSON.\n");
-        return 2;
+    constexpr const char* kUsage =
+        "usage: pitmap-ply-layout FILE.ply | --version | --help\n"
+        "Prints where the records of a binary little-endian PLY lie, as JSON.\n";
+    const std::string arg = argc == 2 ? argv[1] : "";
+    if (arg == "--version") {
+        std::printf("%s\n", pitmap::VersionLine("pitmap-ply-layout").c_str());
+        return codes::kOk;
+    }
+    if (arg == "--help" || arg == "-h") {
+        std::fputs(kUsage, stdout);
+        return codes::kOk;
+    }
+    if (argc != 2 || arg.rfind("-", 0) == 0) {
+        if (arg.rfind("-", 0) == 0) {
+            std::fprintf(stderr,
+                         "pitmap-ply-layout: unknown option '%s'%s\n",
+                         arg.c_str(),
+                         pitmap::cli::DidYouMean(arg, {"--version", "--help"}).c_str());
+        }
+        std::fputs(kUsage, stderr);
+        return codes::kUsage;
     }
     const auto layout = ply::DescribeFile(argv[1]);
     if (!layout) {
         std::fprintf(stderr, "%s\n", layout.error().message.c_str());
-        return 1;
+        return codes::kFailure;
     }
     // Comments are the file's bytes: not necessarily UTF-8, so invalid bytes are replaced.
     const std::string out =
         LayoutJson(*layout).dump(-1, ' ', false, json::error_handler_t::replace);
     std::printf("%s\n", out.c_str());
-    return 0;
+    return codes::kOk;
 } catch (const std::exception& e) {
-    std::fprintf(stderr, "pitmap-ply-layout: %s\n", e.what());
-    return 1;
+    std::fprintf(stderr, "pitmap-ply-layout: internal error: %s\n", e.what());
+    return codes::kInternal;
 }

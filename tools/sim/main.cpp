@@ -9,16 +9,22 @@
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
 //   pitmap-sim scenarios                                    the built-in scenarios
+//   pitmap-sim --version
+// Exit (common/exit_codes.hpp): 0 ok, 1 run failure (or the daemon's), 2 usage (bad arguments,
+// an unknown scenario, --acqd not there: checked before --out is created), 3 internal error.
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "common/cli/parse.hpp"
+#include "common/exit_codes.hpp"
 #include "common/progress.hpp"
 #include "tools/sim/hil/hil_run.hpp"
 #include "tools/sim/synth.hpp"
@@ -26,6 +32,8 @@
 using namespace pitmap;
 
 namespace {
+
+namespace codes = pitmap::exit_code;
 
 std::atomic<bool> g_interrupted{false};
 
@@ -41,18 +49,18 @@ int RunHilCommand(const std::string& scenario_name,
     auto scenario = sim::BuiltinScenario(scenario_name);
     if (!scenario) {
         std::fprintf(stderr, "pitmap-sim: %s\n", scenario.error().message.c_str());
-        return 2;
+        return codes::kUsage;
     }
     if (seed != 0) scenario->seed = seed;
     auto plan = sim::hil::ParseFaults(faults);
     if (!plan) {
         std::fprintf(stderr, "pitmap-sim: %s\n", plan.error().message.c_str());
-        return 2;
+        return codes::kUsage;
     }
     opt.faults = *plan;
     if (auto p = opt.Validate(); !p.empty()) {
         for (const auto& s : p) std::fprintf(stderr, "pitmap-sim: %s\n", s.c_str());
-        return 2;
+        return codes::kUsage;
     }
     struct sigaction sa {};
     sa.sa_handler = OnSignal;
@@ -66,7 +74,7 @@ int RunHilCommand(const std::string& scenario_name,
     auto r = sim::hil::RunHil(*scenario, opt, [] { return !g_interrupted.load(); });
     if (!r) {
         std::fprintf(stderr, "pitmap-sim: hil: %s\n", r.error().message.c_str());
-        return 1;
+        return codes::kFailure;
     }
     std::printf(
         "pitmap-sim: hil %s: %.1f s: %lld COM1 frames, %lld ICOM1 frames, %lld pings, "
@@ -87,14 +95,14 @@ int RunHilCommand(const std::string& scenario_name,
         opt.out_dir.c_str());
     if (!r->daemon_problem.empty()) {
         std::fprintf(stderr, "pitmap-sim: hil: %s\n", r->daemon_problem.c_str());
-        return 1;
+        return codes::kFailure;
     }
     return 0;
 }
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
     CLI::App app{"pitmap-sim: simulated sensors, synthetic surveys with ground truth"};
     app.require_subcommand(1);
     std::string scenario_name, out_dir;
@@ -238,7 +246,7 @@ int main(int argc, char** argv) {
                     hil_opt.default_logs,
                     "a COM1 log active before any command, e.g. \"LOG INSPVASB ONTIME 0.02\" "
                     "(repeatable; default: none, as after UNLOGALL)");
-    CLI11_PARSE(app, argc, argv);
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-sim")) return *code;
 
     if (*hil) return RunHilCommand(scenario_name, seed, hil_opt, faults);
 
@@ -252,7 +260,7 @@ int main(int argc, char** argv) {
     auto scenario = sim::BuiltinScenario(scenario_name);
     if (!scenario) {
         std::fprintf(stderr, "pitmap-sim: %s\n", scenario.error().message.c_str());
-        return 2;
+        return codes::kUsage;
     }
     if (seed != 0) scenario->seed = seed;
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
@@ -295,7 +303,7 @@ int main(int argc, char** argv) {
                          ins_status_windows[i].c_str(),
                          ins_status_windows[i + 1].c_str(),
                          name.c_str());
-            return 2;
+            return codes::kUsage;
         }
         scenario->nav.status_windows.insert(scenario->nav.status_windows.end(), {a, b, status});
     }
@@ -314,7 +322,7 @@ int main(int argc, char** argv) {
         auto a = sim::EchoArtifactsAt(echo_level);
         if (!a) {
             std::fprintf(stderr, "pitmap-sim: %s\n", a.error().message.c_str());
-            return 2;
+            return codes::kUsage;
         }
         scenario->echo_artifacts = *a;
     }
@@ -334,7 +342,7 @@ int main(int argc, char** argv) {
     progress.Finish();
     if (!result) {
         std::fprintf(stderr, "pitmap-sim: %s\n", result.error().message.c_str());
-        return 1;
+        return codes::kFailure;
     }
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -354,9 +362,12 @@ int main(int argc, char** argv) {
         result->log_files,
         out_dir.c_str(),
         out_dir.c_str(),
-        vendor_files ? "; vendor files in DIR/vendor" : "",
+        vendor_files ? ("; vendor files in " + out_dir + "/vendor").c_str() : "",
         scenario->echo_artifacts.level.c_str(),
         static_cast<long long>(result->artifact_soundings),
         100.0 * result->artifact_share);
-    return 0;
+    return codes::kOk;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "pitmap-sim: internal error: %s\n", e.what());
+    return codes::kInternal;
 }

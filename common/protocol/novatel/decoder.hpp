@@ -20,25 +20,7 @@
 
 namespace pitmap::protocol::novatel {
 
-using DecodeResult = std::variant<BestPos,
-                                  BestVel,
-                                  InsPva,
-                                  InsPvaX,
-                                  InsAtt,
-                                  InsAttX,
-                                  CorrImuData,
-                                  CorrImuS,
-                                  RawImu,
-                                  Time,
-                                  Heading2,
-                                  MarkTime,
-                                  InsStdDev,
-                                  InsConfig,
-                                  RxStatus,
-                                  Response,
-                                  PortPrompt,
-                                  Unsupported,
-                                  DecodeError>;
+using DecodeResult = MessageOr<Unsupported, DecodeError>;
 
 DecodeResult Decode(const Frame& frame);
 

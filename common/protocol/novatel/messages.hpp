@@ -520,23 +520,28 @@ struct DecodeError {
     bool operator==(const DecodeError&) const = default;
 };
 
-using Message = std::variant<BestPos,
-                             BestVel,
-                             InsPva,
-                             InsPvaX,
-                             InsAtt,
-                             InsAttX,
-                             CorrImuData,
-                             CorrImuS,
-                             RawImu,
-                             Time,
-                             Heading2,
-                             MarkTime,
-                             InsStdDev,
-                             InsConfig,
-                             RxStatus,
-                             Response,
-                             PortPrompt>;
+// Every decoded message struct, listed once: a Message holds one of them; the decoder's
+// DecodeResult (decoder.hpp) holds one of them or one of its `Extra` outcomes.
+template <class... Extra>
+using MessageOr = std::variant<BestPos,
+                               BestVel,
+                               InsPva,
+                               InsPvaX,
+                               InsAtt,
+                               InsAttX,
+                               CorrImuData,
+                               CorrImuS,
+                               RawImu,
+                               Time,
+                               Heading2,
+                               MarkTime,
+                               InsStdDev,
+                               InsConfig,
+                               RxStatus,
+                               Response,
+                               PortPrompt,
+                               Extra...>;
+using Message = MessageOr<>;
 
 // ---- IMU scale factors (§6.8, §6.9) ----
 struct ImuScale {

@@ -75,9 +75,11 @@ TEST_F(Cli, InvalidConfigListsEveryProblem) {
 
 TEST_F(Cli, MissingInputIsNamed) {
     const CliRun r = Pitmap("georef " + Q(dir_ / "nowhere") + " --out " + Q(dir_ / "P"));
-    EXPECT_NE(r.status, 0);
+    ASSERT_TRUE(WIFEXITED(r.status));
+    EXPECT_EQ(WEXITSTATUS(r.status), 2) << "a usage error (docs/cli.md)";
     EXPECT_NE(r.output.find((dir_ / "nowhere").string()), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "P")) << "nothing created for a missing input";
 }
 
 TEST_F(Cli, DefaultsAreAValidConfig) {
@@ -159,12 +161,12 @@ TEST_F(Cli, VehicleTemplateIsAVehicleFilePitmapReads) {
     EXPECT_NE(r.status, 0);
     EXPECT_NE(r.output.find("no sonar pings"), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("vehicle"), std::string::npos) << r.output;
-    // The README documents the same text.
-    std::ifstream readme(fs::path(PITMAP_TEST_DATA_DIR) / ".." / ".." / "README.md");
+    // docs/reference.md documents the same text.
+    std::ifstream readme(fs::path(PITMAP_TEST_DATA_DIR) / ".." / ".." / "docs" / "reference.md");
     const std::string doc((std::istreambuf_iterator<char>(readme)),
                           std::istreambuf_iterator<char>());
     EXPECT_NE(doc.find("```yaml\n" + t.output + "```\n"), std::string::npos)
-        << "README.md's vehicle.yaml block differs from `pitmap config --vehicle`";
+        << "docs/reference.md's vehicle.yaml block differs from `pitmap config --vehicle`";
     // --defaults carries the same schema, commented out.
     const CliRun d = Pitmap("config --defaults");
     EXPECT_NE(d.output.find("#   pitmap_vehicle: 1"), std::string::npos) << d.output;

@@ -18,7 +18,9 @@ error or uncaught exception, a blank 3D or cross-section canvas, and when:
     folder with edits.json copied in (pitmap georef), opened by a second pitmap edit (which
     applies it through survey::LoadEdits), must give the same statuses;
   - the re-run button does not start the program (a stub given with --rerun-program, which
-    records its arguments: `rerun P`) and show its output and exit status.
+    records its arguments: `rerun P`) and show its output and exit status;
+  - an error answer of the server (no route, a body it cannot read, a bad selection) has no
+    JSON {"error": ...} body.
 Exit 77 (ctest skip) only when Chromium cannot start here.
 
 Usage: edit_browser_test.py BIN_DIR SOURCE_DIR WORK_DIR"""
@@ -31,6 +33,7 @@ import struct
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 
 sys.path.insert(0, os.path.join(sys.argv[2], "tools", "browser"))
@@ -45,6 +48,23 @@ def fail(msg):
 def get(url):
     with urllib.request.urlopen(url, timeout=30) as r:
         return r.read()
+
+
+def error_body(url, method="GET", body=None, headers=None):
+    """The status and parsed JSON body of a request that must fail (4xx/5xx)."""
+    req = urllib.request.Request(url, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            fail("%s %s answered %d, not an error" % (method, url, r.status))
+    except urllib.error.HTTPError as e:
+        text = e.read()
+        try:
+            j = json.loads(text)
+        except ValueError:
+            fail("%s %s: %d with a body that is not JSON: %r" % (method, url, e.code, text))
+        if not isinstance(j, dict) or not j.get("error"):
+            fail("%s %s: %d without an error text: %r" % (method, url, e.code, text))
+        return e.code, j
 
 
 def start_editor(bin_dir, folder, log_path, extra=()):
@@ -140,6 +160,16 @@ def main():
         browser.open(url)
         wait_for(browser, "window.pitmapEdit && pitmapEdit.ready", "the page to load")
         meta = json.loads(get(base + "/api/meta"))
+        # Error answers are JSON, httplib's own (no route, an unreadable body) included.
+        token = url.split("token=")[1].split("&")[0]
+        write = {"X-Pitmap-Token": token, "Origin": base}
+        for args in ((base + "/api/nothing",),
+                     (base + "/api/select", "POST", b"",
+                      dict(write, **{"Content-Type": "multipart/form-data"})),
+                     (base + "/api/select", "POST", b"{not json",
+                      dict(write, **{"Content-Type": "application/json"}))):
+            code, j = error_body(*args)
+            print("error answer %s: %d %s" % (args[0].replace(base, ""), code, j["error"]))
         if meta["stride"] != 1:
             fail("the small survey should be shown whole (stride %d)" % meta["stride"])
         raw = get(base + "/api/points")

@@ -90,6 +90,58 @@ TEST(S44, SharesWithinTheLimits) {
     EXPECT_EQ(StrictestOrderMet(r, 0.9), 4);
 }
 
+TEST(S44, NodeThuFromTheSoundingsWithinTheCaptureDistance) {
+    // Issue 39: a node's THU is the mean THU of the soundings within their capture distance of
+    // it (CUBE's rule), not of the soundings nearest it. One row of 6 nodes, 1 m apart, at
+    // x = 1000 .. 1005, 10 m deep: capture distance clamp(0.05 x 10, 0.71, 1.5) = 0.71 m.
+    // Node 4 is empty; node 5 is filled but no sounding reaches it.
+    S44Grid g = Flat(6, 1, 1.0, [](int i, int) { return i == 4; });
+    S44Soundings s;
+    // Sounding (x - 1000, THU): A (0.0, 0.1), B (0.4, 0.7), C (2.0, 2.8), D (2.6, 1.0). Within
+    // 0.71 m: node 0 <- A (0), B (0.4); node 1 <- B (0.6); node 2 <- C (0), D (0.6);
+    // node 3 <- D (0.4) (A, C are 1.0 m from node 1, C 1.0 m from node 3).
+    const double xs[] = {0.0, 0.4, 2.0, 2.6};
+    const float thu[] = {0.1f, 0.7f, 2.8f, 1.0f};
+    for (int k = 0; k < 4; ++k) {
+        s.x.push_back(1000 + xs[k]);
+        s.y.push_back(2000);
+        s.z.push_back(-10);
+        s.depth_m.push_back(10);
+        s.tvu_95_m.push_back(0.1f);
+        s.thu_95_m.push_back(thu[k]);
+        s.angle_deg.push_back(0);
+        s.ping.push_back(0);
+    }
+    s.ping_t_s = {0};
+    s.ping_yaw_rad = {0};
+    const S44Result r = RunS44(s, g, S44Config{});
+    // Node THU: 0 (0.1 + 0.7) / 2 = 0.4, 1 0.7, 2 (2.8 + 1.0) / 2 = 1.9, 3 1.0; node 5 none.
+    // Limits at 10 m: exclusive 0.5 (node 0 only: 1 of 4), special 2.0 (all 4), 1a, 1b
+    // 5.5 and 2 21 (all 4). The nearest-node rule gave node 1 no THU, node 2 C's 2.8 alone:
+    // exclusive 1/5, special 2/5, 1a 3/5.
+    EXPECT_EQ(r.nodes, 5);
+    EXPECT_EQ(r.nodes_without_thu, 1);
+    EXPECT_DOUBLE_EQ(r.nodes_within_thu[0], 0.25);
+    EXPECT_DOUBLE_EQ(r.nodes_within_thu[1], 1.0);
+    EXPECT_DOUBLE_EQ(r.nodes_within_thu[2], 1.0);
+    EXPECT_DOUBLE_EQ(r.nodes_within_thu[4], 1.0);
+    // Soundings: THU <= 0.5: A only (1 of 4); <= 2.0: A, B, D (3 of 4); <= 5.5: all.
+    EXPECT_DOUBLE_EQ(r.soundings_within_thu[0], 0.25);
+    EXPECT_DOUBLE_EQ(r.soundings_within_thu[1], 0.75);
+    EXPECT_DOUBLE_EQ(r.soundings_within_thu[2], 1.0);
+
+    // A capture distance of at most 0.45 resolutions: node 1 (B 0.6 m away) and node 2 (C
+    // 0 m, D 0.6 m: C alone, 2.8) change. Nodes with a THU: 0 (A, B: 0.4), 2 (C: 2.8),
+    // 3 (D: 1.0); nodes 1 and 5 have none. Exclusive 1/3, special 2/3.
+    g.capture_min_res = 0.1;
+    g.capture_max_res = 0.45;
+    const S44Result t = RunS44(s, g, S44Config{});
+    EXPECT_EQ(t.nodes_without_thu, 2);
+    EXPECT_DOUBLE_EQ(t.nodes_within_thu[0], 1.0 / 3.0);
+    EXPECT_DOUBLE_EQ(t.nodes_within_thu[1], 2.0 / 3.0);
+    EXPECT_DOUBLE_EQ(t.nodes_within_thu[2], 1.0);
+}
+
 TEST(S44, HolidayMadeOnPurposeIsFoundWhereItIs) {
     // 0.1 m nodes, 200 x 150; the survey area is a disc of radius 7 m; a 1.5 m square gap in
     // it at nodes 120..134 x 60..74 (centre 1012.7, 2006.7), a 0.5 m gap at 40..44 x 40..44,

@@ -175,8 +175,9 @@ TEST_F(DatumIo, LasCarriesTheDatumAndTheUncertainty) {
     EXPECT_EQ(u16(vlr + 18), 4u);
     ASSERT_EQ(u16(vlr + 20), 384u);
     EXPECT_EQ(b[vlr + 54 + 2], 9u) << "float";
-    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 54 + 4])), "THU 95%");
-    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 54 + 192 + 4])), "TVU 95%");
+    // Names PDAL keeps as they are (letters, digits, '_'; issue 39: "THU 95%" became "THU_95_").
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 54 + 4])), "thu_95_m");
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(&b[vlr + 54 + 192 + 4])), "tvu_95_m");
     EXPECT_NE(std::string(reinterpret_cast<const char*>(&b[vlr + 54 + 192 + 160]), 32)
                   .find("vertical uncertainty"),
               std::string::npos);

@@ -11,7 +11,10 @@ name alone it shows. Then the TVU status layer: on the
 simulated survey (its vehicle.yaml's error model) most cells meet IHO S-44 order 1a (green on
 the map); replayed again with a deliberately bad error model (position noise 0.5 m: TVU >= 0.98
 m, over the 1a limit at any depth here) most cells fail (red) and the page shows the
-tvu_over_limit alarm. Exit 77 (ctest skip) only when Chromium cannot start here.
+tvu_over_limit alarm. The page is on this machine (loopback): it is not budgeted, so it never
+shows THINNED at the default budget. Once the replay ends the page says "replay finished" and,
+more than the no-messages time (5 s) later, shows no no_messages alarm. Exit 77 (ctest skip)
+only when Chromium cannot start here.
 
 Usage: live_browser_test.py BIN_DIR SOURCE_DIR WORK_DIR"""
 
@@ -157,6 +160,15 @@ def main():
                 fail("no new coverage on the page while pings were sent: %s -> %s" % (first, second))
             if second["errors"] != 0:
                 fail("the page failed to fetch %d time(s)" % second["errors"])
+            # Loopback: no budget, no thinning (a 2x replay at the default 50 kB/s thinned).
+            budget = json.loads(browser.evaluate(
+                "JSON.stringify({text: document.getElementById('budget').textContent, "
+                "thinned: document.body.dataset.thinned})"))
+            print("budget: %s" % budget)
+            if budget["thinned"] != "0" or "THINNED" in budget["text"]:
+                fail("the page on loopback was thinned: %s" % budget)
+            if "no link budget" not in budget["text"]:
+                fail("the page does not say it is not budgeted: %s" % budget)
             # Screenshots of both canvases.
             for cid, min_share in (("map", 0.02), ("view3d", 0.005)):
                 r = browser.evaluate("(() => { const b = document.getElementById('%s')"
@@ -231,6 +243,25 @@ def main():
                 fail("the alarm's reason does not say most new cells fail: %s" % s["alarms"])
             print("bad model: alarm: %s" % s["alarms"])
             tvu_layer(browser, False, "bad model")
+            # The replay (40 s at 8x) ends: the page says so, and 7 s of silence later (more
+            # than no_messages_s = 5 s) it still raises no no_messages alarm.
+            feed = None
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                browser.pump(0.5)
+                feed = json.loads(browser.evaluate(
+                    "JSON.stringify({source: document.body.dataset.source, "
+                    "feed: document.getElementById('feed').textContent})"))
+                if feed["source"] == "replay-finished":
+                    break
+            if feed is None or feed["source"] != "replay-finished" or \
+                    feed["feed"] != "replay finished":
+                fail("the page does not say the replay finished: %s" % feed)
+            browser.pump(7.0)
+            s = json.loads(browser.evaluate(TVU_STATE))
+            print("replay finished, 7 s later: alarms: %s" % s["alarms"])
+            if "no_messages" in s["alarms"]:
+                fail("an ended replay raised the no_messages alarm: %s" % s["alarms"])
             errs = browser.errors()
             if errs:
                 fail("console errors: %s" % errs)

@@ -85,6 +85,8 @@ TEST(LiveHil, CoverageGrowsWhileTheDaemonPublishes) {
                                   std::to_string(http_port),
                                   "--cell-size",
                                   "0.5",
+                                  // The budget's sharing is checked below, from this machine.
+                                  "--budget-loopback",
                                   "--out",
                                   (dir / "snapshots").string()},
                                  (dir / "live.out").string());

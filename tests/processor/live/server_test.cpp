@@ -4,7 +4,9 @@
 // byte of their header every 1-3 s (issue 34: with httplib's own listener every request timed
 // out); slow, idle and surplus connections are closed by their deadlines and caps; the Host
 // check, the token and origin check of POST, the client= check on every endpoint and the
-// security headers on every response, the front's own answers included. Every loop is bounded.
+// security headers on every response, the front's own answers included; a JSON error body on
+// every 4xx/5xx (httplib's own answers included); pages on loopback unbudgeted unless asked.
+// Every loop is bounded.
 #include "processor/live/server.hpp"
 
 #include <arpa/inet.h>
@@ -525,6 +527,101 @@ TEST_F(LiveServerTest, EveryResponseCarriesTheSecurityHeaders) {
     EXPECT_NE(p1.body.find("<style nonce=\"" + nonce + "\">"), std::string::npos);
     EXPECT_EQ(p1.body.find("PITMAP_PAGE_"), std::string::npos);
     EXPECT_EQ(p2.body.find(nonce), std::string::npos) << "a nonce used twice";
+}
+
+// Every error answer carries {"error": "..."} as JSON: the handlers' own, the front's, and
+// httplib's (no route, a request it cannot read, a bad Range), none with an empty body.
+TEST_F(LiveServerTest, EveryErrorAnswerHasAJsonErrorBody) {
+    const std::string dir = testing::TempDir() + "/live_server_error_bodies";
+    std::filesystem::remove_all(dir);
+    ServerConfig c;
+    c.snapshot_dir = dir;
+    StartServer(c);
+    const Answer page = Exchange(port_, Get("/"));
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(
+        page.body, m, std::regex("<meta name=\"pitmap-token\" content=\"([0-9a-f]{32})\">")));
+    const std::string post =
+        "POST /api/snapshot HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Pitmap-Token: " + std::string(m[1]) +
+        "\r\nConnection: close\r\n";
+    const std::vector<std::pair<std::string, std::string>> requests = {
+        {"no route", Get("/api/nothing")},
+        {"PUT",
+         "PUT /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\nConnection: "
+         "close\r\n\r\n"},
+        {"garbage", "GARBAGE\r\n\r\n"},
+        {"bad client", Get("/api/tiles?client=%3C")},
+        {"bad since", Get("/api/tiles?since=-1")},
+        {"foreign host", Get("/api/status", "evil.example")},
+        {"POST without token",
+         "POST /api/snapshot HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"},
+        {"POST, multipart without a boundary",
+         post + "Content-Type: multipart/form-data\r\nContent-Length: 0\r\n\r\n"},
+        {"POST, a bad range", post + "Range: bytes=5-1\r\nContent-Length: 0\r\n\r\n"},
+        {"POST, nothing to write yet", post + "Content-Length: 0\r\n\r\n"},
+        {"bad Content-Length", post + "Content-Length: abc\r\n\r\n"},
+        {"header too large", "GET / HTTP/1.1\r\nX: " + std::string(9000, 'a') + "\r\n\r\n"},
+    };
+    for (const auto& [what, raw] : requests) {
+        const Answer a = Exchange(port_, raw);
+        ASSERT_TRUE(a.complete) << what;
+        EXPECT_GE(a.status, 400) << what;
+        EXPECT_EQ(a.Header("content-type"), "application/vnd.pitmap+json") << what << a.head;
+        const nlohmann::json j = nlohmann::json::parse(a.body, nullptr, false);
+        ASSERT_TRUE(j.is_object() && j.contains("error") && j["error"].is_string())
+            << what << ": status " << a.status << ", body '" << a.body << "'";
+        EXPECT_FALSE(j["error"].get<std::string>().empty()) << what;
+    }
+    // A Range on a good request is ignored (every answer is whole), not a 416 without a body.
+    const Answer ranged = Exchange(port_,
+                                   "GET /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nRange: "
+                                   "bytes=999999-\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(ranged.status, 200);
+    EXPECT_TRUE(nlohmann::json::parse(ranged.body, nullptr, false).contains("pings"));
+}
+
+// A page on this machine does not share the radio link: at the smallest budget its soundings
+// come whole, unless budget_loopback asks for the budget there too (then they are thinned).
+TEST_F(LiveServerTest, LoopbackPagesAreNotBudgetedUnlessAsked) {
+    test::Feeder f(session_);
+    for (std::int64_t t = 0; t <= 3 * test::kS; t += 50'000) {
+        f.Nav(t);
+        if (t % 100'000 == 0) f.Ping(t);
+    }
+    session_.Tick(test::kHost0 + 3 * test::kS, true);
+    for (const bool budget_loopback : {false, true}) {
+        ServerConfig c;
+        c.budget_bytes_per_s = 1000;  // 2000 bytes of burst: far less than 30 pings of 121 beams
+        c.budget_loopback = budget_loopback;
+        StartServer(c);
+        const Answer st = Exchange(port_, Get("/api/status?client=a"));
+        ASSERT_EQ(st.status, 200);
+        EXPECT_EQ(nlohmann::json::parse(st.body)["budget"]["applies"].get<bool>(), budget_loopback);
+        for (const char* path :
+             {"/api/soundings?since=0&client=a", "/api/tiles?since=0&client=a"}) {
+            const Answer a = Exchange(port_, Get(path));
+            ASSERT_EQ(a.status, 200) << path;
+            const nlohmann::json j = nlohmann::json::parse(a.body);
+            EXPECT_EQ(j["thinned"].get<bool>(), budget_loopback)
+                << path << " budget_loopback " << budget_loopback << ": " << a.body.size()
+                << " bytes";
+        }
+        // The page's own cap still holds on loopback.
+        if (!budget_loopback) {
+            const Answer capped = Exchange(port_, Get("/api/soundings?since=0&max_bytes=2000"));
+            EXPECT_TRUE(nlohmann::json::parse(capped.body)["thinned"].get<bool>());
+        }
+        server_->Stop();
+        server_.reset();
+    }
+}
+
+TEST(LoopbackAddress, OnlyThisMachinesAddresses) {
+    for (const char* a : {"127.0.0.1", "127.1.2.3", "::1", "::ffff:127.0.0.1"})
+        EXPECT_TRUE(IsLoopbackAddress(a)) << a;
+    for (const char* a :
+         {"10.0.0.1", "192.168.1.127", "::ffff:10.0.0.1", "fe80::1", "", "127.0.0", "1127.0.0.1"})
+        EXPECT_FALSE(IsLoopbackAddress(a)) << a;
 }
 
 }  // namespace

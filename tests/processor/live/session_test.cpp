@@ -133,6 +133,28 @@ TEST(LiveSession, GarbageIsCountedPerChannelNeverFatal) {
     EXPECT_EQ(st["lcm_channels"]["SOMETHING_ELSE"]["messages"], 1);
 }
 
+// The status says where the events come from; a replay that ended is "finished" and its
+// silence raises no no_messages alarm (a live feed's does).
+TEST(LiveSession, AnEndedReplayIsFinishedNotSilent) {
+    for (const bool replay : {false, true}) {
+        LiveSession s(Config(), {}, true);
+        if (replay) s.MarkReplay();
+        Feeder f(s);
+        for (std::int64_t t = 0; t <= kS; t += 50'000) f.Nav(t);
+        s.Tick(kHost0 + kS, true);
+        nlohmann::json st = s.StatusJson(kHost0 + kS);
+        EXPECT_EQ(st["source"]["kind"], replay ? "replay" : "lcm");
+        EXPECT_FALSE(st["source"]["finished"].get<bool>());
+        if (replay) s.MarkReplayFinished();
+        s.Tick(kHost0 + 20 * kS, true);
+        st = s.StatusJson(kHost0 + 20 * kS);
+        EXPECT_EQ(st["source"]["finished"].get<bool>(), replay);
+        bool silent = false;
+        for (const auto& a : st["alarms"]) silent = silent || a["id"] == "no_messages";
+        EXPECT_EQ(silent, !replay) << st["alarms"].dump();
+    }
+}
+
 TEST(LiveSession, DaemonStatusDrivesDiskAndClockAlarms) {
     LiveSession s(Config(), {}, true);
     pitmap::daemon_status_t d{};

@@ -242,6 +242,20 @@ TEST(StatusTracker, NoMessagesOnTheWallClock) {
     EXPECT_NE(a->reason.find("6.0 s"), std::string::npos) << a->reason;
 }
 
+// A replay that reached its end: silence is expected, the alarm is cleared and stays off.
+TEST(StatusTracker, NoNoMessagesAlarmAfterTheFeedEnded) {
+    StatusTracker t(StatusConfig{});
+    Healthy(t, kT0, kT0 + kS);
+    t.Evaluate(kT0 + kS + 6 * kS);
+    ASSERT_NE(Find(t, "no_messages"), nullptr);
+    t.SetFeedEnded();
+    EXPECT_TRUE(t.feed_ended());
+    t.Evaluate(kT0 + kS + 7 * kS);
+    EXPECT_EQ(Find(t, "no_messages"), nullptr);
+    t.Evaluate(kT0 + kS + 600 * kS);
+    EXPECT_EQ(Find(t, "no_messages"), nullptr);
+}
+
 TEST(StatusTracker, ImplausibleStampsDoNotMoveTheDataClock) {
     StatusTracker t(StatusConfig{});
     t.OnMessage("X", 5, 10, kT0);  // a stamp near 1970

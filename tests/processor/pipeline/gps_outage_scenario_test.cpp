@@ -3,10 +3,9 @@
 // GNSS, the INS drifting metres) on seed 4, one of the draws where the rigid stage has to creep
 // along the pit's eastern side (a straight corridor whose benches run with the track) before it
 // settles. georef, calibrate and slam with the defaults, then the trajectory scored against the
-// simulator's truth. Measured on 2026-11-29: INS 1.41 m; after SLAM 0.1234 m with the earlier
-// budget of 10 rigid iterations, 0.0754 m with 30 (the default); worst 30 s window +0.5 mm above
-// the INS. The test fails when SLAM stops recovering the drift, or makes a GNSS-good stretch
-// worse than the INS by more than the 5 mm.
+// simulator's truth (figures: docs/decisions/005 and 002). The test fails when SLAM stops
+// recovering the drift, or makes a GNSS-good stretch worse than the INS by more than the
+// issue's 5 mm.
 #include <gtest/gtest.h>
 
 #include <filesystem>

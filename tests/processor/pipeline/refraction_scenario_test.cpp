@@ -94,6 +94,15 @@ TEST(RefractionScenario, RayTracingRecoversTheHomogeneousSurveysAccuracy) {
     const json summary = ReadJson(dir / "p_traced/summary.json");
     ASSERT_TRUE(summary.contains("refraction"));
     EXPECT_EQ(summary["refraction"]["casts"].size(), 1u);
+    // The cast's profile, for the report's speed-against-depth plot: all its points (fewer
+    // than the 200 kept), surface first.
+    const json& cast = summary["refraction"]["casts"][0];
+    ASSERT_TRUE(cast.contains("profile")) << cast.dump();
+    EXPECT_EQ(cast["profile"]["depth_m"].size(), cast["points"].get<std::size_t>());
+    EXPECT_EQ(cast["profile"]["speed_mps"].size(), cast["points"].get<std::size_t>());
+    EXPECT_EQ(cast["profile"]["speed_mps"][0].get<double>(),
+              cast["surface_speed_mps"].get<double>());
+    EXPECT_EQ(cast["profile"]["depth_m"].back().get<double>(), cast["max_depth_m"].get<double>());
     EXPECT_EQ(summary["stages"]["georef"]["refraction_failed"].get<int>(), 0);
 
     // A bad cast: a clear error naming the file and the line, before any ingest.

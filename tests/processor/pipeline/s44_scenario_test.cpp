@@ -83,6 +83,9 @@ TEST(S44Scenario, WaterLevelDatumComplianceHolidayAndCrosslines) {
     EXPECT_GT(q["soundings_within_tvu"]["1a"].get<double>(), 0.99);
     EXPECT_GT(q["soundings_within_thu"]["1a"].get<double>(), 0.99);
     EXPECT_GT(q["nodes_within_tvu"]["1a"].get<double>(), 0.99);
+    // Every node's THU from the soundings CUBE offered it (issue 39: was 0.89 for every order).
+    EXPECT_GT(q["nodes_within_thu"]["1a"].get<double>(), 0.99);
+    EXPECT_EQ(q["nodes_without_thu"].get<int>(), 0);
     EXPECT_FALSE(q["strictest_order_met_95"].is_null());
     const auto files = patch["stages"]["grid"]["files"];
     for (const char* f : {"points.ply", "points.las", "s44_holidays.tif", "dem.tif"}) {

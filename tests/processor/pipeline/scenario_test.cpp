@@ -111,7 +111,7 @@ TEST_F(DemoScenario, GeorefWithTrueBoresightIsWithinTheRangeNoise) {
 // Issue 17: the per-sounding TPU is honest and the CUBE surface lies on the true terrain. The
 // demo lasts 120 s, two INS height-error correlation times (60 s), so one draw of the INS
 // height error (sigma 1.5 cm) shifts every sounding alike: the share within TVU is checked
-// loosely here; the 93-97 % figure is measured on bejanca (README, benchmark command).
+// loosely here; the 93-97 % figure is measured on bejanca (docs/benchmarks.md, benchmark command).
 TEST_F(DemoScenario, GridTpuIsHonestAndTheDemLiesOnTheTruth) {
     ASSERT_TRUE(SetTrueBoresight(dir_ / "sim"));
     const fs::path p = dir_ / "products";
@@ -315,7 +315,10 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
                                          "mesh_initial.ply",
                                          "dem.tif",
                                          "dem.bag"};
-    if (with_report) products.push_back("report.html");
+    if (with_report) {
+        products.push_back("report.html");
+        products.push_back("report_engineering.html");
+    }
     for (const auto& f : products) {
         EXPECT_TRUE(fs::exists(p / f) && fs::file_size(p / f) > 0) << f << " missing or empty";
     }
@@ -383,9 +386,10 @@ TEST_F(DemoScenario, RunMakesEveryProductAndStagesRerunFromTheFolder) {
     RecordProperty("mesh_mean_abs_m", std::to_string(s.at("mesh_mean_abs_m")));
     EXPECT_LT(s.at("boresight_error_deg"), 0.1);
     // The demo's INS is RTK grade: SLAM must not make it worse overall, nor any 30 s window by
-    // more than 5 mm (issue 15). The first window (the fewest revisits, the best INS) was 9.5 mm
-    // worse until the absolute terms were weighted up (slam.absolute_sigma_scale 0.4): 4.8 mm.
-    EXPECT_LT(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.01);
+    // more than 5 mm (issue 15; docs/decisions/003-absolute-sigma-scale.md). Overall "not worse"
+    // within 1 mm, about 3 % of the demo's ATE: the INS's own error re-estimated from thousands
+    // of pairs moves by a few tenths of a millimetre between seeds, either way.
+    EXPECT_LE(s.at("trajectory_ate_rmse_m"), s.at("trajectory_ate_rmse_before_m") + 0.001);
     ASSERT_TRUE(s.count("trajectory_ate_worst_window_increase_m"));
     RecordProperty("ate_worst_window_increase_m",
                    std::to_string(s.at("trajectory_ate_worst_window_increase_m")));

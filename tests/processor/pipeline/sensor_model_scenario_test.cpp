@@ -6,16 +6,9 @@
 // meshes are scored against the simulator's terrain, overall, by slope class and on the surface
 // both meshes hold (the 0.2 m cubes holding samples of both). The beam-width model is the
 // default because it keeps the walls and faces that rays leave as holes at the same threshold,
-// and since 2026-11-29 it does so at the rays' error on the surface both hold. This survey:
-//   - completeness 0.993 vs 0.636, walls >= 45 deg 0.976 vs 0.448, the shore at true depth
-//     < 1 / 1-2 / 2-4 m 0.973 / 0.983 / 0.993 vs 0.446 / 0.351 / 0.525;
-//   - mean abs error on the common surface 0.0128 vs 0.0127 m; floors 0.0088 vs 0.0102 m,
-//     faces 0.0113 vs 0.0108 m, walls 0.0195 vs 0.0195 m.
-// History of the error on the common surface: 0.016 vs 0.0125 m on 2026-11-26 (radius-based
-// common surface, SLAM trajectory); the footprint's along-track slope, its straight line in the
-// plane and w_max in measurements closed it (README, sensor model). The test fails when the
-// trade changes: completeness gaps under 15 points (25 on walls), or the beam-width error on the
-// common surface more than 1 mm over the rays' (on floors: not under them).
+// at the rays' error on the surface both hold (figures: docs/decisions/001). The test fails when
+// the trade changes: completeness gaps under 15 points (25 on walls), or the beam-width error on
+// the common surface more than 1 mm over the rays' (on floors: not under them).
 #include <gtest/gtest.h>
 
 #include <filesystem>

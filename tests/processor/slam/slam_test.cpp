@@ -165,6 +165,34 @@ TEST(Slam, StepsLowerTheCostOfTheirOwnPairs) {
     EXPECT_LT(r.final_pair_score_m, r.initial_pair_score_m);
 }
 
+// Progress is told every iteration of both stages, in order, with the iteration's record; a
+// false answer cancels at once and keeps a finite trajectory.
+TEST(Slam, ProgressSeesEveryIterationAndCanCancel) {
+    const Survey sv = MakeSurvey(kCrossing, 1.0);
+    std::vector<std::pair<SlamStage, int>> told;
+    const SlamResult r = RunSlam(sv.slices, TestConfig(), [&](const SlamIteration& it) {
+        told.emplace_back(it.stage, it.iteration);
+        return true;
+    });
+    ASSERT_NE(r.termination, SlamTermination::kCancelled) << r.message;
+    ASSERT_GE(told.size(), 2u);
+    EXPECT_EQ(told.front(), std::make_pair(SlamStage::kRigid, 1));
+    EXPECT_EQ(told.back().first, SlamStage::kSemiRigid);
+    // Only an iteration that ends its stage (converged, stalled, budget) may go untold.
+    EXPECT_GE(told.size() + 2, r.iterations.size());
+
+    int calls = 0;
+    const SlamResult cancelled = RunSlam(sv.slices, TestConfig(), [&](const SlamIteration&) {
+        ++calls;
+        return false;
+    });
+    EXPECT_EQ(cancelled.termination, SlamTermination::kCancelled);
+    EXPECT_EQ(calls, 1);
+    EXPECT_EQ(cancelled.trajectory.size(), sv.slices.size());
+    for (const SlamPose& p : cancelled.trajectory)
+        EXPECT_TRUE(p.T_world_vehicle.matrix().allFinite());
+}
+
 // The old guard (a plane-fit score) stopped the rigid stage at iteration 2 while the alignment
 // still improved. With a drift of about a metre and patience 1, the stage must go on as long
 // as the pair score falls: more than two iterations, and each stop follows a non-improving one.

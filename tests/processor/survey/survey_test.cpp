@@ -88,6 +88,45 @@ std::vector<std::size_t> IngestArrays(const std::vector<std::uint8_t>& b) {
     return at;
 }
 
+// The file as formats 1-4 held it: the ping records in PingHeader's old memory layout (112
+// bytes: 7 bytes of padding after sound_speed_valid, 1 after aid_attitude_at_ping) instead of
+// format 5's 104 bytes field by field.
+std::vector<std::uint8_t> WithLegacyPings(const std::vector<std::uint8_t>& b) {
+    const SectionAt s = Sections(b).at("ingest");
+    const std::size_t pings_at = IngestArrays(b)[2];
+    std::uint64_t count = 0, size = 0;
+    std::memcpy(&count, b.data() + pings_at, 8);
+    std::memcpy(&size, b.data() + pings_at + 8, 8);
+    EXPECT_EQ(size, 104u);
+    std::vector<std::uint8_t> out(b.begin(), b.begin() + static_cast<std::ptrdiff_t>(pings_at));
+    const std::uint64_t legacy = 112;
+    out.insert(out.end(),
+               b.begin() + static_cast<std::ptrdiff_t>(pings_at),
+               b.begin() + static_cast<std::ptrdiff_t>(pings_at + 8));
+    out.insert(out.end(),
+               reinterpret_cast<const std::uint8_t*>(&legacy),
+               reinterpret_cast<const std::uint8_t*>(&legacy) + 8);
+    for (std::uint64_t i = 0; i < count; ++i) {
+        const std::uint8_t* r = b.data() + pings_at + 16 + i * 104;
+        out.insert(out.end(), r, r + 25);           // utime, ping number, speed, valid
+        out.insert(out.end(), 7, std::uint8_t{0});  // padding
+        out.insert(out.end(), r + 25, r + 64);      // resolution .. aid_attitude_at_ping
+        out.push_back(0);                           // padding
+        out.insert(out.end(), r + 64, r + 104);     // aid latitude .. heading
+    }
+    out.insert(
+        out.end(), b.begin() + static_cast<std::ptrdiff_t>(pings_at + 16 + count * 104), b.end());
+    const std::uint64_t bytes = s.bytes + count * 8;
+    std::memcpy(out.data() + s.crc_at - 8, &bytes, 8);
+    FixCrcs(out);
+    return out;
+}
+
+std::vector<std::uint8_t> AsFormat(std::vector<std::uint8_t> b, std::uint32_t version) {
+    std::memcpy(b.data() + 8, &version, 4);
+    return b;
+}
+
 SurveyModel SmallSurvey() {
     SurveyModel m;
     io::IngestResult& r = m.ingest;
@@ -194,6 +233,7 @@ TEST_F(SurveyFile, RoundTripsEveryPart) {
     EXPECT_EQ(r->refraction.selection, svp::CastSelection::kNearestInTime);
     EXPECT_DOUBLE_EQ(r->refraction.ins_height_above_waterline_m, 0.4);
     EXPECT_EQ(r->calibration, CalibrationState::kNotRun);
+    EXPECT_TRUE(std::isnan(r->boresight_sd_deg[0])) << "no calibration, no stated sigma";
     ASSERT_TRUE(r->has(TrajectoryVersion::kIns));
     EXPECT_FALSE(r->has(TrajectoryVersion::kSlam));
     EXPECT_EQ(r->latest(), TrajectoryVersion::kIns);
@@ -244,6 +284,21 @@ TEST_F(SurveyFile, EveryTrajectoryVersionRoundTrips) {
         }
     }
     EXPECT_EQ(back->latest(), TrajectoryVersion::kSlam);
+}
+
+// The calibrated boresight's sigma is part of the state (boresight.json is written from it),
+// and a reset of the calibration drops it.
+TEST_F(SurveyFile, TheBoresightSigmaRoundTripsAndGoesWithTheCalibration) {
+    SurveyModel m = SmallSurvey();
+    m.calibration = CalibrationState::kCalibrated;
+    m.boresight_sd_deg = {0.011, 0.012, 0.03};
+    ASSERT_TRUE(SaveSurvey(path_, m));
+    const auto r = LoadSurvey(path_, LoadParts::kState);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->boresight_sd_deg, m.boresight_sd_deg);
+    SurveyModel again = *r;
+    EXPECT_TRUE(again.ResetCalibration());
+    EXPECT_TRUE(std::isnan(again.boresight_sd_deg[2]));
 }
 
 TEST_F(SurveyFile, TheStateLoadsWithoutTheBigSections) {
@@ -328,7 +383,8 @@ TEST_F(SurveyFile, CraftedContentWithRightCrcsIsCheckedToo) {
     std::vector<std::uint8_t> bad = good_;
     const std::size_t first = IngestArrays(good_)[2] + 16;
     const std::uint32_t offset = 1u << 30;
-    std::memcpy(bad.data() + first + offsetof(georef::PingHeader, beam_offset), &offset, 4);
+    constexpr std::size_t kBeamOffsetAt = 57;  // in a ping record (survey_records.hpp)
+    std::memcpy(bad.data() + first + kBeamOffsetAt, &offset, 4);
     FixCrcs(bad);
     ExpectError(bad, "beam offset");
     // The second ping's beams on the first's (in range, but shared: georef would write both
@@ -337,8 +393,7 @@ TEST_F(SurveyFile, CraftedContentWithRightCrcsIsCheckedToo) {
     std::uint64_t header_size = 0;
     std::memcpy(&header_size, good_.data() + IngestArrays(good_)[2] + 8, 8);
     const std::uint32_t zero = 0;
-    std::memcpy(
-        bad.data() + first + header_size + offsetof(georef::PingHeader, beam_offset), &zero, 4);
+    std::memcpy(bad.data() + first + header_size + kBeamOffsetAt, &zero, 4);
     FixCrcs(bad);
     ExpectError(bad, "overlapping beam offsets");
     // An unknown ping clock.
@@ -370,12 +425,14 @@ TEST_F(SurveyFile, CraftedContentWithRightCrcsIsCheckedToo) {
     }
     // A bool byte of 7 reads as true (no undefined bool value reaches the stages).
     bad = good_;
-    bad[first + offsetof(georef::PingHeader, sound_speed_valid)] = 7;
+    constexpr std::size_t kSoundSpeedValidAt = 24;  // in a ping record (survey_records.hpp)
+    ASSERT_FALSE(SmallSurvey().ingest.pings.pings[1].sound_speed_valid);
+    bad[first + header_size + kSoundSpeedValidAt] = 7;
     FixCrcs(bad);
     WriteBytes(path_, bad);
     const auto r = LoadSurvey(path_);
     ASSERT_TRUE(r.ok()) << r.error().message;
-    EXPECT_TRUE(r->ingest.pings.pings[0].sound_speed_valid);
+    EXPECT_TRUE(r->ingest.pings.pings[1].sound_speed_valid);
 }
 
 TEST_F(SurveyFile, EmptyForeignAndOtherVersionFilesAreCleanErrors) {
@@ -401,7 +458,7 @@ TEST_F(SurveyFile, IntensitiesRoundTripAndAreOnlyWrittenWhenThere) {
     std::uint32_t version = 0;
     std::memcpy(&version, good_.data() + 8, 4);
     EXPECT_EQ(version, kSurveyFormatVersion);
-    EXPECT_EQ(version, 4u);
+    EXPECT_EQ(version, 5u);
 
     SurveyModel none = SmallSurvey();
     none.ingest.pings.intensities.clear();
@@ -430,7 +487,7 @@ std::vector<std::uint8_t> Without(const std::vector<std::uint8_t>& b,
 
 // The file of the format before intensities: without the intensity and beam_angle sections.
 std::vector<std::uint8_t> AsFormat1(const std::vector<std::uint8_t>& b) {
-    return Without(Without(b, "beam_angle", 2), "intensity", 1);
+    return Without(Without(WithLegacyPings(b), "beam_angle", 2), "intensity", 1);
 }
 
 TEST_F(SurveyFile, BeamAnglesRoundTripAndAreOnlyWrittenWhenThere) {
@@ -449,15 +506,12 @@ TEST_F(SurveyFile, BeamAnglesRoundTripAndAreOnlyWrittenWhenThere) {
 }
 
 TEST_F(SurveyFile, AFormat2FileIsReadWithoutBeamAnglesAndCannotHoldThem) {
-    WriteBytes(path_, Without(good_, "beam_angle", 2));
+    WriteBytes(path_, Without(WithLegacyPings(good_), "beam_angle", 2));
     const auto r = LoadSurvey(path_);
     ASSERT_TRUE(r.ok()) << r.error().message;
     EXPECT_FALSE(r->ingest.pings.has_beam_angles());
     EXPECT_TRUE(r->ingest.pings.has_intensities());
-    std::vector<std::uint8_t> crafted = good_;
-    const std::uint32_t version = 2;
-    std::memcpy(crafted.data() + 8, &version, 4);
-    WriteBytes(path_, crafted);
+    WriteBytes(path_, AsFormat(WithLegacyPings(good_), 2));
     const auto c = LoadSurvey(path_);
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.error().message.find("unknown section \"beam_angle\""), std::string::npos)
@@ -490,10 +544,7 @@ TEST_F(SurveyFile, AFormat1FileIsReadWithoutIntensities) {
     EXPECT_EQ(r->ingest.pings.range_counts, SmallSurvey().ingest.pings.range_counts);
     EXPECT_TRUE(r->has(TrajectoryVersion::kIns));
     // A format 1 file cannot hold the section (a crafted one is an error, not a guess).
-    std::vector<std::uint8_t> crafted = good_;
-    const std::uint32_t version = 1;
-    std::memcpy(crafted.data() + 8, &version, 4);
-    WriteBytes(path_, crafted);
+    WriteBytes(path_, AsFormat(WithLegacyPings(good_), 1));
     const auto c = LoadSurvey(path_);
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.error().message.find("unknown section \"intensity\""), std::string::npos)
@@ -687,11 +738,31 @@ TEST_F(SurveyFile, AHugeCleaningCountFailsWithoutAllocating) {
     EXPECT_LT(PeakRssMb() - rss_before_mb, 64.0) << "memory stays bounded by the file size";
 }
 
+// Formats 1-4 wrote the ping records as PingHeader lay in memory; format 5 field by field. A
+// format 4 file reads the same pings, and its record size is checked (a format 4 file with
+// format 5 records is an error, not a misread).
+TEST_F(SurveyFile, AFormat4FileReadsItsPingRecordsInTheOldLayout) {
+    WriteBytes(path_, AsFormat(WithLegacyPings(good_), 4));
+    const auto r = LoadSurvey(path_);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const auto& want = SmallSurvey().ingest.pings.pings;
+    const auto& got = r->ingest.pings.pings;
+    ASSERT_EQ(got.size(), want.size());
+    for (std::size_t i = 0; i < want.size(); ++i) {
+        EXPECT_EQ(got[i].utime_gps, want[i].utime_gps);
+        EXPECT_EQ(got[i].ping_number, want[i].ping_number);
+        EXPECT_EQ(got[i].sound_speed_valid, want[i].sound_speed_valid);
+        EXPECT_EQ(got[i].range_resolution_m, want[i].range_resolution_m);
+        EXPECT_EQ(got[i].start_angle_deg, want[i].start_angle_deg);
+        EXPECT_EQ(got[i].beam_offset, want[i].beam_offset);
+        EXPECT_EQ(got[i].num_beams, want[i].num_beams);
+        EXPECT_TRUE(std::isnan(got[i].aid_heading_deg));
+    }
+    ExpectError(AsFormat(good_, 4), "pings: record size 104, expected 112");
+}
+
 TEST_F(SurveyFile, AFormat3FileIsReadWithoutCleaningAndCannotHoldIt) {
-    std::vector<std::uint8_t> v3 = good_;
-    const std::uint32_t three = 3;
-    std::memcpy(v3.data() + 8, &three, 4);
-    WriteBytes(path_, v3);
+    WriteBytes(path_, AsFormat(WithLegacyPings(good_), 3));
     const auto r = LoadSurvey(path_);
     ASSERT_TRUE(r.ok()) << r.error().message;
     EXPECT_TRUE(r->flags.cleaning.empty());
@@ -699,9 +770,7 @@ TEST_F(SurveyFile, AFormat3FileIsReadWithoutCleaningAndCannotHoldIt) {
     EXPECT_EQ(r->ingest.pings.range_counts, SmallSurvey().ingest.pings.range_counts);
     // A format 3 file with the section is an error, not a guess.
     ASSERT_TRUE(SaveSurvey(path_, CleanedSurvey()));
-    std::vector<std::uint8_t> crafted = ReadBytes(path_);
-    std::memcpy(crafted.data() + 8, &three, 4);
-    ExpectError(crafted, "format 3 with a cleaning section");
+    ExpectError(AsFormat(WithLegacyPings(ReadBytes(path_)), 3), "format 3 with a cleaning section");
     const auto c = LoadSurvey(path_);
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.error().message.find("unknown section \"cleaning\""), std::string::npos)

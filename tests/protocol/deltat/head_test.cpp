@@ -8,6 +8,7 @@
 #include <random>
 
 #include "tests/protocol/deltat/deltat_test_util.hpp"
+#include "tests/support/stream_cuts.hpp"
 
 namespace pitmap::protocol::deltat {
 namespace {
@@ -298,28 +299,19 @@ TEST(HeadReplyFramer, IncompleteAndTruncated) {
 
 TEST(HeadReplyFramer, SplitAtEveryOffset) {
     const Bytes stream = PingPackets(2);
-    for (std::size_t cut = 0; cut <= stream.size(); ++cut) {
-        const Outcome o = FeedHead(stream, {cut});
+    pitmap::test::ForEverySingleCut(stream.size(), [&](const auto& cuts, std::size_t cut) {
+        const Outcome o = FeedHead(stream, cuts);
         ASSERT_EQ(o.frames.size(), 2u) << cut;
         EXPECT_TRUE(o.skipped.empty()) << cut;
-    }
+    });
 }
 
 TEST(HeadReplyFramer, ByteByByteAndRandomChunks) {
     const Bytes stream = PingPackets(4);
-    std::vector<std::size_t> cuts;
-    for (std::size_t i = 1; i < stream.size(); ++i) cuts.push_back(i);
-    EXPECT_EQ(FeedHead(stream, cuts).frames.size(), 4u);
+    EXPECT_EQ(FeedHead(stream, pitmap::test::EveryByteCuts(stream.size())).frames.size(), 4u);
     std::mt19937 rng(7);
     for (int trial = 0; trial < 50; ++trial) {
-        cuts.clear();
-        std::size_t at = 0;
-        while (true) {
-            at += std::uniform_int_distribution<std::size_t>(1, 1500)(rng);
-            if (at >= stream.size()) break;
-            cuts.push_back(at);
-        }
-        const Outcome o = FeedHead(stream, cuts);
+        const Outcome o = FeedHead(stream, pitmap::test::RandomCuts(stream.size(), 1500, rng));
         ASSERT_EQ(o.frames.size(), 4u);
         EXPECT_TRUE(o.skipped.empty());
     }

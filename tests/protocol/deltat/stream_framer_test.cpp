@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "tests/protocol/deltat/deltat_test_util.hpp"
+#include "tests/support/stream_cuts.hpp"
 
 namespace pitmap::protocol::deltat {
 namespace {
@@ -223,21 +224,19 @@ TEST(StreamFramer, FalseHeaderBeforeTheEndOrAPauseKeepsTheRecordsBehind) {
 TEST(StreamFramer, SplitAtEveryOffset) {
     const auto records = SampleRecords();
     const Bytes stream = Concat({records[1], records[2], records[3]});
-    for (std::size_t cut = 0; cut <= stream.size(); ++cut) {
-        const Outcome o = FeedStream(stream, {cut});
+    pitmap::test::ForEverySingleCut(stream.size(), [&](const auto& cuts, std::size_t cut) {
+        const Outcome o = FeedStream(stream, cuts);
         ASSERT_EQ(o.frames.size(), 3u) << "cut " << cut;
         EXPECT_TRUE(o.skipped.empty()) << "cut " << cut;
         EXPECT_EQ(o.frames[0], records[1]);
         EXPECT_EQ(o.frames[2], records[3]);
-    }
+    });
 }
 
 TEST(StreamFramer, ByteByByte) {
     const auto records = SampleRecords();
     const Bytes stream = Concat(records);
-    std::vector<std::size_t> cuts;
-    for (std::size_t i = 1; i < stream.size(); ++i) cuts.push_back(i);
-    const Outcome o = FeedStream(stream, cuts);
+    const Outcome o = FeedStream(stream, pitmap::test::EveryByteCuts(stream.size()));
     ASSERT_EQ(o.frames.size(), 4u);
     EXPECT_TRUE(o.skipped.empty());
     EXPECT_EQ(o.frames[0], records[0]);
@@ -249,14 +248,7 @@ TEST(StreamFramer, RandomChunks) {
     for (int rep = 0; rep < 5; ++rep) Append(stream, Concat(records));
     std::mt19937 rng(42);
     for (int trial = 0; trial < 50; ++trial) {
-        std::vector<std::size_t> cuts;
-        std::size_t at = 0;
-        while (true) {
-            at += std::uniform_int_distribution<std::size_t>(1, 3000)(rng);
-            if (at >= stream.size()) break;
-            cuts.push_back(at);
-        }
-        const Outcome o = FeedStream(stream, cuts);
+        const Outcome o = FeedStream(stream, pitmap::test::RandomCuts(stream.size(), 3000, rng));
         ASSERT_EQ(o.frames.size(), 20u);
         EXPECT_TRUE(o.skipped.empty());
         EXPECT_EQ(o.frames[19], records[3]);
@@ -283,9 +275,7 @@ TEST(StreamFramer, GarbageBeforeAndBetween) {
     EXPECT_EQ(SkippedBytes(o, SkipReason::kGarbage), before.size() + between.size() + 2);
     EXPECT_EQ(SkippedBytes(o, SkipReason::kBadLength), 0u);
     // Same stream byte by byte gives the same frames and the same skipped total.
-    std::vector<std::size_t> cuts;
-    for (std::size_t i = 1; i < stream.size(); ++i) cuts.push_back(i);
-    const Outcome b = FeedStream(stream, cuts);
+    const Outcome b = FeedStream(stream, pitmap::test::EveryByteCuts(stream.size()));
     EXPECT_EQ(b.frames, o.frames);
     EXPECT_EQ(SkippedBytes(b, SkipReason::kGarbage), before.size() + between.size() + 2);
 }

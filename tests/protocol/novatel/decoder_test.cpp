@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <type_traits>
+#include <utility>
+#include <variant>
 
 #include "common/gps_time.hpp"
 #include "tests/protocol/novatel/test_util.hpp"
@@ -363,6 +366,33 @@ TEST(NovatelDecoder, AsciiShortHeaderAndBadFields) {
     const auto bad_header = DecodeOne(AsciiLine('#', "BESTVELA,COM1,x;SOL_COMPUTED"));
     ASSERT_TRUE(std::holds_alternative<DecodeError>(bad_header));
     EXPECT_EQ(std::get<DecodeError>(bad_header).kind, DecodeErrorKind::kBadHeader);
+}
+
+// The decoder's result and Message share one list of message structs (messages.hpp): every
+// Message alternative is the DecodeResult alternative of the same index, and ToMessage keeps it.
+template <std::size_t... I>
+void ExpectToMessageKeepsEveryAlternative(std::index_sequence<I...>) {
+    (
+        [] {
+            using T = std::variant_alternative_t<I, Message>;
+            static_assert(std::is_same_v<T, std::variant_alternative_t<I, DecodeResult>>);
+            const Message m = ToMessage(DecodeResult(std::in_place_index<I>, T{}));
+            EXPECT_EQ(m.index(), I);
+        }(),
+        ...);
+}
+
+TEST(NovatelDecoder, ResultListsEveryMessageThenTheTwoOtherOutcomes) {
+    static_assert(std::variant_size_v<DecodeResult> == std::variant_size_v<Message> + 2);
+    static_assert(
+        std::is_same_v<std::variant_alternative_t<std::variant_size_v<Message>, DecodeResult>,
+                       Unsupported>);
+    static_assert(
+        std::is_same_v<std::variant_alternative_t<std::variant_size_v<Message> + 1, DecodeResult>,
+                       DecodeError>);
+    ExpectToMessageKeepsEveryAlternative(std::make_index_sequence<std::variant_size_v<Message>>{});
+    EXPECT_FALSE(IsMessage(DecodeResult(Unsupported{})));
+    EXPECT_FALSE(IsMessage(DecodeResult(DecodeError{})));
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include "common/protocol/novatel/crc32.hpp"
 #include "tests/protocol/novatel/test_util.hpp"
+#include "tests/support/stream_cuts.hpp"
 
 namespace pitmap::protocol::novatel {
 namespace {
@@ -186,11 +187,11 @@ TEST(NovatelFramer, EveryFrameKind) {
 TEST(NovatelFramer, SplitAtEveryOffset) {
     const Bytes stream = MixedStream();
     const auto whole = FrameAll(stream);
-    for (std::size_t k = 1; k < stream.size(); ++k) {
-        const auto split = FrameAll(stream, {k, stream.size()});
-        ASSERT_EQ(split.frames, whole.frames) << "split at " << k;
-        ASSERT_EQ(split.counters.TotalBytes(), whole.counters.TotalBytes()) << k;
-    }
+    pitmap::test::ForEverySingleCut(stream.size(), [&](const auto& cuts, std::size_t cut) {
+        const auto split = FrameAll(stream, pitmap::test::PieceSizes(cuts, stream.size()));
+        ASSERT_EQ(split.frames, whole.frames) << "split at " << cut;
+        ASSERT_EQ(split.counters.TotalBytes(), whole.counters.TotalBytes()) << cut;
+    });
 }
 
 TEST(NovatelFramer, ByteByByteAndRandomChunks) {
@@ -199,9 +200,10 @@ TEST(NovatelFramer, ByteByByteAndRandomChunks) {
     EXPECT_EQ(FrameAll(stream, {1}).frames, whole.frames);
     std::mt19937 rng(42);
     for (int trial = 0; trial < 50; ++trial) {
-        std::vector<std::size_t> chunks(17);
-        for (auto& c : chunks) c = 1 + rng() % 97;
-        const auto ev = FrameAll(stream, chunks);
+        const auto ev =
+            FrameAll(stream,
+                     pitmap::test::PieceSizes(pitmap::test::RandomCuts(stream.size(), 97, rng),
+                                              stream.size()));
         ASSERT_EQ(ev.frames, whole.frames) << trial;
         ASSERT_EQ(ev.skips.size(), whole.skips.size()) << trial;
     }

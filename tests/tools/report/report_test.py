@@ -3,10 +3,14 @@
 
 Usage: python3 report_test.py --report PATH_TO_pitmap-report [unittest args]
 
-Checks: the report is written and self-contained (no http(s) link, every image a data URI,
-no reference to a file, a Content-Security-Policy that allows no network), holds every section, names each missing optional product
-("not produced: ...") instead of failing, refuses a folder without summary.json, and the
-PLY reader and raster helpers give known values.
+Checks: both pages (report.html for the client, report_engineering.html) are written and
+self-contained (no http(s) link, every image a data URI, no link but to each other, a
+Content-Security-Policy that allows no network) and hold their sections; the cover shows
+summary.json's metadata, or what older products have and "not set"; the S-44 compliance
+statement for hand-made records; no path of this machine on the client's page; scores only
+with a truth; the maps' scale bar against the geotransform; the engineering page names each
+missing optional product ("not produced: ...") instead of failing; a folder without
+summary.json is refused; the PLY reader and raster helpers give known values.
 """
 
 import argparse
@@ -14,6 +18,7 @@ import base64
 import importlib.machinery
 import importlib.util
 import json
+import math
 import os
 import re
 import signal
@@ -27,8 +32,25 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-SECTIONS = ["summary", "quality", "trajectory", "cross-sections", "depth", "hydro", "rejections",
-            "mosaic", "mesh", "viewer", "boresight", "clock", "tsdf", "slam", "stages", "scores"]
+CLIENT_SECTIONS = ["cover", "summary", "datums", "maps", "hydro", "soundings", "mosaic", "viewer",
+                   "scores", "engineering"]
+ENGINEERING_SECTIONS = ["processing", "quality", "trajectory", "cross-sections", "depth", "tvu",
+                        "rejections", "mesh", "boresight", "clock", "tsdf", "slam", "stages"]
+# The maps' raster (WriteDem): 80 x 60 nodes of 0.5 m, UTM 29N, north-up.
+DEM_GT = (603390.0, 0.5, 0.0, 4477710.0, 0.0, -0.5)
+DEM_NX, DEM_NY = 80, 60
+METADATA = {
+    "project": "Pit 7 <north> lake", "client": "Lusa Quarries", "site": "Bejanca",
+    "survey_id": "BJ-2026-06", "surveyor": "A. Hydrographer", "organisation": "Survey Co",
+    "vessel": "ASV-2", "notes": "calm water",
+    "equipment": [{"role": "multibeam", "model": "Imagenex DeltaT 837B"},
+                  {"role": "gnss_ins", "model": "NovAtel PwrPak7D-E1"}],
+    "survey_start_utc": "2026-06-15T09:00:00Z", "survey_end_utc": "2026-06-15T09:02:00Z",
+    "processed_utc": "2026-06-16T10:11:12Z", "software": "pitmap 0.9.1",
+    "horizontal_crs": {"name": "WGS 84 / UTM zone 29N", "epsg": 32629},
+    "vertical_crs": {"name": "pit water level", "epsg": None,
+                     "description": "depths below the pit's water level"},
+    "s44_order_target": "special"}
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 GPS_T0 = 1465549218.0  # 2026-06-15 09:00:00 UTC (GPS - UTC = 18 s)
 
@@ -116,7 +138,33 @@ def WriteMosaic(folder, grid):
         "angular_response_deg_db_count": [[k + 0.5, 6.0 - 0.2 * k, 100] for k in range(80)]}
 
 
-def WriteProducts(folder, full=True, points_per_pose=21):
+def WriteDem(folder):
+    """dem.tif (elevation, uncertainty) and s44_holidays.tif (one holiday of 4 x 4 nodes) on
+    DEM_GT, as the grid stage writes them."""
+    from osgeo import gdal, osr
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(32629)
+    gx, gy = np.meshgrid(np.arange(DEM_NX), np.arange(DEM_NY))
+    elevation = -2.0 - 6.0 * np.exp(-((gx - 40) ** 2 + (gy - 30) ** 2) / 400.0)
+    holidays = np.zeros((DEM_NY, DEM_NX))
+    holidays[20:24, 30:34] = 2
+    holidays[40, 10] = 1
+    for name, bands in (("dem.tif", (("elevation", elevation), ("uncertainty",
+                                                               0.05 + 0.01 * gx / DEM_NX))),
+                        ("s44_holidays.tif", (("holiday", holidays),))):
+        ds = gdal.GetDriverByName("GTiff").Create(os.path.join(folder, name), DEM_NX, DEM_NY,
+                                                  len(bands), gdal.GDT_Float32)
+        ds.SetGeoTransform(DEM_GT)
+        ds.SetProjection(srs.ExportToWkt())
+        for b, (desc, v) in enumerate(bands, start=1):
+            band = ds.GetRasterBand(b)
+            band.SetDescription(desc)
+            band.SetNoDataValue(float("nan"))
+            band.WriteArray(v.astype(np.float32))
+        ds = None
+
+
+def WriteProducts(folder, full=True, points_per_pose=21, metadata=None):
     """A tiny survey: two laps around a bowl; before SLAM the track drifts in height."""
     os.makedirs(folder, exist_ok=True)
     t = GPS_T0 + np.arange(0, 120, 0.2)
@@ -155,6 +203,8 @@ def WriteProducts(folder, full=True, points_per_pose=21):
         },
         "total_seconds": 9.5,
     }
+    if metadata is not None:
+        summary["metadata"] = metadata
     if full:
         Traj(os.path.join(folder, "trajectory_initial.csv"), drift)
         pd = np.repeat(drift, len(beams))
@@ -264,6 +314,19 @@ def WriteProducts(folder, full=True, points_per_pose=21):
                                                 "rms_m": 0.03, "within_tvu": 0.99}
                                                for i in range(6)]}}}
         WriteMosaic(folder, summary["stages"]["grid"])
+        WriteDem(folder)
+        summary["time"].update({"first_ping_utc": "2026-06-15T09:00:00.000000Z",
+                                "last_ping_utc": "2026-06-15T09:01:59.800000Z",
+                                "first_ping_gps_s": GPS_T0, "last_ping_gps_s": GPS_T0 + 119.8})
+        summary["refraction"] = {
+            "svp_files": ["/data/casts/pit7.svp"], "selection": "nearest_preceding",
+            "surface_speed": "profile", "ins_height_above_waterline_m": 0.3,
+            "casts": [{"name": "/data/casts/pit7.svp section 1", "time_utc":
+                       "2026-06-15T08:50:00.000000Z", "latitude_deg": 40.4435,
+                       "longitude_deg": -7.7806, "points": 4, "max_depth_m": 12.0,
+                       "surface_speed_mps": 1496.0,
+                       "profile": {"depth_m": [0, 2, 7, 12],
+                                   "speed_mps": [1496.0, 1495.5, 1452.5, 1452.0]}}]}
         summary["stage_order"] = ["ingest", "georef", "calibrate", "slam", "grid", "fuse", "mesh"]
         with open(os.path.join(folder, "scores.json"), "w") as f:
             json.dump({"trajectory_ate_rmse_m": 0.0306, "trajectory_ate_rmse_before_m": 1.3468,
@@ -281,6 +344,28 @@ def Sections(page):
     return dict(re.findall(r'<section id="([^"]+)">(.*?)</section>', page, flags=re.S))
 
 
+def ReadPages(folder):
+    """(report.html, report_engineering.html) of a products folder."""
+    out = []
+    for name in ("report.html", "report_engineering.html"):
+        with open(os.path.join(folder, name), encoding="utf-8") as f:
+            out.append(f.read())
+    return tuple(out)
+
+
+# An absolute path of a machine: "/" then at least two parts (a folder and a name), not after
+# a word character, a dot, a colon or a slash.
+MACHINE_PATH = re.compile(r"(?<![\w.:/])/[\w.-]+/[\w./-]*")
+
+
+def VisibleText(page):
+    """The page without its scripts, its images' data and its CSS: what a reader sees and
+    the attributes."""
+    page = re.sub(r"(?s)<script.*?</script>", "", page)
+    page = re.sub(r"(?s)<style>.*?</style>", "", page)
+    return re.sub(r'src="data:[^"]*"', 'src=""', page)
+
+
 class ReportTest(unittest.TestCase):
     def setUp(self):
         self.tmp = tempfile.TemporaryDirectory(prefix="pitmap-report-test-")
@@ -289,15 +374,17 @@ class ReportTest(unittest.TestCase):
     def tearDown(self):
         self.tmp.cleanup()
 
-    def AssertSelfContained(self, page, folder):
+    def AssertSelfContained(self, page, folder, images=True):
         self.assertNotRegex(page, r"(?i)https?:")
         srcs = re.findall(r'src="([^"]*)"', page)
-        self.assertTrue(srcs, "no image at all")
+        if images:
+            self.assertTrue(srcs, "no image at all")
         for s in srcs:
             self.assertTrue(s.startswith("data:image/png;base64,"), s[:60])
             self.assertEqual(base64.b64decode(s.split(",", 1)[1])[:8], PNG_MAGIC)
         for h in re.findall(r'href="([^"]*)"', page):
-            self.assertTrue(h.startswith("#"), h)
+            self.assertTrue(h.startswith("#") or h in ("report.html", "report_engineering.html"),
+                            h)
         self.assertNotIn("<link", page)
         # Its policy, first in <head>: no network, nothing beyond its own inline code.
         m = re.search(r'<head>\s*<meta charset="utf-8">\s*<meta http-equiv="Content-Security-'
@@ -315,60 +402,206 @@ class ReportTest(unittest.TestCase):
         r = Run(p, "--title", "Test pit <survey>")
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("section trajectory", r.stderr)  # progress lines on stderr
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
+        page, eng = ReadPages(p)
         self.AssertSelfContained(page, p)
+        self.AssertSelfContained(eng, p)
         self.assertIn("<title>Test pit &lt;survey&gt;</title>", page)
-        sec = Sections(page)
-        self.assertEqual(list(sec), SECTIONS)
-        self.assertNotIn("not produced", page)
-        self.assertNotIn("could not draw", page)
-        self.assertNotIn('class="problem"', page)
-        for s in ("trajectory", "cross-sections", "depth", "hydro", "mosaic", "mesh", "tsdf",
-                  "slam", "stages"):
+        sec, esec = Sections(page), Sections(eng)
+        self.assertEqual(list(sec), CLIENT_SECTIONS)
+        self.assertEqual(list(esec), ENGINEERING_SECTIONS)
+        self.assertIn('href="report_engineering.html"', sec["engineering"])
+        for text in (page, eng):
+            self.assertFalse("not produced" in text, "not produced")
+            self.assertNotIn("could not draw", text)
+            self.assertNotIn('class="problem"', text)
+        for s in ("maps", "datums", "hydro", "mosaic"):
             self.assertIn("data:image/png", sec[s], s)
+        for s in ("trajectory", "cross-sections", "depth", "tvu", "mesh", "tsdf", "slam",
+                  "stages"):
+            self.assertIn("data:image/png", esec[s], s)
         self.assertIn("40.0 log10(R) + 2 &times; 0.0210 dB/m", sec["mosaic"])
         self.assertIn("empirical, referenced to 45 deg", sec["mosaic"])
-        self.assertIn("2026-06-15 09:00:00", sec["summary"])
-        # The S-44 section: datum, the orders' table, the holiday, the crossline table.
-        self.assertIn("pit water level (GNSS, survey median)", sec["hydro"])
+        self.assertIn("2026-06-15 09:00:00", esec["processing"])
+        # The summary: the verdict for the grid stage's order (1a: 99.9 % of the soundings,
+        # but one holiday where the order asks for full coverage), the datums, the caveats.
+        self.assertIn('class="verdict not-met"', sec["summary"])
+        self.assertIn("does not meet</b> IHO S-44 Edition 6.1 Order <b>1a</b>: 99.9 %",
+                      sec["summary"])
+        self.assertIn("<b>1 holiday(s)</b> could hide a 2.0 m feature", sec["summary"])
+        self.assertIn("pit water level (GNSS, survey median)", sec["summary"])
+        # Datums: the water level used, the cast applied (file name only) and its plot.
+        self.assertIn("the pit's water surface measured by the vessel's GNSS: median 411.980 m",
+                      sec["datums"])
+        self.assertIn("<td>pit7.svp section 1</td><td>2026-06-15 08:50:00 UTC</td>",
+                      sec["datums"])
+        self.assertIn("grid north lies 0.79&deg; east of true north", sec["datums"])
+        # The S-44 section: the orders' table, the holiday, the crossline table.
         self.assertIn("IHO S-44 Edition 6.1: order 1a", sec["hydro"])
         self.assertIn("<td><b>1a</b></td><td>5 + 5 % d</td>", sec["hydro"])
         self.assertIn("99.9", sec["hydro"])
         self.assertIn("<td>603410.20</td><td>4477697.30</td>", sec["hydro"])
         self.assertIn("100.0 % within the order 1a TVU limit", sec["hydro"])
-        # Rejected soundings: the table by reason, the map, the worst ping runs (the fish
-        # school, pings 10-14, first; the spikes one ping each).
-        self.assertIn("<td>free_space</td>", sec["rejections"])
-        self.assertIn("<td>no_detection</td><td>40</td>", sec["rejections"])
-        self.assertNotIn("<td>multipath</td>", sec["rejections"])  # none: not listed
-        self.assertIn("data:image/png", sec["rejections"])
-        runs = re.findall(r"<td>(\d+)&ndash;(\d+)</td>", sec["rejections"])
+        # The maps: in the raster's grid, scale bar from its 40 m width (DEM_GT).
+        self.assertIn("north arrow: grid north; scale bar 10 m", sec["maps"])
+        # Soundings: the client's table; the engineering page's map and worst ping runs
+        # (the fish school, pings 10-14, first; the spikes one ping each).
+        self.assertIn("<td>no_detection</td><td>40</td>", sec["soundings"])
+        self.assertIn("<td>free_space</td>", esec["rejections"])
+        self.assertIn("<td>no_detection</td><td>40</td>", esec["rejections"])
+        self.assertNotIn("<td>multipath</td>", esec["rejections"])  # none: not listed
+        self.assertIn("data:image/png", esec["rejections"])
+        runs = re.findall(r"<td>(\d+)&ndash;(\d+)</td>", esec["rejections"])
         self.assertEqual(runs[0], ("10", "14"))
-        self.assertIn("09:0", sec["rejections"])  # a UTC start time
-        self.assertIn("free_space", sec["rejections"].split("10&ndash;14")[1].split("</tr>")[0])
-        self.assertIn("0.5200", sec["boresight"])      # roll after
-        self.assertIn("0.0377", sec["boresight"])      # verification segment RMS after
-        self.assertIn("No quality gate tripped", sec["quality"])
-        self.assertIn("header position: correction -2.732 s", sec["clock"])
-        self.assertIn("378.60 ms", sec["clock"])       # latency from the soundings
-        self.assertIn("-2.3534 s", sec["clock"])       # total correction
+        self.assertIn("09:0", esec["rejections"])  # a UTC start time
+        self.assertIn("free_space",
+                      esec["rejections"].split("10&ndash;14")[1].split("</tr>")[0])
+        self.assertIn("0.5200", esec["boresight"])      # roll after
+        self.assertIn("0.0377", esec["boresight"])      # verification segment RMS after
+        self.assertIn("No quality gate tripped", esec["quality"])
+        self.assertIn("header position: correction -2.732 s", esec["clock"])
+        self.assertIn("378.60 ms", esec["clock"])       # latency from the soundings
+        self.assertIn("-2.3534 s", esec["clock"])       # total correction
         self.assertIn("1.3468", sec["scores"])
         self.assertIn("trajectory error before SLAM", sec["scores"])
-        self.assertIn("1.347 &rarr; 0.031 m", sec["summary"])  # ATE before -> after
-        self.assertIn("1.347 &rarr; 0.031 m", sec["trajectory"])
+        self.assertIn("1.347 &rarr; 0.031 m", esec["processing"])  # ATE before -> after
+        self.assertIn("1.347 &rarr; 0.031 m", esec["trajectory"])
         # Stage table in stage_order, then the total.
-        order = [m for m in re.findall(r"<td><b>([a-z]+)</b></td>", sec["stages"])]
+        order = [m for m in re.findall(r"<td><b>([a-z]+)</b></td>", esec["stages"])]
         self.assertEqual(order, ["ingest", "georef", "calibrate", "slam", "grid", "fuse", "mesh",
                                  "total"])
         pngs = sorted(os.listdir(os.path.join(p, "report")))
         for name in ("trajectory.png", "cross_sections.png", "depth_top_view.png",
                      "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
                      "stages.png", "s44_compliance.png", "s44_crossline.png", "mosaic.png",
-                     "rejections_map.png"):
+                     "rejections_map.png", "map_depth.png", "map_uncertainty_coverage.png",
+                     "sound_speed_casts.png"):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
+
+    def test_cover_shows_the_metadata(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True, metadata=METADATA)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, eng = ReadPages(p)
+        # Title: project, site and survey id, escaped; not the folder's name.
+        title = "Pit 7 &lt;north&gt; lake \u2013 Bejanca \u2013 BJ-2026-06"
+        self.assertIn(f"<title>{title}</title>", page)
+        self.assertIn(f"<h1>{title}</h1>", page)
+        self.assertIn(f"<title>{title} &ndash; engineering</title>", eng)
+        cover = Sections(page)["cover"]
+        for label, value in (("Project", "Pit 7 &lt;north&gt; lake"), ("Client", "Lusa Quarries"),
+                             ("Site", "Bejanca"), ("Survey ID", "BJ-2026-06"),
+                             ("Organisation", "Survey Co"), ("Surveyor", "A. Hydrographer"),
+                             ("Vessel", "ASV-2"),
+                             ("Equipment", "Multibeam echosounder: Imagenex DeltaT 837B<br>"
+                              "GNSS/INS: NovAtel PwrPak7D-E1"),
+                             ("Survey period", "2026-06-15 09:00:00 UTC to 2026-06-15 09:02:00 "
+                              "UTC"),
+                             ("Processed", "2026-06-16 10:11:12 UTC"),
+                             ("Software", "pitmap 0.9.1"),
+                             ("Horizontal CRS", "WGS 84 / UTM zone 29N (EPSG:32629)"),
+                             ("Vertical datum", "pit water level"),
+                             ("IHO S-44 order sought", "special"), ("Notes", "calm water")):
+            self.assertIn(f"<td><b>{label}</b></td><td>{value}</td>", cover, label)
+        self.assertNotIn("not set", cover)
+        self.assertNotIn("(from ", cover)  # nothing from the fallbacks
+        # The order sought is the metadata's: special is met by the soundings (93 % < 95 %:
+        # not), and its holidays were searched for 1a.
+        summary = Sections(page)["summary"]
+        self.assertIn("does not meet</b> IHO S-44 Edition 6.1 Order <b>special</b>: 93.0 %",
+                      summary)
+        self.assertIn("the holidays were searched for order 1a, not special", summary)
+
+    def test_cover_of_older_products_falls_back_and_says_not_set(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        summary["vehicle"] = {"name": "demo-asv"}
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, _ = ReadPages(p)
+        self.assertIn("<title>Bathymetric survey report</title>", page)
+        cover = Sections(page)["cover"]
+        for label in ("Project", "Client", "Site", "Survey ID", "Organisation", "Surveyor",
+                      "Equipment", "Processed", "Software"):
+            self.assertIn(f"<td><b>{label}</b></td><td><span class=\"not-set\">not set</span>"
+                          "</td>", cover, label)
+        self.assertIn("<td><b>Vessel</b></td><td>demo-asv <span class=\"source\">(from "
+                      "vehicle.yaml name)</span>", cover)
+        self.assertIn("2026-06-15 09:00:00 UTC to 2026-06-15 09:01:59 UTC", cover)
+        self.assertIn("WGS 84 / UTM zone 29N (EPSG:32629)", cover)
+        self.assertIn("pit water level (GNSS, survey median)", cover)
+        self.assertIn("<td><b>IHO S-44 order sought</b></td><td>1a", cover)
+        self.assertNotIn("Notes", cover)
+        # A summary.json with nothing to fall back on: every field "not set", no crash.
+        WriteProducts(p, full=False)
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        for k in ("utm", "time", "world_origin"):
+            del summary[k]
+        summary["metadata"] = {"project": "", "equipment": "not a list", "horizontal_crs": 7}
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        for name in ("dem.tif", "s44_holidays.tif", "mosaic.tif", "scores.json"):
+            if os.path.exists(os.path.join(p, name)):
+                os.remove(os.path.join(p, name))
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, _ = ReadPages(p)
+        sec = Sections(page)
+        self.assertNotIn("could not draw", page)
+        self.assertIn("<td><b>Horizontal CRS</b></td><td><span class=\"not-set\">", sec["cover"])
+        self.assertIn("No IHO S-44 assessment was made", sec["summary"])
+        self.assertNotIn("mosaic", sec)
+        self.assertNotIn("scores", sec)
+
+    def test_client_page_has_no_machine_paths(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        summary["inputs"] = ["/srv/surveys/2026/pit7/survey-0001.lcmlog",
+                             "/srv/surveys/2026/pit7/vendor/"]
+        summary["stages"]["grid"]["error_model"] = "/srv/surveys/vehicle.yaml uncertainty:"
+        summary["vertical_datum"].update({"water_level_source": "file",
+                                          "water_level_file": "/srv/tides/pit7-levels.csv",
+                                          "water_levels": 48})
+        summary["quality_gates"] = [{"stage": "grid", "gate": "crossline",
+                                     "message": "see /srv/surveys/2026/pit7/P/s44_holidays.tif"}]
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, eng = ReadPages(p)
+        visible = VisibleText(page)
+        self.assertEqual(MACHINE_PATH.findall(visible), [])
+        self.assertNotIn(self.dir, page)
+        # The inputs by file name, the water level file and the cast by name.
+        self.assertIn("survey-0001.lcmlog<br>vendor", Sections(page)["engineering"])
+        self.assertIn("observed levels from pit7-levels.csv (48 readings)", page)
+        self.assertIn("pit7.svp section 1", page)
+        self.assertIn("see s44_holidays.tif", Sections(page)["summary"])
+        # The engineering page keeps the full inputs; the check finds them there.
+        self.assertIn("/srv/surveys/2026/pit7/survey-0001.lcmlog",
+                      MACHINE_PATH.findall(VisibleText(eng)))
+
+    def test_scores_only_with_a_truth(self):
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        os.remove(os.path.join(p, "scores.json"))
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, eng = ReadPages(p)
+        self.assertNotIn("scores", Sections(page))
+        self.assertNotIn("scores", Sections(eng))
+        self.assertFalse("not produced" in page, "not produced")
+        self.assertNotIn("scores.json", page + eng)
+        self.assertNotIn("against ground truth", page)
 
     def test_tripped_quality_gates_lead_the_report(self):
         p = os.path.join(self.dir, "P")
@@ -383,8 +616,11 @@ class ReportTest(unittest.TestCase):
             json.dump(summary, f)
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            sec = Sections(f.read())
+        page, eng = ReadPages(p)
+        sec = Sections(eng)
+        # The client's summary lists them among the caveats, in words.
+        self.assertIn("Quality gate <i>calibration_residual</i> (calibrate): residual RMS",
+                      Sections(page)["summary"])
         self.assertIn("2 quality gate(s) tripped", sec["quality"])
         self.assertIn("calibration_residual", sec["quality"])
         self.assertIn("what &lt;noise&gt; leaves", sec["quality"])  # escaped
@@ -395,25 +631,33 @@ class ReportTest(unittest.TestCase):
         WriteProducts(p, full=False)
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
-        self.AssertSelfContained(page, p)
-        sec = Sections(page)
-        self.assertEqual(list(sec), SECTIONS)
-        self.assertNotIn("could not draw", page)
+        page, eng = ReadPages(p)
+        self.AssertSelfContained(page, p, images=False)  # no grid: no map, no cast
+        self.AssertSelfContained(eng, p)
+        sec, esec = Sections(page), Sections(eng)
+        # The client's page leaves out what has nothing to show (no mosaic, no truth) and has
+        # no "not produced" banner; the engineering page names every missing product.
+        self.assertEqual(list(sec), [s for s in CLIENT_SECTIONS if s not in
+                                     ("hydro", "mosaic", "scores", "soundings")])
+        self.assertEqual(list(esec), ENGINEERING_SECTIONS)
+        self.assertFalse("not produced" in page, "a 'not produced' line on the client's page")
+        self.assertNotIn("could not draw", page + eng)
         expect = {"trajectory": "trajectory_initial.csv", "cross-sections": "points_initial.ply",
                   "mesh": "mesh.ply", "boresight": "boresight.json", "tsdf": "TSDF",
-                  "slam": "SLAM", "scores": "scores.json", "hydro": "grid stage",
-                  "mosaic": "mosaic.tif", "rejections": "soundings"}
+                  "slam": "SLAM", "tvu": "S-44", "rejections": "soundings"}
         for s, name in expect.items():
-            self.assertRegex(sec[s], r"not produced: [^<]*" + re.escape(name), s)
-        self.assertIn("mesh_initial.ply", sec["mesh"])
+            self.assertRegex(esec[s], r"not produced: [^<]*" + re.escape(name), s)
+        self.assertIn("mesh_initial.ply", esec["mesh"])
+        self.assertIn('class="missing">not produced: ', eng)
+        self.assertIn("No IHO S-44 assessment was made", sec["summary"])
+        self.assertIn("No depth map", sec["maps"])
         # Without a slam stage nothing claims to be "after SLAM".
-        self.assertIn("Points (SLAM not run)", sec["summary"])
-        self.assertNotIn("after SLAM", sec["summary"])
+        self.assertIn("Points (SLAM not run)", esec["processing"])
+        self.assertNotIn("after SLAM", esec["processing"])
+        self.assertIn("not refined by SLAM", sec["summary"])
         # What exists is still drawn.
         for s in ("trajectory", "cross-sections", "depth", "stages"):
-            self.assertIn("data:image/png", sec[s], s)
+            self.assertIn("data:image/png", esec[s], s)
 
     def test_broken_products_are_named_not_fatal(self):
         p = os.path.join(self.dir, "P")
@@ -428,14 +672,15 @@ class ReportTest(unittest.TestCase):
             f.write(data.replace(b"pitmap_origin 40.4435 ", b"pitmap_origin 40.4436 ", 1))
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
-        sec = Sections(page)
-        self.assertRegex(page, r'class="problem">mesh_initial\.ply: origin 40\.4436000 '
-                               r"[^<]*differs from summary\.json world_origin 40\.4435000")
+        page, eng = ReadPages(p)
+        sec = Sections(eng)
+        for text in (page, eng):
+            self.assertRegex(text, r'class="problem">mesh_initial\.ply: origin 40\.4436000 '
+                                   r"[^<]*differs from summary\.json world_origin 40\.4435000")
         self.assertRegex(sec["mesh"], r"not produced: mesh\.ply \([^)]*truncated")
         self.assertIn("data:image/png", sec["mesh"])  # the mesh before SLAM is still drawn
-        self.assertRegex(sec["scores"], r"not produced: scores\.json \(unreadable")
+        # A truth was given but its scores cannot be read: the client's page says so.
+        self.assertRegex(Sections(page)["scores"], r"not produced: scores\.json \(unreadable")
 
     def test_sections_drawn_in_parallel_give_the_same_page(self):
         # Problems and missing products from sections drawn by other processes are merged in
@@ -450,8 +695,8 @@ class ReportTest(unittest.TestCase):
         for jobs in ("1", "3"):
             r = Run(p, "--jobs", jobs)
             self.assertEqual(r.returncode, 0, r.stderr)
-            with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-                pages[jobs] = re.sub(r"Report written \(UTC\)</b></td><td>[^<]*", "", f.read())
+            pages[jobs] = re.sub(r"Report written[^<]*</b></td><td>[^<]*", "",
+                                 "".join(ReadPages(p)))
         self.assertIn('class="problem">mesh.ply', pages["1"])
         self.assertRegex(pages["1"], r'class="missing">not produced: [^<]*trajectory_initial')
         self.assertEqual(pages["1"], pages["3"])
@@ -466,9 +711,8 @@ class ReportTest(unittest.TestCase):
             f.write("time,east,north\n1,2,3\n")
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
-        sec = Sections(page)
+        page = "".join(ReadPages(p))
+        sec = Sections(ReadPages(p)[1])
         self.assertNotIn("could not draw", page)
         self.assertRegex(sec["depth"], r"not produced: points\.ply \(no points\)")
         self.assertRegex(sec["cross-sections"], r"not produced: points\.ply \(no points\)")
@@ -495,10 +739,10 @@ class ReportTest(unittest.TestCase):
                  comments=[origin, "pitmap_run_id " + other])
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
+        page = ReadPages(p)[1]
         sec = Sections(page)
         self.assertIn(f"points.ply is from another run (id {other}); not drawn", page)
+        self.assertIn(f"points.ply is from another run (id {other}); not drawn", ReadPages(p)[0])
         self.assertIn(f"mesh.ply is from another run (it has no run id); not drawn", page)
         self.assertRegex(sec["depth"], r"not produced: points\.ply \(points\.ply is from another")
         self.assertNotIn("data:image/png", sec["depth"])
@@ -507,8 +751,7 @@ class ReportTest(unittest.TestCase):
                  comments=[origin, "pitmap_run_id " + run])
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            page = f.read()
+        page = ReadPages(p)[1]
         self.assertNotIn("points.ply is from another run", page)
         self.assertIn("data:image/png", Sections(page)["depth"])
 
@@ -588,13 +831,21 @@ class ReportTest(unittest.TestCase):
         self.assertIn("0.8765", sec["scores"])
         self.assertNotIn("not produced", sec["scores"])
 
+    def test_version_and_a_mistyped_option(self):
+        r = Run("--version")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertRegex(r.stdout, r"^pitmap-report [0-9.]+ \(git ")
+        r = Run(self.dir, "--pfd")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("did you mean '--pdf'", r.stderr)
+
     def test_unusable_folder_fails_clearly(self):
         r = Run(self.dir)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("summary.json", r.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "report.html")))
         r = Run(os.path.join(self.dir, "does-not-exist"))
-        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.returncode, 2)  # usage (docs/cli.md)
         self.assertIn("not a folder", r.stderr)
         with open(os.path.join(self.dir, "summary.json"), "w") as f:
             f.write("[1, 2")
@@ -612,11 +863,10 @@ class ReportTest(unittest.TestCase):
             json.dump(summary, f)
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(p, "report.html"), encoding="utf-8") as f:
-            sec = Sections(f.read())
-        self.assertIn("Survey time (GPS)", sec["summary"])
-        self.assertIn("UTC unknown", sec["summary"])
-        self.assertNotIn("2026-06-15 09:00:00", sec["summary"])
+        sec = Sections(ReadPages(p)[1])
+        self.assertIn("Survey time (GPS)", sec["processing"])
+        self.assertIn("UTC unknown", sec["processing"])
+        self.assertNotIn("2026-06-15 09:00:00", sec["processing"])
 
     def test_ins_trajectory_is_shown_when_no_slam_ran(self):
         p = os.path.join(self.dir, "P")
@@ -705,26 +955,130 @@ class HelperTest(unittest.TestCase):
     def test_gps_to_utc(self):
         # GPS - UTC comes from summary.json (the C++ side's table or the receiver), not a copy.
         self.assertFalse(hasattr(self.m, "LEAP_SECONDS"))
-        self.assertEqual(str(self.m.GpsToUtc(GPS_T0, 18)), "2026-06-15 09:00:00+00:00")
+        self.assertEqual(str(self.m.gps_to_utc(GPS_T0, 18)), "2026-06-15 09:00:00+00:00")
         # 2000-01-01 00:00:00 UTC, GPS - UTC = 13 s then.
-        self.assertEqual(str(self.m.GpsToUtc(630720013.0, 13)), "2000-01-01 00:00:00+00:00")
+        self.assertEqual(str(self.m.gps_to_utc(630720013.0, 13)), "2000-01-01 00:00:00+00:00")
 
 
     def test_rasters(self):
         x = np.array([0.1, 0.2, 1.5, 5.0])
         y = np.array([0.1, 0.3, 0.5, 5.0])  # the last one is outside the grid
         v = np.array([1.0, 3.0, 7.0, 9.0])
-        mean = self.m.RasterMean(x, y, v, 0.0, 0.0, 1.0, 2, 1)
+        mean = self.m.raster_mean(x, y, v, 0.0, 0.0, 1.0, 2, 1)
         self.assertEqual(mean.tolist(), [[2.0, 7.0]])
-        top = self.m.RasterMax(x, y, v, 0.0, 0.0, 1.0, 3, 1)
+        top = self.m.raster_max(x, y, v, 0.0, 0.0, 1.0, 3, 1)
         self.assertEqual(top[0, :2].tolist(), [3.0, 7.0])
         self.assertTrue(np.isnan(top[0, 2]))
+
+    def S44(self, **kw):
+        """A hand-made S-44 record of the grid stage (order 1a, feature detection)."""
+        orders = ["exclusive", "special", "1a", "1b", "2"]
+        rec = {"standard": "IHO S-44 Edition 6.1.0", "order": "1a", "soundings": 5000,
+               "strictest_order_met_95": "1a", "coverage_share": 0.992, "holiday_count": 0,
+               "feature_size_m": 2.0, "gaps": 3,
+               "soundings_within_both": dict(zip(orders, [0.40, 0.90, 0.992, 0.992, 1.0])),
+               "limits": {o: {"coverage_percent": c, "feature_m": fm} for o, c, fm in zip(
+                   orders, [200, 100, 100, 5, 5], [0.5, 1, 2, 0, 0])}}
+        rec.update(kw)
+        return rec
+
+    def test_compliance_statement(self):
+        c = self.m.sections_client.compliance_statement
+        verdict, text = c(self.S44())
+        self.assertEqual(verdict, "met")
+        self.assertEqual(text, "The survey <b>meets</b> IHO S-44 Edition 6.1.0 Order <b>1a</b>: "
+                         "99.2 % of the 5\u2009000 soundings are within the order's total "
+                         "vertical and horizontal uncertainty limits at 95 % confidence (at "
+                         "least 95 % required), over 99.2 % of the survey area, with no holiday "
+                         "that could hide a 2.0 m feature.")
+        # A holiday fails an order that asks for full coverage ...
+        verdict, text = c(self.S44(holiday_count=2))
+        self.assertEqual(verdict, "not met")
+        self.assertIn("<b>does not meet</b>", text)
+        self.assertIn("<b>2 holiday(s)</b> could hide a 2.0 m feature", text)
+        # ... not one that asks for 5 % (1b: no feature detection).
+        self.assertEqual(c(self.S44(holiday_count=2, order="1b"))[0], "met")
+        # Too few soundings within the limits of the order sought; the strictest met named.
+        verdict, text = c(self.S44(), "special")
+        self.assertEqual(verdict, "not met")
+        self.assertIn("Order <b>special</b>: 90.0 %", text)
+        self.assertIn("the holidays were searched for order 1a, not special", text)
+        self.assertIn("The strictest order whose uncertainty limits are met is 1a.", text)
+        # 94.96 % is not rounded up to a pass.
+        verdict, text = c(self.S44(soundings_within_both={"1a": 0.9496}))
+        self.assertEqual(verdict, "not met")
+        self.assertIn(": 94.9 %", text)
+        self.assertEqual(c(None)[0], "unknown")
+        self.assertEqual(c(self.S44(), "2b")[0], "unknown")
+
+    def test_scale_bar_matches_the_geotransform(self):
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        maps = self.m.maps
+        # 400 x 200 nodes of 0.5 m from (1000, 2000): 200 m wide, 100 m high.
+        gt = (1000.0, 0.5, 0.0, 2000.0, 0.0, -0.5)
+        extent = maps.raster_extent(gt, 400, 200)
+        self.assertEqual(extent, (1000.0, 1200.0, 1900.0, 2000.0))
+        self.assertEqual(maps.nice_length(200.0), 50.0)   # 1-2-5 steps, <= a quarter
+        self.assertEqual(maps.nice_length(39.0), 5.0)
+        self.assertEqual(maps.nice_length(0.9), 0.2)
+        fig, a = plt.subplots()
+        x0, x1, length = maps.add_furniture(a, extent, "WGS 84 / UTM zone 29N")
+        self.assertEqual(length, 50.0)
+        self.assertAlmostEqual(x1 - x0, 50.0, places=9)
+        self.assertTrue(extent[0] < x0 < x1 < extent[1])
+        # The bar's drawn segments (data units) add up to its length: 100 nodes of 0.5 m.
+        segments = [r for r in a.patches if r.get_zorder() == 10]
+        self.assertEqual(len(segments), 5)  # of 10 m
+        self.assertAlmostEqual(sum(r.get_width() for r in segments), 100 * gt[1], places=9)
+        self.assertEqual(min(r.get_x() for r in segments), x0)
+        fig.canvas.draw()
+        labels = [t.get_text() for t in a.get_xticklabels() if t.get_text()]
+        self.assertIn("1\u2009100", labels)  # eastings in whole metres, no offset
+        self.assertEqual(a.get_xlabel(), "Easting (m), WGS 84 / UTM zone 29N")
+        self.assertIn("N", [t.get_text() for t in a.texts])
+        self.assertIn("grid north", [t.get_text() for t in a.texts])
+        plt.close(fig)
+
+    def test_world_points_on_the_grid(self):
+        from osgeo import osr
+        maps = self.m.maps
+        origin = (40.4435, -7.7804, 412.0)
+        src, dst = osr.SpatialReference(), osr.SpatialReference()
+        src.ImportFromEPSG(4326)
+        dst.ImportFromEPSG(32629)
+        for sr in (src, dst):
+            sr.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+        e0, n0, _ = osr.CoordinateTransformation(src, dst).TransformPoint(origin[1], origin[0])
+        e, n = maps.world_to_grid(origin, 32629, [0.0, 100.0], [0.0, 0.0], [0.0, 0.0])
+        self.assertAlmostEqual(e[0], e0, places=3)   # the origin is the origin
+        self.assertAlmostEqual(n[0], n0, places=3)
+        # 100 m due east: 100 m times the UTM scale factor (0.9996 to 1.0004 near zone edges),
+        # turned by the grid convergence: grid north lies east of true north here, so true
+        # east points that much above grid east.
+        d = math.hypot(e[1] - e[0], n[1] - n[0])
+        self.assertAlmostEqual(d, 100.0, delta=0.05)
+        gamma = maps.grid_convergence_deg(origin[0], origin[1], maps.utm_central_meridian_deg(29))
+        self.assertAlmostEqual(gamma, 0.79, delta=0.005)
+        self.assertAlmostEqual(math.degrees(math.atan2(n[1] - n[0], e[1] - e[0])), gamma,
+                               delta=0.005)
+        self.assertEqual(maps.grid_convergence_deg(0.0, 10.0, 9.0), 0.0)
+        self.assertLess(maps.grid_convergence_deg(40.0, 8.0, 9.0), 0.0)
+
+    def test_strip_paths(self):
+        sp = self.m.util.strip_paths
+        self.assertEqual(sp("/home/a/b/survey.lcmlog"), "survey.lcmlog")
+        self.assertEqual(sp("error model /etc/pitmap/vehicle.yaml uncertainty:"),
+                         "error model vehicle.yaml uncertainty:")
+        self.assertEqual(sp("0.5 m/s and 10 km/h, 1/2"), "0.5 m/s and 10 km/h, 1/2")
+        self.assertEqual(sp("see hxxps://example.org/a/b"), "see hxxps://example.org/a/b")
 
     def test_mesh_raster_covers_large_triangles(self):
         # One 10 m triangle on 0.5 m cells: every cell whose centre is inside gets a value.
         v = np.array([[0.0, 0.0, 1.0], [10.0, 0.0, 1.0], [0.0, 10.0, 1.0]])
         t = np.array([[0, 1, 2]])
-        g = self.m.RasteriseMesh(v, t, 0.0, 0.0, 0.5, 20, 20)
+        g = self.m.rasterise_mesh(v, t, 0.0, 0.0, 0.5, 20, 20)
         cx = (np.arange(20) + 0.5) * 0.5
         inside = (cx[None, :] + cx[:, None]) < 9.5
         self.assertTrue(np.all(g[inside] == 1.0))
@@ -759,13 +1113,13 @@ class GlbCheckTest(unittest.TestCase):
 
     def AssertRefused(self, data, words):
         with self.assertRaises(self.m.GlbError) as c:
-            self.m.CheckGlb(data)
+            self.m.check_glb(data)
         self.assertIn(words, str(c.exception))
 
     def test_a_valid_file_passes(self):
-        doc = self.m.CheckGlb(Glb())
+        doc = self.m.check_glb(Glb())
         self.assertEqual(doc["asset"]["version"], "2.0")
-        self.m.CheckGlb(Glb(binary=b""))  # a JSON chunk alone is a valid file
+        self.m.check_glb(Glb(binary=b""))  # a JSON chunk alone is a valid file
 
     def test_header_faults(self):
         good = Glb()
@@ -812,7 +1166,7 @@ class GlbCheckTest(unittest.TestCase):
             cases.append(bytes(b))
         for data in cases:
             try:
-                self.assertIsInstance(self.m.CheckGlb(data), dict)
+                self.assertIsInstance(self.m.check_glb(data), dict)
             except self.m.GlbError:
                 pass
 

@@ -10,8 +10,8 @@ import json
 import os
 import struct
 
-from .sections_viewer import MissingViewerFiles, ViewerHtml
-from .util import Esc, Num
+from .sections_viewer import missing_viewer_files, viewer_html
+from .util import esc, num
 
 GLB_MAGIC = 0x46546C67  # "glTF", little-endian
 CHUNK_JSON = 0x4E4F534A  # "JSON"
@@ -26,7 +26,7 @@ class GlbError(Exception):
     """Bytes that are not a glTF 2.0 binary this viewer can show."""
 
 
-def CheckGlb(data):
+def check_glb(data):
     """Checks a .glb's bytes: header (magic, version 2, length = the size of the data), the JSON
     chunk (in bounds, a JSON object with asset.version 2.x), the BIN chunk when present (in
     bounds) and that nothing refers to a file outside it. Returns the parsed JSON; raises
@@ -80,7 +80,7 @@ def CheckGlb(data):
     return doc
 
 
-def Triangles(doc):
+def triangles(doc):
     """Triangles of the file's triangle-list primitives, from the accessor counts."""
     accessors = doc.get("accessors") or []
     total = 0
@@ -96,36 +96,37 @@ def Triangles(doc):
     return total
 
 
-def GltfPage(path, title=None):
+def gltf_page(path, title=None):
     """The self-contained HTML page of one .glb: the report's viewer with the file embedded
     (base64). Raises GlbError for a file that is not a glTF binary, OSError when it cannot be
     read, FileNotFoundError naming the viewer's missing JavaScript files."""
     size = os.path.getsize(path)
     if size > MAX_GLB_BYTES:
-        raise GlbError(f"{Num(size)} bytes; this page embeds at most {Num(MAX_GLB_BYTES)} "
+        raise GlbError(f"{num(size)} bytes; this page embeds at most {num(MAX_GLB_BYTES)} "
                        "(open larger files with report.html's \"open glTF...\")")
     with open(path, "rb") as f:
         data = f.read()
-    doc = CheckGlb(data)
-    absent = MissingViewerFiles()
+    doc = check_glb(data)
+    absent = missing_viewer_files()
     if absent:
         raise FileNotFoundError("not found: " + ", ".join(absent) +
                                 " (Debian's libjs-three: tools/install-deps.sh)")
     from .report import CSS, PAGE  # matplotlib only when a page is really written
 
     name = os.path.basename(path)
-    facts = [f"{Num(size)} bytes", f"{Num(Triangles(doc))} triangles"]
+    facts = [f"{num(size)} bytes", f"{num(triangles(doc))} triangles"]
     origin = ((doc.get("asset") or {}).get("extras") or {}).get("pitmap_origin")
     if isinstance(origin, dict):
         facts.append("pitmap origin {:.7f}, {:.7f}, {:.2f} m".format(
             float(origin.get("latitude_deg", 0)), float(origin.get("longitude_deg", 0)),
             float(origin.get("height_m", 0))))
-    caption = (f"{Esc(name)}: {Esc(', '.join(facts))}. glTF is y-up; shown z-up in local ENU "
+    caption = (f"{esc(name)}: {esc(', '.join(facts))}. glTF is y-up; shown z-up in local ENU "
                "metres (pitmap's mesh.glb: East, Up, -North), coloured by its own vertex "
                "colours (else by depth). Drag to turn, wheel to zoom, right-drag to pan; "
                "cross-section, distance, enter VR (real size) and open glTF... as in the "
                "report.")
     data_json = {"gltf": {"name": name, "glb": base64.b64encode(data).decode("ascii")}}
     title = title or f"pitmap glTF view: {name}"
-    return PAGE.format(title=Esc(title), toc="", notes="", body=ViewerHtml(data_json, caption),
-                       css=CSS)
+    return PAGE.format(title=esc(title), subtitle="glTF 2.0 binary in pitmap's 3D viewer", toc="",
+                       notes="", body=viewer_html(data_json, caption), css=CSS,
+                       footer="pitmap-report --view-gltf.")

@@ -9,7 +9,8 @@ import subprocess
 
 import numpy as np
 
-from .util import PROGRAM_DIR, Log, NotProduced, ReportError
+from .rasters import save_figure
+from .util import PROGRAM_DIR, ReportError, log, not_produced
 
 # pitmap's one PLY reader (common/formats/ply, C++), as a program beside pitmap-report.
 PLY_LAYOUT = "pitmap-ply-layout"
@@ -55,7 +56,7 @@ class Ply:
         self.comments = layout["comments"]
         o = layout["origin"]
         self._origin = None if o is None else (o["latitude_deg"], o["longitude_deg"],
-                                                o["height_m"])
+                                               o["height_m"])
         self.elements = {}  # name -> structured array
         self.counts = {}    # name -> count from the header
         for e in layout["elements"]:
@@ -84,7 +85,7 @@ class Ply:
         return None
 
 
-def ReadTrajectory(path):
+def read_trajectory(path):
     """gps_time_s, x_m, y_m, z_m columns of a trajectory CSV as a dict of float arrays."""
     with open(path) as f:
         header = f.readline().strip().split(",")
@@ -103,7 +104,8 @@ def ReadTrajectory(path):
 
 class Products:
     """A products folder: summary.json (required), the optional products loaded on demand, and
-    the names of what is missing or unusable with the reason."""
+    the names of what is missing or unusable with the reason. Every report section is a
+    function of one of these (report.py); figures go to P/report/NAME.png and into the page."""
 
     def __init__(self, folder, scores_path):
         self.folder = folder
@@ -138,18 +140,28 @@ class Products:
         self.ref_z = 0.0
         # The final products are "after SLAM" only when SLAM ran (pitmap run --no-slam).
         self.after = "after SLAM" if "slam" in self.stages else "SLAM not run"
+        self.fig_dir = os.path.join(folder, "report")
 
-    def P(self, name):
+    def figure(self, fig, name, alt):
+        """fig saved as P/report/NAME.png and closed; its <img> (a data URI) returned."""
+        os.makedirs(self.fig_dir, exist_ok=True)
+        return save_figure(fig, self.fig_dir, name, alt)
+
+    def minutes_of(self, t):
+        """GPS seconds -> minutes since the first pose (or sounding)."""
+        return (np.asarray(t, dtype=np.float64) - (self.t0 or 0.0)) / 60.0
+
+    def path(self, name):
         return os.path.join(self.folder, name)
 
-    def Missing(self, name, why=""):
+    def missing_product(self, name, why=""):
         """An optional product that is absent, or present but unusable (then its own reason,
         from self.unusable, is given)."""
         if name not in self.missing:
             self.missing.append(name)
-        return NotProduced(name, self.unusable.get(name, why))
+        return not_produced(name, self.unusable.get(name, why))
 
-    def ForeignRun(self, name, product_run_id):
+    def foreign_run(self, name, product_run_id):
         """Why `name` is not drawn when it names another run than summary.json (a product left
         by an earlier survey, or a survey.pitmap copied in), else None. The line is added to
         the report's problems once."""
@@ -160,10 +172,10 @@ class Products:
                f"{self.run_id})")
         if msg not in self.problems:
             self.problems.append(msg)
-        Log(msg)
+        log(msg)
         return msg
 
-    def CheckOrigin(self, ply, name):
+    def check_origin(self, ply, name):
         """A product whose pitmap_origin differs from summary.json's world_origin would be
         drawn offset: say so (1e-6 deg is about 0.1 m)."""
         o, w = ply.origin(), self.summary.get("world_origin")
@@ -177,18 +189,18 @@ class Products:
                                  f"summary.json world_origin {ref[0]:.7f} {ref[1]:.7f} "
                                  f"{ref[2]:.2f}; its figures are offset")
 
-    def LoadTrajectories(self):
+    def load_trajectories(self):
         names = [("initial", "trajectory_initial.csv"), ("final", "trajectory.csv")]
-        if not any(os.path.isfile(self.P(n)) for _, n in names):
+        if not any(os.path.isfile(self.path(n)) for _, n in names):
             # No SLAM ran (georef only, or `run --no-slam`): the INS trajectory is the final one.
             names = [("final", "trajectory_ins.csv")]
         for key, name in names:
-            if os.path.isfile(self.P(name)):
+            if os.path.isfile(self.path(name)):
                 try:
-                    self.traj[key] = ReadTrajectory(self.P(name))
-                    Log(f"{name}: {len(self.traj[key]['t'])} poses")
+                    self.traj[key] = read_trajectory(self.path(name))
+                    log(f"{name}: {len(self.traj[key]['t'])} poses")
                 except (OSError, ValueError) as e:
-                    Log(f"{name}: unreadable: {e}")
+                    log(f"{name}: unreadable: {e}")
                     self.unusable[name] = f"unreadable: {e}"
         ts = [tr["t"][0] for tr in self.traj.values()]
         if ts:
@@ -197,13 +209,13 @@ class Products:
         if main is not None:
             self.ref_z = float(np.median(main["z"]))
 
-    def LoadPoints(self):
+    def load_points(self):
         for key, name in (("initial", "points_initial.ply"), ("final", "points.ply")):
-            if not os.path.isfile(self.P(name)):
+            if not os.path.isfile(self.path(name)):
                 continue
             try:
-                ply = Ply(self.P(name))
-                foreign = self.ForeignRun(name, ply.run_id())
+                ply = Ply(self.path(name))
+                foreign = self.foreign_run(name, ply.run_id())
                 if foreign:
                     self.unusable[name] = foreign
                     continue
@@ -225,21 +237,21 @@ class Products:
                         self.unusable[name] = "no accepted points"
                         continue
                 self.points[key] = v
-                self.CheckOrigin(ply, name)
-                Log(f"{name}: {len(v)} accepted points, "
+                self.check_origin(ply, name)
+                log(f"{name}: {len(v)} accepted points, "
                     f"{len(self.rejected.get(key, ()))} rejected")
             except (OSError, PlyError) as e:
-                Log(f"{name}: unreadable: {e}")
+                log(f"{name}: unreadable: {e}")
                 self.unusable[name] = f"unreadable: {e}"
         if self.t0 is None:
             for v in self.points.values():
                 if "gps_time_s" in v.dtype.names and len(v):
                     self.t0 = float(np.min(v["gps_time_s"][::max(1, len(v) // 10000)]))
 
-    def LoadMesh(self, name):
-        if not os.path.isfile(self.P(name)):
+    def load_mesh(self, name):
+        if not os.path.isfile(self.path(name)):
             return None
-        ply = Ply(self.P(name))
+        ply = Ply(self.path(name))
         if self.run_id is not None and ply.run_id() != self.run_id:
             what = f"(id {ply.run_id()})" if ply.run_id() else "(it has no run id)"
             raise ForeignProductError(f"{name} is from another run {what}; not drawn "
@@ -248,7 +260,7 @@ class Products:
         f = ply.elements.get("face")
         if v is None or f is None:
             raise PlyError(f"{name}: no vertex or face element")
-        self.CheckOrigin(ply, name)
+        self.check_origin(ply, name)
         lists = [n for n in f.dtype.names if not n.endswith("__count")]
         if not lists or f.dtype[lists[0]].shape != (3,) and len(f):
             raise PlyError(f"{name}: faces are not triangles")
@@ -259,7 +271,7 @@ class Products:
             raise PlyError(f"{name}: face index out of range")
         return xyz, tri
 
-    def LoadScores(self):
+    def load_scores(self):
         """Scores from pitmap-eval --json (optional); the reason is kept when unusable."""
         path = self.scores_path
         name = os.path.basename(path)
@@ -276,7 +288,7 @@ class Products:
             return
         self.scores = scores
 
-    def ScoreText(self, before, after, label):
+    def score_text(self, before, after, label):
         """'label: 1.23 -> 0.45 m' from two scores when both exist, else ''."""
         b, a = self.scores.get(before), self.scores.get(after)
         if isinstance(b, (int, float)) and isinstance(a, (int, float)):

@@ -13,13 +13,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
-from .util import Esc, Log  # noqa: E402
+from .util import esc, log  # noqa: E402
 
 MAX_SCATTER_POINTS = 150_000  # per panel
 FIG_DPI = 100
 
 
-def DecimateMesh(xyz, tri, max_triangles):
+def decimate_mesh(xyz, tri, max_triangles):
     """Vertex clustering: vertices snapped to a cubic grid, each cluster merged into its mean,
     collapsed and duplicate triangles dropped; the cell grows by 1.25x until the triangles fit
     `max_triangles`. Returns (vertices, triangles) with only the vertices still used."""
@@ -50,7 +50,7 @@ def DecimateMesh(xyz, tri, max_triangles):
     raise ValueError("mesh decimation did not reach the triangle budget")
 
 
-def Subsample(n, k, seed=0):
+def subsample(n, k, seed=0):
     """Sorted indices of at most k of n items (all when n <= k)."""
     if n <= k:
         return np.arange(n)
@@ -58,7 +58,7 @@ def Subsample(n, k, seed=0):
     return np.sort(rng.choice(n, size=k, replace=False))
 
 
-def Limits(arrays, margin=0.03, lo_pct=None):
+def limits(arrays, margin=0.03, lo_pct=None):
     vals = [a for a in arrays if a is not None and len(a)]
     if not vals:
         return (0.0, 1.0)
@@ -72,7 +72,7 @@ def Limits(arrays, margin=0.03, lo_pct=None):
     return (lo - margin * span, hi + margin * span)
 
 
-def EmptyPanel(a):
+def empty_panel(a):
     """A panel whose product does not exist: a grey note, no axes."""
     a.text(0.5, 0.5, "not produced", ha="center", va="center", transform=a.transAxes,
            color="grey", fontsize=12)
@@ -82,7 +82,7 @@ def EmptyPanel(a):
         sp.set_color("0.85")
 
 
-def RasterMean(x, y, v, x0, y0, cell, nx, ny):
+def raster_mean(x, y, v, x0, y0, cell, nx, ny):
     """Mean of v per grid cell (NaN where empty); rows are y, columns x."""
     ix = np.floor((x - x0) / cell).astype(np.int64)
     iy = np.floor((y - y0) / cell).astype(np.int64)
@@ -96,7 +96,7 @@ def RasterMean(x, y, v, x0, y0, cell, nx, ny):
     return grid.reshape(ny, nx)
 
 
-def RasterMax(x, y, v, x0, y0, cell, nx, ny):
+def raster_max(x, y, v, x0, y0, cell, nx, ny):
     """Largest v per grid cell (the surface seen from above), NaN where empty."""
     ix = np.floor((x - x0) / cell).astype(np.int64)
     iy = np.floor((y - y0) / cell).astype(np.int64)
@@ -113,7 +113,7 @@ def RasterMax(x, y, v, x0, y0, cell, nx, ny):
     return grid.reshape(ny, nx)
 
 
-def FillHoles(grid, passes=2):
+def fill_holes(grid, passes=2):
     """NaN cells next to data take the mean of their valid 8-neighbours (`passes` rings),
     so that the hill-shade gradient has no artificial cliff at a hole's edge."""
     g = grid.copy()
@@ -132,11 +132,11 @@ def FillHoles(grid, passes=2):
     return g
 
 
-def RasteriseMesh(v, t, x0, y0, cell, nx, ny, chunk=300_000):
+def rasterise_mesh(v, t, x0, y0, cell, nx, ny, chunk=300_000):
     """Top surface of a triangle mesh on a grid: each triangle is sampled on a barycentric
     lattice fine enough to hit every cell it covers, the highest sample per cell wins.
     Triangles go in chunks so that memory stays bounded for meshes of millions."""
-    grid = RasterMax(v[:, 0], v[:, 1], v[:, 2], x0, y0, cell, nx, ny)
+    grid = raster_max(v[:, 0], v[:, 1], v[:, 2], x0, y0, cell, nx, ny)
     for start in range(0, len(t), chunk):
         tt = t[start:start + chunk]
         a, b, c = v[tt[:, 0]], v[tt[:, 1]], v[tt[:, 2]]
@@ -161,14 +161,12 @@ def RasteriseMesh(v, t, x0, y0, cell, nx, ny, chunk=300_000):
             xs.append(p[:, 0])
             ys.append(p[:, 1])
             zs.append(p[:, 2])
-        grid = np.fmax(grid, RasterMax(np.concatenate(xs), np.concatenate(ys),
-                                       np.concatenate(zs), x0, y0, cell, nx, ny))
+        grid = np.fmax(grid, raster_max(np.concatenate(xs), np.concatenate(ys),
+                                        np.concatenate(zs), x0, y0, cell, nx, ny))
     return grid
 
 
-
-
-def SaveFigure(fig, fig_dir, name, alt):
+def save_figure(fig, fig_dir, name, alt):
     """fig as fig_dir/name.png, closed; returns an <img> with the PNG as a data URI."""
     path = os.path.join(fig_dir, name + ".png")
     buf = io.BytesIO()
@@ -177,6 +175,6 @@ def SaveFigure(fig, fig_dir, name, alt):
     data = buf.getvalue()
     with open(path, "wb") as f:
         f.write(data)
-    Log(f"figure {name}.png ({len(data) // 1024} kB)")
+    log(f"figure {name}.png ({len(data) // 1024} kB)")
     b64 = base64.b64encode(data).decode("ascii")
-    return f'<img alt="{Esc(alt)}" src="data:image/png;base64,{b64}">'
+    return f'<img alt="{esc(alt)}" src="data:image/png;base64,{b64}">'

@@ -28,7 +28,7 @@ GPS_EPOCH_UNIX_S = 315964800  # 1980-01-06 00:00:00 UTC
 PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
 
 
-def DieWithParent(parent_pid=None):
+def die_with_parent(parent_pid=None):
     """SIGTERM unblocked and at its default action (an inherited blocked or ignored SIGTERM
     passes through fork and exec: such a process is deaf to `kill`), and SIGTERM from the kernel
     when the parent dies (prctl PR_SET_PDEATHSIG), so that a report whose pitmap was killed, or
@@ -46,7 +46,7 @@ def DieWithParent(parent_pid=None):
         os.kill(os.getpid(), signal.SIGTERM)
 
 
-def PeakRssMb():
+def peak_rss_mb():
     """VmHWM of this process. Linux carries ru_maxrss across exec, so a report started by
     `pitmap run` would show the pipeline's peak there; VmHWM starts afresh."""
     try:
@@ -59,8 +59,8 @@ def PeakRssMb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def Log(msg):
-    print(f"{PROG}: [{time.monotonic() - START_TIME:6.1f} s, {PeakRssMb():5.0f} MB] {msg}",
+def log(msg):
+    print(f"{PROG}: [{time.monotonic() - START_TIME:6.1f} s, {peak_rss_mb():5.0f} MB] {msg}",
           file=sys.stderr, flush=True)
 
 
@@ -68,7 +68,7 @@ class ReportError(Exception):
     """A products folder that cannot be reported on at all."""
 
 
-def InlineScript(js):
+def inline_script(js):
     """JavaScript made safe to inline in <script>: no "</script", and no http(s) URL in the
     report (three.js has a namespace string and comments with URLs; none is fetched)."""
     js = re.sub(r"(?i)</script", r"<\\/script", js)
@@ -76,21 +76,21 @@ def InlineScript(js):
     return re.sub(r"(?i)\bhttp(s?):", r"hxxp\1:", js)
 
 
-def B64(a):
+def b64(a):
     return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")
 
 
-def GpsToUtc(gps_s, gps_minus_utc_s):
+def gps_to_utc(gps_s, gps_minus_utc_s):
     """GPS seconds since 1980-01-06 -> UTC datetime, with GPS - UTC as summary.json gives it."""
     return datetime.datetime.fromtimestamp(gps_s + GPS_EPOCH_UNIX_S - gps_minus_utc_s,
                                            datetime.timezone.utc)
 
 
-def Esc(v):
+def esc(v):
     return html.escape(str(v))
 
 
-def Num(v, digits=3):
+def num(v, digits=3):
     """Number formatting for tables: integers with thin grouping, floats to `digits`."""
     if isinstance(v, bool):
         return "yes" if v else "no"
@@ -102,19 +102,35 @@ def Num(v, digits=3):
         if v != 0 and (abs(v) >= 1e6 or abs(v) < 10 ** (-digits)):
             return f"{v:.{digits}g}"
         return f"{v:.{digits}f}"
-    return Esc(v)
+    return esc(v)
 
 
-def NotProduced(what, why=""):
-    because = f" ({Esc(why)})" if why else ""
-    return f'<p class="missing">not produced: {Esc(what)}{because}</p>'
+def not_produced(what, why=""):
+    because = f" ({esc(why)})" if why else ""
+    return f'<p class="missing">not produced: {esc(what)}{because}</p>'
 
 
-def Table(rows, header=None, cls=""):
+def table(rows, header=None, cls=""):
     out = [f'<table class="{cls}">' if cls else "<table>"]
     if header:
-        out.append("<tr>" + "".join(f"<th>{Esc(h)}</th>" for h in header) + "</tr>")
+        out.append("<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
     for r in rows:
         out.append("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
+
+
+def facts_table(rows):
+    """A two-column table of (label, HTML value) rows, the label in bold."""
+    return table([(f"<b>{esc(k)}</b>", v) for k, v in rows], cls="facts")
+
+
+# An absolute path of this machine: "/" then folders, not after a word character, a dot, a
+# colon or a slash (URLs, fractions, "km/h"), up to its last part.
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[^\s/<>\"'(),;]+/)+([^\s/<>\"'(),;]+)")
+
+
+def strip_paths(text):
+    """Text with every absolute path cut to its file name (the client's report names inputs by
+    file name only)."""
+    return _ABSOLUTE_PATH.sub(r"\1", str(text))
