@@ -279,6 +279,11 @@ std::string Format(const VehicleDescription& v, int indent, bool comments) {
     line(std::string("  sound_velocity_source: ") + ToString(v.sound_velocity_source),
          "probe (at the head) | manual (topside) | unknown");
     line("  channel: " + Quoted(v.sonar_channel), "LCM channel id, \"\" = every one");
+    // Optional (issue 39: the products' metadata), written when given: the template printed by
+    // `pitmap config --vehicle` is README's block, which does not show them.
+    if (!v.sonar_model.empty()) {
+        line("  model: " + Quoted(v.sonar_model), "make and model (products' metadata)");
+    }
     line("gnss:", "");
     if (v.gnss_antenna_lever_arms_m.empty()) {
         line("  antenna_lever_arms_m: []", "one [x, y, z] per antenna, m");
@@ -292,6 +297,9 @@ std::string Format(const VehicleDescription& v, int indent, bool comments) {
                                                : std::string("null")),
          "INS above the water line, m; null = unknown");
     line("  channel: " + Quoted(v.navigation_channel), "LCM channel id, \"\" = every one");
+    if (!v.ins_model.empty()) {
+        line("  model: " + Quoted(v.ins_model), "GNSS/INS make and model (products' metadata)");
+    }
     if (v.uncertainty) {
         note("Sensor error model, 1 sigma (total propagated uncertainty per sounding);");
         note("absent = these defaults (Imagenex Delta T, NovAtel SPAN with RTK).");
@@ -419,6 +427,7 @@ void ReadVehicle(ConfigReader& r, VehicleDescription& v) {
         ReadFinite(s, "clock_offset_s", v.sonar_clock_offset_s);
         ReadEnum(s, "sound_velocity_source", v.sound_velocity_source, kSoundVelocitySources);
         s.Read("channel", v.sonar_channel);
+        s.Read("model", v.sonar_model);
         s.RejectUnknownKeys();
     }
     {
@@ -441,6 +450,7 @@ void ReadVehicle(ConfigReader& r, VehicleDescription& v) {
         ConfigReader n = r.Child("ins");
         ReadFinite(n, "height_above_waterline_m", v.ins_height_above_waterline_m);
         n.Read("channel", v.navigation_channel);
+        n.Read("model", v.ins_model);
         n.RejectUnknownKeys();
     }
     if (r.Has("uncertainty")) {

@@ -93,10 +93,12 @@ struct VehicleDescription {
     std::optional<double> sonar_clock_offset_s;                   // sonar clock - UTC; unknown
     SoundVelocitySource sound_velocity_source = SoundVelocitySource::kUnknown;
     std::string sonar_channel;  // LCM channel id, "" = every sonar channel
+    std::string sonar_model;    // `sonar.model`: for the products' metadata; "" = not given
     // GNSS and INS.
     std::vector<Eigen::Vector3d> gnss_antenna_lever_arms_m;  // vehicle frame, one per antenna
     std::optional<double> ins_height_above_waterline_m;      // > 0 = INS above the water
     std::string navigation_channel;                          // "" = every INS channel
+    std::string ins_model;  // `ins.model`: GNSS/INS make and model (metadata); "" = not given
     // The `uncertainty:` section; nullopt = absent (SensorErrorModel's defaults apply).
     std::optional<SensorErrorModel> uncertainty;
     // The error model to use: the section's, else the defaults.

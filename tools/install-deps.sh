@@ -5,6 +5,7 @@
 # Usage: tools/install-deps.sh [--minimal]   (--minimal: the vehicle side only, no OpenVDB)
 set -euo pipefail
 
+# dpkg-dev, file: the Debian packages' shared-library dependencies (cpack; tools/build-packages.sh).
 common_pkgs=(
   cmake ninja-build g++ pkg-config git ca-certificates
   libeigen3-dev libgeographiclib-dev
@@ -13,6 +14,7 @@ common_pkgs=(
   libpcap-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 socat util-linux pps-tools
+  dpkg-dev file
 )
 # libopenblas0-pthread: an optimised BLAS/LAPACK that Debian's alternatives put in place of the
 # reference libblas.so.3 and liblapack.so.3 that CHOLMOD loads; SLAM's supernodal
@@ -30,8 +32,9 @@ processor_pkgs=(
 browser_pkgs=(
   chromium libjs-three
 )
+# lintian: Debian policy checks of the packages (tools/build-packages.sh).
 tool_pkgs=(
-  clang libclang-rt-14-dev clang-format llvm-14 ccache
+  clang libclang-rt-14-dev clang-format llvm-14 ccache lintian
 )
 
 pkgs=("${common_pkgs[@]}")

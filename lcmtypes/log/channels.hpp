@@ -49,4 +49,13 @@ inline std::string ChannelName(std::string_view prefix, std::string_view channel
     return name;
 }
 
+// True when `channel` is `prefix` + an id: any id when `id_upper` is empty, else that id
+// (upper-cased, as ChannelName writes it). The readers of logs pick their channels with it.
+inline bool ChannelMatches(std::string_view channel,
+                           std::string_view prefix,
+                           std::string_view id_upper) {
+    if (channel.substr(0, prefix.size()) != prefix) return false;
+    return id_upper.empty() || channel.substr(prefix.size()) == id_upper;
+}
+
 }  // namespace pitmap::lcmlog

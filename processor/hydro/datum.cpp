@@ -29,6 +29,11 @@ std::string Fixed(double v, int digits) {
     return b;
 }
 
+// A water level's CRS is named after its pit: "Bejanca pit water level ...".
+std::string SitePrefix(const DatumInputs& in) {
+    return in.site_name.empty() ? std::string() : in.site_name + " ";
+}
+
 }  // namespace
 
 const char* ToString(VerticalDatum d) {
@@ -200,7 +205,7 @@ DatumBuild BuildDatum(const VerticalDatumConfig& c, const DatumInputs& in) {
                 std::vector<double> v = in.surface.level_m;
                 const double level = Median(v);
                 m.datum_height_m.assign(n, level);
-                m.crs_name = "pit water level (GNSS, survey median)";
+                m.crs_name = SitePrefix(in) + "pit water level (GNSS, survey median)";
                 m.description =
                     "depths below the pit's water level, the median of the water "
                     "surface from the GNSS heights over the survey: " +
@@ -227,7 +232,8 @@ DatumBuild BuildDatum(const VerticalDatumConfig& c, const DatumInputs& in) {
                     }
                     m.datum_height_m[k] = in.surface.At(t) - in.levels.At(t);
                 }
-                m.crs_name = "pit water level datum (gauge " + in.source_name + ")";
+                m.crs_name =
+                    SitePrefix(in) + "pit water level datum (gauge " + in.source_name + ")";
                 m.description = "depths below the datum of the water levels in " + in.source_name +
                                 " (the water surface from the GNSS heights minus the level)";
             }

@@ -116,6 +116,7 @@ struct DatumInputs {
     LevelSeries surface;
     LevelSeries levels;
     std::string source_name;  // the geoid grid or the water-level file, for the description
+    std::string site_name;    // water_level: the pit's name, the first word of the CRS's name
 };
 struct DatumBuild {
     bool ok = false;

@@ -32,6 +32,15 @@ std::string VerticalWkt(const GridRaster& g) {
     return g.vertical_wkt.empty() ? std::string(kEllipsoidalWkt) : g.vertical_wkt;
 }
 
+// A VERT_CS of OGC 01-009 datum type 2002 (ellipsoidal): heights above the ellipsoid.
+bool IsEllipsoidalVertical(const std::string& wkt) {
+    const std::string key = "VERT_DATUM[\"";
+    const auto a = wkt.find(key);
+    if (a == std::string::npos) return false;
+    const auto b = wkt.find('"', a + key.size());
+    return b != std::string::npos && wkt.compare(b + 1, 5, ",2002") == 0;
+}
+
 void RegisterOnce() {
     static std::once_flag once;
     std::call_once(once, [] { GDALAllRegister(); });
@@ -59,6 +68,154 @@ struct DatasetCloser {
     }
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+// "2026-05-14T09:12:03Z" -> the TIFF DateTime form "2026:05:14 09:12:03" ("" stays "").
+std::string TiffDateTime(const std::string& iso) {
+    if (iso.size() < 19) return "";
+    std::string t = iso.substr(0, 19);
+    t[4] = ':';
+    t[7] = ':';
+    t[10] = ' ';
+    return t;
+}
+
+// The survey's metadata as TIFF tags (TIFF 6.0 section 8: DocumentName, ImageDescription,
+// DateTime, Artist, Copyright, Software, which GDAL's GTiff driver writes from the items of the
+// same names) and pitmap_* items (GDAL metadata, every field).
+void SetTiffMetadata(GDALDataset& ds, const ProductMetadata& m, const std::string& layers) {
+    const auto set = [&ds](const char* key, const std::string& value) {
+        if (!value.empty()) ds.SetMetadataItem(key, value.c_str());
+    };
+    set("TIFFTAG_DOCUMENTNAME", m.Title());
+    std::string description = layers;
+    if (!m.Identification().empty()) description = m.Identification() + ": " + description;
+    set("TIFFTAG_IMAGEDESCRIPTION", description);
+    set("TIFFTAG_DATETIME", TiffDateTime(m.survey_end_utc));
+    std::string artist = m.surveyor;
+    if (!m.organisation.empty()) artist += (artist.empty() ? "" : ", ") + m.organisation;
+    set("TIFFTAG_ARTIST", artist);
+    if (!m.organisation.empty() || !m.client.empty()) {
+        set("TIFFTAG_COPYRIGHT",
+            m.client.empty() ? m.organisation
+                             : (m.organisation.empty() ? "" : m.organisation + " for ") + m.client);
+    }
+    set("TIFFTAG_SOFTWARE", m.software);
+    set("pitmap_project", m.project);
+    set("pitmap_client", m.client);
+    set("pitmap_site", m.site);
+    set("pitmap_survey_id", m.survey_id);
+    set("pitmap_surveyor", m.surveyor);
+    set("pitmap_organisation", m.organisation);
+    set("pitmap_vessel", m.vessel);
+    set("pitmap_notes", m.notes);
+    std::string equipment;
+    for (const Equipment& e : m.equipment) {
+        equipment += (equipment.empty() ? "" : "; ") + e.role + ": " + e.model;
+    }
+    set("pitmap_equipment", equipment);
+    set("pitmap_survey_start_utc", m.survey_start_utc);
+    set("pitmap_survey_end_utc", m.survey_end_utc);
+    set("pitmap_processed_utc", m.processed_utc);
+    set("pitmap_s44_order_target", m.s44_order_target);
+    set("pitmap_horizontal_crs", m.horizontal_crs_name);
+    set("pitmap_vertical_crs", m.vertical_crs_name);
+}
+
+// XML character data: & < > " escaped (GDAL pastes the BAG's VAR_ values into its template).
+std::string XmlText(const std::string& s) {
+    std::string o;
+    for (const char c : s) {
+        switch (c) {
+            case '&':
+                o += "&amp;";
+                break;
+            case '<':
+                o += "&lt;";
+                break;
+            case '>':
+                o += "&gt;";
+                break;
+            case '"':
+                o += "&quot;";
+                break;
+            default:
+                o += c;
+        }
+    }
+    return o;
+}
+
+// The BAG's ISO 19115 metadata from the survey's (GDAL's bag_template.xml variables): the
+// responsible party (surveyor, organisation), the citation (title, the survey's dates, the
+// organisation), dateStamp = the survey's last day, the vertical uncertainty type
+// ("productUncert": pitmap's uncertainty layer is a 95 % product uncertainty, not CUBE's 1-sigma
+// standard deviation) and an abstract naming the project, client, vessel and equipment.
+char** BagMetadataOptions(char** opts, const ProductMetadata& m) {
+    // GDAL escapes these values itself (not the XML_ one, which is XML).
+    const auto set = [&opts](const char* key, const std::string& value) {
+        if (!value.empty()) opts = CSLSetNameValue(opts, key, value.c_str());
+    };
+    set("VAR_INDIVIDUAL_NAME", m.surveyor);
+    set("VAR_ORGANISATION_NAME", m.organisation);
+    set("VAR_POSITION_NAME", m.surveyor.empty() ? "" : "surveyor");
+    set("VAR_DATE", m.SurveyEndDate());
+    set("VAR_VERTICAL_UNCERT_CODE", "productUncert");
+    // The date GDAL reports as BAG_DATETIME (the lineage's dateTime): the survey's end, so the
+    // file is dated by its data; the processing time is in the process step's description.
+    set("VAR_DATETIME", m.survey_end_utc);
+    std::string abstract = "pitmap CUBE surface (multibeam survey)";
+    if (!m.Identification().empty()) abstract += " of " + m.Identification();
+    if (!m.client.empty()) abstract += " for " + m.client;
+    if (!m.vessel.empty()) abstract += "; vessel " + m.vessel;
+    for (const Equipment& e : m.equipment) abstract += "; " + e.role + " " + e.model;
+    if (!m.survey_start_utc.empty()) {
+        abstract += "; surveyed " + m.survey_start_utc + " to " + m.survey_end_utc;
+    }
+    if (!m.s44_order_target.empty()) abstract += "; IHO S-44 order targeted " + m.s44_order_target;
+    abstract += "; vertical: " + m.vertical_crs_name;
+    if (!m.notes.empty()) abstract += ". " + m.notes;
+    set("VAR_ABSTRACT", abstract);
+    // gmd:citation's content (the template wraps it in <gmd:citation>): CI_Citation with the
+    // title, the survey's first day (CI_DateTypeCode "creation") and last day ("revision": the
+    // ISO 19115:2003 codelist the BAG schema uses has no "completion"), the survey id and the
+    // surveyor and organisation as originator.
+    const auto date = [](const std::string& day, const char* type) {
+        return "<gmd:date><gmd:CI_Date><gmd:date><gco:Date>" + day +
+               "</gco:Date></gmd:date><gmd:dateType><gmd:CI_DateTypeCode "
+               "codeList=\"http://www.isotc211.org/2005/resources/Codelist/"
+               "gmxCodelists.xml#CI_DateTypeCode\" codeListValue=\"" +
+               type + "\">" + type +
+               "</gmd:CI_DateTypeCode></gmd:dateType></gmd:CI_Date></gmd:date>";
+    };
+    std::string citation = "<gmd:CI_Citation><gmd:title><gco:CharacterString>" +
+                           XmlText(m.Identification().empty() ? m.Title() : m.Identification()) +
+                           "</gco:CharacterString></gmd:title>";
+    if (!m.survey_start_utc.empty()) citation += date(m.SurveyStartDate(), "creation");
+    if (!m.survey_end_utc.empty()) citation += date(m.SurveyEndDate(), "revision");
+    if (!m.survey_id.empty()) {
+        citation += "<gmd:identifier><gmd:MD_Identifier><gmd:code><gco:CharacterString>" +
+                    XmlText(m.survey_id) +
+                    "</gco:CharacterString></gmd:code></gmd:MD_Identifier></gmd:identifier>";
+    }
+    if (!m.organisation.empty() || !m.surveyor.empty()) {
+        citation += "<gmd:citedResponsibleParty><gmd:CI_ResponsibleParty>";
+        if (!m.surveyor.empty()) {
+            citation += "<gmd:individualName><gco:CharacterString>" + XmlText(m.surveyor) +
+                        "</gco:CharacterString></gmd:individualName>";
+        }
+        if (!m.organisation.empty()) {
+            citation += "<gmd:organisationName><gco:CharacterString>" + XmlText(m.organisation) +
+                        "</gco:CharacterString></gmd:organisationName>";
+        }
+        citation +=
+            "<gmd:role><gmd:CI_RoleCode codeList=\"http://www.isotc211.org/2005/resources/"
+            "Codelist/gmxCodelists.xml#CI_RoleCode\" codeListValue=\"originator\">originator"
+            "</gmd:CI_RoleCode></gmd:role></gmd:CI_ResponsibleParty></gmd:citedResponsibleParty>";
+    }
+    citation += "</gmd:CI_Citation>";
+    opts = CSLSetNameValue(opts, "VAR_XML_IDENTIFICATION_CITATION", citation.c_str());
+    return opts;
+}
 
 Status CheckGrid(const std::string& path, const GridRaster& g) {
     if (g.nx <= 0 || g.ny <= 0) return Error{path + ": empty grid"};
@@ -202,6 +359,23 @@ Expected<DatasetPtr> MemDataset(const std::string& path,
     OGRSpatialReference& used = with_vertical ? srs : horizontal;
     used.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
     ds->SetSpatialRef(&used);
+    if (with_vertical) {
+        // GeoTIFF's keys hold a vertical CRS by EPSG code or by name only (no user datum, and
+        // GDAL 3.6 cannot write UTM promoted to 3D into them: it falls back to a .aux.xml):
+        // the whole CRS as WKT2 beside them, in the ISO 19111 form (ellipsoidal heights: the
+        // UTM CRS promoted to 3D, as PROJ reads LAS's COMPD_CS).
+        OGRSpatialReference iso(horizontal);
+        const bool ellipsoidal = IsEllipsoidalVertical(VerticalWkt(g));
+        if (ellipsoidal && iso.PromoteTo3D(nullptr) != OGRERR_NONE) {
+            return Error{path + ": cannot build the 3D CRS" + QuietErrors::Last()};
+        }
+        const char* wkt2[] = {"FORMAT=WKT2_2019", "MULTILINE=NO", nullptr};
+        char* text = nullptr;
+        if ((ellipsoidal ? iso : srs).exportToWkt(&text, wkt2) == OGRERR_NONE && text != nullptr) {
+            ds->SetMetadataItem("pitmap_crs_wkt", text);
+        }
+        CPLFree(text);
+    }
     std::vector<float> row(static_cast<std::size_t>(g.nx));
     std::vector<std::uint8_t> row8(static_cast<std::size_t>(g.nx));
     for (std::size_t b = 0; b < layers.size(); ++b) {
@@ -264,6 +438,15 @@ Status WriteCogGeoTiffTo(const std::string& path, const GridRaster& grid) {
     auto mem = MemDataset(
         path, grid, layers, std::numeric_limits<double>::quiet_NaN(), !grid.horizontal_only);
     if (!mem) return mem.error();
+    if (grid.product) {
+        std::string layer_names;
+        for (const GridLayer& l : grid.layers) {
+            layer_names += (layer_names.empty() ? "" : ", ") + l.name;
+        }
+        SetTiffMetadata(**mem, *grid.product, layer_names);
+        // A raster of values that are not heights (the mosaic) has no vertical CRS.
+        if (grid.horizontal_only) (*mem)->SetMetadataItem("pitmap_vertical_crs", nullptr);
+    }
     constexpr int kTile = 256;
     if (auto o =
             BuildBandOverviews(path, mem->get(), layers, OverviewFactors(grid.nx, grid.ny, kTile));
@@ -303,11 +486,14 @@ Status WriteBagTo(const std::string& path, const GridRaster& grid) {
     const std::string vertical_wkt = VerticalWkt(grid);
     opts = CSLSetNameValue(opts, "VAR_VERT_WKT", vertical_wkt.c_str());
     opts = CSLSetNameValue(opts, "VAR_ABSTRACT", "pitmap CUBE surface (multibeam survey)");
-    opts = CSLSetNameValue(
-        opts,
-        "VAR_PROCESS_STEP_DESCRIPTION",
+    if (grid.product) opts = BagMetadataOptions(opts, *grid.product);
+    std::string step =
         "pitmap: total propagated uncertainty per sounding (Hare et al. 1995), CUBE (Calder & "
-        "Mayer 2003); vertical datum in the vertical CRS");
+        "Mayer 2003); vertical datum in the vertical CRS";
+    if (grid.product && !grid.product->processed_utc.empty()) {
+        step += "; processed " + grid.product->processed_utc + " with " + grid.product->software;
+    }
+    opts = CSLSetNameValue(opts, "VAR_PROCESS_STEP_DESCRIPTION", step.c_str());
     Status s = Copy(path, "BAG", mem->get(), opts);
     CSLDestroy(opts);
     return s;
@@ -341,6 +527,50 @@ Status WriteBag(const std::string& path, const GridRaster& grid) {
         path, [&](const std::string& partial) { return WriteBagTo(partial, grid); });
 }
 
+namespace {
+
+CrsIdentity DescribeCrs(const OGRSpatialReference& srs) {
+    CrsIdentity id;
+    // WKT1 node names, searched through the tree (a compound CRS nests both).
+    if (const char* h = srs.GetAttrValue("PROJCS"); h != nullptr) id.horizontal_name = h;
+    if (const char* v = srs.GetAttrValue("VERT_CS"); v != nullptr) {
+        id.vertical_name = v;
+        if (const char* code = srs.GetAuthorityCode("VERT_CS"); code != nullptr) {
+            id.vertical_epsg = std::atoi(code);
+        }
+        if (const char* datum = srs.GetAttrValue("VERT_DATUM"); datum != nullptr) {
+            id.vertical_datum = datum;
+        }
+    } else if (srs.IsProjected() && srs.GetAxesCount() == 3) {
+        // UTM promoted to 3D: the third axis is the ellipsoidal height of its datum.
+        std::unique_ptr<OGRSpatialReference> base(srs.CloneGeogCS());
+        const char* name = base != nullptr ? base->GetName() : nullptr;
+        id.vertical_name = std::string(name != nullptr ? name : "?") + " ellipsoidal height";
+        if (const char* datum = base != nullptr ? base->GetAttrValue("DATUM") : nullptr;
+            datum != nullptr) {
+            id.vertical_datum = datum;
+        }
+    }
+    OGRSpatialReference horiz(srs);
+    if (horiz.IsCompound()) horiz.StripVertical();
+    if (horiz.GetAxesCount() == 3) horiz.DemoteTo2D(nullptr);
+    horiz.AutoIdentifyEPSG();
+    if (const char* code = horiz.GetAuthorityCode(nullptr); code != nullptr) {
+        id.horizontal_epsg = std::atoi(code);
+    }
+    return id;
+}
+
+}  // namespace
+
+Expected<CrsIdentity> DescribeCrsWkt(const std::string& wkt) {
+    OGRSpatialReference srs;
+    if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE) {
+        return Error{"not a CRS that PROJ reads: " + wkt.substr(0, 80)};
+    }
+    return DescribeCrs(srs);
+}
+
 Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) {
     RegisterOnce();
     QuietErrors quiet;
@@ -370,14 +600,22 @@ Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells) 
         char* wkt = nullptr;
         if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt != nullptr) out.crs_wkt = wkt;
         CPLFree(wkt);
-        // WKT1 node names, searched through the tree (a compound CRS nests both).
-        if (const char* h = srs->GetAttrValue("PROJCS"); h != nullptr) out.horizontal_name = h;
-        if (const char* v = srs->GetAttrValue("VERT_CS"); v != nullptr) out.vertical_name = v;
-        OGRSpatialReference horiz(*srs);
-        if (horiz.IsCompound()) horiz.StripVertical();
-        horiz.AutoIdentifyEPSG();
-        const char* code = horiz.GetAuthorityCode(nullptr);
-        if (code != nullptr) out.horizontal_epsg = std::atoi(code);
+        const CrsIdentity id = DescribeCrs(*srs);
+        out.horizontal_name = id.horizontal_name;
+        out.horizontal_epsg = id.horizontal_epsg;
+        out.vertical_name = id.vertical_name;
+        out.vertical_epsg = id.vertical_epsg;
+    }
+    if (char** items = ds->GetMetadata(); items != nullptr) {
+        for (char** p = items; *p != nullptr; ++p) {
+            char* key = nullptr;
+            const char* value = CPLParseNameValue(*p, &key);
+            if (key != nullptr && value != nullptr) g.metadata.emplace_back(key, value);
+            CPLFree(key);
+        }
+    }
+    if (char** xml = ds->GetMetadata("xml:BAG"); xml != nullptr && xml[0] != nullptr) {
+        out.bag_xml = xml[0];
     }
     const std::size_t n = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
     std::vector<float> row(static_cast<std::size_t>(g.nx));

@@ -5,10 +5,14 @@
 //
 // Geometry: node (i, j) lies at x0 + i * resolution, y0 + j * resolution (row j = 0 is the
 // southernmost) and is the centre of its pixel; the files are north-up (the first row is the
-// northernmost). CRS: WGS 84 / UTM zone (EPSG 326zz / 327zz) compound with the vertical CRS
+// northernmost). CRS: WGS 84 / UTM zone (EPSG 326zz / 327zz) with the vertical CRS
 // GridRaster::vertical_wkt (the vertical datum of the heights, hydro/datum.hpp; default "WGS 84
-// ellipsoidal height", as io::LasWkt). GeoTIFF stores the vertical CRS by its EPSG code where it
-// has one (EGM96 height 5773) and by name otherwise; BAG stores it in its XML metadata.
+// ellipsoidal height", as io::LasWkt). GeoTIFF: ellipsoidal heights as the UTM CRS promoted to
+// 3D (ISO 19111 allows no compound of an ellipsoidal height; GeoTIFF 1.1 keys, read back by
+// PROJ as LAS's COMPD_CS is), a gravity-related height as a compound CRS with the vertical
+// EPSG code where it has one (EGM96 height 5773) and by name otherwise (GeoTIFF has no key for
+// a user datum's name: the item pitmap_crs_wkt holds the whole CRS as WKT2); BAG stores the
+// vertical CRS as WKT in its XML metadata (docs/georeferencing.md).
 // No data: NaN in the GeoTIFF (every band), 1000000 in the BAG (the BAG convention); reading
 // back gives NaN for both.
 // Failure model: every function returns an error naming the file and GDAL's message.
@@ -16,11 +20,13 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "common/geodesy.hpp"
+#include "common/product_metadata.hpp"
 #include "common/result.hpp"
 #include "processor/georef/georef.hpp"
 
@@ -73,6 +79,11 @@ struct GridRaster {
     bool horizontal_only = false;
     // Free-form dataset metadata (key, value).
     std::vector<std::pair<std::string, std::string>> metadata;
+    // The survey's metadata (common/product_metadata.hpp), written where the format has a place
+    // (GeoTIFF: TIFF tags DOCUMENTNAME, IMAGEDESCRIPTION, DATETIME (the survey's end), ARTIST,
+    // COPYRIGHT, SOFTWARE and pitmap_* items; BAG: the ISO 19115 responsible party, citation,
+    // dates and vertical uncertainty type). Empty: none of it.
+    std::optional<ProductMetadata> product;
     GridSampleType sample_type = GridSampleType::kFloat32;  // GeoTIFF only (the BAG is Float32)
 };
 
@@ -91,17 +102,35 @@ Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid);
 // The layers named "elevation" and "uncertainty" (both required) as a BAG.
 Status WriteBag(const std::string& path, const GridRaster& grid);
 
+// How a reader sees a CRS (GDAL's OGRSpatialReference on PROJ): the horizontal CRS's name and
+// EPSG code, the vertical CRS's name, datum and EPSG code, a compound CRS's vertical part or
+// "<datum> ellipsoidal height" for a projected CRS promoted to 3D (the ISO 19111 form of
+// ellipsoidal heights over a projected CRS, how PROJ reads LAS's COMPD_CS of a VERT_CS of
+// datum type 2002). Empty names and 0 codes where the CRS has none.
+struct CrsIdentity {
+    std::string horizontal_name;
+    int horizontal_epsg = 0;
+    std::string vertical_name;
+    std::string vertical_datum;
+    int vertical_epsg = 0;
+};
+Expected<CrsIdentity> DescribeCrsWkt(const std::string& wkt);
+
 // Reads a north-up raster back (any GDAL format): geometry, every band (nodata -> NaN) with its
 // description, unit type and category names (class_names), the sample type (kByte for a Byte
 // raster, else kFloat32: values are read as float), and the CRS as WKT1 (empty if none). Refuses
-// rotated geotransforms and rasters of more than max_cells cells.
+// rotated geotransforms and rasters of more than max_cells cells. The CRS's names and codes are
+// DescribeCrsWkt's; grid.metadata holds the dataset's default-domain metadata items (the TIFF
+// tags too).
 struct GridReadBack {
     GridRaster grid;  // utm_zone/northern stay 0/true: see crs_wkt
     std::string crs_wkt;
     std::string horizontal_name;  // e.g. "WGS 84 / UTM zone 29N"
     std::string vertical_name;    // e.g. "WGS 84 ellipsoidal height", "" if none
     int horizontal_epsg = 0;      // 0 if none
+    int vertical_epsg = 0;        // 0 if none (ellipsoidal heights, a water level)
     std::string driver;           // GDAL short name ("GTiff", "BAG")
+    std::string bag_xml;          // BAG: its ISO 19115 XML ("xml:BAG" domain); "" otherwise
 };
 Expected<GridReadBack> ReadGrid(const std::string& path, std::size_t max_cells = 200'000'000);
 

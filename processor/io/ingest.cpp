@@ -155,7 +155,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
             const std::size_t len = ev.data.size();
             const void* buf = ev.data.data();
             const std::string_view ch = ev.channel;
-            if (Matches(ch, lcmlog::kChannelInsPva, nav_id)) {
+            if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsPva, nav_id)) {
                 seen.decoded_nav = true;
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(pva, buf, len)) {
@@ -166,7 +166,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                 if (pva.has_stddev) {
                     col.AddStdDev(NavStdDevOf(pva));
                 }
-            } else if (Matches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
+            } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(sd, buf, len)) {
                     ++c.decode_failures;
@@ -180,7 +180,7 @@ Status ReadLogs(const std::vector<std::string>& paths,
                     continue;
                 }
                 col.AddLeapSeconds(gt.utc_offset_s, gt.utc_status);
-            } else if (Matches(ch, lcmlog::kChannelMultibeamPing, sonar_id)) {
+            } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelMultibeamPing, sonar_id)) {
                 seen.decoded_sonar = true;
                 if (!want_decoded) continue;
                 if (!lcmlog::DecodeChecked(mb, buf, len)) {

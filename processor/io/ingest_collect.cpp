@@ -24,12 +24,6 @@ bool StartsWith(std::string_view s, std::string_view prefix) {
     return s.size() >= prefix.size() && s.substr(0, prefix.size()) == prefix;
 }
 
-// Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
-bool Matches(std::string_view channel, std::string_view prefix, const std::string& want_upper) {
-    if (!StartsWith(channel, prefix)) return false;
-    return want_upper.empty() || channel.substr(prefix.size()) == want_upper;
-}
-
 NavSample FromPva(std::int64_t utime_gps,
                   double lat,
                   double lon,

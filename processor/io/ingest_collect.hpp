@@ -26,8 +26,6 @@ inline constexpr std::size_t kMaxPingBeams = 1024;
 
 std::string Upper(std::string s);
 bool StartsWith(std::string_view s, std::string_view prefix);
-// Channel `name` = prefix + id, with id matching `want` (upper-cased) unless want is empty.
-bool Matches(std::string_view channel, std::string_view prefix, const std::string& want_upper);
 georef::NavSample FromPva(std::int64_t utime_gps,
                           double lat,
                           double lon,

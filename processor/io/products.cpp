@@ -22,6 +22,7 @@
 #include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
+#include "common/product_metadata_json.hpp"
 #include "common/protocol/novatel/crc32.hpp"
 
 namespace pitmap::proc::io {
@@ -64,6 +65,8 @@ nlohmann::json VehicleJson(const VehicleDescription& v) {
         {"sound_velocity_source", ToString(v.sound_velocity_source)},
         {"gnss_antenna_lever_arms_m", antennas},
         {"ins_height_above_waterline_m", nullptr},
+        {"sonar_model", v.sonar_model},
+        {"ins_model", v.ins_model},
     };
     if (v.sonar_clock_offset_s) j["sonar_clock_offset_s"] = *v.sonar_clock_offset_s;
     if (v.ins_height_above_waterline_m) {
@@ -254,6 +257,29 @@ void ExtraBytesFloat(ByteWriter& w, const std::string& name, const std::string& 
     w.FixedString(description, 32);
 }
 
+// The header's System Identifier (32 bytes): the vessel and its multibeam where known.
+std::string LasSystemIdentifier(const ProductMetadata* meta) {
+    if (meta == nullptr) return "pitmap ASV multibeam";
+    std::string s = meta->vessel;
+    for (const Equipment& e : meta->equipment) {
+        if (e.role == "multibeam") s += (s.empty() ? "" : " ") + e.model;
+    }
+    return s.empty() ? "pitmap ASV multibeam" : s.substr(0, 32);
+}
+
+// The metadata VLR's payload: JSON, "" without metadata. A VLR holds at most 65535 bytes: the
+// notes are cut to fit (the config limits every field to 500 characters, so they seldom are).
+std::string LasMetadataPayload(const ProductMetadata* meta) {
+    if (meta == nullptr) return "";
+    ProductMetadata m = *meta;
+    std::string text = ProductMetadataJson(m).dump();
+    while (text.size() > 65535 && !m.notes.empty()) {
+        m.notes.resize(m.notes.size() / 2);
+        text = ProductMetadataJson(m).dump();
+    }
+    return text.size() > 65535 ? std::string() : text;
+}
+
 }  // namespace
 
 Status WriteLas(const std::string& path,
@@ -261,7 +287,8 @@ Status WriteLas(const std::string& path,
                 const georef::UtmPoints& utm,
                 const PointExtras* extras,
                 const std::string& run_id,
-                const georef::GeorefResult* rejected) {
+                const georef::GeorefResult* rejected,
+                const ProductMetadata* meta) {
     const std::size_t n_accepted = utm.easting_northing_height.size();
     const georef::GeorefResult* rej = UsableRejected(rejected);
     georef::UtmPoints rej_utm;
@@ -311,9 +338,11 @@ Status WriteLas(const std::string& path,
     constexpr std::uint16_t kVlrHeaderSize = 54;
     constexpr std::uint16_t kExtraBytesVlrSize = 2 * 192;
     const std::uint16_t record_length = tpu ? 38 : 30;
-    const std::uint32_t point_offset = kHeaderSize + kVlrHeaderSize +
-                                       static_cast<std::uint32_t>(wkt.size()) +
-                                       (tpu ? kVlrHeaderSize + kExtraBytesVlrSize : 0);
+    const std::string meta_vlr = LasMetadataPayload(meta);
+    const std::uint32_t point_offset =
+        kHeaderSize + kVlrHeaderSize + static_cast<std::uint32_t>(wkt.size()) +
+        (tpu ? kVlrHeaderSize + kExtraBytesVlrSize : 0) +
+        (meta_vlr.empty() ? 0 : kVlrHeaderSize + static_cast<std::uint32_t>(meta_vlr.size()));
     // File creation date: the survey's first ping, so the file depends only on the data.
     int day_of_year = 1, year = 1980;
     if (!r.pings.empty()) {
@@ -334,14 +363,15 @@ Status WriteLas(const std::string& path,
     for (std::uint8_t b : RunIdBytes(run_id)) w.U8(b);
     w.U8(1);  // version 1.4
     w.U8(4);
-    w.FixedString("pitmap ASV multibeam", 32);
-    w.FixedString("pitmap georef", 32);
+    w.FixedString(LasSystemIdentifier(meta), 32);
+    w.FixedString(meta != nullptr && !meta->software.empty() ? meta->software : "pitmap georef",
+                  32);
     w.U16Le(static_cast<std::uint16_t>(day_of_year));
     w.U16Le(static_cast<std::uint16_t>(year));
     w.U16Le(kHeaderSize);
     w.U32Le(point_offset);
-    w.U32Le(tpu ? 2 : 1);  // number of VLRs
-    w.U8(6);               // point data record format
+    w.U32Le(1u + (tpu ? 1u : 0u) + (meta_vlr.empty() ? 0u : 1u));  // number of VLRs
+    w.U8(6);                                                       // point data record format
     w.U16Le(record_length);
     w.U32Le(0);  // legacy point count: 0 for formats 6-10
     for (int i = 0; i < 5; ++i) w.U32Le(0);
@@ -379,6 +409,15 @@ Status WriteLas(const std::string& path,
         w.FixedString("pitmap TPU: THU, TVU 95 %, m", 32);
         ExtraBytesFloat(w, kLasThuName, "horizontal uncertainty 95 %, m");
         ExtraBytesFloat(w, kLasTvuName, "vertical uncertainty 95 %, m");
+    }
+    if (!meta_vlr.empty()) {
+        // VLR: the survey's metadata as JSON (pitmap's own record, ProductMetadataJson).
+        w.U16Le(0);
+        w.FixedString(kLasMetadataUserId, 16);
+        w.U16Le(kLasMetadataRecordId);
+        w.U16Le(static_cast<std::uint16_t>(meta_vlr.size()));
+        w.FixedString("pitmap survey metadata, JSON", 32);
+        w.Bytes({reinterpret_cast<const std::uint8_t*>(meta_vlr.data()), meta_vlr.size()});
     }
     // Point records, format 6.
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();

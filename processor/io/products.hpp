@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "common/product_metadata.hpp"
 #include "common/result.hpp"
 #include "common/vehicle.hpp"
 #include "processor/georef/georef.hpp"
@@ -105,12 +106,20 @@ Status WritePly(const std::string& path,
 // in an Extra Bytes VLR (LASF_Spec / 4: names kLasThuName and kLasTvuName, metres); with
 // extras->pings, the intensity of each record is SoundingIntensity (else 0). `rejected` as
 // WritePly's (its UTM positions in `utm`'s zone), classified by LasNoiseClasses and withheld.
+// `meta` (optional, common/product_metadata.hpp): the header's System Identifier is the vessel
+// and its multibeam, Generating Software the software's name and version, and a VLR (user id
+// "pitmap", record id 1) holds the metadata as JSON (ProductMetadataJson). The file creation
+// day is always the survey's first ping's (UTC).
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& result,
                 const georef::UtmPoints& utm,
                 const PointExtras* extras = nullptr,
                 const std::string& run_id = "",
-                const georef::GeorefResult* rejected = nullptr);
+                const georef::GeorefResult* rejected = nullptr,
+                const ProductMetadata* meta = nullptr);
+// The LAS metadata VLR's ids.
+inline constexpr const char* kLasMetadataUserId = "pitmap";
+inline constexpr std::uint16_t kLasMetadataRecordId = 1;
 
 // LAS classes of the point records (ASPRS LAS 1.4 R15 Table 17; 40: topo-bathy domain profile).
 inline constexpr std::uint8_t kLasClassBathymetry = 40;    // accepted sounding

@@ -82,7 +82,8 @@ public:
     void MarkReplay();
     void MarkReplayFinished();
 
-    // JSON documents for the page (budget in bytes: the caller's share; < 0 = unlimited).
+    // JSON documents for the page (documents.cpp; budget in bytes: the caller's share; < 0 =
+    // unlimited).
     nlohmann::json StatusJson(std::int64_t wall_utime);
     nlohmann::json AlarmsJson();
     nlohmann::json TilesJson(std::uint64_t since, std::int64_t budget_bytes);

@@ -8,6 +8,7 @@
 #include <array>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include "common/formats/byte_file.hpp"
 #include "common/formats/ply.hpp"
 #include "common/formats/replace_file.hpp"
+#include "common/product_metadata_json.hpp"
 
 namespace pitmap::proc::mesh {
 
@@ -152,19 +154,19 @@ Status WriteObj(const ColouredMesh& mesh,
 // The binary chunk is streamed to the file (ByteFileWriter) after the JSON chunk, whose
 // offsets are known from the counts: the file is never held in memory (on bejanca a 77 MB GLB
 // was built in a growing buffer and copied once more, 220 MB at the mesh stage's peak).
-Status WriteGlb(const ColouredMesh& mesh,
-                const std::string& path,
-                const std::optional<Geodetic>& origin,
-                const std::string& run_id) {
+namespace {
+
+// A GLB of `mesh` whose vertex i is at gltf(i) (glTF's y-up axes), with `asset` as the asset
+// object and `node` merged into the mesh's node (a translation, extras).
+template <class Position>
+Status WriteGlbWith(const ColouredMesh& mesh,
+                    const std::string& path,
+                    const nlohmann::json& asset,
+                    const nlohmann::json& node,
+                    Position gltf_at) {
     using nlohmann::json;
     json doc;
-    doc["asset"] = {{"version", "2.0"}, {"generator", "pitmap proc_mesh"}};
-    if (origin) {
-        doc["asset"]["extras"]["pitmap_origin"] = {{"latitude_deg", origin->latitude_deg},
-                                                   {"longitude_deg", origin->longitude_deg},
-                                                   {"height_m", origin->height_m}};
-    }
-    if (!run_id.empty()) doc["asset"]["extras"]["pitmap_run_id"] = run_id;
+    doc["asset"] = asset;
     doc["scene"] = 0;
     const bool colours = !mesh.empty() && HasColours(mesh);
     const std::size_t nv = mesh.vertices.size();
@@ -172,9 +174,6 @@ Status WriteGlb(const ColouredMesh& mesh,
     const std::size_t col_bytes = colours ? nv * 12 : 0;
     const std::size_t idx_bytes = mesh.empty() ? 0 : mesh.triangles.size() * 12;
     const std::size_t bin_bytes = pos_bytes + col_bytes + idx_bytes;  // a multiple of 4
-    auto gltf = [](const Eigen::Vector3f& p) {
-        return std::array<float, 3>{p.x(), p.z(), -p.y()};  // ENU -> glTF y-up
-    };
     if (mesh.empty()) {
         doc["scenes"] = json::array({json::object()});
     } else {
@@ -183,8 +182,8 @@ Status WriteGlb(const ColouredMesh& mesh,
             lo[k] = std::numeric_limits<float>::max();
             hi[k] = -std::numeric_limits<float>::max();
         }
-        for (const Eigen::Vector3f& p : mesh.vertices) {
-            const auto g = gltf(p);
+        for (std::size_t i = 0; i < nv; ++i) {
+            const std::array<float, 3> g = gltf_at(i);
             for (int k = 0; k < 3; ++k) {
                 lo[k] = std::min(lo[k], g[k]);
                 hi[k] = std::max(hi[k], g[k]);
@@ -221,7 +220,9 @@ Status WriteGlb(const ColouredMesh& mesh,
                              {"type", "SCALAR"}});
         const int idx_accessor = static_cast<int>(accessors.size()) - 1;
         doc["scenes"] = json::array({{{"nodes", {0}}}});
-        doc["nodes"] = json::array({{{"mesh", 0}, {"name", "pit_surface"}}});
+        json n = {{"mesh", 0}, {"name", "pit_surface"}};
+        n.update(node);
+        doc["nodes"] = json::array({n});
         doc["meshes"] = json::array(
             {{{"name", "pit_surface"},
               {"primitives",
@@ -249,9 +250,9 @@ Status WriteGlb(const ColouredMesh& mesh,
         ByteWriter& b = f.out();
         b.U32Le(static_cast<std::uint32_t>(bin_bytes));
         b.U32Le(0x004E4942u);  // "BIN\0"
-        for (const Eigen::Vector3f& p : mesh.vertices) {
+        for (std::size_t i = 0; i < nv; ++i) {
             ByteWriter& o = f.out();
-            for (const float v : gltf(p)) o.F32Le(v);
+            for (const float v : gltf_at(i)) o.F32Le(v);
         }
         if (colours) {
             for (const auto& c : mesh.colours) {
@@ -265,6 +266,128 @@ Status WriteGlb(const ColouredMesh& mesh,
         }
     }
     return f.Close();
+}
+
+}  // namespace
+
+Status WriteGlb(const ColouredMesh& mesh,
+                const std::string& path,
+                const std::optional<Geodetic>& origin,
+                const std::string& run_id) {
+    using nlohmann::json;
+    json asset = {{"version", "2.0"}, {"generator", "pitmap proc_mesh"}};
+    if (origin) {
+        asset["extras"]["pitmap_origin"] = {{"latitude_deg", origin->latitude_deg},
+                                            {"longitude_deg", origin->longitude_deg},
+                                            {"height_m", origin->height_m}};
+    }
+    if (!run_id.empty()) asset["extras"]["pitmap_run_id"] = run_id;
+    return WriteGlbWith(mesh, path, asset, json::object(), [&mesh](std::size_t i) {
+        const Eigen::Vector3f& p = mesh.vertices[i];
+        return std::array<float, 3>{p.x(), p.z(), -p.y()};  // ENU -> glTF y-up
+    });
+}
+
+void SetOffset(ProjectedMesh& p) {
+    if (p.positions.empty()) {
+        p.offset.setZero();
+        return;
+    }
+    Eigen::Vector3d lo = p.positions.front();
+    for (const Eigen::Vector3d& x : p.positions) lo = lo.cwiseMin(x);
+    p.offset = lo.array().floor().matrix();
+}
+
+namespace {
+
+Status CheckProjected(const ColouredMesh& mesh,
+                      const ProjectedMesh& projected,
+                      const std::string& path) {
+    if (projected.positions.size() != mesh.vertices.size()) {
+        return Error{path + ": " + std::to_string(projected.positions.size()) +
+                     " projected positions for " + std::to_string(mesh.vertices.size()) +
+                     " vertices"};
+    }
+    return Ok{};
+}
+
+}  // namespace
+
+Status WriteProjectedPly(const ColouredMesh& mesh,
+                         const ProjectedMesh& projected,
+                         const std::string& path,
+                         const ProductMetadata* meta,
+                         const std::string& run_id) {
+    namespace ply = formats::ply;
+    if (auto c = CheckProjected(mesh, projected, path); !c) return c;
+    const bool colours = HasColours(mesh);
+    ply::Header h;
+    h.comments.push_back("generator pitmap proc_mesh");
+    h.comments.push_back("pitmap_crs " + projected.crs_name);
+    h.comments.push_back("pitmap_crs_epsg " + std::to_string(projected.horizontal_epsg) + " " +
+                         std::to_string(projected.vertical_epsg));
+    h.comments.push_back(
+        "x, y, z: UTM easting, northing (m) and height in the vertical CRS (m), absolute; the "
+        "CRS as WKT in the .prj beside this file");
+    if (meta != nullptr)
+        h.comments.push_back("pitmap_metadata " + ProductMetadataJson(*meta).dump());
+    if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
+    ply::Element vertex{
+        "vertex",
+        mesh.vertices.size(),
+        {{"x", ply::Type::kFloat64}, {"y", ply::Type::kFloat64}, {"z", ply::Type::kFloat64}}};
+    if (colours) {
+        for (const char* c : {"red", "green", "blue"}) {
+            vertex.properties.push_back({c, ply::Type::kUInt8});
+        }
+    }
+    h.elements.push_back(std::move(vertex));
+    h.elements.push_back({"face",
+                          mesh.triangles.size(),
+                          {{"vertex_indices", ply::Type::kInt32, ply::Type::kUInt8}}});
+    ply::Writer w(path, h);
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+        ByteWriter& o = w.Record();
+        for (int k = 0; k < 3; ++k) o.F64Le(projected.positions[i][k]);
+        if (colours) {
+            for (std::uint8_t c : mesh.colours[i]) o.U8(c);
+        }
+    }
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+        ByteWriter& o = w.Record();
+        o.U8(3);
+        for (int k = 0; k < 3; ++k) o.I32Le(t[k]);
+    }
+    return w.Close();
+}
+
+Status WriteProjectedGlb(const ColouredMesh& mesh,
+                         const ProjectedMesh& projected,
+                         const std::string& path,
+                         const ProductMetadata* meta,
+                         const std::string& run_id) {
+    using nlohmann::json;
+    if (auto c = CheckProjected(mesh, projected, path); !c) return c;
+    const Eigen::Vector3d& o = projected.offset;
+    json asset = {{"version", "2.0"}, {"generator", "pitmap proc_mesh"}};
+    if (meta != nullptr) asset["extras"]["pitmap_metadata"] = ProductMetadataJson(*meta);
+    if (!run_id.empty()) asset["extras"]["pitmap_run_id"] = run_id;
+    const auto code = [](int epsg) { return epsg > 0 ? json(epsg) : json(); };
+    const json node = {
+        {"translation", {o.x(), o.z(), -o.y()}},
+        {"extras",
+         {{"pitmap_offset", {{"easting_m", o.x()}, {"northing_m", o.y()}, {"height_m", o.z()}}},
+          {"pitmap_crs",
+           {{"name", projected.crs_name},
+            {"horizontal_epsg", code(projected.horizontal_epsg)},
+            {"vertical_epsg", code(projected.vertical_epsg)},
+            {"wkt", projected.crs_wkt}}},
+          {"pitmap_axes", "glTF y-up: x = easting, y = height, z = -northing, metres"}}}};
+    return WriteGlbWith(mesh, path, asset, node, [&projected, &o](std::size_t i) {
+        const Eigen::Vector3d d = projected.positions[i] - o;
+        return std::array<float, 3>{
+            static_cast<float>(d.x()), static_cast<float>(d.z()), static_cast<float>(-d.y())};
+    });
 }
 
 }  // namespace pitmap::proc::mesh

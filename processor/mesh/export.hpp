@@ -13,8 +13,10 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/geodesy.hpp"
+#include "common/product_metadata.hpp"
 #include "common/result.hpp"
 #include "processor/mesh/surface.hpp"
 
@@ -32,5 +34,41 @@ Status WriteGlb(const ColouredMesh& mesh,
                 const std::string& path,
                 const std::optional<Geodetic>& origin = std::nullopt,
                 const std::string& run_id = "");
+
+// The mesh in the products' projected CRS (issue 39: mesh_utm.*, docs/georeferencing.md): every
+// vertex as UTM easting, northing and height in the products' vertical CRS, so the mesh
+// overlays dem.tif and points.las.
+struct ProjectedMesh {
+    std::vector<Eigen::Vector3d> positions;  // one per mesh vertex, metres
+    // A whole-metre point near the vertices (the floor of their minimum): glTF's vertices are
+    // float32 relative to it (a float holds UTM coordinates to 0.5 m only).
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    std::string crs_name;     // "WGS 84 / UTM zone 29N + EGM96 height"
+    std::string crs_wkt;      // WKT1 COMPD_CS (io::LasWkt), as the .prj sidecar holds it
+    int horizontal_epsg = 0;  // 326zz / 327zz
+    int vertical_epsg = 0;    // 0 = none
+};
+// Sets `offset` from the positions (the floor of their minimum; 0 without vertices).
+void SetOffset(ProjectedMesh& p);
+
+// PLY, binary little endian: vertex properties double x, y, z (UTM easting, northing, height:
+// absolute, doubles lose nothing, and CloudCompare and QGIS's mesh reader take them as they are,
+// where no reader applies an offset stored beside float coordinates), uchar red, green, blue;
+// comments name the CRS ("pitmap_crs NAME", "pitmap_crs_epsg H V"), the metadata
+// ("pitmap_metadata JSON") and the run id. Precondition: positions.size() == vertices.size().
+Status WriteProjectedPly(const ColouredMesh& mesh,
+                         const ProjectedMesh& projected,
+                         const std::string& path,
+                         const ProductMetadata* meta = nullptr,
+                         const std::string& run_id = "");
+// glTF 2.0 binary: float32 vertices relative to the offset, in glTF's y-up axes (x = easting,
+// y = height, z = -northing), the offset as the node's translation (the same axes) and in the
+// node's extras (pitmap_offset {easting_m, northing_m, height_m}, pitmap_crs {name,
+// horizontal_epsg, vertical_epsg, wkt}); asset.extras.pitmap_metadata the metadata (JSON).
+Status WriteProjectedGlb(const ColouredMesh& mesh,
+                         const ProjectedMesh& projected,
+                         const std::string& path,
+                         const ProductMetadata* meta = nullptr,
+                         const std::string& run_id = "");
 
 }  // namespace pitmap::proc::mesh

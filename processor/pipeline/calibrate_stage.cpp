@@ -414,6 +414,9 @@ void ApplyCalibration(Survey& s,
     s.model.mount = cal.mount;
     s.model.calibration = keep_nominal ? survey::CalibrationState::kKeptNominal
                                        : survey::CalibrationState::kCalibrated;
+    s.model.boresight_sd_deg =
+        keep_nominal ? survey::kNoBoresightSd
+                     : std::array<double, 3>{cal.sd_deg[0], cal.sd_deg[1], cal.sd_deg[2]};
     survey::SonarClockState& mc = s.model.clock;
     if (cal.latency_estimated && !keep_nominal) {
         mc.latency_applied = true;

@@ -2,6 +2,7 @@
 // The processor's YAML configuration: reading with every problem listed, validation, defaults.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <sstream>
@@ -435,6 +436,9 @@ void VisitRun(V&& v, RunOptions& r) {
 template <class V>
 void VisitProducts(V&& v, PipelineConfig& c) {
     v("write_las", c.write_las, "points.las (UTM) beside points.ply");
+    v("write_points_utm",
+      c.write_points_utm,
+      "points_utm.ply (+ .prj) beside points.las: absolute UTM doubles for PLY readers");
     v("write_rejected",
       c.write_rejected,
       "points.ply/las also hold the rejected soundings (PLY status, LAS withheld noise)");
@@ -444,6 +448,19 @@ void VisitProducts(V&& v, PipelineConfig& c) {
         o.NanIsNull("longitude_deg", c.origin_longitude_deg, "");
         o.NanIsNull("height_m", c.origin_height_m, "ellipsoidal, m");
     });
+}
+
+template <class V>
+void VisitMetadata(V&& v, SurveyMetadataConfig& c) {
+    v("project", c.project, "project name (the products' title)");
+    v("client", c.client, "who the survey is for");
+    v("site", c.site, "the pit's name (also names a water-level vertical datum)");
+    v("survey_id", c.survey_id, "the survey's reference");
+    v("surveyor", c.surveyor, "the person responsible for the survey");
+    v("organisation", c.organisation, "the surveyor's organisation");
+    v("vessel", c.vessel, "\"\" = vehicle.yaml's name");
+    v("s44_order_target", c.s44_order_target, "\"\" | exclusive | special | 1a | 1b | 2");
+    v("notes", c.notes, "free text (several lines allowed)");
 }
 
 // The sections of the processor config, in file order.
@@ -464,6 +481,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });
+    v.Section("metadata", [&](auto& s) { VisitMetadata(s, c.metadata); });
 }
 
 // Reads every entry from a YAML map; problems are collected in the ConfigReader.
@@ -504,6 +522,29 @@ private:
     ConfigReader in_;
 };
 
+// A YAML double-quoted scalar: backslash, quote and control characters escaped (a newline
+// printed as such would fold into a space when read back).
+std::string YamlQuoted(const std::string& s) {
+    std::string o = "\"";
+    for (const char c : s) {
+        if (c == '"' || c == '\\') {
+            o += '\\';
+            o += c;
+        } else if (c == '\n') {
+            o += "\\n";
+        } else if (c == '\t') {
+            o += "\\t";
+        } else if (static_cast<unsigned char>(c) < 0x20) {
+            char b[8];
+            std::snprintf(b, sizeof b, "\\x%02x", static_cast<unsigned>(c));
+            o += b;
+        } else {
+            o += c;
+        }
+    }
+    return o + "\"";
+}
+
 // Prints every entry as YAML, "key: value  # comment", indented by section depth.
 class PrintVisitor {
 public:
@@ -515,11 +556,11 @@ public:
         if constexpr (std::is_same_v<T, bool>) {
             v << (value ? "true" : "false");
         } else if constexpr (std::is_same_v<T, std::string>) {
-            v << std::quoted(value);
+            v << YamlQuoted(value);
         } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
             v << "[";
             for (std::size_t i = 0; i < value.size(); ++i) {
-                v << (i > 0 ? ", " : "") << std::quoted(value[i]);
+                v << (i > 0 ? ", " : "") << YamlQuoted(value[i]);
             }
             v << "]";
         } else {
@@ -642,6 +683,7 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
     for (auto& s : quality.Validate()) p.push_back("quality." + s);
     for (auto& s : grid.Validate()) p.push_back(s);
+    for (auto& s : metadata.Validate()) p.push_back(s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");
     const bool any = !std::isnan(origin_latitude_deg) || !std::isnan(origin_longitude_deg) ||

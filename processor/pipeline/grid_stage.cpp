@@ -82,10 +82,12 @@ double MedianOf(std::vector<double> v) {
 // summary.json. `ping_geo` are the transducers' geodetic positions.
 Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
                                          const hydro::VerticalDatumConfig& vc,
+                                         const std::string& site,
                                          const std::vector<Geodetic>& ping_geo,
                                          json* record,
                                          const Log& log) {
     hydro::DatumInputs in;
+    in.site_name = site;
     in.ping_t_s.reserve(s.geo.pings.size());
     for (const auto& p : s.geo.pings)
         in.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
@@ -313,6 +315,33 @@ std::vector<std::string> GridStageConfig::Validate() const {
 
 namespace detail {
 
+namespace {
+
+// The transducers' geodetic positions, per ping.
+std::vector<Geodetic> PingGeodetic(const Survey& s) {
+    const LocalTangentFrame world(s.model.origin);
+    std::vector<Geodetic> ping_geo(s.geo.pings.size());
+    for (std::size_t k = 0; k < ping_geo.size(); ++k) {
+        ping_geo[k] = world.FromEnu(s.geo.pings[k].sensor_world);
+    }
+    return ping_geo;
+}
+
+}  // namespace
+
+Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
+                                        const PipelineConfig& config,
+                                        json* record,
+                                        const Log& log) {
+    json r;
+    return ProductDatum(s,
+                        config.grid.vertical,
+                        config.metadata.site,
+                        PingGeodetic(s),
+                        record != nullptr ? record : &r,
+                        log);
+}
+
 // The crossline check against the stated uncertainty: two soundings of one spot differ by
 // sqrt(2) sigma on average, sigma = TVU95 / 1.96. Lines that disagree far beyond it are a gate
 // naming the likely input from the shape of the disagreement: growing with the beam angle is
@@ -441,13 +470,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
 
     auto utm = georef::ToUtm(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
-    const LocalTangentFrame world(s.model.origin);
-    std::vector<Geodetic> ping_geo(s.geo.pings.size());
-    for (std::size_t k = 0; k < ping_geo.size(); ++k) {
-        ping_geo[k] = world.FromEnu(s.geo.pings[k].sensor_world);
-    }
+    const std::vector<Geodetic> ping_geo = PingGeodetic(s);
     json datum_record;
-    auto datum = ProductDatum(s, gc.vertical, ping_geo, &datum_record, log);
+    auto datum = SurveyDatum(s, config, &datum_record, log);
     if (!datum) return datum.error();
     const std::vector<double>& D = datum->datum_height_m;
     const bool water = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
@@ -508,7 +533,10 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
     const hydro::CubeGrid& g = cube.grid;
+    const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
+    s.datum = *datum;
     io::GridRaster raster;
+    raster.product = meta;
     raster.x0 = g.x0;
     raster.y0 = g.y0;
     raster.resolution_m = g.resolution_m;
@@ -563,10 +591,18 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             return w;
         files.push_back("points.ply");
         if (config.write_las) {
-            if (auto w = io::WriteLas(P + "/points.las", s.geo, *utm, &extras, s.model.run_id, rej);
+            if (auto w = io::WriteLas(
+                    P + "/points.las", s.geo, *utm, &extras, s.model.run_id, rej, &meta);
                 !w)
                 return w;
             files.push_back("points.las");
+            if (config.write_points_utm) {
+                if (auto w =
+                        WriteProjectedPoints(P, s.geo, *utm, rej, *datum, meta, s.model.run_id);
+                    !w)
+                    return w;
+                files.push_back("points_utm.ply");
+            }
         }
         tpu.thu_95_m = std::move(extras.thu_95_m);
         tpu.tvu_95_m = std::move(extras.tvu_95_m);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -136,7 +137,8 @@ Status WritePoints(const std::string& dir,
                    json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected,
-                   const georef::PingSeries* pings) {
+                   const georef::PingSeries* pings,
+                   const ProductMetadata* meta) {
     io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
     extras.pings = pings;
     if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
@@ -144,7 +146,19 @@ Status WritePoints(const std::string& dir,
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected); !s)
+        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected, meta);
+            !s)
+            return s;
+        // Heights above the ellipsoid here: the grid stage writes them again in the datum.
+        if (!c.write_points_utm) return Ok{};
+        if (auto s = WriteProjectedPoints(dir,
+                                          geo,
+                                          *utm,
+                                          rejected,
+                                          hydro::DatumModel{},
+                                          meta != nullptr ? *meta : ProductMetadata{},
+                                          run_id);
+            !s)
             return s;
     }
     return Ok{};
@@ -162,13 +176,14 @@ georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
 
 Status WritePoints(Survey& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
     if (!c.write_rejected) {
         return WritePoints(
-            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings);
+            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings, &meta);
     }
     const georef::GeorefResult rejected = RejectedView(s, c);
     return WritePoints(
-        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings);
+        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
 }
 
 json SoundingsJson(const georef::StatusCounts& counts) {
@@ -199,7 +214,10 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "mesh.glb",
                                            "mesh_filled.ply",
                                            "mesh_filled.obj",
-                                           "mesh_filled.glb"};
+                                           "mesh_filled.glb",
+                                           "mesh_utm.ply",
+                                           "mesh_utm.glb",
+                                           "mesh_utm.prj"};
     const std::vector<std::string> report = {
         "report.html", "report_engineering.html", "report.pdf", "report"};
     std::vector<std::string> out;
@@ -215,6 +233,8 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                  "ingest.cache",  // the survey file's predecessor
                  "points.ply",
                  "points.las",
+                 "points_utm.ply",
+                 "points_utm.prj",
                  "boresight.json",
                  "trajectory_ins.csv",
                  "tsdf.vdb",
@@ -233,7 +253,7 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
             add(report);
             break;
         case Stage::kClean:
-            add({"points.ply", "points.las"});
+            add({"points.ply", "points.las", "points_utm.ply", "points_utm.prj"});
             add(grid);
             add({"tsdf.vdb"});
             add(mesh);
@@ -393,14 +413,15 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
                 {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
         }
     }
+    // The mount used and what is known of it, from the model (summary.json is written, never
+    // read back for a product).
     json bj = MountJson(s.model.mount);
-    if (s.model.calibration == survey::CalibrationState::kCalibrated) {
+    if (s.model.calibration == survey::CalibrationState::kCalibrated &&
+        std::isfinite(s.model.boresight_sd_deg[0])) {
         // The calibrated boresight's 1-sigma uncertainty: range noise and the INS's attitude.
-        const json stages = s.summary.value("stages", json::object());
-        const json cal = stages.is_object() ? stages.value("calibrate", json::object()) : json();
-        if (cal.is_object() && cal.contains("sd_deg")) bj["sd_deg"] = cal["sd_deg"];
+        bj["sd_deg"] = s.model.boresight_sd_deg;
     }
-    bj["sonar_clock"] = s.summary.value("sonar_clock", json::object());
+    bj["sonar_clock"] = survey::ClockJson(s.model.clock);
     if (!s.model.run_id.empty()) bj["run_id"] = s.model.run_id;
     if (auto w = io::WriteJsonFile(s.out_dir + "/boresight.json", bj); !w) return w;
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)

@@ -49,6 +49,7 @@
 #include "processor/io/ingest.hpp"
 #include "processor/mesh/surface.hpp"
 #include "processor/pipeline/grid_stage.hpp"
+#include "processor/pipeline/metadata.hpp"
 #include "processor/slam/slam.hpp"
 #include "processor/svp/refraction.hpp"
 
@@ -134,17 +135,21 @@ struct PipelineConfig {
     double origin_longitude_deg = std::numeric_limits<double>::quiet_NaN();
     double origin_height_m = std::numeric_limits<double>::quiet_NaN();
     bool write_las = true;  // points.las (UTM) beside points.ply
+    // points_utm.ply (+ .prj) beside points.las: the soundings as absolute UTM doubles for PLY
+    // readers (docs/georeferencing.md); about 33 bytes a sounding.
+    bool write_points_utm = true;
     // points.ply/las also hold the rejected soundings (after the accepted ones, with their
     // status; io/products.hpp); false = the accepted soundings only.
     bool write_rejected = true;
-    std::string vehicle_yaml;  // "" = vehicle.yaml beside the first log
+    std::string vehicle_yaml;       // "" = vehicle.yaml beside the first log
+    SurveyMetadataConfig metadata;  // the `metadata:` section (metadata.hpp)
 
     std::vector<std::string> Validate() const;
 };
 
 // Reads a YAML config (sections ingest, georef, calibrate, slam, fuse, mesh, run, quality,
-// products; the key table in config.cpp); every problem listed: unknown keys, wrong types,
-// invalid values.
+// products, metadata; the key table in config.cpp); every problem listed: unknown keys, wrong
+// types, invalid values.
 Expected<PipelineConfig> LoadConfig(const std::string& path);
 // The YAML of every default, with a comment per key (`pitmap config --defaults`).
 std::string DefaultsYaml();

@@ -25,6 +25,7 @@
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -572,6 +573,61 @@ Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
     return volume;
 }
 
+namespace {
+
+// The datum the grid stage of this run applied (summary.json "vertical_datum", this run's:
+// LoadSummaryOfRun), when it is the config's: its CRS and mean height, what the mesh needs.
+std::optional<hydro::DatumModel> DatumOfGridStage(const json& summary,
+                                                  const PipelineConfig& config) {
+    const auto r = summary.find("vertical_datum");
+    if (r == summary.end() || !r->is_object()) return std::nullopt;
+    if (r->value("datum", "") != hydro::ToString(config.grid.vertical.datum)) return std::nullopt;
+    if (!r->value("vertical_crs", json()).is_string() ||
+        !r->value("mean_datum_height_m", json()).is_number()) {
+        return std::nullopt;
+    }
+    hydro::DatumModel d;
+    d.datum = config.grid.vertical.datum;
+    d.crs_name = (*r)["vertical_crs"].get<std::string>();
+    const json epsg = r->value("vertical_epsg", json());
+    d.vertical_epsg = epsg.is_number_integer() ? epsg.get<int>() : 0;
+    d.description = r->value("description", "");
+    d.mean_datum_height_m = (*r)["mean_datum_height_m"].get<double>();
+    return d;
+}
+
+// mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp), in the
+// vertical datum of this run's points and DEM: the grid stage's (in memory, else as it recorded
+// it), the ellipsoid when no grid stage applied one.
+Status WriteProjectedMeshes(Survey& s,
+                            const mesh::ColouredMesh& m,
+                            const PipelineConfig& config,
+                            const Log& log) {
+    if (!s.datum) {
+        // The datum of this run's points and DEM: the grid stage's, else none was applied
+        // (the points are ellipsoidal) and the mesh follows them.
+        s.datum = DatumOfGridStage(s.summary, config).value_or(hydro::DatumModel{});
+    }
+    const auto start = std::chrono::steady_clock::now();
+    auto projected = ProjectMesh(m, s.model.origin, *s.datum, config);
+    if (!projected) return projected.error();
+    const ProductMetadata meta = SurveyProductMetadata(s, config, &*s.datum);
+    const std::string& P = s.out_dir;
+    if (auto w = mesh::WriteProjectedPly(m, *projected, P + "/mesh_utm.ply", &meta, s.model.run_id);
+        !w)
+        return w;
+    if (auto w = mesh::WriteProjectedGlb(m, *projected, P + "/mesh_utm.glb", &meta, s.model.run_id);
+        !w)
+        return w;
+    if (auto w = io::WritePrj(P + "/mesh_utm.prj", projected->crs_wkt); !w) return w;
+    log("mesh: mesh_utm.{ply,glb} in " + projected->crs_name + " (" +
+        Fixed(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2) +
+        " s)");
+    return Ok{};
+}
+
+}  // namespace
+
 Status MeshSurvey(Survey& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
@@ -617,6 +673,7 @@ Status MeshSurvey(Survey& s,
         for (Status& w : written) {
             if (!w) return w;
         }
+        if (auto w = WriteProjectedMeshes(s, m.mesh, config, log); !w) return w;
     } else {
         if (auto w = mesh::WritePly(m.mesh, P + "/" + stage_name + ".ply", origin, s.model.run_id);
             !w)

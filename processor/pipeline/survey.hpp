@@ -13,8 +13,10 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/mesh/export.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/survey/survey.hpp"
 
@@ -35,6 +37,8 @@ struct Survey {
     // the end (ExportSurvey), so that each product is written once. Stage commands write their
     // products themselves.
     bool defer_products = false;
+    // The products' vertical datum, once the grid stage (or the mesh stage) built it.
+    std::optional<hydro::DatumModel> datum;
 };
 
 // Refraction for a new georeference: the config's casts (none: straight rays) with the INS
@@ -125,9 +129,12 @@ Status WritePoints(const std::string& dir,
                    nlohmann::json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected = nullptr,
-                   const georef::PingSeries* pings = nullptr);
+                   const georef::PingSeries* pings = nullptr,
+                   const ProductMetadata* meta = nullptr);
 // The same for the survey: its soundings (s.geo) and, with products.write_rejected, the
-// rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson).
+// rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson) and
+// summary["metadata"] (ellipsoidal heights: the grid stage writes the points again in the
+// vertical datum).
 Status WritePoints(Survey& s, const PipelineConfig& c);
 
 // The rejected soundings of the survey's current view (georef::SoundingView::kRejected on the
@@ -178,6 +185,36 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep);
 // model's flags.cleaning and taken out of the view (its counts follow), except those a hand
 // edit restored. Returns which points stayed (index = the point before).
 std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status);
+// The products' vertical datum (config.grid.vertical, hydro/datum.hpp) at every ping of s.geo
+// (the grid stage's; the mesh stage's georeferenced files use it too). Fails as the grid stage
+// would (no geoid grid, no INS height above the water line, a water-level file that does not
+// cover the survey).
+Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
+                                        const PipelineConfig& config,
+                                        nlohmann::json* record,
+                                        const Log& log);
+// The products' metadata (metadata.hpp) of this survey: the config's section, the vehicle file's
+// equipment, the first and last ping, the UTM zone of the world origin and `datum` (nullptr =
+// ellipsoidal heights); also sets summary["metadata"] to it.
+ProductMetadata SurveyProductMetadata(Survey& s,
+                                      const PipelineConfig& config,
+                                      const hydro::DatumModel* datum);
+// points_utm.ply and points_utm.prj (projected_products.cpp): the soundings (and the rejected
+// ones after them) in the products' CRS, heights h - D of `datum` at their ping.
+Status WriteProjectedPoints(const std::string& dir,
+                            const georef::GeorefResult& geo,
+                            const georef::UtmPoints& utm,
+                            const georef::GeorefResult* rejected,
+                            const hydro::DatumModel& datum,
+                            const ProductMetadata& meta,
+                            const std::string& run_id);
+// A mesh's vertices (world ENU at `origin`) in the products' CRS: UTM in the origin's zone
+// (exact, GeographicLib, per vertex), heights in `datum`'s vertical CRS (the geoid at each
+// vertex; a water level's mean over the survey).
+Expected<mesh::ProjectedMesh> ProjectMesh(const mesh::ColouredMesh& m,
+                                          const Geodetic& origin,
+                                          const hydro::DatumModel& datum,
+                                          const PipelineConfig& config);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and

@@ -85,6 +85,7 @@ bool SurveyModel::ResetCalibration() {
     };
     if (!same(mount, nominal_mount)) changed = true;
     mount = nominal_mount;
+    boresight_sd_deg = kNoBoresightSd;
     calibration = CalibrationState::kNotRun;
     DropFrom(TrajectoryVersion::kCalibrated);
     return changed;
@@ -169,6 +170,19 @@ georef::GeorefResult Georeference(const SurveyModel& m,
     if (chosen >= 0 && chosen != current) k = ApplyTrajectory(geo, m.trajectories[chosen]);
     if (kept != nullptr) *kept = k;
     return geo;
+}
+
+json ClockJson(const SonarClockState& c) {
+    return {{"configured", c.configured},
+            {"configured_offset_s", c.configured_offset_s},
+            {"coarse_correction_s", c.coarse_correction_s},
+            {"coarse_sigma_s", c.coarse_sigma_s},
+            {"latency_applied", c.latency_applied},
+            {"latency_s", c.latency_s},
+            {"latency_formal_sd_s", c.latency_formal_sd_s},
+            {"rate_ppm", c.rate_ppm},
+            {"rate_sigma_ppm", c.rate_sigma_ppm},
+            {"rate_reference_utime", c.rate_reference_utime}};
 }
 
 json MountJson(const georef::SonarMount& m) {

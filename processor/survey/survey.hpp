@@ -23,6 +23,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -91,6 +92,10 @@ enum class CalibrationState : std::uint8_t {
 };
 const char* ToString(CalibrationState s);
 
+inline constexpr std::array<double, 3> kNoBoresightSd = {std::numeric_limits<double>::quiet_NaN(),
+                                                         std::numeric_limits<double>::quiet_NaN(),
+                                                         std::numeric_limits<double>::quiet_NaN()};
+
 struct SurveyModel {
     // The run: a random 128-bit id (32 lower-case hex digits, NewRunId) made when georef starts
     // a new model; every product and summary.json of this survey carries it, so a stage or the
@@ -100,6 +105,10 @@ struct SurveyModel {
     std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
     georef::SonarMount nominal_mount;
     georef::SonarMount mount;  // the current one
+    // The calibrated boresight's 1-sigma (roll, pitch, yaw; deg): the fit's range noise and the
+    // INS's attitude error (calib::BoresightResult::sd_deg); NaN unless calibration ==
+    // kCalibrated.
+    std::array<double, 3> boresight_sd_deg = kNoBoresightSd;
     Geodetic origin;
     SonarClockState clock;
     RefractionRecord refraction;
@@ -151,6 +160,9 @@ PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pin
 // Moves the soundings and pings of `geo` onto trajectory `t` (indexed by the ping series).
 // Pings without a valid pose in `t` keep theirs; returns how many kept theirs.
 std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t);
+
+// The sonar clock state as survey.pitmap and boresight.json write it.
+nlohmann::json ClockJson(const SonarClockState& c);
 
 // The mount as summary.json and boresight.json write it, and back (an error names what is
 // wrong); the world origin likewise.

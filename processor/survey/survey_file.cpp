@@ -173,21 +173,15 @@ json StateJson(const SurveyModel& m) {
                   {"nominal_mount", MountJson(m.nominal_mount)},
                   {"mount", MountJson(m.mount)},
                   {"world_origin", OriginJson(m.origin)},
-                  {"sonar_clock",
-                   {{"configured", c.configured},
-                    {"configured_offset_s", c.configured_offset_s},
-                    {"coarse_correction_s", c.coarse_correction_s},
-                    {"coarse_sigma_s", c.coarse_sigma_s},
-                    {"latency_applied", c.latency_applied},
-                    {"latency_s", c.latency_s},
-                    {"latency_formal_sd_s", c.latency_formal_sd_s},
-                    {"rate_ppm", c.rate_ppm},
-                    {"rate_sigma_ppm", c.rate_sigma_ppm},
-                    {"rate_reference_utime", c.rate_reference_utime}}},
+                  {"sonar_clock", ClockJson(c)},
                   {"refraction", refraction},
                   {"calibration", ToString(m.calibration)}};
     // Optional (surveys written before run ids have none): no format version change.
     if (!m.run_id.empty()) state["run_id"] = m.run_id;
+    // Optional likewise (only a calibrated survey has one; older files have none).
+    if (std::isfinite(m.boresight_sd_deg[0]))
+        state["boresight_sd_deg"] = {
+            m.boresight_sd_deg[0], m.boresight_sd_deg[1], m.boresight_sd_deg[2]};
     return state;
 }
 
@@ -206,6 +200,14 @@ Status StateFromJson(const json& j, SurveyModel& m) {
         auto mount = MountFromJson(j.at("mount"));
         if (!mount) return Error{"mount: " + mount.error().message};
         m.mount = *mount;
+        m.boresight_sd_deg = kNoBoresightSd;
+        if (const auto sd = j.find("boresight_sd_deg"); sd != j.end()) {
+            const auto v = sd->get<std::vector<double>>();
+            if (v.size() != 3 || !std::isfinite(v[0]) || !std::isfinite(v[1]) ||
+                !std::isfinite(v[2]) || v[0] < 0 || v[1] < 0 || v[2] < 0)
+                return Error{"boresight_sd_deg: not three finite sigmas"};
+            m.boresight_sd_deg = {v[0], v[1], v[2]};
+        }
         auto origin = OriginFromJson(j.at("world_origin"));
         if (!origin) return Error{"world_origin: " + origin.error().message};
         if (!std::isfinite(origin->latitude_deg) || std::abs(origin->latitude_deg) > 90 ||

@@ -22,12 +22,19 @@ void WritePing(ByteWriter& w, const georef::PingHeader& p) {
     w.F64Le(p.aid_heading_deg);
 }
 
-georef::PingHeader ReadPing(ByteReader& r) {
+namespace {
+
+// The ping fields in their order, with the padding formats 1-4 held after sound_speed_valid and
+// after aid_attitude_at_ping (none in format 5).
+georef::PingHeader ReadPingFields(ByteReader& r,
+                                  std::size_t pad_after_valid,
+                                  std::size_t pad_after_flag) {
     georef::PingHeader p;
     p.utime_gps = r.I64Le();
     p.ping_number = r.I64Le();
     p.sound_speed_mps = r.F64Le();
     p.sound_speed_valid = r.U8() != 0;
+    r.Skip(pad_after_valid);
     p.range_resolution_m = r.F64Le();
     p.start_angle_deg = r.F64Le();
     p.angle_increment_deg = r.F64Le();
@@ -35,6 +42,7 @@ georef::PingHeader ReadPing(ByteReader& r) {
     p.beam_offset = r.U32Le();
     p.num_beams = r.U16Le();
     p.aid_attitude_at_ping = r.U8() != 0;
+    r.Skip(pad_after_flag);
     p.aid_latitude_deg = r.F64Le();
     p.aid_longitude_deg = r.F64Le();
     p.aid_roll_deg = r.F64Le();
@@ -43,29 +51,16 @@ georef::PingHeader ReadPing(ByteReader& r) {
     return p;
 }
 
+}  // namespace
+
+georef::PingHeader ReadPing(ByteReader& r) {
+    return ReadPingFields(r, 0, 0);
+}
+
 georef::PingHeader ReadLegacyPing(ByteReader& r) {
     // Offsets as formats 1-4 held them: 7 bytes of padding after sound_speed_valid (24) and
     // one after aid_attitude_at_ping (70).
-    georef::PingHeader p;
-    p.utime_gps = r.I64Le();
-    p.ping_number = r.I64Le();
-    p.sound_speed_mps = r.F64Le();
-    p.sound_speed_valid = r.U8() != 0;
-    r.Skip(7);
-    p.range_resolution_m = r.F64Le();
-    p.start_angle_deg = r.F64Le();
-    p.angle_increment_deg = r.F64Le();
-    p.profile_tilt_deg = r.F64Le();
-    p.beam_offset = r.U32Le();
-    p.num_beams = r.U16Le();
-    p.aid_attitude_at_ping = r.U8() != 0;
-    r.Skip(1);
-    p.aid_latitude_deg = r.F64Le();
-    p.aid_longitude_deg = r.F64Le();
-    p.aid_roll_deg = r.F64Le();
-    p.aid_pitch_deg = r.F64Le();
-    p.aid_heading_deg = r.F64Le();
-    return p;
+    return ReadPingFields(r, 7, 1);
 }
 
 void WriteNav(ByteWriter& w, const georef::NavSample& s) {

@@ -89,6 +89,8 @@ TEST(VehicleFile, WrittenFileReadsBackTheSameValues) {
                                    Eigen::Vector3d(-0.58, -0.31, -1.25)};
     v.ins_height_above_waterline_m = 0.35;
     v.navigation_channel = "novatel_com1";
+    v.sonar_model = "Imagenex Delta T 837B";
+    v.ins_model = "NovAtel SPAN CPT7";
     const std::string text = FormatVehicleYaml(v);
     auto r = ParseVehicleYaml(text, "written");
     ASSERT_TRUE(r) << r.error().message << "\n" << text;
@@ -103,6 +105,8 @@ TEST(VehicleFile, WrittenFileReadsBackTheSameValues) {
     EXPECT_EQ(r->sonar_channel, v.sonar_channel);
     EXPECT_EQ(r->gnss_antenna_lever_arms_m, v.gnss_antenna_lever_arms_m);
     EXPECT_EQ(r->ins_height_above_waterline_m, v.ins_height_above_waterline_m);
+    EXPECT_EQ(r->sonar_model, v.sonar_model);  // issue 39: the products' equipment
+    EXPECT_EQ(r->ins_model, v.ins_model);
     EXPECT_EQ(r->navigation_channel, v.navigation_channel);
     // Indented, as a daemon config's `vehicle` section.
     const std::string section = FormatVehicleYaml(v, 2);

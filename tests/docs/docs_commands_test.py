@@ -29,8 +29,10 @@ import sys
 import tempfile
 import time
 
-DEFAULT_DOCS = ["README.md", "docs/user-guide.md", "docs/reference.md"]
-LINKED_DOCS = DEFAULT_DOCS + ["docs/development.md", "docs/benchmarks.md", "docs/accuracy.md"]
+DEFAULT_DOCS = ["README.md", "docs/user-guide.md", "docs/reference.md", "docs/cli.md",
+                "docs/packages.md", "docs/report.md", "docs/georeferencing.md",
+                "docs/benchmarks.md", "docs/echo_artifacts.md"]
+LINKED_DOCS = DEFAULT_DOCS + ["docs/development.md", "docs/accuracy.md"]
 MARKER = re.compile(r"^<!--\s*(not-run|output-of):\s*(.*?)\s*-->$")
 FENCE = re.compile(r"^```(\S*)\s*$")
 PROGRAM = re.compile(r"^(?:\./)?(?:build/bin/)?(pitmap(?:-[a-z0-9_]+)*)$")

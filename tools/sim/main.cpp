@@ -362,7 +362,7 @@ int main(int argc, char** argv) try {
         result->log_files,
         out_dir.c_str(),
         out_dir.c_str(),
-        vendor_files ? "; vendor files in DIR/vendor" : "",
+        vendor_files ? ("; vendor files in " + out_dir + "/vendor").c_str() : "",
         scenario->echo_artifacts.level.c_str(),
         static_cast<long long>(result->artifact_soundings),
         100.0 * result->artifact_share);

@@ -131,6 +131,9 @@ Status WriteVehicleYaml(const fs::path& path, const ScenarioConfig& sc) {
     VehicleDescription v = NominalVehicle(sc);
     v.navigation_channel = kNovatelId;
     v.sonar_channel = kSonarId;
+    // The equipment the products' metadata names (the simulator's models of them).
+    v.sonar_model = "Imagenex Delta T (pitmap-sim)";
+    v.ins_model = "NovAtel SPAN (pitmap-sim)";
     out << "# pitmap vehicle description (schema: `pitmap config --vehicle`), written by "
            "pitmap-sim.\n"
         << FormatVehicleYaml(v);

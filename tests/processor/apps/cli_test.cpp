@@ -75,9 +75,11 @@ TEST_F(Cli, InvalidConfigListsEveryProblem) {
 
 TEST_F(Cli, MissingInputIsNamed) {
     const CliRun r = Pitmap("georef " + Q(dir_ / "nowhere") + " --out " + Q(dir_ / "P"));
-    EXPECT_NE(r.status, 0);
+    ASSERT_TRUE(WIFEXITED(r.status));
+    EXPECT_EQ(WEXITSTATUS(r.status), 2) << "a usage error (docs/cli.md)";
     EXPECT_NE(r.output.find((dir_ / "nowhere").string()), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "P")) << "nothing created for a missing input";
 }
 
 TEST_F(Cli, DefaultsAreAValidConfig) {

@@ -264,5 +264,127 @@ TEST_F(DatumIo, GridsNameTheirVerticalDatum) {
     }
 }
 
+// Issue 39: the survey's metadata in the grids and the LAS, special characters kept (GDAL
+// escapes the BAG's XML, pitmap its citation); the water level's CRS named after the site reads
+// back by that name from every product; the BAG is dated by the survey, not the processing.
+ProductMetadata SampleMetadata() {
+    ProductMetadata m;
+    m.project = "Pit & Lake <2026>";
+    m.client = "Mina";
+    m.site = "Bejanca";
+    m.survey_id = "BJ-7";
+    m.surveyor = "A. Surveyor";
+    m.organisation = "Pit Survey";
+    m.vessel = "asv-1";
+    m.equipment = {{"multibeam", "Imagenex Delta T"}, {"gnss_ins", "NovAtel SPAN"}};
+    m.survey_start_utc = "2026-06-15T09:00:00Z";
+    m.survey_end_utc = "2026-06-16T10:01:01Z";
+    m.processed_utc = "2027-01-15T08:00:00Z";
+    m.software = "pitmap 9.9.9";
+    m.horizontal_crs_name = "WGS 84 / UTM zone 29N";
+    m.horizontal_epsg = 32629;
+    m.vertical_crs_name = "Bejanca pit water level (GNSS, survey median)";
+    return m;
+}
+
+std::string ItemOf(const GridRaster& g, const std::string& key) {
+    for (const auto& [k, v] : g.metadata) {
+        if (k == key) return v;
+    }
+    return "";
+}
+
+TEST_F(DatumIo, MetadataAndTheSitesWaterLevelReachEveryProduct) {
+    hydro::DatumInputs in;
+    in.ping_t_s = {0, 1};
+    in.surface.t_s = {0, 1};
+    in.surface.level_m = {412.0, 412.0};
+    in.site_name = "Bejanca";
+    hydro::VerticalDatumConfig c;
+    c.datum = hydro::VerticalDatum::kWaterLevel;
+    const auto b = hydro::BuildDatum(c, in);
+    ASSERT_TRUE(b.ok) << b.message;
+    EXPECT_EQ(b.model.crs_name, "Bejanca pit water level (GNSS, survey median)");
+    const ProductMetadata meta = SampleMetadata();
+
+    GridRaster g;
+    g.nx = 4;
+    g.ny = 3;
+    g.resolution_m = 1;
+    g.x0 = 587'312.5;
+    g.y0 = 4'477'051.5;
+    g.utm_zone = 29;
+    g.layers = {{"elevation", "metre", std::vector<float>(12, -5.0f)},
+                {"uncertainty", "metre", std::vector<float>(12, 0.1f)}};
+    g.vertical_wkt = b.model.VerticalWkt();
+    g.product = meta;
+    const fs::path tif = dir_ / "dem.tif", bag = dir_ / "dem.bag";
+    ASSERT_TRUE(WriteCogGeoTiff(tif.string(), g));
+    ASSERT_TRUE(WriteBag(bag.string(), g));
+    auto t = ReadGrid(tif.string());
+    ASSERT_TRUE(t) << t.error().message;
+    EXPECT_EQ(t->vertical_name, b.model.crs_name);
+    EXPECT_EQ(ItemOf(t->grid, "TIFFTAG_DOCUMENTNAME"), "Pit & Lake <2026>");
+    EXPECT_EQ(ItemOf(t->grid, "TIFFTAG_DATETIME"), "2026:06:16 10:01:01");
+    EXPECT_EQ(ItemOf(t->grid, "TIFFTAG_ARTIST"), "A. Surveyor, Pit Survey");
+    EXPECT_EQ(ItemOf(t->grid, "TIFFTAG_COPYRIGHT"), "Pit Survey for Mina");
+    EXPECT_EQ(ItemOf(t->grid, "TIFFTAG_SOFTWARE"), "pitmap 9.9.9");
+    EXPECT_EQ(ItemOf(t->grid, "pitmap_equipment"),
+              "multibeam: Imagenex Delta T; gnss_ins: NovAtel SPAN");
+    // The whole CRS beside the keys, with the datum's name GeoTIFF's keys cannot hold.
+    auto wkt = DescribeCrsWkt(ItemOf(t->grid, "pitmap_crs_wkt"));
+    ASSERT_TRUE(wkt) << wkt.error().message;
+    EXPECT_EQ(wkt->vertical_datum, b.model.crs_name);
+    EXPECT_EQ(wkt->horizontal_epsg, 32629);
+
+    auto r = ReadGrid(bag.string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->vertical_name, b.model.crs_name);
+    for (const char* s : {"<gco:CharacterString>A. Surveyor</gco:CharacterString>",
+                          "<gco:CharacterString>Pit Survey</gco:CharacterString>",
+                          "Pit &amp; Lake &lt;2026&gt; / Bejanca / BJ-7",
+                          "<gco:Date>2026-06-15</gco:Date>",
+                          "<gco:Date>2026-06-16</gco:Date>",
+                          "<gco:DateTime>2026-06-16T10:01:01Z</gco:DateTime>",
+                          "codeListValue=\"productUncert\"",
+                          "processed 2027-01-15T08:00:00Z with pitmap 9.9.9"}) {
+        EXPECT_NE(r->bag_xml.find(s), std::string::npos) << s << "\n" << r->bag_xml;
+    }
+    EXPECT_EQ(r->bag_xml.find("&amp;amp;"), std::string::npos) << "escaped once";
+    EXPECT_EQ(r->bag_xml.find("<gco:Date>2027-01-15"), std::string::npos);
+
+    const georef::GeorefResult pts = TwoSoundings();
+    const auto utm = georef::ToUtm(pts);
+    ASSERT_TRUE(utm) << utm.error().message;
+    PointExtras x;
+    x.datum_height_m = b.model.datum_height_m;
+    x.vertical_wkt = b.model.VerticalWkt();
+    const fs::path las = dir_ / "points.las";
+    ASSERT_TRUE(WriteLas(las.string(), pts, *utm, &x, "", nullptr, &meta));
+    const std::vector<std::uint8_t> bytes = ReadBytes(las);
+    const auto text = [&](std::size_t at, std::size_t n) {
+        std::string s(reinterpret_cast<const char*>(&bytes[at]), n);
+        return s.substr(0, s.find('\0'));
+    };
+    EXPECT_EQ(text(26, 32), "asv-1 Imagenex Delta T");
+    EXPECT_EQ(text(58, 32), "pitmap 9.9.9");
+    const auto u16 = [&](std::size_t at) {
+        return static_cast<std::size_t>(bytes[at] | (bytes[at + 1] << 8));
+    };
+    EXPECT_EQ(bytes[100], 2u) << "the CRS and the metadata VLRs";
+    std::size_t vlr = u16(94);
+    auto crs = DescribeCrsWkt(text(vlr + 54, u16(vlr + 20)));
+    ASSERT_TRUE(crs) << crs.error().message;
+    EXPECT_EQ(crs->vertical_name, b.model.crs_name);
+    EXPECT_EQ(crs->vertical_datum, b.model.crs_name);
+    vlr += 54 + u16(vlr + 20);
+    EXPECT_EQ(text(vlr + 2, 16), kLasMetadataUserId);
+    EXPECT_EQ(u16(vlr + 18), kLasMetadataRecordId);
+    const nlohmann::json j = nlohmann::json::parse(text(vlr + 54, u16(vlr + 20)));
+    EXPECT_EQ(j["project"], "Pit & Lake <2026>");
+    EXPECT_EQ(j["equipment"][1]["model"], "NovAtel SPAN");
+    EXPECT_TRUE(j["vertical_crs"]["epsg"].is_null());
+}
+
 }  // namespace
 }  // namespace pitmap::proc::io

@@ -154,5 +154,53 @@ TEST(MeshReadBackEmpty, EmptyGlbOpensWithNoMesh) {
     std::filesystem::remove(dir + "/readback_empty.glb");
 }
 
+// The georeferenced mesh (issue 39): mesh_utm.ply's double UTM coordinates and mesh_utm.glb's
+// float vertices plus the node translation, as Assimp reads them with the node transforms
+// applied (aiProcess_PreTransformVertices: what a viewer shows). Assimp computes in float, so a
+// UTM northing of 4.48e6 m holds to 0.5 m there; pitmap's own offset keeps the GLB's vertices
+// to micrometres (checked in tests/processor/pipeline/georeferencing_scenario_test.cpp).
+TEST_F(MeshReadBack, ProjectedPlyAndGlbLandAtTheirUtmCoordinates) {
+    const ColouredMesh& m = result_->mesh;
+    ProjectedMesh p;
+    const Eigen::Vector3d utm0(603'512.25, 4'477'731.5, -3.75);  // east, north, height
+    for (const Eigen::Vector3f& v : m.vertices) p.positions.push_back(utm0 + v.cast<double>());
+    SetOffset(p);
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3d& x : p.positions) box.extend(x);
+    EXPECT_EQ(p.offset, box.min().array().floor().matrix().eval());
+    p.crs_name = "WGS 84 / UTM zone 29N + EGM96 height";
+    p.horizontal_epsg = 32629;
+    p.vertical_epsg = 5773;
+    const std::string ply = dir_ + "/readback_mesh_utm.ply";
+    ASSERT_TRUE(WriteProjectedPly(m, p, ply));
+    Counts c;
+    std::string error;
+    ASSERT_TRUE(ReadWithAssimp(ply, 0, c, error)) << error;
+    EXPECT_EQ(c.vertices, m.vertices.size());
+    EXPECT_EQ(c.faces, m.triangles.size());
+    EXPECT_TRUE(c.colours);
+    EXPECT_TRUE(c.box.min().cast<double>().isApprox(box.min(), 1e-7)) << c.box.min();
+    EXPECT_TRUE(c.box.max().cast<double>().isApprox(box.max(), 1e-7)) << c.box.max();
+
+    const std::string glb = dir_ + "/readback_mesh_utm.glb";
+    ASSERT_TRUE(WriteProjectedGlb(m, p, glb));
+    Counts g;
+    ASSERT_TRUE(ReadWithAssimp(glb, aiProcess_PreTransformVertices, g, error)) << error;
+    EXPECT_EQ(g.vertices, m.vertices.size());
+    EXPECT_EQ(g.faces, m.triangles.size());
+    // glTF y-up: (E, H, -N).
+    const Eigen::Vector3d lo(box.min().x(), box.min().z(), -box.max().y());
+    const Eigen::Vector3d hi(box.max().x(), box.max().z(), -box.min().y());
+    EXPECT_LT((g.box.min().cast<double>() - lo).cwiseAbs().maxCoeff(), 1.0) << g.box.min();
+    EXPECT_LT((g.box.max().cast<double>() - hi).cwiseAbs().maxCoeff(), 1.0) << g.box.max();
+    // A mismatched projection is refused, not written.
+    ProjectedMesh short_p = p;
+    short_p.positions.pop_back();
+    EXPECT_FALSE(WriteProjectedPly(m, short_p, ply));
+    EXPECT_FALSE(WriteProjectedGlb(m, short_p, glb));
+    std::filesystem::remove(ply);
+    std::filesystem::remove(glb);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::mesh

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "processor/hydro/datum.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -210,6 +211,93 @@ TEST(Stage, NamesAreSummaryJsonKeys) {
     EXPECT_STREQ(ToString(Stage::kFuse), "fuse");
     EXPECT_STREQ(ToString(Stage::kMeshInitial), "mesh_initial");
     EXPECT_STREQ(ToString(Stage::kExport), "export");
+}
+
+// The metadata section (issue 39): read back, printed with the defaults, every problem listed
+// (an S-44 order pitmap does not know, control characters, more lines than a header field
+// holds, over-long values), and what the products say from it (BuildProductMetadata,
+// summary.json's schema: every text field a string, EPSG codes int or null).
+TEST_F(Config, MetadataSectionIsReadValidatedAndWritten) {
+    const auto r = Load(
+        "metadata:\n  project: Bejanca 2026\n  client: Mina\n  site: Bejanca\n"
+        "  survey_id: BJ-7\n  surveyor: A. Surveyor\n  organisation: Pit Survey\n"
+        "  s44_order_target: special\n  notes: \"line 1\\nline 2\"\n");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->metadata.project, "Bejanca 2026");
+    EXPECT_EQ(r->metadata.site, "Bejanca");
+    EXPECT_EQ(r->metadata.s44_order_target, "special");
+    EXPECT_EQ(r->metadata.notes, "line 1\nline 2");
+    const auto back = Load(ConfigYaml(*r));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(Fingerprint(*back), Fingerprint(*r));
+    EXPECT_NE(DefaultsYaml().find("metadata:\n  project: \"\""), std::string::npos)
+        << DefaultsYaml();
+
+    const auto bad = Load(
+        "metadata:\n  s44_order_target: 3a\n  project: \"a\\tb\"\n"
+        "  site: \"two\\nlines\"\n  client: \"" +
+        std::string(kMaxMetadataChars + 1, 'x') + "\"\n  owner: me\n");
+    ASSERT_FALSE(bad.ok());
+    for (const char* expected : {"metadata.s44_order_target \"3a\" is not an IHO S-44 order",
+                                 "metadata.project must be one line without control characters",
+                                 "metadata.site must be one line",
+                                 "metadata.client is 501 characters, more than 500",
+                                 "metadata.owner"}) {
+        EXPECT_NE(bad.error().message.find(expected), std::string::npos) << expected << "\n"
+                                                                         << bad.error().message;
+    }
+
+    VehicleDescription v;
+    v.name = "asv-1";
+    v.sonar_model = "Imagenex Delta T";
+    v.ins_model = "NovAtel SPAN";
+    hydro::DatumModel egm;
+    egm.crs_name = "EGM96 height";
+    egm.vertical_epsg = 5773;
+    egm.description = "EGM96";
+    MetadataInputs in;
+    in.vehicle = &v;
+    // 2026-06-15T09:00:00 UTC in GPS microseconds (18 leap seconds).
+    in.first_ping_utime_gps = 1'465'549'218LL * 1'000'000;
+    in.last_ping_utime_gps = *in.first_ping_utime_gps + 3'661'500'000LL;
+    in.gps_minus_utc_s = 18;
+    in.processed_unix_us = 1'800'000'000LL * 1'000'000;
+    in.utm_zone = 29;
+    in.datum = &egm;
+    const ProductMetadata m = BuildProductMetadata(r->metadata, in);
+    const nlohmann::json j = MetadataJson(m);
+    EXPECT_EQ(j["vessel"], "asv-1") << "vessel unset: the vehicle's name";
+    EXPECT_EQ(j["survey_start_utc"], "2026-06-15T09:00:00Z");
+    EXPECT_EQ(j["survey_end_utc"], "2026-06-15T10:01:01Z");
+    EXPECT_EQ(j["processed_utc"], "2027-01-15T08:00:00Z");
+    ASSERT_EQ(j["equipment"].size(), 2u);
+    EXPECT_EQ(j["equipment"][0]["role"], "multibeam");
+    EXPECT_EQ(j["equipment"][1]["model"], "NovAtel SPAN");
+    EXPECT_EQ(j["horizontal_crs"]["epsg"], 32629);
+    EXPECT_EQ(j["vertical_crs"]["epsg"], 5773);
+    EXPECT_EQ(j["s44_order_target"], "special");
+    EXPECT_EQ(j["software"].get<std::string>().rfind("pitmap ", 0), 0u);
+    // Unset: "" for text, null for codes and the order; no key absent.
+    const nlohmann::json e = MetadataJson(BuildProductMetadata(SurveyMetadataConfig{}, {}));
+    for (const char* k : {"project",
+                          "client",
+                          "site",
+                          "survey_id",
+                          "surveyor",
+                          "organisation",
+                          "vessel",
+                          "notes",
+                          "survey_start_utc",
+                          "survey_end_utc",
+                          "processed_utc"}) {
+        ASSERT_TRUE(e.contains(k)) << k;
+        EXPECT_EQ(e[k], "") << k;
+    }
+    EXPECT_TRUE(e["horizontal_crs"]["epsg"].is_null());
+    EXPECT_TRUE(e["vertical_crs"]["epsg"].is_null());
+    EXPECT_EQ(e["vertical_crs"]["name"], "WGS 84 ellipsoidal height");
+    EXPECT_TRUE(e["s44_order_target"].is_null());
+    EXPECT_TRUE(e["equipment"].empty());
 }
 
 }  // namespace

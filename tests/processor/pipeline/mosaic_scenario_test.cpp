@@ -122,7 +122,7 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
     const std::string page((std::istreambuf_iterator<char>(html)),
                            std::istreambuf_iterator<char>());
     EXPECT_NE(page.find("Backscatter mosaic"), std::string::npos);
-    EXPECT_NE(page.find("alt=\"backscatter mosaic\""), std::string::npos);
+    EXPECT_NE(page.find("alt=\"Seabed backscatter, corrected"), std::string::npos);
 
     // 83P v1.00: no intensities. The run goes through; the mosaic says why it is not there.
     out.clear();

@@ -233,6 +233,7 @@ TEST_F(SurveyFile, RoundTripsEveryPart) {
     EXPECT_EQ(r->refraction.selection, svp::CastSelection::kNearestInTime);
     EXPECT_DOUBLE_EQ(r->refraction.ins_height_above_waterline_m, 0.4);
     EXPECT_EQ(r->calibration, CalibrationState::kNotRun);
+    EXPECT_TRUE(std::isnan(r->boresight_sd_deg[0])) << "no calibration, no stated sigma";
     ASSERT_TRUE(r->has(TrajectoryVersion::kIns));
     EXPECT_FALSE(r->has(TrajectoryVersion::kSlam));
     EXPECT_EQ(r->latest(), TrajectoryVersion::kIns);
@@ -283,6 +284,21 @@ TEST_F(SurveyFile, EveryTrajectoryVersionRoundTrips) {
         }
     }
     EXPECT_EQ(back->latest(), TrajectoryVersion::kSlam);
+}
+
+// The calibrated boresight's sigma is part of the state (boresight.json is written from it),
+// and a reset of the calibration drops it.
+TEST_F(SurveyFile, TheBoresightSigmaRoundTripsAndGoesWithTheCalibration) {
+    SurveyModel m = SmallSurvey();
+    m.calibration = CalibrationState::kCalibrated;
+    m.boresight_sd_deg = {0.011, 0.012, 0.03};
+    ASSERT_TRUE(SaveSurvey(path_, m));
+    const auto r = LoadSurvey(path_, LoadParts::kState);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->boresight_sd_deg, m.boresight_sd_deg);
+    SurveyModel again = *r;
+    EXPECT_TRUE(again.ResetCalibration());
+    EXPECT_TRUE(std::isnan(again.boresight_sd_deg[2]));
 }
 
 TEST_F(SurveyFile, TheStateLoadsWithoutTheBigSections) {

@@ -10,7 +10,8 @@
 //   - `pitmap georef` of the typical level shows the damage issue 35 measured: points RMS
 //     against the truth clearly worse than the clean survey's, nearly every artifact sounding
 //     in points.ply. The figures of the uncleaned processor are printed and recorded so that
-//     the cleaning can tighten the bounds; they are in docs/decisions/010-echo-artifacts-before-cleaning.md.
+//     the cleaning can tighten the bounds; they are in
+//     docs/decisions/010-echo-artifacts-before-cleaning.md.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

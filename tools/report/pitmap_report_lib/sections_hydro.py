@@ -209,7 +209,11 @@ def mosaic(p):
         im = a.imshow(v, extent=ext, cmap="gray", vmin=lo, vmax=hi, interpolation="nearest")
         a.set_title(title, fontsize=10)
         add_furniture(a, ext, crs)
-        fig.colorbar(im, ax=a, shrink=0.8, pad=0.01).set_label("dB (relative)")
+        # The reference the mosaic states in full (pitmap_db_reference, mosaic_stage.cpp), in
+        # short; an older mosaic said only "relative".
+        fig.colorbar(im, ax=a, shrink=0.8, pad=0.01).set_label(
+            "dB re 1 unit of the 83P intensity (not calibrated)"
+            if "pitmap_db_reference" in tif["metadata"] else "dB (relative)")
         figures.append(p.figure(fig, fig_name, title))
     fig, a = plt.subplots(figsize=(6, 4), layout="constrained")
     curve = np.asarray(m.get("angular_response_deg_db_count") or [[0, 0, 0]], dtype=float)

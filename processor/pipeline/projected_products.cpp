@@ -1,0 +1,121 @@
+// SPDX-License-Identifier: MIT
+// The georeferenced 3D products (issue 39, docs/georeferencing.md): the soundings and the mesh
+// in the products' projected CRS (UTM + the vertical datum), beside the local ENU files the
+// viewer reads.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+
+#include "common/geodesy.hpp"
+#include "processor/io/geoid.hpp"
+#include "processor/io/products.hpp"
+#include "processor/io/projected_points.hpp"
+#include "processor/mesh/export.hpp"
+#include "processor/pipeline/survey.hpp"
+
+namespace pitmap::proc::pipeline::detail {
+
+namespace {
+
+// "WGS 84 / UTM zone 29N + EGM96 height"
+std::string CrsName(int zone, bool northern, const hydro::DatumModel& datum) {
+    return "WGS 84 / UTM zone " + std::to_string(zone) + (northern ? "N" : "S") + " + " +
+           datum.crs_name;
+}
+
+}  // namespace
+
+Status WriteProjectedPoints(const std::string& dir,
+                            const georef::GeorefResult& geo,
+                            const georef::UtmPoints& utm,
+                            const georef::GeorefResult* rejected,
+                            const hydro::DatumModel& datum,
+                            const ProductMetadata& meta,
+                            const std::string& run_id) {
+    io::ProjectedPoints p;
+    p.crs_name = CrsName(utm.zone, utm.northern, datum);
+    p.horizontal_epsg = utm.epsg;
+    p.vertical_epsg = datum.vertical_epsg;
+    const auto D = [&datum](std::uint32_t ping) {
+        return ping < datum.datum_height_m.size() ? datum.datum_height_m[ping] : 0.0;
+    };
+    const auto add =
+        [&](const georef::GeorefResult& g, const std::vector<Eigen::Vector3d>& enh, bool accepted) {
+            for (std::size_t j = 0; j < enh.size(); ++j) {
+                const std::uint32_t k = g.points.ping[j];
+                p.positions.push_back(enh[j] - Eigen::Vector3d(0, 0, D(k)));
+                p.gps_time_s.push_back(static_cast<double>(g.pings[k].utime_gps) * 1e-6);
+                p.status.push_back(accepted ? 0 : g.points.status[j]);
+            }
+        };
+    add(geo, utm.easting_northing_height, true);
+    if (rejected != nullptr && rejected->points.size() > 0 &&
+        rejected->points.status.size() == rejected->points.size()) {
+        auto r = georef::ToUtm(*rejected);
+        if (!r)
+            return Error{dir +
+                         "/points_utm.ply: UTM of the rejected soundings: " + r.error().message};
+        add(*rejected, r->easting_northing_height, false);
+    }
+    if (auto w = io::WriteProjectedPointsPly(dir + "/points_utm.ply", p, &meta, run_id); !w) {
+        return w;
+    }
+    return io::WritePrj(dir + "/points_utm.prj",
+                        io::LasWkt(utm.zone, utm.northern, datum.VerticalWkt()));
+}
+
+Expected<mesh::ProjectedMesh> ProjectMesh(const mesh::ColouredMesh& m,
+                                          const Geodetic& origin,
+                                          const hydro::DatumModel& datum,
+                                          const PipelineConfig& config) {
+    auto zone = UtmFromGeodetic(origin);
+    if (!zone || zone->zone < 1) return Error{"mesh: the world origin has no UTM zone"};
+    const int z = zone->zone;
+    const bool north = zone->northern;
+    const LocalTangentFrame world(origin);
+    const std::size_t n = m.vertices.size();
+    std::vector<Geodetic> geo(n);
+    mesh::ProjectedMesh p;
+    p.positions.resize(n);
+    std::vector<char> failed(n, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                              geo[i] = world.FromEnu(m.vertices[i].cast<double>());
+                              const auto u = UtmFromGeodetic(geo[i], z);
+                              if (!u) {
+                                  failed[i] = 1;
+                                  continue;
+                              }
+                              p.positions[i] = {u->easting_m, u->northing_m, u->height_m};
+                          }
+                      });
+    for (std::size_t i = 0; i < n; ++i) {
+        if (failed[i]) return Error{"mesh: vertex " + std::to_string(i) + " has no UTM position"};
+    }
+    // The vertical datum: the geoid where each vertex lies; a water level (or the ellipsoid)
+    // as its mean over the survey (a mesh vertex has no time: a file's levels that change
+    // during the survey move the points' and DEM's heights by their change, not the mesh's).
+    if (datum.datum == hydro::VerticalDatum::kGeoid) {
+        const hydro::VerticalDatumConfig& vc = config.grid.vertical;
+        const hydro::GeoidCrs* g = hydro::FindGeoidCrs(datum.vertical_epsg);
+        const std::string grid =
+            vc.geoid_grid.empty() && g != nullptr ? g->default_grid : vc.geoid_grid;
+        auto geoid = io::GeoidGrid::Open(grid);
+        if (!geoid) return Error{"mesh: vertical datum: " + geoid.error().message};
+        auto und = geoid->Undulations(geo);
+        if (!und) return Error{"mesh: vertical datum: " + und.error().message};
+        for (std::size_t i = 0; i < n; ++i) p.positions[i].z() -= (*und)[i];
+    } else {
+        for (auto& x : p.positions) x.z() -= datum.mean_datum_height_m;
+    }
+    mesh::SetOffset(p);
+    p.crs_name = CrsName(z, north, datum);
+    p.crs_wkt = io::LasWkt(z, north, datum.VerticalWkt());
+    p.horizontal_epsg = UtmEpsgCode(z, north);
+    p.vertical_epsg = datum.vertical_epsg;
+    return p;
+}
+
+}  // namespace pitmap::proc::pipeline::detail
