@@ -437,5 +437,70 @@ TEST(Slam, TimeBinsInterpolateSlicePoses) {
     EXPECT_LT(Ate(r.trajectory, sv.truth), 0.5 * Ate(Initial(sv.slices), sv.truth)) << r.message;
 }
 
+// The posterior (SlamPosterior): one finite sigma per slice; the formal one (no variance
+// factor) never exceeds what the absolute INS terms alone allow (terms only add information),
+// is far below the INS's sigma in an outage that the overlapping passes constrain, and the
+// cluster-robust one is never below the formal one.
+TEST(Slam, PosteriorIsBoundedByThePriorsAndShrinksAnOutage) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) {
+        const double t = s.gps_time_s - 1000.0;
+        s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+        if (t >= 60.0 && t < 96.0) s.pose_sigma.tail<3>().setConstant(1.5);
+    }
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_cluster_robust = false;
+    cfg.posterior_variance_factor = false;
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message << " / " << r.message;
+    ASSERT_EQ(r.posterior.slice_sigma.size(), r.trajectory.size());
+    EXPECT_GT(r.posterior.num_pairs, 100u);
+    EXPECT_TRUE(std::isfinite(r.posterior.variance_factor));
+    EXPECT_GT(r.posterior.variance_factor, 0.0);
+    EXPECT_GT(r.posterior.observations, r.posterior.unknowns);
+    // The absolute position term's sigma where GNSS is good: absolute_sigma_scale x the floor.
+    const double abs_sigma = cfg.absolute_sigma_scale * 0.02;
+    double outage_max = 0;
+    std::size_t outage = 0;
+    for (std::size_t s = 0; s < r.trajectory.size(); ++s) {
+        const Vector6d& sig = r.posterior.slice_sigma[s];
+        for (int c = 0; c < 6; ++c) {
+            ASSERT_TRUE(std::isfinite(sig(c)) && sig(c) > 0) << s << " " << c;
+        }
+        const double t = r.trajectory[s].gps_time_s - 1000.0;
+        if (t < 55.0) {  // well before the outage (the recovery after it is smoothed)
+            for (int c = 3; c < 6; ++c) EXPECT_LE(sig(c), abs_sigma * 1.001) << s << " " << c;
+        }
+        if (t >= 65.0 && t < 91.0) {
+            ++outage;
+            outage_max = std::max(outage_max, std::max(sig(3), sig(4)));
+        }
+    }
+    ASSERT_GT(outage, 50u);
+    EXPECT_LT(outage_max, 0.3) << "the passes constrain the outage to well below 1.5 m";
+
+    // The cluster-robust sandwich adds H^-1 M H^-1 (positive semi-definite) to the formal one.
+    SlamConfig robust = cfg;
+    robust.posterior_cluster_robust = true;
+    const SlamResult rr = RunSlam(sv.slices, robust);
+    ASSERT_TRUE(rr.posterior.computed) << rr.posterior.message;
+    EXPECT_GT(rr.posterior.clusters, 1u);
+    ASSERT_EQ(rr.posterior.slice_sigma.size(), r.posterior.slice_sigma.size());
+    for (std::size_t s = 0; s < r.trajectory.size(); ++s) {
+        for (int c = 0; c < 6; ++c) {
+            EXPECT_GE(rr.posterior.slice_sigma[s](c), r.posterior.slice_sigma[s](c) * (1 - 1e-6))
+                << s << " " << c;
+        }
+    }
+
+    SlamConfig off = cfg;
+    off.posterior = false;
+    EXPECT_FALSE(RunSlam(sv.slices, off).posterior.computed);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::slam
