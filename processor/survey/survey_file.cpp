@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 
+#include <array>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -440,6 +441,33 @@ Status TrajectoryFromPayload(const std::vector<std::uint8_t>& bytes,
     return Ok{};
 }
 
+using DiskSigma = std::array<double, 6>;
+constexpr const char* kSlamSigmaTag = "traj.slam.sigma";
+
+Payload SigmaPayload(const PingTrajectory& t) {
+    Payload p;
+    p.Vec(t.sigma);
+    return p;
+}
+
+// Into t.sigma; its count is checked against the poses once every section is read.
+Status SigmaFromPayload(const std::vector<std::uint8_t>& bytes, PingTrajectory& t) {
+    Cursor in(bytes, kSlamSigmaTag);
+    std::vector<DiskSigma> d;
+    in.Vec(d, "sigmas");
+    if (!in.Finish()) return Error{in.error};
+    for (const DiskSigma& s : d) {
+        for (double v : s) {
+            if (!(std::isnan(v) || (std::isfinite(v) && v >= 0))) {
+                return Error{std::string("section ") + kSlamSigmaTag +
+                             ": a sigma is negative or infinite"};
+            }
+        }
+    }
+    t.sigma = std::move(d);
+    return Ok{};
+}
+
 std::uint64_t FileSize(std::FILE* f) {
     struct stat st {};
     if (fstat(fileno(f), &st) != 0 || st.st_size < 0) return 0;
@@ -477,6 +505,10 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
     for (int v = 0; v < kNumTrajectoryVersions; ++v) {
         if (!m.trajectories[v].empty())
             sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
+    }
+    if (const PingTrajectory& t = m.trajectory(TrajectoryVersion::kSlam);
+        !t.empty() && !t.sigma.empty()) {
+        sections.emplace_back(kSlamSigmaTag, SigmaPayload(t));
     }
     const std::string partial = path + ".partial";
     std::FILE* f = std::fopen(partial.c_str(), "wb");
@@ -534,7 +566,7 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
     std::uint64_t pos = kHeadBytes;
     SurveyModel m;
     bool seen_state = false, seen_ingest = false, seen_intensity = false, seen_angles = false,
-         seen_cleaning = false;
+         seen_cleaning = false, seen_sigma = false;
     bool seen_trajectory[kNumTrajectoryVersions] = {};
     auto corrupt = [&](const std::string& what) {
         return Error{path + ": corrupt survey file: " + what + rerun};
@@ -558,13 +590,14 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
         for (int v = 0; v < kNumTrajectoryVersions; ++v) {
             if (tag == kTrajectoryTags[v]) trajectory = v;
         }
-        bool* seen = tag == "state"                       ? &seen_state
-                     : tag == "ingest"                    ? &seen_ingest
-                     : tag == "intensity" && format >= 2  ? &seen_intensity
-                     : tag == "beam_angle" && format >= 3 ? &seen_angles
-                     : tag == "cleaning" && format >= 4   ? &seen_cleaning
-                     : trajectory >= 0                    ? &seen_trajectory[trajectory]
-                                                          : nullptr;
+        bool* seen = tag == "state"                        ? &seen_state
+                     : tag == "ingest"                     ? &seen_ingest
+                     : tag == "intensity" && format >= 2   ? &seen_intensity
+                     : tag == "beam_angle" && format >= 3  ? &seen_angles
+                     : tag == "cleaning" && format >= 4    ? &seen_cleaning
+                     : tag == kSlamSigmaTag && format >= 6 ? &seen_sigma
+                     : trajectory >= 0                     ? &seen_trajectory[trajectory]
+                                                           : nullptr;
         if (seen == nullptr) return corrupt("unknown section \"" + tag + "\"");
         if (*seen) return corrupt("section " + tag + " twice");
         *seen = true;
@@ -593,6 +626,8 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
             st = BeamAngleFromPayload(payload, m.ingest.pings);
         } else if (tag == "cleaning") {
             st = CleaningFromPayload(payload, size / sizeof(std::uint32_t), m.flags.cleaning);
+        } else if (tag == kSlamSigmaTag) {
+            st = SigmaFromPayload(payload, m.trajectory(TrajectoryVersion::kSlam));
         } else {
             st = TrajectoryFromPayload(payload, tag, m.trajectories[trajectory]);
         }
@@ -625,6 +660,15 @@ Expected<SurveyModel> LoadSurvey(const std::string& path, LoadParts parts) {
                                std::to_string(m.trajectories[v].T_world_vehicle.size()) +
                                " poses for " + std::to_string(m.ingest.pings.pings.size()) +
                                " pings");
+            }
+        }
+        if (seen_sigma) {
+            const PingTrajectory& t = m.trajectory(TrajectoryVersion::kSlam);
+            if (t.sigma.size() != t.T_world_vehicle.size()) {
+                return corrupt(std::string("section ") + kSlamSigmaTag + " has " +
+                               std::to_string(t.sigma.size()) + " sigmas for " +
+                               std::to_string(t.T_world_vehicle.size()) + " poses of " +
+                               kTrajectoryTags[static_cast<int>(TrajectoryVersion::kSlam)]);
             }
         }
     }
