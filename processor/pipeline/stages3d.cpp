@@ -27,6 +27,7 @@
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 #include "processor/survey/survey_file.hpp"
@@ -356,7 +357,17 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+    s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma =
+        SlamPingSigma(s.geo, set, r, s.model.ingest.pings.pings.size());
     if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
+    if (auto w = WriteTrajectorySigmaCsv(P + "/trajectory_sigma.csv",
+                                         s.geo,
+                                         before.T_world_vehicle,
+                                         s.model,
+                                         sc.sigma_max_age_s,
+                                         fallback);
+        !w)
+        return w;
 
     json st = {{"termination", slam::ToString(r.termination)},
                {"message", r.message},
@@ -378,6 +389,11 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                {"position_change_rms_m", change_rms},
                {"position_change_max_m", change_max},
                {"ins_check", ins_check},
+               {"posterior",
+                PosteriorJson(s.geo,
+                              s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma,
+                              r,
+                              kPosteriorWindowS)},
                {"consistency_windows", windows_json},
                {"correspondence", ToString(config.slam.correspondence)},
                {"robust_kernel", ToString(config.slam.robust_kernel)},
