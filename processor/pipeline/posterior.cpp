@@ -90,7 +90,7 @@ json PosteriorJson(const georef::GeorefResult& geo,
     const slam::SlamPosterior& p = r.posterior;
     json out = {{"computed", p.computed}};
     if (!p.computed) {
-        out["message"] = p.message;
+        out["message"] = p.message.empty() ? "not computed (slam.posterior is off)" : p.message;
         return out;
     }
     const double slam_s = r.timings.total_s;
