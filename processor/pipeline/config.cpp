@@ -214,6 +214,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("posterior_cluster_robust",
       c.posterior_cluster_robust,
       "sandwich covariance, pairs clustered by section pair (else the formal H^-1)");
+    v("posterior_reference_sigma",
+      c.posterior_reference_sigma,
+      "add the INS's steady sigma (the reference SLAM is tied to) to the posterior");
     v("posterior_variance_factor",
       c.posterior_variance_factor,
       "formal H^-1 times sigma0^2 (without the sandwich)");

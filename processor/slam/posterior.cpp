@@ -215,6 +215,14 @@ void ComputePosterior(const Input& in,
             const Matrix6d AXBt = A * X * B.transpose();
             C = A * Ckk[k0] * A.transpose() + B * Ckk[k1] * B.transpose() + AXBt + AXBt.transpose();
         }
+        if (cfg.posterior_reference_sigma) {
+            // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
+            // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
+            for (int c = 0; c < 3; ++c) {
+                C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
+                C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c);
+            }
+        }
         Vector6d sig;
         sig.head<3>() = RollPitchYawSigma(T[s].linear(), C.topLeftCorner<3, 3>());
         sig.tail<3>() = C.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();

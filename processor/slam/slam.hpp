@@ -156,6 +156,9 @@ struct SlamConfig {
     // from their residuals, clustered by section pair, instead of from their assumed weights
     // (the formal H^-1 treats ~10^5 correlated pairs as independent: sub-mm sigmas).
     bool posterior_cluster_robust = true;
+    // Add the INS's steady sigma (the survey's smallest, per component) to every slice's
+    // posterior: the reference SLAM is anchored to, common to the passes it aligns.
+    bool posterior_reference_sigma = true;
     // Without the cluster-robust part: scale the formal covariance H^-1 by the a-posteriori
     // variance factor sigma0^2 (see SlamPosterior); false = the formal covariance as it is.
     bool posterior_variance_factor = true;

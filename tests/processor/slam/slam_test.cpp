@@ -454,6 +454,7 @@ TEST(Slam, PosteriorIsBoundedByThePriorsAndShrinksAnOutage) {
     cfg.coarse_search_m = 0;
     cfg.posterior = true;
     cfg.posterior_cluster_robust = false;
+    cfg.posterior_reference_sigma = false;
     cfg.posterior_variance_factor = false;
     const SlamResult r = RunSlam(sv.slices, cfg);
     ASSERT_TRUE(r.posterior.computed) << r.posterior.message << " / " << r.message;
