@@ -503,5 +503,31 @@ TEST(Slam, PosteriorIsBoundedByThePriorsAndShrinksAnOutage) {
     EXPECT_FALSE(RunSlam(sv.slices, off).posterior.computed);
 }
 
+// Only the absolute terms know where the survey is: the pair, relative-motion and drift-
+// smoothness terms are all relative, so the posterior of a common east offset is at least the
+// absolute terms' sigma over sqrt(poses). (The drift-smoothness term's Jacobian had the sign of
+// its first pose wrong, which anchored every pose to about 1 mm: the posterior stayed near 1 mm
+// whatever the absolute terms' weight.)
+TEST(Slam, OnlyTheAbsoluteTermsAnchorTheSurvey) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_cluster_robust = false;
+    cfg.posterior_reference_sigma = false;
+    cfg.posterior_variance_factor = false;
+    cfg.absolute_sigma_scale = 40.0;  // 0.8 m a pose
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message << " / " << r.message;
+    std::vector<double> east;
+    for (const Vector6d& sg : r.posterior.slice_sigma) east.push_back(sg(3));
+    std::sort(east.begin(), east.end());
+    const double bound = 0.8 / std::sqrt(static_cast<double>(r.num_poses));
+    EXPECT_GT(east.front(), 0.95 * bound);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::slam
