@@ -111,6 +111,12 @@ std::vector<std::string> TpuConfig::Validate() const {
         out.push_back("tpu: sound_speed_mps must be within 1300..1700");
     }
     if (num_threads < 0) out.push_back("tpu: num_threads must be >= 0 (0 = all cores)");
+    for (const double b : boresight_sigma_rpy_deg) {
+        if (!(std::isnan(b) || (std::isfinite(b) && b >= 0))) {
+            out.push_back("tpu: boresight_sigma_rpy_deg must be NaN (the model's) or >= 0");
+            break;
+        }
+    }
     return out;
 }
 
@@ -159,10 +165,14 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
     const Eigen::Vector3d a_roll = g.R_world_vehicle * Eigen::Vector3d::UnitX();
     const Eigen::Vector3d a_pitch = M * a_pitch_ned;
     const Eigen::Vector3d a_yaw = M * Eigen::Vector3d::UnitZ();
-    const double bore2 = Square(frames::DegToRad(m.boresight_sigma_deg));
-    at(TpuTerm::kAttitude) = Outer(a_roll.cross(d), Square(sigma.attitude_rpy_rad[0]) + bore2) +
-                             Outer(a_pitch.cross(d), Square(sigma.attitude_rpy_rad[1]) + bore2) +
-                             Outer(a_yaw.cross(d), Square(sigma.attitude_rpy_rad[2]) + bore2);
+    double bore2[3];
+    for (int k = 0; k < 3; ++k) {
+        const double cal = config.boresight_sigma_rpy_deg[static_cast<std::size_t>(k)];
+        bore2[k] = Square(frames::DegToRad(std::isnan(cal) ? m.boresight_sigma_deg : cal));
+    }
+    at(TpuTerm::kAttitude) = Outer(a_roll.cross(d), Square(sigma.attitude_rpy_rad[0]) + bore2[0]) +
+                             Outer(a_pitch.cross(d), Square(sigma.attitude_rpy_rad[1]) + bore2[1]) +
+                             Outer(a_yaw.cross(d), Square(sigma.attitude_rpy_rad[2]) + bore2[2]);
 
     Eigen::Matrix3d pos = Eigen::Matrix3d::Identity() * Square(m.position_noise_m);
     for (int i = 0; i < 3; ++i) pos(i, i) += Square(sigma.position_enu_m[i]);

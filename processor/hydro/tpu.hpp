@@ -19,7 +19,8 @@
 //                 speed: Snell at the face, d theta = tan(theta) dc / c)
 //   attitude      J_k = a_k x d for the rotation axes a_roll = R e_x, a_pitch = M Rz(yaw) e_y,
 //                 a_yaw = M e_z (M: NED -> ENU), since dR/dk = [a_k]x R for R = M Rz Ry Rx;
-//                 sigma_k^2 = INS sigma_k^2 + boresight sigma^2
+//                 sigma_k^2 = pose sigma_k^2 (the INS's, or SLAM's posterior) + boresight
+//                 sigma_k^2 (the calibrated one per axis when known, else the model's)
 //   position      diag(sigma_E^2, sigma_N^2, sigma_U^2) (INS) + position_noise^2 I
 //   heave         e_z e_z^T sigma_heave^2
 //   lever arm     R sigma_L^2 I R^T = sigma_L^2 I
@@ -33,6 +34,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -67,8 +69,13 @@ PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& stddevs,
                      bool* from_ins = nullptr);
 
 struct TpuConfig {
-    SensorErrorModel model;           // 1-sigma sensor errors (vehicle.yaml `uncertainty:`)
-    double clock_sigma_s = 0.0;       // the sonar clock's remaining sigma (summary.json)
+    SensorErrorModel model;      // 1-sigma sensor errors (vehicle.yaml `uncertainty:`)
+    double clock_sigma_s = 0.0;  // the sonar clock's remaining sigma (summary.json)
+    // The calibrated boresight's 1-sigma about roll, pitch, yaw (deg), replacing the model's
+    // a-priori boresight_sigma_deg (one or the other, never both); NaN = the model's.
+    std::array<double, 3> boresight_sigma_rpy_deg = {std::numeric_limits<double>::quiet_NaN(),
+                                                     std::numeric_limits<double>::quiet_NaN(),
+                                                     std::numeric_limits<double>::quiet_NaN()};
     double sound_speed_mps = 1500.0;  // nominal speed for the sound-speed terms
     int num_threads = 0;              // 0 = all cores (TBB)
 

@@ -209,6 +209,19 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
       c.score_tolerance,
       "a gain counts above this fraction; the last iterate is kept unless this much worse");
     v("num_threads", c.num_threads, "0 = all cores");
+    v("posterior",
+      c.posterior,
+      "pose sigma per ping from the normal equations (docs/uncertainty.md: not yet honest)");
+    v("posterior_cluster_robust",
+      c.posterior_cluster_robust,
+      "sandwich covariance, pairs clustered by section pair (else the formal H^-1)");
+    v("posterior_reference_sigma",
+      c.posterior_reference_sigma,
+      "add the INS's steady sigma (the reference SLAM is tied to) to the posterior");
+    v("posterior_variance_factor",
+      c.posterior_variance_factor,
+      "formal H^-1 times sigma0^2 (without the sandwich)");
+    v("posterior_batch_nodes", c.posterior_batch_nodes, "nodes per CHOLMOD solve (6 columns each)");
     v("sigma_max_age_s", s.sigma_max_age_s, "INS stddev records further from a ping are unused, s");
 }
 
@@ -332,6 +345,9 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("num_threads", q.num_threads, "0 = all cores");
     v("tpu_sound_speed_mps", c.tpu_sound_speed_mps, "nominal sound speed of the TPU terms");
     v("ins_sigma_max_age_s", c.ins_sigma_max_age_s, "INSSTDEV records used within this, s");
+    v("tpu_slam_posterior",
+      c.tpu_slam_posterior,
+      "TPU pose sigma from SLAM's posterior where SLAM's trajectory is used (false: the INS's)");
     v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
     v("write_bag", c.write_bag, "P/dem.bag");
     v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");

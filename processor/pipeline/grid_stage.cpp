@@ -21,6 +21,7 @@
 #include "processor/io/products.hpp"
 #include "processor/io/water_level.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -444,6 +445,9 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
     tcfg.num_threads = gc.cube.num_threads;
     tcfg.clock_sigma_s = std::abs(s.model.clock.sigma_s());
+    if (s.model.calibration == survey::CalibrationState::kCalibrated) {
+        tcfg.boresight_sigma_rpy_deg = s.model.boresight_sd_deg;  // NaN where unknown
+    }
     if (auto p = tcfg.Validate(); !p.empty()) {
         return Error{"grid: invalid sensor error model (" + model_source + "):\n" +
                      FormatProblems(p)};
@@ -458,12 +462,29 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
         frames::DegToRad(m.heading_sigma_deg), m.position_sigma_h_m, m.position_sigma_h_m,
         m.position_sigma_v_m;
     std::vector<hydro::PingSigma> sig(s.geo.pings.size());
+    std::size_t from_slam = 0;
     for (std::size_t k = 0; k < sig.size(); ++k) {
-        const PoseSigma p = PoseSigmaAt(
+        PoseSigma p = PoseSigmaAt(
             s.model.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
+        bool slam = false;
+        if (gc.tpu_slam_posterior) p = ProcessingSigma(s.model, s.geo.pings[k], p, &slam);
+        from_slam += slam ? 1 : 0;
         sig[k].attitude_rpy_rad = p.head<3>();
         sig[k].position_enu_m = p.tail<3>();
     }
+    const auto bore = [&](std::size_t k) {  // the boresight sigma the TPU took, deg
+        const double b = tcfg.boresight_sigma_rpy_deg[k];
+        return std::isnan(b) ? m.boresight_sigma_deg : b;
+    };
+    const json pose_sigma = {
+        {"source", from_slam > 0 ? "slam_posterior" : "ins"},
+        {"pings_slam_posterior", from_slam},
+        {"pings", sig.size()},
+        {"boresight_sigma_deg", {bore(0), bore(1), bore(2)}},
+        {"boresight_sigma_source",
+         std::isnan(tcfg.boresight_sigma_rpy_deg[0]) ? "error_model" : "calibration"}};
+    log("grid: TPU pose sigma: " + std::to_string(from_slam) + " of " + std::to_string(sig.size()) +
+        " pings from SLAM's posterior, the rest the INS's");
     hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");
@@ -674,6 +695,8 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
             files.push_back(holiday_file);
         }
         s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
+        // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
+        s44_json["pose_sigma_source"] = pose_sigma["source"];
         CheckCrosslines(s, r44, tpu.median_tvu_95_m, config.quality, log);
         part.Lap(timings, "s44");
     }
@@ -695,6 +718,7 @@ Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                      {"median_thu_95_m", tpu.median_thu_95_m},
                      {"tvu_variance_share", shares},
                      {"clock_sigma_s", tcfg.clock_sigma_s},
+                     {"pose_sigma", pose_sigma},
                      {"resolution_m", g.resolution_m},
                      {"median_depth_m", cube.median_depth_m},
                      {"capture_distance_m", cube.capture_distance_m},

@@ -33,10 +33,14 @@ struct GridStageConfig {
     hydro::CubeConfig cube;             // CUBE parameters (resolution 0 = from the depth)
     double tpu_sound_speed_mps = 1500;  // nominal sound speed for the TPU's sound-speed terms
     double ins_sigma_max_age_s = 5.0;   // INSSTDEV records further from a ping are not used
-    bool write_geotiff = true;          // P/dem.tif
-    bool write_bag = true;              // P/dem.bag
-    bool write_sounding_tpu = false;    // P/soundings_tpu.ply (28 bytes a sounding)
-    bool write_point_tpu = true;        // points.ply / points.las again with THU, TVU (and datum)
+    // The TPU's pose sigma: SLAM's posterior (slam.posterior) where the soundings stand on the
+    // SLAM trajectory, else the INS's own; false = the INS's own everywhere. Off by default:
+    // the posterior does not yet contain the true error (docs/uncertainty.md).
+    bool tpu_slam_posterior = false;
+    bool write_geotiff = true;        // P/dem.tif
+    bool write_bag = true;            // P/dem.bag
+    bool write_sounding_tpu = false;  // P/soundings_tpu.ply (28 bytes a sounding)
+    bool write_point_tpu = true;      // points.ply / points.las again with THU, TVU (and datum)
     // The surface filter (issue 35): soundings off the CUBE surface's chosen hypothesis on
     // floors are rejected (grid_stage.cpp SurfaceFilter).
     bool surface_filter = true;

@@ -202,7 +202,7 @@ json SoundingsJson(const georef::StatusCounts& counts) {
 
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
     const std::vector<std::string> slam = {
-        "trajectory_initial.csv", "trajectory.csv", "points_initial.ply"};
+        "trajectory_initial.csv", "trajectory.csv", "trajectory_sigma.csv", "points_initial.ply"};
     const std::vector<std::string> grid = {"dem.tif",
                                            "dem.bag",
                                            "soundings_tpu.ply",

@@ -29,6 +29,7 @@
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/pipeline.hpp"
+#include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/pipeline/survey.hpp"
 #include "processor/survey/survey_file.hpp"
@@ -162,14 +163,19 @@ std::string WorstWindows(const json& windows, double expected_m) {
 namespace {
 
 // SLAM's input from the georeferenced survey, logged.
-SliceSet SlamSlices(const Survey& s, const SlamStageConfig& sc, const Log& log) {
+// The pose sigma where the INS reports none (slam_stage.fallback_*).
+PoseSigma FallbackSigma(const SlamStageConfig& sc) {
     PoseSigma fallback;
     fallback << frames::DegToRad(sc.fallback_attitude_deg[0]),
         frames::DegToRad(sc.fallback_attitude_deg[1]),
         frames::DegToRad(sc.fallback_attitude_deg[2]), sc.fallback_position_m[0],
         sc.fallback_position_m[1], sc.fallback_position_m[2];
-    SliceSet set =
-        MakeSlices(s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, fallback);
+    return fallback;
+}
+
+SliceSet SlamSlices(const Survey& s, const SlamStageConfig& sc, const Log& log) {
+    SliceSet set = MakeSlices(
+        s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, FallbackSigma(sc));
     log("slam: " + std::to_string(set.slices.size()) + " slices, " +
         std::to_string(PointCount(set)) + " points");
     return set;
@@ -382,8 +388,13 @@ void GateConsistency(Survey& s,
 }
 
 // The per-ping products of this stage, written once: before and after; `after` becomes the
-// survey's trajectory.
-Status WriteSlamProducts(Survey& s, const TimedPoses& before, const std::vector<Pose>& after) {
+// survey's trajectory, with SLAM's posterior sigma per ping when it was computed.
+Status WriteSlamProducts(Survey& s,
+                         const SliceSet& set,
+                         const slam::SlamResult& r,
+                         const SlamStageConfig& sc,
+                         const TimedPoses& before,
+                         const std::vector<Pose>& after) {
     const std::string& P = s.out_dir;
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
     if (auto w = io::WritePly(P + "/points_initial.ply", s.geo, nullptr, s.model.run_id); !w)
@@ -391,7 +402,15 @@ Status WriteSlamProducts(Survey& s, const TimedPoses& before, const std::vector<
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
-    return WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo));
+    s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma =
+        SlamPingSigma(s.geo, set, r, s.model.ingest.pings.pings.size());
+    if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
+    return WriteTrajectorySigmaCsv(P + "/trajectory_sigma.csv",
+                                   s.geo,
+                                   before.T_world_vehicle,
+                                   s.model,
+                                   sc.sigma_max_age_s,
+                                   FallbackSigma(sc));
 }
 
 // summary.json's "slam": SLAM's result, the checks' figures and the coarse search's sections
@@ -402,6 +421,7 @@ json SlamSummary(const slam::SlamResult& r,
                  double expected_consistency,
                  std::pair<double, double> change,
                  json ins_check,
+                 json posterior,
                  json windows) {
     json st = {{"termination", slam::ToString(r.termination)},
                {"message", r.message},
@@ -423,6 +443,7 @@ json SlamSummary(const slam::SlamResult& r,
                {"position_change_rms_m", change.first},
                {"position_change_max_m", change.second},
                {"ins_check", std::move(ins_check)},
+               {"posterior", std::move(posterior)},
                {"consistency_windows", std::move(windows)},
                {"correspondence", ToString(cfg.correspondence)},
                {"robust_kernel", ToString(cfg.robust_kernel)},
@@ -488,21 +509,26 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
                  log);
     }
 
-    if (auto w = WriteSlamProducts(s, before, after); !w) return w;
+    if (auto w = WriteSlamProducts(s, set, r, config.slam_stage, before, after); !w) return w;
     log("slam: trajectory moved by " + Fixed(change.first, 3) + " m RMS, " +
         Fixed(change.second, 3) + " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) +
         " -> " + Fixed(r.final_pair_score_m, 4) + " m, consistency " +
         Fixed(r.initial_consistency_m, 4) + " -> " + Fixed(r.final_consistency_m, 4) + " m");
-    RecordStage(s.summary,
-                Stage::kSlam,
-                SlamSummary(r,
-                            set,
-                            config.slam,
-                            expected_consistency,
-                            change,
-                            std::move(ins_check),
-                            std::move(windows_json)),
-                clock);
+    RecordStage(
+        s.summary,
+        Stage::kSlam,
+        SlamSummary(r,
+                    set,
+                    config.slam,
+                    expected_consistency,
+                    change,
+                    std::move(ins_check),
+                    PosteriorJson(s.geo,
+                                  s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma,
+                                  r,
+                                  kPosteriorWindowS),
+                    std::move(windows_json)),
+        clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};

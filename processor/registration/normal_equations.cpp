@@ -3,6 +3,7 @@
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
+#include <algorithm>
 
 namespace pitmap::proc::reg {
 
@@ -73,6 +74,52 @@ Eigen::MatrixXd DampedSolver<B>::InverseLeadingBlock(int k) {
     for (int i = 0; i < k; ++i) E(i, i) = 1.0;
     const Eigen::MatrixXd X = s.llt.solve(E);
     return X.topRows(k);
+}
+
+template <int B>
+Eigen::MatrixXd DampedSolver<B>::SolveMany(const Eigen::MatrixXd& R) {
+    Impl& s = *impl_;
+    if (!s.factorised || R.rows() != s.rhs.size()) return {};
+    Eigen::MatrixXd X = s.llt.solve(R);
+    if (s.llt.info() != Eigen::Success || !X.allFinite()) return {};
+    return X;
+}
+
+template <int B>
+bool DampedSolver<B>::InverseBlocks(const std::vector<std::size_t>& which,
+                                    int batch_blocks,
+                                    std::vector<Eigen::Matrix<double, B, B>>* diag,
+                                    std::vector<Eigen::Matrix<double, B, B>>* next) {
+    Impl& s = *impl_;
+    const auto dim = s.rhs.size();
+    const auto num_blocks = static_cast<std::size_t>(dim / B);
+    if (!s.factorised) return false;
+    for (const std::size_t b : which) {
+        if (b >= num_blocks) return false;
+    }
+    diag->assign(which.size(), Eigen::Matrix<double, B, B>::Zero());
+    next->assign(which.size(), Eigen::Matrix<double, B, B>::Zero());
+    const std::size_t batch = static_cast<std::size_t>(std::max(1, batch_blocks));
+    for (std::size_t first = 0; first < which.size(); first += batch) {
+        const std::size_t count = std::min(batch, which.size() - first);
+        Eigen::MatrixXd E = Eigen::MatrixXd::Zero(dim, static_cast<Eigen::Index>(B * count));
+        for (std::size_t i = 0; i < count; ++i) {
+            const auto o = static_cast<Eigen::Index>(B * which[first + i]);
+            const auto c = static_cast<Eigen::Index>(B * i);
+            for (int u = 0; u < B; ++u) E(o + u, c + u) = 1.0;
+        }
+        const Eigen::MatrixXd X = s.llt.solve(E);
+        if (s.llt.info() != Eigen::Success || !X.allFinite()) return false;
+        for (std::size_t i = 0; i < count; ++i) {
+            const std::size_t b = which[first + i];
+            const auto o = static_cast<Eigen::Index>(B * b);
+            const auto c = static_cast<Eigen::Index>(B * i);
+            // X's columns are (A^-1)_{:,b}; A^-1 is symmetric, so rows b+1 give (A^-1)_{b+1,b}.
+            (*diag)[first + i] = X.block(o, c, B, B);
+            if (b + 1 < num_blocks) (*next)[first + i] = X.block(o + B, c, B, B).transpose();
+        }
+    }
+    return true;
 }
 
 template class DampedSolver<1>;

@@ -134,6 +134,19 @@ public:
     // The leading k x k block of (H + lambda diag(H) + 1e-9 I)^-1 of the last successful Solve
     // (the formal covariance of the first k unknowns when lambda = 0); empty if none.
     Eigen::MatrixXd InverseLeadingBlock(int k);
+    // Blocks of A^-1 for the last successful Solve, A = H + lambda diag(H) + 1e-9 I (lambda = 0:
+    // the formal covariance of the unknowns): for each block b of `which` (ascending), its
+    // diagonal block (A^-1)_bb and the block (A^-1)_{b,b+1} to the next block (zero for the last
+    // block). Solved with the factorisation for batch_blocks blocks (B columns each) at a time:
+    // the cost is one solve with B * which.size() right-hand sides. False if there is no
+    // factorisation or a block is out of range.
+    // A^-1 R for the last successful Solve's A (rows of R: the unknowns); empty if there is no
+    // factorisation, R has the wrong row count or the result is not finite.
+    Eigen::MatrixXd SolveMany(const Eigen::MatrixXd& R);
+    bool InverseBlocks(const std::vector<std::size_t>& which,
+                       int batch_blocks,
+                       std::vector<Eigen::Matrix<double, B, B>>* diag,
+                       std::vector<Eigen::Matrix<double, B, B>>* next);
 
 private:
     struct Impl;

@@ -9,6 +9,7 @@
 //   iterate.cpp          one stage's ICP-like Gauss-Newton loop on the damped sparse solver;
 //   rigid_stage.cpp      globally consistent matching of rigid sections (Borrmann et al. 2008);
 //   semi_rigid_stage.cpp the semi-rigid stage, one pose per bin (Elseberg et al. 2013);
+//   posterior.cpp        the marginal covariances of the semi-rigid result;
 //   slam.cpp             input, configuration and the two stages in order.
 // Neighbour search, normals, correspondence types, robust kernels, grid keys and the solver
 // come from the registration core (processor/registration), shared with calibration.
@@ -227,5 +228,14 @@ StageOutcome RunSemiRigidStage(const Input& in,
                                std::vector<Pose>& current,
                                double* best_score,
                                SlamResult& res);
+
+// The posterior of the parametrisation p (the semi-rigid stage's result) into res.posterior,
+// one sigma per slice (posterior.cpp; SlamPosterior says what it is).
+void ComputePosterior(const Input& in,
+                      const Param& p,
+                      std::vector<Block>& blocks,
+                      const std::vector<std::uint32_t>& slice_block,
+                      const SlamConfig& cfg,
+                      SlamResult& res);
 
 }  // namespace pitmap::proc::slam::detail

@@ -57,6 +57,11 @@ StageOutcome RunSemiRigidStage(const Input& in,
                                  best_score,
                                  res);
     res.semi_rigid_iterations = semi.iterations;
+    if (cfg.posterior && semi.termination != SlamTermination::kCancelled &&
+        semi.termination != SlamTermination::kNoOverlap &&
+        semi.termination != SlamTermination::kSolverFailed) {
+        ComputePosterior(in, p, blocks, slice_block, cfg, res);
+    }
     current = SlicePoses(p);
     if (semi.message.empty()) semi.message = "iteration budget spent";
     return semi;

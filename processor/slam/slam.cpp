@@ -80,6 +80,7 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (min_section_link_pairs < 1) p.push_back("min_section_link_pairs must be >= 1");
     if (bin_slices < 1) p.push_back("bin_slices must be >= 1");
     if (max_iterations < 0) p.push_back("max_iterations must be >= 0");
+    if (posterior_batch_nodes < 1) p.push_back("posterior_batch_nodes must be >= 1");
     if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");
     if (!(convergence_translation_m >= 0)) p.push_back("convergence_translation_m must be >= 0");
     if (normal_neighbours < 3 || normal_neighbours > kMaxNormalNeighbours)

@@ -147,6 +147,21 @@ struct SlamConfig {
     int score_patience = 2;
     double score_tolerance = 1e-3;  // a gain counts above this fraction; see the guards above
     int num_threads = 0;            // 0 = TBB default
+    // Posterior of the semi-rigid result (SlamPosterior): computed after the stage when true.
+    // Off by default: it costs 10-28 % of the stage and does not yet contain the true error
+    // (docs/uncertainty.md).
+    bool posterior = false;
+    int posterior_batch_nodes = 50;  // nodes (6 right-hand sides each) per CHOLMOD solve
+    // The cluster-robust (sandwich) covariance of SlamPosterior: the pair terms' information
+    // from their residuals, clustered by section pair, instead of from their assumed weights
+    // (the formal H^-1 treats ~10^5 correlated pairs as independent: sub-mm sigmas).
+    bool posterior_cluster_robust = true;
+    // Add the INS's steady sigma (the survey's smallest, per component) to every slice's
+    // posterior: the reference SLAM is anchored to, common to the passes it aligns.
+    bool posterior_reference_sigma = true;
+    // Without the cluster-robust part: scale the formal covariance H^-1 by the a-posteriori
+    // variance factor sigma0^2 (see SlamPosterior); false = the formal covariance as it is.
+    bool posterior_variance_factor = true;
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
@@ -198,6 +213,45 @@ struct SlamSection {
     Eigen::Vector3d coarse_offset_m = Eigen::Vector3d::Zero();  // world shift applied, ENU
 };
 
+// The uncertainty of the semi-rigid result (docs/uncertainty.md): the normal equations
+// H = J^T W J of all terms (INS relative, drift-smoothness and absolute terms, and the robust
+// pair terms with their final weights), linearised once more at the kept iterate without
+// Levenberg damping; the marginal covariance of each pose node's correction is the node's
+// diagonal 6x6 block of H^-1 (CHOLMOD solves with block right-hand sides), times the
+// a-posteriori variance factor sigma0^2 = (sum of whitened squared residuals, the robust cost)
+// / (observations - unknowns), when posterior_variance_factor. A slice's pose perturbation is
+// the interpolation of its two nodes' (slam_math.hpp's world-frame perturbation, through
+// NodeToSlice): C_s = A C_00 A^T + B C_11 B^T + A C_01 B^T + B C_10 A^T with the nodes'
+// blocks and their cross block, A and B the weighted node-to-slice Jacobians. The rotation
+// part is expressed as roll, pitch, yaw increments (the axes of hydro::SoundingCovariance:
+// vehicle x, the horizontal axis across the heading, the vertical).
+// The formal H^-1 (with or without sigma0^2) is far too confident: it takes the ~10^5 pair
+// residuals as independent, while those of one overlap share the same surface, sonar and pose
+// errors (measured on gps-outage: 0.4 mm stated, 0.15 m true in the outage; sigma0^2 = 0.03
+// makes it worse). With posterior_cluster_robust (the default) the covariance is the
+// cluster-robust sandwich H^-1 (H_ins + M) H^-1 (Liang & Zeger 1986) with M = sum_c g_c g_c^T,
+// g_c = J_c^T W_c r_c the gradient of the pairs of cluster c (the pairs between one pair of
+// rigid sections, section_length_s): the pairs' information as their residuals show it,
+// correlated within a cluster, independent between clusters. The INS terms keep their
+// model-based part, bounded above by H^-1 >= H^-1 H_ins H^-1 (H >= H_ins), so that
+// C = H^-1 + H^-1 M H^-1 (conservative by at most H^-1 H_pairs H^-1).
+struct SlamPosterior {
+    bool computed = false;
+    // As SlamResult::trajectory: 1-sigma roll, pitch, yaw (rad), east, north, up (m).
+    std::vector<Vector6d> slice_sigma;
+    double variance_factor = 0;    // sigma0^2 (applied only if posterior_variance_factor)
+    double observations = 0;       // residual rows: 1 per pair for point-to-plane and GICP
+    double unknowns = 0;           // 6 per node
+    std::size_t num_pairs = 0;     // pairs of the final linearisation
+    std::size_t nodes_solved = 0;  // nodes whose marginal blocks were solved
+    std::size_t clusters = 0;      // pair clusters of the sandwich (0: formal covariance)
+    // Median over the slices of the formal horizontal sigma sqrt((sE^2 + sN^2) / 2) of H^-1
+    // alone (no variance factor, no sandwich), for comparison.
+    double formal_horizontal_median_m = 0;
+    double search_s = 0, build_s = 0, factor_s = 0, marginals_s = 0, total_s = 0;
+    std::string message;  // why it was not computed, when it was not
+};
+
 struct SlamTimings {
     double coarse_search_s = 0;
     double trees_s = 0;
@@ -228,6 +282,7 @@ struct SlamResult {
     double initial_pair_score_m = 0;  // pair score of the input trajectory
     double final_pair_score_m = 0;    // ... and of the result (the kept iterate)
     SlamTimings timings;
+    SlamPosterior posterior;  // of the semi-rigid result (not computed after the rigid only)
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;
 };

@@ -164,7 +164,7 @@ void AddPoseTerms(const Input& in,
             if (!linearise) continue;
             const int nodes[3] = {
                 static_cast<int>(k - 1), static_cast<int>(k), static_cast<int>(k + 1)};
-            const Matrix36d J[3] = {-B[0] / d0, -(1.0 / d1 + 1.0 / d0) * B[1], B[2] / d1};
+            const Matrix36d J[3] = {B[0] / d0, -(1.0 / d1 + 1.0 / d0) * B[1], B[2] / d1};
             acc.sys.Add<3>(nodes, J, 3, W, r);
         }
     }

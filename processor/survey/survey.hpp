@@ -46,9 +46,13 @@ const char* ToString(TrajectoryVersion v);
 
 // One vehicle pose per ping of the survey's PingSeries (index = the ping's index in it);
 // valid[i] == 0 where the georeferencing refused ping i (outside the navigation, in a gap).
+// sigma (SLAM's trajectory only, else empty): the pose's 1-sigma as the processing knows it
+// (slam::SlamPosterior, docs/uncertainty.md): roll, pitch, yaw (rad), east, north, up (m) per
+// ping; NaN where it does not know it (the INS's own sigma applies there).
 struct PingTrajectory {
     std::vector<Pose> T_world_vehicle;
     std::vector<std::uint8_t> valid;
+    std::vector<std::array<double, 6>> sigma;
     bool empty() const { return T_world_vehicle.empty(); }
 };
 

@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 
+#include <array>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -440,6 +441,33 @@ Status TrajectoryFromPayload(const std::vector<std::uint8_t>& bytes,
     return Ok{};
 }
 
+using DiskSigma = std::array<double, 6>;
+constexpr const char* kSlamSigmaTag = "traj.slam.sigma";
+
+Payload SigmaPayload(const PingTrajectory& t) {
+    Payload p;
+    p.Vec(t.sigma);
+    return p;
+}
+
+// Into t.sigma; its count is checked against the poses once every section is read.
+Status SigmaFromPayload(const std::vector<std::uint8_t>& bytes, PingTrajectory& t) {
+    Cursor in(bytes, kSlamSigmaTag);
+    std::vector<DiskSigma> d;
+    in.Vec(d, "sigmas");
+    if (!in.Finish()) return Error{in.error};
+    for (const DiskSigma& s : d) {
+        for (double v : s) {
+            if (!(std::isnan(v) || (std::isfinite(v) && v >= 0))) {
+                return Error{std::string("section ") + kSlamSigmaTag +
+                             ": a sigma is negative or infinite"};
+            }
+        }
+    }
+    t.sigma = std::move(d);
+    return Ok{};
+}
+
 std::uint64_t FileSize(std::FILE* f) {
     struct stat st {};
     if (fstat(fileno(f), &st) != 0 || st.st_size < 0) return 0;
@@ -478,6 +506,10 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
         if (!m.trajectories[v].empty())
             sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
     }
+    if (const PingTrajectory& t = m.trajectory(TrajectoryVersion::kSlam);
+        !t.empty() && !t.sigma.empty()) {
+        sections.emplace_back(kSlamSigmaTag, SigmaPayload(t));
+    }
     const std::string partial = path + ".partial";
     std::FILE* f = std::fopen(partial.c_str(), "wb");
     if (f == nullptr) return Error{formats::ErrnoMessage(partial, "cannot create", errno)};
@@ -506,17 +538,19 @@ namespace {
 // The sections a file held so far (each at most once).
 struct SeenSections {
     bool state = false, ingest = false, intensity = false, angles = false, cleaning = false;
+    bool slam_sigma = false;
     bool trajectory[kNumTrajectoryVersions] = {};
 
     // The flag of section `tag` in a file of `format`; null for a section unknown there.
     bool* Of(const std::string& tag, std::uint32_t format, int trajectory_index) {
-        return tag == "state"                       ? &state
-               : tag == "ingest"                    ? &ingest
-               : tag == "intensity" && format >= 2  ? &intensity
-               : tag == "beam_angle" && format >= 3 ? &angles
-               : tag == "cleaning" && format >= 4   ? &cleaning
-               : trajectory_index >= 0              ? &trajectory[trajectory_index]
-                                                    : nullptr;
+        return tag == "state"                        ? &state
+               : tag == "ingest"                     ? &ingest
+               : tag == "intensity" && format >= 2   ? &intensity
+               : tag == "beam_angle" && format >= 3  ? &angles
+               : tag == "cleaning" && format >= 4    ? &cleaning
+               : tag == kSlamSigmaTag && format >= 6 ? &slam_sigma
+               : trajectory_index >= 0               ? &trajectory[trajectory_index]
+                                                     : nullptr;
     }
 };
 
@@ -548,6 +582,8 @@ Status DecodeSection(const std::string& tag,
     if (tag == "cleaning") {
         return CleaningFromPayload(payload, file_size / sizeof(std::uint32_t), m.flags.cleaning);
     }
+    if (tag == kSlamSigmaTag)
+        return SigmaFromPayload(payload, m.trajectory(TrajectoryVersion::kSlam));
     return TrajectoryFromPayload(payload, tag, m.trajectories[TrajectoryIndex(tag)]);
 }
 
@@ -573,6 +609,15 @@ std::string SectionSizeMismatch(const SurveyModel& m, const SeenSections& seen) 
             return std::string("section ") + kTrajectoryTags[v] + " has " +
                    std::to_string(m.trajectories[v].T_world_vehicle.size()) + " poses for " +
                    std::to_string(m.ingest.pings.pings.size()) + " pings";
+        }
+    }
+    if (seen.slam_sigma) {
+        const PingTrajectory& t = m.trajectory(TrajectoryVersion::kSlam);
+        if (t.sigma.size() != t.T_world_vehicle.size()) {
+            return std::string("section ") + kSlamSigmaTag + " has " +
+                   std::to_string(t.sigma.size()) + " sigmas for " +
+                   std::to_string(t.T_world_vehicle.size()) + " poses of " +
+                   kTrajectoryTags[static_cast<int>(TrajectoryVersion::kSlam)];
         }
     }
     return "";

@@ -27,6 +27,9 @@
 //   traj.ins, traj.calibrated, traj.slam
 //                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,
 //                         qz (T_world_vehicle), u32 valid, u32 zero
+//   traj.slam.sigma       (format 6; only when SLAM computed its posterior) u64 count, u64
+//                         element size, then per ping f64 roll, pitch, yaw (rad), east, north,
+//                         up (m): the SLAM trajectory's 1-sigma, NaN where unknown
 // The reader checks every length and count against the bytes left before allocating (memory
 // stays bounded by the file size), every section's CRC, and the consistency of what it read
 // (beam offsets inside the range counts and in ping order without overlap, one pose per
@@ -44,10 +47,11 @@ namespace pitmap::proc::survey {
 
 // 2: the optional intensity section. 3: the optional beam_angle section (a format 2 reader
 // would call it an unknown section). 4: the optional cleaning section. 5: the ping records field
-// by field (survey_records.hpp), no longer PingHeader's memory layout. Formats 1 to 4 are still
+// by field (survey_records.hpp), no longer PingHeader's memory layout. Formats 1 to 5 are still
 // read (without the sections they lack; their ping records in the old layout); any other format
-// is an error that says to run `pitmap georef` again.
-inline constexpr std::uint32_t kSurveyFormatVersion = 5;
+// is an error that says to run `pitmap georef` again. 6: the optional traj.slam.sigma section
+// (format 5 files are read without it).
+inline constexpr std::uint32_t kSurveyFormatVersion = 6;
 inline constexpr const char* kSurveyFileName = "survey.pitmap";
 
 // Writes to PATH.partial and renames it over PATH, so that a full disk or a crash leaves the

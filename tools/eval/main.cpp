@@ -38,6 +38,14 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
   trajectory_ate_windows        with --ate-window S: both RMS errors per window of S seconds from
                                 the first true pose (before_m: trajectory_initial.csv, after_m);
                                 trajectory_ate_worst_window_increase_m: the largest after - before.
+  trajectory_uncertainty        with P/trajectory_sigma.csv (after SLAM): the share of pings
+                                whose true horizontal error lies within the stated 95 % radius
+                                2.4477 sqrt((sE^2 + sN^2) / 2) (share_within_h95; vertical:
+                                within 1.96 sU), the median error and radius; after: the final
+                                positions with the stated sigma (SLAM's posterior where SLAM's
+                                trajectory is used), before: the initial ones with the INS's
+                                sigma; all pings, and those whose INS horizontal 1-sigma exceeds
+                                0.5 m (outage).
   trajectory_z_std_m            standard deviation of the product track height (a surface
                                 vehicle's track should be planar).
   points_rms_m, points_p95_m    RMS and 95th percentile of the distance of each point of
@@ -267,6 +275,29 @@ int main(int argc, char** argv) try {
         if (std::string(key) == "trajectory_ate_rmse_m") {
             scores["trajectory_ate_max_m"] = s.ate_max_m;
             scores["trajectory_z_std_m"] = s.z_std_m;
+        }
+    }
+    if (fs::exists(P / "trajectory_sigma.csv")) {
+        auto stated = eval::ReadTrajectorySigmaCsv((P / "trajectory_sigma.csv").string());
+        if (!stated) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", stated.error().message.c_str());
+            return codes::kFailure;
+        }
+        constexpr double kOutageSigmaM = 0.5;  // slam coarse_search_min_sigma_m's default
+        const eval::UncertaintyScore u =
+            eval::ScoreUncertainty(*stated, T, truth->trajectory, kOutageSigmaM);
+        const auto as_json = [](const eval::ContainmentScore& c) {
+            return json{{"poses", c.poses},
+                        {"share_within_h95", c.share_within_h95},
+                        {"share_within_v95", c.share_within_v95},
+                        {"median_error_h_m", c.median_error_h_m},
+                        {"median_radius_h95_m", c.median_radius_h95_m}};
+        };
+        if (u.after_all.poses > 0) {
+            scores["trajectory_uncertainty"] = {
+                {"outage_sigma_m", kOutageSigmaM},
+                {"after", {{"all", as_json(u.after_all)}, {"outage", as_json(u.after_outage)}}},
+                {"before", {{"all", as_json(u.before_all)}, {"outage", as_json(u.before_outage)}}}};
         }
     }
     if (ate_window_s > 0) {

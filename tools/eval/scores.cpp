@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -107,6 +108,97 @@ std::vector<AteWindow> ScoreTrajectoryWindows(const std::vector<ProductPose>& af
         out.push_back({a - t0, b - t0, sa.poses, sb.ate_rmse_m, sa.ate_rmse_m});
     }
     return out;
+}
+
+Expected<std::vector<StatedPose>> ReadTrajectorySigmaCsv(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) return Error{path + ": cannot open"};
+    std::string line;
+    if (!std::getline(in, line) || line.rfind("gps_time_s,", 0) != 0)
+        return Error{path + ": not a trajectory_sigma.csv (no header)"};
+    std::vector<StatedPose> out;
+    std::size_t row = 1;
+    while (std::getline(in, line)) {
+        ++row;
+        if (line.empty()) continue;
+        std::array<double, 17> v{};
+        std::stringstream ss(line);
+        std::string cell;
+        std::size_t n = 0;
+        while (n < v.size() && std::getline(ss, cell, ',')) {
+            char* end = nullptr;
+            v[n] = std::strtod(cell.c_str(), &end);
+            if (end == cell.c_str()) break;
+            ++n;
+        }
+        if (n != v.size()) {
+            return Error{path + ": row " + std::to_string(row) + " has " + std::to_string(n) +
+                         " numbers, expected 17"};
+        }
+        StatedPose p;
+        p.gps_time_s = v[0];
+        p.position = {v[1], v[2], v[3]};
+        p.initial = {v[4], v[5], v[6]};
+        p.sigma_enu_m = {v[7], v[8], v[9]};
+        p.ins_sigma_enu_m = {v[13], v[14], v[15]};
+        p.slam_posterior = v[16] != 0;
+        out.push_back(p);
+    }
+    return out;
+}
+
+namespace {
+
+struct Containment {
+    std::vector<double> error_h, radius_h;
+    std::size_t within_h = 0, within_v = 0;
+    void Add(const Eigen::Vector3d& err, const Eigen::Vector3d& sigma) {
+        const double r = 2.4477 * std::sqrt(0.5 * (sigma.x() * sigma.x() + sigma.y() * sigma.y()));
+        const double eh = err.head<2>().norm();
+        error_h.push_back(eh);
+        radius_h.push_back(r);
+        within_h += eh <= r ? 1 : 0;
+        within_v += std::abs(err.z()) <= 1.96 * sigma.z() ? 1 : 0;
+    }
+    ContainmentScore Score() {
+        ContainmentScore s;
+        s.poses = error_h.size();
+        if (s.poses == 0) return s;
+        const auto n = static_cast<double>(s.poses);
+        s.share_within_h95 = static_cast<double>(within_h) / n;
+        s.share_within_v95 = static_cast<double>(within_v) / n;
+        const auto median = [](std::vector<double>& v) {
+            std::nth_element(
+                v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+            return v[v.size() / 2];
+        };
+        s.median_error_h_m = median(error_h);
+        s.median_radius_h95_m = median(radius_h);
+        return s;
+    }
+};
+
+}  // namespace
+
+UncertaintyScore ScoreUncertainty(const std::vector<StatedPose>& poses,
+                                  const Pose& T,
+                                  const std::vector<sim::TruthPose>& truth,
+                                  double outage_sigma_m) {
+    Containment after_all, after_outage, before_all, before_outage;
+    for (const StatedPose& p : poses) {
+        auto t = sim::InterpolateTruth(truth, p.gps_time_s);
+        if (!t) continue;
+        const Eigen::Vector3d e_after = T * p.position - t->translation();
+        const Eigen::Vector3d e_before = T * p.initial - t->translation();
+        const bool outage = p.ins_sigma_enu_m.head<2>().norm() / std::sqrt(2.0) > outage_sigma_m;
+        after_all.Add(e_after, p.sigma_enu_m);
+        before_all.Add(e_before, p.ins_sigma_enu_m);
+        if (outage) {
+            after_outage.Add(e_after, p.sigma_enu_m);
+            before_outage.Add(e_before, p.ins_sigma_enu_m);
+        }
+    }
+    return {after_all.Score(), after_outage.Score(), before_all.Score(), before_outage.Score()};
 }
 
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& pts,

@@ -86,6 +86,37 @@ std::vector<AteWindow> ScoreTrajectoryWindows(const std::vector<ProductPose>& af
                                               const std::vector<sim::TruthPose>& truth,
                                               double window_s);
 
+// P/trajectory_sigma.csv (processor/pipeline/posterior.hpp): per ping the final and initial
+// positions (product world frame), the stated 1-sigma (SLAM's posterior or the INS's) and the
+// INS's own.
+struct StatedPose {
+    double gps_time_s = 0;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero(), initial = Eigen::Vector3d::Zero();
+    Eigen::Vector3d sigma_enu_m = Eigen::Vector3d::Zero(),
+                    ins_sigma_enu_m = Eigen::Vector3d::Zero();
+    bool slam_posterior = false;
+};
+Expected<std::vector<StatedPose>> ReadTrajectorySigmaCsv(const std::string& path);
+
+// Whether the stated uncertainty contains the true error: the share of poses whose true
+// horizontal error lies within the stated 95 % radius 2.4477 sqrt((s_E^2 + s_N^2) / 2) (IHO
+// S-44's circular factor, the TPU's THU) and whose vertical error within 1.96 s_U.
+struct ContainmentScore {
+    std::size_t poses = 0;
+    double share_within_h95 = 0, share_within_v95 = 0;
+    double median_error_h_m = 0, median_radius_h95_m = 0;
+};
+struct UncertaintyScore {
+    // after: the final positions with the stated sigma; before: the initial positions with the
+    // INS's own sigma. all: every pose in the truth's span; outage: those whose INS horizontal
+    // 1-sigma exceeds outage_sigma_m.
+    ContainmentScore after_all, after_outage, before_all, before_outage;
+};
+UncertaintyScore ScoreUncertainty(const std::vector<StatedPose>& poses,
+                                  const Pose& T_truth_product,
+                                  const std::vector<sim::TruthPose>& truth,
+                                  double outage_sigma_m);
+
 DistanceStats ScorePoints(const std::vector<Eigen::Vector3d>& points_product,
                           const Pose& T_truth_product,
                           const sim::PitWorld& world,

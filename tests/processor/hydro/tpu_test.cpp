@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "common/frames.hpp"
@@ -39,6 +40,33 @@ TEST(Tpu, NadirRangeTermIsTheRangeNoise) {
     const double sr = 0.02 + 0.002 * 20;
     EXPECT_NEAR(std::sqrt(C(2, 2)), sr, 1e-12);
     EXPECT_NEAR(C(0, 0) + C(1, 1), 0.0, 1e-18);
+}
+
+// The calibrated boresight sigma replaces the model's per axis, never adds to it.
+TEST(Tpu, CalibratedBoresightSigmaReplacesTheModels) {
+    TpuConfig cfg;
+    SoundingGeometry g;
+    g.R_world_vehicle = frames::RotationWorldFromRpy(0.05, -0.03, 0.7);
+    g.range_m = 25;
+    g.angle_rad = 0.6;
+    const Eigen::Matrix3d model = SoundingCovariance(g, PingSigma{}, cfg);
+    TpuConfig same = cfg;
+    same.boresight_sigma_rpy_deg = {cfg.model.boresight_sigma_deg,
+                                    cfg.model.boresight_sigma_deg,
+                                    std::numeric_limits<double>::quiet_NaN()};
+    EXPECT_LT((SoundingCovariance(g, PingSigma{}, same) - model).norm(), 1e-15);
+    TpuConfig zero = cfg;
+    zero.boresight_sigma_rpy_deg = {0.0, 0.0, 0.0};
+    TpuConfig no_prior = cfg;
+    no_prior.model.boresight_sigma_deg = 0.0;
+    EXPECT_LT(
+        (SoundingCovariance(g, PingSigma{}, zero) - SoundingCovariance(g, PingSigma{}, no_prior))
+            .norm(),
+        1e-15);
+    EXPECT_LT(SoundingCovariance(g, PingSigma{}, zero).trace(), model.trace());
+    TpuConfig bad = cfg;
+    bad.boresight_sigma_rpy_deg[1] = -0.1;
+    EXPECT_FALSE(bad.Validate().empty());
 }
 
 TEST(Tpu, AnalyticCovarianceMatchesMonteCarloOfTheGeoreferencing) {

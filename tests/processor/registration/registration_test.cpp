@@ -257,6 +257,30 @@ void CheckAgainstDense(unsigned seed, int kBlocks = 7) {
     const Eigen::MatrixXd Cd =
         H.ldlt().solve(Eigen::MatrixXd::Identity(B * kBlocks, B + 1)).topRows(B + 1);
     EXPECT_LT((C - Cd).norm(), 1e-7 * Cd.norm());
+    // Marginal covariances: diagonal blocks of H^-1 and the blocks to the next block, from
+    // batched solves (a batch of 3 blocks leaves a partial last batch), against a dense inverse.
+    const Eigen::MatrixXd Hinv = H.inverse();
+    std::vector<std::size_t> which;
+    for (int b = 0; b < kBlocks; b += 2) which.push_back(static_cast<std::size_t>(b));
+    which.push_back(static_cast<std::size_t>(kBlocks - 1));
+    std::vector<Eigen::Matrix<double, B, B>> diag, next;
+    ASSERT_TRUE(solver.InverseBlocks(which, 3, &diag, &next));
+    ASSERT_EQ(diag.size(), which.size());
+    for (std::size_t i = 0; i < which.size(); ++i) {
+        const auto o = static_cast<Eigen::Index>(B * which[i]);
+        const Eigen::MatrixXd d = Hinv.block(o, o, B, B);
+        EXPECT_LT((diag[i] - d).norm(), 1e-7 * Hinv.norm()) << "block " << which[i];
+        if (which[i] + 1 < static_cast<std::size_t>(kBlocks)) {
+            const Eigen::MatrixXd n = Hinv.block(o, o + B, B, B);
+            EXPECT_LT((next[i] - n).norm(), 1e-7 * Hinv.norm()) << "block " << which[i];
+        } else {
+            EXPECT_EQ(next[i].norm(), 0.0);
+        }
+    }
+    EXPECT_FALSE(solver.InverseBlocks({static_cast<std::size_t>(kBlocks)}, 3, &diag, &next));
+    const Eigen::MatrixXd R = Eigen::MatrixXd::Random(B * kBlocks, 3);
+    EXPECT_LT((solver.SolveMany(R) - Hinv * R).norm(), 1e-7 * Hinv.norm() * R.norm());
+    EXPECT_EQ(solver.SolveMany(Eigen::MatrixXd::Ones(B * kBlocks + 1, 2)).size(), 0);
     // Levenberg damping: (H + lambda diag(H)) x = -g, a shorter step.
     const double lambda = 3.0;
     ASSERT_TRUE(solver.Solve(lambda, &x));

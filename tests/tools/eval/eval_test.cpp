@@ -249,6 +249,62 @@ TEST(Scores, TrajectoryWindowsScoreEachWindowOnItsOwn) {
     EXPECT_TRUE(ScoreTrajectoryWindows(after, before, I, truth.trajectory, 0.0).empty());
 }
 
+// The stated 95 % radius 2.4477 sqrt((sE^2 + sN^2) / 2): errors just inside and just outside
+// it, the vertical against 1.96 sU, the outage class by the INS's sigma; and the CSV read back.
+TEST(Scores, UncertaintyCountsErrorsWithinTheStatedRadius) {
+    const sim::Truth truth = FlatTruth();
+    std::vector<StatedPose> poses;
+    const double r95 = 2.4477 * 0.1;  // sE = sN = 0.1 m
+    for (std::size_t k = 0; k < truth.trajectory.size(); ++k) {
+        const auto& p = truth.trajectory[k];
+        StatedPose s;
+        s.gps_time_s = p.gps_time_s;
+        const bool inside = k % 4 != 0;  // 3 of 4 inside
+        s.position = p.T_world_vehicle.translation() +
+                     Eigen::Vector3d(0.6 * r95, (inside ? 0.79 : 0.81) * r95, 0.1);
+        s.initial = p.T_world_vehicle.translation() + Eigen::Vector3d(2.0, 0, 0);
+        s.sigma_enu_m = {0.1, 0.1, k % 2 == 0 ? 0.06 : 0.04};  // 1.96 * 0.06 > 0.1 > 1.96 * 0.04
+        const bool outage = k < 20;
+        s.ins_sigma_enu_m = Eigen::Vector3d::Constant(outage ? 1.0 : 0.1);
+        poses.push_back(s);
+    }
+    const UncertaintyScore u = ScoreUncertainty(poses, Pose::Identity(), truth.trajectory, 0.5);
+    ASSERT_EQ(u.after_all.poses, truth.trajectory.size());
+    EXPECT_NEAR(u.after_all.share_within_h95, 0.75, 0.02);
+    EXPECT_NEAR(u.after_all.share_within_v95, 0.5, 0.02);
+    EXPECT_NEAR(u.after_all.median_radius_h95_m, r95, 1e-9);
+    EXPECT_EQ(u.after_outage.poses, 20u);
+    // Before: 2 m off with the INS's sigma: within 2.45 m in the outage only.
+    EXPECT_DOUBLE_EQ(u.before_outage.share_within_h95, 1.0);
+    EXPECT_NEAR(u.before_all.share_within_h95, 20.0 / static_cast<double>(poses.size()), 1e-9);
+    EXPECT_NEAR(u.before_all.median_error_h_m, 2.0, 1e-9);
+
+    const fs::path path =
+        fs::temp_directory_path() / ("pitmap_eval_sigma_" + std::to_string(::getpid()) + ".csv");
+    {
+        std::ofstream f(path);
+        f << "gps_time_s,x_m,y_m,z_m,x0_m,y0_m,z0_m,sigma_east_m,sigma_north_m,sigma_up_m,"
+             "sigma_roll_deg,sigma_pitch_deg,sigma_yaw_deg,ins_sigma_east_m,ins_sigma_north_m,"
+             "ins_sigma_up_m,slam_posterior\n"
+          << "100.5,1,2,3,4,5,6,0.1,0.2,0.3,0.01,0.02,0.03,1,2,3,1\n";
+    }
+    const auto read = ReadTrajectorySigmaCsv(path.string());
+    ASSERT_TRUE(read.ok()) << read.error().message;
+    ASSERT_EQ(read->size(), 1u);
+    EXPECT_EQ((*read)[0].initial, Eigen::Vector3d(4, 5, 6));
+    EXPECT_EQ((*read)[0].sigma_enu_m, Eigen::Vector3d(0.1, 0.2, 0.3));
+    EXPECT_EQ((*read)[0].ins_sigma_enu_m, Eigen::Vector3d(1, 2, 3));
+    EXPECT_TRUE((*read)[0].slam_posterior);
+    {
+        std::ofstream f(path, std::ios::app);
+        f << "101,1,2,3\n";
+    }
+    const auto bad = ReadTrajectorySigmaCsv(path.string());
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find("row 3"), std::string::npos) << bad.error().message;
+    fs::remove(path);
+}
+
 TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     sim::Truth truth = FlatTruth();                         // 1 m cells, floor at z = -10
     EXPECT_FALSE(MeshCompleteness({}, truth).has_value());  // no coverage mask

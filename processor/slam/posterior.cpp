@@ -1,0 +1,235 @@
+// SPDX-License-Identifier: MIT
+// The posterior of the semi-rigid SLAM result (SlamPosterior in slam.hpp): marginal
+// covariances of the pose nodes' corrections from the undamped normal equations at the kept
+// iterate, scaled by the a-posteriori variance factor, and interpolated to the slices.
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <string>
+#include <utility>
+
+#include "processor/slam/internal.hpp"
+
+namespace pitmap::proc::slam::detail {
+
+namespace {
+
+// Residual rows of the pose terms, as AddPoseTerms adds them.
+double PoseTermRows(std::size_t n, const SlamConfig& cfg) {
+    double rows = n > 1 ? 6.0 * static_cast<double>(n - 1) : 0.0;  // relative motion
+    if (cfg.drift_velocity_random_walk_mps_per_sqrt_s > 0 && n > 2) {
+        rows += 3.0 * static_cast<double>(n - 2);  // drift smoothness
+    }
+    if (cfg.absolute_position_terms || cfg.absolute_attitude_terms) {
+        const double per =
+            (cfg.absolute_attitude_terms ? 3.0 : 0.0) + (cfg.absolute_position_terms ? 3.0 : 0.0);
+        rows += per * static_cast<double>(n);
+    } else if (n > 0) {
+        rows += 6.0;  // the gauge prior on the first node
+    }
+    return rows;
+}
+
+// 1-sigma roll, pitch, yaw of a world-frame rotation covariance at attitude R (FRD vehicle
+// in ENU): the perturbation dphi = a_roll droll + a_pitch dpitch + a_yaw dyaw with the axes of
+// hydro::SoundingCovariance (vehicle x; horizontal, across the heading; vertical).
+Eigen::Vector3d RollPitchYawSigma(const Eigen::Matrix3d& R, const Eigen::Matrix3d& C) {
+    const Eigen::Vector3d a_roll = R.col(0);
+    const Eigen::Vector3d down(0, 0, -1);
+    Eigen::Vector3d h(a_roll.x(), a_roll.y(), 0.0);
+    if (h.norm() < 1e-6) h = Eigen::Vector3d::UnitX();  // pointing straight down: any heading
+    h.normalize();
+    Eigen::Matrix3d A;
+    A.col(0) = a_roll;
+    A.col(1) = down.cross(h);
+    A.col(2) = down;
+    const Eigen::Matrix3d Ai = A.inverse();
+    const Eigen::Matrix3d Crpy = Ai * C * Ai.transpose();
+    return Crpy.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+// Adds H^-1 M H^-1 (SlamPosterior) to the node blocks Ckk (k, k) and Ckn (k, k + 1): the
+// pairs clustered by section pair, each cluster's gradient g_c, Y = H^-1 G in batches.
+bool AddClusterRobust(const Input& in,
+                      const Param& p,
+                      const std::vector<Pose>& T,
+                      const std::vector<Pair>& pairs,
+                      const SlamConfig& cfg,
+                      reg::DampedSolver<6>& ne,
+                      std::vector<Matrix6d>& Ckk,
+                      std::vector<Matrix6d>& Ckn,
+                      std::size_t* num_clusters) {
+    const std::size_t n = p.num_nodes();
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<Pair>> clusters;
+    for (const Pair& pr : pairs) {
+        clusters[{std::min(pr.block_a, pr.block_b), std::max(pr.block_a, pr.block_b)}].push_back(
+            pr);
+    }
+    *num_clusters = clusters.size();
+    const auto dim = static_cast<Eigen::Index>(6 * n);
+    const std::size_t batch = static_cast<std::size_t>(std::max(1, cfg.posterior_batch_nodes)) * 6;
+    auto it = clusters.begin();
+    while (it != clusters.end()) {
+        std::vector<Eigen::VectorXd> cols;
+        for (; it != clusters.end() && cols.size() < batch; ++it) {
+            tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
+            AddPairTerms(in, p, T, it->second, cfg, /*linearise=*/true, accs);
+            Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
+            for (const Terms& acc : accs) {
+                const auto& grad = acc.sys.grad();
+                for (std::size_t k = 0; k < n; ++k) {
+                    g.segment<6>(static_cast<Eigen::Index>(6 * k)) += grad[k];
+                }
+            }
+            cols.push_back(std::move(g));
+        }
+        Eigen::MatrixXd G(dim, static_cast<Eigen::Index>(cols.size()));
+        for (std::size_t c = 0; c < cols.size(); ++c) G.col(static_cast<Eigen::Index>(c)) = cols[c];
+        const Eigen::MatrixXd Y = ne.SolveMany(G);
+        if (Y.size() == 0) return false;
+        for (std::size_t k = 0; k < n; ++k) {
+            const auto o = static_cast<Eigen::Index>(6 * k);
+            const Eigen::MatrixXd Yk = Y.middleRows(o, 6);
+            Ckk[k] += Yk * Yk.transpose();
+            if (k + 1 < n) Ckn[k] += Yk * Y.middleRows(o + 6, 6).transpose();
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+void ComputePosterior(const Input& in,
+                      const Param& p,
+                      std::vector<Block>& blocks,
+                      const std::vector<std::uint32_t>& slice_block,
+                      const SlamConfig& cfg,
+                      SlamResult& res) {
+    const auto t_start = Clock::now();
+    SlamPosterior& post = res.posterior;
+    post = SlamPosterior{};
+    const std::size_t n = p.num_nodes();
+    const std::vector<Pose> T = SlicePoses(p);
+
+    // The pairs at the kept iterate (the stage's timings stay the stage's).
+    auto t0 = Clock::now();
+    const SlamTimings stage_timings = res.timings;
+    std::vector<Eigen::Vector3f> pw(in.points.size());
+    Search found = SearchPairs(
+        in, T, SlamStage::kSemiRigid, cfg.max_pair_distance_m, blocks, slice_block, pw, cfg, res);
+    res.timings = stage_timings;
+    post.search_s = Seconds(t0);
+    post.num_pairs = found.pairs.size();
+
+    t0 = Clock::now();
+    Terms total(n);
+    AddPoseTerms(in, p, T, cfg, /*linearise=*/true, total);
+    tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
+    AddPairTerms(in, p, T, found.pairs, cfg, /*linearise=*/true, accs);
+    for (const Terms& acc : accs) {
+        total.sys.Merge(acc.sys);
+        total.cost += acc.cost;
+    }
+    reg::DampedSolver<6> ne(total.sys);
+    post.build_s = Seconds(t0);
+
+    // sigma0^2: the robust cost (sum of whitened squared residuals, Huber beyond its width)
+    // over the redundancy. A pair counts one row for point-to-plane and GICP (GICP's along-
+    // surface sigma is a deliberately loose bound, not a measurement error: its two rows carry
+    // almost no weight and would only dilute the factor), three for point-to-point.
+    const double pair_rows = cfg.correspondence == CorrespondenceType::kPointToPoint ? 3.0 : 1.0;
+    post.observations = PoseTermRows(n, cfg) + pair_rows * static_cast<double>(found.pairs.size());
+    post.unknowns = 6.0 * static_cast<double>(n);
+    const double redundancy = post.observations - post.unknowns;
+    post.variance_factor =
+        redundancy > 0 ? total.cost / redundancy : std::numeric_limits<double>::quiet_NaN();
+    const double scale = cfg.posterior_cluster_robust    ? 1.0
+                         : cfg.posterior_variance_factor ? post.variance_factor
+                                                         : 1.0;
+    if (!(std::isfinite(scale) && scale > 0)) {
+        post.message = "no redundancy (" + std::to_string(post.observations) +
+                       " observations for " + std::to_string(post.unknowns) + " unknowns)";
+        post.total_s = Seconds(t_start);
+        return;
+    }
+
+    t0 = Clock::now();
+    Eigen::VectorXd delta;
+    if (!ne.Solve(0.0, &delta)) {
+        post.message = "CHOLMOD could not factorise the undamped normal equations";
+        post.total_s = Seconds(t_start);
+        return;
+    }
+    post.factor_s = Seconds(t0);
+
+    t0 = Clock::now();
+    std::vector<std::size_t> which(n);
+    for (std::size_t k = 0; k < n; ++k) which[k] = k;
+    std::vector<Matrix6d> Ckk, Ckn;
+    if (!ne.InverseBlocks(which, cfg.posterior_batch_nodes, &Ckk, &Ckn)) {
+        post.message = "the marginal covariances could not be solved";
+        post.total_s = Seconds(t_start);
+        return;
+    }
+    post.nodes_solved = n;
+    for (std::size_t k = 0; k < n; ++k) {
+        Ckk[k] *= scale;
+        Ckn[k] *= scale;
+    }
+    // Formal horizontal sigma at the nodes' anchor slices, for the record.
+    {
+        std::vector<double> h;
+        for (std::size_t k = 0; k < n; ++k) {
+            const Matrix6d C = Ckk[k] / scale;
+            h.push_back(std::sqrt(std::max(0.0, 0.5 * (C(3, 3) + C(4, 4)))));
+        }
+        std::nth_element(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(h.size() / 2), h.end());
+        post.formal_horizontal_median_m = h[h.size() / 2];
+    }
+    if (cfg.posterior_cluster_robust) {
+        if (!AddClusterRobust(in, p, T, found.pairs, cfg, ne, Ckk, Ckn, &post.clusters)) {
+            post.message = "the cluster-robust covariance could not be solved";
+            post.total_s = Seconds(t_start);
+            return;
+        }
+    }
+    post.marginals_s = Seconds(t0);
+
+    // Per slice: the interpolated perturbation of its two nodes.
+    post.slice_sigma.resize(in.num_slices());
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        const auto k0 = static_cast<std::size_t>(p.k0[s]);
+        Matrix6d C;
+        if (p.alpha[s] == 0.0) {
+            const Matrix6d A = NodeToSlice(p, T[s], s, 1.0);
+            C = A * Ckk[k0] * A.transpose();
+        } else {
+            const auto k1 = static_cast<std::size_t>(p.k1[s]);
+            const Matrix6d A = NodeToSlice(p, T[s], s, 1.0 - p.alpha[s]);
+            const Matrix6d B = NodeToSlice(p, T[s], s, p.alpha[s]);
+            // k1 = k0 + 1 (consecutive nodes): the cross block is C_{k0,k1}.
+            const Matrix6d X = k1 == k0 + 1 ? Ckn[k0] : Matrix6d::Zero();
+            const Matrix6d AXBt = A * X * B.transpose();
+            C = A * Ckk[k0] * A.transpose() + B * Ckk[k1] * B.transpose() + AXBt + AXBt.transpose();
+        }
+        if (cfg.posterior_reference_sigma) {
+            // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
+            // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
+            for (int c = 0; c < 3; ++c) {
+                C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
+                C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c);
+            }
+        }
+        Vector6d sig;
+        sig.head<3>() = RollPitchYawSigma(T[s].linear(), C.topLeftCorner<3, 3>());
+        sig.tail<3>() = C.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
+        post.slice_sigma[s] = sig;
+    }
+    post.computed = true;
+    post.total_s = Seconds(t_start);
+}
+
+}  // namespace pitmap::proc::slam::detail
