@@ -73,7 +73,7 @@ std::string ReportProgram() {
     return SiblingProgram("pitmap-report");
 }
 
-// The quality gates summary.json records (processor/pipeline/survey.hpp), one line each.
+// The quality gates summary.json records (processor/pipeline/internal.hpp), one line each.
 std::vector<std::string> TrippedGates(const std::string& out_dir) {
     std::vector<std::string> out;
     auto j = pitmap::proc::io::ReadSummaryJson(out_dir + "/summary.json");

@@ -11,9 +11,9 @@
 #include "common/progress.hpp"
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/pipeline/result_json.hpp"
-#include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -65,7 +65,7 @@ std::string LikelyMountCause(const Eigen::Vector3d& change_deg) {
 
 // The header clock search's settings for this vehicle: the NMEA position in the headers is
 // the (first) GNSS antenna's.
-calib::ClockSearchConfig HeaderSearch(const Survey& s) {
+calib::ClockSearchConfig HeaderSearch(const StageContext& s) {
     calib::ClockSearchConfig search;
     if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
         search.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
@@ -75,7 +75,7 @@ calib::ClockSearchConfig HeaderSearch(const Survey& s) {
 // A configured offset checked against the 83P headers' aids: with it, the header positions
 // must lie where the INS antenna was (an error otherwise), and an estimate that disagrees trips
 // sonar_clock_disagrees (the configured value is used).
-Status CheckConfiguredOffset(Survey& s,
+Status CheckConfiguredOffset(StageContext& s,
                              const PipelineConfig& config,
                              const calib::ClockEstimate& est,
                              const calib::ClockSearchConfig& search,
@@ -114,7 +114,7 @@ Status CheckConfiguredOffset(Survey& s,
 // offset, checked against it; without, applied to the pings (an error when not found or more
 // uncertain than max_clock_scan_s). `applied` and `sigma` are the correction and what is left
 // for the calibration's latency scan.
-Status CoarseHeaderClock(Survey& s,
+Status CoarseHeaderClock(StageContext& s,
                          const PipelineConfig& config,
                          const std::string& nav_span,
                          const Log& log,
@@ -157,7 +157,7 @@ Status CoarseHeaderClock(Survey& s,
 
 // A step of the topside clock mid-survey (an NTP correction): each side on its own offset
 // (calib::FindSonarClockSteps); an error when the header times run backwards.
-Status HeaderClockSteps(Survey& s, const Log& log, json& clk) {
+Status HeaderClockSteps(StageContext& s, const Log& log, json& clk) {
     georef::PingSeries& pings = s.model.ingest.pings;
     calib::ClockStepConfig sc;
     sc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
@@ -207,7 +207,7 @@ Status HeaderClockSteps(Survey& s, const Log& log, json& clk) {
 // The topside PC's clock also runs at a rate of its own: timed by the head's attitude sensor
 // along the whole survey (calib::EstimateSonarClockRate), and taken out of the ping times
 // before anything looks at the soundings.
-calib::ClockRateEstimate HeaderClockRate(Survey& s, const Log& log, json& clk) {
+calib::ClockRateEstimate HeaderClockRate(StageContext& s, const Log& log, json& clk) {
     calib::ClockRateConfig rc;
     rc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
     const calib::ClockRateEstimate rate =
@@ -233,7 +233,7 @@ calib::ClockRateEstimate HeaderClockRate(Survey& s, const Log& log, json& clk) {
 }
 
 // The clock as found, in the summary and in the survey model.
-void RecordClock(Survey& s,
+void RecordClock(StageContext& s,
                  const PipelineConfig& config,
                  json clk,
                  double applied,
@@ -257,7 +257,7 @@ void RecordClock(Survey& s,
 
 // The calibration's settings for this survey: the pings carry the coarse clock correction
 // already, so the latency scan covers what it leaves (4 sigma; none on the daemon's stamps).
-calib::BoresightConfig CalibrationConfig(const Survey& s, const PipelineConfig& config) {
+calib::BoresightConfig CalibrationConfig(const StageContext& s, const PipelineConfig& config) {
     calib::BoresightConfig bc = config.calibrate;
     if (bc.estimate_latency) {
         const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
@@ -349,7 +349,10 @@ bool Verified(const calib::BoresightResult& cal,
 }
 
 // A calibration that cannot be used: the stage recorded, the survey saved, the run stopped.
-Status StopCalibration(Survey& s, const json& st, const StageClock& clock, const std::string& why) {
+Status StopCalibration(StageContext& s,
+                       const json& st,
+                       const StageClock& clock,
+                       const std::string& why) {
     RecordStage(s.summary, Stage::kCalibrate, st, clock);
     if (s.defer_products) {
         (void)SaveSummary(s);
@@ -362,7 +365,7 @@ Status StopCalibration(Survey& s, const json& st, const StageClock& clock, const
 // Why a boresight change beyond quality.max_boresight_change_deg is not applied (a mount
 // bracket is off by a degree or two: a calibration that turns the head further is absorbing a
 // wrong input, a lever arm's sign, the connector, the clock), naming the likely input.
-std::string ImplausibleChange(const Survey& s,
+std::string ImplausibleChange(const StageContext& s,
                               const Eigen::Vector3d& change,
                               const calib::BoresightResult& cal,
                               double max_change_deg) {
@@ -377,7 +380,7 @@ std::string ImplausibleChange(const Survey& s,
 
 // The gates of a usable calibration: the residual against the range noise, and a latency
 // still moving at the end.
-void GateCalibration(Survey& s,
+void GateCalibration(StageContext& s,
                      const calib::BoresightResult& cal,
                      const QualityConfig& q,
                      const Log& log) {
@@ -407,7 +410,7 @@ void GateCalibration(Survey& s,
 
 // The calibration (or the nominal mount, kept) into the survey model, and the soundings
 // georeferenced again: from the ingested series when the ping times change, else in place.
-void ApplyCalibration(Survey& s,
+void ApplyCalibration(StageContext& s,
                       const PipelineConfig& config,
                       const calib::BoresightResult& cal,
                       bool keep_nominal) {
@@ -445,7 +448,7 @@ void ApplyCalibration(Survey& s,
 // The sonar clock after the calibration, in summary.json's "sonar_clock"; with a configured
 // offset on header time, in its own terms too (the offset that would have needed no
 // correction), and a gate when the soundings' latency disagrees with it.
-void RecordCalibratedClock(Survey& s,
+void RecordCalibratedClock(StageContext& s,
                            const calib::BoresightResult& cal,
                            const QualityConfig& q,
                            const Log& log) {
@@ -473,7 +476,7 @@ void RecordCalibratedClock(Survey& s,
 
 }  // namespace
 
-Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status ClockSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     const georef::PingSeries& pings = s.model.ingest.pings;
     const georef::NavSeries& nav = s.model.ingest.nav;
     const bool header = pings.clock == georef::PingClock::kTopsideHeader;
@@ -509,7 +512,7 @@ Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     return Ok{};
 }
 
-Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     ClearGates(s, Stage::kCalibrate);
     // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.

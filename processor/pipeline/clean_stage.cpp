@@ -8,8 +8,8 @@
 
 #include "common/progress.hpp"
 #include "processor/clean/clean.hpp"
+#include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
-#include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 
@@ -59,7 +59,7 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
     P.status.clear();
 }
 
-std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status) {
+std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>& status) {
     georef::SoundingFlags& flags = s.model.flags;
     const georef::PingSeries& pings = s.model.ingest.pings;
     if (flags.cleaning.size() != pings.range_counts.size())
@@ -81,7 +81,7 @@ std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& statu
     return keep;
 }
 
-Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     // A pass before this one in the same run (run: before the calibration) stays in the
     // record, as "earlier_pass", so that the stage's whole cost is in the summary.

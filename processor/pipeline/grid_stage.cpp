@@ -21,8 +21,8 @@
 #include "processor/io/products.hpp"
 #include "processor/io/water_level.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/posterior.hpp"
-#include "processor/pipeline/survey.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -81,7 +81,7 @@ double MedianOf(std::vector<double> v) {
 
 // The vertical datum of the products (hydro/datum.hpp) at every ping, with its record for
 // summary.json. `ping_geo` are the transducers' geodetic positions.
-Expected<hydro::DatumModel> ProductDatum(const detail::Survey& s,
+Expected<hydro::DatumModel> ProductDatum(const detail::StageContext& s,
                                          const hydro::VerticalDatumConfig& vc,
                                          const std::string& site,
                                          const std::vector<Geodetic>& ping_geo,
@@ -319,7 +319,7 @@ namespace detail {
 namespace {
 
 // The transducers' geodetic positions, per ping.
-std::vector<Geodetic> PingGeodetic(const Survey& s) {
+std::vector<Geodetic> PingGeodetic(const StageContext& s) {
     const LocalTangentFrame world(s.model.origin);
     std::vector<Geodetic> ping_geo(s.geo.pings.size());
     for (std::size_t k = 0; k < ping_geo.size(); ++k) {
@@ -330,7 +330,7 @@ std::vector<Geodetic> PingGeodetic(const Survey& s) {
 
 }  // namespace
 
-Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
+Expected<hydro::DatumModel> SurveyDatum(const StageContext& s,
                                         const PipelineConfig& config,
                                         json* record,
                                         const Log& log) {
@@ -347,7 +347,7 @@ Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
 // sqrt(2) sigma on average, sigma = TVU95 / 1.96. Lines that disagree far beyond it are a gate
 // naming the likely input from the shape of the disagreement: growing with the beam angle is
 // the across-track geometry, a constant offset the heights, neither the navigation or clock.
-void CheckCrosslines(Survey& s,
+void CheckCrosslines(StageContext& s,
                      const hydro::S44Result& r,
                      double median_tvu_95_m,
                      const QualityConfig& q,
@@ -435,7 +435,7 @@ std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& 
     return verdict;
 }
 
-Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     ClearGates(s, Stage::kGrid);
     const GridStageConfig& gc = config.grid;

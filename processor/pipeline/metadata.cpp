@@ -10,7 +10,7 @@
 #include "common/version.hpp"
 #include "processor/hydro/datum.hpp"
 #include "processor/hydro/s44.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -121,7 +121,7 @@ nlohmann::json MetadataJson(const ProductMetadata& m) {
 
 namespace pitmap::proc::pipeline::detail {
 
-ProductMetadata SurveyProductMetadata(Survey& s,
+ProductMetadata SurveyProductMetadata(StageContext& s,
                                       const PipelineConfig& config,
                                       const hydro::DatumModel* datum) {
     std::optional<VehicleDescription> vehicle = s.vehicle;

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "processor/io/grid_io.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 
@@ -72,7 +72,7 @@ std::vector<std::pair<std::string, std::string>> MosaicMetadata(const hydro::Mos
 
 }  // namespace
 
-Expected<json> MosaicSurvey(const Survey& s,
+Expected<json> MosaicSurvey(const StageContext& s,
                             const GridStageConfig& gc,
                             const io::GridRaster& dem,
                             georef::UtmPoints& utm,

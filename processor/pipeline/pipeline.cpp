@@ -20,8 +20,8 @@
 #include "processor/georef/mount_check.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
-#include "processor/pipeline/survey.hpp"
 #include "processor/survey/edit_log.hpp"
 #include "processor/survey/survey_file.hpp"
 
@@ -164,7 +164,7 @@ Status WritePoints(const std::string& dir,
     return Ok{};
 }
 
-georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
+georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
     return survey::Georeference(s.model,
                                 s.model.latest(),
                                 c.georef,
@@ -174,7 +174,7 @@ georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c) {
                                 georef::SoundingView::kRejected);
 }
 
-Status WritePoints(Survey& s, const PipelineConfig& c) {
+Status WritePoints(StageContext& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
     if (!c.write_rejected) {
@@ -302,7 +302,7 @@ Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>
     return Ok{};
 }
 
-std::string ForeignProduct(const Survey& s,
+std::string ForeignProduct(const StageContext& s,
                            const std::string& file,
                            const std::string& product_run_id) {
     const std::string& run = s.model.run_id;
@@ -333,11 +333,11 @@ json LoadSummaryOfRun(const std::string& out_dir,
     return summary;
 }
 
-Status SaveSummary(const Survey& s) {
+Status SaveSummary(const StageContext& s) {
     return io::WriteJsonFile(s.out_dir + "/summary.json", s.summary);
 }
 
-void TripGate(Survey& s,
+void TripGate(StageContext& s,
               Stage stage_id,
               const std::string& gate,
               const std::string& message,
@@ -349,7 +349,7 @@ void TripGate(Survey& s,
     s.summary["quality_gates"].push_back({{"stage", stage}, {"gate", gate}, {"message", message}});
 }
 
-void ClearGates(Survey& s, Stage stage_id) {
+void ClearGates(StageContext& s, Stage stage_id) {
     const std::string stage = ToString(stage_id);
     if (!s.summary.contains("quality_gates") || !s.summary["quality_gates"].is_array()) return;
     json kept = json::array();
@@ -359,11 +359,11 @@ void ClearGates(Survey& s, Stage stage_id) {
     s.summary["quality_gates"] = std::move(kept);
 }
 
-Expected<Survey> LoadSurvey(const std::string& out_dir,
-                            const PipelineConfig& config,
-                            StartFrom start,
-                            const Log& log) {
-    Survey s;
+Expected<StageContext> LoadSurvey(const std::string& out_dir,
+                                  const PipelineConfig& config,
+                                  StartFrom start,
+                                  const Log& log) {
+    StageContext s;
     s.out_dir = out_dir;
     auto model = survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName);
     if (!model) return model.error();
@@ -396,13 +396,13 @@ Expected<Survey> LoadSurvey(const std::string& out_dir,
     return s;
 }
 
-Status SaveSurvey(const Survey& s) {
+Status SaveSurvey(const StageContext& s) {
     if (auto w = survey::SaveSurvey(s.out_dir + "/" + survey::kSurveyFileName, s.model); !w)
         return w;
     return SaveSummary(s);
 }
 
-Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
+Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points) {
     StageClock clock;
     if (points) {
         if (auto w = WritePoints(s, config); !w) return w;
@@ -436,7 +436,7 @@ Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points) {
 
 // The windows the INS marked not good (ingest's status rule): each with the pings it holds,
 // in summary["ingest_ins_windows"]; any window with pings is a georef gate.
-void InsWindowGate(Survey& s, const Log& log) {
+void InsWindowGate(StageContext& s, const Log& log) {
     const auto& windows = s.model.ingest.ins_windows;
     if (windows.empty()) return;
     const auto& P = s.model.ingest.pings.pings;
@@ -490,7 +490,7 @@ void InsWindowGate(Survey& s, const Log& log) {
 }
 
 // inputs -> ingest -> georef -> products; the survey stays in memory for later stages.
-Status GeorefSurvey(Survey& s,
+Status GeorefSurvey(StageContext& s,
                     const std::vector<std::string>& inputs,
                     const PipelineConfig& config,
                     const Log& log) {
@@ -746,7 +746,7 @@ Status RunGeorefStage(const std::vector<std::string>& inputs,
                       const std::string& out_dir,
                       const PipelineConfig& config,
                       const Log& log) {
-    detail::Survey s;
+    detail::StageContext s;
     s.out_dir = out_dir;
     return detail::GeorefSurvey(s, inputs, config, log);
 }

@@ -12,7 +12,7 @@
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 

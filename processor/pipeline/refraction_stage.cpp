@@ -7,7 +7,7 @@
 
 #include "common/gps_time.hpp"
 #include "processor/io/svp_files.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 
@@ -61,7 +61,7 @@ json Record(const svp::Refraction& r, const std::vector<std::string>& files) {
 
 }  // namespace
 
-Status SetUpRefraction(Survey& s,
+Status SetUpRefraction(StageContext& s,
                        const PipelineConfig& config,
                        std::optional<double> vehicle_ins_height_m,
                        const Log& log) {

@@ -28,10 +28,10 @@
 #include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/result_json.hpp"
-#include "processor/pipeline/survey.hpp"
 #include "processor/survey/survey_file.hpp"
 
 extern char** environ;
@@ -173,7 +173,7 @@ PoseSigma FallbackSigma(const SlamStageConfig& sc) {
     return fallback;
 }
 
-SliceSet SlamSlices(const Survey& s, const SlamStageConfig& sc, const Log& log) {
+SliceSet SlamSlices(const StageContext& s, const SlamStageConfig& sc, const Log& log) {
     SliceSet set = MakeSlices(
         s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, FallbackSigma(sc));
     log("slam: " + std::to_string(set.slices.size()) + " slices, " +
@@ -300,7 +300,7 @@ json DriftWindows(const GoodInsMoves& moves, const QualityConfig& q, std::string
 // calibration did not remove) and is reported, not absorbed into the trajectory. When too many
 // good pings moved, the gate trips and they get their INS poses back in `after`; otherwise the
 // windows that drifted are described in `drift_text`. Returns summary.json's "ins_check".
-json CheckAgainstGoodIns(Survey& s,
+json CheckAgainstGoodIns(StageContext& s,
                          const std::vector<Pose>& before,
                          std::vector<Pose>& after,
                          double sigma_max_age_s,
@@ -361,7 +361,7 @@ double ExpectedConsistency(const georef::GeorefResult& geo, const calib::Boresig
 // Far above the expected consistency, the passes still disagree in a way SLAM did not (and
 // should not) explain: gate slam_inconsistent, saying whether the disagreement sits in a few
 // windows (the navigation of those stretches) or everywhere (a survey-wide input).
-void GateConsistency(Survey& s,
+void GateConsistency(StageContext& s,
                      const slam::SlamResult& r,
                      const QualityConfig& q,
                      double expected_m,
@@ -389,7 +389,7 @@ void GateConsistency(Survey& s,
 
 // The per-ping products of this stage, written once: before and after; `after` becomes the
 // survey's trajectory, with SLAM's posterior sigma per ping when it was computed.
-Status WriteSlamProducts(Survey& s,
+Status WriteSlamProducts(StageContext& s,
                          const SliceSet& set,
                          const slam::SlamResult& r,
                          const SlamStageConfig& sc,
@@ -472,7 +472,7 @@ json SlamSummary(const slam::SlamResult& r,
 
 }  // namespace
 
-Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     const QualityConfig& q = config.quality;
     const SliceSet set = SlamSlices(s, config.slam_stage, log);
@@ -536,7 +536,7 @@ Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
-Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
+Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
                                         const Log& log) {
@@ -625,7 +625,7 @@ std::optional<hydro::DatumModel> DatumOfGridStage(const json& summary,
 // mesh_utm.{ply,glb,prj}: the mesh in the products' CRS (projected_products.cpp), in the
 // vertical datum of this run's points and DEM: the grid stage's (in memory, else as it recorded
 // it), the ellipsoid when no grid stage applied one.
-Status WriteProjectedMeshes(Survey& s,
+Status WriteProjectedMeshes(StageContext& s,
                             const mesh::ColouredMesh& m,
                             const PipelineConfig& config,
                             const Log& log) {
@@ -654,7 +654,7 @@ Status WriteProjectedMeshes(Survey& s,
 
 }  // namespace
 
-Status MeshSurvey(Survey& s,
+Status MeshSurvey(StageContext& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
                   Stage stage,
@@ -720,7 +720,7 @@ Status MeshSurvey(Survey& s,
     return SaveSummary(s);
 }
 
-Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log) {
+Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     const std::string& program = config.report_program;
     if (program.empty() || ::access(program.c_str(), X_OK) != 0) {
@@ -801,11 +801,11 @@ namespace {
 
 // A survey of which only the model's state is needed (mesh, report): the world origin, and
 // summary.json to add the stage's record to.
-Expected<detail::Survey> LoadState(const std::string& out_dir, const Log& log) {
+Expected<detail::StageContext> LoadState(const std::string& out_dir, const Log& log) {
     auto model =
         survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName, survey::LoadParts::kState);
     if (!model) return model.error();
-    detail::Survey s;
+    detail::StageContext s;
     s.out_dir = out_dir;
     s.model = std::move(*model);
     s.summary = detail::LoadSummaryOfRun(out_dir, s.model, log);
@@ -855,7 +855,7 @@ namespace {
 
 // `run` after georef, and `rerun`: calibrate, the mesh before SLAM, SLAM, clean, the export,
 // grid, fuse, mesh, report, on a survey georeferenced (s.geo) on its newest trajectory.
-Status RunAfterGeoref(detail::Survey& s,
+Status RunAfterGeoref(detail::StageContext& s,
                       const PipelineConfig& config,
                       const Log& log,
                       std::chrono::steady_clock::time_point start) {
@@ -945,7 +945,7 @@ Status RunAll(const std::vector<std::string>& inputs,
               const PipelineConfig& config,
               const Log& log) {
     const auto start = std::chrono::steady_clock::now();
-    detail::Survey s;
+    detail::StageContext s;
     s.out_dir = out_dir;
     s.defer_products = true;
     if (auto st = detail::GeorefSurvey(s, inputs, config, log); !st) return st;

@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "../calib/synthetic_survey.hpp"
-#include "processor/pipeline/survey.hpp"
+#include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
 namespace {
@@ -15,14 +15,14 @@ namespace {
 using calib::testing::MakeSurvey;
 using calib::testing::SurveyOptions;
 
-Survey FromSynthetic(double clock_error_s, bool header_position) {
+StageContext FromSynthetic(double clock_error_s, bool header_position) {
     SurveyOptions o;
     o.duration_s = 120;
     o.num_beams = 11;
     o.clock_error_s = clock_error_s;
     o.header_position = header_position;
     auto sv = MakeSurvey(o);
-    Survey s;
+    StageContext s;
     s.model.ingest.nav = std::move(sv.nav);
     s.model.ingest.pings = std::move(sv.pings);
     s.summary = nlohmann::json::object();
@@ -37,7 +37,7 @@ struct Collect {
 };
 
 TEST(ClockStage, AnUnknownOffsetIsFoundAndApplied) {
-    Survey s = FromSynthetic(3600 + 2.35, true);
+    StageContext s = FromSynthetic(3600 + 2.35, true);
     const std::int64_t true_first = s.model.ingest.pings.pings.front().utime_gps - 3'602'350'000;
     Collect c;
     ASSERT_TRUE(ClockSurvey(s, PipelineConfig{}, c.log()));
@@ -54,7 +54,7 @@ TEST(ClockStage, AnUnknownOffsetIsFoundAndApplied) {
 
 TEST(ClockStage, AConfiguredOffsetThatDisagreesTripsAGateWithBothNumbers) {
     // The user's offset was applied by ingest but is 2 s off: the headers say so.
-    Survey s = FromSynthetic(2.0, true);
+    StageContext s = FromSynthetic(2.0, true);
     PipelineConfig cfg;
     cfg.ingest.sonar_clock_offset_known = true;
     cfg.ingest.sonar_clock_offset_s = 0.5;
@@ -72,7 +72,7 @@ TEST(ClockStage, AConfiguredOffsetThatDisagreesTripsAGateWithBothNumbers) {
 }
 
 TEST(ClockStage, AConfiguredOffsetThatAgreesIsQuiet) {
-    Survey s = FromSynthetic(0.0, true);
+    StageContext s = FromSynthetic(0.0, true);
     PipelineConfig cfg;
     cfg.ingest.sonar_clock_offset_known = true;
     Collect c;
@@ -82,7 +82,7 @@ TEST(ClockStage, AConfiguredOffsetThatAgreesIsQuiet) {
 
 TEST(ClockStage, NoOverlapIsAnErrorNamingBothSpans) {
     // A daemon-stamped survey whose navigation ended before the sonar started.
-    Survey s = FromSynthetic(500.0, false);
+    StageContext s = FromSynthetic(500.0, false);
     s.model.ingest.pings.clock = georef::PingClock::kGpsStamped;
     Collect c;
     const Status st = ClockSurvey(s, PipelineConfig{}, c.log());
@@ -97,7 +97,7 @@ TEST(ClockStage, NoOverlapIsAnErrorNamingBothSpans) {
 
 TEST(ClockStage, HeadersThatCannotPlaceTheSonarAreAnErrorAskingForTheOffset) {
     // No aids, and a sonar file much shorter than the navigation: the span is too uncertain.
-    Survey s = FromSynthetic(30.0, false);
+    StageContext s = FromSynthetic(30.0, false);
     s.model.ingest.pings.pings.resize(300);  // 30 s of a 120 s navigation
     Collect c;
     const Status st = ClockSurvey(s, PipelineConfig{}, c.log());

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Internal to processor/pipeline: the in-memory survey the stages pass along, and what the
-// stage implementations share (summary bookkeeping, per-stage time and memory).
+// Internal to processor/pipeline: the stage context (the survey being processed, as the stages
+// pass it along) and what the stage implementations share (summary bookkeeping, per-stage time
+// and memory).
 #pragma once
 
 #include <chrono>
@@ -22,10 +23,11 @@
 
 namespace pitmap::proc::pipeline::detail {
 
-// A survey being processed: the model the stages share (processor/survey: saved as
-// P/survey.pitmap, the only state a stage command loads), the georeferenced view the stages
-// work on, and summary.json, the report each stage adds its record to (never read to decide).
-struct Survey {
+// The stage context, one survey being processed: the model the stages share (processor/survey:
+// saved as P/survey.pitmap, the only state a stage command loads), the georeferenced view the
+// stages work on, and summary.json, the report each stage adds its record to (never read to
+// decide).
+struct StageContext {
     std::string out_dir;
     survey::SurveyModel model;
     georef::GeorefResult geo;  // the model's soundings on its newest trajectory
@@ -45,7 +47,7 @@ struct Survey {
 // height above the water line from the config, else from the vehicle file; sets the model's
 // record and summary["refraction"]. An unreadable or bad cast file, or no INS height, is an
 // error.
-Status SetUpRefraction(Survey& s,
+Status SetUpRefraction(StageContext& s,
                        const PipelineConfig& config,
                        std::optional<double> vehicle_ins_height_m,
                        const Log& log);
@@ -65,7 +67,7 @@ Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>
 // The run id check of a product: "" when `product_run_id` is this survey's run id (or the
 // survey has none, written before run ids), else why it does not belong
 // ("P/tsdf.vdb is from another run (id X; survey.pitmap has Y)").
-std::string ForeignProduct(const Survey& s,
+std::string ForeignProduct(const StageContext& s,
                            const std::string& file,
                            const std::string& product_run_id);
 
@@ -78,15 +80,15 @@ enum class StartFrom {
 // Loads P/survey.pitmap (and P/summary.json, to add to the report; a missing or unreadable one,
 // or one of another run than survey.pitmap (its run_id differs), starts a new report with a
 // warning), moves the model to `start` and georeferences it once.
-Expected<Survey> LoadSurvey(const std::string& out_dir,
-                            const PipelineConfig& config,
-                            StartFrom start,
-                            const Log& log);
+Expected<StageContext> LoadSurvey(const std::string& out_dir,
+                                  const PipelineConfig& config,
+                                  StartFrom start,
+                                  const Log& log);
 // Saves the model (P/survey.pitmap) and summary.json.
-Status SaveSurvey(const Survey& s);
+Status SaveSurvey(const StageContext& s);
 // points.ply, points.las (unless `points` is false: the grid stage writes them with THU/TVU)
 // and boresight.json of the current view, then SaveSurvey.
-Status ExportSurvey(Survey& s, const PipelineConfig& config, bool points = true);
+Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points = true);
 
 // Wall time of one stage. Construction resets the resident-memory high-water mark
 // (common/peak_memory.hpp ResetPeakRss), so RecordStage's peak_rss_mb (PeakRssMb) is the
@@ -135,11 +137,11 @@ Status WritePoints(const std::string& dir,
 // rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson) and
 // summary["metadata"] (ellipsoidal heights: the grid stage writes the points again in the
 // vertical datum).
-Status WritePoints(Survey& s, const PipelineConfig& c);
+Status WritePoints(StageContext& s, const PipelineConfig& c);
 
 // The rejected soundings of the survey's current view (georef::SoundingView::kRejected on the
 // model's newest trajectory, with s.refraction): what the point files carry beside s.geo.
-georef::GeorefResult RejectedView(const Survey& s, const PipelineConfig& c);
+georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c);
 
 // summary.json's "soundings": {total, accepted, rejected: {reason: count}} from georef's counts
 // per status (every status's name, 0 included; total: the soundings of the georeferenced pings,
@@ -152,29 +154,32 @@ nlohmann::json LoadSummaryOfRun(const std::string& out_dir,
                                 const survey::SurveyModel& model,
                                 const Log& log);
 
-Status SaveSummary(const Survey& s);
+Status SaveSummary(const StageContext& s);
 
 // Quality gates (QualityConfig): a stage that cannot explain its data says so in the terminal
 // ("quality gate STAGE/GATE: ...") and in summary["quality_gates"] [{stage, gate, message}];
 // the report lists them. A stage clears its own before it runs again.
-void TripGate(
-    Survey& s, Stage stage, const std::string& gate, const std::string& message, const Log& log);
-void ClearGates(Survey& s, Stage stage);
+void TripGate(StageContext& s,
+              Stage stage,
+              const std::string& gate,
+              const std::string& message,
+              const Log& log);
+void ClearGates(StageContext& s, Stage stage);
 
 // The sonar clock after ingest: for .83P pings (topside clock) the coarse offset from the
 // header aids is found and applied, or a configured offset is checked against it; then the
 // navigation and sonar spans must overlap. summary["sonar_clock"] records what was done.
-Status ClockSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+Status ClockSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 
 // The stages on a survey in memory (bodies of the Run*Stage functions and of RunAll).
-Status GeorefSurvey(Survey& s,
+Status GeorefSurvey(StageContext& s,
                     const std::vector<std::string>& inputs,
                     const PipelineConfig& config,
                     const Log& log);
-Status CalibrateSurvey(Survey& s, const PipelineConfig& config, const Log& log);
-Status SlamSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
+Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 // The automatic cleaning (clean_stage.cpp): flags in the model, the view keeps the accepted.
-Status CleanSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 // The index of point j of `geo` in the survey's range counts.
 std::size_t FlatIndex(const georef::GeorefResult& geo,
                       const georef::PingSeries& pings,
@@ -184,19 +189,19 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep);
 // The points of s.geo with status[j] != 0 (a cleaning status) are rejected: recorded in the
 // model's flags.cleaning and taken out of the view (its counts follow), except those a hand
 // edit restored. Returns which points stayed (index = the point before).
-std::vector<char> RejectPoints(Survey& s, const std::vector<std::uint8_t>& status);
+std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>& status);
 // The products' vertical datum (config.grid.vertical, hydro/datum.hpp) at every ping of s.geo
 // (the grid stage's; the mesh stage's georeferenced files use it too). Fails as the grid stage
 // would (no geoid grid, no INS height above the water line, a water-level file that does not
 // cover the survey).
-Expected<hydro::DatumModel> SurveyDatum(const Survey& s,
+Expected<hydro::DatumModel> SurveyDatum(const StageContext& s,
                                         const PipelineConfig& config,
                                         nlohmann::json* record,
                                         const Log& log);
 // The products' metadata (metadata.hpp) of this survey: the config's section, the vehicle file's
 // equipment, the first and last ping, the UTM zone of the world origin and `datum` (nullptr =
 // ellipsoidal heights); also sets summary["metadata"] to it.
-ProductMetadata SurveyProductMetadata(Survey& s,
+ProductMetadata SurveyProductMetadata(StageContext& s,
                                       const PipelineConfig& config,
                                       const hydro::DatumModel* datum);
 // points_utm.ply and points_utm.prj (projected_products.cpp): the soundings (and the rejected
@@ -216,13 +221,13 @@ Expected<mesh::ProjectedMesh> ProjectMesh(const mesh::ColouredMesh& m,
                                           const hydro::DatumModel& datum,
                                           const PipelineConfig& config);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
-Status GridSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
 // its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm` are
 // the soundings' UTM coordinates, `utm_to_world` the affine map of UTM into the world frame.
 // The mosaic is the UTM positions' last user: once it has read them into its soundings it
 // releases utm.easting_northing_height (141 MB on bejanca).
-Expected<nlohmann::json> MosaicSurvey(const Survey& s,
+Expected<nlohmann::json> MosaicSurvey(const StageContext& s,
                                       const GridStageConfig& gc,
                                       const io::GridRaster& dem,
                                       georef::UtmPoints& utm,
@@ -230,16 +235,16 @@ Expected<nlohmann::json> MosaicSurvey(const Survey& s,
                                       const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
 // or kFuseInitial for the mesh before SLAM.
-Expected<fusion::TsdfVolume> FuseSurvey(Survey& s,
+Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
                                         const Log& log);
 // Meshes a volume; kMesh writes mesh.* and mesh_filled.*, kMeshInitial only mesh_initial.ply.
-Status MeshSurvey(Survey& s,
+Status MeshSurvey(StageContext& s,
                   const fusion::TsdfVolume& volume,
                   const PipelineConfig& config,
                   Stage stage,
                   const Log& log);
-Status ReportSurvey(Survey& s, const PipelineConfig& config, const Log& log);
+Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 
 }  // namespace pitmap::proc::pipeline::detail
