@@ -33,20 +33,19 @@ bool HasColours(const ColouredMesh& m) {
 
 }  // namespace
 
-Status WritePly(const ColouredMesh& mesh,
-                const std::string& path,
-                const std::optional<Geodetic>& origin,
-                const std::string& run_id) {
+namespace {
+
+// The mesh as a binary PLY with the comments of `h`: vertices of `coord` type written by
+// xyz(ByteWriter&, vertex index), their colours when the mesh has them, then the triangles.
+template <class Xyz>
+Status WriteMeshPly(const ColouredMesh& mesh,
+                    const std::string& path,
+                    formats::ply::Header h,
+                    formats::ply::Type coord,
+                    Xyz&& xyz) {
     namespace ply = formats::ply;
     const bool colours = HasColours(mesh);
-    ply::Header h;
-    h.comments.push_back("generator pitmap proc_mesh");
-    if (origin) h.comments.push_back(ply::OriginComment(*origin));
-    if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
-    ply::Element vertex{
-        "vertex",
-        mesh.vertices.size(),
-        {{"x", ply::Type::kFloat32}, {"y", ply::Type::kFloat32}, {"z", ply::Type::kFloat32}}};
+    ply::Element vertex{"vertex", mesh.vertices.size(), {{"x", coord}, {"y", coord}, {"z", coord}}};
     if (colours) {
         for (const char* c : {"red", "green", "blue"}) {
             vertex.properties.push_back({c, ply::Type::kUInt8});
@@ -59,7 +58,7 @@ Status WritePly(const ColouredMesh& mesh,
     ply::Writer w(path, h);
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
         ByteWriter& o = w.Record();
-        for (int k = 0; k < 3; ++k) o.F32Le(mesh.vertices[i][k]);
+        xyz(o, i);
         if (colours) {
             for (std::uint8_t c : mesh.colours[i]) o.U8(c);
         }
@@ -70,6 +69,23 @@ Status WritePly(const ColouredMesh& mesh,
         for (int k = 0; k < 3; ++k) o.I32Le(t[k]);
     }
     return w.Close();
+}
+
+}  // namespace
+
+Status WritePly(const ColouredMesh& mesh,
+                const std::string& path,
+                const std::optional<Geodetic>& origin,
+                const std::string& run_id) {
+    namespace ply = formats::ply;
+    ply::Header h;
+    h.comments.push_back("generator pitmap proc_mesh");
+    if (origin) h.comments.push_back(ply::OriginComment(*origin));
+    if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
+    return WriteMeshPly(
+        mesh, path, std::move(h), ply::Type::kFloat32, [&](ByteWriter& o, std::size_t i) {
+            for (int k = 0; k < 3; ++k) o.F32Le(mesh.vertices[i][k]);
+        });
 }
 
 namespace {
@@ -320,7 +336,6 @@ Status WriteProjectedPly(const ColouredMesh& mesh,
                          const std::string& run_id) {
     namespace ply = formats::ply;
     if (auto c = CheckProjected(mesh, projected, path); !c) return c;
-    const bool colours = HasColours(mesh);
     ply::Header h;
     h.comments.push_back("generator pitmap proc_mesh");
     h.comments.push_back("pitmap_crs " + projected.crs_name);
@@ -332,33 +347,10 @@ Status WriteProjectedPly(const ColouredMesh& mesh,
     if (meta != nullptr)
         h.comments.push_back("pitmap_metadata " + ProductMetadataJson(*meta).dump());
     if (!run_id.empty()) h.comments.push_back(ply::RunIdComment(run_id));
-    ply::Element vertex{
-        "vertex",
-        mesh.vertices.size(),
-        {{"x", ply::Type::kFloat64}, {"y", ply::Type::kFloat64}, {"z", ply::Type::kFloat64}}};
-    if (colours) {
-        for (const char* c : {"red", "green", "blue"}) {
-            vertex.properties.push_back({c, ply::Type::kUInt8});
-        }
-    }
-    h.elements.push_back(std::move(vertex));
-    h.elements.push_back({"face",
-                          mesh.triangles.size(),
-                          {{"vertex_indices", ply::Type::kInt32, ply::Type::kUInt8}}});
-    ply::Writer w(path, h);
-    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-        ByteWriter& o = w.Record();
-        for (int k = 0; k < 3; ++k) o.F64Le(projected.positions[i][k]);
-        if (colours) {
-            for (std::uint8_t c : mesh.colours[i]) o.U8(c);
-        }
-    }
-    for (const Eigen::Vector3i& t : mesh.triangles) {
-        ByteWriter& o = w.Record();
-        o.U8(3);
-        for (int k = 0; k < 3; ++k) o.I32Le(t[k]);
-    }
-    return w.Close();
+    return WriteMeshPly(
+        mesh, path, std::move(h), ply::Type::kFloat64, [&](ByteWriter& o, std::size_t i) {
+            for (int k = 0; k < 3; ++k) o.F64Le(projected.positions[i][k]);
+        });
 }
 
 Status WriteProjectedGlb(const ColouredMesh& mesh,
