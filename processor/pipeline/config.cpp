@@ -347,7 +347,8 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("ins_sigma_max_age_s", c.ins_sigma_max_age_s, "INSSTDEV records used within this, s");
     v("tpu_slam_posterior",
       c.tpu_slam_posterior,
-      "TPU pose sigma from SLAM's posterior where SLAM's trajectory is used (false: the INS's)");
+      "TPU pose sigma from SLAM's posterior where SLAM's trajectory is used (false: the INS's);\n"
+      "not yet validated (optimistic, docs/uncertainty.md): trips a quality gate");
     v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
     v("write_bag", c.write_bag, "P/dem.bag");
     v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");

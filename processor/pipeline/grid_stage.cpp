@@ -485,6 +485,17 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
          std::isnan(tcfg.boresight_sigma_rpy_deg[0]) ? "error_model" : "calibration"}};
     log("grid: TPU pose sigma: " + std::to_string(from_slam) + " of " + std::to_string(sig.size()) +
         " pings from SLAM's posterior, the rest the INS's");
+    if (from_slam > 0) {
+        // The posterior does not yet contain the true error (docs/uncertainty.md): a TPU and an
+        // S-44 order stated from it must say so.
+        TripGate(s,
+                 Stage::kGrid,
+                 "tpu_from_unvalidated_posterior",
+                 "the TPU takes SLAM's posterior pose sigma (grid.tpu_slam_posterior), which is "
+                 "not yet validated and states less than the true error on the test surveys "
+                 "(docs/uncertainty.md): the THU/TVU and the S-44 order are optimistic",
+                 log);
+    }
     hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");

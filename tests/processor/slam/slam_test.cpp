@@ -263,11 +263,8 @@ TEST(Slam, CoarseSearchFindsAnOffsetLeg) {
     EXPECT_GT(r.num_sections_searched, 0u);
     EXPECT_GT(r.num_sections_shifted, 0u);
     EXPECT_LT(leg_ate(r.trajectory), 0.25 * leg_ate(Initial(sv.slices))) << r.message;
-    // Without the search, ICP alone. While the drift-smoothness term's Jacobian had a wrong sign
-    // (it anchored every pose absolutely, fixed 2026-12-06) ICP alone stopped at 0.30 m of the
-    // leg and the search was asserted to beat it by 20 %; with the term right ICP alone reaches
-    // 0.125 m and the search 0.148 m. Until the search is looked at again (issue note of that
-    // stop), it must not leave the leg more than a quarter worse than ICP alone.
+    // Without the search, ICP alone: the search must not leave the leg more than a quarter worse
+    // (docs/decisions/011: why it no longer beats ICP alone here).
     cfg.coarse_search_m = 0;
     const SlamResult r0 = RunSlam(sv.slices, cfg);
     EXPECT_EQ(r0.num_sections_searched, 0u);
