@@ -19,10 +19,12 @@
 #include <chrono>
 #include <cstdio>
 #include <deque>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "lcmtypes/log/channels.hpp"
 #include "processor/io/products.hpp"
@@ -57,11 +59,12 @@ int main(int argc, char** argv) {
     CLI::App app{"pitmap-bench-live_latency: ping-to-page latency of pitmap live"};
     std::vector<std::string> logs;
     double speed = 1.0, seconds = 0;
-    std::string vehicle;
+    std::string vehicle, json_path;
     app.add_option("logs", logs, "LCM logs (pitmap-sim synth writes DIR/log)")->required();
     app.add_option("--speed", speed, "replay speed")->capture_default_str();
     app.add_option("--seconds", seconds, "stop after this much wall time (0 = the whole log)");
     app.add_option("--vehicle", vehicle, "vehicle.yaml (default: zero mount)");
+    app.add_option("--json", json_path, "also write the figures to this JSON file");
     CLI11_PARSE(app, argc, argv);
     if (!(speed > 0)) {
         std::fprintf(stderr, "pitmap-bench-live_latency: --speed must be > 0\n");
@@ -155,5 +158,25 @@ int main(int argc, char** argv) {
                 kPagePollS,
                 mean + kPagePollS / 2 + b50,
                 p99 + kPagePollS + b99);
+    if (!json_path.empty()) {
+        const nlohmann::json j = {
+            {"speed", speed},
+            {"events", r->events},
+            {"data_seconds", r->data_seconds},
+            {"wall_seconds", r->wall_seconds},
+            {"pings_timed", server_s.size()},
+            {"server_latency_s",
+             {{"mean", mean}, {"p50", p50}, {"p95", p95}, {"p99", p99}, {"max", mx}}},
+            {"documents_build_s", {{"p50", b50}, {"p99", b99}, {"polls", build_s.size()}}},
+            {"page_poll_s", kPagePollS},
+            {"ping_to_page_s",
+             {{"mean", mean + kPagePollS / 2 + b50}, {"worst", p99 + kPagePollS + b99}}}};
+        std::ofstream out(json_path);
+        out << j.dump(1) << "\n";
+        if (!out) {
+            std::fprintf(stderr, "pitmap-bench-live_latency: cannot write %s\n", json_path.c_str());
+            return 1;
+        }
+    }
     return 0;
 }

@@ -4,7 +4,8 @@
 # and peak memory of every stage, the scores against ground truth, and a ray-mode TSDF run of
 # the same trajectory for comparison with the beam-width sensor model.
 #   tools/bench/run-e2e-bench.sh [SCENARIO] [OUT]      (defaults: bejanca, out/bench/SCENARIO)
-# Writes OUT/bench.json and prints a Markdown table (the one in docs/benchmarks.md).
+# Writes OUT/bench.json and prints its tables; `tools/bench/run-benchmarks.sh e2e` runs this and
+# stores the result for docs/benchmarks.md.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 scenario=${1:-bejanca}
@@ -92,38 +93,10 @@ bench = {
             "active_voxels": ray_s["stages"]["fuse"]["active_voxels"],
             **{k: v for k, v in ray_scores.items() if k.startswith("mesh_")}}},
 }
-json.dump(bench, open(os.path.join(out, "bench.json"), "w"), indent=2)
-print(f"\n{scenario}: {bench['counts']['pings']} pings, {bench['counts']['points']} points, "
-      f"{bench['cores']} cores\n")
-print("| stage | seconds | CPU seconds | peak RSS (MB) |\n|---|---:|---:|---:|")
-for n, v in stages.items():
-    mb = f"{v['peak_rss_mb']:.0f}" if v["peak_rss_mb"] else "-"
-    cpu = f"{v['cpu_seconds']:.1f}" if v["cpu_seconds"] is not None else "-"
-    print(f"| {n} | {v['seconds']:.1f} | {cpu} | {mb} |")
-cpu_total = sum(v["cpu_seconds"] or 0 for v in stages.values())
-cpu_run = sum(v["cpu_seconds"] or 0 for n, v in stages.items() if n != "report")
-print(f"| **pitmap run total** (`--no-report`) | **{s['total_seconds']:.1f}** | **{cpu_run:.1f}** | "
-      f"**{bench['peak_rss_mb']:.0f}** |")
 bench["run_with_report_seconds"] = s["total_seconds"] + stages["report"]["seconds"]
-print(f"| **with the report** | **{bench['run_with_report_seconds']:.1f}** | **{cpu_total:.1f}** | |")
 proc = s.get("process") or {}
-print(f"\nmalloc on transparent huge pages: {proc.get('malloc_huge_pages', 'not recorded')}; "
-      f"cores: {proc.get('cores', 'not recorded')}")
-# Load during the run: wall times on a shared machine are not the stages' cost.
-print(f"\nload average after the run: {os.getloadavg()[0]:.1f} (1 min) on {os.cpu_count()} cores")
-print("\n| TSDF sensor model | integration (s) | peak RSS (MB) | active voxels | mesh mean abs (m) "
-      "| on the common surface (m) | completeness | floors < 20 deg | faces 20-45 deg "
-      "| walls >= 45 deg |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-for m, v in bench["tsdf_modes"].items():
-    f = lambda x, fmt: (fmt % x) if isinstance(x, (int, float)) else "-"
-    cls = " | ".join(f"{f(v.get('mesh_completeness_slope_' + c), '%.3f')} / "
-                     f"{f(v.get('mesh_mean_abs_m_slope_' + c), '%.4f')} m"
-                     for c in ("0_20", "20_45", "45_91"))
-    print(f"| {m} | {v['integrate_seconds']:.1f} | {v['peak_rss_mb']:.0f} | {v['active_voxels']} | "
-          f"{f(v.get('mesh_mean_abs_m'), '%.4f')} | {f(v.get('mesh_mean_abs_m_common'), '%.4f')} | "
-          f"{f(v.get('mesh_completeness'), '%.3f')} | {cls} |")
-print("(per slope class: completeness / mean abs error)")
-print("\nscores:", ", ".join(f"{k} {v:.4g}" for k, v in scores.items()))
-print(f"\nbench.json: {os.path.join(out, 'bench.json')}")
+bench["malloc_huge_pages"] = proc.get("malloc_huge_pages")
+json.dump(bench, open(os.path.join(out, "bench.json"), "w"), indent=2)
 PY
+"$root/tools/bench/benchmarks_page.py" show e2e "$out/bench.json"
+echo "bench.json: $out/bench.json"

@@ -9,6 +9,7 @@
 # and S-44 add: `pitmap grid` again on the same products without them (ellipsoidal heights,
 # s44.enabled false, grid.write_point_tpu false) and with them.
 #   tools/bench/run-grid-bench.sh [SCENARIO] [OUT]   (defaults: bejanca, out/bench/grid-SCENARIO)
+# Writes OUT/grid.json; `tools/bench/run-benchmarks.sh grid` stores it for docs/benchmarks.md.
 # SIM=DIR reuses a simulation made before (DIR/log, DIR/truth) instead of simulating again.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -103,4 +104,14 @@ for k in ("base", "full"):
     print(f"| {k} | {gs['seconds']:.1f} | {cpu:.1f} | " +
           ", ".join(f"{n} {v[0]:.1f}/{v[1]:.1f}" for n, v in t.items()) + " |")
 print(f"\nrun total {s['total_seconds']:.1f} s; scores: {os.path.join(out, 'products', 'scores.json')}")
+runs = {}
+for k in ("base", "full"):
+    gs = json.load(open(os.path.join(out, f"summary-grid-{k}.json")))["stages"]["grid"]
+    runs[k] = {n: gs[n] for n in ("seconds", "peak_rss_mb", "timings_wall_cpu_s") if n in gs}
+bench = {"scenario": scenario, "soundings": g["soundings"], "nodes": g["nx"] * g["ny"],
+         "resolution_m": g["resolution_m"], "run_total_seconds": s["total_seconds"],
+         "grid_runs": runs,
+         "scores": {k: v for k, v in sc.items() if k.startswith(("dem_", "tpu_within"))}}
+json.dump(bench, open(os.path.join(out, "grid.json"), "w"), indent=2)
 PY
+"$root/tools/bench/benchmarks_page.py" show grid "$out/grid.json"
