@@ -480,6 +480,28 @@ void VisitMetadata(V&& v, SurveyMetadataConfig& c) {
     v("notes", c.notes, "free text (several lines allowed)");
 }
 
+template <class V>
+void VisitTerrain(V&& v, GridStageConfig& g) {
+    hydro::TerrainConfig& c = g.terrain_config;
+    v("enabled", g.terrain, "P/terrain.tif and P/crawler.tif (mine planning) in the grid stage");
+    v("window_m",
+      c.window_m,
+      "slope and roughness from the plane of a square window this wide, m\n"
+      "(the crawler's footprint: wider smooths the slope, narrower follows noise)");
+    v("step_window_m",
+      c.step_window_m,
+      "steps: height range left within this window once the plane is removed, m");
+    v("min_fill", c.min_fill, "share of a window's nodes that must have a height");
+    v("crawler_max_slope_deg", c.crawler_max_slope_deg, "the crawler drives up to this slope");
+    v("crawler_max_step_m", c.crawler_max_step_m, "... climbs steps up to this height, m");
+    v("crawler_max_roughness_m", c.crawler_max_roughness_m, "... on ground this rough (RMS), m");
+    v.NanIsNull("launch_easting",
+                c.launch_easting,
+                "launch point in the products' UTM zone, m; null = no reachable area");
+    v.NanIsNull("launch_northing", c.launch_northing, "(with launch_easting)");
+    v("launch_snap_m", c.launch_snap_m, "start from the traversable node nearest, this close, m");
+}
+
 // The sections of the processor config, in file order.
 template <class V>
 void VisitConfig(V&& v, PipelineConfig& c) {
@@ -495,6 +517,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("vertical", [&](auto& s) { VisitVertical(s, c.grid.vertical); });
     v.Section("s44", [&](auto& s) { VisitS44(s, c.grid); });
     v.Section("mosaic", [&](auto& s) { VisitMosaic(s, c.grid); });
+    v.Section("terrain", [&](auto& s) { VisitTerrain(s, c.grid); });
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });

@@ -50,12 +50,6 @@ struct PartClock {
     }
 };
 
-std::string Fixed(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return b;
-}
-
 // The error model: the vehicle file's `uncertainty:` (the file georef used), else defaults.
 SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string* source) {
     if (path.empty()) {
@@ -311,6 +305,7 @@ std::vector<std::string> GridStageConfig::Validate() const {
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
     for (auto& p : mosaic_config.Validate()) out.push_back(p);
+    for (auto& p : terrain_config.Validate()) out.push_back(p);
     return out;
 }
 
@@ -719,6 +714,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         mosaic_json = std::move(*mosaic);
         part.Lap(timings, "mosaic");
     }
+    json terrain_json;
+    if (gc.terrain) {
+        auto terrain = detail::TerrainSurvey(s, gc, raster, log);
+        if (!terrain) return terrain.error();
+        for (const auto& f : (*terrain)["files"]) files.push_back(f);
+        terrain_json = std::move(*terrain);
+        part.Lap(timings, "terrain");
+    }
     json shares = json::object();
     for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
         shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
@@ -752,6 +755,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     json stage = st;
     if (!s44_json.is_null()) stage["s44"] = s44_json;
     if (!mosaic_json.is_null()) stage["mosaic"] = std::move(mosaic_json);
+    if (!terrain_json.is_null()) stage["terrain"] = std::move(terrain_json);
     s.summary["vertical_datum"] = datum_record;
     log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());

@@ -11,11 +11,15 @@
 //                      GeoTIFF on the DEM's grid, WGS 84 / UTM zone only: bands backscatter (dB,
 //                      relative, corrected for range and incidence: hydro/mosaic.hpp),
 //                      uncorrected (mean 20 log10 intensity, dB) and count
-// and summary.json stages.grid (stages.grid.mosaic). It runs on the soundings of the last stage
-// (after SLAM, or after georef / calibrate when SLAM is off). The error model is vehicle.yaml's
-// `uncertainty:` section (summary.json vehicle_yaml), else SensorErrorModel's defaults; the INS
-// sigmas are the logs' INSSTDEV records nearest each ping (within ins_sigma_max_age_s), else the
-// model's.
+//   P/terrain.tif      (terrain.enabled) the mine-planning layers on the DEM's grid
+//                      (hydro/terrain.hpp): bands slope (deg), roughness (m) and step (m)
+//   P/crawler.tif      (terrain.enabled) a Byte class map: where a crawler of the configured
+//                      limits can stand, and what it can reach from terrain.launch_*
+// and summary.json stages.grid (stages.grid.mosaic, stages.grid.terrain). It runs on the soundings
+// of the last stage (after SLAM, or after georef / calibrate when SLAM is off). The error model is
+// vehicle.yaml's `uncertainty:` section (summary.json vehicle_yaml), else SensorErrorModel's
+// defaults; the INS sigmas are the logs' INSSTDEV records nearest each ping (within
+// ins_sigma_max_age_s), else the model's.
 #pragma once
 
 #include <string>
@@ -25,6 +29,7 @@
 #include "processor/hydro/datum.hpp"
 #include "processor/hydro/mosaic.hpp"
 #include "processor/hydro/s44.hpp"
+#include "processor/hydro/terrain.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -53,6 +58,8 @@ struct GridStageConfig {
     bool mosaic = true;  // backscatter mosaic (`mosaic:` section), when the
                          // pings carry intensities
     hydro::MosaicConfig mosaic_config;
+    bool terrain = true;  // mine-planning layers (`terrain:` section): terrain.tif, crawler.tif
+    hydro::TerrainConfig terrain_config;
 
     std::vector<std::string> Validate() const;
 };

@@ -233,6 +233,14 @@ Expected<nlohmann::json> MosaicSurvey(const StageContext& s,
                                       georef::UtmPoints& utm,
                                       const Eigen::Matrix<double, 2, 3>& utm_to_world,
                                       const Log& log);
+// v with `digits` decimals ("%.*f"), for log lines and product metadata.
+std::string Fixed(double v, int digits);
+// The grid stage's mine-planning layers (terrain_stage.cpp, hydro/terrain.hpp): P/terrain.tif
+// and P/crawler.tif on the DEM's grid, and their summary record (areas by class, the launch).
+Expected<nlohmann::json> TerrainSurvey(const StageContext& s,
+                                       const GridStageConfig& gc,
+                                       const io::GridRaster& dem,
+                                       const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
 // or kFuseInitial for the mesh before SLAM.
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,

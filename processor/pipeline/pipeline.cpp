@@ -81,6 +81,12 @@ void ApplyVehicle(const VehicleDescription& v, io::IngestConfig& icfg) {
 
 namespace detail {
 
+std::string Fixed(double v, int digits) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return b;
+}
+
 namespace {
 
 double ProcessCpuSeconds() {
@@ -208,7 +214,10 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "soundings_tpu.ply",
                                            "s44_holidays.tif",
                                            "s44_holidays.tif.aux.xml",
-                                           "mosaic.tif"};
+                                           "mosaic.tif",
+                                           "terrain.tif",
+                                           "crawler.tif",
+                                           "crawler.tif.aux.xml"};
     const std::vector<std::string> mesh = {"mesh.ply",
                                            "mesh.obj",
                                            "mesh.glb",

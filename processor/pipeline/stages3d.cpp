@@ -46,12 +46,6 @@ namespace {
 // The file metadata key of tsdf.vdb that holds the survey's run id.
 constexpr const char* kRunIdKey = "pitmap_run_id";
 
-std::string Fixed(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof(b), "%.*f", digits, v);
-    return b;
-}
-
 }  // namespace
 
 namespace detail {
@@ -934,7 +928,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         if (auto w = detail::SaveSummary(s); !w) return w;
         if (!st) return st;
     }
-    log("done in " + Fixed(total(), 1) + " s; products in " + out_dir);
+    log("done in " + detail::Fixed(total(), 1) + " s; products in " + out_dir);
     return Ok{};
 }
 

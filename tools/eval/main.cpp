@@ -22,6 +22,7 @@
 #include "tools/eval/scores.hpp"
 #ifdef PITMAP_EVAL_GRID
 #include "processor/io/grid_io.hpp"
+#include "tools/eval/terrain_score.hpp"
 #endif
 
 namespace fs = std::filesystem;
@@ -582,6 +583,17 @@ int main(int argc, char** argv) try {
         scores["dem_mean_abs_insonified_m"] = s.insonified.mean_abs_m;
         scores["dem_resolution_m"] = g.resolution_m;
         if (s.fill_insonified) scores["dem_fill_insonified"] = *s.fill_insonified;
+    }
+    if (auto t = eval::ScoreTerrainProducts(products_dir, world, truth->origin); !t) {
+        std::fprintf(stderr, "pitmap-eval: %s\n", t.error().message.c_str());
+        return codes::kFailure;
+    } else if (*t) {
+        scores["terrain_nodes_scored"] = (*t)->nodes;
+        scores["terrain_slope_mean_abs_deg"] = (*t)->slope_mean_abs_deg;
+        scores["terrain_step_mean_abs_m"] = (*t)->step_mean_abs_m;
+        scores["terrain_class_agreement"] = (*t)->class_agreement;
+        scores["terrain_blocked_recall"] = (*t)->blocked_recall;
+        scores["terrain_blocked_false_share"] = (*t)->blocked_false_share;
     }
     if (fs::exists(P / "mosaic.tif") && !truth->backscatter_db.empty()) {
         auto mosaic = proc::io::ReadGrid((P / "mosaic.tif").string());
