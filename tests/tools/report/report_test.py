@@ -32,8 +32,8 @@ import unittest
 import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
-CLIENT_SECTIONS = ["cover", "summary", "datums", "maps", "hydro", "soundings", "mosaic", "viewer",
-                   "scores", "engineering"]
+CLIENT_SECTIONS = ["cover", "summary", "datums", "maps", "hydro", "soundings", "mosaic", "terrain",
+                   "viewer", "scores", "engineering"]
 ENGINEERING_SECTIONS = ["processing", "quality", "trajectory", "cross-sections", "depth", "tvu",
                         "rejections", "mesh", "boresight", "clock", "tsdf", "slam", "stages"]
 # The maps' raster (WriteDem): 80 x 60 nodes of 0.5 m, UTM 29N, north-up.
@@ -136,6 +136,40 @@ def WriteMosaic(folder, grid):
         "absorption_db_per_m": 0.021, "median_incidence_deg": 30.1, "corrected_p05_db": 74.0,
         "corrected_p95_db": 86.0,
         "angular_response_deg_db_count": [[k + 0.5, 6.0 - 0.2 * k, 100] for k in range(80)]}
+
+
+def WriteTerrain(folder, grid):
+    """terrain.tif (slope, roughness, step) and crawler.tif (Byte classes, no data 255) on
+    DEM_GT, as the grid stage writes them, and their summary record."""
+    from osgeo import gdal, osr
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(32629)
+    gx, gy = np.meshgrid(np.arange(DEM_NX), np.arange(DEM_NY))
+    slope = np.clip(np.hypot(gx - 40, gy - 30), 0, 60).astype(np.float32)
+    classes = np.where(slope < 15, 1, np.where(slope < 30, 2, 3)).astype(np.uint8)
+    classes[10:14, 10:14] = 4
+    classes[0, :] = 255
+    for name, bands, dtype in (("terrain.tif", (("slope", slope), ("roughness", slope * 0.001),
+                                                ("step", slope * 0.01)), gdal.GDT_Float32),
+                               ("crawler.tif", (("crawler", classes),), gdal.GDT_Byte)):
+        ds = gdal.GetDriverByName("GTiff").Create(os.path.join(folder, name), DEM_NX, DEM_NY,
+                                                  len(bands), dtype)
+        ds.SetGeoTransform(DEM_GT)
+        ds.SetProjection(srs.ExportToWkt())
+        for b, (desc, v) in enumerate(bands, start=1):
+            band = ds.GetRasterBand(b)
+            band.SetDescription(desc)
+            if dtype == gdal.GDT_Byte:
+                band.SetNoDataValue(255)
+            band.WriteArray(v)
+        ds = None
+    grid["terrain"] = {
+        "files": ["terrain.tif", "crawler.tif"], "window_m": 1.0, "step_window_m": 0.4,
+        "crawler_max_slope_deg": 20.0, "crawler_max_step_m": 0.3, "crawler_max_roughness_m": 0.1,
+        "launch_given": True, "launch_found": True, "launch_easting_northing": [603410.0, 4477695.0],
+        "launch_snap_distance_m": 0.4, "area_with_data_m2": 1185.0,
+        "area_by_class_m2": {"reachable": 512.25, "traversable, not reachable": 300.0,
+                             "too steep": 350.0, "step obstacle": 4.0, "too rough": 0.0}}
 
 
 def WriteDem(folder):
@@ -314,6 +348,7 @@ def WriteProducts(folder, full=True, points_per_pose=21, metadata=None):
                                                 "rms_m": 0.03, "within_tvu": 0.99}
                                                for i in range(6)]}}}
         WriteMosaic(folder, summary["stages"]["grid"])
+        WriteTerrain(folder, summary["stages"]["grid"])
         WriteDem(folder)
         summary["time"].update({"first_ping_utc": "2026-06-15T09:00:00.000000Z",
                                 "last_ping_utc": "2026-06-15T09:01:59.800000Z",
@@ -416,6 +451,11 @@ class ReportTest(unittest.TestCase):
             self.assertNotIn('class="problem"', text)
         for s in ("maps", "datums", "hydro", "mosaic"):
             self.assertIn("data:image/png", sec[s], s)
+        # Mine planning: both maps, the crawler's limits, the launch point, the areas.
+        self.assertEqual(sec["terrain"].count("data:image/png"), 2)
+        self.assertIn("slope up to 20.0 deg, steps up to 0.30 m", sec["terrain"])
+        self.assertIn("E 603410.0, N 4477695.0", sec["terrain"])
+        self.assertIn("<td>reachable</td><td>512 m&sup2;</td>", sec["terrain"])
         for s in ("trajectory", "cross-sections", "depth", "tvu", "mesh", "tsdf", "slam",
                   "stages"):
             self.assertIn("data:image/png", esec[s], s)
@@ -638,7 +678,7 @@ class ReportTest(unittest.TestCase):
         # The client's page leaves out what has nothing to show (no mosaic, no truth) and has
         # no "not produced" banner; the engineering page names every missing product.
         self.assertEqual(list(sec), [s for s in CLIENT_SECTIONS if s not in
-                                     ("hydro", "mosaic", "scores", "soundings")])
+                                     ("hydro", "mosaic", "terrain", "scores", "soundings")])
         self.assertEqual(list(esec), ENGINEERING_SECTIONS)
         self.assertFalse("not produced" in page, "a 'not produced' line on the client's page")
         self.assertNotIn("could not draw", page + eng)

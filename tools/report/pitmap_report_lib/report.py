@@ -20,6 +20,7 @@ from . import sections_clean as clean  # noqa: E402
 from . import sections_client as client  # noqa: E402
 from . import sections_geometry as geometry  # noqa: E402
 from . import sections_hydro as hydro  # noqa: E402
+from . import sections_planning as planning  # noqa: E402
 from . import sections_stats as stats  # noqa: E402
 from . import sections_survey as survey  # noqa: E402
 from . import sections_viewer as viewer  # noqa: E402
@@ -37,6 +38,7 @@ SECTIONS = (
     (CLIENT_PAGE, "hydro", "IHO S-44 quality control", hydro.hydrography),
     (CLIENT_PAGE, "soundings", "Soundings kept and rejected", clean.sounding_counts),
     (CLIENT_PAGE, "mosaic", "Backscatter mosaic", hydro.mosaic),
+    (CLIENT_PAGE, "terrain", "Mine planning: slopes and the crawler's reach", planning.terrain),
     (CLIENT_PAGE, "viewer", "Interactive 3D view", viewer.viewer),
     (CLIENT_PAGE, "scores", "Scores against ground truth", survey.scores),
     (CLIENT_PAGE, "engineering", "Processing details", client.engineering_link),
