@@ -695,34 +695,34 @@ hydro::S44Soundings S44SoundingsOf(StageContext& s,
                                    const std::vector<double>& datum_height_m,
                                    bool water_level_datum,
                                    hydro::TpuResult& tpu) {
-    hydro::S44Soundings ss;
+    hydro::S44Soundings out;
     const georef::GeorefResult& geo = s.geo;
     const std::size_t n = geo.points.size();
-    ss.x.resize(n);
-    ss.y.resize(n);
-    ss.z.resize(n);
-    ss.depth_m.resize(n);
-    ss.angle_deg.resize(n);
+    out.x.resize(n);
+    out.y.resize(n);
+    out.z.resize(n);
+    out.depth_m.resize(n);
+    out.angle_deg.resize(n);
     for (std::size_t j = 0; j < n; ++j) {
         const Eigen::Vector3d& enh = utm.easting_northing_height[j];
         const std::uint32_t ping = geo.points.ping[j];
-        ss.x[j] = enh.x();
-        ss.y[j] = enh.y();
-        ss.z[j] = enh.z() - datum_height_m[ping];
-        ss.depth_m[j] = water_level_datum ? static_cast<float>(-ss.z[j])
-                                          : static_cast<float>(geo.pings[ping].sensor_world.z() -
-                                                               geo.points.position_world[j].z());
-        ss.angle_deg[j] = static_cast<float>(frames::RadToDeg(geo.points.angle_rad[j]));
+        out.x[j] = enh.x();
+        out.y[j] = enh.y();
+        out.z[j] = enh.z() - datum_height_m[ping];
+        out.depth_m[j] = water_level_datum ? static_cast<float>(-out.z[j])
+                                           : static_cast<float>(geo.pings[ping].sensor_world.z() -
+                                                                geo.points.position_world[j].z());
+        out.angle_deg[j] = static_cast<float>(frames::RadToDeg(geo.points.angle_rad[j]));
     }
-    ss.thu_95_m = std::move(tpu.thu_95_m);
-    ss.tvu_95_m = std::move(tpu.tvu_95_m);
-    ss.ping = std::move(s.geo.points.ping);
+    out.thu_95_m = std::move(tpu.thu_95_m);
+    out.tvu_95_m = std::move(tpu.tvu_95_m);
+    out.ping = std::move(s.geo.points.ping);
     for (const auto& p : s.geo.pings) {
-        ss.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+        out.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
         const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
-        ss.ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+        out.ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
     }
-    return ss;
+    return out;
 }
 
 // S-44's nodes: the CUBE grid, the nodes' depth (below the datum for a water level, else below
