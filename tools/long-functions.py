@@ -135,7 +135,8 @@ def classify(segment):
             break
     if start is None:
         return "other", None
-    m = re.search(r"((?:[A-Za-z_~][\w]*::)*(?:operator\s*[^\s(]+|~?[A-Za-z_]\w*))\s*$", head[:start])
+    name = r"((?:[A-Za-z_~][\w]*::)*(?:operator\s*[^\s(]+|~?[A-Za-z_]\w*))\s*$"
+    m = re.search(name, head[:start])
     if not m:
         return "other", None
     return "function", m.group(1)
