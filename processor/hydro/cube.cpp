@@ -269,47 +269,55 @@ int CubeNode::Choose(double reference) const {
     return best;
 }
 
-CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config) {
-    CubeResult out;
-    std::unique_ptr<tbb::global_control> limit;
-    if (config.num_threads > 0) {
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      config.num_threads);
-    }
-    std::vector<std::uint32_t> idx;
-    idx.reserve(soundings.size());
-    double minx = std::numeric_limits<double>::max(), miny = minx;
-    double maxx = -minx, maxy = -minx;
+namespace {
+
+// The soundings CUBE takes (finite, with positive sigmas) and their horizontal extent.
+struct ValidSoundings {
+    std::vector<std::uint32_t> index;  // into the input, in input order
+    double min_x = std::numeric_limits<double>::max(), min_y = min_x;
+    double max_x = -min_x, max_y = -min_x;
+    std::int64_t rejected = 0;
+};
+
+ValidSoundings SelectValid(const std::vector<CubeSounding>& soundings) {
+    ValidSoundings valid;
+    valid.index.reserve(soundings.size());
     for (std::size_t k = 0; k < soundings.size(); ++k) {
         const CubeSounding& s = soundings[k];
         if (!Valid(s)) {
-            ++out.soundings_rejected;
+            ++valid.rejected;
             continue;
         }
-        idx.push_back(static_cast<std::uint32_t>(k));
-        minx = std::min(minx, s.x);
-        maxx = std::max(maxx, s.x);
-        miny = std::min(miny, s.y);
-        maxy = std::max(maxy, s.y);
+        valid.index.push_back(static_cast<std::uint32_t>(k));
+        valid.min_x = std::min(valid.min_x, s.x);
+        valid.max_x = std::max(valid.max_x, s.x);
+        valid.min_y = std::min(valid.min_y, s.y);
+        valid.max_y = std::max(valid.max_y, s.y);
     }
-    if (idx.empty()) {
-        out.message = "grid: no valid soundings";
-        return out;
-    }
-    {
-        std::vector<float> depths(idx.size());
-        for (std::size_t k = 0; k < idx.size(); ++k) depths[k] = soundings[idx[k]].depth_m;
-        const auto mid = depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2);
-        std::nth_element(depths.begin(), mid, depths.end());
-        out.median_depth_m = *mid;
-    }
-    const double res = config.resolution_m > 0 ? config.resolution_m
-                                               : ResolutionFromDepth(out.median_depth_m, config);
-    CubeGrid& g = out.grid;
-    g.resolution_m = res;
-    g.x0 = std::floor(minx / res) * res;
-    g.y0 = std::floor(miny / res) * res;
-    const double nxd = std::ceil((maxx - g.x0) / res) + 2, nyd = std::ceil((maxy - g.y0) / res) + 2;
+    return valid;
+}
+
+double MedianDepth(const std::vector<CubeSounding>& soundings, const ValidSoundings& valid) {
+    std::vector<float> depths(valid.index.size());
+    for (std::size_t k = 0; k < valid.index.size(); ++k)
+        depths[k] = soundings[valid.index[k]].depth_m;
+    const auto mid = depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2);
+    std::nth_element(depths.begin(), mid, depths.end());
+    return *mid;
+}
+
+// The nodes at `resolution_m` over the soundings' extent, with a node of margin beyond it; "" or
+// why not (more than max_nodes).
+std::string LayOutGrid(const ValidSoundings& valid,
+                       double resolution_m,
+                       const CubeConfig& config,
+                       CubeGrid& grid) {
+    const double res = resolution_m;
+    grid.resolution_m = res;
+    grid.x0 = std::floor(valid.min_x / res) * res;
+    grid.y0 = std::floor(valid.min_y / res) * res;
+    const double nxd = std::ceil((valid.max_x - grid.x0) / res) + 2;
+    const double nyd = std::ceil((valid.max_y - grid.y0) / res) + 2;
     if (nxd * nyd > static_cast<double>(config.max_nodes) || nxd > 1e7 || nyd > 1e7) {
         char buf[200];
         std::snprintf(buf,
@@ -320,141 +328,236 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                       nyd,
                       res,
                       static_cast<long long>(config.max_nodes));
-        out.message = buf;
-        return out;
+        return buf;
     }
-    g.nx = static_cast<int>(nxd);
-    g.ny = static_cast<int>(nyd);
-    out.capture_distance_m = CaptureDistance(out.median_depth_m, res, config);
+    grid.nx = static_cast<int>(nxd);
+    grid.ny = static_cast<int>(nyd);
+    return {};
+}
 
-    // Predicted surface on coarse cells whose edges fall on node half-spacings.
+// The predicted surface on coarse cells whose edges fall on node half-spacings.
+Predicted PredictedSurface(const std::vector<CubeSounding>& soundings,
+                           const ValidSoundings& valid,
+                           const CubeGrid& grid,
+                           const CubeConfig& config) {
+    const double res = grid.resolution_m;
     const double cell = res * config.predicted_surface_cells;
-    const int pnx = static_cast<int>(std::ceil(g.nx * res / cell)) + 1;
-    const int pny = static_cast<int>(std::ceil(g.ny * res / cell)) + 1;
-    const Predicted pred =
-        BuildPredicted(soundings, idx, g.x0 - res / 2, g.y0 - res / 2, cell, pnx, pny);
+    const int cells_x = static_cast<int>(std::ceil(grid.nx * res / cell)) + 1;
+    const int cells_y = static_cast<int>(std::ceil(grid.ny * res / cell)) + 1;
+    return BuildPredicted(
+        soundings, valid.index, grid.x0 - res / 2, grid.y0 - res / 2, cell, cells_x, cells_y);
+}
 
-    // Row bands, each with the soundings that reach it, in input order (CSR).
-    const int nbands = (g.ny + kBandRows - 1) / kBandRows;
-    std::vector<std::uint32_t> band_start(static_cast<std::size_t>(nbands) + 1, 0);
+// Bands of kBandRows node rows, each with the soundings that reach it (their capture distance),
+// in input order (CSR: band b's soundings are items[start[b]] .. items[start[b + 1]]). The bands
+// are processed in parallel, each by one thread.
+struct Bands {
+    int count = 0;
+    std::vector<std::uint32_t> start;
+    std::vector<std::uint32_t> items;
+};
+
+Bands BandsOf(const std::vector<CubeSounding>& soundings,
+              const ValidSoundings& valid,
+              const CubeGrid& grid,
+              const CubeConfig& config) {
+    const double res = grid.resolution_m;
+    Bands bands;
+    bands.count = (grid.ny + kBandRows - 1) / kBandRows;
+    bands.start.assign(static_cast<std::size_t>(bands.count) + 1, 0);
     const auto rows_of = [&](const CubeSounding& s, int& j0, int& j1) {
         const double r = CaptureDistance(s.depth_m, res, config);
-        j0 = std::max(0, static_cast<int>(std::ceil((s.y - r - g.y0) / res)));
-        j1 = std::min(g.ny - 1, static_cast<int>(std::floor((s.y + r - g.y0) / res)));
+        j0 = std::max(0, static_cast<int>(std::ceil((s.y - r - grid.y0) / res)));
+        j1 = std::min(grid.ny - 1, static_cast<int>(std::floor((s.y + r - grid.y0) / res)));
     };
-    for (std::uint32_t k : idx) {
+    for (std::uint32_t k : valid.index) {
         int j0 = 0, j1 = 0;
         rows_of(soundings[k], j0, j1);
         if (j1 < j0) continue;
-        for (int b = j0 / kBandRows; b <= j1 / kBandRows; ++b) ++band_start[b + 1];
+        for (int b = j0 / kBandRows; b <= j1 / kBandRows; ++b) ++bands.start[b + 1];
     }
-    for (int b = 0; b < nbands; ++b) band_start[b + 1] += band_start[b];
-    std::vector<std::uint32_t> band_items(band_start.back());
-    {
-        std::vector<std::uint32_t> fill(band_start.begin(), band_start.end() - 1);
-        for (std::uint32_t k : idx) {
-            int j0 = 0, j1 = 0;
-            rows_of(soundings[k], j0, j1);
-            if (j1 < j0) continue;
-            for (int b = j0 / kBandRows; b <= j1 / kBandRows; ++b) band_items[fill[b]++] = k;
+    for (int b = 0; b < bands.count; ++b) bands.start[b + 1] += bands.start[b];
+    bands.items.resize(bands.start.back());
+    std::vector<std::uint32_t> fill(bands.start.begin(), bands.start.end() - 1);
+    for (std::uint32_t k : valid.index) {
+        int j0 = 0, j1 = 0;
+        rows_of(soundings[k], j0, j1);
+        if (j1 < j0) continue;
+        for (int b = j0 / kBandRows; b <= j1 / kBandRows; ++b) bands.items[fill[b]++] = k;
+    }
+    return bands;
+}
+
+// The median pre-filter queues of one band's nodes: queue_length slots a node, (z, variance)
+// sorted by z. A full queue releases its median to the node's hypotheses (CubeNode::Update).
+// They live only while the band is processed, so that the queues of the whole grid are never
+// held at once.
+class BandQueues {
+public:
+    BandQueues(std::vector<CubeNode>& nodes,
+               std::size_t first_node,
+               std::size_t band_nodes,
+               const CubeConfig& config)
+        : nodes_(nodes),
+          first_node_(first_node),
+          length_(config.queue_length),
+          config_(config),
+          queue_(length_ > 1 ? band_nodes * length_ : 0),
+          queued_(length_ > 1 ? band_nodes : 0, 0) {}
+
+    // Offers a sounding propagated to node `node` (height z, variance v).
+    void Offer(std::size_t node, double z, double v) {
+        if (length_ <= 1) {
+            nodes_[node].Update(z, v, config_);
+            return;
+        }
+        const std::size_t local = node - first_node_;
+        auto* q = queue_.data() + local * length_;
+        int k = queued_[local];
+        const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+        // Insertion into the sorted queue.
+        int pos = k;
+        while (pos > 0 && q[pos - 1].first > e.first) {
+            q[pos] = q[pos - 1];
+            --pos;
+        }
+        q[pos] = e;
+        ++k;
+        if (k == length_) ReleaseMedian(q, k, nodes_[node]);
+        queued_[local] = static_cast<std::uint8_t>(k);
+    }
+
+    // Empties every queue: the median first, until the queue is empty.
+    void Flush() {
+        for (std::size_t local = 0; local < queued_.size(); ++local) {
+            auto* q = queue_.data() + local * length_;
+            int k = queued_[local];
+            CubeNode& node = nodes_[local + first_node_];
+            while (k > 0) ReleaseMedian(q, k, node);
         }
     }
 
-    std::vector<CubeNode> nodes(g.size());
-    std::atomic<std::int64_t> updates{0};
-    const int Q = config.queue_length;
+private:
+    void ReleaseMedian(std::pair<float, float>* q, int& k, CubeNode& node) {
+        const int mid = k / 2;
+        const auto m = q[mid];
+        for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
+        --k;
+        node.Update(m.first, m.second, config_);
+    }
+
+    std::vector<CubeNode>& nodes_;
+    std::size_t first_node_;
+    int length_;
+    const CubeConfig& config_;
+    std::vector<std::pair<float, float>> queue_;
+    std::vector<std::uint8_t> queued_;
+};
+
+// Offers sounding `s` to every node of rows first_row..last_row within its capture distance:
+// its height carried along the predicted surface's slope to the node (slope_correction), its
+// variance grown with the distance. Returns the number of nodes offered.
+std::int64_t OfferSounding(const CubeSounding& s,
+                           const CubeGrid& grid,
+                           int first_row,
+                           int last_row,
+                           const Predicted& predicted,
+                           const CubeConfig& config,
+                           BandQueues& queues) {
+    const double res = grid.resolution_m;
     const bool square = config.distance_exponent == 2.0;
-    tbb::parallel_for(0, nbands, [&](int band) {
-        const int jb0 = band * kBandRows, jb1 = std::min(g.ny - 1, jb0 + kBandRows - 1);
-        // The band's median queues, (z, variance) sorted by z, Q slots a node: they live only
-        // while the band is processed.
-        const std::size_t band_nodes = static_cast<std::size_t>(jb1 - jb0 + 1) * g.nx;
-        std::vector<std::pair<float, float>> queue(Q > 1 ? band_nodes * Q : 0);
-        std::vector<std::uint8_t> queued(Q > 1 ? band_nodes : 0, 0);
-        const auto offer = [&](std::size_t n, double z, double v) {
-            CubeNode& node = nodes[n];
-            if (Q <= 1) {
-                node.Update(z, v, config);
-                return;
-            }
-            const std::size_t local = n - static_cast<std::size_t>(jb0) * g.nx;
-            auto* q = queue.data() + local * Q;
-            int k = queued[local];
-            const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
-            // Insertion into the sorted queue.
-            int pos = k;
-            while (pos > 0 && q[pos - 1].first > e.first) {
-                q[pos] = q[pos - 1];
-                --pos;
-            }
-            q[pos] = e;
-            ++k;
-            if (k == Q) {
-                const int mid = k / 2;
-                const auto m = q[mid];
-                for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
-                --k;
-                node.Update(m.first, m.second, config);
-            }
-            queued[local] = static_cast<std::uint8_t>(k);
-        };
-        std::int64_t local_updates = 0;
-        for (std::uint32_t p = band_start[band]; p < band_start[band + 1]; ++p) {
-            const CubeSounding& s = soundings[band_items[p]];
-            const double r = CaptureDistance(s.depth_m, res, config);
-            const double r2 = r * r;
-            const int i0 = std::max(0, static_cast<int>(std::ceil((s.x - r - g.x0) / res)));
-            const int i1 = std::min(g.nx - 1, static_cast<int>(std::floor((s.x + r - g.x0) / res)));
-            const int j0 = std::max(jb0, static_cast<int>(std::ceil((s.y - r - g.y0) / res)));
-            const int j1 = std::min(jb1, static_cast<int>(std::floor((s.y + r - g.y0) / res)));
-            double gx = 0, gy = 0;
-            if (config.slope_correction) {
-                const std::size_t c = pred.Cell(s.x, s.y);
-                gx = pred.gx[c];
-                gy = pred.gy[c];
-            }
-            const double sv2 = static_cast<double>(s.sigma_v_m) * s.sigma_v_m;
-            const double slope_var =
-                (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
-            const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
-            for (int j = j0; j <= j1; ++j) {
-                const double dy = g.y0 + j * res - s.y;
-                for (int i = i0; i <= i1; ++i) {
-                    const double dx = g.x0 + i * res - s.x;
-                    const double d2 = dx * dx + dy * dy;
-                    if (d2 > r2) continue;
-                    // C&M eq. 9: sigma_v^2 (1 + ((d + rho sigma_h) / resolution)^alpha).
-                    const double u = (std::sqrt(d2) + rho_sh) / res;
-                    const double grow = square ? u * u : std::pow(u, config.distance_exponent);
-                    const double v = sv2 * (1.0 + grow) + slope_var;
-                    offer(static_cast<std::size_t>(j) * g.nx + i, s.z + gx * dx + gy * dy, v);
-                    ++local_updates;
-                }
-            }
+    const double r = CaptureDistance(s.depth_m, res, config);
+    const double r2 = r * r;
+    const int i0 = std::max(0, static_cast<int>(std::ceil((s.x - r - grid.x0) / res)));
+    const int i1 = std::min(grid.nx - 1, static_cast<int>(std::floor((s.x + r - grid.x0) / res)));
+    const int j0 = std::max(first_row, static_cast<int>(std::ceil((s.y - r - grid.y0) / res)));
+    const int j1 = std::min(last_row, static_cast<int>(std::floor((s.y + r - grid.y0) / res)));
+    double gx = 0, gy = 0;
+    if (config.slope_correction) {
+        const std::size_t c = predicted.Cell(s.x, s.y);
+        gx = predicted.gx[c];
+        gy = predicted.gy[c];
+    }
+    const double sv2 = static_cast<double>(s.sigma_v_m) * s.sigma_v_m;
+    const double slope_var = (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
+    const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
+    std::int64_t offered = 0;
+    for (int j = j0; j <= j1; ++j) {
+        const double dy = grid.y0 + j * res - s.y;
+        for (int i = i0; i <= i1; ++i) {
+            const double dx = grid.x0 + i * res - s.x;
+            const double d2 = dx * dx + dy * dy;
+            if (d2 > r2) continue;
+            // C&M eq. 9: sigma_v^2 (1 + ((d + rho sigma_h) / resolution)^alpha).
+            const double u = (std::sqrt(d2) + rho_sh) / res;
+            const double grow = square ? u * u : std::pow(u, config.distance_exponent);
+            const double v = sv2 * (1.0 + grow) + slope_var;
+            queues.Offer(static_cast<std::size_t>(j) * grid.nx + i, s.z + gx * dx + gy * dy, v);
+            ++offered;
         }
-        // Flush: the median first, until the queue is empty.
-        for (std::size_t local = 0; local < queued.size(); ++local) {
-            auto* q = queue.data() + local * Q;
-            int k = queued[local];
-            CubeNode& node = nodes[local + static_cast<std::size_t>(jb0) * g.nx];
-            while (k > 0) {
-                const int mid = k / 2;
-                const auto m = q[mid];
-                for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
-                --k;
-                node.Update(m.first, m.second, config);
-            }
-        }
-        updates += local_updates;
-    });
-    out.node_updates = updates.load();
-    out.soundings_used = static_cast<std::int64_t>(idx.size());
+    }
+    return offered;
+}
 
-    const std::size_t nn = g.size();
-    g.elevation_m.assign(nn, static_cast<float>(kNaN));
-    g.uncertainty_m.assign(nn, static_cast<float>(kNaN));
-    g.density.assign(nn, 0.0f);
-    g.hypotheses.assign(nn, 0.0f);
+// Every node's hypotheses from the soundings that reach it, band by band in parallel (a band's
+// soundings in input order, so the result does not depend on the thread count). Returns the
+// number of node updates.
+std::int64_t AccumulateNodes(const std::vector<CubeSounding>& soundings,
+                             const Bands& bands,
+                             const CubeGrid& grid,
+                             const Predicted& predicted,
+                             const CubeConfig& config,
+                             std::vector<CubeNode>& nodes) {
+    std::atomic<std::int64_t> updates{0};
+    tbb::parallel_for(0, bands.count, [&](int band) {
+        const int first_row = band * kBandRows;
+        const int last_row = std::min(grid.ny - 1, first_row + kBandRows - 1);
+        const std::size_t band_nodes = static_cast<std::size_t>(last_row - first_row + 1) * grid.nx;
+        BandQueues queues(nodes, static_cast<std::size_t>(first_row) * grid.nx, band_nodes, config);
+        std::int64_t band_updates = 0;
+        for (std::uint32_t p = bands.start[band]; p < bands.start[band + 1]; ++p) {
+            band_updates += OfferSounding(
+                soundings[bands.items[p]], grid, first_row, last_row, predicted, config, queues);
+        }
+        queues.Flush();
+        updates += band_updates;
+    });
+    return updates.load();
+}
+
+// kLocale's reference for node (i, j): the median of the densest hypotheses' means of the nodes
+// within locale_radius (`strongest`, NaN where empty), the node itself excluded; NaN if none.
+double LocaleReference(const std::vector<double>& strongest,
+                       const CubeGrid& grid,
+                       int i,
+                       int j,
+                       int radius,
+                       std::vector<double>& around) {
+    around.clear();
+    for (int b = std::max(0, j - radius); b <= std::min(grid.ny - 1, j + radius); ++b) {
+        for (int a = std::max(0, i - radius); a <= std::min(grid.nx - 1, i + radius); ++a) {
+            const double z = strongest[static_cast<std::size_t>(b) * grid.nx + a];
+            if ((a != i || b != j) && std::isfinite(z)) around.push_back(z);
+        }
+    }
+    if (around.empty()) return kNaN;
+    const auto mid = around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2);
+    std::nth_element(around.begin(), mid, around.end());
+    return *mid;
+}
+
+// The grid's layers from each node's chosen hypothesis: the only one, else the one nearest the
+// disambiguation's reference (the predicted surface, the locale's median) or the densest.
+void ChooseHypotheses(const std::vector<CubeNode>& nodes,
+                      const Predicted& predicted,
+                      const CubeConfig& config,
+                      CubeGrid& grid) {
+    const std::size_t nn = grid.size();
+    const double res = grid.resolution_m;
+    grid.elevation_m.assign(nn, static_cast<float>(kNaN));
+    grid.uncertainty_m.assign(nn, static_cast<float>(kNaN));
+    grid.density.assign(nn, 0.0f);
+    grid.hypotheses.assign(nn, 0.0f);
     // The densest hypothesis' mean of every node (kLocale's neighbourhood).
     std::vector<double> strongest(nn, kNaN);
     if (config.disambiguation == Disambiguation::kLocale) {
@@ -463,48 +566,42 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
             if (h >= 0) strongest[n] = nodes[n].hypotheses()[static_cast<std::size_t>(h)].mean_m;
         });
     }
-    tbb::parallel_for(0, g.ny, [&](int j) {
+    tbb::parallel_for(0, grid.ny, [&](int j) {
         std::vector<double> around;
-        for (int i = 0; i < g.nx; ++i) {
-            const std::size_t n = static_cast<std::size_t>(j) * g.nx + i;
+        for (int i = 0; i < grid.nx; ++i) {
+            const std::size_t n = static_cast<std::size_t>(j) * grid.nx + i;
             const auto& hyps = nodes[n].hypotheses();
             if (hyps.empty()) continue;
             double reference = kNaN;
             if (hyps.size() > 1) {
                 if (config.disambiguation == Disambiguation::kPredictedSurface) {
-                    reference = pred.Interpolate(g.x0 + i * res, g.y0 + j * res);
+                    reference = predicted.Interpolate(grid.x0 + i * res, grid.y0 + j * res);
                 } else if (config.disambiguation == Disambiguation::kLocale) {
-                    around.clear();
-                    const int R = config.locale_radius;
-                    for (int b = std::max(0, j - R); b <= std::min(g.ny - 1, j + R); ++b) {
-                        for (int a = std::max(0, i - R); a <= std::min(g.nx - 1, i + R); ++a) {
-                            const double z = strongest[static_cast<std::size_t>(b) * g.nx + a];
-                            if ((a != i || b != j) && std::isfinite(z)) around.push_back(z);
-                        }
-                    }
-                    if (!around.empty()) {
-                        const auto mid =
-                            around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2);
-                        std::nth_element(around.begin(), mid, around.end());
-                        reference = *mid;
-                    }
+                    reference =
+                        LocaleReference(strongest, grid, i, j, config.locale_radius, around);
                 }
             }
             const CubeHypothesis& h = hyps[static_cast<std::size_t>(nodes[n].Choose(reference))];
-            g.elevation_m[n] = static_cast<float>(h.mean_m);
-            g.uncertainty_m[n] =
+            grid.elevation_m[n] = static_cast<float>(h.mean_m);
+            grid.uncertainty_m[n] =
                 static_cast<float>(1.96 * std::max(std::sqrt(h.variance_m2), h.SampleSd()));
-            g.density[n] = static_cast<float>(h.count);
-            g.hypotheses[n] = static_cast<float>(hyps.size());
+            grid.density[n] = static_cast<float>(h.count);
+            grid.hypotheses[n] = static_cast<float>(hyps.size());
         }
     });
-    for (std::size_t n = 0; n < nn; ++n) {
-        const auto k = nodes[n].hypotheses().size();
+}
+
+void CountHypotheses(const std::vector<CubeNode>& nodes, CubeResult& out) {
+    for (const CubeNode& node : nodes) {
+        const auto k = node.hypotheses().size();
         out.hypotheses_total += static_cast<std::int64_t>(k);
         if (k > 0) ++out.nodes_filled;
         if (k > 1) ++out.nodes_multiple;
     }
-    out.ok = true;
+}
+
+std::string CubeMessage(const CubeResult& out) {
+    const CubeGrid& g = out.grid;
     char buf[256];
     std::snprintf(buf,
                   sizeof buf,
@@ -512,14 +609,53 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                   "%lld with several hypotheses; %lld soundings, %lld node updates",
                   g.nx,
                   g.ny,
-                  res,
+                  g.resolution_m,
                   out.median_depth_m,
                   out.capture_distance_m,
                   static_cast<long long>(out.nodes_filled),
                   static_cast<long long>(out.nodes_multiple),
                   static_cast<long long>(out.soundings_used),
                   static_cast<long long>(out.node_updates));
-    out.message = buf;
+    return buf;
+}
+
+}  // namespace
+
+// CUBE (Calder & Mayer 2003): the grid from the soundings' extent and median depth, the
+// predicted surface, every node's hypotheses from the soundings within its capture distance,
+// then one hypothesis chosen a node.
+CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config) {
+    CubeResult out;
+    std::unique_ptr<tbb::global_control> limit;
+    if (config.num_threads > 0) {
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      config.num_threads);
+    }
+    const ValidSoundings valid = SelectValid(soundings);
+    out.soundings_rejected = valid.rejected;
+    if (valid.index.empty()) {
+        out.message = "grid: no valid soundings";
+        return out;
+    }
+    out.median_depth_m = MedianDepth(soundings, valid);
+    const double res = config.resolution_m > 0 ? config.resolution_m
+                                               : ResolutionFromDepth(out.median_depth_m, config);
+    CubeGrid& grid = out.grid;
+    if (std::string why = LayOutGrid(valid, res, config, grid); !why.empty()) {
+        out.message = std::move(why);
+        return out;
+    }
+    out.capture_distance_m = CaptureDistance(out.median_depth_m, res, config);
+
+    const Predicted predicted = PredictedSurface(soundings, valid, grid, config);
+    const Bands bands = BandsOf(soundings, valid, grid, config);
+    std::vector<CubeNode> nodes(grid.size());
+    out.node_updates = AccumulateNodes(soundings, bands, grid, predicted, config, nodes);
+    out.soundings_used = static_cast<std::int64_t>(valid.index.size());
+    ChooseHypotheses(nodes, predicted, config, grid);
+    CountHypotheses(nodes, out);
+    out.ok = true;
+    out.message = CubeMessage(out);
     return out;
 }
 

@@ -184,109 +184,139 @@ AngularResponse RefineAngularResponse(const AngularResponse& response,
     return EstimateAngularResponse(residual, incidence_deg, c);
 }
 
-MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& c) {
-    PITMAP_CHECK(g.elevation_m != nullptr && g.nx > 0 && g.ny > 0 && g.resolution_m > 0 &&
-                     g.elevation_m->size() ==
-                         static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny),
-                 "RunMosaic: bad grid");
-    const std::size_t n = s.size();
-    PITMAP_CHECK(s.y.size() == n && s.intensity.size() == n && s.range_m.size() == n &&
-                     s.beam_dir.size() == n,
-                 "RunMosaic: soundings arrays differ in size");
-    MosaicResult r;
-    r.soundings_in = static_cast<std::int64_t>(n);
-    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+namespace {
 
-    // Pass 1: node, range-corrected level and incidence of every usable sounding; the
-    // uncorrected mean's sum per node.
-    std::vector<std::uint32_t> node(n, std::numeric_limits<std::uint32_t>::max());
-    std::vector<float> level(n, kNaN), incidence(n, kNaN);
-    std::vector<double> sum_u(cells, 0.0);
+constexpr std::uint32_t kNoNode = std::numeric_limits<std::uint32_t>::max();
+
+// Every sounding's node, range-corrected level and incidence on the DEM (kNoNode and NaN where
+// unusable), and the uncorrected levels' sum per node.
+struct LevelledSoundings {
+    std::vector<std::uint32_t> node;
+    std::vector<float> level_db;
+    std::vector<float> incidence_deg;
+    std::vector<double> uncorrected_sum_db;  // per node
+};
+
+// The first pass: the soundings with an intensity (neither none nor saturated) on a node of the
+// grid, at an incidence up to max_incidence_deg, the others counted by reason in `r`. The DEM's
+// normal is computed once per node that a sounding falls on.
+LevelledSoundings LevelSoundings(const MosaicSoundings& s,
+                                 const MosaicGrid& g,
+                                 const MosaicConfig& c,
+                                 MosaicResult& r) {
+    const std::size_t n = s.size();
+    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+    LevelledSoundings out;
+    out.node.assign(n, kNoNode);
+    out.level_db.assign(n, kNaN);
+    out.incidence_deg.assign(n, kNaN);
+    out.uncorrected_sum_db.assign(cells, 0.0);
     std::vector<Eigen::Vector3d> normals(cells, Eigen::Vector3d::Zero());
     std::vector<char> have_normal(cells, 0);
     for (std::size_t j = 0; j < n; ++j) {
-        const std::uint16_t I = s.intensity[j];
-        if (I == 0) {
+        const std::uint16_t intensity = s.intensity[j];
+        if (intensity == 0) {
             ++r.no_intensity;
             continue;
         }
-        if (I == 65535) {
+        if (intensity == 65535) {
             ++r.saturated;
             continue;
         }
-        const long i = std::lround((s.x[j] - g.x0) / g.resolution_m);
-        const long k = std::lround((s.y[j] - g.y0) / g.resolution_m);
-        if (i < 0 || k < 0 || i >= g.nx || k >= g.ny || !(s.range_m[j] > 0)) {
+        const long col = std::lround((s.x[j] - g.x0) / g.resolution_m);
+        const long row = std::lround((s.y[j] - g.y0) / g.resolution_m);
+        if (col < 0 || row < 0 || col >= g.nx || row >= g.ny || !(s.range_m[j] > 0)) {
             ++r.outside_grid;
             continue;
         }
-        const std::size_t q = static_cast<std::size_t>(k) * static_cast<std::size_t>(g.nx) +
-                              static_cast<std::size_t>(i);
-        if (!have_normal[q]) {
-            normals[q] = DemNormal(g, static_cast<int>(i), static_cast<int>(k));
-            have_normal[q] = 1;
+        const std::size_t cell = static_cast<std::size_t>(row) * static_cast<std::size_t>(g.nx) +
+                                 static_cast<std::size_t>(col);
+        if (!have_normal[cell]) {
+            normals[cell] = DemNormal(g, static_cast<int>(col), static_cast<int>(row));
+            have_normal[cell] = 1;
         }
-        const double t = IncidenceDeg(s.beam_dir[j].cast<double>().normalized(), normals[q]);
-        if (t > c.max_incidence_deg) {
+        const double incidence =
+            IncidenceDeg(s.beam_dir[j].cast<double>().normalized(), normals[cell]);
+        if (incidence > c.max_incidence_deg) {
             ++r.beyond_incidence;
             continue;
         }
-        node[j] = static_cast<std::uint32_t>(q);
-        const float raw = static_cast<float>(IntensityDb(I));
-        sum_u[q] += raw;
-        level[j] = static_cast<float>(raw + RangeLossDb(s.range_m[j], c));
-        incidence[j] = static_cast<float>(t);
+        out.node[j] = static_cast<std::uint32_t>(cell);
+        const float raw = static_cast<float>(IntensityDb(intensity));
+        out.uncorrected_sum_db[cell] += raw;
+        out.level_db[j] = static_cast<float>(raw + RangeLossDb(s.range_m[j], c));
+        out.incidence_deg[j] = static_cast<float>(incidence);
     }
-    s = MosaicSoundings{};  // what follows needs only node, level and incidence
+    return out;
+}
 
+// The angular response the levels are corrected by: the survey's own (estimated, then refined
+// against the nodes' means), Lambert's, or none (zero in every bin).
+AngularResponse ChosenAngularResponse(const LevelledSoundings& levelled,
+                                      std::size_t cells,
+                                      const MosaicConfig& c) {
+    AngularResponse response;
     switch (c.angular) {
         case AngularCorrection::kEmpirical:
-            r.response = EstimateAngularResponse(level, incidence, c);
-            for (int it = 0; it < c.empirical_iterations; ++it)
-                r.response = RefineAngularResponse(r.response, level, incidence, node, cells, c);
+            response = EstimateAngularResponse(levelled.level_db, levelled.incidence_deg, c);
+            for (int it = 0; it < c.empirical_iterations; ++it) {
+                response = RefineAngularResponse(
+                    response, levelled.level_db, levelled.incidence_deg, levelled.node, cells, c);
+            }
             break;
         case AngularCorrection::kLambert:
-            r.response = LambertResponse(c.angle_bin_deg, c.max_incidence_deg);
+            response = LambertResponse(c.angle_bin_deg, c.max_incidence_deg);
             break;
         case AngularCorrection::kNone: {
-            r.response.bin_deg = c.angle_bin_deg;
-            const int nb = NumBins(c.angle_bin_deg, c.max_incidence_deg);
-            r.response.level_db.assign(static_cast<std::size_t>(nb), 0.0);
-            r.response.counts.assign(static_cast<std::size_t>(nb), 0);
+            response.bin_deg = c.angle_bin_deg;
+            const int bins = NumBins(c.angle_bin_deg, c.max_incidence_deg);
+            response.level_db.assign(static_cast<std::size_t>(bins), 0.0);
+            response.counts.assign(static_cast<std::size_t>(bins), 0);
             break;
         }
     }
-    const double ref = r.response.At(c.reference_angle_deg);
+    return response;
+}
 
-    // Pass 2: grid the means.
-    std::vector<double> sum_c(cells, 0.0);
-    std::vector<std::uint32_t> cnt(cells, 0);
+// The second pass: every node's mean level, corrected to the reference angle and not, its count,
+// the used soundings' median incidence and the spread of the corrected means.
+void GridMeans(const LevelledSoundings& levelled,
+               std::size_t cells,
+               const MosaicConfig& c,
+               MosaicResult& r) {
+    const double reference_db = r.response.At(c.reference_angle_deg);
+    std::vector<double> corrected_sum_db(cells, 0.0);
+    std::vector<std::uint32_t> count(cells, 0);
     std::vector<float> used_incidence;
-    used_incidence.reserve(n);
-    for (std::size_t j = 0; j < n; ++j) {
-        const std::uint32_t q = node[j];
-        if (q == std::numeric_limits<std::uint32_t>::max()) continue;
-        sum_c[q] += level[j] - r.response.At(incidence[j]) + ref;
-        ++cnt[q];
-        used_incidence.push_back(incidence[j]);
+    used_incidence.reserve(levelled.node.size());
+    for (std::size_t j = 0; j < levelled.node.size(); ++j) {
+        const std::uint32_t cell = levelled.node[j];
+        if (cell == kNoNode) continue;
+        corrected_sum_db[cell] +=
+            levelled.level_db[j] - r.response.At(levelled.incidence_deg[j]) + reference_db;
+        ++count[cell];
+        used_incidence.push_back(levelled.incidence_deg[j]);
         ++r.used;
     }
     r.corrected_db.assign(cells, kNaN);
     r.uncorrected_db.assign(cells, kNaN);
     r.count.assign(cells, 0.0f);
     std::vector<float> filled;
-    for (std::size_t q = 0; q < cells; ++q) {
-        if (cnt[q] == 0) continue;
-        r.corrected_db[q] = static_cast<float>(sum_c[q] / cnt[q]);
-        r.uncorrected_db[q] = static_cast<float>(sum_u[q] / cnt[q]);
-        r.count[q] = static_cast<float>(cnt[q]);
-        filled.push_back(r.corrected_db[q]);
+    for (std::size_t cell = 0; cell < cells; ++cell) {
+        if (count[cell] == 0) continue;
+        r.corrected_db[cell] = static_cast<float>(corrected_sum_db[cell] / count[cell]);
+        r.uncorrected_db[cell] =
+            static_cast<float>(levelled.uncorrected_sum_db[cell] / count[cell]);
+        r.count[cell] = static_cast<float>(count[cell]);
+        filled.push_back(r.corrected_db[cell]);
     }
     r.nodes_filled = static_cast<std::int64_t>(filled.size());
     r.median_incidence_deg = Percentile(used_incidence, 0.5);
     r.corrected_p05_db = Percentile(filled, 0.05);
     r.corrected_p95_db = Percentile(filled, 0.95);
-    r.ok = r.used > 0;
+}
+
+std::string MosaicMessage(const MosaicResult& r, const MosaicConfig& c) {
     char buf[320];
     std::snprintf(buf,
                   sizeof buf,
@@ -304,8 +334,31 @@ MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfi
                   ToString(c.angular),
                   r.corrected_p05_db,
                   r.corrected_p95_db);
-    r.message = buf;
-    if (!r.ok) r.message = "no usable intensity: " + r.message;
+    return r.ok ? std::string(buf) : "no usable intensity: " + std::string(buf);
+}
+
+}  // namespace
+
+// Two passes over the soundings: their range-corrected levels and incidences on the DEM, then,
+// with the angular response, the nodes' corrected means.
+MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& c) {
+    PITMAP_CHECK(g.elevation_m != nullptr && g.nx > 0 && g.ny > 0 && g.resolution_m > 0 &&
+                     g.elevation_m->size() ==
+                         static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny),
+                 "RunMosaic: bad grid");
+    const std::size_t n = s.size();
+    PITMAP_CHECK(s.y.size() == n && s.intensity.size() == n && s.range_m.size() == n &&
+                     s.beam_dir.size() == n,
+                 "RunMosaic: soundings arrays differ in size");
+    MosaicResult r;
+    r.soundings_in = static_cast<std::int64_t>(n);
+    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+    const LevelledSoundings levelled = LevelSoundings(s, g, c, r);
+    s = MosaicSoundings{};  // what follows needs only the nodes, levels and incidences
+    r.response = ChosenAngularResponse(levelled, cells, c);
+    GridMeans(levelled, cells, c, r);
+    r.ok = r.used > 0;
+    r.message = MosaicMessage(r, c);
     return r;
 }
 

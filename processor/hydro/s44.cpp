@@ -180,22 +180,25 @@ void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
     }
 }
 
-void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Result& r) {
+// What an empty node of the grid is: inside the survey (a gap) or outside it.
+enum class NodeClass : std::uint8_t {
+    kCovered = 0,
+    kGap = 1,      // empty, not reached from the border
+    kOutside = 2,  // empty, reached from the border through empty nodes
+};
+
+// Every node's class: the outside grows from the grid's border through 4-neighbours (a
+// diagonal between two covered nodes is no way out); the empty nodes it does not reach are gaps.
+std::vector<NodeClass> ClassifyNodes(const S44Grid& g) {
     const int nx = g.nx, ny = g.ny;
-    const std::size_t N = g.elevation_m.size();
-    r.holiday_map.assign(N, std::numeric_limits<float>::quiet_NaN());
-    if (N == 0) return;
-    const S44Limits& L = LimitsOf(c.order);
-    r.feature_size_m = L.full_coverage ? L.FeatureSize(median_depth_m) : 0.0;
-    auto idx = [nx](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
-    // 0 = covered, 1 = empty not yet reached, 2 = outside (empty, reached from the border).
-    std::vector<std::uint8_t> st(N);
-    for (std::size_t q = 0; q < N; ++q) st[q] = std::isfinite(g.elevation_m[q]) ? 0 : 1;
+    std::vector<NodeClass> cls(g.elevation_m.size());
+    for (std::size_t q = 0; q < cls.size(); ++q)
+        cls[q] = std::isfinite(g.elevation_m[q]) ? NodeClass::kCovered : NodeClass::kGap;
     std::vector<std::size_t> stack;
-    auto seed = [&](int i, int j) {
-        const std::size_t q = idx(i, j);
-        if (st[q] == 1) {
-            st[q] = 2;
+    const auto seed = [&](int i, int j) {
+        const std::size_t q = static_cast<std::size_t>(j) * nx + i;
+        if (cls[q] == NodeClass::kGap) {
+            cls[q] = NodeClass::kOutside;
             stack.push_back(q);
         }
     };
@@ -207,8 +210,6 @@ void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Re
         seed(0, j);
         seed(nx - 1, j);
     }
-    // The outside grows through 4-neighbours (a diagonal between two covered nodes is no way
-    // out); gaps are then 8-connected.
     while (!stack.empty()) {
         const std::size_t q = stack.back();
         stack.pop_back();
@@ -218,89 +219,134 @@ void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Re
         if (j > 0) seed(i, j - 1);
         if (j + 1 < ny) seed(i, j + 1);
     }
-    // Largest empty square ending at each node (dynamic programme over inside-empty nodes).
-    std::vector<std::int32_t> sq(N, 0);
+    return cls;
+}
+
+// The side, in nodes, of the largest square of gap nodes ending (top-right) at each node: a
+// dynamic programme over the rows, side(i, j) = 1 + min(side(i-1, j), side(i, j-1),
+// side(i-1, j-1)) on gap nodes.
+std::vector<std::int32_t> LargestGapSquares(const std::vector<NodeClass>& cls, int nx, int ny) {
+    const auto at = [nx](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
+    std::vector<std::int32_t> side(cls.size(), 0);
     for (int j = 0; j < ny; ++j) {
         for (int i = 0; i < nx; ++i) {
-            const std::size_t q = idx(i, j);
-            if (st[q] != 1) continue;
-            const int a = i > 0 ? sq[idx(i - 1, j)] : 0;
-            const int b = j > 0 ? sq[idx(i, j - 1)] : 0;
-            const int d = i > 0 && j > 0 ? sq[idx(i - 1, j - 1)] : 0;
-            sq[q] = 1 + std::min({a, b, d});
+            const std::size_t q = at(i, j);
+            if (cls[q] != NodeClass::kGap) continue;
+            const int left = i > 0 ? side[at(i - 1, j)] : 0;
+            const int below = j > 0 ? side[at(i, j - 1)] : 0;
+            const int diagonal = i > 0 && j > 0 ? side[at(i - 1, j - 1)] : 0;
+            side[q] = 1 + std::min({left, below, diagonal});
         }
     }
-    const double res = g.resolution_m;
-    const int min_side =
-        std::max(c.min_holiday_nodes, static_cast<int>(std::ceil(r.feature_size_m / res - 1e-9)));
-    std::vector<std::int32_t> comp(N, -1);
-    std::int64_t in_gaps = 0, area = 0;
-    std::vector<S44Holiday> holidays;
-    std::vector<std::vector<std::size_t>> holiday_nodes;
-    for (std::size_t q0 = 0; q0 < N; ++q0) {
-        if (st[q0] == 0) ++area;
-        if (st[q0] != 1 || comp[q0] >= 0) continue;
-        const std::int32_t id = static_cast<std::int32_t>(r.gaps++);
-        std::vector<std::size_t> nodes;
-        stack.assign(1, q0);
-        comp[q0] = id;
-        int best = 0;
-        std::size_t best_q = q0;
-        int i_lo = nx, i_hi = -1, j_lo = ny, j_hi = -1;
-        while (!stack.empty()) {
-            const std::size_t q = stack.back();
-            stack.pop_back();
-            nodes.push_back(q);
-            const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx);
-            i_lo = std::min(i_lo, i);
-            i_hi = std::max(i_hi, i);
-            j_lo = std::min(j_lo, j);
-            j_hi = std::max(j_hi, j);
-            if (sq[q] > best) {
-                best = sq[q];
-                best_q = q;
-            }
-            for (int dj = -1; dj <= 1; ++dj) {
-                for (int di = -1; di <= 1; ++di) {
-                    const int a = i + di, b = j + dj;
-                    if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-                    const std::size_t p = idx(a, b);
-                    if (st[p] == 1 && comp[p] < 0) {
-                        comp[p] = id;
-                        stack.push_back(p);
-                    }
+    return side;
+}
+
+// One gap: its nodes, bounding box (node indices) and largest square.
+struct Gap {
+    std::vector<std::size_t> nodes;
+    int i_lo = 0, i_hi = -1, j_lo = 0, j_hi = -1;
+    int square_side = 0;            // nodes
+    std::size_t square_corner = 0;  // the top-right (largest i, j) node of the square
+};
+
+// The 8-connected gap that holds node `first`, its nodes marked `id` in `component`.
+Gap TraceGap(std::size_t first,
+             std::int32_t id,
+             const std::vector<NodeClass>& cls,
+             const std::vector<std::int32_t>& square_side,
+             int nx,
+             int ny,
+             std::vector<std::int32_t>& component) {
+    Gap gap;
+    gap.i_lo = nx;
+    gap.j_lo = ny;
+    gap.square_corner = first;
+    std::vector<std::size_t> stack(1, first);
+    component[first] = id;
+    while (!stack.empty()) {
+        const std::size_t q = stack.back();
+        stack.pop_back();
+        gap.nodes.push_back(q);
+        const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx);
+        gap.i_lo = std::min(gap.i_lo, i);
+        gap.i_hi = std::max(gap.i_hi, i);
+        gap.j_lo = std::min(gap.j_lo, j);
+        gap.j_hi = std::max(gap.j_hi, j);
+        if (square_side[q] > gap.square_side) {
+            gap.square_side = square_side[q];
+            gap.square_corner = q;
+        }
+        for (int dj = -1; dj <= 1; ++dj) {
+            for (int di = -1; di <= 1; ++di) {
+                const int a = i + di, b = j + dj;
+                if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+                const std::size_t p = static_cast<std::size_t>(b) * nx + a;
+                if (cls[p] == NodeClass::kGap && component[p] < 0) {
+                    component[p] = id;
+                    stack.push_back(p);
                 }
             }
         }
-        in_gaps += static_cast<std::int64_t>(nodes.size());
-        const bool holiday = L.full_coverage && best >= min_side;
-        for (std::size_t q : nodes) r.holiday_map[q] = holiday ? 2.0f : 1.0f;
-        if (!holiday) continue;
-        S44Holiday h;
-        // best_q is the top-right (largest i, j) corner of the square.
-        const int bi = static_cast<int>(best_q % nx), bj = static_cast<int>(best_q / nx);
-        h.x = g.x0 + (bi - (best - 1) / 2.0) * res;
-        h.y = g.y0 + (bj - (best - 1) / 2.0) * res;
-        h.x_min = g.x0 + (i_lo - 0.5) * res;
-        h.x_max = g.x0 + (i_hi + 0.5) * res;
-        h.y_min = g.y0 + (j_lo - 0.5) * res;
-        h.y_max = g.y0 + (j_hi + 0.5) * res;
-        h.nodes = static_cast<std::int64_t>(nodes.size());
-        h.area_m2 = static_cast<double>(h.nodes) * res * res;
-        h.largest_square_m = best * res;
-        holidays.push_back(h);
     }
-    for (std::size_t q = 0; q < N; ++q) {
-        if (st[q] == 0) r.holiday_map[q] = 0.0f;
+    return gap;
+}
+
+// A gap as a holiday: the centre of its largest square, its bounding box and area, in metres.
+S44Holiday HolidayOf(const Gap& gap, const S44Grid& g) {
+    const double res = g.resolution_m;
+    const int corner_i = static_cast<int>(gap.square_corner % g.nx);
+    const int corner_j = static_cast<int>(gap.square_corner / g.nx);
+    S44Holiday h;
+    h.x = g.x0 + (corner_i - (gap.square_side - 1) / 2.0) * res;
+    h.y = g.y0 + (corner_j - (gap.square_side - 1) / 2.0) * res;
+    h.x_min = g.x0 + (gap.i_lo - 0.5) * res;
+    h.x_max = g.x0 + (gap.i_hi + 0.5) * res;
+    h.y_min = g.y0 + (gap.j_lo - 0.5) * res;
+    h.y_max = g.y0 + (gap.j_hi + 0.5) * res;
+    h.nodes = static_cast<std::int64_t>(gap.nodes.size());
+    h.area_m2 = static_cast<double>(h.nodes) * res * res;
+    h.largest_square_m = gap.square_side * res;
+    return h;
+}
+
+// The coverage check: the gaps inside the survey (empty nodes not reached from the border), of
+// which those holding a square of the order's feature size (and min_holiday_nodes) are holidays
+// where the order asks for full coverage; the holiday map (0 covered, 1 gap, 2 holiday, NaN
+// outside) and the coverage share.
+void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Result& r) {
+    const std::size_t num_nodes = g.elevation_m.size();
+    r.holiday_map.assign(num_nodes, std::numeric_limits<float>::quiet_NaN());
+    if (num_nodes == 0) return;
+    const S44Limits& limits = LimitsOf(c.order);
+    r.feature_size_m = limits.full_coverage ? limits.FeatureSize(median_depth_m) : 0.0;
+    const std::vector<NodeClass> cls = ClassifyNodes(g);
+    const std::vector<std::int32_t> square_side = LargestGapSquares(cls, g.nx, g.ny);
+    const int min_side = std::max(
+        c.min_holiday_nodes, static_cast<int>(std::ceil(r.feature_size_m / g.resolution_m - 1e-9)));
+    std::vector<std::int32_t> component(num_nodes, -1);
+    std::int64_t in_gaps = 0, covered = 0;
+    std::vector<S44Holiday> holidays;
+    for (std::size_t q = 0; q < num_nodes; ++q) {
+        if (cls[q] == NodeClass::kCovered) ++covered;
+        if (cls[q] != NodeClass::kGap || component[q] >= 0) continue;
+        const auto id = static_cast<std::int32_t>(r.gaps++);
+        const Gap gap = TraceGap(q, id, cls, square_side, g.nx, g.ny, component);
+        in_gaps += static_cast<std::int64_t>(gap.nodes.size());
+        const bool holiday = limits.full_coverage && gap.square_side >= min_side;
+        for (std::size_t node : gap.nodes) r.holiday_map[node] = holiday ? 2.0f : 1.0f;
+        if (holiday) holidays.push_back(HolidayOf(gap, g));
+    }
+    for (std::size_t q = 0; q < num_nodes; ++q) {
+        if (cls[q] == NodeClass::kCovered) r.holiday_map[q] = 0.0f;
     }
     std::sort(holidays.begin(), holidays.end(), [](const auto& a, const auto& b) {
         return a.nodes > b.nodes;
     });
     r.holidays = std::move(holidays);
     r.nodes_in_gaps = in_gaps;
-    r.nodes_survey_area = area + in_gaps;
+    r.nodes_survey_area = covered + in_gaps;
     r.coverage_share =
-        r.nodes_survey_area > 0 ? static_cast<double>(area) / r.nodes_survey_area : 0.0;
+        r.nodes_survey_area > 0 ? static_cast<double>(covered) / r.nodes_survey_area : 0.0;
 }
 
 void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44Result& r) {

@@ -280,82 +280,147 @@ std::string LasMetadataPayload(const ProductMetadata* meta) {
     return text.size() > 65535 ? std::string() : text;
 }
 
-}  // namespace
+// The soundings of points.las in record order: the accepted ones, then the rejected (withheld),
+// each with its UTM position and, where the extras give the datum, its height on it.
+struct LasSoundings {
+    const georef::GeorefResult* accepted = nullptr;
+    const georef::UtmPoints* accepted_utm = nullptr;
+    const georef::GeorefResult* rejected = nullptr;  // null: none written
+    georef::UtmPoints rejected_utm;
+    const PointExtras* extras = nullptr;
+    std::size_t num_accepted = 0;
+    std::size_t size = 0;
+    bool tpu = false;    // the extras hold THU and TVU for every accepted sounding
+    bool datum = false;  // the extras hold the datum height at every ping
 
-Status WriteLas(const std::string& path,
-                const georef::GeorefResult& r,
-                const georef::UtmPoints& utm,
-                const PointExtras* extras,
-                const std::string& run_id,
-                const georef::GeorefResult* rejected,
-                const ProductMetadata* meta) {
-    const std::size_t n_accepted = utm.easting_northing_height.size();
-    const georef::GeorefResult* rej = UsableRejected(rejected);
-    georef::UtmPoints rej_utm;
-    if (rej != nullptr) {
-        auto u = georef::ToUtm(*rej);
+    // Record j: accepted sounding j for j < num_accepted, else rejected j - num_accepted.
+    std::pair<const georef::GeorefResult*, std::size_t> Source(std::size_t j) const {
+        return j < num_accepted ? std::pair{accepted, j} : std::pair{rejected, j - num_accepted};
+    }
+    Eigen::Vector3d Position(std::size_t j) const {
+        const auto [geo, i] = Source(j);
+        Eigen::Vector3d enh = geo == accepted ? accepted_utm->easting_northing_height[i]
+                                              : rejected_utm.easting_northing_height[i];
+        if (datum) enh.z() -= extras->datum_height_m[geo->points.ping[i]];
+        return enh;
+    }
+};
+
+// The rejected soundings are written only in the accepted ones' UTM zone (an error otherwise).
+Expected<LasSoundings> LasSoundingsOf(const std::string& path,
+                                      const georef::GeorefResult& r,
+                                      const georef::UtmPoints& utm,
+                                      const PointExtras* extras,
+                                      const georef::GeorefResult* rejected) {
+    LasSoundings s;
+    s.accepted = &r;
+    s.accepted_utm = &utm;
+    s.extras = extras;
+    s.num_accepted = utm.easting_northing_height.size();
+    s.rejected = UsableRejected(rejected);
+    if (s.rejected != nullptr) {
+        auto u = georef::ToUtm(*s.rejected);
         if (!u) return Error{path + ": UTM of the rejected soundings: " + u.error().message};
         if (u->zone != utm.zone || u->northern != utm.northern) {
             return Error{path + ": the rejected soundings are in another UTM zone"};
         }
-        rej_utm = std::move(*u);
+        s.rejected_utm = std::move(*u);
     }
-    const std::size_t n = n_accepted + rej_utm.easting_northing_height.size();
-    const bool tpu = extras != nullptr && extras->thu_95_m.size() == n_accepted &&
-                     extras->tvu_95_m.size() == n_accepted && r.points.size() == n_accepted;
-    const bool datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
-                       r.points.size() == n_accepted &&
-                       (rej == nullptr || rej->pings.size() == r.pings.size());
-    // Record j: an accepted sounding for j < n_accepted, else rejected j - n_accepted.
-    const auto source = [&](std::size_t j) -> std::pair<const georef::GeorefResult*, std::size_t> {
-        return j < n_accepted ? std::pair{&r, j} : std::pair{rej, j - n_accepted};
-    };
-    const auto position = [&](std::size_t j) {
-        const auto [g, i] = source(j);
-        Eigen::Vector3d e =
-            g == &r ? utm.easting_northing_height[i] : rej_utm.easting_northing_height[i];
-        if (datum) e.z() -= extras->datum_height_m[g->points.ping[i]];
-        return e;
-    };
-    std::vector<std::uint8_t> noise;
-    if (rej != nullptr) noise = LasNoiseClasses(r.points, rej->points);
-    // LAS 1.4 R15 asks for the sensor's intensity scaled to 16 bits: the 83P's is 16 bits.
-    const georef::PingSeries* intensities = IntensityPings(extras);
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
-    Eigen::Vector3d hi = -lo;
-    for (std::size_t j = 0; j < n; ++j) {
-        const Eigen::Vector3d p = position(j);
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-    }
-    if (n == 0) lo = hi = Eigen::Vector3d::Zero();
-    const double scale = 0.001;
-    const Eigen::Vector3d offset(std::floor(lo.x()), std::floor(lo.y()), std::floor(lo.z()));
-    const std::string wkt =
-        LasWkt(utm.zone, utm.northern, extras != nullptr ? extras->vertical_wkt : std::string()) +
-        std::string(1, '\0');
-    constexpr std::uint16_t kHeaderSize = 375;
-    constexpr std::uint16_t kVlrHeaderSize = 54;
-    constexpr std::uint16_t kExtraBytesVlrSize = 2 * 192;
-    const std::uint16_t record_length = tpu ? 38 : 30;
-    const std::string meta_vlr = LasMetadataPayload(meta);
-    const std::uint32_t point_offset =
-        kHeaderSize + kVlrHeaderSize + static_cast<std::uint32_t>(wkt.size()) +
-        (tpu ? kVlrHeaderSize + kExtraBytesVlrSize : 0) +
-        (meta_vlr.empty() ? 0 : kVlrHeaderSize + static_cast<std::uint32_t>(meta_vlr.size()));
-    // File creation date: the survey's first ping, so the file depends only on the data.
-    int day_of_year = 1, year = 1980;
-    if (!r.pings.empty()) {
-        const UtcCalendar c = UtcCalendarFromUnix(UnixFromGps(r.pings.front().utime_gps));
-        const auto jan1 = UnixFromUtcCalendar({c.year, 1, 1, 0, 0, 0, 0});
-        const auto today = UnixFromUtcCalendar({c.year, c.month, c.day, 0, 0, 0, 0});
-        if (jan1 && today) day_of_year = static_cast<int>((*today - *jan1) / 86'400'000'000LL) + 1;
-        year = c.year;
-    }
+    s.size = s.num_accepted + s.rejected_utm.easting_northing_height.size();
+    s.tpu = extras != nullptr && extras->thu_95_m.size() == s.num_accepted &&
+            extras->tvu_95_m.size() == s.num_accepted && r.points.size() == s.num_accepted;
+    s.datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
+              r.points.size() == s.num_accepted &&
+              (s.rejected == nullptr || s.rejected->pings.size() == r.pings.size());
+    return s;
+}
 
-    formats::ByteFileWriter file(path);
-    ByteWriter& w = file.out();
-    // Public header block (LAS 1.4 R15 Table 3).
+// The points' bounds and the coordinates' scale and offset: 1 mm steps from whole metres at or
+// below the lowest point (the record's 32-bit integers then reach 2147 km).
+struct LasExtent {
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+    Eigen::Vector3d hi = Eigen::Vector3d::Zero();
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    double scale = 0.001;
+};
+
+LasExtent LasExtentOf(const LasSoundings& s) {
+    LasExtent extent;
+    extent.lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+    extent.hi = -extent.lo;
+    for (std::size_t j = 0; j < s.size; ++j) {
+        const Eigen::Vector3d p = s.Position(j);
+        extent.lo = extent.lo.cwiseMin(p);
+        extent.hi = extent.hi.cwiseMax(p);
+    }
+    if (s.size == 0) extent.lo = extent.hi = Eigen::Vector3d::Zero();
+    extent.offset = Eigen::Vector3d(
+        std::floor(extent.lo.x()), std::floor(extent.lo.y()), std::floor(extent.lo.z()));
+    return extent;
+}
+
+// What precedes the points: the VLRs written (the CRS always; the Extra Bytes of the TPU and
+// the metadata when there are any), the record length and where the points start.
+struct LasLayout {
+    static constexpr std::uint16_t kHeaderSize = 375;
+    static constexpr std::uint16_t kVlrHeaderSize = 54;
+    static constexpr std::uint16_t kExtraBytesVlrSize = 2 * 192;
+    std::string wkt;            // NUL-terminated
+    std::string metadata_json;  // "" = no metadata VLR
+    bool tpu = false;
+    std::uint16_t record_length = 30;
+    std::uint32_t point_offset = 0;
+    std::uint32_t num_vlrs = 1;
+};
+
+LasLayout LasLayoutOf(const LasSoundings& s,
+                      const georef::UtmPoints& utm,
+                      const ProductMetadata* meta) {
+    LasLayout layout;
+    layout.wkt =
+        LasWkt(
+            utm.zone, utm.northern, s.extras != nullptr ? s.extras->vertical_wkt : std::string()) +
+        std::string(1, '\0');
+    layout.metadata_json = LasMetadataPayload(meta);
+    layout.tpu = s.tpu;
+    layout.record_length = s.tpu ? 38 : 30;
+    layout.point_offset =
+        LasLayout::kHeaderSize + LasLayout::kVlrHeaderSize +
+        static_cast<std::uint32_t>(layout.wkt.size()) +
+        (s.tpu ? LasLayout::kVlrHeaderSize + LasLayout::kExtraBytesVlrSize : 0) +
+        (layout.metadata_json.empty()
+             ? 0
+             : LasLayout::kVlrHeaderSize + static_cast<std::uint32_t>(layout.metadata_json.size()));
+    layout.num_vlrs = 1u + (s.tpu ? 1u : 0u) + (layout.metadata_json.empty() ? 0u : 1u);
+    return layout;
+}
+
+// The header's file creation date: the survey's first ping (1980, day 1 without pings), so that
+// the file depends only on the data.
+struct LasDate {
+    int day_of_year = 1;
+    int year = 1980;
+};
+
+LasDate LasCreationDate(const georef::GeorefResult& r) {
+    LasDate date;
+    if (r.pings.empty()) return date;
+    const UtcCalendar c = UtcCalendarFromUnix(UnixFromGps(r.pings.front().utime_gps));
+    const auto jan1 = UnixFromUtcCalendar({c.year, 1, 1, 0, 0, 0, 0});
+    const auto today = UnixFromUtcCalendar({c.year, c.month, c.day, 0, 0, 0, 0});
+    if (jan1 && today) date.day_of_year = static_cast<int>((*today - *jan1) / 86'400'000'000LL) + 1;
+    date.year = c.year;
+    return date;
+}
+
+// The public header block (LAS 1.4 R15 Table 3), point data record format 6.
+void WriteLasHeader(ByteWriter& w,
+                    const LasLayout& layout,
+                    const LasExtent& extent,
+                    std::uint64_t num_points,
+                    const LasDate& date,
+                    const std::string& run_id,
+                    const ProductMetadata* meta) {
     w.FixedString("LASF", 4);
     w.U16Le(0);                      // file source id
     w.U16Le((1u << 0) | (1u << 4));  // adjusted standard GPS time, WKT CRS
@@ -366,85 +431,112 @@ Status WriteLas(const std::string& path,
     w.FixedString(LasSystemIdentifier(meta), 32);
     w.FixedString(meta != nullptr && !meta->software.empty() ? meta->software : "pitmap georef",
                   32);
-    w.U16Le(static_cast<std::uint16_t>(day_of_year));
-    w.U16Le(static_cast<std::uint16_t>(year));
-    w.U16Le(kHeaderSize);
-    w.U32Le(point_offset);
-    w.U32Le(1u + (tpu ? 1u : 0u) + (meta_vlr.empty() ? 0u : 1u));  // number of VLRs
-    w.U8(6);                                                       // point data record format
-    w.U16Le(record_length);
+    w.U16Le(static_cast<std::uint16_t>(date.day_of_year));
+    w.U16Le(static_cast<std::uint16_t>(date.year));
+    w.U16Le(LasLayout::kHeaderSize);
+    w.U32Le(layout.point_offset);
+    w.U32Le(layout.num_vlrs);
+    w.U8(6);  // point data record format
+    w.U16Le(layout.record_length);
     w.U32Le(0);  // legacy point count: 0 for formats 6-10
     for (int i = 0; i < 5; ++i) w.U32Le(0);
-    w.F64Le(scale);
-    w.F64Le(scale);
-    w.F64Le(scale);
-    w.F64Le(offset.x());
-    w.F64Le(offset.y());
-    w.F64Le(offset.z());
-    w.F64Le(hi.x());
-    w.F64Le(lo.x());
-    w.F64Le(hi.y());
-    w.F64Le(lo.y());
-    w.F64Le(hi.z());
-    w.F64Le(lo.z());
-    w.U64Le(0);  // start of waveform data
-    w.U64Le(0);  // start of first EVLR
-    w.U32Le(0);  // number of EVLRs
-    w.U64Le(n);  // number of point records
-    w.U64Le(n);  // points by return: all single returns
+    for (int axis = 0; axis < 3; ++axis) w.F64Le(extent.scale);
+    for (int axis = 0; axis < 3; ++axis) w.F64Le(extent.offset[axis]);
+    for (int axis = 0; axis < 3; ++axis) {
+        w.F64Le(extent.hi[axis]);
+        w.F64Le(extent.lo[axis]);
+    }
+    w.U64Le(0);           // start of waveform data
+    w.U64Le(0);           // start of first EVLR
+    w.U32Le(0);           // number of EVLRs
+    w.U64Le(num_points);  // number of point records
+    w.U64Le(num_points);  // points by return: all single returns
     for (int i = 1; i < 15; ++i) w.U64Le(0);
-    // VLR: OGC coordinate system WKT (record id 2112).
+}
+
+// The variable length records: the CRS as WKT, the TPU's Extra Bytes, the survey's metadata.
+void WriteLasVlrs(ByteWriter& w, const LasLayout& layout) {
+    // OGC coordinate system WKT (record id 2112).
     w.U16Le(0);
     w.FixedString("LASF_Projection", 16);
     w.U16Le(2112);
-    w.U16Le(static_cast<std::uint16_t>(wkt.size()));
+    w.U16Le(static_cast<std::uint16_t>(layout.wkt.size()));
     w.FixedString("OGC WKT, compound CRS", 32);
-    w.Bytes({reinterpret_cast<const std::uint8_t*>(wkt.data()), wkt.size()});
-    if (tpu) {
-        // VLR: Extra Bytes (record id 4), the per-sounding uncertainty after the format-6 fields.
+    w.Bytes({reinterpret_cast<const std::uint8_t*>(layout.wkt.data()), layout.wkt.size()});
+    if (layout.tpu) {
+        // Extra Bytes (record id 4): the per-sounding uncertainty after the format-6 fields.
         w.U16Le(0);
         w.FixedString("LASF_Spec", 16);
         w.U16Le(4);
-        w.U16Le(kExtraBytesVlrSize);
+        w.U16Le(LasLayout::kExtraBytesVlrSize);
         w.FixedString("pitmap TPU: THU, TVU 95 %, m", 32);
         ExtraBytesFloat(w, kLasThuName, "horizontal uncertainty 95 %, m");
         ExtraBytesFloat(w, kLasTvuName, "vertical uncertainty 95 %, m");
     }
-    if (!meta_vlr.empty()) {
-        // VLR: the survey's metadata as JSON (pitmap's own record, ProductMetadataJson).
+    if (!layout.metadata_json.empty()) {
+        // The survey's metadata as JSON (pitmap's own record, ProductMetadataJson).
+        const std::string& json = layout.metadata_json;
         w.U16Le(0);
         w.FixedString(kLasMetadataUserId, 16);
         w.U16Le(kLasMetadataRecordId);
-        w.U16Le(static_cast<std::uint16_t>(meta_vlr.size()));
+        w.U16Le(static_cast<std::uint16_t>(json.size()));
         w.FixedString("pitmap survey metadata, JSON", 32);
-        w.Bytes({reinterpret_cast<const std::uint8_t*>(meta_vlr.data()), meta_vlr.size()});
+        w.Bytes({reinterpret_cast<const std::uint8_t*>(json.data()), json.size()});
     }
-    // Point records, format 6.
+}
+
+// The point records, format 6 (and the TPU's extra bytes): bathymetry for the accepted
+// soundings, withheld with their noise class for the rejected ones (THU/TVU NaN).
+void WriteLasPoints(formats::ByteFileWriter& file, const LasSoundings& s, const LasExtent& extent) {
+    std::vector<std::uint8_t> noise;
+    if (s.rejected != nullptr) noise = LasNoiseClasses(s.accepted->points, s.rejected->points);
+    // LAS 1.4 R15 asks for the sensor's intensity scaled to 16 bits: the 83P's is 16 bits.
+    const auto* intensities = IntensityPings(s.extras);
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-    for (std::size_t j = 0; j < n; ++j) {
-        const auto [g, i] = source(j);
-        const bool accepted = g == &r;
-        const georef::GeorefPoints& P = g->points;
-        const Eigen::Vector3d e = position(j);
+    for (std::size_t j = 0; j < s.size; ++j) {
+        const auto [geo, i] = s.Source(j);
+        const bool accepted = geo == s.accepted;
+        const georef::GeorefPoints& points = geo->points;
+        const Eigen::Vector3d enh = s.Position(j);
         ByteWriter& rec = file.out();
-        for (int a = 0; a < 3; ++a) {
-            rec.I32Le(static_cast<std::int32_t>(std::llround((e[a] - offset[a]) / scale)));
+        for (int axis = 0; axis < 3; ++axis) {
+            rec.I32Le(static_cast<std::int32_t>(
+                std::llround((enh[axis] - extent.offset[axis]) / extent.scale)));
         }
-        rec.U16Le(intensities != nullptr ? SoundingIntensity(*g, i, *intensities) : 0);
+        rec.U16Le(intensities != nullptr ? SoundingIntensity(*geo, i, *intensities) : 0);
         rec.U8(1 | (1 << 4));                               // return 1 of 1
         rec.U8(accepted ? 0 : kLasFlagWithheld);            // flags, channel, scan direction, edge
         rec.U8(accepted ? kLasClassBathymetry : noise[i]);  // classification
         rec.U8(0);                                          // user data
-        const double angle_deg = frames::RadToDeg(P.angle_rad[i]);
+        const double angle_deg = frames::RadToDeg(points.angle_rad[i]);
         rec.I16Le(
             static_cast<std::int16_t>(std::lround(std::clamp(angle_deg, -180.0, 180.0) / 0.006)));
         rec.U16Le(0);  // point source id
-        rec.F64Le(static_cast<double>(g->pings[P.ping[i]].utime_gps) * 1e-6 - 1e9);
-        if (tpu) {
-            rec.F32Le(accepted ? extras->thu_95_m[i] : kNaN);
-            rec.F32Le(accepted ? extras->tvu_95_m[i] : kNaN);
+        rec.F64Le(static_cast<double>(geo->pings[points.ping[i]].utime_gps) * 1e-6 - 1e9);
+        if (s.tpu) {
+            rec.F32Le(accepted ? s.extras->thu_95_m[i] : kNaN);
+            rec.F32Le(accepted ? s.extras->tvu_95_m[i] : kNaN);
         }
     }
+}
+
+}  // namespace
+
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& r,
+                const georef::UtmPoints& utm,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected,
+                const ProductMetadata* meta) {
+    auto soundings = LasSoundingsOf(path, r, utm, extras, rejected);
+    if (!soundings) return soundings.error();
+    const LasExtent extent = LasExtentOf(*soundings);
+    const LasLayout layout = LasLayoutOf(*soundings, utm, meta);
+    formats::ByteFileWriter file(path);
+    WriteLasHeader(file.out(), layout, extent, soundings->size, LasCreationDate(r), run_id, meta);
+    WriteLasVlrs(file.out(), layout);
+    WriteLasPoints(file, *soundings, extent);
     return file.Close();
 }
 

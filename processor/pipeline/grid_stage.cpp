@@ -430,13 +430,22 @@ std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& 
     return verdict;
 }
 
-Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
-    StageClock clock;
-    ClearGates(s, Stage::kGrid);
-    const GridStageConfig& gc = config.grid;
+namespace {
+
+// The TPU's settings for this survey, and where its sensor error model came from.
+struct TpuSetup {
+    hydro::TpuConfig config;
     std::string model_source;
-    hydro::TpuConfig tcfg;
-    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &model_source);
+};
+
+// The TPU's settings: the vehicle file's error model (ErrorModel), the clock's remaining
+// uncertainty and, once calibrated, the boresight's. An error when the model is invalid.
+Expected<TpuSetup> SurveyTpuSetup(const StageContext& s,
+                                  const GridStageConfig& gc,
+                                  const Log& log) {
+    TpuSetup setup;
+    hydro::TpuConfig& tcfg = setup.config;
+    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &setup.model_source);
     tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
     tcfg.num_threads = gc.cube.num_threads;
     tcfg.clock_sigma_s = std::abs(s.model.clock.sigma_s());
@@ -444,320 +453,468 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         tcfg.boresight_sigma_rpy_deg = s.model.boresight_sd_deg;  // NaN where unknown
     }
     if (auto p = tcfg.Validate(); !p.empty()) {
-        return Error{"grid: invalid sensor error model (" + model_source + "):\n" +
+        return Error{"grid: invalid sensor error model (" + setup.model_source + "):\n" +
                      FormatProblems(p)};
     }
+    return setup;
+}
+
+// The pose sigma the TPU takes at every ping, and its record for summary.json.
+struct PoseSigmas {
+    std::vector<hydro::PingSigma> per_ping;
+    std::size_t from_slam = 0;  // pings whose sigma is SLAM's posterior
+    json record;
+};
+
+// The INS's own sigma at each ping (the error model's where the INS reports none, or too long
+// ago), replaced by SLAM's posterior where grid.tpu_slam_posterior asks for it and SLAM's
+// trajectory is used.
+PoseSigmas TpuPoseSigmas(const StageContext& s,
+                         const GridStageConfig& gc,
+                         const hydro::TpuConfig& tcfg,
+                         const Log& log) {
+    const SensorErrorModel& model = tcfg.model;
+    PoseSigma fallback;
+    fallback << frames::DegToRad(model.roll_pitch_sigma_deg),
+        frames::DegToRad(model.roll_pitch_sigma_deg), frames::DegToRad(model.heading_sigma_deg),
+        model.position_sigma_h_m, model.position_sigma_h_m, model.position_sigma_v_m;
+    PoseSigmas out;
+    out.per_ping.resize(s.geo.pings.size());
+    for (std::size_t k = 0; k < out.per_ping.size(); ++k) {
+        PoseSigma sigma = PoseSigmaAt(
+            s.model.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
+        bool slam = false;
+        if (gc.tpu_slam_posterior) sigma = ProcessingSigma(s.model, s.geo.pings[k], sigma, &slam);
+        out.from_slam += slam ? 1 : 0;
+        out.per_ping[k].attitude_rpy_rad = sigma.head<3>();
+        out.per_ping[k].position_enu_m = sigma.tail<3>();
+    }
+    const auto boresight_deg = [&](std::size_t axis) {  // the boresight sigma the TPU took
+        const double b = tcfg.boresight_sigma_rpy_deg[axis];
+        return std::isnan(b) ? model.boresight_sigma_deg : b;
+    };
+    out.record = {{"source", out.from_slam > 0 ? "slam_posterior" : "ins"},
+                  {"pings_slam_posterior", out.from_slam},
+                  {"pings", out.per_ping.size()},
+                  {"boresight_sigma_deg", {boresight_deg(0), boresight_deg(1), boresight_deg(2)}},
+                  {"boresight_sigma_source",
+                   std::isnan(tcfg.boresight_sigma_rpy_deg[0]) ? "error_model" : "calibration"}};
+    log("grid: TPU pose sigma: " + std::to_string(out.from_slam) + " of " +
+        std::to_string(out.per_ping.size()) + " pings from SLAM's posterior, the rest the INS's");
+    return out;
+}
+
+// The posterior does not yet contain the true error (docs/uncertainty.md): a TPU and an S-44
+// order stated from it must say so.
+void GateUnvalidatedPosterior(StageContext& s, const Log& log) {
+    TripGate(s,
+             Stage::kGrid,
+             "tpu_from_unvalidated_posterior",
+             "the TPU takes SLAM's posterior pose sigma (grid.tpu_slam_posterior), which is "
+             "not yet validated and states less than the true error on the test surveys "
+             "(docs/uncertainty.md): the THU/TVU and the S-44 order are optimistic",
+             log);
+}
+
+// CUBE's input: every sounding in UTM with its height on the datum (D at its ping), its 1-sigma
+// TVU and THU and its depth below the transducer (for the capture distance).
+std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
+                                               const georef::UtmPoints& utm,
+                                               const std::vector<double>& datum_height_m,
+                                               const hydro::TpuResult& tpu) {
+    std::vector<hydro::CubeSounding> soundings(geo.points.size());
+    for (std::size_t j = 0; j < soundings.size(); ++j) {
+        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const std::uint32_t ping = geo.points.ping[j];
+        const double depth = geo.pings[ping].sensor_world.z() - geo.points.position_world[j].z();
+        soundings[j] = {enh.x(),
+                        enh.y(),
+                        enh.z() - datum_height_m[ping],
+                        static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
+                        static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
+                        static_cast<float>(depth)};
+    }
+    return soundings;
+}
+
+// The surface filter (SurfaceFilter): soundings that do not support their node's chosen
+// hypothesis are rejected in the survey (RejectPoints), and taken out of the UTM positions, the
+// TPU and CUBE's input. Returns how many.
+Expected<std::int64_t> RejectOffSurface(StageContext& s,
+                                        const GridStageConfig& gc,
+                                        std::vector<hydro::CubeSounding>& soundings,
+                                        hydro::CubeResult& cube,
+                                        georef::UtmPoints& utm,
+                                        hydro::TpuResult& tpu) {
+    const std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
+    const std::vector<char> keep = RejectPoints(s, verdict);
+    std::int64_t rejected = 0;
+    std::size_t kept = 0;
+    for (std::size_t j = 0; j < keep.size(); ++j) {
+        if (!keep[j]) {
+            ++rejected;
+            continue;
+        }
+        utm.easting_northing_height[kept] = utm.easting_northing_height[j];
+        tpu.thu_95_m[kept] = tpu.thu_95_m[j];
+        tpu.tvu_95_m[kept] = tpu.tvu_95_m[j];
+        ++kept;
+    }
+    utm.easting_northing_height.resize(kept);
+    tpu.thu_95_m.resize(kept);
+    tpu.tvu_95_m.resize(kept);
+    if (rejected > 0) {
+        // CUBE again without them: a node whose chosen hypothesis they made (an echo held
+        // long enough over one node to outvote the seabed) is decided on the rest.
+        std::size_t k = 0;
+        for (std::size_t j = 0; j < keep.size(); ++j) {
+            if (keep[j]) soundings[k++] = soundings[j];
+        }
+        soundings.resize(k);
+        cube = hydro::RunCube(soundings, gc.cube);
+        if (!cube.ok) return Error{cube.message};
+    }
+    return rejected;
+}
+
+// dem.tif's and dem.bag's raster: the CUBE grid's bands in UTM, on the products' vertical datum,
+// with the surface's provenance in its metadata.
+io::GridRaster DemRaster(const StageContext& s,
+                         const GridStageConfig& gc,
+                         const hydro::CubeGrid& grid,
+                         const georef::UtmPoints& utm,
+                         const hydro::DatumModel& datum,
+                         const ProductMetadata& meta) {
+    io::GridRaster raster;
+    raster.product = meta;
+    raster.x0 = grid.x0;
+    raster.y0 = grid.y0;
+    raster.resolution_m = grid.resolution_m;
+    raster.nx = grid.nx;
+    raster.ny = grid.ny;
+    raster.utm_zone = utm.zone;
+    raster.northern = utm.northern;
+    raster.vertical_wkt = datum.VerticalWkt();
+    raster.layers = DemLayers(grid);
+    raster.metadata = {
+        {"pitmap_surface", "CUBE (Calder & Mayer 2003)"},
+        {"pitmap_disambiguation", hydro::ToString(gc.cube.disambiguation)},
+        {"pitmap_vertical_datum", datum.crs_name},
+        {"pitmap_vertical_datum_description", datum.description},
+        {"pitmap_uncertainty", "95 %: 1.96 x max(posterior sd, sd of the hypothesis' soundings)"},
+        {"pitmap_density", "soundings in the chosen hypothesis"}};
+    // The run the grid belongs to: a GeoTIFF metadata item (for the BAG, GDAL's driver keeps
+    // only its own XML).
+    if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
+    return raster;
+}
+
+// dem.tif and dem.bag, as configured; each file written is added to `files`.
+Status WriteDem(const std::string& dir,
+                const GridStageConfig& gc,
+                const io::GridRaster& raster,
+                json& files) {
+    if (gc.write_geotiff) {
+        if (auto w = io::WriteCogGeoTiff(dir + "/dem.tif", raster); !w) return w;
+        files.push_back("dem.tif");
+    }
+    if (gc.write_bag) {
+        if (auto w = io::WriteBag(dir + "/dem.bag", raster); !w) return w;
+        files.push_back("dem.bag");
+    }
+    return Ok{};
+}
+
+// The point files with each sounding's THU and TVU (and its datum height when the datum is not
+// the ellipsoid): soundings_tpu.ply, points.ply, points.las and points_utm.ply, as configured;
+// each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.
+Status WriteSoundingProducts(StageContext& s,
+                             const PipelineConfig& config,
+                             const georef::UtmPoints& utm,
+                             const hydro::DatumModel& datum,
+                             const ProductMetadata& meta,
+                             hydro::TpuResult& tpu,
+                             json& files) {
+    const GridStageConfig& gc = config.grid;
+    const std::string& dir = s.out_dir;
+    if (gc.write_sounding_tpu) {
+        if (auto w = io::WriteSoundingTpuPly(
+                dir + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m, s.model.run_id);
+            !w) {
+            return w;
+        }
+        files.push_back("soundings_tpu.ply");
+    }
+    if (!gc.write_point_tpu) return Ok{};
+    io::PointExtras extras;  // borrows the THU/TVU (moved in, moved back after the writes)
+    extras.thu_95_m = std::move(tpu.thu_95_m);
+    extras.tvu_95_m = std::move(tpu.tvu_95_m);
+    if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid)
+        extras.datum_height_m = datum.datum_height_m;
+    extras.vertical_wkt = datum.VerticalWkt();
+    extras.vertical_name = datum.crs_name;
+    extras.pings = &s.model.ingest.pings;
+    // The rejected soundings after the accepted ones (THU/TVU NaN: not computed for them).
+    std::optional<georef::GeorefResult> rejected;
+    if (config.write_rejected) rejected = RejectedView(s, config);
+    const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
+    s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    if (auto w = io::WritePly(dir + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
+        return w;
+    files.push_back("points.ply");
+    if (config.write_las) {
+        if (auto w =
+                io::WriteLas(dir + "/points.las", s.geo, utm, &extras, s.model.run_id, rej, &meta);
+            !w)
+            return w;
+        files.push_back("points.las");
+        if (config.write_points_utm) {
+            if (auto w = WriteProjectedPoints(dir, s.geo, utm, rej, datum, meta, s.model.run_id);
+                !w)
+                return w;
+            files.push_back("points_utm.ply");
+        }
+    }
+    tpu.thu_95_m = std::move(extras.thu_95_m);
+    tpu.tvu_95_m = std::move(extras.tvu_95_m);
+    return Ok{};
+}
+
+// S-44's soundings: UTM positions with heights on the datum, the depth its limits take (below
+// the water-level datum, else below the transducer), the beam angle, the THU/TVU (moved: S-44
+// is their last user) and the pings' times and headings. The soundings' ping indices are
+// borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
+// hands them back.
+hydro::S44Soundings S44SoundingsOf(StageContext& s,
+                                   const georef::UtmPoints& utm,
+                                   const std::vector<double>& datum_height_m,
+                                   bool water_level_datum,
+                                   hydro::TpuResult& tpu) {
+    hydro::S44Soundings out;
+    const georef::GeorefResult& geo = s.geo;
+    const std::size_t n = geo.points.size();
+    out.x.resize(n);
+    out.y.resize(n);
+    out.z.resize(n);
+    out.depth_m.resize(n);
+    out.angle_deg.resize(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const std::uint32_t ping = geo.points.ping[j];
+        out.x[j] = enh.x();
+        out.y[j] = enh.y();
+        out.z[j] = enh.z() - datum_height_m[ping];
+        out.depth_m[j] = water_level_datum ? static_cast<float>(-out.z[j])
+                                           : static_cast<float>(geo.pings[ping].sensor_world.z() -
+                                                                geo.points.position_world[j].z());
+        out.angle_deg[j] = static_cast<float>(frames::RadToDeg(geo.points.angle_rad[j]));
+    }
+    out.thu_95_m = std::move(tpu.thu_95_m);
+    out.tvu_95_m = std::move(tpu.tvu_95_m);
+    out.ping = std::move(s.geo.points.ping);
+    for (const auto& p : s.geo.pings) {
+        out.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+        const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
+        out.ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+    }
+    return out;
+}
+
+// S-44's nodes: the CUBE grid, the nodes' depth (below the datum for a water level, else below
+// the transducers' median height) and CUBE's capture distance rule, from which S-44 finds the
+// soundings each node was offered (its THU).
+hydro::S44Grid S44NodesOf(const StageContext& s,
+                          const GridStageConfig& gc,
+                          const hydro::CubeGrid& grid,
+                          const std::vector<double>& datum_height_m,
+                          bool water_level_datum) {
+    hydro::S44Grid nodes{.x0 = grid.x0,
+                         .y0 = grid.y0,
+                         .resolution_m = grid.resolution_m,
+                         .nx = grid.nx,
+                         .ny = grid.ny,
+                         .elevation_m = grid.elevation_m,
+                         .uncertainty_m = grid.uncertainty_m,
+                         .depth_m = {},
+                         .capture_depth_fraction = gc.cube.capture_distance_scale,
+                         .capture_min_res = gc.cube.min_capture_distance_res,
+                         .capture_max_res = gc.cube.max_capture_distance_res};
+    double reference_m = 0.0;
+    if (!water_level_datum) {
+        const std::vector<Geodetic> ping_geo = PingGeodetic(s);
+        std::vector<double> transducer_m(ping_geo.size());
+        for (std::size_t k = 0; k < ping_geo.size(); ++k)
+            transducer_m[k] = ping_geo[k].height_m - datum_height_m[k];
+        reference_m = MedianOf(std::move(transducer_m));
+    }
+    nodes.depth_m.resize(grid.elevation_m.size());
+    for (std::size_t q = 0; q < nodes.depth_m.size(); ++q) {
+        nodes.depth_m[q] = static_cast<float>(reference_m - grid.elevation_m[q]);
+    }
+    return nodes;
+}
+
+// The IHO S-44 assessment (hydro::RunS44) of the soundings and the DEM: s44_holidays.tif (added
+// to `files`), the crossline gate and the stage's "s44" record. The THU/TVU of `tpu` are
+// consumed.
+Expected<json> RunS44Survey(StageContext& s,
+                            const PipelineConfig& config,
+                            const io::GridRaster& dem,
+                            const hydro::CubeGrid& grid,
+                            const georef::UtmPoints& utm,
+                            const hydro::DatumModel& datum,
+                            hydro::TpuResult& tpu,
+                            const json& pose_sigma,
+                            json& files,
+                            const Log& log) {
+    const GridStageConfig& gc = config.grid;
+    const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
+    const double median_tvu_95_m = tpu.median_tvu_95_m;
+    hydro::S44Soundings soundings =
+        S44SoundingsOf(s, utm, datum.datum_height_m, water_level_datum, tpu);
+    const hydro::S44Grid nodes = S44NodesOf(s, gc, grid, datum.datum_height_m, water_level_datum);
+    const hydro::S44Result r44 = hydro::RunS44(soundings, nodes, gc.s44_config);
+    s.geo.points.ping = std::move(soundings.ping);
+    log("grid: S-44: " + r44.message);
+    io::GridRaster holidays = HolidayRaster(dem, r44);
+    if (!s.model.run_id.empty()) holidays.metadata.emplace_back("pitmap_run_id", s.model.run_id);
+    std::string holiday_file;
+    if (gc.write_geotiff) {
+        if (auto w = io::WriteCogGeoTiff(s.out_dir + "/s44_holidays.tif", holidays); !w)
+            return w.error();
+        holiday_file = "s44_holidays.tif";
+        files.push_back(holiday_file);
+    }
+    json record = S44Json(r44, holiday_file, UtmToWorld(utm, s.geo));
+    // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
+    record["pose_sigma_source"] = pose_sigma["source"];
+    CheckCrosslines(s, r44, median_tvu_95_m, config.quality, log);
+    return record;
+}
+
+// The stage's record of the TPU: where its error model came from, its medians and what makes
+// up the vertical variance, the clock and pose sigmas it took.
+json TpuJson(const TpuSetup& setup, const PoseSigmas& pose, const hydro::TpuResult& tpu) {
+    json shares = json::object();
+    for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
+        shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
+    }
+    return {{"error_model", setup.model_source},
+            {"median_tvu_95_m", tpu.median_tvu_95_m},
+            {"median_thu_95_m", tpu.median_thu_95_m},
+            {"tvu_variance_share", shares},
+            {"clock_sigma_s", setup.config.clock_sigma_s},
+            {"pose_sigma", pose.record}};
+}
+
+// The stage's record of the CUBE surface: its grid and what CUBE did.
+json CubeJson(const hydro::CubeResult& cube, const GridStageConfig& gc) {
+    const hydro::CubeGrid& g = cube.grid;
+    return {{"resolution_m", g.resolution_m},
+            {"median_depth_m", cube.median_depth_m},
+            {"capture_distance_m", cube.capture_distance_m},
+            {"nx", g.nx},
+            {"ny", g.ny},
+            {"x0_m", g.x0},
+            {"y0_m", g.y0},
+            {"disambiguation", hydro::ToString(gc.cube.disambiguation)},
+            {"nodes_filled", cube.nodes_filled},
+            {"nodes_multiple_hypotheses", cube.nodes_multiple},
+            {"hypotheses", cube.hypotheses_total},
+            {"node_updates", cube.node_updates},
+            {"soundings_rejected", cube.soundings_rejected},
+            {"message", cube.message}};
+}
+
+}  // namespace
+
+// The soundings' TPU, then the CUBE surface on the products' datum (with the surface filter's
+// second pass), the DEM and point files, S-44 and the backscatter mosaic. Each part's wall and
+// CPU time go into the record (PartClock).
+Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+    StageClock clock;
+    ClearGates(s, Stage::kGrid);
+    const GridStageConfig& gc = config.grid;
+    auto tpu_setup = SurveyTpuSetup(s, gc, log);
+    if (!tpu_setup) return tpu_setup.error();
     if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
 
     PartClock part;
     json timings = json::object();
-    const SensorErrorModel& m = tcfg.model;
-    PoseSigma fallback;
-    fallback << frames::DegToRad(m.roll_pitch_sigma_deg), frames::DegToRad(m.roll_pitch_sigma_deg),
-        frames::DegToRad(m.heading_sigma_deg), m.position_sigma_h_m, m.position_sigma_h_m,
-        m.position_sigma_v_m;
-    std::vector<hydro::PingSigma> sig(s.geo.pings.size());
-    std::size_t from_slam = 0;
-    for (std::size_t k = 0; k < sig.size(); ++k) {
-        PoseSigma p = PoseSigmaAt(
-            s.model.ingest.nav, s.geo.pings[k].utime_gps, gc.ins_sigma_max_age_s, fallback);
-        bool slam = false;
-        if (gc.tpu_slam_posterior) p = ProcessingSigma(s.model, s.geo.pings[k], p, &slam);
-        from_slam += slam ? 1 : 0;
-        sig[k].attitude_rpy_rad = p.head<3>();
-        sig[k].position_enu_m = p.tail<3>();
-    }
-    const auto bore = [&](std::size_t k) {  // the boresight sigma the TPU took, deg
-        const double b = tcfg.boresight_sigma_rpy_deg[k];
-        return std::isnan(b) ? m.boresight_sigma_deg : b;
-    };
-    const json pose_sigma = {
-        {"source", from_slam > 0 ? "slam_posterior" : "ins"},
-        {"pings_slam_posterior", from_slam},
-        {"pings", sig.size()},
-        {"boresight_sigma_deg", {bore(0), bore(1), bore(2)}},
-        {"boresight_sigma_source",
-         std::isnan(tcfg.boresight_sigma_rpy_deg[0]) ? "error_model" : "calibration"}};
-    log("grid: TPU pose sigma: " + std::to_string(from_slam) + " of " + std::to_string(sig.size()) +
-        " pings from SLAM's posterior, the rest the INS's");
-    if (from_slam > 0) {
-        // The posterior does not yet contain the true error (docs/uncertainty.md): a TPU and an
-        // S-44 order stated from it must say so.
-        TripGate(s,
-                 Stage::kGrid,
-                 "tpu_from_unvalidated_posterior",
-                 "the TPU takes SLAM's posterior pose sigma (grid.tpu_slam_posterior), which is "
-                 "not yet validated and states less than the true error on the test surveys "
-                 "(docs/uncertainty.md): the THU/TVU and the S-44 order are optimistic",
-                 log);
-    }
-    hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
-    log("grid: TPU (" + model_source + "): " + tpu.message);
+    const PoseSigmas pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
+    if (pose.from_slam > 0) GateUnvalidatedPosterior(s, log);
+    hydro::TpuResult tpu =
+        hydro::ComputeTpu(s.geo, s.model.mount, pose.per_ping, tpu_setup->config);
+    log("grid: TPU (" + tpu_setup->model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");
 
     auto utm = georef::ToUtm(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
-    const std::vector<Geodetic> ping_geo = PingGeodetic(s);
     json datum_record;
     auto datum = SurveyDatum(s, config, &datum_record, log);
     if (!datum) return datum.error();
-    const std::vector<double>& D = datum->datum_height_m;
-    const bool water = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
-    std::vector<hydro::CubeSounding> snd(s.geo.points.size());
-    for (std::size_t j = 0; j < snd.size(); ++j) {
-        const Eigen::Vector3d& e = utm->easting_northing_height[j];
-        const double depth =
-            s.geo.pings[s.geo.points.ping[j]].sensor_world.z() - s.geo.points.position_world[j].z();
-        snd[j] = {e.x(),
-                  e.y(),
-                  e.z() - D[s.geo.points.ping[j]],
-                  static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
-                  static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
-                  static_cast<float>(depth)};
-    }
+    std::vector<hydro::CubeSounding> soundings =
+        CubeSoundings(s.geo, *utm, datum->datum_height_m, tpu);
     part.Lap(timings, "utm_datum");
-    hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
+    hydro::CubeResult cube = hydro::RunCube(soundings, gc.cube);
     if (!cube.ok) return Error{cube.message};
     part.Lap(timings, "cube");
     // The surface filter: soundings that do not support the node's chosen hypothesis are
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
     if (gc.surface_filter) {
-        const std::vector<std::uint8_t> verdict = SurfaceFilter(snd, cube.grid, gc);
-        std::vector<char> keep = RejectPoints(s, verdict);
-        std::size_t out = 0;
-        for (std::size_t j = 0; j < keep.size(); ++j) {
-            if (!keep[j]) {
-                ++surface_rejected;
-                continue;
-            }
-            utm->easting_northing_height[out] = utm->easting_northing_height[j];
-            tpu.thu_95_m[out] = tpu.thu_95_m[j];
-            tpu.tvu_95_m[out] = tpu.tvu_95_m[j];
-            ++out;
-        }
-        utm->easting_northing_height.resize(out);
-        tpu.thu_95_m.resize(out);
-        tpu.tvu_95_m.resize(out);
-        if (surface_rejected > 0) {
-            // CUBE again without them: a node whose chosen hypothesis they made (an echo held
-            // long enough over one node to outvote the seabed) is decided on the rest.
-            std::size_t k = 0;
-            for (std::size_t j = 0; j < keep.size(); ++j) {
-                if (keep[j]) snd[k++] = snd[j];
-            }
-            snd.resize(k);
-            cube = hydro::RunCube(snd, gc.cube);
-            if (!cube.ok) return Error{cube.message};
-        }
+        auto rejected = RejectOffSurface(s, gc, soundings, cube, *utm, tpu);
+        if (!rejected) return rejected.error();
+        surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
             " soundings off the CUBE surface rejected");
         part.Lap(timings, "surface_filter");
     }
     // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
-    // S-44 takes its soundings from the UTM positions, as snd did.
-    std::vector<hydro::CubeSounding>().swap(snd);
+    // S-44 takes its soundings from the UTM positions, as CubeSoundings did.
+    std::vector<hydro::CubeSounding>().swap(soundings);
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
-    const hydro::CubeGrid& g = cube.grid;
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
     s.datum = *datum;
-    io::GridRaster raster;
-    raster.product = meta;
-    raster.x0 = g.x0;
-    raster.y0 = g.y0;
-    raster.resolution_m = g.resolution_m;
-    raster.nx = g.nx;
-    raster.ny = g.ny;
-    raster.utm_zone = utm->zone;
-    raster.northern = utm->northern;
-    raster.vertical_wkt = datum->VerticalWkt();
-    raster.layers = DemLayers(g);
-    raster.metadata = {
-        {"pitmap_surface", "CUBE (Calder & Mayer 2003)"},
-        {"pitmap_disambiguation", hydro::ToString(gc.cube.disambiguation)},
-        {"pitmap_vertical_datum", datum->crs_name},
-        {"pitmap_vertical_datum_description", datum->description},
-        {"pitmap_uncertainty", "95 %: 1.96 x max(posterior sd, sd of the hypothesis' soundings)"},
-        {"pitmap_density", "soundings in the chosen hypothesis"}};
-    // The run the grid belongs to: a GeoTIFF metadata item (for the BAG, GDAL's driver keeps
-    // only its own XML).
-    if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
-    const std::string& P = s.out_dir;
+    const io::GridRaster dem = DemRaster(s, gc, cube.grid, *utm, *datum, meta);
     json files = json::array();
-    if (gc.write_geotiff) {
-        if (auto w = io::WriteCogGeoTiff(P + "/dem.tif", raster); !w) return w;
-        files.push_back("dem.tif");
-    }
-    if (gc.write_bag) {
-        if (auto w = io::WriteBag(P + "/dem.bag", raster); !w) return w;
-        files.push_back("dem.bag");
-    }
-    if (gc.write_sounding_tpu) {
-        if (auto w = io::WriteSoundingTpuPly(
-                P + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m, s.model.run_id);
-            !w) {
-            return w;
-        }
-        files.push_back("soundings_tpu.ply");
-    }
-    if (gc.write_point_tpu) {
-        io::PointExtras extras;  // borrows the THU/TVU (moved in, moved back after the writes)
-        extras.thu_95_m = std::move(tpu.thu_95_m);
-        extras.tvu_95_m = std::move(tpu.tvu_95_m);
-        if (gc.vertical.datum != hydro::VerticalDatum::kEllipsoid) extras.datum_height_m = D;
-        extras.vertical_wkt = datum->VerticalWkt();
-        extras.vertical_name = datum->crs_name;
-        extras.pings = &s.model.ingest.pings;
-        // The rejected soundings after the accepted ones (THU/TVU NaN: not computed for them).
-        std::optional<georef::GeorefResult> rejected;
-        if (config.write_rejected) rejected = RejectedView(s, config);
-        const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
-        s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
-        if (auto w = io::WritePly(P + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
-            return w;
-        files.push_back("points.ply");
-        if (config.write_las) {
-            if (auto w = io::WriteLas(
-                    P + "/points.las", s.geo, *utm, &extras, s.model.run_id, rej, &meta);
-                !w)
-                return w;
-            files.push_back("points.las");
-            if (config.write_points_utm) {
-                if (auto w =
-                        WriteProjectedPoints(P, s.geo, *utm, rej, *datum, meta, s.model.run_id);
-                    !w)
-                    return w;
-                files.push_back("points_utm.ply");
-            }
-        }
-        tpu.thu_95_m = std::move(extras.thu_95_m);
-        tpu.tvu_95_m = std::move(extras.tvu_95_m);
-    }
+    if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
+    if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, files); !w) return w;
     part.Lap(timings, "write");
 
-    json s44_json;
+    // The stage's record: the TPU's, S-44's, the mosaic's and the terrain's, then the surface's.
+    json stage = TpuJson(*tpu_setup, pose, tpu);
     if (gc.s44) {
-        hydro::S44Soundings ss;
-        const std::size_t n = s.geo.points.size();
-        ss.x.resize(n);
-        ss.y.resize(n);
-        ss.z.resize(n);
-        ss.depth_m.resize(n);
-        ss.angle_deg.resize(n);
-        for (std::size_t j = 0; j < n; ++j) {
-            const Eigen::Vector3d& e = utm->easting_northing_height[j];
-            const std::uint32_t k = s.geo.points.ping[j];
-            ss.x[j] = e.x();
-            ss.y[j] = e.y();
-            ss.z[j] = e.z() - D[k];
-            // Depth for the limits: below the water-level datum, else below the transducer.
-            ss.depth_m[j] = water ? static_cast<float>(-ss.z[j])
-                                  : static_cast<float>(s.geo.pings[k].sensor_world.z() -
-                                                       s.geo.points.position_world[j].z());
-            ss.angle_deg[j] = static_cast<float>(frames::RadToDeg(s.geo.points.angle_rad[j]));
-        }
-        // The last users of the per-sounding THU/TVU: moved, not copied.
-        ss.thu_95_m = std::move(tpu.thu_95_m);
-        ss.tvu_95_m = std::move(tpu.tvu_95_m);
-        // The soundings' ping indices are borrowed (24 MB on bejanca; the S-44 part sets the
-        // stage's peak) and handed back after RunS44.
-        ss.ping = std::move(s.geo.points.ping);
-        std::vector<double> transducer(s.geo.pings.size());
-        for (std::size_t k = 0; k < s.geo.pings.size(); ++k) {
-            const auto& p = s.geo.pings[k];
-            ss.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
-            const Eigen::Vector3d fwd = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
-            ss.ping_yaw_rad.push_back(std::atan2(fwd.x(), fwd.y()));
-            transducer[k] = ping_geo[k].height_m - D[k];
-        }
-        // The nodes' THU from the soundings CUBE offered them (its capture distance rule).
-        hydro::S44Grid sg{.x0 = g.x0,
-                          .y0 = g.y0,
-                          .resolution_m = g.resolution_m,
-                          .nx = g.nx,
-                          .ny = g.ny,
-                          .elevation_m = g.elevation_m,
-                          .uncertainty_m = g.uncertainty_m,
-                          .depth_m = {},
-                          .capture_depth_fraction = gc.cube.capture_distance_scale,
-                          .capture_min_res = gc.cube.min_capture_distance_res,
-                          .capture_max_res = gc.cube.max_capture_distance_res};
-        // Node depth: below the datum (water level), else below the transducers' median height.
-        const double ref = water ? 0.0 : MedianOf(transducer);
-        sg.depth_m.resize(g.elevation_m.size());
-        for (std::size_t q = 0; q < sg.depth_m.size(); ++q) {
-            sg.depth_m[q] = static_cast<float>(ref - g.elevation_m[q]);
-        }
-        const hydro::S44Result r44 = hydro::RunS44(ss, sg, gc.s44_config);
-        s.geo.points.ping = std::move(ss.ping);
-        log("grid: S-44: " + r44.message);
-        io::GridRaster hol = HolidayRaster(raster, r44);
-        if (!s.model.run_id.empty()) hol.metadata.emplace_back("pitmap_run_id", s.model.run_id);
-        std::string holiday_file;
-        if (gc.write_geotiff) {
-            if (auto w = io::WriteCogGeoTiff(P + "/s44_holidays.tif", hol); !w) return w;
-            holiday_file = "s44_holidays.tif";
-            files.push_back(holiday_file);
-        }
-        s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
-        // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
-        s44_json["pose_sigma_source"] = pose_sigma["source"];
-        CheckCrosslines(s, r44, tpu.median_tvu_95_m, config.quality, log);
+        auto s44 =
+            RunS44Survey(s, config, dem, cube.grid, *utm, *datum, tpu, pose.record, files, log);
+        if (!s44) return s44.error();
+        stage["s44"] = std::move(*s44);
         part.Lap(timings, "s44");
     }
-    json mosaic_json;
     if (gc.mosaic) {
-        auto mosaic = detail::MosaicSurvey(s, gc, raster, *utm, UtmToWorld(*utm, s.geo), log);
+        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, UtmToWorld(*utm, s.geo), log);
         if (!mosaic) return mosaic.error();
         if (mosaic->contains("file")) files.push_back((*mosaic)["file"]);
-        mosaic_json = std::move(*mosaic);
+        stage["mosaic"] = std::move(*mosaic);
         part.Lap(timings, "mosaic");
     }
-    json terrain_json;
     if (gc.terrain) {
-        auto terrain = detail::TerrainSurvey(s, gc, raster, log);
+        auto terrain = detail::TerrainSurvey(s, gc, dem, log);
         if (!terrain) return terrain.error();
         for (const auto& f : (*terrain)["files"]) files.push_back(f);
-        terrain_json = std::move(*terrain);
+        stage["terrain"] = std::move(*terrain);
         part.Lap(timings, "terrain");
     }
-    json shares = json::object();
-    for (int t = 0; t < hydro::kNumTpuTerms; ++t) {
-        shares[hydro::ToString(static_cast<hydro::TpuTerm>(t))] = tpu.tvu_variance_share[t];
-    }
-    const json st = {{"error_model", model_source},
-                     {"soundings", s.geo.points.size()},
-                     {"median_tvu_95_m", tpu.median_tvu_95_m},
-                     {"median_thu_95_m", tpu.median_thu_95_m},
-                     {"tvu_variance_share", shares},
-                     {"clock_sigma_s", tcfg.clock_sigma_s},
-                     {"pose_sigma", pose_sigma},
-                     {"resolution_m", g.resolution_m},
-                     {"median_depth_m", cube.median_depth_m},
-                     {"capture_distance_m", cube.capture_distance_m},
-                     {"nx", g.nx},
-                     {"ny", g.ny},
-                     {"x0_m", g.x0},
-                     {"y0_m", g.y0},
-                     {"utm_epsg", utm->epsg},
-                     {"vertical_crs", datum->crs_name},
-                     {"disambiguation", hydro::ToString(gc.cube.disambiguation)},
-                     {"nodes_filled", cube.nodes_filled},
-                     {"nodes_multiple_hypotheses", cube.nodes_multiple},
-                     {"hypotheses", cube.hypotheses_total},
-                     {"node_updates", cube.node_updates},
-                     {"soundings_rejected", cube.soundings_rejected},
-                     {"surface_filter_rejected", surface_rejected},
-                     {"files", files},
-                     {"timings_wall_cpu_s", timings},
-                     {"message", cube.message}};
-    json stage = st;
-    if (!s44_json.is_null()) stage["s44"] = s44_json;
-    if (!mosaic_json.is_null()) stage["mosaic"] = std::move(mosaic_json);
-    if (!terrain_json.is_null()) stage["terrain"] = std::move(terrain_json);
+    stage.update(CubeJson(cube, gc));
+    stage["soundings"] = s.geo.points.size();
+    stage["utm_epsg"] = utm->epsg;
+    stage["vertical_crs"] = datum->crs_name;
+    stage["surface_filter_rejected"] = surface_rejected;
+    stage["files"] = files;
+    stage["timings_wall_cpu_s"] = timings;
     s.summary["vertical_datum"] = datum_record;
-    log("grid: " + Fixed(g.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
+    log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
     RecordStage(s.summary, Stage::kGrid, stage, clock);
     return SaveSummary(s);

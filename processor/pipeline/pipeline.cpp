@@ -498,6 +498,201 @@ void InsWindowGate(StageContext& s, const Log& log) {
     }
 }
 
+namespace {
+
+// A new georeference starts a new survey model (a new run) and a new report: every product of
+// an earlier one goes first, so that a failed or killed georef leaves nothing of the earlier
+// survey beside what it wrote. A damaged edit log stops here, before anything of the folder is
+// removed (whether it is this survey's is known once the inputs are read).
+Status ClearEarlierSurvey(const std::string& out_dir) {
+    std::error_code ec;
+    if (const std::string edits = out_dir + "/" + survey::kEditLogFileName; fs::exists(edits, ec)) {
+        if (auto e = survey::ReadEditLog(edits); !e) return e.error();
+    }
+    return RemoveProducts(out_dir, AllProducts());
+}
+
+// The new run: an empty survey model with its run id, an empty summary.
+void StartRun(StageContext& s, const Log& log) {
+    s.model = survey::SurveyModel{};
+    s.model.run_id = survey::NewRunId();
+    s.summary = json::object();
+    s.summary["run_id"] = s.model.run_id;
+    log("run id " + s.model.run_id);
+}
+
+// The vehicle file at `path` ("" = none: a zero mount, with a warning): its mount into the model,
+// its description, and what it sets for ingest (ApplyVehicle). Returns the INS's height above the
+// water line when the file gives it.
+Expected<std::optional<double>> ReadVehicle(StageContext& s,
+                                            const std::string& path,
+                                            const std::string& first_input,
+                                            io::IngestConfig& icfg,
+                                            const Log& log) {
+    if (path.empty()) {
+        log("warning: no vehicle.yaml found beside " + first_input +
+            ": lever arm and boresight default to zero (give --vehicle FILE)");
+        return std::optional<double>();
+    }
+    auto v = io::ReadVehicleYaml(path);
+    if (!v) return v.error();
+    s.model.mount = v->mount;
+    s.model.nominal_mount = v->mount;
+    s.model.vehicle_yaml = fs::absolute(path).string();
+    s.vehicle = v->description;
+    ApplyVehicle(v->description, icfg);
+    s.summary["vehicle_yaml"] = fs::absolute(path).string();
+    s.summary["vehicle"] = io::VehicleJson(v->description);
+    return v->description.ins_height_above_waterline_m;
+}
+
+// A vendor file that does not say everything (ingest's `assumed`): the mount is the vehicle
+// file's, and the list says so.
+void NoteAssumedMount(StageContext& s, const std::string& vehicle_path) {
+    const georef::SonarMount& m = s.model.mount;
+    char mount[200];
+    std::snprintf(mount,
+                  sizeof mount,
+                  "lever arm %.3f %.3f %.3f m, boresight roll %.2f pitch %.2f yaw %.2f deg",
+                  m.lever_arm_m.x(),
+                  m.lever_arm_m.y(),
+                  m.lever_arm_m.z(),
+                  m.boresight_roll_deg,
+                  m.boresight_pitch_deg,
+                  m.boresight_yaw_deg);
+    s.model.ingest.assumed.push_back(
+        "mount: " + std::string(mount) + " from " +
+        (vehicle_path.empty() ? std::string("no vehicle file (zero)") : "the vehicle file"));
+}
+
+// io::IngestFiles into the model, with a progress bar, its warnings and assumptions logged and
+// its record in the summary; an error when the inputs hold no navigation or no pings.
+Status IngestSurvey(StageContext& s,
+                    const std::vector<std::string>& files,
+                    const io::IngestConfig& icfg,
+                    const std::string& vehicle_path,
+                    const Log& log) {
+    StageClock clock;
+    ProgressReporter bar(ToString(Stage::kIngest), 1000);
+    auto ing = io::IngestFiles(files, icfg, bar.AsCallback());
+    bar.Finish();
+    if (!ing) return ing.error();
+    s.model.ingest = std::move(*ing);
+    for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
+    if (!s.model.ingest.assumed.empty()) NoteAssumedMount(s, vehicle_path);
+    for (const auto& a : s.model.ingest.assumed) log("assumed: " + a);
+    log("ingest: " + s.model.ingest.message);
+    json record = s.model.ingest.counts;
+    record["warnings"] = s.model.ingest.warnings;
+    record["assumed"] = s.model.ingest.assumed;
+    record["nav_from_raw"] = s.model.ingest.nav_from_raw;
+    record["pings_from_raw"] = s.model.ingest.pings_from_raw;
+    RecordStage(s.summary, Stage::kIngest, record, clock);
+    if (s.model.ingest.nav.samples.empty())
+        return Error{"no INS navigation in the inputs (" + files.front() + " ...)"};
+    if (s.model.ingest.pings.pings.empty())
+        return Error{"no sonar pings in the inputs (" + files.front() + " ...)"};
+    return Ok{};
+}
+
+// georef::RunGeoref of the ingested pings on the INS trajectory, with a progress bar; the world
+// origin is the configured one, else the first navigation sample.
+void GeoreferenceIngest(StageContext& s, const PipelineConfig& config, const Log& log) {
+    std::optional<Geodetic> origin;
+    if (!std::isnan(config.origin_latitude_deg)) {
+        origin = Geodetic{
+            config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
+    }
+    ProgressReporter bar(ToString(Stage::kGeoref), 1000);
+    s.geo = georef::RunGeoref(s.model.ingest.nav,
+                              s.model.ingest.pings,
+                              s.model.mount,
+                              config.georef,
+                              origin,
+                              bar.AsCallback(),
+                              s.refraction,
+                              &s.model.flags);
+    bar.Finish();
+    log("georef: " + s.geo.message);
+}
+
+// Pings outside the navigation's span are not georeferenced: a warning, or the georef gate
+// pings_outside_navigation beyond quality.max_outside_nav_fraction of them.
+void GateOutsideNavigation(StageContext& s, const QualityConfig& quality, const Log& log) {
+    const std::int64_t outside = s.geo.counts.pings_outside_nav;
+    if (outside <= 0) return;
+    const auto& pings = s.model.ingest.pings.pings;
+    const auto& nav = s.model.ingest.nav.samples;
+    const std::string what =
+        std::to_string(outside) + " of " + std::to_string(pings.size()) +
+        " pings lie outside the navigation span and are not georeferenced: navigation " +
+        calib::SpanText(nav.front().utime_gps, nav.back().utime_gps) + ", sonar " +
+        calib::SpanText(pings.front().utime_gps, pings.back().utime_gps);
+    if (static_cast<double>(outside) >
+        quality.max_outside_nav_fraction * static_cast<double>(pings.size())) {
+        TripGate(s, Stage::kGeoref, "pings_outside_navigation", what, log);
+    } else {
+        log("warning: " + what);
+    }
+}
+
+// The mount against the attitude (georef::CheckMountAgainstAttitude), in summary["mount_check"].
+// A mount that does not explain the soundings stops georef (an error), unless the sonar clock
+// is in doubt (a sonar_clock gate tripped): the attitude of another time leaves the roll in
+// the soundings too, so the check cannot blame the mount and trips the gate naming both.
+Status CheckMount(StageContext& s, const Log& log) {
+    const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
+    log("georef: " + mc.message);
+    s.summary["mount_check"] = {{"checked", mc.checked},
+                                {"consistent", mc.consistent},
+                                {"roll_gain", mc.roll_gain},
+                                {"roll_gain_sd", mc.roll_gain_sd},
+                                {"pitch_gain", mc.pitch_gain},
+                                {"pitch_gain_sd", mc.pitch_gain_sd},
+                                {"pings", mc.pings},
+                                {"message", mc.message}};
+    if (mc.consistent) return Ok{};
+    bool clock_in_doubt = false;
+    for (const auto& g : s.summary.value("quality_gates", json::array())) {
+        clock_in_doubt |= g.is_object() && g.value("stage", "") == ToString(Stage::kGeoref) &&
+                          g.value("gate", "").rfind("sonar_clock", 0) == 0;
+    }
+    if (clock_in_doubt) {
+        TripGate(s,
+                 Stage::kGeoref,
+                 "mount_inconsistent",
+                 mc.message +
+                     "; or the sonar clock, which is in doubt (a sonar_clock gate "
+                     "tripped): the attitude of another time leaves the roll in "
+                     "the soundings too",
+                 log);
+        return Ok{};
+    }
+    TripGate(s, Stage::kGeoref, "mount_inconsistent", mc.message, log);
+    (void)SaveSummary(s);
+    return Error{
+        "georef: the sonar mount of " +
+        (s.model.vehicle_yaml.empty() ? std::string("the vehicle file") : s.model.vehicle_yaml) +
+        " does not explain the soundings: " + mc.likely_cause + " (" + mc.message +
+        "; quality.check_mount: false skips this check)"};
+}
+
+// The georeference into the model (its world origin and INS trajectory) and the summary (the
+// stage's counts, the origin, the survey's time, the inputs, the mount).
+void RecordGeoref(StageContext& s, const std::vector<std::string>& files, const StageClock& clock) {
+    s.model.origin = s.geo.world_origin;
+    s.model.trajectory(survey::TrajectoryVersion::kIns) =
+        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+    RecordStage(s.summary, Stage::kGeoref, s.geo.counts, clock);
+    s.summary["world_origin"] = survey::OriginJson(s.model.origin);
+    s.summary["time"] = TimeJson(s.model.ingest);
+    s.summary["inputs"] = json::array();
+    for (const auto& f : files) s.summary["inputs"].push_back(fs::absolute(f).string());
+    s.summary["mount"] = MountJson(s.model.mount);
+}
+
+}  // namespace
+
 // inputs -> ingest -> georef -> products; the survey stays in memory for later stages.
 Status GeorefSurvey(StageContext& s,
                     const std::vector<std::string>& inputs,
@@ -511,78 +706,16 @@ Status GeorefSurvey(StageContext& s,
     if (!files) return files.error();
     if (files->empty()) return Error{"no input files"};
     const std::string vpath = VehicleFilePath(*files, config);
+    if (auto r = ClearEarlierSurvey(out_dir); !r) return r;
+    StartRun(s, log);
     io::IngestConfig icfg = config.ingest;
-    // A new georeference starts a new survey model (a new run) and a new report; every product
-    // of an earlier one goes first, so that a failed or killed georef leaves nothing of the
-    // earlier survey beside what it wrote.
-    // A damaged edit log stops here, before anything of the folder is removed (whether it is
-    // this survey's is known once the inputs are read).
-    if (const std::string edits = out_dir + "/" + survey::kEditLogFileName; fs::exists(edits, ec)) {
-        if (auto e = survey::ReadEditLog(edits); !e) return e.error();
-    }
-    if (auto r = RemoveProducts(out_dir, AllProducts()); !r) return r;
-    s.model = survey::SurveyModel{};
-    s.model.run_id = survey::NewRunId();
-    s.summary = json::object();
-    s.summary["run_id"] = s.model.run_id;
-    log("run id " + s.model.run_id);
-    std::optional<double> ins_height_m;
-    if (vpath.empty()) {
-        log("warning: no vehicle.yaml found beside " + files->front() +
-            ": lever arm and boresight default to zero (give --vehicle FILE)");
-    } else {
-        auto v = io::ReadVehicleYaml(vpath);
-        if (!v) return v.error();
-        s.model.mount = v->mount;
-        s.model.nominal_mount = v->mount;
-        s.model.vehicle_yaml = fs::absolute(vpath).string();
-        s.vehicle = v->description;
-        ins_height_m = v->description.ins_height_above_waterline_m;
-        ApplyVehicle(v->description, icfg);
-        s.summary["vehicle_yaml"] = fs::absolute(vpath).string();
-        s.summary["vehicle"] = io::VehicleJson(v->description);
-    }
-    if (auto r = SetUpRefraction(s, config, ins_height_m, log); !r) return r;
+    auto ins_height_m = ReadVehicle(s, vpath, files->front(), icfg, log);
+    if (!ins_height_m) return ins_height_m.error();
+    if (auto r = SetUpRefraction(s, config, *ins_height_m, log); !r) return r;
     // The configured offset (sonar clock minus UTC), null when the clock is to be found.
     s.summary["sonar_clock_offset_s"] =
         icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
-
-    StageClock ingest_clock;
-    ProgressReporter bar(ToString(Stage::kIngest), 1000);
-    auto ing = io::IngestFiles(*files, icfg, bar.AsCallback());
-    bar.Finish();
-    if (!ing) return ing.error();
-    s.model.ingest = std::move(*ing);
-    for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
-    if (!s.model.ingest.assumed.empty()) {
-        // A vendor file that does not say everything: the mount is the vehicle file's.
-        const georef::SonarMount& m = s.model.mount;
-        char mount[200];
-        std::snprintf(mount,
-                      sizeof mount,
-                      "lever arm %.3f %.3f %.3f m, boresight roll %.2f pitch %.2f yaw %.2f deg",
-                      m.lever_arm_m.x(),
-                      m.lever_arm_m.y(),
-                      m.lever_arm_m.z(),
-                      m.boresight_roll_deg,
-                      m.boresight_pitch_deg,
-                      m.boresight_yaw_deg);
-        s.model.ingest.assumed.push_back(
-            "mount: " + std::string(mount) + " from " +
-            (vpath.empty() ? std::string("no vehicle file (zero)") : "the vehicle file"));
-    }
-    for (const auto& a : s.model.ingest.assumed) log("assumed: " + a);
-    log("ingest: " + s.model.ingest.message);
-    json ist = s.model.ingest.counts;
-    ist["warnings"] = s.model.ingest.warnings;
-    ist["assumed"] = s.model.ingest.assumed;
-    ist["nav_from_raw"] = s.model.ingest.nav_from_raw;
-    ist["pings_from_raw"] = s.model.ingest.pings_from_raw;
-    RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);
-    if (s.model.ingest.nav.samples.empty())
-        return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
-    if (s.model.ingest.pings.pings.empty())
-        return Error{"no sonar pings in the inputs (" + files->front() + " ...)"};
+    if (auto r = IngestSurvey(s, *files, icfg, vpath, log); !r) return r;
 
     // The hand edits (P/edits.json) survive a new georeference: applied on top of georef's and
     // the cleaning's verdicts. One of another survey, or a damaged one, stops here.
@@ -599,85 +732,13 @@ Status GeorefSurvey(StageContext& s,
     }
 
     StageClock georef_clock;
-    std::optional<Geodetic> origin;
-    if (!std::isnan(config.origin_latitude_deg)) {
-        origin = Geodetic{
-            config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
-    }
-    ProgressReporter gbar(ToString(Stage::kGeoref), 1000);
-    s.geo = georef::RunGeoref(s.model.ingest.nav,
-                              s.model.ingest.pings,
-                              s.model.mount,
-                              config.georef,
-                              origin,
-                              gbar.AsCallback(),
-                              s.refraction,
-                              &s.model.flags);
-    gbar.Finish();
-    log("georef: " + s.geo.message);
-    if (const std::int64_t out = s.geo.counts.pings_outside_nav; out > 0) {
-        const auto& P = s.model.ingest.pings.pings;
-        const auto& N = s.model.ingest.nav.samples;
-        const std::string what =
-            std::to_string(out) + " of " + std::to_string(P.size()) +
-            " pings lie outside the navigation span and are not georeferenced: navigation " +
-            calib::SpanText(N.front().utime_gps, N.back().utime_gps) + ", sonar " +
-            calib::SpanText(P.front().utime_gps, P.back().utime_gps);
-        if (static_cast<double>(out) >
-            config.quality.max_outside_nav_fraction * static_cast<double>(P.size())) {
-            TripGate(s, Stage::kGeoref, "pings_outside_navigation", what, log);
-        } else {
-            log("warning: " + what);
-        }
-    }
+    GeoreferenceIngest(s, config, log);
+    GateOutsideNavigation(s, config.quality, log);
     InsWindowGate(s, log);
     if (config.quality.check_mount) {
-        const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
-        log("georef: " + mc.message);
-        s.summary["mount_check"] = {{"checked", mc.checked},
-                                    {"consistent", mc.consistent},
-                                    {"roll_gain", mc.roll_gain},
-                                    {"roll_gain_sd", mc.roll_gain_sd},
-                                    {"pitch_gain", mc.pitch_gain},
-                                    {"pitch_gain_sd", mc.pitch_gain_sd},
-                                    {"pings", mc.pings},
-                                    {"message", mc.message}};
-        // A sonar clock in doubt leaves the roll in the soundings too (the attitude of another
-        // time is applied): then the check cannot blame the mount, and says both.
-        bool clock_in_doubt = false;
-        for (const auto& g : s.summary.value("quality_gates", json::array())) {
-            clock_in_doubt |= g.is_object() && g.value("stage", "") == ToString(Stage::kGeoref) &&
-                              g.value("gate", "").rfind("sonar_clock", 0) == 0;
-        }
-        if (!mc.consistent && clock_in_doubt) {
-            TripGate(s,
-                     Stage::kGeoref,
-                     "mount_inconsistent",
-                     mc.message +
-                         "; or the sonar clock, which is in doubt (a sonar_clock gate "
-                         "tripped): the attitude of another time leaves the roll in "
-                         "the soundings too",
-                     log);
-        } else if (!mc.consistent) {
-            TripGate(s, Stage::kGeoref, "mount_inconsistent", mc.message, log);
-            (void)SaveSummary(s);
-            return Error{"georef: the sonar mount of " +
-                         (s.model.vehicle_yaml.empty() ? std::string("the vehicle file")
-                                                       : s.model.vehicle_yaml) +
-                         " does not explain the soundings: " + mc.likely_cause + " (" + mc.message +
-                         "; quality.check_mount: false skips this check)"};
-        }
+        if (auto m = CheckMount(s, log); !m) return m;
     }
-    s.model.origin = s.geo.world_origin;
-    s.model.trajectory(survey::TrajectoryVersion::kIns) =
-        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
-    RecordStage(s.summary, Stage::kGeoref, s.geo.counts, georef_clock);
-    s.summary["world_origin"] = survey::OriginJson(s.model.origin);
-    s.summary["time"] = TimeJson(s.model.ingest);
-    s.summary["inputs"] = json::array();
-    for (const auto& f : *files) s.summary["inputs"].push_back(fs::absolute(f).string());
-    s.summary["mount"] = MountJson(s.model.mount);
-
+    RecordGeoref(s, *files, georef_clock);
     if (auto st = io::WriteInsTrajectoryCsv(
             out_dir + "/trajectory_ins.csv", s.model.ingest.nav, s.model.origin);
         !st)
