@@ -24,7 +24,7 @@ processor_pkgs=(
   libopenvdb-dev libtbb-dev libboost-iostreams-dev
   libnanoflann-dev libassimp-dev
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
-  python3-numpy python3-matplotlib python3-gdal
+  python3-numpy python3-matplotlib python3-gdal python3-yaml
 )
 # The browser tests (headless Chromium loads the live page and report.html), report.pdf
 # (pitmap-report --pdf prints through Chromium) and the report's 3D viewer (three.js, inlined

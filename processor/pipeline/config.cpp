@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 // The processor's YAML configuration: reading with every problem listed, validation, defaults.
+#include <unistd.h>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -448,6 +449,10 @@ void VisitRun(V&& v, RunOptions& r) {
       r.initial_mesh_ping_stride,
       "mesh_initial is fused from every n-th ping");
     v("report", r.report, "report.html");
+    v("report_equipment",
+      r.report_equipment,
+      "YAML list of .glb equipment models placed in the report's 3D view\n"
+      "(pitmap-report --equipment; docs/report.md); \"\" = none");
 }
 
 template <class V>
@@ -707,6 +712,8 @@ std::vector<std::string> RunOptions::Validate() const {
         p.push_back("run.initial_mesh_voxel_factor must be within 1..8");
     if (initial_mesh_ping_stride < 1 || initial_mesh_ping_stride > 8)
         p.push_back("run.initial_mesh_ping_stride must be within 1..8");
+    if (!report_equipment.empty() && ::access(report_equipment.c_str(), R_OK) != 0)
+        p.push_back("run.report_equipment: " + report_equipment + ": no such readable file");
     return p;
 }
 

@@ -68,6 +68,9 @@ struct RunOptions {
     // kept ones is bridged like the full spacing (fuse.ping_gap_fill_m times the stride).
     int initial_mesh_ping_stride = 2;
     bool report = true;  // report.html through pitmap-report
+    // Equipment models for the report's 3D view (pitmap-report --equipment: a YAML list of
+    // .glb files placed by UTM position and heading); "" = none.
+    std::string report_equipment;
 
     std::vector<std::string> Validate() const;
 };

@@ -724,6 +724,10 @@ Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& lo
     }
     if (auto w = SaveSummary(s); !w) return w;
     std::vector<std::string> args = {program, s.out_dir};
+    if (!config.run.report_equipment.empty()) {
+        args.push_back("--equipment");
+        args.push_back(config.run.report_equipment);
+    }
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

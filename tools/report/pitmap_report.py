@@ -55,6 +55,8 @@ sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
 
 # Ply, PlyError, gps_to_utc, the rasters and the glb check are also what report_test.py
 # checks through this module.
+from pitmap_report_lib.equipment import (  # noqa: E402
+    EquipmentError, place_equipment, read_equipment)
 from pitmap_report_lib.gltf import GlbError, check_glb, gltf_page  # noqa: E402,F401
 from pitmap_report_lib.loaders import Ply, PlyError, Products  # noqa: E402,F401
 from pitmap_report_lib.rasters import raster_max, raster_mean, rasterise_mesh  # noqa: E402,F401
@@ -118,6 +120,10 @@ def main(argv=None):
                     "binary, e.g. P/mesh.glb) in the report's 3D viewer")
     ap.add_argument("-o", "--output", metavar="HTML",
                     help="the page of --view-gltf (default: GLB with .html)")
+    ap.add_argument("--equipment", metavar="FILE",
+                    help="YAML list of equipment models (.glb: the mining vehicle, a launch "
+                    "vessel) placed by UTM position and heading in the 3D view "
+                    "(docs/report.md)")
     ap.add_argument("--version", action=_Version, nargs=0,
                     help="print the version and git commit, then exit")
     args = ap.parse_args(argv)
@@ -137,10 +143,22 @@ def main(argv=None):
         print(f"{PROG}: {args.products}: not a folder", file=sys.stderr)
         return 2  # a usage error (docs/cli.md): nothing written
     scores = args.scores or os.path.join(folder, "scores.json")
+    equipment = []
+    if args.equipment is not None:
+        try:
+            equipment = read_equipment(args.equipment)
+        except EquipmentError as e:
+            print(f"{PROG}: {e}", file=sys.stderr)
+            return 2  # a bad input named before anything is drawn
     try:
         products = Products(folder, scores)
+        if equipment:
+            products.equipment = place_equipment(equipment, products.summary)
         title = args.title or sections_client.report_title(products.summary)
         pages = report.build(products, title, jobs)
+    except EquipmentError as e:
+        print(f"{PROG}: {e}", file=sys.stderr)
+        return 2
     except (ReportError, OSError) as e:
         print(f"{PROG}: {e}", file=sys.stderr)
         return 1

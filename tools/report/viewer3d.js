@@ -17,7 +17,9 @@
 // keys are on. A report left open does not redraw a mesh of millions 60 times a second.
 // Exposes window.pitmapViewer for the browser test: ready, frames (drawn), ticks (the animation
 // loop's turns, drawn or not), triangles, points, gltf
-// (name, status, message, triangles), profile (the last cross-section), crossSection(a, b)
+// (name, status, message, triangles), equipment (per model placed from the page's data: name,
+// status "placed" or "error", message, centre [x, y, z] of its box in the products' ENU, on the
+// mesh or at the height given), profile (the last cross-section), crossSection(a, b)
 // (a cross-section between two ENU points [x, y], as the tool's two clicks make it) and
 // openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes).
 (function () {
@@ -26,7 +28,7 @@
   const info = document.getElementById("viewer3d-info");
   const problem = document.getElementById("viewer3d-problem");
   const state = { ready: false, frames: 0, ticks: 0, triangles: 0, points: 0, error: null,
-                  gltf: null, profile: null };
+                  gltf: null, profile: null, equipment: [] };
   window.pitmapViewer = state;
   if (!el || typeof THREE === "undefined") return;
 
@@ -629,6 +631,63 @@
     state.frames += 1;
     state.ready = true;
   });
+
+  // Equipment models (pitmap-report --equipment): each .glb placed at its position and heading
+  // in the scene beside the mesh, as the paper's VR scene shows the mining vehicle. glTF's
+  // front faces +Z, which is south in pitmap's y-up (E, U, -N) convention, so a heading h
+  // (clockwise from grid north) turns the model by 180 - h about up. Without a height the
+  // model stands on the mesh (the highest surface under its position), else on the water.
+  function surfaceZ(x, y) {
+    if (layers.mesh) {
+      const down = new THREE.Raycaster(new THREE.Vector3(x, y, 1e5), new THREE.Vector3(0, 0, -1));
+      const hit = down.intersectObject(layers.mesh);
+      if (hit.length) return hit[0].point.z;
+    }
+    return waterZ !== null ? waterZ : 0;
+  }
+  function placeEquipment(item) {
+    const record = { name: item.name, status: "loading", message: "", centre: null };
+    state.equipment.push(record);
+    const failed = why => {
+      record.status = "error";
+      record.message = why;
+      showProblem("equipment " + item.name + ": " + why);
+      requestRender(300);
+    };
+    const buffer = bytes(item.glb);
+    const bad = glbProblem(buffer);
+    if (bad) return failed(bad);
+    try {
+      new THREE.GLTFLoader().parse(buffer, "", g => {
+        if (!g.scene) return failed("the file has no scene");
+        const upright = new THREE.Group();
+        upright.rotation.x = Math.PI / 2;  // glTF y-up to z-up
+        upright.add(g.scene);
+        const root = new THREE.Group();
+        root.add(upright);
+        root.rotation.z = (180 - item.heading_deg) * Math.PI / 180;
+        root.updateMatrixWorld(true);
+        const box = new THREE.Box3().setFromObject(root);
+        if (box.isEmpty()) return failed("the file has no geometry");
+        // The model's footprint centre at the position, its lowest point on the ground.
+        const c = box.getCenter(new THREE.Vector3());
+        const [x, y] = [item.position_m[0] - view.centre[0], item.position_m[1] - view.centre[1]];
+        const z = item.position_m[2] === null ? surfaceZ(x, y) : item.position_m[2] - view.centre[2];
+        root.position.set(x - c.x, y - c.y, z - box.min.z);
+        scene.add(root);
+        layers["equipment_" + state.equipment.indexOf(record)] = root;
+        root.updateMatrixWorld(true);
+        const placed = new THREE.Box3().setFromObject(root).getCenter(new THREE.Vector3());
+        record.centre = [placed.x + view.centre[0], placed.y + view.centre[1],
+                         placed.z + view.centre[2]];
+        record.status = "placed";
+        requestRender(300);
+      }, e => failed("cannot read it: " + (e && e.message ? e.message : e)));
+    } catch (e) {
+      failed("cannot read it: " + (e && e.message ? e.message : e));
+    }
+  }
+  for (const item of data.equipment || []) placeEquipment(item);
 
   if (data.gltf) loadGltf(bytes(data.gltf.glb), data.gltf.name);
 })();

@@ -21,6 +21,7 @@ import json
 import math
 import os
 import re
+import shutil
 import signal
 import struct
 import subprocess
@@ -170,6 +171,56 @@ def WriteTerrain(folder, grid):
         "launch_snap_distance_m": 0.4, "area_with_data_m2": 1185.0,
         "area_by_class_m2": {"reachable": 512.25, "traversable, not reachable": 300.0,
                              "too steep": 350.0, "step obstacle": 4.0, "too rough": 0.0}}
+
+
+def BoxGlb(size=(2.0, 0.8, 1.0)):
+    """A glTF 2.0 binary of one box, size (x, y, z) in glTF's y-up axes: for a crawler 2 m wide,
+    0.8 m high and 1 m long."""
+    sx, sy, sz = (s / 2 for s in size)
+    corners = np.array([[x, y, z] for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)],
+                       dtype="<f4")
+    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]],
+                     dtype="<u2")
+    binary = corners.tobytes() + faces.tobytes()
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"byteLength": len(binary)}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": corners.nbytes},
+                           {"buffer": 0, "byteOffset": corners.nbytes,
+                            "byteLength": faces.nbytes}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+                          "min": corners.min(axis=0).tolist(), "max": corners.max(axis=0).tolist()},
+                         {"bufferView": 1, "componentType": 5123, "count": faces.size,
+                          "type": "SCALAR"}]}
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return (struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(text), 0x4E4F534A)
+            + text + struct.pack("<II", len(binary), 0x004E4942) + binary)
+
+
+def WriteEquipment(work, products, world_xy, heading_deg=30.0):
+    """work/crawler.glb (a 0.8 m high box) and work/equipment.yaml placing it at the UTM position
+    of the products' world point world_xy: (the file, world_xy, half the model's height)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
+                                    "tools", "report"))
+    from pitmap_report_lib import maps
+    with open(os.path.join(products, "summary.json")) as f:
+        summary = json.load(f)
+    o = summary["world_origin"]
+    origin = (o["latitude_deg"], o["longitude_deg"], o["height_m"])
+    e, n = maps.world_to_grid(origin, summary["utm"]["epsg"], [world_xy[0]], [world_xy[1]])
+    with open(os.path.join(work, "crawler.glb"), "wb") as f:
+        f.write(BoxGlb())
+    path = os.path.join(work, "equipment.yaml")
+    with open(path, "w") as f:
+        f.write("equipment:\n  - name: mining vehicle\n    model: crawler.glb\n"
+                f"    easting: {e[0]:.4f}\n    northing: {n[0]:.4f}\n"
+                f"    heading_deg: {heading_deg}\n")
+    return path, list(world_xy), 0.4
 
 
 def WriteDem(folder):
@@ -915,6 +966,76 @@ class ReportTest(unittest.TestCase):
         r = Run(p)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("trajectory_ins.csv: 600 poses", r.stderr)
+
+
+class EquipmentTest(unittest.TestCase):
+    """pitmap-report --equipment: the file's problems all named (exit 2, nothing written), the
+    UTM position taken to the products' world frame and back, the model in the view's data."""
+
+    def setUp(self):
+        self.dir = tempfile.mkdtemp(prefix="pitmap_report_equipment_")
+        self.products = os.path.join(self.dir, "P")
+        WriteProducts(self.products, full=True)
+
+    def tearDown(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def test_the_model_is_placed_in_the_view(self):
+        path, world, _ = WriteEquipment(self.dir, self.products, (3.0, -2.0))
+        r = Run(self.products, "--equipment", path)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        page, _ = ReadPages(self.products)
+        m = re.search(r'<script type="application/json" id="viewer-data">(.*?)</script>', page,
+                      re.S)
+        data = json.loads(m.group(1).replace("<\\/", "</"))
+        self.assertEqual(len(data["equipment"]), 1)
+        item = data["equipment"][0]
+        self.assertEqual(item["name"], "mining vehicle")
+        self.assertEqual(item["heading_deg"], 30.0)
+        # The UTM position written to 4 decimals comes back to the world point within 1 mm;
+        # no height given: the page stands it on the mesh.
+        self.assertAlmostEqual(item["position_m"][0], world[0], delta=1e-3)
+        self.assertAlmostEqual(item["position_m"][1], world[1], delta=1e-3)
+        self.assertIsNone(item["position_m"][2])
+        self.assertEqual(base64.b64decode(item["glb"]), BoxGlb())
+        self.assertIn("equipment: mining vehicle", Sections(page)["viewer"])
+
+    def test_every_problem_of_the_file_is_named(self):
+        with open(os.path.join(self.dir, "broken.glb"), "wb") as f:
+            f.write(BoxGlb()[:100])
+        path = os.path.join(self.dir, "bad.yaml")
+        with open(path, "w") as f:
+            f.write("equipment:\n"
+                    "  - name: crawler\n    model: missing.glb\n    easting: 1\n"
+                    "  - model: broken.glb\n    easting: x\n    northing: 2\n    colour: red\n")
+        r = Run(self.products, "--equipment", path)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        for text in ("equipment[0]: northing is missing", "equipment[0]: model missing.glb",
+                     "equipment[1]: name is missing", "equipment[1]: easting must be a number",
+                     "equipment[1]: unknown key 'colour'", "equipment[1]: model broken.glb: "
+                     "truncated"):
+            self.assertIn(text, r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.products, "report.html")))
+
+    def test_a_position_in_another_zone_is_refused(self):
+        path, _, _ = WriteEquipment(self.dir, self.products, (3.0, -2.0))
+        with open(path) as f:
+            text = f.read()
+        with open(path, "w") as f:
+            f.write(re.sub(r"easting: [0-9.]+", "easting: 103412.0", text))
+        r = Run(self.products, "--equipment", path)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("km from the survey (EPSG:32629)", r.stderr)
+
+    def test_grid_to_world_inverts_world_to_grid(self):
+        maps = LoadModule().maps
+        origin = (40.4435, -7.7804, 412.0)
+        x, y, z = np.array([0.0, 120.5, -300.0]), np.array([0.0, -80.25, 410.0]), np.zeros(3)
+        e, n = maps.world_to_grid(origin, 32629, x, y, z)
+        h = 412.0 + (x ** 2 + y ** 2) / (2 * 6378137.0)  # the tangent plane's height there
+        x2, y2, _ = maps.grid_to_world(origin, 32629, e, n, h)
+        np.testing.assert_allclose(x2, x, atol=1e-3)
+        np.testing.assert_allclose(y2, y, atol=1e-3)
 
 
 class HelperTest(unittest.TestCase):

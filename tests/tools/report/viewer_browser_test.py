@@ -15,6 +15,8 @@ Checks, failing on any console error or uncaught exception:
   "VR NOT FOUND", or "WEBXR NOT SUPPORTED");
 - the glTF page draws a non-blank view with the file's triangle count, and its cross-section
   cuts the loaded mesh;
+- equipment (pitmap-report --equipment): the .glb given at a UTM position and heading stands
+  there in the report's view, centred on the position and with its lowest point on the mesh;
 - "open glTF...": the same .glb loads into report.html; a truncated one and one whose header
   was patched to the truncated length give a message in the page; so does each of 300
   mutations (truncations, flipped bytes, overwritten words) of a small valid .glb, and the
@@ -172,12 +174,31 @@ def CheckNoErrors(browser, where):
         fail("%s: console errors: %s" % (where, errs))
 
 
+def CheckEquipment(browser, vertices, triangles, fixture):
+    """The equipment model stands at its position: its box centred on it, its foot on the mesh."""
+    placed = WaitFor(browser, "window.pitmapViewer.equipment.length === 1 && "
+                     "window.pitmapViewer.equipment[0].status !== 'loading' && "
+                     "window.pitmapViewer.equipment[0]", "the equipment model was not placed")
+    print("equipment: %s" % json.dumps(placed))
+    if placed["status"] != "placed":
+        fail("the equipment model was not placed: %s" % placed["message"])
+    want = fixture["equipment_world"]
+    cx, cy, cz = placed["centre"]
+    if abs(cx - want[0]) > 0.01 or abs(cy - want[1]) > 0.01:
+        fail("equipment centred at (%.3f, %.3f), asked for (%.3f, %.3f)" % (cx, cy, want[0], want[1]))
+    ground = HeightsUnder(vertices, triangles, np.array([[want[0], want[1]]]))[0]
+    half = fixture["equipment_half_height"]
+    if not np.isfinite(ground) or abs(cz - half - ground) > 0.05:
+        fail("equipment's foot at %.3f m, the mesh under it at %.3f m" % (cz - half, ground))
+
+
 def CheckReport(browser, page, fixture):
     browser.open("file://" + os.path.abspath(page))
     state = WaitFor(browser, "window.pitmapViewer && window.pitmapViewer.frames >= 3 && "
                     "window.pitmapViewer", "the report's 3D view did not render")
     print("report 3D view: %d triangles, %d soundings" % (state["triangles"], state["points"]))
     vertices, triangles, points = ViewerData(page)
+    CheckEquipment(browser, vertices, triangles, fixture)
 
     # "Enter VR": r111's VRButton says so when the browser has no immersive VR.
     vr = WaitFor(browser, "(() => { const b = document.getElementById('viewer3d-vr'); "
@@ -367,9 +388,6 @@ def main():
     products = os.path.join(args.work, "products")
     os.makedirs(products)
     report_test.WriteProducts(products, full=True)
-    r = subprocess.run(["/usr/bin/python3", args.report, products], capture_output=True, text=True)
-    if r.returncode != 0:
-        fail("pitmap-report failed: " + r.stderr[-2000:])
     glb_dir = os.path.join(args.work, "glb")
     os.makedirs(glb_dir)
     r = subprocess.run([args.glb_fixture, glb_dir], capture_output=True, text=True)
@@ -390,6 +408,13 @@ def main():
         f.write(cut)
     print("mesh.glb: %d bytes, %d vertices, %d triangles" % (len(glb), fixture["vertices"],
                                                              fixture["triangles"]))
+    # The report, with the fixture's mesh as an equipment model at a UTM position on the pit.
+    equipment, fixture["equipment_world"], fixture["equipment_half_height"] = \
+        report_test.WriteEquipment(args.work, products, world_xy=(3.0, -2.0))
+    r = subprocess.run(["/usr/bin/python3", args.report, products, "--equipment", equipment],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        fail("pitmap-report failed: " + r.stderr[-2000:])
     view = os.path.join(args.work, "view.html")
     r = subprocess.run(["/usr/bin/python3", args.report, "--view-gltf", fixture["glb"], "-o", view],
                        capture_output=True, text=True)

@@ -182,3 +182,41 @@ def world_to_grid(origin, epsg, x, y, z=None):
     if pts.size == 0:
         return np.zeros(0), np.zeros(0)
     return pts[:, 0], pts[:, 1]
+
+
+def ecef_to_enu(origin, x, y, z):
+    """ECEF metres -> local East, North, Up at a geodetic origin (the inverse of enu_to_ecef)."""
+    lat, lon = math.radians(origin[0]), math.radians(origin[1])
+    x0, y0, z0 = enu_to_ecef(origin, 0.0, 0.0, 0.0)
+    dx, dy, dz = (np.asarray(a, dtype=np.float64) - b for a, b in ((x, x0), (y, y0), (z, z0)))
+    sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+    e = -so * dx + co * dy
+    n = -sl * co * dx - sl * so * dy + cl * dz
+    u = cl * co * dx + cl * so * dy + sl * dz
+    return e, n, u
+
+
+def geodetic_to_ecef(lat_deg, lon_deg, h):
+    """WGS 84 latitude, longitude (degrees) and ellipsoidal height -> ECEF metres."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    e2 = WGS84_F * (2 - WGS84_F)
+    nu = WGS84_A_M / np.sqrt(1 - e2 * np.sin(lat) ** 2)
+    return ((nu + h) * np.cos(lat) * np.cos(lon), (nu + h) * np.cos(lat) * np.sin(lon),
+            (nu * (1 - e2) + h) * np.sin(lat))
+
+
+def grid_to_world(origin, epsg, easting, northing, height):
+    """(easting, northing) in EPSG `epsg` and ellipsoidal heights -> world points (East, North,
+    Up at the origin): the inverse of world_to_grid. Raises ImportError without python3-gdal."""
+    from osgeo import osr
+    src, dst = osr.SpatialReference(), osr.SpatialReference()
+    src.ImportFromEPSG(int(epsg))
+    dst.ImportFromEPSG(4326)
+    for s in (src, dst):
+        s.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    tr = osr.CoordinateTransformation(src, dst)
+    e = np.atleast_1d(np.asarray(easting, dtype=np.float64))
+    n = np.atleast_1d(np.asarray(northing, dtype=np.float64))
+    pts = np.array(tr.TransformPoints(np.stack([e, n], axis=1).tolist()))
+    x, y, z = geodetic_to_ecef(pts[:, 1], pts[:, 0], np.asarray(height, dtype=np.float64))
+    return ecef_to_enu(origin, x, y, z)

@@ -116,6 +116,12 @@ def viewer(p):
         data[name] = b64((xyz - centre).astype("<f4"))
     if "initial" in p.traj:
         facts.append("trajectory before SLAM (orange) and after (white)")
+    placed = getattr(p, "equipment", None) or []
+    if placed:
+        data["equipment"] = [{"name": e["name"], "glb": b64(np.frombuffer(e["glb"], np.uint8)),
+                              "heading_deg": e["heading_deg"], "position_m": e["position_m"]}
+                             for e in placed]
+        facts.append("equipment: " + ", ".join(e["name"] for e in placed))
     return '<p class="print-only">The interactive 3D view is in report.html.</p>' + viewer_html(
         data, "Drag to turn, wheel to zoom, right-drag to pan; "
                       f'{esc(", ".join(facts))}; coloured by depth. Local ENU metres about '
