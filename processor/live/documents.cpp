@@ -57,7 +57,148 @@ json Num(double v) {
     return std::isfinite(v) ? json(v) : json(nullptr);
 }
 
+// The INS's last solution and its sigmas (negative sigmas: not reported), or null.
+json InsStatus(const StatusSnapshot& s) {
+    if (!s.have_nav) return nullptr;
+    const auto sigma = [](double v) { return v >= 0 ? Num(v) : json(nullptr); };
+    return {{"status", InsStatusName(s.nav.ins_status)},
+            {"status_code", s.nav.ins_status},
+            {"position_type", s.nav.position_type},
+            {"north_sigma_m", sigma(s.nav.north_sigma_m)},
+            {"east_sigma_m", sigma(s.nav.east_sigma_m)},
+            {"up_sigma_m", sigma(s.nav.up_sigma_m)},
+            {"heading_sigma_deg", sigma(s.nav.heading_sigma_deg)},
+            {"age_s", static_cast<double>(s.data_utime - s.nav.utime) * 1e-6}};
+}
+
+json GnssStatus(const StatusSnapshot& s) {
+    if (!s.have_gnss) return nullptr;
+    return {{"solution_status", s.gnss.solution_status},
+            {"position_type", s.gnss.position_type},
+            {"horizontal_sigma_m", Num(s.gnss.horizontal_sigma_m)},
+            {"satellites", s.gnss.satellites},
+            {"age_s", static_cast<double>(s.data_utime - s.gnss.utime) * 1e-6},
+            {"outage", s.gnss_outage},
+            {"outage_s", s.gnss_outage_s}};
+}
+
+json ClocksStatus(const std::vector<ClockStatusIn>& in) {
+    json clocks = json::array();
+    for (const ClockStatusIn& c : in) {
+        // clock_sync_t's offset maps Unix microseconds to GPS microseconds since 1980: without
+        // the epochs and the leap seconds it is what the crew wants, UTC minus the input clock.
+        constexpr double kGpsEpochUnixUs = 315'964'800e6;
+        clocks.push_back(
+            {{"source", ClockSourceName(c.source)},
+             {"state", ClockStateName(c.state)},
+             {"offset_us", c.offset_us},
+             {"utc_minus_clock_us", c.offset_us + kGpsEpochUnixUs - c.leap_seconds * 1e6},
+             {"stddev_us", Num(c.stddev_us)},
+             {"drift_ppm", Num(c.drift_ppm)}});
+    }
+    return clocks;
+}
+
+// The acquisition daemon's health and its channels' counters, or null.
+json DaemonStatus(const StatusSnapshot& s) {
+    if (!s.have_daemon) return nullptr;
+    json ch = json::array();
+    for (const ChannelStatusIn& c : s.daemon.channels) {
+        ch.push_back({{"name", c.name},
+                      {"protocol", c.protocol},
+                      {"state", ChannelStateName(c.state)},
+                      {"bytes", c.bytes},
+                      {"frames", c.frames},
+                      {"crc_failures", c.crc_failures},
+                      {"decode_errors", c.decode_errors},
+                      {"queue_drops", c.queue_drops},
+                      {"kernel_drops", c.kernel_drops},
+                      {"last_message_age_ms", c.last_message_age_ms}});
+    }
+    return {{"hostname", s.daemon.hostname},
+            {"uptime_s", s.daemon.uptime_s},
+            {"logging", LoggingName(s.daemon.logging)},
+            {"disk_free_bytes", s.daemon.disk_free_bytes},
+            {"log_bytes_written", s.daemon.log_bytes_written},
+            {"log_events_dropped", s.daemon.log_events_dropped},
+            {"drops_total", s.daemon_drops_total},
+            {"channels", ch}};
+}
+
+json LcmChannelsStatus(const StatusSnapshot& s) {
+    json lcm = json::object();
+    for (const auto& [name, c] : s.lcm_channels) {
+        lcm[name] = {
+            {"messages", c.messages},
+            {"bytes", c.bytes},
+            {"decode_failures", c.decode_failures},
+            {"age_s",
+             c.last_utime > 0 ? json(static_cast<double>(s.data_utime - c.last_utime) * 1e-6)
+                              : json(nullptr)}};
+    }
+    return lcm;
+}
+
+json AlarmList(const std::vector<Alarm>& alarms) {
+    json out = json::array();
+    for (const Alarm& a : alarms) {
+        out.push_back({{"id", a.id}, {"reason", a.reason}, {"since_utime", a.since_utime}});
+    }
+    return out;
+}
+
 }  // namespace
+
+json LiveSession::GeorefStatusLocked() const {
+    const LiveGeorefCounts& g = georef_.counts();
+    return {{"nav_samples", g.nav_samples},
+            {"nav_refused", g.nav_refused},
+            {"pings_in", g.pings_in},
+            {"pings_refused", g.pings_refused},
+            {"pings_waiting", georef_.pending()},
+            {"pings_dropped_waiting", g.pings_dropped_waiting},
+            {"pings_georeferenced", g.georef.pings_georeferenced},
+            {"pings_outside_nav", g.georef.pings_outside_nav},
+            {"pings_in_nav_gap", g.georef.pings_in_nav_gap},
+            {"soundings", g.georef.points},
+            {"no_detection", g.georef.no_detection},
+            {"spikes", g.georef.spikes},
+            {"mount_known", mount_known_}};
+}
+
+// The coverage grid's figures and its TVU check against the order's limit.
+json LiveSession::GridStatusLocked() const {
+    const CoverageStats& c = stats_cache_;
+    json grid = {{"version", grid_.version()},
+                 {"cell_size_m", config_.grid.cell_size_m},
+                 {"soundings", c.soundings},
+                 {"soundings_dropped", c.soundings_dropped},
+                 {"filled_cells", c.filled_cells},
+                 {"holidays", c.holidays},
+                 {"tiles", c.tiles},
+                 {"covered_area_m2", c.covered_area_m2},
+                 {"min_depth_m", c.min_depth_m},
+                 {"max_depth_m", c.max_depth_m},
+                 {"utm_zone", utm_zone_},
+                 {"northern", utm_northern_}};
+    const hydro::S44Limits& L = hydro::LimitsOf(grid_.order());
+    const std::int64_t meeting = c.filled_cells - c.cells_tvu_failing;
+    grid["tvu"] = {{"order", hydro::ToString(grid_.order())},
+                   {"limit_a_m", L.tvu_a_m},
+                   {"limit_b", L.tvu_b},
+                   {"min_share", config_.grid.tvu_min_share},
+                   {"cells_meeting", meeting},
+                   {"cells_failing", c.cells_tvu_failing},
+                   {"share_meeting",
+                    c.filled_cells > 0
+                        ? json(static_cast<double>(meeting) / static_cast<double>(c.filled_cells))
+                        : json(nullptr)},
+                   {"soundings_over", c.soundings_tvu_over},
+                   {"last_batch_median_tvu_m", last_batch_median_tvu_m_},
+                   {"pings_with_ins_sigma", pings_with_ins_sigma_},
+                   {"pings_with_model_sigma", pings_with_model_sigma_}};
+    return grid;
+}
 
 json LiveSession::StatusJson(std::int64_t wall_utime) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -72,147 +213,29 @@ json LiveSession::StatusJson(std::int64_t wall_utime) {
     j["last_ping_age_s"] = s.last_ping_utime > 0
                                ? json(static_cast<double>(s.data_utime - s.last_ping_utime) * 1e-6)
                                : json(nullptr);
-    if (s.have_nav) {
-        j["ins"] = {
-            {"status", InsStatusName(s.nav.ins_status)},
-            {"status_code", s.nav.ins_status},
-            {"position_type", s.nav.position_type},
-            {"north_sigma_m", s.nav.north_sigma_m >= 0 ? Num(s.nav.north_sigma_m) : json(nullptr)},
-            {"east_sigma_m", s.nav.east_sigma_m >= 0 ? Num(s.nav.east_sigma_m) : json(nullptr)},
-            {"up_sigma_m", s.nav.up_sigma_m >= 0 ? Num(s.nav.up_sigma_m) : json(nullptr)},
-            {"heading_sigma_deg",
-             s.nav.heading_sigma_deg >= 0 ? Num(s.nav.heading_sigma_deg) : json(nullptr)},
-            {"age_s", static_cast<double>(s.data_utime - s.nav.utime) * 1e-6}};
-    } else {
-        j["ins"] = nullptr;
-    }
-    if (s.have_gnss) {
-        j["gnss"] = {{"solution_status", s.gnss.solution_status},
-                     {"position_type", s.gnss.position_type},
-                     {"horizontal_sigma_m", Num(s.gnss.horizontal_sigma_m)},
-                     {"satellites", s.gnss.satellites},
-                     {"age_s", static_cast<double>(s.data_utime - s.gnss.utime) * 1e-6},
-                     {"outage", s.gnss_outage},
-                     {"outage_s", s.gnss_outage_s}};
-    } else {
-        j["gnss"] = nullptr;
-    }
-    json clocks = json::array();
-    for (const ClockStatusIn& c : s.clocks) {
-        // clock_sync_t's offset maps Unix microseconds to GPS microseconds since 1980: without
-        // the epochs and the leap seconds it is what the crew wants, UTC minus the input clock.
-        constexpr double kGpsEpochUnixUs = 315'964'800e6;
-        clocks.push_back(
-            {{"source", ClockSourceName(c.source)},
-             {"state", ClockStateName(c.state)},
-             {"offset_us", c.offset_us},
-             {"utc_minus_clock_us", c.offset_us + kGpsEpochUnixUs - c.leap_seconds * 1e6},
-             {"stddev_us", Num(c.stddev_us)},
-             {"drift_ppm", Num(c.drift_ppm)}});
-    }
-    j["clocks"] = clocks;
-    if (s.have_daemon) {
-        json ch = json::array();
-        for (const ChannelStatusIn& c : s.daemon.channels) {
-            ch.push_back({{"name", c.name},
-                          {"protocol", c.protocol},
-                          {"state", ChannelStateName(c.state)},
-                          {"bytes", c.bytes},
-                          {"frames", c.frames},
-                          {"crc_failures", c.crc_failures},
-                          {"decode_errors", c.decode_errors},
-                          {"queue_drops", c.queue_drops},
-                          {"kernel_drops", c.kernel_drops},
-                          {"last_message_age_ms", c.last_message_age_ms}});
-        }
-        j["daemon"] = {{"hostname", s.daemon.hostname},
-                       {"uptime_s", s.daemon.uptime_s},
-                       {"logging", LoggingName(s.daemon.logging)},
-                       {"disk_free_bytes", s.daemon.disk_free_bytes},
-                       {"log_bytes_written", s.daemon.log_bytes_written},
-                       {"log_events_dropped", s.daemon.log_events_dropped},
-                       {"drops_total", s.daemon_drops_total},
-                       {"channels", ch}};
-    } else {
-        j["daemon"] = nullptr;
-    }
-    json lcm = json::object();
-    for (const auto& [name, c] : s.lcm_channels) {
-        lcm[name] = {
-            {"messages", c.messages},
-            {"bytes", c.bytes},
-            {"decode_failures", c.decode_failures},
-            {"age_s",
-             c.last_utime > 0 ? json(static_cast<double>(s.data_utime - c.last_utime) * 1e-6)
-                              : json(nullptr)}};
-    }
-    j["lcm_channels"] = lcm;
-    const LiveGeorefCounts& g = georef_.counts();
-    j["georef"] = {{"nav_samples", g.nav_samples},
-                   {"nav_refused", g.nav_refused},
-                   {"pings_in", g.pings_in},
-                   {"pings_refused", g.pings_refused},
-                   {"pings_waiting", georef_.pending()},
-                   {"pings_dropped_waiting", g.pings_dropped_waiting},
-                   {"pings_georeferenced", g.georef.pings_georeferenced},
-                   {"pings_outside_nav", g.georef.pings_outside_nav},
-                   {"pings_in_nav_gap", g.georef.pings_in_nav_gap},
-                   {"soundings", g.georef.points},
-                   {"no_detection", g.georef.no_detection},
-                   {"spikes", g.georef.spikes},
-                   {"mount_known", mount_known_}};
-    const CoverageStats& c = stats_cache_;
-    j["grid"] = {{"version", grid_.version()},
-                 {"cell_size_m", config_.grid.cell_size_m},
-                 {"soundings", c.soundings},
-                 {"soundings_dropped", c.soundings_dropped},
-                 {"filled_cells", c.filled_cells},
-                 {"holidays", c.holidays},
-                 {"tiles", c.tiles},
-                 {"covered_area_m2", c.covered_area_m2},
-                 {"min_depth_m", c.min_depth_m},
-                 {"max_depth_m", c.max_depth_m},
-                 {"utm_zone", utm_zone_},
-                 {"northern", utm_northern_}};
-    const hydro::S44Limits& L = hydro::LimitsOf(grid_.order());
-    const std::int64_t meeting = c.filled_cells - c.cells_tvu_failing;
-    j["grid"]["tvu"] = {{"order", hydro::ToString(grid_.order())},
-                        {"limit_a_m", L.tvu_a_m},
-                        {"limit_b", L.tvu_b},
-                        {"min_share", config_.grid.tvu_min_share},
-                        {"cells_meeting", meeting},
-                        {"cells_failing", c.cells_tvu_failing},
-                        {"share_meeting",
-                         c.filled_cells > 0 ? json(static_cast<double>(meeting) /
-                                                   static_cast<double>(c.filled_cells))
-                                            : json(nullptr)},
-                        {"soundings_over", c.soundings_tvu_over},
-                        {"last_batch_median_tvu_m", last_batch_median_tvu_m_},
-                        {"pings_with_ins_sigma", pings_with_ins_sigma_},
-                        {"pings_with_model_sigma", pings_with_model_sigma_}};
+    j["ins"] = InsStatus(s);
+    j["gnss"] = GnssStatus(s);
+    j["clocks"] = ClocksStatus(s.clocks);
+    j["daemon"] = DaemonStatus(s);
+    j["lcm_channels"] = LcmChannelsStatus(s);
+    j["georef"] = GeorefStatusLocked();
+    j["grid"] = GridStatusLocked();
     j["counts"] = {{"events", counts_.events},
                    {"decode_failures", counts_.decode_failures},
                    {"utm_failures", counts_.utm_failures}};
-    json alarms = json::array();
-    for (const Alarm& a : s.alarms) {
-        alarms.push_back({{"id", a.id}, {"reason", a.reason}, {"since_utime", a.since_utime}});
-    }
-    j["alarms"] = alarms;
+    j["alarms"] = AlarmList(s.alarms);
     return j;
 }
 
 json LiveSession::AlarmsJson() {
     std::lock_guard<std::mutex> lock(mutex_);
     const StatusSnapshot s = status_.Snapshot();
-    json active = json::array(), history = json::array();
-    for (const Alarm& a : s.alarms) {
-        active.push_back({{"id", a.id}, {"reason", a.reason}, {"since_utime", a.since_utime}});
-    }
+    json history = json::array();
     for (const AlarmEvent& e : s.history) {
         history.push_back(
             {{"id", e.id}, {"reason", e.reason}, {"raised", e.raised}, {"utime", e.utime}});
     }
-    return {{"data_utime", s.data_utime}, {"active", active}, {"history", history}};
+    return {{"data_utime", s.data_utime}, {"active", AlarmList(s.alarms)}, {"history", history}};
 }
 
 json LiveSession::TilesJson(std::uint64_t since, std::int64_t budget_bytes) {

@@ -101,6 +101,9 @@ public:
 private:
     void ProcessLocked();
     void RefreshHolidaysLocked();
+    // StatusJson's "georef" and "grid" documents (mutex_ held).
+    nlohmann::json GeorefStatusLocked() const;
+    nlohmann::json GridStatusLocked() const;
     void AddStdDevLocked(const georef::NavStdDev& s);
 
     mutable std::mutex mutex_;
