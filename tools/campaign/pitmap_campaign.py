@@ -19,8 +19,10 @@ Exit: 0 ok, 1 a job failed (Snakemake's message names it and its log), 2 usage o
 campaign file, 3 internal error.
 """
 import argparse
+import fcntl
 import os
 import shutil
+import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.realpath(__file__))
@@ -32,6 +34,8 @@ for _d in (os.path.join(HERE, "pitmap_campaign"), HERE):
         break
 else:
     sys.exit("pitmap-campaign: internal error: no Snakefile beside " + HERE)
+# No __pycache__ in the installed folder (the package does not own it).
+sys.dont_write_bytecode = True
 sys.path.insert(0, LIB_DIR)
 import pitmap_campaign_lib as pc  # noqa: E402
 
@@ -140,6 +144,23 @@ def main(argv):
     if cmd is None:
         return USAGE
     os.makedirs(args.out, exist_ok=True)
+    # One campaign run per output folder: an exclusive lock held through the exec by Snakemake
+    # (the descriptor is inherited) until it exits, however it exits. Holding it, no other run
+    # is alive there, so Snakemake's own locks left by a killed run are stale: released first,
+    # or the restart would refuse to start.
+    lock_fd = os.open(os.path.join(args.out, ".pitmap-campaign.lock"), os.O_RDWR | os.O_CREAT,
+                      0o644)
+    try:
+        fcntl.flock(lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        print(f"pitmap-campaign: another pitmap-campaign runs in {args.out}", file=sys.stderr)
+        return USAGE
+    os.set_inheritable(lock_fd, True)
+    locks = os.path.join(args.out, ".snakemake", "locks")
+    if os.path.isdir(locks) and os.listdir(locks):
+        print("pitmap-campaign: releasing the locks of an earlier run that did not finish",
+              file=sys.stderr)
+        subprocess.run(cmd + ["--unlock", "--cores", "1"], stdout=subprocess.DEVNULL, check=True)
     if not args.stop_on_failure:
         cmd.append("--keep-going")
     if args.dry_run:
