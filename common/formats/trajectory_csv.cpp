@@ -79,7 +79,7 @@ Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& t) {
 }
 
 Expected<std::unique_ptr<TrajectoryCsvWriter>> TrajectoryCsvWriter::Open(const std::string& path,
-                                                                          bool ins_columns) {
+                                                                         bool ins_columns) {
     const std::string partial = PartialPath(path);
     std::FILE* f = std::fopen(partial.c_str(), "w");
     if (f == nullptr) return Error{ErrnoMessage(partial, "cannot create", errno)};

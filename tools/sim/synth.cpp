@@ -264,8 +264,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     double truth_t = 0;  // the next true pose's time: summed as before, the same samples
     const auto write_truth_until = [&](double t_end, bool inclusive) {
         while (truth_t <= truth.duration_s() + 1e-9 && (inclusive || truth_t < t_end)) {
-            (*truth_csv)->Append(
-                formats::RowOf(static_cast<double>(gps_at(truth_t)) * 1e-6, truth.PoseAt(truth_t)));
+            (*truth_csv)
+                ->Append(formats::RowOf(static_cast<double>(gps_at(truth_t)) * 1e-6,
+                                        truth.PoseAt(truth_t)));
             truth_t += truth_dt;
         }
     };
