@@ -7,7 +7,11 @@
 #                   and the simulator's own time and peak RSS
 #   OUT/scale.md    the same as a markdown table (the stages that take the time)
 #   tools/bench/run-scale-bench.sh [--scales "1 2"] [--out DIR] [--scenario NAME]
-#                                  [--keep-products]
+#                                  [--keep-products] [--report-only]
+# --report-only: no runs, the tables again from what OUT holds.
+# Peak memory is summary.json's (the largest of the stages' VmHWM): `pitmap` resets the kernel's
+# high-water mark at each stage (common/peak_memory.hpp), so time -v's maximum RSS is only the
+# last stage's peak; it is kept as time_v_max_rss_mb.
 # Defaults: scales "1 2", OUT out/bench/scale, scenario bejanca. BUILD_DIR (default build)
 # names the build; BIN_DIR (default BUILD_DIR/bin, not rebuilt when given) the folder of
 # pitmap and pitmap-sim, e.g. copies of a baseline build. One run at a time: the figures are only meaningful on an otherwise idle
@@ -19,12 +23,14 @@ scales="1 2"
 out=$root/out/bench/scale
 scenario=bejanca
 keep=0
+report_only=0
 while [[ $# -gt 0 ]]; do
   case $1 in
     --scales) scales=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --scenario) scenario=$2; shift 2 ;;
     --keep-products) keep=1; shift ;;
+    --report-only) report_only=1; shift ;;
     -h|--help) sed -n '3,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run-scale-bench: unknown argument '$1' (--help)" >&2; exit 2 ;;
   esac
@@ -55,6 +61,7 @@ else:
 ' "$scenario")
 
 for s in $scales; do
+  [[ $report_only == 1 ]] && break
   dur=$(python3 -c "print(round($base * $s, 1))")
   sim=$out/sim-${s}x
   if [[ ! -d $sim/log ]]; then
@@ -109,7 +116,9 @@ for s in scales:
         "soundings": summary.get("soundings", {}).get("total"),
         "total_seconds": summary.get("total_seconds"),
         "wall_seconds": wall,
-        "peak_rss_mb": rss,
+        "peak_rss_mb": max((st["peak_rss_mb"] for st in stages.values() if "peak_rss_mb" in st),
+                           default=None),
+        "time_v_max_rss_mb": rss,
         "stages": stages,
         "sim_wall_seconds": sim_wall,
         "sim_peak_rss_mb": sim_rss,
@@ -121,7 +130,8 @@ json.dump(result, open(os.path.join(out, "scale.json"), "w"), indent=2)
 cols = ["georef", "calibrate", "slam", "clean", "grid", "fuse", "mesh"]
 def f(v, fmt="{:.1f}"):
     return "-" if v is None else fmt.format(v)
-lines = [f"{scenario}, `pitmap run --no-report`, {rows[0]['cores'] if rows else '?'} cores",
+lines = [f"{scenario}, `pitmap run --no-report`, {rows[0]['cores'] if rows else '?'} cores; "
+         "seconds and peak RSS (largest stage VmHWM) from summary.json",
          "",
          "| scale | duration (s) | soundings | total (s) | ratio | " +
          " | ".join(cols) + " | peak RSS (MB) | stage at peak |",
