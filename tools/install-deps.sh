@@ -16,6 +16,8 @@ common_pkgs=(
   iproute2 socat util-linux pps-tools
   dpkg-dev file
 )
+# snakemake, python3-yaml: pitmap-campaign, a campaign of surveys as a Snakemake workflow on one
+# machine or a Slurm cluster (tools/campaign, docs/campaigns.md).
 # libopenblas0-pthread: an optimised BLAS/LAPACK that Debian's alternatives put in place of the
 # reference libblas.so.3 and liblapack.so.3 that CHOLMOD loads; SLAM's supernodal
 # factorisation runs its dense blocks there (the reference BLAS was ~20 % of SLAM's CPU).
@@ -25,6 +27,7 @@ processor_pkgs=(
   libnanoflann-dev libassimp-dev
   libgdal-dev libproj-dev proj-data libcpp-httplib-dev
   python3-numpy python3-matplotlib python3-gdal python3-yaml
+  snakemake
 )
 # The browser tests (headless Chromium loads the live page and report.html), report.pdf
 # (pitmap-report --pdf prints through Chromium) and the report's 3D viewer (three.js, inlined

@@ -20,7 +20,8 @@
 #                report.html with its 3D view (three.js from libjs-three inlined);
 #                pitmap-eval scores them; pitmap-report from /usr/bin re-writes the report
 #                with the scores (and --pdf when chromium is there); `pitmap live` finds
-#                pitmap-live; `pitmap edit` serves three.js from libjs-three.
+#                pitmap-live; `pitmap edit` serves three.js from libjs-three;
+#                pitmap-campaign checks a campaign of it (and plans it with snakemake).
 #   purge        both packages gone, none of their files, the enablement links and
 #                deb-systemd-helper state gone, /var/log/pitmap gone; the user pitmap is
 #                removed here only if this script's install created it (Debian keeps system
@@ -213,6 +214,23 @@ fi
 for f in summary.json points.ply mesh.ply dem.tif trajectory.csv report.html; do
   [[ -s $tmp/P/$f ]] || fail "product $f missing"
 done
+# pitmap-campaign (/usr/bin link): the campaign file checked with the installed pitmap (the
+# CRS through pitmap info), and Snakemake's plan of the workflow (snakemake is a Recommends).
+printf 'campaign: pkg\nsurveys:\n  - {name: demo, inputs: [sim/log]}\n' > "$tmp/campaign.yaml"
+if (cd "$tmp" && pitmap-campaign check campaign.yaml > campaign.out 2>&1) &&
+  grep -q "demo: site pkg, EPSG:" "$tmp/campaign.out"; then
+  ok "pitmap-campaign check"
+else
+  fail "pitmap-campaign check: $(tail -n 5 "$tmp/campaign.out")"
+fi
+if command -v snakemake > /dev/null 2>&1; then
+  if (cd "$tmp" && pitmap-campaign run campaign.yaml --out C --dry-run > campaign.out 2>&1) &&
+    grep -q "rule survey:" "$tmp/campaign.out"; then
+    ok "pitmap-campaign run --dry-run"
+  else
+    fail "pitmap-campaign run --dry-run: $(tail -n 5 "$tmp/campaign.out")"
+  fi
+fi
 # The 3D view: three.js from libjs-three and the viewer's own scripts from /usr/lib/pitmap.
 if grep -q "OrbitControls" "$tmp/P/report.html" 2> /dev/null &&
   ! grep -q "3D view.*not found" "$tmp/P/report.html"; then

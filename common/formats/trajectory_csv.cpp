@@ -39,30 +39,32 @@ TrajectoryRow RowOf(double gps_time_s, const Pose& T_world_vehicle) {
 
 namespace {
 
+void WriteRow(std::FILE* f, const TrajectoryRow& r, bool ins_columns) {
+    std::fprintf(f,
+                 "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f",
+                 r.gps_time_s,
+                 r.position_world_m.x(),
+                 r.position_world_m.y(),
+                 r.position_world_m.z(),
+                 r.roll_deg,
+                 r.pitch_deg,
+                 r.yaw_deg);
+    if (ins_columns) {
+        std::fprintf(f,
+                     ",%.4f,%.4f,%.4f,%d",
+                     r.velocity_enu_mps.x(),
+                     r.velocity_enu_mps.y(),
+                     r.velocity_enu_mps.z(),
+                     r.ins_status);
+    }
+    std::fputc('\n', f);
+}
+
 Status WriteTrajectoryCsvTo(const std::string& path, const TrajectoryCsv& t) {
     std::FILE* f = std::fopen(path.c_str(), "w");
     if (f == nullptr) return Error{ErrnoMessage(path, "cannot create", errno)};
     std::fprintf(f, "%s%s\n", kPoseHeader, t.ins_columns ? kInsHeader : "");
-    for (const TrajectoryRow& r : t.rows) {
-        std::fprintf(f,
-                     "%.6f,%.5f,%.5f,%.5f,%.7f,%.7f,%.7f",
-                     r.gps_time_s,
-                     r.position_world_m.x(),
-                     r.position_world_m.y(),
-                     r.position_world_m.z(),
-                     r.roll_deg,
-                     r.pitch_deg,
-                     r.yaw_deg);
-        if (t.ins_columns) {
-            std::fprintf(f,
-                         ",%.4f,%.4f,%.4f,%d",
-                         r.velocity_enu_mps.x(),
-                         r.velocity_enu_mps.y(),
-                         r.velocity_enu_mps.z(),
-                         r.ins_status);
-        }
-        std::fputc('\n', f);
-    }
+    for (const TrajectoryRow& r : t.rows) WriteRow(f, r, t.ins_columns);
     const bool ok = std::ferror(f) == 0 && std::fflush(f) == 0;
     const int err = errno;
     if (std::fclose(f) != 0 || !ok) return Error{ErrnoMessage(path, "write failed", err)};
@@ -74,6 +76,39 @@ Status WriteTrajectoryCsvTo(const std::string& path, const TrajectoryCsv& t) {
 Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& t) {
     return WriteReplacing(
         path, [&](const std::string& partial) { return WriteTrajectoryCsvTo(partial, t); });
+}
+
+Expected<std::unique_ptr<TrajectoryCsvWriter>> TrajectoryCsvWriter::Open(const std::string& path,
+                                                                         bool ins_columns) {
+    const std::string partial = PartialPath(path);
+    std::FILE* f = std::fopen(partial.c_str(), "w");
+    if (f == nullptr) return Error{ErrnoMessage(partial, "cannot create", errno)};
+    std::fprintf(f, "%s%s\n", kPoseHeader, ins_columns ? kInsHeader : "");
+    return std::unique_ptr<TrajectoryCsvWriter>(
+        new TrajectoryCsvWriter(path, partial, f, ins_columns));
+}
+
+TrajectoryCsvWriter::~TrajectoryCsvWriter() {
+    if (file_ == nullptr) return;
+    std::fclose(file_);
+    std::remove(partial_.c_str());
+}
+
+void TrajectoryCsvWriter::Append(const TrajectoryRow& row) {
+    WriteRow(file_, row, ins_columns_);
+}
+
+Status TrajectoryCsvWriter::Finish() {
+    if (file_ == nullptr) return Error{path_ + ": the trajectory writer was already finished"};
+    const bool ok = std::ferror(file_) == 0 && std::fflush(file_) == 0;
+    const int err = errno;
+    const bool closed = std::fclose(file_) == 0;
+    file_ = nullptr;
+    if (!closed || !ok) {
+        std::remove(partial_.c_str());
+        return Error{ErrnoMessage(path_, "write failed", err)};
+    }
+    return CommitPartial(partial_, path_);
 }
 
 Expected<TrajectoryCsv> ReadTrajectoryCsv(const std::string& path) {

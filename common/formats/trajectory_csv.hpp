@@ -20,6 +20,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -51,6 +53,34 @@ inline constexpr double kMaxTrajectoryAngleDeg = 720.0;
 inline constexpr double kMaxGpsTimeS = 1e11;
 
 Status WriteTrajectoryCsv(const std::string& path, const TrajectoryCsv& trajectory);
+
+// The same file written row by row, for a trajectory too long to hold (the simulator's truth of
+// an hours-long survey): rows go to DIR/.partial-NAME as they come, and Finish renames it over
+// PATH (replace_file.hpp). Destroyed unfinished, it removes the partial file and PATH stays as it
+// was. Rows must come in increasing time (not checked here; the reader checks). Not thread-safe.
+class TrajectoryCsvWriter {
+public:
+    // Creates the partial file and writes the header; fails naming the path.
+    static Expected<std::unique_ptr<TrajectoryCsvWriter>> Open(const std::string& path,
+                                                               bool ins_columns = false);
+    ~TrajectoryCsvWriter();
+    TrajectoryCsvWriter(const TrajectoryCsvWriter&) = delete;
+    TrajectoryCsvWriter& operator=(const TrajectoryCsvWriter&) = delete;
+
+    void Append(const TrajectoryRow& row);
+    // Flushes, closes and renames; a write error (disk full) is reported here, naming PATH.
+    Status Finish();
+
+private:
+    TrajectoryCsvWriter(std::string path, std::string partial, std::FILE* file, bool ins_columns)
+        : path_(std::move(path)),
+          partial_(std::move(partial)),
+          file_(file),
+          ins_columns_(ins_columns) {}
+    std::string path_, partial_;
+    std::FILE* file_ = nullptr;
+    bool ins_columns_ = false;
+};
 Expected<TrajectoryCsv> ReadTrajectoryCsv(const std::string& path);
 
 }  // namespace pitmap::formats

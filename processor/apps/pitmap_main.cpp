@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // pitmap: the shore processor's command line. Arguments -> YAML -> Config -> Validate -> run.
-//   pitmap info LOGS... [--vehicle FILE] [--sonar-clock-offset S]
+//   pitmap info LOGS... [--config FILE] [--vehicle FILE] [--sonar-clock-offset S]
 //   pitmap georef LOGS... --out P [--config FILE] [--vehicle FILE] [--from-raw]
 //                 [--sonar-clock-offset S] [--svp FILE...]
 //   pitmap calibrate --out P [--config FILE]
@@ -136,6 +136,10 @@ int main(int argc, char** argv) try {
     auto* info = app.add_subcommand("info", "summarise logs and vendor files");
     info->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
     input_options(info);
+    info->add_option("--config",
+                     config_path,
+                     "YAML config (its ingest settings and products.origin, which the CRS line "
+                     "follows)");
     auto* geo = app.add_subcommand("georef", "ingest and georeference into a products folder");
     geo->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
     geo->add_option("--out", out_dir, "products folder")->required();

@@ -808,6 +808,32 @@ Expected<std::string> Info(const std::vector<std::string>& inputs, const Pipelin
         o << "pings: " << span(r->pings.pings.front().utime_gps, r->pings.pings.back().utime_gps)
           << ", " << r->pings.num_soundings() << " soundings\n";
     }
+    // The products' horizontal CRS as georef will choose it (the UTM zone of the world origin:
+    // the configured one, else the first INS fix): a campaign checks its surveys share one.
+    std::optional<Geodetic> origin;
+    const char* origin_source = "configured origin";
+    if (!std::isnan(config.origin_latitude_deg)) {
+        origin = Geodetic{
+            config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
+    } else if (!r->nav.samples.empty()) {
+        origin = r->nav.samples.front().position;
+        origin_source = "first INS fix";
+    }
+    if (origin) {
+        if (auto u = UtmFromGeodetic(*origin); u && u->zone >= 1) {
+            char line[160];
+            std::snprintf(line,
+                          sizeof line,
+                          "crs: EPSG:%d (WGS 84 / UTM zone %d%c) from the %s %.6f %.6f\n",
+                          UtmEpsgCode(u->zone, u->northern),
+                          u->zone,
+                          u->northern ? 'N' : 'S',
+                          origin_source,
+                          origin->latitude_deg,
+                          origin->longitude_deg);
+            o << line;
+        }
+    }
     o << r->message << "\n";
     return o.str();
 }

@@ -40,6 +40,7 @@ COMMANDS = {
     "grid": "tools/bench/run-benchmarks.sh grid",
     "micro": "tools/bench/run-benchmarks.sh micro",
     "live": "tools/bench/run-benchmarks.sh live",
+    "scale": "tools/bench/run-benchmarks.sh scale",
 }
 
 
@@ -216,6 +217,29 @@ def render_live_latency(r):
     return head + table(["what", "mean", "p50", "p99", "max"], rows, "lrrrr")
 
 
+# --- longer surveys (tools/bench/run-scale-bench.sh) ---------------------------------------------
+
+SCALE_STAGES = ("calibrate", "slam", "clean", "grid", "fuse", "mesh")
+
+
+def render_scale_table(r):
+    runs = sorted(r["runs"], key=lambda x: x["scale"])
+    base = runs[0]
+    cpu_of = lambda run: sum(v.get("cpu_seconds") or 0 for v in run["stages"].values())
+    rows = []
+    for run in runs:
+        st = run["stages"]
+        stage_cpu = [fmt((st.get(n) or {}).get("cpu_seconds"), ".1f") for n in SCALE_STAGES]
+        peak_stage = max(st, key=lambda n: st[n].get("peak_rss_mb") or 0)
+        rows.append([f"{run['scale']:g}x", f"{run['duration_s']:.0f}", f"{run['soundings']:,}",
+                     f"{run['total_seconds']:.1f}", f"{cpu_of(run):.1f}",
+                     f"{cpu_of(run) / cpu_of(base):.2f}", *stage_cpu,
+                     f"{run['peak_rss_mb']:.0f} ({peak_stage})"])
+    return table(["scale", "survey (s)", "soundings", "wall (s)", "CPU (s)", "CPU ratio",
+                  *[f"{n} CPU (s)" for n in SCALE_STAGES], "peak RSS (MB, stage)"],
+                 rows, "lrrrrr" + "r" * len(SCALE_STAGES) + "r")
+
+
 SECTIONS = {
     ("e2e", "context"): render_context,
     ("e2e", "stages"): render_e2e_stages,
@@ -227,6 +251,8 @@ SECTIONS = {
     ("micro", "table"): render_micro_table,
     ("live", "context"): render_context,
     ("live", "latency"): render_live_latency,
+    ("scale", "context"): render_context,
+    ("scale", "table"): render_scale_table,
 }
 
 

@@ -3,12 +3,14 @@
 # Runs benchmarks, stores each result with its context in docs/benchmarks/NAME.json and writes
 # docs/benchmarks.md from them (tools/bench/benchmarks_page.py), so the page's figures are the
 # last measured ones by construction.
-#   tools/bench/run-benchmarks.sh [micro] [e2e] [grid] [live] [all]     (default: micro)
+#   tools/bench/run-benchmarks.sh [micro] [e2e] [grid] [live] [scale] [all]     (default: micro)
 #     micro  the Google Benchmark programs (pitmap-bench-deltat, -novatel, -edit_select), 3
 #            repetitions each, medians; about a minute
 #     e2e    tools/bench/run-e2e-bench.sh bejanca: `pitmap run` stage by stage; minutes
 #     grid   tools/bench/run-grid-bench.sh bejanca: the grid stage's parts; minutes
 #     live   pitmap-bench-live_latency: ping-to-page latency at 1x over 60 s of a demo survey
+#     scale  tools/bench/run-scale-bench.sh: bejanca at 1x and 2x its duration (SCALES="1 2 4"
+#            for more); tens of minutes
 # BUILD_DIR (default build) is the Release build to measure. Measure on an idle machine: the
 # page states the load average before and after each run.
 set -euo pipefail
@@ -22,7 +24,7 @@ which=("$@")
 [[ ${#which[@]} -eq 0 ]] && which=(micro)
 [[ ${which[*]} == all ]] && which=(micro live e2e grid)
 for w in "${which[@]}"; do
-  case $w in micro|e2e|grid|live) ;; *) echo "run-benchmarks: unknown benchmark '$w' (micro, e2e, grid, live, all)" >&2; exit 2 ;; esac
+  case $w in micro|e2e|grid|live|scale) ;; *) echo "run-benchmarks: unknown benchmark '$w' (micro, e2e, grid, live, scale, all)" >&2; exit 2 ;; esac
 done
 
 load() { cut -d' ' -f1 /proc/loadavg; }
@@ -55,6 +57,9 @@ PY
     grid)
       "$root/tools/bench/run-grid-bench.sh" bejanca "$work/grid-bejanca"
       result=$work/grid-bejanca/grid.json ;;
+    scale)
+      "$root/tools/bench/run-scale-bench.sh" --scales "${SCALES:-1 2}" --out "$work/scale"
+      result=$work/scale/scale.json ;;
     live)
       cmake --build "$build" -j 2 --target pitmap-sim pitmap-bench-live_latency > /dev/null
       rm -rf "$work/live-sim"

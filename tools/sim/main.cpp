@@ -111,8 +111,9 @@ int main(int argc, char** argv) try {
     auto* synth = app.add_subcommand(
         "synth", "write a survey's LCM logs (as pitmap-acqd would) and its ground truth");
     synth
-        ->add_option(
-            "--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage, quarry")
+        ->add_option("--scenario",
+                     scenario_name,
+                     "built-in scenario: demo, bejanca, gps-outage, quarry, mine")
         ->required();
     synth->add_option("--out", out_dir, "output folder: DIR/log (logs, vehicle.yaml) and DIR/truth")
         ->required();
@@ -225,8 +226,9 @@ int main(int argc, char** argv) try {
     sim::hil::HilOptions hil_opt;
     std::string faults;
     auto* hil = app.add_subcommand("hil", "run a scenario in real time behind a pty, TCP and UDP");
-    hil->add_option(
-           "--scenario", scenario_name, "built-in scenario: demo, bejanca, gps-outage, quarry")
+    hil->add_option("--scenario",
+                    scenario_name,
+                    "built-in scenario: demo, bejanca, gps-outage, quarry, mine")
         ->required();
     hil->add_option("--out", hil_opt.out_dir, "output folder: DIR/truth, DIR/log (the daemon's)")
         ->required();

@@ -10,65 +10,88 @@
 namespace pitmap::sim {
 
 NavErrorModel::NavErrorModel(const NavErrorConfig& cfg, double duration_s, std::uint64_t seed)
-    : cfg_(cfg) {
-    const auto n = static_cast<std::size_t>(std::ceil(std::max(duration_s, 0.0) / dt_)) + 2;
-    pos_.resize(n);
-    att_.resize(n);
-    pos_sd_.resize(n);
-    std::mt19937_64 rng(seed ^ 0xA11E5ull);
-    std::normal_distribution<double> g(0.0, 1.0);
-    std::mt19937_64 white_rng(seed ^
-                              0x3A17Eull);  // own stream: white noise does not shift the walks
-
+    : cfg_(cfg), seed_(seed) {
+    n_ = static_cast<std::size_t>(std::ceil(std::max(duration_s, 0.0) / dt_)) + 2;
     // First-order Gauss-Markov: x' = phi x + sigma sqrt(1 - phi^2) w keeps variance sigma^2.
-    const double phi_p = std::exp(-dt_ / cfg.position_gm_tau_s);
-    const double phi_a = std::exp(-dt_ / cfg.attitude_gm_tau_s);
-    const double q_p = std::sqrt(1 - phi_p * phi_p), q_a = std::sqrt(1 - phi_a * phi_a);
-    const Eigen::Vector3d sig_p(
-        cfg.position_gm_sigma_m, cfg.position_gm_sigma_m, cfg.height_gm_sigma_m);
-    const Eigen::Vector3d sig_a(frames::DegToRad(cfg.attitude_gm_sigma_deg),
-                                frames::DegToRad(cfg.attitude_gm_sigma_deg),
-                                frames::DegToRad(cfg.heading_gm_sigma_deg));
-    Eigen::Vector3d gm_p(sig_p.x() * g(rng), sig_p.y() * g(rng), sig_p.z() * g(rng));
-    Eigen::Vector3d gm_a(sig_a.x() * g(rng), sig_a.y() * g(rng), sig_a.z() * g(rng));
-    Eigen::Vector3d drift = Eigen::Vector3d::Zero();      // dead-reckoning position error
-    Eigen::Vector3d drift_vel = Eigen::Vector3d::Zero();  // its rate
-    const Eigen::Vector3d rw(1.0, 1.0, cfg.outage_vertical_fraction);
-    double outage_start = -1;
-    for (std::size_t k = 0; k < n; ++k) {
-        const double t = static_cast<double>(k) * dt_;
-        for (int i = 0; i < 3; ++i) {
-            gm_p[i] = phi_p * gm_p[i] + sig_p[i] * q_p * g(rng);
-            gm_a[i] = phi_a * gm_a[i] + sig_a[i] * q_a * g(rng);
-        }
-        Eigen::Vector3d sd = sig_p;
-        if (InOutage(t)) {
-            if (outage_start < 0) outage_start = t;
-            for (int i = 0; i < 3; ++i) {
-                drift_vel[i] += rw[i] * cfg.outage_velocity_random_walk_mps_per_sqrt_s *
-                                std::sqrt(dt_) * g(rng);
-            }
-            drift += drift_vel * dt_;
-            // Integrated random walk: sigma(t) = q t^1.5 / sqrt(3); the INS reports it grows.
-            const double te = t - outage_start;
-            const double grow =
-                cfg.outage_velocity_random_walk_mps_per_sqrt_s * std::pow(te, 1.5) / std::sqrt(3.0);
-            sd = (sig_p.array().square() + (rw * grow).array().square()).sqrt();
-        } else {
-            outage_start = -1;
-            // GNSS back: the filter pulls the drift back over recovery_time_s (~3 time constants).
-            const double decay = std::exp(-dt_ * 3.0 / std::max(cfg.recovery_time_s, dt_));
-            drift *= decay;
-            drift_vel.setZero();
-        }
-        // White noise of each INS output on top of the correlated error.
-        const Eigen::Vector3d white(cfg.position_noise_m * g(white_rng),
-                                    cfg.position_noise_m * g(white_rng),
-                                    cfg.position_noise_m * g(white_rng));
-        pos_[k] = gm_p + drift + white;
-        att_[k] = gm_a;
-        pos_sd_[k] = sd;
+    phi_p_ = std::exp(-dt_ / cfg.position_gm_tau_s);
+    phi_a_ = std::exp(-dt_ / cfg.attitude_gm_tau_s);
+    q_p_ = std::sqrt(1 - phi_p_ * phi_p_);
+    q_a_ = std::sqrt(1 - phi_a_ * phi_a_);
+    sig_p_ =
+        Eigen::Vector3d(cfg.position_gm_sigma_m, cfg.position_gm_sigma_m, cfg.height_gm_sigma_m);
+    sig_a_ = Eigen::Vector3d(frames::DegToRad(cfg.attitude_gm_sigma_deg),
+                             frames::DegToRad(cfg.attitude_gm_sigma_deg),
+                             frames::DegToRad(cfg.heading_gm_sigma_deg));
+    std::lock_guard lock(mu_);
+    Restart();
+}
+
+void NavErrorModel::Restart() const {
+    gen_.rng.seed(seed_ ^ 0xA11E5ull);
+    gen_.white_rng.seed(seed_ ^ 0x3A17Eull);  // own stream: white noise does not shift the walks
+    // One distribution for both engines, kept across steps, as the process was defined: it
+    // caches its second variate, so the sequence depends on it (and is the same on a restart).
+    gen_.g = std::normal_distribution<double>(0.0, 1.0);
+    std::normal_distribution<double>& g = gen_.g;
+    gen_.gm_p = Eigen::Vector3d(
+        sig_p_.x() * g(gen_.rng), sig_p_.y() * g(gen_.rng), sig_p_.z() * g(gen_.rng));
+    gen_.gm_a = Eigen::Vector3d(
+        sig_a_.x() * g(gen_.rng), sig_a_.y() * g(gen_.rng), sig_a_.z() * g(gen_.rng));
+    gen_.drift.setZero();      // dead-reckoning position error
+    gen_.drift_vel.setZero();  // its rate
+    gen_.outage_start = -1;
+    gen_.next_k = 0;
+    window_.clear();
+    window_k0_ = 0;
+}
+
+NavErrorModel::Sample NavErrorModel::Step() const {
+    Generator& s = gen_;
+    std::normal_distribution<double>& g = s.g;
+    const double t = static_cast<double>(s.next_k) * dt_;
+    const Eigen::Vector3d rw(1.0, 1.0, cfg_.outage_vertical_fraction);
+    for (int i = 0; i < 3; ++i) {
+        s.gm_p[i] = phi_p_ * s.gm_p[i] + sig_p_[i] * q_p_ * g(s.rng);
+        s.gm_a[i] = phi_a_ * s.gm_a[i] + sig_a_[i] * q_a_ * g(s.rng);
     }
+    Eigen::Vector3d sd = sig_p_;
+    if (InOutage(t)) {
+        if (s.outage_start < 0) s.outage_start = t;
+        for (int i = 0; i < 3; ++i) {
+            s.drift_vel[i] +=
+                rw[i] * cfg_.outage_velocity_random_walk_mps_per_sqrt_s * std::sqrt(dt_) * g(s.rng);
+        }
+        s.drift += s.drift_vel * dt_;
+        // Integrated random walk: sigma(t) = q t^1.5 / sqrt(3); the INS reports it grows.
+        const double te = t - s.outage_start;
+        const double grow =
+            cfg_.outage_velocity_random_walk_mps_per_sqrt_s * std::pow(te, 1.5) / std::sqrt(3.0);
+        sd = (sig_p_.array().square() + (rw * grow).array().square()).sqrt();
+    } else {
+        s.outage_start = -1;
+        // GNSS back: the filter pulls the drift back over recovery_time_s (~3 time constants).
+        const double decay = std::exp(-dt_ * 3.0 / std::max(cfg_.recovery_time_s, dt_));
+        s.drift *= decay;
+        s.drift_vel.setZero();
+    }
+    // White noise of each INS output on top of the correlated error.
+    const Eigen::Vector3d white(cfg_.position_noise_m * g(s.white_rng),
+                                cfg_.position_noise_m * g(s.white_rng),
+                                cfg_.position_noise_m * g(s.white_rng));
+    ++s.next_k;
+    return {s.gm_p + s.drift + white, s.gm_a, sd};
+}
+
+const NavErrorModel::Sample& NavErrorModel::SampleAt(std::size_t k) const {
+    if (k < window_k0_) Restart();
+    while (k >= window_k0_ + window_.size()) {
+        if (window_.size() >= 2 * kChunkSteps) {
+            window_.erase(window_.begin(), window_.begin() + kChunkSteps);
+            window_k0_ += kChunkSteps;
+        }
+        window_.push_back(Step());
+    }
+    return window_[k - window_k0_];
 }
 
 bool NavErrorModel::InOutage(double t) const {
@@ -79,13 +102,18 @@ bool NavErrorModel::InOutage(double t) const {
 }
 
 NavError NavErrorModel::At(double t) const {
-    const double u = std::clamp(t / dt_, 0.0, static_cast<double>(pos_.size() - 1));
-    const auto i = std::min(static_cast<std::size_t>(u), pos_.size() - 2);
+    const double u = std::clamp(t / dt_, 0.0, static_cast<double>(n_ - 1));
+    const auto i = std::min(static_cast<std::size_t>(u), n_ - 2);
     const double f = u - static_cast<double>(i);
     NavError e;
-    e.position_enu_m = pos_[i] * (1 - f) + pos_[i + 1] * f;
-    e.attitude_rpy_rad = att_[i] * (1 - f) + att_[i + 1] * f;
-    e.position_stddev_enu_m = pos_sd_[i] * (1 - f) + pos_sd_[i + 1] * f;
+    {
+        std::lock_guard lock(mu_);
+        const Sample a = SampleAt(i);
+        const Sample& b = SampleAt(i + 1);
+        e.position_enu_m = a.pos * (1 - f) + b.pos * f;
+        e.attitude_rpy_rad = a.att * (1 - f) + b.att * f;
+        e.position_stddev_enu_m = a.pos_sd * (1 - f) + b.pos_sd * f;
+    }
     e.attitude_stddev_rpy_rad = Eigen::Vector3d(frames::DegToRad(cfg_.attitude_gm_sigma_deg),
                                                 frames::DegToRad(cfg_.attitude_gm_sigma_deg),
                                                 frames::DegToRad(cfg_.heading_gm_sigma_deg));

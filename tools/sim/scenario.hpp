@@ -2,6 +2,7 @@
 // Synthetic survey scenarios: the pit, the track, the sensors and the faults to inject.
 // Built-in names are stable (shared/design/mission.md): "demo", "bejanca", "gps-outage";
 // "quarry" is the short non-bowl test survey (high wall, ramp, boulders, NMEA into the topside).
+// "mine" is the larger pit of the scale work (issue 38): 500 m x 300 m, a four-hour survey.
 // All lengths in metres, angles in degrees (configuration), times in seconds.
 #pragma once
 

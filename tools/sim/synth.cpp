@@ -11,6 +11,7 @@
 #include <random>
 #include <thread>
 
+#include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
 #include "common/gps_time.hpp"
 #include "firmware_host/daemon/log_writer.hpp"
@@ -255,6 +256,20 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     const auto total_pings =
         static_cast<std::int64_t>(std::floor(truth.duration_s() * sc.sonar.ping_rate_hz + 1e-9));
     std::int64_t events_since_flush = 0;
+    // The true trajectory at truth_rate_hz, written block by block as the survey is simulated
+    // (an hours-long survey's truth is not held: 136 bytes a pose, 25 MB an hour at 50 Hz).
+    auto truth_csv = formats::TrajectoryCsvWriter::Open((truth_dir / "trajectory.csv").string());
+    if (!truth_csv) return truth_csv.error();
+    const double truth_dt = 1.0 / opt.truth_rate_hz;
+    double truth_t = 0;  // the next true pose's time: summed as before, the same samples
+    const auto write_truth_until = [&](double t_end, bool inclusive) {
+        while (truth_t <= truth.duration_s() + 1e-9 && (inclusive || truth_t < t_end)) {
+            (*truth_csv)
+                ->Append(formats::RowOf(static_cast<double>(gps_at(truth_t)) * 1e-6,
+                                        truth.PoseAt(truth_t)));
+            truth_t += truth_dt;
+        }
+    };
     // Insonified area: terrain cells hit by a true beam axis (for the mesh completeness score).
     const TerrainGrid& grid = world.grid();
     std::vector<std::uint8_t> coverage(grid.height_m.size(), 0);
@@ -379,6 +394,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
                 }
             }
         }
+        write_truth_until(t1, false);
         if (progress && !progress(t1 / truth.duration_s())) {
             writer.Stop();
             return Error{"cancelled"};
@@ -426,13 +442,12 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     }
 
     // Ground truth.
+    write_truth_until(truth.duration_s(), true);
+    if (auto s = (*truth_csv)->Finish(); !s) return s.error();
     Truth t;
     t.origin = {sc.origin_latitude_deg, sc.origin_longitude_deg, sc.origin_height_m};
     t.terrain = world.grid();
-    const double dt = 1.0 / opt.truth_rate_hz;
-    for (double tt = 0; tt <= truth.duration_s() + 1e-9; tt += dt) {
-        t.trajectory.push_back({static_cast<double>(gps_at(tt)) * 1e-6, truth.PoseAt(tt)});
-    }
+    t.trajectory_written = true;
     t.boresight = {
         sc.boresight_deg[0], sc.boresight_deg[1], sc.boresight_deg[2], sc.lever_arms.sonar_m};
     t.coverage = std::move(coverage);

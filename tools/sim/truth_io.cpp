@@ -429,11 +429,13 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
         if (auto s = WriteText(dir + "/terrain.f32", std::string(bytes.begin(), bytes.end())); !s)
             return s;
     }
-    formats::TrajectoryCsv csv;
-    for (const TruthPose& p : truth.trajectory) {
-        csv.rows.push_back(formats::RowOf(p.gps_time_s, p.T_world_vehicle));
+    if (!truth.trajectory_written) {
+        formats::TrajectoryCsv csv;
+        for (const TruthPose& p : truth.trajectory) {
+            csv.rows.push_back(formats::RowOf(p.gps_time_s, p.T_world_vehicle));
+        }
+        if (auto s = formats::WriteTrajectoryCsv(dir + "/trajectory.csv", csv); !s) return s;
     }
-    if (auto s = formats::WriteTrajectoryCsv(dir + "/trajectory.csv", csv); !s) return s;
     if (!truth.backscatter_db.empty()) {
         if (truth.backscatter_db.size() != g.height_m.size())
             return Error{"backscatter does not match the terrain grid"};

@@ -94,6 +94,9 @@ struct Truth {
     Geodetic origin;  // world frame origin
     TerrainGrid terrain;
     std::vector<TruthPose> trajectory;
+    // WriteTruth leaves <dir>/trajectory.csv alone when set: its writer wrote it row by row
+    // (pitmap-sim synth, formats::TrajectoryCsvWriter: an hours-long survey's truth is not held).
+    bool trajectory_written = false;
     TruthBoresight boresight;
     std::vector<std::uint8_t> coverage;  // empty, or one byte per terrain cell (insonified = 1)
     std::optional<SonarClockTruth> sonar_clock;  // written when set; read when present

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 
 namespace pitmap::formats {
@@ -121,6 +122,49 @@ TEST_F(TrajectoryCsvFile, TruncatedAndCorruptFilesAreErrorsNamingFileAndLine) {
     expect_error(text.substr(0, row3) + "1400000000.1,0,0,0,0,0,0,1,2,3,zero\n",
                  ":4: malformed INS columns");
     EXPECT_FALSE(ReadTrajectoryCsv(path_ + ".missing").ok());
+}
+
+std::string ReadAll(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream o;
+    o << in.rdbuf();
+    return o.str();
+}
+
+// The row-by-row writer (the simulator's hours-long truth) writes the same bytes as the
+// whole-file writer, and only once finished.
+TEST_F(TrajectoryCsvFile, RowByRowWriterWritesTheSameFileOnceFinished) {
+    for (const bool ins : {false, true}) {
+        const TrajectoryCsv t = Sample(ins);
+        ASSERT_TRUE(WriteTrajectoryCsv(path_, t).ok());
+        const std::string whole = ReadAll(path_);
+        fs::remove(path_);
+        auto w = TrajectoryCsvWriter::Open(path_, ins);
+        ASSERT_TRUE(w.ok()) << w.error().message;
+        for (const TrajectoryRow& r : t.rows) (*w)->Append(r);
+        EXPECT_FALSE(fs::exists(path_));  // still the partial file
+        ASSERT_TRUE((*w)->Finish().ok());
+        EXPECT_EQ(ReadAll(path_), whole);
+        EXPECT_FALSE((*w)->Finish().ok());  // once only
+        EXPECT_FALSE(fs::exists(PartialPath(path_)));
+    }
+}
+
+// Abandoned (an error or a cancel before Finish): the earlier file stays, no partial file.
+TEST_F(TrajectoryCsvFile, RowByRowWriterAbandonedLeavesTheEarlierFile) {
+    ASSERT_TRUE(WriteTrajectoryCsv(path_, Sample(false)).ok());
+    const std::string before = ReadAll(path_);
+    {
+        auto w = TrajectoryCsvWriter::Open(path_);
+        ASSERT_TRUE(w.ok());
+        (*w)->Append(Sample(false).rows.front());
+    }
+    EXPECT_EQ(ReadAll(path_), before);
+    EXPECT_FALSE(fs::exists(PartialPath(path_)));
+    const std::string bad = "/nonexistent-dir-pitmap/trajectory.csv";
+    auto w = TrajectoryCsvWriter::Open(bad);
+    ASSERT_FALSE(w.ok());
+    EXPECT_NE(w.error().message.find("/nonexistent-dir-pitmap/"), std::string::npos);
 }
 
 TEST(TrajectoryCsvWrite, UnwritablePathIsAnErrorNamingIt) {

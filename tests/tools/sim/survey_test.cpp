@@ -1,7 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <thread>
+#include <vector>
 
 #include "common/frames.hpp"
 #include "tools/sim/nav_errors.hpp"
@@ -93,6 +97,46 @@ TEST(NavErrorModel, OutageDriftsSeveralMetresThenRecovers) {
     // Same seed, same errors.
     NavErrorModel m2(sc.nav, sc.track.duration_s, sc.seed);
     EXPECT_EQ(m.At(300.0).position_enu_m, m2.At(300.0).position_enu_m);
+}
+
+// The model keeps a window of its error series (hours-long surveys): answers do not depend on
+// the order of the queries, forward across many windows, backward before the window (it
+// regenerates from the seed) or from several threads.
+TEST(NavErrorModel, AnswersDoNotDependOnTheOrderOfTheQueries) {
+    const ScenarioConfig sc = *BuiltinScenario("gps-outage");
+    const double duration = 900.0;  // > 5 windows of NavErrorModel::kChunkSteps
+    NavErrorModel forward(sc.nav, duration, sc.seed);
+    std::vector<double> times;
+    for (double t = 0; t <= duration + 5; t += 0.37) times.push_back(t);
+    std::vector<NavError> expected;
+    for (double t : times) expected.push_back(forward.At(t));
+
+    NavErrorModel shuffled(sc.nav, duration, sc.seed);
+    std::vector<std::size_t> order(times.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::mt19937 rng(5);
+    std::shuffle(order.begin(), order.end(), rng);
+    order.resize(300);  // each a jump, most of them backwards past the window
+    for (std::size_t i : order) {
+        const NavError e = shuffled.At(times[i]);
+        EXPECT_EQ(e.position_enu_m, expected[i].position_enu_m) << times[i];
+        EXPECT_EQ(e.attitude_rpy_rad, expected[i].attitude_rpy_rad) << times[i];
+        EXPECT_EQ(e.position_stddev_enu_m, expected[i].position_stddev_enu_m) << times[i];
+    }
+    // Two threads reading forward at once (the HIL rig's emulator and a test).
+    NavErrorModel shared(sc.nav, duration, sc.seed);
+    std::vector<int> mismatches(2, 0);
+    std::vector<std::thread> threads;
+    for (int k = 0; k < 2; ++k) {
+        threads.emplace_back([&, k] {
+            for (std::size_t i = static_cast<std::size_t>(k); i < times.size(); i += 2) {
+                if (shared.At(times[i]).position_enu_m != expected[i].position_enu_m)
+                    ++mismatches[static_cast<std::size_t>(k)];
+            }
+        });
+    }
+    for (auto& th : threads) th.join();
+    EXPECT_EQ(mismatches[0] + mismatches[1], 0);
 }
 
 }  // namespace
