@@ -130,15 +130,10 @@ pitmap turns the logs of pitmap-acqd into calibrated, SLAM-corrected
 soundings, a mesh, grids and an HTML report (pitmap run); pitmap live shows
 coverage and alarms during a survey, pitmap edit cleans soundings by hand.
 Also pitmap-sim (synthetic surveys), pitmap-eval (scores against ground
-<<<<<<< HEAD
-truth) and pitmap-inspect (log contents).")
-# What dpkg-shlibdeps cannot see: pitmap-report's Python modules (python3-yaml: its equipment
-# file), and three.js read at run time
-=======
 truth), pitmap-inspect (log contents) and pitmap-campaign (many surveys as a
 Snakemake workflow, on one machine or a Slurm cluster).")
-# What dpkg-shlibdeps cannot see: pitmap-report's Python modules, and three.js read at run time
->>>>>>> campaign
+# What dpkg-shlibdeps cannot see: pitmap-report's Python modules (python3-yaml: its equipment
+# file), and three.js read at run time
 # by the report's 3D view and the edit page (/usr/share/javascript/three). python3-gdal: the
 # report's sonar mosaic section and its grid coordinates only; libopenblas0-pthread: the fast
 # BLAS under CHOLMOD (SLAM).
@@ -147,11 +142,7 @@ Snakemake workflow, on one machine or a Slurm cluster).")
 # pitmap-campaign reads the campaign file with it, also for `check` without snakemake.
 set(CPACK_DEBIAN_SHORE_PACKAGE_DEPENDS
     "python3, python3-numpy, python3-matplotlib, python3-yaml, libjs-three${_shlibs_depends}")
-<<<<<<< HEAD
-set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal, libopenblas0-pthread")
-=======
 set(CPACK_DEBIAN_SHORE_PACKAGE_RECOMMENDS "python3-gdal, libopenblas0-pthread, snakemake")
->>>>>>> campaign
 # chromium: pitmap-report --pdf prints the report through it (pitmap_report_lib/cdp.py).
 set(CPACK_DEBIAN_SHORE_PACKAGE_SUGGESTS "chromium")
 _pitmap_control_files(pitmap CPACK_DEBIAN_SHORE_PACKAGE_CONTROL_EXTRA)
