@@ -85,6 +85,14 @@ struct GridRaster {
     // dates and vertical uncertainty type). Empty: none of it.
     std::optional<ProductMetadata> product;
     GridSampleType sample_type = GridSampleType::kFloat32;  // GeoTIFF only (the BAG is Float32)
+
+    // The values of the layer named `name`, or nullptr.
+    const std::vector<float>* Values(const std::string& name) const {
+        for (const GridLayer& l : layers) {
+            if (l.name == name) return &l.values;
+        }
+        return nullptr;
+    }
 };
 
 // Every layer as a band of a COG (DEFLATE, predictor, 256 x 256 tiles) of the grid's sample

@@ -110,10 +110,7 @@ Expected<json> MosaicSurvey(const StageContext& s,
         const Eigen::Vector2d xy = to_utm * d.head<2>();
         m.beam_dir[j] = Eigen::Vector3d(xy.x(), xy.y(), d.z()).normalized().cast<float>();
     }
-    const std::vector<float>* elevation = nullptr;
-    for (const auto& l : dem.layers) {
-        if (l.name == "elevation") elevation = &l.values;
-    }
+    const std::vector<float>* elevation = dem.Values("elevation");
     if (elevation == nullptr) return Error{"grid: mosaic: the DEM has no elevation layer"};
     const hydro::MosaicGrid grid{dem.x0, dem.y0, dem.resolution_m, dem.nx, dem.ny, elevation};
     std::vector<Eigen::Vector3d>().swap(utm.easting_northing_height);

@@ -115,10 +115,7 @@ Expected<json> TerrainSurvey(const StageContext& s,
                              const GridStageConfig& gc,
                              const io::GridRaster& dem,
                              const Log& log) {
-    const std::vector<float>* elevation = nullptr;
-    for (const auto& l : dem.layers) {
-        if (l.name == "elevation") elevation = &l.values;
-    }
+    const std::vector<float>* elevation = dem.Values("elevation");
     if (elevation == nullptr) return Error{"grid: terrain: the DEM has no elevation layer"};
     const hydro::TerrainConfig& c = gc.terrain_config;
     const hydro::TerrainGrid grid{dem.x0, dem.y0, dem.resolution_m, dem.nx, dem.ny, elevation};

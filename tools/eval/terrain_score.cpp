@@ -101,13 +101,6 @@ Expected<proc::hydro::TerrainConfig> TerrainSettings(const std::filesystem::path
     return c;
 }
 
-const std::vector<float>* Layer(const proc::io::GridRaster& g, const std::string& name) {
-    for (const auto& l : g.layers) {
-        if (l.name == name) return &l.values;
-    }
-    return nullptr;
-}
-
 }  // namespace
 
 Expected<std::optional<TerrainScore>> ScoreTerrainProducts(const std::string& products_dir,
@@ -126,9 +119,9 @@ Expected<std::optional<TerrainScore>> ScoreTerrainProducts(const std::string& pr
     if (!crawler) return crawler.error();
     const proc::io::GridRaster& g = terrain->grid;
     const int epsg = terrain->horizontal_epsg;
-    const std::vector<float>* slope = Layer(g, "slope");
-    const std::vector<float>* step = Layer(g, "step");
-    const std::vector<float>* cls = Layer(crawler->grid, "crawler");
+    const std::vector<float>* slope = g.Values("slope");
+    const std::vector<float>* step = g.Values("step");
+    const std::vector<float>* cls = crawler->grid.Values("crawler");
     if (slope == nullptr || step == nullptr || cls == nullptr || crawler->grid.nx != g.nx ||
         crawler->grid.ny != g.ny ||
         !((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760))) {
