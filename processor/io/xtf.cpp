@@ -124,137 +124,205 @@ constexpr std::uint16_t SectionName(char a, char b) {
     return static_cast<std::uint16_t>((static_cast<unsigned>(a) << 8) | static_cast<unsigned>(b));
 }
 
-// R2Sonic BTH0 (big-endian) after the 256-byte XTF ping header. Returns "" or what is wrong.
-std::string DecodeBth0(ByteSpan packet, XtfBathyPing& p) {
+// Where one BTH0 section lies in its packet, from its 4-byte name and size on (size 0: absent).
+struct Bth0Section {
+    std::size_t at = 0;
+    std::size_t size = 0;
+};
+
+// The sections this reader uses; G0, G1 (gates) and sections it does not know are passed over.
+struct Bth0Sections {
+    Bth0Section h0, r0, a0, a2, i1, q0;
+};
+
+// A reader over one section, after its name and size.
+ByteReader SectionReader(ByteSpan bth0, Bth0Section section) {
+    ByteReader r(bth0.subspan(section.at, section.size));
+    r.Seek(4);
+    return r;
+}
+
+// The BTH0 packet after the XTF ping header, as many bytes as its own size says; its magic and
+// size checked against the XTF packet. Returns "" or what is wrong.
+std::string FindBth0(ByteSpan packet, ByteSpan& bth0) {
     if (packet.size() < kXtfPingHeaderBytes + 12) return "too short for a BTH0 packet";
-    const ByteSpan b = packet.subspan(kXtfPingHeaderBytes);
-    ByteReader r(b);
+    const ByteSpan after_ping_header = packet.subspan(kXtfPingHeaderBytes);
+    ByteReader r(after_ping_header);
     if (r.U32Be() != 0x42544830u) return "no BTH0 packet after the XTF ping header";
     const std::uint32_t size = r.U32Be();
     (void)r.U32Be();  // data stream id
-    if (size < 12 || size > b.size()) {
-        return "BTH0 size " + std::to_string(size) + " outside the " + std::to_string(b.size()) +
-               " bytes the XTF packet holds";
+    if (size < 12 || size > after_ping_header.size()) {
+        return "BTH0 size " + std::to_string(size) + " outside the " +
+               std::to_string(after_ping_header.size()) + " bytes the XTF packet holds";
     }
-    // The sections, found first: H0 gives the number of points the others hold.
-    struct Span {
-        std::size_t at = 0, size = 0;
-    };
-    Span h0, r0, a0, a2, i1, q0;
+    bth0 = after_ping_header.first(size);
+    return {};
+}
+
+// The sections after the 12-byte BTH0 header, found before any is read because H0 gives the
+// number of points the others hold. Each section's size counts its own 4-byte header; one that
+// runs past the packet ends the ping. Returns "" or what is wrong (also when H0, R0 or the
+// angles are missing).
+std::string FindBth0Sections(ByteSpan bth0, Bth0Sections& sections) {
+    const std::size_t size = bth0.size();
     for (std::size_t at = 12; at < size;) {
         if (size - at < 4) return "a BTH0 section header cut at byte " + std::to_string(at);
-        ByteReader s(b.subspan(at, 4));
-        const std::uint16_t name = s.U16Be();
-        const std::uint16_t len = s.U16Be();
+        ByteReader header(bth0.subspan(at, 4));
+        const std::uint16_t name = header.U16Be();
+        const std::uint16_t len = header.U16Be();
         if (len < 4 || len > size - at) {
             return "BTH0 section at byte " + std::to_string(at) + " has size " +
                    std::to_string(len) + ", " + std::to_string(size - at) + " bytes left";
         }
-        const Span sp{at, len};
+        const Bth0Section section{at, len};
         switch (name) {
             case SectionName('H', '0'):
-                h0 = sp;
+                sections.h0 = section;
                 break;
             case SectionName('R', '0'):
-                r0 = sp;
+                sections.r0 = section;
                 break;
             case SectionName('A', '0'):
-                a0 = sp;
+                sections.a0 = section;
                 break;
             case SectionName('A', '2'):
-                a2 = sp;
+                sections.a2 = section;
                 break;
             case SectionName('I', '1'):
-                i1 = sp;
+                sections.i1 = section;
                 break;
             case SectionName('Q', '0'):
-                q0 = sp;
+                sections.q0 = section;
                 break;
-            default:  // G0, G1 (gates) and sections this reader does not use
+            default:
                 break;
         }
         at += len;
     }
-    if (h0.size < 116) return "BTH0 without a complete H0 section";
-    if (r0.size == 0) return "BTH0 without ranges (R0)";
-    if (a0.size == 0 && a2.size == 0) return "BTH0 without angles (A0 or A2)";
-    ByteReader h(b.subspan(h0.at, h0.size));
-    h.Seek(4);
-    p.model = h.FixedString(12);
-    h.Skip(12);  // serial number
-    const std::uint32_t seconds = h.U32Be();
-    const std::uint32_t nanoseconds = h.U32Be();
-    p.ping_number = h.U32Be();
-    (void)h.F32Be();  // ping period
-    p.sound_speed_mps = h.F32Be();
-    p.frequency_hz = h.F32Be();
-    h.Seek(68);
-    p.tx_steering_vert_rad = h.F32Be();
-    h.Seek(88);
-    p.range_setting_m = h.F32Be();
-    h.Seek(104);
-    p.rx_mount_tilt_rad = h.F32Be();
-    h.Seek(114);
-    const std::size_t n = h.U16Be();
-    if (!h.ok()) return "BTH0 H0 section unreadable";
+    if (sections.h0.size < 116) return "BTH0 without a complete H0 section";
+    if (sections.r0.size == 0) return "BTH0 without ranges (R0)";
+    if (sections.a0.size == 0 && sections.a2.size == 0) return "BTH0 without angles (A0 or A2)";
+    return {};
+}
+
+// H0: the ping's time, number and sonar settings, and into num_points how many points the
+// other sections hold. Returns "" or what is wrong.
+std::string ReadBth0PingHeader(ByteReader h0, XtfBathyPing& p, std::size_t& num_points) {
+    p.model = h0.FixedString(12);
+    h0.Skip(12);  // serial number
+    const std::uint32_t seconds = h0.U32Be();
+    const std::uint32_t nanoseconds = h0.U32Be();
+    p.ping_number = h0.U32Be();
+    (void)h0.F32Be();  // ping period
+    p.sound_speed_mps = h0.F32Be();
+    p.frequency_hz = h0.F32Be();
+    h0.Seek(68);
+    p.tx_steering_vert_rad = h0.F32Be();
+    h0.Seek(88);
+    p.range_setting_m = h0.F32Be();
+    h0.Seek(104);
+    p.rx_mount_tilt_rad = h0.F32Be();
+    h0.Seek(114);
+    const std::size_t n = h0.U16Be();
+    if (!h0.ok()) return "BTH0 H0 section unreadable";
     if (nanoseconds > 999'999'999u) return "BTH0 H0 nanoseconds out of range";
     if (n == 0 || n > kBth0MaxPoints) return "BTH0 with " + std::to_string(n) + " points";
     p.utime_unix = static_cast<std::int64_t>(seconds) * kMicrosPerSecond + nanoseconds / 1000;
+    num_points = n;
+    return {};
+}
 
-    ByteReader rr(b.subspan(r0.at, r0.size));
-    rr.Seek(4);
-    p.twtt_scale_s = rr.F32Be();
-    p.twtt_counts.resize(n);
-    for (auto& c : p.twtt_counts) c = rr.U16Be();
-    if (!rr.ok()) return "BTH0 R0 section shorter than its " + std::to_string(n) + " points";
-
-    p.angle_rad.resize(n);
-    if (a2.size > 0) {
-        // angle[i] = first + scale * (32-bit sum of step[0] .. step[i]).
-        ByteReader ar(b.subspan(a2.at, a2.size));
-        ar.Seek(4);
-        const float first = ar.F32Be();
-        const float scale = ar.F32Be();
-        ar.Seek(36);
-        std::uint32_t sum = 0;
-        for (std::size_t i = 0; i < n; ++i) {
-            sum += ar.U16Be();
-            p.angle_rad[i] =
-                static_cast<float>(static_cast<double>(first) + static_cast<double>(scale) * sum);
-        }
-        if (!ar.ok()) return "BTH0 A2 section shorter than its " + std::to_string(n) + " points";
-    } else {
-        // Equi-angle: first (port) to last (starboard) in equal steps.
-        ByteReader ar(b.subspan(a0.at, a0.size));
-        ar.Seek(4);
-        const double first = ar.F32Be();
-        const double last = ar.F32Be();
-        if (!ar.ok()) return "BTH0 A0 section too short";
-        const double step = n > 1 ? (last - first) / static_cast<double>(n - 1) : 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-            p.angle_rad[i] = static_cast<float>(first + step * static_cast<double>(i));
-        }
-    }
-    if (i1.size > 0) {
-        ByteReader ir(b.subspan(i1.at, i1.size));
-        ir.Seek(4);
-        p.intensity_scale = ir.F32Be();
-        p.intensity.resize(n);
-        for (auto& v : p.intensity) v = ir.U16Be();
-        if (!ir.ok()) return "BTH0 I1 section shorter than its " + std::to_string(n) + " points";
-    }
-    if (q0.size > 0) {
-        ByteReader qr(b.subspan(q0.at, q0.size));
-        qr.Seek(4);
-        p.quality.resize(n);
-        std::uint32_t word = 0;
-        for (std::size_t i = 0; i < n; ++i) {
-            if (i % 8 == 0) word = qr.U32Be();
-            p.quality[i] = static_cast<std::uint8_t>((word >> (28 - 4 * (i % 8))) & 0xFu);
-        }
-        if (!qr.ok()) return "BTH0 Q0 section shorter than its " + std::to_string(n) + " points";
+// R0: the scale and one two-way travel time count per point. Returns "" or what is wrong.
+std::string ReadBth0Ranges(ByteReader r0, std::size_t num_points, XtfBathyPing& p) {
+    p.twtt_scale_s = r0.F32Be();
+    p.twtt_counts.resize(num_points);
+    for (auto& count : p.twtt_counts) count = r0.U16Be();
+    if (!r0.ok()) {
+        return "BTH0 R0 section shorter than its " + std::to_string(num_points) + " points";
     }
     return {};
+}
+
+// A2: angle[i] = first + scale * (32-bit sum of step[0] .. step[i]). Returns "" or what is
+// wrong.
+std::string ReadBth0SummedAngles(ByteReader a2, std::size_t num_points, XtfBathyPing& p) {
+    const float first = a2.F32Be();
+    const float scale = a2.F32Be();
+    a2.Seek(36);
+    p.angle_rad.resize(num_points);
+    std::uint32_t sum = 0;
+    for (std::size_t i = 0; i < num_points; ++i) {
+        sum += a2.U16Be();
+        p.angle_rad[i] =
+            static_cast<float>(static_cast<double>(first) + static_cast<double>(scale) * sum);
+    }
+    if (!a2.ok()) {
+        return "BTH0 A2 section shorter than its " + std::to_string(num_points) + " points";
+    }
+    return {};
+}
+
+// A0, equi-angle: first (port) to last (starboard) in equal steps. Returns "" or what is wrong.
+std::string ReadBth0EquiAngles(ByteReader a0, std::size_t num_points, XtfBathyPing& p) {
+    p.angle_rad.resize(num_points);
+    const double first = a0.F32Be();
+    const double last = a0.F32Be();
+    if (!a0.ok()) return "BTH0 A0 section too short";
+    const double step = num_points > 1 ? (last - first) / static_cast<double>(num_points - 1) : 0.0;
+    for (std::size_t i = 0; i < num_points; ++i) {
+        p.angle_rad[i] = static_cast<float>(first + step * static_cast<double>(i));
+    }
+    return {};
+}
+
+// I1: the scale and one intensity per point. Returns "" or what is wrong.
+std::string ReadBth0Intensities(ByteReader i1, std::size_t num_points, XtfBathyPing& p) {
+    p.intensity_scale = i1.F32Be();
+    p.intensity.resize(num_points);
+    for (auto& value : p.intensity) value = i1.U16Be();
+    if (!i1.ok()) {
+        return "BTH0 I1 section shorter than its " + std::to_string(num_points) + " points";
+    }
+    return {};
+}
+
+// Q0: 4 flag bits per point, eight to a big-endian word from its most significant nibble.
+// Returns "" or what is wrong.
+std::string ReadBth0Quality(ByteReader q0, std::size_t num_points, XtfBathyPing& p) {
+    p.quality.resize(num_points);
+    std::uint32_t word = 0;
+    for (std::size_t i = 0; i < num_points; ++i) {
+        if (i % 8 == 0) word = q0.U32Be();
+        p.quality[i] = static_cast<std::uint8_t>((word >> (28 - 4 * (i % 8))) & 0xFu);
+    }
+    if (!q0.ok()) {
+        return "BTH0 Q0 section shorter than its " + std::to_string(num_points) + " points";
+    }
+    return {};
+}
+
+// R2Sonic BTH0 (big-endian) after the 256-byte XTF ping header. Returns "" or what is wrong;
+// the first problem found ends the ping.
+std::string DecodeBth0(ByteSpan packet, XtfBathyPing& p) {
+    ByteSpan bth0;
+    Bth0Sections sections;
+    std::size_t num_points = 0;
+    std::string why = FindBth0(packet, bth0);
+    if (why.empty()) why = FindBth0Sections(bth0, sections);
+    if (why.empty()) why = ReadBth0PingHeader(SectionReader(bth0, sections.h0), p, num_points);
+    if (why.empty()) why = ReadBth0Ranges(SectionReader(bth0, sections.r0), num_points, p);
+    if (why.empty()) {
+        why = sections.a2.size > 0
+                  ? ReadBth0SummedAngles(SectionReader(bth0, sections.a2), num_points, p)
+                  : ReadBth0EquiAngles(SectionReader(bth0, sections.a0), num_points, p);
+    }
+    if (why.empty() && sections.i1.size > 0) {
+        why = ReadBth0Intensities(SectionReader(bth0, sections.i1), num_points, p);
+    }
+    if (why.empty() && sections.q0.size > 0) {
+        why = ReadBth0Quality(SectionReader(bth0, sections.q0), num_points, p);
+    }
+    return why;
 }
 
 }  // namespace
