@@ -26,12 +26,6 @@ constexpr int kMaxWarningsPerFile = 5;
 class Warner {
 public:
     Warner(const std::string& name, XtfFile& f) : name_(name), f_(f) {}
-    ~Warner() {
-        if (more_ > 0) {
-            f_.warnings.push_back(name_ + ": " + std::to_string(more_) +
-                                  " more damaged places (counted in the ingest counts)");
-        }
-    }
     Warner(const Warner&) = delete;
     Warner& operator=(const Warner&) = delete;
     void operator()(std::uint64_t offset, const std::string& what) {
@@ -40,6 +34,15 @@ public:
             return;
         }
         f_.warnings.push_back(name_ + ": " + what + " at byte offset " + std::to_string(offset));
+    }
+    // The total of the places beyond the first few. Called explicitly, not from a destructor:
+    // a destructor runs after the file has been moved into the decoder's result.
+    void Finish() {
+        if (more_ > 0) {
+            f_.warnings.push_back(name_ + ": " + std::to_string(more_) +
+                                  " more damaged places (counted in the ingest counts)");
+        }
+        more_ = 0;
     }
 
 private:
@@ -478,6 +481,7 @@ Expected<XtfFile> DecodeXtf(ByteSpan bytes, const std::string& name) {
         }
         pos += size;
     }
+    warn.Finish();
     return f;
 }
 
