@@ -328,6 +328,178 @@ std::string DecodeBth0(ByteSpan packet, XtfBathyPing& p) {
     return why;
 }
 
+// The 1024-byte file header into `header`; returns where the first packet starts (after the
+// further CHANINFO blocks of more than six channels). Errors: shorter than the header, a wrong
+// format byte, more channel blocks than the file holds.
+Expected<std::size_t> ReadXtfFileHeader(ByteSpan bytes,
+                                        const std::string& name,
+                                        XtfFileHeader& header) {
+    if (bytes.size() < kXtfFileHeaderBytes) {
+        return Error{name + ": not an XTF file: " + std::to_string(bytes.size()) +
+                     " bytes, shorter than the 1024-byte file header"};
+    }
+    if (bytes[0] != kXtfFileFormat) {
+        return Error{name + ": not an XTF file: byte 0 is " + std::to_string(bytes[0]) +
+                     ", not 123"};
+    }
+    ByteReader r(bytes.first(kXtfFileHeaderBytes));
+    r.Seek(2);
+    header.recording_program = r.FixedString(8);
+    header.program_version = r.FixedString(8);
+    header.sonar_name = r.FixedString(16);
+    header.sonar_type = r.U16Le();
+    r.Seek(164);
+    header.nav_units = r.U16Le();
+    header.sonar_channels = r.U16Le();
+    header.bathymetry_channels = r.U16Le();
+    const std::size_t snippet = r.U8();
+    r.U8();  // forward-look arrays
+    const std::size_t echo = r.U16Le();
+    const std::size_t interferometry = r.U8();
+    // CHANINFO (128 bytes each from byte 256): the bathymetry channel follows the sonar ones.
+    const std::size_t bathy_channel = header.sonar_channels;
+    if (header.bathymetry_channels > 0 && bathy_channel < 6) {
+        ByteReader chaninfo(bytes.subspan(256 + 128 * bathy_channel, 128));
+        chaninfo.Seek(48);
+        for (float& v : header.channel_offset_m) v = chaninfo.F32Le();
+        for (float& v : header.channel_offset_deg) v = chaninfo.F32Le();
+    }
+    // More than six channels: their CHANINFO fill further 1024-byte blocks (8 per block).
+    const std::size_t channels = std::size_t{header.sonar_channels} + header.bathymetry_channels +
+                                 snippet + echo + interferometry;
+    std::size_t first_packet = kXtfFileHeaderBytes;
+    if (channels > 6) first_packet += kXtfFileHeaderBytes * ((channels - 6 + 7) / 8);
+    if (first_packet > bytes.size()) {
+        return Error{name + ": XTF header announces " + std::to_string(channels) +
+                     " channels, more than the file holds"};
+    }
+    return first_packet;
+}
+
+// What the packet walk finds at one offset: a packet, damage it skips to the next packet, or
+// a packet the end of the file cuts short (the walk's end).
+enum class XtfPlace { kPacket, kDamaged, kCutByEnd };
+
+struct XtfPlaceAt {
+    XtfPlace place = XtfPlace::kPacket;
+    std::uint8_t type = 0;  // the packet's header type (kPacket)
+    std::size_t bytes = 0;  // the packet's size, or the bytes skipped
+    std::string warning;    // what is wrong (kDamaged, kCutByEnd)
+};
+
+XtfPlaceAt ExamineXtfPlace(ByteSpan bytes, std::size_t pos) {
+    const std::size_t left = bytes.size() - pos;
+    if (left < kXtfPacketHeaderBytes) {
+        return {XtfPlace::kCutByEnd,
+                0,
+                left,
+                "a packet header cut short by the end of the file (" + std::to_string(left) +
+                    " bytes skipped)"};
+    }
+    ByteReader h(bytes.subspan(pos, kXtfPacketHeaderBytes));
+    const std::uint16_t magic = h.U16Le();
+    const std::uint8_t type = h.U8();
+    h.Seek(10);
+    const std::uint32_t size = h.U32Le();
+    if (magic != kXtfMagic) {
+        const std::size_t next = FindPacket(bytes, pos + 1);
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "%04X", magic);
+        return {XtfPlace::kDamaged,
+                type,
+                next - pos,
+                std::string("no packet (magic 0x") + hex + "): " + std::to_string(next - pos) +
+                    " bytes skipped to the next packet"};
+    }
+    // A size that does not land on the next packet is wrong only if a packet starts inside
+    // it (else the next packet's own header is what is damaged, handled there).
+    const bool lands =
+        size >= kXtfPacketHeaderBytes && size <= left &&
+        (size == left || MagicAt(bytes, pos + size) || FindPacket(bytes, pos + 2) >= pos + size);
+    if (lands) return {XtfPlace::kPacket, type, size, {}};
+    const std::size_t next = FindPacket(bytes, pos + 2);
+    if (size > left && next == bytes.size()) {
+        return {XtfPlace::kCutByEnd,
+                type,
+                left,
+                "packet of type " + std::to_string(type) + " claims " + std::to_string(size) +
+                    " bytes, " + std::to_string(left) +
+                    " remain: cut short by the end of the file, skipped"};
+    }
+    return {XtfPlace::kDamaged,
+            type,
+            next - pos,
+            "packet of type " + std::to_string(type) + " has size " + std::to_string(size) +
+                ", which does not land on the next packet: " + std::to_string(next - pos) +
+                " bytes skipped to the next packet"};
+}
+
+// One packet by its header type into f: attitude, navigation, R2Sonic bathymetry; a known type
+// that does not decode is counted bad and said, an unknown one counted.
+void DecodeXtfPacket(
+    std::uint8_t type, ByteSpan packet, std::size_t pos, XtfFile& f, Warner& warn) {
+    XtfCounts& counts = f.counts;
+    switch (type) {
+        case kXtfAttitude: {
+            XtfAttitude a;
+            if (DecodeAttitude(packet, a)) {
+                f.attitude.push_back(a);
+            } else {
+                ++counts.bad_packets;
+                warn(pos, "attitude packet (type 3) does not decode, skipped");
+            }
+            break;
+        }
+        case kXtfPosRawNavigation: {
+            XtfPosition p;
+            if (DecodePosition(packet, p)) {
+                f.positions.push_back(p);
+            } else {
+                ++counts.bad_packets;
+                warn(pos, "navigation packet (type 107) does not decode, skipped");
+            }
+            break;
+        }
+        case kXtfQinsyR2SonicBathy: {
+            XtfBathyPing p;
+            const std::string why = DecodeBth0(packet, p);
+            if (why.empty()) {
+                p.offset = pos;
+                f.pings.push_back(std::move(p));
+            } else {
+                ++counts.bad_packets;
+                warn(pos, "R2Sonic bathymetry packet (type 65): " + why + ", skipped");
+            }
+            break;
+        }
+        default:
+            ++counts.unknown_packets;
+            break;
+    }
+}
+
+// The packets from `pos` to the end of the file into f: nothing here is fatal, every damaged
+// place is counted, and the first few are warnings naming the file and the offset.
+void WalkXtfPackets(ByteSpan bytes, std::size_t pos, const std::string& name, XtfFile& f) {
+    Warner warn(name, f);
+    XtfCounts& counts = f.counts;
+    while (pos < bytes.size()) {
+        const XtfPlaceAt at = ExamineXtfPlace(bytes, pos);
+        if (at.place == XtfPlace::kPacket) {
+            ++counts.packets;
+            ++counts.packets_by_type[at.type];
+            DecodeXtfPacket(at.type, bytes.subspan(pos, at.bytes), pos, f, warn);
+        } else {
+            warn(pos, at.warning);
+            ++(at.place == XtfPlace::kCutByEnd ? counts.truncated_packets : counts.resyncs);
+            counts.skipped_bytes += static_cast<std::int64_t>(at.bytes);
+            if (at.place == XtfPlace::kCutByEnd) break;
+        }
+        pos += at.bytes;
+    }
+    warn.Finish();
+}
+
 }  // namespace
 
 bool IsXtfFile(const std::string& path) {
@@ -343,145 +515,11 @@ bool IsXtfFile(const std::string& path) {
 }
 
 Expected<XtfFile> DecodeXtf(ByteSpan bytes, const std::string& name) {
-    if (bytes.size() < kXtfFileHeaderBytes) {
-        return Error{name + ": not an XTF file: " + std::to_string(bytes.size()) +
-                     " bytes, shorter than the 1024-byte file header"};
-    }
-    if (bytes[0] != kXtfFileFormat) {
-        return Error{name + ": not an XTF file: byte 0 is " + std::to_string(bytes[0]) +
-                     ", not 123"};
-    }
     XtfFile f;
-    XtfFileHeader& fh = f.header;
-    ByteReader r(bytes.first(kXtfFileHeaderBytes));
-    r.Seek(2);
-    fh.recording_program = r.FixedString(8);
-    fh.program_version = r.FixedString(8);
-    fh.sonar_name = r.FixedString(16);
-    fh.sonar_type = r.U16Le();
-    r.Seek(164);
-    fh.nav_units = r.U16Le();
-    fh.sonar_channels = r.U16Le();
-    fh.bathymetry_channels = r.U16Le();
-    const std::size_t snippet = r.U8();
-    r.U8();  // forward-look arrays
-    const std::size_t echo = r.U16Le();
-    const std::size_t interferometry = r.U8();
-    // CHANINFO (128 bytes each from byte 256): the bathymetry channel follows the sonar ones.
-    const std::size_t chan = fh.sonar_channels;
-    if (fh.bathymetry_channels > 0 && chan < 6) {
-        ByteReader c(bytes.subspan(256 + 128 * chan, 128));
-        c.Seek(48);
-        for (float& v : fh.channel_offset_m) v = c.F32Le();
-        for (float& v : fh.channel_offset_deg) v = c.F32Le();
-    }
-    // More than six channels: their CHANINFO fill further 1024-byte blocks (8 per block).
-    const std::size_t channels =
-        std::size_t{fh.sonar_channels} + fh.bathymetry_channels + snippet + echo + interferometry;
-    std::size_t pos = kXtfFileHeaderBytes;
-    if (channels > 6) pos += kXtfFileHeaderBytes * ((channels - 6 + 7) / 8);
-    XtfCounts& c = f.counts;
-    c.bytes = static_cast<std::int64_t>(bytes.size());
-    if (pos > bytes.size()) {
-        return Error{name + ": XTF header announces " + std::to_string(channels) +
-                     " channels, more than the file holds"};
-    }
-    Warner warn(name, f);
-    while (pos < bytes.size()) {
-        const std::size_t left = bytes.size() - pos;
-        if (left < kXtfPacketHeaderBytes) {
-            warn(pos,
-                 "a packet header cut short by the end of the file (" + std::to_string(left) +
-                     " bytes skipped)");
-            ++c.truncated_packets;
-            c.skipped_bytes += static_cast<std::int64_t>(left);
-            break;
-        }
-        ByteReader h(bytes.subspan(pos, kXtfPacketHeaderBytes));
-        const std::uint16_t magic = h.U16Le();
-        const std::uint8_t type = h.U8();
-        h.Seek(10);
-        const std::uint32_t size = h.U32Le();
-        if (magic != kXtfMagic) {
-            const std::size_t next = FindPacket(bytes, pos + 1);
-            char hex[8];
-            std::snprintf(hex, sizeof hex, "%04X", magic);
-            warn(pos,
-                 std::string("no packet (magic 0x") + hex + "): " + std::to_string(next - pos) +
-                     " bytes skipped to the next packet");
-            ++c.resyncs;
-            c.skipped_bytes += static_cast<std::int64_t>(next - pos);
-            pos = next;
-            continue;
-        }
-        // A size that does not land on the next packet is wrong only if a packet starts inside
-        // it (else the next packet's own header is what is damaged, handled there).
-        const bool lands = size >= kXtfPacketHeaderBytes && size <= left &&
-                           (size == left || MagicAt(bytes, pos + size) ||
-                            FindPacket(bytes, pos + 2) >= pos + size);
-        if (!lands) {
-            const std::size_t next = FindPacket(bytes, pos + 2);
-            if (size > left && next == bytes.size()) {
-                warn(pos,
-                     "packet of type " + std::to_string(type) + " claims " + std::to_string(size) +
-                         " bytes, " + std::to_string(left) +
-                         " remain: cut short by the end of the file, skipped");
-                ++c.truncated_packets;
-                c.skipped_bytes += static_cast<std::int64_t>(left);
-                break;
-            }
-            warn(pos,
-                 "packet of type " + std::to_string(type) + " has size " + std::to_string(size) +
-                     ", which does not land on the next packet: " + std::to_string(next - pos) +
-                     " bytes skipped to the next packet");
-            ++c.resyncs;
-            c.skipped_bytes += static_cast<std::int64_t>(next - pos);
-            pos = next;
-            continue;
-        }
-        ++c.packets;
-        ++c.packets_by_type[type];
-        const ByteSpan packet = bytes.subspan(pos, size);
-        switch (type) {
-            case kXtfAttitude: {
-                XtfAttitude a;
-                if (DecodeAttitude(packet, a)) {
-                    f.attitude.push_back(a);
-                } else {
-                    ++c.bad_packets;
-                    warn(pos, "attitude packet (type 3) does not decode, skipped");
-                }
-                break;
-            }
-            case kXtfPosRawNavigation: {
-                XtfPosition p;
-                if (DecodePosition(packet, p)) {
-                    f.positions.push_back(p);
-                } else {
-                    ++c.bad_packets;
-                    warn(pos, "navigation packet (type 107) does not decode, skipped");
-                }
-                break;
-            }
-            case kXtfQinsyR2SonicBathy: {
-                XtfBathyPing p;
-                const std::string why = DecodeBth0(packet, p);
-                if (why.empty()) {
-                    p.offset = pos;
-                    f.pings.push_back(std::move(p));
-                } else {
-                    ++c.bad_packets;
-                    warn(pos, "R2Sonic bathymetry packet (type 65): " + why + ", skipped");
-                }
-                break;
-            }
-            default:
-                ++c.unknown_packets;
-                break;
-        }
-        pos += size;
-    }
-    warn.Finish();
+    const auto first_packet = ReadXtfFileHeader(bytes, name, f.header);
+    if (!first_packet) return first_packet.error();
+    f.counts.bytes = static_cast<std::int64_t>(bytes.size());
+    WalkXtfPackets(bytes, *first_packet, name, f);
     return f;
 }
 
