@@ -577,59 +577,68 @@ std::string Fixed(double v, int digits) {
     return buf;
 }
 
-}  // namespace
+// XTF's UTC times in GPS time: + GPS-UTC from `leap_seconds` when >= 0, else the table.
+std::int64_t GpsTimeOfXtf(std::int64_t utime_unix, int leap_seconds) {
+    return leap_seconds >= 0 ? GpsFromUnix(utime_unix, leap_seconds) : GpsFromUnix(utime_unix);
+}
 
-Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
-                                       const std::string& path,
-                                       const XtfAssumptions& as,
-                                       int leap_seconds,
-                                       IngestResult& into) {
-    XtfConversion cv;
-    const XtfFileHeader& fh = file.header;
-    if (!file.positions.empty() && fh.nav_units != kXtfNavUnitsLatLon) {
-        return Error{path + ": XTF navigation in nav units " + std::to_string(fh.nav_units) +
-                     (fh.nav_units == kXtfNavUnitsMetres ? " (projected metres)" : "") +
-                     ": pitmap needs latitude/longitude (nav units 3); the projection is not "
-                     "in the file"};
+// A copy sorted by time (stable: records at one time keep the file's order).
+template <typename Record>
+std::vector<Record> SortedByTime(std::vector<Record> records) {
+    std::stable_sort(records.begin(), records.end(), [](const auto& a, const auto& b) {
+        return a.utime_unix < b.utime_unix;
+    });
+    return records;
+}
+
+// East, north and up velocity at positions[i] from its neighbours (XTF carries none); zero
+// when they are not within 2 s. Only the ingest's session checks and reports look at it.
+Eigen::Vector3d VelocityFromNeighbours(const std::vector<XtfPosition>& positions, std::size_t i) {
+    constexpr double kEarthRadiusM = 6371000.0;
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    const XtfPosition& before = positions[i > 0 ? i - 1 : i];
+    const XtfPosition& after = positions[i + 1 < positions.size() ? i + 1 : i];
+    const double dt = static_cast<double>(after.utime_unix - before.utime_unix) * 1e-6;
+    if (dt > 0 && dt < 2.0) {
+        const double lat = frames::DegToRad(positions[i].y);
+        v.x() = frames::DegToRad(after.x - before.x) * kEarthRadiusM * std::cos(lat) / dt;
+        v.y() = frames::DegToRad(after.y - before.y) * kEarthRadiusM / dt;
+        v.z() = (after.altitude_m - before.altitude_m) / dt;
     }
-    const auto gps = [&](std::int64_t unix_us) {
-        return leap_seconds >= 0 ? GpsFromUnix(unix_us, leap_seconds) : GpsFromUnix(unix_us);
-    };
-    detail::Collector col(into);
-    const detail::SpanMark mark = detail::MarkSpan(into);
+    return v;
+}
 
-    // Navigation: each position with the attitude interpolated at its time.
-    std::vector<XtfAttitude> att = file.attitude;
-    std::stable_sort(att.begin(), att.end(), [](const auto& a, const auto& b) {
-        return a.utime_unix < b.utime_unix;
-    });
-    std::vector<XtfPosition> pos = file.positions;
-    std::stable_sort(pos.begin(), pos.end(), [](const auto& a, const auto& b) {
-        return a.utime_unix < b.utime_unix;
-    });
+// The standard deviations XTF does not carry, as assumed, at one navigation time.
+georef::NavStdDev AssumedStdDev(std::int64_t utime_gps, const XtfAssumptions& as) {
+    georef::NavStdDev sd;
+    sd.utime_gps = utime_gps;
+    sd.north_m = sd.east_m = static_cast<float>(as.position_sigma_horizontal_m);
+    sd.up_m = static_cast<float>(as.position_sigma_vertical_m);
+    sd.roll_deg = sd.pitch_deg = static_cast<float>(as.roll_pitch_sigma_deg);
+    sd.yaw_deg = static_cast<float>(as.heading_sigma_deg);
+    return sd;
+}
+
+// Navigation: each position with the attitude interpolated at its time and the assumed sigmas;
+// a position without attitude within the gap is counted and left out.
+void AddXtfNavigation(const XtfFile& file,
+                      const XtfAssumptions& as,
+                      int leap_seconds,
+                      detail::Collector& col,
+                      XtfConversion& cv) {
+    const std::vector<XtfAttitude> attitude = SortedByTime(file.attitude);
+    const std::vector<XtfPosition> positions = SortedByTime(file.positions);
     const auto max_gap_us = static_cast<std::int64_t>(as.max_attitude_gap_s * 1e6);
     const auto hold_us = static_cast<std::int64_t>(as.attitude_hold_s * 1e6);
-    constexpr double kEarthRadiusM = 6371000.0;
-    for (std::size_t i = 0; i < pos.size(); ++i) {
-        const XtfPosition& p = pos[i];
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+        const XtfPosition& p = positions[i];
         XtfAttitude a;
-        if (!AttitudeAt(att, p.utime_unix, max_gap_us, hold_us, a)) {
+        if (!AttitudeAt(attitude, p.utime_unix, max_gap_us, hold_us, a)) {
             ++cv.nav_without_attitude;
             continue;
         }
-        // Velocity from the neighbouring positions (XTF carries none); only the ingest's
-        // session checks and reports look at it.
-        Eigen::Vector3d v = Eigen::Vector3d::Zero();
-        const std::size_t i0 = i > 0 ? i - 1 : i;
-        const std::size_t i1 = i + 1 < pos.size() ? i + 1 : i;
-        const double dt = static_cast<double>(pos[i1].utime_unix - pos[i0].utime_unix) * 1e-6;
-        if (dt > 0 && dt < 2.0) {
-            const double lat = frames::DegToRad(p.y);
-            v.x() = frames::DegToRad(pos[i1].x - pos[i0].x) * kEarthRadiusM * std::cos(lat) / dt;
-            v.y() = frames::DegToRad(pos[i1].y - pos[i0].y) * kEarthRadiusM / dt;
-            v.z() = (pos[i1].altitude_m - pos[i0].altitude_m) / dt;
-        }
-        const std::int64_t t = gps(p.utime_unix);
+        const Eigen::Vector3d v = VelocityFromNeighbours(positions, i);
+        const std::int64_t t = GpsTimeOfXtf(p.utime_unix, leap_seconds);
         col.AddNav(detail::FromPva(t,
                                    p.y,
                                    p.x,
@@ -642,74 +651,100 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
                                    a.heading_deg,
                                    -1,
                                    -1));
-        georef::NavStdDev sd;
-        sd.utime_gps = t;
-        sd.north_m = sd.east_m = static_cast<float>(as.position_sigma_horizontal_m);
-        sd.up_m = static_cast<float>(as.position_sigma_vertical_m);
-        sd.roll_deg = sd.pitch_deg = static_cast<float>(as.roll_pitch_sigma_deg);
-        sd.yaw_deg = static_cast<float>(as.heading_sigma_deg);
-        col.AddStdDev(sd);
+        col.AddStdDev(AssumedStdDev(t, as));
         ++cv.nav_samples;
     }
+}
 
-    // Pings: R0 counts with the range resolution c/2 * scale, the per-point angles beside.
+// A ping's header: time, number, sound speed, the range resolution c/2 * scale of its R0
+// counts, and for consumers without per-beam angles the fan from its first to its last point.
+georef::PingHeader XtfPingHeader(const XtfBathyPing& p, int leap_seconds) {
+    const std::size_t n = p.twtt_counts.size();
+    georef::PingHeader h;
+    h.utime_gps = GpsTimeOfXtf(p.utime_unix, leap_seconds);
+    h.ping_number = p.ping_number;
+    h.sound_speed_mps = p.sound_speed_mps;
+    h.sound_speed_valid = std::isfinite(p.sound_speed_mps) && p.sound_speed_mps > 0;
+    const double resolution_m = 0.5 * p.sound_speed_mps * p.twtt_scale_s;
+    h.range_resolution_m = std::isfinite(resolution_m) && resolution_m > 0 ? resolution_m : 0.0;
+    h.start_angle_deg = frames::RadToDeg(p.angle_rad.front());
+    h.angle_increment_deg = n > 1 ? frames::RadToDeg(p.angle_rad.back() - p.angle_rad.front()) /
+                                        static_cast<double>(n - 1)
+                                  : 0.0;
+    h.profile_tilt_deg = 0;
+    return h;
+}
+
+// A ping's R0 counts, 0 where its Q0 flags say no detection or (drop_failed_quality) a failed
+// brightness or colinearity test, both counted; and its per-point angles in degrees.
+void XtfRangesAndAngles(const XtfBathyPing& p,
+                        const XtfAssumptions& as,
+                        std::vector<std::int32_t>& counts,
+                        std::vector<float>& angle_deg,
+                        XtfConversion& cv) {
+    constexpr std::uint8_t kDetected = kBth0QualityMagnitude | kBth0QualityPhase;
+    constexpr std::uint8_t kTests = kBth0QualityBrightness | kBth0QualityColinearity;
+    const std::size_t n = p.twtt_counts.size();
+    counts.assign(n, 0);
+    angle_deg.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        angle_deg[i] = static_cast<float>(frames::RadToDeg(p.angle_rad[i]));
+        std::int32_t count = p.twtt_counts[i];
+        const std::uint8_t quality = p.quality.empty() ? 0xF : p.quality[i];
+        if (count == 0 || (quality & kDetected) == 0) {
+            ++cv.points_no_detection;
+            count = 0;
+        } else if (as.drop_failed_quality && (quality & kTests) != kTests) {
+            ++cv.points_failed_quality;
+            count = 0;
+        }
+        counts[i] = count;
+    }
+}
+
+// A ping's I1 values x scale, clamped to 16 bits; false when I1 does not hold one per point.
+bool XtfIntensities(const XtfBathyPing& p, std::vector<std::uint16_t>& intensity) {
+    const std::size_t n = p.twtt_counts.size();
+    if (p.intensity.size() != n) return false;
+    intensity.resize(n);
+    const double scale =
+        std::isfinite(p.intensity_scale) && p.intensity_scale > 0 ? p.intensity_scale : 1.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        intensity[i] =
+            static_cast<std::uint16_t>(std::clamp(std::lround(p.intensity[i] * scale), 0L, 65535L));
+    }
+    return true;
+}
+
+// The pings with their per-point angles; the collector decides which it keeps (cv counts
+// those).
+void AddXtfPings(const XtfFile& file,
+                 const XtfAssumptions& as,
+                 int leap_seconds,
+                 IngestResult& into,
+                 detail::Collector& col,
+                 XtfConversion& cv) {
     std::vector<std::int32_t> counts;
     std::vector<std::uint16_t> intensity;
     std::vector<float> angle_deg;
     for (const XtfBathyPing& p : file.pings) {
         const std::size_t n = p.twtt_counts.size();
-        georef::PingHeader h;
-        h.utime_gps = gps(p.utime_unix);
-        h.ping_number = p.ping_number;
-        h.sound_speed_mps = p.sound_speed_mps;
-        h.sound_speed_valid = std::isfinite(p.sound_speed_mps) && p.sound_speed_mps > 0;
-        const double res = 0.5 * p.sound_speed_mps * p.twtt_scale_s;
-        h.range_resolution_m = std::isfinite(res) && res > 0 ? res : 0.0;
-        // Consumers without per-beam angles see the fan from the first to the last point.
-        h.start_angle_deg = frames::RadToDeg(p.angle_rad.front());
-        h.angle_increment_deg = n > 1 ? frames::RadToDeg(p.angle_rad.back() - p.angle_rad.front()) /
-                                            static_cast<double>(n - 1)
-                                      : 0.0;
-        h.profile_tilt_deg = 0;
+        const georef::PingHeader h = XtfPingHeader(p, leap_seconds);
         if (p.tx_steering_vert_rad != 0) ++cv.pings_steered;
-        counts.assign(n, 0);
-        angle_deg.resize(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            angle_deg[i] = static_cast<float>(frames::RadToDeg(p.angle_rad[i]));
-            std::int32_t c = p.twtt_counts[i];
-            const std::uint8_t q = p.quality.empty() ? 0xF : p.quality[i];
-            constexpr std::uint8_t kTests = kBth0QualityBrightness | kBth0QualityColinearity;
-            if (c == 0 || (q & (kBth0QualityMagnitude | kBth0QualityPhase)) == 0) {
-                ++cv.points_no_detection;
-                c = 0;
-            } else if (as.drop_failed_quality && (q & kTests) != kTests) {
-                ++cv.points_failed_quality;
-                c = 0;
-            }
-            counts[i] = c;
-        }
-        const bool with_intensity = p.intensity.size() == n;
-        if (with_intensity) {
-            intensity.resize(n);
-            const double scale =
-                std::isfinite(p.intensity_scale) && p.intensity_scale > 0 ? p.intensity_scale : 1.0;
-            for (std::size_t i = 0; i < n; ++i) {
-                intensity[i] = static_cast<std::uint16_t>(
-                    std::clamp(std::lround(p.intensity[i] * scale), 0L, 65535L));
-            }
-        }
-        const std::int64_t pings_before = static_cast<std::int64_t>(into.pings.pings.size());
+        XtfRangesAndAngles(p, as, counts, angle_deg, cv);
+        const bool with_intensity = XtfIntensities(p, intensity);
+        const std::size_t pings_before = into.pings.pings.size();
         col.AddPing(
             h, counts.data(), n, with_intensity ? intensity.data() : nullptr, angle_deg.data());
-        if (static_cast<std::int64_t>(into.pings.pings.size()) > pings_before) {
+        if (into.pings.pings.size() > pings_before) {
             ++cv.pings;
             cv.points += static_cast<std::int64_t>(n);
         }
     }
-    detail::RecordSpan(into, path, mark);
+}
 
-    // Counts: packets as events by type; damage as the LCM reader's damage is counted.
-    IngestCounts& c = into.counts;
+// The file's packets as ingest events by type, its damage as the LCM reader's is counted.
+void AddXtfCounts(const XtfFile& file, const XtfConversion& cv, IngestCounts& c) {
     const XtfCounts& xc = file.counts;
     ++c.files;
     c.bytes += xc.bytes;
@@ -722,7 +757,16 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
     c.truncated_events += xc.truncated_packets;
     c.decode_failures += xc.bad_packets;
     c.pings_bad += static_cast<std::int64_t>(file.pings.size()) - cv.pings;
-    into.warnings.insert(into.warnings.end(), file.warnings.begin(), file.warnings.end());
+}
+
+// The decoder's warnings, then the packet types left unread and the positions left out.
+void AddXtfWarnings(const XtfFile& file,
+                    const std::string& path,
+                    const XtfAssumptions& as,
+                    const XtfConversion& cv,
+                    std::vector<std::string>& warnings) {
+    const XtfCounts& xc = file.counts;
+    warnings.insert(warnings.end(), file.warnings.begin(), file.warnings.end());
     if (xc.unknown_packets > 0) {
         std::string types;
         for (const auto& [type, k] : xc.packets_by_type) {
@@ -732,71 +776,119 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
             types +=
                 (types.empty() ? "" : ", ") + std::to_string(type) + " (" + std::to_string(k) + ")";
         }
-        into.warnings.push_back(
-            path + ": " + std::to_string(xc.unknown_packets) +
-            " XTF packets of types this reader does not use, skipped: " + types);
+        warnings.push_back(path + ": " + std::to_string(xc.unknown_packets) +
+                           " XTF packets of types this reader does not use, skipped: " + types);
     }
     if (cv.nav_without_attitude > 0) {
-        into.warnings.push_back(path + ": " + std::to_string(cv.nav_without_attitude) +
-                                " navigation packets without attitude within " +
-                                Fixed(as.max_attitude_gap_s, 1) + " s, left out");
+        warnings.push_back(path + ": " + std::to_string(cv.nav_without_attitude) +
+                           " navigation packets without attitude within " +
+                           Fixed(as.max_attitude_gap_s, 1) + " s, left out");
     }
+}
 
-    // What had to be assumed, said once per ingest (the first XTF file's values).
-    const auto once = [&](const std::string& key, const std::string& text) {
-        for (const auto& a : into.assumed) {
-            if (a.rfind(key, 0) == 0) return;
-        }
-        into.assumed.push_back(key + text);
-    };
+// `text` under `key` unless an assumption under that key is already said.
+void AssumeOnce(std::vector<std::string>& assumed,
+                const std::string& key,
+                const std::string& text) {
+    for (const auto& a : assumed) {
+        if (a.rfind(key, 0) == 0) return;
+    }
+    assumed.push_back(key + text);
+}
+
+// What had to be assumed, said once per ingest (the first XTF file's values).
+void SayXtfAssumptions(const XtfFile& file,
+                       const std::string& path,
+                       const XtfAssumptions& as,
+                       int leap_seconds,
+                       const XtfConversion& cv,
+                       std::vector<std::string>& assumed) {
     const int leap = leap_seconds >= 0 || file.pings.empty()
                          ? leap_seconds
                          : LeapSecondsAtUnix(file.pings.front().utime_unix);
-    once("XTF times: ",
-         "the R2Sonic H0 ping times and the packets' UTC times + GPS-UTC (" + std::to_string(leap) +
-             " s); the ping times taken as GPS-synchronised (no sonar clock search)");
-    once("XTF navigation: ",
-         "RawAltitude of the type-107 packets taken as the ellipsoidal height (XTF does not say "
-         "which datum); heave not applied (the navigation height is used); attitude of the "
-         "type-3 packets (roll + starboard down, pitch + bow up, heading) interpolated at the "
-         "navigation times");
-    once("XTF navigation sigmas: ",
-         "no INS status or standard deviations in XTF: assumed 1 sigma " +
-             Fixed(as.position_sigma_horizontal_m, 2) + " m horizontal, " +
-             Fixed(as.position_sigma_vertical_m, 2) + " m vertical, roll/pitch " +
-             Fixed(as.roll_pitch_sigma_deg, 2) + " deg, heading " + Fixed(as.heading_sigma_deg, 2) +
-             " deg");
+    AssumeOnce(assumed,
+               "XTF times: ",
+               "the R2Sonic H0 ping times and the packets' UTC times + GPS-UTC (" +
+                   std::to_string(leap) +
+                   " s); the ping times taken as GPS-synchronised (no sonar clock search)");
+    AssumeOnce(assumed,
+               "XTF navigation: ",
+               "RawAltitude of the type-107 packets taken as the ellipsoidal height (XTF does not "
+               "say which datum); heave not applied (the navigation height is used); attitude of "
+               "the type-3 packets (roll + starboard down, pitch + bow up, heading) interpolated "
+               "at the navigation times");
+    AssumeOnce(assumed,
+               "XTF navigation sigmas: ",
+               "no INS status or standard deviations in XTF: assumed 1 sigma " +
+                   Fixed(as.position_sigma_horizontal_m, 2) + " m horizontal, " +
+                   Fixed(as.position_sigma_vertical_m, 2) + " m vertical, roll/pitch " +
+                   Fixed(as.roll_pitch_sigma_deg, 2) + " deg, heading " +
+                   Fixed(as.heading_sigma_deg, 2) + " deg");
     if (!file.pings.empty()) {
-        once("XTF sound speed: ",
-             "ranges = two-way travel time x the H0 surface sound speed / 2 of each ping (first " +
-                 Fixed(file.pings.front().sound_speed_mps, 2) +
-                 " m/s); beam angles as the head gives them (A2), straight rays unless a cast "
-                 "is given");
-        once("XTF quality: ",
-             "R2Sonic Q0 points without a detection bit" +
-                 std::string(as.drop_failed_quality
-                                 ? " or failing the brightness or colinearity test"
-                                 : "") +
-                 " taken as no detection (" + std::to_string(cv.points_failed_quality) +
-                 " failed a test in " + path + ")");
-        once("XTF intensities: ",
-             "R2Sonic I1 values x scale (micropascals), as relative intensity");
+        AssumeOnce(assumed,
+                   "XTF sound speed: ",
+                   "ranges = two-way travel time x the H0 surface sound speed / 2 of each ping "
+                   "(first " +
+                       Fixed(file.pings.front().sound_speed_mps, 2) +
+                       " m/s); beam angles as the head gives them (A2), straight rays unless a "
+                       "cast is given");
+        AssumeOnce(assumed,
+                   "XTF quality: ",
+                   "R2Sonic Q0 points without a detection bit" +
+                       std::string(as.drop_failed_quality
+                                       ? " or failing the brightness or colinearity test"
+                                       : "") +
+                       " taken as no detection (" + std::to_string(cv.points_failed_quality) +
+                       " failed a test in " + path + ")");
+        AssumeOnce(assumed,
+                   "XTF intensities: ",
+                   "R2Sonic I1 values x scale (micropascals), as relative intensity");
     }
     if (cv.pings_steered > 0) {
-        once("XTF fan steering: ",
-             std::to_string(cv.pings_steered) +
-                 " pings with a non-zero H0 TxSteeringVert: not applied (fan taken as vertical)");
+        AssumeOnce(assumed,
+                   "XTF fan steering: ",
+                   std::to_string(cv.pings_steered) +
+                       " pings with a non-zero H0 TxSteeringVert: not applied (fan taken as "
+                       "vertical)");
     }
-    const float* o = fh.channel_offset_m;
-    const float* d = fh.channel_offset_deg;
-    if (o[0] != 0 || o[1] != 0 || o[2] != 0 || d[0] != 0 || d[1] != 0 || d[2] != 0) {
-        once("XTF sonar offsets: ",
-             "the file header's bathymetry channel offsets (X " + Fixed(o[0], 3) + ", Y " +
-                 Fixed(o[1], 3) + ", Z " + Fixed(o[2], 3) + " m; yaw " + Fixed(d[0], 2) +
-                 ", pitch " + Fixed(d[1], 2) + ", roll " + Fixed(d[2], 2) +
-                 " deg) are reported, not applied: XTF fixes neither their reference point nor "
-                 "their signs; the vehicle file's lever arm and mount are used");
+    const float* offset_m = file.header.channel_offset_m;
+    const float* offset_deg = file.header.channel_offset_deg;
+    if (offset_m[0] != 0 || offset_m[1] != 0 || offset_m[2] != 0 || offset_deg[0] != 0 ||
+        offset_deg[1] != 0 || offset_deg[2] != 0) {
+        AssumeOnce(assumed,
+                   "XTF sonar offsets: ",
+                   "the file header's bathymetry channel offsets (X " + Fixed(offset_m[0], 3) +
+                       ", Y " + Fixed(offset_m[1], 3) + ", Z " + Fixed(offset_m[2], 3) +
+                       " m; yaw " + Fixed(offset_deg[0], 2) + ", pitch " + Fixed(offset_deg[1], 2) +
+                       ", roll " + Fixed(offset_deg[2], 2) +
+                       " deg) are reported, not applied: XTF fixes neither their reference point "
+                       "nor their signs; the vehicle file's lever arm and mount are used");
     }
+}
+
+}  // namespace
+
+Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
+                                       const std::string& path,
+                                       const XtfAssumptions& as,
+                                       int leap_seconds,
+                                       IngestResult& into) {
+    const XtfFileHeader& fh = file.header;
+    if (!file.positions.empty() && fh.nav_units != kXtfNavUnitsLatLon) {
+        return Error{path + ": XTF navigation in nav units " + std::to_string(fh.nav_units) +
+                     (fh.nav_units == kXtfNavUnitsMetres ? " (projected metres)" : "") +
+                     ": pitmap needs latitude/longitude (nav units 3); the projection is not "
+                     "in the file"};
+    }
+    XtfConversion cv;
+    detail::Collector col(into);
+    const detail::SpanMark mark = detail::MarkSpan(into);
+    AddXtfNavigation(file, as, leap_seconds, col, cv);
+    AddXtfPings(file, as, leap_seconds, into, col, cv);
+    detail::RecordSpan(into, path, mark);
+    AddXtfCounts(file, cv, into.counts);
+    AddXtfWarnings(file, path, as, cv, into.warnings);
+    SayXtfAssumptions(file, path, as, leap_seconds, cv, into.assumed);
     return cv;
 }
 
