@@ -235,13 +235,18 @@ std::string ReadBth0PingHeader(ByteReader h0, XtfBathyPing& p, std::size_t& num_
     return {};
 }
 
-// R0: the scale and one two-way travel time count per point. Returns "" or what is wrong.
-std::string ReadBth0Ranges(ByteReader r0, std::size_t num_points, XtfBathyPing& p) {
-    p.twtt_scale_s = r0.F32Be();
-    p.twtt_counts.resize(num_points);
-    for (auto& count : p.twtt_counts) count = r0.U16Be();
-    if (!r0.ok()) {
-        return "BTH0 R0 section shorter than its " + std::to_string(num_points) + " points";
+// R0 and I1: a scale, then one 16-bit value per point. Returns "" or what is wrong.
+std::string ReadBth0ScaledValues(ByteReader section,
+                                 const char* name,
+                                 std::size_t num_points,
+                                 double& scale,
+                                 std::vector<std::uint16_t>& values) {
+    scale = section.F32Be();
+    values.resize(num_points);
+    for (auto& value : values) value = section.U16Be();
+    if (!section.ok()) {
+        return std::string("BTH0 ") + name + " section shorter than its " +
+               std::to_string(num_points) + " points";
     }
     return {};
 }
@@ -278,17 +283,6 @@ std::string ReadBth0EquiAngles(ByteReader a0, std::size_t num_points, XtfBathyPi
     return {};
 }
 
-// I1: the scale and one intensity per point. Returns "" or what is wrong.
-std::string ReadBth0Intensities(ByteReader i1, std::size_t num_points, XtfBathyPing& p) {
-    p.intensity_scale = i1.F32Be();
-    p.intensity.resize(num_points);
-    for (auto& value : p.intensity) value = i1.U16Be();
-    if (!i1.ok()) {
-        return "BTH0 I1 section shorter than its " + std::to_string(num_points) + " points";
-    }
-    return {};
-}
-
 // Q0: 4 flag bits per point, eight to a big-endian word from its most significant nibble.
 // Returns "" or what is wrong.
 std::string ReadBth0Quality(ByteReader q0, std::size_t num_points, XtfBathyPing& p) {
@@ -313,14 +307,18 @@ std::string DecodeBth0(ByteSpan packet, XtfBathyPing& p) {
     std::string why = FindBth0(packet, bth0);
     if (why.empty()) why = FindBth0Sections(bth0, sections);
     if (why.empty()) why = ReadBth0PingHeader(SectionReader(bth0, sections.h0), p, num_points);
-    if (why.empty()) why = ReadBth0Ranges(SectionReader(bth0, sections.r0), num_points, p);
+    if (why.empty()) {
+        why = ReadBth0ScaledValues(
+            SectionReader(bth0, sections.r0), "R0", num_points, p.twtt_scale_s, p.twtt_counts);
+    }
     if (why.empty()) {
         why = sections.a2.size > 0
                   ? ReadBth0SummedAngles(SectionReader(bth0, sections.a2), num_points, p)
                   : ReadBth0EquiAngles(SectionReader(bth0, sections.a0), num_points, p);
     }
     if (why.empty() && sections.i1.size > 0) {
-        why = ReadBth0Intensities(SectionReader(bth0, sections.i1), num_points, p);
+        why = ReadBth0ScaledValues(
+            SectionReader(bth0, sections.i1), "I1", num_points, p.intensity_scale, p.intensity);
     }
     if (why.empty() && sections.q0.size > 0) {
         why = ReadBth0Quality(SectionReader(bth0, sections.q0), num_points, p);
