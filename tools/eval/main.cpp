@@ -280,8 +280,8 @@ struct TrajectoryPoses {
 
 // RMS position error of the final trajectory and of the initial one at the true trajectory's
 // times.
-Status ScoreAte(const Scoring& s, TrajectoryPoses& poses, json& scores) {
-    const fs::path& P = s.products;
+Status ScoreAte(const Scoring& scoring, TrajectoryPoses& poses, json& scores) {
+    const fs::path& P = scoring.products;
     // Without SLAM (georef only, or `run --no-slam`) the INS-rate trajectory is the final one.
     poses.final_file = fs::exists(P / "trajectory.csv") || !fs::exists(P / "trajectory_ins.csv")
                            ? "trajectory.csv"
@@ -296,7 +296,7 @@ Status ScoreAte(const Scoring& s, TrajectoryPoses& poses, json& scores) {
         const std::vector<eval::ProductPose> product_poses = eval::ProductPoses(*traj);
         (is_final ? poses.after : poses.before) = product_poses;
         const auto score =
-            eval::ScoreTrajectory(product_poses, s.T_truth_product, s.truth.trajectory);
+            eval::ScoreTrajectory(product_poses, scoring.T_truth_product, scoring.truth.trajectory);
         if (score.poses == 0) {
             std::fprintf(
                 stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
@@ -312,13 +312,14 @@ Status ScoreAte(const Scoring& s, TrajectoryPoses& poses, json& scores) {
 }
 
 // P/trajectory_sigma.csv: how often the true error lies within the stated 95 % radius.
-Status ScoreStatedUncertainty(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "trajectory_sigma.csv")) return Ok{};
-    auto stated = eval::ReadTrajectorySigmaCsv((s.products / "trajectory_sigma.csv").string());
+Status ScoreStatedUncertainty(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "trajectory_sigma.csv")) return Ok{};
+    auto stated =
+        eval::ReadTrajectorySigmaCsv((scoring.products / "trajectory_sigma.csv").string());
     if (!stated) return stated.error();
     constexpr double kOutageSigmaM = 0.5;  // slam coarse_search_min_sigma_m's default
-    const eval::UncertaintyScore u =
-        eval::ScoreUncertainty(*stated, s.T_truth_product, s.truth.trajectory, kOutageSigmaM);
+    const eval::UncertaintyScore u = eval::ScoreUncertainty(
+        *stated, scoring.T_truth_product, scoring.truth.trajectory, kOutageSigmaM);
     const auto as_json = [](const eval::ContainmentScore& c) {
         return json{{"poses", c.poses},
                     {"share_within_h95", c.share_within_h95},
@@ -337,14 +338,14 @@ Status ScoreStatedUncertainty(const Scoring& s, json& scores) {
 
 // Both trajectories' RMS error per window of --ate-window seconds; the worst increase is what
 // "SLAM never made a segment worse" is judged by.
-void ScoreAteWindows(const Scoring& s, const TrajectoryPoses& poses, json& scores) {
+void ScoreAteWindows(const Scoring& scoring, const TrajectoryPoses& poses, json& scores) {
     json windows = json::array();
     double worst = -std::numeric_limits<double>::infinity();
     for (const eval::AteWindow& w : eval::ScoreTrajectoryWindows(poses.after,
                                                                  poses.before,
-                                                                 s.T_truth_product,
-                                                                 s.truth.trajectory,
-                                                                 s.options.ate_window_s)) {
+                                                                 scoring.T_truth_product,
+                                                                 scoring.truth.trajectory,
+                                                                 scoring.options.ate_window_s)) {
         windows.push_back({{"t0_s", w.t0_s},
                            {"t1_s", w.t1_s},
                            {"poses", w.poses},
@@ -366,11 +367,11 @@ void ScoreAteWindows(const Scoring& s, const TrajectoryPoses& poses, json& score
 
 // The trajectory family: the ATE of both trajectories, the stated uncertainty, the ATE per
 // window.
-Status ScoreTrajectories(const Scoring& s, json& scores) {
+Status ScoreTrajectories(const Scoring& scoring, json& scores) {
     TrajectoryPoses poses;
-    if (auto scored = ScoreAte(s, poses, scores); !scored) return scored;
-    if (auto scored = ScoreStatedUncertainty(s, scores); !scored) return scored;
-    if (s.options.ate_window_s > 0) ScoreAteWindows(s, poses, scores);
+    if (auto scored = ScoreAte(scoring, poses, scores); !scored) return scored;
+    if (auto scored = ScoreStatedUncertainty(scoring, scores); !scored) return scored;
+    if (scoring.options.ate_window_s > 0) ScoreAteWindows(scoring, poses, scores);
     return Ok{};
 }
 
@@ -378,9 +379,9 @@ Status ScoreTrajectories(const Scoring& s, json& scores) {
 
 // points_rms_m by beam angle, where the points carry their beam number and the truth its fan
 // (truth/scenario.json's sonar start angle and increment).
-void ScorePointsByBeamAngle(const Scoring& s, json& scores) {
-    const formats::ply::Mesh& cloud = s.points.cloud;
-    std::ifstream sin(fs::path(s.options.truth_dir) / "scenario.json");
+void ScorePointsByBeamAngle(const Scoring& scoring, json& scores) {
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
+    std::ifstream sin(fs::path(scoring.options.truth_dir) / "scenario.json");
     const json sc = sin ? json::parse(sin, nullptr, false) : json();
     if (!(cloud.vertex_beam.size() == cloud.vertices.size() && sc.is_object() &&
           sc.contains("sonar") && sc["sonar"].is_object() &&
@@ -399,7 +400,7 @@ void ScorePointsByBeamAngle(const Scoring& s, json& scores) {
                 sel.push_back(cloud.vertices[i]);
         }
         if (sel.empty()) continue;
-        const auto sb = eval::ScorePoints(sel, s.T_truth_product, s.world);
+        const auto sb = eval::ScorePoints(sel, scoring.T_truth_product, scoring.world);
         char key[64];
         std::snprintf(key,
                       sizeof key,
@@ -411,43 +412,47 @@ void ScorePointsByBeamAngle(const Scoring& s, json& scores) {
 }
 
 // P/points.ply's accepted soundings against the true surface.
-Status ScorePointsPly(const Scoring& s, json& scores) {
-    if (!s.points.present) return Ok{};
-    const formats::ply::Mesh& cloud = s.points.cloud;
-    const auto score = eval::ScorePoints(cloud.vertices, s.T_truth_product, s.world);
+Status ScorePointsPly(const Scoring& scoring, json& scores) {
+    if (!scoring.points.present) return Ok{};
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
+    const auto score = eval::ScorePoints(cloud.vertices, scoring.T_truth_product, scoring.world);
     scores["points_rms_m"] = score.rms_m;
     scores["points_p95_m"] = score.p95_m;
     scores["points_bias_m"] = score.bias_m;
     scores["points_scored"] = score.count;
     scores["points_accepted"] = cloud.vertices.size();
-    if (s.points.has_status) scores["points_rejected"] = s.points.rejected;
-    ScorePointsByBeamAngle(s, scores);
+    if (scoring.points.has_status) scores["points_rejected"] = scoring.points.rejected;
+    ScorePointsByBeamAngle(scoring, scores);
     return Ok{};
 }
 
 // ---- echo artifacts ----
 
 // What the truth holds: the beams each kind of artifact replaced, and the good soundings.
-void PutArtifactTruthCounts(const sim::ArtifactTruth& a, json& scores) {
-    scores["artifact_soundings"] = a.artifact_soundings();
+void PutArtifactTruthCounts(const sim::ArtifactTruth& artifacts, json& scores) {
+    scores["artifact_soundings"] = artifacts.artifact_soundings();
     for (int k = 1; k < sim::kNumEchoArtifactKinds; ++k) {
         scores[std::string("artifact_beams_") +
-               sim::EchoArtifactName(static_cast<sim::EchoArtifactKind>(k))] = a.beams_by_kind[k];
+               sim::EchoArtifactName(static_cast<sim::EchoArtifactKind>(k))] =
+            artifacts.beams_by_kind[k];
     }
-    scores["good_soundings"] = a.good_soundings;
+    scores["good_soundings"] = artifacts.good_soundings;
 }
 
 // The artifact and good soundings found among the accepted points (matched by ping time and
 // beam), and the shares not accepted.
-void ScoreArtifactMatches(const Scoring& s, const sim::ArtifactTruth& a, json& scores) {
-    const formats::ply::Mesh& cloud = s.points.cloud;
+void ScoreArtifactMatches(const Scoring& scoring,
+                          const sim::ArtifactTruth& artifacts,
+                          json& scores) {
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
     const auto total = [&](sim::EchoArtifactKind k) {
-        return a.beams_by_kind[static_cast<int>(k)];
+        return artifacts.beams_by_kind[static_cast<int>(k)];
     };
     std::vector<Eigen::Vector3d> pts(cloud.vertices.size());
-    for (std::size_t i = 0; i < pts.size(); ++i) pts[i] = s.T_truth_product * cloud.vertices[i];
-    const auto m =
-        eval::ScoreArtifacts(pts, cloud.vertex_properties[0], cloud.vertex_beam, a, s.world);
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        pts[i] = scoring.T_truth_product * cloud.vertices[i];
+    const auto found = eval::ScoreArtifacts(
+        pts, cloud.vertex_properties[0], cloud.vertex_beam, artifacts, scoring.world);
     std::int64_t artifacts_in = 0;
     for (const auto k : {sim::EchoArtifactKind::kMidWater,
                          sim::EchoArtifactKind::kBubble,
@@ -455,7 +460,7 @@ void ScoreArtifactMatches(const Scoring& s, const sim::ArtifactTruth& a, json& s
                          sim::EchoArtifactKind::kSmile,
                          sim::EchoArtifactKind::kOutlier}) {
         const std::string name = sim::EchoArtifactName(k);
-        const std::int64_t in = m.in_points[static_cast<int>(k)];
+        const std::int64_t in = found.in_points[static_cast<int>(k)];
         if (k != sim::EchoArtifactKind::kOutlier) artifacts_in += in;
         scores["artifact_in_points_" + name] = in;
         if (total(k) > 0) {
@@ -464,58 +469,59 @@ void ScoreArtifactMatches(const Scoring& s, const sim::ArtifactTruth& a, json& s
         }
     }
     scores["artifact_in_points"] = artifacts_in;
-    if (a.artifact_soundings() > 0) {
+    if (artifacts.artifact_soundings() > 0) {
         scores["artifact_rejected_share"] =
-            1.0 - static_cast<double>(artifacts_in) / static_cast<double>(a.artifact_soundings());
+            1.0 -
+            static_cast<double>(artifacts_in) / static_cast<double>(artifacts.artifact_soundings());
     }
-    scores["points_unmatched"] = m.unmatched;
-    scores["good_in_points"] = m.good_in_points;
-    if (a.good_soundings > 0) {
-        scores["good_rejected_share"] =
-            1.0 - static_cast<double>(m.good_in_points) / static_cast<double>(a.good_soundings);
+    scores["points_unmatched"] = found.unmatched;
+    scores["good_in_points"] = found.good_in_points;
+    if (artifacts.good_soundings > 0) {
+        scores["good_rejected_share"] = 1.0 - static_cast<double>(found.good_in_points) /
+                                                  static_cast<double>(artifacts.good_soundings);
     }
     for (int c = 0; c < sim::kNumArtifactSlopeClasses; ++c) {
-        if (a.good_by_slope[c] == 0) continue;
+        if (artifacts.good_by_slope[c] == 0) continue;
         char key[64];
         std::snprintf(key,
                       sizeof key,
                       "good_rejected_share_slope_%.0f_%.0f",
                       sim::kArtifactSlopeEdgesDeg[c],
                       sim::kArtifactSlopeEdgesDeg[c + 1]);
-        scores[key] = 1.0 - static_cast<double>(m.good_in_points_by_slope[c]) /
-                                static_cast<double>(a.good_by_slope[c]);
+        scores[key] = 1.0 - static_cast<double>(found.good_in_points_by_slope[c]) /
+                                static_cast<double>(artifacts.good_by_slope[c]);
     }
-    if (m.good.count > 0) scores["points_rms_m_good"] = m.good.rms_m;
+    if (found.good.count > 0) scores["points_rms_m_good"] = found.good.rms_m;
 }
 
 // With truth/artifacts.*: the echo artifacts pitmap-sim put in, and how many points.ply kept.
-Status ScoreArtifactsInPoints(const Scoring& s, json& scores) {
-    if (!s.points.present || !s.truth.artifacts) return Ok{};
-    PutArtifactTruthCounts(*s.truth.artifacts, scores);
-    if (!s.points.has_times ||
-        s.points.cloud.vertex_beam.size() != s.points.cloud.vertices.size()) {
+Status ScoreArtifactsInPoints(const Scoring& scoring, json& scores) {
+    if (!scoring.points.present || !scoring.truth.artifacts) return Ok{};
+    PutArtifactTruthCounts(*scoring.truth.artifacts, scores);
+    if (!scoring.points.has_times ||
+        scoring.points.cloud.vertex_beam.size() != scoring.points.cloud.vertices.size()) {
         std::fprintf(stderr,
                      "pitmap-eval: %s/points.ply has no gps_time_s or beam: the artifact "
                      "soundings are not scored\n",
-                     s.options.products_dir.c_str());
+                     scoring.options.products_dir.c_str());
         return Ok{};
     }
-    ScoreArtifactMatches(s, *s.truth.artifacts, scores);
+    ScoreArtifactMatches(scoring, *scoring.truth.artifacts, scores);
     return Ok{};
 }
 
 // ---- boresight ----
 
-Status ScoreBoresightJson(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "boresight.json")) return Ok{};
-    std::ifstream in(s.products / "boresight.json");
+Status ScoreBoresightJson(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "boresight.json")) return Ok{};
+    std::ifstream in(scoring.products / "boresight.json");
     const json b = json::parse(in, nullptr, false);
     if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") ||
         !b.contains("yaw_deg")) {
-        return Error{s.options.products_dir +
+        return Error{scoring.options.products_dir +
                      "/boresight.json: needs roll_deg, pitch_deg, yaw_deg"};
     }
-    const sim::TruthBoresight& truth = s.truth.boresight;
+    const sim::TruthBoresight& truth = scoring.truth.boresight;
     scores["boresight_error_deg"] = eval::BoresightErrorDeg(b["roll_deg"].get<double>(),
                                                             b["pitch_deg"].get<double>(),
                                                             b["yaw_deg"].get<double>(),
@@ -584,15 +590,15 @@ void ScoreMeshCompletenessByClass(const sim::Truth& truth,
 
 // Error on the part of the surface both meshes hold (--mesh-common-with): a mesh that keeps
 // only what was seen often is not more accurate for having dropped the rest.
-Status ScoreMeshOnCommonSurface(const Scoring& s,
+Status ScoreMeshOnCommonSurface(const Scoring& scoring,
                                 const std::vector<Eigen::Vector3d>& samples,
                                 json& scores) {
-    const fs::path Q(s.options.common_with);
+    const fs::path Q(scoring.options.common_with);
     auto other = formats::ply::ReadMesh((Q / "mesh.ply").string());
     if (!other) return other.error();
     const auto other_origin = ProductOrigin(Q, other->comments);
-    const Pose T_truth_other =
-        eval::ProductToTruthFrame(other_origin ? *other_origin : s.truth.origin, s.truth.origin);
+    const Pose T_truth_other = eval::ProductToTruthFrame(
+        other_origin ? *other_origin : scoring.truth.origin, scoring.truth.origin);
     std::vector<Eigen::Vector3d> theirs = MeshSamples(*other);
     for (auto& p : theirs) p = T_truth_other * p;
     std::vector<Eigen::Vector3d> common = eval::SamplesInSharedCells(samples, theirs, 0.2);
@@ -601,37 +607,38 @@ Status ScoreMeshOnCommonSurface(const Scoring& s,
                         : static_cast<double>(common.size()) / static_cast<double>(samples.size());
     std::vector<double> d;
     d.reserve(common.size());
-    for (const auto& p : common) d.push_back(s.world.SignedDistance(p));
+    for (const auto& p : common) d.push_back(scoring.world.SignedDistance(p));
     if (!d.empty()) {
         const auto sc = eval::SummariseDistances(std::move(d));
         scores["mesh_mean_abs_m_common"] = sc.mean_abs_m;
         scores["mesh_bias_m_common"] = sc.bias_m;
     }
-    ScoreBySlope(s.world, common, "mesh_common_", scores);
+    ScoreBySlope(scoring.world, common, "mesh_common_", scores);
     return Ok{};
 }
 
 // P/mesh.ply's vertices and triangle centroids against the true surface.
-Status ScoreMeshPly(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "mesh.ply")) return Ok{};
-    auto mesh = formats::ply::ReadMesh((s.products / "mesh.ply").string());
+Status ScoreMeshPly(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "mesh.ply")) return Ok{};
+    auto mesh = formats::ply::ReadMesh((scoring.products / "mesh.ply").string());
     if (!mesh) return mesh.error();
     std::vector<Eigen::Vector3d> samples = MeshSamples(*mesh);
-    const auto score = eval::ScorePoints(samples, s.T_truth_product, s.world);
-    for (auto& p : samples) p = s.T_truth_product * p;
-    if (auto c = eval::MeshCompleteness(samples, s.truth)) scores["mesh_completeness"] = *c;
+    const auto score = eval::ScorePoints(samples, scoring.T_truth_product, scoring.world);
+    for (auto& p : samples) p = scoring.T_truth_product * p;
+    if (auto c = eval::MeshCompleteness(samples, scoring.truth)) scores["mesh_completeness"] = *c;
     scores["mesh_mean_abs_m"] = score.mean_abs_m;
     scores["mesh_rms_m"] = score.rms_m;
     scores["mesh_p95_m"] = score.p95_m;
     scores["mesh_bias_m"] = score.bias_m;
     // Issue 35's damage figure: the share of the mesh samples more than 1 m off.
     std::size_t far = 0;
-    for (const auto& p : samples) far += std::abs(s.world.SignedDistance(p)) > 1.0;
+    for (const auto& p : samples) far += std::abs(scoring.world.SignedDistance(p)) > 1.0;
     scores["mesh_share_beyond_1m"] =
         samples.empty() ? 0.0 : static_cast<double>(far) / static_cast<double>(samples.size());
-    ScoreBySlope(s.world, samples, "mesh_", scores);
-    ScoreMeshCompletenessByClass(s.truth, samples, scores);
-    if (!s.options.common_with.empty()) return ScoreMeshOnCommonSurface(s, samples, scores);
+    ScoreBySlope(scoring.world, samples, "mesh_", scores);
+    ScoreMeshCompletenessByClass(scoring.truth, samples, scores);
+    if (!scoring.options.common_with.empty())
+        return ScoreMeshOnCommonSurface(scoring, samples, scores);
     return Ok{};
 }
 
@@ -655,18 +662,18 @@ UtmCoordinate GridNodeUtm(const proc::io::GridRaster& g, int epsg, int i, int j,
 
 // P/dem.tif's nodes (band 1, heights put back on the ellipsoid with summary.json's datum
 // height) against the true terrain; unfilled nodes count towards the fill score.
-Status ScoreDemTif(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "dem.tif")) return Ok{};
-    auto dem = proc::io::ReadGrid((s.products / "dem.tif").string());
+Status ScoreDemTif(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "dem.tif")) return Ok{};
+    auto dem = proc::io::ReadGrid((scoring.products / "dem.tif").string());
     if (!dem) return dem.error();
     const int epsg = dem->horizontal_epsg;
     if (!IsWgs84Utm(epsg) || dem->grid.layers.empty()) {
-        return Error{s.options.products_dir + "/dem.tif: not a WGS 84 / UTM grid (EPSG " +
+        return Error{scoring.options.products_dir + "/dem.tif: not a WGS 84 / UTM grid (EPSG " +
                      std::to_string(epsg) + ")"};
     }
     const proc::io::GridRaster& g = dem->grid;
-    const double datum_height_m = DatumHeight(s.products);
-    const LocalTangentFrame tf(s.truth.origin);
+    const double datum_height_m = DatumHeight(scoring.products);
+    const LocalTangentFrame tf(scoring.truth.origin);
     std::vector<Eigen::Vector3d> nodes;
     nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
     for (int j = 0; j < g.ny; ++j) {
@@ -680,7 +687,7 @@ Status ScoreDemTif(const Scoring& s, json& scores) {
             nodes.push_back(p);
         }
     }
-    const auto score = eval::ScoreDem(nodes, s.truth);
+    const auto score = eval::ScoreDem(nodes, scoring.truth);
     scores["dem_mean_abs_m"] = score.all.mean_abs_m;
     scores["dem_rms_m"] = score.all.rms_m;
     scores["dem_p95_m"] = score.all.p95_m;
@@ -694,25 +701,25 @@ Status ScoreDemTif(const Scoring& s, json& scores) {
 
 // One mosaic band against truth/backscatter.f32: keys mosaic_* for "backscatter",
 // mosaic_uncorrected_* for "uncorrected".
-void ScoreMosaicLayer(const Scoring& s,
+void ScoreMosaicLayer(const Scoring& scoring,
                       const proc::io::GridRaster& g,
                       int epsg,
                       const proc::io::GridLayer& layer,
                       json& scores) {
-    const LocalTangentFrame tf(s.truth.origin);
+    const LocalTangentFrame tf(scoring.truth.origin);
     std::vector<Eigen::Vector3d> nodes;
     for (int j = 0; j < g.ny; ++j) {
         for (int i = 0; i < g.nx; ++i) {
             const float v = layer.values[static_cast<std::size_t>(j) * g.nx + i];
             if (!std::isfinite(v)) continue;
-            auto geo = GeodeticFromUtm(GridNodeUtm(g, epsg, i, j, s.truth.origin.height_m));
+            auto geo = GeodeticFromUtm(GridNodeUtm(g, epsg, i, j, scoring.truth.origin.height_m));
             if (!geo) continue;
             Eigen::Vector3d p = tf.ToEnu(*geo);
             p.z() = v;
             nodes.push_back(p);
         }
     }
-    const auto sc = eval::ScoreMosaic(nodes, g.resolution_m, s.truth);
+    const auto sc = eval::ScoreMosaic(nodes, g.resolution_m, scoring.truth);
     if (!sc) return;
     const std::string k = layer.name == "backscatter" ? "mosaic_" : "mosaic_uncorrected_";
     scores[k + "nodes"] = sc->nodes;
@@ -730,18 +737,19 @@ void ScoreMosaicLayer(const Scoring& s,
 }
 
 // P/mosaic.tif's bands "backscatter" and "uncorrected" against the true backscatter.
-Status ScoreMosaicTif(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "mosaic.tif") || s.truth.backscatter_db.empty()) return Ok{};
-    auto mosaic = proc::io::ReadGrid((s.products / "mosaic.tif").string());
+Status ScoreMosaicTif(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "mosaic.tif") || scoring.truth.backscatter_db.empty())
+        return Ok{};
+    auto mosaic = proc::io::ReadGrid((scoring.products / "mosaic.tif").string());
     if (!mosaic) return mosaic.error();
     const int epsg = mosaic->horizontal_epsg;
     if (!IsWgs84Utm(epsg)) {
-        return Error{s.options.products_dir + "/mosaic.tif: not a WGS 84 / UTM grid (EPSG " +
+        return Error{scoring.options.products_dir + "/mosaic.tif: not a WGS 84 / UTM grid (EPSG " +
                      std::to_string(epsg) + ")"};
     }
     for (const auto& layer : mosaic->grid.layers) {
         if (layer.name != "backscatter" && layer.name != "uncorrected") continue;
-        ScoreMosaicLayer(s, mosaic->grid, epsg, layer, scores);
+        ScoreMosaicLayer(scoring, mosaic->grid, epsg, layer, scores);
     }
     return Ok{};
 }
@@ -752,20 +760,20 @@ Status ScoreMosaicTif(const Scoring& s, json& scores) {
 
 // P/soundings_tpu.ply: how often the true error lies within each sounding's 95 % TVU and THU,
 // overall and by beam angle.
-Status ScoreSoundingsTpuPly(const Scoring& s, json& scores) {
-    if (!fs::exists(s.products / "soundings_tpu.ply")) return Ok{};
-    auto ply = formats::ply::ReadMesh((s.products / "soundings_tpu.ply").string(),
+Status ScoreSoundingsTpuPly(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "soundings_tpu.ply")) return Ok{};
+    auto ply = formats::ply::ReadMesh((scoring.products / "soundings_tpu.ply").string(),
                                       {"gps_time_s", "angle_deg", "thu_95_m", "tvu_95_m"});
     if (!ply) return ply.error();
     std::vector<eval::TpuSounding> snd(ply->vertices.size());
     for (std::size_t i = 0; i < snd.size(); ++i) {
-        snd[i].position = s.T_truth_product * ply->vertices[i];
+        snd[i].position = scoring.T_truth_product * ply->vertices[i];
         snd[i].gps_time_s = ply->vertex_properties[0][i];
         snd[i].angle_deg = ply->vertex_properties[1][i];
         snd[i].thu_95_m = ply->vertex_properties[2][i];
         snd[i].tvu_95_m = ply->vertex_properties[3][i];
     }
-    const auto score = eval::ScoreTpu(snd, s.truth, s.world);
+    const auto score = eval::ScoreTpu(snd, scoring.truth, scoring.world);
     if (score.all.count == 0) return Ok{};
     scores["tpu_within_tvu"] = score.all.within_tvu;
     scores["tpu_within_thu"] = score.all.within_thu;
