@@ -111,19 +111,19 @@ struct Pass {
     std::int64_t raw_event_failures = 0;  // raw_bytes_t events that did not decode
 };
 
-Status ReadLogs(const std::vector<std::string>& paths,
-                const IngestConfig& config,
-                const ReadLogsOptions& options,
-                IngestResult& r,
-                Pass& seen) {
-    const bool want_decoded = options.decoded;
-    const bool want_raw_nav = options.raw_nav;
-    const bool want_raw_sonar = options.raw_sonar;
-    const ProgressCallback& progress = options.progress;
-    std::uint64_t bytes_done = 0;
-    Collector col(r);
-    const std::string nav_id = Upper(config.nav_channel_id);
-    const std::string sonar_id = Upper(config.sonar_channel_id);
+// What a pass carries from event to event: the collector, the id filters, the raw streams
+// (framers and clock models per raw channel) and the decode buffers, reused so that an event
+// allocates only what its message needs.
+struct LogReadState {
+    LogReadState(IngestResult& r, const IngestConfig& ingest_config)
+        : col(r),
+          config(ingest_config),
+          nav_id(Upper(ingest_config.nav_channel_id)),
+          sonar_id(Upper(ingest_config.sonar_channel_id)) {}
+    Collector col;
+    const IngestConfig& config;
+    const std::string nav_id;
+    const std::string sonar_id;
     std::map<std::string, RawStream, std::less<>> raw_streams;
     pitmap::ins_pva_t pva;
     pitmap::ins_stddev_t sd;
@@ -132,153 +132,232 @@ Status ReadLogs(const std::vector<std::string>& paths,
     std::vector<std::uint16_t> intensity_buf;  // a ping's intensities, clamped to 0..65535
     pitmap::raw_bytes_t raw;
     dt::Ping83P ping83;
-    for (const std::string& path : paths) {
-        auto reader = lcmlog::LcmLogReader::Open(path);
-        if (!reader) return reader.error();
-        const detail::SpanMark mark = detail::MarkSpan(r);
-        lcmlog::LcmEvent ev;
-        std::uint64_t last_pos = 0;
-        std::int64_t n = 0;
-        while ((*reader)->Next(ev)) {
-            IngestCounts& c = r.counts;
-            if (options.count_events) {
-                ++c.events;
-                auto it = c.events_by_channel.find(std::string(ev.channel));
-                if (it == c.events_by_channel.end()) {
-                    c.events_by_channel.emplace(std::string(ev.channel), 1);
-                } else {
-                    ++it->second;
-                }
-            }
-            // Every decode is bounds-checked against the event's own bytes first: a corrupted
-            // count is a counted decode failure, never an exception or a huge allocation.
-            const std::size_t len = ev.data.size();
-            const void* buf = ev.data.data();
-            const std::string_view ch = ev.channel;
-            if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsPva, nav_id)) {
-                seen.decoded_nav = true;
-                if (!want_decoded) continue;
-                if (!lcmlog::DecodeChecked(pva, buf, len)) {
-                    ++c.decode_failures;
-                    continue;
-                }
-                col.AddNav(NavSampleOf(pva));
-                if (pva.has_stddev) {
-                    col.AddStdDev(NavStdDevOf(pva));
-                }
-            } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsStdDev, nav_id)) {
-                if (!want_decoded) continue;
-                if (!lcmlog::DecodeChecked(sd, buf, len)) {
-                    ++c.decode_failures;
-                    continue;
-                }
-                col.AddStdDev(NavStdDevOf(sd));
-            } else if (StartsWith(ch, lcmlog::kChannelGpsTime)) {
-                if (!want_decoded) continue;
-                if (!lcmlog::DecodeChecked(gt, buf, len)) {
-                    ++c.decode_failures;
-                    continue;
-                }
-                col.AddLeapSeconds(gt.utc_offset_s, gt.utc_status);
-            } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelMultibeamPing, sonar_id)) {
-                seen.decoded_sonar = true;
-                if (!want_decoded) continue;
-                if (!lcmlog::DecodeChecked(mb, buf, len)) {
-                    ++c.decode_failures;
-                    continue;
-                }
-                PingHeader h = PingHeaderOf(mb);
-                // Intensities only when the ping says so and they match the beams (a log
-                // that disagrees with itself keeps its ranges, without intensities).
-                const bool with = mb.intensity_included != 0 && mb.num_intensities > 0 &&
-                                  mb.intensities.size() == mb.range_counts.size();
-                intensity_buf.resize(with ? mb.intensities.size() : 0);
-                for (std::size_t i = 0; i < intensity_buf.size(); ++i) {
-                    intensity_buf[i] = static_cast<std::uint16_t>(
-                        std::clamp<std::int32_t>(mb.intensities[i], 0, 65535));
-                }
-                col.AddPing(h,
-                            mb.range_counts.data(),
-                            mb.range_counts.size(),
-                            with ? intensity_buf.data() : nullptr);
-            } else if (StartsWith(ch, lcmlog::kChannelRaw)) {
-                const std::string_view raw_id = ch.substr(lcmlog::kChannelRaw.size());
-                const bool nav_ok = nav_id.empty() || raw_id == nav_id;
-                const bool sonar_ok = sonar_id.empty() || raw_id == sonar_id;
-                if (!want_raw_nav && !want_raw_sonar && seen.raw_nav && seen.raw_sonar) continue;
-                if (!lcmlog::DecodeChecked(raw, buf, len)) {
-                    ++c.decode_failures;
-                    ++seen.raw_event_failures;
-                    continue;
-                }
-                const bool is_nav = raw.protocol == lcmlog::kProtocolNovatel && nav_ok;
-                const bool is_sonar = raw.protocol == lcmlog::kProtocolDeltat83P && sonar_ok;
-                seen.raw_nav = seen.raw_nav || is_nav;
-                seen.raw_sonar = seen.raw_sonar || is_sonar;
-                if (!((is_nav && want_raw_nav) || (is_sonar && want_raw_sonar))) continue;
-                ++c.raw_chunks_decoded;
-                RawStream& s = raw_streams[std::string(ch)];
-                const ByteSpan bytes(raw.data.data(), raw.data.size());
-                if (is_nav) {
-                    if (!s.novatel) s.novatel = std::make_unique<nv::Framer>();
-                    s.novatel->Push(bytes);
-                    DrainNovatel(s, col, c);
-                } else {
-                    if (!s.stamper)
-                        s.stamper = std::make_unique<clock::PingStamper>(config.sonar_clock);
-                    s.last_chunk = {.utime_host = raw.utime,
-                                    .utime_gps = raw.utime_gps,
-                                    .utime_kernel = raw.utime_kernel};
-                    if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
-                        auto d = dt::DecodeDatagramInto(bytes, s.float_order, ping83);
-                        if (std::holds_alternative<dt::DecodeError>(d)) {
-                            ++c.pings_bad;
-                        } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
-                            AddRawPing(s, col, ping83);
-                        }
-                    } else {
-                        if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
-                        s.deltat->Push(bytes);
-                        DrainDeltat(s, col, c, ping83);
-                    }
-                }
-            }
-            if (progress && (++n & 0x3FFF) == 0) {
-                const std::uint64_t p = (*reader)->position();
-                bytes_done += p - last_pos;
-                last_pos = p;
-                progress(options.total_bytes ? static_cast<double>(bytes_done) / options.total_bytes
-                                             : 0.0);
-            }
-        }
-        bytes_done += (*reader)->size() - last_pos;
-        detail::RecordSpan(r, path, mark);
-        if (options.count_events) {
-            const lcmlog::LcmLogCounts& lc = (*reader)->counts();
-            ++r.counts.files;
-            r.counts.bytes += static_cast<std::int64_t>((*reader)->size());
-            r.counts.corrupt_events += lc.corrupt_headers;
-            r.counts.resync_bytes += lc.resync_bytes;
-            r.counts.truncated_events += lc.truncated_events;
-            r.counts.length_repairs += lc.length_repairs;
-        }
+};
+
+// The fraction of the logs' bytes read, reported every 16384 events.
+class LogProgress {
+public:
+    LogProgress(const ProgressCallback& callback, std::uint64_t total_bytes)
+        : callback_(callback), total_bytes_(total_bytes) {}
+    void StartFile() {
+        last_position_ = 0;
+        events_ = 0;
     }
-    for (auto& [name, s] : raw_streams) {
-        // End of the logs: a candidate still waiting gives up its sync only; what it held is
-        // framed again (frames behind a false header are not lost).
+    void AfterEvent(const lcmlog::LcmLogReader& reader) {
+        if (!callback_ || (++events_ & 0x3FFF) != 0) return;
+        bytes_done_ += reader.position() - last_position_;
+        last_position_ = reader.position();
+        callback_(total_bytes_ ? static_cast<double>(bytes_done_) / total_bytes_ : 0.0);
+    }
+    void EndFile(const lcmlog::LcmLogReader& reader) {
+        bytes_done_ += reader.size() - last_position_;
+    }
+
+private:
+    const ProgressCallback& callback_;
+    const std::uint64_t total_bytes_;
+    std::uint64_t bytes_done_ = 0;
+    std::uint64_t last_position_ = 0;
+    std::int64_t events_ = 0;
+};
+
+void CountEvent(std::string_view channel, IngestCounts& c) {
+    ++c.events;
+    auto it = c.events_by_channel.find(std::string(channel));
+    if (it == c.events_by_channel.end()) {
+        c.events_by_channel.emplace(std::string(channel), 1);
+    } else {
+        ++it->second;
+    }
+}
+
+// Each decode below is bounds-checked against the event's own bytes first: a corrupted count is
+// a counted decode failure, never an exception or a huge allocation.
+
+void AddInsPva(const lcmlog::LcmEvent& ev, LogReadState& st, IngestCounts& c) {
+    if (!lcmlog::DecodeChecked(st.pva, ev.data.data(), ev.data.size())) {
+        ++c.decode_failures;
+        return;
+    }
+    st.col.AddNav(NavSampleOf(st.pva));
+    if (st.pva.has_stddev) st.col.AddStdDev(NavStdDevOf(st.pva));
+}
+
+void AddInsStdDev(const lcmlog::LcmEvent& ev, LogReadState& st, IngestCounts& c) {
+    if (!lcmlog::DecodeChecked(st.sd, ev.data.data(), ev.data.size())) {
+        ++c.decode_failures;
+        return;
+    }
+    st.col.AddStdDev(NavStdDevOf(st.sd));
+}
+
+void AddGpsTime(const lcmlog::LcmEvent& ev, LogReadState& st, IngestCounts& c) {
+    if (!lcmlog::DecodeChecked(st.gt, ev.data.data(), ev.data.size())) {
+        ++c.decode_failures;
+        return;
+    }
+    st.col.AddLeapSeconds(st.gt.utc_offset_s, st.gt.utc_status);
+}
+
+void AddMultibeamPing(const lcmlog::LcmEvent& ev, LogReadState& st, IngestCounts& c) {
+    const pitmap::multibeam_ping_t& mb = st.mb;
+    if (!lcmlog::DecodeChecked(st.mb, ev.data.data(), ev.data.size())) {
+        ++c.decode_failures;
+        return;
+    }
+    PingHeader h = PingHeaderOf(mb);
+    // Intensities only when the ping says so and they match the beams (a log that disagrees
+    // with itself keeps its ranges, without intensities).
+    const bool with = mb.intensity_included != 0 && mb.num_intensities > 0 &&
+                      mb.intensities.size() == mb.range_counts.size();
+    st.intensity_buf.resize(with ? mb.intensities.size() : 0);
+    for (std::size_t i = 0; i < st.intensity_buf.size(); ++i) {
+        st.intensity_buf[i] =
+            static_cast<std::uint16_t>(std::clamp<std::int32_t>(mb.intensities[i], 0, 65535));
+    }
+    st.col.AddPing(h,
+                   mb.range_counts.data(),
+                   mb.range_counts.size(),
+                   with ? st.intensity_buf.data() : nullptr);
+}
+
+// A NovAtel chunk into its stream's framer, the frames it completes into the collector.
+void AddNovatelChunk(ByteSpan bytes, RawStream& s, Collector& col, IngestCounts& c) {
+    if (!s.novatel) s.novatel = std::make_unique<nv::Framer>();
+    s.novatel->Push(bytes);
+    DrainNovatel(s, col, c);
+}
+
+// An 83P chunk, stamped as the daemon stamped it: a UDP datagram is one record, a serial
+// stream is framed across chunks.
+void AddSonarChunk(ByteSpan bytes, RawStream& s, LogReadState& st, IngestCounts& c) {
+    const pitmap::raw_bytes_t& raw = st.raw;
+    if (!s.stamper) s.stamper = std::make_unique<clock::PingStamper>(st.config.sonar_clock);
+    s.last_chunk = {
+        .utime_host = raw.utime, .utime_gps = raw.utime_gps, .utime_kernel = raw.utime_kernel};
+    if (raw.transport == pitmap::raw_bytes_t::TRANSPORT_UDP) {
+        auto d = dt::DecodeDatagramInto(bytes, s.float_order, st.ping83);
+        if (std::holds_alternative<dt::DecodeError>(d)) {
+            ++c.pings_bad;
+        } else if (std::get<dt::RecordKind>(d) == dt::RecordKind::kPing) {
+            AddRawPing(s, st.col, st.ping83);
+        }
+    } else {
+        if (!s.deltat) s.deltat = std::make_unique<dt::StreamFramer>();
+        s.deltat->Push(bytes);
+        DrainDeltat(s, st.col, c, st.ping83);
+    }
+}
+
+// RAW_<id>: which source the chunk is from is noted in `seen`; it is re-decoded only when the
+// options want that source. Once both sources are seen and neither is wanted, raw events are
+// not even decoded.
+void AddRawEvent(const lcmlog::LcmEvent& ev,
+                 const ReadLogsOptions& options,
+                 LogReadState& st,
+                 Pass& seen,
+                 IngestCounts& c) {
+    const std::string_view ch = ev.channel;
+    const std::string_view raw_id = ch.substr(lcmlog::kChannelRaw.size());
+    const bool nav_ok = st.nav_id.empty() || raw_id == st.nav_id;
+    const bool sonar_ok = st.sonar_id.empty() || raw_id == st.sonar_id;
+    if (!options.raw_nav && !options.raw_sonar && seen.raw_nav && seen.raw_sonar) return;
+    if (!lcmlog::DecodeChecked(st.raw, ev.data.data(), ev.data.size())) {
+        ++c.decode_failures;
+        ++seen.raw_event_failures;
+        return;
+    }
+    const bool is_nav = st.raw.protocol == lcmlog::kProtocolNovatel && nav_ok;
+    const bool is_sonar = st.raw.protocol == lcmlog::kProtocolDeltat83P && sonar_ok;
+    seen.raw_nav = seen.raw_nav || is_nav;
+    seen.raw_sonar = seen.raw_sonar || is_sonar;
+    if (!((is_nav && options.raw_nav) || (is_sonar && options.raw_sonar))) return;
+    ++c.raw_chunks_decoded;
+    RawStream& s = st.raw_streams[std::string(ch)];
+    const ByteSpan bytes(st.raw.data.data(), st.raw.data.size());
+    if (is_nav) {
+        AddNovatelChunk(bytes, s, st.col, c);
+    } else {
+        AddSonarChunk(bytes, s, st, c);
+    }
+}
+
+// One event by its channel: the decoded channels when the options want them, the raw ones
+// through AddRawEvent; `seen` notes which kinds the logs hold either way.
+void ReadLogEvent(const lcmlog::LcmEvent& ev,
+                  const ReadLogsOptions& options,
+                  LogReadState& st,
+                  Pass& seen,
+                  IngestCounts& c) {
+    const std::string_view ch = ev.channel;
+    if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsPva, st.nav_id)) {
+        seen.decoded_nav = true;
+        if (options.decoded) AddInsPva(ev, st, c);
+    } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelInsStdDev, st.nav_id)) {
+        if (options.decoded) AddInsStdDev(ev, st, c);
+    } else if (StartsWith(ch, lcmlog::kChannelGpsTime)) {
+        if (options.decoded) AddGpsTime(ev, st, c);
+    } else if (lcmlog::ChannelMatches(ch, lcmlog::kChannelMultibeamPing, st.sonar_id)) {
+        seen.decoded_sonar = true;
+        if (options.decoded) AddMultibeamPing(ev, st, c);
+    } else if (StartsWith(ch, lcmlog::kChannelRaw)) {
+        AddRawEvent(ev, options, st, seen, c);
+    }
+}
+
+// One log file's bytes and the damage its reader skipped or repaired.
+void AddLogFileCounts(const lcmlog::LcmLogReader& reader, IngestCounts& c) {
+    const lcmlog::LcmLogCounts& lc = reader.counts();
+    ++c.files;
+    c.bytes += static_cast<std::int64_t>(reader.size());
+    c.corrupt_events += lc.corrupt_headers;
+    c.resync_bytes += lc.resync_bytes;
+    c.truncated_events += lc.truncated_events;
+    c.length_repairs += lc.length_repairs;
+}
+
+// End of the logs: a candidate still waiting gives up its sync only; what it held is framed
+// again (frames behind a false header are not lost).
+void FlushRawStreams(LogReadState& st, IngestCounts& c) {
+    for (auto& [name, s] : st.raw_streams) {
         if (s.novatel) {
             while (auto sk = s.novatel->Flush()) {
-                r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-                DrainNovatel(s, col, r.counts);
+                c.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                DrainNovatel(s, st.col, c);
             }
         }
         if (s.deltat) {
             while (auto sk = s.deltat->Flush()) {
-                r.counts.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
-                DrainDeltat(s, col, r.counts, ping83);
+                c.raw_skipped_bytes += static_cast<std::int64_t>(sk->bytes);
+                DrainDeltat(s, st.col, c, st.ping83);
             }
         }
     }
+}
+
+Status ReadLogs(const std::vector<std::string>& paths,
+                const IngestConfig& config,
+                const ReadLogsOptions& options,
+                IngestResult& r,
+                Pass& seen) {
+    LogReadState st(r, config);
+    LogProgress progress(options.progress, options.total_bytes);
+    for (const std::string& path : paths) {
+        auto reader = lcmlog::LcmLogReader::Open(path);
+        if (!reader) return reader.error();
+        const detail::SpanMark mark = detail::MarkSpan(r);
+        progress.StartFile();
+        lcmlog::LcmEvent ev;
+        while ((*reader)->Next(ev)) {
+            if (options.count_events) CountEvent(ev.channel, r.counts);
+            ReadLogEvent(ev, options, st, seen, r.counts);
+            progress.AfterEvent(**reader);
+        }
+        progress.EndFile(**reader);
+        detail::RecordSpan(r, path, mark);
+        if (options.count_events) AddLogFileCounts(**reader, r.counts);
+    }
+    FlushRawStreams(st, r.counts);
     return Ok{};
 }
 

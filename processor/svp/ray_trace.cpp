@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "common/result.hpp"
 
@@ -78,6 +79,129 @@ LegEnds At(const LayeredProfile& prof, double p, double z) {
     return {c, std::sqrt(std::max(0.0, (1.0 - s) * (1.0 + s)))};
 }
 
+// Where the ray is between legs: its depth, the horizontal distance so far and the travel time
+// still to go.
+struct RayPoint {
+    double depth_m = 0;
+    double horizontal_m = 0;
+    double time_left_s = 0;
+};
+
+void SetEnd(RayEnd& out,
+            RayStatus status,
+            double horizontal_m,
+            double depth_m,
+            double time_s,
+            double sin_angle) {
+    out.status = status;
+    out.horizontal_m = horizontal_m;
+    out.depth_m = depth_m;
+    out.time_s = time_s;
+    out.sin_angle = sin_angle;
+}
+
+// The end of the leg from depth z: the next profile depth in the direction of travel, the
+// surface upwards, or none (constant speed to infinity) below the last depth.
+std::optional<double> LegEndDepth(const std::vector<double>& depth_m, double z, bool down) {
+    if (down) {
+        const auto it = std::upper_bound(depth_m.begin(), depth_m.end(), z);
+        if (it == depth_m.end()) return std::nullopt;
+        return *it;
+    }
+    const auto it = std::lower_bound(depth_m.begin(), depth_m.end(), z);
+    double z_end = it == depth_m.begin() ? 0.0 : *(it - 1);
+    if (z_end >= z) z_end = 0.0;
+    return std::max(0.0, z_end);
+}
+
+// Beyond the profile (below its last depth, or above its first on the way up) the speed c is
+// constant: a straight segment for the time left, or to the surface if that comes first.
+void TraceStraight(
+    double p, double c, double k, bool down, double T, const RayPoint& from, RayEnd& out) {
+    const double s = p * c;
+    const double step = from.time_left_s * c;
+    if (!down) {
+        const double reach = from.depth_m / std::max(k, 1e-300);
+        if (step > reach) {
+            SetEnd(out,
+                   RayStatus::kSurfaced,
+                   from.horizontal_m + s * reach,
+                   0,
+                   T - from.time_left_s + reach / c,
+                   s);
+            return;
+        }
+    }
+    SetEnd(out,
+           RayStatus::kOk,
+           from.horizontal_m + s * step,
+           from.depth_m + (down ? 1.0 : -1.0) * k * step,
+           T,
+           s);
+    ++out.layers;
+}
+
+// A leg through one layer from z to z_end: its depth extent d and the speed and cos at its far
+// end. Where p c reaches 1 inside the layer the ray turns there: c = c_a + g (z - z_a) gives
+// d = (1/p - c_a) / g, with c = 1/p and cos = 0 at that end.
+struct LayerLeg {
+    double d = 0;
+    LegEnds far;
+    bool turns = false;
+};
+
+LayerLeg LegThroughLayer(
+    const LayeredProfile& prof, double p, double z, double z_end, const LegEnds& near) {
+    LayerLeg leg;
+    leg.far = At(prof, p, z_end);
+    leg.d = std::abs(z_end - z);
+    if (p * leg.far.c >= 1.0) {
+        leg.turns = true;
+        const double g = (leg.far.c - near.c) / leg.d;
+        leg.d = (1.0 / p - near.c) / g;
+        if (!(leg.d >= 0)) leg.d = 0;
+        leg.far = {1.0 / p, 0.0};
+    }
+    return leg;
+}
+
+// The time runs out inside a leg of extent d_leg: LegTime(d) = time left solved for d in
+// [0, d_leg] by Newton steps (dt/dd = 1 / (c k) at the far end) kept inside a bisection bracket.
+void EndInsideLeg(const LayeredProfile& prof,
+                  double p,
+                  bool down,
+                  const LegEnds& near,
+                  double d_leg,
+                  double T,
+                  const RayPoint& from,
+                  RayEnd& out) {
+    const double z = from.depth_m;
+    const double left = from.time_left_s;
+    const double sgn = down ? 1.0 : -1.0;
+    double lo = 0, hi = d_leg;
+    double d = std::min(d_leg, left * near.c * near.k);
+    for (int it = 0; it < 100 && hi - lo > 1e-10; ++it) {
+        const LegEnds e = At(prof, p, z + sgn * d);
+        const double f = LegTime(d, near.c, e.c, near.k, e.k) - left;
+        if (f > 0) {
+            hi = d;
+        } else {
+            lo = d;
+        }
+        if (std::abs(f) < 1e-13) break;
+        double next = d - f * e.c * e.k;
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        d = next;
+    }
+    const LegEnds e = At(prof, p, z + sgn * d);
+    SetEnd(out,
+           RayStatus::kOk,
+           from.horizontal_m + LegHorizontal(p, d, near.c, e.c, near.k, e.k),
+           z + sgn * d,
+           T,
+           p * e.c);
+}
+
 }  // namespace
 
 RayEnd TraceRay(
@@ -89,7 +213,7 @@ RayEnd TraceRay(
     }
     const double c0 = start_speed > 0 ? start_speed : prof.SpeedAt(z0);
     const double p = std::abs(std::sin(launch)) / c0;
-    const bool down0 = std::cos(launch) > 0;
+    const bool down = std::cos(launch) > 0;
     out.depth_m = z0;
     if (std::abs(std::cos(launch)) < 1e-9 || p * prof.SpeedAt(z0) >= 1.0) {
         out.status = RayStatus::kHorizontal;
@@ -97,107 +221,32 @@ RayEnd TraceRay(
     }
     const std::vector<double>& D = prof.depth_m();
     const std::vector<double>& C = prof.speed_mps();
-    double z = z0, x = 0, left = T;
-    const bool down = down0;
+    RayPoint at{z0, 0.0, T};
     for (int guard = 0; guard < static_cast<int>(D.size()) + 4; ++guard) {
-        const LegEnds a = At(prof, p, z);
-        // The end of this leg: the next profile depth in the direction of travel, the surface
-        // upwards, or nothing (constant speed to infinity) below the last depth.
-        double z_end = 0;
-        bool unbounded = false;
-        if (down) {
-            const auto it = std::upper_bound(D.begin(), D.end(), z);
-            if (it == D.end()) {
-                unbounded = true;
-            } else {
-                z_end = *it;
-            }
-        } else {
-            const auto it = std::lower_bound(D.begin(), D.end(), z);
-            z_end = it == D.begin() ? 0.0 : *(it - 1);
-            if (z_end >= z) z_end = 0.0;
-            z_end = std::max(0.0, z_end);
-        }
-        if (unbounded || (!down && z <= D.front())) {
-            // Constant speed from here on: a straight segment.
-            const double c = unbounded ? C.back() : C.front();
-            const double s = p * c, k = a.k;
-            double step = left * c;
-            if (!down) {
-                const double reach = (z - 0.0) / std::max(k, 1e-300);
-                if (step > reach) {
-                    out.status = RayStatus::kSurfaced;
-                    out.horizontal_m = x + s * reach;
-                    out.depth_m = 0;
-                    out.time_s = T - left + reach / c;
-                    out.sin_angle = s;
-                    return out;
-                }
-            }
-            out.horizontal_m = x + s * step;
-            out.depth_m = z + (down ? 1.0 : -1.0) * k * step;
-            out.time_s = T;
-            out.sin_angle = s;
-            out.status = RayStatus::kOk;
-            ++out.layers;
+        const LegEnds near = At(prof, p, at.depth_m);
+        const std::optional<double> z_end = LegEndDepth(D, at.depth_m, down);
+        if (!z_end || (!down && at.depth_m <= D.front())) {
+            // Below the last depth the last speed holds, above the first the first.
+            TraceStraight(p, down ? C.back() : C.front(), near.k, down, T, at, out);
             return out;
         }
-        LegEnds b = At(prof, p, z_end);
-        bool turns = false;
-        double d_leg = std::abs(z_end - z);
-        if (p * b.c >= 1.0) {
-            // The ray turns inside the layer where p c = 1: c = c_a + g (z - z_a).
-            turns = true;
-            const double g = (b.c - a.c) / d_leg;
-            d_leg = (1.0 / p - a.c) / g;
-            if (!(d_leg >= 0)) d_leg = 0;
-            b = {1.0 / p, 0.0};
-        }
-        const double t_leg = LegTime(d_leg, a.c, b.c, a.k, b.k);
+        const LayerLeg leg = LegThroughLayer(prof, p, at.depth_m, *z_end, near);
+        const double t_leg = LegTime(leg.d, near.c, leg.far.c, near.k, leg.far.k);
         ++out.layers;
-        if (t_leg >= left) {
-            // The time runs out in this leg: solve LegTime(d) = left for d in [0, d_leg].
-            const double sgn = down ? 1.0 : -1.0;
-            double lo = 0, hi = d_leg;
-            double d = std::min(d_leg, left * a.c * a.k);
-            for (int it = 0; it < 100 && hi - lo > 1e-10; ++it) {
-                const LegEnds e = At(prof, p, z + sgn * d);
-                const double f = LegTime(d, a.c, e.c, a.k, e.k) - left;
-                if (f > 0) {
-                    hi = d;
-                } else {
-                    lo = d;
-                }
-                if (std::abs(f) < 1e-13) break;
-                double next = d - f * e.c * e.k;
-                if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-                d = next;
-            }
-            const LegEnds e = At(prof, p, z + sgn * d);
-            out.horizontal_m = x + LegHorizontal(p, d, a.c, e.c, a.k, e.k);
-            out.depth_m = z + sgn * d;
-            out.time_s = T;
-            out.sin_angle = p * e.c;
-            out.status = RayStatus::kOk;
+        if (t_leg >= at.time_left_s) {
+            EndInsideLeg(prof, p, down, near, leg.d, T, at, out);
             return out;
         }
-        x += LegHorizontal(p, d_leg, a.c, b.c, a.k, b.k);
-        left -= t_leg;
-        z = down ? z + d_leg : z - d_leg;
-        if (turns) {
-            out.status = RayStatus::kTurned;
-            out.horizontal_m = x;
-            out.depth_m = z;
-            out.time_s = T - left;
-            out.sin_angle = 1.0;
+        at.horizontal_m += LegHorizontal(p, leg.d, near.c, leg.far.c, near.k, leg.far.k);
+        at.time_left_s -= t_leg;
+        at.depth_m = down ? at.depth_m + leg.d : at.depth_m - leg.d;
+        if (leg.turns) {
+            SetEnd(out, RayStatus::kTurned, at.horizontal_m, at.depth_m, T - at.time_left_s, 1.0);
             return out;
         }
-        if (!down && z <= 0.0) {
-            out.status = RayStatus::kSurfaced;
-            out.horizontal_m = x;
-            out.depth_m = 0;
-            out.time_s = T - left;
-            out.sin_angle = p * b.c;
+        if (!down && at.depth_m <= 0.0) {
+            SetEnd(
+                out, RayStatus::kSurfaced, at.horizontal_m, 0, T - at.time_left_s, p * leg.far.c);
             return out;
         }
     }

@@ -13,12 +13,14 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "common/cli/parse.hpp"
 #include "common/exit_codes.hpp"
 #include "common/formats/ply.hpp"
 #include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
+#include "common/result.hpp"
 #include "tools/eval/scores.hpp"
 #ifdef PITMAP_EVAL_GRID
 #include "processor/io/grid_io.hpp"
@@ -28,6 +30,7 @@
 namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace pitmap;
+namespace codes = pitmap::exit_code;
 
 namespace {
 
@@ -168,539 +171,662 @@ double DatumHeight(const fs::path& products) {
 }
 #endif  // PITMAP_EVAL_GRID
 
-}  // namespace
+// ---- the command line ----
 
-namespace codes = pitmap::exit_code;
+struct EvalOptions {
+    std::string truth_dir;
+    std::string products_dir;
+    std::string json_path;    // empty: no JSON file
+    std::string common_with;  // --mesh-common-with: another products folder
+    double ate_window_s = 0;  // 0: no per-window ATE
+};
 
-int main(int argc, char** argv) try {
+// The command line into `options`; an exit code when the program stops here (help, a usage
+// error, a folder that is not there: both must be there before anything is read or written).
+std::optional<int> ParseOptions(int argc, char** argv, EvalOptions& options) {
     CLI::App app{"pitmap-eval: score survey products against simulator ground truth"};
-    std::string truth_dir, products_dir, json_path;
-    app.add_option("--truth", truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")
+    app.add_option(
+           "--truth", options.truth_dir, "ground truth folder written by pitmap-sim (DIR/truth)")
         ->required();
-    app.add_option("--products", products_dir, "products folder (pitmap ... --out P)")->required();
-    app.add_option("--json", json_path, "write the scores as one JSON object to this file");
-    std::string common_with;
+    app.add_option("--products", options.products_dir, "products folder (pitmap ... --out P)")
+        ->required();
+    app.add_option("--json", options.json_path, "write the scores as one JSON object to this file");
     app.add_option("--mesh-common-with",
-                   common_with,
+                   options.common_with,
                    "another products folder: also score P/mesh.ply where that folder's mesh.ply "
                    "lies within 0.2 m (mesh_mean_abs_m_common, mesh_common_share)");
-    double ate_window_s = 0;
     app.add_option("--ate-window",
-                   ate_window_s,
+                   options.ate_window_s,
                    "also score both trajectories per window of this many seconds "
                    "(trajectory_ate_windows, trajectory_ate_worst_window_increase_m)")
         ->check(CLI::NonNegativeNumber);
     app.footer(kDefinitions);
-    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-eval")) return *code;
-    // Both folders must be there before anything is read or --json written.
-    for (const std::string& dir : {truth_dir, products_dir}) {
+    if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-eval")) return code;
+    for (const std::string& dir : {options.truth_dir, options.products_dir}) {
         if (!fs::is_directory(dir)) {
             std::fprintf(stderr, "pitmap-eval: %s: not a folder\n", dir.c_str());
             return codes::kUsage;
         }
     }
-    auto truth = sim::ReadTruth(truth_dir);
-    if (!truth) {
-        std::fprintf(stderr, "pitmap-eval: %s\n", truth.error().message.c_str());
-        return codes::kFailure;
-    }
-    const fs::path P(products_dir);
-    const sim::PitWorld world(truth->terrain);
-    json scores;
-    std::vector<std::string> comments;
-    formats::ply::Mesh cloud;
-    bool have_cloud = false;
-    // With the truth of the echo artifacts, the points' ping times are needed to match them.
-    bool have_times = false;
-    std::size_t points_rejected = 0;
-    bool have_status = false;
-    if (fs::exists(P / "points.ply")) {
-        // One read with the properties that are there: the ping times where the artifacts need
-        // them, the status to keep the accepted soundings (issue 35).
-        const std::string path = (P / "points.ply").string();
-        auto names = eval::PlyVertexProperties(path);
-        if (!names) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", names.error().message.c_str());
-            return codes::kFailure;
-        }
-        const auto has = [&](const char* n) {
-            return std::find(names->begin(), names->end(), n) != names->end();
-        };
-        std::vector<std::string> props;
-        have_times = truth->artifacts && has("gps_time_s");
-        if (have_times) props.push_back("gps_time_s");  // vertex_properties[0]
-        have_status = has("status");
-        if (have_status) props.push_back("status");
-        auto ply = formats::ply::ReadMesh(path, props);
-        if (!ply) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
-            return codes::kFailure;
-        }
-        cloud = std::move(*ply);
-        if (have_status) points_rejected = eval::KeepAccepted(cloud, props.size() - 1);
-        comments = cloud.comments;
-        have_cloud = true;
-    }
-    auto origin = ProductOrigin(P, comments);
+    return std::nullopt;
+}
+
+// ---- the products read before scoring ----
+
+// P/points.ply's accepted soundings, read once with the properties that are there: the ping
+// times where the truth of the echo artifacts needs them to match the points, the status to
+// keep the accepted soundings (issue 35).
+struct PointCloud {
+    formats::ply::Mesh cloud;  // vertex_properties[0]: gps_time_s when has_times
+    bool present = false;      // P/points.ply exists
+    bool has_times = false;
+    bool has_status = false;
+    std::size_t rejected = 0;  // soundings dropped for their status
+};
+
+Expected<PointCloud> ReadPointCloud(const fs::path& products, const sim::Truth& truth) {
+    PointCloud points;
+    if (!fs::exists(products / "points.ply")) return points;
+    const std::string path = (products / "points.ply").string();
+    auto names = eval::PlyVertexProperties(path);
+    if (!names) return names.error();
+    const auto has = [&](const char* n) {
+        return std::find(names->begin(), names->end(), n) != names->end();
+    };
+    std::vector<std::string> props;
+    points.has_times = truth.artifacts && has("gps_time_s");
+    if (points.has_times) props.push_back("gps_time_s");  // vertex_properties[0]
+    points.has_status = has("status");
+    if (points.has_status) props.push_back("status");
+    auto ply = formats::ply::ReadMesh(path, props);
+    if (!ply) return ply.error();
+    points.cloud = std::move(*ply);
+    if (points.has_status) points.rejected = eval::KeepAccepted(points.cloud, props.size() - 1);
+    points.present = true;
+    return points;
+}
+
+// The products' local frame into the truth's, from their origin (summary.json or a PLY comment);
+// without one the truth's origin is assumed, and said.
+Pose ProductToTruth(const fs::path& products,
+                    const std::vector<std::string>& ply_comments,
+                    const sim::Truth& truth) {
+    auto origin = ProductOrigin(products, ply_comments);
     if (!origin) {
         std::fprintf(stderr,
                      "pitmap-eval: no world origin in the products; assuming the truth's origin\n");
-        origin = truth->origin;
+        origin = truth.origin;
     }
-    const Pose T = eval::ProductToTruthFrame(*origin, truth->origin);
+    return eval::ProductToTruthFrame(*origin, truth.origin);
+}
 
+// What every product family is scored with.
+struct Scoring {
+    const EvalOptions& options;
+    const sim::Truth& truth;
+    const sim::PitWorld& world;  // the true terrain
+    const fs::path products;
+    const PointCloud& points;
+    const Pose T_truth_product;
+};
+
+// ---- trajectories ----
+
+// The two trajectories' poses, kept for the per-window scores.
+struct TrajectoryPoses {
+    const char* final_file = "trajectory.csv";
+    std::vector<eval::ProductPose> after;   // the final trajectory
+    std::vector<eval::ProductPose> before;  // trajectory_initial.csv
+};
+
+// RMS position error of the final trajectory and of the initial one at the true trajectory's
+// times.
+Status ScoreAte(const Scoring& scoring, TrajectoryPoses& poses, json& scores) {
+    const fs::path& P = scoring.products;
     // Without SLAM (georef only, or `run --no-slam`) the INS-rate trajectory is the final one.
-    const char* final_trajectory =
-        fs::exists(P / "trajectory.csv") || !fs::exists(P / "trajectory_ins.csv")
-            ? "trajectory.csv"
-            : "trajectory_ins.csv";
-    std::vector<eval::ProductPose> windowed[2];  // after, before
+    poses.final_file = fs::exists(P / "trajectory.csv") || !fs::exists(P / "trajectory_ins.csv")
+                           ? "trajectory.csv"
+                           : "trajectory_ins.csv";
     for (const auto& [file, key] :
-         {std::pair{final_trajectory, "trajectory_ate_rmse_m"},
+         {std::pair{poses.final_file, "trajectory_ate_rmse_m"},
           std::pair{"trajectory_initial.csv", "trajectory_ate_rmse_before_m"}}) {
         if (!fs::exists(P / file)) continue;
         auto traj = formats::ReadTrajectoryCsv((P / file).string());
-        if (!traj) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", traj.error().message.c_str());
-            return codes::kFailure;
-        }
-        const std::vector<eval::ProductPose> poses = eval::ProductPoses(*traj);
-        windowed[std::string(key) == "trajectory_ate_rmse_m" ? 0 : 1] = poses;
-        const auto s = eval::ScoreTrajectory(poses, T, truth->trajectory);
-        if (s.poses == 0) {
+        if (!traj) return traj.error();
+        const bool is_final = std::string(key) == "trajectory_ate_rmse_m";
+        const std::vector<eval::ProductPose> product_poses = eval::ProductPoses(*traj);
+        (is_final ? poses.after : poses.before) = product_poses;
+        const auto score =
+            eval::ScoreTrajectory(product_poses, scoring.T_truth_product, scoring.truth.trajectory);
+        if (score.poses == 0) {
             std::fprintf(
                 stderr, "pitmap-eval: %s: no pose inside the true trajectory's time span\n", file);
             continue;
         }
-        scores[key] = s.ate_rmse_m;
-        if (std::string(key) == "trajectory_ate_rmse_m") {
-            scores["trajectory_ate_max_m"] = s.ate_max_m;
-            scores["trajectory_z_std_m"] = s.z_std_m;
+        scores[key] = score.ate_rmse_m;
+        if (is_final) {
+            scores["trajectory_ate_max_m"] = score.ate_max_m;
+            scores["trajectory_z_std_m"] = score.z_std_m;
         }
     }
-    if (fs::exists(P / "trajectory_sigma.csv")) {
-        auto stated = eval::ReadTrajectorySigmaCsv((P / "trajectory_sigma.csv").string());
-        if (!stated) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", stated.error().message.c_str());
-            return codes::kFailure;
-        }
-        constexpr double kOutageSigmaM = 0.5;  // slam coarse_search_min_sigma_m's default
-        const eval::UncertaintyScore u =
-            eval::ScoreUncertainty(*stated, T, truth->trajectory, kOutageSigmaM);
-        const auto as_json = [](const eval::ContainmentScore& c) {
-            return json{{"poses", c.poses},
-                        {"share_within_h95", c.share_within_h95},
-                        {"share_within_v95", c.share_within_v95},
-                        {"median_error_h_m", c.median_error_h_m},
-                        {"median_radius_h95_m", c.median_radius_h95_m}};
-        };
-        if (u.after_all.poses > 0) {
-            scores["trajectory_uncertainty"] = {
-                {"outage_sigma_m", kOutageSigmaM},
-                {"after", {{"all", as_json(u.after_all)}, {"outage", as_json(u.after_outage)}}},
-                {"before", {{"all", as_json(u.before_all)}, {"outage", as_json(u.before_outage)}}}};
-        }
-    }
-    if (ate_window_s > 0) {
-        json windows = json::array();
-        // The worst increase is what "SLAM never made a segment worse" is judged by.
-        double worst = -std::numeric_limits<double>::infinity();
-        for (const eval::AteWindow& w : eval::ScoreTrajectoryWindows(
-                 windowed[0], windowed[1], T, truth->trajectory, ate_window_s)) {
-            windows.push_back({{"t0_s", w.t0_s},
-                               {"t1_s", w.t1_s},
-                               {"poses", w.poses},
-                               {"before_m", w.before_m},
-                               {"after_m", w.after_m}});
-            worst = std::max(worst, w.after_m - w.before_m);
-        }
-        if (!windows.empty()) {
-            scores["trajectory_ate_windows"] = windows;
-            scores["trajectory_ate_worst_window_increase_m"] = worst;
-        } else {
-            std::fprintf(stderr,
-                         "pitmap-eval: --ate-window: no window holds poses of both %s and "
-                         "trajectory_initial.csv inside the true trajectory's span; no per-window "
-                         "score\n",
-                         final_trajectory);
-        }
-    }
-    if (have_cloud) {
-        const auto s = eval::ScorePoints(cloud.vertices, T, world);
-        scores["points_rms_m"] = s.rms_m;
-        scores["points_p95_m"] = s.p95_m;
-        scores["points_bias_m"] = s.bias_m;
-        scores["points_scored"] = s.count;
-        scores["points_accepted"] = cloud.vertices.size();
-        if (have_status) scores["points_rejected"] = points_rejected;
-        // By beam angle, where the points carry their beam number and the truth its fan.
-        std::ifstream sin(fs::path(truth_dir) / "scenario.json");
-        const json sc = sin ? json::parse(sin, nullptr, false) : json();
-        if (cloud.vertex_beam.size() == cloud.vertices.size() && sc.is_object() &&
-            sc.contains("sonar") && sc["sonar"].is_object() &&
-            sc["sonar"].value("angle_increment_deg", json()).is_number() &&
-            sc["sonar"].value("start_angle_deg", json()).is_number()) {
-            const double start = sc["sonar"]["start_angle_deg"].get<double>();
-            const double inc = sc["sonar"]["angle_increment_deg"].get<double>();
-            const double edges[] = {0, 15, 30, 45, 55, 90.01};
-            for (int b = 0; b + 1 < 6; ++b) {
-                std::vector<Eigen::Vector3d> sel;
-                for (std::size_t i = 0; i < cloud.vertices.size(); ++i) {
-                    const double a = std::abs(start + cloud.vertex_beam[i] * inc);
-                    if (cloud.vertex_beam[i] >= 0 && a >= edges[b] && a < edges[b + 1])
-                        sel.push_back(cloud.vertices[i]);
-                }
-                if (sel.empty()) continue;
-                const auto sb = eval::ScorePoints(sel, T, world);
-                char key[64];
-                std::snprintf(key,
-                              sizeof key,
-                              "points_rms_m_angle_%.0f_%.0f",
-                              edges[b],
-                              b == 4 ? 90.0 : edges[b + 1]);
-                scores[key] = sb.rms_m;
-            }
-        }
-    }
-    if (have_cloud && truth->artifacts) {
-        const sim::ArtifactTruth& a = *truth->artifacts;
-        const auto total = [&](sim::EchoArtifactKind k) {
-            return a.beams_by_kind[static_cast<int>(k)];
-        };
-        scores["artifact_soundings"] = a.artifact_soundings();
-        for (int k = 1; k < sim::kNumEchoArtifactKinds; ++k) {
-            scores[std::string("artifact_beams_") +
-                   sim::EchoArtifactName(static_cast<sim::EchoArtifactKind>(k))] =
-                a.beams_by_kind[k];
-        }
-        scores["good_soundings"] = a.good_soundings;
-        if (!have_times || cloud.vertex_beam.size() != cloud.vertices.size()) {
-            std::fprintf(stderr,
-                         "pitmap-eval: %s/points.ply has no gps_time_s or beam: the artifact "
-                         "soundings are not scored\n",
-                         products_dir.c_str());
-        } else {
-            std::vector<Eigen::Vector3d> pts(cloud.vertices.size());
-            for (std::size_t i = 0; i < pts.size(); ++i) pts[i] = T * cloud.vertices[i];
-            const auto s =
-                eval::ScoreArtifacts(pts, cloud.vertex_properties[0], cloud.vertex_beam, a, world);
-            std::int64_t artifacts_in = 0;
-            for (const auto k : {sim::EchoArtifactKind::kMidWater,
-                                 sim::EchoArtifactKind::kBubble,
-                                 sim::EchoArtifactKind::kMultipath,
-                                 sim::EchoArtifactKind::kSmile,
-                                 sim::EchoArtifactKind::kOutlier}) {
-                const std::string name = sim::EchoArtifactName(k);
-                const std::int64_t in = s.in_points[static_cast<int>(k)];
-                if (k != sim::EchoArtifactKind::kOutlier) artifacts_in += in;
-                scores["artifact_in_points_" + name] = in;
-                if (total(k) > 0) {
-                    scores["artifact_rejected_share_" + name] =
-                        1.0 - static_cast<double>(in) / static_cast<double>(total(k));
-                }
-            }
-            scores["artifact_in_points"] = artifacts_in;
-            if (a.artifact_soundings() > 0) {
-                scores["artifact_rejected_share"] =
-                    1.0 -
-                    static_cast<double>(artifacts_in) / static_cast<double>(a.artifact_soundings());
-            }
-            scores["points_unmatched"] = s.unmatched;
-            scores["good_in_points"] = s.good_in_points;
-            if (a.good_soundings > 0) {
-                scores["good_rejected_share"] = 1.0 - static_cast<double>(s.good_in_points) /
-                                                          static_cast<double>(a.good_soundings);
-            }
-            for (int c = 0; c < sim::kNumArtifactSlopeClasses; ++c) {
-                if (a.good_by_slope[c] == 0) continue;
-                char key[64];
-                std::snprintf(key,
-                              sizeof key,
-                              "good_rejected_share_slope_%.0f_%.0f",
-                              sim::kArtifactSlopeEdgesDeg[c],
-                              sim::kArtifactSlopeEdgesDeg[c + 1]);
-                scores[key] = 1.0 - static_cast<double>(s.good_in_points_by_slope[c]) /
-                                        static_cast<double>(a.good_by_slope[c]);
-            }
-            if (s.good.count > 0) scores["points_rms_m_good"] = s.good.rms_m;
-        }
-    }
-    if (fs::exists(P / "boresight.json")) {
-        std::ifstream in(P / "boresight.json");
-        const json b = json::parse(in, nullptr, false);
-        if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") ||
-            !b.contains("yaw_deg")) {
-            std::fprintf(stderr,
-                         "pitmap-eval: %s/boresight.json: needs roll_deg, pitch_deg, yaw_deg\n",
-                         products_dir.c_str());
-            return codes::kFailure;
-        }
-        scores["boresight_error_deg"] = eval::BoresightErrorDeg(b["roll_deg"].get<double>(),
-                                                                b["pitch_deg"].get<double>(),
-                                                                b["yaw_deg"].get<double>(),
-                                                                truth->boresight.roll_deg,
-                                                                truth->boresight.pitch_deg,
-                                                                truth->boresight.yaw_deg);
-    }
-    if (fs::exists(P / "mesh.ply")) {
-        auto mesh = formats::ply::ReadMesh((P / "mesh.ply").string());
-        if (!mesh) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", mesh.error().message.c_str());
-            return codes::kFailure;
-        }
-        std::vector<Eigen::Vector3d> samples = MeshSamples(*mesh);
-        const auto s = eval::ScorePoints(samples, T, world);
-        for (auto& p : samples) p = T * p;
-        if (auto c = eval::MeshCompleteness(samples, *truth)) scores["mesh_completeness"] = *c;
-        scores["mesh_mean_abs_m"] = s.mean_abs_m;
-        scores["mesh_rms_m"] = s.rms_m;
-        scores["mesh_p95_m"] = s.p95_m;
-        scores["mesh_bias_m"] = s.bias_m;
-        {
-            // Issue 35's damage figure: the share of the mesh samples more than 1 m off.
-            std::size_t far = 0;
-            for (const auto& p : samples) far += std::abs(world.SignedDistance(p)) > 1.0;
-            scores["mesh_share_beyond_1m"] =
-                samples.empty() ? 0.0
-                                : static_cast<double>(far) / static_cast<double>(samples.size());
-        }
-        // The same by the true slope under the sample: floors, faces, walls (mean abs error
-        // and signed mean, truth to mesh positive when the mesh lies outside the rock).
-        const auto& edges = eval::kSlopeClassEdgesDeg;
-        const std::size_t n_classes = std::size(edges) - 1;
-        auto slope_suffix = [&](std::size_t c) {
-            return "_slope_" + std::to_string(static_cast<int>(edges[c])) + "_" +
-                   std::to_string(static_cast<int>(edges[c + 1]));
-        };
-        auto score_by_slope = [&](const std::vector<Eigen::Vector3d>& pts,
-                                  const std::string& prefix) {
-            std::vector<std::vector<double>> by_class(n_classes);
-            for (const auto& p : pts) {
-                const double slope = eval::SlopeDeg(world, p.x(), p.y());
-                for (std::size_t c = 0; c < n_classes; ++c) {
-                    if (slope >= edges[c] && slope < edges[c + 1]) {
-                        by_class[c].push_back(world.SignedDistance(p));
-                        break;
-                    }
-                }
-            }
-            for (std::size_t c = 0; c < n_classes; ++c) {
-                if (by_class[c].empty()) continue;
-                const auto sc = eval::SummariseDistances(std::move(by_class[c]));
-                scores[prefix + "mean_abs_m" + slope_suffix(c)] = sc.mean_abs_m;
-                scores[prefix + "bias_m" + slope_suffix(c)] = sc.bias_m;
-            }
-        };
-        score_by_slope(samples, "mesh_");
-        for (std::size_t c = 0; c < n_classes; ++c) {
-            if (auto cc = eval::MeshCompleteness(samples, *truth, 0.2, edges[c], edges[c + 1]))
-                scores["mesh_completeness" + slope_suffix(c)] = *cc;
-        }
-        // By the true water depth: the shore near the water line is seen at short range.
-        const auto& depths = eval::kDepthClassEdgesM;
-        for (std::size_t c = 0; c + 1 < std::size(depths); ++c) {
-            const std::string hi = std::isfinite(depths[c + 1])
-                                       ? std::to_string(static_cast<int>(depths[c + 1]))
-                                       : std::string("inf");
-            const std::string key =
-                "mesh_completeness_depth_" + std::to_string(static_cast<int>(depths[c])) + "_" + hi;
-            if (auto cd =
-                    eval::MeshCompleteness(samples, *truth, 0.2, 0, 91, depths[c], depths[c + 1]))
-                scores[key] = *cd;
-        }
-        if (!common_with.empty()) {
-            // Error on the part of the surface both meshes hold: a mesh that keeps only what
-            // was seen often is not more accurate for having dropped the rest.
-            const fs::path Q(common_with);
-            auto other = formats::ply::ReadMesh((Q / "mesh.ply").string());
-            if (!other) {
-                std::fprintf(stderr, "pitmap-eval: %s\n", other.error().message.c_str());
-                return codes::kFailure;
-            }
-            const auto other_origin = ProductOrigin(Q, other->comments);
-            const Pose T_other = eval::ProductToTruthFrame(
-                other_origin ? *other_origin : truth->origin, truth->origin);
-            std::vector<Eigen::Vector3d> theirs = MeshSamples(*other);
-            for (auto& p : theirs) p = T_other * p;
-            std::vector<Eigen::Vector3d> common = eval::SamplesInSharedCells(samples, theirs, 0.2);
-            scores["mesh_common_share"] = samples.empty() ? 0.0
-                                                          : static_cast<double>(common.size()) /
-                                                                static_cast<double>(samples.size());
-            std::vector<double> d;
-            d.reserve(common.size());
-            for (const auto& p : common) d.push_back(world.SignedDistance(p));
-            if (!d.empty()) {
-                const auto sc = eval::SummariseDistances(std::move(d));
-                scores["mesh_mean_abs_m_common"] = sc.mean_abs_m;
-                scores["mesh_bias_m_common"] = sc.bias_m;
-            }
-            score_by_slope(common, "mesh_common_");
-        }
-    }
-#ifdef PITMAP_EVAL_GRID
-    if (fs::exists(P / "dem.tif")) {
-        auto dem = proc::io::ReadGrid((P / "dem.tif").string());
-        if (!dem) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", dem.error().message.c_str());
-            return codes::kFailure;
-        }
-        const int epsg = dem->horizontal_epsg;
-        if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760)) ||
-            dem->grid.layers.empty()) {
-            std::fprintf(stderr,
-                         "pitmap-eval: %s/dem.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
-                         products_dir.c_str(),
-                         epsg);
-            return codes::kFailure;
-        }
-        const proc::io::GridRaster& g = dem->grid;
-        const double datum_height_m = DatumHeight(P);
-        const LocalTangentFrame tf(truth->origin);
-        std::vector<Eigen::Vector3d> nodes;
-        nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
-        for (int j = 0; j < g.ny; ++j) {
-            for (int i = 0; i < g.nx; ++i) {
-                const float h = g.layers[0].values[static_cast<std::size_t>(j) * g.nx + i];
-                UtmCoordinate u;
-                u.zone = epsg % 100;
-                u.northern = epsg < 32700;
-                u.easting_m = g.x0 + i * g.resolution_m;
-                u.northing_m = g.y0 + j * g.resolution_m;
-                u.height_m = std::isfinite(h) ? h + datum_height_m : 0.0;
-                auto geo = GeodeticFromUtm(u);
-                if (!geo) continue;
-                Eigen::Vector3d p = tf.ToEnu(*geo);
-                if (!std::isfinite(h)) p.z() = std::numeric_limits<double>::quiet_NaN();
-                nodes.push_back(p);
-            }
-        }
-        const auto s = eval::ScoreDem(nodes, *truth);
-        scores["dem_mean_abs_m"] = s.all.mean_abs_m;
-        scores["dem_rms_m"] = s.all.rms_m;
-        scores["dem_p95_m"] = s.all.p95_m;
-        scores["dem_bias_m"] = s.all.bias_m;
-        scores["dem_nodes_scored"] = s.all.count;
-        scores["dem_mean_abs_insonified_m"] = s.insonified.mean_abs_m;
-        scores["dem_resolution_m"] = g.resolution_m;
-        if (s.fill_insonified) scores["dem_fill_insonified"] = *s.fill_insonified;
-    }
-    if (auto t = eval::ScoreTerrainProducts(products_dir, world, truth->origin); !t) {
-        std::fprintf(stderr, "pitmap-eval: %s\n", t.error().message.c_str());
-        return codes::kFailure;
-    } else if (*t) {
-        scores["terrain_nodes_scored"] = (*t)->nodes;
-        scores["terrain_slope_mean_abs_deg"] = (*t)->slope_mean_abs_deg;
-        scores["terrain_step_mean_abs_m"] = (*t)->step_mean_abs_m;
-        scores["terrain_class_agreement"] = (*t)->class_agreement;
-        scores["terrain_blocked_recall"] = (*t)->blocked_recall;
-        scores["terrain_blocked_false_share"] = (*t)->blocked_false_share;
-    }
-    if (fs::exists(P / "mosaic.tif") && !truth->backscatter_db.empty()) {
-        auto mosaic = proc::io::ReadGrid((P / "mosaic.tif").string());
-        if (!mosaic) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", mosaic.error().message.c_str());
-            return codes::kFailure;
-        }
-        const int epsg = mosaic->horizontal_epsg;
-        if (!((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760))) {
-            std::fprintf(stderr,
-                         "pitmap-eval: %s/mosaic.tif: not a WGS 84 / UTM grid (EPSG %d)\n",
-                         products_dir.c_str(),
-                         epsg);
-            return codes::kFailure;
-        }
-        const proc::io::GridRaster& g = mosaic->grid;
-        const LocalTangentFrame tf(truth->origin);
-        for (const auto& layer : g.layers) {
-            if (layer.name != "backscatter" && layer.name != "uncorrected") continue;
-            std::vector<Eigen::Vector3d> nodes;
-            for (int j = 0; j < g.ny; ++j) {
-                for (int i = 0; i < g.nx; ++i) {
-                    const float v = layer.values[static_cast<std::size_t>(j) * g.nx + i];
-                    if (!std::isfinite(v)) continue;
-                    UtmCoordinate u;
-                    u.zone = epsg % 100;
-                    u.northern = epsg < 32700;
-                    u.easting_m = g.x0 + i * g.resolution_m;
-                    u.northing_m = g.y0 + j * g.resolution_m;
-                    u.height_m = truth->origin.height_m;
-                    auto geo = GeodeticFromUtm(u);
-                    if (!geo) continue;
-                    Eigen::Vector3d p = tf.ToEnu(*geo);
-                    p.z() = v;
-                    nodes.push_back(p);
-                }
-            }
-            const auto sc = eval::ScoreMosaic(nodes, g.resolution_m, *truth);
-            if (!sc) continue;
-            const std::string k = layer.name == "backscatter" ? "mosaic_" : "mosaic_uncorrected_";
-            scores[k + "nodes"] = sc->nodes;
-            scores[k + "correlation"] = sc->correlation;
-            scores[k + "offset_db"] = sc->offset_db;
-            scores[k + "rms_db"] = sc->rms_db;
-            scores[k + "patches"] = sc->patches;
-            scores[k + "patch_mean_abs_db"] = sc->patch_mean_abs_db;
-            scores[k + "patch_max_abs_db"] = sc->patch_max_abs_db;
-            double level_max = 0;
-            for (const auto& [level, err, n] : sc->by_level) {
-                if (n >= 20) level_max = std::max(level_max, std::abs(err));
-            }
-            scores[k + "level_max_abs_db"] = level_max;
-        }
-    }
-#endif
-    if (fs::exists(P / "soundings_tpu.ply")) {
-        auto ply = formats::ply::ReadMesh((P / "soundings_tpu.ply").string(),
-                                          {"gps_time_s", "angle_deg", "thu_95_m", "tvu_95_m"});
-        if (!ply) {
-            std::fprintf(stderr, "pitmap-eval: %s\n", ply.error().message.c_str());
-            return codes::kFailure;
-        }
-        std::vector<eval::TpuSounding> snd(ply->vertices.size());
-        for (std::size_t i = 0; i < snd.size(); ++i) {
-            snd[i].position = T * ply->vertices[i];
-            snd[i].gps_time_s = ply->vertex_properties[0][i];
-            snd[i].angle_deg = ply->vertex_properties[1][i];
-            snd[i].thu_95_m = ply->vertex_properties[2][i];
-            snd[i].tvu_95_m = ply->vertex_properties[3][i];
-        }
-        const auto s = eval::ScoreTpu(snd, *truth, world);
-        if (s.all.count > 0) {
-            scores["tpu_within_tvu"] = s.all.within_tvu;
-            scores["tpu_within_thu"] = s.all.within_thu;
-            scores["tpu_vertical_rms_m"] = s.all.vertical_rms_m;
-            scores["tpu_tvu_sigma_rms_m"] = s.all.tvu_rms_m;
-            scores["tpu_vertical_bias_m"] = s.all.vertical_bias_m;
-            scores["tpu_soundings_scored"] = s.all.count;
-            for (const auto& b : s.by_angle) {
-                if (b.count == 0) continue;
-                auto put = [&](const char* name, const json& value) {
-                    char key[64];
-                    std::snprintf(
-                        key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo_deg, b.hi_deg);
-                    scores[key] = value;
-                };
-                put("tpu_within_tvu", b.within_tvu);
-                put("tpu_within_thu", b.within_thu);
-                put("tpu_vertical_rms", b.vertical_rms_m);
-                put("tpu_tvu_sigma_rms", b.tvu_rms_m);
-                put("tpu_vertical_bias", b.vertical_bias_m);
-                put("tpu_count", b.count);
-            }
-        }
-    }
+    return Ok{};
+}
 
-    if (scores.empty()) {
-        std::fprintf(stderr, "pitmap-eval: %s holds no product to score\n", products_dir.c_str());
-        return codes::kFailure;
+// P/trajectory_sigma.csv: how often the true error lies within the stated 95 % radius.
+Status ScoreStatedUncertainty(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "trajectory_sigma.csv")) return Ok{};
+    auto stated =
+        eval::ReadTrajectorySigmaCsv((scoring.products / "trajectory_sigma.csv").string());
+    if (!stated) return stated.error();
+    constexpr double kOutageSigmaM = 0.5;  // slam coarse_search_min_sigma_m's default
+    const eval::UncertaintyScore u = eval::ScoreUncertainty(
+        *stated, scoring.T_truth_product, scoring.truth.trajectory, kOutageSigmaM);
+    const auto as_json = [](const eval::ContainmentScore& c) {
+        return json{{"poses", c.poses},
+                    {"share_within_h95", c.share_within_h95},
+                    {"share_within_v95", c.share_within_v95},
+                    {"median_error_h_m", c.median_error_h_m},
+                    {"median_radius_h95_m", c.median_radius_h95_m}};
+    };
+    if (u.after_all.poses > 0) {
+        scores["trajectory_uncertainty"] = {
+            {"outage_sigma_m", kOutageSigmaM},
+            {"after", {{"all", as_json(u.after_all)}, {"outage", as_json(u.after_outage)}}},
+            {"before", {{"all", as_json(u.before_all)}, {"outage", as_json(u.before_outage)}}}};
     }
+    return Ok{};
+}
+
+// Both trajectories' RMS error per window of --ate-window seconds; the worst increase is what
+// "SLAM never made a segment worse" is judged by.
+void ScoreAteWindows(const Scoring& scoring, const TrajectoryPoses& poses, json& scores) {
+    json windows = json::array();
+    double worst = -std::numeric_limits<double>::infinity();
+    for (const eval::AteWindow& w : eval::ScoreTrajectoryWindows(poses.after,
+                                                                 poses.before,
+                                                                 scoring.T_truth_product,
+                                                                 scoring.truth.trajectory,
+                                                                 scoring.options.ate_window_s)) {
+        windows.push_back({{"t0_s", w.t0_s},
+                           {"t1_s", w.t1_s},
+                           {"poses", w.poses},
+                           {"before_m", w.before_m},
+                           {"after_m", w.after_m}});
+        worst = std::max(worst, w.after_m - w.before_m);
+    }
+    if (!windows.empty()) {
+        scores["trajectory_ate_windows"] = windows;
+        scores["trajectory_ate_worst_window_increase_m"] = worst;
+    } else {
+        std::fprintf(stderr,
+                     "pitmap-eval: --ate-window: no window holds poses of both %s and "
+                     "trajectory_initial.csv inside the true trajectory's span; no per-window "
+                     "score\n",
+                     poses.final_file);
+    }
+}
+
+// The trajectory family: the ATE of both trajectories, the stated uncertainty, the ATE per
+// window.
+Status ScoreTrajectories(const Scoring& scoring, json& scores) {
+    TrajectoryPoses poses;
+    if (auto scored = ScoreAte(scoring, poses, scores); !scored) return scored;
+    if (auto scored = ScoreStatedUncertainty(scoring, scores); !scored) return scored;
+    if (scoring.options.ate_window_s > 0) ScoreAteWindows(scoring, poses, scores);
+    return Ok{};
+}
+
+// ---- points ----
+
+// points_rms_m by beam angle, where the points carry their beam number and the truth its fan
+// (truth/scenario.json's sonar start angle and increment).
+void ScorePointsByBeamAngle(const Scoring& scoring, json& scores) {
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
+    std::ifstream sin(fs::path(scoring.options.truth_dir) / "scenario.json");
+    const json sc = sin ? json::parse(sin, nullptr, false) : json();
+    if (!(cloud.vertex_beam.size() == cloud.vertices.size() && sc.is_object() &&
+          sc.contains("sonar") && sc["sonar"].is_object() &&
+          sc["sonar"].value("angle_increment_deg", json()).is_number() &&
+          sc["sonar"].value("start_angle_deg", json()).is_number())) {
+        return;
+    }
+    const double start = sc["sonar"]["start_angle_deg"].get<double>();
+    const double inc = sc["sonar"]["angle_increment_deg"].get<double>();
+    const double edges[] = {0, 15, 30, 45, 55, 90.01};
+    for (int b = 0; b + 1 < 6; ++b) {
+        std::vector<Eigen::Vector3d> sel;
+        for (std::size_t i = 0; i < cloud.vertices.size(); ++i) {
+            const double a = std::abs(start + cloud.vertex_beam[i] * inc);
+            if (cloud.vertex_beam[i] >= 0 && a >= edges[b] && a < edges[b + 1])
+                sel.push_back(cloud.vertices[i]);
+        }
+        if (sel.empty()) continue;
+        const auto sb = eval::ScorePoints(sel, scoring.T_truth_product, scoring.world);
+        char key[64];
+        std::snprintf(key,
+                      sizeof key,
+                      "points_rms_m_angle_%.0f_%.0f",
+                      edges[b],
+                      b == 4 ? 90.0 : edges[b + 1]);
+        scores[key] = sb.rms_m;
+    }
+}
+
+// P/points.ply's accepted soundings against the true surface.
+Status ScorePointsPly(const Scoring& scoring, json& scores) {
+    if (!scoring.points.present) return Ok{};
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
+    const auto score = eval::ScorePoints(cloud.vertices, scoring.T_truth_product, scoring.world);
+    scores["points_rms_m"] = score.rms_m;
+    scores["points_p95_m"] = score.p95_m;
+    scores["points_bias_m"] = score.bias_m;
+    scores["points_scored"] = score.count;
+    scores["points_accepted"] = cloud.vertices.size();
+    if (scoring.points.has_status) scores["points_rejected"] = scoring.points.rejected;
+    ScorePointsByBeamAngle(scoring, scores);
+    return Ok{};
+}
+
+// ---- echo artifacts ----
+
+// What the truth holds: the beams each kind of artifact replaced, and the good soundings.
+void PutArtifactTruthCounts(const sim::ArtifactTruth& artifacts, json& scores) {
+    scores["artifact_soundings"] = artifacts.artifact_soundings();
+    for (int k = 1; k < sim::kNumEchoArtifactKinds; ++k) {
+        scores[std::string("artifact_beams_") +
+               sim::EchoArtifactName(static_cast<sim::EchoArtifactKind>(k))] =
+            artifacts.beams_by_kind[k];
+    }
+    scores["good_soundings"] = artifacts.good_soundings;
+}
+
+// The artifact and good soundings found among the accepted points (matched by ping time and
+// beam), and the shares not accepted.
+void ScoreArtifactMatches(const Scoring& scoring,
+                          const sim::ArtifactTruth& artifacts,
+                          json& scores) {
+    const formats::ply::Mesh& cloud = scoring.points.cloud;
+    const auto total = [&](sim::EchoArtifactKind k) {
+        return artifacts.beams_by_kind[static_cast<int>(k)];
+    };
+    std::vector<Eigen::Vector3d> pts(cloud.vertices.size());
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        pts[i] = scoring.T_truth_product * cloud.vertices[i];
+    const auto found = eval::ScoreArtifacts(
+        pts, cloud.vertex_properties[0], cloud.vertex_beam, artifacts, scoring.world);
+    std::int64_t artifacts_in = 0;
+    for (const auto k : {sim::EchoArtifactKind::kMidWater,
+                         sim::EchoArtifactKind::kBubble,
+                         sim::EchoArtifactKind::kMultipath,
+                         sim::EchoArtifactKind::kSmile,
+                         sim::EchoArtifactKind::kOutlier}) {
+        const std::string name = sim::EchoArtifactName(k);
+        const std::int64_t in = found.in_points[static_cast<int>(k)];
+        if (k != sim::EchoArtifactKind::kOutlier) artifacts_in += in;
+        scores["artifact_in_points_" + name] = in;
+        if (total(k) > 0) {
+            scores["artifact_rejected_share_" + name] =
+                1.0 - static_cast<double>(in) / static_cast<double>(total(k));
+        }
+    }
+    scores["artifact_in_points"] = artifacts_in;
+    if (artifacts.artifact_soundings() > 0) {
+        scores["artifact_rejected_share"] =
+            1.0 -
+            static_cast<double>(artifacts_in) / static_cast<double>(artifacts.artifact_soundings());
+    }
+    scores["points_unmatched"] = found.unmatched;
+    scores["good_in_points"] = found.good_in_points;
+    if (artifacts.good_soundings > 0) {
+        scores["good_rejected_share"] = 1.0 - static_cast<double>(found.good_in_points) /
+                                                  static_cast<double>(artifacts.good_soundings);
+    }
+    for (int c = 0; c < sim::kNumArtifactSlopeClasses; ++c) {
+        if (artifacts.good_by_slope[c] == 0) continue;
+        char key[64];
+        std::snprintf(key,
+                      sizeof key,
+                      "good_rejected_share_slope_%.0f_%.0f",
+                      sim::kArtifactSlopeEdgesDeg[c],
+                      sim::kArtifactSlopeEdgesDeg[c + 1]);
+        scores[key] = 1.0 - static_cast<double>(found.good_in_points_by_slope[c]) /
+                                static_cast<double>(artifacts.good_by_slope[c]);
+    }
+    if (found.good.count > 0) scores["points_rms_m_good"] = found.good.rms_m;
+}
+
+// With truth/artifacts.*: the echo artifacts pitmap-sim put in, and how many points.ply kept.
+Status ScoreArtifactsInPoints(const Scoring& scoring, json& scores) {
+    if (!scoring.points.present || !scoring.truth.artifacts) return Ok{};
+    PutArtifactTruthCounts(*scoring.truth.artifacts, scores);
+    if (!scoring.points.has_times ||
+        scoring.points.cloud.vertex_beam.size() != scoring.points.cloud.vertices.size()) {
+        std::fprintf(stderr,
+                     "pitmap-eval: %s/points.ply has no gps_time_s or beam: the artifact "
+                     "soundings are not scored\n",
+                     scoring.options.products_dir.c_str());
+        return Ok{};
+    }
+    ScoreArtifactMatches(scoring, *scoring.truth.artifacts, scores);
+    return Ok{};
+}
+
+// ---- boresight ----
+
+Status ScoreBoresightJson(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "boresight.json")) return Ok{};
+    std::ifstream in(scoring.products / "boresight.json");
+    const json b = json::parse(in, nullptr, false);
+    if (b.is_discarded() || !b.contains("roll_deg") || !b.contains("pitch_deg") ||
+        !b.contains("yaw_deg")) {
+        return Error{scoring.options.products_dir +
+                     "/boresight.json: needs roll_deg, pitch_deg, yaw_deg"};
+    }
+    const sim::TruthBoresight& truth = scoring.truth.boresight;
+    scores["boresight_error_deg"] = eval::BoresightErrorDeg(b["roll_deg"].get<double>(),
+                                                            b["pitch_deg"].get<double>(),
+                                                            b["yaw_deg"].get<double>(),
+                                                            truth.roll_deg,
+                                                            truth.pitch_deg,
+                                                            truth.yaw_deg);
+    return Ok{};
+}
+
+// ---- mesh ----
+
+// "_slope_A_B" for slope class c.
+std::string SlopeSuffix(std::size_t c) {
+    const auto& edges = eval::kSlopeClassEdgesDeg;
+    return "_slope_" + std::to_string(static_cast<int>(edges[c])) + "_" +
+           std::to_string(static_cast<int>(edges[c + 1]));
+}
+
+// Mean absolute and signed distance of the samples (truth frame) by the true slope under each:
+// floors, faces, walls; positive where the mesh lies outside the rock.
+void ScoreBySlope(const sim::PitWorld& world,
+                  const std::vector<Eigen::Vector3d>& samples,
+                  const std::string& prefix,
+                  json& scores) {
+    const auto& edges = eval::kSlopeClassEdgesDeg;
+    const std::size_t n_classes = std::size(edges) - 1;
+    std::vector<std::vector<double>> by_class(n_classes);
+    for (const auto& p : samples) {
+        const double slope = eval::SlopeDeg(world, p.x(), p.y());
+        for (std::size_t c = 0; c < n_classes; ++c) {
+            if (slope >= edges[c] && slope < edges[c + 1]) {
+                by_class[c].push_back(world.SignedDistance(p));
+                break;
+            }
+        }
+    }
+    for (std::size_t c = 0; c < n_classes; ++c) {
+        if (by_class[c].empty()) continue;
+        const auto sc = eval::SummariseDistances(std::move(by_class[c]));
+        scores[prefix + "mean_abs_m" + SlopeSuffix(c)] = sc.mean_abs_m;
+        scores[prefix + "bias_m" + SlopeSuffix(c)] = sc.bias_m;
+    }
+}
+
+// The share of the insonified true surface the mesh holds, by the true slope and by the true
+// water depth (the shore near the water line is seen at short range).
+void ScoreMeshCompletenessByClass(const sim::Truth& truth,
+                                  const std::vector<Eigen::Vector3d>& samples,
+                                  json& scores) {
+    const auto& edges = eval::kSlopeClassEdgesDeg;
+    for (std::size_t c = 0; c + 1 < std::size(edges); ++c) {
+        if (auto cc = eval::MeshCompleteness(samples, truth, 0.2, edges[c], edges[c + 1]))
+            scores["mesh_completeness" + SlopeSuffix(c)] = *cc;
+    }
+    const auto& depths = eval::kDepthClassEdgesM;
+    for (std::size_t c = 0; c + 1 < std::size(depths); ++c) {
+        const std::string hi = std::isfinite(depths[c + 1])
+                                   ? std::to_string(static_cast<int>(depths[c + 1]))
+                                   : std::string("inf");
+        const std::string key =
+            "mesh_completeness_depth_" + std::to_string(static_cast<int>(depths[c])) + "_" + hi;
+        if (auto cd = eval::MeshCompleteness(samples, truth, 0.2, 0, 91, depths[c], depths[c + 1]))
+            scores[key] = *cd;
+    }
+}
+
+// Error on the part of the surface both meshes hold (--mesh-common-with): a mesh that keeps
+// only what was seen often is not more accurate for having dropped the rest.
+Status ScoreMeshOnCommonSurface(const Scoring& scoring,
+                                const std::vector<Eigen::Vector3d>& samples,
+                                json& scores) {
+    const fs::path Q(scoring.options.common_with);
+    auto other = formats::ply::ReadMesh((Q / "mesh.ply").string());
+    if (!other) return other.error();
+    const auto other_origin = ProductOrigin(Q, other->comments);
+    const Pose T_truth_other = eval::ProductToTruthFrame(
+        other_origin ? *other_origin : scoring.truth.origin, scoring.truth.origin);
+    std::vector<Eigen::Vector3d> theirs = MeshSamples(*other);
+    for (auto& p : theirs) p = T_truth_other * p;
+    std::vector<Eigen::Vector3d> common = eval::SamplesInSharedCells(samples, theirs, 0.2);
+    scores["mesh_common_share"] =
+        samples.empty() ? 0.0
+                        : static_cast<double>(common.size()) / static_cast<double>(samples.size());
+    std::vector<double> d;
+    d.reserve(common.size());
+    for (const auto& p : common) d.push_back(scoring.world.SignedDistance(p));
+    if (!d.empty()) {
+        const auto sc = eval::SummariseDistances(std::move(d));
+        scores["mesh_mean_abs_m_common"] = sc.mean_abs_m;
+        scores["mesh_bias_m_common"] = sc.bias_m;
+    }
+    ScoreBySlope(scoring.world, common, "mesh_common_", scores);
+    return Ok{};
+}
+
+// P/mesh.ply's vertices and triangle centroids against the true surface.
+Status ScoreMeshPly(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "mesh.ply")) return Ok{};
+    auto mesh = formats::ply::ReadMesh((scoring.products / "mesh.ply").string());
+    if (!mesh) return mesh.error();
+    std::vector<Eigen::Vector3d> samples = MeshSamples(*mesh);
+    const auto score = eval::ScorePoints(samples, scoring.T_truth_product, scoring.world);
+    for (auto& p : samples) p = scoring.T_truth_product * p;
+    if (auto c = eval::MeshCompleteness(samples, scoring.truth)) scores["mesh_completeness"] = *c;
+    scores["mesh_mean_abs_m"] = score.mean_abs_m;
+    scores["mesh_rms_m"] = score.rms_m;
+    scores["mesh_p95_m"] = score.p95_m;
+    scores["mesh_bias_m"] = score.bias_m;
+    // Issue 35's damage figure: the share of the mesh samples more than 1 m off.
+    std::size_t far = 0;
+    for (const auto& p : samples) far += std::abs(scoring.world.SignedDistance(p)) > 1.0;
+    scores["mesh_share_beyond_1m"] =
+        samples.empty() ? 0.0 : static_cast<double>(far) / static_cast<double>(samples.size());
+    ScoreBySlope(scoring.world, samples, "mesh_", scores);
+    ScoreMeshCompletenessByClass(scoring.truth, samples, scores);
+    if (!scoring.options.common_with.empty())
+        return ScoreMeshOnCommonSurface(scoring, samples, scores);
+    return Ok{};
+}
+
+// ---- grids ----
+#ifdef PITMAP_EVAL_GRID
+
+bool IsWgs84Utm(int epsg) {
+    return (epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760);
+}
+
+// Node (i, j) of a grid in WGS 84 / UTM (EPSG `epsg`) at `height_m`.
+UtmCoordinate GridNodeUtm(const proc::io::GridRaster& g, int epsg, int i, int j, double height_m) {
+    UtmCoordinate u;
+    u.zone = epsg % 100;
+    u.northern = epsg < 32700;
+    u.easting_m = g.x0 + i * g.resolution_m;
+    u.northing_m = g.y0 + j * g.resolution_m;
+    u.height_m = height_m;
+    return u;
+}
+
+// P/dem.tif's nodes (band 1, heights put back on the ellipsoid with summary.json's datum
+// height) against the true terrain; unfilled nodes count towards the fill score.
+Status ScoreDemTif(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "dem.tif")) return Ok{};
+    auto dem = proc::io::ReadGrid((scoring.products / "dem.tif").string());
+    if (!dem) return dem.error();
+    const int epsg = dem->horizontal_epsg;
+    if (!IsWgs84Utm(epsg) || dem->grid.layers.empty()) {
+        return Error{scoring.options.products_dir + "/dem.tif: not a WGS 84 / UTM grid (EPSG " +
+                     std::to_string(epsg) + ")"};
+    }
+    const proc::io::GridRaster& g = dem->grid;
+    const double datum_height_m = DatumHeight(scoring.products);
+    const LocalTangentFrame tf(scoring.truth.origin);
+    std::vector<Eigen::Vector3d> nodes;
+    nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            const float h = g.layers[0].values[static_cast<std::size_t>(j) * g.nx + i];
+            auto geo = GeodeticFromUtm(
+                GridNodeUtm(g, epsg, i, j, std::isfinite(h) ? h + datum_height_m : 0.0));
+            if (!geo) continue;
+            Eigen::Vector3d p = tf.ToEnu(*geo);
+            if (!std::isfinite(h)) p.z() = std::numeric_limits<double>::quiet_NaN();
+            nodes.push_back(p);
+        }
+    }
+    const auto score = eval::ScoreDem(nodes, scoring.truth);
+    scores["dem_mean_abs_m"] = score.all.mean_abs_m;
+    scores["dem_rms_m"] = score.all.rms_m;
+    scores["dem_p95_m"] = score.all.p95_m;
+    scores["dem_bias_m"] = score.all.bias_m;
+    scores["dem_nodes_scored"] = score.all.count;
+    scores["dem_mean_abs_insonified_m"] = score.insonified.mean_abs_m;
+    scores["dem_resolution_m"] = g.resolution_m;
+    if (score.fill_insonified) scores["dem_fill_insonified"] = *score.fill_insonified;
+    return Ok{};
+}
+
+// One mosaic band against truth/backscatter.f32: keys mosaic_* for "backscatter",
+// mosaic_uncorrected_* for "uncorrected".
+void ScoreMosaicLayer(const Scoring& scoring,
+                      const proc::io::GridRaster& g,
+                      int epsg,
+                      const proc::io::GridLayer& layer,
+                      json& scores) {
+    const LocalTangentFrame tf(scoring.truth.origin);
+    std::vector<Eigen::Vector3d> nodes;
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            const float v = layer.values[static_cast<std::size_t>(j) * g.nx + i];
+            if (!std::isfinite(v)) continue;
+            auto geo = GeodeticFromUtm(GridNodeUtm(g, epsg, i, j, scoring.truth.origin.height_m));
+            if (!geo) continue;
+            Eigen::Vector3d p = tf.ToEnu(*geo);
+            p.z() = v;
+            nodes.push_back(p);
+        }
+    }
+    const auto sc = eval::ScoreMosaic(nodes, g.resolution_m, scoring.truth);
+    if (!sc) return;
+    const std::string k = layer.name == "backscatter" ? "mosaic_" : "mosaic_uncorrected_";
+    scores[k + "nodes"] = sc->nodes;
+    scores[k + "correlation"] = sc->correlation;
+    scores[k + "offset_db"] = sc->offset_db;
+    scores[k + "rms_db"] = sc->rms_db;
+    scores[k + "patches"] = sc->patches;
+    scores[k + "patch_mean_abs_db"] = sc->patch_mean_abs_db;
+    scores[k + "patch_max_abs_db"] = sc->patch_max_abs_db;
+    double level_max = 0;
+    for (const auto& [level, err, n] : sc->by_level) {
+        if (n >= 20) level_max = std::max(level_max, std::abs(err));
+    }
+    scores[k + "level_max_abs_db"] = level_max;
+}
+
+// P/mosaic.tif's bands "backscatter" and "uncorrected" against the true backscatter.
+// P/terrain.tif and P/crawler.tif against the same layers from the true heights.
+Status ScoreTerrainTifs(const Scoring& scoring, json& scores) {
+    auto terrain = eval::ScoreTerrainProducts(
+        scoring.options.products_dir, scoring.world, scoring.truth.origin);
+    if (!terrain) return terrain.error();
+    if (!*terrain) return Ok{};
+    const eval::TerrainScore& t = **terrain;
+    scores["terrain_nodes_scored"] = t.nodes;
+    scores["terrain_slope_mean_abs_deg"] = t.slope_mean_abs_deg;
+    scores["terrain_step_mean_abs_m"] = t.step_mean_abs_m;
+    scores["terrain_class_agreement"] = t.class_agreement;
+    scores["terrain_blocked_recall"] = t.blocked_recall;
+    scores["terrain_blocked_false_share"] = t.blocked_false_share;
+    return Ok{};
+}
+
+Status ScoreMosaicTif(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "mosaic.tif") || scoring.truth.backscatter_db.empty())
+        return Ok{};
+    auto mosaic = proc::io::ReadGrid((scoring.products / "mosaic.tif").string());
+    if (!mosaic) return mosaic.error();
+    const int epsg = mosaic->horizontal_epsg;
+    if (!IsWgs84Utm(epsg)) {
+        return Error{scoring.options.products_dir + "/mosaic.tif: not a WGS 84 / UTM grid (EPSG " +
+                     std::to_string(epsg) + ")"};
+    }
+    for (const auto& layer : mosaic->grid.layers) {
+        if (layer.name != "backscatter" && layer.name != "uncorrected") continue;
+        ScoreMosaicLayer(scoring, mosaic->grid, epsg, layer, scores);
+    }
+    return Ok{};
+}
+
+#endif  // PITMAP_EVAL_GRID
+
+// ---- TPU ----
+
+// P/soundings_tpu.ply: how often the true error lies within each sounding's 95 % TVU and THU,
+// overall and by beam angle.
+Status ScoreSoundingsTpuPly(const Scoring& scoring, json& scores) {
+    if (!fs::exists(scoring.products / "soundings_tpu.ply")) return Ok{};
+    auto ply = formats::ply::ReadMesh((scoring.products / "soundings_tpu.ply").string(),
+                                      {"gps_time_s", "angle_deg", "thu_95_m", "tvu_95_m"});
+    if (!ply) return ply.error();
+    std::vector<eval::TpuSounding> snd(ply->vertices.size());
+    for (std::size_t i = 0; i < snd.size(); ++i) {
+        snd[i].position = scoring.T_truth_product * ply->vertices[i];
+        snd[i].gps_time_s = ply->vertex_properties[0][i];
+        snd[i].angle_deg = ply->vertex_properties[1][i];
+        snd[i].thu_95_m = ply->vertex_properties[2][i];
+        snd[i].tvu_95_m = ply->vertex_properties[3][i];
+    }
+    const auto score = eval::ScoreTpu(snd, scoring.truth, scoring.world);
+    if (score.all.count == 0) return Ok{};
+    scores["tpu_within_tvu"] = score.all.within_tvu;
+    scores["tpu_within_thu"] = score.all.within_thu;
+    scores["tpu_vertical_rms_m"] = score.all.vertical_rms_m;
+    scores["tpu_tvu_sigma_rms_m"] = score.all.tvu_rms_m;
+    scores["tpu_vertical_bias_m"] = score.all.vertical_bias_m;
+    scores["tpu_soundings_scored"] = score.all.count;
+    for (const auto& b : score.by_angle) {
+        if (b.count == 0) continue;
+        auto put = [&](const char* name, const json& value) {
+            char key[64];
+            std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo_deg, b.hi_deg);
+            scores[key] = value;
+        };
+        put("tpu_within_tvu", b.within_tvu);
+        put("tpu_within_thu", b.within_thu);
+        put("tpu_vertical_rms", b.vertical_rms_m);
+        put("tpu_tvu_sigma_rms", b.tvu_rms_m);
+        put("tpu_vertical_bias", b.vertical_bias_m);
+        put("tpu_count", b.count);
+    }
+    return Ok{};
+}
+
+// ---- output ----
+
+// The numeric scores as a table on stdout, the ATE windows beneath, and all of them as JSON to
+// --json.
+int WriteScores(const json& scores, const EvalOptions& options) {
     std::printf("%-32s %12s\n", "score", "value");
     for (const auto& [k, v] : scores.items()) {
         if (v.is_number()) std::printf("%-32s %12.4f\n", k.c_str(), v.get<double>());
     }
     if (scores.contains("trajectory_ate_windows")) {
         std::printf("\n%-16s %8s %12s %12s\n", "window (s)", "poses", "before (m)", "after (m)");
-        for (const json& w : scores["trajectory_ate_windows"]) {
+        for (const json& w : scores.at("trajectory_ate_windows")) {
             char span[32];
             std::snprintf(
                 span, sizeof span, "%.0f-%.0f", w["t0_s"].get<double>(), w["t1_s"].get<double>());
@@ -711,15 +837,68 @@ int main(int argc, char** argv) try {
                         w["after_m"].get<double>());
         }
     }
-    if (!json_path.empty()) {
-        std::ofstream out(json_path);
+    if (!options.json_path.empty()) {
+        std::ofstream out(options.json_path);
         out << scores.dump(2) << "\n";
         if (!out) {
-            std::fprintf(stderr, "pitmap-eval: %s: cannot write\n", json_path.c_str());
+            std::fprintf(stderr, "pitmap-eval: %s: cannot write\n", options.json_path.c_str());
             return codes::kFailure;
         }
     }
     return codes::kOk;
+}
+
+// One family of products: adds its scores, or an error for a product that is there but cannot
+// be read.
+using ProductScorer = Status (*)(const Scoring&, json&);
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+    EvalOptions options;
+    if (auto code = ParseOptions(argc, argv, options)) return *code;
+    auto truth = sim::ReadTruth(options.truth_dir);
+    if (!truth) {
+        std::fprintf(stderr, "pitmap-eval: %s\n", truth.error().message.c_str());
+        return codes::kFailure;
+    }
+    const sim::PitWorld world(truth->terrain);
+    const fs::path products(options.products_dir);
+    auto points = ReadPointCloud(products, *truth);
+    if (!points) {
+        std::fprintf(stderr, "pitmap-eval: %s\n", points.error().message.c_str());
+        return codes::kFailure;
+    }
+    const Scoring scoring{
+        .options = options,
+        .truth = *truth,
+        .world = world,
+        .products = products,
+        .points = *points,
+        .T_truth_product = ProductToTruth(products, points->cloud.comments, *truth)};
+    json scores;
+    for (const ProductScorer score : {ScoreTrajectories,
+                                      ScorePointsPly,
+                                      ScoreArtifactsInPoints,
+                                      ScoreBoresightJson,
+                                      ScoreMeshPly,
+#ifdef PITMAP_EVAL_GRID
+                                      ScoreDemTif,
+                                      ScoreTerrainTifs,
+                                      ScoreMosaicTif,
+#endif
+                                      ScoreSoundingsTpuPly}) {
+        if (auto scored = score(scoring, scores); !scored) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", scored.error().message.c_str());
+            return codes::kFailure;
+        }
+    }
+    if (scores.empty()) {
+        std::fprintf(
+            stderr, "pitmap-eval: %s holds no product to score\n", options.products_dir.c_str());
+        return codes::kFailure;
+    }
+    return WriteScores(scores, options);
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap-eval: internal error: %s\n", e.what());
     return codes::kInternal;

@@ -216,6 +216,23 @@ TEST_F(XtfLine, CorruptedPacketHeadersAreSkippedToTheNextPacket) {
     EXPECT_TRUE(Mentions(f->warnings, "byte offset " + std::to_string(bathy[30])));
 }
 
+TEST_F(XtfLine, DamageBeyondTheFirstFewPlacesIsSaidAsATotal) {
+    std::vector<std::uint8_t> bad = bytes_;
+    const auto bathy = PacketsOfType(bytes_, 65);
+    // Eight flipped magics: the first five places are warnings of their own, the other three
+    // one total.
+    for (int k = 0; k < 8; ++k) bad[bathy[10 + 20 * k]] ^= 0xFF;
+    const auto f = Decode(bad);
+    ASSERT_TRUE(f.ok()) << f.error().message;
+    EXPECT_EQ(f->counts.resyncs, 8);
+    ASSERT_EQ(f->warnings.size(), 6u);
+    for (int k = 0; k < 5; ++k) {
+        EXPECT_TRUE(Mentions(f->warnings, "byte offset " + std::to_string(bathy[10 + 20 * k])));
+    }
+    EXPECT_NE(f->warnings.back().find("line.xtf: 3 more damaged places"), std::string::npos)
+        << f->warnings.back();
+}
+
 TEST_F(XtfLine, ACorruptedBth0SectionCountsThePingBad) {
     std::vector<std::uint8_t> bad = bytes_;
     const auto bathy = PacketsOfType(bytes_, 65);
