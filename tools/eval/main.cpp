@@ -13,12 +13,14 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "common/cli/parse.hpp"
 #include "common/exit_codes.hpp"
 #include "common/formats/ply.hpp"
 #include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
+#include "tools/eval/change_scores.hpp"
 #include "tools/eval/scores.hpp"
 #ifdef PITMAP_EVAL_GRID
 #include "processor/io/grid_io.hpp"
@@ -122,7 +124,21 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 points_rms_m_good: points_rms_m over the good points only.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
-either, the truth's origin is assumed (and said).)";
+either, the truth's origin is assumed (and said).  change_<part>_volume_true_m3, _volume_detected_m3, _u95_m3, _volume_error_pct, _iou, _within
+                                a compare folder (P/compare.json, P/dod.tif of pitmap compare A B
+                                --out P) against the truth of B's epoch (pitmap-sim synth --epoch
+                                2: truth/changes.json): per true part, the change regions of its
+                                sign lying mostly on it, their volume and U95 summed, the error
+                                against the exact volume, the IoU of their nodes with the part's,
+                                within = |error| <= max(5 %, U95). change_parts_within,
+                                change_u95_containment (share of parts with |error| <= U95),
+                                change_iou_min, change_volume_error_max_abs_pct,
+                                change_stable_flagged_share (region nodes more than 0.5 m from
+                                every part, over the compared nodes that far), change_false_regions,
+                                change_stable_rms_m, registration_rms_vertical_after_m.
+  capacity_b_volume_error_pct   compare.json's volume of water at B's water level against the
+                                true terrain's under B's surveyed nodes (true surface z = 0).
+)";
 
 std::optional<Geodetic> ProductOrigin(const fs::path& products,
                                       const std::vector<std::string>& ply_comments) {
@@ -634,6 +650,109 @@ int main(int argc, char** argv) try {
                 if (n >= 20) level_max = std::max(level_max, std::abs(err));
             }
             scores[k + "level_max_abs_db"] = level_max;
+        }
+    }
+    if (fs::exists(P / "compare.json")) {
+        // A compare folder (pitmap compare A B --out P) against the truth of B's epoch.
+        const json cj = json::parse(std::ifstream(P / "compare.json"), nullptr, false);
+        auto dod = proc::io::ReadGrid((P / "dod.tif").string());
+        if (cj.is_discarded() || !dod || dod->grid.layers.size() < 4) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s: compare.json or dod.tif unreadable%s\n",
+                         products_dir.c_str(),
+                         dod ? "" : (": " + dod.error().message).c_str());
+            return codes::kFailure;
+        }
+        if (truth->changes.empty()) {
+            std::fprintf(stderr,
+                         "pitmap-eval: %s has no changes.json: score a compare folder against "
+                         "the truth of a repeat survey (pitmap-sim synth --epoch 2)\n",
+                         truth_dir.c_str());
+            return codes::kFailure;
+        }
+        const int epsg = dod->horizontal_epsg;
+        const proc::io::GridRaster& g = dod->grid;
+        const LocalTangentFrame tf(truth->origin);
+        const auto to_world = [&](double e, double n) -> std::optional<Eigen::Vector2d> {
+            UtmCoordinate u;
+            u.zone = epsg % 100;
+            u.northern = epsg < 32700;
+            u.easting_m = e;
+            u.northing_m = n;
+            auto geo = GeodeticFromUtm(u);
+            if (!geo) return std::nullopt;
+            return tf.ToEnu(*geo).head<2>();
+        };
+        std::vector<eval::DodNode> nodes;
+        for (int j = 0; j < g.ny; ++j) {
+            for (int i = 0; i < g.nx; ++i) {
+                const std::size_t k = static_cast<std::size_t>(j) * g.nx + i;
+                const float d = g.layers[0].values[k];
+                if (!std::isfinite(d)) continue;
+                auto w = to_world(g.x0 + i * g.resolution_m, g.y0 + j * g.resolution_m);
+                if (!w) continue;
+                const float reg = g.layers[3].values[k];
+                nodes.push_back({*w, std::isfinite(reg) ? static_cast<int>(reg) : 0});
+            }
+        }
+        std::vector<eval::RegionInfo> regions;
+        for (const json& r : cj["change"]["regions"]) {
+            regions.push_back({r.value("id", 0),
+                               r.value("kind", std::string()) == "fill" ? 1 : -1,
+                               r.value("volume_m3", 0.0),
+                               r.value("u95_m3", 0.0)});
+        }
+        const auto cs = eval::ScoreChange(nodes, regions, truth->changes);
+        int within = 0, contained = 0;
+        double iou_min = 1.0, worst_pct = 0;
+        for (const auto& ps : cs.parts) {
+            const std::string k = "change_" + ps.name + "_";
+            scores[k + "volume_true_m3"] = ps.volume_true_m3;
+            scores[k + "volume_detected_m3"] = ps.volume_detected_m3;
+            scores[k + "u95_m3"] = ps.u95_m3;
+            scores[k + "volume_error_pct"] = ps.error_pct;
+            scores[k + "iou"] = ps.iou;
+            scores[k + "within"] = ps.within ? 1 : 0;
+            within += ps.within;
+            contained += ps.contained;
+            iou_min = std::min(iou_min, ps.iou);
+            worst_pct = std::max(worst_pct, std::abs(ps.error_pct));
+        }
+        const double n_parts = static_cast<double>(cs.parts.size());
+        scores["change_parts"] = cs.parts.size();
+        scores["change_parts_within"] = within;
+        scores["change_u95_containment"] = n_parts > 0 ? contained / n_parts : 0.0;
+        scores["change_iou_min"] = iou_min;
+        scores["change_volume_error_max_abs_pct"] = worst_pct;
+        scores["change_stable_flagged_share"] = cs.stable_flagged_share;
+        scores["change_false_regions"] = cs.false_regions;
+        const json& rj = cj["registration"];
+        scores["registration_rms_vertical_after_m"] = rj.value("rms_vertical_after_m", 0.0);
+        scores["change_stable_rms_m"] = cj["change"].value("stable_rms_m", 0.0);
+        // B's capacity at its water level against the true terrain under B's surveyed nodes.
+        const std::string b_dir = cj["inputs"]["b"].value("folder", std::string());
+        if (!b_dir.empty() && fs::exists(fs::path(b_dir) / "dem.tif")) {
+            auto dem = proc::io::ReadGrid((fs::path(b_dir) / "dem.tif").string());
+            if (dem && !dem->grid.layers.empty()) {
+                const proc::io::GridRaster& d = dem->grid;
+                // The true water surface is the world's z = 0 (the truth origin's height).
+                double volume = 0;
+                for (int j = 0; j < d.ny; ++j) {
+                    for (int i = 0; i < d.nx; ++i) {
+                        const float h = d.layers[0].values[static_cast<std::size_t>(j) * d.nx + i];
+                        if (!std::isfinite(h)) continue;
+                        auto w = to_world(d.x0 + i * d.resolution_m, d.y0 + j * d.resolution_m);
+                        if (!w) continue;
+                        volume += std::max(0.0, -world.Height(w->x(), w->y()));
+                    }
+                }
+                volume *= d.resolution_m * d.resolution_m;
+                const double product = cj["capacity"]["b"].value("volume_at_water_level_m3", 0.0);
+                scores["capacity_b_volume_true_m3"] = volume;
+                scores["capacity_b_volume_m3"] = product;
+                scores["capacity_b_volume_error_pct"] =
+                    volume > 0 ? 100.0 * (product - volume) / volume : 0.0;
+            }
         }
     }
 #endif
