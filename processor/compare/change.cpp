@@ -149,6 +149,7 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
     const double cell = a.resolution_m * a.resolution_m;
     const int grad_step = std::max(1, static_cast<int>(std::lround(0.2 / a.resolution_m)));
     std::vector<double> lods;
+    std::vector<double> lods_by_slope[3];
     for (int j = 0; j < a.ny; ++j) {
         for (int i = 0; i < a.nx; ++i) {
             const std::size_t k = a.index(i, j);
@@ -173,6 +174,8 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
             r.lod95_m[k] = static_cast<float>(lod);
             var_ab[k] = static_cast<float>(var);
             lods.push_back(lod);
+            const double slope_deg = std::atan(g.norm()) * 57.29577951308232;
+            lods_by_slope[slope_deg < 20 ? 0 : (slope_deg < 45 ? 1 : 2)].push_back(lod);
             ++r.compared_nodes;
         }
     }
@@ -181,6 +184,14 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());
         r.median_lod95_m = lods[lods.size() / 2];
+    }
+    for (int c = 0; c < 3; ++c) {
+        auto& v = lods_by_slope[c];
+        if (v.empty()) continue;
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        (c == 0   ? r.median_lod95_floor_m
+         : c == 1 ? r.median_lod95_face_m
+                  : r.median_lod95_wall_m) = v[v.size() / 2];
     }
     // Seeds (significant) and hysteresis growth per sign.
     std::vector<int> sign(n, 0);

@@ -77,6 +77,9 @@ struct ChangeResult {
     double compared_area_m2 = 0;
     double significant_share = 0;  // of the compared nodes, in a region
     double median_lod95_m = 0;
+    // The smallest detectable change (median LoD95, m) by the slope of A's surface: floors and
+    // benches (< 20 deg), faces (20-45 deg), walls (>= 45 deg); 0 where no node.
+    double median_lod95_floor_m = 0, median_lod95_face_m = 0, median_lod95_wall_m = 0;
     // The difference over the nodes outside every region (stable terrain after the correction).
     double stable_mean_m = 0, stable_rms_m = 0;
     std::string message;
