@@ -14,7 +14,8 @@
 //   pitmap config --defaults | --vehicle
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
-//   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--strict]
+//   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
+//                  [--strict]
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
@@ -216,6 +217,10 @@ int main(int argc, char** argv) try {
     compare->add_option("--min-region-area",
                         compare_config.change.min_region_area_m2,
                         "m2: smaller change regions are not reported (0.5)");
+    bool compare_no_3d = false;
+    compare->add_flag("--no-3d",
+                      compare_no_3d,
+                      "no 3D change along the normal on the soundings (change_points.ply)");
     compare->add_option("--capacity-step",
                         compare_config.capacity_step_m,
                         "m: a row of the capacity curves every step (0.25)");
@@ -243,6 +248,7 @@ int main(int argc, char** argv) try {
         if (auto m = MissingInput(compare_inputs, "products folder"); !m.empty())
             return Fail(m + "; nothing written", codes::kUsage);
         compare_config.registration.estimate_roll_pitch = compare_dof == 6;
+        compare_config.change3d = !compare_no_3d;
         if (auto problems = compare_config.Validate(); !problems.empty())
             return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
         std::string command_line;

@@ -17,6 +17,11 @@
 //   capacity_a.csv, capacity_b.csv
 //                          level_m (the DEM's vertical datum), depth_below_water_level_m,
 //                          area_m2, volume_m3
+//   change_points.ply      with change3d and both folders' points_utm.ply: the 3D change along
+//                          the local normal (processor/compare/m3c2.hpp) at A's core points:
+//                          double x, y, z (A's CRS), float nx, ny, nz, distance_m (B - A along
+//                          the normal, > 0 towards the water), lod95_m, slope_deg, char
+//                          significance, uint n_a, n_b; NaN distance where too few soundings
 //   compare.json           inputs, crs, registration (correction, its 1-sigma, residuals, the
 //                          navigation gate), change (totals and regions), capacity, quality_gates
 // Errors (nothing is written to C, the message names the folder and the problem): a missing
@@ -30,6 +35,7 @@
 
 #include "common/result.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -37,6 +43,8 @@ namespace pitmap::proc::pipeline {
 struct CompareConfig {
     compare::RegistrationConfig registration;
     compare::ChangeConfig change;
+    bool change3d = true;  // also the 3D change along the normal on the soundings (M3C2)
+    compare::M3c2Config m3c2;
     double capacity_step_m = 0.25;  // capacity curve: a row every step, m
     // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
     // its own 95 % uncertainty at most.

@@ -136,6 +136,13 @@ either, the truth's origin is assumed (and said).  change_<part>_volume_true_m3,
                                 change_stable_flagged_share (region nodes more than 0.5 m from
                                 every part, over the compared nodes that far), change_false_regions,
                                 change_stable_rms_m, registration_rms_vertical_after_m.
+  change3d_scar_detected_share, change3d_scar_median_distance_m, change3d_stable_flagged_share,
+  change3d_wall_stable_flagged_share
+                                with P/change_points.ply (pitmap compare's 3D change along the
+                                normal): the share of the core points on the slump's scar
+                                (profile > 0.3) flagged as loss and their median distance; the
+                                share of the cores more than 0.5 m from every part flagged (all,
+                                and those on walls >= 45 deg).
   capacity_b_volume_error_pct   compare.json's volume of water at B's water level against the
                                 true terrain's under B's surveyed nodes (true surface z = 0).
 )";
@@ -729,6 +736,59 @@ int main(int argc, char** argv) try {
         const json& rj = cj["registration"];
         scores["registration_rms_vertical_after_m"] = rj.value("rms_vertical_after_m", 0.0);
         scores["change_stable_rms_m"] = cj["change"].value("stable_rms_m", 0.0);
+        // The 3D change along the normal (change_points.ply): on the slump's scar (a wall) and
+        // on stable terrain, walls apart.
+        if (fs::exists(P / "change_points.ply")) {
+            auto cp = formats::ply::ReadMesh((P / "change_points.ply").string(),
+                                             {"distance_m", "significance", "slope_deg"});
+            if (!cp) {
+                std::fprintf(stderr, "pitmap-eval: %s\n", cp.error().message.c_str());
+                return codes::kFailure;
+            }
+            std::size_t scar = 0, scar_loss = 0, stable = 0, stable_flagged = 0, wall = 0,
+                        wall_flagged = 0;
+            std::vector<double> scar_distance;
+            for (std::size_t i = 0; i < cp->vertices.size(); ++i) {
+                if (!std::isfinite(cp->vertex_properties[0][i])) continue;
+                auto w = to_world(cp->vertices[i].x(), cp->vertices[i].y());
+                if (!w) continue;
+                const int sig = static_cast<int>(cp->vertex_properties[1][i]);
+                bool near = false;
+                double scar_profile = 0;
+                for (const auto& part : truth->changes) {
+                    for (double dx : {-0.5, 0.0, 0.5}) {
+                        for (double dy : {-0.5, 0.0, 0.5}) {
+                            if (part.Profile(w->x() + dx, w->y() + dy) > 0) near = true;
+                        }
+                    }
+                    if (part.name == "slump_scar") scar_profile = part.Profile(w->x(), w->y());
+                }
+                if (scar_profile > 0.3) {
+                    ++scar;
+                    scar_loss += sig < 0;
+                    scar_distance.push_back(cp->vertex_properties[0][i]);
+                }
+                if (!near) {
+                    ++stable;
+                    stable_flagged += sig != 0;
+                    if (cp->vertex_properties[2][i] >= 45) {
+                        ++wall;
+                        wall_flagged += sig != 0;
+                    }
+                }
+            }
+            const auto share = [](std::size_t a, std::size_t b) {
+                return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0;
+            };
+            scores["change3d_scar_cores"] = scar;
+            scores["change3d_scar_detected_share"] = share(scar_loss, scar);
+            if (!scar_distance.empty()) {
+                std::sort(scar_distance.begin(), scar_distance.end());
+                scores["change3d_scar_median_distance_m"] = scar_distance[scar_distance.size() / 2];
+            }
+            scores["change3d_stable_flagged_share"] = share(stable_flagged, stable);
+            scores["change3d_wall_stable_flagged_share"] = share(wall_flagged, wall);
+        }
         // B's capacity at its water level against the true terrain under B's surveyed nodes.
         const std::string b_dir = cj["inputs"]["b"].value("folder", std::string());
         if (!b_dir.empty() && fs::exists(fs::path(b_dir) / "dem.tif")) {

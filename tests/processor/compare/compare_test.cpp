@@ -11,6 +11,7 @@
 
 #include "processor/compare/capacity.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
 namespace pitmap::proc::compare {
@@ -240,6 +241,67 @@ TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
         }
     }
     EXPECT_EQ(c.rows.back().level_m, 0.0);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// Soundings of a 70 deg face rising from a floor at z = -10 (the face's foot along x = 0,
+// rising towards +x), 25 a square metre, with 3 cm noise along every axis. `bulge` moves the
+// face's soundings in |y| < 2 m, 2 m < height above the floor < 5 m by that much along the
+// face's normal (towards the water, -x and up).
+std::vector<Eigen::Vector3d> FaceCloud(double bulge_m, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0.0, 0.03);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const double slope = 70.0 * kDeg;
+    const Eigen::Vector3d n(-std::sin(slope), 0.0, std::cos(slope));  // out of the rock
+    std::vector<Eigen::Vector3d> pts;
+    // The face: height h in [0, 8] above the floor, y in [-6, 6]; area per h: 1 / sin(slope).
+    const int face_n = static_cast<int>(25 * 12 * 8 / std::sin(slope));
+    for (int k = 0; k < face_n; ++k) {
+        const double h = 8 * u(rng), y = -6 + 12 * u(rng);
+        Eigen::Vector3d p(h / std::tan(slope), y, -10 + h);
+        if (std::abs(y) < 2 && h > 2 && h < 5) p += bulge_m * n;
+        pts.push_back(p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    }
+    for (int k = 0; k < 25 * 6 * 12; ++k) {
+        const Eigen::Vector3d p(-6 * u(rng), -6 + 12 * u(rng), -10);
+        pts.push_back(p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    }
+    return pts;
+}
+
+TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsNormal) {
+    const auto a = FaceCloud(0.0, 11);
+    const auto b = FaceCloud(0.3, 12);
+    const Eigen::Vector3d inside(-20, 0, -5);  // the water is towards -x
+    const M3c2Result r =
+        RunM3c2(a, b, inside, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), M3c2Config{});
+    int in_patch = 0, in_patch_detected = 0, stable = 0, stable_flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m)) continue;
+        const double h = c.position.z() + 10;
+        const bool face = c.slope_deg > 60;
+        // Well inside the patch (its edges smear over the projection radius).
+        if (face && std::abs(c.position.y()) < 1.3 && h > 2.7 && h < 4.3) {
+            ++in_patch;
+            EXPECT_NEAR(c.normal.x(), -std::sin(70 * kDeg), 0.05);
+            EXPECT_NEAR(c.distance_m, 0.3, 0.06);
+            in_patch_detected += c.significance == 1;
+        }
+        if (std::abs(c.position.y()) > 3 || h < 1 || h > 6) {
+            ++stable;
+            stable_flagged += c.significance != 0;
+        }
+    }
+    EXPECT_GT(in_patch, 10) << r.message;
+    EXPECT_GE(in_patch_detected, in_patch - 1) << r.message;
+    EXPECT_GT(stable, 100);
+    EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
 }
 
 }  // namespace
