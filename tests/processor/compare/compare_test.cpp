@@ -34,12 +34,20 @@ double PitHeight(double x, double y) {
     const double steps[3][2] = {{2.0, 4.5}, {8.0, 4.5}, {14.0, 5.0}};  // face position, height
     for (const auto& s : steps) depth += s[1] * Sigmoid((d - s[0]) / 0.6);
     depth += 0.6 * Sigmoid((d - 14) / 2.0) * std::sin(x / 4.0) * std::cos(y / 3.0);
-    // Boulders.
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<double> ux(-28, 28), uy(-18, 18), ur(0.4, 1.2);
-    for (int k = 0; k < 40; ++k) {
-        const double bx = ux(rng), by = uy(rng), br = ur(rng);
-        depth -= 0.5 * br * std::exp(-((x - bx) * (x - bx) + (y - by) * (y - by)) / (br * br));
+    // Boulders (drawn once).
+    static const std::vector<Eigen::Vector3d> boulders = [] {
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<double> ux(-28, 28), uy(-18, 18), ur(0.4, 1.2);
+        std::vector<Eigen::Vector3d> b;
+        for (int k = 0; k < 40; ++k) {
+            const double bx = ux(rng), by = uy(rng), br = ur(rng);
+            b.emplace_back(bx, by, br);
+        }
+        return b;
+    }();
+    for (const Eigen::Vector3d& b : boulders) {
+        const double d2 = (x - b.x()) * (x - b.x()) + (y - b.y()) * (y - b.y());
+        if (d2 < 16 * b.z() * b.z()) depth -= 0.5 * b.z() * std::exp(-d2 / (b.z() * b.z()));
     }
     return -depth;
 }
