@@ -280,6 +280,104 @@ Status WriteChangePoints(const std::string& path,
     });
 }
 
+// capacity.svg: volume and water-surface area against water level for both surveys, the
+// water levels dashed (a plain SVG: no plotting library needed to read it).
+std::string CapacitySvg(const compare::CapacityResult& a,
+                        const compare::CapacityResult& b,
+                        const std::string& datum) {
+    const double W = 900, H = 420, panel_w = 380, panel_h = 300, top = 50, left[2] = {80, 520};
+    double lo = std::min(a.min_height_m, b.min_height_m);
+    double hi = std::max(a.water_level_m, b.water_level_m);
+    if (!(hi > lo)) hi = lo + 1;
+    double vmax = 1, amax = 1;
+    for (const auto* c : {&a, &b}) {
+        for (const auto& r : c->rows) {
+            vmax = std::max(vmax, r.volume_m3);
+            amax = std::max(amax, r.area_m2);
+        }
+    }
+    std::string svg;
+    char buf[400];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
+                  "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%%\" "
+                  "height=\"100%%\" fill=\"white\"/>\n",
+                  W,
+                  H);
+    svg += buf;
+    const char* colour[2] = {"#1f77b4", "#d62728"};
+    for (int p = 0; p < 2; ++p) {
+        const double x0 = left[p], xmax = p == 0 ? vmax : amax;
+        const auto X = [&](double v) { return x0 + panel_w * v / xmax; };
+        const auto Y = [&](double level) { return top + panel_h * (hi - level) / (hi - lo); };
+        std::snprintf(buf,
+                      sizeof buf,
+                      "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" "
+                      "stroke=\"black\"/>\n<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"middle\">%s"
+                      "</text>\n<text x=\"%.1f\" y=\"%.1f\">0</text><text x=\"%.1f\" y=\"%.1f\" "
+                      "text-anchor=\"end\">%.0f</text>\n",
+                      x0,
+                      top,
+                      panel_w,
+                      panel_h,
+                      x0 + panel_w / 2,
+                      top + panel_h + 35,
+                      p == 0 ? "water volume (m3)" : "water surface area (m2)",
+                      x0,
+                      top + panel_h + 15,
+                      x0 + panel_w,
+                      top + panel_h + 15,
+                      xmax);
+        svg += buf;
+        std::snprintf(buf,
+                      sizeof buf,
+                      "<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"end\">%.2f</text><text x=\"%.1f\" "
+                      "y=\"%.1f\" text-anchor=\"end\">%.2f</text>\n",
+                      x0 - 4,
+                      top + 4,
+                      hi,
+                      x0 - 4,
+                      top + panel_h,
+                      lo);
+        svg += buf;
+        for (int e = 0; e < 2; ++e) {
+            const compare::CapacityResult& c = e == 0 ? a : b;
+            std::string pts;
+            for (const auto& r : c.rows) {
+                std::snprintf(buf,
+                              sizeof buf,
+                              "%.1f,%.1f ",
+                              X(p == 0 ? r.volume_m3 : r.area_m2),
+                              Y(r.level_m));
+                pts += buf;
+            }
+            svg += "<polyline fill=\"none\" stroke-width=\"2\" stroke=\"" + std::string(colour[e]) +
+                   "\" points=\"" + pts + "\"/>\n";
+            std::snprintf(buf,
+                          sizeof buf,
+                          "<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" stroke=\"%s\" "
+                          "stroke-dasharray=\"4 3\"/>\n",
+                          x0,
+                          x0 + panel_w,
+                          Y(c.water_level_m),
+                          Y(c.water_level_m),
+                          colour[e]);
+            svg += buf;
+        }
+    }
+    std::snprintf(buf,
+                  sizeof buf,
+                  "<text x=\"20\" y=\"25\">Capacity: water level (m, %s) against volume and "
+                  "area; A blue, B red; dashed: each survey's water level (A %.0f m3, B %.0f m3)"
+                  "</text>\n</svg>\n",
+                  datum.c_str(),
+                  a.volume_at_water_level_m3,
+                  b.volume_at_water_level_m3);
+    svg += buf;
+    return svg;
+}
+
 }  // namespace
 
 std::vector<std::string> CompareConfig::Validate() const {
@@ -578,73 +676,82 @@ Expected<int> RunCompare(const std::string& a_dir,
         return Error{"compare: " + s.error().message};
     if (auto s = WriteText((C / "capacity_b.csv").string(), CapacityCsv(cap_b)); !s)
         return Error{"compare: " + s.error().message};
+    if (auto s = WriteText((C / "capacity.svg").string(),
+                           CapacitySvg(cap_a, cap_b, a->vertical_datum_key));
+        !s)
+        return Error{"compare: " + s.error().message};
     const auto totals = [](const compare::ChangeTotals& t) {
         return json{{"volume_m3", t.volume_m3},
                     {"u95_m3", t.u95_m3},
                     {"area_m2", t.area_m2},
                     {"regions", t.regions}};
     };
-    const json j = {
-        {"inputs",
-         {{"a",
-           {{"folder", fs::weakly_canonical(a_dir).string()},
-            {"run_id", a->run_id},
-            {"survey_start_utc", a->start_utc}}},
-          {"b",
-           {{"folder", fs::weakly_canonical(b_dir).string()},
-            {"run_id", b->run_id},
-            {"survey_start_utc", b->start_utc}}}}},
-        {"crs",
-         {{"horizontal", a->horizontal_name},
-          {"epsg", a->epsg},
-          {"vertical", a->vertical_datum_key}}},
-        {"registration",
-         {{"termination", compare::ToString(reg.termination)},
-          {"message", reg.message},
-          {"pivot_m", {T.pivot.x(), T.pivot.y(), T.pivot.z()}},
-          {"translation_m", {T.translation_m.x(), T.translation_m.y(), T.translation_m.z()}},
-          {"rotation_deg",
-           {{"roll", T.rotation_rad.x() * kRadToDeg},
-            {"pitch", T.rotation_rad.y() * kRadToDeg},
-            {"yaw", T.rotation_rad.z() * kRadToDeg}}},
-          {"sigma",
-           {{"roll_deg", reg.sigma(0) * kRadToDeg},
-            {"pitch_deg", reg.sigma(1) * kRadToDeg},
-            {"yaw_deg", reg.sigma(2) * kRadToDeg},
-            {"east_m", reg.sigma(3)},
-            {"north_m", reg.sigma(4)},
-            {"up_m", reg.sigma(5)}}},
-          {"dof", cfg.registration.estimate_roll_pitch ? 6 : 4},
-          {"iterations", reg.iterations},
-          {"overlap_area_m2", reg.overlap_area_m2},
-          {"nodes_used", reg.points_overlap},
-          {"nodes_stable", reg.points_stable},
-          {"robust_sigma_m", reg.robust_sigma_m},
-          {"rms_vertical_before_m", reg.rms_vertical_before_m},
-          {"rms_vertical_after_m", reg.rms_vertical_after_m},
-          {"navigation_gate", gate_record}}},
-        {"change",
-         {{"message", change.message},
-          {"compared_nodes", change.compared_nodes},
-          {"compared_area_m2", change.compared_area_m2},
-          {"resolution_m", a->surface.resolution_m},
-          {"median_lod95_m", change.median_lod95_m},
-          {"median_lod95_by_slope_m",
-           {{"floor_0_20_deg", change.median_lod95_floor_m},
-            {"face_20_45_deg", change.median_lod95_face_m},
-            {"wall_45_90_deg", change.median_lod95_wall_m}}},
-          {"significant_share", change.significant_share},
-          {"stable_mean_m", change.stable_mean_m},
-          {"stable_rms_m", change.stable_rms_m},
-          {"cut", totals(change.cut)},
-          {"fill", totals(change.fill)},
-          {"net_m3", change.cut.volume_m3 + change.fill.volume_m3},
-          {"regions", regions}}},
-        {"change3d", change3d},
-        {"capacity", {{"a", CapacityJson(cap_a)}, {"b", CapacityJson(cap_b)}}},
-        {"files",
-         {"dod.tif", "change_regions.geojson", "capacity_a.csv", "capacity_b.csv", "compare.json"}},
-        {"quality_gates", gates}};
+    json j = {{"inputs",
+               {{"a",
+                 {{"folder", fs::weakly_canonical(a_dir).string()},
+                  {"run_id", a->run_id},
+                  {"survey_start_utc", a->start_utc}}},
+                {"b",
+                 {{"folder", fs::weakly_canonical(b_dir).string()},
+                  {"run_id", b->run_id},
+                  {"survey_start_utc", b->start_utc}}}}},
+              {"crs",
+               {{"horizontal", a->horizontal_name},
+                {"epsg", a->epsg},
+                {"vertical", a->vertical_datum_key}}},
+              {"registration",
+               {{"termination", compare::ToString(reg.termination)},
+                {"message", reg.message},
+                {"pivot_m", {T.pivot.x(), T.pivot.y(), T.pivot.z()}},
+                {"translation_m", {T.translation_m.x(), T.translation_m.y(), T.translation_m.z()}},
+                {"rotation_deg",
+                 {{"roll", T.rotation_rad.x() * kRadToDeg},
+                  {"pitch", T.rotation_rad.y() * kRadToDeg},
+                  {"yaw", T.rotation_rad.z() * kRadToDeg}}},
+                {"sigma",
+                 {{"roll_deg", reg.sigma(0) * kRadToDeg},
+                  {"pitch_deg", reg.sigma(1) * kRadToDeg},
+                  {"yaw_deg", reg.sigma(2) * kRadToDeg},
+                  {"east_m", reg.sigma(3)},
+                  {"north_m", reg.sigma(4)},
+                  {"up_m", reg.sigma(5)}}},
+                {"dof", cfg.registration.estimate_roll_pitch ? 6 : 4},
+                {"iterations", reg.iterations},
+                {"overlap_area_m2", reg.overlap_area_m2},
+                {"nodes_used", reg.points_overlap},
+                {"nodes_stable", reg.points_stable},
+                {"robust_sigma_m", reg.robust_sigma_m},
+                {"rms_vertical_before_m", reg.rms_vertical_before_m},
+                {"rms_vertical_after_m", reg.rms_vertical_after_m},
+                {"navigation_gate", gate_record}}},
+              {"change",
+               {{"message", change.message},
+                {"compared_nodes", change.compared_nodes},
+                {"compared_area_m2", change.compared_area_m2},
+                {"resolution_m", a->surface.resolution_m},
+                {"median_lod95_m", change.median_lod95_m},
+                {"median_lod95_by_slope_m",
+                 {{"floor_0_20_deg", change.median_lod95_floor_m},
+                  {"face_20_45_deg", change.median_lod95_face_m},
+                  {"wall_45_90_deg", change.median_lod95_wall_m}}},
+                {"significant_share", change.significant_share},
+                {"stable_mean_m", change.stable_mean_m},
+                {"stable_rms_m", change.stable_rms_m},
+                {"cut", totals(change.cut)},
+                {"fill", totals(change.fill)},
+                {"net_m3", change.cut.volume_m3 + change.fill.volume_m3},
+                {"regions", regions}}},
+              {"change3d", change3d},
+              {"capacity", {{"a", CapacityJson(cap_a)}, {"b", CapacityJson(cap_b)}}},
+              {"files",
+               {"dod.tif",
+                "change_regions.geojson",
+                "capacity_a.csv",
+                "capacity_b.csv",
+                "capacity.svg",
+                "compare.json"}},
+              {"quality_gates", gates}};
+    if (m3c2) j["files"].push_back("change_points.ply");
     if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
         return Error{"compare: " + s.error().message};
     char buf[256];

@@ -17,6 +17,7 @@
 //   capacity_a.csv, capacity_b.csv
 //                          level_m (the DEM's vertical datum), depth_below_water_level_m,
 //                          area_m2, volume_m3
+//   capacity.svg           both capacity curves (volume and area against water level) as a plot
 //   change_points.ply      with change3d and both folders' points_utm.ply: the 3D change along
 //                          the local normal (processor/compare/m3c2.hpp) at A's core points:
 //                          double x, y, z (A's CRS), float nx, ny, nz, distance_m (B - A along

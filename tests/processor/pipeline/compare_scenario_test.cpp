@@ -150,8 +150,12 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     std::string out;
     const fs::path C = dir_ / "C";
     ASSERT_EQ(Compare(A(), B(), C, &out, " --strict"), 0) << out;
-    for (const char* f :
-         {"dod.tif", "change_regions.geojson", "capacity_a.csv", "capacity_b.csv", "compare.json"})
+    for (const char* f : {"dod.tif",
+                          "change_regions.geojson",
+                          "capacity_a.csv",
+                          "capacity_b.csv",
+                          "capacity.svg",
+                          "compare.json"})
         EXPECT_TRUE(fs::exists(C / f)) << f;
     const json j = ReadJson(C / "compare.json");
     EXPECT_TRUE(j["quality_gates"].empty()) << j["quality_gates"].dump();
