@@ -14,6 +14,9 @@
 //   pitmap config --defaults | --vehicle
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
+//   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
+//                  [--strict]
+//                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
 // Every command with --out holds P/.pitmap.lock while it runs (processor/io/products_lock.hpp):
@@ -38,6 +41,7 @@
 #include "processor/edit/edit_command.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/products_lock.hpp"
+#include "processor/pipeline/compare_stage.hpp"
 #include "processor/pipeline/pipeline.hpp"
 
 namespace pp = pitmap::proc::pipeline;
@@ -196,11 +200,39 @@ int main(int argc, char** argv) try {
     std::string rerun_program;
     edit->add_option("--rerun-program", rerun_program, "(tests) what the re-run button starts")
         ->group("");
+    std::vector<std::string> compare_inputs;
+    int compare_dof = 6;
+    pp::CompareConfig compare_config;
+    auto* compare = app.add_subcommand(
+        "compare",
+        "two surveys of one site: co-registration on stable terrain, DEM of difference with a "
+        "level of detection, change regions with volumes and uncertainty, capacity curves "
+        "(docs/compare.md)");
+    compare->add_option("A B", compare_inputs, "products folders, the earlier survey first")
+        ->required()
+        ->expected(2);
+    compare->add_option("--out", out_dir, "output folder for the comparison")->required();
+    compare
+        ->add_option("--dof",
+                     compare_dof,
+                     "registration: 6 (translation, roll, pitch, yaw; default) or 4 (translation "
+                     "and yaw)")
+        ->check(CLI::IsMember({4, 6}));
+    compare->add_option("--min-region-area",
+                        compare_config.change.min_region_area_m2,
+                        "m2: smaller change regions are not reported (0.5)");
+    bool compare_no_3d = false;
+    compare->add_flag("--no-3d",
+                      compare_no_3d,
+                      "no 3D change along the normal on the soundings (change_points.ply)");
+    compare->add_option("--capacity-step",
+                        compare_config.capacity_step_m,
+                        "m: a row of the capacity curves every step (0.25)");
     auto* cfg = app.add_subcommand("config", "configuration helpers");
     cfg->add_flag("--defaults", defaults, "print the YAML of every default");
     cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
     bool strict = false;
-    for (auto* sub : {geo, cal, slam, clean, grid, fuse, mesh, run, rerun}) {
+    for (auto* sub : {geo, cal, slam, clean, grid, fuse, mesh, run, rerun, compare}) {
         sub->add_flag("--strict",
                       strict,
                       "exit with status 4 when a quality gate trips (the stage could not "
@@ -213,6 +245,35 @@ int main(int argc, char** argv) try {
             return Fail("config: give --defaults or --vehicle", codes::kUsage);
         }
         std::fputs((defaults ? pp::DefaultsYaml() : pitmap::VehicleYamlTemplate()).c_str(), stdout);
+        return 0;
+    }
+    if (compare->parsed()) {
+        // Both folders must be there before C is created.
+        if (auto m = MissingInput(compare_inputs, "products folder"); !m.empty())
+            return Fail(m + "; nothing written", codes::kUsage);
+        compare_config.registration.estimate_roll_pitch = compare_dof == 6;
+        compare_config.change3d = !compare_no_3d;
+        if (auto problems = compare_config.Validate(); !problems.empty())
+            return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
+        std::string command_line;
+        for (int i = 0; i < argc; ++i) command_line += (i > 0 ? " " : "") + std::string(argv[i]);
+        auto lock = pitmap::proc::io::ProductsLock::Acquire(out_dir, command_line);
+        if (!lock) return Fail(lock.error().message);
+        auto gates = pp::RunCompare(
+            compare_inputs[0],
+            compare_inputs[1],
+            out_dir,
+            compare_config,
+            [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });
+        if (!gates) return Fail(gates.error().message);
+        if (*gates > 0) {
+            std::fprintf(stderr,
+                         "pitmap: compare: %d quality gate(s) tripped (compare.json "
+                         "quality_gates)%s\n",
+                         *gates,
+                         strict ? "" : "; --strict makes this an error");
+            if (strict) return codes::kQualityGate;
+        }
         return 0;
     }
     pp::PipelineConfig config;

@@ -21,6 +21,7 @@
 #include "common/formats/trajectory_csv.hpp"
 #include "common/geodesy.hpp"
 #include "common/result.hpp"
+#include "tools/eval/change_scores.hpp"
 #include "tools/eval/scores.hpp"
 #ifdef PITMAP_EVAL_GRID
 #include "processor/io/grid_io.hpp"
@@ -126,7 +127,36 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 points_rms_m_good: points_rms_m over the good points only.
 Products are in a local ENU frame whose origin is P/summary.json "world_origin"
 (latitude_deg, longitude_deg, height_m) or a PLY comment "pitmap_origin LAT LON H"; without
-either, the truth's origin is assumed (and said).)";
+either, the truth's origin is assumed (and said).
+  terrain_slope_mean_abs_deg, terrain_step_mean_abs_m, terrain_class_agreement,
+  terrain_blocked_recall, terrain_blocked_false_share
+                                P/terrain.tif and P/crawler.tif against the same layers computed
+                                from the true heights at the DEM's nodes (tools/eval/
+                                terrain_score.hpp): mean abs slope and step errors, the share of
+                                nodes whose "can stand" is the truth's, the share of the truly
+                                blocked nodes found, the share of the blocked ones that are not.
+  change_<part>_volume_true_m3, _volume_detected_m3, _u95_m3, _volume_error_pct, _iou, _within
+                                a compare folder (P/compare.json, P/dod.tif of pitmap compare A B
+                                --out P) against the truth of B's epoch (pitmap-sim synth --epoch
+                                2: truth/changes.json): per true part, the change regions of its
+                                sign lying mostly on it, their volume and U95 summed, the error
+                                against the exact volume, the IoU of their nodes with the part's,
+                                within = |error| <= max(5 %, U95). change_parts_within,
+                                change_u95_containment (share of parts with |error| <= U95),
+                                change_iou_min, change_volume_error_max_abs_pct,
+                                change_stable_flagged_share (region nodes more than 0.5 m from
+                                every part, over the compared nodes that far), change_false_regions,
+                                change_stable_rms_m, registration_rms_vertical_after_m.
+  change3d_scar_detected_share, change3d_scar_median_distance_m, change3d_stable_flagged_share,
+  change3d_wall_stable_flagged_share
+                                with P/change_points.ply (pitmap compare's 3D change along the
+                                normal): the share of the core points on the slump's scar
+                                (profile > 0.3) flagged as loss and their median distance; the
+                                share of the cores more than 0.5 m from every part flagged (all,
+                                and those on walls >= 45 deg).
+  capacity_b_volume_error_pct   compare.json's volume of water at B's water level against the
+                                true terrain's under B's surveyed nodes (true surface z = 0).
+)";
 
 std::optional<Geodetic> ProductOrigin(const fs::path& products,
                                       const std::vector<std::string>& ply_comments) {
@@ -738,6 +768,169 @@ void ScoreMosaicLayer(const Scoring& scoring,
 }
 
 // P/mosaic.tif's bands "backscatter" and "uncorrected" against the true backscatter.
+// A compare folder (pitmap compare A B --out P) against the truth of B's epoch: the change
+// regions by true part, the stable terrain flagged, the 3D change on the scar and on stable
+// ground, the capacity at B's water level.
+Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
+    const fs::path& P = scoring.products;
+    if (!fs::exists(P / "compare.json")) return Ok{};
+    const sim::Truth* truth = &scoring.truth;
+    const sim::PitWorld& world = scoring.world;
+    const std::string& products_dir = scoring.options.products_dir;
+    const std::string& truth_dir = scoring.options.truth_dir;
+    {
+        // A compare folder (pitmap compare A B --out P) against the truth of B's epoch.
+        const json cj = json::parse(std::ifstream(P / "compare.json"), nullptr, false);
+        auto dod = proc::io::ReadGrid((P / "dod.tif").string());
+        if (cj.is_discarded() || !dod || dod->grid.layers.size() < 4) {
+            return Error{products_dir + ": compare.json or dod.tif unreadable" +
+                         (dod ? std::string() : ": " + dod.error().message)};
+        }
+        if (truth->changes.empty()) {
+            return Error{truth_dir +
+                         " has no changes.json: score a compare folder against the truth of a "
+                         "repeat survey (pitmap-sim synth --epoch 2)"};
+        }
+        const int epsg = dod->horizontal_epsg;
+        const proc::io::GridRaster& g = dod->grid;
+        const LocalTangentFrame tf(truth->origin);
+        const auto to_world = [&](double e, double n) -> std::optional<Eigen::Vector2d> {
+            UtmCoordinate u;
+            u.zone = epsg % 100;
+            u.northern = epsg < 32700;
+            u.easting_m = e;
+            u.northing_m = n;
+            auto geo = GeodeticFromUtm(u);
+            if (!geo) return std::nullopt;
+            return tf.ToEnu(*geo).head<2>();
+        };
+        std::vector<eval::DodNode> nodes;
+        for (int j = 0; j < g.ny; ++j) {
+            for (int i = 0; i < g.nx; ++i) {
+                const std::size_t k = static_cast<std::size_t>(j) * g.nx + i;
+                const float d = g.layers[0].values[k];
+                if (!std::isfinite(d)) continue;
+                auto w = to_world(g.x0 + i * g.resolution_m, g.y0 + j * g.resolution_m);
+                if (!w) continue;
+                const float reg = g.layers[3].values[k];
+                nodes.push_back({*w, std::isfinite(reg) ? static_cast<int>(reg) : 0});
+            }
+        }
+        std::vector<eval::RegionInfo> regions;
+        for (const json& r : cj["change"]["regions"]) {
+            regions.push_back({r.value("id", 0),
+                               r.value("kind", std::string()) == "fill" ? 1 : -1,
+                               r.value("volume_m3", 0.0),
+                               r.value("u95_m3", 0.0)});
+        }
+        const auto cs = eval::ScoreChange(nodes, regions, truth->changes);
+        int within = 0, contained = 0;
+        double iou_min = 1.0, worst_pct = 0;
+        for (const auto& ps : cs.parts) {
+            const std::string k = "change_" + ps.name + "_";
+            scores[k + "volume_true_m3"] = ps.volume_true_m3;
+            scores[k + "volume_detected_m3"] = ps.volume_detected_m3;
+            scores[k + "u95_m3"] = ps.u95_m3;
+            scores[k + "volume_error_pct"] = ps.error_pct;
+            scores[k + "iou"] = ps.iou;
+            scores[k + "within"] = ps.within ? 1 : 0;
+            within += ps.within;
+            contained += ps.contained;
+            iou_min = std::min(iou_min, ps.iou);
+            worst_pct = std::max(worst_pct, std::abs(ps.error_pct));
+        }
+        const double n_parts = static_cast<double>(cs.parts.size());
+        scores["change_parts"] = cs.parts.size();
+        scores["change_parts_within"] = within;
+        scores["change_u95_containment"] = n_parts > 0 ? contained / n_parts : 0.0;
+        scores["change_iou_min"] = iou_min;
+        scores["change_volume_error_max_abs_pct"] = worst_pct;
+        scores["change_stable_flagged_share"] = cs.stable_flagged_share;
+        scores["change_false_regions"] = cs.false_regions;
+        const json& rj = cj["registration"];
+        scores["registration_rms_vertical_after_m"] = rj.value("rms_vertical_after_m", 0.0);
+        scores["change_stable_rms_m"] = cj["change"].value("stable_rms_m", 0.0);
+        // The 3D change along the normal (change_points.ply): on the slump's scar (a wall) and
+        // on stable terrain, walls apart.
+        if (fs::exists(P / "change_points.ply")) {
+            auto cp = formats::ply::ReadMesh((P / "change_points.ply").string(),
+                                             {"distance_m", "significance", "slope_deg"});
+            if (!cp) {
+                return cp.error();
+            }
+            std::size_t scar = 0, scar_loss = 0, stable = 0, stable_flagged = 0, wall = 0,
+                        wall_flagged = 0;
+            std::vector<double> scar_distance;
+            for (std::size_t i = 0; i < cp->vertices.size(); ++i) {
+                if (!std::isfinite(cp->vertex_properties[0][i])) continue;
+                auto w = to_world(cp->vertices[i].x(), cp->vertices[i].y());
+                if (!w) continue;
+                const int sig = static_cast<int>(cp->vertex_properties[1][i]);
+                bool near = false;
+                double scar_profile = 0;
+                for (const auto& part : truth->changes) {
+                    for (double dx : {-0.5, 0.0, 0.5}) {
+                        for (double dy : {-0.5, 0.0, 0.5}) {
+                            if (part.Profile(w->x() + dx, w->y() + dy) > 0) near = true;
+                        }
+                    }
+                    if (part.name == "slump_scar") scar_profile = part.Profile(w->x(), w->y());
+                }
+                if (scar_profile > 0.3) {
+                    ++scar;
+                    scar_loss += sig < 0;
+                    scar_distance.push_back(cp->vertex_properties[0][i]);
+                }
+                if (!near) {
+                    ++stable;
+                    stable_flagged += sig != 0;
+                    if (cp->vertex_properties[2][i] >= 45) {
+                        ++wall;
+                        wall_flagged += sig != 0;
+                    }
+                }
+            }
+            const auto share = [](std::size_t a, std::size_t b) {
+                return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0;
+            };
+            scores["change3d_scar_cores"] = scar;
+            scores["change3d_scar_detected_share"] = share(scar_loss, scar);
+            if (!scar_distance.empty()) {
+                std::sort(scar_distance.begin(), scar_distance.end());
+                scores["change3d_scar_median_distance_m"] = scar_distance[scar_distance.size() / 2];
+            }
+            scores["change3d_stable_flagged_share"] = share(stable_flagged, stable);
+            scores["change3d_wall_stable_flagged_share"] = share(wall_flagged, wall);
+        }
+        // B's capacity at its water level against the true terrain under B's surveyed nodes.
+        const std::string b_dir = cj["inputs"]["b"].value("folder", std::string());
+        if (!b_dir.empty() && fs::exists(fs::path(b_dir) / "dem.tif")) {
+            auto dem = proc::io::ReadGrid((fs::path(b_dir) / "dem.tif").string());
+            if (dem && !dem->grid.layers.empty()) {
+                const proc::io::GridRaster& d = dem->grid;
+                // The true water surface is the world's z = 0 (the truth origin's height).
+                double volume = 0;
+                for (int j = 0; j < d.ny; ++j) {
+                    for (int i = 0; i < d.nx; ++i) {
+                        const float h = d.layers[0].values[static_cast<std::size_t>(j) * d.nx + i];
+                        if (!std::isfinite(h)) continue;
+                        auto w = to_world(d.x0 + i * d.resolution_m, d.y0 + j * d.resolution_m);
+                        if (!w) continue;
+                        volume += std::max(0.0, -world.Height(w->x(), w->y()));
+                    }
+                }
+                volume *= d.resolution_m * d.resolution_m;
+                const double product = cj["capacity"]["b"].value("volume_at_water_level_m3", 0.0);
+                scores["capacity_b_volume_true_m3"] = volume;
+                scores["capacity_b_volume_m3"] = product;
+                scores["capacity_b_volume_error_pct"] =
+                    volume > 0 ? 100.0 * (product - volume) / volume : 0.0;
+            }
+        }
+    }
+    return Ok{};
+}
+
 // P/terrain.tif and P/crawler.tif against the same layers from the true heights.
 Status ScoreTerrainTifs(const Scoring& scoring, json& scores) {
     auto terrain = eval::ScoreTerrainProducts(
@@ -886,6 +1079,7 @@ int main(int argc, char** argv) try {
                                       ScoreDemTif,
                                       ScoreTerrainTifs,
                                       ScoreMosaicTif,
+                                      ScoreCompareFolder,
 #endif
                                       ScoreSoundingsTpuPly}) {
         if (auto scored = score(scoring, scores); !scored) {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // pitmap-sim: synthetic surveys with ground truth.
-//   pitmap-sim synth --scenario NAME --out DIR [--seed N] [--vendor-files]
+//   pitmap-sim synth --scenario NAME --out DIR [--seed N] [--vendor-files] [--epoch K]
 //                    [--topside-clock-offset S]             log files + truth (+ vendor files),
 //                    [--duration S] [--refraction]          faster than real time; --refraction:
 //                                                           a refracting water column
@@ -28,6 +28,7 @@
 #include "common/progress.hpp"
 #include "tools/sim/hil/hil_run.hpp"
 #include "tools/sim/synth.hpp"
+#include "tools/sim/terrain_change.hpp"
 
 using namespace pitmap;
 
@@ -117,7 +118,21 @@ int main(int argc, char** argv) try {
         ->required();
     synth->add_option("--out", out_dir, "output folder: DIR/log (logs, vehicle.yaml) and DIR/truth")
         ->required();
-    synth->add_option("--seed", seed, "random seed (default: the scenario's own)");
+    synth->add_option("--seed",
+                      seed,
+                      "random seed (default: the scenario's own); with --epoch the first "
+                      "epoch's (the pit's terrain), epoch K surveys with seed + 7919 (K - 1)");
+    int epoch = 1;
+    synth
+        ->add_option("--epoch",
+                     epoch,
+                     "repeat survey K (2..9) of the scenario: the same pit with known change "
+                     "since epoch 1 (a slumped wall section, a backfill heap, a thin spill, a "
+                     "mined cut; truth in DIR/truth/changes.json, changes.geojson, change.f32), "
+                     "surveyed again with its own track (laps clockwise, 1.5 m further out), "
+                     "noise, navigation errors, mount, topside clock and date (K - 1) x 91 days "
+                     "later; 1 = the scenario as it is (default)")
+        ->check(CLI::Range(1, 9));
     synth->add_option("--threads", threads, "threads for sonar ray casting (0 = all cores)");
     bool vendor_files = false;
     double clock_offset_s = 0;
@@ -265,6 +280,12 @@ int main(int argc, char** argv) try {
         return codes::kUsage;
     }
     if (seed != 0) scenario->seed = seed;
+    if (auto repeat = sim::RepeatEpoch(*scenario, epoch); repeat) {
+        scenario = std::move(*repeat);
+    } else {
+        std::fprintf(stderr, "pitmap-sim: %s\n", repeat.error().message.c_str());
+        return codes::kUsage;
+    }
     if (clock_offset_opt->count() > 0) scenario->sonar.topside_clock_offset_s = clock_offset_s;
     if (clock_drift_opt->count() > 0) scenario->sonar.topside_clock_drift_ppm = clock_drift_ppm;
     if (stamp_error_opt->count() > 0) scenario->sonar.daemon_stamp_error_ms = stamp_error_ms;

@@ -341,6 +341,10 @@ std::vector<std::string> ScenarioConfig::Validate() const {
             !(a.smile_max_nadir_range_m > 0))
             p.push_back("echo_artifacts: smile pings 1 <= min <= max, 0 <= min < max angle");
     }
+    if (epoch < 1 || epoch > 9) p.push_back("epoch must be 1..9");
+    for (const ChangePart& c : changes) {
+        for (auto& q : c.Validate()) p.push_back(std::move(q));
+    }
     CheckPositive(p, ins_rate_hz, "ins_rate_hz");
     CheckPositive(p, imu_rate_hz, "imu_rate_hz");
     CheckPositive(p, gnss_rate_hz, "gnss_rate_hz");

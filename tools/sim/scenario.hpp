@@ -6,6 +6,7 @@
 // All lengths in metres, angles in degrees (configuration), times in seconds.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -66,6 +67,7 @@ struct TrackConfig {
     double lap_spacing_m = 9.0;       // distance between consecutive laps
     int num_laps = 4;                 // concentric laps
     int num_tie_lines = 1;            // straight lines across the pit after the laps
+    bool clockwise = false;           // laps clockwise (a repeat survey's own track)
     double duration_s = 0;            // 0 = run the whole track; else stop (or loop) at this time
     double turn_radius_m = 3.0;       // minimum radius when joining track pieces
     double roll_amplitude_deg = 2.0;  // wave-induced motion
@@ -270,6 +272,33 @@ struct EchoArtifactConfig {
 // (about 3 %); an unknown name is an error listing the valid ones.
 Expected<EchoArtifactConfig> EchoArtifactsAt(const std::string& level);
 
+// A part of a repeat survey's change (tools/sim/terrain_change.hpp: shapes, volumes).
+enum class ChangeShape { kParaboloid = 0, kFrustum, kBox };
+const char* ToString(ChangeShape s);
+
+struct ChangePart {
+    std::string name;    // unique in the epoch, e.g. "slump_scar"
+    std::string change;  // the change it belongs to: "slump", "deposit", "cut", ...
+    ChangeShape shape = ChangeShape::kParaboloid;
+    double x_m = 0, y_m = 0;  // centre, world ENU
+    double heading_deg = 0;   // direction of the local u axis, ccw from +x
+    double a_m = 1, b_m = 1;  // see the shapes above
+    double ramp_m = 0;        // kBox only
+    double thickness_m = 0;   // > 0 gain (terrain raised), < 0 loss (lowered)
+
+    // The profile in [0, 1] at a world point (0 outside the outline).
+    double Profile(double x, double y) const;
+    // Height change at a world point: thickness_m * Profile.
+    double Delta(double x, double y) const { return thickness_m * Profile(x, y); }
+    // The exact volume from the shape's formula, m^3, signed as thickness_m.
+    double AnalyticVolume() const;
+    // The outline (where the profile becomes 0) as a closed ring of world (x, y), counter-
+    // clockwise, first point repeated last; `vertices` points on curved outlines.
+    std::vector<Eigen::Vector2d> Outline(int vertices = 96) const;
+    // Every problem with the part (empty when valid).
+    std::vector<std::string> Validate() const;
+};
+
 struct ScenarioConfig {
     std::string name = "custom";
     std::uint64_t seed = 1;
@@ -292,6 +321,13 @@ struct ScenarioConfig {
     double ins_rate_hz = 50.0;          // INSPVAS
     double imu_rate_hz = 200.0;         // RAWIMUSX
     double gnss_rate_hz = 1.0;          // BESTPOS, INSPVAX, INSSTDEV, TIME
+    // Repeat surveys (issue 37, tools/sim/terrain_change.hpp RepeatEpoch): the survey's epoch
+    // (1 = the first), the seed of the pit's terrain and seabed (0 = seed; a repeat survey keeps
+    // the first epoch's) and the changes since the first epoch (empty for epoch 1).
+    int epoch = 1;
+    std::uint64_t terrain_seed = 0;
+    std::vector<ChangePart> changes;
+    std::uint64_t TerrainSeed() const { return terrain_seed != 0 ? terrain_seed : seed; }
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;

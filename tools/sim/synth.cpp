@@ -22,6 +22,7 @@
 #include "tools/sim/nav_errors.hpp"
 #include "tools/sim/receiver_sim.hpp"
 #include "tools/sim/sonar_model.hpp"
+#include "tools/sim/terrain_change.hpp"
 #include "tools/sim/trajectory.hpp"
 #include "tools/sim/truth_io.hpp"
 #include "tools/sim/water_column.hpp"
@@ -185,7 +186,7 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
                 static_cast<std::streamsize>(bytes.size()));
     };
 
-    const PitWorld world(sc.pit, sc.seed);
+    const PitWorld world = MakeWorld(sc);  // epoch >= 2: with its changes
     auto track = SurveyTrack::Plan(sc);
     if (!track) return track.error();
     const TruthTrajectory truth(sc, *track);
@@ -453,6 +454,9 @@ Expected<SynthResult> RunSynth(const ScenarioConfig& sc,
     t.coverage = std::move(coverage);
     t.backscatter_db =
         SeabedBackscatter(sc.backscatter, sc.seed, world.boulders()).Sample(world.grid());
+    t.epoch = sc.epoch;
+    t.changes = sc.changes;
+    if (!sc.changes.empty()) t.change_m = ChangeGrid(world.grid(), sc.changes);
     t.backscatter = sc.backscatter;
     t.sonar_clock = MakeSonarClockTruth(sc, *start_gps, truth.duration_s());
     result.artifact_soundings = artifact_truth.artifact_soundings();

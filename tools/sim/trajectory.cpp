@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "tools/sim/trajectory.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -77,7 +78,8 @@ Expected<SurveyTrack> SurveyTrack::Plan(const ScenarioConfig& sc) {
         for (int k = 0; k < tr.num_laps; ++k) {
             const double off = tr.first_lap_offset_m + k * tr.lap_spacing_m;
             if (off >= min_half - 1.0) break;
-            const auto loop = SuperellipseLoop(pit.half_length_m - off, pit.half_width_m - off, p);
+            auto loop = SuperellipseLoop(pit.half_length_m - off, pit.half_width_m - off, p);
+            if (tr.clockwise) std::reverse(loop.begin(), loop.end());
             if (coarse.empty()) {
                 coarse.push_back(loop.front());
             } else {

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "tools/sim/truth_io.hpp"
 
+#include "tools/sim/terrain_change.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -97,6 +99,21 @@ json ScenarioToJson(const ScenarioConfig& s) {
     json j;
     j["name"] = s.name;
     j["seed"] = s.seed;
+    j["epoch"] = s.epoch;
+    j["terrain_seed"] = s.TerrainSeed();
+    j["changes"] = json::array();
+    for (const ChangePart& c : s.changes) {
+        j["changes"].push_back({{"name", c.name},
+                                {"change", c.change},
+                                {"shape", ToString(c.shape)},
+                                {"x_m", c.x_m},
+                                {"y_m", c.y_m},
+                                {"heading_deg", c.heading_deg},
+                                {"a_m", c.a_m},
+                                {"b_m", c.b_m},
+                                {"ramp_m", c.ramp_m},
+                                {"thickness_m", c.thickness_m}});
+    }
     j["start_utc"] = s.start_utc;
     j["origin"] = {{"latitude_deg", s.origin_latitude_deg},
                    {"longitude_deg", s.origin_longitude_deg},
@@ -136,6 +153,7 @@ json ScenarioToJson(const ScenarioConfig& s) {
                   {"lap_spacing_m", t.lap_spacing_m},
                   {"num_laps", t.num_laps},
                   {"num_tie_lines", t.num_tie_lines},
+                  {"clockwise", t.clockwise},
                   {"duration_s", t.duration_s},
                   {"turn_radius_m", t.turn_radius_m},
                   {"roll_amplitude_deg", t.roll_amplitude_deg},
@@ -475,6 +493,7 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
             return s;
         }
     }
+    if (auto s = WriteChangeTruth(dir, truth); !s) return s;
     json b = {
         {"roll_deg", truth.boresight.roll_deg},
         {"pitch_deg", truth.boresight.pitch_deg},
@@ -484,6 +503,129 @@ Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth&
          "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD, sonar x fwd y stbd z down"}};
     return WriteText(dir + "/boresight.json", b.dump(2) + "\n");
 }
+
+namespace {
+
+std::string F32Bytes(const std::vector<float>& values) {
+    std::vector<std::uint8_t> bytes;
+    bytes.reserve(values.size() * 4);
+    ByteWriter w(bytes);
+    for (const float v : values) w.F32Le(v);
+    return std::string(bytes.begin(), bytes.end());
+}
+
+}  // namespace
+
+Status WriteChangeTruth(const std::string& dir, const Truth& truth) {
+    const TerrainGrid& g = truth.terrain;
+    {
+        // The capacity curve of this epoch's terrain (the water surface of the survey at 0).
+        float lowest = 0;
+        for (const float h : g.height_m) lowest = std::min(lowest, h);
+        const double step = 0.25;
+        const double start = std::floor(lowest / step) * step;
+        std::string csv = "level_m,level_height_m,area_m2,volume_m3\n";
+        char line[160];
+        for (const CapacityPoint& c : CapacityCurve(g, start, 0.0, step)) {
+            std::snprintf(line,
+                          sizeof line,
+                          "%.3f,%.4f,%.3f,%.3f\n",
+                          c.level_m,
+                          truth.origin.height_m + c.level_m,
+                          c.area_m2,
+                          c.volume_m3);
+            csv += line;
+        }
+        if (auto s = WriteText(dir + "/capacity.csv", csv); !s) return s;
+    }
+    if (truth.changes.empty()) return Ok{};
+    const LocalTangentFrame tf(truth.origin);
+    json parts = json::array();
+    json features = json::array();
+    double gain = 0, loss = 0;
+    for (const ChangePart& c : truth.changes) {
+        const double v = c.AnalyticVolume();
+        (v > 0 ? gain : loss) += v;
+        json ring = json::array(), lonlat = json::array();
+        for (const Eigen::Vector2d& p : c.Outline()) {
+            ring.push_back({p.x(), p.y()});
+            const Geodetic geo = tf.FromEnu(Eigen::Vector3d(p.x(), p.y(), 0.0));
+            lonlat.push_back({geo.longitude_deg, geo.latitude_deg});
+        }
+        const std::string sign = c.thickness_m > 0 ? "gain" : "loss";
+        parts.push_back({{"name", c.name},
+                         {"change", c.change},
+                         {"shape", ToString(c.shape)},
+                         {"x_m", c.x_m},
+                         {"y_m", c.y_m},
+                         {"heading_deg", c.heading_deg},
+                         {"a_m", c.a_m},
+                         {"b_m", c.b_m},
+                         {"ramp_m", c.ramp_m},
+                         {"thickness_m", c.thickness_m},
+                         {"sign", sign},
+                         {"volume_m3", v},
+                         {"volume_grid_m3", GridVolume(g, c)},
+                         {"max_thickness_m", std::abs(c.thickness_m)},
+                         {"outline", ring}});
+        features.push_back(
+            {{"type", "Feature"},
+             {"geometry", {{"type", "Polygon"}, {"coordinates", {lonlat}}}},
+             {"properties",
+              {{"name", c.name}, {"change", c.change}, {"sign", sign}, {"volume_m3", v}}}});
+    }
+    const json j = {{"epoch", truth.epoch},
+                    {"frame", "world: ENU at the terrain's origin; heights z up"},
+                    {"gain_m3", gain},
+                    {"loss_m3", loss},
+                    {"parts", parts}};
+    if (auto s = WriteText(dir + "/changes.json", j.dump(2) + "\n"); !s) return s;
+    const json fc = {{"type", "FeatureCollection"}, {"features", features}};
+    if (auto s = WriteText(dir + "/changes.geojson", fc.dump(1) + "\n"); !s) return s;
+    if (truth.change_m.size() == g.height_m.size()) {
+        if (auto s = WriteText(dir + "/change.f32", F32Bytes(truth.change_m)); !s) return s;
+    }
+    return Ok{};
+}
+
+namespace {
+
+Expected<std::vector<ChangePart>> ChangesFromJson(const nlohmann::json& parts,
+                                                  const std::string& where) {
+    std::vector<ChangePart> out;
+    try {
+        for (const json& p : parts) {
+            ChangePart c;
+            c.name = p.at("name").get<std::string>();
+            c.change = p.at("change").get<std::string>();
+            const std::string shape = p.at("shape").get<std::string>();
+            if (shape == "paraboloid") {
+                c.shape = ChangeShape::kParaboloid;
+            } else if (shape == "frustum") {
+                c.shape = ChangeShape::kFrustum;
+            } else if (shape == "box") {
+                c.shape = ChangeShape::kBox;
+            } else {
+                return Error{where + ": unknown shape '" + shape + "'"};
+            }
+            c.x_m = p.at("x_m").get<double>();
+            c.y_m = p.at("y_m").get<double>();
+            c.heading_deg = p.at("heading_deg").get<double>();
+            c.a_m = p.at("a_m").get<double>();
+            c.b_m = p.at("b_m").get<double>();
+            c.ramp_m = p.at("ramp_m").get<double>();
+            c.thickness_m = p.at("thickness_m").get<double>();
+            if (auto problems = c.Validate(); !problems.empty())
+                return Error{where + ": " + problems.front()};
+            out.push_back(c);
+        }
+    } catch (const json::exception& e) {
+        return Error{where + ": " + e.what()};
+    }
+    return out;
+}
+
+}  // namespace
 
 Expected<Truth> ReadTruth(const std::string& dir) {
     Truth t;
@@ -595,6 +737,26 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         auto r = ReadArtifacts(dir);
         if (!r) return r.error();
         t.artifacts = std::move(*r);
+    }
+    if (std::ifstream probe(dir + "/changes.json"); probe) {
+        auto cj = ReadJson(dir + "/changes.json");
+        if (!cj) return cj.error();
+        if (!cj->contains("parts") || !(*cj)["parts"].is_array())
+            return Error{dir + "/changes.json: no parts"};
+        auto parts = ChangesFromJson((*cj)["parts"], dir + "/changes.json");
+        if (!parts) return parts.error();
+        t.changes = std::move(*parts);
+        t.epoch = cj->value("epoch", 2);
+        const std::string path = dir + "/change.f32";
+        std::ifstream in(path, std::ios::binary);
+        if (!in) return Error{path + ": cannot open (changes.json names changes)"};
+        const std::string bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+        if (bytes.size() != t.terrain.height_m.size() * 4)
+            return Error{path + ": size does not match terrain.json"};
+        t.change_m.resize(t.terrain.height_m.size());
+        ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+        for (float& v : t.change_m) v = r.F32Le();
     }
     auto bj = ReadJson(dir + "/boresight.json");
     if (!bj) return bj.error();

@@ -28,9 +28,23 @@
 //                         outliers, single beams; bejanca about 1.1 MB)
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
+// <dir>/capacity.csv      the pit's capacity on the true terrain of this epoch: level_m (world
+//                         z, the survey's water surface 0), level_height_m (ellipsoidal,
+//                         origin height + level_m), area_m2 (water surface), volume_m3 (water)
+//                         every 0.25 m from the deepest point to 0
+// Repeat surveys (epoch >= 2, tools/sim/terrain_change.hpp), the change since epoch 1:
+// <dir>/changes.json      epoch; per part: name, change, shape and its parameters (world frame),
+//                         sign (gain, loss), volume_m3 (exact, signed), volume_grid_m3 (the
+//                         same summed over the terrain grid), max_thickness_m, outline (world
+//                         x, y ring); totals gain_m3, loss_m3
+// <dir>/changes.geojson   the parts' outlines as an RFC 7946 FeatureCollection (WGS 84 lon,
+//                         lat), properties name, change, sign, volume_m3
+// <dir>/change.f32        the height change (this epoch minus epoch 1) at the terrain grid's
+//                         nodes, float32 little-endian, row-major as terrain.f32, metres
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -103,10 +117,16 @@ struct Truth {
     std::vector<float> backscatter_db;           // empty, or BS per terrain cell, dB
     BackscatterConfig backscatter;               // its parameters (with backscatter_db)
     std::optional<ArtifactTruth> artifacts;      // written when set; read when present
+    int epoch = 1;                               // repeat surveys: this survey's epoch
+    std::vector<ChangePart> changes;             // since epoch 1 (changes.json), may be empty
+    std::vector<float> change_m;                 // empty, or per terrain cell (change.f32)
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);
 Status WriteTruth(const std::string& dir, const ScenarioConfig& sc, const Truth& truth);
+// capacity.csv, and for a repeat survey changes.json, changes.geojson and change.f32 (above);
+// WriteTruth calls it.
+Status WriteChangeTruth(const std::string& dir, const Truth& truth);
 // Reads what WriteTruth wrote; every missing or malformed file is an error naming it.
 Expected<Truth> ReadTruth(const std::string& dir);
 

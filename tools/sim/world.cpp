@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <random>
 #include <utility>
 
@@ -314,6 +315,27 @@ void PitWorld::PlaceBoulders(const PitConfig& pit, std::uint64_t seed) {
 
 PitWorld::PitWorld(TerrainGrid grid) : grid_(std::move(grid)) {
     ComputeMaxSlope();
+}
+
+void PitWorld::AddHeights(const std::vector<float>& delta_m) {
+    if (delta_m.size() != grid_.height_m.size()) std::abort();  // a bug: another grid's layout
+    for (std::size_t i = 0; i < delta_m.size(); ++i) grid_.height_m[i] += delta_m[i];
+    ComputeMaxSlope();
+}
+
+Eigen::Vector2d PointFromShore(const PitConfig& pit, double direction_deg, double d_m) {
+    return RayPoint(pit, direction_deg * kDegToRad, d_m);
+}
+
+FaceSpan DeepestFace(const PitConfig& pit, double direction_deg) {
+    const double rad = direction_deg * kDegToRad;
+    const Eigen::Vector2d probe = RayPoint(pit, rad, 1.0);
+    if (HighWallWeight(pit, probe.x(), probe.y()) >= 1.0) return {0.0, HighWallWidth(pit)};
+    const double h = pit.floor_depth_m / (pit.num_benches + 1);
+    const double riser =
+        h / std::tan((pit.num_benches == 0 ? pit.shore_slope_deg : pit.wall_slope_deg) * kDegToRad);
+    const double foot = FloorStart(pit);
+    return {foot - riser, foot};
 }
 
 void PitWorld::ComputeMaxSlope() {

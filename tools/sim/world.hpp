@@ -75,6 +75,9 @@ public:
     double Depth(double x, double y) const { return std::max(0.0, -Height(x, y)); }
     // Largest |gradient| over the grid (the Lipschitz bound the ray marcher relies on).
     double max_slope() const { return max_slope_; }
+    // Adds delta_m (one value per grid node, same layout) to the heights: a repeat survey's
+    // changes (tools/sim/terrain_change.hpp). Precondition: delta_m.size() == nodes.
+    void AddHeights(const std::vector<float>& delta_m);
 
 private:
     double At(int ix, int iy) const;
@@ -90,5 +93,18 @@ private:
 // Distance from (x, y) to the water line of the superellipse pit, measured along the ray from
 // the pit centre; > 0 inside the pit, < 0 on land. Used to lay out benches and laps.
 double DistanceFromShore(const PitConfig& pit, double x, double y);
+
+// The point at distance d_m from the shore on the ray from the pit centre at direction_deg
+// (counter-clockwise from +x).
+Eigen::Vector2d PointFromShore(const PitConfig& pit, double direction_deg, double d_m);
+
+// The deepest face of the pit at direction_deg, as distances from the shore along the ray:
+// the high wall inside its sector, else the benches' last riser (its top and its foot on the
+// floor). Without the noise terms (backfill, rubble): the nominal profile.
+struct FaceSpan {
+    double top_m = 0;   // where the face starts (the water line for the high wall)
+    double foot_m = 0;  // where it meets the floor
+};
+FaceSpan DeepestFace(const PitConfig& pit, double direction_deg);
 
 }  // namespace pitmap::sim

@@ -1,0 +1,774 @@
+// SPDX-License-Identifier: MIT
+#include "processor/pipeline/compare_stage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+
+#include "common/byte_io.hpp"
+#include "common/formats/ply.hpp"
+#include "common/formats/replace_file.hpp"
+#include "common/formats/trajectory_csv.hpp"
+#include "processor/compare/capacity.hpp"
+#include "processor/io/grid_io.hpp"
+#include "processor/io/products.hpp"
+#include "processor/survey/survey_file.hpp"
+
+namespace pitmap::proc::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+struct NavSigma {
+    bool known = false;
+    double horizontal_m = 0, vertical_m = 0, roll_pitch_deg = 0, yaw_deg = 0;  // 1-sigma
+};
+
+// One products folder, read and checked.
+struct Epoch {
+    std::string dir;
+    json summary;
+    compare::SurfaceGrid surface;
+    int epsg = 0;
+    std::string horizontal_name, vertical_name, vertical_datum_key;
+    double datum_height_m = 0;  // ellipsoidal height of the DEM's datum (0: ellipsoid)
+    std::string site, start_utc, run_id;
+    double water_level_m = 0;  // in the DEM's datum
+    NavSigma nav;
+};
+
+double Median(std::vector<double> v) {
+    if (v.empty()) return std::nan("");
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    return *mid;
+}
+
+// The navigation's median 1-sigma from trajectory_sigma.csv (absent: unknown).
+Expected<NavSigma> ReadNavSigma(const std::string& path) {
+    NavSigma s;
+    std::ifstream in(path);
+    if (!in) return s;
+    std::string line;
+    if (!std::getline(in, line)) return Error{path + ": empty"};
+    std::vector<std::string> names;
+    {
+        std::stringstream ss(line);
+        for (std::string c; std::getline(ss, c, ',');) names.push_back(c);
+    }
+    const auto col = [&](const char* n) {
+        const auto it = std::find(names.begin(), names.end(), n);
+        return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+    };
+    const int ie = col("sigma_east_m"), in_ = col("sigma_north_m"), iu = col("sigma_up_m"),
+              ir = col("sigma_roll_deg"), ip = col("sigma_pitch_deg"), iy = col("sigma_yaw_deg");
+    if (ie < 0 || in_ < 0 || iu < 0 || ir < 0 || ip < 0 || iy < 0)
+        return Error{path +
+                     ": needs sigma_east_m, sigma_north_m, sigma_up_m, sigma_roll_deg, "
+                     "sigma_pitch_deg, sigma_yaw_deg"};
+    std::vector<double> h, v, rp, y;
+    while (std::getline(in, line)) {
+        std::vector<double> f;
+        std::stringstream ss(line);
+        for (std::string c; std::getline(ss, c, ',');) f.push_back(std::strtod(c.c_str(), nullptr));
+        if (static_cast<int>(f.size()) < static_cast<int>(names.size())) continue;
+        h.push_back(std::sqrt(0.5 * (f[ie] * f[ie] + f[in_] * f[in_])));
+        v.push_back(f[iu]);
+        rp.push_back(std::max(f[ir], f[ip]));
+        y.push_back(f[iy]);
+    }
+    if (h.empty()) return Error{path + ": no rows"};
+    s.known = true;
+    s.horizontal_m = Median(h);
+    s.vertical_m = Median(v);
+    s.roll_pitch_deg = Median(rp);
+    s.yaw_deg = Median(y);
+    return s;
+}
+
+Expected<Epoch> ReadEpoch(const std::string& dir, const char* label) {
+    Epoch e;
+    e.dir = dir;
+    const std::string who = std::string(label) + " (" + dir + ")";
+    if (!fs::is_directory(dir)) return Error{who + ": not a products folder"};
+    // The trajectory after SLAM, else the INS's (pitmap run --no-slam, pitmap georef).
+    const std::string traj_name =
+        fs::exists(fs::path(dir) / "trajectory.csv") ? "trajectory.csv" : "trajectory_ins.csv";
+    for (const char* f : {"summary.json", "dem.tif", "survey.pitmap", traj_name.c_str()}) {
+        if (!fs::exists(fs::path(dir) / f)) {
+            return Error{who + ": missing product " + f +
+                         " (pitmap run, or pitmap grid for dem.tif, writes it)"};
+        }
+    }
+    auto summary = io::ReadSummaryJson((fs::path(dir) / "summary.json").string());
+    if (!summary) return Error{who + ": " + summary.error().message};
+    e.summary = std::move(*summary);
+    const json& s = e.summary;
+    if (!s.is_object() || !s.contains("world_origin") || !s.contains("utm"))
+        return Error{who +
+                     ": summary.json has no world_origin or utm (not written by pitmap run?)"};
+    // The survey model, whole: a damaged survey.pitmap is an error, not a comparison.
+    {
+        auto model = survey::LoadSurvey((fs::path(dir) / survey::kSurveyFileName).string());
+        if (!model) return Error{who + ": " + model.error().message};
+        e.run_id = model->run_id;
+    }
+    auto dem = io::ReadGrid((fs::path(dir) / "dem.tif").string());
+    if (!dem) return Error{who + ": " + dem.error().message};
+    const io::GridLayer* elevation = nullptr;
+    const io::GridLayer* uncertainty = nullptr;
+    for (const auto& l : dem->grid.layers) {
+        if (l.name == "elevation") elevation = &l;
+        if (l.name == "uncertainty") uncertainty = &l;
+    }
+    if (elevation == nullptr || uncertainty == nullptr)
+        return Error{who + ": dem.tif has no elevation and uncertainty bands"};
+    e.epsg = dem->horizontal_epsg;
+    e.horizontal_name = dem->horizontal_name;
+    e.vertical_name = dem->vertical_name;
+    if (e.epsg == 0) return Error{who + ": dem.tif has no EPSG-coded horizontal CRS"};
+    compare::SurfaceGrid& g = e.surface;
+    g.x0 = dem->grid.x0;
+    g.y0 = dem->grid.y0;
+    g.resolution_m = dem->grid.resolution_m;
+    g.nx = dem->grid.nx;
+    g.ny = dem->grid.ny;
+    g.z_m = elevation->values;
+    g.sigma_m = uncertainty->values;
+    for (float& v : g.sigma_m) v /= 1.96f;  // the band is the 95 % uncertainty
+    if (g.CountFilled() == 0) return Error{who + ": dem.tif holds no heights"};
+    // Vertical datum: summary.json's record of the grid stage.
+    if (s.contains("vertical_datum") && s["vertical_datum"].is_object()) {
+        const json& v = s["vertical_datum"];
+        e.vertical_datum_key =
+            v.value("vertical_crs", std::string()) + " / " + v.value("datum", std::string());
+        if (v.value("datum", std::string("ellipsoid")) != "ellipsoid") {
+            const json& h = v.value("mean_datum_height_m", json());
+            e.datum_height_m = h.is_number() ? h.get<double>() : 0.0;
+        }
+    } else {
+        e.vertical_datum_key = e.vertical_name;
+    }
+    if (s.contains("metadata") && s["metadata"].is_object()) {
+        e.site = s["metadata"].value("site", std::string());
+        e.start_utc = s["metadata"].value("survey_start_utc", std::string());
+    }
+    // The water level: the vehicle rides on the water; its INS point is
+    // ins_height_above_waterline_m above it.
+    auto traj = formats::ReadTrajectoryCsv((fs::path(dir) / traj_name).string());
+    if (!traj) return Error{who + ": " + traj.error().message};
+    if (traj->rows.empty()) return Error{who + ": " + traj_name + " has no poses"};
+    std::vector<double> z;
+    for (const auto& r : traj->rows) z.push_back(r.position_world_m.z());
+    double above = 0;
+    if (s.contains("vehicle") && s["vehicle"].is_object() &&
+        s["vehicle"].value("ins_height_above_waterline_m", json()).is_number()) {
+        above = s["vehicle"]["ins_height_above_waterline_m"].get<double>();
+    }
+    const double origin_h = s["world_origin"].value("height_m", 0.0);
+    e.water_level_m = origin_h + Median(z) - above - e.datum_height_m;
+    auto nav = ReadNavSigma((fs::path(dir) / "trajectory_sigma.csv").string());
+    if (!nav) return Error{who + ": " + nav.error().message};
+    e.nav = *nav;
+    return e;
+}
+
+json RingJson(const std::vector<Eigen::Vector2d>& ring) {
+    json r = json::array();
+    for (const auto& p : ring) {
+        r.push_back({std::round(p.x() * 1000.0) / 1000.0, std::round(p.y() * 1000.0) / 1000.0});
+    }
+    return r;
+}
+
+json CapacityJson(const compare::CapacityResult& c) {
+    return {{"water_level_m", c.water_level_m},
+            {"deepest_m", c.min_height_m},
+            {"surveyed_area_m2", c.surveyed_area_m2},
+            {"area_at_water_level_m2", c.area_at_water_level_m2},
+            {"volume_at_water_level_m3", c.volume_at_water_level_m3}};
+}
+
+Status WriteText(const std::string& path, const std::string& text) {
+    return formats::WriteReplacing(path, [&](const std::string& partial) -> Status {
+        std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+        out << text;
+        out.close();
+        if (!out) return Error{partial + ": write failed"};
+        return Ok{};
+    });
+}
+
+std::string CapacityCsv(const compare::CapacityResult& c) {
+    std::string s = "level_m,depth_below_water_level_m,area_m2,volume_m3\n";
+    char line[160];
+    for (const auto& r : c.rows) {
+        std::snprintf(line,
+                      sizeof line,
+                      "%.4f,%.4f,%.3f,%.3f\n",
+                      r.level_m,
+                      c.water_level_m - r.level_m,
+                      r.area_m2,
+                      r.volume_m3);
+        s += line;
+    }
+    return s;
+}
+
+// The accepted soundings of points_utm.ply (status 0); empty when the file is not there.
+Expected<std::vector<Eigen::Vector3d>> ReadSoundingsUtm(const std::string& dir) {
+    const fs::path path = fs::path(dir) / "points_utm.ply";
+    if (!fs::exists(path)) return std::vector<Eigen::Vector3d>{};
+    auto ply = formats::ply::ReadMesh(path.string(), {"status"});
+    if (!ply) return Error{dir + ": " + ply.error().message};
+    std::vector<Eigen::Vector3d> out;
+    out.reserve(ply->vertices.size());
+    for (std::size_t i = 0; i < ply->vertices.size(); ++i) {
+        if (ply->vertex_properties[0][i] == 0) out.push_back(ply->vertices[i]);
+    }
+    return out;
+}
+
+Status WriteChangePoints(const std::string& path,
+                         const compare::M3c2Result& r,
+                         int epsg,
+                         const std::string& crs_name) {
+    namespace ply = formats::ply;
+    ply::Header h;
+    h.comments = {"generated by pitmap compare",
+                  "pitmap_crs_epsg " + std::to_string(epsg) + " 0",
+                  "pitmap_crs " + crs_name,
+                  "3D change along the local normal (M3C2) at A's core points: distance_m = B - A "
+                  "along the normal (> 0 towards the water), lod95_m, significance -1 loss 0 none "
+                  "+1 gain; NaN distance: too few soundings"};
+    std::uint64_t n = r.cores.size();
+    h.elements.push_back({"vertex",
+                          n,
+                          {{"x", ply::Type::kFloat64},
+                           {"y", ply::Type::kFloat64},
+                           {"z", ply::Type::kFloat64},
+                           {"nx", ply::Type::kFloat32},
+                           {"ny", ply::Type::kFloat32},
+                           {"nz", ply::Type::kFloat32},
+                           {"distance_m", ply::Type::kFloat32},
+                           {"lod95_m", ply::Type::kFloat32},
+                           {"slope_deg", ply::Type::kFloat32},
+                           {"significance", ply::Type::kInt8},
+                           {"n_a", ply::Type::kUInt32},
+                           {"n_b", ply::Type::kUInt32}}});
+    return formats::WriteReplacing(path, [&](const std::string& partial) -> Status {
+        ply::Writer w(partial, h);
+        for (const auto& c : r.cores) {
+            ByteWriter& o = w.Record();
+            for (int k = 0; k < 3; ++k) o.F64Le(c.position[k]);
+            for (int k = 0; k < 3; ++k) o.F32Le(static_cast<float>(c.normal[k]));
+            o.F32Le(c.distance_m);
+            o.F32Le(c.lod95_m);
+            o.F32Le(c.slope_deg);
+            o.I8(static_cast<std::int8_t>(c.significance));
+            o.U32Le(static_cast<std::uint32_t>(c.n_a));
+            o.U32Le(static_cast<std::uint32_t>(c.n_b));
+        }
+        return w.Close();
+    });
+}
+
+// capacity.svg: volume and water-surface area against water level for both surveys, the
+// water levels dashed (a plain SVG: no plotting library needed to read it).
+std::string CapacitySvg(const compare::CapacityResult& a,
+                        const compare::CapacityResult& b,
+                        const std::string& datum) {
+    const double W = 900, H = 420, panel_w = 380, panel_h = 300, top = 50, left[2] = {80, 520};
+    double lo = std::min(a.min_height_m, b.min_height_m);
+    double hi = std::max(a.water_level_m, b.water_level_m);
+    if (!(hi > lo)) hi = lo + 1;
+    double vmax = 1, amax = 1;
+    for (const auto* c : {&a, &b}) {
+        for (const auto& r : c->rows) {
+            vmax = std::max(vmax, r.volume_m3);
+            amax = std::max(amax, r.area_m2);
+        }
+    }
+    std::string svg;
+    char buf[400];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
+                  "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%%\" "
+                  "height=\"100%%\" fill=\"white\"/>\n",
+                  W,
+                  H);
+    svg += buf;
+    const char* colour[2] = {"#1f77b4", "#d62728"};
+    for (int p = 0; p < 2; ++p) {
+        const double x0 = left[p], xmax = p == 0 ? vmax : amax;
+        const auto X = [&](double v) { return x0 + panel_w * v / xmax; };
+        const auto Y = [&](double level) { return top + panel_h * (hi - level) / (hi - lo); };
+        std::snprintf(buf,
+                      sizeof buf,
+                      "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" "
+                      "stroke=\"black\"/>\n<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"middle\">%s"
+                      "</text>\n<text x=\"%.1f\" y=\"%.1f\">0</text><text x=\"%.1f\" y=\"%.1f\" "
+                      "text-anchor=\"end\">%.0f</text>\n",
+                      x0,
+                      top,
+                      panel_w,
+                      panel_h,
+                      x0 + panel_w / 2,
+                      top + panel_h + 35,
+                      p == 0 ? "water volume (m3)" : "water surface area (m2)",
+                      x0,
+                      top + panel_h + 15,
+                      x0 + panel_w,
+                      top + panel_h + 15,
+                      xmax);
+        svg += buf;
+        std::snprintf(buf,
+                      sizeof buf,
+                      "<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"end\">%.2f</text><text x=\"%.1f\" "
+                      "y=\"%.1f\" text-anchor=\"end\">%.2f</text>\n",
+                      x0 - 4,
+                      top + 4,
+                      hi,
+                      x0 - 4,
+                      top + panel_h,
+                      lo);
+        svg += buf;
+        for (int e = 0; e < 2; ++e) {
+            const compare::CapacityResult& c = e == 0 ? a : b;
+            std::string pts;
+            for (const auto& r : c.rows) {
+                std::snprintf(buf,
+                              sizeof buf,
+                              "%.1f,%.1f ",
+                              X(p == 0 ? r.volume_m3 : r.area_m2),
+                              Y(r.level_m));
+                pts += buf;
+            }
+            svg += "<polyline fill=\"none\" stroke-width=\"2\" stroke=\"" + std::string(colour[e]) +
+                   "\" points=\"" + pts + "\"/>\n";
+            std::snprintf(buf,
+                          sizeof buf,
+                          "<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" stroke=\"%s\" "
+                          "stroke-dasharray=\"4 3\"/>\n",
+                          x0,
+                          x0 + panel_w,
+                          Y(c.water_level_m),
+                          Y(c.water_level_m),
+                          colour[e]);
+            svg += buf;
+        }
+    }
+    std::snprintf(buf,
+                  sizeof buf,
+                  "<text x=\"20\" y=\"25\">Capacity: water level (m, %s) against volume and "
+                  "area; A blue, B red; dashed: each survey's water level (A %.0f m3, B %.0f m3)"
+                  "</text>\n</svg>\n",
+                  datum.c_str(),
+                  a.volume_at_water_level_m3,
+                  b.volume_at_water_level_m3);
+    svg += buf;
+    return svg;
+}
+
+}  // namespace
+
+std::vector<std::string> CompareConfig::Validate() const {
+    std::vector<std::string> p = registration.Validate();
+    for (auto& q : change.Validate()) p.push_back(std::move(q));
+    for (auto& q : m3c2.Validate()) p.push_back(std::move(q));
+    if (!(capacity_step_m > 0 && capacity_step_m <= 100))
+        p.push_back("capacity step must be in (0, 100] m");
+    if (!(gate_z95 > 0)) p.push_back("gate_z95 must be > 0");
+    return p;
+}
+
+Expected<int> RunCompare(const std::string& a_dir,
+                         const std::string& b_dir,
+                         const std::string& out_dir,
+                         const CompareConfig& cfg,
+                         const std::function<void(const std::string&)>& log) {
+    if (auto problems = cfg.Validate(); !problems.empty())
+        return Error{"compare: invalid settings: " + problems.front()};
+    if (fs::weakly_canonical(a_dir) == fs::weakly_canonical(b_dir))
+        return Error{"compare: A and B are the same folder (" + a_dir + ")"};
+    auto a = ReadEpoch(a_dir, "A");
+    if (!a) return Error{"compare: " + a.error().message};
+    auto b = ReadEpoch(b_dir, "B");
+    if (!b) return Error{"compare: " + b.error().message};
+    // One CRS, one vertical datum, one site.
+    if (a->epsg != b->epsg) {
+        return Error{"compare: different horizontal CRS: A is " + a->horizontal_name + " (EPSG " +
+                     std::to_string(a->epsg) + "), B " + b->horizontal_name + " (EPSG " +
+                     std::to_string(b->epsg) + "); process both in one (config utm zone)"};
+    }
+    if (a->vertical_datum_key != b->vertical_datum_key) {
+        return Error{"compare: different vertical datums: A in " + a->vertical_datum_key +
+                     ", B in " + b->vertical_datum_key +
+                     "; grid both to one (config vertical.datum)"};
+    }
+    if (!a->site.empty() && !b->site.empty() && a->site != b->site) {
+        return Error{"compare: different sites: A is '" + a->site + "', B '" + b->site + "'"};
+    }
+    if (std::abs(a->surface.resolution_m - b->surface.resolution_m) > 1e-9) {
+        log("compare: the grids differ in resolution (A " +
+            std::to_string(a->surface.resolution_m) + " m, B " +
+            std::to_string(b->surface.resolution_m) + " m): B is interpolated on A's");
+    }
+    // Overlap before anything else: surveys of two places share no ground.
+    {
+        const auto& A = a->surface;
+        const auto& B = b->surface;
+        const double ax1 = A.x0 + (A.nx - 1) * A.resolution_m,
+                     ay1 = A.y0 + (A.ny - 1) * A.resolution_m;
+        const double bx1 = B.x0 + (B.nx - 1) * B.resolution_m,
+                     by1 = B.y0 + (B.ny - 1) * B.resolution_m;
+        if (bx1 < A.x0 || B.x0 > ax1 || by1 < A.y0 || B.y0 > ay1) {
+            char buf[320];
+            std::snprintf(buf,
+                          sizeof buf,
+                          "compare: the surveys do not overlap: A covers E %.0f-%.0f N %.0f-%.0f, "
+                          "B E %.0f-%.0f N %.0f-%.0f (%s); different sites?",
+                          A.x0,
+                          ax1,
+                          A.y0,
+                          ay1,
+                          B.x0,
+                          bx1,
+                          B.y0,
+                          by1,
+                          a->horizontal_name.c_str());
+            return Error{buf};
+        }
+    }
+    log("compare: registering B onto A on stable terrain");
+    const compare::RegistrationResult reg =
+        compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
+    if (!reg.ok()) {
+        return Error{"compare: registration failed: " + reg.message +
+                     (reg.termination == compare::RegistrationTermination::kTooFewPoints
+                          ? " (the surveys do not overlap enough)"
+                          : "")};
+    }
+    log("compare: registration " + reg.message);
+    const compare::ChangeResult change =
+        compare::ComputeChange(a->surface, b->surface, reg.correction, reg.covariance, cfg.change);
+    log("compare: change: " + change.message);
+    const compare::CapacityResult cap_a =
+        compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
+    const compare::CapacityResult cap_b =
+        compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
+
+    // The 3D change along the normal on the soundings, where both folders have them.
+    json change3d = {{"computed", false}};
+    std::optional<compare::M3c2Result> m3c2;
+    if (cfg.change3d) {
+        auto pa = ReadSoundingsUtm(a_dir);
+        if (!pa) return Error{"compare: A " + pa.error().message};
+        auto pb = ReadSoundingsUtm(b_dir);
+        if (!pb) return Error{"compare: B " + pb.error().message};
+        if (pa->empty() || pb->empty()) {
+            change3d["message"] = "points_utm.ply missing or empty in A or B: not computed";
+        } else {
+            for (Eigen::Vector3d& p : *pb) p = reg.correction.Apply(p);
+            // What the soundings of a cylinder share: both CUBE surfaces' 1-sigma there (the
+            // median where a surface has none).
+            std::vector<double> sig;
+            for (const auto* g : {&a->surface, &b->surface}) {
+                for (float v : g->sigma_m) {
+                    if (std::isfinite(v)) sig.push_back(v);
+                }
+            }
+            const double sigma_median = Median(sig);
+            const auto& sa = a->surface;
+            const auto& sb = b->surface;
+            const auto common = [&](const Eigen::Vector3d& p) {
+                double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
+                if (!std::isfinite(x)) x = sigma_median;
+                if (!std::isfinite(y)) y = sigma_median;
+                return std::hypot(x, y);
+            };
+            m3c2 = compare::RunM3c2(
+                *pa, *pb, reg.correction.pivot, reg.correction, reg.covariance, cfg.m3c2, common);
+            log("compare: 3D change: " + m3c2->message);
+            json by_slope = json::object();
+            const std::pair<const char*, std::pair<double, double>> classes[] = {
+                {"floor_0_20_deg", {0, 20}},
+                {"face_20_45_deg", {20, 45}},
+                {"wall_45_90_deg", {45, 91}}};
+            for (const auto& [name, range] : classes) {
+                std::vector<double> lods;
+                std::size_t flagged = 0;
+                for (const auto& c : m3c2->cores) {
+                    if (!std::isfinite(c.distance_m) || c.slope_deg < range.first ||
+                        c.slope_deg >= range.second)
+                        continue;
+                    lods.push_back(c.lod95_m);
+                    flagged += c.significance != 0;
+                }
+                by_slope[name] = {{"measured", lods.size()},
+                                  {"significant", flagged},
+                                  {"median_lod95_m", lods.empty() ? 0.0 : Median(lods)}};
+            }
+            change3d = {{"computed", true},
+                        {"message", m3c2->message},
+                        {"cores", m3c2->cores.size()},
+                        {"measured", m3c2->measured},
+                        {"significant", m3c2->significant},
+                        {"core_spacing_m", cfg.m3c2.core_spacing_m},
+                        {"projection_radius_m", cfg.m3c2.projection_radius_m},
+                        {"by_slope", by_slope}};
+        }
+    }
+
+    // The navigation gate: the correction against what the two surveys' navigation allows.
+    json gates = json::array();
+    json gate_record = {{"evaluated", false}};
+    const auto& T = reg.correction;
+    const double th = T.translation_m.head<2>().norm();
+    const double tz = std::abs(T.translation_m.z());
+    const double yaw_deg = std::abs(T.rotation_rad.z()) * kRadToDeg;
+    const double rp_deg = T.rotation_rad.head<2>().norm() * kRadToDeg;
+    const double z = cfg.gate_z95;
+    const double sig_th = std::hypot(reg.sigma(3), reg.sigma(4));
+    if (a->nav.known && b->nav.known) {
+        const double nav_h = 2.4477 * std::hypot(a->nav.horizontal_m, b->nav.horizontal_m);
+        const double nav_v = z * std::hypot(a->nav.vertical_m, b->nav.vertical_m);
+        const double nav_yaw = z * std::hypot(a->nav.yaw_deg, b->nav.yaw_deg);
+        const double nav_rp = 2.4477 * std::hypot(a->nav.roll_pitch_deg, b->nav.roll_pitch_deg);
+        const double allow_h = nav_h + 2.4477 * sig_th;
+        const double allow_v = nav_v + z * reg.sigma(5);
+        const double allow_yaw = nav_yaw + z * reg.sigma(2) * kRadToDeg;
+        const double allow_rp =
+            nav_rp + 2.4477 * std::hypot(reg.sigma(0), reg.sigma(1)) * kRadToDeg;
+        std::vector<std::string> beyond;
+        char buf[160];
+        if (th > allow_h) {
+            std::snprintf(buf, sizeof buf, "horizontal %.3f m > %.3f m", th, allow_h);
+            beyond.push_back(buf);
+        }
+        if (tz > allow_v) {
+            std::snprintf(buf, sizeof buf, "vertical %.3f m > %.3f m", tz, allow_v);
+            beyond.push_back(buf);
+        }
+        if (yaw_deg > allow_yaw) {
+            std::snprintf(buf, sizeof buf, "yaw %.4f deg > %.4f deg", yaw_deg, allow_yaw);
+            beyond.push_back(buf);
+        }
+        if (cfg.registration.estimate_roll_pitch && rp_deg > allow_rp) {
+            std::snprintf(buf, sizeof buf, "roll/pitch %.4f deg > %.4f deg", rp_deg, allow_rp);
+            beyond.push_back(buf);
+        }
+        std::string why;
+        for (const auto& s : beyond) why += (why.empty() ? "" : ", ") + s;
+        gate_record = {{"evaluated", true},
+                       {"tripped", !beyond.empty()},
+                       {"allowed_horizontal_m", allow_h},
+                       {"allowed_vertical_m", allow_v},
+                       {"allowed_yaw_deg", allow_yaw},
+                       {"allowed_roll_pitch_deg", allow_rp},
+                       {"navigation_sigma",
+                        {{"a",
+                          {{"horizontal_m", a->nav.horizontal_m},
+                           {"vertical_m", a->nav.vertical_m},
+                           {"roll_pitch_deg", a->nav.roll_pitch_deg},
+                           {"yaw_deg", a->nav.yaw_deg}}},
+                         {"b",
+                          {{"horizontal_m", b->nav.horizontal_m},
+                           {"vertical_m", b->nav.vertical_m},
+                           {"roll_pitch_deg", b->nav.roll_pitch_deg},
+                           {"yaw_deg", b->nav.yaw_deg}}}}},
+                       {"beyond", why}};
+        if (!beyond.empty()) {
+            gates.push_back(
+                {{"stage", "compare"},
+                 {"gate", "correction_beyond_navigation"},
+                 {"message",
+                  "the correction that registers B onto A is larger than the two surveys' "
+                  "navigation uncertainty allows (95 %): " +
+                      why +
+                      "; a datum, antenna or base-station error in one of them? The change is "
+                      "computed after the correction"}});
+        }
+    } else {
+        gate_record["message"] = "trajectory_sigma.csv missing in A or B: not evaluated";
+    }
+
+    // Products.
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) return Error{"compare: " + out_dir + ": cannot create: " + ec.message()};
+    const fs::path C(out_dir);
+    io::GridRaster dod;
+    dod.x0 = a->surface.x0;
+    dod.y0 = a->surface.y0;
+    dod.resolution_m = a->surface.resolution_m;
+    dod.nx = a->surface.nx;
+    dod.ny = a->surface.ny;
+    dod.utm_zone = a->epsg % 100;
+    dod.northern = a->epsg < 32700;
+    if (!((a->epsg > 32600 && a->epsg <= 32660) || (a->epsg > 32700 && a->epsg <= 32760)))
+        return Error{"compare: dod.tif: A's CRS is not WGS 84 / UTM (EPSG " +
+                     std::to_string(a->epsg) + ")"};
+    dod.horizontal_only = true;
+    using K = io::GridBandKind;
+    dod.layers = {{"difference", "metre", change.difference_m, K::kContinuous},
+                  {"lod95", "metre", change.lod95_m, K::kContinuous},
+                  {"significance", "class", change.significance, K::kCount},
+                  {"region", "id", change.region, K::kCount}};
+    dod.metadata = {{"pitmap_dod",
+                     "B minus A after co-registration (m); lod95: level of detection at 95 %; "
+                     "significance -1 loss, 0 no detectable change, +1 gain; region: "
+                     "change_regions.geojson id"},
+                    {"pitmap_a", a_dir},
+                    {"pitmap_b", b_dir}};
+    if (auto s = io::WriteCogGeoTiff((C / "dod.tif").string(), dod); !s)
+        return Error{"compare: " + s.error().message};
+    json features = json::array();
+    json regions = json::array();
+    for (const auto& r : change.regions) {
+        json polys = json::array();
+        for (const auto& poly : r.polygons) {
+            json rings = json::array();
+            for (const auto& ring : poly) rings.push_back(RingJson(ring));
+            polys.push_back(rings);
+        }
+        const json props = {{"id", r.id},
+                            {"kind", r.sign > 0 ? "fill" : "cut"},
+                            {"area_m2", r.area_m2},
+                            {"volume_m3", r.volume_m3},
+                            {"u95_m3", r.u95_m3},
+                            {"max_abs_difference_m", r.max_abs_difference_m},
+                            {"mean_lod95_m", r.mean_lod95_m}};
+        features.push_back({{"type", "Feature"},
+                            {"geometry", {{"type", "MultiPolygon"}, {"coordinates", polys}}},
+                            {"properties", props}});
+        json rj = props;
+        rj["centroid_m"] = {r.centroid.x(), r.centroid.y()};
+        rj["nodes"] = r.nodes;
+        rj["sigma_random_m3"] = r.sigma_random_m3;
+        rj["sigma_registration_m3"] = r.sigma_registration_m3;
+        rj["rim_m3"] = r.rim_m3;
+        regions.push_back(rj);
+    }
+    const json fc = {
+        {"type", "FeatureCollection"},
+        {"crs",
+         {{"type", "name"},
+          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(a->epsg)}}}}},
+        {"features", features}};
+    if (auto s = WriteText((C / "change_regions.geojson").string(), fc.dump(1) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    if (m3c2) {
+        if (auto s = WriteChangePoints(
+                (C / "change_points.ply").string(), *m3c2, a->epsg, a->horizontal_name);
+            !s)
+            return Error{"compare: " + s.error().message};
+    }
+    if (auto s = WriteText((C / "capacity_a.csv").string(), CapacityCsv(cap_a)); !s)
+        return Error{"compare: " + s.error().message};
+    if (auto s = WriteText((C / "capacity_b.csv").string(), CapacityCsv(cap_b)); !s)
+        return Error{"compare: " + s.error().message};
+    if (auto s = WriteText((C / "capacity.svg").string(),
+                           CapacitySvg(cap_a, cap_b, a->vertical_datum_key));
+        !s)
+        return Error{"compare: " + s.error().message};
+    const auto totals = [](const compare::ChangeTotals& t) {
+        return json{{"volume_m3", t.volume_m3},
+                    {"u95_m3", t.u95_m3},
+                    {"area_m2", t.area_m2},
+                    {"regions", t.regions}};
+    };
+    json j = {{"inputs",
+               {{"a",
+                 {{"folder", fs::weakly_canonical(a_dir).string()},
+                  {"run_id", a->run_id},
+                  {"survey_start_utc", a->start_utc}}},
+                {"b",
+                 {{"folder", fs::weakly_canonical(b_dir).string()},
+                  {"run_id", b->run_id},
+                  {"survey_start_utc", b->start_utc}}}}},
+              {"crs",
+               {{"horizontal", a->horizontal_name},
+                {"epsg", a->epsg},
+                {"vertical", a->vertical_datum_key}}},
+              {"registration",
+               {{"termination", compare::ToString(reg.termination)},
+                {"message", reg.message},
+                {"pivot_m", {T.pivot.x(), T.pivot.y(), T.pivot.z()}},
+                {"translation_m", {T.translation_m.x(), T.translation_m.y(), T.translation_m.z()}},
+                {"rotation_deg",
+                 {{"roll", T.rotation_rad.x() * kRadToDeg},
+                  {"pitch", T.rotation_rad.y() * kRadToDeg},
+                  {"yaw", T.rotation_rad.z() * kRadToDeg}}},
+                {"sigma",
+                 {{"roll_deg", reg.sigma(0) * kRadToDeg},
+                  {"pitch_deg", reg.sigma(1) * kRadToDeg},
+                  {"yaw_deg", reg.sigma(2) * kRadToDeg},
+                  {"east_m", reg.sigma(3)},
+                  {"north_m", reg.sigma(4)},
+                  {"up_m", reg.sigma(5)}}},
+                {"dof", cfg.registration.estimate_roll_pitch ? 6 : 4},
+                {"iterations", reg.iterations},
+                {"overlap_area_m2", reg.overlap_area_m2},
+                {"nodes_used", reg.points_overlap},
+                {"nodes_stable", reg.points_stable},
+                {"robust_sigma_m", reg.robust_sigma_m},
+                {"rms_vertical_before_m", reg.rms_vertical_before_m},
+                {"rms_vertical_after_m", reg.rms_vertical_after_m},
+                {"navigation_gate", gate_record}}},
+              {"change",
+               {{"message", change.message},
+                {"compared_nodes", change.compared_nodes},
+                {"compared_area_m2", change.compared_area_m2},
+                {"resolution_m", a->surface.resolution_m},
+                {"median_lod95_m", change.median_lod95_m},
+                {"median_lod95_by_slope_m",
+                 {{"floor_0_20_deg", change.median_lod95_floor_m},
+                  {"face_20_45_deg", change.median_lod95_face_m},
+                  {"wall_45_90_deg", change.median_lod95_wall_m}}},
+                {"significant_share", change.significant_share},
+                {"stable_mean_m", change.stable_mean_m},
+                {"stable_rms_m", change.stable_rms_m},
+                {"cut", totals(change.cut)},
+                {"fill", totals(change.fill)},
+                {"net_m3", change.cut.volume_m3 + change.fill.volume_m3},
+                {"regions", regions}}},
+              {"change3d", change3d},
+              {"capacity", {{"a", CapacityJson(cap_a)}, {"b", CapacityJson(cap_b)}}},
+              {"files",
+               {"dod.tif",
+                "change_regions.geojson",
+                "capacity_a.csv",
+                "capacity_b.csv",
+                "capacity.svg",
+                "compare.json"}},
+              {"quality_gates", gates}};
+    if (m3c2) j["files"].push_back("change_points.ply");
+    if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    char buf[256];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions; capacity A "
+                  "%.0f m3, B %.0f m3; products in %s",
+                  change.cut.volume_m3,
+                  change.cut.u95_m3,
+                  change.fill.volume_m3,
+                  change.fill.u95_m3,
+                  change.regions.size(),
+                  cap_a.volume_at_water_level_m3,
+                  cap_b.volume_at_water_level_m3,
+                  out_dir.c_str());
+    log(buf);
+    return static_cast<int>(gates.size());
+}
+
+}  // namespace pitmap::proc::pipeline

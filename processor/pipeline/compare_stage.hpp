@@ -1,0 +1,63 @@
+// SPDX-License-Identifier: MIT
+// `pitmap compare A B --out C` (issue 37): two surveys of one site, A the earlier. Reads each
+// products folder's summary.json (CRS, vertical datum, origin, site), dem.tif (elevation and
+// its 95 % uncertainty), survey.pitmap (checked whole: a damaged survey is an error),
+// trajectory.csv or else trajectory_ins.csv (the water level: the vehicle rides on the water)
+// and, where there,
+// trajectory_sigma.csv (the navigation's 1-sigma); registers B onto A on stable terrain
+// (processor/compare/registration.hpp), computes the change (change.hpp) and each survey's
+// capacity curve (capacity.hpp), and writes into C:
+//   dod.tif                COG on A's grid, horizontal CRS only: bands difference (B - A, m),
+//                          lod95 (m), significance (-1 loss, 0 no detectable change, +1 gain),
+//                          region (id in change_regions.geojson, 0 none); NaN where not both
+//   change_regions.geojson one feature per change region: MultiPolygon outline in A's CRS
+//                          (the legacy "crs" member names its EPSG code), properties id, kind
+//                          (cut, fill), area_m2, volume_m3, u95_m3, max_abs_difference_m,
+//                          mean_lod95_m
+//   capacity_a.csv, capacity_b.csv
+//                          level_m (the DEM's vertical datum), depth_below_water_level_m,
+//                          area_m2, volume_m3
+//   capacity.svg           both capacity curves (volume and area against water level) as a plot
+//   change_points.ply      with change3d and both folders' points_utm.ply: the 3D change along
+//                          the local normal (processor/compare/m3c2.hpp) at A's core points:
+//                          double x, y, z (A's CRS), float nx, ny, nz, distance_m (B - A along
+//                          the normal, > 0 towards the water), lod95_m, slope_deg, char
+//                          significance, uint n_a, n_b; NaN distance where too few soundings
+//   compare.json           inputs, crs, registration (correction, its 1-sigma, residuals, the
+//                          navigation gate), change (totals and regions), capacity, quality_gates
+// Errors (nothing is written to C, the message names the folder and the problem): a missing
+// product, a damaged survey.pitmap or dem.tif, different horizontal CRS, vertical datums or
+// sites (metadata.site, when both name one), surfaces that do not overlap, a registration
+// that cannot be solved.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "common/result.hpp"
+#include "processor/compare/change.hpp"
+#include "processor/compare/m3c2.hpp"
+#include "processor/compare/registration.hpp"
+
+namespace pitmap::proc::pipeline {
+
+struct CompareConfig {
+    compare::RegistrationConfig registration;
+    compare::ChangeConfig change;
+    bool change3d = true;  // also the 3D change along the normal on the soundings (M3C2)
+    compare::M3c2Config m3c2;
+    double capacity_step_m = 0.25;  // capacity curve: a row every step, m
+    // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
+    // its own 95 % uncertainty at most.
+    double gate_z95 = 1.96;
+    std::vector<std::string> Validate() const;
+};
+
+// Returns the number of quality gates that tripped (compare.json quality_gates), or an error.
+Expected<int> RunCompare(const std::string& a_dir,
+                         const std::string& b_dir,
+                         const std::string& out_dir,
+                         const CompareConfig& config,
+                         const std::function<void(const std::string&)>& log);
+
+}  // namespace pitmap::proc::pipeline

@@ -1,0 +1,316 @@
+// SPDX-License-Identifier: MIT
+// pitmap compare's maths (processor/compare): the registration recovers a known rigid shift of
+// a pit with changes in it, the DEM of difference finds those changes with their volumes, the
+// outlines and the capacity curve.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "processor/compare/capacity.hpp"
+#include "processor/compare/change.hpp"
+#include "processor/compare/m3c2.hpp"
+#include "processor/compare/registration.hpp"
+
+namespace pitmap::proc::compare {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+double Sigmoid(double t) {
+    return 1.0 / (1.0 + std::exp(-t));
+}
+
+// A quarry-like pit: a rounded-rectangle of 70 m x 50 m, benches down to a 14 m floor (faces
+// of 55-65 deg), mounds on the floor and boulders. Heights up (the water surface at 0).
+double PitHeight(double x, double y) {
+    const double r =
+        std::pow(std::pow(std::abs(x) / 35.0, 4) + std::pow(std::abs(y) / 25.0, 4), 0.25);
+    const double d = (1.0 - r) * 25.0;  // roughly the distance from the shore
+    double depth = 0;
+    const double steps[3][2] = {{2.0, 4.5}, {8.0, 4.5}, {14.0, 5.0}};  // face position, height
+    for (const auto& s : steps) depth += s[1] * Sigmoid((d - s[0]) / 0.6);
+    depth += 0.6 * Sigmoid((d - 14) / 2.0) * std::sin(x / 4.0) * std::cos(y / 3.0);
+    // Boulders (drawn once).
+    static const std::vector<Eigen::Vector3d> boulders = [] {
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<double> ux(-28, 28), uy(-18, 18), ur(0.4, 1.2);
+        std::vector<Eigen::Vector3d> b;
+        for (int k = 0; k < 40; ++k) {
+            const double bx = ux(rng), by = uy(rng), br = ur(rng);
+            b.emplace_back(bx, by, br);
+        }
+        return b;
+    }();
+    for (const Eigen::Vector3d& b : boulders) {
+        const double d2 = (x - b.x()) * (x - b.x()) + (y - b.y()) * (y - b.y());
+        if (d2 < 16 * b.z() * b.z()) depth -= 0.5 * b.z() * std::exp(-d2 / (b.z() * b.z()));
+    }
+    return -depth;
+}
+
+// Epoch 2: a 0.6 m heap (radius 3 m, paraboloid) and a 0.35 m deep cut (4 m x 3 m) on the floor.
+double HeapAt(double x, double y) {
+    const double q = 1.0 - ((x + 9) * (x + 9) + (y - 1.5) * (y - 1.5)) / 9.0;
+    return q > 0 ? 0.6 * q : 0.0;
+}
+double CutAt(double x, double y) {
+    const auto p = [](double s, double half) {
+        return std::clamp((half + 0.5 - std::abs(s)) / 0.5, 0.0, 1.0);
+    };
+    return -0.35 * p(x - 1.0, 2.0) * p(y + 2.0, 1.5);
+}
+const double kHeapVolume = kPi * 3.0 * 3.0 * 0.6 / 2.0;
+const double kCutVolume = -0.35 * 4.5 * 3.5;
+
+// A surveyed surface: the terrain seen from frame F, where a point b of F lies at
+// T(b) = R (b - c) + c + t in the world; under water (depth > 1 m) and inside the grid.
+SurfaceGrid Survey(bool epoch2, const RigidCorrection& T, double noise_m, unsigned seed) {
+    SurfaceGrid s;
+    s.resolution_m = 0.2;
+    s.x0 = -34;
+    s.y0 = -24;
+    s.nx = 341;
+    s.ny = 241;
+    s.z_m.assign(static_cast<std::size_t>(s.nx * s.ny), std::numeric_limits<float>::quiet_NaN());
+    s.sigma_m.assign(s.z_m.size(), static_cast<float>(noise_m));
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0.0, noise_m);
+    const Eigen::Matrix3d R = T.R();
+    const auto world = [&](double x, double y) {
+        return PitHeight(x, y) + (epoch2 ? HeapAt(x, y) + CutAt(x, y) : 0.0);
+    };
+    for (int j = 0; j < s.ny; ++j) {
+        for (int i = 0; i < s.nx; ++i) {
+            const double bx = s.x0 + i * s.resolution_m, by = s.y0 + j * s.resolution_m;
+            // Newton on bz: the world point of (bx, by, bz) lies on the terrain.
+            double bz = world(bx, by);
+            for (int it = 0; it < 20; ++it) {
+                const Eigen::Vector3d w = T.Apply(Eigen::Vector3d(bx, by, bz));
+                const double h = world(w.x(), w.y());
+                const double gx = (world(w.x() + 0.01, w.y()) - world(w.x() - 0.01, w.y())) / 0.02;
+                const double gy = (world(w.x(), w.y() + 0.01) - world(w.x(), w.y() - 0.01)) / 0.02;
+                const double f = w.z() - h;
+                const double df = R(2, 2) - gx * R(0, 2) - gy * R(1, 2);
+                bz -= f / df;
+                if (std::abs(f) < 1e-7) break;
+            }
+            if (bz > -1.0) continue;
+            s.z_m[s.index(i, j)] = static_cast<float>(bz + noise(rng));
+        }
+    }
+    return s;
+}
+
+RigidCorrection Shift(
+    double yaw_deg, double tx, double ty, double tz, double roll_deg = 0, double pitch_deg = 0) {
+    RigidCorrection T;
+    T.pivot = Eigen::Vector3d(3.0, -2.0, -10.0);
+    T.rotation_rad = Eigen::Vector3d(roll_deg * kDeg, pitch_deg * kDeg, yaw_deg * kDeg);
+    T.translation_m = Eigen::Vector3d(tx, ty, tz);
+    return T;
+}
+
+// Largest distance between where two corrections put the nodes of the pit.
+double ActionDistance(const RigidCorrection& a, const RigidCorrection& b) {
+    double worst = 0;
+    for (double x = -30; x <= 30; x += 5) {
+        for (double y = -20; y <= 20; y += 5) {
+            const Eigen::Vector3d p(x, y, PitHeight(x, y));
+            worst = std::max(worst, (a.Apply(p) - b.Apply(p)).norm());
+        }
+    }
+    return worst;
+}
+
+TEST(CompareRegistration, RecoversAHalfMetreOneDegreeShiftDespiteTheChanges) {
+    const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 1);
+    // B seen from a frame shifted by 0.5 m and turned by 1 deg (and lifted 5 cm, tilted a
+    // little): the correction that carries B onto A is that frame's map to the world.
+    const RigidCorrection truth = Shift(1.0, 0.4, -0.3, 0.05, 0.03, -0.02);
+    const SurfaceGrid b = Survey(true, truth, 0.02, 2);
+    const RegistrationResult r = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(r.ok()) << r.message;
+    EXPECT_LT(ActionDistance(r.correction, truth), 0.02) << r.message;
+    EXPECT_NEAR(r.correction.rotation_rad.z() / kDeg, 1.0, 0.02) << r.message;
+    EXPECT_NEAR(r.correction.rotation_rad.x() / kDeg, 0.03, 0.01) << r.message;
+    EXPECT_NEAR(r.correction.rotation_rad.y() / kDeg, -0.02, 0.01) << r.message;
+    // Residual: the two surfaces' noise (2 cm each), not the changes.
+    EXPECT_LT(r.rms_vertical_after_m, 1.2 * std::sqrt(2.0) * 0.02) << r.message;
+    EXPECT_GT(r.rms_vertical_before_m, 3 * r.rms_vertical_after_m);
+    // The changed nodes are not stable terrain; nearly everything else is.
+    EXPECT_GT(static_cast<double>(r.points_stable) / static_cast<double>(r.points_overlap), 0.9);
+    // A stated uncertainty, small but not zero.
+    EXPECT_GT(r.sigma(5), 0.0);
+    EXPECT_LT(r.sigma(5), 0.01);
+    EXPECT_LT(r.sigma(2) / kDeg, 0.05);
+}
+
+TEST(CompareRegistration, FourDofHoldsRollAndPitchAtZero) {
+    const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 3);
+    const RigidCorrection truth = Shift(-0.5, -0.2, 0.25, -0.03);
+    const SurfaceGrid b = Survey(false, truth, 0.02, 4);
+    RegistrationConfig cfg;
+    cfg.estimate_roll_pitch = false;
+    const RegistrationResult r = RegisterSurfaces(a, b, cfg);
+    ASSERT_TRUE(r.ok()) << r.message;
+    EXPECT_EQ(r.correction.rotation_rad.x(), 0.0);
+    EXPECT_EQ(r.correction.rotation_rad.y(), 0.0);
+    EXPECT_LT(ActionDistance(r.correction, truth), 0.02) << r.message;
+}
+
+TEST(CompareRegistration, NoOverlapIsTooFewPoints) {
+    SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 5);
+    SurfaceGrid b = a;
+    b.x0 += 500.0;  // another place
+    const RegistrationResult r = RegisterSurfaces(a, b, RegistrationConfig{});
+    EXPECT_FALSE(r.ok());
+    EXPECT_EQ(r.termination, RegistrationTermination::kTooFewPoints);
+    EXPECT_NE(r.message.find("overlap"), std::string::npos) << r.message;
+}
+
+TEST(CompareChange, FindsTheHeapAndTheCutWithTheirVolumes) {
+    const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 6);
+    const RigidCorrection truth = Shift(1.0, 0.4, -0.3, 0.05);
+    const SurfaceGrid b = Survey(true, truth, 0.02, 7);
+    const RegistrationResult reg = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(reg.ok()) << reg.message;
+    const ChangeResult c = ComputeChange(a, b, reg.correction, reg.covariance, ChangeConfig{});
+    ASSERT_GE(c.regions.size(), 2u) << c.message;
+    // The two largest regions are the heap and the cut.
+    const ChangeRegion* heap = nullptr;
+    const ChangeRegion* cut = nullptr;
+    for (const ChangeRegion& g : c.regions) {
+        if (g.sign > 0 && (g.centroid - Eigen::Vector2d(-9, 1.5)).norm() < 1.0) heap = &g;
+        if (g.sign < 0 && (g.centroid - Eigen::Vector2d(1, -2)).norm() < 1.0) cut = &g;
+    }
+    ASSERT_NE(heap, nullptr) << c.message;
+    ASSERT_NE(cut, nullptr) << c.message;
+    for (const auto& [g, v] : {std::pair{heap, kHeapVolume}, std::pair{cut, kCutVolume}}) {
+        EXPECT_NEAR(g->volume_m3, v, std::max(0.05 * std::abs(v), g->u95_m3))
+            << g->volume_m3 << " +- " << g->u95_m3;
+        EXPECT_GT(g->u95_m3, 0.0);
+        EXPECT_LT(g->u95_m3, 0.25 * std::abs(v));
+        ASSERT_FALSE(g->polygons.empty());
+        // The outline: closed rings, outer ones counter-clockwise, holes clockwise, enclosing
+        // the region's cells exactly.
+        double area = 0, holes = 0;
+        for (const auto& poly : g->polygons) {
+            for (std::size_t h = 0; h < poly.size(); ++h) {
+                const auto& ring = poly[h];
+                EXPECT_EQ(ring.front(), ring.back());
+                double a2 = 0;
+                for (std::size_t k = 0; k + 1 < ring.size(); ++k)
+                    a2 += ring[k].x() * ring[k + 1].y() - ring[k + 1].x() * ring[k].y();
+                (h == 0 ? area : holes) += a2;
+                EXPECT_EQ(h == 0, a2 > 0);
+            }
+        }
+        EXPECT_LE(g->polygons.size(), 2u);
+        EXPECT_NEAR(0.5 * (area + holes), g->area_m2, 1e-6 * g->area_m2);
+    }
+    // Stable terrain: almost nothing else is flagged, and the difference there is the noise.
+    double other_area = 0;
+    for (const ChangeRegion& g : c.regions) {
+        if (&g != heap && &g != cut) other_area += g.area_m2;
+    }
+    EXPECT_LT(other_area / c.compared_area_m2, 0.003) << c.message;
+    EXPECT_LT(std::abs(c.stable_mean_m), 0.005) << c.message;
+    EXPECT_LT(c.stable_rms_m, 0.035) << c.message;
+    EXPECT_NEAR(c.median_lod95_m, 1.96 * std::sqrt(2.0) * 0.02, 0.01);
+}
+
+TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
+    SurfaceGrid s;
+    s.resolution_m = 0.5;
+    s.nx = s.ny = 21;  // 10.5 m x 10.5 m of cells
+    s.z_m.assign(441, -4.0f);
+    s.sigma_m.assign(441, 0.01f);
+    for (int j = 5; j < 10; ++j) {
+        for (int i = 5; i < 10; ++i) s.z_m[s.index(i, j)] = -6.0f;  // a 2.5 m x 2.5 m sump
+    }
+    s.z_m[0] = std::numeric_limits<float>::quiet_NaN();
+    const CapacityResult c = ComputeCapacity(s, 0.0, 1.0);
+    const double cell = 0.25;
+    EXPECT_NEAR(c.surveyed_area_m2, 440 * cell, 1e-9);
+    EXPECT_NEAR(c.min_height_m, -6.0, 1e-9);
+    EXPECT_NEAR(c.volume_at_water_level_m3, 415 * cell * 4.0 + 25 * cell * 6.0, 1e-6);
+    EXPECT_NEAR(c.area_at_water_level_m2, 440 * cell, 1e-9);
+    ASSERT_EQ(c.rows.front().level_m, -6.0);
+    EXPECT_EQ(c.rows.front().volume_m3, 0.0);
+    // At -5 m only the sump holds water, 1 m of it.
+    for (const CapacityRow& row : c.rows) {
+        if (row.level_m == -5.0) {
+            EXPECT_NEAR(row.volume_m3, 25 * cell, 1e-9);
+            EXPECT_NEAR(row.area_m2, 25 * cell, 1e-9);
+        }
+    }
+    EXPECT_EQ(c.rows.back().level_m, 0.0);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// Soundings of a 70 deg face rising from a floor at z = -10 (the face's foot along x = 0,
+// rising towards +x), 25 a square metre, with 3 cm noise along every axis. `bulge` moves the
+// face's soundings in |y| < 2 m, 2 m < height above the floor < 5 m by that much along the
+// face's normal (towards the water, -x and up).
+std::vector<Eigen::Vector3d> FaceCloud(double bulge_m, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0.0, 0.03);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const double slope = 70.0 * kDeg;
+    const Eigen::Vector3d n(-std::sin(slope), 0.0, std::cos(slope));  // out of the rock
+    std::vector<Eigen::Vector3d> pts;
+    // The face: height h in [0, 8] above the floor, y in [-6, 6]; area per h: 1 / sin(slope).
+    const int face_n = static_cast<int>(25 * 12 * 8 / std::sin(slope));
+    for (int k = 0; k < face_n; ++k) {
+        const double h = 8 * u(rng), y = -6 + 12 * u(rng);
+        Eigen::Vector3d p(h / std::tan(slope), y, -10 + h);
+        if (std::abs(y) < 2 && h > 2 && h < 5) p += bulge_m * n;
+        pts.push_back(p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    }
+    for (int k = 0; k < 25 * 6 * 12; ++k) {
+        const Eigen::Vector3d p(-6 * u(rng), -6 + 12 * u(rng), -10);
+        pts.push_back(p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    }
+    return pts;
+}
+
+TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsNormal) {
+    const auto a = FaceCloud(0.0, 11);
+    const auto b = FaceCloud(0.3, 12);
+    const Eigen::Vector3d inside(-20, 0, -5);  // the water is towards -x
+    const M3c2Result r =
+        RunM3c2(a, b, inside, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), M3c2Config{});
+    int in_patch = 0, in_patch_detected = 0, stable = 0, stable_flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m)) continue;
+        const double h = c.position.z() + 10;
+        const bool face = c.slope_deg > 60;
+        // Well inside the patch (its edges smear over the projection radius).
+        if (face && std::abs(c.position.y()) < 1.3 && h > 2.7 && h < 4.3) {
+            ++in_patch;
+            EXPECT_NEAR(c.normal.x(), -std::sin(70 * kDeg), 0.05);
+            EXPECT_NEAR(c.distance_m, 0.3, 0.06);
+            in_patch_detected += c.significance == 1;
+        }
+        if (std::abs(c.position.y()) > 3 || h < 1 || h > 6) {
+            ++stable;
+            stable_flagged += c.significance != 0;
+        }
+    }
+    EXPECT_GT(in_patch, 10) << r.message;
+    EXPECT_GE(in_patch_detected, in_patch - 1) << r.message;
+    EXPECT_GT(stable, 100);
+    EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare

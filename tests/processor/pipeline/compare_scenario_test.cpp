@@ -1,0 +1,344 @@
+// SPDX-License-Identifier: MIT
+// Scenario test of repeat surveys (issue 37): the quarry's first 150 s surveyed twice
+// (pitmap-sim synth --epoch 1 and --epoch 2: a slumped wall, a backfill heap, a thin spill, a
+// mined cut; the second survey with its own track, noise, mount and clock), both through
+// `pitmap run`, then `pitmap compare`, scored by pitmap-eval against the truth of the changes:
+//   - every change of >= 4 m3 and >= 0.15 m thick: volume within 5 % or its U95, outline IoU
+//     >= 0.8; < 0.3 % of the stable area flagged; the registration's residual on stable terrain;
+//     the capacity at B's water level within 0.5 % of the true terrain's;
+//   - a deliberately shifted epoch (B's dem.tif moved by 0.5 m and turned by 1 deg) is
+//     recovered within 2 cm and 0.02 deg, and the navigation gate trips (exit 4 with --strict);
+//   - bad input: a missing product, a damaged survey.pitmap, another vertical datum, another
+//     site, another CRS, no overlap, a folder that is not there: an error naming the problem,
+//     and no compare.json.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+
+#include "processor/io/grid_io.hpp"
+#include "tests/support/process.hpp"
+#include "tests/support/scenario.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using pitmap::test::kBin;
+using pitmap::test::Quote;
+using pitmap::test::ReadJson;
+using pitmap::test::RunCommand;
+
+constexpr double kPi = 3.14159265358979323846;
+
+class CompareScenario : public ::testing::Test {
+protected:
+    static void SetUpTestSuite() {
+        dir_ = pitmap::test::FreshDir("pitmap_compare_scenario");
+        for (int epoch : {1, 2}) {
+            const fs::path sim = dir_ / ("sim" + std::to_string(epoch));
+            std::string out;
+            ASSERT_EQ(RunCommand(kBin +
+                                     "/pitmap-sim synth --scenario quarry --duration 150 "
+                                     "--epoch " +
+                                     std::to_string(epoch) + " --out " + Quote(sim),
+                                 &out),
+                      0)
+                << out;
+            ASSERT_EQ(RunCommand(kBin + "/pitmap run " + Quote(sim / "log") + " --out " +
+                                     Quote(dir_ / ("P" + std::to_string(epoch))) + " --no-report",
+                                 &out),
+                      0)
+                << out;
+        }
+    }
+    static fs::path A() { return dir_ / "P1"; }
+    static fs::path B() { return dir_ / "P2"; }
+    // A copy of the files pitmap compare reads.
+    static fs::path CopyEpoch(const fs::path& from, const std::string& name) {
+        const fs::path to = dir_ / name;
+        fs::remove_all(to);
+        fs::create_directories(to);
+        for (const char* f : {"summary.json",
+                              "dem.tif",
+                              "survey.pitmap",
+                              "trajectory.csv",
+                              "trajectory_sigma.csv",
+                              "points_utm.ply"}) {
+            fs::copy_file(from / f, to / f);
+        }
+        return to;
+    }
+    // pitmap compare's exit status.
+    static int Compare(const fs::path& a,
+                       const fs::path& b,
+                       const fs::path& out,
+                       std::string* text,
+                       const std::string& extra = "") {
+        const int status = RunCommand(
+            kBin + "/pitmap compare " + Quote(a) + " " + Quote(b) + " --out " + Quote(out) + extra,
+            text);
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
+    void ChangesMeasuredAgainstTruth();
+    void ShiftedEpochIsRecoveredAndTripsTheNavigationGate();
+    void BadInputIsAClearErrorAndNoResult();
+    static fs::path dir_;
+};
+
+fs::path CompareScenario::dir_;
+
+// B's dem.tif rewritten: every band moved by the rigid map S (turn by yaw_deg about the grid's
+// centre, then shift), or re-stamped in another UTM zone, or moved far away.
+void RewriteDem(const fs::path& dem,
+                double yaw_deg,
+                const Eigen::Vector2d& shift,
+                int zone_override = 0) {
+    auto r = pitmap::proc::io::ReadGrid(dem.string());
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    pitmap::proc::io::GridRaster g = r->grid;
+    g.utm_zone = zone_override != 0 ? zone_override : r->horizontal_epsg % 100;
+    g.northern = r->horizontal_epsg < 32700;
+    const Eigen::Vector2d c(g.x0 + 0.5 * (g.nx - 1) * g.resolution_m,
+                            g.y0 + 0.5 * (g.ny - 1) * g.resolution_m);
+    const double a = yaw_deg * kPi / 180.0;
+    const Eigen::Matrix2d R =
+        (Eigen::Matrix2d() << std::cos(a), -std::sin(a), std::sin(a), std::cos(a)).finished();
+    if (yaw_deg != 0) {
+        for (auto& layer : g.layers) {
+            const std::vector<float> src = layer.values;
+            for (int j = 0; j < g.ny; ++j) {
+                for (int i = 0; i < g.nx; ++i) {
+                    // The value at q comes from S^-1(q) = R^T (q - c - shift) + c.
+                    const Eigen::Vector2d q(g.x0 + i * g.resolution_m, g.y0 + j * g.resolution_m);
+                    const Eigen::Vector2d p = R.transpose() * (q - c - shift) + c;
+                    const double gx = (p.x() - g.x0) / g.resolution_m;
+                    const double gy = (p.y() - g.y0) / g.resolution_m;
+                    float v = std::numeric_limits<float>::quiet_NaN();
+                    if (gx >= 0 && gy >= 0 && gx < g.nx - 1 && gy < g.ny - 1) {
+                        const int i0 = static_cast<int>(gx), j0 = static_cast<int>(gy);
+                        const double u = gx - i0, w = gy - j0;
+                        const auto at = [&](int ii, int jj) {
+                            return static_cast<double>(
+                                src[static_cast<std::size_t>(jj) * g.nx + ii]);
+                        };
+                        v = static_cast<float>(
+                            (at(i0, j0) * (1 - u) + at(i0 + 1, j0) * u) * (1 - w) +
+                            (at(i0, j0 + 1) * (1 - u) + at(i0 + 1, j0 + 1) * u) * w);
+                    }
+                    layer.values[static_cast<std::size_t>(j) * g.nx + i] = v;
+                }
+            }
+        }
+    } else {
+        g.x0 += shift.x();
+        g.y0 += shift.y();
+    }
+    fs::remove(dem);
+    const auto s = pitmap::proc::io::WriteCogGeoTiff(dem.string(), g);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+}
+
+void CompareScenario::ChangesMeasuredAgainstTruth() {
+    std::string out;
+    const fs::path C = dir_ / "C";
+    ASSERT_EQ(Compare(A(), B(), C, &out, " --strict"), 0) << out;
+    for (const char* f : {"dod.tif",
+                          "change_regions.geojson",
+                          "capacity_a.csv",
+                          "capacity_b.csv",
+                          "capacity.svg",
+                          "compare.json"})
+        EXPECT_TRUE(fs::exists(C / f)) << f;
+    const json j = ReadJson(C / "compare.json");
+    EXPECT_TRUE(j["quality_gates"].empty()) << j["quality_gates"].dump();
+    EXPECT_TRUE(j["registration"]["navigation_gate"]["evaluated"].get<bool>());
+    const auto s = pitmap::test::EvalScores(dir_ / "sim2/truth", C);
+    ASSERT_EQ(s.at("change_parts"), 5) << out;
+    for (const char* part : {"slump_scar", "slump_toe", "backfill", "spill", "cut"}) {
+        const std::string k = std::string("change_") + part + "_";
+        EXPECT_EQ(s.at(k + "within"), 1)
+            << part << ": " << s.at(k + "volume_detected_m3") << " +- " << s.at(k + "u95_m3")
+            << " m3, truth " << s.at(k + "volume_true_m3");
+        EXPECT_GE(s.at(k + "iou"), 0.8) << part;
+    }
+    EXPECT_LT(s.at("change_stable_flagged_share"), 0.003);
+    // The registration's residual on stable terrain: both CUBE surfaces' noise (about 1.5 cm
+    // each) is in it, not the changes.
+    EXPECT_LT(s.at("registration_rms_vertical_after_m"), 0.025);
+    EXPECT_LT(std::abs(s.at("capacity_b_volume_error_pct")), 0.5);
+    // The 3D change along the normal: the scar on the 65 deg wall is seen as a loss along the
+    // wall's normal (0.42 m at its centre, 0.27 m median where its vertical depth exceeds
+    // 0.3 m). Stable cores flagged: measured 0.5 % (1.2 % on walls) on these 150 s, where
+    // walls seen once by one survey and from elsewhere by the other differ by more than the
+    // CUBE surfaces' sigma says (the whole 210 s: 0.06 %, 0 on walls); the issue's 0.3 % is
+    // not reached here (docs/compare.md), this holds the figure from getting worse.
+    EXPECT_TRUE(fs::exists(C / "change_points.ply"));
+    EXPECT_GT(s.at("change3d_scar_detected_share"), 0.6);
+    EXPECT_NEAR(s.at("change3d_scar_median_distance_m"), -0.27, 0.08);
+    EXPECT_LT(s.at("change3d_stable_flagged_share"), 0.01);
+    EXPECT_LT(s.at("change3d_wall_stable_flagged_share"), 0.02);
+    // The outlines: one feature per region, closed rings in the DEM's CRS.
+    const json fc = ReadJson(C / "change_regions.geojson");
+    EXPECT_EQ(fc["features"].size(), j["change"]["regions"].size());
+    EXPECT_EQ(fc["crs"]["properties"]["name"],
+              "urn:ogc:def:crs:EPSG::" + std::to_string(j["crs"]["epsg"].get<int>()));
+}
+
+void CompareScenario::ShiftedEpochIsRecoveredAndTripsTheNavigationGate() {
+    std::string out;
+    const fs::path C0 = dir_ / "C_plain";
+    ASSERT_EQ(Compare(A(), B(), C0, &out), 0) << out;
+    const fs::path Bs = CopyEpoch(B(), "P2_shifted");
+    const Eigen::Vector2d shift(0.3, 0.4);  // 0.5 m
+    RewriteDem(Bs / "dem.tif", 1.0, shift);
+    fs::remove(Bs / "points_utm.ply");  // not moved with the DEM: no 3D change here
+    const fs::path C = dir_ / "C_shifted";
+    EXPECT_EQ(Compare(A(), Bs, C, &out, " --strict"), 4) << out;
+    const json j0 = ReadJson(C0 / "compare.json")["registration"];
+    const json j = ReadJson(C / "compare.json");
+    const json& r = j["registration"];
+    // The shifted epoch's correction is the plain one after undoing S: for every node p of B,
+    // T_shifted(S(p)) = T_plain(p), and its yaw 1 deg less.
+    auto correction = [](const json& reg) {
+        const Eigen::Vector3d pivot(reg["pivot_m"][0], reg["pivot_m"][1], reg["pivot_m"][2]);
+        const Eigen::Vector3d t(
+            reg["translation_m"][0], reg["translation_m"][1], reg["translation_m"][2]);
+        const Eigen::Vector3d w(reg["rotation_deg"]["roll"].get<double>() * kPi / 180,
+                                reg["rotation_deg"]["pitch"].get<double>() * kPi / 180,
+                                reg["rotation_deg"]["yaw"].get<double>() * kPi / 180);
+        return [=](const Eigen::Vector3d& p) {
+            const double a = w.norm();
+            const Eigen::Matrix3d R = a > 0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix()
+                                            : Eigen::Matrix3d::Identity();
+            return Eigen::Vector3d(R * (p - pivot) + pivot + t);
+        };
+    };
+    const auto T0 = correction(j0);
+    const auto T1 = correction(r);
+    auto dem = pitmap::proc::io::ReadGrid((B() / "dem.tif").string());
+    ASSERT_TRUE(dem.ok());
+    const auto& g = dem->grid;
+    const Eigen::Vector2d c(g.x0 + 0.5 * (g.nx - 1) * g.resolution_m,
+                            g.y0 + 0.5 * (g.ny - 1) * g.resolution_m);
+    const double a = kPi / 180.0;
+    double worst = 0;
+    int nodes = 0;
+    for (int jj = 0; jj < g.ny; jj += 25) {
+        for (int ii = 0; ii < g.nx; ii += 25) {
+            const float z = g.layers[0].values[static_cast<std::size_t>(jj) * g.nx + ii];
+            if (!std::isfinite(z)) continue;
+            const Eigen::Vector3d p(g.x0 + ii * g.resolution_m, g.y0 + jj * g.resolution_m, z);
+            const Eigen::Vector2d q2 =
+                Eigen::Rotation2Dd(a) * (p.head<2>() - c) + c + shift;  // S(p)
+            const Eigen::Vector3d q(q2.x(), q2.y(), z);
+            worst = std::max(worst, (T1(q) - T0(p)).norm());
+            ++nodes;
+        }
+    }
+    EXPECT_GT(nodes, 100);
+    EXPECT_LT(worst, 0.02) << r.dump();
+    EXPECT_NEAR(r["rotation_deg"]["yaw"].get<double>(),
+                j0["rotation_deg"]["yaw"].get<double>() - 1.0,
+                0.02);
+    ASSERT_EQ(j["quality_gates"].size(), 1u);
+    EXPECT_EQ(j["quality_gates"][0]["gate"], "correction_beyond_navigation");
+    // After the correction the change is what it was.
+    const auto s = pitmap::test::EvalScores(dir_ / "sim2/truth", C);
+    EXPECT_EQ(s.at("change_parts_within"), s.at("change_parts"));
+}
+
+void CompareScenario::BadInputIsAClearErrorAndNoResult() {
+    struct Case {
+        std::string name;
+        std::function<void(const fs::path&)> damage;
+        std::string message;
+    };
+    const std::vector<Case> cases = {
+        {"missing_dem",
+         [](const fs::path& p) { fs::remove(p / "dem.tif"); },
+         "missing product dem.tif"},
+        {"damaged_survey",
+         [](const fs::path& p) {
+             std::fstream f(p / "survey.pitmap", std::ios::in | std::ios::out | std::ios::binary);
+             f.seekp(static_cast<std::streamoff>(fs::file_size(p / "survey.pitmap") / 2));
+             const char junk[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+             f.write(junk, sizeof junk);
+         },
+         "corrupt survey file"},
+        {"other_datum",
+         [](const fs::path& p) {
+             json s = ReadJson(p / "summary.json");
+             s["vertical_datum"]["datum"] = "geoid";
+             s["vertical_datum"]["vertical_crs"] = "EGM96 height";
+             std::ofstream(p / "summary.json") << s.dump();
+         },
+         "different vertical datums"},
+        {"other_site",
+         [](const fs::path& p) {
+             json s = ReadJson(p / "summary.json");
+             s["metadata"]["site"] = "Bejanca";
+             std::ofstream(p / "summary.json") << s.dump();
+         },
+         "different sites"},
+        {"other_crs",
+         [](const fs::path& p) { RewriteDem(p / "dem.tif", 0, Eigen::Vector2d::Zero(), 30); },
+         "different horizontal CRS"},
+        {"no_overlap",
+         [](const fs::path& p) { RewriteDem(p / "dem.tif", 0, Eigen::Vector2d(5000, 0)); },
+         "do not overlap"},
+    };
+    for (const Case& c : cases) {
+        const fs::path bad = CopyEpoch(B(), "P2_" + c.name);
+        c.damage(bad);
+        if (c.name == "other_site") {
+            // Both must name a site for it to count: A names the quarry.
+            const fs::path a = CopyEpoch(A(), "P1_site");
+            json s = ReadJson(a / "summary.json");
+            s["metadata"]["site"] = "Quarry";
+            std::ofstream(a / "summary.json") << s.dump();
+            std::string out;
+            const fs::path C = dir_ / ("C_" + c.name);
+            EXPECT_EQ(Compare(a, bad, C, &out), 1) << c.name << ": " << out;
+            EXPECT_NE(out.find(c.message), std::string::npos) << c.name << ": " << out;
+            EXPECT_FALSE(fs::exists(C / "compare.json")) << c.name;
+            continue;
+        }
+        std::string out;
+        const fs::path C = dir_ / ("C_" + c.name);
+        EXPECT_EQ(Compare(A(), bad, C, &out), 1) << c.name << ": " << out;
+        EXPECT_NE(out.find(c.message), std::string::npos) << c.name << ": " << out;
+        EXPECT_FALSE(fs::exists(C / "compare.json")) << c.name;
+    }
+    // A folder that is not there: a usage error, and C is not even created.
+    std::string out;
+    const fs::path C = dir_ / "C_missing_folder";
+    EXPECT_EQ(Compare(A(), dir_ / "no_such_folder", C, &out), 2) << out;
+    EXPECT_NE(out.find("no_such_folder"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(C));
+}
+
+// One test: the two runs of the quarry are made once (about a minute and a half) for all three.
+TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
+    {
+        SCOPED_TRACE("changes measured against the truth");
+        ChangesMeasuredAgainstTruth();
+    }
+    {
+        SCOPED_TRACE("a shifted epoch");
+        ShiftedEpochIsRecoveredAndTripsTheNavigationGate();
+    }
+    {
+        SCOPED_TRACE("bad input");
+        BadInputIsAClearErrorAndNoResult();
+    }
+}
+
+}  // namespace
