@@ -31,7 +31,8 @@ import time
 
 DEFAULT_DOCS = ["README.md", "docs/user-guide.md", "docs/reference.md", "docs/cli.md",
                 "docs/packages.md", "docs/report.md", "docs/georeferencing.md",
-                "docs/benchmarks.md", "docs/echo_artifacts.md"]
+                "docs/benchmarks.md", "docs/echo_artifacts.md", "docs/compare.md",
+                "docs/campaigns.md"]
 LINKED_DOCS = DEFAULT_DOCS + ["docs/development.md", "docs/accuracy.md"]
 MARKER = re.compile(r"^<!--\s*(not-run|output-of):\s*(.*?)\s*-->$")
 FENCE = re.compile(r"^```(\S*)\s*$")
