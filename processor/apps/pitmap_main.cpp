@@ -95,6 +95,308 @@ extern "C" void OnSignal(int) {
     g_stop = true;
 }
 
+std::string CommandLine(int argc, char** argv) {
+    std::string line;
+    for (int i = 0; i < argc; ++i) line += (i > 0 ? " " : "") + std::string(argv[i]);
+    return line;
+}
+
+// What the command line asked for: the options the commands share and each command's own.
+struct Options {
+    std::vector<std::string> inputs, svp_files;
+    std::string out_dir, config_path, vehicle_path;
+    bool from_raw = false, defaults = false, vehicle_template = false;
+    double sonar_clock_offset_s = 0;
+    bool offset_given = false;
+    bool no_calibrate = false, no_slam = false, no_report = false, no_clean = false;
+    bool strict = false;
+    int edit_port = 8767;
+    bool no_open = false;
+    std::string rerun_program;
+    std::vector<std::string> compare_inputs;
+    int compare_dof = 6;
+    bool compare_no_3d = false;
+    pp::CompareConfig compare_config;
+};
+
+// The subcommands, to ask which one was given.
+struct Commands {
+    CLI::App *info, *geo, *cal, *slam, *clean, *grid, *fuse, *mesh, *report, *rerun, *run;
+    CLI::App *edit, *compare, *cfg;
+};
+
+// The options of the commands that read the inputs (info, georef, run).
+void AddInputOptions(CLI::App* sub, Options& o) {
+    sub->add_option("--vehicle",
+                    o.vehicle_path,
+                    "vehicle.yaml (pitmap config --vehicle); default: vehicle.yaml beside "
+                    "the first input");
+    sub->add_option("--sonar-clock-offset",
+                    o.sonar_clock_offset_s,
+                    ".83P files: the sonar's (header) clock minus GPS-disciplined UTC, s. "
+                    "Positive = the sonar clock runs ahead of UTC, negative = it runs behind "
+                    "(a topside PC 2 s fast: 2); GPS time = header time - S + (GPS - UTC). "
+                    "Default: the config's "
+                    "ingest.sonar_clock_offset_s, else vehicle.yaml's sonar.clock_offset_s, "
+                    "else found from the 83P headers")
+        ->each([&o](const std::string&) { o.offset_given = true; });
+}
+
+// info, georef, the stage commands, rerun and run (a table of options).
+void DeclareStageCommands(CLI::App& app, Options& o, Commands& c) {
+    c.info = app.add_subcommand("info", "summarise logs and vendor files");
+    c.info->add_option("inputs", o.inputs, "LCM logs, .83P, NovAtel files or folders")->required();
+    AddInputOptions(c.info, o);
+    c.info->add_option("--config",
+                       o.config_path,
+                       "YAML config (its ingest settings and products.origin, which the CRS line "
+                       "follows)");
+    c.geo = app.add_subcommand("georef", "ingest and georeference into a products folder");
+    c.geo->add_option("inputs", o.inputs, "LCM logs, .83P, NovAtel files or folders")->required();
+    c.geo->add_option("--out", o.out_dir, "products folder")->required();
+    c.geo->add_option("--config", o.config_path, "YAML config (see pitmap config --defaults)");
+    c.geo->add_flag(
+        "--from-raw", o.from_raw, "re-decode the raw channels instead of the decoded ones");
+    AddInputOptions(c.geo, o);
+    c.cal = app.add_subcommand("calibrate", "boresight calibration on a georeferenced folder");
+    c.cal->add_option("--out", o.out_dir, "products folder written by pitmap georef")->required();
+    c.cal->add_option("--config", o.config_path, "YAML config");
+    c.slam = app.add_subcommand("slam", "continuous-time SLAM on a georeferenced folder");
+    c.clean = app.add_subcommand(
+        "clean", "flag fish, bubbles, ghosts: the automatic 3D cleaning of the soundings");
+    c.grid = app.add_subcommand(
+        "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
+    c.fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
+    c.mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
+    c.report = app.add_subcommand("report", "report.html of a products folder");
+    c.rerun = app.add_subcommand(
+        "rerun",
+        "the stages after georef again (calibrate, SLAM, clean, grid, TSDF, mesh, report) on a "
+        "products folder, e.g. after pitmap edit");
+    for (auto* sub : {c.slam, c.clean, c.grid, c.fuse, c.mesh, c.report, c.rerun}) {
+        sub->add_option("--out", o.out_dir, "products folder")->required();
+        sub->add_option("--config", o.config_path, "YAML config");
+    }
+    c.run = app.add_subcommand(
+        "run", "everything: ingest, georef, calibrate, SLAM, clean, grid, TSDF, mesh, report");
+    c.run->add_option("inputs", o.inputs, "LCM logs, .83P, NovAtel files or folders")->required();
+    c.run->add_option("--out", o.out_dir, "products folder")->required();
+    c.run->add_option("--config", o.config_path, "YAML config (see pitmap config --defaults)");
+    c.run->add_flag(
+        "--from-raw", o.from_raw, "re-decode the raw channels instead of the decoded ones");
+    AddInputOptions(c.run, o);
+    for (auto* sub : {c.run, c.rerun}) {
+        sub->add_flag("--no-calibrate", o.no_calibrate, "keep the boresight of vehicle.yaml");
+        sub->add_flag("--no-slam", o.no_slam, "fuse on the INS trajectory");
+        sub->add_flag("--no-clean", o.no_clean, "no automatic cleaning of the soundings");
+        sub->add_flag("--no-report", o.no_report, "no report.html");
+    }
+    // The commands that georeference take sound-velocity casts.
+    for (auto* sub : {c.geo, c.run}) {
+        sub->add_option("--svp",
+                        o.svp_files,
+                        "sound-velocity casts (CARIS .svp, CSV or two-column depth/speed): ray "
+                        "trace every beam through them (config refraction.svp_files)");
+    }
+}
+
+void DeclareEditCommand(CLI::App& app, Options& o, Commands& c) {
+    c.edit = app.add_subcommand("edit", "review and edit soundings by hand on a local page");
+    c.edit->add_option("P", o.out_dir, "products folder (survey.pitmap)")->required();
+    c.edit->add_option("--port", o.edit_port, "port on 127.0.0.1 (0 = any free one)");
+    c.edit->add_flag("--no-open", o.no_open, "only print the URL (do not start a browser)");
+    c.edit->add_option("--config", o.config_path, "YAML config (the georeferencing's settings)");
+    c.edit->add_option("--rerun-program", o.rerun_program, "(tests) what the re-run button starts")
+        ->group("");
+}
+
+void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
+    c.compare = app.add_subcommand(
+        "compare",
+        "two surveys of one site: co-registration on stable terrain, DEM of difference with a "
+        "level of detection, change regions with volumes and uncertainty, capacity curves "
+        "(docs/compare.md)");
+    c.compare->add_option("A B", o.compare_inputs, "products folders, the earlier survey first")
+        ->required()
+        ->expected(2);
+    c.compare->add_option("--out", o.out_dir, "output folder for the comparison")->required();
+    c.compare
+        ->add_option("--dof",
+                     o.compare_dof,
+                     "registration: 6 (translation, roll, pitch, yaw; default) or 4 (translation "
+                     "and yaw)")
+        ->check(CLI::IsMember({4, 6}));
+    c.compare->add_option("--min-region-area",
+                          o.compare_config.change.min_region_area_m2,
+                          "m2: smaller change regions are not reported (0.5)");
+    c.compare->add_flag("--no-3d",
+                        o.compare_no_3d,
+                        "no 3D change along the normal on the soundings (change_points.ply)");
+    c.compare->add_option("--capacity-step",
+                          o.compare_config.capacity_step_m,
+                          "m: a row of the capacity curves every step (0.25)");
+}
+
+Commands DeclareCommands(CLI::App& app, Options& o) {
+    app.require_subcommand(1);
+    // Run before parsing (main); here for --help and the did-you-mean of a mistyped command.
+    app.add_subcommand("live",
+                       "live coverage, status and alarms from the daemon's LCM channels or a "
+                       "replayed log, on a local page (runs pitmap-live; pitmap live --help)")
+        ->allow_extras()
+        ->prefix_command();
+    Commands c{};
+    DeclareStageCommands(app, o, c);
+    DeclareEditCommand(app, o, c);
+    DeclareCompareCommand(app, o, c);
+    c.cfg = app.add_subcommand("config", "configuration helpers");
+    c.cfg->add_flag("--defaults", o.defaults, "print the YAML of every default");
+    c.cfg->add_flag(
+        "--vehicle", o.vehicle_template, "print the vehicle.yaml schema, as a template");
+    for (auto* sub :
+         {c.geo, c.cal, c.slam, c.clean, c.grid, c.fuse, c.mesh, c.run, c.rerun, c.compare}) {
+        sub->add_flag("--strict",
+                      o.strict,
+                      "exit with status 4 when a quality gate trips (the stage could not "
+                      "explain its data; the products are still written and say why)");
+    }
+    return c;
+}
+
+// Says the tripped gates; with --strict they are the exit status.
+int GatesExit(std::size_t count, const std::string& which, bool strict) {
+    if (count == 0) return 0;
+    std::fprintf(stderr,
+                 "pitmap: %zu quality gate(s) tripped: %s%s\n",
+                 count,
+                 which.c_str(),
+                 strict ? "" : "; --strict makes this an error");
+    return strict ? codes::kQualityGate : 0;
+}
+
+int RunConfigCommand(const Options& o) {
+    if (o.defaults == o.vehicle_template) {
+        return Fail("config: give --defaults or --vehicle", codes::kUsage);
+    }
+    std::fputs((o.defaults ? pp::DefaultsYaml() : pitmap::VehicleYamlTemplate()).c_str(), stdout);
+    return 0;
+}
+
+int RunCompareCommand(Options& o, const std::string& command_line) {
+    // Both folders must be there before C is created.
+    if (auto m = MissingInput(o.compare_inputs, "products folder"); !m.empty())
+        return Fail(m + "; nothing written", codes::kUsage);
+    o.compare_config.registration.estimate_roll_pitch = o.compare_dof == 6;
+    o.compare_config.change3d = !o.compare_no_3d;
+    if (auto problems = o.compare_config.Validate(); !problems.empty())
+        return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
+    auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
+    if (!lock) return Fail(lock.error().message);
+    auto gates = pp::RunCompare(
+        o.compare_inputs[0],
+        o.compare_inputs[1],
+        o.out_dir,
+        o.compare_config,
+        [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });
+    if (!gates) return Fail(gates.error().message);
+    return GatesExit(static_cast<std::size_t>(*gates), "see compare.json quality_gates", o.strict);
+}
+
+// The config file with the command line's overrides, validated; every problem listed.
+pitmap::Expected<pp::PipelineConfig> PipelineConfigOf(const Options& o) {
+    pp::PipelineConfig config;
+    if (!o.config_path.empty()) {
+        if (auto m = MissingInput({o.config_path}, "config"); !m.empty()) return pitmap::Error{m};
+        auto c = pp::LoadConfig(o.config_path);
+        if (!c) return c.error();
+        config = *c;
+    }
+    if (o.from_raw) config.ingest.source = pitmap::proc::io::IngestSource::kRaw;
+    if (o.offset_given) {
+        config.ingest.sonar_clock_offset_s = o.sonar_clock_offset_s;
+        config.ingest.sonar_clock_offset_known = true;
+    }
+    if (!o.vehicle_path.empty()) config.vehicle_yaml = o.vehicle_path;
+    if (!o.svp_files.empty()) config.refraction.svp_files = o.svp_files;
+    if (o.no_calibrate) config.run.calibrate = false;
+    if (o.no_slam) config.run.slam = false;
+    if (o.no_report) config.run.report = false;
+    if (o.no_clean) config.clean.enabled = false;
+    config.report_program = ReportProgram();
+    if (auto problems = config.Validate(); !problems.empty()) {
+        return pitmap::Error{"invalid config:\n" + pitmap::FormatProblems(problems)};
+    }
+    return config;
+}
+
+// The first input the command reads that is not there ("" when all are).
+std::string FirstMissingInput(const Options& o, const Commands& c) {
+    std::string missing = MissingInput(o.inputs, "input");
+    if (missing.empty() && !o.vehicle_path.empty())
+        missing = MissingInput({o.vehicle_path}, "vehicle file");
+    if (missing.empty()) missing = MissingInput(o.svp_files, "sound-velocity file");
+    // The stages after georef read P itself: it must be there already.
+    if (missing.empty() && !(c.info->parsed() || c.geo->parsed() || c.run->parsed())) {
+        missing = MissingInput({o.out_dir}, "products folder");
+        if (!missing.empty()) missing += " (pitmap georef or pitmap run writes it)";
+    }
+    return missing;
+}
+
+int RunEditCommand(const Options& o, const pp::PipelineConfig& config) {
+    // No lock on P: the page's re-run (pitmap rerun P) takes it.
+    namespace pe = pitmap::proc::edit;
+    pe::EditCommand e;
+    e.out_dir = o.out_dir;
+    e.session.georef = config.georef;
+    e.session.tpu_sound_speed_mps = config.grid.tpu_sound_speed_mps;
+    e.session.ins_sigma_max_age_s = config.grid.ins_sigma_max_age_s;
+    e.server.port = o.edit_port;
+    e.server.rerun_program = o.rerun_program.empty() ? SiblingProgram("pitmap") : o.rerun_program;
+    e.open_browser = !o.no_open;
+    std::signal(SIGINT, OnSignal);
+    std::signal(SIGTERM, OnSignal);
+    return pe::RunEditCommand(e, [] { return g_stop.load(); });
+}
+
+int RunInfoCommand(const Options& o, const pp::PipelineConfig& config) {
+    auto text = pp::Info(o.inputs, config);
+    if (!text) return Fail(text.error().message);
+    std::fputs(text->c_str(), stdout);
+    return 0;
+}
+
+// georef, a stage, rerun or run on P, holding P's lock; the gates the stages tripped.
+int RunStageCommand(const Commands& c,
+                    const Options& o,
+                    const pp::PipelineConfig& config,
+                    const std::string& command_line) {
+    // One command at a time on P; creating P and its lock file is also the check that P can be
+    // written, before any work.
+    auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
+    if (!lock) return Fail(lock.error().message);
+    const pp::Log log = [](const std::string& m) {
+        std::fprintf(stderr, "pitmap: %s\n", m.c_str());
+    };
+    const std::string& P = o.out_dir;
+    pitmap::Status status = pitmap::Ok{};
+    if (c.geo->parsed()) status = pp::RunGeorefStage(o.inputs, P, config, log);
+    if (c.cal->parsed()) status = pp::RunCalibrateStage(P, config, log);
+    if (c.slam->parsed()) status = pp::RunSlamStage(P, config, log);
+    if (c.clean->parsed()) status = pp::RunCleanStage(P, config, log);
+    if (c.rerun->parsed()) status = pp::RunFromSurvey(P, config, log);
+    if (c.grid->parsed()) status = pp::RunGridStage(P, config, log);
+    if (c.fuse->parsed()) status = pp::RunFuseStage(P, config, log);
+    if (c.mesh->parsed()) status = pp::RunMeshStage(P, config, log);
+    if (c.report->parsed()) status = pp::RunReportStage(P, config, log);
+    if (c.run->parsed()) status = pp::RunAll(o.inputs, P, config, log);
+    if (!status) return Fail(status.error().message);
+    const auto gates = TrippedGates(P);
+    std::string list;
+    for (const auto& g : gates) list += (list.empty() ? "" : ", ") + g;
+    return GatesExit(gates.size(), list + " (summary.json quality_gates)", o.strict);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) try {
@@ -108,265 +410,21 @@ int main(int argc, char** argv) try {
         return Fail("cannot run " + live + " (build the pitmap-live target)");
     }
     CLI::App app{"pitmap: flooded open-pit mine mapping, shore-side processor"};
-    app.require_subcommand(1);
-    // Run before parsing (above); here for --help and the did-you-mean of a mistyped command.
-    app.add_subcommand("live",
-                       "live coverage, status and alarms from the daemon's LCM channels or a "
-                       "replayed log, on a local page (runs pitmap-live; pitmap live --help)")
-        ->allow_extras()
-        ->prefix_command();
-    std::vector<std::string> inputs, svp_files;
-    std::string out_dir, config_path, vehicle_path;
-    bool from_raw = false, defaults = false, vehicle_template = false;
-    double sonar_clock_offset_s = 0;
-    bool offset_given = false;
-    // The options of the commands that read the inputs (info, georef, run).
-    const auto input_options = [&](CLI::App* sub) {
-        sub->add_option("--vehicle",
-                        vehicle_path,
-                        "vehicle.yaml (pitmap config --vehicle); default: vehicle.yaml beside "
-                        "the first input");
-        sub->add_option("--sonar-clock-offset",
-                        sonar_clock_offset_s,
-                        ".83P files: the sonar's (header) clock minus GPS-disciplined UTC, s. "
-                        "Positive = the sonar clock runs ahead of UTC, negative = it runs behind "
-                        "(a topside PC 2 s fast: 2); GPS time = header time - S + (GPS - UTC). "
-                        "Default: the config's "
-                        "ingest.sonar_clock_offset_s, else vehicle.yaml's sonar.clock_offset_s, "
-                        "else found from the 83P headers")
-            ->each([&](const std::string&) { offset_given = true; });
-    };
-
-    auto* info = app.add_subcommand("info", "summarise logs and vendor files");
-    info->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
-    input_options(info);
-    info->add_option("--config",
-                     config_path,
-                     "YAML config (its ingest settings and products.origin, which the CRS line "
-                     "follows)");
-    auto* geo = app.add_subcommand("georef", "ingest and georeference into a products folder");
-    geo->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
-    geo->add_option("--out", out_dir, "products folder")->required();
-    geo->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
-    geo->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
-    input_options(geo);
-    auto* cal = app.add_subcommand("calibrate", "boresight calibration on a georeferenced folder");
-    cal->add_option("--out", out_dir, "products folder written by pitmap georef")->required();
-    cal->add_option("--config", config_path, "YAML config");
-    auto* slam = app.add_subcommand("slam", "continuous-time SLAM on a georeferenced folder");
-    auto* clean = app.add_subcommand(
-        "clean", "flag fish, bubbles, ghosts: the automatic 3D cleaning of the soundings");
-    auto* grid = app.add_subcommand(
-        "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
-    auto* fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
-    auto* mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
-    auto* report = app.add_subcommand("report", "report.html of a products folder");
-    auto* rerun = app.add_subcommand(
-        "rerun",
-        "the stages after georef again (calibrate, SLAM, clean, grid, TSDF, mesh, report) on a "
-        "products folder, e.g. after pitmap edit");
-    for (auto* sub : {slam, clean, grid, fuse, mesh, report, rerun}) {
-        sub->add_option("--out", out_dir, "products folder")->required();
-        sub->add_option("--config", config_path, "YAML config");
-    }
-    bool no_calibrate = false, no_slam = false, no_report = false, no_clean = false;
-    auto* run = app.add_subcommand(
-        "run", "everything: ingest, georef, calibrate, SLAM, clean, grid, TSDF, mesh, report");
-    run->add_option("inputs", inputs, "LCM logs, .83P, NovAtel files or folders")->required();
-    run->add_option("--out", out_dir, "products folder")->required();
-    run->add_option("--config", config_path, "YAML config (see pitmap config --defaults)");
-    run->add_flag("--from-raw", from_raw, "re-decode the raw channels instead of the decoded ones");
-    input_options(run);
-    for (auto* sub : {run, rerun}) {
-        sub->add_flag("--no-calibrate", no_calibrate, "keep the boresight of vehicle.yaml");
-        sub->add_flag("--no-slam", no_slam, "fuse on the INS trajectory");
-        sub->add_flag("--no-clean", no_clean, "no automatic cleaning of the soundings");
-        sub->add_flag("--no-report", no_report, "no report.html");
-    }
-    // The commands that georeference take sound-velocity casts.
-    for (auto* sub : {geo, run}) {
-        sub->add_option("--svp",
-                        svp_files,
-                        "sound-velocity casts (CARIS .svp, CSV or two-column depth/speed): ray "
-                        "trace every beam through them (config refraction.svp_files)");
-    }
-    int edit_port = 8767;
-    bool no_open = false;
-    auto* edit = app.add_subcommand("edit", "review and edit soundings by hand on a local page");
-    edit->add_option("P", out_dir, "products folder (survey.pitmap)")->required();
-    edit->add_option("--port", edit_port, "port on 127.0.0.1 (0 = any free one)");
-    edit->add_flag("--no-open", no_open, "only print the URL (do not start a browser)");
-    edit->add_option("--config", config_path, "YAML config (the georeferencing's settings)");
-    std::string rerun_program;
-    edit->add_option("--rerun-program", rerun_program, "(tests) what the re-run button starts")
-        ->group("");
-    std::vector<std::string> compare_inputs;
-    int compare_dof = 6;
-    pp::CompareConfig compare_config;
-    auto* compare = app.add_subcommand(
-        "compare",
-        "two surveys of one site: co-registration on stable terrain, DEM of difference with a "
-        "level of detection, change regions with volumes and uncertainty, capacity curves "
-        "(docs/compare.md)");
-    compare->add_option("A B", compare_inputs, "products folders, the earlier survey first")
-        ->required()
-        ->expected(2);
-    compare->add_option("--out", out_dir, "output folder for the comparison")->required();
-    compare
-        ->add_option("--dof",
-                     compare_dof,
-                     "registration: 6 (translation, roll, pitch, yaw; default) or 4 (translation "
-                     "and yaw)")
-        ->check(CLI::IsMember({4, 6}));
-    compare->add_option("--min-region-area",
-                        compare_config.change.min_region_area_m2,
-                        "m2: smaller change regions are not reported (0.5)");
-    bool compare_no_3d = false;
-    compare->add_flag("--no-3d",
-                      compare_no_3d,
-                      "no 3D change along the normal on the soundings (change_points.ply)");
-    compare->add_option("--capacity-step",
-                        compare_config.capacity_step_m,
-                        "m: a row of the capacity curves every step (0.25)");
-    auto* cfg = app.add_subcommand("config", "configuration helpers");
-    cfg->add_flag("--defaults", defaults, "print the YAML of every default");
-    cfg->add_flag("--vehicle", vehicle_template, "print the vehicle.yaml schema, as a template");
-    bool strict = false;
-    for (auto* sub : {geo, cal, slam, clean, grid, fuse, mesh, run, rerun, compare}) {
-        sub->add_flag("--strict",
-                      strict,
-                      "exit with status 4 when a quality gate trips (the stage could not "
-                      "explain its data; the products are still written and say why)");
-    }
+    Options o;
+    const Commands c = DeclareCommands(app, o);
     if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap")) return *code;
+    const std::string command_line = CommandLine(argc, argv);
 
-    if (cfg->parsed()) {
-        if (defaults == vehicle_template) {
-            return Fail("config: give --defaults or --vehicle", codes::kUsage);
-        }
-        std::fputs((defaults ? pp::DefaultsYaml() : pitmap::VehicleYamlTemplate()).c_str(), stdout);
-        return 0;
+    if (c.cfg->parsed()) return RunConfigCommand(o);
+    if (c.compare->parsed()) return RunCompareCommand(o, command_line);
+    const auto config = PipelineConfigOf(o);
+    if (!config) return Fail(config.error().message, codes::kUsage);
+    if (const std::string missing = FirstMissingInput(o, c); !missing.empty()) {
+        return Fail(missing + (o.out_dir.empty() ? "" : "; nothing written"), codes::kUsage);
     }
-    if (compare->parsed()) {
-        // Both folders must be there before C is created.
-        if (auto m = MissingInput(compare_inputs, "products folder"); !m.empty())
-            return Fail(m + "; nothing written", codes::kUsage);
-        compare_config.registration.estimate_roll_pitch = compare_dof == 6;
-        compare_config.change3d = !compare_no_3d;
-        if (auto problems = compare_config.Validate(); !problems.empty())
-            return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
-        std::string command_line;
-        for (int i = 0; i < argc; ++i) command_line += (i > 0 ? " " : "") + std::string(argv[i]);
-        auto lock = pitmap::proc::io::ProductsLock::Acquire(out_dir, command_line);
-        if (!lock) return Fail(lock.error().message);
-        auto gates = pp::RunCompare(
-            compare_inputs[0],
-            compare_inputs[1],
-            out_dir,
-            compare_config,
-            [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });
-        if (!gates) return Fail(gates.error().message);
-        if (*gates > 0) {
-            std::fprintf(stderr,
-                         "pitmap: compare: %d quality gate(s) tripped (compare.json "
-                         "quality_gates)%s\n",
-                         *gates,
-                         strict ? "" : "; --strict makes this an error");
-            if (strict) return codes::kQualityGate;
-        }
-        return 0;
-    }
-    pp::PipelineConfig config;
-    if (!config_path.empty()) {
-        if (auto m = MissingInput({config_path}, "config"); !m.empty()) {
-            return Fail(m, codes::kUsage);
-        }
-        auto c = pp::LoadConfig(config_path);
-        if (!c) return Fail(c.error().message, codes::kUsage);
-        config = *c;
-    }
-    if (from_raw) config.ingest.source = pitmap::proc::io::IngestSource::kRaw;
-    if (offset_given) {
-        config.ingest.sonar_clock_offset_s = sonar_clock_offset_s;
-        config.ingest.sonar_clock_offset_known = true;
-    }
-    if (!vehicle_path.empty()) config.vehicle_yaml = vehicle_path;
-    if (!svp_files.empty()) config.refraction.svp_files = svp_files;
-    if (no_calibrate) config.run.calibrate = false;
-    if (no_slam) config.run.slam = false;
-    if (no_report) config.run.report = false;
-    if (no_clean) config.clean.enabled = false;
-    config.report_program = ReportProgram();
-    if (auto problems = config.Validate(); !problems.empty()) {
-        return Fail("invalid config:\n" + pitmap::FormatProblems(problems), codes::kUsage);
-    }
-    {
-        std::string missing = MissingInput(inputs, "input");
-        if (missing.empty() && !vehicle_path.empty())
-            missing = MissingInput({vehicle_path}, "vehicle file");
-        if (missing.empty()) missing = MissingInput(svp_files, "sound-velocity file");
-        // The stages after georef read P itself: it must be there already.
-        if (missing.empty() && !(info->parsed() || geo->parsed() || run->parsed())) {
-            missing = MissingInput({out_dir}, "products folder");
-            if (!missing.empty()) missing += " (pitmap georef or pitmap run writes it)";
-        }
-        if (!missing.empty()) {
-            return Fail(missing + (out_dir.empty() ? "" : "; nothing written"), codes::kUsage);
-        }
-    }
-    const pp::Log log = [](const std::string& m) {
-        std::fprintf(stderr, "pitmap: %s\n", m.c_str());
-    };
-    if (edit->parsed()) {
-        // No lock on P: the page's re-run (pitmap rerun P) takes it.
-        namespace pe = pitmap::proc::edit;
-        pe::EditCommand e;
-        e.out_dir = out_dir;
-        e.session.georef = config.georef;
-        e.session.tpu_sound_speed_mps = config.grid.tpu_sound_speed_mps;
-        e.session.ins_sigma_max_age_s = config.grid.ins_sigma_max_age_s;
-        e.server.port = edit_port;
-        e.server.rerun_program = rerun_program.empty() ? SiblingProgram("pitmap") : rerun_program;
-        e.open_browser = !no_open;
-        std::signal(SIGINT, OnSignal);
-        std::signal(SIGTERM, OnSignal);
-        return pe::RunEditCommand(e, [] { return g_stop.load(); });
-    }
-    if (info->parsed()) {
-        auto text = pp::Info(inputs, config);
-        if (!text) return Fail(text.error().message);
-        std::fputs(text->c_str(), stdout);
-        return 0;
-    }
-    // One command at a time on P; creating P and its lock file is also the check that P can be
-    // written, before any work.
-    std::string command_line;
-    for (int i = 0; i < argc; ++i) command_line += (i > 0 ? " " : "") + std::string(argv[i]);
-    auto lock = pitmap::proc::io::ProductsLock::Acquire(out_dir, command_line);
-    if (!lock) return Fail(lock.error().message);
-    pitmap::Status status = pitmap::Ok{};
-    if (geo->parsed()) status = pp::RunGeorefStage(inputs, out_dir, config, log);
-    if (cal->parsed()) status = pp::RunCalibrateStage(out_dir, config, log);
-    if (slam->parsed()) status = pp::RunSlamStage(out_dir, config, log);
-    if (clean->parsed()) status = pp::RunCleanStage(out_dir, config, log);
-    if (rerun->parsed()) status = pp::RunFromSurvey(out_dir, config, log);
-    if (grid->parsed()) status = pp::RunGridStage(out_dir, config, log);
-    if (fuse->parsed()) status = pp::RunFuseStage(out_dir, config, log);
-    if (mesh->parsed()) status = pp::RunMeshStage(out_dir, config, log);
-    if (report->parsed()) status = pp::RunReportStage(out_dir, config, log);
-    if (run->parsed()) status = pp::RunAll(inputs, out_dir, config, log);
-    if (!status) return Fail(status.error().message);
-    if (const auto gates = TrippedGates(out_dir); !gates.empty()) {
-        std::string list;
-        for (const auto& g : gates) list += (list.empty() ? "" : ", ") + g;
-        std::fprintf(stderr,
-                     "pitmap: %zu quality gate(s) tripped: %s (summary.json quality_gates)%s\n",
-                     gates.size(),
-                     list.c_str(),
-                     strict ? "" : "; --strict makes this an error");
-        if (strict) return codes::kQualityGate;
-    }
-    return 0;
+    if (c.edit->parsed()) return RunEditCommand(o, *config);
+    if (c.info->parsed()) return RunInfoCommand(o, *config);
+    return RunStageCommand(c, o, *config, command_line);
 } catch (const std::exception& e) {
     std::fprintf(stderr, "pitmap: internal error: %s\n", e.what());
     return codes::kInternal;
