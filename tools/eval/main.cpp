@@ -13,6 +13,7 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "common/cli/parse.hpp"
 #include "common/exit_codes.hpp"
@@ -103,7 +104,16 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 (horizontal) error from the true beam-axis point (the same beam
                                 from the true sonar pose, cast into the true terrain) is within
                                 their 95 % TVU (THU); tpu_within_tvu_NN_MM_deg per |beam angle|
-                                bin.
+                                bin; tpu_truth_rays: curved when truth/scenario.json's water
+                                column refracts (the true beam is cast along the curved ray).
+  tpu_classes, tpu_within_tvu_{angle,depth,slope}_A_B
+                                the same per class (issue 36): |beam angle| 0 20 40 60 90 deg,
+                                true water depth at the true point 0 5 10 20 inf m, true slope
+                                there 0 20 45 91 deg (floors, faces, walls).
+  dem_within_uncertainty, dem_within_uncertainty_{slope,depth}_A_B, dem_uncertainty_classes
+                                share of the filled nodes of P/dem.tif whose vertical error from
+                                the true terrain is within their stated 95 % uncertainty (band
+                                "uncertainty"), all and by the true slope and depth at the node.
   artifact_soundings, artifact_beams_KIND, good_soundings
                                 with truth/artifacts.* (pitmap-sim synth): the beams whose
                                 range an echo artifact replaced (KIND mid_water, bubble,
@@ -556,6 +566,7 @@ int main(int argc, char** argv) try {
         const double datum_height_m = DatumHeight(P);
         const LocalTangentFrame tf(truth->origin);
         std::vector<Eigen::Vector3d> nodes;
+        std::vector<std::size_t> node_index;  // of each node in the grid's layers
         nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
         for (int j = 0; j < g.ny; ++j) {
             for (int i = 0; i < g.nx; ++i) {
@@ -571,9 +582,41 @@ int main(int argc, char** argv) try {
                 Eigen::Vector3d p = tf.ToEnu(*geo);
                 if (!std::isfinite(h)) p.z() = std::numeric_limits<double>::quiet_NaN();
                 nodes.push_back(p);
+                node_index.push_back(static_cast<std::size_t>(j) * g.nx + i);
             }
         }
         const auto s = eval::ScoreDem(nodes, *truth);
+        for (const auto& layer : g.layers) {
+            if (layer.name != "uncertainty") continue;
+            std::vector<double> unc(nodes.size(), std::numeric_limits<double>::quiet_NaN());
+            for (std::size_t k = 0; k < unc.size() && k < node_index.size(); ++k) {
+                unc[k] = layer.values[node_index[k]];
+            }
+            const eval::DemUncertaintyScore u = eval::ScoreDemUncertainty(nodes, unc, *truth);
+            if (u.all.count == 0) break;
+            scores["dem_within_uncertainty"] = u.all.within;
+            scores["dem_uncertainty_nodes"] = u.all.count;
+            json classes = json::object();
+            const auto put = [&](const char* kind, const std::vector<eval::DemUncertaintyBin>& b) {
+                for (const auto& c : b) {
+                    if (c.count == 0) continue;
+                    char key[64];
+                    if (std::isinf(c.hi)) {
+                        std::snprintf(key, sizeof key, "%s_%02.0f_inf", kind, c.lo);
+                    } else {
+                        std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f", kind, c.lo, c.hi);
+                    }
+                    classes[key] = {{"count", c.count},
+                                    {"within", c.within},
+                                    {"error_rms_m", c.error_rms_m},
+                                    {"stated_sigma_rms_m", c.stated_rms_m}};
+                    scores[std::string("dem_within_uncertainty_") + key] = c.within;
+                }
+            };
+            put("slope", u.by_slope);
+            put("depth", u.by_depth);
+            scores["dem_uncertainty_classes"] = classes;
+        }
         scores["dem_mean_abs_m"] = s.all.mean_abs_m;
         scores["dem_rms_m"] = s.all.rms_m;
         scores["dem_p95_m"] = s.all.p95_m;
@@ -652,7 +695,14 @@ int main(int argc, char** argv) try {
             snd[i].thu_95_m = ply->vertex_properties[2][i];
             snd[i].tvu_95_m = ply->vertex_properties[3][i];
         }
-        const auto s = eval::ScoreTpu(snd, *truth, world);
+        // A refracting survey's true beams are curved (the simulator's water column).
+        std::optional<sim::WaterColumn> water;
+        if (truth->water) {
+            const auto deepest =
+                std::min_element(truth->terrain.height_m.begin(), truth->terrain.height_m.end());
+            water.emplace(*truth->water, std::max(0.0, -static_cast<double>(*deepest)) + 10.0);
+        }
+        const auto s = eval::ScoreTpu(snd, *truth, world, 1'000'000, water ? &*water : nullptr);
         if (s.all.count > 0) {
             scores["tpu_within_tvu"] = s.all.within_tvu;
             scores["tpu_within_thu"] = s.all.within_thu;
@@ -660,12 +710,12 @@ int main(int argc, char** argv) try {
             scores["tpu_tvu_sigma_rms_m"] = s.all.tvu_rms_m;
             scores["tpu_vertical_bias_m"] = s.all.vertical_bias_m;
             scores["tpu_soundings_scored"] = s.all.count;
+            scores["tpu_truth_rays"] = water ? "curved" : "straight";
             for (const auto& b : s.by_angle) {
                 if (b.count == 0) continue;
                 auto put = [&](const char* name, const json& value) {
                     char key[64];
-                    std::snprintf(
-                        key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo_deg, b.hi_deg);
+                    std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo, b.hi);
                     scores[key] = value;
                 };
                 put("tpu_within_tvu", b.within_tvu);
@@ -675,6 +725,30 @@ int main(int argc, char** argv) try {
                 put("tpu_vertical_bias", b.vertical_bias_m);
                 put("tpu_count", b.count);
             }
+            // The classes of issue 36: tpu_classes.angle_00_20 {count, within_tvu, ...}.
+            json classes = json::object();
+            const auto put_classes = [&](const char* kind, const std::vector<eval::TpuBin>& bins) {
+                for (const auto& b : bins) {
+                    if (b.count == 0) continue;
+                    char key[64];
+                    if (std::isinf(b.hi)) {
+                        std::snprintf(key, sizeof key, "%s_%02.0f_inf", kind, b.lo);
+                    } else {
+                        std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f", kind, b.lo, b.hi);
+                    }
+                    classes[key] = {{"count", b.count},
+                                    {"within_tvu", b.within_tvu},
+                                    {"within_thu", b.within_thu},
+                                    {"vertical_rms_m", b.vertical_rms_m},
+                                    {"tvu_sigma_rms_m", b.tvu_rms_m},
+                                    {"vertical_bias_m", b.vertical_bias_m}};
+                    scores[std::string("tpu_within_tvu_") + key] = b.within_tvu;
+                }
+            };
+            put_classes("angle", s.by_angle_class);
+            put_classes("depth", s.by_depth);
+            put_classes("slope", s.by_slope);
+            scores["tpu_classes"] = classes;
         }
     }
 

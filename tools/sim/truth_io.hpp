@@ -26,6 +26,8 @@
 //                         3 dropout, 4 multipath, 5 smile, 6 coarse outlier), little-endian,
 //                         9 bytes a run (the quarry: 185 kB, 90 % of it the coarse
 //                         outliers, single beams; bejanca about 1.1 MB)
+// <dir>/scenario.json's "water" is read back (Truth::water) when its refraction is on: the
+//                         scorer then casts the true beams along curved rays.
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
 #pragma once
@@ -100,6 +102,9 @@ struct Truth {
     std::vector<float> backscatter_db;           // empty, or BS per terrain cell, dB
     BackscatterConfig backscatter;               // its parameters (with backscatter_db)
     std::optional<ArtifactTruth> artifacts;      // written when set; read when present
+    // The water column the pings were ray traced through (scenario.json "water" with
+    // refraction true); nullopt = straight rays at the sonar's sound speed. Read only.
+    std::optional<WaterColumnConfig> water;
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);
