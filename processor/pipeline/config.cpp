@@ -349,6 +349,16 @@ void VisitGrid(V&& v, GridStageConfig& c) {
       c.tpu_slam_posterior,
       "TPU pose sigma from SLAM's posterior where SLAM's trajectory is used (false: the INS's);\n"
       "not yet validated (optimistic, docs/uncertainty.md): trips a quality gate");
+    v("tpu_sound_speed_from_data",
+      c.tpu_sound_speed_from_data,
+      "TPU sound speed sigmas from the casts' age, distance and surface disagreement and the\n"
+      "swath overlap (docs/uncertainty.md); false: the error model's alone");
+    v("sound_speed_cast_age_rate_mps_per_h",
+      c.sound_speed.cast_age_rate_mps_per_h,
+      "column speed sigma added per hour of the cast's age, m/s");
+    v("sound_speed_cast_distance_rate_mps_per_km",
+      c.sound_speed.cast_distance_rate_mps_per_km,
+      "column speed sigma added per km from the cast, m/s");
     v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
     v("write_bag", c.write_bag, "P/dem.bag");
     v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");

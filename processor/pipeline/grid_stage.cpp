@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "common/frames.hpp"
+#include "common/geodesy.hpp"
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/geoid.hpp"
@@ -56,8 +57,13 @@ std::string Fixed(double v, int digits) {
     return b;
 }
 
-// The error model: the vehicle file's `uncertainty:` (the file georef used), else defaults.
-SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string* source) {
+// The error model: the vehicle file's `uncertainty:` (the file georef used), else defaults;
+// `sv_source`: where the sonar's own sound speed comes from (vehicle.yaml).
+SensorErrorModel ErrorModel(const std::string& path,
+                            const Log& log,
+                            std::string* source,
+                            SoundVelocitySource* sv_source) {
+    *sv_source = SoundVelocitySource::kUnknown;
     if (path.empty()) {
         *source = "defaults (no vehicle.yaml)";
         return SensorErrorModel{};
@@ -69,6 +75,7 @@ SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string
         return SensorErrorModel{};
     }
     *source = v->uncertainty ? path + " uncertainty:" : "defaults (" + path + " has none)";
+    *sv_source = v->sound_velocity_source;
     return v->ErrorModel();
 }
 
@@ -308,6 +315,7 @@ std::vector<std::string> GridStageConfig::Validate() const {
     if (!(surface_filter_min_m >= 0)) out.push_back("grid.surface_filter_min_m must be >= 0");
     if (!(surface_filter_max_slope_deg > 0 && surface_filter_max_slope_deg <= 90))
         out.push_back("grid.surface_filter_max_slope_deg must be in (0, 90]");
+    for (auto& p : sound_speed.Validate()) out.push_back("grid." + p);
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
     for (auto& p : mosaic_config.Validate()) out.push_back(p);
@@ -317,6 +325,151 @@ std::vector<std::string> GridStageConfig::Validate() const {
 namespace detail {
 
 namespace {
+
+// The TPU's sound speed sigmas from the data (hydro/sound_speed.hpp), per ping into `sig`, and
+// the column speed error the swath overlap measured into tcfg; returns summary.json's
+// stages.grid.sound_speed. Without a cast and without an estimate from the overlap the
+// a-priori bound applies and the gate grid/sound_speed_not_assessable trips.
+json SoundSpeedSigmas(StageContext& s,
+                      const GridStageConfig& gc,
+                      SoundVelocitySource sv_source,
+                      std::vector<hydro::PingSigma>& sig,
+                      hydro::TpuConfig& tcfg,
+                      const Log& log) {
+    const SensorErrorModel& m = tcfg.model;
+    const hydro::SoundSpeedSigmaConfig& cfg = gc.sound_speed;
+    // The header's speed is a measurement at the head unless it was typed in.
+    const bool header_measured = sv_source != SoundVelocitySource::kManual;
+    const svp::Refraction* refr = s.geo.refraction.get();
+    std::vector<double> column(sig.size(), m.mean_sound_speed_sigma_mps);
+    std::vector<double> disagreement;
+    std::size_t with_cast = 0;
+    if (refr != nullptr) {
+        const LocalTangentFrame world(s.model.origin);
+        for (std::size_t k = 0; k < sig.size(); ++k) {
+            const georef::GeorefPing& ping = s.geo.pings[k];
+            if (ping.cast < 0 || static_cast<std::size_t>(ping.cast) >= refr->casts().size())
+                continue;
+            const svp::PreparedCast& c = refr->casts()[static_cast<std::size_t>(ping.cast)];
+            const double age_s = c.cast.has_time()
+                                     ? static_cast<double>(ping.utime_gps - c.cast.utime_gps) * 1e-6
+                                     : std::nan("");
+            double distance_m = std::nan("");
+            if (c.cast.has_position()) {
+                const Eigen::Vector3d at =
+                    world.ToEnu(Geodetic{c.cast.latitude_deg, c.cast.longitude_deg, 0.0});
+                distance_m = (ping.sensor_world - at).head<2>().norm();
+            }
+            double dis = std::nan("");
+            if (header_measured) {
+                const double depth = refr->TransducerDepth(ping.T_world_vehicle.linear() *
+                                                           s.model.mount.lever_arm_m);
+                dis = ping.assumed_sound_speed_mps - c.profile.SpeedAt(depth);
+                disagreement.push_back(std::abs(dis));
+            }
+            column[k] =
+                hydro::CastSpeedSigma(m.mean_sound_speed_sigma_mps, age_s, distance_m, dis, cfg);
+            sig[k].column_speed_sigma_mps = column[k];
+            // The steering correction used the cast's speed at the face (kProfile): off by the
+            // disagreement; with the header's speed (kHeader) no correction was made.
+            if (refr->surface_speed() == svp::SurfaceSpeedSource::kProfile && std::isfinite(dis)) {
+                sig[k].surface_speed_sigma_mps = std::hypot(m.surface_sound_speed_sigma_mps, dis);
+            }
+            ++with_cast;
+        }
+    }
+    // The swath overlap's estimate of the column speed error, cast or no cast.
+    std::vector<Eigen::Vector3d> offsets(s.geo.points.size());
+    for (std::size_t j = 0; j < offsets.size(); ++j) {
+        offsets[j] =
+            s.geo.points.position_world[j] - s.geo.pings[s.geo.points.ping[j]].sensor_world;
+    }
+    const auto est = std::make_shared<const hydro::OverlapSpeedEstimate>(
+        hydro::EstimateColumnSpeedError(s.geo.points.position_world, offsets, cfg));
+    std::vector<Eigen::Vector3d>().swap(offsets);
+    log("grid: sound speed from the swath overlap: " + est->message);
+    std::string source = with_cast > 0 ? "cast" : "error_model";
+    const int strat = est->StratifiedClass(tcfg.sound_speed_mps, cfg.overlap_stratified_mps);
+    std::string strat_text;
+    if (strat >= 0) {
+        const hydro::OverlapDepthClass& c = est->classes[static_cast<std::size_t>(strat)];
+        strat_text = "the swath overlap shows a column speed error of " +
+                     Fixed(c.relative_error * tcfg.sound_speed_mps, 1) + " +- " +
+                     Fixed(c.relative_error_se * tcfg.sound_speed_mps, 1) + " m/s at " +
+                     Fixed(c.lo_m, 0) + "-" + Fixed(c.hi_m, 0) +
+                     " m below the transducer (stratified water the profile does not describe)";
+    }
+    if (with_cast == 0 && (strat >= 0 || !est->estimated())) {
+        // Nothing measures the column: the a-priori bound of a fresh-water pit.
+        for (std::size_t k = 0; k < sig.size(); ++k) {
+            column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
+                                   hydro::NoCastPriorSigma(s.geo.pings[k].assumed_sound_speed_mps));
+            sig[k].column_speed_sigma_mps = column[k];
+        }
+        source = "a_priori_bound";
+        TripGate(s,
+                 Stage::kGrid,
+                 "sound_speed_not_assessable",
+                 "no sound-velocity cast, and " +
+                     (strat >= 0 ? strat_text
+                                 : "too little swath overlap on floors to measure the water "
+                                   "column's speed error (" +
+                                       est->message + ")") +
+                     ": the TPU takes the a-priori bound of the column's speed (between the "
+                     "surface speed and water at 4 degC, sigma " +
+                     Fixed(column.empty() ? 0.0 : column.front(), 1) +
+                     " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
+                     "(--svp) to assess the survey",
+                 log);
+    } else {
+        if (est->estimated()) {
+            tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
+            source += "+overlap";
+        }
+        if (strat >= 0) {
+            TripGate(s,
+                     Stage::kGrid,
+                     "sound_speed_cast_disagrees",
+                     strat_text +
+                         ": the cast(s) do not describe the water the soundings went through "
+                         "(another time or place, or a wrong cast); the TPU carries the "
+                         "overlap's estimate",
+                     log);
+        }
+    }
+    json classes = json::array();
+    for (const auto& c : est->classes) {
+        if (c.cells == 0) continue;
+        classes.push_back({{"depth_m", {c.lo_m, std::isinf(c.hi_m) ? json(nullptr) : json(c.hi_m)}},
+                           {"cells", c.cells},
+                           {"soundings", c.soundings},
+                           {"estimated", c.estimated},
+                           {"weight_m2", c.weight_m2},
+                           {"relative_error", c.relative_error},
+                           {"relative_error_se", c.relative_error_se},
+                           {"speed_error_mps", c.relative_error * tcfg.sound_speed_mps}});
+    }
+    std::vector<double> col = column;
+    const auto median = [](std::vector<double> v) {
+        if (v.empty()) return std::nan("");
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    json out = {{"source", source},
+                {"pings_with_cast", with_cast},
+                {"header_speed_measured", header_measured},
+                {"median_column_sigma_mps", median(col)},
+                {"stratified", strat >= 0},
+                {"overlap",
+                 {{"soundings", est->soundings_used},
+                  {"cells", est->cells_used},
+                  {"classes", classes},
+                  {"message", est->message}}}};
+    if (!disagreement.empty()) {
+        out["median_surface_disagreement_mps"] = median(disagreement);
+    }
+    return out;
+}
 
 // The transducers' geodetic positions, per ping.
 std::vector<Geodetic> PingGeodetic(const StageContext& s) {
@@ -441,7 +594,8 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const GridStageConfig& gc = config.grid;
     std::string model_source;
     hydro::TpuConfig tcfg;
-    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &model_source);
+    SoundVelocitySource sv_source = SoundVelocitySource::kUnknown;
+    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &model_source, &sv_source);
     tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
     tcfg.num_threads = gc.cube.num_threads;
     tcfg.clock_sigma_s = std::abs(s.model.clock.sigma_s());
@@ -495,6 +649,11 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
                  "not yet validated and states less than the true error on the test surveys "
                  "(docs/uncertainty.md): the THU/TVU and the S-44 order are optimistic",
                  log);
+    }
+    json sound_speed = {{"source", "error_model"}};
+    if (gc.tpu_sound_speed_from_data) {
+        sound_speed = SoundSpeedSigmas(s, gc, sv_source, sig, tcfg, log);
+        part.Lap(timings, "sound_speed");
     }
     hydro::TpuResult tpu = hydro::ComputeTpu(s.geo, s.model.mount, sig, tcfg);
     log("grid: TPU (" + model_source + "): " + tpu.message);
@@ -728,6 +887,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
                      {"median_tvu_95_m", tpu.median_tvu_95_m},
                      {"median_thu_95_m", tpu.median_thu_95_m},
                      {"tvu_variance_share", shares},
+                     {"sound_speed", sound_speed},
                      {"clock_sigma_s", tcfg.clock_sigma_s},
                      {"pose_sigma", pose_sigma},
                      {"resolution_m", g.resolution_m},
