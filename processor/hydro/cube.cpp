@@ -160,6 +160,7 @@ std::vector<std::string> CubeConfig::Validate() const {
         out.push_back("grid.horizontal_error_scale must be >= 0");
     }
     if (queue_length < 1 || queue_length > 101) out.push_back("grid.queue_length must be 1..101");
+    if (!(pass_gap_s > 0)) out.push_back("grid.pass_gap_s must be > 0");
     positive(hypothesis_gate, "hypothesis_gate");
     if (predicted_surface_cells < 1 || predicted_surface_cells > 64) {
         out.push_back("grid.predicted_surface_cells must be 1..64");
@@ -174,6 +175,39 @@ double CubeHypothesis::SampleSd() const {
     return count > 1 ? std::sqrt(m2 / static_cast<double>(count - 1)) : 0.0;
 }
 
+double CubeHypothesis::PassModelSd() const {
+    if (count == 0 || common_count != count || !(independent_information > 0) || passes < 1) {
+        return std::numeric_limits<double>::quiet_NaN();
+    }
+    return std::sqrt(1.0 / independent_information +
+                     common_variance_sum / static_cast<double>(common_count) / passes);
+}
+
+double CubeHypothesis::UncertaintySd() const {
+    const double pass = PassModelSd();
+    return std::isnan(pass) ? std::max(std::sqrt(variance_m2), SampleSd()) : pass;
+}
+
+namespace {
+
+// The pass-common bookkeeping of a hypothesis taking a sounding (cube.hpp).
+void TakeCommon(CubeHypothesis& h, double v, double common_variance, float time_s, double gap_s) {
+    if (!std::isfinite(common_variance) || common_variance < 0) return;
+    // The independent part at the node, kept at >= 1 % of the whole against rounding.
+    h.independent_information += 1.0 / std::max(v - common_variance, 0.01 * v);
+    h.common_variance_sum += common_variance;
+    ++h.common_count;
+    for (int k = 0; k < h.passes; ++k) {
+        if (std::abs(static_cast<double>(time_s) - h.pass_time_s[static_cast<std::size_t>(k)]) <=
+            gap_s) {
+            return;
+        }
+    }
+    if (h.passes < kMaxPasses) h.pass_time_s[static_cast<std::size_t>(h.passes++)] = time_s;
+}
+
+}  // namespace
+
 double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
     const double want = std::clamp(
         median_depth_m * c.resolution_depth_fraction, c.min_resolution_m, c.max_resolution_m);
@@ -186,7 +220,7 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
     return std::max(best, c.min_resolution_m);
 }
 
-void CubeNode::Update(double z, double v, const CubeConfig& c) {
+void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float t) {
     // The smallest squared normalised innovation (z - mu)^2 / (s^2 + sigma_n^2).
     int best = -1;
     double best_e2 = std::numeric_limits<double>::infinity();
@@ -204,6 +238,7 @@ void CubeNode::Update(double z, double v, const CubeConfig& c) {
         h.variance_m2 = v;
         h.count = 1;
         h.sample_mean_m = z;
+        TakeCommon(h, v, cv, t, c.pass_gap_s);
         hyps_.push_back(h);
         return;
     }
@@ -217,33 +252,34 @@ void CubeNode::Update(double z, double v, const CubeConfig& c) {
     const double delta = z - h.sample_mean_m;
     h.sample_mean_m += delta / h.count;
     h.m2 += delta * (z - h.sample_mean_m);
+    TakeCommon(h, v, cv, t, c.pass_gap_s);
 }
 
-void CubeNode::Add(double z, double v, const CubeConfig& c) {
+void CubeNode::Add(double z, double v, const CubeConfig& c, double cv, float t) {
     if (c.queue_length <= 1) {
-        Update(z, v, c);
+        Update(z, v, c, cv, t);
         return;
     }
-    const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+    const Queued e{static_cast<float>(z), static_cast<float>(v), static_cast<float>(cv), t};
     queue_.insert(std::upper_bound(queue_.begin(),
                                    queue_.end(),
                                    e,
-                                   [](const auto& a, const auto& b) { return a.first < b.first; }),
+                                   [](const Queued& a, const Queued& b) { return a.z < b.z; }),
                   e);
     if (static_cast<int>(queue_.size()) >= c.queue_length) {
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
-        const auto [mz, mv] = *mid;
+        const Queued m = *mid;
         queue_.erase(mid);
-        Update(mz, mv, c);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s);
     }
 }
 
 void CubeNode::Flush(const CubeConfig& c) {
     while (!queue_.empty()) {
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
-        const auto [mz, mv] = *mid;
+        const Queued m = *mid;
         queue_.erase(mid);
-        Update(mz, mv, c);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s);
     }
     queue_.shrink_to_fit();
 }
@@ -369,21 +405,21 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
         // The band's median queues, (z, variance) sorted by z, Q slots a node: they live only
         // while the band is processed.
         const std::size_t band_nodes = static_cast<std::size_t>(jb1 - jb0 + 1) * g.nx;
-        std::vector<std::pair<float, float>> queue(Q > 1 ? band_nodes * Q : 0);
+        std::vector<CubeNode::Queued> queue(Q > 1 ? band_nodes * Q : 0);
         std::vector<std::uint8_t> queued(Q > 1 ? band_nodes : 0, 0);
-        const auto offer = [&](std::size_t n, double z, double v) {
+        const auto offer = [&](std::size_t n, double z, double v, float cv, float t) {
             CubeNode& node = nodes[n];
             if (Q <= 1) {
-                node.Update(z, v, config);
+                node.Update(z, v, config, cv, t);
                 return;
             }
             const std::size_t local = n - static_cast<std::size_t>(jb0) * g.nx;
             auto* q = queue.data() + local * Q;
             int k = queued[local];
-            const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+            const CubeNode::Queued e{static_cast<float>(z), static_cast<float>(v), cv, t};
             // Insertion into the sorted queue.
             int pos = k;
-            while (pos > 0 && q[pos - 1].first > e.first) {
+            while (pos > 0 && q[pos - 1].z > e.z) {
                 q[pos] = q[pos - 1];
                 --pos;
             }
@@ -394,7 +430,7 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                 const auto m = q[mid];
                 for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
                 --k;
-                node.Update(m.first, m.second, config);
+                node.Update(m.z, m.variance, config, m.common_variance, m.time_s);
             }
             queued[local] = static_cast<std::uint8_t>(k);
         };
@@ -417,6 +453,10 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
             const double slope_var =
                 (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
             const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
+            const float common_var = std::isfinite(s.sigma_common_m)
+                                         ? std::min(s.sigma_common_m, s.sigma_v_m) *
+                                               std::min(s.sigma_common_m, s.sigma_v_m)
+                                         : std::numeric_limits<float>::quiet_NaN();
             for (int j = j0; j <= j1; ++j) {
                 const double dy = g.y0 + j * res - s.y;
                 for (int i = i0; i <= i1; ++i) {
@@ -427,7 +467,11 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                     const double u = (std::sqrt(d2) + rho_sh) / res;
                     const double grow = square ? u * u : std::pow(u, config.distance_exponent);
                     const double v = sv2 * (1.0 + grow) + slope_var;
-                    offer(static_cast<std::size_t>(j) * g.nx + i, s.z + gx * dx + gy * dy, v);
+                    offer(static_cast<std::size_t>(j) * g.nx + i,
+                          s.z + gx * dx + gy * dy,
+                          v,
+                          common_var,
+                          s.time_s);
                     ++local_updates;
                 }
             }
@@ -442,7 +486,7 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
                 const auto m = q[mid];
                 for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
                 --k;
-                node.Update(m.first, m.second, config);
+                node.Update(m.z, m.variance, config, m.common_variance, m.time_s);
             }
         }
         updates += local_updates;
@@ -492,8 +536,7 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
             }
             const CubeHypothesis& h = hyps[static_cast<std::size_t>(nodes[n].Choose(reference))];
             g.elevation_m[n] = static_cast<float>(h.mean_m);
-            g.uncertainty_m[n] =
-                static_cast<float>(1.96 * std::max(std::sqrt(h.variance_m2), h.SampleSd()));
+            g.uncertainty_m[n] = static_cast<float>(1.96 * h.UncertaintySd());
             g.density[n] = static_cast<float>(h.count);
             g.hypotheses[n] = static_cast<float>(hyps.size());
         }

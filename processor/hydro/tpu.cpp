@@ -215,6 +215,7 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
     const std::size_t np = geo.pings.size();
     out.thu_95_m.assign(n, 0.0f);
     out.tvu_95_m.assign(n, 0.0f);
+    out.sigma_v_common_m.assign(n, 0.0f);
     if (ping_sigma.size() != np) {
         out.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
                       std::to_string(np) + " pings";
@@ -264,6 +265,11 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
             out.tvu_95_m[j] = static_cast<float>(kTvu95 * std::sqrt(std::max(C(2, 2), 0.0)));
             out.thu_95_m[j] =
                 static_cast<float>(kThu95 * std::sqrt(std::max((C(0, 0) + C(1, 1)) / 2.0, 0.0)));
+            const double independent = terms[static_cast<int>(TpuTerm::kRange)](2, 2) +
+                                       terms[static_cast<int>(TpuTerm::kBeamAngle)](2, 2) +
+                                       Square(config.model.position_noise_m);
+            out.sigma_v_common_m[j] =
+                static_cast<float>(std::sqrt(std::max(C(2, 2) - independent, 0.0)));
             if (C(2, 2) > 0) {
                 for (int t = 0; t < kNumTpuTerms; ++t) s[t] += terms[t](2, 2) / C(2, 2);
             }

@@ -133,6 +133,10 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
 struct TpuResult {
     std::vector<float> thu_95_m;  // one per sounding of GeorefResult::points
     std::vector<float> tvu_95_m;
+    // The vertical 1 sigma of the terms common to the soundings of a pass (all but the range
+    // noise, the beam pointing and the INS's white output noise: what CUBE's node does not
+    // average over the soundings of one pass), m; one per sounding.
+    std::vector<float> sigma_v_common_m;
     // Mean over the soundings of each term's share of the vertical variance (sums to 1).
     std::array<double, kNumTpuTerms> tvu_variance_share{};
     double median_tvu_95_m = 0, median_thu_95_m = 0;

@@ -337,6 +337,9 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("distance_exponent", q.distance_exponent, "CUBE alpha: variance growth with distance");
     v("horizontal_error_scale", q.horizontal_error_scale, "CUBE rho: THU sigmas added to d");
     v("queue_length", q.queue_length, "median pre-filter queue; 1 = none");
+    v("pass_gap_s",
+      q.pass_gap_s,
+      "soundings of a node further apart are independent passes (node uncertainty), s");
     v("hypothesis_gate", q.hypothesis_gate, "normalised innovation opening a hypothesis");
     v("slope_correction", q.slope_correction, "carry soundings along the predicted surface");
     v("predicted_surface_cells", q.predicted_surface_cells, "predicted surface cell, resolutions");

@@ -668,16 +668,20 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const std::vector<double>& D = datum->datum_height_m;
     const bool water = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
     std::vector<hydro::CubeSounding> snd(s.geo.points.size());
+    const std::int64_t t0_gps = s.geo.pings.empty() ? 0 : s.geo.pings.front().utime_gps;
     for (std::size_t j = 0; j < snd.size(); ++j) {
         const Eigen::Vector3d& e = utm->easting_northing_height[j];
         const double depth =
             s.geo.pings[s.geo.points.ping[j]].sensor_world.z() - s.geo.points.position_world[j].z();
+        const georef::GeorefPing& ping = s.geo.pings[s.geo.points.ping[j]];
         snd[j] = {e.x(),
                   e.y(),
                   e.z() - D[s.geo.points.ping[j]],
                   static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
                   static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
-                  static_cast<float>(depth)};
+                  static_cast<float>(depth),
+                  tpu.sigma_v_common_m[j],
+                  static_cast<float>(static_cast<double>(ping.utime_gps - t0_gps) * 1e-6)};
     }
     part.Lap(timings, "utm_datum");
     hydro::CubeResult cube = hydro::RunCube(snd, gc.cube);
@@ -698,11 +702,13 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
             utm->easting_northing_height[out] = utm->easting_northing_height[j];
             tpu.thu_95_m[out] = tpu.thu_95_m[j];
             tpu.tvu_95_m[out] = tpu.tvu_95_m[j];
+            tpu.sigma_v_common_m[out] = tpu.sigma_v_common_m[j];
             ++out;
         }
         utm->easting_northing_height.resize(out);
         tpu.thu_95_m.resize(out);
         tpu.tvu_95_m.resize(out);
+        tpu.sigma_v_common_m.resize(out);
         if (surface_rejected > 0) {
             // CUBE again without them: a node whose chosen hypothesis they made (an echo held
             // long enough over one node to outvote the seabed) is decided on the rest.
