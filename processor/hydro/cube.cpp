@@ -161,6 +161,7 @@ std::vector<std::string> CubeConfig::Validate() const {
     }
     if (queue_length < 1 || queue_length > 101) out.push_back("grid.queue_length must be 1..101");
     if (!(pass_gap_s > 0)) out.push_back("grid.pass_gap_s must be > 0");
+    if (!(common_correlation_s > 0)) out.push_back("grid.common_correlation_s must be > 0");
     positive(hypothesis_gate, "hypothesis_gate");
     if (predicted_surface_cells < 1 || predicted_surface_cells > 64) {
         out.push_back("grid.predicted_surface_cells must be 1..64");
@@ -175,16 +176,27 @@ double CubeHypothesis::SampleSd() const {
     return count > 1 ? std::sqrt(m2 / static_cast<double>(count - 1)) : 0.0;
 }
 
-double CubeHypothesis::PassModelSd() const {
+double CubeHypothesis::PassModelSd(double tau_s) const {
     if (count == 0 || common_count != count || !(independent_information > 0) || passes < 1) {
         return std::numeric_limits<double>::quiet_NaN();
     }
+    // The mean correlation of the passes' common errors, (1 / P^2) sum_p sum_q rho_pq.
+    double rho = 0;
+    for (int p = 0; p < passes; ++p) {
+        for (int q = 0; q < passes; ++q) {
+            const double dt =
+                std::abs(static_cast<double>(pass_time_s[static_cast<std::size_t>(p)]) -
+                         pass_time_s[static_cast<std::size_t>(q)]);
+            rho += std::exp(-dt / tau_s);
+        }
+    }
+    rho /= static_cast<double>(passes) * passes;
     return std::sqrt(1.0 / independent_information +
-                     common_variance_sum / static_cast<double>(common_count) / passes);
+                     common_variance_sum / static_cast<double>(common_count) * rho);
 }
 
-double CubeHypothesis::UncertaintySd() const {
-    const double pass = PassModelSd();
+double CubeHypothesis::UncertaintySd(double tau_s) const {
+    const double pass = PassModelSd(tau_s);
     return std::isnan(pass) ? std::max(std::sqrt(variance_m2), SampleSd()) : pass;
 }
 
@@ -536,7 +548,8 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
             }
             const CubeHypothesis& h = hyps[static_cast<std::size_t>(nodes[n].Choose(reference))];
             g.elevation_m[n] = static_cast<float>(h.mean_m);
-            g.uncertainty_m[n] = static_cast<float>(1.96 * h.UncertaintySd());
+            g.uncertainty_m[n] =
+                static_cast<float>(1.96 * h.UncertaintySd(config.common_correlation_s));
             g.density[n] = static_cast<float>(h.count);
             g.hypotheses[n] = static_cast<float>(hyps.size());
         }

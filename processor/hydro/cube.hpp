@@ -31,10 +31,13 @@
 // variance that is common to the soundings of one pass (CubeSounding::sigma_common_m: the
 // INS's height, attitude, mount, sound speed: what does not average over the soundings of a
 // pass) (issue 36 item 3):
-//   sigma_node^2 = 1 / sum_i 1 / (sigma_n,i^2 - c_i^2)  +  mean_i(c_i^2) / passes,
+//   sigma_node^2 = 1 / sum_i 1 / (sigma_n,i^2 - c_i^2)
+//                  + mean_i(c_i^2) (1 / P^2) sum_p sum_q exp(-|t_p - t_q| / tau),
 // the independent parts (range noise, pointing) averaged by the Kalman step, the common part
-// averaged over the independent passes only (soundings of the node more than pass_gap_s apart
-// from every earlier pass start a new one; at most kMaxPasses are counted). Otherwise 1.96 times
+// averaged over the node's P passes as far as they are independent: a Gauss-Markov error of
+// correlation time tau = common_correlation_s (the INS's), the passes at times t_p (a sounding
+// of the node more than pass_gap_s from every earlier pass starts one; at most kMaxPasses are
+// counted, the rest joining none: conservative). Otherwise 1.96 times
 // the greater of the hypothesis' posterior standard deviation and the standard deviation of its
 // soundings (the convention of CARIS's CUBE surfaces, since the posterior alone shrinks as
 // 1/sqrt(n) and ignores errors common to the soundings), which overstates a well-sampled node's
@@ -80,10 +83,11 @@ struct CubeConfig {
     double distance_exponent = 2.0;          // alpha
     double horizontal_error_scale = 1.96;    // rho
     int queue_length = 11;                   // median pre-filter; 1 = none
-    // Soundings of a node further apart in time than this are of independent passes: their
-    // pass-common errors (sigma_common_m) average (the INS's error correlation time: a
-    // minute for an RTK INS, the simulator's Gauss-Markov tau).
-    double pass_gap_s = 60.0;
+    // Soundings of a node further apart in time than this are of different passes.
+    double pass_gap_s = 10.0;
+    // Correlation time of the pass-common errors between passes (Gauss-Markov): the INS's
+    // height and attitude error (a minute for an RTK INS: the simulator's tau).
+    double common_correlation_s = 60.0;
     double hypothesis_gate = 4.0;     // normalised innovation that opens a hypothesis
     bool slope_correction = true;     // carry soundings along the predicted surface
     int predicted_surface_cells = 4;  // predicted-surface cell, in resolutions
@@ -111,11 +115,11 @@ struct CubeHypothesis {
     std::int32_t passes = 0;
     std::array<float, kMaxPasses> pass_time_s{};
     double SampleSd() const;
-    // 1 sigma of the node from the pass-common model, or NaN where a sounding did not state
-    // its common part.
-    double PassModelSd() const;
+    // 1 sigma of the node from the pass-common model (tau: common_correlation_s), or NaN where
+    // a sounding did not state its common part.
+    double PassModelSd(double tau_s) const;
     // 1 sigma the grid reports: PassModelSd, else max(posterior, SampleSd).
-    double UncertaintySd() const;
+    double UncertaintySd(double tau_s) const;
 };
 
 // A north-up grid: node (i, j) at x0 + i * resolution, y0 + j * resolution; row j = 0 is the

@@ -15,6 +15,8 @@ namespace pitmap::proc::hydro {
 namespace {
 
 constexpr int kGroups = 8;  // jackknife groups of cells
+// |dc / c| beyond which a fit is no column speed error (100 m/s of 1450).
+constexpr double kMaxRelativeError = 0.07;
 
 double Square(double x) {
     return x * x;
@@ -40,6 +42,9 @@ std::vector<std::string> SoundSpeedSigmaConfig::Validate() const {
     nonneg(cast_distance_rate_mps_per_km, "sound_speed.cast_distance_rate_mps_per_km");
     nonneg(overlap_min_weight_m2, "sound_speed.overlap_min_weight_m2");
     nonneg(overlap_stratified_mps, "sound_speed.overlap_stratified_mps");
+    if (!(overlap_min_estimated_share >= 0 && overlap_min_estimated_share <= 1)) {
+        out.push_back("sound_speed.overlap_min_estimated_share must be within [0, 1]");
+    }
     if (!(overlap_cell_m > 0 && overlap_cell_m <= 100)) {
         out.push_back("sound_speed.overlap_cell_m must be within (0, 100]");
     }
@@ -89,6 +94,15 @@ double RefractionRegressor(const Eigen::Vector3d& o) {
 bool OverlapSpeedEstimate::estimated() const {
     return std::any_of(
         classes.begin(), classes.end(), [](const OverlapDepthClass& c) { return c.estimated; });
+}
+
+double OverlapSpeedEstimate::EstimatedShare() const {
+    std::size_t all = 0, est = 0;
+    for (const auto& c : classes) {
+        all += c.soundings;
+        if (c.estimated) est += c.soundings;
+    }
+    return all > 0 ? static_cast<double>(est) / static_cast<double>(all) : 0.0;
 }
 
 int OverlapSpeedEstimate::StratifiedClass(double c_mps, double stratified_mps) const {
@@ -170,15 +184,13 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
         s.zz += p.z() * p.z();
         s.d += d;
     }
-    // Per class and jackknife group: the residual cross products after each cell's plane.
-    std::vector<std::array<double, kGroups>> Rgg(nclass), Rgz(nclass), Rzz(nclass);
-    std::vector<std::array<std::size_t, kGroups>> Rn(nclass);
-    for (std::size_t c = 0; c < nclass; ++c) {
-        Rgg[c].fill(0);
-        Rgz[c].fill(0);
-        Rzz[c].fill(0);
-        Rn[c].fill(0);
-    }
+    // The cells' residual cross products after each cell's own plane.
+    struct Cell {
+        std::size_t cls, group, n;
+        double rgg, rgz, rzz;
+        bool used = true;
+    };
+    std::vector<Cell> kept;
     const double max_slope = std::tan(config.overlap_max_slope_deg * M_PI / 180.0);
     for (const auto& [key, s] : cells) {
         if (s.n < static_cast<std::size_t>(config.overlap_min_cell_soundings)) continue;
@@ -192,18 +204,65 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
         if (!(rgg > 0) || !std::isfinite(rgz) || !std::isfinite(rzz)) continue;
         const double dmean = s.d / static_cast<double>(s.n);
         const auto it = std::upper_bound(edges.begin(), edges.end(), dmean);
-        if (it == edges.begin() || it == edges.end()) continue;
-        const std::size_t c = static_cast<std::size_t>(it - edges.begin()) - 1;
+        if (it == edges.end()) continue;
+        // Shallower than the first edge: the first class.
+        const std::size_t c =
+            it == edges.begin() ? 0 : static_cast<std::size_t>(it - edges.begin()) - 1;
         const std::size_t grp = static_cast<std::size_t>(
             (static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 61);  // 0..7
-        Rgg[c][grp] += rgg;
-        Rgz[c][grp] += rgz;
-        Rzz[c][grp] += std::max(rzz, 0.0);
-        Rn[c][grp] += s.n;
-        ++out.classes[c].cells;
-        out.classes[c].soundings += s.n;
+        kept.push_back({c, grp, s.n, rgg, rgz, std::max(rzz, 0.0)});
+    }
+    // The fit, robust to cells that are no floor (a bench edge, an echo, two surfaces): a cell
+    // whose residual RMS after the plane and the class's k exceeds 3 times the class's median
+    // cell RMS (and 2 cm) is left out, three times over.
+    std::vector<double> kappa(nclass, 0.0);
+    const auto fit = [&]() {
+        for (std::size_t c = 0; c < nclass; ++c) {
+            double gg = 0, gz = 0;
+            for (const Cell& k : kept) {
+                if (k.used && k.cls == c) {
+                    gg += k.rgg;
+                    gz += k.rgz;
+                }
+            }
+            kappa[c] = gg > 0 ? gz / gg : 0.0;
+        }
+    };
+    const auto cell_rms = [&](const Cell& k) {
+        const double ss = k.rzz - 2 * kappa[k.cls] * k.rgz + kappa[k.cls] * kappa[k.cls] * k.rgg;
+        return std::sqrt(std::max(ss, 0.0) /
+                         static_cast<double>(std::max<std::size_t>(k.n, 5) - 4));
+    };
+    fit();
+    for (int iter = 0; iter < 3; ++iter) {
+        for (std::size_t c = 0; c < nclass; ++c) {
+            std::vector<double> rms;
+            for (const Cell& k : kept) {
+                if (k.cls == c) rms.push_back(cell_rms(k));
+            }
+            if (rms.empty()) continue;
+            std::nth_element(
+                rms.begin(), rms.begin() + static_cast<std::ptrdiff_t>(rms.size() / 2), rms.end());
+            const double limit = std::max(0.02, 3.0 * rms[rms.size() / 2]);
+            for (Cell& k : kept) {
+                if (k.cls == c) k.used = cell_rms(k) <= limit;
+            }
+        }
+        fit();
+    }
+    std::vector<std::array<double, kGroups>> Rgg(nclass), Rgz(nclass);
+    for (std::size_t c = 0; c < nclass; ++c) {
+        Rgg[c].fill(0);
+        Rgz[c].fill(0);
+    }
+    for (const Cell& k : kept) {
+        if (!k.used) continue;
+        Rgg[k.cls][k.group] += k.rgg;
+        Rgz[k.cls][k.group] += k.rgz;
+        ++out.classes[k.cls].cells;
+        out.classes[k.cls].soundings += k.n;
         ++out.cells_used;
-        out.soundings_used += s.n;
+        out.soundings_used += k.n;
     }
     for (std::size_t c = 0; c < nclass; ++c) {
         OverlapDepthClass& k = out.classes[c];
@@ -215,6 +274,9 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
         k.weight_m2 = gg;
         if (!(gg >= config.overlap_min_weight_m2) || !(gg > 0)) continue;
         k.relative_error = gz / gg;
+        // Beyond any water (fresh water at 0-30 degC spans about 1400-1510 m/s) the fit
+        // explains something else: not an estimate.
+        if (std::abs(k.relative_error) > kMaxRelativeError) continue;
         // Delete-a-group jackknife: the cells of a group share no sounding, but the passes that
         // make their overlaps do, so the formal sigma^2 / gg would be too small.
         double ss = 0;

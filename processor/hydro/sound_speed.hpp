@@ -19,7 +19,8 @@
 //      angle (the refraction-error relation below), which a least-squares fit over the overlaps
 //      measures, per depth class. That estimate bounds what the profile in use gets wrong, cast
 //      or no cast (without a cast it is the only knowledge of the column).
-//   3. no cast, and the overlap either too small to estimate or showing stratified water (the
+//   3. no cast, and the overlap either too small to estimate (its estimated depth classes hold
+//      less than overlap_min_estimated_share of its soundings) or showing stratified water (the
 //      overlap then sees only part of the error: calibration and SLAM absorb some of the
 //      angle-dependent disagreement, and the depth error common to all angles is invisible
 //      to it): the a-priori bound of a fresh-water
@@ -70,6 +71,9 @@ struct SoundSpeedSigmaConfig {
     // overlap sees only the part of it that differs between beam angles after calibration and
     // SLAM have absorbed what they could, so without a cast the a-priori bound applies.
     double overlap_stratified_mps = 5.0;
+    // Without a cast the overlap must estimate the classes that hold at least this share of
+    // its soundings to stand for the column (else: not assessable, the a-priori bound).
+    double overlap_min_estimated_share = 0.8;
     double overlap_min_weight_m2 = 50.0;            // sum of the residual regressor^2 a class needs
     std::size_t overlap_max_soundings = 2'000'000;  // evenly strided beyond
 
@@ -105,6 +109,8 @@ struct OverlapSpeedEstimate {
     std::vector<OverlapDepthClass> classes;
     std::size_t soundings_used = 0, cells_used = 0;
     bool estimated() const;  // any class
+    // The share of the overlap's soundings in estimated classes (0 without soundings).
+    double EstimatedShare() const;
     // The class with the largest significant error (|e| c > stratified_mps and |e| > 3 se),
     // or -1: whether the overlap shows stratified water the profile does not describe.
     int StratifiedClass(double c_mps, double stratified_mps) const;
@@ -118,7 +124,11 @@ struct OverlapSpeedEstimate {
 // 2. above. Soundings in cells of overlap_cell_m (world x, y); per cell a plane z = a + b x +
 // c y + k g is fitted jointly over all cells of a depth class (the cell's mean depth) with one
 // k per class (the cells' planes eliminated: Frisch-Waugh), g = RefractionRegressor. Cells
-// whose own plane is steeper than overlap_max_slope_deg are left out. k = dc / c, dc the true
+// whose own plane is steeper than overlap_max_slope_deg are left out, and so, three times over,
+// are cells whose residual RMS after the plane and k exceeds 3 times their class's median (no
+// floor: a bench edge, two surfaces, echoes); a class whose |k| exceeds 0.07 (100 m/s, more
+// than any fresh water spans) is not estimated (the fit explains something else, e.g. a wrong
+// boresight on a few cells). k = dc / c, dc the true
 // column's speed minus the profile's (a sounding's height error is g dc / c: positive, the
 // water is faster than the soundings assumed). Preconditions: the vectors have equal sizes;
 // config.Validate() is empty.

@@ -339,7 +339,10 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("queue_length", q.queue_length, "median pre-filter queue; 1 = none");
     v("pass_gap_s",
       q.pass_gap_s,
-      "soundings of a node further apart are independent passes (node uncertainty), s");
+      "soundings of a node further apart are different passes (node uncertainty), s");
+    v("common_correlation_s",
+      q.common_correlation_s,
+      "correlation time of the pass-common errors between passes (node uncertainty), s");
     v("hypothesis_gate", q.hypothesis_gate, "normalised innovation opening a hypothesis");
     v("slope_correction", q.slope_correction, "carry soundings along the predicted surface");
     v("predicted_surface_cells", q.predicted_surface_cells, "predicted surface cell, resolutions");

@@ -399,7 +399,9 @@ json SoundSpeedSigmas(StageContext& s,
                      Fixed(c.lo_m, 0) + "-" + Fixed(c.hi_m, 0) +
                      " m below the transducer (stratified water the profile does not describe)";
     }
-    if (with_cast == 0 && (strat >= 0 || !est->estimated())) {
+    const bool assessable =
+        est->estimated() && est->EstimatedShare() >= cfg.overlap_min_estimated_share;
+    if (with_cast == 0 && (strat >= 0 || !assessable)) {
         // Nothing measures the column: the a-priori bound of a fresh-water pit.
         for (std::size_t k = 0; k < sig.size(); ++k) {
             column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
@@ -407,20 +409,22 @@ json SoundSpeedSigmas(StageContext& s,
             sig[k].column_speed_sigma_mps = column[k];
         }
         source = "a_priori_bound";
-        TripGate(s,
-                 Stage::kGrid,
-                 "sound_speed_not_assessable",
-                 "no sound-velocity cast, and " +
-                     (strat >= 0 ? strat_text
-                                 : "too little swath overlap on floors to measure the water "
-                                   "column's speed error (" +
-                                       est->message + ")") +
-                     ": the TPU takes the a-priori bound of the column's speed (between the "
-                     "surface speed and water at 4 degC, sigma " +
-                     Fixed(column.empty() ? 0.0 : column.front(), 1) +
-                     " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
-                     "(--svp) to assess the survey",
-                 log);
+        TripGate(
+            s,
+            Stage::kGrid,
+            "sound_speed_not_assessable",
+            "no sound-velocity cast, and " +
+                (strat >= 0 ? strat_text
+                            : "too little swath overlap on floors to measure the water "
+                              "column's speed error (" +
+                                  est->message + "; the estimated classes hold " +
+                                  Fixed(100 * est->EstimatedShare(), 0) + " % of its soundings)") +
+                ": the TPU takes the a-priori bound of the column's speed (between the "
+                "surface speed and water at 4 degC, sigma " +
+                Fixed(column.empty() ? 0.0 : column.front(), 1) +
+                " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
+                "(--svp) to assess the survey",
+            log);
     } else {
         if (est->estimated()) {
             tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
@@ -460,6 +464,7 @@ json SoundSpeedSigmas(StageContext& s,
                 {"header_speed_measured", header_measured},
                 {"median_column_sigma_mps", median(col)},
                 {"stratified", strat >= 0},
+                {"overlap_estimated_share", est->EstimatedShare()},
                 {"overlap",
                  {{"soundings", est->soundings_used},
                   {"cells", est->cells_used},
