@@ -878,6 +878,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_json = S44Json(r44, holiday_file, UtmToWorld(*utm, s.geo));
         // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
         s44_json["pose_sigma_source"] = pose_sigma["source"];
+        // And where its sound speed term came from: an a-priori bound is no assessment.
+        s44_json["sound_speed_source"] = sound_speed["source"];
+        if (sound_speed["source"] == "a_priori_bound") {
+            s44_json["sound_speed_not_assessable"] =
+                "no sound-velocity cast: the water column's speed was not measured (quality "
+                "gate grid/sound_speed_not_assessable); the TVU takes the a-priori bound of a "
+                "fresh-water pit, and the order stated rests on that bound";
+        }
         CheckCrosslines(s, r44, tpu.median_tvu_95_m, config.quality, log);
         part.Lap(timings, "s44");
     }
