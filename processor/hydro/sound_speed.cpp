@@ -204,10 +204,8 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
         if (!(rgg > 0) || !std::isfinite(rgz) || !std::isfinite(rzz)) continue;
         const double dmean = s.d / static_cast<double>(s.n);
         const auto it = std::upper_bound(edges.begin(), edges.end(), dmean);
-        if (it == edges.end()) continue;
-        // Shallower than the first edge: the first class.
-        const std::size_t c =
-            it == edges.begin() ? 0 : static_cast<std::size_t>(it - edges.begin()) - 1;
+        if (it == edges.begin() || it == edges.end()) continue;
+        const std::size_t c = static_cast<std::size_t>(it - edges.begin()) - 1;
         const std::size_t grp = static_cast<std::size_t>(
             (static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 61);  // 0..7
         kept.push_back({c, grp, s.n, rgg, rgz, std::max(rzz, 0.0)});

@@ -399,36 +399,50 @@ json SoundSpeedSigmas(StageContext& s,
                      Fixed(c.lo_m, 0) + "-" + Fixed(c.hi_m, 0) +
                      " m below the transducer (stratified water the profile does not describe)";
     }
-    const bool assessable =
+    const bool overlap_enough =
         est->estimated() && est->EstimatedShare() >= cfg.overlap_min_estimated_share;
-    if (with_cast == 0 && (strat >= 0 || !assessable)) {
-        // Nothing measures the column: the a-priori bound of a fresh-water pit.
+    // Without a cast the column is assessed only by an overlap that stands for it.
+    const bool assessable = with_cast > 0 || (strat < 0 && overlap_enough);
+    if (with_cast == 0 && strat >= 0) {
+        // Stratified water and nothing that measures it: the a-priori bound of a fresh-water
+        // pit (the overlap sees only part of the error).
         for (std::size_t k = 0; k < sig.size(); ++k) {
             column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
                                    hydro::NoCastPriorSigma(s.geo.pings[k].assumed_sound_speed_mps));
             sig[k].column_speed_sigma_mps = column[k];
         }
         source = "a_priori_bound";
-        TripGate(
-            s,
-            Stage::kGrid,
-            "sound_speed_not_assessable",
-            "no sound-velocity cast, and " +
-                (strat >= 0 ? strat_text
-                            : "too little swath overlap on floors to measure the water "
-                              "column's speed error (" +
-                                  est->message + "; the estimated classes hold " +
-                                  Fixed(100 * est->EstimatedShare(), 0) + " % of its soundings)") +
-                ": the TPU takes the a-priori bound of the column's speed (between the "
-                "surface speed and water at 4 degC, sigma " +
-                Fixed(column.empty() ? 0.0 : column.front(), 1) +
-                " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
-                "(--svp) to assess the survey",
-            log);
+        TripGate(s,
+                 Stage::kGrid,
+                 "sound_speed_not_assessable",
+                 "no sound-velocity cast, and " + strat_text +
+                     ": the TPU takes the a-priori bound of the column's speed (between the "
+                     "surface speed and water at 4 degC, sigma " +
+                     Fixed(column.empty() ? 0.0 : column.front(), 1) +
+                     " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
+                     "(--svp) to assess the survey",
+                 log);
     } else {
         if (est->estimated()) {
             tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
             source += "+overlap";
+        }
+        if (!assessable) {
+            // Nothing shows stratification, but too little overlap to say there is none: the
+            // TVU keeps the error model's column term, and says it could not be assessed.
+            TripGate(s,
+                     Stage::kGrid,
+                     "sound_speed_not_assessable",
+                     "no sound-velocity cast, and too little swath overlap on floors to measure "
+                     "the water column's speed error (" +
+                         est->message + "; the estimated depth classes hold " +
+                         Fixed(100 * est->EstimatedShare(), 0) +
+                         " % of its soundings): the TVU assumes the column the error model "
+                         "states (" +
+                         Fixed(m.mean_sound_speed_sigma_mps, 1) +
+                         " m/s), which in stratified water it is not; give a cast (--svp) to "
+                         "assess the survey",
+                     log);
         }
         if (strat >= 0) {
             TripGate(s,
@@ -464,6 +478,7 @@ json SoundSpeedSigmas(StageContext& s,
                 {"header_speed_measured", header_measured},
                 {"median_column_sigma_mps", median(col)},
                 {"stratified", strat >= 0},
+                {"assessable", assessable},
                 {"overlap_estimated_share", est->EstimatedShare()},
                 {"overlap",
                  {{"soundings", est->soundings_used},
@@ -880,11 +895,15 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_json["pose_sigma_source"] = pose_sigma["source"];
         // And where its sound speed term came from: an a-priori bound is no assessment.
         s44_json["sound_speed_source"] = sound_speed["source"];
-        if (sound_speed["source"] == "a_priori_bound") {
+        if (!sound_speed.value("assessable", true)) {
             s44_json["sound_speed_not_assessable"] =
-                "no sound-velocity cast: the water column's speed was not measured (quality "
-                "gate grid/sound_speed_not_assessable); the TVU takes the a-priori bound of a "
-                "fresh-water pit, and the order stated rests on that bound";
+                sound_speed["source"] == "a_priori_bound"
+                    ? "no sound-velocity cast in stratified water (quality gate "
+                      "grid/sound_speed_not_assessable): the TVU takes the a-priori bound of a "
+                      "fresh-water pit's sound speed, and the order stated rests on that bound"
+                    : "no sound-velocity cast and too little overlap to measure the water "
+                      "column (quality gate grid/sound_speed_not_assessable): the TVU assumes "
+                      "the error model's sound speed, which stratified water would exceed";
         }
         CheckCrosslines(s, r44, tpu.median_tvu_95_m, config.quality, log);
         part.Lap(timings, "s44");

@@ -120,15 +120,15 @@ TEST(SoundSpeedSigma, OverlapFindsAKnownColumnSpeedError) {
         SoundSpeedSigmaConfig cfg;
         const OverlapSpeedEstimate e = EstimateColumnSpeedError(points, offsets, cfg);
         ASSERT_TRUE(e.estimated()) << e.message;
-        const auto& k = e.classes[2];  // 10-15 m
+        const auto& k = e.classes[1];  // 10-15 m
         ASSERT_TRUE(k.estimated);
         EXPECT_NEAR(k.relative_error * c, dc, 0.3) << e.message;
         EXPECT_LT(k.relative_error_se * c, 0.3);
-        EXPECT_FALSE(e.classes[0].estimated);  // 3-6 m: no soundings
+        EXPECT_FALSE(e.classes[0].estimated);  // 6-10 m: no soundings
         // The sigma at any depth: this class's (the only one estimated).
         EXPECT_NEAR(
             e.RelativeSigmaAt(4.0), std::hypot(k.relative_error, k.relative_error_se), 1e-15);
-        EXPECT_EQ(e.StratifiedClass(c, cfg.overlap_stratified_mps), dc == -20.0 ? 2 : -1);
+        EXPECT_EQ(e.StratifiedClass(c, cfg.overlap_stratified_mps), dc == -20.0 ? 1 : -1);
     }
     // No soundings: nothing estimated.
     const OverlapSpeedEstimate none = EstimateColumnSpeedError({}, {}, SoundSpeedSigmaConfig{});
