@@ -160,6 +160,8 @@ std::vector<std::string> CubeConfig::Validate() const {
         out.push_back("grid.horizontal_error_scale must be >= 0");
     }
     if (queue_length < 1 || queue_length > 101) out.push_back("grid.queue_length must be 1..101");
+    if (!(pass_gap_s > 0)) out.push_back("grid.pass_gap_s must be > 0");
+    if (!(common_correlation_s > 0)) out.push_back("grid.common_correlation_s must be > 0");
     positive(hypothesis_gate, "hypothesis_gate");
     if (predicted_surface_cells < 1 || predicted_surface_cells > 64) {
         out.push_back("grid.predicted_surface_cells must be 1..64");
@@ -174,6 +176,50 @@ double CubeHypothesis::SampleSd() const {
     return count > 1 ? std::sqrt(m2 / static_cast<double>(count - 1)) : 0.0;
 }
 
+double CubeHypothesis::PassModelSd(double tau_s) const {
+    if (count == 0 || common_count != count || !(independent_information > 0) || passes < 1) {
+        return std::numeric_limits<double>::quiet_NaN();
+    }
+    // The mean correlation of the passes' common errors, (1 / P^2) sum_p sum_q rho_pq.
+    double rho = 0;
+    for (int p = 0; p < passes; ++p) {
+        for (int q = 0; q < passes; ++q) {
+            const double dt =
+                std::abs(static_cast<double>(pass_time_s[static_cast<std::size_t>(p)]) -
+                         pass_time_s[static_cast<std::size_t>(q)]);
+            rho += std::exp(-dt / tau_s);
+        }
+    }
+    rho /= static_cast<double>(passes) * passes;
+    return std::sqrt(1.0 / independent_information +
+                     common_variance_sum / static_cast<double>(common_count) * rho);
+}
+
+double CubeHypothesis::UncertaintySd(double tau_s) const {
+    const double pass = PassModelSd(tau_s);
+    return std::isnan(pass) ? std::max(std::sqrt(variance_m2), SampleSd()) : pass;
+}
+
+namespace {
+
+// The pass-common bookkeeping of a hypothesis taking a sounding (cube.hpp).
+void TakeCommon(CubeHypothesis& h, double v, double common_variance, float time_s, double gap_s) {
+    if (!std::isfinite(common_variance) || common_variance < 0) return;
+    // The independent part at the node, kept at >= 1 % of the whole against rounding.
+    h.independent_information += 1.0 / std::max(v - common_variance, 0.01 * v);
+    h.common_variance_sum += common_variance;
+    ++h.common_count;
+    for (int k = 0; k < h.passes; ++k) {
+        if (std::abs(static_cast<double>(time_s) - h.pass_time_s[static_cast<std::size_t>(k)]) <=
+            gap_s) {
+            return;
+        }
+    }
+    if (h.passes < kMaxPasses) h.pass_time_s[static_cast<std::size_t>(h.passes++)] = time_s;
+}
+
+}  // namespace
+
 double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
     const double want = std::clamp(
         median_depth_m * c.resolution_depth_fraction, c.min_resolution_m, c.max_resolution_m);
@@ -186,7 +232,7 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
     return std::max(best, c.min_resolution_m);
 }
 
-void CubeNode::Update(double z, double v, const CubeConfig& c) {
+void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float t) {
     // The smallest squared normalised innovation (z - mu)^2 / (s^2 + sigma_n^2).
     int best = -1;
     double best_e2 = std::numeric_limits<double>::infinity();
@@ -204,6 +250,7 @@ void CubeNode::Update(double z, double v, const CubeConfig& c) {
         h.variance_m2 = v;
         h.count = 1;
         h.sample_mean_m = z;
+        TakeCommon(h, v, cv, t, c.pass_gap_s);
         hyps_.push_back(h);
         return;
     }
@@ -217,33 +264,34 @@ void CubeNode::Update(double z, double v, const CubeConfig& c) {
     const double delta = z - h.sample_mean_m;
     h.sample_mean_m += delta / h.count;
     h.m2 += delta * (z - h.sample_mean_m);
+    TakeCommon(h, v, cv, t, c.pass_gap_s);
 }
 
-void CubeNode::Add(double z, double v, const CubeConfig& c) {
+void CubeNode::Add(double z, double v, const CubeConfig& c, double cv, float t) {
     if (c.queue_length <= 1) {
-        Update(z, v, c);
+        Update(z, v, c, cv, t);
         return;
     }
-    const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+    const Queued e{static_cast<float>(z), static_cast<float>(v), static_cast<float>(cv), t};
     queue_.insert(std::upper_bound(queue_.begin(),
                                    queue_.end(),
                                    e,
-                                   [](const auto& a, const auto& b) { return a.first < b.first; }),
+                                   [](const Queued& a, const Queued& b) { return a.z < b.z; }),
                   e);
     if (static_cast<int>(queue_.size()) >= c.queue_length) {
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
-        const auto [mz, mv] = *mid;
+        const Queued m = *mid;
         queue_.erase(mid);
-        Update(mz, mv, c);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s);
     }
 }
 
 void CubeNode::Flush(const CubeConfig& c) {
     while (!queue_.empty()) {
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
-        const auto [mz, mv] = *mid;
+        const Queued m = *mid;
         queue_.erase(mid);
-        Update(mz, mv, c);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s);
     }
     queue_.shrink_to_fit();
 }
@@ -405,19 +453,20 @@ public:
           queue_(length_ > 1 ? band_nodes * length_ : 0),
           queued_(length_ > 1 ? band_nodes : 0, 0) {}
 
-    // Offers a sounding propagated to node `node` (height z, variance v).
-    void Offer(std::size_t node, double z, double v) {
+    // Offers a sounding propagated to node `node` (height z, variance v, its pass-common
+    // variance cv and time t: cube.hpp).
+    void Offer(std::size_t node, double z, double v, float cv, float t) {
         if (length_ <= 1) {
-            nodes_[node].Update(z, v, config_);
+            nodes_[node].Update(z, v, config_, cv, t);
             return;
         }
         const std::size_t local = node - first_node_;
         auto* q = queue_.data() + local * length_;
         int k = queued_[local];
-        const std::pair<float, float> e(static_cast<float>(z), static_cast<float>(v));
+        const CubeNode::Queued e{static_cast<float>(z), static_cast<float>(v), cv, t};
         // Insertion into the sorted queue.
         int pos = k;
-        while (pos > 0 && q[pos - 1].first > e.first) {
+        while (pos > 0 && q[pos - 1].z > e.z) {
             q[pos] = q[pos - 1];
             --pos;
         }
@@ -438,19 +487,19 @@ public:
     }
 
 private:
-    void ReleaseMedian(std::pair<float, float>* q, int& k, CubeNode& node) {
+    void ReleaseMedian(CubeNode::Queued* q, int& k, CubeNode& node) {
         const int mid = k / 2;
-        const auto m = q[mid];
+        const CubeNode::Queued m = q[mid];
         for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
         --k;
-        node.Update(m.first, m.second, config_);
+        node.Update(m.z, m.variance, config_, m.common_variance, m.time_s);
     }
 
     std::vector<CubeNode>& nodes_;
     std::size_t first_node_;
     int length_;
     const CubeConfig& config_;
-    std::vector<std::pair<float, float>> queue_;
+    std::vector<CubeNode::Queued> queue_;
     std::vector<std::uint8_t> queued_;
 };
 
@@ -481,6 +530,11 @@ std::int64_t OfferSounding(const CubeSounding& s,
     const double sv2 = static_cast<double>(s.sigma_v_m) * s.sigma_v_m;
     const double slope_var = (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
     const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
+    // The part of the variance common to the sounding's pass (cube.hpp), at most all of it.
+    const float common_var =
+        std::isfinite(s.sigma_common_m)
+            ? std::min(s.sigma_common_m, s.sigma_v_m) * std::min(s.sigma_common_m, s.sigma_v_m)
+            : std::numeric_limits<float>::quiet_NaN();
     std::int64_t offered = 0;
     for (int j = j0; j <= j1; ++j) {
         const double dy = grid.y0 + j * res - s.y;
@@ -492,7 +546,11 @@ std::int64_t OfferSounding(const CubeSounding& s,
             const double u = (std::sqrt(d2) + rho_sh) / res;
             const double grow = square ? u * u : std::pow(u, config.distance_exponent);
             const double v = sv2 * (1.0 + grow) + slope_var;
-            queues.Offer(static_cast<std::size_t>(j) * grid.nx + i, s.z + gx * dx + gy * dy, v);
+            queues.Offer(static_cast<std::size_t>(j) * grid.nx + i,
+                         s.z + gx * dx + gy * dy,
+                         v,
+                         common_var,
+                         s.time_s);
             ++offered;
         }
     }
@@ -584,7 +642,7 @@ void ChooseHypotheses(const std::vector<CubeNode>& nodes,
             const CubeHypothesis& h = hyps[static_cast<std::size_t>(nodes[n].Choose(reference))];
             grid.elevation_m[n] = static_cast<float>(h.mean_m);
             grid.uncertainty_m[n] =
-                static_cast<float>(1.96 * std::max(std::sqrt(h.variance_m2), h.SampleSd()));
+                static_cast<float>(1.96 * h.UncertaintySd(config.common_correlation_s));
             grid.density[n] = static_cast<float>(h.count);
             grid.hypotheses[n] = static_cast<float>(hyps.size());
         }

@@ -25,17 +25,31 @@
 //      locale_radius nodes) strongest hypotheses; kPredictedSurface the one closest to the
 //      predicted surface (the median height of the soundings in cells of
 //      predicted_surface_cells x resolution, bilinear). Ties go to the denser hypothesis.
-// Outputs per node: elevation (the chosen hypothesis' mean), uncertainty (95 %: 1.96 times the
-// greater of the hypothesis' posterior standard deviation and the standard deviation of its
-// soundings, the convention of CARIS's CUBE surfaces, since the posterior alone shrinks as
-// 1/sqrt(n) and ignores errors common to the soundings), density (soundings in the chosen
-// hypothesis), hypotheses (their number). Empty nodes are NaN / 0.
+// Outputs per node: elevation (the chosen hypothesis' mean), uncertainty (95 %), density
+// (soundings in the chosen hypothesis), hypotheses (their number). Empty nodes are NaN / 0.
+// The uncertainty, when every sounding of the hypothesis states the part of its vertical
+// variance that is common to the soundings of one pass (CubeSounding::sigma_common_m: the
+// INS's height, attitude, mount, sound speed: what does not average over the soundings of a
+// pass) (issue 36 item 3):
+//   sigma_node^2 = 1 / sum_i 1 / (sigma_n,i^2 - c_i^2)
+//                  + mean_i(c_i^2) (1 / P^2) sum_p sum_q exp(-|t_p - t_q| / tau),
+// the independent parts (range noise, pointing) averaged by the Kalman step, the common part
+// averaged over the node's P passes as far as they are independent: a Gauss-Markov error of
+// correlation time tau = common_correlation_s (the INS's), the passes at times t_p (a sounding
+// of the node more than pass_gap_s from every earlier pass starts one; at most kMaxPasses are
+// counted, the rest joining none: conservative). Otherwise 1.96 times
+// the greater of the hypothesis' posterior standard deviation and the standard deviation of its
+// soundings (the convention of CARIS's CUBE surfaces, since the posterior alone shrinks as
+// 1/sqrt(n) and ignores errors common to the soundings), which overstates a well-sampled node's
+// error several times (docs/uncertainty.md).
 // Horizontal coordinates are any metric, north-up plane (pitmap uses UTM); heights are up.
 // Thread safety: RunCube is reentrant; nodes are updated in row bands, each band taking the
 // soundings in input order, so results do not depend on the thread count.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -47,6 +61,10 @@ struct CubeSounding {
     float sigma_v_m = 0;  // vertical 1 sigma (TVU / 1.96)
     float sigma_h_m = 0;  // horizontal 1 sigma, per axis (THU / 2.45)
     float depth_m = 0;    // below the transducer, m (resolution and capture distance)
+    // The part of sigma_v_m common to the soundings of one pass (1 sigma, m; <= sigma_v_m);
+    // NaN = unknown (the node uncertainty then takes the convention above).
+    float sigma_common_m = std::numeric_limits<float>::quiet_NaN();
+    float time_s = 0;  // the sounding's time from any epoch, s (tells passes apart)
 };
 
 enum class Disambiguation { kDensity = 0, kLocale, kPredictedSurface };
@@ -65,9 +83,14 @@ struct CubeConfig {
     double distance_exponent = 2.0;          // alpha
     double horizontal_error_scale = 1.96;    // rho
     int queue_length = 11;                   // median pre-filter; 1 = none
-    double hypothesis_gate = 4.0;            // normalised innovation that opens a hypothesis
-    bool slope_correction = true;            // carry soundings along the predicted surface
-    int predicted_surface_cells = 4;         // predicted-surface cell, in resolutions
+    // Soundings of a node further apart in time than this are of different passes.
+    double pass_gap_s = 10.0;
+    // Correlation time of the pass-common errors between passes (Gauss-Markov): the INS's
+    // height and attitude error (a minute for an RTK INS: the simulator's tau).
+    double common_correlation_s = 60.0;
+    double hypothesis_gate = 4.0;     // normalised innovation that opens a hypothesis
+    bool slope_correction = true;     // carry soundings along the predicted surface
+    int predicted_surface_cells = 4;  // predicted-surface cell, in resolutions
     Disambiguation disambiguation = Disambiguation::kPredictedSurface;
     int locale_radius = 2;                // kLocale: neighbourhood radius, nodes
     std::int64_t max_nodes = 20'000'000;  // refuse grids larger than this (~150 B a node)
@@ -77,13 +100,26 @@ struct CubeConfig {
 };
 
 // One hypothesis of a node.
+inline constexpr int kMaxPasses = 8;
 struct CubeHypothesis {
     double mean_m = 0;
     double variance_m2 = 0;    // posterior variance of the mean
     std::int32_t count = 0;    // soundings taken
     double sample_mean_m = 0;  // unweighted mean of the soundings (Welford)
     double m2 = 0;             // sum of their squared deviations (Welford)
+    // The pass-common model (above): sum of 1 / independent variance, sum of the common
+    // variances, soundings that stated theirs, the passes' first times.
+    double independent_information = 0;
+    double common_variance_sum = 0;
+    std::int32_t common_count = 0;
+    std::int32_t passes = 0;
+    std::array<float, kMaxPasses> pass_time_s{};
     double SampleSd() const;
+    // 1 sigma of the node from the pass-common model (tau: common_correlation_s), or NaN where
+    // a sounding did not state its common part.
+    double PassModelSd(double tau_s) const;
+    // 1 sigma the grid reports: PassModelSd, else max(posterior, SampleSd).
+    double UncertaintySd(double tau_s) const;
 };
 
 // A north-up grid: node (i, j) at x0 + i * resolution, y0 + j * resolution; row j = 0 is the
@@ -120,7 +156,11 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& config);
 class CubeNode {
 public:
     // Offers a sounding already propagated to the node (height, variance at the node).
-    void Add(double z, double variance, const CubeConfig& config);
+    void Add(double z,
+             double variance,
+             const CubeConfig& config,
+             double common_variance = std::numeric_limits<double>::quiet_NaN(),
+             float time_s = 0);
     // Empties the median queue into the hypotheses.
     void Flush(const CubeConfig& config);
     const std::vector<CubeHypothesis>& hypotheses() const { return hyps_; }
@@ -128,10 +168,19 @@ public:
     int Choose(double reference) const;
     // A sounding that left the median queue: the Kalman update of the closest hypothesis, or a
     // new one (RunCube keeps the queues itself, a band of nodes at a time).
-    void Update(double z, double variance, const CubeConfig& config);
+    void Update(double z,
+                double variance,
+                const CubeConfig& config,
+                double common_variance = std::numeric_limits<double>::quiet_NaN(),
+                float time_s = 0);
+
+    // A queued sounding: height, variance at the node, common variance, time.
+    struct Queued {
+        float z, variance, common_variance, time_s;
+    };
 
 private:
-    std::vector<std::pair<float, float>> queue_;  // (z, variance), sorted by z
+    std::vector<Queued> queue_;  // sorted by z
     std::vector<CubeHypothesis> hyps_;
 };
 

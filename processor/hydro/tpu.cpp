@@ -146,10 +146,28 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
 
     at(TpuTerm::kRange) = Outer(u, Square(m.range_sigma_m + m.range_sigma_fraction * r));
     at(TpuTerm::kBeamAngle) = Outer(dp_dtheta, Square(frames::DegToRad(m.beam_angle_sigma_deg)));
-    // Mean sound speed scales the range; the surface sound speed steers the beam.
+    // The column's speed moves the sounding by the refraction-error relation (sound_speed.hpp);
+    // the surface sound speed steers the beam.
+    const double column_sigma = std::isnan(sigma.column_speed_sigma_mps)
+                                    ? m.mean_sound_speed_sigma_mps
+                                    : sigma.column_speed_sigma_mps;
+    const double surface_sigma = std::isnan(sigma.surface_speed_sigma_mps)
+                                     ? m.surface_sound_speed_sigma_mps
+                                     : sigma.surface_speed_sigma_mps;
+    const Eigen::Vector3d o = R_ws * b;
+    double rel2 = Square(column_sigma / c);
+    Eigen::Vector3d j_column = o;  // not below the transducer: the range scaling alone
+    if (o.z() < -1e-6) {
+        if (config.column_relative_sigma_at) {
+            const double s = config.column_relative_sigma_at(-o.z());
+            if (std::isfinite(s)) rel2 += Square(s);
+        }
+        // tan^2 capped at 72 deg from the vertical, beyond any beam the fan steers to.
+        const double tan2 = std::min((o.x() * o.x() + o.y() * o.y()) / (o.z() * o.z()), 9.5);
+        j_column = Eigen::Vector3d(2 * o.x(), 2 * o.y(), (1 - tan2) * o.z());
+    }
     at(TpuTerm::kSoundSpeed) =
-        Outer(u, Square(r * m.mean_sound_speed_sigma_mps / c)) +
-        Outer(dp_dtheta, Square(std::tan(th) * m.surface_sound_speed_sigma_mps / c));
+        Outer(j_column, rel2) + Outer(dp_dtheta, Square(std::tan(th) * surface_sigma / c));
 
     // Attitude: dR/dk = [a_k]x R for R = M Rz(yaw) Ry(pitch) Rx(roll).
     // a_pitch = M Rz(yaw) e_y = M (-sin yaw, cos yaw, 0); with R_ned = M^T R (M = M^T),
@@ -197,6 +215,7 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
     const std::size_t np = geo.pings.size();
     out.thu_95_m.assign(n, 0.0f);
     out.tvu_95_m.assign(n, 0.0f);
+    out.sigma_v_common_m.assign(n, 0.0f);
     if (ping_sigma.size() != np) {
         out.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
                       std::to_string(np) + " pings";
@@ -246,6 +265,11 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
             out.tvu_95_m[j] = static_cast<float>(kTvu95 * std::sqrt(std::max(C(2, 2), 0.0)));
             out.thu_95_m[j] =
                 static_cast<float>(kThu95 * std::sqrt(std::max((C(0, 0) + C(1, 1)) / 2.0, 0.0)));
+            const double independent = terms[static_cast<int>(TpuTerm::kRange)](2, 2) +
+                                       terms[static_cast<int>(TpuTerm::kBeamAngle)](2, 2) +
+                                       Square(config.model.position_noise_m);
+            out.sigma_v_common_m[j] =
+                static_cast<float>(std::sqrt(std::max(C(2, 2) - independent, 0.0)));
             if (C(2, 2) > 0) {
                 for (int t = 0; t < kNumTpuTerms; ++t) s[t] += terms[t](2, 2) / C(2, 2);
             }

@@ -12,11 +12,16 @@
 //   b = Ry(tilt) (0, r sin theta, r cos theta).
 // With d = p - t (INS reference point to the sounding, world frame) and the unit beam vector
 // u = R R_vs b / r, each term adds J sigma^2 J^T to the 3x3 covariance of p:
-//   range         J = u;  sigma_r^2 = (a + f r)^2 + (r sigma_cbar / c)^2 (range noise; the
-//                 mean sound speed scales the range, Hare eq. for the sound-speed term)
-//   beam angle    J = R R_vs db/dtheta;  sigma^2 = sigma_theta^2 + (tan(theta) sigma_cs / c)^2
-//                 (pointing, and the steering error of a flat array from the surface sound
-//                 speed: Snell at the face, d theta = tan(theta) dc / c)
+//   range         J = u;  sigma_r^2 = (a + f r)^2 (range noise)
+//   beam angle    J = R R_vs db/dtheta;  sigma^2 = sigma_theta^2 (pointing)
+//   sound speed   the column: J = (2 o_E, 2 o_N, (1 - tan^2 phi0) o_U) with o = R R_vs b the
+//                 transducer-to-sounding offset and tan^2 phi0 = (o_E^2 + o_N^2) / o_U^2, per
+//                 relative column speed error (the refraction-error relation of Snell's law,
+//                 processor/hydro/sound_speed.hpp; at nadir Hare's range scaling);
+//                 (sigma_c / c)^2 = (the ping's column speed sigma / c)^2 + the swath-overlap
+//                 estimate's relative sigma at the sounding's depth; the surface: J = dp/dtheta,
+//                 sigma^2 = (tan(theta) sigma_cs / c)^2 (the steering error of a flat array from
+//                 the surface sound speed: Snell at the face, d theta = tan(theta) dc / c)
 //   attitude      J_k = a_k x d for the rotation axes a_roll = R e_x, a_pitch = M Rz(yaw) e_y,
 //                 a_yaw = M e_z (M: NED -> ENU), since dR/dk = [a_k]x R for R = M Rz Ry Rx;
 //                 sigma_k^2 = pose sigma_k^2 (the INS's, or SLAM's posterior) + boresight
@@ -34,6 +39,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -52,6 +58,10 @@ inline constexpr double kThu95 = 2.4477;
 struct PingSigma {
     Eigen::Vector3d position_enu_m = Eigen::Vector3d::Zero();    // east, north, up
     Eigen::Vector3d attitude_rpy_rad = Eigen::Vector3d::Zero();  // roll, pitch, yaw
+    // The sound speed sigmas at the ping (processor/hydro/sound_speed.hpp), m/s: of the water
+    // column against the profile used, and of the speed at the face; NaN = the error model's.
+    double column_speed_sigma_mps = std::numeric_limits<double>::quiet_NaN();
+    double surface_speed_sigma_mps = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The error model's INS terms as a PingSigma: what applies where the INS reports no sigma.
@@ -77,7 +87,11 @@ struct TpuConfig {
                                                      std::numeric_limits<double>::quiet_NaN(),
                                                      std::numeric_limits<double>::quiet_NaN()};
     double sound_speed_mps = 1500.0;  // nominal speed for the sound-speed terms
-    int num_threads = 0;              // 0 = all cores (TBB)
+    // The relative column speed sigma at a depth below the transducer (m) that the swath
+    // overlap measured (OverlapSpeedEstimate::RelativeSigmaAt), added in quadrature to the
+    // ping's; empty = none. Called concurrently: must be reentrant.
+    std::function<double(double)> column_relative_sigma_at;
+    int num_threads = 0;  // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;
 };
@@ -119,6 +133,10 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
 struct TpuResult {
     std::vector<float> thu_95_m;  // one per sounding of GeorefResult::points
     std::vector<float> tvu_95_m;
+    // The vertical 1 sigma of the terms common to the soundings of a pass (all but the range
+    // noise, the beam pointing and the INS's white output noise: what CUBE's node does not
+    // average over the soundings of one pass), m; one per sounding.
+    std::vector<float> sigma_v_common_m;
     // Mean over the soundings of each term's share of the vertical variance (sums to 1).
     std::array<double, kNumTpuTerms> tvu_variance_share{};
     double median_tvu_95_m = 0, median_thu_95_m = 0;

@@ -338,6 +338,12 @@ void VisitGrid(V&& v, GridStageConfig& c) {
     v("distance_exponent", q.distance_exponent, "CUBE alpha: variance growth with distance");
     v("horizontal_error_scale", q.horizontal_error_scale, "CUBE rho: THU sigmas added to d");
     v("queue_length", q.queue_length, "median pre-filter queue; 1 = none");
+    v("pass_gap_s",
+      q.pass_gap_s,
+      "soundings of a node further apart are different passes (node uncertainty), s");
+    v("common_correlation_s",
+      q.common_correlation_s,
+      "correlation time of the pass-common errors between passes (node uncertainty), s");
     v("hypothesis_gate", q.hypothesis_gate, "normalised innovation opening a hypothesis");
     v("slope_correction", q.slope_correction, "carry soundings along the predicted surface");
     v("predicted_surface_cells", q.predicted_surface_cells, "predicted surface cell, resolutions");
@@ -350,6 +356,16 @@ void VisitGrid(V&& v, GridStageConfig& c) {
       c.tpu_slam_posterior,
       "TPU pose sigma from SLAM's posterior where SLAM's trajectory is used (false: the INS's);\n"
       "not yet validated (optimistic, docs/uncertainty.md): trips a quality gate");
+    v("tpu_sound_speed_from_data",
+      c.tpu_sound_speed_from_data,
+      "TPU sound speed sigmas from the casts' age, distance and surface disagreement and the\n"
+      "swath overlap (docs/uncertainty.md); false: the error model's alone");
+    v("sound_speed_cast_age_rate_mps_per_h",
+      c.sound_speed.cast_age_rate_mps_per_h,
+      "column speed sigma added per hour of the cast's age, m/s");
+    v("sound_speed_cast_distance_rate_mps_per_km",
+      c.sound_speed.cast_distance_rate_mps_per_km,
+      "column speed sigma added per km from the cast, m/s");
     v("write_geotiff", c.write_geotiff, "P/dem.tif (COG)");
     v("write_bag", c.write_bag, "P/dem.bag");
     v("write_sounding_tpu", c.write_sounding_tpu, "P/soundings_tpu.ply (THU/TVU per sounding)");

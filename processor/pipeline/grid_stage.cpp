@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "common/frames.hpp"
+#include "common/geodesy.hpp"
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/geoid.hpp"
@@ -51,7 +52,12 @@ struct PartClock {
 };
 
 // The error model: the vehicle file's `uncertainty:` (the file georef used), else defaults.
-SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string* source) {
+// `sv_source`: where the sonar's own sound speed comes from (vehicle.yaml).
+SensorErrorModel ErrorModel(const std::string& path,
+                            const Log& log,
+                            std::string* source,
+                            SoundVelocitySource* sv_source) {
+    *sv_source = SoundVelocitySource::kUnknown;
     if (path.empty()) {
         *source = "defaults (no vehicle.yaml)";
         return SensorErrorModel{};
@@ -63,6 +69,7 @@ SensorErrorModel ErrorModel(const std::string& path, const Log& log, std::string
         return SensorErrorModel{};
     }
     *source = v->uncertainty ? path + " uncertainty:" : "defaults (" + path + " has none)";
+    *sv_source = v->sound_velocity_source;
     return v->ErrorModel();
 }
 
@@ -302,6 +309,7 @@ std::vector<std::string> GridStageConfig::Validate() const {
     if (!(surface_filter_min_m >= 0)) out.push_back("grid.surface_filter_min_m must be >= 0");
     if (!(surface_filter_max_slope_deg > 0 && surface_filter_max_slope_deg <= 90))
         out.push_back("grid.surface_filter_max_slope_deg must be in (0, 90]");
+    for (auto& p : sound_speed.Validate()) out.push_back("grid." + p);
     for (auto& p : vertical.Validate()) out.push_back(p);
     for (auto& p : s44_config.Validate()) out.push_back(p);
     for (auto& p : mosaic_config.Validate()) out.push_back(p);
@@ -312,6 +320,171 @@ std::vector<std::string> GridStageConfig::Validate() const {
 namespace detail {
 
 namespace {
+
+// The TPU's sound speed sigmas from the data (hydro/sound_speed.hpp), per ping into `sig`, and
+// the column speed error the swath overlap measured into tcfg; returns summary.json's
+// stages.grid.sound_speed. Without a cast and without an estimate from the overlap the
+// a-priori bound applies and the gate grid/sound_speed_not_assessable trips.
+json SoundSpeedSigmas(StageContext& s,
+                      const GridStageConfig& gc,
+                      SoundVelocitySource sv_source,
+                      std::vector<hydro::PingSigma>& sig,
+                      hydro::TpuConfig& tcfg,
+                      const Log& log) {
+    const SensorErrorModel& m = tcfg.model;
+    const hydro::SoundSpeedSigmaConfig& cfg = gc.sound_speed;
+    // The header's speed is a measurement at the head unless it was typed in.
+    const bool header_measured = sv_source != SoundVelocitySource::kManual;
+    const svp::Refraction* refr = s.geo.refraction.get();
+    std::vector<double> column(sig.size(), m.mean_sound_speed_sigma_mps);
+    std::vector<double> disagreement;
+    std::size_t with_cast = 0;
+    if (refr != nullptr) {
+        const LocalTangentFrame world(s.model.origin);
+        for (std::size_t k = 0; k < sig.size(); ++k) {
+            const georef::GeorefPing& ping = s.geo.pings[k];
+            if (ping.cast < 0 || static_cast<std::size_t>(ping.cast) >= refr->casts().size())
+                continue;
+            const svp::PreparedCast& c = refr->casts()[static_cast<std::size_t>(ping.cast)];
+            const double age_s = c.cast.has_time()
+                                     ? static_cast<double>(ping.utime_gps - c.cast.utime_gps) * 1e-6
+                                     : std::nan("");
+            double distance_m = std::nan("");
+            if (c.cast.has_position()) {
+                const Eigen::Vector3d at =
+                    world.ToEnu(Geodetic{c.cast.latitude_deg, c.cast.longitude_deg, 0.0});
+                distance_m = (ping.sensor_world - at).head<2>().norm();
+            }
+            double dis = std::nan("");
+            if (header_measured) {
+                const double depth = refr->TransducerDepth(ping.T_world_vehicle.linear() *
+                                                           s.model.mount.lever_arm_m);
+                dis = ping.assumed_sound_speed_mps - c.profile.SpeedAt(depth);
+                disagreement.push_back(std::abs(dis));
+            }
+            column[k] =
+                hydro::CastSpeedSigma(m.mean_sound_speed_sigma_mps, age_s, distance_m, dis, cfg);
+            sig[k].column_speed_sigma_mps = column[k];
+            // The steering correction used the cast's speed at the face (kProfile): off by the
+            // disagreement; with the header's speed (kHeader) no correction was made.
+            if (refr->surface_speed() == svp::SurfaceSpeedSource::kProfile && std::isfinite(dis)) {
+                sig[k].surface_speed_sigma_mps = std::hypot(m.surface_sound_speed_sigma_mps, dis);
+            }
+            ++with_cast;
+        }
+    }
+    // The swath overlap's estimate of the column speed error, cast or no cast.
+    std::vector<Eigen::Vector3d> offsets(s.geo.points.size());
+    for (std::size_t j = 0; j < offsets.size(); ++j) {
+        offsets[j] =
+            s.geo.points.position_world[j] - s.geo.pings[s.geo.points.ping[j]].sensor_world;
+    }
+    const auto est = std::make_shared<const hydro::OverlapSpeedEstimate>(
+        hydro::EstimateColumnSpeedError(s.geo.points.position_world, offsets, cfg));
+    std::vector<Eigen::Vector3d>().swap(offsets);
+    log("grid: sound speed from the swath overlap: " + est->message);
+    std::string source = with_cast > 0 ? "cast" : "error_model";
+    const int strat = est->StratifiedClass(tcfg.sound_speed_mps, cfg.overlap_stratified_mps);
+    std::string strat_text;
+    if (strat >= 0) {
+        const hydro::OverlapDepthClass& c = est->classes[static_cast<std::size_t>(strat)];
+        strat_text = "the swath overlap shows a column speed error of " +
+                     Fixed(c.relative_error * tcfg.sound_speed_mps, 1) + " +- " +
+                     Fixed(c.relative_error_se * tcfg.sound_speed_mps, 1) + " m/s at " +
+                     Fixed(c.lo_m, 0) + "-" + Fixed(c.hi_m, 0) +
+                     " m below the transducer (stratified water the profile does not describe)";
+    }
+    const bool overlap_enough =
+        est->estimated() && est->EstimatedShare() >= cfg.overlap_min_estimated_share;
+    // Without a cast the column is assessed only by an overlap that stands for it.
+    const bool assessable = with_cast > 0 || (strat < 0 && overlap_enough);
+    if (with_cast == 0 && strat >= 0) {
+        // Stratified water and nothing that measures it: the a-priori bound of a fresh-water
+        // pit (the overlap sees only part of the error).
+        for (std::size_t k = 0; k < sig.size(); ++k) {
+            column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
+                                   hydro::NoCastPriorSigma(s.geo.pings[k].assumed_sound_speed_mps));
+            sig[k].column_speed_sigma_mps = column[k];
+        }
+        source = "a_priori_bound";
+        TripGate(s,
+                 Stage::kGrid,
+                 "sound_speed_not_assessable",
+                 "no sound-velocity cast, and " + strat_text +
+                     ": the TPU takes the a-priori bound of the column's speed (between the "
+                     "surface speed and water at 4 degC, sigma " +
+                     Fixed(column.empty() ? 0.0 : column.front(), 1) +
+                     " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
+                     "(--svp) to assess the survey",
+                 log);
+    } else {
+        if (est->estimated()) {
+            tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
+            source += "+overlap";
+        }
+        if (!assessable) {
+            // Nothing shows stratification, but too little overlap to say there is none: the
+            // TVU keeps the error model's column term, and says it could not be assessed.
+            TripGate(s,
+                     Stage::kGrid,
+                     "sound_speed_not_assessable",
+                     "no sound-velocity cast, and too little swath overlap on floors to measure "
+                     "the water column's speed error (" +
+                         est->message + "; the estimated depth classes hold " +
+                         Fixed(100 * est->EstimatedShare(), 0) +
+                         " % of its soundings): the TVU assumes the column the error model "
+                         "states (" +
+                         Fixed(m.mean_sound_speed_sigma_mps, 1) +
+                         " m/s), which in stratified water it is not; give a cast (--svp) to "
+                         "assess the survey",
+                     log);
+        }
+        if (strat >= 0) {
+            TripGate(s,
+                     Stage::kGrid,
+                     "sound_speed_cast_disagrees",
+                     strat_text +
+                         ": the cast(s) do not describe the water the soundings went through "
+                         "(another time or place, or a wrong cast); the TPU carries the "
+                         "overlap's estimate",
+                     log);
+        }
+    }
+    json classes = json::array();
+    for (const auto& c : est->classes) {
+        if (c.cells == 0) continue;
+        classes.push_back({{"depth_m", {c.lo_m, std::isinf(c.hi_m) ? json(nullptr) : json(c.hi_m)}},
+                           {"cells", c.cells},
+                           {"soundings", c.soundings},
+                           {"estimated", c.estimated},
+                           {"weight_m2", c.weight_m2},
+                           {"relative_error", c.relative_error},
+                           {"relative_error_se", c.relative_error_se},
+                           {"speed_error_mps", c.relative_error * tcfg.sound_speed_mps}});
+    }
+    std::vector<double> col = column;
+    const auto median = [](std::vector<double> v) {
+        if (v.empty()) return std::nan("");
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    json out = {{"source", source},
+                {"pings_with_cast", with_cast},
+                {"header_speed_measured", header_measured},
+                {"median_column_sigma_mps", median(col)},
+                {"stratified", strat >= 0},
+                {"assessable", assessable},
+                {"overlap_estimated_share", est->EstimatedShare()},
+                {"overlap",
+                 {{"soundings", est->soundings_used},
+                  {"cells", est->cells_used},
+                  {"classes", classes},
+                  {"message", est->message}}}};
+    if (!disagreement.empty()) {
+        out["median_surface_disagreement_mps"] = median(disagreement);
+    }
+    return out;
+}
 
 // The transducers' geodetic positions, per ping.
 std::vector<Geodetic> PingGeodetic(const StageContext& s) {
@@ -436,6 +609,7 @@ namespace {
 struct TpuSetup {
     hydro::TpuConfig config;
     std::string model_source;
+    SoundVelocitySource sv_source = SoundVelocitySource::kUnknown;
 };
 
 // The TPU's settings: the vehicle file's error model (ErrorModel), the clock's remaining
@@ -445,7 +619,7 @@ Expected<TpuSetup> SurveyTpuSetup(const StageContext& s,
                                   const Log& log) {
     TpuSetup setup;
     hydro::TpuConfig& tcfg = setup.config;
-    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &setup.model_source);
+    tcfg.model = ErrorModel(s.model.vehicle_yaml, log, &setup.model_source, &setup.sv_source);
     tcfg.sound_speed_mps = gc.tpu_sound_speed_mps;
     tcfg.num_threads = gc.cube.num_threads;
     tcfg.clock_sigma_s = std::abs(s.model.clock.sigma_s());
@@ -523,16 +697,20 @@ std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
                                                const std::vector<double>& datum_height_m,
                                                const hydro::TpuResult& tpu) {
     std::vector<hydro::CubeSounding> soundings(geo.points.size());
+    const std::int64_t t0_gps = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
     for (std::size_t j = 0; j < soundings.size(); ++j) {
         const Eigen::Vector3d& enh = utm.easting_northing_height[j];
         const std::uint32_t ping = geo.points.ping[j];
         const double depth = geo.pings[ping].sensor_world.z() - geo.points.position_world[j].z();
-        soundings[j] = {enh.x(),
-                        enh.y(),
-                        enh.z() - datum_height_m[ping],
-                        static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
-                        static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
-                        static_cast<float>(depth)};
+        soundings[j] = {
+            enh.x(),
+            enh.y(),
+            enh.z() - datum_height_m[ping],
+            static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
+            static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
+            static_cast<float>(depth),
+            tpu.sigma_v_common_m[j],
+            static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6)};
     }
     return soundings;
 }
@@ -558,11 +736,13 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
         utm.easting_northing_height[kept] = utm.easting_northing_height[j];
         tpu.thu_95_m[kept] = tpu.thu_95_m[j];
         tpu.tvu_95_m[kept] = tpu.tvu_95_m[j];
+        tpu.sigma_v_common_m[kept] = tpu.sigma_v_common_m[j];
         ++kept;
     }
     utm.easting_northing_height.resize(kept);
     tpu.thu_95_m.resize(kept);
     tpu.tvu_95_m.resize(kept);
+    tpu.sigma_v_common_m.resize(kept);
     if (rejected > 0) {
         // CUBE again without them: a node whose chosen hypothesis they made (an echo held
         // long enough over one node to outvote the seabed) is decided on the rest.
@@ -765,6 +945,7 @@ Expected<json> RunS44Survey(StageContext& s,
                             const hydro::DatumModel& datum,
                             hydro::TpuResult& tpu,
                             const json& pose_sigma,
+                            const json& sound_speed,
                             json& files,
                             const Log& log) {
     const GridStageConfig& gc = config.grid;
@@ -788,6 +969,18 @@ Expected<json> RunS44Survey(StageContext& s,
     json record = S44Json(r44, holiday_file, UtmToWorld(utm, s.geo));
     // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
     record["pose_sigma_source"] = pose_sigma["source"];
+    // And where its sound speed term came from: an a-priori bound is no assessment.
+    record["sound_speed_source"] = sound_speed["source"];
+    if (!sound_speed.value("assessable", true)) {
+        record["sound_speed_not_assessable"] =
+            sound_speed["source"] == "a_priori_bound"
+                ? "no sound-velocity cast in stratified water (quality gate "
+                  "grid/sound_speed_not_assessable): the TVU takes the a-priori bound of a "
+                  "fresh-water pit's sound speed, and the order stated rests on that bound"
+                : "no sound-velocity cast and too little overlap to measure the water "
+                  "column (quality gate grid/sound_speed_not_assessable): the TVU assumes "
+                  "the error model's sound speed, which stratified water would exceed";
+    }
     CheckCrosslines(s, r44, median_tvu_95_m, config.quality, log);
     return record;
 }
@@ -841,8 +1034,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
 
     PartClock part;
     json timings = json::object();
-    const PoseSigmas pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
+    PoseSigmas pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
     if (pose.from_slam > 0) GateUnvalidatedPosterior(s, log);
+    json sound_speed = {{"source", "error_model"}};
+    if (gc.tpu_sound_speed_from_data) {
+        sound_speed =
+            SoundSpeedSigmas(s, gc, tpu_setup->sv_source, pose.per_ping, tpu_setup->config, log);
+        part.Lap(timings, "sound_speed");
+    }
     hydro::TpuResult tpu =
         hydro::ComputeTpu(s.geo, s.model.mount, pose.per_ping, tpu_setup->config);
     log("grid: TPU (" + tpu_setup->model_source + "): " + tpu.message);
@@ -885,9 +1084,10 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
 
     // The stage's record: the TPU's, S-44's, the mosaic's and the terrain's, then the surface's.
     json stage = TpuJson(*tpu_setup, pose, tpu);
+    stage["sound_speed"] = sound_speed;
     if (gc.s44) {
-        auto s44 =
-            RunS44Survey(s, config, dem, cube.grid, *utm, *datum, tpu, pose.record, files, log);
+        auto s44 = RunS44Survey(
+            s, config, dem, cube.grid, *utm, *datum, tpu, pose.record, sound_speed, files, log);
         if (!s44) return s44.error();
         stage["s44"] = std::move(*s44);
         part.Lap(timings, "s44");

@@ -29,6 +29,7 @@
 #include "processor/hydro/datum.hpp"
 #include "processor/hydro/mosaic.hpp"
 #include "processor/hydro/s44.hpp"
+#include "processor/hydro/sound_speed.hpp"
 #include "processor/hydro/terrain.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -42,6 +43,11 @@ struct GridStageConfig {
     // SLAM trajectory, else the INS's own; false = the INS's own everywhere. Off by default:
     // the posterior does not yet contain the true error (docs/uncertainty.md).
     bool tpu_slam_posterior = false;
+    // The TPU's sound speed terms from the data (processor/hydro/sound_speed.hpp): the casts'
+    // age, distance and disagreement with the sonar's surface speed, and the column speed error
+    // the swath overlap measures; false = the error model's sound speed sigmas alone.
+    bool tpu_sound_speed_from_data = true;
+    hydro::SoundSpeedSigmaConfig sound_speed;
     bool write_geotiff = true;        // P/dem.tif
     bool write_bag = true;            // P/dem.bag
     bool write_sounding_tpu = false;  // P/soundings_tpu.ply (28 bytes a sounding)

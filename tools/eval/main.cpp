@@ -108,7 +108,16 @@ constexpr const char* kDefinitions = R"(Scores (only those whose product exists 
                                 (horizontal) error from the true beam-axis point (the same beam
                                 from the true sonar pose, cast into the true terrain) is within
                                 their 95 % TVU (THU); tpu_within_tvu_NN_MM_deg per |beam angle|
-                                bin.
+                                bin; tpu_truth_rays: curved when truth/scenario.json's water
+                                column refracts (the true beam is cast along the curved ray).
+  tpu_classes, tpu_within_tvu_{angle,depth,slope}_A_B
+                                the same per class (issue 36): |beam angle| 0 20 40 60 90 deg,
+                                true water depth at the true point 0 5 10 20 inf m, true slope
+                                there 0 20 45 91 deg (floors, faces, walls).
+  dem_within_uncertainty, dem_within_uncertainty_{slope,depth}_A_B, dem_uncertainty_classes
+                                share of the filled nodes of P/dem.tif whose vertical error from
+                                the true terrain is within their stated 95 % uncertainty (band
+                                "uncertainty"), all and by the true slope and depth at the node.
   artifact_soundings, artifact_beams_KIND, good_soundings
                                 with truth/artifacts.* (pitmap-sim synth): the beams whose
                                 range an echo artifact replaced (KIND mid_water, bubble,
@@ -674,6 +683,17 @@ Status ScoreMeshPly(const Scoring& scoring, json& scores) {
 }
 
 // ---- grids ----
+// A class's key: KIND_LO_HI ("slope_20_45"), KIND_LO_inf for the open last class.
+std::string ClassKey(const char* kind, double lo, double hi) {
+    char key[64];
+    if (std::isinf(hi)) {
+        std::snprintf(key, sizeof key, "%s_%02.0f_inf", kind, lo);
+    } else {
+        std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f", kind, lo, hi);
+    }
+    return key;
+}
+
 #ifdef PITMAP_EVAL_GRID
 
 bool IsWgs84Utm(int epsg) {
@@ -691,6 +711,38 @@ UtmCoordinate GridNodeUtm(const proc::io::GridRaster& g, int epsg, int i, int j,
     return u;
 }
 
+// The DEM nodes whose error from the true terrain is within their stated 95 % uncertainty, all
+// and by the true slope and depth at the node (dem_within_uncertainty*).
+void ScoreDemUncertainty(const Scoring& scoring,
+                         const std::vector<Eigen::Vector3d>& nodes,
+                         const std::vector<std::size_t>& node_index,
+                         const std::vector<float>& uncertainty,
+                         json& scores) {
+    std::vector<double> unc(nodes.size(), std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t k = 0; k < unc.size() && k < node_index.size(); ++k) {
+        unc[k] = uncertainty[node_index[k]];
+    }
+    const eval::DemUncertaintyScore u = eval::ScoreDemUncertainty(nodes, unc, scoring.truth);
+    if (u.all.count == 0) return;
+    scores["dem_within_uncertainty"] = u.all.within;
+    scores["dem_uncertainty_nodes"] = u.all.count;
+    json classes = json::object();
+    const auto put = [&](const char* kind, const std::vector<eval::DemUncertaintyBin>& bins) {
+        for (const auto& c : bins) {
+            if (c.count == 0) continue;
+            const std::string key = ClassKey(kind, c.lo, c.hi);
+            classes[key] = {{"count", c.count},
+                            {"within", c.within},
+                            {"error_rms_m", c.error_rms_m},
+                            {"stated_sigma_rms_m", c.stated_rms_m}};
+            scores["dem_within_uncertainty_" + key] = c.within;
+        }
+    };
+    put("slope", u.by_slope);
+    put("depth", u.by_depth);
+    scores["dem_uncertainty_classes"] = classes;
+}
+
 // P/dem.tif's nodes (band 1, heights put back on the ellipsoid with summary.json's datum
 // height) against the true terrain; unfilled nodes count towards the fill score.
 Status ScoreDemTif(const Scoring& scoring, json& scores) {
@@ -706,6 +758,7 @@ Status ScoreDemTif(const Scoring& scoring, json& scores) {
     const double datum_height_m = DatumHeight(scoring.products);
     const LocalTangentFrame tf(scoring.truth.origin);
     std::vector<Eigen::Vector3d> nodes;
+    std::vector<std::size_t> node_index;  // of each node in the grid's layers
     nodes.reserve(static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny));
     for (int j = 0; j < g.ny; ++j) {
         for (int i = 0; i < g.nx; ++i) {
@@ -716,7 +769,11 @@ Status ScoreDemTif(const Scoring& scoring, json& scores) {
             Eigen::Vector3d p = tf.ToEnu(*geo);
             if (!std::isfinite(h)) p.z() = std::numeric_limits<double>::quiet_NaN();
             nodes.push_back(p);
+            node_index.push_back(static_cast<std::size_t>(j) * g.nx + i);
         }
+    }
+    if (const std::vector<float>* unc = g.Values("uncertainty")) {
+        ScoreDemUncertainty(scoring, nodes, node_index, *unc, scores);
     }
     const auto score = eval::ScoreDem(nodes, scoring.truth);
     scores["dem_mean_abs_m"] = score.all.mean_abs_m;
@@ -983,7 +1040,15 @@ Status ScoreSoundingsTpuPly(const Scoring& scoring, json& scores) {
         snd[i].thu_95_m = ply->vertex_properties[2][i];
         snd[i].tvu_95_m = ply->vertex_properties[3][i];
     }
-    const auto score = eval::ScoreTpu(snd, scoring.truth, scoring.world);
+    // A refracting survey's true beams are curved (the simulator's water column).
+    std::optional<sim::WaterColumn> water;
+    if (scoring.truth.water) {
+        const auto& heights = scoring.truth.terrain.height_m;
+        const auto deepest = std::min_element(heights.begin(), heights.end());
+        water.emplace(*scoring.truth.water, std::max(0.0, -static_cast<double>(*deepest)) + 10.0);
+    }
+    const auto score =
+        eval::ScoreTpu(snd, scoring.truth, scoring.world, 1'000'000, water ? &*water : nullptr);
     if (score.all.count == 0) return Ok{};
     scores["tpu_within_tvu"] = score.all.within_tvu;
     scores["tpu_within_thu"] = score.all.within_thu;
@@ -991,11 +1056,12 @@ Status ScoreSoundingsTpuPly(const Scoring& scoring, json& scores) {
     scores["tpu_tvu_sigma_rms_m"] = score.all.tvu_rms_m;
     scores["tpu_vertical_bias_m"] = score.all.vertical_bias_m;
     scores["tpu_soundings_scored"] = score.all.count;
+    scores["tpu_truth_rays"] = water ? "curved" : "straight";
     for (const auto& b : score.by_angle) {
         if (b.count == 0) continue;
         auto put = [&](const char* name, const json& value) {
             char key[64];
-            std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo_deg, b.hi_deg);
+            std::snprintf(key, sizeof key, "%s_%02.0f_%02.0f_deg", name, b.lo, b.hi);
             scores[key] = value;
         };
         put("tpu_within_tvu", b.within_tvu);
@@ -1005,6 +1071,25 @@ Status ScoreSoundingsTpuPly(const Scoring& scoring, json& scores) {
         put("tpu_vertical_bias", b.vertical_bias_m);
         put("tpu_count", b.count);
     }
+    // The classes of issue 36: tpu_classes.angle_00_20 {count, within_tvu, ...}.
+    json classes = json::object();
+    const auto put_classes = [&](const char* kind, const std::vector<eval::TpuBin>& bins) {
+        for (const auto& b : bins) {
+            if (b.count == 0) continue;
+            const std::string key = ClassKey(kind, b.lo, b.hi);
+            classes[key] = {{"count", b.count},
+                            {"within_tvu", b.within_tvu},
+                            {"within_thu", b.within_thu},
+                            {"vertical_rms_m", b.vertical_rms_m},
+                            {"tvu_sigma_rms_m", b.tvu_rms_m},
+                            {"vertical_bias_m", b.vertical_bias_m}};
+            scores["tpu_within_tvu_" + key] = b.within_tvu;
+        }
+    };
+    put_classes("angle", score.by_angle_class);
+    put_classes("depth", score.by_depth);
+    put_classes("slope", score.by_slope);
+    scores["tpu_classes"] = classes;
     return Ok{};
 }
 

@@ -442,10 +442,59 @@ std::optional<MosaicScore> ScoreMosaic(const std::vector<Eigen::Vector3d>& nodes
     return out;
 }
 
+namespace {
+
+// Sums of one TPU class.
+struct TpuAccumulator {
+    std::size_t n = 0, in_tvu = 0, in_thu = 0;
+    double ss_err = 0, sum_err = 0, ss_tvu = 0;
+    void Add(const Eigen::Vector3d& e, double tvu_95_m, double thu_95_m) {
+        ++n;
+        in_tvu += std::abs(e.z()) <= tvu_95_m;
+        in_thu += e.head<2>().norm() <= thu_95_m;
+        ss_err += e.z() * e.z();
+        sum_err += e.z();
+        ss_tvu += (tvu_95_m / 1.96) * (tvu_95_m / 1.96);
+    }
+    TpuBin Bin(double lo, double hi) const {
+        TpuBin t;
+        t.lo = lo;
+        t.hi = hi;
+        t.count = n;
+        if (n == 0) return t;
+        const auto c = static_cast<double>(n);
+        t.within_tvu = static_cast<double>(in_tvu) / c;
+        t.within_thu = static_cast<double>(in_thu) / c;
+        t.vertical_rms_m = std::sqrt(ss_err / c);
+        t.tvu_rms_m = std::sqrt(ss_tvu / c);
+        t.vertical_bias_m = sum_err / c;
+        return t;
+    }
+};
+
+// The class of v among edges[0..n-1] ([edge i, edge i + 1)), or -1 outside them.
+template <std::size_t N>
+int ClassOf(const double (&edges)[N], double v) {
+    for (std::size_t i = 0; i + 1 < N; ++i) {
+        if (v >= edges[i] && v < edges[i + 1]) return static_cast<int>(i);
+    }
+    return -1;
+}
+
+template <std::size_t N>
+std::vector<TpuBin> TpuBins(const double (&edges)[N], const std::vector<TpuAccumulator>& acc) {
+    std::vector<TpuBin> out;
+    for (std::size_t i = 0; i + 1 < N; ++i) out.push_back(acc[i].Bin(edges[i], edges[i + 1]));
+    return out;
+}
+
+}  // namespace
+
 TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
                   const sim::Truth& truth,
                   const sim::PitWorld& world,
-                  std::size_t max_soundings) {
+                  std::size_t max_soundings,
+                  const sim::WaterColumn* water) {
     TpuScore out;
     const auto& b = truth.boresight;
     const double deg = M_PI / 180.0;
@@ -457,9 +506,12 @@ TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
     const Pose T_vehicle_sonar = MakePose(
         frames::RotationNedFromRpy(b.roll_deg * deg, b.pitch_deg * deg, b.yaw_deg * deg), arm);
     constexpr int kBins = 7;  // 0..70 deg
-    std::vector<TpuBin> bins(kBins);
-    std::vector<double> ss_err(kBins + 1, 0), ss_tvu(kBins + 1, 0), sum_err(kBins + 1, 0);
-    std::vector<std::size_t> in_tvu(kBins + 1, 0), in_thu(kBins + 1, 0), n(kBins + 1, 0);
+    constexpr std::size_t kAngleClasses = std::size(kTpuAngleClassEdgesDeg) - 1;
+    constexpr std::size_t kDepthClasses = std::size(kTpuDepthClassEdgesM) - 1;
+    constexpr std::size_t kSlopeClasses = std::size(kSlopeClassEdgesDeg) - 1;
+    std::vector<TpuAccumulator> bins(kBins), angle_class(kAngleClasses), depth(kDepthClasses),
+        slope(kSlopeClasses);
+    TpuAccumulator all;
     const std::size_t stride = std::max<std::size_t>(
         1, (snd.size() + max_soundings - 1) / std::max<std::size_t>(max_soundings, 1));
     for (std::size_t i = 0; i < snd.size(); i += stride) {
@@ -473,41 +525,96 @@ TpuScore ScoreTpu(const std::vector<TpuSounding>& snd,
         const double th = s.angle_deg * deg;
         const Eigen::Vector3d dir =
             T_world_sonar.linear() * Eigen::Vector3d(0, std::sin(th), std::cos(th));
-        const auto r = world.RayCast(T_world_sonar.translation(), dir, 500.0);
-        if (!r) {
+        std::optional<Eigen::Vector3d> hit;
+        if (water != nullptr) {
+            // A one-way time long enough for any beam of the pit (500 m at 1400 m/s).
+            if (auto h = water->Cast(world, T_world_sonar.translation(), dir, 0.36)) {
+                hit = h->point;
+            }
+        } else if (auto r = world.RayCast(T_world_sonar.translation(), dir, 500.0)) {
+            hit = T_world_sonar.translation() + *r * dir;
+        }
+        if (!hit) {
             ++out.no_truth;
             continue;
         }
-        const Eigen::Vector3d e = s.position - (T_world_sonar.translation() + *r * dir);
-        const int bin = std::min(kBins - 1, static_cast<int>(std::abs(s.angle_deg) / 10.0));
-        for (int k : {bin, kBins}) {
-            ++n[k];
-            in_tvu[k] += std::abs(e.z()) <= s.tvu_95_m;
-            in_thu[k] += e.head<2>().norm() <= s.thu_95_m;
-            ss_err[k] += e.z() * e.z();
-            sum_err[k] += e.z();
-            ss_tvu[k] += (s.tvu_95_m / 1.96) * (s.tvu_95_m / 1.96);
+        const Eigen::Vector3d e = s.position - *hit;
+        const double abs_angle = std::abs(s.angle_deg);
+        all.Add(e, s.tvu_95_m, s.thu_95_m);
+        bins[std::min(kBins - 1, static_cast<int>(abs_angle / 10.0))].Add(
+            e, s.tvu_95_m, s.thu_95_m);
+        if (int k = ClassOf(kTpuAngleClassEdgesDeg, abs_angle); k >= 0) {
+            angle_class[k].Add(e, s.tvu_95_m, s.thu_95_m);
+        }
+        if (int k = ClassOf(kTpuDepthClassEdgesM, std::max(0.0, -hit->z())); k >= 0) {
+            depth[k].Add(e, s.tvu_95_m, s.thu_95_m);
+        }
+        if (int k = ClassOf(kSlopeClassEdgesDeg, SlopeDeg(world, hit->x(), hit->y())); k >= 0) {
+            slope[k].Add(e, s.tvu_95_m, s.thu_95_m);
         }
     }
-    const auto fill = [&](int k, TpuBin& t) {
-        t.count = n[k];
-        if (n[k] == 0) return;
-        const auto c = static_cast<double>(n[k]);
-        t.within_tvu = static_cast<double>(in_tvu[k]) / c;
-        t.within_thu = static_cast<double>(in_thu[k]) / c;
-        t.vertical_rms_m = std::sqrt(ss_err[k] / c);
-        t.tvu_rms_m = std::sqrt(ss_tvu[k] / c);
-        t.vertical_bias_m = sum_err[k] / c;
+    for (int k = 0; k < kBins; ++k) out.by_angle.push_back(bins[k].Bin(10.0 * k, 10.0 * (k + 1)));
+    out.all = all.Bin(0, 90);
+    out.by_angle_class = TpuBins(kTpuAngleClassEdgesDeg, angle_class);
+    out.by_depth = TpuBins(kTpuDepthClassEdgesM, depth);
+    out.by_slope = TpuBins(kSlopeClassEdgesDeg, slope);
+    return out;
+}
+
+DemUncertaintyScore ScoreDemUncertainty(const std::vector<Eigen::Vector3d>& nodes,
+                                        const std::vector<double>& uncertainty_95_m,
+                                        const sim::Truth& truth) {
+    const sim::TerrainGrid& g = truth.terrain;
+    const sim::PitWorld world(g);
+    struct Acc {
+        std::size_t n = 0, in = 0;
+        double ss_err = 0, ss_stated = 0;
+        void Add(double e, double u) {
+            ++n;
+            in += std::abs(e) <= u;
+            ss_err += e * e;
+            ss_stated += (u / 1.96) * (u / 1.96);
+        }
+        DemUncertaintyBin Bin(double lo, double hi) const {
+            DemUncertaintyBin b;
+            b.lo = lo;
+            b.hi = hi;
+            b.count = n;
+            if (n == 0) return b;
+            const auto c = static_cast<double>(n);
+            b.within = static_cast<double>(in) / c;
+            b.error_rms_m = std::sqrt(ss_err / c);
+            b.stated_rms_m = std::sqrt(ss_stated / c);
+            return b;
+        }
     };
-    for (int k = 0; k < kBins; ++k) {
-        bins[k].lo_deg = 10.0 * k;
-        bins[k].hi_deg = 10.0 * (k + 1);
-        fill(k, bins[k]);
+    constexpr std::size_t kSlopes = std::size(kSlopeClassEdgesDeg) - 1;
+    constexpr std::size_t kDepths = std::size(kTpuDepthClassEdgesM) - 1;
+    Acc all;
+    std::vector<Acc> slope(kSlopes), depth(kDepths);
+    for (std::size_t i = 0; i < nodes.size() && i < uncertainty_95_m.size(); ++i) {
+        const Eigen::Vector3d& p = nodes[i];
+        const double u = uncertainty_95_m[i];
+        if (!std::isfinite(p.z()) || !std::isfinite(u)) continue;
+        const double fx = (p.x() - g.x0_m) / g.resolution_m, fy = (p.y() - g.y0_m) / g.resolution_m;
+        if (fx < 0 || fy < 0 || fx > g.nx - 1 || fy > g.ny - 1) continue;
+        const double e = p.z() - world.Height(p.x(), p.y());
+        all.Add(e, u);
+        if (int k = ClassOf(kSlopeClassEdgesDeg, SlopeDeg(world, p.x(), p.y())); k >= 0) {
+            slope[k].Add(e, u);
+        }
+        if (int k = ClassOf(kTpuDepthClassEdgesM, world.Depth(p.x(), p.y())); k >= 0) {
+            depth[k].Add(e, u);
+        }
     }
-    out.all.lo_deg = 0;
-    out.all.hi_deg = 90;
-    fill(kBins, out.all);
-    out.by_angle = std::move(bins);
+    DemUncertaintyScore out;
+    out.all = all.Bin(0, 0);
+    for (std::size_t k = 0; k < kSlopes; ++k) {
+        out.by_slope.push_back(slope[k].Bin(kSlopeClassEdgesDeg[k], kSlopeClassEdgesDeg[k + 1]));
+    }
+    for (std::size_t k = 0; k < kDepths; ++k) {
+        out.by_depth.push_back(depth[k].Bin(kTpuDepthClassEdgesM[k], kTpuDepthClassEdgesM[k + 1]));
+    }
     return out;
 }
 

@@ -43,6 +43,7 @@
 #include "common/geodesy.hpp"
 #include "common/result.hpp"
 #include "tools/sim/truth_io.hpp"
+#include "tools/sim/water_column.hpp"
 
 namespace pitmap::eval {
 
@@ -195,22 +196,54 @@ struct TpuSounding {
     double thu_95_m = 0, tvu_95_m = 0;
 };
 struct TpuBin {
-    double lo_deg = 0, hi_deg = 0;  // |beam angle| range
+    double lo = 0, hi = 0;  // the class: |beam angle| (deg), true depth (m) or slope (deg)
     std::size_t count = 0;
     double within_tvu = 0, within_thu = 0;
     double vertical_rms_m = 0, tvu_rms_m = 0;  // RMS of the error and of TVU / 1.96
     double vertical_bias_m = 0;                // mean vertical error
 };
+// The classes the TPU and the DEM uncertainty are checked in (issue 36): |beam angle| (the
+// last class holds the beams beyond 60 deg), the true water depth at the true beam-axis point
+// (below the water line z = 0 of the truth) and the true slope there (kSlopeClassEdgesDeg:
+// floors, faces, walls).
+inline constexpr double kTpuAngleClassEdgesDeg[] = {0, 20, 40, 60, 90};
+inline constexpr double kTpuDepthClassEdgesM[] = {
+    0, 5, 10, 20, std::numeric_limits<double>::infinity()};
 struct TpuScore {
     TpuBin all;
-    std::vector<TpuBin> by_angle;  // 10-degree bins
-    std::size_t no_truth = 0;      // outside the true trajectory or no terrain on the ray
+    std::vector<TpuBin> by_angle;        // 10-degree bins
+    std::vector<TpuBin> by_angle_class;  // kTpuAngleClassEdgesDeg
+    std::vector<TpuBin> by_depth;        // kTpuDepthClassEdgesM
+    std::vector<TpuBin> by_slope;        // kSlopeClassEdgesDeg
+    std::size_t no_truth = 0;            // outside the true trajectory or no terrain on the ray
 };
-// At most max_soundings (evenly strided) are scored.
+// At most max_soundings (evenly strided) are scored. The true beam-axis point is the beam of
+// the same angle from the true sonar pose cast into the true terrain: straight, or with
+// `water` (the truth's refracting water column) along the curved ray, as the simulator cast it.
 TpuScore ScoreTpu(const std::vector<TpuSounding>& soundings,
                   const sim::Truth& truth,
                   const sim::PitWorld& world,
-                  std::size_t max_soundings = 1'000'000);
+                  std::size_t max_soundings = 1'000'000,
+                  const sim::WaterColumn* water = nullptr);
+
+// Whether the DEM's stated 95 % uncertainty (P/dem.tif band "uncertainty") contains its true
+// vertical error: per filled node with a finite uncertainty, |z - true height| <= uncertainty;
+// all nodes, and by the true slope (kSlopeClassEdgesDeg) and true depth (kTpuDepthClassEdgesM)
+// at the node.
+struct DemUncertaintyBin {
+    double lo = 0, hi = 0;
+    std::size_t count = 0;
+    double within = 0;                         // share
+    double error_rms_m = 0, stated_rms_m = 0;  // RMS of the error and of uncertainty / 1.96
+};
+struct DemUncertaintyScore {
+    DemUncertaintyBin all;
+    std::vector<DemUncertaintyBin> by_slope, by_depth;
+};
+// `nodes_truth` as ScoreDem's, `uncertainty_95_m` one per node (NaN = none).
+DemUncertaintyScore ScoreDemUncertainty(const std::vector<Eigen::Vector3d>& nodes_truth,
+                                        const std::vector<double>& uncertainty_95_m,
+                                        const sim::Truth& truth);
 
 // The echo artifacts (truth/artifacts.*, tools/sim/echo_artifacts.hpp) found in a point cloud:
 // each point is matched to its (ping, beam) by its beam number and its ping time (ping k

@@ -733,6 +733,26 @@ Expected<Truth> ReadTruth(const std::string& dir) {
             return Error{dir + "/sonar_clock.json: " + e.what()};
         }
     }
+    if (std::ifstream probe(dir + "/scenario.json"); probe) {
+        auto sj = ReadJson(dir + "/scenario.json");
+        if (!sj) return sj.error();
+        if (sj->contains("water") && sj->at("water").value("refraction", false)) {
+            try {
+                const json& w = sj->at("water");
+                WaterColumnConfig c;
+                c.refraction = true;
+                c.surface_speed_mps = w.at("surface_speed_mps").get<double>();
+                c.mixed_layer_depth_m = w.at("mixed_layer_depth_m").get<double>();
+                c.thermocline_depth_m = w.at("thermocline_depth_m").get<double>();
+                c.deep_speed_mps = w.at("deep_speed_mps").get<double>();
+                c.deep_gradient_per_s = w.at("deep_gradient_per_s").get<double>();
+                c.cast_spacing_m = w.at("cast_spacing_m").get<double>();
+                t.water = c;
+            } catch (const json::exception& e) {
+                return Error{dir + "/scenario.json: water: " + e.what()};
+            }
+        }
+    }
     if (std::ifstream probe(dir + "/artifacts.json"); probe) {
         auto r = ReadArtifacts(dir);
         if (!r) return r.error();

@@ -26,6 +26,8 @@
 //                         3 dropout, 4 multipath, 5 smile, 6 coarse outlier), little-endian,
 //                         9 bytes a run (the quarry: 185 kB, 90 % of it the coarse
 //                         outliers, single beams; bejanca about 1.1 MB)
+// <dir>/scenario.json's "water" is read back (Truth::water) when its refraction is on: the
+//                         scorer then casts the true beams along curved rays.
 // <dir>/sonar_clock.json  optional: the topside PC clock of the 83P headers (SonarClockTruth)
 //                         and what the topside's NMEA / attitude inputs put into the headers
 // <dir>/capacity.csv      the pit's capacity on the true terrain of this epoch: level_m (world
@@ -120,6 +122,9 @@ struct Truth {
     int epoch = 1;                               // repeat surveys: this survey's epoch
     std::vector<ChangePart> changes;             // since epoch 1 (changes.json), may be empty
     std::vector<float> change_m;                 // empty, or per terrain cell (change.f32)
+    // The water column the pings were ray traced through (scenario.json "water" with
+    // refraction true); nullopt = straight rays at the sonar's sound speed. Read only.
+    std::optional<WaterColumnConfig> water;
 };
 
 Status WriteScenarioJson(const std::string& path, const ScenarioConfig& sc);

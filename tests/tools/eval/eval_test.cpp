@@ -342,6 +342,81 @@ TEST(Scores, MeshCompletenessCountsCoveredCellsNearTheMesh) {
     EXPECT_NEAR(*MeshCompleteness(samples, truth), 0.0, 1e-12);
 }
 
+TEST(Scores, DemUncertaintyCountsNodesWithinTheirStatedUncertaintyByClass) {
+    const sim::Truth truth = FlatTruth();  // floor at z = -10: slope 0, depth 10 m
+    std::vector<Eigen::Vector3d> nodes;
+    std::vector<double> unc;
+    for (int k = 0; k < 10; ++k) {
+        // Errors 0.01 .. 0.10 m against a stated 0.055 m: five within.
+        nodes.emplace_back(k - 5.0, 3.0, -10.0 + 0.01 * (k + 1));
+        unc.push_back(0.055);
+    }
+    nodes.emplace_back(1.0, 1.0, std::nan(""));  // empty node: not scored
+    unc.push_back(0.1);
+    nodes.emplace_back(2.0, 1.0, -10.0);  // no stated uncertainty: not scored
+    unc.push_back(std::nan(""));
+    const DemUncertaintyScore s = ScoreDemUncertainty(nodes, unc, truth);
+    EXPECT_EQ(s.all.count, 10u);
+    EXPECT_NEAR(s.all.within, 0.5, 1e-12);
+    EXPECT_NEAR(s.all.stated_rms_m, 0.055 / 1.96, 1e-12);
+    ASSERT_EQ(s.by_slope.size(), std::size(kSlopeClassEdgesDeg) - 1);
+    EXPECT_EQ(s.by_slope[0].count, 10u);  // all on the floor class
+    EXPECT_EQ(s.by_slope[2].count, 0u);
+    ASSERT_EQ(s.by_depth.size(), std::size(kTpuDepthClassEdgesM) - 1);
+    EXPECT_EQ(s.by_depth[2].count, 10u);  // 10 m: the 10-20 m class
+    EXPECT_NEAR(s.by_depth[2].within, 0.5, 1e-12);
+}
+
+// Soundings placed on the true beam-axis point (straight rays) score no error; through a
+// refracting water column the true point is the curved ray's, and the straight ray's point is
+// off by what refraction does, so the same soundings are then outside a tight THU.
+TEST(Scores, TpuClassesAndTheCurvedTrueRayOfARefractingColumn) {
+    sim::Truth truth = FlatTruth();
+    truth.terrain.height_m.assign(truth.terrain.height_m.size(), -12.0f);  // a 12 m floor
+    for (auto& p : truth.trajectory) {  // level, heading north: the sonar looks down
+        p.T_world_vehicle = MakePose(frames::RotationEnuFromNed(), p.T_world_vehicle.translation());
+    }
+    const sim::PitWorld world(truth.terrain);
+    const double deg = M_PI / 180.0;
+    const auto& b = truth.boresight;
+    const Pose T_vehicle_sonar =
+        MakePose(frames::RotationNedFromRpy(b.roll_deg * deg, b.pitch_deg * deg, b.yaw_deg * deg),
+                 Eigen::Vector3d(0.8, 0.0, 0.25));
+    std::vector<TpuSounding> snd;
+    for (int k = 10; k < 90; k += 10) {
+        for (double a = -55; a <= 55; a += 5) {
+            TpuSounding s;
+            s.gps_time_s = 1.4e9 + k;
+            s.angle_deg = a;
+            const Pose T = *sim::InterpolateTruth(truth.trajectory, s.gps_time_s) * T_vehicle_sonar;
+            const Eigen::Vector3d dir =
+                T.linear() * Eigen::Vector3d(0, std::sin(a * deg), std::cos(a * deg));
+            s.position = T.translation() + *world.RayCast(T.translation(), dir, 100) * dir;
+            s.tvu_95_m = 0.01;
+            s.thu_95_m = 0.01;
+            snd.push_back(s);
+        }
+    }
+    const TpuScore straight = ScoreTpu(snd, truth, world);
+    EXPECT_EQ(straight.all.count, snd.size());
+    EXPECT_NEAR(straight.all.within_tvu, 1.0, 1e-12);
+    ASSERT_EQ(straight.by_angle_class.size(), std::size(kTpuAngleClassEdgesDeg) - 1);
+    EXPECT_EQ(straight.by_angle_class[0].count, 8u * 7u);  // |a| 0, 5, 10, 15 (both sides)
+    EXPECT_EQ(straight.by_angle_class[3].count, 0u);
+    EXPECT_EQ(straight.by_slope[0].count, snd.size());
+    EXPECT_EQ(straight.by_depth[2].count, snd.size());  // 12 m: the 10-20 m class
+    sim::WaterColumnConfig w;
+    w.refraction = true;
+    const sim::WaterColumn water(w, 20.0);
+    const TpuScore curved = ScoreTpu(snd, truth, world, 1'000'000, &water);
+    EXPECT_EQ(curved.all.count, snd.size());
+    // The outer beams bend most: their straight-ray points on the floor lie far (horizontally:
+    // both are on the floor) from where the curved beam meets it.
+    EXPECT_LT(curved.by_angle_class[2].within_thu, 0.2);
+    EXPECT_NEAR(curved.by_angle_class[2].within_tvu, 1.0, 1e-12);
+    EXPECT_NEAR(straight.by_angle_class[2].within_thu, 1.0, 1e-12);
+}
+
 // The common surface of two meshes: the samples in cells that hold samples of both, the same
 // cells for either mesh.
 TEST(Scores, SharedCellsKeepOnlyTheCommonSurfaceOfBothMeshes) {

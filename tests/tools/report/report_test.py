@@ -1171,6 +1171,11 @@ class HelperTest(unittest.TestCase):
         self.assertIn(": 94.9 %", text)
         self.assertEqual(c(None)[0], "unknown")
         self.assertEqual(c(self.S44(), "2b")[0], "unknown")
+        # A TVU on the a-priori sound speed bound (no cast, issue 36) says so.
+        self.assertNotIn("Not assessable", c(self.S44())[1])
+        verdict, text = c(self.S44(sound_speed_not_assessable="no sound-velocity cast"))
+        self.assertEqual(verdict, "met")
+        self.assertIn("<b>Not assessable for sound speed:</b> no sound-velocity cast.", text)
 
     def test_scale_bar_matches_the_geotransform(self):
         import matplotlib

@@ -220,6 +220,9 @@ def compliance_statement(s44, target=None):
         s += f" The strictest order whose uncertainty limits are met is {esc(best)}."
     elif not best:
         s += " No order's uncertainty limits are met by 95 % of the soundings."
+    if s44.get("sound_speed_not_assessable"):
+        s += (" <b>Not assessable for sound speed:</b> "
+              f"{esc(s44['sound_speed_not_assessable'])}.")
     return ("met" if met else "not met"), s
 
 

@@ -1,0 +1,140 @@
+// SPDX-License-Identifier: MIT
+// The sound speed uncertainty from the data (processor/hydro/sound_speed.hpp): the cast's
+// growth terms, the a-priori bound, the refraction-error relation of the TPU against exact ray
+// tracing, and the swath-overlap estimate on synthetic soundings with a known column error.
+#include "processor/hydro/sound_speed.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "common/frames.hpp"
+#include "processor/hydro/tpu.hpp"
+#include "processor/svp/ray_trace.hpp"
+#include "processor/svp/seawater.hpp"
+
+namespace pitmap::proc::hydro {
+namespace {
+
+TEST(SoundSpeedSigma, CastSigmaGrowsWithAgeDistanceAndTheSurfaceDisagreement) {
+    SoundSpeedSigmaConfig cfg;
+    cfg.cast_age_rate_mps_per_h = 1.0;
+    cfg.cast_distance_rate_mps_per_km = 2.0;
+    const double nan = std::nan("");
+    EXPECT_DOUBLE_EQ(CastSpeedSigma(0.5, nan, nan, nan, cfg), 0.5);
+    EXPECT_DOUBLE_EQ(CastSpeedSigma(0.5, 0, 0, 0, cfg), 0.5);
+    // Two hours before or after the cast: 2 m/s in quadrature.
+    EXPECT_NEAR(CastSpeedSigma(0.5, 7200, nan, nan, cfg), std::hypot(0.5, 2.0), 1e-12);
+    EXPECT_NEAR(CastSpeedSigma(0.5, -7200, nan, nan, cfg), std::hypot(0.5, 2.0), 1e-12);
+    // 1.5 km away: 3 m/s; a surface 4 m/s off the cast: 4 m/s.
+    EXPECT_NEAR(CastSpeedSigma(0.5, nan, 1500, nan, cfg), std::hypot(0.5, 3.0), 1e-12);
+    EXPECT_NEAR(CastSpeedSigma(0.5, nan, nan, -4.0, cfg), std::hypot(0.5, 4.0), 1e-12);
+    EXPECT_NEAR(CastSpeedSigma(0, 3600, 500, 2, cfg), std::sqrt(1.0 + 1.0 + 4.0), 1e-12);
+    cfg.cast_age_rate_mps_per_h = -1;
+    EXPECT_FALSE(cfg.Validate().empty());
+    EXPECT_TRUE(SoundSpeedSigmaConfig{}.Validate().empty());
+    SoundSpeedSigmaConfig edges;
+    edges.overlap_depth_edges_m = {5, 3};
+    EXPECT_FALSE(edges.Validate().empty());
+}
+
+TEST(SoundSpeedSigma, NoCastBoundIsTheRangeToWaterAtFourDegrees) {
+    // Fresh water at 4 degC, surface pressure (Chen & Millero): 1421.6 m/s.
+    const double c4 = svp::SoundSpeedChenMillero(0, 4, 0);
+    EXPECT_NEAR(c4, 1421.6, 0.3);
+    EXPECT_NEAR(NoCastPriorSigma(1496.0), (1496.0 - c4) / std::sqrt(3.0), 1e-9);
+    EXPECT_NEAR(NoCastPriorSigma(c4), 0.0, 1e-9);
+    EXPECT_NEAR(NoCastPriorSigma(1410.0), (c4 - 1410.0) / std::sqrt(3.0), 1e-9);  // ice-covered
+}
+
+TEST(SoundSpeedSigma, RegressorIsTheDepthTimesOneMinusTanSquared) {
+    EXPECT_NEAR(RefractionRegressor(Eigen::Vector3d(0, 0, -10)), 10.0, 1e-12);
+    EXPECT_NEAR(RefractionRegressor(Eigen::Vector3d(10, 0, -10)), 0.0, 1e-12);  // 45 deg
+    const double t60 = std::tan(frames::DegToRad(60));
+    EXPECT_NEAR(RefractionRegressor(Eigen::Vector3d(0, 10 * t60, -10)), -20.0, 1e-9);
+    EXPECT_EQ(RefractionRegressor(Eigen::Vector3d(3, 0, 1)), 0.0);  // above the transducer
+}
+
+// The TPU's column term against exact ray tracing: a sounding computed with a profile of speed
+// c0 when the water below the face runs at c0 + dc moves by what the closed-form tracer says;
+// the TPU's 1-sigma for a column sigma of dc matches that displacement to first order.
+TEST(SoundSpeedSigma, TpuColumnTermMatchesRayTracingOfAColumnSpeedError) {
+    const double c0 = 1480.0, dc = 2.0, z0 = 0.5;
+    const svp::LayeredProfile assumed({0.0, 100.0}, {c0, c0});
+    const svp::LayeredProfile actual({0.0, 0.5, 0.5001, 100.0}, {c0, c0, c0 + dc, c0 + dc});
+    TpuConfig cfg;
+    cfg.sound_speed_mps = c0;
+    cfg.model = SensorErrorModel{};
+    cfg.model.range_sigma_m = cfg.model.range_sigma_fraction = 0;
+    cfg.model.beam_angle_sigma_deg = cfg.model.surface_sound_speed_sigma_mps = 0;
+    cfg.model.position_noise_m = cfg.model.lever_arm_sigma_m = cfg.model.boresight_sigma_deg = 0;
+    cfg.model.latency_sigma_s = 0;
+    PingSigma sig;
+    sig.column_speed_sigma_mps = dc;
+    for (const double deg : {0.0, 20.0, 35.0, 50.0, 60.0}) {
+        const double th = frames::DegToRad(deg);
+        const double t = 25.0 / std::cos(th) / c0;  // 25 m deep at the assumed speed
+        const svp::RayEnd a = svp::TraceRay(assumed, z0, th, t, c0);
+        const svp::RayEnd b = svp::TraceRay(actual, z0, th, t, c0);
+        ASSERT_EQ(a.status, svp::RayStatus::kOk);
+        ASSERT_EQ(b.status, svp::RayStatus::kOk);
+        // The true point minus the computed one: the error of the sounding is its negative.
+        const double dz = b.depth_m - a.depth_m, dx = b.horizontal_m - a.horizontal_m;
+        SoundingGeometry g;  // level vehicle, beam in the y-z plane, 25 m deep at c0
+        g.R_world_vehicle = frames::RotationWorldFromRpy(0, 0, 0);
+        g.range_m = c0 * t;
+        g.angle_rad = th;
+        std::array<Eigen::Matrix3d, kNumTpuTerms> terms;
+        (void)SoundingCovariance(g, sig, cfg, &terms);
+        const Eigen::Matrix3d& C = terms[static_cast<int>(TpuTerm::kSoundSpeed)];
+        // First order in dc / c (1.4e-3): agree within 2 % of the displacement (+ 0.1 mm).
+        EXPECT_NEAR(std::sqrt(C(2, 2)), std::abs(dz), 0.02 * std::abs(dz) + 1e-4) << deg;
+        EXPECT_NEAR(std::sqrt(C(0, 0) + C(1, 1)), std::abs(dx), 0.02 * std::abs(dx) + 1e-4) << deg;
+    }
+}
+
+// Soundings of a flat floor at 12 m from passes whose beams overlap, with a column speed error
+// dc applied by the refraction-error relation and range noise: the overlap fit finds dc / c in
+// the floor's depth class, with a standard error that covers it, and nothing where no
+// soundings are. Without the error it finds nothing significant.
+TEST(SoundSpeedSigma, OverlapFindsAKnownColumnSpeedError) {
+    for (const double dc : {-20.0, 0.0, 3.0}) {
+        const double c = 1500.0, depth = 12.0;
+        std::mt19937_64 rng(11);
+        std::normal_distribution<double> noise(0.0, 0.03);
+        std::vector<Eigen::Vector3d> points, offsets;
+        // Passes along y every 6 m, beams +-60 deg across: every spot seen at several angles.
+        for (int pass = 0; pass < 8; ++pass) {
+            const double x0 = 6.0 * pass;
+            for (double y = 0; y < 40; y += 0.25) {
+                for (double deg = -60; deg <= 60; deg += 1.0) {
+                    const Eigen::Vector3d o(depth * std::tan(frames::DegToRad(deg)), 0, -depth);
+                    const double dz = RefractionRegressor(o) * dc / c;
+                    const Eigen::Vector3d p(x0 + o.x(), y, -depth + dz + noise(rng));
+                    points.push_back(p);
+                    offsets.push_back(o);
+                }
+            }
+        }
+        SoundSpeedSigmaConfig cfg;
+        const OverlapSpeedEstimate e = EstimateColumnSpeedError(points, offsets, cfg);
+        ASSERT_TRUE(e.estimated()) << e.message;
+        const auto& k = e.classes[1];  // 10-15 m
+        ASSERT_TRUE(k.estimated);
+        EXPECT_NEAR(k.relative_error * c, dc, 0.3) << e.message;
+        EXPECT_LT(k.relative_error_se * c, 0.3);
+        EXPECT_FALSE(e.classes[0].estimated);  // 6-10 m: no soundings
+        // The sigma at any depth: this class's (the only one estimated).
+        EXPECT_NEAR(
+            e.RelativeSigmaAt(4.0), std::hypot(k.relative_error, k.relative_error_se), 1e-15);
+        EXPECT_EQ(e.StratifiedClass(c, cfg.overlap_stratified_mps), dc == -20.0 ? 1 : -1);
+    }
+    // No soundings: nothing estimated.
+    const OverlapSpeedEstimate none = EstimateColumnSpeedError({}, {}, SoundSpeedSigmaConfig{});
+    EXPECT_FALSE(none.estimated());
+    EXPECT_TRUE(std::isnan(none.RelativeSigmaAt(10)));
+}
+
+}  // namespace
+}  // namespace pitmap::proc::hydro
