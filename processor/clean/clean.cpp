@@ -9,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <unordered_map>
 
 namespace pitmap::proc::clean {
 
@@ -139,12 +141,80 @@ private:
 
 // Scratch of LineScore, one per thread.
 struct LineScratch {
-    std::vector<double> slopes, icept, res;
+    std::vector<double> slopes, icept, res, d, r;
 };
 
+// A robust line's value at the sounding (d = 0) and its spread (1.4826 MAD of the residuals of
+// the points it was fitted to); ok when it had enough points.
+struct ProfileLine {
+    double value = 0, spread = 0;
+    bool ok = false;
+};
+
+// The median intercept at d = 0 of the points (s.d, s.r) under `slope`, and their spread.
+ProfileLine LineThrough(double slope, LineScratch& s) {
+    s.icept.clear();
+    for (std::size_t i = 0; i < s.d.size(); ++i) s.icept.push_back(s.r[i] - slope * s.d[i]);
+    ProfileLine line;
+    line.value = Median(s.icept);
+    s.res.clear();
+    for (const double x : s.icept) s.res.push_back(std::abs(x - line.value));
+    line.spread = 1.4826 * Median(s.res);
+    line.ok = true;
+    return line;
+}
+
+// The line through the neighbours on both sides: Theil-Sen over the symmetric pairs.
+template <class At>
+ProfileLine SymmetricLine(int w, const At& at, LineScratch& s) {
+    s.slopes.clear();
+    s.d.clear();
+    s.r.clear();
+    for (int d = 1; d <= w; ++d) {
+        const double a = at(-d), c = at(d);
+        if (std::isfinite(a) && std::isfinite(c)) s.slopes.push_back((c - a) / (2.0 * d));
+    }
+    if (static_cast<int>(s.slopes.size()) < std::max(2, w / 2)) return {};
+    for (int d = -w; d <= w; ++d) {
+        const double a = at(d);
+        if (d != 0 && std::isfinite(a)) {
+            s.d.push_back(d);
+            s.r.push_back(a);
+        }
+    }
+    return LineThrough(Median(s.slopes), s);
+}
+
+// The line through the neighbours on one side (side -1: the pings before, +1: after),
+// extrapolated to the sounding: Theil-Sen over the pairs half the side's soundings apart. The
+// edge pings of an echo run have one clean side and one the run contaminates, where the
+// symmetric pairs mix both.
+template <class At>
+ProfileLine SideLine(int w, int side, const At& at, LineScratch& s) {
+    s.d.clear();
+    s.r.clear();
+    for (int d = 1; d <= w; ++d) {
+        const double a = at(side * d);
+        if (std::isfinite(a)) {
+            s.d.push_back(side * d);
+            s.r.push_back(a);
+        }
+    }
+    const std::size_t n = s.d.size();
+    if (static_cast<int>(n) < std::max(3, w / 2)) return {};
+    const std::size_t h = (n + 1) / 2;
+    s.slopes.clear();
+    for (std::size_t i = 0; i + h < n; ++i)
+        s.slopes.push_back((s.r[i + h] - s.r[i]) / (s.d[i + h] - s.d[i]));
+    return LineThrough(Median(s.slopes), s);
+}
+
 // A sounding's distance (range r0) to the robust line through its neighbours at(-w..w)
-// (without 0) over the threshold; 0 where it cannot be judged. The line is Theil-Sen over
-// symmetric pairs with the median intercept, its spread the MAD of the neighbours' residuals.
+// (without 0) over the threshold max(profile_min_m, margin_rel of the range, profile_sigmas
+// spreads); 0 where it cannot be judged: the line's spread over profile_max_spread of the
+// range (the neighbours disagree). The symmetric line (SymmetricLine) judges where its
+// neighbours agree; where they do not, the lines of each side (SideLine) that agree do, and the
+// sounding is off only when it is off every one of them (a step of the terrain is on one).
 template <class At>
 double LineScore(int w, const At& at, double r0, const CleanConfig& config, LineScratch& s) {
     if (w <= 0) return 0.0;
@@ -166,26 +236,26 @@ double LineScore(int w, const At& at, double r0, const CleanConfig& config, Line
         const double outer = midpoint(w), inner = midpoint(w / 2);
         if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
     }
-    s.slopes.clear();
-    for (int d = 1; d <= w; ++d) {
-        const double a = at(-d), c = at(d);
-        if (std::isfinite(a) && std::isfinite(c)) s.slopes.push_back((c - a) / (2.0 * d));
-    }
-    if (static_cast<int>(s.slopes.size()) < std::max(2, w / 2)) return 0.0;
-    const double slope = Median(s.slopes);
-    s.icept.clear();
-    for (int d = -w; d <= w; ++d) {
-        const double a = at(d);
-        if (d != 0 && std::isfinite(a)) s.icept.push_back(a - slope * d);
-    }
-    const double line = Median(s.icept);
-    s.res.clear();
-    for (const double x : s.icept) s.res.push_back(std::abs(x - line));
-    const double spread = 1.4826 * Median(s.res);
-    if (spread > config.profile_max_spread * line) return 0.0;
-    return std::abs(r0 - line) /
-           std::max(
-               {config.profile_min_m, config.margin_rel * line, config.profile_sigmas * spread});
+    auto score = [&](const ProfileLine& line) {
+        if (!line.ok || line.spread > config.profile_max_spread * line.value) return -1.0;
+        return std::abs(r0 - line.value) / std::max({config.profile_min_m,
+                                                     config.margin_rel * line.value,
+                                                     config.profile_sigmas * line.spread});
+    };
+    const double both = score(SymmetricLine(w, at, s));
+    if (both >= 0) return both;
+    // The neighbours disagree: the edge of a run of echoes in the water has one side the run
+    // disturbs and one the terrain's line goes on. Judged on that side's line when it is far
+    // in front of it (more than kFarInFront of the range: further than the terrain's profile
+    // bends in a few pings; where both sides agree within themselves and not with each other,
+    // the terrain steps), at half its score (an extrapolated line misses by more).
+    constexpr double kFarInFront = 0.15;
+    const ProfileLine before = SideLine(w, -1, at, s), after = SideLine(w, 1, at, s);
+    const double sb = score(before), sa = score(after);
+    if ((sb >= 0) == (sa >= 0)) return 0.0;
+    const ProfileLine& line = sb >= 0 ? before : after;
+    if (line.value - r0 < kFarInFront * line.value) return 0.0;
+    return 0.5 * std::max(sb, sa);
 }
 
 constexpr float kDecided = 1e9f;  // the score of a sounding the 3D tests rejected
@@ -200,7 +270,11 @@ std::vector<float> ProfileScores(const georef::GeorefResult& geo,
     const std::size_t n = P.size();
     const std::size_t beams = grid.beams();
     std::vector<float> range(grid.pings() * beams, std::numeric_limits<float>::quiet_NaN());
-    for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    // The neighbours are the soundings the 3D tests accepted: an echo they rejected does not
+    // pull its run's line.
+    for (std::size_t j = 0; j < n; ++j) {
+        if (decided[j] == 0) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    }
     std::vector<float> score(n, 0.0f);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
         LineScratch scratch;
@@ -283,12 +357,12 @@ std::vector<char> RunsOfTwoOrMore(const std::vector<float>& score,
 // a lone range off its line is the terrain's (an edge the line does not follow) or the spike
 // filter's.
 std::vector<char> Profiles(const georef::GeorefResult& geo,
+                           const SoundingGrid& grid,
                            const CleanConfig& config,
                            const std::vector<std::uint8_t>& decided) {
     const std::size_t n = geo.points.size();
     if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0))
         return std::vector<char>(n, 0);
-    const SoundingGrid grid(geo);
     return RunsOfTwoOrMore(ProfileScores(geo, grid, config, decided), grid, decided);
 }
 
@@ -300,12 +374,12 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
 // a break in the range (profile_min_m, margin_rel) within 3 soundings on its other side. Two
 // passes (a hole of two soundings closes from both ends).
 void FillHoles(const georef::GeorefResult& geo,
+               const SoundingGrid& grid,
                const CleanConfig& config,
                std::vector<std::uint8_t>& status) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || !(config.hole_tolerance > 0)) return;
-    const SoundingGrid grid(geo);
     auto nearest = [&grid](std::size_t j, int dk, int db, int* at) {
         return grid.Nearest(j, dk, db, at);
     };
@@ -361,6 +435,81 @@ void FillHoles(const georef::GeorefResult& geo,
             }
         });
         status.swap(next);
+    }
+}
+
+// Enclosed runs: the soundings still accepted form pieces of continuous range over the (ping,
+// beam) grid (neighbours along track and across the fan, over up to 3 dropouts, within
+// hole_tolerance of the range and 0.1 m). A small piece (fill_max_soundings at most) touching
+// rejected soundings continuously (fill_min_contacts or more contacts) is the rest of their
+// run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
+// between the run's rejected soundings and breaks in the range (profile_min_m, margin_rel of the
+// range). A piece with an accepted neighbour outside it nearer than a break is open: the
+// terrain's noise parted them (the terrain is one large piece, or pieces its noise parts). An
+// enclosed piece takes the status most of its contacts have.
+void FillEnclosed(const georef::GeorefResult& geo,
+                  const SoundingGrid& grid,
+                  const CleanConfig& config,
+                  std::vector<std::uint8_t>& status) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    if (n == 0 || config.fill_max_soundings <= 0 || !(config.hole_tolerance > 0)) return;
+    auto continuous = [&](std::size_t a, std::size_t b) {
+        const double ra = P.range_m[a], rb = P.range_m[b];
+        return std::abs(ra - rb) <= std::max(0.1, config.hole_tolerance * std::min(ra, rb));
+    };
+    std::vector<std::int32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] != 0) continue;
+        for (const auto& [dk, db] : {std::pair{1, 0}, std::pair{0, 1}}) {
+            const std::int32_t q = grid.Nearest(j, dk, db);
+            if (q < 0 || status[q] != 0 || !continuous(j, q)) continue;
+            const std::int32_t a = Find(parent, static_cast<std::int32_t>(j));
+            const std::int32_t b = Find(parent, q);
+            if (a != b) parent[std::max(a, b)] = std::min(a, b);
+        }
+    }
+    std::vector<std::int32_t> size(n, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] != 0) continue;
+        parent[j] = Find(parent, static_cast<std::int32_t>(j));
+        ++size[parent[j]];
+    }
+    // Per small piece: its contacts by the contact's status.
+    std::unordered_map<std::int32_t, std::array<std::int32_t, georef::kNumSoundingStatus>> votes;
+    constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] != 0) continue;
+        const std::int32_t root = parent[j];
+        if (size[root] > config.fill_max_soundings) continue;
+        for (const auto& dir : kDirections) {
+            const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+            if (q < 0 || (status[q] == 0 && parent[q] == root)) continue;
+            // Slot 0 counts the piece's open edges: an accepted neighbour outside it within a
+            // break (the terrain's noise parted them, not an echo's edge).
+            const bool open =
+                status[q] == 0 && !continuous(j, q) &&
+                std::abs(double{P.range_m[q]} - P.range_m[j]) <=
+                    std::max(config.profile_min_m, config.margin_rel * double{P.range_m[j]});
+            if (!open && (status[q] == 0 || !continuous(j, q))) continue;
+            auto [it, fresh] = votes.try_emplace(root);
+            if (fresh) it->second.fill(0);
+            ++it->second[status[q]];
+        }
+    }
+    std::unordered_map<std::int32_t, std::uint8_t> verdict;
+    for (const auto& [root, v] : votes) {
+        if (v[0] > 0) continue;
+        const auto best = std::max_element(v.begin(), v.end());
+        if (std::accumulate(v.begin(), v.end(), 0) >= config.fill_min_contacts)
+            verdict[root] = static_cast<std::uint8_t>(best - v.begin());
+    }
+    if (verdict.empty()) return;
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] != 0) continue;
+        const auto it = verdict.find(parent[j]);
+        if (it != verdict.end()) status[j] = it->second;
     }
 }
 
@@ -755,6 +904,8 @@ std::vector<std::string> CleanConfig::Validate() const {
     if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
     if (!(hole_tolerance >= 0 && hole_tolerance < 1))
         p.push_back("clean.hole_tolerance must be in [0, 1)");
+    if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
+    if (fill_min_contacts < 1) p.push_back("clean.fill_min_contacts must be >= 1");
     if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
     if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
     if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
@@ -833,12 +984,14 @@ CleanResult Clean(const georef::GeorefResult& geo,
 
     // ---- 5. the range profiles: what the 3D tests left ----
     t_start = std::chrono::steady_clock::now();
-    const std::vector<char> along = Profiles(geo, config, result.status);
+    const SoundingGrid grid(geo);
+    const std::vector<char> along = Profiles(geo, grid, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
         if (along[j] && result.status[j] == 0)
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
-    FillHoles(geo, config, result.status);
+    FillHoles(geo, grid, config, result.status);
+    FillEnclosed(geo, grid, config, result.status);
     CountVerdicts(result.status, c);
     c.seconds_profiles = Seconds(t_start);
     report(1.0);
