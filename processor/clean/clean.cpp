@@ -17,7 +17,6 @@
 #include <limits>
 #include <memory>
 #include <numeric>
-#include <unordered_map>
 
 namespace pitmap::proc::clean {
 
@@ -232,7 +231,7 @@ double LineScore(int w, const At& at, double r0, const CleanConfig& config, Line
             }
             return std::nan("");
         };
-        const double tol = 0.5 * config.profile_min_m;
+        const double tol = 0.5 * std::max(config.profile_min_m, config.margin_rel * r0);
         const double outer = midpoint(w), inner = midpoint(w / 2);
         if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
     }
@@ -388,6 +387,13 @@ void FillHoles(const georef::GeorefResult& geo,
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
             for (std::size_t j = r.begin(); j != r.end(); ++j) {
                 if (status[j] != 0) continue;
+                // Both rules need a rejected nearest neighbour: most soundings have none.
+                bool near_rejected = false;
+                for (const auto& [dk, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+                    const std::int32_t q = grid.Nearest(j, dk, db);
+                    near_rejected = near_rejected || (q >= 0 && status[q] != 0);
+                }
+                if (!near_rejected) continue;
                 for (int axis = 0; axis < 2; ++axis) {
                     const int dk = axis == 0 ? 1 : 0, db = axis == 0 ? 0 : 1;
                     int da = 0, dc = 0;
@@ -458,58 +464,70 @@ void FillEnclosed(const georef::GeorefResult& geo,
         const double ra = P.range_m[a], rb = P.range_m[b];
         return std::abs(ra - rb) <= std::max(0.1, config.hole_tolerance * std::min(ra, rb));
     };
-    std::vector<std::int32_t> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    for (std::size_t j = 0; j < n; ++j) {
-        if (status[j] != 0) continue;
-        for (const auto& [dk, db] : {std::pair{1, 0}, std::pair{0, 1}}) {
-            const std::int32_t q = grid.Nearest(j, dk, db);
-            if (q < 0 || status[q] != 0 || !continuous(j, q)) continue;
-            const std::int32_t a = Find(parent, static_cast<std::int32_t>(j));
-            const std::int32_t b = Find(parent, q);
-            if (a != b) parent[std::max(a, b)] = std::min(a, b);
-        }
-    }
-    std::vector<std::int32_t> size(n, 0);
-    for (std::size_t j = 0; j < n; ++j) {
-        if (status[j] != 0) continue;
-        parent[j] = Find(parent, static_cast<std::int32_t>(j));
-        ++size[parent[j]];
-    }
-    // Per small piece: its contacts by the contact's status.
-    std::unordered_map<std::int32_t, std::array<std::int32_t, georef::kNumSoundingStatus>> votes;
+    auto within_break = [&](std::size_t a, std::size_t b) {
+        const double ra = P.range_m[a], rb = P.range_m[b];
+        return std::abs(ra - rb) <= std::max(config.profile_min_m, config.margin_rel * ra);
+    };
     constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
-    for (std::size_t j = 0; j < n; ++j) {
-        if (status[j] != 0) continue;
-        const std::int32_t root = parent[j];
-        if (size[root] > config.fill_max_soundings) continue;
+    // The pieces are grown from the accepted soundings that touch a rejected one continuously,
+    // at most fill_max_soundings + 1 each: the terrain's piece is found large once (its
+    // soundings marked) and costs nothing more. piece[j]: 0 unseen, -1 in a large or open
+    // piece, else the id of the piece being grown (its verdict in `verdict`).
+    std::vector<std::int32_t> piece(n, 0);
+    std::vector<std::uint8_t> verdict(1, 0);
+    std::vector<std::int32_t> members, stack, outside;
+    std::array<std::int32_t, georef::kNumSoundingStatus> votes{};
+    const auto limit = static_cast<std::size_t>(config.fill_max_soundings);
+    for (std::size_t seed = 0; seed < n; ++seed) {
+        if (status[seed] != 0 || piece[seed] != 0) continue;
+        bool touches = false;
         for (const auto& dir : kDirections) {
-            const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
-            if (q < 0 || (status[q] == 0 && parent[q] == root)) continue;
-            // Slot 0 counts the piece's open edges: an accepted neighbour outside it within a
-            // break (the terrain's noise parted them, not an echo's edge).
-            const bool open =
-                status[q] == 0 && !continuous(j, q) &&
-                std::abs(double{P.range_m[q]} - P.range_m[j]) <=
-                    std::max(config.profile_min_m, config.margin_rel * double{P.range_m[j]});
-            if (!open && (status[q] == 0 || !continuous(j, q))) continue;
-            auto [it, fresh] = votes.try_emplace(root);
-            if (fresh) it->second.fill(0);
-            ++it->second[status[q]];
+            const std::int32_t q = grid.Nearest(seed, dir[0], dir[1]);
+            touches = touches || (q >= 0 && status[q] != 0 && continuous(seed, q));
         }
+        if (!touches) continue;
+        const auto id = static_cast<std::int32_t>(verdict.size());
+        verdict.push_back(0);
+        members.clear();
+        outside.clear();
+        votes.fill(0);
+        bool large = false;
+        stack.assign(1, static_cast<std::int32_t>(seed));
+        piece[seed] = id;
+        while (!stack.empty() && !large) {
+            const auto j = static_cast<std::size_t>(stack.back());
+            stack.pop_back();
+            members.push_back(static_cast<std::int32_t>(j));
+            for (const auto& dir : kDirections) {
+                const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+                if (q < 0 || piece[q] == id) continue;
+                if (status[q] != 0) {
+                    if (continuous(j, q)) ++votes[status[q]];
+                } else if (continuous(j, q)) {
+                    if (piece[q] != 0 || members.size() + stack.size() >= limit) {
+                        large = true;  // joins a large piece, or is one
+                        break;
+                    }
+                    piece[q] = id;
+                    stack.push_back(q);
+                } else if (within_break(j, q)) {
+                    outside.push_back(q);  // open unless the piece reaches it another way
+                }
+            }
+        }
+        bool open = large;
+        for (const std::int32_t q : outside) open = open || piece[q] != id;
+        const int contacts = std::accumulate(votes.begin(), votes.end(), 0);
+        if (open || contacts < config.fill_min_contacts) {
+            for (const std::int32_t j : members) piece[j] = -1;
+            for (const std::int32_t j : stack) piece[j] = -1;
+            continue;
+        }
+        verdict[id] =
+            static_cast<std::uint8_t>(std::max_element(votes.begin(), votes.end()) - votes.begin());
     }
-    std::unordered_map<std::int32_t, std::uint8_t> verdict;
-    for (const auto& [root, v] : votes) {
-        if (v[0] > 0) continue;
-        const auto best = std::max_element(v.begin(), v.end());
-        if (std::accumulate(v.begin(), v.end(), 0) >= config.fill_min_contacts)
-            verdict[root] = static_cast<std::uint8_t>(best - v.begin());
-    }
-    if (verdict.empty()) return;
     for (std::size_t j = 0; j < n; ++j) {
-        if (status[j] != 0) continue;
-        const auto it = verdict.find(parent[j]);
-        if (it != verdict.end()) status[j] = it->second;
+        if (status[j] == 0 && piece[j] > 0) status[j] = verdict[piece[j]];
     }
 }
 
