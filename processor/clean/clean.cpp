@@ -246,14 +246,20 @@ double LineScore(int w, const At& at, double r0, const CleanConfig& config, Line
     // The neighbours disagree: the edge of a run of echoes in the water has one side the run
     // disturbs and one the terrain's line goes on. Judged on that side's line when it is far
     // in front of it (more than kFarInFront of the range: further than the terrain's profile
-    // bends in a few pings; where both sides agree within themselves and not with each other,
-    // the terrain steps), at half its score (an extrapolated line misses by more).
+    // bends in a few pings) and the other side has soundings missing (kMinMissing: the run's
+    // dropouts and the echoes the 3D tests rejected; a ledge the terrain steps to has none), at
+    // half its score (an extrapolated line misses by more). Where both sides agree within
+    // themselves and not with each other, the terrain steps.
     constexpr double kFarInFront = 0.15;
+    constexpr int kMinMissing = 2;
     const ProfileLine before = SideLine(w, -1, at, s), after = SideLine(w, 1, at, s);
     const double sb = score(before), sa = score(after);
     if ((sb >= 0) == (sa >= 0)) return 0.0;
     const ProfileLine& line = sb >= 0 ? before : after;
     if (line.value - r0 < kFarInFront * line.value) return 0.0;
+    int missing = 0;
+    for (int d = 1; d <= w; ++d) missing += !std::isfinite(at(sb >= 0 ? d : -d));
+    if (missing < kMinMissing) return 0.0;
     return 0.5 * std::max(sb, sa);
 }
 
