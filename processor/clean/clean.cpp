@@ -233,7 +233,13 @@ double LineScore(int w, const At& at, double r0, const CleanConfig& config, Line
         };
         const double tol = 0.5 * std::max(config.profile_min_m, config.margin_rel * r0);
         const double outer = midpoint(w), inner = midpoint(w / 2);
-        if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
+        if (std::abs(r0 - inner) < tol) {
+            if (std::abs(r0 - outer) < tol) return 0.0;
+            // A profile that bends: the midpoints of pairs at d lie c d^2 off the sounding's
+            // value, so (4 inner - outer) / 3 is the value at d = 0 of the parabola through
+            // them (Richardson).
+            if (std::abs(r0 - (4.0 * inner - outer) / 3.0) < tol) return 0.0;
+        }
     }
     auto score = [&](const ProfileLine& line) {
         if (!line.ok || line.spread > config.profile_max_spread * line.value) return -1.0;
