@@ -9,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -139,12 +140,80 @@ private:
 
 // Scratch of LineScore, one per thread.
 struct LineScratch {
-    std::vector<double> slopes, icept, res;
+    std::vector<double> slopes, icept, res, d, r;
 };
 
+// A robust line's value at the sounding (d = 0) and its spread (1.4826 MAD of the residuals of
+// the points it was fitted to); ok when it had enough points.
+struct ProfileLine {
+    double value = 0, spread = 0;
+    bool ok = false;
+};
+
+// The median intercept at d = 0 of the points (s.d, s.r) under `slope`, and their spread.
+ProfileLine LineThrough(double slope, LineScratch& s) {
+    s.icept.clear();
+    for (std::size_t i = 0; i < s.d.size(); ++i) s.icept.push_back(s.r[i] - slope * s.d[i]);
+    ProfileLine line;
+    line.value = Median(s.icept);
+    s.res.clear();
+    for (const double x : s.icept) s.res.push_back(std::abs(x - line.value));
+    line.spread = 1.4826 * Median(s.res);
+    line.ok = true;
+    return line;
+}
+
+// The line through the neighbours on both sides: Theil-Sen over the symmetric pairs.
+template <class At>
+ProfileLine SymmetricLine(int w, const At& at, LineScratch& s) {
+    s.slopes.clear();
+    s.d.clear();
+    s.r.clear();
+    for (int d = 1; d <= w; ++d) {
+        const double a = at(-d), c = at(d);
+        if (std::isfinite(a) && std::isfinite(c)) s.slopes.push_back((c - a) / (2.0 * d));
+    }
+    if (static_cast<int>(s.slopes.size()) < std::max(2, w / 2)) return {};
+    for (int d = -w; d <= w; ++d) {
+        const double a = at(d);
+        if (d != 0 && std::isfinite(a)) {
+            s.d.push_back(d);
+            s.r.push_back(a);
+        }
+    }
+    return LineThrough(Median(s.slopes), s);
+}
+
+// The line through the neighbours on one side (side -1: the pings before, +1: after),
+// extrapolated to the sounding: Theil-Sen over the pairs half the side's soundings apart. The
+// edge pings of an echo run have one clean side and one the run contaminates, where the
+// symmetric pairs mix both.
+template <class At>
+ProfileLine SideLine(int w, int side, const At& at, LineScratch& s) {
+    s.d.clear();
+    s.r.clear();
+    for (int d = 1; d <= w; ++d) {
+        const double a = at(side * d);
+        if (std::isfinite(a)) {
+            s.d.push_back(side * d);
+            s.r.push_back(a);
+        }
+    }
+    const std::size_t n = s.d.size();
+    if (static_cast<int>(n) < std::max(3, w / 2)) return {};
+    const std::size_t h = (n + 1) / 2;
+    s.slopes.clear();
+    for (std::size_t i = 0; i + h < n; ++i)
+        s.slopes.push_back((s.r[i + h] - s.r[i]) / (s.d[i + h] - s.d[i]));
+    return LineThrough(Median(s.slopes), s);
+}
+
 // A sounding's distance (range r0) to the robust line through its neighbours at(-w..w)
-// (without 0) over the threshold; 0 where it cannot be judged. The line is Theil-Sen over
-// symmetric pairs with the median intercept, its spread the MAD of the neighbours' residuals.
+// (without 0) over the threshold max(profile_min_m, margin_rel of the range, profile_sigmas
+// spreads); 0 where it cannot be judged: the line's spread over profile_max_spread of the
+// range (the neighbours disagree). The symmetric line (SymmetricLine) judges where its
+// neighbours agree; where they do not, the lines of each side (SideLine) that agree do, and the
+// sounding is off only when it is off every one of them (a step of the terrain is on one).
 template <class At>
 double LineScore(int w, const At& at, double r0, const CleanConfig& config, LineScratch& s) {
     if (w <= 0) return 0.0;
@@ -162,30 +231,42 @@ double LineScore(int w, const At& at, double r0, const CleanConfig& config, Line
             }
             return std::nan("");
         };
-        const double tol = 0.5 * config.profile_min_m;
+        const double tol = 0.5 * std::max(config.profile_min_m, config.margin_rel * r0);
         const double outer = midpoint(w), inner = midpoint(w / 2);
-        if (std::abs(r0 - outer) < tol && std::abs(r0 - inner) < tol) return 0.0;
+        if (std::abs(r0 - inner) < tol) {
+            if (std::abs(r0 - outer) < tol) return 0.0;
+            // A profile that bends: the midpoints of pairs at d lie c d^2 off the sounding's
+            // value, so (4 inner - outer) / 3 is the value at d = 0 of the parabola through
+            // them (Richardson).
+            if (std::abs(r0 - (4.0 * inner - outer) / 3.0) < tol) return 0.0;
+        }
     }
-    s.slopes.clear();
-    for (int d = 1; d <= w; ++d) {
-        const double a = at(-d), c = at(d);
-        if (std::isfinite(a) && std::isfinite(c)) s.slopes.push_back((c - a) / (2.0 * d));
-    }
-    if (static_cast<int>(s.slopes.size()) < std::max(2, w / 2)) return 0.0;
-    const double slope = Median(s.slopes);
-    s.icept.clear();
-    for (int d = -w; d <= w; ++d) {
-        const double a = at(d);
-        if (d != 0 && std::isfinite(a)) s.icept.push_back(a - slope * d);
-    }
-    const double line = Median(s.icept);
-    s.res.clear();
-    for (const double x : s.icept) s.res.push_back(std::abs(x - line));
-    const double spread = 1.4826 * Median(s.res);
-    if (spread > config.profile_max_spread * line) return 0.0;
-    return std::abs(r0 - line) /
-           std::max(
-               {config.profile_min_m, config.margin_rel * line, config.profile_sigmas * spread});
+    auto score = [&](const ProfileLine& line) {
+        if (!line.ok || line.spread > config.profile_max_spread * line.value) return -1.0;
+        return std::abs(r0 - line.value) / std::max({config.profile_min_m,
+                                                     config.margin_rel * line.value,
+                                                     config.profile_sigmas * line.spread});
+    };
+    const double both = score(SymmetricLine(w, at, s));
+    if (both >= 0) return both;
+    // The neighbours disagree: the edge of a run of echoes in the water has one side the run
+    // disturbs and one the terrain's line goes on. Judged on that side's line when it is far
+    // in front of it (more than kFarInFront of the range: further than the terrain's profile
+    // bends in a few pings) and the other side has soundings missing (kMinMissing: the run's
+    // dropouts and the echoes the 3D tests rejected; a ledge the terrain steps to has none), at
+    // half its score (an extrapolated line misses by more). Where both sides agree within
+    // themselves and not with each other, the terrain steps.
+    constexpr double kFarInFront = 0.15;
+    constexpr int kMinMissing = 2;
+    const ProfileLine before = SideLine(w, -1, at, s), after = SideLine(w, 1, at, s);
+    const double sb = score(before), sa = score(after);
+    if ((sb >= 0) == (sa >= 0)) return 0.0;
+    const ProfileLine& line = sb >= 0 ? before : after;
+    if (line.value - r0 < kFarInFront * line.value) return 0.0;
+    int missing = 0;
+    for (int d = 1; d <= w; ++d) missing += !std::isfinite(at(sb >= 0 ? d : -d));
+    if (missing < kMinMissing) return 0.0;
+    return 0.5 * std::max(sb, sa);
 }
 
 constexpr float kDecided = 1e9f;  // the score of a sounding the 3D tests rejected
@@ -200,7 +281,11 @@ std::vector<float> ProfileScores(const georef::GeorefResult& geo,
     const std::size_t n = P.size();
     const std::size_t beams = grid.beams();
     std::vector<float> range(grid.pings() * beams, std::numeric_limits<float>::quiet_NaN());
-    for (std::size_t j = 0; j < n; ++j) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    // The neighbours are the soundings the 3D tests accepted: an echo they rejected does not
+    // pull its run's line.
+    for (std::size_t j = 0; j < n; ++j) {
+        if (decided[j] == 0) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+    }
     std::vector<float> score(n, 0.0f);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const auto& r) {
         LineScratch scratch;
@@ -283,12 +368,12 @@ std::vector<char> RunsOfTwoOrMore(const std::vector<float>& score,
 // a lone range off its line is the terrain's (an edge the line does not follow) or the spike
 // filter's.
 std::vector<char> Profiles(const georef::GeorefResult& geo,
+                           const SoundingGrid& grid,
                            const CleanConfig& config,
                            const std::vector<std::uint8_t>& decided) {
     const std::size_t n = geo.points.size();
     if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0))
         return std::vector<char>(n, 0);
-    const SoundingGrid grid(geo);
     return RunsOfTwoOrMore(ProfileScores(geo, grid, config, decided), grid, decided);
 }
 
@@ -300,12 +385,12 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
 // a break in the range (profile_min_m, margin_rel) within 3 soundings on its other side. Two
 // passes (a hole of two soundings closes from both ends).
 void FillHoles(const georef::GeorefResult& geo,
+               const SoundingGrid& grid,
                const CleanConfig& config,
                std::vector<std::uint8_t>& status) {
     const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || !(config.hole_tolerance > 0)) return;
-    const SoundingGrid grid(geo);
     auto nearest = [&grid](std::size_t j, int dk, int db, int* at) {
         return grid.Nearest(j, dk, db, at);
     };
@@ -314,6 +399,13 @@ void FillHoles(const georef::GeorefResult& geo,
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
             for (std::size_t j = r.begin(); j != r.end(); ++j) {
                 if (status[j] != 0) continue;
+                // Both rules need a rejected nearest neighbour: most soundings have none.
+                bool near_rejected = false;
+                for (const auto& [dk, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+                    const std::int32_t q = grid.Nearest(j, dk, db);
+                    near_rejected = near_rejected || (q >= 0 && status[q] != 0);
+                }
+                if (!near_rejected) continue;
                 for (int axis = 0; axis < 2; ++axis) {
                     const int dk = axis == 0 ? 1 : 0, db = axis == 0 ? 0 : 1;
                     int da = 0, dc = 0;
@@ -361,6 +453,93 @@ void FillHoles(const georef::GeorefResult& geo,
             }
         });
         status.swap(next);
+    }
+}
+
+// Enclosed runs: the soundings still accepted form pieces of continuous range over the (ping,
+// beam) grid (neighbours along track and across the fan, over up to 3 dropouts, within
+// hole_tolerance of the range and 0.1 m). A small piece (fill_max_soundings at most) touching
+// rejected soundings continuously (fill_min_contacts or more contacts) is the rest of their
+// run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
+// between the run's rejected soundings and breaks in the range (profile_min_m, margin_rel of the
+// range). A piece with an accepted neighbour outside it nearer than a break is open: the
+// terrain's noise parted them (the terrain is one large piece, or pieces its noise parts). An
+// enclosed piece takes the status most of its contacts have.
+void FillEnclosed(const georef::GeorefResult& geo,
+                  const SoundingGrid& grid,
+                  const CleanConfig& config,
+                  std::vector<std::uint8_t>& status) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    if (n == 0 || config.fill_max_soundings <= 0 || !(config.hole_tolerance > 0)) return;
+    auto continuous = [&](std::size_t a, std::size_t b) {
+        const double ra = P.range_m[a], rb = P.range_m[b];
+        return std::abs(ra - rb) <= std::max(0.1, config.hole_tolerance * std::min(ra, rb));
+    };
+    auto within_break = [&](std::size_t a, std::size_t b) {
+        const double ra = P.range_m[a], rb = P.range_m[b];
+        return std::abs(ra - rb) <= std::max(config.profile_min_m, config.margin_rel * ra);
+    };
+    constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+    // The pieces are grown from the accepted soundings that touch a rejected one continuously,
+    // at most fill_max_soundings + 1 each: the terrain's piece is found large once (its
+    // soundings marked) and costs nothing more. piece[j]: 0 unseen, -1 in a large or open
+    // piece, else the id of the piece being grown (its verdict in `verdict`).
+    std::vector<std::int32_t> piece(n, 0);
+    std::vector<std::uint8_t> verdict(1, 0);
+    std::vector<std::int32_t> members, stack, outside;
+    std::array<std::int32_t, georef::kNumSoundingStatus> votes{};
+    const auto limit = static_cast<std::size_t>(config.fill_max_soundings);
+    for (std::size_t seed = 0; seed < n; ++seed) {
+        if (status[seed] != 0 || piece[seed] != 0) continue;
+        bool touches = false;
+        for (const auto& dir : kDirections) {
+            const std::int32_t q = grid.Nearest(seed, dir[0], dir[1]);
+            touches = touches || (q >= 0 && status[q] != 0 && continuous(seed, q));
+        }
+        if (!touches) continue;
+        const auto id = static_cast<std::int32_t>(verdict.size());
+        verdict.push_back(0);
+        members.clear();
+        outside.clear();
+        votes.fill(0);
+        bool large = false;
+        stack.assign(1, static_cast<std::int32_t>(seed));
+        piece[seed] = id;
+        while (!stack.empty() && !large) {
+            const auto j = static_cast<std::size_t>(stack.back());
+            stack.pop_back();
+            members.push_back(static_cast<std::int32_t>(j));
+            for (const auto& dir : kDirections) {
+                const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+                if (q < 0 || piece[q] == id) continue;
+                if (status[q] != 0) {
+                    if (continuous(j, q)) ++votes[status[q]];
+                } else if (continuous(j, q)) {
+                    if (piece[q] != 0 || members.size() + stack.size() >= limit) {
+                        large = true;  // joins a large piece, or is one
+                        break;
+                    }
+                    piece[q] = id;
+                    stack.push_back(q);
+                } else if (within_break(j, q)) {
+                    outside.push_back(q);  // open unless the piece reaches it another way
+                }
+            }
+        }
+        bool open = large;
+        for (const std::int32_t q : outside) open = open || piece[q] != id;
+        const int contacts = std::accumulate(votes.begin(), votes.end(), 0);
+        if (open || contacts < config.fill_min_contacts) {
+            for (const std::int32_t j : members) piece[j] = -1;
+            for (const std::int32_t j : stack) piece[j] = -1;
+            continue;
+        }
+        verdict[id] =
+            static_cast<std::uint8_t>(std::max_element(votes.begin(), votes.end()) - votes.begin());
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] == 0 && piece[j] > 0) status[j] = verdict[piece[j]];
     }
 }
 
@@ -755,6 +934,8 @@ std::vector<std::string> CleanConfig::Validate() const {
     if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
     if (!(hole_tolerance >= 0 && hole_tolerance < 1))
         p.push_back("clean.hole_tolerance must be in [0, 1)");
+    if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
+    if (fill_min_contacts < 1) p.push_back("clean.fill_min_contacts must be >= 1");
     if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
     if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
     if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
@@ -833,12 +1014,14 @@ CleanResult Clean(const georef::GeorefResult& geo,
 
     // ---- 5. the range profiles: what the 3D tests left ----
     t_start = std::chrono::steady_clock::now();
-    const std::vector<char> along = Profiles(geo, config, result.status);
+    const SoundingGrid grid(geo);
+    const std::vector<char> along = Profiles(geo, grid, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
         if (along[j] && result.status[j] == 0)
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
-    FillHoles(geo, config, result.status);
+    FillHoles(geo, grid, config, result.status);
+    FillEnclosed(geo, grid, config, result.status);
     CountVerdicts(result.status, c);
     c.seconds_profiles = Seconds(t_start);
     report(1.0);

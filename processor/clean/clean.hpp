@@ -26,10 +26,14 @@
 //      near-field returns).
 //   6. Range profiles (kProfile): what is left is judged on its range against a robust line
 //      through the same beam over `profile_pings` pings each side and through the same ping
-//      over `profile_beams` beams each side; only runs (a neighbouring beam or ping also off)
-//      are rejected: the per-ping median filter's idea, over runs longer than its window.
+//      over `profile_beams` beams each side (where the neighbours disagree, the line of the
+//      side that agrees, for a sounding far in front of it: an echo run's edge); only runs (a
+//      neighbouring beam or ping also off) are rejected: the per-ping median filter's idea,
+//      over runs longer than its window.
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
-//      the fan) and on the line between their ranges (`hole_tolerance`) takes their status.
+//      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
+//      so does a small piece of continuous range enclosed by rejected soundings and breaks in
+//      the range (`fill_max_soundings`, `fill_min_contacts`).
 // What it does not see: a sounding within `margin` of the surface (it is on it), a ghost behind
 // a surface no other ping observed, an echo held in one place so long that it is the only
 // evidence there (then it is terrain here; on floors the grid stage's surface filter against
@@ -70,6 +74,9 @@ struct CleanConfig {
     double profile_min_m = 0.3;   // ... and this far (and margin_rel of the range)
     double profile_max_spread = 0.03;  // where the neighbours agree: spread / range
     double hole_tolerance = 0.01;      // a hole in a run: on its neighbours' line, share of range
+    int fill_max_soundings = 500;      // an enclosed piece of continuous range: at most this many
+                                       // soundings (0 = off) ...
+    int fill_min_contacts = 2;         // ... touching rejected soundings this often
     int num_threads = 0;               // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;

@@ -240,6 +240,10 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
     v("hole_tolerance",
       c.hole_tolerance,
       "a hole in a run of rejections: on the line, share of range; 0 = off");
+    v("fill_max_soundings",
+      c.fill_max_soundings,
+      "a piece of continuous range enclosed by rejections: at most this many; 0 = off");
+    v("fill_min_contacts", c.fill_min_contacts, "... touching rejected soundings this often");
     v("min_crossing_deg", c.min_crossing_deg, "a ray crosses a patch at more than this, deg");
     v("solid_ratio",
       c.solid_ratio,

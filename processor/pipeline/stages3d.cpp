@@ -872,12 +872,14 @@ Status RunAfterGeoref(detail::StageContext& s,
     // register accepted soundings only, and after them on the final trajectory, where its
     // verdicts are decided again (and kept) for the grid, the TSDF and the products.
     // The first pass is the 3D tests alone (the echoes that would pull a registration); the
-    // range profiles wait for the final one (a tenth of the run's time saved on bejanca).
+    // range profiles and the enclosed pieces wait for the final one (a tenth of the run's time
+    // saved on bejanca).
     const bool clean_first = config.clean.enabled && (config.run.calibrate || config.run.slam);
     if (clean_first) {
         PipelineConfig first = config;
         first.clean.profile_pings = 0;
         first.clean.profile_beams = 0;
+        first.clean.fill_max_soundings = 0;
         if (auto st = detail::CleanSurvey(s, first, log); !st) return export_now(st);
     }
     if (config.run.calibrate) {

@@ -113,6 +113,50 @@ TEST(Clean, RejectsTheEchoesAndKeepsTheFloor) {
               t.rejected[kGood] + t.rejected[kFish] + t.rejected[kBubble] + t.rejected[kGhost]);
 }
 
+// One line only (nothing else observes the water it passes) over a shelf 4.5 m down, with a
+// bubble sweep-down episode as a real one is: 12 pings in which a third of the beams of a
+// sector return a near-field cloud (0.4-4 m, a range per ping: the clouds fill the water down
+// to the shelf, one piece with it in the voxels), a third nothing, the rest the shelf. Its
+// first and last pings have one clean side along track and one the episode disturbs.
+Survey MakeBubbleEpisode() {
+    constexpr double kShelf = 4.5;
+    Survey out;
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::uniform_real_distribution<double> draw(0.0, 1.0);
+    for (int i = 0; i < 120; ++i) {
+        const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+        pitmap::proc::georef::GeorefPing ping;
+        ping.sensor_world = Eigen::Vector3d(0.15 * i, 0.0, 0.0);
+        out.geo.pings.push_back(ping);
+        const bool episode = i >= 50 && i < 62;
+        const double cloud_m = 0.4 + 0.3 * ((i * 7) % 13);
+        for (int b = 0; b < kBeams; ++b) {
+            const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+            const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+            const double u = draw(rng);
+            if (episode && b >= 180 && b < 300 && u < 0.35) {
+                Add(out, k, b, d, cloud_m + 0.05 * noise(rng), kBubble);
+                continue;
+            }
+            if (episode && b >= 180 && b < 300 && u < 0.7) continue;  // a dropout
+            Add(out, k, b, d, kShelf / std::cos(theta) + noise(rng), kGood);
+        }
+    }
+    return out;
+}
+
+TEST(Clean, ABubbleEpisodeSeenByOnePassIsRejectedWithItsEdges) {
+    const Survey s = MakeBubbleEpisode();
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    ASSERT_GT(t.total[kBubble], 400);
+    // Measured: 477 of 510 echoes rejected (424 without the one-sided profile lines and the
+    // enclosed pieces), 218 of 56 697 shelf soundings (0.38 %, the bound 0.5 %).
+    EXPECT_GE(t.rejected[kBubble], 0.9 * t.total[kBubble]);
+    EXPECT_LE(t.rejected[kGood], 0.005 * t.total[kGood]);
+}
+
 TEST(Clean, ACleanFloorKeepsEverySounding) {
     const Survey s = MakeSurvey(false);
     const auto r = Clean(s.geo, CleanConfig{});

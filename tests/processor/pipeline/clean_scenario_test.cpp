@@ -76,20 +76,24 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
             At(s[level], "dem_mean_abs_m"));
     }
     const Scores& none = s["none"];
-    // Measured (docs/cleaning.md): light 0.76, typical 0.93, heavy 0.80 of the artifact
-    // soundings rejected; without the cleaning typical is 0.12 (the spike filter's share).
-    EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.70);
-    EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.89);
-    EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.75);
+    // Measured (docs/cleaning.md): light 0.79, typical 0.95, heavy 0.87 of the artifact
+    // soundings rejected (0.76, 0.93, 0.80 before the one-sided profile lines and the enclosed
+    // pieces); without the cleaning typical is 0.12 (the spike filter's share).
+    EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.74);
+    EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.92);
+    EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.83);
     // Mid-water targets (fish) are the cleaning's best case.
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
+    // The bound. Measured on 20-45 deg: none 0.0051, light 0.0051, typical 0.0052 (main
+    // before the one-sided profile lines and the enclosed pieces: 0.0049-0.0050): not met
+    // on the quarry's shallow start by one or two hundredths of a point (docs/cleaning.md).
     for (const std::string level : {"none", "light", "typical"}) {
         for (const char* slope : {"0_20", "20_45", "45_91"}) {
             EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), 0.005)
                 << level << " slope " << slope;
         }
     }
-    EXPECT_LE(At(s["heavy"], "good_rejected_share"), 0.0075);
+    EXPECT_LE(At(s["heavy"], "good_rejected_share"), 0.0075);  // measured 0.0065
     // The products: the mesh keeps (nearly) no false surface and its completeness, the DEM
     // stays near the clean run's.
     for (const std::string level : {"light", "typical", "heavy"}) {
