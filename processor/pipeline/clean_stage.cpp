@@ -95,8 +95,11 @@ clean::CleanResult CleanTrustedPings(const StageContext& s,
                                      const ProgressCallback& progress,
                                      std::int64_t* left_out) {
     const georef::GeorefResult& geo = s.geo;
+    // Where the INS reports no sigma, SLAM's assumption (slam_stage.fallback_position_m).
+    const SlamStageConfig& sc = config.slam_stage;
     PoseSigma fallback;
-    fallback.setConstant(std::numeric_limits<double>::infinity());
+    fallback << 0.0, 0.0, 0.0, sc.fallback_position_m[0], sc.fallback_position_m[1],
+        sc.fallback_position_m[2];
     std::vector<char> trusted(geo.pings.size(), 0);
     for (std::size_t k = 0; k < geo.pings.size(); ++k) {
         const PoseSigma sg = PoseSigmaAt(s.model.ingest.nav,
