@@ -249,13 +249,28 @@ GoodInsMoves MovesAtGoodIns(const georef::GeorefResult& geo,
                             const std::vector<Pose>& before,
                             const std::vector<Pose>& after,
                             double sigma_max_age_s,
+                            double recovery_time_s,
                             const QualityConfig& q) {
     GoodInsMoves out;
     out.window_us = static_cast<std::int64_t>(q.slam_drift_window_s * 1e6);
     out.t_first = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
+    // As SLAM (slam.ins_sigma_recovery_time_s): a filter that regains GNSS after an outage
+    // reports a small sigma at once but pulls its drift back over seconds, so the reported
+    // sigma is not believed to fall faster than exp(-dt / recovery_time_s). Without this the
+    // pings just after a recovery counted as good and SLAM's correction of their metres of
+    // drift as an inconsistency (the quarry with a 180 s outage: 116 INS poses put back, up to
+    // 7.4 m off; docs/uncertainty.md).
+    double held = 0;
+    std::int64_t held_t = 0;
     for (std::size_t i = 0; i < after.size() && i < geo.pings.size(); ++i) {
         const std::int64_t t = geo.pings[i].utime_gps;
-        const double sigma = InsHorizontalSigma(nav.stddevs, t, sigma_max_age_s);
+        double sigma = InsHorizontalSigma(nav.stddevs, t, sigma_max_age_s);
+        if (std::isfinite(sigma) && recovery_time_s > 0) {
+            const double dt = std::max(0.0, static_cast<double>(t - held_t) * 1e-6);
+            sigma = std::max(sigma, held * std::exp(-dt / recovery_time_s));
+            held = sigma;
+            held_t = t;
+        }
         if (!(sigma <= q.slam_good_ins_sigma_m)) continue;
         out.good.push_back(i);
         const double moved = (after[i].translation() - before[i].translation()).norm();
@@ -304,11 +319,12 @@ json CheckAgainstGoodIns(StageContext& s,
                          const std::vector<Pose>& before,
                          std::vector<Pose>& after,
                          double sigma_max_age_s,
+                         double recovery_time_s,
                          const QualityConfig& q,
                          std::string* drift_text,
                          const Log& log) {
-    const GoodInsMoves moves =
-        MovesAtGoodIns(s.geo, s.model.ingest.nav, before, after, sigma_max_age_s, q);
+    const GoodInsMoves moves = MovesAtGoodIns(
+        s.geo, s.model.ingest.nav, before, after, sigma_max_age_s, recovery_time_s, q);
     json ins_check = {{"good_ins_pings", moves.good.size()},
                       {"moved_beyond_allowance", moves.beyond},
                       {"max_move_good_ins_m", moves.worst},
@@ -491,8 +507,14 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
                  log);
     }
     std::string drift_text;  // where the navigation drifted, by either test below
-    json ins_check = CheckAgainstGoodIns(
-        s, before.T_world_vehicle, after, config.slam_stage.sigma_max_age_s, q, &drift_text, log);
+    json ins_check = CheckAgainstGoodIns(s,
+                                         before.T_world_vehicle,
+                                         after,
+                                         config.slam_stage.sigma_max_age_s,
+                                         config.slam.ins_sigma_recovery_time_s,
+                                         q,
+                                         &drift_text,
+                                         log);
     const auto change = PositionChange(before.T_world_vehicle, after);
     // Where the passes still disagree, per window: a stretch far worse than the rest of the
     // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
