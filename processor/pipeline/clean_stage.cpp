@@ -4,10 +4,13 @@
 // hand edits accept, whatever an earlier cleaning said), stores its verdicts in the survey
 // model (flags.cleaning: survey.pitmap keeps them) and leaves the stages after it (grid, fuse,
 // mesh, the exports) the accepted soundings only. A hand restore wins over its verdict.
+#include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "common/progress.hpp"
 #include "processor/clean/clean.hpp"
+#include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
 
@@ -81,7 +84,64 @@ std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>&
     return keep;
 }
 
-Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+namespace {
+
+// The cleaning's verdicts on the soundings of the pings whose INS horizontal 1-sigma is at most
+// max_sigma_m, the others left out of the view it judges (status 0 for them); `left_out` counts
+// their soundings.
+clean::CleanResult CleanTrustedPings(const StageContext& s,
+                                     const PipelineConfig& config,
+                                     double max_sigma_m,
+                                     const ProgressCallback& progress,
+                                     std::int64_t* left_out) {
+    const georef::GeorefResult& geo = s.geo;
+    // Where the INS reports no sigma, SLAM's assumption (slam_stage.fallback_position_m).
+    const SlamStageConfig& sc = config.slam_stage;
+    PoseSigma fallback;
+    fallback << 0.0, 0.0, 0.0, sc.fallback_position_m[0], sc.fallback_position_m[1],
+        sc.fallback_position_m[2];
+    std::vector<char> trusted(geo.pings.size(), 0);
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        const PoseSigma sg = PoseSigmaAt(s.model.ingest.nav,
+                                         geo.pings[k].utime_gps,
+                                         config.slam_stage.sigma_max_age_s,
+                                         fallback);
+        trusted[k] = std::sqrt(0.5 * (sg(3) * sg(3) + sg(4) * sg(4))) <= max_sigma_m ? 1 : 0;
+    }
+    georef::GeorefResult view;
+    view.world_origin = geo.world_origin;
+    view.pings = geo.pings;
+    view.mount = geo.mount;
+    view.refraction = geo.refraction;
+    std::vector<std::size_t> index;  // view point -> geo point
+    for (std::size_t j = 0; j < geo.points.size(); ++j) {
+        if (!trusted[geo.points.ping[j]]) continue;
+        index.push_back(j);
+        view.points.position_world.push_back(geo.points.position_world[j]);
+        view.points.ping.push_back(geo.points.ping[j]);
+        view.points.beam.push_back(geo.points.beam[j]);
+        view.points.range_m.push_back(geo.points.range_m[j]);
+        view.points.angle_rad.push_back(geo.points.angle_rad[j]);
+        if (!geo.points.status.empty()) view.points.status.push_back(geo.points.status[j]);
+    }
+    *left_out = static_cast<std::int64_t>(geo.points.size() - index.size());
+    clean::CleanResult part = clean::Clean(view, config.clean, progress);
+    clean::CleanResult out;
+    out.counts = part.counts;
+    out.cancelled = part.cancelled;
+    out.status.assign(geo.points.size(), 0);
+    if (part.status.size() == index.size()) {
+        for (std::size_t i = 0; i < index.size(); ++i) out.status[index[i]] = part.status[i];
+    }
+    return out;
+}
+
+}  // namespace
+
+Status CleanSurvey(StageContext& s,
+                   const PipelineConfig& config,
+                   const Log& log,
+                   double max_ins_sigma_h_m) {
     StageClock clock;
     // A pass before this one in the same run (run: before the calibration) stays in the
     // record, as "earlier_pass", so that the stage's whole cost is in the summary.
@@ -112,8 +172,17 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
                                      georef::SoundingView::kCandidates);
     }
     ProgressReporter bar(ToString(Stage::kClean), 1000);
-    const clean::CleanResult r = clean::Clean(s.geo, config.clean, bar.AsCallback());
+    std::int64_t left_out = 0;
+    const clean::CleanResult r =
+        std::isfinite(max_ins_sigma_h_m)
+            ? CleanTrustedPings(s, config, max_ins_sigma_h_m, bar.AsCallback(), &left_out)
+            : clean::Clean(s.geo, config.clean, bar.AsCallback());
     bar.Finish();
+    if (left_out > 0) {
+        log("clean: " + std::to_string(left_out) +
+            " soundings of pings whose INS horizontal sigma exceeds " +
+            std::to_string(max_ins_sigma_h_m) + " m left out of this pass (kept)");
+    }
     if (r.cancelled) return Error{"clean: cancelled"};
 
     std::vector<std::uint8_t> before = std::move(flags.cleaning);
@@ -170,6 +239,7 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
                  {"multipath", c.multipath},
                  {"profile", c.profile},
                  {"restored_by_hand", restored_by_hand},
+                 {"left_out_ins_sigma", left_out},
                  {"flags_changed", changed},
                  {"voxels", c.voxels},
                  {"terrain_components", c.terrain_components},

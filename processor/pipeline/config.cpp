@@ -219,6 +219,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("posterior_reference_sigma",
       c.posterior_reference_sigma,
       "add the INS's steady sigma (the reference SLAM is tied to) to the posterior");
+    v("posterior_tangent_information",
+      c.posterior_tangent_information,
+      "GICP pairs inform the posterior along the surface too (false: along the normal only)");
     v("posterior_variance_factor",
       c.posterior_variance_factor,
       "formal H^-1 times sigma0^2 (without the sandwich)");

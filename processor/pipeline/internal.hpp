@@ -5,6 +5,7 @@
 #pragma once
 
 #include <chrono>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -179,7 +180,13 @@ Status GeorefSurvey(StageContext& s,
 Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
 // The automatic cleaning (clean_stage.cpp): flags in the model, the view keeps the accepted.
-Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
+// With max_ins_sigma_h_m finite, the pings whose INS horizontal 1-sigma exceeds it (a GNSS
+// outage's drift) are neither judged nor evidence against the others: their soundings keep
+// being accepted (run's first pass, before SLAM has put the drifted passes back).
+Status CleanSurvey(StageContext& s,
+                   const PipelineConfig& config,
+                   const Log& log,
+                   double max_ins_sigma_h_m = std::numeric_limits<double>::infinity());
 // The index of point j of `geo` in the survey's range counts.
 std::size_t FlatIndex(const georef::GeorefResult& geo,
                       const georef::PingSeries& pings,

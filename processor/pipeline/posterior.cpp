@@ -95,6 +95,7 @@ json PosteriorJson(const georef::GeorefResult& geo,
     }
     const double slam_s = r.timings.total_s;
     out.update({{"variance_factor", p.variance_factor},
+                {"residual_correlation", p.residual_correlation},
                 {"observations", p.observations},
                 {"unknowns", p.unknowns},
                 {"pairs", p.num_pairs},

@@ -164,14 +164,23 @@ void AddPoseTerms(const Input& in,
                   const SlamConfig& cfg,
                   bool linearise,
                   Terms& acc);
+// What a pair informs about: as its correspondence type says (GICP: along the surface too,
+// with gicp_tangent_sigma_m), or along its normal alone (one row: the residual along the mean
+// of both normals, with both points' sigma; the posterior's default, SlamPosterior).
+enum class PairInformation { kAsConfigured, kNormalOnly };
+
 // Pair terms; with linearise false only the robust cost (and sq_dist) are accumulated.
+// weight_scale multiplies the terms' information (not the cost): the posterior's share of
+// independent information of a cluster of correlated pairs.
 void AddPairTerms(const Input& in,
                   const Param& p,
                   const std::vector<Pose>& T,
                   const std::vector<Pair>& pairs,
                   const SlamConfig& cfg,
                   bool linearise,
-                  tbb::enumerable_thread_specific<Terms>& accs);
+                  tbb::enumerable_thread_specific<Terms>& accs,
+                  PairInformation info = PairInformation::kAsConfigured,
+                  double weight_scale = 1.0);
 // Total cost (INS terms and robust pair terms) of the parametrisation p on fixed pairs.
 double CostAt(const Input& in,
               const Param& p,

@@ -51,23 +51,92 @@ Eigen::Vector3d RollPitchYawSigma(const Eigen::Matrix3d& R, const Eigen::Matrix3
     return Crpy.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
+using Clusters = std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<Pair>>;
+
+// The pairs grouped by the pair of rigid sections (blocks) they join.
+Clusters ClusterPairs(const std::vector<Pair>& pairs) {
+    Clusters clusters;
+    for (const Pair& pr : pairs) {
+        clusters[{std::min(pr.block_a, pr.block_b), std::max(pr.block_a, pr.block_b)}].push_back(
+            pr);
+    }
+    return clusters;
+}
+
+// The intra-cluster correlation of the pairs' residuals along their normals (the mean of both
+// normals, oriented upwards: the sonar sees surfaces from above), by the one-way analysis of
+// variance (Fisher's intraclass correlation, the ANOVA estimator):
+//   rho = (MSB - MSW) / (MSB + (n0 - 1) MSW), n0 = (N - sum n_c^2 / N) / (C - 1),
+// with MSB and MSW the between- and within-cluster mean squares; clamped to [0, 1]. Residuals
+// beyond the robust kernel's width (wrong pairs) are left out.
+double ResidualCorrelation(const Input& in,
+                           const std::vector<Pose>& T,
+                           const Clusters& clusters,
+                           const SlamConfig& cfg) {
+    const double limit = cfg.robust_width * std::sqrt(2.0) * cfg.point_sigma_m;
+    std::vector<std::vector<double>> r(clusters.size());
+    std::size_t c = 0;
+    for (const auto& [key, prs] : clusters) {
+        for (const Pair& pr : prs) {
+            Eigen::Vector3d n = pr.c.target_normal.cast<double>();
+            const Eigen::Vector3d na = pr.c.query_normal.cast<double>();
+            n += na.dot(n) < 0 ? -na : na;
+            if (n.norm() < 1e-9) continue;
+            n.normalize();
+            if (n.z() < 0) n = -n;
+            const double rn = n.dot(PointPairResidual(T[pr.slice_a],
+                                                      in.points[pr.c.query].cast<double>(),
+                                                      T[pr.slice_b],
+                                                      in.points[pr.c.target].cast<double>()));
+            if (std::abs(rn) <= limit) r[c].push_back(rn);
+        }
+        ++c;
+    }
+    double total = 0, n_all = 0, sum_n2 = 0, groups = 0;
+    for (const auto& v : r) {
+        if (v.size() < 2) continue;
+        for (double x : v) total += x;
+        n_all += static_cast<double>(v.size());
+        sum_n2 += static_cast<double>(v.size() * v.size());
+        groups += 1;
+    }
+    if (groups < 2 || n_all <= groups) return 0.0;
+    const double mean = total / n_all;
+    double ssb = 0, ssw = 0;
+    for (const auto& v : r) {
+        if (v.size() < 2) continue;
+        double m = 0;
+        for (double x : v) m += x;
+        m /= static_cast<double>(v.size());
+        ssb += static_cast<double>(v.size()) * (m - mean) * (m - mean);
+        for (double x : v) ssw += (x - m) * (x - m);
+    }
+    const double msb = ssb / (groups - 1), msw = ssw / (n_all - groups);
+    const double n0 = (n_all - sum_n2 / n_all) / (groups - 1);
+    const double den = msb + (n0 - 1) * msw;
+    return den > 0 ? std::clamp((msb - msw) / den, 0.0, 1.0) : 0.0;
+}
+
+// The share of a cluster's pair information that is independent: n pairs whose errors
+// correlate by rho inform as n / (1 + (n - 1) rho) independent ones (the design effect).
+double ClusterWeight(std::size_t n, double rho) {
+    return 1.0 / (1.0 + (static_cast<double>(n) - 1.0) * rho);
+}
+
 // Adds H^-1 M H^-1 (SlamPosterior) to the node blocks Ckk (k, k) and Ckn (k, k + 1): the
 // pairs clustered by section pair, each cluster's gradient g_c, Y = H^-1 G in batches.
 bool AddClusterRobust(const Input& in,
                       const Param& p,
                       const std::vector<Pose>& T,
-                      const std::vector<Pair>& pairs,
+                      const Clusters& clusters,
+                      double rho,
                       const SlamConfig& cfg,
+                      PairInformation pair_info,
                       reg::DampedSolver<6>& ne,
                       std::vector<Matrix6d>& Ckk,
                       std::vector<Matrix6d>& Ckn,
                       std::size_t* num_clusters) {
     const std::size_t n = p.num_nodes();
-    std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<Pair>> clusters;
-    for (const Pair& pr : pairs) {
-        clusters[{std::min(pr.block_a, pr.block_b), std::max(pr.block_a, pr.block_b)}].push_back(
-            pr);
-    }
     *num_clusters = clusters.size();
     const auto dim = static_cast<Eigen::Index>(6 * n);
     const std::size_t batch = static_cast<std::size_t>(std::max(1, cfg.posterior_batch_nodes)) * 6;
@@ -76,7 +145,15 @@ bool AddClusterRobust(const Input& in,
         std::vector<Eigen::VectorXd> cols;
         for (; it != clusters.end() && cols.size() < batch; ++it) {
             tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
-            AddPairTerms(in, p, T, it->second, cfg, /*linearise=*/true, accs);
+            AddPairTerms(in,
+                         p,
+                         T,
+                         it->second,
+                         cfg,
+                         /*linearise=*/true,
+                         accs,
+                         pair_info,
+                         ClusterWeight(it->second.size(), rho));
             Eigen::VectorXd g = Eigen::VectorXd::Zero(dim);
             for (const Terms& acc : accs) {
                 const auto& grad = acc.sys.grad();
@@ -127,8 +204,33 @@ void ComputePosterior(const Input& in,
     t0 = Clock::now();
     Terms total(n);
     AddPoseTerms(in, p, T, cfg, /*linearise=*/true, total);
+    // GICP's along-surface sigma (gicp_tangent_sigma_m) is a loose bound that lets the solver
+    // slide a pass along a surface, not a measurement: a pair's offset along the surface is
+    // where the other pass's nearest sounding happens to lie (docs/decisions/002), alike for
+    // every pair of an overlap. Read as independent information it states the along-track
+    // position of a pass in a GNSS outage to a few cm from 10^4 pairs along a featureless bench
+    // (docs/decisions/012). So a pair informs the posterior along its normal alone, unless
+    // posterior_tangent_information.
+    const PairInformation pair_info = cfg.posterior_tangent_information
+                                          ? PairInformation::kAsConfigured
+                                          : PairInformation::kNormalOnly;
+    // The pairs of one cluster (two rigid sections) share the errors of both passes' surfaces
+    // (the INS attitude, the boresight and sound speed residuals): their information is
+    // scaled by the design effect with the residuals' intra-cluster correlation (decision 012).
+    const Clusters clusters = ClusterPairs(found.pairs);
+    post.residual_correlation = ResidualCorrelation(in, T, clusters, cfg);
     tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
-    AddPairTerms(in, p, T, found.pairs, cfg, /*linearise=*/true, accs);
+    for (const auto& [key, prs] : clusters) {
+        AddPairTerms(in,
+                     p,
+                     T,
+                     prs,
+                     cfg,
+                     /*linearise=*/true,
+                     accs,
+                     pair_info,
+                     ClusterWeight(prs.size(), post.residual_correlation));
+    }
     for (const Terms& acc : accs) {
         total.sys.Merge(acc.sys);
         total.cost += acc.cost;
@@ -190,7 +292,17 @@ void ComputePosterior(const Input& in,
         post.formal_horizontal_median_m = h[h.size() / 2];
     }
     if (cfg.posterior_cluster_robust) {
-        if (!AddClusterRobust(in, p, T, found.pairs, cfg, ne, Ckk, Ckn, &post.clusters)) {
+        if (!AddClusterRobust(in,
+                              p,
+                              T,
+                              clusters,
+                              post.residual_correlation,
+                              cfg,
+                              pair_info,
+                              ne,
+                              Ckk,
+                              Ckn,
+                              &post.clusters)) {
             post.message = "the cluster-robust covariance could not be solved";
             post.total_s = Seconds(t_start);
             return;

@@ -149,7 +149,7 @@ struct SlamConfig {
     int num_threads = 0;            // 0 = TBB default
     // Posterior of the semi-rigid result (SlamPosterior): computed after the stage when true.
     // Off by default: it costs 10-28 % of the stage and does not yet contain the true error
-    // (docs/uncertainty.md).
+    // (docs/uncertainty.md: 88 % of gps-outage's pings within its 95 % radius, 93 % wanted).
     bool posterior = false;
     int posterior_batch_nodes = 50;  // nodes (6 right-hand sides each) per CHOLMOD solve
     // The cluster-robust (sandwich) covariance of SlamPosterior: the pair terms' information
@@ -159,6 +159,13 @@ struct SlamConfig {
     // Add the INS's steady sigma (the survey's smallest, per component) to every slice's
     // posterior: the reference SLAM is anchored to, common to the passes it aligns.
     bool posterior_reference_sigma = true;
+    // GICP pairs: true (the default) = the posterior takes their along-surface information as
+    // the solver does (gicp_tangent_sigma_m); false = along their normal only (the offset along
+    // a surface is where the other pass's nearest sounding lies). Measured on gps-outage
+    // (docs/decisions/012): along the normal only, 78 % of the pings within the 95 % radius
+    // against 88 % with it: the normals of a bench's edges and boulders tie the passes along
+    // the track in the model, and the error SLAM leaves is elsewhere.
+    bool posterior_tangent_information = true;
     // Without the cluster-robust part: scale the formal covariance H^-1 by the a-posteriori
     // variance factor sigma0^2 (see SlamPosterior); false = the formal covariance as it is.
     bool posterior_variance_factor = true;
@@ -245,6 +252,9 @@ struct SlamPosterior {
     std::size_t num_pairs = 0;     // pairs of the final linearisation
     std::size_t nodes_solved = 0;  // nodes whose marginal blocks were solved
     std::size_t clusters = 0;      // pair clusters of the sandwich (0: formal covariance)
+    // Intra-cluster correlation of the pairs' normal residuals; a cluster of n pairs informs
+    // as n / (1 + (n - 1) rho) independent ones.
+    double residual_correlation = 0;
     // Median over the slices of the formal horizontal sigma sqrt((sE^2 + sN^2) / 2) of H^-1
     // alone (no variance factor, no sandwich), for comparison.
     double formal_horizontal_median_m = 0;

@@ -209,7 +209,9 @@ void AddPairTerms(const Input& in,
                   const std::vector<Pair>& pairs,
                   const SlamConfig& cfg,
                   bool linearise,
-                  tbb::enumerable_thread_specific<Terms>& accs) {
+                  tbb::enumerable_thread_specific<Terms>& accs,
+                  PairInformation information,
+                  double weight_scale) {
     const double s2 = cfg.point_sigma_m * cfg.point_sigma_m;
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, pairs.size(), 1024),
@@ -230,15 +232,27 @@ void AddPairTerms(const Input& in,
                 const int nb = SliceNodes(p, b, nodes + na, w + na);
                 const int count = na + nb;
                 acc.sq_dist += r3.squaredNorm();
-                if (cfg.correspondence == CorrespondenceType::kPointToPlane) {
-                    const Eigen::Vector3d nrm = pr.c.target_normal.cast<double>();
+                const bool plane = cfg.correspondence == CorrespondenceType::kPointToPlane;
+                if (plane || information == PairInformation::kNormalOnly) {
+                    // Point-to-plane: the target's normal, the target's noise. Normal only:
+                    // the mean of both normals, both points' noise (GICP's normal direction).
+                    Eigen::Vector3d nrm = pr.c.target_normal.cast<double>();
+                    double sigma = cfg.point_sigma_m;
+                    if (!plane) {
+                        const Eigen::Vector3d na3 = pr.c.query_normal.cast<double>();
+                        nrm += na3.dot(nrm) < 0 ? -na3 : na3;
+                        if (nrm.norm() < 1e-9) nrm = pr.c.target_normal.cast<double>();
+                        nrm.normalize();
+                        sigma *= std::sqrt(2.0);
+                    }
                     Eigen::Matrix<double, 1, 1> r;
                     r(0) = nrm.dot(r3);
-                    const double sw = std::abs(r(0)) / cfg.point_sigma_m;
+                    const double sw = std::abs(r(0)) / sigma;
                     acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
                     if (!linearise) continue;
                     Eigen::Matrix<double, 1, 1> W;
-                    W(0) = RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) / s2;
+                    W(0) = weight_scale * RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) /
+                           (sigma * sigma);
                     Matrix16d J[4];
                     for (int i = 0; i < count; ++i) {
                         const bool is_a = i < na;
@@ -261,7 +275,7 @@ void AddPairTerms(const Input& in,
                     acc.cost += RobustCost(cfg.robust_kernel, sw, cfg.robust_width);
                     if (!linearise) continue;
                     const Eigen::Matrix3d W =
-                        RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
+                        weight_scale * RobustWeight(cfg.robust_kernel, sw, cfg.robust_width) * info;
                     Matrix36d J[4];
                     for (int i = 0; i < count; ++i) {
                         const bool is_a = i < na;

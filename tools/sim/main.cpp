@@ -237,6 +237,15 @@ int main(int argc, char** argv) try {
                      "START END EAST NORTH: the INS position drifts to (EAST, NORTH) m over START "
                      "to END s with its status good and its stddevs unchanged, then recovers")
         ->expected(4);
+    std::vector<double> gps_outage;
+    synth
+        ->add_option("--gps-outage",
+                     gps_outage,
+                     "START END: no GNSS from START to END s (in addition to the scenario's "
+                     "outages): the INS dead-reckons, its position drifts and its stddevs grow, "
+                     "then it recovers (repeatable, sorted)")
+        ->expected(2)
+        ->allow_extra_args(false);
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -329,6 +338,10 @@ int main(int argc, char** argv) try {
             return codes::kUsage;
         }
         scenario->nav.status_windows.insert(scenario->nav.status_windows.end(), {a, b, status});
+    }
+    for (std::size_t i = 0; i + 1 < gps_outage.size(); i += 2) {
+        scenario->nav.outages_s.insert(scenario->nav.outages_s.end(),
+                                       {gps_outage[i], gps_outage[i + 1]});
     }
     if (ins_drift.size() == 4) {
         scenario->nav.drift_windows.insert(

@@ -570,6 +570,36 @@ class ReportTest(unittest.TestCase):
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
 
+    def test_trajectory_sigma_per_window(self):
+        # P/trajectory_sigma.csv: 90 s at 10 Hz, the stated sigma 1 cm, 5 cm from 30 to 60 s
+        # (SLAM's posterior there), the INS's 1 cm then 2 m: a figure and one row a 30 s window.
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        t = GPS_T0 + np.arange(900) * 0.1
+        inside = (t >= GPS_T0 + 30) & (t < GPS_T0 + 60)
+        sig = np.where(inside, 0.05, 0.01)
+        ins = np.where(inside, 2.0, 0.01)
+        with open(os.path.join(p, "trajectory_sigma.csv"), "w") as f:
+            f.write("gps_time_s,x_m,y_m,z_m,x0_m,y0_m,z0_m,sigma_east_m,sigma_north_m,"
+                    "sigma_up_m,sigma_roll_deg,sigma_pitch_deg,sigma_yaw_deg,ins_sigma_east_m,"
+                    "ins_sigma_north_m,ins_sigma_up_m,slam_posterior\n")
+            for k in range(len(t)):
+                f.write(f"{t[k]:.6f},0,0,0,0,0,0,{sig[k]},{sig[k]},0.02,0.01,0.01,0.04,"
+                        f"{ins[k]},{ins[k]},0.02,{int(inside[k])}\n")
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        _, eng = ReadPages(p)
+        esec = Sections(eng)
+        sec = esec["trajectory-sigma"]
+        self.assertIn("data:image/png", sec)
+        rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)"
+                          r"</td><td>([^<]*)</td></tr>", sec)
+        self.assertEqual(len(rows), 3)
+        self.assertEqual(rows[0][1], "0.024")  # 2.4477 x 0.01 m
+        self.assertEqual(rows[1][1], "0.122")  # 2.4477 x 0.05 m
+        self.assertEqual(rows[1][3], "4.895")  # the INS's own in the outage
+        self.assertEqual([r[4] for r in rows], ["0 %", "100 %", "0 %"])
+
     def test_cover_shows_the_metadata(self):
         p = os.path.join(self.dir, "P")
         WriteProducts(p, full=True, metadata=METADATA)

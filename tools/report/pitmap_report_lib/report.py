@@ -45,6 +45,8 @@ SECTIONS = (
     (ENGINEERING_PAGE, "processing", "Processing record", survey.survey_facts),
     (ENGINEERING_PAGE, "quality", "Quality gates", survey.quality_gates),
     (ENGINEERING_PAGE, "trajectory", "Trajectory before and after SLAM", geometry.trajectory),
+    (ENGINEERING_PAGE, "trajectory-sigma", "How well the trajectory is known",
+     geometry.trajectory_sigma),
     (ENGINEERING_PAGE, "cross-sections", "Cross-sections of the point cloud",
      geometry.cross_sections),
     (ENGINEERING_PAGE, "depth", "Depth-coloured top view (local metres)",

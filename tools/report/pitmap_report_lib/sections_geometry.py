@@ -15,7 +15,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from .loaders import PlyError  # noqa: E402
 from .rasters import (MAX_SCATTER_POINTS, empty_panel, fill_holes, limits,  # noqa: E402
                       rasterise_mesh, raster_mean, subsample)
-from .util import log, num, not_produced  # noqa: E402
+from .util import log, num, not_produced, table  # noqa: E402
 
 
 def trajectory(p):
@@ -305,3 +305,57 @@ def oblique_view(p, grids, meshes, xl, yl, cell, norm, cmap, ls):
         a.zaxis.set_major_locator(MaxNLocator(4))
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.04, top=0.94, wspace=0.05)
     return p.figure(fig, "mesh_oblique", "oblique 3-D view of the meshes")
+
+
+# 95 % radius over the horizontal 1-sigma sqrt((sE^2 + sN^2) / 2) (IHO S-44's THU factor).
+_CIRCULAR95 = 2.4477
+
+
+def trajectory_sigma(p, window_s=30.0):
+    """How well the trajectory is known along the track: P/trajectory_sigma.csv's stated 95 %
+    horizontal radius per ping (SLAM's posterior where it was used, else the INS's), against
+    the INS's own, over time and per window_s window. None when the product is absent (a
+    survey processed without it)."""
+    path = p.path("trajectory_sigma.csv")
+    try:
+        d = np.genfromtxt(path, delimiter=",", names=True)
+    except (OSError, ValueError):
+        return None
+    need = ("gps_time_s", "sigma_east_m", "sigma_north_m", "ins_sigma_east_m",
+            "ins_sigma_north_m", "slam_posterior")
+    if d.size < 2 or any(n not in d.dtype.names for n in need):
+        return None
+    t = d["gps_time_s"]
+    stated = _CIRCULAR95 * np.sqrt(0.5 * (d["sigma_east_m"] ** 2 + d["sigma_north_m"] ** 2))
+    ins = _CIRCULAR95 * np.sqrt(0.5 * (d["ins_sigma_east_m"] ** 2 + d["ins_sigma_north_m"] ** 2))
+    slam = d["slam_posterior"] != 0
+    minutes = p.minutes_of(t)
+    fig, ax = plt.subplots(figsize=(13, 3.6), layout="constrained")
+    ax.semilogy(minutes, ins, color="0.6", ls="--", lw=0.8, label="INS's own")
+    ax.semilogy(minutes, stated, color="tab:blue", lw=0.9,
+                label="stated (SLAM's posterior)" if slam.any() else "stated (the INS's)")
+    ax.set_xlabel("time since start (min)")
+    ax.set_ylabel("95 % horizontal radius (m)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="best", fontsize=8)
+    out = [p.figure(fig, "trajectory_sigma", "95 % horizontal radius of the trajectory")]
+    rows = []
+    t0 = float(t[0])
+    n = int(math.ceil((float(t[-1]) - t0) / window_s)) or 1
+    for k in range(n):
+        m = (t >= t0 + k * window_s) & (t < t0 + (k + 1) * window_s)
+        if k == n - 1:
+            m |= t == t[-1]
+        if not m.any():
+            continue
+        rows.append((f"{num(float(minutes[m][0]), 1)}&ndash;{num(float(minutes[m][-1]), 1)}",
+                     num(float(np.median(stated[m])), 3), num(float(np.max(stated[m])), 3),
+                     num(float(np.median(ins[m])), 3),
+                     f"{100.0 * float(np.mean(slam[m])):.0f} %"))
+    out.append(table(rows, header=("minutes", "stated 95 % radius, median (m)", "max (m)",
+                                   "INS's own, median (m)", "pings with SLAM's posterior")))
+    out.append('<p class="caption">The horizontal position of each ping as the processing '
+               "knows it: the 95 % radius it states (SLAM's posterior where the TPU took it, "
+               f"else the INS's sigma), per {window_s:.0f} s window along the track; the INS's "
+               "own radius for comparison (metres in a GNSS outage).</p>")
+    return "\n".join(out)
