@@ -21,8 +21,8 @@ namespace pitmap::proc::clean {
 
 namespace {
 
-using georef::SoundingStatus;
 using openvdb::Coord;
+using survey::SoundingStatus;
 using IndexTree = openvdb::Int32Tree;
 using RayT = openvdb::math::Ray<double>;
 // The hierarchical DDA enters at the root's children and descends to the leaves.

@@ -532,7 +532,7 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
                                    a.heading_deg,
                                    -1,
                                    -1));
-        georef::NavStdDev sd;
+        survey::NavStdDev sd;
         sd.utime_gps = t;
         sd.north_m = sd.east_m = static_cast<float>(as.position_sigma_horizontal_m);
         sd.up_m = static_cast<float>(as.position_sigma_vertical_m);
@@ -548,7 +548,7 @@ Expected<XtfConversion> AddXtfToIngest(const XtfFile& file,
     std::vector<float> angle_deg;
     for (const XtfBathyPing& p : file.pings) {
         const std::size_t n = p.twtt_counts.size();
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = gps(p.utime_unix);
         h.ping_number = p.ping_number;
         h.sound_speed_mps = p.sound_speed_mps;

@@ -13,8 +13,8 @@
 
 namespace pitmap::proc::pipeline::detail {
 
-using georef::SoundingStatus;
 using nlohmann::json;
+using survey::SoundingStatus;
 
 namespace {
 
@@ -24,9 +24,9 @@ std::string Percent(double share) {
     return buf;
 }
 
-bool AnyManualReject(const georef::SoundingFlags& f) {
+bool AnyManualReject(const survey::SoundingFlags& f) {
     for (const std::uint8_t m : f.manual) {
-        if (m == static_cast<std::uint8_t>(georef::ManualEdit::kReject)) return true;
+        if (m == static_cast<std::uint8_t>(survey::ManualEdit::kReject)) return true;
     }
     return false;
 }
@@ -34,7 +34,7 @@ bool AnyManualReject(const georef::SoundingFlags& f) {
 }  // namespace
 
 std::size_t FlatIndex(const georef::GeorefResult& geo,
-                      const georef::PingSeries& pings,
+                      const survey::PingSeries& pings,
                       std::size_t j) {
     return pings.pings[geo.pings[geo.points.ping[j]].header_index].beam_offset +
            std::size_t{geo.points.beam[j]};
@@ -60,8 +60,8 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
 }
 
 std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>& status) {
-    georef::SoundingFlags& flags = s.model.flags;
-    const georef::PingSeries& pings = s.model.ingest.pings;
+    survey::SoundingFlags& flags = s.model.flags;
+    const survey::PingSeries& pings = s.model.ingest.pings;
     if (flags.cleaning.size() != pings.range_counts.size())
         flags.cleaning.assign(pings.range_counts.size(), 0);
     std::vector<char> keep(s.geo.points.size(), 1);
@@ -70,7 +70,7 @@ std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>&
         if (status[j] == 0) continue;
         const std::size_t flat = FlatIndex(s.geo, pings, j);
         flags.cleaning[flat] = status[j];
-        if (flags.Manual(flat) == georef::ManualEdit::kRestore) continue;
+        if (flags.Manual(flat) == survey::ManualEdit::kRestore) continue;
         keep[j] = 0;
         --c.status[0];
         ++c.status[status[j]];
@@ -96,8 +96,8 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
                    {"trajectory", e.value("trajectory", "")}};
     }
     ClearGates(s, Stage::kClean);
-    georef::SoundingFlags& flags = s.model.flags;
-    const georef::PingSeries& pings = s.model.ingest.pings;
+    survey::SoundingFlags& flags = s.model.flags;
+    const survey::PingSeries& pings = s.model.ingest.pings;
     // The candidates: the current view is them when nothing was cleaned before and nothing is
     // rejected by hand (a new run); otherwise the survey is viewed again.
     bool cleaned_before = false;
@@ -109,7 +109,7 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
                                      s.refraction,
                                      {},
                                      nullptr,
-                                     georef::SoundingView::kCandidates);
+                                     survey::SoundingView::kCandidates);
     }
     ProgressReporter bar(ToString(Stage::kClean), 1000);
     const clean::CleanResult r = clean::Clean(s.geo, config.clean, bar.AsCallback());
@@ -120,8 +120,8 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
     flags.cleaning.assign(pings.range_counts.size(), 0);
     // The candidates' earlier verdicts are decided again: counted as accepted until then.
     georef::GeorefCounts& counts = s.geo.counts;
-    for (int code = 0; code < georef::kNumSoundingStatus; ++code) {
-        if (!georef::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
+    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
+        if (!survey::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
         counts.status[0] += counts.status[code];
         counts.status[code] = 0;
     }

@@ -36,8 +36,8 @@ namespace {
 std::string EditsText(const std::vector<std::uint8_t>& manual) {
     std::size_t rejected = 0, restored = 0;
     for (const std::uint8_t m : manual) {
-        rejected += m == static_cast<std::uint8_t>(georef::ManualEdit::kReject);
-        restored += m == static_cast<std::uint8_t>(georef::ManualEdit::kRestore);
+        rejected += m == static_cast<std::uint8_t>(survey::ManualEdit::kReject);
+        restored += m == static_cast<std::uint8_t>(survey::ManualEdit::kRestore);
     }
     return "edits: " + std::to_string(rejected) + " soundings rejected and " +
            std::to_string(restored) + " restored by hand (" + survey::kEditLogFileName + ")";
@@ -137,7 +137,7 @@ Status WritePoints(const std::string& dir,
                    json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected,
-                   const georef::PingSeries* pings,
+                   const survey::PingSeries* pings,
                    const ProductMetadata* meta) {
     io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
     extras.pings = pings;
@@ -171,7 +171,7 @@ georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c
                                 s.refraction,
                                 {},
                                 nullptr,
-                                georef::SoundingView::kRejected);
+                                survey::SoundingView::kRejected);
 }
 
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
@@ -186,17 +186,17 @@ Status WritePoints(StageContext& s, const PipelineConfig& c) {
         s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
 }
 
-json SoundingsJson(const georef::StatusCounts& counts) {
+json SoundingsJson(const survey::StatusCounts& counts) {
     std::int64_t total = 0;
     json rejected = json::object();
-    for (int k = 0; k < georef::kNumSoundingStatus; ++k) {
+    for (int k = 0; k < survey::kNumSoundingStatus; ++k) {
         total += counts[static_cast<std::size_t>(k)];
-        if (k == static_cast<int>(georef::SoundingStatus::kAccepted)) continue;
-        rejected[std::string(georef::ToString(static_cast<georef::SoundingStatus>(k)))] =
+        if (k == static_cast<int>(survey::SoundingStatus::kAccepted)) continue;
+        rejected[std::string(survey::ToString(static_cast<survey::SoundingStatus>(k)))] =
             counts[static_cast<std::size_t>(k)];
     }
     return {{"total", total},
-            {"accepted", counts[static_cast<std::size_t>(georef::SoundingStatus::kAccepted)]},
+            {"accepted", counts[static_cast<std::size_t>(survey::SoundingStatus::kAccepted)]},
             {"rejected", std::move(rejected)}};
 }
 
@@ -547,7 +547,7 @@ Status GeorefSurvey(StageContext& s,
     for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
     if (!s.model.ingest.assumed.empty()) {
         // A vendor file that does not say everything: the mount is the vehicle file's.
-        const georef::SonarMount& m = s.model.mount;
+        const survey::SonarMount& m = s.model.mount;
         char mount[200];
         std::snprintf(mount,
                       sizeof mount,

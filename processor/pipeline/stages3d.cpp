@@ -212,7 +212,7 @@ std::vector<Pose> SlamPingPoses(const georef::GeorefResult& geo,
 // The INS's own horizontal 1-sigma at a ping (hydro::InsSigmaAt: the nearest stddev record),
 // metres; NaN when no record lies within max_age_s or the record lacks north or east (NaN or
 // <= 0: not reported).
-double InsHorizontalSigma(const std::vector<georef::NavStdDev>& sd,
+double InsHorizontalSigma(const std::vector<survey::NavStdDev>& sd,
                           std::int64_t utime_gps,
                           double max_age_s) {
     constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -245,7 +245,7 @@ struct GoodInsMoves {
 };
 
 GoodInsMoves MovesAtGoodIns(const georef::GeorefResult& geo,
-                            const georef::NavSeries& nav,
+                            const survey::NavSeries& nav,
                             const std::vector<Pose>& before,
                             const std::vector<Pose>& after,
                             double sigma_max_age_s,

@@ -72,13 +72,13 @@ bool SurveyModel::ResetCalibration() {
     bool changed = calibration != CalibrationState::kNotRun ||
                    has(TrajectoryVersion::kCalibrated) || has(TrajectoryVersion::kSlam);
     if (clock.latency_applied) {
-        georef::ShiftPingTimes(ingest.pings, -clock.latency_s);
+        survey::ShiftPingTimes(ingest.pings, -clock.latency_s);
         changed = true;
     }
     clock.latency_applied = false;
     clock.latency_s = 0;
     clock.latency_formal_sd_s = 0;
-    const auto same = [](const georef::SonarMount& a, const georef::SonarMount& b) {
+    const auto same = [](const survey::SonarMount& a, const survey::SonarMount& b) {
         return a.lever_arm_m == b.lever_arm_m && a.boresight_roll_deg == b.boresight_roll_deg &&
                a.boresight_pitch_deg == b.boresight_pitch_deg &&
                a.boresight_yaw_deg == b.boresight_yaw_deg;
@@ -144,7 +144,7 @@ georef::GeorefResult Georeference(const SurveyModel& m,
                                   std::shared_ptr<const svp::Refraction> refraction,
                                   const ProgressCallback& progress,
                                   std::size_t* kept,
-                                  georef::SoundingView which) {
+                                  survey::SoundingView which) {
     georef::GeorefResult geo = georef::RunGeoref(m.ingest.nav,
                                                  m.ingest.pings,
                                                  m.mount,
@@ -185,7 +185,7 @@ json ClockJson(const SonarClockState& c) {
             {"rate_reference_utime", c.rate_reference_utime}};
 }
 
-json MountJson(const georef::SonarMount& m) {
+json MountJson(const survey::SonarMount& m) {
     return {{"roll_deg", m.boresight_roll_deg},
             {"pitch_deg", m.boresight_pitch_deg},
             {"yaw_deg", m.boresight_yaw_deg},
@@ -193,8 +193,8 @@ json MountJson(const georef::SonarMount& m) {
             {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD"}};
 }
 
-Expected<georef::SonarMount> MountFromJson(const json& m) {
-    georef::SonarMount mount;
+Expected<survey::SonarMount> MountFromJson(const json& m) {
+    survey::SonarMount mount;
     try {
         mount.boresight_roll_deg = m.at("roll_deg").get<double>();
         mount.boresight_pitch_deg = m.at("pitch_deg").get<double>();

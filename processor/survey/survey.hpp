@@ -13,7 +13,7 @@
 //   trajectories  one vehicle pose per ping in named versions: INS (the navigation at the
 //                 nominal ping times), calibrated (the navigation at the calibrated times, with
 //                 the calibrated mount), SLAM (after continuous-time SLAM)
-//   flags         each sounding's status beyond georef's own filters (georef/sounding_status.hpp):
+//   flags         each sounding's status beyond georef's own filters (survey/sounding_status.hpp):
 //                 what the cleaning decided (saved here) and the hand edits (the edit log,
 //                 P/edits.json, read again by every stage command: edit_log.hpp)
 //
@@ -107,8 +107,8 @@ struct SurveyModel {
     std::string run_id;
     io::IngestResult ingest;
     std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
-    georef::SonarMount nominal_mount;
-    georef::SonarMount mount;  // the current one
+    survey::SonarMount nominal_mount;
+    survey::SonarMount mount;  // the current one
     // The calibrated boresight's 1-sigma (roll, pitch, yaw; deg): the fit's range noise and the
     // INS's attitude error (calib::BoresightResult::sd_deg); NaN unless calibration ==
     // kCalibrated.
@@ -120,7 +120,7 @@ struct SurveyModel {
     std::array<PingTrajectory, kNumTrajectoryVersions> trajectories;
     // cleaning: the cleaning's verdict per sounding of ingest.pings (empty = none yet);
     // manual: the edit log applied (not saved in survey.pitmap: the edit log is the record).
-    georef::SoundingFlags flags;
+    survey::SoundingFlags flags;
 
     const PingTrajectory& trajectory(TrajectoryVersion v) const {
         return trajectories[static_cast<int>(v)];
@@ -156,7 +156,7 @@ georef::GeorefResult Georeference(const SurveyModel& m,
                                   std::shared_ptr<const svp::Refraction> refraction,
                                   const ProgressCallback& progress = {},
                                   std::size_t* kept = nullptr,
-                                  georef::SoundingView which = georef::SoundingView::kAccepted);
+                                  survey::SoundingView which = survey::SoundingView::kAccepted);
 
 // The per-ping trajectory of a georeferenced survey of `num_pings` pings.
 PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);
@@ -170,8 +170,8 @@ nlohmann::json ClockJson(const SonarClockState& c);
 
 // The mount as summary.json and boresight.json write it, and back (an error names what is
 // wrong); the world origin likewise.
-nlohmann::json MountJson(const georef::SonarMount& m);
-Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
+nlohmann::json MountJson(const survey::SonarMount& m);
+Expected<survey::SonarMount> MountFromJson(const nlohmann::json& m);
 nlohmann::json OriginJson(const Geodetic& g);
 Expected<Geodetic> OriginFromJson(const nlohmann::json& o);
 

@@ -133,20 +133,20 @@ SurveyModel SmallSurvey() {
     io::IngestResult& r = m.ingest;
     r.nav.leap_seconds = 18;
     for (int i = 0; i < 40; ++i) {
-        georef::NavSample s;
+        survey::NavSample s;
         s.utime_gps = 1'400'000'000'000'000 + i * 10'000;
         s.position = {40.4435 + i * 1e-6, -7.7806, 412.0};
         s.yaw_rad = 0.01 * i;
         s.ins_status = 3;
         s.position_type = 56;
         r.nav.samples.push_back(s);
-        georef::NavStdDev d;
+        survey::NavStdDev d;
         d.utime_gps = s.utime_gps;
         d.north_m = d.east_m = d.up_m = 0.02f;
         r.nav.stddevs.push_back(d);
     }
     for (int p = 0; p < 10; ++p) {
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = 1'400'000'000'010'000 + p * 30'000;
         h.ping_number = p;
         h.sound_speed_valid = p % 2 == 0;
@@ -586,13 +586,13 @@ SurveyModel CleanedSurvey() {
     SurveyModel m = SmallSurvey();
     const std::size_t n = m.ingest.pings.range_counts.size();
     m.flags.cleaning.assign(n, 0);
-    m.flags.cleaning[0] = static_cast<std::uint8_t>(georef::SoundingStatus::kFreeSpace);
-    m.flags.cleaning[17] = static_cast<std::uint8_t>(georef::SoundingStatus::kMultipath);
-    m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(georef::SoundingStatus::kCluster);
-    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(georef::SoundingStatus::kProfile);
-    m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
+    m.flags.cleaning[0] = static_cast<std::uint8_t>(survey::SoundingStatus::kFreeSpace);
+    m.flags.cleaning[17] = static_cast<std::uint8_t>(survey::SoundingStatus::kMultipath);
+    m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(survey::SoundingStatus::kCluster);
+    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(survey::SoundingStatus::kProfile);
+    m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(survey::SoundingStatus::kSurfaceFilter);
     m.flags.manual.assign(n, 0);
-    m.flags.manual[5] = static_cast<std::uint8_t>(georef::ManualEdit::kReject);
+    m.flags.manual[5] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);
     return m;
 }
 
@@ -865,13 +865,13 @@ TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
 
 TEST(SurveyModel, ResetCalibrationUndoesTheLatencyAndTheMountExactly) {
     SurveyModel m = SmallSurvey();
-    const std::vector<georef::PingHeader> nominal = m.ingest.pings.pings;
+    const std::vector<survey::PingHeader> nominal = m.ingest.pings.pings;
     EXPECT_FALSE(m.ResetCalibration()) << "nothing to undo";
     m.mount.boresight_yaw_deg = 1.5;
     m.clock.latency_applied = true;
     m.clock.latency_s = 0.0123456;
     m.clock.latency_formal_sd_s = 0.001;
-    georef::ShiftPingTimes(m.ingest.pings, m.clock.latency_s);
+    survey::ShiftPingTimes(m.ingest.pings, m.clock.latency_s);
     m.calibration = CalibrationState::kCalibrated;
     m.trajectory(TrajectoryVersion::kCalibrated).T_world_vehicle.assign(10, Pose::Identity());
     m.trajectory(TrajectoryVersion::kCalibrated).valid.assign(10, 1);

@@ -14,7 +14,7 @@
 
 #include "common/geodesy.hpp"
 
-namespace pitmap::proc::georef {
+namespace pitmap::proc::survey {
 
 inline constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
@@ -127,4 +127,4 @@ void ShiftPingTimes(PingSeries& pings,
                     double rate,
                     std::int64_t reference_utime);
 
-}  // namespace pitmap::proc::georef
+}  // namespace pitmap::proc::survey
