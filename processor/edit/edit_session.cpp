@@ -10,6 +10,7 @@
 
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
+#include "processor/io/svp_files.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::edit {
@@ -115,7 +116,7 @@ Expected<std::unique_ptr<EditSession>> EditSession::FromModel(survey::SurveyMode
         s->log_.survey = survey::IdentityOf(model.ingest.pings);
         s->manual_.assign(model.ingest.pings.num_soundings(), 0);
     }
-    auto refraction = survey::BuildRefraction(model.refraction);
+    auto refraction = io::BuildRefraction(model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
                      ": the sound-velocity casts georef used: " + refraction.error().message};

@@ -19,6 +19,7 @@
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/georef/mount_check.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/svp_files.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
@@ -371,7 +372,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     // The report this stage adds to; a damaged one, or one of another run, is started again
     // (it decides nothing).
     s.summary = LoadSummaryOfRun(out_dir, s.model, log);
-    auto refraction = survey::BuildRefraction(s.model.refraction);
+    auto refraction = io::BuildRefraction(s.model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
                      ": the sound-velocity casts georef used: " + refraction.error().message};

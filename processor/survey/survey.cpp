@@ -6,8 +6,6 @@
 #include <random>
 #include <utility>
 
-#include "processor/io/svp_files.hpp"
-
 namespace pitmap::proc::survey {
 
 std::string NewRunId() {
@@ -89,20 +87,6 @@ bool SurveyModel::ResetCalibration() {
     calibration = CalibrationState::kNotRun;
     DropFrom(TrajectoryVersion::kCalibrated);
     return changed;
-}
-
-Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r) {
-    if (!r.enabled()) return std::shared_ptr<const svp::Refraction>();
-    auto casts = io::ReadSoundSpeedFiles(r.svp_files);
-    if (!casts) return casts.error();
-    if (auto p = svp::Refraction::Check(*casts, r.selection, r.ins_height_above_waterline_m);
-        !p.empty()) {
-        std::string text;
-        for (const auto& line : p) text += (text.empty() ? "" : "\n") + line;
-        return Error{text};
-    }
-    return std::shared_ptr<const svp::Refraction>(std::make_shared<const svp::Refraction>(
-        std::move(*casts), r.selection, r.surface_speed, r.ins_height_above_waterline_m));
 }
 
 PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings) {

@@ -142,10 +142,6 @@ std::string NewRunId();
 // Whether `id` is a run id as NewRunId makes them.
 bool IsRunId(const std::string& id);
 
-// The casts of a refraction record (read from its files); null for straight rays. A missing or
-// bad cast file is an error naming it.
-Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r);
-
 // The view: the survey's soundings on trajectory version `v` (the newest present at or before
 // it) with the current mount, those of `which` status (the accepted ones by default; the
 // model's flags decide). Pings without a valid pose in that version keep the navigation's
