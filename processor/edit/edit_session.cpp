@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "common/vehicle.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/svp_files.hpp"
 #include "processor/survey/survey_file.hpp"
@@ -138,7 +139,7 @@ Expected<std::unique_ptr<EditSession>> EditSession::FromModel(survey::SurveyMode
     bool centred = false;
     for (const auto view : {survey::SoundingView::kAccepted, survey::SoundingView::kRejected}) {
         georef::GeorefResult geo =
-            survey::Georeference(model, version, config.georef, *refraction, {}, nullptr, view);
+            georef::Georeference(model, version, config.georef, *refraction, {}, nullptr, view);
         const std::size_t n = geo.points.size();
         if (!centred && n > 0) {
             // The centre: the first view's mean, to the metre (float32 keeps millimetres

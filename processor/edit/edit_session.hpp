@@ -5,7 +5,7 @@
 // saved at once.
 //
 // Design (5.9 M soundings must stay under 1.5 GB and a lasso of 100 k answer in < 1 s):
-//   - At open, the survey is georeferenced twice with no hand edits (survey::Georeference, the
+//   - At open, the survey is georeferenced twice with no hand edits (georef::Georeference, the
 //     accepted and the rejected views: together every sounding that has a position, with what
 //     georef and the cleaning decided), then the edit log is applied on top. Per sounding the
 //     session keeps 21 bytes: float32 east/north/up from the session's centre, its flat index

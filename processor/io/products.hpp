@@ -94,7 +94,7 @@ inline constexpr const char* kLasTvuName = "tvu_95_m";
 // SoundingIntensity), float thu_95_m, tvu_95_m (when given) and, with datum heights, float
 // depth_m (D - h: below the datum, m) and a comment "pitmap_vertical_datum NAME"; x, y, z stay
 // world ENU (ellipsoidal). `rejected` (optional): the kRejected view of the same survey
-// (GeorefPoints::status filled, its pings those of `result`, as survey::Georeference gives both),
+// (GeorefPoints::status filled, its pings those of `result`, as georef::Georeference gives both),
 // written after the accepted soundings with their status; without it every status is 0.
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& result,

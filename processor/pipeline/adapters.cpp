@@ -1,8 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/adapters.hpp"
 
-#include "processor/survey/survey.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,7 @@
 
 #include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/hydro/tpu.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -124,7 +123,7 @@ Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_w
         t.T_world_vehicle[geo.pings[k].header_index] = T_world_vehicle[k];
         t.valid[geo.pings[k].header_index] = 1;
     }
-    survey::ApplyTrajectory(geo, t);
+    georef::ApplyTrajectory(geo, t);
     return Ok{};
 }
 

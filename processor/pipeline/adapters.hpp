@@ -53,7 +53,7 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
 
 // Moves every sounding and ping of `geo` to new vehicle poses, one per ping
 // (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p, through
-// survey::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
+// georef::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
 Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle);
 
 // New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the

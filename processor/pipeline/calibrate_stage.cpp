@@ -441,7 +441,7 @@ void ApplyCalibration(StageContext& s,
     }
     if (!keep_nominal) {
         s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
-            survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+            georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     }
 }
 
@@ -518,7 +518,7 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
     // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
     if (s.model.ResetCalibration()) {
         log("calibrate: starting again from the nominal mount and sonar clock");
-        s.geo = survey::Georeference(
+        s.geo = georef::Georeference(
             s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
     }
     const survey::SonarMount before = s.model.mount;

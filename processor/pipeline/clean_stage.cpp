@@ -103,7 +103,7 @@ Status CleanSurvey(StageContext& s, const PipelineConfig& config, const Log& log
     bool cleaned_before = false;
     for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
     if (cleaned_before || AnyManualReject(flags)) {
-        s.geo = survey::Georeference(s.model,
+        s.geo = georef::Georeference(s.model,
                                      s.model.latest(),
                                      config.georef,
                                      s.refraction,

@@ -166,7 +166,7 @@ Status WritePoints(const std::string& dir,
 }
 
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
-    return survey::Georeference(s.model,
+    return georef::Georeference(s.model,
                                 s.model.latest(),
                                 c.georef,
                                 s.refraction,
@@ -389,7 +389,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
     std::size_t kept = 0;
-    s.geo = survey::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    s.geo = georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
     if (kept > 0) {
         log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
@@ -662,7 +662,7 @@ Status GeorefSurvey(StageContext& s,
     }
     s.model.origin = s.geo.world_origin;
     s.model.trajectory(survey::TrajectoryVersion::kIns) =
-        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+        georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     RecordStage(s.summary, Stage::kGeoref, s.geo.counts, georef_clock);
     s.summary["world_origin"] = survey::OriginJson(s.model.origin);
     s.summary["time"] = TimeJson(s.model.ingest);

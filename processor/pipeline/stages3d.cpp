@@ -401,7 +401,7 @@ Status WriteSlamProducts(StageContext& s,
         return w;
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
-        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+        georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma =
         SlamPingSigma(s.geo, set, r, s.model.ingest.pings.pings.size());
     if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;

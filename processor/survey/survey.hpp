@@ -142,25 +142,6 @@ std::string NewRunId();
 // Whether `id` is a run id as NewRunId makes them.
 bool IsRunId(const std::string& id);
 
-// The view: the survey's soundings on trajectory version `v` (the newest present at or before
-// it) with the current mount, those of `which` status (the accepted ones by default; the
-// model's flags decide). Pings without a valid pose in that version keep the navigation's
-// pose; `kept` (when given) receives their number, for the caller to report.
-georef::GeorefResult Georeference(const SurveyModel& m,
-                                  TrajectoryVersion v,
-                                  const georef::GeorefConfig& config,
-                                  std::shared_ptr<const svp::Refraction> refraction,
-                                  const ProgressCallback& progress = {},
-                                  std::size_t* kept = nullptr,
-                                  survey::SoundingView which = survey::SoundingView::kAccepted);
-
-// The per-ping trajectory of a georeferenced survey of `num_pings` pings.
-PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);
-
-// Moves the soundings and pings of `geo` onto trajectory `t` (indexed by the ping series).
-// Pings without a valid pose in `t` keep theirs; returns how many kept theirs.
-std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t);
-
 // The sonar clock state as survey.pitmap and boresight.json write it.
 nlohmann::json ClockJson(const SonarClockState& c);
 

@@ -23,6 +23,7 @@
 
 #include "common/peak_memory.hpp"
 #include "common/protocol/novatel/crc32.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/survey/survey.hpp"
 #include "processor/survey/survey_file.hpp"
 
@@ -188,9 +189,11 @@ protected:
         path_ = (dir_ / kSurveyFileName).string();
         SurveyModel m = SmallSurvey();
         m.refraction = {};  // Georeference would read the cast file
-        const georef::GeorefResult geo = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+        const georef::GeorefResult geo =
+            georef::Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
         ASSERT_GT(geo.pings.size(), 0u);
-        m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(geo, m.ingest.pings.pings.size());
+        m.trajectory(TrajectoryVersion::kIns) =
+            georef::TrajectoryOf(geo, m.ingest.pings.pings.size());
         m.refraction = SmallSurvey().refraction;
         ASSERT_TRUE(SaveSurvey(path_, m));
         good_ = ReadBytes(path_);
@@ -242,16 +245,16 @@ TEST_F(SurveyFile, RoundTripsEveryPart) {
     ASSERT_EQ(t.T_world_vehicle.size(), 10u);
     for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(t.valid[i], 1) << i;
     EXPECT_NEAR(t.T_world_vehicle[3].translation().y(),
-                TrajectoryOf(Georeference(
-                                 [] {
-                                     SurveyModel m = SmallSurvey();
-                                     m.refraction = {};
-                                     return m;
-                                 }(),
-                                 TrajectoryVersion::kIns,
-                                 {},
-                                 nullptr),
-                             10)
+                georef::TrajectoryOf(georef::Georeference(
+                                         [] {
+                                             SurveyModel m = SmallSurvey();
+                                             m.refraction = {};
+                                             return m;
+                                         }(),
+                                         TrajectoryVersion::kIns,
+                                         {},
+                                         nullptr),
+                                     10)
                     .T_world_vehicle[3]
                     .translation()
                     .y(),
@@ -839,18 +842,20 @@ TEST_F(SurveyFile, TheSlamSigmaRoundTripsAndIsChecked) {
 TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
     SurveyModel m = SmallSurvey();
     m.refraction = {};
-    georef::GeorefResult ins = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+    georef::GeorefResult ins = georef::Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
     ASSERT_EQ(ins.pings.size(), 10u);
     const std::size_t n = m.ingest.pings.pings.size();
-    m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(ins, n);
+    m.trajectory(TrajectoryVersion::kIns) = georef::TrajectoryOf(ins, n);
     // A SLAM version 0.5 m east of the INS for every ping but ping 2 (no valid pose).
     PingTrajectory slam = m.trajectory(TrajectoryVersion::kIns);
     for (auto& T : slam.T_world_vehicle) T.translation().x() += 0.5;
     slam.valid[2] = 0;
     m.trajectory(TrajectoryVersion::kSlam) = slam;
     EXPECT_EQ(m.latest(), TrajectoryVersion::kSlam);
-    const georef::GeorefResult moved = Georeference(m, TrajectoryVersion::kSlam, {}, nullptr);
-    const georef::GeorefResult still = Georeference(m, TrajectoryVersion::kCalibrated, {}, nullptr);
+    const georef::GeorefResult moved =
+        georef::Georeference(m, TrajectoryVersion::kSlam, {}, nullptr);
+    const georef::GeorefResult still =
+        georef::Georeference(m, TrajectoryVersion::kCalibrated, {}, nullptr);
     ASSERT_EQ(moved.points.size(), ins.points.size());
     for (std::size_t j = 0; j < ins.points.size(); ++j) {
         const double want = moved.pings[moved.points.ping[j]].header_index == 2 ? 0.0 : 0.5;
