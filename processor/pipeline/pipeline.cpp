@@ -47,7 +47,7 @@ std::string EditsText(const std::vector<std::uint8_t>& manual) {
 // summary["time"]: GPS - UTC for the survey (the receiver's TIME log when it logged one, else
 // common/gps_time's leap-second table) and the pings' span in both scales. The report turns GPS
 // seconds into UTC with it, so the table exists once (in C++).
-json TimeJson(const io::IngestResult& ing) {
+json TimeJson(const survey::IngestedSeries& ing) {
     const std::int64_t t0 = ing.pings.pings.front().utime_gps;
     const std::int64_t t1 = ing.pings.pings.back().utime_gps;
     const bool receiver = ing.nav.leap_seconds >= 0;
@@ -437,8 +437,9 @@ Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points) 
 
 // The windows the INS marked not good (ingest's status rule): each with the pings it holds,
 // in summary["ingest_ins_windows"]; any window with pings is a georef gate.
-void InsWindowGate(StageContext& s, const Log& log) {
-    const auto& windows = s.model.ingest.ins_windows;
+void InsWindowGate(StageContext& s,
+                   const std::vector<io::InsStatusWindow>& windows,
+                   const Log& log) {
     if (windows.empty()) return;
     const auto& P = s.model.ingest.pings.pings;
     json list = json::array();
@@ -544,9 +545,9 @@ Status GeorefSurvey(StageContext& s,
     auto ing = io::IngestFiles(*files, icfg, bar.AsCallback());
     bar.Finish();
     if (!ing) return ing.error();
-    s.model.ingest = std::move(*ing);
-    for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
-    if (!s.model.ingest.assumed.empty()) {
+    s.model.ingest = {std::move(ing->nav), std::move(ing->pings)};
+    for (const auto& w : ing->warnings) log("warning: " + w);
+    if (!ing->assumed.empty()) {
         // A vendor file that does not say everything: the mount is the vehicle file's.
         const survey::SonarMount& m = s.model.mount;
         char mount[200];
@@ -559,17 +560,17 @@ Status GeorefSurvey(StageContext& s,
                       m.boresight_roll_deg,
                       m.boresight_pitch_deg,
                       m.boresight_yaw_deg);
-        s.model.ingest.assumed.push_back(
+        ing->assumed.push_back(
             "mount: " + std::string(mount) + " from " +
             (vpath.empty() ? std::string("no vehicle file (zero)") : "the vehicle file"));
     }
-    for (const auto& a : s.model.ingest.assumed) log("assumed: " + a);
-    log("ingest: " + s.model.ingest.message);
-    json ist = s.model.ingest.counts;
-    ist["warnings"] = s.model.ingest.warnings;
-    ist["assumed"] = s.model.ingest.assumed;
-    ist["nav_from_raw"] = s.model.ingest.nav_from_raw;
-    ist["pings_from_raw"] = s.model.ingest.pings_from_raw;
+    for (const auto& a : ing->assumed) log("assumed: " + a);
+    log("ingest: " + ing->message);
+    json ist = ing->counts;
+    ist["warnings"] = ing->warnings;
+    ist["assumed"] = ing->assumed;
+    ist["nav_from_raw"] = ing->nav_from_raw;
+    ist["pings_from_raw"] = ing->pings_from_raw;
     RecordStage(s.summary, Stage::kIngest, ist, ingest_clock);
     if (s.model.ingest.nav.samples.empty())
         return Error{"no INS navigation in the inputs (" + files->front() + " ...)"};
@@ -622,7 +623,7 @@ Status GeorefSurvey(StageContext& s,
             log("warning: " + what);
         }
     }
-    InsWindowGate(s, log);
+    InsWindowGate(s, ing->ins_windows, log);
     if (config.quality.check_mount) {
         const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
         log("georef: " + mc.message);

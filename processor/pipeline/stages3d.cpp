@@ -915,7 +915,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         // The soundings and the ingested series are saved (survey.pitmap, the points): free
         // them before the mesh, the run's largest stage (~0.4 GB on bejanca).
         s.geo = georef::GeorefResult{};
-        s.model.ingest = io::IngestResult{};
+        s.model.ingest = survey::IngestedSeries{};
         s.model.trajectories = {};
         if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMesh, log); !st) return st;
     }

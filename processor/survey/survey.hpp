@@ -34,7 +34,6 @@
 #include "common/result.hpp"
 #include "common/se3.hpp"
 #include "processor/georef/georef.hpp"
-#include "processor/io/ingest.hpp"
 #include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::survey {
@@ -105,7 +104,7 @@ struct SurveyModel {
     // a new model; every product and summary.json of this survey carries it, so a stage or the
     // report can tell a product of another run. "" = a survey written before run ids.
     std::string run_id;
-    io::IngestResult ingest;
+    IngestedSeries ingest;
     std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
     survey::SonarMount nominal_mount;
     survey::SonarMount mount;  // the current one

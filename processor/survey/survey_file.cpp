@@ -271,7 +271,7 @@ Status StateFromJson(const json& j, SurveyModel& m) {
 
 // ---- ingest ----
 
-Payload IngestPayload(const io::IngestResult& r) {
+Payload IngestPayload(const IngestedSeries& r) {
     Payload p;
     p.Value(static_cast<std::int32_t>(r.nav.leap_seconds));
     p.Value(static_cast<std::uint32_t>(r.pings.clock));
@@ -285,7 +285,7 @@ Payload IngestPayload(const io::IngestResult& r) {
 // `format`: the file's; formats 1-4 held the ping records in their old layout.
 Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
                          std::uint32_t format,
-                         io::IngestResult& r) {
+                         IngestedSeries& r) {
     Cursor in(bytes, "ingest");
     std::int32_t leap = -1;
     std::uint32_t clock = 0;
@@ -313,8 +313,6 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
         next_offset = static_cast<std::uint64_t>(p.beam_offset) + p.num_beams;
     }
     r.nav.leap_seconds = leap;
-    r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
-    r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
     return Ok{};
 }
 

@@ -131,7 +131,7 @@ std::vector<std::uint8_t> AsFormat(std::vector<std::uint8_t> b, std::uint32_t ve
 
 SurveyModel SmallSurvey() {
     SurveyModel m;
-    io::IngestResult& r = m.ingest;
+    IngestedSeries& r = m.ingest;
     r.nav.leap_seconds = 18;
     for (int i = 0; i < 40; ++i) {
         survey::NavSample s;
