@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "processor/io/products.hpp"
+#include "common/formats/byte_file.hpp"
 
 namespace pitmap::proc::survey {
 
@@ -149,7 +149,9 @@ Status WriteEditLog(const std::string& path, const EditLog& log) {
                       {"soundings", log.survey.soundings},
                       {"fingerprint", log.survey.fingerprint}}},
                     {"edits", std::move(edits)}};
-    return io::WriteJsonFile(path, j);
+    // As io::WriteJsonFile writes every JSON document (two-space indent, a final newline).
+    const std::string text = j.dump(2) + "\n";
+    return formats::WriteFileBytes(path, std::vector<std::uint8_t>(text.begin(), text.end()));
 }
 
 Expected<std::vector<std::uint8_t>> ApplyEditLog(const EditLog& log,

@@ -17,8 +17,12 @@
 //                 what the cleaning decided (saved here) and the hand edits (the edit log,
 //                 P/edits.json, read again by every stage command: edit_log.hpp)
 //
-// Georeferencing is a view (Georeference): the soundings of a trajectory version with the
-// current mount. Nothing here writes a product.
+// Its data types live here too: the series (series.hpp: NavSeries, PingSeries), the mount
+// (mount.hpp), the sounding statuses (sounding_status.hpp). Layering: survey uses common and svp
+// only; io fills the model (ingest, cast files: io::BuildRefraction), georef views it
+// (georef/survey_view.hpp: Georeference, the soundings of a trajectory version with the current
+// mount), the pipeline writes products from it (tests/lint/layering_test.py checks the arrows).
+// Nothing here writes a product.
 #pragma once
 
 #include <array>
@@ -33,7 +37,9 @@
 #include "common/progress.hpp"
 #include "common/result.hpp"
 #include "common/se3.hpp"
-#include "processor/georef/georef.hpp"
+#include "processor/survey/mount.hpp"
+#include "processor/survey/series.hpp"
+#include "processor/survey/sounding_status.hpp"
 #include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::survey {

@@ -27,7 +27,6 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace survey = pitmap::proc::survey;
-namespace georef = pitmap::proc::georef;
 using pitmap::test::FreshDir;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
