@@ -25,16 +25,17 @@ ALLOWED = {
     "io": {"survey", "georef", "svp"},
     "calib": {"survey", "georef", "registration"},
     "slam": {"registration"},
+    "compare": {"registration"},  # pitmap compare: co-registration and change of two surveys
     "clean": {"survey", "georef"},
     "fusion": set(),
     "mesh": {"fusion"},
     "hydro": {"survey", "georef"},
     "pipeline": {"survey", "georef", "svp", "io", "calib", "slam", "clean", "fusion", "mesh",
-                 "hydro", "registration"},
+                 "hydro", "registration", "compare"},
     "live": {"survey", "georef", "svp", "io", "hydro"},
     "edit": {"survey", "georef", "svp", "io", "hydro", "live"},
     "apps": {"survey", "georef", "svp", "io", "calib", "slam", "clean", "fusion", "mesh",
-             "hydro", "registration", "pipeline", "live", "edit"},
+             "hydro", "registration", "compare", "pipeline", "live", "edit"},
 }
 # The modules that may link LCM (pitmap::lcmtypes, pitmap::lcmlog): the style guide's "no stage
 # links LCM".
