@@ -143,7 +143,7 @@ int main(int argc, char** argv) try {
     server_config.limits.body_timeout_s = server_config.limits.header_timeout_s;
 
     // The vehicle: mount and lever arm for the georeferencing, the sensor error model for TVU.
-    pitmap::proc::georef::SonarMount mount;
+    pitmap::proc::survey::SonarMount mount;
     const bool mount_known = !vehicle_path.empty();
     if (mount_known) {
         auto v = pitmap::proc::io::ReadVehicleYaml(vehicle_path);

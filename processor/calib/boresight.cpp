@@ -31,7 +31,7 @@ using detail::Pair;
 using detail::Samples;
 using detail::Stats;
 using georef::GeorefResult;
-using georef::SonarMount;
+using survey::SonarMount;
 
 const char* ToString(Termination t) {
     switch (t) {
@@ -86,7 +86,7 @@ namespace {
 // tau = 0 these are the georeference's own poses.
 class ShiftedPoses {
 public:
-    ShiftedPoses(const GeorefResult& geo, const georef::NavSeries& nav)
+    ShiftedPoses(const GeorefResult& geo, const survey::NavSeries& nav)
         : geo_(geo), traj_(nav, LocalTangentFrame(geo.world_origin)) {}
 
     Pose At(std::uint32_t ping, double tau) const {
@@ -194,7 +194,7 @@ std::pair<double, std::int64_t> ScanCost(const ShiftedPoses& poses,
 }
 
 SegmentScore ScoreSegment(const GeorefResult& geo,
-                          const georef::NavSeries& nav,
+                          const survey::NavSeries& nav,
                           double t0,
                           double t1,
                           const BoresightConfig& cfg) {
@@ -240,7 +240,7 @@ SegmentScore ScoreSegment(const GeorefResult& geo,
 // (R_vs = Rz(yaw) Ry(pitch) Rx(roll)) by M^-1 delta, M = [Rz Ry x, Rz y, z].
 // Returns false when the INS reported no attitude sigma (of some axis) in the window: that
 // axis then has none added.
-bool InsAttitudeSd(const georef::NavSeries& nav,
+bool InsAttitudeSd(const survey::NavSeries& nav,
                    double t0,
                    double t1,
                    const SonarMount& m,
@@ -288,7 +288,7 @@ bool BetterSegment(const SegmentScore& a, const SegmentScore& b) {
 // GNSS outage longer than the survey's quiet stretches), shorter ones are tried, down to a
 // quarter of it, before settling for the best drifting one.
 std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
-                                            const georef::NavSeries& nav,
+                                            const survey::NavSeries& nav,
                                             const BoresightConfig& cfg) {
     const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
     const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
@@ -313,7 +313,7 @@ std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
 
 // The configured window, else the best candidate.
 SegmentScore ChooseSegment(const GeorefResult& geo,
-                           const georef::NavSeries& nav,
+                           const survey::NavSeries& nav,
                            const std::vector<SegmentScore>& candidates,
                            const BoresightConfig& cfg) {
     if (cfg.segment_start_s >= 0) {
@@ -738,7 +738,7 @@ std::string Summary(const BoresightResult& res, bool solve_failed) {
 }  // namespace
 
 BoresightResult CalibrateBoresight(const GeorefResult& geo,
-                                   const georef::NavSeries& nav,
+                                   const survey::NavSeries& nav,
                                    const SonarMount& mount,
                                    const BoresightConfig& cfg,
                                    const ProgressCallback& progress) {

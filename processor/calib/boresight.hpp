@@ -122,7 +122,7 @@ enum class Termination { kConverged = 0, kMaxIterations, kNoOverlap, kCancelled 
 const char* ToString(Termination t);
 
 struct BoresightResult {
-    georef::SonarMount mount;          // the input mount with the calibrated boresight
+    survey::SonarMount mount;          // the input mount with the calibrated boresight
     SegmentScore segment;              // the one used
     ResidualStats before, after;       // on that segment
     std::vector<VerifyResult> verify;  // other segments
@@ -149,8 +149,8 @@ struct BoresightResult {
 
 // `geo` must have been georeferenced with `mount`; its points and pings are read only.
 BoresightResult CalibrateBoresight(const georef::GeorefResult& geo,
-                                   const georef::NavSeries& nav,
-                                   const georef::SonarMount& mount,
+                                   const survey::NavSeries& nav,
+                                   const survey::SonarMount& mount,
                                    const BoresightConfig& config,
                                    const ProgressCallback& progress = {});
 

@@ -27,7 +27,7 @@ double WrapDeg(double a) {
 // The INS series as plain arrays: times in seconds since t_ref, ENU positions, unwrapped angles.
 class NavTrack {
 public:
-    NavTrack(const georef::NavSeries& nav, std::int64_t t_ref, const Eigen::Vector3d& antenna)
+    NavTrack(const survey::NavSeries& nav, std::int64_t t_ref, const Eigen::Vector3d& antenna)
         : world_(nav.samples.front().position) {
         t_.reserve(nav.samples.size());
         double yaw_prev = 0;
@@ -219,7 +219,7 @@ struct HeadSample {
     Eigen::Vector2d head;  // roll, pitch, deg
 };
 
-std::vector<HeadSample> HeadSamples(const georef::PingSeries& pings, std::int64_t t_ref) {
+std::vector<HeadSample> HeadSamples(const survey::PingSeries& pings, std::int64_t t_ref) {
     std::vector<HeadSample> all;
     for (const auto& h : pings.pings) {
         if (!h.aid_attitude_at_ping || !std::isfinite(h.aid_roll_deg) ||
@@ -243,7 +243,7 @@ std::vector<HeadSample> ThinHeadSamples(std::vector<HeadSample> all, std::int64_
 // The head's roll and pitch the INS predicts (HeadRollPitch), and measured minus predicted.
 class HeadModel {
 public:
-    HeadModel(const georef::NavSeries& nav, std::int64_t t_ref, const Eigen::Matrix3d& R_vs)
+    HeadModel(const survey::NavSeries& nav, std::int64_t t_ref, const Eigen::Matrix3d& R_vs)
         : track_(nav, t_ref, Eigen::Vector3d::Zero()),
           R_vs_(R_vs),
           identity_(R_vs.isIdentity(1e-12)) {}
@@ -438,8 +438,8 @@ std::string RateMessage(const ClockRateEstimate& est, double span_s, bool certai
 
 }  // namespace
 
-ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
-                                         const georef::NavSeries& nav,
+ClockRateEstimate EstimateSonarClockRate(const survey::PingSeries& pings,
+                                         const survey::NavSeries& nav,
                                          const ClockRateConfig& cfg) {
     ClockRateEstimate est;
     if (nav.samples.size() < 2) {
@@ -504,7 +504,7 @@ struct SegmentAids {
     std::vector<AidSample> pos, att;
 };
 
-SegmentAids AidsOf(const std::vector<georef::PingHeader>& P,
+SegmentAids AidsOf(const std::vector<survey::PingHeader>& P,
                    std::size_t begin,
                    std::size_t end,
                    std::int64_t t_ref,
@@ -550,7 +550,7 @@ double HeadAttitudeMisfit(const std::vector<AidSample>& s,
     return std::sqrt(std::max(0.0, (sq / static_cast<double>(n) - mean.cwiseProduct(mean)).sum()));
 }
 
-double MedianInterval(const std::vector<georef::PingHeader>& P) {
+double MedianInterval(const std::vector<survey::PingHeader>& P) {
     std::vector<double> per, all;
     for (std::size_t k = 1; k < P.size(); ++k) {
         const double dt = static_cast<double>(P[k].utime_gps - P[k - 1].utime_gps) * 1e-6;
@@ -565,7 +565,7 @@ double MedianInterval(const std::vector<georef::PingHeader>& P) {
 // sides in time order: the ping numbers drop and climb back above where they were within a few
 // pings, dropping again on the way. A reset of the numbers (a restarted sonar) drops once and
 // climbs from zero. Returns the count; `first` the first such ping.
-std::int64_t InterleavedPings(const std::vector<georef::PingHeader>& P, std::size_t* first) {
+std::int64_t InterleavedPings(const std::vector<survey::PingHeader>& P, std::size_t* first) {
     constexpr std::size_t kInterleaveWindow = 50;
     std::int64_t backward = 0;
     for (std::size_t k = 1; k < P.size(); ++k) {
@@ -593,7 +593,7 @@ struct TimeJump {
 
 // The jumps over max(min_jump_s, 2 T) (T the ping interval), at most max_candidates of them
 // (the largest), in ping order.
-std::vector<TimeJump> TimeJumps(const std::vector<georef::PingHeader>& P,
+std::vector<TimeJump> TimeJumps(const std::vector<survey::PingHeader>& P,
                                 double T,
                                 const ClockStepConfig& cfg) {
     std::vector<TimeJump> jumps;
@@ -625,7 +625,7 @@ struct SegmentOffset {
 // Each segment [bounds[i], bounds[i + 1]) of pings matched against the INS on its own: by the
 // head's attitude where the segments carry enough of it, else by the header fixes (`method`
 // says which). The scan spans +- scan_s.
-std::vector<SegmentOffset> SegmentOffsets(const std::vector<georef::PingHeader>& P,
+std::vector<SegmentOffset> SegmentOffsets(const std::vector<survey::PingHeader>& P,
                                           const std::vector<std::size_t>& bounds,
                                           const NavTrack& track,
                                           std::int64_t t_ref,
@@ -671,7 +671,7 @@ std::vector<SegmentOffset> SegmentOffsets(const std::vector<georef::PingHeader>&
 // Each jump as a step (the offsets on its two sides differ beyond their sigma: r.steps,
 // resolved), a pause (they agree: r.pauses) or unresolved (a side without an offset: r.steps).
 // Consecutive segments on one clock form a group: returns each segment's group.
-std::vector<int> ClassifyJumps(const std::vector<georef::PingHeader>& P,
+std::vector<int> ClassifyJumps(const std::vector<survey::PingHeader>& P,
                                const std::vector<std::size_t>& bounds,
                                const std::vector<TimeJump>& jumps,
                                const std::vector<SegmentOffset>& off,
@@ -768,8 +768,8 @@ std::string StepsMessage(const ClockStepResult& r, std::size_t num_jumps, double
 
 }  // namespace
 
-ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
-                                    const georef::NavSeries& nav,
+ClockStepResult FindSonarClockSteps(const survey::PingSeries& pings,
+                                    const survey::NavSeries& nav,
                                     const ClockStepConfig& cfg) {
     ClockStepResult r;
     const auto& P = pings.pings;
@@ -814,7 +814,7 @@ ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
     return r;
 }
 
-void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps) {
+void ApplyClockSteps(survey::PingSeries& pings, const ClockStepResult& steps) {
     auto& P = pings.pings;
     for (std::size_t i = 0; i < steps.segment_shift_s.size(); ++i) {
         const std::size_t b = steps.segment_shift_s[i].first;
@@ -829,8 +829,8 @@ void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps) {
         P.begin(), P.end(), [](const auto& a, const auto& b) { return a.utime_gps < b.utime_gps; });
 }
 
-double HeaderPositionMisfit(const georef::PingSeries& pings,
-                            const georef::NavSeries& nav,
+double HeaderPositionMisfit(const survey::PingSeries& pings,
+                            const survey::NavSeries& nav,
                             double correction_s,
                             const ClockSearchConfig& cfg) {
     const auto& P = pings.pings;
@@ -867,7 +867,7 @@ struct HeaderAids {
     bool have_heading = false, have_roll_pitch = false;
 };
 
-HeaderAids HeaderAidsOf(const georef::PingSeries& pings,
+HeaderAids HeaderAidsOf(const survey::PingSeries& pings,
                         std::int64_t t_ref,
                         const NavTrack& track) {
     HeaderAids a;
@@ -907,7 +907,7 @@ struct ClockScan {
     double ping_interval = 0;  // mean, s
 };
 
-ClockScan ScanRange(const georef::PingSeries& pings,
+ClockScan ScanRange(const survey::PingSeries& pings,
                     std::int64_t t_ref,
                     const NavTrack& track,
                     const ClockSearchConfig& cfg) {
@@ -1098,8 +1098,8 @@ ClockEstimate FromSpans(const NavTrack& track, const ClockScan& range) {
 
 }  // namespace
 
-ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
-                                 const georef::NavSeries& nav,
+ClockEstimate EstimateSonarClock(const survey::PingSeries& pings,
+                                 const survey::NavSeries& nav,
                                  const ClockSearchConfig& cfg) {
     if (pings.pings.size() < 2 || nav.samples.size() < 2) {
         ClockEstimate est;

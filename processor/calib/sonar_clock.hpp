@@ -32,7 +32,7 @@
 #include <utility>
 #include <vector>
 
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::calib {
 
@@ -68,8 +68,8 @@ struct ClockEstimate {
 };
 
 // `pings` and `nav` as ingest made them (GPS-time nav, pings on their own clock).
-ClockEstimate EstimateSonarClock(const georef::PingSeries& pings,
-                                 const georef::NavSeries& nav,
+ClockEstimate EstimateSonarClock(const survey::PingSeries& pings,
+                                 const survey::NavSeries& nav,
                                  const ClockSearchConfig& config = {});
 
 // The sonar clock's rate. A PC clock runs tens of ppm fast or slow (35 ppm is 7 ms over a
@@ -117,8 +117,8 @@ struct ClockRateEstimate {
 };
 
 // `pings` on GPS time to within the scan (after the coarse correction or a configured offset).
-ClockRateEstimate EstimateSonarClockRate(const georef::PingSeries& pings,
-                                         const georef::NavSeries& nav,
+ClockRateEstimate EstimateSonarClockRate(const survey::PingSeries& pings,
+                                         const survey::NavSeries& nav,
                                          const ClockRateConfig& config = {});
 
 // Steps of the topside clock (an NTP correction or a user setting the PC's time mid-survey):
@@ -165,17 +165,17 @@ struct ClockStepResult {
     std::string message;  // one line
 };
 
-ClockStepResult FindSonarClockSteps(const georef::PingSeries& pings,
-                                    const georef::NavSeries& nav,
+ClockStepResult FindSonarClockSteps(const survey::PingSeries& pings,
+                                    const survey::NavSeries& nav,
                                     const ClockStepConfig& config = {});
 // Shifts each segment of confirmed steps onto the reference clock.
-void ApplyClockSteps(georef::PingSeries& pings, const ClockStepResult& steps);
+void ApplyClockSteps(survey::PingSeries& pings, const ClockStepResult& steps);
 
 // The median distance (m) between the header positions and the INS antenna with `correction_s`
 // added to the ping times (the fixes' mean age taken into account as EstimateSonarClock does);
 // +inf when the headers carry no positions or too few fall in the navigation span.
-double HeaderPositionMisfit(const georef::PingSeries& pings,
-                            const georef::NavSeries& nav,
+double HeaderPositionMisfit(const survey::PingSeries& pings,
+                            const survey::NavSeries& nav,
                             double correction_s,
                             const ClockSearchConfig& config = {});
 

@@ -22,8 +22,8 @@ namespace pitmap::proc::clean {
 
 namespace {
 
-using georef::SoundingStatus;
 using openvdb::Coord;
+using survey::SoundingStatus;
 using IndexTree = openvdb::Int32Tree;
 using RayT = openvdb::math::Ray<double>;
 // The hierarchical DDA enters at the root's children and descends to the leaves.
@@ -488,7 +488,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
     std::vector<std::int32_t> piece(n, 0);
     std::vector<std::uint8_t> verdict(1, 0);
     std::vector<std::int32_t> members, stack, outside;
-    std::array<std::int32_t, georef::kNumSoundingStatus> votes{};
+    std::array<std::int32_t, survey::kNumSoundingStatus> votes{};
     const auto limit = static_cast<std::size_t>(config.fill_max_soundings);
     for (std::size_t seed = 0; seed < n; ++seed) {
         if (status[seed] != 0 || piece[seed] != 0) continue;

@@ -40,7 +40,7 @@
 // CUBE's chosen hypothesis still judges it).
 //
 // Input: a georeferenced view (the candidates: what georef's own filters accept); output: a
-// status per point (georef::SoundingStatus: kAccepted, kFreeSpace, kMultipath, kCluster,
+// status per point (survey::SoundingStatus: kAccepted, kFreeSpace, kMultipath, kCluster,
 // kProfile). Deterministic: the verdicts do not depend on the thread count.
 // Failure model: none beyond memory (the grid holds one voxel per occupied `voxel_m` cube, a
 // few tens of bytes each); an empty view gives empty results.
@@ -98,7 +98,7 @@ struct CleanCounts {
 };
 
 struct CleanResult {
-    std::vector<std::uint8_t> status;  // georef::SoundingStatus per point of the view
+    std::vector<std::uint8_t> status;  // survey::SoundingStatus per point of the view
     CleanCounts counts;
     bool cancelled = false;
 };

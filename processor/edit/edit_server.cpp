@@ -164,10 +164,10 @@ Status EditServer::Start() {
         res.set_content(impl_->orbit, "text/javascript");
     });
     const auto meta = [this]() {
-        const georef::StatusCounts c = session_.Counts();
+        const survey::StatusCounts c = session_.Counts();
         json counts = json::object();
-        for (int k = 0; k < georef::kNumSoundingStatus; ++k)
-            counts[std::string(georef::ToString(static_cast<georef::SoundingStatus>(k)))] = c[k];
+        for (int k = 0; k < survey::kNumSoundingStatus; ++k)
+            counts[std::string(survey::ToString(static_cast<survey::SoundingStatus>(k)))] = c[k];
         const RerunState r = impl_->rerun.state();
         return json{{"soundings", session_.size()},
                     {"soundings_in_survey", session_.num_soundings()},

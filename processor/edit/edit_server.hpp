@@ -10,7 +10,7 @@
 //   GET  /api/points        the display set's positions: float32 little-endian x y z (metres
 //                           east, north, up from the centre)
 //   GET  /api/tvu           its TVU (95 %, m; NaN unknown): float32
-//   GET  /api/status        its statuses: one byte each (georef/sounding_status.hpp codes)
+//   GET  /api/status        its statuses: one byte each (survey/sounding_status.hpp codes)
 //   POST /api/select        {"action": "reject"|"restore"|"count", "polygon": [[x, y], ...],
 //                            "matrix": [16 numbers]}: selection.hpp's query over every
 //                           sounding; reject and restore are edits, saved to P/edits.json before

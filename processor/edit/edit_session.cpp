@@ -9,15 +9,17 @@
 #include <limits>
 
 #include "common/vehicle.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/hydro/tpu.hpp"
+#include "processor/io/svp_files.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::edit {
 
 namespace {
 
-using georef::ManualEdit;
-using georef::SoundingStatus;
+using survey::ManualEdit;
+using survey::SoundingStatus;
 
 std::string NowUtc() {
     const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
@@ -74,7 +76,7 @@ std::vector<std::string> EditSessionConfig::Validate() const {
 }
 
 SoundingStatus EffectiveStatus(SoundingStatus automatic, ManualEdit manual) {
-    // georef::Resolve with georef's own verdict and the cleaning's told apart (a cleaning
+    // survey::Resolve with georef's own verdict and the cleaning's told apart (a cleaning
     // status means georef accepted the sounding); no allocation: called per sounding.
     if (automatic == SoundingStatus::kNoDetection || automatic == SoundingStatus::kRefraction)
         return automatic;
@@ -115,7 +117,7 @@ Expected<std::unique_ptr<EditSession>> EditSession::FromModel(survey::SurveyMode
         s->log_.survey = survey::IdentityOf(model.ingest.pings);
         s->manual_.assign(model.ingest.pings.num_soundings(), 0);
     }
-    auto refraction = survey::BuildRefraction(model.refraction);
+    auto refraction = io::BuildRefraction(model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
                      ": the sound-velocity casts georef used: " + refraction.error().message};
@@ -135,9 +137,9 @@ Expected<std::unique_ptr<EditSession>> EditSession::FromModel(survey::SurveyMode
     const survey::TrajectoryVersion version = model.latest();
     std::vector<double> sum(3, 0.0);
     bool centred = false;
-    for (const auto view : {georef::SoundingView::kAccepted, georef::SoundingView::kRejected}) {
+    for (const auto view : {survey::SoundingView::kAccepted, survey::SoundingView::kRejected}) {
         georef::GeorefResult geo =
-            survey::Georeference(model, version, config.georef, *refraction, {}, nullptr, view);
+            georef::Georeference(model, version, config.georef, *refraction, {}, nullptr, view);
         const std::size_t n = geo.points.size();
         if (!centred && n > 0) {
             // The centre: the first view's mean, to the metre (float32 keeps millimetres
@@ -163,7 +165,7 @@ Expected<std::unique_ptr<EditSession>> EditSession::FromModel(survey::SurveyMode
                 model.ingest.pings.pings[geo.pings[geo.points.ping[i]].header_index];
             s->flat_[base + i] = header.beam_offset + geo.points.beam[i];
             s->auto_status_[base + i] =
-                view == georef::SoundingView::kAccepted ? 0 : geo.points.status[i];
+                view == survey::SoundingView::kAccepted ? 0 : geo.points.status[i];
             if (tvu.size() == n) s->tvu_[base + i] = tvu[i];
         }
         s->has_tvu_ = s->has_tvu_ || tvu.size() == n;
@@ -273,9 +275,9 @@ std::vector<std::uint8_t> EditSession::Statuses() const {
     return out;
 }
 
-georef::StatusCounts EditSession::Counts() const {
+survey::StatusCounts EditSession::Counts() const {
     std::lock_guard<std::mutex> lock(mutex_);
-    georef::StatusCounts c{};
+    survey::StatusCounts c{};
     for (std::size_t i = 0; i < flat_.size(); ++i) ++c[static_cast<int>(StatusOf(i))];
     return c;
 }

@@ -5,7 +5,7 @@
 // saved at once.
 //
 // Design (5.9 M soundings must stay under 1.5 GB and a lasso of 100 k answer in < 1 s):
-//   - At open, the survey is georeferenced twice with no hand edits (survey::Georeference, the
+//   - At open, the survey is georeferenced twice with no hand edits (georef::Georeference, the
 //     accepted and the rejected views: together every sounding that has a position, with what
 //     georef and the cleaning decided), then the edit log is applied on top. Per sounding the
 //     session keeps 21 bytes: float32 east/north/up from the session's centre, its flat index
@@ -17,7 +17,7 @@
 //   - The page shows a display set: every k-th sounding (k = ceil(n / max_display_points)), in
 //     the session's order; positions, TVU and status are sent as binary arrays of it.
 //   - A status is resolved from the automatic one and the manual edit as
-//     georef::Resolve does (EffectiveStatus).
+//     survey::Resolve does (EffectiveStatus).
 // An edit (Apply) touches only the soundings whose status it changes: a reject takes the
 // accepted soundings in the polygon, a restore the rejected ones. It becomes one entry of the
 // edit log (its runs: survey::RunsOf) and the log is written (survey::WriteEditLog) before the
@@ -40,9 +40,9 @@
 #include "common/result.hpp"
 #include "processor/edit/selection.hpp"
 #include "processor/georef/georef.hpp"
-#include "processor/georef/series.hpp"
-#include "processor/georef/sounding_status.hpp"
 #include "processor/survey/edit_log.hpp"
+#include "processor/survey/series.hpp"
+#include "processor/survey/sounding_status.hpp"
 #include "processor/survey/survey.hpp"
 
 namespace pitmap::proc::edit {
@@ -59,8 +59,8 @@ struct EditSessionConfig {
 };
 
 // The status of a sounding whose automatic status (georef's and the cleaning's, no hand edit)
-// is `automatic`, with the hand edit `manual`: georef::Resolve's rule.
-georef::SoundingStatus EffectiveStatus(georef::SoundingStatus automatic, georef::ManualEdit manual);
+// is `automatic`, with the hand edit `manual`: survey::Resolve's rule.
+survey::SoundingStatus EffectiveStatus(survey::SoundingStatus automatic, survey::ManualEdit manual);
 
 enum class EditAction { kReject, kRestore };
 
@@ -105,7 +105,7 @@ public:
     std::vector<std::uint8_t> Statuses() const;
     const std::vector<std::uint32_t>& flat_index() const { return flat_; }
     const std::vector<float>& positions() const { return xyz_; }
-    georef::StatusCounts Counts() const;
+    survey::StatusCounts Counts() const;
     std::size_t num_edits() const;
     std::string edit_log_path() const { return out_dir_ + "/" + survey::kEditLogFileName; }
     // What the open found (trajectory version, counts, TVU source), for the page and the log.
@@ -113,16 +113,16 @@ public:
 
 private:
     EditSession() = default;
-    georef::SoundingStatus StatusOf(std::size_t i) const {
-        return EffectiveStatus(static_cast<georef::SoundingStatus>(auto_status_[i]),
-                               static_cast<georef::ManualEdit>(manual_[flat_[i]]));
+    survey::SoundingStatus StatusOf(std::size_t i) const {
+        return EffectiveStatus(static_cast<survey::SoundingStatus>(auto_status_[i]),
+                               static_cast<survey::ManualEdit>(manual_[flat_[i]]));
     }
     Status SaveLocked();
 
     mutable std::mutex mutex_;
     EditSessionConfig config_;
     std::string out_dir_;
-    georef::PingSeries pings_;
+    survey::PingSeries pings_;
     survey::EditLog log_;
     std::vector<std::uint8_t> manual_;  // per sounding of the ping series (ManualEdit)
     std::array<double, 3> centre_{};

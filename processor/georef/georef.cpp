@@ -13,44 +13,6 @@
 
 namespace pitmap::proc::georef {
 
-std::string_view ToString(SoundingStatus s) {
-    switch (s) {
-        case SoundingStatus::kAccepted:
-            return "accepted";
-        case SoundingStatus::kNoDetection:
-            return "no_detection";
-        case SoundingStatus::kRangeGate:
-            return "range_gate";
-        case SoundingStatus::kSpike:
-            return "spike";
-        case SoundingStatus::kRefraction:
-            return "refraction";
-        case SoundingStatus::kSurfaceFilter:
-            return "surface_filter";
-        case SoundingStatus::kFreeSpace:
-            return "free_space";
-        case SoundingStatus::kMultipath:
-            return "multipath";
-        case SoundingStatus::kCluster:
-            return "cluster";
-        case SoundingStatus::kManual:
-            return "manual";
-        case SoundingStatus::kProfile:
-            return "profile";
-    }
-    return "unknown";
-}
-
-Eigen::Matrix3d SonarMount::R_vehicle_sonar() const {
-    return frames::RotationNedFromRpy(frames::DegToRad(boresight_roll_deg),
-                                      frames::DegToRad(boresight_pitch_deg),
-                                      frames::DegToRad(boresight_yaw_deg));
-}
-
-Pose SonarMount::T_vehicle_sonar() const {
-    return MakePose(R_vehicle_sonar(), lever_arm_m);
-}
-
 std::vector<std::string> GeorefConfig::Validate() const {
     std::vector<std::string> p;
     if (!(max_nav_gap_s > 0)) p.push_back("georef.max_nav_gap_s must be > 0");
@@ -68,10 +30,10 @@ std::vector<std::string> GeorefConfig::Validate() const {
     return p;
 }
 
-Trajectory::Trajectory(const NavSeries& nav, const LocalTangentFrame& world) {
+Trajectory::Trajectory(const survey::NavSeries& nav, const LocalTangentFrame& world) {
     utime_gps_.reserve(nav.samples.size());
     T_world_vehicle_.reserve(nav.samples.size());
-    for (const NavSample& s : nav.samples) {
+    for (const survey::NavSample& s : nav.samples) {
         utime_gps_.push_back(s.utime_gps);
         T_world_vehicle_.push_back(
             MakePose(frames::RotationWorldFromRpy(s.roll_rad, s.pitch_rad, s.yaw_rad),
@@ -138,17 +100,18 @@ struct PingWork {
 
 // Whether a sounding of status `s` (Resolve) belongs to the view; `georef` is georef's own
 // verdict.
-bool InView(SoundingStatus s, SoundingStatus georef, SoundingView view) {
+bool InView(survey::SoundingStatus s, survey::SoundingStatus georef, survey::SoundingView view) {
     switch (view) {
-        case SoundingView::kAccepted:
-            return s == SoundingStatus::kAccepted;
-        case SoundingView::kRejected:
-            return s != SoundingStatus::kAccepted && s != SoundingStatus::kNoDetection &&
-                   s != SoundingStatus::kRefraction;
-        case SoundingView::kCandidates: {
-            if (s == SoundingStatus::kAccepted) return true;
-            if (!IsCleaningStatus(s)) return false;
-            return georef == SoundingStatus::kAccepted;
+        case survey::SoundingView::kAccepted:
+            return s == survey::SoundingStatus::kAccepted;
+        case survey::SoundingView::kRejected:
+            return s != survey::SoundingStatus::kAccepted &&
+                   s != survey::SoundingStatus::kNoDetection &&
+                   s != survey::SoundingStatus::kRefraction;
+        case survey::SoundingView::kCandidates: {
+            if (s == survey::SoundingStatus::kAccepted) return true;
+            if (!survey::IsCleaningStatus(s)) return false;
+            return georef == survey::SoundingStatus::kAccepted;
         }
     }
     return false;
@@ -162,7 +125,7 @@ struct PingWater {
 
 PingWater WaterAt(const svp::Refraction& refr,
                   const GeorefPing& ping,
-                  const SonarMount& mount,
+                  const survey::SonarMount& mount,
                   double header_speed_mps) {
     PingWater w;
     w.transducer_depth_m = refr.TransducerDepth(ping.T_world_vehicle.linear() * mount.lever_arm_m);
@@ -177,26 +140,26 @@ struct FlatSoundings {
     std::vector<Eigen::Vector3d>& pos;
     std::vector<float>& rng;
     std::vector<float>& ang;
-    std::vector<std::uint8_t>& status;  // SoundingStatus
+    std::vector<std::uint8_t>& status;  // survey::SoundingStatus
 };
 
 // What every ping's work reads.
 struct PingContext {
-    const PingSeries& series;
+    const survey::PingSeries& series;
     const Trajectory& trajectory;
     const LocalTangentFrame& world;
-    const SonarMount& mount;
+    const survey::SonarMount& mount;
     const Pose& T_vehicle_sonar;
     const GeorefConfig& config;
     const svp::Refraction* refraction;  // null: straight rays
-    const SoundingFlags* flags;
-    SoundingView view;
+    const survey::SoundingFlags* flags;
+    survey::SoundingView view;
 };
 
 // The ping's pose and its refraction set-up, or why it has none (bad header, outside the
 // navigation, in a navigation gap).
 PingWork PlacePing(const PingContext& ctx, std::size_t k, PingWater& water) {
-    const PingHeader& h = ctx.series.pings[k];
+    const survey::PingHeader& h = ctx.series.pings[k];
     const GeorefConfig& config = ctx.config;
     PingWork w;
     if (!(h.range_resolution_m > 0) || !std::isfinite(h.start_angle_deg) ||
@@ -241,7 +204,7 @@ PingWork PlacePing(const PingContext& ctx, std::size_t k, PingWater& water) {
 // The ping's ranges (-1 where the beam has none, with status kNoDetection), the range gate's
 // verdicts in `status`.
 void GateRanges(const PingContext& ctx,
-                const PingHeader& h,
+                const survey::PingHeader& h,
                 std::vector<double>& r,
                 std::vector<std::uint8_t>& status) {
     const GeorefConfig& config = ctx.config;
@@ -254,13 +217,13 @@ void GateRanges(const PingContext& ctx,
         const std::size_t j = h.beam_offset + i;
         const std::uint32_t c = ctx.series.range_counts[j];
         if (c == 0) {
-            status[j] = static_cast<std::uint8_t>(SoundingStatus::kNoDetection);
+            status[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kNoDetection);
             continue;
         }
         const double range = c * scale;
         r[i] = range;
         if (range < config.min_range_m || range > config.max_range_m) {
-            status[j] = static_cast<std::uint8_t>(SoundingStatus::kRangeGate);
+            status[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kRangeGate);
         }
     }
 }
@@ -268,7 +231,7 @@ void GateRanges(const PingContext& ctx,
 // Marks the ping's spikes (SpikeFilter; the median runs over the ranges inside the gate).
 // `keep_range` and `keep` are scratch.
 void FlagSpikes(const GeorefConfig& config,
-                const PingHeader& h,
+                const survey::PingHeader& h,
                 const std::vector<double>& r,
                 std::vector<double>& keep_range,
                 std::vector<char>& keep,
@@ -280,7 +243,7 @@ void FlagSpikes(const GeorefConfig& config,
     SpikeFilter(keep_range, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
     for (std::size_t i = 0; i < h.num_beams; ++i) {
         if (keep_range[i] > 0 && !keep[i]) {
-            status[h.beam_offset + i] = static_cast<std::uint8_t>(SoundingStatus::kSpike);
+            status[h.beam_offset + i] = static_cast<std::uint8_t>(survey::SoundingStatus::kSpike);
         }
     }
 }
@@ -289,7 +252,7 @@ void FlagSpikes(const GeorefConfig& config,
 // and, when it belongs to the view, its world position (traced through the water column with
 // refraction, else a straight ray; a beam that does not trace gets kRefraction).
 void PositionBeams(const PingContext& ctx,
-                   const PingHeader& h,
+                   const survey::PingHeader& h,
                    const GeorefPing& ping,
                    const PingWater& water,
                    const std::vector<double>& r,
@@ -298,8 +261,8 @@ void PositionBeams(const PingContext& ctx,
     for (std::size_t i = 0; i < h.num_beams; ++i) {
         const std::size_t j = h.beam_offset + i;
         if (!(r[i] > 0)) continue;
-        const auto own = static_cast<SoundingStatus>(out.status[j]);
-        const SoundingStatus s = ctx.flags ? Resolve(own, *ctx.flags, j) : own;
+        const auto own = static_cast<survey::SoundingStatus>(out.status[j]);
+        const survey::SoundingStatus s = ctx.flags ? survey::Resolve(own, *ctx.flags, j) : own;
         out.status[j] = static_cast<std::uint8_t>(s);
         if (!InView(s, own, ctx.view)) continue;
         const double theta = frames::DegToRad(ctx.series.BeamAngleDeg(h, i));
@@ -313,7 +276,7 @@ void PositionBeams(const PingContext& ctx,
                                                              water.transducer_depth_m,
                                                              water.face_speed_mps);
             if (b.steering_failed || b.status != svp::RayStatus::kOk) {
-                out.status[j] = static_cast<std::uint8_t>(SoundingStatus::kRefraction);
+                out.status[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kRefraction);
                 continue;
             }
             out.pos[j] = ping.sensor_world + b.offset_world;
@@ -349,7 +312,7 @@ std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
             PingWater water;
             work[k] = PlacePing(ctx, k, water);
             if (!work[k].ok) continue;
-            const PingHeader& h = ctx.series.pings[k];
+            const survey::PingHeader& h = ctx.series.pings[k];
             GateRanges(ctx, h, r, flat.status);
             FlagSpikes(ctx.config, h, r, keep_range, keep, flat.status);
             PositionBeams(ctx, h, work[k].ping, water, r, flat);
@@ -367,10 +330,10 @@ std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
 // thread count) into result.points and result.pings, counting statuses and lost pings. In
 // place when the pings' beams follow each other in the flat array (every reader builds it so):
 // the write index then never passes the read index. Otherwise into fresh arrays.
-void CompactSoundings(const PingSeries& series,
+void CompactSoundings(const survey::PingSeries& series,
                       const std::vector<PingWork>& work,
                       const std::vector<std::uint8_t>& status,
-                      SoundingView view,
+                      survey::SoundingView view,
                       GeorefResult& result) {
     GeorefPoints& P = result.points;
     std::vector<Eigen::Vector3d>& pos = P.position_world;
@@ -381,7 +344,7 @@ void CompactSoundings(const PingSeries& series,
     bool in_place = true;
     std::size_t next_offset = 0;
     for (std::size_t k = 0; k < n_pings; ++k) {
-        const PingHeader& h = series.pings[k];
+        const survey::PingHeader& h = series.pings[k];
         in_place = in_place && h.beam_offset >= next_offset;
         next_offset = std::size_t{h.beam_offset} + h.num_beams;
         if (!work[k].ok) continue;
@@ -399,7 +362,7 @@ void CompactSoundings(const PingSeries& series,
     float* ang_to = in_place ? ang.data() : ang_out.data();
     P.ping.reserve(n_points);
     P.beam.reserve(n_points);
-    const bool with_status = view != SoundingView::kAccepted;
+    const bool with_status = view != survey::SoundingView::kAccepted;
     if (with_status) P.status.reserve(n_points);
     std::size_t out = 0;
     GeorefCounts& c = result.counts;
@@ -411,7 +374,7 @@ void CompactSoundings(const PingSeries& series,
             if (w.reason == 3) ++c.pings_bad_header;
             continue;
         }
-        const PingHeader& h = series.pings[k];
+        const survey::PingHeader& h = series.pings[k];
         for (std::size_t i = 0; i < h.num_beams; ++i) ++c.status[status[h.beam_offset + i]];
         const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
         result.pings.push_back(w.ping);
@@ -440,15 +403,16 @@ void CompactSoundings(const PingSeries& series,
 // The summary counters from the per-status counts, and the result's message.
 void FinishCounts(GeorefResult& result) {
     GeorefCounts& c = result.counts;
-    c.no_detection = c.status[static_cast<int>(SoundingStatus::kNoDetection)];
-    c.range_gate = c.status[static_cast<int>(SoundingStatus::kRangeGate)];
-    c.spikes = c.status[static_cast<int>(SoundingStatus::kSpike)];
-    c.refraction_failed = c.status[static_cast<int>(SoundingStatus::kRefraction)];
+    c.no_detection = c.status[static_cast<int>(survey::SoundingStatus::kNoDetection)];
+    c.range_gate = c.status[static_cast<int>(survey::SoundingStatus::kRangeGate)];
+    c.spikes = c.status[static_cast<int>(survey::SoundingStatus::kSpike)];
+    c.refraction_failed = c.status[static_cast<int>(survey::SoundingStatus::kRefraction)];
     c.cleaned = 0;
-    for (int code = 0; code < kNumSoundingStatus; ++code) {
-        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) c.cleaned += c.status[code];
+    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
+        if (survey::IsCleaningStatus(static_cast<survey::SoundingStatus>(code)))
+            c.cleaned += c.status[code];
     }
-    c.manual = c.status[static_cast<int>(SoundingStatus::kManual)];
+    c.manual = c.status[static_cast<int>(survey::SoundingStatus::kManual)];
     c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
     c.points = static_cast<std::int64_t>(result.points.size());
     result.message = std::to_string(c.points) + " points from " +
@@ -468,15 +432,15 @@ Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result, std::size_t j) {
     return T_world_sonar.inverse() * P.position_world[j];
 }
 
-GeorefResult RunGeoref(const NavSeries& nav,
-                       const PingSeries& series,
-                       const SonarMount& mount,
+GeorefResult RunGeoref(const survey::NavSeries& nav,
+                       const survey::PingSeries& series,
+                       const survey::SonarMount& mount,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin,
                        const ProgressCallback& progress,
                        std::shared_ptr<const svp::Refraction> refraction,
-                       const SoundingFlags* flags,
-                       SoundingView view) {
+                       const survey::SoundingFlags* flags,
+                       survey::SoundingView view) {
     GeorefResult result;
     result.mount = mount;
     result.refraction = refraction;
@@ -500,7 +464,8 @@ GeorefResult RunGeoref(const NavSeries& nav,
     P.position_world.resize(n_beams);
     P.range_m.assign(n_beams, -1.0f);
     P.angle_rad.resize(n_beams);
-    std::vector<std::uint8_t> status(n_beams, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
+    std::vector<std::uint8_t> status(n_beams,
+                                     static_cast<std::uint8_t>(survey::SoundingStatus::kAccepted));
     FlatSoundings flat{P.position_world, P.range_m, P.angle_rad, status};
     const PingContext ctx{
         series, trajectory, world, mount, T_vehicle_sonar, config, refraction.get(), flags, view};
@@ -517,7 +482,7 @@ GeorefResult RunGeoref(const NavSeries& nav,
     return result;
 }
 
-void Regeoreference(GeorefResult& result, const SonarMount& mount) {
+void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
     for (GeorefPing& ping : result.pings) {
         ping.sensor_world = (ping.T_world_vehicle * T_vehicle_sonar).translation();

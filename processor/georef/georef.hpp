@@ -32,21 +32,12 @@
 #include "common/geodesy.hpp"
 #include "common/progress.hpp"
 #include "common/se3.hpp"
-#include "processor/georef/series.hpp"
-#include "processor/georef/sounding_status.hpp"
+#include "processor/survey/mount.hpp"
+#include "processor/survey/series.hpp"
+#include "processor/survey/sounding_status.hpp"
 #include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::georef {
-
-// The sonar's mounting on the vehicle.
-struct SonarMount {
-    Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();  // vehicle FRD, from INS ref point
-    double boresight_roll_deg = 0;  // R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll)
-    double boresight_pitch_deg = 0;
-    double boresight_yaw_deg = 0;
-    Eigen::Matrix3d R_vehicle_sonar() const;
-    Pose T_vehicle_sonar() const;
-};
 
 struct GeorefConfig {
     double max_nav_gap_s = 0.5;             // refuse pings between INS samples further apart
@@ -66,7 +57,7 @@ struct GeorefConfig {
 // Interpolated INS poses in the world frame.
 class Trajectory {
 public:
-    Trajectory(const NavSeries& nav, const LocalTangentFrame& world);
+    Trajectory(const survey::NavSeries& nav, const LocalTangentFrame& world);
     // T_world_vehicle at a time; nullopt outside the span or across a gap > max_gap_s.
     std::optional<Pose> PoseAt(std::int64_t utime_gps, double max_gap_s) const;
     const std::vector<std::int64_t>& times() const { return utime_gps_; }
@@ -94,7 +85,7 @@ struct GeorefPoints {
 struct GeorefPing {
     std::int64_t utime_gps = 0;
     std::int64_t ping_number = 0;
-    std::uint32_t header_index = 0;  // index into the input PingSeries
+    std::uint32_t header_index = 0;  // index into the input survey::PingSeries
     Pose T_world_vehicle;
     Eigen::Vector3d sensor_world = Eigen::Vector3d::Zero();  // transducer position
     double profile_tilt_rad = 0;                             // applied tilt
@@ -114,11 +105,11 @@ struct GeorefCounts {
     std::int64_t range_gate = 0;
     std::int64_t spikes = 0;
     std::int64_t refraction_failed = 0;  // ray turned, surfaced or beam not steerable
-    std::int64_t cleaned = 0;            // rejected by the cleaning (SoundingFlags::cleaning)
-    std::int64_t manual = 0;             // rejected by hand (SoundingFlags::manual)
-    std::int64_t points = 0;             // soundings in the view
+    std::int64_t cleaned = 0;  // rejected by the cleaning (survey::SoundingFlags::cleaning)
+    std::int64_t manual = 0;   // rejected by hand (survey::SoundingFlags::manual)
+    std::int64_t points = 0;   // soundings in the view
     // Soundings of the georeferenced pings per status (index = SoundingStatus code).
-    StatusCounts status{};
+    survey::StatusCounts status{};
 };
 
 struct GeorefResult {
@@ -126,7 +117,7 @@ struct GeorefResult {
     GeorefPoints points;
     std::vector<GeorefPing> pings;
     GeorefCounts counts;
-    SonarMount mount;  // the mount the points were computed with
+    survey::SonarMount mount;  // the mount the points were computed with
     // The refraction applied (null = straight rays); Regeoreference traces again with it.
     std::shared_ptr<const svp::Refraction> refraction;
     bool cancelled = false;
@@ -152,19 +143,19 @@ int SpikeFilter(const std::vector<double>& range_m,
 // `flags` (optional): the statuses decided outside georef (the cleaning, hand edits); `view`:
 // which soundings to return.
 // Preconditions: config.Validate() is empty.
-GeorefResult RunGeoref(const NavSeries& nav,
-                       const PingSeries& pings,
-                       const SonarMount& mount,
+GeorefResult RunGeoref(const survey::NavSeries& nav,
+                       const survey::PingSeries& pings,
+                       const survey::SonarMount& mount,
                        const GeorefConfig& config,
                        std::optional<Geodetic> origin = std::nullopt,
                        const ProgressCallback& progress = {},
                        std::shared_ptr<const svp::Refraction> refraction = nullptr,
-                       const SoundingFlags* flags = nullptr,
-                       SoundingView view = SoundingView::kAccepted);
+                       const survey::SoundingFlags* flags = nullptr,
+                       survey::SoundingView view = survey::SoundingView::kAccepted);
 
 // Re-applies a mount (boresight) to already georeferenced soundings, in place; the pings keep
 // their poses (with refraction, each beam is traced again). Used after calibration.
-void Regeoreference(GeorefResult& result, const SonarMount& mount);
+void Regeoreference(GeorefResult& result, const survey::SonarMount& mount);
 
 // UTM coordinates of the points, all in the zone of the world origin. Exact (GeographicLib) at
 // each ping's sensor position; a point adds its offset from the sensor through the ENU -> UTM

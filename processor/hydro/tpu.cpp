@@ -72,7 +72,7 @@ PingSigma FallbackSigma(const SensorErrorModel& m) {
     return s;
 }
 
-PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& s,
+PingSigma InsSigmaAt(const std::vector<survey::NavStdDev>& s,
                      std::int64_t utime_gps,
                      double max_age_s,
                      const PingSigma& fallback,
@@ -80,7 +80,7 @@ PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& s,
     if (from_ins != nullptr) *from_ins = false;
     if (s.empty()) return fallback;
     auto it = std::lower_bound(
-        s.begin(), s.end(), utime_gps, [](const georef::NavStdDev& d, std::int64_t t) {
+        s.begin(), s.end(), utime_gps, [](const survey::NavStdDev& d, std::int64_t t) {
             return d.utime_gps < t;
         });
     if (it == s.end() ||
@@ -207,7 +207,7 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
 }
 
 TpuResult ComputeTpu(const georef::GeorefResult& geo,
-                     const georef::SonarMount& mount,
+                     const survey::SonarMount& mount,
                      const std::vector<PingSigma>& ping_sigma,
                      const TpuConfig& config) {
     TpuResult out;

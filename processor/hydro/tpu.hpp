@@ -46,7 +46,7 @@
 
 #include "common/vehicle.hpp"
 #include "processor/georef/georef.hpp"
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::hydro {
 
@@ -72,7 +72,7 @@ PingSigma FallbackSigma(const SensorErrorModel& model);
 // report (NaN, <= 0), and all of them when no record lies within max_age_s, take `fallback`.
 // `stddevs` is time-sorted; `from_ins`, if given, says whether a record was used. Shared by the
 // shore grid stage (through pipeline::PoseSigmaAt) and pitmap live.
-PingSigma InsSigmaAt(const std::vector<georef::NavStdDev>& stddevs,
+PingSigma InsSigmaAt(const std::vector<survey::NavStdDev>& stddevs,
                      std::int64_t utime_gps,
                      double max_age_s,
                      const PingSigma& fallback,
@@ -147,7 +147,7 @@ struct TpuResult {
 // GeorefResult::pings (the INS's 1 sigma there). Preconditions: config.Validate() is empty,
 // ping_sigma.size() == geo.pings.size().
 TpuResult ComputeTpu(const georef::GeorefResult& geo,
-                     const georef::SonarMount& mount,
+                     const survey::SonarMount& mount,
                      const std::vector<PingSigma>& ping_sigma,
                      const TpuConfig& config);
 

@@ -33,9 +33,9 @@ namespace pitmap::proc::io {
 namespace fs = std::filesystem;
 namespace nv = pitmap::protocol::novatel;
 namespace dt = pitmap::protocol::deltat;
-using georef::NavSample;
-using georef::NavStdDev;
-using georef::PingHeader;
+using survey::NavSample;
+using survey::NavStdDev;
+using survey::PingHeader;
 
 const char* ToString(IngestSource s) {
     switch (s) {
@@ -376,8 +376,8 @@ void Finish(IngestResult& r, const IngestConfig* config = nullptr) {
     const std::size_t nav_before = r.nav.samples.size();
     const std::size_t pings_before = r.pings.pings.size();
     std::vector<std::int64_t> nav_conflicts, ping_conflicts;
-    georef::SortAndDeduplicate(r.nav, &nav_conflicts);
-    georef::SortAndDeduplicate(r.pings, &ping_conflicts);
+    survey::SortAndDeduplicate(r.nav, &nav_conflicts);
+    survey::SortAndDeduplicate(r.pings, &ping_conflicts);
     r.counts.nav_conflicts += static_cast<std::int64_t>(nav_conflicts.size());
     r.counts.ping_conflicts += static_cast<std::int64_t>(ping_conflicts.size());
     r.counts.nav_duplicates += static_cast<std::int64_t>(nav_before - r.nav.samples.size()) -
@@ -612,7 +612,7 @@ Status Ingest83PFiles(const std::vector<std::string>& paths,
                         std::llround(config.sonar_clock_offset_s * 1e6);
                 }
                 col.AddPing83P(ping, t);
-                into.pings.clock = georef::PingClock::kTopsideHeader;
+                into.pings.clock = survey::PingClock::kTopsideHeader;
             }
         };
         while (in) {

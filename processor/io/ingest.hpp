@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Ingest: LCM logs (pitmap-acqd, pitmap-sim) and vendor files (.83P, NovAtel binary/ASCII) into
-// the NavSeries and PingSeries of processor/georef/series.hpp, in GPS time, with counts of
+// the NavSeries and PingSeries of processor/survey/series.hpp, in GPS time, with counts of
 // everything skipped.
 //
 // LCM logs: files are read in the order given (rotated segments sort by name). Decoded channels
@@ -26,7 +26,7 @@
 #include "common/clock/clock_model.hpp"
 #include "common/progress.hpp"
 #include "common/result.hpp"
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::io {
 
@@ -119,8 +119,8 @@ struct InputFileSpan {
 };
 
 struct IngestResult {
-    georef::NavSeries nav;
-    georef::PingSeries pings;
+    survey::NavSeries nav;
+    survey::PingSeries pings;
     IngestCounts counts;
     bool nav_from_raw = false;
     bool pings_from_raw = false;

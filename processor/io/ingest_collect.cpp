@@ -11,9 +11,9 @@
 
 namespace pitmap::proc::io::detail {
 
-using georef::NavSample;
-using georef::NavStdDev;
-using georef::PingHeader;
+using survey::NavSample;
+using survey::NavStdDev;
+using survey::PingHeader;
 
 std::string Upper(std::string s) {
     for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -111,11 +111,11 @@ void Collector::AddPing(const PingHeader& h_in,
     }
     // Per-beam angles likewise, NaN ("the header's") for the pings without.
     auto& an = r_.pings.beam_angles_deg;
-    if (angles_deg != nullptr && an.empty()) an.assign(h.beam_offset, georef::kNaNf);
+    if (angles_deg != nullptr && an.empty()) an.assign(h.beam_offset, survey::kNaNf);
     if (angles_deg != nullptr) {
         an.insert(an.end(), angles_deg, angles_deg + n);
     } else if (!an.empty()) {
-        an.resize(an.size() + n, georef::kNaNf);
+        an.resize(an.size() + n, survey::kNaNf);
     }
     r_.pings.pings.push_back(h);
 }

@@ -26,7 +26,7 @@ inline constexpr std::size_t kMaxPingBeams = 1024;
 
 std::string Upper(std::string s);
 bool StartsWith(std::string_view s, std::string_view prefix);
-georef::NavSample FromPva(std::int64_t utime_gps,
+survey::NavSample FromPva(std::int64_t utime_gps,
                           double lat,
                           double lon,
                           double h,
@@ -41,7 +41,7 @@ georef::NavSample FromPva(std::int64_t utime_gps,
 // The standard deviations of INSPVAX and INSSTDEV (the decoded structs and their LCM types name
 // the fields alike), stamped utime_gps.
 template <class M>
-georef::NavStdDev StdDevOf(std::int64_t utime_gps, const M& m) {
+survey::NavStdDev StdDevOf(std::int64_t utime_gps, const M& m) {
     return {utime_gps,
             m.latitude_stddev_m,
             m.longitude_stddev_m,
@@ -57,12 +57,12 @@ georef::NavStdDev StdDevOf(std::int64_t utime_gps, const M& m) {
 class Collector {
 public:
     explicit Collector(IngestResult& r) : r_(r) {}
-    void AddNav(const georef::NavSample& s);
-    void AddStdDev(const georef::NavStdDev& s);
+    void AddNav(const survey::NavSample& s);
+    void AddStdDev(const survey::NavStdDev& s);
     void AddLeapSeconds(double utc_offset_s, int utc_status);
     // `intensities`: n per-beam intensities, or null when the ping has none; `angles_deg`: n
-    // per-beam angles (georef::PingSeries::beam_angles_deg), or null for the header's.
-    void AddPing(const georef::PingHeader& h_in,
+    // per-beam angles (survey::PingSeries::beam_angles_deg), or null for the header's.
+    void AddPing(const survey::PingHeader& h_in,
                  const std::int32_t* counts,
                  std::size_t n,
                  const std::uint16_t* intensities = nullptr,

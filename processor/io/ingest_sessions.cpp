@@ -16,9 +16,9 @@ namespace pitmap::proc::io::detail {
 namespace {
 
 namespace nv = protocol::novatel;
-using georef::NavSample;
-using georef::NavStdDev;
-using georef::PingHeader;
+using survey::NavSample;
+using survey::NavStdDev;
+using survey::PingHeader;
 
 std::string Fmt(const char* fmt, double v) {
     char b[64];
@@ -109,7 +109,7 @@ std::string DescribeSessions(const IngestResult& r,
                              const std::vector<Session>& sessions,
                              bool nav) {
     std::string s;
-    const bool sonar_clock = !nav && r.pings.clock == georef::PingClock::kTopsideHeader;
+    const bool sonar_clock = !nav && r.pings.clock == survey::PingClock::kTopsideHeader;
     for (std::size_t i = 0; i < sessions.size(); ++i) {
         const Session& x = sessions[i];
         s += "\n  " + std::string(nav ? "navigation" : "pings") + " session " +
@@ -148,8 +148,8 @@ float Floor(float v, double floor) {
 }
 
 // Keeps the pings of one session (their beams, intensities and beam angles rebuilt).
-void KeepPings(georef::PingSeries& pings, const Session& s) {
-    georef::PingSeries out;
+void KeepPings(survey::PingSeries& pings, const Session& s) {
+    survey::PingSeries out;
     out.clock = pings.clock;
     const bool with = pings.has_intensities();
     const bool with_angles = pings.has_beam_angles();
@@ -298,7 +298,7 @@ Status SplitSessions(IngestResult& r, const IngestConfig& c, bool pings_on_one_c
     }
     // Pings on GPS time (logged by pitmap-acqd) belong to the navigation session they fall in;
     // pings on the sonar's own clock can only be told apart by their own gaps.
-    const bool gps_pings = r.pings.clock != georef::PingClock::kTopsideHeader;
+    const bool gps_pings = r.pings.clock != survey::PingClock::kTopsideHeader;
     if (gps_pings && nav_sessions.size() > 1) {
         const Session& ns = nav_sessions.at(std::min(pick, nav_sessions.size() - 1));
         Session s;
@@ -438,7 +438,7 @@ void ReportGaps(IngestResult& r, const IngestConfig& c) {
     report(r.pings.pings,
            r.counts.ping_gaps,
            "pings",
-           r.pings.clock == georef::PingClock::kTopsideHeader);
+           r.pings.clock == survey::PingClock::kTopsideHeader);
 }
 
 }  // namespace pitmap::proc::io::detail

@@ -9,14 +9,14 @@
 
 namespace pitmap::proc::io {
 
-georef::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m) {
+survey::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m) {
     return detail::StdDevOf(m.utime_gps, m);
 }
-georef::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m) {
+survey::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m) {
     return detail::StdDevOf(m.utime_gps, m);
 }
 
-georef::NavSample NavSampleOf(const pitmap::ins_pva_t& m) {
+survey::NavSample NavSampleOf(const pitmap::ins_pva_t& m) {
     return detail::FromPva(m.utime_gps,
                            m.latitude_deg,
                            m.longitude_deg,
@@ -31,8 +31,8 @@ georef::NavSample NavSampleOf(const pitmap::ins_pva_t& m) {
                            m.position_type);
 }
 
-georef::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m) {
-    georef::PingHeader h;
+survey::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m) {
+    survey::PingHeader h;
     h.utime_gps = m.utime_gps;
     h.ping_number = m.ping_number;
     h.sound_speed_mps = m.sound_speed_mps;

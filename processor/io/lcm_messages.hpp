@@ -14,12 +14,12 @@ class multibeam_ping_t;
 namespace pitmap::proc::io {
 
 // Position, attitude (radians, yaw wrapped to (-pi, pi]), ENU velocity and status.
-georef::NavSample NavSampleOf(const pitmap::ins_pva_t& m);
+survey::NavSample NavSampleOf(const pitmap::ins_pva_t& m);
 // The standard deviations INSPVAX (has_stddev) and INSSTDEV carry, at their GPS time.
-georef::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m);
-georef::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m);
+survey::NavStdDev NavStdDevOf(const pitmap::ins_pva_t& m);
+survey::NavStdDev NavStdDevOf(const pitmap::ins_stddev_t& m);
 // Time, ping number, sound speed, range resolution and fan geometry; beam_offset and
 // num_beams are the caller's (they depend on where the ranges go).
-georef::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m);
+survey::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m);
 
 }  // namespace pitmap::proc::io

@@ -80,9 +80,9 @@ namespace {
 // "status: 0 accepted, 1 no_detection, ..." for the PLY header.
 std::string StatusComment() {
     std::string c = "status: SoundingStatus, 0 = accepted, else the reason of the rejection:";
-    for (int k = 0; k < georef::kNumSoundingStatus; ++k) {
+    for (int k = 0; k < survey::kNumSoundingStatus; ++k) {
         c += " " + std::to_string(k) + " " +
-             std::string(georef::ToString(static_cast<georef::SoundingStatus>(k)));
+             std::string(survey::ToString(static_cast<survey::SoundingStatus>(k)));
     }
     return c;
 }
@@ -96,7 +96,7 @@ const georef::GeorefResult* UsableRejected(const georef::GeorefResult* rejected)
 }
 
 // The pings to take intensities from: none unless they carry intensities.
-const georef::PingSeries* IntensityPings(const PointExtras* extras) {
+const survey::PingSeries* IntensityPings(const PointExtras* extras) {
     if (extras == nullptr || extras->pings == nullptr) return nullptr;
     return extras->pings->has_intensities() ? extras->pings : nullptr;
 }
@@ -105,13 +105,13 @@ const georef::PingSeries* IntensityPings(const PointExtras* extras) {
 
 std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
                                 std::size_t i,
-                                const georef::PingSeries& pings) {
+                                const survey::PingSeries& pings) {
     if (!pings.has_intensities() || i >= g.points.size()) return 0;
     const std::uint32_t k = g.points.ping[i];
     if (k >= g.pings.size()) return 0;
     const std::uint32_t h = g.pings[k].header_index;
     if (h >= pings.pings.size()) return 0;
-    const georef::PingHeader& head = pings.pings[h];
+    const survey::PingHeader& head = pings.pings[h];
     const std::uint16_t beam = g.points.beam[i];
     if (beam >= head.num_beams) return 0;
     const std::size_t at = static_cast<std::size_t>(head.beam_offset) + beam;
@@ -144,7 +144,7 @@ Status WritePly(const std::string& path,
                                         {"range_m", ply::Type::kFloat32},
                                         {"ping", ply::Type::kUInt32},
                                         {"beam", ply::Type::kUInt16}};
-    const georef::PingSeries* intensities = IntensityPings(extras);
+    const survey::PingSeries* intensities = IntensityPings(extras);
     if (intensities != nullptr) {
         props.push_back({"intensity", ply::Type::kUInt16});
         h.comments.push_back(
@@ -541,7 +541,7 @@ Status WriteLas(const std::string& path,
 }
 
 Status WriteInsTrajectoryCsv(const std::string& path,
-                             const georef::NavSeries& nav,
+                             const survey::NavSeries& nav,
                              const Geodetic& origin) {
     const LocalTangentFrame world(origin);
     formats::TrajectoryCsv t;
@@ -721,7 +721,7 @@ std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
         }
         const bool multipath =
             j < rejected.status.size() &&
-            rejected.status[j] == static_cast<std::uint8_t>(georef::SoundingStatus::kMultipath);
+            rejected.status[j] == static_cast<std::uint8_t>(survey::SoundingStatus::kMultipath);
         const bool below = ref ? p.z() < *ref : multipath;
         out[j] = below ? kLasClassLowNoise : kLasClassHighNoise;
     }

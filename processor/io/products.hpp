@@ -5,7 +5,7 @@
 // PLY (written with common/formats/ply): binary_little_endian 1.0, vertex properties float x, y, z
 // (world ENU metres), double
 //   gps_time_s (GPS seconds since 1980-01-06), float range_m, uint ping, ushort beam, then the
-//   extras (PointExtras) and last uchar status (georef::SoundingStatus: 0 accepted, else the
+//   extras (PointExtras) and last uchar status (survey::SoundingStatus: 0 accepted, else the
 //   reason the sounding was rejected; a header comment lists the codes' names); a header
 //   comment "pitmap_origin LAT LON H" (degrees, degrees, ellipsoidal metres) names the origin.
 // LAS 1.4 (ASPRS LAS 1.4 R15): header 375 bytes, point data record format 6 (30 bytes), UTM
@@ -21,7 +21,7 @@
 //   sounding's 83P intensity as recorded (SoundingIntensity), 0 where the pings have none.
 // Rejected soundings (issue 35): both files hold, after the accepted soundings in their order,
 // the rejected soundings of the same survey that have a position (a georeference in the view
-// georef::SoundingView::kRejected: every status but no detection and refraction) when the
+// survey::SoundingView::kRejected: every status but no detection and refraction) when the
 // writer is given them; a reader that wants the surface keeps status 0 (PLY) or drops the
 // withheld points (LAS). THU, TVU of a rejected sounding are NaN (the grid stage computes them
 // for the accepted soundings only).
@@ -53,7 +53,7 @@ namespace pitmap::proc::io {
 // sonar.mount.connector) or has any other problem is an error listing every problem.
 struct VehicleConfig {
     VehicleDescription description;
-    georef::SonarMount mount;
+    survey::SonarMount mount;
 };
 Expected<VehicleConfig> ReadVehicleYaml(const std::string& path);
 // Which vehicle file a command reads: `explicit_path` (--vehicle, the config's vehicle_yaml)
@@ -76,7 +76,7 @@ struct PointExtras {
     // The pings the soundings came from (GeorefPing::header_index into it), for the 83P
     // intensity of each sounding: LAS intensity and PLY ushort intensity (SoundingIntensity).
     // Not written when null or when the pings carry no intensities.
-    const georef::PingSeries* pings = nullptr;
+    const survey::PingSeries* pings = nullptr;
 };
 
 // The 83P intensity of sounding i of `g`: PingSeries::intensities of its ping's beam, as
@@ -84,7 +84,7 @@ struct PointExtras {
 // scaling); 0 (none) when the pings carry no intensities or the beam is outside its ping.
 std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
                                 std::size_t i,
-                                const georef::PingSeries& pings);
+                                const survey::PingSeries& pings);
 // The names of the LAS extra bytes of THU and TVU: PDAL keeps a dimension name that starts with
 // a letter and holds only letters, digits and '_' (others it replaces by '_').
 inline constexpr const char* kLasThuName = "thu_95_m";
@@ -94,7 +94,7 @@ inline constexpr const char* kLasTvuName = "tvu_95_m";
 // SoundingIntensity), float thu_95_m, tvu_95_m (when given) and, with datum heights, float
 // depth_m (D - h: below the datum, m) and a comment "pitmap_vertical_datum NAME"; x, y, z stay
 // world ENU (ellipsoidal). `rejected` (optional): the kRejected view of the same survey
-// (GeorefPoints::status filled, its pings those of `result`, as survey::Georeference gives both),
+// (GeorefPoints::status filled, its pings those of `result`, as georef::Georeference gives both),
 // written after the accepted soundings with their status; without it every status is 0.
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& result,
@@ -147,7 +147,7 @@ std::string LasWkt(int zone, bool northern, const std::string& vertical_wkt = ""
 // trajectory_ins.csv: the INS solution at its own rate in the trajectory CSV format
 // (common/formats/trajectory_csv.hpp) with the INS columns, world ENU at `origin`.
 Status WriteInsTrajectoryCsv(const std::string& path,
-                             const georef::NavSeries& nav,
+                             const survey::NavSeries& nav,
                              const Geodetic& origin);
 
 // Reads a JSON file of at most kMaxJsonFileBytes. Errors name the file and, for a syntax error,

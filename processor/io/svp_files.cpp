@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
+#include <utility>
 
 namespace pitmap::proc::io {
 
@@ -28,6 +30,21 @@ Expected<std::vector<svp::SoundSpeedCast>> ReadSoundSpeedFiles(
         }
     }
     return out;
+}
+
+Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(
+    const survey::RefractionRecord& r) {
+    if (!r.enabled()) return std::shared_ptr<const svp::Refraction>();
+    auto casts = ReadSoundSpeedFiles(r.svp_files);
+    if (!casts) return casts.error();
+    if (auto p = svp::Refraction::Check(*casts, r.selection, r.ins_height_above_waterline_m);
+        !p.empty()) {
+        std::string text;
+        for (const auto& line : p) text += (text.empty() ? "" : "\n") + line;
+        return Error{text};
+    }
+    return std::shared_ptr<const svp::Refraction>(std::make_shared<const svp::Refraction>(
+        std::move(*casts), r.selection, r.surface_speed, r.ins_height_above_waterline_m));
 }
 
 }  // namespace pitmap::proc::io

@@ -4,11 +4,14 @@
 // Simrad .ssp, Valeport MIDAS (processor/svp/probe_casts.hpp), each recognised by content.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "common/result.hpp"
+#include "processor/survey/survey.hpp"
 #include "processor/svp/cast.hpp"
+#include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::io {
 
@@ -17,5 +20,10 @@ namespace pitmap::proc::io {
 // the formats is an error listing them.
 Expected<std::vector<svp::SoundSpeedCast>> ReadSoundSpeedFiles(
     const std::vector<std::string>& paths);
+
+// The casts of the survey model's refraction record, read from its files; null for straight
+// rays. A missing or bad cast file is an error naming it; casts that the refraction cannot use
+// (svp::Refraction::Check) are an error listing every problem.
+Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const survey::RefractionRecord& r);
 
 }  // namespace pitmap::proc::io

@@ -607,8 +607,8 @@ Eigen::Vector3d VelocityFromNeighbours(const std::vector<XtfPosition>& positions
 }
 
 // The standard deviations XTF does not carry, as assumed, at one navigation time.
-georef::NavStdDev AssumedStdDev(std::int64_t utime_gps, const XtfAssumptions& as) {
-    georef::NavStdDev sd;
+survey::NavStdDev AssumedStdDev(std::int64_t utime_gps, const XtfAssumptions& as) {
+    survey::NavStdDev sd;
     sd.utime_gps = utime_gps;
     sd.north_m = sd.east_m = static_cast<float>(as.position_sigma_horizontal_m);
     sd.up_m = static_cast<float>(as.position_sigma_vertical_m);
@@ -656,9 +656,9 @@ void AddXtfNavigation(const XtfFile& file,
 
 // A ping's header: time, number, sound speed, the range resolution c/2 * scale of its R0
 // counts, and for consumers without per-beam angles the fan from its first to its last point.
-georef::PingHeader XtfPingHeader(const XtfBathyPing& p, int leap_seconds) {
+survey::PingHeader XtfPingHeader(const XtfBathyPing& p, int leap_seconds) {
     const std::size_t n = p.twtt_counts.size();
-    georef::PingHeader h;
+    survey::PingHeader h;
     h.utime_gps = GpsTimeOfXtf(p.utime_unix, leap_seconds);
     h.ping_number = p.ping_number;
     h.sound_speed_mps = p.sound_speed_mps;
@@ -727,7 +727,7 @@ void AddXtfPings(const XtfFile& file,
     std::vector<float> angle_deg;
     for (const XtfBathyPing& p : file.pings) {
         const std::size_t n = p.twtt_counts.size();
-        const georef::PingHeader h = XtfPingHeader(p, leap_seconds);
+        const survey::PingHeader h = XtfPingHeader(p, leap_seconds);
         if (p.tx_steering_vert_rad != 0) ++cv.pings_steered;
         XtfRangesAndAngles(p, as, counts, angle_deg, cv);
         const bool with_intensity = XtfIntensities(p, intensity);

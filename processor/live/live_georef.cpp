@@ -14,12 +14,12 @@ std::vector<std::string> LiveGeorefConfig::Validate() const {
     return p;
 }
 
-LiveGeoref::LiveGeoref(const LiveGeorefConfig& config, const georef::SonarMount& mount)
+LiveGeoref::LiveGeoref(const LiveGeorefConfig& config, const survey::SonarMount& mount)
     : config_(config), mount_(mount) {
     config_.georef.num_threads = 1;
 }
 
-void LiveGeoref::AddNav(const georef::NavSample& s) {
+void LiveGeoref::AddNav(const survey::NavSample& s) {
     const bool finite =
         std::isfinite(s.position.latitude_deg) && std::abs(s.position.latitude_deg) <= 90 &&
         std::isfinite(s.position.longitude_deg) && std::abs(s.position.longitude_deg) <= 360 &&
@@ -37,7 +37,7 @@ void LiveGeoref::AddNav(const georef::NavSample& s) {
     while (nav_.size() > 2 && nav_.front().utime_gps < s.utime_gps - keep) nav_.pop_front();
 }
 
-void LiveGeoref::AddPing(const georef::PingHeader& h, const std::int32_t* counts, std::size_t n) {
+void LiveGeoref::AddPing(const survey::PingHeader& h, const std::int32_t* counts, std::size_t n) {
     ++counts_.pings_in;
     if (h.utime_gps <= 0 || n == 0 || n > 0xFFFF) {
         ++counts_.pings_refused;
@@ -68,10 +68,10 @@ Expected<std::optional<LiveBatch>> LiveGeoref::Process() {
     while (n_ready < pending_.size() && pending_[n_ready].header.utime_gps <= newest) ++n_ready;
     if (n_ready == 0) return std::optional<LiveBatch>{};
 
-    georef::PingSeries pings;
+    survey::PingSeries pings;
     pings.pings.reserve(n_ready);
     for (std::size_t k = 0; k < n_ready; ++k) {
-        georef::PingHeader h = pending_[k].header;
+        survey::PingHeader h = pending_[k].header;
         h.beam_offset = static_cast<std::uint32_t>(pings.range_counts.size());
         pings.range_counts.insert(
             pings.range_counts.end(), pending_[k].counts.begin(), pending_[k].counts.end());
@@ -88,7 +88,7 @@ Expected<std::optional<LiveBatch>> LiveGeoref::Process() {
         return s.utime_gps < t;
     });
     if (hi != nav_.end()) ++hi;
-    georef::NavSeries nav;
+    survey::NavSeries nav;
     nav.samples.assign(lo, hi);
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n_ready));
 

@@ -46,10 +46,10 @@ struct LiveBatch {
 
 class LiveGeoref {
 public:
-    LiveGeoref(const LiveGeorefConfig& config, const georef::SonarMount& mount);
+    LiveGeoref(const LiveGeorefConfig& config, const survey::SonarMount& mount);
 
-    void AddNav(const georef::NavSample& s);
-    void AddPing(const georef::PingHeader& h, const std::int32_t* counts, std::size_t n);
+    void AddNav(const survey::NavSample& s);
+    void AddPing(const survey::PingHeader& h, const std::int32_t* counts, std::size_t n);
     // Georeferences every waiting ping that navigation now brackets; nullopt when there is none.
     // A UTM failure (the origin cannot be projected) is an error.
     Expected<std::optional<LiveBatch>> Process();
@@ -62,13 +62,13 @@ public:
 
 private:
     struct Pending {
-        georef::PingHeader header;
+        survey::PingHeader header;
         std::vector<std::uint32_t> counts;
     };
     LiveGeorefConfig config_;
-    georef::SonarMount mount_;
+    survey::SonarMount mount_;
     std::optional<Geodetic> origin_;
-    std::deque<georef::NavSample> nav_;
+    std::deque<survey::NavSample> nav_;
     std::deque<Pending> pending_;  // time-sorted
     LiveGeorefCounts counts_;
 };

@@ -62,7 +62,7 @@ std::vector<std::string> LiveConfig::Validate() const {
 }
 
 LiveSession::LiveSession(const LiveConfig& config,
-                         const georef::SonarMount& mount,
+                         const survey::SonarMount& mount,
                          bool mount_known)
     : config_(config),
       mount_known_(mount_known),
@@ -75,7 +75,7 @@ LiveSession::LiveSession(const LiveConfig& config,
     config_.tpu.num_threads = 1;
 }
 
-void LiveSession::AddStdDevLocked(const georef::NavStdDev& s) {
+void LiveSession::AddStdDevLocked(const survey::NavStdDev& s) {
     if (s.utime_gps <= 0) return;
     if (stddevs_.empty() || s.utime_gps > stddevs_.back().utime_gps) {
         stddevs_.push_back(s);

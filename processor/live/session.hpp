@@ -64,7 +64,7 @@ struct SessionCounts {
 
 class LiveSession {
 public:
-    LiveSession(const LiveConfig& config, const georef::SonarMount& mount, bool mount_known);
+    LiveSession(const LiveConfig& config, const survey::SonarMount& mount, bool mount_known);
 
     // One LCM event; `wall_utime` is the receiving machine's clock (Unix microseconds).
     void OnEvent(const std::string& channel,
@@ -104,7 +104,7 @@ private:
     // StatusJson's "georef" and "grid" documents (mutex_ held).
     nlohmann::json GeorefStatusLocked() const;
     nlohmann::json GridStatusLocked() const;
-    void AddStdDevLocked(const georef::NavStdDev& s);
+    void AddStdDevLocked(const survey::NavStdDev& s);
 
     mutable std::mutex mutex_;
     LiveConfig config_;
@@ -137,7 +137,7 @@ private:
     CoverageStats stats_cache_;
     // TVU: the INS sigma records (time-sorted, trimmed to the georeferencing's navigation
     // window), the fallback from the error model, and running figures.
-    std::vector<georef::NavStdDev> stddevs_;
+    std::vector<survey::NavStdDev> stddevs_;
     hydro::PingSigma fallback_sigma_;
     std::vector<hydro::PingSigma> ping_sigma_;
     std::vector<std::pair<std::int64_t, std::int64_t>> new_cells_;

@@ -1,8 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/adapters.hpp"
 
-#include "processor/survey/survey.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,7 @@
 
 #include "common/formats/trajectory_csv.hpp"
 #include "common/frames.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/hydro/tpu.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -26,8 +25,8 @@ std::vector<std::size_t> PingOffsets(const georef::GeorefResult& geo) {
 }
 
 // MakeScans: a ping with its own beam angles onto equally spaced ones (adapters.hpp).
-void ResampleToEqualAngles(const georef::PingSeries& pings,
-                           const georef::PingHeader& h,
+void ResampleToEqualAngles(const survey::PingSeries& pings,
+                           const survey::PingHeader& h,
                            fusion::SonarScan& s) {
     const std::size_t n = h.num_beams;
     if (n < 2 || s.ranges_m.size() != n) return;
@@ -67,7 +66,7 @@ bool IsSortedByPing(const georef::GeorefResult& geo) {
 
 }  // namespace
 
-PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
+PoseSigma PoseSigmaAt(const survey::NavSeries& nav,
                       std::int64_t utime_gps,
                       double max_age_s,
                       const PoseSigma& fallback) {
@@ -81,7 +80,7 @@ PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
 }
 
 SliceSet MakeSlices(const georef::GeorefResult& geo,
-                    const georef::NavSeries& nav,
+                    const survey::NavSeries& nav,
                     int point_stride,
                     double sigma_max_age_s,
                     const PoseSigma& fallback_sigma) {
@@ -124,7 +123,7 @@ Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_w
         t.T_world_vehicle[geo.pings[k].header_index] = T_world_vehicle[k];
         t.valid[geo.pings[k].header_index] = 1;
     }
-    survey::ApplyTrajectory(geo, t);
+    georef::ApplyTrajectory(geo, t);
     return Ok{};
 }
 
@@ -162,8 +161,8 @@ PoseLookup PosesAtPings(const georef::GeorefResult& geo,
 }
 
 std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
-                                         const georef::PingSeries& pings,
-                                         const georef::SonarMount& mount,
+                                         const survey::PingSeries& pings,
+                                         const survey::SonarMount& mount,
                                          int ping_stride) {
     std::vector<fusion::SonarScan> scans;
     if (!IsSortedByPing(geo)) return scans;
@@ -180,7 +179,7 @@ std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
             Eigen::AngleAxisd(ping.profile_tilt_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
         s.T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar * tilt;
         if (ping.header_index >= pings.pings.size()) continue;
-        const georef::PingHeader& h = pings.pings[ping.header_index];
+        const survey::PingHeader& h = pings.pings[ping.header_index];
         s.start_angle_rad = static_cast<float>(frames::DegToRad(h.start_angle_deg));
         s.angle_increment_rad = static_cast<float>(frames::DegToRad(h.angle_increment_deg));
         s.ranges_m.assign(h.num_beams, 0.0f);

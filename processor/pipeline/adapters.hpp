@@ -21,8 +21,8 @@
 #include "common/se3.hpp"
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
-#include "processor/georef/series.hpp"
 #include "processor/slam/slam.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -34,7 +34,7 @@ using PoseSigma = Eigen::Matrix<double, 6, 1>;
 // INS error changes slowly). Components the receiver did not report (NaN), and all of them when
 // there is no record within max_age_s, take `fallback` (hydro::InsSigmaAt, which pitmap live
 // uses too).
-PoseSigma PoseSigmaAt(const georef::NavSeries& nav,
+PoseSigma PoseSigmaAt(const survey::NavSeries& nav,
                       std::int64_t utime_gps,
                       double max_age_s,
                       const PoseSigma& fallback);
@@ -46,14 +46,14 @@ struct SliceSet {
     std::vector<std::uint32_t> ping;  // slice -> index into GeorefResult::pings
 };
 SliceSet MakeSlices(const georef::GeorefResult& geo,
-                    const georef::NavSeries& nav,
+                    const survey::NavSeries& nav,
                     int point_stride,
                     double sigma_max_age_s,
                     const PoseSigma& fallback_sigma);
 
 // Moves every sounding and ping of `geo` to new vehicle poses, one per ping
 // (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p, through
-// survey::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
+// georef::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
 Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle);
 
 // New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the
@@ -76,8 +76,8 @@ PoseLookup PosesAtPings(const georef::GeorefResult& geo,
 // between the two beams around it when both have one within 10% of each other, else taken from
 // the nearer beam within half a slot, else none.
 std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
-                                         const georef::PingSeries& pings,
-                                         const georef::SonarMount& mount,
+                                         const survey::PingSeries& pings,
+                                         const survey::SonarMount& mount,
                                          int ping_stride = 1);
 
 // A vehicle trajectory in the world frame with GPS times (seconds), for trajectory CSVs.

@@ -37,7 +37,7 @@ double ImpliedClockOffset(double configured_offset_s, double correction_s) {
 
 // The rotation a calibration added to the nominal mount, as roll, pitch, yaw (deg) about the
 // vehicle's axes: R_after = R_change * R_before.
-Eigen::Vector3d MountChangeDeg(const georef::SonarMount& before, const georef::SonarMount& after) {
+Eigen::Vector3d MountChangeDeg(const survey::SonarMount& before, const survey::SonarMount& after) {
     const Eigen::Matrix3d R = after.R_vehicle_sonar() * before.R_vehicle_sonar().transpose();
     const frames::Rpy d = frames::RpyFromRotationNed(R);
     return {frames::RadToDeg(d.roll), frames::RadToDeg(d.pitch), frames::RadToDeg(d.yaw)};
@@ -121,7 +121,7 @@ Status CoarseHeaderClock(StageContext& s,
                          json& clk,
                          double& applied,
                          double& sigma) {
-    georef::PingSeries& pings = s.model.ingest.pings;
+    survey::PingSeries& pings = s.model.ingest.pings;
     const calib::ClockSearchConfig search = HeaderSearch(s);
     const calib::ClockEstimate est = calib::EstimateSonarClock(pings, s.model.ingest.nav, search);
     log("sonar clock: " + est.message);
@@ -149,7 +149,7 @@ Status CoarseHeaderClock(StageContext& s,
                      Num("%.1f", config.quality.max_clock_scan_s) +
                      " s the data can resolve (quality.max_clock_scan_s)" + give};
     }
-    georef::ShiftPingTimes(pings, est.correction_s);
+    survey::ShiftPingTimes(pings, est.correction_s);
     applied = est.correction_s;
     sigma = est.sigma_s;
     return Ok{};
@@ -158,7 +158,7 @@ Status CoarseHeaderClock(StageContext& s,
 // A step of the topside clock mid-survey (an NTP correction): each side on its own offset
 // (calib::FindSonarClockSteps); an error when the header times run backwards.
 Status HeaderClockSteps(StageContext& s, const Log& log, json& clk) {
-    georef::PingSeries& pings = s.model.ingest.pings;
+    survey::PingSeries& pings = s.model.ingest.pings;
     calib::ClockStepConfig sc;
     sc.R_vehicle_sonar = s.model.mount.R_vehicle_sonar();
     if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
@@ -223,7 +223,7 @@ calib::ClockRateEstimate HeaderClockRate(StageContext& s, const Log& log, json& 
                    {"residual_rms_deg", rate.residual_rms_deg},
                    {"message", rate.message}};
     if (rate.found) {
-        georef::ShiftPingTimes(
+        survey::ShiftPingTimes(
             s.model.ingest.pings, 0.0, rate.rate_ppm * 1e-6, rate.reference_utime);
         clk["rate_ppm"] = rate.rate_ppm;
         clk["rate_sigma_ppm"] = rate.rate_sigma_ppm;
@@ -260,7 +260,7 @@ void RecordClock(StageContext& s,
 calib::BoresightConfig CalibrationConfig(const StageContext& s, const PipelineConfig& config) {
     calib::BoresightConfig bc = config.calibrate;
     if (bc.estimate_latency) {
-        const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+        const bool header = s.model.ingest.pings.clock == survey::PingClock::kTopsideHeader;
         bc.initial_latency_s = 0;
         bc.latency_scan_s =
             header ? std::clamp(
@@ -273,7 +273,7 @@ calib::BoresightConfig CalibrationConfig(const StageContext& s, const PipelineCo
 // summary.json's "calibrate": the fit's figures and the mount before and after.
 json CalibrationJson(const calib::BoresightResult& cal,
                      const calib::BoresightConfig& bc,
-                     const georef::SonarMount& before) {
+                     const survey::SonarMount& before) {
     return {{"termination", calib::ToString(cal.termination)},
             {"iterations", cal.iterations},
             {"message", cal.message},
@@ -427,7 +427,7 @@ void ApplyCalibration(StageContext& s,
         mc.latency_formal_sd_s = cal.latency_formal_sd_s;
     }
     if (mc.latency_applied && cal.latency_s != 0.0) {
-        georef::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
+        survey::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
         s.geo = georef::RunGeoref(s.model.ingest.nav,
                                   s.model.ingest.pings,
                                   s.model.mount,
@@ -441,7 +441,7 @@ void ApplyCalibration(StageContext& s,
     }
     if (!keep_nominal) {
         s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
-            survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+            georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     }
 }
 
@@ -452,7 +452,7 @@ void RecordCalibratedClock(StageContext& s,
                            const calib::BoresightResult& cal,
                            const QualityConfig& q,
                            const Log& log) {
-    const bool header = s.model.ingest.pings.clock == georef::PingClock::kTopsideHeader;
+    const bool header = s.model.ingest.pings.clock == survey::PingClock::kTopsideHeader;
     const survey::SonarClockState& mc = s.model.clock;
     json& clk = s.summary["sonar_clock"];
     clk["latency_s"] = mc.latency_applied ? mc.latency_s : 0.0;
@@ -477,9 +477,9 @@ void RecordCalibratedClock(StageContext& s,
 }  // namespace
 
 Status ClockSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
-    const georef::PingSeries& pings = s.model.ingest.pings;
-    const georef::NavSeries& nav = s.model.ingest.nav;
-    const bool header = pings.clock == georef::PingClock::kTopsideHeader;
+    const survey::PingSeries& pings = s.model.ingest.pings;
+    const survey::NavSeries& nav = s.model.ingest.nav;
+    const bool header = pings.clock == survey::PingClock::kTopsideHeader;
     json clk = {{"source",
                  header ? "83P header: the topside PC clock (offset unknown)"
                         : "pitmap-acqd: GPS-disciplined receive stamps"},
@@ -518,10 +518,10 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
     // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
     if (s.model.ResetCalibration()) {
         log("calibrate: starting again from the nominal mount and sonar clock");
-        s.geo = survey::Georeference(
+        s.geo = georef::Georeference(
             s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
     }
-    const georef::SonarMount before = s.model.mount;
+    const survey::SonarMount before = s.model.mount;
     const QualityConfig& q = config.quality;
     json& clk = s.summary["sonar_clock"];
     if (!clk.is_object()) clk = json::object();

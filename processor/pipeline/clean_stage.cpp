@@ -16,8 +16,8 @@
 
 namespace pitmap::proc::pipeline::detail {
 
-using georef::SoundingStatus;
 using nlohmann::json;
+using survey::SoundingStatus;
 
 namespace {
 
@@ -27,9 +27,9 @@ std::string Percent(double share) {
     return buf;
 }
 
-bool AnyManualReject(const georef::SoundingFlags& f) {
+bool AnyManualReject(const survey::SoundingFlags& f) {
     for (const std::uint8_t m : f.manual) {
-        if (m == static_cast<std::uint8_t>(georef::ManualEdit::kReject)) return true;
+        if (m == static_cast<std::uint8_t>(survey::ManualEdit::kReject)) return true;
     }
     return false;
 }
@@ -37,7 +37,7 @@ bool AnyManualReject(const georef::SoundingFlags& f) {
 }  // namespace
 
 std::size_t FlatIndex(const georef::GeorefResult& geo,
-                      const georef::PingSeries& pings,
+                      const survey::PingSeries& pings,
                       std::size_t j) {
     return pings.pings[geo.pings[geo.points.ping[j]].header_index].beam_offset +
            std::size_t{geo.points.beam[j]};
@@ -63,8 +63,8 @@ void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep) {
 }
 
 std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>& status) {
-    georef::SoundingFlags& flags = s.model.flags;
-    const georef::PingSeries& pings = s.model.ingest.pings;
+    survey::SoundingFlags& flags = s.model.flags;
+    const survey::PingSeries& pings = s.model.ingest.pings;
     if (flags.cleaning.size() != pings.range_counts.size())
         flags.cleaning.assign(pings.range_counts.size(), 0);
     std::vector<char> keep(s.geo.points.size(), 1);
@@ -73,7 +73,7 @@ std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>&
         if (status[j] == 0) continue;
         const std::size_t flat = FlatIndex(s.geo, pings, j);
         flags.cleaning[flat] = status[j];
-        if (flags.Manual(flat) == georef::ManualEdit::kRestore) continue;
+        if (flags.Manual(flat) == survey::ManualEdit::kRestore) continue;
         keep[j] = 0;
         --c.status[0];
         ++c.status[status[j]];
@@ -156,20 +156,20 @@ Status CleanSurvey(StageContext& s,
                    {"trajectory", e.value("trajectory", "")}};
     }
     ClearGates(s, Stage::kClean);
-    georef::SoundingFlags& flags = s.model.flags;
-    const georef::PingSeries& pings = s.model.ingest.pings;
+    survey::SoundingFlags& flags = s.model.flags;
+    const survey::PingSeries& pings = s.model.ingest.pings;
     // The candidates: the current view is them when nothing was cleaned before and nothing is
     // rejected by hand (a new run); otherwise the survey is viewed again.
     bool cleaned_before = false;
     for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
     if (cleaned_before || AnyManualReject(flags)) {
-        s.geo = survey::Georeference(s.model,
+        s.geo = georef::Georeference(s.model,
                                      s.model.latest(),
                                      config.georef,
                                      s.refraction,
                                      {},
                                      nullptr,
-                                     georef::SoundingView::kCandidates);
+                                     survey::SoundingView::kCandidates);
     }
     ProgressReporter bar(ToString(Stage::kClean), 1000);
     std::int64_t left_out = 0;
@@ -189,8 +189,8 @@ Status CleanSurvey(StageContext& s,
     flags.cleaning.assign(pings.range_counts.size(), 0);
     // The candidates' earlier verdicts are decided again: counted as accepted until then.
     georef::GeorefCounts& counts = s.geo.counts;
-    for (int code = 0; code < georef::kNumSoundingStatus; ++code) {
-        if (!georef::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
+    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
+        if (!survey::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
         counts.status[0] += counts.status[code];
         counts.status[code] = 0;
     }

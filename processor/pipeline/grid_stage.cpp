@@ -597,7 +597,7 @@ std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& 
         const double dz = std::abs(q.z - z);
         const double sigma = std::sqrt(u * u + double{q.sigma_v_m} * q.sigma_v_m);
         if (dz > gc.surface_filter_min_m && dz > gc.surface_filter_gate * sigma) {
-            verdict[k] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
+            verdict[k] = static_cast<std::uint8_t>(survey::SoundingStatus::kSurfaceFilter);
         }
     }
     return verdict;

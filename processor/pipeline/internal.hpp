@@ -15,6 +15,7 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
@@ -132,7 +133,7 @@ Status WritePoints(const std::string& dir,
                    nlohmann::json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected = nullptr,
-                   const georef::PingSeries* pings = nullptr,
+                   const survey::PingSeries* pings = nullptr,
                    const ProductMetadata* meta = nullptr);
 // The same for the survey: its soundings (s.geo) and, with products.write_rejected, the
 // rejected ones of the model's newest trajectory; sets summary["soundings"] (SoundingsJson) and
@@ -140,14 +141,14 @@ Status WritePoints(const std::string& dir,
 // vertical datum).
 Status WritePoints(StageContext& s, const PipelineConfig& c);
 
-// The rejected soundings of the survey's current view (georef::SoundingView::kRejected on the
+// The rejected soundings of the survey's current view (survey::SoundingView::kRejected on the
 // model's newest trajectory, with s.refraction): what the point files carry beside s.geo.
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c);
 
 // summary.json's "soundings": {total, accepted, rejected: {reason: count}} from georef's counts
 // per status (every status's name, 0 included; total: the soundings of the georeferenced pings,
 // no detection included).
-nlohmann::json SoundingsJson(const georef::StatusCounts& counts);
+nlohmann::json SoundingsJson(const survey::StatusCounts& counts);
 
 // summary.json of P for the survey `model`: the file when it is readable and of the same run,
 // else a new report {run_id} with a warning saying why.
@@ -189,7 +190,7 @@ Status CleanSurvey(StageContext& s,
                    double max_ins_sigma_h_m = std::numeric_limits<double>::infinity());
 // The index of point j of `geo` in the survey's range counts.
 std::size_t FlatIndex(const georef::GeorefResult& geo,
-                      const georef::PingSeries& pings,
+                      const survey::PingSeries& pings,
                       std::size_t j);
 // Keeps the points with keep[j] != 0 (in order); the pings stay.
 void KeepPoints(georef::GeorefPoints& P, const std::vector<char>& keep);

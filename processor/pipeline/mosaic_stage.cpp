@@ -78,7 +78,7 @@ Expected<json> MosaicSurvey(const StageContext& s,
                             georef::UtmPoints& utm,
                             const Eigen::Matrix<double, 2, 3>& utm_to_world,
                             const Log& log) {
-    const georef::PingSeries& series = s.model.ingest.pings;
+    const survey::PingSeries& series = s.model.ingest.pings;
     if (!series.has_intensities()) {
         const std::string why =
             "the pings carry no intensities (83P v1.00, v1.10 without them, or a survey.pitmap "
@@ -99,7 +99,7 @@ Expected<json> MosaicSurvey(const StageContext& s,
     m.beam_dir.resize(n);
     for (std::size_t j = 0; j < n; ++j) {
         const georef::GeorefPing& p = s.geo.pings[pts.ping[j]];
-        const georef::PingHeader& h = series.pings[p.header_index];
+        const survey::PingHeader& h = series.pings[p.header_index];
         m.x[j] = utm.easting_northing_height[j].x();
         m.y[j] = utm.easting_northing_height[j].y();
         m.intensity[j] = series.intensities[h.beam_offset + pts.beam[j]];

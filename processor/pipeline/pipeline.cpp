@@ -19,6 +19,7 @@
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/georef/mount_check.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/svp_files.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
@@ -36,8 +37,8 @@ namespace {
 std::string EditsText(const std::vector<std::uint8_t>& manual) {
     std::size_t rejected = 0, restored = 0;
     for (const std::uint8_t m : manual) {
-        rejected += m == static_cast<std::uint8_t>(georef::ManualEdit::kReject);
-        restored += m == static_cast<std::uint8_t>(georef::ManualEdit::kRestore);
+        rejected += m == static_cast<std::uint8_t>(survey::ManualEdit::kReject);
+        restored += m == static_cast<std::uint8_t>(survey::ManualEdit::kRestore);
     }
     return "edits: " + std::to_string(rejected) + " soundings rejected and " +
            std::to_string(restored) + " restored by hand (" + survey::kEditLogFileName + ")";
@@ -46,7 +47,7 @@ std::string EditsText(const std::vector<std::uint8_t>& manual) {
 // summary["time"]: GPS - UTC for the survey (the receiver's TIME log when it logged one, else
 // common/gps_time's leap-second table) and the pings' span in both scales. The report turns GPS
 // seconds into UTC with it, so the table exists once (in C++).
-json TimeJson(const io::IngestResult& ing) {
+json TimeJson(const survey::IngestedSeries& ing) {
     const std::int64_t t0 = ing.pings.pings.front().utime_gps;
     const std::int64_t t1 = ing.pings.pings.back().utime_gps;
     const bool receiver = ing.nav.leap_seconds >= 0;
@@ -143,7 +144,7 @@ Status WritePoints(const std::string& dir,
                    json& summary,
                    const std::string& run_id,
                    const georef::GeorefResult* rejected,
-                   const georef::PingSeries* pings,
+                   const survey::PingSeries* pings,
                    const ProductMetadata* meta) {
     io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
     extras.pings = pings;
@@ -171,13 +172,13 @@ Status WritePoints(const std::string& dir,
 }
 
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
-    return survey::Georeference(s.model,
+    return georef::Georeference(s.model,
                                 s.model.latest(),
                                 c.georef,
                                 s.refraction,
                                 {},
                                 nullptr,
-                                georef::SoundingView::kRejected);
+                                survey::SoundingView::kRejected);
 }
 
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
@@ -192,17 +193,17 @@ Status WritePoints(StageContext& s, const PipelineConfig& c) {
         s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
 }
 
-json SoundingsJson(const georef::StatusCounts& counts) {
+json SoundingsJson(const survey::StatusCounts& counts) {
     std::int64_t total = 0;
     json rejected = json::object();
-    for (int k = 0; k < georef::kNumSoundingStatus; ++k) {
+    for (int k = 0; k < survey::kNumSoundingStatus; ++k) {
         total += counts[static_cast<std::size_t>(k)];
-        if (k == static_cast<int>(georef::SoundingStatus::kAccepted)) continue;
-        rejected[std::string(georef::ToString(static_cast<georef::SoundingStatus>(k)))] =
+        if (k == static_cast<int>(survey::SoundingStatus::kAccepted)) continue;
+        rejected[std::string(survey::ToString(static_cast<survey::SoundingStatus>(k)))] =
             counts[static_cast<std::size_t>(k)];
     }
     return {{"total", total},
-            {"accepted", counts[static_cast<std::size_t>(georef::SoundingStatus::kAccepted)]},
+            {"accepted", counts[static_cast<std::size_t>(survey::SoundingStatus::kAccepted)]},
             {"rejected", std::move(rejected)}};
 }
 
@@ -380,7 +381,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     // The report this stage adds to; a damaged one, or one of another run, is started again
     // (it decides nothing).
     s.summary = LoadSummaryOfRun(out_dir, s.model, log);
-    auto refraction = survey::BuildRefraction(s.model.refraction);
+    auto refraction = io::BuildRefraction(s.model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
                      ": the sound-velocity casts georef used: " + refraction.error().message};
@@ -397,7 +398,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
     std::size_t kept = 0;
-    s.geo = survey::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    s.geo = georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
     if (kept > 0) {
         log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
@@ -445,8 +446,9 @@ Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points) 
 
 // The windows the INS marked not good (ingest's status rule): each with the pings it holds,
 // in summary["ingest_ins_windows"]; any window with pings is a georef gate.
-void InsWindowGate(StageContext& s, const Log& log) {
-    const auto& windows = s.model.ingest.ins_windows;
+void InsWindowGate(StageContext& s,
+                   const std::vector<io::InsStatusWindow>& windows,
+                   const Log& log) {
     if (windows.empty()) return;
     const auto& P = s.model.ingest.pings.pings;
     json list = json::array();
@@ -548,8 +550,10 @@ Expected<std::optional<double>> ReadVehicle(StageContext& s,
 
 // A vendor file that does not say everything (ingest's `assumed`): the mount is the vehicle
 // file's, and the list says so.
-void NoteAssumedMount(StageContext& s, const std::string& vehicle_path) {
-    const georef::SonarMount& m = s.model.mount;
+void NoteAssumedMount(const StageContext& s,
+                      const std::string& vehicle_path,
+                      std::vector<std::string>& assumed) {
+    const survey::SonarMount& m = s.model.mount;
     char mount[200];
     std::snprintf(mount,
                   sizeof mount,
@@ -560,39 +564,40 @@ void NoteAssumedMount(StageContext& s, const std::string& vehicle_path) {
                   m.boresight_roll_deg,
                   m.boresight_pitch_deg,
                   m.boresight_yaw_deg);
-    s.model.ingest.assumed.push_back(
+    assumed.push_back(
         "mount: " + std::string(mount) + " from " +
         (vehicle_path.empty() ? std::string("no vehicle file (zero)") : "the vehicle file"));
 }
 
-// io::IngestFiles into the model, with a progress bar, its warnings and assumptions logged and
-// its record in the summary; an error when the inputs hold no navigation or no pings.
-Status IngestSurvey(StageContext& s,
-                    const std::vector<std::string>& files,
-                    const io::IngestConfig& icfg,
-                    const std::string& vehicle_path,
-                    const Log& log) {
+// io::IngestFiles into the model (its navigation and pings), with a progress bar, its warnings
+// and assumptions logged and its record in the summary; returns the INS status windows for the
+// georef gate. An error when the inputs hold no navigation or no pings.
+Expected<std::vector<io::InsStatusWindow>> IngestSurvey(StageContext& s,
+                                                        const std::vector<std::string>& files,
+                                                        const io::IngestConfig& icfg,
+                                                        const std::string& vehicle_path,
+                                                        const Log& log) {
     StageClock clock;
     ProgressReporter bar(ToString(Stage::kIngest), 1000);
     auto ing = io::IngestFiles(files, icfg, bar.AsCallback());
     bar.Finish();
     if (!ing) return ing.error();
-    s.model.ingest = std::move(*ing);
-    for (const auto& w : s.model.ingest.warnings) log("warning: " + w);
-    if (!s.model.ingest.assumed.empty()) NoteAssumedMount(s, vehicle_path);
-    for (const auto& a : s.model.ingest.assumed) log("assumed: " + a);
-    log("ingest: " + s.model.ingest.message);
-    json record = s.model.ingest.counts;
-    record["warnings"] = s.model.ingest.warnings;
-    record["assumed"] = s.model.ingest.assumed;
-    record["nav_from_raw"] = s.model.ingest.nav_from_raw;
-    record["pings_from_raw"] = s.model.ingest.pings_from_raw;
+    s.model.ingest = {std::move(ing->nav), std::move(ing->pings)};
+    for (const auto& w : ing->warnings) log("warning: " + w);
+    if (!ing->assumed.empty()) NoteAssumedMount(s, vehicle_path, ing->assumed);
+    for (const auto& a : ing->assumed) log("assumed: " + a);
+    log("ingest: " + ing->message);
+    json record = ing->counts;
+    record["warnings"] = ing->warnings;
+    record["assumed"] = ing->assumed;
+    record["nav_from_raw"] = ing->nav_from_raw;
+    record["pings_from_raw"] = ing->pings_from_raw;
     RecordStage(s.summary, Stage::kIngest, record, clock);
     if (s.model.ingest.nav.samples.empty())
         return Error{"no INS navigation in the inputs (" + files.front() + " ...)"};
     if (s.model.ingest.pings.pings.empty())
         return Error{"no sonar pings in the inputs (" + files.front() + " ...)"};
-    return Ok{};
+    return std::move(ing->ins_windows);
 }
 
 // georef::RunGeoref of the ingested pings on the INS trajectory, with a progress bar; the world
@@ -682,7 +687,7 @@ Status CheckMount(StageContext& s, const Log& log) {
 void RecordGeoref(StageContext& s, const std::vector<std::string>& files, const StageClock& clock) {
     s.model.origin = s.geo.world_origin;
     s.model.trajectory(survey::TrajectoryVersion::kIns) =
-        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+        georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     RecordStage(s.summary, Stage::kGeoref, s.geo.counts, clock);
     s.summary["world_origin"] = survey::OriginJson(s.model.origin);
     s.summary["time"] = TimeJson(s.model.ingest);
@@ -715,7 +720,8 @@ Status GeorefSurvey(StageContext& s,
     // The configured offset (sonar clock minus UTC), null when the clock is to be found.
     s.summary["sonar_clock_offset_s"] =
         icfg.sonar_clock_offset_known ? json(icfg.sonar_clock_offset_s) : json(nullptr);
-    if (auto r = IngestSurvey(s, *files, icfg, vpath, log); !r) return r;
+    auto ins_windows = IngestSurvey(s, *files, icfg, vpath, log);
+    if (!ins_windows) return ins_windows.error();
 
     // The hand edits (P/edits.json) survive a new georeference: applied on top of georef's and
     // the cleaning's verdicts. One of another survey, or a damaged one, stops here.
@@ -734,7 +740,7 @@ Status GeorefSurvey(StageContext& s,
     StageClock georef_clock;
     GeoreferenceIngest(s, config, log);
     GateOutsideNavigation(s, config.quality, log);
-    InsWindowGate(s, log);
+    InsWindowGate(s, *ins_windows, log);
     if (config.quality.check_mount) {
         if (auto m = CheckMount(s, log); !m) return m;
     }

@@ -79,7 +79,7 @@ Status SetUpRefraction(StageContext& s,
     record.selection = rc.selection;
     record.surface_speed = rc.surface_speed;
     record.ins_height_above_waterline_m = height;
-    auto r = survey::BuildRefraction(record);
+    auto r = io::BuildRefraction(record);
     if (!r) return r.error();
     s.refraction = *r;
     s.model.refraction = std::move(record);

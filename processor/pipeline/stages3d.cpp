@@ -206,7 +206,7 @@ std::vector<Pose> SlamPingPoses(const georef::GeorefResult& geo,
 // The INS's own horizontal 1-sigma at a ping (hydro::InsSigmaAt: the nearest stddev record),
 // metres; NaN when no record lies within max_age_s or the record lacks north or east (NaN or
 // <= 0: not reported).
-double InsHorizontalSigma(const std::vector<georef::NavStdDev>& sd,
+double InsHorizontalSigma(const std::vector<survey::NavStdDev>& sd,
                           std::int64_t utime_gps,
                           double max_age_s) {
     constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -239,7 +239,7 @@ struct GoodInsMoves {
 };
 
 GoodInsMoves MovesAtGoodIns(const georef::GeorefResult& geo,
-                            const georef::NavSeries& nav,
+                            const survey::NavSeries& nav,
                             const std::vector<Pose>& before,
                             const std::vector<Pose>& after,
                             double sigma_max_age_s,
@@ -411,7 +411,7 @@ Status WriteSlamProducts(StageContext& s,
         return w;
     if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
-        survey::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
+        georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma =
         SlamPingSigma(s.geo, set, r, s.model.ingest.pings.pings.size());
     if (auto w = WriteTrajectoryCsv(P + "/trajectory.csv", PingPoses(s.geo)); !w) return w;
@@ -943,7 +943,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         // The soundings and the ingested series are saved (survey.pitmap, the points): free
         // them before the mesh, the run's largest stage (~0.4 GB on bejanca).
         s.geo = georef::GeorefResult{};
-        s.model.ingest = io::IngestResult{};
+        s.model.ingest = survey::IngestedSeries{};
         s.model.trajectories = {};
         if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMesh, log); !st) return st;
     }

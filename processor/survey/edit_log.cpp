@@ -8,13 +8,13 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "processor/io/products.hpp"
+#include "common/formats/byte_file.hpp"
 
 namespace pitmap::proc::survey {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using georef::ManualEdit;
+using survey::ManualEdit;
 
 namespace {
 
@@ -30,7 +30,7 @@ const char* ActionName(ManualEdit a) {
 
 }  // namespace
 
-SurveyIdentity IdentityOf(const georef::PingSeries& pings) {
+SurveyIdentity IdentityOf(const survey::PingSeries& pings) {
     std::uint64_t h = 1469598103934665603ull;  // FNV-1a offset basis
     auto mix = [&](std::uint64_t v) {
         for (int b = 0; b < 8; ++b) {
@@ -38,7 +38,7 @@ SurveyIdentity IdentityOf(const georef::PingSeries& pings) {
             h *= 1099511628211ull;
         }
     };
-    for (const georef::PingHeader& p : pings.pings) {
+    for (const survey::PingHeader& p : pings.pings) {
         mix(static_cast<std::uint64_t>(p.ping_number));
         mix(p.num_beams);
     }
@@ -53,7 +53,7 @@ std::size_t EditLog::num_soundings() const {
     return n;
 }
 
-std::vector<SoundingRun> RunsOf(const georef::PingSeries& pings, std::vector<std::uint32_t> index) {
+std::vector<SoundingRun> RunsOf(const survey::PingSeries& pings, std::vector<std::uint32_t> index) {
     std::sort(index.begin(), index.end());
     index.erase(std::unique(index.begin(), index.end()), index.end());
     std::vector<SoundingRun> runs;
@@ -149,11 +149,13 @@ Status WriteEditLog(const std::string& path, const EditLog& log) {
                       {"soundings", log.survey.soundings},
                       {"fingerprint", log.survey.fingerprint}}},
                     {"edits", std::move(edits)}};
-    return io::WriteJsonFile(path, j);
+    // As io::WriteJsonFile writes every JSON document (two-space indent, a final newline).
+    const std::string text = j.dump(2) + "\n";
+    return formats::WriteFileBytes(path, std::vector<std::uint8_t>(text.begin(), text.end()));
 }
 
 Expected<std::vector<std::uint8_t>> ApplyEditLog(const EditLog& log,
-                                                 const georef::PingSeries& pings,
+                                                 const survey::PingSeries& pings,
                                                  const std::string& path) {
     const SurveyIdentity here = IdentityOf(pings);
     if (!(log.survey == here)) {
@@ -184,7 +186,7 @@ Expected<std::vector<std::uint8_t>> ApplyEditLog(const EditLog& log,
 }
 
 Expected<std::vector<std::uint8_t>> LoadEdits(const std::string& out_dir,
-                                              const georef::PingSeries& pings) {
+                                              const survey::PingSeries& pings) {
     const std::string path = out_dir + "/" + kEditLogFileName;
     std::error_code ec;
     if (!fs::exists(path, ec)) return std::vector<std::uint8_t>{};

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The edit log: the hand edits of soundings (issue 35), P/edits.json. `pitmap edit` appends to
 // it; every stage command reads it again and applies it on top of the automatic statuses
-// (georef/sounding_status.hpp: a manual reject or restore wins over the cleaning, a restore
+// (survey/sounding_status.hpp: a manual reject or restore wins over the cleaning, a restore
 // also over the range gate and the spike filter). It survives re-runs: georef and run never
 // remove it, and it names the survey it belongs to, so that it is never applied to another.
 //
@@ -25,8 +25,8 @@
 #include <vector>
 
 #include "common/result.hpp"
-#include "processor/georef/series.hpp"
-#include "processor/georef/sounding_status.hpp"
+#include "processor/survey/series.hpp"
+#include "processor/survey/sounding_status.hpp"
 
 namespace pitmap::proc::survey {
 
@@ -42,7 +42,7 @@ struct SurveyIdentity {
         return pings == o.pings && soundings == o.soundings && fingerprint == o.fingerprint;
     }
 };
-SurveyIdentity IdentityOf(const georef::PingSeries& pings);
+SurveyIdentity IdentityOf(const survey::PingSeries& pings);
 
 // A run of consecutive beams of one ping.
 struct SoundingRun {
@@ -52,7 +52,7 @@ struct SoundingRun {
 };
 
 struct Edit {
-    georef::ManualEdit action = georef::ManualEdit::kReject;  // kReject or kRestore
+    survey::ManualEdit action = survey::ManualEdit::kReject;  // kReject or kRestore
     std::string at_utc;                                       // when it was made
     std::string source;                                       // "pitmap edit", a script, ...
     std::vector<SoundingRun> runs;
@@ -65,7 +65,7 @@ struct EditLog {
 };
 
 // Runs of the soundings `index` (indices into the range counts, any order, repeats allowed).
-std::vector<SoundingRun> RunsOf(const georef::PingSeries& pings, std::vector<std::uint32_t> index);
+std::vector<SoundingRun> RunsOf(const survey::PingSeries& pings, std::vector<std::uint32_t> index);
 
 // Reads an edit log. A missing file is an error too (the caller checks for one first).
 Expected<EditLog> ReadEditLog(const std::string& path);
@@ -76,12 +76,12 @@ Status WriteEditLog(const std::string& path, const EditLog& log);
 // the log's edits in order. An error (naming `path`) when the log is of another survey or a
 // run falls outside it.
 Expected<std::vector<std::uint8_t>> ApplyEditLog(const EditLog& log,
-                                                 const georef::PingSeries& pings,
+                                                 const survey::PingSeries& pings,
                                                  const std::string& path);
 
 // P/edits.json applied to `pings`: an empty vector when there is no such file, the edits
 // otherwise; an error names the file and what is wrong with it.
 Expected<std::vector<std::uint8_t>> LoadEdits(const std::string& out_dir,
-                                              const georef::PingSeries& pings);
+                                              const survey::PingSeries& pings);
 
 }  // namespace pitmap::proc::survey

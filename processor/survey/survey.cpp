@@ -6,8 +6,6 @@
 #include <random>
 #include <utility>
 
-#include "processor/io/svp_files.hpp"
-
 namespace pitmap::proc::survey {
 
 std::string NewRunId() {
@@ -72,13 +70,13 @@ bool SurveyModel::ResetCalibration() {
     bool changed = calibration != CalibrationState::kNotRun ||
                    has(TrajectoryVersion::kCalibrated) || has(TrajectoryVersion::kSlam);
     if (clock.latency_applied) {
-        georef::ShiftPingTimes(ingest.pings, -clock.latency_s);
+        survey::ShiftPingTimes(ingest.pings, -clock.latency_s);
         changed = true;
     }
     clock.latency_applied = false;
     clock.latency_s = 0;
     clock.latency_formal_sd_s = 0;
-    const auto same = [](const georef::SonarMount& a, const georef::SonarMount& b) {
+    const auto same = [](const survey::SonarMount& a, const survey::SonarMount& b) {
         return a.lever_arm_m == b.lever_arm_m && a.boresight_roll_deg == b.boresight_roll_deg &&
                a.boresight_pitch_deg == b.boresight_pitch_deg &&
                a.boresight_yaw_deg == b.boresight_yaw_deg;
@@ -89,87 +87,6 @@ bool SurveyModel::ResetCalibration() {
     calibration = CalibrationState::kNotRun;
     DropFrom(TrajectoryVersion::kCalibrated);
     return changed;
-}
-
-Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r) {
-    if (!r.enabled()) return std::shared_ptr<const svp::Refraction>();
-    auto casts = io::ReadSoundSpeedFiles(r.svp_files);
-    if (!casts) return casts.error();
-    if (auto p = svp::Refraction::Check(*casts, r.selection, r.ins_height_above_waterline_m);
-        !p.empty()) {
-        std::string text;
-        for (const auto& line : p) text += (text.empty() ? "" : "\n") + line;
-        return Error{text};
-    }
-    return std::shared_ptr<const svp::Refraction>(std::make_shared<const svp::Refraction>(
-        std::move(*casts), r.selection, r.surface_speed, r.ins_height_above_waterline_m));
-}
-
-PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings) {
-    PingTrajectory t;
-    t.T_world_vehicle.assign(num_pings, Pose::Identity());
-    t.valid.assign(num_pings, 0);
-    for (const georef::GeorefPing& p : geo.pings) {
-        if (p.header_index >= num_pings) continue;
-        t.T_world_vehicle[p.header_index] = p.T_world_vehicle;
-        t.valid[p.header_index] = 1;
-    }
-    return t;
-}
-
-std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t) {
-    std::vector<Pose> delta(geo.pings.size(), Pose::Identity());
-    std::size_t kept = 0;
-    const Pose T_vehicle_sonar = geo.mount.T_vehicle_sonar();
-    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
-        georef::GeorefPing& p = geo.pings[k];
-        const std::size_t i = p.header_index;
-        if (i >= t.T_world_vehicle.size() || i >= t.valid.size() || t.valid[i] == 0) {
-            ++kept;
-            continue;
-        }
-        delta[k] = t.T_world_vehicle[i] * p.T_world_vehicle.inverse();
-        p.T_world_vehicle = t.T_world_vehicle[i];
-        p.sensor_world = (p.T_world_vehicle * T_vehicle_sonar).translation();
-    }
-    for (std::size_t j = 0; j < geo.points.size(); ++j) {
-        geo.points.position_world[j] = delta[geo.points.ping[j]] * geo.points.position_world[j];
-    }
-    return kept;
-}
-
-georef::GeorefResult Georeference(const SurveyModel& m,
-                                  TrajectoryVersion v,
-                                  const georef::GeorefConfig& config,
-                                  std::shared_ptr<const svp::Refraction> refraction,
-                                  const ProgressCallback& progress,
-                                  std::size_t* kept,
-                                  georef::SoundingView which) {
-    georef::GeorefResult geo = georef::RunGeoref(m.ingest.nav,
-                                                 m.ingest.pings,
-                                                 m.mount,
-                                                 config,
-                                                 m.origin,
-                                                 progress,
-                                                 std::move(refraction),
-                                                 &m.flags,
-                                                 which);
-    // RunGeoref puts each ping on the navigation at its current time: the calibrated version
-    // once the calibration ran, else the INS one. Any other version moves the pings.
-    int chosen = -1;
-    for (int i = static_cast<int>(v); i >= 0; --i) {
-        if (!m.trajectories[i].empty()) {
-            chosen = i;
-            break;
-        }
-    }
-    const int current =
-        static_cast<int>(m.has(TrajectoryVersion::kCalibrated) ? TrajectoryVersion::kCalibrated
-                                                               : TrajectoryVersion::kIns);
-    std::size_t k = 0;
-    if (chosen >= 0 && chosen != current) k = ApplyTrajectory(geo, m.trajectories[chosen]);
-    if (kept != nullptr) *kept = k;
-    return geo;
 }
 
 json ClockJson(const SonarClockState& c) {
@@ -185,7 +102,7 @@ json ClockJson(const SonarClockState& c) {
             {"rate_reference_utime", c.rate_reference_utime}};
 }
 
-json MountJson(const georef::SonarMount& m) {
+json MountJson(const survey::SonarMount& m) {
     return {{"roll_deg", m.boresight_roll_deg},
             {"pitch_deg", m.boresight_pitch_deg},
             {"yaw_deg", m.boresight_yaw_deg},
@@ -193,8 +110,8 @@ json MountJson(const georef::SonarMount& m) {
             {"convention", "R_vehicle_sonar = Rz(yaw) Ry(pitch) Rx(roll), vehicle FRD"}};
 }
 
-Expected<georef::SonarMount> MountFromJson(const json& m) {
-    georef::SonarMount mount;
+Expected<survey::SonarMount> MountFromJson(const json& m) {
+    survey::SonarMount mount;
     try {
         mount.boresight_roll_deg = m.at("roll_deg").get<double>();
         mount.boresight_pitch_deg = m.at("pitch_deg").get<double>();

@@ -13,12 +13,16 @@
 //   trajectories  one vehicle pose per ping in named versions: INS (the navigation at the
 //                 nominal ping times), calibrated (the navigation at the calibrated times, with
 //                 the calibrated mount), SLAM (after continuous-time SLAM)
-//   flags         each sounding's status beyond georef's own filters (georef/sounding_status.hpp):
+//   flags         each sounding's status beyond georef's own filters (survey/sounding_status.hpp):
 //                 what the cleaning decided (saved here) and the hand edits (the edit log,
 //                 P/edits.json, read again by every stage command: edit_log.hpp)
 //
-// Georeferencing is a view (Georeference): the soundings of a trajectory version with the
-// current mount. Nothing here writes a product.
+// Its data types live here too: the series (series.hpp: NavSeries, PingSeries), the mount
+// (mount.hpp), the sounding statuses (sounding_status.hpp). Layering: survey uses common and svp
+// only; io fills the model (ingest, cast files: io::BuildRefraction), georef views it
+// (georef/survey_view.hpp: Georeference, the soundings of a trajectory version with the current
+// mount), the pipeline writes products from it (tests/lint/layering_test.py checks the arrows).
+// Nothing here writes a product.
 #pragma once
 
 #include <array>
@@ -33,8 +37,9 @@
 #include "common/progress.hpp"
 #include "common/result.hpp"
 #include "common/se3.hpp"
-#include "processor/georef/georef.hpp"
-#include "processor/io/ingest.hpp"
+#include "processor/survey/mount.hpp"
+#include "processor/survey/series.hpp"
+#include "processor/survey/sounding_status.hpp"
 #include "processor/svp/refraction.hpp"
 
 namespace pitmap::proc::survey {
@@ -105,10 +110,10 @@ struct SurveyModel {
     // a new model; every product and summary.json of this survey carries it, so a stage or the
     // report can tell a product of another run. "" = a survey written before run ids.
     std::string run_id;
-    io::IngestResult ingest;
+    IngestedSeries ingest;
     std::string vehicle_yaml;  // the vehicle file used, "" = none (lever arm and mount zero)
-    georef::SonarMount nominal_mount;
-    georef::SonarMount mount;  // the current one
+    survey::SonarMount nominal_mount;
+    survey::SonarMount mount;  // the current one
     // The calibrated boresight's 1-sigma (roll, pitch, yaw; deg): the fit's range noise and the
     // INS's attitude error (calib::BoresightResult::sd_deg); NaN unless calibration ==
     // kCalibrated.
@@ -120,7 +125,7 @@ struct SurveyModel {
     std::array<PingTrajectory, kNumTrajectoryVersions> trajectories;
     // cleaning: the cleaning's verdict per sounding of ingest.pings (empty = none yet);
     // manual: the edit log applied (not saved in survey.pitmap: the edit log is the record).
-    georef::SoundingFlags flags;
+    survey::SoundingFlags flags;
 
     const PingTrajectory& trajectory(TrajectoryVersion v) const {
         return trajectories[static_cast<int>(v)];
@@ -142,36 +147,13 @@ std::string NewRunId();
 // Whether `id` is a run id as NewRunId makes them.
 bool IsRunId(const std::string& id);
 
-// The casts of a refraction record (read from its files); null for straight rays. A missing or
-// bad cast file is an error naming it.
-Expected<std::shared_ptr<const svp::Refraction>> BuildRefraction(const RefractionRecord& r);
-
-// The view: the survey's soundings on trajectory version `v` (the newest present at or before
-// it) with the current mount, those of `which` status (the accepted ones by default; the
-// model's flags decide). Pings without a valid pose in that version keep the navigation's
-// pose; `kept` (when given) receives their number, for the caller to report.
-georef::GeorefResult Georeference(const SurveyModel& m,
-                                  TrajectoryVersion v,
-                                  const georef::GeorefConfig& config,
-                                  std::shared_ptr<const svp::Refraction> refraction,
-                                  const ProgressCallback& progress = {},
-                                  std::size_t* kept = nullptr,
-                                  georef::SoundingView which = georef::SoundingView::kAccepted);
-
-// The per-ping trajectory of a georeferenced survey of `num_pings` pings.
-PingTrajectory TrajectoryOf(const georef::GeorefResult& geo, std::size_t num_pings);
-
-// Moves the soundings and pings of `geo` onto trajectory `t` (indexed by the ping series).
-// Pings without a valid pose in `t` keep theirs; returns how many kept theirs.
-std::size_t ApplyTrajectory(georef::GeorefResult& geo, const PingTrajectory& t);
-
 // The sonar clock state as survey.pitmap and boresight.json write it.
 nlohmann::json ClockJson(const SonarClockState& c);
 
 // The mount as summary.json and boresight.json write it, and back (an error names what is
 // wrong); the world origin likewise.
-nlohmann::json MountJson(const georef::SonarMount& m);
-Expected<georef::SonarMount> MountFromJson(const nlohmann::json& m);
+nlohmann::json MountJson(const survey::SonarMount& m);
+Expected<survey::SonarMount> MountFromJson(const nlohmann::json& m);
 nlohmann::json OriginJson(const Geodetic& g);
 Expected<Geodetic> OriginFromJson(const nlohmann::json& o);
 

@@ -271,7 +271,7 @@ Status StateFromJson(const json& j, SurveyModel& m) {
 
 // ---- ingest ----
 
-Payload IngestPayload(const io::IngestResult& r) {
+Payload IngestPayload(const IngestedSeries& r) {
     Payload p;
     p.Value(static_cast<std::int32_t>(r.nav.leap_seconds));
     p.Value(static_cast<std::uint32_t>(r.pings.clock));
@@ -285,13 +285,13 @@ Payload IngestPayload(const io::IngestResult& r) {
 // `format`: the file's; formats 1-4 held the ping records in their old layout.
 Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
                          std::uint32_t format,
-                         io::IngestResult& r) {
+                         IngestedSeries& r) {
     Cursor in(bytes, "ingest");
     std::int32_t leap = -1;
     std::uint32_t clock = 0;
     in.Value(leap, "header");
     in.Value(clock, "header");
-    if (in.error.empty() && clock > static_cast<std::uint32_t>(georef::PingClock::kTopsideHeader))
+    if (in.error.empty() && clock > static_cast<std::uint32_t>(survey::PingClock::kTopsideHeader))
         in.Fail("ping clock " + std::to_string(clock) + " unknown");
     in.Records(r.nav.samples, records::kNavBytes, records::ReadNav, "nav samples");
     in.Records(r.nav.stddevs, records::kStdDevBytes, records::ReadStdDev, "nav stddevs");
@@ -302,7 +302,7 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
     }
     in.Vec(r.pings.range_counts, "range counts");
     if (!in.Finish()) return Error{in.error};
-    r.pings.clock = static_cast<georef::PingClock>(clock);
+    r.pings.clock = static_cast<survey::PingClock>(clock);
     std::uint64_t next_offset = 0;  // the writer lays each ping's beams after the previous's
     for (const auto& p : r.pings.pings) {
         if (static_cast<std::uint64_t>(p.beam_offset) + p.num_beams > r.pings.range_counts.size())
@@ -313,20 +313,18 @@ Status IngestFromPayload(const std::vector<std::uint8_t>& bytes,
         next_offset = static_cast<std::uint64_t>(p.beam_offset) + p.num_beams;
     }
     r.nav.leap_seconds = leap;
-    r.counts.nav_samples = static_cast<std::int64_t>(r.nav.samples.size());
-    r.counts.pings = static_cast<std::int64_t>(r.pings.pings.size());
     return Ok{};
 }
 
 // ---- intensities ----
 
-Payload IntensityPayload(const georef::PingSeries& p) {
+Payload IntensityPayload(const survey::PingSeries& p) {
     Payload out;
     out.Vec(p.intensities);
     return out;
 }
 
-Status IntensityFromPayload(const std::vector<std::uint8_t>& bytes, georef::PingSeries& p) {
+Status IntensityFromPayload(const std::vector<std::uint8_t>& bytes, survey::PingSeries& p) {
     Cursor in(bytes, "intensity");
     in.Vec(p.intensities, "intensities");
     if (!in.Finish()) return Error{in.error};
@@ -335,13 +333,13 @@ Status IntensityFromPayload(const std::vector<std::uint8_t>& bytes, georef::Ping
 
 // ---- beam angles ----
 
-Payload BeamAnglePayload(const georef::PingSeries& p) {
+Payload BeamAnglePayload(const survey::PingSeries& p) {
     Payload out;
     out.Vec(p.beam_angles_deg);
     return out;
 }
 
-Status BeamAngleFromPayload(const std::vector<std::uint8_t>& bytes, georef::PingSeries& p) {
+Status BeamAngleFromPayload(const std::vector<std::uint8_t>& bytes, survey::PingSeries& p) {
     Cursor in(bytes, "beam_angle");
     in.Vec(p.beam_angles_deg, "beam angles");
     if (!in.Finish()) return Error{in.error};
@@ -391,8 +389,8 @@ Status CleaningFromPayload(const std::vector<std::uint8_t>& bytes,
         if (index[i] >= n || (i > 0 && index[i] <= index[i - 1]))
             return Error{"section cleaning: index " + std::to_string(index[i]) +
                          " out of order or beyond " + std::to_string(n) + " soundings"};
-        if (!georef::IsSoundingStatus(code[i]) ||
-            !georef::IsCleaningStatus(static_cast<georef::SoundingStatus>(code[i])))
+        if (!survey::IsSoundingStatus(code[i]) ||
+            !survey::IsCleaningStatus(static_cast<survey::SoundingStatus>(code[i])))
             return Error{"section cleaning: status " + std::to_string(code[i]) +
                          " is not a cleaning status"};
         cleaning[index[i]] = code[i];

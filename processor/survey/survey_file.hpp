@@ -22,7 +22,7 @@
 //                         NaN = the header's), as u64 count, u64 element size, bytes
 //   cleaning              (format 4; only once the cleaning ran) the soundings it rejected:
 //                         u64 number of soundings (= range counts), then the rejected ones'
-//                         u32 indices (ascending) and u8 statuses (georef/sounding_status.hpp),
+//                         u32 indices (ascending) and u8 statuses (survey/sounding_status.hpp),
 //                         each as u64 count, u64 element size, bytes
 //   traj.ins, traj.calibrated, traj.slam
 //                         u64 count, u64 element size, then per ping: f64 x, y, z, qw, qx, qy,

@@ -3,7 +3,7 @@
 
 namespace pitmap::proc::survey::records {
 
-void WritePing(ByteWriter& w, const georef::PingHeader& p) {
+void WritePing(ByteWriter& w, const survey::PingHeader& p) {
     w.I64Le(p.utime_gps);
     w.I64Le(p.ping_number);
     w.F64Le(p.sound_speed_mps);
@@ -26,10 +26,10 @@ namespace {
 
 // The ping fields in their order, with the padding formats 1-4 held after sound_speed_valid and
 // after aid_attitude_at_ping (none in format 5).
-georef::PingHeader ReadPingFields(ByteReader& r,
+survey::PingHeader ReadPingFields(ByteReader& r,
                                   std::size_t pad_after_valid,
                                   std::size_t pad_after_flag) {
-    georef::PingHeader p;
+    survey::PingHeader p;
     p.utime_gps = r.I64Le();
     p.ping_number = r.I64Le();
     p.sound_speed_mps = r.F64Le();
@@ -53,17 +53,17 @@ georef::PingHeader ReadPingFields(ByteReader& r,
 
 }  // namespace
 
-georef::PingHeader ReadPing(ByteReader& r) {
+survey::PingHeader ReadPing(ByteReader& r) {
     return ReadPingFields(r, 0, 0);
 }
 
-georef::PingHeader ReadLegacyPing(ByteReader& r) {
+survey::PingHeader ReadLegacyPing(ByteReader& r) {
     // Offsets as formats 1-4 held them: 7 bytes of padding after sound_speed_valid (24) and
     // one after aid_attitude_at_ping (70).
     return ReadPingFields(r, 7, 1);
 }
 
-void WriteNav(ByteWriter& w, const georef::NavSample& s) {
+void WriteNav(ByteWriter& w, const survey::NavSample& s) {
     w.I64Le(s.utime_gps);
     w.F64Le(s.position.latitude_deg);
     w.F64Le(s.position.longitude_deg);
@@ -76,8 +76,8 @@ void WriteNav(ByteWriter& w, const georef::NavSample& s) {
     w.I32Le(s.position_type);
 }
 
-georef::NavSample ReadNav(ByteReader& r) {
-    georef::NavSample s;
+survey::NavSample ReadNav(ByteReader& r) {
+    survey::NavSample s;
     s.utime_gps = r.I64Le();
     s.position.latitude_deg = r.F64Le();
     s.position.longitude_deg = r.F64Le();
@@ -91,14 +91,14 @@ georef::NavSample ReadNav(ByteReader& r) {
     return s;
 }
 
-void WriteStdDev(ByteWriter& w, const georef::NavStdDev& s) {
+void WriteStdDev(ByteWriter& w, const survey::NavStdDev& s) {
     w.I64Le(s.utime_gps);
     for (const float v : {s.north_m, s.east_m, s.up_m, s.roll_deg, s.pitch_deg, s.yaw_deg})
         w.F32Le(v);
 }
 
-georef::NavStdDev ReadStdDev(ByteReader& r) {
-    georef::NavStdDev s;
+survey::NavStdDev ReadStdDev(ByteReader& r) {
+    survey::NavStdDev s;
     s.utime_gps = r.I64Le();
     for (float* v : {&s.north_m, &s.east_m, &s.up_m, &s.roll_deg, &s.pitch_deg, &s.yaw_deg})
         *v = r.F32Le();

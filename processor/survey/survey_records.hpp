@@ -22,7 +22,7 @@
 #include <cstddef>
 
 #include "common/byte_io.hpp"
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::survey::records {
 
@@ -31,16 +31,16 @@ inline constexpr std::size_t kLegacyPingBytes = 112;
 inline constexpr std::size_t kNavBytes = 88;
 inline constexpr std::size_t kStdDevBytes = 32;
 
-void WritePing(ByteWriter& w, const georef::PingHeader& p);
+void WritePing(ByteWriter& w, const survey::PingHeader& p);
 // Reads kPingBytes (format 5 and later).
-georef::PingHeader ReadPing(ByteReader& r);
+survey::PingHeader ReadPing(ByteReader& r);
 // Reads kLegacyPingBytes (formats 1-4).
-georef::PingHeader ReadLegacyPing(ByteReader& r);
+survey::PingHeader ReadLegacyPing(ByteReader& r);
 
-void WriteNav(ByteWriter& w, const georef::NavSample& s);
-georef::NavSample ReadNav(ByteReader& r);
+void WriteNav(ByteWriter& w, const survey::NavSample& s);
+survey::NavSample ReadNav(ByteReader& r);
 
-void WriteStdDev(ByteWriter& w, const georef::NavStdDev& s);
-georef::NavStdDev ReadStdDev(ByteReader& r);
+void WriteStdDev(ByteWriter& w, const survey::NavStdDev& s);
+survey::NavStdDev ReadStdDev(ByteReader& r);
 
 }  // namespace pitmap::proc::survey::records

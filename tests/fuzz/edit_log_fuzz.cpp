@@ -17,12 +17,12 @@ namespace {
 
 namespace sv = pitmap::proc::survey;
 
-const pitmap::proc::georef::PingSeries& Pings() {
-    static const pitmap::proc::georef::PingSeries s = [] {
-        pitmap::proc::georef::PingSeries p;
+const pitmap::proc::survey::PingSeries& Pings() {
+    static const pitmap::proc::survey::PingSeries s = [] {
+        pitmap::proc::survey::PingSeries p;
         std::uint32_t offset = 0;
         for (int i = 0; i < 4; ++i) {
-            pitmap::proc::georef::PingHeader h;
+            pitmap::proc::survey::PingHeader h;
             h.ping_number = 10 + i;
             h.beam_offset = offset;
             h.num_beams = static_cast<std::uint16_t>(3 + i);

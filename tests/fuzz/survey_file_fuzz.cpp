@@ -39,8 +39,8 @@ void ReadOne(const std::vector<std::uint8_t>& bytes) {
     const auto& cleaning = r->flags.cleaning;
     if (!cleaning.empty() && cleaning.size() != pings.range_counts.size()) std::abort();
     for (const std::uint8_t c : cleaning) {
-        if (c != 0 && !pitmap::proc::georef::IsCleaningStatus(
-                          static_cast<pitmap::proc::georef::SoundingStatus>(c)))
+        if (c != 0 && !pitmap::proc::survey::IsCleaningStatus(
+                          static_cast<pitmap::proc::survey::SoundingStatus>(c)))
             std::abort();
     }
     if (!r->flags.manual.empty()) std::abort();  // the hand edits are never in the file

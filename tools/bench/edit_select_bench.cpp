@@ -28,7 +28,7 @@ constexpr std::size_t kBeams = 256;
 
 struct World {
     std::vector<float> xyz;
-    pitmap::proc::georef::PingSeries pings;  // kSoundings / kBeams pings of kBeams beams
+    pitmap::proc::survey::PingSeries pings;  // kSoundings / kBeams pings of kBeams beams
     SelectionQuery query;
 };
 
@@ -48,7 +48,7 @@ const World& TheWorld() {
         }
         std::uint32_t offset = 0;
         for (std::size_t k = 0; k < kSoundings / kBeams + 1; ++k) {
-            pitmap::proc::georef::PingHeader h;
+            pitmap::proc::survey::PingHeader h;
             h.ping_number = static_cast<std::int64_t>(k);
             h.beam_offset = offset;
             h.num_beams = static_cast<std::uint16_t>(std::min(kBeams, kSoundings - offset));

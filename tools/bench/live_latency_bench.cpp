@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
         return 2;
     }
 
-    georef::SonarMount mount;
+    survey::SonarMount mount;
     live::LiveConfig config;
     if (!vehicle.empty()) {
         auto v = io::ReadVehicleYaml(vehicle);

@@ -16,7 +16,7 @@ namespace pitmap::proc::calib {
 namespace {
 
 using georef::GeorefResult;
-using georef::SonarMount;
+using survey::SonarMount;
 
 double Seabed(double x, double y) {
     return -10.0 + 1.5 * std::sin(x / 6.0) + 1.0 * std::cos(y / 5.0);
@@ -88,14 +88,14 @@ SonarMount Mount(double roll, double pitch, double yaw) {
 
 // The INS's reported 1-sigma once a second over [0, t_end] s: horizontal 0.01 m, or 5 m from
 // outage_from_s on (a GNSS outage); attitude as given (NaN = not reported).
-georef::NavSeries InsSigmas(int t_end,
+survey::NavSeries InsSigmas(int t_end,
                             double outage_from_s,
                             float roll_deg = NAN,
                             float pitch_deg = NAN,
                             float yaw_deg = 0.02f) {
-    georef::NavSeries nav;
+    survey::NavSeries nav;
     for (int t = 0; t <= t_end; ++t) {
-        georef::NavStdDev sd;
+        survey::NavStdDev sd;
         sd.utime_gps = static_cast<std::int64_t>(t) * 1'000'000;
         sd.east_m = sd.north_m = t >= outage_from_s ? 5.0f : 0.01f;
         sd.up_m = 0.02f;
@@ -159,7 +159,7 @@ TEST(Boresight, StatedUncertaintyAddsTheInsAttitudeErrorOverTheWindow) {
     const std::vector<Pass> passes = {
         {0.0, {0, -20}, {0, 1}, 40}, {60.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
-    georef::NavSeries nav = InsSigmas(170, 1e9, 0.01f, 0.02f, 0.05f);
+    survey::NavSeries nav = InsSigmas(170, 1e9, 0.01f, 0.02f, 0.05f);
     BoresightConfig cfg;
     const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
     ASSERT_NE(res.termination, Termination::kNoOverlap) << res.message;
@@ -193,7 +193,7 @@ TEST(Boresight, ShorterWindowsAreTriedWhenNoFullWindowIsLowDrift) {
         {0.0, {0, -20}, {0, 1}, 40}, {40.0, {4, 20}, {0, -1}, 40}, {120.0, {-20, 2}, {1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
     // The INS drifts (GNSS outage) from 100 s on: no 160 s window is low drift, 80 s ones are.
-    const georef::NavSeries nav = InsSigmas(170, 100.0);
+    const survey::NavSeries nav = InsSigmas(170, 100.0);
     BoresightConfig cfg;
     cfg.segment_duration_s = 160;
     const BoresightResult res = CalibrateBoresight(geo, nav, nominal, cfg);
@@ -213,7 +213,7 @@ TEST(Boresight, DriftingSegmentsAreNotUsedForVerification) {
                                       {120.0, {-20, 2}, {1, 0}, 40},
                                       {160.0, {20, -3}, {-1, 0}, 40}};
     const GeorefResult geo = Survey(passes, truth, nominal);
-    const georef::NavSeries nav = InsSigmas(210, 100.0);
+    const survey::NavSeries nav = InsSigmas(210, 100.0);
     BoresightConfig cfg;
     cfg.segment_duration_s = 80;
     cfg.num_verify_segments = 2;

@@ -74,7 +74,7 @@ TEST(SonarClock, NoAidsCentresTheSpansAndStatesTheUncertainty) {
     EXPECT_LT(same.sigma_s, 0.1);
     // The sonar file stops 30 s before the navigation log: centring is 15 s off, and says
     // that it can be (sigma of a uniform 30 s).
-    georef::PingSeries shorter = sv.pings;
+    survey::PingSeries shorter = sv.pings;
     shorter.pings.resize(shorter.pings.size() - 300);
     const ClockEstimate e = EstimateSonarClock(shorter, sv.nav);
     EXPECT_NEAR(e.sigma_s, 30.0 / (2 * std::sqrt(3.0)), 0.2) << e.message;
@@ -86,7 +86,7 @@ TEST(SonarClock, ShiftKeepsOrder) {
     o.duration_s = 5;
     auto sv = MakeSurvey(o);
     const auto t0 = sv.pings.pings.front().utime_gps;
-    georef::ShiftPingTimes(sv.pings, -1.25);
+    survey::ShiftPingTimes(sv.pings, -1.25);
     EXPECT_EQ(sv.pings.pings.front().utime_gps, t0 - 1'250'000);
     EXPECT_EQ(SpanText(0, 2'500'000), "0.000 .. 2.500 GPS s (2.5 s)");
 }
@@ -96,9 +96,9 @@ TEST(SonarClock, ALineShiftAddsTheRateFromTheReference) {
     o.duration_s = 50;
     o.num_beams = 3;
     auto sv = MakeSurvey(o);
-    const georef::PingSeries before = sv.pings;
+    const survey::PingSeries before = sv.pings;
     const std::int64_t ref = sv.pings.pings[100].utime_gps;
-    georef::ShiftPingTimes(sv.pings, 1.2345, -47e-6, ref);
+    survey::ShiftPingTimes(sv.pings, 1.2345, -47e-6, ref);
     for (std::size_t i : {0, 100, 499}) {
         const auto t0 = before.pings[i].utime_gps;
         EXPECT_NEAR(static_cast<double>(sv.pings.pings[i].utime_gps - t0),
@@ -166,7 +166,7 @@ TEST(SonarClockRate, WithoutTheHeadsOwnAttitudeItSaysWhy) {
 
 // The sonar's stamps are late by `error`: the joint calibration finds the latency (and the
 // boresight) from the soundings alone.
-BoresightResult CalibrateWithClockError(double error, double scan_s, georef::SonarMount* truth) {
+BoresightResult CalibrateWithClockError(double error, double scan_s, survey::SonarMount* truth) {
     SurveyOptions o;
     o.clock_error_s = error;
     o.num_beams = 61;
@@ -176,7 +176,7 @@ BoresightResult CalibrateWithClockError(double error, double scan_s, georef::Son
     o.truth.boresight_yaw_deg = 1.0;
     *truth = o.truth;
     const auto sv = MakeSurvey(o);
-    georef::SonarMount nominal;
+    survey::SonarMount nominal;
     nominal.lever_arm_m = o.truth.lever_arm_m;
     const auto geo = georef::RunGeoref(sv.nav, sv.pings, nominal, georef::GeorefConfig{});
     BoresightConfig cfg;
@@ -185,7 +185,7 @@ BoresightResult CalibrateWithClockError(double error, double scan_s, georef::Son
 }
 
 TEST(SonarLatency, ThirtyMillisecondsAreFoundWithTheBoresight) {
-    georef::SonarMount truth;
+    survey::SonarMount truth;
     const BoresightResult r = CalibrateWithClockError(0.030, 0.0, &truth);
     ASSERT_TRUE(r.latency_estimated) << r.message;
     EXPECT_NEAR(r.latency_s, -0.030, 0.002) << r.message;
@@ -196,7 +196,7 @@ TEST(SonarLatency, ThirtyMillisecondsAreFoundWithTheBoresight) {
 }
 
 TEST(SonarLatency, HalfASecondNeedsTheScanAndIsFoundWithIt) {
-    georef::SonarMount truth;
+    survey::SonarMount truth;
     const BoresightResult r = CalibrateWithClockError(-0.45, 1.0, &truth);
     ASSERT_TRUE(r.latency_estimated) << r.message;
     EXPECT_NEAR(r.latency_scan_best_s, 0.45, 0.1) << r.message;
@@ -240,7 +240,7 @@ TEST(SonarClockSteps, AStepIsFoundAtItsPingAndEachSideGetsItsOffset) {
     EXPECT_NEAR(r.steps[0].step_s, 1.0, 0.02) << r.message;
     EXPECT_EQ(r.method, "header attitude");
     // After the shift every ping is on one clock: the later one (most pings), 1 s ahead.
-    georef::PingSeries fixed = sv.pings;
+    survey::PingSeries fixed = sv.pings;
     ApplyClockSteps(fixed, r);
     const auto t0 = MakeSurvey(o).pings;
     for (std::size_t k : {0u, 150u, 299u, 300u, 800u}) {
@@ -282,7 +282,7 @@ TEST(SonarClockSteps, AClockSetBackCannotBeOrderedAndSaysSo) {
     auto sv = MakeSurvey(o);
     for (std::size_t k = 300; k < sv.pings.pings.size(); ++k)
         sv.pings.pings[k].utime_gps -= 1'050'000;
-    georef::SortAndDeduplicate(sv.pings);
+    survey::SortAndDeduplicate(sv.pings);
     const ClockStepResult r = FindSonarClockSteps(sv.pings, sv.nav);
     EXPECT_GT(r.backward, 0) << r.message;
     EXPECT_NE(r.message.find("set back"), std::string::npos) << r.message;

@@ -19,8 +19,8 @@ inline double Seabed(double x, double y) {
 }
 
 struct SyntheticSurvey {
-    georef::NavSeries nav;
-    georef::PingSeries pings;
+    survey::NavSeries nav;
+    survey::PingSeries pings;
     Geodetic origin{40.4435, -7.7806, 412.0};
     std::int64_t t0_utime = 1'400'000'000'000'000;  // GPS microseconds
 };
@@ -34,7 +34,7 @@ struct SurveyOptions {
     double pitch_amplitude_deg = 1.0;
     bool header_position = false;  // 1 Hz NMEA fixes, stale by up to a ping + 0.15 s
     bool header_attitude = false;  // roll, pitch (head's own sensor) and heading at the ping
-    georef::SonarMount truth;      // the mount the ranges are made with
+    survey::SonarMount truth;      // the mount the ranges are made with
 };
 
 // Vehicle state at time t (seconds since the start).
@@ -59,7 +59,7 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
     for (int i = 0; i <= static_cast<int>(o.duration_s * 50); ++i) {
         const double t = i / 50.0;
         const VehicleState v = StateAt(t, o);
-        georef::NavSample n;
+        survey::NavSample n;
         n.utime_gps = sv.t0_utime + static_cast<std::int64_t>(i) * 20'000;
         n.position = world.FromEnu(v.enu);
         n.roll_rad = v.roll;
@@ -68,7 +68,7 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
         n.ins_status = 3;
         sv.nav.samples.push_back(n);
         if (i % 50 == 0) {
-            georef::NavStdDev sd;
+            survey::NavStdDev sd;
             sd.utime_gps = n.utime_gps;
             sd.north_m = sd.east_m = 0.02f;
             sd.up_m = 0.03f;
@@ -84,7 +84,7 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
         const double t = 0.05 + k * 0.1;  // true transmit time
         const VehicleState v = StateAt(t, o);
         const Pose T_wv = MakePose(frames::RotationWorldFromRpy(v.roll, v.pitch, v.yaw), v.enu);
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps =
             sv.t0_utime + std::llround((t + o.clock_error_s + o.clock_rate_ppm * 1e-6 * t) * 1e6);
         h.ping_number = k;
@@ -129,7 +129,7 @@ inline SyntheticSurvey MakeSurvey(const SurveyOptions& o) {
         }
         sv.pings.pings.push_back(h);
     }
-    sv.pings.clock = georef::PingClock::kTopsideHeader;
+    sv.pings.clock = survey::PingClock::kTopsideHeader;
     return sv;
 }
 

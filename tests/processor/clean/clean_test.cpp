@@ -15,7 +15,7 @@ namespace {
 using pitmap::proc::clean::Clean;
 using pitmap::proc::clean::CleanConfig;
 using pitmap::proc::georef::GeorefResult;
-using pitmap::proc::georef::SoundingStatus;
+using pitmap::proc::survey::SoundingStatus;
 
 constexpr double kDepth = 10.0;
 constexpr int kBeams = 481;  // -60 .. 60 deg, 0.25 deg apart (a Delta T's 480 beams)

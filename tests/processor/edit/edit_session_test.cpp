@@ -21,7 +21,7 @@ namespace pitmap::proc::edit {
 namespace {
 
 namespace fs = std::filesystem;
-using georef::SoundingStatus;
+using survey::SoundingStatus;
 using test::kBin;
 using test::Quote;
 using test::RunCommand;

@@ -3,7 +3,7 @@
 // concave, self-crossing, shared edges counted once), boxes, the projection (column-major
 // matrices as three.js sends them, points behind the camera, the near and far planes of an
 // orthographic slab), the selection over many points against a brute force with 1, 2 and all
-// threads, the query's validation; and EffectiveStatus against georef::Resolve for every
+// threads, the query's validation; and EffectiveStatus against survey::Resolve for every
 // automatic status and hand edit.
 #include <gtest/gtest.h>
 
@@ -158,20 +158,20 @@ TEST(SelectionQuery, Validate) {
 }
 
 TEST(EffectiveStatus, IsResolve) {
-    using georef::ManualEdit;
-    using georef::SoundingStatus;
-    for (int a = 0; a < georef::kNumSoundingStatus; ++a) {
+    using survey::ManualEdit;
+    using survey::SoundingStatus;
+    for (int a = 0; a < survey::kNumSoundingStatus; ++a) {
         const auto automatic = static_cast<SoundingStatus>(a);
         if (automatic == SoundingStatus::kManual) continue;  // never automatic
         for (int m = 0; m < 3; ++m) {
             const auto manual = static_cast<ManualEdit>(m);
-            georef::SoundingFlags f;
-            const bool cleaning = georef::IsCleaningStatus(automatic);
+            survey::SoundingFlags f;
+            const bool cleaning = survey::IsCleaningStatus(automatic);
             f.cleaning = {
                 static_cast<std::uint8_t>(cleaning ? automatic : SoundingStatus::kAccepted)};
             f.manual = {static_cast<std::uint8_t>(manual)};
             const SoundingStatus want =
-                georef::Resolve(cleaning ? SoundingStatus::kAccepted : automatic, f, 0);
+                survey::Resolve(cleaning ? SoundingStatus::kAccepted : automatic, f, 0);
             EXPECT_EQ(EffectiveStatus(automatic, manual), want) << a << " " << m;
         }
     }

@@ -17,11 +17,11 @@ namespace {
 
 constexpr double kDepthM = 10.0;
 
-NavSeries LevelNav(double yaw_deg, std::int64_t t0, int n, std::int64_t step_us) {
-    NavSeries nav;
+survey::NavSeries LevelNav(double yaw_deg, std::int64_t t0, int n, std::int64_t step_us) {
+    survey::NavSeries nav;
     const LocalTangentFrame world({40.0, -7.0, 100.0});
     for (int i = 0; i < n; ++i) {
-        NavSample s;
+        survey::NavSample s;
         s.utime_gps = t0 + i * step_us;
         s.position = world.FromEnu(Eigen::Vector3d(0, 0.1 * i, 0));
         s.yaw_rad = frames::DegToRad(yaw_deg);
@@ -31,8 +31,8 @@ NavSeries LevelNav(double yaw_deg, std::int64_t t0, int n, std::int64_t step_us)
 }
 
 // A ping whose ranges hit the plane z = kDepthM below a sonar at depth `sonar_depth_m`.
-void AddFlatPing(PingSeries& s, std::int64_t t, double sonar_depth_m, int beams = 121) {
-    PingHeader h;
+void AddFlatPing(survey::PingSeries& s, std::int64_t t, double sonar_depth_m, int beams = 121) {
+    survey::PingHeader h;
     h.utime_gps = t;
     h.range_resolution_m = 0.001;
     h.start_angle_deg = -60;
@@ -48,10 +48,10 @@ void AddFlatPing(PingSeries& s, std::int64_t t, double sonar_depth_m, int beams 
 }
 
 TEST(Georef, FlatSeabedPointsLieOnThePlane) {
-    const NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
-    PingSeries pings;
+    const survey::NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
+    survey::PingSeries pings;
     for (int k = 0; k < 10; ++k) AddFlatPing(pings, 1'000'000'000 + 5'000 + k * 100'000, 0.25);
-    SonarMount mount;
+    survey::SonarMount mount;
     mount.lever_arm_m = Eigen::Vector3d(0.8, 0, 0.25);
     GeorefConfig cfg;
     cfg.max_range_m = 50;
@@ -71,23 +71,23 @@ TEST(Georef, FlatSeabedPointsLieOnThePlane) {
 // array; a series laid out otherwise (here the last ping's beams first, with some beams without
 // a detection so that compaction moves data) must give the same points.
 TEST(Georef, PingsWhoseBeamsAreNotInOrderGiveTheSamePoints) {
-    const NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
-    PingSeries ordered;
+    const survey::NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
+    survey::PingSeries ordered;
     for (int k = 0; k < 4; ++k) {
         AddFlatPing(ordered, 1'000'000'000 + 5'000 + k * 100'000, 0.25);
     }
     for (std::size_t j = 0; j < ordered.range_counts.size(); j += 7) ordered.range_counts[j] = 0;
-    PingSeries reversed;
+    survey::PingSeries reversed;
     reversed.pings = ordered.pings;
     for (int k = 3; k >= 0; --k) {
-        const PingHeader& h = ordered.pings[static_cast<std::size_t>(k)];
+        const survey::PingHeader& h = ordered.pings[static_cast<std::size_t>(k)];
         reversed.pings[static_cast<std::size_t>(k)].beam_offset =
             static_cast<std::uint32_t>(reversed.range_counts.size());
         reversed.range_counts.insert(reversed.range_counts.end(),
                                      ordered.range_counts.begin() + h.beam_offset,
                                      ordered.range_counts.begin() + h.beam_offset + h.num_beams);
     }
-    SonarMount mount;
+    survey::SonarMount mount;
     mount.lever_arm_m = Eigen::Vector3d(0.8, 0, 0.25);
     GeorefConfig cfg;
     cfg.max_range_m = 50;
@@ -107,27 +107,27 @@ TEST(Georef, PingsWhoseBeamsAreNotInOrderGiveTheSamePoints) {
 }
 
 TEST(Georef, RefusesPingsInNavGapsAndOutsideTheSpan) {
-    NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
-    NavSeries later = LevelNav(0.0, 2'000'000, 10, 20'000);
+    survey::NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
+    survey::NavSeries later = LevelNav(0.0, 2'000'000, 10, 20'000);
     nav.samples.insert(nav.samples.end(), later.samples.begin(), later.samples.end());
-    PingSeries pings;
+    survey::PingSeries pings;
     AddFlatPing(pings, 10'000, 0.0);     // inside
     AddFlatPing(pings, 1'000'000, 0.0);  // in the 1.8 s gap
     AddFlatPing(pings, 9'000'000, 0.0);  // after the end
-    const GeorefResult r = RunGeoref(nav, pings, SonarMount{}, GeorefConfig{});
+    const GeorefResult r = RunGeoref(nav, pings, survey::SonarMount{}, GeorefConfig{});
     EXPECT_EQ(r.counts.pings_georeferenced, 1);
     EXPECT_EQ(r.counts.pings_in_nav_gap, 1);
     EXPECT_EQ(r.counts.pings_outside_nav, 1);
 }
 
 TEST(Georef, SpikeFilterAndRangeGateAreCounted) {
-    const NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
-    PingSeries pings;
+    const survey::NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
+    survey::PingSeries pings;
     AddFlatPing(pings, 10'000, 0.0);
     pings.range_counts[60] = 5000;  // 5 m among 10 m neighbours: a spike
     pings.range_counts[10] = 0;     // no detection
     pings.range_counts[20] = 100;   // 0.1 m: range gate
-    const GeorefResult r = RunGeoref(nav, pings, SonarMount{}, GeorefConfig{});
+    const GeorefResult r = RunGeoref(nav, pings, survey::SonarMount{}, GeorefConfig{});
     EXPECT_EQ(r.counts.spikes, 1);
     EXPECT_EQ(r.counts.no_detection, 1);
     EXPECT_EQ(r.counts.range_gate, 1);
@@ -135,10 +135,10 @@ TEST(Georef, SpikeFilterAndRangeGateAreCounted) {
 }
 
 TEST(Georef, BoresightRollTiltsTheSwath) {
-    const NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
-    PingSeries pings;
+    const survey::NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
+    survey::PingSeries pings;
     AddFlatPing(pings, 10'000, 0.0);
-    SonarMount mount;
+    survey::SonarMount mount;
     mount.boresight_roll_deg = 2.0;
     GeorefResult r = RunGeoref(nav, pings, mount, GeorefConfig{});
     // With the wrong (unmodelled) roll the flat seabed is no longer flat; re-applying the
@@ -147,7 +147,7 @@ TEST(Georef, BoresightRollTiltsTheSwath) {
     for (const auto& p : r.points.position_world)
         spread = std::max(spread, std::abs(p.z() + kDepthM));
     EXPECT_GT(spread, 0.2);
-    Regeoreference(r, SonarMount{});
+    Regeoreference(r, survey::SonarMount{});
     for (const auto& p : r.points.position_world) EXPECT_NEAR(p.z(), -kDepthM, 2e-3);
 }
 
@@ -171,10 +171,10 @@ namespace {
 // the soundings lie on the seabed, with straight rays they do not.
 TEST(Georef, RefractionCorrectsSteeringAndRange) {
     constexpr double kWater = 1450, kAssumed = 1500, kSonarDepth = 0.25;
-    const NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
-    PingSeries pings;
+    const survey::NavSeries nav = LevelNav(30.0, 1'000'000'000, 100, 20'000);
+    survey::PingSeries pings;
     for (int k = 0; k < 5; ++k) {
-        PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = 1'000'000'000 + 5'000 + k * 100'000;
         h.sound_speed_mps = kAssumed;
         h.sound_speed_valid = true;
@@ -192,7 +192,7 @@ TEST(Georef, RefractionCorrectsSteeringAndRange) {
         }
         pings.pings.push_back(h);
     }
-    SonarMount mount;
+    survey::SonarMount mount;
     mount.lever_arm_m = Eigen::Vector3d(0.8, 0, kSonarDepth);
     GeorefConfig cfg;
     cfg.spike_half_window = 0;
@@ -246,8 +246,8 @@ constexpr std::size_t kSpikeBeam = 60;
 // Two pings over the flat seabed with one sounding of each of georef's own rejections, and a
 // third ping after the end of the navigation (never georeferenced).
 struct StatusSurvey {
-    NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
-    PingSeries pings;
+    survey::NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
+    survey::PingSeries pings;
     StatusSurvey() {
         for (std::int64_t t : {10'000, 50'000, 9'000'000}) {
             const std::size_t at = pings.range_counts.size();
@@ -257,14 +257,15 @@ struct StatusSurvey {
             pings.range_counts[at + kSpikeBeam] = 5000;     // 5 m among 10 m: a spike
         }
     }
-    SoundingFlags NoFlags() const {
-        SoundingFlags f;
+    survey::SoundingFlags NoFlags() const {
+        survey::SoundingFlags f;
         f.cleaning.assign(pings.range_counts.size(), 0);
         f.manual.assign(pings.range_counts.size(), 0);
         return f;
     }
-    GeorefResult Run(const SoundingFlags* flags, SoundingView view) const {
-        return RunGeoref(nav, pings, SonarMount{}, GeorefConfig{}, {}, {}, nullptr, flags, view);
+    GeorefResult Run(const survey::SoundingFlags* flags, survey::SoundingView view) const {
+        return RunGeoref(
+            nav, pings, survey::SonarMount{}, GeorefConfig{}, {}, {}, nullptr, flags, view);
     }
 };
 
@@ -287,7 +288,7 @@ std::optional<int> StatusOf(const GeorefResult& r, std::uint32_t ping, std::size
     return it->second;
 }
 
-constexpr int Code(SoundingStatus s) {
+constexpr int Code(survey::SoundingStatus s) {
     return static_cast<int>(s);
 }
 
@@ -298,13 +299,14 @@ void ExpectCountsAddUp(const GeorefResult& r) {
     for (const std::int64_t n : r.counts.status) total += n;
     EXPECT_EQ(r.counts.pings_georeferenced, 2);
     EXPECT_EQ(total, 2 * static_cast<std::int64_t>(kBeams));
-    EXPECT_EQ(r.counts.no_detection, r.counts.status[Code(SoundingStatus::kNoDetection)]);
-    EXPECT_EQ(r.counts.range_gate, r.counts.status[Code(SoundingStatus::kRangeGate)]);
-    EXPECT_EQ(r.counts.spikes, r.counts.status[Code(SoundingStatus::kSpike)]);
-    EXPECT_EQ(r.counts.manual, r.counts.status[Code(SoundingStatus::kManual)]);
+    EXPECT_EQ(r.counts.no_detection, r.counts.status[Code(survey::SoundingStatus::kNoDetection)]);
+    EXPECT_EQ(r.counts.range_gate, r.counts.status[Code(survey::SoundingStatus::kRangeGate)]);
+    EXPECT_EQ(r.counts.spikes, r.counts.status[Code(survey::SoundingStatus::kSpike)]);
+    EXPECT_EQ(r.counts.manual, r.counts.status[Code(survey::SoundingStatus::kManual)]);
     std::int64_t cleaned = 0;
-    for (int code = 0; code < kNumSoundingStatus; ++code) {
-        if (IsCleaningStatus(static_cast<SoundingStatus>(code))) cleaned += r.counts.status[code];
+    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
+        if (survey::IsCleaningStatus(static_cast<survey::SoundingStatus>(code)))
+            cleaned += r.counts.status[code];
     }
     EXPECT_EQ(r.counts.cleaned, cleaned);
     EXPECT_EQ(r.counts.points, static_cast<std::int64_t>(r.points.size()));
@@ -312,14 +314,15 @@ void ExpectCountsAddUp(const GeorefResult& r) {
 
 TEST(GeorefViews, ASpikeIsRejectedNotAccepted) {
     const StatusSurvey s;
-    const GeorefResult acc = s.Run(nullptr, SoundingView::kAccepted);
-    const GeorefResult rej = s.Run(nullptr, SoundingView::kRejected);
+    const GeorefResult acc = s.Run(nullptr, survey::SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(nullptr, survey::SoundingView::kRejected);
     EXPECT_TRUE(acc.points.status.empty());
     ASSERT_EQ(rej.points.status.size(), rej.points.size());
     for (std::uint32_t ping : {0u, 1u}) {
         EXPECT_FALSE(StatusOf(acc, ping, kSpikeBeam)) << ping;
-        EXPECT_EQ(StatusOf(rej, ping, kSpikeBeam), Code(SoundingStatus::kSpike)) << ping;
-        EXPECT_EQ(StatusOf(rej, ping, kRangeGateBeam), Code(SoundingStatus::kRangeGate)) << ping;
+        EXPECT_EQ(StatusOf(rej, ping, kSpikeBeam), Code(survey::SoundingStatus::kSpike)) << ping;
+        EXPECT_EQ(StatusOf(rej, ping, kRangeGateBeam), Code(survey::SoundingStatus::kRangeGate))
+            << ping;
         // Without a range there is no position: in neither view.
         EXPECT_FALSE(StatusOf(acc, ping, kNoDetectionBeam)) << ping;
         EXPECT_FALSE(StatusOf(rej, ping, kNoDetectionBeam)) << ping;
@@ -341,13 +344,13 @@ TEST(GeorefViews, ASpikeIsRejectedNotAccepted) {
 
 TEST(GeorefViews, AManualRestoreOverridesTheSpikeAndTheRangeGateNeverNoDetection) {
     const StatusSurvey s;
-    SoundingFlags f = s.NoFlags();
+    survey::SoundingFlags f = s.NoFlags();
     for (std::size_t beam : {kNoDetectionBeam, kRangeGateBeam, kSpikeBeam}) {
-        f.manual[beam] = static_cast<std::uint8_t>(ManualEdit::kRestore);  // ping 0 only
+        f.manual[beam] = static_cast<std::uint8_t>(survey::ManualEdit::kRestore);  // ping 0 only
     }
-    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
-    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
-    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+    const GeorefResult acc = s.Run(&f, survey::SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, survey::SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, survey::SoundingView::kCandidates);
     for (const GeorefResult* r : {&acc, &cand}) {
         EXPECT_EQ(StatusOf(*r, 0, kSpikeBeam), 0);
         EXPECT_EQ(StatusOf(*r, 0, kRangeGateBeam), 0);
@@ -358,7 +361,7 @@ TEST(GeorefViews, AManualRestoreOverridesTheSpikeAndTheRangeGateNeverNoDetection
     }
     EXPECT_FALSE(StatusOf(rej, 0, kSpikeBeam));
     EXPECT_FALSE(StatusOf(rej, 0, kRangeGateBeam));
-    EXPECT_EQ(StatusOf(rej, 1, kSpikeBeam), Code(SoundingStatus::kSpike));
+    EXPECT_EQ(StatusOf(rej, 1, kSpikeBeam), Code(survey::SoundingStatus::kSpike));
     EXPECT_EQ(acc.points.size(), 2 * (kBeams - 3) + 2);
     for (const GeorefResult* r : {&acc, &rej, &cand}) {
         ExpectCountsAddUp(*r);
@@ -371,25 +374,25 @@ TEST(GeorefViews, AManualRestoreOverridesTheSpikeAndTheRangeGateNeverNoDetection
 
 TEST(GeorefViews, AManualRejectMovesAnAcceptedSoundingToTheRejectedView) {
     const StatusSurvey s;
-    SoundingFlags f = s.NoFlags();
+    survey::SoundingFlags f = s.NoFlags();
     const std::size_t beam = 30;
-    f.manual[kBeams + beam] = static_cast<std::uint8_t>(ManualEdit::kReject);  // ping 1
+    f.manual[kBeams + beam] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);  // ping 1
     // A manual reject of a spike: georef's own verdict stays the reason.
-    f.manual[kSpikeBeam] = static_cast<std::uint8_t>(ManualEdit::kReject);
-    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
-    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
-    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+    f.manual[kSpikeBeam] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);
+    const GeorefResult acc = s.Run(&f, survey::SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, survey::SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, survey::SoundingView::kCandidates);
     EXPECT_FALSE(StatusOf(acc, 1, beam));
     EXPECT_EQ(StatusOf(acc, 0, beam), 0);
-    EXPECT_EQ(StatusOf(rej, 1, beam), Code(SoundingStatus::kManual));
+    EXPECT_EQ(StatusOf(rej, 1, beam), Code(survey::SoundingStatus::kManual));
     EXPECT_FALSE(StatusOf(rej, 0, beam));
-    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(SoundingStatus::kSpike));
+    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(survey::SoundingStatus::kSpike));
     // What the cleaning decides on leaves out what was rejected by hand.
     EXPECT_FALSE(StatusOf(cand, 1, beam));
     EXPECT_EQ(StatusOf(cand, 0, beam), 0);
     // The rejected sounding is georeferenced like the others (on the seabed).
     for (std::size_t j = 0; j < rej.points.size(); ++j) {
-        if (rej.points.status[j] == Code(SoundingStatus::kManual)) {
+        if (rej.points.status[j] == Code(survey::SoundingStatus::kManual)) {
             EXPECT_NEAR(rej.points.position_world[j].z(), -kDepthM, 2e-3);
         }
     }
@@ -402,32 +405,32 @@ TEST(GeorefViews, AManualRejectMovesAnAcceptedSoundingToTheRejectedView) {
 
 TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
     const StatusSurvey s;
-    SoundingFlags f = s.NoFlags();
-    f.cleaning[40] = static_cast<std::uint8_t>(SoundingStatus::kFreeSpace);
-    f.cleaning[kBeams + 41] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    survey::SoundingFlags f = s.NoFlags();
+    f.cleaning[40] = static_cast<std::uint8_t>(survey::SoundingStatus::kFreeSpace);
+    f.cleaning[kBeams + 41] = static_cast<std::uint8_t>(survey::SoundingStatus::kProfile);
     // The cleaning's verdict on a spike: georef's own verdict stays, and it is no candidate.
-    f.cleaning[kSpikeBeam] = static_cast<std::uint8_t>(SoundingStatus::kCluster);
+    f.cleaning[kSpikeBeam] = static_cast<std::uint8_t>(survey::SoundingStatus::kCluster);
     // A sounding both cleaned and rejected by hand: the hand wins, and it is no candidate.
-    f.cleaning[50] = static_cast<std::uint8_t>(SoundingStatus::kMultipath);
-    f.manual[50] = static_cast<std::uint8_t>(ManualEdit::kReject);
+    f.cleaning[50] = static_cast<std::uint8_t>(survey::SoundingStatus::kMultipath);
+    f.manual[50] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);
     // A sounding cleaned and restored by hand: accepted.
-    f.cleaning[kBeams + 51] = static_cast<std::uint8_t>(SoundingStatus::kMultipath);
-    f.manual[kBeams + 51] = static_cast<std::uint8_t>(ManualEdit::kRestore);
-    const GeorefResult acc = s.Run(&f, SoundingView::kAccepted);
-    const GeorefResult rej = s.Run(&f, SoundingView::kRejected);
-    const GeorefResult cand = s.Run(&f, SoundingView::kCandidates);
+    f.cleaning[kBeams + 51] = static_cast<std::uint8_t>(survey::SoundingStatus::kMultipath);
+    f.manual[kBeams + 51] = static_cast<std::uint8_t>(survey::ManualEdit::kRestore);
+    const GeorefResult acc = s.Run(&f, survey::SoundingView::kAccepted);
+    const GeorefResult rej = s.Run(&f, survey::SoundingView::kRejected);
+    const GeorefResult cand = s.Run(&f, survey::SoundingView::kCandidates);
 
     EXPECT_FALSE(StatusOf(acc, 0, 40));
     EXPECT_FALSE(StatusOf(acc, 1, 41));
-    EXPECT_EQ(StatusOf(rej, 0, 40), Code(SoundingStatus::kFreeSpace));
-    EXPECT_EQ(StatusOf(rej, 1, 41), Code(SoundingStatus::kProfile));
-    EXPECT_EQ(StatusOf(cand, 0, 40), Code(SoundingStatus::kFreeSpace));
-    EXPECT_EQ(StatusOf(cand, 1, 41), Code(SoundingStatus::kProfile));
+    EXPECT_EQ(StatusOf(rej, 0, 40), Code(survey::SoundingStatus::kFreeSpace));
+    EXPECT_EQ(StatusOf(rej, 1, 41), Code(survey::SoundingStatus::kProfile));
+    EXPECT_EQ(StatusOf(cand, 0, 40), Code(survey::SoundingStatus::kFreeSpace));
+    EXPECT_EQ(StatusOf(cand, 1, 41), Code(survey::SoundingStatus::kProfile));
 
-    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(SoundingStatus::kSpike));
+    EXPECT_EQ(StatusOf(rej, 0, kSpikeBeam), Code(survey::SoundingStatus::kSpike));
     EXPECT_FALSE(StatusOf(cand, 0, kSpikeBeam));
 
-    EXPECT_EQ(StatusOf(rej, 0, 50), Code(SoundingStatus::kManual));
+    EXPECT_EQ(StatusOf(rej, 0, 50), Code(survey::SoundingStatus::kManual));
     EXPECT_FALSE(StatusOf(cand, 0, 50));
     EXPECT_FALSE(StatusOf(acc, 0, 50));
 
@@ -445,33 +448,33 @@ TEST(GeorefViews, ACleaningStatusRejectsButStaysACandidate) {
         EXPECT_EQ(r->counts.cleaned, 2);
         EXPECT_EQ(r->counts.manual, 1);
         EXPECT_EQ(r->counts.spikes, 2);
-        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kFreeSpace)], 1);
-        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kProfile)], 1);
-        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kCluster)], 0);
-        EXPECT_EQ(r->counts.status[Code(SoundingStatus::kMultipath)], 0);
+        EXPECT_EQ(r->counts.status[Code(survey::SoundingStatus::kFreeSpace)], 1);
+        EXPECT_EQ(r->counts.status[Code(survey::SoundingStatus::kProfile)], 1);
+        EXPECT_EQ(r->counts.status[Code(survey::SoundingStatus::kCluster)], 0);
+        EXPECT_EQ(r->counts.status[Code(survey::SoundingStatus::kMultipath)], 0);
     }
 }
 
 // Resolve on its own, over every pair of a georef verdict and the flags.
 TEST(GeorefViews, ResolveOrdersTheVerdicts) {
-    SoundingFlags f;
-    f.cleaning = {0, static_cast<std::uint8_t>(SoundingStatus::kCluster)};
-    f.manual = {0, 0, static_cast<std::uint8_t>(ManualEdit::kReject)};
-    using S = SoundingStatus;
+    survey::SoundingFlags f;
+    f.cleaning = {0, static_cast<std::uint8_t>(survey::SoundingStatus::kCluster)};
+    f.manual = {0, 0, static_cast<std::uint8_t>(survey::ManualEdit::kReject)};
+    using S = survey::SoundingStatus;
     // Beyond the vectors: nothing decided.
-    EXPECT_EQ(Resolve(S::kAccepted, f, 7), S::kAccepted);
-    EXPECT_EQ(Resolve(S::kAccepted, f, 1), S::kCluster);
-    EXPECT_EQ(Resolve(S::kSpike, f, 1), S::kSpike);
-    EXPECT_EQ(Resolve(S::kAccepted, f, 2), S::kManual);
-    EXPECT_EQ(Resolve(S::kRangeGate, f, 2), S::kRangeGate);
-    f.manual = {static_cast<std::uint8_t>(ManualEdit::kRestore),
-                static_cast<std::uint8_t>(ManualEdit::kRestore)};
+    EXPECT_EQ(survey::Resolve(S::kAccepted, f, 7), S::kAccepted);
+    EXPECT_EQ(survey::Resolve(S::kAccepted, f, 1), S::kCluster);
+    EXPECT_EQ(survey::Resolve(S::kSpike, f, 1), S::kSpike);
+    EXPECT_EQ(survey::Resolve(S::kAccepted, f, 2), S::kManual);
+    EXPECT_EQ(survey::Resolve(S::kRangeGate, f, 2), S::kRangeGate);
+    f.manual = {static_cast<std::uint8_t>(survey::ManualEdit::kRestore),
+                static_cast<std::uint8_t>(survey::ManualEdit::kRestore)};
     for (S own : {S::kAccepted, S::kRangeGate, S::kSpike}) {
-        EXPECT_EQ(Resolve(own, f, 0), S::kAccepted) << ToString(own);
-        EXPECT_EQ(Resolve(own, f, 1), S::kAccepted) << ToString(own);
+        EXPECT_EQ(survey::Resolve(own, f, 0), S::kAccepted) << ToString(own);
+        EXPECT_EQ(survey::Resolve(own, f, 1), S::kAccepted) << ToString(own);
     }
-    EXPECT_EQ(Resolve(S::kNoDetection, f, 0), S::kNoDetection);
-    EXPECT_EQ(Resolve(S::kRefraction, f, 1), S::kRefraction);
+    EXPECT_EQ(survey::Resolve(S::kNoDetection, f, 0), S::kNoDetection);
+    EXPECT_EQ(survey::Resolve(S::kRefraction, f, 1), S::kRefraction);
 }
 
 }  // namespace

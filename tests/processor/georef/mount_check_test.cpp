@@ -21,10 +21,10 @@ struct Motion {
 // 2 000 pings at 10 Hz along a lawnmower of 40 s lines over a floor 20 m deep that slopes 3 deg
 // across; the head's true mount is the identity (connector aft); `configured` is the mount the
 // soundings are computed with.
-GeorefResult Survey(const SonarMount& configured, const Motion& m = {}) {
+GeorefResult Survey(const survey::SonarMount& configured, const Motion& m = {}) {
     GeorefResult g;
     g.mount = configured;
-    const SonarMount truth;
+    const survey::SonarMount truth;
     const double floor_slope = std::tan(frames::DegToRad(3.0));
     for (int k = 0; k < 2000; ++k) {
         const double t = k * 0.1;
@@ -60,7 +60,7 @@ GeorefResult Survey(const SonarMount& configured, const Motion& m = {}) {
 }
 
 TEST(MountCheck, TheRightMountExplainsTheSoundings) {
-    const MountCheck c = CheckMountAgainstAttitude(Survey(SonarMount{}));
+    const MountCheck c = CheckMountAgainstAttitude(Survey(survey::SonarMount{}));
     ASSERT_TRUE(c.checked) << c.message;
     EXPECT_TRUE(c.consistent) << c.message;
     EXPECT_LT(std::abs(c.roll_gain), 0.05) << c.message;
@@ -68,7 +68,7 @@ TEST(MountCheck, TheRightMountExplainsTheSoundings) {
 }
 
 TEST(MountCheck, AHeadTurned180DegreesTiltsTheFloorByTwiceTheRoll) {
-    SonarMount forward;
+    survey::SonarMount forward;
     forward.boresight_yaw_deg = 180;
     const MountCheck c = CheckMountAgainstAttitude(Survey(forward));
     ASSERT_TRUE(c.checked) << c.message;
@@ -79,7 +79,7 @@ TEST(MountCheck, AHeadTurned180DegreesTiltsTheFloorByTwiceTheRoll) {
 }
 
 TEST(MountCheck, AHeadTurned90DegreesKeepsTheRollAndGainsThePitch) {
-    SonarMount port;
+    survey::SonarMount port;
     port.boresight_yaw_deg = 90;
     const MountCheck c = CheckMountAgainstAttitude(Survey(port));
     ASSERT_TRUE(c.checked) << c.message;
@@ -90,7 +90,7 @@ TEST(MountCheck, AHeadTurned90DegreesKeepsTheRollAndGainsThePitch) {
 }
 
 TEST(MountCheck, WithoutMotionItCannotTellAndSaysSo) {
-    SonarMount forward;
+    survey::SonarMount forward;
     forward.boresight_yaw_deg = 180;
     const MountCheck c = CheckMountAgainstAttitude(Survey(forward, Motion{0.0, 0.0}));
     EXPECT_FALSE(c.checked) << c.message;

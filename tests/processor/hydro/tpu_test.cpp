@@ -150,7 +150,7 @@ TEST(Tpu, AnalyticCovarianceMatchesMonteCarloOfTheGeoreferencing) {
 
 TEST(Tpu, ComputeTpuGivesOneValuePerSoundingAndTermSharesSumToOne) {
     georef::GeorefResult geo;
-    georef::SonarMount mount;
+    survey::SonarMount mount;
     mount.lever_arm_m = Eigen::Vector3d(0.8, 0, 0.25);
     for (int k = 0; k < 20; ++k) {
         georef::GeorefPing p;
@@ -199,7 +199,7 @@ TEST(Tpu, InsSigmaIsTheNearestRecordElseTheModels) {
     EXPECT_DOUBLE_EQ(fb.position_enu_m[2], 0.015);
     const float nan = std::nanf("");
     // Records at 1 s and 2 s; the one at 2 s reports no height sigma.
-    const std::vector<georef::NavStdDev> s = {{1'000'000, 0.1f, 0.2f, 0.3f, 1.f, 2.f, 3.f},
+    const std::vector<survey::NavStdDev> s = {{1'000'000, 0.1f, 0.2f, 0.3f, 1.f, 2.f, 3.f},
                                               {2'000'000, 0.4f, 0.5f, nan, 4.f, 5.f, 6.f}};
     bool from_ins = false;
     PingSigma a = InsSigmaAt(s, 1'400'000, 5.0, fb, &from_ins);

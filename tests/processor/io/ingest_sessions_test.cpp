@@ -9,14 +9,14 @@
 
 #include <string>
 
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 namespace pitmap::proc::io::detail {
 namespace {
 
-using georef::NavSample;
-using georef::NavStdDev;
-using georef::PingHeader;
+using survey::NavSample;
+using survey::NavStdDev;
+using survey::PingHeader;
 
 constexpr std::int64_t kT0 = 1'400'000'000'000'000;  // 2024, GPS microseconds
 
@@ -64,7 +64,7 @@ TEST(IngestSessions, ARepeatedMessageIsADuplicateAndTwoRecordingsAreAConflict) {
     AddNav(same, "a.lcmlog", kT0, 500, 40.44);
     AddNav(same, "a_copy.lcmlog", kT0, 500, 40.44);
     std::vector<std::int64_t> conflicts;
-    georef::SortAndDeduplicate(same.nav, &conflicts);
+    survey::SortAndDeduplicate(same.nav, &conflicts);
     EXPECT_EQ(same.nav.samples.size(), 500u);
     EXPECT_TRUE(conflicts.empty());
 
@@ -74,8 +74,8 @@ TEST(IngestSessions, ARepeatedMessageIsADuplicateAndTwoRecordingsAreAConflict) {
     AddPings(two, "a.lcmlog", kT0, 100, 4000);
     AddPings(two, "b.lcmlog", kT0, 100, 5000);
     std::vector<std::int64_t> nav_c, ping_c;
-    georef::SortAndDeduplicate(two.nav, &nav_c);
-    georef::SortAndDeduplicate(two.pings, &ping_c);
+    survey::SortAndDeduplicate(two.nav, &nav_c);
+    survey::SortAndDeduplicate(two.pings, &ping_c);
     EXPECT_EQ(nav_c.size(), 500u);
     EXPECT_EQ(ping_c.size(), 100u);
     two.conflict_times = nav_c;

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "processor/georef/sounding_status.hpp"
 #include "processor/io/products.hpp"
+#include "processor/survey/sounding_status.hpp"
 
 namespace pitmap::proc::io {
 namespace {
@@ -48,8 +48,8 @@ std::uint32_t U32(const std::vector<std::uint8_t>& b, std::size_t at) {
 }
 
 // Two pings of four beams; intensities 100 200 300 400 | 5000 6000 7000 65535.
-georef::PingSeries Pings() {
-    georef::PingSeries s;
+survey::PingSeries Pings() {
+    survey::PingSeries s;
     s.pings.resize(2);
     s.pings[0].beam_offset = 0;
     s.pings[0].num_beams = 4;
@@ -89,12 +89,12 @@ georef::GeorefResult Rejected() {
     r.points.beam = {1};
     r.points.range_m = {30.0f};
     r.points.angle_rad = {0.05f};
-    r.points.status = {static_cast<std::uint8_t>(georef::SoundingStatus::kSpike)};
+    r.points.status = {static_cast<std::uint8_t>(survey::SoundingStatus::kSpike)};
     return r;
 }
 
 TEST_F(PointIntensity, SoundingIntensityFollowsThePingsHeaderIndex) {
-    const georef::PingSeries s = Pings();
+    const survey::PingSeries s = Pings();
     const georef::GeorefResult r = Accepted();
     for (std::size_t i = 0; i < 3; ++i)
         EXPECT_EQ(SoundingIntensity(r, i, s), kAcceptedIntensity[i]);
@@ -104,13 +104,13 @@ TEST_F(PointIntensity, SoundingIntensityFollowsThePingsHeaderIndex) {
     EXPECT_EQ(SoundingIntensity(bad, 0, s), 0u);
     bad.pings[0].header_index = 7;  // no such header
     EXPECT_EQ(SoundingIntensity(bad, 0, s), 0u);
-    georef::PingSeries none = s;
+    survey::PingSeries none = s;
     none.intensities.clear();
     EXPECT_EQ(SoundingIntensity(r, 0, none), 0u);
 }
 
 TEST_F(PointIntensity, LasRecordsCarryTheIntensityAndPdalNames) {
-    const georef::PingSeries s = Pings();
+    const survey::PingSeries s = Pings();
     const georef::GeorefResult a = Accepted(), rej = Rejected();
     const auto utm = georef::ToUtm(a);
     ASSERT_TRUE(utm) << utm.error().message;
@@ -143,7 +143,7 @@ TEST_F(PointIntensity, LasRecordsCarryTheIntensityAndPdalNames) {
         }
     }
     // Without intensities in the pings: 0.
-    georef::PingSeries none = s;
+    survey::PingSeries none = s;
     none.intensities.clear();
     x.pings = &none;
     ASSERT_TRUE(WriteLas(las.string(), a, *utm, &x));
@@ -152,7 +152,7 @@ TEST_F(PointIntensity, LasRecordsCarryTheIntensityAndPdalNames) {
 }
 
 TEST_F(PointIntensity, PlyHasAnIntensityPropertyOnlyWithIntensities) {
-    const georef::PingSeries s = Pings();
+    const survey::PingSeries s = Pings();
     const georef::GeorefResult a = Accepted(), rej = Rejected();
     PointExtras x;
     x.pings = &s;
@@ -173,7 +173,7 @@ TEST_F(PointIntensity, PlyHasAnIntensityPropertyOnlyWithIntensities) {
     const std::vector<unsigned> want = {5000, 300, 65535, 200};
     for (std::size_t k = 0; k < 4; ++k) EXPECT_EQ(U16(b, end + 11 + k * rec + 30), want[k]) << k;
     // No intensities: no property.
-    georef::PingSeries none = s;
+    survey::PingSeries none = s;
     none.intensities.clear();
     x.pings = &none;
     ASSERT_TRUE(WritePly(ply.string(), a, &x));

@@ -117,15 +117,15 @@ std::vector<Eigen::Vector3d> BeamsThrough(const fs::path& dir, const std::string
     const auto v = ReadVehicleYaml(path);
     EXPECT_TRUE(v) << v.error().message;
     if (!v) return {};
-    georef::NavSeries nav;
+    survey::NavSeries nav;
     for (int i = 0; i < 3; ++i) {
-        georef::NavSample s;
+        survey::NavSample s;
         s.utime_gps = 1'400'000'000'000'000 + i * 100'000;
         s.position = {40.4435, -7.7806, 412.0};
         nav.samples.push_back(s);
     }
-    georef::PingSeries pings;
-    georef::PingHeader h;
+    survey::PingSeries pings;
+    survey::PingHeader h;
     h.utime_gps = 1'400'000'000'100'000;
     h.range_resolution_m = 0.001;
     h.start_angle_deg = -30;
@@ -261,7 +261,7 @@ TEST_F(ProductReaders, LasDeclaresItsVerticalDatum) {
 }
 
 // A floor at z = -10 around x, y in [0, 4): two accepted soundings per 2 m cell.
-georef::GeorefResult FloorSoundings(georef::SoundingView view) {
+georef::GeorefResult FloorSoundings(survey::SoundingView view) {
     georef::GeorefResult r;
     r.world_origin = {40.4435, -7.7806, 412.0};
     georef::GeorefPing ping;
@@ -274,12 +274,12 @@ georef::GeorefResult FloorSoundings(georef::SoundingView view) {
         r.points.beam.push_back(beam);
         r.points.range_m.push_back(static_cast<float>(-p.z()));
         r.points.angle_rad.push_back(0.0f);
-        if (view != georef::SoundingView::kAccepted) {
+        if (view != survey::SoundingView::kAccepted) {
             r.points.status.push_back(static_cast<std::uint8_t>(status));
         }
     };
-    using S = georef::SoundingStatus;
-    if (view == georef::SoundingView::kAccepted) {
+    using S = survey::SoundingStatus;
+    if (view == survey::SoundingView::kAccepted) {
         std::uint16_t b = 0;
         for (const double x : {0.5, 1.5, 2.5, 3.5}) {
             for (const double y : {0.5, 1.5, 2.5, 3.5}) {
@@ -298,8 +298,8 @@ georef::GeorefResult FloorSoundings(georef::SoundingView view) {
 }
 
 TEST(LasNoise, BelowTheLocalAcceptedMedianIsLowNoiseAboveIsHighNoise) {
-    const auto a = FloorSoundings(georef::SoundingView::kAccepted);
-    const auto r = FloorSoundings(georef::SoundingView::kRejected);
+    const auto a = FloorSoundings(survey::SoundingView::kAccepted);
+    const auto r = FloorSoundings(survey::SoundingView::kRejected);
     const std::vector<std::uint8_t> c = LasNoiseClasses(a.points, r.points);
     ASSERT_EQ(c.size(), 5u);
     EXPECT_EQ(c[0], kLasClassHighNoise) << "above its cell's floor";
@@ -314,8 +314,8 @@ TEST(LasNoise, BelowTheLocalAcceptedMedianIsLowNoiseAboveIsHighNoise) {
 }
 
 TEST_F(ProductReaders, PointFilesCarryTheRejectedSoundingsWithTheirStatus) {
-    const auto a = FloorSoundings(georef::SoundingView::kAccepted);
-    const auto r = FloorSoundings(georef::SoundingView::kRejected);
+    const auto a = FloorSoundings(survey::SoundingView::kAccepted);
+    const auto r = FloorSoundings(survey::SoundingView::kRejected);
     const std::size_t na = a.points.size(), nr = r.points.size();
     // PLY: the accepted soundings first (status 0), then the rejected with their codes; THU and
     // TVU NaN for the rejected.

@@ -21,8 +21,8 @@ constexpr double kStartDeg = -60.0;
 constexpr double kIncrementDeg = 0.25;
 constexpr int kBeams = 481;
 
-georef::SonarMount Mount() {
-    georef::SonarMount m;
+survey::SonarMount Mount() {
+    survey::SonarMount m;
     m.lever_arm_m = Eigen::Vector3d(0.8, -0.1, 0.25);
     m.boresight_roll_deg = 0.4;
     m.boresight_pitch_deg = -0.3;
@@ -38,14 +38,14 @@ Pose VehiclePose(int k) {
 // Four pings, the third keeps no sounding; beams every 7th, ranges growing off nadir.
 struct Survey {
     georef::GeorefResult geo;
-    georef::PingSeries pings;
+    survey::PingSeries pings;
 };
 
-Survey MakeSurvey(const georef::SonarMount& mount) {
+Survey MakeSurvey(const survey::SonarMount& mount) {
     Survey s;
     s.geo.mount = mount;  // as RunGeoref records it
     for (int k = 0; k < 4; ++k) {
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = 1'400'000'000'000'000 + k * 100'000;
         h.start_angle_deg = kStartDeg;
         h.angle_increment_deg = kIncrementDeg;
@@ -83,7 +83,7 @@ TEST(Adapters, ScansOfUnequallySpacedBeamsAreResampledToEqualSpacing) {
     constexpr int n = 101;
     constexpr double kDepth = 10.0;
     Survey s;
-    georef::PingHeader h;
+    survey::PingHeader h;
     h.utime_gps = 1'400'000'000'000'000;
     h.num_beams = n;
     std::vector<double> angle(n);
@@ -106,7 +106,7 @@ TEST(Adapters, ScansOfUnequallySpacedBeamsAreResampledToEqualSpacing) {
         s.geo.points.range_m.push_back(static_cast<float>(kDepth / std::cos(angle[b])));
         s.geo.points.angle_rad.push_back(static_cast<float>(angle[b]));
     }
-    const auto scans = MakeScans(s.geo, s.pings, georef::SonarMount{});
+    const auto scans = MakeScans(s.geo, s.pings, survey::SonarMount{});
     ASSERT_EQ(scans.size(), 1u);
     const auto& scan = scans[0];
     ASSERT_EQ(scan.ranges_m.size(), static_cast<std::size_t>(n));
@@ -129,7 +129,7 @@ TEST(Adapters, ScansOfUnequallySpacedBeamsAreResampledToEqualSpacing) {
 TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
     const auto mount = Mount();
     const Survey s = MakeSurvey(mount);
-    georef::NavSeries nav;
+    survey::NavSeries nav;
     const SliceSet set = MakeSlices(s.geo, nav, 1, 5.0, PoseSigma::Constant(0.01));
     ASSERT_EQ(set.slices.size(), 3u) << "the ping without soundings makes no slice";
     EXPECT_EQ(set.ping, (std::vector<std::uint32_t>{0, 1, 3}));
@@ -150,13 +150,13 @@ TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
 }
 
 TEST(Adapters, PoseSigmaComesFromTheNearestStddevRecord) {
-    georef::NavSeries nav;
+    survey::NavSeries nav;
     for (int k = 0; k < 3; ++k) {
-        georef::NavStdDev d;
+        survey::NavStdDev d;
         d.utime_gps = k * 1'000'000;
         d.east_m = 0.1f * static_cast<float>(k + 1);
         d.north_m = 0.2f;
-        d.up_m = georef::kNaNf;  // not reported: the fallback takes its place
+        d.up_m = survey::kNaNf;  // not reported: the fallback takes its place
         d.roll_deg = d.pitch_deg = 0.01f;
         d.yaw_deg = 0.05f;
         nav.stddevs.push_back(d);
@@ -169,7 +169,7 @@ TEST(Adapters, PoseSigmaComesFromTheNearestStddevRecord) {
     EXPECT_NEAR(a[2], frames::DegToRad(0.05), 1e-9);
     EXPECT_NEAR(PoseSigmaAt(nav, 1'600'000, 5.0, fallback)[3], 0.3, 1e-6);
     EXPECT_EQ(PoseSigmaAt(nav, 60'000'000, 5.0, fallback), fallback) << "too old";
-    EXPECT_EQ(PoseSigmaAt(georef::NavSeries{}, 0, 5.0, fallback), fallback) << "no records";
+    EXPECT_EQ(PoseSigmaAt(survey::NavSeries{}, 0, 5.0, fallback), fallback) << "no records";
 }
 
 TEST(Adapters, ScansReproduceTheSoundingsAndMarkDroppedBeams) {

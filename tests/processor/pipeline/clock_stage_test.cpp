@@ -83,7 +83,7 @@ TEST(ClockStage, AConfiguredOffsetThatAgreesIsQuiet) {
 TEST(ClockStage, NoOverlapIsAnErrorNamingBothSpans) {
     // A daemon-stamped survey whose navigation ended before the sonar started.
     StageContext s = FromSynthetic(500.0, false);
-    s.model.ingest.pings.clock = georef::PingClock::kGpsStamped;
+    s.model.ingest.pings.clock = survey::PingClock::kGpsStamped;
     Collect c;
     const Status st = ClockSurvey(s, PipelineConfig{}, c.log());
     ASSERT_FALSE(st);

@@ -27,7 +27,6 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace survey = pitmap::proc::survey;
-namespace georef = pitmap::proc::georef;
 using pitmap::test::FreshDir;
 using pitmap::test::kBin;
 using pitmap::test::Quote;
@@ -37,7 +36,7 @@ using pitmap::test::RunCommand;
 // A sounding: (ping index in the survey's ping series, beam).
 using Sounding = std::pair<std::uint32_t, std::uint32_t>;
 
-constexpr int kManual = static_cast<int>(georef::SoundingStatus::kManual);
+constexpr int kManual = static_cast<int>(survey::SoundingStatus::kManual);
 
 bool Contains(const std::string& text, const std::string& part) {
     return text.find(part) != std::string::npos;
@@ -96,11 +95,11 @@ std::int64_t ManualInSummary(const fs::path& P) {
 
 // An edit log of P's survey with one edit per action, each over `runs`.
 void WriteEdits(const fs::path& P,
-                const std::vector<georef::ManualEdit>& actions,
+                const std::vector<survey::ManualEdit>& actions,
                 const std::vector<survey::SoundingRun>& runs) {
     survey::EditLog log;
     log.survey = survey::IdentityOf(LoadModel(P).ingest.pings);
-    for (const georef::ManualEdit a : actions) {
+    for (const survey::ManualEdit a : actions) {
         survey::Edit e;
         e.action = a;
         e.at_utc = "2026-06-15T09:30:00Z";
@@ -201,7 +200,7 @@ fs::path* EditFlags::dir_ = nullptr;
 TEST_F(EditFlags, AHandRejectIsManualInThePointsAndTheSummary) {
     const fs::path P = Georef("reject");
     const survey::SoundingRun run = AcceptedRun(P);
-    WriteEdits(P, {georef::ManualEdit::kReject}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject}, {run});
     std::string out;
     ASSERT_EQ(Pitmap("clean", P, &out), 0) << out;
     EXPECT_TRUE(Contains(out, "20 soundings rejected and 0 restored by hand")) << out;
@@ -220,11 +219,11 @@ TEST_F(EditFlags, AHandRejectIsManualInThePointsAndTheSummary) {
 TEST_F(EditFlags, ARestoreAfterTheRejectBringsThemBack) {
     const fs::path P = Georef("restore");
     const survey::SoundingRun run = AcceptedRun(P);
-    WriteEdits(P, {georef::ManualEdit::kReject}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject}, {run});
     std::string out;
     ASSERT_EQ(Pitmap("clean", P, &out), 0) << out;
     ASSERT_EQ(ManualInSummary(P), 20);
-    WriteEdits(P, {georef::ManualEdit::kReject, georef::ManualEdit::kRestore}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject, survey::ManualEdit::kRestore}, {run});
     out.clear();
     ASSERT_EQ(Pitmap("clean", P, &out), 0) << out;
     EXPECT_TRUE(Contains(out, "0 soundings rejected and 20 restored by hand")) << out;
@@ -241,7 +240,7 @@ TEST_F(EditFlags, ARestoreAfterTheRejectBringsThemBack) {
 TEST_F(EditFlags, AnEditLogOfAnotherSurveyStopsTheCommandAndNothingIsApplied) {
     // A log written for the other survey.
     const fs::path Q = Georef("other_survey", "other");
-    WriteEdits(Q, {georef::ManualEdit::kReject}, {{10, 5, 10}});
+    WriteEdits(Q, {survey::ManualEdit::kReject}, {{10, 5, 10}});
     const std::string foreign = ReadText(Q / survey::kEditLogFileName);
 
     // Into a new folder: georef stops before it writes a survey.
@@ -264,7 +263,7 @@ TEST_F(EditFlags, AnEditLogOfAnotherSurveyStopsTheCommandAndNothingIsApplied) {
 TEST_F(EditFlags, ADamagedEditLogStopsTheCommandAndNothingIsApplied) {
     const fs::path P = Georef("damaged");
     const survey::SoundingRun run = AcceptedRun(P);
-    WriteEdits(P, {georef::ManualEdit::kReject}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject}, {run});
     const std::string whole = ReadText(P / survey::kEditLogFileName);
     const std::string half = whole.substr(0, whole.size() / 2);
     std::ofstream(P / survey::kEditLogFileName, std::ios::binary | std::ios::trunc) << half;
@@ -274,7 +273,7 @@ TEST_F(EditFlags, ADamagedEditLogStopsTheCommandAndNothingIsApplied) {
 TEST_F(EditFlags, RerunKeepsTheManualFlags) {
     const fs::path P = Georef("rerun");
     const survey::SoundingRun run = AcceptedRun(P);
-    WriteEdits(P, {georef::ManualEdit::kReject}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject}, {run});
     std::string out;
     ASSERT_EQ(Pitmap("clean", P, &out), 0) << out;
     out.clear();
@@ -289,7 +288,7 @@ TEST_F(EditFlags, RerunKeepsTheManualFlags) {
 TEST_F(EditFlags, CleaningTwiceGivesTheSameFlags) {
     const fs::path P = Georef("twice");
     const survey::SoundingRun run = AcceptedRun(P);
-    WriteEdits(P, {georef::ManualEdit::kReject}, {run});
+    WriteEdits(P, {survey::ManualEdit::kReject}, {run});
     std::string out;
     ASSERT_EQ(Pitmap("clean", P, &out), 0) << out;
     const std::vector<std::uint8_t> first = LoadModel(P).flags.cleaning;

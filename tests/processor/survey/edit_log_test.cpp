@@ -18,14 +18,14 @@ namespace pitmap::proc::survey {
 namespace {
 
 namespace fs = std::filesystem;
-using georef::ManualEdit;
+using survey::ManualEdit;
 
 // Pings of `beams` beams each, numbered from 100.
-georef::PingSeries MakePings(const std::vector<std::uint16_t>& beams) {
-    georef::PingSeries s;
+survey::PingSeries MakePings(const std::vector<std::uint16_t>& beams) {
+    survey::PingSeries s;
     std::uint32_t offset = 0;
     for (std::size_t i = 0; i < beams.size(); ++i) {
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = 1'000'000 * static_cast<std::int64_t>(i + 1);
         h.ping_number = 100 + static_cast<std::int64_t>(i);
         h.beam_offset = offset;

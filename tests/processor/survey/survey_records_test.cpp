@@ -27,8 +27,8 @@ double F64At(const std::vector<std::uint8_t>& b, std::size_t at) {
     return d;
 }
 
-georef::PingHeader SamplePing() {
-    georef::PingHeader p;
+survey::PingHeader SamplePing() {
+    survey::PingHeader p;
     p.utime_gps = 1'400'000'000'123'456;
     p.ping_number = 987'654;
     p.sound_speed_mps = 1487.25;
@@ -74,12 +74,12 @@ TEST(SurveyRecords, PingIsItsDocumentedLayout) {
 TEST(SurveyRecords, PingRoundTripsAndAnyNonZeroByteIsTrue) {
     std::vector<std::uint8_t> b;
     ByteWriter w(b);
-    georef::PingHeader in = SamplePing();
+    survey::PingHeader in = SamplePing();
     in.aid_heading_deg = std::numeric_limits<double>::quiet_NaN();
     WritePing(w, in);
     b[24] = 7;  // a crafted file: still a bool, true
     ByteReader r(b.data(), b.size());
-    const georef::PingHeader out = ReadPing(r);
+    const survey::PingHeader out = ReadPing(r);
     ASSERT_TRUE(r.ok());
     EXPECT_EQ(r.remaining(), 0u);
     EXPECT_EQ(out.utime_gps, in.utime_gps);
@@ -108,7 +108,7 @@ TEST(SurveyRecords, PingRoundTripsAndAnyNonZeroByteIsTrue) {
 TEST(SurveyRecords, LegacyPingReadsTheOldOffsets) {
     std::vector<std::uint8_t> b;
     ByteWriter w(b);
-    const georef::PingHeader in = SamplePing();
+    const survey::PingHeader in = SamplePing();
     w.I64Le(in.utime_gps);
     w.I64Le(in.ping_number);
     w.F64Le(in.sound_speed_mps);
@@ -130,7 +130,7 @@ TEST(SurveyRecords, LegacyPingReadsTheOldOffsets) {
         w.F64Le(v);
     ASSERT_EQ(b.size(), kLegacyPingBytes);
     ByteReader r(b.data(), b.size());
-    const georef::PingHeader out = ReadLegacyPing(r);
+    const survey::PingHeader out = ReadLegacyPing(r);
     ASSERT_TRUE(r.ok());
     EXPECT_EQ(r.remaining(), 0u);
     EXPECT_EQ(out.utime_gps, in.utime_gps);
@@ -145,7 +145,7 @@ TEST(SurveyRecords, LegacyPingReadsTheOldOffsets) {
 }
 
 TEST(SurveyRecords, NavAndStdDevRoundTripInTheirSizes) {
-    georef::NavSample s;
+    survey::NavSample s;
     s.utime_gps = 1'400'000'000'000'001;
     s.position = {40.1, -7.2, 412.5};
     s.roll_rad = 0.01;
@@ -154,7 +154,7 @@ TEST(SurveyRecords, NavAndStdDevRoundTripInTheirSizes) {
     s.velocity_enu_mps = Eigen::Vector3d(1.5, -0.25, 0.125);
     s.ins_status = 3;
     s.position_type = 56;
-    georef::NavStdDev d;
+    survey::NavStdDev d;
     d.utime_gps = s.utime_gps;
     d.north_m = 0.02f;
     d.east_m = 0.03f;
@@ -170,8 +170,8 @@ TEST(SurveyRecords, NavAndStdDevRoundTripInTheirSizes) {
     ASSERT_EQ(b.size(), kNavBytes + kStdDevBytes);
     EXPECT_EQ(F64At(b, 8), 40.1);  // latitude right after the time
     ByteReader r(b.data(), b.size());
-    const georef::NavSample s2 = ReadNav(r);
-    const georef::NavStdDev d2 = ReadStdDev(r);
+    const survey::NavSample s2 = ReadNav(r);
+    const survey::NavStdDev d2 = ReadStdDev(r);
     ASSERT_TRUE(r.ok());
     EXPECT_EQ(s2.utime_gps, s.utime_gps);
     EXPECT_EQ(s2.position.latitude_deg, s.position.latitude_deg);

@@ -23,6 +23,7 @@
 
 #include "common/peak_memory.hpp"
 #include "common/protocol/novatel/crc32.hpp"
+#include "processor/georef/survey_view.hpp"
 #include "processor/survey/survey.hpp"
 #include "processor/survey/survey_file.hpp"
 
@@ -130,23 +131,23 @@ std::vector<std::uint8_t> AsFormat(std::vector<std::uint8_t> b, std::uint32_t ve
 
 SurveyModel SmallSurvey() {
     SurveyModel m;
-    io::IngestResult& r = m.ingest;
+    IngestedSeries& r = m.ingest;
     r.nav.leap_seconds = 18;
     for (int i = 0; i < 40; ++i) {
-        georef::NavSample s;
+        survey::NavSample s;
         s.utime_gps = 1'400'000'000'000'000 + i * 10'000;
         s.position = {40.4435 + i * 1e-6, -7.7806, 412.0};
         s.yaw_rad = 0.01 * i;
         s.ins_status = 3;
         s.position_type = 56;
         r.nav.samples.push_back(s);
-        georef::NavStdDev d;
+        survey::NavStdDev d;
         d.utime_gps = s.utime_gps;
         d.north_m = d.east_m = d.up_m = 0.02f;
         r.nav.stddevs.push_back(d);
     }
     for (int p = 0; p < 10; ++p) {
-        georef::PingHeader h;
+        survey::PingHeader h;
         h.utime_gps = 1'400'000'000'010'000 + p * 30'000;
         h.ping_number = p;
         h.sound_speed_valid = p % 2 == 0;
@@ -188,9 +189,11 @@ protected:
         path_ = (dir_ / kSurveyFileName).string();
         SurveyModel m = SmallSurvey();
         m.refraction = {};  // Georeference would read the cast file
-        const georef::GeorefResult geo = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+        const georef::GeorefResult geo =
+            georef::Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
         ASSERT_GT(geo.pings.size(), 0u);
-        m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(geo, m.ingest.pings.pings.size());
+        m.trajectory(TrajectoryVersion::kIns) =
+            georef::TrajectoryOf(geo, m.ingest.pings.pings.size());
         m.refraction = SmallSurvey().refraction;
         ASSERT_TRUE(SaveSurvey(path_, m));
         good_ = ReadBytes(path_);
@@ -242,16 +245,16 @@ TEST_F(SurveyFile, RoundTripsEveryPart) {
     ASSERT_EQ(t.T_world_vehicle.size(), 10u);
     for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(t.valid[i], 1) << i;
     EXPECT_NEAR(t.T_world_vehicle[3].translation().y(),
-                TrajectoryOf(Georeference(
-                                 [] {
-                                     SurveyModel m = SmallSurvey();
-                                     m.refraction = {};
-                                     return m;
-                                 }(),
-                                 TrajectoryVersion::kIns,
-                                 {},
-                                 nullptr),
-                             10)
+                georef::TrajectoryOf(georef::Georeference(
+                                         [] {
+                                             SurveyModel m = SmallSurvey();
+                                             m.refraction = {};
+                                             return m;
+                                         }(),
+                                         TrajectoryVersion::kIns,
+                                         {},
+                                         nullptr),
+                                     10)
                     .T_world_vehicle[3]
                     .translation()
                     .y(),
@@ -586,13 +589,13 @@ SurveyModel CleanedSurvey() {
     SurveyModel m = SmallSurvey();
     const std::size_t n = m.ingest.pings.range_counts.size();
     m.flags.cleaning.assign(n, 0);
-    m.flags.cleaning[0] = static_cast<std::uint8_t>(georef::SoundingStatus::kFreeSpace);
-    m.flags.cleaning[17] = static_cast<std::uint8_t>(georef::SoundingStatus::kMultipath);
-    m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(georef::SoundingStatus::kCluster);
-    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(georef::SoundingStatus::kProfile);
-    m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(georef::SoundingStatus::kSurfaceFilter);
+    m.flags.cleaning[0] = static_cast<std::uint8_t>(survey::SoundingStatus::kFreeSpace);
+    m.flags.cleaning[17] = static_cast<std::uint8_t>(survey::SoundingStatus::kMultipath);
+    m.flags.cleaning[121 * 4 + 60] = static_cast<std::uint8_t>(survey::SoundingStatus::kCluster);
+    m.flags.cleaning[n - 1] = static_cast<std::uint8_t>(survey::SoundingStatus::kProfile);
+    m.flags.cleaning[n - 2] = static_cast<std::uint8_t>(survey::SoundingStatus::kSurfaceFilter);
     m.flags.manual.assign(n, 0);
-    m.flags.manual[5] = static_cast<std::uint8_t>(georef::ManualEdit::kReject);
+    m.flags.manual[5] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);
     return m;
 }
 
@@ -839,18 +842,20 @@ TEST_F(SurveyFile, TheSlamSigmaRoundTripsAndIsChecked) {
 TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
     SurveyModel m = SmallSurvey();
     m.refraction = {};
-    georef::GeorefResult ins = Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
+    georef::GeorefResult ins = georef::Georeference(m, TrajectoryVersion::kIns, {}, nullptr);
     ASSERT_EQ(ins.pings.size(), 10u);
     const std::size_t n = m.ingest.pings.pings.size();
-    m.trajectory(TrajectoryVersion::kIns) = TrajectoryOf(ins, n);
+    m.trajectory(TrajectoryVersion::kIns) = georef::TrajectoryOf(ins, n);
     // A SLAM version 0.5 m east of the INS for every ping but ping 2 (no valid pose).
     PingTrajectory slam = m.trajectory(TrajectoryVersion::kIns);
     for (auto& T : slam.T_world_vehicle) T.translation().x() += 0.5;
     slam.valid[2] = 0;
     m.trajectory(TrajectoryVersion::kSlam) = slam;
     EXPECT_EQ(m.latest(), TrajectoryVersion::kSlam);
-    const georef::GeorefResult moved = Georeference(m, TrajectoryVersion::kSlam, {}, nullptr);
-    const georef::GeorefResult still = Georeference(m, TrajectoryVersion::kCalibrated, {}, nullptr);
+    const georef::GeorefResult moved =
+        georef::Georeference(m, TrajectoryVersion::kSlam, {}, nullptr);
+    const georef::GeorefResult still =
+        georef::Georeference(m, TrajectoryVersion::kCalibrated, {}, nullptr);
     ASSERT_EQ(moved.points.size(), ins.points.size());
     for (std::size_t j = 0; j < ins.points.size(); ++j) {
         const double want = moved.pings[moved.points.ping[j]].header_index == 2 ? 0.0 : 0.5;
@@ -865,13 +870,13 @@ TEST(SurveyModel, TheViewPutsSoundingsOnTheVersionAskedFor) {
 
 TEST(SurveyModel, ResetCalibrationUndoesTheLatencyAndTheMountExactly) {
     SurveyModel m = SmallSurvey();
-    const std::vector<georef::PingHeader> nominal = m.ingest.pings.pings;
+    const std::vector<survey::PingHeader> nominal = m.ingest.pings.pings;
     EXPECT_FALSE(m.ResetCalibration()) << "nothing to undo";
     m.mount.boresight_yaw_deg = 1.5;
     m.clock.latency_applied = true;
     m.clock.latency_s = 0.0123456;
     m.clock.latency_formal_sd_s = 0.001;
-    georef::ShiftPingTimes(m.ingest.pings, m.clock.latency_s);
+    survey::ShiftPingTimes(m.ingest.pings, m.clock.latency_s);
     m.calibration = CalibrationState::kCalibrated;
     m.trajectory(TrajectoryVersion::kCalibrated).T_world_vehicle.assign(10, Pose::Identity());
     m.trajectory(TrajectoryVersion::kCalibrated).valid.assign(10, 1);

@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 from .rasters import limits  # noqa: E402
 from .util import esc, gps_to_utc, num, table  # noqa: E402
 
-# georef::SoundingStatus (processor/georef/sounding_status.hpp): codes are stored, never
+# survey::SoundingStatus (processor/survey/sounding_status.hpp): codes are stored, never
 # renumbered.
 STATUS_NAMES = ("accepted", "no_detection", "range_gate", "spike", "refraction",
                 "surface_filter", "free_space", "multipath", "cluster", "manual",

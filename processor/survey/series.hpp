@@ -14,7 +14,7 @@
 
 #include "common/geodesy.hpp"
 
-namespace pitmap::proc::georef {
+namespace pitmap::proc::survey {
 
 inline constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
@@ -104,6 +104,13 @@ struct PingSeries {
     }
 };
 
+// The navigation and the pings of one survey: what ingest read (processor/io/ingest.hpp) and
+// the survey model keeps (SurveyModel::ingest).
+struct IngestedSeries {
+    NavSeries nav;
+    PingSeries pings;
+};
+
 // Sorts by time, drops repeated messages (the same time and the same content: the first kept)
 // and rebuilds beam offsets. Two samples or pings of one time whose content differs (beyond
 // float rounding: 5 cm, 0.05 deg; for pings any range or the ping number) are not repeats: a
@@ -127,4 +134,4 @@ void ShiftPingTimes(PingSeries& pings,
                     double rate,
                     std::int64_t reference_utime);
 
-}  // namespace pitmap::proc::georef
+}  // namespace pitmap::proc::survey

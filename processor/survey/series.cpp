@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: MIT
-#include "processor/georef/series.hpp"
+#include "processor/survey/series.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace pitmap::proc::georef {
+namespace pitmap::proc::survey {
 
 namespace {
 
@@ -119,4 +119,4 @@ void ShiftPingTimes(PingSeries& pings,
         p.utime_gps += LineShiftUs(p.utime_gps, correction_s, rate, reference_utime);
 }
 
-}  // namespace pitmap::proc::georef
+}  // namespace pitmap::proc::survey

@@ -22,7 +22,7 @@
 #include <string_view>
 #include <vector>
 
-namespace pitmap::proc::georef {
+namespace pitmap::proc::survey {
 
 enum class SoundingStatus : std::uint8_t {
     kAccepted = 0,
@@ -94,4 +94,4 @@ inline SoundingStatus Resolve(SoundingStatus georef, const SoundingFlags& f, std
 // Counts per status (index = code).
 using StatusCounts = std::array<std::int64_t, kNumSoundingStatus>;
 
-}  // namespace pitmap::proc::georef
+}  // namespace pitmap::proc::survey

@@ -1,0 +1,76 @@
+// SPDX-License-Identifier: MIT
+#include "processor/georef/survey_view.hpp"
+
+#include <utility>
+#include <vector>
+
+namespace pitmap::proc::georef {
+
+survey::PingTrajectory TrajectoryOf(const GeorefResult& geo, std::size_t num_pings) {
+    survey::PingTrajectory t;
+    t.T_world_vehicle.assign(num_pings, Pose::Identity());
+    t.valid.assign(num_pings, 0);
+    for (const GeorefPing& p : geo.pings) {
+        if (p.header_index >= num_pings) continue;
+        t.T_world_vehicle[p.header_index] = p.T_world_vehicle;
+        t.valid[p.header_index] = 1;
+    }
+    return t;
+}
+
+std::size_t ApplyTrajectory(GeorefResult& geo, const survey::PingTrajectory& t) {
+    std::vector<Pose> delta(geo.pings.size(), Pose::Identity());
+    std::size_t kept = 0;
+    const Pose T_vehicle_sonar = geo.mount.T_vehicle_sonar();
+    for (std::size_t k = 0; k < geo.pings.size(); ++k) {
+        GeorefPing& p = geo.pings[k];
+        const std::size_t i = p.header_index;
+        if (i >= t.T_world_vehicle.size() || i >= t.valid.size() || t.valid[i] == 0) {
+            ++kept;
+            continue;
+        }
+        delta[k] = t.T_world_vehicle[i] * p.T_world_vehicle.inverse();
+        p.T_world_vehicle = t.T_world_vehicle[i];
+        p.sensor_world = (p.T_world_vehicle * T_vehicle_sonar).translation();
+    }
+    for (std::size_t j = 0; j < geo.points.size(); ++j) {
+        geo.points.position_world[j] = delta[geo.points.ping[j]] * geo.points.position_world[j];
+    }
+    return kept;
+}
+
+GeorefResult Georeference(const survey::SurveyModel& m,
+                          survey::TrajectoryVersion v,
+                          const GeorefConfig& config,
+                          std::shared_ptr<const svp::Refraction> refraction,
+                          const ProgressCallback& progress,
+                          std::size_t* kept,
+                          survey::SoundingView which) {
+    GeorefResult geo = RunGeoref(m.ingest.nav,
+                                 m.ingest.pings,
+                                 m.mount,
+                                 config,
+                                 m.origin,
+                                 progress,
+                                 std::move(refraction),
+                                 &m.flags,
+                                 which);
+    // RunGeoref puts each ping on the navigation at its current time: the calibrated version
+    // once the calibration ran, else the INS one. Any other version moves the pings.
+    int chosen = -1;
+    for (int i = static_cast<int>(v); i >= 0; --i) {
+        if (!m.trajectories[i].empty()) {
+            chosen = i;
+            break;
+        }
+    }
+    const int current = static_cast<int>(m.has(survey::TrajectoryVersion::kCalibrated)
+                                             ? survey::TrajectoryVersion::kCalibrated
+                                             : survey::TrajectoryVersion::kIns);
+    std::size_t k = 0;
+    if (chosen >= 0 && chosen != current) k = ApplyTrajectory(geo, m.trajectories[chosen]);
+    if (kept != nullptr) *kept = k;
+    return geo;
+}
+
+}  // namespace pitmap::proc::georef
