@@ -86,6 +86,23 @@ struct GridRaster {
     std::optional<ProductMetadata> product;
     GridSampleType sample_type = GridSampleType::kFloat32;  // GeoTIFF only (the BAG is Float32)
 
+    // A raster on the same grid, CRS and survey metadata whose values are not heights (a
+    // mosaic, a class map, slopes): horizontal CRS only, no layers yet, Float32.
+    GridRaster OnSameGrid() const {
+        GridRaster r;
+        r.x0 = x0;
+        r.y0 = y0;
+        r.resolution_m = resolution_m;
+        r.nx = nx;
+        r.ny = ny;
+        r.utm_zone = utm_zone;
+        r.northern = northern;
+        r.horizontal_only = true;
+        r.metadata = metadata;
+        r.product = product;
+        return r;
+    }
+
     // The values of the layer named `name`, or nullptr.
     const std::vector<float>* Values(const std::string& name) const {
         for (const GridLayer& l : layers) {

@@ -283,9 +283,7 @@ std::vector<io::GridLayer> DemLayers(const hydro::CubeGrid& g) {
 // 255 outside the survey) with category names and colours, on the DEM's grid and horizontal
 // CRS (classes are not heights: no vertical CRS, no unit).
 io::GridRaster HolidayRaster(const io::GridRaster& dem, const hydro::S44Result& r) {
-    io::GridRaster hol = dem;
-    hol.horizontal_only = true;
-    hol.vertical_wkt.clear();
+    io::GridRaster hol = dem.OnSameGrid();
     hol.sample_type = io::GridSampleType::kByte;
     io::GridLayer l("holiday", "", r.holiday_map, io::GridBandKind::kClass);
     l.class_names = {"covered", "gap", "holiday"};

@@ -142,9 +142,7 @@ Expected<json> MosaicSurvey(const StageContext& s,
     }
     rec["angular_response_deg_db_count"] = curve;
     if (!r.ok) return rec;
-    io::GridRaster raster = dem;
-    raster.horizontal_only = true;
-    raster.vertical_wkt.clear();
+    io::GridRaster raster = dem.OnSameGrid();
     raster.layers = MosaicLayers(r, gc.mosaic_config);
     raster.metadata = MosaicMetadata(gc.mosaic_config);
     if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);

@@ -30,9 +30,7 @@ constexpr std::array<std::array<std::uint8_t, 4>, hydro::kTerrainClassCount> kCl
 io::GridRaster TerrainRaster(const io::GridRaster& dem,
                              hydro::TerrainResult& r,
                              const hydro::TerrainConfig& c) {
-    io::GridRaster raster = dem;
-    raster.horizontal_only = true;
-    raster.vertical_wkt.clear();
+    io::GridRaster raster = dem.OnSameGrid();
     io::GridLayer slope{"slope", "deg", std::move(r.slope_deg)};
     slope.metadata = {{"pitmap_definition",
                        "tilt of the least-squares plane of the DEM nodes in a " +
@@ -52,9 +50,7 @@ io::GridRaster TerrainRaster(const io::GridRaster& dem,
 io::GridRaster CrawlerRaster(const io::GridRaster& dem,
                              hydro::TerrainResult& r,
                              const hydro::TerrainConfig& c) {
-    io::GridRaster raster = dem;
-    raster.horizontal_only = true;
-    raster.vertical_wkt.clear();
+    io::GridRaster raster = dem.OnSameGrid();
     raster.sample_type = io::GridSampleType::kByte;
     // No data is the Byte raster's no-data value (NaN here, 255 in the file), not class 0.
     std::vector<float> codes = std::move(r.terrain_class);

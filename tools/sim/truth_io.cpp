@@ -625,6 +625,20 @@ Expected<std::vector<ChangePart>> ChangesFromJson(const nlohmann::json& parts,
     return out;
 }
 
+// A float32 little-endian value per terrain cell (backscatter.f32, change.f32): `cells` of them.
+Expected<std::vector<float>> ReadTerrainFloats(const std::string& path,
+                                               std::size_t cells,
+                                               const std::string& why_needed) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Error{path + ": cannot open" + why_needed};
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (bytes.size() != cells * 4) return Error{path + ": size does not match terrain.json"};
+    std::vector<float> values(cells);
+    ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    for (float& v : values) v = r.F32Le();
+    return values;
+}
+
 }  // namespace
 
 Expected<Truth> ReadTruth(const std::string& dir) {
@@ -695,16 +709,9 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         }
         if (!(t.backscatter.patch_size_m > 0) || !std::isfinite(t.backscatter.patch_size_m))
             return Error{dir + "/backscatter.json: patch_size_m must be > 0"};
-        const std::string path = dir + "/backscatter.f32";
-        std::ifstream in(path, std::ios::binary);
-        if (!in) return Error{path + ": cannot open"};
-        const std::string bytes((std::istreambuf_iterator<char>(in)),
-                                std::istreambuf_iterator<char>());
-        if (bytes.size() != t.terrain.height_m.size() * 4)
-            return Error{path + ": size does not match terrain.json"};
-        t.backscatter_db.resize(t.terrain.height_m.size());
-        ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
-        for (auto& v : t.backscatter_db) v = r.F32Le();
+        auto values = ReadTerrainFloats(dir + "/backscatter.f32", t.terrain.height_m.size(), "");
+        if (!values) return values.error();
+        t.backscatter_db = std::move(*values);
     }
     if (std::ifstream probe(dir + "/sonar_clock.json"); probe) {
         auto cj = ReadJson(dir + "/sonar_clock.json");
@@ -767,16 +774,10 @@ Expected<Truth> ReadTruth(const std::string& dir) {
         if (!parts) return parts.error();
         t.changes = std::move(*parts);
         t.epoch = cj->value("epoch", 2);
-        const std::string path = dir + "/change.f32";
-        std::ifstream in(path, std::ios::binary);
-        if (!in) return Error{path + ": cannot open (changes.json names changes)"};
-        const std::string bytes((std::istreambuf_iterator<char>(in)),
-                                std::istreambuf_iterator<char>());
-        if (bytes.size() != t.terrain.height_m.size() * 4)
-            return Error{path + ": size does not match terrain.json"};
-        t.change_m.resize(t.terrain.height_m.size());
-        ByteReader r(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
-        for (float& v : t.change_m) v = r.F32Le();
+        auto values = ReadTerrainFloats(
+            dir + "/change.f32", t.terrain.height_m.size(), " (changes.json names changes)");
+        if (!values) return values.error();
+        t.change_m = std::move(*values);
     }
     auto bj = ReadJson(dir + "/boresight.json");
     if (!bj) return bj.error();
