@@ -205,14 +205,30 @@ def BoxGlb(size=(2.0, 0.8, 1.0)):
 def WriteEquipment(work, products, world_xy, heading_deg=30.0):
     """work/crawler.glb (a 0.8 m high box) and work/equipment.yaml placing it at the UTM position
     of the products' world point world_xy: (the file, world_xy, half the model's height)."""
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..",
-                                    "tools", "report"))
-    from pitmap_report_lib import maps
+    from osgeo import osr
     with open(os.path.join(products, "summary.json")) as f:
         summary = json.load(f)
     o = summary["world_origin"]
-    origin = (o["latitude_deg"], o["longitude_deg"], o["height_m"])
-    e, n = maps.world_to_grid(origin, summary["utm"]["epsg"], [world_xy[0]], [world_xy[1]])
+    # The world point (local East, North on the origin's tangent plane) in ECEF, then in UTM
+    # through GDAL: an independent path from the report's own (maps.grid_to_world).
+    lat, lon, h = math.radians(o["latitude_deg"]), math.radians(o["longitude_deg"]), o["height_m"]
+    a, f_ = 6378137.0, 1 / 298.257223563
+    e2 = f_ * (2 - f_)
+    nu = a / math.sqrt(1 - e2 * math.sin(lat) ** 2)
+    x0 = (nu + h) * math.cos(lat) * math.cos(lon)
+    y0 = (nu + h) * math.cos(lat) * math.sin(lon)
+    z0 = (nu * (1 - e2) + h) * math.sin(lat)
+    east, north = world_xy
+    X = x0 - math.sin(lon) * east - math.sin(lat) * math.cos(lon) * north
+    Y = y0 + math.cos(lon) * east - math.sin(lat) * math.sin(lon) * north
+    Z = z0 + math.cos(lat) * north
+    src, dst = osr.SpatialReference(), osr.SpatialReference()
+    src.ImportFromEPSG(4978)
+    dst.ImportFromEPSG(summary["utm"]["epsg"])
+    for sr in (src, dst):
+        sr.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    utm = osr.CoordinateTransformation(src, dst).TransformPoint(X, Y, Z)
+    e, n = [utm[0]], [utm[1]]
     with open(os.path.join(work, "crawler.glb"), "wb") as f:
         f.write(BoxGlb())
     path = os.path.join(work, "equipment.yaml")
