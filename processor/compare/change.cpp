@@ -121,32 +121,30 @@ std::vector<std::vector<Ring>> TraceOutline(
     return polygons;
 }
 
-}  // namespace
+// Per compared node of A: the random variance of B - A and the row that carries the
+// correction's covariance into it (zero where not compared).
+struct NodeTerms {
+    std::vector<float> var_ab;
+    std::vector<Row6> J;
+};
 
-std::vector<std::string> ChangeConfig::Validate() const {
-    std::vector<std::string> p;
-    if (!(z95 > 0)) p.push_back("change.z95 must be > 0");
-    if (!(grow_fraction > 0 && grow_fraction <= 1)) p.push_back("change.grow_fraction: (0, 1]");
-    if (!(min_region_area_m2 >= 0)) p.push_back("change.min_region_area_m2 must be >= 0");
-    if (!(error_correlation_length_m > 0))
-        p.push_back("change.error_correlation_length_m must be > 0");
-    return p;
+double MedianInPlace(std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
 }
 
-ChangeResult ComputeChange(const SurfaceGrid& a,
-                           const SurfaceGrid& b,
-                           const RigidCorrection& T,
-                           const Eigen::Matrix<double, 6, 6>& C,
-                           const ChangeConfig& cfg) {
-    ChangeResult r;
+// B - A and its level of detection at A's filled nodes, the medians of the latter (all and by
+// slope class) and the compared nodes into r.
+NodeTerms DifferenceNodes(const SurfaceGrid& a,
+                          const SurfaceGrid& b,
+                          const RigidCorrection& T,
+                          const Eigen::Matrix<double, 6, 6>& C,
+                          const ChangeConfig& cfg,
+                          ChangeResult& r) {
     const std::size_t n = a.z_m.size();
-    r.difference_m.assign(n, kNaNf);
-    r.lod95_m.assign(n, kNaNf);
-    r.significance.assign(n, kNaNf);
-    r.region.assign(n, kNaNf);
-    std::vector<float> var_ab(n, 0.0f);
-    std::vector<Row6> J(n, Row6::Zero());
-    const double cell = a.resolution_m * a.resolution_m;
+    NodeTerms t;
+    t.var_ab.assign(n, 0.0f);
+    t.J.assign(n, Row6::Zero());
     const int grad_step = std::max(1, static_cast<int>(std::lround(0.2 / a.resolution_m)));
     std::vector<double> lods;
     std::vector<double> lods_by_slope[3];
@@ -166,35 +164,38 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
             if (!std::isfinite(g.x()) || !std::isfinite(g.y())) g.setZero();
             const Eigen::Vector3d m(-g.x(), -g.y(), 1.0);
             const Eigen::Vector3d p(x, y, a.z_m[k]);
-            J[k].head<3>() = ((p - T.pivot).cross(m)).transpose();
-            J[k].tail<3>() = m.transpose();
-            const double var_reg = (J[k] * C * J[k].transpose())(0, 0);
+            t.J[k].head<3>() = ((p - T.pivot).cross(m)).transpose();
+            t.J[k].tail<3>() = m.transpose();
+            const double var_reg = (t.J[k] * C * t.J[k].transpose())(0, 0);
             const double lod = cfg.z95 * std::sqrt(var + std::max(0.0, var_reg));
             r.difference_m[k] = static_cast<float>(q.z() - a.z_m[k]);
             r.lod95_m[k] = static_cast<float>(lod);
-            var_ab[k] = static_cast<float>(var);
+            t.var_ab[k] = static_cast<float>(var);
             lods.push_back(lod);
             const double slope_deg = std::atan(g.norm()) * 57.29577951308232;
             lods_by_slope[slope_deg < 20 ? 0 : (slope_deg < 45 ? 1 : 2)].push_back(lod);
             ++r.compared_nodes;
         }
     }
+    const double cell = a.resolution_m * a.resolution_m;
     r.compared_area_m2 = static_cast<double>(r.compared_nodes) * cell;
-    if (!lods.empty()) {
-        std::nth_element(
-            lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());
-        r.median_lod95_m = lods[lods.size() / 2];
-    }
+    if (!lods.empty()) r.median_lod95_m = MedianInPlace(lods);
     for (int c = 0; c < 3; ++c) {
         auto& v = lods_by_slope[c];
         if (v.empty()) continue;
-        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
         (c == 0   ? r.median_lod95_floor_m
          : c == 1 ? r.median_lod95_face_m
-                  : r.median_lod95_wall_m) = v[v.size() / 2];
+                  : r.median_lod95_wall_m) = MedianInPlace(v);
     }
-    // Seeds (significant) and hysteresis growth per sign.
-    std::vector<int> sign(n, 0);
+    return t;
+}
+
+// The sign of the change per node (0 none): seeds beyond the level of detection, grown by
+// hysteresis to neighbours beyond grow_fraction of theirs.
+std::vector<int> GrowChangeSigns(const SurfaceGrid& a,
+                                 const ChangeResult& r,
+                                 const ChangeConfig& cfg) {
+    std::vector<int> sign(a.z_m.size(), 0);
     std::vector<std::pair<int, int>> queue;
     for (int j = 0; j < a.ny; ++j) {
         for (int i = 0; i < a.nx; ++i) {
@@ -223,25 +224,43 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
             }
         }
     }
-    // Components by 8-connectivity per sign.
-    std::vector<int> label(n, 0);
+    return sign;
+}
+
+// One connected region of one sign, summed.
+struct RegionAcc {
+    int sign = 0;
+    std::size_t nodes = 0;
+    double volume = 0, var_rand = 0, max_abs = 0, lod_sum = 0, rim = 0;
+    Row6 jsum = Row6::Zero();
+    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+    int i0 = 1 << 30, i1 = -1, j0 = 1 << 30, j1 = -1;
+};
+
+// The regions: label per node (0 none), acc[label] (acc[0] unused).
+struct Components {
+    std::vector<int> label;
+    std::vector<RegionAcc> acc;
+};
+
+// Components by 8-connectivity per sign, summed.
+Components LabelRegions(const SurfaceGrid& a,
+                        const std::vector<int>& sign,
+                        const ChangeResult& r,
+                        const NodeTerms& t) {
+    const double cell = a.resolution_m * a.resolution_m;
+    Components out;
+    std::vector<int>& label = out.label;
+    label.assign(a.z_m.size(), 0);
     int next_label = 0;
-    struct Acc {
-        int sign = 0;
-        std::size_t nodes = 0;
-        double volume = 0, var_rand = 0, max_abs = 0, lod_sum = 0, rim = 0;
-        Row6 jsum = Row6::Zero();
-        Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
-        int i0 = 1 << 30, i1 = -1, j0 = 1 << 30, j1 = -1;
-    };
-    std::vector<Acc> acc(1);
+    out.acc.resize(1);
     std::vector<std::pair<int, int>> stack;
     for (int j = 0; j < a.ny; ++j) {
         for (int i = 0; i < a.nx; ++i) {
             const std::size_t k0 = a.index(i, j);
             if (sign[k0] == 0 || label[k0] != 0) continue;
             const int id = ++next_label;
-            Acc c;
+            RegionAcc c;
             c.sign = sign[k0];
             label[k0] = id;
             stack.assign(1, {i, j});
@@ -251,10 +270,10 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
                 const std::size_t k = a.index(u, v);
                 ++c.nodes;
                 c.volume += r.difference_m[k] * cell;
-                c.var_rand += var_ab[k];
+                c.var_rand += t.var_ab[k];
                 c.max_abs = std::max(c.max_abs, static_cast<double>(std::abs(r.difference_m[k])));
                 c.lod_sum += r.lod95_m[k];
-                c.jsum += J[k];
+                c.jsum += t.J[k];
                 c.centroid += Eigen::Vector2d(a.x0 + u * a.resolution_m, a.y0 + v * a.resolution_m);
                 c.i0 = std::min(c.i0, u);
                 c.i1 = std::max(c.i1, u);
@@ -272,10 +291,16 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
                     }
                 }
             }
-            acc.push_back(c);
+            out.acc.push_back(c);
         }
     }
-    // The rim: nodes bordering a region (4-neighbours outside it) with a difference.
+    return out;
+}
+
+// The rim: nodes bordering a region (4-neighbours outside it) with a difference.
+void AddRims(const SurfaceGrid& a, const ChangeResult& r, Components& comps) {
+    const double cell = a.resolution_m * a.resolution_m;
+    const std::vector<int>& label = comps.label;
     for (int j = 0; j < a.ny; ++j) {
         for (int i = 0; i < a.nx; ++i) {
             const std::size_t k = a.index(i, j);
@@ -289,17 +314,31 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
                 const int id = label[a.index(x, y)];
                 if (id == 0 || std::find(seen, seen + ns, id) != seen + ns) continue;
                 seen[ns++] = id;
-                acc[static_cast<std::size_t>(id)].rim +=
+                comps.acc[static_cast<std::size_t>(id)].rim +=
                     std::min(std::abs(r.difference_m[k]), r.lod95_m[k]) * cell;
             }
         }
     }
-    const double n_c_patch =
-        std::max(1.0, std::pow(cfg.error_correlation_length_m / a.resolution_m, 2.0));
-    std::vector<int> kept_id(acc.size(), 0);
+}
+
+// Nodes within one error correlation patch.
+double PatchNodes(const SurfaceGrid& a, const ChangeConfig& cfg) {
+    return std::max(1.0, std::pow(cfg.error_correlation_length_m / a.resolution_m, 2.0));
+}
+
+// The regions of at least min_region_area_m2 into r.regions, numbered from 1; returns the
+// kept id per label (0: dropped).
+std::vector<int> KeepRegions(const SurfaceGrid& a,
+                             const Components& comps,
+                             const Eigen::Matrix<double, 6, 6>& C,
+                             const ChangeConfig& cfg,
+                             ChangeResult& r) {
+    const double cell = a.resolution_m * a.resolution_m;
+    const double n_c_patch = PatchNodes(a, cfg);
+    std::vector<int> kept_id(comps.acc.size(), 0);
     int kept = 0;
-    for (std::size_t id = 1; id < acc.size(); ++id) {
-        const Acc& c = acc[id];
+    for (std::size_t id = 1; id < comps.acc.size(); ++id) {
+        const RegionAcc& c = comps.acc[id];
         const double area = static_cast<double>(c.nodes) * cell;
         if (area < cfg.min_region_area_m2) continue;
         ChangeRegion reg;
@@ -319,13 +358,20 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
         reg.max_abs_difference_m = c.max_abs;
         reg.mean_lod95_m = c.lod_sum / static_cast<double>(c.nodes);
         reg.centroid = c.centroid / static_cast<double>(c.nodes);
-        reg.polygons = TraceOutline(a, label, static_cast<int>(id), c.i0, c.i1, c.j0, c.j1);
+        reg.polygons = TraceOutline(a, comps.label, static_cast<int>(id), c.i0, c.i1, c.j0, c.j1);
         r.regions.push_back(std::move(reg));
     }
-    // Dodd's band values and the stable statistics.
+    return kept_id;
+}
+
+// Dodd's band values (region, significance) and the stable statistics into r.
+void BandsAndStableTerrain(const std::vector<int>& sign,
+                           const std::vector<int>& label,
+                           const std::vector<int>& kept_id,
+                           ChangeResult& r) {
     double stable_sum = 0, stable_sum2 = 0;
     std::size_t stable_n = 0, in_region = 0;
-    for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t k = 0; k < r.difference_m.size(); ++k) {
         if (!std::isfinite(r.difference_m[k])) continue;
         const int id = label[k] != 0 ? kept_id[static_cast<std::size_t>(label[k])] : 0;
         r.region[k] = static_cast<float>(id);
@@ -345,7 +391,18 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
     r.significant_share = r.compared_nodes > 0 ? static_cast<double>(in_region) /
                                                      static_cast<double>(r.compared_nodes)
                                                : 0.0;
-    // Totals: random terms in quadrature, registration (one correction) and rims linearly.
+}
+
+// Totals: random terms in quadrature, registration (one correction) and rims linearly.
+void CutFillTotals(const SurfaceGrid& a,
+                   const Components& comps,
+                   const std::vector<int>& kept_id,
+                   const Eigen::Matrix<double, 6, 6>& C,
+                   const ChangeConfig& cfg,
+                   ChangeResult& r) {
+    const double cell = a.resolution_m * a.resolution_m;
+    const double n_c_patch = PatchNodes(a, cfg);
+    const std::vector<RegionAcc>& acc = comps.acc;
     for (ChangeTotals* t : {&r.cut, &r.fill}) {
         const int s = t == &r.cut ? -1 : 1;
         double var_rand = 0, rim = 0;
@@ -363,9 +420,9 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
         const double sreg = std::sqrt(std::max(0.0, (jsum * C * jsum.transpose())(0, 0))) * cell;
         t->u95_m3 = cfg.z95 * std::sqrt(var_rand + sreg * sreg) + rim;
     }
-    std::sort(r.regions.begin(), r.regions.end(), [](const ChangeRegion& x, const ChangeRegion& y) {
-        return std::abs(x.volume_m3) > std::abs(y.volume_m3);
-    });
+}
+
+std::string ChangeMessage(const ChangeResult& r) {
     char buf[320];
     std::snprintf(buf,
                   sizeof buf,
@@ -384,7 +441,43 @@ ChangeResult ComputeChange(const SurfaceGrid& a,
                   r.fill.regions,
                   r.stable_mean_m,
                   r.stable_rms_m);
-    r.message = buf;
+    return buf;
+}
+
+}  // namespace
+
+std::vector<std::string> ChangeConfig::Validate() const {
+    std::vector<std::string> p;
+    if (!(z95 > 0)) p.push_back("change.z95 must be > 0");
+    if (!(grow_fraction > 0 && grow_fraction <= 1)) p.push_back("change.grow_fraction: (0, 1]");
+    if (!(min_region_area_m2 >= 0)) p.push_back("change.min_region_area_m2 must be >= 0");
+    if (!(error_correlation_length_m > 0))
+        p.push_back("change.error_correlation_length_m must be > 0");
+    return p;
+}
+
+ChangeResult ComputeChange(const SurfaceGrid& a,
+                           const SurfaceGrid& b,
+                           const RigidCorrection& T,
+                           const Eigen::Matrix<double, 6, 6>& C,
+                           const ChangeConfig& cfg) {
+    ChangeResult r;
+    const std::size_t n = a.z_m.size();
+    r.difference_m.assign(n, kNaNf);
+    r.lod95_m.assign(n, kNaNf);
+    r.significance.assign(n, kNaNf);
+    r.region.assign(n, kNaNf);
+    const NodeTerms terms = DifferenceNodes(a, b, T, C, cfg, r);
+    const std::vector<int> sign = GrowChangeSigns(a, r, cfg);
+    Components comps = LabelRegions(a, sign, r, terms);
+    AddRims(a, r, comps);
+    const std::vector<int> kept_id = KeepRegions(a, comps, C, cfg, r);
+    BandsAndStableTerrain(sign, comps.label, kept_id, r);
+    CutFillTotals(a, comps, kept_id, C, cfg, r);
+    std::sort(r.regions.begin(), r.regions.end(), [](const ChangeRegion& x, const ChangeRegion& y) {
+        return std::abs(x.volume_m3) > std::abs(y.volume_m3);
+    });
+    r.message = ChangeMessage(r);
     return r;
 }
 

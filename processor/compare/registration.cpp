@@ -79,6 +79,268 @@ Residual Evaluate(const SurfaceGrid& ref,
     return r;
 }
 
+// B's nodes over A's surface: how many, and their centroid (the correction's
+// pivot).
+struct Overlap {
+    std::size_t nodes = 0;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+};
+
+Overlap FindOverlap(const SurfaceGrid& a, const SurfaceGrid& b) {
+    Overlap o;
+    for (int j = 0; j < b.ny; ++j) {
+        for (int i = 0; i < b.nx; ++i) {
+            if (!b.filled(i, j)) continue;
+            const double x = b.x0 + i * b.resolution_m, y = b.y0 + j * b.resolution_m;
+            if (!std::isfinite(a.HeightAt(x, y))) continue;
+            ++o.nodes;
+            o.centroid += Eigen::Vector3d(x, y, b.z_m[b.index(i, j)]);
+        }
+    }
+    if (o.nodes > 0) o.centroid /= static_cast<double>(o.nodes);
+    return o;
+}
+
+// The subsampling of B's nodes that keeps at most about max_points of them.
+int SampleStride(const SurfaceGrid& b, const RegistrationConfig& cfg) {
+    const std::size_t filled_b = b.CountFilled();
+    return std::max(1,
+                    static_cast<int>(std::ceil(std::sqrt(static_cast<double>(filled_b) /
+                                                         static_cast<double>(cfg.max_points)))));
+}
+
+// B's smoothed nodes every stride, with B's 1-sigma there (min_sigma_m where
+// none).
+std::vector<Sample> LevelSamples(const SurfaceGrid& rb,
+                                 const SurfaceGrid& b,
+                                 int stride,
+                                 const RegistrationConfig& cfg) {
+    std::vector<Sample> samples;
+    for (int j = 0; j < rb.ny; j += stride) {
+        for (int i = 0; i < rb.nx; i += stride) {
+            if (!rb.filled(i, j)) continue;
+            const float sg = b.sigma_m[b.index(i, j)];
+            samples.push_back({Eigen::Vector3d(rb.x0 + i * rb.resolution_m,
+                                               rb.y0 + j * rb.resolution_m,
+                                               rb.z_m[rb.index(i, j)]),
+                               std::isfinite(sg) ? static_cast<double>(sg) : cfg.min_sigma_m});
+        }
+    }
+    return samples;
+}
+
+// Yaw and translation only: roll and pitch held at zero.
+void HoldRollPitch(Mat6& H) {
+    for (int k = 0; k < 2; ++k) {
+        H.row(k).setZero();
+        H.col(k).setZero();
+        H(k, k) = 1.0;
+    }
+}
+
+// The coarse-to-fine Gauss-Newton solve's state.
+struct Refinement {
+    RigidCorrection T;
+    std::vector<Sample> last_samples;  // of the last step taken
+    int iterations = 0;
+    bool singular = false, converged_last = false;
+    bool too_few_points = false;      // a step found too few valid residuals ...
+    std::size_t valid_residuals = 0;  // ... this many
+};
+
+// One Gauss-Newton step on the samples against ra; false when it could not be
+// taken (too few valid residuals or singular normal equations, recorded in
+// ref).
+bool GaussNewtonStep(const SurfaceGrid& ra,
+                     const SurfaceGrid& a,
+                     int grad_step,
+                     const std::vector<Sample>& samples,
+                     double max_tan_slope,
+                     const RegistrationConfig& cfg,
+                     Refinement& ref) {
+    RigidCorrection& T = ref.T;
+    std::vector<Residual> rs(samples.size());
+    std::vector<double> whitened;
+    whitened.reserve(samples.size());
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        rs[k] = Evaluate(
+            ra, a, grad_step, T.Apply(samples[k].p), T.pivot, samples[k].sigma, max_tan_slope);
+        if (rs[k].valid) whitened.push_back(std::abs(rs[k].d));
+    }
+    if (whitened.size() < cfg.min_points) {
+        ref.too_few_points = true;
+        ref.valid_residuals = whitened.size();
+        return false;
+    }
+    // The robust spread of the point-to-plane distances (MAD), floored.
+    const double s = std::max(cfg.min_sigma_m, 1.4826 * Median(whitened));
+    Mat6 H = Mat6::Zero();
+    Vec6 g = Vec6::Zero();
+    for (const Residual& r : rs) {
+        if (!r.valid) continue;
+        const double z = std::abs(r.d) / s;
+        if (z > cfg.outlier_sigmas) continue;
+        const double w = reg::RobustWeight(reg::RobustKernel::kCauchy, z, cfg.cauchy_width);
+        H.noalias() += w * r.J.transpose() * r.J;
+        g.noalias() += w * r.J.transpose() * r.d;
+    }
+    if (!cfg.estimate_roll_pitch) {
+        HoldRollPitch(H);
+        g(0) = g(1) = 0.0;
+    }
+    // A touch of damping keeps a direction the terrain does not fix at its value.
+    const double damping = 1e-9 * H.trace();
+    const Mat6 Hd = H + damping * Mat6::Identity();
+    const Eigen::LDLT<Mat6> ldlt(Hd);
+    if (ldlt.info() != Eigen::Success) {
+        ref.singular = true;
+        return false;
+    }
+    const Vec6 delta = -ldlt.solve(g);
+    const Eigen::Matrix3d dR = Exp(delta.head<3>());
+    T.rotation_rad = Log(dR * T.R());
+    T.translation_m = dR * T.translation_m + delta.tail<3>();
+    // The largest displacement of a node the step caused (rotation at the
+    // overlap's radius plus translation).
+    double radius_m = 0;
+    for (std::size_t k = 0; k < samples.size(); k += 97)
+        radius_m = std::max(radius_m, (samples[k].p - T.pivot).norm());
+    const double step = delta.tail<3>().norm() + delta.head<3>().norm() * radius_m;
+    ref.last_samples = samples;
+    ref.converged_last = step < cfg.converged_step_m;
+    return true;
+}
+
+// Coarse to fine: at each smoothing level, Gauss-Newton steps until converged
+// or iterations_per_level; stops at a step that could not be taken.
+Refinement Refine(const SurfaceGrid& a,
+                  const SurfaceGrid& b,
+                  const Eigen::Vector3d& pivot,
+                  int stride,
+                  double max_tan_slope,
+                  const RegistrationConfig& cfg) {
+    Refinement ref;
+    ref.T.pivot = pivot;
+    for (const double smoothing : cfg.smoothing_m) {
+        const int radius = static_cast<int>(std::lround(smoothing / a.resolution_m));
+        const SurfaceGrid ra = Smoothed(a, radius);
+        const SurfaceGrid rb =
+            Smoothed(b, static_cast<int>(std::lround(smoothing / b.resolution_m)));
+        const int grad_step =
+            std::max({1, radius, static_cast<int>(std::lround(0.2 / a.resolution_m))});
+        const std::vector<Sample> samples = LevelSamples(rb, b, stride, cfg);
+        ref.converged_last = false;
+        for (int it = 0; it < cfg.iterations_per_level; ++it) {
+            ++ref.iterations;
+            if (!GaussNewtonStep(ra, a, grad_step, samples, max_tan_slope, cfg, ref)) break;
+            if (ref.converged_last) break;
+        }
+        if (ref.singular || ref.too_few_points) break;
+    }
+    return ref;
+}
+
+// The final residuals at the correction (full resolution) into res (nodes used
+// and stable, robust sigma, vertical RMS before and after); returns the normal
+// matrix of the stable set.
+Mat6 FinalResiduals(const SurfaceGrid& a,
+                    const RigidCorrection& T,
+                    const std::vector<Sample>& samples,
+                    double max_tan_slope,
+                    const RegistrationConfig& cfg,
+                    RegistrationResult& res) {
+    Mat6 H = Mat6::Zero();
+    double sum2_before = 0, sum2_after = 0, sum_after = 0;
+    std::size_t n_stable = 0, n_valid = 0;
+    const int grad_step = std::max(1, static_cast<int>(std::lround(0.2 / a.resolution_m)));
+    std::vector<double> abs_d;
+    std::vector<Residual> fin(samples.size());
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        fin[k] = Evaluate(
+            a, a, grad_step, T.Apply(samples[k].p), T.pivot, samples[k].sigma, max_tan_slope);
+        if (fin[k].valid) abs_d.push_back(std::abs(fin[k].d));
+    }
+    const double s = std::max(cfg.min_sigma_m, 1.4826 * Median(abs_d));
+    for (std::size_t k = 0; k < fin.size(); ++k) {
+        const Residual& r = fin[k];
+        if (!r.valid) continue;
+        ++n_valid;
+        const double z = std::abs(r.d) / s;
+        if (z > cfg.outlier_sigmas) continue;
+        ++n_stable;
+        const double w = reg::RobustWeight(reg::RobustKernel::kCauchy, z, cfg.cauchy_width);
+        H.noalias() += w * r.J.transpose() * r.J;
+        sum2_after += r.e * r.e;
+        sum_after += r.e;
+        const double before = samples[k].p.z() - a.HeightAt(samples[k].p.x(), samples[k].p.y());
+        if (std::isfinite(before)) sum2_before += before * before;
+    }
+    res.points_overlap = n_valid;
+    res.points_stable = n_stable;
+    res.robust_sigma_m = s;
+    if (n_stable > 0) {
+        res.rms_vertical_after_m = std::sqrt(sum2_after / static_cast<double>(n_stable));
+        res.mean_vertical_after_m = sum_after / static_cast<double>(n_stable);
+        res.rms_vertical_before_m = std::sqrt(sum2_before / static_cast<double>(n_stable));
+    }
+    if (!cfg.estimate_roll_pitch) HoldRollPitch(H);
+    return H;
+}
+
+// The correction's covariance and 1-sigma into res from the stable set's normal
+// matrix; false when the stable terrain does not fix every component.
+bool SetCovariance(const Mat6& H,
+                   int stride,
+                   double resolution_b_m,
+                   const RegistrationConfig& cfg,
+                   RegistrationResult& res) {
+    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H);
+    if (eig.eigenvalues()(0) <= 1e-12 * std::max(1.0, eig.eigenvalues()(5))) return false;
+    // Correlated neighbours: the stable area holds N_eff independent patches.
+    const double s = res.robust_sigma_m;
+    const std::size_t n_stable = res.points_stable;
+    const double area_stable = static_cast<double>(n_stable) *
+                               static_cast<double>(stride * stride) * resolution_b_m *
+                               resolution_b_m;
+    const double n_eff =
+        std::max(1.0, area_stable / (cfg.correlation_length_m * cfg.correlation_length_m));
+    const double growth = std::max(1.0, static_cast<double>(n_stable) / n_eff);
+    res.covariance = s * s * growth * H.inverse();
+    if (!cfg.estimate_roll_pitch) {
+        res.covariance.row(0).setZero();
+        res.covariance.col(0).setZero();
+        res.covariance.row(1).setZero();
+        res.covariance.col(1).setZero();
+    }
+    for (int k = 0; k < 6; ++k) res.sigma(k) = std::sqrt(std::max(0.0, res.covariance(k, k)));
+    return true;
+}
+
+std::string RegistrationMessage(const RegistrationResult& res, int dof) {
+    const RigidCorrection& T = res.correction;
+    char buf[320];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "%s after %d iterations (%d DoF): translation %.3f %.3f %.3f m, roll "
+                  "%.4f "
+                  "pitch %.4f yaw %.4f deg; %zu of %zu nodes stable, residual %.3f m RMS "
+                  "vertical (%.3f before)",
+                  ToString(res.termination),
+                  res.iterations,
+                  dof,
+                  T.translation_m.x(),
+                  T.translation_m.y(),
+                  T.translation_m.z(),
+                  T.rotation_rad.x() * 180 / kPi,
+                  T.rotation_rad.y() * 180 / kPi,
+                  T.rotation_rad.z() * 180 / kPi,
+                  res.points_stable,
+                  res.points_overlap,
+                  res.rms_vertical_after_m,
+                  res.rms_vertical_before_m);
+    return buf;
+}
+
 }  // namespace
 
 const char* ToString(RegistrationTermination t) {
@@ -104,8 +366,9 @@ Eigen::Vector3d RigidCorrection::Apply(const Eigen::Vector3d& p) const {
 }
 
 Eigen::Vector3d RigidCorrection::CarryOnto(const SurfaceGrid& b, double x, double y) const {
-    // Find b_xy such that Apply(b_xy, H_B(b_xy)).xy = (x, y): start from the inverse map of the
-    // target at the pivot's height and correct by the residual (the map is nearly the identity).
+    // Find b_xy such that Apply(b_xy, H_B(b_xy)).xy = (x, y): start from the
+    // inverse map of the target at the pivot's height and correct by the residual
+    // (the map is nearly the identity).
     const Eigen::Matrix3d Rm = R();
     Eigen::Vector3d target(x, y, pivot.z());
     Eigen::Vector3d src = Rm.transpose() * (target - pivot - translation_m) + pivot;
@@ -148,227 +411,41 @@ RegistrationResult RegisterSurfaces(const SurfaceGrid& a,
     RegistrationResult res;
     const double max_tan_slope = std::tan(cfg.max_slope_deg * kPi / 180.0);
     // The overlap and the pivot: B's nodes over A's surface.
-    const std::size_t filled_b = b.CountFilled();
-    const int stride =
-        std::max(1,
-                 static_cast<int>(std::ceil(std::sqrt(static_cast<double>(filled_b) /
-                                                      static_cast<double>(cfg.max_points)))));
-    std::size_t overlap_nodes = 0;
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (int j = 0; j < b.ny; ++j) {
-        for (int i = 0; i < b.nx; ++i) {
-            if (!b.filled(i, j)) continue;
-            const double x = b.x0 + i * b.resolution_m, y = b.y0 + j * b.resolution_m;
-            if (!std::isfinite(a.HeightAt(x, y))) continue;
-            ++overlap_nodes;
-            centroid += Eigen::Vector3d(x, y, b.z_m[b.index(i, j)]);
-        }
-    }
-    res.overlap_area_m2 = static_cast<double>(overlap_nodes) * b.resolution_m * b.resolution_m;
-    if (overlap_nodes < cfg.min_points) {
+    const int stride = SampleStride(b, cfg);
+    const Overlap overlap = FindOverlap(a, b);
+    res.overlap_area_m2 = static_cast<double>(overlap.nodes) * b.resolution_m * b.resolution_m;
+    if (overlap.nodes < cfg.min_points) {
         res.termination = RegistrationTermination::kTooFewPoints;
-        res.message = "the surfaces overlap on " + std::to_string(overlap_nodes) + " nodes (" +
+        res.message = "the surfaces overlap on " + std::to_string(overlap.nodes) + " nodes (" +
                       std::to_string(static_cast<long>(res.overlap_area_m2)) + " m2); at least " +
                       std::to_string(cfg.min_points) + " needed";
         return res;
     }
-    centroid /= static_cast<double>(overlap_nodes);
-    RigidCorrection T;
-    T.pivot = centroid;
-
-    const int dof = cfg.estimate_roll_pitch ? 6 : 4;
-    std::vector<Residual> last;
-    std::vector<Sample> last_samples;
-    double s = 0;
-    int total_iterations = 0;
-    bool singular = false, converged_last = false;
-    for (const double smoothing : cfg.smoothing_m) {
-        const int radius = static_cast<int>(std::lround(smoothing / a.resolution_m));
-        const SurfaceGrid ra = Smoothed(a, radius);
-        const SurfaceGrid rb =
-            Smoothed(b, static_cast<int>(std::lround(smoothing / b.resolution_m)));
-        const int grad_step =
-            std::max({1, radius, static_cast<int>(std::lround(0.2 / a.resolution_m))});
-        std::vector<Sample> samples;
-        for (int j = 0; j < rb.ny; j += stride) {
-            for (int i = 0; i < rb.nx; i += stride) {
-                if (!rb.filled(i, j)) continue;
-                const float sg = b.sigma_m[b.index(i, j)];
-                samples.push_back({Eigen::Vector3d(rb.x0 + i * rb.resolution_m,
-                                                   rb.y0 + j * rb.resolution_m,
-                                                   rb.z_m[rb.index(i, j)]),
-                                   std::isfinite(sg) ? static_cast<double>(sg) : cfg.min_sigma_m});
-            }
-        }
-        converged_last = false;
-        for (int it = 0; it < cfg.iterations_per_level; ++it) {
-            ++total_iterations;
-            std::vector<Residual> rs(samples.size());
-            std::vector<double> whitened;
-            whitened.reserve(samples.size());
-            for (std::size_t k = 0; k < samples.size(); ++k) {
-                rs[k] = Evaluate(ra,
-                                 a,
-                                 grad_step,
-                                 T.Apply(samples[k].p),
-                                 T.pivot,
-                                 samples[k].sigma,
-                                 max_tan_slope);
-                if (rs[k].valid) whitened.push_back(std::abs(rs[k].d));
-            }
-            if (whitened.size() < cfg.min_points) {
-                res.termination = RegistrationTermination::kTooFewPoints;
-                res.message = "too few nodes of B over A's surface after the correction (" +
-                              std::to_string(whitened.size()) + ")";
-                res.correction = T;
-                return res;
-            }
-            // The robust spread of the point-to-plane distances (MAD), floored.
-            s = std::max(cfg.min_sigma_m, 1.4826 * Median(whitened));
-            Mat6 H = Mat6::Zero();
-            Vec6 g = Vec6::Zero();
-            for (const Residual& r : rs) {
-                if (!r.valid) continue;
-                const double z = std::abs(r.d) / s;
-                if (z > cfg.outlier_sigmas) continue;
-                const double w = reg::RobustWeight(reg::RobustKernel::kCauchy, z, cfg.cauchy_width);
-                H.noalias() += w * r.J.transpose() * r.J;
-                g.noalias() += w * r.J.transpose() * r.d;
-            }
-            if (!cfg.estimate_roll_pitch) {
-                // Yaw and translation only: roll and pitch held at zero.
-                for (int k = 0; k < 2; ++k) {
-                    H.row(k).setZero();
-                    H.col(k).setZero();
-                    H(k, k) = 1.0;
-                    g(k) = 0.0;
-                }
-            }
-            // A touch of damping keeps a direction the terrain does not fix at its value.
-            const double damping = 1e-9 * H.trace();
-            const Mat6 Hd = H + damping * Mat6::Identity();
-            const Eigen::LDLT<Mat6> ldlt(Hd);
-            if (ldlt.info() != Eigen::Success) {
-                singular = true;
-                break;
-            }
-            const Vec6 delta = -ldlt.solve(g);
-            const Eigen::Matrix3d dR = Exp(delta.head<3>());
-            T.rotation_rad = Log(dR * T.R());
-            T.translation_m = dR * T.translation_m + delta.tail<3>();
-            // The largest displacement of a node the step caused (rotation at the overlap's
-            // radius plus translation).
-            double radius_m = 0;
-            for (std::size_t k = 0; k < samples.size(); k += 97)
-                radius_m = std::max(radius_m, (samples[k].p - T.pivot).norm());
-            const double step = delta.tail<3>().norm() + delta.head<3>().norm() * radius_m;
-            last = std::move(rs);
-            last_samples = samples;
-            if (step < cfg.converged_step_m) {
-                converged_last = true;
-                break;
-            }
-        }
-        if (singular) break;
-    }
-    res.correction = T;
-    res.iterations = total_iterations;
-    if (singular) {
-        res.termination = RegistrationTermination::kSingular;
-        res.message = "the normal equations are singular: the overlap does not fix the correction";
+    const Refinement ref = Refine(a, b, overlap.centroid, stride, max_tan_slope, cfg);
+    res.correction = ref.T;
+    if (ref.too_few_points) {
+        res.termination = RegistrationTermination::kTooFewPoints;
+        res.message = "too few nodes of B over A's surface after the correction (" +
+                      std::to_string(ref.valid_residuals) + ")";
         return res;
     }
-    // Final residuals at the correction (full resolution), the stable set and the covariance.
-    Mat6 H = Mat6::Zero();
-    double sum2_before = 0, sum2_after = 0, sum_after = 0;
-    std::size_t n_stable = 0, n_valid = 0;
-    const int grad_step = std::max(1, static_cast<int>(std::lround(0.2 / a.resolution_m)));
-    std::vector<double> abs_d;
-    std::vector<Residual> fin(last_samples.size());
-    for (std::size_t k = 0; k < last_samples.size(); ++k) {
-        fin[k] = Evaluate(a,
-                          a,
-                          grad_step,
-                          T.Apply(last_samples[k].p),
-                          T.pivot,
-                          last_samples[k].sigma,
-                          max_tan_slope);
-        if (fin[k].valid) abs_d.push_back(std::abs(fin[k].d));
+    res.iterations = ref.iterations;
+    if (ref.singular) {
+        res.termination = RegistrationTermination::kSingular;
+        res.message =
+            "the normal equations are singular: the overlap does not fix "
+            "the correction";
+        return res;
     }
-    s = std::max(cfg.min_sigma_m, 1.4826 * Median(abs_d));
-    for (std::size_t k = 0; k < fin.size(); ++k) {
-        const Residual& r = fin[k];
-        if (!r.valid) continue;
-        ++n_valid;
-        const double z = std::abs(r.d) / s;
-        if (z > cfg.outlier_sigmas) continue;
-        ++n_stable;
-        const double w = reg::RobustWeight(reg::RobustKernel::kCauchy, z, cfg.cauchy_width);
-        H.noalias() += w * r.J.transpose() * r.J;
-        sum2_after += r.e * r.e;
-        sum_after += r.e;
-        const double before =
-            last_samples[k].p.z() - a.HeightAt(last_samples[k].p.x(), last_samples[k].p.y());
-        if (std::isfinite(before)) sum2_before += before * before;
-    }
-    res.points_overlap = n_valid;
-    res.points_stable = n_stable;
-    res.robust_sigma_m = s;
-    if (n_stable > 0) {
-        res.rms_vertical_after_m = std::sqrt(sum2_after / static_cast<double>(n_stable));
-        res.mean_vertical_after_m = sum_after / static_cast<double>(n_stable);
-        res.rms_vertical_before_m = std::sqrt(sum2_before / static_cast<double>(n_stable));
-    }
-    if (!cfg.estimate_roll_pitch) {
-        for (int k = 0; k < 2; ++k) {
-            H.row(k).setZero();
-            H.col(k).setZero();
-            H(k, k) = 1.0;
-        }
-    }
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H);
-    if (eig.eigenvalues()(0) <= 1e-12 * std::max(1.0, eig.eigenvalues()(5))) {
+    const Mat6 H = FinalResiduals(a, ref.T, ref.last_samples, max_tan_slope, cfg, res);
+    if (!SetCovariance(H, stride, b.resolution_m, cfg, res)) {
         res.termination = RegistrationTermination::kSingular;
         res.message = "the stable terrain does not fix every component of the correction";
         return res;
     }
-    // Correlated neighbours: the stable area holds N_eff independent patches.
-    const double area_stable = static_cast<double>(n_stable) *
-                               static_cast<double>(stride * stride) * b.resolution_m *
-                               b.resolution_m;
-    const double n_eff =
-        std::max(1.0, area_stable / (cfg.correlation_length_m * cfg.correlation_length_m));
-    const double growth = std::max(1.0, static_cast<double>(n_stable) / n_eff);
-    res.covariance = s * s * growth * H.inverse();
-    if (!cfg.estimate_roll_pitch) {
-        res.covariance.row(0).setZero();
-        res.covariance.col(0).setZero();
-        res.covariance.row(1).setZero();
-        res.covariance.col(1).setZero();
-    }
-    for (int k = 0; k < 6; ++k) res.sigma(k) = std::sqrt(std::max(0.0, res.covariance(k, k)));
-    res.termination = converged_last ? RegistrationTermination::kConverged
-                                     : RegistrationTermination::kMaxIterations;
-    char buf[320];
-    std::snprintf(buf,
-                  sizeof buf,
-                  "%s after %d iterations (%d DoF): translation %.3f %.3f %.3f m, roll %.4f "
-                  "pitch %.4f yaw %.4f deg; %zu of %zu nodes stable, residual %.3f m RMS "
-                  "vertical (%.3f before)",
-                  ToString(res.termination),
-                  total_iterations,
-                  dof,
-                  T.translation_m.x(),
-                  T.translation_m.y(),
-                  T.translation_m.z(),
-                  T.rotation_rad.x() * 180 / kPi,
-                  T.rotation_rad.y() * 180 / kPi,
-                  T.rotation_rad.z() * 180 / kPi,
-                  n_stable,
-                  n_valid,
-                  res.rms_vertical_after_m,
-                  res.rms_vertical_before_m);
-    res.message = buf;
+    res.termination = ref.converged_last ? RegistrationTermination::kConverged
+                                         : RegistrationTermination::kMaxIterations;
+    res.message = RegistrationMessage(res, cfg.estimate_roll_pitch ? 6 : 4);
     return res;
 }
 

@@ -378,159 +378,158 @@ std::string CapacitySvg(const compare::CapacityResult& a,
     return svg;
 }
 
-}  // namespace
-
-std::vector<std::string> CompareConfig::Validate() const {
-    std::vector<std::string> p = registration.Validate();
-    for (auto& q : change.Validate()) p.push_back(std::move(q));
-    for (auto& q : m3c2.Validate()) p.push_back(std::move(q));
-    if (!(capacity_step_m > 0 && capacity_step_m <= 100))
-        p.push_back("capacity step must be in (0, 100] m");
-    if (!(gate_z95 > 0)) p.push_back("gate_z95 must be > 0");
-    return p;
-}
-
-Expected<int> RunCompare(const std::string& a_dir,
-                         const std::string& b_dir,
-                         const std::string& out_dir,
-                         const CompareConfig& cfg,
-                         const std::function<void(const std::string&)>& log) {
-    if (auto problems = cfg.Validate(); !problems.empty())
-        return Error{"compare: invalid settings: " + problems.front()};
-    if (fs::weakly_canonical(a_dir) == fs::weakly_canonical(b_dir))
-        return Error{"compare: A and B are the same folder (" + a_dir + ")"};
-    auto a = ReadEpoch(a_dir, "A");
-    if (!a) return Error{"compare: " + a.error().message};
-    auto b = ReadEpoch(b_dir, "B");
-    if (!b) return Error{"compare: " + b.error().message};
-    // One CRS, one vertical datum, one site.
-    if (a->epsg != b->epsg) {
-        return Error{"compare: different horizontal CRS: A is " + a->horizontal_name + " (EPSG " +
-                     std::to_string(a->epsg) + "), B " + b->horizontal_name + " (EPSG " +
-                     std::to_string(b->epsg) + "); process both in one (config utm zone)"};
+// One CRS, one vertical datum, one site, and ground in common: else no comparison.
+Status CheckComparable(const Epoch& a,
+                       const Epoch& b,
+                       const std::function<void(const std::string&)>& log) {
+    if (a.epsg != b.epsg) {
+        return Error{"compare: different horizontal CRS: A is " + a.horizontal_name + " (EPSG " +
+                     std::to_string(a.epsg) + "), B " + b.horizontal_name + " (EPSG " +
+                     std::to_string(b.epsg) + "); process both in one (config utm zone)"};
     }
-    if (a->vertical_datum_key != b->vertical_datum_key) {
-        return Error{"compare: different vertical datums: A in " + a->vertical_datum_key +
-                     ", B in " + b->vertical_datum_key +
+    if (a.vertical_datum_key != b.vertical_datum_key) {
+        return Error{"compare: different vertical datums: A in " + a.vertical_datum_key +
+                     ", B in " + b.vertical_datum_key +
                      "; grid both to one (config vertical.datum)"};
     }
-    if (!a->site.empty() && !b->site.empty() && a->site != b->site) {
-        return Error{"compare: different sites: A is '" + a->site + "', B '" + b->site + "'"};
+    if (!a.site.empty() && !b.site.empty() && a.site != b.site) {
+        return Error{"compare: different sites: A is '" + a.site + "', B '" + b.site + "'"};
     }
-    if (std::abs(a->surface.resolution_m - b->surface.resolution_m) > 1e-9) {
-        log("compare: the grids differ in resolution (A " +
-            std::to_string(a->surface.resolution_m) + " m, B " +
-            std::to_string(b->surface.resolution_m) + " m): B is interpolated on A's");
+    if (std::abs(a.surface.resolution_m - b.surface.resolution_m) > 1e-9) {
+        log("compare: the grids differ in resolution (A " + std::to_string(a.surface.resolution_m) +
+            " m, B " + std::to_string(b.surface.resolution_m) + " m): B is interpolated on A's");
     }
     // Overlap before anything else: surveys of two places share no ground.
-    {
-        const auto& A = a->surface;
-        const auto& B = b->surface;
-        const double ax1 = A.x0 + (A.nx - 1) * A.resolution_m,
-                     ay1 = A.y0 + (A.ny - 1) * A.resolution_m;
-        const double bx1 = B.x0 + (B.nx - 1) * B.resolution_m,
-                     by1 = B.y0 + (B.ny - 1) * B.resolution_m;
-        if (bx1 < A.x0 || B.x0 > ax1 || by1 < A.y0 || B.y0 > ay1) {
-            char buf[320];
-            std::snprintf(buf,
-                          sizeof buf,
-                          "compare: the surveys do not overlap: A covers E %.0f-%.0f N %.0f-%.0f, "
-                          "B E %.0f-%.0f N %.0f-%.0f (%s); different sites?",
-                          A.x0,
-                          ax1,
-                          A.y0,
-                          ay1,
-                          B.x0,
-                          bx1,
-                          B.y0,
-                          by1,
-                          a->horizontal_name.c_str());
-            return Error{buf};
-        }
+    const auto& A = a.surface;
+    const auto& B = b.surface;
+    const double ax1 = A.x0 + (A.nx - 1) * A.resolution_m, ay1 = A.y0 + (A.ny - 1) * A.resolution_m;
+    const double bx1 = B.x0 + (B.nx - 1) * B.resolution_m, by1 = B.y0 + (B.ny - 1) * B.resolution_m;
+    if (bx1 < A.x0 || B.x0 > ax1 || by1 < A.y0 || B.y0 > ay1) {
+        char buf[320];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "compare: the surveys do not overlap: A covers E %.0f-%.0f N %.0f-%.0f, "
+                      "B E %.0f-%.0f N %.0f-%.0f (%s); different sites?",
+                      A.x0,
+                      ax1,
+                      A.y0,
+                      ay1,
+                      B.x0,
+                      bx1,
+                      B.y0,
+                      by1,
+                      a.horizontal_name.c_str());
+        return Error{buf};
     }
-    log("compare: registering B onto A on stable terrain");
-    const compare::RegistrationResult reg =
-        compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
-    if (!reg.ok()) {
-        return Error{"compare: registration failed: " + reg.message +
-                     (reg.termination == compare::RegistrationTermination::kTooFewPoints
-                          ? " (the surveys do not overlap enough)"
-                          : "")};
-    }
-    log("compare: registration " + reg.message);
-    const compare::ChangeResult change =
-        compare::ComputeChange(a->surface, b->surface, reg.correction, reg.covariance, cfg.change);
-    log("compare: change: " + change.message);
-    const compare::CapacityResult cap_a =
-        compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
-    const compare::CapacityResult cap_b =
-        compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
+    return Ok{};
+}
 
-    // The 3D change along the normal on the soundings, where both folders have them.
-    json change3d = {{"computed", false}};
+// The 3D change along the normal and its record (compare.json change3d); m3c2 empty when not
+// computed.
+struct Change3d {
+    json record = {{"computed", false}};
     std::optional<compare::M3c2Result> m3c2;
-    if (cfg.change3d) {
-        auto pa = ReadSoundingsUtm(a_dir);
-        if (!pa) return Error{"compare: A " + pa.error().message};
-        auto pb = ReadSoundingsUtm(b_dir);
-        if (!pb) return Error{"compare: B " + pb.error().message};
-        if (pa->empty() || pb->empty()) {
-            change3d["message"] = "points_utm.ply missing or empty in A or B: not computed";
-        } else {
-            for (Eigen::Vector3d& p : *pb) p = reg.correction.Apply(p);
-            // What the soundings of a cylinder share: both CUBE surfaces' 1-sigma there (the
-            // median where a surface has none).
-            std::vector<double> sig;
-            for (const auto* g : {&a->surface, &b->surface}) {
-                for (float v : g->sigma_m) {
-                    if (std::isfinite(v)) sig.push_back(v);
-                }
-            }
-            const double sigma_median = Median(sig);
-            const auto& sa = a->surface;
-            const auto& sb = b->surface;
-            const auto common = [&](const Eigen::Vector3d& p) {
-                double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
-                if (!std::isfinite(x)) x = sigma_median;
-                if (!std::isfinite(y)) y = sigma_median;
-                return std::hypot(x, y);
-            };
-            m3c2 = compare::RunM3c2(
-                *pa, *pb, reg.correction.pivot, reg.correction, reg.covariance, cfg.m3c2, common);
-            log("compare: 3D change: " + m3c2->message);
-            json by_slope = json::object();
-            const std::pair<const char*, std::pair<double, double>> classes[] = {
-                {"floor_0_20_deg", {0, 20}},
-                {"face_20_45_deg", {20, 45}},
-                {"wall_45_90_deg", {45, 91}}};
-            for (const auto& [name, range] : classes) {
-                std::vector<double> lods;
-                std::size_t flagged = 0;
-                for (const auto& c : m3c2->cores) {
-                    if (!std::isfinite(c.distance_m) || c.slope_deg < range.first ||
-                        c.slope_deg >= range.second)
-                        continue;
-                    lods.push_back(c.lod95_m);
-                    flagged += c.significance != 0;
-                }
-                by_slope[name] = {{"measured", lods.size()},
-                                  {"significant", flagged},
-                                  {"median_lod95_m", lods.empty() ? 0.0 : Median(lods)}};
-            }
-            change3d = {{"computed", true},
-                        {"message", m3c2->message},
-                        {"cores", m3c2->cores.size()},
-                        {"measured", m3c2->measured},
-                        {"significant", m3c2->significant},
-                        {"core_spacing_m", cfg.m3c2.core_spacing_m},
-                        {"projection_radius_m", cfg.m3c2.projection_radius_m},
-                        {"by_slope", by_slope}};
+};
+
+// The median 1-sigma of both CUBE surfaces' filled nodes.
+double MedianSigma(const compare::SurfaceGrid& a, const compare::SurfaceGrid& b) {
+    std::vector<double> sig;
+    for (const auto* g : {&a, &b}) {
+        for (float v : g->sigma_m) {
+            if (std::isfinite(v)) sig.push_back(v);
         }
     }
+    return Median(sig);
+}
 
-    // The navigation gate: the correction against what the two surveys' navigation allows.
+// The 3D change's level of detection by slope class (compare.json change3d.by_slope).
+json M3c2BySlope(const compare::M3c2Result& m3c2) {
+    json by_slope = json::object();
+    const std::pair<const char*, std::pair<double, double>> classes[] = {
+        {"floor_0_20_deg", {0, 20}}, {"face_20_45_deg", {20, 45}}, {"wall_45_90_deg", {45, 91}}};
+    for (const auto& [name, range] : classes) {
+        std::vector<double> lods;
+        std::size_t flagged = 0;
+        for (const auto& c : m3c2.cores) {
+            if (!std::isfinite(c.distance_m) || c.slope_deg < range.first ||
+                c.slope_deg >= range.second)
+                continue;
+            lods.push_back(c.lod95_m);
+            flagged += c.significance != 0;
+        }
+        by_slope[name] = {{"measured", lods.size()},
+                          {"significant", flagged},
+                          {"median_lod95_m", lods.empty() ? 0.0 : Median(lods)}};
+    }
+    return by_slope;
+}
+
+// The 3D change along the normal on the soundings, where both folders have them.
+Expected<Change3d> ComputeChange3d(const Epoch& a,
+                                   const Epoch& b,
+                                   const compare::RegistrationResult& reg,
+                                   const CompareConfig& cfg,
+                                   const std::function<void(const std::string&)>& log) {
+    Change3d out;
+    if (!cfg.change3d) return out;
+    auto pa = ReadSoundingsUtm(a.dir);
+    if (!pa) return Error{"compare: A " + pa.error().message};
+    auto pb = ReadSoundingsUtm(b.dir);
+    if (!pb) return Error{"compare: B " + pb.error().message};
+    if (pa->empty() || pb->empty()) {
+        out.record["message"] = "points_utm.ply missing or empty in A or B: not computed";
+        return out;
+    }
+    for (Eigen::Vector3d& p : *pb) p = reg.correction.Apply(p);
+    // What the soundings of a cylinder share: both CUBE surfaces' 1-sigma there (the
+    // median where a surface has none).
+    const double sigma_median = MedianSigma(a.surface, b.surface);
+    const auto& sa = a.surface;
+    const auto& sb = b.surface;
+    const auto common = [&](const Eigen::Vector3d& p) {
+        double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
+        if (!std::isfinite(x)) x = sigma_median;
+        if (!std::isfinite(y)) y = sigma_median;
+        return std::hypot(x, y);
+    };
+    out.m3c2 = compare::RunM3c2(
+        *pa, *pb, reg.correction.pivot, reg.correction, reg.covariance, cfg.m3c2, common);
+    log("compare: 3D change: " + out.m3c2->message);
+    out.record = {{"computed", true},
+                  {"message", out.m3c2->message},
+                  {"cores", out.m3c2->cores.size()},
+                  {"measured", out.m3c2->measured},
+                  {"significant", out.m3c2->significant},
+                  {"core_spacing_m", cfg.m3c2.core_spacing_m},
+                  {"projection_radius_m", cfg.m3c2.projection_radius_m},
+                  {"by_slope", M3c2BySlope(*out.m3c2)}};
+    return out;
+}
+
+// The navigation gate's record (compare.json registration.navigation_gate) and the quality
+// gates that tripped (compare.json quality_gates).
+struct NavigationGate {
+    json record = {{"evaluated", false}};
     json gates = json::array();
-    json gate_record = {{"evaluated", false}};
+};
+
+json NavSigmaJson(const NavSigma& n) {
+    return {{"horizontal_m", n.horizontal_m},
+            {"vertical_m", n.vertical_m},
+            {"roll_pitch_deg", n.roll_pitch_deg},
+            {"yaw_deg", n.yaw_deg}};
+}
+
+// The navigation gate: the correction against what the two surveys' navigation allows.
+NavigationGate CheckNavigation(const Epoch& a,
+                               const Epoch& b,
+                               const compare::RegistrationResult& reg,
+                               const CompareConfig& cfg) {
+    NavigationGate out;
+    if (!(a.nav.known && b.nav.known)) {
+        out.record["message"] = "trajectory_sigma.csv missing in A or B: not evaluated";
+        return out;
+    }
     const auto& T = reg.correction;
     const double th = T.translation_m.head<2>().norm();
     const double tz = std::abs(T.translation_m.z());
@@ -538,85 +537,72 @@ Expected<int> RunCompare(const std::string& a_dir,
     const double rp_deg = T.rotation_rad.head<2>().norm() * kRadToDeg;
     const double z = cfg.gate_z95;
     const double sig_th = std::hypot(reg.sigma(3), reg.sigma(4));
-    if (a->nav.known && b->nav.known) {
-        const double nav_h = 2.4477 * std::hypot(a->nav.horizontal_m, b->nav.horizontal_m);
-        const double nav_v = z * std::hypot(a->nav.vertical_m, b->nav.vertical_m);
-        const double nav_yaw = z * std::hypot(a->nav.yaw_deg, b->nav.yaw_deg);
-        const double nav_rp = 2.4477 * std::hypot(a->nav.roll_pitch_deg, b->nav.roll_pitch_deg);
-        const double allow_h = nav_h + 2.4477 * sig_th;
-        const double allow_v = nav_v + z * reg.sigma(5);
-        const double allow_yaw = nav_yaw + z * reg.sigma(2) * kRadToDeg;
-        const double allow_rp =
-            nav_rp + 2.4477 * std::hypot(reg.sigma(0), reg.sigma(1)) * kRadToDeg;
-        std::vector<std::string> beyond;
-        char buf[160];
-        if (th > allow_h) {
-            std::snprintf(buf, sizeof buf, "horizontal %.3f m > %.3f m", th, allow_h);
-            beyond.push_back(buf);
-        }
-        if (tz > allow_v) {
-            std::snprintf(buf, sizeof buf, "vertical %.3f m > %.3f m", tz, allow_v);
-            beyond.push_back(buf);
-        }
-        if (yaw_deg > allow_yaw) {
-            std::snprintf(buf, sizeof buf, "yaw %.4f deg > %.4f deg", yaw_deg, allow_yaw);
-            beyond.push_back(buf);
-        }
-        if (cfg.registration.estimate_roll_pitch && rp_deg > allow_rp) {
-            std::snprintf(buf, sizeof buf, "roll/pitch %.4f deg > %.4f deg", rp_deg, allow_rp);
-            beyond.push_back(buf);
-        }
-        std::string why;
-        for (const auto& s : beyond) why += (why.empty() ? "" : ", ") + s;
-        gate_record = {{"evaluated", true},
-                       {"tripped", !beyond.empty()},
-                       {"allowed_horizontal_m", allow_h},
-                       {"allowed_vertical_m", allow_v},
-                       {"allowed_yaw_deg", allow_yaw},
-                       {"allowed_roll_pitch_deg", allow_rp},
-                       {"navigation_sigma",
-                        {{"a",
-                          {{"horizontal_m", a->nav.horizontal_m},
-                           {"vertical_m", a->nav.vertical_m},
-                           {"roll_pitch_deg", a->nav.roll_pitch_deg},
-                           {"yaw_deg", a->nav.yaw_deg}}},
-                         {"b",
-                          {{"horizontal_m", b->nav.horizontal_m},
-                           {"vertical_m", b->nav.vertical_m},
-                           {"roll_pitch_deg", b->nav.roll_pitch_deg},
-                           {"yaw_deg", b->nav.yaw_deg}}}}},
-                       {"beyond", why}};
-        if (!beyond.empty()) {
-            gates.push_back(
-                {{"stage", "compare"},
-                 {"gate", "correction_beyond_navigation"},
-                 {"message",
-                  "the correction that registers B onto A is larger than the two surveys' "
-                  "navigation uncertainty allows (95 %): " +
-                      why +
-                      "; a datum, antenna or base-station error in one of them? The change is "
-                      "computed after the correction"}});
-        }
-    } else {
-        gate_record["message"] = "trajectory_sigma.csv missing in A or B: not evaluated";
+    const double nav_h = 2.4477 * std::hypot(a.nav.horizontal_m, b.nav.horizontal_m);
+    const double nav_v = z * std::hypot(a.nav.vertical_m, b.nav.vertical_m);
+    const double nav_yaw = z * std::hypot(a.nav.yaw_deg, b.nav.yaw_deg);
+    const double nav_rp = 2.4477 * std::hypot(a.nav.roll_pitch_deg, b.nav.roll_pitch_deg);
+    const double allow_h = nav_h + 2.4477 * sig_th;
+    const double allow_v = nav_v + z * reg.sigma(5);
+    const double allow_yaw = nav_yaw + z * reg.sigma(2) * kRadToDeg;
+    const double allow_rp = nav_rp + 2.4477 * std::hypot(reg.sigma(0), reg.sigma(1)) * kRadToDeg;
+    std::vector<std::string> beyond;
+    char buf[160];
+    if (th > allow_h) {
+        std::snprintf(buf, sizeof buf, "horizontal %.3f m > %.3f m", th, allow_h);
+        beyond.push_back(buf);
     }
+    if (tz > allow_v) {
+        std::snprintf(buf, sizeof buf, "vertical %.3f m > %.3f m", tz, allow_v);
+        beyond.push_back(buf);
+    }
+    if (yaw_deg > allow_yaw) {
+        std::snprintf(buf, sizeof buf, "yaw %.4f deg > %.4f deg", yaw_deg, allow_yaw);
+        beyond.push_back(buf);
+    }
+    if (cfg.registration.estimate_roll_pitch && rp_deg > allow_rp) {
+        std::snprintf(buf, sizeof buf, "roll/pitch %.4f deg > %.4f deg", rp_deg, allow_rp);
+        beyond.push_back(buf);
+    }
+    std::string why;
+    for (const auto& s : beyond) why += (why.empty() ? "" : ", ") + s;
+    out.record = {{"evaluated", true},
+                  {"tripped", !beyond.empty()},
+                  {"allowed_horizontal_m", allow_h},
+                  {"allowed_vertical_m", allow_v},
+                  {"allowed_yaw_deg", allow_yaw},
+                  {"allowed_roll_pitch_deg", allow_rp},
+                  {"navigation_sigma", {{"a", NavSigmaJson(a.nav)}, {"b", NavSigmaJson(b.nav)}}},
+                  {"beyond", why}};
+    if (!beyond.empty()) {
+        out.gates.push_back(
+            {{"stage", "compare"},
+             {"gate", "correction_beyond_navigation"},
+             {"message",
+              "the correction that registers B onto A is larger than the two surveys' "
+              "navigation uncertainty allows (95 %): " +
+                  why +
+                  "; a datum, antenna or base-station error in one of them? The change is "
+                  "computed after the correction"}});
+    }
+    return out;
+}
 
-    // Products.
-    std::error_code ec;
-    fs::create_directories(out_dir, ec);
-    if (ec) return Error{"compare: " + out_dir + ": cannot create: " + ec.message()};
-    const fs::path C(out_dir);
+// dod.tif: the change on A's grid.
+Status WriteDod(const fs::path& C,
+                const Epoch& a,
+                const Epoch& b,
+                const compare::ChangeResult& change) {
     io::GridRaster dod;
-    dod.x0 = a->surface.x0;
-    dod.y0 = a->surface.y0;
-    dod.resolution_m = a->surface.resolution_m;
-    dod.nx = a->surface.nx;
-    dod.ny = a->surface.ny;
-    dod.utm_zone = a->epsg % 100;
-    dod.northern = a->epsg < 32700;
-    if (!((a->epsg > 32600 && a->epsg <= 32660) || (a->epsg > 32700 && a->epsg <= 32760)))
+    dod.x0 = a.surface.x0;
+    dod.y0 = a.surface.y0;
+    dod.resolution_m = a.surface.resolution_m;
+    dod.nx = a.surface.nx;
+    dod.ny = a.surface.ny;
+    dod.utm_zone = a.epsg % 100;
+    dod.northern = a.epsg < 32700;
+    if (!((a.epsg > 32600 && a.epsg <= 32660) || (a.epsg > 32700 && a.epsg <= 32760)))
         return Error{"compare: dod.tif: A's CRS is not WGS 84 / UTM (EPSG " +
-                     std::to_string(a->epsg) + ")"};
+                     std::to_string(a.epsg) + ")"};
     dod.horizontal_only = true;
     using K = io::GridBandKind;
     dod.layers = {{"difference", "metre", change.difference_m, K::kContinuous},
@@ -627,10 +613,17 @@ Expected<int> RunCompare(const std::string& a_dir,
                      "B minus A after co-registration (m); lod95: level of detection at 95 %; "
                      "significance -1 loss, 0 no detectable change, +1 gain; region: "
                      "change_regions.geojson id"},
-                    {"pitmap_a", a_dir},
-                    {"pitmap_b", b_dir}};
+                    {"pitmap_a", a.dir},
+                    {"pitmap_b", b.dir}};
     if (auto s = io::WriteCogGeoTiff((C / "dod.tif").string(), dod); !s)
         return Error{"compare: " + s.error().message};
+    return Ok{};
+}
+
+// change_regions.geojson; returns the regions' records for compare.json.
+Expected<json> WriteChangeRegions(const fs::path& C,
+                                  int epsg,
+                                  const compare::ChangeResult& change) {
     json features = json::array();
     json regions = json::array();
     for (const auto& r : change.regions) {
@@ -662,113 +655,215 @@ Expected<int> RunCompare(const std::string& a_dir,
         {"type", "FeatureCollection"},
         {"crs",
          {{"type", "name"},
-          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(a->epsg)}}}}},
+          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
         {"features", features}};
     if (auto s = WriteText((C / "change_regions.geojson").string(), fc.dump(1) + "\n"); !s)
         return Error{"compare: " + s.error().message};
-    if (m3c2) {
-        if (auto s = WriteChangePoints(
-                (C / "change_points.ply").string(), *m3c2, a->epsg, a->horizontal_name);
-            !s)
-            return Error{"compare: " + s.error().message};
-    }
+    return regions;
+}
+
+// The two capacity curves: capacity_a.csv, capacity_b.csv, capacity.svg.
+Status WriteCapacity(const fs::path& C,
+                     const compare::CapacityResult& cap_a,
+                     const compare::CapacityResult& cap_b,
+                     const std::string& datum) {
     if (auto s = WriteText((C / "capacity_a.csv").string(), CapacityCsv(cap_a)); !s)
         return Error{"compare: " + s.error().message};
     if (auto s = WriteText((C / "capacity_b.csv").string(), CapacityCsv(cap_b)); !s)
         return Error{"compare: " + s.error().message};
-    if (auto s = WriteText((C / "capacity.svg").string(),
-                           CapacitySvg(cap_a, cap_b, a->vertical_datum_key));
-        !s)
+    if (auto s = WriteText((C / "capacity.svg").string(), CapacitySvg(cap_a, cap_b, datum)); !s)
         return Error{"compare: " + s.error().message};
+    return Ok{};
+}
+
+json RegistrationJson(const compare::RegistrationResult& reg,
+                      const CompareConfig& cfg,
+                      const json& gate_record) {
+    const auto& T = reg.correction;
+    return {{"termination", compare::ToString(reg.termination)},
+            {"message", reg.message},
+            {"pivot_m", {T.pivot.x(), T.pivot.y(), T.pivot.z()}},
+            {"translation_m", {T.translation_m.x(), T.translation_m.y(), T.translation_m.z()}},
+            {"rotation_deg",
+             {{"roll", T.rotation_rad.x() * kRadToDeg},
+              {"pitch", T.rotation_rad.y() * kRadToDeg},
+              {"yaw", T.rotation_rad.z() * kRadToDeg}}},
+            {"sigma",
+             {{"roll_deg", reg.sigma(0) * kRadToDeg},
+              {"pitch_deg", reg.sigma(1) * kRadToDeg},
+              {"yaw_deg", reg.sigma(2) * kRadToDeg},
+              {"east_m", reg.sigma(3)},
+              {"north_m", reg.sigma(4)},
+              {"up_m", reg.sigma(5)}}},
+            {"dof", cfg.registration.estimate_roll_pitch ? 6 : 4},
+            {"iterations", reg.iterations},
+            {"overlap_area_m2", reg.overlap_area_m2},
+            {"nodes_used", reg.points_overlap},
+            {"nodes_stable", reg.points_stable},
+            {"robust_sigma_m", reg.robust_sigma_m},
+            {"rms_vertical_before_m", reg.rms_vertical_before_m},
+            {"rms_vertical_after_m", reg.rms_vertical_after_m},
+            {"navigation_gate", gate_record}};
+}
+
+json ChangeJson(const compare::ChangeResult& change, double resolution_m, const json& regions) {
     const auto totals = [](const compare::ChangeTotals& t) {
         return json{{"volume_m3", t.volume_m3},
                     {"u95_m3", t.u95_m3},
                     {"area_m2", t.area_m2},
                     {"regions", t.regions}};
     };
-    json j = {{"inputs",
-               {{"a",
-                 {{"folder", fs::weakly_canonical(a_dir).string()},
-                  {"run_id", a->run_id},
-                  {"survey_start_utc", a->start_utc}}},
-                {"b",
-                 {{"folder", fs::weakly_canonical(b_dir).string()},
-                  {"run_id", b->run_id},
-                  {"survey_start_utc", b->start_utc}}}}},
-              {"crs",
-               {{"horizontal", a->horizontal_name},
-                {"epsg", a->epsg},
-                {"vertical", a->vertical_datum_key}}},
-              {"registration",
-               {{"termination", compare::ToString(reg.termination)},
-                {"message", reg.message},
-                {"pivot_m", {T.pivot.x(), T.pivot.y(), T.pivot.z()}},
-                {"translation_m", {T.translation_m.x(), T.translation_m.y(), T.translation_m.z()}},
-                {"rotation_deg",
-                 {{"roll", T.rotation_rad.x() * kRadToDeg},
-                  {"pitch", T.rotation_rad.y() * kRadToDeg},
-                  {"yaw", T.rotation_rad.z() * kRadToDeg}}},
-                {"sigma",
-                 {{"roll_deg", reg.sigma(0) * kRadToDeg},
-                  {"pitch_deg", reg.sigma(1) * kRadToDeg},
-                  {"yaw_deg", reg.sigma(2) * kRadToDeg},
-                  {"east_m", reg.sigma(3)},
-                  {"north_m", reg.sigma(4)},
-                  {"up_m", reg.sigma(5)}}},
-                {"dof", cfg.registration.estimate_roll_pitch ? 6 : 4},
-                {"iterations", reg.iterations},
-                {"overlap_area_m2", reg.overlap_area_m2},
-                {"nodes_used", reg.points_overlap},
-                {"nodes_stable", reg.points_stable},
-                {"robust_sigma_m", reg.robust_sigma_m},
-                {"rms_vertical_before_m", reg.rms_vertical_before_m},
-                {"rms_vertical_after_m", reg.rms_vertical_after_m},
-                {"navigation_gate", gate_record}}},
-              {"change",
-               {{"message", change.message},
-                {"compared_nodes", change.compared_nodes},
-                {"compared_area_m2", change.compared_area_m2},
-                {"resolution_m", a->surface.resolution_m},
-                {"median_lod95_m", change.median_lod95_m},
-                {"median_lod95_by_slope_m",
-                 {{"floor_0_20_deg", change.median_lod95_floor_m},
-                  {"face_20_45_deg", change.median_lod95_face_m},
-                  {"wall_45_90_deg", change.median_lod95_wall_m}}},
-                {"significant_share", change.significant_share},
-                {"stable_mean_m", change.stable_mean_m},
-                {"stable_rms_m", change.stable_rms_m},
-                {"cut", totals(change.cut)},
-                {"fill", totals(change.fill)},
-                {"net_m3", change.cut.volume_m3 + change.fill.volume_m3},
-                {"regions", regions}}},
-              {"change3d", change3d},
-              {"capacity", {{"a", CapacityJson(cap_a)}, {"b", CapacityJson(cap_b)}}},
-              {"files",
-               {"dod.tif",
-                "change_regions.geojson",
-                "capacity_a.csv",
-                "capacity_b.csv",
-                "capacity.svg",
-                "compare.json"}},
-              {"quality_gates", gates}};
-    if (m3c2) j["files"].push_back("change_points.ply");
+    return {{"message", change.message},
+            {"compared_nodes", change.compared_nodes},
+            {"compared_area_m2", change.compared_area_m2},
+            {"resolution_m", resolution_m},
+            {"median_lod95_m", change.median_lod95_m},
+            {"median_lod95_by_slope_m",
+             {{"floor_0_20_deg", change.median_lod95_floor_m},
+              {"face_20_45_deg", change.median_lod95_face_m},
+              {"wall_45_90_deg", change.median_lod95_wall_m}}},
+            {"significant_share", change.significant_share},
+            {"stable_mean_m", change.stable_mean_m},
+            {"stable_rms_m", change.stable_rms_m},
+            {"cut", totals(change.cut)},
+            {"fill", totals(change.fill)},
+            {"net_m3", change.cut.volume_m3 + change.fill.volume_m3},
+            {"regions", regions}};
+}
+
+json EpochInputJson(const Epoch& e) {
+    return {{"folder", fs::weakly_canonical(e.dir).string()},
+            {"run_id", e.run_id},
+            {"survey_start_utc", e.start_utc}};
+}
+
+// What the comparison found, for compare.json and the log.
+struct Comparison {
+    compare::RegistrationResult reg;
+    compare::ChangeResult change;
+    compare::CapacityResult cap_a, cap_b;
+    Change3d change3d;
+    NavigationGate gate;
+};
+
+json CompareJson(const Epoch& a,
+                 const Epoch& b,
+                 const Comparison& r,
+                 const CompareConfig& cfg,
+                 const json& regions) {
+    json j = {
+        {"inputs", {{"a", EpochInputJson(a)}, {"b", EpochInputJson(b)}}},
+        {"crs",
+         {{"horizontal", a.horizontal_name}, {"epsg", a.epsg}, {"vertical", a.vertical_datum_key}}},
+        {"registration", RegistrationJson(r.reg, cfg, r.gate.record)},
+        {"change", ChangeJson(r.change, a.surface.resolution_m, regions)},
+        {"change3d", r.change3d.record},
+        {"capacity", {{"a", CapacityJson(r.cap_a)}, {"b", CapacityJson(r.cap_b)}}},
+        {"files",
+         {"dod.tif",
+          "change_regions.geojson",
+          "capacity_a.csv",
+          "capacity_b.csv",
+          "capacity.svg",
+          "compare.json"}},
+        {"quality_gates", r.gate.gates}};
+    if (r.change3d.m3c2) j["files"].push_back("change_points.ply");
+    return j;
+}
+
+// All of C's products.
+Status WriteProducts(const std::string& out_dir,
+                     const Epoch& a,
+                     const Epoch& b,
+                     const Comparison& r,
+                     const CompareConfig& cfg) {
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) return Error{"compare: " + out_dir + ": cannot create: " + ec.message()};
+    const fs::path C(out_dir);
+    if (auto s = WriteDod(C, a, b, r.change); !s) return s;
+    auto regions = WriteChangeRegions(C, a.epsg, r.change);
+    if (!regions) return regions.error();
+    if (r.change3d.m3c2) {
+        if (auto s = WriteChangePoints(
+                (C / "change_points.ply").string(), *r.change3d.m3c2, a.epsg, a.horizontal_name);
+            !s)
+            return Error{"compare: " + s.error().message};
+    }
+    if (auto s = WriteCapacity(C, r.cap_a, r.cap_b, a.vertical_datum_key); !s) return s;
+    const json j = CompareJson(a, b, r, cfg, *regions);
     if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
         return Error{"compare: " + s.error().message};
+    return Ok{};
+}
+
+std::string SummaryLine(const Comparison& r, const std::string& out_dir) {
     char buf[256];
     std::snprintf(buf,
                   sizeof buf,
                   "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions; capacity A "
                   "%.0f m3, B %.0f m3; products in %s",
-                  change.cut.volume_m3,
-                  change.cut.u95_m3,
-                  change.fill.volume_m3,
-                  change.fill.u95_m3,
-                  change.regions.size(),
-                  cap_a.volume_at_water_level_m3,
-                  cap_b.volume_at_water_level_m3,
+                  r.change.cut.volume_m3,
+                  r.change.cut.u95_m3,
+                  r.change.fill.volume_m3,
+                  r.change.fill.u95_m3,
+                  r.change.regions.size(),
+                  r.cap_a.volume_at_water_level_m3,
+                  r.cap_b.volume_at_water_level_m3,
                   out_dir.c_str());
-    log(buf);
-    return static_cast<int>(gates.size());
+    return buf;
+}
+
+}  // namespace
+
+std::vector<std::string> CompareConfig::Validate() const {
+    std::vector<std::string> p = registration.Validate();
+    for (auto& q : change.Validate()) p.push_back(std::move(q));
+    for (auto& q : m3c2.Validate()) p.push_back(std::move(q));
+    if (!(capacity_step_m > 0 && capacity_step_m <= 100))
+        p.push_back("capacity step must be in (0, 100] m");
+    if (!(gate_z95 > 0)) p.push_back("gate_z95 must be > 0");
+    return p;
+}
+
+Expected<int> RunCompare(const std::string& a_dir,
+                         const std::string& b_dir,
+                         const std::string& out_dir,
+                         const CompareConfig& cfg,
+                         const std::function<void(const std::string&)>& log) {
+    if (auto problems = cfg.Validate(); !problems.empty())
+        return Error{"compare: invalid settings: " + problems.front()};
+    if (fs::weakly_canonical(a_dir) == fs::weakly_canonical(b_dir))
+        return Error{"compare: A and B are the same folder (" + a_dir + ")"};
+    auto a = ReadEpoch(a_dir, "A");
+    if (!a) return Error{"compare: " + a.error().message};
+    auto b = ReadEpoch(b_dir, "B");
+    if (!b) return Error{"compare: " + b.error().message};
+    if (auto s = CheckComparable(*a, *b, log); !s) return s.error();
+
+    Comparison r;
+    log("compare: registering B onto A on stable terrain");
+    r.reg = compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
+    if (!r.reg.ok()) {
+        return Error{"compare: registration failed: " + r.reg.message +
+                     (r.reg.termination == compare::RegistrationTermination::kTooFewPoints
+                          ? " (the surveys do not overlap enough)"
+                          : "")};
+    }
+    log("compare: registration " + r.reg.message);
+    r.change = compare::ComputeChange(
+        a->surface, b->surface, r.reg.correction, r.reg.covariance, cfg.change);
+    log("compare: change: " + r.change.message);
+    r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
+    r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
+    auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
+    if (!change3d) return change3d.error();
+    r.change3d = std::move(*change3d);
+    r.gate = CheckNavigation(*a, *b, r.reg, cfg);
+
+    if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
+    log(SummaryLine(r, out_dir));
+    return static_cast<int>(r.gate.gates.size());
 }
 
 }  // namespace pitmap::proc::pipeline
