@@ -144,18 +144,25 @@ double OverlapSpeedEstimate::RelativeSigmaAt(double depth_m) const {
     return out;
 }
 
-OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>& points,
-                                              const std::vector<Eigen::Vector3d>& offsets,
-                                              const SoundSpeedSigmaConfig& config) {
-    OverlapSpeedEstimate out;
-    const std::vector<double>& edges = config.overlap_depth_edges_m;
-    const std::size_t nclass = edges.size() - 1;
-    for (std::size_t c = 0; c < nclass; ++c) {
+namespace {
+
+// The depth classes between the configured edges, nothing estimated yet.
+std::vector<OverlapDepthClass> DepthClasses(const std::vector<double>& edges) {
+    std::vector<OverlapDepthClass> out;
+    for (std::size_t c = 0; c + 1 < edges.size(); ++c) {
         OverlapDepthClass k;
         k.lo_m = edges[c];
         k.hi_m = edges[c + 1];
-        out.classes.push_back(k);
+        out.push_back(k);
     }
+    return out;
+}
+
+// The cells' sums over the soundings (at most overlap_max_soundings of them, evenly strided)
+// within overlap_max_angle_deg of the vertical, keyed by the cell's (x, y) index.
+std::unordered_map<std::int64_t, CellSums> SumCells(const std::vector<Eigen::Vector3d>& points,
+                                                    const std::vector<Eigen::Vector3d>& offsets,
+                                                    const SoundSpeedSigmaConfig& config) {
     const std::size_t n = std::min(points.size(), offsets.size());
     const std::size_t stride = std::max<std::size_t>(
         1, (n + config.overlap_max_soundings - 1) / config.overlap_max_soundings);
@@ -184,13 +191,23 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
         s.zz += p.z() * p.z();
         s.d += d;
     }
-    // The cells' residual cross products after each cell's own plane.
-    struct Cell {
-        std::size_t cls, group, n;
-        double rgg, rgz, rzz;
-        bool used = true;
-    };
-    std::vector<Cell> kept;
+    return cells;
+}
+
+// A floor cell's residual cross products after its own plane, its depth class and jackknife
+// group.
+struct CellResidual {
+    std::size_t cls, group, n;
+    double rgg, rgz, rzz;
+    bool used = true;  // kept by the robust fit
+};
+
+// The residuals of the cells with enough soundings, a well-posed plane no steeper than
+// overlap_max_slope_deg and a mean depth within the depth classes.
+std::vector<CellResidual> FloorCellResiduals(
+    const std::unordered_map<std::int64_t, CellSums>& cells, const SoundSpeedSigmaConfig& config) {
+    const std::vector<double>& edges = config.overlap_depth_edges_m;
+    std::vector<CellResidual> kept;
     const double max_slope = std::tan(config.overlap_max_slope_deg * M_PI / 180.0);
     for (const auto& [key, s] : cells) {
         if (s.n < static_cast<std::size_t>(config.overlap_min_cell_soundings)) continue;
@@ -210,14 +227,18 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
             (static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> 61);  // 0..7
         kept.push_back({c, grp, s.n, rgg, rgz, std::max(rzz, 0.0)});
     }
-    // The fit, robust to cells that are no floor (a bench edge, an echo, two surfaces): a cell
-    // whose residual RMS after the plane and the class's k exceeds 3 times the class's median
-    // cell RMS (and 2 cm) is left out, three times over.
+    return kept;
+}
+
+// The fit, robust to cells that are no floor (a bench edge, an echo, two surfaces): a cell
+// whose residual RMS after the plane and the class's k exceeds 3 times the class's median
+// cell RMS (and 2 cm) is left out (`used` false), three times over.
+void LeaveOutNonFloorCells(std::vector<CellResidual>& kept, std::size_t nclass) {
     std::vector<double> kappa(nclass, 0.0);
     const auto fit = [&]() {
         for (std::size_t c = 0; c < nclass; ++c) {
             double gg = 0, gz = 0;
-            for (const Cell& k : kept) {
+            for (const CellResidual& k : kept) {
                 if (k.used && k.cls == c) {
                     gg += k.rgg;
                     gz += k.rgz;
@@ -226,7 +247,7 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
             kappa[c] = gg > 0 ? gz / gg : 0.0;
         }
     };
-    const auto cell_rms = [&](const Cell& k) {
+    const auto cell_rms = [&](const CellResidual& k) {
         const double ss = k.rzz - 2 * kappa[k.cls] * k.rgz + kappa[k.cls] * kappa[k.cls] * k.rgg;
         return std::sqrt(std::max(ss, 0.0) /
                          static_cast<double>(std::max<std::size_t>(k.n, 5) - 4));
@@ -235,64 +256,79 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
     for (int iter = 0; iter < 3; ++iter) {
         for (std::size_t c = 0; c < nclass; ++c) {
             std::vector<double> rms;
-            for (const Cell& k : kept) {
+            for (const CellResidual& k : kept) {
                 if (k.cls == c) rms.push_back(cell_rms(k));
             }
             if (rms.empty()) continue;
             std::nth_element(
                 rms.begin(), rms.begin() + static_cast<std::ptrdiff_t>(rms.size() / 2), rms.end());
             const double limit = std::max(0.02, 3.0 * rms[rms.size() / 2]);
-            for (Cell& k : kept) {
+            for (CellResidual& k : kept) {
                 if (k.cls == c) k.used = cell_rms(k) <= limit;
             }
         }
         fit();
     }
-    std::vector<std::array<double, kGroups>> Rgg(nclass), Rgz(nclass);
-    for (std::size_t c = 0; c < nclass; ++c) {
-        Rgg[c].fill(0);
-        Rgz[c].fill(0);
-    }
-    for (const Cell& k : kept) {
+}
+
+// One depth class's residual cross products per jackknife group.
+struct GroupSums {
+    std::array<double, kGroups> gg{};
+    std::array<double, kGroups> gz{};
+};
+
+// The used cells' sums per class and group; their cells and soundings counted into `out`.
+std::vector<GroupSums> SumGroups(const std::vector<CellResidual>& kept, OverlapSpeedEstimate& out) {
+    std::vector<GroupSums> sums(out.classes.size());
+    for (const CellResidual& k : kept) {
         if (!k.used) continue;
-        Rgg[k.cls][k.group] += k.rgg;
-        Rgz[k.cls][k.group] += k.rgz;
+        sums[k.cls].gg[k.group] += k.rgg;
+        sums[k.cls].gz[k.group] += k.rgz;
         ++out.classes[k.cls].cells;
         out.classes[k.cls].soundings += k.n;
         ++out.cells_used;
         out.soundings_used += k.n;
     }
-    for (std::size_t c = 0; c < nclass; ++c) {
-        OverlapDepthClass& k = out.classes[c];
-        double gg = 0, gz = 0;
-        for (int g = 0; g < kGroups; ++g) {
-            gg += Rgg[c][g];
-            gz += Rgz[c][g];
-        }
-        k.weight_m2 = gg;
-        if (!(gg >= config.overlap_min_weight_m2) || !(gg > 0)) continue;
-        k.relative_error = gz / gg;
-        // Beyond any water (fresh water at 0-30 degC spans about 1400-1510 m/s) the fit
-        // explains something else: not an estimate.
-        if (std::abs(k.relative_error) > kMaxRelativeError) continue;
-        // Delete-a-group jackknife: the cells of a group share no sounding, but the passes that
-        // make their overlaps do, so the formal sigma^2 / gg would be too small.
-        double ss = 0;
-        int used = 0;
-        for (int g = 0; g < kGroups; ++g) {
-            const double gg_g = gg - Rgg[c][g];
-            if (!(gg_g > 0)) continue;
-            ss += Square((gz - Rgz[c][g]) / gg_g - k.relative_error);
-            ++used;
-        }
-        if (used < 2) continue;
-        k.relative_error_se = std::sqrt(static_cast<double>(used - 1) / used * ss);
-        k.estimated = true;
+    return sums;
+}
+
+// The class's relative column speed error and its standard error, `estimated` when the class
+// weighs enough, the error is within any water's and the jackknife has two groups or more.
+void EstimateClass(const GroupSums& sums,
+                   const SoundSpeedSigmaConfig& config,
+                   OverlapDepthClass& k) {
+    double gg = 0, gz = 0;
+    for (int g = 0; g < kGroups; ++g) {
+        gg += sums.gg[g];
+        gz += sums.gz[g];
     }
+    k.weight_m2 = gg;
+    if (!(gg >= config.overlap_min_weight_m2) || !(gg > 0)) return;
+    k.relative_error = gz / gg;
+    // Beyond any water (fresh water at 0-30 degC spans about 1400-1510 m/s) the fit
+    // explains something else: not an estimate.
+    if (std::abs(k.relative_error) > kMaxRelativeError) return;
+    // Delete-a-group jackknife: the cells of a group share no sounding, but the passes that
+    // make their overlaps do, so the formal sigma^2 / gg would be too small.
+    double ss = 0;
+    int used = 0;
+    for (int g = 0; g < kGroups; ++g) {
+        const double gg_g = gg - sums.gg[g];
+        if (!(gg_g > 0)) continue;
+        ss += Square((gz - sums.gz[g]) / gg_g - k.relative_error);
+        ++used;
+    }
+    if (used < 2) return;
+    k.relative_error_se = std::sqrt(static_cast<double>(used - 1) / used * ss);
+    k.estimated = true;
+}
+
+// The estimate's one-line summary.
+std::string EstimateMessage(const OverlapSpeedEstimate& e) {
     char buf[200];
     int estimated = 0;
     double worst = 0;
-    for (const auto& k : out.classes) {
+    for (const auto& k : e.classes) {
         if (!k.estimated) continue;
         ++estimated;
         worst = std::max(worst, std::hypot(k.relative_error, k.relative_error_se));
@@ -301,11 +337,27 @@ OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>
                   sizeof buf,
                   "%zu soundings in %zu overlap cells: %d depth classes estimated, largest "
                   "relative column speed sigma %.4f",
-                  out.soundings_used,
-                  out.cells_used,
+                  e.soundings_used,
+                  e.cells_used,
                   estimated,
                   worst);
-    out.message = buf;
+    return buf;
+}
+
+}  // namespace
+
+OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>& points,
+                                              const std::vector<Eigen::Vector3d>& offsets,
+                                              const SoundSpeedSigmaConfig& config) {
+    OverlapSpeedEstimate out;
+    out.classes = DepthClasses(config.overlap_depth_edges_m);
+    std::vector<CellResidual> cells = FloorCellResiduals(SumCells(points, offsets, config), config);
+    LeaveOutNonFloorCells(cells, out.classes.size());
+    const std::vector<GroupSums> sums = SumGroups(cells, out);
+    for (std::size_t c = 0; c < out.classes.size(); ++c) {
+        EstimateClass(sums[c], config, out.classes[c]);
+    }
+    out.message = EstimateMessage(out);
     return out;
 }
 

@@ -319,6 +319,193 @@ namespace detail {
 
 namespace {
 
+// The column speed sigma at each ping from its cast (hydro::CastSpeedSigma: the cast's age and
+// distance, and the header's disagreement with it at the transducer), the pings without a cast
+// keeping the error model's.
+struct CastSigmas {
+    std::vector<double> column;        // per ping, m/s
+    std::vector<double> disagreement;  // |header - cast at the transducer|, m/s, where measured
+    std::size_t with_cast = 0;         // pings with a cast
+    bool header_measured = false;      // the header's speed is a measurement at the head
+};
+
+// CastSigmas, and each cast ping's column and surface speed sigmas into `sig`.
+CastSigmas CastSpeedSigmas(const StageContext& s,
+                           const SensorErrorModel& m,
+                           const hydro::SoundSpeedSigmaConfig& cfg,
+                           bool header_measured,
+                           std::vector<hydro::PingSigma>& sig) {
+    CastSigmas out;
+    out.header_measured = header_measured;
+    out.column.assign(sig.size(), m.mean_sound_speed_sigma_mps);
+    const svp::Refraction* refr = s.geo.refraction.get();
+    if (refr == nullptr) return out;
+    const LocalTangentFrame world(s.model.origin);
+    for (std::size_t k = 0; k < sig.size(); ++k) {
+        const georef::GeorefPing& ping = s.geo.pings[k];
+        if (ping.cast < 0 || static_cast<std::size_t>(ping.cast) >= refr->casts().size()) continue;
+        const svp::PreparedCast& c = refr->casts()[static_cast<std::size_t>(ping.cast)];
+        const double age_s = c.cast.has_time()
+                                 ? static_cast<double>(ping.utime_gps - c.cast.utime_gps) * 1e-6
+                                 : std::nan("");
+        double distance_m = std::nan("");
+        if (c.cast.has_position()) {
+            const Eigen::Vector3d at =
+                world.ToEnu(Geodetic{c.cast.latitude_deg, c.cast.longitude_deg, 0.0});
+            distance_m = (ping.sensor_world - at).head<2>().norm();
+        }
+        double dis = std::nan("");
+        if (header_measured) {
+            const double depth =
+                refr->TransducerDepth(ping.T_world_vehicle.linear() * s.model.mount.lever_arm_m);
+            dis = ping.assumed_sound_speed_mps - c.profile.SpeedAt(depth);
+            out.disagreement.push_back(std::abs(dis));
+        }
+        out.column[k] =
+            hydro::CastSpeedSigma(m.mean_sound_speed_sigma_mps, age_s, distance_m, dis, cfg);
+        sig[k].column_speed_sigma_mps = out.column[k];
+        // The steering correction used the cast's speed at the face (kProfile): off by the
+        // disagreement; with the header's speed (kHeader) no correction was made.
+        if (refr->surface_speed() == svp::SurfaceSpeedSource::kProfile && std::isfinite(dis)) {
+            sig[k].surface_speed_sigma_mps = std::hypot(m.surface_sound_speed_sigma_mps, dis);
+        }
+        ++out.with_cast;
+    }
+    return out;
+}
+
+// The swath overlap's estimate of the column speed error (hydro::EstimateColumnSpeedError), from
+// the soundings and their offsets from their transducer.
+std::shared_ptr<const hydro::OverlapSpeedEstimate> OverlapSpeedEstimateOf(
+    const StageContext& s, const hydro::SoundSpeedSigmaConfig& cfg) {
+    std::vector<Eigen::Vector3d> offsets(s.geo.points.size());
+    for (std::size_t j = 0; j < offsets.size(); ++j) {
+        offsets[j] =
+            s.geo.points.position_world[j] - s.geo.pings[s.geo.points.ping[j]].sensor_world;
+    }
+    return std::make_shared<const hydro::OverlapSpeedEstimate>(
+        hydro::EstimateColumnSpeedError(s.geo.points.position_world, offsets, cfg));
+}
+
+// What the overlap shows of stratified water in depth class `c`, for the gates' messages.
+std::string StratifiedText(const hydro::OverlapDepthClass& c, double sound_speed_mps) {
+    return "the swath overlap shows a column speed error of " +
+           Fixed(c.relative_error * sound_speed_mps, 1) + " +- " +
+           Fixed(c.relative_error_se * sound_speed_mps, 1) + " m/s at " + Fixed(c.lo_m, 0) + "-" +
+           Fixed(c.hi_m, 0) +
+           " m below the transducer (stratified water the profile does not describe)";
+}
+
+// Stratified water and nothing that measures it: every ping's column takes the a-priori bound
+// of a fresh-water pit (the overlap sees only part of the error), and the gate
+// grid/sound_speed_not_assessable says so.
+void TakeAPrioriBound(StageContext& s,
+                      const SensorErrorModel& m,
+                      const std::string& strat_text,
+                      std::vector<double>& column,
+                      std::vector<hydro::PingSigma>& sig,
+                      const Log& log) {
+    for (std::size_t k = 0; k < sig.size(); ++k) {
+        column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
+                               hydro::NoCastPriorSigma(s.geo.pings[k].assumed_sound_speed_mps));
+        sig[k].column_speed_sigma_mps = column[k];
+    }
+    TripGate(s,
+             Stage::kGrid,
+             "sound_speed_not_assessable",
+             "no sound-velocity cast, and " + strat_text +
+                 ": the TPU takes the a-priori bound of the column's speed (between the "
+                 "surface speed and water at 4 degC, sigma " +
+                 Fixed(column.empty() ? 0.0 : column.front(), 1) +
+                 " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
+                 "(--svp) to assess the survey",
+             log);
+}
+
+// Nothing shows stratification, but too little overlap to say there is none: the TVU keeps the
+// error model's column term, and the gate grid/sound_speed_not_assessable says it could not be
+// assessed.
+void GateTooLittleOverlap(StageContext& s,
+                          const hydro::OverlapSpeedEstimate& est,
+                          const SensorErrorModel& m,
+                          const Log& log) {
+    TripGate(s,
+             Stage::kGrid,
+             "sound_speed_not_assessable",
+             "no sound-velocity cast, and too little swath overlap on floors to measure "
+             "the water column's speed error (" +
+                 est.message + "; the estimated depth classes hold " +
+                 Fixed(100 * est.EstimatedShare(), 0) +
+                 " % of its soundings): the TVU assumes the column the error model "
+                 "states (" +
+                 Fixed(m.mean_sound_speed_sigma_mps, 1) +
+                 " m/s), which in stratified water it is not; give a cast (--svp) to "
+                 "assess the survey",
+             log);
+}
+
+// The overlap shows stratified water the cast(s) do not describe: the gate
+// grid/sound_speed_cast_disagrees.
+void GateCastDisagrees(StageContext& s, const std::string& strat_text, const Log& log) {
+    TripGate(s,
+             Stage::kGrid,
+             "sound_speed_cast_disagrees",
+             strat_text +
+                 ": the cast(s) do not describe the water the soundings went through "
+                 "(another time or place, or a wrong cast); the TPU carries the "
+                 "overlap's estimate",
+             log);
+}
+
+// The median, NaN when empty.
+double MedianOrNan(std::vector<double> v) {
+    if (v.empty()) return std::nan("");
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+}
+
+// What the sound speed term of the TPU took and why.
+struct SoundSpeedVerdict {
+    std::string source;       // cast, error_model, a_priori_bound; "+overlap" when it was used
+    bool stratified = false;  // the overlap shows stratified water
+    bool assessable = false;  // a cast, or an overlap that stands for the column
+};
+
+// summary.json's stages.grid.sound_speed.
+json SoundSpeedJson(const CastSigmas& cast,
+                    const hydro::OverlapSpeedEstimate& est,
+                    const SoundSpeedVerdict& verdict,
+                    double sound_speed_mps) {
+    json classes = json::array();
+    for (const auto& c : est.classes) {
+        if (c.cells == 0) continue;
+        classes.push_back({{"depth_m", {c.lo_m, std::isinf(c.hi_m) ? json(nullptr) : json(c.hi_m)}},
+                           {"cells", c.cells},
+                           {"soundings", c.soundings},
+                           {"estimated", c.estimated},
+                           {"weight_m2", c.weight_m2},
+                           {"relative_error", c.relative_error},
+                           {"relative_error_se", c.relative_error_se},
+                           {"speed_error_mps", c.relative_error * sound_speed_mps}});
+    }
+    json out = {{"source", verdict.source},
+                {"pings_with_cast", cast.with_cast},
+                {"header_speed_measured", cast.header_measured},
+                {"median_column_sigma_mps", MedianOrNan(cast.column)},
+                {"stratified", verdict.stratified},
+                {"assessable", verdict.assessable},
+                {"overlap_estimated_share", est.EstimatedShare()},
+                {"overlap",
+                 {{"soundings", est.soundings_used},
+                  {"cells", est.cells_used},
+                  {"classes", classes},
+                  {"message", est.message}}}};
+    if (!cast.disagreement.empty()) {
+        out["median_surface_disagreement_mps"] = MedianOrNan(cast.disagreement);
+    }
+    return out;
+}
+
 // The TPU's sound speed sigmas from the data (hydro/sound_speed.hpp), per ping into `sig`, and
 // the column speed error the swath overlap measured into tcfg; returns summary.json's
 // stages.grid.sound_speed. Without a cast and without an estimate from the overlap the
@@ -333,155 +520,34 @@ json SoundSpeedSigmas(StageContext& s,
     const hydro::SoundSpeedSigmaConfig& cfg = gc.sound_speed;
     // The header's speed is a measurement at the head unless it was typed in.
     const bool header_measured = sv_source != SoundVelocitySource::kManual;
-    const svp::Refraction* refr = s.geo.refraction.get();
-    std::vector<double> column(sig.size(), m.mean_sound_speed_sigma_mps);
-    std::vector<double> disagreement;
-    std::size_t with_cast = 0;
-    if (refr != nullptr) {
-        const LocalTangentFrame world(s.model.origin);
-        for (std::size_t k = 0; k < sig.size(); ++k) {
-            const georef::GeorefPing& ping = s.geo.pings[k];
-            if (ping.cast < 0 || static_cast<std::size_t>(ping.cast) >= refr->casts().size())
-                continue;
-            const svp::PreparedCast& c = refr->casts()[static_cast<std::size_t>(ping.cast)];
-            const double age_s = c.cast.has_time()
-                                     ? static_cast<double>(ping.utime_gps - c.cast.utime_gps) * 1e-6
-                                     : std::nan("");
-            double distance_m = std::nan("");
-            if (c.cast.has_position()) {
-                const Eigen::Vector3d at =
-                    world.ToEnu(Geodetic{c.cast.latitude_deg, c.cast.longitude_deg, 0.0});
-                distance_m = (ping.sensor_world - at).head<2>().norm();
-            }
-            double dis = std::nan("");
-            if (header_measured) {
-                const double depth = refr->TransducerDepth(ping.T_world_vehicle.linear() *
-                                                           s.model.mount.lever_arm_m);
-                dis = ping.assumed_sound_speed_mps - c.profile.SpeedAt(depth);
-                disagreement.push_back(std::abs(dis));
-            }
-            column[k] =
-                hydro::CastSpeedSigma(m.mean_sound_speed_sigma_mps, age_s, distance_m, dis, cfg);
-            sig[k].column_speed_sigma_mps = column[k];
-            // The steering correction used the cast's speed at the face (kProfile): off by the
-            // disagreement; with the header's speed (kHeader) no correction was made.
-            if (refr->surface_speed() == svp::SurfaceSpeedSource::kProfile && std::isfinite(dis)) {
-                sig[k].surface_speed_sigma_mps = std::hypot(m.surface_sound_speed_sigma_mps, dis);
-            }
-            ++with_cast;
-        }
-    }
+    CastSigmas cast = CastSpeedSigmas(s, m, cfg, header_measured, sig);
     // The swath overlap's estimate of the column speed error, cast or no cast.
-    std::vector<Eigen::Vector3d> offsets(s.geo.points.size());
-    for (std::size_t j = 0; j < offsets.size(); ++j) {
-        offsets[j] =
-            s.geo.points.position_world[j] - s.geo.pings[s.geo.points.ping[j]].sensor_world;
-    }
-    const auto est = std::make_shared<const hydro::OverlapSpeedEstimate>(
-        hydro::EstimateColumnSpeedError(s.geo.points.position_world, offsets, cfg));
-    std::vector<Eigen::Vector3d>().swap(offsets);
+    const auto est = OverlapSpeedEstimateOf(s, cfg);
     log("grid: sound speed from the swath overlap: " + est->message);
-    std::string source = with_cast > 0 ? "cast" : "error_model";
     const int strat = est->StratifiedClass(tcfg.sound_speed_mps, cfg.overlap_stratified_mps);
-    std::string strat_text;
-    if (strat >= 0) {
-        const hydro::OverlapDepthClass& c = est->classes[static_cast<std::size_t>(strat)];
-        strat_text = "the swath overlap shows a column speed error of " +
-                     Fixed(c.relative_error * tcfg.sound_speed_mps, 1) + " +- " +
-                     Fixed(c.relative_error_se * tcfg.sound_speed_mps, 1) + " m/s at " +
-                     Fixed(c.lo_m, 0) + "-" + Fixed(c.hi_m, 0) +
-                     " m below the transducer (stratified water the profile does not describe)";
-    }
+    const std::string strat_text =
+        strat >= 0
+            ? StratifiedText(est->classes[static_cast<std::size_t>(strat)], tcfg.sound_speed_mps)
+            : std::string();
     const bool overlap_enough =
         est->estimated() && est->EstimatedShare() >= cfg.overlap_min_estimated_share;
+    SoundSpeedVerdict verdict;
+    verdict.source = cast.with_cast > 0 ? "cast" : "error_model";
+    verdict.stratified = strat >= 0;
     // Without a cast the column is assessed only by an overlap that stands for it.
-    const bool assessable = with_cast > 0 || (strat < 0 && overlap_enough);
-    if (with_cast == 0 && strat >= 0) {
-        // Stratified water and nothing that measures it: the a-priori bound of a fresh-water
-        // pit (the overlap sees only part of the error).
-        for (std::size_t k = 0; k < sig.size(); ++k) {
-            column[k] = std::hypot(m.mean_sound_speed_sigma_mps,
-                                   hydro::NoCastPriorSigma(s.geo.pings[k].assumed_sound_speed_mps));
-            sig[k].column_speed_sigma_mps = column[k];
-        }
-        source = "a_priori_bound";
-        TripGate(s,
-                 Stage::kGrid,
-                 "sound_speed_not_assessable",
-                 "no sound-velocity cast, and " + strat_text +
-                     ": the TPU takes the a-priori bound of the column's speed (between the "
-                     "surface speed and water at 4 degC, sigma " +
-                     Fixed(column.empty() ? 0.0 : column.front(), 1) +
-                     " m/s), so the TVU and the S-44 order rest on that bound; give a cast "
-                     "(--svp) to assess the survey",
-                 log);
+    verdict.assessable = cast.with_cast > 0 || (strat < 0 && overlap_enough);
+    if (cast.with_cast == 0 && strat >= 0) {
+        TakeAPrioriBound(s, m, strat_text, cast.column, sig, log);
+        verdict.source = "a_priori_bound";
     } else {
         if (est->estimated()) {
             tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
-            source += "+overlap";
+            verdict.source += "+overlap";
         }
-        if (!assessable) {
-            // Nothing shows stratification, but too little overlap to say there is none: the
-            // TVU keeps the error model's column term, and says it could not be assessed.
-            TripGate(s,
-                     Stage::kGrid,
-                     "sound_speed_not_assessable",
-                     "no sound-velocity cast, and too little swath overlap on floors to measure "
-                     "the water column's speed error (" +
-                         est->message + "; the estimated depth classes hold " +
-                         Fixed(100 * est->EstimatedShare(), 0) +
-                         " % of its soundings): the TVU assumes the column the error model "
-                         "states (" +
-                         Fixed(m.mean_sound_speed_sigma_mps, 1) +
-                         " m/s), which in stratified water it is not; give a cast (--svp) to "
-                         "assess the survey",
-                     log);
-        }
-        if (strat >= 0) {
-            TripGate(s,
-                     Stage::kGrid,
-                     "sound_speed_cast_disagrees",
-                     strat_text +
-                         ": the cast(s) do not describe the water the soundings went through "
-                         "(another time or place, or a wrong cast); the TPU carries the "
-                         "overlap's estimate",
-                     log);
-        }
+        if (!verdict.assessable) GateTooLittleOverlap(s, *est, m, log);
+        if (strat >= 0) GateCastDisagrees(s, strat_text, log);
     }
-    json classes = json::array();
-    for (const auto& c : est->classes) {
-        if (c.cells == 0) continue;
-        classes.push_back({{"depth_m", {c.lo_m, std::isinf(c.hi_m) ? json(nullptr) : json(c.hi_m)}},
-                           {"cells", c.cells},
-                           {"soundings", c.soundings},
-                           {"estimated", c.estimated},
-                           {"weight_m2", c.weight_m2},
-                           {"relative_error", c.relative_error},
-                           {"relative_error_se", c.relative_error_se},
-                           {"speed_error_mps", c.relative_error * tcfg.sound_speed_mps}});
-    }
-    std::vector<double> col = column;
-    const auto median = [](std::vector<double> v) {
-        if (v.empty()) return std::nan("");
-        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-        return v[v.size() / 2];
-    };
-    json out = {{"source", source},
-                {"pings_with_cast", with_cast},
-                {"header_speed_measured", header_measured},
-                {"median_column_sigma_mps", median(col)},
-                {"stratified", strat >= 0},
-                {"assessable", assessable},
-                {"overlap_estimated_share", est->EstimatedShare()},
-                {"overlap",
-                 {{"soundings", est->soundings_used},
-                  {"cells", est->cells_used},
-                  {"classes", classes},
-                  {"message", est->message}}}};
-    if (!disagreement.empty()) {
-        out["median_surface_disagreement_mps"] = median(disagreement);
-    }
-    return out;
+    return SoundSpeedJson(cast, *est, verdict, tcfg.sound_speed_mps);
 }
 
 // The transducers' geodetic positions, per ping.

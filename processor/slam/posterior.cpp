@@ -177,6 +177,120 @@ bool AddClusterRobust(const Input& in,
     return true;
 }
 
+// The pairs at the kept iterate (the stage's timings stay the stage's).
+std::vector<Pair> PairsAtKeptIterate(const Input& in,
+                                     const std::vector<Pose>& T,
+                                     std::vector<Block>& blocks,
+                                     const std::vector<std::uint32_t>& slice_block,
+                                     const SlamConfig& cfg,
+                                     SlamResult& res) {
+    const SlamTimings stage_timings = res.timings;
+    std::vector<Eigen::Vector3f> pw(in.points.size());
+    Search found = SearchPairs(
+        in, T, SlamStage::kSemiRigid, cfg.max_pair_distance_m, blocks, slice_block, pw, cfg, res);
+    res.timings = stage_timings;
+    return std::move(found.pairs);
+}
+
+// The posterior's normal equations at the kept iterate: the pose terms and the pairs, each
+// cluster's pairs scaled by the design effect with the residuals' correlation `rho`.
+Terms PosteriorTerms(const Input& in,
+                     const Param& p,
+                     const std::vector<Pose>& T,
+                     const Clusters& clusters,
+                     double rho,
+                     PairInformation pair_info,
+                     const SlamConfig& cfg) {
+    const std::size_t n = p.num_nodes();
+    Terms total(n);
+    AddPoseTerms(in, p, T, cfg, /*linearise=*/true, total);
+    tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
+    for (const auto& [key, prs] : clusters) {
+        AddPairTerms(in,
+                     p,
+                     T,
+                     prs,
+                     cfg,
+                     /*linearise=*/true,
+                     accs,
+                     pair_info,
+                     ClusterWeight(prs.size(), rho));
+    }
+    for (const Terms& acc : accs) {
+        total.sys.Merge(acc.sys);
+        total.cost += acc.cost;
+    }
+    return total;
+}
+
+// sigma0^2: the robust cost (sum of whitened squared residuals, Huber beyond its width)
+// over the redundancy. A pair counts one row for point-to-plane and GICP (GICP's along-
+// surface sigma is a deliberately loose bound, not a measurement error: its two rows carry
+// almost no weight and would only dilute the factor), three for point-to-point. Sets the
+// observations, unknowns and variance factor of `post`; returns the scale of the covariances
+// (not finite and positive without redundancy).
+double CovarianceScale(
+    std::size_t n, std::size_t num_pairs, double cost, const SlamConfig& cfg, SlamPosterior& post) {
+    const double pair_rows = cfg.correspondence == CorrespondenceType::kPointToPoint ? 3.0 : 1.0;
+    post.observations = PoseTermRows(n, cfg) + pair_rows * static_cast<double>(num_pairs);
+    post.unknowns = 6.0 * static_cast<double>(n);
+    const double redundancy = post.observations - post.unknowns;
+    post.variance_factor =
+        redundancy > 0 ? cost / redundancy : std::numeric_limits<double>::quiet_NaN();
+    return cfg.posterior_cluster_robust    ? 1.0
+           : cfg.posterior_variance_factor ? post.variance_factor
+                                           : 1.0;
+}
+
+// The median over the nodes of the formal horizontal sigma (unscaled), for the record.
+double FormalHorizontalMedian(const std::vector<Matrix6d>& Ckk, double scale) {
+    std::vector<double> h;
+    for (const Matrix6d& Ck : Ckk) {
+        const Matrix6d C = Ck / scale;
+        h.push_back(std::sqrt(std::max(0.0, 0.5 * (C(3, 3) + C(4, 4)))));
+    }
+    std::nth_element(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(h.size() / 2), h.end());
+    return h[h.size() / 2];
+}
+
+// The slice's 1-sigma roll, pitch, yaw and position: the interpolated perturbation of its two
+// nodes (node blocks Ckk, cross blocks Ckn of consecutive nodes), with the INS's steady error
+// added when posterior_reference_sigma.
+Vector6d SliceSigma(const Input& in,
+                    const Param& p,
+                    const std::vector<Pose>& T,
+                    const std::vector<Matrix6d>& Ckk,
+                    const std::vector<Matrix6d>& Ckn,
+                    const SlamConfig& cfg,
+                    std::size_t s) {
+    const auto k0 = static_cast<std::size_t>(p.k0[s]);
+    Matrix6d C;
+    if (p.alpha[s] == 0.0) {
+        const Matrix6d A = NodeToSlice(p, T[s], s, 1.0);
+        C = A * Ckk[k0] * A.transpose();
+    } else {
+        const auto k1 = static_cast<std::size_t>(p.k1[s]);
+        const Matrix6d A = NodeToSlice(p, T[s], s, 1.0 - p.alpha[s]);
+        const Matrix6d B = NodeToSlice(p, T[s], s, p.alpha[s]);
+        // k1 = k0 + 1 (consecutive nodes): the cross block is C_{k0,k1}.
+        const Matrix6d X = k1 == k0 + 1 ? Ckn[k0] : Matrix6d::Zero();
+        const Matrix6d AXBt = A * X * B.transpose();
+        C = A * Ckk[k0] * A.transpose() + B * Ckk[k1] * B.transpose() + AXBt + AXBt.transpose();
+    }
+    if (cfg.posterior_reference_sigma) {
+        // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
+        // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
+        for (int c = 0; c < 3; ++c) {
+            C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
+            C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c);
+        }
+    }
+    Vector6d sig;
+    sig.head<3>() = RollPitchYawSigma(T[s].linear(), C.topLeftCorner<3, 3>());
+    sig.tail<3>() = C.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
+    return sig;
+}
+
 }  // namespace
 
 void ComputePosterior(const Input& in,
@@ -188,22 +302,19 @@ void ComputePosterior(const Input& in,
     const auto t_start = Clock::now();
     SlamPosterior& post = res.posterior;
     post = SlamPosterior{};
+    const auto fail = [&](std::string message) {
+        post.message = std::move(message);
+        post.total_s = Seconds(t_start);
+    };
     const std::size_t n = p.num_nodes();
     const std::vector<Pose> T = SlicePoses(p);
 
-    // The pairs at the kept iterate (the stage's timings stay the stage's).
     auto t0 = Clock::now();
-    const SlamTimings stage_timings = res.timings;
-    std::vector<Eigen::Vector3f> pw(in.points.size());
-    Search found = SearchPairs(
-        in, T, SlamStage::kSemiRigid, cfg.max_pair_distance_m, blocks, slice_block, pw, cfg, res);
-    res.timings = stage_timings;
+    const std::vector<Pair> pairs = PairsAtKeptIterate(in, T, blocks, slice_block, cfg, res);
     post.search_s = Seconds(t0);
-    post.num_pairs = found.pairs.size();
+    post.num_pairs = pairs.size();
 
     t0 = Clock::now();
-    Terms total(n);
-    AddPoseTerms(in, p, T, cfg, /*linearise=*/true, total);
     // GICP's along-surface sigma (gicp_tangent_sigma_m) is a loose bound that lets the solver
     // slide a pass along a surface, not a measurement: a pair's offset along the surface is
     // where the other pass's nearest sounding happens to lie (docs/decisions/002), alike for
@@ -217,53 +328,23 @@ void ComputePosterior(const Input& in,
     // The pairs of one cluster (two rigid sections) share the errors of both passes' surfaces
     // (the INS attitude, the boresight and sound speed residuals): their information is
     // scaled by the design effect with the residuals' intra-cluster correlation (decision 012).
-    const Clusters clusters = ClusterPairs(found.pairs);
+    const Clusters clusters = ClusterPairs(pairs);
     post.residual_correlation = ResidualCorrelation(in, T, clusters, cfg);
-    tbb::enumerable_thread_specific<Terms> accs([n] { return Terms(n); });
-    for (const auto& [key, prs] : clusters) {
-        AddPairTerms(in,
-                     p,
-                     T,
-                     prs,
-                     cfg,
-                     /*linearise=*/true,
-                     accs,
-                     pair_info,
-                     ClusterWeight(prs.size(), post.residual_correlation));
-    }
-    for (const Terms& acc : accs) {
-        total.sys.Merge(acc.sys);
-        total.cost += acc.cost;
-    }
+    const Terms total =
+        PosteriorTerms(in, p, T, clusters, post.residual_correlation, pair_info, cfg);
     reg::DampedSolver<6> ne(total.sys);
     post.build_s = Seconds(t0);
 
-    // sigma0^2: the robust cost (sum of whitened squared residuals, Huber beyond its width)
-    // over the redundancy. A pair counts one row for point-to-plane and GICP (GICP's along-
-    // surface sigma is a deliberately loose bound, not a measurement error: its two rows carry
-    // almost no weight and would only dilute the factor), three for point-to-point.
-    const double pair_rows = cfg.correspondence == CorrespondenceType::kPointToPoint ? 3.0 : 1.0;
-    post.observations = PoseTermRows(n, cfg) + pair_rows * static_cast<double>(found.pairs.size());
-    post.unknowns = 6.0 * static_cast<double>(n);
-    const double redundancy = post.observations - post.unknowns;
-    post.variance_factor =
-        redundancy > 0 ? total.cost / redundancy : std::numeric_limits<double>::quiet_NaN();
-    const double scale = cfg.posterior_cluster_robust    ? 1.0
-                         : cfg.posterior_variance_factor ? post.variance_factor
-                                                         : 1.0;
+    const double scale = CovarianceScale(n, pairs.size(), total.cost, cfg, post);
     if (!(std::isfinite(scale) && scale > 0)) {
-        post.message = "no redundancy (" + std::to_string(post.observations) +
-                       " observations for " + std::to_string(post.unknowns) + " unknowns)";
-        post.total_s = Seconds(t_start);
-        return;
+        return fail("no redundancy (" + std::to_string(post.observations) + " observations for " +
+                    std::to_string(post.unknowns) + " unknowns)");
     }
 
     t0 = Clock::now();
     Eigen::VectorXd delta;
     if (!ne.Solve(0.0, &delta)) {
-        post.message = "CHOLMOD could not factorise the undamped normal equations";
-        post.total_s = Seconds(t_start);
-        return;
+        return fail("CHOLMOD could not factorise the undamped normal equations");
     }
     post.factor_s = Seconds(t0);
 
@@ -272,9 +353,7 @@ void ComputePosterior(const Input& in,
     for (std::size_t k = 0; k < n; ++k) which[k] = k;
     std::vector<Matrix6d> Ckk, Ckn;
     if (!ne.InverseBlocks(which, cfg.posterior_batch_nodes, &Ckk, &Ckn)) {
-        post.message = "the marginal covariances could not be solved";
-        post.total_s = Seconds(t_start);
-        return;
+        return fail("the marginal covariances could not be solved");
     }
     post.nodes_solved = n;
     for (std::size_t k = 0; k < n; ++k) {
@@ -282,63 +361,25 @@ void ComputePosterior(const Input& in,
         Ckn[k] *= scale;
     }
     // Formal horizontal sigma at the nodes' anchor slices, for the record.
-    {
-        std::vector<double> h;
-        for (std::size_t k = 0; k < n; ++k) {
-            const Matrix6d C = Ckk[k] / scale;
-            h.push_back(std::sqrt(std::max(0.0, 0.5 * (C(3, 3) + C(4, 4)))));
-        }
-        std::nth_element(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(h.size() / 2), h.end());
-        post.formal_horizontal_median_m = h[h.size() / 2];
-    }
-    if (cfg.posterior_cluster_robust) {
-        if (!AddClusterRobust(in,
-                              p,
-                              T,
-                              clusters,
-                              post.residual_correlation,
-                              cfg,
-                              pair_info,
-                              ne,
-                              Ckk,
-                              Ckn,
-                              &post.clusters)) {
-            post.message = "the cluster-robust covariance could not be solved";
-            post.total_s = Seconds(t_start);
-            return;
-        }
+    post.formal_horizontal_median_m = FormalHorizontalMedian(Ckk, scale);
+    if (cfg.posterior_cluster_robust && !AddClusterRobust(in,
+                                                          p,
+                                                          T,
+                                                          clusters,
+                                                          post.residual_correlation,
+                                                          cfg,
+                                                          pair_info,
+                                                          ne,
+                                                          Ckk,
+                                                          Ckn,
+                                                          &post.clusters)) {
+        return fail("the cluster-robust covariance could not be solved");
     }
     post.marginals_s = Seconds(t0);
 
-    // Per slice: the interpolated perturbation of its two nodes.
     post.slice_sigma.resize(in.num_slices());
     for (std::size_t s = 0; s < in.num_slices(); ++s) {
-        const auto k0 = static_cast<std::size_t>(p.k0[s]);
-        Matrix6d C;
-        if (p.alpha[s] == 0.0) {
-            const Matrix6d A = NodeToSlice(p, T[s], s, 1.0);
-            C = A * Ckk[k0] * A.transpose();
-        } else {
-            const auto k1 = static_cast<std::size_t>(p.k1[s]);
-            const Matrix6d A = NodeToSlice(p, T[s], s, 1.0 - p.alpha[s]);
-            const Matrix6d B = NodeToSlice(p, T[s], s, p.alpha[s]);
-            // k1 = k0 + 1 (consecutive nodes): the cross block is C_{k0,k1}.
-            const Matrix6d X = k1 == k0 + 1 ? Ckn[k0] : Matrix6d::Zero();
-            const Matrix6d AXBt = A * X * B.transpose();
-            C = A * Ckk[k0] * A.transpose() + B * Ckk[k1] * B.transpose() + AXBt + AXBt.transpose();
-        }
-        if (cfg.posterior_reference_sigma) {
-            // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
-            // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
-            for (int c = 0; c < 3; ++c) {
-                C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
-                C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c);
-            }
-        }
-        Vector6d sig;
-        sig.head<3>() = RollPitchYawSigma(T[s].linear(), C.topLeftCorner<3, 3>());
-        sig.tail<3>() = C.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
-        post.slice_sigma[s] = sig;
+        post.slice_sigma[s] = SliceSigma(in, p, T, Ckk, Ckn, cfg, s);
     }
     post.computed = true;
     post.total_s = Seconds(t_start);
