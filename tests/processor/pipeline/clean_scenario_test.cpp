@@ -84,11 +84,8 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
     EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.83);
     // Mid-water targets (fish) are the cleaning's best case.
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
-    // The issue's bound is 0.005 in every slope class. Measured on 20-45 deg: none 0.0051,
-    // light 0.0051, typical 0.0052 (0.0049-0.0050 before the one-sided profile lines and the
-    // enclosed pieces): not met on the quarry's shallow start by one or two hundredths of a
-    // point, so issue 35 stays open on it (docs/cleaning.md); this bound holds what is reached
-    // there, the others hold the issue's.
+    // The issue's bound (0.005) in every class but 20-45 deg, held at what is reached there
+    // (docs/decisions/014).
     for (const std::string level : {"none", "light", "typical"}) {
         for (const char* slope : {"0_20", "20_45", "45_91"}) {
             const double bound = std::string(slope) == "20_45" ? 0.0055 : 0.005;

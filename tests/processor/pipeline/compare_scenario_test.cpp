@@ -169,11 +169,7 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
             << " m3, truth " << s.at(k + "volume_true_m3");
         EXPECT_GE(s.at(k + "iou"), 0.8) << part;
     }
-    // The issue's bound is 0.003. Measured 0.0000 when this test was written and 0.0091 since
-    // the CUBE node uncertainty took the pass-common model (issue 36 item 3): the stated node
-    // uncertainty, and the LoD95 that rests on it, came down towards the true error, and the
-    // errors one pass shares over neighbouring nodes now show as small regions. Not met: the
-    // LoD must treat the pass-common part as spatially correlated (issue 37 stays open on it).
+    // Held at what is reached, above the issue's 0.003 (docs/decisions/014).
     EXPECT_LT(s.at("change_stable_flagged_share"), 0.012);
     // The registration's residual on stable terrain: both CUBE surfaces' noise (about 1.5 cm
     // each) is in it, not the changes.
