@@ -3,6 +3,7 @@
 """pitmap-report: the report of a products folder, as self-contained HTML pages.
 
 Usage: pitmap-report P [--scores FILE] [--title TEXT] [--jobs N] [--pdf]
+       pitmap-report --compare C [--epochs A B] [--title TEXT] [--pdf]
        pitmap-report --view-gltf FILE.glb [-o PAGE.html] [--title TEXT]
 
 Reads what `pitmap run --out P` wrote (summary.json with the survey's metadata, dem.tif,
@@ -25,6 +26,15 @@ resource), and the same PNGs under P/report/:
   P/report.pdf               with --pdf: report.html printed by headless Chromium (A4).
 
 The title is the metadata's project, site and survey id (--title replaces it).
+
+--compare C writes the change report of `pitmap compare A B --out C` instead: C/report.html
+(and C/report/*.png; C/report.pdf with --pdf): the two surveys, a summary, the map of
+significant change over A's hill-shade, the volume table with its 95 % uncertainty, two
+cross-sections of both surveys through the largest change (depth grids and soundings), the
+co-registration, the change along the normal, both capacity curves, B's slope and crawler maps
+and the quality gates. Every figure is compare.json's; A and B are the folders compare.json
+names (--epochs A B when they have moved). A compare.json that is missing or damaged, or A or
+B not found or processed again since the comparison, is an error (exit 1).
 
 --view-gltf writes a self-contained page with the report's 3D viewer and FILE.glb embedded
 (base64, read by three.js's GLTFLoader): pitmap's mesh.glb or any self-contained glTF 2.0
@@ -60,7 +70,8 @@ from pitmap_report_lib.equipment import (  # noqa: E402
 from pitmap_report_lib.gltf import GlbError, check_glb, gltf_page  # noqa: E402,F401
 from pitmap_report_lib.loaders import Ply, PlyError, Products  # noqa: E402,F401
 from pitmap_report_lib.rasters import raster_max, raster_mean, rasterise_mesh  # noqa: E402,F401
-from pitmap_report_lib import maps, report, sections_client, util  # noqa: E402,F401
+from pitmap_report_lib import maps, report, sections_change, sections_client, util  # noqa: E402,F401,E501
+from pitmap_report_lib.change import CompareFolder  # noqa: E402
 from pitmap_report_lib.util import (  # noqa: E402,F401
     PROG, ReportError, die_with_parent, gps_to_utc, log)
 
@@ -124,6 +135,13 @@ def main(argv=None):
                     help="YAML list of equipment models (.glb: the mining vehicle, a launch "
                     "vessel) placed by UTM position and heading in the 3D view "
                     "(docs/report.md)")
+    ap.add_argument("--compare", metavar="C",
+                    help="instead of a survey report: the change report of the folder C of "
+                    "`pitmap compare A B --out C` (C/report.html, C/report/*.png; with --pdf "
+                    "C/report.pdf)")
+    ap.add_argument("--epochs", metavar=("A", "B"), nargs=2,
+                    help="with --compare: the two products folders compared (default: "
+                    "compare.json's inputs)")
     ap.add_argument("--version", action=_Version, nargs=0,
                     help="print the version and git commit, then exit")
     args = ap.parse_args(argv)
@@ -131,8 +149,16 @@ def main(argv=None):
         if args.products is not None or args.scores is not None or args.pdf:
             ap.error("--view-gltf takes no products folder, no --scores and no --pdf")
         return view_gltf(args.view_gltf, args.output, args.title)
+    if args.compare is not None:
+        if args.products is not None or args.scores is not None or args.output is not None \
+                or args.equipment is not None:
+            ap.error("--compare takes no products folder, --scores, -o or --equipment (the "
+                     "surveys are compare.json's, or --epochs A B)")
+        return compare_report(args.compare, args.epochs, args.title, args.pdf)
+    if args.epochs is not None:
+        ap.error("--epochs goes with --compare")
     if args.products is None:
-        ap.error("give a products folder P (or --view-gltf GLB)")
+        ap.error("give a products folder P (or --compare C, or --view-gltf GLB)")
     if args.output is not None:
         ap.error("-o/--output goes with --view-gltf (the report is always P/report.html)")
     if args.jobs is not None and args.jobs < 1:
@@ -183,6 +209,40 @@ def main(argv=None):
             print(f"{PROG}: {e}", file=sys.stderr)
             return 1
         log(f"wrote {out} ({size // 1024} kB)")
+    return 0
+
+
+def compare_report(folder, epochs, title, pdf):
+    """C/report.html (and with pdf C/report.pdf): the change report of a compare folder."""
+    if not os.path.isdir(folder):
+        print(f"{PROG}: {folder}: not a folder", file=sys.stderr)
+        return 2
+    folder = os.path.abspath(folder)
+    a_dir, b_dir = epochs if epochs else (None, None)
+    try:
+        c = CompareFolder(folder, a_dir, b_dir)
+        page = report.build_change(c, title or sections_change.change_title(c))
+    except (ReportError, OSError) as e:
+        print(f"{PROG}: {e}", file=sys.stderr)
+        return 1
+    out = os.path.join(folder, report.CLIENT_PAGE)
+    try:
+        write_atomically(out, page)
+    except OSError as e:
+        print(f"{PROG}: {out}: cannot write: {e}", file=sys.stderr)
+        return 1
+    log(f"wrote {out} ({os.path.getsize(out) // 1024} kB)"
+        + (f"; not produced: {', '.join(c.missing)}" if c.missing else "")
+        + (f"; {len(c.problems)} problem(s)" if c.problems else ""))
+    if pdf:
+        from pitmap_report_lib.pdf import write_pdf
+        target = os.path.join(folder, "report.pdf")
+        try:
+            size = write_pdf(out, target)
+        except (ReportError, OSError) as e:
+            print(f"{PROG}: {e}", file=sys.stderr)
+            return 1
+        log(f"wrote {target} ({size // 1024} kB)")
     return 0
 
 

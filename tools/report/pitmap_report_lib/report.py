@@ -39,6 +39,7 @@ SECTIONS = (
     (CLIENT_PAGE, "soundings", "Soundings kept and rejected", clean.sounding_counts),
     (CLIENT_PAGE, "mosaic", "Backscatter mosaic", hydro.mosaic),
     (CLIENT_PAGE, "terrain", "Mine planning: slopes and the crawler's reach", planning.terrain),
+    (CLIENT_PAGE, "capacity", "Capacity: water volume against water level", planning.capacity),
     (CLIENT_PAGE, "viewer", "Interactive 3D view", viewer.viewer),
     (CLIENT_PAGE, "scores", "Scores against ground truth", survey.scores),
     (CLIENT_PAGE, "engineering", "Processing details", client.engineering_link),
@@ -70,6 +71,12 @@ def run_section(p, index):
     What it added is returned and taken out of p.problems and p.missing again, so that
     sections drawn here and in other processes are merged the same way, in page order."""
     _, sid, heading, function = SECTIONS[index]
+    return draw_section(p, sid, heading, function)
+
+
+def draw_section(p, sid, heading, function):
+    """function(p) as a section: its HTML (a line saying it could not be drawn when it
+    raised), and the problems and missing products it added to p, taken out again."""
     n_problems, n_missing = len(p.problems), len(p.missing)
     log(f"section {sid}")
     try:
@@ -159,6 +166,28 @@ def build(p, title, jobs=1):
     return pages
 
 
+def build_change(c, title):
+    """The change report (report.html of a compare folder) of a change.CompareFolder c: its
+    sections (sections_change.SECTIONS) drawn one after the other on one page."""
+    from . import sections_change as change
+    body, toc = [], []
+    for sid, heading, function in change.SECTIONS:
+        frag, added_problems, added_missing = draw_section(c, sid, heading, function)
+        c.problems.extend(added_problems)
+        c.missing.extend(m for m in added_missing if m not in c.missing)
+        if frag is None:
+            continue
+        body.append(f'<section id="{sid}"><h2>{esc(heading)}</h2>\n{frag}\n</section>')
+        toc.append(f'<a href="#{sid}">{esc(heading)}</a>')
+    notes = "\n".join(f'<p class="problem">{esc(strip_paths(x))}</p>' for x in c.problems)
+    if c.missing:
+        notes = ('<p class="missing">not produced: ' + ", ".join(esc(m) for m in c.missing)
+                 + "</p>\n" + notes)
+    return PAGE.format(title=esc(title), subtitle=change.subtitle(c),
+                       toc=" &middot; ".join(toc), notes=notes, body="\n".join(body), css=CSS,
+                       footer=CHANGE_FOOTER)
+
+
 CSS = """
 body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; margin: 0 auto;
        max-width: 1400px; padding: 0 24px 48px; color: #222; background: #fff; }
@@ -201,7 +230,7 @@ footer { margin-top: 40px; font-size: 12px; color: #777; }
   body { max-width: none; padding: 0; font-size: 11px; }
   nav { display: none; }
   section { break-before: page; }
-  section#cover { break-before: auto; }
+  section#cover, section#surveys { break-before: auto; }
   h2 { margin-top: 0; }
   img { break-inside: avoid; max-height: 240mm; object-fit: contain; }
   table { break-inside: auto; font-size: 11px; }
@@ -220,6 +249,10 @@ CSP = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline
 
 CLIENT_FOOTER = ("pitmap-report. Coordinates in the horizontal CRS of the cover, maps to grid "
                  "north; depths and heights in metres in its vertical datum; times UTC.")
+CHANGE_FOOTER = ("pitmap-report, change between two surveys (pitmap compare). Coordinates in "
+                 "survey A's horizontal CRS, maps to grid north; heights, differences and "
+                 "volumes in metres in its vertical datum; B minus A after co-registration; "
+                 "uncertainties at 95 % confidence.")
 ENGINEERING_FOOTER = ("pitmap-report, engineering page. Local frame: East, North, Up metres "
                       "at the world origin; times in GPS seconds since 1980-01-06 unless "
                       "marked UTC.")

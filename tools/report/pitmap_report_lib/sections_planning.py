@@ -1,7 +1,10 @@
 # SPDX-License-Identifier: MIT
 """The report's mine-planning section: the slope map of the surface and where a bottom crawler
 can stand and drive from its launch point (terrain.tif and crawler.tif of the grid stage,
-processor/hydro/terrain.hpp), with the areas of each class."""
+processor/hydro/terrain.hpp), with the areas of each class; and the pit's capacity curve
+(water volume and area against water level) from dem.tif."""
+
+import os
 
 import numpy as np
 import matplotlib
@@ -11,7 +14,9 @@ import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from .capacity import capacity_curve, draw_curves, water_level_m, write_csv  # noqa: E402
 from .maps import MapError, add_furniture, raster_extent, read_geotiff  # noqa: E402
+from .sections_client import _dem as client_dem  # noqa: E402
 from .sections_client import survey_metadata  # noqa: E402
 from .util import not_produced, num, strip_paths, table  # noqa: E402
 
@@ -106,3 +111,42 @@ def terrain(p):
     return "\n".join([table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"),
                       table(rows, header=["class", "area"]),
                       '<div class="pair">' + "".join(figures) + "</div>"])
+
+
+def capacity(p):
+    """The pit's capacity curve from dem.tif (issue 37 item 3): water volume and water-surface
+    area against water level over the surveyed nodes, up to the survey's water level; the
+    table also as P/report/capacity.csv (the columns of `pitmap compare`'s capacity_a.csv)."""
+    dem = client_dem(p)
+    if dem is None or "elevation" not in dem["bands"]:
+        return None  # the maps section says why there is no depth grid
+    level = water_level_m(p)
+    if level is None:
+        return ("<p>No capacity curve: the water level is not known (no readable trajectory "
+                "or world origin).</p>")
+    curve = capacity_curve(dem["bands"]["elevation"], dem["gt"][1], level)
+    if not curve["rows"]:
+        return "<p>No capacity curve: dem.tif holds no heights.</p>"
+    os.makedirs(p.fig_dir, exist_ok=True)
+    write_csv(os.path.join(p.fig_dir, "capacity.csv"), curve)
+    rows = np.array(curve["rows"])
+    columns = {"level_m": rows[:, 0], "area_m2": rows[:, 1], "volume_m3": rows[:, 2]}
+    fig, (av, aa) = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, layout="constrained")
+    draw_curves(av, aa, [("this survey", "#1f77b4", columns, level)])
+    av.set_ylabel(f"water level (m, {survey_metadata(p.summary)['vertical_crs'] or 'datum'})")
+    fig.suptitle("Capacity: volume and water-surface area against water level", fontsize=11)
+    img = p.figure(fig, "capacity", "capacity curve: volume and area against water level")
+    facts = [("water level (the survey's)", f"{num(level, 3)} m"),
+             ("deepest node", f"{num(curve['deepest_m'], 3)} m "
+              f"({num(level - curve['deepest_m'], 2)} m below the water level)"),
+             ("volume of water at the water level",
+              f"{num(curve['volume_at_water_level_m3'], 0)} m&sup3;"),
+             ("water-surface area at the water level",
+              f"{num(curve['area_at_water_level_m2'], 0)} m&sup2;"),
+             ("surveyed area", f"{num(curve['surveyed_area_m2'], 0)} m&sup2;")]
+    return "\n".join([
+        table([(f"<b>{k}</b>", v) for k, v in facts], cls="facts"), img,
+        '<p class="caption">Over the surveyed nodes of the depth grid only: ground the survey '
+        "did not reach is not filled in, so the figures are those of the surveyed area. The "
+        "water level is the median height of the vessel on the water (dashed). The table, a "
+        "row every 0.25 m: report/capacity.csv.</p>"])

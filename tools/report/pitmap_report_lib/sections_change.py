@@ -1,0 +1,643 @@
+# SPDX-License-Identifier: MIT
+"""The sections of the change report (pitmap-report --compare C, issue 37 item 5): the two
+surveys, a summary, the map of significant change, the volumes of cut and fill with their 95 %
+uncertainty, cross-sections of both surveys through the largest change, the co-registration,
+the change along the surface normal, the capacity curves, the mine-planning maps of the later
+survey and the quality gates. Every figure in words or tables is compare.json's, as `pitmap
+compare` wrote it; the pictures draw dod.tif, change_regions.geojson, the capacity CSVs and the
+two surveys' dem.tif and soundings. Each section is a function of a change.CompareFolder
+returning its HTML, or None to be left out."""
+
+import json
+import math
+
+import numpy as np
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
+from matplotlib.colors import LightSource, TwoSlopeNorm  # noqa: E402
+
+from . import sections_planning as planning  # noqa: E402
+from .capacity import draw_curves, read_csv  # noqa: E402
+from .maps import add_furniture, raster_extent  # noqa: E402
+from .sections_client import _dem as dem_of  # noqa: E402
+from .sections_client import survey_metadata  # noqa: E402
+from .util import esc, facts_table, num, strip_paths, table  # noqa: E402
+
+COLOUR = {"a": "#1f77b4", "b": "#e4741b"}
+CUT_COLOUR, FILL_COLOUR = "#b2182b", "#2166ac"
+# A section runs down the slope where the ground at the change is steeper than this (a slump
+# on a wall), else along the change's longest extent (a heap or a cut on the floor).
+FALL_LINE_MIN_SLOPE_DEG = 15.0
+
+
+def _label(c, side):
+    """'A (2026-06-15)' from compare.json's survey start, else the folder's metadata."""
+    rec = (c.compare.get("inputs") or {}).get(side) or {}
+    t = rec.get("survey_start_utc") if isinstance(rec, dict) else None
+    if not t:
+        t = survey_metadata(c.epochs[side].summary).get("survey_start_utc")
+    return f"{side.upper()} ({str(t)[:10]})" if t else side.upper()
+
+
+def _survey_name(p):
+    md = survey_metadata(p.summary)
+    parts = [md.get(k) for k in ("project", "site") if md.get(k)]
+    return " \u2013 ".join(parts)
+
+
+def change_title(c):
+    """'Change between surveys: <project - site>, A date to B date'."""
+    name = _survey_name(c.a)
+    return ("Change between surveys" + (f": {name}" if name else "") + ", "
+            + _label(c, "a")[3:-1] + " to " + _label(c, "b")[3:-1]).replace(", ,", ",")
+
+
+def subtitle(c):
+    md = survey_metadata(c.a.summary)
+    client = f"Client: {esc(md['client'])}. " if md.get("client") else ""
+    return (f"{client}Survey {esc(_label(c, 'a'))} compared with survey {esc(_label(c, 'b'))}; "
+            "B minus A, after co-registration on stable ground.")
+
+
+# ---- surveys and summary ----
+
+def surveys(c):
+    """Who, what and when of both surveys, and the datums of the comparison."""
+    rows = []
+    keys = (("survey id", "survey_id"), ("site", "site"), ("surveyor", "surveyor"),
+            ("organisation", "organisation"), ("vessel", "vessel"),
+            ("survey start (UTC)", "survey_start_utc"), ("survey end (UTC)", "survey_end_utc"),
+            ("processed (UTC)", "processed_utc"), ("software", "software"))
+    mds = {s: survey_metadata(c.epochs[s].summary) for s in ("a", "b")}
+    for label, key in keys:
+        vals = [mds[s].get(key) for s in ("a", "b")]
+        rows.append([f"<b>{esc(label)}</b>"] + [esc(v) if v else '<span class="not-set">not '
+                                                 'set</span>' for v in vals])
+    rows.append(["<b>run id</b>"] + [esc(((c.compare.get("inputs") or {}).get(s) or {})
+                                         .get("run_id") or "not recorded") for s in ("a", "b")])
+    crs = c.compare.get("crs") if isinstance(c.compare.get("crs"), dict) else {}
+    datum = [("horizontal CRS", f"{esc(crs.get('horizontal') or '?')}"
+              + (f" (EPSG:{esc(crs['epsg'])})" if crs.get("epsg") else "")),
+             ("vertical datum", esc(crs.get("vertical") or "?")),
+             ("sign", "B minus A: positive where material was added (fill, deposit), negative "
+                      "where it was removed (cut, slump scar)"),
+             ("units", "metres, square metres, cubic metres; uncertainties at 95 % "
+                       "confidence")]
+    return "\n".join([table(rows, header=["", _label(c, "a"), _label(c, "b")], cls="facts"),
+                      facts_table(datum)])
+
+
+def _volume(v, u=None, digits=2):
+    s = f"{num(float(v), digits)} m&sup3;"
+    return s + (f" &plusmn; {num(float(u), digits)}" if u is not None else "")
+
+
+def _gates(c):
+    gates = [g for g in c.compare.get("quality_gates") or [] if isinstance(g, dict)]
+    return gates
+
+
+def summary(c):
+    """The change in one paragraph and the key figures."""
+    ch, cap, reg = c.compare["change"], c.compare["capacity"], c.compare["registration"]
+    cut, fill = ch["cut"], ch["fill"]
+    n = len(ch["regions"])
+    sentence = (f"Between survey {esc(_label(c, 'a'))} and survey {esc(_label(c, 'b'))}, "
+                f"<b>{n}</b> region{'s' if n != 1 else ''} of significant change "
+                f"{'were' if n != 1 else 'was'} found: <b>cut {_volume(cut['volume_m3'], cut['u95_m3'])}"
+                f"</b> over {num(float(cut['area_m2']), 1)} m&sup2; in {cut['regions']} "
+                f"region(s) and <b>fill {_volume(fill['volume_m3'], fill['u95_m3'])}</b> over "
+                f"{num(float(fill['area_m2']), 1)} m&sup2; in {fill['regions']} region(s) "
+                "(95 % uncertainty).")
+    gates = _gates(c)
+    verdict = "not-met" if gates else "met"
+    rows = [("compared area", f"{num(float(ch.get('compared_area_m2', float('nan'))), 0)} "
+                              "m&sup2;"),
+            ("net change (cut + fill)",
+             _volume(ch.get("net_m3", cut["volume_m3"] + fill["volume_m3"]))),
+            ("smallest detectable change (median LoD95)",
+             f"{num(float(ch['median_lod95_m']), 3)} m" if "median_lod95_m" in ch else "?"),
+            ("stable ground: B - A", f"mean {num(float(ch.get('stable_mean_m', float('nan'))), 3)}"
+                                     f" m, RMS {num(float(ch.get('stable_rms_m', float('nan'))), 3)}"
+                                     " m"),
+            ("co-registration residual (stable ground, vertical RMS)",
+             f"{num(float(reg['rms_vertical_after_m']), 3)} m (before: "
+             f"{num(float(reg['rms_vertical_before_m']), 3)} m)"),
+            ("water volume at the water level",
+             f"A {num(float(cap['a']['volume_at_water_level_m3']), 0)} m&sup3;, B "
+             f"{num(float(cap['b']['volume_at_water_level_m3']), 0)} m&sup3;"),
+            ("quality gates", "none tripped" if not gates else
+             "; ".join(esc(strip_paths(g.get("message", g.get("gate", "?")))) for g in gates))]
+    return "\n".join([f'<p class="verdict {verdict}">{sentence}</p>', facts_table(rows)])
+
+
+# ---- the map ----
+
+def _extent_of_data(d, v):
+    """The extent of a raster's finite nodes (left, right, bottom, top), padded."""
+    gt = d["gt"]
+    rows, cols = np.nonzero(np.isfinite(v))
+    if len(rows) == 0:
+        return raster_extent(gt, d["nx"], d["ny"])
+    left, right = gt[0] + cols.min() * gt[1], gt[0] + (cols.max() + 1) * gt[1]
+    top, bottom = gt[3] + rows.min() * gt[5], gt[3] + (rows.max() + 1) * gt[5]
+    pad = max(1.0, 0.04 * max(right - left, top - bottom))
+    return (left - pad, right + pad, bottom - pad, top + pad)
+
+
+def _hillshade(ax, dem):
+    z = dem["bands"].get("elevation")
+    if z is None:
+        return
+    fill = np.where(np.isfinite(z), z, np.nanmean(z) if np.isfinite(z).any() else 0.0)
+    shade = LightSource(azdeg=315, altdeg=45).hillshade(fill, vert_exag=2.0, dx=dem["gt"][1],
+                                                         dy=-dem["gt"][5])
+    rgba = np.dstack([shade, shade, shade, np.isfinite(z) * 1.0])
+    ax.imshow(rgba, extent=raster_extent(dem["gt"], dem["nx"], dem["ny"]),
+              interpolation="nearest", zorder=1)
+
+
+def _outlines(c):
+    """{region id: (kind, [rings as N x 2 arrays])} from change_regions.geojson, or None."""
+    try:
+        with open(c.path("change_regions.geojson")) as f:
+            gj = json.load(f)
+        out = {}
+        for feat in gj["features"]:
+            props = feat["properties"]
+            geom = feat["geometry"]
+            polys = geom["coordinates"] if geom["type"] == "MultiPolygon" else [
+                geom["coordinates"]]
+            out[int(props["id"])] = (props.get("kind"), [np.asarray(ring, dtype=np.float64)
+                                                         for poly in polys for ring in poly])
+        return out
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+        c.problems.append(f"change_regions.geojson: unreadable ({strip_paths(e)}); outlines "
+                          "drawn from dod.tif's region band")
+        return None
+
+
+def _draw_outlines(c, ax, d, outlines):
+    regions = {int(r["id"]): r for r in c.compare["change"]["regions"]}
+    gt = d["gt"]
+    for rid, r in regions.items():
+        colour = CUT_COLOUR if r["kind"] == "cut" else FILL_COLOUR
+        if outlines is not None and rid in outlines:
+            for ring in outlines[rid][1]:
+                ax.plot(ring[:, 0], ring[:, 1], color=colour, lw=1.1, zorder=5)
+        else:
+            mask = (d["bands"]["region"] == rid).astype(float)
+            xs = gt[0] + (np.arange(d["nx"]) + 0.5) * gt[1]
+            ys = gt[3] + (np.arange(d["ny"]) + 0.5) * gt[5]
+            if mask.any():
+                ax.contour(xs, ys, mask, levels=[0.5], colors=colour, linewidths=1.1, zorder=5)
+        centre = r.get("centroid_m")
+        if not (isinstance(centre, list) and len(centre) == 2):
+            rows, cols = np.nonzero(d["bands"]["region"] == rid)
+            if len(rows) == 0:
+                continue
+            centre = (gt[0] + (cols.mean() + 0.5) * gt[1], gt[3] + (rows.mean() + 0.5) * gt[5])
+        ax.text(centre[0], centre[1], f"R{rid}", fontsize=8, weight="bold", color=colour,
+                ha="center", va="center", zorder=6,
+                bbox={"facecolor": "white", "edgecolor": colour, "alpha": 0.8, "pad": 1.2})
+
+
+def _sym_limit(v):
+    ok = np.abs(v[np.isfinite(v)])
+    return max(0.1, float(np.percentile(ok, 99))) if len(ok) else 1.0
+
+
+def change_map(c):
+    """Significant change over A's hill-shade, cut and fill outlined; the difference everywhere
+    and the level of detection beside it."""
+    d = c.dod()
+    if d is None:
+        return c.missing_product("dod.tif")
+    diff, sig, lod = (d["bands"][k] for k in ("difference", "significance", "lod95"))
+    ext = _extent_of_data(d, diff)
+    crs = d["crs"] or (c.compare.get("crs") or {}).get("horizontal") or ""
+    dem_a = dem_of(c.a)
+    shown = np.where(np.isfinite(sig) & (sig != 0), diff, np.nan)
+    lim = _sym_limit(shown if np.isfinite(shown).any() else diff)
+    norm = TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim)
+    w, h = ext[1] - ext[0], ext[3] - ext[2]
+    fig, a = plt.subplots(figsize=(11, float(np.clip(11 * h / w, 3.5, 12)) + 1.0),
+                          layout="constrained")
+    if dem_a is not None:
+        _hillshade(a, dem_a)
+    im = a.imshow(shown, extent=raster_extent(d["gt"], d["nx"], d["ny"]), cmap="RdBu",
+                  norm=norm, interpolation="nearest", zorder=2)
+    _draw_outlines(c, a, d, _outlines(c))
+    lines = _section_lines(c)
+    for name, p0, p1, _ in lines or []:
+        a.plot([p0[0], p1[0]], [p0[1], p1[1]], "k-", lw=1.2, zorder=7)
+        for (x, y), t in ((p0, name), (p1, name + "'")):
+            a.text(x, y, t, fontsize=9, weight="bold", zorder=8, ha="center", va="center",
+                   bbox={"facecolor": "white", "edgecolor": "black", "pad": 1.0})
+    add_furniture(a, ext, crs)
+    cb = fig.colorbar(im, ax=a, shrink=0.8, pad=0.01)
+    cb.set_label("significant change, B - A (m): red loss, blue gain")
+    a.legend(handles=[plt.Line2D([], [], color=CUT_COLOUR, lw=1.2, label="cut (loss) region"),
+                      plt.Line2D([], [], color=FILL_COLOUR, lw=1.2, label="fill (gain) region"),
+                      plt.Line2D([], [], color="black", lw=1.2, label="cross-section")],
+             loc="upper left", fontsize=8, framealpha=0.85)
+    a.set_title("Significant change between the surveys over survey A's hill-shade")
+    out = [c.figure(fig, "change_map", "map of significant change"),
+           '<p class="caption">Coloured: nodes where |B - A| exceeds the level of detection at '
+           "95 % (LoD95, from both surveys' node uncertainty and the co-registration's); grey: "
+           "no detectable change or only one survey. Outlines: the change regions of "
+           "change_regions.geojson, R and their id there, as in the volume table.</p>"]
+    fig, axs = plt.subplots(1, 2, figsize=(15, float(np.clip(7.5 * h / w, 3, 10)) + 1.2),
+                            layout="constrained")
+    dl = _sym_limit(diff)
+    im = axs[0].imshow(diff, extent=raster_extent(d["gt"], d["nx"], d["ny"]), cmap="RdBu",
+                       norm=TwoSlopeNorm(vcenter=0.0, vmin=-dl, vmax=dl),
+                       interpolation="nearest")
+    fig.colorbar(im, ax=axs[0], shrink=0.8, pad=0.01).set_label("B - A (m)")
+    axs[0].set_title("Difference B - A, every compared node", fontsize=10)
+    ok = lod[np.isfinite(lod)]
+    im = axs[1].imshow(lod, extent=raster_extent(d["gt"], d["nx"], d["ny"]), cmap="viridis",
+                       vmin=0, vmax=float(np.percentile(ok, 99)) if len(ok) else 1.0,
+                       interpolation="nearest")
+    fig.colorbar(im, ax=axs[1], shrink=0.8, pad=0.01).set_label("LoD95 (m)")
+    axs[1].set_title("Level of detection at 95 %", fontsize=10)
+    for ax in axs:
+        add_furniture(ax, ext, crs)
+    out.append('<div class="pair">' + c.figure(fig, "change_difference_lod",
+                                               "difference and level of detection") + "</div>")
+    return "\n".join(out)
+
+
+# ---- the volume table ----
+
+def volumes(c):
+    """Per region and in total: area, volume and its 95 % uncertainty with the terms it is
+    made of."""
+    ch = c.compare["change"]
+    regions = sorted(ch["regions"], key=lambda r: -abs(float(r["volume_m3"])))
+    rows = []
+    for r in regions:
+        def term(k):
+            v = r.get(k)
+            return num(float(v), 2) if isinstance(v, (int, float)) else "?"
+        rows.append([f"R{r['id']}", esc(r["kind"]), num(float(r["area_m2"]), 2),
+                     num(float(r["volume_m3"]), 2), num(float(r["u95_m3"]), 2),
+                     term("sigma_random_m3"), term("sigma_registration_m3"), term("rim_m3"),
+                     term("max_abs_difference_m"), term("mean_lod95_m")])
+    header = ["region", "kind", "area (m\u00b2)", "volume (m\u00b3)", "U95 (m\u00b3)",
+              "random, 1\u03c3 (m\u00b3)", "registration, 1\u03c3 (m\u00b3)", "rim (m\u00b3)",
+              "largest |B - A| (m)", "mean LoD95 (m)"]
+    totals = []
+    for side in ("cut", "fill"):
+        t = ch[side]
+        totals.append([f"<b>all {side}</b>", str(t["regions"]), num(float(t["area_m2"]), 2),
+                       f"<b>{num(float(t['volume_m3']), 2)}</b>",
+                       f"<b>{num(float(t['u95_m3']), 2)}</b>"])
+    net = ch.get("net_m3", ch["cut"]["volume_m3"] + ch["fill"]["volume_m3"])
+    totals.append(["<b>net</b>", str(len(regions)), num(float(ch["cut"]["area_m2"])
+                                                        + float(ch["fill"]["area_m2"]), 2),
+                   f"<b>{num(float(net), 2)}</b>", "not stated"])
+    out = ['<h3>Change regions</h3>', table(rows, header=header, cls="volumes") if rows else
+           "<p>No region of significant change.</p>",
+           '<h3>Totals</h3>', table(totals, header=["", "regions", "area (m\u00b2)",
+                                                     "volume (m\u00b3)", "U95 (m\u00b3)"],
+                                    cls="totals"),
+           '<p class="caption">Volume: the sum of B - A over a region\'s nodes times the node '
+           "area (negative: material removed). U95, its uncertainty at 95 % confidence: "
+           "1.96 &radic;(random&sup2; + registration&sup2;) + rim, where random is the nodes' own "
+           "error (correlated over 1 m patches), registration the co-registration's, and rim "
+           "what the outline may leave below detection along its edge. Totals add the random "
+           "terms in quadrature and the registration and rim terms linearly; the net change "
+           "mixes both signs and its uncertainty is not stated.</p>"]
+    return "\n".join(out)
+
+
+# ---- cross-sections ----
+
+def _sample(band, gt, x, y):
+    """Nearest-node values of a north-up raster band at points (NaN outside)."""
+    col = np.floor((np.asarray(x) - gt[0]) / gt[1]).astype(np.int64)
+    row = np.floor((np.asarray(y) - gt[3]) / gt[5]).astype(np.int64)
+    ok = (col >= 0) & (col < band.shape[1]) & (row >= 0) & (row < band.shape[0])
+    out = np.full(len(col), np.nan)
+    out[ok] = band[row[ok], col[ok]]
+    return out
+
+
+def largest_region(c):
+    """compare.json's region of the largest |volume| (ties: the lower id), or None."""
+    regions = c.compare["change"]["regions"]
+    if not regions:
+        return None
+    return sorted(regions, key=lambda r: (-abs(float(r["volume_m3"])), int(r["id"])))[0]
+
+
+def _section_lines(c):
+    """[(name, start, end, how)] of the two cross-sections through the largest change: the
+    first down the slope of A's surface there when it is steeper than 15 deg (a slumped wall),
+    else along the region's longest extent; the second across it. Both through the region's
+    node of the largest |B - A|, reaching past the region by half its extent (at least 2 m) on
+    each side. None without a region or dod.tif."""
+    if hasattr(c, "section_lines"):
+        return c.section_lines
+    c.section_lines = None
+    r = largest_region(c)
+    d = c.dod()
+    if r is None or d is None:
+        return None
+    gt = d["gt"]
+    rows, cols = np.nonzero(d["bands"]["region"] == int(r["id"]))
+    if len(rows) == 0:
+        c.problems.append(f"dod.tif has no node of region {r['id']} of compare.json")
+        return None
+    x = gt[0] + (cols + 0.5) * gt[1]
+    y = gt[3] + (rows + 0.5) * gt[5]
+    diff = d["bands"]["difference"][rows, cols]
+    k = int(np.nanargmax(np.abs(diff)))
+    centre = np.array([x[k], y[k]])
+    how = "along the change's longest extent"
+    direction = None
+    dem_a = dem_of(c.a)
+    if dem_a is not None and "elevation" in dem_a["bands"]:
+        za = dem_a["bands"]["elevation"]
+        gy, gx = np.gradient(za, dem_a["gt"][5], dem_a["gt"][1])
+        sx, sy = _sample(gx, dem_a["gt"], x, y), _sample(gy, dem_a["gt"], x, y)
+        g = np.array([np.nanmean(sx), np.nanmean(sy)]) if np.isfinite(sx).any() else None
+        if g is not None and np.all(np.isfinite(g)):
+            slope = math.degrees(math.atan(float(np.hypot(*g))))
+            if slope >= FALL_LINE_MIN_SLOPE_DEG:
+                direction = -g / np.hypot(*g)
+                how = f"down the slope ({slope:.0f} deg on average over the region in A)"
+    if direction is None:
+        if len(x) >= 2:
+            w, v = np.linalg.eigh(np.cov(np.stack([x, y])))
+            direction = v[:, int(np.argmax(w))]
+        else:
+            direction = np.array([1.0, 0.0])
+    lines = []
+    for name, u, what in (("1", direction, how),
+                          ("2", np.array([-direction[1], direction[0]]), "across section 1")):
+        s = (x - centre[0]) * u[0] + (y - centre[1]) * u[1]
+        margin = max(2.0, 0.5 * float(s.max() - s.min()))
+        p0 = centre + (float(s.min()) - margin) * u
+        p1 = centre + (float(s.max()) + margin) * u
+        lines.append((name, p0, p1, what))
+    c.section_lines = lines
+    c.section_centre = (centre, k, r)
+    return lines
+
+
+def _exaggeration(length, z_range):
+    """1 when the section's heights span at least a tenth of its length, else the 2, 5, 10 or
+    20 that brings them nearest a third of it."""
+    if not z_range > 0 or z_range >= 0.1 * length:
+        return 1.0
+    want = length / (3.0 * z_range)
+    return min((2.0, 5.0, 10.0, 20.0), key=lambda e: abs(math.log(e / want)))
+
+
+def _profile_figure(c, name, p0, p1, what, d, dem_a, pts):
+    gt = d["gt"]
+    length = float(np.hypot(*(p1 - p0)))
+    u = (p1 - p0) / length
+    step = abs(gt[1])
+    s = np.arange(0.0, length + 0.5 * step, step)
+    px, py = p0[0] + s * u[0], p0[1] + s * u[1]
+    za = _sample(dem_a["bands"]["elevation"], dem_a["gt"], px, py)
+    diff = _sample(d["bands"]["difference"], gt, px, py)
+    sig = _sample(d["bands"]["significance"], gt, px, py)
+    zb = za + diff
+    fig, a = plt.subplots(figsize=(11, 4.4), layout="constrained")
+    half_width = max(0.25, 1.5 * step)
+    zs = [za[np.isfinite(za)], zb[np.isfinite(zb)]]
+    counts = {}
+    for side in ("a", "b"):
+        q = pts.get(side)
+        if q is None or len(q) == 0:
+            counts[side] = 0
+            continue
+        along = (q[:, 0] - p0[0]) * u[0] + (q[:, 1] - p0[1]) * u[1]
+        across = -(q[:, 0] - p0[0]) * u[1] + (q[:, 1] - p0[1]) * u[0]
+        near = (np.abs(across) <= half_width) & (along >= 0) & (along <= length)
+        counts[side] = int(near.sum())
+        idx = np.nonzero(near)[0]
+        if len(idx) > 20000:
+            idx = idx[np.linspace(0, len(idx) - 1, 20000).astype(np.int64)]
+        a.plot(along[idx], q[idx, 2], ".", ms=1.5, color=COLOUR[side], alpha=0.35, zorder=2)
+        zs.append(q[idx, 2])
+    a.plot(s, za, "-", color=COLOUR["a"], lw=1.8, label=f"{_label(c, 'a')}: depth grid",
+           zorder=4)
+    a.plot(s, zb, "-", color=COLOUR["b"], lw=1.8,
+           label=f"{_label(c, 'b')}: depth grid, co-registered", zorder=4)
+    a.fill_between(s, za, zb, where=sig < 0, color=CUT_COLOUR, alpha=0.35, lw=0,
+                   label="significant loss", zorder=3)
+    a.fill_between(s, za, zb, where=sig > 0, color=FILL_COLOUR, alpha=0.35, lw=0,
+                   label="significant gain", zorder=3)
+    for side in ("a", "b"):
+        if counts.get(side):
+            a.plot([], [], ".", ms=6, color=COLOUR[side], alpha=0.6,
+                   label=f"{_label(c, side)}: soundings within {half_width:g} m")
+    allz = np.concatenate(zs) if zs else np.zeros(0)
+    z_range = float(allz.max() - allz.min()) if len(allz) else 0.0
+    ve = _exaggeration(length, z_range)
+    a.set_aspect(ve, adjustable="datalim")
+    bearing = math.degrees(math.atan2(u[0], u[1])) % 360.0
+    a.set_xlabel(f"distance from {name} (m), towards grid bearing {bearing:.0f} deg")
+    vertical = (c.compare.get("crs") or {}).get("vertical") or "the vertical datum"
+    a.set_ylabel(f"height (m), {vertical}", fontsize=8)
+    a.set_title(f"Section {name}-{name}' {what}"
+                + (f"; vertical exaggeration {ve:g}x" if ve != 1 else "; true scale"),
+                fontsize=10)
+    a.grid(alpha=0.3)
+    a.legend(fontsize=7, loc="best", framealpha=0.85)
+    return c.figure(fig, f"change_section_{name}", f"cross-section {name} of both surveys")
+
+
+def cross_sections(c):
+    """Both surveys along two lines through the largest change: their depth grids (B's carried
+    by the co-registration, as in dod.tif) and their soundings near the line, which show the
+    wall where the grid, one height per node, cannot."""
+    d = c.dod()
+    if d is None:
+        return c.missing_product("dod.tif")
+    lines = _section_lines(c)
+    if not lines:
+        return "<p>No region of significant change: no cross-section.</p>"
+    dem_a = dem_of(c.a)
+    if dem_a is None or "elevation" not in dem_a["bands"]:
+        return c.missing_product("A's dem.tif", c.a.unusable.get("dem.tif", ""))
+    centre, _, r = c.section_centre
+    xs = [p[0] for _, p0, p1, _ in lines for p in (p0, p1)]
+    ys = [p[1] for _, p0, p1, _ in lines for p in (p0, p1)]
+    box = (min(xs) - 1, max(xs) + 1, min(ys) - 1, max(ys) + 1)
+    pts = {side: c.soundings(side, box) for side in ("a", "b")}
+    figures = [_profile_figure(c, name, p0, p1, what, d, dem_a, pts)
+               for name, p0, p1, what in lines]
+    za = float(_sample(dem_a["bands"]["elevation"], dem_a["gt"], [centre[0]], [centre[1]])[0])
+    dv = float(_sample(d["bands"]["difference"], d["gt"], [centre[0]], [centre[1]])[0])
+    lv = float(_sample(d["bands"]["lod95"], d["gt"], [centre[0]], [centre[1]])[0])
+    facts = [("through region", f"R{r['id']} ({esc(r['kind'])}, "
+                                f"{_volume(r['volume_m3'], r['u95_m3'])}), the largest by volume"),
+             ("at its largest change", f"E {num(float(centre[0]), 2)}, N "
+                                       f"{num(float(centre[1]), 2)}"),
+             ("height there", f"A {num(za, 3)} m, B {num(za + dv, 3)} m"),
+             ("B - A there", f"{num(dv, 3)} m (LoD95 {num(lv, 3)} m)")]
+    missing = [side.upper() for side in ("a", "b") if pts[side] is None]
+    note = (f" No soundings of {' and '.join(missing)} (points_utm.ply absent or unusable)."
+            if missing else "")
+    return "\n".join([facts_table(facts)] + figures + [
+        '<p class="caption">Lines: the depth grids (CUBE surfaces) of both surveys along the '
+        "section, B's as carried onto A by the co-registration (the heights dod.tif compares). "
+        "Dots: each survey's accepted soundings near the line (B's co-registered too): on a "
+        "steep wall they show the face that a grid of one height per node smooths. Shaded: "
+        "where the difference is significant." + note + "</p>"])
+
+
+# ---- co-registration, 3D change, capacity, gates ----
+
+def registration(c):
+    reg = c.compare["registration"]
+    sig = reg.get("sigma") if isinstance(reg.get("sigma"), dict) else {}
+    t, rot = reg["translation_m"], reg["rotation_deg"]
+
+    def pm(v, s, scale, digits, unit):
+        out = f"{num(float(v) * scale, digits)} {unit}"
+        return out + (f" &plusmn; {num(float(s) * scale, digits)}"
+                      if isinstance(s, (int, float)) else "")
+    rows = [("east", pm(t[0], sig.get("east_m"), 100, 1, "cm")),
+            ("north", pm(t[1], sig.get("north_m"), 100, 1, "cm")),
+            ("up", pm(t[2], sig.get("up_m"), 100, 1, "cm")),
+            ("roll", pm(rot["roll"], sig.get("roll_deg"), 1, 4, "deg")),
+            ("pitch", pm(rot["pitch"], sig.get("pitch_deg"), 1, 4, "deg")),
+            ("yaw", pm(rot["yaw"], sig.get("yaw_deg"), 1, 4, "deg"))]
+    facts = [("correction of B onto A (1-sigma)", table(rows, cls="facts")),
+             ("degrees of freedom", esc(reg.get("dof", "?"))),
+             ("residual on stable ground, vertical RMS",
+              f"{num(float(reg['rms_vertical_after_m']), 3)} m after, "
+              f"{num(float(reg['rms_vertical_before_m']), 3)} m before")]
+    used, stable = reg.get("nodes_used"), reg.get("nodes_stable")
+    if isinstance(used, int) and isinstance(stable, int) and used > 0:
+        facts.append(("stable ground", f"{num(stable)} of {num(used)} nodes "
+                                       f"({num(100.0 * stable / used, 1)} %)"))
+    if reg.get("termination"):
+        facts.append(("solver", f"{esc(reg['termination'])}, {esc(reg.get('iterations', '?'))}"
+                                " iterations"))
+    gate = reg.get("navigation_gate") if isinstance(reg.get("navigation_gate"), dict) else {}
+    if gate.get("evaluated"):
+        allowed = (f"{num(float(gate.get('allowed_horizontal_m', float('nan'))) * 100, 1)} cm "
+                   f"horizontal, {num(float(gate.get('allowed_vertical_m', float('nan'))) * 100, 1)}"
+                   f" cm vertical, {num(float(gate.get('allowed_yaw_deg', float('nan'))), 3)} deg"
+                   " yaw")
+        facts.append(("the two surveys' navigation allows (95 %)", allowed))
+        facts.append(("navigation gate", "<b>tripped</b>: " + esc(gate.get("beyond", ""))
+                      if gate.get("tripped") else "passed: the correction is within what the "
+                      "navigation allows"))
+    elif gate:
+        facts.append(("navigation gate", "not evaluated: " + esc(gate.get("message", ""))))
+    return "\n".join([facts_table(facts), '<p class="caption">B is carried onto A by a rigid '
+                      "correction estimated on ground that did not change (changes are "
+                      "outliers and never pull it); every figure of this report is after it."
+                      "</p>"])
+
+
+def change3d(c):
+    """The change along the local normal at A's core points (walls), by slope class."""
+    r = c.compare.get("change3d")
+    if not isinstance(r, dict):
+        return None
+    if not r.get("computed"):
+        return f"<p>Not computed: {esc(strip_paths(r.get('message', '')))}</p>"
+    by = r.get("by_slope") if isinstance(r.get("by_slope"), dict) else {}
+    lod25 = c.compare["change"].get("median_lod95_by_slope_m") or {}
+    names = (("floor_0_20_deg", "floors and benches (< 20 deg)"),
+             ("face_20_45_deg", "faces (20-45 deg)"), ("wall_45_90_deg", "walls (>= 45 deg)"))
+    rows = []
+    for key, label in names:
+        b = by.get(key) if isinstance(by.get(key), dict) else {}
+        l2 = lod25.get(key)
+        rows.append([esc(label), num(b.get("measured", 0)), num(b.get("significant", 0)),
+                     num(float(b["median_lod95_m"]), 3) if isinstance(
+                         b.get("median_lod95_m"), (int, float)) else "?",
+                     num(float(l2), 3) if isinstance(l2, (int, float)) else "?"])
+    return "\n".join([
+        f"<p>{esc(strip_paths(r.get('message', '')))}</p>",
+        table(rows, header=["ground", "core points measured", "significant",
+                            "smallest detectable along the normal (median LoD95, m)",
+                            "smallest detectable vertically (median LoD95, m)"]),
+        '<p class="caption">Along the normal (M3C2-like, change_points.ply): on walls a change '
+        "is measured across the face, where the vertical difference of the grids sees it as a "
+        "horizontal shift.</p>"])
+
+
+def capacity(c):
+    """Both surveys' capacity curves (compare's CSVs), each water level dashed, and the
+    figures at the water level."""
+    cap = c.compare["capacity"]
+    curves = []
+    for side, name in (("a", "capacity_a.csv"), ("b", "capacity_b.csv")):
+        try:
+            curves.append((_label(c, side), COLOUR[side], read_csv(c.path(name)),
+                           float(cap[side]["water_level_m"])))
+        except (OSError, ValueError) as e:
+            c.unusable[name] = strip_paths(e)
+            c.missing_product(name)
+    out = []
+    if curves:
+        fig, (av, aa) = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, layout="constrained")
+        draw_curves(av, aa, curves)
+        vertical = (c.compare.get("crs") or {}).get("vertical") or "datum"
+        av.set_ylabel(f"water level (m, {vertical})", fontsize=8)
+        fig.suptitle("Capacity of both surveys: volume and water-surface area against water "
+                     "level", fontsize=11)
+        out.append(c.figure(fig, "change_capacity", "capacity curves of both surveys"))
+    rows = []
+    for key, label, digits, unit in (("water_level_m", "water level", 3, "m"),
+                                     ("deepest_m", "deepest node", 3, "m"),
+                                     ("volume_at_water_level_m3", "volume at the water level",
+                                      0, "m&sup3;"),
+                                     ("area_at_water_level_m2", "water-surface area at the "
+                                      "water level", 0, "m&sup2;"),
+                                     ("surveyed_area_m2", "surveyed area", 0, "m&sup2;")):
+        va, vb = float(cap["a"][key]), float(cap["b"][key])
+        rows.append([esc(label), f"{num(va, digits)} {unit}", f"{num(vb, digits)} {unit}",
+                     f"{num(vb - va, digits)} {unit}"])
+    out.insert(0, table(rows, header=["", _label(c, "a"), _label(c, "b"), "B - A"],
+                        cls="capacity"))
+    out.append('<p class="caption">Over each survey\'s surveyed nodes only (ground a survey did '
+               "not reach is not filled in: compare the surveyed areas before the volumes). The "
+               "tables, a row every 0.25 m: capacity_a.csv and capacity_b.csv.</p>")
+    return "\n".join(out)
+
+
+def terrain_b(c):
+    """The slope and crawler maps of the later survey (the single-survey report's section)."""
+    n_problems, n_missing = len(c.b.problems), len(c.b.missing)
+    html = planning.terrain(c.b)
+    c.problems.extend(f"survey B: {x}" for x in c.b.problems[n_problems:])
+    c.missing.extend(f"B's {x}" for x in c.b.missing[n_missing:])
+    return html
+
+
+def quality(c):
+    gates = _gates(c)
+    if not gates:
+        return "<p>No quality gate of the comparison tripped.</p>"
+    rows = [[esc(g.get("stage", "?")), esc(g.get("gate", "?")),
+             esc(strip_paths(g.get("message", "")))] for g in gates]
+    return table(rows, header=["stage", "gate", "message"])
+
+
+SECTIONS = (
+    ("surveys", "Surveys compared", surveys),
+    ("summary", "Summary", summary),
+    ("change-map", "Map of significant change", change_map),
+    ("volumes", "Volumes of cut and fill", volumes),
+    ("sections", "Cross-sections at the largest change", cross_sections),
+    ("registration", "Co-registration of the surveys", registration),
+    ("change3d", "Change along the surface normal", change3d),
+    ("capacity", "Capacity curves", capacity),
+    ("terrain", "Mine planning at survey B: slopes and the crawler's reach", terrain_b),
+    ("quality", "Quality gates", quality),
+)
