@@ -70,7 +70,8 @@ from pitmap_report_lib.equipment import (  # noqa: E402
 from pitmap_report_lib.gltf import GlbError, check_glb, gltf_page  # noqa: E402,F401
 from pitmap_report_lib.loaders import Ply, PlyError, Products  # noqa: E402,F401
 from pitmap_report_lib.rasters import raster_max, raster_mean, rasterise_mesh  # noqa: E402,F401
-from pitmap_report_lib import maps, report, sections_change, sections_client, util  # noqa: E402,F401,E501
+from pitmap_report_lib import (  # noqa: E402,F401
+    maps, report, sections_change, sections_client, util)
 from pitmap_report_lib.change import CompareFolder  # noqa: E402
 from pitmap_report_lib.util import (  # noqa: E402,F401
     PROG, ReportError, die_with_parent, gps_to_utc, log)

@@ -34,7 +34,7 @@ import numpy as np
 
 REPORT = None  # path of the pitmap-report script, from --report
 CLIENT_SECTIONS = ["cover", "summary", "datums", "maps", "hydro", "soundings", "mosaic", "terrain",
-                   "viewer", "scores", "engineering"]
+                   "capacity", "viewer", "scores", "engineering"]
 ENGINEERING_SECTIONS = ["processing", "quality", "trajectory", "cross-sections", "depth", "tvu",
                         "rejections", "mesh", "boresight", "clock", "tsdf", "slam", "stages"]
 # The maps' raster (WriteDem): 80 x 60 nodes of 0.5 m, UTM 29N, north-up.
@@ -523,6 +523,25 @@ class ReportTest(unittest.TestCase):
         self.assertIn("slope up to 20.0 deg, steps up to 0.30 m", sec["terrain"])
         self.assertIn("E 603410.0, N 4477695.0", sec["terrain"])
         self.assertIn("<td>reachable</td><td>512 m&sup2;</td>", sec["terrain"])
+        # The capacity curve: the water level as pitmap compare finds it (the vessel's median
+        # height 412.0 + 0 m, no INS height above the water line, less the datum's 411.98 m),
+        # the volume of water over dem.tif's nodes below it, here by hand.
+        elevation = -2.0 - 6.0 * np.exp(-((np.arange(DEM_NX)[None, :] - 40) ** 2
+                                          + (np.arange(DEM_NY)[:, None] - 30) ** 2) / 400.0)
+        level = 412.0 - 411.98
+        volume = float(np.sum(level - elevation.astype(np.float32)) * DEM_GT[1] ** 2)
+        self.assertIn(f"<td>{level:.3f} m</td>", sec["capacity"])
+        self.assertIn(f"<td>{volume:.0f} m&sup3;</td>", sec["capacity"])
+        self.assertIn(f"<td>{DEM_NX * DEM_NY * DEM_GT[1] ** 2:.0f} m&sup2;</td>",
+                      sec["capacity"])
+        self.assertEqual(sec["capacity"].count("data:image/png"), 1)
+        with open(os.path.join(p, "report", "capacity.csv")) as f:
+            rows = f.read().splitlines()
+        self.assertEqual(rows[0], "level_m,depth_below_water_level_m,area_m2,volume_m3")
+        last = [float(v) for v in rows[-1].split(",")]
+        self.assertAlmostEqual(last[0], level, places=4)
+        self.assertAlmostEqual(last[3], volume, delta=0.002)
+        self.assertAlmostEqual(last[2], DEM_NX * DEM_NY * DEM_GT[1] ** 2, places=3)
         for s in ("trajectory", "cross-sections", "depth", "tvu", "mesh", "tsdf", "slam",
                   "stages"):
             self.assertIn("data:image/png", esec[s], s)
@@ -581,7 +600,7 @@ class ReportTest(unittest.TestCase):
                      "mesh_renders.png", "tsdf_weights.png", "slam_iterations.png",
                      "stages.png", "s44_compliance.png", "s44_crossline.png", "mosaic.png",
                      "rejections_map.png", "map_depth.png", "map_uncertainty_coverage.png",
-                     "sound_speed_casts.png"):
+                     "sound_speed_casts.png", "capacity.png"):
             self.assertIn(name, pngs)
             with open(os.path.join(p, "report", name), "rb") as f:
                 self.assertEqual(f.read(8), PNG_MAGIC)
@@ -775,7 +794,8 @@ class ReportTest(unittest.TestCase):
         # The client's page leaves out what has nothing to show (no mosaic, no truth) and has
         # no "not produced" banner; the engineering page names every missing product.
         self.assertEqual(list(sec), [s for s in CLIENT_SECTIONS if s not in
-                                     ("hydro", "mosaic", "terrain", "scores", "soundings")])
+                                     ("hydro", "mosaic", "terrain", "capacity", "scores",
+                                      "soundings")])
         self.assertEqual(list(esec), ENGINEERING_SECTIONS)
         self.assertFalse("not produced" in page, "a 'not produced' line on the client's page")
         self.assertNotIn("could not draw", page + eng)

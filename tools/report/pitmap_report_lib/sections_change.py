@@ -20,6 +20,7 @@ from matplotlib.colors import LightSource, TwoSlopeNorm  # noqa: E402
 
 from . import sections_planning as planning  # noqa: E402
 from .capacity import draw_curves, read_csv  # noqa: E402
+from .change import _is_number  # noqa: E402
 from .maps import add_furniture, raster_extent  # noqa: E402
 from .sections_client import _dem as dem_of  # noqa: E402
 from .sections_client import survey_metadata  # noqa: E402
@@ -32,10 +33,21 @@ CUT_COLOUR, FILL_COLOUR = "#b2182b", "#2166ac"
 FALL_LINE_MIN_SLOPE_DEG = 15.0
 
 
+def _input(c, side):
+    """compare.json's inputs.a or inputs.b, {} when absent or not an object."""
+    inputs = c.compare.get("inputs")
+    rec = inputs.get(side) if isinstance(inputs, dict) else None
+    return rec if isinstance(rec, dict) else {}
+
+
+def _crs(c):
+    crs = c.compare.get("crs")
+    return crs if isinstance(crs, dict) else {}
+
+
 def _label(c, side):
     """'A (2026-06-15)' from compare.json's survey start, else the folder's metadata."""
-    rec = (c.compare.get("inputs") or {}).get(side) or {}
-    t = rec.get("survey_start_utc") if isinstance(rec, dict) else None
+    t = _input(c, side).get("survey_start_utc")
     if not t:
         t = survey_metadata(c.epochs[side].summary).get("survey_start_utc")
     return f"{side.upper()} ({str(t)[:10]})" if t else side.upper()
@@ -75,9 +87,9 @@ def surveys(c):
         vals = [mds[s].get(key) for s in ("a", "b")]
         rows.append([f"<b>{esc(label)}</b>"] + [esc(v) if v else '<span class="not-set">not '
                                                  'set</span>' for v in vals])
-    rows.append(["<b>run id</b>"] + [esc(((c.compare.get("inputs") or {}).get(s) or {})
-                                         .get("run_id") or "not recorded") for s in ("a", "b")])
-    crs = c.compare.get("crs") if isinstance(c.compare.get("crs"), dict) else {}
+    rows.append(["<b>run id</b>"] + [esc(_input(c, s).get("run_id") or "not recorded")
+                                     for s in ("a", "b")])
+    crs = _crs(c)
     datum = [("horizontal CRS", f"{esc(crs.get('horizontal') or '?')}"
               + (f" (EPSG:{esc(crs['epsg'])})" if crs.get("epsg") else "")),
              ("vertical datum", esc(crs.get("vertical") or "?")),
@@ -87,6 +99,18 @@ def surveys(c):
                        "confidence")]
     return "\n".join([table(rows, header=["", _label(c, "a"), _label(c, "b")], cls="facts"),
                       facts_table(datum)])
+
+
+def _f(d, key):
+    """An optional figure of compare.json: the number at d[key], else NaN (printed "nan")."""
+    v = d.get(key) if isinstance(d, dict) else None
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+
+
+def _num(d, key, digits):
+    """An optional figure of compare.json as text: "?" when it is not there."""
+    v = _f(d, key)
+    return "?" if math.isnan(v) else num(v, digits)
 
 
 def _volume(v, u=None, digits=2):
@@ -104,24 +128,23 @@ def summary(c):
     ch, cap, reg = c.compare["change"], c.compare["capacity"], c.compare["registration"]
     cut, fill = ch["cut"], ch["fill"]
     n = len(ch["regions"])
+    cut_text = _volume(cut["volume_m3"], cut["u95_m3"])
+    fill_text = _volume(fill["volume_m3"], fill["u95_m3"])
     sentence = (f"Between survey {esc(_label(c, 'a'))} and survey {esc(_label(c, 'b'))}, "
                 f"<b>{n}</b> region{'s' if n != 1 else ''} of significant change "
-                f"{'were' if n != 1 else 'was'} found: <b>cut {_volume(cut['volume_m3'], cut['u95_m3'])}"
-                f"</b> over {num(float(cut['area_m2']), 1)} m&sup2; in {cut['regions']} "
-                f"region(s) and <b>fill {_volume(fill['volume_m3'], fill['u95_m3'])}</b> over "
-                f"{num(float(fill['area_m2']), 1)} m&sup2; in {fill['regions']} region(s) "
-                "(95 % uncertainty).")
+                f"{'were' if n != 1 else 'was'} found: <b>cut {cut_text}</b> over "
+                f"{num(float(cut['area_m2']), 1)} m&sup2; in {cut['regions']} region(s) and "
+                f"<b>fill {fill_text}</b> over {num(float(fill['area_m2']), 1)} m&sup2; in "
+                f"{fill['regions']} region(s) (95 % uncertainty).")
     gates = _gates(c)
     verdict = "not-met" if gates else "met"
-    rows = [("compared area", f"{num(float(ch.get('compared_area_m2', float('nan'))), 0)} "
-                              "m&sup2;"),
-            ("net change (cut + fill)",
-             _volume(ch.get("net_m3", cut["volume_m3"] + fill["volume_m3"]))),
+    net = ch["net_m3"] if _is_number(ch.get("net_m3")) else cut["volume_m3"] + fill["volume_m3"]
+    rows = [("compared area", f"{_num(ch, 'compared_area_m2', 0)} m&sup2;"),
+            ("net change (cut + fill)", _volume(net)),
             ("smallest detectable change (median LoD95)",
-             f"{num(float(ch['median_lod95_m']), 3)} m" if "median_lod95_m" in ch else "?"),
-            ("stable ground: B - A", f"mean {num(float(ch.get('stable_mean_m', float('nan'))), 3)}"
-                                     f" m, RMS {num(float(ch.get('stable_rms_m', float('nan'))), 3)}"
-                                     " m"),
+             f"{_num(ch, 'median_lod95_m', 3)} m"),
+            ("stable ground: B - A", f"mean {_num(ch, 'stable_mean_m', 3)} m, RMS "
+                                     f"{_num(ch, 'stable_rms_m', 3)} m"),
             ("co-registration residual (stable ground, vertical RMS)",
              f"{num(float(reg['rms_vertical_after_m']), 3)} m (before: "
              f"{num(float(reg['rms_vertical_before_m']), 3)} m)"),
@@ -217,7 +240,7 @@ def change_map(c):
         return c.missing_product("dod.tif")
     diff, sig, lod = (d["bands"][k] for k in ("difference", "significance", "lod95"))
     ext = _extent_of_data(d, diff)
-    crs = d["crs"] or (c.compare.get("crs") or {}).get("horizontal") or ""
+    crs = d["crs"] or _crs(c).get("horizontal") or ""
     dem_a = dem_of(c.a)
     shown = np.where(np.isfinite(sig) & (sig != 0), diff, np.nan)
     lim = _sym_limit(shown if np.isfinite(shown).any() else diff)
@@ -295,7 +318,8 @@ def volumes(c):
         totals.append([f"<b>all {side}</b>", str(t["regions"]), num(float(t["area_m2"]), 2),
                        f"<b>{num(float(t['volume_m3']), 2)}</b>",
                        f"<b>{num(float(t['u95_m3']), 2)}</b>"])
-    net = ch.get("net_m3", ch["cut"]["volume_m3"] + ch["fill"]["volume_m3"])
+    net = (ch["net_m3"] if _is_number(ch.get("net_m3"))
+           else ch["cut"]["volume_m3"] + ch["fill"]["volume_m3"])
     totals.append(["<b>net</b>", str(len(regions)), num(float(ch["cut"]["area_m2"])
                                                         + float(ch["fill"]["area_m2"]), 2),
                    f"<b>{num(float(net), 2)}</b>", "not stated"])
@@ -445,7 +469,7 @@ def _profile_figure(c, name, p0, p1, what, d, dem_a, pts):
     a.set_aspect(ve, adjustable="datalim")
     bearing = math.degrees(math.atan2(u[0], u[1])) % 360.0
     a.set_xlabel(f"distance from {name} (m), towards grid bearing {bearing:.0f} deg")
-    vertical = (c.compare.get("crs") or {}).get("vertical") or "the vertical datum"
+    vertical = _crs(c).get("vertical") or "the vertical datum"
     a.set_ylabel(f"height (m), {vertical}", fontsize=8)
     a.set_title(f"Section {name}-{name}' {what}"
                 + (f"; vertical exaggeration {ve:g}x" if ve != 1 else "; true scale"),
@@ -526,10 +550,9 @@ def registration(c):
                                 " iterations"))
     gate = reg.get("navigation_gate") if isinstance(reg.get("navigation_gate"), dict) else {}
     if gate.get("evaluated"):
-        allowed = (f"{num(float(gate.get('allowed_horizontal_m', float('nan'))) * 100, 1)} cm "
-                   f"horizontal, {num(float(gate.get('allowed_vertical_m', float('nan'))) * 100, 1)}"
-                   f" cm vertical, {num(float(gate.get('allowed_yaw_deg', float('nan'))), 3)} deg"
-                   " yaw")
+        allowed = (f"{num(_f(gate, 'allowed_horizontal_m') * 100, 1)} cm horizontal, "
+                   f"{num(_f(gate, 'allowed_vertical_m') * 100, 1)} cm vertical, "
+                   f"{_num(gate, 'allowed_yaw_deg', 3)} deg yaw")
         facts.append(("the two surveys' navigation allows (95 %)", allowed))
         facts.append(("navigation gate", "<b>tripped</b>: " + esc(gate.get("beyond", ""))
                       if gate.get("tripped") else "passed: the correction is within what the "
@@ -587,7 +610,7 @@ def capacity(c):
     if curves:
         fig, (av, aa) = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, layout="constrained")
         draw_curves(av, aa, curves)
-        vertical = (c.compare.get("crs") or {}).get("vertical") or "datum"
+        vertical = _crs(c).get("vertical") or "datum"
         av.set_ylabel(f"water level (m, {vertical})", fontsize=8)
         fig.suptitle("Capacity of both surveys: volume and water-surface area against water "
                      "level", fontsize=11)
