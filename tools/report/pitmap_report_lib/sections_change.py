@@ -17,6 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 from matplotlib.colors import LightSource, TwoSlopeNorm  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from . import sections_planning as planning  # noqa: E402
 from .capacity import draw_curves, read_csv  # noqa: E402
@@ -31,6 +32,11 @@ CUT_COLOUR, FILL_COLOUR = "#b2182b", "#2166ac"
 # A section runs down the slope where the ground at the change is steeper than this (a slump
 # on a wall), else along the change's longest extent (a heap or a cut on the floor).
 FALL_LINE_MIN_SLOPE_DEG = 15.0
+# A change on ground this steep in A is on a wall: when the largest change is not, the largest
+# one on a wall gets a section of its own, down the wall.
+WALL_MIN_SLOPE_DEG = 30.0
+# The map labels the regions of the largest volume; the others are outlined only.
+MAX_LABELLED_REGIONS = 20
 
 
 def _input(c, side):
@@ -170,6 +176,14 @@ def _extent_of_data(d, v):
     return (left - pad, right + pad, bottom - pad, top + pad)
 
 
+def _map_furniture(ax, ext, crs):
+    """The survey maps' furniture, with fewer northing ticks on a map wider than high (the
+    labels stand upright and would overlap)."""
+    add_furniture(ax, ext, crs)
+    w, h = ext[1] - ext[0], ext[3] - ext[2]
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=int(np.clip(6 * h / w, 2, 8))))
+
+
 def _hillshade(ax, dem):
     z = dem["bands"].get("elevation")
     if z is None:
@@ -204,6 +218,8 @@ def _outlines(c):
 
 def _draw_outlines(c, ax, d, outlines):
     regions = {int(r["id"]): r for r in c.compare["change"]["regions"]}
+    labelled = {int(r["id"]) for r in sorted(regions.values(), key=lambda r: (
+        -abs(float(r["volume_m3"])), int(r["id"])))[:MAX_LABELLED_REGIONS]}
     gt = d["gt"]
     for rid, r in regions.items():
         colour = CUT_COLOUR if r["kind"] == "cut" else FILL_COLOUR
@@ -216,8 +232,11 @@ def _draw_outlines(c, ax, d, outlines):
             ys = gt[3] + (np.arange(d["ny"]) + 0.5) * gt[5]
             if mask.any():
                 ax.contour(xs, ys, mask, levels=[0.5], colors=colour, linewidths=1.1, zorder=5)
+        if rid not in labelled:
+            continue
         centre = r.get("centroid_m")
-        if not (isinstance(centre, list) and len(centre) == 2):
+        if not (isinstance(centre, list) and len(centre) == 2
+                and all(_is_number(v) for v in centre)):
             rows, cols = np.nonzero(d["bands"]["region"] == rid)
             if len(rows) == 0:
                 continue
@@ -259,7 +278,7 @@ def change_map(c):
         for (x, y), t in ((p0, name), (p1, name + "'")):
             a.text(x, y, t, fontsize=9, weight="bold", zorder=8, ha="center", va="center",
                    bbox={"facecolor": "white", "edgecolor": "black", "pad": 1.0})
-    add_furniture(a, ext, crs)
+    _map_furniture(a, ext, crs)
     cb = fig.colorbar(im, ax=a, shrink=0.8, pad=0.01)
     cb.set_label("significant change, B - A (m): red loss, blue gain")
     a.legend(handles=[plt.Line2D([], [], color=CUT_COLOUR, lw=1.2, label="cut (loss) region"),
@@ -271,9 +290,15 @@ def change_map(c):
            '<p class="caption">Coloured: nodes where |B - A| exceeds the level of detection at '
            "95 % (LoD95, from both surveys' node uncertainty and the co-registration's); grey: "
            "no detectable change or only one survey. Outlines: the change regions of "
-           "change_regions.geojson, R and their id there, as in the volume table.</p>"]
-    fig, axs = plt.subplots(1, 2, figsize=(15, float(np.clip(7.5 * h / w, 3, 10)) + 1.2),
-                            layout="constrained")
+           f"change_regions.geojson; the {MAX_LABELLED_REGIONS} largest by volume labelled R and "
+           "their id there, as in the volume table.</p>"]
+    # Side by side when the area is about as wide as high, one above the other when wide.
+    if w > 1.4 * h:
+        fig, axs = plt.subplots(2, 1, figsize=(11, 2 * float(np.clip(11 * h / w, 2.5, 8)) + 1.5),
+                                layout="constrained")
+    else:
+        fig, axs = plt.subplots(1, 2, figsize=(15, float(np.clip(7.5 * h / w, 3, 10)) + 1.2),
+                                layout="constrained")
     dl = _sym_limit(diff)
     im = axs[0].imshow(diff, extent=raster_extent(d["gt"], d["nx"], d["ny"]), cmap="RdBu",
                        norm=TwoSlopeNorm(vcenter=0.0, vmin=-dl, vmax=dl),
@@ -282,12 +307,12 @@ def change_map(c):
     axs[0].set_title("Difference B - A, every compared node", fontsize=10)
     ok = lod[np.isfinite(lod)]
     im = axs[1].imshow(lod, extent=raster_extent(d["gt"], d["nx"], d["ny"]), cmap="viridis",
-                       vmin=0, vmax=float(np.percentile(ok, 99)) if len(ok) else 1.0,
+                       vmin=0, vmax=float(np.percentile(ok, 95)) if len(ok) else 1.0,
                        interpolation="nearest")
     fig.colorbar(im, ax=axs[1], shrink=0.8, pad=0.01).set_label("LoD95 (m)")
     axs[1].set_title("Level of detection at 95 %", fontsize=10)
     for ax in axs:
-        add_furniture(ax, ext, crs)
+        _map_furniture(ax, ext, crs)
     out.append('<div class="pair">' + c.figure(fig, "change_difference_lod",
                                                "difference and level of detection") + "</div>")
     return "\n".join(out)
@@ -358,65 +383,91 @@ def largest_region(c):
     return sorted(regions, key=lambda r: (-abs(float(r["volume_m3"])), int(r["id"])))[0]
 
 
+def _region_geometry(c, d, r):
+    """(x, y of its nodes, centre: the node of the largest |B - A|, mean slope of A over it in
+    deg or None, downhill unit vector or None) of region r in dod.tif; None without nodes."""
+    gt = d["gt"]
+    rows, cols = np.nonzero(d["bands"]["region"] == int(r["id"]))
+    if len(rows) == 0:
+        return None
+    x = gt[0] + (cols + 0.5) * gt[1]
+    y = gt[3] + (rows + 0.5) * gt[5]
+    k = int(np.nanargmax(np.abs(d["bands"]["difference"][rows, cols])))
+    slope, downhill = None, None
+    dem_a = dem_of(c.a)
+    if dem_a is not None and "elevation" in dem_a["bands"]:
+        if not hasattr(c, "_gradient_a"):
+            c._gradient_a = np.gradient(dem_a["bands"]["elevation"], dem_a["gt"][5],
+                                        dem_a["gt"][1])
+        gy, gx = c._gradient_a
+        sx, sy = _sample(gx, dem_a["gt"], x, y), _sample(gy, dem_a["gt"], x, y)
+        if np.isfinite(sx).any():
+            g = np.array([np.nanmean(sx), np.nanmean(sy)])
+            if np.all(np.isfinite(g)) and np.hypot(*g) > 0:
+                slope = math.degrees(math.atan(float(np.hypot(*g))))
+                downhill = -g / np.hypot(*g)
+    return x, y, np.array([x[k], y[k]]), slope, downhill
+
+
+def _line_through(name, x, y, centre, u, what):
+    """A section along u through centre, past the region's nodes (x, y) by half their extent
+    along u, at least 2 m, on each side."""
+    s = (x - centre[0]) * u[0] + (y - centre[1]) * u[1]
+    margin = max(2.0, 0.5 * float(s.max() - s.min()))
+    return (name, centre + (float(s.min()) - margin) * u, centre + (float(s.max()) + margin) * u,
+            what)
+
+
 def _section_lines(c):
-    """[(name, start, end, how)] of the two cross-sections through the largest change: the
-    first down the slope of A's surface there when it is steeper than 15 deg (a slumped wall),
-    else along the region's longest extent; the second across it. Both through the region's
-    node of the largest |B - A|, reaching past the region by half its extent (at least 2 m) on
-    each side. None without a region or dod.tif."""
+    """[(name, start, end, how)] of the cross-sections: two through the largest change, the
+    first down the slope of A's surface there when it is 15 deg or steeper (a slumped wall),
+    else along the region's longest extent, the second across it; and when the largest change
+    lies on gentler ground, a third down the slope through the largest change on a wall (mean
+    slope 30 deg or more). Each through its region's node of the largest |B - A|. Also sets
+    c.section_regions: [(section names, centre, region)]. None without a region or dod.tif."""
     if hasattr(c, "section_lines"):
         return c.section_lines
-    c.section_lines = None
+    c.section_lines, c.section_regions = None, []
     r = largest_region(c)
     d = c.dod()
     if r is None or d is None:
         return None
-    gt = d["gt"]
-    rows, cols = np.nonzero(d["bands"]["region"] == int(r["id"]))
-    if len(rows) == 0:
+    geo = _region_geometry(c, d, r)
+    if geo is None:
         c.problems.append(f"dod.tif has no node of region {r['id']} of compare.json")
         return None
-    x = gt[0] + (cols + 0.5) * gt[1]
-    y = gt[3] + (rows + 0.5) * gt[5]
-    diff = d["bands"]["difference"][rows, cols]
-    k = int(np.nanargmax(np.abs(diff)))
-    centre = np.array([x[k], y[k]])
-    how = "along the change's longest extent"
-    direction = None
-    dem_a = dem_of(c.a)
-    if dem_a is not None and "elevation" in dem_a["bands"]:
-        za = dem_a["bands"]["elevation"]
-        gy, gx = np.gradient(za, dem_a["gt"][5], dem_a["gt"][1])
-        sx, sy = _sample(gx, dem_a["gt"], x, y), _sample(gy, dem_a["gt"], x, y)
-        g = np.array([np.nanmean(sx), np.nanmean(sy)]) if np.isfinite(sx).any() else None
-        if g is not None and np.all(np.isfinite(g)):
-            slope = math.degrees(math.atan(float(np.hypot(*g))))
-            if slope >= FALL_LINE_MIN_SLOPE_DEG:
-                direction = -g / np.hypot(*g)
-                how = f"down the slope ({slope:.0f} deg on average over the region in A)"
-    if direction is None:
-        if len(x) >= 2:
-            w, v = np.linalg.eigh(np.cov(np.stack([x, y])))
-            direction = v[:, int(np.argmax(w))]
-        else:
-            direction = np.array([1.0, 0.0])
-    lines = []
-    for name, u, what in (("1", direction, how),
-                          ("2", np.array([-direction[1], direction[0]]), "across section 1")):
-        s = (x - centre[0]) * u[0] + (y - centre[1]) * u[1]
-        margin = max(2.0, 0.5 * float(s.max() - s.min()))
-        p0 = centre + (float(s.min()) - margin) * u
-        p1 = centre + (float(s.max()) + margin) * u
-        lines.append((name, p0, p1, what))
+    x, y, centre, slope, downhill = geo
+    if slope is not None and slope >= FALL_LINE_MIN_SLOPE_DEG:
+        u, how = downhill, f"down the slope ({slope:.0f} deg on average over the region in A)"
+    elif len(x) >= 2:
+        w, v = np.linalg.eigh(np.cov(np.stack([x, y])))
+        u, how = v[:, int(np.argmax(w))], "along the change's longest extent"
+    else:
+        u, how = np.array([1.0, 0.0]), "west to east"
+    lines = [_line_through("1", x, y, centre, u, how),
+             _line_through("2", x, y, centre, np.array([-u[1], u[0]]), "across section 1")]
+    c.section_regions.append(("1 and 2", centre, r, "the largest by volume"))
+    if slope is None or slope < WALL_MIN_SLOPE_DEG:
+        by_volume = sorted(c.compare["change"]["regions"],
+                           key=lambda q: (-abs(float(q["volume_m3"])), int(q["id"])))
+        for q in by_volume:
+            if q is r:
+                continue
+            geo = _region_geometry(c, d, q)
+            if geo is not None and geo[3] is not None and geo[3] >= WALL_MIN_SLOPE_DEG:
+                qx, qy, qc, qs, qu = geo
+                lines.append(_line_through("3", qx, qy, qc, qu, f"down the wall ({qs:.0f} deg "
+                                           "on average over the region in A)"))
+                c.section_regions.append(("3", qc, q, "the largest by volume on a wall"))
+                break
     c.section_lines = lines
-    c.section_centre = (centre, k, r)
     return lines
 
 
 def _exaggeration(length, z_range):
-    """1 when the section's heights span at least a tenth of its length, else the 2, 5, 10 or
+    """1 when the section's heights span at least a fifth of its length, else the 2, 5, 10 or
     20 that brings them nearest a third of it."""
-    if not z_range > 0 or z_range >= 0.1 * length:
+    if not z_range > 0 or z_range >= 0.2 * length:
         return 1.0
     want = length / (3.0 * z_range)
     return min((2.0, 5.0, 10.0, 20.0), key=lambda e: abs(math.log(e / want)))
@@ -433,24 +484,31 @@ def _profile_figure(c, name, p0, p1, what, d, dem_a, pts):
     diff = _sample(d["bands"]["difference"], gt, px, py)
     sig = _sample(d["bands"]["significance"], gt, px, py)
     zb = za + diff
-    fig, a = plt.subplots(figsize=(11, 4.4), layout="constrained")
     half_width = max(0.25, 1.5 * step)
     zs = [za[np.isfinite(za)], zb[np.isfinite(zb)]]
-    counts = {}
+    near_points = {}
     for side in ("a", "b"):
         q = pts.get(side)
         if q is None or len(q) == 0:
-            counts[side] = 0
             continue
         along = (q[:, 0] - p0[0]) * u[0] + (q[:, 1] - p0[1]) * u[1]
         across = -(q[:, 0] - p0[0]) * u[1] + (q[:, 1] - p0[1]) * u[0]
-        near = (np.abs(across) <= half_width) & (along >= 0) & (along <= length)
-        counts[side] = int(near.sum())
-        idx = np.nonzero(near)[0]
+        idx = np.nonzero((np.abs(across) <= half_width) & (along >= 0) & (along <= length))[0]
         if len(idx) > 20000:
             idx = idx[np.linspace(0, len(idx) - 1, 20000).astype(np.int64)]
-        a.plot(along[idx], q[idx, 2], ".", ms=1.5, color=COLOUR[side], alpha=0.35, zorder=2)
-        zs.append(q[idx, 2])
+        if len(idx):
+            near_points[side] = (along[idx], q[idx, 2])
+            zs.append(q[idx, 2])
+    allz = np.concatenate(zs)
+    z_lo, z_hi = (float(allz.min()), float(allz.max())) if len(allz) else (0.0, 1.0)
+    ve = _exaggeration(length, z_hi - z_lo)
+    # The axes keep the section's length and heights at the stated scale: the figure's height
+    # follows (a wall at true scale is tall, a floor is flat and exaggerated).
+    pad = 0.1 * max(z_hi - z_lo, 0.5)
+    height_in = float(np.clip(9.5 * ve * (z_hi - z_lo + 2 * pad) / length, 1.8, 8.5))
+    fig, a = plt.subplots(figsize=(11, height_in + 1.4), layout="constrained")
+    for side, (along, z) in near_points.items():
+        a.plot(along, z, ".", ms=1.5, color=COLOUR[side], alpha=0.35, zorder=2)
     a.plot(s, za, "-", color=COLOUR["a"], lw=1.8, label=f"{_label(c, 'a')}: depth grid",
            zorder=4)
     a.plot(s, zb, "-", color=COLOUR["b"], lw=1.8,
@@ -459,18 +517,15 @@ def _profile_figure(c, name, p0, p1, what, d, dem_a, pts):
                    label="significant loss", zorder=3)
     a.fill_between(s, za, zb, where=sig > 0, color=FILL_COLOUR, alpha=0.35, lw=0,
                    label="significant gain", zorder=3)
-    for side in ("a", "b"):
-        if counts.get(side):
-            a.plot([], [], ".", ms=6, color=COLOUR[side], alpha=0.6,
-                   label=f"{_label(c, side)}: soundings within {half_width:g} m")
-    allz = np.concatenate(zs) if zs else np.zeros(0)
-    z_range = float(allz.max() - allz.min()) if len(allz) else 0.0
-    ve = _exaggeration(length, z_range)
-    a.set_aspect(ve, adjustable="datalim")
+    for side in near_points:
+        a.plot([], [], ".", ms=6, color=COLOUR[side], alpha=0.6,
+               label=f"{_label(c, side)}: soundings within {half_width:g} m")
+    a.set_xlim(0, length)
+    a.set_ylim(z_lo - pad, z_hi + pad)
+    a.set_aspect(ve, adjustable="box")
     bearing = math.degrees(math.atan2(u[0], u[1])) % 360.0
     a.set_xlabel(f"distance from {name} (m), towards grid bearing {bearing:.0f} deg")
-    vertical = _crs(c).get("vertical") or "the vertical datum"
-    a.set_ylabel(f"height (m), {vertical}", fontsize=8)
+    a.set_ylabel("height (m)")
     a.set_title(f"Section {name}-{name}' {what}"
                 + (f"; vertical exaggeration {ve:g}x" if ve != 1 else "; true scale"),
                 fontsize=10)
@@ -492,31 +547,35 @@ def cross_sections(c):
     dem_a = dem_of(c.a)
     if dem_a is None or "elevation" not in dem_a["bands"]:
         return c.missing_product("A's dem.tif", c.a.unusable.get("dem.tif", ""))
-    centre, _, r = c.section_centre
     xs = [p[0] for _, p0, p1, _ in lines for p in (p0, p1)]
     ys = [p[1] for _, p0, p1, _ in lines for p in (p0, p1)]
     box = (min(xs) - 1, max(xs) + 1, min(ys) - 1, max(ys) + 1)
     pts = {side: c.soundings(side, box) for side in ("a", "b")}
     figures = [_profile_figure(c, name, p0, p1, what, d, dem_a, pts)
                for name, p0, p1, what in lines]
-    za = float(_sample(dem_a["bands"]["elevation"], dem_a["gt"], [centre[0]], [centre[1]])[0])
-    dv = float(_sample(d["bands"]["difference"], d["gt"], [centre[0]], [centre[1]])[0])
-    lv = float(_sample(d["bands"]["lod95"], d["gt"], [centre[0]], [centre[1]])[0])
-    facts = [("through region", f"R{r['id']} ({esc(r['kind'])}, "
-                                f"{_volume(r['volume_m3'], r['u95_m3'])}), the largest by volume"),
-             ("at its largest change", f"E {num(float(centre[0]), 2)}, N "
-                                       f"{num(float(centre[1]), 2)}"),
-             ("height there", f"A {num(za, 3)} m, B {num(za + dv, 3)} m"),
-             ("B - A there", f"{num(dv, 3)} m (LoD95 {num(lv, 3)} m)")]
+    tables = []
+    for names, centre, r, which in c.section_regions:
+        za = float(_sample(dem_a["bands"]["elevation"], dem_a["gt"], [centre[0]],
+                           [centre[1]])[0])
+        dv = float(_sample(d["bands"]["difference"], d["gt"], [centre[0]], [centre[1]])[0])
+        lv = float(_sample(d["bands"]["lod95"], d["gt"], [centre[0]], [centre[1]])[0])
+        tables.append(facts_table([
+            (f"section {names} through region",
+             f"R{r['id']} ({esc(r['kind'])}, {_volume(r['volume_m3'], r['u95_m3'])}), {which}"),
+            ("at its largest change", f"E {num(float(centre[0]), 2)}, N "
+                                      f"{num(float(centre[1]), 2)}"),
+            ("height there", f"A {num(za, 3)} m, B {num(za + dv, 3)} m"),
+            ("B - A there", f"{num(dv, 3)} m (LoD95 {num(lv, 3)} m)")]))
     missing = [side.upper() for side in ("a", "b") if pts[side] is None]
     note = (f" No soundings of {' and '.join(missing)} (points_utm.ply absent or unusable)."
             if missing else "")
-    return "\n".join([facts_table(facts)] + figures + [
+    return "\n".join(tables + figures + [
         '<p class="caption">Lines: the depth grids (CUBE surfaces) of both surveys along the '
         "section, B's as carried onto A by the co-registration (the heights dod.tif compares). "
         "Dots: each survey's accepted soundings near the line (B's co-registered too): on a "
         "steep wall they show the face that a grid of one height per node smooths. Shaded: "
-        "where the difference is significant." + note + "</p>"])
+        "where the difference is significant. Heights in "
+        f"{esc(_crs(c).get('vertical') or 'the vertical datum')}." + note + "</p>"])
 
 
 # ---- co-registration, 3D change, capacity, gates ----
