@@ -152,9 +152,9 @@ def main(argv=None):
         return view_gltf(args.view_gltf, args.output, args.title)
     if args.compare is not None:
         if args.products is not None or args.scores is not None or args.output is not None \
-                or args.equipment is not None:
-            ap.error("--compare takes no products folder, --scores, -o or --equipment (the "
-                     "surveys are compare.json's, or --epochs A B)")
+                or args.equipment is not None or args.jobs is not None:
+            ap.error("--compare takes no products folder, --scores, -o, --jobs or --equipment "
+                     "(the surveys are compare.json's, or --epochs A B)")
         return compare_report(args.compare, args.epochs, args.title, args.pdf)
     if args.epochs is not None:
         ap.error("--epochs goes with --compare")

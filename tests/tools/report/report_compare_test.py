@@ -31,7 +31,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SECTIONS = ["surveys", "summary", "change-map", "volumes", "sections", "registration",
             "change3d", "capacity", "terrain", "quality"]
 FIGURES = ["change_map", "change_difference_lod", "change_section_1", "change_section_2",
-           "change_capacity", "terrain_slope", "terrain_crawler"]
+           "change_normal_map", "change_capacity", "terrain_slope", "terrain_crawler"]
 
 
 def Run(*args, check=True):
@@ -156,7 +156,18 @@ class ChangeReportTest(unittest.TestCase):
         self.assertAlmostEqual(abs(float(m.group(1))), largest["max_abs_difference_m"],
                                delta=0.0006)
         self.assertGreater(abs(float(m.group(1))), float(m.group(2)))  # significant there
+        # The quarry's first minute has no change on a wall: sections 1 and 2 only.
         self.assertEqual(self.sec["sections"].count("data:image/png"), 2)
+        self.assertIn("data:image/png", self.sec["change3d"])
+        by = self.j["change3d"]["by_slope"]
+
+        def count(v):
+            return f"{v:,}".replace(",", "\u2009")
+        for key, label in (("floor_0_20_deg", "floors and benches (&lt; 20 deg)"),
+                           ("wall_45_90_deg", "walls (&gt;= 45 deg)")):
+            self.assertIn(f"<td>{label}</td><td>{count(by[key]['measured'])}</td><td>"
+                          f"{count(by[key]['significant'])}</td><td>"
+                          f"{by[key]['median_lod95_m']:.3f}</td>", self.sec["change3d"])
 
     def test_pictures_exist_and_are_in_the_page(self):
         for name in FIGURES:
@@ -255,6 +266,8 @@ class ChangeReportTest(unittest.TestCase):
         with open(os.path.join(WORK, "damaged", "grown", "report.html"), encoding="utf-8") as f:
             page = f.read()
         self.assertEqual(list(Sections(page)), [s for s in SECTIONS if s != "change3d"])
+        self.assertFalse(os.path.exists(os.path.join(WORK, "damaged", "grown", "report",
+                                                     "change_normal_map.png")))
         self.assertNotIn("could not draw", page)
         self.assertNotIn('class="problem"', page)
         # Without change_regions.geojson the outlines come from dod.tif, and the page says so.

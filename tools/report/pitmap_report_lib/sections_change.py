@@ -10,6 +10,7 @@ returning its HTML, or None to be left out."""
 
 import json
 import math
+import os
 
 import numpy as np
 import matplotlib
@@ -22,6 +23,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from . import sections_planning as planning  # noqa: E402
 from .capacity import draw_curves, read_csv  # noqa: E402
 from .change import _is_number  # noqa: E402
+from .loaders import Ply, PlyError  # noqa: E402
 from .maps import add_furniture, raster_extent  # noqa: E402
 from .sections_client import _dem as dem_of  # noqa: E402
 from .sections_client import survey_metadata  # noqa: E402
@@ -313,8 +315,7 @@ def change_map(c):
     axs[1].set_title("Level of detection at 95 %", fontsize=10)
     for ax in axs:
         _map_furniture(ax, ext, crs)
-    out.append('<div class="pair">' + c.figure(fig, "change_difference_lod",
-                                               "difference and level of detection") + "</div>")
+    out.append(c.figure(fig, "change_difference_lod", "difference and level of detection"))
     return "\n".join(out)
 
 
@@ -648,9 +649,59 @@ def change3d(c):
         table(rows, header=["ground", "core points measured", "significant",
                             "smallest detectable along the normal (median LoD95, m)",
                             "smallest detectable vertically (median LoD95, m)"]),
+        _change_points_map(c),
         '<p class="caption">Along the normal (M3C2-like, change_points.ply): on walls a change '
         "is measured across the face, where the vertical difference of the grids sees it as a "
         "horizontal shift.</p>"])
+
+
+def _change_points_map(c):
+    """The significant core points of change_points.ply over A's hill-shade, coloured by the
+    distance along the normal, those on walls (>= 45 deg) ringed; "" without the file."""
+    if not os.path.isfile(c.path("change_points.ply")):
+        return ""
+    try:
+        v = Ply(c.path("change_points.ply")).elements.get("vertex")
+    except PlyError as e:
+        c.problems.append(f"change_points.ply: {strip_paths(e)}")
+        return ""
+    need = ("x", "y", "distance_m", "significance", "slope_deg")
+    if v is None or not all(k in (v.dtype.names or ()) for k in need):
+        c.problems.append("change_points.ply: no " + ", ".join(need) + " per vertex")
+        return ""
+    sig = np.asarray(v["significance"]) != 0
+    dist = np.asarray(v["distance_m"], dtype=np.float64)
+    sig &= np.isfinite(dist)
+    x, y = np.asarray(v["x"], dtype=np.float64), np.asarray(v["y"], dtype=np.float64)
+    measured = np.isfinite(dist)
+    if not measured.any():
+        return ""
+    dem_a = dem_of(c.a)
+    if dem_a is not None:
+        ext = _extent_of_data(dem_a, dem_a["bands"].get("elevation", np.zeros((1, 1))))
+    else:
+        pad = 1.0
+        ext = (x.min() - pad, x.max() + pad, y.min() - pad, y.max() + pad)
+    w, h = ext[1] - ext[0], ext[3] - ext[2]
+    fig, a = plt.subplots(figsize=(11, float(np.clip(11 * h / w, 3.5, 12)) + 1.0),
+                          layout="constrained")
+    if dem_a is not None:
+        _hillshade(a, dem_a)
+    lim = _sym_limit(dist[sig]) if sig.any() else 0.5
+    im = a.scatter(x[sig], y[sig], c=dist[sig], s=9, cmap="RdBu",
+                   norm=TwoSlopeNorm(vcenter=0.0, vmin=-lim, vmax=lim), zorder=3,
+                   linewidths=0)
+    wall = sig & (np.asarray(v["slope_deg"], dtype=np.float64) >= 45.0)
+    if wall.any():
+        a.scatter(x[wall], y[wall], s=16, facecolors="none", edgecolors="0.15",
+                  linewidths=0.4, zorder=4, label=f"on walls (>= 45 deg): {int(wall.sum())}")
+        a.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    _map_furniture(a, ext, _crs(c).get("horizontal") or "")
+    fig.colorbar(im, ax=a, shrink=0.8, pad=0.01).set_label(
+        "B - A along the normal (m): red loss, blue gain")
+    a.set_title(f"Significant change along the surface normal: {int(sig.sum())} of "
+                f"{int(measured.sum())} core points measured", fontsize=10)
+    return c.figure(fig, "change_normal_map", "significant change along the normal")
 
 
 def capacity(c):
