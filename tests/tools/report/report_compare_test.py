@@ -229,7 +229,7 @@ class ChangeReportTest(unittest.TestCase):
             ("no capacity of B", set_value(["capacity", "b"], KeyError),
              "capacity.b is missing"),
             ("u95 null", set_value(["change", "cut", "u95_m3"], None),
-             "change.cut.u95_m3 is missing"),
+             "change.cut.u95_m3 is null"),
             ("kind", set_value(["change", "regions", 0, "kind"], "slump"),
              "change.regions[0].kind is 'slump', not cut or fill"),
             ("translation", set_value(["registration", "translation_m"], [0.1, 0.2]),

@@ -1109,6 +1109,61 @@ class HelperTest(unittest.TestCase):
     def setUpClass(cls):
         cls.m = LoadModule()
 
+    def test_capacity_curve_by_hand(self):
+        from pitmap_report_lib.capacity import capacity_curve
+        # Nodes of 2 m at heights 0, 1, 2 and an empty one; water at 1.5 m: two nodes under
+        # water, 1.5 + 0.5 m deep, times 4 m^2.
+        c = capacity_curve(np.array([[0.0, 1.0], [2.0, np.nan]]), 2.0, 1.5, step_m=0.5)
+        self.assertEqual(c["surveyed_area_m2"], 12.0)
+        self.assertEqual(c["deepest_m"], 0.0)
+        self.assertEqual(c["area_at_water_level_m2"], 8.0)
+        self.assertAlmostEqual(c["volume_at_water_level_m3"], 8.0)
+        # Rows every 0.5 m from the deepest node, then the water level; a level equal to a
+        # node's height does not count that node (z < L).
+        self.assertEqual([r[0] for r in c["rows"]], [0.0, 0.5, 1.0, 1.5])
+        self.assertEqual([r[1] for r in c["rows"]], [0.0, 4.0, 4.0, 8.0])
+        self.assertEqual([r[2] for r in c["rows"]], [0.0, 2.0, 4.0, 8.0])
+        self.assertEqual(capacity_curve(np.full(4, np.nan), 1.0, 1.0)["rows"], [])
+
+    def test_compare_json_check_names_every_problem(self):
+        from pitmap_report_lib.change import check_compare_json
+        good = {
+            "change": {"cut": {"volume_m3": -3.0, "u95_m3": 0.5, "area_m2": 4.0, "regions": 1},
+                       "fill": {"volume_m3": 0.0, "u95_m3": 0.0, "area_m2": 0.0, "regions": 0},
+                       "regions": [{"id": 1, "kind": "cut", "area_m2": 4.0, "volume_m3": -3.0,
+                                    "u95_m3": 0.5}]},
+            "capacity": {s: {"water_level_m": 10.0, "volume_at_water_level_m3": 100.0,
+                             "area_at_water_level_m2": 20.0, "deepest_m": 2.0,
+                             "surveyed_area_m2": 25.0} for s in ("a", "b")},
+            "registration": {"translation_m": [0.0, 0.0, 0.01], "pivot_m": [1.0, 2.0, 3.0],
+                             "rotation_deg": {"roll": 0.0, "pitch": 0.0, "yaw": 0.1},
+                             "rms_vertical_before_m": 0.03, "rms_vertical_after_m": 0.02},
+            "something_new": {"any": "thing"}}
+        self.assertEqual(check_compare_json(good), [])
+        bad = json.loads(json.dumps(good))
+        bad["change"]["regions"].append({"id": 1, "kind": "cut", "area_m2": 1.0,
+                                         "volume_m3": float("inf"), "u95_m3": 0.1})
+        bad["change"]["fill"]["regions"] = 0.5
+        del bad["capacity"]["a"]
+        bad["registration"]["rotation_deg"]["yaw"] = "0.1"
+        self.assertEqual(check_compare_json(bad), [
+            "change.fill.regions is not an integer (0.5)",
+            "change.regions[1].id 1 is not a new positive id",
+            "change.regions[1].volume_m3 is not a number (Infinity)",
+            "capacity.a is missing",
+            'registration.rotation_deg.yaw is not a number ("0.1")'])
+
+    def test_rotation_of_the_co_registration(self):
+        from pitmap_report_lib.change import rotation_matrix
+        # A yaw of 90 deg (about up) takes east to north; a rotation vector's angle is its norm.
+        np.testing.assert_allclose(rotation_matrix([0, 0, math.pi / 2]) @ [1, 0, 0], [0, 1, 0],
+                                   atol=1e-12)
+        w = np.array([0.01, -0.02, 0.03])
+        R = rotation_matrix(w)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(R @ w, w, atol=1e-15)  # the axis stays
+        np.testing.assert_array_equal(rotation_matrix([0, 0, 0]), np.eye(3))
+
     def test_ply_reader_follows_the_header(self):
         # Read through the project's C++ PLY reader (pitmap-ply-layout), then memory-mapped.
         with tempfile.TemporaryDirectory() as d:

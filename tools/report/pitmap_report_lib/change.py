@@ -30,12 +30,12 @@ def _check(j, path, kind, problems):
     where = ""
     for k in path:
         where += f"[{k}]" if isinstance(k, int) else (f".{k}" if where else k)
-        if isinstance(k, int):
-            v = v[k] if isinstance(v, list) and k < len(v) else None
-        else:
-            v = v.get(k) if isinstance(v, dict) else None
+        present = (k < len(v)) if isinstance(k, int) and isinstance(v, list) else (
+            isinstance(v, dict) and k in v)
+        v = v[k] if present else None
         if v is None:
-            problems.append(f"{where} is missing")
+            # nlohmann::json writes a NaN as null: a figure that was not a number.
+            problems.append(f"{where} is {'null' if present else 'missing'}")
             return None
     ok = {"number": _is_number(v), "object": isinstance(v, dict), "list": isinstance(v, list),
           "int": isinstance(v, int) and not isinstance(v, bool), "text": isinstance(v, str)}[kind]
@@ -88,7 +88,7 @@ def check_compare_json(j):
         _check(j, ["registration", k], "number", p)
     if "quality_gates" in j and not isinstance(j["quality_gates"], list):
         p.append("quality_gates is not a list")
-    return p
+    return list(dict.fromkeys(p))  # a missing object is named once, not once per field
 
 
 def rotation_matrix(w):
