@@ -282,6 +282,28 @@ class ChangeReportTest(unittest.TestCase):
                         "no line saying the outlines come from dod.tif")
         self.assertIn("data:image/png", Sections(page)["change-map"])
 
+    def test_a_tripped_gate_leads_the_summary(self):
+        gate = {"stage": "compare", "gate": "correction_beyond_navigation",
+                "message": "the correction (0.50 m east) is beyond what the navigation of "
+                           "/data/surveys/A and B allows"}
+
+        def edit(text):
+            j = json.loads(text)
+            j["quality_gates"] = [gate]
+            return json.dumps(j)
+        code, err, _ = self.Damaged("gate", edit)
+        self.assertEqual(code, 0, err)
+        with open(os.path.join(WORK, "damaged", "gate", "report.html"), encoding="utf-8") as f:
+            sec = Sections(f.read())
+        self.assertIn('<p class="verdict not-met">', sec["summary"])
+        # Paths in a gate's message are cut to their last part on the client's page.
+        message = "the correction (0.50 m east) is beyond what the navigation of A and B allows"
+        self.assertIn(message, sec["summary"])
+        self.assertIn(f"<td>compare</td><td>correction_beyond_navigation</td><td>{message}</td>",
+                      sec["quality"])
+        self.assertIn('<p class="verdict">', self.sec["summary"])  # none tripped: grey
+        self.assertIn("No quality gate of the comparison tripped", self.sec["quality"])
+
     def test_moved_or_reprocessed_surveys_are_refused(self):
         code, err, written = self.Damaged("moved", lambda t: t.replace(
             json.dumps(os.path.join(WORK, "A"))[1:-1], "/nonexistent/A"))

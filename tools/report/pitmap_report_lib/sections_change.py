@@ -145,7 +145,9 @@ def summary(c):
                 f"<b>fill {fill_text}</b> over {num(float(fill['area_m2']), 1)} m&sup2; in "
                 f"{fill['regions']} region(s) (95 % uncertainty).")
     gates = _gates(c)
-    verdict = "not-met" if gates else "met"
+    # A statement of fact, grey; red when a gate of the comparison tripped (then read it with
+    # the gates' messages).
+    verdict = "verdict not-met" if gates else "verdict"
     net = ch["net_m3"] if _is_number(ch.get("net_m3")) else cut["volume_m3"] + fill["volume_m3"]
     rows = [("compared area", f"{_num(ch, 'compared_area_m2', 0)} m&sup2;"),
             ("net change (cut + fill)", _volume(net)),
@@ -161,7 +163,7 @@ def summary(c):
              f"{num(float(cap['b']['volume_at_water_level_m3']), 0)} m&sup3;"),
             ("quality gates", "none tripped" if not gates else
              "; ".join(esc(strip_paths(g.get("message", g.get("gate", "?")))) for g in gates))]
-    return "\n".join([f'<p class="verdict {verdict}">{sentence}</p>', facts_table(rows)])
+    return "\n".join([f'<p class="{verdict}">{sentence}</p>', facts_table(rows)])
 
 
 # ---- the map ----
