@@ -304,6 +304,27 @@ class ChangeReportTest(unittest.TestCase):
         self.assertIn('<p class="verdict">', self.sec["summary"])  # none tripped: grey
         self.assertIn("No quality gate of the comparison tripped", self.sec["quality"])
 
+    def test_no_change_is_said_in_words(self):
+        def edit(text):
+            j = json.loads(text)
+            j["change"]["regions"] = []
+            for side in ("cut", "fill"):
+                j["change"][side].update({"volume_m3": 0.0, "u95_m3": 0.0, "area_m2": 0.0,
+                                          "regions": 0})
+            j["change"]["net_m3"] = 0.0
+            return json.dumps(j)
+        code, err, _ = self.Damaged("unchanged", edit)
+        self.assertEqual(code, 0, err)
+        with open(os.path.join(WORK, "damaged", "unchanged", "report.html"),
+                  encoding="utf-8") as f:
+            page = f.read()
+        sec = Sections(page)
+        self.assertIn("<b>0</b> regions of significant change were found", sec["summary"])
+        self.assertIn("No region of significant change.", sec["volumes"])
+        self.assertIn("No region of significant change: no cross-section.", sec["sections"])
+        self.assertIn("data:image/png", sec["change-map"])
+        self.assertNotIn("could not draw", page)
+
     def test_moved_or_reprocessed_surveys_are_refused(self):
         code, err, written = self.Damaged("moved", lambda t: t.replace(
             json.dumps(os.path.join(WORK, "A"))[1:-1], "/nonexistent/A"))
