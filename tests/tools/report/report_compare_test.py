@@ -9,10 +9,13 @@ Checks: the page is written, self-contained, names no path of this machine and h
 sections; every figure of the volume table (per region and the totals), the capacity table, the
 co-registration and the summary is compare.json's; the cross-section runs through the region of
 the largest volume, at its node of the largest |B - A| (compare.json's max_abs_difference_m);
-the pictures exist as non-empty PNG files and in the page; the survey report of A has the
-capacity curve pitmap compare found for A (the same CSV rows); a damaged compare.json, survey
-folders that moved or were processed again are refused with a message naming the problem and
-no page; with Chromium, report.pdf has a page per section.
+the change along the normal by slope class is compare.json's change3d; the pictures exist as
+non-empty PNG files and in the page; the survey report of A has the capacity curve pitmap
+compare found for A (the same CSV rows); a damaged compare.json, survey folders that moved or
+were processed again are refused with a message naming the problem and no page; a compare.json
+with fields the report does not know, or without optional ones, is still drawn; a tripped gate
+leads the summary; no change is said in words; with Chromium, report.pdf has a page per
+section.
 
 Usage: report_compare_test.py --bin BUILD/bin --work DIR [unittest args]"""
 

@@ -53,12 +53,19 @@ def _crs(c):
     return crs if isinstance(crs, dict) else {}
 
 
-def _label(c, side):
-    """'A (2026-06-15)' from compare.json's survey start, else the folder's metadata."""
+def _date(c, side):
+    """The survey's start date (YYYY-MM-DD) from compare.json, else the folder's metadata;
+    None when neither says."""
     t = _input(c, side).get("survey_start_utc")
     if not t:
         t = survey_metadata(c.epochs[side].summary).get("survey_start_utc")
-    return f"{side.upper()} ({str(t)[:10]})" if t else side.upper()
+    return str(t)[:10] if t else None
+
+
+def _label(c, side):
+    """'A (2026-06-15)', or 'A' without a date."""
+    d = _date(c, side)
+    return f"{side.upper()} ({d})" if d else side.upper()
 
 
 def _survey_name(p):
@@ -68,10 +75,11 @@ def _survey_name(p):
 
 
 def change_title(c):
-    """'Change between surveys: <project - site>, A date to B date'."""
+    """'Change between surveys: <project - site>, <date A> to <date B>'."""
     name = _survey_name(c.a)
-    return ("Change between surveys" + (f": {name}" if name else "") + ", "
-            + _label(c, "a")[3:-1] + " to " + _label(c, "b")[3:-1]).replace(", ,", ",")
+    da, db = _date(c, "a"), _date(c, "b")
+    return ("Change between surveys" + (f": {name}" if name else "")
+            + (f", {da} to {db}" if da and db else ""))
 
 
 def subtitle(c):
@@ -110,15 +118,19 @@ def surveys(c):
 
 
 def _f(d, key):
-    """An optional figure of compare.json: the number at d[key], else NaN (printed "nan")."""
+    """An optional figure of compare.json: the number at d[key], else NaN."""
     v = d.get(key) if isinstance(d, dict) else None
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
+def _text(v, digits):
+    """A figure as text, "?" for NaN (an optional figure compare.json does not have)."""
+    return "?" if math.isnan(v) else num(v, digits)
+
+
 def _num(d, key, digits):
     """An optional figure of compare.json as text: "?" when it is not there."""
-    v = _f(d, key)
-    return "?" if math.isnan(v) else num(v, digits)
+    return _text(_f(d, key), digits)
 
 
 def _volume(v, u=None, digits=2):
@@ -327,7 +339,7 @@ def volumes(c):
     """Per region and in total: area, volume and its 95 % uncertainty with the terms it is
     made of."""
     ch = c.compare["change"]
-    regions = sorted(ch["regions"], key=lambda r: -abs(float(r["volume_m3"])))
+    regions = sorted(ch["regions"], key=lambda r: (-abs(float(r["volume_m3"])), int(r["id"])))
     rows = []
     for r in regions:
         def term(k):
@@ -395,7 +407,8 @@ def _region_geometry(c, d, r):
         return None
     x = gt[0] + (cols + 0.5) * gt[1]
     y = gt[3] + (rows + 0.5) * gt[5]
-    k = int(np.nanargmax(np.abs(d["bands"]["difference"][rows, cols])))
+    diff = np.abs(d["bands"]["difference"][rows, cols])
+    k = int(np.nanargmax(diff)) if np.isfinite(diff).any() else 0
     slope, downhill = None, None
     dem_a = dem_of(c.a)
     if dem_a is not None and "elevation" in dem_a["bands"]:
@@ -612,8 +625,8 @@ def registration(c):
                                 " iterations"))
     gate = reg.get("navigation_gate") if isinstance(reg.get("navigation_gate"), dict) else {}
     if gate.get("evaluated"):
-        allowed = (f"{num(_f(gate, 'allowed_horizontal_m') * 100, 1)} cm horizontal, "
-                   f"{num(_f(gate, 'allowed_vertical_m') * 100, 1)} cm vertical, "
+        allowed = (f"{_text(_f(gate, 'allowed_horizontal_m') * 100, 1)} cm horizontal, "
+                   f"{_text(_f(gate, 'allowed_vertical_m') * 100, 1)} cm vertical, "
                    f"{_num(gate, 'allowed_yaw_deg', 3)} deg yaw")
         facts.append(("the two surveys' navigation allows (95 %)", allowed))
         facts.append(("navigation gate", "<b>tripped</b>: " + esc(gate.get("beyond", ""))
