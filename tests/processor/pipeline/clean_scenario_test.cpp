@@ -84,12 +84,12 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
     EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.83);
     // Mid-water targets (fish) are the cleaning's best case.
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
-    // The bound (0.005) in every class but 20-45 deg, held at what is reached there
-    // (docs/decisions/014).
+    // The bound (0.005) in every slope class. Measured 0.14-0.16 / 0.24 / 0.18-0.25 %
+    // (0-20 / 20-45 / 45-91 deg) since a rejection continuous with the terrain is terrain
+    // (0.40-0.43 / 0.50-0.53 / 0.37-0.44 % before: docs/decisions/014).
     for (const std::string level : {"none", "light", "typical"}) {
         for (const char* slope : {"0_20", "20_45", "45_91"}) {
-            const double bound = std::string(slope) == "20_45" ? 0.0055 : 0.005;
-            EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), bound)
+            EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), 0.005)
                 << level << " slope " << slope;
         }
     }
