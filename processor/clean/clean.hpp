@@ -102,9 +102,10 @@ struct CleanCounts {
     std::int64_t profile = 0;
     std::int64_t terrain = 0;  // rejected by a test, then released: continuous with the terrain
     // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
-    // voxels and rays, the range profiles.
+    // voxels and rays, the range profiles (with the holes and the enclosed pieces), the
+    // terrain's continuity.
     double seconds_voxels = 0, seconds_rays = 0, seconds_clusters = 0, seconds_verdicts = 0,
-           seconds_profiles = 0;
+           seconds_profiles = 0, seconds_terrain = 0;
 };
 
 struct CleanResult {

@@ -254,7 +254,8 @@ Status CleanSurvey(StageContext& s,
                  {"seconds_rays", c.seconds_rays},
                  {"seconds_clusters", c.seconds_clusters},
                  {"seconds_verdicts", c.seconds_verdicts},
-                 {"seconds_profiles", c.seconds_profiles}},
+                 {"seconds_profiles", c.seconds_profiles},
+                 {"seconds_terrain", c.seconds_terrain}},
                 clock);
     return Ok{};
 }
