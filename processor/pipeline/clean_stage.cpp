@@ -209,8 +209,8 @@ Status CleanSurvey(StageContext& s,
     std::snprintf(line,
                   sizeof line,
                   "clean: %lld of %lld soundings rejected (%.2f %%): free space %lld, cluster "
-                  "%lld, multipath %lld, off profile %lld (%lld continuous with the terrain "
-                  "kept); %lld flags changed",
+                  "%lld, multipath %lld, off profile %lld; %lld kept as continuous with the "
+                  "terrain; %lld flags changed",
                   static_cast<long long>(rejected),
                   static_cast<long long>(c.soundings),
                   100.0 * share,

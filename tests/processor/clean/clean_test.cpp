@@ -248,7 +248,8 @@ TEST(Clean, EmptyViewAndInvalidConfig) {
     CleanConfig bad;
     bad.voxel_m = 0;
     bad.free_min_rays = 0;
-    EXPECT_EQ(bad.Validate().size(), 2u);
+    bad.terrain_piece_soundings = -1;
+    EXPECT_EQ(bad.Validate().size(), 3u);
     EXPECT_TRUE(CleanConfig{}.Validate().empty());
 }
 
