@@ -543,6 +543,91 @@ void FillEnclosed(const georef::GeorefResult& geo,
     }
 }
 
+// Terrain after all: a rejected sounding continuous in range with a piece of at least
+// terrain_piece_soundings accepted soundings (continuity and pieces as FillEnclosed measures
+// them: neighbours along track and across the fan over up to 3 dropouts, within
+// hole_tolerance of the range and 0.1 m) is terrain, and so is a rejected sounding continuous
+// with one released so. A bench crest the beam grazes for a few pings, a ledge in front of the
+// wall, are off their beam's range profile and their rays cross the crest's patch, but their
+// ranges go on smoothly into the terrain beside them; the echoes of the water (schools, bubble
+// clouds, the smile, ghosts) are parted from it by breaks in the range: an echo that is not is
+// on the surface within the noise. Returns the soundings released.
+std::int64_t ReleaseTerrain(const georef::GeorefResult& geo,
+                            const SoundingGrid& grid,
+                            const CleanConfig& config,
+                            std::vector<std::uint8_t>& status) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    if (n == 0 || config.terrain_piece_soundings <= 0 || !(config.hole_tolerance > 0)) return 0;
+    auto continuous = [&](std::size_t a, std::size_t b) {
+        const double ra = P.range_m[a], rb = P.range_m[b];
+        return std::abs(ra - rb) <= std::max(0.1, config.hole_tolerance * std::min(ra, rb));
+    };
+    constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+    // The accepted pieces are grown only from the accepted soundings beside a rejected one, up
+    // to the limit: piece[j] 0 unseen, 1 in a large piece, 2 in a small one; each sounding is
+    // visited once (a growth that meets a large piece is large).
+    enum : std::uint8_t { kUnseen = 0, kLarge = 1, kSmall = 2, kGrowing = 3 };
+    std::vector<std::uint8_t> piece(n, kUnseen);
+    std::vector<std::int32_t> members, stack;
+    const auto limit = static_cast<std::size_t>(config.terrain_piece_soundings);
+    auto in_large_piece = [&](std::size_t seed) {
+        if (piece[seed] != kUnseen) return piece[seed] == kLarge;
+        members.clear();
+        stack.assign(1, static_cast<std::int32_t>(seed));
+        piece[seed] = kGrowing;
+        bool large = false;
+        while (!stack.empty() && !large) {
+            const auto j = static_cast<std::size_t>(stack.back());
+            stack.pop_back();
+            members.push_back(static_cast<std::int32_t>(j));
+            for (const auto& dir : kDirections) {
+                const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+                if (q < 0 || status[q] != 0 || piece[q] == kGrowing || !continuous(j, q)) continue;
+                if (piece[q] == kLarge || members.size() + stack.size() >= limit) {
+                    large = true;
+                    break;
+                }
+                piece[q] = kGrowing;  // kSmall is never met: a small piece is found whole
+                stack.push_back(q);
+            }
+        }
+        for (const std::int32_t j : members) piece[j] = large ? kLarge : kSmall;
+        for (const std::int32_t j : stack) piece[j] = large ? kLarge : kSmall;
+        return large;
+    };
+    std::vector<char> released(n, 0);
+    std::vector<std::int32_t> flood;
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] == 0) continue;
+        for (const auto& dir : kDirections) {
+            const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+            if (q >= 0 && status[q] == 0 && continuous(j, q) && in_large_piece(q)) {
+                released[j] = 1;
+                flood.push_back(static_cast<std::int32_t>(j));
+                break;
+            }
+        }
+    }
+    while (!flood.empty()) {
+        const auto j = static_cast<std::size_t>(flood.back());
+        flood.pop_back();
+        for (const auto& dir : kDirections) {
+            const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+            if (q < 0 || status[q] == 0 || released[q] || !continuous(j, q)) continue;
+            released[q] = 1;
+            flood.push_back(q);
+        }
+    }
+    std::int64_t count = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+        if (!released[j]) continue;
+        status[j] = static_cast<std::uint8_t>(SoundingStatus::kAccepted);
+        ++count;
+    }
+    return count;
+}
+
 // The soundings' voxels in an index grid (voxel id per active voxel), each voxel's coordinate
 // and sounding count in X; voxel_of per sounding.
 openvdb::Int32Grid::Ptr IndexVoxels(const georef::GeorefPoints& P,
@@ -936,6 +1021,7 @@ std::vector<std::string> CleanConfig::Validate() const {
         p.push_back("clean.hole_tolerance must be in [0, 1)");
     if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
     if (fill_min_contacts < 1) p.push_back("clean.fill_min_contacts must be >= 1");
+    if (terrain_piece_soundings < 0) p.push_back("clean.terrain_piece_soundings must be >= 0");
     if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
     if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");
     if (!(profile_max_spread > 0)) p.push_back("clean.profile_max_spread must be > 0");
@@ -1022,8 +1108,13 @@ CleanResult Clean(const georef::GeorefResult& geo,
     }
     FillHoles(geo, grid, config, result.status);
     FillEnclosed(geo, grid, config, result.status);
-    CountVerdicts(result.status, c);
     c.seconds_profiles = Seconds(t_start);
+
+    // ---- 6. what is continuous with the terrain is terrain ----
+    t_start = std::chrono::steady_clock::now();
+    c.terrain = ReleaseTerrain(geo, grid, config, result.status);
+    CountVerdicts(result.status, c);
+    c.seconds_terrain = Seconds(t_start);
     report(1.0);
     return result;
 }

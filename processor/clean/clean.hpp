@@ -34,14 +34,21 @@
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
 //      the range (`fill_max_soundings`, `fill_min_contacts`).
-// What it does not see: a sounding within `margin` of the surface (it is on it), a ghost behind
+//   8. Terrain after all: a rejected sounding continuous in range (the pieces' measure) with a
+//      piece of `terrain_piece_soundings` accepted soundings, or with one released so, is
+//      accepted again: a bench crest or a ledge a beam grazes for a few pings is off its range
+//      profile and its rays cross the crest's patch, but its ranges go on into the terrain
+//      beside it; the echoes of the water are parted from the terrain by breaks in the range.
+// What it does not see: a sounding within `margin` of the surface (it is on it), an echo whose
+// range goes on into the terrain's without a break (step 8 keeps it), a ghost behind
 // a surface no other ping observed, an echo held in one place so long that it is the only
 // evidence there (then it is terrain here; on floors the grid stage's surface filter against
 // CUBE's chosen hypothesis still judges it).
 //
 // Input: a georeferenced view (the candidates: what georef's own filters accept); output: a
 // status per point (survey::SoundingStatus: kAccepted, kFreeSpace, kMultipath, kCluster,
-// kProfile). Deterministic: the verdicts do not depend on the thread count.
+// kProfile; CleanCounts::terrain counts the rejections step 8 undid). Deterministic: the
+// verdicts do not depend on the thread count.
 // Failure model: none beyond memory (the grid holds one voxel per occupied `voxel_m` cube, a
 // few tens of bytes each); an empty view gives empty results.
 #pragma once
@@ -72,12 +79,14 @@ struct CleanConfig {
     int profile_beams = 0;        // ... and beams each side (across the fan); 0 = off
     double profile_sigmas = 5.0;  // off the neighbours' line by this many spreads ...
     double profile_min_m = 0.3;   // ... and this far (and margin_rel of the range)
-    double profile_max_spread = 0.03;  // where the neighbours agree: spread / range
-    double hole_tolerance = 0.01;      // a hole in a run: on its neighbours' line, share of range
-    int fill_max_soundings = 500;      // an enclosed piece of continuous range: at most this many
-                                       // soundings (0 = off) ...
-    int fill_min_contacts = 2;         // ... touching rejected soundings this often
-    int num_threads = 0;               // 0 = all cores (TBB)
+    double profile_max_spread = 0.03;   // where the neighbours agree: spread / range
+    double hole_tolerance = 0.01;       // a hole in a run: on its neighbours' line, share of range
+    int fill_max_soundings = 500;       // an enclosed piece of continuous range: at most this many
+                                        // soundings (0 = off) ...
+    int fill_min_contacts = 2;          // ... touching rejected soundings this often
+    int terrain_piece_soundings = 500;  // a rejection continuous in range with a piece of this
+                                        // many accepted soundings is terrain (0 = off)
+    int num_threads = 0;                // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;
 };
@@ -91,10 +100,12 @@ struct CleanCounts {
     std::int64_t cluster = 0;
     std::int64_t multipath = 0;
     std::int64_t profile = 0;
+    std::int64_t terrain = 0;  // rejected by a test, then released: continuous with the terrain
     // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
-    // voxels and rays, the range profiles.
+    // voxels and rays, the range profiles (with the holes and the enclosed pieces), the
+    // terrain's continuity.
     double seconds_voxels = 0, seconds_rays = 0, seconds_clusters = 0, seconds_verdicts = 0,
-           seconds_profiles = 0;
+           seconds_profiles = 0, seconds_terrain = 0;
 };
 
 struct CleanResult {

@@ -209,7 +209,8 @@ Status CleanSurvey(StageContext& s,
     std::snprintf(line,
                   sizeof line,
                   "clean: %lld of %lld soundings rejected (%.2f %%): free space %lld, cluster "
-                  "%lld, multipath %lld, off profile %lld; %lld flags changed",
+                  "%lld, multipath %lld, off profile %lld; %lld kept as continuous with the "
+                  "terrain; %lld flags changed",
                   static_cast<long long>(rejected),
                   static_cast<long long>(c.soundings),
                   100.0 * share,
@@ -217,6 +218,7 @@ Status CleanSurvey(StageContext& s,
                   static_cast<long long>(c.cluster),
                   static_cast<long long>(c.multipath),
                   static_cast<long long>(c.profile),
+                  static_cast<long long>(c.terrain),
                   static_cast<long long>(changed));
     log(line);
     if (share > config.quality.max_cleaned_share) {
@@ -238,6 +240,7 @@ Status CleanSurvey(StageContext& s,
                  {"cluster", c.cluster},
                  {"multipath", c.multipath},
                  {"profile", c.profile},
+                 {"kept_as_terrain", c.terrain},
                  {"restored_by_hand", restored_by_hand},
                  {"left_out_ins_sigma", left_out},
                  {"flags_changed", changed},
@@ -251,7 +254,8 @@ Status CleanSurvey(StageContext& s,
                  {"seconds_rays", c.seconds_rays},
                  {"seconds_clusters", c.seconds_clusters},
                  {"seconds_verdicts", c.seconds_verdicts},
-                 {"seconds_profiles", c.seconds_profiles}},
+                 {"seconds_profiles", c.seconds_profiles},
+                 {"seconds_terrain", c.seconds_terrain}},
                 clock);
     return Ok{};
 }

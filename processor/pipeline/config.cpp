@@ -247,6 +247,9 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       c.fill_max_soundings,
       "a piece of continuous range enclosed by rejections: at most this many; 0 = off");
     v("fill_min_contacts", c.fill_min_contacts, "... touching rejected soundings this often");
+    v("terrain_piece_soundings",
+      c.terrain_piece_soundings,
+      "a rejection continuous in range with this many accepted soundings is terrain; 0 = off");
     v("min_crossing_deg", c.min_crossing_deg, "a ray crosses a patch at more than this, deg");
     v("solid_ratio",
       c.solid_ratio,

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 namespace {
@@ -157,6 +158,77 @@ TEST(Clean, ABubbleEpisodeSeenByOnePassIsRejectedWithItsEdges) {
     EXPECT_LE(t.rejected[kGood], 0.005 * t.total[kGood]);
 }
 
+// One line over a floor 10 m down with a ledge 3 m high beside the track: its top, a triangle in
+// plan (1 m out from the track, reaching 4 m out at its far end, 6 m long), its near face
+// vertical. A beam whose footprint crosses the top near its tip sees it for a few pings only, a
+// short run in front of the floor along its range profile, as a bench crest is on the quarry's
+// walls; across the fan its ranges go on smoothly into the beams that see the top for longer.
+// With the nadir smile of a real sonar over a few pings (beams from where the floor is 5 %
+// further than nadir out to 25 deg return the nadir range): an echo parted from the floor by
+// a break in the range.
+Survey MakeLedge() {
+    constexpr double kTop = 7.0;
+    Survey out;
+    std::mt19937 rng(13);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    for (int i = 0; i < 140; ++i) {
+        const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+        pitmap::proc::georef::GeorefPing ping;
+        const double x = 0.15 * i;
+        ping.sensor_world = Eigen::Vector3d(x, 0.0, 0.0);
+        out.geo.pings.push_back(ping);
+        const bool ledge = x >= 6.0 && x <= 12.0;
+        const double y_max = 1.0 + 0.5 * (x - 6.0);
+        const bool smile = i >= 100 && i < 105;
+        for (int b = 0; b < kBeams; ++b) {
+            const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+            const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+            double r = kDepth / std::cos(theta);
+            Truth t = kGood;
+            if (ledge && theta > 0) {
+                const double y_top = kTop * std::tan(theta);
+                const double z_face = -1.0 / std::tan(theta);  // the ray at the near face
+                if (y_top >= 1.0 && y_top <= y_max) {
+                    r = kTop / std::cos(theta);
+                } else if (y_top < 1.0 && z_face > -kDepth && z_face < -kTop) {
+                    r = 1.0 / std::sin(theta);
+                }
+            }
+            if (smile && r > 1.05 * kDepth && std::abs(theta) < 25.0 * M_PI / 180.0) {
+                r = kDepth;
+                t = kBubble;  // an echo in the water (the smile)
+            }
+            Add(out, k, b, d, r + noise(rng), t);
+        }
+    }
+    return out;
+}
+
+TEST(Clean, ALedgeSeenForAFewPingsIsTerrainTheSmileIsNot) {
+    const Survey s = MakeLedge();
+    CleanConfig without;
+    without.terrain_piece_soundings = 0;
+    const Tally before = Score(s, Clean(s.geo, without).status);
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    ASSERT_GT(t.total[kBubble], 200);
+    std::printf(
+        "ledge: good rejected %lld of %lld (%lld without the terrain's continuity), smile "
+        "%lld of %lld (%lld), kept as terrain %lld\n",
+        static_cast<long long>(t.rejected[kGood]),
+        static_cast<long long>(t.total[kGood]),
+        static_cast<long long>(before.rejected[kGood]),
+        static_cast<long long>(t.rejected[kBubble]),
+        static_cast<long long>(t.total[kBubble]),
+        static_cast<long long>(before.rejected[kBubble]),
+        static_cast<long long>(r.counts.terrain));
+    EXPECT_GT(before.rejected[kGood], 0.002 * before.total[kGood]);
+    EXPECT_LE(t.rejected[kGood], 0.0005 * t.total[kGood]);
+    EXPECT_EQ(t.rejected[kBubble], before.rejected[kBubble]);
+    EXPECT_GE(t.rejected[kBubble], 0.95 * t.total[kBubble]);
+    EXPECT_GT(r.counts.terrain, 0);
+}
+
 TEST(Clean, ACleanFloorKeepsEverySounding) {
     const Survey s = MakeSurvey(false);
     const auto r = Clean(s.geo, CleanConfig{});
@@ -176,7 +248,8 @@ TEST(Clean, EmptyViewAndInvalidConfig) {
     CleanConfig bad;
     bad.voxel_m = 0;
     bad.free_min_rays = 0;
-    EXPECT_EQ(bad.Validate().size(), 2u);
+    bad.terrain_piece_soundings = -1;
+    EXPECT_EQ(bad.Validate().size(), 3u);
     EXPECT_TRUE(CleanConfig{}.Validate().empty());
 }
 

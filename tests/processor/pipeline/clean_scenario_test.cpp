@@ -4,7 +4,7 @@
 // the true boresight in the vehicle file), scored by pitmap-eval against the truth per beam.
 // The bounds are what this cleaning reaches, with a margin (docs/cleaning.md has the figures
 // and what is missing to the targets: >= 98 % of the artifact soundings rejected);
-// the good soundings rejected stay under the 0.5 % in every slope class at the typical
+// the good soundings rejected stay under the 0.5 % in every slope class at every
 // level. The run without artifacts is the reference for the products.
 #include <gtest/gtest.h>
 
@@ -76,7 +76,7 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
             At(s[level], "dem_mean_abs_m"));
     }
     const Scores& none = s["none"];
-    // Measured (docs/cleaning.md): light 0.79, typical 0.95, heavy 0.87 of the artifact
+    // Measured (docs/cleaning.md): light 0.78, typical 0.94, heavy 0.87 of the artifact
     // soundings rejected (0.76, 0.93, 0.80 before the one-sided profile lines and the enclosed
     // pieces); without the cleaning typical is 0.12 (the spike filter's share).
     EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.74);
@@ -84,16 +84,15 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
     EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.83);
     // Mid-water targets (fish) are the cleaning's best case.
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
-    // The bound (0.005) in every class but 20-45 deg, held at what is reached there
-    // (docs/decisions/014).
-    for (const std::string level : {"none", "light", "typical"}) {
+    // The bound (0.005) in every slope class, at every level. Measured 0.14-0.28 /
+    // 0.24-0.26 / 0.18-0.29 % (0-20 / 20-45 / 45-91 deg) since a rejection continuous with the
+    // terrain is terrain (0.40-0.71 / 0.50-0.65 / 0.37-0.56 % before: docs/decisions/014).
+    for (const std::string level : {"none", "light", "typical", "heavy"}) {
         for (const char* slope : {"0_20", "20_45", "45_91"}) {
-            const double bound = std::string(slope) == "20_45" ? 0.0055 : 0.005;
-            EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), bound)
+            EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), 0.005)
                 << level << " slope " << slope;
         }
     }
-    EXPECT_LE(At(s["heavy"], "good_rejected_share"), 0.0075);  // measured 0.0065
     // The products: the mesh keeps (nearly) no false surface and its completeness, the DEM
     // stays near the clean run's.
     for (const std::string level : {"light", "typical", "heavy"}) {
