@@ -226,6 +226,10 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
       c.posterior_variance_factor,
       "formal H^-1 times sigma0^2 (without the sandwich)");
     v("posterior_batch_nodes", c.posterior_batch_nodes, "nodes per CHOLMOD solve (6 columns each)");
+    v("posterior_start_runs",
+      c.posterior_start_runs,
+      "SLAM runs from perturbed starts whose spread is added to the posterior (0 = off)");
+    v("posterior_start_seed", c.posterior_start_seed, "seed of those runs' perturbations");
     v("sigma_max_age_s", s.sigma_max_age_s, "INS stddev records further from a ping are unused, s");
 }
 
