@@ -110,6 +110,7 @@ json PosteriorJson(const georef::GeorefResult& geo,
                 {"seconds_marginals", p.marginals_s},
                 {"start_runs", p.start_runs},
                 {"seconds_start_runs", p.start_runs_s},
+                {"start_runs_note", p.start_runs_note},
                 {"share_of_slam", slam_s > 0 ? p.total_s / slam_s : 0.0}});
     if (!p.start_spread.empty()) {
         std::vector<double> spread;

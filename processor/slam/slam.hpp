@@ -176,8 +176,8 @@ struct SlamConfig {
     // draw of the INS's outage drift (PerturbedStart), and where SLAM stops in a flat valley of
     // its cost along a weakly constrained track (the along-track local minima of an outage,
     // which the posterior about the optimum cannot state) the runs end apart. 0 = off; each run
-    // costs about one SLAM run without the posterior (only where the INS reports an outage do
-    // the starts differ).
+    // costs about one SLAM run without the posterior; they are not made when the INS reports
+    // no horizontal drift beyond point_sigma_m (a GNSS-good survey: the starts would not differ).
     int posterior_start_runs = 4;
     std::uint64_t posterior_start_seed = 1;  // seed of the runs' perturbations
 
@@ -273,6 +273,7 @@ struct SlamPosterior {
     // quadrature, and that spread alone per slice (1-sigma east, north, up, m; empty without).
     std::size_t start_runs = 0;
     std::vector<Eigen::Vector3d> start_spread;
+    std::string start_runs_note;  // why the runs were not made, when they were not
     double search_s = 0, build_s = 0, factor_s = 0, marginals_s = 0, start_runs_s = 0, total_s = 0;
     std::string message;  // why it was not computed, when it was not
 };

@@ -120,6 +120,28 @@ bool AddStartSpread(const std::vector<Slice>& slices,
                     const SlamProgress& progress,
                     SlamResult& res) {
     const auto t0 = Clock::now();
+    SlamPosterior& post = res.posterior;
+    // Where the INS reports no horizontal drift beyond a point's sigma the perturbed starts
+    // lie within the pairs' noise of this one and end where it did (a GNSS-good survey): the
+    // runs would cost four SLAM runs for nothing.
+    std::vector<std::size_t> order(slices.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return slices[a].gps_time_s < slices[b].gps_time_s;
+    });
+    double largest = 0;
+    for (int c = 0; c < 2; ++c) {
+        for (double g : DriftSigma(slices, order, c, cfg.ins_sigma_recovery_time_s)) {
+            largest = std::max(largest, g);
+        }
+    }
+    if (!(largest > cfg.point_sigma_m)) {
+        post.start_runs_note =
+            "not run: the INS reports no horizontal drift beyond the point "
+            "sigma (largest " +
+            std::to_string(largest) + " m)";
+        return true;
+    }
     SlamConfig run_cfg = cfg;
     run_cfg.posterior = false;
     run_cfg.posterior_start_runs = 0;
@@ -134,7 +156,6 @@ bool AddStartSpread(const std::vector<Slice>& slices,
         if (run.trajectory.empty()) continue;  // invalid input: nothing to compare
         runs.push_back(std::move(run.trajectory));
     }
-    SlamPosterior& post = res.posterior;
     post.start_spread = StartSpread(res.trajectory, runs);
     post.start_runs = runs.size();
     for (std::size_t s = 0; s < post.slice_sigma.size() && s < post.start_spread.size(); ++s) {

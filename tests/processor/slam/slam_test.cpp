@@ -596,5 +596,25 @@ TEST(Slam, StartSpreadIsAddedWhereTheOutageLeavesTheResultFree) {
         << "GNSS-good stretches should not spread";
 }
 
+// Without a drift beyond a point's sigma the perturbed starts would end where this run did:
+// the runs are not made and the posterior is the normal equations' alone.
+TEST(Slam, NoStartRunsWithoutInsDrift) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+    sv.slices[100].pose_sigma.tail<3>().setConstant(0.04);  // 35 mm above the floor: < 5 cm
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 3;
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message;
+    EXPECT_EQ(r.posterior.start_runs, 0u);
+    EXPECT_TRUE(r.posterior.start_spread.empty());
+    EXPECT_NE(r.posterior.start_runs_note.find("no horizontal drift"), std::string::npos)
+        << r.posterior.start_runs_note;
+}
+
 }  // namespace
 }  // namespace pitmap::proc::slam
