@@ -123,7 +123,7 @@ bool AddStartSpread(const std::vector<Slice>& slices,
     SlamPosterior& post = res.posterior;
     // Where the INS reports no horizontal drift beyond a point's sigma the perturbed starts
     // lie within the pairs' noise of this one and end where it did (a GNSS-good survey): the
-    // runs would cost four SLAM runs for nothing.
+    // runs would cost posterior_start_runs SLAM runs for nothing.
     std::vector<std::size_t> order(slices.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
     std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
