@@ -40,9 +40,9 @@ struct GridStageConfig {
     double tpu_sound_speed_mps = 1500;  // nominal sound speed for the TPU's sound-speed terms
     double ins_sigma_max_age_s = 5.0;   // INSSTDEV records further from a ping are not used
     // The TPU's pose sigma: SLAM's posterior (slam.posterior) where the soundings stand on the
-    // SLAM trajectory, else the INS's own; false = the INS's own everywhere. Off by default:
-    // the posterior does not yet contain the true error (docs/uncertainty.md).
-    bool tpu_slam_posterior = false;
+    // SLAM trajectory, else the INS's own; false = the INS's own everywhere (which after SLAM
+    // states an outage's metres where SLAM left centimetres). docs/uncertainty.md, decision 016.
+    bool tpu_slam_posterior = true;
     // The TPU's sound speed terms from the data (processor/hydro/sound_speed.hpp): the casts'
     // age, distance and disagreement with the sonar's surface speed, and the column speed error
     // the swath overlap measures; false = the error model's sound speed sigmas alone.

@@ -108,11 +108,24 @@ json PosteriorJson(const georef::GeorefResult& geo,
                 {"seconds_build", p.build_s},
                 {"seconds_factor", p.factor_s},
                 {"seconds_marginals", p.marginals_s},
+                {"start_runs", p.start_runs},
+                {"seconds_start_runs", p.start_runs_s},
+                {"start_runs_note", p.start_runs_note},
                 {"share_of_slam", slam_s > 0 ? p.total_s / slam_s : 0.0}});
+    if (!p.start_spread.empty()) {
+        std::vector<double> spread;
+        for (const Eigen::Vector3d& d : p.start_spread) {
+            spread.push_back(std::sqrt(0.5 * (d.x() * d.x() + d.y() * d.y())));
+        }
+        const double largest = *std::max_element(spread.begin(), spread.end());
+        out["start_spread_horizontal_m"] = {{"median", Number(Quantile(spread, 0.5))},
+                                            {"p95", Number(Quantile(spread, 0.95))},
+                                            {"max", Number(largest)}};
+    }
     std::vector<double> h, v;
     struct Window {
         double h = 0, v = 0;
-        std::size_t n = 0;
+        std::vector<double> hs;
     };
     std::map<std::int64_t, Window> windows;
     const auto window_us = static_cast<std::int64_t>(window_s * 1e6);
@@ -128,7 +141,7 @@ json PosteriorJson(const georef::GeorefResult& geo,
         Window& w = windows[(ping.utime_gps - t0) / window_us];
         w.h = std::max(w.h, sh);
         w.v = std::max(w.v, s[5]);
-        ++w.n;
+        w.hs.push_back(sh);
     }
     out["pings"] = h.size();
     out["horizontal_sigma_m"] = {{"median", Number(Quantile(h, 0.5))},
@@ -136,13 +149,15 @@ json PosteriorJson(const georef::GeorefResult& geo,
     out["vertical_sigma_m"] = {{"median", Number(Quantile(v, 0.5))},
                                {"p95", Number(Quantile(v, 0.95))}};
     json ws = json::array();
-    for (const auto& [index, w] : windows) {
+    for (auto& [index, w] : windows) {
         const double a = static_cast<double>(t0 + index * window_us) * 1e-6;
         ws.push_back({{"start_gps_s", a},
                       {"end_gps_s", a + window_s},
-                      {"pings", w.n},
+                      {"pings", w.hs.size()},
                       {"max_horizontal_sigma_m", w.h},
-                      {"max_vertical_sigma_m", w.v}});
+                      {"max_vertical_sigma_m", w.v},
+                      {"median_radius_h95_m", Number(kCircular95 * Quantile(w.hs, 0.5))},
+                      {"max_radius_h95_m", kCircular95 * w.h}});
     }
     out["window_s"] = window_s;
     out["windows"] = ws;

@@ -30,11 +30,16 @@ std::vector<std::array<double, 6>> SlamPingSigma(const georef::GeorefResult& geo
                                                  const slam::SlamResult& r,
                                                  std::size_t num_pings);
 
-inline constexpr double kPosteriorWindowS = 30.0;  // summary.json's posterior windows
+// summary.json's posterior windows: how well the trajectory is known along the track (decision
+// 012 and 016 read the errors SLAM leaves in 20 s windows).
+inline constexpr double kPosteriorWindowS = 20.0;
+inline constexpr double kCircular95 = 2.4477;  // 95 % radius / horizontal sigma (IHO S-44)
 
 // summary.json stages.slam.posterior: how it was computed (variance factor, observations,
-// cost as a share of the stage) and the horizontal sigma sqrt((sE^2 + sN^2) / 2) and vertical
-// sigma over the pings: median, 95th percentile, and the maximum per window_s window.
+// cost as a share of the stage, the perturbed-start runs and their spread) and the horizontal
+// sigma sqrt((sE^2 + sN^2) / 2) and vertical sigma over the pings: median, 95th percentile,
+// and per window_s window from the first ping the maximum sigmas and the median and maximum
+// 95 % horizontal radius kCircular95 x the horizontal sigma (the report plots them).
 nlohmann::json PosteriorJson(const georef::GeorefResult& geo,
                              const std::vector<std::array<double, 6>>& ping_sigma,
                              const slam::SlamResult& r,

@@ -10,6 +10,7 @@
 //   rigid_stage.cpp      globally consistent matching of rigid sections (Borrmann et al. 2008);
 //   semi_rigid_stage.cpp the semi-rigid stage, one pose per bin (Elseberg et al. 2013);
 //   posterior.cpp        the marginal covariances of the semi-rigid result;
+//   start_spread.cpp     the spread of SLAM's result over runs from perturbed starts;
 //   slam.cpp             input, configuration and the two stages in order.
 // Neighbour search, normals, correspondence types, robust kernels, grid keys and the solver
 // come from the registration core (processor/registration), shared with calibration.
@@ -246,5 +247,14 @@ void ComputePosterior(const Input& in,
                       const std::vector<std::uint32_t>& slice_block,
                       const SlamConfig& cfg,
                       SlamResult& res);
+
+// posterior_start_runs SLAM runs from PerturbedStart draws of `slices` (without the posterior
+// and without further runs), their StartSpread about res.trajectory added to
+// res.posterior.slice_sigma's positions in quadrature (start_spread.cpp). False when cancelled
+// through `progress` (the posterior is then left without the spread).
+bool AddStartSpread(const std::vector<Slice>& slices,
+                    const SlamConfig& cfg,
+                    const SlamProgress& progress,
+                    SlamResult& res);
 
 }  // namespace pitmap::proc::slam::detail

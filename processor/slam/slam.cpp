@@ -81,6 +81,7 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (bin_slices < 1) p.push_back("bin_slices must be >= 1");
     if (max_iterations < 0) p.push_back("max_iterations must be >= 0");
     if (posterior_batch_nodes < 1) p.push_back("posterior_batch_nodes must be >= 1");
+    if (posterior_start_runs < 0) p.push_back("posterior_start_runs must be >= 0");
     if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");
     if (!(convergence_translation_m >= 0)) p.push_back("convergence_translation_m must be >= 0");
     if (normal_neighbours < 3 || normal_neighbours > kMaxNormalNeighbours)
@@ -241,6 +242,11 @@ SlamResult RunSlam(const std::vector<Slice>& slices,
         res.trajectory[s].input_index = in.input_index[s];
     }
     res.timings.total_s = Seconds(t_start);
+    if (cfg.posterior && cfg.posterior_start_runs > 0 && res.posterior.computed &&
+        !AddStartSpread(slices, cfg, progress, res)) {
+        res.termination = SlamTermination::kCancelled;
+        res.message = "cancelled during the perturbed-start runs of the posterior";
+    }
     return res;
 }
 

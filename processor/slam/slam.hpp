@@ -44,6 +44,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -147,10 +148,11 @@ struct SlamConfig {
     int score_patience = 2;
     double score_tolerance = 1e-3;  // a gain counts above this fraction; see the guards above
     int num_threads = 0;            // 0 = TBB default
-    // Posterior of the semi-rigid result (SlamPosterior): computed after the stage when true.
-    // Off by default: it costs 10-28 % of the stage and does not yet contain the true error
-    // (docs/uncertainty.md: 88 % of gps-outage's pings within its 95 % radius, 93 % wanted).
-    bool posterior = false;
+    // Posterior of the semi-rigid result (SlamPosterior): computed after the stage when true,
+    // with the perturbed-start runs (posterior_start_runs) the pose sigma the TPU takes
+    // (docs/uncertainty.md, docs/decisions/016: gps-outage's true error within the stated 95 %
+    // radius in 99 % of the pings). The normal equations cost 10-28 % of the stage.
+    bool posterior = true;
     int posterior_batch_nodes = 50;  // nodes (6 right-hand sides each) per CHOLMOD solve
     // The cluster-robust (sandwich) covariance of SlamPosterior: the pair terms' information
     // from their residuals, clustered by section pair, instead of from their assumed weights
@@ -169,6 +171,15 @@ struct SlamConfig {
     // Without the cluster-robust part: scale the formal covariance H^-1 by the a-posteriori
     // variance factor sigma0^2 (see SlamPosterior); false = the formal covariance as it is.
     bool posterior_variance_factor = true;
+    // SLAM runs from perturbed starts whose spread about this run's result is added to the
+    // posterior (StartSpread; docs/decisions/016): each starts from the input poses moved by a
+    // draw of the INS's outage drift (PerturbedStart), and where SLAM stops in a flat valley of
+    // its cost along a weakly constrained track (the along-track local minima of an outage,
+    // which the posterior about the optimum cannot state) the runs end apart. 0 = off; each run
+    // costs about one SLAM run without the posterior; they are not made when the INS reports
+    // no horizontal drift beyond point_sigma_m (a GNSS-good survey: the starts would not differ).
+    int posterior_start_runs = 4;
+    std::uint64_t posterior_start_seed = 1;  // seed of the runs' perturbations
 
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
@@ -258,7 +269,12 @@ struct SlamPosterior {
     // Median over the slices of the formal horizontal sigma sqrt((sE^2 + sN^2) / 2) of H^-1
     // alone (no variance factor, no sandwich), for comparison.
     double formal_horizontal_median_m = 0;
-    double search_s = 0, build_s = 0, factor_s = 0, marginals_s = 0, total_s = 0;
+    // The perturbed-start runs (posterior_start_runs) whose spread was added to slice_sigma in
+    // quadrature, and that spread alone per slice (1-sigma east, north, up, m; empty without).
+    std::size_t start_runs = 0;
+    std::vector<Eigen::Vector3d> start_spread;
+    std::string start_runs_note;  // why the runs were not made, when they were not
+    double search_s = 0, build_s = 0, factor_s = 0, marginals_s = 0, start_runs_s = 0, total_s = 0;
     std::string message;  // why it was not computed, when it was not
 };
 
@@ -306,6 +322,27 @@ using SlamProgress = std::function<bool(const SlamIteration&)>;
 SlamResult RunSlam(const std::vector<Slice>& slices,
                    const SlamConfig& config,
                    const SlamProgress& progress = {});
+
+// A start for a perturbed SLAM run (SlamConfig::posterior_start_runs): the slices with their
+// positions moved by one draw of the drift the INS reports. Per position component (east,
+// north, up) the drift's 1-sigma is g = sqrt(sigma^2 - f^2), the reported sigma above the
+// survey's smallest f (what the INS holds with GNSS), not allowed to fall faster than
+// exp(-dt / recovery_time_s) (a filter regaining GNSS pulls its drift back over seconds, as
+// SlamConfig::ins_sigma_recovery_time_s); where g exceeds 1 mm the slice moves by g times a
+// unit-variance process: an integrated random walk of the velocity (dead reckoning's error)
+// started where the stretch starts, divided by its own standard deviation. Attitudes, points
+// and sigmas are unchanged; the draw depends on the seed and the slices' times alone.
+std::vector<Slice> PerturbedStart(const std::vector<Slice>& slices,
+                                  double recovery_time_s,
+                                  std::uint64_t seed);
+
+// The spread of SLAM's results from perturbed starts about `main` (a RunSlam trajectory):
+// per pose of `main`, the 1-sigma east, north, up sqrt(mean_k d_k^2) of the position
+// differences d_k of each run's pose of the same input slice (runs without that slice are
+// skipped; zero where no run has it). How far SLAM's result depends on where it starts is how
+// far it may be off where the data leave it a flat valley of its cost (docs/decisions/016).
+std::vector<Eigen::Vector3d> StartSpread(const std::vector<SlamPose>& main,
+                                         const std::vector<std::vector<SlamPose>>& runs);
 
 // Applies a trajectory to the slices' points (world frame), for scoring and export.
 std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,

@@ -151,6 +151,9 @@ bool Override(proc::slam::SlamConfig& c, const std::string& kv) {
 
 int main(int argc, char** argv) {
     proc::slam::SlamConfig cfg;
+    // SLAM itself, as before the posterior was on by default (its cost and that of its
+    // perturbed-start runs: docs/uncertainty.md, docs/decisions/016).
+    cfg.posterior = false;
     int npos = argc;
     long seed = -1;  // seed=N: another draw of the scenario's world, INS errors and noise
     for (int a = 1; a < argc; ++a) {

@@ -463,6 +463,7 @@ TEST(Slam, PosteriorIsBoundedByThePriorsAndShrinksAnOutage) {
     cfg.posterior_cluster_robust = false;
     cfg.posterior_reference_sigma = false;
     cfg.posterior_variance_factor = false;
+    cfg.posterior_start_runs = 0;  // the normal equations' part alone (see below for the rest)
     const SlamResult r = RunSlam(sv.slices, cfg);
     ASSERT_TRUE(r.posterior.computed) << r.posterior.message << " / " << r.message;
     ASSERT_EQ(r.posterior.slice_sigma.size(), r.trajectory.size());
@@ -527,6 +528,7 @@ TEST(Slam, OnlyTheAbsoluteTermsAnchorTheSurvey) {
     cfg.posterior_reference_sigma = false;
     cfg.posterior_variance_factor = false;
     cfg.absolute_sigma_scale = 40.0;  // 0.8 m a pose
+    cfg.posterior_start_runs = 0;
     const SlamResult r = RunSlam(sv.slices, cfg);
     ASSERT_TRUE(r.posterior.computed) << r.posterior.message << " / " << r.message;
     std::vector<double> east;
@@ -534,6 +536,84 @@ TEST(Slam, OnlyTheAbsoluteTermsAnchorTheSurvey) {
     std::sort(east.begin(), east.end());
     const double bound = 0.8 / std::sqrt(static_cast<double>(r.num_poses));
     EXPECT_GT(east.front(), 0.95 * bound);
+}
+
+// The perturbed-start runs (posterior_start_runs): their spread is what SLAM's result
+// depends on the start, added in quadrature to the normal equations' posterior; it is zero
+// where the INS reports no drift to perturb (the runs start alike there and end alike) and
+// not where the outage left the result free to stop elsewhere.
+TEST(Slam, StartSpreadIsAddedWhereTheOutageLeavesTheResultFree) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) {
+        const double t = s.gps_time_s - 1000.0;
+        s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+        if (t >= 60.0 && t < 96.0) s.pose_sigma.tail<3>().setConstant(0.3);
+    }
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 0;
+    const SlamResult plain = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(plain.posterior.computed) << plain.posterior.message;
+    EXPECT_EQ(plain.posterior.start_runs, 0u);
+    EXPECT_TRUE(plain.posterior.start_spread.empty());
+
+    cfg.posterior_start_runs = 3;
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message;
+    EXPECT_EQ(r.posterior.start_runs, 3u);
+    ASSERT_EQ(r.posterior.start_spread.size(), r.trajectory.size());
+    ASSERT_EQ(plain.trajectory.size(), r.trajectory.size());
+    std::vector<double> outage_spread, good_spread;  // horizontal
+    for (std::size_t s = 0; s < r.trajectory.size(); ++s) {
+        const Eigen::Vector3d& d = r.posterior.start_spread[s];
+        ASSERT_TRUE(d.allFinite() && (d.array() >= 0).all()) << s;
+        // The main run is the same with and without the extra runs (up to the rounding of
+        // TBB's reductions), and its sigma is the posterior's and the spread in quadrature.
+        for (int c = 0; c < 3; ++c) {
+            const double expected = std::hypot(plain.posterior.slice_sigma[s](3 + c), d(c));
+            EXPECT_NEAR(r.posterior.slice_sigma[s](3 + c), expected, 1e-6 + 1e-3 * expected)
+                << s << " " << c;
+        }
+        for (int c = 0; c < 3; ++c) {  // attitudes are not perturbed: their sigma is as it was
+            const double a = plain.posterior.slice_sigma[s](c);
+            EXPECT_NEAR(r.posterior.slice_sigma[s](c), a, 1e-9 + 1e-3 * a) << s << " " << c;
+        }
+        const double t = r.trajectory[s].gps_time_s - 1000.0;
+        if (t >= 65.0 && t < 95.0) outage_spread.push_back(d.head<2>().norm());
+        if (t < 50.0) good_spread.push_back(d.head<2>().norm());
+    }
+    // Medians: the stretch next to the outage shares its pairs and moves with it a little.
+    const auto median = [](std::vector<double> v) {
+        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    ASSERT_FALSE(outage_spread.empty() || good_spread.empty());
+    EXPECT_GT(median(outage_spread), 0.01) << "the runs from perturbed starts all ended alike";
+    EXPECT_LT(median(good_spread), 0.1 * median(outage_spread))
+        << "GNSS-good stretches should not spread";
+}
+
+// Without a drift beyond a point's sigma the perturbed starts would end where this run did:
+// the runs are not made and the posterior is the normal equations' alone.
+TEST(Slam, NoStartRunsWithoutInsDrift) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+    sv.slices[100].pose_sigma.tail<3>().setConstant(0.04);  // 35 mm above the floor: < 5 cm
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 3;
+    const SlamResult r = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message;
+    EXPECT_EQ(r.posterior.start_runs, 0u);
+    EXPECT_TRUE(r.posterior.start_spread.empty());
+    EXPECT_NE(r.posterior.start_runs_note.find("no horizontal drift"), std::string::npos)
+        << r.posterior.start_runs_note;
 }
 
 }  // namespace

@@ -635,6 +635,31 @@ class ReportTest(unittest.TestCase):
         self.assertEqual(rows[1][3], "4.895")  # the INS's own in the outage
         self.assertEqual([r[4] for r in rows], ["0 %", "100 %", "0 %"])
 
+    def test_s44_section_shows_the_trajectory_radius_along_the_track(self):
+        # summary.json stages.slam.posterior.windows (20 s): 1 cm stated with GNSS, 0.2 m in
+        # the second window; the S-44 section gets the figure, a survey without them none.
+        p = os.path.join(self.dir, "P")
+        WriteProducts(p, full=True)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertNotIn("s44_trajectory_radius", Sections(ReadPages(p)[0])["hydro"])
+        with open(os.path.join(p, "summary.json")) as f:
+            summary = json.load(f)
+        summary["stages"]["slam"]["posterior"] = {
+            "computed": True, "window_s": 20.0, "start_runs": 4,
+            "windows": [{"start_gps_s": GPS_T0 + 20 * k, "end_gps_s": GPS_T0 + 20 * (k + 1),
+                         "pings": 200, "median_radius_h95_m": 0.49 if k == 1 else 0.0245,
+                         "max_radius_h95_m": 0.6 if k == 1 else 0.03} for k in range(3)]}
+        with open(os.path.join(p, "summary.json"), "w") as f:
+            json.dump(summary, f)
+        r = Run(p)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        sec = Sections(ReadPages(p)[0])["hydro"]
+        self.assertIn("trajectory 95 % horizontal radius along the track", sec)
+        self.assertIn("per 20 s window (with the spread of 4 SLAM runs", sec)
+        with open(os.path.join(p, "report", "s44_trajectory_radius.png"), "rb") as f:
+            self.assertEqual(f.read(8), PNG_MAGIC)
+
     def test_cover_shows_the_metadata(self):
         p = os.path.join(self.dir, "P")
         WriteProducts(p, full=True, metadata=METADATA)

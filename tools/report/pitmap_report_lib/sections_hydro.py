@@ -67,6 +67,9 @@ def hydrography(p):
                f'{num(q.get("nodes", 0))} grid nodes. TVU limit sqrt(a&sup2; + (b d)&sup2;), '
                "d the depth (below the water-level datum, else below the transducer); node "
                "TVU is the CUBE uncertainty, node THU the mean THU of its soundings.</p>")
+    track = trajectory_radius_figure(p, g)
+    if track:
+        out.append(track)
     hol = q.get("holidays") or []
     facts = [("coverage of the survey area", f"{num(100 * q.get('coverage_share', 0), 2)} % "
               f"({num(q.get('nodes_in_gaps', 0))} empty nodes in {num(q.get('gaps', 0))} "
@@ -112,6 +115,37 @@ def hydrography(p):
         a.legend(fontsize=8)
         out.append(p.figure(fig, "s44_crossline", "crossline differences by beam angle"))
     return "\n".join(out)
+
+
+def trajectory_radius_figure(p, g):
+    """The trajectory's stated 95 % horizontal radius per window along the track (summary.json
+    stages.slam.posterior.windows: SLAM's posterior with its perturbed-start spread), the pose
+    term behind the THU above; None without it (SLAM's posterior not computed)."""
+    post = (p.stages.get("slam") or {}).get("posterior") or {}
+    ws = [w for w in post.get("windows") or []
+          if isinstance(w, dict) and w.get("median_radius_h95_m") is not None]
+    if not ws:
+        return None
+    t = np.array([0.5 * (float(w["start_gps_s"]) + float(w["end_gps_s"])) for w in ws])
+    med = np.array([float(w["median_radius_h95_m"]) for w in ws])
+    top = np.array([float(w["max_radius_h95_m"]) for w in ws])
+    fig, a = plt.subplots(figsize=(8, 2.6), layout="constrained")
+    minutes = p.minutes_of(t)
+    a.step(minutes, top, where="mid", color="tab:red", lw=0.9, label="max")
+    a.step(minutes, med, where="mid", color="tab:blue", lw=1.2, label="median")
+    a.set_yscale("log")
+    a.set_xlabel("time since start (min)")
+    a.set_ylabel("95 % horizontal radius (m)")
+    a.grid(alpha=0.3, which="both")
+    a.legend(fontsize=8)
+    window = num(float(post.get("window_s", 0)), 0)
+    runs = post.get("start_runs") or 0
+    return (p.figure(fig, "s44_trajectory_radius", "trajectory 95 % horizontal radius along "
+                     "the track") +
+            f'<p class="caption">How well the trajectory is known along the track: the 95 % '
+            f"horizontal radius SLAM's posterior states per {window} s window (with the spread "
+            f"of {num(runs)} SLAM runs from perturbed starts), the pose term of the THU and "
+            "TVU above.</p>")
 
 
 def tvu_map(p):
