@@ -500,6 +500,7 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
                   {"cores", out.m3c2->cores.size()},
                   {"measured", out.m3c2->measured},
                   {"significant", out.m3c2->significant},
+                  {"isolated", out.m3c2->isolated},
                   {"core_spacing_m", cfg.m3c2.core_spacing_m},
                   {"projection_radius_m", cfg.m3c2.projection_radius_m},
                   {"by_slope", M3c2BySlope(*out.m3c2)}};
@@ -649,6 +650,8 @@ Expected<json> WriteChangeRegions(const fs::path& C,
         rj["sigma_random_m3"] = r.sigma_random_m3;
         rj["sigma_registration_m3"] = r.sigma_registration_m3;
         rj["rim_m3"] = r.rim_m3;
+        rj["mean_difference_m"] = r.mean_difference_m;
+        rj["region_lod95_m"] = r.region_lod95_m;
         regions.push_back(rj);
     }
     const json fc = {
@@ -723,6 +726,8 @@ json ChangeJson(const compare::ChangeResult& change, double resolution_m, const 
               {"face_20_45_deg", change.median_lod95_face_m},
               {"wall_45_90_deg", change.median_lod95_wall_m}}},
             {"significant_share", change.significant_share},
+            {"regions_below_detection", change.regions_below_detection},
+            {"area_below_detection_m2", change.area_below_detection_m2},
             {"stable_mean_m", change.stable_mean_m},
             {"stable_rms_m", change.stable_rms_m},
             {"cut", totals(change.cut)},

@@ -223,6 +223,73 @@ TEST(CompareChange, FindsTheHeapAndTheCutWithTheirVolumes) {
     EXPECT_NEAR(c.median_lod95_m, 1.96 * std::sqrt(2.0) * 0.02, 0.01);
 }
 
+// A pass-common error: a smooth field (white noise averaged over 2.5 m squares, scaled to
+// sigma_m) added to the surface, as a pass's navigation height and attitude error is shared by
+// the nodes it covers.
+void AddSharedError(SurfaceGrid& s, double sigma_m, unsigned seed) {
+    SurfaceGrid field = s;
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> white(0.0, 1.0);
+    for (float& v : field.z_m) v = std::isfinite(v) ? static_cast<float>(white(rng)) : v;
+    field = Smoothed(field, static_cast<int>(std::lround(1.0 / s.resolution_m)));
+    double sum2 = 0;
+    std::size_t n = 0;
+    for (float v : field.z_m) {
+        if (!std::isfinite(v)) continue;
+        sum2 += static_cast<double>(v) * v;
+        ++n;
+    }
+    const double scale = sigma_m / std::sqrt(sum2 / static_cast<double>(n));
+    for (std::size_t k = 0; k < s.z_m.size(); ++k) {
+        if (std::isfinite(s.z_m[k])) s.z_m[k] += static_cast<float>(scale * field.z_m[k]);
+    }
+}
+
+// Each survey's error mostly shared by neighbouring nodes (as CUBE's pass-common part): the
+// stated sigma is honest per node, so patches of neighbours exceed the per-node LoD together;
+// tested as a whole, such a region's mean stays below its LoD and is not reported, while the
+// heap and the cut are.
+TEST(CompareChange, ErrorsSharedByNeighbouringNodesAreNotFlaggedAsChange) {
+    const double independent = 0.010, shared = 0.015;
+    SurfaceGrid a = Survey(false, RigidCorrection{}, independent, 16);
+    SurfaceGrid b = Survey(true, RigidCorrection{}, independent, 17);
+    AddSharedError(a, shared, 18);
+    AddSharedError(b, shared, 19);
+    const float stated = static_cast<float>(std::hypot(independent, shared));
+    for (SurfaceGrid* g : {&a, &b}) g->sigma_m.assign(g->z_m.size(), stated);
+    const RegistrationResult reg = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(reg.ok()) << reg.message;
+    const auto other_share = [&](const ChangeResult& c, int* found) {
+        double other = 0;
+        *found = 0;
+        for (const ChangeRegion& g : c.regions) {
+            const bool heap = g.sign > 0 && (g.centroid - Eigen::Vector2d(-9, 1.5)).norm() < 1.0;
+            const bool cut = g.sign < 0 && (g.centroid - Eigen::Vector2d(1, -2)).norm() < 1.0;
+            if (heap) {
+                EXPECT_NEAR(g.volume_m3, kHeapVolume, std::max(0.05 * kHeapVolume, g.u95_m3));
+            }
+            if (cut) {
+                EXPECT_NEAR(g.volume_m3, kCutVolume, std::max(0.05 * -kCutVolume, g.u95_m3));
+            }
+            *found += heap || cut;
+            if (!heap && !cut) other += g.area_m2;
+        }
+        return other / c.compared_area_m2;
+    };
+    int found = 0;
+    const ChangeResult c = ComputeChange(a, b, reg.correction, reg.covariance, ChangeConfig{});
+    EXPECT_LT(other_share(c, &found), 0.003) << c.message;
+    EXPECT_EQ(found, 2) << c.message;
+    EXPECT_GT(c.regions_below_detection, 0) << c.message;
+    for (const ChangeRegion& g : c.regions)
+        EXPECT_GT(std::abs(g.mean_difference_m), g.region_lod95_m) << g.id;
+    // Node by node only (independent errors assumed), the shared errors show as change.
+    ChangeConfig per_node;
+    per_node.test_region_mean = false;
+    const ChangeResult n = ComputeChange(a, b, reg.correction, reg.covariance, per_node);
+    EXPECT_GT(other_share(n, &found), 0.003) << n.message;
+}
+
 TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
     SurfaceGrid s;
     s.resolution_m = 0.5;

@@ -169,8 +169,9 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
             << " m3, truth " << s.at(k + "volume_true_m3");
         EXPECT_GE(s.at(k + "iou"), 0.8) << part;
     }
-    // Held at what is reached, above the 0.003 (docs/decisions/014).
-    EXPECT_LT(s.at("change_stable_flagged_share"), 0.012);
+    // The bound (docs/decisions/014: held at 0.012 while the LoD took CUBE's
+    // pass-common errors as independent per node; the regions' test as a whole, change.hpp).
+    EXPECT_LT(s.at("change_stable_flagged_share"), 0.003);
     // The registration's residual on stable terrain: both CUBE surfaces' noise (about 1.5 cm
     // each) is in it, not the changes.
     EXPECT_LT(s.at("registration_rms_vertical_after_m"), 0.025);
