@@ -15,7 +15,7 @@
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
 //   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
-//                  [--strict]
+//                  [--no-mesh] [--strict]
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
@@ -116,6 +116,7 @@ struct Options {
     std::vector<std::string> compare_inputs;
     int compare_dof = 6;
     bool compare_no_3d = false;
+    bool compare_no_mesh = false;
     pp::CompareConfig compare_config;
 };
 
@@ -232,6 +233,9 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
     c.compare->add_flag("--no-3d",
                         o.compare_no_3d,
                         "no 3D change along the normal on the soundings (change_points.ply)");
+    c.compare->add_flag("--no-mesh",
+                        o.compare_no_mesh,
+                        "no change on B's TSDF mesh (change_mesh.ply, change_mesh.glb)");
     c.compare->add_option("--capacity-step",
                           o.compare_config.capacity_step_m,
                           "m: a row of the capacity curves every step (0.25)");
@@ -288,6 +292,7 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
         return Fail(m + "; nothing written", codes::kUsage);
     o.compare_config.registration.estimate_roll_pitch = o.compare_dof == 6;
     o.compare_config.change3d = !o.compare_no_3d;
+    o.compare_config.change_mesh = !o.compare_no_mesh;
     if (auto problems = o.compare_config.Validate(); !problems.empty())
         return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
     auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);

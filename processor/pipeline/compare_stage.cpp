@@ -17,6 +17,7 @@
 #include "processor/compare/capacity.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/products.hpp"
+#include "processor/pipeline/compare_stage_mesh.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -442,6 +443,60 @@ double MedianSigma(const compare::SurfaceGrid& a, const compare::SurfaceGrid& b)
     return Median(sig);
 }
 
+// What the soundings of a cylinder (or a mesh vertex) share: both CUBE surfaces' 1-sigma at
+// the point, in quadrature (the median where a surface has none).
+std::function<double(const Eigen::Vector3d&)> CommonSigma(const compare::SurfaceGrid& sa,
+                                                          const compare::SurfaceGrid& sb) {
+    const double sigma_median = MedianSigma(sa, sb);
+    return [&sa, &sb, sigma_median](const Eigen::Vector3d& p) {
+        double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
+        if (!std::isfinite(x)) x = sigma_median;
+        if (!std::isfinite(y)) y = sigma_median;
+        return std::hypot(x, y);
+    };
+}
+
+// The change on B's TSDF mesh and its record (compare.json change_mesh); mesh empty when not
+// computed.
+struct ChangeOnMesh {
+    json record = {{"computed", false}};
+    std::optional<compare::TriangleMesh> b;  // B's mesh in A's frame
+    std::optional<compare::ChangeMeshResult> change;
+};
+
+Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
+                                           const Epoch& b,
+                                           const compare::RegistrationResult& reg,
+                                           const CompareConfig& cfg,
+                                           const std::function<void(const std::string&)>& log) {
+    ChangeOnMesh out;
+    if (!cfg.change_mesh) return out;
+    auto ma = ReadMeshUtm(a.dir, a.epsg);
+    if (!ma) return Error{"compare: A " + ma.error().message};
+    auto mb = ReadMeshUtm(b.dir, b.epsg);
+    if (!mb) return Error{"compare: B " + mb.error().message};
+    if (!*ma || !*mb || (*ma)->triangles.empty() || (*mb)->triangles.empty()) {
+        out.record["message"] = "mesh_utm.ply missing or empty in A or B: not computed";
+        return out;
+    }
+    for (Eigen::Vector3d& p : (*mb)->vertices) p = reg.correction.Apply(p);
+    out.change = compare::ComputeChangeMesh(
+        **mb, **ma, reg.correction, reg.covariance, cfg.mesh, CommonSigma(a.surface, b.surface));
+    out.b = std::move(**mb);
+    log("compare: change mesh: " + out.change->message);
+    out.record = {{"computed", true},
+                  {"message", out.change->message},
+                  {"vertices", out.b->vertices.size()},
+                  {"measured", out.change->measured},
+                  {"gain", out.change->gain},
+                  {"loss", out.change->loss},
+                  {"median_lod95_m", out.change->median_lod95_m},
+                  {"normals_turned_over", out.change->flipped},
+                  {"max_distance_m", cfg.mesh.max_distance_m},
+                  {"colour_scale_m", cfg.change_mesh_colour_scale_m}};
+    return out;
+}
+
 // The 3D change's level of detection by slope class (compare.json change3d.by_slope).
 json M3c2BySlope(const compare::M3c2Result& m3c2) {
     json by_slope = json::object();
@@ -481,19 +536,13 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
         return out;
     }
     for (Eigen::Vector3d& p : *pb) p = reg.correction.Apply(p);
-    // What the soundings of a cylinder share: both CUBE surfaces' 1-sigma there (the
-    // median where a surface has none).
-    const double sigma_median = MedianSigma(a.surface, b.surface);
-    const auto& sa = a.surface;
-    const auto& sb = b.surface;
-    const auto common = [&](const Eigen::Vector3d& p) {
-        double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
-        if (!std::isfinite(x)) x = sigma_median;
-        if (!std::isfinite(y)) y = sigma_median;
-        return std::hypot(x, y);
-    };
-    out.m3c2 = compare::RunM3c2(
-        *pa, *pb, reg.correction.pivot, reg.correction, reg.covariance, cfg.m3c2, common);
+    out.m3c2 = compare::RunM3c2(*pa,
+                                *pb,
+                                reg.correction.pivot,
+                                reg.correction,
+                                reg.covariance,
+                                cfg.m3c2,
+                                CommonSigma(a.surface, b.surface));
     log("compare: 3D change: " + out.m3c2->message);
     out.record = {{"computed", true},
                   {"message", out.m3c2->message},
@@ -748,6 +797,7 @@ struct Comparison {
     compare::ChangeResult change;
     compare::CapacityResult cap_a, cap_b;
     Change3d change3d;
+    ChangeOnMesh change_mesh;
     NavigationGate gate;
 };
 
@@ -763,6 +813,7 @@ json CompareJson(const Epoch& a,
         {"registration", RegistrationJson(r.reg, cfg, r.gate.record)},
         {"change", ChangeJson(r.change, a.surface.resolution_m, regions)},
         {"change3d", r.change3d.record},
+        {"change_mesh", r.change_mesh.record},
         {"capacity", {{"a", CapacityJson(r.cap_a)}, {"b", CapacityJson(r.cap_b)}}},
         {"files",
          {"dod.tif",
@@ -773,6 +824,10 @@ json CompareJson(const Epoch& a,
           "compare.json"}},
         {"quality_gates", r.gate.gates}};
     if (r.change3d.m3c2) j["files"].push_back("change_points.ply");
+    if (r.change_mesh.change) {
+        j["files"].push_back("change_mesh.ply");
+        j["files"].push_back("change_mesh.glb");
+    }
     return j;
 }
 
@@ -794,6 +849,16 @@ Status WriteProducts(const std::string& out_dir,
                 (C / "change_points.ply").string(), *r.change3d.m3c2, a.epsg, a.horizontal_name);
             !s)
             return Error{"compare: " + s.error().message};
+    }
+    if (r.change_mesh.change) {
+        if (auto s = WriteChangeMesh(out_dir,
+                                     *r.change_mesh.b,
+                                     *r.change_mesh.change,
+                                     a.epsg,
+                                     a.horizontal_name,
+                                     cfg.change_mesh_colour_scale_m);
+            !s)
+            return s;
     }
     if (auto s = WriteCapacity(C, r.cap_a, r.cap_b, a.vertical_datum_key); !s) return s;
     const json j = CompareJson(a, b, r, cfg, *regions);
@@ -825,6 +890,8 @@ std::vector<std::string> CompareConfig::Validate() const {
     std::vector<std::string> p = registration.Validate();
     for (auto& q : change.Validate()) p.push_back(std::move(q));
     for (auto& q : m3c2.Validate()) p.push_back(std::move(q));
+    for (auto& q : mesh.Validate()) p.push_back(std::move(q));
+    if (!(change_mesh_colour_scale_m > 0)) p.push_back("change mesh colour scale must be > 0");
     if (!(capacity_step_m > 0 && capacity_step_m <= 100))
         p.push_back("capacity step must be in (0, 100] m");
     if (!(gate_z95 > 0)) p.push_back("gate_z95 must be > 0");
@@ -864,6 +931,9 @@ Expected<int> RunCompare(const std::string& a_dir,
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
+    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
+    if (!on_mesh) return on_mesh.error();
+    r.change_mesh = std::move(*on_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();

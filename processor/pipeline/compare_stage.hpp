@@ -23,6 +23,10 @@
 //                          double x, y, z (A's CRS), float nx, ny, nz, distance_m (B - A along
 //                          the normal, > 0 towards the water), lod95_m, slope_deg, char
 //                          significance, uint n_a, n_b; NaN distance where too few soundings
+//   change_mesh.ply, change_mesh.glb
+//                          with change_mesh and both folders' mesh_utm.ply: B's TSDF mesh with
+//                          the signed distance to A's mesh along its normal, the LoD95 and the
+//                          significance per vertex (compare_stage_mesh.hpp)
 //   compare.json           inputs, crs, registration (correction, its 1-sigma, residuals, the
 //                          navigation gate), change (totals and regions), capacity, quality_gates
 // Errors (nothing is written to C, the message names the folder and the problem): a missing
@@ -36,6 +40,7 @@
 
 #include "common/result.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/change_mesh.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -46,7 +51,10 @@ struct CompareConfig {
     compare::ChangeConfig change;
     bool change3d = true;  // also the 3D change along the normal on the soundings (M3C2)
     compare::M3c2Config m3c2;
-    double capacity_step_m = 0.25;  // capacity curve: a row every step, m
+    bool change_mesh = true;  // also the change on B's TSDF mesh (both folders' mesh_utm.ply)
+    compare::ChangeMeshConfig mesh;
+    double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
+    double capacity_step_m = 0.25;            // capacity curve: a row every step, m
     // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
     // its own 95 % uncertainty at most.
     double gate_z95 = 1.96;

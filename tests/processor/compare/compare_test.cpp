@@ -7,10 +7,12 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 
 #include "processor/compare/capacity.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/change_mesh.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -377,6 +379,95 @@ TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsN
     EXPECT_GE(in_patch_detected, in_patch - 1) << r.message;
     EXPECT_GT(stable, 100);
     EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
+}
+
+// A 70 deg face facing +x (the water), 12 m along strike (y) by 8 m up the dip, as a triangle
+// mesh of `step` spacing starting at `offset` (so two meshes' vertices do not coincide), moved
+// along the face's normal by bump(u, s) (u along strike, s up the dip).
+TriangleMesh Face(double step, double offset, const std::function<double(double, double)>& bump) {
+    const double c = std::cos(70 * kDeg), sn = std::sin(70 * kDeg);
+    const Eigen::Vector3d normal(sn, 0, c);
+    TriangleMesh m;
+    const int nu = static_cast<int>(12.0 / step), ns = static_cast<int>(8.0 / step);
+    for (int j = 0; j <= ns; ++j) {
+        for (int i = 0; i <= nu; ++i) {
+            const double u = offset + i * step, s = offset + j * step;
+            m.vertices.push_back(Eigen::Vector3d(-s * c, u, s * sn) + bump(u, s) * normal);
+        }
+    }
+    for (int j = 0; j < ns; ++j) {
+        for (int i = 0; i < nu; ++i) {
+            const int k = j * (nu + 1) + i;
+            m.triangles.push_back({k, k + 1, k + nu + 1});
+            m.triangles.push_back({k + 1, k + nu + 2, k + nu + 1});
+        }
+    }
+    return m;
+}
+
+// A 0.3 m bulge and a 0.3 m hollow on a 70 deg face are measured along the face's normal on
+// the change mesh (a vertical difference would read them as 0.3 / cos(70 deg) = 0.88 m, or as
+// a horizontal shift), the rest of the face as no change; a mesh wound the other way gives the
+// same.
+TEST(CompareChangeMesh, ABumpOnASeventyDegreeFaceIsMeasuredAlongItsNormal) {
+    const auto gauss = [](double u, double s, double u0, double s0) {
+        return std::exp(-((u - u0) * (u - u0) + (s - s0) * (s - s0)) / (2 * 0.8 * 0.8));
+    };
+    const auto change = [&](double u, double s) {
+        return 0.3 * gauss(u, s, 4.0, 4.0) - 0.3 * gauss(u, s, 9.0, 4.0);
+    };
+    const TriangleMesh a = Face(0.1, 0.0, [](double, double) { return 0.0; });
+    TriangleMesh b = Face(0.1, 0.05, change);
+    const auto sigma = [](const Eigen::Vector3d&) { return std::hypot(0.02, 0.02); };
+    const ChangeMeshResult r = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    ASSERT_EQ(r.distance_m.size(), b.vertices.size());
+    EXPECT_FALSE(r.flipped);
+    EXPECT_NEAR(r.median_lod95_m, 1.96 * std::hypot(0.02, 0.02), 1e-6);
+    const int nu = 120;
+    const auto at = [&](double u, double s) {
+        return static_cast<std::size_t>(std::lround((s - 0.05) / 0.1)) * (nu + 1) +
+               static_cast<std::size_t>(std::lround((u - 0.05) / 0.1));
+    };
+    const std::size_t top = at(4.05, 4.05), bottom = at(9.05, 4.05);
+    EXPECT_NEAR(r.distance_m[top], 0.3, 0.01);
+    EXPECT_EQ(r.significance[top], 1);
+    EXPECT_NEAR(r.distance_m[bottom], -0.3, 0.01);
+    EXPECT_EQ(r.significance[bottom], -1);
+    const Eigen::Vector3f expected_normal(
+        static_cast<float>(std::sin(70 * kDeg)), 0.0f, static_cast<float>(std::cos(70 * kDeg)));
+    EXPECT_LT((r.normals[top] - expected_normal).norm(), 0.05);  // 5 cm off the bump centre
+    // Away from both (more than 3 m from their centres, off the mesh's edges): no change.
+    std::size_t far = 0, far_flagged = 0;
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+        const double u = 0.05 + static_cast<double>(i % (nu + 1)) * 0.1;
+        const double s = 0.05 + static_cast<double>(i / (nu + 1)) * 0.1;
+        if (std::abs(change(u, s)) > 1e-4 || u > 11.5 || s > 7.5) continue;
+        ++far;
+        ASSERT_TRUE(std::isfinite(r.distance_m[i])) << u << " " << s;
+        EXPECT_NEAR(r.distance_m[i], 0.0, 1e-4);
+        far_flagged += r.significance[i] != 0;
+    }
+    EXPECT_GT(far, 2000u);
+    EXPECT_EQ(far_flagged, 0u);
+    // Wound the other way: turned over, the same distances.
+    for (auto& t : b.triangles) std::swap(t[1], t[2]);
+    const ChangeMeshResult f = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    EXPECT_TRUE(f.flipped);
+    EXPECT_NEAR(f.distance_m[top], r.distance_m[top], 1e-6);
+    EXPECT_NEAR(f.distance_m[bottom], r.distance_m[bottom], 1e-6);
+    // Nothing of A within reach: not measured.
+    TriangleMesh far_a = a;
+    for (auto& v : far_a.vertices) v.x() += 10.0;
+    const ChangeMeshResult none = ComputeChangeMesh(b,
+                                                    far_a,
+                                                    RigidCorrection{},
+                                                    Eigen::Matrix<double, 6, 6>::Zero(),
+                                                    ChangeMeshConfig{},
+                                                    sigma);
+    EXPECT_EQ(none.measured, 0u);
+    EXPECT_TRUE(std::isnan(none.distance_m[top]));
 }
 
 }  // namespace

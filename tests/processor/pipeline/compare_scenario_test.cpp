@@ -23,6 +23,7 @@
 #include <functional>
 #include <string>
 
+#include "common/formats/ply.hpp"
 #include "processor/io/grid_io.hpp"
 #include "tests/support/process.hpp"
 #include "tests/support/scenario.hpp"
@@ -155,6 +156,8 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
                           "capacity_a.csv",
                           "capacity_b.csv",
                           "capacity.svg",
+                          "change_mesh.ply",
+                          "change_mesh.glb",
                           "compare.json"})
         EXPECT_TRUE(fs::exists(C / f)) << f;
     const json j = ReadJson(C / "compare.json");
@@ -187,6 +190,65 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     EXPECT_NEAR(s.at("change3d_scar_median_distance_m"), -0.27, 0.08);
     EXPECT_LT(s.at("change3d_stable_flagged_share"), 0.01);
     EXPECT_LT(s.at("change3d_wall_stable_flagged_share"), 0.02);
+    // The change mesh: B's TSDF mesh with the distance along the normal per vertex; the scar
+    // (1 m vertical on the 65 deg wall, 0.42 m along its normal at the centre) is a loss along
+    // the normal, the heap (0.6 m on the floor) a gain.
+    const json& cm = j["change_mesh"];
+    ASSERT_TRUE(cm["computed"].get<bool>()) << cm.dump();
+    EXPECT_GT(cm["measured"].get<double>(), 0.6 * cm["vertices"].get<double>());
+    auto mesh = pitmap::formats::ply::ReadMesh((C / "change_mesh.ply").string(),
+                                               {"distance_m", "significance"});
+    ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+    ASSERT_EQ(mesh->vertices.size(), cm["vertices"].get<std::size_t>());
+    const auto median_near = [&](const std::string& kind, int* flagged, int* near) {
+        const json* biggest = nullptr;
+        for (const json& r : j["change"]["regions"]) {
+            if (r["kind"] == kind &&
+                (biggest == nullptr || std::abs(r["volume_m3"].get<double>()) >
+                                           std::abs((*biggest)["volume_m3"].get<double>())))
+                biggest = &r;
+        }
+        std::vector<double> d;
+        *flagged = *near = 0;
+        if (biggest == nullptr) return std::nan("");
+        const Eigen::Vector2d c((*biggest)["centroid_m"][0], (*biggest)["centroid_m"][1]);
+        for (std::size_t i = 0; i < mesh->vertices.size(); ++i) {
+            if ((mesh->vertices[i].head<2>() - c).norm() > 0.7) continue;
+            const double v = mesh->vertex_properties[0][i];
+            if (!std::isfinite(v)) continue;
+            d.push_back(v);
+            ++*near;
+            *flagged += mesh->vertex_properties[1][i] != 0;
+        }
+        if (d.empty()) return std::nan("");
+        std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+        return d[d.size() / 2];
+    };
+    int flagged = 0, near = 0;
+    EXPECT_NEAR(median_near("cut", &flagged, &near), -0.38, 0.08);  // the scar, the largest cut
+    EXPECT_GT(flagged, 0.9 * near);
+    EXPECT_NEAR(median_near("fill", &flagged, &near), 0.6, 0.1);  // the toe or the heap
+    EXPECT_GT(flagged, 0.9 * near);
+    // The glTF: a GLB whose primitive carries the change as custom attributes, one per vertex.
+    {
+        std::ifstream glb(C / "change_mesh.glb", std::ios::binary);
+        std::uint32_t head[5] = {};
+        glb.read(reinterpret_cast<char*>(head), sizeof head);
+        ASSERT_TRUE(glb.good());
+        EXPECT_EQ(head[0], 0x46546C67u);  // "glTF"
+        EXPECT_EQ(head[2], fs::file_size(C / "change_mesh.glb"));
+        std::string text(head[3], ' ');
+        glb.read(text.data(), static_cast<std::streamsize>(text.size()));
+        const json g = json::parse(text);
+        const json& attrs = g["meshes"][0]["primitives"][0]["attributes"];
+        for (const char* a :
+             {"POSITION", "NORMAL", "COLOR_0", "_DISTANCE", "_LOD95", "_SIGNIFICANCE"}) {
+            ASSERT_TRUE(attrs.contains(a)) << a;
+            EXPECT_EQ(g["accessors"][attrs[a].get<int>()]["count"].get<std::size_t>(),
+                      mesh->vertices.size())
+                << a;
+        }
+    }
     // The outlines: one feature per region, closed rings in the DEM's CRS.
     const json fc = ReadJson(C / "change_regions.geojson");
     EXPECT_EQ(fc["features"].size(), j["change"]["regions"].size());
