@@ -425,6 +425,33 @@ Status CheckComparable(const Epoch& a,
     return Ok{};
 }
 
+// Grids of different resolution (each survey's CUBE resolution follows its own median
+// depth): B is interpolated on A's grid, which is the tent filter of B's spacing over B's
+// nodes; the finer surface gets the same filter, so that both resolve the same detail (else a
+// bench crest or a riser's foot, sharp on the finer grid and rounded on the coarser one, reads
+// as change). The capacity curves keep each surface as it is. Returns compare.json's record.
+json MatchResolution(Epoch& a, Epoch& b, const std::function<void(const std::string&)>& log) {
+    const double ra = a.surface.resolution_m, rb = b.surface.resolution_m;
+    const int k = static_cast<int>(std::lround(std::max(ra, rb) / std::min(ra, rb)));
+    json record = {{"a_resolution_m", ra}, {"b_resolution_m", rb}, {"filtered", "none"}};
+    if (k < 2) return record;
+    Epoch& finer = ra < rb ? a : b;
+    finer.surface = compare::TentFiltered(finer.surface, k);
+    record["filtered"] = ra < rb ? "a" : "b";
+    record["tent_half_width_nodes"] = k;
+    char buf[200];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "compare: %s's %.3f m grid filtered to the other's %.3f m spacing (tent of %d "
+                  "nodes) before the comparison",
+                  ra < rb ? "A" : "B",
+                  std::min(ra, rb),
+                  std::max(ra, rb),
+                  k);
+    log(buf);
+    return record;
+}
+
 // The 3D change along the normal and its record (compare.json change3d); m3c2 empty when not
 // computed.
 struct Change3d {
@@ -798,6 +825,7 @@ struct Comparison {
     compare::CapacityResult cap_a, cap_b;
     Change3d change3d;
     ChangeOnMesh change_mesh;
+    json resolution_match;
     NavigationGate gate;
 };
 
@@ -812,6 +840,7 @@ json CompareJson(const Epoch& a,
          {{"horizontal", a.horizontal_name}, {"epsg", a.epsg}, {"vertical", a.vertical_datum_key}}},
         {"registration", RegistrationJson(r.reg, cfg, r.gate.record)},
         {"change", ChangeJson(r.change, a.surface.resolution_m, regions)},
+        {"resolution_match", r.resolution_match},
         {"change3d", r.change3d.record},
         {"change_mesh", r.change_mesh.record},
         {"capacity", {{"a", CapacityJson(r.cap_a)}, {"b", CapacityJson(r.cap_b)}}},
@@ -914,6 +943,10 @@ Expected<int> RunCompare(const std::string& a_dir,
     if (auto s = CheckComparable(*a, *b, log); !s) return s.error();
 
     Comparison r;
+    // The capacity curves on each survey's surface as it is.
+    r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
+    r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
+    r.resolution_match = MatchResolution(*a, *b, log);
     log("compare: registering B onto A on stable terrain");
     r.reg = compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
     if (!r.reg.ok()) {
@@ -926,8 +959,6 @@ Expected<int> RunCompare(const std::string& a_dir,
     r.change = compare::ComputeChange(
         a->surface, b->surface, r.reg.correction, r.reg.covariance, cfg.change);
     log("compare: change: " + r.change.message);
-    r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
-    r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
@@ -935,6 +966,20 @@ Expected<int> RunCompare(const std::string& a_dir,
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
+    if (r.resolution_match["filtered"] != "none") {
+        char buf[400];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "the two CUBE surfaces are gridded at different resolutions (A %.3f m, B "
+                      "%.3f m; the automatic resolution follows each survey's median depth): "
+                      "sharp edges (bench crests, a riser's foot) differ between them and thin "
+                      "changes at their margins fall below detection; grid both at one "
+                      "resolution (pitmap grid --config with grid.resolution_m) and compare again",
+                      a->surface.resolution_m,
+                      b->surface.resolution_m);
+        r.gate.gates.push_back(
+            {{"stage", "compare"}, {"gate", "resolutions_differ"}, {"message", buf}});
+    }
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
     log(SummaryLine(r, out_dir));

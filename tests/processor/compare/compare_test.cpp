@@ -292,6 +292,33 @@ TEST(CompareChange, ErrorsSharedByNeighbouringNodesAreNotFlaggedAsChange) {
     EXPECT_GT(other_share(n, &found), 0.003) << n.message;
 }
 
+// The tent filter of the coarser grid's spacing keeps a plane as it is and spreads a spike as
+// bilinear interpolation from a grid k times coarser would: weights (k - |i|) / k per axis.
+TEST(CompareSurface, TentFilterKeepsAPlaneAndSpreadsASpikeAsBilinearInterpolation) {
+    SurfaceGrid s;
+    s.resolution_m = 0.1;
+    s.nx = s.ny = 21;
+    s.z_m.assign(441, 0.0f);
+    s.sigma_m.assign(441, 0.01f);
+    for (int j = 0; j < s.ny; ++j)
+        for (int i = 0; i < s.nx; ++i) s.z_m[s.index(i, j)] = static_cast<float>(0.3 * i - 0.2 * j);
+    const SurfaceGrid plane = TentFiltered(s, 2);
+    // Inside (at the grid's edge the window is one-sided).
+    for (int j = 1; j + 1 < s.ny; ++j)
+        for (int i = 1; i + 1 < s.nx; ++i)
+            EXPECT_NEAR(plane.z_m[s.index(i, j)], s.z_m[s.index(i, j)], 1e-5) << i << " " << j;
+    s.z_m.assign(441, 0.0f);
+    s.z_m[s.index(10, 10)] = 1.0f;
+    s.z_m[s.index(0, 0)] = std::numeric_limits<float>::quiet_NaN();
+    const SurfaceGrid spike = TentFiltered(s, 2);
+    // 1D weights 0.5, 1, 0.5 (sum 2): the spike's share at (10 + di, 10 + dj).
+    EXPECT_NEAR(spike.z_m[s.index(10, 10)], 1.0 / 4.0, 1e-6);
+    EXPECT_NEAR(spike.z_m[s.index(11, 10)], 0.5 / 4.0, 1e-6);
+    EXPECT_NEAR(spike.z_m[s.index(11, 11)], 0.25 / 4.0, 1e-6);
+    EXPECT_EQ(spike.z_m[s.index(12, 10)], 0.0f);
+    EXPECT_TRUE(std::isnan(spike.z_m[s.index(0, 0)]));  // an empty node stays empty
+}
+
 TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
     SurfaceGrid s;
     s.resolution_m = 0.5;
