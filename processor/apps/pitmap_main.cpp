@@ -15,7 +15,8 @@
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
 //   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
-//                  [--no-mesh] [--strict]
+//                  [--no-mesh] [--design D.tif] [--strict]
+//   pitmap compare A --design D.tif --out C   one survey against a design surface
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
@@ -217,9 +218,13 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
         "two surveys of one site: co-registration on stable terrain, DEM of difference with a "
         "level of detection, change regions with volumes and uncertainty, capacity curves "
         "(docs/compare.md)");
-    c.compare->add_option("A B", o.compare_inputs, "products folders, the earlier survey first")
+    c.compare
+        ->add_option("A B",
+                     o.compare_inputs,
+                     "products folders, the earlier survey first (one with --design: that survey "
+                     "against the design alone)")
         ->required()
-        ->expected(2);
+        ->expected(1, 2);
     c.compare->add_option("--out", o.out_dir, "output folder for the comparison")->required();
     c.compare
         ->add_option("--dof",
@@ -233,6 +238,10 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
     c.compare->add_flag("--no-3d",
                         o.compare_no_3d,
                         "no 3D change along the normal on the soundings (change_points.ply)");
+    c.compare->add_option("--design",
+                          o.compare_config.design_path,
+                          "design surface (the planned cut: a GeoTIFF of heights in the surveys' "
+                          "CRS and vertical datum): the volume between each survey and it");
     c.compare->add_flag("--no-mesh",
                         o.compare_no_mesh,
                         "no change on B's TSDF mesh (change_mesh.ply, change_mesh.glb)");
@@ -295,11 +304,18 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
     o.compare_config.change_mesh = !o.compare_no_mesh;
     if (auto problems = o.compare_config.Validate(); !problems.empty())
         return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
+    if (o.compare_inputs.size() < 2 && o.compare_config.design_path.empty())
+        return Fail("compare: two products folders, or one and a design surface (--design)",
+                    codes::kUsage);
+    if (!o.compare_config.design_path.empty()) {
+        if (auto m = MissingInput({o.compare_config.design_path}, "design surface"); !m.empty())
+            return Fail(m + "; nothing written", codes::kUsage);
+    }
     auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
     if (!lock) return Fail(lock.error().message);
     auto gates = pp::RunCompare(
         o.compare_inputs[0],
-        o.compare_inputs[1],
+        o.compare_inputs.size() > 1 ? o.compare_inputs[1] : std::string(),
         o.out_dir,
         o.compare_config,
         [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });

@@ -27,6 +27,10 @@
 //                          with change_mesh and both folders' mesh_utm.ply: B's TSDF mesh with
 //                          the signed distance to A's mesh along its normal, the LoD95 and the
 //                          significance per vertex (compare_stage_mesh.hpp)
+//   design_a.tif, design_b.tif
+//                          with a design surface: COG on each survey's grid, bands difference
+//                          (survey - design, m), u95 (m), significance (+1 above the design, -1
+//                          below, 0 on it within the survey's uncertainty)
 //   compare.json           inputs, crs, registration (correction, its 1-sigma, residuals, the
 //                          navigation gate), change (totals and regions), capacity, quality_gates
 // Errors (nothing is written to C, the message names the folder and the problem): a missing
@@ -41,6 +45,7 @@
 #include "common/result.hpp"
 #include "processor/compare/change.hpp"
 #include "processor/compare/change_mesh.hpp"
+#include "processor/compare/design.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -55,6 +60,11 @@ struct CompareConfig {
     compare::ChangeMeshConfig mesh;
     double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
     double capacity_step_m = 0.25;            // capacity curve: a row every step, m
+    // A design surface (the planned cut: a GeoTIFF of heights in the surveys' CRS and vertical
+    // datum); "" none. With it each survey is compared with it (design_a.tif, design_b.tif,
+    // compare.json design), and B may be left out (the design alone: RunCompare with b_dir "").
+    std::string design_path;
+    compare::DesignConfig design;
     // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
     // its own 95 % uncertainty at most.
     double gate_z95 = 1.96;
@@ -62,6 +72,8 @@ struct CompareConfig {
 };
 
 // Returns the number of quality gates that tripped (compare.json quality_gates), or an error.
+// b_dir "" with config.design_path set: survey A against the design alone (design_a.tif and
+// compare.json's inputs, crs, design).
 Expected<int> RunCompare(const std::string& a_dir,
                          const std::string& b_dir,
                          const std::string& out_dir,

@@ -13,6 +13,7 @@
 #include "processor/compare/capacity.hpp"
 #include "processor/compare/change.hpp"
 #include "processor/compare/change_mesh.hpp"
+#include "processor/compare/design.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -317,6 +318,57 @@ TEST(CompareSurface, TentFilterKeepsAPlaneAndSpreadsASpikeAsBilinearInterpolatio
     EXPECT_NEAR(spike.z_m[s.index(11, 11)], 0.25 / 4.0, 1e-6);
     EXPECT_EQ(spike.z_m[s.index(12, 10)], 0.0f);
     EXPECT_TRUE(std::isnan(spike.z_m[s.index(0, 0)]));  // an empty node stays empty
+}
+
+// A survey against a design surface on another grid (0.5 m, offset): a plane crossing the
+// survey's floor (the survey above it where x < 10 m, below beyond) and a 0.5 m heap: the
+// volumes above and below are the sums of the differences, with the survey's uncertainty.
+TEST(CompareDesign, VolumesAboveAndBelowAPlannedSurface) {
+    SurfaceGrid survey;
+    survey.resolution_m = 0.1;
+    survey.x0 = 0.05;
+    survey.y0 = 0.05;
+    survey.nx = survey.ny = 200;  // 20 m x 20 m
+    survey.z_m.assign(40000, -10.0f);
+    survey.sigma_m.assign(40000, 0.02f);
+    for (int j = 60; j < 100; ++j)
+        for (int i = 20; i < 60; ++i) survey.z_m[survey.index(i, j)] = -9.5f;  // 4 m x 4 m heap
+    const auto plan = [](double x) { return -10.0 + 0.02 * (x - 10.0); };
+    SurfaceGrid design;
+    design.resolution_m = 0.5;
+    design.x0 = -2.0;
+    design.y0 = -2.0;
+    design.nx = design.ny = 50;
+    design.z_m.resize(2500);
+    for (int j = 0; j < design.ny; ++j)
+        for (int i = 0; i < design.nx; ++i)
+            design.z_m[design.index(i, j)] = static_cast<float>(plan(design.x0 + i * 0.5));
+    design.sigma_m.assign(2500, 0.0f);
+    const DesignResult r = CompareWithDesign(survey, design, DesignConfig{});
+    EXPECT_EQ(r.compared_nodes, 40000u) << r.message;
+    double above = 0, below = 0;
+    for (int j = 0; j < survey.ny; ++j) {
+        for (int i = 0; i < survey.nx; ++i) {
+            const double d = survey.z_m[survey.index(i, j)] - plan(survey.x0 + i * 0.1);
+            (d > 0 ? above : below) += d * 0.01;
+        }
+    }
+    EXPECT_NEAR(r.above_m3, above, 1e-3 * above) << r.message;
+    EXPECT_NEAR(r.below_m3, below, 1e-3 * -below) << r.message;
+    EXPECT_GT(above, 8.0 + 9.0);  // the heap's 8 m3 and the wedge's 10 m3 or so
+    EXPECT_LT(below, -9.0);
+    // The survey's 2 cm taken whole over each side (and over the nodes within it of the plan).
+    EXPECT_GT(r.above_u95_m3, 1.96 * 0.02 * r.above_area_m2);
+    EXPECT_LT(r.above_u95_m3, 1.96 * 0.02 * (r.above_area_m2 + 0.1 * r.compared_area_m2));
+    // The heap is significantly above; a node at x = 10 m is on the plan.
+    EXPECT_EQ(r.significance[survey.index(40, 80)], 1.0f);
+    EXPECT_EQ(r.significance[survey.index(99, 10)], 0.0f);
+    EXPECT_EQ(r.significance[survey.index(190, 10)], -1.0f);
+    EXPECT_NEAR(r.difference_m[survey.index(40, 80)], -9.5 - plan(4.05), 1e-5);
+    // The significant nodes alone: within the total, their uncertainty over them only.
+    EXPECT_GT(r.significant_above_m3, 0.9 * r.above_m3);
+    EXPECT_LE(r.significant_above_m3, r.above_m3);
+    EXPECT_NEAR(r.significant_above_u95_m3, 1.96 * 0.02 * r.significant_above_area_m2, 1e-6);
 }
 
 TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {

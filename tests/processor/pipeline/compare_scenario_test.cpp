@@ -91,6 +91,7 @@ protected:
     void ChangesMeasuredAgainstTruth();
     void ShiftedEpochIsRecoveredAndTripsTheNavigationGate();
     void BadInputIsAClearErrorAndNoResult();
+    void DesignSurfaceVolumes();
     static fs::path dir_;
 };
 
@@ -389,6 +390,94 @@ void CompareScenario::BadInputIsAClearErrorAndNoResult() {
     EXPECT_FALSE(fs::exists(C));
 }
 
+// A design surface: A's own DEM with a 0.3 m deep planned cut of 6 m x 6 m about its centre.
+// A against it alone: 0.3 m x the cut's surveyed area above the design, within the stated
+// uncertainty; A and B against it: both design rasters; a design in another CRS: an error.
+void CompareScenario::DesignSurfaceVolumes() {
+    auto dem = pitmap::proc::io::ReadGrid((A() / "dem.tif").string());
+    ASSERT_TRUE(dem.ok()) << dem.error().message;
+    pitmap::proc::io::GridRaster g = dem->grid;
+    g.utm_zone = dem->horizontal_epsg % 100;
+    g.northern = dem->horizontal_epsg < 32700;
+    g.horizontal_only = true;
+    std::vector<float> z;
+    for (const auto& l : g.layers) {
+        if (l.name == "elevation") z = l.values;
+    }
+    ASSERT_FALSE(z.empty());
+    // The centre of A's surveyed nodes.
+    double cx = 0, cy = 0;
+    int filled = 0;
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            if (!std::isfinite(z[static_cast<std::size_t>(j) * g.nx + i])) continue;
+            cx += g.x0 + i * g.resolution_m;
+            cy += g.y0 + j * g.resolution_m;
+            ++filled;
+        }
+    }
+    cx /= filled;
+    cy /= filled;
+    double cut_area = 0;
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            float& v = z[static_cast<std::size_t>(j) * g.nx + i];
+            if (std::abs(g.x0 + i * g.resolution_m - cx) < 3 &&
+                std::abs(g.y0 + j * g.resolution_m - cy) < 3 && std::isfinite(v)) {
+                v -= 0.3f;
+                cut_area += g.resolution_m * g.resolution_m;
+            }
+        }
+    }
+    g.layers = {{"elevation", "metre", z, pitmap::proc::io::GridBandKind::kContinuous}};
+    const fs::path design = dir_ / "design.tif";
+    fs::remove(design);
+    ASSERT_TRUE(pitmap::proc::io::WriteCogGeoTiff(design.string(), g).ok());
+    std::string out;
+    const fs::path C = dir_ / "C_design";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " + Quote(design) +
+                             " --out " + Quote(C),
+                         &out),
+              0)
+        << out;
+    ASSERT_TRUE(fs::exists(C / "design_a.tif"));
+    const json d = ReadJson(C / "compare.json")["design"]["a"];
+    const double truth = 0.3 * cut_area;
+    EXPECT_GT(cut_area, 20.0);
+    EXPECT_NEAR(d["above_design_m3"].get<double>(),
+                truth,
+                std::max(0.05 * truth, d["above_design_u95_m3"].get<double>()))
+        << d.dump();
+    EXPECT_NEAR(d["below_design_m3"].get<double>(), 0.0, 1e-3);  // float rounding
+    EXPECT_NEAR(d["significant_above_area_m2"].get<double>(), cut_area, 0.05 * cut_area);
+    // Over the significant nodes alone: the cut, with the survey's uncertainty over it only.
+    EXPECT_NEAR(d["significant_above_m3"].get<double>(),
+                truth,
+                std::max(0.05 * truth, d["significant_above_u95_m3"].get<double>()))
+        << d.dump();
+    EXPECT_LT(d["significant_above_u95_m3"].get<double>(), 0.3 * truth);
+    // With both surveys: each against the design, beside the comparison.
+    const fs::path C2 = dir_ / "C_design_ab";
+    ASSERT_EQ(Compare(A(), B(), C2, &out, " --no-3d --no-mesh --design " + Quote(design)), 0)
+        << out;
+    EXPECT_TRUE(fs::exists(C2 / "design_a.tif"));
+    EXPECT_TRUE(fs::exists(C2 / "design_b.tif"));
+    const json j2 = ReadJson(C2 / "compare.json");
+    EXPECT_TRUE(j2["design"].contains("b"));
+    EXPECT_TRUE(j2["change"].contains("regions"));
+    // A design in another CRS.
+    const fs::path other = dir_ / "design_zone30.tif";
+    fs::copy_file(design, other, fs::copy_options::overwrite_existing);
+    RewriteDem(other, 0, Eigen::Vector2d::Zero(), 30);
+    const fs::path C3 = dir_ / "C_design_crs";
+    const int status = RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " +
+                                      Quote(other) + " --out " + Quote(C3),
+                                  &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find("different horizontal CRS"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(C3 / "compare.json"));
+}
+
 // One test: the two runs of the quarry are made once (about a minute and a half) for all three.
 TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
@@ -402,6 +491,10 @@ TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
         SCOPED_TRACE("bad input");
         BadInputIsAClearErrorAndNoResult();
+    }
+    {
+        SCOPED_TRACE("a design surface");
+        DesignSurfaceVolumes();
     }
 }
 
