@@ -17,6 +17,7 @@
 //   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
 //                  [--no-mesh] [--design D.tif] [--strict]
 //   pitmap compare A --design D.tif --out C   one survey against a design surface
+//   pitmap compare A B C... --out O (or one file listing the folders)   a series in time order
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
@@ -222,9 +223,10 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
         ->add_option("A B",
                      o.compare_inputs,
                      "products folders, the earlier survey first (one with --design: that survey "
-                     "against the design alone)")
+                     "against the design alone; more than two, or one file listing them: a "
+                     "series, each consecutive pair compared)")
         ->required()
-        ->expected(1, 2);
+        ->expected(1, -1);
     c.compare->add_option("--out", o.out_dir, "output folder for the comparison")->required();
     c.compare
         ->add_option("--dof",
@@ -304,21 +306,31 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
     o.compare_config.change_mesh = !o.compare_no_mesh;
     if (auto problems = o.compare_config.Validate(); !problems.empty())
         return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
-    if (o.compare_inputs.size() < 2 && o.compare_config.design_path.empty())
-        return Fail("compare: two products folders, or one and a design surface (--design)",
-                    codes::kUsage);
+    const bool list_file =
+        o.compare_inputs.size() == 1 && std::filesystem::is_regular_file(o.compare_inputs.front());
+    if (o.compare_inputs.size() < 2 && o.compare_config.design_path.empty() && !list_file)
+        return Fail(
+            "compare: two products folders (or more, or a file listing them), or one and a "
+            "design surface (--design)",
+            codes::kUsage);
     if (!o.compare_config.design_path.empty()) {
         if (auto m = MissingInput({o.compare_config.design_path}, "design surface"); !m.empty())
             return Fail(m + "; nothing written", codes::kUsage);
     }
     auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
     if (!lock) return Fail(lock.error().message);
-    auto gates = pp::RunCompare(
-        o.compare_inputs[0],
-        o.compare_inputs.size() > 1 ? o.compare_inputs[1] : std::string(),
-        o.out_dir,
-        o.compare_config,
-        [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });
+    const auto log = [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); };
+    if (o.compare_inputs.size() > 2 || list_file) {
+        auto gates = pp::RunCompareSeries(o.compare_inputs, o.out_dir, o.compare_config, log);
+        if (!gates) return Fail(gates.error().message);
+        return GatesExit(
+            static_cast<std::size_t>(*gates), "see each interval's compare.json", o.strict);
+    }
+    auto gates = pp::RunCompare(o.compare_inputs[0],
+                                o.compare_inputs.size() > 1 ? o.compare_inputs[1] : std::string(),
+                                o.out_dir,
+                                o.compare_config,
+                                log);
     if (!gates) return Fail(gates.error().message);
     return GatesExit(static_cast<std::size_t>(*gates), "see compare.json quality_gates", o.strict);
 }

@@ -41,6 +41,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "common/result.hpp"
 #include "processor/compare/change.hpp"
@@ -79,5 +80,20 @@ Expected<int> RunCompare(const std::string& a_dir,
                          const std::string& out_dir,
                          const CompareConfig& config,
                          const std::function<void(const std::string&)>& log);
+
+// More than two surveys of one site (issue 37 item 1): `dirs` in time order (each folder's
+// summary.json metadata.survey_start_utc must come after the one before, else an error naming
+// the folder out of order; all in the first one's horizontal CRS, else an error naming the
+// folder), each consecutive pair compared by RunCompare into OUT/NN_<A>_to_<B> (NN from 01; A
+// and B the folders' names), then OUT/series.json and OUT/series.csv: per interval the
+// folders, dates, cut and fill with their U95, net (fill + cut; U95 the two in quadrature) and
+// the cumulative net since the first survey (U95: the intervals' in quadrature: each interval
+// has its own registration and the surveys' errors), and each interval's gates. Returns the
+// number of quality gates that tripped over all intervals. A single `dirs` entry that is a file
+// is a list of folders, one a line ('#' comments, blank lines skipped; relative to the file).
+Expected<int> RunCompareSeries(const std::vector<std::string>& dirs,
+                               const std::string& out_dir,
+                               const CompareConfig& config,
+                               const std::function<void(const std::string&)>& log);
 
 }  // namespace pitmap::proc::pipeline

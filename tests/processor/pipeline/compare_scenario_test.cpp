@@ -92,6 +92,7 @@ protected:
     void ShiftedEpochIsRecoveredAndTripsTheNavigationGate();
     void BadInputIsAClearErrorAndNoResult();
     void DesignSurfaceVolumes();
+    void SeriesOfSurveys();
     static fs::path dir_;
 };
 
@@ -478,6 +479,66 @@ void CompareScenario::DesignSurfaceVolumes() {
     EXPECT_FALSE(fs::exists(C3 / "compare.json"));
 }
 
+// More than two surveys: A, B and B again three months later (no change in that interval),
+// given as folders and as a list file; out of order or in another CRS: an error naming the
+// folder, and no result.
+void CompareScenario::SeriesOfSurveys() {
+    const fs::path b2 = CopyEpoch(B(), "P3");
+    json s = ReadJson(b2 / "summary.json");
+    s["metadata"]["survey_start_utc"] = "2026-12-14T09:00:00Z";
+    std::ofstream(b2 / "summary.json") << s.dump();
+    std::string out;
+    const fs::path O = dir_ / "S";
+    const std::string fast = " --no-3d --no-mesh";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " " + Quote(B()) + " " +
+                             Quote(b2) + " --out " + Quote(O) + fast,
+                         &out),
+              0)
+        << out;
+    const json series = ReadJson(O / "series.json");
+    ASSERT_EQ(series["intervals"].size(), 2u);
+    const json& i1 = series["intervals"][0];
+    const json& i2 = series["intervals"][1];
+    EXPECT_TRUE(fs::exists(O / i1["folder"].get<std::string>() / "dod.tif"));
+    EXPECT_TRUE(fs::exists(O / i2["folder"].get<std::string>() / "compare.json"));
+    EXPECT_TRUE(fs::exists(O / "series.csv"));
+    // Interval 1 is the plain comparison; interval 2 has no change; the cumulative is the first.
+    const json plain = ReadJson(dir_ / "C" / "compare.json")["change"];
+    EXPECT_NEAR(i1["fill_m3"].get<double>(), plain["fill"]["volume_m3"].get<double>(), 1e-6);
+    EXPECT_NEAR(i1["cut_m3"].get<double>(), plain["cut"]["volume_m3"].get<double>(), 1e-6);
+    EXPECT_NEAR(i2["net_m3"].get<double>(), 0.0, 1e-6);
+    EXPECT_NEAR(series["cumulative_net_m3"].get<double>(), i1["net_m3"].get<double>(), 1e-9);
+    EXPECT_GT(series["cumulative_net_u95_m3"].get<double>(), 0.0);
+    // A list file, relative paths.
+    std::ofstream(dir_ / "site.txt") << "# the quarry\nP1\n\nP2\nP3\n";
+    const fs::path O2 = dir_ / "S_list";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(dir_ / "site.txt") + " --out " +
+                             Quote(O2) + fast,
+                         &out),
+              0)
+        << out;
+    EXPECT_EQ(ReadJson(O2 / "series.json")["intervals"].size(), 2u);
+    // Out of time order: the folder named.
+    const fs::path O3 = dir_ / "S_order";
+    int status = RunCommand(kBin + "/pitmap compare " + Quote(B()) + " " + Quote(A()) + " " +
+                                Quote(b2) + " --out " + Quote(O3) + fast,
+                            &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find(A().string() + " is out of time order"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(O3 / "series.json"));
+    // Another CRS: the folder named.
+    const fs::path other = CopyEpoch(B(), "P3_zone30");
+    s["utm"]["epsg"] = 32630;
+    std::ofstream(other / "summary.json") << s.dump();
+    const fs::path O4 = dir_ / "S_crs";
+    status = RunCommand(kBin + "/pitmap compare " + Quote(A()) + " " + Quote(B()) + " " +
+                            Quote(other) + " --out " + Quote(O4) + fast,
+                        &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find(other.string() + " is in another CRS"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(O4 / "series.json"));
+}
+
 // One test: the two runs of the quarry are made once (about a minute and a half) for all three.
 TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
@@ -495,6 +556,10 @@ TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
         SCOPED_TRACE("a design surface");
         DesignSurfaceVolumes();
+    }
+    {
+        SCOPED_TRACE("a series of surveys");
+        SeriesOfSurveys();
     }
 }
 
