@@ -242,8 +242,9 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
                         "no 3D change along the normal on the soundings (change_points.ply)");
     c.compare->add_option("--design",
                           o.compare_config.design_path,
-                          "design surface (the planned cut: a GeoTIFF of heights in the surveys' "
-                          "CRS and vertical datum): the volume between each survey and it");
+                          "design surface (the planned cut: a GeoTIFF of heights, or a PLY mesh, "
+                          "in the surveys' CRS and vertical datum): the volume between each "
+                          "survey and it");
     c.compare->add_flag("--no-mesh",
                         o.compare_no_mesh,
                         "no change on B's TSDF mesh (change_mesh.ply, change_mesh.glb)");

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "processor/compare/change_mesh.hpp"
 #include "processor/compare/surface.hpp"
 
 namespace pitmap::proc::compare {
@@ -44,6 +45,11 @@ struct DesignResult {
     double mean_difference_m = 0;
     std::string message;
 };
+
+// A design given as a triangle mesh (in the survey's CRS), as heights on the nodes of `like`:
+// the highest crossing of the vertical through each node with the mesh's triangles (a 2D index
+// of the triangles by their footprint, 1 m cells); NaN where none.
+SurfaceGrid RasterizeMesh(const TriangleMesh& mesh, const SurfaceGrid& like);
 
 // `design`: any north-up grid in the survey's CRS and vertical datum (sigma_m unused).
 DesignResult CompareWithDesign(const SurfaceGrid& survey,

@@ -2,6 +2,7 @@
 #include "processor/pipeline/compare_stage.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -822,6 +823,27 @@ json EpochInputJson(const Epoch& e) {
 Expected<compare::SurfaceGrid> ReadDesign(const std::string& path, const Epoch& e) {
     const std::string who = "design (" + path + ")";
     if (!fs::exists(path)) return Error{who + ": not there"};
+    std::string ext = fs::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".ply") {
+        // A mesh in the survey's CRS (mesh_utm.ply's convention), as heights on its grid.
+        auto m = formats::ply::ReadMesh(path);
+        if (!m) return Error{who + ": " + m.error().message};
+        for (const std::string& c : m->comments) {
+            if (c.rfind("pitmap_crs_epsg ", 0) != 0) continue;
+            const int epsg = std::atoi(c.c_str() + 16);
+            if (epsg != e.epsg) {
+                return Error{who + ": different horizontal CRS: the design is in EPSG " +
+                             std::to_string(epsg) + ", the survey in " + e.horizontal_name +
+                             " (EPSG " + std::to_string(e.epsg) + ")"};
+            }
+        }
+        if (m->triangles.empty()) return Error{who + ": a mesh without triangles"};
+        compare::TriangleMesh mesh;
+        mesh.vertices = std::move(m->vertices);
+        mesh.triangles = std::move(m->triangles);
+        return compare::RasterizeMesh(mesh, e.surface);
+    }
     auto d = io::ReadGrid(path);
     if (!d) return Error{who + ": " + d.error().message};
     if (d->grid.layers.empty()) return Error{who + ": no band"};

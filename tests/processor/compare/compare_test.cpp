@@ -371,6 +371,44 @@ TEST(CompareDesign, VolumesAboveAndBelowAPlannedSurface) {
     EXPECT_NEAR(r.significant_above_u95_m3, 1.96 * 0.02 * r.significant_above_area_m2, 1e-6);
 }
 
+// A design given as a mesh: a plane of two triangles over the grid, and a raised square
+// above part of it (the higher crossing is the design), as heights on a survey's nodes.
+TEST(CompareDesign, AMeshDesignIsRasterizedOnTheSurveysNodes) {
+    SurfaceGrid like;
+    like.resolution_m = 0.5;
+    like.x0 = 100.0;
+    like.y0 = 200.0;
+    like.nx = like.ny = 21;  // 10 m x 10 m
+    like.z_m.assign(441, -10.0f);
+    like.sigma_m.assign(441, 0.02f);
+    TriangleMesh m;
+    const auto plane = [](double x, double y) {
+        return -12.0 + 0.1 * (x - 100) - 0.05 * (y - 200);
+    };
+    for (const auto& [x, y] :
+         std::vector<std::pair<double, double>>{{99, 199}, {111, 199}, {111, 211}, {99, 211}})
+        m.vertices.emplace_back(x, y, plane(x, y));
+    m.triangles = {{0, 1, 2}, {0, 2, 3}};
+    for (const auto& [x, y] :
+         std::vector<std::pair<double, double>>{{102, 202}, {104, 202}, {104, 204}, {102, 204}})
+        m.vertices.emplace_back(x, y, -5.0);
+    m.triangles.push_back({4, 5, 6});
+    m.triangles.push_back({4, 6, 7});
+    const SurfaceGrid d = RasterizeMesh(m, like);
+    for (int j = 0; j < like.ny; ++j) {
+        for (int i = 0; i < like.nx; ++i) {
+            const double x = like.x0 + i * 0.5, y = like.y0 + j * 0.5;
+            const bool raised = x >= 102 && x <= 104 && y >= 202 && y <= 204;
+            EXPECT_NEAR(d.z_m[d.index(i, j)], raised ? -5.0 : plane(x, y), 1e-4) << x << " " << y;
+        }
+    }
+    // Nothing under the mesh: NaN.
+    TriangleMesh far = m;
+    for (auto& v : far.vertices) v.x() += 100;
+    const SurfaceGrid none = RasterizeMesh(far, like);
+    EXPECT_TRUE(std::isnan(none.z_m[0]));
+}
+
 TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
     SurfaceGrid s;
     s.resolution_m = 0.5;

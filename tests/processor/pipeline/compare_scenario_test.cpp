@@ -466,6 +466,17 @@ void CompareScenario::DesignSurfaceVolumes() {
     const json j2 = ReadJson(C2 / "compare.json");
     EXPECT_TRUE(j2["design"].contains("b"));
     EXPECT_TRUE(j2["change"].contains("regions"));
+    // A design given as a mesh (A's own TSDF mesh, mesh_utm.ply): A's CUBE surface on it to
+    // within the two surfaces' difference.
+    const fs::path C4 = dir_ / "C_design_mesh";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " +
+                             Quote(A() / "mesh_utm.ply") + " --out " + Quote(C4),
+                         &out),
+              0)
+        << out;
+    const json dm = ReadJson(C4 / "compare.json")["design"]["a"];
+    EXPECT_GT(dm["compared_area_m2"].get<double>(), 0.8 * d["compared_area_m2"].get<double>());
+    EXPECT_LT(std::abs(dm["mean_difference_m"].get<double>()), 0.02) << dm.dump();
     // A design in another CRS.
     const fs::path other = dir_ / "design_zone30.tif";
     fs::copy_file(design, other, fs::copy_options::overwrite_existing);
