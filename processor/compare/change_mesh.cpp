@@ -130,6 +130,70 @@ std::vector<Eigen::Vector3f> VertexNormals(const TriangleMesh& m, bool* flipped)
     return out;
 }
 
+// The significant vertices in patches (one sign, joined by the mesh's edges); patches below
+// the minimum area or whose mean is within their LoD set to 0.
+void TestPatches(const TriangleMesh& m, const ChangeMeshConfig& cfg, ChangeMeshResult& r) {
+    const std::size_t n = m.vertices.size();
+    std::vector<int> parent(n);
+    for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<int>(i);
+    const auto find = [&](int x) {
+        while (parent[static_cast<std::size_t>(x)] != x) {
+            parent[static_cast<std::size_t>(x)] =
+                parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+            x = parent[static_cast<std::size_t>(x)];
+        }
+        return x;
+    };
+    std::vector<double> area(n, 0.0);
+    for (const auto& t : m.triangles) {
+        const Eigen::Vector3d& a = m.vertices[static_cast<std::size_t>(t[0])];
+        const double ta = 0.5 * (m.vertices[static_cast<std::size_t>(t[1])] - a)
+                                    .cross(m.vertices[static_cast<std::size_t>(t[2])] - a)
+                                    .norm();
+        for (int k = 0; k < 3; ++k) {
+            const auto u = static_cast<std::size_t>(t[k]);
+            const auto v = static_cast<std::size_t>(t[(k + 1) % 3]);
+            area[u] += ta / 3.0;
+            if (r.significance[u] != 0 && r.significance[u] == r.significance[v]) {
+                const int ru = find(t[k]), rv = find(t[(k + 1) % 3]);
+                if (ru != rv) parent[static_cast<std::size_t>(ru)] = rv;
+            }
+        }
+    }
+    struct Patch {
+        double area = 0, sum_d = 0, sum_lod2 = 0;
+        std::size_t count = 0;
+    };
+    std::vector<Patch> patch(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (r.significance[i] == 0) continue;
+        Patch& p = patch[static_cast<std::size_t>(find(static_cast<int>(i)))];
+        p.area += area[i];
+        p.sum_d += r.distance_m[i];
+        p.sum_lod2 += static_cast<double>(r.lod95_m[i]) * r.lod95_m[i];
+        ++p.count;
+    }
+    std::vector<char> keep(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const Patch& p = patch[i];
+        if (p.count == 0) continue;
+        const double c = static_cast<double>(p.count);
+        const bool ok = p.area >= cfg.min_patch_area_m2 &&
+                        (!cfg.test_patch_mean || std::abs(p.sum_d / c) > std::sqrt(p.sum_lod2 / c));
+        keep[i] = ok ? 1 : 0;
+        ++(ok ? r.patches : r.patches_dropped);
+    }
+    r.gain = r.loss = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (r.significance[i] == 0) continue;
+        if (!keep[static_cast<std::size_t>(find(static_cast<int>(i)))]) {
+            r.significance[i] = 0;
+            continue;
+        }
+        ++(r.significance[i] > 0 ? r.gain : r.loss);
+    }
+}
+
 }  // namespace
 
 std::vector<std::string> ChangeMeshConfig::Validate() const {
@@ -137,6 +201,7 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
     if (!(max_distance_m > 0)) p.push_back("change_mesh.max_distance_m must be > 0");
     if (!(cell_m > 0)) p.push_back("change_mesh.cell_m must be > 0");
     if (!(z95 > 0)) p.push_back("change_mesh.z95 must be > 0");
+    if (!(min_patch_area_m2 >= 0)) p.push_back("change_mesh.min_patch_area_m2 must be >= 0");
     return p;
 }
 
@@ -179,21 +244,25 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
             ++r.measured;
         }
     }
+    TestPatches(b, cfg, r);
     if (!lods.empty()) {
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());
         r.median_lod95_m = lods[lods.size() / 2];
     }
-    char buf[240];
+    char buf[320];
     std::snprintf(buf,
                   sizeof buf,
                   "%zu of %zu vertices of B's mesh measured against A's along their normal, %zu "
-                  "gain and %zu loss beyond the LoD95 (median %.3f m)%s",
+                  "gain and %zu loss beyond the LoD95 (median %.3f m) in %zu patches (%zu "
+                  "dropped: small or below detection as a whole)%s",
                   r.measured,
                   n,
                   r.gain,
                   r.loss,
                   r.median_lod95_m,
+                  r.patches,
+                  r.patches_dropped,
                   r.flipped ? "; B's mesh was wound into the ground: normals turned over" : "");
     r.message = buf;
     return r;

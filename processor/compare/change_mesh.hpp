@@ -14,7 +14,12 @@
 //             (pitmap compare: both CUBE surfaces' 1-sigma at the vertex's position, the errors
 //             a mesh vertex shares with its neighbours' soundings), sigma_reg^2 = J C J^T with
 //             J = [((p - pivot) x n)^T, n^T] (the correction's covariance along the normal);
-//   significance: +1 gain, -1 loss where |distance| > LoD95, else 0.
+//   significance: +1 gain, -1 loss where |distance| > LoD95, else 0; then, as the 2.5D regions
+//             (change.hpp), the significant vertices of one sign joined by the mesh's edges
+//             into patches, and a patch kept only where its area (a third of its vertices'
+//             triangles) is at least min_patch_area_m2 and its mean distance exceeds
+//             sqrt(mean LoD95^2) over it: what a vertex's neighbours share (a pass's errors)
+//             does not average out over a patch (test_patch_mean; the rest set to 0).
 // Thread safety: reentrant. Results do not depend on the thread count (one thread).
 #pragma once
 
@@ -38,6 +43,8 @@ struct ChangeMeshConfig {
     double max_distance_m = 2.0;  // search along the normal this far each way
     double cell_m = 0.5;          // voxel of A's triangle index
     double z95 = 1.96;
+    double min_patch_area_m2 = 0.5;  // smaller significant patches are noise
+    bool test_patch_mean = true;     // a patch's mean against its LoD (above)
     std::vector<std::string> Validate() const;
 };
 
@@ -46,7 +53,9 @@ struct ChangeMeshResult {
     std::vector<float> distance_m;         // B - A along the normal; NaN: not measured
     std::vector<float> lod95_m;            // NaN where not measured
     std::vector<std::int8_t> significance;
-    std::size_t measured = 0, gain = 0, loss = 0;
+    std::size_t measured = 0, gain = 0, loss = 0;  // gain, loss: after the patch test
+    std::size_t patches = 0;                       // kept
+    std::size_t patches_dropped = 0;               // too small, or their mean within their LoD
     bool flipped = false;  // the mesh was wound into the ground: normals turned over
     double median_lod95_m = 0;
     std::string message;
