@@ -15,7 +15,9 @@
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
 //   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
-//                  [--strict]
+//                  [--no-mesh] [--design D.tif] [--strict]
+//   pitmap compare A --design D.tif --out C   one survey against a design surface
+//   pitmap compare A B C... --out O (or one file listing the folders)   a series in time order
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
 //   pitmap --version
 // Stages take --strict: exit status 4 when a quality gate tripped (summary.json quality_gates).
@@ -116,6 +118,7 @@ struct Options {
     std::vector<std::string> compare_inputs;
     int compare_dof = 6;
     bool compare_no_3d = false;
+    bool compare_no_mesh = false;
     pp::CompareConfig compare_config;
 };
 
@@ -216,9 +219,14 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
         "two surveys of one site: co-registration on stable terrain, DEM of difference with a "
         "level of detection, change regions with volumes and uncertainty, capacity curves "
         "(docs/compare.md)");
-    c.compare->add_option("A B", o.compare_inputs, "products folders, the earlier survey first")
+    c.compare
+        ->add_option("A B",
+                     o.compare_inputs,
+                     "products folders, the earlier survey first (one with --design: that survey "
+                     "against the design alone; more than two, or one file listing them: a "
+                     "series, each consecutive pair compared)")
         ->required()
-        ->expected(2);
+        ->expected(1, -1);
     c.compare->add_option("--out", o.out_dir, "output folder for the comparison")->required();
     c.compare
         ->add_option("--dof",
@@ -232,6 +240,14 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
     c.compare->add_flag("--no-3d",
                         o.compare_no_3d,
                         "no 3D change along the normal on the soundings (change_points.ply)");
+    c.compare->add_option("--design",
+                          o.compare_config.design_path,
+                          "design surface (the planned cut: a GeoTIFF of heights, or a PLY mesh, "
+                          "in the surveys' CRS and vertical datum): the volume between each "
+                          "survey and it");
+    c.compare->add_flag("--no-mesh",
+                        o.compare_no_mesh,
+                        "no change on B's TSDF mesh (change_mesh.ply, change_mesh.glb)");
     c.compare->add_option("--capacity-step",
                           o.compare_config.capacity_step_m,
                           "m: a row of the capacity curves every step (0.25)");
@@ -288,16 +304,34 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
         return Fail(m + "; nothing written", codes::kUsage);
     o.compare_config.registration.estimate_roll_pitch = o.compare_dof == 6;
     o.compare_config.change3d = !o.compare_no_3d;
+    o.compare_config.change_mesh = !o.compare_no_mesh;
     if (auto problems = o.compare_config.Validate(); !problems.empty())
         return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
+    const bool list_file =
+        o.compare_inputs.size() == 1 && std::filesystem::is_regular_file(o.compare_inputs.front());
+    if (o.compare_inputs.size() < 2 && o.compare_config.design_path.empty() && !list_file)
+        return Fail(
+            "compare: two products folders (or more, or a file listing them), or one and a "
+            "design surface (--design)",
+            codes::kUsage);
+    if (!o.compare_config.design_path.empty()) {
+        if (auto m = MissingInput({o.compare_config.design_path}, "design surface"); !m.empty())
+            return Fail(m + "; nothing written", codes::kUsage);
+    }
     auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
     if (!lock) return Fail(lock.error().message);
-    auto gates = pp::RunCompare(
-        o.compare_inputs[0],
-        o.compare_inputs[1],
-        o.out_dir,
-        o.compare_config,
-        [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); });
+    const auto log = [](const std::string& m) { std::fprintf(stderr, "pitmap: %s\n", m.c_str()); };
+    if (o.compare_inputs.size() > 2 || list_file) {
+        auto gates = pp::RunCompareSeries(o.compare_inputs, o.out_dir, o.compare_config, log);
+        if (!gates) return Fail(gates.error().message);
+        return GatesExit(
+            static_cast<std::size_t>(*gates), "see each interval's compare.json", o.strict);
+    }
+    auto gates = pp::RunCompare(o.compare_inputs[0],
+                                o.compare_inputs.size() > 1 ? o.compare_inputs[1] : std::string(),
+                                o.out_dir,
+                                o.compare_config,
+                                log);
     if (!gates) return Fail(gates.error().message);
     return GatesExit(static_cast<std::size_t>(*gates), "see compare.json quality_gates", o.strict);
 }

@@ -341,6 +341,18 @@ std::vector<int> KeepRegions(const SurfaceGrid& a,
         const RegionAcc& c = comps.acc[id];
         const double area = static_cast<double>(c.nodes) * cell;
         if (area < cfg.min_region_area_m2) continue;
+        // The region as a whole: its mean against the LoD of a mean of shared errors.
+        const double nodes = static_cast<double>(c.nodes);
+        const double mean_dz = c.volume / (nodes * cell);
+        const Row6 jmean = c.jsum / nodes;
+        const double region_lod =
+            cfg.z95 *
+            std::sqrt(c.var_rand / nodes + std::max(0.0, (jmean * C * jmean.transpose())(0, 0)));
+        if (cfg.test_region_mean && !(std::abs(mean_dz) > region_lod)) {
+            ++r.regions_below_detection;
+            r.area_below_detection_m2 += area;
+            continue;
+        }
         ChangeRegion reg;
         reg.id = ++kept;
         kept_id[id] = reg.id;
@@ -357,6 +369,8 @@ std::vector<int> KeepRegions(const SurfaceGrid& a,
             cfg.z95 * std::hypot(reg.sigma_random_m3, reg.sigma_registration_m3) + reg.rim_m3;
         reg.max_abs_difference_m = c.max_abs;
         reg.mean_lod95_m = c.lod_sum / static_cast<double>(c.nodes);
+        reg.mean_difference_m = mean_dz;
+        reg.region_lod95_m = region_lod;
         reg.centroid = c.centroid / static_cast<double>(c.nodes);
         reg.polygons = TraceOutline(a, comps.label, static_cast<int>(id), c.i0, c.i1, c.j0, c.j1);
         r.regions.push_back(std::move(reg));
@@ -423,12 +437,12 @@ void CutFillTotals(const SurfaceGrid& a,
 }
 
 std::string ChangeMessage(const ChangeResult& r) {
-    char buf[320];
+    char buf[400];
     std::snprintf(buf,
                   sizeof buf,
                   "%zu nodes compared (%.0f m2), median LoD95 %.3f m; %zu regions: cut %.2f +- "
-                  "%.2f m3 (%d), fill %.2f +- %.2f m3 (%d); stable terrain %.3f m mean, %.3f m "
-                  "RMS",
+                  "%.2f m3 (%d), fill %.2f +- %.2f m3 (%d); %d regions (%.1f m2) below detection "
+                  "as a whole; stable terrain %.3f m mean, %.3f m RMS",
                   r.compared_nodes,
                   r.compared_area_m2,
                   r.median_lod95_m,
@@ -439,6 +453,8 @@ std::string ChangeMessage(const ChangeResult& r) {
                   r.fill.volume_m3,
                   r.fill.u95_m3,
                   r.fill.regions,
+                  r.regions_below_detection,
+                  r.area_below_detection_m2,
                   r.stable_mean_m,
                   r.stable_rms_m);
     return buf;

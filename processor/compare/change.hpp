@@ -16,6 +16,19 @@
 // exceeds grow_fraction LoD95 (hysteresis: a change's thin edges belong to it), labelled by
 // 8-connectivity per sign; regions smaller than min_region_area_m2 are dropped (their nodes
 // become 0: isolated noise).
+// A region is then tested as a whole (test_region_mean): it is kept only where its mean
+// difference exceeds the level of detection of a mean over it,
+//   |mean dz| > LoD95_region = z95 sqrt(mean(sigma_A^2 + sigma_B^2) + J_mean C J_mean^T).
+// The errors a pass shares (navigation height, attitude, sound speed: CUBE's pass-common part,
+// most of a node's sigma where several passes cover it) are the same over neighbouring nodes,
+// so over a region they do not average out: its mean carries them whole. The per-node test,
+// the hysteresis and the minimum area treat the nodes' errors as independent (a blob of
+// exceedances would then be very unlikely); under a pass-common error a patch of neighbours
+// exceeds the per-node LoD together as easily as one node does, and the hysteresis grows it
+// into a region whose mean lies below the LoD. dem.tif does not split a node's sigma into its
+// independent and its common part, so the whole of it is taken as common within a region (the
+// independent part would average down: a conservative bound, a region must exceed the LoD on
+// average).
 // Volume of a region: sum of the differences times the cell area. Its 95 % uncertainty:
 //   U95 = z95 sqrt(sigma_rand^2 + sigma_reg^2) + U_rim
 //   sigma_rand^2 = n_c sum (sigma_A^2 + sigma_B^2) cell^2   (n_c = nodes per correlation
@@ -41,6 +54,7 @@ struct ChangeConfig {
     double grow_fraction = 0.5;               // hysteresis: grow into |dz| > this x LoD95
     double min_region_area_m2 = 0.5;          // smaller regions are not reported
     double error_correlation_length_m = 1.0;  // nodes closer than this share their errors
+    bool test_region_mean = true;  // keep a region only where its mean exceeds its LoD (above)
     std::vector<std::string> Validate() const;
 };
 
@@ -54,6 +68,8 @@ struct ChangeRegion {
     double sigma_random_m3 = 0, sigma_registration_m3 = 0, rim_m3 = 0;  // its terms
     double max_abs_difference_m = 0;
     double mean_lod95_m = 0;
+    double mean_difference_m = 0;  // signed, over the region's nodes
+    double region_lod95_m = 0;     // the level of detection of that mean (above)
     Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // m, A's CRS
     // Outline: polygons (outer ring first, then its holes), each ring closed (first point
     // repeated), outer rings counter-clockwise, along the nodes' cell edges.
@@ -76,6 +92,9 @@ struct ChangeResult {
     std::size_t compared_nodes = 0;     // nodes with both surfaces
     double compared_area_m2 = 0;
     double significant_share = 0;  // of the compared nodes, in a region
+    // Regions of at least the minimum area whose mean stayed within their LoD (dropped).
+    int regions_below_detection = 0;
+    double area_below_detection_m2 = 0;
     double median_lod95_m = 0;
     // The smallest detectable change (median LoD95, m) by the slope of A's surface: floors and
     // benches (< 20 deg), faces (20-45 deg), walls (>= 45 deg); 0 where no node.

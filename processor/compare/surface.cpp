@@ -35,6 +35,46 @@ std::size_t SurfaceGrid::CountFilled() const {
         std::count_if(z_m.begin(), z_m.end(), [](float v) { return std::isfinite(v); }));
 }
 
+SurfaceGrid TentFiltered(const SurfaceGrid& s, int k) {
+    if (k <= 1) return s;
+    std::vector<double> w;
+    for (int i = -(k - 1); i <= k - 1; ++i) w.push_back(static_cast<double>(k - std::abs(i)) / k);
+    const int h = k - 1;
+    const std::size_t n = s.z_m.size();
+    // Along x: weighted sums and weights of the filled nodes; then along y.
+    std::vector<double> sum_x(n, 0.0), wt_x(n, 0.0);
+    for (int j = 0; j < s.ny; ++j) {
+        for (int i = 0; i < s.nx; ++i) {
+            double sum = 0, wt = 0;
+            for (int d = -h; d <= h; ++d) {
+                const int u = i + d;
+                if (u < 0 || u >= s.nx) continue;
+                const float v = s.z_m[s.index(u, j)];
+                if (!std::isfinite(v)) continue;
+                sum += w[static_cast<std::size_t>(d + h)] * v;
+                wt += w[static_cast<std::size_t>(d + h)];
+            }
+            sum_x[s.index(i, j)] = sum;
+            wt_x[s.index(i, j)] = wt;
+        }
+    }
+    SurfaceGrid out = s;
+    for (int j = 0; j < s.ny; ++j) {
+        for (int i = 0; i < s.nx; ++i) {
+            if (!s.filled(i, j)) continue;
+            double sum = 0, wt = 0;
+            for (int d = -h; d <= h; ++d) {
+                const int v = j + d;
+                if (v < 0 || v >= s.ny) continue;
+                sum += w[static_cast<std::size_t>(d + h)] * sum_x[s.index(i, v)];
+                wt += w[static_cast<std::size_t>(d + h)] * wt_x[s.index(i, v)];
+            }
+            if (wt > 0) out.z_m[s.index(i, j)] = static_cast<float>(sum / wt);
+        }
+    }
+    return out;
+}
+
 SurfaceGrid Smoothed(const SurfaceGrid& s, int r) {
     if (r <= 0) return s;
     SurfaceGrid out = s;

@@ -34,6 +34,13 @@ struct SurfaceGrid {
 // stays empty if it was); radius 0 returns a copy.
 SurfaceGrid Smoothed(const SurfaceGrid& s, int radius_nodes);
 
+// The surface filtered by the separable tent of half-width k nodes (weights (k - |i|) / k along
+// each axis, over the filled nodes, renormalised; a node stays empty if it was); k <= 1 returns
+// a copy. Bilinear interpolation of a grid of spacing k res is this tent over its nodes: so a
+// surface of spacing res filtered by it resolves what the coarser one does (pitmap compare, two
+// grids of different resolution).
+SurfaceGrid TentFiltered(const SurfaceGrid& s, int k);
+
 // Central-difference gradient (dz/dx, dz/dy) at node (i, j) over +-step nodes; nullopt-like
 // NaN vector when a neighbour is empty.
 Eigen::Vector2d GradientAt(const SurfaceGrid& s, int i, int j, int step);

@@ -2,6 +2,7 @@
 #include "processor/pipeline/compare_stage.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "processor/compare/capacity.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/products.hpp"
+#include "processor/pipeline/compare_stage_mesh.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -424,6 +426,33 @@ Status CheckComparable(const Epoch& a,
     return Ok{};
 }
 
+// Grids of different resolution (each survey's CUBE resolution follows its own median
+// depth): B is interpolated on A's grid, which is the tent filter of B's spacing over B's
+// nodes; the finer surface gets the same filter, so that both resolve the same detail (else a
+// bench crest or a riser's foot, sharp on the finer grid and rounded on the coarser one, reads
+// as change). The capacity curves keep each surface as it is. Returns compare.json's record.
+json MatchResolution(Epoch& a, Epoch& b, const std::function<void(const std::string&)>& log) {
+    const double ra = a.surface.resolution_m, rb = b.surface.resolution_m;
+    const int k = static_cast<int>(std::lround(std::max(ra, rb) / std::min(ra, rb)));
+    json record = {{"a_resolution_m", ra}, {"b_resolution_m", rb}, {"filtered", "none"}};
+    if (k < 2) return record;
+    Epoch& finer = ra < rb ? a : b;
+    finer.surface = compare::TentFiltered(finer.surface, k);
+    record["filtered"] = ra < rb ? "a" : "b";
+    record["tent_half_width_nodes"] = k;
+    char buf[200];
+    std::snprintf(buf,
+                  sizeof buf,
+                  "compare: %s's %.3f m grid filtered to the other's %.3f m spacing (tent of %d "
+                  "nodes) before the comparison",
+                  ra < rb ? "A" : "B",
+                  std::min(ra, rb),
+                  std::max(ra, rb),
+                  k);
+    log(buf);
+    return record;
+}
+
 // The 3D change along the normal and its record (compare.json change3d); m3c2 empty when not
 // computed.
 struct Change3d {
@@ -440,6 +469,62 @@ double MedianSigma(const compare::SurfaceGrid& a, const compare::SurfaceGrid& b)
         }
     }
     return Median(sig);
+}
+
+// What the soundings of a cylinder (or a mesh vertex) share: both CUBE surfaces' 1-sigma at
+// the point, in quadrature (the median where a surface has none).
+std::function<double(const Eigen::Vector3d&)> CommonSigma(const compare::SurfaceGrid& sa,
+                                                          const compare::SurfaceGrid& sb) {
+    const double sigma_median = MedianSigma(sa, sb);
+    return [&sa, &sb, sigma_median](const Eigen::Vector3d& p) {
+        double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
+        if (!std::isfinite(x)) x = sigma_median;
+        if (!std::isfinite(y)) y = sigma_median;
+        return std::hypot(x, y);
+    };
+}
+
+// The change on B's TSDF mesh and its record (compare.json change_mesh); mesh empty when not
+// computed.
+struct ChangeOnMesh {
+    json record = {{"computed", false}};
+    std::optional<compare::TriangleMesh> b;  // B's mesh in A's frame
+    std::optional<compare::ChangeMeshResult> change;
+};
+
+Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
+                                           const Epoch& b,
+                                           const compare::RegistrationResult& reg,
+                                           const CompareConfig& cfg,
+                                           const std::function<void(const std::string&)>& log) {
+    ChangeOnMesh out;
+    if (!cfg.change_mesh) return out;
+    auto ma = ReadMeshUtm(a.dir, a.epsg);
+    if (!ma) return Error{"compare: A " + ma.error().message};
+    auto mb = ReadMeshUtm(b.dir, b.epsg);
+    if (!mb) return Error{"compare: B " + mb.error().message};
+    if (!*ma || !*mb || (*ma)->triangles.empty() || (*mb)->triangles.empty()) {
+        out.record["message"] = "mesh_utm.ply missing or empty in A or B: not computed";
+        return out;
+    }
+    for (Eigen::Vector3d& p : (*mb)->vertices) p = reg.correction.Apply(p);
+    out.change = compare::ComputeChangeMesh(
+        **mb, **ma, reg.correction, reg.covariance, cfg.mesh, CommonSigma(a.surface, b.surface));
+    out.b = std::move(**mb);
+    log("compare: change mesh: " + out.change->message);
+    out.record = {{"computed", true},
+                  {"message", out.change->message},
+                  {"vertices", out.b->vertices.size()},
+                  {"measured", out.change->measured},
+                  {"gain", out.change->gain},
+                  {"loss", out.change->loss},
+                  {"patches", out.change->patches},
+                  {"patches_dropped", out.change->patches_dropped},
+                  {"median_lod95_m", out.change->median_lod95_m},
+                  {"normals_turned_over", out.change->flipped},
+                  {"max_distance_m", cfg.mesh.max_distance_m},
+                  {"colour_scale_m", cfg.change_mesh_colour_scale_m}};
+    return out;
 }
 
 // The 3D change's level of detection by slope class (compare.json change3d.by_slope).
@@ -481,25 +566,20 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
         return out;
     }
     for (Eigen::Vector3d& p : *pb) p = reg.correction.Apply(p);
-    // What the soundings of a cylinder share: both CUBE surfaces' 1-sigma there (the
-    // median where a surface has none).
-    const double sigma_median = MedianSigma(a.surface, b.surface);
-    const auto& sa = a.surface;
-    const auto& sb = b.surface;
-    const auto common = [&](const Eigen::Vector3d& p) {
-        double x = sa.SigmaAt(p.x(), p.y()), y = sb.SigmaAt(p.x(), p.y());
-        if (!std::isfinite(x)) x = sigma_median;
-        if (!std::isfinite(y)) y = sigma_median;
-        return std::hypot(x, y);
-    };
-    out.m3c2 = compare::RunM3c2(
-        *pa, *pb, reg.correction.pivot, reg.correction, reg.covariance, cfg.m3c2, common);
+    out.m3c2 = compare::RunM3c2(*pa,
+                                *pb,
+                                reg.correction.pivot,
+                                reg.correction,
+                                reg.covariance,
+                                cfg.m3c2,
+                                CommonSigma(a.surface, b.surface));
     log("compare: 3D change: " + out.m3c2->message);
     out.record = {{"computed", true},
                   {"message", out.m3c2->message},
                   {"cores", out.m3c2->cores.size()},
                   {"measured", out.m3c2->measured},
                   {"significant", out.m3c2->significant},
+                  {"isolated", out.m3c2->isolated},
                   {"core_spacing_m", cfg.m3c2.core_spacing_m},
                   {"projection_radius_m", cfg.m3c2.projection_radius_m},
                   {"by_slope", M3c2BySlope(*out.m3c2)}};
@@ -649,6 +729,8 @@ Expected<json> WriteChangeRegions(const fs::path& C,
         rj["sigma_random_m3"] = r.sigma_random_m3;
         rj["sigma_registration_m3"] = r.sigma_registration_m3;
         rj["rim_m3"] = r.rim_m3;
+        rj["mean_difference_m"] = r.mean_difference_m;
+        rj["region_lod95_m"] = r.region_lod95_m;
         regions.push_back(rj);
     }
     const json fc = {
@@ -723,6 +805,8 @@ json ChangeJson(const compare::ChangeResult& change, double resolution_m, const 
               {"face_20_45_deg", change.median_lod95_face_m},
               {"wall_45_90_deg", change.median_lod95_wall_m}}},
             {"significant_share", change.significant_share},
+            {"regions_below_detection", change.regions_below_detection},
+            {"area_below_detection_m2", change.area_below_detection_m2},
             {"stable_mean_m", change.stable_mean_m},
             {"stable_rms_m", change.stable_rms_m},
             {"cut", totals(change.cut)},
@@ -737,12 +821,146 @@ json EpochInputJson(const Epoch& e) {
             {"survey_start_utc", e.start_utc}};
 }
 
+// The design surface: its heights as a grid, checked against survey e's CRS and datum.
+Expected<compare::SurfaceGrid> ReadDesign(const std::string& path, const Epoch& e) {
+    const std::string who = "design (" + path + ")";
+    if (!fs::exists(path)) return Error{who + ": not there"};
+    std::string ext = fs::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".ply") {
+        // A mesh in the survey's CRS (mesh_utm.ply's convention), as heights on its grid.
+        auto m = formats::ply::ReadMesh(path);
+        if (!m) return Error{who + ": " + m.error().message};
+        for (const std::string& c : m->comments) {
+            if (c.rfind("pitmap_crs_epsg ", 0) != 0) continue;
+            const int epsg = std::atoi(c.c_str() + 16);
+            if (epsg != e.epsg) {
+                return Error{who + ": different horizontal CRS: the design is in EPSG " +
+                             std::to_string(epsg) + ", the survey in " + e.horizontal_name +
+                             " (EPSG " + std::to_string(e.epsg) + ")"};
+            }
+        }
+        if (m->triangles.empty()) return Error{who + ": a mesh without triangles"};
+        compare::TriangleMesh mesh;
+        mesh.vertices = std::move(m->vertices);
+        mesh.triangles = std::move(m->triangles);
+        return compare::RasterizeMesh(mesh, e.surface);
+    }
+    auto d = io::ReadGrid(path);
+    if (!d) return Error{who + ": " + d.error().message};
+    if (d->grid.layers.empty()) return Error{who + ": no band"};
+    if (d->horizontal_epsg == 0) return Error{who + ": no EPSG-coded horizontal CRS"};
+    if (d->horizontal_epsg != e.epsg) {
+        return Error{who + ": different horizontal CRS: the design is in " + d->horizontal_name +
+                     " (EPSG " + std::to_string(d->horizontal_epsg) + "), the survey " +
+                     e.horizontal_name + " (EPSG " + std::to_string(e.epsg) + ")"};
+    }
+    if (!d->vertical_name.empty() && !e.vertical_name.empty() &&
+        d->vertical_name != e.vertical_name) {
+        return Error{who + ": different vertical datums: the design's heights are " +
+                     d->vertical_name + ", the survey's " + e.vertical_name};
+    }
+    const io::GridLayer* band = &d->grid.layers.front();
+    for (const auto& l : d->grid.layers) {
+        if (l.name == "elevation") band = &l;
+    }
+    compare::SurfaceGrid g;
+    g.x0 = d->grid.x0;
+    g.y0 = d->grid.y0;
+    g.resolution_m = d->grid.resolution_m;
+    g.nx = d->grid.nx;
+    g.ny = d->grid.ny;
+    g.z_m = band->values;
+    g.sigma_m.assign(g.z_m.size(), 0.0f);
+    if (g.CountFilled() == 0) return Error{who + ": holds no heights"};
+    return g;
+}
+
+json DesignJson(const compare::DesignResult& d, const std::string& file) {
+    return {{"file", file},
+            {"message", d.message},
+            {"compared_nodes", d.compared_nodes},
+            {"compared_area_m2", d.compared_area_m2},
+            {"above_design_m3", d.above_m3},
+            {"above_design_u95_m3", d.above_u95_m3},
+            {"above_design_area_m2", d.above_area_m2},
+            {"below_design_m3", d.below_m3},
+            {"below_design_u95_m3", d.below_u95_m3},
+            {"below_design_area_m2", d.below_area_m2},
+            {"significant_above_area_m2", d.significant_above_area_m2},
+            {"significant_below_area_m2", d.significant_below_area_m2},
+            {"significant_above_m3", d.significant_above_m3},
+            {"significant_above_u95_m3", d.significant_above_u95_m3},
+            {"significant_below_m3", d.significant_below_m3},
+            {"significant_below_u95_m3", d.significant_below_u95_m3},
+            {"mean_difference_m", d.mean_difference_m}};
+}
+
+// design_a.tif / design_b.tif: the survey against the design on the survey's grid.
+Status WriteDesignTif(const fs::path& path, const Epoch& e, const compare::DesignResult& d) {
+    io::GridRaster g;
+    g.x0 = e.surface.x0;
+    g.y0 = e.surface.y0;
+    g.resolution_m = e.surface.resolution_m;
+    g.nx = e.surface.nx;
+    g.ny = e.surface.ny;
+    g.utm_zone = e.epsg % 100;
+    g.northern = e.epsg < 32700;
+    if (!((e.epsg > 32600 && e.epsg <= 32660) || (e.epsg > 32700 && e.epsg <= 32760)))
+        return Error{"compare: " + path.string() + ": the CRS is not WGS 84 / UTM"};
+    g.horizontal_only = true;
+    using K = io::GridBandKind;
+    g.layers = {{"difference", "metre", d.difference_m, K::kContinuous},
+                {"u95", "metre", d.u95_m, K::kContinuous},
+                {"significance", "class", d.significance, K::kCount}};
+    g.metadata = {{"pitmap_design",
+                   "survey minus design (m); u95: the survey's 95 % uncertainty; significance +1 "
+                   "above the design, -1 below, 0 on it"},
+                  {"pitmap_survey", e.dir}};
+    if (auto s = io::WriteCogGeoTiff(path.string(), g); !s)
+        return Error{"compare: " + s.error().message};
+    return Ok{};
+}
+
+// Each survey against the design (empty when none is given).
+struct DesignComparison {
+    json record;                                                         // compare.json design
+    std::vector<std::pair<std::string, compare::DesignResult>> results;  // file name, result
+};
+
+Expected<DesignComparison> CompareDesign(const std::vector<const Epoch*>& epochs,
+                                         const CompareConfig& cfg,
+                                         const std::function<void(const std::string&)>& log) {
+    DesignComparison out;
+    if (cfg.design_path.empty()) return out;
+    out.record = {{"design", fs::weakly_canonical(cfg.design_path).string()}};
+    const char* names[2] = {"a", "b"};
+    for (std::size_t k = 0; k < epochs.size(); ++k) {
+        auto design = ReadDesign(cfg.design_path, *epochs[k]);
+        if (!design) return Error{"compare: " + design.error().message};
+        compare::DesignResult d =
+            compare::CompareWithDesign(epochs[k]->surface, *design, cfg.design);
+        if (d.compared_nodes == 0) {
+            return Error{"compare: design (" + cfg.design_path + ") and survey " +
+                         (k == 0 ? "A" : "B") + " (" + epochs[k]->dir + ") do not overlap"};
+        }
+        log(std::string("compare: ") + (k == 0 ? "A" : "B") + " against the design: " + d.message);
+        const std::string file = std::string("design_") + names[k] + ".tif";
+        out.record[names[k]] = DesignJson(d, file);
+        out.results.emplace_back(file, std::move(d));
+    }
+    return out;
+}
+
 // What the comparison found, for compare.json and the log.
 struct Comparison {
     compare::RegistrationResult reg;
     compare::ChangeResult change;
     compare::CapacityResult cap_a, cap_b;
     Change3d change3d;
+    ChangeOnMesh change_mesh;
+    json resolution_match;
+    DesignComparison design;
     NavigationGate gate;
 };
 
@@ -757,7 +975,9 @@ json CompareJson(const Epoch& a,
          {{"horizontal", a.horizontal_name}, {"epsg", a.epsg}, {"vertical", a.vertical_datum_key}}},
         {"registration", RegistrationJson(r.reg, cfg, r.gate.record)},
         {"change", ChangeJson(r.change, a.surface.resolution_m, regions)},
+        {"resolution_match", r.resolution_match},
         {"change3d", r.change3d.record},
+        {"change_mesh", r.change_mesh.record},
         {"capacity", {{"a", CapacityJson(r.cap_a)}, {"b", CapacityJson(r.cap_b)}}},
         {"files",
          {"dod.tif",
@@ -768,6 +988,14 @@ json CompareJson(const Epoch& a,
           "compare.json"}},
         {"quality_gates", r.gate.gates}};
     if (r.change3d.m3c2) j["files"].push_back("change_points.ply");
+    if (r.change_mesh.change) {
+        j["files"].push_back("change_mesh.ply");
+        j["files"].push_back("change_mesh.glb");
+    }
+    if (!r.design.results.empty()) {
+        j["design"] = r.design.record;
+        for (const auto& [file, d] : r.design.results) j["files"].push_back(file);
+    }
     return j;
 }
 
@@ -790,7 +1018,21 @@ Status WriteProducts(const std::string& out_dir,
             !s)
             return Error{"compare: " + s.error().message};
     }
+    if (r.change_mesh.change) {
+        if (auto s = WriteChangeMesh(out_dir,
+                                     *r.change_mesh.b,
+                                     *r.change_mesh.change,
+                                     a.epsg,
+                                     a.horizontal_name,
+                                     cfg.change_mesh_colour_scale_m);
+            !s)
+            return s;
+    }
     if (auto s = WriteCapacity(C, r.cap_a, r.cap_b, a.vertical_datum_key); !s) return s;
+    for (std::size_t k = 0; k < r.design.results.size(); ++k) {
+        const auto& [file, d] = r.design.results[k];
+        if (auto s = WriteDesignTif(C / file, k == 0 ? a : b, d); !s) return s;
+    }
     const json j = CompareJson(a, b, r, cfg, *regions);
     if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
         return Error{"compare: " + s.error().message};
@@ -814,12 +1056,45 @@ std::string SummaryLine(const Comparison& r, const std::string& out_dir) {
     return buf;
 }
 
+// Survey A against the design alone.
+Expected<int> RunDesignOnly(const std::string& a_dir,
+                            const std::string& out_dir,
+                            const CompareConfig& cfg,
+                            const std::function<void(const std::string&)>& log) {
+    if (cfg.design_path.empty())
+        return Error{"compare: two products folders, or one and a design surface (--design)"};
+    auto a = ReadEpoch(a_dir, "A");
+    if (!a) return Error{"compare: " + a.error().message};
+    auto design = CompareDesign({&*a}, cfg, log);
+    if (!design) return design.error();
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) return Error{"compare: " + out_dir + ": cannot create: " + ec.message()};
+    const auto& [file, d] = design->results.front();
+    if (auto s = WriteDesignTif(fs::path(out_dir) / file, *a, d); !s) return s.error();
+    const json j = {{"inputs", {{"a", EpochInputJson(*a)}}},
+                    {"crs",
+                     {{"horizontal", a->horizontal_name},
+                      {"epsg", a->epsg},
+                      {"vertical", a->vertical_datum_key}}},
+                    {"design", design->record},
+                    {"files", {file, "compare.json"}},
+                    {"quality_gates", json::array()}};
+    if (auto s = WriteText((fs::path(out_dir) / "compare.json").string(), j.dump(2) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    log("compare: products in " + out_dir);
+    return 0;
+}
+
 }  // namespace
 
 std::vector<std::string> CompareConfig::Validate() const {
     std::vector<std::string> p = registration.Validate();
     for (auto& q : change.Validate()) p.push_back(std::move(q));
     for (auto& q : m3c2.Validate()) p.push_back(std::move(q));
+    for (auto& q : mesh.Validate()) p.push_back(std::move(q));
+    for (auto& q : design.Validate()) p.push_back(std::move(q));
+    if (!(change_mesh_colour_scale_m > 0)) p.push_back("change mesh colour scale must be > 0");
     if (!(capacity_step_m > 0 && capacity_step_m <= 100))
         p.push_back("capacity step must be in (0, 100] m");
     if (!(gate_z95 > 0)) p.push_back("gate_z95 must be > 0");
@@ -833,6 +1108,7 @@ Expected<int> RunCompare(const std::string& a_dir,
                          const std::function<void(const std::string&)>& log) {
     if (auto problems = cfg.Validate(); !problems.empty())
         return Error{"compare: invalid settings: " + problems.front()};
+    if (b_dir.empty()) return RunDesignOnly(a_dir, out_dir, cfg, log);
     if (fs::weakly_canonical(a_dir) == fs::weakly_canonical(b_dir))
         return Error{"compare: A and B are the same folder (" + a_dir + ")"};
     auto a = ReadEpoch(a_dir, "A");
@@ -842,6 +1118,13 @@ Expected<int> RunCompare(const std::string& a_dir,
     if (auto s = CheckComparable(*a, *b, log); !s) return s.error();
 
     Comparison r;
+    // The capacity curves on each survey's surface as it is.
+    r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
+    r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
+    auto design = CompareDesign({&*a, &*b}, cfg, log);
+    if (!design) return design.error();
+    r.design = std::move(*design);
+    r.resolution_match = MatchResolution(*a, *b, log);
     log("compare: registering B onto A on stable terrain");
     r.reg = compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
     if (!r.reg.ok()) {
@@ -854,16 +1137,187 @@ Expected<int> RunCompare(const std::string& a_dir,
     r.change = compare::ComputeChange(
         a->surface, b->surface, r.reg.correction, r.reg.covariance, cfg.change);
     log("compare: change: " + r.change.message);
-    r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
-    r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
+    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
+    if (!on_mesh) return on_mesh.error();
+    r.change_mesh = std::move(*on_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
+    if (r.resolution_match["filtered"] != "none") {
+        char buf[400];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "the two CUBE surfaces are gridded at different resolutions (A %.3f m, B "
+                      "%.3f m; the automatic resolution follows each survey's median depth): "
+                      "sharp edges (bench crests, a riser's foot) differ between them and thin "
+                      "changes at their margins fall below detection; grid both at one "
+                      "resolution (pitmap grid --config with grid.resolution_m) and compare again",
+                      a->surface.resolution_m,
+                      b->surface.resolution_m);
+        r.gate.gates.push_back(
+            {{"stage", "compare"}, {"gate", "resolutions_differ"}, {"message", buf}});
+    }
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
     log(SummaryLine(r, out_dir));
     return static_cast<int>(r.gate.gates.size());
+}
+
+namespace {
+
+// A folder of the series: its name, survey start and CRS, read from summary.json.
+struct SeriesEntry {
+    std::string dir, name, start_utc;
+    int epsg = 0;
+};
+
+Expected<std::vector<std::string>> ExpandSeriesList(const std::vector<std::string>& dirs) {
+    if (dirs.size() != 1 || fs::is_directory(dirs.front())) return dirs;
+    std::ifstream in(dirs.front());
+    if (!in) return Error{"compare: " + dirs.front() + ": cannot read the list of folders"};
+    std::vector<std::string> out;
+    const fs::path base = fs::path(dirs.front()).parent_path();
+    for (std::string line; std::getline(in, line);) {
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+        const auto first = line.find_first_not_of(' ');
+        if (first == std::string::npos || line[first] == '#') continue;
+        const fs::path p(line.substr(first));
+        out.push_back((p.is_absolute() ? p : base / p).string());
+    }
+    if (out.size() < 2)
+        return Error{"compare: " + dirs.front() + ": lists " + std::to_string(out.size()) +
+                     " folder(s); a series needs at least two"};
+    return out;
+}
+
+Expected<SeriesEntry> ReadSeriesEntry(const std::string& dir) {
+    SeriesEntry e;
+    e.dir = dir;
+    e.name = fs::path(dir).lexically_normal().filename().string();
+    if (e.name.empty() || e.name == ".") e.name = fs::weakly_canonical(dir).filename().string();
+    if (!fs::is_directory(dir)) return Error{"compare: " + dir + ": not a products folder"};
+    auto s = io::ReadSummaryJson((fs::path(dir) / "summary.json").string());
+    if (!s) return Error{"compare: " + dir + ": " + s.error().message};
+    if (s->contains("metadata") && (*s)["metadata"].is_object())
+        e.start_utc = (*s)["metadata"].value("survey_start_utc", std::string());
+    if (e.start_utc.empty())
+        return Error{"compare: " + dir +
+                     ": summary.json names no survey_start_utc (metadata): the series' order "
+                     "cannot be checked"};
+    if (s->contains("utm") && (*s)["utm"].is_object()) e.epsg = (*s)["utm"].value("epsg", 0);
+    if (e.epsg == 0) return Error{"compare: " + dir + ": summary.json names no utm.epsg"};
+    return e;
+}
+
+}  // namespace
+
+Expected<int> RunCompareSeries(const std::vector<std::string>& dirs_in,
+                               const std::string& out_dir,
+                               const CompareConfig& cfg,
+                               const std::function<void(const std::string&)>& log) {
+    auto dirs = ExpandSeriesList(dirs_in);
+    if (!dirs) return dirs.error();
+    if (dirs->size() < 2) return Error{"compare: a series needs at least two products folders"};
+    std::vector<SeriesEntry> entries;
+    for (const std::string& d : *dirs) {
+        auto e = ReadSeriesEntry(d);
+        if (!e) return e.error();
+        if (!entries.empty()) {
+            const SeriesEntry& prev = entries.back();
+            // ISO 8601 UTC stamps of one form order as text.
+            if (!(e->start_utc > prev.start_utc)) {
+                return Error{"compare: " + d + " is out of time order: surveyed " + e->start_utc +
+                             ", not after " + prev.dir + " (" + prev.start_utc +
+                             "); give the folders earliest first"};
+            }
+            if (e->epsg != entries.front().epsg) {
+                return Error{"compare: " + d + " is in another CRS (EPSG " +
+                             std::to_string(e->epsg) + ") than " + entries.front().dir + " (EPSG " +
+                             std::to_string(entries.front().epsg) + ")"};
+            }
+        }
+        entries.push_back(std::move(*e));
+    }
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec) return Error{"compare: " + out_dir + ": cannot create: " + ec.message()};
+    json intervals = json::array();
+    std::string csv =
+        "interval,from,to,from_utc,to_utc,cut_m3,cut_u95_m3,fill_m3,fill_u95_m3,net_m3,"
+        "net_u95_m3,cumulative_net_m3,cumulative_net_u95_m3,gates\n";
+    double cumulative = 0, cumulative_var = 0;
+    int gates = 0;
+    for (std::size_t k = 0; k + 1 < entries.size(); ++k) {
+        const SeriesEntry& a = entries[k];
+        const SeriesEntry& b = entries[k + 1];
+        char sub[32];
+        std::snprintf(sub, sizeof sub, "%02zu_", k + 1);
+        const std::string folder = sub + a.name + "_to_" + b.name;
+        log("compare: interval " + std::to_string(k + 1) + ": " + a.dir + " -> " + b.dir);
+        auto g = RunCompare(a.dir, b.dir, (fs::path(out_dir) / folder).string(), cfg, log);
+        if (!g) return Error{g.error().message + " (interval " + std::to_string(k + 1) + ")"};
+        gates += *g;
+        auto cj = io::ReadJsonFile((fs::path(out_dir) / folder / "compare.json").string());
+        if (!cj) return Error{"compare: " + cj.error().message};
+        const json& c = *cj;
+        const json& ch = c["change"];
+        const double cut = ch["cut"]["volume_m3"], cut_u = ch["cut"]["u95_m3"];
+        const double fill = ch["fill"]["volume_m3"], fill_u = ch["fill"]["u95_m3"];
+        const double net = cut + fill, net_u = std::hypot(cut_u, fill_u);
+        cumulative += net;
+        cumulative_var += net_u * net_u;
+        const double cumulative_u = std::sqrt(cumulative_var);
+        intervals.push_back({{"interval", k + 1},
+                             {"folder", folder},
+                             {"from", {{"folder", a.dir}, {"survey_start_utc", a.start_utc}}},
+                             {"to", {{"folder", b.dir}, {"survey_start_utc", b.start_utc}}},
+                             {"cut_m3", cut},
+                             {"cut_u95_m3", cut_u},
+                             {"fill_m3", fill},
+                             {"fill_u95_m3", fill_u},
+                             {"net_m3", net},
+                             {"net_u95_m3", net_u},
+                             {"cumulative_net_m3", cumulative},
+                             {"cumulative_net_u95_m3", cumulative_u},
+                             {"quality_gates", c["quality_gates"]}});
+        char line[512];
+        std::snprintf(line,
+                      sizeof line,
+                      "%zu,%s,%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d\n",
+                      k + 1,
+                      a.name.c_str(),
+                      b.name.c_str(),
+                      a.start_utc.c_str(),
+                      b.start_utc.c_str(),
+                      cut,
+                      cut_u,
+                      fill,
+                      fill_u,
+                      net,
+                      net_u,
+                      cumulative,
+                      cumulative_u,
+                      *g);
+        csv += line;
+    }
+    json surveys = json::array();
+    for (const SeriesEntry& e : entries)
+        surveys.push_back(
+            {{"folder", fs::weakly_canonical(e.dir).string()}, {"survey_start_utc", e.start_utc}});
+    const json series = {{"surveys", surveys},
+                         {"epsg", entries.front().epsg},
+                         {"intervals", intervals},
+                         {"cumulative_net_m3", cumulative},
+                         {"cumulative_net_u95_m3", std::sqrt(cumulative_var)},
+                         {"quality_gates_tripped", gates}};
+    if (auto s = WriteText((fs::path(out_dir) / "series.csv").string(), csv); !s)
+        return Error{"compare: " + s.error().message};
+    if (auto s = WriteText((fs::path(out_dir) / "series.json").string(), series.dump(2) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    log("compare: series of " + std::to_string(entries.size()) + " surveys, " +
+        std::to_string(entries.size() - 1) + " intervals in " + out_dir);
+    return gates;
 }
 
 }  // namespace pitmap::proc::pipeline

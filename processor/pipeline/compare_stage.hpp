@@ -23,6 +23,14 @@
 //                          double x, y, z (A's CRS), float nx, ny, nz, distance_m (B - A along
 //                          the normal, > 0 towards the water), lod95_m, slope_deg, char
 //                          significance, uint n_a, n_b; NaN distance where too few soundings
+//   change_mesh.ply, change_mesh.glb
+//                          with change_mesh and both folders' mesh_utm.ply: B's TSDF mesh with
+//                          the signed distance to A's mesh along its normal, the LoD95 and the
+//                          significance per vertex (compare_stage_mesh.hpp)
+//   design_a.tif, design_b.tif
+//                          with a design surface: COG on each survey's grid, bands difference
+//                          (survey - design, m), u95 (m), significance (+1 above the design, -1
+//                          below, 0 on it within the survey's uncertainty)
 //   compare.json           inputs, crs, registration (correction, its 1-sigma, residuals, the
 //                          navigation gate), change (totals and regions), capacity, quality_gates
 // Errors (nothing is written to C, the message names the folder and the problem): a missing
@@ -33,9 +41,12 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "common/result.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/change_mesh.hpp"
+#include "processor/compare/design.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -46,7 +57,15 @@ struct CompareConfig {
     compare::ChangeConfig change;
     bool change3d = true;  // also the 3D change along the normal on the soundings (M3C2)
     compare::M3c2Config m3c2;
-    double capacity_step_m = 0.25;  // capacity curve: a row every step, m
+    bool change_mesh = true;  // also the change on B's TSDF mesh (both folders' mesh_utm.ply)
+    compare::ChangeMeshConfig mesh;
+    double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
+    double capacity_step_m = 0.25;            // capacity curve: a row every step, m
+    // A design surface (the planned cut: a GeoTIFF of heights in the surveys' CRS and vertical
+    // datum); "" none. With it each survey is compared with it (design_a.tif, design_b.tif,
+    // compare.json design), and B may be left out (the design alone: RunCompare with b_dir "").
+    std::string design_path;
+    compare::DesignConfig design;
     // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
     // its own 95 % uncertainty at most.
     double gate_z95 = 1.96;
@@ -54,10 +73,27 @@ struct CompareConfig {
 };
 
 // Returns the number of quality gates that tripped (compare.json quality_gates), or an error.
+// b_dir "" with config.design_path set: survey A against the design alone (design_a.tif and
+// compare.json's inputs, crs, design).
 Expected<int> RunCompare(const std::string& a_dir,
                          const std::string& b_dir,
                          const std::string& out_dir,
                          const CompareConfig& config,
                          const std::function<void(const std::string&)>& log);
+
+// More than two surveys of one site (issue 37 item 1): `dirs` in time order (each folder's
+// summary.json metadata.survey_start_utc must come after the one before, else an error naming
+// the folder out of order; all in the first one's horizontal CRS, else an error naming the
+// folder), each consecutive pair compared by RunCompare into OUT/NN_<A>_to_<B> (NN from 01; A
+// and B the folders' names), then OUT/series.json and OUT/series.csv: per interval the
+// folders, dates, cut and fill with their U95, net (fill + cut; U95 the two in quadrature) and
+// the cumulative net since the first survey (U95: the intervals' in quadrature: each interval
+// has its own registration and the surveys' errors), and each interval's gates. Returns the
+// number of quality gates that tripped over all intervals. A single `dirs` entry that is a file
+// is a list of folders, one a line ('#' comments, blank lines skipped; relative to the file).
+Expected<int> RunCompareSeries(const std::vector<std::string>& dirs,
+                               const std::string& out_dir,
+                               const CompareConfig& config,
+                               const std::function<void(const std::string&)>& log);
 
 }  // namespace pitmap::proc::pipeline

@@ -7,10 +7,13 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 
 #include "processor/compare/capacity.hpp"
 #include "processor/compare/change.hpp"
+#include "processor/compare/change_mesh.hpp"
+#include "processor/compare/design.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
 
@@ -223,6 +226,189 @@ TEST(CompareChange, FindsTheHeapAndTheCutWithTheirVolumes) {
     EXPECT_NEAR(c.median_lod95_m, 1.96 * std::sqrt(2.0) * 0.02, 0.01);
 }
 
+// A pass-common error: a smooth field (white noise averaged over 2.5 m squares, scaled to
+// sigma_m) added to the surface, as a pass's navigation height and attitude error is shared by
+// the nodes it covers.
+void AddSharedError(SurfaceGrid& s, double sigma_m, unsigned seed) {
+    SurfaceGrid field = s;
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> white(0.0, 1.0);
+    for (float& v : field.z_m) v = std::isfinite(v) ? static_cast<float>(white(rng)) : v;
+    field = Smoothed(field, static_cast<int>(std::lround(1.0 / s.resolution_m)));
+    double sum2 = 0;
+    std::size_t n = 0;
+    for (float v : field.z_m) {
+        if (!std::isfinite(v)) continue;
+        sum2 += static_cast<double>(v) * v;
+        ++n;
+    }
+    const double scale = sigma_m / std::sqrt(sum2 / static_cast<double>(n));
+    for (std::size_t k = 0; k < s.z_m.size(); ++k) {
+        if (std::isfinite(s.z_m[k])) s.z_m[k] += static_cast<float>(scale * field.z_m[k]);
+    }
+}
+
+// Each survey's error mostly shared by neighbouring nodes (as CUBE's pass-common part): the
+// stated sigma is honest per node, so patches of neighbours exceed the per-node LoD together;
+// tested as a whole, such a region's mean stays below its LoD and is not reported, while the
+// heap and the cut are.
+TEST(CompareChange, ErrorsSharedByNeighbouringNodesAreNotFlaggedAsChange) {
+    const double independent = 0.010, shared = 0.015;
+    SurfaceGrid a = Survey(false, RigidCorrection{}, independent, 16);
+    SurfaceGrid b = Survey(true, RigidCorrection{}, independent, 17);
+    AddSharedError(a, shared, 18);
+    AddSharedError(b, shared, 19);
+    const float stated = static_cast<float>(std::hypot(independent, shared));
+    for (SurfaceGrid* g : {&a, &b}) g->sigma_m.assign(g->z_m.size(), stated);
+    const RegistrationResult reg = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(reg.ok()) << reg.message;
+    const auto other_share = [&](const ChangeResult& c, int* found) {
+        double other = 0;
+        *found = 0;
+        for (const ChangeRegion& g : c.regions) {
+            const bool heap = g.sign > 0 && (g.centroid - Eigen::Vector2d(-9, 1.5)).norm() < 1.0;
+            const bool cut = g.sign < 0 && (g.centroid - Eigen::Vector2d(1, -2)).norm() < 1.0;
+            if (heap) {
+                EXPECT_NEAR(g.volume_m3, kHeapVolume, std::max(0.05 * kHeapVolume, g.u95_m3));
+            }
+            if (cut) {
+                EXPECT_NEAR(g.volume_m3, kCutVolume, std::max(0.05 * -kCutVolume, g.u95_m3));
+            }
+            *found += heap || cut;
+            if (!heap && !cut) other += g.area_m2;
+        }
+        return other / c.compared_area_m2;
+    };
+    int found = 0;
+    const ChangeResult c = ComputeChange(a, b, reg.correction, reg.covariance, ChangeConfig{});
+    EXPECT_LT(other_share(c, &found), 0.003) << c.message;
+    EXPECT_EQ(found, 2) << c.message;
+    EXPECT_GT(c.regions_below_detection, 0) << c.message;
+    for (const ChangeRegion& g : c.regions)
+        EXPECT_GT(std::abs(g.mean_difference_m), g.region_lod95_m) << g.id;
+    // Node by node only (independent errors assumed), the shared errors show as change.
+    ChangeConfig per_node;
+    per_node.test_region_mean = false;
+    const ChangeResult n = ComputeChange(a, b, reg.correction, reg.covariance, per_node);
+    EXPECT_GT(other_share(n, &found), 0.003) << n.message;
+}
+
+// The tent filter of the coarser grid's spacing keeps a plane as it is and spreads a spike as
+// bilinear interpolation from a grid k times coarser would: weights (k - |i|) / k per axis.
+TEST(CompareSurface, TentFilterKeepsAPlaneAndSpreadsASpikeAsBilinearInterpolation) {
+    SurfaceGrid s;
+    s.resolution_m = 0.1;
+    s.nx = s.ny = 21;
+    s.z_m.assign(441, 0.0f);
+    s.sigma_m.assign(441, 0.01f);
+    for (int j = 0; j < s.ny; ++j)
+        for (int i = 0; i < s.nx; ++i) s.z_m[s.index(i, j)] = static_cast<float>(0.3 * i - 0.2 * j);
+    const SurfaceGrid plane = TentFiltered(s, 2);
+    // Inside (at the grid's edge the window is one-sided).
+    for (int j = 1; j + 1 < s.ny; ++j)
+        for (int i = 1; i + 1 < s.nx; ++i)
+            EXPECT_NEAR(plane.z_m[s.index(i, j)], s.z_m[s.index(i, j)], 1e-5) << i << " " << j;
+    s.z_m.assign(441, 0.0f);
+    s.z_m[s.index(10, 10)] = 1.0f;
+    s.z_m[s.index(0, 0)] = std::numeric_limits<float>::quiet_NaN();
+    const SurfaceGrid spike = TentFiltered(s, 2);
+    // 1D weights 0.5, 1, 0.5 (sum 2): the spike's share at (10 + di, 10 + dj).
+    EXPECT_NEAR(spike.z_m[s.index(10, 10)], 1.0 / 4.0, 1e-6);
+    EXPECT_NEAR(spike.z_m[s.index(11, 10)], 0.5 / 4.0, 1e-6);
+    EXPECT_NEAR(spike.z_m[s.index(11, 11)], 0.25 / 4.0, 1e-6);
+    EXPECT_EQ(spike.z_m[s.index(12, 10)], 0.0f);
+    EXPECT_TRUE(std::isnan(spike.z_m[s.index(0, 0)]));  // an empty node stays empty
+}
+
+// A survey against a design surface on another grid (0.5 m, offset): a plane crossing the
+// survey's floor (the survey above it where x < 10 m, below beyond) and a 0.5 m heap: the
+// volumes above and below are the sums of the differences, with the survey's uncertainty.
+TEST(CompareDesign, VolumesAboveAndBelowAPlannedSurface) {
+    SurfaceGrid survey;
+    survey.resolution_m = 0.1;
+    survey.x0 = 0.05;
+    survey.y0 = 0.05;
+    survey.nx = survey.ny = 200;  // 20 m x 20 m
+    survey.z_m.assign(40000, -10.0f);
+    survey.sigma_m.assign(40000, 0.02f);
+    for (int j = 60; j < 100; ++j)
+        for (int i = 20; i < 60; ++i) survey.z_m[survey.index(i, j)] = -9.5f;  // 4 m x 4 m heap
+    const auto plan = [](double x) { return -10.0 + 0.02 * (x - 10.0); };
+    SurfaceGrid design;
+    design.resolution_m = 0.5;
+    design.x0 = -2.0;
+    design.y0 = -2.0;
+    design.nx = design.ny = 50;
+    design.z_m.resize(2500);
+    for (int j = 0; j < design.ny; ++j)
+        for (int i = 0; i < design.nx; ++i)
+            design.z_m[design.index(i, j)] = static_cast<float>(plan(design.x0 + i * 0.5));
+    design.sigma_m.assign(2500, 0.0f);
+    const DesignResult r = CompareWithDesign(survey, design, DesignConfig{});
+    EXPECT_EQ(r.compared_nodes, 40000u) << r.message;
+    double above = 0, below = 0;
+    for (int j = 0; j < survey.ny; ++j) {
+        for (int i = 0; i < survey.nx; ++i) {
+            const double d = survey.z_m[survey.index(i, j)] - plan(survey.x0 + i * 0.1);
+            (d > 0 ? above : below) += d * 0.01;
+        }
+    }
+    EXPECT_NEAR(r.above_m3, above, 1e-3 * above) << r.message;
+    EXPECT_NEAR(r.below_m3, below, 1e-3 * -below) << r.message;
+    EXPECT_GT(above, 8.0 + 9.0);  // the heap's 8 m3 and the wedge's 10 m3 or so
+    EXPECT_LT(below, -9.0);
+    // The survey's 2 cm taken whole over each side (and over the nodes within it of the plan).
+    EXPECT_GT(r.above_u95_m3, 1.96 * 0.02 * r.above_area_m2);
+    EXPECT_LT(r.above_u95_m3, 1.96 * 0.02 * (r.above_area_m2 + 0.1 * r.compared_area_m2));
+    // The heap is significantly above; a node at x = 10 m is on the plan.
+    EXPECT_EQ(r.significance[survey.index(40, 80)], 1.0f);
+    EXPECT_EQ(r.significance[survey.index(99, 10)], 0.0f);
+    EXPECT_EQ(r.significance[survey.index(190, 10)], -1.0f);
+    EXPECT_NEAR(r.difference_m[survey.index(40, 80)], -9.5 - plan(4.05), 1e-5);
+    // The significant nodes alone: within the total, their uncertainty over them only.
+    EXPECT_GT(r.significant_above_m3, 0.9 * r.above_m3);
+    EXPECT_LE(r.significant_above_m3, r.above_m3);
+    EXPECT_NEAR(r.significant_above_u95_m3, 1.96 * 0.02 * r.significant_above_area_m2, 1e-6);
+}
+
+// A design given as a mesh: a plane of two triangles over the grid, and a raised square
+// above part of it (the higher crossing is the design), as heights on a survey's nodes.
+TEST(CompareDesign, AMeshDesignIsRasterizedOnTheSurveysNodes) {
+    SurfaceGrid like;
+    like.resolution_m = 0.5;
+    like.x0 = 100.0;
+    like.y0 = 200.0;
+    like.nx = like.ny = 21;  // 10 m x 10 m
+    like.z_m.assign(441, -10.0f);
+    like.sigma_m.assign(441, 0.02f);
+    TriangleMesh m;
+    const auto plane = [](double x, double y) {
+        return -12.0 + 0.1 * (x - 100) - 0.05 * (y - 200);
+    };
+    for (const auto& [x, y] :
+         std::vector<std::pair<double, double>>{{99, 199}, {111, 199}, {111, 211}, {99, 211}})
+        m.vertices.emplace_back(x, y, plane(x, y));
+    m.triangles = {{0, 1, 2}, {0, 2, 3}};
+    for (const auto& [x, y] :
+         std::vector<std::pair<double, double>>{{102, 202}, {104, 202}, {104, 204}, {102, 204}})
+        m.vertices.emplace_back(x, y, -5.0);
+    m.triangles.push_back({4, 5, 6});
+    m.triangles.push_back({4, 6, 7});
+    const SurfaceGrid d = RasterizeMesh(m, like);
+    for (int j = 0; j < like.ny; ++j) {
+        for (int i = 0; i < like.nx; ++i) {
+            const double x = like.x0 + i * 0.5, y = like.y0 + j * 0.5;
+            const bool raised = x >= 102 && x <= 104 && y >= 202 && y <= 204;
+            EXPECT_NEAR(d.z_m[d.index(i, j)], raised ? -5.0 : plane(x, y), 1e-4) << x << " " << y;
+        }
+    }
+    // Nothing under the mesh: NaN.
+    TriangleMesh far = m;
+    for (auto& v : far.vertices) v.x() += 100;
+    const SurfaceGrid none = RasterizeMesh(far, like);
+    EXPECT_TRUE(std::isnan(none.z_m[0]));
+}
+
 TEST(CompareCapacity, ABoxBasinHoldsWhatItShould) {
     SurfaceGrid s;
     s.resolution_m = 0.5;
@@ -310,6 +496,95 @@ TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsN
     EXPECT_GE(in_patch_detected, in_patch - 1) << r.message;
     EXPECT_GT(stable, 100);
     EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
+}
+
+// A 70 deg face facing +x (the water), 12 m along strike (y) by 8 m up the dip, as a triangle
+// mesh of `step` spacing starting at `offset` (so two meshes' vertices do not coincide), moved
+// along the face's normal by bump(u, s) (u along strike, s up the dip).
+TriangleMesh Face(double step, double offset, const std::function<double(double, double)>& bump) {
+    const double c = std::cos(70 * kDeg), sn = std::sin(70 * kDeg);
+    const Eigen::Vector3d normal(sn, 0, c);
+    TriangleMesh m;
+    const int nu = static_cast<int>(12.0 / step), ns = static_cast<int>(8.0 / step);
+    for (int j = 0; j <= ns; ++j) {
+        for (int i = 0; i <= nu; ++i) {
+            const double u = offset + i * step, s = offset + j * step;
+            m.vertices.push_back(Eigen::Vector3d(-s * c, u, s * sn) + bump(u, s) * normal);
+        }
+    }
+    for (int j = 0; j < ns; ++j) {
+        for (int i = 0; i < nu; ++i) {
+            const int k = j * (nu + 1) + i;
+            m.triangles.push_back({k, k + 1, k + nu + 1});
+            m.triangles.push_back({k + 1, k + nu + 2, k + nu + 1});
+        }
+    }
+    return m;
+}
+
+// A 0.3 m bulge and a 0.3 m hollow on a 70 deg face are measured along the face's normal on
+// the change mesh (a vertical difference would read them as 0.3 / cos(70 deg) = 0.88 m, or as
+// a horizontal shift), the rest of the face as no change; a mesh wound the other way gives the
+// same.
+TEST(CompareChangeMesh, ABumpOnASeventyDegreeFaceIsMeasuredAlongItsNormal) {
+    const auto gauss = [](double u, double s, double u0, double s0) {
+        return std::exp(-((u - u0) * (u - u0) + (s - s0) * (s - s0)) / (2 * 0.8 * 0.8));
+    };
+    const auto change = [&](double u, double s) {
+        return 0.3 * gauss(u, s, 4.0, 4.0) - 0.3 * gauss(u, s, 9.0, 4.0);
+    };
+    const TriangleMesh a = Face(0.1, 0.0, [](double, double) { return 0.0; });
+    TriangleMesh b = Face(0.1, 0.05, change);
+    const auto sigma = [](const Eigen::Vector3d&) { return std::hypot(0.02, 0.02); };
+    const ChangeMeshResult r = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    ASSERT_EQ(r.distance_m.size(), b.vertices.size());
+    EXPECT_FALSE(r.flipped);
+    EXPECT_NEAR(r.median_lod95_m, 1.96 * std::hypot(0.02, 0.02), 1e-6);
+    const int nu = 120;
+    const auto at = [&](double u, double s) {
+        return static_cast<std::size_t>(std::lround((s - 0.05) / 0.1)) * (nu + 1) +
+               static_cast<std::size_t>(std::lround((u - 0.05) / 0.1));
+    };
+    const std::size_t top = at(4.05, 4.05), bottom = at(9.05, 4.05);
+    EXPECT_NEAR(r.distance_m[top], 0.3, 0.01);
+    EXPECT_EQ(r.significance[top], 1);
+    EXPECT_NEAR(r.distance_m[bottom], -0.3, 0.01);
+    EXPECT_EQ(r.significance[bottom], -1);
+    const Eigen::Vector3f expected_normal(
+        static_cast<float>(std::sin(70 * kDeg)), 0.0f, static_cast<float>(std::cos(70 * kDeg)));
+    EXPECT_LT((r.normals[top] - expected_normal).norm(), 0.05);  // 5 cm off the bump centre
+    // Away from both (more than 3 m from their centres, off the mesh's edges): no change.
+    std::size_t far = 0, far_flagged = 0;
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+        const double u = 0.05 + static_cast<double>(i % (nu + 1)) * 0.1;
+        const double s = 0.05 + static_cast<double>(i / (nu + 1)) * 0.1;
+        if (std::abs(change(u, s)) > 1e-4 || u > 11.5 || s > 7.5) continue;
+        ++far;
+        ASSERT_TRUE(std::isfinite(r.distance_m[i])) << u << " " << s;
+        EXPECT_NEAR(r.distance_m[i], 0.0, 1e-4);
+        far_flagged += r.significance[i] != 0;
+    }
+    EXPECT_GT(far, 2000u);
+    EXPECT_EQ(far_flagged, 0u);
+    // Wound the other way: turned over, the same distances.
+    for (auto& t : b.triangles) std::swap(t[1], t[2]);
+    const ChangeMeshResult f = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    EXPECT_TRUE(f.flipped);
+    EXPECT_NEAR(f.distance_m[top], r.distance_m[top], 1e-6);
+    EXPECT_NEAR(f.distance_m[bottom], r.distance_m[bottom], 1e-6);
+    // Nothing of A within reach: not measured.
+    TriangleMesh far_a = a;
+    for (auto& v : far_a.vertices) v.x() += 10.0;
+    const ChangeMeshResult none = ComputeChangeMesh(b,
+                                                    far_a,
+                                                    RigidCorrection{},
+                                                    Eigen::Matrix<double, 6, 6>::Zero(),
+                                                    ChangeMeshConfig{},
+                                                    sigma);
+    EXPECT_EQ(none.measured, 0u);
+    EXPECT_TRUE(std::isnan(none.distance_m[top]));
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include <functional>
 #include <string>
 
+#include "common/formats/ply.hpp"
 #include "processor/io/grid_io.hpp"
 #include "tests/support/process.hpp"
 #include "tests/support/scenario.hpp"
@@ -90,6 +91,8 @@ protected:
     void ChangesMeasuredAgainstTruth();
     void ShiftedEpochIsRecoveredAndTripsTheNavigationGate();
     void BadInputIsAClearErrorAndNoResult();
+    void DesignSurfaceVolumes();
+    void SeriesOfSurveys();
     static fs::path dir_;
 };
 
@@ -155,6 +158,8 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
                           "capacity_a.csv",
                           "capacity_b.csv",
                           "capacity.svg",
+                          "change_mesh.ply",
+                          "change_mesh.glb",
                           "compare.json"})
         EXPECT_TRUE(fs::exists(C / f)) << f;
     const json j = ReadJson(C / "compare.json");
@@ -169,8 +174,9 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
             << " m3, truth " << s.at(k + "volume_true_m3");
         EXPECT_GE(s.at(k + "iou"), 0.8) << part;
     }
-    // Held at what is reached, above the 0.003 (docs/decisions/014).
-    EXPECT_LT(s.at("change_stable_flagged_share"), 0.012);
+    // The bound (docs/decisions/014: held at 0.012 while the LoD took CUBE's
+    // pass-common errors as independent per node; the regions' test as a whole, change.hpp).
+    EXPECT_LT(s.at("change_stable_flagged_share"), 0.003);
     // The registration's residual on stable terrain: both CUBE surfaces' noise (about 1.5 cm
     // each) is in it, not the changes.
     EXPECT_LT(s.at("registration_rms_vertical_after_m"), 0.025);
@@ -186,6 +192,68 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     EXPECT_NEAR(s.at("change3d_scar_median_distance_m"), -0.27, 0.08);
     EXPECT_LT(s.at("change3d_stable_flagged_share"), 0.01);
     EXPECT_LT(s.at("change3d_wall_stable_flagged_share"), 0.02);
+    // The change mesh: B's TSDF mesh with the distance along the normal per vertex; the scar
+    // (1 m vertical on the 65 deg wall, 0.42 m along its normal at the centre) is a loss along
+    // the normal, the heap (0.6 m on the floor) a gain.
+    const json& cm = j["change_mesh"];
+    ASSERT_TRUE(cm["computed"].get<bool>()) << cm.dump();
+    EXPECT_GT(cm["measured"].get<double>(), 0.6 * cm["vertices"].get<double>());
+    // The five parts as patches of significant vertices, few others (measured 7 of 515).
+    EXPECT_GE(cm["patches"].get<int>(), 5);
+    EXPECT_LE(cm["patches"].get<int>(), 12);
+    auto mesh = pitmap::formats::ply::ReadMesh((C / "change_mesh.ply").string(),
+                                               {"distance_m", "significance"});
+    ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+    ASSERT_EQ(mesh->vertices.size(), cm["vertices"].get<std::size_t>());
+    const auto median_near = [&](const std::string& kind, int* flagged, int* near) {
+        const json* biggest = nullptr;
+        for (const json& r : j["change"]["regions"]) {
+            if (r["kind"] == kind &&
+                (biggest == nullptr || std::abs(r["volume_m3"].get<double>()) >
+                                           std::abs((*biggest)["volume_m3"].get<double>())))
+                biggest = &r;
+        }
+        std::vector<double> d;
+        *flagged = *near = 0;
+        if (biggest == nullptr) return std::nan("");
+        const Eigen::Vector2d c((*biggest)["centroid_m"][0], (*biggest)["centroid_m"][1]);
+        for (std::size_t i = 0; i < mesh->vertices.size(); ++i) {
+            if ((mesh->vertices[i].head<2>() - c).norm() > 0.7) continue;
+            const double v = mesh->vertex_properties[0][i];
+            if (!std::isfinite(v)) continue;
+            d.push_back(v);
+            ++*near;
+            *flagged += mesh->vertex_properties[1][i] != 0;
+        }
+        if (d.empty()) return std::nan("");
+        std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+        return d[d.size() / 2];
+    };
+    int flagged = 0, near = 0;
+    EXPECT_NEAR(median_near("cut", &flagged, &near), -0.38, 0.08);  // the scar, the largest cut
+    EXPECT_GT(flagged, 0.9 * near);
+    EXPECT_NEAR(median_near("fill", &flagged, &near), 0.6, 0.1);  // the toe or the heap
+    EXPECT_GT(flagged, 0.9 * near);
+    // The glTF: a GLB whose primitive carries the change as custom attributes, one per vertex.
+    {
+        std::ifstream glb(C / "change_mesh.glb", std::ios::binary);
+        std::uint32_t head[5] = {};
+        glb.read(reinterpret_cast<char*>(head), sizeof head);
+        ASSERT_TRUE(glb.good());
+        EXPECT_EQ(head[0], 0x46546C67u);  // "glTF"
+        EXPECT_EQ(head[2], fs::file_size(C / "change_mesh.glb"));
+        std::string text(head[3], ' ');
+        glb.read(text.data(), static_cast<std::streamsize>(text.size()));
+        const json g = json::parse(text);
+        const json& attrs = g["meshes"][0]["primitives"][0]["attributes"];
+        for (const char* a :
+             {"POSITION", "NORMAL", "COLOR_0", "_DISTANCE", "_LOD95", "_SIGNIFICANCE"}) {
+            ASSERT_TRUE(attrs.contains(a)) << a;
+            EXPECT_EQ(g["accessors"][attrs[a].get<int>()]["count"].get<std::size_t>(),
+                      mesh->vertices.size())
+                << a;
+        }
+    }
     // The outlines: one feature per region, closed rings in the DEM's CRS.
     const json fc = ReadJson(C / "change_regions.geojson");
     EXPECT_EQ(fc["features"].size(), j["change"]["regions"].size());
@@ -326,6 +394,165 @@ void CompareScenario::BadInputIsAClearErrorAndNoResult() {
     EXPECT_FALSE(fs::exists(C));
 }
 
+// A design surface: A's own DEM with a 0.3 m deep planned cut of 6 m x 6 m about its centre.
+// A against it alone: 0.3 m x the cut's surveyed area above the design, within the stated
+// uncertainty; A and B against it: both design rasters; a design in another CRS: an error.
+void CompareScenario::DesignSurfaceVolumes() {
+    auto dem = pitmap::proc::io::ReadGrid((A() / "dem.tif").string());
+    ASSERT_TRUE(dem.ok()) << dem.error().message;
+    pitmap::proc::io::GridRaster g = dem->grid;
+    g.utm_zone = dem->horizontal_epsg % 100;
+    g.northern = dem->horizontal_epsg < 32700;
+    g.horizontal_only = true;
+    std::vector<float> z;
+    for (const auto& l : g.layers) {
+        if (l.name == "elevation") z = l.values;
+    }
+    ASSERT_FALSE(z.empty());
+    // The centre of A's surveyed nodes.
+    double cx = 0, cy = 0;
+    int filled = 0;
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            if (!std::isfinite(z[static_cast<std::size_t>(j) * g.nx + i])) continue;
+            cx += g.x0 + i * g.resolution_m;
+            cy += g.y0 + j * g.resolution_m;
+            ++filled;
+        }
+    }
+    cx /= filled;
+    cy /= filled;
+    double cut_area = 0;
+    for (int j = 0; j < g.ny; ++j) {
+        for (int i = 0; i < g.nx; ++i) {
+            float& v = z[static_cast<std::size_t>(j) * g.nx + i];
+            if (std::abs(g.x0 + i * g.resolution_m - cx) < 3 &&
+                std::abs(g.y0 + j * g.resolution_m - cy) < 3 && std::isfinite(v)) {
+                v -= 0.3f;
+                cut_area += g.resolution_m * g.resolution_m;
+            }
+        }
+    }
+    g.layers = {{"elevation", "metre", z, pitmap::proc::io::GridBandKind::kContinuous}};
+    const fs::path design = dir_ / "design.tif";
+    fs::remove(design);
+    ASSERT_TRUE(pitmap::proc::io::WriteCogGeoTiff(design.string(), g).ok());
+    std::string out;
+    const fs::path C = dir_ / "C_design";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " + Quote(design) +
+                             " --out " + Quote(C),
+                         &out),
+              0)
+        << out;
+    ASSERT_TRUE(fs::exists(C / "design_a.tif"));
+    const json d = ReadJson(C / "compare.json")["design"]["a"];
+    const double truth = 0.3 * cut_area;
+    EXPECT_GT(cut_area, 20.0);
+    EXPECT_NEAR(d["above_design_m3"].get<double>(),
+                truth,
+                std::max(0.05 * truth, d["above_design_u95_m3"].get<double>()))
+        << d.dump();
+    EXPECT_NEAR(d["below_design_m3"].get<double>(), 0.0, 1e-3);  // float rounding
+    EXPECT_NEAR(d["significant_above_area_m2"].get<double>(), cut_area, 0.05 * cut_area);
+    // Over the significant nodes alone: the cut, with the survey's uncertainty over it only.
+    EXPECT_NEAR(d["significant_above_m3"].get<double>(),
+                truth,
+                std::max(0.05 * truth, d["significant_above_u95_m3"].get<double>()))
+        << d.dump();
+    EXPECT_LT(d["significant_above_u95_m3"].get<double>(), 0.3 * truth);
+    // With both surveys: each against the design, beside the comparison.
+    const fs::path C2 = dir_ / "C_design_ab";
+    ASSERT_EQ(Compare(A(), B(), C2, &out, " --no-3d --no-mesh --design " + Quote(design)), 0)
+        << out;
+    EXPECT_TRUE(fs::exists(C2 / "design_a.tif"));
+    EXPECT_TRUE(fs::exists(C2 / "design_b.tif"));
+    const json j2 = ReadJson(C2 / "compare.json");
+    EXPECT_TRUE(j2["design"].contains("b"));
+    EXPECT_TRUE(j2["change"].contains("regions"));
+    // A design given as a mesh (A's own TSDF mesh, mesh_utm.ply): A's CUBE surface on it to
+    // within the two surfaces' difference.
+    const fs::path C4 = dir_ / "C_design_mesh";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " +
+                             Quote(A() / "mesh_utm.ply") + " --out " + Quote(C4),
+                         &out),
+              0)
+        << out;
+    const json dm = ReadJson(C4 / "compare.json")["design"]["a"];
+    EXPECT_GT(dm["compared_area_m2"].get<double>(), 0.8 * d["compared_area_m2"].get<double>());
+    EXPECT_LT(std::abs(dm["mean_difference_m"].get<double>()), 0.02) << dm.dump();
+    // A design in another CRS.
+    const fs::path other = dir_ / "design_zone30.tif";
+    fs::copy_file(design, other, fs::copy_options::overwrite_existing);
+    RewriteDem(other, 0, Eigen::Vector2d::Zero(), 30);
+    const fs::path C3 = dir_ / "C_design_crs";
+    const int status = RunCommand(kBin + "/pitmap compare " + Quote(A()) + " --design " +
+                                      Quote(other) + " --out " + Quote(C3),
+                                  &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find("different horizontal CRS"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(C3 / "compare.json"));
+}
+
+// More than two surveys: A, B and B again three months later (no change in that interval),
+// given as folders and as a list file; out of order or in another CRS: an error naming the
+// folder, and no result.
+void CompareScenario::SeriesOfSurveys() {
+    const fs::path b2 = CopyEpoch(B(), "P3");
+    json s = ReadJson(b2 / "summary.json");
+    s["metadata"]["survey_start_utc"] = "2026-12-14T09:00:00Z";
+    std::ofstream(b2 / "summary.json") << s.dump();
+    std::string out;
+    const fs::path O = dir_ / "S";
+    const std::string fast = " --no-3d --no-mesh";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(A()) + " " + Quote(B()) + " " +
+                             Quote(b2) + " --out " + Quote(O) + fast,
+                         &out),
+              0)
+        << out;
+    const json series = ReadJson(O / "series.json");
+    ASSERT_EQ(series["intervals"].size(), 2u);
+    const json& i1 = series["intervals"][0];
+    const json& i2 = series["intervals"][1];
+    EXPECT_TRUE(fs::exists(O / i1["folder"].get<std::string>() / "dod.tif"));
+    EXPECT_TRUE(fs::exists(O / i2["folder"].get<std::string>() / "compare.json"));
+    EXPECT_TRUE(fs::exists(O / "series.csv"));
+    // Interval 1 is the plain comparison; interval 2 has no change; the cumulative is the first.
+    const json plain = ReadJson(dir_ / "C" / "compare.json")["change"];
+    EXPECT_NEAR(i1["fill_m3"].get<double>(), plain["fill"]["volume_m3"].get<double>(), 1e-6);
+    EXPECT_NEAR(i1["cut_m3"].get<double>(), plain["cut"]["volume_m3"].get<double>(), 1e-6);
+    EXPECT_NEAR(i2["net_m3"].get<double>(), 0.0, 1e-6);
+    EXPECT_NEAR(series["cumulative_net_m3"].get<double>(), i1["net_m3"].get<double>(), 1e-9);
+    EXPECT_GT(series["cumulative_net_u95_m3"].get<double>(), 0.0);
+    // A list file, relative paths.
+    std::ofstream(dir_ / "site.txt") << "# the quarry\nP1\n\nP2\nP3\n";
+    const fs::path O2 = dir_ / "S_list";
+    ASSERT_EQ(RunCommand(kBin + "/pitmap compare " + Quote(dir_ / "site.txt") + " --out " +
+                             Quote(O2) + fast,
+                         &out),
+              0)
+        << out;
+    EXPECT_EQ(ReadJson(O2 / "series.json")["intervals"].size(), 2u);
+    // Out of time order: the folder named.
+    const fs::path O3 = dir_ / "S_order";
+    int status = RunCommand(kBin + "/pitmap compare " + Quote(B()) + " " + Quote(A()) + " " +
+                                Quote(b2) + " --out " + Quote(O3) + fast,
+                            &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find(A().string() + " is out of time order"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(O3 / "series.json"));
+    // Another CRS: the folder named.
+    const fs::path other = CopyEpoch(B(), "P3_zone30");
+    s["utm"]["epsg"] = 32630;
+    std::ofstream(other / "summary.json") << s.dump();
+    const fs::path O4 = dir_ / "S_crs";
+    status = RunCommand(kBin + "/pitmap compare " + Quote(A()) + " " + Quote(B()) + " " +
+                            Quote(other) + " --out " + Quote(O4) + fast,
+                        &out);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << out;
+    EXPECT_NE(out.find(other.string() + " is in another CRS"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(O4 / "series.json"));
+}
+
 // One test: the two runs of the quarry are made once (about a minute and a half) for all three.
 TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
@@ -339,6 +566,14 @@ TEST_F(CompareScenario, RepeatSurveysOfTheQuarry) {
     {
         SCOPED_TRACE("bad input");
         BadInputIsAClearErrorAndNoResult();
+    }
+    {
+        SCOPED_TRACE("a design surface");
+        DesignSurfaceVolumes();
+    }
+    {
+        SCOPED_TRACE("a series of surveys");
+        SeriesOfSurveys();
     }
 }
 
