@@ -530,10 +530,16 @@ std::int64_t OfferSounding(const CubeSounding& s,
     const double sv2 = static_cast<double>(s.sigma_v_m) * s.sigma_v_m;
     const double slope_var = (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
     const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
-    // The part of the variance common to the sounding's pass (cube.hpp), at most all of it.
+    // The part of the variance common to the sounding's pass (cube.hpp), at most all of it:
+    // the vertical part, and the slope's share of the horizontal part (the INS's horizontal
+    // error moves the whole pass, so on a wall it does not average over its soundings).
+    const double sh_common =
+        std::isfinite(s.sigma_h_common_m) ? std::min(s.sigma_h_common_m, s.sigma_h_m) : 0.0;
     const float common_var =
         std::isfinite(s.sigma_common_m)
-            ? std::min(s.sigma_common_m, s.sigma_v_m) * std::min(s.sigma_common_m, s.sigma_v_m)
+            ? static_cast<float>(static_cast<double>(std::min(s.sigma_common_m, s.sigma_v_m)) *
+                                     std::min(s.sigma_common_m, s.sigma_v_m) +
+                                 (gx * gx + gy * gy) * sh_common * sh_common)
             : std::numeric_limits<float>::quiet_NaN();
     std::int64_t offered = 0;
     for (int j = j0; j <= j1; ++j) {

@@ -11,7 +11,8 @@
 //      sounding's height is first carried to the node along the predicted surface's gradient g
 //      (z_n = z + g . (x_n - x)), and (|g| sigma_h)^2 is added: on a steep pit wall a sounding
 //      a few decimetres away otherwise differs from the node by more than its uncertainty and
-//      opens a false hypothesis (plain CUBE assumes a locally flat seabed).
+//      opens a false hypothesis (plain CUBE assumes a locally flat seabed). The part of it from
+//      the pass-common horizontal error, (|g| sigma_h_common)^2, is pass-common too (below).
 //   2. Each node holds a median pre-filter queue of queue_length soundings (C&M §3.3); once full,
 //      the median leaves the queue and updates the node. At the end the queue is flushed,
 //      median first.
@@ -30,7 +31,8 @@
 // The uncertainty, when every sounding of the hypothesis states the part of its vertical
 // variance that is common to the soundings of one pass (CubeSounding::sigma_common_m: the
 // INS's height, attitude, mount, sound speed: what does not average over the soundings of a
-// pass) (issue 36 item 3):
+// pass; plus, with slope_correction, |g|^2 sigma_h_common^2, the pass-common horizontal
+// error seen through the slope) (issue 36 item 3):
 //   sigma_node^2 = 1 / sum_i 1 / (sigma_n,i^2 - c_i^2)
 //                  + mean_i(c_i^2) (1 / P^2) sum_p sum_q exp(-|t_p - t_q| / tau),
 // the independent parts (range noise, pointing) averaged by the Kalman step, the common part
@@ -65,6 +67,11 @@ struct CubeSounding {
     // NaN = unknown (the node uncertainty then takes the convention above).
     float sigma_common_m = std::numeric_limits<float>::quiet_NaN();
     float time_s = 0;  // the sounding's time from any epoch, s (tells passes apart)
+    // The part of sigma_h_m common to the soundings of one pass (1 sigma per axis, m;
+    // <= sigma_h_m; NaN = unknown, taken as none): on a slope |g| it moves the sounding's height
+    // at the node by |g| times it for the whole pass, so |g|^2 sigma_h_common^2 joins the
+    // pass-common variance instead of the independent part (issue 36 item 3).
+    float sigma_h_common_m = std::numeric_limits<float>::quiet_NaN();
 };
 
 enum class Disambiguation { kDensity = 0, kLocale, kPredictedSurface };
