@@ -191,8 +191,10 @@ double CubeHypothesis::PassModelSd(double tau_s) const {
         }
     }
     rho /= static_cast<double>(passes) * passes;
-    return std::sqrt(1.0 / independent_information +
-                     common_variance_sum / static_cast<double>(common_count) * rho);
+    const double independent = measured_count == count && weight_sum > 0
+                                   ? weighted_independent / (weight_sum * weight_sum)
+                                   : 1.0 / independent_information;
+    return std::sqrt(independent + common_variance_sum / static_cast<double>(common_count) * rho);
 }
 
 double CubeHypothesis::UncertaintySd(double tau_s) const {
@@ -203,10 +205,21 @@ double CubeHypothesis::UncertaintySd(double tau_s) const {
 namespace {
 
 // The pass-common bookkeeping of a hypothesis taking a sounding (cube.hpp).
-void TakeCommon(CubeHypothesis& h, double v, double common_variance, float time_s, double gap_s) {
+void TakeCommon(CubeHypothesis& h,
+                double v,
+                double common_variance,
+                float time_s,
+                double gap_s,
+                double measured_variance) {
     if (!std::isfinite(common_variance) || common_variance < 0) return;
     // The independent part at the node, kept at >= 1 % of the whole against rounding.
     h.independent_information += 1.0 / std::max(v - common_variance, 0.01 * v);
+    if (std::isfinite(measured_variance) && measured_variance > 0 && v > 0) {
+        const double s2 = std::max(measured_variance - common_variance, 0.01 * measured_variance);
+        h.weight_sum += 1.0 / v;
+        h.weighted_independent += s2 / (v * v);
+        ++h.measured_count;
+    }
     h.common_variance_sum += common_variance;
     ++h.common_count;
     for (int k = 0; k < h.passes; ++k) {
@@ -232,7 +245,7 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& c) {
     return std::max(best, c.min_resolution_m);
 }
 
-void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float t) {
+void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float t, double mv) {
     // The smallest squared normalised innovation (z - mu)^2 / (s^2 + sigma_n^2).
     int best = -1;
     double best_e2 = std::numeric_limits<double>::infinity();
@@ -250,7 +263,7 @@ void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float 
         h.variance_m2 = v;
         h.count = 1;
         h.sample_mean_m = z;
-        TakeCommon(h, v, cv, t, c.pass_gap_s);
+        TakeCommon(h, v, cv, t, c.pass_gap_s, mv);
         hyps_.push_back(h);
         return;
     }
@@ -264,15 +277,19 @@ void CubeNode::Update(double z, double v, const CubeConfig& c, double cv, float 
     const double delta = z - h.sample_mean_m;
     h.sample_mean_m += delta / h.count;
     h.m2 += delta * (z - h.sample_mean_m);
-    TakeCommon(h, v, cv, t, c.pass_gap_s);
+    TakeCommon(h, v, cv, t, c.pass_gap_s, mv);
 }
 
-void CubeNode::Add(double z, double v, const CubeConfig& c, double cv, float t) {
+void CubeNode::Add(double z, double v, const CubeConfig& c, double cv, float t, double mv) {
     if (c.queue_length <= 1) {
-        Update(z, v, c, cv, t);
+        Update(z, v, c, cv, t, mv);
         return;
     }
-    const Queued e{static_cast<float>(z), static_cast<float>(v), static_cast<float>(cv), t};
+    const Queued e{static_cast<float>(z),
+                   static_cast<float>(v),
+                   static_cast<float>(cv),
+                   t,
+                   static_cast<float>(mv)};
     queue_.insert(std::upper_bound(queue_.begin(),
                                    queue_.end(),
                                    e,
@@ -282,7 +299,7 @@ void CubeNode::Add(double z, double v, const CubeConfig& c, double cv, float t) 
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
         const Queued m = *mid;
         queue_.erase(mid);
-        Update(m.z, m.variance, c, m.common_variance, m.time_s);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s, m.measured_variance);
     }
 }
 
@@ -291,7 +308,7 @@ void CubeNode::Flush(const CubeConfig& c) {
         const auto mid = queue_.begin() + static_cast<std::ptrdiff_t>(queue_.size() / 2);
         const Queued m = *mid;
         queue_.erase(mid);
-        Update(m.z, m.variance, c, m.common_variance, m.time_s);
+        Update(m.z, m.variance, c, m.common_variance, m.time_s, m.measured_variance);
     }
     queue_.shrink_to_fit();
 }
@@ -455,15 +472,15 @@ public:
 
     // Offers a sounding propagated to node `node` (height z, variance v, its pass-common
     // variance cv and time t: cube.hpp).
-    void Offer(std::size_t node, double z, double v, float cv, float t) {
+    void Offer(std::size_t node, double z, double v, float cv, float t, float mv) {
         if (length_ <= 1) {
-            nodes_[node].Update(z, v, config_, cv, t);
+            nodes_[node].Update(z, v, config_, cv, t, mv);
             return;
         }
         const std::size_t local = node - first_node_;
         auto* q = queue_.data() + local * length_;
         int k = queued_[local];
-        const CubeNode::Queued e{static_cast<float>(z), static_cast<float>(v), cv, t};
+        const CubeNode::Queued e{static_cast<float>(z), static_cast<float>(v), cv, t, mv};
         // Insertion into the sorted queue.
         int pos = k;
         while (pos > 0 && q[pos - 1].z > e.z) {
@@ -492,7 +509,7 @@ private:
         const CubeNode::Queued m = q[mid];
         for (int i = mid; i + 1 < k; ++i) q[i] = q[i + 1];
         --k;
-        node.Update(m.z, m.variance, config_, m.common_variance, m.time_s);
+        node.Update(m.z, m.variance, config_, m.common_variance, m.time_s, m.measured_variance);
     }
 
     std::vector<CubeNode>& nodes_;
@@ -530,11 +547,19 @@ std::int64_t OfferSounding(const CubeSounding& s,
     const double sv2 = static_cast<double>(s.sigma_v_m) * s.sigma_v_m;
     const double slope_var = (gx * gx + gy * gy) * static_cast<double>(s.sigma_h_m) * s.sigma_h_m;
     const double rho_sh = config.horizontal_error_scale * s.sigma_h_m;
-    // The part of the variance common to the sounding's pass (cube.hpp), at most all of it.
+    // The part of the variance common to the sounding's pass (cube.hpp), at most all of it:
+    // the vertical part, and the slope's share of the horizontal part (the INS's horizontal
+    // error moves the whole pass, so on a wall it does not average over its soundings).
+    const double sh_common =
+        std::isfinite(s.sigma_h_common_m) ? std::min(s.sigma_h_common_m, s.sigma_h_m) : 0.0;
     const float common_var =
         std::isfinite(s.sigma_common_m)
-            ? std::min(s.sigma_common_m, s.sigma_v_m) * std::min(s.sigma_common_m, s.sigma_v_m)
+            ? static_cast<float>(static_cast<double>(std::min(s.sigma_common_m, s.sigma_v_m)) *
+                                     std::min(s.sigma_common_m, s.sigma_v_m) +
+                                 (gx * gx + gy * gy) * sh_common * sh_common)
             : std::numeric_limits<float>::quiet_NaN();
+    // The sounding's own variance at the node, without the distance growth (cube.hpp).
+    const auto measured_var = static_cast<float>(sv2 + slope_var);
     std::int64_t offered = 0;
     for (int j = j0; j <= j1; ++j) {
         const double dy = grid.y0 + j * res - s.y;
@@ -550,7 +575,8 @@ std::int64_t OfferSounding(const CubeSounding& s,
                          s.z + gx * dx + gy * dy,
                          v,
                          common_var,
-                         s.time_s);
+                         s.time_s,
+                         measured_var);
             ++offered;
         }
     }

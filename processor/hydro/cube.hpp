@@ -11,7 +11,8 @@
 //      sounding's height is first carried to the node along the predicted surface's gradient g
 //      (z_n = z + g . (x_n - x)), and (|g| sigma_h)^2 is added: on a steep pit wall a sounding
 //      a few decimetres away otherwise differs from the node by more than its uncertainty and
-//      opens a false hypothesis (plain CUBE assumes a locally flat seabed).
+//      opens a false hypothesis (plain CUBE assumes a locally flat seabed). The part of it from
+//      the pass-common horizontal error, (|g| sigma_h_common)^2, is pass-common too (below).
 //   2. Each node holds a median pre-filter queue of queue_length soundings (C&M §3.3); once full,
 //      the median leaves the queue and updates the node. At the end the queue is flushed,
 //      median first.
@@ -30,10 +31,15 @@
 // The uncertainty, when every sounding of the hypothesis states the part of its vertical
 // variance that is common to the soundings of one pass (CubeSounding::sigma_common_m: the
 // INS's height, attitude, mount, sound speed: what does not average over the soundings of a
-// pass) (issue 36 item 3):
-//   sigma_node^2 = 1 / sum_i 1 / (sigma_n,i^2 - c_i^2)
+// pass; plus, with slope_correction, |g|^2 sigma_h_common^2, the pass-common horizontal
+// error seen through the slope) (issue 36 item 3):
+//   sigma_node^2 = sum_i w_i^2 s_i^2 / (sum_i w_i)^2
 //                  + mean_i(c_i^2) (1 / P^2) sum_p sum_q exp(-|t_p - t_q| / tau),
-// the independent parts (range noise, pointing) averaged by the Kalman step, the common part
+// the independent parts (range noise, pointing: s_i^2 = sigma_v,i^2 - c_i^2 + the slope term's
+// independent part) averaged as the Kalman step weights them (w_i = 1 / sigma_n,i^2, the
+// variance grown with the distance: C&M eq. 9 sets the weights, it is no error of the
+// sounding's; before, 1 / sum_i 1 / (sigma_n,i^2 - c_i^2) took the grown variance, the common
+// part's growth included, as the error and overstated floors' nodes 1.3x), the common part
 // averaged over the node's P passes as far as they are independent: a Gauss-Markov error of
 // correlation time tau = common_correlation_s (the INS's), the passes at times t_p (a sounding
 // of the node more than pass_gap_s from every earlier pass starts one; at most kMaxPasses are
@@ -65,6 +71,11 @@ struct CubeSounding {
     // NaN = unknown (the node uncertainty then takes the convention above).
     float sigma_common_m = std::numeric_limits<float>::quiet_NaN();
     float time_s = 0;  // the sounding's time from any epoch, s (tells passes apart)
+    // The part of sigma_h_m common to the soundings of one pass (1 sigma per axis, m;
+    // <= sigma_h_m; NaN = unknown, taken as none): on a slope |g| it moves the sounding's height
+    // at the node by |g| times it for the whole pass, so |g|^2 sigma_h_common^2 joins the
+    // pass-common variance instead of the independent part (issue 36 item 3).
+    float sigma_h_common_m = std::numeric_limits<float>::quiet_NaN();
 };
 
 enum class Disambiguation { kDensity = 0, kLocale, kPredictedSurface };
@@ -112,6 +123,13 @@ struct CubeHypothesis {
     double independent_information = 0;
     double common_variance_sum = 0;
     std::int32_t common_count = 0;
+    // The Kalman weights w = 1 / v (v: the grown variance at the node) and sum w^2 s^2 (s^2:
+    // the sounding's own independent variance, without the distance growth), over the
+    // soundings that stated s^2: the independent part of the weighted mean's variance is
+    // sum w^2 s^2 / (sum w)^2.
+    double weight_sum = 0;
+    double weighted_independent = 0;
+    std::int32_t measured_count = 0;
     std::int32_t passes = 0;
     std::array<float, kMaxPasses> pass_time_s{};
     double SampleSd() const;
@@ -156,11 +174,15 @@ double ResolutionFromDepth(double median_depth_m, const CubeConfig& config);
 class CubeNode {
 public:
     // Offers a sounding already propagated to the node (height, variance at the node).
+    // measured_variance: the sounding's own variance at the node without C&M's distance growth
+    // (sigma_v^2 + the slope term; NaN = unknown: the node uncertainty then takes the grown
+    // variance as the error's).
     void Add(double z,
              double variance,
              const CubeConfig& config,
              double common_variance = std::numeric_limits<double>::quiet_NaN(),
-             float time_s = 0);
+             float time_s = 0,
+             double measured_variance = std::numeric_limits<double>::quiet_NaN());
     // Empties the median queue into the hypotheses.
     void Flush(const CubeConfig& config);
     const std::vector<CubeHypothesis>& hypotheses() const { return hyps_; }
@@ -172,11 +194,12 @@ public:
                 double variance,
                 const CubeConfig& config,
                 double common_variance = std::numeric_limits<double>::quiet_NaN(),
-                float time_s = 0);
+                float time_s = 0,
+                double measured_variance = std::numeric_limits<double>::quiet_NaN());
 
-    // A queued sounding: height, variance at the node, common variance, time.
+    // A queued sounding: height, variance at the node, common variance, time, own variance.
     struct Queued {
-        float z, variance, common_variance, time_s;
+        float z, variance, common_variance, time_s, measured_variance;
     };
 
 private:

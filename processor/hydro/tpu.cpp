@@ -216,6 +216,7 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
     out.thu_95_m.assign(n, 0.0f);
     out.tvu_95_m.assign(n, 0.0f);
     out.sigma_v_common_m.assign(n, 0.0f);
+    out.sigma_h_common_m.assign(n, 0.0f);
     if (ping_sigma.size() != np) {
         out.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
                       std::to_string(np) + " pings";
@@ -270,6 +271,12 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
                                        Square(config.model.position_noise_m);
             out.sigma_v_common_m[j] =
                 static_cast<float>(std::sqrt(std::max(C(2, 2) - independent, 0.0)));
+            const auto h2 = [](const Eigen::Matrix3d& m) { return (m(0, 0) + m(1, 1)) / 2.0; };
+            const double independent_h = h2(terms[static_cast<int>(TpuTerm::kRange)]) +
+                                         h2(terms[static_cast<int>(TpuTerm::kBeamAngle)]) +
+                                         Square(config.model.position_noise_m);
+            out.sigma_h_common_m[j] =
+                static_cast<float>(std::sqrt(std::max(h2(C) - independent_h, 0.0)));
             if (C(2, 2) > 0) {
                 for (int t = 0; t < kNumTpuTerms; ++t) s[t] += terms[t](2, 2) / C(2, 2);
             }

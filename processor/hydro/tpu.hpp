@@ -137,6 +137,10 @@ struct TpuResult {
     // noise, the beam pointing and the INS's white output noise: what CUBE's node does not
     // average over the soundings of one pass), m; one per sounding.
     std::vector<float> sigma_v_common_m;
+    // The same for the horizontal 1 sigma per axis (sqrt of the mean of the east and north
+    // variances without the range noise, the beam pointing and the INS's white output noise),
+    // m; one per sounding. CUBE takes it on slopes (CubeSounding::sigma_h_common_m).
+    std::vector<float> sigma_h_common_m;
     // Mean over the soundings of each term's share of the vertical variance (sums to 1).
     std::array<double, kNumTpuTerms> tvu_variance_share{};
     double median_tvu_95_m = 0, median_thu_95_m = 0;

@@ -776,7 +776,8 @@ std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
             static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
             static_cast<float>(depth),
             tpu.sigma_v_common_m[j],
-            static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6)};
+            static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6),
+            tpu.sigma_h_common_m[j]};
     }
     return soundings;
 }
@@ -803,12 +804,14 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
         tpu.thu_95_m[kept] = tpu.thu_95_m[j];
         tpu.tvu_95_m[kept] = tpu.tvu_95_m[j];
         tpu.sigma_v_common_m[kept] = tpu.sigma_v_common_m[j];
+        tpu.sigma_h_common_m[kept] = tpu.sigma_h_common_m[j];
         ++kept;
     }
     utm.easting_northing_height.resize(kept);
     tpu.thu_95_m.resize(kept);
     tpu.tvu_95_m.resize(kept);
     tpu.sigma_v_common_m.resize(kept);
+    tpu.sigma_h_common_m.resize(kept);
     if (rejected > 0) {
         // CUBE again without them: a node whose chosen hypothesis they made (an echo held
         // long enough over one node to outvote the seabed) is decided on the rest.

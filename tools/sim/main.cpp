@@ -5,6 +5,7 @@
 //                    [--duration S] [--refraction]          faster than real time; --refraction:
 //                                                           a refracting water column
 //                    [--echo-artifacts LEVEL]               fish, bubbles, multipath, smile
+//                    [--lines laps|star|zigzag]             the pattern of the survey lines
 //   pitmap-sim hil --scenario NAME --out DIR [--acqd PATH] [--duration S] [--faults ...]
 //                                                           real-time emulators (pty, TCP, UDP)
 //                                                           feeding the daemon; truth + manifest
@@ -237,6 +238,15 @@ int main(int argc, char** argv) try {
                      "START END EAST NORTH: the INS position drifts to (EAST, NORTH) m over START "
                      "to END s with its status good and its stddevs unchanged, then recovers")
         ->expected(4);
+    std::string lines;
+    synth
+        ->add_option("--lines",
+                     lines,
+                     "the pattern of the survey lines, repeated for the duration: laps (the "
+                     "scenario's laps and tie lines, default), star (6 lines through the pit "
+                     "centre, 30 deg apart) or zigzag (8 legs across the pit from west to east, "
+                     "then back half a leg shifted, crossing them)")
+        ->check(CLI::IsMember({"laps", "star", "zigzag"}));
     std::vector<double> gps_outage;
     synth
         ->add_option("--gps-outage",
@@ -303,6 +313,14 @@ int main(int argc, char** argv) try {
         scenario->sonar.daemon_stamp_error_after_ms = stamp_step[1];
     }
     if (duration_opt->count() > 0) scenario->track.duration_s = duration_s;
+    if (!lines.empty()) {
+        auto pattern = sim::TrackPatternFromString(lines);
+        if (!pattern) {
+            std::fprintf(stderr, "pitmap-sim: %s\n", pattern.error().message.c_str());
+            return codes::kUsage;
+        }
+        scenario->track.pattern = *pattern;
+    }
     if (!start_utc.empty()) scenario->start_utc = start_utc;
     if (origin.size() == 2) {
         scenario->origin_latitude_deg = origin[0];

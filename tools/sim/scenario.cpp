@@ -146,6 +146,25 @@ void CheckPositive(std::vector<std::string>& p, double v, const char* name) {
 
 }  // namespace
 
+const char* ToString(TrackPattern p) {
+    switch (p) {
+        case TrackPattern::kLaps:
+            return "laps";
+        case TrackPattern::kStar:
+            return "star";
+        case TrackPattern::kZigzag:
+            return "zigzag";
+    }
+    return "?";
+}
+
+Expected<TrackPattern> TrackPatternFromString(const std::string& name) {
+    for (const TrackPattern p : {TrackPattern::kLaps, TrackPattern::kStar, TrackPattern::kZigzag}) {
+        if (name == ToString(p)) return p;
+    }
+    return Error{"unknown track pattern '" + name + "' (valid: laps, star, zigzag)"};
+}
+
 std::vector<std::string> ScenarioConfig::Validate() const {
     std::vector<std::string> p;
     CheckPositive(p, pit.half_length_m, "pit.half_length_m");
@@ -192,6 +211,10 @@ std::vector<std::string> ScenarioConfig::Validate() const {
     if (track.num_laps < 1) p.push_back("track.num_laps must be >= 1");
     if (track.num_tie_lines < 0) p.push_back("track.num_tie_lines must be >= 0");
     if (track.duration_s < 0) p.push_back("track.duration_s must be >= 0 (0 = whole track)");
+    if (track.star_lines < 2 || track.star_lines > 90)
+        p.push_back("track.star_lines must be 2..90");
+    if (track.zigzag_legs < 2 || track.zigzag_legs > 200)
+        p.push_back("track.zigzag_legs must be 2..200");
     if (track.first_lap_offset_m + (track.num_laps - 1) * track.lap_spacing_m >=
         std::min(pit.half_length_m, pit.half_width_m)) {
         p.push_back(
@@ -369,6 +392,9 @@ std::string DescribeScenario(const ScenarioConfig& s) {
                   s.track.duration_s,
                   std::floor(s.track.duration_s * s.sonar.ping_rate_hz + 1e-9));
     std::string d = buf;
+    if (s.track.pattern != TrackPattern::kLaps) {
+        d += std::string("; ") + ToString(s.track.pattern) + " lines";
+    }
     if (s.pit.high_wall_slope_deg != 0) {
         std::snprintf(buf, sizeof buf, "; %.0f deg high wall", s.pit.high_wall_slope_deg);
         d += buf;

@@ -60,8 +60,26 @@ struct PitConfig {
     double boulder_max_diameter_m = 2.0;
 };
 
-// The vehicle's track: concentric laps inward from the shore, then tie lines across.
+// The pattern of the vehicle's lines (`pitmap-sim synth --lines`), repeated until the survey's
+// duration is reached:
+//   kLaps    concentric laps inward from the shore, then tie lines across the long axis;
+//   kStar    star_lines straight lines through the pit centre, evenly spread over 180 deg
+//            (alternating direction, each end first_lap_offset_m from the shore, the next line
+//            starting near where the last ended): every line crosses every other at the centre;
+//   kZigzag  a zigzag of zigzag_legs legs between the west and east ends, touching
+//            first_lap_offset_m from the north and south shores, then the same zigzag back
+//            half a leg shifted, so that its legs cross the first pass's.
+enum class TrackPattern { kLaps = 0, kStar, kZigzag };
+const char* ToString(TrackPattern p);
+// "laps", "star", "zigzag"; an unknown name is an error listing them.
+Expected<TrackPattern> TrackPatternFromString(const std::string& name);
+
+// The vehicle's track: its pattern of lines (by default concentric laps inward from the shore,
+// then tie lines across) and its motion.
 struct TrackConfig {
+    TrackPattern pattern = TrackPattern::kLaps;
+    int star_lines = 6;               // kStar: lines through the centre (>= 2)
+    int zigzag_legs = 8;              // kZigzag: legs of one pass (>= 2)
     double speed_mps = 1.2;           // speed through the water
     double first_lap_offset_m = 4.0;  // distance of the outer lap from the shore line
     double lap_spacing_m = 9.0;       // distance between consecutive laps

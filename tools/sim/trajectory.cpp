@@ -66,6 +66,69 @@ std::vector<Eigen::Vector2d> ResampleByArcLength(const std::vector<Eigen::Vector
     return out;
 }
 
+// kStar: star_lines lines through the pit centre at directions 180 k / n deg, alternating in
+// direction so that each starts near where the previous one ended (each end `offset` from the
+// shore); appended to `pts` (joined by a straight leg to its last point). With an even number
+// of lines every other repetition (`repetition` odd) runs them backwards, so that it too starts
+// next to where the last one ended.
+void AppendStar(std::vector<Eigen::Vector2d>& pts,
+                const PitConfig& pit,
+                const TrackConfig& tr,
+                int repetition) {
+    const int n = tr.star_lines;
+    const bool backwards = n % 2 == 0 && repetition % 2 == 1;
+    for (int k = 0; k < n; ++k) {
+        const double dir = 180.0 * k / n;
+        Eigen::Vector2d a = PointFromShore(pit, dir, tr.first_lap_offset_m);
+        Eigen::Vector2d b = PointFromShore(pit, dir + 180.0, tr.first_lap_offset_m);
+        if ((k % 2 == 1) != backwards) std::swap(a, b);
+        if (pts.empty()) {
+            pts.push_back(a);
+        } else {
+            AppendLine(pts, a, 0.5);
+        }
+        AppendLine(pts, b, 0.5);
+    }
+}
+
+// The largest |y| <= the pit's half width at which (x, +-y) lies `offset` from the shore.
+double ZigzagReach(const PitConfig& pit, double x, double offset) {
+    double y = pit.half_width_m - offset;
+    while (y > 0.5 &&
+           (DistanceFromShore(pit, x, y) < offset || DistanceFromShore(pit, x, -y) < offset))
+        y -= 0.25;
+    return std::max(y, 0.0);
+}
+
+// kZigzag: legs between the south and north reaches from the west end to the east end, then
+// back with the turning points half a leg shifted so that the legs cross the first pass's. Each
+// turning point is a short run along x (a quarter of the legs' spacing, at most two turn radii)
+// so that the boat turns twice by about 90 deg instead of reversing at once.
+void AppendZigzag(std::vector<Eigen::Vector2d>& pts, const PitConfig& pit, const TrackConfig& tr) {
+    const double off = tr.first_lap_offset_m;
+    double xe = pit.half_length_m - off;
+    while (xe > 1.0 && DistanceFromShore(pit, xe, 0.0) < off + 3.0) xe -= 0.5;
+    const int n = tr.zigzag_legs;
+    const double half_run = 0.5 * std::min(2.0 * tr.turn_radius_m, 0.25 * 2.0 * xe / n);
+    // The turning point at u in [0, 1] (west to east), south for even k, run towards `east`.
+    const auto turn = [&](double u, int k, bool east) {
+        const double x = -xe + 2.0 * xe * u;
+        const double sign = (k % 2 == 0) ? -1.0 : 1.0;
+        const double from = std::max(-xe, x - half_run), to = std::min(xe, x + half_run);
+        const double a = east ? from : to, b = east ? to : from;
+        const Eigen::Vector2d pa(a, sign * ZigzagReach(pit, a, off));
+        if (pts.empty()) {
+            pts.push_back(pa);
+        } else {
+            AppendLine(pts, pa, 0.5);
+        }
+        AppendLine(pts, Eigen::Vector2d(b, sign * ZigzagReach(pit, b, off)), 0.5);
+    };
+    for (int k = 0; k <= n; ++k) turn(static_cast<double>(k) / n, k, true);
+    // Back: turning points at (k + 0.5) / n, on the opposite side to the first pass's nearest.
+    for (int k = n - 1; k >= 0; --k) turn((k + 0.5) / n, k + 1, false);
+}
+
 }  // namespace
 
 Expected<SurveyTrack> SurveyTrack::Plan(const ScenarioConfig& sc) {
@@ -101,7 +164,22 @@ Expected<SurveyTrack> SurveyTrack::Plan(const ScenarioConfig& sc) {
             AppendLine(coarse, b, 0.5);
         }
     };
-    add_laps();
+    int repetition = 0;
+    const auto add_pattern = [&]() {
+        switch (tr.pattern) {
+            case TrackPattern::kLaps:
+                add_laps();
+                break;
+            case TrackPattern::kStar:
+                AppendStar(coarse, pit, tr, repetition);
+                break;
+            case TrackPattern::kZigzag:
+                AppendZigzag(coarse, pit, tr);
+                break;
+        }
+        ++repetition;
+    };
+    add_pattern();
     if (coarse.size() < 2) return Error{"track: no lap fits inside the pit"};
     // Repeat the pattern until it is long enough for the requested duration.
     auto length = [&]() {
@@ -110,7 +188,7 @@ Expected<SurveyTrack> SurveyTrack::Plan(const ScenarioConfig& sc) {
         return l;
     };
     const double needed = tr.duration_s * tr.speed_mps + 5.0;
-    for (int rep = 0; rep < 20 && tr.duration_s > 0 && length() < needed; ++rep) add_laps();
+    for (int rep = 0; rep < 20 && tr.duration_s > 0 && length() < needed; ++rep) add_pattern();
 
     SurveyTrack track;
     // Corner cutting on a polyline of turn_radius-long pieces rounds each corner to about that

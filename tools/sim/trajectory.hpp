@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// The vehicle's true motion: a planned track of concentric laps and tie lines, driven at a
+// The vehicle's true motion: a planned track (concentric laps and tie lines, or star or zigzag
+// lines: TrackPattern in scenario.hpp), driven at a
 // constant speed, with wave-induced roll, pitch, heave and yaw oscillation. Times are seconds
 // since the survey start (t = 0 at the first sample); GPS time = start_gps + t.
 #pragma once

@@ -148,7 +148,10 @@ json ScenarioToJson(const ScenarioConfig& s) {
                 {"boulder_min_diameter_m", p.boulder_min_diameter_m},
                 {"boulder_max_diameter_m", p.boulder_max_diameter_m}};
     const TrackConfig& t = s.track;
-    j["track"] = {{"speed_mps", t.speed_mps},
+    j["track"] = {{"pattern", ToString(t.pattern)},
+                  {"star_lines", t.star_lines},
+                  {"zigzag_legs", t.zigzag_legs},
+                  {"speed_mps", t.speed_mps},
                   {"first_lap_offset_m", t.first_lap_offset_m},
                   {"lap_spacing_m", t.lap_spacing_m},
                   {"num_laps", t.num_laps},

@@ -190,6 +190,53 @@ TEST(Tpu, ComputeTpuGivesOneValuePerSoundingAndTermSharesSumToOne) {
     EXPECT_EQ(invalid.Validate().size(), 2u);
 }
 
+// The pass-common parts (what CUBE's node does not average over one pass's soundings): with
+// the INS's position sigma alone they are that sigma; the range noise, the beam pointing and
+// the INS's white output noise are not in them.
+TEST(Tpu, PassCommonPartsAreThePositionSigmaWithoutTheNoiseTerms) {
+    georef::GeorefResult geo;
+    survey::SonarMount mount;
+    georef::GeorefPing p;
+    p.utime_gps = 1'000'000'000'000;
+    p.T_world_vehicle = MakePose(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+    geo.pings.push_back(p);
+    for (int b = 0; b < 5; ++b) {
+        const double th = frames::DegToRad(-50 + 25 * b);
+        const double r = 10 / std::cos(th);
+        geo.points.position_world.push_back(
+            p.T_world_vehicle * (mount.T_vehicle_sonar() * georef::BeamVectorSonar(r, th, 0)));
+        geo.points.ping.push_back(0);
+        geo.points.beam.push_back(static_cast<std::uint16_t>(b));
+        geo.points.range_m.push_back(static_cast<float>(r));
+        geo.points.angle_rad.push_back(static_cast<float>(th));
+    }
+    TpuConfig cfg;
+    SensorErrorModel& m = cfg.model;
+    m = SensorErrorModel{};
+    m.range_sigma_m = 0.02;
+    m.range_sigma_fraction = 0.002;
+    m.beam_angle_sigma_deg = 0.05;
+    m.position_noise_m = 0.005;
+    m.boresight_sigma_deg = 0;
+    m.surface_sound_speed_sigma_mps = 0;
+    m.mean_sound_speed_sigma_mps = 0;
+    m.heave_sigma_m = 0;
+    m.latency_sigma_s = 0;
+    m.lever_arm_sigma_m = 0;
+    PingSigma s;
+    s.position_enu_m = Eigen::Vector3d(0.01, 0.02, 0.015);
+    s.attitude_rpy_rad.setZero();
+    const TpuResult r = ComputeTpu(geo, mount, {s}, cfg);
+    ASSERT_EQ(r.sigma_h_common_m.size(), 5u);
+    for (std::size_t j = 0; j < 5; ++j) {
+        EXPECT_NEAR(r.sigma_v_common_m[j], 0.015, 1e-6) << j;
+        EXPECT_NEAR(r.sigma_h_common_m[j], std::sqrt((0.01 * 0.01 + 0.02 * 0.02) / 2), 1e-6) << j;
+        // The whole horizontal sigma holds the noise terms besides (off nadir the range noise
+        // and the pointing move the sounding sideways).
+        EXPECT_GT(r.thu_95_m[j] / kThu95, r.sigma_h_common_m[j] + 1e-4) << j;
+    }
+}
+
 TEST(Tpu, InsSigmaIsTheNearestRecordElseTheModels) {
     SensorErrorModel m;
     const PingSigma fb = FallbackSigma(m);

@@ -29,19 +29,114 @@ TEST(SurveyTrack, EveryScenarioTrackFloatsAndIsLongEnough) {
     }
 }
 
-TEST(SurveyTrack, HeadingIsSmooth) {
-    const ScenarioConfig sc = *BuiltinScenario("bejanca");
-    auto track = SurveyTrack::Plan(sc);
-    ASSERT_TRUE(track.ok());
-    double worst = 0;
-    for (double s = 1; s < track->length_m() - 2; s += 0.5) {
-        worst = std::max(worst,
-                         std::abs(frames::WrapPi(track->HeadingAt(s + 0.5) - track->HeadingAt(s))));
+// Number of crossings of the track with itself (segments 1 m apart, neighbours along the track
+// within `skip_m` not compared), and the positions where it crosses.
+std::vector<Eigen::Vector2d> SelfCrossings(const SurveyTrack& track, double skip_m) {
+    std::vector<Eigen::Vector2d> p;
+    for (double s = 0; s < track.length_m(); s += 1.0) p.push_back(track.PositionAt(s));
+    std::vector<Eigen::Vector2d> out;
+    const auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+        return a.x() * b.y() - a.y() * b.x();
+    };
+    const auto skip = static_cast<std::size_t>(skip_m);
+    for (std::size_t i = 0; i + 1 < p.size(); ++i) {
+        for (std::size_t j = i + skip; j + 1 < p.size(); ++j) {
+            const Eigen::Vector2d r = p[i + 1] - p[i], q = p[j + 1] - p[j];
+            const double den = cross(r, q);
+            if (std::abs(den) < 1e-9) continue;
+            const double t = cross(p[j] - p[i], q) / den, u = cross(p[j] - p[i], r) / den;
+            if (t >= 0 && t < 1 && u >= 0 && u < 1) out.push_back(p[i] + t * r);
+        }
     }
-    // The twin hull pivots in tight turns (the sharpest is the U-turn where the pattern repeats),
-    // but the track never kinks: over 0.5 m of travel the heading changes by less than 60 deg
-    // (turn radius > 0.48 m) everywhere.
-    EXPECT_LT(frames::RadToDeg(worst), 60.0);
+    return out;
+}
+
+TEST(SurveyTrack, StarAndZigzagLinesFloatAndCross) {
+    for (const TrackPattern pattern : {TrackPattern::kStar, TrackPattern::kZigzag}) {
+        for (const char* name : {"quarry", "demo", "bejanca"}) {
+            ScenarioConfig sc = *BuiltinScenario(name);
+            sc.track.pattern = pattern;
+            sc.track.duration_s = 300;
+            const PitWorld world(sc.pit, sc.seed);
+            auto track = SurveyTrack::Plan(sc);
+            ASSERT_TRUE(track.ok()) << name;
+            EXPECT_GE(track->length_m(), sc.track.duration_s * sc.track.speed_mps) << name;
+            double min_depth = 1e9, min_shore = 1e9;
+            for (const auto& p : track->points()) {
+                min_depth = std::min(min_depth, world.Depth(p.x(), p.y()));
+                min_shore = std::min(min_shore, DistanceFromShore(sc.pit, p.x(), p.y()));
+            }
+            EXPECT_GT(min_depth, 1.0) << name << " " << ToString(pattern);
+            EXPECT_GT(min_shore, 0.5 * sc.track.first_lap_offset_m) << name;
+        }
+    }
+    // The star: one pattern's lines all pass the pit centre, every 180 / n deg of heading.
+    ScenarioConfig sc = *BuiltinScenario("quarry");
+    sc.track.pattern = TrackPattern::kStar;
+    sc.track.duration_s = 0;  // one pattern
+    auto star = SurveyTrack::Plan(sc);
+    ASSERT_TRUE(star.ok());
+    std::vector<double> headings_deg;  // of the passes through the centre, mod 180
+    bool near = false;
+    for (double s = 0; s < star->length_m(); s += 0.1) {
+        const bool now = star->PositionAt(s).norm() < 0.5;
+        if (now && !near) {
+            headings_deg.push_back(std::fmod(frames::RadToDeg(star->HeadingAt(s)) + 360.0, 180.0));
+        }
+        near = now;
+    }
+    ASSERT_EQ(static_cast<int>(headings_deg.size()), sc.track.star_lines);
+    std::sort(headings_deg.begin(), headings_deg.end());
+    for (std::size_t k = 0; k < headings_deg.size(); ++k) {
+        const double next =
+            k + 1 < headings_deg.size() ? headings_deg[k + 1] : headings_deg[0] + 180;
+        EXPECT_NEAR(next - headings_deg[k], 180.0 / sc.track.star_lines, 2.0) << k;
+    }
+    // The zigzag: the way back crosses every leg of the way out (legs - 1 crossings at least,
+    // away from the turning points), and laps of one pattern do not cross at all but for the
+    // tie line's.
+    sc.track.pattern = TrackPattern::kZigzag;
+    auto zigzag = SurveyTrack::Plan(sc);
+    ASSERT_TRUE(zigzag.ok());
+    EXPECT_GE(static_cast<int>(SelfCrossings(*zigzag, 10.0).size()), sc.track.zigzag_legs - 1);
+    sc.track.pattern = TrackPattern::kLaps;
+    auto laps = SurveyTrack::Plan(sc);
+    ASSERT_TRUE(laps.ok());
+    EXPECT_LE(SelfCrossings(*laps, 10.0).size(), 4U);
+}
+
+TEST(SurveyTrack, PatternNames) {
+    for (const TrackPattern p : {TrackPattern::kLaps, TrackPattern::kStar, TrackPattern::kZigzag}) {
+        auto back = TrackPatternFromString(ToString(p));
+        ASSERT_TRUE(back.ok());
+        EXPECT_EQ(*back, p);
+    }
+    auto bad = TrackPatternFromString("spiral");
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find("laps, star, zigzag"), std::string::npos);
+    ScenarioConfig sc = *BuiltinScenario("quarry");
+    sc.track.star_lines = 1;
+    sc.track.zigzag_legs = 0;
+    EXPECT_EQ(sc.Validate().size(), 2U);
+}
+
+TEST(SurveyTrack, HeadingIsSmooth) {
+    ScenarioConfig sc = *BuiltinScenario("bejanca");
+    for (const TrackPattern pattern :
+         {TrackPattern::kLaps, TrackPattern::kStar, TrackPattern::kZigzag}) {
+        sc.track.pattern = pattern;
+        auto track = SurveyTrack::Plan(sc);
+        ASSERT_TRUE(track.ok());
+        double worst = 0;
+        for (double s = 1; s < track->length_m() - 2; s += 0.5) {
+            worst = std::max(
+                worst, std::abs(frames::WrapPi(track->HeadingAt(s + 0.5) - track->HeadingAt(s))));
+        }
+        // The twin hull pivots in tight turns (the sharpest is the U-turn where the pattern
+        // repeats, or a star line's end), but the track never kinks: over 0.5 m of travel the
+        // heading changes by less than 60 deg (turn radius > 0.48 m) everywhere.
+        EXPECT_LT(frames::RadToDeg(worst), 60.0) << ToString(pattern);
+    }
 }
 
 TEST(TruthTrajectory, SpeedRatesAndDuration) {
