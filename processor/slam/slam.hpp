@@ -75,7 +75,7 @@ struct SlamConfig {
     // before it and this many after it, among those at least t_d away (0 = every pass, the seed
     // paper: the cost then grows with the square of the survey's duration over a fixed pit).
     // docs/decisions/015.
-    int max_partner_passes = 3;
+    int max_partner_passes = 2;
     double section_length_s = 15.0;  // rigid sections and k-d tree blocks, seconds
     // Rigid stage iterations (0: skip the stage): after an outage the stage creeps a few cm per
     // iteration along weakly constrained walls, so more iterations recover more drift for more
