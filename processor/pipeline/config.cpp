@@ -161,6 +161,10 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("max_pair_distance_m",
       c.max_pair_distance_m,
       "d_max: closest-point pairs closer than this, m");
+    v("max_partner_passes",
+      c.max_partner_passes,
+      "pairs only with the passes over a cell nearest in time, this many\n"
+      "before and after (0 = all: the cost grows with the square of the survey)");
     v("section_length_s", c.section_length_s, "rigid stage sections, s");
     v("rigid_iterations", c.rigid_iterations, "0 = no rigid stage");
     v("rigid_max_pair_distance_m",

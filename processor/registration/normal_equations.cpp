@@ -13,6 +13,7 @@ struct DampedSolver<B>::Impl {
     Eigen::VectorXd rhs, diag;
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt;
     bool factorised = false;
+    double factor_nonzeros = 0, factor_flops = 0;  // CHOLMOD's analysis (lnz, fl)
 };
 
 template <int B>
@@ -43,6 +44,8 @@ DampedSolver<B>::DampedSolver(const BlockSystem<B>& system) : impl_(std::make_un
     impl_->H.makeCompressed();
     impl_->diag = impl_->H.diagonal();
     impl_->llt.analyzePattern(impl_->H);
+    impl_->factor_nonzeros = impl_->llt.cholmod().lnz;
+    impl_->factor_flops = impl_->llt.cholmod().fl;
 }
 
 template <int B>
@@ -51,6 +54,16 @@ DampedSolver<B>::~DampedSolver() = default;
 template <int B>
 std::size_t DampedSolver<B>::num_unknowns() const {
     return static_cast<std::size_t>(impl_->rhs.size());
+}
+
+template <int B>
+double DampedSolver<B>::factor_nonzeros() const {
+    return impl_->factor_nonzeros;
+}
+
+template <int B>
+double DampedSolver<B>::factor_flops() const {
+    return impl_->factor_flops;
 }
 
 template <int B>

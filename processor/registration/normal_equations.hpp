@@ -128,6 +128,11 @@ public:
     DampedSolver& operator=(const DampedSolver&) = delete;
 
     std::size_t num_unknowns() const;
+    // The sparse Cholesky factor's size and cost for the ordering CHOLMOD chose (its analysis:
+    // nonzeros of L and floating-point operations of one factorisation): how the fill of the
+    // normal equations grows with the problem.
+    double factor_nonzeros() const;
+    double factor_flops() const;
     // Solves (H + lambda diag(H) + 1e-9 I) delta = -g; false if the factorisation fails or the
     // step is not finite. lambda = 0 is the Gauss-Newton step.
     bool Solve(double lambda, Eigen::VectorXd* delta);

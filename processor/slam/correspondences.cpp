@@ -46,6 +46,40 @@ std::vector<Block> MakeBlocks(const Input& in, double length_s) {
     return blocks;
 }
 
+void PartnerBlocks(const std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& listed,
+                   std::uint32_t own,
+                   double t,
+                   double td,
+                   int max_passes,
+                   std::vector<std::uint32_t>& partners) {
+    partners.clear();
+    const auto mid = std::lower_bound(listed.begin(), listed.end(), own);
+    // Earlier blocks, walking back in time. Blocks are in time order, so once one ends td
+    // before t every earlier one does: the separated blocks form the runs (passes) counted.
+    int passes = 0;
+    for (auto it = mid; it != listed.begin();) {
+        --it;
+        if (!(blocks[*it].t1 <= t - td)) continue;
+        if (partners.empty() || *it + 1 != partners.back()) {
+            if (max_passes > 0 && passes == max_passes) break;
+            ++passes;
+        }
+        partners.push_back(*it);
+    }
+    std::reverse(partners.begin(), partners.end());  // ascending, as the later ones
+    const std::size_t earlier = partners.size();
+    passes = 0;
+    for (auto it = mid; it != listed.end(); ++it) {
+        if (!(blocks[*it].t0 >= t + td)) continue;
+        if (partners.size() == earlier || *it != partners.back() + 1) {
+            if (max_passes > 0 && passes == max_passes) break;
+            ++passes;
+        }
+        partners.push_back(*it);
+    }
+}
+
 namespace {
 
 void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& pw) {
@@ -142,53 +176,22 @@ CellBlocks ListBlocksByCell(const std::vector<Block>& blocks,
     return cell_blocks;
 }
 
-// Whether block b was recorded entirely at least td away from time t.
-bool TimeSeparated(const Block& b, double t, double td) {
-    return b.t1 <= t - td || b.t0 >= t + td;
-}
-
-// The time-separated blocks (from t, by td) whose box comes within margin of the box
-// [lo, hi]: the only ones whose box can come within margin of a point inside it.
-void BlocksNearBox(const std::vector<Block>& blocks,
-                   const Eigen::Vector3f& lo,
-                   const Eigen::Vector3f& hi,
-                   double t,
-                   double td,
-                   float margin,
-                   std::vector<const Block*>& near) {
-    near.clear();
-    for (const Block& b : blocks) {
-        if (!b.tree || !TimeSeparated(b, t, td)) continue;
-        if ((hi.array() < b.lo.array() - margin).any() ||
-            (lo.array() > b.hi.array() + margin).any()) {
-            continue;
-        }
-        near.push_back(&b);
-    }
-}
-
-// The closest point to p in the time-separated blocks listed in p's cell, within
-// sqrt(best_d2) (dmax on entry).
+// The closest point to p in the partner blocks, within sqrt(best_d2) (dmax on entry).
 struct Closest {
     bool found = false;
     float d2;                 // squared distance (the bound when not found)
     std::size_t index = 0;    // into pw
     std::uint32_t block = 0;  // its block
 };
-Closest ClosestTimeSeparated(const Eigen::Vector3f& p,
-                             double t,
-                             double td,
-                             float dmax,
-                             const std::vector<Block>& blocks,
-                             const CellBlocks& cell_blocks,
-                             const CellGrid& grid) {
-    static const std::vector<std::uint32_t> no_blocks;
+Closest ClosestInBlocks(const Eigen::Vector3f& p,
+                        float dmax,
+                        const std::vector<Block>& blocks,
+                        const std::vector<std::uint32_t>& partners) {
     Closest c;
     c.d2 = dmax * dmax;
-    const auto cb = cell_blocks.find(grid.Key(p.x(), p.y()));
-    for (const std::uint32_t bi : cb == cell_blocks.end() ? no_blocks : cb->second) {
+    for (const std::uint32_t bi : partners) {
         const Block& b = blocks[bi];
-        if (!b.tree || !TimeSeparated(b, t, td)) continue;
+        if (!b.tree) continue;
         if ((p.array() < b.lo.array() - dmax).any() || (p.array() > b.hi.array() + dmax).any()) {
             continue;
         }
@@ -227,28 +230,38 @@ std::vector<Pair> FindPairs(const Input& in,
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, in.num_slices(), 64),
         [&](const tbb::blocked_range<std::size_t>& range) {
+            static const std::vector<std::uint32_t> no_blocks;
             auto& out = local.local();
             const float sm = static_cast<float>(score_m);
-            std::vector<const Block*> near;  // the slice's candidates for the score
+            std::vector<std::uint32_t> partners;  // of the slice's queries in the cell `key`
             for (std::size_t s = range.begin(); s != range.end(); ++s) {
                 const double t = in.t_s[s];
-                Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
-                Eigen::Vector3f hi =
-                    Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest());
-                for (std::size_t q = in.offset[s]; q < in.offset[s + 1]; ++q) {
-                    lo = lo.cwiseMin(pw[q]);
-                    hi = hi.cwiseMax(pw[q]);
-                }
-                BlocksNearBox(blocks, lo, hi, t, td, sm, near);
+                std::uint64_t key = 0;
+                bool have_key = false;
                 for (std::size_t q = in.offset[s] + s % stride; q < in.offset[s + 1]; q += stride) {
                     const Eigen::Vector3f& p = pw[q];
-                    // Score bookkeeping: does any time-separated block's box come within score_m?
-                    const bool candidate = std::any_of(near.begin(), near.end(), [&](auto* b) {
-                        return !((p.array() < b->lo.array() - sm).any() ||
-                                 (p.array() > b->hi.array() + sm).any());
-                    });
-                    const Closest c =
-                        ClosestTimeSeparated(p, t, td, dmax, blocks, cell_blocks, grid);
+                    // A slice's consecutive queries mostly share a cell: its partners once.
+                    const std::uint64_t k = grid.Key(p.x(), p.y());
+                    if (!have_key || k != key) {
+                        key = k;
+                        have_key = true;
+                        const auto cb = cell_blocks.find(key);
+                        PartnerBlocks(blocks,
+                                      cb == cell_blocks.end() ? no_blocks : cb->second,
+                                      slice_block[s],
+                                      t,
+                                      td,
+                                      cfg.max_partner_passes,
+                                      partners);
+                    }
+                    // Score bookkeeping: does a partner block's box come within score_m?
+                    const bool candidate =
+                        std::any_of(partners.begin(), partners.end(), [&](std::uint32_t bi) {
+                            const Block& b = blocks[bi];
+                            return !((p.array() < b.lo.array() - sm).any() ||
+                                     (p.array() > b.hi.array() + sm).any());
+                        });
+                    const Closest c = ClosestInBlocks(p, dmax, blocks, partners);
                     if (candidate) {
                         slice_sum[s] +=
                             c.found ? std::min(static_cast<double>(c.d2), score2) : score2;
@@ -519,6 +532,21 @@ Search SearchPairs(const Input& in,
                    (cfg.correspondence == CorrespondenceType::kGicp && pr.c.query_normal.isZero());
         });
     }
+    // The section graph the pairs make (SlamIteration reports it).
+    std::vector<std::uint64_t> links(pairs.size());
+    for (std::size_t k = 0; k < pairs.size(); ++k)
+        links[k] = reg::UnorderedPairKey(pairs[k].block_a, pairs[k].block_b);
+    std::sort(links.begin(), links.end());
+    links.erase(std::unique(links.begin(), links.end()), links.end());
+    std::vector<std::size_t> partners(blocks.size(), 0);
+    for (const std::uint64_t l : links) {
+        const auto a = static_cast<std::uint32_t>(l >> 32), b = static_cast<std::uint32_t>(l);
+        ++partners[a];
+        if (b != a) ++partners[b];
+    }
+    out.num_section_pairs = links.size();
+    out.max_section_partners =
+        partners.empty() ? 0 : *std::max_element(partners.begin(), partners.end());
     res.timings.search_s += Seconds(t0);
     return out;
 }

@@ -110,6 +110,24 @@ struct Block {
 
 std::vector<Block> MakeBlocks(const Input& in, double length_s);
 
+// The partner blocks of a query point recorded at time t in block `own`, among the blocks
+// `listed` in its cell (ascending indices, as ListBlocksByCell makes them): the blocks recorded
+// entirely at least td before t and those at least td after it, ascending. A pass is a run of
+// consecutive block indices among them (one visit of the vehicle over the cell); on each side
+// only the max_passes passes nearest in time to t are kept (0: all of them). The seed paper
+// pairs a point with every point at least t_d away; over a cell that N passes see, that is
+// O(N) trees per query and O(N^2) section links (and fill of the normal equations) per cell,
+// so a survey's cost grows with the square of its duration. The nearest passes in time are the
+// ones the INS drifted least against, and keep the section graph banded in time.
+// Deterministic: a function of the lists and the times only.
+void PartnerBlocks(const std::vector<Block>& blocks,
+                   const std::vector<std::uint32_t>& listed,
+                   std::uint32_t own,
+                   double t,
+                   double td,
+                   int max_passes,
+                   std::vector<std::uint32_t>& partners);
+
 // A correspondence (global point indices) with the slices and blocks of both sides.
 struct Pair {
     reg::Correspondence c;
@@ -121,7 +139,9 @@ struct Pair {
 struct Search {
     std::vector<Pair> pairs;
     double score = 0;
-    std::size_t num_links = 0;
+    std::size_t num_links = 0;             // rigid: section links with enough pairs
+    std::size_t num_section_pairs = 0;     // distinct section pairs of `pairs`
+    std::size_t max_section_partners = 0;  // most sections one section shares pairs with
 };
 
 // Moves the points to the world with T, rebuilds the k-d trees and finds the pairs within

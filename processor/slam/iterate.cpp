@@ -212,9 +212,14 @@ StageOutcome RunStage(const Input& in,
         reg::DampedSolver<6> ne(total.sys);
         res.timings.build_s += Seconds(t0);
         SlamIteration rec;
+        rec.factor_nonzeros = ne.factor_nonzeros();
+        rec.factor_flops = ne.factor_flops();
         rec.stage = stage;
         rec.iteration = it;
         rec.num_pairs = pairs.size();
+        rec.num_section_pairs = found.num_section_pairs;
+        rec.max_section_partners = found.max_section_partners;
+        rec.normal_equation_blocks = total.sys.num_off_diagonal();
         rec.cost = total.cost;
         rec.pair_rms_m = std::sqrt(total.sq_dist / static_cast<double>(pairs.size()));
         const DampedStep step = TryStep(ne, in, p, pairs, cfg, lambda, rec, res);

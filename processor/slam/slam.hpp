@@ -72,7 +72,12 @@ inline constexpr int kMaxNormalNeighbours = 64;  // SlamConfig::normal_neighbour
 struct SlamConfig {
     double min_time_separation_s = 30.0;  // t_d: pairs only between slices this far apart
     double max_pair_distance_m = 0.5;     // d_max: closest-point pairs closer than this
-    double section_length_s = 15.0;       // rigid sections and k-d tree blocks, seconds
+    // Pairs of a query point only with the passes over its cell (2 m) nearest in time: this many
+    // before it and this many after it, among those at least t_d away (0 = every pass, the seed
+    // paper: the cost then grows with the square of the survey's duration over a fixed pit).
+    // docs/decisions/015.
+    int max_partner_passes = 2;
+    double section_length_s = 15.0;  // rigid sections and k-d tree blocks, seconds
     // Rigid stage iterations (0: skip the stage): after an outage the stage creeps a few cm per
     // iteration along weakly constrained walls, so more iterations recover more drift for more
     // time; with good GNSS it stops early (score_patience). docs/decisions/005.
@@ -203,13 +208,22 @@ struct SlamIteration {
     SlamStage stage = SlamStage::kSemiRigid;
     int iteration = 0;          // 1-based within the stage
     std::size_t num_pairs = 0;  // point pairs used
-    double cost = 0;            // total cost (robust, whitened) before the step
-    double cost_after = 0;      // the same terms and pairs after the step (< cost if taken)
-    int rejected_steps = 0;     // damped steps that did not lower the cost
-    double damping = 0;         // Levenberg lambda of the step taken
-    double pair_rms_m = 0;      // RMS pair distance before the step
-    double pair_score_m = 0;    // pair score after the step (lower is better)
-    double consistency_m = 0;   // plane-fit score after the step (reported only)
+    // What the pairs link (max_partner_passes bounds them for a fixed pit however long the
+    // survey): distinct section pairs, the most sections one section is paired with, and the
+    // off-diagonal 6x6 blocks of the normal equations (node pairs the terms couple).
+    std::size_t num_section_pairs = 0;
+    std::size_t max_section_partners = 0;
+    std::size_t normal_equation_blocks = 0;
+    // CHOLMOD's analysis of them: nonzeros of the Cholesky factor and flops of one factorisation.
+    double factor_nonzeros = 0;
+    double factor_flops = 0;
+    double cost = 0;           // total cost (robust, whitened) before the step
+    double cost_after = 0;     // the same terms and pairs after the step (< cost if taken)
+    int rejected_steps = 0;    // damped steps that did not lower the cost
+    double damping = 0;        // Levenberg lambda of the step taken
+    double pair_rms_m = 0;     // RMS pair distance before the step
+    double pair_score_m = 0;   // pair score after the step (lower is better)
+    double consistency_m = 0;  // plane-fit score after the step (reported only)
     double max_step_rotation_rad = 0;
     double max_step_translation_m = 0;
     bool best = false;  // this iterate has the best pair score so far

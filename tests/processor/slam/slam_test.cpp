@@ -322,6 +322,63 @@ TEST(Slam, GnssRecoveryStartsShortSections) {
 // Interpolated section corrections (the default): on this small world they recover less than
 // rigid sections (measured 0.145 m from 0.265 m, rigid sections 0.13 m or less), but still most
 // of the perturbation; on the gps-outage scenario they do better (continuous track).
+// N passes back and forth over one 40 m line. With max_partner_passes the sections one section
+// is paired with, and the node pairs of the normal equations per pose, stay as they are when
+// the survey doubles (docs/decisions/015); with every pass (0, the seed paper) they grow with N.
+// The pairs found are the same on every run.
+SlamResult RepeatedLine(int passes, int max_partner_passes) {
+    std::vector<Waypoint> wps;
+    for (int i = 0; i <= passes; ++i) wps.push_back({i % 2 == 0 ? -20.0 : 20.0, 0.0});
+    const Survey sv = MakeSurvey(wps, 1.0);
+    SlamConfig cfg = TestConfig();
+    cfg.rigid_iterations = 1;
+    cfg.max_iterations = 1;
+    cfg.max_partner_passes = max_partner_passes;
+    return RunSlam(sv.slices, cfg);
+}
+
+TEST(Slam, PartnersPerSectionStayBoundedAsPassesRepeat) {
+    struct Links {
+        std::size_t section_partners = 0;  // most over the iterations
+        double blocks_per_pose = 0;        // semi-rigid normal equations
+    };
+    auto links = [](const SlamResult& r) {
+        Links l;
+        for (const SlamIteration& it : r.iterations) {
+            l.section_partners = std::max(l.section_partners, it.max_section_partners);
+            if (it.stage == SlamStage::kSemiRigid) {
+                l.blocks_per_pose = static_cast<double>(it.normal_equation_blocks) /
+                                    static_cast<double>(r.num_poses);
+            }
+        }
+        return l;
+    };
+    const SlamResult eight = RepeatedLine(8, 2);
+    const SlamResult sixteen = RepeatedLine(16, 2);
+    const SlamResult all = RepeatedLine(16, 0);
+    for (const SlamResult* r : {&eight, &sixteen, &all}) {
+        ASSERT_EQ(r->iterations.size(), 2u) << r->message;
+        EXPECT_GT(r->iterations.front().num_pairs, 1000u);
+    }
+    const Links l8 = links(eight), l16 = links(sixteen), l_all = links(all);
+    // Measured: 13 and 13 sections (30 with every pass); 7.6 and 9.0 node pairs per pose (20.9
+    // with every pass: the mean still rises from 8 to 16 passes as the first and last passes,
+    // which have partners on one side only, weigh less).
+    EXPECT_EQ(l16.section_partners, l8.section_partners);
+    EXPECT_GT(l_all.section_partners, 2 * l16.section_partners);
+    EXPECT_LT(l16.blocks_per_pose, 0.6 * l_all.blocks_per_pose);
+    // The same pairs and links on a second run (the first search, from the input poses: later
+    // ones follow steps whose sums depend on the thread order at the level of rounding).
+    const SlamResult again = RepeatedLine(16, 2);
+    ASSERT_FALSE(again.iterations.empty());
+    const SlamIteration& a = again.iterations.front();
+    const SlamIteration& b = sixteen.iterations.front();
+    EXPECT_EQ(a.num_pairs, b.num_pairs);
+    EXPECT_EQ(a.num_section_pairs, b.num_section_pairs);
+    EXPECT_EQ(a.max_section_partners, b.max_section_partners);
+    EXPECT_EQ(a.normal_equation_blocks, b.normal_equation_blocks);
+}
+
 TEST(Slam, InterpolatedSectionsRecoverMostOfAPerturbation) {
     const Survey sv = MakeSurvey(kCrossing, 1.0);
     SlamConfig cfg = TestConfig();
