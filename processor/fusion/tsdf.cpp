@@ -752,24 +752,14 @@ std::int64_t MergeSlabs(SlabMap& slabs,
 constexpr int kFar = 1 << 30;
 constexpr ClipBox kEverywhere{-kFar, kFar, -kFar, kFar};
 
-// Whether scan `scan` can update a voxel of `region` (voxel units): its sonar within
-// 1.5 r_max + T (horizontally) of the region's columns, r_max its longest range within the
-// range gate. The footprint's range line, the interpolation between sectors and the
-// along-track slope keep a voxel's range near the measured ones; 1.5 leaves room for all three.
+// Whether scan `scan` can update a voxel of `region` (voxel indices): ReachOf meets the
+// region's columns (their world extent, half a voxel beyond the centres).
 bool ScanReaches(const SonarScan& scan, const TsdfConfig& config, const ClipBox& region) {
-    double r_max = 0;
-    for (float r : scan.ranges_m) {
-        if (std::isfinite(r) && r >= config.min_range_m && r <= config.max_range_m) {
-            r_max = std::max(r_max, static_cast<double>(r));
-        }
-    }
-    if (r_max == 0) return false;
-    const Eigen::Vector3d p = scan.T_world_sonar.translation() / config.voxel_size_m;
-    if (!p.allFinite()) return true;  // PrepareScan counts it out of bounds
-    const double reach = (1.5 * r_max + config.truncation_m) / config.voxel_size_m + 2;
-    const double dx = std::max({region.x_min - p.x(), p.x() - region.x_max, 0.0});
-    const double dy = std::max({region.y_min - p.y(), p.y() - region.y_max, 0.0});
-    return dx * dx + dy * dy <= reach * reach;
+    const ScanReach r = ReachOf(scan, config);
+    if (r.empty()) return false;
+    const double s = config.voxel_size_m;
+    return r.x_max >= (region.x_min - 0.5) * s && r.x_min <= (region.x_max + 0.5) * s &&
+           r.y_max >= (region.y_min - 0.5) * s && r.y_min <= (region.y_max + 0.5) * s;
 }
 
 // The runs of consecutive scans of [begin, end) that can reach the region (all of them without
@@ -873,6 +863,34 @@ TsdfVolume::TsdfVolume(const TsdfConfig& config) : config_(config), impl_(new Im
 TsdfVolume::TsdfVolume(const TsdfConfig& config, const VoxelColumns& region) : TsdfVolume(config) {
     PITMAP_CHECK(region.Aligned(), "TsdfVolume: region not on kRegionAlignVoxels");
     region_ = region;
+}
+
+ScanReach ReachOf(const SonarScan& scan, const TsdfConfig& config) {
+    ScanReach out;
+    const Eigen::Vector3d p = scan.T_world_sonar.translation();
+    const Eigen::Matrix3d R = scan.T_world_sonar.linear();
+    if (!p.allFinite() || !R.allFinite()) {
+        constexpr double kAll = 1e12;
+        return {-kAll, kAll, -kAll, kAll};
+    }
+    double r_max = 0;
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+        const float r = scan.ranges_m[i];
+        if (!(std::isfinite(r) && r >= config.min_range_m && r <= config.max_range_m)) continue;
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        const Eigen::Vector3d hit =
+            p + R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta)) * static_cast<double>(r);
+        x0 = std::min(x0, hit.x());
+        x1 = std::max(x1, hit.x());
+        y0 = std::min(y0, hit.y());
+        y1 = std::max(y1, hit.y());
+        r_max = std::max(r_max, static_cast<double>(r));
+    }
+    if (r_max == 0) return out;
+    const double margin =
+        config.truncation_m + 0.1 * r_max + config.ping_gap_fill_m + 2 * config.voxel_size_m;
+    return {x0 - margin, x1 + margin, y0 - margin, y1 + margin};
 }
 
 bool VoxelColumns::Aligned() const {

@@ -193,6 +193,17 @@ TriangleMesh KeepTrianglesIn(const TriangleMesh& mesh,
                              const VoxelColumns& columns,
                              double voxel_size_m);
 
+// The horizontal box (world metres) holding every voxel a scan can update: the hit points of
+// its beams within the range gate, grown by T + 0.1 r_max + ping_gap_fill_m + 2 voxels (the
+// beam's cone, r tan(bw / 2) = 0.013 r at 1.5 deg, the footprint's range line and along-track
+// slope, the gap fill out of the fan plane). Empty (x_min > x_max) without a valid beam;
+// everything for a pose that is not finite (Integrate counts it out of bounds).
+struct ScanReach {
+    double x_min = 0, x_max = -1, y_min = 0, y_max = -1;
+    bool empty() const { return !(x_min <= x_max); }
+};
+ScanReach ReachOf(const SonarScan& scan, const TsdfConfig& config);
+
 // THREADING: Integrate uses up to num_threads TBB workers internally. Space is cut into slabs
 // along world x; the scans are taken in chunks of consecutive scans, and each slab integrates
 // a chunk's scans in input order in one task, so the result is identical for any thread count
@@ -205,8 +216,7 @@ public:
     // Precondition: config.Validate() is empty.
     explicit TsdfVolume(const TsdfConfig& config);
     // Restricted to `region` (VoxelColumns): Integrate updates its voxels only, and skips the
-    // scans whose ranges cannot reach it (the sonar further from it horizontally than 1.5 times
-    // the scan's longest valid range plus the truncation). Precondition: region.Aligned().
+    // scans that cannot reach it (ReachOf). Precondition: region.Aligned().
     TsdfVolume(const TsdfConfig& config, const VoxelColumns& region);
     ~TsdfVolume();
     TsdfVolume(TsdfVolume&&) noexcept;

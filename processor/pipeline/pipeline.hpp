@@ -50,6 +50,7 @@
 #include "processor/mesh/surface.hpp"
 #include "processor/pipeline/grid_stage.hpp"
 #include "processor/pipeline/metadata.hpp"
+#include "processor/pipeline/tiles.hpp"
 #include "processor/slam/slam.hpp"
 #include "processor/svp/refraction.hpp"
 
@@ -131,6 +132,7 @@ struct PipelineConfig {
     RunOptions run;
     QualityConfig quality;
     GridStageConfig grid;  // the `grid:` section (grid_stage.hpp)
+    TilesConfig tiles;     // the `tiles:` section (tiles.hpp): grid and fuse by tiles
     // The report program (pitmap-report); set by the command line, "" = no report.
     std::string report_program;
     // World origin; NaN = the first INS position.

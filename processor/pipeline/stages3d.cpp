@@ -16,9 +16,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
@@ -552,6 +554,182 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
+namespace {
+
+// One TSDF tile's mesh: the triangles whose centroid lies in its core (fusion::KeepTrianglesIn).
+struct MeshTile {
+    TileIndex index;
+    fusion::VoxelColumns core;
+    fusion::TriangleMesh mesh;
+};
+
+// The TSDF of the whole survey tile by tile (tiles.hpp): each tile a volume restricted to its
+// core and overlap that integrates the scans reaching it, its core copied into `volume` (the
+// same voxels as one volume of the whole survey, fusion::VoxelColumns), and, for P/tiles/mesh,
+// its own mesh (weight filter, iso-surface, the seam rule). The tiles cover every voxel a scan
+// can reach (fusion::ReachOf, the bound TsdfVolume skips scans by). Returns the tiles' integration
+// counts summed (a scan reaching several tiles is counted in each) and the record.
+fusion::IntegrateResult IntegrateByTiles(const std::vector<fusion::SonarScan>& scans,
+                                         const fusion::TsdfConfig& tcfg,
+                                         const PipelineConfig& config,
+                                         fusion::TsdfVolume& volume,
+                                         std::vector<MeshTile>* meshes,
+                                         const ProgressCallback& progress,
+                                         json& record) {
+    const auto start = std::chrono::steady_clock::now();
+    const double vs = tcfg.voxel_size_m;
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (const fusion::SonarScan& scan : scans) {
+        const fusion::ScanReach r = fusion::ReachOf(scan, tcfg);
+        if (r.empty() || !(r.x_max - r.x_min < 1e6)) continue;  // no beams, or not finite
+        x0 = std::min(x0, r.x_min);
+        x1 = std::max(x1, r.x_max);
+        y0 = std::min(y0, r.y_min);
+        y1 = std::max(y1, r.y_max);
+    }
+    fusion::IntegrateResult sum;
+    sum.scans = static_cast<std::int64_t>(scans.size());
+    if (!(x0 <= x1)) {
+        sum.message = "no valid beams";
+        return sum;
+    }
+    const fusion::VoxelColumns extent{static_cast<std::int32_t>(std::floor(x0 / vs)),
+                                      static_cast<std::int32_t>(std::ceil(x1 / vs)),
+                                      static_cast<std::int32_t>(std::floor(y0 / vs)),
+                                      static_cast<std::int32_t>(std::ceil(y1 / vs))};
+    const int m = VoxelsPerTile(config.tiles, vs);
+    const int overlap = OverlapVoxels(config.tiles, vs);
+    const std::vector<VoxelTile> tiles = VoxelTiles(extent, m, overlap);
+    std::int64_t tiles_with_voxels = 0, max_tile_voxels = 0;
+    std::size_t max_tile_bytes = 0;
+    for (std::size_t k = 0; k < tiles.size() && !sum.cancelled; ++k) {
+        const VoxelTile& tile = tiles[k];
+        fusion::TsdfVolume part(tcfg, tile.region);
+        const auto tile_progress = [&](double f) {
+            return !progress || progress((static_cast<double>(k) + f) / tiles.size());
+        };
+        const fusion::IntegrateResult ir = part.Integrate(scans, tile_progress);
+        sum.scans_out_of_bounds += ir.scans_out_of_bounds;
+        sum.beams_used += ir.beams_used;
+        sum.beams_no_detection += ir.beams_no_detection;
+        sum.beams_out_of_range += ir.beams_out_of_range;
+        sum.beams_inconsistent += ir.beams_inconsistent;
+        sum.voxel_updates += ir.voxel_updates;
+        sum.prepare_s += ir.prepare_s;
+        sum.rasterise_s += ir.rasterise_s;
+        sum.merge_s += ir.merge_s;
+        sum.cpu_s += ir.cpu_s;
+        sum.cancelled = ir.cancelled;
+        const fusion::VolumeStats st = part.Stats();
+        if (st.active_voxels == 0) continue;
+        ++tiles_with_voxels;
+        max_tile_voxels = std::max(max_tile_voxels, st.active_voxels);
+        max_tile_bytes = std::max(max_tile_bytes, st.memory_bytes);
+        volume.CopyColumns(part, tile.core);
+        if (meshes != nullptr) {
+            part.FilterByWeight(config.weight_filter);
+            fusion::TriangleMesh cut = fusion::KeepTrianglesIn(
+                part.ExtractIsoSurface(config.mesh.iso_m).mesh, tile.core, vs);
+            if (!cut.triangles.empty()) meshes->push_back({tile.index, tile.core, std::move(cut)});
+        }
+    }
+    sum.active_voxels = volume.Stats().active_voxels;
+    sum.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    sum.message = std::string(sum.cancelled ? "cancelled: " : "") + std::to_string(tiles.size()) +
+                  " tiles of " + std::to_string(m) + " voxels (overlap " + std::to_string(overlap) +
+                  "), " + std::to_string(tiles_with_voxels) + " with voxels; " +
+                  std::to_string(sum.voxel_updates) + " voxel updates, " +
+                  std::to_string(sum.active_voxels) + " active voxels";
+    record = {{"tile_size_m", config.tiles.tile_size_m},
+              {"overlap_m", config.tiles.overlap_m},
+              {"voxels_per_tile", m},
+              {"overlap_voxels", overlap},
+              {"tiles", tiles.size()},
+              {"tiles_with_voxels", tiles_with_voxels},
+              {"max_tile_active_voxels", max_tile_voxels},
+              {"max_tile_memory_mb", static_cast<double>(max_tile_bytes) / (1024.0 * 1024.0)},
+              {"counts", "summed over the tiles (a scan reaching several is counted in each)"}};
+    return sum;
+}
+
+// P/tiles/mesh/mesh_I_J.glb per tile mesh (coloured by depth over the tiles' joint z range, or
+// mesh.colour_*), and P/tiles/mesh/index.json: each tile's file, bounds (local ENU, m: the
+// core's x, y and the mesh's z) and counts, for a viewer that loads the tiles in view.
+Status WriteMeshTiles(const StageContext& s,
+                      const std::vector<MeshTile>& tiles,
+                      const fusion::TsdfConfig& tcfg,
+                      const PipelineConfig& config,
+                      json& record) {
+    namespace fs = std::filesystem;
+    const std::string dir = s.out_dir + "/tiles/mesh";
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    fs::create_directories(dir, ec);
+    if (ec) return Error{dir + ": " + ec.message()};
+    double lo = config.mesh.colour_min_z_m, hi = config.mesh.colour_max_z_m;
+    if (lo == 0 && hi == 0) {
+        lo = std::numeric_limits<double>::infinity();
+        hi = -lo;
+        for (const MeshTile& t : tiles) {
+            for (const Eigen::Vector3f& v : t.mesh.vertices) {
+                lo = std::min(lo, static_cast<double>(v.z()));
+                hi = std::max(hi, static_cast<double>(v.z()));
+            }
+        }
+    }
+    const double vs = tcfg.voxel_size_m;
+    json list = json::array();
+    std::int64_t triangles = 0;
+    for (const MeshTile& t : tiles) {
+        mesh::ColouredMesh m;
+        m.vertices = t.mesh.vertices;
+        m.triangles = t.mesh.triangles;
+        double z0 = std::numeric_limits<double>::infinity(), z1 = -z0;
+        for (const Eigen::Vector3f& v : m.vertices) {
+            m.colours.push_back(mesh::DepthColour(v.z(), lo, hi));
+            z0 = std::min(z0, static_cast<double>(v.z()));
+            z1 = std::max(z1, static_cast<double>(v.z()));
+        }
+        const std::string name = "mesh_" + TileName(t.index) + ".glb";
+        if (auto w = mesh::WriteGlb(m, dir + "/" + name, s.model.origin, s.model.run_id); !w)
+            return w;
+        triangles += static_cast<std::int64_t>(m.triangles.size());
+        list.push_back({{"i", t.index.i},
+                        {"j", t.index.j},
+                        {"file", name},
+                        {"min_m", {(t.core.x_min - 0.5) * vs, (t.core.y_min - 0.5) * vs, z0}},
+                        {"max_m", {(t.core.x_max + 0.5) * vs, (t.core.y_max + 0.5) * vs, z1}},
+                        {"vertices", m.vertices.size()},
+                        {"triangles", m.triangles.size()}});
+    }
+    const json index = {
+        {"format", "pitmap mesh tiles 1"},
+        {"frame", "local ENU at the origin, metres (glTF files: y up, (E, U, -N))"},
+        {"origin",
+         {{"latitude_deg", s.model.origin.latitude_deg},
+          {"longitude_deg", s.model.origin.longitude_deg},
+          {"height_m", s.model.origin.height_m}}},
+        {"seam_rule", "a triangle belongs to the tile whose core holds its centroid"},
+        {"voxel_size_m", vs},
+        {"tile_size_m", VoxelsPerTile(config.tiles, vs) * vs},
+        {"colour_z_m", {lo, hi}},
+        {"tiles", list}};
+    if (auto w = formats::WriteReplacing(dir + "/index.json",
+                                         [&](const std::string& partial) -> Status {
+                                             std::ofstream f(partial);
+                                             f << index.dump(1) << "\n";
+                                             if (!f) return Error{partial + ": cannot write"};
+                                             return Ok{};
+                                         });
+        !w)
+        return w;
+    record["mesh_tiles"] = list.size();
+    record["mesh_tile_triangles"] = triangles;
+    return Ok{};
+}
+
+}  // namespace
+
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
@@ -577,7 +755,19 @@ Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
     // before the reset for the stage's own peak_rss_mb.
     clock.ResetPeakWithinStage();
     const double rss_before_integrate_mb = PeakRssMb();
-    const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
+    // Tiles: the final fuse only (the initial one is a picture at coarser voxels).
+    const bool by_tiles = config.tiles.enabled && stage == Stage::kFuse;
+    std::vector<MeshTile> mesh_tiles;
+    json tiles_record;
+    const fusion::IntegrateResult ir =
+        by_tiles ? IntegrateByTiles(scans,
+                                    tcfg,
+                                    config,
+                                    volume,
+                                    config.tiles.write_products ? &mesh_tiles : nullptr,
+                                    bar.AsCallback(),
+                                    tiles_record)
+                 : volume.Integrate(scans, bar.AsCallback());
     const double integrate_peak_mb = PeakRssMb() - rss_before_integrate_mb;
     bar.Finish();
     log(name + ": " + ir.message);
@@ -600,6 +790,11 @@ Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)}});
     st["weight_histogram"] = hist;
     st["weight_histogram"]["before_filter"] = true;
+    if (by_tiles && config.tiles.write_products) {
+        if (auto w = WriteMeshTiles(s, mesh_tiles, tcfg, config, tiles_record); !w)
+            return w.error();
+    }
+    if (by_tiles) st["tiles"] = tiles_record;
     if (stage == Stage::kFuse) {
         const std::vector<std::pair<std::string, std::string>> meta = {
             {"pitmap_origin_latitude_deg", Fixed(s.model.origin.latitude_deg, 9)},
