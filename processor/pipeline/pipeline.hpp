@@ -203,6 +203,17 @@ Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, c
 Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `pitmap fuse --tile I,J`: one TSDF tile alone on P's survey (tiles.hpp): P/tiles/tsdf/
+// tsdf_I_J.vdb (the core's voxels before the weight filter), P/tiles/mesh/mesh_I_J.glb and its
+// index entry mesh_I_J.json; a campaign's per-tile job. Fails naming a tile the survey does not
+// have.
+Status RunFuseTile(const std::string& out_dir,
+                   const PipelineConfig& config,
+                   TileIndex tile,
+                   const Log& log);
+// `pitmap fuse --merge-tiles`: the tiles' cores as the survey's volume, filtered and written as
+// P/tsdf.vdb (the fuse stage's record), and P/tiles/mesh/index.json from the tiles' entries.
+Status RunMergeFuseTiles(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 // Every stage from the logs to the report, in memory; products and summary.json are written

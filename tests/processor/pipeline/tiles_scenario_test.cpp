@@ -3,9 +3,10 @@
 // first 120 s of bejanca run whole and by tiles (40 m tiles, 12 m overlap). The tiled run's
 // DEM equals the whole run's node for node (every band, max difference 0), its TSDF voxel for
 // voxel (distance and weight bit for bit), the DEM tiles' VRT reads back as the DEM, and the mesh
-// tiles hold the whole mesh's triangles. A tile size too small for the voxel size and an overlap
-// below the truncation stop the run at start, naming both.
-// PITMAP_TILES_DURATION_S sets another duration (docs/tiles.md measures the whole survey so).
+// tiles hold the whole mesh's triangles. Each TSDF tile run alone (`pitmap fuse --tile I,J`)
+// and merged (`--merge-tiles`) gives the whole TSDF again. A tile size too small for the voxel size
+// and an overlap below the truncation stop the run at start, naming both. PITMAP_TILES_DURATION_S
+// sets another duration (docs/tiles.md measures the whole survey so).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -147,6 +148,38 @@ TEST(TilesScenario, TiledBejancaEqualsTheWholeRunAtTheSeams) {
         triangles += t["triangles"].get<std::int64_t>();
     }
     EXPECT_EQ(triangles, mesh["triangles"].get<std::int64_t>());
+
+    // Each tile alone (`pitmap fuse --tile I,J`, a campaign's per-tile job) on a copy of the
+    // whole run's folder, then the merge: the whole run's TSDF again, voxel for voxel.
+    const fs::path jobs = dir / "jobs";
+    fs::copy(whole, jobs, fs::copy_options::recursive);
+    const auto& ij = fuse["tiles"]["tiles_with_voxels_ij"];
+    ASSERT_GE(ij.size(), 4u);
+    for (const auto& t : ij) {
+        const std::string tile =
+            std::to_string(t[0].get<int>()) + "," + std::to_string(t[1].get<int>());
+        ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(jobs) + " --config " +
+                                 Quote(dir / "tiled.yaml") + " --tile=" + tile,
+                             &out),
+                  0)
+            << tile << ": " << out;
+    }
+    ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(jobs) + " --config " +
+                             Quote(dir / "tiled.yaml") + " --merge-tiles",
+                         &out),
+              0)
+        << out;
+    EXPECT_TRUE(Voxels(jobs / "tsdf.vdb") == va);
+    const auto merged = ReadJson(jobs / "tiles/mesh/index.json");
+    std::int64_t merged_triangles = 0;
+    for (const auto& t : merged["tiles"]) merged_triangles += t["triangles"].get<std::int64_t>();
+    EXPECT_EQ(merged_triangles, mesh["triangles"].get<std::int64_t>());
+    // A tile the survey does not have is refused, naming it.
+    EXPECT_NE(RunCommand(kBin + "/pitmap fuse --out " + Quote(jobs) + " --config " +
+                             Quote(dir / "tiled.yaml") + " --tile=900,900 2>&1",
+                         &out),
+              0);
+    EXPECT_NE(out.find("tile 900_900 is not one of the survey's"), std::string::npos) << out;
 }
 
 TEST(TilesScenario, TilesTooSmallForTheVoxelsStopTheRunAtStart) {
