@@ -33,7 +33,7 @@ namespace pitmap::proc::pipeline {
 struct TilesConfig {
     bool enabled = false;        // grid and fuse by tiles, and the tiled products
     double tile_size_m = 100;    // nominal tile edge, m
-    double overlap_m = 25;       // data taken around a tile's core, m (checks below)
+    double overlap_m = 12;       // data taken around a tile's core, m (checks below)
     bool write_products = true;  // P/tiles/ (dem tiles + VRT, mesh tiles + index)
 
     std::vector<std::string> Validate() const;
