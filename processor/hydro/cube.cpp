@@ -811,6 +811,10 @@ CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
     CubeResult out;
     const auto limit = ThreadLimit(config);
     const double res = config.resolution_m;
+    if (!(res > 0) || core.nx() <= 0 || core.ny() <= 0 || !(overlap_m >= 0)) {
+        out.message = "grid: a tile needs the survey's resolution, a core and an overlap";
+        return out;
+    }
     const double cell = res * config.predicted_surface_cells;
     const double half = res / 2;
     const std::int64_t a0 =

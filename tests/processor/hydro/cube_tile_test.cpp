@@ -2,7 +2,7 @@
 // CUBE by tiles (processor/hydro/cube.hpp RunCubeTile): a grid assembled from tiles, each
 // computed alone from the soundings around it, equals the whole survey's grid node for node,
 // bit for bit, for every disambiguation; with less overlap than CubeTileReach it does not
-// (the comparison can fail); a tile far from the soundings is empty.
+// (the comparison can fail); a tile far from the soundings is empty; bad arguments are refused.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -147,6 +147,11 @@ TEST(CubeTile, LayOutMatchesRunCubeAndATileWithoutSoundingsIsEmpty) {
     ASSERT_TRUE(t.ok) << t.message;
     EXPECT_EQ(t.nodes_filled, 0);
     EXPECT_TRUE(std::isnan(t.grid.elevation_m[0]));
+    // Without the survey's resolution, or without a core: refused, not a crash.
+    CubeConfig auto_res = c;
+    auto_res.resolution_m = 0;
+    EXPECT_FALSE(RunCubeTile(s, auto_res, far, far, 5.0).ok);
+    EXPECT_FALSE(RunCubeTile(s, c, CubeNodeRange{3, 3, 3, 9}, far, 5.0).ok);
 }
 
 }  // namespace
