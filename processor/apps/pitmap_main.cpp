@@ -115,6 +115,8 @@ struct Options {
     int edit_port = 8767;
     bool no_open = false;
     std::string rerun_program;
+    std::string fuse_tile;  // fuse --tile I,J
+    bool merge_tiles = false;
     std::vector<std::string> compare_inputs;
     int compare_dof = 6;
     bool compare_no_3d = false;
@@ -170,6 +172,13 @@ void DeclareStageCommands(CLI::App& app, Options& o, Commands& c) {
     c.grid = app.add_subcommand(
         "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
     c.fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
+    c.fuse->add_option("--tile",
+                       o.fuse_tile,
+                       "I,J: one TSDF tile alone (config tiles:; P/tiles/tsdf, P/tiles/mesh; "
+                       "negative indices as --tile=-1,2), then --merge-tiles");
+    c.fuse->add_flag("--merge-tiles",
+                     o.merge_tiles,
+                     "P/tsdf.vdb and P/tiles/mesh/index.json from the tiles of --tile");
     c.mesh = app.add_subcommand("mesh", "surface mesh from the folder's tsdf.vdb");
     c.report = app.add_subcommand("report", "report.html of a products folder");
     c.rerun = app.add_subcommand(
@@ -401,6 +410,25 @@ int RunInfoCommand(const Options& o, const pp::PipelineConfig& config) {
 }
 
 // georef, a stage, rerun or run on P, holding P's lock; the gates the stages tripped.
+// `pitmap fuse`, of the whole survey, one tile (--tile I,J) or the merge of the tiles.
+pitmap::Status RunFuseCommand(const Options& o,
+                              const pp::PipelineConfig& config,
+                              const pp::Log& log) {
+    if (o.fuse_tile.empty() && !o.merge_tiles) return pp::RunFuseStage(o.out_dir, config, log);
+    if (!config.tiles.enabled)
+        return pitmap::Error{"fuse: --tile and --merge-tiles need tiles.enabled"};
+    if (o.merge_tiles) return pp::RunMergeFuseTiles(o.out_dir, config, log);
+    pp::TileIndex t;
+    char rest = 0;
+    long long i = 0, j = 0;
+    if (std::sscanf(o.fuse_tile.c_str(), "%lld,%lld%c", &i, &j, &rest) != 2) {
+        return pitmap::Error{"fuse: --tile " + o.fuse_tile + ": expected I,J (two integers)"};
+    }
+    t.i = i;
+    t.j = j;
+    return pp::RunFuseTile(o.out_dir, config, t, log);
+}
+
 int RunStageCommand(const Commands& c,
                     const Options& o,
                     const pp::PipelineConfig& config,
@@ -420,7 +448,7 @@ int RunStageCommand(const Commands& c,
     if (c.clean->parsed()) status = pp::RunCleanStage(P, config, log);
     if (c.rerun->parsed()) status = pp::RunFromSurvey(P, config, log);
     if (c.grid->parsed()) status = pp::RunGridStage(P, config, log);
-    if (c.fuse->parsed()) status = pp::RunFuseStage(P, config, log);
+    if (c.fuse->parsed()) status = RunFuseCommand(o, config, log);
     if (c.mesh->parsed()) status = pp::RunMeshStage(P, config, log);
     if (c.report->parsed()) status = pp::RunReportStage(P, config, log);
     if (c.run->parsed()) status = pp::RunAll(o.inputs, P, config, log);

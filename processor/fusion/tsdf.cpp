@@ -48,11 +48,13 @@ using LeafT = FloatTree::LeafNodeType;
 using openvdb::Coord;
 
 constexpr int kSlabVoxels = 64;  // multiple of LeafT::DIM (8)
+static_assert(kRegionAlignVoxels % kSlabVoxels == 0);
 // Inside a slab, runs of kBatchScans scans are replayed band by band along y (kBandVoxels wide):
 // a ping's fan crosses the whole swath, and walking it band by band keeps the leaves of the
 // last few pings in the core's cache instead of streaming the swath's leaves for every ping.
 // Each voxel lies in one band, so it still sees its updates in input order.
 constexpr int kBandVoxels = 64;
+static_assert(kRegionAlignVoxels % kBandVoxels == 0);
 constexpr std::size_t kBatchScans = 64;
 // Scans prepared at a time (held until the chunk is done: ~36 bytes per beam, and in
 // beam-width mode ~40 KB of sectors, boundaries and column bins per ping). 512 keeps the
@@ -586,13 +588,19 @@ void AssignSlabs(const std::vector<PreparedScan>& prepared,
                  const OldLeaves& old,
                  float trunc,
                  double voxel_size_m,
+                 const ClipBox& region,
                  SlabMap& slabs) {
     for (auto& entry : slabs) entry.second.work = 0;  // (views::values: not with clang 14)
     int last_k = std::numeric_limits<int>::min();
     Slab* last = nullptr;
+    const int k_min = FloorDiv(region.x_min, kSlabVoxels);
+    const int k_max = FloorDiv(region.x_max, kSlabVoxels);
     for (const PreparedScan& ps : prepared) {
         for (const PreparedBeam& pb : ps.beams) {
-            for (int k = FloorDiv(pb.x_lo, kSlabVoxels); k <= FloorDiv(pb.x_hi, kSlabVoxels); ++k) {
+            if (pb.y_hi < region.y_min || pb.y_lo > region.y_max) continue;
+            for (int k = std::max(k_min, FloorDiv(pb.x_lo, kSlabVoxels));
+                 k <= std::min(k_max, FloorDiv(pb.x_hi, kSlabVoxels));
+                 ++k) {
                 if (k != last_k) {
                     last = &slabs[k];
                     last_k = k;
@@ -625,6 +633,7 @@ struct ChunkWork {
     bool beam_width;  // IntegrateFan, else IntegrateRay per beam
     float f, w_max;
     const std::atomic<bool>& cancel;
+    ClipBox region;  // the volume's region (slab- and band-aligned), or everything
 };
 
 // One scan's voxels inside box.
@@ -671,6 +680,8 @@ void IntegrateSlab(const ChunkWork& work, int k, Slab& slab) {
             y_lo = std::min(y_lo, ps.y_lo);
             y_hi = std::max(y_hi, ps.y_hi);
         }
+        y_lo = std::max(y_lo, work.region.y_min);
+        y_hi = std::min(y_hi, work.region.y_max);
         if (y_lo > y_hi) continue;
         for (int band = FloorDiv(y_lo, kBandVoxels); band <= FloorDiv(y_hi, kBandVoxels); ++band) {
             const ClipBox box{sx0, sx1, band * kBandVoxels, band * kBandVoxels + kBandVoxels - 1};
@@ -734,6 +745,45 @@ std::int64_t MergeSlabs(SlabMap& slabs,
     distance = new_d;
     weight = new_w;
     return updates;
+}
+
+// Everything, as a ClipBox (far beyond kMaxSonarOffsetM + kMaxRangeVoxels voxels, and with
+// room for FloorDiv).
+constexpr int kFar = 1 << 30;
+constexpr ClipBox kEverywhere{-kFar, kFar, -kFar, kFar};
+
+// Whether scan `scan` can update a voxel of `region` (voxel indices): ReachOf meets the
+// region's columns (their world extent, half a voxel beyond the centres).
+bool ScanReaches(const SonarScan& scan, const TsdfConfig& config, const ClipBox& region) {
+    const ScanReach r = ReachOf(scan, config);
+    if (r.empty()) return false;
+    const double s = config.voxel_size_m;
+    return r.x_max >= (region.x_min - 0.5) * s && r.x_min <= (region.x_max + 0.5) * s &&
+           r.y_max >= (region.y_min - 0.5) * s && r.y_min <= (region.y_max + 0.5) * s;
+}
+
+// The runs of consecutive scans of [begin, end) that can reach the region (all of them without
+// one).
+std::vector<std::pair<std::size_t, std::size_t>> ScanRuns(const std::vector<SonarScan>& scans,
+                                                          std::size_t begin,
+                                                          std::size_t end,
+                                                          const TsdfConfig& config,
+                                                          const std::optional<VoxelColumns>& r) {
+    std::vector<std::pair<std::size_t, std::size_t>> runs;
+    if (!r) {
+        if (begin < end) runs.emplace_back(begin, end);
+        return runs;
+    }
+    const ClipBox region{r->x_min, r->x_max, r->y_min, r->y_max};
+    for (std::size_t i = begin; i < end; ++i) {
+        if (!ScanReaches(scans[i], config, region)) continue;
+        if (!runs.empty() && runs.back().second == i) {
+            runs.back().second = i + 1;
+        } else {
+            runs.emplace_back(i, i + 1);
+        }
+    }
+    return runs;
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point t) {
@@ -810,6 +860,45 @@ TsdfVolume::TsdfVolume(const TsdfConfig& config) : config_(config), impl_(new Im
     impl_->weight = MakeGrid(0.0f, config_.voxel_size_m, "weight");
 }
 
+TsdfVolume::TsdfVolume(const TsdfConfig& config, const VoxelColumns& region) : TsdfVolume(config) {
+    PITMAP_CHECK(region.Aligned(), "TsdfVolume: region not on kRegionAlignVoxels");
+    region_ = region;
+}
+
+ScanReach ReachOf(const SonarScan& scan, const TsdfConfig& config) {
+    ScanReach out;
+    const Eigen::Vector3d p = scan.T_world_sonar.translation();
+    const Eigen::Matrix3d R = scan.T_world_sonar.linear();
+    if (!p.allFinite() || !R.allFinite()) {
+        constexpr double kAll = 1e12;
+        return {-kAll, kAll, -kAll, kAll};
+    }
+    double r_max = 0;
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+        const float r = scan.ranges_m[i];
+        if (!(std::isfinite(r) && r >= config.min_range_m && r <= config.max_range_m)) continue;
+        const float theta = scan.start_angle_rad + static_cast<float>(i) * scan.angle_increment_rad;
+        const Eigen::Vector3d hit =
+            p + R * Eigen::Vector3d(0.0, std::sin(theta), std::cos(theta)) * static_cast<double>(r);
+        x0 = std::min(x0, hit.x());
+        x1 = std::max(x1, hit.x());
+        y0 = std::min(y0, hit.y());
+        y1 = std::max(y1, hit.y());
+        r_max = std::max(r_max, static_cast<double>(r));
+    }
+    if (r_max == 0) return out;
+    const double margin =
+        config.truncation_m + 0.1 * r_max + config.ping_gap_fill_m + 2 * config.voxel_size_m;
+    return {x0 - margin, x1 + margin, y0 - margin, y1 + margin};
+}
+
+bool VoxelColumns::Aligned() const {
+    const auto on = [](std::int32_t v) { return v % kRegionAlignVoxels == 0; };
+    return x_min <= x_max && y_min <= y_max && on(x_min) && on(y_min) && on(x_max + 1) &&
+           on(y_max + 1);
+}
+
 TsdfVolume::~TsdfVolume() = default;
 TsdfVolume::TsdfVolume(TsdfVolume&&) noexcept = default;
 TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
@@ -848,12 +937,21 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     std::size_t total_beams = 0;
     std::vector<PreparedScan> prepared;
     std::vector<detail::ScanFootprints> footprints;  // of one chunk and its neighbours
-    for (std::size_t c0 = begin; c0 < end && !cancel.load(); c0 += kChunkScans) {
-        const std::size_t c1 = std::min(end, c0 + kChunkScans);
+    const ClipBox region =
+        region_ ? ClipBox{region_->x_min, region_->x_max, region_->y_min, region_->y_max}
+                : kEverywhere;
+    // Chunks of the runs of scans that can reach the region (one run of all without a region).
+    std::vector<std::pair<std::size_t, std::size_t>> chunks;
+    for (const auto& [r0, r1] : ScanRuns(scans, begin, end, config_, region_)) {
+        for (std::size_t c0 = r0; c0 < r1; c0 += kChunkScans)
+            chunks.emplace_back(c0, std::min(r1, c0 + kChunkScans));
+    }
+    for (const auto& [c0, c1] : chunks) {
+        if (cancel.load()) break;
         const auto t_prepare = std::chrono::steady_clock::now();
         PrepareChunk(scans, c0, c1, reach, config_, geo, arena, footprints, prepared);
         total_beams += CountPrepared(prepared, result);
-        AssignSlabs(prepared, old, trunc, config_.voxel_size_m, slabs);
+        AssignSlabs(prepared, old, trunc, config_.voxel_size_m, region, slabs);
         result.prepare_s += SecondsSince(t_prepare);
 
         const auto t_raster = std::chrono::steady_clock::now();
@@ -864,7 +962,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
                              config_.sensor_model == SensorModel::kBeamWidth,
                              config_.weight_per_measurement,
                              config_.max_weight,
-                             cancel};
+                             cancel,
+                             region};
         RasteriseChunk(work, slabs, arena, threads);
         result.rasterise_s += SecondsSince(t_raster);
         if (progress &&

@@ -28,7 +28,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -172,6 +174,36 @@ struct WeightHistogram {
     std::int64_t total = 0;  // active voxels counted (sum of counts)
 };
 
+// A region of voxel columns (world voxel indices, voxel centres at integer multiples of the
+// voxel size): x in [x_min, x_max], y in [y_min, y_max], every z. A volume restricted to a
+// region (a tile and its overlap) updates only its voxels, and each of them exactly as a
+// volume without region does (same updates, same order, same rounding): the edges must lie on
+// the rasteriser's slabs and bands, x_min and y_min multiples of kRegionAlignVoxels and
+// x_max + 1, y_max + 1 too.
+inline constexpr int kRegionAlignVoxels = 64;
+struct VoxelColumns {
+    std::int32_t x_min = 0, x_max = -1, y_min = 0, y_max = -1;
+    bool Aligned() const;  // the edges on kRegionAlignVoxels, and not empty
+};
+
+// The triangles of `mesh` whose centroid lies in `columns` (world x in [(x_min - 1/2) s,
+// (x_max + 1/2) s), y alike, s the voxel size): the seam rule of tiled meshes, each triangle of
+// the whole mesh in exactly one tile. Vertices are renumbered in first use order.
+TriangleMesh KeepTrianglesIn(const TriangleMesh& mesh,
+                             const VoxelColumns& columns,
+                             double voxel_size_m);
+
+// The horizontal box (world metres) holding every voxel a scan can update: the hit points of
+// its beams within the range gate, grown by T + 0.1 r_max + ping_gap_fill_m + 2 voxels (the
+// beam's cone, r tan(bw / 2) = 0.013 r at 1.5 deg, the footprint's range line and along-track
+// slope, the gap fill out of the fan plane). Empty (x_min > x_max) without a valid beam;
+// everything for a pose that is not finite (Integrate counts it out of bounds).
+struct ScanReach {
+    double x_min = 0, x_max = -1, y_min = 0, y_max = -1;
+    bool empty() const { return !(x_min <= x_max); }
+};
+ScanReach ReachOf(const SonarScan& scan, const TsdfConfig& config);
+
 // THREADING: Integrate uses up to num_threads TBB workers internally. Space is cut into slabs
 // along world x; the scans are taken in chunks of consecutive scans, and each slab integrates
 // a chunk's scans in input order in one task, so the result is identical for any thread count
@@ -183,6 +215,9 @@ class TsdfVolume {
 public:
     // Precondition: config.Validate() is empty.
     explicit TsdfVolume(const TsdfConfig& config);
+    // Restricted to `region` (VoxelColumns): Integrate updates its voxels only, and skips the
+    // scans that cannot reach it (ReachOf). Precondition: region.Aligned().
+    TsdfVolume(const TsdfConfig& config, const VoxelColumns& region);
     ~TsdfVolume();
     TsdfVolume(TsdfVolume&&) noexcept;
     TsdfVolume& operator=(TsdfVolume&&) noexcept;
@@ -219,6 +254,16 @@ public:
 
     VolumeStats Stats() const;
 
+    // Every observed voxel: its index (x, y, z), signed distance (m) and weight, in no
+    // particular order.
+    void ForEachVoxel(
+        const std::function<void(const Eigen::Vector3i&, float distance_m, float weight)>& visit)
+        const;
+    // Copies the voxels of `from` in `columns` into this volume (a tile's core into the whole),
+    // replacing what it held there. Preconditions: the same voxel size and truncation,
+    // columns.Aligned().
+    void CopyColumns(const TsdfVolume& from, const VoxelColumns& columns);
+
     // Weight histogram over the active voxels (config().max_weight is w_max).
     // num_bins = 0: one bin per unit weight, edges 0, 1, ..., W + 1 with W = ceil(w_max), so a
     // weight of exactly k lands in bin k and the cap w_max in the last bin.
@@ -230,8 +275,11 @@ public:
     const Impl& impl() const { return *impl_; }
     Impl& impl() { return *impl_; }
 
+    const std::optional<VoxelColumns>& region() const { return region_; }
+
 private:
     TsdfConfig config_;
+    std::optional<VoxelColumns> region_;
     std::unique_ptr<Impl> impl_;
 };
 

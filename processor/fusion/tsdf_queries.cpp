@@ -187,4 +187,63 @@ WeightHistogram TsdfVolume::ComputeWeightHistogram(int num_bins) const {
     return h;
 }
 
+void TsdfVolume::ForEachVoxel(
+    const std::function<void(const Eigen::Vector3i&, float, float)>& visit) const {
+    auto dacc = impl_->distance->getConstAccessor();
+    for (auto v = impl_->weight->cbeginValueOn(); v; ++v) {
+        if (!v.isVoxelValue()) continue;
+        const Coord c = v.getCoord();
+        visit(Eigen::Vector3i(c.x(), c.y(), c.z()), dacc.getValue(c), *v);
+    }
+}
+
+void TsdfVolume::CopyColumns(const TsdfVolume& from, const VoxelColumns& columns) {
+    PITMAP_CHECK(columns.Aligned(), "CopyColumns: columns not on kRegionAlignVoxels");
+    PITMAP_CHECK(from.config_.voxel_size_m == config_.voxel_size_m &&
+                     from.config_.truncation_m == config_.truncation_m,
+                 "CopyColumns: volumes of different voxel size or truncation");
+    const auto inside = [&](const Coord& o) {
+        return o.x() >= columns.x_min && o.x() <= columns.x_max && o.y() >= columns.y_min &&
+               o.y() <= columns.y_max;
+    };
+    // The columns are whole leaves (kRegionAlignVoxels is a multiple of 8): leaves are copied.
+    const auto copy = [&](const FloatTree& src, FloatTree& dst) {
+        for (auto it = src.cbeginLeaf(); it; ++it) {
+            if (!inside(it->origin())) continue;
+            dst.addLeaf(new LeafT(*it));
+        }
+    };
+    copy(from.impl_->distance->tree(), impl_->distance->tree());
+    copy(from.impl_->weight->tree(), impl_->weight->tree());
+}
+
+TriangleMesh KeepTrianglesIn(const TriangleMesh& mesh,
+                             const VoxelColumns& columns,
+                             double voxel_size_m) {
+    const double x_lo = (columns.x_min - 0.5) * voxel_size_m;
+    const double x_hi = (columns.x_max + 0.5) * voxel_size_m;
+    const double y_lo = (columns.y_min - 0.5) * voxel_size_m;
+    const double y_hi = (columns.y_max + 0.5) * voxel_size_m;
+    TriangleMesh out;
+    std::vector<std::int32_t> remap(mesh.vertices.size(), -1);
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+        const Eigen::Vector3f c = (mesh.vertices[static_cast<std::size_t>(t[0])] +
+                                   mesh.vertices[static_cast<std::size_t>(t[1])] +
+                                   mesh.vertices[static_cast<std::size_t>(t[2])]) /
+                                  3.0f;
+        if (!(c.x() >= x_lo && c.x() < x_hi && c.y() >= y_lo && c.y() < y_hi)) continue;
+        Eigen::Vector3i kept;
+        for (int k = 0; k < 3; ++k) {
+            auto& r = remap[static_cast<std::size_t>(t[k])];
+            if (r < 0) {
+                r = static_cast<std::int32_t>(out.vertices.size());
+                out.vertices.push_back(mesh.vertices[static_cast<std::size_t>(t[k])]);
+            }
+            kept[k] = r;
+        }
+        out.triangles.push_back(kept);
+    }
+    return out;
+}
+
 }  // namespace pitmap::proc::fusion

@@ -25,29 +25,39 @@ bool Valid(const CubeSounding& s) {
 }
 
 // The predicted surface: median height per coarse cell, its gradient by central differences.
+// Cells are global (cube.hpp): cell a covers [a cell - half, (a + 1) cell - half), half = res / 2,
+// and this surface holds cells a0 .. a0 + nx - 1 (b0 .. along y).
 struct Predicted {
-    double x0 = 0, y0 = 0, cell = 1;
+    std::int64_t a0 = 0, b0 = 0;
+    double half = 0, cell = 1;
     int nx = 0, ny = 0;
     std::vector<double> z, gx, gy;  // NaN where fewer than kMinCount soundings
 
     static constexpr int kMinCount = 3;
 
+    static std::int64_t Global(double x, double half, double cell) {
+        return static_cast<std::int64_t>(std::floor((x + half) / cell));
+    }
     bool Inside(int a, int b) const { return a >= 0 && b >= 0 && a < nx && b < ny; }
     double At(int a, int b) const {
         return Inside(a, b) ? z[static_cast<std::size_t>(b) * nx + a] : kNaN;
     }
     std::size_t Cell(double x, double y, int* a_out = nullptr, int* b_out = nullptr) const {
-        const int a = std::clamp(static_cast<int>(std::floor((x - x0) / cell)), 0, nx - 1);
-        const int b = std::clamp(static_cast<int>(std::floor((y - y0) / cell)), 0, ny - 1);
+        const int a = static_cast<int>(
+            std::clamp<std::int64_t>(Global(x, half, cell) - a0, 0, std::int64_t{nx} - 1));
+        const int b = static_cast<int>(
+            std::clamp<std::int64_t>(Global(y, half, cell) - b0, 0, std::int64_t{ny} - 1));
         if (a_out) *a_out = a;
         if (b_out) *b_out = b;
         return static_cast<std::size_t>(b) * nx + a;
     }
     // Bilinear between cell centres where all four exist, else the containing cell's value.
     double Interpolate(double x, double y) const {
-        const double u = (x - x0) / cell - 0.5, v = (y - y0) / cell - 0.5;
-        const int a = static_cast<int>(std::floor(u)), b = static_cast<int>(std::floor(v));
-        const double fu = u - a, fv = v - b;
+        const double u = (x + half) / cell - 0.5, v = (y + half) / cell - 0.5;
+        const double ug = std::floor(u), vg = std::floor(v);
+        const double fu = u - ug, fv = v - vg;
+        const int a = static_cast<int>(static_cast<std::int64_t>(ug) - a0);
+        const int b = static_cast<int>(static_cast<std::int64_t>(vg) - b0);
         const double z00 = At(a, b), z10 = At(a + 1, b), z01 = At(a, b + 1), z11 = At(a + 1, b + 1);
         if (std::isfinite(z00) && std::isfinite(z10) && std::isfinite(z01) && std::isfinite(z11)) {
             return (1 - fv) * ((1 - fu) * z00 + fu * z10) + fv * ((1 - fu) * z01 + fu * z11);
@@ -58,14 +68,16 @@ struct Predicted {
 
 Predicted BuildPredicted(const std::vector<CubeSounding>& s,
                          const std::vector<std::uint32_t>& idx,
-                         double x0,
-                         double y0,
+                         std::int64_t a0,
+                         std::int64_t b0,
+                         double half,
                          double cell,
                          int nx,
                          int ny) {
     Predicted p;
-    p.x0 = x0;
-    p.y0 = y0;
+    p.a0 = a0;
+    p.b0 = b0;
+    p.half = half;
     p.cell = cell;
     p.nx = nx;
     p.ny = ny;
@@ -379,8 +391,10 @@ std::string LayOutGrid(const ValidSoundings& valid,
                        CubeGrid& grid) {
     const double res = resolution_m;
     grid.resolution_m = res;
-    grid.x0 = std::floor(valid.min_x / res) * res;
-    grid.y0 = std::floor(valid.min_y / res) * res;
+    grid.i0 = static_cast<std::int64_t>(std::floor(valid.min_x / res));
+    grid.j0 = static_cast<std::int64_t>(std::floor(valid.min_y / res));
+    grid.x0 = static_cast<double>(grid.i0) * res;
+    grid.y0 = static_cast<double>(grid.j0) * res;
     const double nxd = std::ceil((valid.max_x - grid.x0) / res) + 2;
     const double nyd = std::ceil((valid.max_y - grid.y0) / res) + 2;
     if (nxd * nyd > static_cast<double>(config.max_nodes) || nxd > 1e7 || nyd > 1e7) {
@@ -400,17 +414,36 @@ std::string LayOutGrid(const ValidSoundings& valid,
     return {};
 }
 
-// The predicted surface on coarse cells whose edges fall on node half-spacings.
+// The predicted surface on the global cells (edges on node half-spacings) over the nodes and
+// soundings, a cell beyond them on each side (so that no sounding or node is clamped into a
+// cell that is not its own).
 Predicted PredictedSurface(const std::vector<CubeSounding>& soundings,
                            const ValidSoundings& valid,
                            const CubeGrid& grid,
                            const CubeConfig& config) {
     const double res = grid.resolution_m;
     const double cell = res * config.predicted_surface_cells;
-    const int cells_x = static_cast<int>(std::ceil(grid.nx * res / cell)) + 1;
-    const int cells_y = static_cast<int>(std::ceil(grid.ny * res / cell)) + 1;
-    return BuildPredicted(
-        soundings, valid.index, grid.x0 - res / 2, grid.y0 - res / 2, cell, cells_x, cells_y);
+    const double half = res / 2;
+    const double nx_last = static_cast<double>(grid.i0 + grid.nx - 1) * res;
+    const double ny_last = static_cast<double>(grid.j0 + grid.ny - 1) * res;
+    const std::int64_t a0 = Predicted::Global(std::min(valid.min_x, grid.x0), half, cell) - 1;
+    const std::int64_t b0 = Predicted::Global(std::min(valid.min_y, grid.y0), half, cell) - 1;
+    const std::int64_t a1 = Predicted::Global(std::max(valid.max_x, nx_last), half, cell) + 1;
+    const std::int64_t b1 = Predicted::Global(std::max(valid.max_y, ny_last), half, cell) + 1;
+    return BuildPredicted(soundings,
+                          valid.index,
+                          a0,
+                          b0,
+                          half,
+                          cell,
+                          static_cast<int>(a1 - a0 + 1),
+                          static_cast<int>(b1 - b0 + 1));
+}
+
+// The node index range [lo, hi] (global) within r of x at resolution res.
+void NodesWithin(double x, double r, double res, std::int64_t& lo, std::int64_t& hi) {
+    lo = static_cast<std::int64_t>(std::ceil((x - r) / res));
+    hi = static_cast<std::int64_t>(std::floor((x + r) / res));
 }
 
 // Bands of kBandRows node rows, each with the soundings that reach it (their capture distance),
@@ -432,8 +465,10 @@ Bands BandsOf(const std::vector<CubeSounding>& soundings,
     bands.start.assign(static_cast<std::size_t>(bands.count) + 1, 0);
     const auto rows_of = [&](const CubeSounding& s, int& j0, int& j1) {
         const double r = CaptureDistance(s.depth_m, res, config);
-        j0 = std::max(0, static_cast<int>(std::ceil((s.y - r - grid.y0) / res)));
-        j1 = std::min(grid.ny - 1, static_cast<int>(std::floor((s.y + r - grid.y0) / res)));
+        std::int64_t lo = 0, hi = 0;
+        NodesWithin(s.y, r, res, lo, hi);
+        j0 = static_cast<int>(std::max<std::int64_t>(0, lo - grid.j0));
+        j1 = static_cast<int>(std::min<std::int64_t>(grid.ny - 1, hi - grid.j0));
     };
     for (std::uint32_t k : valid.index) {
         int j0 = 0, j1 = 0;
@@ -534,10 +569,13 @@ std::int64_t OfferSounding(const CubeSounding& s,
     const bool square = config.distance_exponent == 2.0;
     const double r = CaptureDistance(s.depth_m, res, config);
     const double r2 = r * r;
-    const int i0 = std::max(0, static_cast<int>(std::ceil((s.x - r - grid.x0) / res)));
-    const int i1 = std::min(grid.nx - 1, static_cast<int>(std::floor((s.x + r - grid.x0) / res)));
-    const int j0 = std::max(first_row, static_cast<int>(std::ceil((s.y - r - grid.y0) / res)));
-    const int j1 = std::min(last_row, static_cast<int>(std::floor((s.y + r - grid.y0) / res)));
+    std::int64_t ilo = 0, ihi = 0, jlo = 0, jhi = 0;
+    NodesWithin(s.x, r, res, ilo, ihi);
+    NodesWithin(s.y, r, res, jlo, jhi);
+    const int i0 = static_cast<int>(std::max<std::int64_t>(0, ilo - grid.i0));
+    const int i1 = static_cast<int>(std::min<std::int64_t>(grid.nx - 1, ihi - grid.i0));
+    const int j0 = static_cast<int>(std::max<std::int64_t>(first_row, jlo - grid.j0));
+    const int j1 = static_cast<int>(std::min<std::int64_t>(last_row, jhi - grid.j0));
     double gx = 0, gy = 0;
     if (config.slope_correction) {
         const std::size_t c = predicted.Cell(s.x, s.y);
@@ -562,9 +600,9 @@ std::int64_t OfferSounding(const CubeSounding& s,
     const auto measured_var = static_cast<float>(sv2 + slope_var);
     std::int64_t offered = 0;
     for (int j = j0; j <= j1; ++j) {
-        const double dy = grid.y0 + j * res - s.y;
+        const double dy = static_cast<double>(grid.j0 + j) * res - s.y;
         for (int i = i0; i <= i1; ++i) {
-            const double dx = grid.x0 + i * res - s.x;
+            const double dx = static_cast<double>(grid.i0 + i) * res - s.x;
             const double d2 = dx * dx + dy * dy;
             if (d2 > r2) continue;
             // C&M eq. 9: sigma_v^2 (1 + ((d + rho sigma_h) / resolution)^alpha).
@@ -659,7 +697,8 @@ void ChooseHypotheses(const std::vector<CubeNode>& nodes,
             double reference = kNaN;
             if (hyps.size() > 1) {
                 if (config.disambiguation == Disambiguation::kPredictedSurface) {
-                    reference = predicted.Interpolate(grid.x0 + i * res, grid.y0 + j * res);
+                    reference = predicted.Interpolate(static_cast<double>(grid.i0 + i) * res,
+                                                      static_cast<double>(grid.j0 + j) * res);
                 } else if (config.disambiguation == Disambiguation::kLocale) {
                     reference =
                         LocaleReference(strongest, grid, i, j, config.locale_radius, around);
@@ -705,39 +744,179 @@ std::string CubeMessage(const CubeResult& out) {
 
 }  // namespace
 
-// CUBE (Calder & Mayer 2003): the grid from the soundings' extent and median depth, the
-// predicted surface, every node's hypotheses from the soundings within its capture distance,
-// then one hypothesis chosen a node.
-CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config) {
-    CubeResult out;
-    std::unique_ptr<tbb::global_control> limit;
-    if (config.num_threads > 0) {
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      config.num_threads);
-    }
-    const ValidSoundings valid = SelectValid(soundings);
+namespace {
+
+// The thread limit of one call (num_threads > 0).
+std::unique_ptr<tbb::global_control> ThreadLimit(const CubeConfig& config) {
+    if (config.num_threads <= 0) return nullptr;
+    return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                 config.num_threads);
+}
+
+// The valid soundings, their median depth, the resolution and the whole survey's nodes; false
+// (out.message) where there is no grid.
+bool LayOut(const std::vector<CubeSounding>& soundings,
+            const CubeConfig& config,
+            ValidSoundings& valid,
+            CubeResult& out) {
+    valid = SelectValid(soundings);
     out.soundings_rejected = valid.rejected;
     if (valid.index.empty()) {
         out.message = "grid: no valid soundings";
-        return out;
+        return false;
     }
     out.median_depth_m = MedianDepth(soundings, valid);
     const double res = config.resolution_m > 0 ? config.resolution_m
                                                : ResolutionFromDepth(out.median_depth_m, config);
-    CubeGrid& grid = out.grid;
-    if (std::string why = LayOutGrid(valid, res, config, grid); !why.empty()) {
+    if (std::string why = LayOutGrid(valid, res, config, out.grid); !why.empty()) {
         out.message = std::move(why);
-        return out;
+        return false;
     }
     out.capture_distance_m = CaptureDistance(out.median_depth_m, res, config);
+    return true;
+}
 
-    const Predicted predicted = PredictedSurface(soundings, valid, grid, config);
+// The hypotheses of every node of `grid` from the soundings `valid` with their predicted
+// surface, then one chosen a node.
+std::vector<CubeNode> GridNodes(const std::vector<CubeSounding>& soundings,
+                                const ValidSoundings& valid,
+                                const Predicted& predicted,
+                                const CubeConfig& config,
+                                CubeResult& out) {
+    CubeGrid& grid = out.grid;
     const Bands bands = BandsOf(soundings, valid, grid, config);
     std::vector<CubeNode> nodes(grid.size());
     out.node_updates = AccumulateNodes(soundings, bands, grid, predicted, config, nodes);
     out.soundings_used = static_cast<std::int64_t>(valid.index.size());
     ChooseHypotheses(nodes, predicted, config, grid);
+    return nodes;
+}
+
+}  // namespace
+
+// CUBE (Calder & Mayer 2003): the grid from the soundings' extent and median depth, the
+// predicted surface, every node's hypotheses from the soundings within its capture distance,
+// then one hypothesis chosen a node.
+CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config) {
+    CubeResult out;
+    const auto limit = ThreadLimit(config);
+    ValidSoundings valid;
+    if (!LayOut(soundings, config, valid, out)) return out;
+    const Predicted predicted = PredictedSurface(soundings, valid, out.grid, config);
+    const std::vector<CubeNode> nodes = GridNodes(soundings, valid, predicted, config, out);
     CountHypotheses(nodes, out);
+    out.ok = true;
+    out.message = CubeMessage(out);
+    return out;
+}
+
+CubeResult LayOutCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config) {
+    CubeResult out;
+    ValidSoundings valid;
+    if (!LayOut(soundings, config, valid, out)) return out;
+    out.soundings_used = static_cast<std::int64_t>(valid.index.size());
+    out.ok = true;
+    return out;
+}
+
+double CubeTileReach(double resolution_m, const CubeConfig& config) {
+    const int locale = config.disambiguation == Disambiguation::kLocale ? config.locale_radius : 0;
+    // + 1 node of slack against rounding at the edges of the cells.
+    return (config.max_capture_distance_res + 2.0 * config.predicted_surface_cells + locale + 1) *
+           resolution_m;
+}
+
+// A tile: the soundings by their global predicted-surface cell (all of a cell or none, so every
+// cell the core's soundings and nodes read holds the median of the whole run), the grid of the
+// core (grown by kLocale's radius, inside the survey's nodes), then the core cut out.
+CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
+                       const CubeConfig& config,
+                       const CubeNodeRange& core,
+                       const CubeNodeRange& survey,
+                       double overlap_m) {
+    CubeResult out;
+    const auto limit = ThreadLimit(config);
+    const double res = config.resolution_m;
+    if (!(res > 0) || core.nx() <= 0 || core.ny() <= 0 || !(overlap_m >= 0)) {
+        out.message = "grid: a tile needs the survey's resolution, a core and an overlap";
+        return out;
+    }
+    const double cell = res * config.predicted_surface_cells;
+    const double half = res / 2;
+    const std::int64_t a0 =
+        Predicted::Global(static_cast<double>(core.i0) * res - overlap_m, half, cell);
+    const std::int64_t a1 =
+        Predicted::Global(static_cast<double>(core.i1 - 1) * res + overlap_m, half, cell);
+    const std::int64_t b0 =
+        Predicted::Global(static_cast<double>(core.j0) * res - overlap_m, half, cell);
+    const std::int64_t b1 =
+        Predicted::Global(static_cast<double>(core.j1 - 1) * res + overlap_m, half, cell);
+    ValidSoundings valid;
+    for (std::size_t k = 0; k < soundings.size(); ++k) {
+        const CubeSounding& s = soundings[k];
+        if (!Valid(s)) continue;
+        const std::int64_t a = Predicted::Global(s.x, half, cell);
+        const std::int64_t b = Predicted::Global(s.y, half, cell);
+        if (a < a0 || a > a1 || b < b0 || b > b1) continue;
+        valid.index.push_back(static_cast<std::uint32_t>(k));
+    }
+    // The tile's nodes: the core and, for kLocale, the neighbourhood of its edge nodes.
+    const std::int64_t grow =
+        config.disambiguation == Disambiguation::kLocale ? config.locale_radius : 0;
+    CubeGrid& grid = out.grid;
+    grid.resolution_m = res;
+    grid.i0 = std::max(survey.i0, core.i0 - grow);
+    grid.j0 = std::max(survey.j0, core.j0 - grow);
+    const std::int64_t gi1 = std::min(survey.i1, core.i1 + grow);
+    const std::int64_t gj1 = std::min(survey.j1, core.j1 + grow);
+    if (static_cast<double>(gi1 - grid.i0) * static_cast<double>(gj1 - grid.j0) >
+        static_cast<double>(config.max_nodes)) {
+        out.message = "grid: a tile's nodes exceed grid.max_nodes";
+        return out;
+    }
+    grid.nx = static_cast<int>(gi1 - grid.i0);
+    grid.ny = static_cast<int>(gj1 - grid.j0);
+    grid.x0 = static_cast<double>(grid.i0) * res;
+    grid.y0 = static_cast<double>(grid.j0) * res;
+    const Predicted predicted = BuildPredicted(soundings,
+                                               valid.index,
+                                               a0,
+                                               b0,
+                                               half,
+                                               cell,
+                                               static_cast<int>(a1 - a0 + 1),
+                                               static_cast<int>(b1 - b0 + 1));
+    std::vector<CubeNode> nodes = GridNodes(soundings, valid, predicted, config, out);
+    // The core cut out of the tile's grid (the nodes and the layers).
+    const int ci = static_cast<int>(core.i0 - grid.i0), cj = static_cast<int>(core.j0 - grid.j0);
+    const int cnx = static_cast<int>(core.nx()), cny = static_cast<int>(core.ny());
+    CubeGrid cut;
+    cut.resolution_m = res;
+    cut.i0 = core.i0;
+    cut.j0 = core.j0;
+    cut.x0 = static_cast<double>(core.i0) * res;
+    cut.y0 = static_cast<double>(core.j0) * res;
+    cut.nx = cnx;
+    cut.ny = cny;
+    std::vector<CubeNode> core_nodes;
+    core_nodes.reserve(cut.size());
+    cut.elevation_m.resize(cut.size());
+    cut.uncertainty_m.resize(cut.size());
+    cut.density.resize(cut.size());
+    cut.hypotheses.resize(cut.size());
+    for (int j = 0; j < cny; ++j) {
+        for (int i = 0; i < cnx; ++i) {
+            const std::size_t from = static_cast<std::size_t>(j + cj) * grid.nx + (i + ci);
+            const std::size_t to = static_cast<std::size_t>(j) * cnx + i;
+            cut.elevation_m[to] = grid.elevation_m[from];
+            cut.uncertainty_m[to] = grid.uncertainty_m[from];
+            cut.density[to] = grid.density[from];
+            cut.hypotheses[to] = grid.hypotheses[from];
+            core_nodes.push_back(std::move(nodes[from]));
+        }
+    }
+    out.grid = std::move(cut);
+    CountHypotheses(core_nodes, out);
     out.ok = true;
     out.message = CubeMessage(out);
     return out;

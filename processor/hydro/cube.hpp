@@ -144,6 +144,7 @@ struct CubeHypothesis {
 // southernmost. Arrays are row-major (j * nx + i).
 struct CubeGrid {
     double x0 = 0, y0 = 0, resolution_m = 0;
+    std::int64_t i0 = 0, j0 = 0;  // global index of node (0, 0): x0 = i0 res, y0 = j0 res
     int nx = 0, ny = 0;
     std::vector<float> elevation_m;    // NaN = empty
     std::vector<float> uncertainty_m;  // 95 %, NaN = empty
@@ -209,6 +210,43 @@ private:
 
 // Grids the soundings. Fails (ok = false, message) without soundings or when the grid would
 // exceed max_nodes; preconditions: config.Validate() is empty.
+// Nodes lie on one lattice for every run at a resolution: node (i, j) of the grid is the global
+// node (i0 + i, j0 + j) at ((i0 + i) res, (j0 + j) res), and the predicted surface's cells are
+// global too (cell a covers [a c - res / 2, (a + 1) c - res / 2), c = predicted_surface_cells
+// res), so a tile of the grid (RunCubeTile) computes its nodes from the same numbers.
 CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config);
+
+// A rectangle of global nodes (RunCube's lattice): i in [i0, i1), j in [j0, j1).
+struct CubeNodeRange {
+    std::int64_t i0 = 0, j0 = 0, i1 = 0, j1 = 0;
+    std::int64_t nx() const { return i1 - i0; }
+    std::int64_t ny() const { return j1 - j0; }
+};
+
+// The whole survey's grid as RunCube lays it out (resolution, node range), without gridding;
+// ok = false with RunCube's message where RunCube would fail. result.grid has the geometry and
+// no layers; median_depth_m and capture_distance_m are set.
+CubeResult LayOutCube(const std::vector<CubeSounding>& soundings, const CubeConfig& config);
+
+// How far beyond a tile's nodes the soundings that decide them can lie, m: the largest capture
+// distance, two predicted-surface cells (a sounding's cell and the neighbours of its gradient)
+// and kLocale's neighbourhood. A tile given soundings this far around its core computes every
+// core node as RunCube does.
+double CubeTileReach(double resolution_m, const CubeConfig& config);
+
+// One tile of the grid: the nodes of `core` from the soundings whose predicted-surface cell lies
+// within `overlap_m` of the core (>= CubeTileReach), taken in input order. Every node equals
+// RunCube's node at the same global index, bit for bit (tests/processor/hydro/cube_tile_test).
+// The grid returned is the core (x0 = core.i0 res, nx = core.nx()); its counters count the
+// core's nodes (node_updates: the tile's own, halo included). Preconditions: config.Validate()
+// is empty, config.resolution_m > 0 (the whole survey's: LayOutCube), overlap_m >=
+// CubeTileReach(resolution_m, config), a non-empty core. Fails (ok = false) when the tile
+// would exceed max_nodes; a tile without soundings is ok with every node empty.
+// `survey` is the whole survey's node range (LayOutCube): the tile's own nodes stay inside it.
+CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
+                       const CubeConfig& config,
+                       const CubeNodeRange& core,
+                       const CubeNodeRange& survey,
+                       double overlap_m);
 
 }  // namespace pitmap::proc::hydro

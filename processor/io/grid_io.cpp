@@ -4,6 +4,7 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <ogr_spatialref.h>
 
 #include <cerrno>
@@ -729,6 +730,47 @@ Status WriteSoundingTpuPly(const std::string& path,
     return formats::WriteReplacing(path, [&](const std::string& partial) {
         return WriteSoundingTpuPlyTo(partial, geo, thu_95_m, tvu_95_m, run_id);
     });
+}
+
+Status WriteVrt(const std::string& vrt_path, const std::vector<std::string>& tiles) {
+    if (tiles.empty()) return Error{vrt_path + ": no tiles"};
+    RegisterOnce();
+    QuietErrors quiet;
+    // The tiles are opened by their paths beside the VRT; GDAL writes each source relative to
+    // the VRT when its path is (relativeToVRT="1").
+    const std::string slash = vrt_path.find('/') == std::string::npos
+                                  ? std::string()
+                                  : vrt_path.substr(0, vrt_path.rfind('/') + 1);
+    std::vector<std::string> paths;
+    for (const std::string& t : tiles) paths.push_back(slash + t);
+    std::vector<const char*> names;
+    for (const std::string& p : paths) names.push_back(p.c_str());
+    char** argv = nullptr;
+    argv = CSLAddString(argv, "-srcnodata");
+    argv = CSLAddString(argv, "nan");
+    argv = CSLAddString(argv, "-vrtnodata");
+    argv = CSLAddString(argv, "nan");
+    GDALBuildVRTOptions* options = GDALBuildVRTOptionsNew(argv, nullptr);
+    CSLDestroy(argv);
+    if (options == nullptr) return Error{vrt_path + ": GDALBuildVRT options" + QuietErrors::Last()};
+    int usage_error = 0;
+    GDALDatasetH vrt = GDALBuildVRT(vrt_path.c_str(),
+                                    static_cast<int>(names.size()),
+                                    nullptr,
+                                    names.data(),
+                                    options,
+                                    &usage_error);
+    GDALBuildVRTOptionsFree(options);
+    if (vrt == nullptr || usage_error != 0) {
+        if (vrt != nullptr) GDALClose(vrt);
+        return Error{vrt_path + ": cannot build the VRT" + QuietErrors::Last()};
+    }
+    CPLErrorReset();
+    GDALClose(vrt);
+    if (CPLGetLastErrorType() >= CE_Failure) {
+        return Error{vrt_path + ": cannot write the VRT" + QuietErrors::Last()};
+    }
+    return Ok{};
 }
 
 }  // namespace pitmap::proc::io

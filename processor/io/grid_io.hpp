@@ -127,6 +127,12 @@ Status WriteCogGeoTiff(const std::string& path, const GridRaster& grid);
 // The layers named "elevation" and "uncertainty" (both required) as a BAG.
 Status WriteBag(const std::string& path, const GridRaster& grid);
 
+// A GDAL VRT mosaic of GeoTIFF tiles (GDALBuildVRT: every band, no data NaN, the tiles' CRS),
+// the tiles named relative to the VRT's folder (`tiles` are paths relative to it), so the
+// folder can be moved. Fails naming the VRT and GDAL's message (a tile missing or of another
+// CRS or band count).
+Status WriteVrt(const std::string& vrt_path, const std::vector<std::string>& tiles);
+
 // How a reader sees a CRS (GDAL's OGRSpatialReference on PROJ): the horizontal CRS's name and
 // EPSG code, the vertical CRS's name, datum and EPSG code, a compound CRS's vertical part or
 // "<datum> ellipsoidal height" for a projected CRS promoted to 3D (the ISO 19111 form of

@@ -541,6 +541,14 @@ void VisitTerrain(V&& v, GridStageConfig& g) {
     v("launch_snap_m", c.launch_snap_m, "start from the traversable node nearest, this close, m");
 }
 
+template <class V>
+void VisitTiles(V&& v, TilesConfig& c) {
+    v("enabled", c.enabled, "grid and fuse tile by tile (docs/tiles.md); off = whole survey");
+    v("tile_size_m", c.tile_size_m, "nominal tile edge, m (>= 64 voxels, >= 8 grid nodes)");
+    v("overlap_m", c.overlap_m, "data around a tile's core, m (>= truncation, >= CUBE's reach)");
+    v("write_products", c.write_products, "P/tiles/: DEM tiles (COG) + VRT, mesh tiles + index");
+}
+
 // The sections of the processor config, in file order.
 template <class V>
 void VisitConfig(V&& v, PipelineConfig& c) {
@@ -557,6 +565,7 @@ void VisitConfig(V&& v, PipelineConfig& c) {
     v.Section("s44", [&](auto& s) { VisitS44(s, c.grid); });
     v.Section("mosaic", [&](auto& s) { VisitMosaic(s, c.grid); });
     v.Section("terrain", [&](auto& s) { VisitTerrain(s, c.grid); });
+    v.Section("tiles", [&](auto& s) { VisitTiles(s, c.tiles); });
     v.Section("run", [&](auto& s) { VisitRun(s, c.run); });
     v.Section("quality", [&](auto& s) { VisitQuality(s, c.quality); });
     v.Section("products", [&](auto& s) { VisitProducts(s, c); });
@@ -764,6 +773,8 @@ std::vector<std::string> PipelineConfig::Validate() const {
     for (auto& s : mesh.Validate()) p.push_back("mesh." + s);
     for (auto& s : quality.Validate()) p.push_back("quality." + s);
     for (auto& s : grid.Validate()) p.push_back(s);
+    for (auto& s : tiles.Validate()) p.push_back(s);
+    for (auto& s : ValidateTiles(tiles, tsdf, grid.cube)) p.push_back(s);
     for (auto& s : metadata.Validate()) p.push_back(s);
     if (slam_stage.point_stride < 1) p.push_back("slam.point_stride must be >= 1");
     if (!(slam_stage.sigma_max_age_s > 0)) p.push_back("slam.sigma_max_age_s must be > 0");

@@ -782,11 +782,79 @@ std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
     return soundings;
 }
 
+// The CUBE surface of the whole survey: RunCube, or with tiles.enabled tile by tile
+// (hydro::RunCubeTile, each tile alone from the soundings around it), the tiles' cores pasted
+// into the survey's grid, node for node the same. Only one tile's nodes (their hypotheses and
+// median queues, ~150 bytes a node) are held at a time besides the survey's layers (16 bytes a
+// node). ok = false with a message naming the problem (a tile too small for the resolution, an
+// overlap below CUBE's reach).
+hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
+                             const GridStageConfig& gc,
+                             const TilesConfig& tiles) {
+    if (!tiles.enabled) return hydro::RunCube(soundings, gc.cube);
+    hydro::CubeResult out = hydro::LayOutCube(soundings, gc.cube);
+    if (!out.ok) return out;
+    const double res = out.grid.resolution_m;
+    if (const auto problems = ValidateGridTiles(tiles, res, gc.cube); !problems.empty()) {
+        out.ok = false;
+        out.message = "grid: " + problems.front();
+        for (std::size_t k = 1; k < problems.size(); ++k) out.message += "; " + problems[k];
+        return out;
+    }
+    hydro::CubeConfig cube = gc.cube;
+    cube.resolution_m = res;
+    hydro::CubeGrid& g = out.grid;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    g.elevation_m.assign(g.size(), nan);
+    g.uncertainty_m.assign(g.size(), nan);
+    g.density.assign(g.size(), 0.0f);
+    g.hypotheses.assign(g.size(), 0.0f);
+    const hydro::CubeNodeRange survey{g.i0, g.j0, g.i0 + g.nx, g.j0 + g.ny};
+    const std::vector<GridTile> grid_tiles = GridTiles(survey, NodesPerTile(tiles, res));
+    for (const GridTile& tile : grid_tiles) {
+        const hydro::CubeResult t =
+            hydro::RunCubeTile(soundings, cube, tile.core, survey, tiles.overlap_m);
+        if (!t.ok) {
+            out.ok = false;
+            out.message = "grid: tile " + TileName(tile.index) + ": " + t.message;
+            return out;
+        }
+        for (int j = 0; j < t.grid.ny; ++j) {
+            const std::size_t to =
+                static_cast<std::size_t>(t.grid.j0 + j - g.j0) * g.nx + (t.grid.i0 - g.i0);
+            const std::size_t from = static_cast<std::size_t>(j) * t.grid.nx;
+            const auto n = static_cast<std::ptrdiff_t>(t.grid.nx);
+            const auto paste = [&](const std::vector<float>& a, std::vector<float>& b) {
+                std::copy(a.begin() + static_cast<std::ptrdiff_t>(from),
+                          a.begin() + static_cast<std::ptrdiff_t>(from) + n,
+                          b.begin() + static_cast<std::ptrdiff_t>(to));
+            };
+            paste(t.grid.elevation_m, g.elevation_m);
+            paste(t.grid.uncertainty_m, g.uncertainty_m);
+            paste(t.grid.density, g.density);
+            paste(t.grid.hypotheses, g.hypotheses);
+        }
+        out.node_updates += t.node_updates;
+        out.nodes_filled += t.nodes_filled;
+        out.nodes_multiple += t.nodes_multiple;
+        out.hypotheses_total += t.hypotheses_total;
+    }
+    out.message = std::to_string(g.nx) + " x " + std::to_string(g.ny) + " nodes at " +
+                  Fixed(res, 3) + " m in " + std::to_string(grid_tiles.size()) + " tiles of " +
+                  std::to_string(NodesPerTile(tiles, res)) + " nodes (overlap " +
+                  Fixed(tiles.overlap_m, 1) + " m): " + std::to_string(out.nodes_filled) +
+                  " filled, " + std::to_string(out.nodes_multiple) + " with several hypotheses; " +
+                  std::to_string(out.soundings_used) + " soundings, " +
+                  std::to_string(out.node_updates) + " node updates";
+    return out;
+}
+
 // The surface filter (SurfaceFilter): soundings that do not support their node's chosen
 // hypothesis are rejected in the survey (RejectPoints), and taken out of the UTM positions, the
 // TPU and CUBE's input. Returns how many.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
+                                        const TilesConfig& tiles,
                                         std::vector<hydro::CubeSounding>& soundings,
                                         hydro::CubeResult& cube,
                                         georef::UtmPoints& utm,
@@ -820,7 +888,7 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
             if (keep[j]) soundings[k++] = soundings[j];
         }
         soundings.resize(k);
-        cube = hydro::RunCube(soundings, gc.cube);
+        cube = SurveyCube(soundings, gc, tiles);
         if (!cube.ok) return Error{cube.message};
     }
     return rejected;
@@ -856,6 +924,65 @@ io::GridRaster DemRaster(const StageContext& s,
     // only its own XML).
     if (!s.model.run_id.empty()) raster.metadata.emplace_back("pitmap_run_id", s.model.run_id);
     return raster;
+}
+
+// P/tiles/dem/dem_I_J.tif, the DEM's tiles (the grid tiles' cores that hold a node), and
+// P/tiles/dem.vrt over them; the files go into `files`. The folder is emptied first (a coarser
+// run's tiles would be left over otherwise).
+Status WriteDemTiles(const std::string& dir,
+                     const TilesConfig& tiles,
+                     const io::GridRaster& dem,
+                     const hydro::CubeGrid& grid,
+                     json& files,
+                     json& record) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::remove_all(dir + "/tiles/dem", ec);
+    fs::remove(dir + "/tiles/dem.vrt", ec);
+    fs::create_directories(dir + "/tiles/dem", ec);
+    if (ec) return Error{dir + "/tiles/dem: " + ec.message()};
+    const hydro::CubeNodeRange survey{grid.i0, grid.j0, grid.i0 + grid.nx, grid.j0 + grid.ny};
+    const std::int64_t n = NodesPerTile(tiles, grid.resolution_m);
+    std::vector<std::string> written;
+    json list = json::array();
+    for (const GridTile& tile : GridTiles(survey, n)) {
+        io::GridRaster r = dem;
+        r.nx = static_cast<int>(tile.core.nx());
+        r.ny = static_cast<int>(tile.core.ny());
+        r.x0 = static_cast<double>(tile.core.i0) * grid.resolution_m;
+        r.y0 = static_cast<double>(tile.core.j0) * grid.resolution_m;
+        std::int64_t filled = 0;
+        for (std::size_t l = 0; l < dem.layers.size(); ++l) {
+            std::vector<float>& v = r.layers[l].values;
+            v.assign(static_cast<std::size_t>(r.nx) * static_cast<std::size_t>(r.ny), 0.0f);
+            for (int j = 0; j < r.ny; ++j) {
+                for (int i = 0; i < r.nx; ++i) {
+                    const std::size_t from =
+                        static_cast<std::size_t>(tile.core.j0 + j - grid.j0) * grid.nx +
+                        static_cast<std::size_t>(tile.core.i0 + i - grid.i0);
+                    const float x = dem.layers[l].values[from];
+                    v[static_cast<std::size_t>(j) * r.nx + i] = x;
+                    if (l == 0 && std::isfinite(x)) ++filled;
+                }
+            }
+        }
+        if (filled == 0) continue;
+        const std::string name = "dem/dem_" + TileName(tile.index) + ".tif";
+        if (auto w = io::WriteCogGeoTiff(dir + "/tiles/" + name, r); !w) return w;
+        written.push_back(name);
+        files.push_back("tiles/" + name);
+        list.push_back({{"i", tile.index.i},
+                        {"j", tile.index.j},
+                        {"file", "tiles/" + name},
+                        {"nodes", {r.nx, r.ny}},
+                        {"nodes_filled", filled}});
+    }
+    if (!written.empty()) {
+        if (auto w = io::WriteVrt(dir + "/tiles/dem.vrt", written); !w) return w;
+        files.push_back("tiles/dem.vrt");
+    }
+    record["dem_tiles"] = list;
+    return Ok{};
 }
 
 // dem.tif and dem.bag, as configured; each file written is added to `files`.
@@ -1126,14 +1253,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     std::vector<hydro::CubeSounding> soundings =
         CubeSoundings(s.geo, *utm, datum->datum_height_m, tpu);
     part.Lap(timings, "utm_datum");
-    hydro::CubeResult cube = hydro::RunCube(soundings, gc.cube);
+    hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
     if (!cube.ok) return Error{cube.message};
     part.Lap(timings, "cube");
     // The surface filter: soundings that do not support the node's chosen hypothesis are
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
     if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, soundings, cube, *utm, tpu);
+        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, *utm, tpu);
         if (!rejected) return rejected.error();
         surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
@@ -1150,6 +1277,18 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const io::GridRaster dem = DemRaster(s, gc, cube.grid, *utm, *datum, meta);
     json files = json::array();
     if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
+    json tiles_record = json::object();
+    if (config.tiles.enabled) {
+        tiles_record = {{"tile_size_m", config.tiles.tile_size_m},
+                        {"overlap_m", config.tiles.overlap_m},
+                        {"nodes_per_tile", NodesPerTile(config.tiles, cube.grid.resolution_m)}};
+        if (config.tiles.write_products) {
+            if (auto w =
+                    WriteDemTiles(s.out_dir, config.tiles, dem, cube.grid, files, tiles_record);
+                !w)
+                return w;
+        }
+    }
     if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, files); !w) return w;
     part.Lap(timings, "write");
 
@@ -1182,6 +1321,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     stage["utm_epsg"] = utm->epsg;
     stage["vertical_crs"] = datum->crs_name;
     stage["surface_filter_rejected"] = surface_rejected;
+    if (config.tiles.enabled) stage["tiles"] = tiles_record;
     stage["files"] = files;
     stage["timings_wall_cpu_s"] = timings;
     s.summary["vertical_datum"] = datum_record;

@@ -251,6 +251,9 @@ Expected<nlohmann::json> TerrainSurvey(const StageContext& s,
                                        const Log& log);
 // Integrates the pings on the current trajectory, applies the weight filter; `stage` is kFuse,
 // or kFuseInitial for the mesh before SLAM.
+// One TSDF tile alone and the merge of the tiles (stages3d.cpp; RunFuseTile, RunMergeFuseTiles).
+Status FuseTile(StageContext& s, const PipelineConfig& config, TileIndex tile, const Log& log);
+Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& log);
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,

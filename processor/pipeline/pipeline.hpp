@@ -50,6 +50,7 @@
 #include "processor/mesh/surface.hpp"
 #include "processor/pipeline/grid_stage.hpp"
 #include "processor/pipeline/metadata.hpp"
+#include "processor/pipeline/tiles.hpp"
 #include "processor/slam/slam.hpp"
 #include "processor/svp/refraction.hpp"
 
@@ -131,6 +132,7 @@ struct PipelineConfig {
     RunOptions run;
     QualityConfig quality;
     GridStageConfig grid;  // the `grid:` section (grid_stage.hpp)
+    TilesConfig tiles;     // the `tiles:` section (tiles.hpp): grid and fuse by tiles
     // The report program (pitmap-report); set by the command line, "" = no report.
     std::string report_program;
     // World origin; NaN = the first INS position.
@@ -201,6 +203,17 @@ Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, c
 Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `pitmap fuse --tile I,J`: one TSDF tile alone on P's survey (tiles.hpp): P/tiles/tsdf/
+// tsdf_I_J.vdb (the core's voxels before the weight filter), P/tiles/mesh/mesh_I_J.glb and its
+// index entry mesh_I_J.json; a campaign's per-tile job. Fails naming a tile the survey does not
+// have.
+Status RunFuseTile(const std::string& out_dir,
+                   const PipelineConfig& config,
+                   TileIndex tile,
+                   const Log& log);
+// `pitmap fuse --merge-tiles`: the tiles' cores as the survey's volume, filtered and written as
+// P/tsdf.vdb (the fuse stage's record), and P/tiles/mesh/index.json from the tiles' entries.
+Status RunMergeFuseTiles(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunMeshStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunReportStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 // Every stage from the logs to the report, in memory; products and summary.json are written

@@ -16,9 +16,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
@@ -552,6 +554,347 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
+namespace {
+
+// One TSDF tile's mesh: the triangles whose centroid lies in its core (fusion::KeepTrianglesIn).
+struct MeshTile {
+    TileIndex index;
+    fusion::VoxelColumns core;
+    fusion::TriangleMesh mesh;
+};
+
+// The TSDF of the whole survey tile by tile (tiles.hpp): each tile a volume restricted to its
+// core and overlap that integrates the scans reaching it, its core copied into `volume` (the
+// same voxels as one volume of the whole survey, fusion::VoxelColumns), and, for P/tiles/mesh,
+// its own mesh (weight filter, iso-surface, the seam rule). The tiles cover every voxel a scan
+// can reach (fusion::ReachOf, the bound TsdfVolume skips scans by). Returns the tiles' integration
+// counts summed (a scan reaching several tiles is counted in each) and the record.
+fusion::IntegrateResult IntegrateByTiles(const std::vector<fusion::SonarScan>& scans,
+                                         const fusion::TsdfConfig& tcfg,
+                                         const PipelineConfig& config,
+                                         fusion::TsdfVolume& volume,
+                                         std::vector<MeshTile>* meshes,
+                                         const ProgressCallback& progress,
+                                         json& record,
+                                         const std::optional<TileIndex>& only = std::nullopt) {
+    const auto start = std::chrono::steady_clock::now();
+    const double vs = tcfg.voxel_size_m;
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (const fusion::SonarScan& scan : scans) {
+        const fusion::ScanReach r = fusion::ReachOf(scan, tcfg);
+        if (r.empty() || !(r.x_max - r.x_min < 1e6)) continue;  // no beams, or not finite
+        x0 = std::min(x0, r.x_min);
+        x1 = std::max(x1, r.x_max);
+        y0 = std::min(y0, r.y_min);
+        y1 = std::max(y1, r.y_max);
+    }
+    fusion::IntegrateResult sum;
+    sum.scans = static_cast<std::int64_t>(scans.size());
+    if (!(x0 <= x1)) {
+        sum.message = "no valid beams";
+        return sum;
+    }
+    const fusion::VoxelColumns extent{static_cast<std::int32_t>(std::floor(x0 / vs)),
+                                      static_cast<std::int32_t>(std::ceil(x1 / vs)),
+                                      static_cast<std::int32_t>(std::floor(y0 / vs)),
+                                      static_cast<std::int32_t>(std::ceil(y1 / vs))};
+    const int m = VoxelsPerTile(config.tiles, vs);
+    const int overlap = OverlapVoxels(config.tiles, vs);
+    const std::vector<VoxelTile> tiles = VoxelTiles(extent, m, overlap);
+    std::int64_t tiles_with_voxels = 0, max_tile_voxels = 0;
+    std::size_t max_tile_bytes = 0;
+    bool found = false;
+    json with_voxels = json::array();
+    for (std::size_t k = 0; k < tiles.size() && !sum.cancelled; ++k) {
+        const VoxelTile& tile = tiles[k];
+        if (only && !(tile.index == *only)) continue;
+        found = true;
+        fusion::TsdfVolume part(tcfg, tile.region);
+        const auto tile_progress = [&](double f) {
+            return !progress || progress((static_cast<double>(k) + f) / tiles.size());
+        };
+        const fusion::IntegrateResult ir = part.Integrate(scans, tile_progress);
+        sum.scans_out_of_bounds += ir.scans_out_of_bounds;
+        sum.beams_used += ir.beams_used;
+        sum.beams_no_detection += ir.beams_no_detection;
+        sum.beams_out_of_range += ir.beams_out_of_range;
+        sum.beams_inconsistent += ir.beams_inconsistent;
+        sum.voxel_updates += ir.voxel_updates;
+        sum.prepare_s += ir.prepare_s;
+        sum.rasterise_s += ir.rasterise_s;
+        sum.merge_s += ir.merge_s;
+        sum.cpu_s += ir.cpu_s;
+        sum.cancelled = ir.cancelled;
+        const fusion::VolumeStats st = part.Stats();
+        if (st.active_voxels == 0) continue;
+        ++tiles_with_voxels;
+        with_voxels.push_back({tile.index.i, tile.index.j});
+        max_tile_voxels = std::max(max_tile_voxels, st.active_voxels);
+        max_tile_bytes = std::max(max_tile_bytes, st.memory_bytes);
+        volume.CopyColumns(part, tile.core);
+        if (meshes != nullptr) {
+            part.FilterByWeight(config.weight_filter);
+            fusion::TriangleMesh cut = fusion::KeepTrianglesIn(
+                part.ExtractIsoSurface(config.mesh.iso_m).mesh, tile.core, vs);
+            if (!cut.triangles.empty()) meshes->push_back({tile.index, tile.core, std::move(cut)});
+        }
+    }
+    sum.active_voxels = volume.Stats().active_voxels;
+    sum.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    sum.message = std::string(sum.cancelled ? "cancelled: " : "") + std::to_string(tiles.size()) +
+                  " tiles of " + std::to_string(m) + " voxels (overlap " + std::to_string(overlap) +
+                  "), " + std::to_string(tiles_with_voxels) + " with voxels; " +
+                  std::to_string(sum.voxel_updates) + " voxel updates, " +
+                  std::to_string(sum.active_voxels) + " active voxels";
+    record = {{"tile_size_m", config.tiles.tile_size_m},
+              {"overlap_m", config.tiles.overlap_m},
+              {"voxels_per_tile", m},
+              {"overlap_voxels", overlap},
+              {"tiles", tiles.size()},
+              {"tiles_with_voxels", tiles_with_voxels},
+              {"tile_found", found},
+              {"tiles_with_voxels_ij", with_voxels},
+              {"max_tile_active_voxels", max_tile_voxels},
+              {"max_tile_memory_mb", static_cast<double>(max_tile_bytes) / (1024.0 * 1024.0)},
+              {"counts", "summed over the tiles (a scan reaching several is counted in each)"}};
+    return sum;
+}
+
+// The depth colour range of the mesh tiles: mesh.colour_*, else the tiles' joint z range.
+std::pair<double, double> TileColourRange(const std::vector<MeshTile>& tiles,
+                                          const PipelineConfig& config) {
+    double lo = config.mesh.colour_min_z_m, hi = config.mesh.colour_max_z_m;
+    if (lo != 0 || hi != 0) return {lo, hi};
+    lo = std::numeric_limits<double>::infinity();
+    hi = -lo;
+    for (const MeshTile& t : tiles) {
+        for (const Eigen::Vector3f& v : t.mesh.vertices) {
+            lo = std::min(lo, static_cast<double>(v.z()));
+            hi = std::max(hi, static_cast<double>(v.z()));
+        }
+    }
+    return {lo, hi};
+}
+
+// P/tiles/mesh/mesh_I_J.glb of one tile; returns its entry of index.json: file, bounds (local
+// ENU, m: the core's x, y and the mesh's z) and counts.
+Expected<json> WriteMeshTile(const StageContext& s,
+                             const MeshTile& t,
+                             std::pair<double, double> colour_z,
+                             double voxel_size_m) {
+    mesh::ColouredMesh m;
+    m.vertices = t.mesh.vertices;
+    m.triangles = t.mesh.triangles;
+    double z0 = std::numeric_limits<double>::infinity(), z1 = -z0;
+    for (const Eigen::Vector3f& v : m.vertices) {
+        m.colours.push_back(mesh::DepthColour(v.z(), colour_z.first, colour_z.second));
+        z0 = std::min(z0, static_cast<double>(v.z()));
+        z1 = std::max(z1, static_cast<double>(v.z()));
+    }
+    const std::string name = "mesh_" + TileName(t.index) + ".glb";
+    const std::string dir = s.out_dir + "/tiles/mesh";
+    if (auto w = mesh::WriteGlb(m, dir + "/" + name, s.model.origin, s.model.run_id); !w)
+        return w.error();
+    const double vs = voxel_size_m;
+    return json{{"i", t.index.i},
+                {"j", t.index.j},
+                {"file", name},
+                {"min_m", {(t.core.x_min - 0.5) * vs, (t.core.y_min - 0.5) * vs, z0}},
+                {"max_m", {(t.core.x_max + 0.5) * vs, (t.core.y_max + 0.5) * vs, z1}},
+                {"vertices", m.vertices.size()},
+                {"triangles", m.triangles.size()}};
+}
+
+Status WriteJsonFile(const std::string& path, const json& j) {
+    return formats::WriteReplacing(path, [&](const std::string& partial) -> Status {
+        std::ofstream f(partial);
+        f << j.dump(1) << "\n";
+        if (!f) return Error{partial + ": cannot write"};
+        return Ok{};
+    });
+}
+
+// P/tiles/mesh/index.json over the tiles' entries, for a viewer that loads the tiles in view.
+Status WriteMeshIndex(const StageContext& s,
+                      const json& entries,
+                      const fusion::TsdfConfig& tcfg,
+                      const PipelineConfig& config,
+                      std::pair<double, double> colour_z) {
+    const double vs = tcfg.voxel_size_m;
+    const json index = {
+        {"format", "pitmap mesh tiles 1"},
+        {"frame", "local ENU at the origin, metres (glTF files: y up, (E, U, -N))"},
+        {"origin",
+         {{"latitude_deg", s.model.origin.latitude_deg},
+          {"longitude_deg", s.model.origin.longitude_deg},
+          {"height_m", s.model.origin.height_m}}},
+        {"seam_rule", "a triangle belongs to the tile whose core holds its centroid"},
+        {"voxel_size_m", vs},
+        {"tile_size_m", VoxelsPerTile(config.tiles, vs) * vs},
+        {"colour_z_m", {colour_z.first, colour_z.second}},
+        {"tiles", entries}};
+    return WriteJsonFile(s.out_dir + "/tiles/mesh/index.json", index);
+}
+
+// Every tile's mesh (the folder emptied first) and index.json.
+Status WriteMeshTiles(const StageContext& s,
+                      const std::vector<MeshTile>& tiles,
+                      const fusion::TsdfConfig& tcfg,
+                      const PipelineConfig& config,
+                      json& record) {
+    namespace fs = std::filesystem;
+    const std::string dir = s.out_dir + "/tiles/mesh";
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    fs::create_directories(dir, ec);
+    if (ec) return Error{dir + ": " + ec.message()};
+    const auto colour_z = TileColourRange(tiles, config);
+    json list = json::array();
+    std::int64_t triangles = 0;
+    for (const MeshTile& t : tiles) {
+        auto entry = WriteMeshTile(s, t, colour_z, tcfg.voxel_size_m);
+        if (!entry) return entry.error();
+        triangles += (*entry)["triangles"].get<std::int64_t>();
+        list.push_back(std::move(*entry));
+    }
+    if (auto w = WriteMeshIndex(s, list, tcfg, config, colour_z); !w) return w;
+    record["mesh_tiles"] = list.size();
+    record["mesh_tile_triangles"] = triangles;
+    return Ok{};
+}
+
+// After integration: the weight histogram (before the filter, so the report shows what the
+// filter removes), the weight filter, and the stage's record.
+json FinishFuse(fusion::TsdfVolume& volume,
+                const PipelineConfig& config,
+                const fusion::TsdfConfig& tcfg,
+                int ping_stride,
+                const fusion::IntegrateResult& ir,
+                double integrate_peak_mb,
+                const Log& log,
+                const std::string& name) {
+    const fusion::WeightHistogram hist = volume.ComputeWeightHistogram();
+    const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
+    log(name + ": weight filter: " + wf.message);
+    const fusion::VolumeStats vs = volume.Stats();
+    json st = ir;  // the integration counts
+    st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
+               {"voxel_size_m", tcfg.voxel_size_m},
+               {"ping_stride", ping_stride},
+               {"truncation_m", config.tsdf.truncation_m},
+               {"integrate_seconds", ir.elapsed_s},
+               {"integrate_peak_rss_growth_mb", integrate_peak_mb},
+               {"min_weight", config.weight_filter.min_weight},
+               {"voxels_before_filter", wf.voxels_before},
+               {"voxels_removed", wf.voxels_removed},
+               {"active_voxels", vs.active_voxels},
+               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)}});
+    st["weight_histogram"] = hist;
+    st["weight_histogram"]["before_filter"] = true;
+    return st;
+}
+
+// A .vdb of the survey's volume (or of a tile's core) with the world frame's origin.
+Status WriteTsdf(const StageContext& s, const fusion::TsdfVolume& volume, const std::string& path) {
+    const std::vector<std::pair<std::string, std::string>> meta = {
+        {"pitmap_origin_latitude_deg", Fixed(s.model.origin.latitude_deg, 9)},
+        {"pitmap_origin_longitude_deg", Fixed(s.model.origin.longitude_deg, 9)},
+        {"pitmap_origin_height_m", Fixed(s.model.origin.height_m, 4)},
+        {"pitmap_frame", "local ENU at the origin, metres"},
+        {kRunIdKey, s.model.run_id}};
+    return fusion::WriteVdb(volume, path, meta);
+}
+
+}  // namespace
+
+// `pitmap fuse --tile I,J`: one TSDF tile alone (tiles.hpp) on the survey's current
+// trajectory: P/tiles/tsdf/tsdf_I_J.vdb (its core's voxels before the weight filter),
+// P/tiles/mesh/mesh_I_J.glb and mesh_I_J.json (its index entry). Other tiles' files stay.
+Status FuseTile(StageContext& s, const PipelineConfig& config, TileIndex tile, const Log& log) {
+    namespace fs = std::filesystem;
+    const fusion::TsdfConfig& tcfg = config.tsdf;
+    const std::vector<fusion::SonarScan> scans =
+        MakeScans(s.geo, s.model.ingest.pings, s.model.mount, 1);
+    fusion::TsdfVolume volume(tcfg);
+    std::vector<MeshTile> meshes;
+    json record;
+    const fusion::IntegrateResult ir =
+        IntegrateByTiles(scans, tcfg, config, volume, &meshes, nullptr, record, tile);
+    if (!record.value("tile_found", false)) {
+        return Error{"fuse: tile " + TileName(tile) + " is not one of the survey's " +
+                     std::to_string(record.value("tiles", 0)) + " TSDF tiles"};
+    }
+    log("fuse: tile " + TileName(tile) + ": " + ir.message);
+    std::error_code ec;
+    fs::create_directories(s.out_dir + "/tiles/tsdf", ec);
+    fs::create_directories(s.out_dir + "/tiles/mesh", ec);
+    if (ec) return Error{s.out_dir + "/tiles: " + ec.message()};
+    const std::string name = TileName(tile);
+    if (auto w = WriteTsdf(s, volume, s.out_dir + "/tiles/tsdf/tsdf_" + name + ".vdb"); !w)
+        return w;
+    fs::remove(s.out_dir + "/tiles/mesh/mesh_" + name + ".json", ec);
+    if (meshes.empty()) return Ok{};
+    auto entry =
+        WriteMeshTile(s, meshes.front(), TileColourRange(meshes, config), tcfg.voxel_size_m);
+    if (!entry) return entry.error();
+    return WriteJsonFile(s.out_dir + "/tiles/mesh/mesh_" + name + ".json", *entry);
+}
+
+// `pitmap fuse --merge-tiles`: the tiles' cores (P/tiles/tsdf/*.vdb) as the survey's volume,
+// then the fuse stage's weight filter, record and tsdf.vdb, and P/tiles/mesh/index.json from the
+// tiles' entries.
+Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& log) {
+    namespace fs = std::filesystem;
+    StageClock clock;
+    const fusion::TsdfConfig& tcfg = config.tsdf;
+    fusion::TsdfVolume volume(tcfg);
+    // Every column (the tile files hold their cores only).
+    constexpr std::int32_t kFar = 1 << 30;
+    const fusion::VoxelColumns all{-kFar, kFar - 1, -kFar, kFar - 1};
+    std::vector<std::string> files;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(s.out_dir + "/tiles/tsdf", ec)) {
+        if (e.path().extension() == ".vdb") files.push_back(e.path().string());
+    }
+    if (files.empty()) return Error{"fuse: no tiles in " + s.out_dir + "/tiles/tsdf"};
+    std::sort(files.begin(), files.end());
+    fusion::IntegrateResult ir;
+    for (const std::string& f : files) {
+        auto part = fusion::ReadVdb(f, tcfg);
+        if (!part) return part.error();
+        volume.CopyColumns(*part, all);
+    }
+    ir.active_voxels = volume.Stats().active_voxels;
+    ir.message = "merged " + std::to_string(files.size()) +
+                 " tiles: " + std::to_string(ir.active_voxels) + " active voxels";
+    log("fuse: " + ir.message);
+    json st = FinishFuse(volume, config, tcfg, 1, ir, 0.0, log, "fuse");
+    json entries = json::array();
+    std::vector<std::string> entry_files;
+    for (const auto& e : fs::directory_iterator(s.out_dir + "/tiles/mesh", ec)) {
+        if (e.path().extension() == ".json" && e.path().filename() != "index.json")
+            entry_files.push_back(e.path().string());
+    }
+    std::sort(entry_files.begin(), entry_files.end());
+    std::int64_t triangles = 0;
+    for (const std::string& f : entry_files) {
+        std::ifstream in(f);
+        const json entry = json::parse(in, nullptr, false);
+        if (entry.is_discarded()) return Error{f + ": not JSON"};
+        triangles += entry.value("triangles", std::int64_t{0});
+        entries.push_back(entry);
+    }
+    const std::pair<double, double> colour_z{config.mesh.colour_min_z_m,
+                                             config.mesh.colour_max_z_m};
+    if (auto w = WriteMeshIndex(s, entries, tcfg, config, colour_z); !w) return w;
+    st["tiles"] = {{"merged", files.size()},
+                   {"mesh_tiles", entries.size()},
+                   {"mesh_tile_triangles", triangles}};
+    if (auto w = WriteTsdf(s, volume, s.out_dir + "/tsdf.vdb"); !w) return w;
+    RecordStage(s.summary, Stage::kFuse, st, clock);
+    return SaveSummary(s);
+}
+
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
@@ -577,37 +920,30 @@ Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
     // before the reset for the stage's own peak_rss_mb.
     clock.ResetPeakWithinStage();
     const double rss_before_integrate_mb = PeakRssMb();
-    const fusion::IntegrateResult ir = volume.Integrate(scans, bar.AsCallback());
+    // Tiles: the final fuse only (the initial one is a picture at coarser voxels).
+    const bool by_tiles = config.tiles.enabled && stage == Stage::kFuse;
+    std::vector<MeshTile> mesh_tiles;
+    json tiles_record;
+    const fusion::IntegrateResult ir =
+        by_tiles ? IntegrateByTiles(scans,
+                                    tcfg,
+                                    config,
+                                    volume,
+                                    config.tiles.write_products ? &mesh_tiles : nullptr,
+                                    bar.AsCallback(),
+                                    tiles_record)
+                 : volume.Integrate(scans, bar.AsCallback());
     const double integrate_peak_mb = PeakRssMb() - rss_before_integrate_mb;
     bar.Finish();
     log(name + ": " + ir.message);
-    // Before the filter, so the report shows what the filter removes.
-    const fusion::WeightHistogram hist = volume.ComputeWeightHistogram();
-    const fusion::WeightFilterResult wf = volume.FilterByWeight(config.weight_filter);
-    log(name + ": weight filter: " + wf.message);
-    const fusion::VolumeStats vs = volume.Stats();
-    json st = ir;  // the integration counts
-    st.update({{"sensor_model", ToString(config.tsdf.sensor_model)},
-               {"voxel_size_m", tcfg.voxel_size_m},
-               {"ping_stride", ping_stride},
-               {"truncation_m", config.tsdf.truncation_m},
-               {"integrate_seconds", ir.elapsed_s},
-               {"integrate_peak_rss_growth_mb", integrate_peak_mb},
-               {"min_weight", config.weight_filter.min_weight},
-               {"voxels_before_filter", wf.voxels_before},
-               {"voxels_removed", wf.voxels_removed},
-               {"active_voxels", vs.active_voxels},
-               {"grid_memory_mb", static_cast<double>(vs.memory_bytes) / (1024.0 * 1024.0)}});
-    st["weight_histogram"] = hist;
-    st["weight_histogram"]["before_filter"] = true;
+    json st = FinishFuse(volume, config, tcfg, ping_stride, ir, integrate_peak_mb, log, name);
+    if (by_tiles && config.tiles.write_products) {
+        if (auto w = WriteMeshTiles(s, mesh_tiles, tcfg, config, tiles_record); !w)
+            return w.error();
+    }
+    if (by_tiles) st["tiles"] = tiles_record;
     if (stage == Stage::kFuse) {
-        const std::vector<std::pair<std::string, std::string>> meta = {
-            {"pitmap_origin_latitude_deg", Fixed(s.model.origin.latitude_deg, 9)},
-            {"pitmap_origin_longitude_deg", Fixed(s.model.origin.longitude_deg, 9)},
-            {"pitmap_origin_height_m", Fixed(s.model.origin.height_m, 4)},
-            {"pitmap_frame", "local ENU at the origin, metres"},
-            {kRunIdKey, s.model.run_id}};
-        if (auto w = fusion::WriteVdb(volume, s.out_dir + "/tsdf.vdb", meta); !w) return w.error();
+        if (auto w = WriteTsdf(s, volume, s.out_dir + "/tsdf.vdb"); !w) return w.error();
     }
     RecordStage(s.summary, stage, st, clock);
     if (auto w = SaveSummary(s); !w) return w.error();
@@ -805,6 +1141,23 @@ Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, co
     if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
         return r;
     return detail::SlamSurvey(*s, config, log);
+}
+
+Status RunFuseTile(const std::string& out_dir,
+                   const PipelineConfig& config,
+                   TileIndex tile,
+                   const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    if (!s) return s.error();
+    return detail::FuseTile(*s, config, tile, log);
+}
+
+Status RunMergeFuseTiles(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    if (!s) return s.error();
+    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kFuse)); !r)
+        return r;
+    return detail::MergeFuseTiles(*s, config, log);
 }
 
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {

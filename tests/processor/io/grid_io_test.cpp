@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Gridded surfaces through GDAL (processor/io/grid_io.hpp): a COG GeoTIFF and a BAG read back
 // by GDAL with the same values, empty nodes, geometry, horizontal CRS (EPSG) and vertical CRS;
-// bad grids and unreadable files are errors naming the file.
+// bad grids and unreadable files are errors naming the file; a VRT of tiles reads back as the
+// whole grid.
 #include "processor/io/grid_io.hpp"
 
 #include <gtest/gtest.h>
@@ -100,6 +101,45 @@ TEST_F(GridIo, CogGeoTiffReadsBackTheSameValuesAndCrs) {
     std::string head(512, '\0');
     in.read(head.data(), 512);
     EXPECT_NE(head.find("LAYOUT=IFDS_BEFORE_DATA"), std::string::npos);
+}
+
+// A VRT of two tiles of the sample (west and east halves, in a folder of their own) reads back
+// as the whole sample, band for band, from its relative paths after the folder moved; a missing
+// tile is an error naming the VRT.
+TEST_F(GridIo, VrtOfTilesReadsBackAsTheWholeGrid) {
+    const GridRaster g = Sample(29, true);
+    fs::create_directories(dir_ / "out/tiles");
+    std::vector<std::string> names;
+    for (int part = 0; part < 2; ++part) {
+        GridRaster t = g;
+        const int i0 = part == 0 ? 0 : 20;
+        t.nx = part == 0 ? 20 : g.nx - 20;
+        t.x0 = g.x0 + i0 * g.resolution_m;
+        for (std::size_t l = 0; l < g.layers.size(); ++l) {
+            t.layers[l].values.clear();
+            for (int j = 0; j < g.ny; ++j) {
+                for (int i = 0; i < t.nx; ++i) {
+                    t.layers[l].values.push_back(
+                        g.layers[l].values[static_cast<std::size_t>(j * g.nx + i0 + i)]);
+                }
+            }
+        }
+        names.push_back("tiles/t" + std::to_string(part) + ".tif");
+        ASSERT_TRUE(WriteCogGeoTiff((dir_ / "out" / names.back()).string(), t));
+    }
+    const Status w = WriteVrt((dir_ / "out/dem.vrt").string(), names);
+    ASSERT_TRUE(w) << w.error().message;
+    fs::rename(dir_ / "out", dir_ / "moved");
+    auto r = ReadGrid((dir_ / "moved/dem.vrt").string());
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->driver, "VRT");
+    ExpectSameGeometry(g, r->grid);
+    ASSERT_EQ(r->grid.layers.size(), 3u);
+    for (int b = 0; b < 3; ++b) ExpectSameLayer(g.layers[b], r->grid.layers[b]);
+    EXPECT_EQ(r->horizontal_epsg, 32629);
+    const Status missing = WriteVrt((dir_ / "moved/bad.vrt").string(), {"tiles/none.tif"});
+    ASSERT_FALSE(missing);
+    EXPECT_NE(missing.error().message.find("bad.vrt"), std::string::npos);
 }
 
 // A mosaic's values are not heights: its GeoTIFF names the horizontal CRS only, and the
