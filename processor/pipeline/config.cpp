@@ -68,6 +68,9 @@ void VisitIngest(V&& v, io::IngestConfig& c) {
 template <class V>
 void VisitGeoref(V&& v, georef::GeorefConfig& c) {
     v("max_nav_gap_s", c.max_nav_gap_s, "refuse pings across longer INS gaps, s");
+    v("max_nav_extrapolation_s",
+      c.max_nav_extrapolation_s,
+      "place pings this close outside the INS span, s");
     v("min_range_m", c.min_range_m, "range gate, m");
     v("max_range_m", c.max_range_m, "range gate, m");
     v("sound_speed_scaling", c.sound_speed_scaling, "r *= c_header / nominal");
