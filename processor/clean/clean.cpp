@@ -458,7 +458,9 @@ void FillHoles(const georef::GeorefResult& geo,
 
 // Enclosed runs: the soundings still accepted form pieces of continuous range over the (ping,
 // beam) grid (neighbours along track and across the fan, over up to 3 dropouts, within
-// hole_tolerance of the range and 0.1 m). A small piece (fill_max_soundings at most) touching
+// hole_tolerance of the range and 0.1 m; along track also short of a break: where the range
+// grows fast from ping to ping, towards a wall, a long ghost's pings step by more than the
+// continuity and would part into pieces open to each other). A small piece (fill_max_soundings at most) touching
 // rejected soundings continuously (fill_min_contacts or more contacts) is the rest of their
 // run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
 // between the run's rejected soundings and breaks in the range (profile_min_m, margin_rel of the
@@ -515,7 +517,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
                 if (q < 0 || piece[q] == id) continue;
                 if (status[q] != 0) {
                     if (continuous(j, q)) ++votes[status[q]];
-                } else if (continuous(j, q)) {
+                } else if (continuous(j, q) || (dir[0] != 0 && within_break(j, q))) {
                     if (piece[q] != 0 || members.size() + stack.size() >= limit) {
                         large = true;  // joins a large piece, or is one
                         break;
