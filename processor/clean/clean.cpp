@@ -460,9 +460,9 @@ void FillHoles(const georef::GeorefResult& geo,
 // beam) grid (neighbours along track and across the fan, over up to 3 dropouts, within
 // hole_tolerance of the range and 0.1 m; along track also short of a break: where the range
 // grows fast from ping to ping, towards a wall, a long ghost's pings step by more than the
-// continuity and would part into pieces open to each other). A small piece (fill_max_soundings at most) touching
-// rejected soundings continuously (fill_min_contacts or more contacts) is the rest of their
-// run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
+// continuity and would part into pieces open to each other). A small piece (fill_max_soundings at
+// most) touching rejected soundings continuously (fill_min_contacts or more contacts) is the rest
+// of their run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
 // between the run's rejected soundings and breaks in the range (profile_min_m, margin_rel of the
 // range). A piece with an accepted neighbour outside it nearer than a break is open: the
 // terrain's noise parted them (the terrain is one large piece, or pieces its noise parts). An
