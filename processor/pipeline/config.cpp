@@ -250,6 +250,7 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       c.fill_max_soundings,
       "a piece of continuous range enclosed by rejections: at most this many; 0 = off");
     v("fill_min_contacts", c.fill_min_contacts, "... touching rejected soundings this often");
+    v("fill_break_m", c.fill_break_m, "... its other edges breaks of this (or margin_rel), m");
     v("terrain_piece_soundings",
       c.terrain_piece_soundings,
       "a rejection continuous in range with this many accepted soundings is terrain; 0 = off");
