@@ -458,13 +458,16 @@ void FillHoles(const georef::GeorefResult& geo,
 
 // Enclosed runs: the soundings still accepted form pieces of continuous range over the (ping,
 // beam) grid (neighbours along track and across the fan, over up to 3 dropouts, within
-// hole_tolerance of the range and 0.1 m). A small piece (fill_max_soundings at most) touching
-// rejected soundings continuously (fill_min_contacts or more contacts) is the rest of their
-// run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
-// between the run's rejected soundings and breaks in the range (profile_min_m, margin_rel of the
-// range). A piece with an accepted neighbour outside it nearer than a break is open: the
-// terrain's noise parted them (the terrain is one large piece, or pieces its noise parts). An
-// enclosed piece takes the status most of its contacts have.
+// hole_tolerance of the range and 0.1 m; along track also short of a break: where the range
+// grows fast from ping to ping, towards a wall, a long ghost's pings step by more than the
+// continuity and would part into pieces open to each other). A small piece (fill_max_soundings at
+// most) touching rejected soundings continuously (fill_min_contacts or more contacts) is the rest
+// of their run: the part of a ghost or an echo cloud whose rays and profiles happened to pass, held
+// between the run's rejected soundings and breaks in the range (fill_break_m, margin_rel of the
+// range: at 1-4 m a ghost's 8-45 % or the smile's 5 % is less than the profiles' 0.3 m). A piece
+// with an accepted neighbour outside it nearer than a break is open: the terrain's noise parted
+// them (the terrain is one large piece, or pieces its noise parts). An enclosed piece takes the
+// status most of its contacts have.
 void FillEnclosed(const georef::GeorefResult& geo,
                   const SoundingGrid& grid,
                   const CleanConfig& config,
@@ -478,7 +481,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
     };
     auto within_break = [&](std::size_t a, std::size_t b) {
         const double ra = P.range_m[a], rb = P.range_m[b];
-        return std::abs(ra - rb) <= std::max(config.profile_min_m, config.margin_rel * ra);
+        return std::abs(ra - rb) <= std::max(config.fill_break_m, config.margin_rel * ra);
     };
     constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
     // The pieces are grown from the accepted soundings that touch a rejected one continuously,
@@ -515,7 +518,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
                 if (q < 0 || piece[q] == id) continue;
                 if (status[q] != 0) {
                     if (continuous(j, q)) ++votes[status[q]];
-                } else if (continuous(j, q)) {
+                } else if (continuous(j, q) || (dir[0] != 0 && within_break(j, q))) {
                     if (piece[q] != 0 || members.size() + stack.size() >= limit) {
                         large = true;  // joins a large piece, or is one
                         break;
@@ -1021,6 +1024,7 @@ std::vector<std::string> CleanConfig::Validate() const {
         p.push_back("clean.hole_tolerance must be in [0, 1)");
     if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
     if (fill_min_contacts < 1) p.push_back("clean.fill_min_contacts must be >= 1");
+    if (!(fill_break_m > 0)) p.push_back("clean.fill_break_m must be > 0");
     if (terrain_piece_soundings < 0) p.push_back("clean.terrain_piece_soundings must be >= 0");
     if (!(profile_sigmas > 0)) p.push_back("clean.profile_sigmas must be > 0");
     if (!(profile_min_m >= 0)) p.push_back("clean.profile_min_m must be >= 0");

@@ -33,7 +33,7 @@
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
-//      the range (`fill_max_soundings`, `fill_min_contacts`).
+//      the range (`fill_max_soundings`, `fill_min_contacts`, `fill_break_m`).
 //   8. Terrain after all: a rejected sounding continuous in range (the pieces' measure) with a
 //      piece of `terrain_piece_soundings` accepted soundings, or with one released so, is
 //      accepted again: a bench crest or a ledge a beam grazes for a few pings is off its range
@@ -83,7 +83,9 @@ struct CleanConfig {
     double hole_tolerance = 0.01;       // a hole in a run: on its neighbours' line, share of range
     int fill_max_soundings = 500;       // an enclosed piece of continuous range: at most this many
                                         // soundings (0 = off) ...
-    int fill_min_contacts = 2;          // ... touching rejected soundings this often
+    int fill_min_contacts = 2;          // ... touching rejected soundings this often ...
+    double fill_break_m = 0.15;         // ... its other edges breaks in the range of this, m
+                                        // (or margin_rel of the range)
     int terrain_piece_soundings = 500;  // a rejection continuous in range with a piece of this
                                         // many accepted soundings is terrain (0 = off)
     int num_threads = 0;                // 0 = all cores (TBB)

@@ -16,6 +16,9 @@ namespace pitmap::proc::georef {
 std::vector<std::string> GeorefConfig::Validate() const {
     std::vector<std::string> p;
     if (!(max_nav_gap_s > 0)) p.push_back("georef.max_nav_gap_s must be > 0");
+    if (!(max_nav_extrapolation_s >= 0 && max_nav_extrapolation_s <= max_nav_gap_s)) {
+        p.push_back("georef.max_nav_extrapolation_s must be in [0, max_nav_gap_s]");
+    }
     if (!(min_range_m >= 0)) p.push_back("georef.min_range_m must be >= 0");
     if (!(max_range_m > min_range_m)) p.push_back("georef.max_range_m must be > min_range_m");
     if (!(nominal_sound_speed_mps > 1000 && nominal_sound_speed_mps < 2000)) {
@@ -41,17 +44,32 @@ Trajectory::Trajectory(const survey::NavSeries& nav, const LocalTangentFrame& wo
     }
 }
 
-std::optional<Pose> Trajectory::PoseAt(std::int64_t utime_gps, double max_gap_s) const {
-    if (utime_gps_.empty() || utime_gps < utime_gps_.front() || utime_gps > utime_gps_.back()) {
-        return std::nullopt;
+std::optional<Pose> Trajectory::PoseAt(std::int64_t utime_gps,
+                                       double max_gap_s,
+                                       double max_extrapolation_s) const {
+    if (utime_gps_.empty()) return std::nullopt;
+    const auto outside_s = [](std::int64_t a, std::int64_t b) {
+        return static_cast<double>(a - b) * 1e-6;
+    };
+    if (utime_gps < utime_gps_.front() || utime_gps > utime_gps_.back()) {
+        const bool before = utime_gps < utime_gps_.front();
+        const double by_s = before ? outside_s(utime_gps_.front(), utime_gps)
+                                   : outside_s(utime_gps, utime_gps_.back());
+        if (by_s > max_extrapolation_s || utime_gps_.size() < 2) return std::nullopt;
+        // The end samples' motion carried on: alpha < 0 before the first, > 1 after the last.
+        const std::size_t i0 = before ? 0 : utime_gps_.size() - 2;
+        const double dt_s = outside_s(utime_gps_[i0 + 1], utime_gps_[i0]);
+        if (!(dt_s > 0) || dt_s > max_gap_s) return std::nullopt;
+        const double alpha = outside_s(utime_gps, utime_gps_[i0]) / dt_s;
+        return InterpolatePose(T_world_vehicle_[i0], T_world_vehicle_[i0 + 1], alpha);
     }
     auto it = std::lower_bound(utime_gps_.begin(), utime_gps_.end(), utime_gps);
     const auto i1 = static_cast<std::size_t>(it - utime_gps_.begin());
     if (utime_gps_[i1] == utime_gps) return T_world_vehicle_[i1];
     const std::size_t i0 = i1 - 1;
-    const double dt_s = static_cast<double>(utime_gps_[i1] - utime_gps_[i0]) * 1e-6;
+    const double dt_s = outside_s(utime_gps_[i1], utime_gps_[i0]);
     if (dt_s > max_gap_s) return std::nullopt;
-    const double alpha = static_cast<double>(utime_gps - utime_gps_[i0]) * 1e-6 / dt_s;
+    const double alpha = outside_s(utime_gps, utime_gps_[i0]) / dt_s;
     return InterpolatePose(T_world_vehicle_[i0], T_world_vehicle_[i1], alpha);
 }
 
@@ -169,13 +187,16 @@ PingWork PlacePing(const PingContext& ctx, std::size_t k, PingWater& water) {
     }
     const std::int64_t t = h.utime_gps;
     const auto& times = ctx.trajectory.times();
-    if (times.empty() || t < times.front() || t > times.back()) {
+    const auto extrapolation_us = static_cast<std::int64_t>(config.max_nav_extrapolation_s * 1e6);
+    if (times.empty() || t < times.front() - extrapolation_us ||
+        t > times.back() + extrapolation_us) {
         w.reason = 1;
         return w;
     }
-    const auto T_world_vehicle = ctx.trajectory.PoseAt(t, config.max_nav_gap_s);
+    const auto T_world_vehicle =
+        ctx.trajectory.PoseAt(t, config.max_nav_gap_s, config.max_nav_extrapolation_s);
     if (!T_world_vehicle) {
-        w.reason = 2;
+        w.reason = t < times.front() || t > times.back() ? 1 : 2;
         return w;
     }
     w.ok = true;

@@ -15,10 +15,10 @@
 // straight p_sonar above; the launch angle is taken after the attitude and the mount, and the
 // steering is corrected for the speed at the face. Beams whose ray turns, surfaces or cannot be
 // steered are dropped and counted (refraction_failed).
-// Pings whose bracketing samples are more than max_nav_gap_s apart (or outside the nav span)
-// are refused and counted. Filters, in order: no detection, range gate, spike filter (median of
-// the valid ranges within +-spike_half_window beams; |r - median| > spike_abs_m +
-// spike_rel * median is a spike).
+// Pings whose bracketing samples are more than max_nav_gap_s apart (or outside the nav span by
+// more than max_nav_extrapolation_s) are refused and counted. Filters, in order: no detection,
+// range gate, spike filter (median of the valid ranges within +-spike_half_window beams;
+// |r - median| > spike_abs_m + spike_rel * median is a spike).
 // Thread safety: RunGeoref is reentrant; results do not depend on the thread count.
 #pragma once
 
@@ -40,7 +40,11 @@
 namespace pitmap::proc::georef {
 
 struct GeorefConfig {
-    double max_nav_gap_s = 0.5;             // refuse pings between INS samples further apart
+    double max_nav_gap_s = 0.5;  // refuse pings between INS samples further apart
+    // Place pings up to this long before the first or after the last INS sample, s, by
+    // extrapolating the two end samples' motion: a latency correction can move the first ping
+    // a few ms before a navigation that starts with it. 0 = only within the span.
+    double max_nav_extrapolation_s = 0.02;
     double min_range_m = 0.5;               // range gate, metres
     double max_range_m = 100.0;             // range gate, metres
     bool sound_speed_scaling = false;       // r *= c_header / nominal (MB-System convention)
@@ -58,8 +62,12 @@ struct GeorefConfig {
 class Trajectory {
 public:
     Trajectory(const survey::NavSeries& nav, const LocalTangentFrame& world);
-    // T_world_vehicle at a time; nullopt outside the span or across a gap > max_gap_s.
-    std::optional<Pose> PoseAt(std::int64_t utime_gps, double max_gap_s) const;
+    // T_world_vehicle at a time; nullopt across a gap > max_gap_s or outside the span by more
+    // than max_extrapolation_s (within it: the two end samples' motion extrapolated, when they
+    // are no further apart than max_gap_s).
+    std::optional<Pose> PoseAt(std::int64_t utime_gps,
+                               double max_gap_s,
+                               double max_extrapolation_s = 0.0) const;
     const std::vector<std::int64_t>& times() const { return utime_gps_; }
     const std::vector<Pose>& poses() const { return T_world_vehicle_; }
 
@@ -97,7 +105,7 @@ struct GeorefPing {
 struct GeorefCounts {
     std::int64_t pings_in = 0;
     std::int64_t pings_georeferenced = 0;
-    std::int64_t pings_outside_nav = 0;  // before the first or after the last INS sample
+    std::int64_t pings_outside_nav = 0;  // off the INS span by > max_nav_extrapolation_s
     std::int64_t pings_in_nav_gap = 0;   // bracketing samples further apart than max_nav_gap_s
     std::int64_t pings_bad_header = 0;   // zero resolution, NaN angles
     std::int64_t soundings_in = 0;

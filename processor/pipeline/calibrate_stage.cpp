@@ -445,6 +445,20 @@ void ApplyCalibration(StageContext& s,
     }
 }
 
+// The pings the soundings georeferenced again leave out (a latency correction can move a ping
+// out of the navigation's span), into the stage's record and the log; summary.json's
+// "soundings" says it again at the end (SoundingsJson).
+void RecordPingsLeftOut(const StageContext& s, json& st, const Log& log) {
+    const georef::GeorefCounts& c = s.geo.counts;
+    st["pings_georeferenced"] = c.pings_georeferenced;
+    if (c.pings_georeferenced >= c.pings_in) return;
+    log("calibrate: " + std::to_string(c.pings_in - c.pings_georeferenced) + " of " +
+        std::to_string(c.pings_in) +
+        " pings left out of the georeferenced soundings: " + std::to_string(c.pings_outside_nav) +
+        " outside the navigation's span, " + std::to_string(c.pings_in_nav_gap) + " in its gaps, " +
+        std::to_string(c.pings_bad_header) + " with a bad header");
+}
+
 // The sonar clock after the calibration, in summary.json's "sonar_clock"; with a configured
 // offset on header time, in its own terms too (the offset that would have needed no
 // correction), and a gate when the soundings' latency disagrees with it.
@@ -575,6 +589,7 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
     }
     st["kept_nominal"] = keep_nominal;
     ApplyCalibration(s, config, cal, keep_nominal);
+    RecordPingsLeftOut(s, st, log);
     RecordCalibratedClock(s, cal, q, log);
     s.summary["mount"] = MountJson(cal.mount);
     RecordStage(s.summary, Stage::kCalibrate, st, clock);

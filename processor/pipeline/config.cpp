@@ -68,6 +68,9 @@ void VisitIngest(V&& v, io::IngestConfig& c) {
 template <class V>
 void VisitGeoref(V&& v, georef::GeorefConfig& c) {
     v("max_nav_gap_s", c.max_nav_gap_s, "refuse pings across longer INS gaps, s");
+    v("max_nav_extrapolation_s",
+      c.max_nav_extrapolation_s,
+      "place pings this close outside the INS span, s");
     v("min_range_m", c.min_range_m, "range gate, m");
     v("max_range_m", c.max_range_m, "range gate, m");
     v("sound_speed_scaling", c.sound_speed_scaling, "r *= c_header / nominal");
@@ -255,6 +258,7 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       c.fill_max_soundings,
       "a piece of continuous range enclosed by rejections: at most this many; 0 = off");
     v("fill_min_contacts", c.fill_min_contacts, "... touching rejected soundings this often");
+    v("fill_break_m", c.fill_break_m, "... its other edges breaks of this (or margin_rel), m");
     v("terrain_piece_soundings",
       c.terrain_piece_soundings,
       "a rejection continuous in range with this many accepted soundings is terrain; 0 = off");

@@ -1034,7 +1034,7 @@ Status WriteSoundingProducts(StageContext& s,
     std::optional<georef::GeorefResult> rejected;
     if (config.write_rejected) rejected = RejectedView(s, config);
     const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
-    s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    s.summary["soundings"] = SoundingsJson(s.geo.counts);
     if (auto w = io::WritePly(dir + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
         return w;
     files.push_back("points.ply");

@@ -145,10 +145,12 @@ Status WritePoints(StageContext& s, const PipelineConfig& c);
 // model's newest trajectory, with s.refraction): what the point files carry beside s.geo.
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c);
 
-// summary.json's "soundings": {total, accepted, rejected: {reason: count}} from georef's counts
-// per status (every status's name, 0 included; total: the soundings of the georeferenced pings,
-// no detection included).
-nlohmann::json SoundingsJson(const survey::StatusCounts& counts);
+// summary.json's "soundings": {total, accepted, rejected: {reason: count}, pings, not_placed}
+// from georef's counts: per status (every status's name, 0 included; total: the soundings of
+// the georeferenced pings, no detection included); pings: {in, georeferenced, left_out:
+// {outside_nav, nav_gap, bad_header}}, the pings georef could not place and why; not_placed:
+// the beams of those pings (in no total, no product).
+nlohmann::json SoundingsJson(const georef::GeorefCounts& counts);
 
 // summary.json of P for the survey `model`: the file when it is readable and of the same run,
 // else a new report {run_id} with a warning saying why.

@@ -182,7 +182,7 @@ georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c
 }
 
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
-    s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+    s.summary["soundings"] = SoundingsJson(s.geo.counts);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
     if (!c.write_rejected) {
         return WritePoints(
@@ -193,18 +193,26 @@ Status WritePoints(StageContext& s, const PipelineConfig& c) {
         s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
 }
 
-json SoundingsJson(const survey::StatusCounts& counts) {
+json SoundingsJson(const georef::GeorefCounts& c) {
     std::int64_t total = 0;
     json rejected = json::object();
     for (int k = 0; k < survey::kNumSoundingStatus; ++k) {
-        total += counts[static_cast<std::size_t>(k)];
+        total += c.status[static_cast<std::size_t>(k)];
         if (k == static_cast<int>(survey::SoundingStatus::kAccepted)) continue;
         rejected[std::string(survey::ToString(static_cast<survey::SoundingStatus>(k)))] =
-            counts[static_cast<std::size_t>(k)];
+            c.status[static_cast<std::size_t>(k)];
     }
     return {{"total", total},
-            {"accepted", counts[static_cast<std::size_t>(survey::SoundingStatus::kAccepted)]},
-            {"rejected", std::move(rejected)}};
+            {"accepted", c.status[static_cast<std::size_t>(survey::SoundingStatus::kAccepted)]},
+            {"rejected", std::move(rejected)},
+            {"pings",
+             {{"in", c.pings_in},
+              {"georeferenced", c.pings_georeferenced},
+              {"left_out",
+               {{"outside_nav", c.pings_outside_nav},
+                {"nav_gap", c.pings_in_nav_gap},
+                {"bad_header", c.pings_bad_header}}}}},
+            {"not_placed", std::max<std::int64_t>(0, c.soundings_in - total)}};
 }
 
 std::vector<std::string> ProductsReplacedBy(Stage stage) {
@@ -417,7 +425,7 @@ Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points) 
     if (points) {
         if (auto w = WritePoints(s, config); !w) return w;
     } else {
-        s.summary["soundings"] = SoundingsJson(s.geo.counts.status);
+        s.summary["soundings"] = SoundingsJson(s.geo.counts);
         if (auto utm = georef::ToUtm(s.geo); utm) {
             s.summary["utm"] = {
                 {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};

@@ -120,6 +120,41 @@ TEST(Georef, RefusesPingsInNavGapsAndOutsideTheSpan) {
     EXPECT_EQ(r.counts.pings_outside_nav, 1);
 }
 
+// A latency correction moves the first ping a few ms before the INS's first sample when the
+// navigation starts with the sonar (the simulator's quarry: -1.3 ms, ping 0 left out): within
+// max_nav_extrapolation_s the end samples' motion is carried on; further out the ping is
+// refused and counted.
+TEST(Georef, PlacesPingsJustOutsideTheSpanByExtrapolation) {
+    // North at 5 m/s (0.1 m per 20 ms sample) from t = 1 s to 1.18 s.
+    const survey::NavSeries nav = LevelNav(0.0, 1'000'000, 10, 20'000);
+    survey::PingSeries pings;
+    AddFlatPing(pings, 1'000'000 - 1'300, 0.0);   // 1.3 ms before the first sample
+    AddFlatPing(pings, 1'180'000 + 4'000, 0.0);   // 4 ms after the last
+    AddFlatPing(pings, 1'000'000 - 50'000, 0.0);  // 50 ms before: too far
+    AddFlatPing(pings, 1'180'000 + 30'000, 0.0);  // 30 ms after: too far
+    const GeorefResult r = RunGeoref(nav, pings, survey::SonarMount{}, GeorefConfig{});
+    ASSERT_EQ(r.counts.pings_georeferenced, 2);
+    EXPECT_EQ(r.counts.pings_outside_nav, 2);
+    EXPECT_EQ(r.counts.pings_in_nav_gap, 0);
+    EXPECT_EQ(r.pings[0].header_index, 0u);
+    EXPECT_EQ(r.pings[1].header_index, 1u);
+    // Where the vehicle was: 6.5 mm south of the first sample, 20 mm north of the last.
+    EXPECT_NEAR(r.pings[0].T_world_vehicle.translation().y(), -0.0065, 1e-6);
+    EXPECT_NEAR(r.pings[1].T_world_vehicle.translation().y(), 0.9 + 0.02, 1e-6);
+    for (const auto& p : r.points.position_world) EXPECT_NEAR(p.z(), -kDepthM, 2e-3);
+
+    GeorefConfig within_span;
+    within_span.max_nav_extrapolation_s = 0;
+    EXPECT_EQ(RunGeoref(nav, pings, survey::SonarMount{}, within_span).counts.pings_outside_nav, 4);
+    // The end samples further apart than max_nav_gap_s: no motion to carry on (the pings
+    // inside the span are in the gap).
+    const survey::NavSeries sparse = LevelNav(0.0, 1'000'000, 2, 600'000);
+    const GeorefResult g = RunGeoref(sparse, pings, survey::SonarMount{}, GeorefConfig{});
+    EXPECT_EQ(g.counts.pings_georeferenced, 0);
+    EXPECT_EQ(g.counts.pings_outside_nav, 2);
+    EXPECT_EQ(g.counts.pings_in_nav_gap, 2);
+}
+
 TEST(Georef, SpikeFilterAndRangeGateAreCounted) {
     const survey::NavSeries nav = LevelNav(0.0, 0, 10, 20'000);
     survey::PingSeries pings;
@@ -156,7 +191,8 @@ TEST(Georef, ConfigValidateListsEveryProblem) {
     c.max_nav_gap_s = 0;
     c.max_range_m = -1;
     c.spike_abs_m = 0;
-    EXPECT_EQ(c.Validate().size(), 3u);
+    c.max_nav_extrapolation_s = -0.01;
+    EXPECT_EQ(c.Validate().size(), 4u);
     EXPECT_TRUE(GeorefConfig{}.Validate().empty());
 }
 
