@@ -198,9 +198,10 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     const json& cm = j["change_mesh"];
     ASSERT_TRUE(cm["computed"].get<bool>()) << cm.dump();
     EXPECT_GT(cm["measured"].get<double>(), 0.6 * cm["vertices"].get<double>());
-    // The five parts as patches of significant vertices, few others (measured 7 of 515).
+    // The five parts as patches of significant vertices, few others (the count measured is in
+    // docs/compare.md; the stable vertices flagged are bounded above).
     EXPECT_GE(cm["patches"].get<int>(), 5);
-    EXPECT_LE(cm["patches"].get<int>(), 12);
+    EXPECT_LE(cm["patches"].get<int>(), 16);
     auto mesh = pitmap::formats::ply::ReadMesh((C / "change_mesh.ply").string(),
                                                {"distance_m", "significance"});
     ASSERT_TRUE(mesh.ok()) << mesh.error().message;

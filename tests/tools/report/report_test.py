@@ -1134,6 +1134,21 @@ class HelperTest(unittest.TestCase):
     def setUpClass(cls):
         cls.m = LoadModule()
 
+    def test_pings_left_out_are_said(self):
+        from pitmap_report_lib.sections_clean import pings_left_out
+        snd = {"pings": {"in": 1200, "georeferenced": 1197,
+                         "left_out": {"outside_nav": 2, "nav_gap": 1, "bad_header": 0}},
+               "not_placed": 1440}
+        text = pings_left_out(snd)
+        self.assertIn("2 outside the navigation", text)
+        self.assertIn("1 in a navigation gap", text)
+        self.assertNotIn("header", text)
+        self.assertIn("1\u2009440 beams", text)
+        # Every ping placed, or products from before the counts: nothing said.
+        snd["pings"]["left_out"] = {"outside_nav": 0, "nav_gap": 0, "bad_header": 0}
+        self.assertEqual(pings_left_out(snd), "")
+        self.assertEqual(pings_left_out({"total": 5}), "")
+
     def test_capacity_curve_by_hand(self):
         from pitmap_report_lib.capacity import capacity_curve
         # Nodes of 2 m at heights 0, 1, 2 and an empty one; water at 1.5 m: two nodes under

@@ -73,11 +73,34 @@ def sounding_counts(p):
             rows.append([esc(name), num(n), share(n)])
     rows.append(["<b>rejected</b>", num(n_rej), share(n_rej)])
     rows.append(["<b>total</b>", num(total), ""])
-    return "\n".join([table(rows, header=["status", "soundings", "share"]),
-                      "<p>Every sounding of the georeferenced pings, accepted or rejected with "
-                      "its reason. points.ply and points.las hold the rejected soundings that "
-                      "have a position (all but no detection and refraction) after the "
-                      "accepted ones, with their status.</p>"])
+    out = [table(rows, header=["status", "soundings", "share"]),
+           "<p>Every sounding of the georeferenced pings, accepted or rejected with "
+           "its reason. points.ply and points.las hold the rejected soundings that "
+           "have a position (all but no detection and refraction) after the "
+           "accepted ones, with their status.</p>"]
+    note = pings_left_out(snd)
+    if note:
+        out.append(note)
+    return "\n".join(out)
+
+
+def pings_left_out(snd):
+    """A sentence on the pings georef could not place (summary.json soundings.pings), their
+    beams not among the soundings above; "" when every ping was placed or the products predate
+    the counts."""
+    pings = snd.get("pings")
+    if not isinstance(pings, dict):
+        return ""
+    left = pings.get("left_out") if isinstance(pings.get("left_out"), dict) else {}
+    why = {"outside_nav": "outside the navigation's time span", "nav_gap": "in a navigation gap",
+           "bad_header": "with a header that cannot be used"}
+    parts = [f"{num(n)} {why.get(k, esc(str(k)))}" for k, n in sorted(left.items())
+             if isinstance(n, (int, float)) and n > 0]
+    if not parts:
+        return ""
+    beams = snd.get("not_placed", 0)
+    return (f"<p><b>Pings not placed:</b> {', '.join(parts)} (of {num(pings.get('in', 0))}); "
+            f"their {num(beams)} beams are not in the products.</p>")
 
 
 def rejections(p):
