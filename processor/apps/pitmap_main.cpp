@@ -409,7 +409,6 @@ int RunInfoCommand(const Options& o, const pp::PipelineConfig& config) {
     return 0;
 }
 
-// georef, a stage, rerun or run on P, holding P's lock; the gates the stages tripped.
 // `pitmap fuse`, of the whole survey, one tile (--tile I,J) or the merge of the tiles.
 pitmap::Status RunFuseCommand(const Options& o,
                               const pp::PipelineConfig& config,
@@ -417,6 +416,8 @@ pitmap::Status RunFuseCommand(const Options& o,
     if (o.fuse_tile.empty() && !o.merge_tiles) return pp::RunFuseStage(o.out_dir, config, log);
     if (!config.tiles.enabled)
         return pitmap::Error{"fuse: --tile and --merge-tiles need tiles.enabled"};
+    if (o.merge_tiles && !o.fuse_tile.empty())
+        return pitmap::Error{"fuse: --tile and --merge-tiles are two steps: give one of them"};
     if (o.merge_tiles) return pp::RunMergeFuseTiles(o.out_dir, config, log);
     pp::TileIndex t;
     char rest = 0;
@@ -429,6 +430,7 @@ pitmap::Status RunFuseCommand(const Options& o,
     return pp::RunFuseTile(o.out_dir, config, t, log);
 }
 
+// georef, a stage, rerun or run on P, holding P's lock; the gates the stages tripped.
 int RunStageCommand(const Commands& c,
                     const Options& o,
                     const pp::PipelineConfig& config,

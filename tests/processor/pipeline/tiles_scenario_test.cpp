@@ -189,6 +189,17 @@ TEST(TilesScenario, TiledBejancaEqualsTheWholeRunAtTheSeams) {
                          &out),
               0);
     EXPECT_NE(out.find("tile 900_900 is not one of the survey's"), std::string::npos) << out;
+    // A tile that is not two integers, and the two steps in one command, are refused.
+    EXPECT_NE(RunCommand(kBin + "/pitmap fuse --out " + Quote(jobs) + " --config " +
+                             Quote(dir / "tiled.yaml") + " --tile=1,x 2>&1",
+                         &out),
+              0);
+    EXPECT_NE(out.find("expected I,J"), std::string::npos) << out;
+    EXPECT_NE(RunCommand(kBin + "/pitmap fuse --out " + Quote(jobs) + " --config " +
+                             Quote(dir / "tiled.yaml") + " --tile=0,0 --merge-tiles 2>&1",
+                         &out),
+              0);
+    EXPECT_NE(out.find("give one of them"), std::string::npos) << out;
 }
 
 TEST(TilesScenario, TilesTooSmallForTheVoxelsStopTheRunAtStart) {
