@@ -146,14 +146,20 @@ Status CleanSurvey(StageContext& s,
     // A pass before this one in the same run (run: before the calibration) stays in the
     // record, as "earlier_pass", so that the stage's whole cost is in the summary.
     nlohmann::json earlier;
+    // summary.json is read back from disk: a member of another type is not this pass's record.
+    auto member = [](const nlohmann::json& o, const char* key, auto is_type) {
+        return o.contains(key) && is_type(o[key]) ? o[key] : nlohmann::json();
+    };
+    auto is_string = [](const nlohmann::json& v) { return v.is_string(); };
+    auto is_number = [](const nlohmann::json& v) { return v.is_number(); };
     if (s.summary.contains("stages") && s.summary["stages"].contains("clean") &&
-        s.summary["stages"]["clean"].value("run_id", std::string()) == s.model.run_id &&
+        member(s.summary["stages"]["clean"], "run_id", is_string) == s.model.run_id &&
         s.summary["stages"]["clean"].contains("seconds")) {
         const nlohmann::json& e = s.summary["stages"]["clean"];
         earlier = {{"seconds", e["seconds"]},
-                   {"cpu_seconds", e.value("cpu_seconds", 0.0)},
-                   {"rejected", e.value("rejected", 0)},
-                   {"trajectory", e.value("trajectory", "")}};
+                   {"cpu_seconds", member(e, "cpu_seconds", is_number)},
+                   {"rejected", member(e, "rejected", is_number)},
+                   {"trajectory", member(e, "trajectory", is_string)}};
     }
     ClearGates(s, Stage::kClean);
     survey::SoundingFlags& flags = s.model.flags;

@@ -105,13 +105,16 @@ Expected<EditLog> ReadEditLog(const std::string& path) {
         const std::string at = "edit " + std::to_string(i + 1);
         if (!e.is_object()) return bad(at + " is not an object");
         Edit edit;
-        const std::string action = e.value("action", "");
+        // A key of another type is this log's damage, never an exception (json::value throws).
+        const std::string action =
+            e.contains("action") && e["action"].is_string() ? e["action"].get<std::string>() : "";
         if (action == "reject") {
             edit.action = ManualEdit::kReject;
         } else if (action == "restore") {
             edit.action = ManualEdit::kRestore;
         } else {
-            return bad(at + ": action \"" + action + "\" (reject or restore)");
+            return bad(at + ": action " + (e.contains("action") ? e["action"].dump() : "missing") +
+                       " (\"reject\" or \"restore\")");
         }
         if (e.contains("at") && e["at"].is_string()) edit.at_utc = e["at"].get<std::string>();
         if (e.contains("source") && e["source"].is_string())

@@ -134,6 +134,8 @@ TEST_F(EditLogTest, DamagedFilesAreErrorsNamingTheFile) {
         R"({"pitmap_edit_log": 1, )" + survey + R"(, "edits": [3]})",
         R"({"pitmap_edit_log": 1, )" + survey + R"(, "edits": [{"action": "delete", "runs": []}]})",
         R"({"pitmap_edit_log": 1, )" + survey + R"(, "edits": [{"action": "reject"}]})",
+        // A key of another type (found by the fuzzer: json::value threw out of the reader).
+        R"({"pitmap_edit_log": 1, )" + survey + R"(, "edits": [{"action": 11, "runs": []}]})",
         R"({"pitmap_edit_log": 1, )" + survey +
             R"(, "edits": [{"action": "reject", "runs": [[0, 1]]}]})",
         R"({"pitmap_edit_log": 1, )" + survey +
