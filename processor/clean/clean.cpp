@@ -803,6 +803,35 @@ struct SoundingRays {
     }
 };
 
+// Where the line s + t d (unit d, t in metres) goes through voxel vox's plane patch for t in
+// (t_min, t_max): into the plane at more than the crossing angle (min_sin: its sine), the
+// crossing inside the voxel and within the patch's own extent (2 sigma of its soundings along
+// each axis of the plane), not across the part of the voxel it does not cover. Returns the
+// crossing's t, or -1 where it does not.
+double CrossesPatch(const Voxels& X,
+                    std::int32_t vox,
+                    const Eigen::Vector3d& s,
+                    const Eigen::Vector3d& d,
+                    double t_min,
+                    double t_max,
+                    double min_sin,
+                    double v) {
+    const Eigen::Vector3d& m = X.centroid[vox];
+    const Eigen::Vector3d& nrm = X.normal[vox];
+    const double dn = nrm.dot(d);
+    if (std::abs(dn) < min_sin) return -1;  // grazing
+    const double t_cross = nrm.dot(m - s) / dn;
+    if (!(t_cross > t_min && t_cross < t_max)) return -1;
+    const Eigen::Vector3d x = s + t_cross * d;
+    const Eigen::Vector3d xi = x / v;
+    if (Coord::floor(openvdb::Vec3d(xi.x(), xi.y(), xi.z())) != X.coord[vox]) return -1;
+    const Eigen::Vector3d u = x - m;
+    if (std::abs(u.dot(X.axis_major[vox])) > 2.0 * X.sigma_major[vox] + 0.05 ||
+        std::abs(u.dot(X.axis_minor[vox])) > 2.0 * X.sigma_minor[vox] + 0.05)
+        return -1;
+    return t_cross;
+}
+
 // What the rays say of each voxel: how many went through it, and each ray's first crossing of
 // a plane patch (kNone: none).
 struct RayEvidence {
@@ -842,24 +871,7 @@ RayEvidence MarchRays(const SoundingRays& rays,
                 free_rays[vox].fetch_add(1, std::memory_order_relaxed);
                 // Only the first crossing counts: after it, only the rays through.
                 if (!X.patch[vox] || first_crossing[j] != kNone) return true;
-                const Coord& q = X.coord[vox];
-                const Eigen::Vector3d& m = X.centroid[vox];
-                const Eigen::Vector3d& nrm = X.normal[vox];
-                const double dn = nrm.dot(d);
-                if (std::abs(dn) < min_sin) return true;  // grazing
-                const double t_cross = nrm.dot(m - s) / dn;
-                if (!(t_cross > 0 && t_cross < stop)) return true;
-                // Inside this voxel: through the patch, not past its edge.
-                const Eigen::Vector3d x = s + t_cross * d;
-                const Eigen::Vector3d xi = x / v;
-                if (Coord::floor(openvdb::Vec3d(xi.x(), xi.y(), xi.z())) != q) return true;
-                // ... and within the patch's own extent (2 sigma of its soundings along each
-                // axis of the plane), not across the part of the voxel it does not cover.
-                const Eigen::Vector3d u = x - m;
-                if (std::abs(u.dot(X.axis_major[vox])) > 2.0 * X.sigma_major[vox] + 0.05 ||
-                    std::abs(u.dot(X.axis_minor[vox])) > 2.0 * X.sigma_minor[vox] + 0.05)
-                    return true;
-                if (first_crossing[j] == kNone) first_crossing[j] = vox;
+                if (CrossesPatch(X, vox, s, d, 0.0, stop, min_sin, v) >= 0) first_crossing[j] = vox;
                 return true;
             });
         }
@@ -906,39 +918,66 @@ private:
     std::vector<std::int32_t> clean_hits_, credible_;
 };
 
-// Per cluster (component root): its soundings, and those with terrain behind them along their
-// rays, as far as 1.5 x the survey's longest range.
+// Per cluster (component root): its soundings, those with terrain behind them along their
+// rays (as far as 1.5 x the survey's longest range), and those whose rays went through the
+// terrain before their ends: into a solid patch's plane at more than the crossing angle, within
+// a voxel of the patch's centre (a long ghost behind a wall that its own pings observed only
+// sparsely: its rays pass the wall between the patches' extents).
 struct ClusterRays {
-    std::vector<std::atomic<std::int32_t>> behind, points;
+    std::vector<std::atomic<std::int32_t>> behind, through, points;
+    std::vector<char> went_through;  // per sounding of a cluster: its ray went through terrain
 };
 ClusterRays RaysBehindClusters(const SoundingRays& rays,
                                const openvdb::Int32Grid& terrain_grid,
                                const Voxels& X,
                                const std::vector<std::int32_t>& voxel_of,
-                               const std::vector<char>& terrain_voxel) {
+                               const std::vector<char>& terrain_voxel,
+                               const PatchVerdicts& patches) {
     const georef::GeorefPoints& P = rays.geo.points;
     const std::size_t n = P.size();
     double max_range = 0;
     for (std::size_t j = 0; j < n; ++j) max_range = std::max(max_range, double{P.range_m[j]});
     const double behind_vox = 1.5 * max_range / rays.v;
+    const double min_sin = std::sin(rays.config.min_crossing_deg * M_PI / 180.0);
     ClusterRays out{std::vector<std::atomic<std::int32_t>>(X.size()),
-                    std::vector<std::atomic<std::int32_t>>(X.size())};
+                    std::vector<std::atomic<std::int32_t>>(X.size()),
+                    std::vector<std::atomic<std::int32_t>>(X.size()),
+                    std::vector<char>(n, 0)};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
         Marcher march(terrain_grid);
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             const std::int32_t own = voxel_of[j];
             if (terrain_voxel[own]) continue;
-            out.points[X.component[own]].fetch_add(1, std::memory_order_relaxed);
+            const std::int32_t k = X.component[own];
+            out.points[k].fetch_add(1, std::memory_order_relaxed);
             double len = 0;
             const RayT ray = rays.Ray(j, &len);
             if (!(len > 0)) continue;
-            const double from = len + rays.Margin(len * rays.v) / rays.v;
+            const double range = len * rays.v;
+            const double margin = rays.Margin(range);
+            const double from = len + margin / rays.v;
             bool behind = false;
             march(ray, from, from + behind_vox, [&](std::int32_t, double) {
                 behind = true;
                 return false;
             });
-            if (behind) out.behind[X.component[own]].fetch_add(1, std::memory_order_relaxed);
+            if (behind) out.behind[k].fetch_add(1, std::memory_order_relaxed);
+            const Eigen::Vector3d& s = rays.Sensor(j);
+            const Eigen::Vector3d d = (P.position_world[j] - s) / range;
+            bool through = false;
+            march(ray, 0.0, (range - margin) / rays.v, [&](std::int32_t vox, double) {
+                if (!patches.Solid(vox)) return true;
+                const double dn = X.normal[vox].dot(d);
+                if (std::abs(dn) < min_sin) return true;  // grazing
+                const double t_cross = X.normal[vox].dot(X.centroid[vox] - s) / dn;
+                through = t_cross > 0 && t_cross < range - margin &&
+                          (s + t_cross * d - X.centroid[vox]).norm() <= rays.v;
+                return !through;
+            });
+            if (through) {
+                out.through[k].fetch_add(1, std::memory_order_relaxed);
+                out.went_through[j] = 1;
+            }
         }
     });
     return out;
@@ -973,6 +1012,10 @@ void Verdicts(const Voxels& X,
                     const std::int32_t k = X.component[own];
                     if (free_voxel(own, config.free_ratio)) {
                         st = SoundingStatus::kFreeSpace;
+                    } else if (2 * clusters.through[k].load() > clusters.points[k].load() ||
+                               (!clusters.went_through.empty() && clusters.went_through[j])) {
+                        // Its rays went through the terrain: a ghost behind a wall.
+                        st = SoundingStatus::kMultipath;
                     } else if (2 * clusters.behind[k].load() > clusters.points[k].load()) {
                         st = SoundingStatus::kCluster;
                     }
@@ -1092,9 +1135,12 @@ CleanResult Clean(const georef::GeorefResult& geo,
     // behind them along their rays.
     t_start = std::chrono::steady_clock::now();
     const ClusterRays clusters =
-        c.clusters > 0 ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel)
-                       : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
-                                     std::vector<std::atomic<std::int32_t>>(nv)};
+        c.clusters > 0
+            ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel, patches)
+            : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
+                          std::vector<std::atomic<std::int32_t>>(nv),
+                          std::vector<std::atomic<std::int32_t>>(nv),
+                          {}};
     c.seconds_clusters = Seconds(t_start);
 
     // ---- 4. each sounding: its voxel, its ray ----

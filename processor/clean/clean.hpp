@@ -21,9 +21,13 @@
 //   4. Multipath (kMultipath): a sounding whose ray first crossed a solid patch (supported,
 //      crossed by fewer than `solid_ratio` times its support) lies behind a surface observed
 //      from elsewhere: sound that travelled further than the surface it went through.
-//   5. Clusters (kCluster): a cluster whose soundings mostly have terrain behind them along
-//      their rays floats in front of the observed surface (persistent mid-water targets,
-//      near-field returns).
+//   5. Clusters: a cluster sounding whose ray went through the terrain before its end (into a
+//      solid patch's plane at more than the crossing angle, within a voxel of its centre) lies
+//      behind the observed surface (kMultipath; all of the cluster when most of its soundings
+//      do): a long ghost behind a wall its own pings observed only sparsely, whose rays pass
+//      between the patches' extents. A cluster whose soundings mostly have terrain behind them
+//      along their rays floats in front of the observed surface (kCluster: persistent
+//      mid-water targets, near-field returns).
 //   6. Range profiles (kProfile): what is left is judged on its range against a robust line
 //      through the same beam over `profile_pings` pings each side and through the same ping
 //      over `profile_beams` beams each side (where the neighbours disagree, the line of the

@@ -215,9 +215,10 @@ double DatumHeight(const fs::path& products) {
 struct EvalOptions {
     std::string truth_dir;
     std::string products_dir;
-    std::string json_path;    // empty: no JSON file
-    std::string common_with;  // --mesh-common-with: another products folder
-    double ate_window_s = 0;  // 0: no per-window ATE
+    std::string json_path;      // empty: no JSON file
+    std::string common_with;    // --mesh-common-with: another products folder
+    double ate_window_s = 0;    // 0: no per-window ATE
+    std::string soundings_csv;  // --soundings-csv: empty, none written
 };
 
 // The command line into `options`; an exit code when the program stops here (help, a usage
@@ -239,6 +240,13 @@ std::optional<int> ParseOptions(int argc, char** argv, EvalOptions& options) {
                    "also score both trajectories per window of this many seconds "
                    "(trajectory_ate_windows, trajectory_ate_worst_window_increase_m)")
         ->check(CLI::NonNegativeNumber);
+    app.add_option("--soundings-csv",
+                   options.soundings_csv,
+                   "with truth/artifacts.*: write every sounding of P/points.ply, accepted or "
+                   "not, to this CSV with its truth: ping (the 83P ping number), beam, "
+                   "gps_time_s, range_m, status, kind (none for a good sounding), the signed "
+                   "distance to the true surface and its slope (where a cleaning's residuals "
+                   "come from)");
     app.footer(kDefinitions);
     if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-eval")) return code;
     for (const std::string& dir : {options.truth_dir, options.products_dir}) {
@@ -547,6 +555,51 @@ Status ScoreArtifactsInPoints(const Scoring& scoring, json& scores) {
         return Ok{};
     }
     ScoreArtifactMatches(scoring, *scoring.truth.artifacts, scores);
+    return Ok{};
+}
+
+// --soundings-csv: every sounding of P/points.ply (accepted or rejected) with its truth, one a
+// line, for finding which soundings a product's error comes from.
+Status WriteSoundingsCsv(const Scoring& scoring) {
+    const fs::path ply_path = scoring.products / "points.ply";
+    if (!scoring.truth.artifacts) {
+        return Error{"--soundings-csv: " + scoring.options.truth_dir +
+                     " holds no artifacts truth (truth/artifacts.bin)"};
+    }
+    auto ply = formats::ply::ReadMesh(ply_path.string(), {"gps_time_s", "range_m", "status"});
+    if (!ply) return Error{"--soundings-csv: " + ply.error().message};
+    if (ply->vertex_beam.size() != ply->vertices.size()) {
+        return Error{"--soundings-csv: " + ply_path.string() + " has no beam property"};
+    }
+    std::ofstream out(scoring.options.soundings_csv);
+    out << "ping,beam,gps_time_s,range_m,status,kind,distance_m,slope_deg,x,y,z\n";
+    const sim::ArtifactTruth& truth = *scoring.truth.artifacts;
+    for (std::size_t i = 0; i < ply->vertices.size(); ++i) {
+        const double t = ply->vertex_properties[0][i];
+        const double k_real = (t - truth.first_ping_gps_s) * truth.ping_rate_hz;
+        const double k = std::round(k_real);
+        const bool matched = std::abs(k_real - k) <= 0.25 && k >= 0 && ply->vertex_beam[i] >= 0;
+        const auto kind = matched ? truth.KindOf(static_cast<std::int64_t>(k), ply->vertex_beam[i])
+                                  : sim::EchoArtifactKind::kNone;
+        const Eigen::Vector3d p = scoring.T_truth_product * ply->vertices[i];
+        char line[256];
+        std::snprintf(line,
+                      sizeof line,
+                      "%lld,%d,%.4f,%.3f,%d,%s,%.4f,%.1f,%.3f,%.3f,%.3f\n",
+                      matched ? static_cast<long long>(k) : -1LL,
+                      ply->vertex_beam[i],
+                      t,
+                      ply->vertex_properties[1][i],
+                      static_cast<int>(ply->vertex_properties[2][i]),
+                      matched ? sim::EchoArtifactName(kind) : "unmatched",
+                      scoring.world.SignedDistance(p),
+                      eval::SlopeDeg(scoring.world, p.x(), p.y()),
+                      p.x(),
+                      p.y(),
+                      p.z());
+        out << line;
+    }
+    if (!out) return Error{"--soundings-csv: " + scoring.options.soundings_csv + ": cannot write"};
     return Ok{};
 }
 
@@ -1169,6 +1222,12 @@ int main(int argc, char** argv) try {
                                       ScoreSoundingsTpuPly}) {
         if (auto scored = score(scoring, scores); !scored) {
             std::fprintf(stderr, "pitmap-eval: %s\n", scored.error().message.c_str());
+            return codes::kFailure;
+        }
+    }
+    if (!options.soundings_csv.empty()) {
+        if (auto written = WriteSoundingsCsv(scoring); !written) {
+            std::fprintf(stderr, "pitmap-eval: %s\n", written.error().message.c_str());
             return codes::kFailure;
         }
     }
