@@ -2,10 +2,12 @@
 // Issue 35: `pitmap run` cleans the echoes of the simulator's artifact levels (light, typical,
 // heavy) on the quarry's first 120 s (the high wall, the ramp, a shallow shelf; vendor files,
 // the true boresight in the vehicle file), scored by pitmap-eval against the truth per beam.
-// The bounds are what this cleaning reaches, with a margin (docs/cleaning.md has the figures
-// and what is missing to the issue's targets: >= 98 % of the artifact soundings rejected);
-// the good soundings rejected stay under the issue's 0.5 % in every slope class at every
-// level. The run without artifacts is the reference for the products.
+// The bounds are the issue's where they are met and what this cleaning reaches, with a margin,
+// where they are not (docs/cleaning.md has the figures; the points RMS at typical is held below
+// the issue's target, docs/decisions/014-bounds-held-below-target.md); the good soundings
+// rejected stay under the issue's 0.5 % in every slope class at every level. The run without
+// artifacts, the same survey (seed, track, navigation errors: only the artifacts differ), is
+// the reference for the products.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -80,35 +82,47 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
             At(s[level], "dem_mean_abs_m"));
     }
     const Scores& none = s["none"];
-    // Measured (docs/cleaning.md): light 0.885, typical 0.981, heavy 0.975 of the artifact
-    // soundings rejected (0.78, 0.937, 0.867 before the enclosed pieces grew along track over
-    // steps short of a break and took breaks of 0.15 m; 0.76, 0.93, 0.80 before the one-sided
-    // profile lines and the enclosed pieces); without the cleaning typical is 0.12 (the spike
-    // filter's share).
+    // Measured (docs/cleaning.md): light 0.885, typical 0.987, heavy 0.976 of the artifact
+    // soundings rejected (typical 0.981 before a cluster sounding whose ray went through the
+    // terrain was multipath; 0.78, 0.937, 0.867 before the enclosed pieces grew along track
+    // over steps short of a break and took breaks of 0.15 m); without the cleaning typical is
+    // 0.12 (the spike filter's share). Typical holds the issue's 0.98.
     EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.86);
-    EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.975);
-    EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.95);
-    // Mid-water targets (fish) are the cleaning's best case.
+    EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.98);
+    EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.97);
+    // Mid-water targets (fish) are the cleaning's best case; the long ghost behind the high
+    // wall (19 pings x 11 beams at 18-22 m) is rejected whole (1.000; 0.976 before).
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
-    // The issue's bound (0.005) in every slope class, at every level. Measured 0.14-0.28 /
-    // 0.24-0.26 / 0.18-0.29 % (0-20 / 20-45 / 45-91 deg) since a rejection continuous with the
-    // terrain is terrain (0.40-0.71 / 0.50-0.65 / 0.37-0.56 % before: docs/decisions/014).
+    EXPECT_GE(At(s["typical"], "artifact_rejected_share_multipath"), 0.99);
+    // The issue's bound (0.005) in every slope class, at every level. Measured 0.08-0.32 /
+    // 0.09-0.13 / 0.16-0.28 % (0-20 / 20-45 / 45-91 deg).
     for (const std::string level : {"none", "light", "typical", "heavy"}) {
         for (const char* slope : {"0_20", "20_45", "45_91"}) {
             EXPECT_LE(At(s[level], std::string("good_rejected_share_slope_") + slope), 0.005)
                 << level << " slope " << slope;
         }
     }
-    // The products: the mesh keeps (nearly) no false surface and its completeness, the DEM
-    // stays near the clean run's.
+    // The products against the run without artifacts. The issue's bounds at typical: the mesh
+    // beyond 1 m <= 0.05 % (measured 0.00 %), its mean abs error within 10 % (+3 %), its
+    // completeness within 0.5 point (-0.44), and light and heavy held to the same mesh bounds
+    // (0.00 / 0.01 %, +2 / +7 %); heavy's completeness is 1.2 points below (the 1.5 held).
     for (const std::string level : {"light", "typical", "heavy"}) {
         SCOPED_TRACE(level);
-        EXPECT_LE(At(s[level], "mesh_share_beyond_1m"), 0.003);
+        EXPECT_LE(At(s[level], "mesh_share_beyond_1m"), 0.0005);
+        EXPECT_LE(At(s[level], "mesh_mean_abs_m"), 1.10 * At(none, "mesh_mean_abs_m"));
         EXPECT_GE(At(s[level], "mesh_completeness"), At(none, "mesh_completeness") - 0.015);
-        EXPECT_LE(At(s[level], "dem_mean_abs_m"), 1.8 * At(none, "dem_mean_abs_m"));
-        EXPECT_LE(At(s[level], "points_rms_m"), 3.0 * At(none, "points_rms_m"));
+        // DEM mean abs: +2 / +5 / +11 % (light, typical, heavy).
+        EXPECT_LE(At(s[level], "dem_mean_abs_m"), 1.15 * At(none, "dem_mean_abs_m"));
     }
-    EXPECT_LE(At(s["light"], "mesh_mean_abs_m"), 1.2 * At(none, "mesh_mean_abs_m"));
+    EXPECT_GE(At(s["typical"], "mesh_completeness"), At(none, "mesh_completeness") - 0.005);
+    // Points RMS: the issue's bound is 5 % over the clean run at typical; measured +17 %
+    // (0.0356 against 0.0303 m; +39 % before the ghost's rays through the wall were judged),
+    // all of the excess in 52 near-field bubble soundings of 12 pings that nothing rejects
+    // (docs/cleaning.md). Held at +20 % (docs/decisions/014-bounds-held-below-target.md);
+    // light +16 %, heavy +25 %, held at +30 %.
+    EXPECT_LE(At(s["typical"], "points_rms_m"), 1.20 * At(none, "points_rms_m"));
+    for (const std::string level : {"light", "heavy"})
+        EXPECT_LE(At(s[level], "points_rms_m"), 1.30 * At(none, "points_rms_m")) << level;
     if (!HasFailure()) fs::remove_all(dir);
 }
 

@@ -6,6 +6,8 @@
 //     log's raw datagrams are the same bytes, every beam the truth does not list has the range
 //     of the clean survey (same seed, no artifacts), every artifact sounding a range that is
 //     not the clean one, every bubble dropout no detection;
+//   - every level is the clean survey's (same track, navigation and its errors) but for the
+//     artifacts, so that the clean run is a fair reference;
 //   - the same seed gives the same artifacts, another seed others;
 //   - `pitmap georef` of the typical level shows the damage issue 35 measured: points RMS
 //     against the truth clearly worse than the clean survey's, nearly every artifact sounding
@@ -152,6 +154,14 @@ TEST(EchoArtifactsScenario, SharesPerLevelAndTheTruthMatchesTheRangesWritten) {
             ASSERT_TRUE(std::holds_alternative<dt::Ping83P>(d)) << i;
             ASSERT_EQ(std::get<dt::Ping83P>(d).range_counts, pings[i].range_counts) << i;
         }
+        // The same survey as the clean one but for the artifacts (they draw from their own
+        // random stream): the same track, the same navigation with its errors, the same
+        // true trajectory, so that the clean run is a fair reference for the products.
+        EXPECT_TRUE(ReadAll(sim / "vendor/quarry.gps") == ReadAll(dir / "none/vendor/quarry.gps"))
+            << level << ": the navigation differs from the clean survey's";
+        EXPECT_TRUE(ReadAll(sim / "truth/trajectory.csv") ==
+                    ReadAll(dir / "none/truth/trajectory.csv"))
+            << level << ": the true trajectory differs from the clean survey's";
         // Every beam against the clean survey's.
         std::int64_t listed[pitmap::sim::kNumEchoArtifactKinds] = {};
         std::int64_t good_detections = 0, wrong = 0;
