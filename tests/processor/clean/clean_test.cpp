@@ -281,6 +281,60 @@ TEST(Clean, AGhostSteppingAlongTrackIsEnclosed) {
     EXPECT_EQ(t.rejected[kGood], before.rejected[kGood]);
 }
 
+// One line over a floor 10 m down, and a ghost behind it on 12 beams for 30 pings: its
+// soundings replace the floor's, so that the floor its rays go through is observed only by
+// the beams beside it and by the other pings, in patches whose extents the rays pass outside
+// (the quarry's long ghost behind the high wall). The ghost is a cluster apart from the floor.
+Survey MakeGhostUnderASparseFloor() {
+    Survey out;
+    std::mt19937 rng(33);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    for (int i = 0; i < 200; ++i) {
+        const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+        pitmap::proc::georef::GeorefPing ping;
+        ping.sensor_world = Eigen::Vector3d(0.15 * i, 0.0, 0.0);
+        out.geo.pings.push_back(ping);
+        const bool ghost = i >= 80 && i < 110;
+        for (int b = 0; b < kBeams; ++b) {
+            const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+            const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+            const double r = kDepth / std::cos(theta);
+            if (ghost && b >= 360 && b < 372) {
+                Add(out, k, b, d, 1.3 * r + noise(rng), kGhost);
+            } else {
+                Add(out, k, b, d, r + noise(rng), kGood);
+            }
+        }
+    }
+    return out;
+}
+
+TEST(Clean, AGhostWhoseRaysGoThroughASparselyObservedFloorIsMultipath) {
+    const Survey s = MakeGhostUnderASparseFloor();
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    std::int64_t multipath = 0;
+    for (std::size_t j = 0; j < r.status.size(); ++j) {
+        multipath += s.truth[j] == kGhost &&
+                     r.status[j] == static_cast<std::uint8_t>(SoundingStatus::kMultipath);
+    }
+    std::printf(
+        "ghost under a sparse floor: %lld of %lld rejected (%lld multipath), good %lld "
+        "of %lld\n",
+        static_cast<long long>(t.rejected[kGhost]),
+        static_cast<long long>(t.total[kGhost]),
+        static_cast<long long>(multipath),
+        static_cast<long long>(t.rejected[kGood]),
+        static_cast<long long>(t.total[kGood]));
+    ASSERT_EQ(t.total[kGhost], 360);
+    EXPECT_EQ(t.rejected[kGhost], t.total[kGhost]);
+    // Its rays are what judge it: measured 140 multipath (the rest free space and off the
+    // range profile); 11 before a cluster sounding whose ray went through the terrain was
+    // multipath (step 4 alone: the floor's patches beside the ghost's beams).
+    EXPECT_GE(multipath, 100);
+    EXPECT_LE(t.rejected[kGood], 0.001 * t.total[kGood]);
+}
+
 // The nadir smile over a shelf 3.8 m down, as on the quarry's shelf: for 6 pings the beams
 // from where the floor is 5 % further than nadir out to 25 deg return the nadir range, an arc
 // 0.19-0.39 m above the floor. The profiles reject its outer beams (more than 0.3 m off); its
