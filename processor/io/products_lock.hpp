@@ -18,13 +18,20 @@ namespace pitmap::proc::io {
 
 inline constexpr const char* kLockFileName = ".pitmap.lock";
 
+// kShared: the per-tile commands (grid --tile, fuse --tile), which only read P's survey and each
+// write their own tile's files, run side by side (a campaign's tile jobs), and exclude every
+// other command; they do not write their names into the file.
+enum class LockMode { kExclusive, kShared };
+
 class ProductsLock {
 public:
     // Creates `out_dir` and takes the lock without waiting. `command` is what the file records
     // as the holder's command (e.g. the command line). Errors: the folder or the lock file cannot
     // be created or written (path and reason), or the lock is held ("P is in use by pid N
     // (COMMAND, started TIME)").
-    static Expected<ProductsLock> Acquire(const std::string& out_dir, const std::string& command);
+    static Expected<ProductsLock> Acquire(const std::string& out_dir,
+                                          const std::string& command,
+                                          LockMode mode = LockMode::kExclusive);
 
     ProductsLock(ProductsLock&& other) noexcept;
     ProductsLock& operator=(ProductsLock&& other) noexcept;
@@ -34,8 +41,9 @@ public:
     ~ProductsLock();
 
 private:
-    explicit ProductsLock(int fd) : fd_(fd) {}
+    ProductsLock(int fd, bool shared) : fd_(fd), shared_(shared) {}
     int fd_ = -1;
+    bool shared_ = false;
 };
 
 }  // namespace pitmap::proc::io
