@@ -1495,12 +1495,12 @@ Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
 }
 
 // `pitmap grid --merge-tiles`: P/tiles/dem.vrt over the DEM tiles in P/tiles/dem (those of
-// grid --tile), in name order.
+// grid --tile), in name order, named relative to the VRT.
 Status MergeGridTiles(const std::string& out_dir, const Log& log) {
     std::vector<std::string> files;
     std::error_code ec;
     for (const auto& e : std::filesystem::directory_iterator(out_dir + "/tiles/dem", ec)) {
-        if (e.path().extension() == ".tif") files.push_back(e.path().string());
+        if (e.path().extension() == ".tif") files.push_back("dem/" + e.path().filename().string());
     }
     if (ec || files.empty()) {
         return Error{"grid --merge-tiles: no DEM tiles in " + out_dir +
