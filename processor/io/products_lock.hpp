@@ -3,7 +3,8 @@
 // slam, grid, fuse, mesh, report, run) holds an exclusive flock(2) on P/.pitmap.lock for its
 // whole run. The kernel releases it when the holder exits or is killed (kill -9 too), so a lock
 // is never left behind. The holder writes its pid, command line and start time into the file,
-// and a second command on P fails at once naming them (no waiting).
+// and a second command on P fails at once naming them (no waiting). The per-tile commands take
+// it shared instead (LockMode::kShared): they run side by side, and exclude the others.
 //
 // Taking the lock is also the check that P can be written: the folder is created (mkdir -p) and
 // the lock file opened for writing before any work, so a read-only or impossible P fails before
