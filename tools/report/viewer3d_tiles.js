@@ -103,16 +103,16 @@
       let triangles = 0;
       root.traverse(o => {
         if (!o.isMesh) return;
+        // Coloured by depth as the report's mesh (not by the tile file's own colours, which
+        // span the tiles' range): a loaded tile matches the mesh around it.
         const g = o.geometry;
-        if (!g.attributes.color) {
-          const a = g.attributes.position, v = new THREE.Vector3();
-          const col = new Float32Array(a.count * 3);
-          for (let i = 0; i < a.count; ++i) {
-            ctx.colourOf(v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(o.matrixWorld).z,
-                         col, 3 * i);
-          }
-          g.setAttribute("color", new THREE.BufferAttribute(col, 3));
+        const a = g.attributes.position, v = new THREE.Vector3();
+        const col = new Float32Array(a.count * 3);
+        for (let i = 0; i < a.count; ++i) {
+          ctx.colourOf(v.set(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(o.matrixWorld).z,
+                       col, 3 * i);
         }
+        g.setAttribute("color", new THREE.BufferAttribute(col, 3));
         if (!g.attributes.normal) g.computeVertexNormals();
         o.material = new THREE.MeshLambertMaterial({ vertexColors: THREE.VertexColors,
                                                      side: THREE.DoubleSide });
