@@ -116,6 +116,9 @@ struct Options {
     bool no_open = false;
     std::string rerun_program;
     std::string fuse_tile;  // fuse --tile I,J
+    std::string grid_tile;  // grid --tile I,J
+    bool grid_merge_tiles = false;
+    bool list_tiles = false;  // grid or fuse --list-tiles
     bool merge_tiles = false;
     std::vector<std::string> compare_inputs;
     int compare_dof = 6;
@@ -171,7 +174,19 @@ void DeclareStageCommands(CLI::App& app, Options& o, Commands& c) {
         "clean", "flag fish, bubbles, ghosts: the automatic 3D cleaning of the soundings");
     c.grid = app.add_subcommand(
         "grid", "per-sounding TPU and CUBE surface (dem.tif, dem.bag) of the current soundings");
+    c.grid->add_option("--tile",
+                       o.grid_tile,
+                       "I,J: one DEM tile alone (config tiles:; P/tiles/dem/dem_I_J.tif; "
+                       "negative indices as --tile=-1,2), then --merge-tiles");
+    c.grid->add_flag(
+        "--merge-tiles", o.grid_merge_tiles, "P/tiles/dem.vrt over the DEM tiles of --tile");
+    c.grid->add_flag("--list-tiles",
+                     o.list_tiles,
+                     "print the survey's DEM tiles, one I,J a line (config tiles:)");
     c.fuse = app.add_subcommand("fuse", "TSDF fusion of the pings on the current trajectory");
+    c.fuse->add_flag("--list-tiles",
+                     o.list_tiles,
+                     "print the survey's TSDF tiles, one I,J a line (config tiles:)");
     c.fuse->add_option("--tile",
                        o.fuse_tile,
                        "I,J: one TSDF tile alone (config tiles:; P/tiles/tsdf, P/tiles/mesh; "
@@ -409,25 +424,60 @@ int RunInfoCommand(const Options& o, const pp::PipelineConfig& config) {
     return 0;
 }
 
+// --tile I,J of `command`.
+pitmap::Expected<pp::TileIndex> ParseTile(const std::string& command, const std::string& text) {
+    char rest = 0;
+    long long i = 0, j = 0;
+    if (std::sscanf(text.c_str(), "%lld,%lld%c", &i, &j, &rest) != 2) {
+        return pitmap::Error{command + ": --tile " + text + ": expected I,J (two integers)"};
+    }
+    return pp::TileIndex{i, j};
+}
+
+// --list-tiles: the survey's tiles of the grid or the TSDF on stdout, one "I,J" a line.
+pitmap::Status PrintTiles(const Options& o,
+                          const pp::PipelineConfig& config,
+                          pp::Stage stage,
+                          const pp::Log& log) {
+    auto tiles = pp::ListTiles(o.out_dir, config, stage, log);
+    if (!tiles) return tiles.error();
+    for (const pp::TileIndex& t : *tiles)
+        std::printf("%lld,%lld\n", static_cast<long long>(t.i), static_cast<long long>(t.j));
+    return pitmap::Ok{};
+}
+
 // `pitmap fuse`, of the whole survey, one tile (--tile I,J) or the merge of the tiles.
 pitmap::Status RunFuseCommand(const Options& o,
                               const pp::PipelineConfig& config,
                               const pp::Log& log) {
-    if (o.fuse_tile.empty() && !o.merge_tiles) return pp::RunFuseStage(o.out_dir, config, log);
+    if (o.fuse_tile.empty() && !o.merge_tiles && !o.list_tiles)
+        return pp::RunFuseStage(o.out_dir, config, log);
     if (!config.tiles.enabled)
-        return pitmap::Error{"fuse: --tile and --merge-tiles need tiles.enabled"};
+        return pitmap::Error{"fuse: --tile, --merge-tiles and --list-tiles need tiles.enabled"};
+    if (o.list_tiles) return PrintTiles(o, config, pp::Stage::kFuse, log);
     if (o.merge_tiles && !o.fuse_tile.empty())
         return pitmap::Error{"fuse: --tile and --merge-tiles are two steps: give one of them"};
     if (o.merge_tiles) return pp::RunMergeFuseTiles(o.out_dir, config, log);
-    pp::TileIndex t;
-    char rest = 0;
-    long long i = 0, j = 0;
-    if (std::sscanf(o.fuse_tile.c_str(), "%lld,%lld%c", &i, &j, &rest) != 2) {
-        return pitmap::Error{"fuse: --tile " + o.fuse_tile + ": expected I,J (two integers)"};
-    }
-    t.i = i;
-    t.j = j;
-    return pp::RunFuseTile(o.out_dir, config, t, log);
+    auto t = ParseTile("fuse", o.fuse_tile);
+    if (!t) return t.error();
+    return pp::RunFuseTile(o.out_dir, config, *t, log);
+}
+
+// `pitmap grid`, of the whole survey or one tile (--tile I,J).
+pitmap::Status RunGridCommand(const Options& o,
+                              const pp::PipelineConfig& config,
+                              const pp::Log& log) {
+    if (o.grid_tile.empty() && !o.grid_merge_tiles && !o.list_tiles)
+        return pp::RunGridStage(o.out_dir, config, log);
+    if (!config.tiles.enabled)
+        return pitmap::Error{"grid: --tile, --merge-tiles and --list-tiles need tiles.enabled"};
+    if (static_cast<int>(!o.grid_tile.empty()) + o.grid_merge_tiles + o.list_tiles > 1)
+        return pitmap::Error{"grid: --tile, --merge-tiles and --list-tiles: give one of them"};
+    if (o.list_tiles) return PrintTiles(o, config, pp::Stage::kGrid, log);
+    if (o.grid_merge_tiles) return pp::RunMergeGridTiles(o.out_dir, config, log);
+    auto t = ParseTile("grid", o.grid_tile);
+    if (!t) return t.error();
+    return pp::RunGridTile(o.out_dir, config, *t, log);
 }
 
 // georef, a stage, rerun or run on P, holding P's lock; the gates the stages tripped.
@@ -437,7 +487,14 @@ int RunStageCommand(const Commands& c,
                     const std::string& command_line) {
     // One command at a time on P; creating P and its lock file is also the check that P can be
     // written, before any work.
-    auto lock = pitmap::proc::io::ProductsLock::Acquire(o.out_dir, command_line);
+    // The per-tile commands share it with each other (each writes only its tile's files).
+    const bool tile_job =
+        (c.grid->parsed() && (!o.grid_tile.empty() || o.list_tiles) && !o.grid_merge_tiles) ||
+        (c.fuse->parsed() && (!o.fuse_tile.empty() || o.list_tiles) && !o.merge_tiles);
+    auto lock = pitmap::proc::io::ProductsLock::Acquire(
+        o.out_dir,
+        command_line,
+        tile_job ? pitmap::proc::io::LockMode::kShared : pitmap::proc::io::LockMode::kExclusive);
     if (!lock) return Fail(lock.error().message);
     const pp::Log log = [](const std::string& m) {
         std::fprintf(stderr, "pitmap: %s\n", m.c_str());
@@ -449,7 +506,7 @@ int RunStageCommand(const Commands& c,
     if (c.slam->parsed()) status = pp::RunSlamStage(P, config, log);
     if (c.clean->parsed()) status = pp::RunCleanStage(P, config, log);
     if (c.rerun->parsed()) status = pp::RunFromSurvey(P, config, log);
-    if (c.grid->parsed()) status = pp::RunGridStage(P, config, log);
+    if (c.grid->parsed()) status = RunGridCommand(o, config, log);
     if (c.fuse->parsed()) status = RunFuseCommand(o, config, log);
     if (c.mesh->parsed()) status = pp::RunMeshStage(P, config, log);
     if (c.report->parsed()) status = pp::RunReportStage(P, config, log);

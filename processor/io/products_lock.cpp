@@ -44,7 +44,9 @@ std::string NowUtc() {
 }  // namespace
 
 Expected<ProductsLock> ProductsLock::Acquire(const std::string& out_dir,
-                                             const std::string& command) {
+                                             const std::string& command,
+                                             LockMode mode) {
+    const bool shared = mode == LockMode::kShared;
     std::error_code ec;
     std::filesystem::create_directories(out_dir, ec);
     if (ec) return Error{out_dir + ": cannot create the products folder: " + ec.message()};
@@ -54,16 +56,19 @@ Expected<ProductsLock> ProductsLock::Acquire(const std::string& out_dir,
         return Error{formats::ErrnoMessage(path, "cannot create the lock file", errno) +
                      " (the products folder must be writable)"};
     }
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    if (::flock(fd, (shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
         const int err = errno;
         const std::string holder = err == EWOULDBLOCK ? HolderText(fd) : "";
         ::close(fd);  // not ours: the holder's text stays
         if (err != EWOULDBLOCK) return Error{formats::ErrnoMessage(path, "cannot lock", err)};
         return Error{out_dir + " is in use by another pitmap command (" +
-                     (holder.empty() ? std::string("it has not written its name yet") : holder) +
+                     (holder.empty() ? std::string("per-tile commands (grid or fuse --tile), or "
+                                                   "one that has not written its name yet")
+                                     : holder) +
                      "; " + kLockFileName + "): wait for it to finish or use another --out"};
     }
-    ProductsLock lock(fd);
+    ProductsLock lock(fd, shared);
+    if (shared) return lock;
     const std::string text = "pid " + std::to_string(::getpid()) + "\ncommand " + command +
                              "\nstarted " + NowUtc() + "\n";
     if (::ftruncate(fd, 0) != 0 ||
@@ -74,7 +79,7 @@ Expected<ProductsLock> ProductsLock::Acquire(const std::string& out_dir,
     return lock;
 }
 
-ProductsLock::ProductsLock(ProductsLock&& other) noexcept : fd_(other.fd_) {
+ProductsLock::ProductsLock(ProductsLock&& other) noexcept : fd_(other.fd_), shared_(other.shared_) {
     other.fd_ = -1;
 }
 
@@ -82,6 +87,7 @@ ProductsLock& ProductsLock::operator=(ProductsLock&& other) noexcept {
     if (this != &other) {
         if (fd_ >= 0) ::close(fd_);
         fd_ = other.fd_;
+        shared_ = other.shared_;
         other.fd_ = -1;
     }
     return *this;
@@ -89,7 +95,8 @@ ProductsLock& ProductsLock::operator=(ProductsLock&& other) noexcept {
 
 ProductsLock::~ProductsLock() {
     if (fd_ < 0) return;
-    (void)::ftruncate(fd_, 0);  // while still held: no one reads a finished holder's name
+    // While still held: no one reads a finished holder's name (a shared holder wrote none).
+    if (!shared_) (void)::ftruncate(fd_, 0);
     ::close(fd_);
 }
 

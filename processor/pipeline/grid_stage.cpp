@@ -8,11 +8,13 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <optional>
 #include <sstream>
 #include <type_traits>
 
+#include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 #include "common/geodesy.hpp"
 #include "common/vehicle.hpp"
@@ -645,8 +647,10 @@ std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& 
     };
     for (std::size_t k = 0; k < snd.size(); ++k) {
         const hydro::CubeSounding& q = snd[k];
-        const int i = static_cast<int>(std::lround((q.x - g.x0) / g.resolution_m));
-        const int j = static_cast<int>(std::lround((q.y - g.y0) / g.resolution_m));
+        // From the global node index (x0 = i0 res), so that a tile's grid (another x0) picks
+        // the same node as the survey's.
+        const int i = static_cast<int>(std::llround(q.x / g.resolution_m) - g.i0);
+        const int j = static_cast<int>(std::llround(q.y / g.resolution_m) - g.j0);
         const double z = at(i, j);
         if (!std::isfinite(z)) continue;
         const double u = g.uncertainty_m[static_cast<std::size_t>(j) * g.nx + i] / 1.96;
@@ -1215,6 +1219,52 @@ json CubeJson(const hydro::CubeResult& cube, const GridStageConfig& gc) {
             {"message", cube.message}};
 }
 
+// What CUBE reads, computed over the whole survey as the grid stage does before CUBE: the TPU
+// (its setup, the pose sigmas, the sound speed term), the UTM positions, the datum, and the CUBE
+// soundings in the survey's order.
+struct CubeInputs {
+    std::optional<TpuSetup> setup;
+    PoseSigmas pose;
+    json sound_speed;
+    hydro::TpuResult tpu;
+    std::optional<georef::UtmPoints> utm;
+    std::optional<hydro::DatumModel> datum;
+    json datum_record;
+    std::vector<hydro::CubeSounding> soundings;
+};
+
+Expected<CubeInputs> PrepareCube(
+    StageContext& s, const PipelineConfig& config, PartClock& part, json& timings, const Log& log) {
+    const GridStageConfig& gc = config.grid;
+    CubeInputs in;
+    auto tpu_setup = SurveyTpuSetup(s, gc, log);
+    if (!tpu_setup) return tpu_setup.error();
+    in.setup = *tpu_setup;
+    if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
+    in.pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
+    if (in.pose.from_slam > 0 && config.slam.posterior_start_runs == 0) {
+        GateUnvalidatedPosterior(s, log);
+    }
+    in.sound_speed = {{"source", "error_model"}};
+    if (gc.tpu_sound_speed_from_data) {
+        in.sound_speed =
+            SoundSpeedSigmas(s, gc, tpu_setup->sv_source, in.pose.per_ping, tpu_setup->config, log);
+        part.Lap(timings, "sound_speed");
+    }
+    in.tpu = hydro::ComputeTpu(s.geo, s.model.mount, in.pose.per_ping, tpu_setup->config);
+    log("grid: TPU (" + tpu_setup->model_source + "): " + in.tpu.message);
+    part.Lap(timings, "tpu");
+    auto utm = georef::ToUtm(s.geo);
+    if (!utm) return Error{"grid: UTM: " + utm.error().message};
+    in.utm = std::move(*utm);
+    auto datum = SurveyDatum(s, config, &in.datum_record, log);
+    if (!datum) return datum.error();
+    in.datum = *datum;
+    in.soundings = CubeSoundings(s.geo, *in.utm, in.datum->datum_height_m, in.tpu);
+    part.Lap(timings, "utm_datum");
+    return in;
+}
+
 }  // namespace
 
 // The soundings' TPU, then the CUBE surface on the products' datum (with the surface filter's
@@ -1224,35 +1274,18 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     StageClock clock;
     ClearGates(s, Stage::kGrid);
     const GridStageConfig& gc = config.grid;
-    auto tpu_setup = SurveyTpuSetup(s, gc, log);
-    if (!tpu_setup) return tpu_setup.error();
-    if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
-
     PartClock part;
     json timings = json::object();
-    PoseSigmas pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
-    if (pose.from_slam > 0 && config.slam.posterior_start_runs == 0) {
-        GateUnvalidatedPosterior(s, log);
-    }
-    json sound_speed = {{"source", "error_model"}};
-    if (gc.tpu_sound_speed_from_data) {
-        sound_speed =
-            SoundSpeedSigmas(s, gc, tpu_setup->sv_source, pose.per_ping, tpu_setup->config, log);
-        part.Lap(timings, "sound_speed");
-    }
-    hydro::TpuResult tpu =
-        hydro::ComputeTpu(s.geo, s.model.mount, pose.per_ping, tpu_setup->config);
-    log("grid: TPU (" + tpu_setup->model_source + "): " + tpu.message);
-    part.Lap(timings, "tpu");
-
-    auto utm = georef::ToUtm(s.geo);
-    if (!utm) return Error{"grid: UTM: " + utm.error().message};
-    json datum_record;
-    auto datum = SurveyDatum(s, config, &datum_record, log);
-    if (!datum) return datum.error();
-    std::vector<hydro::CubeSounding> soundings =
-        CubeSoundings(s.geo, *utm, datum->datum_height_m, tpu);
-    part.Lap(timings, "utm_datum");
+    auto in = PrepareCube(s, config, part, timings, log);
+    if (!in) return in.error();
+    const std::optional<TpuSetup>& tpu_setup = in->setup;
+    const PoseSigmas& pose = in->pose;
+    const json& sound_speed = in->sound_speed;
+    hydro::TpuResult& tpu = in->tpu;
+    std::optional<georef::UtmPoints>& utm = in->utm;
+    std::optional<hydro::DatumModel>& datum = in->datum;
+    const json& datum_record = in->datum_record;
+    std::vector<hydro::CubeSounding>& soundings = in->soundings;
     hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
     if (!cube.ok) return Error{cube.message};
     part.Lap(timings, "cube");
@@ -1331,7 +1364,168 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     return SaveSummary(s);
 }
 
+// `pitmap grid --tile I,J`: one DEM tile alone (docs/tiles.md). What CUBE reads is computed
+// over the whole survey as the grid stage does (PrepareCube: linear in the soundings); CUBE runs
+// on the tile only. With the surface filter, its first pass covers the core grown by every node
+// whose verdict a sounding of the tile's second pass needs (the overlap, a predicted-surface
+// cell, the node nearest the sounding and its four neighbours), each node as the whole run's
+// (RunCubeTile); the soundings it rejects are left out of the second pass, which grids the core.
+// The tile's lattice and resolution are the first pass's layout (the soundings before the
+// filter). Writes P/tiles/dem/dem_I_J.tif and its record dem_I_J.json; the survey model and
+// summary.json are not written (tile jobs run side by side on P).
+Status GridTileAlone(StageContext& s,
+                     const PipelineConfig& config,
+                     TileIndex index,
+                     const Log& log) {
+    const GridStageConfig& gc = config.grid;
+    const TilesConfig& tiles = config.tiles;
+    StageClock clock;
+    PartClock part;
+    json timings = json::object();
+    auto in = PrepareCube(s, config, part, timings, log);
+    if (!in) return in.error();
+    std::vector<hydro::CubeSounding>& snd = in->soundings;
+    const hydro::CubeResult layout = hydro::LayOutCube(snd, gc.cube);
+    if (!layout.ok) return Error{layout.message};
+    const hydro::CubeGrid& g = layout.grid;
+    const double res = g.resolution_m;
+    if (const auto problems = ValidateGridTiles(tiles, res, gc.cube); !problems.empty()) {
+        std::string text = "grid: " + problems.front();
+        for (std::size_t k = 1; k < problems.size(); ++k) text += "; " + problems[k];
+        return Error{text};
+    }
+    const hydro::CubeNodeRange survey{g.i0, g.j0, g.i0 + g.nx, g.j0 + g.ny};
+    const std::int64_t n = NodesPerTile(tiles, res);
+    const std::vector<GridTile> all = GridTiles(survey, n);
+    const auto it =
+        std::find_if(all.begin(), all.end(), [&](const GridTile& t) { return t.index == index; });
+    if (it == all.end()) {
+        return Error{"grid --tile " + TileName(index) + ": the survey has no such tile (" +
+                     std::to_string(all.size()) + " tiles of " + std::to_string(n) +
+                     " nodes; from " + TileName(all.front().index) + " to " +
+                     TileName(all.back().index) + ")"};
+    }
+    const hydro::CubeNodeRange core = it->core;
+    hydro::CubeConfig cube = gc.cube;
+    cube.resolution_m = res;
+    std::int64_t rejected = 0;
+    if (gc.surface_filter) {
+        const std::int64_t grow = static_cast<std::int64_t>(std::ceil(tiles.overlap_m / res)) +
+                                  2 * static_cast<std::int64_t>(cube.predicted_surface_cells) + 2;
+        const hydro::CubeNodeRange reach{std::max(survey.i0, core.i0 - grow),
+                                         std::max(survey.j0, core.j0 - grow),
+                                         std::min(survey.i1, core.i1 + grow),
+                                         std::min(survey.j1, core.j1 + grow)};
+        const hydro::CubeResult first =
+            hydro::RunCubeTile(snd, cube, reach, survey, tiles.overlap_m);
+        if (!first.ok) return Error{"grid: tile " + TileName(index) + ": " + first.message};
+        const std::vector<char> keep = RejectPoints(s, SurfaceFilter(snd, first.grid, gc));
+        std::size_t k = 0;
+        for (std::size_t j = 0; j < keep.size(); ++j) {
+            if (keep[j]) snd[k++] = snd[j];
+        }
+        rejected = static_cast<std::int64_t>(snd.size() - k);
+        snd.resize(k);
+        part.Lap(timings, "surface_filter");
+    }
+    const hydro::CubeResult t = hydro::RunCubeTile(snd, cube, core, survey, tiles.overlap_m);
+    if (!t.ok) return Error{"grid: tile " + TileName(index) + ": " + t.message};
+    part.Lap(timings, "cube");
+
+    const ProductMetadata meta = SurveyProductMetadata(s, config, &*in->datum);
+    const io::GridRaster raster = DemRaster(s, gc, t.grid, *in->utm, *in->datum, meta);
+    std::error_code ec;
+    std::filesystem::create_directories(s.out_dir + "/tiles/dem", ec);
+    if (ec) return Error{s.out_dir + "/tiles/dem: " + ec.message()};
+    const std::string name = "tiles/dem/dem_" + TileName(index);
+    if (auto w = io::WriteCogGeoTiff(s.out_dir + "/" + name + ".tif", raster); !w) return w;
+    part.Lap(timings, "write");
+    const json record = {{"i", index.i},
+                         {"j", index.j},
+                         {"file", name + ".tif"},
+                         {"resolution_m", res},
+                         {"nodes_per_tile", n},
+                         {"overlap_m", tiles.overlap_m},
+                         {"nx", t.grid.nx},
+                         {"ny", t.grid.ny},
+                         {"x0_m", t.grid.x0},
+                         {"y0_m", t.grid.y0},
+                         {"nodes_filled", t.nodes_filled},
+                         {"soundings_used", t.soundings_used},
+                         {"surface_filter_rejected", rejected},
+                         {"utm_epsg", in->utm->epsg},
+                         {"wall_s", clock.seconds()},
+                         {"cpu_s", clock.cpu_seconds()},
+                         {"peak_rss_mb", clock.peak_rss_mb()},
+                         {"timings_wall_cpu_s", timings}};
+    const std::string json_path = s.out_dir + "/" + name + ".json";
+    if (auto w = formats::WriteReplacing(json_path,
+                                         [&](const std::string& partial) -> Status {
+                                             std::ofstream f(partial);
+                                             f << record.dump(1) << "\n";
+                                             if (!f) return Error{partial + ": cannot write"};
+                                             return Ok{};
+                                         });
+        !w)
+        return w;
+    log("grid: tile " + TileName(index) + ": " + std::to_string(t.nodes_filled) + " of " +
+        std::to_string(t.grid.nx * t.grid.ny) + " nodes filled, " + std::to_string(rejected) +
+        " soundings off the surface; " + name + ".tif");
+    return Ok{};
+}
+
+// `pitmap grid --list-tiles`: the survey's DEM tiles (the lattice over CUBE's layout of the
+// soundings before the surface filter, as GridTileAlone lays it out).
+Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
+                                               const PipelineConfig& config,
+                                               const Log& log) {
+    PartClock part;
+    json timings = json::object();
+    auto in = PrepareCube(s, config, part, timings, log);
+    if (!in) return in.error();
+    const hydro::CubeResult layout = hydro::LayOutCube(in->soundings, config.grid.cube);
+    if (!layout.ok) return Error{layout.message};
+    const hydro::CubeGrid& g = layout.grid;
+    std::vector<TileIndex> out;
+    for (const GridTile& t : GridTiles({g.i0, g.j0, g.i0 + g.nx, g.j0 + g.ny},
+                                       NodesPerTile(config.tiles, g.resolution_m))) {
+        out.push_back(t.index);
+    }
+    return out;
+}
+
+// `pitmap grid --merge-tiles`: P/tiles/dem.vrt over the DEM tiles in P/tiles/dem (those of
+// grid --tile), in name order, named relative to the VRT.
+Status MergeGridTiles(const std::string& out_dir, const Log& log) {
+    std::vector<std::string> files;
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(out_dir + "/tiles/dem", ec)) {
+        if (e.path().extension() == ".tif") files.push_back("dem/" + e.path().filename().string());
+    }
+    if (ec || files.empty()) {
+        return Error{"grid --merge-tiles: no DEM tiles in " + out_dir +
+                     "/tiles/dem (run grid --tile I,J first)"};
+    }
+    std::sort(files.begin(), files.end());
+    if (auto w = io::WriteVrt(out_dir + "/tiles/dem.vrt", files); !w) return w;
+    log("grid: tiles/dem.vrt over " + std::to_string(files.size()) + " DEM tiles");
+    return Ok{};
+}
+
 }  // namespace detail
+
+Status RunMergeGridTiles(const std::string& out_dir, const PipelineConfig&, const Log& log) {
+    return detail::MergeGridTiles(out_dir, log);
+}
+
+Status RunGridTile(const std::string& out_dir,
+                   const PipelineConfig& config,
+                   TileIndex tile,
+                   const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    if (!s) return s.error();
+    return detail::GridTileAlone(*s, config, tile, log);
+}
 
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);

@@ -232,6 +232,16 @@ Expected<mesh::ProjectedMesh> ProjectMesh(const mesh::ColouredMesh& m,
                                           const PipelineConfig& config);
 // Per-sounding TPU and the CUBE surface (grid_stage.hpp).
 Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log);
+// One DEM tile alone, the survey's DEM tiles, the VRT over the tiles written (grid_stage.cpp;
+// RunGridTile, ListTiles, RunMergeGridTiles).
+Status GridTileAlone(StageContext& s,
+                     const PipelineConfig& config,
+                     TileIndex index,
+                     const Log& log);
+Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
+                                               const PipelineConfig& config,
+                                               const Log& log);
+Status MergeGridTiles(const std::string& out_dir, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
 // its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm` are
 // the soundings' UTM coordinates, `utm_to_world` the affine map of UTM into the world frame.
@@ -256,6 +266,7 @@ Expected<nlohmann::json> TerrainSurvey(const StageContext& s,
 // One TSDF tile alone and the merge of the tiles (stages3d.cpp; RunFuseTile, RunMergeFuseTiles).
 Status FuseTile(StageContext& s, const PipelineConfig& config, TileIndex tile, const Log& log);
 Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& log);
+Expected<std::vector<TileIndex>> ListFuseTiles(StageContext& s, const PipelineConfig& config);
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,

@@ -202,6 +202,21 @@ Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, c
 // inputs again.
 Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `pitmap grid --tile I,J`: one DEM tile alone on P's survey (tiles.hpp, docs/tiles.md):
+// P/tiles/dem/dem_I_J.tif (node for node the whole run's) and its record dem_I_J.json; a
+// campaign's per-tile job. Fails naming a tile the survey does not have.
+Status RunGridTile(const std::string& out_dir,
+                   const PipelineConfig& config,
+                   TileIndex tile,
+                   const Log& log);
+// `pitmap grid --merge-tiles`: P/tiles/dem.vrt over the DEM tiles of grid --tile.
+Status RunMergeGridTiles(const std::string& out_dir, const PipelineConfig& config, const Log& log);
+// `pitmap grid --list-tiles` (stage kGrid) and `pitmap fuse --list-tiles` (kFuse): every tile
+// of the survey's DEM or TSDF lattice, for a campaign's per-tile jobs (some may be empty).
+Expected<std::vector<TileIndex>> ListTiles(const std::string& out_dir,
+                                           const PipelineConfig& config,
+                                           Stage stage,
+                                           const Log& log);
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log);
 // `pitmap fuse --tile I,J`: one TSDF tile alone on P's survey (tiles.hpp): P/tiles/tsdf/
 // tsdf_I_J.vdb (the core's voxels before the weight filter), P/tiles/mesh/mesh_I_J.glb and its

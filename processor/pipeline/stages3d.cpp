@@ -19,6 +19,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 
 #include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
@@ -569,15 +570,11 @@ struct MeshTile {
 // its own mesh (weight filter, iso-surface, the seam rule). The tiles cover every voxel a scan
 // can reach (fusion::ReachOf, the bound TsdfVolume skips scans by). Returns the tiles' integration
 // counts summed (a scan reaching several tiles is counted in each) and the record.
-fusion::IntegrateResult IntegrateByTiles(const std::vector<fusion::SonarScan>& scans,
-                                         const fusion::TsdfConfig& tcfg,
-                                         const PipelineConfig& config,
-                                         fusion::TsdfVolume& volume,
-                                         std::vector<MeshTile>* meshes,
-                                         const ProgressCallback& progress,
-                                         json& record,
-                                         const std::optional<TileIndex>& only = std::nullopt) {
-    const auto start = std::chrono::steady_clock::now();
+// The survey's TSDF tiles: the tile lattice over the columns the scans reach; nullopt when no
+// scan has a valid beam.
+std::optional<std::vector<VoxelTile>> SurveyVoxelTiles(const std::vector<fusion::SonarScan>& scans,
+                                                       const fusion::TsdfConfig& tcfg,
+                                                       const PipelineConfig& config) {
     const double vs = tcfg.voxel_size_m;
     double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
     for (const fusion::SonarScan& scan : scans) {
@@ -588,19 +585,35 @@ fusion::IntegrateResult IntegrateByTiles(const std::vector<fusion::SonarScan>& s
         y0 = std::min(y0, r.y_min);
         y1 = std::max(y1, r.y_max);
     }
-    fusion::IntegrateResult sum;
-    sum.scans = static_cast<std::int64_t>(scans.size());
-    if (!(x0 <= x1)) {
-        sum.message = "no valid beams";
-        return sum;
-    }
+    if (!(x0 <= x1)) return std::nullopt;
     const fusion::VoxelColumns extent{static_cast<std::int32_t>(std::floor(x0 / vs)),
                                       static_cast<std::int32_t>(std::ceil(x1 / vs)),
                                       static_cast<std::int32_t>(std::floor(y0 / vs)),
                                       static_cast<std::int32_t>(std::ceil(y1 / vs))};
+    return VoxelTiles(extent, VoxelsPerTile(config.tiles, vs), OverlapVoxels(config.tiles, vs));
+}
+
+fusion::IntegrateResult IntegrateByTiles(const std::vector<fusion::SonarScan>& scans,
+                                         const fusion::TsdfConfig& tcfg,
+                                         const PipelineConfig& config,
+                                         fusion::TsdfVolume& volume,
+                                         std::vector<MeshTile>* meshes,
+                                         const ProgressCallback& progress,
+                                         json& record,
+                                         const std::optional<TileIndex>& only = std::nullopt) {
+    const auto start = std::chrono::steady_clock::now();
+    fusion::IntegrateResult sum;
+    sum.scans = static_cast<std::int64_t>(scans.size());
+    const std::optional<std::vector<VoxelTile>> survey_tiles =
+        SurveyVoxelTiles(scans, tcfg, config);
+    if (!survey_tiles) {
+        sum.message = "no valid beams";
+        return sum;
+    }
+    const std::vector<VoxelTile>& tiles = *survey_tiles;
+    const double vs = tcfg.voxel_size_m;
     const int m = VoxelsPerTile(config.tiles, vs);
     const int overlap = OverlapVoxels(config.tiles, vs);
-    const std::vector<VoxelTile> tiles = VoxelTiles(extent, m, overlap);
     std::int64_t tiles_with_voxels = 0, max_tile_voxels = 0;
     std::size_t max_tile_bytes = 0;
     bool found = false;
@@ -838,6 +851,18 @@ Status FuseTile(StageContext& s, const PipelineConfig& config, TileIndex tile, c
         WriteMeshTile(s, meshes.front(), TileColourRange(meshes, config), tcfg.voxel_size_m);
     if (!entry) return entry.error();
     return WriteJsonFile(s.out_dir + "/tiles/mesh/mesh_" + name + ".json", *entry);
+}
+
+// `pitmap fuse --list-tiles`: the survey's TSDF tiles, every one of the lattice over the
+// columns the scans reach (a tile may turn out empty).
+Expected<std::vector<TileIndex>> ListFuseTiles(StageContext& s, const PipelineConfig& config) {
+    const std::vector<fusion::SonarScan> scans =
+        MakeScans(s.geo, s.model.ingest.pings, s.model.mount, 1);
+    const auto tiles = SurveyVoxelTiles(scans, config.tsdf, config);
+    if (!tiles) return Error{"fuse: no valid beams: the survey has no TSDF tiles"};
+    std::vector<TileIndex> out;
+    for (const VoxelTile& t : *tiles) out.push_back(t.index);
+    return out;
 }
 
 // `pitmap fuse --merge-tiles`: the tiles' cores (P/tiles/tsdf/*.vdb) as the survey's volume,
@@ -1150,6 +1175,16 @@ Status RunFuseTile(const std::string& out_dir,
     auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
     if (!s) return s.error();
     return detail::FuseTile(*s, config, tile, log);
+}
+
+Expected<std::vector<TileIndex>> ListTiles(const std::string& out_dir,
+                                           const PipelineConfig& config,
+                                           Stage stage,
+                                           const Log& log) {
+    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    if (!s) return s.error();
+    if (stage == Stage::kGrid) return detail::ListGridTiles(*s, config, log);
+    return detail::ListFuseTiles(*s, config);
 }
 
 Status RunMergeFuseTiles(const std::string& out_dir, const PipelineConfig& config, const Log& log) {

@@ -7,7 +7,8 @@
   pitmap-campaign run CAMPAIGN.yaml --out DIR [--cores N] [--dry-run] [--stop-on-failure]
                       [--slurm --jobs N [--account A] [--partition P]] [-- SNAKEMAKE ARGS...]
       check it, then run the workflow in DIR: one `pitmap run` per survey (DIR/surveys/NAME,
-      log DIR/logs/NAME.log), the summary table (DIR/campaign_summary.{csv,json,md}), and the
+      log DIR/logs/NAME.log; a survey with tiles: true as its stages, one job per DEM and
+      TSDF tile, and the merge), the summary table (DIR/campaign_summary.{csv,json,md}), and the
       repeat-survey comparisons (DIR/compare/A_vs_B) when `pitmap compare` exists. Run again
       after a failure or a kill: only the unfinished jobs run (Snakemake's bookkeeping in
       DIR/.snakemake). Locally N jobs at once (default 2) within 90 % of the memory; --slurm

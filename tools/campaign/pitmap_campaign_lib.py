@@ -8,8 +8,11 @@ Snakefile and by the launcher (pitmap-campaign); it never runs Snakemake itself.
 
 Every problem of a campaign file is listed, not just the first (`load` returns them all):
 unknown keys, missing or duplicate survey names, inputs, vehicle files, casts or configs that
-are not there, wrong types, and (with check_crs) surveys of one site whose products would be in
-different horizontal CRS (`pitmap info` says which UTM zone each survey's georef will use).
+are not there, wrong types, `tiles: true` without a config that enables tiles, and (with
+check_crs, `pitmap info` on each survey without such a problem) every problem pitmap finds in a
+survey's config (e.g. a tile size too small for the voxel size) and surveys of one site whose
+products would be in different horizontal CRS (`pitmap info` says which UTM zone each survey's
+georef will use).
 """
 import csv
 import io
@@ -36,11 +39,13 @@ OPTION_KEYS = {
     "threads": int,           # cores the scheduler gives the survey's job
     "mem_mb": int,            # memory the scheduler reserves for it (Slurm --mem)
     "runtime_min": int,       # wall-time limit on a cluster (Slurm -t), minutes
+    "tiles": bool,            # per-tile jobs: grid and fuse tile by tile (config tiles:)
 }
 SURVEY_KEYS = {"name", "site", "inputs", "vehicle"} | set(OPTION_KEYS)
 DEFAULTS = {
     "report": True, "calibrate": True, "slam": True, "clean": True, "from_raw": False,
     "strict": False, "svp": [], "threads": 1, "mem_mb": 4000, "runtime_min": 240,
+    "tiles": False,
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 CRS_RE = re.compile(r"^crs: EPSG:(\d+)", re.MULTILINE)
@@ -142,6 +147,7 @@ def load(path, pitmap=None, check_crs=False):
             seen[sname] = i
         for k in sorted(set(s) - SURVEY_KEYS):
             problems.append(f"{where}: unknown key '{k}' (known: {', '.join(sorted(SURVEY_KEYS))})")
+        before = len(problems)
         sv = dict(defaults)
         for k, t in OPTION_KEYS.items():
             if k in s:
@@ -209,11 +215,20 @@ def load(path, pitmap=None, check_crs=False):
             if not os.path.isfile(svp[-1]):
                 problems.append(f"{where}: cast {c} does not exist")
         sv["svp"] = svp
+        if sv["tiles"] and not _tiles_enabled(sv["config"]):
+            problems.append(f"{where}: tiles: true needs a config with tiles: enabled: true "
+                            "(the tile size and overlap of its per-tile jobs)")
         sv["crs"] = None
+        sv["quick_problems"] = len(problems) > before
         surveys.append(sv)
 
-    if check_crs and not problems:
-        problems += _check_crs(surveys, pitmap or "pitmap")
+    if check_crs:
+        # pitmap's own checks (its config, every problem listed; the CRS) on the surveys that
+        # passed the quick ones, so that one file names every problem at once.
+        problems += _check_crs([sv for sv in surveys if not sv["quick_problems"]],
+                               pitmap or "pitmap")
+    for sv in surveys:
+        del sv["quick_problems"]
     if problems:
         raise CampaignError(path, problems)
     sites = {}
@@ -221,6 +236,19 @@ def load(path, pitmap=None, check_crs=False):
         sites.setdefault(sv["site"], []).append(sv["name"])
     return {"path": os.path.abspath(path), "name": name, "surveys": surveys, "sites": sites,
             "compare": compare}
+
+
+def _tiles_enabled(config):
+    """Whether the pitmap config file `config` (None: pitmap's defaults) enables tiles."""
+    if not config or not os.path.isfile(config):
+        return False
+    try:
+        with open(config) as f:
+            doc = yaml.safe_load(f)
+    except (OSError, yaml.YAMLError):
+        return False  # pitmap's own check (pitmap info) names what is wrong with it
+    tiles = doc.get("tiles") if isinstance(doc, dict) else None
+    return isinstance(tiles, dict) and tiles.get("enabled") is True
 
 
 def _check_crs(surveys, pitmap):
@@ -241,8 +269,12 @@ def _check_crs(surveys, pitmap):
             return [f"cannot run {pitmap} info: {e}"]
         m = CRS_RE.search(r.stdout)
         if r.returncode != 0:
-            err = (r.stderr.strip().splitlines() or ["(no message)"])[-1]
-            problems.append(f"survey {sv['name']}: pitmap info failed: {err}")
+            # Every problem pitmap lists ("  - ..." lines: an invalid config, e.g. a tile size
+            # too small for the voxel size), else its last line.
+            lines = r.stderr.strip().splitlines() or ["(no message)"]
+            listed = [ln.strip()[2:] for ln in lines if ln.startswith("  - ")]
+            for err in listed or [lines[-1]]:
+                problems.append(f"survey {sv['name']}: pitmap info failed: {err}")
         elif not m:
             problems.append(f"survey {sv['name']}: no navigation to place it (pitmap info "
                             "printed no crs: line)")
@@ -282,11 +314,58 @@ def run_args(sv):
     return args
 
 
+def georef_args(sv):
+    """The arguments of `pitmap georef` for survey `sv` (without --out): run's inputs."""
+    args = list(sv["inputs"])
+    if sv["vehicle"]:
+        args += ["--vehicle", sv["vehicle"]]
+    if sv["config"]:
+        args += ["--config", sv["config"]]
+    if sv["svp"]:
+        args += ["--svp", *sv["svp"]]
+    if "sonar_clock_offset_s" in sv:
+        args += ["--sonar-clock-offset", repr(float(sv["sonar_clock_offset_s"]))]
+    if sv["from_raw"]:
+        args.append("--from-raw")
+    return args
+
+
+def stage_commands(sv, pitmap, out):
+    """A tiled survey's stages before the tiles, as commands on its folder `out`: georef, then
+    calibrate, slam and clean unless turned off (docs/campaigns.md)."""
+    config = ["--config", sv["config"]] if sv["config"] else []
+    cmds = [[pitmap, "georef", *georef_args(sv), "--out", out]]
+    for stage in ("calibrate", "slam", "clean"):
+        if sv[stage]:
+            cmds.append([pitmap, stage, "--out", out, *config])
+    return cmds
+
+
+def tile_name(ij):
+    """pitmap's file name of tile "I,J" (tiles.cpp TileName: negative as m3): "m3_12"."""
+    i, j = (int(v) for v in ij.split(","))
+    return "_".join(("m%d" % -v) if v < 0 else str(v) for v in (i, j))
+
+
+def tile_index(name):
+    """The inverse of tile_name: "m3_12" -> "-3,12"."""
+    return ",".join(("-" + v[1:]) if v.startswith("m") else v for v in name.split("_"))
+
+
+def read_tile_list(path):
+    """The tile names of a `pitmap grid|fuse --list-tiles` output file."""
+    with open(path) as f:
+        return [tile_name(line.strip()) for line in f if line.strip()]
+
+
 def compare_pairs(campaign):
     """The repeat-survey comparisons: each survey of a site against the one before it in the
     campaign file, as {pair name: (earlier, later)}."""
     pairs = {}
+    tiled = {sv["name"] for sv in campaign["surveys"] if sv["tiles"]}
     for site, names in campaign["sites"].items():
+        # A survey by tiles has its DEM as tiles and a VRT, not the dem.tif compare reads.
+        names = [n for n in names if n not in tiled]
         for a, b in zip(names, names[1:]):
             pairs[f"{a}_vs_{b}"] = (a, b)
     return pairs

@@ -21,7 +21,8 @@
 // status "placed" or "error", message, centre [x, y, z] of its box in the products' ENU, on the
 // mesh or at the height given), profile (the last cross-section), crossSection(a, b)
 // (a cross-section between two ENU points [x, y], as the tool's two clicks make it) and
-// openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes).
+// openGltf(arrayBuffer, name) (what "open glTF..." does with a file's bytes), setCamera(position,
+// target) (ENU) and tiles (the mesh tiles loaded by view, viewer3d_tiles.js).
 (function () {
   "use strict";
   const el = document.getElementById("viewer3d");
@@ -92,8 +93,10 @@
     g.setAttribute("color", new THREE.BufferAttribute(coloured(pos), 3));
     g.setIndex(new THREE.BufferAttribute(new Uint32Array(bytes(data.mesh.indices)), 1));
     g.computeVertexNormals();
+    // Pushed back in depth: where mesh tiles are loaded (viewer3d_tiles.js) they cover it.
     const m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({
-      vertexColors: THREE.VertexColors, side: THREE.DoubleSide }));
+      vertexColors: THREE.VertexColors, side: THREE.DoubleSide,
+      polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 4 }));
     scene.add(m);
     layers.mesh = m;
     state.triangles = g.index.count / 3;
@@ -618,8 +621,24 @@
     renderer.setSize(W(), H());
     if (profile) drawProfile();
   });
+  // The mesh tiles of P/tiles/mesh (data.mesh_tiles), loaded by view (viewer3d_tiles.js).
+  const tileView = data.mesh_tiles && window.PitmapTiles && view.centre
+    ? window.PitmapTiles.attach({
+      scene: scene, camera: camera, canvas: renderer.domElement, centre: view.centre,
+      requestRender: requestRender, colourOf: colourOf,
+      info: text => { info.textContent = text; }, state: state }, data.mesh_tiles)
+    : null;
+  // For scripts and the browser test: look from an ENU position at an ENU target (orbit).
+  state.setCamera = (position, target) => {
+    const c = view.centre || [0, 0, 0];
+    camera.position.set(position[0] - c[0], position[1] - c[1], position[2] - c[2]);
+    orbit.target.set(target[0] - c[0], target[1] - c[1], target[2] - c[2]);
+    orbit.update();
+    requestRender(300);
+  };
   let last = performance.now();
   renderer.setAnimationLoop(now => {
+    if (tileView) tileView.update();
     fpStep(Math.min(0.1, (now - last) / 1000));
     last = now;
     state.ticks += 1;

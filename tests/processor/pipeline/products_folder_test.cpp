@@ -14,6 +14,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "tests/support/scenario.hpp"
 
@@ -75,6 +76,45 @@ TEST(ProductsFolder, SecondCommandOnALockedFolderFailsNamingTheHolder) {
     EXPECT_NE(RunCommand(kBin + "/pitmap grid --out " + Quote(P), &out), 0);
     EXPECT_FALSE(Contains(out, "in use")) << out;
     EXPECT_TRUE(Contains(out, "survey.pitmap")) << out;
+}
+
+TEST(ProductsFolder, TileCommandsShareTheLockAndExcludeTheOthers) {
+    const fs::path dir = FreshDir("pitmap_products_shared_lock");
+    const fs::path P = dir / "P";
+    fs::create_directories(P);
+    std::ofstream(dir / "tiles.yaml") << "tiles:\n  enabled: true\n  tile_size_m: 40\n"
+                                         "  overlap_m: 12\n";
+    const std::string config = " --config " + Quote(dir / "tiles.yaml");
+    const std::vector<std::string> tile_commands = {
+        "grid --tile=0,0", "fuse --tile=-1,2", "grid --list-tiles", "fuse --list-tiles"};
+    // A tile command holding it (shared, no name written): other tile commands get past the
+    // lock (and fail on the missing survey), every other command is refused.
+    int fd = ::open((P / ".pitmap.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(::flock(fd, LOCK_SH | LOCK_NB), 0);
+    for (const std::string& command : tile_commands) {
+        std::string out;
+        EXPECT_NE(RunCommand(kBin + "/pitmap " + command + " --out " + Quote(P) + config, &out), 0);
+        EXPECT_FALSE(Contains(out, "in use")) << command << ": " << out;
+        EXPECT_TRUE(Contains(out, "survey.pitmap")) << command << ": " << out;
+    }
+    for (const std::string command : {"grid", "fuse --merge-tiles", "grid --merge-tiles"}) {
+        std::string out;
+        EXPECT_NE(RunCommand(kBin + "/pitmap " + command + " --out " + Quote(P) + config, &out), 0);
+        EXPECT_TRUE(Contains(out, "is in use by another pitmap command (per-tile commands"))
+            << command << ": " << out;
+    }
+    ::close(fd);
+    // Any other command holding it: the tile commands are refused too.
+    fd = ::open((P / ".pitmap.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+    for (const std::string& command : tile_commands) {
+        std::string out;
+        EXPECT_NE(RunCommand(kBin + "/pitmap " + command + " --out " + Quote(P) + config, &out), 0);
+        EXPECT_TRUE(Contains(out, "is in use by another pitmap command")) << command << ": " << out;
+    }
+    ::close(fd);
 }
 
 TEST(ProductsFolder, UnwritableOutFailsBeforeIngestWithTheReason) {

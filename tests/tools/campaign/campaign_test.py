@@ -6,7 +6,9 @@
 
 CheckTest: bad campaign files are refused at start with every problem named (missing inputs,
 vehicle files, casts and configs, duplicate names, unknown keys, wrong types, surveys of one
-site in different CRS), and nothing is run.
+site in different CRS, a tile size too small for the voxel size and an overlap below the
+truncation in a survey's config, tiles: true without tiles in its config), and nothing is run.
+TilesTest: a survey by tiles (TilesTest's docstring).
 RunTest: the example campaign (4 simulated demo surveys) through Snakemake with 2 workers gives
 products identical to running each survey alone with the same command (product_compare.py:
 everything but the run id, the processing time and the time and memory figures); a worker
@@ -132,6 +134,31 @@ surveys:
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("here: site pit, EPSG:32629", r.stdout)
         self.assertIn("other-pit: site far, EPSG:32631", r.stdout)
+
+    def test_tile_problems_are_named_at_start(self):
+        self.write("small-tiles.yaml", "tiles:\n  enabled: true\n  tile_size_m: 5\n"
+                   "  overlap_m: 0.5\nfuse:\n  voxel_size_m: 0.1\n  truncation_m: 1.5\n")
+        path = self.write("tiles.yaml", """
+campaign: tiles
+surveys:
+  - {name: small, inputs: [s/log], config: small-tiles.yaml, tiles: true}
+  - {name: untiled, inputs: [s/log], tiles: true}
+  - {name: gone, inputs: [nowhere/log]}
+""")
+        r = self.check(path)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        for e in ["survey small: pitmap info failed: ",
+                  "tiles.tile_size_m (5 m) is too small for fuse.voxel_size_m (0.1 m)",
+                  "tiles.overlap_m (0.5 m) is below fuse.truncation_m (1.5 m)",
+                  "survey untiled: tiles: true needs a config with tiles: enabled: true",
+                  "survey gone: input nowhere/log does not exist"]:
+            self.assertIn(e, r.stderr)
+        self.assertIn("4 problem(s)", r.stderr)
+        out = os.path.join(self.work, "tiles-out")
+        r = sh([os.path.join(ARGS.bin, "pitmap-campaign"), "run", path, "--out", out])
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("tiles.tile_size_m (5 m) is too small", r.stderr)
+        self.assertFalse(os.path.exists(out))
 
     def test_not_a_campaign(self):
         r = self.check(self.write("list.yaml", "- a\n- b\n"))
@@ -307,6 +334,174 @@ class RunTest(unittest.TestCase):
                              mtimes[n], n)
         self.assertTrue(os.path.isfile(os.path.join(out, "campaign_summary.csv")))
         self.assert_same_as_alone(out)
+
+
+def jobs_of(log_text):
+    """The jobs Snakemake started, in order, as {jobid: (rule, wildcards)} (wildcards as
+    "k=v, ..."), and the finished ones as a set of (rule, wildcards)."""
+    started = {}
+    for block in re.split(r"\n\[[^\]]+\]\n", log_text):
+        m = re.search(r"^(?:rule|checkpoint) (\w+):\n", block, re.MULTILINE)
+        jid = re.search(r"^\s+jobid: (\d+)$", block, re.MULTILINE)
+        if not m or not jid:
+            continue
+        wc = re.search(r"^\s+wildcards: (.+)$", block, re.MULTILINE)
+        started[int(jid.group(1))] = (m.group(1), wc.group(1) if wc else "")
+    finished = [started[int(j)] for j in re.findall(r"^Finished job (\d+)\.$", log_text,
+                                                    re.MULTILINE) if int(j) in started]
+    return started, finished
+
+
+TILE_RULES = ("dem_tile", "tsdf_tile")
+
+
+def running_tile_job(out):
+    """(pid, (rule, wildcards)) of a `pitmap grid|fuse --tile` working in out/surveys/, or None."""
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            argv = read(f"/proc/{pid}/cmdline").split("\0")
+            cwd = os.readlink(f"/proc/{pid}/cwd")
+        except OSError:
+            continue
+        if len(argv) < 3 or os.path.basename(argv[0]) != "pitmap" or \
+                argv[1] not in ("grid", "fuse") or os.path.realpath(cwd) != os.path.realpath(out):
+            continue
+        tile = [a[len("--tile="):] for a in argv if a.startswith("--tile=")]
+        folder = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--out"]
+        if tile and folder:
+            survey = os.path.basename(os.path.normpath(folder[0]))
+            rule = "dem_tile" if argv[1] == "grid" else "tsdf_tile"
+            return int(pid), (rule, f"tiled={survey}, tile={lib().tile_name(tile[0])}")
+    return None
+
+
+class TilesTest(unittest.TestCase):
+    """A survey by tiles (campaign-tiles.yaml: epoch1 by tiles, epoch2 whole) with 2 workers:
+    its stages, every DEM and TSDF tile and the merge each a job; a tile job's worker killed
+    and then the whole run, the restart runs exactly the unfinished jobs; the merged DEM and
+    TSDF equal `pitmap grid` and `pitmap fuse` of the whole survey on a copy of its folder."""
+
+    @classmethod
+    def setUpClass(cls):
+        if not shutil.which("snakemake"):
+            raise AssertionError("snakemake is not installed: run tools/install-deps.sh")
+        cls.work = os.path.join(ARGS.work, "tiles")
+        shutil.rmtree(cls.work, ignore_errors=True)
+        os.makedirs(cls.work)
+        env = dict(os.environ, BIN_DIR=ARGS.bin)
+        r = sh([os.path.join(ARGS.source, "tools/campaign/example/make-example.sh"), cls.work,
+                "30"], env=env)
+        assert r.returncode == 0, r.stdout + r.stderr
+        cls.campaign_file = os.path.join(cls.work, "campaign-tiles.yaml")
+
+    def launcher(self, out, *extra):
+        return [os.path.join(ARGS.bin, "pitmap-campaign"), "run", self.campaign_file, "--out",
+                out, *extra]
+
+    def test_tile_jobs_two_workers_restart_and_products(self):
+        out = os.path.join(self.work, "out")
+        log1 = os.path.join(self.work, "run-1.log")
+        with open(log1, "w") as f:
+            p = subprocess.Popen(self.launcher(out, "--cores", "2"), stdout=f, stderr=f,
+                                 start_new_session=True)
+        killed = None
+        try:
+            def tiles_done():
+                return [j for j in jobs_of(read(log1))[1] if j[0] in TILE_RULES]
+            # Two tile jobs done: kill the worker of a running one (its job fails, the others
+            # go on), then, one more tile job done, the whole run (Snakemake too).
+            wait_for("two finished tile jobs", lambda: len(tiles_done()) >= 2)
+            done = set(tiles_done())
+            pid, killed = wait_for("a tile job running", lambda: (
+                lambda r: r if r and r[1] not in done else None)(running_tile_job(out)))
+            os.kill(pid, signal.SIGKILL)
+            n = len(tiles_done())
+            wait_for("another finished tile job", lambda: len(tiles_done()) > n or
+                     p.poll() is not None)
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+        finally:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+        text1 = read(log1)
+        started1, finished1 = jobs_of(text1)
+        self.assertNotIn(killed, finished1)
+        self.assertIn("Error in rule " + killed[0], text1)
+        # Two workers: two tile jobs started before the first tile job finished.
+        tile_ids = [j for j, (rule, _) in started1.items() if rule in TILE_RULES]
+        first_finish = min(text1.find(f"Finished job {j}.") for j in tile_ids
+                           if f"Finished job {j}." in text1)
+        self.assertGreaterEqual(sum(1 for j in tile_ids if text1.find(f"jobid: {j}\n") <
+                                    first_finish), 2)
+        survey = os.path.join(out, "surveys", "epoch1-tiles")
+        outputs = {}
+        for rule, wc in finished1:
+            if rule in TILE_RULES:
+                tile = wc.split("tile=")[1]
+                f = (f"tiles/dem/dem_{tile}.tif" if rule == "dem_tile"
+                     else f"tiles/tsdf/tsdf_{tile}.vdb")
+                outputs[f] = os.stat(os.path.join(survey, f)).st_mtime_ns
+
+        r = sh(self.launcher(out, "--cores", "2"))
+        self.assertEqual(r.returncode, 0, r.stderr[-3000:])
+        started2, finished2 = jobs_of(r.stderr)
+        ran2 = sorted(started2.values())
+        # Exactly the unfinished jobs, each once; the killed tile among them.
+        self.assertEqual(len(ran2), len(set(ran2)), ran2)
+        self.assertFalse(set(ran2) & set(finished1), sorted(set(ran2) & set(finished1)))
+        self.assertIn(killed, ran2)
+        self.assertEqual(sorted(finished2), ran2)
+        for f, mtime in outputs.items():
+            self.assertEqual(os.stat(os.path.join(survey, f)).st_mtime_ns, mtime, f)
+        # Every tile of the survey's lists was a job of its own; one model job, one merge.
+        # (Started, not finished: a job that ended just before the kill may not have been
+        # logged as finished, and its complete outputs are rightly kept.)
+        every = set(started1.values()) | set(started2.values())
+        L = lib()
+        grid = L.read_tile_list(os.path.join(out, "tilelists/epoch1-tiles/grid.txt"))
+        fuse = L.read_tile_list(os.path.join(out, "tilelists/epoch1-tiles/fuse.txt"))
+        self.assertGreaterEqual(len(grid), 4)
+        self.assertGreaterEqual(len(fuse), 4)
+        for rule, names in (("dem_tile", grid), ("tsdf_tile", fuse)):
+            self.assertEqual(sorted(wc for r_, wc in every if r_ == rule),
+                             sorted(f"tiled=epoch1-tiles, tile={t}" for t in names))
+        for rule in ("survey_tiles", "merge_tiles"):
+            self.assertEqual([wc for r_, wc in every if r_ == rule], ["tiled=epoch1-tiles"])
+        self.assertIn(("survey", "survey=epoch2"), every)
+        with open(os.path.join(out, "campaign_summary.json")) as f:
+            rows = json.load(f)["surveys"]
+        self.assertEqual([row["survey"] for row in rows], ["epoch1-tiles", "epoch2"])
+
+        # The merged products against the whole survey's on a copy of the folder.
+        copy = os.path.join(self.work, "whole")
+        shutil.rmtree(copy, ignore_errors=True)
+        shutil.copytree(survey, copy, ignore=shutil.ignore_patterns("tiles", "tsdf.vdb", "mesh*"))
+        config = os.path.join(self.work, "tiles.yaml")
+        for stage in ("grid", "fuse"):
+            r = sh([os.path.join(ARGS.bin, "pitmap"), stage, "--out", copy, "--config", config])
+            self.assertEqual(r.returncode, 0, r.stderr[-2000:])
+        from osgeo import gdal
+        gdal.UseExceptions()
+        vrt, dem = gdal.Open(os.path.join(survey, "tiles/dem.vrt")), \
+            gdal.Open(os.path.join(copy, "dem.tif"))
+        # (GDAL computes the VRT's resolution as its extent over its size: 1 ulp off.)
+        gv, gd = vrt.GetGeoTransform(), dem.GetGeoTransform()
+        self.assertEqual((gv[0], gv[3]), (gd[0], gd[3]))
+        for k in (1, 5):
+            self.assertAlmostEqual(gv[k], gd[k], delta=1e-9 * abs(gd[k]))
+        self.assertEqual((vrt.RasterXSize, vrt.RasterYSize), (dem.RasterXSize, dem.RasterYSize))
+        self.assertEqual(vrt.RasterCount, dem.RasterCount)
+        for b in range(1, vrt.RasterCount + 1):
+            x = vrt.GetRasterBand(b).ReadAsArray().tobytes()
+            y = dem.GetRasterBand(b).ReadAsArray().tobytes()
+            self.assertEqual(x, y, f"band {b}")
+        rid = product_compare.run_id(survey)
+        self.assertTrue(product_compare._same_file(
+            "tsdf.vdb", os.path.join(survey, "tsdf.vdb"), os.path.join(copy, "tsdf.vdb"), rid,
+            product_compare.run_id(copy)), "the merged tsdf.vdb is not the whole survey's")
 
 
 def main():

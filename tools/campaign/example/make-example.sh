@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: MIT
 # The example campaign's surveys: four short simulated surveys of the demo pit (seeds 1-4,
 # DURATION seconds each, default 30; the last with a refracting water column and its cast)
-# in WORK/surveys/epochN, and the campaign file in WORK/campaign.yaml.
+# in WORK/surveys/epochN, and the campaign files in WORK/: campaign.yaml, and
+# campaign-tiles.yaml with its tiles.yaml (epoch1 by tiles beside epoch2 whole).
 #   tools/campaign/example/make-example.sh WORK [DURATION]
 # BIN_DIR: the folder of pitmap-sim (default build/bin).
 set -euo pipefail
@@ -20,5 +21,5 @@ for n in 1 2 3 4; do
   "$bin/pitmap-sim" synth --scenario demo --seed "$n" --duration "$duration" --out "$dir" \
     "${extra[@]}" > "$work/surveys/epoch$n.sim.log" 2>&1
 done
-cp "$here/campaign.yaml" "$work/campaign.yaml"
-echo "make-example: $work/campaign.yaml (4 surveys of $duration s)"
+cp "$here/campaign.yaml" "$here/campaign-tiles.yaml" "$here/tiles.yaml" "$work/"
+echo "make-example: $work/campaign.yaml (4 surveys of $duration s), $work/campaign-tiles.yaml"

@@ -158,6 +158,8 @@ def build(p, title, jobs=1):
         title=esc(title), subtitle=client.subtitle(p), toc=" &middot; ".join(
             tocs[CLIENT_PAGE]), notes=problems, body="\n".join(bodies[CLIENT_PAGE]), css=CSS,
         footer=CLIENT_FOOTER)
+    if viewer.mesh_tiles(p.folder):
+        pages[CLIENT_PAGE] = pages[CLIENT_PAGE].replace(CSP, CSP_TILES, 1)
     pages[ENGINEERING_PAGE] = PAGE.format(
         title=esc(title) + " &ndash; engineering", subtitle="Processing details for the "
         f'survey of <a href="{CLIENT_PAGE}">{CLIENT_PAGE}</a>',
@@ -246,6 +248,9 @@ footer { margin-top: 40px; font-size: 12px; color: #777; }
 # say frame-ancestors; a file opened from disk has no headers to say it.
 CSP = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
        "img-src data: blob:; connect-src data: blob:; base-uri 'none'; form-action 'none'")
+# With mesh tiles (P/tiles/mesh) the viewer reads them from the page's own origin when the
+# folder is served over HTTP (viewer3d_tiles.js): that origin only, still no other network.
+CSP_TILES = CSP.replace("connect-src data: blob:", "connect-src 'self' data: blob:")
 
 CLIENT_FOOTER = ("pitmap-report. Coordinates in the horizontal CRS of the cover, maps to grid "
                  "north; depths and heights in metres in its vertical datum; times UTC.")

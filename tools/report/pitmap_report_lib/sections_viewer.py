@@ -25,6 +25,7 @@ def viewer_script_files():
     VRButton and GLTFLoader (libjs-three), then the profile maths and the viewer (ours)."""
     ours = []
     for installed, source in (("pitmap-report-viewer3d-profile.js", "viewer3d_profile.js"),
+                              ("pitmap-report-viewer3d-tiles.js", "viewer3d_tiles.js"),
                               ("pitmap-report-viewer3d.js", "viewer3d.js")):
         path = os.path.join(PROGRAM_DIR, installed)
         ours.append(path if os.path.isfile(path) else os.path.join(PROGRAM_DIR, source))
@@ -60,6 +61,20 @@ def viewer_html(data, caption):
             '<div id="viewer3d-profile-readout" class="caption"></div></div>\n'
             f'<script type="application/json" id="viewer-data">{blob}</script>\n'
             + "\n".join(scripts))
+
+
+MESH_TILE_INDEX = "tiles/mesh/index.json"  # relative to the products folder (report.html)
+
+
+def mesh_tiles(folder):
+    """How many tiles P/tiles/mesh/index.json lists (0: none, or not a tile index)."""
+    try:
+        with open(os.path.join(folder, MESH_TILE_INDEX), encoding="utf-8") as f:
+            index = json.load(f)
+    except (OSError, ValueError):
+        return 0
+    tiles = index.get("tiles") if isinstance(index, dict) else None
+    return len(tiles) if isinstance(tiles, list) else 0
 
 
 def viewer(p):
@@ -116,6 +131,12 @@ def viewer(p):
         data[name] = b64((xyz - centre).astype("<f4"))
     if "initial" in p.traj:
         facts.append("trajectory before SLAM (orange) and after (white)")
+    # The mesh tiles (pitmap run with tiles.enabled): viewer3d_tiles.js reads their index and
+    # loads the tiles in view when the page is served over HTTP (not from file://).
+    tiles = mesh_tiles(p.folder)
+    if tiles:
+        data["mesh_tiles"] = {"index": MESH_TILE_INDEX, "tiles": tiles}
+        facts.append(f"{num(tiles)} mesh tiles loaded by view when served over HTTP")
     placed = getattr(p, "equipment", None) or []
     if placed:
         data["equipment"] = [{"name": e["name"], "glb": b64(np.frombuffer(e["glb"], np.uint8)),
