@@ -37,6 +37,13 @@ struct M3c2Config {
     double normal_radius_m = 1.0;
     double projection_radius_m = 0.5;
     double max_depth_m = 2.0;
+    // Soundings of one survey in a cylinder more than this apart along its axis belong to two
+    // surfaces (the near face and the far face of a ridge); the one nearest to the core counts.
+    double surface_gap_m = 0.3;
+    // The normal is defined where both surveys' soundings within normal_radius_m form a plane:
+    // the smallest eigenvalue of their covariance below this times the middle one (a plane of
+    // 1 m radius with a few centimetres of roughness: about 0.01; a ridge's crest: 0.2-0.3).
+    double max_planarity_ratio = 0.1;
     int min_points = 5;
     double z95 = 1.96;
     // A significant core keeps its significance only with at least this many significant cores
@@ -62,6 +69,7 @@ struct M3c2Result {
     std::size_t measured = 0;     // cores with a distance
     std::size_t significant = 0;  // of them, significant (in a cluster)
     std::size_t isolated = 0;     // significant on their own, not counted (set to 0)
+    std::size_t not_planar = 0;   // cores without a plane at the normal's scale (not measured)
     std::string message;
 };
 

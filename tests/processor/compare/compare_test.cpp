@@ -498,6 +498,75 @@ TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsN
     EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
 }
 
+// A bench's crest, the same in both surveys: a bench of 10 deg (x < 0) breaking into a face of
+// 35 deg (x > 0). A sounds the bench alone up to the crest (the edge of its coverage), B both.
+// A's soundings alone give the bench's normal, along which the cylinder takes in B's soundings
+// of the face below the crest: a loss of about 0.1 m where nothing changed. The normal from
+// both surveys' soundings is the crest's, and no core is measured as a change.
+TEST(CompareM3c2, ABenchsCrestAtTheEdgeOfOneSurveysCoverageIsNoChange) {
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto at = [&](double x, double y) {
+        const double z = x < 0 ? -std::tan(10 * kDeg) * x : -std::tan(35 * kDeg) * x;
+        return Eigen::Vector3d(x + noise(rng), y + noise(rng), z + noise(rng));
+    };
+    std::vector<Eigen::Vector3d> a, b;
+    for (int k = 0; k < 3000; ++k) a.push_back(at(-2 + 2 * u(rng), -3 + 6 * u(rng)));
+    for (int k = 0; k < 6000; ++k) b.push_back(at(-2 + 4 * u(rng), -3 + 6 * u(rng)));
+    const M3c2Result r = RunM3c2(a,
+                                 b,
+                                 Eigen::Vector3d(-20, 0, 5),
+                                 RigidCorrection{},
+                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                 M3c2Config{});
+    int measured = 0, flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m) || std::abs(c.position.y()) > 2) continue;
+        ++measured;
+        flagged += c.significance != 0;
+        EXPECT_NEAR(c.distance_m, 0.0, 0.04) << c.position.transpose();
+    }
+    EXPECT_GT(measured, 5) << r.message;
+    EXPECT_EQ(flagged, 0) << r.message;
+}
+
+// A fin 1.2 m thick (two vertical faces, x = 0 facing +x, the water, and x = -1.2), the same in
+// both surveys; A sounds the far face densely, B sparsely. The cylinder (2 m along the normal)
+// reaches the far face; the surface measured is the one through the core, so no change.
+TEST(CompareM3c2, TheFarFaceOfARidgeInTheCylinderIsNotMeasured) {
+    std::mt19937 rng(8);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto face = [&](std::vector<Eigen::Vector3d>& out, double x, int count) {
+        for (int k = 0; k < count; ++k) {
+            out.emplace_back(x + noise(rng), -3 + 6 * u(rng), -3 + 6 * u(rng));
+        }
+    };
+    std::vector<Eigen::Vector3d> a, b;
+    face(a, 0.0, 900);
+    face(a, -1.2, 1800);
+    face(b, 0.0, 900);
+    face(b, -1.2, 200);
+    const M3c2Result r = RunM3c2(a,
+                                 b,
+                                 Eigen::Vector3d(20, 0, 0),
+                                 RigidCorrection{},
+                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                 M3c2Config{});
+    int measured = 0, flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m) || c.position.x() < -0.5 || std::abs(c.position.y()) > 2 ||
+            std::abs(c.position.z()) > 2)
+            continue;
+        ++measured;
+        flagged += c.significance != 0;
+        EXPECT_NEAR(c.distance_m, 0.0, 0.03);
+    }
+    EXPECT_GT(measured, 5) << r.message;
+    EXPECT_EQ(flagged, 0) << r.message;
+}
+
 // A 70 deg face facing +x (the water), 12 m along strike (y) by 8 m up the dip, as a triangle
 // mesh of `step` spacing starting at `offset` (so two meshes' vertices do not coincide), moved
 // along the face's normal by bump(u, s) (u along strike, s up the dip).
