@@ -580,6 +580,7 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
                   {"measured", out.m3c2->measured},
                   {"significant", out.m3c2->significant},
                   {"isolated", out.m3c2->isolated},
+                  {"not_planar", out.m3c2->not_planar},
                   {"core_spacing_m", cfg.m3c2.core_spacing_m},
                   {"projection_radius_m", cfg.m3c2.projection_radius_m},
                   {"by_slope", M3c2BySlope(*out.m3c2)}};
@@ -742,6 +743,100 @@ Expected<json> WriteChangeRegions(const fs::path& C,
     if (auto s = WriteText((C / "change_regions.geojson").string(), fc.dump(1) + "\n"); !s)
         return Error{"compare: " + s.error().message};
     return regions;
+}
+
+// The convex hull of points in the plane (Andrew's monotone chain), closed, counter-clockwise.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
+    std::sort(p.begin(), p.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+        return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+    });
+    if (p.size() < 3) return p;
+    const auto cross =
+        [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+            return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+        };
+    std::vector<Eigen::Vector2d> h(2 * p.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k);  // the last equals the first: closed
+    return h;
+}
+
+// change_regions_3d.geojson (the change mesh's regions: on the surface, walls included; the
+// footprint is the convex hull of the region's vertices in plan); returns compare.json's
+// change_mesh.regions and the totals.
+Expected<json> WriteChangeRegions3d(const fs::path& C,
+                                    int epsg,
+                                    const compare::TriangleMesh& b,
+                                    const compare::ChangeMeshResult& r,
+                                    double z95) {
+    json features = json::array(), regions = json::array();
+    std::vector<std::vector<Eigen::Vector2d>> pts(r.regions.size());
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        if (r.region[i] > 0)
+            pts[static_cast<std::size_t>(r.region[i] - 1)].push_back(b.vertices[i].head<2>());
+    }
+    struct Total {
+        double volume = 0, area = 0, var_rand = 0, reg = 0, rim = 0;
+        int count = 0;
+    } cut, fill;
+    for (const auto& g : r.regions) {
+        const json props = {{"id", g.id},
+                            {"kind", g.sign > 0 ? "fill" : "cut"},
+                            {"area_m2", g.area_m2},
+                            {"volume_m3", g.volume_m3},
+                            {"u95_m3", g.u95_m3},
+                            {"mean_distance_m", g.mean_distance_m},
+                            {"max_abs_distance_m", g.max_abs_distance_m},
+                            {"mean_lod95_m", g.mean_lod95_m},
+                            {"mean_slope_deg", g.mean_slope_deg},
+                            {"z_min_m", g.min.z()},
+                            {"z_max_m", g.max.z()}};
+        features.push_back({{"type", "Feature"},
+                            {"geometry",
+                             {{"type", "Polygon"},
+                              {"coordinates", json::array({RingJson(ConvexHull(pts[g.id - 1]))})}}},
+                            {"properties", props}});
+        json rj = props;
+        rj["centroid_m"] = {g.centroid.x(), g.centroid.y(), g.centroid.z()};
+        rj["axis"] = {g.direction.x(), g.direction.y(), g.direction.z()};
+        rj["vertices"] = g.vertices;
+        rj["off_axis_vertices"] = g.off_axis_vertices;
+        rj["sigma_random_m3"] = g.sigma_random_m3;
+        rj["sigma_registration_m3"] = g.sigma_registration_m3;
+        rj["rim_m3"] = g.rim_m3;
+        regions.push_back(rj);
+        Total& t = g.sign > 0 ? fill : cut;
+        t.volume += g.volume_m3;
+        t.area += g.area_m2;
+        t.var_rand += g.sigma_random_m3 * g.sigma_random_m3;
+        t.reg += g.sigma_registration_m3;
+        t.rim += g.rim_m3;
+        ++t.count;
+    }
+    const json fc = {
+        {"type", "FeatureCollection"},
+        {"crs",
+         {{"type", "name"},
+          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
+        {"features", features}};
+    if (auto s = WriteText((C / "change_regions_3d.geojson").string(), fc.dump(1) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    // Totals as the 2.5D ones: random terms in quadrature, registration and rims linearly.
+    const auto total = [z95](const Total& t) {
+        return json{{"regions", t.count},
+                    {"volume_m3", t.volume},
+                    {"area_m2", t.area},
+                    {"u95_m3", z95 * std::hypot(std::sqrt(t.var_rand), t.reg) + t.rim}};
+    };
+    return json{{"regions", regions}, {"cut", total(cut)}, {"fill", total(fill)}};
 }
 
 // The two capacity curves: capacity_a.csv, capacity_b.csv, capacity.svg.
@@ -1018,7 +1113,12 @@ Status WriteProducts(const std::string& out_dir,
             !s)
             return Error{"compare: " + s.error().message};
     }
+    json regions3d;
     if (r.change_mesh.change) {
+        auto written =
+            WriteChangeRegions3d(C, a.epsg, *r.change_mesh.b, *r.change_mesh.change, cfg.mesh.z95);
+        if (!written) return written.error();
+        regions3d = std::move(*written);
         if (auto s = WriteChangeMesh(out_dir,
                                      *r.change_mesh.b,
                                      *r.change_mesh.change,
@@ -1033,7 +1133,11 @@ Status WriteProducts(const std::string& out_dir,
         const auto& [file, d] = r.design.results[k];
         if (auto s = WriteDesignTif(C / file, k == 0 ? a : b, d); !s) return s;
     }
-    const json j = CompareJson(a, b, r, cfg, *regions);
+    json j = CompareJson(a, b, r, cfg, *regions);
+    if (r.change_mesh.change) {
+        for (const char* k : {"regions", "cut", "fill"}) j["change_mesh"][k] = regions3d[k];
+        j["files"].push_back("change_regions_3d.geojson");
+    }
     if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
         return Error{"compare: " + s.error().message};
     return Ok{};

@@ -230,6 +230,20 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
         std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
         return d[d.size() / 2];
     };
+    // The change mesh's regions with their volumes, on the surface (the scar on the 65 deg high
+    // wall included, along its mean normal): every part's volume within 5 % or its U95, as the
+    // issue asks of the 2.5D regions (measured: -0.0 % to +6.1 %, the scar's 6.1 % inside its
+    // U95 of 0.92 m3; IoU 0.79-0.95), and few stable vertices in a region.
+    EXPECT_TRUE(fs::exists(C / "change_regions_3d.geojson"));
+    ASSERT_TRUE(cm.contains("regions")) << cm.dump();
+    EXPECT_EQ(cm["regions"].size(), cm["patches"].get<std::size_t>());
+    for (const char* part : {"slump_scar", "slump_toe", "backfill", "spill", "cut"}) {
+        const std::string k = std::string("change3d_region_") + part + "_";
+        EXPECT_EQ(s.at(k + "within"), 1)
+            << part << ": " << s.at(k + "volume_detected_m3") << " +- " << s.at(k + "u95_m3");
+        EXPECT_GE(s.at(k + "iou"), 0.75) << part;
+    }
+    EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.005);
     int flagged = 0, near = 0;
     EXPECT_NEAR(median_near("cut", &flagged, &near), -0.38, 0.08);  // the scar, the largest cut
     EXPECT_GT(flagged, 0.9 * near);
