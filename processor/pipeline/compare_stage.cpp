@@ -19,6 +19,7 @@
 #include "processor/io/grid_io.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/compare_stage_mesh.hpp"
+#include "processor/pipeline/report_program.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -95,6 +96,29 @@ Expected<NavSigma> ReadNavSigma(const std::string& path) {
     return s;
 }
 
+// A survey's water level in dem.tif's vertical datum (datum_height_m: the datum's ellipsoidal
+// height, 0 on the ellipsoid): the vehicle rides on the water, its INS point
+// ins_height_above_waterline_m above it; the median height of trajectory.csv (else
+// trajectory_ins.csv).
+Expected<double> WaterLevelOf(const std::string& dir, const json& summary, double datum_height_m) {
+    const std::string traj_name =
+        fs::exists(fs::path(dir) / "trajectory.csv") ? "trajectory.csv" : "trajectory_ins.csv";
+    auto traj = formats::ReadTrajectoryCsv((fs::path(dir) / traj_name).string());
+    if (!traj) return traj.error();
+    if (traj->rows.empty()) return Error{traj_name + " has no poses"};
+    std::vector<double> z;
+    for (const auto& r : traj->rows) z.push_back(r.position_world_m.z());
+    double above = 0;
+    if (summary.contains("vehicle") && summary["vehicle"].is_object() &&
+        summary["vehicle"].value("ins_height_above_waterline_m", json()).is_number()) {
+        above = summary["vehicle"]["ins_height_above_waterline_m"].get<double>();
+    }
+    if (!summary.contains("world_origin") || !summary["world_origin"].is_object())
+        return Error{"summary.json has no world_origin"};
+    const double origin_h = summary["world_origin"].value("height_m", 0.0);
+    return origin_h + Median(z) - above - datum_height_m;
+}
+
 Expected<Epoch> ReadEpoch(const std::string& dir, const char* label) {
     Epoch e;
     e.dir = dir;
@@ -162,20 +186,9 @@ Expected<Epoch> ReadEpoch(const std::string& dir, const char* label) {
         e.site = s["metadata"].value("site", std::string());
         e.start_utc = s["metadata"].value("survey_start_utc", std::string());
     }
-    // The water level: the vehicle rides on the water; its INS point is
-    // ins_height_above_waterline_m above it.
-    auto traj = formats::ReadTrajectoryCsv((fs::path(dir) / traj_name).string());
-    if (!traj) return Error{who + ": " + traj.error().message};
-    if (traj->rows.empty()) return Error{who + ": " + traj_name + " has no poses"};
-    std::vector<double> z;
-    for (const auto& r : traj->rows) z.push_back(r.position_world_m.z());
-    double above = 0;
-    if (s.contains("vehicle") && s["vehicle"].is_object() &&
-        s["vehicle"].value("ins_height_above_waterline_m", json()).is_number()) {
-        above = s["vehicle"]["ins_height_above_waterline_m"].get<double>();
-    }
-    const double origin_h = s["world_origin"].value("height_m", 0.0);
-    e.water_level_m = origin_h + Median(z) - above - e.datum_height_m;
+    auto level = WaterLevelOf(dir, s, e.datum_height_m);
+    if (!level) return Error{who + ": " + level.error().message};
+    e.water_level_m = *level;
     auto nav = ReadNavSigma((fs::path(dir) / "trajectory_sigma.csv").string());
     if (!nav) return Error{who + ": " + nav.error().message};
     e.nav = *nav;
@@ -1266,6 +1279,63 @@ Expected<int> RunCompare(const std::string& a_dir,
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
     log(SummaryLine(r, out_dir));
     return static_cast<int>(r.gate.gates.size());
+}
+
+Expected<json> SurveyCapacity(const std::string& dir, const json& summary, double step_m) {
+    if (!(step_m > 0)) return Error{"capacity: the step must be > 0"};
+    auto dem = io::ReadGrid((fs::path(dir) / "dem.tif").string());
+    if (!dem) return dem.error();
+    compare::SurfaceGrid g;
+    g.x0 = dem->grid.x0;
+    g.y0 = dem->grid.y0;
+    g.resolution_m = dem->grid.resolution_m;
+    g.nx = dem->grid.nx;
+    g.ny = dem->grid.ny;
+    for (const auto& l : dem->grid.layers) {
+        if (l.name == "elevation") g.z_m = l.values;
+    }
+    if (g.z_m.empty()) return Error{"dem.tif has no elevation band"};
+    g.sigma_m.assign(g.z_m.size(), 0.0f);
+    if (g.CountFilled() == 0) return Error{"dem.tif holds no heights"};
+    double datum_h = 0;
+    if (summary.contains("vertical_datum") && summary["vertical_datum"].is_object()) {
+        const json& v = summary["vertical_datum"];
+        if (v.value("datum", std::string("ellipsoid")) != "ellipsoid") {
+            const json& h = v.value("mean_datum_height_m", json());
+            datum_h = h.is_number() ? h.get<double>() : 0.0;
+        }
+    }
+    auto level = WaterLevelOf(dir, summary, datum_h);
+    if (!level) return level.error();
+    const compare::CapacityResult c = compare::ComputeCapacity(g, *level, step_m);
+    if (auto st = WriteText((fs::path(dir) / "capacity.csv").string(), CapacityCsv(c)); !st)
+        return st.error();
+    json j = CapacityJson(c);
+    j["step_m"] = step_m;
+    j["file"] = "capacity.csv";
+    json rows = json::array();
+    for (const auto& r : c.rows) {
+        rows.push_back({std::round(r.level_m * 1e4) / 1e4,
+                        std::round(r.area_m2 * 1e3) / 1e3,
+                        std::round(r.volume_m3 * 1e3) / 1e3});
+    }
+    j["rows_level_area_volume"] = std::move(rows);
+    return j;
+}
+
+Status WriteCompareReport(const std::string& out_dir,
+                          const std::string& report_program,
+                          const std::function<void(const std::string&)>& log) {
+    auto run = RunReportProgram(report_program,
+                                {"--compare", out_dir},
+                                "the comparison is complete without report.html (pitmap "
+                                "compare --no-report skips it)");
+    if (!run) return run.error();
+    char buf[160];
+    std::snprintf(
+        buf, sizeof buf, " (%.1f s of CPU, peak %.0f MB)", run->cpu_seconds, run->peak_rss_mb);
+    log("compare: change report " + (fs::path(out_dir) / "report.html").string() + buf);
+    return Ok{};
 }
 
 namespace {
