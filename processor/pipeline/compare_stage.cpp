@@ -1315,9 +1315,8 @@ Expected<json> SurveyCapacity(const std::string& dir, const json& summary, doubl
     j["file"] = "capacity.csv";
     json rows = json::array();
     for (const auto& r : c.rows) {
-        rows.push_back({std::round(r.level_m * 1e4) / 1e4,
-                        std::round(r.area_m2 * 1e3) / 1e3,
-                        std::round(r.volume_m3 * 1e3) / 1e3});
+        // Unrounded: the last row's level is the water level itself (a depth of 0).
+        rows.push_back({r.level_m, r.area_m2, r.volume_m3});
     }
     j["rows_level_area_volume"] = std::move(rows);
     return j;
