@@ -6,6 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <unordered_set>
+
+#include "processor/registration/neighbours.hpp"
 
 namespace pitmap::proc::compare {
 namespace {
@@ -325,6 +328,52 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
     if (!(error_correlation_length_m >= 0))
         p.push_back("change_mesh.error_correlation_length_m must be >= 0");
     return p;
+}
+
+std::size_t ConfirmRegionsBySoundings(const TriangleMesh& b,
+                                      const std::vector<Eigen::Vector3d>& core_positions,
+                                      const std::vector<int>& core_significance,
+                                      double radius_m,
+                                      double min_share,
+                                      ChangeMeshResult& r) {
+    if (r.regions.empty() || core_positions.empty()) return 0;
+    const reg::PointIndex<double> index(core_positions.data(), core_positions.size());
+    const std::size_t nreg = r.regions.size();
+    // Per region: the measured cores near it (each once), and those of its sign.
+    std::vector<std::unordered_set<std::size_t>> near(nreg);
+    std::vector<reg::PointIndex<double>::Hit> hits;
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+        if (r.region[i] == 0) continue;
+        index.WithinRadius(b.vertices[i], radius_m * radius_m, hits);
+        for (const auto& [k, d2] : hits) near[static_cast<std::size_t>(r.region[i] - 1)].insert(k);
+    }
+    std::vector<int> new_id(nreg + 1, 0);
+    std::vector<ChangeRegion3d> kept;
+    for (std::size_t g = 0; g < nreg; ++g) {
+        std::size_t same = 0;
+        for (std::size_t k : near[g]) same += core_significance[k] == r.regions[g].sign;
+        const bool ok = !near[g].empty() && static_cast<double>(same) >=
+                                                min_share * static_cast<double>(near[g].size());
+        if (!ok) continue;
+        kept.push_back(r.regions[g]);
+        kept.back().id = static_cast<int>(kept.size());
+        new_id[g + 1] = kept.back().id;
+    }
+    const std::size_t dropped = nreg - kept.size();
+    r.regions = std::move(kept);
+    r.gain = r.loss = 0;
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        if (r.region[i] == 0) continue;
+        r.region[i] = new_id[static_cast<std::size_t>(r.region[i])];
+        if (r.region[i] == 0) {
+            r.significance[i] = 0;
+            continue;
+        }
+        ++(r.significance[i] > 0 ? r.gain : r.loss);
+    }
+    r.patches = r.regions.size();
+    r.regions_unconfirmed += dropped;
+    return dropped;
 }
 
 ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,

@@ -91,10 +91,25 @@ struct ChangeMeshResult {
     std::size_t patches_dropped = 0;               // too small, or their mean within their LoD
     std::vector<int> region;                       // per vertex: its region's id, 0 none
     std::vector<ChangeRegion3d> regions;           // id k at k - 1
+    std::size_t regions_unconfirmed = 0;           // dropped by ConfirmRegionsBySoundings
     bool flipped = false;  // the mesh was wound into the ground: normals turned over
     double median_lod95_m = 0;
     std::string message;
 };
+
+// The regions confirmed by the soundings' change along the normal (m3c2.hpp): a region is kept
+// where, of the measured core points within radius_m of its vertices, at least min_share are
+// significant with its sign; the others (and regions with no measured core near them) are
+// dropped: their vertices' significance and region set to 0, the regions renumbered from 1,
+// gain, loss and patches counted again. The two TSDF meshes of one unchanged face can differ
+// (each survey's footprints and viewing angles round a bench's crest its own way) where the
+// soundings agree. Returns the number of regions dropped.
+std::size_t ConfirmRegionsBySoundings(const TriangleMesh& b,
+                                      const std::vector<Eigen::Vector3d>& core_positions,
+                                      const std::vector<int>& core_significance,
+                                      double radius_m,
+                                      double min_share,
+                                      ChangeMeshResult& r);
 
 // sigma_ab(p): sqrt(sigma_A^2 + sigma_B^2) at p (empty: 0). B's vertices must be in A's frame.
 ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,

@@ -540,6 +540,32 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
     return out;
 }
 
+// The change mesh's regions confirmed by the soundings' change along the normal, where both
+// were computed (change_mesh.hpp ConfirmRegionsBySoundings; compare.json
+// change_mesh.regions_unconfirmed).
+void ConfirmMeshRegions(const Change3d& c3,
+                        const CompareConfig& cfg,
+                        const std::function<void(const std::string&)>& log,
+                        ChangeOnMesh& m) {
+    if (!m.change || !c3.m3c2 || !cfg.confirm_mesh_regions) return;
+    std::vector<Eigen::Vector3d> pos;
+    std::vector<int> sig;
+    for (const auto& c : c3.m3c2->cores) {
+        if (!std::isfinite(c.distance_m)) continue;
+        pos.push_back(c.position);
+        sig.push_back(c.significance);
+    }
+    const std::size_t dropped =
+        compare::ConfirmRegionsBySoundings(*m.b, pos, sig, cfg.m3c2.core_spacing_m, 0.5, *m.change);
+    m.record["patches"] = m.change->patches;
+    m.record["gain"] = m.change->gain;
+    m.record["loss"] = m.change->loss;
+    m.record["regions_unconfirmed"] = dropped;
+    log("compare: change mesh: " + std::to_string(m.change->regions.size()) +
+        " regions confirmed by the soundings' change along the normal, " + std::to_string(dropped) +
+        " not (the two meshes differ where the soundings agree)");
+}
+
 // The 3D change's level of detection by slope class (compare.json change3d.by_slope).
 json M3c2BySlope(const compare::M3c2Result& m3c2) {
     json by_slope = json::object();
@@ -782,6 +808,29 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
     return h;
 }
 
+// The change mesh's regions of one sign in total, as the 2.5D totals: random terms in
+// quadrature, registration (one correction) and rims linearly.
+struct Totals3d {
+    int count = 0;
+    double volume_m3 = 0, area_m2 = 0, u95_m3 = 0;
+};
+
+Totals3d RegionTotals3d(const compare::ChangeMeshResult& r, int sign, double z95) {
+    Totals3d t;
+    double var_rand = 0, reg = 0, rim = 0;
+    for (const auto& g : r.regions) {
+        if (g.sign != sign) continue;
+        ++t.count;
+        t.volume_m3 += g.volume_m3;
+        t.area_m2 += g.area_m2;
+        var_rand += g.sigma_random_m3 * g.sigma_random_m3;
+        reg += g.sigma_registration_m3;
+        rim += g.rim_m3;
+    }
+    t.u95_m3 = z95 * std::hypot(std::sqrt(var_rand), reg) + rim;
+    return t;
+}
+
 // change_regions_3d.geojson (the change mesh's regions: on the surface, walls included; the
 // footprint is the convex hull of the region's vertices in plan); returns compare.json's
 // change_mesh.regions and the totals.
@@ -796,10 +845,6 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         if (r.region[i] > 0)
             pts[static_cast<std::size_t>(r.region[i] - 1)].push_back(b.vertices[i].head<2>());
     }
-    struct Total {
-        double volume = 0, area = 0, var_rand = 0, reg = 0, rim = 0;
-        int count = 0;
-    } cut, fill;
     for (const auto& g : r.regions) {
         const json props = {{"id", g.id},
                             {"kind", g.sign > 0 ? "fill" : "cut"},
@@ -826,13 +871,6 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         rj["sigma_registration_m3"] = g.sigma_registration_m3;
         rj["rim_m3"] = g.rim_m3;
         regions.push_back(rj);
-        Total& t = g.sign > 0 ? fill : cut;
-        t.volume += g.volume_m3;
-        t.area += g.area_m2;
-        t.var_rand += g.sigma_random_m3 * g.sigma_random_m3;
-        t.reg += g.sigma_registration_m3;
-        t.rim += g.rim_m3;
-        ++t.count;
     }
     const json fc = {
         {"type", "FeatureCollection"},
@@ -842,12 +880,12 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         {"features", features}};
     if (auto s = WriteText((C / "change_regions_3d.geojson").string(), fc.dump(1) + "\n"); !s)
         return Error{"compare: " + s.error().message};
-    // Totals as the 2.5D ones: random terms in quadrature, registration and rims linearly.
-    const auto total = [z95](const Total& t) {
+    const Totals3d cut = RegionTotals3d(r, -1, z95), fill = RegionTotals3d(r, 1, z95);
+    const auto total = [](const Totals3d& t) {
         return json{{"regions", t.count},
-                    {"volume_m3", t.volume},
-                    {"area_m2", t.area},
-                    {"u95_m3", z95 * std::hypot(std::sqrt(t.var_rand), t.reg) + t.rim}};
+                    {"volume_m3", t.volume_m3},
+                    {"area_m2", t.area_m2},
+                    {"u95_m3", t.u95_m3}};
     };
     return json{{"regions", regions}, {"cut", total(cut)}, {"fill", total(fill)}};
 }
@@ -1156,21 +1194,40 @@ Status WriteProducts(const std::string& out_dir,
     return Ok{};
 }
 
-std::string SummaryLine(const Comparison& r, const std::string& out_dir) {
+std::string SummaryLine(const Comparison& r, const CompareConfig& cfg, const std::string& out_dir) {
+    std::string surface;
+    if (r.change_mesh.change) {
+        const Totals3d cut = RegionTotals3d(*r.change_mesh.change, -1, cfg.mesh.z95);
+        const Totals3d fill = RegionTotals3d(*r.change_mesh.change, 1, cfg.mesh.z95);
+        char b3[200];
+        std::snprintf(b3,
+                      sizeof b3,
+                      "; on the surface (walls included): cut %.2f +- %.2f m3 in %d regions, "
+                      "fill %.2f +- %.2f m3 in %d",
+                      cut.volume_m3,
+                      cut.u95_m3,
+                      cut.count,
+                      fill.volume_m3,
+                      fill.u95_m3,
+                      fill.count);
+        surface = b3;
+    }
     char buf[256];
     std::snprintf(buf,
                   sizeof buf,
-                  "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions; capacity A "
-                  "%.0f m3, B %.0f m3; products in %s",
+                  "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions",
                   r.change.cut.volume_m3,
                   r.change.cut.u95_m3,
                   r.change.fill.volume_m3,
                   r.change.fill.u95_m3,
-                  r.change.regions.size(),
+                  r.change.regions.size());
+    char cap[120];
+    std::snprintf(cap,
+                  sizeof cap,
+                  "; capacity A %.0f m3, B %.0f m3; products in ",
                   r.cap_a.volume_at_water_level_m3,
-                  r.cap_b.volume_at_water_level_m3,
-                  out_dir.c_str());
-    return buf;
+                  r.cap_b.volume_at_water_level_m3);
+    return buf + surface + cap + out_dir;
 }
 
 // Survey A against the design alone.
@@ -1260,6 +1317,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
+    ConfirmMeshRegions(r.change3d, cfg, log, r.change_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
     if (r.resolution_match["filtered"] != "none") {
         char buf[400];
@@ -1277,7 +1335,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     }
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
-    log(SummaryLine(r, out_dir));
+    log(SummaryLine(r, cfg, out_dir));
     return static_cast<int>(r.gate.gates.size());
 }
 

@@ -61,7 +61,10 @@ struct CompareConfig {
     bool change_mesh = true;  // also the change on B's TSDF mesh (both folders' mesh_utm.ply)
     compare::ChangeMeshConfig mesh;
     double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
-    double capacity_step_m = 0.25;            // capacity curve: a row every step, m
+    // Keep a change mesh region only where half the soundings' measured core points within a
+    // core spacing of it are significant with its sign (needs change3d).
+    bool confirm_mesh_regions = true;
+    double capacity_step_m = 0.25;  // capacity curve: a row every step, m
     // A design surface (the planned cut: a GeoTIFF of heights in the surveys' CRS and vertical
     // datum); "" none. With it each survey is compared with it (design_a.tif, design_b.tif,
     // compare.json design), and B may be left out (the design alone: RunCompare with b_dir "").

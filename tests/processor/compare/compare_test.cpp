@@ -758,3 +758,49 @@ TEST(CompareChangeMesh, RegionsCarryTheirVolumeAlongTheirAxisOnAWallAndOnAFloor)
 
 }  // namespace
 }  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A change mesh region is kept where the soundings' change along the normal agrees: of two
+// regions (a heap and a hollow), the one whose nearby core points are significant with its
+// sign stays, the one whose cores saw no change is dropped, the ids renumbered.
+TEST(CompareChangeMesh, RegionsAreConfirmedByTheSoundingsChangeAlongTheNormal) {
+    const auto two = [](double x, double y) {
+        const double heap = std::max(0.0, 0.3 - 0.3 * std::hypot(x - 3.0, y - 5.0));
+        const double hollow = std::max(0.0, 0.3 - 0.3 * std::hypot(x - 7.0, y - 5.0));
+        return heap - hollow;
+    };
+    const TriangleMesh a = HeightField(0.1, 0.0, [](double, double) { return 0.0; });
+    const TriangleMesh b = HeightField(0.1, 0.05, two);
+    const auto sigma = [](const Eigen::Vector3d&) { return 0.02; };
+    ChangeMeshResult r = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    ASSERT_EQ(r.regions.size(), 2u) << r.message;
+    // Core points every 0.5 m: a gain on the heap, nothing anywhere else.
+    std::vector<Eigen::Vector3d> cores;
+    std::vector<int> sig;
+    for (double x = 0.25; x < 10; x += 0.5) {
+        for (double y = 0.25; y < 10; y += 0.5) {
+            cores.emplace_back(x, y, 0.0);
+            sig.push_back(std::hypot(x - 3.0, y - 5.0) < 0.8 ? 1 : 0);
+        }
+    }
+    const std::size_t dropped = ConfirmRegionsBySoundings(b, cores, sig, 0.5, 0.5, r);
+    EXPECT_EQ(dropped, 1u);
+    ASSERT_EQ(r.regions.size(), 1u);
+    EXPECT_EQ(r.regions.front().sign, 1);
+    EXPECT_EQ(r.regions.front().id, 1);
+    EXPECT_EQ(r.loss, 0u);
+    EXPECT_EQ(r.patches, 1u);
+    std::size_t in_region = 0;
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        EXPECT_EQ(r.region[i] != 0, r.significance[i] != 0);
+        in_region += r.region[i] == 1;
+    }
+    EXPECT_EQ(in_region, r.regions.front().vertices);
+    EXPECT_EQ(r.gain, in_region);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare

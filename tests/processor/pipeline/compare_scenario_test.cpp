@@ -223,7 +223,7 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     // The five parts as patches of significant vertices, few others (the count measured is in
     // docs/compare.md; the stable vertices flagged are bounded above).
     EXPECT_GE(cm["patches"].get<int>(), 5);
-    EXPECT_LE(cm["patches"].get<int>(), 16);
+    EXPECT_LE(cm["patches"].get<int>(), 7);
     auto mesh = pitmap::formats::ply::ReadMesh((C / "change_mesh.ply").string(),
                                                {"distance_m", "significance"});
     ASSERT_TRUE(mesh.ok()) << mesh.error().message;
@@ -255,17 +255,20 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     // The change mesh's regions with their volumes, on the surface (the scar on the 65 deg high
     // wall included, along its mean normal): every part's volume within 5 % or its U95, as the
     // issue asks of the 2.5D regions (measured: -0.0 % to +6.1 %, the scar's 6.1 % inside its
-    // U95 of 0.92 m3; IoU 0.79-0.95), and few stable vertices in a region.
+    // U95 of 0.92 m3; IoU 0.79-0.95); the regions the soundings' change along the normal does
+    // not confirm dropped (measured: 8 of 13, all on no part), no stable vertex in a region.
     EXPECT_TRUE(fs::exists(C / "change_regions_3d.geojson"));
     ASSERT_TRUE(cm.contains("regions")) << cm.dump();
     EXPECT_EQ(cm["regions"].size(), cm["patches"].get<std::size_t>());
+    EXPECT_GE(cm["regions_unconfirmed"].get<int>(), 1);
+    EXPECT_LE(s.at("change3d_region_false_regions"), 1);
     for (const char* part : {"slump_scar", "slump_toe", "backfill", "spill", "cut"}) {
         const std::string k = std::string("change3d_region_") + part + "_";
         EXPECT_EQ(s.at(k + "within"), 1)
             << part << ": " << s.at(k + "volume_detected_m3") << " +- " << s.at(k + "u95_m3");
         EXPECT_GE(s.at(k + "iou"), 0.75) << part;
     }
-    EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.005);
+    EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.001);
     int flagged = 0, near = 0;
     EXPECT_NEAR(median_near("cut", &flagged, &near), -0.38, 0.08);  // the scar, the largest cut
     EXPECT_GT(flagged, 0.9 * near);
