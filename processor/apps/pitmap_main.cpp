@@ -15,7 +15,7 @@
 //   pitmap live ARGS...   runs pitmap-live ARGS... (live coverage, status, alarms, page)
 //   pitmap edit P [--port N] [--no-open] [--config FILE]   the hand-editing page (processor/edit)
 //   pitmap compare A B --out C [--dof 4|6] [--min-region-area M2] [--capacity-step M] [--no-3d]
-//                  [--no-mesh] [--design D.tif] [--strict]
+//                  [--no-mesh] [--design D.tif] [--strict] [--no-report]
 //   pitmap compare A --design D.tif --out C   one survey against a design surface
 //   pitmap compare A B C... --out O (or one file listing the folders)   a series in time order
 //                  two surveys of one site (processor/pipeline/compare_stage.hpp)
@@ -275,6 +275,10 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
     c.compare->add_option("--capacity-step",
                           o.compare_config.capacity_step_m,
                           "m: a row of the capacity curves every step (0.25)");
+    c.compare->add_flag("--no-report",
+                        o.no_report,
+                        "no change report (C/report.html, written by pitmap-report --compare C "
+                        "after a comparison of two surveys)");
 }
 
 Commands DeclareCommands(CLI::App& app, Options& o) {
@@ -357,6 +361,11 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
                                 o.compare_config,
                                 log);
     if (!gates) return Fail(gates.error().message);
+    // The change report of two surveys (a survey against a design alone has none).
+    if (!o.no_report && o.compare_inputs.size() > 1) {
+        if (auto st = pp::WriteCompareReport(o.out_dir, ReportProgram(), log); !st)
+            return Fail(st.error().message);
+    }
     return GatesExit(static_cast<std::size_t>(*gates), "see compare.json quality_gates", o.strict);
 }
 

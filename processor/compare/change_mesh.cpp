@@ -6,6 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <unordered_set>
+
+#include "processor/registration/neighbours.hpp"
 
 namespace pitmap::proc::compare {
 namespace {
@@ -130,9 +133,128 @@ std::vector<Eigen::Vector3f> VertexNormals(const TriangleMesh& m, bool* flipped)
     return out;
 }
 
+// The kept patches as regions with their volumes and uncertainty (change_mesh.hpp); root(i):
+// vertex i's patch; index: A's triangles.
+template <typename Root>
+void Regions(const TriangleMesh& m,
+             const ChangeMeshConfig& cfg,
+             const std::vector<double>& area,
+             const std::vector<float>& sigma,
+             const RigidCorrection& T,
+             const Eigen::Matrix<double, 6, 6>& C,
+             const TriangleIndex& index,
+             Root&& root,
+             ChangeMeshResult& r) {
+    const std::size_t n = m.vertices.size();
+    r.region.assign(n, 0);
+    struct Acc {
+        ChangeRegion3d reg;
+        Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();
+        double sum_sigma2_a = 0, lod_a = 0, slope_a = 0, projected = 0;
+        Eigen::Matrix<double, 1, 6> sum_aJ = Eigen::Matrix<double, 1, 6>::Zero();
+    };
+    std::vector<Acc> acc;
+    std::vector<int> id_of_root(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (r.significance[i] == 0) continue;
+        const auto rt = static_cast<std::size_t>(root(static_cast<int>(i)));
+        if (id_of_root[rt] == 0) {
+            acc.emplace_back();
+            id_of_root[rt] = static_cast<int>(acc.size());
+            acc.back().reg.sign = r.significance[i];
+            acc.back().reg.min = acc.back().reg.max = m.vertices[i];
+        }
+        r.region[i] = id_of_root[rt];
+        acc[static_cast<std::size_t>(r.region[i] - 1)].sum_an +=
+            area[i] * r.normals[i].cast<double>();
+    }
+    // Each region's volume along its mean normal u: the prisms a_i (n_i . u) x t_i (t_i from
+    // the vertex along u to A's surface) are parallel and do not overlap. Along each vertex's
+    // own normal they would: on a heap's flanks the normals converge beneath it, and the sum
+    // of a_i d_i exceeds the volume by 1 / cos^2 of the flank's slope to the floor (+11 % on
+    // the quarry's 0.6 m heap).
+    std::vector<Eigen::Vector3d> u(acc.size());
+    for (std::size_t k = 0; k < acc.size(); ++k) u[k] = acc[k].sum_an.normalized();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (r.region[i] == 0) continue;
+        const auto k = static_cast<std::size_t>(r.region[i] - 1);
+        Acc& a = acc[k];
+        const Eigen::Vector3d& p = m.vertices[i];
+        const Eigen::Vector3d nrm = r.normals[i].cast<double>();
+        const double d = r.distance_m[i];
+        double along = -index.Hit(p, u[k], cfg.max_distance_m);
+        double ai = area[i] * std::abs(nrm.dot(u[k]));
+        if (!std::isfinite(along)) {
+            // A has no surface along u within reach: the vertex's own prism.
+            along = d;
+            ai = area[i];
+            ++a.reg.off_axis_vertices;
+        }
+        ++a.reg.vertices;
+        a.reg.area_m2 += area[i];
+        a.projected += ai;
+        a.reg.volume_m3 += ai * along;
+        a.reg.max_abs_distance_m = std::max(a.reg.max_abs_distance_m, std::abs(d));
+        a.reg.centroid += area[i] * p;
+        a.reg.min = a.reg.min.cwiseMin(p);
+        a.reg.max = a.reg.max.cwiseMax(p);
+        a.lod_a += area[i] * r.lod95_m[i];
+        a.slope_a +=
+            area[i] * std::acos(std::min(1.0, std::abs(nrm.z()))) * 180.0 / 3.14159265358979;
+        a.sum_sigma2_a += static_cast<double>(sigma[i]) * sigma[i] * ai;
+        Eigen::Matrix<double, 1, 6> J;
+        J.head<3>() = ((p - T.pivot).cross(u[k])).transpose();
+        J.tail<3>() = u[k].transpose();
+        a.sum_aJ += ai * J;
+    }
+    // The rim: measured vertices outside a region joined to it by an edge (each counted once
+    // per region it borders).
+    std::vector<int> rim_of(n, 0);
+    for (const auto& t : m.triangles) {
+        for (int k = 0; k < 3; ++k) {
+            for (int e : {1, 2}) {
+                const auto v0 = static_cast<std::size_t>(t[k]);
+                const auto v = static_cast<std::size_t>(t[(k + e) % 3]);
+                if (r.region[v0] == 0 || r.region[v] != 0 || !std::isfinite(r.distance_m[v]))
+                    continue;
+                if (rim_of[v] == r.region[v0]) continue;
+                rim_of[v] = r.region[v0];
+                acc[static_cast<std::size_t>(r.region[v0] - 1)].reg.rim_m3 +=
+                    std::min(std::abs(static_cast<double>(r.distance_m[v])),
+                             static_cast<double>(r.lod95_m[v])) *
+                    area[v];
+            }
+        }
+    }
+    const double L2 = cfg.error_correlation_length_m * cfg.error_correlation_length_m;
+    r.regions.clear();
+    for (std::size_t k = 0; k < acc.size(); ++k) {
+        ChangeRegion3d g = acc[k].reg;
+        g.id = static_cast<int>(k + 1);
+        g.direction = u[k];
+        if (g.area_m2 > 0) {
+            g.centroid /= g.area_m2;
+            g.mean_lod95_m = acc[k].lod_a / g.area_m2;
+            g.mean_slope_deg = acc[k].slope_a / g.area_m2;
+        }
+        if (acc[k].projected > 0) g.mean_distance_m = g.volume_m3 / acc[k].projected;
+        g.sigma_random_m3 = std::sqrt(std::min(L2, acc[k].projected) * acc[k].sum_sigma2_a);
+        g.sigma_registration_m3 =
+            std::sqrt(std::max(0.0, (acc[k].sum_aJ * C * acc[k].sum_aJ.transpose())(0, 0)));
+        g.u95_m3 = cfg.z95 * std::hypot(g.sigma_random_m3, g.sigma_registration_m3) + g.rim_m3;
+        r.regions.push_back(g);
+    }
+}
+
 // The significant vertices in patches (one sign, joined by the mesh's edges); patches below
 // the minimum area or whose mean is within their LoD set to 0.
-void TestPatches(const TriangleMesh& m, const ChangeMeshConfig& cfg, ChangeMeshResult& r) {
+void TestPatches(const TriangleMesh& m,
+                 const ChangeMeshConfig& cfg,
+                 const std::vector<float>& sigma,
+                 const RigidCorrection& T,
+                 const Eigen::Matrix<double, 6, 6>& C,
+                 const TriangleIndex& index,
+                 ChangeMeshResult& r) {
     const std::size_t n = m.vertices.size();
     std::vector<int> parent(n);
     for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<int>(i);
@@ -192,6 +314,7 @@ void TestPatches(const TriangleMesh& m, const ChangeMeshConfig& cfg, ChangeMeshR
         }
         ++(r.significance[i] > 0 ? r.gain : r.loss);
     }
+    Regions(m, cfg, area, sigma, T, C, index, find, r);
 }
 
 }  // namespace
@@ -202,7 +325,55 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
     if (!(cell_m > 0)) p.push_back("change_mesh.cell_m must be > 0");
     if (!(z95 > 0)) p.push_back("change_mesh.z95 must be > 0");
     if (!(min_patch_area_m2 >= 0)) p.push_back("change_mesh.min_patch_area_m2 must be >= 0");
+    if (!(error_correlation_length_m >= 0))
+        p.push_back("change_mesh.error_correlation_length_m must be >= 0");
     return p;
+}
+
+std::size_t ConfirmRegionsBySoundings(const TriangleMesh& b,
+                                      const std::vector<Eigen::Vector3d>& core_positions,
+                                      const std::vector<int>& core_significance,
+                                      double radius_m,
+                                      double min_share,
+                                      ChangeMeshResult& r) {
+    if (r.regions.empty() || core_positions.empty()) return 0;
+    const reg::PointIndex<double> index(core_positions.data(), core_positions.size());
+    const std::size_t nreg = r.regions.size();
+    // Per region: the measured cores near it (each once), and those of its sign.
+    std::vector<std::unordered_set<std::size_t>> near(nreg);
+    std::vector<reg::PointIndex<double>::Hit> hits;
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+        if (r.region[i] == 0) continue;
+        index.WithinRadius(b.vertices[i], radius_m * radius_m, hits);
+        for (const auto& [k, d2] : hits) near[static_cast<std::size_t>(r.region[i] - 1)].insert(k);
+    }
+    std::vector<int> new_id(nreg + 1, 0);
+    std::vector<ChangeRegion3d> kept;
+    for (std::size_t g = 0; g < nreg; ++g) {
+        std::size_t same = 0;
+        for (std::size_t k : near[g]) same += core_significance[k] == r.regions[g].sign;
+        const bool ok = !near[g].empty() && static_cast<double>(same) >=
+                                                min_share * static_cast<double>(near[g].size());
+        if (!ok) continue;
+        kept.push_back(r.regions[g]);
+        kept.back().id = static_cast<int>(kept.size());
+        new_id[g + 1] = kept.back().id;
+    }
+    const std::size_t dropped = nreg - kept.size();
+    r.regions = std::move(kept);
+    r.gain = r.loss = 0;
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        if (r.region[i] == 0) continue;
+        r.region[i] = new_id[static_cast<std::size_t>(r.region[i])];
+        if (r.region[i] == 0) {
+            r.significance[i] = 0;
+            continue;
+        }
+        ++(r.significance[i] > 0 ? r.gain : r.loss);
+    }
+    r.patches = r.regions.size();
+    r.regions_unconfirmed += dropped;
+    return dropped;
 }
 
 ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
@@ -217,9 +388,10 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
     r.distance_m.assign(n, kNaNf);
     r.lod95_m.assign(n, kNaNf);
     r.significance.assign(n, 0);
+    std::vector<float> sigma(n, 0.0f);
     std::vector<double> lods;
+    const TriangleIndex index(a, cfg.cell_m);
     if (!a.triangles.empty()) {
-        const TriangleIndex index(a, cfg.cell_m);
         for (std::size_t i = 0; i < n; ++i) {
             const Eigen::Vector3d nrm = r.normals[i].cast<double>();
             if (nrm.squaredNorm() < 0.5) continue;
@@ -231,6 +403,7 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
             J.tail<3>() = nrm.transpose();
             double s = sigma_ab ? sigma_ab(p) : 0.0;
             if (!std::isfinite(s)) s = 0.0;
+            sigma[i] = static_cast<float>(s);
             const double lod =
                 cfg.z95 * std::sqrt(s * s + std::max(0.0, (J * C * J.transpose())(0, 0)));
             const double d = -t;
@@ -244,7 +417,7 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
             ++r.measured;
         }
     }
-    TestPatches(b, cfg, r);
+    TestPatches(b, cfg, sigma, T, C, index, r);
     if (!lods.empty()) {
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());

@@ -20,6 +20,21 @@
 //             triangles) is at least min_patch_area_m2 and its mean distance exceeds
 //             sqrt(mean LoD95^2) over it: what a vertex's neighbours share (a pass's errors)
 //             does not average out over a patch (test_patch_mean; the rest set to 0).
+//   regions: each patch kept is a change region on the surface (walls and overhangs included),
+//             with its signed volume along its axis u (the area-weighted mean of its vertices'
+//             normals): sum(a_i |n_i . u| t_i), a_i a third of vertex i's triangles' area, t_i
+//             the distance from the vertex along u to A's surface (the vertex's own distance
+//             and a_i where A is not met along u): parallel prisms that tile the volume between
+//             the surfaces (u vertical on a floor: the 2.5D volume); and its 95 % uncertainty,
+//             as the 2.5D regions' (change.hpp), with a'_i = a_i |n_i . u|:
+//               U95 = z95 sqrt(sigma_rand^2 + sigma_reg^2) + U_rim
+//               sigma_rand^2 = min(L^2, sum a'_i) sum(sigma_i^2 a'_i)   (sigma_i = sigma_ab
+//                              at the vertex; errors shared over L =
+//                              error_correlation_length_m)
+//               sigma_reg^2  = (sum a'_i J_i) C (sum a'_i J_i)^T, J_i along u (one correction)
+//               U_rim        = sum over the measured vertices bordering the region (by an
+//                              edge) of min(|d_i|, LoD95_i) a_i (what the outline may leave
+//                              below detection along its rim)
 // Thread safety: reentrant. Results do not depend on the thread count (one thread).
 #pragma once
 
@@ -43,9 +58,27 @@ struct ChangeMeshConfig {
     double max_distance_m = 2.0;  // search along the normal this far each way
     double cell_m = 0.5;          // voxel of A's triangle index
     double z95 = 1.96;
-    double min_patch_area_m2 = 0.5;  // smaller significant patches are noise
-    bool test_patch_mean = true;     // a patch's mean against its LoD (above)
+    double min_patch_area_m2 = 0.5;           // smaller significant patches are noise
+    bool test_patch_mean = true;              // a patch's mean against its LoD (above)
+    double error_correlation_length_m = 1.0;  // vertices closer than this share their errors
     std::vector<std::string> Validate() const;
+};
+
+// A change region on the surface: one kept patch of significant vertices of one sign.
+struct ChangeRegion3d {
+    int id = 0;    // 1.. (ChangeMeshResult::region)
+    int sign = 0;  // +1 gain (fill, towards the water), -1 loss (cut)
+    std::size_t vertices = 0;
+    double area_m2 = 0;          // on the surface (not its horizontal projection)
+    double volume_m3 = 0;        // signed: sum(a_i d_i)
+    double mean_distance_m = 0;  // along the axis: volume over the area projected across it
+    double max_abs_distance_m = 0, mean_lod95_m = 0;
+    double mean_slope_deg = 0;  // of the normals from vertical, area-weighted
+    double sigma_random_m3 = 0, sigma_registration_m3 = 0, rim_m3 = 0, u95_m3 = 0;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();   // area-weighted, A's CRS
+    Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // its mean normal: the volume's axis
+    std::size_t off_axis_vertices = 0;  // A not met along the axis: their own normal's prism
+    Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();  // bounds
 };
 
 struct ChangeMeshResult {
@@ -56,10 +89,27 @@ struct ChangeMeshResult {
     std::size_t measured = 0, gain = 0, loss = 0;  // gain, loss: after the patch test
     std::size_t patches = 0;                       // kept
     std::size_t patches_dropped = 0;               // too small, or their mean within their LoD
+    std::vector<int> region;                       // per vertex: its region's id, 0 none
+    std::vector<ChangeRegion3d> regions;           // id k at k - 1
+    std::size_t regions_unconfirmed = 0;           // dropped by ConfirmRegionsBySoundings
     bool flipped = false;  // the mesh was wound into the ground: normals turned over
     double median_lod95_m = 0;
     std::string message;
 };
+
+// The regions confirmed by the soundings' change along the normal (m3c2.hpp): a region is kept
+// where, of the measured core points within radius_m of its vertices, at least min_share are
+// significant with its sign; the others (and regions with no measured core near them) are
+// dropped: their vertices' significance and region set to 0, the regions renumbered from 1,
+// gain, loss and patches counted again. The two TSDF meshes of one unchanged face can differ
+// (each survey's footprints and viewing angles round a bench's crest its own way) where the
+// soundings agree. Returns the number of regions dropped.
+std::size_t ConfirmRegionsBySoundings(const TriangleMesh& b,
+                                      const std::vector<Eigen::Vector3d>& core_positions,
+                                      const std::vector<int>& core_significance,
+                                      double radius_m,
+                                      double min_share,
+                                      ChangeMeshResult& r);
 
 // sigma_ab(p): sqrt(sigma_A^2 + sigma_B^2) at p (empty: 0). B's vertices must be in A's frame.
 ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,

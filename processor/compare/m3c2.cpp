@@ -2,6 +2,7 @@
 #include "processor/compare/m3c2.hpp"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -20,32 +21,52 @@ struct Cylinder {
     double mean = 0, sd = 0;
 };
 
-// The soundings of `index` in the cylinder about c along n: their count, mean and standard
-// deviation along n.
-Cylinder InCylinder(const reg::PointIndex<double>& index,
-                    const Eigen::Vector3d& c,
-                    const Eigen::Vector3d& n,
-                    double radius,
-                    double depth,
-                    std::vector<reg::PointIndex<double>::Hit>& hits) {
+// The positions along n of the soundings of `index` in the cylinder about c along n, sorted.
+void AlongCylinder(const reg::PointIndex<double>& index,
+                   const Eigen::Vector3d& c,
+                   const Eigen::Vector3d& n,
+                   double radius,
+                   double depth,
+                   std::vector<reg::PointIndex<double>::Hit>& hits,
+                   std::vector<double>& along) {
     index.WithinRadius(c, radius * radius + depth * depth, hits);
-    Cylinder cy;
-    double sum = 0, sum2 = 0;
+    along.clear();
     for (const auto& [i, d2] : hits) {
         const Eigen::Vector3d v = index.point(i) - c;
-        const double along = v.dot(n);
-        if (std::abs(along) > depth) continue;
-        if ((v - along * n).squaredNorm() > radius * radius) continue;
-        sum += along;
-        sum2 += along * along;
-        ++cy.n;
+        const double t = v.dot(n);
+        if (std::abs(t) > depth) continue;
+        if ((v - t * n).squaredNorm() > radius * radius) continue;
+        along.push_back(t);
     }
-    if (cy.n > 0) {
-        cy.mean = sum / cy.n;
-        cy.sd = cy.n > 1 ? std::sqrt(std::max(0.0, (sum2 - cy.n * cy.mean * cy.mean) / (cy.n - 1)))
-                         : 0.0;
+    std::sort(along.begin(), along.end());
+}
+
+// One surface of a cylinder's sorted positions: they are split where two consecutive ones lie
+// more than `gap` apart, and the group nearest to `target` is taken (its count, mean and
+// standard deviation). A cylinder of max_depth_m along the normal can hold a second surface
+// (the far face of a ridge or a boulder, the other side of a narrow cut); averaged with the
+// near one it reads as a change of half their distance.
+Cylinder NearestSurface(const std::vector<double>& along, double target, double gap) {
+    Cylinder best;
+    double best_miss = std::numeric_limits<double>::infinity();
+    std::size_t begin = 0;
+    for (std::size_t k = 1; k <= along.size(); ++k) {
+        if (k < along.size() && along[k] - along[k - 1] <= gap) continue;
+        // The group [begin, k): its distance to the target (0 inside it).
+        const double miss = std::max({0.0, along[begin] - target, target - along[k - 1]});
+        if (miss < best_miss) {
+            best_miss = miss;
+            double sum = 0, sum2 = 0;
+            for (std::size_t q = begin; q < k; ++q) sum += along[q];
+            best.n = static_cast<int>(k - begin);
+            best.mean = sum / best.n;
+            for (std::size_t q = begin; q < k; ++q)
+                sum2 += (along[q] - best.mean) * (along[q] - best.mean);
+            best.sd = best.n > 1 ? std::sqrt(sum2 / (best.n - 1)) : 0.0;
+        }
+        begin = k;
     }
-    return cy;
+    return best;
 }
 
 }  // namespace
@@ -56,6 +77,9 @@ std::vector<std::string> M3c2Config::Validate() const {
     if (!(normal_radius_m > 0)) p.push_back("m3c2.normal_radius_m must be > 0");
     if (!(projection_radius_m > 0)) p.push_back("m3c2.projection_radius_m must be > 0");
     if (!(max_depth_m > 0)) p.push_back("m3c2.max_depth_m must be > 0");
+    if (!(surface_gap_m > 0)) p.push_back("m3c2.surface_gap_m must be > 0");
+    if (!(max_planarity_ratio > 0 && max_planarity_ratio <= 1))
+        p.push_back("m3c2.max_planarity_ratio must be in (0, 1]");
     if (min_points < 2) p.push_back("m3c2.min_points must be >= 2");
     if (!(z95 > 0)) p.push_back("m3c2.z95 must be > 0");
     if (min_cluster_cores < 1) p.push_back("m3c2.min_cluster_cores must be >= 1");
@@ -90,17 +114,37 @@ M3c2Result RunM3c2(const std::vector<Eigen::Vector3d>& a,
     }
     r.cores.resize(cores.size());
     std::vector<reg::PointIndex<double>::Hit> hits;
+    std::vector<double> along;
     for (std::size_t k = 0; k < cores.size(); ++k) {
         M3c2Core& core = r.cores[k];
         core.position = cores[k];
         core.distance_m = std::numeric_limits<float>::quiet_NaN();
         core.lod95_m = std::numeric_limits<float>::quiet_NaN();
-        ia.WithinRadius(cores[k], cfg.normal_radius_m * cfg.normal_radius_m, hits);
-        if (static_cast<int>(hits.size()) < 3) continue;
-        reg::MomentAccumulator m;
-        for (const auto& [i, d2] : hits) m.Add(ia.point(i));
+        // The normal from both surveys' soundings: A's alone may be one swath's edge, a strip
+        // a few pings wide whose plane tilts with the surface's curvature across it (on the
+        // quarry's 150 s pair, 12 deg where the face is 28 deg: B's soundings then spread
+        // along the normal and their mean reads as a loss of 0.1 m). Each survey's own
+        // neighbourhood must be a plane, their union need not be: a change offsets them.
+        reg::MomentAccumulator m, m_own[2];
+        for (int e = 0; e < 2; ++e) {
+            const reg::PointIndex<double>& index = e == 0 ? ia : ib;
+            index.WithinRadius(cores[k], cfg.normal_radius_m * cfg.normal_radius_m, hits);
+            for (const auto& [i, d2] : hits) {
+                m.Add(index.point(i));
+                m_own[e].Add(index.point(i));
+            }
+        }
+        if (m_own[0].count() < 3 || m_own[1].count() < 3) continue;
         const reg::PlaneFit fit = reg::FitPlane(m);
         if (!fit.valid) continue;
+        if (!reg::FitPlane(m_own[0]).Planar(cfg.max_planarity_ratio) ||
+            !reg::FitPlane(m_own[1]).Planar(cfg.max_planarity_ratio)) {
+            // No plane at the normal's scale (a ridge's crest, a boulder, a corner): a normal
+            // and a distance along it are not defined (Lague et al. 2013, sec. 3.2: the normal
+            // scale must exceed the roughness many times).
+            ++r.not_planar;
+            continue;
+        }
         Eigen::Vector3d n = fit.normal;
         if (std::abs(n.z()) < std::sin(25.0 / kRadToDeg)) {
             // A wall: the normal points into the pit, where the water (and the sonar) is.
@@ -112,10 +156,12 @@ M3c2Result RunM3c2(const std::vector<Eigen::Vector3d>& a,
         }
         core.normal = n;
         core.slope_deg = static_cast<float>(std::acos(std::min(1.0, std::abs(n.z()))) * kRadToDeg);
-        const Cylinder ca =
-            InCylinder(ia, cores[k], n, cfg.projection_radius_m, cfg.max_depth_m, hits);
-        const Cylinder cb =
-            InCylinder(ib, cores[k], n, cfg.projection_radius_m, cfg.max_depth_m, hits);
+        // A's surface is the one through the core (one of A's soundings, at 0 along n); B's
+        // the one nearest to A's.
+        AlongCylinder(ia, cores[k], n, cfg.projection_radius_m, cfg.max_depth_m, hits, along);
+        const Cylinder ca = NearestSurface(along, 0.0, cfg.surface_gap_m);
+        AlongCylinder(ib, cores[k], n, cfg.projection_radius_m, cfg.max_depth_m, hits, along);
+        const Cylinder cb = NearestSurface(along, ca.mean, cfg.surface_gap_m);
         core.n_a = ca.n;
         core.n_b = cb.n;
         if (ca.n < cfg.min_points || cb.n < cfg.min_points) continue;
@@ -160,9 +206,10 @@ M3c2Result RunM3c2(const std::vector<Eigen::Vector3d>& a,
     char buf[240];
     std::snprintf(buf,
                   sizeof buf,
-                  "%zu core points, %zu measured along their normal, %zu significant (%zu "
-                  "isolated ones dropped)",
+                  "%zu core points (%zu on no plane), %zu measured along their normal, %zu "
+                  "significant (%zu isolated ones dropped)",
                   r.cores.size(),
+                  r.not_planar,
                   r.measured,
                   r.significant,
                   r.isolated);

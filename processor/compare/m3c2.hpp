@@ -5,11 +5,15 @@
 // measured along their normal, where a 2.5D difference sees a horizontal shift as a change of
 // height.
 //   core points: A's soundings thinned to one per core_spacing_m voxel (the first met);
-//   normal: the plane fit (registration core, normals.hpp) of A's soundings within
-//           normal_radius_m, oriented up, or towards `inside` (the pit's interior, where the
-//           water is) when it is within 25 deg of horizontal;
+//   normal: the plane fit (registration core, normals.hpp) of both surveys' soundings within
+//           normal_radius_m (A's alone may be one swath's edge), oriented up, or towards
+//           `inside` (the pit's interior, where the water is) when it is within 25 deg of
+//           horizontal; not measured (not_planar) where either survey's own soundings there
+//           are not a plane (max_planarity_ratio: a ridge's crest, a boulder, a corner);
 //   distance: along the normal, mean of B's minus mean of A's soundings in the cylinder of
-//           projection_radius_m about it (half-length max_depth_m);
+//           projection_radius_m about it (half-length max_depth_m), each over the surface
+//           nearest to the core (the cylinder's soundings split at gaps of surface_gap_m along
+//           its axis: A's group holding the core, B's nearest to A's; not a ridge's far face);
 //   LoD95 = z95 sqrt(s_A^2 / n_A + s_B^2 / n_B + sigma_common^2 + sigma_reg^2) (M3C2's
 //           spatially variable level of detection from the roughness s and the counts n; the
 //           soundings of a cylinder share most of their errors (navigation, attitude, sound
@@ -19,8 +23,7 @@
 //           pivot) x n)^T, n^T]); significance -1 / 0 / +1 as the 2.5D change. Cores with fewer
 //           than min_points soundings of either survey in their cylinder have no distance (NaN).
 // Coordinates: any metric CRS (pitmap: UTM); B's soundings must be carried by the correction
-// already. Thread safety: reentrant; cores are processed in parallel blocks with results that
-// do not depend on the thread count.
+// already. Thread safety: reentrant (one thread).
 #pragma once
 
 #include <Eigen/Core>
@@ -37,6 +40,13 @@ struct M3c2Config {
     double normal_radius_m = 1.0;
     double projection_radius_m = 0.5;
     double max_depth_m = 2.0;
+    // Soundings of one survey in a cylinder more than this apart along its axis belong to two
+    // surfaces (the near face and the far face of a ridge); the one nearest to the core counts.
+    double surface_gap_m = 0.3;
+    // The normal is defined where both surveys' soundings within normal_radius_m form a plane:
+    // the smallest eigenvalue of their covariance below this times the middle one (a plane of
+    // 1 m radius with a few centimetres of roughness: about 0.01; a ridge's crest: 0.2-0.3).
+    double max_planarity_ratio = 0.1;
     int min_points = 5;
     double z95 = 1.96;
     // A significant core keeps its significance only with at least this many significant cores
@@ -62,6 +72,7 @@ struct M3c2Result {
     std::size_t measured = 0;     // cores with a distance
     std::size_t significant = 0;  // of them, significant (in a cluster)
     std::size_t isolated = 0;     // significant on their own, not counted (set to 0)
+    std::size_t not_planar = 0;   // cores without a plane at the normal's scale (not measured)
     std::string message;
 };
 

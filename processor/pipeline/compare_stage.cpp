@@ -19,6 +19,7 @@
 #include "processor/io/grid_io.hpp"
 #include "processor/io/products.hpp"
 #include "processor/pipeline/compare_stage_mesh.hpp"
+#include "processor/pipeline/report_program.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -95,6 +96,29 @@ Expected<NavSigma> ReadNavSigma(const std::string& path) {
     return s;
 }
 
+// A survey's water level in dem.tif's vertical datum (datum_height_m: the datum's ellipsoidal
+// height, 0 on the ellipsoid): the vehicle rides on the water, its INS point
+// ins_height_above_waterline_m above it; the median height of trajectory.csv (else
+// trajectory_ins.csv).
+Expected<double> WaterLevelOf(const std::string& dir, const json& summary, double datum_height_m) {
+    const std::string traj_name =
+        fs::exists(fs::path(dir) / "trajectory.csv") ? "trajectory.csv" : "trajectory_ins.csv";
+    auto traj = formats::ReadTrajectoryCsv((fs::path(dir) / traj_name).string());
+    if (!traj) return traj.error();
+    if (traj->rows.empty()) return Error{traj_name + " has no poses"};
+    std::vector<double> z;
+    for (const auto& r : traj->rows) z.push_back(r.position_world_m.z());
+    double above = 0;
+    if (summary.contains("vehicle") && summary["vehicle"].is_object() &&
+        summary["vehicle"].value("ins_height_above_waterline_m", json()).is_number()) {
+        above = summary["vehicle"]["ins_height_above_waterline_m"].get<double>();
+    }
+    if (!summary.contains("world_origin") || !summary["world_origin"].is_object())
+        return Error{"summary.json has no world_origin"};
+    const double origin_h = summary["world_origin"].value("height_m", 0.0);
+    return origin_h + Median(z) - above - datum_height_m;
+}
+
 Expected<Epoch> ReadEpoch(const std::string& dir, const char* label) {
     Epoch e;
     e.dir = dir;
@@ -162,20 +186,9 @@ Expected<Epoch> ReadEpoch(const std::string& dir, const char* label) {
         e.site = s["metadata"].value("site", std::string());
         e.start_utc = s["metadata"].value("survey_start_utc", std::string());
     }
-    // The water level: the vehicle rides on the water; its INS point is
-    // ins_height_above_waterline_m above it.
-    auto traj = formats::ReadTrajectoryCsv((fs::path(dir) / traj_name).string());
-    if (!traj) return Error{who + ": " + traj.error().message};
-    if (traj->rows.empty()) return Error{who + ": " + traj_name + " has no poses"};
-    std::vector<double> z;
-    for (const auto& r : traj->rows) z.push_back(r.position_world_m.z());
-    double above = 0;
-    if (s.contains("vehicle") && s["vehicle"].is_object() &&
-        s["vehicle"].value("ins_height_above_waterline_m", json()).is_number()) {
-        above = s["vehicle"]["ins_height_above_waterline_m"].get<double>();
-    }
-    const double origin_h = s["world_origin"].value("height_m", 0.0);
-    e.water_level_m = origin_h + Median(z) - above - e.datum_height_m;
+    auto level = WaterLevelOf(dir, s, e.datum_height_m);
+    if (!level) return Error{who + ": " + level.error().message};
+    e.water_level_m = *level;
     auto nav = ReadNavSigma((fs::path(dir) / "trajectory_sigma.csv").string());
     if (!nav) return Error{who + ": " + nav.error().message};
     e.nav = *nav;
@@ -527,6 +540,32 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
     return out;
 }
 
+// The change mesh's regions confirmed by the soundings' change along the normal, where both
+// were computed (change_mesh.hpp ConfirmRegionsBySoundings; compare.json
+// change_mesh.regions_unconfirmed).
+void ConfirmMeshRegions(const Change3d& c3,
+                        const CompareConfig& cfg,
+                        const std::function<void(const std::string&)>& log,
+                        ChangeOnMesh& m) {
+    if (!m.change || !c3.m3c2 || !cfg.confirm_mesh_regions) return;
+    std::vector<Eigen::Vector3d> pos;
+    std::vector<int> sig;
+    for (const auto& c : c3.m3c2->cores) {
+        if (!std::isfinite(c.distance_m)) continue;
+        pos.push_back(c.position);
+        sig.push_back(c.significance);
+    }
+    const std::size_t dropped =
+        compare::ConfirmRegionsBySoundings(*m.b, pos, sig, cfg.m3c2.core_spacing_m, 0.5, *m.change);
+    m.record["patches"] = m.change->patches;
+    m.record["gain"] = m.change->gain;
+    m.record["loss"] = m.change->loss;
+    m.record["regions_unconfirmed"] = dropped;
+    log("compare: change mesh: " + std::to_string(m.change->regions.size()) +
+        " regions confirmed by the soundings' change along the normal, " + std::to_string(dropped) +
+        " not (the two meshes differ where the soundings agree)");
+}
+
 // The 3D change's level of detection by slope class (compare.json change3d.by_slope).
 json M3c2BySlope(const compare::M3c2Result& m3c2) {
     json by_slope = json::object();
@@ -580,6 +619,7 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
                   {"measured", out.m3c2->measured},
                   {"significant", out.m3c2->significant},
                   {"isolated", out.m3c2->isolated},
+                  {"not_planar", out.m3c2->not_planar},
                   {"core_spacing_m", cfg.m3c2.core_spacing_m},
                   {"projection_radius_m", cfg.m3c2.projection_radius_m},
                   {"by_slope", M3c2BySlope(*out.m3c2)}};
@@ -742,6 +782,112 @@ Expected<json> WriteChangeRegions(const fs::path& C,
     if (auto s = WriteText((C / "change_regions.geojson").string(), fc.dump(1) + "\n"); !s)
         return Error{"compare: " + s.error().message};
     return regions;
+}
+
+// The convex hull of points in the plane (Andrew's monotone chain), closed, counter-clockwise.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
+    std::sort(p.begin(), p.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+        return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+    });
+    if (p.size() < 3) return p;
+    const auto cross =
+        [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+            return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+        };
+    std::vector<Eigen::Vector2d> h(2 * p.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k);  // the last equals the first: closed
+    return h;
+}
+
+// The change mesh's regions of one sign in total, as the 2.5D totals: random terms in
+// quadrature, registration (one correction) and rims linearly.
+struct Totals3d {
+    int count = 0;
+    double volume_m3 = 0, area_m2 = 0, u95_m3 = 0;
+};
+
+Totals3d RegionTotals3d(const compare::ChangeMeshResult& r, int sign, double z95) {
+    Totals3d t;
+    double var_rand = 0, reg = 0, rim = 0;
+    for (const auto& g : r.regions) {
+        if (g.sign != sign) continue;
+        ++t.count;
+        t.volume_m3 += g.volume_m3;
+        t.area_m2 += g.area_m2;
+        var_rand += g.sigma_random_m3 * g.sigma_random_m3;
+        reg += g.sigma_registration_m3;
+        rim += g.rim_m3;
+    }
+    t.u95_m3 = z95 * std::hypot(std::sqrt(var_rand), reg) + rim;
+    return t;
+}
+
+// change_regions_3d.geojson (the change mesh's regions: on the surface, walls included; the
+// footprint is the convex hull of the region's vertices in plan); returns compare.json's
+// change_mesh.regions and the totals.
+Expected<json> WriteChangeRegions3d(const fs::path& C,
+                                    int epsg,
+                                    const compare::TriangleMesh& b,
+                                    const compare::ChangeMeshResult& r,
+                                    double z95) {
+    json features = json::array(), regions = json::array();
+    std::vector<std::vector<Eigen::Vector2d>> pts(r.regions.size());
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        if (r.region[i] > 0)
+            pts[static_cast<std::size_t>(r.region[i] - 1)].push_back(b.vertices[i].head<2>());
+    }
+    for (const auto& g : r.regions) {
+        const json props = {{"id", g.id},
+                            {"kind", g.sign > 0 ? "fill" : "cut"},
+                            {"area_m2", g.area_m2},
+                            {"volume_m3", g.volume_m3},
+                            {"u95_m3", g.u95_m3},
+                            {"mean_distance_m", g.mean_distance_m},
+                            {"max_abs_distance_m", g.max_abs_distance_m},
+                            {"mean_lod95_m", g.mean_lod95_m},
+                            {"mean_slope_deg", g.mean_slope_deg},
+                            {"z_min_m", g.min.z()},
+                            {"z_max_m", g.max.z()}};
+        features.push_back({{"type", "Feature"},
+                            {"geometry",
+                             {{"type", "Polygon"},
+                              {"coordinates", json::array({RingJson(ConvexHull(pts[g.id - 1]))})}}},
+                            {"properties", props}});
+        json rj = props;
+        rj["centroid_m"] = {g.centroid.x(), g.centroid.y(), g.centroid.z()};
+        rj["axis"] = {g.direction.x(), g.direction.y(), g.direction.z()};
+        rj["vertices"] = g.vertices;
+        rj["off_axis_vertices"] = g.off_axis_vertices;
+        rj["sigma_random_m3"] = g.sigma_random_m3;
+        rj["sigma_registration_m3"] = g.sigma_registration_m3;
+        rj["rim_m3"] = g.rim_m3;
+        regions.push_back(rj);
+    }
+    const json fc = {
+        {"type", "FeatureCollection"},
+        {"crs",
+         {{"type", "name"},
+          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
+        {"features", features}};
+    if (auto s = WriteText((C / "change_regions_3d.geojson").string(), fc.dump(1) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    const Totals3d cut = RegionTotals3d(r, -1, z95), fill = RegionTotals3d(r, 1, z95);
+    const auto total = [](const Totals3d& t) {
+        return json{{"regions", t.count},
+                    {"volume_m3", t.volume_m3},
+                    {"area_m2", t.area_m2},
+                    {"u95_m3", t.u95_m3}};
+    };
+    return json{{"regions", regions}, {"cut", total(cut)}, {"fill", total(fill)}};
 }
 
 // The two capacity curves: capacity_a.csv, capacity_b.csv, capacity.svg.
@@ -1018,7 +1164,12 @@ Status WriteProducts(const std::string& out_dir,
             !s)
             return Error{"compare: " + s.error().message};
     }
+    json regions3d;
     if (r.change_mesh.change) {
+        auto written =
+            WriteChangeRegions3d(C, a.epsg, *r.change_mesh.b, *r.change_mesh.change, cfg.mesh.z95);
+        if (!written) return written.error();
+        regions3d = std::move(*written);
         if (auto s = WriteChangeMesh(out_dir,
                                      *r.change_mesh.b,
                                      *r.change_mesh.change,
@@ -1033,27 +1184,50 @@ Status WriteProducts(const std::string& out_dir,
         const auto& [file, d] = r.design.results[k];
         if (auto s = WriteDesignTif(C / file, k == 0 ? a : b, d); !s) return s;
     }
-    const json j = CompareJson(a, b, r, cfg, *regions);
+    json j = CompareJson(a, b, r, cfg, *regions);
+    if (r.change_mesh.change) {
+        for (const char* k : {"regions", "cut", "fill"}) j["change_mesh"][k] = regions3d[k];
+        j["files"].push_back("change_regions_3d.geojson");
+    }
     if (auto s = WriteText((C / "compare.json").string(), j.dump(2) + "\n"); !s)
         return Error{"compare: " + s.error().message};
     return Ok{};
 }
 
-std::string SummaryLine(const Comparison& r, const std::string& out_dir) {
+std::string SummaryLine(const Comparison& r, const CompareConfig& cfg, const std::string& out_dir) {
+    std::string surface;
+    if (r.change_mesh.change) {
+        const Totals3d cut = RegionTotals3d(*r.change_mesh.change, -1, cfg.mesh.z95);
+        const Totals3d fill = RegionTotals3d(*r.change_mesh.change, 1, cfg.mesh.z95);
+        char b3[200];
+        std::snprintf(b3,
+                      sizeof b3,
+                      "; on the surface (walls included): cut %.2f +- %.2f m3 in %d regions, "
+                      "fill %.2f +- %.2f m3 in %d",
+                      cut.volume_m3,
+                      cut.u95_m3,
+                      cut.count,
+                      fill.volume_m3,
+                      fill.u95_m3,
+                      fill.count);
+        surface = b3;
+    }
     char buf[256];
     std::snprintf(buf,
                   sizeof buf,
-                  "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions; capacity A "
-                  "%.0f m3, B %.0f m3; products in %s",
+                  "compare: cut %.2f +- %.2f m3, fill %.2f +- %.2f m3 in %zu regions",
                   r.change.cut.volume_m3,
                   r.change.cut.u95_m3,
                   r.change.fill.volume_m3,
                   r.change.fill.u95_m3,
-                  r.change.regions.size(),
+                  r.change.regions.size());
+    char cap[120];
+    std::snprintf(cap,
+                  sizeof cap,
+                  "; capacity A %.0f m3, B %.0f m3; products in ",
                   r.cap_a.volume_at_water_level_m3,
-                  r.cap_b.volume_at_water_level_m3,
-                  out_dir.c_str());
-    return buf;
+                  r.cap_b.volume_at_water_level_m3);
+    return buf + surface + cap + out_dir;
 }
 
 // Survey A against the design alone.
@@ -1143,6 +1317,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
+    ConfirmMeshRegions(r.change3d, cfg, log, r.change_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
     if (r.resolution_match["filtered"] != "none") {
         char buf[400];
@@ -1160,8 +1335,64 @@ Expected<int> RunCompare(const std::string& a_dir,
     }
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
-    log(SummaryLine(r, out_dir));
+    log(SummaryLine(r, cfg, out_dir));
     return static_cast<int>(r.gate.gates.size());
+}
+
+Expected<json> SurveyCapacity(const std::string& dir, const json& summary, double step_m) {
+    if (!(step_m > 0)) return Error{"capacity: the step must be > 0"};
+    auto dem = io::ReadGrid((fs::path(dir) / "dem.tif").string());
+    if (!dem) return dem.error();
+    compare::SurfaceGrid g;
+    g.x0 = dem->grid.x0;
+    g.y0 = dem->grid.y0;
+    g.resolution_m = dem->grid.resolution_m;
+    g.nx = dem->grid.nx;
+    g.ny = dem->grid.ny;
+    for (const auto& l : dem->grid.layers) {
+        if (l.name == "elevation") g.z_m = l.values;
+    }
+    if (g.z_m.empty()) return Error{"dem.tif has no elevation band"};
+    g.sigma_m.assign(g.z_m.size(), 0.0f);
+    if (g.CountFilled() == 0) return Error{"dem.tif holds no heights"};
+    double datum_h = 0;
+    if (summary.contains("vertical_datum") && summary["vertical_datum"].is_object()) {
+        const json& v = summary["vertical_datum"];
+        if (v.value("datum", std::string("ellipsoid")) != "ellipsoid") {
+            const json& h = v.value("mean_datum_height_m", json());
+            datum_h = h.is_number() ? h.get<double>() : 0.0;
+        }
+    }
+    auto level = WaterLevelOf(dir, summary, datum_h);
+    if (!level) return level.error();
+    const compare::CapacityResult c = compare::ComputeCapacity(g, *level, step_m);
+    if (auto st = WriteText((fs::path(dir) / "capacity.csv").string(), CapacityCsv(c)); !st)
+        return st.error();
+    json j = CapacityJson(c);
+    j["step_m"] = step_m;
+    j["file"] = "capacity.csv";
+    json rows = json::array();
+    for (const auto& r : c.rows) {
+        // Unrounded: the last row's level is the water level itself (a depth of 0).
+        rows.push_back({r.level_m, r.area_m2, r.volume_m3});
+    }
+    j["rows_level_area_volume"] = std::move(rows);
+    return j;
+}
+
+Status WriteCompareReport(const std::string& out_dir,
+                          const std::string& report_program,
+                          const std::function<void(const std::string&)>& log) {
+    auto run = RunReportProgram(report_program,
+                                {"--compare", out_dir},
+                                "the comparison is complete without report.html (pitmap "
+                                "compare --no-report skips it)");
+    if (!run) return run.error();
+    char buf[160];
+    std::snprintf(
+        buf, sizeof buf, " (%.1f s of CPU, peak %.0f MB)", run->cpu_seconds, run->peak_rss_mb);
+    log("compare: change report " + (fs::path(out_dir) / "report.html").string() + buf);
+    return Ok{};
 }
 
 namespace {

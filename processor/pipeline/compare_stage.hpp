@@ -40,6 +40,7 @@
 #pragma once
 
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -60,7 +61,10 @@ struct CompareConfig {
     bool change_mesh = true;  // also the change on B's TSDF mesh (both folders' mesh_utm.ply)
     compare::ChangeMeshConfig mesh;
     double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
-    double capacity_step_m = 0.25;            // capacity curve: a row every step, m
+    // Keep a change mesh region only where half the soundings' measured core points within a
+    // core spacing of it are significant with its sign (needs change3d).
+    bool confirm_mesh_regions = true;
+    double capacity_step_m = 0.25;  // capacity curve: a row every step, m
     // A design surface (the planned cut: a GeoTIFF of heights in the surveys' CRS and vertical
     // datum); "" none. With it each survey is compared with it (design_a.tif, design_b.tif,
     // compare.json design), and B may be left out (the design alone: RunCompare with b_dir "").
@@ -80,6 +84,26 @@ Expected<int> RunCompare(const std::string& a_dir,
                          const std::string& out_dir,
                          const CompareConfig& config,
                          const std::function<void(const std::string&)>& log);
+
+// The capacity curve of one survey's products folder (issue 37 item 3), as pitmap compare finds
+// it for each survey: dem.tif's elevation and the water level from `summary` (world_origin,
+// vehicle, vertical_datum; the products' summary.json, possibly not yet saved) and
+// trajectory.csv (else trajectory_ins.csv). Writes DIR/capacity.csv (as compare's
+// capacity_a.csv) and returns summary.json's record: water_level_m, deepest_m,
+// surveyed_area_m2, area_at_water_level_m2, volume_at_water_level_m3, step_m, file and
+// rows_level_area_volume ([level_m, area_m2, volume_m3] every step_m from the deepest node up,
+// and at the water level). Errors: no dem.tif or heights, no trajectory, a write failure.
+Expected<nlohmann::json> SurveyCapacity(const std::string& dir,
+                                        const nlohmann::json& summary,
+                                        double step_m);
+
+// The change report of a comparison RunCompare wrote (two surveys): `report_program
+// --compare out_dir` (C/report.html; docs/compare.md#report), run as `pitmap run` runs the survey
+// report (report_program.hpp). An error when the program is not there or fails: the comparison
+// itself is complete without it.
+Status WriteCompareReport(const std::string& out_dir,
+                          const std::string& report_program,
+                          const std::function<void(const std::string&)>& log);
 
 // More than two surveys of one site (issue 37 item 1): `dirs` in time order (each folder's
 // summary.json metadata.survey_start_utc must come after the one before, else an error naming

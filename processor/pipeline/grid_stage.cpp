@@ -24,6 +24,7 @@
 #include "processor/io/products.hpp"
 #include "processor/io/water_level.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/compare_stage.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/posterior.hpp"
 
@@ -1358,6 +1359,24 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     stage["files"] = files;
     stage["timings_wall_cpu_s"] = timings;
     s.summary["vertical_datum"] = datum_record;
+    // The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
+    // every 0.25 m (compare's --capacity-step default).
+    if (auto cap = SurveyCapacity(s.out_dir, s.summary, 0.25); cap) {
+        char buf[200];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "grid: capacity: %.0f m3 of water at the water level %.3f m over %.0f m2 "
+                      "surveyed (capacity.csv)",
+                      (*cap)["volume_at_water_level_m3"].get<double>(),
+                      (*cap)["water_level_m"].get<double>(),
+                      (*cap)["surveyed_area_m2"].get<double>());
+        log(buf);
+        stage["files"].push_back("capacity.csv");
+        s.summary["capacity"] = std::move(*cap);
+    } else {
+        log("grid: no capacity curve: " + cap.error().message);
+        s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
+    }
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
     RecordStage(s.summary, Stage::kGrid, stage, clock);

@@ -226,7 +226,8 @@ std::vector<std::string> ProductsReplacedBy(Stage stage) {
                                            "mosaic.tif",
                                            "terrain.tif",
                                            "crawler.tif",
-                                           "crawler.tif.aux.xml"};
+                                           "crawler.tif.aux.xml",
+                                           "capacity.csv"};
     const std::vector<std::string> mesh = {"mesh.ply",
                                            "mesh.obj",
                                            "mesh.glb",

@@ -1,10 +1,6 @@
 // SPDX-License-Identifier: MIT
 // The 3-D stages on a products folder: SLAM, TSDF fusion, mesh, report, and `run`.
 #include <sched.h>
-#include <signal.h>
-#include <sys/prctl.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -34,10 +30,9 @@
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/pipeline/posterior.hpp"
+#include "processor/pipeline/report_program.hpp"
 #include "processor/pipeline/result_json.hpp"
 #include "processor/survey/survey_file.hpp"
-
-extern char** environ;
 
 namespace pitmap::proc::pipeline {
 
@@ -1099,62 +1094,23 @@ Status MeshSurvey(StageContext& s,
 
 Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
-    const std::string& program = config.report_program;
-    if (program.empty() || ::access(program.c_str(), X_OK) != 0) {
-        return Error{"report: the report program " +
-                     (program.empty() ? std::string("(pitmap-report)") : program) +
-                     " is not there; the products are complete without report.html"};
-    }
     if (auto w = SaveSummary(s); !w) return w;
-    std::vector<std::string> args = {program, s.out_dir};
+    std::vector<std::string> args = {s.out_dir};
     if (!config.run.report_equipment.empty()) {
         args.push_back("--equipment");
         args.push_back(config.run.report_equipment);
     }
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    // fork + exec rather than posix_spawn: the child asks the kernel for SIGTERM when this
-    // process dies (PR_SET_PDEATHSIG, kept across exec), so a pitmap killed with -9 during the
-    // report takes pitmap-report (and through it its workers) along instead of leaving them
-    // running. The child also starts with SIGTERM unblocked and at its default action, whatever
-    // this process inherited (a blocked or ignored SIGTERM passes through exec). Between fork
-    // and exec only async-signal-safe calls.
-    const pid_t parent = ::getpid();
-    const pid_t pid = ::fork();
-    if (pid < 0) return Error{"report: cannot start " + program + ": " + std::strerror(errno)};
-    if (pid == 0) {
-        sigset_t none;
-        ::sigemptyset(&none);
-        ::sigprocmask(SIG_SETMASK, &none, nullptr);
-        struct sigaction dfl {};
-        dfl.sa_handler = SIG_DFL;
-        ::sigaction(SIGTERM, &dfl, nullptr);
-        ::sigaction(SIGINT, &dfl, nullptr);
-        ::prctl(PR_SET_PDEATHSIG, SIGTERM);
-        if (::getppid() != parent) ::_exit(127);  // the parent died before the prctl
-        ::execve(program.c_str(), argv.data(), environ);
-        ::_exit(127);
-    }
-    int status = 0;
-    struct rusage usage {};
-    while (::wait4(pid, &status, 0, &usage) < 0) {
-        if (errno != EINTR) return Error{"report: lost " + program};
-    }
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        return Error{"report: " + program + " failed (exit status " +
-                     std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")"};
-    }
+    auto run = RunReportProgram(
+        config.report_program, args, "the products are complete without report.html");
+    if (!run) return run.error();
     log("report: " + s.out_dir + "/report.html");
     RecordStage(s.summary,
                 Stage::kReport,
                 {{"file", "report.html"}, {"engineering_file", "report_engineering.html"}},
                 clock);
-    // The work is the child's: its own high-water mark (ru_maxrss, kB).
     json& rst = s.summary["stages"][ToString(Stage::kReport)];
-    rst["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
-    rst["cpu_seconds"] = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-                         (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
+    rst["peak_rss_mb"] = run->peak_rss_mb;
+    rst["cpu_seconds"] = run->cpu_seconds;
     return SaveSummary(s);
 }
 

@@ -163,6 +163,13 @@ either, the truth's origin is assumed (and said).
                                 (profile > 0.3) flagged as loss and their median distance; the
                                 share of the cores more than 0.5 m from every part flagged (all,
                                 and those on walls >= 45 deg).
+  change3d_region_<part>_volume_detected_m3, _u95_m3, _volume_error_pct, _iou, _within,
+  change3d_region_parts_within, change3d_region_stable_flagged_share,
+  change3d_region_false_regions
+                                with P/change_mesh.ply and compare.json change_mesh.regions:
+                                the change mesh's regions (on the surface, walls included)
+                                scored as the change_* scores above, with B's mesh vertices for
+                                the nodes.
   capacity_b_volume_error_pct   compare.json's volume of water at B's water level against the
                                 true terrain's under B's surveyed nodes (true surface z = 0).
 )";
@@ -1011,6 +1018,44 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
             }
             scores["change3d_stable_flagged_share"] = share(stable_flagged, stable);
             scores["change3d_wall_stable_flagged_share"] = share(wall_flagged, wall);
+        }
+        // The change mesh's regions (on the surface, walls included), scored as the 2.5D
+        // regions with B's mesh vertices for the nodes.
+        const json& mr = cj["change_mesh"];
+        if (fs::exists(P / "change_mesh.ply") && mr.contains("regions")) {
+            auto cm =
+                formats::ply::ReadMesh((P / "change_mesh.ply").string(), {"distance_m", "region"});
+            if (!cm) {
+                return cm.error();
+            }
+            std::vector<eval::DodNode> vnodes;
+            for (std::size_t i = 0; i < cm->vertices.size(); ++i) {
+                if (!std::isfinite(cm->vertex_properties[0][i])) continue;
+                auto w = to_world(cm->vertices[i].x(), cm->vertices[i].y());
+                if (!w) continue;
+                vnodes.push_back({*w, static_cast<int>(cm->vertex_properties[1][i])});
+            }
+            std::vector<eval::RegionInfo> vregions;
+            for (const json& r : mr["regions"]) {
+                vregions.push_back({r.value("id", 0),
+                                    r.value("kind", std::string()) == "fill" ? 1 : -1,
+                                    r.value("volume_m3", 0.0),
+                                    r.value("u95_m3", 0.0)});
+            }
+            const auto ms = eval::ScoreChange(vnodes, vregions, truth->changes);
+            int mesh_within = 0;
+            for (const auto& ps : ms.parts) {
+                const std::string k = "change3d_region_" + ps.name + "_";
+                scores[k + "volume_detected_m3"] = ps.volume_detected_m3;
+                scores[k + "u95_m3"] = ps.u95_m3;
+                scores[k + "volume_error_pct"] = ps.error_pct;
+                scores[k + "iou"] = ps.iou;
+                scores[k + "within"] = ps.within ? 1 : 0;
+                mesh_within += ps.within;
+            }
+            scores["change3d_region_parts_within"] = mesh_within;
+            scores["change3d_region_stable_flagged_share"] = ms.stable_flagged_share;
+            scores["change3d_region_false_regions"] = ms.false_regions;
         }
         // B's capacity at its water level against the true terrain under B's surveyed nodes.
         const std::string b_dir = cj["inputs"]["b"].value("folder", std::string());

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -498,6 +499,75 @@ TEST(CompareM3c2, AThirtyCentimetreChangeOnASeventyDegreeFaceIsDetectedAlongItsN
     EXPECT_LT(static_cast<double>(stable_flagged) / stable, 0.1) << r.message;
 }
 
+// A bench's crest, the same in both surveys: a bench of 10 deg (x < 0) breaking into a face of
+// 35 deg (x > 0). A sounds the bench alone up to the crest (the edge of its coverage), B both.
+// A's soundings alone give the bench's normal, along which the cylinder takes in B's soundings
+// of the face below the crest: a loss of about 0.1 m where nothing changed. The normal from
+// both surveys' soundings is the crest's, and no core is measured as a change.
+TEST(CompareM3c2, ABenchsCrestAtTheEdgeOfOneSurveysCoverageIsNoChange) {
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto at = [&](double x, double y) {
+        const double z = x < 0 ? -std::tan(10 * kDeg) * x : -std::tan(35 * kDeg) * x;
+        return Eigen::Vector3d(x + noise(rng), y + noise(rng), z + noise(rng));
+    };
+    std::vector<Eigen::Vector3d> a, b;
+    for (int k = 0; k < 3000; ++k) a.push_back(at(-2 + 2 * u(rng), -3 + 6 * u(rng)));
+    for (int k = 0; k < 6000; ++k) b.push_back(at(-2 + 4 * u(rng), -3 + 6 * u(rng)));
+    const M3c2Result r = RunM3c2(a,
+                                 b,
+                                 Eigen::Vector3d(-20, 0, 5),
+                                 RigidCorrection{},
+                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                 M3c2Config{});
+    int measured = 0, flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m) || std::abs(c.position.y()) > 2) continue;
+        ++measured;
+        flagged += c.significance != 0;
+        EXPECT_NEAR(c.distance_m, 0.0, 0.04) << c.position.transpose();
+    }
+    EXPECT_GT(measured, 5) << r.message;
+    EXPECT_EQ(flagged, 0) << r.message;
+}
+
+// A fin 1.2 m thick (two vertical faces, x = 0 facing +x, the water, and x = -1.2), the same in
+// both surveys; A sounds the far face densely, B sparsely. The cylinder (2 m along the normal)
+// reaches the far face; the surface measured is the one through the core, so no change.
+TEST(CompareM3c2, TheFarFaceOfARidgeInTheCylinderIsNotMeasured) {
+    std::mt19937 rng(8);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto face = [&](std::vector<Eigen::Vector3d>& out, double x, int count) {
+        for (int k = 0; k < count; ++k) {
+            out.emplace_back(x + noise(rng), -3 + 6 * u(rng), -3 + 6 * u(rng));
+        }
+    };
+    std::vector<Eigen::Vector3d> a, b;
+    face(a, 0.0, 900);
+    face(a, -1.2, 1800);
+    face(b, 0.0, 900);
+    face(b, -1.2, 200);
+    const M3c2Result r = RunM3c2(a,
+                                 b,
+                                 Eigen::Vector3d(20, 0, 0),
+                                 RigidCorrection{},
+                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                 M3c2Config{});
+    int measured = 0, flagged = 0;
+    for (const M3c2Core& c : r.cores) {
+        if (!std::isfinite(c.distance_m) || c.position.x() < -0.5 || std::abs(c.position.y()) > 2 ||
+            std::abs(c.position.z()) > 2)
+            continue;
+        ++measured;
+        flagged += c.significance != 0;
+        EXPECT_NEAR(c.distance_m, 0.0, 0.03);
+    }
+    EXPECT_GT(measured, 5) << r.message;
+    EXPECT_EQ(flagged, 0) << r.message;
+}
+
 // A 70 deg face facing +x (the water), 12 m along strike (y) by 8 m up the dip, as a triangle
 // mesh of `step` spacing starting at `offset` (so two meshes' vertices do not coincide), moved
 // along the face's normal by bump(u, s) (u along strike, s up the dip).
@@ -585,6 +655,151 @@ TEST(CompareChangeMesh, ABumpOnASeventyDegreeFaceIsMeasuredAlongItsNormal) {
                                                     sigma);
     EXPECT_EQ(none.measured, 0u);
     EXPECT_TRUE(std::isnan(none.distance_m[top]));
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A height field z = f(x, y) over [0, 10] m squared as a triangle mesh of `step` spacing
+// starting at `offset`.
+TriangleMesh HeightField(double step,
+                         double offset,
+                         const std::function<double(double, double)>& f) {
+    TriangleMesh m;
+    const int n = static_cast<int>(10.0 / step);
+    for (int j = 0; j <= n; ++j) {
+        for (int i = 0; i <= n; ++i) {
+            const double x = offset + i * step, y = offset + j * step;
+            m.vertices.emplace_back(x, y, f(x, y));
+        }
+    }
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            const int k = j * (n + 1) + i;
+            m.triangles.push_back({k, k + 1, k + n + 1});
+            m.triangles.push_back({k + 1, k + n + 2, k + n + 1});
+        }
+    }
+    return m;
+}
+
+// The integral of f over [0, 10] m squared on a 1 cm grid.
+double Integral(const std::function<double(double, double)>& f) {
+    double v = 0;
+    for (int j = 0; j < 1000; ++j) {
+        for (int i = 0; i < 1000; ++i) v += f(0.005 + 0.01 * i, 0.005 + 0.01 * j) * 1e-4;
+    }
+    return v;
+}
+
+// The change mesh's regions carry their volume: a 0.3 m plateau along the normal of a 70 deg
+// face (the wall change; a 2.5D difference would see a horizontal shift), and a heap
+// of 35 deg flanks on a floor, whose volume along each vertex's own normal would be 1 /
+// cos^2(35 deg) = 1.49 times too large on the flanks (the normals converge beneath it): along
+// the region's mean normal it is the heap's. Each within 3 % of the exact volume and inside
+// its U95.
+TEST(CompareChangeMesh, RegionsCarryTheirVolumeAlongTheirAxisOnAWallAndOnAFloor) {
+    const auto sigma = [](const Eigen::Vector3d&) { return std::hypot(0.02, 0.02); };
+    const auto plateau = [](double u, double s) {
+        const double r = std::hypot(u - 6.0, s - 4.0);
+        if (r < 1.0) return 0.3;
+        if (r < 1.4) return 0.15 * (1 + std::cos(kPi * (r - 1.0) / 0.4));
+        return 0.0;
+    };
+    const TriangleMesh wall_a = Face(0.1, 0.0, [](double, double) { return 0.0; });
+    const TriangleMesh wall_b = Face(0.1, 0.05, plateau);
+    const ChangeMeshResult w = ComputeChangeMesh(wall_b,
+                                                 wall_a,
+                                                 RigidCorrection{},
+                                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                                 ChangeMeshConfig{},
+                                                 sigma);
+    double plateau_v = 0;  // over the face's (u, s) plane: [0, 12] x [0, 8]
+    for (int j = 0; j < 800; ++j) {
+        for (int i = 0; i < 1200; ++i) plateau_v += plateau(0.005 + 0.01 * i, 0.005 + 0.01 * j);
+    }
+    plateau_v *= 1e-4;
+    ASSERT_EQ(w.regions.size(), 1u) << w.message;
+    const ChangeRegion3d& g = w.regions.front();
+    EXPECT_EQ(g.sign, 1);
+    EXPECT_NEAR(g.mean_slope_deg, 70.0, 5.0);  // the plateau's tapered rim tilts its normals
+    EXPECT_NEAR(
+        g.direction.dot(Eigen::Vector3d(std::sin(70 * kDeg), 0, std::cos(70 * kDeg))), 1.0, 0.01);
+    EXPECT_NEAR(g.volume_m3, plateau_v, 0.03 * plateau_v) << "U95 " << g.u95_m3;
+    EXPECT_LE(std::abs(g.volume_m3 - plateau_v), g.u95_m3);
+    EXPECT_NEAR(g.mean_distance_m, 0.3, 0.05);
+    EXPECT_GE(g.max_abs_distance_m, 0.3);  // along a vertex's own normal: oblique on the rim
+    std::size_t in_region = 0;
+    for (int id : w.region) in_region += id == 1;
+    EXPECT_EQ(in_region, g.vertices);
+
+    const auto heap = [](double x, double y) {
+        const double r = std::hypot(x - 5.0, y - 5.0);
+        return std::clamp((1.5 - r) * std::tan(35 * kDeg), 0.0, 0.6);
+    };
+    const TriangleMesh floor_a = HeightField(0.1, 0.0, [](double, double) { return 0.0; });
+    const TriangleMesh floor_b = HeightField(0.1, 0.05, heap);
+    const ChangeMeshResult h = ComputeChangeMesh(floor_b,
+                                                 floor_a,
+                                                 RigidCorrection{},
+                                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                                 ChangeMeshConfig{},
+                                                 sigma);
+    const double heap_v = Integral(heap);
+    ASSERT_EQ(h.regions.size(), 1u) << h.message;
+    EXPECT_NEAR(h.regions.front().direction.z(), 1.0, 0.01);
+    EXPECT_NEAR(h.regions.front().volume_m3, heap_v, 0.03 * heap_v)
+        << "U95 " << h.regions.front().u95_m3;
+    EXPECT_LE(std::abs(h.regions.front().volume_m3 - heap_v), h.regions.front().u95_m3);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A change mesh region is kept where the soundings' change along the normal agrees: of two
+// regions (a heap and a hollow), the one whose nearby core points are significant with its
+// sign stays, the one whose cores saw no change is dropped, the ids renumbered.
+TEST(CompareChangeMesh, RegionsAreConfirmedByTheSoundingsChangeAlongTheNormal) {
+    const auto two = [](double x, double y) {
+        const double heap = std::max(0.0, 0.3 - 0.3 * std::hypot(x - 3.0, y - 5.0));
+        const double hollow = std::max(0.0, 0.3 - 0.3 * std::hypot(x - 7.0, y - 5.0));
+        return heap - hollow;
+    };
+    const TriangleMesh a = HeightField(0.1, 0.0, [](double, double) { return 0.0; });
+    const TriangleMesh b = HeightField(0.1, 0.05, two);
+    const auto sigma = [](const Eigen::Vector3d&) { return 0.02; };
+    ChangeMeshResult r = ComputeChangeMesh(
+        b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), ChangeMeshConfig{}, sigma);
+    ASSERT_EQ(r.regions.size(), 2u) << r.message;
+    // Core points every 0.5 m: a gain on the heap, nothing anywhere else.
+    std::vector<Eigen::Vector3d> cores;
+    std::vector<int> sig;
+    for (double x = 0.25; x < 10; x += 0.5) {
+        for (double y = 0.25; y < 10; y += 0.5) {
+            cores.emplace_back(x, y, 0.0);
+            sig.push_back(std::hypot(x - 3.0, y - 5.0) < 0.8 ? 1 : 0);
+        }
+    }
+    const std::size_t dropped = ConfirmRegionsBySoundings(b, cores, sig, 0.5, 0.5, r);
+    EXPECT_EQ(dropped, 1u);
+    ASSERT_EQ(r.regions.size(), 1u);
+    EXPECT_EQ(r.regions.front().sign, 1);
+    EXPECT_EQ(r.regions.front().id, 1);
+    EXPECT_EQ(r.loss, 0u);
+    EXPECT_EQ(r.patches, 1u);
+    std::size_t in_region = 0;
+    for (std::size_t i = 0; i < r.region.size(); ++i) {
+        EXPECT_EQ(r.region[i] != 0, r.significance[i] != 0);
+        in_region += r.region[i] == 1;
+    }
+    EXPECT_EQ(in_region, r.regions.front().vertices);
+    EXPECT_EQ(r.gain, in_region);
 }
 
 }  // namespace

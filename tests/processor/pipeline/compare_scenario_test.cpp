@@ -21,7 +21,9 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <string>
+#include <utility>
 
 #include "common/formats/ply.hpp"
 #include "processor/io/grid_io.hpp"
@@ -77,15 +79,15 @@ protected:
         }
         return to;
     }
-    // pitmap compare's exit status.
+    // pitmap compare's exit status (without the change report: report_compare_test's).
     static int Compare(const fs::path& a,
                        const fs::path& b,
                        const fs::path& out,
                        std::string* text,
                        const std::string& extra = "") {
-        const int status = RunCommand(
-            kBin + "/pitmap compare " + Quote(a) + " " + Quote(b) + " --out " + Quote(out) + extra,
-            text);
+        const int status = RunCommand(kBin + "/pitmap compare " + Quote(a) + " " + Quote(b) +
+                                          " --out " + Quote(out) + " --no-report" + extra,
+                                      text);
         return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     }
     void ChangesMeasuredAgainstTruth();
@@ -181,17 +183,37 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     // each) is in it, not the changes.
     EXPECT_LT(s.at("registration_rms_vertical_after_m"), 0.025);
     EXPECT_LT(std::abs(s.at("capacity_b_volume_error_pct")), 0.5);
+    // Each survey's own summary.json holds its capacity curve (pitmap run's grid stage), the
+    // same as compare finds for it, and capacity.csv the same rows as compare's.
+    for (const auto& [side, folder] : {std::pair{"a", A()}, std::pair{"b", B()}}) {
+        const json sj = ReadJson(folder / "summary.json");
+        ASSERT_TRUE(sj.contains("capacity")) << side;
+        const json& own = sj["capacity"];
+        const json& cmp = j["capacity"][side];
+        ASSERT_TRUE(own.contains("rows_level_area_volume")) << own.dump();
+        EXPECT_GT(own["rows_level_area_volume"].size(), 10u);
+        for (const char* k :
+             {"water_level_m", "deepest_m", "surveyed_area_m2", "volume_at_water_level_m3"}) {
+            EXPECT_NEAR(own[k].get<double>(), cmp[k].get<double>(), 1e-6) << side << " " << k;
+        }
+        std::ifstream own_csv(folder / "capacity.csv"),
+            cmp_csv(C / ("capacity_" + std::string(side) + ".csv"));
+        const std::string own_text((std::istreambuf_iterator<char>(own_csv)), {});
+        const std::string cmp_text((std::istreambuf_iterator<char>(cmp_csv)), {});
+        EXPECT_FALSE(own_text.empty()) << side;
+        EXPECT_EQ(own_text, cmp_text) << side;
+    }
     // The 3D change along the normal: the scar on the 65 deg wall is seen as a loss along the
     // wall's normal (0.42 m at its centre, 0.27 m median where its vertical depth exceeds
-    // 0.3 m). Stable cores flagged: measured 0.5 % (1.2 % on walls) on these 150 s, where
-    // walls seen once by one survey and from elsewhere by the other differ by more than the
-    // CUBE surfaces' sigma says (the whole 210 s: 0.06 %, 0 on walls); the issue's 0.3 % is
-    // not reached here (docs/compare.md), this holds the figure from getting worse.
+    // 0.3 m). Stable cores flagged: the issue's < 0.3 %, on walls too (measured 0 of 15 957
+    // stable cores, 0 of 4 566 on walls, with the normal from both surveys, each one's
+    // neighbourhood a plane and the surface nearest to the core in the cylinder; 0.85 % and
+    // 1.3 % on walls before: docs/compare.md).
     EXPECT_TRUE(fs::exists(C / "change_points.ply"));
-    EXPECT_GT(s.at("change3d_scar_detected_share"), 0.6);
+    EXPECT_GT(s.at("change3d_scar_detected_share"), 0.9);
     EXPECT_NEAR(s.at("change3d_scar_median_distance_m"), -0.27, 0.08);
-    EXPECT_LT(s.at("change3d_stable_flagged_share"), 0.01);
-    EXPECT_LT(s.at("change3d_wall_stable_flagged_share"), 0.02);
+    EXPECT_LT(s.at("change3d_stable_flagged_share"), 0.001);
+    EXPECT_LT(s.at("change3d_wall_stable_flagged_share"), 0.003);
     // The change mesh: B's TSDF mesh with the distance along the normal per vertex; the scar
     // (1 m vertical on the 65 deg wall, 0.42 m along its normal at the centre) is a loss along
     // the normal, the heap (0.6 m on the floor) a gain.
@@ -201,7 +223,7 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     // The five parts as patches of significant vertices, few others (the count measured is in
     // docs/compare.md; the stable vertices flagged are bounded above).
     EXPECT_GE(cm["patches"].get<int>(), 5);
-    EXPECT_LE(cm["patches"].get<int>(), 16);
+    EXPECT_LE(cm["patches"].get<int>(), 7);
     auto mesh = pitmap::formats::ply::ReadMesh((C / "change_mesh.ply").string(),
                                                {"distance_m", "significance"});
     ASSERT_TRUE(mesh.ok()) << mesh.error().message;
@@ -230,6 +252,23 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
         std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
         return d[d.size() / 2];
     };
+    // The change mesh's regions with their volumes, on the surface (the scar on the 65 deg high
+    // wall included, along its mean normal): every part's volume within 5 % or its U95, as the
+    // issue asks of the 2.5D regions (measured: -0.0 % to +6.1 %, the scar's 6.1 % inside its
+    // U95 of 0.92 m3; IoU 0.79-0.95); the regions the soundings' change along the normal does
+    // not confirm dropped (measured: 8 of 13, all on no part), no stable vertex in a region.
+    EXPECT_TRUE(fs::exists(C / "change_regions_3d.geojson"));
+    ASSERT_TRUE(cm.contains("regions")) << cm.dump();
+    EXPECT_EQ(cm["regions"].size(), cm["patches"].get<std::size_t>());
+    EXPECT_GE(cm["regions_unconfirmed"].get<int>(), 1);
+    EXPECT_LE(s.at("change3d_region_false_regions"), 1);
+    for (const char* part : {"slump_scar", "slump_toe", "backfill", "spill", "cut"}) {
+        const std::string k = std::string("change3d_region_") + part + "_";
+        EXPECT_EQ(s.at(k + "within"), 1)
+            << part << ": " << s.at(k + "volume_detected_m3") << " +- " << s.at(k + "u95_m3");
+        EXPECT_GE(s.at(k + "iou"), 0.75) << part;
+    }
+    EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.001);
     int flagged = 0, near = 0;
     EXPECT_NEAR(median_near("cut", &flagged, &near), -0.38, 0.08);  // the scar, the largest cut
     EXPECT_GT(flagged, 0.9 * near);

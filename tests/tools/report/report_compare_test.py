@@ -30,6 +30,8 @@ import unittest
 
 BIN = None
 WORK = None
+COMPARE_WROTE_REPORT = False  # setUpModule: did pitmap compare write C/report.html
+NO_REPORT_FILES = []  # setUpModule: the files of a comparison with --no-report
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SECTIONS = ["surveys", "summary", "change-map", "volumes", "sections", "registration",
             "change3d", "capacity", "terrain", "quality"]
@@ -67,8 +69,15 @@ def setUpModule():
             "--epoch", k, "--out", sim)
         Run(os.path.join(BIN, "pitmap"), "run", os.path.join(sim, "log"), "--out",
             os.path.join(WORK, "AB"[k - 1]), "--no-report")
+    # pitmap compare writes the change report itself (pitmap-report --compare C), as pitmap
+    # run writes the survey report; --no-report leaves it out.
+    global COMPARE_WROTE_REPORT, NO_REPORT_FILES
     Run(os.path.join(BIN, "pitmap"), "compare", os.path.join(WORK, "A"),
         os.path.join(WORK, "B"), "--out", os.path.join(WORK, "C"))
+    COMPARE_WROTE_REPORT = os.path.isfile(os.path.join(WORK, "C", "report.html"))
+    Run(os.path.join(BIN, "pitmap"), "compare", os.path.join(WORK, "A"),
+        os.path.join(WORK, "B"), "--out", os.path.join(WORK, "C_no_report"), "--no-report")
+    NO_REPORT_FILES = sorted(os.listdir(os.path.join(WORK, "C_no_report")))
 
 
 class ChangeReportTest(unittest.TestCase):
@@ -87,6 +96,12 @@ class ChangeReportTest(unittest.TestCase):
             with open(os.path.join(cls.C, "report.html"), encoding="utf-8") as f:
                 cls.page = f.read()
         cls.sec = Sections(cls.page)
+
+    def test_compare_writes_the_change_report_unless_told_not_to(self):
+        self.assertTrue(COMPARE_WROTE_REPORT, "pitmap compare wrote no report.html")
+        self.assertIn("compare.json", NO_REPORT_FILES)
+        self.assertNotIn("report.html", NO_REPORT_FILES)
+        self.assertNotIn("report", NO_REPORT_FILES)
 
     def test_page_is_written_with_its_sections(self):
         self.assertEqual(self.report_run.returncode, 0, self.report_run.stderr)

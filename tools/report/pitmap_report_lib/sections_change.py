@@ -667,7 +667,41 @@ def change3d(c):
         _change_points_map(c),
         '<p class="caption">Along the normal (M3C2-like, change_points.ply): on walls a change '
         "is measured across the face, where the vertical difference of the grids sees it as a "
-        "horizontal shift.</p>"])
+        "horizontal shift.</p>",
+        _regions3d_table(c)])
+
+
+def _regions3d_table(c):
+    """The change mesh's regions (compare.json change_mesh.regions): on the surface, walls
+    included, each with its volume along its mean normal and U95; "" without them."""
+    m = c.compare.get("change_mesh")
+    regions = m.get("regions") if isinstance(m, dict) else None
+    if not isinstance(regions, list) or not regions:
+        return ""
+    rows = []
+    for r in sorted(regions, key=lambda r: -abs(float(r.get("volume_m3", 0.0)))):
+        rows.append([esc(r.get("id", "?")), esc(r.get("kind", "?")),
+                     num(float(r.get("area_m2", 0.0)), 1),
+                     num(float(r.get("mean_slope_deg", 0.0)), 0),
+                     num(float(r.get("mean_distance_m", 0.0)), 3),
+                     f"{num(float(r.get('volume_m3', 0.0)), 2)} &plusmn; "
+                     f"{num(float(r.get('u95_m3', 0.0)), 2)}"])
+    for kind in ("cut", "fill"):
+        t = m.get(kind) if isinstance(m.get(kind), dict) else None
+        if t is not None:
+            rows.append([f"<b>{kind}</b>", f"{num(int(t.get('regions', 0)))} regions",
+                         num(float(t.get("area_m2", 0.0)), 1), "", "",
+                         f"<b>{num(float(t.get('volume_m3', 0.0)), 2)} &plusmn; "
+                         f"{num(float(t.get('u95_m3', 0.0)), 2)}</b>"])
+    return "\n".join([
+        "<h3>Change regions on the surface (walls included)</h3>",
+        table(rows, header=["region", "kind", "area on the surface (m\u00b2)", "slope (deg)",
+                            "mean distance along its axis (m)", "volume (m\u00b3, U95)"]),
+        '<p class="caption">The change mesh\'s regions (change_regions_3d.geojson, the '
+        "region of each vertex in change_mesh.ply): significant vertices of one sign joined by "
+        "the mesh's edges, each volume measured along the region's mean normal (on a wall, "
+        "across the face), its U95 from both surveys' uncertainty, the co-registration and "
+        "the rim left below detection.</p>"])
 
 
 def _change_points_map(c):

@@ -113,18 +113,46 @@ def terrain(p):
                       '<div class="pair">' + "".join(figures) + "</div>"])
 
 
+def _summary_capacity(summary):
+    """The capacity curve pitmap's grid stage put in summary.json (capacity), as
+    capacity_curve returns it; None when summary.json has none (or not a whole one)."""
+    cap = summary.get("capacity") if isinstance(summary, dict) else None
+    if not isinstance(cap, dict) or not isinstance(cap.get("rows_level_area_volume"), list):
+        return None
+    keys = ("water_level_m", "deepest_m", "surveyed_area_m2", "area_at_water_level_m2",
+            "volume_at_water_level_m3")
+    if not all(isinstance(cap.get(k), (int, float)) for k in keys):
+        return None
+    rows = []
+    for r in cap["rows_level_area_volume"]:
+        if not (isinstance(r, list) and len(r) == 3
+                and all(isinstance(x, (int, float)) for x in r)):
+            return None
+        rows.append(tuple(float(x) for x in r))
+    if not rows:
+        return None
+    out = {k: float(cap[k]) for k in keys}
+    out["rows"] = rows
+    return out
+
+
 def capacity(p):
-    """The pit's capacity curve from dem.tif (issue 37 item 3): water volume and water-surface
-    area against water level over the surveyed nodes, up to the survey's water level; the
-    table also as P/report/capacity.csv (the columns of `pitmap compare`'s capacity_a.csv)."""
+    """The pit's capacity curve (issue 37 item 3): water volume and water-surface area against
+    water level over the surveyed nodes, up to the survey's water level, as pitmap's grid stage
+    put it in summary.json (capacity; else from dem.tif and the trajectory, as pitmap compare
+    finds it); the table also as P/report/capacity.csv (the columns of capacity_a.csv)."""
     dem = client_dem(p)
     if dem is None or "elevation" not in dem["bands"]:
         return None  # the maps section says why there is no depth grid
-    level = water_level_m(p)
-    if level is None:
-        return ("<p>No capacity curve: the water level is not known (no readable trajectory "
-                "or world origin).</p>")
-    curve = capacity_curve(dem["bands"]["elevation"], dem["gt"][1], level)
+    curve = _summary_capacity(p.summary)
+    if curve is not None:
+        level = curve["water_level_m"]
+    else:  # products of a pitmap before summary.json held the curve
+        level = water_level_m(p)
+        if level is None:
+            return ("<p>No capacity curve: the water level is not known (no readable "
+                    "trajectory or world origin).</p>")
+        curve = capacity_curve(dem["bands"]["elevation"], dem["gt"][1], level)
     if not curve["rows"]:
         return "<p>No capacity curve: dem.tif holds no heights.</p>"
     os.makedirs(p.fig_dir, exist_ok=True)
