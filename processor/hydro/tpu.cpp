@@ -110,6 +110,9 @@ std::vector<std::string> TpuConfig::Validate() const {
     if (!(sound_speed_mps >= 1300 && sound_speed_mps <= 1700)) {
         out.push_back("tpu: sound_speed_mps must be within 1300..1700");
     }
+    if (!(column_swath_half_angle_deg >= 0 && column_swath_half_angle_deg <= 75)) {
+        out.push_back("tpu: column_swath_half_angle_deg must be within 0..75");
+    }
     if (num_threads < 0) out.push_back("tpu: num_threads must be >= 0 (0 = all cores)");
     for (const double b : boresight_sigma_rpy_deg) {
         if (!(std::isnan(b) || (std::isfinite(b) && b >= 0))) {
@@ -157,6 +160,7 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
     const Eigen::Vector3d o = R_ws * b;
     double rel2 = Square(column_sigma / c);
     Eigen::Vector3d j_column = o;  // not below the transducer: the range scaling alone
+    Eigen::Vector3d j_swath = Eigen::Vector3d::Zero();
     if (o.z() < -1e-6) {
         if (config.column_relative_sigma_at) {
             const double s = config.column_relative_sigma_at(-o.z());
@@ -165,9 +169,13 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
         // tan^2 capped at 72 deg from the vertical, beyond any beam the fan steers to.
         const double tan2 = std::min((o.x() * o.x() + o.y() * o.y()) / (o.z() * o.z()), 9.5);
         j_column = Eigen::Vector3d(2 * o.x(), 2 * o.y(), (1 - tan2) * o.z());
+        if (config.column_swath_half_angle_deg > 0) {
+            const double a = frames::DegToRad(config.column_swath_half_angle_deg);
+            j_swath.z() = (2 * a - std::tan(a)) / a * o.z();
+        }
     }
-    at(TpuTerm::kSoundSpeed) =
-        Outer(j_column, rel2) + Outer(dp_dtheta, Square(std::tan(th) * surface_sigma / c));
+    at(TpuTerm::kSoundSpeed) = Outer(j_column, rel2) + Outer(j_swath, rel2) +
+                               Outer(dp_dtheta, Square(std::tan(th) * surface_sigma / c));
 
     // Attitude: dR/dk = [a_k]x R for R = M Rz(yaw) Ry(pitch) Rx(roll).
     // a_pitch = M Rz(yaw) e_y = M (-sin yaw, cos yaw, 0); with R_ned = M^T R (M = M^T),

@@ -19,7 +19,9 @@
 //                 relative column speed error (the refraction-error relation of Snell's law,
 //                 processor/hydro/sound_speed.hpp; at nadir Hare's range scaling);
 //                 (sigma_c / c)^2 = (the ping's column speed sigma / c)^2 + the swath-overlap
-//                 estimate's relative sigma at the sounding's depth; the surface: J = dp/dtheta,
+//                 estimate's relative sigma at the sounding's depth; plus the swath-common
+//                 part J = m o_U e_U (TpuConfig::column_swath_half_angle_deg), in quadrature;
+//                 the surface: J = dp/dtheta,
 //                 sigma^2 = (tan(theta) sigma_cs / c)^2 (the steering error of a flat array from
 //                 the surface sound speed: Snell at the face, d theta = tan(theta) dc / c)
 //   attitude      J_k = a_k x d for the rotation axes a_roll = R e_x, a_pitch = M Rz(yaw) e_y,
@@ -91,6 +93,14 @@ struct TpuConfig {
     // overlap measured (OverlapSpeedEstimate::RelativeSigmaAt), added in quadrature to the
     // ping's; empty = none. Called concurrently: must be reentrant.
     std::function<double(double)> column_relative_sigma_at;
+    // The fan's half-width (deg; 0 = off) over which the column error's vertical effect is
+    // averaged into every beam of a swath: calibration and SLAM align each sounding to the
+    // overlapping soundings of other beam angles, so what the column error does to one beam
+    // angle, d (dc / c) (1 - tan^2 phi), is spread over the swath as its mean over the angles,
+    // d (dc / c) m, m = (2 a - tan a) / a for beam angles uniform in 0..a (a = 60 deg: 0.346).
+    // The TPU adds that swath-common part in quadrature to the per-angle one, so that a beam
+    // near 45 deg, where the per-angle part vanishes, still states it (docs/decisions/019).
+    double column_swath_half_angle_deg = 60.0;
     int num_threads = 0;  // 0 = all cores (TBB)
 
     std::vector<std::string> Validate() const;

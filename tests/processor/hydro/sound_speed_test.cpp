@@ -70,6 +70,7 @@ TEST(SoundSpeedSigma, TpuColumnTermMatchesRayTracingOfAColumnSpeedError) {
     cfg.model.beam_angle_sigma_deg = cfg.model.surface_sound_speed_sigma_mps = 0;
     cfg.model.position_noise_m = cfg.model.lever_arm_sigma_m = cfg.model.boresight_sigma_deg = 0;
     cfg.model.latency_sigma_s = 0;
+    cfg.column_swath_half_angle_deg = 0;  // the per-angle relation alone (the swath part below)
     PingSigma sig;
     sig.column_speed_sigma_mps = dc;
     for (const double deg : {0.0, 20.0, 35.0, 50.0, 60.0}) {
@@ -92,6 +93,38 @@ TEST(SoundSpeedSigma, TpuColumnTermMatchesRayTracingOfAColumnSpeedError) {
         EXPECT_NEAR(std::sqrt(C(2, 2)), std::abs(dz), 0.02 * std::abs(dz) + 1e-4) << deg;
         EXPECT_NEAR(std::sqrt(C(0, 0) + C(1, 1)), std::abs(dx), 0.02 * std::abs(dx) + 1e-4) << deg;
     }
+}
+
+// The swath-common part of the column term (TpuConfig::column_swath_half_angle_deg): at 45 deg,
+// where the per-angle relation's depth effect vanishes, the vertical sigma is the column error's
+// effect averaged over a 0-60 deg fan, m d dc / c with m = (2 a - tan a) / a = 0.346; at nadir
+// it joins the per-angle part d dc / c in quadrature; off, the 45 deg beam states none.
+TEST(SoundSpeedSigma, SwathCommonPartOfTheColumnTermStaysAtFortyFiveDegrees) {
+    const double c0 = 1480.0, dc = 20.0, depth = 15.0;
+    TpuConfig cfg;
+    cfg.sound_speed_mps = c0;
+    cfg.model = SensorErrorModel{};
+    cfg.model.surface_sound_speed_sigma_mps = 0;
+    PingSigma sig;
+    sig.column_speed_sigma_mps = dc;
+    const auto vertical = [&](double deg, double half_angle_deg) {
+        cfg.column_swath_half_angle_deg = half_angle_deg;
+        SoundingGeometry g;
+        g.R_world_vehicle = frames::RotationWorldFromRpy(0, 0, 0);
+        g.angle_rad = frames::DegToRad(deg);
+        g.range_m = depth / std::cos(g.angle_rad);
+        std::array<Eigen::Matrix3d, kNumTpuTerms> terms;
+        (void)SoundingCovariance(g, sig, cfg, &terms);
+        return std::sqrt(terms[static_cast<int>(TpuTerm::kSoundSpeed)](2, 2));
+    };
+    const double a = frames::DegToRad(60.0);
+    const double m = (2 * a - std::tan(a)) / a;
+    EXPECT_NEAR(m, 0.346, 0.001);
+    EXPECT_NEAR(vertical(45.0, 60.0), m * depth * dc / c0, 1e-4);
+    EXPECT_NEAR(vertical(45.0, 0.0), 0.0, 1e-4);
+    EXPECT_NEAR(vertical(0.0, 60.0), std::hypot(1.0, m) * depth * dc / c0, 1e-4);
+    cfg.column_swath_half_angle_deg = 80;
+    EXPECT_FALSE(cfg.Validate().empty());
 }
 
 // Soundings of a flat floor at 12 m from passes whose beams overlap, with a column speed error

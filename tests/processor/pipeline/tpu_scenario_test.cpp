@@ -8,8 +8,9 @@
 //     class (0-20, 20-40, 40-60 deg), and the DEM nodes on floors and faces within their 95 %
 //     uncertainty (>= 93 %); the shares measured are in docs/uncertainty.md;
 //   - without a cast the swath overlap shows the stratified column, the TPU takes the
-//     a-priori bound and says so (gate grid/sound_speed_not_assessable): the issue's "or a
-//     clear flag"; the share within the TVU is held at 88 % (docs/decisions/014).
+//     a-priori bound and says so (gate grid/sound_speed_not_assessable), and >= 90 % of the
+//     soundings lie within their TVU (the issue's bound; 98.2 % measured with the column
+//     term's swath-common part, docs/decisions/019; 89.0 % before it).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -82,9 +83,12 @@ TEST(TpuScenario, RefractingQuarryWithAndWithoutACast) {
     // Without a cast: honest, and flagged.
     ASSERT_TRUE(none.count("tpu_within_tvu"));
     RecordProperty("tpu_within_tvu_no_cast", std::to_string(none.at("tpu_within_tvu")));
-    // The issue: >= 90 % within, or a clear flag. The flag is required below; the share is held
-    // at what the merged model reaches (docs/decisions/014), not at the 90 %.
-    EXPECT_GE(none.at("tpu_within_tvu"), 0.88);
+    // The issue: >= 90 % within, or a clear flag; both are required (docs/decisions/019), and
+    // the 90 % in every beam-angle class (near 45 deg the per-angle column term vanishes).
+    EXPECT_GE(none.at("tpu_within_tvu"), 0.90);
+    for (const char* c : {"angle_00_20", "angle_20_40", "angle_40_60"}) {
+        EXPECT_GE(none.at(std::string("tpu_within_tvu_") + c), 0.90) << c << " without a cast";
+    }
     const json without = ReadJson(dir / "p_none/summary.json");
     EXPECT_EQ(without["stages"]["grid"]["sound_speed"]["source"].get<std::string>(),
               "a_priori_bound");
