@@ -15,6 +15,7 @@
 
 #include "common/frames.hpp"
 #include "common/geodesy.hpp"
+#include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/geoid.hpp"
@@ -34,20 +35,29 @@ using nlohmann::json;
 // Wall and process CPU seconds of the parts of the stage (CPU time says what a part costs when
 // other processes share the cores).
 struct PartClock {
+    explicit PartClock(detail::StageClock& stage) : stage_clock(&stage) {
+        stage_clock->ResetPeakWithinStage();
+    }
+    detail::StageClock* stage_clock;
     std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
     double cpu = Cpu();
+    // Each part's peak resident memory, MB (name -> MB): the stage's high-water mark is reset
+    // at each lap, so a part's figure is its own where the kernel allows (StageClock).
+    nlohmann::json peak_rss_mb = nlohmann::json::object();
     static double Cpu() {
         timespec ts{};
         clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
         return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
     }
-    // Records the part that ends now as name -> [wall s, CPU s].
+    // Records the part that ends now as name -> [wall s, CPU s], and its peak memory.
     void Lap(nlohmann::json& out, const char* name) {
         const auto now = std::chrono::steady_clock::now();
         const double c = Cpu();
         out[name] = {std::chrono::duration<double>(now - wall).count(), c - cpu};
-        wall = now;
-        cpu = c;
+        peak_rss_mb[name] = PeakRssMb();
+        stage_clock->ResetPeakWithinStage();
+        wall = std::chrono::steady_clock::now();
+        cpu = Cpu();
     }
 };
 
@@ -170,18 +180,17 @@ json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
 
 // UTM easting/northing -> world east/north: an affine fit over soundings spread across the
 // survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
-Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm,
+Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmProjection& utm,
                                        const georef::GeorefResult& geo) {
-    const std::size_t n = utm.easting_northing_height.size();
+    const std::size_t n = geo.points.size();
     const std::size_t step = std::max<std::size_t>(1, n / 2000);
     Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
     Eigen::Matrix<double, 3, 2> Atb = Eigen::Matrix<double, 3, 2>::Zero();
     Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    if (n > 0) c = utm.easting_northing_height[0].head<2>();
+    if (n > 0) c = utm.At(geo, 0).head<2>();
     for (std::size_t j = 0; j < n; j += step) {
-        const Eigen::Vector3d a(utm.easting_northing_height[j].x() - c.x(),
-                                utm.easting_northing_height[j].y() - c.y(),
-                                1.0);
+        const Eigen::Vector3d enh = utm.At(geo, j);
+        const Eigen::Vector3d a(enh.x() - c.x(), enh.y() - c.y(), 1.0);
         AtA += a * a.transpose();
         Atb += a * geo.points.position_world[j].head<2>().transpose();
     }
@@ -757,15 +766,17 @@ void GateUnvalidatedPosterior(StageContext& s, const Log& log) {
 }
 
 // CUBE's input: every sounding in UTM with its height on the datum (D at its ping), its 1-sigma
-// TVU and THU and its depth below the transducer (for the capture distance).
+// TVU and THU and its depth below the transducer (for the capture distance). The TPU's
+// pass-common sigmas are CUBE's alone: once in its input they are released from `tpu` (8 bytes a
+// sounding).
 std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
-                                               const georef::UtmPoints& utm,
+                                               const georef::UtmProjection& utm,
                                                const std::vector<double>& datum_height_m,
-                                               const hydro::TpuResult& tpu) {
+                                               hydro::TpuResult& tpu) {
     std::vector<hydro::CubeSounding> soundings(geo.points.size());
     const std::int64_t t0_gps = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
     for (std::size_t j = 0; j < soundings.size(); ++j) {
-        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const Eigen::Vector3d enh = utm.At(geo, j);
         const std::uint32_t ping = geo.points.ping[j];
         const double depth = geo.pings[ping].sensor_world.z() - geo.points.position_world[j].z();
         soundings[j] = {
@@ -779,6 +790,8 @@ std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
             static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6),
             tpu.sigma_h_common_m[j]};
     }
+    std::vector<float>().swap(tpu.sigma_v_common_m);
+    std::vector<float>().swap(tpu.sigma_h_common_m);
     return soundings;
 }
 
@@ -850,14 +863,13 @@ hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
 }
 
 // The surface filter (SurfaceFilter): soundings that do not support their node's chosen
-// hypothesis are rejected in the survey (RejectPoints), and taken out of the UTM positions, the
-// TPU and CUBE's input. Returns how many.
+// hypothesis are rejected in the survey (RejectPoints), and taken out of the TPU and CUBE's
+// input. Returns how many.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
                                         const TilesConfig& tiles,
                                         std::vector<hydro::CubeSounding>& soundings,
                                         hydro::CubeResult& cube,
-                                        georef::UtmPoints& utm,
                                         hydro::TpuResult& tpu) {
     const std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
     const std::vector<char> keep = RejectPoints(s, verdict);
@@ -868,18 +880,12 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
             ++rejected;
             continue;
         }
-        utm.easting_northing_height[kept] = utm.easting_northing_height[j];
         tpu.thu_95_m[kept] = tpu.thu_95_m[j];
         tpu.tvu_95_m[kept] = tpu.tvu_95_m[j];
-        tpu.sigma_v_common_m[kept] = tpu.sigma_v_common_m[j];
-        tpu.sigma_h_common_m[kept] = tpu.sigma_h_common_m[j];
         ++kept;
     }
-    utm.easting_northing_height.resize(kept);
     tpu.thu_95_m.resize(kept);
     tpu.tvu_95_m.resize(kept);
-    tpu.sigma_v_common_m.resize(kept);
-    tpu.sigma_h_common_m.resize(kept);
     if (rejected > 0) {
         // CUBE again without them: a node whose chosen hypothesis they made (an echo held
         // long enough over one node to outvote the seabed) is decided on the rest.
@@ -899,7 +905,7 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
 io::GridRaster DemRaster(const StageContext& s,
                          const GridStageConfig& gc,
                          const hydro::CubeGrid& grid,
-                         const georef::UtmPoints& utm,
+                         const georef::UtmProjection& utm,
                          const hydro::DatumModel& datum,
                          const ProductMetadata& meta) {
     io::GridRaster raster;
@@ -1006,7 +1012,7 @@ Status WriteDem(const std::string& dir,
 // each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.
 Status WriteSoundingProducts(StageContext& s,
                              const PipelineConfig& config,
-                             const georef::UtmPoints& utm,
+                             const georef::UtmProjection& utm,
                              const hydro::DatumModel& datum,
                              const ProductMetadata& meta,
                              hydro::TpuResult& tpu,
@@ -1045,7 +1051,14 @@ Status WriteSoundingProducts(StageContext& s,
             return w;
         files.push_back("points.las");
         if (config.write_points_utm) {
-            if (auto w = WriteProjectedPoints(dir, s.geo, utm, rej, datum, meta, s.model.run_id);
+            if (auto w = WriteProjectedPoints(dir,
+                                              s.geo,
+                                              utm,
+                                              rej,
+                                              datum,
+                                              meta,
+                                              s.model.run_id,
+                                              static_cast<std::size_t>(config.run.block_soundings));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1062,7 +1075,7 @@ Status WriteSoundingProducts(StageContext& s,
 // borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
 // hands them back.
 hydro::S44Soundings S44SoundingsOf(StageContext& s,
-                                   const georef::UtmPoints& utm,
+                                   const georef::UtmProjection& utm,
                                    const std::vector<double>& datum_height_m,
                                    bool water_level_datum,
                                    hydro::TpuResult& tpu) {
@@ -1075,7 +1088,7 @@ hydro::S44Soundings S44SoundingsOf(StageContext& s,
     out.depth_m.resize(n);
     out.angle_deg.resize(n);
     for (std::size_t j = 0; j < n; ++j) {
-        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const Eigen::Vector3d enh = utm.At(geo, j);
         const std::uint32_t ping = geo.points.ping[j];
         out.x[j] = enh.x();
         out.y[j] = enh.y();
@@ -1137,7 +1150,7 @@ Expected<json> RunS44Survey(StageContext& s,
                             const PipelineConfig& config,
                             const io::GridRaster& dem,
                             const hydro::CubeGrid& grid,
-                            const georef::UtmPoints& utm,
+                            const georef::UtmProjection& utm,
                             const hydro::DatumModel& datum,
                             hydro::TpuResult& tpu,
                             const json& pose_sigma,
@@ -1228,7 +1241,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     if (!tpu_setup) return tpu_setup.error();
     if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
 
-    PartClock part;
+    PartClock part(clock);
     json timings = json::object();
     PoseSigmas pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
     if (pose.from_slam > 0 && config.slam.posterior_start_runs == 0) {
@@ -1245,7 +1258,9 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     log("grid: TPU (" + tpu_setup->model_source + "): " + tpu.message);
     part.Lap(timings, "tpu");
 
-    auto utm = georef::ToUtm(s.geo);
+    // The soundings' UTM positions are not held (24 bytes a sounding): each part places those
+    // it reads (georef::UtmProjection, the same figures bit for bit).
+    auto utm = georef::UtmProjectionOf(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
     json datum_record;
     auto datum = SurveyDatum(s, config, &datum_record, log);
@@ -1260,7 +1275,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
     if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, *utm, tpu);
+        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu);
         if (!rejected) return rejected.error();
         surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
@@ -1324,6 +1339,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     if (config.tiles.enabled) stage["tiles"] = tiles_record;
     stage["files"] = files;
     stage["timings_wall_cpu_s"] = timings;
+    stage["peak_rss_mb_by_part"] = part.peak_rss_mb;
     s.summary["vertical_datum"] = datum_record;
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
