@@ -41,6 +41,7 @@ COMMANDS = {
     "micro": "tools/bench/run-benchmarks.sh micro",
     "live": "tools/bench/run-benchmarks.sh live",
     "scale": "tools/bench/run-benchmarks.sh scale",
+    "memory": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and scale)",
 }
 
 
@@ -240,6 +241,60 @@ def render_scale_table(r):
                  rows, "lrrrrr" + "r" * len(SCALE_STAGES) + "r")
 
 
+# --- memory per stage (tools/bench/memory_result.py) --------------------------------------------
+
+
+def memory_runs(r):
+    """The runs by (scale, build), in the order scale then build as first listed."""
+    builds = list(dict.fromkeys(run["build"] for run in r["runs"]))
+    runs = sorted(r["runs"], key=lambda x: (x["scale"], builds.index(x["build"])))
+    return runs, builds
+
+
+def render_memory_stages(r):
+    runs, _ = memory_runs(r)
+    stages = list(dict.fromkeys(n for run in runs for n in run["stages"]))
+    rows = [[n] + [fmt(run["stages"].get(n), ".0f") for run in runs] for n in stages]
+    rows.append(["**largest**"] + [f"**{max(run['stages'].values()):.0f}**" for run in runs])
+    rows.append(["soundings"] + [f"{run['soundings']:,}" for run in runs])
+    head = [f"{run['scale']:.2g}x {run['build']}" for run in runs]
+    return table(["peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
+
+
+def render_memory_per_sounding(r):
+    """Each stage's peak growth per sounding between the smallest and largest scale of a build."""
+    runs, builds = memory_runs(r)
+    rows, head = {}, []
+    for b in builds:
+        mine = [run for run in runs if run["build"] == b]
+        if len(mine) < 2:
+            continue
+        lo, hi = mine[0], mine[-1]
+        dn = hi["soundings"] - lo["soundings"]
+        if dn <= 0:
+            continue
+        head.append(f"{b} ({lo['scale']:.2g}x to {hi['scale']:.2g}x)")
+        for n in hi["stages"]:
+            if n in lo["stages"]:
+                rows.setdefault(n, {})[b] = (hi["stages"][n] - lo["stages"][n]) * 1048576 / dn
+    if not head:
+        return "_One scale per build: no growth to state._"
+    cols = [h.split(" ")[0] for h in head]
+    body = [[n] + [fmt(v.get(c), ".0f") for c in cols] for n, v in rows.items()]
+    return table(["bytes per sounding", *head], body, "l" + "r" * len(head))
+
+
+def render_memory_grid_parts(r):
+    runs, _ = memory_runs(r)
+    runs = [run for run in runs if run.get("grid_parts")]
+    if not runs:
+        return "_No run recorded the grid stage's parts._"
+    parts = list(dict.fromkeys(p for run in runs for p in run["grid_parts"]))
+    rows = [[p] + [fmt(run["grid_parts"].get(p), ".0f") for run in runs] for p in parts]
+    head = [f"{run['scale']:.2g}x {run['build']}" for run in runs]
+    return table(["grid part, peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
+
+
 SECTIONS = {
     ("e2e", "context"): render_context,
     ("e2e", "stages"): render_e2e_stages,
@@ -253,6 +308,10 @@ SECTIONS = {
     ("live", "latency"): render_live_latency,
     ("scale", "context"): render_context,
     ("scale", "table"): render_scale_table,
+    ("memory", "context"): render_context,
+    ("memory", "stages"): render_memory_stages,
+    ("memory", "per_sounding"): render_memory_per_sounding,
+    ("memory", "grid_parts"): render_memory_grid_parts,
 }
 
 
