@@ -257,31 +257,31 @@ def render_memory_stages(r):
     rows = [[n] + [fmt(run["stages"].get(n), ".0f") for run in runs] for n in stages]
     rows.append(["**largest**"] + [f"**{max(run['stages'].values()):.0f}**" for run in runs])
     rows.append(["soundings"] + [f"{run['soundings']:,}" for run in runs])
-    head = [f"{run['scale']:.2g}x {run['build']}" for run in runs]
+    head = [f"{run['scale']:.2g}x {run['build']}" + ("" if run.get("complete", True) else " (stopped)")
+            for run in runs]
     return table(["peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
 
 
 def render_memory_per_sounding(r):
-    """Each stage's peak growth per sounding between the smallest and largest scale of a build."""
+    """Each stage's peak growth per sounding from the smallest to the largest scale of a build
+    that recorded the stage (a stopped run lacks the later stages)."""
     runs, builds = memory_runs(r)
-    rows, head = {}, []
-    for b in builds:
-        mine = [run for run in runs if run["build"] == b]
-        if len(mine) < 2:
-            continue
-        lo, hi = mine[0], mine[-1]
-        dn = hi["soundings"] - lo["soundings"]
-        if dn <= 0:
-            continue
-        head.append(f"{b} ({lo['scale']:.2g}x to {hi['scale']:.2g}x)")
-        for n in hi["stages"]:
-            if n in lo["stages"]:
-                rows.setdefault(n, {})[b] = (hi["stages"][n] - lo["stages"][n]) * 1048576 / dn
-    if not head:
-        return "_One scale per build: no growth to state._"
-    cols = [h.split(" ")[0] for h in head]
-    body = [[n] + [fmt(v.get(c), ".0f") for c in cols] for n, v in rows.items()]
-    return table(["bytes per sounding", *head], body, "l" + "r" * len(head))
+    stages = list(dict.fromkeys(n for run in runs for n in run["stages"]))
+    body = []
+    for n in stages:
+        row, spans = [n], []
+        for b in builds:
+            mine = [run for run in runs if run["build"] == b and n in run["stages"]]
+            if len(mine) < 2 or mine[-1]["soundings"] <= mine[0]["soundings"]:
+                row.append("-")
+                continue
+            lo, hi = mine[0], mine[-1]
+            dn = hi["soundings"] - lo["soundings"]
+            row.append(fmt((hi["stages"][n] - lo["stages"][n]) * 1048576 / dn, ".0f"))
+            spans.append(f"{lo['scale']:.2g}x to {hi['scale']:.2g}x")
+        row.append(", ".join(dict.fromkeys(spans)) or "-")
+        body.append(row)
+    return table(["bytes per sounding", *builds, "between"], body, "l" + "r" * len(builds) + "l")
 
 
 def render_memory_grid_parts(r):

@@ -23,11 +23,16 @@ def run_of(label, scale, folder):
         s = json.load(f)
     stages = {n: s["stages"][n]["peak_rss_mb"] for n in s["stage_order"] if n in s["stages"]}
     grid = s["stages"].get("grid", {})
+    # A run stopped before its export has the georef stage's counts only.
+    georef = s["stages"].get("georef", {})
+    soundings = s["soundings"]["total"] if "soundings" in s else georef["soundings_in"]
+    pings = s["soundings"]["pings"]["in"] if "soundings" in s else georef["pings_in"]
     return {
         "build": label,
         "scale": float(scale),
-        "soundings": s["soundings"]["total"],
-        "pings": s["soundings"]["pings"]["in"],
+        "soundings": soundings,
+        "pings": pings,
+        "complete": "soundings" in s,
         "stages": stages,
         "grid_parts": grid.get("peak_rss_mb_by_part", {}),
     }
