@@ -546,8 +546,8 @@ void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
     });
 }
 
-Expected<UtmPoints> ToUtm(const GeorefResult& result) {
-    UtmPoints out;
+Expected<UtmProjection> UtmProjectionOf(const GeorefResult& result) {
+    UtmProjection out;
     auto o = UtmFromGeodetic(result.world_origin);
     if (!o) return o.error();
     out.zone = o->zone;
@@ -565,20 +565,26 @@ Expected<UtmPoints> ToUtm(const GeorefResult& result) {
         J(0, axis) = (plus->easting_m - minus->easting_m) / 20.0;
         J(1, axis) = (plus->northing_m - minus->northing_m) / 20.0;
     }
-    std::vector<Eigen::Vector3d> sensor_utm(result.pings.size());
+    out.en_per_world = J;
+    out.sensor_utm.resize(result.pings.size());
     for (std::size_t k = 0; k < result.pings.size(); ++k) {
         auto u = UtmFromGeodetic(world.FromEnu(result.pings[k].sensor_world), out.zone);
         if (!u) return u.error();
-        sensor_utm[k] = Eigen::Vector3d(u->easting_m, u->northing_m, u->height_m);
+        out.sensor_utm[k] = Eigen::Vector3d(u->easting_m, u->northing_m, u->height_m);
     }
-    const GeorefPoints& P = result.points;
-    out.easting_northing_height.resize(P.size());
-    for (std::size_t j = 0; j < P.size(); ++j) {
-        const GeorefPing& ping = result.pings[P.ping[j]];
-        const Eigen::Vector3d d = P.position_world[j] - ping.sensor_world;
-        const Eigen::Vector2d en = J * d.head<2>();
-        out.easting_northing_height[j] =
-            sensor_utm[P.ping[j]] + Eigen::Vector3d(en.x(), en.y(), d.z());
+    return out;
+}
+
+Expected<UtmPoints> ToUtm(const GeorefResult& result) {
+    auto projection = UtmProjectionOf(result);
+    if (!projection) return projection.error();
+    UtmPoints out;
+    out.zone = projection->zone;
+    out.northern = projection->northern;
+    out.epsg = projection->epsg;
+    out.easting_northing_height.resize(result.points.size());
+    for (std::size_t j = 0; j < result.points.size(); ++j) {
+        out.easting_northing_height[j] = projection->At(result, j);
     }
     return out;
 }

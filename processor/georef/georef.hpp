@@ -176,4 +176,24 @@ struct UtmPoints {
 };
 Expected<UtmPoints> ToUtm(const GeorefResult& result);
 
+// ToUtm's projection without its array: the Jacobian at the origin and each ping's sensor
+// position in UTM (24 bytes a ping instead of 24 bytes a sounding), so that a stage places the
+// soundings one at a time where it reads them. At(result, j) is ToUtm(result)'s point j bit for
+// bit (ToUtm is this loop). `result` must be the one the projection was made of (its pings).
+struct UtmProjection {
+    int zone = 0;
+    bool northern = true;
+    int epsg = 0;
+    Eigen::Matrix2d en_per_world = Eigen::Matrix2d::Identity();  // d(E, N) / d(east, north)
+    std::vector<Eigen::Vector3d> sensor_utm;                     // per ping of the result
+
+    Eigen::Vector3d At(const GeorefResult& result, std::size_t j) const {
+        const std::uint32_t k = result.points.ping[j];
+        const Eigen::Vector3d d = result.points.position_world[j] - result.pings[k].sensor_world;
+        const Eigen::Vector2d en = en_per_world * d.head<2>();
+        return sensor_utm[k] + Eigen::Vector3d(en.x(), en.y(), d.z());
+    }
+};
+Expected<UtmProjection> UtmProjectionOf(const GeorefResult& result);
+
 }  // namespace pitmap::proc::georef

@@ -284,9 +284,11 @@ std::string LasMetadataPayload(const ProductMetadata* meta) {
 // each with its UTM position and, where the extras give the datum, its height on it.
 struct LasSoundings {
     const georef::GeorefResult* accepted = nullptr;
+    // The accepted soundings' UTM positions: held (a UtmPoints) or placed one at a time.
     const georef::UtmPoints* accepted_utm = nullptr;
+    const georef::UtmProjection* accepted_projection = nullptr;
     const georef::GeorefResult* rejected = nullptr;  // null: none written
-    georef::UtmPoints rejected_utm;
+    georef::UtmProjection rejected_projection;
     const PointExtras* extras = nullptr;
     std::size_t num_accepted = 0;
     std::size_t size = 0;
@@ -299,34 +301,42 @@ struct LasSoundings {
     }
     Eigen::Vector3d Position(std::size_t j) const {
         const auto [geo, i] = Source(j);
-        Eigen::Vector3d enh = geo == accepted ? accepted_utm->easting_northing_height[i]
-                                              : rejected_utm.easting_northing_height[i];
+        Eigen::Vector3d enh = geo != accepted           ? rejected_projection.At(*rejected, i)
+                              : accepted_utm != nullptr ? accepted_utm->easting_northing_height[i]
+                                                        : accepted_projection->At(*accepted, i);
         if (datum) enh.z() -= extras->datum_height_m[geo->points.ping[i]];
         return enh;
     }
 };
 
 // The rejected soundings are written only in the accepted ones' UTM zone (an error otherwise).
+// `utm` or `projection` (the other null) places the accepted soundings.
 Expected<LasSoundings> LasSoundingsOf(const std::string& path,
                                       const georef::GeorefResult& r,
-                                      const georef::UtmPoints& utm,
+                                      const georef::UtmPoints* utm,
+                                      const georef::UtmProjection* projection,
                                       const PointExtras* extras,
                                       const georef::GeorefResult* rejected) {
     LasSoundings s;
     s.accepted = &r;
-    s.accepted_utm = &utm;
+    s.accepted_utm = utm;
+    s.accepted_projection = projection;
     s.extras = extras;
-    s.num_accepted = utm.easting_northing_height.size();
+    s.num_accepted = utm != nullptr ? utm->easting_northing_height.size() : r.points.size();
     s.rejected = UsableRejected(rejected);
+    std::size_t num_rejected = 0;
     if (s.rejected != nullptr) {
-        auto u = georef::ToUtm(*s.rejected);
+        auto u = georef::UtmProjectionOf(*s.rejected);
         if (!u) return Error{path + ": UTM of the rejected soundings: " + u.error().message};
-        if (u->zone != utm.zone || u->northern != utm.northern) {
+        const int zone = utm != nullptr ? utm->zone : projection->zone;
+        const bool northern = utm != nullptr ? utm->northern : projection->northern;
+        if (u->zone != zone || u->northern != northern) {
             return Error{path + ": the rejected soundings are in another UTM zone"};
         }
-        s.rejected_utm = std::move(*u);
+        s.rejected_projection = std::move(*u);
+        num_rejected = s.rejected->points.size();
     }
-    s.size = s.num_accepted + s.rejected_utm.easting_northing_height.size();
+    s.size = s.num_accepted + num_rejected;
     s.tpu = extras != nullptr && extras->thu_95_m.size() == s.num_accepted &&
             extras->tvu_95_m.size() == s.num_accepted && r.points.size() == s.num_accepted;
     s.datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
@@ -373,13 +383,10 @@ struct LasLayout {
     std::uint32_t num_vlrs = 1;
 };
 
-LasLayout LasLayoutOf(const LasSoundings& s,
-                      const georef::UtmPoints& utm,
-                      const ProductMetadata* meta) {
+LasLayout LasLayoutOf(const LasSoundings& s, int zone, bool northern, const ProductMetadata* meta) {
     LasLayout layout;
     layout.wkt =
-        LasWkt(
-            utm.zone, utm.northern, s.extras != nullptr ? s.extras->vertical_wkt : std::string()) +
+        LasWkt(zone, northern, s.extras != nullptr ? s.extras->vertical_wkt : std::string()) +
         std::string(1, '\0');
     layout.metadata_json = LasMetadataPayload(meta);
     layout.tpu = s.tpu;
@@ -522,6 +529,26 @@ void WriteLasPoints(formats::ByteFileWriter& file, const LasSoundings& s, const 
 
 }  // namespace
 
+namespace {
+
+Status WriteLasOf(const std::string& path,
+                  const georef::GeorefResult& r,
+                  const LasSoundings& soundings,
+                  int zone,
+                  bool northern,
+                  const std::string& run_id,
+                  const ProductMetadata* meta) {
+    const LasExtent extent = LasExtentOf(soundings);
+    const LasLayout layout = LasLayoutOf(soundings, zone, northern, meta);
+    formats::ByteFileWriter file(path);
+    WriteLasHeader(file.out(), layout, extent, soundings.size, LasCreationDate(r), run_id, meta);
+    WriteLasVlrs(file.out(), layout);
+    WriteLasPoints(file, soundings, extent);
+    return file.Close();
+}
+
+}  // namespace
+
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& r,
                 const georef::UtmPoints& utm,
@@ -529,15 +556,26 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected,
                 const ProductMetadata* meta) {
-    auto soundings = LasSoundingsOf(path, r, utm, extras, rejected);
+    auto soundings = LasSoundingsOf(path, r, &utm, nullptr, extras, rejected);
     if (!soundings) return soundings.error();
-    const LasExtent extent = LasExtentOf(*soundings);
-    const LasLayout layout = LasLayoutOf(*soundings, utm, meta);
-    formats::ByteFileWriter file(path);
-    WriteLasHeader(file.out(), layout, extent, soundings->size, LasCreationDate(r), run_id, meta);
-    WriteLasVlrs(file.out(), layout);
-    WriteLasPoints(file, *soundings, extent);
-    return file.Close();
+    return WriteLasOf(path, r, *soundings, utm.zone, utm.northern, run_id, meta);
+}
+
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& r,
+                const georef::UtmProjection& utm,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected,
+                const ProductMetadata* meta) {
+    if (utm.sensor_utm.size() != r.pings.size()) {
+        return Error{path + ": the UTM projection is not of these soundings (" +
+                     std::to_string(utm.sensor_utm.size()) + " pings, the soundings have " +
+                     std::to_string(r.pings.size()) + ")"};
+    }
+    auto soundings = LasSoundingsOf(path, r, nullptr, &utm, extras, rejected);
+    if (!soundings) return soundings.error();
+    return WriteLasOf(path, r, *soundings, utm.zone, utm.northern, run_id, meta);
 }
 
 Status WriteInsTrajectoryCsv(const std::string& path,

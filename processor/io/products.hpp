@@ -117,6 +117,17 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id = "",
                 const georef::GeorefResult* rejected = nullptr,
                 const ProductMetadata* meta = nullptr);
+// The same with the accepted soundings placed one at a time by `utm` (georef::UtmProjectionOf
+// of `result`), the file byte for byte the one of ToUtm's points, without their 24 bytes a
+// sounding (the rejected soundings are always placed so). A projection of other pings is an
+// error.
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& result,
+                const georef::UtmProjection& utm,
+                const PointExtras* extras = nullptr,
+                const std::string& run_id = "",
+                const georef::GeorefResult* rejected = nullptr,
+                const ProductMetadata* meta = nullptr);
 // The LAS metadata VLR's ids.
 inline constexpr const char* kLasMetadataUserId = "pitmap";
 inline constexpr std::uint16_t kLasMetadataRecordId = 1;

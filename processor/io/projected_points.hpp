@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -31,6 +33,27 @@ struct ProjectedPoints {
 // and the run id. Precondition: the three vectors have one entry per point.
 Status WriteProjectedPointsPly(const std::string& path,
                                const ProjectedPoints& points,
+                               const ProductMetadata* meta = nullptr,
+                               const std::string& run_id = "");
+
+// One point of points_utm.ply.
+struct ProjectedPoint {
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();  // as ProjectedPoints::positions
+    double gps_time_s = 0;
+    std::uint8_t status = 0;
+};
+// Fills `out` with points first, first + 1, ... (out.size() of them).
+using ProjectedPointBlock = std::function<void(std::size_t first, std::span<ProjectedPoint> out)>;
+
+// The same file from `n` points made a block at a time: `fill` is asked for blocks of at most
+// `block_points` points in order, so that the caller computes them where it reads them and
+// holds one block (block_points x 32 bytes) instead of the survey's (33 bytes a sounding).
+// `crs` gives the CRS fields (its vectors are not read). Precondition: block_points > 0.
+Status WriteProjectedPointsPly(const std::string& path,
+                               const ProjectedPoints& crs,
+                               std::size_t n,
+                               std::size_t block_points,
+                               const ProjectedPointBlock& fill,
                                const ProductMetadata* meta = nullptr,
                                const std::string& run_id = "");
 

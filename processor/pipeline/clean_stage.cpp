@@ -108,30 +108,46 @@ clean::CleanResult CleanTrustedPings(const StageContext& s,
                                          fallback);
         trusted[k] = std::sqrt(0.5 * (sg(3) * sg(3) + sg(4) * sg(4))) <= max_sigma_m ? 1 : 0;
     }
+    std::size_t num_trusted = 0;
+    for (std::size_t j = 0; j < geo.points.size(); ++j) num_trusted += trusted[geo.points.ping[j]];
+    *left_out = static_cast<std::int64_t>(geo.points.size() - num_trusted);
+    // Every ping trusted (no outage): the cleaning judges the view itself, not a copy of it
+    // (38 bytes a sounding; it reads only the points and the pings).
+    if (num_trusted == geo.points.size()) return clean::Clean(geo, config.clean, progress);
+    // Else a view of the trusted pings' soundings, sized once; its verdicts go back to the
+    // soundings in order (the trusted ones are those of trusted pings).
     georef::GeorefResult view;
     view.world_origin = geo.world_origin;
     view.pings = geo.pings;
     view.mount = geo.mount;
     view.refraction = geo.refraction;
-    std::vector<std::size_t> index;  // view point -> geo point
+    const bool with_status = !geo.points.status.empty();
+    view.points.position_world.reserve(num_trusted);
+    view.points.ping.reserve(num_trusted);
+    view.points.beam.reserve(num_trusted);
+    view.points.range_m.reserve(num_trusted);
+    view.points.angle_rad.reserve(num_trusted);
+    if (with_status) view.points.status.reserve(num_trusted);
     for (std::size_t j = 0; j < geo.points.size(); ++j) {
         if (!trusted[geo.points.ping[j]]) continue;
-        index.push_back(j);
         view.points.position_world.push_back(geo.points.position_world[j]);
         view.points.ping.push_back(geo.points.ping[j]);
         view.points.beam.push_back(geo.points.beam[j]);
         view.points.range_m.push_back(geo.points.range_m[j]);
         view.points.angle_rad.push_back(geo.points.angle_rad[j]);
-        if (!geo.points.status.empty()) view.points.status.push_back(geo.points.status[j]);
+        if (with_status) view.points.status.push_back(geo.points.status[j]);
     }
-    *left_out = static_cast<std::int64_t>(geo.points.size() - index.size());
     clean::CleanResult part = clean::Clean(view, config.clean, progress);
+    view = georef::GeorefResult{};
     clean::CleanResult out;
     out.counts = part.counts;
     out.cancelled = part.cancelled;
     out.status.assign(geo.points.size(), 0);
-    if (part.status.size() == index.size()) {
-        for (std::size_t i = 0; i < index.size(); ++i) out.status[index[i]] = part.status[i];
+    if (part.status.size() == num_trusted) {
+        std::size_t i = 0;
+        for (std::size_t j = 0; j < geo.points.size(); ++j) {
+            if (trusted[geo.points.ping[j]]) out.status[j] = part.status[i++];
+        }
     }
     return out;
 }

@@ -491,6 +491,13 @@ void VisitRun(V&& v, RunOptions& r) {
       r.report_equipment,
       "YAML list of .glb equipment models placed in the report's 3D view\n"
       "(pitmap-report --equipment; docs/report.md); \"\" = none");
+    v("memory_budget_mb",
+      r.memory_budget_mb,
+      "the memory a run may hold, MB: stages over it trip a quality gate\n"
+      "(docs/decisions/018-memory-budget.md)");
+    v("block_soundings",
+      r.block_soundings,
+      "soundings per block of the block-wise parts (64 bytes each within the budget)");
 }
 
 template <class V>
@@ -761,6 +768,21 @@ std::vector<std::string> RunOptions::Validate() const {
         p.push_back("run.initial_mesh_ping_stride must be within 1..8");
     if (!report_equipment.empty() && ::access(report_equipment.c_str(), R_OK) != 0)
         p.push_back("run.report_equipment: " + report_equipment + ": no such readable file");
+    if (!(memory_budget_mb >= 64)) p.push_back("run.memory_budget_mb must be >= 64");
+    if (block_soundings < 1024) {
+        p.push_back("run.block_soundings must be >= 1024 (a ping of the widest sonar)");
+    } else if (std::isfinite(memory_budget_mb) &&
+               static_cast<double>(block_soundings) * kBlockBytesPerSounding >
+                   memory_budget_mb * 1048576.0) {
+        p.push_back(
+            "run.block_soundings: one block of " + std::to_string(block_soundings) +
+            " soundings (" +
+            std::to_string(static_cast<long long>(std::ceil(static_cast<double>(block_soundings) *
+                                                            kBlockBytesPerSounding / 1048576.0))) +
+            " MB at " + std::to_string(static_cast<int>(kBlockBytesPerSounding)) +
+            " bytes a sounding) does not fit in run.memory_budget_mb (" +
+            std::to_string(static_cast<long long>(memory_budget_mb)) + " MB)");
+    }
     return p;
 }
 

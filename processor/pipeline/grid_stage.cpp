@@ -17,6 +17,7 @@
 #include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
 #include "common/geodesy.hpp"
+#include "common/peak_memory.hpp"
 #include "common/vehicle.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/geoid.hpp"
@@ -37,20 +38,29 @@ using nlohmann::json;
 // Wall and process CPU seconds of the parts of the stage (CPU time says what a part costs when
 // other processes share the cores).
 struct PartClock {
+    explicit PartClock(detail::StageClock& stage) : stage_clock(&stage) {
+        stage_clock->ResetPeakWithinStage();
+    }
+    detail::StageClock* stage_clock;
     std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
     double cpu = Cpu();
+    // Each part's peak resident memory, MB (name -> MB): the stage's high-water mark is reset
+    // at each lap, so a part's figure is its own where the kernel allows (StageClock).
+    nlohmann::json peak_rss_mb = nlohmann::json::object();
     static double Cpu() {
         timespec ts{};
         clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
         return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
     }
-    // Records the part that ends now as name -> [wall s, CPU s].
+    // Records the part that ends now as name -> [wall s, CPU s], and its peak memory.
     void Lap(nlohmann::json& out, const char* name) {
         const auto now = std::chrono::steady_clock::now();
         const double c = Cpu();
         out[name] = {std::chrono::duration<double>(now - wall).count(), c - cpu};
-        wall = now;
-        cpu = c;
+        peak_rss_mb[name] = PeakRssMb();
+        stage_clock->ResetPeakWithinStage();
+        wall = std::chrono::steady_clock::now();
+        cpu = Cpu();
     }
 };
 
@@ -173,18 +183,17 @@ json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
 
 // UTM easting/northing -> world east/north: an affine fit over soundings spread across the
 // survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
-Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmPoints& utm,
+Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmProjection& utm,
                                        const georef::GeorefResult& geo) {
-    const std::size_t n = utm.easting_northing_height.size();
+    const std::size_t n = geo.points.size();
     const std::size_t step = std::max<std::size_t>(1, n / 2000);
     Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
     Eigen::Matrix<double, 3, 2> Atb = Eigen::Matrix<double, 3, 2>::Zero();
     Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    if (n > 0) c = utm.easting_northing_height[0].head<2>();
+    if (n > 0) c = utm.At(geo, 0).head<2>();
     for (std::size_t j = 0; j < n; j += step) {
-        const Eigen::Vector3d a(utm.easting_northing_height[j].x() - c.x(),
-                                utm.easting_northing_height[j].y() - c.y(),
-                                1.0);
+        const Eigen::Vector3d enh = utm.At(geo, j);
+        const Eigen::Vector3d a(enh.x() - c.x(), enh.y() - c.y(), 1.0);
         AtA += a * a.transpose();
         Atb += a * geo.points.position_world[j].head<2>().transpose();
     }
@@ -762,15 +771,17 @@ void GateUnvalidatedPosterior(StageContext& s, const Log& log) {
 }
 
 // CUBE's input: every sounding in UTM with its height on the datum (D at its ping), its 1-sigma
-// TVU and THU and its depth below the transducer (for the capture distance).
+// TVU and THU and its depth below the transducer (for the capture distance). The TPU's
+// pass-common sigmas are CUBE's alone: once in its input they are released from `tpu` (8 bytes a
+// sounding).
 std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
-                                               const georef::UtmPoints& utm,
+                                               const georef::UtmProjection& utm,
                                                const std::vector<double>& datum_height_m,
-                                               const hydro::TpuResult& tpu) {
+                                               hydro::TpuResult& tpu) {
     std::vector<hydro::CubeSounding> soundings(geo.points.size());
     const std::int64_t t0_gps = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
     for (std::size_t j = 0; j < soundings.size(); ++j) {
-        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const Eigen::Vector3d enh = utm.At(geo, j);
         const std::uint32_t ping = geo.points.ping[j];
         const double depth = geo.pings[ping].sensor_world.z() - geo.points.position_world[j].z();
         soundings[j] = {
@@ -784,6 +795,8 @@ std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
             static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6),
             tpu.sigma_h_common_m[j]};
     }
+    std::vector<float>().swap(tpu.sigma_v_common_m);
+    std::vector<float>().swap(tpu.sigma_h_common_m);
     return soundings;
 }
 
@@ -855,14 +868,13 @@ hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
 }
 
 // The surface filter (SurfaceFilter): soundings that do not support their node's chosen
-// hypothesis are rejected in the survey (RejectPoints), and taken out of the UTM positions, the
-// TPU and CUBE's input. Returns how many.
+// hypothesis are rejected in the survey (RejectPoints), and taken out of the TPU and CUBE's
+// input. Returns how many.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
                                         const TilesConfig& tiles,
                                         std::vector<hydro::CubeSounding>& soundings,
                                         hydro::CubeResult& cube,
-                                        georef::UtmPoints& utm,
                                         hydro::TpuResult& tpu) {
     const std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
     const std::vector<char> keep = RejectPoints(s, verdict);
@@ -873,18 +885,12 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
             ++rejected;
             continue;
         }
-        utm.easting_northing_height[kept] = utm.easting_northing_height[j];
         tpu.thu_95_m[kept] = tpu.thu_95_m[j];
         tpu.tvu_95_m[kept] = tpu.tvu_95_m[j];
-        tpu.sigma_v_common_m[kept] = tpu.sigma_v_common_m[j];
-        tpu.sigma_h_common_m[kept] = tpu.sigma_h_common_m[j];
         ++kept;
     }
-    utm.easting_northing_height.resize(kept);
     tpu.thu_95_m.resize(kept);
     tpu.tvu_95_m.resize(kept);
-    tpu.sigma_v_common_m.resize(kept);
-    tpu.sigma_h_common_m.resize(kept);
     if (rejected > 0) {
         // CUBE again without them: a node whose chosen hypothesis they made (an echo held
         // long enough over one node to outvote the seabed) is decided on the rest.
@@ -904,7 +910,7 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
 io::GridRaster DemRaster(const StageContext& s,
                          const GridStageConfig& gc,
                          const hydro::CubeGrid& grid,
-                         const georef::UtmPoints& utm,
+                         const georef::UtmProjection& utm,
                          const hydro::DatumModel& datum,
                          const ProductMetadata& meta) {
     io::GridRaster raster;
@@ -1011,7 +1017,7 @@ Status WriteDem(const std::string& dir,
 // each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.
 Status WriteSoundingProducts(StageContext& s,
                              const PipelineConfig& config,
-                             const georef::UtmPoints& utm,
+                             const georef::UtmProjection& utm,
                              const hydro::DatumModel& datum,
                              const ProductMetadata& meta,
                              hydro::TpuResult& tpu,
@@ -1050,7 +1056,14 @@ Status WriteSoundingProducts(StageContext& s,
             return w;
         files.push_back("points.las");
         if (config.write_points_utm) {
-            if (auto w = WriteProjectedPoints(dir, s.geo, utm, rej, datum, meta, s.model.run_id);
+            if (auto w = WriteProjectedPoints(dir,
+                                              s.geo,
+                                              utm,
+                                              rej,
+                                              datum,
+                                              meta,
+                                              s.model.run_id,
+                                              static_cast<std::size_t>(config.run.block_soundings));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1067,7 +1080,7 @@ Status WriteSoundingProducts(StageContext& s,
 // borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
 // hands them back.
 hydro::S44Soundings S44SoundingsOf(StageContext& s,
-                                   const georef::UtmPoints& utm,
+                                   const georef::UtmProjection& utm,
                                    const std::vector<double>& datum_height_m,
                                    bool water_level_datum,
                                    hydro::TpuResult& tpu) {
@@ -1080,7 +1093,7 @@ hydro::S44Soundings S44SoundingsOf(StageContext& s,
     out.depth_m.resize(n);
     out.angle_deg.resize(n);
     for (std::size_t j = 0; j < n; ++j) {
-        const Eigen::Vector3d& enh = utm.easting_northing_height[j];
+        const Eigen::Vector3d enh = utm.At(geo, j);
         const std::uint32_t ping = geo.points.ping[j];
         out.x[j] = enh.x();
         out.y[j] = enh.y();
@@ -1142,7 +1155,7 @@ Expected<json> RunS44Survey(StageContext& s,
                             const PipelineConfig& config,
                             const io::GridRaster& dem,
                             const hydro::CubeGrid& grid,
-                            const georef::UtmPoints& utm,
+                            const georef::UtmProjection& utm,
                             const hydro::DatumModel& datum,
                             hydro::TpuResult& tpu,
                             const json& pose_sigma,
@@ -1228,7 +1241,7 @@ struct CubeInputs {
     PoseSigmas pose;
     json sound_speed;
     hydro::TpuResult tpu;
-    std::optional<georef::UtmPoints> utm;
+    std::optional<georef::UtmProjection> utm;
     std::optional<hydro::DatumModel> datum;
     json datum_record;
     std::vector<hydro::CubeSounding> soundings;
@@ -1255,7 +1268,9 @@ Expected<CubeInputs> PrepareCube(
     in.tpu = hydro::ComputeTpu(s.geo, s.model.mount, in.pose.per_ping, tpu_setup->config);
     log("grid: TPU (" + tpu_setup->model_source + "): " + in.tpu.message);
     part.Lap(timings, "tpu");
-    auto utm = georef::ToUtm(s.geo);
+    // The soundings' UTM positions are not held (24 bytes a sounding): each part places those
+    // it reads (georef::UtmProjection, the same figures bit for bit).
+    auto utm = georef::UtmProjectionOf(s.geo);
     if (!utm) return Error{"grid: UTM: " + utm.error().message};
     in.utm = std::move(*utm);
     auto datum = SurveyDatum(s, config, &in.datum_record, log);
@@ -1275,7 +1290,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     StageClock clock;
     ClearGates(s, Stage::kGrid);
     const GridStageConfig& gc = config.grid;
-    PartClock part;
+    PartClock part(clock);
     json timings = json::object();
     auto in = PrepareCube(s, config, part, timings, log);
     if (!in) return in.error();
@@ -1283,7 +1298,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const PoseSigmas& pose = in->pose;
     const json& sound_speed = in->sound_speed;
     hydro::TpuResult& tpu = in->tpu;
-    std::optional<georef::UtmPoints>& utm = in->utm;
+    std::optional<georef::UtmProjection>& utm = in->utm;
     std::optional<hydro::DatumModel>& datum = in->datum;
     const json& datum_record = in->datum_record;
     std::vector<hydro::CubeSounding>& soundings = in->soundings;
@@ -1294,7 +1309,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
     if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, *utm, tpu);
+        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu);
         if (!rejected) return rejected.error();
         surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
@@ -1358,6 +1373,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     if (config.tiles.enabled) stage["tiles"] = tiles_record;
     stage["files"] = files;
     stage["timings_wall_cpu_s"] = timings;
+    stage["peak_rss_mb_by_part"] = part.peak_rss_mb;
     s.summary["vertical_datum"] = datum_record;
     // The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
     // every 0.25 m (compare's --capacity-step default).
@@ -1399,7 +1415,7 @@ Status GridTileAlone(StageContext& s,
     const GridStageConfig& gc = config.grid;
     const TilesConfig& tiles = config.tiles;
     StageClock clock;
-    PartClock part;
+    PartClock part(clock);
     json timings = json::object();
     auto in = PrepareCube(s, config, part, timings, log);
     if (!in) return in.error();
@@ -1498,7 +1514,8 @@ Status GridTileAlone(StageContext& s,
 Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
                                                const PipelineConfig& config,
                                                const Log& log) {
-    PartClock part;
+    StageClock clock;
+    PartClock part(clock);
     json timings = json::object();
     auto in = PrepareCube(s, config, part, timings, log);
     if (!in) return in.error();

@@ -121,6 +121,10 @@ void RecordStage(nlohmann::json& summary,
                  nlohmann::json stage,
                  const StageClock& clock);
 
+// summary["memory"]: the run's memory budget and block size (RunOptions), which RecordStage
+// compares each stage's peak with (over it: the quality gate STAGE/memory_budget).
+void SetMemoryBudget(nlohmann::json& summary, const RunOptions& run);
+
 using survey::MountJson;
 
 // points.ply, points.las (when configured, both with the run id) and summary["utm"] for the
@@ -215,14 +219,16 @@ ProductMetadata SurveyProductMetadata(StageContext& s,
                                       const PipelineConfig& config,
                                       const hydro::DatumModel* datum);
 // points_utm.ply and points_utm.prj (projected_products.cpp): the soundings (and the rejected
-// ones after them) in the products' CRS, heights h - D of `datum` at their ping.
+// ones after them) in the products' CRS, heights h - D of `datum` at their ping; `utm` places
+// the soundings of `geo` (georef::UtmProjectionOf) a block of `block_soundings` at a time.
 Status WriteProjectedPoints(const std::string& dir,
                             const georef::GeorefResult& geo,
-                            const georef::UtmPoints& utm,
+                            const georef::UtmProjection& utm,
                             const georef::GeorefResult* rejected,
                             const hydro::DatumModel& datum,
                             const ProductMetadata& meta,
-                            const std::string& run_id);
+                            const std::string& run_id,
+                            std::size_t block_soundings);
 // A mesh's vertices (world ENU at `origin`) in the products' CRS: UTM in the origin's zone
 // (exact, GeographicLib, per vertex), heights in `datum`'s vertical CRS (the geoid at each
 // vertex; a water level's mean over the survey).
@@ -243,14 +249,13 @@ Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
                                                const Log& log);
 Status MergeGridTiles(const std::string& out_dir, const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
-// its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm` are
-// the soundings' UTM coordinates, `utm_to_world` the affine map of UTM into the world frame.
-// The mosaic is the UTM positions' last user: once it has read them into its soundings it
-// releases utm.easting_northing_height (141 MB on bejanca).
+// its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm`
+// places the soundings of s.geo in UTM (georef::UtmProjectionOf), `utm_to_world` is the affine
+// map of UTM into the world frame.
 Expected<nlohmann::json> MosaicSurvey(const StageContext& s,
                                       const GridStageConfig& gc,
                                       const io::GridRaster& dem,
-                                      georef::UtmPoints& utm,
+                                      const georef::UtmProjection& utm,
                                       const Eigen::Matrix<double, 2, 3>& utm_to_world,
                                       const Log& log);
 // v with `digits` decimals ("%.*f"), for log lines and product metadata.

@@ -75,7 +75,7 @@ std::vector<std::pair<std::string, std::string>> MosaicMetadata(const hydro::Mos
 Expected<json> MosaicSurvey(const StageContext& s,
                             const GridStageConfig& gc,
                             const io::GridRaster& dem,
-                            georef::UtmPoints& utm,
+                            const georef::UtmProjection& utm,
                             const Eigen::Matrix<double, 2, 3>& utm_to_world,
                             const Log& log) {
     const survey::PingSeries& series = s.model.ingest.pings;
@@ -100,8 +100,9 @@ Expected<json> MosaicSurvey(const StageContext& s,
     for (std::size_t j = 0; j < n; ++j) {
         const georef::GeorefPing& p = s.geo.pings[pts.ping[j]];
         const survey::PingHeader& h = series.pings[p.header_index];
-        m.x[j] = utm.easting_northing_height[j].x();
-        m.y[j] = utm.easting_northing_height[j].y();
+        const Eigen::Vector3d enh = utm.At(s.geo, j);
+        m.x[j] = enh.x();
+        m.y[j] = enh.y();
         m.intensity[j] = series.intensities[h.beam_offset + pts.beam[j]];
         m.range_m[j] = pts.range_m[j];
         // The direction the echo came from: transducer -> sounding (with refraction the chord
@@ -113,7 +114,6 @@ Expected<json> MosaicSurvey(const StageContext& s,
     const std::vector<float>* elevation = dem.Values("elevation");
     if (elevation == nullptr) return Error{"grid: mosaic: the DEM has no elevation layer"};
     const hydro::MosaicGrid grid{dem.x0, dem.y0, dem.resolution_m, dem.nx, dem.ny, elevation};
-    std::vector<Eigen::Vector3d>().swap(utm.easting_northing_height);
     const hydro::MosaicResult r = hydro::RunMosaic(std::move(m), grid, gc.mosaic_config);
     log("grid: mosaic: " + r.message);
     json rec = {{"made", r.ok},

@@ -127,6 +127,21 @@ void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& cl
     stage["seconds"] = clock.seconds();
     stage["cpu_seconds"] = clock.cpu_seconds();
     stage["peak_rss_mb"] = clock.peak_rss_mb();
+    const double budget_mb = summary.contains("memory") && summary["memory"].is_object()
+                                 ? summary["memory"].value("budget_mb", 0.0)
+                                 : 0.0;
+    if (budget_mb > 0 && clock.peak_rss_mb() > budget_mb) {
+        // The quality gate STAGE/memory_budget (as TripGate's; ClearGates clears it when the
+        // stage runs again).
+        if (!summary.contains("quality_gates") || !summary["quality_gates"].is_array())
+            summary["quality_gates"] = json::array();
+        summary["quality_gates"].push_back(
+            {{"stage", name},
+             {"gate", "memory_budget"},
+             {"message",
+              "peak resident memory " + Fixed(clock.peak_rss_mb(), 0) +
+                  " MB is over run.memory_budget_mb (" + Fixed(budget_mb, 0) + " MB)"}});
+    }
     summary["stages"][name] = std::move(stage);
     json order = json::array();
     if (summary.contains("stage_order") && summary["stage_order"].is_array()) {
@@ -136,6 +151,11 @@ void RecordStage(json& summary, Stage stage_id, json stage, const StageClock& cl
     }
     order.push_back(name);
     summary["stage_order"] = std::move(order);
+}
+
+void SetMemoryBudget(json& summary, const RunOptions& run) {
+    summary["memory"] = {{"budget_mb", run.memory_budget_mb},
+                         {"block_soundings", run.block_soundings}};
 }
 
 Status WritePoints(const std::string& dir,
@@ -149,7 +169,8 @@ Status WritePoints(const std::string& dir,
     io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
     extras.pings = pings;
     if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
-    auto utm = georef::ToUtm(geo);
+    // The soundings are placed in UTM where the files are written (24 bytes a sounding less).
+    auto utm = georef::UtmProjectionOf(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
@@ -164,7 +185,8 @@ Status WritePoints(const std::string& dir,
                                           rejected,
                                           hydro::DatumModel{},
                                           meta != nullptr ? *meta : ProductMetadata{},
-                                          run_id);
+                                          run_id,
+                                          static_cast<std::size_t>(c.run.block_soundings));
             !s)
             return s;
     }
@@ -390,6 +412,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     // The report this stage adds to; a damaged one, or one of another run, is started again
     // (it decides nothing).
     s.summary = LoadSummaryOfRun(out_dir, s.model, log);
+    SetMemoryBudget(s.summary, config.run);
     auto refraction = io::BuildRefraction(s.model.refraction);
     if (!refraction) {
         return Error{out_dir + "/" + survey::kSurveyFileName +
@@ -427,7 +450,7 @@ Status ExportSurvey(StageContext& s, const PipelineConfig& config, bool points) 
         if (auto w = WritePoints(s, config); !w) return w;
     } else {
         s.summary["soundings"] = SoundingsJson(s.geo.counts);
-        if (auto utm = georef::ToUtm(s.geo); utm) {
+        if (auto utm = georef::UtmProjectionOf(s.geo); utm) {
             s.summary["utm"] = {
                 {"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
         }
@@ -722,6 +745,7 @@ Status GeorefSurvey(StageContext& s,
     const std::string vpath = VehicleFilePath(*files, config);
     if (auto r = ClearEarlierSurvey(out_dir); !r) return r;
     StartRun(s, log);
+    SetMemoryBudget(s.summary, config.run);
     io::IngestConfig icfg = config.ingest;
     auto ins_height_m = ReadVehicle(s, vpath, files->front(), icfg, log);
     if (!ins_height_m) return ins_height_m.error();

@@ -72,9 +72,20 @@ struct RunOptions {
     // Equipment models for the report's 3D view (pitmap-report --equipment: a YAML list of
     // .glb files placed by UTM position and heading); "" = none.
     std::string report_equipment;
+    // The memory a run may hold, MB (issue 38, docs/decisions/018-memory-budget.md): the
+    // block-wise parts of the stages hold one block of block_soundings soundings at a time, and
+    // each stage's peak resident memory is compared with it (summary.json "memory", quality gate
+    // STAGE/memory_budget when a stage exceeds it).
+    double memory_budget_mb = 4096;
+    // Soundings per block of the block-wise parts (the UTM point files, ...); one block at
+    // kBlockBytesPerSounding bytes a sounding must fit in the budget.
+    int block_soundings = 1 << 20;
 
     std::vector<std::string> Validate() const;
 };
+// The most a block-wise part holds per sounding of its block, bytes (a point of points_utm.ply
+// as it is made: 32 bytes; the rest is margin for the parts to come).
+inline constexpr double kBlockBytesPerSounding = 64;
 
 // Quality gates: where a stage says that it cannot explain its data (summary.json
 // "quality_gates", the terminal and the report; `pitmap ... --strict` exits non-zero on any).

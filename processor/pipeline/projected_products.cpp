@@ -28,37 +28,53 @@ std::string CrsName(int zone, bool northern, const hydro::DatumModel& datum) {
 
 Status WriteProjectedPoints(const std::string& dir,
                             const georef::GeorefResult& geo,
-                            const georef::UtmPoints& utm,
+                            const georef::UtmProjection& utm,
                             const georef::GeorefResult* rejected,
                             const hydro::DatumModel& datum,
                             const ProductMetadata& meta,
-                            const std::string& run_id) {
-    io::ProjectedPoints p;
-    p.crs_name = CrsName(utm.zone, utm.northern, datum);
-    p.horizontal_epsg = utm.epsg;
-    p.vertical_epsg = datum.vertical_epsg;
+                            const std::string& run_id,
+                            std::size_t block_soundings) {
+    io::ProjectedPoints crs;
+    crs.crs_name = CrsName(utm.zone, utm.northern, datum);
+    crs.horizontal_epsg = utm.epsg;
+    crs.vertical_epsg = datum.vertical_epsg;
     const auto D = [&datum](std::uint32_t ping) {
         return ping < datum.datum_height_m.size() ? datum.datum_height_m[ping] : 0.0;
     };
-    const auto add =
-        [&](const georef::GeorefResult& g, const std::vector<Eigen::Vector3d>& enh, bool accepted) {
-            for (std::size_t j = 0; j < enh.size(); ++j) {
-                const std::uint32_t k = g.points.ping[j];
-                p.positions.push_back(enh[j] - Eigen::Vector3d(0, 0, D(k)));
-                p.gps_time_s.push_back(static_cast<double>(g.pings[k].utime_gps) * 1e-6);
-                p.status.push_back(accepted ? 0 : g.points.status[j]);
-            }
-        };
-    add(geo, utm.easting_northing_height, true);
-    if (rejected != nullptr && rejected->points.size() > 0 &&
-        rejected->points.status.size() == rejected->points.size()) {
-        auto r = georef::ToUtm(*rejected);
+    georef::UtmProjection rejected_utm;
+    const bool with_rejected = rejected != nullptr && rejected->points.size() > 0 &&
+                               rejected->points.status.size() == rejected->points.size();
+    if (with_rejected) {
+        auto r = georef::UtmProjectionOf(*rejected);
         if (!r)
             return Error{dir +
                          "/points_utm.ply: UTM of the rejected soundings: " + r.error().message};
-        add(*rejected, r->easting_northing_height, false);
+        rejected_utm = std::move(*r);
     }
-    if (auto w = io::WriteProjectedPointsPly(dir + "/points_utm.ply", p, &meta, run_id); !w) {
+    const std::size_t num_accepted = geo.points.size();
+    const std::size_t n = num_accepted + (with_rejected ? rejected->points.size() : 0);
+    // Point j: accepted sounding j, then rejected sounding j - num_accepted; placed where the
+    // block is made (georef::UtmProjection), not held for the survey.
+    const auto fill = [&](std::size_t first, std::span<io::ProjectedPoint> out) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                                  const std::size_t j = first + k;
+                                  const bool accepted = j < num_accepted;
+                                  const georef::GeorefResult& g = accepted ? geo : *rejected;
+                                  const std::size_t i = accepted ? j : j - num_accepted;
+                                  const std::uint32_t ping = g.points.ping[i];
+                                  const Eigen::Vector3d enh =
+                                      accepted ? utm.At(g, i) : rejected_utm.At(g, i);
+                                  out[k] = {enh - Eigen::Vector3d(0, 0, D(ping)),
+                                            static_cast<double>(g.pings[ping].utime_gps) * 1e-6,
+                                            accepted ? std::uint8_t{0} : g.points.status[i]};
+                              }
+                          });
+    };
+    if (auto w = io::WriteProjectedPointsPly(
+            dir + "/points_utm.ply", crs, n, block_soundings, fill, &meta, run_id);
+        !w) {
         return w;
     }
     return io::WritePrj(dir + "/points_utm.prj",

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -486,27 +487,31 @@ bool WriteSection(std::FILE* f, const char* tag, const std::vector<std::uint8_t>
 }  // namespace
 
 Status SaveSurvey(const std::string& path, const SurveyModel& m) {
-    std::vector<std::pair<const char*, Payload>> sections;
-    {
+    // Each section's payload is made when it is written and dropped after: the file is never
+    // held whole beside the model (its largest section is: the ingest's range counts).
+    std::vector<std::pair<const char*, std::function<Payload()>>> sections;
+    sections.emplace_back("state", [&m] {
         Payload state;
         const std::string text = StateJson(m).dump();
         state.Bytes(text.data(), text.size());
-        sections.emplace_back("state", std::move(state));
-    }
-    sections.emplace_back("ingest", IngestPayload(m.ingest));
+        return state;
+    });
+    sections.emplace_back("ingest", [&m] { return IngestPayload(m.ingest); });
     if (m.ingest.pings.has_intensities())
-        sections.emplace_back("intensity", IntensityPayload(m.ingest.pings));
+        sections.emplace_back("intensity", [&m] { return IntensityPayload(m.ingest.pings); });
     if (m.ingest.pings.has_beam_angles())
-        sections.emplace_back("beam_angle", BeamAnglePayload(m.ingest.pings));
+        sections.emplace_back("beam_angle", [&m] { return BeamAnglePayload(m.ingest.pings); });
     if (!m.flags.cleaning.empty())
-        sections.emplace_back("cleaning", CleaningPayload(m.flags.cleaning));
+        sections.emplace_back("cleaning", [&m] { return CleaningPayload(m.flags.cleaning); });
     for (int v = 0; v < kNumTrajectoryVersions; ++v) {
-        if (!m.trajectories[v].empty())
-            sections.emplace_back(kTrajectoryTags[v], TrajectoryPayload(m.trajectories[v]));
+        if (!m.trajectories[v].empty()) {
+            sections.emplace_back(kTrajectoryTags[v],
+                                  [&m, v] { return TrajectoryPayload(m.trajectories[v]); });
+        }
     }
     if (const PingTrajectory& t = m.trajectory(TrajectoryVersion::kSlam);
         !t.empty() && !t.sigma.empty()) {
-        sections.emplace_back(kSlamSigmaTag, SigmaPayload(t));
+        sections.emplace_back(kSlamSigmaTag, [&t] { return SigmaPayload(t); });
     }
     const std::string partial = path + ".partial";
     std::FILE* f = std::fopen(partial.c_str(), "wb");
@@ -515,7 +520,7 @@ Status SaveSurvey(const std::string& path, const SurveyModel& m) {
         kSurveyFormatVersion, kByteOrder, static_cast<std::uint32_t>(sections.size())};
     bool ok = std::fwrite(kMagic, 1, sizeof kMagic, f) == sizeof kMagic &&
               std::fwrite(head, sizeof head, 1, f) == 1;
-    for (const auto& [tag, payload] : sections) ok = ok && WriteSection(f, tag, payload.bytes());
+    for (const auto& [tag, make] : sections) ok = ok && WriteSection(f, tag, make().bytes());
     ok = ok && std::fflush(f) == 0 && std::ferror(f) == 0;
     int err = errno;
     if (std::fclose(f) != 0 || !ok) {

@@ -41,6 +41,7 @@ COMMANDS = {
     "micro": "tools/bench/run-benchmarks.sh micro",
     "live": "tools/bench/run-benchmarks.sh live",
     "scale": "tools/bench/run-benchmarks.sh scale",
+    "memory": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and scale)",
 }
 
 
@@ -240,6 +241,60 @@ def render_scale_table(r):
                  rows, "lrrrrr" + "r" * len(SCALE_STAGES) + "r")
 
 
+# --- memory per stage (tools/bench/memory_result.py) --------------------------------------------
+
+
+def memory_runs(r):
+    """The runs by (scale, build), in the order scale then build as first listed."""
+    builds = list(dict.fromkeys(run["build"] for run in r["runs"]))
+    runs = sorted(r["runs"], key=lambda x: (x["scale"], builds.index(x["build"])))
+    return runs, builds
+
+
+def render_memory_stages(r):
+    runs, _ = memory_runs(r)
+    stages = list(dict.fromkeys(n for run in runs for n in run["stages"]))
+    rows = [[n] + [fmt(run["stages"].get(n), ".0f") for run in runs] for n in stages]
+    rows.append(["**largest**"] + [f"**{max(run['stages'].values()):.0f}**" for run in runs])
+    rows.append(["soundings"] + [f"{run['soundings']:,}" for run in runs])
+    head = [f"{run['scale']:.2g}x {run['build']}" + ("" if run.get("complete", True) else " (stopped)")
+            for run in runs]
+    return table(["peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
+
+
+def render_memory_per_sounding(r):
+    """Each stage's peak growth per sounding from the smallest to the largest scale of a build
+    that recorded the stage (a stopped run lacks the later stages)."""
+    runs, builds = memory_runs(r)
+    stages = list(dict.fromkeys(n for run in runs for n in run["stages"]))
+    body = []
+    for n in stages:
+        row, spans = [n], []
+        for b in builds:
+            mine = [run for run in runs if run["build"] == b and n in run["stages"]]
+            if len(mine) < 2 or mine[-1]["soundings"] <= mine[0]["soundings"]:
+                row.append("-")
+                continue
+            lo, hi = mine[0], mine[-1]
+            dn = hi["soundings"] - lo["soundings"]
+            row.append(fmt((hi["stages"][n] - lo["stages"][n]) * 1048576 / dn, ".0f"))
+            spans.append(f"{lo['scale']:.2g}x to {hi['scale']:.2g}x")
+        row.append(", ".join(dict.fromkeys(spans)) or "-")
+        body.append(row)
+    return table(["bytes per sounding", *builds, "between"], body, "l" + "r" * len(builds) + "l")
+
+
+def render_memory_grid_parts(r):
+    runs, _ = memory_runs(r)
+    runs = [run for run in runs if run.get("grid_parts")]
+    if not runs:
+        return "_No run recorded the grid stage's parts._"
+    parts = list(dict.fromkeys(p for run in runs for p in run["grid_parts"]))
+    rows = [[p] + [fmt(run["grid_parts"].get(p), ".0f") for run in runs] for p in parts]
+    head = [f"{run['scale']:.2g}x {run['build']}" for run in runs]
+    return table(["grid part, peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
+
+
 SECTIONS = {
     ("e2e", "context"): render_context,
     ("e2e", "stages"): render_e2e_stages,
@@ -253,6 +308,10 @@ SECTIONS = {
     ("live", "latency"): render_live_latency,
     ("scale", "context"): render_context,
     ("scale", "table"): render_scale_table,
+    ("memory", "context"): render_context,
+    ("memory", "stages"): render_memory_stages,
+    ("memory", "per_sounding"): render_memory_per_sounding,
+    ("memory", "grid_parts"): render_memory_grid_parts,
 }
 
 

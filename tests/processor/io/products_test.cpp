@@ -23,6 +23,7 @@
 #include "common/formats/ply.hpp"
 #include "common/frames.hpp"
 #include "processor/io/products.hpp"
+#include "processor/io/projected_points.hpp"
 
 namespace pitmap::proc::io {
 namespace {
@@ -397,6 +398,85 @@ TEST_F(ProductReaders, PointFilesCarryTheRejectedSoundingsWithTheirStatus) {
                                   : 412.0 + r.points.position_world[j - na].z();
         EXPECT_NEAR(z * sz + oz, h, accepted ? 1e-3 : 0.01) << j;
     }
+}
+
+// Issue 38: the soundings placed in UTM one at a time (georef::UtmProjection) are ToUtm's points
+// bit for bit, and points.las written from the projection is the file written from the held
+// points, byte for byte; a projection of other pings is refused.
+TEST_F(ProductReaders, LasFromTheUtmProjectionIsTheFileOfTheHeldPoints) {
+    const auto a = FloorSoundings(survey::SoundingView::kAccepted);
+    const auto r = FloorSoundings(survey::SoundingView::kRejected);
+    const auto held = georef::ToUtm(a);
+    ASSERT_TRUE(held) << held.error().message;
+    const auto projection = georef::UtmProjectionOf(a);
+    ASSERT_TRUE(projection) << projection.error().message;
+    EXPECT_EQ(projection->zone, held->zone);
+    EXPECT_EQ(projection->epsg, held->epsg);
+    EXPECT_EQ(projection->sensor_utm.size(), a.pings.size());
+    for (std::size_t j = 0; j < a.points.size(); ++j) {
+        const Eigen::Vector3d p = projection->At(a, j);
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(p[k], held->easting_northing_height[j][k]) << j;
+    }
+    PointExtras x;
+    x.thu_95_m.assign(a.points.size(), 0.1f);
+    x.tvu_95_m.assign(a.points.size(), 0.2f);
+    const std::string from_held = (dir_ / "held.las").string();
+    const std::string from_projection = (dir_ / "projected.las").string();
+    ASSERT_TRUE(WriteLas(from_held, a, *held, &x, "", &r));
+    ASSERT_TRUE(WriteLas(from_projection, a, *projection, &x, "", &r));
+    const auto bytes = ReadBytes(from_projection);
+    ASSERT_GT(bytes.size(), 375u);
+    EXPECT_EQ(bytes, ReadBytes(from_held));
+    auto fewer = *projection;
+    fewer.sensor_utm.pop_back();
+    const auto refused = WriteLas(from_projection, a, fewer);
+    ASSERT_FALSE(refused);
+    EXPECT_NE(refused.error().message.find("not of these soundings"), std::string::npos)
+        << refused.error().message;
+}
+
+// points_utm.ply made a block at a time is the file of the held points whatever the block size
+// (1, one short of the points, the points, more than the points); the points are asked for in
+// order, each once, in blocks no larger than asked; blocks of 0 points are refused.
+TEST_F(ProductReaders, ProjectedPointsInBlocksAreTheFileOfTheHeldPoints) {
+    ProjectedPoints held;
+    held.crs_name = "WGS 84 / UTM zone 29N + EGM96 height";
+    held.horizontal_epsg = 32629;
+    held.vertical_epsg = 5773;
+    std::mt19937 rng(38);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const std::size_t n = 1001;
+    for (std::size_t j = 0; j < n; ++j) {
+        held.positions.emplace_back(
+            600000.0 + 300 * u(rng), 4470000.0 + 300 * u(rng), 380.0 + 30 * u(rng));
+        held.gps_time_s.push_back(1.4e9 + 0.1 * static_cast<double>(j));
+        held.status.push_back(static_cast<std::uint8_t>(j % 11));
+    }
+    const std::string whole = (dir_ / "whole.ply").string();
+    ASSERT_TRUE(WriteProjectedPointsPly(whole, held, nullptr, "run"));
+    const auto expected = ReadBytes(whole);
+    ASSERT_GT(expected.size(), n * 33);
+    for (const std::size_t block : {std::size_t{1}, n - 1, n, n + 7}) {
+        std::size_t next = 0;
+        bool ordered = true;
+        const auto fill = [&](std::size_t first, std::span<ProjectedPoint> out) {
+            ordered = ordered && first == next && out.size() <= block && !out.empty();
+            next = first + out.size();
+            for (std::size_t k = 0; k < out.size(); ++k) {
+                out[k] = {
+                    held.positions[first + k], held.gps_time_s[first + k], held.status[first + k]};
+            }
+        };
+        const std::string path = (dir_ / "blocks.ply").string();
+        ASSERT_TRUE(WriteProjectedPointsPly(path, held, n, block, fill, nullptr, "run"));
+        EXPECT_TRUE(ordered) << "block " << block;
+        EXPECT_EQ(next, n) << "block " << block;
+        EXPECT_EQ(ReadBytes(path), expected) << "block " << block;
+    }
+    const auto none = [](std::size_t, std::span<ProjectedPoint>) {};
+    const auto zero = WriteProjectedPointsPly((dir_ / "zero.ply").string(), held, n, 0, none);
+    ASSERT_FALSE(zero);
+    EXPECT_NE(zero.error().message.find("blocks of 0 points"), std::string::npos);
 }
 
 }  // namespace

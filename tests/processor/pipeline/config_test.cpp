@@ -207,6 +207,39 @@ TEST_F(Config, MosaicSectionRoundTripsAndIsChecked) {
     }
 }
 
+// Issue 38: the memory budget and the block size of the block-wise parts are read, written
+// back, and a block that does not fit in the budget is an error at start naming both keys.
+TEST_F(Config, MemoryBudgetRoundTripsAndABlockMustFitInIt) {
+    const auto r = Load("run:\n  memory_budget_mb: 1500\n  block_soundings: 65536\n");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->run.memory_budget_mb, 1500);
+    EXPECT_EQ(r->run.block_soundings, 65536);
+    const auto back = Load(ConfigYaml(*r));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(Fingerprint(*back), ConfigYaml(*r));
+    EXPECT_NE(DefaultsYaml().find("memory_budget_mb: 4096"), std::string::npos);
+    EXPECT_TRUE(PipelineConfig{}.Validate().empty()) << "the defaults fit";
+    // 2^21 soundings at 64 bytes = 128 MB: more than a 100 MB budget; exactly 64 MB fits 64 MB.
+    const auto big = Load("run:\n  memory_budget_mb: 100\n  block_soundings: 2097152\n");
+    ASSERT_FALSE(big.ok());
+    EXPECT_NE(big.error().message.find("run.block_soundings: one block of 2097152 soundings (128 "
+                                       "MB at 64 bytes a sounding) does not fit in "
+                                       "run.memory_budget_mb (100 MB)"),
+              std::string::npos)
+        << big.error().message;
+    const auto exact = Load("run:\n  memory_budget_mb: 64\n  block_soundings: 1048576\n");
+    EXPECT_TRUE(exact.ok()) << exact.error().message;
+    const auto one_more = Load("run:\n  memory_budget_mb: 64\n  block_soundings: 1048577\n");
+    EXPECT_FALSE(one_more.ok());
+    const auto tiny = Load("run:\n  memory_budget_mb: 10\n  block_soundings: 100\n");
+    ASSERT_FALSE(tiny.ok());
+    for (const char* expected :
+         {"run.memory_budget_mb must be >= 64", "run.block_soundings must be >= 1024"}) {
+        EXPECT_NE(tiny.error().message.find(expected), std::string::npos) << expected << "\n"
+                                                                          << tiny.error().message;
+    }
+}
+
 TEST(Stage, NamesAreSummaryJsonKeys) {
     EXPECT_STREQ(ToString(Stage::kFuse), "fuse");
     EXPECT_STREQ(ToString(Stage::kMeshInitial), "mesh_initial");
