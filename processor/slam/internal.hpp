@@ -98,18 +98,31 @@ struct NodeWindow {
 std::vector<NodeWindow> MakeWindows(
     const Input& in, const Param& p, double window_s, double overlap_s, double shift);
 
+// The coarse level of the windowed solve: node k's correction is interpolated linearly in time
+// between coarse nodes every coarse_s (hat functions): x_k = (1 - w_k) X_{a_k} + w_k X_{a_k + 1}.
+struct CoarseSpace {
+    std::size_t size = 0;          // coarse nodes
+    std::vector<std::uint32_t> a;  // per node: its coarse node before it
+    std::vector<double> w;         // ... and the weight of the one after it (0 at the last)
+};
+CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s);
+
 // The damped solve of a block system, whole or by windows. One window: reg::DampedSolver as it
-// is. Several: a restricted multiplicative Schwarz sweep (block Gauss-Seidel over overlapping
-// blocks; Smith, Bjorstad & Gropp 1996, ch. 1; Cai & Sarkis 1999 for the restricted form) on
-// A = H + lambda diag(H): windows in order, each solving A_WW x_W = -(g_W + A_WO x_O) with x_O
-// the latest values outside it (zero where no window has reached yet), keeping x on its core.
-// Each window's solve minimises the damped quadratic model over its own unknowns given the
-// rest, so the sweep lowers the model as a whole step does; it is not the whole solve's step
-// (the links to later windows lag by one sweep), and the stage's ICP iterations go on from it.
-// Holds one window's factor at a time. `sys` must outlive the solver.
+// is. Several: one two-level multiplicative Schwarz sweep (Smith, Bjorstad & Gropp 1996,
+// ch. 1-2; restricted: Cai & Sarkis 1999) on A = H + lambda diag(H): first the coarse problem
+// (P^T A P) X = -P^T g with P the coarse space's interpolation, x = P X, which moves what no
+// window sees whole (a drift over many windows, the survey's gauge); then the windows in order
+// (block Gauss-Seidel over overlapping blocks), each solving A_WW x_W = -(g_W + A_WO x_O) with
+// x_O the latest values outside it, keeping x on its core. Each solve minimises the damped
+// quadratic model over its own unknowns given the rest, so the sweep lowers the model as a
+// whole step does; it is not the whole solve's step (links to later windows lag by one sweep),
+// and the stage's ICP iterations go on from it. Holds one window's factor at a time (and the
+// coarse one). `sys` must outlive the solver.
 class WindowedSolver {
 public:
-    WindowedSolver(const reg::BlockSystem<6>& sys, std::vector<NodeWindow> windows);
+    WindowedSolver(const reg::BlockSystem<6>& sys,
+                   std::vector<NodeWindow> windows,
+                   CoarseSpace coarse = {});
     // As reg::DampedSolver::Solve; false when a window could not be factorised.
     bool Solve(double lambda, Eigen::VectorXd* delta);
     // The largest window's factor nonzeros, and the flops of one sweep (known after a Solve).
@@ -120,7 +133,10 @@ public:
 private:
     const reg::BlockSystem<6>& sys_;
     std::vector<NodeWindow> windows_;
+    CoarseSpace coarse_;
     std::unique_ptr<reg::DampedSolver<6>> whole_;  // one window
+    // x = P X for the damped system (false when it could not be factorised).
+    bool SolveCoarse(double lambda, Eigen::VectorXd* x);
     // Off-diagonal blocks by row node (both triangles): row_start_[i] .. row_start_[i + 1]
     // index link_node_ / link_block_; H_ij = link_block_ (transposed when link_transposed_).
     std::vector<std::size_t> row_start_;

@@ -63,8 +63,28 @@ std::vector<NodeWindow> MakeWindows(
     return out;
 }
 
-WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys, std::vector<NodeWindow> windows)
-    : sys_(sys), windows_(std::move(windows)) {
+CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s) {
+    CoarseSpace c;
+    const std::size_t n = p.num_nodes();
+    if (n == 0 || !(coarse_s > 0)) return c;
+    const auto t = [&](std::size_t k) { return in.t_s[static_cast<std::size_t>(p.anchor[k])]; };
+    const double t0 = t(0);
+    c.size = static_cast<std::size_t>(std::ceil((t(n - 1) - t0) / coarse_s)) + 1;
+    c.a.resize(n);
+    c.w.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        const double u = (t(k) - t0) / coarse_s;
+        const auto a = std::min(static_cast<std::size_t>(std::floor(u)), c.size - 1);
+        c.a[k] = static_cast<std::uint32_t>(a);
+        c.w[k] = a + 1 < c.size ? u - static_cast<double>(a) : 0.0;
+    }
+    return c;
+}
+
+WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys,
+                               std::vector<NodeWindow> windows,
+                               CoarseSpace coarse)
+    : sys_(sys), windows_(std::move(windows)), coarse_(std::move(coarse)) {
     const std::size_t n = sys.num_blocks();
     if (windows_.size() <= 1) {
         windows_.assign(1, NodeWindow{0, n, 0, n});
@@ -95,12 +115,65 @@ WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys, std::vector<NodeW
     });
 }
 
+bool WindowedSolver::SolveCoarse(double lambda, Eigen::VectorXd* x) {
+    const std::size_t n = sys_.num_blocks();
+    const auto at = [](std::size_t k) { return static_cast<Eigen::Index>(6 * k); };
+    // P^T A P and P^T g, block by block: node k spreads over its two coarse nodes.
+    reg::BlockSystem<6> c(coarse_.size);
+    const auto spread = [&](std::size_t k, auto&& f) {
+        f(coarse_.a[k], 1.0 - coarse_.w[k]);
+        if (coarse_.w[k] > 0) f(coarse_.a[k] + 1, coarse_.w[k]);
+    };
+    // (block (i, j) of A times wi wj) into the coarse block (a, b), upper triangle kept.
+    const auto add = [&](std::size_t a, std::size_t b, const Matrix6d& m) {
+        if (a < b) {
+            c.AddOffDiagonal(a, b, m);
+        } else if (b < a) {
+            c.AddOffDiagonal(b, a, m.transpose());
+        } else {
+            c.AddDiagonal(a, 0.5 * (m + m.transpose()), Vector6d::Zero());
+        }
+    };
+    for (std::size_t k = 0; k < n; ++k) {
+        Matrix6d d = sys_.diag()[k];
+        d.diagonal() = d.diagonal() * (1.0 + lambda) + Vector6d::Constant(1e-9);
+        spread(k, [&](std::size_t a, double wa) {
+            c.AddDiagonal(a, Matrix6d::Zero(), wa * sys_.grad()[k]);
+            spread(k, [&](std::size_t b, double wb) {
+                if (a <= b) add(a, b, wa * wb * d);
+            });
+        });
+    }
+    sys_.ForEachOffDiagonal([&](std::size_t i, std::size_t j, const Matrix6d& m) {
+        spread(i, [&](std::size_t a, double wa) {
+            spread(j, [&](std::size_t b, double wb) {
+                // A_ij and A_ji = A_ij^T both land in the coarse system.
+                if (a == b) {
+                    add(a, a, wa * wb * (m + m.transpose()));
+                } else {
+                    add(a, b, wa * wb * m);
+                }
+            });
+        });
+    });
+    reg::DampedSolver<6> ne(c);  // already damped: solved with lambda 0
+    Eigen::VectorXd X;
+    if (!ne.Solve(0.0, &X)) return false;
+    x->setZero(at(n));
+    for (std::size_t k = 0; k < n; ++k) {
+        spread(k,
+               [&](std::size_t a, double wa) { x->segment<6>(at(k)) += wa * X.segment<6>(at(a)); });
+    }
+    return true;
+}
+
 bool WindowedSolver::Solve(double lambda, Eigen::VectorXd* delta) {
     if (whole_) return whole_->Solve(lambda, delta);
     const std::size_t n = sys_.num_blocks();
     delta->setZero(static_cast<Eigen::Index>(6 * n));
     factor_nonzeros_ = factor_flops_ = 0;
     const auto at = [](std::size_t k) { return static_cast<Eigen::Index>(6 * k); };
+    if (coarse_.size > 1 && !SolveCoarse(lambda, delta)) return false;
     for (const NodeWindow& w : windows_) {
         // A_WW x_W = -(g_W + A_WO x_O): the damping touches diagonal blocks only, so A_WO is
         // H_WO; x_O is zero where no core has been solved yet in this sweep.

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -174,21 +175,43 @@ TEST(SlamWindows, SweepsLowerTheModelAndConvergeToTheWholeSolve) {
     EXPECT_GE(q1, q_min - 1e-9 * std::abs(q_min));
     EXPECT_LT(first.factor_nonzeros(), 0.5 * whole.factor_nonzeros());
 
+    Eigen::VectorXd two_level;
+    WindowedSolver coarse(
+        sys, MakeWindows(x.in, x.p, 80.0, 20.0, 0.0), MakeCoarseSpace(x.in, x.p, 10.0));
+    ASSERT_TRUE(coarse.Solve(0.0, &two_level));
+
     // Sweeps from the current iterate, alternating the cores, reach the whole solve: the
-    // restricted multiplicative Schwarz iteration converges on a positive definite system.
-    Eigen::VectorXd at = step;
-    double q_prev = q1;
-    for (int sweep = 1; sweep < 30; ++sweep) {
-        const reg::BlockSystem<6> from = From(sys, at);
-        WindowedSolver ws(from, MakeWindows(x.in, x.p, 80.0, 20.0, sweep % 2 == 0 ? 0.0 : 0.5));
-        Eigen::VectorXd d;
-        ASSERT_TRUE(ws.Solve(0.0, &d));
-        at += d;
-        const double q = Model(sys, at);
-        EXPECT_LE(q, q_prev + 1e-9 * std::abs(q_min)) << "sweep " << sweep;
-        q_prev = q;
+    // restricted multiplicative Schwarz iteration converges on a positive definite system,
+    // with or without the coarse level.
+    for (const double coarse_s : {0.0, 10.0}) {
+        Eigen::VectorXd at = coarse_s > 0 ? two_level : step;
+        double q_prev = Model(sys, at);
+        for (int sweep = 1; sweep < 30; ++sweep) {
+            const reg::BlockSystem<6> from = From(sys, at);
+            WindowedSolver ws(from,
+                              MakeWindows(x.in, x.p, 80.0, 20.0, sweep % 2 == 0 ? 0.0 : 0.5),
+                              MakeCoarseSpace(x.in, x.p, coarse_s));
+            Eigen::VectorXd d;
+            ASSERT_TRUE(ws.Solve(0.0, &d));
+            at += d;
+            const double q = Model(sys, at);
+            EXPECT_LE(q, q_prev + 1e-9 * std::abs(q_min)) << "sweep " << sweep;
+            q_prev = q;
+        }
+        EXPECT_LT((at - exact).norm(), 1e-6 * exact.norm()) << "coarse " << coarse_s;
     }
-    EXPECT_LT((at - exact).norm(), 1e-6 * exact.norm());
+}
+
+TEST(SlamWindows, CoarseSpaceInterpolatesBetweenItsNodes) {
+    const Nodes x = MakeNodes(101, 0.5);  // 50 s
+    const CoarseSpace c = MakeCoarseSpace(x.in, x.p, 15.0);
+    ASSERT_EQ(c.size, 5u);  // at 0, 15, 30, 45, 60 s
+    for (std::size_t k = 0; k < 101; ++k) {
+        const double t = 0.5 * static_cast<double>(k);
+        EXPECT_EQ(c.a[k], static_cast<std::uint32_t>(t / 15.0)) << k;
+        EXPECT_NEAR(c.w[k], t / 15.0 - std::floor(t / 15.0), 1e-12) << k;
+    }
+    EXPECT_EQ(MakeCoarseSpace(x.in, x.p, 0.0).size, 0u);
 }
 
 TEST(SlamWindows, WindowParamRenumbersTheWindowsNodes) {
