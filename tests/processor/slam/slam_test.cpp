@@ -326,7 +326,10 @@ TEST(Slam, GnssRecoveryStartsShortSections) {
 // is paired with, and the node pairs of the normal equations per pose, stay as they are when
 // the survey doubles (docs/decisions/015); with every pass (0, the seed paper) they grow with N.
 // The pairs found are the same on every run.
-SlamResult RepeatedLine(int passes, int max_partner_passes, double window_s = 0) {
+SlamResult RepeatedLine(int passes,
+                        int max_partner_passes,
+                        double window_s = 0,
+                        bool posterior = true) {
     std::vector<Waypoint> wps;
     for (int i = 0; i <= passes; ++i) wps.push_back({i % 2 == 0 ? -20.0 : 20.0, 0.0});
     const Survey sv = MakeSurvey(wps, 1.0);
@@ -336,6 +339,7 @@ SlamResult RepeatedLine(int passes, int max_partner_passes, double window_s = 0)
     cfg.max_partner_passes = max_partner_passes;
     cfg.semi_rigid_window_s = window_s;
     cfg.semi_rigid_window_overlap_s = 20.0;
+    cfg.posterior = posterior;
     return RunSlam(sv.slices, cfg);
 }
 
@@ -467,7 +471,8 @@ TEST(Slam, WindowBoundariesLeaveNoStep) {
 
 // With windows (SlamConfig::semi_rigid_window_s, docs/decisions/017) the factor of the
 // semi-rigid normal equations (the largest window's, and the posterior's) stays as it is when
-// the passes over the line double; as one system it grows with them.
+// the passes over the line double; as one system it grows with them. Measured (nonzeros of L,
+// 8 and 16 passes): whole 196 k and 797 k; windowed 42 k and 35 k (the posterior's 42 k, 35 k).
 TEST(Slam, WindowedFactorStaysBoundedAsPassesRepeat) {
     const auto factor = [](const SlamResult& r) {
         double nnz = 0;
@@ -476,10 +481,13 @@ TEST(Slam, WindowedFactorStaysBoundedAsPassesRepeat) {
         }
         return nnz;
     };
-    const SlamResult whole8 = RepeatedLine(8, 2), whole16 = RepeatedLine(16, 2);
+    // The whole systems without the posterior (its marginals cost nodes x factor).
+    const SlamResult whole8 = RepeatedLine(8, 2, 0, false), whole16 = RepeatedLine(16, 2, 0, false);
     const SlamResult win8 = RepeatedLine(8, 2, 80.0), win16 = RepeatedLine(16, 2, 80.0);
     for (const SlamResult* r : {&whole8, &whole16, &win8, &win16}) {
         ASSERT_GT(factor(*r), 0.0) << r->message;
+    }
+    for (const SlamResult* r : {&win8, &win16}) {
         ASSERT_TRUE(r->posterior.computed) << r->posterior.message;
     }
     const std::string figures = "factor nonzeros whole " + std::to_string(factor(whole8)) + ", " +
