@@ -9,6 +9,7 @@
 //   iterate.cpp          one stage's ICP-like Gauss-Newton loop on the damped sparse solver;
 //   rigid_stage.cpp      globally consistent matching of rigid sections (Borrmann et al. 2008);
 //   semi_rigid_stage.cpp the semi-rigid stage, one pose per bin (Elseberg et al. 2013);
+//   windows.cpp          the semi-rigid step's solve by windows in time over a coarse level;
 //   posterior.cpp        the marginal covariances of the semi-rigid result;
 //   start_spread.cpp     the spread of SLAM's result over runs from perturbed starts;
 //   slam.cpp             input, configuration and the two stages in order.

@@ -19,7 +19,9 @@
 //  2. Semi-rigid: one 6-DoF pose per bin of bin_slices slices (slice poses interpolated inside
 //     a bin); point pairs only between slices at least min_time_separation_s apart and closer
 //     than max_pair_distance_m; relative-motion terms between consecutive poses keep the motion
-//     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms.
+//     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms. Each step
+//     is solved by overlapping windows in time over a coarse level (semi_rigid_window_s) on
+//     surveys longer than two windows, so the factorisation does not hold the whole survey.
 // INS terms in both stages: relative motion (sigma from the steady INS sigma and from its
 // growth), a drift-smoothness term (the velocity error is a random walk) and absolute terms; the
 // reported sigma is not believed to shrink faster than ins_sigma_recovery_time_s.
