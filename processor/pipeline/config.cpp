@@ -187,6 +187,12 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("min_section_link_pairs", c.min_section_link_pairs, "pairs needed to link two sections");
     v("bin_slices", c.bin_slices, "semi-rigid: slices per pose (1 = one pose per slice)");
     v("max_iterations", c.max_iterations, "semi-rigid iterations");
+    v("semi_rigid_window_s",
+      c.semi_rigid_window_s,
+      "semi-rigid solve (and posterior) by windows of about this, s; 0 = the whole survey");
+    v("semi_rigid_window_overlap_s",
+      c.semi_rigid_window_overlap_s,
+      "each window reaches this far past its core on both sides, s");
     v("convergence_rotation_rad", c.convergence_rotation_rad, "converged below this pose update");
     v("convergence_translation_m", c.convergence_translation_m, "... and this one");
     v("normal_neighbours", c.normal_neighbours, "neighbours for normals / covariances");

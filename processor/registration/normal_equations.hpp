@@ -62,6 +62,16 @@ public:
         grad_[b] += info * x_minus_prior;
     }
 
+    // Adds m to the diagonal block b and v to the gradient of block b, and m to the upper
+    // off-diagonal block (i, j), i < j: a window of another system, block by block.
+    void AddDiagonal(std::size_t b, const BlockMatrix& m, const BlockVector& v) {
+        diag_[b] += m;
+        grad_[b] += v;
+    }
+    void AddOffDiagonal(std::size_t i, std::size_t j, const BlockMatrix& m) {
+        OffDiagonal(i, j) += m;
+    }
+
     // Adds every term of `o` (same block count), e.g. per-thread systems.
     void Merge(const BlockSystem& o) {
         for (std::size_t i = 0; i < diag_.size(); ++i) {

@@ -9,6 +9,7 @@
 //   iterate.cpp          one stage's ICP-like Gauss-Newton loop on the damped sparse solver;
 //   rigid_stage.cpp      globally consistent matching of rigid sections (Borrmann et al. 2008);
 //   semi_rigid_stage.cpp the semi-rigid stage, one pose per bin (Elseberg et al. 2013);
+//   windows.cpp          the semi-rigid step's solve by windows in time over a coarse level;
 //   posterior.cpp        the marginal covariances of the semi-rigid result;
 //   start_spread.cpp     the spread of SLAM's result over runs from perturbed starts;
 //   slam.cpp             input, configuration and the two stages in order.
@@ -81,6 +82,75 @@ void SliceCorrection(const Param& p, std::size_t s, Eigen::Matrix3d* R, Eigen::V
 std::vector<Pose> SlicePoses(const Param& p);
 // d(slice pose perturbation) / d(node increment), times the interpolation weight w.
 Matrix6d NodeToSlice(const Param& p, const Pose& T_s, std::size_t s, double w);
+
+// ---- windows of the semi-rigid solve (windows.cpp; SlamConfig::semi_rigid_window_s) ----------
+
+// Nodes [first, last) of one window; its core [core_first, core_last) is what it contributes.
+struct NodeWindow {
+    std::size_t first = 0, last = 0;
+    std::size_t core_first = 0, core_last = 0;
+};
+
+// The windows of p's nodes by their anchor slices' times: floor(duration / window_s) cores of
+// equal duration (at least one), their boundaries moved by shift (in [0, 1), a share of a core:
+// 0.5 gives the cores whose boundaries are the other set's centres, with half cores at the
+// ends), each window holding the nodes within overlap_s of its core. One window holding every node
+// when the survey is shorter than 2 window_s or window_s is 0. Cores partition the nodes, in order.
+std::vector<NodeWindow> MakeWindows(
+    const Input& in, const Param& p, double window_s, double overlap_s, double shift);
+
+// The coarse level of the windowed solve: node k's correction is interpolated linearly in time
+// between coarse nodes every coarse_s (hat functions): x_k = (1 - w_k) X_{a_k} + w_k X_{a_k + 1}.
+struct CoarseSpace {
+    std::size_t size = 0;          // coarse nodes
+    std::vector<std::uint32_t> a;  // per node: its coarse node before it
+    std::vector<double> w;         // ... and the weight of the one after it (0 at the last)
+};
+CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s);
+
+// The damped solve of a block system, whole or by windows. One window: reg::DampedSolver as it
+// is. Several: one two-level multiplicative Schwarz sweep (Smith, Bjorstad & Gropp 1996,
+// ch. 1-2; restricted: Cai & Sarkis 1999) on A = H + lambda diag(H): first the coarse problem
+// (P^T A P) X = -P^T g with P the coarse space's interpolation, x = P X, which moves what no
+// window sees whole (a drift over many windows, the survey's gauge); then the windows in order
+// (block Gauss-Seidel over overlapping blocks), each solving A_WW x_W = -(g_W + A_WO x_O) with
+// x_O the latest values outside it, keeping x on its core. Each solve minimises the damped
+// quadratic model over its own unknowns given the rest, so the sweep lowers the model as a
+// whole step does; it is not the whole solve's step (links to later windows lag by one sweep),
+// and the stage's ICP iterations go on from it. Holds one window's factor at a time (and the
+// coarse one). `sys` must outlive the solver.
+class WindowedSolver {
+public:
+    WindowedSolver(const reg::BlockSystem<6>& sys,
+                   std::vector<NodeWindow> windows,
+                   CoarseSpace coarse = {});
+    // As reg::DampedSolver::Solve; false when a window could not be factorised.
+    bool Solve(double lambda, Eigen::VectorXd* delta);
+    // The largest window's factor nonzeros, and the flops of one sweep (known after a Solve).
+    double factor_nonzeros() const { return factor_nonzeros_; }
+    double factor_flops() const { return factor_flops_; }
+    std::size_t num_windows() const { return windows_.size(); }
+
+private:
+    const reg::BlockSystem<6>& sys_;
+    std::vector<NodeWindow> windows_;
+    CoarseSpace coarse_;
+    std::unique_ptr<reg::DampedSolver<6>> whole_;  // one window
+    // x = P X for the damped system (false when it could not be factorised).
+    bool SolveCoarse(double lambda, Eigen::VectorXd* x);
+    // Off-diagonal blocks by row node (both triangles): row_start_[i] .. row_start_[i + 1]
+    // index link_node_ / link_block_; H_ij = link_block_ (transposed when link_transposed_).
+    std::vector<std::size_t> row_start_;
+    std::vector<std::uint32_t> link_node_;
+    std::vector<const Matrix6d*> link_block_;
+    std::vector<char> link_transposed_;
+    double factor_nonzeros_ = 0, factor_flops_ = 0;
+};
+
+// A copy of p whose nodes are p's nodes [first, last), numbered from 0: its terms (AddPoseTerms,
+// AddPairTerms of pairs whose slices' nodes all lie in the window) build the window's own
+// normal equations. Slices outside the window keep node 0 and must not be used.
+Param WindowParam(const Param& p, std::size_t first, std::size_t last);
 
 // ---- sections and correspondences (correspondences.cpp) -------------------------------------
 

@@ -110,7 +110,7 @@ struct DampedStep {
 
 // Solves with damping `lambda`, growing it tenfold until the step lowers the cost on the
 // pairs (kMaxDampingRetries times at most); rec gets cost_after and the rejected steps.
-DampedStep TryStep(reg::DampedSolver<6>& ne,
+DampedStep TryStep(WindowedSolver& ne,
                    const Input& in,
                    const Param& p,
                    const std::vector<Pair>& pairs,
@@ -209,11 +209,22 @@ StageOutcome RunStage(const Input& in,
 
         const Terms total = BuildNormalEquations(in, p, T, pairs, cfg, res);
         auto t0 = Clock::now();
-        reg::DampedSolver<6> ne(total.sys);
+        // The semi-rigid stage by windows in time (SlamConfig::semi_rigid_window_s), their
+        // cores offset by half a core every other iteration, over a coarse level of one node
+        // per section_length_s (the rigid stage's sections, interpolated); the rigid stage's
+        // sections are few and solved whole.
+        const bool windowed = stage == SlamStage::kSemiRigid;
+        WindowedSolver ne(total.sys,
+                          windowed ? MakeWindows(in,
+                                                 p,
+                                                 cfg.semi_rigid_window_s,
+                                                 cfg.semi_rigid_window_overlap_s,
+                                                 it % 2 == 0 ? 0.5 : 0.0)
+                                   : std::vector<NodeWindow>{},
+                          windowed ? MakeCoarseSpace(in, p, cfg.section_length_s) : CoarseSpace{});
         res.timings.build_s += Seconds(t0);
         SlamIteration rec;
-        rec.factor_nonzeros = ne.factor_nonzeros();
-        rec.factor_flops = ne.factor_flops();
+        rec.windows = ne.num_windows();
         rec.stage = stage;
         rec.iteration = it;
         rec.num_pairs = pairs.size();
@@ -223,6 +234,8 @@ StageOutcome RunStage(const Input& in,
         rec.cost = total.cost;
         rec.pair_rms_m = std::sqrt(total.sq_dist / static_cast<double>(pairs.size()));
         const DampedStep step = TryStep(ne, in, p, pairs, cfg, lambda, rec, res);
+        rec.factor_nonzeros = ne.factor_nonzeros();
+        rec.factor_flops = ne.factor_flops();
         rec.damping = lambda;
         out.iterations = it;
         if (!step.accepted) {

@@ -291,6 +291,108 @@ Vector6d SliceSigma(const Input& in,
     return sig;
 }
 
+// Whether the pair's slices depend only on nodes [first, last) of p.
+bool PairInWindow(const Param& p, const Pair& pr, std::size_t first, std::size_t last) {
+    for (const std::uint32_t s : {pr.slice_a, pr.slice_b}) {
+        for (const int k : {p.k0[s], p.k1[s]}) {
+            const auto u = static_cast<std::size_t>(k);
+            if (u < first || u >= last) return false;
+        }
+    }
+    return true;
+}
+
+// The marginal blocks Ckk, Ckn (scaled formal part plus the cluster-robust part) window by
+// window (SlamPosterior::windows): each window's normal equations from the terms within it
+// (WindowParam), its cores' blocks kept. Leaving out the terms that reach outside a window is
+// conservative: the window's information is then at most the Schur complement of the whole
+// system's onto the window (a Schur complement of the left-out terms' positive semidefinite
+// information adds to it), so its covariance at least the whole solve's. Fills the
+// observation counts, the variance factor and the timings of `post`; false with
+// post.message set when a window fails.
+bool WindowedMarginals(const Input& in,
+                       const Param& p,
+                       const std::vector<Pose>& T,
+                       const std::vector<Pair>& pairs,
+                       const std::vector<NodeWindow>& windows,
+                       PairInformation pair_info,
+                       const SlamConfig& cfg,
+                       SlamPosterior& post,
+                       std::vector<Matrix6d>& Ckk,
+                       std::vector<Matrix6d>& Ckn) {
+    const std::size_t n = p.num_nodes();
+    const double scale = CovarianceScale(n, pairs.size(), CostAt(in, p, pairs, cfg), cfg, post);
+    if (!(std::isfinite(scale) && scale > 0)) {
+        post.message = "no redundancy (" + std::to_string(post.observations) +
+                       " observations for " + std::to_string(post.unknowns) + " unknowns)";
+        return false;
+    }
+    Ckk.assign(n, Matrix6d::Zero());
+    Ckn.assign(n, Matrix6d::Zero());
+    std::vector<double> formal_h;
+    post.windows = windows.size();
+    for (const NodeWindow& w : windows) {
+        auto t0 = Clock::now();
+        const Param wp = WindowParam(p, w.first, w.last);
+        std::vector<Pair> inside;
+        for (const Pair& pr : pairs) {
+            if (PairInWindow(p, pr, w.first, w.last)) inside.push_back(pr);
+        }
+        const Clusters clusters = ClusterPairs(inside);
+        const Terms terms =
+            PosteriorTerms(in, wp, T, clusters, post.residual_correlation, pair_info, cfg);
+        reg::DampedSolver<6> ne(terms.sys);
+        post.largest_factor_nonzeros = std::max(post.largest_factor_nonzeros, ne.factor_nonzeros());
+        post.build_s += Seconds(t0);
+        t0 = Clock::now();
+        Eigen::VectorXd delta;
+        if (!ne.Solve(0.0, &delta)) {
+            post.message = "CHOLMOD could not factorise the undamped normal equations of a window";
+            return false;
+        }
+        post.factor_s += Seconds(t0);
+        t0 = Clock::now();
+        std::vector<std::size_t> which;
+        for (std::size_t k = w.core_first; k < w.core_last; ++k) which.push_back(k - w.first);
+        std::vector<Matrix6d> wkk, wkn;
+        if (!ne.InverseBlocks(which, cfg.posterior_batch_nodes, &wkk, &wkn)) {
+            post.message = "the marginal covariances of a window could not be solved";
+            return false;
+        }
+        std::vector<Matrix6d> rkk(w.last - w.first, Matrix6d::Zero()), rkn = rkk;
+        std::size_t num_clusters = 0;
+        if (cfg.posterior_cluster_robust && !AddClusterRobust(in,
+                                                              wp,
+                                                              T,
+                                                              clusters,
+                                                              post.residual_correlation,
+                                                              cfg,
+                                                              pair_info,
+                                                              ne,
+                                                              rkk,
+                                                              rkn,
+                                                              &num_clusters)) {
+            post.message = "the cluster-robust covariance of a window could not be solved";
+            return false;
+        }
+        post.clusters += num_clusters;
+        for (std::size_t i = 0; i < which.size(); ++i) {
+            const std::size_t k = w.core_first + i;
+            const Matrix6d F = wkk[i];
+            formal_h.push_back(std::sqrt(std::max(0.0, 0.5 * (F(3, 3) + F(4, 4)))));
+            Ckk[k] = scale * F + rkk[which[i]];
+            Ckn[k] = scale * wkn[i] + rkn[which[i]];
+        }
+        post.nodes_solved += which.size();
+        post.marginals_s += Seconds(t0);
+    }
+    std::nth_element(formal_h.begin(),
+                     formal_h.begin() + static_cast<std::ptrdiff_t>(formal_h.size() / 2),
+                     formal_h.end());
+    post.formal_horizontal_median_m = formal_h[formal_h.size() / 2];
+    return true;
+}
+
 }  // namespace
 
 void ComputePosterior(const Input& in,
@@ -330,9 +432,26 @@ void ComputePosterior(const Input& in,
     // scaled by the design effect with the residuals' intra-cluster correlation (decision 012).
     const Clusters clusters = ClusterPairs(pairs);
     post.residual_correlation = ResidualCorrelation(in, T, clusters, cfg);
+    const std::vector<NodeWindow> windows =
+        MakeWindows(in, p, cfg.semi_rigid_window_s, cfg.semi_rigid_window_overlap_s, /*shift=*/0.0);
+    std::vector<Matrix6d> Ckk, Ckn;
+    if (windows.size() > 1) {
+        post.build_s = Seconds(t0);
+        if (!WindowedMarginals(in, p, T, pairs, windows, pair_info, cfg, post, Ckk, Ckn)) {
+            return fail(post.message);
+        }
+        post.slice_sigma.resize(in.num_slices());
+        for (std::size_t s = 0; s < in.num_slices(); ++s) {
+            post.slice_sigma[s] = SliceSigma(in, p, T, Ckk, Ckn, cfg, s);
+        }
+        post.computed = true;
+        post.total_s = Seconds(t_start);
+        return;
+    }
     const Terms total =
         PosteriorTerms(in, p, T, clusters, post.residual_correlation, pair_info, cfg);
     reg::DampedSolver<6> ne(total.sys);
+    post.largest_factor_nonzeros = ne.factor_nonzeros();
     post.build_s = Seconds(t0);
 
     const double scale = CovarianceScale(n, pairs.size(), total.cost, cfg, post);
@@ -351,7 +470,6 @@ void ComputePosterior(const Input& in,
     t0 = Clock::now();
     std::vector<std::size_t> which(n);
     for (std::size_t k = 0; k < n; ++k) which[k] = k;
-    std::vector<Matrix6d> Ckk, Ckn;
     if (!ne.InverseBlocks(which, cfg.posterior_batch_nodes, &Ckk, &Ckn)) {
         return fail("the marginal covariances could not be solved");
     }

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The semi-rigid SLAM stage (seed paper §4.2, after Elseberg et al. 2013): no rigidity
 // assumption beyond the computation of correspondences; one pose correction per bin of slices,
-// slice poses interpolated between bins, all solved at once from the rigid stage's result.
+// slice poses interpolated between bins, all solved together from the rigid stage's result
+// (each step by overlapping windows in time over a coarse level on long surveys: windows.cpp).
 #include <algorithm>
 
 #include "processor/slam/internal.hpp"

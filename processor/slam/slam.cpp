@@ -81,6 +81,13 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (min_section_link_pairs < 1) p.push_back("min_section_link_pairs must be >= 1");
     if (bin_slices < 1) p.push_back("bin_slices must be >= 1");
     if (max_iterations < 0) p.push_back("max_iterations must be >= 0");
+    if (!(semi_rigid_window_s >= 0))
+        p.push_back("semi_rigid_window_s must be >= 0 (0 = one system)");
+    if (!(semi_rigid_window_overlap_s >= 0))
+        p.push_back("semi_rigid_window_overlap_s must be >= 0");
+    if (semi_rigid_window_s > 0 && !(semi_rigid_window_overlap_s > 0)) {
+        p.push_back("semi_rigid_window_overlap_s must be > 0 when semi_rigid_window_s is set");
+    }
     if (posterior_batch_nodes < 1) p.push_back("posterior_batch_nodes must be >= 1");
     if (posterior_start_runs < 0) p.push_back("posterior_start_runs must be >= 0");
     if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");

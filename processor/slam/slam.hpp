@@ -19,7 +19,9 @@
 //  2. Semi-rigid: one 6-DoF pose per bin of bin_slices slices (slice poses interpolated inside
 //     a bin); point pairs only between slices at least min_time_separation_s apart and closer
 //     than max_pair_distance_m; relative-motion terms between consecutive poses keep the motion
-//     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms.
+//     the INS measured, weighted by the INS's own 1-sigma; optional absolute terms. Each step
+//     is solved by overlapping windows in time over a coarse level (semi_rigid_window_s) on
+//     surveys longer than two windows, so the factorisation does not hold the whole survey.
 // INS terms in both stages: relative motion (sigma from the steady INS sigma and from its
 // growth), a drift-smoothness term (the velocity error is a random walk) and absolute terms; the
 // reported sigma is not believed to shrink faster than ins_sigma_recovery_time_s.
@@ -104,6 +106,18 @@ struct SlamConfig {
     // with the pose count when passes overlap widely; 10 (1 s at 10 Hz) keeps it small.
     int bin_slices = 10;
     int max_iterations = 15;  // semi-rigid stage iterations
+    // Semi-rigid stage: its normal equations (and the posterior's) are solved in overlapping
+    // windows of the survey in time, so that no factorisation holds the whole survey
+    // (docs/decisions/017): each Gauss-Newton step is one forward sweep of a restricted
+    // multiplicative Schwarz method (block Gauss-Seidel over the windows, each solved with the
+    // corrections outside it held at the sweep's latest values, its core's corrections kept);
+    // the sweeps alternate between two sets of cores offset by half a core, so that no window
+    // boundary stays one. The survey is cut into floor(duration / semi_rigid_window_s) cores
+    // (at least 1: a survey shorter than twice this is one system, as before); each window
+    // reaches semi_rigid_window_overlap_s past its core on both sides. 0 = one system always
+    // (the factor then grows faster than the survey: docs/decisions/015).
+    double semi_rigid_window_s = 600.0;
+    double semi_rigid_window_overlap_s = 120.0;
     // Converged when the largest pose update is below both thresholds.
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;
@@ -214,9 +228,12 @@ struct SlamIteration {
     std::size_t num_section_pairs = 0;
     std::size_t max_section_partners = 0;
     std::size_t normal_equation_blocks = 0;
-    // CHOLMOD's analysis of them: nonzeros of the Cholesky factor and flops of one factorisation.
+    // CHOLMOD's analysis of them: nonzeros of the Cholesky factor and flops of one factorisation
+    // (windowed, SlamConfig::semi_rigid_window_s: the largest window's nonzeros, the factor held
+    // at once, and the flops of one sweep over all windows).
     double factor_nonzeros = 0;
     double factor_flops = 0;
+    std::size_t windows = 1;   // windows of the step's solve (1: the whole survey in one system)
     double cost = 0;           // total cost (robust, whitened) before the step
     double cost_after = 0;     // the same terms and pairs after the step (< cost if taken)
     int rejected_steps = 0;    // damped steps that did not lower the cost
@@ -276,7 +293,13 @@ struct SlamPosterior {
     double unknowns = 0;           // 6 per node
     std::size_t num_pairs = 0;     // pairs of the final linearisation
     std::size_t nodes_solved = 0;  // nodes whose marginal blocks were solved
-    std::size_t clusters = 0;      // pair clusters of the sandwich (0: formal covariance)
+    // Windows of the posterior's normal equations (as the stage's, SlamConfig::
+    // semi_rigid_window_s): each window's nodes get their marginals from the terms that lie
+    // within the window alone (terms reaching outside it are left out: conservative, their
+    // information is dropped), taken for the window's core; 1 = the whole survey.
+    std::size_t windows = 1;
+    double largest_factor_nonzeros = 0;  // the largest window's Cholesky factor
+    std::size_t clusters = 0;            // pair clusters of the sandwich (0: formal covariance)
     // Intra-cluster correlation of the pairs' normal residuals; a cluster of n pairs informs
     // as n / (1 + (n - 1) rho) independent ones.
     double residual_correlation = 0;
