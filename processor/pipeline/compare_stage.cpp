@@ -740,6 +740,19 @@ Status WriteDod(const fs::path& C,
     return Ok{};
 }
 
+// A GeoJSON FeatureCollection in the products' UTM CRS (named, as GDAL and QGIS read it).
+Status WriteFeatureCollection(const fs::path& path, int epsg, json features) {
+    const json fc = {
+        {"type", "FeatureCollection"},
+        {"crs",
+         {{"type", "name"},
+          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
+        {"features", std::move(features)}};
+    if (auto s = WriteText(path.string(), fc.dump(1) + "\n"); !s)
+        return Error{"compare: " + s.error().message};
+    return Ok{};
+}
+
 // change_regions.geojson; returns the regions' records for compare.json.
 Expected<json> WriteChangeRegions(const fs::path& C,
                                   int epsg,
@@ -773,14 +786,9 @@ Expected<json> WriteChangeRegions(const fs::path& C,
         rj["region_lod95_m"] = r.region_lod95_m;
         regions.push_back(rj);
     }
-    const json fc = {
-        {"type", "FeatureCollection"},
-        {"crs",
-         {{"type", "name"},
-          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
-        {"features", features}};
-    if (auto s = WriteText((C / "change_regions.geojson").string(), fc.dump(1) + "\n"); !s)
-        return Error{"compare: " + s.error().message};
+    if (auto s = WriteFeatureCollection(C / "change_regions.geojson", epsg, std::move(features));
+        !s)
+        return s.error();
     return regions;
 }
 
@@ -872,14 +880,9 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         rj["rim_m3"] = g.rim_m3;
         regions.push_back(rj);
     }
-    const json fc = {
-        {"type", "FeatureCollection"},
-        {"crs",
-         {{"type", "name"},
-          {"properties", {{"name", "urn:ogc:def:crs:EPSG::" + std::to_string(epsg)}}}}},
-        {"features", features}};
-    if (auto s = WriteText((C / "change_regions_3d.geojson").string(), fc.dump(1) + "\n"); !s)
-        return Error{"compare: " + s.error().message};
+    if (auto s = WriteFeatureCollection(C / "change_regions_3d.geojson", epsg, std::move(features));
+        !s)
+        return s.error();
     const Totals3d cut = RegionTotals3d(r, -1, z95), fill = RegionTotals3d(r, 1, z95);
     const auto total = [](const Totals3d& t) {
         return json{{"regions", t.count},
