@@ -292,8 +292,9 @@ def _check_crs(surveys, pitmap):
     return problems
 
 
-def run_args(sv):
-    """The arguments of `pitmap run` for survey `sv` after `run` (without --out)."""
+def _input_args(sv):
+    """What `pitmap run` and `pitmap georef` read for survey `sv`: its logs or vendor files, the
+    vehicle file, the config, the casts and a known sonar clock offset."""
     args = list(sv["inputs"])
     if sv["vehicle"]:
         args += ["--vehicle", sv["vehicle"]]
@@ -303,6 +304,12 @@ def run_args(sv):
         args += ["--svp", *sv["svp"]]
     if "sonar_clock_offset_s" in sv:
         args += ["--sonar-clock-offset", repr(float(sv["sonar_clock_offset_s"]))]
+    return args
+
+
+def run_args(sv):
+    """The arguments of `pitmap run` for survey `sv` after `run` (without --out)."""
+    args = _input_args(sv)
     for key, flag in (("report", "--no-report"), ("calibrate", "--no-calibrate"),
                       ("slam", "--no-slam"), ("clean", "--no-clean")):
         if not sv[key]:
@@ -316,15 +323,7 @@ def run_args(sv):
 
 def georef_args(sv):
     """The arguments of `pitmap georef` for survey `sv` (without --out): run's inputs."""
-    args = list(sv["inputs"])
-    if sv["vehicle"]:
-        args += ["--vehicle", sv["vehicle"]]
-    if sv["config"]:
-        args += ["--config", sv["config"]]
-    if sv["svp"]:
-        args += ["--svp", *sv["svp"]]
-    if "sonar_clock_offset_s" in sv:
-        args += ["--sonar-clock-offset", repr(float(sv["sonar_clock_offset_s"]))]
+    args = _input_args(sv)
     if sv["from_raw"]:
         args.append("--from-raw")
     return args
