@@ -308,8 +308,17 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
     int unstamped = 0;
     // Per-ping errors beside the run, kept when the test fails.
     std::ofstream error_csv(dir / "ping_errors.csv");
-    error_csv << "ping,t_s,error_ms,stddev_ms,time_source\n";
+    error_csv << "ping,t_s,error_ms,stddev_ms,time_source,emulator_late_ms\n";
+    // Every ping within 5 ms of its true time. Before the sonar clock has a floor (CONVERGING)
+    // a stamp holds the delay of the few datagrams the model has seen; the part of it that is
+    // the emulator's own thread sending late under load (the manifest's "late_us", beyond the
+    // designed jitter) is this machine's scheduling, not the daemon's error, and is added to
+    // the bound until the model locks. Once LOCKED the envelope takes the floor: 5 ms flat.
+    constexpr double kMaxErrorMs = 5.0;
+    double late_so_far_ms = 0;
+    std::vector<std::string> over_bound;
     for (const json& d : datagrams) {
+        late_so_far_ms = std::max(late_so_far_ms, d.value("late_us", 0.0) * 1e-3);
         const auto& found = by_number[d["ping"].get<std::int64_t>()];
         ASSERT_EQ(found.size(), 1u) << "ping " << d["ping"];
         if (found[0]->utime_gps == 0) {
@@ -320,9 +329,16 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
         const double e_ms = static_cast<double>(found[0]->utime_gps - truth) * 1e-3;
         error_csv << d["ping"] << "," << d["t_s"] << "," << e_ms << ","
                   << found[0]->gps_time_stddev_s * 1e3 << ","
-                  << static_cast<int>(found[0]->gps_time_source) << "\n";
+                  << static_cast<int>(found[0]->gps_time_source) << "," << late_so_far_ms << "\n";
         errors_ms.push_back(std::abs(e_ms));
-        if (found[0]->utime >= sonar_locked_utime) settled_errors_ms.push_back(std::abs(e_ms));
+        const bool locked = found[0]->utime >= sonar_locked_utime;
+        if (locked) settled_errors_ms.push_back(std::abs(e_ms));
+        const double bound_ms = kMaxErrorMs + (locked ? 0.0 : late_so_far_ms);
+        if (std::abs(e_ms) > bound_ms && over_bound.size() < 8) {
+            over_bound.push_back("ping " + d["ping"].dump() + ": " + std::to_string(e_ms) +
+                                 " ms against " + std::to_string(bound_ms) + " ms" +
+                                 (locked ? "" : " (before LOCKED)"));
+        }
         signed_sum_ms += e_ms;
     }
     EXPECT_EQ(pings.size(), datagrams.size());
@@ -352,7 +368,9 @@ TEST(Hil, DaemonLogMatchesTheEmulatorsManifest) {
     }
     EXPECT_GE(settled_errors_ms.size(), datagrams.size() / 2) << "sonar clock locked late";
     EXPECT_LE(p99_locked, 2.0) << "ping GPS time error p99 (sonar clock LOCKED), ms";
-    EXPECT_LE(max_err, 5.0) << "ping GPS time error, every ping, ms; worst:" << worst;
+    EXPECT_TRUE(over_bound.empty())
+        << "ping GPS time error over its bound (first 8): " << testing::PrintToString(over_bound)
+        << "; worst:" << worst << "; emulator late up to " << late_so_far_ms << " ms";
 
     // The host clock model against the truth: in this rig GPS - Unix is exactly the leap
     // seconds, so the model's offset at its reference point shows its error directly.

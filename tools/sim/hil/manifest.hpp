@@ -10,7 +10,10 @@
 //   kind "corrupt_frame"  a NovAtel log with one byte flipped (CRC fault), "id"
 //   kind "garbage"        a burst of bytes that frame nothing
 //   kind "response"       "<OK\r\n[PORT]" or "<ERROR:...\r\n[PORT]", "command" = the line
-//   kind "datagram"       one 83P record; "ping", "utime_gps_transmit", "jitter_us"
+//   kind "datagram"       one 83P record; "ping", "utime_gps_transmit", "jitter_us" (the
+//                         designed jitter), "late_us" (how much later than its schedule,
+//                         jitter included, the emulator's thread got it out: this machine's
+//                         scheduling, not a designed fault)
 // Other kinds: "fault" ("fault": garbage | crc | unplug | replug | tcp_drop | outage,
 // "lost_frames" for frames due while a port was away), "command" (a line received), "ec" (an
 // EC frame received, "range_m", "start_gain_db"), "start" and "end" (run bounds).

@@ -128,6 +128,7 @@ void TopsideEmulator::Run(double end_s) {
                 .Int("ping", k)
                 .Int("utime_gps_transmit", start_utime_gps_ + std::llround(t_tx * 1e6))
                 .Int("jitter_us", std::llround(j * 1e6))
+                .Int("late_us", std::llround((now - t_send) * 1e6))
                 .Int("range_m", static_cast<std::int64_t>(scenario_.sonar.max_range_m)));
     }
     // EC frames that answer the last pings.
