@@ -33,7 +33,10 @@
 //      over `profile_beams` beams each side (where the neighbours disagree, the line of the
 //      side that agrees, for a sounding far in front of it: an echo run's edge); only runs (a
 //      neighbouring beam or ping also off) are rejected: the per-ping median filter's idea,
-//      over runs longer than its window.
+//      over runs longer than its window. With them, near-field echoes (bubble sweep-down):
+//      runs of soundings within `near_field_max_range_m` far in front (`near_field_ratio`,
+//      `near_field_min_m`) of the median range of the same beam on both sides along track,
+//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md).
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
