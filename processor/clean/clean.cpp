@@ -377,6 +377,80 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
     return RunsOfTwoOrMore(ProfileScores(geo, grid, config, decided), grid, decided);
 }
 
+// Near-field echoes (bubble sweep-down, aeration under the hull): returns from a cloud within
+// a few metres of the transducer, far in front of what the same beam saw over the pings
+// before and after. A sounding at most near_field_max_range_m away whose range is under
+// near_field_ratio times the median range of the same beam over the profile_pings pings on
+// each side (the soundings the 3D tests accepted, at least 3 a side), and near_field_min_m
+// short of both, is flagged; only runs are rejected (a flagged nearest neighbour along track
+// or across the fan, over dropouts): a cloud covers neighbouring beams. The profiles' lines
+// (Profiles) miss such a sounding where an episode's pings or a turn bend the line of one
+// side (the neighbours disagree) and the sides' medians do not: the terrain a beam sees moves
+// by a few per cent a ping, a cloud is a third to a half of the range in front. A bench edge
+// swept across the beam in a turn is as far in front, but continuous with the terrain beside
+// it (ReleaseTerrain keeps it). Returns the soundings of such runs, not already rejected.
+std::vector<char> NearField(const georef::GeorefResult& geo,
+                            const SoundingGrid& grid,
+                            const CleanConfig& config,
+                            const std::vector<std::uint8_t>& decided) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    std::vector<char> flagged(n, 0);
+    const int w = config.profile_pings;
+    if (n == 0 || w <= 0 || !(config.near_field_max_range_m > 0)) return flagged;
+    const std::size_t beams = grid.beams();
+    std::vector<float> range(grid.pings() * beams, std::numeric_limits<float>::quiet_NaN());
+    bool any = false;
+    for (std::size_t j = 0; j < n; ++j) {
+        if (decided[j] == 0) range[P.ping[j] * beams + P.beam[j]] = P.range_m[j];
+        any = any || P.range_m[j] <= config.near_field_max_range_m;
+    }
+    if (!any) return flagged;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+        std::vector<double> side;
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const double r0 = P.range_m[j];
+            if (decided[j] != 0 || r0 > config.near_field_max_range_m) continue;
+            const auto k = static_cast<std::int64_t>(P.ping[j]);
+            const auto b = static_cast<std::int64_t>(P.beam[j]);
+            bool in_front = true;
+            for (const int dir : {-1, 1}) {
+                side.clear();
+                for (int d = 1; d <= w; ++d) {
+                    const std::int64_t q = k + dir * d;
+                    if (!grid.Inside(q, b)) break;
+                    const double x =
+                        range[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(b)];
+                    if (std::isfinite(x)) side.push_back(x);
+                }
+                if (side.size() < 3) {
+                    in_front = false;
+                    break;
+                }
+                const double med = Median(side);
+                if (!(r0 < config.near_field_ratio * med && med - r0 > config.near_field_min_m)) {
+                    in_front = false;
+                    break;
+                }
+            }
+            flagged[j] = in_front;
+        }
+    });
+    constexpr int kDirections[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+    std::vector<char> runs(n, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (!flagged[j]) continue;
+        for (const auto& dir : kDirections) {
+            const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
+            if (q >= 0 && flagged[q]) {
+                runs[j] = 1;
+                break;
+            }
+        }
+    }
+    return runs;
+}
+
 // Holes and edges of an echo run: a sounding accepted between two soundings of one rejection
 // status (the nearest on each side, along track or across the fan, over up to 3 dropouts) and
 // on the line between their ranges (within hole_tolerance of the range, and 0.1 m) is of their
@@ -1063,6 +1137,10 @@ std::vector<std::string> CleanConfig::Validate() const {
         p.push_back("clean.solid_ratio must be in (0, free_ratio]");
     if (profile_pings < 0) p.push_back("clean.profile_pings must be >= 0");
     if (profile_beams < 0) p.push_back("clean.profile_beams must be >= 0");
+    if (!(near_field_max_range_m >= 0)) p.push_back("clean.near_field_max_range_m must be >= 0");
+    if (!(near_field_ratio > 0 && near_field_ratio < 1))
+        p.push_back("clean.near_field_ratio must be in (0, 1)");
+    if (!(near_field_min_m >= 0)) p.push_back("clean.near_field_min_m must be >= 0");
     if (!(hole_tolerance >= 0 && hole_tolerance < 1))
         p.push_back("clean.hole_tolerance must be in [0, 1)");
     if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
@@ -1152,8 +1230,10 @@ CleanResult Clean(const georef::GeorefResult& geo,
     t_start = std::chrono::steady_clock::now();
     const SoundingGrid grid(geo);
     const std::vector<char> along = Profiles(geo, grid, config, result.status);
+    const std::vector<char> near = NearField(geo, grid, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
-        if (along[j] && result.status[j] == 0)
+        if (result.status[j] != 0) continue;
+        if (along[j] || near[j])
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
     FillHoles(geo, grid, config, result.status);
@@ -1164,6 +1244,10 @@ CleanResult Clean(const georef::GeorefResult& geo,
     t_start = std::chrono::steady_clock::now();
     c.terrain = ReleaseTerrain(geo, grid, config, result.status);
     CountVerdicts(result.status, c);
+    for (std::size_t j = 0; j < n; ++j) {
+        c.near_field += near[j] && !along[j] &&
+                        result.status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    }
     c.seconds_terrain = Seconds(t_start);
     report(1.0);
     return result;

@@ -33,7 +33,10 @@
 //      over `profile_beams` beams each side (where the neighbours disagree, the line of the
 //      side that agrees, for a sounding far in front of it: an echo run's edge); only runs (a
 //      neighbouring beam or ping also off) are rejected: the per-ping median filter's idea,
-//      over runs longer than its window.
+//      over runs longer than its window. With them, near-field echoes (bubble sweep-down):
+//      runs of soundings within `near_field_max_range_m` far in front (`near_field_ratio`,
+//      `near_field_min_m`) of the median range of the same beam on both sides along track,
+//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md).
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
@@ -83,7 +86,10 @@ struct CleanConfig {
     int profile_beams = 0;        // ... and beams each side (across the fan); 0 = off
     double profile_sigmas = 5.0;  // off the neighbours' line by this many spreads ...
     double profile_min_m = 0.3;   // ... and this far (and margin_rel of the range)
-    double profile_max_spread = 0.03;   // where the neighbours agree: spread / range
+    double profile_max_spread = 0.03;     // where the neighbours agree: spread / range
+    double near_field_max_range_m = 5.0;  // near-field echoes: at most this range (0 = off) ...
+    double near_field_ratio = 0.8;        // ... under this share of both sides' median range
+    double near_field_min_m = 0.5;        // ... and this far in front of both, m
     double hole_tolerance = 0.01;       // a hole in a run: on its neighbours' line, share of range
     int fill_max_soundings = 500;       // an enclosed piece of continuous range: at most this many
                                         // soundings (0 = off) ...
@@ -106,7 +112,8 @@ struct CleanCounts {
     std::int64_t cluster = 0;
     std::int64_t multipath = 0;
     std::int64_t profile = 0;
-    std::int64_t terrain = 0;  // rejected by a test, then released: continuous with the terrain
+    std::int64_t near_field = 0;  // of `profile`: near-field echoes the lines did not reject
+    std::int64_t terrain = 0;     // rejected by a test, then released: continuous with the terrain
     // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
     // voxels and rays, the range profiles (with the holes and the enclosed pieces), the
     // terrain's continuity.

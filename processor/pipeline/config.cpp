@@ -277,6 +277,13 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
     v("profile_sigmas", c.profile_sigmas, "... off the neighbours' line by this many spreads");
     v("profile_min_m", c.profile_min_m, "... and this far, m");
     v("profile_max_spread", c.profile_max_spread, "... where their spread / range is below");
+    v("near_field_max_range_m",
+      c.near_field_max_range_m,
+      "near-field echoes (bubbles): soundings at most this range are judged, m; 0 = off");
+    v("near_field_ratio",
+      c.near_field_ratio,
+      "... rejected under this share of the beam's median range over the pings each side");
+    v("near_field_min_m", c.near_field_min_m, "... and this far in front of both, m");
     v("num_threads", c.num_threads, "0 = all cores");
 }
 

@@ -2,10 +2,11 @@
 // Issue 35: `pitmap run` cleans the echoes of the simulator's artifact levels (light, typical,
 // heavy) on the quarry's first 120 s (the high wall, the ramp, a shallow shelf; vendor files,
 // the true boresight in the vehicle file), scored by pitmap-eval against the truth per beam.
-// The bounds are the issue's where they are met and what this cleaning reaches, with a margin,
-// where they are not (docs/cleaning.md has the figures; the points RMS at typical is held below
-// the issue's target, docs/decisions/014-bounds-held-below-target.md); the good soundings
-// rejected stay under the issue's 0.5 % in every slope class at every level. The run without
+// The bounds are the issue's at typical (docs/cleaning.md has the figures; the points RMS at
+// typical was held below the issue's target until the near-field test, docs/decisions/
+// 014-bounds-held-below-target.md and 024-near-field-echoes.md), and what this cleaning reaches,
+// with a margin, at light and heavy; the good soundings rejected stay under the issue's 0.5 % in
+// every slope class at every level. The run without
 // artifacts, the same survey (seed, track, navigation errors: only the artifacts differ), is
 // the reference for the products.
 #include <gtest/gtest.h>
@@ -82,14 +83,18 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
             At(s[level], "dem_mean_abs_m"));
     }
     const Scores& none = s["none"];
-    // Measured (docs/cleaning.md): light 0.885, typical 0.987, heavy 0.976 of the artifact
-    // soundings rejected (typical 0.981 before a cluster sounding whose ray went through the
-    // terrain was multipath; 0.78, 0.937, 0.867 before the enclosed pieces grew along track
-    // over steps short of a break and took breaks of 0.15 m); without the cleaning typical is
-    // 0.12 (the spike filter's share). Typical holds the issue's 0.98.
-    EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.86);
+    // Measured (docs/cleaning.md): light 0.965, typical 0.998, heavy 0.980 of the artifact
+    // soundings rejected (0.885, 0.987, 0.976 before the near-field test; typical 0.981 before a
+    // cluster sounding whose ray went through the terrain was multipath; 0.78, 0.937, 0.867
+    // before the enclosed pieces grew along track over steps short of a break and took breaks
+    // of 0.15 m); without the cleaning typical is 0.12 (the spike filter's share). Typical
+    // holds the issue's 0.98.
+    EXPECT_GE(At(s["light"], "artifact_rejected_share"), 0.95);
     EXPECT_GE(At(s["typical"], "artifact_rejected_share"), 0.98);
     EXPECT_GE(At(s["heavy"], "artifact_rejected_share"), 0.97);
+    // Bubble sweep-down at typical: 0.999 (0.966 before the near-field test: 52 soundings of
+    // clouds 1-3 m above the shelf, all of the points RMS's excess over the clean run).
+    EXPECT_GE(At(s["typical"], "artifact_rejected_share_bubble"), 0.99);
     // Mid-water targets (fish) are the cleaning's best case; the long ghost behind the high
     // wall (19 pings x 11 beams at 18-22 m) is rejected whole (1.000; 0.976 before).
     EXPECT_GE(At(s["typical"], "artifact_rejected_share_mid_water"), 0.97);
@@ -115,14 +120,13 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
         EXPECT_LE(At(s[level], "dem_mean_abs_m"), 1.15 * At(none, "dem_mean_abs_m"));
     }
     EXPECT_GE(At(s["typical"], "mesh_completeness"), At(none, "mesh_completeness") - 0.005);
-    // Points RMS: the issue's bound is 5 % over the clean run at typical; measured +17 %
-    // (0.0356 against 0.0303 m; +39 % before the ghost's rays through the wall were judged),
-    // all of the excess in 52 near-field bubble soundings of 12 pings that nothing rejects
-    // (docs/cleaning.md). Held at +20 % (docs/decisions/014-bounds-held-below-target.md);
-    // light +16 %, heavy +25 %, held at +30 %.
-    EXPECT_LE(At(s["typical"], "points_rms_m"), 1.20 * At(none, "points_rms_m"));
-    for (const std::string level : {"light", "heavy"})
-        EXPECT_LE(At(s[level], "points_rms_m"), 1.30 * At(none, "points_rms_m")) << level;
+    // Points RMS: the issue's bound, 5 % over the clean run at typical; measured +1.0 %
+    // (0.0306 against 0.0303 m; +17 % before the near-field test, +39 % before the ghost's rays
+    // through the wall were judged; docs/decisions/024-near-field-echoes.md). Light +1.3 %
+    // (+16 % before) is held to the same bound; heavy +14 % (+25 % before), held at +20 %.
+    EXPECT_LE(At(s["typical"], "points_rms_m"), 1.05 * At(none, "points_rms_m"));
+    EXPECT_LE(At(s["light"], "points_rms_m"), 1.05 * At(none, "points_rms_m"));
+    EXPECT_LE(At(s["heavy"], "points_rms_m"), 1.20 * At(none, "points_rms_m"));
     if (!HasFailure()) fs::remove_all(dir);
 }
 
