@@ -317,6 +317,31 @@ void TestPatches(const TriangleMesh& m,
     Regions(m, cfg, area, sigma, T, C, index, find, r);
 }
 
+// The significant vertices the soundings contradict set to 0 (ComputeChangeMesh).
+void VetoBySoundings(const TriangleMesh& m, const SoundingsChange& s, ChangeMeshResult& r) {
+    if (s.position.empty()) return;
+    const reg::PointIndex<double> index(s.position.data(), s.position.size());
+    std::vector<reg::PointIndex<double>::Hit> hits;
+    const double r2 = s.radius_m * s.radius_m;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+        const int sign = r.significance[i];
+        if (sign == 0) continue;
+        index.WithinRadius(m.vertices[i], r2, hits);
+        if (hits.empty()) continue;
+        double sum = 0;
+        bool agrees = false;
+        for (const auto& [k, d2] : hits) {
+            agrees = agrees || s.significance[k] == sign;
+            sum += s.distance_m[k];
+        }
+        const double mean = sum / static_cast<double>(hits.size());
+        if (agrees || std::abs(r.distance_m[i] - mean) <= r.lod95_m[i]) continue;
+        r.significance[i] = 0;
+        --(sign > 0 ? r.gain : r.loss);
+        ++r.vetoed_by_soundings;
+    }
+}
+
 }  // namespace
 
 std::vector<std::string> ChangeMeshConfig::Validate() const {
@@ -381,7 +406,8 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
                                    const RigidCorrection& T,
                                    const Eigen::Matrix<double, 6, 6>& C,
                                    const ChangeMeshConfig& cfg,
-                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab) {
+                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab,
+                                   const SoundingsChange* soundings) {
     ChangeMeshResult r;
     const std::size_t n = b.vertices.size();
     r.normals = VertexNormals(b, &r.flipped);
@@ -417,18 +443,20 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
             ++r.measured;
         }
     }
+    if (soundings != nullptr) VetoBySoundings(b, *soundings, r);
     TestPatches(b, cfg, sigma, T, C, index, r);
     if (!lods.empty()) {
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());
         r.median_lod95_m = lods[lods.size() / 2];
     }
-    char buf[320];
+    char buf[400];
     std::snprintf(buf,
                   sizeof buf,
                   "%zu of %zu vertices of B's mesh measured against A's along their normal, %zu "
                   "gain and %zu loss beyond the LoD95 (median %.3f m) in %zu patches (%zu "
-                  "dropped: small or below detection as a whole)%s",
+                  "dropped: small or below detection as a whole; %zu vertices the soundings "
+                  "contradict)%s",
                   r.measured,
                   n,
                   r.gain,
@@ -436,6 +464,7 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
                   r.median_lod95_m,
                   r.patches,
                   r.patches_dropped,
+                  r.vetoed_by_soundings,
                   r.flipped ? "; B's mesh was wound into the ground: normals turned over" : "");
     r.message = buf;
     return r;

@@ -81,6 +81,15 @@ struct ChangeRegion3d {
     Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();  // bounds
 };
 
+// The soundings' change along the normal at their core points (m3c2.hpp), measured cores
+// only: what a vertex's change is checked against (ComputeChangeMesh).
+struct SoundingsChange {
+    std::vector<Eigen::Vector3d> position;  // A's CRS
+    std::vector<float> distance_m;          // B - A along the core's normal
+    std::vector<int> significance;          // -1, 0, +1
+    double radius_m = 0.5;                  // the cores near a vertex: within this
+};
+
 struct ChangeMeshResult {
     std::vector<Eigen::Vector3f> normals;  // B's vertex normals (unit; zero where undefined)
     std::vector<float> distance_m;         // B - A along the normal; NaN: not measured
@@ -89,6 +98,7 @@ struct ChangeMeshResult {
     std::size_t measured = 0, gain = 0, loss = 0;  // gain, loss: after the patch test
     std::size_t patches = 0;                       // kept
     std::size_t patches_dropped = 0;               // too small, or their mean within their LoD
+    std::size_t vetoed_by_soundings = 0;           // significant vertices the soundings contradict
     std::vector<int> region;                       // per vertex: its region's id, 0 none
     std::vector<ChangeRegion3d> regions;           // id k at k - 1
     std::size_t regions_unconfirmed = 0;           // dropped by ConfirmRegionsBySoundings
@@ -112,11 +122,21 @@ std::size_t ConfirmRegionsBySoundings(const TriangleMesh& b,
                                       ChangeMeshResult& r);
 
 // sigma_ab(p): sqrt(sigma_A^2 + sigma_B^2) at p (empty: 0). B's vertices must be in A's frame.
+// soundings (may be null): a significant vertex is set to no detectable change, before the
+// patches, where the soundings contradict it: at least one measured core within
+// soundings->radius_m, none of them significant with the vertex's sign, and the vertex's
+// distance further than its LoD95 from their mean distance (the soundings measured the same
+// surface and saw no change there). Each survey's TSDF mesh rounds a face its own way (its
+// footprints, its viewing angles): on bejanca a 58 deg riser beside the 0.2 m spill came out
+// 6-9 cm further out in B's mesh over 13 m^2 where the soundings' cores measured +0.003 m, none
+// significant, and the spill's region climbed the riser (+12.7 %; ChangeMeshResult::
+// vetoed_by_soundings).
 ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
                                    const TriangleMesh& a,
                                    const RigidCorrection& correction,
                                    const Eigen::Matrix<double, 6, 6>& covariance,
                                    const ChangeMeshConfig& config,
-                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab);
+                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab,
+                                   const SoundingsChange* soundings = nullptr);
 
 }  // namespace pitmap::proc::compare

@@ -508,6 +508,7 @@ struct ChangeOnMesh {
 Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                                            const Epoch& b,
                                            const compare::RegistrationResult& reg,
+                                           const Change3d& c3,
                                            const CompareConfig& cfg,
                                            const std::function<void(const std::string&)>& log) {
     ChangeOnMesh out;
@@ -521,8 +522,25 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
         return out;
     }
     for (Eigen::Vector3d& p : (*mb)->vertices) p = reg.correction.Apply(p);
-    out.change = compare::ComputeChangeMesh(
-        **mb, **ma, reg.correction, reg.covariance, cfg.mesh, CommonSigma(a.surface, b.surface));
+    // The soundings' change along the normal, where computed: what contradicts a vertex.
+    std::optional<compare::SoundingsChange> soundings;
+    if (c3.m3c2 && cfg.confirm_mesh_regions) {
+        soundings.emplace();
+        soundings->radius_m = cfg.m3c2.core_spacing_m;
+        for (const auto& c : c3.m3c2->cores) {
+            if (!std::isfinite(c.distance_m)) continue;
+            soundings->position.push_back(c.position);
+            soundings->distance_m.push_back(c.distance_m);
+            soundings->significance.push_back(c.significance);
+        }
+    }
+    out.change = compare::ComputeChangeMesh(**mb,
+                                            **ma,
+                                            reg.correction,
+                                            reg.covariance,
+                                            cfg.mesh,
+                                            CommonSigma(a.surface, b.surface),
+                                            soundings ? &*soundings : nullptr);
     out.b = std::move(**mb);
     log("compare: change mesh: " + out.change->message);
     out.record = {{"computed", true},
@@ -533,6 +551,7 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                   {"loss", out.change->loss},
                   {"patches", out.change->patches},
                   {"patches_dropped", out.change->patches_dropped},
+                  {"vetoed_by_soundings", out.change->vetoed_by_soundings},
                   {"median_lod95_m", out.change->median_lod95_m},
                   {"normals_turned_over", out.change->flipped},
                   {"max_distance_m", cfg.mesh.max_distance_m},
@@ -1317,7 +1336,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
-    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
+    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, r.change3d, cfg, log);
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
     ConfirmMeshRegions(r.change3d, cfg, log, r.change_mesh);

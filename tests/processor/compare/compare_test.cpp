@@ -804,3 +804,60 @@ TEST(CompareChangeMesh, RegionsAreConfirmedByTheSoundingsChangeAlongTheNormal) {
 
 }  // namespace
 }  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A vertex the soundings contradict is no change (ComputeChangeMesh's soundings): a 0.2 m
+// heap whose change the soundings' cores measure, and beside it, joined to it, a strip where
+// B's TSDF mesh lies 8 cm off A's while the cores there measure no change (bejanca's riser
+// beside the spill). Without the soundings the strip joins the heap's region (+2 m3); with
+// them the region is the heap's, within 3 %, its margin (cores that measure the same small
+// change below their LoD) kept.
+TEST(CompareChangeMesh, VerticesTheSoundingsContradictAreNoChange) {
+    const auto heap = [](double x, double y) {
+        return std::clamp((2.0 - std::hypot(x - 3.7, y - 5.0)) / 0.5, 0.0, 1.0) * 0.2;
+    };
+    const auto strip = [](double x, double) { return x > 5.5 && x < 8.0 ? 0.08 : 0.0; };
+    const TriangleMesh a = HeightField(0.1, 0.0, [](double, double) { return 0.0; });
+    const TriangleMesh b =
+        HeightField(0.1, 0.05, [&](double x, double y) { return heap(x, y) + strip(x, y); });
+    const auto sigma = [](const Eigen::Vector3d&) { return 0.02; };
+    SoundingsChange cores;
+    for (double x = 0.25; x < 10; x += 0.5) {
+        for (double y = 0.25; y < 10; y += 0.5) {
+            const double d = heap(x, y);  // the soundings: the heap only
+            cores.position.emplace_back(x, y, d);
+            cores.distance_m.push_back(static_cast<float>(d));
+            cores.significance.push_back(d > 0.04 ? 1 : 0);
+        }
+    }
+    const double heap_v = Integral(heap);
+    const auto run = [&](const SoundingsChange* s) {
+        return ComputeChangeMesh(b,
+                                 a,
+                                 RigidCorrection{},
+                                 Eigen::Matrix<double, 6, 6>::Zero(),
+                                 ChangeMeshConfig{},
+                                 sigma,
+                                 s);
+    };
+    const ChangeMeshResult without = run(nullptr);
+    ASSERT_EQ(without.regions.size(), 1u) << without.message;
+    EXPECT_GT(without.regions.front().volume_m3, heap_v + 1.5);  // the strip joined
+    const ChangeMeshResult with = run(&cores);
+    ASSERT_EQ(with.regions.size(), 1u) << with.message;
+    EXPECT_NEAR(with.regions.front().volume_m3, heap_v, 0.03 * heap_v)
+        << "U95 " << with.regions.front().u95_m3;
+    EXPECT_GT(with.vetoed_by_soundings, 2000u);  // the strip: 25 x 100 vertices
+    // The heap's margin is kept: its region reaches within 0.15 m of where it ends.
+    double reach = 0;
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+        if (with.region[i] == 0) continue;
+        reach = std::max(reach, std::hypot(b.vertices[i].x() - 3.7, b.vertices[i].y() - 5.0));
+    }
+    EXPECT_GT(reach, 2.0 - 0.15);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
