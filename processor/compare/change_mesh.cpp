@@ -154,7 +154,7 @@ void GroundOffsets(const TriangleMesh& m,
                    const ChangeMeshResult& r,
                    std::vector<RegionAcc>& acc) {
     const double outer = cfg.ground_band_outer_m, inner = cfg.ground_band_inner_m;
-    if (acc.empty() || !(outer > 0)) return;
+    if (acc.empty() || !(outer > 0)) return;  // Validate: outer > inner >= 0, margin <= outer
     // The unchanged measured vertices by cells of the band's outer width.
     const auto cell_of = [outer](const Eigen::Vector3d& p) {
         return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / outer)),
@@ -179,12 +179,18 @@ void GroundOffsets(const TriangleMesh& m,
     const double min_cos = std::cos(cfg.ground_band_max_angle_deg * 3.14159265358979 / 180.0);
     const double L2 = cfg.error_correlation_length_m * cfg.error_correlation_length_m;
     std::vector<double> band;
+    struct MarginVertex {
+        double projected_area, distance, sigma;
+    };
+    std::vector<MarginVertex> margin;
     for (std::size_t k = 0; k < acc.size(); ++k) {
         const reg::PointIndex<double> index(members[k].data(), members[k].size());
         const Eigen::Vector3i c0 = cell_of(acc[k].reg.min) - Eigen::Vector3i::Ones();
         const Eigen::Vector3i c1 = cell_of(acc[k].reg.max) + Eigen::Vector3i::Ones();
         band.clear();
+        margin.clear();
         double band_area = 0;
+        const double w = cfg.margin_band_m;
         for (int z = c0.z(); z <= c1.z(); ++z) {
             for (int y = c0.y(); y <= c1.y(); ++y) {
                 for (int x = c0.x(); x <= c1.x(); ++x) {
@@ -192,12 +198,17 @@ void GroundOffsets(const TriangleMesh& m,
                     if (it == cells.end()) continue;
                     for (int v : it->second) {
                         const auto i = static_cast<std::size_t>(v);
-                        if (r.normals[i].cast<double>().dot(u[k]) < min_cos) continue;
                         std::size_t nearest = 0;
                         double d2 = 0;
-                        if (!index.NearestWithin(m.vertices[i], outer * outer, &nearest, &d2) ||
-                            d2 < inner * inner)
+                        if (!index.NearestWithin(m.vertices[i], outer * outer, &nearest, &d2))
                             continue;
+                        const double cos_u = r.normals[i].cast<double>().dot(u[k]);
+                        if (d2 <= w * w) {
+                            margin.push_back({area[i] * std::abs(cos_u),
+                                              r.distance_m[i],
+                                              r.lod95_m[i] / cfg.z95});
+                        }
+                        if (d2 < inner * inner || cos_u < min_cos) continue;
                         band.push_back(r.distance_m[i]);
                         band_area += area[i];
                     }
@@ -208,17 +219,29 @@ void GroundOffsets(const TriangleMesh& m,
         g.ground_band_vertices = band.size();
         if (band.size() < cfg.ground_band_min_vertices) {
             g.ground_band_vertices = 0;
-            continue;
+            band.clear();
         }
-        const auto mid = band.begin() + static_cast<std::ptrdiff_t>(band.size() / 2);
-        std::nth_element(band.begin(), mid, band.end());
-        const double o = *mid;
-        for (double& b : band) b = std::abs(b - o);
-        std::nth_element(band.begin(), mid, band.end());
-        const double s = 1.4826 * *mid;
-        g.ground_offset_m = o;
-        g.sigma_ground_offset_m3 = acc[k].projected * 1.2533 * s /
-                                   std::sqrt(std::max(1.0, L2 > 0 ? band_area / L2 : band_area));
+        double o = 0;
+        if (!band.empty()) {
+            const auto mid = band.begin() + static_cast<std::ptrdiff_t>(band.size() / 2);
+            std::nth_element(band.begin(), mid, band.end());
+            o = *mid;
+            for (double& b : band) b = std::abs(b - o);
+            std::nth_element(band.begin(), mid, band.end());
+            const double s = 1.4826 * *mid;
+            g.ground_offset_m = o;
+            g.sigma_ground_offset_m3 =
+                acc[k].projected * 1.2533 * s /
+                std::sqrt(std::max(1.0, L2 > 0 ? band_area / L2 : band_area));
+        }
+        // The margin: what the band just outside holds above the ground around it.
+        double margin_area = 0, margin_var = 0;
+        for (const auto& [ap, d, sigma] : margin) {
+            g.margin_m3 += ap * (d - o);
+            margin_area += ap;
+            margin_var += ap * sigma * sigma;
+        }
+        g.sigma_margin_m3 = std::sqrt(std::min(L2, margin_area) * margin_var);
     }
 }
 
@@ -321,14 +344,15 @@ void Regions(const TriangleMesh& m,
             g.mean_lod95_m = acc[k].lod_a / g.area_m2;
             g.mean_slope_deg = acc[k].slope_a / g.area_m2;
         }
-        g.volume_m3 -= g.ground_offset_m * acc[k].projected;
+        g.volume_m3 += g.margin_m3 - g.ground_offset_m * acc[k].projected;
         if (acc[k].projected > 0) g.mean_distance_m = g.volume_m3 / acc[k].projected;
         g.sigma_random_m3 = std::sqrt(std::min(L2, acc[k].projected) * acc[k].sum_sigma2_a);
         g.sigma_registration_m3 =
             std::sqrt(std::max(0.0, (acc[k].sum_aJ * C * acc[k].sum_aJ.transpose())(0, 0)));
         g.u95_m3 = cfg.z95 * std::sqrt(g.sigma_random_m3 * g.sigma_random_m3 +
                                        g.sigma_registration_m3 * g.sigma_registration_m3 +
-                                       g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3) +
+                                       g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3 +
+                                       g.sigma_margin_m3 * g.sigma_margin_m3) +
                    g.rim_m3;
         r.regions.push_back(g);
     }
@@ -442,6 +466,8 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
         p.push_back("change_mesh.error_correlation_length_m must be >= 0");
     if (!(ground_band_inner_m >= 0) || !(ground_band_outer_m > ground_band_inner_m))
         p.push_back("change_mesh.ground_band_inner_m must be >= 0 and below ground_band_outer_m");
+    if (!(margin_band_m >= 0) || !(margin_band_m <= ground_band_outer_m))
+        p.push_back("change_mesh.margin_band_m must be in [0, ground_band_outer_m]");
     if (!(ground_band_max_angle_deg > 0) || !(ground_band_max_angle_deg <= 90))
         p.push_back("change_mesh.ground_band_max_angle_deg must be in (0, 90]");
     return p;

@@ -835,8 +835,8 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
     return h;
 }
 
-// The change mesh's regions of one sign in total, as the 2.5D totals: random and ground offset
-// terms in quadrature, registration (one correction) and rims linearly.
+// The change mesh's regions of one sign in total, as the 2.5D totals: random, ground offset and
+// margin terms in quadrature, registration (one correction) and rims linearly.
 struct Totals3d {
     int count = 0;
     double volume_m3 = 0, area_m2 = 0, u95_m3 = 0;
@@ -851,7 +851,8 @@ Totals3d RegionTotals3d(const compare::ChangeMeshResult& r, int sign, double z95
         t.volume_m3 += g.volume_m3;
         t.area_m2 += g.area_m2;
         var_rand += g.sigma_random_m3 * g.sigma_random_m3 +
-                    g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3;
+                    g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3 +
+                    g.sigma_margin_m3 * g.sigma_margin_m3;
         reg += g.sigma_registration_m3;
         rim += g.rim_m3;
     }
@@ -901,6 +902,8 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         rj["ground_offset_m"] = g.ground_offset_m;
         rj["sigma_ground_offset_m3"] = g.sigma_ground_offset_m3;
         rj["ground_band_vertices"] = g.ground_band_vertices;
+        rj["margin_m3"] = g.margin_m3;
+        rj["sigma_margin_m3"] = g.sigma_margin_m3;
         regions.push_back(rj);
     }
     if (auto s = WriteFeatureCollection(C / "change_regions_3d.geojson", epsg, std::move(features));
