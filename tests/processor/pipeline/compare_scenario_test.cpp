@@ -254,7 +254,8 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     };
     // The change mesh's regions with their volumes, on the surface (the scar on the 65 deg high
     // wall included, along its mean normal): every part's volume within 5 % or its U95, as the
-    // issue asks of the 2.5D regions (measured: -1.8 % to +4.7 %; IoU 0.79-0.95); the vertices the
+    // issue asks of the 2.5D regions, and here within 5 % itself (measured: +0.0 % to +2.1 %, the
+    // scar +6.1 % before decision 023; IoU 0.79-0.95); the vertices the
     // soundings' change along the normal contradicts set to no change before the patches (measured:
     // 3 144; the 8 regions of 13 on no part the soundings did not confirm before are gone with
     // them), no stable vertex in a region.
@@ -267,8 +268,8 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
         const std::string k = std::string("change3d_region_") + part + "_";
         EXPECT_EQ(s.at(k + "within"), 1)
             << part << ": " << s.at(k + "volume_detected_m3") << " +- " << s.at(k + "u95_m3");
-        // The truth inside its U95 (measured: 5 of 5, errors -1.8 % to +4.7 % with the volume
-        // against the unchanged ground around each region; the scar's +6.1 % before).
+        EXPECT_LT(std::abs(s.at(k + "volume_error_pct")), 5.0) << part;
+        // The truth inside its U95 (measured: 5 of 5; decision 023).
         EXPECT_LE(std::abs(s.at(k + "volume_detected_m3") -
                            s.at(std::string("change_") + part + "_volume_true_m3")),
                   s.at(k + "u95_m3"))
