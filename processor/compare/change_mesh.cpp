@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "processor/registration/neighbours.hpp"
@@ -133,6 +134,117 @@ std::vector<Eigen::Vector3f> VertexNormals(const TriangleMesh& m, bool* flipped)
     return out;
 }
 
+// A region's sums while its vertices are walked (Regions).
+struct RegionAcc {
+    ChangeRegion3d reg;
+    Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();
+    double sum_sigma2_a = 0, lod_a = 0, slope_a = 0, projected = 0;
+    Eigen::Matrix<double, 1, 6> sum_aJ = Eigen::Matrix<double, 1, 6>::Zero();
+};
+
+// Each region's ground offset (change_mesh.hpp): the median distance of the measured vertices
+// with no detectable change (|d| <= LoD95, in no region) between ground_band_inner_m and
+// ground_band_outer_m from the region's nearest vertex, whose normals lie within
+// ground_band_max_angle_deg of its axis u; and its 1-sigma times the region's projected area.
+// Sets acc[k].reg.ground_offset_m, sigma_ground_offset_m3, ground_band_vertices.
+void GroundOffsets(const TriangleMesh& m,
+                   const ChangeMeshConfig& cfg,
+                   const std::vector<double>& area,
+                   const std::vector<Eigen::Vector3d>& u,
+                   const ChangeMeshResult& r,
+                   std::vector<RegionAcc>& acc) {
+    const double outer = cfg.ground_band_outer_m, inner = cfg.ground_band_inner_m;
+    if (acc.empty() || !(outer > 0)) return;  // Validate: outer > inner >= 0, margin <= outer
+    // The unchanged measured vertices by cells of the band's outer width.
+    const auto cell_of = [outer](const Eigen::Vector3d& p) {
+        return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / outer)),
+                               static_cast<int>(std::floor(p.y() / outer)),
+                               static_cast<int>(std::floor(p.z() / outer)));
+    };
+    const auto key = [](const Eigen::Vector3i& c) {
+        const auto f = [](int v) { return static_cast<std::uint64_t>(v + (1 << 20)) & 0x1FFFFF; };
+        return (f(c.x()) << 42) | (f(c.y()) << 21) | f(c.z());
+    };
+    std::unordered_map<std::uint64_t, std::vector<int>> cells;
+    std::vector<std::vector<Eigen::Vector3d>> members(acc.size());
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+        if (r.region[i] != 0) {
+            members[static_cast<std::size_t>(r.region[i] - 1)].push_back(m.vertices[i]);
+            continue;
+        }
+        const float d = r.distance_m[i];
+        if (!std::isfinite(d) || std::abs(d) > r.lod95_m[i]) continue;
+        cells[key(cell_of(m.vertices[i]))].push_back(static_cast<int>(i));
+    }
+    const double min_cos = std::cos(cfg.ground_band_max_angle_deg * 3.14159265358979 / 180.0);
+    const double L2 = cfg.error_correlation_length_m * cfg.error_correlation_length_m;
+    std::vector<double> band;
+    struct MarginVertex {
+        double projected_area, distance, sigma;
+    };
+    std::vector<MarginVertex> margin;
+    for (std::size_t k = 0; k < acc.size(); ++k) {
+        const reg::PointIndex<double> index(members[k].data(), members[k].size());
+        const Eigen::Vector3i c0 = cell_of(acc[k].reg.min) - Eigen::Vector3i::Ones();
+        const Eigen::Vector3i c1 = cell_of(acc[k].reg.max) + Eigen::Vector3i::Ones();
+        band.clear();
+        margin.clear();
+        double band_area = 0;
+        const double w = cfg.margin_band_m;
+        for (int z = c0.z(); z <= c1.z(); ++z) {
+            for (int y = c0.y(); y <= c1.y(); ++y) {
+                for (int x = c0.x(); x <= c1.x(); ++x) {
+                    const auto it = cells.find(key({x, y, z}));
+                    if (it == cells.end()) continue;
+                    for (int v : it->second) {
+                        const auto i = static_cast<std::size_t>(v);
+                        std::size_t nearest = 0;
+                        double d2 = 0;
+                        if (!index.NearestWithin(m.vertices[i], outer * outer, &nearest, &d2))
+                            continue;
+                        const double cos_u = r.normals[i].cast<double>().dot(u[k]);
+                        if (d2 <= w * w) {
+                            margin.push_back({area[i] * std::abs(cos_u),
+                                              r.distance_m[i],
+                                              r.lod95_m[i] / cfg.z95});
+                        }
+                        if (d2 < inner * inner || cos_u < min_cos) continue;
+                        band.push_back(r.distance_m[i]);
+                        band_area += area[i];
+                    }
+                }
+            }
+        }
+        ChangeRegion3d& g = acc[k].reg;
+        g.ground_band_vertices = band.size();
+        if (band.size() < cfg.ground_band_min_vertices) {
+            g.ground_band_vertices = 0;
+            band.clear();
+        }
+        double o = 0;
+        if (!band.empty()) {
+            const auto mid = band.begin() + static_cast<std::ptrdiff_t>(band.size() / 2);
+            std::nth_element(band.begin(), mid, band.end());
+            o = *mid;
+            for (double& b : band) b = std::abs(b - o);
+            std::nth_element(band.begin(), mid, band.end());
+            const double s = 1.4826 * *mid;
+            g.ground_offset_m = o;
+            g.sigma_ground_offset_m3 =
+                acc[k].projected * 1.2533 * s /
+                std::sqrt(std::max(1.0, L2 > 0 ? band_area / L2 : band_area));
+        }
+        // The margin: what the band just outside holds above the ground around it.
+        double margin_area = 0, margin_var = 0;
+        for (const auto& [ap, d, sigma] : margin) {
+            g.margin_m3 += ap * (d - o);
+            margin_area += ap;
+            margin_var += ap * sigma * sigma;
+        }
+        g.sigma_margin_m3 = std::sqrt(std::min(L2, margin_area) * margin_var);
+    }
+}
+
 // The kept patches as regions with their volumes and uncertainty (change_mesh.hpp); root(i):
 // vertex i's patch; index: A's triangles.
 template <typename Root>
@@ -147,13 +259,7 @@ void Regions(const TriangleMesh& m,
              ChangeMeshResult& r) {
     const std::size_t n = m.vertices.size();
     r.region.assign(n, 0);
-    struct Acc {
-        ChangeRegion3d reg;
-        Eigen::Vector3d sum_an = Eigen::Vector3d::Zero();
-        double sum_sigma2_a = 0, lod_a = 0, slope_a = 0, projected = 0;
-        Eigen::Matrix<double, 1, 6> sum_aJ = Eigen::Matrix<double, 1, 6>::Zero();
-    };
-    std::vector<Acc> acc;
+    std::vector<RegionAcc> acc;
     std::vector<int> id_of_root(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
         if (r.significance[i] == 0) continue;
@@ -178,7 +284,7 @@ void Regions(const TriangleMesh& m,
     for (std::size_t i = 0; i < n; ++i) {
         if (r.region[i] == 0) continue;
         const auto k = static_cast<std::size_t>(r.region[i] - 1);
-        Acc& a = acc[k];
+        RegionAcc& a = acc[k];
         const Eigen::Vector3d& p = m.vertices[i];
         const Eigen::Vector3d nrm = r.normals[i].cast<double>();
         const double d = r.distance_m[i];
@@ -227,6 +333,7 @@ void Regions(const TriangleMesh& m,
         }
     }
     const double L2 = cfg.error_correlation_length_m * cfg.error_correlation_length_m;
+    GroundOffsets(m, cfg, area, u, r, acc);
     r.regions.clear();
     for (std::size_t k = 0; k < acc.size(); ++k) {
         ChangeRegion3d g = acc[k].reg;
@@ -237,11 +344,16 @@ void Regions(const TriangleMesh& m,
             g.mean_lod95_m = acc[k].lod_a / g.area_m2;
             g.mean_slope_deg = acc[k].slope_a / g.area_m2;
         }
+        g.volume_m3 += g.margin_m3 - g.ground_offset_m * acc[k].projected;
         if (acc[k].projected > 0) g.mean_distance_m = g.volume_m3 / acc[k].projected;
         g.sigma_random_m3 = std::sqrt(std::min(L2, acc[k].projected) * acc[k].sum_sigma2_a);
         g.sigma_registration_m3 =
             std::sqrt(std::max(0.0, (acc[k].sum_aJ * C * acc[k].sum_aJ.transpose())(0, 0)));
-        g.u95_m3 = cfg.z95 * std::hypot(g.sigma_random_m3, g.sigma_registration_m3) + g.rim_m3;
+        g.u95_m3 = cfg.z95 * std::sqrt(g.sigma_random_m3 * g.sigma_random_m3 +
+                                       g.sigma_registration_m3 * g.sigma_registration_m3 +
+                                       g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3 +
+                                       g.sigma_margin_m3 * g.sigma_margin_m3) +
+                   g.rim_m3;
         r.regions.push_back(g);
     }
 }
@@ -317,6 +429,31 @@ void TestPatches(const TriangleMesh& m,
     Regions(m, cfg, area, sigma, T, C, index, find, r);
 }
 
+// The significant vertices the soundings contradict set to 0 (ComputeChangeMesh).
+void VetoBySoundings(const TriangleMesh& m, const SoundingsChange& s, ChangeMeshResult& r) {
+    if (s.position.empty()) return;
+    const reg::PointIndex<double> index(s.position.data(), s.position.size());
+    std::vector<reg::PointIndex<double>::Hit> hits;
+    const double r2 = s.radius_m * s.radius_m;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+        const int sign = r.significance[i];
+        if (sign == 0) continue;
+        index.WithinRadius(m.vertices[i], r2, hits);
+        if (hits.empty()) continue;
+        double sum = 0;
+        bool agrees = false;
+        for (const auto& [k, d2] : hits) {
+            agrees = agrees || s.significance[k] == sign;
+            sum += s.distance_m[k];
+        }
+        const double mean = sum / static_cast<double>(hits.size());
+        if (agrees || std::abs(r.distance_m[i] - mean) <= r.lod95_m[i]) continue;
+        r.significance[i] = 0;
+        --(sign > 0 ? r.gain : r.loss);
+        ++r.vetoed_by_soundings;
+    }
+}
+
 }  // namespace
 
 std::vector<std::string> ChangeMeshConfig::Validate() const {
@@ -327,6 +464,12 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
     if (!(min_patch_area_m2 >= 0)) p.push_back("change_mesh.min_patch_area_m2 must be >= 0");
     if (!(error_correlation_length_m >= 0))
         p.push_back("change_mesh.error_correlation_length_m must be >= 0");
+    if (!(ground_band_inner_m >= 0) || !(ground_band_outer_m > ground_band_inner_m))
+        p.push_back("change_mesh.ground_band_inner_m must be >= 0 and below ground_band_outer_m");
+    if (!(margin_band_m >= 0) || !(margin_band_m <= ground_band_outer_m))
+        p.push_back("change_mesh.margin_band_m must be in [0, ground_band_outer_m]");
+    if (!(ground_band_max_angle_deg > 0) || !(ground_band_max_angle_deg <= 90))
+        p.push_back("change_mesh.ground_band_max_angle_deg must be in (0, 90]");
     return p;
 }
 
@@ -381,7 +524,8 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
                                    const RigidCorrection& T,
                                    const Eigen::Matrix<double, 6, 6>& C,
                                    const ChangeMeshConfig& cfg,
-                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab) {
+                                   const std::function<double(const Eigen::Vector3d&)>& sigma_ab,
+                                   const SoundingsChange* soundings) {
     ChangeMeshResult r;
     const std::size_t n = b.vertices.size();
     r.normals = VertexNormals(b, &r.flipped);
@@ -417,18 +561,20 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
             ++r.measured;
         }
     }
+    if (soundings != nullptr) VetoBySoundings(b, *soundings, r);
     TestPatches(b, cfg, sigma, T, C, index, r);
     if (!lods.empty()) {
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());
         r.median_lod95_m = lods[lods.size() / 2];
     }
-    char buf[320];
+    char buf[400];
     std::snprintf(buf,
                   sizeof buf,
                   "%zu of %zu vertices of B's mesh measured against A's along their normal, %zu "
                   "gain and %zu loss beyond the LoD95 (median %.3f m) in %zu patches (%zu "
-                  "dropped: small or below detection as a whole)%s",
+                  "dropped: small or below detection as a whole; %zu vertices the soundings "
+                  "contradict)%s",
                   r.measured,
                   n,
                   r.gain,
@@ -436,6 +582,7 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
                   r.median_lod95_m,
                   r.patches,
                   r.patches_dropped,
+                  r.vetoed_by_soundings,
                   r.flipped ? "; B's mesh was wound into the ground: normals turned over" : "");
     r.message = buf;
     return r;

@@ -508,6 +508,7 @@ struct ChangeOnMesh {
 Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                                            const Epoch& b,
                                            const compare::RegistrationResult& reg,
+                                           const Change3d& c3,
                                            const CompareConfig& cfg,
                                            const std::function<void(const std::string&)>& log) {
     ChangeOnMesh out;
@@ -521,8 +522,25 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
         return out;
     }
     for (Eigen::Vector3d& p : (*mb)->vertices) p = reg.correction.Apply(p);
-    out.change = compare::ComputeChangeMesh(
-        **mb, **ma, reg.correction, reg.covariance, cfg.mesh, CommonSigma(a.surface, b.surface));
+    // The soundings' change along the normal, where computed: what contradicts a vertex.
+    std::optional<compare::SoundingsChange> soundings;
+    if (c3.m3c2 && cfg.confirm_mesh_regions) {
+        soundings.emplace();
+        soundings->radius_m = cfg.m3c2.core_spacing_m;
+        for (const auto& c : c3.m3c2->cores) {
+            if (!std::isfinite(c.distance_m)) continue;
+            soundings->position.push_back(c.position);
+            soundings->distance_m.push_back(c.distance_m);
+            soundings->significance.push_back(c.significance);
+        }
+    }
+    out.change = compare::ComputeChangeMesh(**mb,
+                                            **ma,
+                                            reg.correction,
+                                            reg.covariance,
+                                            cfg.mesh,
+                                            CommonSigma(a.surface, b.surface),
+                                            soundings ? &*soundings : nullptr);
     out.b = std::move(**mb);
     log("compare: change mesh: " + out.change->message);
     out.record = {{"computed", true},
@@ -533,6 +551,7 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                   {"loss", out.change->loss},
                   {"patches", out.change->patches},
                   {"patches_dropped", out.change->patches_dropped},
+                  {"vetoed_by_soundings", out.change->vetoed_by_soundings},
                   {"median_lod95_m", out.change->median_lod95_m},
                   {"normals_turned_over", out.change->flipped},
                   {"max_distance_m", cfg.mesh.max_distance_m},
@@ -816,8 +835,8 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
     return h;
 }
 
-// The change mesh's regions of one sign in total, as the 2.5D totals: random terms in
-// quadrature, registration (one correction) and rims linearly.
+// The change mesh's regions of one sign in total, as the 2.5D totals: random, ground offset and
+// margin terms in quadrature, registration (one correction) and rims linearly.
 struct Totals3d {
     int count = 0;
     double volume_m3 = 0, area_m2 = 0, u95_m3 = 0;
@@ -831,7 +850,9 @@ Totals3d RegionTotals3d(const compare::ChangeMeshResult& r, int sign, double z95
         ++t.count;
         t.volume_m3 += g.volume_m3;
         t.area_m2 += g.area_m2;
-        var_rand += g.sigma_random_m3 * g.sigma_random_m3;
+        var_rand += g.sigma_random_m3 * g.sigma_random_m3 +
+                    g.sigma_ground_offset_m3 * g.sigma_ground_offset_m3 +
+                    g.sigma_margin_m3 * g.sigma_margin_m3;
         reg += g.sigma_registration_m3;
         rim += g.rim_m3;
     }
@@ -878,6 +899,11 @@ Expected<json> WriteChangeRegions3d(const fs::path& C,
         rj["sigma_random_m3"] = g.sigma_random_m3;
         rj["sigma_registration_m3"] = g.sigma_registration_m3;
         rj["rim_m3"] = g.rim_m3;
+        rj["ground_offset_m"] = g.ground_offset_m;
+        rj["sigma_ground_offset_m3"] = g.sigma_ground_offset_m3;
+        rj["ground_band_vertices"] = g.ground_band_vertices;
+        rj["margin_m3"] = g.margin_m3;
+        rj["sigma_margin_m3"] = g.sigma_margin_m3;
         regions.push_back(rj);
     }
     if (auto s = WriteFeatureCollection(C / "change_regions_3d.geojson", epsg, std::move(features));
@@ -1317,7 +1343,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
-    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, cfg, log);
+    auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, r.change3d, cfg, log);
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
     ConfirmMeshRegions(r.change3d, cfg, log, r.change_mesh);

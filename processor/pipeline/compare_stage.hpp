@@ -62,7 +62,8 @@ struct CompareConfig {
     compare::ChangeMeshConfig mesh;
     double change_mesh_colour_scale_m = 0.5;  // change mesh: full colour at this distance, m
     // Keep a change mesh region only where half the soundings' measured core points within a
-    // core spacing of it are significant with its sign (needs change3d).
+    // core spacing of it are significant with its sign, and a vertex only where the cores
+    // within a core spacing do not contradict it (needs change3d; change_mesh.hpp).
     bool confirm_mesh_regions = true;
     double capacity_step_m = 0.25;  // capacity curve: a row every step, m
     // A design surface (the planned cut: a GeoTIFF of heights in the surveys' CRS and vertical

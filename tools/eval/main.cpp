@@ -222,10 +222,11 @@ double DatumHeight(const fs::path& products) {
 struct EvalOptions {
     std::string truth_dir;
     std::string products_dir;
-    std::string json_path;      // empty: no JSON file
-    std::string common_with;    // --mesh-common-with: another products folder
-    double ate_window_s = 0;    // 0: no per-window ATE
-    std::string soundings_csv;  // --soundings-csv: empty, none written
+    std::string json_path;        // empty: no JSON file
+    std::string common_with;      // --mesh-common-with: another products folder
+    double ate_window_s = 0;      // 0: no per-window ATE
+    std::string soundings_csv;    // --soundings-csv: empty, none written
+    std::string change_mesh_csv;  // --change-mesh-csv: empty, none written
 };
 
 // The command line into `options`; an exit code when the program stops here (help, a usage
@@ -254,6 +255,14 @@ std::optional<int> ParseOptions(int argc, char** argv, EvalOptions& options) {
                    "gps_time_s, range_m, status, kind (none for a good sounding), the signed "
                    "distance to the true surface and its slope (where a cleaning's residuals "
                    "come from)");
+    app.add_option("--change-mesh-csv",
+                   options.change_mesh_csv,
+                   "with a compare folder: write every vertex of P/change_mesh.ply to this CSV "
+                   "with its truth: x, y (the truth's world frame), z (as in the mesh), the "
+                   "normal, distance_m, lod95_m, significance, region, true_dz (B's true height "
+                   "change there, vertical), part (the index in changes.json of the part whose "
+                   "profile is largest there, -1 on none) and true_height_b_m (B's true terrain "
+                   "height, world z): where a change region's volume comes from");
     app.footer(kDefinitions);
     if (auto code = pitmap::cli::ParseCommandLine(app, argc, argv, "pitmap-eval")) return code;
     for (const std::string& dir : {options.truth_dir, options.products_dir}) {
@@ -607,6 +616,59 @@ Status WriteSoundingsCsv(const Scoring& scoring) {
         out << line;
     }
     if (!out) return Error{"--soundings-csv: " + scoring.options.soundings_csv + ": cannot write"};
+    return Ok{};
+}
+
+// --change-mesh-csv: every vertex of a compare folder's change mesh with its truth, one a line,
+// for finding where a change region's volume comes from. to_world: A's CRS to the truth's
+// world frame (x, y).
+template <typename ToWorld>
+Status WriteChangeMeshCsv(const Scoring& scoring,
+                          const fs::path& ply_path,
+                          const ToWorld& to_world) {
+    auto cm = formats::ply::ReadMesh(
+        ply_path.string(), {"nx", "ny", "nz", "distance_m", "lod95_m", "significance", "region"});
+    if (!cm) return Error{"--change-mesh-csv: " + cm.error().message};
+    std::ofstream out(scoring.options.change_mesh_csv);
+    out << "x,y,z,nx,ny,nz,distance_m,lod95_m,significance,region,true_dz,part,"
+           "true_height_b_m\n";
+    const auto& parts = scoring.truth.changes;
+    const auto& vp = cm->vertex_properties;
+    for (std::size_t i = 0; i < cm->vertices.size(); ++i) {
+        const auto w = to_world(cm->vertices[i].x(), cm->vertices[i].y());
+        if (!w) continue;
+        double dz = 0, best = 0;
+        int part = -1;
+        for (std::size_t p = 0; p < parts.size(); ++p) {
+            const double f = parts[p].Profile(w->x(), w->y());
+            dz += parts[p].thickness_m * f;
+            if (f > best) {
+                best = f;
+                part = static_cast<int>(p);
+            }
+        }
+        char line[320];
+        std::snprintf(line,
+                      sizeof line,
+                      "%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%d,%d,%.4f,%d,%.4f\n",
+                      w->x(),
+                      w->y(),
+                      cm->vertices[i].z(),
+                      vp[0][i],
+                      vp[1][i],
+                      vp[2][i],
+                      vp[3][i],
+                      vp[4][i],
+                      static_cast<int>(vp[5][i]),
+                      static_cast<int>(vp[6][i]),
+                      dz,
+                      part,
+                      scoring.world.Height(w->x(), w->y()));
+        out << line;
+    }
+    if (!out) {
+        return Error{"--change-mesh-csv: " + scoring.options.change_mesh_csv + ": cannot write"};
+    }
     return Ok{};
 }
 
@@ -1056,6 +1118,10 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
             scores["change3d_region_parts_within"] = mesh_within;
             scores["change3d_region_stable_flagged_share"] = ms.stable_flagged_share;
             scores["change3d_region_false_regions"] = ms.false_regions;
+            if (!scoring.options.change_mesh_csv.empty()) {
+                if (auto w = WriteChangeMeshCsv(scoring, P / "change_mesh.ply", to_world); !w)
+                    return w;
+            }
         }
         // B's capacity at its water level against the true terrain under B's surveyed nodes.
         const std::string b_dir = cj["inputs"]["b"].value("folder", std::string());

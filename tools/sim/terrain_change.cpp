@@ -38,6 +38,29 @@ Eigen::Vector2d HalfExtent(const ChangePart& p) {
 
 }  // namespace
 
+bool PartsApart(const ChangePart& a, const ChangePart& b, double gap_m) {
+    // a's outline grown by gap_m, sampled every 0.05 m in a's frame, against b's profile.
+    const Eigen::Vector2d h = HalfExtent(a) + Eigen::Vector2d::Constant(gap_m);
+    constexpr double kStep = 0.05;
+    const auto near_a = [&](double x, double y) {
+        if (a.Profile(x, y) > 0) return true;
+        for (int r = 1; r <= 4; ++r) {
+            for (int k = 0; k < 16; ++k) {
+                const double phi = k * kPi / 8, d = gap_m * r / 4;
+                if (a.Profile(x + d * std::cos(phi), y + d * std::sin(phi)) > 0) return true;
+            }
+        }
+        return false;
+    };
+    for (double u = -h.x(); u <= h.x(); u += kStep) {
+        for (double v = -h.y(); v <= h.y(); v += kStep) {
+            const Eigen::Vector2d q = World(a, u, v);
+            if (b.Profile(q.x(), q.y()) > 0 && near_a(q.x(), q.y())) return false;
+        }
+    }
+    return true;
+}
+
 const char* ToString(ChangeShape s) {
     switch (s) {
         case ChangeShape::kParaboloid:
@@ -147,7 +170,7 @@ double GridVolume(const TerrainGrid& grid, const ChangePart& part) {
     return sum * grid.resolution_m * grid.resolution_m;
 }
 
-std::vector<ChangePart> DefaultChanges(const PitConfig& pit) {
+std::vector<ChangePart> DefaultChanges(const PitConfig& pit, const PitWorld* ground) {
     // Laid out on the quarry (70 m x 50 m, 14 m floor) and scaled to other pits.
     const double sx = pit.half_length_m / 35.0, sy = pit.half_width_m / 25.0;
     const double s = std::min(sx, sy);
@@ -218,6 +241,50 @@ std::vector<ChangePart> DefaultChanges(const PitConfig& pit) {
     cut.ramp_m = 0.5 * s;
     cut.thickness_m = -0.35;
     parts.push_back(cut);
+    // Parts apart: a survey sees the net change, so where two parts overlap neither's volume
+    // can be measured alone (on bejanca, scaled from the quarry's layout, the slump's toe ran
+    // 0.5 m into the cut's side: 6.4 m^2 where the toe's +0.36 m^3 and the cut's -1.24 m^3 net
+    // out). Each part after the slump, in order, that comes within kPartGapM of an earlier one
+    // is moved to the nearest place (rings of 0.25 m around it, 24 directions, the direction
+    // away from that part first) where it is apart from every earlier one and, given the
+    // ground, still on the floor (slope at its centre below kFloorSlopeDeg, its outline under
+    // water).
+    constexpr double kPartGapM = 1.0, kFloorSlopeDeg = 30.0;
+    for (std::size_t i = 2; i < parts.size(); ++i) {
+        const auto clash = [&](const ChangePart& p) -> const ChangePart* {
+            for (std::size_t k = 0; k < i; ++k) {
+                if (!PartsApart(p, parts[k], kPartGapM)) return &parts[k];
+            }
+            return nullptr;
+        };
+        const ChangePart* first = clash(parts[i]);
+        if (first == nullptr) continue;
+        const auto on_floor = [&](const ChangePart& p) {
+            if (ground == nullptr) return true;
+            const double slope = std::atan(ground->Gradient(p.x_m, p.y_m).norm()) / kDegToRad;
+            if (!(slope < kFloorSlopeDeg)) return false;
+            for (const Eigen::Vector2d& q : p.Outline(24)) {
+                if (!(ground->Height(q.x(), q.y()) < -1.0)) return false;
+            }
+            return true;
+        };
+        const double away = std::atan2(parts[i].y_m - first->y_m, parts[i].x_m - first->x_m);
+        const ChangePart original = parts[i];
+        bool placed = false;
+        for (int ring = 1; ring <= 80 && !placed; ++ring) {
+            for (int k = 0; k < 24 && !placed; ++k) {
+                // 0, +15, -15, +30, ... deg from the direction away.
+                const double turn = ((k + 1) / 2) * (k % 2 == 1 ? 1 : -1) * 15.0 * kDegToRad;
+                ChangePart c = original;
+                c.x_m += 0.25 * ring * std::cos(away + turn);
+                c.y_m += 0.25 * ring * std::sin(away + turn);
+                if (clash(c) == nullptr && on_floor(c)) {
+                    parts[i] = c;
+                    placed = true;
+                }
+            }
+        }
+    }
     return parts;
 }
 
@@ -231,7 +298,10 @@ Expected<ScenarioConfig> RepeatEpoch(const ScenarioConfig& first, int epoch) {
     const auto k = static_cast<std::uint64_t>(epoch - 1);
     sc.terrain_seed = first.TerrainSeed();
     sc.seed = first.seed + 7919u * k;  // own noise: sonar, navigation errors, waves
-    sc.changes = DefaultChanges(first.pit);
+    {
+        const PitWorld ground(first.pit, first.TerrainSeed());
+        sc.changes = DefaultChanges(first.pit, &ground);
+    }
     // Surveyed (k x 91) days later, by a crew that remounted the sonar and whose topside PC
     // has a clock of its own.
     {

@@ -40,10 +40,17 @@ std::vector<float> ChangeGrid(const TerrainGrid& grid, const std::vector<ChangeP
 // measured on the grid (the second way, against AnalyticVolume).
 double GridVolume(const TerrainGrid& grid, const ChangePart& part);
 
+// Whether no point of b's outline lies within gap_m of a's (sampled every 0.05 m, the gap on
+// 16 directions at 4 distances: within a few per cent).
+bool PartsApart(const ChangePart& a, const ChangePart& b, double gap_m);
+
 // The changes a repeat survey of `pit` finds (scaled to the pit's size): a slump of the deepest
 // wall at direction ~80 deg (the high wall where there is one, else the last riser), a heap of
 // backfill and a thinner spill on the floor, a mined cut in the floor. The rest is stable.
-std::vector<ChangePart> DefaultChanges(const PitConfig& pit);
+// The parts lie at least 1 m apart (a part placed within that of an earlier one is moved to the
+// nearest place apart from them and, with `ground` (the pit before the change), on its floor):
+// each part's volume is then what a survey can measure of it.
+std::vector<ChangePart> DefaultChanges(const PitConfig& pit, const PitWorld* ground = nullptr);
 
 // The scenario of a repeat survey: epoch 1 is `first` itself; epoch k >= 2 keeps the pit
 // (terrain_seed = the first epoch's seed) and adds DefaultChanges, and is surveyed again with

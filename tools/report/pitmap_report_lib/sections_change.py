@@ -700,8 +700,9 @@ def _regions3d_table(c):
         '<p class="caption">The change mesh\'s regions (change_regions_3d.geojson, the '
         "region of each vertex in change_mesh.ply): significant vertices of one sign joined by "
         "the mesh's edges, each volume measured along the region's mean normal (on a wall, "
-        "across the face), its U95 from both surveys' uncertainty, the co-registration and "
-        "the rim left below detection.</p>"])
+        "across the face) against the unchanged ground 1-3 m around it, its U95 from both "
+        "surveys' uncertainty, the co-registration, that ground's offset and the rim left "
+        "below detection.</p>"])
 
 
 def _change_points_map(c):
