@@ -877,7 +877,21 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         hydro::CubeResult& cube,
                                         hydro::TpuResult& tpu) {
     const std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
-    const std::vector<char> keep = RejectPoints(s, verdict);
+    // Which soundings stay: those the filter keeps, and those a hand edit restored (only
+    // RejectPoints, on the view, knows which: with no restore by hand in the survey the view may
+    // stay spilled through CUBE's second pass and is read back after it).
+    const bool hand_restores =
+        std::any_of(s.model.flags.manual.begin(), s.model.flags.manual.end(), [](std::uint8_t m) {
+            return static_cast<survey::ManualEdit>(m) == survey::ManualEdit::kRestore;
+        });
+    std::vector<char> keep;
+    if (hand_restores || !s.spilled_view) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+        keep = RejectPoints(s, verdict);
+    } else {
+        keep.resize(verdict.size());
+        for (std::size_t j = 0; j < verdict.size(); ++j) keep[j] = verdict[j] == 0 ? 1 : 0;
+    }
     std::int64_t rejected = 0;
     std::size_t kept = 0;
     for (std::size_t j = 0; j < keep.size(); ++j) {
@@ -901,6 +915,11 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
         soundings.resize(k);
         cube = SurveyCube(soundings, gc, tiles);
         if (!cube.ok) return Error{cube.message};
+    }
+    if (s.spilled_view) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+        PITMAP_CHECK(RejectPoints(s, verdict) == keep,
+                     "the surface filter's verdicts kept other soundings in the view");
     }
     return rejected;
 }
@@ -1063,7 +1082,7 @@ Status WriteSoundingProducts(StageContext& s,
                                               datum,
                                               meta,
                                               s.model.run_id,
-                                              static_cast<std::size_t>(config.run.block_soundings));
+                                              BlockWithinBudget(config.run, ResidentMb()));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1302,8 +1321,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     std::optional<hydro::DatumModel>& datum = in->datum;
     const json& datum_record = in->datum_record;
     std::vector<hydro::CubeSounding>& soundings = in->soundings;
+    // CUBE and the surface filter's verdicts read CUBE's input alone: the view's points wait on
+    // disk (decision 020) until the verdicts are applied to them.
+    if (auto st = SpillView(s); !st) return Error{"grid: " + st.error().message};
     hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
-    if (!cube.ok) return Error{cube.message};
+    if (!cube.ok) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+        return Error{cube.message};
+    }
     part.Lap(timings, "cube");
     // The surface filter: soundings that do not support the node's chosen hypothesis are
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
@@ -1316,6 +1341,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
             " soundings off the CUBE surface rejected");
         part.Lap(timings, "surface_filter");
     }
+    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
     // S-44 takes its soundings from the UTM positions, as CubeSoundings did.
     std::vector<hydro::CubeSounding>().swap(soundings);
