@@ -38,9 +38,10 @@ georef::GeorefPoints MakePoints(std::size_t n, bool with_status) {
 
 void ExpectSameBits(const georef::GeorefPoints& a, const georef::GeorefPoints& b) {
     ASSERT_EQ(a.size(), b.size());
-    EXPECT_EQ(0, std::memcmp(a.position_world.data(),
-                             b.position_world.data(),
-                             a.size() * sizeof(Eigen::Vector3d)));
+    EXPECT_EQ(
+        0,
+        std::memcmp(
+            a.position_world.data(), b.position_world.data(), a.size() * sizeof(Eigen::Vector3d)));
     EXPECT_EQ(a.ping, b.ping);
     EXPECT_EQ(a.beam, b.beam);
     EXPECT_EQ(0, std::memcmp(a.range_m.data(), b.range_m.data(), a.size() * sizeof(float)));
