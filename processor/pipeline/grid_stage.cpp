@@ -932,7 +932,8 @@ Status ApplyPendingVerdicts(StageContext& s,
     if (pending.empty()) return Ok{};
     const std::vector<char> keep = RejectPoints(s, pending);
     const auto gone = std::count(keep.begin(), keep.end(), char{0});
-    PITMAP_CHECK(gone == rejected, "the surface filter's verdicts left other soundings in the view");
+    PITMAP_CHECK(gone == rejected,
+                 "the surface filter's verdicts left other soundings in the view");
     return Ok{};
 }
 
