@@ -136,12 +136,11 @@ Status SpilledPoints::Restore(georef::GeorefPoints& points) {
         return fail("not the view's points this run wrote (header differs)");
     }
     const std::size_t count = static_cast<std::size_t>(n);
-    const bool ok = ReadArray(f.get(), points.position_world, count) &&
-                    ReadArray(f.get(), points.ping, count) &&
-                    ReadArray(f.get(), points.beam, count) &&
-                    ReadArray(f.get(), points.range_m, count) &&
-                    ReadArray(f.get(), points.angle_rad, count) &&
-                    ReadArray(f.get(), points.status, with_status != 0 ? count : 0);
+    const bool ok =
+        ReadArray(f.get(), points.position_world, count) &&
+        ReadArray(f.get(), points.ping, count) && ReadArray(f.get(), points.beam, count) &&
+        ReadArray(f.get(), points.range_m, count) && ReadArray(f.get(), points.angle_rad, count) &&
+        ReadArray(f.get(), points.status, with_status != 0 ? count : 0);
     if (!ok) return fail("the view's points are shorter than written");
     if (std::fgetc(f.get()) != EOF) return fail("the view's points are longer than written");
     f.reset();
