@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -15,19 +16,32 @@
 
 namespace pitmap {
 
-double PeakRssMb() {
+namespace {
+
+// A "Name: N kB" line of /proc/self/status, MiB; negative when it cannot be read.
+double StatusMb(const char* format) {
+    long kb = -1;
     if (std::FILE* f = std::fopen("/proc/self/status", "r")) {
         char line[256];
-        long kb = -1;
         while (std::fgets(line, sizeof(line), f) != nullptr) {
-            if (std::sscanf(line, "VmHWM: %ld kB", &kb) == 1) break;
+            if (std::sscanf(line, format, &kb) == 1) break;
         }
         std::fclose(f);
-        if (kb >= 0) return static_cast<double>(kb) / 1024.0;
     }
+    return kb >= 0 ? static_cast<double>(kb) / 1024.0 : -1.0;
+}
+
+}  // namespace
+
+double PeakRssMb() {
+    if (const double mb = StatusMb("VmHWM: %ld kB"); mb >= 0) return mb;
     struct rusage u {};
     getrusage(RUSAGE_SELF, &u);
     return static_cast<double>(u.ru_maxrss) / 1024.0;
+}
+
+double ResidentMb() {
+    return std::max(0.0, StatusMb("VmRSS: %ld kB"));
 }
 
 void ResetPeakRss() {

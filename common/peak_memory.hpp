@@ -12,6 +12,8 @@ namespace pitmap {
 // ResetPeakRss() can reset and which, unlike getrusage's ru_maxrss, does not carry a parent's
 // peak across exec), else ru_maxrss.
 double PeakRssMb();
+// Resident set size of this process now, MiB (VmRSS); 0 where it cannot be read.
+double ResidentMb();
 // Resets the kernel's high-water mark (/proc/self/clear_refs "5", Linux >= 4.0) after handing
 // the heap's free pages back (malloc_trim), so the next PeakRssMb() is the peak from now on;
 // without the kernel's support the peak stays cumulative.

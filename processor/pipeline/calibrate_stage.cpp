@@ -428,6 +428,9 @@ void ApplyCalibration(StageContext& s,
     }
     if (mc.latency_applied && cal.latency_s != 0.0) {
         survey::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
+        // The old view is released first: the new one is made from the model alone, and two
+        // views at once were the stage's peak (38 bytes a sounding twice; decision 020).
+        s.geo = georef::GeorefResult{};
         s.geo = georef::RunGeoref(s.model.ingest.nav,
                                   s.model.ingest.pings,
                                   s.model.mount,
@@ -532,6 +535,7 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
     // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
     if (s.model.ResetCalibration()) {
         log("calibrate: starting again from the nominal mount and sonar clock");
+        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
         s.geo = georef::Georeference(
             s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
     }

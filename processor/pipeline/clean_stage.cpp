@@ -185,6 +185,7 @@ Status CleanSurvey(StageContext& s,
     bool cleaned_before = false;
     for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
     if (cleaned_before || AnyManualReject(flags)) {
+        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
         s.geo = georef::Georeference(s.model,
                                      s.model.latest(),
                                      config.georef,

@@ -839,6 +839,16 @@ Expected<PipelineConfig> LoadConfig(const std::string& path) {
     return c;
 }
 
+std::size_t BlockWithinBudget(const RunOptions& run, double resident_mb) {
+    const auto configured =
+        static_cast<std::size_t>(std::max<int>(run.block_soundings, kMinBlockSoundings));
+    const double headroom_mb = run.memory_budget_mb - std::max(0.0, resident_mb);
+    if (!(headroom_mb < std::numeric_limits<double>::infinity())) return configured;
+    const double fits = std::floor(std::max(0.0, headroom_mb) * 1048576.0 / kBlockBytesPerSounding);
+    if (fits >= static_cast<double>(configured)) return configured;
+    return std::max(kMinBlockSoundings, static_cast<std::size_t>(fits));
+}
+
 std::string ConfigYaml(const PipelineConfig& config) {
     PipelineConfig c = config;
     std::ostringstream o;

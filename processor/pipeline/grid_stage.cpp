@@ -869,15 +869,32 @@ hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
 
 // The surface filter (SurfaceFilter): soundings that do not support their node's chosen
 // hypothesis are rejected in the survey (RejectPoints), and taken out of the TPU and CUBE's
-// input. Returns how many.
+// input. Returns how many. With the view spilled (SpillView) and no sounding restored by hand,
+// the verdicts are left in `pending` (when given) for the caller to apply (ApplyPendingVerdicts)
+// once it has freed CUBE's input and read the view back.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
                                         const TilesConfig& tiles,
                                         std::vector<hydro::CubeSounding>& soundings,
                                         hydro::CubeResult& cube,
-                                        hydro::TpuResult& tpu) {
-    const std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
-    const std::vector<char> keep = RejectPoints(s, verdict);
+                                        hydro::TpuResult& tpu,
+                                        std::vector<std::uint8_t>* pending) {
+    std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
+    // Which soundings stay: those the filter keeps, and those a hand edit restored (only
+    // RejectPoints, on the view, knows which: with no restore by hand in the survey the view may
+    // stay spilled through CUBE's second pass and is read back after it).
+    const bool hand_restores =
+        std::any_of(s.model.flags.manual.begin(), s.model.flags.manual.end(), [](std::uint8_t m) {
+            return static_cast<survey::ManualEdit>(m) == survey::ManualEdit::kRestore;
+        });
+    std::vector<char> keep;
+    if (hand_restores || !s.spilled_view || pending == nullptr) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+        keep = RejectPoints(s, verdict);
+    } else {
+        keep.resize(verdict.size());
+        for (std::size_t j = 0; j < verdict.size(); ++j) keep[j] = verdict[j] == 0 ? 1 : 0;
+    }
     std::int64_t rejected = 0;
     std::size_t kept = 0;
     for (std::size_t j = 0; j < keep.size(); ++j) {
@@ -902,7 +919,22 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
         cube = SurveyCube(soundings, gc, tiles);
         if (!cube.ok) return Error{cube.message};
     }
+    if (s.spilled_view) *pending = std::move(verdict);
     return rejected;
+}
+
+// The view read back (RestoreView) and the surface filter's pending verdicts applied to it: the
+// same soundings leave it as RejectOffSurface took out of CUBE's input (`rejected`).
+Status ApplyPendingVerdicts(StageContext& s,
+                            const std::vector<std::uint8_t>& pending,
+                            std::int64_t rejected) {
+    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+    if (pending.empty()) return Ok{};
+    const std::vector<char> keep = RejectPoints(s, pending);
+    const auto gone = std::count(keep.begin(), keep.end(), char{0});
+    PITMAP_CHECK(gone == rejected,
+                 "the surface filter's verdicts left other soundings in the view");
+    return Ok{};
 }
 
 // dem.tif's and dem.bag's raster: the CUBE grid's bands in UTM, on the products' vertical datum,
@@ -1063,7 +1095,7 @@ Status WriteSoundingProducts(StageContext& s,
                                               datum,
                                               meta,
                                               s.model.run_id,
-                                              static_cast<std::size_t>(config.run.block_soundings));
+                                              BlockWithinBudget(config.run, ResidentMb()));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1302,23 +1334,32 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     std::optional<hydro::DatumModel>& datum = in->datum;
     const json& datum_record = in->datum_record;
     std::vector<hydro::CubeSounding>& soundings = in->soundings;
+    // CUBE and the surface filter's verdicts read CUBE's input alone: the view's points wait on
+    // disk (decision 020) until the verdicts are applied to them.
+    if (auto st = SpillView(s); !st) return Error{"grid: " + st.error().message};
     hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
-    if (!cube.ok) return Error{cube.message};
+    if (!cube.ok) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+        return Error{cube.message};
+    }
     part.Lap(timings, "cube");
     // The surface filter: soundings that do not support the node's chosen hypothesis are
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
+    std::vector<std::uint8_t> pending;  // the verdicts, applied to the view once it is back
     if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu);
+        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu, &pending);
         if (!rejected) return rejected.error();
         surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
             " soundings off the CUBE surface rejected");
-        part.Lap(timings, "surface_filter");
     }
     // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
-    // S-44 takes its soundings from the UTM positions, as CubeSoundings did.
+    // S-44 takes its soundings from the UTM positions, as CubeSoundings did. Freed before the
+    // view comes back.
     std::vector<hydro::CubeSounding>().swap(soundings);
+    if (auto st = ApplyPendingVerdicts(s, pending, surface_rejected); !st) return st;
+    if (gc.surface_filter) part.Lap(timings, "surface_filter");
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);

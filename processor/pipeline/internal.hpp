@@ -19,6 +19,7 @@
 #include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/io/view_spill.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/survey/survey.hpp"
@@ -43,7 +44,17 @@ struct StageContext {
     bool defer_products = false;
     // The products' vertical datum, once the grid stage (or the mesh stage) built it.
     std::optional<hydro::DatumModel> datum;
+    // geo.points while a stage that does not read them runs (SpillView, RestoreView; decision
+    // 020): on disk in P, geo.points empty meanwhile.
+    std::optional<io::SpilledPoints> spilled_view;
 };
+
+// Moves the view's points (s.geo.points) to a scratch file in P until RestoreView: a stage that
+// reads only what it built from them (SLAM's slices, the TSDF's scans) then runs without their
+// 38 bytes a sounding. An error (P not writable, the disk full) leaves the view held.
+Status SpillView(StageContext& s);
+// Reads the spilled points back (bit for bit) into s.geo.points; nothing when none are spilled.
+Status RestoreView(StageContext& s);
 
 // Refraction for a new georeference: the config's casts (none: straight rays) with the INS
 // height above the water line from the config, else from the vehicle file; sets the model's
@@ -272,9 +283,14 @@ Expected<nlohmann::json> TerrainSurvey(const StageContext& s,
 Status FuseTile(StageContext& s, const PipelineConfig& config, TileIndex tile, const Log& log);
 Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& log);
 Expected<std::vector<TileIndex>> ListFuseTiles(StageContext& s, const PipelineConfig& config);
+// What FuseSurvey does with the view's points once its scans are built (the integration reads
+// the scans alone): kSpilled, SpillView (a later stage calls RestoreView); kReleased, freed (the
+// caller reads them no more).
+enum class ViewAfterScans { kSpilled, kReleased };
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
+                                        ViewAfterScans view,
                                         const Log& log);
 // Meshes a volume; kMesh writes mesh.* and mesh_filled.*, kMeshInitial only mesh_initial.ply.
 Status MeshSurvey(StageContext& s,

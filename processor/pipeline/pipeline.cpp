@@ -186,7 +186,7 @@ Status WritePoints(const std::string& dir,
                                           hydro::DatumModel{},
                                           meta != nullptr ? *meta : ProductMetadata{},
                                           run_id,
-                                          static_cast<std::size_t>(c.run.block_soundings));
+                                          BlockWithinBudget(c.run, ResidentMb()));
             !s)
             return s;
     }
@@ -436,6 +436,21 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
     }
     return s;
+}
+
+Status SpillView(StageContext& s) {
+    if (s.spilled_view) return Ok{};
+    auto spilled = io::SpilledPoints::Spill(s.geo.points, io::ViewSpillPath(s.out_dir));
+    if (!spilled) return spilled.error();
+    s.spilled_view = std::move(*spilled);
+    return Ok{};
+}
+
+Status RestoreView(StageContext& s) {
+    if (!s.spilled_view) return Ok{};
+    Status st = s.spilled_view->Restore(s.geo.points);
+    s.spilled_view.reset();
+    return st;
 }
 
 Status SaveSurvey(const StageContext& s) {

@@ -36,6 +36,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <functional>
 #include <limits>
 #include <string>
@@ -86,6 +87,14 @@ struct RunOptions {
 // The most a block-wise part holds per sounding of its block, bytes (a point of points_utm.ply
 // as it is made: 32 bytes; the rest is margin for the parts to come).
 inline constexpr double kBlockBytesPerSounding = 64;
+// The smallest block a block-wise part works in (a ping of the widest sonar).
+inline constexpr std::size_t kMinBlockSoundings = 1024;
+// The block a block-wise part uses when the process holds `resident_mb` already: the
+// configured run.block_soundings, or fewer soundings when one block at kBlockBytesPerSounding
+// would take the process over run.memory_budget_mb (the budget enforced: the part works in
+// smaller blocks instead), never under kMinBlockSoundings (a process over its budget already
+// works in those, and the stage's gate says so).
+std::size_t BlockWithinBudget(const RunOptions& run, double resident_mb);
 
 // Quality gates: where a stage says that it cannot explain its data (summary.json
 // "quality_gates", the terminal and the report; `pitmap ... --strict` exits non-zero on any).

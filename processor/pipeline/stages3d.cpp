@@ -482,9 +482,14 @@ json SlamSummary(const slam::SlamResult& r,
 
 Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
+    if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
     const QualityConfig& q = config.quality;
     const SliceSet set = SlamSlices(s, config.slam_stage, log);
+    // SLAM reads its slices alone: the view's points wait on disk meanwhile and come back bit
+    // for bit (38 bytes a sounding off the stage's peak; decision 020).
+    if (auto st = SpillView(s); !st) return Error{"slam: " + st.error().message};
     const slam::SlamResult r = RunSlamLogged(set, config.slam, log);
+    if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
     const TimedPoses before = PingPoses(s.geo);
     std::vector<Pose> after = SlamPingPoses(s.geo, set, r, before);
 
@@ -918,6 +923,7 @@ Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& 
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
+                                        ViewAfterScans view,
                                         const Log& log) {
     StageClock clock;
     const std::string name = ToString(stage);
@@ -932,6 +938,12 @@ Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
     }
     const std::vector<fusion::SonarScan> scans =
         MakeScans(s.geo, s.model.ingest.pings, s.model.mount, ping_stride);
+    // The integration reads the scans alone (decision 020).
+    if (view == ViewAfterScans::kReleased) {
+        s.geo.points = georef::GeorefPoints{};
+    } else if (auto st = SpillView(s); !st) {
+        return Error{name + ": " + st.error().message};
+    }
     fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
     // What integration itself holds at its peak beyond its inputs (the scans are built above):
@@ -1156,7 +1168,7 @@ Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, co
     if (!s) return s.error();
     if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kFuse)); !r)
         return r;
-    auto v = detail::FuseSurvey(*s, config, Stage::kFuse, log);
+    auto v = detail::FuseSurvey(*s, config, Stage::kFuse, detail::ViewAfterScans::kReleased, log);
     if (!v) return v.error();
     return Ok{};
 }
@@ -1231,6 +1243,7 @@ Status RunAfterGeoref(detail::StageContext& s,
     const bool grid_points = config.grid.in_run && config.grid.write_point_tpu;
     auto export_now = [&](Status failed, bool points = true) -> Status {
         s.defer_products = false;
+        if (auto r = detail::RestoreView(s); !r) return r;  // a stage failed with it spilled
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
@@ -1262,7 +1275,9 @@ Status RunAfterGeoref(detail::StageContext& s,
         }
     }
     if (config.run.slam && config.run.mesh_before_slam) {
-        auto v = detail::FuseSurvey(s, config, Stage::kFuseInitial, log);
+        // The view waits on disk through the mesh before SLAM (SlamSurvey reads it back).
+        auto v = detail::FuseSurvey(
+            s, config, Stage::kFuseInitial, detail::ViewAfterScans::kSpilled, log);
         if (!v) return export_now(v.error());
         if (auto st = detail::MeshSurvey(s, *v, config, Stage::kMeshInitial, log); !st)
             return export_now(st);
@@ -1277,12 +1292,13 @@ Status RunAfterGeoref(detail::StageContext& s,
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) {
             // The points without THU/TVU rather than none.
-            if (grid_points) (void)detail::WritePoints(s, config);
+            if (grid_points && detail::RestoreView(s)) (void)detail::WritePoints(s, config);
             return st;
         }
     }
     {
-        auto v = detail::FuseSurvey(s, config, Stage::kFuse, log);
+        auto v =
+            detail::FuseSurvey(s, config, Stage::kFuse, detail::ViewAfterScans::kReleased, log);
         if (!v) return v.error();
         // The soundings and the ingested series are saved (survey.pitmap, the points): free
         // them before the mesh, the run's largest stage (~0.4 GB on bejanca).

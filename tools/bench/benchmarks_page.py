@@ -42,6 +42,8 @@ COMMANDS = {
     "live": "tools/bench/run-benchmarks.sh live",
     "scale": "tools/bench/run-benchmarks.sh scale",
     "memory": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and scale)",
+    "memory_view": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and "
+                   "scale)",
 }
 
 
@@ -257,6 +259,10 @@ def render_memory_stages(r):
     rows = [[n] + [fmt(run["stages"].get(n), ".0f") for run in runs] for n in stages]
     rows.append(["**largest**"] + [f"**{max(run['stages'].values()):.0f}**" for run in runs])
     rows.append(["soundings"] + [f"{run['soundings']:,}" for run in runs])
+    if any(run.get("cpu_s") for run in runs):
+        rows.append(["CPU s, all stages"] +
+                    [fmt(sum(v for v in run.get("cpu_s", {}).values() if v is not None), ".1f")
+                     if run.get("cpu_s") else "-" for run in runs])
     head = [f"{run['scale']:.2g}x {run['build']}" + ("" if run.get("complete", True) else " (stopped)")
             for run in runs]
     return table(["peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
@@ -312,6 +318,10 @@ SECTIONS = {
     ("memory", "stages"): render_memory_stages,
     ("memory", "per_sounding"): render_memory_per_sounding,
     ("memory", "grid_parts"): render_memory_grid_parts,
+    ("memory_view", "context"): render_context,
+    ("memory_view", "stages"): render_memory_stages,
+    ("memory_view", "per_sounding"): render_memory_per_sounding,
+    ("memory_view", "grid_parts"): render_memory_grid_parts,
 }
 
 

@@ -4,7 +4,7 @@
 
 Each run is a build (a label such as `before` or `after`), a scale of the scenario (its duration
 over the base one) and a products folder; the result holds each stage's peak resident memory
-(summary.json stages.*.peak_rss_mb), the grid stage's parts (stages.grid.peak_rss_mb_by_part,
+(summary.json stages.*.peak_rss_mb) and CPU seconds (stages.*.cpu_seconds), the grid stage's parts (stages.grid.peak_rss_mb_by_part,
 where the build records them) and the soundings, for benchmarks_page.py (section `memory`):
 
   memory_result.py OUT.json --scenario bejanca --run before 1 P1 --run after 1 P2 ...
@@ -22,6 +22,7 @@ def run_of(label, scale, folder):
     with open(path) as f:
         s = json.load(f)
     stages = {n: s["stages"][n]["peak_rss_mb"] for n in s["stage_order"] if n in s["stages"]}
+    cpu_s = {n: s["stages"][n].get("cpu_seconds") for n in s["stage_order"] if n in s["stages"]}
     grid = s["stages"].get("grid", {})
     # A run stopped before its export has the georef stage's counts only.
     georef = s["stages"].get("georef", {})
@@ -34,6 +35,7 @@ def run_of(label, scale, folder):
         "pings": pings,
         "complete": "soundings" in s,
         "stages": stages,
+        "cpu_s": cpu_s,
         "grid_parts": grid.get("peak_rss_mb_by_part", {}),
     }
 

@@ -1,0 +1,49 @@
+// SPDX-License-Identifier: MIT
+// The georeferenced view's points (georef::GeorefPoints, 38 bytes a sounding) moved to a file
+// while a stage does not read them, and read back bit for bit when it needs them again: the
+// stage's peak memory then leaves them out (decision 020). The file is this process's scratch
+// (native byte order, removed when read back or when the SpilledPoints is destroyed), named
+// .partial-* so that a killed run's leftover is removed with the other partial files
+// (common/formats/replace_file.hpp).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/result.hpp"
+#include "processor/georef/georef.hpp"
+
+namespace pitmap::proc::io {
+
+class SpilledPoints {
+public:
+    // Writes `points` to `path` and empties them (their memory returned); on an error (the
+    // folder not writable, the disk full) `points` are left as they were and no file stays.
+    static Expected<SpilledPoints> Spill(georef::GeorefPoints& points, const std::string& path);
+
+    SpilledPoints(SpilledPoints&& other) noexcept;
+    SpilledPoints& operator=(SpilledPoints&& other) noexcept;
+    SpilledPoints(const SpilledPoints&) = delete;
+    SpilledPoints& operator=(const SpilledPoints&) = delete;
+    ~SpilledPoints();
+
+    // Reads the points back into `points` (replacing what they hold) and removes the file. An
+    // error (the file shorter or longer than what was written, or unreadable) names the file;
+    // `points` are then empty. Only once.
+    Status Restore(georef::GeorefPoints& points);
+
+    const std::string& path() const { return path_; }
+    std::size_t size() const { return size_; }  // soundings spilled
+
+private:
+    SpilledPoints(std::string path, std::size_t size, bool with_status)
+        : path_(std::move(path)), size_(size), with_status_(with_status) {}
+    std::string path_;  // empty once restored (or moved from)
+    std::size_t size_ = 0;
+    bool with_status_ = false;
+};
+
+// The file a stage spills the survey's view to in products folder `out_dir`.
+std::string ViewSpillPath(const std::string& out_dir);
+
+}  // namespace pitmap::proc::io

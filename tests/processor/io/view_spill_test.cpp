@@ -1,0 +1,152 @@
+// SPDX-License-Identifier: MIT
+// The view's points spilled to a scratch file and read back (io::SpilledPoints, decision 020):
+// bit for bit, the file removed, and a damaged or missing file an error naming it.
+#include "processor/io/view_spill.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+
+namespace pitmap::proc::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+georef::GeorefPoints MakePoints(std::size_t n, bool with_status) {
+    georef::GeorefPoints P;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double x = static_cast<double>(j);
+        P.position_world.emplace_back(std::nextafter(x * 0.37, 1e9), -x / 3.0, std::sqrt(x));
+        P.ping.push_back(static_cast<std::uint32_t>(j / 480));
+        P.beam.push_back(static_cast<std::uint16_t>(j % 480));
+        P.range_m.push_back(static_cast<float>(1.0 + x * 1e-3));
+        P.angle_rad.push_back(static_cast<float>(std::sin(x)));
+        if (with_status) P.status.push_back(static_cast<std::uint8_t>(j % 11));
+    }
+    // Values whose bits a text round trip would lose.
+    if (n > 2) {
+        P.position_world[1].x() = std::numeric_limits<double>::denorm_min();
+        P.range_m[2] = std::numeric_limits<float>::quiet_NaN();
+    }
+    return P;
+}
+
+void ExpectSameBits(const georef::GeorefPoints& a, const georef::GeorefPoints& b) {
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(
+        0,
+        std::memcmp(
+            a.position_world.data(), b.position_world.data(), a.size() * sizeof(Eigen::Vector3d)));
+    EXPECT_EQ(a.ping, b.ping);
+    EXPECT_EQ(a.beam, b.beam);
+    EXPECT_EQ(0, std::memcmp(a.range_m.data(), b.range_m.data(), a.size() * sizeof(float)));
+    EXPECT_EQ(0, std::memcmp(a.angle_rad.data(), b.angle_rad.data(), a.size() * sizeof(float)));
+    EXPECT_EQ(a.status, b.status);
+}
+
+std::string Scratch(const std::string& name) {
+    const fs::path dir = fs::path(::testing::TempDir()) / "view_spill_test";
+    fs::create_directories(dir);
+    return (dir / name).string();
+}
+
+TEST(ViewSpill, PointsComeBackBitForBitAndTheFileGoes) {
+    for (const bool with_status : {false, true}) {
+        for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{100003}}) {
+            const georef::GeorefPoints original = MakePoints(n, with_status);
+            georef::GeorefPoints P = original;
+            const std::string path = Scratch("points_" + std::to_string(n));
+            auto spilled = SpilledPoints::Spill(P, path);
+            ASSERT_TRUE(spilled) << spilled.error().message;
+            EXPECT_EQ(P.size(), 0u);
+            EXPECT_TRUE(P.status.empty());
+            EXPECT_EQ(P.position_world.capacity(), 0u);
+            EXPECT_EQ(spilled->size(), n);
+            EXPECT_TRUE(fs::exists(path));
+            ASSERT_TRUE(spilled->Restore(P));
+            EXPECT_FALSE(fs::exists(path));
+            ExpectSameBits(P, original);
+            // Only once.
+            EXPECT_FALSE(spilled->Restore(P));
+        }
+    }
+}
+
+TEST(ViewSpill, ADestroyedSpillLeavesNoFile) {
+    georef::GeorefPoints P = MakePoints(10, false);
+    const std::string path = Scratch("dropped");
+    {
+        auto spilled = SpilledPoints::Spill(P, path);
+        ASSERT_TRUE(spilled);
+        SpilledPoints moved = std::move(*spilled);
+        EXPECT_TRUE(fs::exists(path));
+    }
+    EXPECT_FALSE(fs::exists(path));
+}
+
+TEST(ViewSpill, ADamagedFileIsAnErrorNamingIt) {
+    const georef::GeorefPoints original = MakePoints(1000, true);
+    struct Damage {
+        const char* name;
+        void (*apply)(const std::string&);
+        const char* says;
+    };
+    const Damage damages[] = {
+        {"truncated",
+         [](const std::string& p) { fs::resize_file(p, fs::file_size(p) - 5); },
+         "shorter than written"},
+        {"longer",
+         [](const std::string& p) { std::ofstream(p, std::ios::app | std::ios::binary) << 'x'; },
+         "longer than written"},
+        {"header",
+         [](const std::string& p) {
+             std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+             f.seekp(8);
+             f.put(7);  // the count's low byte
+         },
+         "header differs"},
+        {"removed", [](const std::string& p) { fs::remove(p); }, "cannot read"},
+    };
+    for (const Damage& d : damages) {
+        georef::GeorefPoints P = original;
+        const std::string path = Scratch(std::string("damaged_") + d.name);
+        auto spilled = SpilledPoints::Spill(P, path);
+        ASSERT_TRUE(spilled) << d.name;
+        d.apply(path);
+        const Status st = spilled->Restore(P);
+        ASSERT_FALSE(st) << d.name;
+        EXPECT_NE(st.error().message.find(path), std::string::npos) << st.error().message;
+        EXPECT_NE(st.error().message.find(d.says), std::string::npos) << st.error().message;
+        EXPECT_EQ(P.size(), 0u) << d.name;
+        EXPECT_FALSE(fs::exists(path)) << d.name;
+    }
+}
+
+TEST(ViewSpill, AnUnwritablePlaceOrUnequalArraysLeaveThePointsHeld) {
+    georef::GeorefPoints P = MakePoints(10, false);
+    const std::string nowhere = Scratch("no_such_folder") + "/deeper/points";
+    auto spilled = SpilledPoints::Spill(P, nowhere);
+    ASSERT_FALSE(spilled);
+    EXPECT_NE(spilled.error().message.find(nowhere), std::string::npos);
+    EXPECT_EQ(P.size(), 10u);
+    P.beam.pop_back();
+    auto unequal = SpilledPoints::Spill(P, Scratch("unequal"));
+    ASSERT_FALSE(unequal);
+    EXPECT_NE(unequal.error().message.find("differ in length"), std::string::npos);
+    EXPECT_EQ(P.size(), 10u);
+    EXPECT_FALSE(fs::exists(Scratch("unequal")));
+}
+
+TEST(ViewSpill, TheScratchFileIsAPartialFileOfTheFolder) {
+    const std::string p = ViewSpillPath("some/products");
+    EXPECT_EQ(fs::path(p).parent_path(), fs::path("some/products"));
+    EXPECT_EQ(fs::path(p).filename().string().rfind(".partial-", 0), 0u) << p;
+}
+
+}  // namespace
+}  // namespace pitmap::proc::io
