@@ -122,7 +122,7 @@ struct SlamConfig {
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;
     CorrespondenceType correspondence = CorrespondenceType::kGicp;
-    int normal_neighbours = 10;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
+    int normal_neighbours = 24;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
     double point_sigma_m = 0.05;  // 1-sigma of a point along the surface normal
     // GICP: 1-sigma along the surface (plane-like C). A pair's offset along the surface is
     // mostly where the other pass's nearest sounding happens to lie; looser frees the
