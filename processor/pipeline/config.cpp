@@ -210,6 +210,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
       "drift smoothness");
     v("min_relative_rotation_sigma_rad", c.min_relative_rotation_sigma_rad, "floor, rad");
     v("min_relative_translation_sigma_m", c.min_relative_translation_sigma_m, "floor, m");
+    v("drift_by_smoothness_only",
+      c.drift_by_smoothness_only,
+      "an outage's drift is stated by the smoothness term alone (docs/decisions/022)");
     v("absolute_position_terms", c.absolute_position_terms, "GNSS/INS position prior per pose");
     v("absolute_attitude_terms", c.absolute_attitude_terms, "INS attitude prior per pose");
     v("absolute_sigma_scale",

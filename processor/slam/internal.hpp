@@ -48,8 +48,10 @@ struct Input {
     std::vector<Pose> T_ins;      // INS poses (measurements)
     std::vector<Vector6d> sigma;  // effective INS 1-sigma (see ins_sigma_recovery_time_s)
     Vector6d sigma_floor = Vector6d::Zero();  // smallest sigma of the survey, per component
-    std::vector<std::size_t> offset;          // first point of each slice in `points`
-    std::vector<Eigen::Vector3f> points;      // vehicle frame, finite only
+    // White noise of each INS position output, east, north, up (PositionWhiteNoise).
+    Eigen::Vector3d position_white_sigma = Eigen::Vector3d::Zero();
+    std::vector<std::size_t> offset;      // first point of each slice in `points`
+    std::vector<Eigen::Vector3f> points;  // vehicle frame, finite only
     // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
     // there, so sections and bins start there and are short after them (the correction stays
     // continuous; its rate changes).

@@ -280,9 +280,11 @@ Vector6d SliceSigma(const Input& in,
     if (cfg.posterior_reference_sigma) {
         // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
         // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
+        // The white noise of each INS output (PositionWhiteNoise) stays in every ping too.
         for (int c = 0; c < 3; ++c) {
             C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
-            C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c);
+            C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c) +
+                               in.position_white_sigma(c) * in.position_white_sigma(c);
         }
     }
     Vector6d sig;
@@ -404,6 +406,7 @@ void ComputePosterior(const Input& in,
     const auto t_start = Clock::now();
     SlamPosterior& post = res.posterior;
     post = SlamPosterior{};
+    if (cfg.posterior_reference_sigma) post.ins_white_noise_m = in.position_white_sigma;
     const auto fail = [&](std::string message) {
         post.message = std::move(message);
         post.total_s = Seconds(t_start);

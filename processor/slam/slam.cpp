@@ -195,6 +195,7 @@ SlamResult RunSlam(const std::vector<Slice>& slices,
     in.breaks = FindBreaks(in.t_s, in.sigma, cfg.coarse_search_min_sigma_m);
     in.sigma_floor = in.sigma.front();
     for (const Vector6d& sg : in.sigma) in.sigma_floor = in.sigma_floor.cwiseMin(sg);
+    in.position_white_sigma = PositionWhiteNoise(in.t_s, in.T_ins);
     if (cfg.ins_sigma_recovery_time_s > 0) {
         for (std::size_t s = 1; s < ns; ++s) {
             const double decay =

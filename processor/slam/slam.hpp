@@ -122,7 +122,7 @@ struct SlamConfig {
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;
     CorrespondenceType correspondence = CorrespondenceType::kGicp;
-    int normal_neighbours = 10;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
+    int normal_neighbours = 24;   // neighbours for normals / covariances, 3..kMaxNormalNeighbours
     double point_sigma_m = 0.05;  // 1-sigma of a point along the surface normal
     // GICP: 1-sigma along the surface (plane-like C). A pair's offset along the surface is
     // mostly where the other pass's nearest sounding happens to lie; looser frees the
@@ -153,6 +153,15 @@ struct SlamConfig {
     // of consecutive poses so that matches at turns and pit walls carry along straight lines.
     // Loosened where the INS sigma falls. 0 = off.
     double drift_velocity_random_walk_mps_per_sqrt_s = 0.003;
+    // In a GNSS outage the INS's position error is one realisation of a dead-reckoning drift
+    // (an integrated random walk), which the drift-smoothness term and the poses before the
+    // outage state; the relative-motion and absolute position terms model errors independent
+    // per step and per pose, which only the steady (Gauss-Markov) part is. true = their
+    // position information is scaled by the steady part's share of the variance,
+    // f^2 / (f^2 + g^2) (g the growing part, f the survey's smallest sigma): unchanged where
+    // GNSS is good, negligible tens of seconds into an outage. false = counted in full, which
+    // pulls the optimum towards the INS along the track (docs/decisions/022).
+    bool drift_by_smoothness_only = true;
     bool absolute_position_terms = true;  // GNSS/INS position per pose, weighted by its sigma
     bool absolute_attitude_terms = true;  // INS attitude per pose, weighted by its sigma
     // The absolute terms' sigmas are the INS's with their steady part (the survey's smallest
@@ -178,7 +187,9 @@ struct SlamConfig {
     // (the formal H^-1 treats ~10^5 correlated pairs as independent: sub-mm sigmas).
     bool posterior_cluster_robust = true;
     // Add the INS's steady sigma (the survey's smallest, per component) to every slice's
-    // posterior: the reference SLAM is anchored to, common to the passes it aligns.
+    // posterior: the reference SLAM is anchored to, common to the passes it aligns; and the
+    // white noise of each INS position output, which the INS's sigma omits and SLAM's
+    // one-second nodes leave in every ping (PositionWhiteNoise, docs/decisions/022).
     bool posterior_reference_sigma = true;
     // GICP pairs: true (the default) = the posterior takes their along-surface information as
     // the solver does (gicp_tangent_sigma_m); false = along their normal only (the offset along
@@ -306,6 +317,9 @@ struct SlamPosterior {
     // Median over the slices of the formal horizontal sigma sqrt((sE^2 + sN^2) / 2) of H^-1
     // alone (no variance factor, no sandwich), for comparison.
     double formal_horizontal_median_m = 0;
+    // The white noise of each INS position output (east, north, up, m; PositionWhiteNoise),
+    // added to every slice with the steady sigma when posterior_reference_sigma.
+    Eigen::Vector3d ins_white_noise_m = Eigen::Vector3d::Zero();
     // The perturbed-start runs (posterior_start_runs) whose spread was added to slice_sigma in
     // quadrature, and that spread alone per slice (1-sigma east, north, up, m; empty without).
     std::size_t start_runs = 0;

@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: MIT
 #include "processor/slam/slam_math.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <vector>
 
 namespace pitmap::proc::slam {
 
@@ -110,6 +113,33 @@ Vector6d AbsolutePoseResidual(const Pose& T, const Pose& T_prior, Matrix6d* J) {
         J->bottomRightCorner<3, 3>().setIdentity();
     }
     return r;
+}
+
+Eigen::Vector3d PositionWhiteNoise(const std::vector<double>& t_s,
+                                   const std::vector<Pose>& T,
+                                   double max_step_s,
+                                   std::size_t min_triples) {
+    std::array<std::vector<double>, 3> z2;
+    for (std::size_t k = 1; k + 1 < std::min(t_s.size(), T.size()); ++k) {
+        const double dt0 = t_s[k] - t_s[k - 1], dt1 = t_s[k + 1] - t_s[k];
+        if (!(dt0 > 0 && dt1 > 0 && dt0 <= max_step_s && dt1 <= max_step_s)) continue;
+        if (std::max(dt0, dt1) > 1.5 * std::min(dt0, dt1)) continue;
+        const Eigen::Vector3d r = (T[k + 1].translation() - T[k].translation()) / dt1 -
+                                  (T[k].translation() - T[k - 1].translation()) / dt0;
+        const double w2 = 1.0 / (dt0 * dt0) + 1.0 / (dt1 * dt1) +
+                          (1.0 / dt0 + 1.0 / dt1) * (1.0 / dt0 + 1.0 / dt1);
+        for (int c = 0; c < 3; ++c) z2[static_cast<std::size_t>(c)].push_back(r(c) * r(c) / w2);
+    }
+    Eigen::Vector3d sigma = Eigen::Vector3d::Zero();
+    if (z2[0].size() < std::max<std::size_t>(min_triples, 1)) return sigma;
+    constexpr double kChi2Median = 0.454936;  // median of a chi-square with 1 degree of freedom
+    for (int c = 0; c < 3; ++c) {
+        std::vector<double>& v = z2[static_cast<std::size_t>(c)];
+        const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+        std::nth_element(v.begin(), mid, v.end());
+        sigma(c) = std::sqrt(*mid / kChi2Median);
+    }
+    return sigma;
 }
 
 }  // namespace pitmap::proc::slam

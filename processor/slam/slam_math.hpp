@@ -9,6 +9,8 @@
 // All Jacobians are with respect to this perturbation at delta = 0.
 #pragma once
 
+#include <vector>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -73,6 +75,20 @@ Vector6d RelativeMotionResidual(const Pose& T_i,
 
 // Absolute pose term: r = [ LogSO3(R R_prior^T) ; t - t_prior ].
 Vector6d AbsolutePoseResidual(const Pose& T, const Pose& T_prior, Matrix6d* J = nullptr);
+
+// The white noise of each INS position output, 1-sigma east, north, up (m), from the track's
+// second differences: for consecutive outputs x0, x1, x2 (steps dt0, dt1 below max_step_s,
+// within a factor 1.5 of each other) r = (x2 - x1) / dt1 - (x1 - x0) / dt0 is, per axis, the
+// noise's w . (e0, e1, e2) with w = (1/dt0, -(1/dt0 + 1/dt1), 1/dt1), plus the vehicle's
+// acceleration times dt (sub-mm at 10 Hz for a surface vehicle in waves); sigma^2 =
+// median((r / |w|)^2) / 0.4549 (the median of a chi-square with 1 degree of freedom),
+// robust to the GNSS recoveries' jumps. The INS's reported sigma omits it (a filter's steady
+// error is what it reports); SLAM's nodes are a second apart, so it stays in every ping.
+// Zero with fewer than min_triples usable triples.
+Eigen::Vector3d PositionWhiteNoise(const std::vector<double>& t_s,
+                                   const std::vector<Pose>& T,
+                                   double max_step_s = 0.5,
+                                   std::size_t min_triples = 100);
 
 // The robust kernels live in the registration core (shared with calibration).
 using reg::RobustCost;

@@ -95,6 +95,16 @@ Vector6d SigmaVector(const Vector6d& ins, double scale) {
     return s * scale;
 }
 
+// The square root of the steady part's share of a position's INS variance, f^2 / (f^2 + g^2),
+// by which the relative-motion and absolute position terms' information is scaled in an
+// outage (SlamConfig::drift_by_smoothness_only): the growing part g is one drift, which the
+// drift-smoothness term states; 1 where there is none.
+double SteadyShare(double floor2, double growing, const SlamConfig& cfg) {
+    if (!cfg.drift_by_smoothness_only || !(growing > 0)) return 1.0;
+    if (!(floor2 > 0)) return 1e-6;  // no steady part: the drift alone (a tiny weight)
+    return std::max(std::sqrt(floor2 / (floor2 + growing * growing)), 1e-6);
+}
+
 }  // namespace
 
 // Relative-motion and absolute terms (no pairs).
@@ -122,6 +132,7 @@ void AddPoseTerms(const Input& in,
             const double gi = std::sqrt(std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - fl2));
             const double gj = std::sqrt(std::max(0.0, in.sigma[j](c) * in.sigma[j](c) - fl2));
             raw(c) = std::sqrt(fl2 * f2 + (gj - gi) * (gj - gi));
+            if (c >= 3) raw(c) /= SteadyShare(fl2, std::max(gi, gj), cfg);
         }
         Vector6d sig = SigmaVector(raw, cfg.ins_sigma_scale);
         for (int c = 0; c < 3; ++c) sig(c) = std::max(sig(c), cfg.min_relative_rotation_sigma_rad);
@@ -183,6 +194,7 @@ void AddPoseTerms(const Input& in,
                 const double growing2 = std::max(0.0, in.sigma[i](c) * in.sigma[i](c) - fl * fl);
                 const double st = cfg.absolute_sigma_scale * fl;
                 scaled(c) = std::sqrt(st * st + growing2);
+                if (c >= 3) scaled(c) /= SteadyShare(fl * fl, std::sqrt(growing2), cfg);
             }
             const Vector6d sig = SigmaVector(scaled, 1.0);
             if (cfg.absolute_attitude_terms)

@@ -7,7 +7,7 @@
 // recovering the drift, or makes a GNSS-good stretch worse than the INS by more than the
 // issue's 5 mm, or when the trajectory's stated 95 % horizontal radius after SLAM (the
 // posterior with its perturbed-start spread, on by default) contains the true error in fewer
-// than issue 36's 93 % of the pings (docs/decisions/016).
+// than issue 36's 93 % of the pings, all and in the outage (docs/decisions/016 and 022).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -55,7 +55,8 @@ TEST(GpsOutageScenario, SlamRecoversTheDriftAndKeepsTheGoodStretches) {
         RecordProperty(k, std::to_string(s.at(k)));
     }
     EXPECT_GT(s.at("trajectory_ate_rmse_before_m"), 1.0) << "the scenario no longer drifts";
-    EXPECT_LT(s.at("trajectory_ate_rmse_m"), 0.095);
+    // Issue 36's 0.05 m (0.041 m measured with normals from 24 neighbours, decision 022).
+    EXPECT_LT(s.at("trajectory_ate_rmse_m"), 0.05);
     EXPECT_LT(s.at("trajectory_ate_worst_window_increase_m"), 0.005);
 
     const auto u = ReadJson(scores)["trajectory_uncertainty"]["after"];
@@ -66,9 +67,9 @@ TEST(GpsOutageScenario, SlamRecoversTheDriftAndKeepsTheGoodStretches) {
     RecordProperty("share_within_h95_outage", std::to_string(within_outage));
     EXPECT_GT(u["outage"]["poses"].get<int>(), 1000) << "the outage's pings were not scored";
     EXPECT_GE(within, 0.93) << "the stated 95 % radius misses the true error too often";
-    // In the outage the share is held below the issue's 93 % at what the merged tree reaches
-    // (docs/decisions/016: the bounded SLAM partners and the start spread together).
-    EXPECT_GE(within_outage, 0.80) << "in the outage";
+    // Issue 36's 93 % in the outage too: 95.9 % measured (docs/decisions/022; 83.6 % before,
+    // when 10-neighbour normals pulled the optimum along a corridor's track).
+    EXPECT_GE(within_outage, 0.93) << "in the outage";
     if (!HasFailure()) fs::remove_all(dir);  // 450 MB of simulation and products
 }
 
