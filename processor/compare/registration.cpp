@@ -250,8 +250,10 @@ Mat6 FinalResiduals(const SurfaceGrid& a,
                     const RegistrationConfig& cfg,
                     RegistrationResult& res) {
     Mat6 H = Mat6::Zero();
-    double sum2_before = 0, sum2_after = 0, sum_after = 0;
-    std::size_t n_stable = 0, n_valid = 0;
+    double sum2_before = 0, sum2_after = 0, sum_after = 0, sum2_normal = 0, sum2_floor = 0;
+    std::size_t n_stable = 0, n_valid = 0, n_floor = 0;
+    // Floors: slope below 45 deg (the walls' edge everywhere in pitmap compare and its scores).
+    const double floor_nz = std::cos(45.0 * kPi / 180.0);
     const int grad_step = std::max(1, static_cast<int>(std::lround(0.2 / a.resolution_m)));
     std::vector<double> abs_d;
     std::vector<Residual> fin(samples.size());
@@ -272,6 +274,11 @@ Mat6 FinalResiduals(const SurfaceGrid& a,
         H.noalias() += w * r.J.transpose() * r.J;
         sum2_after += r.e * r.e;
         sum_after += r.e;
+        sum2_normal += r.d * r.d;
+        if (r.nz >= floor_nz) {
+            sum2_floor += r.e * r.e;
+            ++n_floor;
+        }
         const double before = samples[k].p.z() - a.HeightAt(samples[k].p.x(), samples[k].p.y());
         if (std::isfinite(before)) sum2_before += before * before;
     }
@@ -282,7 +289,10 @@ Mat6 FinalResiduals(const SurfaceGrid& a,
         res.rms_vertical_after_m = std::sqrt(sum2_after / static_cast<double>(n_stable));
         res.mean_vertical_after_m = sum_after / static_cast<double>(n_stable);
         res.rms_vertical_before_m = std::sqrt(sum2_before / static_cast<double>(n_stable));
+        res.rms_normal_after_m = std::sqrt(sum2_normal / static_cast<double>(n_stable));
     }
+    res.points_stable_floor = n_floor;
+    if (n_floor > 0) res.rms_vertical_floor_after_m = std::sqrt(sum2_floor / n_floor);
     if (!cfg.estimate_roll_pitch) HoldRollPitch(H);
     return H;
 }

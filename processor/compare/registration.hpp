@@ -75,6 +75,12 @@ struct RegistrationResult {
     double rms_vertical_before_m = 0;  // vertical residual RMS on the final stable nodes,
     double rms_vertical_after_m = 0;   // without and with the correction
     double mean_vertical_after_m = 0;
+    // On walls a 2.5D surface's vertical residual is its error along the normal over the
+    // slope's cosine (x 2 at 60 deg): the residual along the normal on all the stable nodes,
+    // and the vertical one on the floors (slope < 45 deg) only (decision 023, section 6).
+    double rms_normal_after_m = 0;
+    double rms_vertical_floor_after_m = 0;
+    std::size_t points_stable_floor = 0;
     int iterations = 0;
     bool ok() const {
         return termination == RegistrationTermination::kConverged ||

@@ -960,6 +960,9 @@ json RegistrationJson(const compare::RegistrationResult& reg,
             {"robust_sigma_m", reg.robust_sigma_m},
             {"rms_vertical_before_m", reg.rms_vertical_before_m},
             {"rms_vertical_after_m", reg.rms_vertical_after_m},
+            {"rms_normal_after_m", reg.rms_normal_after_m},
+            {"rms_vertical_floor_after_m", reg.rms_vertical_floor_after_m},
+            {"nodes_stable_floor", reg.points_stable_floor},
             {"navigation_gate", gate_record}};
 }
 

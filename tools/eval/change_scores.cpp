@@ -70,6 +70,9 @@ ChangeScore ScoreChange(const std::vector<DodNode>& nodes,
         ps.name = parts[p].name;
         ps.volume_true_m3 = parts[p].AnalyticVolume();
         std::size_t inter = 0, detected = 0;
+        // The detectable part: the true change along the normal at or above the node's LoD95;
+        // the taper below it counts on neither side of the detectable IoU.
+        std::size_t below = 0, inter_d = 0, union_d = 0;
         for (const auto& [id, part] : region_part) {
             if (part != static_cast<int>(p)) continue;
             const RegionInfo* r = by_id.at(id);
@@ -80,11 +83,21 @@ ChangeScore ScoreChange(const std::vector<DodNode>& nodes,
         for (const DodNode& n : nodes) {
             const auto it = region_part.find(n.region);
             const bool det = it != region_part.end() && it->second == static_cast<int>(p);
+            const double f = parts[p].Profile(n.world.x(), n.world.y());
             detected += det;
-            inter += det && parts[p].Profile(n.world.x(), n.world.y()) > 0;
+            inter += det && f > 0;
+            const bool taper =
+                f > 0 && std::abs(parts[p].thickness_m * f) * n.normal_cos < n.lod95_m;
+            below += taper;
+            if (taper) continue;
+            inter_d += det && f > 0;
+            union_d += det || f > 0;
         }
         const double uni = static_cast<double>(detected + truth_nodes[p] - inter);
         ps.iou = uni > 0 ? static_cast<double>(inter) / uni : 0.0;
+        ps.iou_detectable = union_d > 0 ? static_cast<double>(inter_d) / union_d : 0.0;
+        ps.truth_below_lod_share =
+            truth_nodes[p] > 0 ? static_cast<double>(below) / truth_nodes[p] : 0.0;
         const double err = ps.volume_detected_m3 - ps.volume_true_m3;
         ps.error_pct = 100.0 * err / std::abs(ps.volume_true_m3);
         ps.within = std::abs(err) <= std::max(0.05 * std::abs(ps.volume_true_m3), ps.u95_m3);

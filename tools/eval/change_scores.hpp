@@ -5,7 +5,11 @@
 //   whose nodes lie mostly on it are its detection; volume_detected (their volumes summed),
 //   u95 (their U95 summed), error_pct against the exact volume, within (|error| <= max(5 %,
 //   u95): the target), contained (|error| <= u95), iou (the detection's nodes against
-//   the nodes where the part changes the terrain, over the compared nodes);
+//   the nodes where the part changes the terrain, over the compared nodes), iou_detectable
+//   (the same against the part's detectable nodes, where its true change along the surface's
+//   normal reaches the node's LoD95; the taper below it is left out of both sides, neither
+//   asked for nor held against a detection: decision 023, section 5), truth_below_lod_share
+//   (of the part's nodes, those below their LoD95);
 //   stable_flagged_share: nodes in any region more than buffer_m from every part's outline,
 //   over the compared nodes that far from every part; false_regions: regions on no part.
 #pragma once
@@ -21,6 +25,8 @@ namespace pitmap::eval {
 struct DodNode {
     Eigen::Vector2d world = Eigen::Vector2d::Zero();  // the node in the truth's world frame
     int region = 0;                                   // 0 = none
+    double normal_cos = 1.0;  // |cos| of the surface's normal to the vertical there (1: a DEM)
+    double lod95_m = 0;       // the node's level of detection at 95 % (0: none stated)
 };
 
 struct RegionInfo {
@@ -32,6 +38,7 @@ struct RegionInfo {
 struct PartScore {
     std::string name;
     double volume_true_m3 = 0, volume_detected_m3 = 0, u95_m3 = 0, error_pct = 0, iou = 0;
+    double iou_detectable = 0, truth_below_lod_share = 0;
     int regions = 0;
     bool within = false, contained = false;
 };

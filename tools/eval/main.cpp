@@ -155,7 +155,10 @@ either, the truth's origin is assumed (and said).
                                 change_iou_min, change_volume_error_max_abs_pct,
                                 change_stable_flagged_share (region nodes more than 0.5 m from
                                 every part, over the compared nodes that far), change_false_regions,
-                                change_stable_rms_m, registration_rms_vertical_after_m.
+                                change_stable_rms_m, registration_rms_vertical_after_m,
+                                registration_rms_normal_after_m (along the normal, all stable
+                                nodes), registration_rms_vertical_floor_after_m (slope < 45
+                                deg: the issue's vertical bound's measure, decision 023).
   change3d_scar_detected_share, change3d_scar_median_distance_m, change3d_stable_flagged_share,
   change3d_wall_stable_flagged_share
                                 with P/change_points.ply (pitmap compare's 3D change along the
@@ -164,12 +167,16 @@ either, the truth's origin is assumed (and said).
                                 share of the cores more than 0.5 m from every part flagged (all,
                                 and those on walls >= 45 deg).
   change3d_region_<part>_volume_detected_m3, _u95_m3, _volume_error_pct, _iou, _within,
+  _iou_detectable, _truth_below_lod_share,
   change3d_region_parts_within, change3d_region_stable_flagged_share,
   change3d_region_false_regions
                                 with P/change_mesh.ply and compare.json change_mesh.regions:
                                 the change mesh's regions (on the surface, walls included)
                                 scored as the change_* scores above, with B's mesh vertices for
-                                the nodes.
+                                the nodes; _iou_detectable against the part's vertices
+                                whose true change along the normal reaches their lod95_m
+                                (the taper below it on neither side), the issue's IoU bound's
+                                measure (decision 023).
   capacity_b_volume_error_pct   compare.json's volume of water at B's water level against the
                                 true terrain's under B's surveyed nodes (true surface z = 0).
 )";
@@ -1028,6 +1035,9 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
         scores["change_false_regions"] = cs.false_regions;
         const json& rj = cj["registration"];
         scores["registration_rms_vertical_after_m"] = rj.value("rms_vertical_after_m", 0.0);
+        scores["registration_rms_normal_after_m"] = rj.value("rms_normal_after_m", 0.0);
+        scores["registration_rms_vertical_floor_after_m"] =
+            rj.value("rms_vertical_floor_after_m", 0.0);
         scores["change_stable_rms_m"] = cj["change"].value("stable_rms_m", 0.0);
         // The 3D change along the normal (change_points.ply): on the slump's scar (a wall) and
         // on stable terrain, walls apart.
@@ -1085,8 +1095,8 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
         // regions with B's mesh vertices for the nodes.
         const json& mr = cj["change_mesh"];
         if (fs::exists(P / "change_mesh.ply") && mr.contains("regions")) {
-            auto cm =
-                formats::ply::ReadMesh((P / "change_mesh.ply").string(), {"distance_m", "region"});
+            auto cm = formats::ply::ReadMesh((P / "change_mesh.ply").string(),
+                                             {"distance_m", "region", "nz", "lod95_m"});
             if (!cm) {
                 return cm.error();
             }
@@ -1095,7 +1105,11 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
                 if (!std::isfinite(cm->vertex_properties[0][i])) continue;
                 auto w = to_world(cm->vertices[i].x(), cm->vertices[i].y());
                 if (!w) continue;
-                vnodes.push_back({*w, static_cast<int>(cm->vertex_properties[1][i])});
+                const double lod = cm->vertex_properties[3][i];
+                vnodes.push_back({*w,
+                                  static_cast<int>(cm->vertex_properties[1][i]),
+                                  std::abs(static_cast<double>(cm->vertex_properties[2][i])),
+                                  std::isfinite(lod) ? lod : 0.0});
             }
             std::vector<eval::RegionInfo> vregions;
             for (const json& r : mr["regions"]) {
@@ -1112,6 +1126,8 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
                 scores[k + "u95_m3"] = ps.u95_m3;
                 scores[k + "volume_error_pct"] = ps.error_pct;
                 scores[k + "iou"] = ps.iou;
+                scores[k + "iou_detectable"] = ps.iou_detectable;
+                scores[k + "truth_below_lod_share"] = ps.truth_below_lod_share;
                 scores[k + "within"] = ps.within ? 1 : 0;
                 mesh_within += ps.within;
             }

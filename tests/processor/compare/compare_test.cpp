@@ -130,6 +130,39 @@ double ActionDistance(const RigidCorrection& a, const RigidCorrection& b) {
     return worst;
 }
 
+// Two surveys of the unchanged pit whose error lies along the surface's normal (a sonar's, 1 cm
+// each): vertically that is 1 cm on the floors but 1 cm / cos(slope) on the faces (2 cm at
+// 60 deg). The vertical residual over all stable nodes mixes the two; the residual along the
+// normal and the vertical one on the floors (< 45 deg) are each surface pair's own 1.4 cm.
+TEST(CompareRegistration, TheResidualIsReadAlongTheNormalAndVerticallyOnTheFloors) {
+    const auto survey = [](unsigned seed) {
+        SurfaceGrid s = Survey(false, RigidCorrection{}, 1e-9, seed);
+        std::mt19937 rng(seed);
+        std::normal_distribution<double> noise(0.0, 0.01);
+        for (int j = 0; j < s.ny; ++j) {
+            for (int i = 0; i < s.nx; ++i) {
+                float& z = s.z_m[s.index(i, j)];
+                if (!std::isfinite(z)) continue;
+                const double x = s.x0 + i * s.resolution_m, y = s.y0 + j * s.resolution_m;
+                const double gx = (PitHeight(x + 0.01, y) - PitHeight(x - 0.01, y)) / 0.02;
+                const double gy = (PitHeight(x, y + 0.01) - PitHeight(x, y - 0.01)) / 0.02;
+                z += static_cast<float>(noise(rng) * std::sqrt(1 + gx * gx + gy * gy));
+                s.sigma_m[s.index(i, j)] = 0.01f;
+            }
+        }
+        return s;
+    };
+    const RegistrationResult r = RegisterSurfaces(survey(11), survey(12), RegistrationConfig{});
+    ASSERT_TRUE(r.ok()) << r.message;
+    const double pair = std::sqrt(2.0) * 0.01;
+    EXPECT_NEAR(r.rms_normal_after_m, pair, 0.1 * pair) << r.message;
+    EXPECT_NEAR(r.rms_vertical_floor_after_m, pair, 0.1 * pair) << r.message;
+    EXPECT_GT(r.points_stable_floor, r.points_stable / 2);
+    EXPECT_LT(r.points_stable_floor, r.points_stable);
+    // The faces' vertical residual is larger than the surfaces' error: not the bound's measure.
+    EXPECT_GT(r.rms_vertical_after_m, 1.1 * r.rms_vertical_floor_after_m) << r.message;
+}
+
 TEST(CompareRegistration, RecoversAHalfMetreOneDegreeShiftDespiteTheChanges) {
     const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 1);
     // B seen from a frame shifted by 0.5 m and turned by 1 deg (and lifted 5 cm, tilted a

@@ -54,5 +54,56 @@ TEST(ChangeScores, VolumeIouAndStableFlaggedOfAHandMadeDetection) {
     EXPECT_GT(heap_nodes, 1000);
 }
 
+// A paraboloid hollow 1 m deep on a 60 deg face (the change along the normal half the vertical)
+// with a LoD95 of 0.1 m: the rim where 0.5 q < 0.1 (q < 0.2, a fifth of the outline's area)
+// lies below detection. A detection of exactly the rest is perfect against the detectable
+// part but near 0.8 against the whole outline; a detection reaching into that rim is not held
+// against it; one reaching past the outline is.
+TEST(ChangeScores, TheTaperBelowDetectionIsLeftOutOfTheDetectableIou) {
+    sim::ChangePart scar{"scar", "scar", sim::ChangeShape::kParaboloid, 0, 0, 0, 4.0, 2.0, 0, -1.0};
+    const double cos60 = 0.5, lod = 0.1;
+    const auto detectable = [&](double x, double y) {
+        return std::abs(scar.thickness_m * scar.Profile(x, y)) * cos60 >= lod;
+    };
+    const auto score = [&](double scale) {
+        std::vector<DodNode> nodes;
+        for (double y = -6; y <= 6; y += 0.05) {
+            for (double x = -6; x <= 6; x += 0.05) {
+                DodNode n;
+                n.world = {x, y};
+                n.normal_cos = cos60;
+                n.lod95_m = lod;
+                const double r = std::hypot(x / (4.0 * scale), y / (2.0 * scale));
+                // The detectable ellipse is q >= 0.2: sqrt(0.8) of the outline's (scale 1).
+                if (detectable(x, y) || r * r <= 0.8) n.region = 1;
+                nodes.push_back(n);
+            }
+        }
+        return ScoreChange(nodes, {{1, -1, scar.AnalyticVolume(), 1.0}}, {scar}).parts.at(0);
+    };
+    const PartScore exact = score(1.0);
+    EXPECT_NEAR(exact.truth_below_lod_share, 0.2, 0.01);
+    EXPECT_NEAR(exact.iou, 0.8, 0.01);             // the rim counted as missed
+    EXPECT_NEAR(exact.iou_detectable, 1.0, 1e-9);  // the rim left out
+    const PartScore into_rim = score(1.08);  // into the rim (0.97 of the outline), not past it
+    EXPECT_NEAR(into_rim.iou_detectable, 1.0, 1e-9);
+    EXPECT_GT(into_rim.iou, exact.iou);
+    const PartScore past = score(1.5);  // 1.34 of the outline: the ring past it counts
+    EXPECT_LT(past.iou_detectable, 0.6);
+    // Without a stated LoD every changed node is detectable: the two IoUs agree.
+    std::vector<DodNode> plain;
+    for (double y = -6; y <= 6; y += 0.1) {
+        for (double x = -6; x <= 6; x += 0.1) {
+            DodNode n;
+            n.world = {x, y};
+            n.region = detectable(x, y) ? 1 : 0;
+            plain.push_back(n);
+        }
+    }
+    const PartScore p = ScoreChange(plain, {{1, -1, 1.0, 1.0}}, {scar}).parts.at(0);
+    EXPECT_NEAR(p.iou_detectable, p.iou, 1e-12);
+    EXPECT_EQ(p.truth_below_lod_share, 0.0);
+}
+
 }  // namespace
 }  // namespace pitmap::eval
