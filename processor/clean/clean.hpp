@@ -90,6 +90,8 @@ struct CleanConfig {
     double near_field_max_range_m = 5.0;  // near-field echoes: at most this range (0 = off) ...
     double near_field_ratio = 0.8;        // ... under this share of both sides' median range
     double near_field_min_m = 0.5;        // ... and this far in front of both, m
+    double smile_nadir_deg = 2.0;         // the nadir smile: a ping's nadir is its sounding nearest
+                                          // to 0 deg, within this (0 = off)
     double hole_tolerance = 0.01;       // a hole in a run: on its neighbours' line, share of range
     int fill_max_soundings = 500;       // an enclosed piece of continuous range: at most this many
                                         // soundings (0 = off) ...
@@ -113,6 +115,7 @@ struct CleanCounts {
     std::int64_t multipath = 0;
     std::int64_t profile = 0;
     std::int64_t near_field = 0;  // of `profile`: near-field echoes the lines did not reject
+    std::int64_t smile = 0;       // of `profile`: the nadir smile, the other tests did not reject
     std::int64_t terrain = 0;     // rejected by a test, then released: continuous with the terrain
     // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
     // voxels and rays, the range profiles (with the holes and the enclosed pieces), the

@@ -284,6 +284,9 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       c.near_field_ratio,
       "... rejected under this share of the beam's median range over the pings each side");
     v("near_field_min_m", c.near_field_min_m, "... and this far in front of both, m");
+    v("smile_nadir_deg",
+      c.smile_nadir_deg,
+      "the nadir smile: a ping's nadir is its sounding nearest to 0 deg within this, deg; 0 = off");
     v("num_threads", c.num_threads, "0 = all cores");
 }
 
