@@ -696,7 +696,8 @@ void FillEnclosed(const georef::GeorefResult& geo,
                 if (q < 0 || piece[q] == id) continue;
                 if (status[q] != 0) {
                     if (continuous(j, q)) ++votes[status[q]];
-                } else if (continuous(j, q) || (dir[0] != 0 && within_break(j, q))) {
+                } else if (continuous(j, q) ||
+                           ((dir[0] != 0 || config.fill_across_fan) && within_break(j, q))) {
                     if (piece[q] != 0 || members.size() + stack.size() >= limit) {
                         large = true;  // joins a large piece, or is one
                         break;

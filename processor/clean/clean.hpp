@@ -98,6 +98,7 @@ struct CleanConfig {
     int fill_min_contacts = 2;          // ... touching rejected soundings this often ...
     double fill_break_m = 0.15;         // ... its other edges breaks in the range of this, m
                                         // (or margin_rel of the range)
+    bool fill_across_fan = true;        // ... grown across the fan too over steps short of a break
     int terrain_piece_soundings = 500;  // a rejection continuous in range with a piece of this
                                         // many accepted soundings is terrain (0 = off)
     int num_threads = 0;                // 0 = all cores (TBB)
