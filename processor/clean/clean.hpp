@@ -36,7 +36,9 @@
 //      over runs longer than its window. With them, near-field echoes (bubble sweep-down):
 //      runs of soundings within `near_field_max_range_m` far in front (`near_field_ratio`,
 //      `near_field_min_m`) of the median range of the same beam on both sides along track,
-//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md).
+//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md); and
+//      the nadir smile: runs across the fan at the ping's nadir range (`smile_nadir_deg`), more
+//      than a break in front of their beam's median range on both sides (decision 025).
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
