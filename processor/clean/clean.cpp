@@ -684,6 +684,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
         members.clear();
         outside.clear();
         votes.fill(0);
+        int behind_echoes = 0;
         bool large = false;
         stack.assign(1, static_cast<std::int32_t>(seed));
         piece[seed] = id;
@@ -695,7 +696,11 @@ void FillEnclosed(const georef::GeorefResult& geo,
                 const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
                 if (q < 0 || piece[q] == id) continue;
                 if (status[q] != 0) {
-                    if (continuous(j, q)) ++votes[status[q]];
+                    if (continuous(j, q)) {
+                        ++votes[status[q]];
+                    } else if (P.range_m[q] < P.range_m[j] && !within_break(j, q)) {
+                        ++behind_echoes;  // seen behind a rejected echo in front of it
+                    }
                 } else if (continuous(j, q) ||
                            ((dir[0] != 0 || config.fill_across_fan) && within_break(j, q))) {
                     if (piece[q] != 0 || members.size() + stack.size() >= limit) {
@@ -712,7 +717,9 @@ void FillEnclosed(const georef::GeorefResult& geo,
         bool open = large;
         for (const std::int32_t q : outside) open = open || piece[q] != id;
         const int contacts = std::accumulate(votes.begin(), votes.end(), 0);
-        if (open || contacts < config.fill_min_contacts) {
+        // Held more by echoes in front of it than by its run's soundings: terrain seen between
+        // them (a strip of pings between those a school fills), not the rest of a run.
+        if (open || contacts < config.fill_min_contacts || behind_echoes > contacts) {
             for (const std::int32_t j : members) piece[j] = -1;
             for (const std::int32_t j : stack) piece[j] = -1;
             continue;
