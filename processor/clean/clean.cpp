@@ -451,6 +451,110 @@ std::vector<char> NearField(const georef::GeorefResult& geo,
     return runs;
 }
 
+// The nadir side-lobe "smile": the strong specular echo of the nadir comes back through the
+// side lobes of the beams beside it, at the nadir's range. Where the terrain a beam sees is
+// further than the nadir (by more than the range resolution of the side lobe's echo), the beam
+// may return that range instead: across the fan an arc of constant range, the nadir's, over
+// consecutive pings. The terrain at those beams cannot lie there when the same beam, over the
+// pings on each side, sees it further by more than a break in the range. A sounding of a ping
+// whose nadir (the accepted sounding nearest to 0 deg, within smile_nadir_deg, and the 2
+// beams each side: their median range) is known, within a break (fill_break_m, margin_rel of
+// the range) of the nadir's range, and more than a break in front of the median range of the
+// same beam over the profile_pings pings on each side (the soundings still accepted, at least
+// 3 a side), is flagged; flagged soundings with a flagged neighbour across the fan (the arc
+// spans beams; over dropouts) are rejected with the profiles. Twice: an episode's soundings
+// flagged in the first pass no longer hold the median of a side for a ping of the same episode
+// a few pings on. A ridge crossed under the track is as near as its nadir over a few beams, and
+// in front of both sides, but continuous with the nadir's terrain (ReleaseTerrain keeps it); the
+// smile is parted from the nadir's terrain by the step where the terrain gets further than the
+// nadir by more than the side lobe's resolution. Returns the soundings of such runs, not already
+// rejected.
+std::vector<char> Smile(const georef::GeorefResult& geo,
+                        const SoundingGrid& grid,
+                        const CleanConfig& config,
+                        const std::vector<std::uint8_t>& decided) {
+    const georef::GeorefPoints& P = geo.points;
+    const std::size_t n = P.size();
+    std::vector<char> runs(n, 0);
+    const int w = config.profile_pings;
+    if (n == 0 || w <= 0 || !(config.smile_nadir_deg > 0)) return runs;
+    const std::size_t beams = grid.beams(), pings = grid.pings();
+    auto cell = [beams](std::size_t k, std::size_t b) { return k * beams + b; };
+    // The soundings still accepted per cell (-1: none, or rejected).
+    std::vector<std::int32_t> at(pings * beams, -1);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (decided[j] == 0) at[cell(P.ping[j], P.beam[j])] = static_cast<std::int32_t>(j);
+    }
+    // Each ping's nadir range (NaN: no accepted sounding near nadir).
+    const double max_angle = config.smile_nadir_deg * M_PI / 180.0;
+    std::vector<double> nadir(pings, std::nan(""));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pings, 256), [&](const auto& r) {
+        std::vector<double> near;
+        for (std::size_t k = r.begin(); k != r.end(); ++k) {
+            std::int64_t best = -1;
+            double best_angle = max_angle;
+            for (std::size_t b = 0; b < beams; ++b) {
+                const std::int32_t j = at[cell(k, b)];
+                if (j < 0) continue;
+                const double a = std::abs(double{P.angle_rad[static_cast<std::size_t>(j)]});
+                if (a <= best_angle) {
+                    best_angle = a;
+                    best = static_cast<std::int64_t>(b);
+                }
+            }
+            if (best < 0) continue;
+            near.clear();
+            for (std::int64_t b = best - 2; b <= best + 2; ++b) {
+                if (b < 0 || b >= static_cast<std::int64_t>(beams)) continue;
+                const std::int32_t j = at[cell(k, static_cast<std::size_t>(b))];
+                if (j >= 0) near.push_back(P.range_m[static_cast<std::size_t>(j)]);
+            }
+            nadir[k] = Median(near);
+        }
+    });
+    std::vector<char> flagged(n, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
+            std::vector<double> side;
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                if (decided[j] != 0 || runs[j]) continue;
+                const std::size_t k = P.ping[j];
+                const double rn = nadir[k], r0 = P.range_m[j];
+                if (!std::isfinite(rn)) continue;
+                const double brk = std::max(config.fill_break_m, config.margin_rel * rn);
+                if (std::abs(r0 - rn) > brk) continue;
+                bool in_front = true;
+                for (const int dir : {-1, 1}) {
+                    side.clear();
+                    for (int d = 1; d <= w; ++d) {
+                        const std::int64_t q = static_cast<std::int64_t>(k) + dir * d;
+                        if (!grid.Inside(q, P.beam[j])) break;
+                        const std::int32_t x = at[cell(static_cast<std::size_t>(q), P.beam[j])];
+                        if (x >= 0 && !runs[static_cast<std::size_t>(x)])
+                            side.push_back(P.range_m[static_cast<std::size_t>(x)]);
+                    }
+                    if (side.size() < 3 || !(Median(side) - r0 > brk)) {
+                        in_front = false;
+                        break;
+                    }
+                }
+                flagged[j] = in_front;
+            }
+        });
+        for (std::size_t j = 0; j < n; ++j) {
+            if (!flagged[j]) continue;
+            for (const int db : {-1, 1}) {
+                const std::int32_t q = grid.Nearest(j, 0, db);
+                if (q >= 0 && flagged[q]) {
+                    runs[j] = 1;
+                    break;
+                }
+            }
+        }
+    }
+    return runs;
+}
+
 // Holes and edges of an echo run: a sounding accepted between two soundings of one rejection
 // status (the nearest on each side, along track or across the fan, over up to 3 dropouts) and
 // on the line between their ranges (within hole_tolerance of the range, and 0.1 m) is of their
@@ -580,6 +684,7 @@ void FillEnclosed(const georef::GeorefResult& geo,
         members.clear();
         outside.clear();
         votes.fill(0);
+        int behind_echoes = 0;
         bool large = false;
         stack.assign(1, static_cast<std::int32_t>(seed));
         piece[seed] = id;
@@ -591,8 +696,13 @@ void FillEnclosed(const georef::GeorefResult& geo,
                 const std::int32_t q = grid.Nearest(j, dir[0], dir[1]);
                 if (q < 0 || piece[q] == id) continue;
                 if (status[q] != 0) {
-                    if (continuous(j, q)) ++votes[status[q]];
-                } else if (continuous(j, q) || (dir[0] != 0 && within_break(j, q))) {
+                    if (continuous(j, q)) {
+                        ++votes[status[q]];
+                    } else if (P.range_m[q] < P.range_m[j] && !within_break(j, q)) {
+                        ++behind_echoes;  // seen behind a rejected echo in front of it
+                    }
+                } else if (continuous(j, q) ||
+                           ((dir[0] != 0 || config.fill_across_fan) && within_break(j, q))) {
                     if (piece[q] != 0 || members.size() + stack.size() >= limit) {
                         large = true;  // joins a large piece, or is one
                         break;
@@ -607,7 +717,9 @@ void FillEnclosed(const georef::GeorefResult& geo,
         bool open = large;
         for (const std::int32_t q : outside) open = open || piece[q] != id;
         const int contacts = std::accumulate(votes.begin(), votes.end(), 0);
-        if (open || contacts < config.fill_min_contacts) {
+        // Held more by echoes in front of it than by its run's soundings: terrain seen between
+        // them (a strip of pings between those a school fills), not the rest of a run.
+        if (open || contacts < config.fill_min_contacts || behind_echoes > contacts) {
             for (const std::int32_t j : members) piece[j] = -1;
             for (const std::int32_t j : stack) piece[j] = -1;
             continue;
@@ -1141,6 +1253,8 @@ std::vector<std::string> CleanConfig::Validate() const {
     if (!(near_field_ratio > 0 && near_field_ratio < 1))
         p.push_back("clean.near_field_ratio must be in (0, 1)");
     if (!(near_field_min_m >= 0)) p.push_back("clean.near_field_min_m must be >= 0");
+    if (!(smile_nadir_deg >= 0 && smile_nadir_deg < 90))
+        p.push_back("clean.smile_nadir_deg must be in [0, 90)");
     if (!(hole_tolerance >= 0 && hole_tolerance < 1))
         p.push_back("clean.hole_tolerance must be in [0, 1)");
     if (fill_max_soundings < 0) p.push_back("clean.fill_max_soundings must be >= 0");
@@ -1231,9 +1345,10 @@ CleanResult Clean(const georef::GeorefResult& geo,
     const SoundingGrid grid(geo);
     const std::vector<char> along = Profiles(geo, grid, config, result.status);
     const std::vector<char> near = NearField(geo, grid, config, result.status);
+    const std::vector<char> smile = Smile(geo, grid, config, result.status);
     for (std::size_t j = 0; j < n; ++j) {
         if (result.status[j] != 0) continue;
-        if (along[j] || near[j])
+        if (along[j] || near[j] || smile[j])
             result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
     FillHoles(geo, grid, config, result.status);
@@ -1247,6 +1362,8 @@ CleanResult Clean(const georef::GeorefResult& geo,
     for (std::size_t j = 0; j < n; ++j) {
         c.near_field += near[j] && !along[j] &&
                         result.status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
+        c.smile += smile[j] && !along[j] && !near[j] &&
+                   result.status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
     }
     c.seconds_terrain = Seconds(t_start);
     report(1.0);

@@ -36,7 +36,9 @@
 //      over runs longer than its window. With them, near-field echoes (bubble sweep-down):
 //      runs of soundings within `near_field_max_range_m` far in front (`near_field_ratio`,
 //      `near_field_min_m`) of the median range of the same beam on both sides along track,
-//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md).
+//      where a bent side's line does not judge (docs/decisions/024-near-field-echoes.md); and
+//      the nadir smile: runs across the fan at the ping's nadir range (`smile_nadir_deg`), more
+//      than a break in front of their beam's median range on both sides (decision 025).
 //   7. Holes: an accepted sounding between two of one rejection status (along track or across
 //      the fan) and on the line between their ranges (`hole_tolerance`) takes their status;
 //      so does a small piece of continuous range enclosed by rejected soundings and breaks in
@@ -90,12 +92,15 @@ struct CleanConfig {
     double near_field_max_range_m = 5.0;  // near-field echoes: at most this range (0 = off) ...
     double near_field_ratio = 0.8;        // ... under this share of both sides' median range
     double near_field_min_m = 0.5;        // ... and this far in front of both, m
+    double smile_nadir_deg = 2.0;         // the nadir smile: a ping's nadir is its sounding nearest
+                                          // to 0 deg, within this (0 = off)
     double hole_tolerance = 0.01;       // a hole in a run: on its neighbours' line, share of range
     int fill_max_soundings = 500;       // an enclosed piece of continuous range: at most this many
                                         // soundings (0 = off) ...
     int fill_min_contacts = 2;          // ... touching rejected soundings this often ...
     double fill_break_m = 0.15;         // ... its other edges breaks in the range of this, m
                                         // (or margin_rel of the range)
+    bool fill_across_fan = true;        // ... grown across the fan too over steps short of a break
     int terrain_piece_soundings = 500;  // a rejection continuous in range with a piece of this
                                         // many accepted soundings is terrain (0 = off)
     int num_threads = 0;                // 0 = all cores (TBB)
@@ -113,6 +118,7 @@ struct CleanCounts {
     std::int64_t multipath = 0;
     std::int64_t profile = 0;
     std::int64_t near_field = 0;  // of `profile`: near-field echoes the lines did not reject
+    std::int64_t smile = 0;       // of `profile`: the nadir smile, the other tests did not reject
     std::int64_t terrain = 0;     // rejected by a test, then released: continuous with the terrain
     // Wall time of the parts: voxels and patches, the rays, the clusters, the verdicts of the
     // voxels and rays, the range profiles (with the holes and the enclosed pieces), the

@@ -268,6 +268,9 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       "a piece of continuous range enclosed by rejections: at most this many; 0 = off");
     v("fill_min_contacts", c.fill_min_contacts, "... touching rejected soundings this often");
     v("fill_break_m", c.fill_break_m, "... its other edges breaks of this (or margin_rel), m");
+    v("fill_across_fan",
+      c.fill_across_fan,
+      "... grown across the fan too over steps short of a break (a ghost's noise parts its beams)");
     v("terrain_piece_soundings",
       c.terrain_piece_soundings,
       "a rejection continuous in range with this many accepted soundings is terrain; 0 = off");
@@ -287,6 +290,9 @@ void VisitClean(V&& v, clean::CleanConfig& c) {
       c.near_field_ratio,
       "... rejected under this share of the beam's median range over the pings each side");
     v("near_field_min_m", c.near_field_min_m, "... and this far in front of both, m");
+    v("smile_nadir_deg",
+      c.smile_nadir_deg,
+      "the nadir smile: a ping's nadir is its sounding nearest to 0 deg within this, deg; 0 = off");
     v("num_threads", c.num_threads, "0 = all cores");
 }
 

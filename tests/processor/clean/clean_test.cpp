@@ -36,7 +36,7 @@ void Add(Survey& out, std::uint32_t k, int beam, const Eigen::Vector3d& d, doubl
     out.geo.points.ping.push_back(k);
     out.geo.points.beam.push_back(static_cast<std::uint16_t>(beam));
     out.geo.points.range_m.push_back(static_cast<float>(r));
-    out.geo.points.angle_rad.push_back(0.0f);
+    out.geo.points.angle_rad.push_back(static_cast<float>(std::atan2(d.y(), -d.z())));
     out.truth.push_back(t);
 }
 
@@ -467,6 +467,75 @@ TEST(Clean, TheSmileOverAShallowShelfIsEnclosedByItsSmallBreaks) {
     EXPECT_LE(t.rejected[kGood], 0.0005 * t.total[kGood]);
 }
 
+// One line over a floor that deepens across track on one side (1 m per 3 m out) and along
+// track (1.5 cm a ping), 8 m under the transducer at the start, as the quarry's slope under its
+// shelf on seed 7: for 7 pings, and one more 3 pings later, the beams from where the floor is
+// 5 % further than nadir out to 15 deg on the deep side return the nadir's range (the nadir
+// side lobe's smile), an arc 0.4-2 m in front of the floor. Its outer beams are far in front of
+// the floor; its inner ones 5-15 %. And a ridge 0.4 m high across the track (pings 110-116): its
+// crest is as near as the nadir over a few beams and in front of the pings on each side, but goes
+// on without a break into the nadir's terrain.
+Survey MakeSmileOverASlope() {
+    Survey out;
+    std::mt19937 rng(23);
+    std::normal_distribution<double> noise(0.0, 0.03);
+    for (int i = 0; i < 160; ++i) {
+        const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+        pitmap::proc::georef::GeorefPing ping;
+        ping.sensor_world = Eigen::Vector3d(0.15 * i, 0.0, 0.0);
+        out.geo.pings.push_back(ping);
+        const double ridge = 0.8 * std::max(0.0, 1.0 - std::abs(i - 113) / 8.0);
+        const double nadir = 8.0 + 0.015 * i - ridge;
+        const bool smile = (i >= 60 && i < 67) || i == 70;
+        for (int b = 0; b < kBeams; ++b) {
+            const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+            const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+            // The floor z = -(nadir + max(0, -y) / 3) along the ray (y = r sin, z = -r cos).
+            const double r_floor = theta < 0 ? nadir / (std::cos(theta) + std::sin(theta) / 3.0)
+                                             : nadir / std::cos(theta);
+            if (smile && theta < -3.0 * M_PI / 180.0 && theta > -15.0 * M_PI / 180.0 &&
+                r_floor > 1.05 * nadir) {
+                Add(out, k, b, d, nadir + noise(rng), kBubble);  // an echo in the water
+                continue;
+            }
+            Add(out, k, b, d, r_floor + noise(rng), kGood);
+        }
+    }
+    return out;
+}
+
+TEST(Clean, TheSmileAtTheNadirsRangeInFrontOfBothSidesIsRejected) {
+    const Survey s = MakeSmileOverASlope();
+    CleanConfig without;
+    without.smile_nadir_deg = 0;
+    const auto r0 = Clean(s.geo, without);
+    const Tally before = Score(s, r0.status);
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    std::printf(
+        "smile over a slope: %lld of %lld rejected (%lld without the smile test), by it %lld, "
+        "kept as terrain %lld (%lld), good %lld of %lld (%lld)\n",
+        static_cast<long long>(t.rejected[kBubble]),
+        static_cast<long long>(t.total[kBubble]),
+        static_cast<long long>(before.rejected[kBubble]),
+        static_cast<long long>(r.counts.smile),
+        static_cast<long long>(r.counts.terrain),
+        static_cast<long long>(r0.counts.terrain),
+        static_cast<long long>(t.rejected[kGood]),
+        static_cast<long long>(t.total[kGood]),
+        static_cast<long long>(before.rejected[kGood]));
+    ASSERT_GT(t.total[kBubble], 200);
+    EXPECT_LE(before.rejected[kBubble], 0.9 * before.total[kBubble]);
+    EXPECT_GE(t.rejected[kBubble], 0.98 * t.total[kBubble]);
+    EXPECT_GT(r.counts.smile, 0);
+    // The ridge's crest and the nadir's beams beside it, in front of the pings on each side at
+    // the nadir's range, are flagged by the test and kept as terrain (continuous with it).
+    EXPECT_GT(r.counts.terrain, r0.counts.terrain + 100);
+    // The ridge's crest is kept: no more good soundings rejected than without the test.
+    EXPECT_LE(t.rejected[kGood], before.rejected[kGood] + 1);
+    EXPECT_LE(t.rejected[kGood], 0.001 * t.total[kGood]);
+}
+
 TEST(Clean, ACleanFloorKeepsEverySounding) {
     const Survey s = MakeSurvey(false);
     const auto r = Clean(s.geo, CleanConfig{});
@@ -489,7 +558,8 @@ TEST(Clean, EmptyViewAndInvalidConfig) {
     bad.terrain_piece_soundings = -1;
     bad.fill_break_m = 0;
     bad.near_field_ratio = 1.0;
-    EXPECT_EQ(bad.Validate().size(), 5u);
+    bad.smile_nadir_deg = -1;
+    EXPECT_EQ(bad.Validate().size(), 6u);
     EXPECT_TRUE(CleanConfig{}.Validate().empty());
 }
 
