@@ -81,6 +81,16 @@ CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s) {
     return c;
 }
 
+double WindowCoarseSeconds(SlamStage stage, const SlamConfig& cfg) {
+    if (stage == SlamStage::kRigid) {
+        return cfg.rigid_window_coarse_s > 0
+                   ? std::max(cfg.rigid_window_coarse_s, cfg.section_length_s)
+                   : 0.0;
+    }
+    return cfg.semi_rigid_window_coarse_s > 0 ? cfg.semi_rigid_window_coarse_s
+                                              : cfg.section_length_s;
+}
+
 WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys,
                                std::vector<NodeWindow> windows,
                                CoarseSpace coarse)
