@@ -108,9 +108,9 @@ struct CoarseSpace {
 };
 CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s);
 
-// The coarse level's node spacing of a stage's windows, s (0: none): the semi-rigid stage's
-// semi_rigid_window_coarse_s (0 = section_length_s); the rigid stage's rigid_window_coarse_s,
-// at least section_length_s (its nodes are one per section).
+// The coarse level's node spacing of a stage's windows, s: the stage's *_window_coarse_s, or
+// when 0 a tenth of its window length; never below section_length_s (the rigid stage's nodes
+// are one per section; a finer coarse level would be the whole system again).
 double WindowCoarseSeconds(SlamStage stage, const SlamConfig& cfg);
 
 // The damped solve of a block system, whole or by windows. One window: reg::DampedSolver as it

@@ -82,13 +82,10 @@ CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s) {
 }
 
 double WindowCoarseSeconds(SlamStage stage, const SlamConfig& cfg) {
-    if (stage == SlamStage::kRigid) {
-        return cfg.rigid_window_coarse_s > 0
-                   ? std::max(cfg.rigid_window_coarse_s, cfg.section_length_s)
-                   : 0.0;
-    }
-    return cfg.semi_rigid_window_coarse_s > 0 ? cfg.semi_rigid_window_coarse_s
-                                              : cfg.section_length_s;
+    const bool rigid = stage == SlamStage::kRigid;
+    const double set = rigid ? cfg.rigid_window_coarse_s : cfg.semi_rigid_window_coarse_s;
+    const double window_s = rigid ? cfg.rigid_window_s : cfg.semi_rigid_window_s;
+    return std::max(set > 0 ? set : 0.1 * window_s, cfg.section_length_s);
 }
 
 WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys,

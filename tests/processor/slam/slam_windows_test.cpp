@@ -260,12 +260,13 @@ TEST(SlamWindows, RigidLayoutOneWindowIsWholeAndSweepsReachIt) {
     }
     EXPECT_LT((at - exact).norm(), 1e-6 * exact.norm());
     EXPECT_LT(largest, 0.5 * whole.factor_nonzeros());
-    // No coarse level for the rigid stage when rigid_window_coarse_s is 0; never finer than
-    // its sections.
-    cfg.rigid_window_coarse_s = 0.0;
-    EXPECT_EQ(WindowCoarseSeconds(SlamStage::kRigid, cfg), 0.0);
+    // The coarse spacing: a tenth of the window unless set, never finer than the sections.
     cfg.rigid_window_coarse_s = 5.0;
     EXPECT_EQ(WindowCoarseSeconds(SlamStage::kRigid, cfg), 15.0);
+    cfg.rigid_window_coarse_s = 90.0;
+    EXPECT_EQ(WindowCoarseSeconds(SlamStage::kRigid, cfg), 90.0);
+    EXPECT_EQ(WindowCoarseSeconds(SlamStage::kSemiRigid, cfg), 60.0);
+    cfg.semi_rigid_window_s = 80.0;
     EXPECT_EQ(WindowCoarseSeconds(SlamStage::kSemiRigid, cfg), 15.0);
     cfg.semi_rigid_window_coarse_s = 45.0;
     EXPECT_EQ(WindowCoarseSeconds(SlamStage::kSemiRigid, cfg), 45.0);
