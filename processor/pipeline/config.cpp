@@ -193,6 +193,18 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("semi_rigid_window_overlap_s",
       c.semi_rigid_window_overlap_s,
       "each window reaches this far past its core on both sides, s");
+    v("semi_rigid_window_coarse_s",
+      c.semi_rigid_window_coarse_s,
+      "the windows' coarse level: a node every this many s; 0 = a tenth of the window");
+    v("rigid_window_s",
+      c.rigid_window_s,
+      "rigid solve by windows of about this, s; 0 = the whole survey");
+    v("rigid_window_overlap_s",
+      c.rigid_window_overlap_s,
+      "each rigid window reaches this far past its core, s");
+    v("rigid_window_coarse_s",
+      c.rigid_window_coarse_s,
+      "the rigid windows' coarse level: a node every this many s; 0 = a tenth of the window");
     v("convergence_rotation_rad", c.convergence_rotation_rad, "converged below this pose update");
     v("convergence_translation_m", c.convergence_translation_m, "... and this one");
     v("normal_neighbours", c.normal_neighbours, "neighbours for normals / covariances");

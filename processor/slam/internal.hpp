@@ -85,7 +85,7 @@ std::vector<Pose> SlicePoses(const Param& p);
 // d(slice pose perturbation) / d(node increment), times the interpolation weight w.
 Matrix6d NodeToSlice(const Param& p, const Pose& T_s, std::size_t s, double w);
 
-// ---- windows of the semi-rigid solve (windows.cpp; SlamConfig::semi_rigid_window_s) ----------
+// ---- windows of both stages' solves (windows.cpp; SlamConfig::*_window_s) -------------------
 
 // Nodes [first, last) of one window; its core [core_first, core_last) is what it contributes.
 struct NodeWindow {
@@ -109,6 +109,11 @@ struct CoarseSpace {
     std::vector<double> w;         // ... and the weight of the one after it (0 at the last)
 };
 CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s);
+
+// The coarse level's node spacing of a stage's windows, s: the stage's *_window_coarse_s, or
+// when 0 a tenth of its window length; never below section_length_s (the rigid stage's nodes
+// are one per section; a finer coarse level would be the whole system again).
+double WindowCoarseSeconds(SlamStage stage, const SlamConfig& cfg);
 
 // The damped solve of a block system, whole or by windows. One window: reg::DampedSolver as it
 // is. Several: one two-level multiplicative Schwarz sweep (Smith, Bjorstad & Gropp 1996,

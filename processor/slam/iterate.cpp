@@ -209,19 +209,16 @@ StageOutcome RunStage(const Input& in,
 
         const Terms total = BuildNormalEquations(in, p, T, pairs, cfg, res);
         auto t0 = Clock::now();
-        // The semi-rigid stage by windows in time (SlamConfig::semi_rigid_window_s), their
-        // cores offset by half a core every other iteration, over a coarse level of one node
-        // per section_length_s (the rigid stage's sections, interpolated); the rigid stage's
-        // sections are few and solved whole.
-        const bool windowed = stage == SlamStage::kSemiRigid;
+        // Both stages by windows in time (SlamConfig::semi_rigid_window_s, rigid_window_s),
+        // their cores offset by half a core every other iteration, over a coarse level of
+        // nodes interpolated in time (docs/decisions/017, 021).
+        const bool rigid = stage == SlamStage::kRigid;
+        const double window_s = rigid ? cfg.rigid_window_s : cfg.semi_rigid_window_s;
+        const double overlap_s =
+            rigid ? cfg.rigid_window_overlap_s : cfg.semi_rigid_window_overlap_s;
         WindowedSolver ne(total.sys,
-                          windowed ? MakeWindows(in,
-                                                 p,
-                                                 cfg.semi_rigid_window_s,
-                                                 cfg.semi_rigid_window_overlap_s,
-                                                 it % 2 == 0 ? 0.5 : 0.0)
-                                   : std::vector<NodeWindow>{},
-                          windowed ? MakeCoarseSpace(in, p, cfg.section_length_s) : CoarseSpace{});
+                          MakeWindows(in, p, window_s, overlap_s, it % 2 == 0 ? 0.5 : 0.0),
+                          MakeCoarseSpace(in, p, WindowCoarseSeconds(stage, cfg)));
         res.timings.build_s += Seconds(t0);
         SlamIteration rec;
         rec.windows = ne.num_windows();

@@ -88,6 +88,16 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (semi_rigid_window_s > 0 && !(semi_rigid_window_overlap_s > 0)) {
         p.push_back("semi_rigid_window_overlap_s must be > 0 when semi_rigid_window_s is set");
     }
+    if (!(semi_rigid_window_coarse_s >= 0)) {
+        p.push_back("semi_rigid_window_coarse_s must be >= 0 (0 = a tenth of the window)");
+    }
+    if (!(rigid_window_s >= 0)) p.push_back("rigid_window_s must be >= 0 (0 = one system)");
+    if (rigid_window_s > 0 && !(rigid_window_overlap_s > 0)) {
+        p.push_back("rigid_window_overlap_s must be > 0 when rigid_window_s is set");
+    }
+    if (!(rigid_window_coarse_s >= 0)) {
+        p.push_back("rigid_window_coarse_s must be >= 0 (0 = a tenth of the window)");
+    }
     if (posterior_batch_nodes < 1) p.push_back("posterior_batch_nodes must be >= 1");
     if (posterior_start_runs < 0) p.push_back("posterior_start_runs must be >= 0");
     if (!(convergence_rotation_rad >= 0)) p.push_back("convergence_rotation_rad must be >= 0");

@@ -118,6 +118,22 @@ struct SlamConfig {
     // (the factor then grows faster than the survey: docs/decisions/015).
     double semi_rigid_window_s = 600.0;
     double semi_rigid_window_overlap_s = 120.0;
+    // The windows' coarse level: one node every this many seconds, node corrections
+    // interpolated between them; 0 = a tenth of the window length, at least section_length_s
+    // (60 s by default). It is one system over the whole survey, so it is kept coarse enough
+    // to stay small: at 15 s (decision 017) it fills like the rigid stage's whole system
+    // (docs/decisions/021).
+    double semi_rigid_window_coarse_s = 0.0;
+    // The rigid stage by the same windows over a coarse level (docs/decisions/021): its
+    // whole-survey system (one node per section) fills like the semi-rigid one, with the square
+    // of the passes over the pit (0.07, 0.28, 0.95 M nonzeros at 1x, 2x, 4x bejanca). Cut into
+    // floor(duration / rigid_window_s) cores (a survey shorter than twice this is one system),
+    // each window reaching rigid_window_overlap_s past its core, over a coarse level of one
+    // node every rigid_window_coarse_s (0 = a tenth of the window, at least
+    // section_length_s). 0 = one system always.
+    double rigid_window_s = 600.0;
+    double rigid_window_overlap_s = 120.0;
+    double rigid_window_coarse_s = 0.0;
     // Converged when the largest pose update is below both thresholds.
     double convergence_rotation_rad = 2e-5;
     double convergence_translation_m = 2e-4;

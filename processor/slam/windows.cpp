@@ -81,6 +81,13 @@ CoarseSpace MakeCoarseSpace(const Input& in, const Param& p, double coarse_s) {
     return c;
 }
 
+double WindowCoarseSeconds(SlamStage stage, const SlamConfig& cfg) {
+    const bool rigid = stage == SlamStage::kRigid;
+    const double set = rigid ? cfg.rigid_window_coarse_s : cfg.semi_rigid_window_coarse_s;
+    const double window_s = rigid ? cfg.rigid_window_s : cfg.semi_rigid_window_s;
+    return std::max(set > 0 ? set : 0.1 * window_s, cfg.section_length_s);
+}
+
 WindowedSolver::WindowedSolver(const reg::BlockSystem<6>& sys,
                                std::vector<NodeWindow> windows,
                                CoarseSpace coarse)

@@ -234,13 +234,17 @@ def render_scale_table(r):
         st = run["stages"]
         stage_cpu = [fmt((st.get(n) or {}).get("cpu_seconds"), ".1f") for n in SCALE_STAGES]
         peak_stage = max(st, key=lambda n: st[n].get("peak_rss_mb") or 0)
+        scores = run.get("scores") or {}
         rows.append([f"{run['scale']:g}x", f"{run['duration_s']:.0f}", f"{run['soundings']:,}",
                      f"{run['total_seconds']:.1f}", f"{cpu_of(run):.1f}",
                      f"{cpu_of(run) / cpu_of(base):.2f}", *stage_cpu,
-                     f"{run['peak_rss_mb']:.0f} ({peak_stage})"])
+                     f"{run['peak_rss_mb']:.0f} ({peak_stage})",
+                     fmt(scores.get("trajectory_ate_rmse_m"), ".4f"),
+                     fmt(scores.get("points_rms_m"), ".4f")])
     return table(["scale", "survey (s)", "soundings", "wall (s)", "CPU (s)", "CPU ratio",
-                  *[f"{n} CPU (s)" for n in SCALE_STAGES], "peak RSS (MB, stage)"],
-                 rows, "lrrrrr" + "r" * len(SCALE_STAGES) + "r")
+                  *[f"{n} CPU (s)" for n in SCALE_STAGES], "peak RSS (MB, stage)",
+                  "ATE (m)", "points RMS (m)"],
+                 rows, "lrrrrr" + "r" * len(SCALE_STAGES) + "rrr")
 
 
 # --- memory per stage (tools/bench/memory_result.py) --------------------------------------------

@@ -7,8 +7,12 @@
 #                   and the simulator's own time and peak RSS
 #   OUT/scale.md    the same as a markdown table (the stages that take the time)
 #   tools/bench/run-scale-bench.sh [--scales "1 2"] [--out DIR] [--scenario NAME]
-#                                  [--keep-products] [--report-only]
+#                                  [--keep-products] [--report-only] [--no-eval]
 # --report-only: no runs, the tables again from what OUT holds.
+# Each run's products are scored by pitmap-eval against the simulator's truth (SLAM's ATE and
+# the points' RMS: OUT/eval-<scale>x.json) unless --no-eval; the whole run's CPU seconds (the
+# stages' summed, summary.json) and their ratio to the first scale are the cost (on a shared
+# machine wall time is the load's). A scale may be fractional (11.259 = 14 400 s of bejanca).
 # Peak memory is summary.json's (the largest of the stages' VmHWM): `pitmap` resets the kernel's
 # high-water mark at each stage (common/peak_memory.hpp), so time -v's maximum RSS is only the
 # last stage's peak; it is kept as time_v_max_rss_mb.
@@ -24,6 +28,7 @@ out=$root/out/bench/scale
 scenario=bejanca
 keep=0
 report_only=0
+evaluate=1
 while [[ $# -gt 0 ]]; do
   case $1 in
     --scales) scales=$2; shift 2 ;;
@@ -31,7 +36,8 @@ while [[ $# -gt 0 ]]; do
     --scenario) scenario=$2; shift 2 ;;
     --keep-products) keep=1; shift ;;
     --report-only) report_only=1; shift ;;
-    -h|--help) sed -n '3,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --no-eval) evaluate=0; shift ;;
+    -h|--help) sed -n '3,19p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run-scale-bench: unknown argument '$1' (--help)" >&2; exit 2 ;;
   esac
 done
@@ -44,7 +50,7 @@ if [[ -n ${BIN_DIR:-} ]]; then
   bin=$BIN_DIR
 else
   bin=$build/bin
-  cmake --build "$build" -j 2 --target pitmap pitmap-sim > /dev/null
+  cmake --build "$build" -j 2 --target pitmap pitmap-sim pitmap-eval > /dev/null
 fi
 mkdir -p "$out"
 
@@ -77,6 +83,10 @@ for s in $scales; do
     "$bin/pitmap" run "$sim/log" --out "$out/products-${s}x" --no-report \
     > "$out/run-${s}x.log" 2>&1 || { grep -v '%  \[' "$out/run-${s}x.log" | tail -20; exit 1; }
   cp "$out/products-${s}x/summary.json" "$out/summary-${s}x.json"
+  if [[ $evaluate == 1 ]]; then
+    "$bin/pitmap-eval" --truth "$sim/truth" --products "$out/products-${s}x" \
+      --json "$out/eval-${s}x.json" > "$out/eval-${s}x.log" 2>&1 || { tail -20 "$out/eval-${s}x.log"; exit 1; }
+  fi
   [[ $keep == 1 ]] || rm -rf "$out/products-${s}x"
 done
 
@@ -108,7 +118,15 @@ for s in scales:
     for name, st in summary.get("stages", {}).items():
         if isinstance(st, dict) and "seconds" in st:
             stages[name] = {k: st[k] for k in ("seconds", "cpu_seconds", "peak_rss_mb") if k in st}
-    ingest = summary.get("stages", {}).get("ingest", {})
+    scores = {}
+    eval_path = os.path.join(out, f"eval-{s}x.json")
+    if os.path.exists(eval_path):
+        e = json.load(open(eval_path))
+        scores = {k: e.get(k) for k in ("trajectory_ate_rmse_m", "trajectory_ate_rmse_before_m",
+                                         "points_rms_m")}
+    slam = summary.get("stages", {}).get("slam", {})
+    factors = [it.get("factor_nonzeros") for it in slam.get("iterations", [])
+               if isinstance(it, dict) and it.get("factor_nonzeros")]
     rows.append({
         "scale": float(s),
         "duration_s": round(base * float(s), 1),
@@ -123,6 +141,10 @@ for s in scales:
         "sim_wall_seconds": sim_wall,
         "sim_peak_rss_mb": sim_rss,
         "cores": summary.get("process", {}).get("cores"),
+        "cpu_seconds": sum(st.get("cpu_seconds", 0.0) for st in stages.values()),
+        "scores": scores,
+        "slam_largest_factor_nonzeros": max(factors) if factors else None,
+        "slam_posterior_seconds": (slam.get("posterior") or {}).get("seconds"),
     })
 result = {"scenario": scenario, "base_duration_s": base, "runs": rows}
 json.dump(result, open(os.path.join(out, "scale.json"), "w"), indent=2)
@@ -131,25 +153,33 @@ cols = ["georef", "calibrate", "slam", "clean", "grid", "fuse", "mesh"]
 def f(v, fmt="{:.1f}"):
     return "-" if v is None else fmt.format(v)
 lines = [f"{scenario}, `pitmap run --no-report`, {rows[0]['cores'] if rows else '?'} cores; "
-         "seconds and peak RSS (largest stage VmHWM) from summary.json",
+         "CPU seconds (user + sys) and peak RSS (largest stage VmHWM) from summary.json; "
+         "wall: the whole run's",
          "",
-         "| scale | duration (s) | soundings | total (s) | ratio | " +
-         " | ".join(cols) + " | peak RSS (MB) | stage at peak |",
-         "|---:|---:|---:|---:|---:|" + "---:|" * len(cols) + "---:|---|"]
-t1 = rows[0]["total_seconds"] if rows else None
+         "| scale | duration (s) | soundings | wall (s) | CPU (s) | CPU ratio | " +
+         " | ".join(cols) + " | peak RSS (MB) | stage at peak | ATE (m) | points RMS (m) |",
+         "|---:|---:|---:|---:|---:|---:|" + "---:|" * len(cols) + "---:|---|---:|---:|"]
+c1 = rows[0]["cpu_seconds"] if rows else None
 for r in rows:
     st = r["stages"]
     peak_stage = max(st.items(), key=lambda kv: kv[1].get("peak_rss_mb", 0))[0] if st else "-"
-    ratio = r["total_seconds"] / t1 if t1 else None
-    # clean runs twice (first pass, final) and fuse/mesh twice (initial, final): summed.
-    def secs(c):
+    ratio = r["cpu_seconds"] / c1 if c1 else None
+    # fuse and mesh run twice (initial, final): summed.
+    def cpu(c):
         keys = [c] + ([c + "_initial"] if c in ("fuse", "mesh") else [])
-        vals = [st[k]["seconds"] for k in keys if k in st]
+        vals = [st[k]["cpu_seconds"] for k in keys if k in st and "cpu_seconds" in st[k]]
         return sum(vals) if vals else None
+    sc = r["scores"]
     lines.append(f"| {r['scale']:g}x | {r['duration_s']:.0f} | {f(r['soundings'], '{:,}')} | "
-                 f"{f(r['total_seconds'])} | {f(ratio, '{:.2f}')} | " +
-                 " | ".join(f(secs(c)) for c in cols) +
-                 f" | {f(r['peak_rss_mb'], '{:.0f}')} | {peak_stage} |")
+                 f"{f(r['total_seconds'])} | {f(r['cpu_seconds'])} | {f(ratio, '{:.2f}')} | " +
+                 " | ".join(f(cpu(c)) for c in cols) +
+                 f" | {f(r['peak_rss_mb'], '{:.0f}')} | {peak_stage} | "
+                 f"{f(sc.get('trajectory_ate_rmse_m'), '{:.4f}')} | "
+                 f"{f(sc.get('points_rms_m'), '{:.4f}')} |")
+if c1:
+    lines += ["", "CPU ratio " + " : ".join(f"{r['cpu_seconds'] / c1:.2f}" for r in rows) +
+              " at " + " : ".join(f"{r['scale']:g}" for r in rows) +
+              "x (linear: the scales; issue 38: 1 : <= 2.2 : <= 4.5 : <= 9 at 1 : 2 : 4 : 8)"]
 lines += ["", "| scale | simulator wall (s) | simulator peak RSS (MB) |", "|---:|---:|---:|"]
 for r in rows:
     lines.append(f"| {r['scale']:g}x | {f(r['sim_wall_seconds'])} | {f(r['sim_peak_rss_mb'], '{:.0f}')} |")

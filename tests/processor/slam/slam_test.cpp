@@ -505,6 +505,68 @@ TEST(Slam, WindowedFactorStaysBoundedAsPassesRepeat) {
     EXPECT_GT(win16.posterior.windows, win8.posterior.windows);
 }
 
+// The rigid stage by windows in time over a coarse level (SlamConfig::rigid_window_s,
+// docs/decisions/021) on the crossing pattern driven twice (408 s), the rigid stage alone
+// (interpolated sections, as by default): windows of 80 s (5 cores, 20 s of overlap) over
+// coarse nodes every 24 s (3 sections), against the whole rigid solve; and windows longer than
+// half the survey, which are one system: the whole solve (to the rounding of the threads' sums,
+// which differ from run to run; bit for bit in SlamWindows.OneWindowIsTheWholeSolve).
+TEST(Slam, RigidWindowsFollowTheWholeRigidSolve) {
+    std::vector<Waypoint> wps;
+    for (int r = 0; r < 2; ++r) wps.insert(wps.end(), kCrossing.begin(), kCrossing.end());
+    const Survey sv = MakeSurvey(wps, 1.0);
+    SlamConfig cfg = TestConfig();
+    cfg.rigid_interpolate_sections = true;
+    cfg.rigid_iterations = 8;
+    cfg.max_iterations = 0;  // the rigid stage alone
+    cfg.posterior = false;
+    cfg.rigid_window_s = 0;
+    const SlamResult whole = RunSlam(sv.slices, cfg);
+    cfg.rigid_window_s = 300.0;  // 408 s < 2 x 300 s: one window
+    const SlamResult one = RunSlam(sv.slices, cfg);
+    cfg.rigid_window_s = 80.0;
+    cfg.rigid_window_overlap_s = 20.0;
+    cfg.rigid_window_coarse_s = 24.0;
+    const SlamResult windowed = RunSlam(sv.slices, cfg);
+
+    ASSERT_EQ(one.trajectory.size(), whole.trajectory.size());
+    ASSERT_EQ(one.iterations.size(), whole.iterations.size());
+    for (std::size_t s = 0; s < whole.trajectory.size(); ++s) {
+        ASSERT_LT((one.trajectory[s].T_world_vehicle.matrix() -
+                   whole.trajectory[s].T_world_vehicle.matrix())
+                      .cwiseAbs()
+                      .maxCoeff(),
+                  1e-6)
+            << "slice " << s;
+    }
+    std::size_t windowed_steps = 0;
+    for (const SlamIteration& it : windowed.iterations) {
+        ASSERT_EQ(it.stage, SlamStage::kRigid);
+        windowed_steps += it.windows >= 5 ? 1 : 0;
+    }
+    for (const SlamIteration& it : whole.iterations) EXPECT_EQ(it.windows, 1u);
+    ASSERT_GT(windowed_steps, 1u) << windowed.message;
+
+    const double before = Ate(Initial(sv.slices), sv.truth);
+    const double a_whole = Ate(whole.trajectory, sv.truth);
+    const double a_windowed = Ate(windowed.trajectory, sv.truth);
+    double max_diff = 0;
+    for (std::size_t s = 0; s < whole.trajectory.size(); ++s) {
+        max_diff = std::max(max_diff,
+                            (whole.trajectory[s].T_world_vehicle.translation() -
+                             windowed.trajectory[s].T_world_vehicle.translation())
+                                .norm());
+    }
+    const std::string figures = "ATE before " + std::to_string(before) + " whole " +
+                                std::to_string(a_whole) + " windowed " +
+                                std::to_string(a_windowed) + ", largest position difference " +
+                                std::to_string(max_diff);
+    RecordProperty("figures", figures);
+    EXPECT_LT(a_whole, 0.8 * before) << figures;
+    EXPECT_LT(a_windowed, a_whole + 0.005) << figures;
+    EXPECT_LT(max_diff, 0.03) << figures;
+}
+
 TEST(Slam, InterpolatedSectionsRecoverMostOfAPerturbation) {
     const Survey sv = MakeSurvey(kCrossing, 1.0);
     SlamConfig cfg = TestConfig();
