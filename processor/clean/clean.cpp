@@ -113,6 +113,25 @@ public:
         return q >= 0 && q < static_cast<std::int64_t>(pings_) && c >= 0 &&
                c < static_cast<std::int64_t>(beams_);
     }
+    // The median range of beam b over up to w pings on one side of ping k (dir -1: before, 1:
+    // after), of what range_at(q) gives for ping q (NaN: nothing to count there); NaN with
+    // fewer than 3. side: the caller's scratch.
+    template <class RangeAt>
+    double SideMedian(std::int64_t k,
+                      std::int64_t b,
+                      int dir,
+                      int w,
+                      const RangeAt& range_at,
+                      std::vector<double>& side) const {
+        side.clear();
+        for (int d = 1; d <= w; ++d) {
+            const std::int64_t q = k + dir * d;
+            if (!Inside(q, b)) break;
+            const double x = range_at(static_cast<std::size_t>(q));
+            if (std::isfinite(x)) side.push_back(x);
+        }
+        return side.size() < 3 ? std::numeric_limits<double>::quiet_NaN() : Median(side);
+    }
     // The nearest sounding to j in direction (dk, db) (pings, beams), up to 4 cells away; -1
     // when none. Its distance in cells in *at.
     std::int32_t Nearest(std::size_t j, int dk, int db, int* at = nullptr) const {
@@ -413,21 +432,12 @@ std::vector<char> NearField(const georef::GeorefResult& geo,
             if (decided[j] != 0 || r0 > config.near_field_max_range_m) continue;
             const auto k = static_cast<std::int64_t>(P.ping[j]);
             const auto b = static_cast<std::int64_t>(P.beam[j]);
+            const auto range_at = [&](std::size_t q) {
+                return double{range[q * beams + static_cast<std::size_t>(b)]};
+            };
             bool in_front = true;
             for (const int dir : {-1, 1}) {
-                side.clear();
-                for (int d = 1; d <= w; ++d) {
-                    const std::int64_t q = k + dir * d;
-                    if (!grid.Inside(q, b)) break;
-                    const double x =
-                        range[static_cast<std::size_t>(q) * beams + static_cast<std::size_t>(b)];
-                    if (std::isfinite(x)) side.push_back(x);
-                }
-                if (side.size() < 3) {
-                    in_front = false;
-                    break;
-                }
-                const double med = Median(side);
+                const double med = grid.SideMedian(k, b, dir, w, range_at, side);
                 if (!(r0 < config.near_field_ratio * med && med - r0 > config.near_field_min_m)) {
                     in_front = false;
                     break;
@@ -523,17 +533,17 @@ std::vector<char> Smile(const georef::GeorefResult& geo,
                 if (!std::isfinite(rn)) continue;
                 const double brk = std::max(config.fill_break_m, config.margin_rel * rn);
                 if (std::abs(r0 - rn) > brk) continue;
+                const auto range_at = [&](std::size_t q) {
+                    const std::int32_t x = at[cell(q, P.beam[j])];
+                    return x >= 0 && !runs[static_cast<std::size_t>(x)]
+                               ? double{P.range_m[static_cast<std::size_t>(x)]}
+                               : std::numeric_limits<double>::quiet_NaN();
+                };
                 bool in_front = true;
                 for (const int dir : {-1, 1}) {
-                    side.clear();
-                    for (int d = 1; d <= w; ++d) {
-                        const std::int64_t q = static_cast<std::int64_t>(k) + dir * d;
-                        if (!grid.Inside(q, P.beam[j])) break;
-                        const std::int32_t x = at[cell(static_cast<std::size_t>(q), P.beam[j])];
-                        if (x >= 0 && !runs[static_cast<std::size_t>(x)])
-                            side.push_back(P.range_m[static_cast<std::size_t>(x)]);
-                    }
-                    if (side.size() < 3 || !(Median(side) - r0 > brk)) {
+                    const double med = grid.SideMedian(
+                        static_cast<std::int64_t>(k), P.beam[j], dir, w, range_at, side);
+                    if (!(med - r0 > brk)) {
                         in_front = false;
                         break;
                     }
