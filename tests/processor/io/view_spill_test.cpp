@@ -38,15 +38,19 @@ georef::GeorefPoints MakePoints(std::size_t n, bool with_status) {
 
 void ExpectSameBits(const georef::GeorefPoints& a, const georef::GeorefPoints& b) {
     ASSERT_EQ(a.size(), b.size());
+    ASSERT_EQ(a.position_world.size(), a.size());
+    ASSERT_EQ(b.range_m.size(), a.size());
+    EXPECT_EQ(a.ping, b.ping);
+    EXPECT_EQ(a.beam, b.beam);
+    EXPECT_EQ(a.status, b.status);
+    // An empty vector's data() may be null, which memcmp must not be given even for 0 bytes.
+    if (a.size() == 0) return;
     EXPECT_EQ(
         0,
         std::memcmp(
             a.position_world.data(), b.position_world.data(), a.size() * sizeof(Eigen::Vector3d)));
-    EXPECT_EQ(a.ping, b.ping);
-    EXPECT_EQ(a.beam, b.beam);
     EXPECT_EQ(0, std::memcmp(a.range_m.data(), b.range_m.data(), a.size() * sizeof(float)));
     EXPECT_EQ(0, std::memcmp(a.angle_rad.data(), b.angle_rad.data(), a.size() * sizeof(float)));
-    EXPECT_EQ(a.status, b.status);
 }
 
 std::string Scratch(const std::string& name) {
