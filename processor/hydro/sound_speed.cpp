@@ -121,9 +121,17 @@ int OverlapSpeedEstimate::StratifiedClass(double c_mps, double stratified_mps) c
     return out;
 }
 
-double OverlapSpeedEstimate::RelativeSigmaAt(double depth_m) const {
-    const auto sigma = [](const OverlapDepthClass& c) {
-        return std::hypot(c.relative_error, c.relative_error_se);
+double ColumnRelativeSigma(double p, double e, double se) {
+    if (std::abs(e) > 3 * se) return std::sqrt(p * p + e * e + se * se);
+    const double p2 = p * p, se2 = se * se;
+    if (!(p2 + se2 > 0)) return 0.0;
+    const double k = p2 / (p2 + se2);
+    return std::sqrt(k * e * k * e + k * se2);
+}
+
+double OverlapSpeedEstimate::RelativeSigmaAt(double depth_m, double prior_relative_sigma) const {
+    const auto sigma = [&](const OverlapDepthClass& c) {
+        return ColumnRelativeSigma(prior_relative_sigma, c.relative_error, c.relative_error_se);
     };
     const int n = static_cast<int>(classes.size());
     int k = 0;

@@ -163,8 +163,8 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
     Eigen::Vector3d j_swath = Eigen::Vector3d::Zero();
     if (o.z() < -1e-6) {
         if (config.column_relative_sigma_at) {
-            const double s = config.column_relative_sigma_at(-o.z());
-            if (std::isfinite(s)) rel2 += Square(s);
+            const double s = config.column_relative_sigma_at(-o.z(), column_sigma / c);
+            if (std::isfinite(s)) rel2 = Square(s);
         }
         // tan^2 capped at 72 deg from the vertical, beyond any beam the fan steers to.
         const double tan2 = std::min((o.x() * o.x() + o.y() * o.y()) / (o.z() * o.z()), 9.5);

@@ -89,10 +89,11 @@ struct TpuConfig {
                                                      std::numeric_limits<double>::quiet_NaN(),
                                                      std::numeric_limits<double>::quiet_NaN()};
     double sound_speed_mps = 1500.0;  // nominal speed for the sound-speed terms
-    // The relative column speed sigma at a depth below the transducer (m) that the swath
-    // overlap measured (OverlapSpeedEstimate::RelativeSigmaAt), added in quadrature to the
-    // ping's; empty = none. Called concurrently: must be reentrant.
-    std::function<double(double)> column_relative_sigma_at;
+    // The relative column speed sigma at a depth below the transducer (m) once the swath
+    // overlap has been seen (OverlapSpeedEstimate::RelativeSigmaAt), given the ping's own
+    // relative column sigma (its column speed sigma over sound_speed_mps); it replaces the
+    // ping's where finite; empty = none. Called concurrently: must be reentrant.
+    std::function<double(double, double)> column_relative_sigma_at;
     // The fan's half-width (deg; 0 = off) over which the column error's vertical effect is
     // averaged into every beam of a swath: calibration and SLAM align each sounding to the
     // overlapping soundings of other beam angles, so what the column error does to one beam

@@ -553,7 +553,9 @@ json SoundSpeedSigmas(StageContext& s,
         verdict.source = "a_priori_bound";
     } else {
         if (est->estimated()) {
-            tcfg.column_relative_sigma_at = [est](double d) { return est->RelativeSigmaAt(d); };
+            tcfg.column_relative_sigma_at = [est](double d, double prior) {
+                return est->RelativeSigmaAt(d, prior);
+            };
             verdict.source += "+overlap";
         }
         if (!verdict.assessable) GateTooLittleOverlap(s, *est, m, log);

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include "common/frames.hpp"
@@ -158,15 +159,80 @@ TEST(SoundSpeedSigma, OverlapFindsAKnownColumnSpeedError) {
         EXPECT_NEAR(k.relative_error * c, dc, 0.3) << e.message;
         EXPECT_LT(k.relative_error_se * c, 0.3);
         EXPECT_FALSE(e.classes[0].estimated);  // 6-10 m: no soundings
-        // The sigma at any depth: this class's (the only one estimated).
-        EXPECT_NEAR(
-            e.RelativeSigmaAt(4.0), std::hypot(k.relative_error, k.relative_error_se), 1e-15);
+        // The sigma at any depth: this class's (the only one estimated), with the prior.
+        const double p = 1.0 / c;
+        EXPECT_NEAR(e.RelativeSigmaAt(4.0, p),
+                    ColumnRelativeSigma(p, k.relative_error, k.relative_error_se),
+                    1e-15);
         EXPECT_EQ(e.StratifiedClass(c, cfg.overlap_stratified_mps), dc == -20.0 ? 1 : -1);
     }
     // No soundings: nothing estimated.
     const OverlapSpeedEstimate none = EstimateColumnSpeedError({}, {}, SoundSpeedSigmaConfig{});
     EXPECT_FALSE(none.estimated());
-    EXPECT_TRUE(std::isnan(none.RelativeSigmaAt(10)));
+    EXPECT_TRUE(std::isnan(none.RelativeSigmaAt(10, 1.0 / 1500)));
+}
+
+// The overlap's estimate updates the column's prior (ColumnRelativeSigma, docs/decisions/028):
+// a class the overlap hardly measures leaves the prior, one it measures well states what it
+// measured, and one that contradicts the prior states the estimate on top of it.
+TEST(SoundSpeedSigma, OverlapEstimateUpdatesThePriorColumnSigma) {
+    const double p = 1.0 / 1500;  // the error model's 1 m/s
+    // A 120 s quarry's 6-10 m class, homogeneous water: -0.069 +- 0.046 (1.5 se, 104 m/s).
+    EXPECT_LT(ColumnRelativeSigma(p, -0.069, 0.046), 1.01 * p);
+    EXPECT_GT(ColumnRelativeSigma(p, -0.069, 0.046), 0.99 * p);
+    // Measured well and consistent with the prior: the measurement (0.2 +- 0.1 m/s).
+    const double e = 0.2 / 1500, se = 0.1 / 1500;
+    const double k = p * p / (p * p + se * se);
+    EXPECT_NEAR(ColumnRelativeSigma(p, e, se), std::sqrt(k * k * e * e + k * se * se), 1e-15);
+    EXPECT_LT(ColumnRelativeSigma(p, e, se), std::hypot(e, se));
+    // Contradicting the prior (beyond 3 se): the estimate and the prior together.
+    EXPECT_NEAR(ColumnRelativeSigma(p, -0.01, 0.001), std::sqrt(p * p + 1e-4 + 1e-6), 1e-15);
+    // No prior (a column the error model states exact) and no contradiction: nothing.
+    EXPECT_EQ(ColumnRelativeSigma(0.0, -0.069, 0.046), 0.0);
+}
+
+// The TPU with that class: a nadir sounding 4 or 8 m below the transducer states the TVU of the
+// error model's column (1 m/s), not the 0.55 m (at 8 m) that the flat prior made of
+// -0.069 +- 0.046.
+TEST(SoundSpeedSigma, TpuKeepsThePriorWhereTheOverlapMeasuresLittle) {
+    const double c0 = 1500.0;
+    auto est = std::make_shared<OverlapSpeedEstimate>();
+    OverlapDepthClass shallow;
+    shallow.lo_m = 6;
+    shallow.hi_m = 10;
+    shallow.estimated = true;
+    shallow.relative_error = -0.069;
+    shallow.relative_error_se = 0.046;
+    OverlapDepthClass deep = shallow;
+    deep.lo_m = 10;
+    deep.hi_m = 15;
+    deep.relative_error = 8e-6;
+    deep.relative_error_se = 6e-5;
+    est->classes = {shallow, deep};
+    TpuConfig cfg;
+    cfg.sound_speed_mps = c0;
+    cfg.model = SensorErrorModel{};
+    PingSigma sig;
+    sig.column_speed_sigma_mps = 1.0;
+    const auto tvu = [&](double depth, bool overlap) {
+        cfg.column_relative_sigma_at = nullptr;
+        if (overlap) {
+            cfg.column_relative_sigma_at = [est](double d, double prior) {
+                return est->RelativeSigmaAt(d, prior);
+            };
+        }
+        SoundingGeometry g;
+        g.R_world_vehicle = frames::RotationWorldFromRpy(0, 0, 0);
+        g.angle_rad = 0;
+        g.range_m = depth;
+        return std::sqrt(SoundingCovariance(g, sig, cfg)(2, 2));
+    };
+    for (const double depth : {4.0, 8.0}) {  // the 6-10 m class stands for the shallower too
+        EXPECT_NEAR(tvu(depth, true), tvu(depth, false), 0.01 * tvu(depth, false)) << depth;
+        EXPECT_LT(tvu(depth, true), 0.1) << depth;
+    }
+    // 12 m: a class measured to 0.09 m/s, consistent with the prior, states less than it.
+    EXPECT_LT(tvu(12.0, true), tvu(12.0, false));
 }
 
 }  // namespace
