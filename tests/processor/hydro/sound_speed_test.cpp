@@ -192,7 +192,7 @@ TEST(SoundSpeedSigma, OverlapEstimateUpdatesThePriorColumnSigma) {
 }
 
 // The TPU with that class: a nadir sounding 4 or 8 m below the transducer states the TVU of the
-// error model's column (1 m/s), not the 0.55 m (at 8 m) that the flat prior made of
+// error model's column (1 m/s), not the 0.7 m (1 sigma at 8 m) that the flat prior made of
 // -0.069 +- 0.046.
 TEST(SoundSpeedSigma, TpuKeepsThePriorWhereTheOverlapMeasuresLittle) {
     const double c0 = 1500.0;
