@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/compare_stage.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +18,7 @@
 #include "common/formats/ply.hpp"
 #include "common/formats/replace_file.hpp"
 #include "common/formats/trajectory_csv.hpp"
+#include "common/peak_memory.hpp"
 #include "processor/compare/capacity.hpp"
 #include "processor/compare/common_grid.hpp"
 #include "processor/hydro/cube.hpp"
@@ -42,7 +46,8 @@ struct Epoch {
     std::string dir;
     std::string label;  // "A", "B"
     json summary;
-    compare::SurfaceGrid surface;
+    compare::SurfaceGrid surface;  // the surface compared (at the common resolution)
+    compare::SurfaceGrid dem;      // dem.tif as read (its CUBE sigma for the 3D change)
     int epsg = 0;
     std::string horizontal_name, vertical_name, vertical_datum_key;
     double datum_height_m = 0;  // ellipsoidal height of the DEM's datum (0: ellipsoid)
@@ -57,6 +62,41 @@ double Median(std::vector<double> v) {
     std::nth_element(v.begin(), mid, v.end());
     return *mid;
 }
+
+// Wall and process CPU seconds of each part of a comparison (compare.json
+// timings_wall_cpu_s; CPU time says what a part costs when other work shares the cores), and
+// the process's peak resident memory at the end.
+class Laps {
+public:
+    void Lap(const char* name) {
+        const auto wall = std::chrono::steady_clock::now();
+        const double cpu = Cpu();
+        record_[name] = {std::chrono::duration<double>(wall - wall_).count(), cpu - cpu_};
+        wall_ = wall;
+        cpu_ = cpu;
+    }
+    json Record() const {
+        double wall = 0, cpu = 0;
+        for (const auto& [name, v] : record_.items()) {
+            wall += v[0].get<double>();
+            cpu += v[1].get<double>();
+        }
+        return {{"timings_wall_cpu_s", record_},
+                {"seconds", wall},
+                {"cpu_seconds", cpu},
+                {"peak_rss_mb", PeakRssMb()}};
+    }
+
+private:
+    static double Cpu() {
+        timespec ts{};
+        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+    }
+    json record_ = json::object();
+    std::chrono::steady_clock::time_point wall_ = std::chrono::steady_clock::now();
+    double cpu_ = Cpu();
+};
 
 // The navigation's median 1-sigma from trajectory_sigma.csv (absent: unknown).
 Expected<NavSigma> ReadNavSigma(const std::string& path) {
@@ -171,6 +211,7 @@ Expected<Epoch> ReadEpochProducts(const std::string& dir, const char* label) {
     g.sigma_m = uncertainty->values;
     for (float& v : g.sigma_m) v /= 1.96f;  // the band is the 95 % uncertainty
     if (g.CountFilled() == 0) return Error{who + ": dem.tif holds no heights"};
+    e.dem = g;
     // Vertical datum: summary.json's record of the grid stage.
     if (s.contains("vertical_datum") && s["vertical_datum"].is_object()) {
         const json& v = s["vertical_datum"];
@@ -529,7 +570,9 @@ double MedianSigma(const compare::SurfaceGrid& a, const compare::SurfaceGrid& b)
 }
 
 // What the soundings of a cylinder (or a mesh vertex) share: both CUBE surfaces' 1-sigma at
-// the point, in quadrature (the median where a surface has none).
+// the point, in quadrature (the median where a surface has none). Each survey's own dem.tif:
+// the change along the normal does not depend on the grid the DoD is computed on (decision
+// 030).
 std::function<double(const Eigen::Vector3d&)> CommonSigma(const compare::SurfaceGrid& sa,
                                                           const compare::SurfaceGrid& sb) {
     const double sigma_median = MedianSigma(sa, sb);
@@ -583,7 +626,7 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                                             reg.correction,
                                             reg.covariance,
                                             cfg.mesh,
-                                            CommonSigma(a.surface, b.surface),
+                                            CommonSigma(a.dem, b.dem),
                                             soundings ? &*soundings : nullptr);
     out.b = std::move(**mb);
     log("compare: change mesh: " + out.change->message);
@@ -674,7 +717,7 @@ Expected<Change3d> ComputeChange3d(const Epoch& a,
                                 reg.correction,
                                 reg.covariance,
                                 cfg.m3c2,
-                                CommonSigma(a.surface, b.surface));
+                                CommonSigma(a.dem, b.dem));
     log("compare: 3D change: " + out.m3c2->message);
     out.record = {{"computed", true},
                   {"message", out.m3c2->message},
@@ -1184,6 +1227,7 @@ struct Comparison {
     json resolution_match;
     DesignComparison design;
     NavigationGate gate;
+    Laps laps;
 };
 
 json CompareJson(const Epoch& a,
@@ -1208,7 +1252,8 @@ json CompareJson(const Epoch& a,
           "capacity_b.csv",
           "capacity.svg",
           "compare.json"}},
-        {"quality_gates", r.gate.gates}};
+        {"quality_gates", r.gate.gates},
+        {"cost", r.laps.Record()}};
     if (r.change3d.m3c2) j["files"].push_back("change_points.ply");
     if (r.change_mesh.change) {
         j["files"].push_back("change_mesh.ply");
@@ -1225,7 +1270,7 @@ json CompareJson(const Epoch& a,
 Status WriteProducts(const std::string& out_dir,
                      const Epoch& a,
                      const Epoch& b,
-                     const Comparison& r,
+                     Comparison& r,
                      const CompareConfig& cfg) {
     std::error_code ec;
     fs::create_directories(out_dir, ec);
@@ -1260,6 +1305,7 @@ Status WriteProducts(const std::string& out_dir,
         const auto& [file, d] = r.design.results[k];
         if (auto s = WriteDesignTif(C / file, k == 0 ? a : b, d); !s) return s;
     }
+    r.laps.Lap("write");  // the products but compare.json
     json j = CompareJson(a, b, r, cfg, *regions);
     if (r.change_mesh.change) {
         for (const char* k : {"regions", "cut", "fill"}) j["change_mesh"][k] = regions3d[k];
@@ -1361,6 +1407,7 @@ Expected<int> RunCompare(const std::string& a_dir,
     if (b_dir.empty()) return RunDesignOnly(a_dir, out_dir, cfg, log);
     if (fs::weakly_canonical(a_dir) == fs::weakly_canonical(b_dir))
         return Error{"compare: A and B are the same folder (" + a_dir + ")"};
+    Comparison r;  // its clock starts here
     auto a = ReadEpochProducts(a_dir, "A");
     if (!a) return Error{"compare: " + a.error().message};
     auto b = ReadEpochProducts(b_dir, "B");
@@ -1376,13 +1423,14 @@ Expected<int> RunCompare(const std::string& a_dir,
     }
     if (auto s = CheckComparable(*a, *b, log); !s) return s.error();
 
-    Comparison r;
+    r.laps.Lap("read");
     // The capacity curves on each survey's surface as it is.
     r.cap_a = compare::ComputeCapacity(a->surface, a->water_level_m, cfg.capacity_step_m);
     r.cap_b = compare::ComputeCapacity(b->surface, b->water_level_m, cfg.capacity_step_m);
     auto design = CompareDesign({&*a, &*b}, cfg, log);
     if (!design) return design.error();
     r.design = std::move(*design);
+    r.laps.Lap("capacity_design");
     // One resolution for the registration and the DEM of difference (decision 030).
     json regrid_record;
     const auto regrid_of = [&](Epoch& e) -> compare::RegridSurvey {
@@ -1400,6 +1448,7 @@ Expected<int> RunCompare(const std::string& a_dir,
         r.resolution_match["regrid"] = regrid_record;
     a->surface = std::move(common->a);
     b->surface = std::move(common->b);
+    r.laps.Lap("regrid");
     log("compare: registering B onto A on stable terrain");
     r.reg = compare::RegisterSurfaces(a->surface, b->surface, cfg.registration);
     if (!r.reg.ok()) {
@@ -1409,17 +1458,21 @@ Expected<int> RunCompare(const std::string& a_dir,
                           : "")};
     }
     log("compare: registration " + r.reg.message);
+    r.laps.Lap("registration");
     r.change = compare::ComputeChange(
         a->surface, b->surface, r.reg.correction, r.reg.covariance, cfg.change);
     log("compare: change: " + r.change.message);
+    r.laps.Lap("dod");
     auto change3d = ComputeChange3d(*a, *b, r.reg, cfg, log);
     if (!change3d) return change3d.error();
     r.change3d = std::move(*change3d);
+    r.laps.Lap("change3d");
     auto on_mesh = ComputeChangeOnMesh(*a, *b, r.reg, r.change3d, cfg, log);
     if (!on_mesh) return on_mesh.error();
     r.change_mesh = std::move(*on_mesh);
     ConfirmMeshRegions(r.change3d, cfg, log, r.change_mesh);
     r.gate = CheckNavigation(*a, *b, r.reg, cfg);
+    r.laps.Lap("change_mesh");
 
     if (auto s = WriteProducts(out_dir, *a, *b, r, cfg); !s) return s.error();
     log(SummaryLine(r, cfg, out_dir));

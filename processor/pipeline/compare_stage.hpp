@@ -41,8 +41,8 @@
 // Surfaces of different resolution: the coarser survey is gridded again at the finer
 // resolution from its own accepted soundings (survey.pitmap, through the grid stage's TPU and
 // CUBE with `survey`'s settings) on the same lattice, and the registration, the DEM of
-// difference and the 3D change's CUBE sigmas use the two surfaces at that resolution; the
-// capacity curves and a design comparison keep each survey's own dem.tif (decision 030).
+// difference use the two surfaces at that resolution; the capacity curves, a design comparison
+// and the 3D change's CUBE sigmas keep each survey's own dem.tif (decision 030).
 #pragma once
 
 #include <functional>
