@@ -252,6 +252,12 @@ void DeclareCompareCommand(CLI::App& app, Options& o, Commands& c) {
         ->required()
         ->expected(1, -1);
     c.compare->add_option("--out", o.out_dir, "output folder for the comparison")->required();
+    c.compare->add_option("--config",
+                          o.config_path,
+                          "the YAML config the surveys were processed with (pitmap run --config): "
+                          "where their CUBE resolutions differ, the coarser survey is gridded "
+                          "again with its georef, grid and vertical sections at the finer "
+                          "resolution (default: the defaults)");
     c.compare
         ->add_option("--dof",
                      o.compare_dof,
@@ -335,6 +341,16 @@ int RunCompareCommand(Options& o, const std::string& command_line) {
     o.compare_config.change_mesh = !o.compare_no_mesh;
     if (auto problems = o.compare_config.Validate(); !problems.empty())
         return Fail("compare: " + pitmap::FormatProblems(problems), codes::kUsage);
+    if (!o.config_path.empty()) {
+        if (auto m = MissingInput({o.config_path}, "config"); !m.empty())
+            return Fail(m + "; nothing written", codes::kUsage);
+        auto config = pp::LoadConfig(o.config_path);
+        if (!config) return Fail("compare: " + config.error().message, codes::kUsage);
+        if (auto problems = config->Validate(); !problems.empty())
+            return Fail("compare: invalid config:\n" + pitmap::FormatProblems(problems),
+                        codes::kUsage);
+        o.compare_config.survey = *config;
+    }
     const bool list_file =
         o.compare_inputs.size() == 1 && std::filesystem::is_regular_file(o.compare_inputs.front());
     if (o.compare_inputs.size() < 2 && o.compare_config.design_path.empty() && !list_file)

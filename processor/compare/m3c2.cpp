@@ -29,15 +29,7 @@ void AlongCylinder(const reg::PointIndex<double>& index,
                    double depth,
                    std::vector<reg::PointIndex<double>::Hit>& hits,
                    std::vector<double>& along) {
-    index.WithinRadius(c, radius * radius + depth * depth, hits);
-    along.clear();
-    for (const auto& [i, d2] : hits) {
-        const Eigen::Vector3d v = index.point(i) - c;
-        const double t = v.dot(n);
-        if (std::abs(t) > depth) continue;
-        if ((v - t * n).squaredNorm() > radius * radius) continue;
-        along.push_back(t);
-    }
+    index.WithinCylinder(c, n, radius, depth, hits, along);
     std::sort(along.begin(), along.end());
 }
 

@@ -36,7 +36,13 @@
 // Errors (nothing is written to C, the message names the folder and the problem): a missing
 // product, a damaged survey.pitmap or dem.tif, different horizontal CRS, vertical datums or
 // sites (metadata.site, when both name one), surfaces that do not overlap, a registration
-// that cannot be solved.
+// that cannot be solved, a survey that cannot be gridded again at the other's resolution (or
+// comes out on another datum or CRS than its dem.tif: processed with another config).
+// Surfaces of different resolution: the coarser survey is gridded again at the finer
+// resolution from its own accepted soundings (survey.pitmap, through the grid stage's TPU and
+// CUBE with `survey`'s settings) on the same lattice, and the registration, the DEM of
+// difference use the two surfaces at that resolution; the capacity curves, a design comparison
+// and the 3D change's CUBE sigmas keep each survey's own dem.tif (decision 030).
 #pragma once
 
 #include <functional>
@@ -50,6 +56,7 @@
 #include "processor/compare/design.hpp"
 #include "processor/compare/m3c2.hpp"
 #include "processor/compare/registration.hpp"
+#include "processor/pipeline/pipeline.hpp"
 
 namespace pitmap::proc::pipeline {
 
@@ -74,6 +81,10 @@ struct CompareConfig {
     // The gate: the correction may exceed what the two surveys' navigation allows (95 %) by
     // its own 95 % uncertainty at most.
     double gate_z95 = 1.96;
+    // What the surveys were processed with (pitmap compare --config: its georef:, grid: and
+    // vertical: sections): where their CUBE resolutions differ, the coarser survey is gridded
+    // again with it at the finer one's resolution (compare/common_grid.hpp, decision 030).
+    PipelineConfig survey;
     std::vector<std::string> Validate() const;
 };
 

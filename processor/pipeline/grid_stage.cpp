@@ -1317,6 +1317,17 @@ Expected<CubeInputs> PrepareCube(
 
 }  // namespace
 
+Expected<SurveyCubeInput> CubeInputOf(StageContext& s,
+                                      const PipelineConfig& config,
+                                      const Log& log) {
+    StageClock clock;
+    PartClock part(clock);
+    json timings = json::object();
+    auto in = PrepareCube(s, config, part, timings, log);
+    if (!in) return in.error();
+    return SurveyCubeInput{std::move(in->soundings), std::move(in->datum_record), in->utm->epsg};
+}
+
 // The soundings' TPU, then the CUBE surface on the products' datum (with the surface filter's
 // second pass), the DEM and point files, S-44 and the backscatter mosaic. Each part's wall and
 // CPU time go into the record (PartClock).

@@ -259,6 +259,18 @@ Expected<std::vector<TileIndex>> ListGridTiles(StageContext& s,
                                                const PipelineConfig& config,
                                                const Log& log);
 Status MergeGridTiles(const std::string& out_dir, const Log& log);
+// CUBE's input as the grid stage makes it from the survey's current soundings (the TPU with its
+// pose and sound speed sigmas, UTM, the products' vertical datum), and the datum's record as
+// summary.json's vertical_datum: `pitmap compare` grids a survey again at another resolution
+// from it (compare_stage.cpp). The model and summary are not saved.
+struct SurveyCubeInput {
+    std::vector<hydro::CubeSounding> soundings;
+    nlohmann::json datum_record;
+    int utm_epsg = 0;  // the soundings' UTM zone
+};
+Expected<SurveyCubeInput> CubeInputOf(StageContext& s,
+                                      const PipelineConfig& config,
+                                      const Log& log);
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
 // its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm`
 // places the soundings of s.geo in UTM (georef::UtmProjectionOf), `utm_to_world` is the affine

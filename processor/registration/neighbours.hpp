@@ -5,6 +5,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <nanoflann.hpp>
@@ -62,6 +64,41 @@ public:
     void WithinRadius(const Point& q, Scalar radius2, std::vector<Hit>& hits) const {
         hits.clear();
         tree_.radiusSearch(q.data(), radius2, hits, nanoflann::SearchParams(32, 0, false));
+    }
+
+    // The positions t = (p - c) . n along the unit axis n of every point p in the cylinder about
+    // c of radius `radius` and |t| <= half_length, unsorted, into `along` (cleared first);
+    // `hits` is scratch. The same points as a sphere search of sqrt(radius^2 + half_length^2)
+    // filtered to the cylinder, which visits every point of that sphere (for a 0.5 m x 4 m
+    // cylinder across a surface, 13 m^2 of it to keep 0.8 m^2): here the axis is cut into
+    // slabs of about `radius` and each slab's sphere searched (radius sqrt(radius^2 +
+    // (1.01 x its half-thickness)^2)), a point kept by the slab its t falls in.
+    void WithinCylinder(const Point& c,
+                        const Point& n,
+                        Scalar radius,
+                        Scalar half_length,
+                        std::vector<Hit>& hits,
+                        std::vector<Scalar>& along) const {
+        along.clear();
+        const Scalar r2 = radius * radius;
+        const int slabs = std::max(1, static_cast<int>(std::ceil(half_length / (radius / 2))));
+        const Scalar half_slab = half_length / static_cast<Scalar>(slabs);
+        const Scalar reach = Scalar(1.01) * half_slab;
+        for (int k = 0; k < slabs; ++k) {
+            const Scalar tk = -half_length + (2 * k + 1) * half_slab;
+            WithinRadius(c + tk * n, r2 + reach * reach, hits);
+            for (const auto& [i, d2] : hits) {
+                const Point v = point(i) - c;
+                const Scalar t = v.dot(n);
+                if (std::abs(t) > half_length) continue;
+                if ((v - t * n).squaredNorm() > r2) continue;
+                const int owner =
+                    std::clamp(static_cast<int>(std::floor((t + half_length) / (2 * half_slab))),
+                               0,
+                               slabs - 1);
+                if (owner == k) along.push_back(t);
+            }
+        }
     }
 
 private:

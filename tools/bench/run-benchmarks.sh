@@ -3,11 +3,13 @@
 # Runs benchmarks, stores each result with its context in docs/benchmarks/NAME.json and writes
 # docs/benchmarks.md from them (tools/bench/benchmarks_page.py), so the page's figures are the
 # last measured ones by construction.
-#   tools/bench/run-benchmarks.sh [micro] [e2e] [grid] [live] [scale] [all]     (default: micro)
+#   tools/bench/run-benchmarks.sh [micro] [e2e] [grid] [compare] [live] [scale] [all]   (default: micro)
 #     micro  the Google Benchmark programs (pitmap-bench-deltat, -novatel, -edit_select), 3
 #            repetitions each, medians; about a minute
 #     e2e    tools/bench/run-e2e-bench.sh bejanca: `pitmap run` stage by stage; minutes
 #     grid   tools/bench/run-grid-bench.sh bejanca: the grid stage's parts; minutes
+#     compare tools/bench/run-compare-bench.sh bejanca: two epochs through pitmap run, then
+#            pitmap compare without and with its report; minutes (SIM1/SIM2, P1/P2 reuse)
 #     live   pitmap-bench-live_latency: ping-to-page latency at 1x over 60 s of a demo survey
 #     scale  tools/bench/run-scale-bench.sh: bejanca at 1x and 2x its duration (SCALES="1 2 4"
 #            for more); tens of minutes
@@ -57,6 +59,9 @@ PY
     grid)
       "$root/tools/bench/run-grid-bench.sh" bejanca "$work/grid-bejanca"
       result=$work/grid-bejanca/grid.json ;;
+    compare)
+      "$root/tools/bench/run-compare-bench.sh" bejanca "$work/compare-bejanca"
+      result=$work/compare-bejanca/compare.json ;;
     scale)
       "$root/tools/bench/run-scale-bench.sh" --scales "${SCALES:-1 2}" --out "$work/scale"
       result=$work/scale/scale.json ;;
