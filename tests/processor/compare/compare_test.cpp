@@ -163,6 +163,53 @@ TEST(CompareRegistration, TheResidualIsReadAlongTheNormalAndVerticallyOnTheFloor
     EXPECT_GT(r.rms_vertical_after_m, 1.1 * r.rms_vertical_floor_after_m) << r.message;
 }
 
+// Two surveys whose nodes hold 20 soundings (1 cm of error) except a fifth of them, at the
+// edges of each survey's swaths, that hold 1 or 2 (a sounding's own 6 cm): such a node is a
+// sounding, not the surface. The registration uses the nodes both surveys sounded at least 5
+// times and its residual is theirs (the pair's 1.4 cm); over every node it is the sparse
+// nodes' (decision 029).
+TEST(CompareRegistration, NodesWithFewSoundingsAreNotTheSurface) {
+    const auto survey = [](double stripe_offset_m, unsigned seed) {
+        SurfaceGrid s = Survey(false, RigidCorrection{}, 1e-9, seed);
+        std::mt19937 rng(seed);
+        std::normal_distribution<double> noise(0.0, 1.0);
+        s.density.assign(s.z_m.size(), 0.0f);
+        for (int j = 0; j < s.ny; ++j) {
+            for (int i = 0; i < s.nx; ++i) {
+                const std::size_t k = s.index(i, j);
+                if (!std::isfinite(s.z_m[k])) continue;
+                // Stripes 2 m wide every 10 m, each survey's own (its swaths' outer edges).
+                const double x = s.x0 + i * s.resolution_m + stripe_offset_m;
+                const bool sparse = std::fmod(x + 100.0, 10.0) < 2.0;
+                const double sd = sparse ? 0.06 : 0.01;
+                s.z_m[k] += static_cast<float>(sd * noise(rng));
+                s.sigma_m[k] = static_cast<float>(sd);
+                s.density[k] = sparse ? 1.0f + static_cast<float>(k % 2) : 20.0f;
+            }
+        }
+        return s;
+    };
+    const SurfaceGrid a = survey(0.0, 21), b = survey(5.0, 22);
+    const RegistrationResult r = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(r.ok()) << r.message;
+    const double pair = std::sqrt(2.0) * 0.01;
+    EXPECT_EQ(r.min_soundings_applied, 5.0);
+    EXPECT_GT(r.points_sparse, 0u);
+    EXPECT_NEAR(r.rms_vertical_floor_after_m, pair, 0.1 * pair) << r.message;
+    EXPECT_GT(r.rms_normal_all_nodes_after_m, 1.5 * r.rms_normal_after_m) << r.message;
+    EXPECT_GT(r.rms_vertical_all_nodes_after_m, 1.5 * r.rms_vertical_after_m) << r.message;
+    EXPECT_GT(r.points_stable_all_nodes, r.points_stable);
+    // Asked for more soundings than most nodes hold: every node is used, and it says so.
+    RegistrationConfig most;
+    most.min_soundings = 25;
+    const RegistrationResult all = RegisterSurfaces(a, b, most);
+    ASSERT_TRUE(all.ok()) << all.message;
+    EXPECT_EQ(all.min_soundings_applied, 0.0);
+    EXPECT_EQ(all.points_sparse, 0u);
+    EXPECT_NEAR(
+        all.rms_normal_after_m, r.rms_normal_all_nodes_after_m, 0.02 * all.rms_normal_after_m);
+}
+
 TEST(CompareRegistration, RecoversAHalfMetreOneDegreeShiftDespiteTheChanges) {
     const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 1);
     // B seen from a frame shifted by 0.5 m and turned by 1 deg (and lifted 5 cm, tilted a
