@@ -810,7 +810,10 @@ TEST(CompareChangeMesh, RegionsCarryTheirVolumeAlongTheirAxisOnAWallAndOnAFloor)
         g.direction.dot(Eigen::Vector3d(std::sin(70 * kDeg), 0, std::cos(70 * kDeg))), 1.0, 0.01);
     EXPECT_NEAR(g.volume_m3, plateau_v, 0.03 * plateau_v) << "U95 " << g.u95_m3;
     EXPECT_LE(std::abs(g.volume_m3 - plateau_v), g.u95_m3);
-    EXPECT_NEAR(g.mean_distance_m, 0.3, 0.05);
+    // Along the normal (vertically 0.3 / cos(70 deg) = 0.88 m); over the region with its
+    // tapered rim, which the hysteresis takes in, below the plateau's 0.3 m.
+    EXPECT_GT(g.mean_distance_m, 0.2);
+    EXPECT_LT(g.mean_distance_m, 0.31);
     EXPECT_GE(g.max_abs_distance_m, 0.3);  // along a vertex's own normal: oblique on the rim
     std::size_t in_region = 0;
     for (int id : w.region) in_region += id == 1;
@@ -1000,6 +1003,7 @@ TEST(CompareChangeMesh, TheMarginBelowDetectionBeyondTheOutlineIsMeasured) {
     const auto run = [&](double band) {
         ChangeMeshConfig cfg;
         cfg.margin_band_m = band;
+        cfg.grow_lod_fraction = 0.0;  // the margin as the LoD95 leaves it (no hysteresis)
         return ComputeChangeMesh(
             b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), cfg, sigma);
     };
@@ -1012,6 +1016,84 @@ TEST(CompareChangeMesh, TheMarginBelowDetectionBeyondTheOutlineIsMeasured) {
     EXPECT_LT(g.margin_m3, 0.0);
     EXPECT_NEAR(g.volume_m3, exact, 0.01 * std::abs(exact)) << "margin " << g.margin_m3;
     EXPECT_LE(std::abs(g.volume_m3 - exact), g.u95_m3);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A kept region grows by hysteresis into its taper (decision 029): a paraboloid hollow 0.25 m
+// deep and 3 m in radius on the 70 deg face, along its normal, both meshes with 1.2 cm of
+// independent noise per vertex (LoD95 0.055 m). The region of the vertices beyond their LoD95
+// ends where the hollow is shallower than about the LoD: (0.055 / 0.25) = 22 % of its outline
+// is below it. Grown into the vertices joined to it whose distance has its sign and exceeds half
+// their LoD95 (and at most 0.5 m from it), it reaches nearer the outline; the noise on the
+// rest of the face (vertices beyond half the LoD: 3.5 % of each sign) forms no region and the
+// region does not creep over it further than 0.5 m beyond the outline.
+TEST(CompareChangeMesh, AKeptRegionGrowsIntoItsTaperAtHalfItsLod) {
+    const auto hollow = [](double u, double s) {
+        const double q = 1.0 - (std::pow(u - 6.0, 2) + std::pow(s - 4.0, 2)) / 9.0;
+        return -0.25 * std::max(0.0, q);
+    };
+    std::mt19937 rng(29);
+    std::normal_distribution<double> noise(0.0, 0.012);
+    TriangleMesh a = Face(0.1, 0.0, [](double, double) { return 0.0; });
+    TriangleMesh b = Face(0.1, 0.05, hollow);
+    const Eigen::Vector3d normal(std::sin(70 * kDeg), 0, std::cos(70 * kDeg));
+    for (TriangleMesh* m : {&a, &b}) {
+        for (auto& v : m->vertices) v += noise(rng) * normal;
+    }
+    const auto sigma = [](const Eigen::Vector3d&) { return std::hypot(0.02, 0.02); };
+    const auto run = [&](double grow) {
+        ChangeMeshConfig cfg;
+        cfg.grow_lod_fraction = grow;
+        return ComputeChangeMesh(
+            b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), cfg, sigma);
+    };
+    // B's vertex i at (u, s) on the face: its true change and the distance from the outline.
+    const int nu = 120;
+    const auto us = [&](std::size_t i) {
+        return std::pair{0.05 + static_cast<double>(i % (nu + 1)) * 0.1,
+                         0.05 + static_cast<double>(i / (nu + 1)) * 0.1};
+    };
+    struct Score {
+        double iou = 0;
+        std::size_t outside = 0, far = 0;
+    };
+    const auto score = [&](const ChangeMeshResult& r) {
+        Score sc;
+        std::size_t inter = 0, uni = 0;
+        for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+            const auto [u, s] = us(i);
+            const bool truth = hollow(u, s) < 0, det = r.region[i] != 0;
+            inter += truth && det;
+            uni += truth || det;
+            const double beyond = std::hypot(u - 6.0, s - 4.0) - 3.0;
+            sc.outside += det && !truth;
+            sc.far += det && beyond > 0.5;
+        }
+        sc.iou = static_cast<double>(inter) / static_cast<double>(uni);
+        return sc;
+    };
+    const ChangeMeshResult plain = run(0.0);
+    ASSERT_EQ(plain.regions.size(), 1u) << plain.message;
+    const Score p = score(plain);
+    EXPECT_LT(p.iou, 0.8);
+    EXPECT_EQ(plain.grown, 0u);
+    const ChangeMeshResult grown = run(0.5);
+    ASSERT_EQ(grown.regions.size(), 1u) << grown.message;
+    const Score g = score(grown);
+    EXPECT_GT(g.iou, 0.85);
+    EXPECT_GT(grown.grown, 200u);  // 0.777 -> 0.885 with 304 vertices (measured)
+    EXPECT_EQ(g.far, 0u);
+    EXPECT_LT(static_cast<double>(g.outside),
+              0.02 * static_cast<double>(grown.regions.front().vertices));
+    // Its volume as before, within its U95 of the exact one.
+    const double exact = -0.25 * kPi * 9.0 / 2.0;
+    EXPECT_LE(std::abs(grown.regions.front().volume_m3 - exact), grown.regions.front().u95_m3)
+        << grown.regions.front().volume_m3 << " against " << exact;
 }
 
 }  // namespace

@@ -280,10 +280,11 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
                            s.at(std::string("change_") + part + "_volume_true_m3")),
                   s.at(k + "u95_m3"))
             << part;
-        EXPECT_GE(s.at(k + "iou"), 0.75) << part;
-        // The bound against the part's detectable vertices (the taper below the LoD95
-        // on neither side; measured 0.956-0.994, the scar's full IoU 0.785 with 22.7 % of its
-        // outline below detection: decision 023, section 5).
+        // The bound on the whole outline: the regions grown by hysteresis into their
+        // taper at half the LoD95 (decision 029; measured 0.885-0.970, the scar 0.776 before
+        // with 22.7 % of its outline below its LoD95), and against the part's detectable
+        // vertices (decision 023, section 5; 0.906-1.000).
+        EXPECT_GE(s.at(k + "iou"), 0.8) << part;
         EXPECT_GE(s.at(k + "iou_detectable"), 0.8) << part;
     }
     EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.001);
