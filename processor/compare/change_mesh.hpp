@@ -27,7 +27,7 @@
 //             further than half its LoD95 from its distance): a change that tapers (a slump's
 //             scar, a lobe's rim) is beyond the LoD95 well inside its outline, and the rim
 //             between is the same change at a lower confidence next to a detected one (quarry
-//             scar: 22.7 % of its outline below the LoD95, IoU 0.776 -> 0.885; decision 029);
+//             scar: 22.7 % of its outline below the LoD95, IoU 0.776 -> 0.883; decision 029);
 //   regions: each patch kept is a change region on the surface (walls and overhangs included),
 //             with its signed volume along its axis u (the area-weighted mean of its vertices'
 //             normals): sum(a_i |n_i . u| t_i), a_i a third of vertex i's triangles' area, t_i

@@ -281,7 +281,7 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
                   s.at(k + "u95_m3"))
             << part;
         // The bound on the whole outline: the regions grown by hysteresis into their
-        // taper at half the LoD95 (decision 029; measured 0.885-0.970, the scar 0.776 before
+        // taper at half the LoD95 (decision 029; measured 0.883-0.970, the scar 0.776 before
         // with 22.7 % of its outline below its LoD95), and against the part's detectable
         // vertices (decision 023, section 5; 0.906-1.000).
         EXPECT_GE(s.at(k + "iou"), 0.8) << part;
