@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -358,14 +359,103 @@ void Regions(const TriangleMesh& m,
     }
 }
 
+// Whether the soundings' cores near p contradict a change d of sign `sign` at p: at least one
+// measured core within s.radius_m, none of them significant with that sign, and d further
+// than `tolerance` from their mean distance (VetoBySoundings, GrowPatches).
+bool SoundingsContradict(const reg::PointIndex<double>& index,
+                         const SoundingsChange& s,
+                         const Eigen::Vector3d& p,
+                         int sign,
+                         double d,
+                         double tolerance,
+                         std::vector<reg::PointIndex<double>::Hit>& hits) {
+    index.WithinRadius(p, s.radius_m * s.radius_m, hits);
+    if (hits.empty()) return false;
+    double sum = 0;
+    for (const auto& [k, d2] : hits) {
+        if (s.significance[k] == sign) return false;
+        sum += s.distance_m[k];
+    }
+    return std::abs(d - sum / static_cast<double>(hits.size())) > tolerance;
+}
+
+// The kept patches grown by hysteresis (change_mesh.hpp, grow_lod_fraction): into the measured
+// vertices joined to them by the mesh's edges whose distance has the patch's sign and exceeds
+// grow_lod_fraction x their LoD95, and that the soundings do not contradict; unions them into
+// the patch (parent). Returns the vertices added.
+template <typename Find>
+std::size_t GrowPatches(const TriangleMesh& m,
+                        const ChangeMeshConfig& cfg,
+                        const SoundingsChange* soundings,
+                        Find&& find,
+                        std::vector<int>& parent,
+                        ChangeMeshResult& r) {
+    const std::size_t n = m.vertices.size();
+    if (!(cfg.grow_lod_fraction > 0)) return 0;
+    // The mesh's edges as adjacency lists (CSR).
+    std::vector<std::size_t> start(n + 1, 0);
+    for (const auto& t : m.triangles)
+        for (int k = 0; k < 3; ++k) start[static_cast<std::size_t>(t[k]) + 1] += 2;
+    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+    std::vector<int> adj(start[n]);
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (const auto& t : m.triangles) {
+        for (int k = 0; k < 3; ++k) {
+            const auto u = static_cast<std::size_t>(t[k]);
+            adj[fill[u]++] = t[(k + 1) % 3];
+            adj[fill[u]++] = t[(k + 2) % 3];
+        }
+    }
+    std::optional<reg::PointIndex<double>> cores;
+    if (soundings != nullptr && !soundings->position.empty())
+        cores.emplace(soundings->position.data(), soundings->position.size());
+    std::vector<reg::PointIndex<double>::Hit> hits;
+    std::vector<int> queue;
+    for (std::size_t i = 0; i < n; ++i)
+        if (r.significance[i] != 0) queue.push_back(static_cast<int>(i));
+    std::vector<char> refused(n, 0);    // tried and contradicted by the soundings
+    std::vector<float> reach(n, 0.0f);  // along the mesh's edges from the kept patch, m
+    std::size_t grown = 0;
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+        const auto u = static_cast<std::size_t>(queue[q]);
+        const int sign = r.significance[u];
+        for (std::size_t e = start[u]; e < start[u + 1]; ++e) {
+            const auto v = static_cast<std::size_t>(adj[e]);
+            if (r.significance[v] != 0 || refused[v]) continue;
+            const double step = reach[u] + (m.vertices[v] - m.vertices[u]).norm();
+            if (step > cfg.grow_max_m) continue;
+            const double d = r.distance_m[v];
+            if (!std::isfinite(d) || d * sign <= cfg.grow_lod_fraction * r.lod95_m[v]) continue;
+            if (cores && SoundingsContradict(*cores,
+                                             *soundings,
+                                             m.vertices[v],
+                                             sign,
+                                             d,
+                                             cfg.grow_lod_fraction * r.lod95_m[v],
+                                             hits)) {
+                refused[v] = 1;
+                continue;
+            }
+            r.significance[v] = static_cast<std::int8_t>(sign);
+            reach[v] = static_cast<float>(step);
+            parent[v] = find(static_cast<int>(u));
+            queue.push_back(static_cast<int>(v));
+            ++grown;
+        }
+    }
+    return grown;
+}
+
 // The significant vertices in patches (one sign, joined by the mesh's edges); patches below
-// the minimum area or whose mean is within their LoD set to 0.
+// the minimum area or whose mean is within their LoD set to 0; the kept ones grown
+// (GrowPatches).
 void TestPatches(const TriangleMesh& m,
                  const ChangeMeshConfig& cfg,
                  const std::vector<float>& sigma,
                  const RigidCorrection& T,
                  const Eigen::Matrix<double, 6, 6>& C,
                  const TriangleIndex& index,
+                 const SoundingsChange* soundings,
                  ChangeMeshResult& r) {
     const std::size_t n = m.vertices.size();
     std::vector<int> parent(n);
@@ -417,14 +507,14 @@ void TestPatches(const TriangleMesh& m,
         keep[i] = ok ? 1 : 0;
         ++(ok ? r.patches : r.patches_dropped);
     }
+    for (std::size_t i = 0; i < n; ++i) {
+        if (r.significance[i] != 0 && !keep[static_cast<std::size_t>(find(static_cast<int>(i)))])
+            r.significance[i] = 0;
+    }
+    r.grown = GrowPatches(m, cfg, soundings, find, parent, r);
     r.gain = r.loss = 0;
     for (std::size_t i = 0; i < n; ++i) {
-        if (r.significance[i] == 0) continue;
-        if (!keep[static_cast<std::size_t>(find(static_cast<int>(i)))]) {
-            r.significance[i] = 0;
-            continue;
-        }
-        ++(r.significance[i] > 0 ? r.gain : r.loss);
+        if (r.significance[i] != 0) ++(r.significance[i] > 0 ? r.gain : r.loss);
     }
     Regions(m, cfg, area, sigma, T, C, index, find, r);
 }
@@ -434,20 +524,12 @@ void VetoBySoundings(const TriangleMesh& m, const SoundingsChange& s, ChangeMesh
     if (s.position.empty()) return;
     const reg::PointIndex<double> index(s.position.data(), s.position.size());
     std::vector<reg::PointIndex<double>::Hit> hits;
-    const double r2 = s.radius_m * s.radius_m;
     for (std::size_t i = 0; i < m.vertices.size(); ++i) {
         const int sign = r.significance[i];
         if (sign == 0) continue;
-        index.WithinRadius(m.vertices[i], r2, hits);
-        if (hits.empty()) continue;
-        double sum = 0;
-        bool agrees = false;
-        for (const auto& [k, d2] : hits) {
-            agrees = agrees || s.significance[k] == sign;
-            sum += s.distance_m[k];
-        }
-        const double mean = sum / static_cast<double>(hits.size());
-        if (agrees || std::abs(r.distance_m[i] - mean) <= r.lod95_m[i]) continue;
+        if (!SoundingsContradict(
+                index, s, m.vertices[i], sign, r.distance_m[i], r.lod95_m[i], hits))
+            continue;
         r.significance[i] = 0;
         --(sign > 0 ? r.gain : r.loss);
         ++r.vetoed_by_soundings;
@@ -468,6 +550,9 @@ std::vector<std::string> ChangeMeshConfig::Validate() const {
         p.push_back("change_mesh.ground_band_inner_m must be >= 0 and below ground_band_outer_m");
     if (!(margin_band_m >= 0) || !(margin_band_m <= ground_band_outer_m))
         p.push_back("change_mesh.margin_band_m must be in [0, ground_band_outer_m]");
+    if (!(grow_lod_fraction >= 0) || !(grow_lod_fraction <= 1))
+        p.push_back("change_mesh.grow_lod_fraction must be in [0, 1]");
+    if (!(grow_max_m >= 0)) p.push_back("change_mesh.grow_max_m must be >= 0");
     if (!(ground_band_max_angle_deg > 0) || !(ground_band_max_angle_deg <= 90))
         p.push_back("change_mesh.ground_band_max_angle_deg must be in (0, 90]");
     return p;
@@ -562,7 +647,7 @@ ChangeMeshResult ComputeChangeMesh(const TriangleMesh& b,
         }
     }
     if (soundings != nullptr) VetoBySoundings(b, *soundings, r);
-    TestPatches(b, cfg, sigma, T, C, index, r);
+    TestPatches(b, cfg, sigma, T, C, index, soundings, r);
     if (!lods.empty()) {
         std::nth_element(
             lods.begin(), lods.begin() + static_cast<std::ptrdiff_t>(lods.size() / 2), lods.end());

@@ -57,10 +57,13 @@ Residual Evaluate(const SurfaceGrid& ref,
                   const Eigen::Vector3d& q,
                   const Eigen::Vector3d& pivot,
                   double sigma_b,
-                  double max_tan_slope) {
+                  double max_tan_slope,
+                  double min_soundings) {
     Residual r;
     const double h = ref.HeightAt(q.x(), q.y());
     if (!std::isfinite(h)) return r;
+    // A's nodes under q must each hold the soundings asked for (unknown density: +inf).
+    if (!(ref_raw.MinDensityAt(q.x(), q.y()) >= min_soundings)) return r;
     const int i = static_cast<int>(std::lround((q.x() - ref.x0) / ref.resolution_m));
     const int j = static_cast<int>(std::lround((q.y() - ref.y0) / ref.resolution_m));
     const Eigen::Vector2d g = GradientAt(ref, i, j, grad_step);
@@ -80,13 +83,20 @@ Residual Evaluate(const SurfaceGrid& ref,
 }
 
 // B's nodes over A's surface: how many, and their centroid (the correction's
-// pivot).
+// pivot); of them, those where both surfaces hold at least min_soundings.
 struct Overlap {
     std::size_t nodes = 0;
+    std::size_t dense = 0;
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
 };
 
-Overlap FindOverlap(const SurfaceGrid& a, const SurfaceGrid& b) {
+// The soundings behind B's node (i, j); +inf when B's density is not known.
+double DensityOf(const SurfaceGrid& b, int i, int j) {
+    return b.density.empty() ? std::numeric_limits<double>::infinity()
+                             : static_cast<double>(b.density[b.index(i, j)]);
+}
+
+Overlap FindOverlap(const SurfaceGrid& a, const SurfaceGrid& b, double min_soundings) {
     Overlap o;
     for (int j = 0; j < b.ny; ++j) {
         for (int i = 0; i < b.nx; ++i) {
@@ -94,6 +104,7 @@ Overlap FindOverlap(const SurfaceGrid& a, const SurfaceGrid& b) {
             const double x = b.x0 + i * b.resolution_m, y = b.y0 + j * b.resolution_m;
             if (!std::isfinite(a.HeightAt(x, y))) continue;
             ++o.nodes;
+            o.dense += DensityOf(b, i, j) >= min_soundings && a.MinDensityAt(x, y) >= min_soundings;
             o.centroid += Eigen::Vector3d(x, y, b.z_m[b.index(i, j)]);
         }
     }
@@ -109,16 +120,17 @@ int SampleStride(const SurfaceGrid& b, const RegistrationConfig& cfg) {
                                                          static_cast<double>(cfg.max_points)))));
 }
 
-// B's smoothed nodes every stride, with B's 1-sigma there (min_sigma_m where
-// none).
+// B's smoothed nodes every stride that hold at least min_soundings, with B's
+// 1-sigma there (min_sigma_m where none).
 std::vector<Sample> LevelSamples(const SurfaceGrid& rb,
                                  const SurfaceGrid& b,
                                  int stride,
+                                 double min_soundings,
                                  const RegistrationConfig& cfg) {
     std::vector<Sample> samples;
     for (int j = 0; j < rb.ny; j += stride) {
         for (int i = 0; i < rb.nx; i += stride) {
-            if (!rb.filled(i, j)) continue;
+            if (!rb.filled(i, j) || !(DensityOf(b, i, j) >= min_soundings)) continue;
             const float sg = b.sigma_m[b.index(i, j)];
             samples.push_back({Eigen::Vector3d(rb.x0 + i * rb.resolution_m,
                                                rb.y0 + j * rb.resolution_m,
@@ -146,6 +158,7 @@ struct Refinement {
     bool singular = false, converged_last = false;
     bool too_few_points = false;      // a step found too few valid residuals ...
     std::size_t valid_residuals = 0;  // ... this many
+    double min_soundings = 0;         // both surfaces' nodes hold at least this many
 };
 
 // One Gauss-Newton step on the samples against ra; false when it could not be
@@ -163,8 +176,14 @@ bool GaussNewtonStep(const SurfaceGrid& ra,
     std::vector<double> whitened;
     whitened.reserve(samples.size());
     for (std::size_t k = 0; k < samples.size(); ++k) {
-        rs[k] = Evaluate(
-            ra, a, grad_step, T.Apply(samples[k].p), T.pivot, samples[k].sigma, max_tan_slope);
+        rs[k] = Evaluate(ra,
+                         a,
+                         grad_step,
+                         T.Apply(samples[k].p),
+                         T.pivot,
+                         samples[k].sigma,
+                         max_tan_slope,
+                         ref.min_soundings);
         if (rs[k].valid) whitened.push_back(std::abs(rs[k].d));
     }
     if (whitened.size() < cfg.min_points) {
@@ -218,9 +237,11 @@ Refinement Refine(const SurfaceGrid& a,
                   const Eigen::Vector3d& pivot,
                   int stride,
                   double max_tan_slope,
+                  double min_soundings,
                   const RegistrationConfig& cfg) {
     Refinement ref;
     ref.T.pivot = pivot;
+    ref.min_soundings = min_soundings;
     for (const double smoothing : cfg.smoothing_m) {
         const int radius = static_cast<int>(std::lround(smoothing / a.resolution_m));
         const SurfaceGrid ra = Smoothed(a, radius);
@@ -228,7 +249,7 @@ Refinement Refine(const SurfaceGrid& a,
             Smoothed(b, static_cast<int>(std::lround(smoothing / b.resolution_m)));
         const int grad_step =
             std::max({1, radius, static_cast<int>(std::lround(0.2 / a.resolution_m))});
-        const std::vector<Sample> samples = LevelSamples(rb, b, stride, cfg);
+        const std::vector<Sample> samples = LevelSamples(rb, b, stride, min_soundings, cfg);
         ref.converged_last = false;
         for (int it = 0; it < cfg.iterations_per_level; ++it) {
             ++ref.iterations;
@@ -247,6 +268,7 @@ Mat6 FinalResiduals(const SurfaceGrid& a,
                     const RigidCorrection& T,
                     const std::vector<Sample>& samples,
                     double max_tan_slope,
+                    double min_soundings,
                     const RegistrationConfig& cfg,
                     RegistrationResult& res) {
     Mat6 H = Mat6::Zero();
@@ -258,8 +280,14 @@ Mat6 FinalResiduals(const SurfaceGrid& a,
     std::vector<double> abs_d;
     std::vector<Residual> fin(samples.size());
     for (std::size_t k = 0; k < samples.size(); ++k) {
-        fin[k] = Evaluate(
-            a, a, grad_step, T.Apply(samples[k].p), T.pivot, samples[k].sigma, max_tan_slope);
+        fin[k] = Evaluate(a,
+                          a,
+                          grad_step,
+                          T.Apply(samples[k].p),
+                          T.pivot,
+                          samples[k].sigma,
+                          max_tan_slope,
+                          min_soundings);
         if (fin[k].valid) abs_d.push_back(std::abs(fin[k].d));
     }
     const double s = std::max(cfg.min_sigma_m, 1.4826 * Median(abs_d));
@@ -412,6 +440,8 @@ std::vector<std::string> RegistrationConfig::Validate() const {
     if (!(correlation_length_m > 0)) p.push_back("registration.correlation_length_m must be > 0");
     if (min_points < 10) p.push_back("registration.min_points must be >= 10");
     if (!(converged_step_m > 0)) p.push_back("registration.converged_step_m must be > 0");
+    if (!(min_soundings >= 0 && min_soundings < 1e6))
+        p.push_back("registration.min_soundings must be in [0, 1e6)");
     return p;
 }
 
@@ -422,7 +452,7 @@ RegistrationResult RegisterSurfaces(const SurfaceGrid& a,
     const double max_tan_slope = std::tan(cfg.max_slope_deg * kPi / 180.0);
     // The overlap and the pivot: B's nodes over A's surface.
     const int stride = SampleStride(b, cfg);
-    const Overlap overlap = FindOverlap(a, b);
+    const Overlap overlap = FindOverlap(a, b, cfg.min_soundings);
     res.overlap_area_m2 = static_cast<double>(overlap.nodes) * b.resolution_m * b.resolution_m;
     if (overlap.nodes < cfg.min_points) {
         res.termination = RegistrationTermination::kTooFewPoints;
@@ -431,7 +461,12 @@ RegistrationResult RegisterSurfaces(const SurfaceGrid& a,
                       std::to_string(cfg.min_points) + " needed";
         return res;
     }
-    const Refinement ref = Refine(a, b, overlap.centroid, stride, max_tan_slope, cfg);
+    // The nodes both surveys sounded enough, when at least half of the overlap is such.
+    const bool dense = 2 * overlap.dense >= overlap.nodes;
+    res.min_soundings_applied = dense ? cfg.min_soundings : 0.0;
+    res.points_sparse = dense ? overlap.nodes - overlap.dense : 0;
+    const Refinement ref =
+        Refine(a, b, overlap.centroid, stride, max_tan_slope, res.min_soundings_applied, cfg);
     res.correction = ref.T;
     if (ref.too_few_points) {
         res.termination = RegistrationTermination::kTooFewPoints;
@@ -447,7 +482,17 @@ RegistrationResult RegisterSurfaces(const SurfaceGrid& a,
             "the correction";
         return res;
     }
-    const Mat6 H = FinalResiduals(a, ref.T, ref.last_samples, max_tan_slope, cfg, res);
+    const Mat6 H = FinalResiduals(
+        a, ref.T, ref.last_samples, max_tan_slope, res.min_soundings_applied, cfg, res);
+    // The residuals over every overlapping node, the sparse ones too (the record).
+    {
+        RegistrationResult all;
+        FinalResiduals(
+            a, ref.T, LevelSamples(b, b, stride, 0.0, cfg), max_tan_slope, 0.0, cfg, all);
+        res.rms_vertical_all_nodes_after_m = all.rms_vertical_after_m;
+        res.rms_normal_all_nodes_after_m = all.rms_normal_after_m;
+        res.points_stable_all_nodes = all.points_stable;
+    }
     if (!SetCovariance(H, stride, b.resolution_m, cfg, res)) {
         res.termination = RegistrationTermination::kSingular;
         res.message = "the stable terrain does not fix every component of the correction";

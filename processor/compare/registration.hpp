@@ -52,7 +52,11 @@ struct RegistrationConfig {
     double correlation_length_m = 5.0;  // error correlation length (uncertainty, above)
     bool estimate_roll_pitch = true;    // 6-DoF; false: yaw and translation only
     std::size_t min_points = 500;       // fewer overlapping stable nodes: failure
-    double converged_step_m = 1e-4;     // stop a level when a step moves no node farther
+    // Nodes of either surface with fewer soundings than this (dem.tif's density) are not used:
+    // such a node is one or two soundings, not the surface (decision 029). Applied when at
+    // least half of the overlap has them, else every node is used (the result says which).
+    double min_soundings = 5.0;
+    double converged_step_m = 1e-4;  // stop a level when a step moves no node farther
 
     std::vector<std::string> Validate() const;
 };
@@ -81,6 +85,14 @@ struct RegistrationResult {
     double rms_normal_after_m = 0;
     double rms_vertical_floor_after_m = 0;
     std::size_t points_stable_floor = 0;
+    // The soundings a node needed in both surfaces to be used (config.min_soundings, or 0 when
+    // too few had them or the density is not known), the overlapping nodes left out by it, and
+    // the residuals over every overlapping node, those included (stable: as above).
+    double min_soundings_applied = 0;
+    std::size_t points_sparse = 0;
+    double rms_vertical_all_nodes_after_m = 0;
+    double rms_normal_all_nodes_after_m = 0;
+    std::size_t points_stable_all_nodes = 0;
     int iterations = 0;
     bool ok() const {
         return termination == RegistrationTermination::kConverged ||

@@ -30,6 +30,18 @@ double SurfaceGrid::SigmaAt(double x, double y) const {
     return Bilinear(*this, sigma_m, x, y);
 }
 
+double SurfaceGrid::MinDensityAt(double x, double y) const {
+    if (density.empty()) return std::numeric_limits<double>::infinity();
+    const double gx = (x - x0) / resolution_m, gy = (y - y0) / resolution_m;
+    if (!(gx >= 0 && gy >= 0 && gx <= nx - 1 && gy <= ny - 1)) return kNaN;
+    const int i = std::min(static_cast<int>(gx), nx - 2);
+    const int j = std::min(static_cast<int>(gy), ny - 2);
+    return std::min({density[index(i, j)],
+                     density[index(i + 1, j)],
+                     density[index(i, j + 1)],
+                     density[index(i + 1, j + 1)]});
+}
+
 std::size_t SurfaceGrid::CountFilled() const {
     return static_cast<std::size_t>(
         std::count_if(z_m.begin(), z_m.end(), [](float v) { return std::isfinite(v); }));

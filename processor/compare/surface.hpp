@@ -16,6 +16,9 @@ struct SurfaceGrid {
     int nx = 0, ny = 0;
     std::vector<float> z_m;      // heights, up; NaN = empty
     std::vector<float> sigma_m;  // 1-sigma of each height (dem.tif's 95 % uncertainty / 1.96)
+    // Soundings behind each node (dem.tif's density band: those in CUBE's chosen hypothesis);
+    // empty when not known (a design surface, a grid from elsewhere).
+    std::vector<float> density;
 
     std::size_t index(int i, int j) const {
         return static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) +
@@ -26,6 +29,9 @@ struct SurfaceGrid {
     double HeightAt(double x, double y) const;
     // Bilinear 1-sigma at (x, y); NaN likewise.
     double SigmaAt(double x, double y) const;
+    // The fewest soundings behind the nodes HeightAt(x, y) interpolates (the four corners of
+    // its cell); +inf when the density is not known, NaN outside the grid.
+    double MinDensityAt(double x, double y) const;
     // Filled nodes.
     std::size_t CountFilled() const;
 };

@@ -191,9 +191,11 @@ Expected<Epoch> ReadEpochProducts(const std::string& dir, const char* label) {
     if (!dem) return Error{who + ": " + dem.error().message};
     const io::GridLayer* elevation = nullptr;
     const io::GridLayer* uncertainty = nullptr;
+    const io::GridLayer* density = nullptr;
     for (const auto& l : dem->grid.layers) {
         if (l.name == "elevation") elevation = &l;
         if (l.name == "uncertainty") uncertainty = &l;
+        if (l.name == "density") density = &l;
     }
     if (elevation == nullptr || uncertainty == nullptr)
         return Error{who + ": dem.tif has no elevation and uncertainty bands"};
@@ -210,6 +212,8 @@ Expected<Epoch> ReadEpochProducts(const std::string& dir, const char* label) {
     g.z_m = elevation->values;
     g.sigma_m = uncertainty->values;
     for (float& v : g.sigma_m) v /= 1.96f;  // the band is the 95 % uncertainty
+    // Soundings per node: the registration leaves out the nodes few soundings made.
+    if (density != nullptr) g.density = density->values;
     if (g.CountFilled() == 0) return Error{who + ": dem.tif holds no heights"};
     e.dem = g;
     // Vertical datum: summary.json's record of the grid stage.
@@ -639,6 +643,9 @@ Expected<ChangeOnMesh> ComputeChangeOnMesh(const Epoch& a,
                   {"patches", out.change->patches},
                   {"patches_dropped", out.change->patches_dropped},
                   {"vetoed_by_soundings", out.change->vetoed_by_soundings},
+                  {"grown", out.change->grown},
+                  {"grow_lod_fraction", cfg.mesh.grow_lod_fraction},
+                  {"grow_max_m", cfg.mesh.grow_max_m},
                   {"median_lod95_m", out.change->median_lod95_m},
                   {"normals_turned_over", out.change->flipped},
                   {"max_distance_m", cfg.mesh.max_distance_m},
@@ -1050,6 +1057,11 @@ json RegistrationJson(const compare::RegistrationResult& reg,
             {"rms_normal_after_m", reg.rms_normal_after_m},
             {"rms_vertical_floor_after_m", reg.rms_vertical_floor_after_m},
             {"nodes_stable_floor", reg.points_stable_floor},
+            {"min_soundings", reg.min_soundings_applied},
+            {"nodes_sparse", reg.points_sparse},
+            {"rms_vertical_all_nodes_after_m", reg.rms_vertical_all_nodes_after_m},
+            {"rms_normal_all_nodes_after_m", reg.rms_normal_all_nodes_after_m},
+            {"nodes_stable_all_nodes", reg.points_stable_all_nodes},
             {"navigation_gate", gate_record}};
 }
 

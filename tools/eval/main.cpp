@@ -155,10 +155,12 @@ either, the truth's origin is assumed (and said).
                                 change_iou_min, change_volume_error_max_abs_pct,
                                 change_stable_flagged_share (region nodes more than 0.5 m from
                                 every part, over the compared nodes that far), change_false_regions,
-                                change_stable_rms_m, registration_rms_vertical_after_m,
-                                registration_rms_normal_after_m (along the normal, all stable
-                                nodes), registration_rms_vertical_floor_after_m (slope < 45
-                                deg: the issue's vertical bound's measure, decision 023).
+                                change_stable_rms_m, registration_rms_vertical_after_m (the
+                                stable nodes both surveys sounded 5 times or more: decision
+                                029), registration_rms_normal_after_m (along the normal, the
+                                same nodes), registration_rms_vertical_floor_after_m (slope <
+                                45 deg, decision 023), registration_rms_vertical_all_nodes_after_m
+                                (every stable node, the sparse ones too).
   change3d_scar_detected_share, change3d_scar_median_distance_m, change3d_stable_flagged_share,
   change3d_wall_stable_flagged_share
                                 with P/change_points.ply (pitmap compare's 3D change along the
@@ -1038,6 +1040,8 @@ Status ScoreCompareFolder(const Scoring& scoring, json& scores) {
         scores["registration_rms_normal_after_m"] = rj.value("rms_normal_after_m", 0.0);
         scores["registration_rms_vertical_floor_after_m"] =
             rj.value("rms_vertical_floor_after_m", 0.0);
+        scores["registration_rms_vertical_all_nodes_after_m"] =
+            rj.value("rms_vertical_all_nodes_after_m", 0.0);
         scores["change_stable_rms_m"] = cj["change"].value("stable_rms_m", 0.0);
         // The 3D change along the normal (change_points.ply): on the slump's scar (a wall) and
         // on stable terrain, walls apart.

@@ -163,6 +163,53 @@ TEST(CompareRegistration, TheResidualIsReadAlongTheNormalAndVerticallyOnTheFloor
     EXPECT_GT(r.rms_vertical_after_m, 1.1 * r.rms_vertical_floor_after_m) << r.message;
 }
 
+// Two surveys whose nodes hold 20 soundings (1 cm of error) except a fifth of them, at the
+// edges of each survey's swaths, that hold 1 or 2 (a sounding's own 6 cm): such a node is a
+// sounding, not the surface. The registration uses the nodes both surveys sounded at least 5
+// times and its residual is theirs (the pair's 1.4 cm); over every node it is the sparse
+// nodes' (decision 029).
+TEST(CompareRegistration, NodesWithFewSoundingsAreNotTheSurface) {
+    const auto survey = [](double stripe_offset_m, unsigned seed) {
+        SurfaceGrid s = Survey(false, RigidCorrection{}, 1e-9, seed);
+        std::mt19937 rng(seed);
+        std::normal_distribution<double> noise(0.0, 1.0);
+        s.density.assign(s.z_m.size(), 0.0f);
+        for (int j = 0; j < s.ny; ++j) {
+            for (int i = 0; i < s.nx; ++i) {
+                const std::size_t k = s.index(i, j);
+                if (!std::isfinite(s.z_m[k])) continue;
+                // Stripes 2 m wide every 10 m, each survey's own (its swaths' outer edges).
+                const double x = s.x0 + i * s.resolution_m + stripe_offset_m;
+                const bool sparse = std::fmod(x + 100.0, 10.0) < 2.0;
+                const double sd = sparse ? 0.06 : 0.01;
+                s.z_m[k] += static_cast<float>(sd * noise(rng));
+                s.sigma_m[k] = static_cast<float>(sd);
+                s.density[k] = sparse ? 1.0f + static_cast<float>(k % 2) : 20.0f;
+            }
+        }
+        return s;
+    };
+    const SurfaceGrid a = survey(0.0, 21), b = survey(5.0, 22);
+    const RegistrationResult r = RegisterSurfaces(a, b, RegistrationConfig{});
+    ASSERT_TRUE(r.ok()) << r.message;
+    const double pair = std::sqrt(2.0) * 0.01;
+    EXPECT_EQ(r.min_soundings_applied, 5.0);
+    EXPECT_GT(r.points_sparse, 0u);
+    EXPECT_NEAR(r.rms_vertical_floor_after_m, pair, 0.1 * pair) << r.message;
+    EXPECT_GT(r.rms_normal_all_nodes_after_m, 1.5 * r.rms_normal_after_m) << r.message;
+    EXPECT_GT(r.rms_vertical_all_nodes_after_m, 1.5 * r.rms_vertical_after_m) << r.message;
+    EXPECT_GT(r.points_stable_all_nodes, r.points_stable);
+    // Asked for more soundings than most nodes hold: every node is used, and it says so.
+    RegistrationConfig most;
+    most.min_soundings = 25;
+    const RegistrationResult all = RegisterSurfaces(a, b, most);
+    ASSERT_TRUE(all.ok()) << all.message;
+    EXPECT_EQ(all.min_soundings_applied, 0.0);
+    EXPECT_EQ(all.points_sparse, 0u);
+    EXPECT_NEAR(
+        all.rms_normal_after_m, r.rms_normal_all_nodes_after_m, 0.02 * all.rms_normal_after_m);
+}
+
 TEST(CompareRegistration, RecoversAHalfMetreOneDegreeShiftDespiteTheChanges) {
     const SurfaceGrid a = Survey(false, RigidCorrection{}, 0.02, 1);
     // B seen from a frame shifted by 0.5 m and turned by 1 deg (and lifted 5 cm, tilted a
@@ -763,7 +810,10 @@ TEST(CompareChangeMesh, RegionsCarryTheirVolumeAlongTheirAxisOnAWallAndOnAFloor)
         g.direction.dot(Eigen::Vector3d(std::sin(70 * kDeg), 0, std::cos(70 * kDeg))), 1.0, 0.01);
     EXPECT_NEAR(g.volume_m3, plateau_v, 0.03 * plateau_v) << "U95 " << g.u95_m3;
     EXPECT_LE(std::abs(g.volume_m3 - plateau_v), g.u95_m3);
-    EXPECT_NEAR(g.mean_distance_m, 0.3, 0.05);
+    // Along the normal (vertically 0.3 / cos(70 deg) = 0.88 m); over the region with its
+    // tapered rim, which the hysteresis takes in, below the plateau's 0.3 m.
+    EXPECT_GT(g.mean_distance_m, 0.2);
+    EXPECT_LT(g.mean_distance_m, 0.31);
     EXPECT_GE(g.max_abs_distance_m, 0.3);  // along a vertex's own normal: oblique on the rim
     std::size_t in_region = 0;
     for (int id : w.region) in_region += id == 1;
@@ -953,6 +1003,7 @@ TEST(CompareChangeMesh, TheMarginBelowDetectionBeyondTheOutlineIsMeasured) {
     const auto run = [&](double band) {
         ChangeMeshConfig cfg;
         cfg.margin_band_m = band;
+        cfg.grow_lod_fraction = 0.0;  // the margin as the LoD95 leaves it (no hysteresis)
         return ComputeChangeMesh(
             b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), cfg, sigma);
     };
@@ -965,6 +1016,84 @@ TEST(CompareChangeMesh, TheMarginBelowDetectionBeyondTheOutlineIsMeasured) {
     EXPECT_LT(g.margin_m3, 0.0);
     EXPECT_NEAR(g.volume_m3, exact, 0.01 * std::abs(exact)) << "margin " << g.margin_m3;
     EXPECT_LE(std::abs(g.volume_m3 - exact), g.u95_m3);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::compare
+
+namespace pitmap::proc::compare {
+namespace {
+
+// A kept region grows by hysteresis into its taper (decision 029): a paraboloid hollow 0.25 m
+// deep and 3 m in radius on the 70 deg face, along its normal, both meshes with 1.2 cm of
+// independent noise per vertex (LoD95 0.055 m). The region of the vertices beyond their LoD95
+// ends where the hollow is shallower than about the LoD: (0.055 / 0.25) = 22 % of its outline
+// is below it. Grown into the vertices joined to it whose distance has its sign and exceeds half
+// their LoD95 (and at most 0.5 m from it), it reaches nearer the outline; the noise on the
+// rest of the face (vertices beyond half the LoD: 3.5 % of each sign) forms no region and the
+// region does not creep over it further than 0.5 m beyond the outline.
+TEST(CompareChangeMesh, AKeptRegionGrowsIntoItsTaperAtHalfItsLod) {
+    const auto hollow = [](double u, double s) {
+        const double q = 1.0 - (std::pow(u - 6.0, 2) + std::pow(s - 4.0, 2)) / 9.0;
+        return -0.25 * std::max(0.0, q);
+    };
+    std::mt19937 rng(29);
+    std::normal_distribution<double> noise(0.0, 0.012);
+    TriangleMesh a = Face(0.1, 0.0, [](double, double) { return 0.0; });
+    TriangleMesh b = Face(0.1, 0.05, hollow);
+    const Eigen::Vector3d normal(std::sin(70 * kDeg), 0, std::cos(70 * kDeg));
+    for (TriangleMesh* m : {&a, &b}) {
+        for (auto& v : m->vertices) v += noise(rng) * normal;
+    }
+    const auto sigma = [](const Eigen::Vector3d&) { return std::hypot(0.02, 0.02); };
+    const auto run = [&](double grow) {
+        ChangeMeshConfig cfg;
+        cfg.grow_lod_fraction = grow;
+        return ComputeChangeMesh(
+            b, a, RigidCorrection{}, Eigen::Matrix<double, 6, 6>::Zero(), cfg, sigma);
+    };
+    // B's vertex i at (u, s) on the face: its true change and the distance from the outline.
+    const int nu = 120;
+    const auto us = [&](std::size_t i) {
+        return std::pair{0.05 + static_cast<double>(i % (nu + 1)) * 0.1,
+                         0.05 + static_cast<double>(i / (nu + 1)) * 0.1};
+    };
+    struct Score {
+        double iou = 0;
+        std::size_t outside = 0, far = 0;
+    };
+    const auto score = [&](const ChangeMeshResult& r) {
+        Score sc;
+        std::size_t inter = 0, uni = 0;
+        for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+            const auto [u, s] = us(i);
+            const bool truth = hollow(u, s) < 0, det = r.region[i] != 0;
+            inter += truth && det;
+            uni += truth || det;
+            const double beyond = std::hypot(u - 6.0, s - 4.0) - 3.0;
+            sc.outside += det && !truth;
+            sc.far += det && beyond > 0.5;
+        }
+        sc.iou = static_cast<double>(inter) / static_cast<double>(uni);
+        return sc;
+    };
+    const ChangeMeshResult plain = run(0.0);
+    ASSERT_EQ(plain.regions.size(), 1u) << plain.message;
+    const Score p = score(plain);
+    EXPECT_LT(p.iou, 0.8);
+    EXPECT_EQ(plain.grown, 0u);
+    const ChangeMeshResult grown = run(0.5);
+    ASSERT_EQ(grown.regions.size(), 1u) << grown.message;
+    const Score g = score(grown);
+    EXPECT_GT(g.iou, 0.85);
+    EXPECT_GT(grown.grown, 200u);  // 0.777 -> 0.885 with 304 vertices (measured)
+    EXPECT_EQ(g.far, 0u);
+    EXPECT_LT(static_cast<double>(g.outside),
+              0.02 * static_cast<double>(grown.regions.front().vertices));
+    // Its volume as before, within its U95 of the exact one.
+    const double exact = -0.25 * kPi * 9.0 / 2.0;
+    EXPECT_LE(std::abs(grown.regions.front().volume_m3 - exact), grown.regions.front().u95_m3)
+        << grown.regions.front().volume_m3 << " against " << exact;
 }
 
 }  // namespace

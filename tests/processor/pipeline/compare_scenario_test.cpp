@@ -179,13 +179,15 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
     // The bound (docs/decisions/014: held at 0.012 while the LoD took CUBE's
     // pass-common errors as independent per node; the regions' test as a whole, change.hpp).
     EXPECT_LT(s.at("change_stable_flagged_share"), 0.003);
-    // The registration's residual on stable terrain: both CUBE surfaces' noise (about 1.5 cm
-    // each) is in it, not the changes.
-    EXPECT_LT(s.at("registration_rms_vertical_after_m"), 0.025);
-    // The 2 cm read vertically on the floors and along the normal on all the stable
-    // nodes (measured 1.82 and 1.64 cm; the faces' vertical 2.7-3.6 cm: decision 023, section 6).
+    // The registration's residual on stable terrain, on the nodes both surveys sounded at least
+    // 5 times, walls to 80 deg included: the 2 cm (measured 1.87 cm; both CUBE surfaces'
+    // own noise, about 1.6 cm each against the truth: decision 029). Also vertically on the
+    // floors and along the normal (1.66 and 1.49 cm; decision 023, section 6). Over every
+    // stable node, those of 1-4 soundings too, 2.06 cm: held below 2.5 cm.
+    EXPECT_LE(s.at("registration_rms_vertical_after_m"), 0.02);
     EXPECT_LE(s.at("registration_rms_vertical_floor_after_m"), 0.02);
     EXPECT_LE(s.at("registration_rms_normal_after_m"), 0.02);
+    EXPECT_LT(s.at("registration_rms_vertical_all_nodes_after_m"), 0.025);
     EXPECT_LT(std::abs(s.at("capacity_b_volume_error_pct")), 0.5);
     // Each survey's own summary.json holds its capacity curve (pitmap run's grid stage), the
     // same as compare finds for it, and capacity.csv the same rows as compare's.
@@ -278,10 +280,11 @@ void CompareScenario::ChangesMeasuredAgainstTruth() {
                            s.at(std::string("change_") + part + "_volume_true_m3")),
                   s.at(k + "u95_m3"))
             << part;
-        EXPECT_GE(s.at(k + "iou"), 0.75) << part;
-        // The bound against the part's detectable vertices (the taper below the LoD95
-        // on neither side; measured 0.956-0.994, the scar's full IoU 0.785 with 22.7 % of its
-        // outline below detection: decision 023, section 5).
+        // The bound on the whole outline: the regions grown by hysteresis into their
+        // taper at half the LoD95 (decision 029; measured 0.883-0.970, the scar 0.776 before
+        // with 22.7 % of its outline below its LoD95), and against the part's detectable
+        // vertices (decision 023, section 5; 0.906-1.000).
+        EXPECT_GE(s.at(k + "iou"), 0.8) << part;
         EXPECT_GE(s.at(k + "iou_detectable"), 0.8) << part;
     }
     EXPECT_LT(s.at("change3d_region_stable_flagged_share"), 0.001);
