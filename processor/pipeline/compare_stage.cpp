@@ -300,6 +300,7 @@ Expected<compare::SurfaceGrid> RegridEpoch(Epoch& e,
     g.z_m = r.grid.elevation_m;
     g.sigma_m = r.grid.uncertainty_m;
     for (float& v : g.sigma_m) v /= 1.96f;  // as dem.tif's 95 % band
+    g.density = r.grid.density;             // as dem.tif's density band (the registration's nodes)
     record = {{"survey", e.label == "A" ? "a" : "b"},
               {"resolution_m", resolution_m},
               {"soundings", in->soundings.size()},
