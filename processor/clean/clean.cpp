@@ -1201,8 +1201,11 @@ void Verdicts(const Voxels& X,
                 if (patches.Transient(own)) {
                     // A "surface" other rays went through: echoes in the water.
                     st = SoundingStatus::kFreeSpace;
-                } else if (crossed != kNone && patches.Solid(crossed)) {
+                } else if (crossed != kNone && patches.Solid(crossed) &&
+                           (terrain_voxel[crossed] || !free_voxel(crossed, config.free_ratio))) {
                     // The ray went through a surface observed from elsewhere: a ghost behind it.
+                    // Not a cluster voxel whose own soundings are echoes in the water (below):
+                    // the terrain seen through a fish school between its pings is no ghost.
                     st = SoundingStatus::kMultipath;
                 } else if (!terrain_voxel[own]) {
                     const std::int32_t k = X.component[own];

@@ -20,7 +20,9 @@
 //      through: fish, bubbles, the smile. A cluster voxel other rays passed through likewise.
 //   4. Multipath (kMultipath): a sounding whose ray first crossed a solid patch (supported,
 //      crossed by fewer than `solid_ratio` times its support) lies behind a surface observed
-//      from elsewhere: sound that travelled further than the surface it went through.
+//      from elsewhere: sound that travelled further than the surface it went through. Not
+//      when the patch's voxel is a cluster voxel whose own soundings are free space (below): a
+//      ray through a fish school's voxel went through water (docs/decisions/026).
 //   5. Clusters: a cluster sounding whose ray went through the terrain before its end (into a
 //      solid patch's plane at more than the crossing angle, within a voxel of its centre) lies
 //      behind the observed surface (kMultipath; all of the cluster when most of its soundings

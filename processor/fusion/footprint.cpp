@@ -322,40 +322,59 @@ std::vector<NeighbourFrame> SlopeNeighbours(const std::vector<ScanNeighbour>& ne
     return slope_nbs;
 }
 
-// The fan planes of the previous and next pings (point, normal = their sonar x axis), world
-// metres, for the gap between pings.
+// The fan planes of the neighbouring pings (point, normal = their sonar x axis), world metres,
+// for the gap between pings: on each side the next ping and the one after it, with their
+// footprints.
 struct NeighbourFans {
     struct Plane {
         Eigen::Vector3d p, n;
+        const ScanFootprints* footprints = nullptr;
+        bool valid = false;
     };
-    Plane fans[2];
-    int count = 0;
+    Plane fans[2][2];  // [side: before, after][0: the next ping that way, 1: the one after it]
 
-    // The largest distance, within fill_m, from x_world to a neighbouring fan; 0 if none.
-    double GapAt(const Eigen::Vector3d& x_world, double fill_m) const {
+    bool any() const { return fans[0][0].valid || fans[1][0].valid; }
+
+    // The largest distance, within fill_m, from x_world to a neighbouring fan on either side; 0
+    // if none. On each side the next ping's fan, or, where that ping has no footprint at beam i
+    // (its echo there was rejected or it had none) and the ping after it has, that ping's: a
+    // beam missing in one ping leaves the same strip unobserved as a missing ping, and is
+    // bridged the same way (within fill_m).
+    double GapAt(const Eigen::Vector3d& x_world,
+                 std::size_t i,
+                 double fill_m,
+                 bool per_beam) const {
         double gap_m = 0.0;
-        for (int k = 0; k < count; ++k) {
-            const double s_m = std::abs(fans[k].n.dot(x_world - fans[k].p));
+        for (const auto& side : fans) {
+            if (!side[0].valid) continue;
+            const Plane* use = &side[0];
+            if (per_beam && !HasFootprint(side[0], i) && side[1].valid &&
+                HasFootprint(side[1], i)) {
+                use = &side[1];
+            }
+            double s_m = std::abs(use->n.dot(x_world - use->p));
+            if (s_m > fill_m && use != &side[0]) s_m = std::abs(side[0].n.dot(x_world - side[0].p));
             if (s_m <= fill_m) gap_m = std::max(gap_m, s_m);
         }
         return gap_m;
     }
+
+    static bool HasFootprint(const Plane& f, std::size_t i) {
+        return f.footprints != nullptr && i < f.footprints->range.size() &&
+               std::isfinite(f.footprints->range[i]);
+    }
 };
 
 NeighbourFans FansOf(const std::vector<ScanNeighbour>& neighbours) {
-    const SonarScan* prev = nullptr;
-    const SonarScan* next = nullptr;
-    for (const ScanNeighbour& nb : neighbours) {
-        if (nb.offset == -1) prev = nb.scan;
-        if (nb.offset == 1) next = nb.scan;
-    }
     NeighbourFans out;
-    for (const SonarScan* nb : {prev, next}) {
-        if (nb == nullptr) continue;
-        const Eigen::Vector3d q = nb->T_world_sonar.translation();
-        const Eigen::Vector3d nn = nb->T_world_sonar.linear().col(0);
+    for (const ScanNeighbour& nb : neighbours) {
+        const int side = nb.offset < 0 ? 0 : 1;
+        const int k = std::abs(nb.offset) - 1;
+        if (nb.scan == nullptr || k < 0 || k > 1) continue;
+        const Eigen::Vector3d q = nb.scan->T_world_sonar.translation();
+        const Eigen::Vector3d nn = nb.scan->T_world_sonar.linear().col(0);
         if (!q.allFinite() || !nn.allFinite() || !(nn.norm() > 0.5)) continue;
-        out.fans[out.count++] = {q, nn.normalized()};
+        out.fans[side][k] = {q, nn.normalized(), nb.footprints, true};
     }
     return out;
 }
@@ -460,11 +479,11 @@ PreparedScan PrepareScan(const SonarScan& scan,
         // Gap to the neighbouring fans at the footprint (X on the beam axis at the footprint
         // range); a neighbour further than ping_gap_fill_m is not bridged.
         double gap_m = 0.0;
-        if (fans.count > 0) {
+        if (fans.any()) {
             const Eigen::Vector3d x_world =
                 p_world + ps.R * Eigen::Vector3d(0.0, sin_t, cos_t) *
                               (static_cast<double>(pb.range_vox) * config.voxel_size_m);
-            gap_m = fans.GapAt(x_world, config.ping_gap_fill_m);
+            gap_m = fans.GapAt(x_world, i, config.ping_gap_fill_m, config.ping_gap_fill_per_beam);
         }
         pb.half_gap_vox = static_cast<float>(0.5 * gap_m * inv_s);
         if (!slope_nbs.empty()) {
@@ -505,7 +524,8 @@ PreparedScan PrepareScan(const std::vector<SonarScan>& scans,
                          std::size_t index,
                          const TsdfConfig& config,
                          const Geometry& geo) {
-    const int k_max = std::max(1, config.footprint_neighbour_pings);
+    const int k_max =
+        std::max(config.ping_gap_fill_m > 0.0 ? 2 : 1, config.footprint_neighbour_pings);
     std::vector<ScanFootprints> fps;
     fps.reserve(static_cast<std::size_t>(2 * k_max));  // the neighbours point into it
     std::vector<ScanNeighbour> nbs;

@@ -524,7 +524,7 @@ using SlabMap = std::map<int, Slab>;  // by slab index; std::map keeps reference
 
 // The scans [c0, c1) prepared (valid beams, footprint ranges, the x and y range of every beam),
 // in parallel. Footprints of the chunk's scans and of the neighbours each one needs (the
-// previous and next for the gap between pings, `reach` each side for the along-track slope)
+// two each side for the gap between pings, `reach` each side for the along-track slope)
 // are fitted once, into `footprints` (reused across chunks).
 void PrepareChunk(const std::vector<SonarScan>& scans,
                   std::size_t c0,
@@ -928,7 +928,8 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     tbb::task_arena arena(threads);
     const float trunc = static_cast<float>(config_.truncation_m);
     const OldLeaves old{LeavesBySlab(impl_->distance->tree()), LeavesBySlab(impl_->weight->tree())};
-    const auto reach = static_cast<std::size_t>(std::max(1, config_.footprint_neighbour_pings));
+    const auto reach = static_cast<std::size_t>(
+        std::max(config_.ping_gap_fill_m > 0.0 ? 2 : 1, config_.footprint_neighbour_pings));
 
     // Chunk by chunk: prepare the chunk's scans in parallel, then integrate it slab by slab.
     // Only one chunk's prepared beams are held at a time; the slab grids persist across chunks.

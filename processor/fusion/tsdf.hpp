@@ -87,6 +87,12 @@ struct TsdfConfig {
     // 0.1 m voxel grid would keep every third plane across the track unobserved. Wider gaps
     // (missing pings, the turn between lines) stay holes. 0 = off.
     double ping_gap_fill_m = 0.3;
+    // Beam-width mode, with ping_gap_fill_m: where the next ping on one side has no footprint at
+    // a beam (its echoes there were rejected, or it had none) and the ping after it has, the gap
+    // on that side is measured to that ping's fan: a beam missing in one ping leaves the same
+    // strip unobserved as a missing ping, and is bridged the same way (within ping_gap_fill_m).
+    // false = the gap to the next pings' fans whatever they hold. docs/decisions/026.
+    bool ping_gap_fill_per_beam = true;
     // Beam-width mode: the footprint's range varies across the beam's width along the track as
     // well as across the fan. That slope is fitted to the footprints of the same beam in up to
     // this many pings before and after (consecutive scans of the input), so a face or wall the

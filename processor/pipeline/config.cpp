@@ -319,6 +319,9 @@ void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v("footprint_gate_m", c.footprint_gate_m, "beam-width: a footprint beam agrees within this");
     v("footprint_gate_fraction", c.footprint_gate_fraction, "... plus this share of the range");
     v("ping_gap_fill_m", c.ping_gap_fill_m, "beam-width: bridge gaps between pings up to this, m");
+    v("ping_gap_fill_per_beam",
+      c.ping_gap_fill_per_beam,
+      "beam-width: a beam missing in the next ping is bridged to the one after it");
     v("footprint_neighbour_pings",
       c.footprint_neighbour_pings,
       "beam-width: along-track footprint slope from this many pings each side (0 = off)");

@@ -140,7 +140,8 @@ struct ScanNeighbour {
 };
 
 // The beams of one scan in voxel units, from its footprints. Beam-width mode also measures the
-// gap from each footprint to the fan planes of the neighbours at offsets -1 and +1, and fits
+// gap from each footprint to the fan planes of the neighbours at offsets -1 and +1 (-2 and +2
+// where those have no footprint at the beam and these have), and fits
 // each footprint's along-track slope (PreparedBeam::dr_dx) to the footprints of the same beam
 // in the neighbours within TsdfConfig::footprint_neighbour_pings.
 PreparedScan PrepareScan(const SonarScan& scan,

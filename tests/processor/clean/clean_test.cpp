@@ -536,6 +536,66 @@ TEST(Clean, TheSmileAtTheNadirsRangeInFrontOfBothSidesIsRejected) {
     EXPECT_LE(t.rejected[kGood], 0.001 * t.total[kGood]);
 }
 
+// One line over a floor 14 m down, and a fish school 7.8 m down (4 cm of spread in range) that
+// fills a sector of the fan (beams 20-34 deg) in pings 100-102 and 104-106, as on the quarry's
+// second seed (pings 358-362): ping 103 between them sees the floor through the school.
+Survey MakeFloorSeenBetweenASchoolsPings() {
+    constexpr double kFloor = 14.0, kSchool = 7.8;
+    Survey out;
+    std::mt19937 rng(3);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    for (int i = 0; i < 200; ++i) {
+        const auto k = static_cast<std::uint32_t>(out.geo.pings.size());
+        pitmap::proc::georef::GeorefPing ping;
+        ping.sensor_world = Eigen::Vector3d(0.15 * i, 0.0, 0.0);
+        out.geo.pings.push_back(ping);
+        const bool school = (i >= 100 && i <= 102) || (i >= 104 && i <= 106);
+        for (int b = 0; b < kBeams; ++b) {
+            const double theta = (0.25 * b - 60.0) * M_PI / 180.0;
+            const Eigen::Vector3d d(0.0, std::sin(theta), -std::cos(theta));
+            const bool in_sector = theta >= 20.0 * M_PI / 180.0 && theta < 34.0 * M_PI / 180.0;
+            if (school && in_sector) {
+                Add(out, k, b, d, kSchool / std::cos(theta) + 2.0 * noise(rng), kFish);
+            } else {
+                Add(out, k, b, d, kFloor / std::cos(theta) + noise(rng), kGood);
+            }
+        }
+    }
+    return out;
+}
+
+// The school's voxels are crossed by few rays within their patches' extents (solid, for the
+// multipath test) and passed by many (the floor's rays of the pings beside it: their soundings
+// are free space). A ray that went through such a voxel went through water, not through a
+// surface: the floor seen between the school's pings is no ghost behind it. Without that
+// condition 13 floor soundings of ping 103 were rejected as multipath (decision 026).
+TEST(Clean, TheFloorSeenBetweenASchoolsPingsIsNoGhost) {
+    const Survey s = MakeFloorSeenBetweenASchoolsPings();
+    const auto r = Clean(s.geo, CleanConfig{});
+    const Tally t = Score(s, r.status);
+    std::int64_t under = 0, under_rejected = 0;
+    for (std::size_t j = 0; j < r.status.size(); ++j) {
+        const double theta = s.geo.points.angle_rad[j];
+        if (s.truth[j] != kGood || s.geo.points.ping[j] != 103 || theta < 20.0 * M_PI / 180.0 ||
+            theta >= 34.0 * M_PI / 180.0)
+            continue;
+        ++under;
+        under_rejected += r.status[j] != 0;
+    }
+    std::printf(
+        "school: %lld of %lld rejected; the floor under it in ping 103: %lld of %lld "
+        "rejected; good rejected %lld\n",
+        static_cast<long long>(t.rejected[kFish]),
+        static_cast<long long>(t.total[kFish]),
+        static_cast<long long>(under_rejected),
+        static_cast<long long>(under),
+        static_cast<long long>(t.rejected[kGood]));
+    ASSERT_GT(under, 50);
+    EXPECT_EQ(t.rejected[kFish], t.total[kFish]);
+    EXPECT_EQ(under_rejected, 0);
+    EXPECT_EQ(t.rejected[kGood], 0);
+}
+
 TEST(Clean, ACleanFloorKeepsEverySounding) {
     const Survey s = MakeSurvey(false);
     const auto r = Clean(s.geo, CleanConfig{});

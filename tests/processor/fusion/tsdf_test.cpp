@@ -374,6 +374,72 @@ TEST(TsdfVolume, GapsWiderThanTheFillLimitStayUnobserved) {
     }
 }
 
+// A beam missing in one ping (its echo rejected by the cleaning: a fish school every other ping
+// over the middle of the fan, as on the quarry's second seed) leaves the strip between the
+// neighbouring pings' fans unobserved, as a missing ping would; a missing ping is bridged
+// (ping_gap_fill_m), so is a missing beam, to the next ping that has it. Without that the floor
+// under every such ping broke into strips (docs/decisions/026).
+TEST(TsdfVolume, BeamsMissingInOnePingAreBridgedAsAMissingPingIs) {
+    SyntheticWorld world;
+    world.plane_z_m = -3.0;
+    LineSurvey survey;
+    survey.x0_m = -4.0;
+    survey.x1_m = 4.0;
+    // Two spacings within ping_gap_fill_m (0.3 m), and no missing beam's fan on a voxel plane
+    // halfway between its neighbours (that plane is at half the gap from both).
+    survey.spacing_m = 0.13;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    // Every other ping over |x| <= 2 m: the beams within 18 deg of nadir (|y| <= 1 m at 3 m) have
+    // no range.
+    std::vector<SonarScan> without_those_pings;
+    for (std::size_t k = 0; k < scans.size(); ++k) {
+        const double x = scans[k].T_world_sonar.translation().x();
+        if (k % 2 == 1 && std::abs(x) <= 2.0) {
+            for (std::size_t i = 0; i < scans[k].ranges_m.size(); ++i) {
+                const double th =
+                    survey.start_angle_rad + static_cast<double>(i) * survey.increment_rad;
+                if (std::abs(th) <= 18.0 * std::numbers::pi / 180.0) scans[k].ranges_m[i] = 0.0f;
+            }
+        } else {
+            without_those_pings.push_back(scans[k]);
+        }
+    }
+    TsdfConfig per_ping = SmallConfig(SensorModel::kBeamWidth);
+    per_ping.ping_gap_fill_per_beam = false;
+    const TsdfConfig per_beam = SmallConfig(SensorModel::kBeamWidth);
+    ASSERT_TRUE(per_beam.ping_gap_fill_per_beam);
+    ASSERT_GE(per_beam.ping_gap_fill_m, 0.3);
+    TsdfVolume old_rule(per_ping), new_rule(per_beam), pings_missing(per_beam);
+    old_rule.Integrate(scans);
+    new_rule.Integrate(scans);
+    pings_missing.Integrate(without_those_pings);
+
+    // Voxel centres on the floor under the middle of the fan along the track.
+    int unobserved_old = 0, unobserved_new = 0, unobserved_pings_missing = 0, n = 0;
+    for (double x = -1.9; x <= 1.9 + 1e-9; x += 0.1) {
+        for (double y : {-0.5, 0.0, 0.5}) {
+            const Eigen::Vector3d p(x, y, -3.0);
+            unobserved_old += old_rule.WeightAt(p) == 0.0f ? 1 : 0;
+            unobserved_new += new_rule.WeightAt(p) == 0.0f ? 1 : 0;
+            unobserved_pings_missing += pings_missing.WeightAt(p) == 0.0f ? 1 : 0;
+            ++n;
+        }
+    }
+    EXPECT_GE(unobserved_old, n / 10);
+    EXPECT_EQ(unobserved_pings_missing, 0);
+    EXPECT_EQ(unobserved_new, 0);
+
+    // The floor under the middle of the fan, |x| <= 1.8 m, |y| <= 0.8 m: 5.76 m^2.
+    const double area_old = AreaInside(old_rule.ExtractIsoSurface().mesh, 1.8, 0.8);
+    const IsoSurfaceResult iso_new = new_rule.ExtractIsoSurface();
+    const double area_new = AreaInside(iso_new.mesh, 1.8, 0.8);
+    EXPECT_LT(area_old, 0.8 * 5.76);
+    EXPECT_NEAR(area_new, 5.76, 0.2) << "per ping: " << area_old << " m^2";
+    const auto [err, num_vertices] = PlaneError(iso_new.mesh, world.plane_z_m);
+    EXPECT_LT(err, 0.05);
+    EXPECT_GT(num_vertices, 0u);
+}
+
 // A floor the track climbs (the head pitched 0.6 rad over a level plane 5 m down: the range
 // changes by tan(0.6) = 0.68 m per metre out of the fan plane). The beam's cone is 16 cm wide
 // at the 6 m slant range; taken as a sphere of one range, its sides lie off the floor by up to

@@ -110,8 +110,9 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
         }
     }
     // The products against the run without artifacts. The bounds at typical: the mesh
-    // beyond 1 m <= 0.05 % (measured 0.00 %), its mean abs error within 10 % (+3 %), its
-    // completeness within 0.5 point (-0.44), and light and heavy held to the same mesh bounds
+    // beyond 1 m <= 0.05 % (measured 0.00 %), its mean abs error within 10 % (+2 %), its
+    // completeness within 0.5 point (-0.36; -0.43 before decision 026), and light and heavy held
+    // to the same mesh bounds
     // (0.00 / 0.01 %, +2 / +7 %); heavy's completeness is 1.2 points below (the 1.5 held).
     for (const std::string level : {"light", "typical", "heavy"}) {
         SCOPED_TRACE(level);
@@ -137,8 +138,12 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
 // and a ghost behind the wall whose beams its noise parted into pieces open to each other were
 // the excess of the points RMS (+29 %) before the smile test and the enclosed pieces' growth
 // across the fan (docs/decisions/025-smile-and-ghost-pieces.md). The bounds at typical,
-// but the mesh completeness: -0.71 point of the run without artifacts (the same before those
-// two changes), held at 1 point.
+// but the mesh completeness: -0.53 point of the run without artifacts (-0.71 before the TSDF
+// bridged a beam missing in one ping and the floor seen between a school's pings stopped being
+// multipath, docs/decisions/026-completeness-beams-the-artifacts-took.md), held at 0.6 point.
+// The same survey without artifacts, less only the beams the artifacts took (rejected by hand,
+// nothing else cleaned), is -0.53 point too: that much of the surface no sounding of this
+// survey sees, and no cleaning can give it back.
 TEST(CleanScenario, ASecondSeedAtTypical) {
     const fs::path dir = FreshDir("pitmap_clean_seed7");
     std::map<std::string, Scores> s;
@@ -168,9 +173,9 @@ TEST(CleanScenario, ASecondSeedAtTypical) {
         At(none, "mesh_completeness"),
         At(typical, "dem_mean_abs_m"),
         At(none, "dem_mean_abs_m"));
-    // Measured: artifacts 0.9835 (0.931 before; smile 0.996, multipath 0.992), good rejected
-    // 0.07 / 0.12 / 0.41 %, points RMS +4.0 % (+29 % before), mesh beyond 1 m 0.00 % (0.07 %),
-    // mesh mean abs +0.5 %, completeness -0.71 point, DEM +1 %.
+    // Measured: artifacts 0.9836 (0.931 before decision 025; smile 0.996, multipath 0.992), good
+    // rejected 0.07 / 0.11 / 0.38 %, points RMS +4.0 % (+29 % before), mesh beyond 1 m 0.00 %
+    // (0.07 %), mesh mean abs +1.0 %, completeness -0.53 point (-0.71), DEM +0.8 %.
     EXPECT_GE(At(typical, "artifact_rejected_share"), 0.98);
     EXPECT_GE(At(typical, "artifact_rejected_share_smile"), 0.99);
     EXPECT_GE(At(typical, "artifact_rejected_share_multipath"), 0.98);
@@ -183,7 +188,7 @@ TEST(CleanScenario, ASecondSeedAtTypical) {
     EXPECT_LE(At(typical, "points_rms_m"), 1.05 * At(none, "points_rms_m"));
     EXPECT_LE(At(typical, "mesh_share_beyond_1m"), 0.0005);
     EXPECT_LE(At(typical, "mesh_mean_abs_m"), 1.10 * At(none, "mesh_mean_abs_m"));
-    EXPECT_GE(At(typical, "mesh_completeness"), At(none, "mesh_completeness") - 0.010);
+    EXPECT_GE(At(typical, "mesh_completeness"), At(none, "mesh_completeness") - 0.006);
     EXPECT_LE(At(typical, "dem_mean_abs_m"), 1.15 * At(none, "dem_mean_abs_m"));
     if (!HasFailure()) fs::remove_all(dir);
 }
