@@ -188,8 +188,15 @@ struct UtmProjection {
     std::vector<Eigen::Vector3d> sensor_utm;                     // per ping of the result
 
     Eigen::Vector3d At(const GeorefResult& result, std::size_t j) const {
-        const std::uint32_t k = result.points.ping[j];
-        const Eigen::Vector3d d = result.points.position_world[j] - result.pings[k].sensor_world;
+        return At(result.points, result.pings, j);
+    }
+    // Point j of `points`, a block of the result's view (its ping indices into `pings`, the
+    // result's pings).
+    Eigen::Vector3d At(const GeorefPoints& points,
+                       const std::vector<GeorefPing>& pings,
+                       std::size_t j) const {
+        const std::uint32_t k = points.ping[j];
+        const Eigen::Vector3d d = points.position_world[j] - pings[k].sensor_world;
         const Eigen::Vector2d en = en_per_world * d.head<2>();
         return sensor_utm[k] + Eigen::Vector3d(en.x(), en.y(), d.z());
     }

@@ -172,8 +172,7 @@ std::unordered_map<std::int64_t, CellSums> SumCells(const std::vector<Eigen::Vec
                                                     const std::vector<Eigen::Vector3d>& offsets,
                                                     const SoundSpeedSigmaConfig& config) {
     const std::size_t n = std::min(points.size(), offsets.size());
-    const std::size_t stride = std::max<std::size_t>(
-        1, (n + config.overlap_max_soundings - 1) / config.overlap_max_soundings);
+    const std::size_t stride = OverlapStride(n, config);
     const double cell = config.overlap_cell_m;
     const double max_tan2 = Square(std::tan(config.overlap_max_angle_deg * M_PI / 180.0));
     std::unordered_map<std::int64_t, CellSums> cells;
@@ -353,6 +352,11 @@ std::string EstimateMessage(const OverlapSpeedEstimate& e) {
 }
 
 }  // namespace
+
+std::size_t OverlapStride(std::size_t soundings, const SoundSpeedSigmaConfig& config) {
+    const std::size_t most = std::max<std::size_t>(1, config.overlap_max_soundings);
+    return std::max<std::size_t>(1, (soundings + most - 1) / most);
+}
 
 OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>& points,
                                               const std::vector<Eigen::Vector3d>& offsets,

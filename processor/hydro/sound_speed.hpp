@@ -153,6 +153,12 @@ double ColumnRelativeSigma(double prior_relative_sigma,
 // column's speed minus the profile's (a sounding's height error is g dc / c: positive, the
 // water is faster than the soundings assumed). Preconditions: the vectors have equal sizes;
 // config.Validate() is empty.
+// The stride EstimateColumnSpeedError takes the soundings at (every stride-th from the first,
+// at most overlap_max_soundings of them): a caller that reads the soundings by blocks may give
+// it only those (then ceil(soundings / stride) <= overlap_max_soundings, whose own stride is 1:
+// the same estimate bit for bit).
+std::size_t OverlapStride(std::size_t soundings, const SoundSpeedSigmaConfig& config);
+
 OverlapSpeedEstimate EstimateColumnSpeedError(const std::vector<Eigen::Vector3d>& points_world,
                                               const std::vector<Eigen::Vector3d>& offsets_world,
                                               const SoundSpeedSigmaConfig& config);

@@ -214,84 +214,102 @@ Eigen::Matrix3d SoundingCovariance(const SoundingGeometry& g,
     return C;
 }
 
-TpuResult ComputeTpu(const georef::GeorefResult& geo,
-                     const survey::SonarMount& mount,
-                     const std::vector<PingSigma>& ping_sigma,
-                     const TpuConfig& config) {
-    TpuResult out;
-    const std::size_t n = geo.points.size();
-    const std::size_t np = geo.pings.size();
-    out.thu_95_m.assign(n, 0.0f);
-    out.tvu_95_m.assign(n, 0.0f);
-    out.sigma_v_common_m.assign(n, 0.0f);
-    out.sigma_h_common_m.assign(n, 0.0f);
+TpuByBlocks::TpuByBlocks(const std::vector<georef::GeorefPing>& pings,
+                         const survey::SonarMount& mount,
+                         const std::vector<PingSigma>& ping_sigma,
+                         const TpuConfig& config,
+                         std::size_t soundings)
+    : pings_(pings),
+      ping_sigma_(ping_sigma),
+      config_(config),
+      lever_arm_m_(mount.lever_arm_m),
+      R_vehicle_sonar_(mount.R_vehicle_sonar()) {
+    const std::size_t n = soundings;
+    const std::size_t np = pings.size();
+    out_.thu_95_m.assign(n, 0.0f);
+    out_.tvu_95_m.assign(n, 0.0f);
+    out_.sigma_v_common_m.assign(n, 0.0f);
+    out_.sigma_h_common_m.assign(n, 0.0f);
+    share_.assign((n + kShareChunk - 1) / kShareChunk, std::array<double, kNumTpuTerms>{});
     if (ping_sigma.size() != np) {
-        out.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
-                      std::to_string(np) + " pings";
-        return out;
+        out_.message = "tpu: " + std::to_string(ping_sigma.size()) + " ping sigmas for " +
+                       std::to_string(np) + " pings";
+        return;
     }
     // Velocity and angular rate at each ping from its neighbours (central differences).
-    std::vector<Eigen::Vector3d> vel(np, Eigen::Vector3d::Zero()),
-        rate(np, Eigen::Vector3d::Zero());
+    velocity_.assign(np, Eigen::Vector3d::Zero());
+    rate_.assign(np, Eigen::Vector3d::Zero());
     for (std::size_t k = 0; k < np; ++k) {
         const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < np ? k + 1 : k;
-        const double dt =
-            static_cast<double>(geo.pings[b].utime_gps - geo.pings[a].utime_gps) * 1e-6;
+        const double dt = static_cast<double>(pings[b].utime_gps - pings[a].utime_gps) * 1e-6;
         if (a == b || !(dt > 0) || dt > 2.0) continue;
-        vel[k] = (geo.pings[b].T_world_vehicle.translation() -
-                  geo.pings[a].T_world_vehicle.translation()) /
-                 dt;
-        rate[k] = AngularRate(
-            geo.pings[a].T_world_vehicle.linear(), geo.pings[b].T_world_vehicle.linear(), dt);
+        velocity_[k] =
+            (pings[b].T_world_vehicle.translation() - pings[a].T_world_vehicle.translation()) / dt;
+        rate_[k] =
+            AngularRate(pings[a].T_world_vehicle.linear(), pings[b].T_world_vehicle.linear(), dt);
     }
-    const Eigen::Matrix3d R_vs = mount.R_vehicle_sonar();
+}
+
+void TpuByBlocks::Add(const georef::GeorefPoints& points, std::size_t first) {
+    if (!out_.message.empty()) return;  // the ping sigmas did not match
+    const std::size_t n = out_.tvu_95_m.size();
+    const std::size_t end_all = std::min(n, first + points.size());
+    if (first != next_ || first >= end_all) return;
+    next_ = end_all;
     std::unique_ptr<tbb::global_control> limit;
-    if (config.num_threads > 0) {
+    if (config_.num_threads > 0) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      config.num_threads);
+                                                      config_.num_threads);
     }
-    // Per-block sums of each term's share of the vertical variance, added in block order.
-    constexpr std::size_t kBlock = 8192;
-    const std::size_t nblocks = (n + kBlock - 1) / kBlock;
-    std::vector<std::array<double, kNumTpuTerms>> share(nblocks);
-    tbb::parallel_for(std::size_t{0}, nblocks, [&](std::size_t blk) {
-        std::array<double, kNumTpuTerms> s{};
+    // The chunks of kShareChunk soundings this block reaches, each summed in sounding order from
+    // what an earlier block left in it: the same additions as over the whole view.
+    const std::size_t c0 = first / kShareChunk, c1 = (end_all - 1) / kShareChunk;
+    tbb::parallel_for(c0, c1 + 1, [&](std::size_t chunk) {
+        std::array<double, kNumTpuTerms> s = share_[chunk];
         std::array<Eigen::Matrix3d, kNumTpuTerms> terms;
-        const std::size_t end = std::min(n, (blk + 1) * kBlock);
-        for (std::size_t j = blk * kBlock; j < end; ++j) {
-            const std::uint32_t k = geo.points.ping[j];
-            const georef::GeorefPing& ping = geo.pings[k];
+        const std::size_t begin = std::max(first, chunk * kShareChunk);
+        const std::size_t end = std::min(end_all, (chunk + 1) * kShareChunk);
+        for (std::size_t j = begin; j < end; ++j) {
+            const std::size_t b = j - first;  // in the block
+            const std::uint32_t k = points.ping[b];
+            const georef::GeorefPing& ping = pings_[k];
             SoundingGeometry g;
             g.R_world_vehicle = ping.T_world_vehicle.linear();
-            g.R_vehicle_sonar = R_vs;
-            g.lever_arm_m = mount.lever_arm_m;
-            g.range_m = geo.points.range_m[j];
-            g.angle_rad = geo.points.angle_rad[j];
+            g.R_vehicle_sonar = R_vehicle_sonar_;
+            g.lever_arm_m = lever_arm_m_;
+            g.range_m = points.range_m[b];
+            g.angle_rad = points.angle_rad[b];
             g.tilt_rad = ping.profile_tilt_rad;
-            g.velocity_mps = vel[k];
-            g.angular_rate_radps = rate[k];
-            const Eigen::Matrix3d C = SoundingCovariance(g, ping_sigma[k], config, &terms);
-            out.tvu_95_m[j] = static_cast<float>(kTvu95 * std::sqrt(std::max(C(2, 2), 0.0)));
-            out.thu_95_m[j] =
+            g.velocity_mps = velocity_[k];
+            g.angular_rate_radps = rate_[k];
+            const Eigen::Matrix3d C = SoundingCovariance(g, ping_sigma_[k], config_, &terms);
+            out_.tvu_95_m[j] = static_cast<float>(kTvu95 * std::sqrt(std::max(C(2, 2), 0.0)));
+            out_.thu_95_m[j] =
                 static_cast<float>(kThu95 * std::sqrt(std::max((C(0, 0) + C(1, 1)) / 2.0, 0.0)));
             const double independent = terms[static_cast<int>(TpuTerm::kRange)](2, 2) +
                                        terms[static_cast<int>(TpuTerm::kBeamAngle)](2, 2) +
-                                       Square(config.model.position_noise_m);
-            out.sigma_v_common_m[j] =
+                                       Square(config_.model.position_noise_m);
+            out_.sigma_v_common_m[j] =
                 static_cast<float>(std::sqrt(std::max(C(2, 2) - independent, 0.0)));
             const auto h2 = [](const Eigen::Matrix3d& m) { return (m(0, 0) + m(1, 1)) / 2.0; };
             const double independent_h = h2(terms[static_cast<int>(TpuTerm::kRange)]) +
                                          h2(terms[static_cast<int>(TpuTerm::kBeamAngle)]) +
-                                         Square(config.model.position_noise_m);
-            out.sigma_h_common_m[j] =
+                                         Square(config_.model.position_noise_m);
+            out_.sigma_h_common_m[j] =
                 static_cast<float>(std::sqrt(std::max(h2(C) - independent_h, 0.0)));
             if (C(2, 2) > 0) {
                 for (int t = 0; t < kNumTpuTerms; ++t) s[t] += terms[t](2, 2) / C(2, 2);
             }
         }
-        share[blk] = s;
+        share_[chunk] = s;
     });
-    for (const auto& s : share) {
+}
+
+TpuResult TpuByBlocks::Finish() {
+    TpuResult out = std::move(out_);
+    if (!out.message.empty()) return out;
+    const std::size_t n = out.tvu_95_m.size();
+    for (const auto& s : share_) {
         for (int t = 0; t < kNumTpuTerms; ++t) out.tvu_variance_share[t] += s[t];
     }
     if (n > 0) {
@@ -308,6 +326,15 @@ TpuResult ComputeTpu(const georef::GeorefResult& geo,
                   out.median_thu_95_m);
     out.message = buf;
     return out;
+}
+
+TpuResult ComputeTpu(const georef::GeorefResult& geo,
+                     const survey::SonarMount& mount,
+                     const std::vector<PingSigma>& ping_sigma,
+                     const TpuConfig& config) {
+    TpuByBlocks tpu(geo.pings, mount, ping_sigma, config, geo.points.size());
+    tpu.Add(geo.points, 0);
+    return tpu.Finish();
 }
 
 }  // namespace pitmap::proc::hydro

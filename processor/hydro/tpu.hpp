@@ -160,10 +160,43 @@ struct TpuResult {
 
 // TPU of every sounding of `geo` on its current poses. `ping_sigma` has one entry per
 // GeorefResult::pings (the INS's 1 sigma there). Preconditions: config.Validate() is empty,
-// ping_sigma.size() == geo.pings.size().
+// ping_sigma.size() == geo.pings.size(). It is TpuByBlocks with one block.
 TpuResult ComputeTpu(const georef::GeorefResult& geo,
                      const survey::SonarMount& mount,
                      const std::vector<PingSigma>& ping_sigma,
                      const TpuConfig& config);
+
+// ComputeTpu over the view's soundings a block at a time (a view read block by block from its
+// scratch file, decision 031): Add the blocks in the view's order, each sounding once, then
+// Finish. The result is ComputeTpu's of the whole view bit for bit, whatever the blocks (the
+// variance shares are summed in the same chunks of soundings, in the same order). `pings` are
+// the view's pings (GeorefResult::pings), `soundings` the view's size; both are borrowed
+// until Finish.
+class TpuByBlocks {
+public:
+    TpuByBlocks(const std::vector<georef::GeorefPing>& pings,
+                const survey::SonarMount& mount,
+                const std::vector<PingSigma>& ping_sigma,
+                const TpuConfig& config,
+                std::size_t soundings);
+    // Soundings first .. first + points.size() - 1 of the view (points: a block of it, its
+    // ping indices into `pings`). Preconditions: first is the end of the previous block.
+    void Add(const georef::GeorefPoints& points, std::size_t first);
+    // The result; the per-sounding arrays are moved out.
+    TpuResult Finish();
+
+    static constexpr std::size_t kShareChunk = 8192;  // soundings a variance-share partial sum
+
+private:
+    const std::vector<georef::GeorefPing>& pings_;
+    const std::vector<PingSigma>& ping_sigma_;
+    const TpuConfig& config_;
+    Eigen::Vector3d lever_arm_m_;
+    Eigen::Matrix3d R_vehicle_sonar_;
+    std::vector<Eigen::Vector3d> velocity_, rate_;         // per ping
+    std::vector<std::array<double, kNumTpuTerms>> share_;  // per chunk of kShareChunk
+    std::size_t next_ = 0;                                 // the next sounding expected
+    TpuResult out_;
+};
 
 }  // namespace pitmap::proc::hydro

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "processor/io/view_spill.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -56,7 +57,136 @@ bool Consistent(const georef::GeorefPoints& p) {
            p.angle_rad.size() == n && (p.status.empty() || p.status.size() == n);
 }
 
+constexpr long long kHeaderBytes = sizeof(kMagic) + sizeof(std::uint64_t) + 1;
+
+// The bytes a sounding takes in each array of the file, in the file's order.
+constexpr std::size_t kArrayBytes[] = {sizeof(Eigen::Vector3d),
+                                       sizeof(std::uint32_t),
+                                       sizeof(std::uint16_t),
+                                       sizeof(float),
+                                       sizeof(float),
+                                       sizeof(std::uint8_t)};
+
+// Where array `a` (index into kArrayBytes) starts in a file of n soundings.
+long long ArrayOffset(int a, std::uint64_t n) {
+    long long at = kHeaderBytes;
+    for (int k = 0; k < a; ++k) at += static_cast<long long>(kArrayBytes[k] * n);
+    return at;
+}
+
+// Opens a spill file and checks its header and length against what was written.
+Expected<File> OpenChecked(const std::string& path, std::uint64_t size, bool with_status) {
+    File f(std::fopen(path.c_str(), "rb"));
+    if (!f) return Error{path + ": cannot read the view's points: " + std::strerror(errno)};
+    char magic[sizeof(kMagic)];
+    std::uint64_t n = 0;
+    std::uint8_t status = 0;
+    if (std::fread(magic, 1, sizeof(magic), f.get()) != sizeof(magic) ||
+        std::memcmp(magic, kMagic, sizeof(kMagic)) != 0 ||
+        std::fread(&n, sizeof(n), 1, f.get()) != 1 || std::fread(&status, 1, 1, f.get()) != 1 ||
+        n != size || (status != 0) != with_status) {
+        return Error{path + ": not the view's points this run wrote (header differs)"};
+    }
+    const long long expected = ArrayOffset(with_status ? 6 : 5, n);
+    if (fseeko(f.get(), 0, SEEK_END) != 0) return Error{path + ": cannot seek"};
+    const long long length = ftello(f.get());
+    if (length < expected) return Error{path + ": the view's points are shorter than written"};
+    if (length > expected) return Error{path + ": the view's points are longer than written"};
+    return f;
+}
+
+// Reads `count` elements of array `a` from sounding `first` on.
+template <typename T>
+bool ReadAt(
+    std::FILE* f, int a, std::uint64_t n, std::size_t first, std::size_t count, std::vector<T>& v) {
+    v.resize(count);
+    if (count == 0) return true;
+    const long long at = ArrayOffset(a, n) + static_cast<long long>(sizeof(T) * first);
+    return fseeko(f, at, SEEK_SET) == 0 && std::fread(v.data(), sizeof(T), count, f) == count;
+}
+
 }  // namespace
+
+Status SpilledPoints::ReadBlock(std::size_t first,
+                                std::size_t count,
+                                georef::GeorefPoints& block) const {
+    ReleaseAll(block);
+    if (path_.empty()) return Error{"the view's points were already read back"};
+    if (first > size_) {
+        return Error{path_ + ": a block from sounding " + std::to_string(first) + " of " +
+                     std::to_string(size_)};
+    }
+    count = std::min(count, size_ - first);
+    auto f = OpenChecked(path_, size_, with_status_);
+    if (!f) return f.error();
+    const std::uint64_t n = size_;
+    const bool ok = ReadAt(f->get(), 0, n, first, count, block.position_world) &&
+                    ReadAt(f->get(), 1, n, first, count, block.ping) &&
+                    ReadAt(f->get(), 2, n, first, count, block.beam) &&
+                    ReadAt(f->get(), 3, n, first, count, block.range_m) &&
+                    ReadAt(f->get(), 4, n, first, count, block.angle_rad) &&
+                    ReadAt(f->get(), 5, n, first, with_status_ ? count : 0, block.status);
+    if (!ok) {
+        ReleaseAll(block);
+        return Error{path_ + ": cannot read a block of the view's points"};
+    }
+    return Ok{};
+}
+
+Status SpilledPoints::KeepOnly(const std::vector<char>& keep, std::size_t block) {
+    if (path_.empty()) return Error{"the view's points were already read back"};
+    if (keep.size() != size_) {
+        return Error{path_ + ": " + std::to_string(keep.size()) + " verdicts for " +
+                     std::to_string(size_) + " soundings"};
+    }
+    block = std::max<std::size_t>(block, 1);
+    const std::uint64_t kept = static_cast<std::uint64_t>(
+        std::count_if(keep.begin(), keep.end(), [](char k) { return k != 0; }));
+    auto in = OpenChecked(path_, size_, with_status_);
+    if (!in) return in.error();
+    const std::string next = path_ + ".next";
+    File out(std::fopen(next.c_str(), "wb"));
+    if (!out) return Error{formats::ErrnoMessage(next, "cannot write the view's points", errno)};
+    const std::uint8_t status = with_status_ ? 1 : 0;
+    bool ok = std::fwrite(kMagic, 1, sizeof(kMagic), out.get()) == sizeof(kMagic) &&
+              std::fwrite(&kept, sizeof(kept), 1, out.get()) == 1 &&
+              std::fwrite(&status, 1, 1, out.get()) == 1;
+    // Each array in turn, a block at a time: its kept elements appended in order.
+    std::vector<char> buffer;
+    const int arrays = with_status_ ? 6 : 5;
+    for (int a = 0; a < arrays && ok; ++a) {
+        const std::size_t bytes = kArrayBytes[a];
+        ok = fseeko(in->get(), ArrayOffset(a, size_), SEEK_SET) == 0;
+        for (std::size_t first = 0; first < size_ && ok; first += block) {
+            const std::size_t count = std::min(block, size_ - first);
+            buffer.resize(count * bytes);
+            ok = std::fread(buffer.data(), bytes, count, in->get()) == count;
+            std::size_t k = 0;
+            for (std::size_t j = 0; j < count && ok; ++j) {
+                if (keep[first + j] == 0) continue;
+                if (k != j)
+                    std::memmove(buffer.data() + k * bytes, buffer.data() + j * bytes, bytes);
+                ++k;
+            }
+            ok = ok && (k == 0 || std::fwrite(buffer.data(), bytes, k, out.get()) == k);
+        }
+    }
+    const int err = errno;
+    ok = (std::fclose(out.release()) == 0) && ok;
+    std::error_code ec;
+    if (!ok) {
+        std::filesystem::remove(next, ec);
+        return Error{formats::ErrnoMessage(next, "cannot write the view's points", err)};
+    }
+    in->reset();
+    std::filesystem::rename(next, path_, ec);
+    if (ec) {
+        std::filesystem::remove(next, ec);
+        return Error{path_ + ": cannot replace the view's points: " + ec.message()};
+    }
+    size_ = static_cast<std::size_t>(kept);
+    return Ok{};
+}
 
 std::string ViewSpillPath(const std::string& out_dir) {
     return (std::filesystem::path(out_dir) / (std::string(formats::kPartialPrefix) + "view_points"))

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "common/result.hpp"
 #include "processor/georef/georef.hpp"
@@ -32,8 +33,19 @@ public:
     // `points` are then empty. Only once.
     Status Restore(georef::GeorefPoints& points);
 
+    // Soundings first .. first + count - 1 (count clipped at the end) read into `block`
+    // (replacing what it holds), bit for bit the points Restore gives there; the file stays.
+    // An error (the file gone, short or re-headed) names the file; `block` is then empty.
+    Status ReadBlock(std::size_t first, std::size_t count, georef::GeorefPoints& block) const;
+
+    // Keeps in the file only the soundings whose keep[j] is non-zero (keep: one per sounding
+    // spilled), in their order, copying `block` soundings at a time through a second file that
+    // replaces it. On an error the file is as it was.
+    Status KeepOnly(const std::vector<char>& keep, std::size_t block);
+
     const std::string& path() const { return path_; }
     std::size_t size() const { return size_; }  // soundings spilled
+    bool with_status() const { return with_status_; }
 
 private:
     SpilledPoints(std::string path, std::size_t size, bool with_status)

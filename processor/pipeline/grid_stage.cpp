@@ -9,10 +9,12 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <optional>
 #include <sstream>
 #include <type_traits>
+#include <utility>
 
 #include "common/formats/replace_file.hpp"
 #include "common/frames.hpp"
@@ -183,19 +185,18 @@ json OrderShares(const std::array<double, hydro::kNumS44Orders>& a) {
 
 // UTM easting/northing -> world east/north: an affine fit over soundings spread across the
 // survey (UTM is conformal: over a pit its scale and grid convergence are constant to 1e-7).
-Eigen::Matrix<double, 2, 3> UtmToWorld(const georef::UtmProjection& utm,
-                                       const georef::GeorefResult& geo) {
-    const std::size_t n = geo.points.size();
-    const std::size_t step = std::max<std::size_t>(1, n / 2000);
+// `sample` holds the soundings j = 0, step, 2 step, ... (step = max(1, n / 2000) of the view's
+// n): each one's UTM position and its world position (UtmToWorldSample).
+Eigen::Matrix<double, 2, 3> UtmToWorld(
+    const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& sample) {
     Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
     Eigen::Matrix<double, 3, 2> Atb = Eigen::Matrix<double, 3, 2>::Zero();
     Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    if (n > 0) c = utm.At(geo, 0).head<2>();
-    for (std::size_t j = 0; j < n; j += step) {
-        const Eigen::Vector3d enh = utm.At(geo, j);
+    if (!sample.empty()) c = sample.front().first.head<2>();
+    for (const auto& [enh, world] : sample) {
         const Eigen::Vector3d a(enh.x() - c.x(), enh.y() - c.y(), 1.0);
         AtA += a * a.transpose();
-        Atb += a * geo.points.position_world[j].head<2>().transpose();
+        Atb += a * world.head<2>().transpose();
     }
     Eigen::Matrix<double, 3, 2> X = AtA.ldlt().solve(Atb);
     // world = X^T [e - c_e, n - c_n, 1]
@@ -331,6 +332,69 @@ namespace detail {
 
 namespace {
 
+// The view's soundings: on disk while spilled (SpillView), else held.
+std::size_t ViewSize(const StageContext& s) {
+    return s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
+}
+
+// Points first .. first + count - 1 of held points `p`.
+georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
+    georef::GeorefPoints out;
+    const auto take = [&](const auto& from, auto& to) {
+        if (from.empty()) return;
+        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
+                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
+    };
+    take(p.position_world, out.position_world);
+    take(p.ping, out.ping);
+    take(p.beam, out.beam);
+    take(p.range_m, out.range_m);
+    take(p.angle_rad, out.angle_rad);
+    take(p.status, out.status);
+    return out;
+}
+
+// Calls fn(block, first) on the view's soundings a block of `block` at a time, in order: read
+// from the scratch file while the view is spilled (decision 031: the view is then never whole
+// in memory), else copied from the held points. Stops at the first error.
+Status ForEachViewBlock(const StageContext& s,
+                        std::size_t block,
+                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn) {
+    const std::size_t n = ViewSize(s);
+    block = std::max<std::size_t>(block, 1);
+    georef::GeorefPoints b;
+    for (std::size_t first = 0; first < n; first += block) {
+        const std::size_t count = std::min(block, n - first);
+        if (s.spilled_view) {
+            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
+        } else {
+            b = SliceOf(s.geo.points, first, count);
+        }
+        if (auto st = fn(b, first); !st) return st;
+    }
+    return Ok{};
+}
+
+// UtmToWorld over the view's soundings 0, step, 2 step, ... (step = max(1, n / 2000)), each
+// read alone while the view is spilled.
+Expected<Eigen::Matrix<double, 2, 3>> UtmToWorldOf(const StageContext& s,
+                                                   const georef::UtmProjection& utm) {
+    const std::size_t n = ViewSize(s);
+    const std::size_t step = std::max<std::size_t>(1, n / 2000);
+    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> sample;
+    georef::GeorefPoints one;
+    for (std::size_t j = 0; j < n; j += step) {
+        if (s.spilled_view) {
+            if (auto st = s.spilled_view->ReadBlock(j, 1, one); !st)
+                return Error{"grid: " + st.error().message};
+            sample.emplace_back(utm.At(one, s.geo.pings, 0), one.position_world[0]);
+        } else {
+            sample.emplace_back(utm.At(s.geo, j), s.geo.points.position_world[j]);
+        }
+    }
+    return UtmToWorld(sample);
+}
+
 // The column speed sigma at each ping from its cast (hydro::CastSpeedSigma: the cast's age and
 // distance, and the header's disagreement with it at the transducer), the pings without a cast
 // keeping the error model's.
@@ -387,16 +451,26 @@ CastSigmas CastSpeedSigmas(const StageContext& s,
 }
 
 // The swath overlap's estimate of the column speed error (hydro::EstimateColumnSpeedError), from
-// the soundings and their offsets from their transducer.
-std::shared_ptr<const hydro::OverlapSpeedEstimate> OverlapSpeedEstimateOf(
-    const StageContext& s, const hydro::SoundSpeedSigmaConfig& cfg) {
-    std::vector<Eigen::Vector3d> offsets(s.geo.points.size());
-    for (std::size_t j = 0; j < offsets.size(); ++j) {
-        offsets[j] =
-            s.geo.points.position_world[j] - s.geo.pings[s.geo.points.ping[j]].sensor_world;
-    }
+// the soundings and their offsets from their transducer: only those it takes (every
+// hydro::OverlapStride-th), gathered from the view a block at a time.
+Expected<std::shared_ptr<const hydro::OverlapSpeedEstimate>> OverlapSpeedEstimateOf(
+    const StageContext& s, const hydro::SoundSpeedSigmaConfig& cfg, std::size_t block) {
+    const std::size_t stride = hydro::OverlapStride(ViewSize(s), cfg);
+    std::vector<Eigen::Vector3d> points, offsets;
+    const std::size_t taken = (ViewSize(s) + stride - 1) / stride;
+    points.reserve(taken);
+    offsets.reserve(taken);
+    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        for (std::size_t j = (first + stride - 1) / stride * stride - first; j < b.size();
+             j += stride) {
+            points.push_back(b.position_world[j]);
+            offsets.push_back(b.position_world[j] - s.geo.pings[b.ping[j]].sensor_world);
+        }
+        return Status{Ok{}};
+    });
+    if (!st) return st.error();
     return std::make_shared<const hydro::OverlapSpeedEstimate>(
-        hydro::EstimateColumnSpeedError(s.geo.points.position_world, offsets, cfg));
+        hydro::EstimateColumnSpeedError(points, offsets, cfg));
 }
 
 // What the overlap shows of stratified water in depth class `c`, for the gates' messages.
@@ -522,19 +596,22 @@ json SoundSpeedJson(const CastSigmas& cast,
 // the column speed error the swath overlap measured into tcfg; returns summary.json's
 // stages.grid.sound_speed. Without a cast and without an estimate from the overlap the
 // a-priori bound applies and the gate grid/sound_speed_not_assessable trips.
-json SoundSpeedSigmas(StageContext& s,
-                      const GridStageConfig& gc,
-                      SoundVelocitySource sv_source,
-                      std::vector<hydro::PingSigma>& sig,
-                      hydro::TpuConfig& tcfg,
-                      const Log& log) {
+Expected<json> SoundSpeedSigmas(StageContext& s,
+                                const GridStageConfig& gc,
+                                SoundVelocitySource sv_source,
+                                std::vector<hydro::PingSigma>& sig,
+                                hydro::TpuConfig& tcfg,
+                                std::size_t block,
+                                const Log& log) {
     const SensorErrorModel& m = tcfg.model;
     const hydro::SoundSpeedSigmaConfig& cfg = gc.sound_speed;
     // The header's speed is a measurement at the head unless it was typed in.
     const bool header_measured = sv_source != SoundVelocitySource::kManual;
     CastSigmas cast = CastSpeedSigmas(s, m, cfg, header_measured, sig);
     // The swath overlap's estimate of the column speed error, cast or no cast.
-    const auto est = OverlapSpeedEstimateOf(s, cfg);
+    auto estimate = OverlapSpeedEstimateOf(s, cfg, block);
+    if (!estimate) return Error{"grid: " + estimate.error().message};
+    const auto est = std::move(*estimate);
     log("grid: sound speed from the swath overlap: " + est->message);
     const int strat = est->StratifiedClass(tcfg.sound_speed_mps, cfg.overlap_stratified_mps);
     const std::string strat_text =
@@ -776,27 +853,35 @@ void GateUnvalidatedPosterior(StageContext& s, const Log& log) {
 // TVU and THU and its depth below the transducer (for the capture distance). The TPU's
 // pass-common sigmas are CUBE's alone: once in its input they are released from `tpu` (8 bytes a
 // sounding).
-std::vector<hydro::CubeSounding> CubeSoundings(const georef::GeorefResult& geo,
-                                               const georef::UtmProjection& utm,
-                                               const std::vector<double>& datum_height_m,
-                                               hydro::TpuResult& tpu) {
-    std::vector<hydro::CubeSounding> soundings(geo.points.size());
-    const std::int64_t t0_gps = geo.pings.empty() ? 0 : geo.pings.front().utime_gps;
-    for (std::size_t j = 0; j < soundings.size(); ++j) {
-        const Eigen::Vector3d enh = utm.At(geo, j);
-        const std::uint32_t ping = geo.points.ping[j];
-        const double depth = geo.pings[ping].sensor_world.z() - geo.points.position_world[j].z();
-        soundings[j] = {
-            enh.x(),
-            enh.y(),
-            enh.z() - datum_height_m[ping],
-            static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
-            static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
-            static_cast<float>(depth),
-            tpu.sigma_v_common_m[j],
-            static_cast<float>(static_cast<double>(geo.pings[ping].utime_gps - t0_gps) * 1e-6),
-            tpu.sigma_h_common_m[j]};
-    }
+// The view is read a block at a time (ForEachViewBlock).
+Expected<std::vector<hydro::CubeSounding>> CubeSoundings(const StageContext& s,
+                                                         const georef::UtmProjection& utm,
+                                                         const std::vector<double>& datum_height_m,
+                                                         hydro::TpuResult& tpu,
+                                                         std::size_t block) {
+    const std::vector<georef::GeorefPing>& pings = s.geo.pings;
+    std::vector<hydro::CubeSounding> soundings(ViewSize(s));
+    const std::int64_t t0_gps = pings.empty() ? 0 : pings.front().utime_gps;
+    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        for (std::size_t i = 0; i < b.size(); ++i) {
+            const std::size_t j = first + i;
+            const Eigen::Vector3d enh = utm.At(b, pings, i);
+            const std::uint32_t ping = b.ping[i];
+            const double depth = pings[ping].sensor_world.z() - b.position_world[i].z();
+            soundings[j] = {
+                enh.x(),
+                enh.y(),
+                enh.z() - datum_height_m[ping],
+                static_cast<float>(tpu.tvu_95_m[j] / hydro::kTvu95),
+                static_cast<float>(tpu.thu_95_m[j] / hydro::kThu95),
+                static_cast<float>(depth),
+                tpu.sigma_v_common_m[j],
+                static_cast<float>(static_cast<double>(pings[ping].utime_gps - t0_gps) * 1e-6),
+                tpu.sigma_h_common_m[j]};
+        }
+        return Status{Ok{}};
+    });
+    if (!st) return Error{"grid: " + st.error().message};
     std::vector<float>().swap(tpu.sigma_v_common_m);
     std::vector<float>().swap(tpu.sigma_h_common_m);
     return soundings;
@@ -869,34 +954,51 @@ hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
     return out;
 }
 
+// The surface filter's verdicts applied to the view (RejectPoints: the model's flags, the view's
+// counts; a sounding a hand edit restored stays): to the held points, or, while the view is
+// spilled, a block of `block` at a time and then to its file (SpilledPoints::KeepOnly), so that
+// the view is not read back whole. Returns which soundings stayed.
+Expected<std::vector<char>> RejectInView(StageContext& s,
+                                         const std::vector<std::uint8_t>& verdict,
+                                         std::size_t block) {
+    if (!s.spilled_view) return RejectPoints(s, verdict);
+    survey::SoundingFlags& flags = s.model.flags;
+    if (flags.cleaning.size() != s.model.ingest.pings.range_counts.size())
+        flags.cleaning.assign(s.model.ingest.pings.range_counts.size(), 0);
+    std::vector<char> keep(verdict.size(), 1);
+    std::vector<std::uint8_t> part;
+    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        const auto from = verdict.begin() + static_cast<std::ptrdiff_t>(first);
+        const auto to = from + static_cast<std::ptrdiff_t>(b.size());
+        if (std::all_of(from, to, [](std::uint8_t v) { return v == 0; })) return Status{Ok{}};
+        part.assign(from, to);
+        s.geo.points = b;  // RejectPoints reads the block as the view (its pings are the view's)
+        const std::vector<char> k = RejectPoints(s, part);
+        s.geo.points = georef::GeorefPoints();
+        std::copy(k.begin(), k.end(), keep.begin() + static_cast<std::ptrdiff_t>(first));
+        return Status{Ok{}};
+    });
+    if (!st) return Error{"grid: " + st.error().message};
+    if (auto k = s.spilled_view->KeepOnly(keep, block); !k)
+        return Error{"grid: " + k.error().message};
+    // RejectPoints counted each block's points as the view's: the view's own count.
+    s.geo.counts.points = static_cast<std::int64_t>(s.spilled_view->size());
+    return keep;
+}
+
 // The surface filter (SurfaceFilter): soundings that do not support their node's chosen
-// hypothesis are rejected in the survey (RejectPoints), and taken out of the TPU and CUBE's
-// input. Returns how many. With the view spilled (SpillView) and no sounding restored by hand,
-// the verdicts are left in `pending` (when given) for the caller to apply (ApplyPendingVerdicts)
-// once it has freed CUBE's input and read the view back.
+// hypothesis are rejected in the survey (RejectInView), and taken out of the TPU and CUBE's
+// input. Returns how many.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
                                         const TilesConfig& tiles,
                                         std::vector<hydro::CubeSounding>& soundings,
                                         hydro::CubeResult& cube,
                                         hydro::TpuResult& tpu,
-                                        std::vector<std::uint8_t>* pending) {
-    std::vector<std::uint8_t> verdict = SurfaceFilter(soundings, cube.grid, gc);
-    // Which soundings stay: those the filter keeps, and those a hand edit restored (only
-    // RejectPoints, on the view, knows which: with no restore by hand in the survey the view may
-    // stay spilled through CUBE's second pass and is read back after it).
-    const bool hand_restores =
-        std::any_of(s.model.flags.manual.begin(), s.model.flags.manual.end(), [](std::uint8_t m) {
-            return static_cast<survey::ManualEdit>(m) == survey::ManualEdit::kRestore;
-        });
-    std::vector<char> keep;
-    if (hand_restores || !s.spilled_view || pending == nullptr) {
-        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
-        keep = RejectPoints(s, verdict);
-    } else {
-        keep.resize(verdict.size());
-        for (std::size_t j = 0; j < verdict.size(); ++j) keep[j] = verdict[j] == 0 ? 1 : 0;
-    }
+                                        std::size_t block) {
+    auto kept_view = RejectInView(s, SurfaceFilter(soundings, cube.grid, gc), block);
+    if (!kept_view) return kept_view.error();
+    const std::vector<char>& keep = *kept_view;
     std::int64_t rejected = 0;
     std::size_t kept = 0;
     for (std::size_t j = 0; j < keep.size(); ++j) {
@@ -921,22 +1023,7 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
         cube = SurveyCube(soundings, gc, tiles);
         if (!cube.ok) return Error{cube.message};
     }
-    if (s.spilled_view) *pending = std::move(verdict);
     return rejected;
-}
-
-// The view read back (RestoreView) and the surface filter's pending verdicts applied to it: the
-// same soundings leave it as RejectOffSurface took out of CUBE's input (`rejected`).
-Status ApplyPendingVerdicts(StageContext& s,
-                            const std::vector<std::uint8_t>& pending,
-                            std::int64_t rejected) {
-    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
-    if (pending.empty()) return Ok{};
-    const std::vector<char> keep = RejectPoints(s, pending);
-    const auto gone = std::count(keep.begin(), keep.end(), char{0});
-    PITMAP_CHECK(gone == rejected,
-                 "the surface filter's verdicts left other soundings in the view");
-    return Ok{};
 }
 
 // dem.tif's and dem.bag's raster: the CUBE grid's bands in UTM, on the products' vertical datum,
@@ -1113,33 +1200,41 @@ Status WriteSoundingProducts(StageContext& s,
 // is their last user) and the pings' times and headings. The soundings' ping indices are
 // borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
 // hands them back.
-hydro::S44Soundings S44SoundingsOf(StageContext& s,
-                                   const georef::UtmProjection& utm,
-                                   const std::vector<double>& datum_height_m,
-                                   bool water_level_datum,
-                                   hydro::TpuResult& tpu) {
+Expected<hydro::S44Soundings> S44SoundingsOf(StageContext& s,
+                                             const georef::UtmProjection& utm,
+                                             const std::vector<double>& datum_height_m,
+                                             bool water_level_datum,
+                                             hydro::TpuResult& tpu,
+                                             std::size_t block) {
     hydro::S44Soundings out;
-    const georef::GeorefResult& geo = s.geo;
-    const std::size_t n = geo.points.size();
+    const std::vector<georef::GeorefPing>& pings = s.geo.pings;
+    const std::size_t n = ViewSize(s);
     out.x.resize(n);
     out.y.resize(n);
     out.z.resize(n);
     out.depth_m.resize(n);
     out.angle_deg.resize(n);
-    for (std::size_t j = 0; j < n; ++j) {
-        const Eigen::Vector3d enh = utm.At(geo, j);
-        const std::uint32_t ping = geo.points.ping[j];
-        out.x[j] = enh.x();
-        out.y[j] = enh.y();
-        out.z[j] = enh.z() - datum_height_m[ping];
-        out.depth_m[j] = water_level_datum ? static_cast<float>(-out.z[j])
-                                           : static_cast<float>(geo.pings[ping].sensor_world.z() -
-                                                                geo.points.position_world[j].z());
-        out.angle_deg[j] = static_cast<float>(frames::RadToDeg(geo.points.angle_rad[j]));
-    }
+    out.ping.resize(n);
+    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        for (std::size_t i = 0; i < b.size(); ++i) {
+            const std::size_t j = first + i;
+            const Eigen::Vector3d enh = utm.At(b, pings, i);
+            const std::uint32_t ping = b.ping[i];
+            out.x[j] = enh.x();
+            out.y[j] = enh.y();
+            out.z[j] = enh.z() - datum_height_m[ping];
+            out.depth_m[j] =
+                water_level_datum
+                    ? static_cast<float>(-out.z[j])
+                    : static_cast<float>(pings[ping].sensor_world.z() - b.position_world[i].z());
+            out.angle_deg[j] = static_cast<float>(frames::RadToDeg(b.angle_rad[i]));
+            out.ping[j] = ping;
+        }
+        return Status{Ok{}};
+    });
+    if (!st) return Error{"grid: " + st.error().message};
     out.thu_95_m = std::move(tpu.thu_95_m);
     out.tvu_95_m = std::move(tpu.tvu_95_m);
-    out.ping = std::move(s.geo.points.ping);
     for (const auto& p : s.geo.pings) {
         out.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
         const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
@@ -1183,8 +1278,8 @@ hydro::S44Grid S44NodesOf(const StageContext& s,
 }
 
 // The IHO S-44 assessment (hydro::RunS44) of the soundings and the DEM: s44_holidays.tif (added
-// to `files`), the crossline gate and the stage's "s44" record. The THU/TVU of `tpu` are
-// consumed.
+// to `files`), the crossline gate and the stage's "s44" record. The view is read a block at a
+// time (it stays on disk while spilled); the THU/TVU of `tpu` are lent to S-44 and handed back.
 Expected<json> RunS44Survey(StageContext& s,
                             const PipelineConfig& config,
                             const io::GridRaster& dem,
@@ -1194,16 +1289,21 @@ Expected<json> RunS44Survey(StageContext& s,
                             hydro::TpuResult& tpu,
                             const json& pose_sigma,
                             const json& sound_speed,
+                            const Eigen::Matrix<double, 2, 3>& utm_to_world,
+                            std::size_t block,
                             json& files,
                             const Log& log) {
     const GridStageConfig& gc = config.grid;
     const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
     const double median_tvu_95_m = tpu.median_tvu_95_m;
-    hydro::S44Soundings soundings =
-        S44SoundingsOf(s, utm, datum.datum_height_m, water_level_datum, tpu);
+    auto made = S44SoundingsOf(s, utm, datum.datum_height_m, water_level_datum, tpu, block);
+    if (!made) return made.error();
+    hydro::S44Soundings soundings = std::move(*made);
     const hydro::S44Grid nodes = S44NodesOf(s, gc, grid, datum.datum_height_m, water_level_datum);
     const hydro::S44Result r44 = hydro::RunS44(soundings, nodes, gc.s44_config);
-    s.geo.points.ping = std::move(soundings.ping);
+    tpu.thu_95_m = std::move(soundings.thu_95_m);
+    tpu.tvu_95_m = std::move(soundings.tvu_95_m);
+    soundings = hydro::S44Soundings();
     log("grid: S-44: " + r44.message);
     io::GridRaster holidays = HolidayRaster(dem, r44);
     if (!s.model.run_id.empty()) holidays.metadata.emplace_back("pitmap_run_id", s.model.run_id);
@@ -1214,7 +1314,7 @@ Expected<json> RunS44Survey(StageContext& s,
         holiday_file = "s44_holidays.tif";
         files.push_back(holiday_file);
     }
-    json record = S44Json(r44, holiday_file, UtmToWorld(utm, s.geo));
+    json record = S44Json(r44, holiday_file, utm_to_world);
     // What the TPU behind the order took as the pose sigma (SLAM's posterior or the INS's).
     record["pose_sigma_source"] = pose_sigma["source"];
     // And where its sound speed term came from: an a-priori bound is no assessment.
@@ -1279,8 +1379,11 @@ struct CubeInputs {
     std::optional<hydro::DatumModel> datum;
     json datum_record;
     std::vector<hydro::CubeSounding> soundings;
+    std::size_t block = 0;  // soundings a block of the view (BlockWithinBudget)
 };
 
+// The view is read a block at a time (ForEachViewBlock): while it is spilled, only CUBE's input
+// and the TPU are held whole.
 Expected<CubeInputs> PrepareCube(
     StageContext& s, const PipelineConfig& config, PartClock& part, json& timings, const Log& log) {
     const GridStageConfig& gc = config.grid;
@@ -1288,18 +1391,29 @@ Expected<CubeInputs> PrepareCube(
     auto tpu_setup = SurveyTpuSetup(s, gc, log);
     if (!tpu_setup) return tpu_setup.error();
     in.setup = *tpu_setup;
-    if (s.geo.points.size() == 0) return Error{"grid: no soundings to grid"};
+    if (ViewSize(s) == 0) return Error{"grid: no soundings to grid"};
+    in.block = BlockWithinBudget(config.run, ResidentMb());
     in.pose = TpuPoseSigmas(s, gc, tpu_setup->config, log);
     if (in.pose.from_slam > 0 && config.slam.posterior_start_runs == 0) {
         GateUnvalidatedPosterior(s, log);
     }
     in.sound_speed = {{"source", "error_model"}};
     if (gc.tpu_sound_speed_from_data) {
-        in.sound_speed =
-            SoundSpeedSigmas(s, gc, tpu_setup->sv_source, in.pose.per_ping, tpu_setup->config, log);
+        auto sound_speed = SoundSpeedSigmas(
+            s, gc, tpu_setup->sv_source, in.pose.per_ping, tpu_setup->config, in.block, log);
+        if (!sound_speed) return sound_speed.error();
+        in.sound_speed = std::move(*sound_speed);
         part.Lap(timings, "sound_speed");
     }
-    in.tpu = hydro::ComputeTpu(s.geo, s.model.mount, in.pose.per_ping, tpu_setup->config);
+    hydro::TpuByBlocks tpu(
+        s.geo.pings, s.model.mount, in.pose.per_ping, tpu_setup->config, ViewSize(s));
+    auto read =
+        ForEachViewBlock(s, in.block, [&](const georef::GeorefPoints& b, std::size_t first) {
+            tpu.Add(b, first);
+            return Status{Ok{}};
+        });
+    if (!read) return Error{"grid: " + read.error().message};
+    in.tpu = tpu.Finish();
     log("grid: TPU (" + tpu_setup->model_source + "): " + in.tpu.message);
     part.Lap(timings, "tpu");
     // The soundings' UTM positions are not held (24 bytes a sounding): each part places those
@@ -1310,7 +1424,9 @@ Expected<CubeInputs> PrepareCube(
     auto datum = SurveyDatum(s, config, &in.datum_record, log);
     if (!datum) return datum.error();
     in.datum = *datum;
-    in.soundings = CubeSoundings(s.geo, *in.utm, in.datum->datum_height_m, in.tpu);
+    auto soundings = CubeSoundings(s, *in.utm, in.datum->datum_height_m, in.tpu, in.block);
+    if (!soundings) return soundings.error();
+    in.soundings = std::move(*soundings);
     part.Lap(timings, "utm_datum");
     return in;
 }
@@ -1337,6 +1453,10 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const GridStageConfig& gc = config.grid;
     PartClock part(clock);
     json timings = json::object();
+    // The view's points wait on disk (decisions 020, 031) while the TPU, CUBE's input and the
+    // surface filter's verdicts read them a block at a time, and CUBE and the filter read CUBE's
+    // input alone; they come back for the point files, S-44 and the mosaic.
+    if (auto st = SpillView(s); !st) return Error{"grid: " + st.error().message};
     auto in = PrepareCube(s, config, part, timings, log);
     if (!in) return in.error();
     const std::optional<TpuSetup>& tpu_setup = in->setup;
@@ -1347,9 +1467,6 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     std::optional<hydro::DatumModel>& datum = in->datum;
     const json& datum_record = in->datum_record;
     std::vector<hydro::CubeSounding>& soundings = in->soundings;
-    // CUBE and the surface filter's verdicts read CUBE's input alone: the view's points wait on
-    // disk (decision 020) until the verdicts are applied to them.
-    if (auto st = SpillView(s); !st) return Error{"grid: " + st.error().message};
     hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
     if (!cube.ok) {
         if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
@@ -1359,9 +1476,8 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // The surface filter: soundings that do not support the node's chosen hypothesis are
     // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
     std::int64_t surface_rejected = 0;
-    std::vector<std::uint8_t> pending;  // the verdicts, applied to the view once it is back
     if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu, &pending);
+        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu, in->block);
         if (!rejected) return rejected.error();
         surface_rejected = *rejected;
         log("grid: surface filter: " + std::to_string(surface_rejected) +
@@ -1371,13 +1487,36 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // S-44 takes its soundings from the UTM positions, as CubeSoundings did. Freed before the
     // view comes back.
     std::vector<hydro::CubeSounding>().swap(soundings);
-    if (auto st = ApplyPendingVerdicts(s, pending, surface_rejected); !st) return st;
     if (gc.surface_filter) part.Lap(timings, "surface_filter");
     log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
 
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
     s.datum = *datum;
     const io::GridRaster dem = DemRaster(s, gc, cube.grid, *utm, *datum, meta);
+    // S-44 reads the view a block at a time while it is still on disk (decision 031); the view
+    // comes back for the point files and the mosaic.
+    auto utm_to_world = UtmToWorldOf(s, *utm);
+    if (!utm_to_world) return utm_to_world.error();
+    json s44_record, s44_files = json::array();
+    if (gc.s44) {
+        auto s44 = RunS44Survey(s,
+                                config,
+                                dem,
+                                cube.grid,
+                                *utm,
+                                *datum,
+                                tpu,
+                                pose.record,
+                                sound_speed,
+                                *utm_to_world,
+                                in->block,
+                                s44_files,
+                                log);
+        if (!s44) return s44.error();
+        s44_record = std::move(*s44);
+        part.Lap(timings, "s44");
+    }
+    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     json files = json::array();
     if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
     json tiles_record = json::object();
@@ -1394,19 +1533,14 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     }
     if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, files); !w) return w;
     part.Lap(timings, "write");
+    for (const auto& f : s44_files) files.push_back(f);
 
     // The stage's record: the TPU's, S-44's, the mosaic's and the terrain's, then the surface's.
     json stage = TpuJson(*tpu_setup, pose, tpu);
     stage["sound_speed"] = sound_speed;
-    if (gc.s44) {
-        auto s44 = RunS44Survey(
-            s, config, dem, cube.grid, *utm, *datum, tpu, pose.record, sound_speed, files, log);
-        if (!s44) return s44.error();
-        stage["s44"] = std::move(*s44);
-        part.Lap(timings, "s44");
-    }
+    if (gc.s44) stage["s44"] = std::move(s44_record);
     if (gc.mosaic) {
-        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, UtmToWorld(*utm, s.geo), log);
+        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log);
         if (!mosaic) return mosaic.error();
         if (mosaic->contains("file")) files.push_back((*mosaic)["file"]);
         stage["mosaic"] = std::move(*mosaic);

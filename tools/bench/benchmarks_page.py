@@ -45,6 +45,8 @@ COMMANDS = {
     "memory": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and scale)",
     "memory_view": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and "
                    "scale)",
+    "memory_blocks": "tools/bench/memory_result.py (the summary.json of `pitmap run` or "
+                     "`pitmap grid` per build and scale)",
 }
 
 
@@ -398,6 +400,9 @@ SECTIONS = {
     ("memory_view", "stages"): render_memory_stages,
     ("memory_view", "per_sounding"): render_memory_per_sounding,
     ("memory_view", "grid_parts"): render_memory_grid_parts,
+    ("memory_blocks", "context"): render_context,
+    ("memory_blocks", "stages"): render_memory_stages,
+    ("memory_blocks", "grid_parts"): render_memory_grid_parts,
 }
 
 

@@ -235,5 +235,53 @@ TEST(SoundSpeedSigma, TpuKeepsThePriorWhereTheOverlapMeasuresLittle) {
     EXPECT_LT(tvu(12.0, true), tvu(12.0, false));
 }
 
+// A caller reading the soundings by blocks gives the estimate only every OverlapStride-th
+// sounding (the grid stage, decision 031): the same estimate bit for bit as from all of them,
+// for counts around multiples of the cap.
+TEST(SoundSpeedSigma, TheStridedSoundingsGiveTheEstimateOfAllOfThem) {
+    std::mt19937_64 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.03);
+    std::vector<Eigen::Vector3d> points, offsets;
+    for (int pass = 0; pass < 6; ++pass) {
+        for (double y = 0; y < 30; y += 0.25) {
+            for (double deg = -60; deg <= 60; deg += 1.5) {
+                const Eigen::Vector3d o(11.0 * std::tan(frames::DegToRad(deg)), 0, -11.0);
+                const double dz = RefractionRegressor(o) * 4.0 / 1500.0;
+                points.emplace_back(5.0 * pass + o.x(), y, -11.0 + dz + noise(rng));
+                offsets.push_back(o);
+            }
+        }
+    }
+    SoundSpeedSigmaConfig cfg;
+    int strided_and_estimated = 0;
+    for (const std::size_t cap : {std::size_t{7001},
+                                  std::size_t{9999},
+                                  points.size() / 3,
+                                  points.size() / 3 + 1,
+                                  points.size()}) {
+        cfg.overlap_max_soundings = cap;
+        const std::size_t stride = OverlapStride(points.size(), cfg);
+        std::vector<Eigen::Vector3d> p, o;
+        for (std::size_t j = 0; j < points.size(); j += stride) {
+            p.push_back(points[j]);
+            o.push_back(offsets[j]);
+        }
+        EXPECT_LE(p.size(), cap);
+        EXPECT_EQ(OverlapStride(p.size(), cfg), 1u);
+        const OverlapSpeedEstimate all = EstimateColumnSpeedError(points, offsets, cfg);
+        const OverlapSpeedEstimate taken = EstimateColumnSpeedError(p, o, cfg);
+        if (stride > 1 && all.estimated()) ++strided_and_estimated;
+        EXPECT_EQ(all.message, taken.message) << cap;
+        EXPECT_EQ(all.soundings_used, taken.soundings_used);
+        ASSERT_EQ(all.classes.size(), taken.classes.size());
+        for (std::size_t c = 0; c < all.classes.size(); ++c) {
+            EXPECT_EQ(all.classes[c].relative_error, taken.classes[c].relative_error) << cap;
+            EXPECT_EQ(all.classes[c].relative_error_se, taken.classes[c].relative_error_se);
+            EXPECT_EQ(all.classes[c].soundings, taken.classes[c].soundings);
+        }
+    }
+    EXPECT_GT(strided_and_estimated, 0);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::hydro

@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -188,6 +189,88 @@ TEST(Tpu, ComputeTpuGivesOneValuePerSoundingAndTermSharesSumToOne) {
     invalid.model.range_sigma_m = -1;
     invalid.sound_speed_mps = 0;
     EXPECT_EQ(invalid.Validate().size(), 2u);
+}
+
+// The slice first .. first + count - 1 of `p`.
+georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
+    georef::GeorefPoints out;
+    const auto at = [&](std::size_t j) { return static_cast<std::ptrdiff_t>(j); };
+    out.position_world.assign(p.position_world.begin() + at(first),
+                              p.position_world.begin() + at(first + count));
+    out.ping.assign(p.ping.begin() + at(first), p.ping.begin() + at(first + count));
+    out.beam.assign(p.beam.begin() + at(first), p.beam.begin() + at(first + count));
+    out.range_m.assign(p.range_m.begin() + at(first), p.range_m.begin() + at(first + count));
+    out.angle_rad.assign(p.angle_rad.begin() + at(first), p.angle_rad.begin() + at(first + count));
+    return out;
+}
+
+bool SameFloats(const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() &&
+           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
+}
+
+// The TPU of a view read a block at a time (decision 031) is ComputeTpu's of the whole view bit
+// for bit: blocks of 1, of one sounding less and more than a share chunk, an odd size, the
+// whole view; the pings' sigmas differ so that every sounding's value is its own.
+TEST(Tpu, BlocksOfTheViewGiveTheWholeViewsTpuBitForBit) {
+    georef::GeorefResult geo;
+    survey::SonarMount mount;
+    mount.lever_arm_m = Eigen::Vector3d(0.8, 0.1, 0.25);
+    std::vector<PingSigma> sigma;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int k = 0; k < 43; ++k) {
+        georef::GeorefPing p;
+        p.utime_gps = 1'000'000'000'000 + k * 100'000;
+        p.T_world_vehicle =
+            MakePose(frames::RotationWorldFromRpy(0.05 * u(rng), 0.03 * u(rng), 0.5 + 0.01 * k),
+                     Eigen::Vector3d(0.12 * k, 0.01 * k * k, 0.02 * u(rng)));
+        p.profile_tilt_rad = 0.01 * u(rng);
+        geo.pings.push_back(p);
+        PingSigma s;
+        s.position_enu_m = Eigen::Vector3d(0.01, 0.012, 0.015) * (1 + 0.5 * u(rng));
+        s.attitude_rpy_rad = Eigen::Vector3d::Constant(frames::DegToRad(0.02 + 0.01 * u(rng)));
+        sigma.push_back(s);
+        for (int b = 0; b < 480; ++b) {
+            const double th = frames::DegToRad(-70 + 140.0 * b / 479);
+            const double r = (15 + 5 * u(rng)) / std::cos(th);
+            geo.points.position_world.push_back(
+                p.T_world_vehicle * (mount.T_vehicle_sonar() * georef::BeamVectorSonar(r, th, 0)));
+            geo.points.ping.push_back(static_cast<std::uint32_t>(k));
+            geo.points.beam.push_back(static_cast<std::uint16_t>(b));
+            geo.points.range_m.push_back(static_cast<float>(r));
+            geo.points.angle_rad.push_back(static_cast<float>(th));
+        }
+    }
+    TpuConfig cfg;
+    const std::size_t n = geo.points.size();
+    ASSERT_GT(n, 2 * TpuByBlocks::kShareChunk);
+    const TpuResult whole = ComputeTpu(geo, mount, sigma, cfg);
+    for (const std::size_t block : {std::size_t{1},
+                                    TpuByBlocks::kShareChunk - 1,
+                                    TpuByBlocks::kShareChunk + 1,
+                                    std::size_t{10007},
+                                    n}) {
+        TpuByBlocks tpu(geo.pings, mount, sigma, cfg, n);
+        for (std::size_t first = 0; first < n; first += block) {
+            tpu.Add(SliceOf(geo.points, first, std::min(block, n - first)), first);
+        }
+        const TpuResult r = tpu.Finish();
+        EXPECT_TRUE(SameFloats(r.tvu_95_m, whole.tvu_95_m)) << block;
+        EXPECT_TRUE(SameFloats(r.thu_95_m, whole.thu_95_m)) << block;
+        EXPECT_TRUE(SameFloats(r.sigma_v_common_m, whole.sigma_v_common_m)) << block;
+        EXPECT_TRUE(SameFloats(r.sigma_h_common_m, whole.sigma_h_common_m)) << block;
+        for (int t = 0; t < kNumTpuTerms; ++t) {
+            EXPECT_EQ(r.tvu_variance_share[t], whole.tvu_variance_share[t]) << block << " " << t;
+        }
+        EXPECT_EQ(r.median_tvu_95_m, whole.median_tvu_95_m);
+        EXPECT_EQ(r.median_thu_95_m, whole.median_thu_95_m);
+        EXPECT_EQ(r.message, whole.message);
+    }
+    // A block out of order is not taken (its soundings stay 0): blocks go in the view's order.
+    TpuByBlocks skipped(geo.pings, mount, sigma, cfg, n);
+    skipped.Add(SliceOf(geo.points, 100, 10), 100);
+    EXPECT_EQ(skipped.Finish().tvu_95_m[100], 0.0f);
 }
 
 // The pass-common parts (what CUBE's node does not average over one pass's soundings): with

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace pitmap::proc::io {
 namespace {
@@ -144,6 +145,120 @@ TEST(ViewSpill, AnUnwritablePlaceOrUnequalArraysLeaveThePointsHeld) {
     EXPECT_NE(unequal.error().message.find("differ in length"), std::string::npos);
     EXPECT_EQ(P.size(), 10u);
     EXPECT_FALSE(fs::exists(Scratch("unequal")));
+}
+
+// Points first .. first + count - 1 of `p`.
+georef::GeorefPoints Slice(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
+    georef::GeorefPoints out;
+    const auto take = [&](const auto& from, auto& to) {
+        if (from.empty()) return;
+        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
+                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
+    };
+    take(p.position_world, out.position_world);
+    take(p.ping, out.ping);
+    take(p.beam, out.beam);
+    take(p.range_m, out.range_m);
+    take(p.angle_rad, out.angle_rad);
+    take(p.status, out.status);
+    return out;
+}
+
+TEST(ViewSpill, BlocksReadFromTheFileAreTheViewBitForBit) {
+    for (const bool with_status : {false, true}) {
+        const std::size_t n = 10007;
+        const georef::GeorefPoints original = MakePoints(n, with_status);
+        georef::GeorefPoints P = original;
+        const std::string path = Scratch("blocks");
+        auto spilled = SpilledPoints::Spill(P, path);
+        ASSERT_TRUE(spilled) << spilled.error().message;
+        // Blocks of 1 (the first and the last few points), an odd size, the whole, larger.
+        for (const std::size_t block : {std::size_t{1}, std::size_t{977}, n, n + 13}) {
+            georef::GeorefPoints joined;
+            for (std::size_t first = 0; first < n; first += block) {
+                if (block == 1 && first > 20 && first + 20 < n) continue;
+                georef::GeorefPoints b;
+                ASSERT_TRUE(spilled->ReadBlock(first, block, b)) << block;
+                const std::size_t count = std::min(block, n - first);
+                ASSERT_EQ(b.size(), count);
+                ExpectSameBits(b, Slice(original, first, count));
+                if (block != 1) {
+                    const auto append = [](const auto& from, auto& to) {
+                        to.insert(to.end(), from.begin(), from.end());
+                    };
+                    append(b.position_world, joined.position_world);
+                    append(b.ping, joined.ping);
+                    append(b.beam, joined.beam);
+                    append(b.range_m, joined.range_m);
+                    append(b.angle_rad, joined.angle_rad);
+                    append(b.status, joined.status);
+                }
+            }
+            if (block != 1) ExpectSameBits(joined, original);
+        }
+        // Past the end: nothing at the end, an error beyond it.
+        georef::GeorefPoints b;
+        EXPECT_TRUE(spilled->ReadBlock(n, 5, b));
+        EXPECT_EQ(b.size(), 0u);
+        EXPECT_FALSE(spilled->ReadBlock(n + 1, 5, b));
+        // The file stays: Restore still gives the whole view.
+        ASSERT_TRUE(spilled->Restore(P));
+        ExpectSameBits(P, original);
+        EXPECT_FALSE(spilled->ReadBlock(0, 5, b));
+    }
+}
+
+TEST(ViewSpill, ADamagedFileIsAnErrorWhenABlockIsRead) {
+    georef::GeorefPoints P = MakePoints(1000, false);
+    const std::string path = Scratch("damaged_block");
+    auto spilled = SpilledPoints::Spill(P, path);
+    ASSERT_TRUE(spilled);
+    fs::resize_file(path, fs::file_size(path) - 3);
+    georef::GeorefPoints b;
+    const Status st = spilled->ReadBlock(0, 10, b);
+    ASSERT_FALSE(st);
+    EXPECT_NE(st.error().message.find(path), std::string::npos) << st.error().message;
+    EXPECT_NE(st.error().message.find("shorter than written"), std::string::npos);
+    EXPECT_EQ(b.size(), 0u);
+}
+
+TEST(ViewSpill, KeepOnlyLeavesTheKeptPointsInTheirOrder) {
+    for (const bool with_status : {false, true}) {
+        const std::size_t n = 5003;
+        const georef::GeorefPoints original = MakePoints(n, with_status);
+        std::vector<char> keep(n);
+        for (std::size_t j = 0; j < n; ++j) keep[j] = (j % 7 == 3 || j % 13 == 0) ? 0 : 1;
+        georef::GeorefPoints expected;
+        for (std::size_t j = 0; j < n; ++j) {
+            if (!keep[j]) continue;
+            const georef::GeorefPoints one = Slice(original, j, 1);
+            expected.position_world.push_back(one.position_world[0]);
+            expected.ping.push_back(one.ping[0]);
+            expected.beam.push_back(one.beam[0]);
+            expected.range_m.push_back(one.range_m[0]);
+            expected.angle_rad.push_back(one.angle_rad[0]);
+            if (with_status) expected.status.push_back(one.status[0]);
+        }
+        for (const std::size_t block : {std::size_t{1}, std::size_t{333}, n}) {
+            georef::GeorefPoints P = original;
+            const std::string path = Scratch("keep_" + std::to_string(block));
+            auto spilled = SpilledPoints::Spill(P, path);
+            ASSERT_TRUE(spilled);
+            ASSERT_TRUE(spilled->KeepOnly(keep, block));
+            EXPECT_EQ(spilled->size(), expected.size());
+            EXPECT_FALSE(fs::exists(path + ".next"));
+            ASSERT_TRUE(spilled->Restore(P));
+            ExpectSameBits(P, expected);
+        }
+        // Verdicts of another length: an error, the file as it was.
+        georef::GeorefPoints P = original;
+        auto spilled = SpilledPoints::Spill(P, Scratch("keep_wrong"));
+        ASSERT_TRUE(spilled);
+        keep.pop_back();
+        EXPECT_FALSE(spilled->KeepOnly(keep, 100));
+        ASSERT_TRUE(spilled->Restore(P));
+        ExpectSameBits(P, original);
+    }
 }
 
 TEST(ViewSpill, TheScratchFileIsAPartialFileOfTheFolder) {

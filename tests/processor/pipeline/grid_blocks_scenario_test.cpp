@@ -1,0 +1,132 @@
+// SPDX-License-Identifier: MIT
+// Scenario test of the grid stage reading the georeferenced view a block at a time from its
+// scratch file (issue 38 item 1, docs/decisions/031-grid-stage-by-view-blocks.md): the first
+// 90 s of bejanca, georeferenced once, gridded twice from copies of one products folder, with
+// blocks of 1 024 soundings (the smallest; about 400 blocks) and with one block holding the
+// whole view. The DEM (every band, bit for bit), the point files and S-44's holiday map
+// (byte for byte, the processing time masked), the survey model's flags and summary.json's figures
+// (the TPU, the sound speed, S-44, CUBE, the surface filter's rejections, the soundings' counts)
+// are the same.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "processor/io/grid_io.hpp"
+#include "tests/support/process.hpp"
+#include "tests/support/scenario.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using pitmap::test::kBin;
+using pitmap::test::Quote;
+using pitmap::test::ReadJson;
+using pitmap::test::RunCommand;
+
+// A file's bytes with every UTC time in it (YYYY-MM-DDTHH:MM:SSZ) zeroed: the products carry
+// the time they were processed at (pitmap_processed_utc), which two runs do not share.
+std::string Bytes(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::string b{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    constexpr char kShape[] = "dddd-dd-ddTdd:dd:ddZ";
+    constexpr std::size_t kLength = sizeof(kShape) - 1;
+    for (std::size_t i = 0; i + kLength <= b.size(); ++i) {
+        bool time = true;
+        for (std::size_t k = 0; k < kLength && time; ++k) {
+            const char c = b[i + k];
+            time = kShape[k] == 'd' ? (c >= '0' && c <= '9') : c == kShape[k];
+        }
+        if (!time) continue;
+        for (std::size_t k = 0; k < kLength; ++k) {
+            if (kShape[k] == 'd') b[i + k] = '0';
+        }
+    }
+    return b;
+}
+
+// summary.json's grid record without what differs between two runs of one build (times,
+// memory, the run's own clock).
+nlohmann::json GridFigures(const fs::path& summary) {
+    nlohmann::json g = ReadJson(summary)["stages"]["grid"];
+    for (const char* k : {"timings_wall_cpu_s",
+                          "peak_rss_mb_by_part",
+                          "peak_rss_mb",
+                          "wall_s",
+                          "cpu_s",
+                          "seconds",
+                          "cpu_seconds",
+                          "started_utc",
+                          "finished_utc"}) {
+        g.erase(k);
+    }
+    return g;
+}
+
+TEST(GridBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsProducts) {
+    const fs::path dir = pitmap::test::FreshDir("pitmap_grid_blocks_scenario");
+    std::string out;
+    ASSERT_EQ(RunCommand(kBin +
+                             "/pitmap-sim synth --scenario bejanca --duration 90 "
+                             "--echo-artifacts typical --out " +
+                             Quote(dir / "sim"),
+                         &out),
+              0)
+        << out;
+    const fs::path small = dir / "small", whole = dir / "whole";
+    ASSERT_EQ(
+        RunCommand(kBin + "/pitmap georef " + Quote(dir / "sim/log") + " --out " + Quote(small),
+                   &out),
+        0)
+        << out;
+    fs::copy(small, whole, fs::copy_options::recursive);
+    std::ofstream(dir / "small.yaml") << "run:\n  block_soundings: 1024\n";
+    std::ofstream(dir / "whole.yaml") << "run:\n  block_soundings: 100000000\n"
+                                      << "  memory_budget_mb: 100000\n";
+    for (const fs::path& p : {small, whole}) {
+        const fs::path config = dir / (p.filename().string() + ".yaml");
+        ASSERT_EQ(RunCommand(kBin + "/pitmap grid --out " + Quote(p) + " --config " + Quote(config),
+                             &out),
+                  0)
+            << out;
+        EXPECT_FALSE(fs::exists(p / ".partial-view_points")) << p;
+    }
+    const nlohmann::json a = GridFigures(small / "summary.json");
+    const nlohmann::json b = GridFigures(whole / "summary.json");
+    ASSERT_GT(a.value("soundings", 0), 100 * 1024) << "too few soundings for many blocks";
+    EXPECT_GT(a.value("surface_filter_rejected", 0), 0) << "the filter's verdicts not exercised";
+    EXPECT_EQ(a, b) << a.dump(1) << "\n" << b.dump(1);
+    EXPECT_EQ(ReadJson(small / "summary.json")["soundings"],
+              ReadJson(whole / "summary.json")["soundings"]);
+
+    // The DEM, every band bit for bit.
+    auto da = pitmap::proc::io::ReadGrid((small / "dem.tif").string());
+    auto db = pitmap::proc::io::ReadGrid((whole / "dem.tif").string());
+    ASSERT_TRUE(da && db);
+    ASSERT_EQ(da->grid.layers.size(), db->grid.layers.size());
+    for (std::size_t l = 0; l < da->grid.layers.size(); ++l) {
+        const auto& x = da->grid.layers[l].values;
+        const auto& y = db->grid.layers[l].values;
+        ASSERT_EQ(x.size(), y.size());
+        EXPECT_EQ(0, std::memcmp(x.data(), y.data(), x.size() * sizeof(float)))
+            << da->grid.layers[l].name;
+    }
+    // The files the blocks feed, byte for byte but for the processing time.
+    for (const char* f : {"points.ply",
+                          "points.las",
+                          "points_utm.ply",
+                          "soundings_tpu.ply",
+                          "s44_holidays.tif",
+                          "dem.tif",
+                          "mosaic.tif",
+                          "survey.pitmap"}) {
+        if (!fs::exists(whole / f)) continue;
+        EXPECT_TRUE(Bytes(small / f) == Bytes(whole / f)) << f;
+    }
+}
+
+}  // namespace
