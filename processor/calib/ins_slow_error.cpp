@@ -43,6 +43,7 @@ public:
             utime_.push_back(s.utime_gps);
             east_.push_back(p.x());
             north_.push_back(p.y());
+            height_.push_back(s.position.height_m + (R * lever).z());
             double yaw = s.yaw_rad;
             if (i > 0) yaw = yaw_prev + std::remainder(yaw - yaw_prev, 2.0 * frames::kPi);
             yaw_.push_back(yaw);
@@ -51,7 +52,7 @@ public:
     }
     const LocalTangentFrame& world() const { return world_; }
     struct At {
-        double east, north, yaw;
+        double east, north, height, yaw;
     };
     std::optional<At> Interpolate(std::int64_t t) const {
         if (utime_.size() < 2 || t < utime_.front() || t > utime_.back()) return std::nullopt;
@@ -63,13 +64,13 @@ public:
         if (!(dt <= 1.0)) return std::nullopt;
         const double f = dt > 0 ? static_cast<double>(t - utime_[i0]) * 1e-6 / dt : 0.0;
         const auto lerp = [&](const std::vector<double>& v) { return v[i0] + f * (v[i1] - v[i0]); };
-        return At{lerp(east_), lerp(north_), lerp(yaw_)};
+        return At{lerp(east_), lerp(north_), lerp(height_), lerp(yaw_)};
     }
 
 private:
     LocalTangentFrame world_;
     std::vector<std::int64_t> utime_;
-    std::vector<double> east_, north_, yaw_;
+    std::vector<double> east_, north_, height_, yaw_;
 };
 
 // Per-axis horizontal sigma of a stddev record; NaN when not reported.
@@ -88,10 +89,12 @@ std::vector<std::string> InsSlowErrorConfig::Validate() const {
     if (!(recovery_s >= 0)) p.push_back("recovery_s must be >= 0");
     if (!(min_speed_mps > 0)) p.push_back("min_speed_mps must be > 0");
     if (!(max_turn_rate_deg_s > 0)) p.push_back("max_turn_rate_deg_s must be > 0");
-    if (!(max_consecutive_s > 0)) p.push_back("max_consecutive_s must be > 0");
+    if (!(min_lag_s > 0) || !(max_lag_s > min_lag_s))
+        p.push_back("min_lag_s must be > 0 and max_lag_s > min_lag_s");
+    if (!(max_course_change_deg > 0)) p.push_back("max_course_change_deg must be > 0");
     if (!(outlier_sigmas > 1)) p.push_back("outlier_sigmas must be > 1");
     if (min_fixes < 2) p.push_back("min_fixes must be >= 2");
-    if (min_differences < 1) p.push_back("min_differences must be >= 1");
+    if (min_products < 1) p.push_back("min_products must be >= 1");
     return p;
 }
 
@@ -120,41 +123,37 @@ InsSlowError SlowErrorFromInnovations(const std::vector<AcrossInnovation>& a,
         sum2 += a[i].across_m * a[i].across_m;
         ++r.fixes;
     }
-    std::vector<double> d2;
-    for (std::size_t i = 0; i + 1 < a.size(); ++i) {
-        if (keep[i] == 0 || keep[i + 1] == 0) continue;
-        const double dt = a[i + 1].t_s - a[i].t_s;
-        if (!(dt > 0 && dt <= cfg.max_consecutive_s)) continue;
-        const double d = a[i + 1].across_m - a[i].across_m;
-        d2.push_back(d * d);
+    // Products of two fixes of one straight stretch min_lag_s..max_lag_s apart: the fixes'
+    // own noise and the antenna's wave motion are uncorrelated at those lags, the slow error
+    // is not (exp(-lag / tau) > 0.85 for a minute's correlation time).
+    const double max_turn = frames::DegToRad(cfg.max_course_change_deg);
+    double sum_prod = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        if (keep[i] == 0) continue;
+        for (std::size_t j = i + 1; j < a.size() && a[j].t_s - a[i].t_s <= cfg.max_lag_s; ++j) {
+            if (keep[j] == 0 || a[j].t_s - a[i].t_s < cfg.min_lag_s) continue;
+            if (!(std::abs(std::remainder(a[j].course_rad - a[i].course_rad, 2.0 * frames::kPi)) <=
+                  max_turn))
+                continue;
+            sum_prod += a[i].across_m * a[j].across_m;
+            ++r.differences;
+        }
     }
-    r.differences = d2.size();
-    if (r.fixes < cfg.min_fixes || r.differences < cfg.min_differences) {
+    if (r.fixes < cfg.min_fixes || r.differences < cfg.min_products) {
         r.message = "not estimated: " + std::to_string(r.fixes) + " usable GNSS fixes, " +
-                    std::to_string(r.differences) + " consecutive pairs (need " +
-                    std::to_string(cfg.min_fixes) + ", " + std::to_string(cfg.min_differences) +
-                    ")";
+                    std::to_string(r.differences) + " pairs of one stretch (need " +
+                    std::to_string(cfg.min_fixes) + ", " + std::to_string(cfg.min_products) + ")";
         return r;
     }
-    // The white part's variance from the mean of the squared differences (the median would
-    // do without the outlier cut above, at a third of the efficiency: +-0.4 cm on the slow
-    // part from 550 fixes of 2 cm noise against +-0.2 cm), those beyond the cut dropped.
-    double sum_d2 = 0;
-    std::size_t num_d2 = 0;
-    for (const double x : d2) {
-        if (x > 2.0 * limit * limit) continue;
-        sum_d2 += x;
-        ++num_d2;
-    }
     const double mean2 = sum2 / static_cast<double>(r.fixes);
-    const double white2 = num_d2 > 0 ? 0.5 * sum_d2 / static_cast<double>(num_d2) : 0.0;
+    const double slow2 = std::clamp(sum_prod / static_cast<double>(r.differences), 0.0, mean2);
     r.rms_m = std::sqrt(mean2);
-    r.white_sigma_m = std::sqrt(white2);
-    r.slow_sigma_m = std::sqrt(std::max(0.0, mean2 - white2));
+    r.slow_sigma_m = std::sqrt(slow2);
+    r.white_sigma_m = std::sqrt(mean2 - slow2);
     r.estimated = true;
     r.message = "INS slow error " + Cm(r.slow_sigma_m) + " per axis from " +
                 std::to_string(r.fixes) + " GNSS fixes across the track (RMS " + Cm(r.rms_m) +
-                ", the fixes' white part " + Cm(r.white_sigma_m) + ")";
+                ", the fixes' fast part " + Cm(r.white_sigma_m) + ")";
     return r;
 }
 
@@ -206,11 +205,14 @@ std::vector<AcrossInnovation> HeaderFixInnovations(const survey::PingSeries& pin
         if (!(v.norm() >= cfg.min_speed_mps)) continue;
         if (!(std::abs(a1->yaw - a0->yaw) <= max_turn_rad_s)) continue;
         const Eigen::Vector2d u = Eigen::Vector2d(-v.y(), v.x()).normalized();
+        // The header has no height: the fix is taken at the antenna's, else the tangent plane
+        // shrinks it towards the origin by height / earth radius (6 mm at 100 m for 400 m).
         const Eigen::Vector3d fix =
-            track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, 0.0});
+            track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, at->height});
         const Eigen::Vector2d d(at->east - fix.x(), at->north - fix.y());
-        out.push_back(
-            {static_cast<double>(h.utime_gps - nav.samples.front().utime_gps) * 1e-6, u.dot(d)});
+        out.push_back({static_cast<double>(h.utime_gps - nav.samples.front().utime_gps) * 1e-6,
+                       u.dot(d),
+                       std::atan2(v.x(), v.y())});
     }
     return out;
 }

@@ -179,21 +179,36 @@ TEST(InsSlowError, WithoutFixesOrStddevsItSaysWhy) {
     EXPECT_FALSE(EstimateInsSlowError(sv.pings, sv.nav, bad).estimated);
 }
 
-TEST(InsSlowError, TheWhitePartComesFromConsecutiveFixes) {
-    // Innovations: a slow sine of 1.5 cm RMS plus 3 cm white, at 1 Hz.
+TEST(InsSlowError, TheWavesMotionIsNotTakenForTheSlowError) {
+    // Innovations at 1 Hz on one heading: a slow sine of 1.5 cm RMS, 2 cm white noise and a
+    // wave's 3.5 s motion of 2 cm RMS (the antenna's roll over the fix's staleness): the fast
+    // part decorrelates within the 2-10 s lags, the slow one does not.
     std::mt19937 rng(4);
     std::normal_distribution<double> g(0.0, 1.0);
     std::vector<AcrossInnovation> a;
     double ms = 0;
     for (int i = 0; i < 2000; ++i) {
         const double slow = 0.015 * std::sqrt(2.0) * std::sin(i / 90.0);
+        const double wave = 0.02 * std::sqrt(2.0) * std::sin(2 * frames::kPi * i / 3.5 + 0.3);
         ms += slow * slow;
-        a.push_back({static_cast<double>(i), slow + 0.03 * g(rng)});
+        a.push_back({static_cast<double>(i), slow + wave + 0.02 * g(rng), 0.5});
     }
     const InsSlowError e = SlowErrorFromInnovations(a);
     ASSERT_TRUE(e.estimated) << e.message;
-    EXPECT_NEAR(e.white_sigma_m, 0.03, 0.002);
-    EXPECT_NEAR(e.slow_sigma_m, std::sqrt(ms / 2000.0), 0.003);
+    EXPECT_NEAR(e.slow_sigma_m, std::sqrt(ms / 2000.0), 0.002) << e.message;
+    EXPECT_NEAR(e.white_sigma_m, std::hypot(0.02, 0.02), 0.003) << e.message;
+    // Opposite headings flip the across-track sign (laps of 5 s each way): products across a
+    // turn would be negative; they are not taken.
+    std::vector<AcrossInnovation> b = a;
+    for (std::size_t i = 0; i < b.size(); ++i) {
+        if ((i / 5) % 2 == 1) {
+            b[i].across_m = -b[i].across_m;
+            b[i].course_rad += frames::kPi;
+        }
+    }
+    const InsSlowError f = SlowErrorFromInnovations(b);
+    ASSERT_TRUE(f.estimated) << f.message;
+    EXPECT_NEAR(f.slow_sigma_m, std::sqrt(ms / 2000.0), 0.003) << f.message;
 }
 
 }  // namespace
