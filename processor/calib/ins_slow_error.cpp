@@ -88,6 +88,7 @@ std::vector<std::string> InsSlowErrorConfig::Validate() const {
     if (!(good_sigma_ratio >= 1)) p.push_back("good_sigma_ratio must be >= 1");
     if (!(recovery_s >= 0)) p.push_back("recovery_s must be >= 0");
     if (!(min_speed_mps > 0)) p.push_back("min_speed_mps must be > 0");
+    if (!(max_fix_age_s >= 0)) p.push_back("max_fix_age_s must be >= 0");
     if (!(max_turn_rate_deg_s > 0)) p.push_back("max_turn_rate_deg_s must be > 0");
     if (!(min_lag_s > 0) || !(max_lag_s > min_lag_s))
         p.push_back("min_lag_s must be > 0 and max_lag_s > min_lag_s");
@@ -189,6 +190,13 @@ std::vector<AcrossInnovation> HeaderFixInnovations(const survey::PingSeries& pin
     const AntennaTrack track(nav, cfg.antenna_lever_arm_m);
     constexpr std::int64_t kHalfStepUs = 500'000;
     const double max_turn_rad_s = frames::DegToRad(cfg.max_turn_rate_deg_s);
+    // The usable fixes: fresh, GNSS good, moving straight.
+    struct Fix {
+        std::int64_t t;
+        Eigen::Vector3d enu;
+        Eigen::Vector2d v;
+    };
+    std::vector<Fix> fixes;
     double last_lat = std::numeric_limits<double>::quiet_NaN(), last_lon = last_lat;
     for (const survey::PingHeader& h : pings.pings) {
         const bool fresh = std::isfinite(h.aid_latitude_deg) &&
@@ -204,15 +212,45 @@ std::vector<AcrossInnovation> HeaderFixInnovations(const survey::PingSeries& pin
         const Eigen::Vector2d v(a1->east - a0->east, a1->north - a0->north);  // per second
         if (!(v.norm() >= cfg.min_speed_mps)) continue;
         if (!(std::abs(a1->yaw - a0->yaw) <= max_turn_rad_s)) continue;
-        const Eigen::Vector2d u = Eigen::Vector2d(-v.y(), v.x()).normalized();
         // The header has no height: the fix is taken at the antenna's, else the tangent plane
         // shrinks it towards the origin by height / earth radius (6 mm at 100 m for 400 m).
-        const Eigen::Vector3d fix =
-            track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, at->height});
-        const Eigen::Vector2d d(at->east - fix.x(), at->north - fix.y());
-        out.push_back({static_cast<double>(h.utime_gps - nav.samples.front().utime_gps) * 1e-6,
+        fixes.push_back({h.utime_gps,
+                         track.world().ToEnu({h.aid_latitude_deg, h.aid_longitude_deg, at->height}),
+                         v});
+    }
+    // The fixes' age (serial latency and the ping phase): the one that puts them where the INS
+    // antenna was along the track (the median squared along-track innovation over a scan).
+    // Comparing at the fix's own epoch also takes the antenna's wave motion over the age out.
+    const auto along_cost = [&](double age_s) {
+        std::vector<double> sq;
+        sq.reserve(fixes.size());
+        const auto age_us = static_cast<std::int64_t>(std::llround(age_s * 1e6));
+        for (const Fix& f : fixes) {
+            const auto at = track.Interpolate(f.t - age_us);
+            if (!at) continue;
+            const double along =
+                f.v.normalized().dot(Eigen::Vector2d(at->east - f.enu.x(), at->north - f.enu.y()));
+            sq.push_back(along * along);
+        }
+        return sq.empty() ? std::numeric_limits<double>::infinity() : MedianOf(std::move(sq));
+    };
+    double age = 0, best = std::numeric_limits<double>::infinity();
+    for (double a = 0; a <= cfg.max_fix_age_s + 1e-9; a += 0.01) {
+        const double c = along_cost(a);
+        if (c < best) {
+            best = c;
+            age = a;
+        }
+    }
+    const auto age_us = static_cast<std::int64_t>(std::llround(age * 1e6));
+    for (const Fix& f : fixes) {
+        const auto at = track.Interpolate(f.t - age_us);
+        if (!at) continue;
+        const Eigen::Vector2d u = Eigen::Vector2d(-f.v.y(), f.v.x()).normalized();
+        const Eigen::Vector2d d(at->east - f.enu.x(), at->north - f.enu.y());
+        out.push_back({static_cast<double>(f.t - nav.samples.front().utime_gps) * 1e-6,
                        u.dot(d),
-                       std::atan2(v.x(), v.y())});
+                       std::atan2(f.v.x(), f.v.y())});
     }
     return out;
 }

@@ -58,6 +58,7 @@ struct InsSlowErrorConfig {
     // After the INS's sigma was above good_sigma_ratio, its fixes count only this long after it
     // fell back (the filter pulls its drift back over seconds), s.
     double recovery_s = 30.0;
+    double max_fix_age_s = 1.0;         // the fixes' age is found by a scan up to this, s
     double min_speed_mps = 0.3;         // below: no direction of motion
     double max_turn_rate_deg_s = 10.0;  // above: a stale fix is off the track's line, not along it
     double min_lag_s = 2.0;             // two fixes' products: at least this far apart, s
