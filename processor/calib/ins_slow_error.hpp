@@ -13,10 +13,13 @@
 // Only the ACROSS-TRACK component is used: a fix is stale by the serial latency and up to a ping
 // interval (an unknown 0.1-0.3 s, 15-45 cm along the track at survey speed), which moves it along
 // the velocity only. Per fix, the across-track innovation a_i = (p_ins_antenna - p_fix) . u_i,
-// u_i the horizontal unit normal of the INS's velocity. It holds the slow error along u_i and the
-// fixes' own fast part (receiver noise, the header's 1e-5 minute rounding, the INS output's white
-// noise, the antenna's wave motion over the fix's staleness: 3 cm RMS on gps-outage, more than
-// the slow part), which decorrelates within seconds while the slow error holds for a minute. So
+// u_i the horizontal unit normal of the INS's velocity, the INS antenna taken at the fix's epoch:
+// the ping time less the fixes' age, found by a scan (0..max_fix_age_s) for the age whose
+// along-track innovations have the smallest median square (so the antenna's wave motion over the
+// age does not enter). It holds the slow error along u_i and the fixes' own fast part (receiver
+// noise, the header's 1e-5 minute rounding, the INS output's white noise, the age's jitter:
+// 3.2-3.4 cm RMS on the simulator's surveys, more than the slow part), which decorrelates within
+// seconds while the slow error holds for a minute. So
 // the slow error's mean square is the mean product of two fixes of one straight stretch
 // (course within max_course_change_deg) min_lag_s..max_lag_s apart:
 //   sigma_slow^2 = mean(a_i a_j),  2 s <= t_j - t_i <= 10 s
