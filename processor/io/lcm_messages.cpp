@@ -41,6 +41,10 @@ survey::PingHeader PingHeaderOf(const pitmap::multibeam_ping_t& m) {
     h.start_angle_deg = m.start_angle_deg;
     h.angle_increment_deg = m.angle_increment_deg;
     h.profile_tilt_deg = m.profile_tilt_deg;
+    // The topside's NMEA fix the header carried (the daemon decoded it): the INS's slow error
+    // is checked against it (calib::EstimateInsSlowError, docs/decisions/027).
+    h.aid_latitude_deg = m.header_latitude_deg;
+    h.aid_longitude_deg = m.header_longitude_deg;
     return h;
 }
 

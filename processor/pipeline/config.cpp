@@ -259,6 +259,10 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
       "SLAM runs from perturbed starts whose spread is added to the posterior (0 = off)");
     v("posterior_start_seed", c.posterior_start_seed, "seed of those runs' perturbations");
     v("sigma_max_age_s", s.sigma_max_age_s, "INS stddev records further from a ping are unused, s");
+    v("ins_slow_error_from_fixes",
+      s.ins_slow_error_from_fixes,
+      "the posterior's reference: the INS's slow error from the header GNSS fixes where larger "
+      "(docs/decisions/027)");
 }
 
 template <class V>

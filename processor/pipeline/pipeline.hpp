@@ -136,6 +136,10 @@ struct SlamStageConfig {
     // INS 1-sigma used where the logs carry none: roll, pitch, yaw (deg), east, north, up (m).
     double fallback_attitude_deg[3] = {0.02, 0.02, 0.05};
     double fallback_position_m[3] = {0.02, 0.02, 0.03};
+    // The posterior's reference takes the INS's slow horizontal error as the GNSS fixes in the
+    // ping headers state it, where larger than the INS reports (calib::EstimateInsSlowError,
+    // docs/decisions/027); false = the INS's own steady sigma.
+    bool ins_slow_error_from_fixes = false;
 };
 
 struct PipelineConfig {

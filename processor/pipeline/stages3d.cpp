@@ -21,6 +21,7 @@
 #include "common/frames.hpp"
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
+#include "processor/calib/ins_slow_error.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
@@ -478,6 +479,34 @@ json SlamSummary(const slam::SlamResult& r,
     return st;
 }
 
+// The INS's slow horizontal error from the GNSS fixes in the ping headers (decision 027), set
+// into SLAM's config for its posterior's reference; its record for summary.json.
+json InsSlowErrorFromFixes(const StageContext& s,
+                           const SlamStageConfig& sc,
+                           slam::SlamConfig& cfg,
+                           const Log& log) {
+    if (!sc.ins_slow_error_from_fixes) return {{"estimated", false}, {"message", "off"}};
+    calib::InsSlowErrorConfig ic;
+    if (s.vehicle && !s.vehicle->gnss_antenna_lever_arms_m.empty())
+        ic.antenna_lever_arm_m = s.vehicle->gnss_antenna_lever_arms_m.front();
+    const calib::InsSlowError e =
+        calib::EstimateInsSlowError(s.model.ingest.pings, s.model.ingest.nav, ic);
+    log("slam: " + e.message);
+    json out = {{"estimated", e.estimated},
+                {"message", e.message},
+                {"fixes", e.fixes},
+                {"fixes_dropped", e.fixes_dropped},
+                {"differences", e.differences}};
+    if (e.estimated) {
+        cfg.reference_horizontal_sigma_m = e.slow_sigma_m;
+        out.update({{"slow_sigma_m", e.slow_sigma_m},
+                    {"innovation_rms_m", e.rms_m},
+                    {"white_sigma_m", e.white_sigma_m},
+                    {"ins_reported_sigma_m", e.reported_sigma_m}});
+    }
+    return out;
+}
+
 }  // namespace
 
 Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
@@ -488,7 +517,9 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // SLAM reads its slices alone: the view's points wait on disk meanwhile and come back bit
     // for bit (38 bytes a sounding off the stage's peak; decision 020).
     if (auto st = SpillView(s); !st) return Error{"slam: " + st.error().message};
-    const slam::SlamResult r = RunSlamLogged(set, config.slam, log);
+    slam::SlamConfig slam_cfg = config.slam;
+    json slow_error = InsSlowErrorFromFixes(s, config.slam_stage, slam_cfg, log);
+    const slam::SlamResult r = RunSlamLogged(set, slam_cfg, log);
     if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
     const TimedPoses before = PingPoses(s.geo);
     std::vector<Pose> after = SlamPingPoses(s.geo, set, r, before);
@@ -533,21 +564,20 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         Fixed(change.second, 3) + " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) +
         " -> " + Fixed(r.final_pair_score_m, 4) + " m, consistency " +
         Fixed(r.initial_consistency_m, 4) + " -> " + Fixed(r.final_consistency_m, 4) + " m");
-    RecordStage(
-        s.summary,
-        Stage::kSlam,
-        SlamSummary(r,
-                    set,
-                    config.slam,
-                    expected_consistency,
-                    change,
-                    std::move(ins_check),
-                    PosteriorJson(s.geo,
-                                  s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma,
-                                  r,
-                                  kPosteriorWindowS),
-                    std::move(windows_json)),
-        clock);
+    json posterior = PosteriorJson(
+        s.geo, s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma, r, kPosteriorWindowS);
+    posterior["ins_slow_error"] = std::move(slow_error);
+    RecordStage(s.summary,
+                Stage::kSlam,
+                SlamSummary(r,
+                            set,
+                            slam_cfg,
+                            expected_consistency,
+                            change,
+                            std::move(ins_check),
+                            std::move(posterior),
+                            std::move(windows_json)),
+                clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};

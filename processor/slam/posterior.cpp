@@ -281,10 +281,14 @@ Vector6d SliceSigma(const Input& in,
         // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
         // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
         // The white noise of each INS output (PositionWhiteNoise) stays in every ping too.
+        // Its slow error where the data state it larger than the INS reports (decision 027).
         for (int c = 0; c < 3; ++c) {
+            const double steady =
+                c < 2 ? std::max(in.sigma_floor(3 + c), cfg.reference_horizontal_sigma_m)
+                      : in.sigma_floor(3 + c);
             C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
-            C(3 + c, 3 + c) += in.sigma_floor(3 + c) * in.sigma_floor(3 + c) +
-                               in.position_white_sigma(c) * in.position_white_sigma(c);
+            C(3 + c, 3 + c) +=
+                steady * steady + in.position_white_sigma(c) * in.position_white_sigma(c);
         }
     }
     Vector6d sig;
@@ -406,7 +410,11 @@ void ComputePosterior(const Input& in,
     const auto t_start = Clock::now();
     SlamPosterior& post = res.posterior;
     post = SlamPosterior{};
-    if (cfg.posterior_reference_sigma) post.ins_white_noise_m = in.position_white_sigma;
+    if (cfg.posterior_reference_sigma) {
+        post.ins_white_noise_m = in.position_white_sigma;
+        post.reference_horizontal_sigma_m =
+            std::max({in.sigma_floor(3), in.sigma_floor(4), cfg.reference_horizontal_sigma_m});
+    }
     const auto fail = [&](std::string message) {
         post.message = std::move(message);
         post.total_s = Seconds(t_start);

@@ -76,6 +76,9 @@ std::vector<std::string> SlamConfig::Validate() const {
         p.push_back("rigid_max_pair_distance_m must be >= max_pair_distance_m");
     }
     if (!(section_length_s > 0)) p.push_back("section_length_s must be > 0");
+    if (!(reference_horizontal_sigma_m >= 0) || !std::isfinite(reference_horizontal_sigma_m)) {
+        p.push_back("reference_horizontal_sigma_m must be finite and >= 0");
+    }
     if (max_partner_passes < 0) p.push_back("max_partner_passes must be >= 0 (0 = all)");
     if (rigid_iterations < 0) p.push_back("rigid_iterations must be >= 0");
     if (min_section_link_pairs < 1) p.push_back("min_section_link_pairs must be >= 1");

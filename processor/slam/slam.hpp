@@ -207,6 +207,11 @@ struct SlamConfig {
     // white noise of each INS position output, which the INS's sigma omits and SLAM's
     // one-second nodes leave in every ping (PositionWhiteNoise, docs/decisions/022).
     bool posterior_reference_sigma = true;
+    // The INS's slow horizontal error per axis as the data states it (m; 0 = not known): the
+    // pipeline sets it from the GNSS fixes in the ping headers (calib::EstimateInsSlowError,
+    // docs/decisions/027). The reference term of the posterior then takes the larger of it and
+    // the INS's own steady sigma for east and north. Not a setting: a measurement of the survey.
+    double reference_horizontal_sigma_m = 0;
     // GICP pairs: true (the default) = the posterior takes their along-surface information as
     // the solver does (gicp_tangent_sigma_m); false = along their normal only (the offset along
     // a surface is where the other pass's nearest sounding lies). Measured on gps-outage
@@ -336,6 +341,9 @@ struct SlamPosterior {
     // The white noise of each INS position output (east, north, up, m; PositionWhiteNoise),
     // added to every slice with the steady sigma when posterior_reference_sigma.
     Eigen::Vector3d ins_white_noise_m = Eigen::Vector3d::Zero();
+    // The reference's horizontal sigma per axis the posterior used (the larger of the INS's
+    // steady sigma and SlamConfig::reference_horizontal_sigma_m), m.
+    double reference_horizontal_sigma_m = 0;
     // The perturbed-start runs (posterior_start_runs) whose spread was added to slice_sigma in
     // quadrature, and that spread alone per slice (1-sigma east, north, up, m; empty without).
     std::size_t start_runs = 0;

@@ -256,6 +256,12 @@ int main(int argc, char** argv) try {
                      "then it recovers (repeatable, sorted)")
         ->expected(2)
         ->allow_extra_args(false);
+    bool header_gga = false;
+    synth->add_flag("--header-gga",
+                    header_gga,
+                    "the topside's 83P headers carry the GNSS antenna's NMEA fix (GGA, 2 cm white "
+                    "noise, independent of the INS's error), as the quarry's do; bejanca's and "
+                    "gps-outage's topside had no NMEA input");
     auto* list = app.add_subcommand("scenarios", "list the built-in scenarios");
     sim::hil::HilOptions hil_opt;
     std::string faults;
@@ -361,6 +367,7 @@ int main(int argc, char** argv) try {
         scenario->nav.outages_s.insert(scenario->nav.outages_s.end(),
                                        {gps_outage[i], gps_outage[i + 1]});
     }
+    if (header_gga) scenario->sonar.nmea_position = true;
     if (ins_drift.size() == 4) {
         scenario->nav.drift_windows.insert(
             scenario->nav.drift_windows.end(), ins_drift.begin(), ins_drift.end());

@@ -756,6 +756,51 @@ TEST(Slam, PosteriorIsBoundedByThePriorsAndShrinksAnOutage) {
     EXPECT_FALSE(RunSlam(sv.slices, off).posterior.computed);
 }
 
+// The INS's slow error stated from the data (SlamConfig::reference_horizontal_sigma_m, set by
+// the pipeline from the header GNSS fixes; docs/decisions/027): where it exceeds the INS's
+// steady sigma the posterior's reference takes it for east and north (not up), so a GNSS-good
+// slice's horizontal sigma is at least it; below the INS's own it changes nothing.
+TEST(Slam, TheDataStatedSlowErrorEntersTheReference) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) s.pose_sigma << 0.002, 0.002, 0.004, 0.01, 0.01, 0.015;
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 0;
+    const SlamResult plain = RunSlam(sv.slices, cfg);
+    ASSERT_TRUE(plain.posterior.computed) << plain.posterior.message;
+    EXPECT_NEAR(plain.posterior.reference_horizontal_sigma_m, 0.01, 1e-9);
+    SlamConfig stated = cfg;
+    stated.reference_horizontal_sigma_m = 0.03;
+    const SlamResult r = RunSlam(sv.slices, stated);
+    ASSERT_TRUE(r.posterior.computed) << r.posterior.message;
+    EXPECT_NEAR(r.posterior.reference_horizontal_sigma_m, 0.03, 1e-9);
+    ASSERT_EQ(r.posterior.slice_sigma.size(), plain.posterior.slice_sigma.size());
+    for (std::size_t s = 0; s < r.posterior.slice_sigma.size(); ++s) {
+        const Vector6d& a = plain.posterior.slice_sigma[s];
+        const Vector6d& b = r.posterior.slice_sigma[s];
+        for (int c = 3; c < 5; ++c) {
+            EXPECT_GE(b(c), 0.03) << s << " " << c;
+            // The same posterior with 0.03^2 - 0.01^2 more variance in the reference.
+            EXPECT_NEAR(b(c) * b(c), a(c) * a(c) + 0.03 * 0.03 - 0.01 * 0.01, 1e-8) << s;
+        }
+        EXPECT_DOUBLE_EQ(b(5), a(5)) << s;
+        EXPECT_DOUBLE_EQ(b(2), a(2)) << s;
+    }
+    SlamConfig below = cfg;
+    below.reference_horizontal_sigma_m = 0.005;
+    const SlamResult q = RunSlam(sv.slices, below);
+    ASSERT_TRUE(q.posterior.computed) << q.posterior.message;
+    for (std::size_t s = 0; s < q.posterior.slice_sigma.size(); ++s) {
+        EXPECT_DOUBLE_EQ(q.posterior.slice_sigma[s](3), plain.posterior.slice_sigma[s](3)) << s;
+    }
+    SlamConfig bad = cfg;
+    bad.reference_horizontal_sigma_m = -0.01;
+    EXPECT_EQ(RunSlam(sv.slices, bad).termination, SlamTermination::kInvalidInput);
+}
+
 // Only the absolute terms know where the survey is: the pair, relative-motion and drift-
 // smoothness terms are all relative, so the posterior of a common east offset is at least the
 // absolute terms' sigma over sqrt(poses). (The drift-smoothness term's Jacobian had the sign of
