@@ -27,6 +27,11 @@ public:
     PointIndex& operator=(const PointIndex&) = delete;
 
     std::size_t size() const { return view_.n; }
+    // Bytes the index holds beside the points: its permutation and its nodes.
+    std::size_t memory_bytes() const {
+        return tree_.vAcc.capacity() * sizeof(typename decltype(tree_.vAcc)::value_type) +
+               tree_.pool.usedMemory + tree_.pool.wastedMemory;
+    }
     const Point& point(std::size_t i) const { return view_.pts[i]; }
 
     // The k nearest points (fewer if the index holds fewer); returns how many were found.

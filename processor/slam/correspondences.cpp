@@ -545,6 +545,18 @@ Search SearchPairs(const Input& in,
         if (b != a) ++partners[b];
     }
     out.num_section_pairs = links.size();
+    SlamMemory m;
+    m.points_bytes = in.points.capacity() * sizeof(Eigen::Vector3f);
+    m.world_points_bytes = pw.capacity() * sizeof(Eigen::Vector3f);
+    for (const Block& b : blocks) {
+        if (b.tree) m.trees_bytes += b.tree->memory_bytes();
+        m.neighbour_bytes += b.neighbours.capacity() * sizeof(std::uint32_t) +
+                             b.neighbour_slots.capacity() * sizeof(b.neighbour_slots[0]);
+    }
+    m.pairs_bytes = pairs.capacity() * sizeof(Pair);
+    m.total_bytes =
+        m.points_bytes + m.world_points_bytes + m.trees_bytes + m.neighbour_bytes + m.pairs_bytes;
+    if (m.total_bytes > res.memory.total_bytes) res.memory = m;
     out.max_section_partners =
         partners.empty() ? 0 : *std::max_element(partners.begin(), partners.end());
     res.timings.search_s += Seconds(t0);
