@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -1246,6 +1247,73 @@ void CountVerdicts(const std::vector<std::uint8_t>& status, CleanCounts& c) {
     }
 }
 
+// Steps 1-4: each sounding's verdict from its voxel and its ray, into `status`; false when
+// cancelled (through `report`). Holds the voxels and, per sounding, its voxel, its ray's first
+// crossing and the cluster marches' marks (9 bytes), all freed on return: the range profiles
+// after it read the verdicts alone, and their own arrays are not held beside these.
+bool VoxelVerdicts(const georef::GeorefResult& geo,
+                   const CleanConfig& config,
+                   const std::function<bool(double)>& report,
+                   CleanCounts& c,
+                   std::vector<std::uint8_t>& status) {
+    const georef::GeorefPoints& P = geo.points;
+    const double v = config.voxel_m;
+    auto t_start = std::chrono::steady_clock::now();
+    // ---- 1. voxels, moments, components ----
+    Voxels X;
+    std::vector<std::int32_t> voxel_of;
+    const auto index = IndexVoxels(P, v, X, voxel_of);
+    const std::size_t nv = X.size();
+    c.voxels = static_cast<std::int64_t>(nv);
+    const std::vector<std::int32_t> comp_voxels = Components(*index, X);
+    // Terrain: the voxels of components of cluster_max_voxels or more.
+    std::vector<char> terrain_voxel(nv);
+    for (std::size_t i = 0; i < nv; ++i)
+        terrain_voxel[i] = comp_voxels[X.component[i]] >= config.cluster_max_voxels;
+    for (std::size_t i = 0; i < nv; ++i) {
+        if (X.component[i] != static_cast<std::int32_t>(i)) continue;
+        (comp_voxels[i] >= config.cluster_max_voxels ? c.terrain_components : c.clusters) += 1;
+    }
+    // The terrain's voxels, for the marches behind clusters.
+    auto terrain_grid = openvdb::Int32Grid::create(kNone);
+    {
+        auto ta = terrain_grid->getAccessor();
+        for (std::size_t i = 0; i < nv; ++i) {
+            if (terrain_voxel[i]) ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
+        }
+    }
+    FitPatches(P, MembersByVoxel(voxel_of, nv), config, X);
+    c.seconds_voxels = Seconds(t_start);
+    if (!report(0.1)) return false;
+
+    // ---- 2. rays through the voxels: free space and crossings of plane patches ----
+    t_start = std::chrono::steady_clock::now();
+    const SoundingRays rays{geo, config, v};
+    const RayEvidence evidence = MarchRays(rays, *index, X, voxel_of);
+    const PatchVerdicts patches(X, voxel_of, evidence.first_crossing, config);
+    c.seconds_rays = Seconds(t_start);
+    if (!report(0.4)) return false;
+
+    // ---- 3. clusters in front of the terrain ----
+    // A cluster is judged by its soundings: off the surface when most of them have terrain
+    // behind them along their rays.
+    t_start = std::chrono::steady_clock::now();
+    const ClusterRays clusters =
+        c.clusters > 0
+            ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel, patches)
+            : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
+                          std::vector<std::atomic<std::int32_t>>(nv),
+                          std::vector<std::atomic<std::int32_t>>(nv),
+                          {}};
+    c.seconds_clusters = Seconds(t_start);
+
+    // ---- 4. each sounding: its voxel, its ray ----
+    t_start = std::chrono::steady_clock::now();
+    Verdicts(X, voxel_of, terrain_voxel, evidence, patches, clusters, config, status);
+    c.seconds_verdicts = Seconds(t_start);
+    return true;
+}
+
 }  // namespace
 
 std::vector<std::string> CleanConfig::Validate() const {
@@ -1296,65 +1364,16 @@ CleanResult Clean(const georef::GeorefResult& geo,
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(config.num_threads));
     }
-    const double v = config.voxel_m;
-    auto report = [&](double share) { return !progress || progress(share); };
+    const std::function<bool(double)> report = [&](double share) {
+        return !progress || progress(share);
+    };
 
-    // ---- 1. voxels, moments, components ----
-    auto t_start = std::chrono::steady_clock::now();
-    Voxels X;
-    std::vector<std::int32_t> voxel_of;
-    const auto index = IndexVoxels(P, v, X, voxel_of);
-    const std::size_t nv = X.size();
-    c.voxels = static_cast<std::int64_t>(nv);
-    const std::vector<std::int32_t> comp_voxels = Components(*index, X);
-    // Terrain: the voxels of components of cluster_max_voxels or more.
-    std::vector<char> terrain_voxel(nv);
-    for (std::size_t i = 0; i < nv; ++i)
-        terrain_voxel[i] = comp_voxels[X.component[i]] >= config.cluster_max_voxels;
-    for (std::size_t i = 0; i < nv; ++i) {
-        if (X.component[i] != static_cast<std::int32_t>(i)) continue;
-        (comp_voxels[i] >= config.cluster_max_voxels ? c.terrain_components : c.clusters) += 1;
-    }
-    // The terrain's voxels, for the marches behind clusters.
-    auto terrain_grid = openvdb::Int32Grid::create(kNone);
-    {
-        auto ta = terrain_grid->getAccessor();
-        for (std::size_t i = 0; i < nv; ++i) {
-            if (terrain_voxel[i]) ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
-        }
-    }
-    FitPatches(P, MembersByVoxel(voxel_of, nv), config, X);
-    c.seconds_voxels = Seconds(t_start);
-    if (!report(0.1)) return result.cancelled = true, result;
-
-    // ---- 2. rays through the voxels: free space and crossings of plane patches ----
-    t_start = std::chrono::steady_clock::now();
-    const SoundingRays rays{geo, config, v};
-    const RayEvidence evidence = MarchRays(rays, *index, X, voxel_of);
-    const PatchVerdicts patches(X, voxel_of, evidence.first_crossing, config);
-    c.seconds_rays = Seconds(t_start);
-    if (!report(0.4)) return result.cancelled = true, result;
-
-    // ---- 3. clusters in front of the terrain ----
-    // A cluster is judged by its soundings: off the surface when most of them have terrain
-    // behind them along their rays.
-    t_start = std::chrono::steady_clock::now();
-    const ClusterRays clusters =
-        c.clusters > 0
-            ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel, patches)
-            : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
-                          std::vector<std::atomic<std::int32_t>>(nv),
-                          std::vector<std::atomic<std::int32_t>>(nv),
-                          {}};
-    c.seconds_clusters = Seconds(t_start);
-
-    // ---- 4. each sounding: its voxel, its ray ----
-    t_start = std::chrono::steady_clock::now();
-    Verdicts(X, voxel_of, terrain_voxel, evidence, patches, clusters, config, result.status);
-    c.seconds_verdicts = Seconds(t_start);
+    // ---- 1.-4. voxels, rays, clusters: each sounding's 3D verdict ----
+    if (!VoxelVerdicts(geo, config, report, c, result.status))
+        return result.cancelled = true, result;
 
     // ---- 5. the range profiles: what the 3D tests left ----
-    t_start = std::chrono::steady_clock::now();
+    auto t_start = std::chrono::steady_clock::now();
     const SoundingGrid grid(geo);
     const std::vector<char> along = Profiles(geo, grid, config, result.status);
     const std::vector<char> near = NearField(geo, grid, config, result.status);

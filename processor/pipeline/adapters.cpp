@@ -103,6 +103,7 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
             s.points_vehicle.push_back(
                 (T_vehicle_sonar * georef::SoundingVectorSonar(geo, i)).cast<float>());
         }
+        out.num_points += s.points_vehicle.size();
         out.slices.push_back(std::move(s));
         out.ping.push_back(static_cast<std::uint32_t>(k));
     }

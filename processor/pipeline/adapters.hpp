@@ -44,6 +44,8 @@ PoseSigma PoseSigmaAt(const survey::NavSeries& nav,
 struct SliceSet {
     std::vector<slam::Slice> slices;
     std::vector<std::uint32_t> ping;  // slice -> index into GeorefResult::pings
+    // The slices' points as made (SLAM moves them out of the slices: RunSlam's rvalue form).
+    std::size_t num_points = 0;
 };
 SliceSet MakeSlices(const georef::GeorefResult& geo,
                     const survey::NavSeries& nav,

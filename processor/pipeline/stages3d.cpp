@@ -63,13 +63,6 @@ std::pair<double, double> PositionChange(const std::vector<Pose>& a, const std::
     return {n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0, worst};
 }
 
-// The points of all slices.
-std::size_t PointCount(const SliceSet& set) {
-    std::size_t n = 0;
-    for (const auto& sl : set.slices) n += sl.points_vehicle.size();
-    return n;
-}
-
 }  // namespace
 
 // The passes' disagreement after SLAM per window of quality.slam_drift_window_s (the slices'
@@ -170,17 +163,19 @@ SliceSet SlamSlices(const StageContext& s, const SlamStageConfig& sc, const Log&
     SliceSet set = MakeSlices(
         s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, FallbackSigma(sc));
     log("slam: " + std::to_string(set.slices.size()) + " slices, " +
-        std::to_string(PointCount(set)) + " points");
+        std::to_string(set.num_points) + " points");
     return set;
 }
 
-// SLAM on the slices, each iteration logged.
-slam::SlamResult RunSlamLogged(const SliceSet& set, const slam::SlamConfig& cfg, const Log& log) {
-    slam::SlamResult r = slam::RunSlam(set.slices, cfg, [&log](const slam::SlamIteration& it) {
-        log(std::string("slam: ") + (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") +
-            " iteration " + std::to_string(it.iteration));
-        return true;
-    });
+// SLAM on the slices, each iteration logged; their points move into SLAM (held once).
+slam::SlamResult RunSlamLogged(SliceSet& set, const slam::SlamConfig& cfg, const Log& log) {
+    slam::SlamResult r =
+        slam::RunSlam(std::move(set.slices), cfg, [&log](const slam::SlamIteration& it) {
+            log(std::string("slam: ") +
+                (it.stage == slam::SlamStage::kRigid ? "rigid" : "semi-rigid") + " iteration " +
+                std::to_string(it.iteration));
+            return true;
+        });
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
     return r;
 }
@@ -422,6 +417,8 @@ Status WriteSlamProducts(StageContext& s,
                                    FallbackSigma(sc));
 }
 
+constexpr double kMiB = 1024.0 * 1024.0;
+
 // summary.json's "slam": SLAM's result, the checks' figures and the coarse search's sections
 // (INS unsure: GNSS outages) with what it did.
 json SlamSummary(const slam::SlamResult& r,
@@ -435,7 +432,7 @@ json SlamSummary(const slam::SlamResult& r,
     json st = {{"termination", slam::ToString(r.termination)},
                {"message", r.message},
                {"slices", set.slices.size()},
-               {"points", PointCount(set)},
+               {"points", set.num_points},
                {"sections", r.num_sections},
                {"section_links", r.num_section_links},
                {"poses", r.num_poses},
@@ -463,7 +460,14 @@ json SlamSummary(const slam::SlamResult& r,
                  {"build", r.timings.build_s},
                  {"solve", r.timings.solve_s},
                  {"score", r.timings.score_s},
-                 {"total", r.timings.total_s}}}};
+                 {"total", r.timings.total_s}}},
+               {"arrays_mb",
+                {{"points", static_cast<double>(r.memory.points_bytes) / kMiB},
+                 {"world_points", static_cast<double>(r.memory.world_points_bytes) / kMiB},
+                 {"trees", static_cast<double>(r.memory.trees_bytes) / kMiB},
+                 {"normal_neighbours", static_cast<double>(r.memory.neighbour_bytes) / kMiB},
+                 {"pairs", static_cast<double>(r.memory.pairs_bytes) / kMiB},
+                 {"total", static_cast<double>(r.memory.total_bytes) / kMiB}}}};
     st["coarse_search"] = json::array();
     for (const slam::SlamSection& sec : r.sections) {
         if (!sec.searched) continue;
@@ -513,7 +517,7 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     StageClock clock;
     if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
     const QualityConfig& q = config.quality;
-    const SliceSet set = SlamSlices(s, config.slam_stage, log);
+    SliceSet set = SlamSlices(s, config.slam_stage, log);
     // SLAM reads its slices alone: the view's points wait on disk meanwhile and come back bit
     // for bit (38 bytes a sounding off the stage's peak; decision 020).
     if (auto st = SpillView(s); !st) return Error{"slam: " + st.error().message};

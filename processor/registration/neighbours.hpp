@@ -1,21 +1,29 @@
 // SPDX-License-Identifier: MIT
 // Neighbour search over a fixed array of 3D points: a nanoflann k-d tree behind a small class
 // that both calibration and SLAM use. The points are not copied; they must outlive the index
-// and not move while it exists.
+// and not move while it exists. `Index` is the integer the tree keeps per point (its
+// permutation): std::uint32_t halves it for arrays of fewer than 2^32 points (SLAM's sections,
+// held for the whole survey), with the same tree and the same answers (the build and the
+// searches compare the points, never their indices).
 #pragma once
 
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
 #include <memory>
 #include <nanoflann.hpp>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
+#include "common/result.hpp"
+
 namespace pitmap::proc::reg {
 
-template <class Scalar>
+template <class Scalar, class Index = std::size_t>
 class PointIndex {
 public:
     using Point = Eigen::Matrix<Scalar, 3, 1>;
@@ -23,17 +31,36 @@ public:
     using Hit = std::pair<std::size_t, Scalar>;
 
     PointIndex(const Point* points, std::size_t count)
-        : view_{points, count},
+        : view_{points, CheckedCount(count)},
           tree_(3, view_, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize)) {}  // builds
     PointIndex(const PointIndex&) = delete;
     PointIndex& operator=(const PointIndex&) = delete;
 
     std::size_t size() const { return view_.n; }
+    // Bytes the index holds beside the points: its permutation and its nodes.
+    std::size_t memory_bytes() const {
+        return tree_.vAcc.capacity() * sizeof(typename decltype(tree_.vAcc)::value_type) +
+               tree_.pool.usedMemory + tree_.pool.wastedMemory;
+    }
     const Point& point(std::size_t i) const { return view_.pts[i]; }
 
     // The k nearest points (fewer if the index holds fewer); returns how many were found.
     std::size_t Nearest(const Point& q, std::size_t k, std::size_t* idx, Scalar* d2) const {
-        return tree_.knnSearch(q.data(), k, idx, d2);
+        if constexpr (std::is_same_v<Index, std::size_t>) {
+            return tree_.knnSearch(q.data(), k, idx, d2);
+        } else {
+            constexpr std::size_t kOnStack = 64;
+            Index local[kOnStack];
+            std::vector<Index> heap;
+            Index* found = local;
+            if (k > kOnStack) {
+                heap.resize(k);
+                found = heap.data();
+            }
+            const std::size_t n = tree_.knnSearch(q.data(), k, found, d2);
+            for (std::size_t i = 0; i < n; ++i) idx[i] = found[i];
+            return n;
+        }
     }
     // The nearest point strictly closer than sqrt(bound2): true and its index and squared
     // distance, or false. The bound prunes the descent, so that asking a tree whose points all
@@ -63,7 +90,12 @@ public:
     // Every point within sqrt(radius2) of q, unsorted; `hits` is cleared first.
     void WithinRadius(const Point& q, Scalar radius2, std::vector<Hit>& hits) const {
         hits.clear();
-        tree_.radiusSearch(q.data(), radius2, hits, nanoflann::SearchParams(32, 0, false));
+        if constexpr (std::is_same_v<Index, std::size_t>) {
+            tree_.radiusSearch(q.data(), radius2, hits, nanoflann::SearchParams(32, 0, false));
+        } else {
+            Within r(radius2, hits);  // the radius search's own test, unsorted as above
+            tree_.findNeighbors(r, q.data(), nanoflann::SearchParams(32, 0, false));
+        }
     }
 
     // The positions t = (p - c) . n along the unit axis n of every point p in the cylinder about
@@ -103,6 +135,23 @@ public:
 
 private:
     static constexpr std::size_t kLeafSize = 16;
+    static std::size_t CheckedCount(std::size_t count) {
+        PITMAP_CHECK(count <= std::numeric_limits<Index>::max(),
+                     "PointIndex: more points than its index type holds");
+        return count;
+    }
+    // Every point strictly within the radius, as nanoflann's RadiusResultSet keeps them.
+    struct Within {
+        Within(Scalar r2, std::vector<Hit>& h) : radius2(r2), hits(h) {}
+        Scalar worstDist() const { return radius2; }
+        bool full() const { return true; }
+        bool addPoint(Scalar d, Index i) {
+            if (d < radius2) hits.emplace_back(std::size_t{i}, d);
+            return true;
+        }
+        Scalar radius2;
+        std::vector<Hit>& hits;
+    };
     // nanoflann result set keeping the closest point under a bound that shrinks as it is met.
     struct Closest {
         explicit Closest(Scalar bound) : dist(bound) {}
@@ -146,7 +195,7 @@ private:
         }
     };
     using Tree = nanoflann::
-        KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<Scalar, View>, View, 3, std::size_t>;
+        KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<Scalar, View>, View, 3, Index>;
     View view_;
     Tree tree_;
 };

@@ -46,6 +46,33 @@ std::vector<Block> MakeBlocks(const Input& in, double length_s) {
     return blocks;
 }
 
+NeighbourPacking::NeighbourPacking(const Block& b, std::size_t k_in)
+    : none(static_cast<std::uint32_t>(b.p1 - b.p0)), k(k_in) {
+    while (bits < 32 && (std::uint64_t{none} >> bits) != 0) ++bits;
+    words = (k * static_cast<std::size_t>(bits) + 63) / 64;
+}
+
+void NeighbourPacking::Pack(const std::size_t* idx, std::size_t n, std::uint64_t* w) const {
+    const auto b = static_cast<std::size_t>(bits);
+    for (std::size_t j = 0; j < k; ++j) {
+        const std::uint64_t v = j < n ? std::uint64_t{idx[j]} : std::uint64_t{none};
+        const std::size_t pos = j * b, word = pos / 64, shift = pos % 64;
+        w[word] |= v << shift;
+        if (shift + b > 64) w[word + 1] |= v >> (64 - shift);
+    }
+}
+
+void NeighbourPacking::Unpack(const std::uint64_t* w, std::uint32_t* out) const {
+    const auto b = static_cast<std::size_t>(bits);
+    const std::uint64_t mask = (std::uint64_t{1} << b) - 1;
+    for (std::size_t j = 0; j < k; ++j) {
+        const std::size_t pos = j * b, word = pos / 64, shift = pos % 64;
+        std::uint64_t v = w[word] >> shift;
+        if (shift + b > 64) v |= w[word + 1] << (64 - shift);
+        out[j] = static_cast<std::uint32_t>(v & mask);
+    }
+}
+
 void PartnerBlocks(const std::vector<Block>& blocks,
                    const std::vector<std::uint32_t>& listed,
                    std::uint32_t own,
@@ -92,8 +119,7 @@ void BuildTrees(std::vector<Block>& blocks, const std::vector<Eigen::Vector3f>& 
             b.hi = b.hi.cwiseMax(pw[k]);
         }
         b.tree.reset();
-        if (b.p1 > b.p0)
-            b.tree = std::make_unique<reg::PointIndex3f>(pw.data() + b.p0, b.p1 - b.p0);
+        if (b.p1 > b.p0) b.tree = std::make_unique<SectionTree>(pw.data() + b.p0, b.p1 - b.p0);
     });
 }
 
@@ -325,14 +351,19 @@ std::vector<Eigen::Vector3f> LocalNormals(
         Block& b = blocks[bi];
         auto& slots = b.neighbour_slots;
         const std::size_t old_size = slots.size();
-        auto next = static_cast<std::uint32_t>(b.neighbours.size() / k);
+        auto next = static_cast<std::uint32_t>(old_size);
+        // Grown to the exact size (reserve allocates what it is asked): push_back's doubling
+        // would leave up to half of each table unused for the rest of the run.
+        slots.reserve(old_size + f.size());
         for (const std::uint32_t local : f) {
             slots.emplace_back(local, next++);
             todo.emplace_back(b.p0 + local, bi);
         }
         std::inplace_merge(
             slots.begin(), slots.begin() + static_cast<std::ptrdiff_t>(old_size), slots.end());
-        b.neighbours.resize(std::size_t{next} * k, Block::kNoSlot);
+        const std::size_t words = std::size_t{next} * NeighbourPacking(b, k).words;
+        b.neighbours.reserve(words);
+        b.neighbours.resize(words, 0);
     }
     tbb::parallel_for(std::size_t{0}, todo.size(), [&](std::size_t i) {
         const auto [point, bi] = todo[i];
@@ -341,17 +372,19 @@ std::vector<Eigen::Vector3f> LocalNormals(
         float d2[kMaxNormalNeighbours];
         const std::size_t n = b.tree->Nearest(pw[point], k, idx, d2);
         const std::uint32_t slot = b.NeighbourSlot(static_cast<std::uint32_t>(point - b.p0));
-        std::uint32_t* out = b.neighbours.data() + std::size_t{slot} * k;
-        for (std::size_t j = 0; j < n; ++j) out[j] = static_cast<std::uint32_t>(idx[j]);
+        const NeighbourPacking pk(b, k);
+        pk.Pack(idx, n, b.neighbours.data() + std::size_t{slot} * pk.words);
     });
     std::vector<Eigen::Vector3f> normals(items.size());
     tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
         const auto [point, bi] = items[i];
         const Block& b = blocks[bi];
         const std::uint32_t slot = b.NeighbourSlot(static_cast<std::uint32_t>(point - b.p0));
-        const std::uint32_t* nb = b.neighbours.data() + std::size_t{slot} * k;
+        const NeighbourPacking pk(b, k);
+        std::uint32_t nb[kMaxNormalNeighbours];
+        pk.Unpack(b.neighbours.data() + std::size_t{slot} * pk.words, nb);
         reg::MomentAccumulator m;
-        for (std::size_t j = 0; j < k && nb[j] != Block::kNoSlot; ++j)
+        for (std::size_t j = 0; j < k && nb[j] != pk.none; ++j)
             m.Add(pw[b.p0 + nb[j]].cast<double>());
         const reg::PlaneFit f = reg::FitPlane(m);
         normals[i] = f.valid ? Eigen::Vector3f(f.normal.cast<float>()) : Eigen::Vector3f::Zero();
@@ -545,6 +578,18 @@ Search SearchPairs(const Input& in,
         if (b != a) ++partners[b];
     }
     out.num_section_pairs = links.size();
+    SlamMemory m;
+    m.points_bytes = in.points.capacity() * sizeof(Eigen::Vector3f);
+    m.world_points_bytes = pw.capacity() * sizeof(Eigen::Vector3f);
+    for (const Block& b : blocks) {
+        if (b.tree) m.trees_bytes += b.tree->memory_bytes();
+        m.neighbour_bytes += b.neighbours.capacity() * sizeof(std::uint64_t) +
+                             b.neighbour_slots.capacity() * sizeof(b.neighbour_slots[0]);
+    }
+    m.pairs_bytes = pairs.capacity() * sizeof(Pair);
+    m.total_bytes =
+        m.points_bytes + m.world_points_bytes + m.trees_bytes + m.neighbour_bytes + m.pairs_bytes;
+    if (m.total_bytes > res.memory.total_bytes) res.memory = m;
     out.max_section_partners =
         partners.empty() ? 0 : *std::max_element(partners.begin(), partners.end());
     res.timings.search_s += Seconds(t0);

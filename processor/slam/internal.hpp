@@ -161,6 +161,8 @@ Param WindowParam(const Param& p, std::size_t first, std::size_t last);
 
 // ---- sections and correspondences (correspondences.cpp) -------------------------------------
 
+using SectionTree = reg::PointIndex<float, std::uint32_t>;
+
 // A section of consecutive slices: the rigid stage's unit and a k-d tree block of world points.
 struct Block {
     std::size_t s0 = 0, s1 = 0;                    // slices [s0, s1)
@@ -168,13 +170,17 @@ struct Block {
     double t0 = 0, t1 = 0;                         // time span
     Eigen::Vector3f lo = Eigen::Vector3f::Zero();  // bounding box of the world points
     Eigen::Vector3f hi = Eigen::Vector3f::Zero();
-    std::unique_ptr<reg::PointIndex3f> tree;  // over the block's world points
+    // Over the block's world points; 32-bit indices (a block is seconds of pings): the trees
+    // are held for the whole survey.
+    std::unique_ptr<SectionTree> tree;
     // The normal-fit neighbours of block points, found once per run (see LocalNormals in
     // correspondences.cpp): (block-local point, slot) sorted by point, for the points that
-    // needed a normal so far; per slot normal_neighbours block-local indices (kNoSlot past the
-    // last found).
+    // needed a normal so far; per slot normal_neighbours block-local indices, each in as many
+    // bits as the block's point count needs (the count itself past the last found), a slot in
+    // whole words (NeighbourPacking): the tables live for the whole run, a fifth of the
+    // survey's points have one, and 32 bits an index were a third of SLAM's arrays.
     std::vector<std::pair<std::uint32_t, std::uint32_t>> neighbour_slots;
-    std::vector<std::uint32_t> neighbours;
+    std::vector<std::uint64_t> neighbours;
     // The slot of block-local point `local`, kNoSlot when it has none.
     std::uint32_t NeighbourSlot(std::uint32_t local) const {
         const auto it = std::lower_bound(neighbour_slots.begin(),
@@ -186,6 +192,21 @@ struct Block {
 };
 
 std::vector<Block> MakeBlocks(const Input& in, double length_s);
+
+// How a block's neighbour slots are packed: `bits` per block-local index (enough for `none`,
+// the block's point count, which ends a slot's list), `k` indices a slot in `words` 64-bit words
+// (whole words: slots are written in parallel).
+struct NeighbourPacking {
+    std::uint32_t none = 0;
+    int bits = 1;
+    std::size_t k = 0;
+    std::size_t words = 0;
+    NeighbourPacking(const Block& b, std::size_t k);
+    // Slot words <- idx[0, n) and `none` after them (n <= k); the words must be zero.
+    void Pack(const std::size_t* idx, std::size_t n, std::uint64_t* words_out) const;
+    // out[0, k) <- the slot's indices.
+    void Unpack(const std::uint64_t* words_in, std::uint32_t* out) const;
+};
 
 // The partner blocks of a query point recorded at time t in block `own`, among the blocks
 // `listed` in its cell (ascending indices, as ListBlocksByCell makes them): the blocks recorded

@@ -151,9 +151,27 @@ std::vector<Eigen::Vector3f> PointsWorld(const std::vector<Slice>& slices,
     return out;
 }
 
-SlamResult RunSlam(const std::vector<Slice>& slices,
-                   const SlamConfig& cfg,
-                   const SlamProgress& progress) {
+namespace {
+
+// Each slice's points back from `in` (its finite ones: all that SLAM reads of them).
+void RestorePoints(const Input& in, std::vector<Slice>& slices) {
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        std::vector<Eigen::Vector3f>& out = slices[in.input_index[s]].points_vehicle;
+        out.assign(in.points.begin() + static_cast<std::ptrdiff_t>(in.offset[s]),
+                   in.points.begin() + static_cast<std::ptrdiff_t>(in.offset[s + 1]));
+    }
+}
+
+void ReleasePoints(std::vector<Slice>& slices) {
+    for (Slice& s : slices) std::vector<Eigen::Vector3f>().swap(s.points_vehicle);
+}
+
+// RunSlam on `slices`; `owned` is null or the same slices, whose points are then moved into
+// SLAM's own array as they are read (the survey's points held once, not twice).
+SlamResult Run(const std::vector<Slice>& slices,
+               std::vector<Slice>* owned,
+               const SlamConfig& cfg,
+               const SlamProgress& progress) {
     const auto t_start = Clock::now();
     SlamResult res;
     const auto problems = cfg.Validate();
@@ -191,7 +209,15 @@ SlamResult RunSlam(const std::vector<Slice>& slices,
         return slices[a].gps_time_s < slices[b].gps_time_s;
     });
     in.input_index = order;
+    in.offset.reserve(slices.size() + 1);
     in.offset.push_back(0);
+    // Sized once: grown by push_back its capacity would be up to twice the points (and three
+    // times while it moves), at 12 bytes a sounding the largest of SLAM's arrays.
+    std::size_t finite = 0;
+    for (const Slice& s : slices) {
+        for (const auto& x : s.points_vehicle) finite += x.allFinite() ? 1 : 0;
+    }
+    in.points.reserve(finite);
     for (std::size_t i : order) {
         const Slice& s = slices[i];
         in.t_s.push_back(s.gps_time_s);
@@ -203,6 +229,7 @@ SlamResult RunSlam(const std::vector<Slice>& slices,
             if (x.allFinite()) in.points.push_back(x);
         }
         in.offset.push_back(in.points.size());
+        if (owned != nullptr) std::vector<Eigen::Vector3f>().swap((*owned)[i].points_vehicle);
     }
     const std::size_t ns = in.num_slices();
     in.breaks = FindBreaks(in.t_s, in.sigma, cfg.coarse_search_min_sigma_m);
@@ -264,12 +291,32 @@ SlamResult RunSlam(const std::vector<Slice>& slices,
         res.trajectory[s].input_index = in.input_index[s];
     }
     res.timings.total_s = Seconds(t_start);
-    if (cfg.posterior && cfg.posterior_start_runs > 0 && res.posterior.computed &&
-        !AddStartSpread(slices, cfg, progress, res)) {
+    if (!(cfg.posterior && cfg.posterior_start_runs > 0 && res.posterior.computed)) return res;
+    // The perturbed-start runs each hold their own copy of the points, trees and tables: this
+    // run's are released first (nothing below reads them but the points of owned slices).
+    std::vector<Block>().swap(blocks);
+    if (owned != nullptr) RestorePoints(in, *owned);
+    in = Input{};
+    if (!AddStartSpread(slices, cfg, progress, res)) {
         res.termination = SlamTermination::kCancelled;
         res.message = "cancelled during the perturbed-start runs of the posterior";
     }
+    if (owned != nullptr) ReleasePoints(*owned);
     return res;
+}
+
+}  // namespace
+
+SlamResult RunSlam(const std::vector<Slice>& slices,
+                   const SlamConfig& cfg,
+                   const SlamProgress& progress) {
+    return Run(slices, nullptr, cfg, progress);
+}
+
+SlamResult RunSlam(std::vector<Slice>&& slices,
+                   const SlamConfig& cfg,
+                   const SlamProgress& progress) {
+    return Run(slices, &slices, cfg, progress);
 }
 
 }  // namespace pitmap::proc::slam

@@ -363,6 +363,17 @@ struct SlamTimings {
     double total_s = 0;
 };
 
+// What SLAM's own per-sounding arrays held when their sum was largest (bytes, capacities
+// counted; sampled after each search of pairs, the stage's peak): SlamResult::memory.
+struct SlamMemory {
+    std::size_t points_bytes = 0;        // the slices' points in the vehicle frame, sorted
+    std::size_t world_points_bytes = 0;  // ... moved to the world by the current iterate
+    std::size_t trees_bytes = 0;         // the sections' k-d trees (index and nodes)
+    std::size_t neighbour_bytes = 0;     // the sections' normal-fit neighbour tables
+    std::size_t pairs_bytes = 0;         // one search's pairs
+    std::size_t total_bytes = 0;         // their sum
+};
+
 struct SlamResult {
     std::vector<SlamPose> trajectory;  // corrected, one per slice, sorted by GPS time
     std::vector<SlamIteration> iterations;
@@ -383,6 +394,7 @@ struct SlamResult {
     double initial_pair_score_m = 0;  // pair score of the input trajectory
     double final_pair_score_m = 0;    // ... and of the result (the kept iterate)
     SlamTimings timings;
+    SlamMemory memory;
     SlamPosterior posterior;  // of the semi-rigid result (not computed after the rigid only)
     SlamTermination termination = SlamTermination::kInvalidInput;
     std::string message;
@@ -395,6 +407,12 @@ using SlamProgress = std::function<bool(const SlamIteration&)>;
 // Runs both stages. Never throws for bad data; degenerate input ends with a termination
 // reason and the initial trajectory.
 SlamResult RunSlam(const std::vector<Slice>& slices,
+                   const SlamConfig& config,
+                   const SlamProgress& progress = {});
+// The same run, bit for bit, with the slices' points moved into SLAM's own array as they are
+// read: the survey's points are held once, not twice (12 bytes a sounding). The slices are left
+// with their times, poses and sigmas and no points.
+SlamResult RunSlam(std::vector<Slice>&& slices,
                    const SlamConfig& config,
                    const SlamProgress& progress = {});
 

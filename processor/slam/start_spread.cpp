@@ -147,11 +147,13 @@ bool AddStartSpread(const std::vector<Slice>& slices,
     run_cfg.posterior_start_runs = 0;
     std::vector<std::vector<SlamPose>> runs;
     for (int k = 0; k < cfg.posterior_start_runs; ++k) {
-        const std::vector<Slice> start =
-            PerturbedStart(slices,
-                           cfg.ins_sigma_recovery_time_s,
-                           cfg.posterior_start_seed + static_cast<std::uint64_t>(k));
-        SlamResult run = RunSlam(start, run_cfg, progress);
+        // The perturbed copy's points move into the run (one copy of them at a time).
+        SlamResult run =
+            RunSlam(PerturbedStart(slices,
+                                   cfg.ins_sigma_recovery_time_s,
+                                   cfg.posterior_start_seed + static_cast<std::uint64_t>(k)),
+                    run_cfg,
+                    progress);
         if (run.termination == SlamTermination::kCancelled) return false;
         if (run.trajectory.empty()) continue;  // invalid input: nothing to compare
         runs.push_back(std::move(run.trajectory));

@@ -47,6 +47,8 @@ COMMANDS = {
                    "scale)",
     "memory_blocks": "tools/bench/memory_result.py (the summary.json of `pitmap run` or "
                      "`pitmap grid` per build and scale)",
+    "memory_slam": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and "
+                   "scale)",
 }
 
 
@@ -376,6 +378,21 @@ def render_memory_grid_parts(r):
     return table(["grid part, peak RSS (MB)", *head], rows, "l" + "r" * len(runs))
 
 
+def render_memory_slam_arrays(r):
+    """SLAM's own arrays when their sum was largest (summary.json stages.slam.arrays_mb), MB and
+    bytes a sounding of the survey, for the runs that recorded them."""
+    runs, _ = memory_runs(r)
+    runs = [run for run in runs if run.get("slam_arrays")]
+    if not runs:
+        return "_No run recorded SLAM's arrays._"
+    names = list(dict.fromkeys(a for run in runs for a in run["slam_arrays"]))
+    rows = [[a] + [f"{run['slam_arrays'][a]:.0f} ({run['slam_arrays'][a] * 1048576 / run['soundings']:.1f})"
+                   if isinstance(run["slam_arrays"].get(a), (int, float)) else "-" for run in runs]
+            for a in names]
+    head = [f"{run['scale']:.2g}x {run['build']}" for run in runs]
+    return table(["SLAM's arrays, MB (bytes a sounding)", *head], rows, "l" + "r" * len(runs))
+
+
 SECTIONS = {
     ("e2e", "context"): render_context,
     ("e2e", "stages"): render_e2e_stages,
@@ -403,6 +420,10 @@ SECTIONS = {
     ("memory_blocks", "context"): render_context,
     ("memory_blocks", "stages"): render_memory_stages,
     ("memory_blocks", "grid_parts"): render_memory_grid_parts,
+    ("memory_slam", "context"): render_context,
+    ("memory_slam", "stages"): render_memory_stages,
+    ("memory_slam", "per_sounding"): render_memory_per_sounding,
+    ("memory_slam", "slam_arrays"): render_memory_slam_arrays,
 }
 
 

@@ -5,7 +5,8 @@
 Each run is a build (a label such as `before` or `after`), a scale of the scenario (its duration
 over the base one) and a products folder; the result holds each stage's peak resident memory
 (summary.json stages.*.peak_rss_mb) and CPU seconds (stages.*.cpu_seconds), the grid stage's parts (stages.grid.peak_rss_mb_by_part,
-where the build records them) and the soundings, for benchmarks_page.py (section `memory`):
+where the build records them), SLAM's own arrays (stages.slam.arrays_mb, where recorded) and the
+soundings, for benchmarks_page.py (section `memory`):
 
   memory_result.py OUT.json --scenario bejanca --run before 1 P1 --run after 1 P2 ...
   benchmarks_page.py publish memory OUT.json
@@ -37,6 +38,7 @@ def run_of(label, scale, folder):
         "stages": stages,
         "cpu_s": cpu_s,
         "grid_parts": grid.get("peak_rss_mb_by_part", {}),
+        "slam_arrays": s["stages"].get("slam", {}).get("arrays_mb", {}),
     }
 
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cstdint>
 #include <random>
 #include <set>
 #include <vector>
@@ -53,6 +54,45 @@ TEST(PointIndex, NearestAndRadiusMatchBruteForce) {
             if (d < r2) want.insert(i);
         }
         EXPECT_EQ(got, want);
+    }
+}
+
+// A tree with 32-bit indices (SLAM's sections) is the same tree: the same neighbours in the same
+// order, the same bounded nearest and the same points within a radius, in the same order, as
+// with std::size_t; its permutation takes half the bytes.
+TEST(PointIndex, ThirtyTwoBitIndicesGiveTheSameAnswers) {
+    std::vector<Eigen::Vector3f> pts;
+    for (const auto& x : RandomPoints(5000, 7, 10.0)) pts.push_back(x.cast<float>());
+    for (int i = 0; i < 500; ++i) pts.emplace_back(i % 10, (i / 10) % 10, i / 100);  // ties
+    const PointIndex<float> wide(pts.data(), pts.size());
+    const PointIndex<float, std::uint32_t> narrow(pts.data(), pts.size());
+    EXPECT_LT(narrow.memory_bytes(), wide.memory_bytes());
+    EXPECT_GE(wide.memory_bytes() - narrow.memory_bytes(), 4 * pts.size());
+    std::vector<PointIndex<float>::Hit> hits_wide, hits_narrow;
+    for (const auto& qd : RandomPoints(300, 8, 12.0)) {
+        const Eigen::Vector3f q = qd.cast<float>();
+        for (const std::size_t k : {std::size_t{1}, std::size_t{24}, std::size_t{80}}) {
+            std::vector<std::size_t> ia(k), ib(k);
+            std::vector<float> da(k), db(k);
+            const std::size_t na = wide.Nearest(q, k, ia.data(), da.data());
+            const std::size_t nb = narrow.Nearest(q, k, ib.data(), db.data());
+            ASSERT_EQ(na, nb);
+            for (std::size_t i = 0; i < na; ++i) {
+                EXPECT_EQ(ia[i], ib[i]);
+                EXPECT_EQ(da[i], db[i]);
+            }
+        }
+        for (const float bound : {0.05f, 1.0f, 1e9f}) {
+            std::size_t ia = 0, ib = 0;
+            float da = 0, db = 0;
+            ASSERT_EQ(wide.NearestWithin(q, bound, &ia, &da),
+                      narrow.NearestWithin(q, bound, &ib, &db));
+            EXPECT_EQ(ia, ib);
+            EXPECT_EQ(da, db);
+        }
+        wide.WithinRadius(q, 2.0f, hits_wide);
+        narrow.WithinRadius(q, 2.0f, hits_narrow);
+        EXPECT_EQ(hits_wide, hits_narrow);
     }
 }
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "processor/slam/internal.hpp"
@@ -103,6 +104,50 @@ TEST(SlamPartners, BoundedByTheConfigAndDeterministic) {
                     EXPECT_GE(gap, 30.0);
                     // The nearest passes: the k-th is 50 k s away (and the length of a block).
                     EXPECT_LE(gap, 50.0 * k + 10.0);
+                }
+            }
+        }
+    }
+}
+
+// The normal-fit neighbour tables (decision 032): each block-local index in as many bits as the
+// block's point count needs, a slot in whole words; every index and the end marker come back
+// as written, at the sizes where an index crosses a word or takes one more bit.
+TEST(SlamNeighbourTables, PackedSlotsGiveBackWhatWasWritten) {
+    std::mt19937_64 rng(11);
+    for (const std::size_t count : {std::size_t{1},
+                                    std::size_t{2},
+                                    std::size_t{3},
+                                    std::size_t{65535},
+                                    std::size_t{65536},
+                                    std::size_t{72000},
+                                    std::size_t{131071},
+                                    std::size_t{1} << 31}) {
+        Block b;
+        b.p0 = 1000;
+        b.p1 = 1000 + count;
+        for (const std::size_t k : {std::size_t{3},
+                                    std::size_t{10},
+                                    std::size_t{24},
+                                    std::size_t{kMaxNormalNeighbours}}) {
+            const NeighbourPacking pk(b, k);
+            ASSERT_EQ(pk.none, count);
+            ASSERT_LT(std::uint64_t{count} >> pk.bits, 1u) << count;  // the marker fits
+            ASSERT_GE(std::uint64_t{count}, std::uint64_t{1} << (pk.bits - 1)) << count;
+            ASSERT_EQ(pk.words, (k * static_cast<std::size_t>(pk.bits) + 63) / 64);
+            for (const std::size_t n : {std::size_t{0}, k / 2, k}) {
+                std::vector<std::size_t> idx(k);
+                std::uniform_int_distribution<std::size_t> u(0, count - 1);
+                for (std::size_t j = 0; j < n; ++j) idx[j] = j % 3 == 0 ? count - 1 : u(rng);
+                std::vector<std::uint64_t> words(2 * pk.words, 0);  // two slots side by side
+                pk.Pack(idx.data(), n, words.data() + pk.words);
+                pk.Pack(idx.data(), k, words.data());
+                std::uint32_t first[kMaxNormalNeighbours], second[kMaxNormalNeighbours];
+                pk.Unpack(words.data(), first);
+                pk.Unpack(words.data() + pk.words, second);
+                for (std::size_t j = 0; j < k; ++j) {
+                    EXPECT_EQ(first[j], idx[j]) << count << " " << k << " " << j;
+                    EXPECT_EQ(second[j], j < n ? idx[j] : count) << count << " " << k << " " << j;
                 }
             }
         }

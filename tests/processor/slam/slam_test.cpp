@@ -906,5 +906,61 @@ TEST(Slam, NoStartRunsWithoutInsDrift) {
         << r.posterior.start_runs_note;
 }
 
+// SLAM given its slices to keep (the rvalue RunSlam) moves their points into its own array and
+// holds them once: the same run bit for bit (one thread, so that no reduction's order differs),
+// with an outage's perturbed-start runs (which read the points again) and non-finite points;
+// the slices are left with their times and poses and no points; the array is sized once (its
+// capacity the finite points, not push_back's growth).
+TEST(Slam, SlicesGivenToKeepGiveTheSameRunBitForBit) {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    std::size_t finite = 0;
+    for (Slice& s : sv.slices) {
+        const double t = s.gps_time_s - 1000.0;
+        s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+        if (t >= 60.0 && t < 96.0) s.pose_sigma.tail<3>().setConstant(0.3);
+        if (s.points_vehicle.size() > 3) s.points_vehicle[3].x() = std::nanf("");
+        for (const auto& x : s.points_vehicle) finite += x.allFinite() ? 1 : 0;
+    }
+    SlamConfig cfg = TestConfig();
+    cfg.absolute_position_terms = true;
+    cfg.absolute_attitude_terms = true;
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 2;
+    cfg.num_threads = 1;
+    const SlamResult kept = RunSlam(sv.slices, cfg);
+    std::vector<Slice> given = sv.slices;
+    const SlamResult moved = RunSlam(std::move(given), cfg);
+    ASSERT_EQ(kept.termination, moved.termination);
+    ASSERT_EQ(kept.posterior.start_runs, 2u) << kept.posterior.start_runs_note;
+    ASSERT_EQ(moved.posterior.start_runs, 2u);
+    ASSERT_EQ(kept.trajectory.size(), moved.trajectory.size());
+    for (std::size_t i = 0; i < kept.trajectory.size(); ++i) {
+        EXPECT_EQ(kept.trajectory[i].input_index, moved.trajectory[i].input_index);
+        EXPECT_TRUE(kept.trajectory[i].T_world_vehicle.matrix() ==
+                    moved.trajectory[i].T_world_vehicle.matrix())
+            << i;
+        EXPECT_TRUE(kept.posterior.slice_sigma[i] == moved.posterior.slice_sigma[i]) << i;
+        EXPECT_TRUE(kept.posterior.start_spread[i] == moved.posterior.start_spread[i]) << i;
+    }
+    EXPECT_EQ(kept.iterations.size(), moved.iterations.size());
+    EXPECT_EQ(kept.final_pair_score_m, moved.final_pair_score_m);
+    ASSERT_EQ(given.size(), sv.slices.size());
+    for (std::size_t i = 0; i < given.size(); ++i) {
+        EXPECT_TRUE(given[i].points_vehicle.empty()) << i;
+        EXPECT_EQ(given[i].gps_time_s, sv.slices[i].gps_time_s);
+    }
+    EXPECT_EQ(kept.memory.points_bytes, finite * sizeof(Eigen::Vector3f));
+    EXPECT_EQ(moved.memory.points_bytes, finite * sizeof(Eigen::Vector3f));
+    EXPECT_EQ(moved.memory.world_points_bytes, finite * sizeof(Eigen::Vector3f));
+    EXPECT_GT(moved.memory.trees_bytes, 0u);
+    EXPECT_GT(moved.memory.neighbour_bytes, 0u);
+    EXPECT_GT(moved.memory.pairs_bytes, 0u);
+    EXPECT_EQ(moved.memory.total_bytes,
+              moved.memory.points_bytes + moved.memory.world_points_bytes +
+                  moved.memory.trees_bytes + moved.memory.neighbour_bytes +
+                  moved.memory.pairs_bytes);
+}
+
 }  // namespace
 }  // namespace pitmap::proc::slam
