@@ -54,16 +54,23 @@ Survey MakeLaps(const Eigen::Vector2d& offset, double gm_sigma_m, std::uint32_t 
     const Eigen::Vector3d lever(-0.5, 0.0, -1.2);
     std::mt19937 rng(seed);
     std::normal_distribution<double> g(0.0, 1.0);
+    // Two draws in a fixed order (north first), not as two arguments of one call, whose order
+    // of evaluation is unspecified: one realisation whatever the compiler.
+    const auto g2 = [&] {
+        const double north = g(rng);
+        const double east = g(rng);
+        return Eigen::Vector2d(east, north);
+    };
     const double duration = 700, dt = 0.05, tau = 60;
     const double phi = std::exp(-dt / tau), q = std::sqrt(1 - phi * phi);
-    Eigen::Vector2d gm(gm_sigma_m * g(rng), gm_sigma_m * g(rng));
+    Eigen::Vector2d gm = gm_sigma_m * g2();
     const std::int64_t t0 = 1'400'000'000'000'000;
     for (int k = 0; k * dt <= duration; ++k) {
         const double t = k * dt;
-        gm = phi * gm + gm_sigma_m * q * Eigen::Vector2d(g(rng), g(rng));
+        gm = phi * gm + gm_sigma_m * q * g2();
         const bool outage = t >= 300 && t < 400;
         const Lap lap = LapAt(t);
-        Eigen::Vector2d e = offset + gm + 0.005 * Eigen::Vector2d(g(rng), g(rng));
+        Eigen::Vector2d e = offset + gm + 0.005 * g2();
         if (outage) e += Eigen::Vector2d(1.5, -1.0);
         survey::NavSample s;
         s.utime_gps = t0 + std::llround(t * 1e6);
