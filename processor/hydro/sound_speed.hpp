@@ -19,15 +19,17 @@
 //      angle (the refraction-error relation below), which a least-squares fit over the overlaps
 //      measures, per depth class. That estimate bounds what the profile in use gets wrong, cast
 //      or no cast (without a cast it is the only knowledge of the column).
-//   3. no cast, and the overlap either too small to estimate (its estimated depth classes hold
-//      less than overlap_min_estimated_share of its soundings) or showing stratified water (the
-//      overlap then sees only part of the error: calibration and SLAM absorb some of the
-//      angle-dependent disagreement, and the depth error common to all angles is invisible
-//      to it): the a-priori bound of a fresh-water
-//      pit (NoCastPriorSigma): the column's speed lies between the surface speed and the speed
-//      of water at 4 degC (the density maximum, the coldest water a stratified lake holds at
-//      depth), uniformly: sigma = |c_surface - c(4 degC)| / sqrt(3) (the RMS of the error of
-//      using the surface speed over that range).
+//   3. no cast, and the overlap showing stratified water (the overlap then sees only part of
+//      the error: calibration and SLAM absorb some of the angle-dependent disagreement, and the
+//      depth error common to all angles is invisible to it): the a-priori bound of a
+//      fresh-water pit (NoCastPriorSigma): the column's speed lies between the surface speed
+//      and the speed of water at 4 degC (the density maximum, the coldest water a stratified
+//      lake holds at depth), uniformly: sigma = |c_surface - c(4 degC)| / sqrt(3) (the RMS of
+//      the error of using the surface speed over that range). No cast and an overlap too small
+//      to stand for the column (its estimated depth classes hold less than
+//      overlap_min_estimated_share of its soundings) keeps the error model's column term and
+//      flags the survey as not assessable for sound speed (the grid stage's gate): nothing
+//      measured says the water is stratified, so the bound is not taken on no evidence.
 //
 // The refraction-error relation (Snell's law, first order; the TPU's kSoundSpeed term): with
 // the speed at the face known (the ray parameter p = sin(phi0) / c0 fixed) and the column's
