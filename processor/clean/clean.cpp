@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "processor/clean/clean.hpp"
 
+#include "processor/clean/clean_blocks.hpp"
+
 #include <openvdb/math/DDA.h>
 #include <openvdb/math/Ray.h>
 #include <openvdb/openvdb.h>
@@ -18,6 +20,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <utility>
 
 namespace pitmap::proc::clean {
 
@@ -1536,13 +1539,15 @@ CleanResult Clean(const georef::GeorefResult& geo,
         take(geo.points);
         return Status{Ok{}};
     };
-    return CleanBlocks(view, config, progress);
+    auto r = CleanBlocks(view, config, progress);
+    PITMAP_CHECK(r, "clean: a held view's one block is always read");
+    return std::move(*r);
 }
 
-CleanResult CleanBlocks(const ViewBlocks& view,
-                        const CleanConfig& config,
-                        const ProgressCallback& progress,
-                        std::size_t fit_soundings) {
+Expected<CleanResult> CleanBlocks(const ViewBlocks& view,
+                                  const CleanConfig& config,
+                                  const ProgressCallback& progress,
+                                  std::size_t fit_soundings) {
     openvdb::initialize();
     CleanResult result;
     const std::size_t n = view.size;
@@ -1559,20 +1564,21 @@ CleanResult CleanBlocks(const ViewBlocks& view,
     const std::function<bool(double)> report = [&](double share) {
         return !progress || progress(share);
     };
-    const auto failed = [&result]() {
-        result.status.clear();
-        if (result.error.empty()) result.cancelled = true;
+    std::string error;
+    const auto failed = [&]() -> Expected<CleanResult> {
+        if (!error.empty()) return Error{error};
+        result.cancelled = true;
         return result;
     };
 
     // ---- 1.-4. voxels, rays, clusters: each sounding's 3D verdict ----
-    if (!VoxelVerdicts(view, config, report, fit_soundings, c, result.status, &result.error))
+    if (!VoxelVerdicts(view, config, report, fit_soundings, c, result.status, &error))
         return failed();
 
     // ---- 5.-8. the range profiles on the soundings' ranges ----
     {
         RangeView ranges;
-        if (!ReadRanges(view, config, ranges, &result.error)) return failed();
+        if (!ReadRanges(view, config, ranges, &error)) return failed();
         RangeVerdicts(ranges, config, c, result.status);
     }
     report(1.0);

@@ -61,27 +61,14 @@
 // kProfile; CleanCounts::terrain counts the rejections step 8 undid). Deterministic: the
 // verdicts do not depend on the thread count.
 // Failure model: none beyond memory (the grid holds one voxel per occupied `voxel_m` cube, a
-// few tens of bytes each) and, for a view read in blocks (CleanBlocks), a read that fails (the
-// result's `error`); an empty view gives empty results.
-//
-// By blocks (issue 38, docs/decisions/037): the view (38 bytes a sounding) need not be held.
-// Steps 1-4 read it in order a block at a time, as often as they need (the voxels; the plane
-// fits, `fit_soundings` soundings' positions at a time; the rays; the marches behind the
-// clusters), holding per sounding only its voxel, its ray's first crossing and its status; the
-// voxels are held whole (the evidence is the survey's space, every pass over a place). Steps
-// 5-8 hold the soundings' ranges on their (ping, beam) grid without their positions. The
-// verdicts are those of the whole view whatever the blocks: every array is indexed by the
-// sounding's place in the view, and every sum is over the same soundings in the same order.
+// few tens of bytes each); an empty view gives empty results.
 #pragma once
 
-#include <cstddef>
 #include <cstdint>
-#include <functional>
 #include <string>
 #include <vector>
 
 #include "common/progress.hpp"
-#include "common/result.hpp"
 #include "processor/georef/georef.hpp"
 
 namespace pitmap::proc::clean {
@@ -146,32 +133,10 @@ struct CleanResult {
     std::vector<std::uint8_t> status;  // survey::SoundingStatus per point of the view
     CleanCounts counts;
     bool cancelled = false;
-    std::string error;  // CleanBlocks: a block could not be read (the sweep's error); no status
 };
-
-// A view read in blocks: `sweep(take)` calls take(block) on consecutive blocks of the view's
-// points in their order (any sizes, the first sounding first) until all `size` are given, and
-// returns the reading's error, if any. `pings`: the view's pings (GeorefPoints::ping indexes
-// them).
-using TakeBlock = std::function<void(const georef::GeorefPoints&)>;
-struct ViewBlocks {
-    std::size_t size = 0;
-    const std::vector<georef::GeorefPing>* pings = nullptr;
-    std::function<Status(const TakeBlock&)> sweep;
-};
-
-// The soundings whose positions a plane-fit batch holds at a time (24 bytes each).
-inline constexpr std::size_t kFitSoundings = std::size_t{1} << 23;
 
 CleanResult Clean(const georef::GeorefResult& geo,
                   const CleanConfig& config,
                   const ProgressCallback& progress = {});
-
-// Clean on a view read in blocks (above): Clean's verdicts and counts, whatever the blocks.
-// The view is read 3 + ceil(fitted soundings / fit_soundings) times.
-CleanResult CleanBlocks(const ViewBlocks& view,
-                        const CleanConfig& config,
-                        const ProgressCallback& progress = {},
-                        std::size_t fit_soundings = kFitSoundings);
 
 }  // namespace pitmap::proc::clean

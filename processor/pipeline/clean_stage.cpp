@@ -15,6 +15,7 @@
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/clean/clean.hpp"
+#include "processor/clean/clean_blocks.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
@@ -165,12 +166,12 @@ clean::ViewBlocks CleanInput(const StageContext& s,
 // The cleaning's verdicts on the soundings of the pings whose INS horizontal 1-sigma is at most
 // max_sigma_m, the others left out of the view it judges (status 0 for them); `left_out` counts
 // their soundings. The view is read a block of `block` at a time.
-clean::CleanResult CleanTrustedPings(const StageContext& s,
-                                     const PipelineConfig& config,
-                                     double max_sigma_m,
-                                     std::size_t block,
-                                     const ProgressCallback& progress,
-                                     std::int64_t* left_out) {
+Expected<clean::CleanResult> CleanTrustedPings(const StageContext& s,
+                                               const PipelineConfig& config,
+                                               double max_sigma_m,
+                                               std::size_t block,
+                                               const ProgressCallback& progress,
+                                               std::int64_t* left_out) {
     const georef::GeorefResult& geo = s.geo;
     const std::size_t n = s.spilled_view ? s.spilled_view->size() : geo.points.size();
     // Where the INS reports no sigma, SLAM's assumption (slam_stage.fallback_position_m).
@@ -198,23 +199,23 @@ clean::CleanResult CleanTrustedPings(const StageContext& s,
     const auto count = [&](const georef::GeorefPoints& b, std::size_t) {
         for (const std::uint32_t k : b.ping) num_trusted += trusted[k];
     };
-    clean::CleanResult out;
-    if (auto st = ForEachBlock(s, block, count); !st) return out.error = st.error().message, out;
+    if (auto st = ForEachBlock(s, block, count); !st) return st.error();
     *left_out = static_cast<std::int64_t>(n - num_trusted);
-    clean::CleanResult part = clean::CleanBlocks(
+    auto part = clean::CleanBlocks(
         CleanInput(s, num_trusted, block, trusted), config.clean, progress, kFitBlocks * block);
-    out.counts = part.counts;
-    out.cancelled = part.cancelled;
-    out.error = part.error;
-    if (part.status.size() != num_trusted) return out;
+    if (!part) return part.error();
+    clean::CleanResult out;
+    out.counts = part->counts;
+    out.cancelled = part->cancelled;
+    if (part->status.size() != num_trusted) return out;
     out.status.assign(n, 0);
     std::size_t i = 0;
     const auto scatter = [&](const georef::GeorefPoints& b, std::size_t first) {
         for (std::size_t j = 0; j < b.size(); ++j) {
-            if (trusted[b.ping[j]]) out.status[first + j] = part.status[i++];
+            if (trusted[b.ping[j]]) out.status[first + j] = part->status[i++];
         }
     };
-    if (auto st = ForEachBlock(s, block, scatter); !st) out.error = st.error().message;
+    if (auto st = ForEachBlock(s, block, scatter); !st) return st.error();
     return out;
 }
 
@@ -330,7 +331,7 @@ Status CleanSurvey(StageContext& s,
     ProgressReporter bar(ToString(Stage::kClean), 1000);
     std::int64_t left_out = 0;
     const std::size_t n = s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
-    const clean::CleanResult r =
+    const Expected<clean::CleanResult> cleaned =
         std::isfinite(max_ins_sigma_h_m)
             ? CleanTrustedPings(s, config, max_ins_sigma_h_m, block, bar.AsCallback(), &left_out)
             : clean::CleanBlocks(
@@ -341,7 +342,8 @@ Status CleanSurvey(StageContext& s,
             " soundings of pings whose INS horizontal sigma exceeds " +
             std::to_string(max_ins_sigma_h_m) + " m left out of this pass (kept)");
     }
-    if (!r.error.empty()) return Error{"clean: " + r.error};
+    if (!cleaned) return Error{"clean: " + cleaned.error().message};
+    const clean::CleanResult& r = *cleaned;
     if (r.cancelled) return Error{"clean: cancelled"};
 
     std::vector<std::uint8_t> before = std::move(flags.cleaning);
@@ -410,8 +412,11 @@ Status CleanSurvey(StageContext& s,
                 clock);
     // The stage after it reads the view held, as it was given (a stage that reads blocks of it
     // finds it spilled).
+    // The candidates' earlier verdicts (GeorefPoints::status) are not the view's after it: the
+    // accepted soundings are (RejectPoints leaves held points without them).
     if (held_on_entry) {
         if (auto st = RestoreView(s); !st) return Error{"clean: " + st.error().message};
+        s.geo.points.status.clear();
     }
     return Ok{};
 }

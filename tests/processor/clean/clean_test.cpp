@@ -5,6 +5,8 @@
 // beams. The echoes must be rejected, the floor kept.
 #include "processor/clean/clean.hpp"
 
+#include "processor/clean/clean_blocks.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -672,9 +674,10 @@ TEST(Clean, BlocksOfAFewPingsGiveTheWholeViewsVerdicts) {
     for (const std::size_t block :
          {std::size_t{97}, std::size_t{3 * kBeams + 17}, std::size_t{40 * kBeams}}) {
         for (const std::size_t fit : {std::size_t{700}, std::size_t{1} << 23}) {
-            const auto r =
+            const auto blocks =
                 pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block), config, {}, fit);
-            EXPECT_TRUE(r.error.empty()) << r.error;
+            ASSERT_TRUE(blocks) << blocks.error().message;
+            const auto& r = *blocks;
             ASSERT_EQ(r.status.size(), whole.status.size());
             std::size_t differ = 0;
             for (std::size_t j = 0; j < r.status.size(); ++j)
@@ -691,14 +694,14 @@ TEST(Clean, ABlockThatCannotBeReadIsAnError) {
     // The reading fails half-way: its error, no verdicts.
     auto r = pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block, 5, "view_points: short file"),
                                               CleanConfig{});
-    EXPECT_EQ(r.error, "view_points: short file");
-    EXPECT_FALSE(r.cancelled);
-    EXPECT_TRUE(r.status.empty());
+    ASSERT_FALSE(r);
+    EXPECT_EQ(r.error().message, "view_points: short file");
     // Blocks that end early without an error: fewer soundings than the view's.
     r = pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block, 5), CleanConfig{});
-    EXPECT_NE(r.error.find("not " + std::to_string(s.geo.points.size())), std::string::npos)
-        << r.error;
-    EXPECT_TRUE(r.status.empty());
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("not " + std::to_string(s.geo.points.size())),
+              std::string::npos)
+        << r.error().message;
 }
 
 TEST(Clean, EmptyViewAndInvalidConfig) {
