@@ -38,8 +38,9 @@ struct ViewBlocks {
 inline constexpr std::size_t kFitSoundings = std::size_t{1} << 23;
 
 // Clean on a view read in blocks (above): Clean's verdicts and counts, whatever the blocks (Clean
-// is this on one block). The view is read 3 + (the plane-fit batches) times; an error when a
-// block could not be read or the blocks do not add up to `size` soundings.
+// is this on one block). The view is read 4 + (the plane-fit batches) times (3 + them without
+// clusters); an error when a block could not be read or the blocks do not add up to `size`
+// soundings.
 Expected<CleanResult> CleanBlocks(const ViewBlocks& view,
                                   const CleanConfig& config,
                                   const ProgressCallback& progress = {},
