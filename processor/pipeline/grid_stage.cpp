@@ -1128,52 +1128,75 @@ Status WriteSoundingProducts(StageContext& s,
     return Ok{};
 }
 
-// S-44's soundings: UTM positions with heights on the datum, the depth its limits take (below
-// the water-level datum, else below the transducer), the beam angle, the THU/TVU (moved: S-44
-// is their last user) and the pings' times and headings. The soundings' ping indices are
-// borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
-// hands them back.
-Expected<hydro::S44Soundings> S44SoundingsOf(StageContext& s,
-                                             const georef::UtmProjection& utm,
-                                             const std::vector<double>& datum_height_m,
-                                             bool water_level_datum,
-                                             hydro::TpuResult& tpu,
-                                             std::size_t block) {
-    hydro::S44Soundings out;
+// S-44's soundings of a block of the view (its first sounding the view's `first`): UTM
+// positions with heights on the datum, the depth its limits take (below the water-level datum,
+// else below the transducer), the beam angle, the THU/TVU and the ping indices.
+void S44BlockOf(const StageContext& s,
+                const georef::GeorefPoints& b,
+                std::size_t first,
+                const georef::UtmProjection& utm,
+                const std::vector<double>& datum_height_m,
+                bool water_level_datum,
+                const hydro::TpuResult& tpu,
+                hydro::S44Soundings& out) {
     const std::vector<georef::GeorefPing>& pings = s.geo.pings;
-    const std::size_t n = ViewSize(s);
+    const std::size_t n = b.size();
     out.x.resize(n);
     out.y.resize(n);
     out.z.resize(n);
     out.depth_m.resize(n);
     out.angle_deg.resize(n);
     out.ping.resize(n);
-    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
-        for (std::size_t i = 0; i < b.size(); ++i) {
-            const std::size_t j = first + i;
-            const Eigen::Vector3d enh = utm.At(b, pings, i);
-            const std::uint32_t ping = b.ping[i];
-            out.x[j] = enh.x();
-            out.y[j] = enh.y();
-            out.z[j] = enh.z() - datum_height_m[ping];
-            out.depth_m[j] =
-                water_level_datum
-                    ? static_cast<float>(-out.z[j])
-                    : static_cast<float>(pings[ping].sensor_world.z() - b.position_world[i].z());
-            out.angle_deg[j] = static_cast<float>(frames::RadToDeg(b.angle_rad[i]));
-            out.ping[j] = ping;
-        }
-        return Status{Ok{}};
-    });
-    if (!st) return Error{"grid: " + st.error().message};
-    out.thu_95_m = std::move(tpu.thu_95_m);
-    out.tvu_95_m = std::move(tpu.tvu_95_m);
-    for (const auto& p : s.geo.pings) {
-        out.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
-        const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
-        out.ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d enh = utm.At(b, pings, i);
+        const std::uint32_t ping = b.ping[i];
+        out.x[i] = enh.x();
+        out.y[i] = enh.y();
+        out.z[i] = enh.z() - datum_height_m[ping];
+        out.depth_m[i] =
+            water_level_datum
+                ? static_cast<float>(-out.z[i])
+                : static_cast<float>(pings[ping].sensor_world.z() - b.position_world[i].z());
+        out.angle_deg[i] = static_cast<float>(frames::RadToDeg(b.angle_rad[i]));
+        out.ping[i] = ping;
     }
-    return out;
+    const auto from = static_cast<std::ptrdiff_t>(first);
+    const auto to = static_cast<std::ptrdiff_t>(first + n);
+    out.thu_95_m.assign(tpu.thu_95_m.begin() + from, tpu.thu_95_m.begin() + to);
+    out.tvu_95_m.assign(tpu.tvu_95_m.begin() + from, tpu.tvu_95_m.begin() + to);
+}
+
+// hydro::RunS44 of the view's soundings, by blocks (hydro::S44ByBlocks: two passes over the
+// view, the same result bit for bit; decision 035): S-44's soundings are never whole.
+Expected<hydro::S44Result> S44OfView(const StageContext& s,
+                                     const hydro::S44Grid& nodes,
+                                     const GridStageConfig& gc,
+                                     const georef::UtmProjection& utm,
+                                     const std::vector<double>& datum_height_m,
+                                     const hydro::TpuResult& tpu,
+                                     std::size_t block) {
+    const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
+    std::vector<double> ping_t_s, ping_yaw_rad;
+    for (const auto& p : s.geo.pings) {
+        ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+        const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
+        ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+    }
+    hydro::S44ByBlocks s44(nodes, gc.s44_config, std::move(ping_t_s), std::move(ping_yaw_rad));
+    hydro::S44Soundings part;
+    for (const bool first_pass : {true, false}) {
+        auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+            S44BlockOf(s, b, first, utm, datum_height_m, water_level_datum, tpu, part);
+            if (first_pass) {
+                s44.AddFirst(part);
+            } else {
+                s44.AddSecond(part);
+            }
+            return Status{Ok{}};
+        });
+        if (!st) return Error{"grid: " + st.error().message};
+    }
+    return s44.Finish();
 }
 
 // S-44's nodes: the CUBE grid, the nodes' depth (below the datum for a water level, else below
@@ -1212,7 +1235,7 @@ hydro::S44Grid S44NodesOf(const StageContext& s,
 
 // The IHO S-44 assessment (hydro::RunS44) of the soundings and the DEM: s44_holidays.tif (added
 // to `files`), the crossline gate and the stage's "s44" record. The view is read a block at a
-// time (it stays on disk while spilled); the THU/TVU of `tpu` are lent to S-44 and handed back.
+// time, twice (it stays on disk while spilled; S44OfView).
 Expected<json> RunS44Survey(StageContext& s,
                             const PipelineConfig& config,
                             const io::GridRaster& dem,
@@ -1229,14 +1252,10 @@ Expected<json> RunS44Survey(StageContext& s,
     const GridStageConfig& gc = config.grid;
     const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
     const double median_tvu_95_m = tpu.median_tvu_95_m;
-    auto made = S44SoundingsOf(s, utm, datum.datum_height_m, water_level_datum, tpu, block);
-    if (!made) return made.error();
-    hydro::S44Soundings soundings = std::move(*made);
     const hydro::S44Grid nodes = S44NodesOf(s, gc, grid, datum.datum_height_m, water_level_datum);
-    const hydro::S44Result r44 = hydro::RunS44(soundings, nodes, gc.s44_config);
-    tpu.thu_95_m = std::move(soundings.thu_95_m);
-    tpu.tvu_95_m = std::move(soundings.tvu_95_m);
-    soundings = hydro::S44Soundings();
+    auto s44 = S44OfView(s, nodes, gc, utm, datum.datum_height_m, tpu, block);
+    if (!s44) return s44.error();
+    const hydro::S44Result& r44 = *s44;
     log("grid: S-44: " + r44.message);
     io::GridRaster holidays = HolidayRaster(dem, r44);
     if (!s.model.run_id.empty()) holidays.metadata.emplace_back("pitmap_run_id", s.model.run_id);
