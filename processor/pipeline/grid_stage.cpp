@@ -1502,6 +1502,15 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_record = std::move(*s44);
         part.Lap(timings, "s44");
     }
+    // The mosaic reads the view a block at a time too (decision 035); the view comes back for
+    // the point files.
+    json mosaic_record;
+    if (gc.mosaic) {
+        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log, in->block);
+        if (!mosaic) return mosaic.error();
+        mosaic_record = std::move(*mosaic);
+        part.Lap(timings, "mosaic");
+    }
     if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     json files = json::array();
     if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
@@ -1526,11 +1535,8 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     stage["sound_speed"] = sound_speed;
     if (gc.s44) stage["s44"] = std::move(s44_record);
     if (gc.mosaic) {
-        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log);
-        if (!mosaic) return mosaic.error();
-        if (mosaic->contains("file")) files.push_back((*mosaic)["file"]);
-        stage["mosaic"] = std::move(*mosaic);
-        part.Lap(timings, "mosaic");
+        if (mosaic_record.contains("file")) files.push_back(mosaic_record["file"]);
+        stage["mosaic"] = std::move(mosaic_record);
     }
     if (gc.terrain) {
         auto terrain = detail::TerrainSurvey(s, gc, dem, log);
