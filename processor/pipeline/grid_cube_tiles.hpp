@@ -80,4 +80,25 @@ Expected<std::vector<std::uint8_t>> SurfaceVerdicts(const CubeInputFile& input,
                                                     const GridStageConfig& gc,
                                                     std::size_t block);
 
+// Where the accepted soundings first .. first + count - 1 are for points_utm.ply: `points` and
+// the index `offset` of the first in them (the held view itself, or a block read from its
+// scratch file into a buffer the reader keeps).
+using AcceptedPointsReader = std::function<Status(std::size_t first,
+                                                  std::size_t count,
+                                                  const georef::GeorefPoints*& points,
+                                                  std::size_t& offset)>;
+
+// WriteProjectedPoints (projected_products.cpp) with the accepted soundings read a block at a
+// time (`num_accepted` of them, of `pings`): the same files byte for byte.
+Status WriteProjectedPointsOf(const std::string& dir,
+                              const std::vector<georef::GeorefPing>& pings,
+                              std::size_t num_accepted,
+                              const AcceptedPointsReader& read_accepted,
+                              const georef::UtmProjection& utm,
+                              const georef::GeorefResult* rejected,
+                              const hydro::DatumModel& datum,
+                              const ProductMetadata& meta,
+                              const std::string& run_id,
+                              std::size_t block_soundings);
+
 }  // namespace pitmap::proc::pipeline::detail

@@ -1066,19 +1066,63 @@ Status WriteDem(const std::string& dir,
     return Ok{};
 }
 
+// The view's accepted soundings for the point writers (io::PointBlocks), a block of `block` at
+// a time: each block lent to s.geo.points while a writer reads it (s.geo then is the survey
+// with the block's soundings), or the held view in one block.
+io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block) {
+    if (!s.spilled_view) return io::WholePoints(s.geo);
+    io::PointBlocks blocks;
+    blocks.count = ViewSize(s);
+    blocks.for_each =
+        [&s, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+            auto st =
+                ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+                    s.geo.points = b;
+                    Status w = fn(s.geo, first);
+                    s.geo.points = georef::GeorefPoints();
+                    return w;
+                });
+            return st;
+        };
+    return blocks;
+}
+
+// points_utm.ply's accepted soundings: the held view, or its blocks read from the scratch file.
+AcceptedPointsReader ViewPointsReader(const StageContext& s,
+                                      std::shared_ptr<georef::GeorefPoints> buffer) {
+    return [&s, buffer](std::size_t first,
+                        std::size_t count,
+                        const georef::GeorefPoints*& points,
+                        std::size_t& offset) -> Status {
+        if (!s.spilled_view) {
+            points = &s.geo.points;
+            offset = first;
+            return Ok{};
+        }
+        if (auto st = s.spilled_view->ReadBlock(first, count, *buffer); !st) return st;
+        points = buffer.get();
+        offset = 0;
+        return Ok{};
+    };
+}
+
 // The point files with each sounding's THU and TVU (and its datum height when the datum is not
 // the ellipsoid): soundings_tpu.ply, points.ply, points.las and points_utm.ply, as configured;
 // each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.
+// While the view is spilled, points.ply, points.las and points_utm.ply read it a block at a time
+// (decision 035); soundings_tpu.ply (off by default) takes it back whole first.
 Status WriteSoundingProducts(StageContext& s,
                              const PipelineConfig& config,
                              const georef::UtmProjection& utm,
                              const hydro::DatumModel& datum,
                              const ProductMetadata& meta,
                              hydro::TpuResult& tpu,
+                             std::size_t block,
                              json& files) {
     const GridStageConfig& gc = config.grid;
     const std::string& dir = s.out_dir;
     if (gc.write_sounding_tpu) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
         if (auto w = io::WriteSoundingTpuPly(
                 dir + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m, s.model.run_id);
             !w) {
@@ -1100,24 +1144,28 @@ Status WriteSoundingProducts(StageContext& s,
     if (config.write_rejected) rejected = RejectedView(s, config);
     const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
     s.summary["soundings"] = SoundingsJson(s.geo.counts);
-    if (auto w = io::WritePly(dir + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
+    const io::PointBlocks blocks = ViewPointBlocks(s, block);
+    if (auto w = io::WritePly(dir + "/points.ply", s.geo, blocks, &extras, s.model.run_id, rej); !w)
         return w;
     files.push_back("points.ply");
     if (config.write_las) {
-        if (auto w =
-                io::WriteLas(dir + "/points.las", s.geo, utm, &extras, s.model.run_id, rej, &meta);
+        if (auto w = io::WriteLas(
+                dir + "/points.las", s.geo, blocks, utm, &extras, s.model.run_id, rej, &meta);
             !w)
             return w;
         files.push_back("points.las");
         if (config.write_points_utm) {
-            if (auto w = WriteProjectedPoints(dir,
-                                              s.geo,
-                                              utm,
-                                              rej,
-                                              datum,
-                                              meta,
-                                              s.model.run_id,
-                                              BlockWithinBudget(config.run, ResidentMb()));
+            if (auto w = WriteProjectedPointsOf(
+                    dir,
+                    s.geo.pings,
+                    ViewSize(s),
+                    ViewPointsReader(s, std::make_shared<georef::GeorefPoints>()),
+                    utm,
+                    rej,
+                    datum,
+                    meta,
+                    s.model.run_id,
+                    BlockWithinBudget(config.run, ResidentMb()));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1502,8 +1550,8 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_record = std::move(*s44);
         part.Lap(timings, "s44");
     }
-    // The mosaic reads the view a block at a time too (decision 035); the view comes back for
-    // the point files.
+    // The mosaic and the point files read the view a block at a time too (decision 035); it
+    // comes back at the end of the stage.
     json mosaic_record;
     if (gc.mosaic) {
         auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log, in->block);
@@ -1511,7 +1559,6 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         mosaic_record = std::move(*mosaic);
         part.Lap(timings, "mosaic");
     }
-    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     json files = json::array();
     if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
     json tiles_record = json::object();
@@ -1526,12 +1573,15 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
                 return w;
         }
     }
-    if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, files); !w) return w;
+    if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, in->block, files); !w)
+        return w;
     part.Lap(timings, "write");
     for (const auto& f : s44_files) files.push_back(f);
 
     // The stage's record: the TPU's, S-44's, the mosaic's and the terrain's, then the surface's.
     json stage = TpuJson(*tpu_setup, pose, tpu);
+    std::vector<float>().swap(tpu.thu_95_m);  // their last reader was the point files
+    std::vector<float>().swap(tpu.tvu_95_m);
     stage["sound_speed"] = sound_speed;
     if (gc.s44) stage["s44"] = std::move(s44_record);
     if (gc.mosaic) {
@@ -1546,7 +1596,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         part.Lap(timings, "terrain");
     }
     stage.update(CubeJson(cube, gc));
-    stage["soundings"] = s.geo.points.size();
+    stage["soundings"] = ViewSize(s);
     stage["utm_epsg"] = utm->epsg;
     stage["vertical_crs"] = datum->crs_name;
     stage["surface_filter_rejected"] = surface_rejected;
@@ -1574,6 +1624,8 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         log("grid: no capacity curve: " + cap.error().message);
         s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
     }
+    // The view back for the stages after this one (the TSDF's scans, the export).
+    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
     RecordStage(s.summary, Stage::kGrid, stage, clock);
