@@ -1066,6 +1066,45 @@ Status WriteDem(const std::string& dir,
     return Ok{};
 }
 
+// The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
+// every 0.25 m (compare's --capacity-step default): summary.json's "capacity" and the stage's
+// capacity.csv, or why there is none.
+void RecordCapacity(StageContext& s, json& stage, const Log& log) {
+    if (auto cap = SurveyCapacity(s.out_dir, s.summary, 0.25); cap) {
+        char buf[200];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "grid: capacity: %.0f m3 of water at the water level %.3f m over %.0f m2 "
+                      "surveyed (capacity.csv)",
+                      (*cap)["volume_at_water_level_m3"].get<double>(),
+                      (*cap)["water_level_m"].get<double>(),
+                      (*cap)["surveyed_area_m2"].get<double>());
+        log(buf);
+        stage["files"].push_back("capacity.csv");
+        s.summary["capacity"] = std::move(*cap);
+    } else {
+        log("grid: no capacity curve: " + cap.error().message);
+        s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
+    }
+}
+
+// dem.tif and dem.bag (WriteDem) and, with tiles.enabled, the tiles' record and (with
+// tiles.write_products) the DEM's tiles.
+Status WriteDemProducts(const std::string& dir,
+                        const PipelineConfig& config,
+                        const io::GridRaster& dem,
+                        const hydro::CubeGrid& grid,
+                        json& files,
+                        json& tiles_record) {
+    if (auto w = WriteDem(dir, config.grid, dem, files); !w) return w;
+    if (!config.tiles.enabled) return Ok{};
+    tiles_record = {{"tile_size_m", config.tiles.tile_size_m},
+                    {"overlap_m", config.tiles.overlap_m},
+                    {"nodes_per_tile", NodesPerTile(config.tiles, grid.resolution_m)}};
+    if (!config.tiles.write_products) return Ok{};
+    return WriteDemTiles(dir, config.tiles, dem, grid, files, tiles_record);
+}
+
 // The view's accepted soundings for the point writers (io::PointBlocks), a block of `block` at
 // a time: each block lent to s.geo.points while a writer reads it (s.geo then is the survey
 // with the block's soundings), or the held view in one block.
@@ -1560,19 +1599,9 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         part.Lap(timings, "mosaic");
     }
     json files = json::array();
-    if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
     json tiles_record = json::object();
-    if (config.tiles.enabled) {
-        tiles_record = {{"tile_size_m", config.tiles.tile_size_m},
-                        {"overlap_m", config.tiles.overlap_m},
-                        {"nodes_per_tile", NodesPerTile(config.tiles, cube.grid.resolution_m)}};
-        if (config.tiles.write_products) {
-            if (auto w =
-                    WriteDemTiles(s.out_dir, config.tiles, dem, cube.grid, files, tiles_record);
-                !w)
-                return w;
-        }
-    }
+    if (auto w = WriteDemProducts(s.out_dir, config, dem, cube.grid, files, tiles_record); !w)
+        return w;
     if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, in->block, files); !w)
         return w;
     part.Lap(timings, "write");
@@ -1606,24 +1635,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     stage["timings_wall_cpu_s"] = timings;
     stage["peak_rss_mb_by_part"] = part.peak_rss_mb;
     s.summary["vertical_datum"] = datum_record;
-    // The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
-    // every 0.25 m (compare's --capacity-step default).
-    if (auto cap = SurveyCapacity(s.out_dir, s.summary, 0.25); cap) {
-        char buf[200];
-        std::snprintf(buf,
-                      sizeof buf,
-                      "grid: capacity: %.0f m3 of water at the water level %.3f m over %.0f m2 "
-                      "surveyed (capacity.csv)",
-                      (*cap)["volume_at_water_level_m3"].get<double>(),
-                      (*cap)["water_level_m"].get<double>(),
-                      (*cap)["surveyed_area_m2"].get<double>());
-        log(buf);
-        stage["files"].push_back("capacity.csv");
-        s.summary["capacity"] = std::move(*cap);
-    } else {
-        log("grid: no capacity curve: " + cap.error().message);
-        s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
-    }
+    RecordCapacity(s, stage, log);
     // The view back for the stages after this one (the TSDF's scans, the export).
     if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
