@@ -424,7 +424,6 @@ SECTIONS = {
     ("memory_blocks", "grid_parts"): render_memory_grid_parts,
     ("memory_gridtiles", "context"): render_context,
     ("memory_gridtiles", "stages"): render_memory_stages,
-    ("memory_gridtiles", "per_sounding"): render_memory_per_sounding,
     ("memory_gridtiles", "grid_parts"): render_memory_grid_parts,
     ("memory_slam", "context"): render_context,
     ("memory_slam", "stages"): render_memory_stages,
