@@ -358,45 +358,81 @@ struct NeighbourFans {
     //  - past a run of up to bridge_pings pings without it, the first ping that has it, within
     //    the run's length times fill_m, when its footprint agrees with this one (Agrees);
     //  - otherwise the next ping's fan within fill_m, as without per_beam.
+    // The beam is widened to half the gap on both sides of its plane, so a run's bridge is taken
+    // only where the other side holds the same surface that far (Supports): a step under a run
+    // on the other side is not bridged from this one.
     double GapAt(const FootprintHere& here,
                  std::size_t i,
                  double fill_m,
                  bool per_beam,
                  int bridge_pings) const {
         double gap_m = 0.0;
-        for (const auto& side : fans) {
+        Bridge bridge[2];
+        for (int s = 0; s < 2; ++s) {
+            const auto& side = fans[s];
             if (!side[0].valid) continue;
-            const double bridged = per_beam && !HasFootprint(side[0], i)
-                                       ? BridgedGap(side, here, i, fill_m, bridge_pings)
-                                       : 0.0;
+            if (per_beam && !HasFootprint(side[0], i)) {
+                bridge[s] = BridgedGap(side, here, i, fill_m, bridge_pings);
+            }
             const double next_m = Distance(side[0], here.x_world);
-            if (bridged > 0.0) {
-                gap_m = std::max(gap_m, bridged);
+            if (bridge[s].rule == 1) {
+                gap_m = std::max(gap_m, bridge[s].gap_m);
             } else if (next_m <= fill_m) {
                 gap_m = std::max(gap_m, next_m);
+            }
+        }
+        for (int s = 0; s < 2; ++s) {
+            if (bridge[s].rule == 2 && bridge[s].gap_m > gap_m &&
+                Supports(fans[1 - s], here, i, 0.5 * bridge[s].gap_m, bridge[1 - s])) {
+                gap_m = bridge[s].gap_m;
             }
         }
         return gap_m;
     }
 
+    // A side's bridge: the gap to the fan it reaches, and by which rule (0 = none, 1 = one ping
+    // missing the beam within fill_m, 2 = a run whose far footprint agrees).
+    struct Bridge {
+        double gap_m = 0.0;
+        int rule = 0;
+    };
+
     // One side's gap past the pings without a footprint at beam i: to the first ping that has
     // one (side[k], k >= 1; the pings between are consecutive scans of the input), within fill_m
     // for k = 1, or k times fill_m when k <= bridge_pings and its footprint agrees with this
-    // one's. 0 = none.
-    static double BridgedGap(const Plane (&side)[kDepth],
+    // one's.
+    static Bridge BridgedGap(const Plane (&side)[kDepth],
                              const FootprintHere& here,
                              std::size_t i,
                              double fill_m,
                              int bridge_pings) {
         for (int k = 1; k < kDepth; ++k) {
-            if (!side[k].valid) return 0.0;
+            if (!side[k].valid) return {};
             if (!HasFootprint(side[k], i)) continue;
             const double s_m = Distance(side[k], here.x_world);
-            if (k == 1 && s_m <= fill_m) return s_m;
-            if (k > bridge_pings || !(s_m <= k * fill_m)) return 0.0;
-            return Agrees(side[k], here, i) ? s_m : 0.0;
+            if (k == 1 && s_m <= fill_m) return {s_m, 1};
+            if (k > bridge_pings || !(s_m <= k * fill_m)) return {};
+            return Agrees(side[k], here, i) ? Bridge{s_m, 2} : Bridge{};
         }
-        return 0.0;
+        return {};
+    }
+
+    // The other side holds the surface of `here` out to reach_m: it is bridged that far itself,
+    // or its pings within reach_m all have a footprint at beam i that agrees with this one.
+    static bool Supports(const Plane (&side)[kDepth],
+                         const FootprintHere& here,
+                         std::size_t i,
+                         double reach_m,
+                         const Bridge& its_bridge) {
+        constexpr double kEps = 1e-6;  // m: a reach equal to the other side's gap is held
+        if (its_bridge.rule >= 1 && its_bridge.gap_m >= reach_m - kEps) return true;
+        for (int k = 0; k < kDepth; ++k) {
+            if (!side[k].valid || !HasFootprint(side[k], i) || !Agrees(side[k], here, i)) {
+                return false;
+            }
+            if (Distance(side[k], here.x_world) >= reach_m - kEps) return true;
+        }
+        return false;
     }
 
     // The footprint of beam i in the ping `far` lies where the widened beam `here` writes the
