@@ -326,6 +326,9 @@ void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v("ping_gap_fill_per_beam",
       c.ping_gap_fill_per_beam,
       "beam-width: a beam missing in the next ping is bridged to the one after it");
+    v("ping_gap_bridge_pings",
+      c.ping_gap_bridge_pings,
+      "... and across up to this many pings where both sides' footprints agree (0 = off)");
     v("footprint_neighbour_pings",
       c.footprint_neighbour_pings,
       "beam-width: along-track footprint slope from this many pings each side (0 = off)");

@@ -140,7 +140,9 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
 // across the fan (docs/decisions/025-smile-and-ghost-pieces.md). The bounds at typical,
 // but the mesh completeness: -0.53 point of the run without artifacts (-0.71 before the TSDF
 // bridged a beam missing in one ping and the floor seen between a school's pings stopped being
-// multipath, docs/decisions/026-completeness-beams-the-artifacts-took.md), held at 0.6 point.
+// multipath, docs/decisions/026-completeness-beams-the-artifacts-took.md; -0.46 since it bridges
+// runs of up to 8 pings where both sides agree, 039-bridging-runs-of-missing-beams.md), held at
+// 0.6 point.
 // The same survey without artifacts, less only the beams the artifacts took (rejected by hand,
 // nothing else cleaned), is -0.53 point too: that much of the surface no sounding of this
 // survey sees, and no cleaning can give it back.
