@@ -212,6 +212,10 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("gicp_tangent_sigma_m", c.gicp_tangent_sigma_m, "GICP: 1-sigma along the surface, m");
     v("robust_width", c.robust_width, "robust kernel width, point sigmas");
     v("query_stride", c.query_stride, "every n-th point of a slice is a query point");
+    v("pass_cell_m",
+      c.pass_cell_m,
+      "per pass (section) and cube of this, m, only pass_cell_points enter SLAM; 0 = all");
+    v("pass_cell_points", c.pass_cell_points, "points a pass keeps per cube of pass_cell_m");
     v("ins_correlation_time_s", c.ins_correlation_time_s, "INS error correlation time, s");
     v("ins_sigma_scale", c.ins_sigma_scale, "scales the INS relative-motion sigmas");
     v("ins_sigma_recovery_time_s",
