@@ -29,8 +29,10 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <iterator>
 #include <limits>
 #include <map>
+#include <string>
 
 #include "common/result.hpp"
 #include "processor/fusion/detail/prepared_scan.hpp"
@@ -786,6 +788,17 @@ std::vector<std::pair<std::size_t, std::size_t>> ScanRuns(const std::vector<Sona
     return runs;
 }
 
+// The message of an integration with no beam to integrate.
+constexpr const char* kNoValidBeams = "no valid beams";
+
+// An integration's message from its counts.
+std::string IntegrateMessage(const IntegrateResult& r) {
+    return std::string(r.cancelled ? "cancelled: " : "") + std::to_string(r.beams_used) +
+           " beams (" + std::to_string(r.beams_inconsistent) + " outvoted by footprints), " +
+           std::to_string(r.voxel_updates) + " voxel updates, " + std::to_string(r.active_voxels) +
+           " active voxels";
+}
+
 double SecondsSince(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -928,8 +941,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     tbb::task_arena arena(threads);
     const float trunc = static_cast<float>(config_.truncation_m);
     const OldLeaves old{LeavesBySlab(impl_->distance->tree()), LeavesBySlab(impl_->weight->tree())};
-    const auto reach = static_cast<std::size_t>(
-        std::max(config_.ping_gap_fill_m > 0.0 ? 2 : 1, config_.footprint_neighbour_pings));
+    const std::size_t reach = NeighbourScans(config_);
 
     // Chunk by chunk: prepare the chunk's scans in parallel, then integrate it slab by slab.
     // Only one chunk's prepared beams are held at a time; the slab grids persist across chunks.
@@ -978,7 +990,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
         result.elapsed_s = SecondsSince(t_start);
         result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
-        result.message = "no valid beams";
+        result.message = kNoValidBeams;
         return result;
     }
 
@@ -990,12 +1002,75 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     result.cancelled = cancel.load();
     result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
     result.elapsed_s = SecondsSince(t_start);
-    result.message = std::string(result.cancelled ? "cancelled: " : "") +
-                     std::to_string(result.beams_used) + " beams (" +
-                     std::to_string(result.beams_inconsistent) + " outvoted by footprints), " +
-                     std::to_string(result.voxel_updates) + " voxel updates, " +
-                     std::to_string(result.active_voxels) + " active voxels";
+    result.message = IntegrateMessage(result);
     return result;
+}
+
+std::size_t NeighbourScans(const TsdfConfig& config) {
+    return static_cast<std::size_t>(
+        std::max(config.ping_gap_fill_m > 0.0 ? 2 : 1, config.footprint_neighbour_pings));
+}
+
+ScanStreamIntegrator::ScanStreamIntegrator(TsdfVolume& volume,
+                                           std::size_t batch_scans,
+                                           std::size_t total_scans,
+                                           ProgressCallback progress)
+    : volume_(volume),
+      batch_(std::max<std::size_t>(1, batch_scans)),
+      total_(total_scans),
+      reach_(NeighbourScans(volume.config())),
+      progress_(std::move(progress)) {}
+
+void ScanStreamIntegrator::Add(std::vector<SonarScan>&& scans) {
+    if (sum_.cancelled) return;
+    held_.insert(
+        held_.end(), std::make_move_iterator(scans.begin()), std::make_move_iterator(scans.end()));
+    scans.clear();
+    max_held_ = std::max(max_held_, held_.size());
+    // A batch is integrated once its last scan's neighbours after it are held.
+    while (!sum_.cancelled && first_ + held_.size() >= done_ + batch_ + reach_) {
+        IntegrateTo(done_ + batch_);
+    }
+}
+
+IntegrateResult ScanStreamIntegrator::Finish() {
+    if (!sum_.cancelled && done_ < first_ + held_.size()) IntegrateTo(first_ + held_.size());
+    held_ = {};
+    sum_.active_voxels = volume_.Stats().active_voxels;
+    sum_.message = integrated_ ? IntegrateMessage(sum_) : std::string(kNoValidBeams);
+    return sum_;
+}
+
+void ScanStreamIntegrator::IntegrateTo(std::size_t end) {
+    const std::size_t begin = done_;
+    const ProgressCallback part = [&](double f) {
+        if (!progress_ || total_ == 0) return true;
+        const double scans = static_cast<double>(begin) + f * static_cast<double>(end - begin);
+        return progress_(std::min(1.0, scans / static_cast<double>(total_)));
+    };
+    const IntegrateResult r = volume_.Integrate(held_, begin - first_, end - first_, part);
+    ++calls_;
+    sum_.scans += r.scans;
+    sum_.scans_out_of_bounds += r.scans_out_of_bounds;
+    sum_.beams_used += r.beams_used;
+    sum_.beams_no_detection += r.beams_no_detection;
+    sum_.beams_out_of_range += r.beams_out_of_range;
+    sum_.beams_inconsistent += r.beams_inconsistent;
+    sum_.voxel_updates += r.voxel_updates;
+    sum_.elapsed_s += r.elapsed_s;
+    sum_.prepare_s += r.prepare_s;
+    sum_.rasterise_s += r.rasterise_s;
+    sum_.merge_s += r.merge_s;
+    sum_.cpu_s += r.cpu_s;
+    sum_.cancelled = sum_.cancelled || r.cancelled;
+    integrated_ = integrated_ || r.message != kNoValidBeams;
+    done_ = end;
+    // Keep the scans a later batch reads as neighbours (reach_ before done_) and those after.
+    const std::size_t keep_from = done_ - std::min(done_, reach_);
+    if (keep_from > first_) {
+        held_.erase(held_.begin(), held_.begin() + static_cast<std::ptrdiff_t>(keep_from - first_));
+        first_ = keep_from;
+    }
 }
 
 }  // namespace pitmap::proc::fusion
