@@ -37,6 +37,7 @@
 #include "common/result.hpp"
 #include "processor/fusion/detail/prepared_scan.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
+#include "processor/fusion/scan_stream.hpp"
 
 namespace pitmap::proc::fusion {
 

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -24,6 +24,7 @@
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/ins_slow_error.hpp"
+#include "processor/fusion/scan_stream.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
@@ -35,6 +36,7 @@
 #include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/report_program.hpp"
 #include "processor/pipeline/result_json.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {

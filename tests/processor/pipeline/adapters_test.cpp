@@ -11,6 +11,7 @@
 
 #include "common/frames.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 
 namespace pitmap::proc::pipeline {
 namespace {
