@@ -12,12 +12,12 @@
 
 namespace pitmap::proc::fusion {
 
-// The scans on each side of a scan that its integration reads (beam-width mode): the pings
-// whose fans it bridges the gap to (two each side with ping_gap_fill_m: the next one may lack
-// the beam, decision 026) and those its along-track slope is fitted to
-// (footprint_neighbour_pings), at least one. TsdfVolume::Integrate(scans, begin, end) is the
-// whole survey's integration of [begin, end) when `scans` holds this many of the survey's scans
-// on each side of it (fewer only at the survey's ends).
+// The scans on each side of a scan that its integration reads (beam-width mode):
+// NeighbourPings(config) (the gap to the neighbouring fans, the runs of missing beams bridged
+// across ping_gap_bridge_pings, the along-track slope; decisions 026, 039), at least one.
+// TsdfVolume::Integrate(scans, begin, end) is the whole survey's integration of [begin, end)
+// when `scans` holds this many of the survey's scans on each side of it (fewer only at the
+// survey's ends).
 std::size_t NeighbourScans(const TsdfConfig& config);
 
 // A survey's scans integrated as they are made, a batch at a time, without holding them all:

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <type_traits>
@@ -118,17 +119,36 @@ std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
     return at < pings.intensities.size() ? pings.intensities[at] : 0;
 }
 
+PointBlocks WholePoints(const georef::GeorefResult& r) {
+    PointBlocks blocks;
+    blocks.count = r.points.size();
+    blocks.for_each =
+        [&r](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+            return fn(r, 0);
+        };
+    return blocks;
+}
+
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& r,
                 const PointExtras* extras,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected) {
+    return WritePly(path, r, WholePoints(r), extras, run_id, rejected);
+}
+
+Status WritePly(const std::string& path,
+                const georef::GeorefResult& r,
+                const PointBlocks& blocks,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected) {
     namespace ply = formats::ply;
-    const georef::GeorefPoints& P = r.points;
+    const std::size_t num_accepted = blocks.count;
     const georef::GeorefResult* rej = UsableRejected(rejected);
     const std::size_t n_rejected = rej != nullptr ? rej->points.size() : 0;
-    const bool tpu = extras != nullptr && extras->thu_95_m.size() == P.size() &&
-                     extras->tvu_95_m.size() == P.size();
+    const bool tpu = extras != nullptr && extras->thu_95_m.size() == num_accepted &&
+                     extras->tvu_95_m.size() == num_accepted;
     const bool datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
                        (rej == nullptr || rej->pings.size() == r.pings.size());
     ply::Header h;
@@ -164,14 +184,15 @@ Status WritePly(const std::string& path,
     }
     props.push_back({"status", ply::Type::kUInt8});
     h.comments.push_back(StatusComment());
-    h.comments.push_back("soundings: " + std::to_string(P.size()) + " accepted, then " +
+    h.comments.push_back("soundings: " + std::to_string(num_accepted) + " accepted, then " +
                          std::to_string(n_rejected) + " rejected");
-    h.elements.push_back({"vertex", P.size() + n_rejected, props});
+    h.elements.push_back({"vertex", num_accepted + n_rejected, props});
     std::optional<LocalTangentFrame> world;
     if (datum) world.emplace(r.world_origin);
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
     ply::Writer w(path, h);
-    const auto write = [&](const georef::GeorefResult& g, bool accepted) {
+    // Sounding j of g (the accepted ones' first + j when accepted).
+    const auto write = [&](const georef::GeorefResult& g, bool accepted, std::size_t first) {
         const georef::GeorefPoints& Q = g.points;
         for (std::size_t j = 0; j < Q.size(); ++j) {
             ByteWriter& o = w.Record();
@@ -185,8 +206,8 @@ Status WritePly(const std::string& path,
             o.U16Le(Q.beam[j]);
             if (intensities != nullptr) o.U16Le(SoundingIntensity(g, j, *intensities));
             if (tpu) {
-                o.F32Le(accepted ? extras->thu_95_m[j] : kNaN);
-                o.F32Le(accepted ? extras->tvu_95_m[j] : kNaN);
+                o.F32Le(accepted ? extras->thu_95_m[first + j] : kNaN);
+                o.F32Le(accepted ? extras->tvu_95_m[first + j] : kNaN);
             }
             if (datum) {
                 const double height = world->FromEnu(p).height_m;
@@ -195,8 +216,19 @@ Status WritePly(const std::string& path,
             o.U8(accepted ? 0 : Q.status[j]);
         }
     };
-    write(r, true);
-    if (rej != nullptr) write(*rej, false);
+    std::size_t written = 0;
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        if (first != written || first + g.points.size() > num_accepted)
+            return Status{Error{path + ": the soundings' blocks are out of order"}};
+        write(g, true, first);
+        written += g.points.size();
+        return Status{Ok{}};
+    });
+    if (!st) return st;
+    if (written != num_accepted)
+        return Error{path + ": " + std::to_string(written) + " of " + std::to_string(num_accepted) +
+                     " soundings given"};
+    if (rej != nullptr) write(*rej, false, 0);
     return w.Close();
 }
 
@@ -492,6 +524,38 @@ void WriteLasVlrs(ByteWriter& w, const LasLayout& layout) {
     }
 }
 
+// One point record, format 6 (and the TPU's extra bytes): bathymetry for an accepted
+// sounding, withheld with its noise class `noise` for a rejected one (THU/TVU NaN).
+struct LasRecord {
+    Eigen::Vector3d enh;
+    std::uint16_t intensity = 0;
+    bool accepted = true;
+    std::uint8_t noise = 0;
+    double angle_rad = 0;
+    double gps_time_s = 0;
+    float thu_95_m = 0, tvu_95_m = 0;
+};
+
+void WriteLasRecord(ByteWriter& rec, const LasRecord& p, const LasExtent& extent, bool tpu) {
+    for (int axis = 0; axis < 3; ++axis) {
+        rec.I32Le(static_cast<std::int32_t>(
+            std::llround((p.enh[axis] - extent.offset[axis]) / extent.scale)));
+    }
+    rec.U16Le(p.intensity);
+    rec.U8(1 | (1 << 4));                                // return 1 of 1
+    rec.U8(p.accepted ? 0 : kLasFlagWithheld);           // flags, channel, scan direction, edge
+    rec.U8(p.accepted ? kLasClassBathymetry : p.noise);  // classification
+    rec.U8(0);                                           // user data
+    const double angle_deg = frames::RadToDeg(p.angle_rad);
+    rec.I16Le(static_cast<std::int16_t>(std::lround(std::clamp(angle_deg, -180.0, 180.0) / 0.006)));
+    rec.U16Le(0);  // point source id
+    rec.F64Le(p.gps_time_s - 1e9);
+    if (tpu) {
+        rec.F32Le(p.thu_95_m);
+        rec.F32Le(p.tvu_95_m);
+    }
+}
+
 // The point records, format 6 (and the TPU's extra bytes): bathymetry for the accepted
 // soundings, withheld with their noise class for the rejected ones (THU/TVU NaN).
 void WriteLasPoints(formats::ByteFileWriter& file, const LasSoundings& s, const LasExtent& extent) {
@@ -504,26 +568,18 @@ void WriteLasPoints(formats::ByteFileWriter& file, const LasSoundings& s, const 
         const auto [geo, i] = s.Source(j);
         const bool accepted = geo == s.accepted;
         const georef::GeorefPoints& points = geo->points;
-        const Eigen::Vector3d enh = s.Position(j);
-        ByteWriter& rec = file.out();
-        for (int axis = 0; axis < 3; ++axis) {
-            rec.I32Le(static_cast<std::int32_t>(
-                std::llround((enh[axis] - extent.offset[axis]) / extent.scale)));
-        }
-        rec.U16Le(intensities != nullptr ? SoundingIntensity(*geo, i, *intensities) : 0);
-        rec.U8(1 | (1 << 4));                               // return 1 of 1
-        rec.U8(accepted ? 0 : kLasFlagWithheld);            // flags, channel, scan direction, edge
-        rec.U8(accepted ? kLasClassBathymetry : noise[i]);  // classification
-        rec.U8(0);                                          // user data
-        const double angle_deg = frames::RadToDeg(points.angle_rad[i]);
-        rec.I16Le(
-            static_cast<std::int16_t>(std::lround(std::clamp(angle_deg, -180.0, 180.0) / 0.006)));
-        rec.U16Le(0);  // point source id
-        rec.F64Le(static_cast<double>(geo->pings[points.ping[i]].utime_gps) * 1e-6 - 1e9);
+        LasRecord p;
+        p.enh = s.Position(j);
+        p.intensity = intensities != nullptr ? SoundingIntensity(*geo, i, *intensities) : 0;
+        p.accepted = accepted;
+        p.noise = accepted ? 0 : noise[i];
+        p.angle_rad = points.angle_rad[i];
+        p.gps_time_s = static_cast<double>(geo->pings[points.ping[i]].utime_gps) * 1e-6;
         if (s.tpu) {
-            rec.F32Le(accepted ? s.extras->thu_95_m[i] : kNaN);
-            rec.F32Le(accepted ? s.extras->tvu_95_m[i] : kNaN);
+            p.thu_95_m = accepted ? s.extras->thu_95_m[i] : kNaN;
+            p.tvu_95_m = accepted ? s.extras->tvu_95_m[i] : kNaN;
         }
+        WriteLasRecord(file.out(), p, extent, s.tpu);
     }
 }
 
@@ -568,14 +624,134 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected,
                 const ProductMetadata* meta) {
+    return WriteLas(path, r, WholePoints(r), utm, extras, run_id, rejected, meta);
+}
+
+namespace {
+
+// The extent of the points grown by p (LasExtentOf's arithmetic, in its order).
+void GrowExtent(LasExtent& extent, const Eigen::Vector3d& p) {
+    extent.lo = extent.lo.cwiseMin(p);
+    extent.hi = extent.hi.cwiseMax(p);
+}
+
+// Accepted sounding i of a block in UTM, on the datum when the extras give it.
+Eigen::Vector3d AcceptedPosition(const LasSoundings& s,
+                                 const georef::UtmProjection& utm,
+                                 const georef::GeorefResult& block,
+                                 std::size_t i) {
+    Eigen::Vector3d enh = utm.At(block, i);
+    if (s.datum) enh.z() -= s.extras->datum_height_m[block.points.ping[i]];
+    return enh;
+}
+
+// The first pass over the blocks: the points' extent and the accepted heights the rejected
+// soundings' noise classes take.
+Expected<LasExtent> LasExtentOfBlocks(const std::string& path,
+                                      const LasSoundings& s,
+                                      const PointBlocks& blocks,
+                                      const georef::UtmProjection& utm,
+                                      NoiseHeights& heights) {
+    LasExtent extent;
+    extent.lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+    extent.hi = -extent.lo;
+    std::size_t given = 0;
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        if (first != given || first + g.points.size() > s.num_accepted)
+            return Status{Error{path + ": the soundings' blocks are out of order"}};
+        for (std::size_t i = 0; i < g.points.size(); ++i)
+            GrowExtent(extent, AcceptedPosition(s, utm, g, i));
+        if (s.rejected != nullptr) heights.Add(g.points);
+        given += g.points.size();
+        return Status{Ok{}};
+    });
+    if (!st) return st.error();
+    if (given != s.num_accepted)
+        return Error{path + ": " + std::to_string(given) + " of " + std::to_string(s.num_accepted) +
+                     " soundings given"};
+    for (std::size_t j = s.num_accepted; j < s.size; ++j) GrowExtent(extent, s.Position(j));
+    if (s.size == 0) extent.lo = extent.hi = Eigen::Vector3d::Zero();
+    extent.offset = Eigen::Vector3d(
+        std::floor(extent.lo.x()), std::floor(extent.lo.y()), std::floor(extent.lo.z()));
+    return extent;
+}
+
+// The second pass: the accepted soundings' records a block at a time, then the rejected ones'.
+Status WriteLasBlocks(formats::ByteFileWriter& file,
+                      const LasSoundings& s,
+                      const PointBlocks& blocks,
+                      const georef::UtmProjection& utm,
+                      const LasExtent& extent,
+                      const std::vector<std::uint8_t>& noise) {
+    const auto* intensities = IntensityPings(s.extras);
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        for (std::size_t i = 0; i < g.points.size(); ++i) {
+            LasRecord p;
+            p.enh = AcceptedPosition(s, utm, g, i);
+            p.intensity = intensities != nullptr ? SoundingIntensity(g, i, *intensities) : 0;
+            p.angle_rad = g.points.angle_rad[i];
+            p.gps_time_s = static_cast<double>(g.pings[g.points.ping[i]].utime_gps) * 1e-6;
+            if (s.tpu) {
+                p.thu_95_m = s.extras->thu_95_m[first + i];
+                p.tvu_95_m = s.extras->tvu_95_m[first + i];
+            }
+            WriteLasRecord(file.out(), p, extent, s.tpu);
+        }
+        return Status{Ok{}};
+    });
+    if (!st) return st;
+    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+    for (std::size_t i = 0; s.rejected != nullptr && i < s.rejected->points.size(); ++i) {
+        const georef::GeorefResult& g = *s.rejected;
+        LasRecord p;
+        p.enh = s.Position(s.num_accepted + i);
+        p.intensity = intensities != nullptr ? SoundingIntensity(g, i, *intensities) : 0;
+        p.accepted = false;
+        p.noise = noise[i];
+        p.angle_rad = g.points.angle_rad[i];
+        p.gps_time_s = static_cast<double>(g.pings[g.points.ping[i]].utime_gps) * 1e-6;
+        p.thu_95_m = p.tvu_95_m = kNaN;
+        WriteLasRecord(file.out(), p, extent, s.tpu);
+    }
+    return Ok{};
+}
+
+}  // namespace
+
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& r,
+                const PointBlocks& blocks,
+                const georef::UtmProjection& utm,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected,
+                const ProductMetadata* meta) {
     if (utm.sensor_utm.size() != r.pings.size()) {
         return Error{path + ": the UTM projection is not of these soundings (" +
                      std::to_string(utm.sensor_utm.size()) + " pings, the soundings have " +
                      std::to_string(r.pings.size()) + ")"};
     }
-    auto soundings = LasSoundingsOf(path, r, nullptr, &utm, extras, rejected);
-    if (!soundings) return soundings.error();
-    return WriteLasOf(path, r, *soundings, utm.zone, utm.northern, run_id, meta);
+    auto made = LasSoundingsOf(path, r, nullptr, &utm, extras, rejected);
+    if (!made) return made.error();
+    LasSoundings s = std::move(*made);
+    const std::size_t num_rejected = s.size - s.num_accepted;
+    s.num_accepted = blocks.count;
+    s.size = s.num_accepted + num_rejected;
+    s.tpu = extras != nullptr && extras->thu_95_m.size() == s.num_accepted &&
+            extras->tvu_95_m.size() == s.num_accepted;
+    s.datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
+              (s.rejected == nullptr || s.rejected->pings.size() == r.pings.size());
+    NoiseHeights heights;
+    auto extent = LasExtentOfBlocks(path, s, blocks, utm, heights);
+    if (!extent) return extent.error();
+    std::vector<std::uint8_t> noise;
+    if (s.rejected != nullptr) noise = heights.Classes(s.rejected->points);
+    const LasLayout layout = LasLayoutOf(s, utm.zone, utm.northern, meta);
+    formats::ByteFileWriter file(path);
+    WriteLasHeader(file.out(), layout, *extent, s.size, LasCreationDate(r), run_id, meta);
+    WriteLasVlrs(file.out(), layout);
+    if (auto w = WriteLasBlocks(file, s, blocks, utm, *extent, noise); !w) return w;
+    return file.Close();
 }
 
 Status WriteInsTrajectoryCsv(const std::string& path,
@@ -717,28 +893,31 @@ std::int64_t CellKey(std::int64_t ix, std::int64_t iy) {
 
 }  // namespace
 
-std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
-                                          const georef::GeorefPoints& rejected,
-                                          double cell_m) {
-    const auto cell = [cell_m](double v) {
+void NoiseHeights::Add(const georef::GeorefPoints& accepted) {
+    for (const Eigen::Vector3d& p : accepted.position_world) {
+        const std::int64_t ix = static_cast<std::int64_t>(std::floor(p.x() / cell_m));
+        const std::int64_t iy = static_cast<std::int64_t>(std::floor(p.y() / cell_m));
+        heights[CellKey(ix, iy)].push_back(static_cast<float>(p.z()));
+    }
+}
+
+std::vector<std::uint8_t> NoiseHeights::Classes(const georef::GeorefPoints& rejected) {
+    const auto cell = [this](double v) {
         return static_cast<std::int64_t>(std::floor(v / cell_m));
     };
-    // The accepted heights per cell, then their median.
-    std::unordered_map<std::int64_t, std::vector<float>> heights;
-    for (const Eigen::Vector3d& p : accepted.position_world) {
-        heights[CellKey(cell(p.x()), cell(p.y()))].push_back(static_cast<float>(p.z()));
-    }
     const auto median = [](std::vector<float>& v) {
         const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
         std::nth_element(v.begin(), mid, v.end());
         return *mid;
     };
+    // The accepted heights' median per cell.
     std::unordered_map<std::int64_t, float> surface;
     surface.reserve(heights.size());
     for (auto& [key, v] : heights) {
         surface.emplace(key, median(v));
         std::vector<float>().swap(v);
     }
+    heights.clear();
     std::vector<std::uint8_t> out(rejected.size());
     std::vector<float> around;
     for (std::size_t j = 0; j < rejected.size(); ++j) {
@@ -764,6 +943,15 @@ std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
         out[j] = below ? kLasClassLowNoise : kLasClassHighNoise;
     }
     return out;
+}
+
+std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
+                                          const georef::GeorefPoints& rejected,
+                                          double cell_m) {
+    NoiseHeights heights;
+    heights.cell_m = cell_m;
+    heights.Add(accepted);
+    return heights.Classes(rejected);
 }
 
 std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id) {

@@ -274,13 +274,15 @@ Expected<SurveyCubeInput> CubeInputOf(StageContext& s,
 // The grid stage's backscatter mosaic (mosaic_stage.cpp): P/mosaic.tif on the DEM's grid and
 // its summary record; {"made": false, "reason"} when the pings carry no intensities. `utm`
 // places the soundings of s.geo in UTM (georef::UtmProjectionOf), `utm_to_world` is the affine
-// map of UTM into the world frame.
+// map of UTM into the world frame. The view is read `block` soundings at a time (0: at once),
+// from its scratch file while spilled (decision 035).
 Expected<nlohmann::json> MosaicSurvey(const StageContext& s,
                                       const GridStageConfig& gc,
                                       const io::GridRaster& dem,
                                       const georef::UtmProjection& utm,
                                       const Eigen::Matrix<double, 2, 3>& utm_to_world,
-                                      const Log& log);
+                                      const Log& log,
+                                      std::size_t block = 0);
 // v with `digits` decimals ("%.*f"), for log lines and product metadata.
 std::string Fixed(double v, int digits);
 // The grid stage's mine-planning layers (terrain_stage.cpp, hydro/terrain.hpp): P/terrain.tif

@@ -6,12 +6,14 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include "common/geodesy.hpp"
 #include "processor/io/geoid.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
+#include "processor/pipeline/grid_cube_tiles.hpp"
 #include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
@@ -34,6 +36,36 @@ Status WriteProjectedPoints(const std::string& dir,
                             const ProductMetadata& meta,
                             const std::string& run_id,
                             std::size_t block_soundings) {
+    const AcceptedPointsReader held = [&geo](std::size_t first,
+                                             std::size_t,
+                                             const georef::GeorefPoints*& points,
+                                             std::size_t& offset) {
+        points = &geo.points;
+        offset = first;
+        return Status{Ok{}};
+    };
+    return WriteProjectedPointsOf(dir,
+                                  geo.pings,
+                                  geo.points.size(),
+                                  held,
+                                  utm,
+                                  rejected,
+                                  datum,
+                                  meta,
+                                  run_id,
+                                  block_soundings);
+}
+
+Status WriteProjectedPointsOf(const std::string& dir,
+                              const std::vector<georef::GeorefPing>& pings,
+                              std::size_t num_accepted,
+                              const AcceptedPointsReader& read_accepted,
+                              const georef::UtmProjection& utm,
+                              const georef::GeorefResult* rejected,
+                              const hydro::DatumModel& datum,
+                              const ProductMetadata& meta,
+                              const std::string& run_id,
+                              std::size_t block_soundings) {
     io::ProjectedPoints crs;
     crs.crs_name = CrsName(utm.zone, utm.northern, datum);
     crs.horizontal_epsg = utm.epsg;
@@ -51,32 +83,45 @@ Status WriteProjectedPoints(const std::string& dir,
                          "/points_utm.ply: UTM of the rejected soundings: " + r.error().message};
         rejected_utm = std::move(*r);
     }
-    const std::size_t num_accepted = geo.points.size();
     const std::size_t n = num_accepted + (with_rejected ? rejected->points.size() : 0);
+    Status read_status = Ok{};
     // Point j: accepted sounding j, then rejected sounding j - num_accepted; placed where the
-    // block is made (georef::UtmProjection), not held for the survey.
+    // block is made (georef::UtmProjection), not held for the survey. The accepted soundings
+    // of a block are read (read_accepted) before it is made.
     const auto fill = [&](std::size_t first, std::span<io::ProjectedPoint> out) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.size(), 4096),
-                          [&](const tbb::blocked_range<std::size_t>& r) {
-                              for (std::size_t k = r.begin(); k != r.end(); ++k) {
-                                  const std::size_t j = first + k;
-                                  const bool accepted = j < num_accepted;
-                                  const georef::GeorefResult& g = accepted ? geo : *rejected;
-                                  const std::size_t i = accepted ? j : j - num_accepted;
-                                  const std::uint32_t ping = g.points.ping[i];
-                                  const Eigen::Vector3d enh =
-                                      accepted ? utm.At(g, i) : rejected_utm.At(g, i);
-                                  out[k] = {enh - Eigen::Vector3d(0, 0, D(ping)),
-                                            static_cast<double>(g.pings[ping].utime_gps) * 1e-6,
-                                            accepted ? std::uint8_t{0} : g.points.status[i]};
-                              }
-                          });
+        const georef::GeorefPoints* accepted_points = nullptr;
+        std::size_t offset = 0;
+        if (first < num_accepted && read_status) {
+            const std::size_t count = std::min(out.size(), num_accepted - first);
+            read_status = read_accepted(first, count, accepted_points, offset);
+        }
+        if (!read_status) return;
+        tbb::parallel_for(
+            tbb::blocked_range<std::size_t>(0, out.size(), 4096),
+            [&](const tbb::blocked_range<std::size_t>& r) {
+                for (std::size_t k = r.begin(); k != r.end(); ++k) {
+                    const std::size_t j = first + k;
+                    const bool accepted = j < num_accepted;
+                    const georef::GeorefPoints& g = accepted ? *accepted_points : rejected->points;
+                    const std::vector<georef::GeorefPing>& gp = accepted ? pings : rejected->pings;
+                    const std::size_t i = accepted ? offset + k : j - num_accepted;
+                    const std::uint32_t ping = g.ping[i];
+                    const Eigen::Vector3d enh =
+                        accepted ? utm.At(g, gp, i) : rejected_utm.At(g, gp, i);
+                    out[k] = {enh - Eigen::Vector3d(0, 0, D(ping)),
+                              static_cast<double>(gp[ping].utime_gps) * 1e-6,
+                              accepted ? std::uint8_t{0} : g.status[i]};
+                }
+            });
     };
-    if (auto w = io::WriteProjectedPointsPly(
-            dir + "/points_utm.ply", crs, n, block_soundings, fill, &meta, run_id);
-        !w) {
-        return w;
+    const std::string path = dir + "/points_utm.ply";
+    auto w = io::WriteProjectedPointsPly(path, crs, n, block_soundings, fill, &meta, run_id);
+    if (!read_status) {
+        std::error_code ec;
+        std::filesystem::remove(path, ec);
+        return Error{path + ": " + read_status.error().message};
     }
+    if (!w) return w;
     return io::WritePrj(dir + "/points_utm.prj",
                         io::LasWkt(utm.zone, utm.northern, datum.VerticalWkt()));
 }

@@ -180,6 +180,8 @@ slam::SlamResult RunSlamLogged(SliceSet& set, const slam::SlamConfig& cfg, const
                 std::to_string(it.iteration));
             return true;
         });
+    log("slam: " + std::to_string(r.num_points) + " of " + std::to_string(r.num_points_in) +
+        " finite points used (slam.pass_cell_m " + std::to_string(cfg.pass_cell_m) + ")");
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
     return r;
 }
@@ -437,6 +439,7 @@ json SlamSummary(const slam::SlamResult& r,
                {"message", r.message},
                {"slices", set.slices.size()},
                {"points", set.num_points},
+               {"points_used", r.num_points},
                {"sections", r.num_sections},
                {"section_links", r.num_section_links},
                {"poses", r.num_poses},
