@@ -987,8 +987,9 @@ Status MakeScansByBlocks(const StageContext& s,
 
 // Scans integrated per call by blocks (fusion::ScanStreamIntegrator): as many as make their
 // ranges (4 bytes a beam of the widest ping) the size of a block of the view (38 bytes a
-// sounding), so that the scans held never outweigh the block read, and the calls (each merges
-// the volume's grids once) stay few: about 20 000 pings of 480 beams at 1 M soundings a block.
+// sounding), so that the scans held never outweigh the block read, and the calls (each lists
+// the volume's leaves and moves those of the slabs it touches out and back, decision 040) stay
+// few: about 20 000 pings of 480 beams at 1 M soundings a block.
 std::size_t ScansPerBatch(const StageContext& s, std::size_t block_soundings) {
     std::size_t beams = 1;
     for (const georef::GeorefPing& p : s.geo.pings) {

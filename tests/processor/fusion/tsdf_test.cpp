@@ -816,8 +816,7 @@ TEST(TsdfVolume, BlocksCarryingTheirNeighbourScansMatchTheWholeSurvey) {
     }
     // Runs of missing beams bridged (decision 039): the carry is NeighbourPings.
     const TsdfConfig bridged = SmallConfig(SensorModel::kBeamWidth);
-    ASSERT_EQ(NeighbourScans(bridged),
-              static_cast<std::size_t>(bridged.ping_gap_bridge_pings + 1));
+    ASSERT_EQ(NeighbourScans(bridged), static_cast<std::size_t>(bridged.ping_gap_bridge_pings + 1));
     TsdfVolume bridged_once(bridged);
     bridged_once.Integrate(scans);
     for (const std::size_t block : {1u, 5u, 16u}) {
