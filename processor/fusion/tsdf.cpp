@@ -7,8 +7,9 @@
 // kChunkScans (prepared together, then integrated). One TBB task owns one slab for a chunk: it
 // replays the chunk's scans in input order but touches only voxels of its slab, in a grid of
 // its own that persists across chunks. Slabs are aligned to leaf nodes, so the per-slab trees
-// are disjoint and are merged by moving leaves; each voxel sees the same updates in the same
-// order for any thread count.
+// are disjoint; a slab's grid takes the volume's leaves there out of its trees when first
+// touched, and gives them back with its new ones at the end: leaves are moved, never copied
+// (docs/decisions/040). Each voxel sees the same updates in the same order for any thread count.
 //
 // Beam-width mode walks each ping as a whole (IntegrateFan): one pass over columns of voxels
 // along the axis closest to the fan plane, each voxel tested once in the sector of its angle;
@@ -29,12 +30,15 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <iterator>
 #include <limits>
 #include <map>
+#include <string>
 
 #include "common/result.hpp"
 #include "processor/fusion/detail/prepared_scan.hpp"
 #include "processor/fusion/detail/tsdf_grids.hpp"
+#include "processor/fusion/scan_stream.hpp"
 
 namespace pitmap::proc::fusion {
 
@@ -501,17 +505,28 @@ void IntegrateRay(const PreparedScan& scan,
     } while (dda.step());
 }
 
-// The volume's existing leaves by slab: a slab's grid starts from copies of them when first
-// touched.
+// The volume's leaves by slab (their origins) and its trees: a slab's grid takes its leaves out
+// of the volume's trees when first touched (MoveLeaves), and MergeSlabs puts them back.
 struct OldLeaves {
-    std::map<int, std::vector<const LeafT*>> distance, weight;
+    std::map<int, std::vector<Coord>> distance, weight;
+    FloatTree& distance_tree;
+    FloatTree& weight_tree;
 };
-std::map<int, std::vector<const LeafT*>> LeavesBySlab(const FloatTree& tree) {
-    std::map<int, std::vector<const LeafT*>> out;
+std::map<int, std::vector<Coord>> LeavesBySlab(const FloatTree& tree) {
+    std::map<int, std::vector<Coord>> out;
     for (auto it = tree.cbeginLeaf(); it; ++it) {
-        out[FloorDiv(it->origin().x(), kSlabVoxels)].push_back(&*it);
+        out[FloorDiv(it->origin().x(), kSlabVoxels)].push_back(it->origin());
     }
     return out;
+}
+
+// Moves the leaves at `origins` from `from` into `to` (no copy: the same leaf objects; `from`
+// keeps an inactive background tile where each was, which a merge replaces).
+void MoveLeaves(const std::vector<Coord>& origins, FloatTree& from, FloatTree& to) {
+    for (const Coord& origin : origins) {
+        LeafT* leaf = from.stealNode<LeafT>(origin, from.background(), false);
+        if (leaf != nullptr) to.addLeaf(leaf);
+    }
 }
 
 // One slab's own grids, persisting across chunks.
@@ -583,7 +598,7 @@ std::size_t CountPrepared(const std::vector<PreparedScan>& prepared, IntegrateRe
 }
 
 // Each slab's work for the chunk: the beams that reach it. A slab reached for the first time
-// gets its grids, from copies of the volume's old leaves there.
+// gets its grids, holding the volume's leaves there (moved out of the volume's trees).
 void AssignSlabs(const std::vector<PreparedScan>& prepared,
                  const OldLeaves& old,
                  float trunc,
@@ -610,12 +625,10 @@ void AssignSlabs(const std::vector<PreparedScan>& prepared,
                     slab.d = MakeGrid(trunc, voxel_size_m, "tsdf");
                     slab.w = MakeGrid(0.0f, voxel_size_m, "weight");
                     if (auto it = old.distance.find(k); it != old.distance.end()) {
-                        for (const LeafT* leaf : it->second)
-                            slab.d->tree().addLeaf(new LeafT(*leaf));
+                        MoveLeaves(it->second, old.distance_tree, slab.d->tree());
                     }
                     if (auto it = old.weight.find(k); it != old.weight.end()) {
-                        for (const LeafT* leaf : it->second)
-                            slab.w->tree().addLeaf(new LeafT(*leaf));
+                        MoveLeaves(it->second, old.weight_tree, slab.w->tree());
                     }
                 }
                 ++slab.work;
@@ -714,38 +727,55 @@ void RasteriseChunk(const ChunkWork& work, SlabMap& slabs, tbb::task_arena& aren
     });
 }
 
-// The volume's new grids: the old leaves of untouched slabs plus every slab's leaves (moved,
-// not copied). Returns the slabs' voxel updates.
+// Every slab's leaves (the volume's old ones there and its new ones) moved back into the
+// volume's trees, whose other leaves never left them: nothing copied. The trees are then
+// held by fresh grids (the metadata, name and transform of a volume made by Integrate).
+// Returns the slabs' voxel updates.
 std::int64_t MergeSlabs(SlabMap& slabs,
                         float trunc,
                         double voxel_size_m,
                         openvdb::FloatGrid::Ptr& distance,
                         openvdb::FloatGrid::Ptr& weight) {
-    auto new_d = MakeGrid(trunc, voxel_size_m, "tsdf");
-    auto new_w = MakeGrid(0.0f, voxel_size_m, "weight");
-    auto keep_outside = [&](const FloatTree& from, FloatTree& to) {
-        for (auto it = from.cbeginLeaf(); it; ++it) {
-            if (!slabs.contains(FloorDiv(it->origin().x(), kSlabVoxels))) {
-                to.addLeaf(new LeafT(*it));
-            }
-        }
-    };
-    keep_outside(distance->tree(), new_d->tree());
-    keep_outside(weight->tree(), new_w->tree());
-    distance.reset();
-    weight.reset();
     std::int64_t updates = 0;
     for (auto& [k, slab] : slabs) {
-        new_d->tree().merge(slab.d->tree());
-        new_w->tree().merge(slab.w->tree());
+        distance->tree().merge(slab.d->tree());
+        weight->tree().merge(slab.w->tree());
         slab.d.reset();
         slab.w.reset();
         updates += slab.updates;
     }
+    auto new_d = MakeGrid(trunc, voxel_size_m, "tsdf");
+    auto new_w = MakeGrid(0.0f, voxel_size_m, "weight");
+    new_d->setTree(distance->treePtr());
+    new_w->setTree(weight->treePtr());
     distance = new_d;
     weight = new_w;
     return updates;
 }
+
+// Should Integrate leave by an exception, the slabs' leaves (the volume's among them) are put
+// back into the volume's trees, so that no leaf taken out of the volume is lost.
+class SlabsBackOnUnwind {
+public:
+    SlabsBackOnUnwind(SlabMap& slabs, FloatTree& distance, FloatTree& weight)
+        : slabs_(slabs), distance_(distance), weight_(weight) {}
+    SlabsBackOnUnwind(const SlabsBackOnUnwind&) = delete;
+    SlabsBackOnUnwind& operator=(const SlabsBackOnUnwind&) = delete;
+    ~SlabsBackOnUnwind() {
+        try {
+            for (auto& entry : slabs_) {
+                if (entry.second.d) distance_.merge(entry.second.d->tree());
+                if (entry.second.w) weight_.merge(entry.second.w->tree());
+            }
+        } catch (...) {  // NOLINT(bugprone-empty-catch): nothing more to do while unwinding
+        }
+    }
+
+private:
+    SlabMap& slabs_;
+    FloatTree& distance_;
+    FloatTree& weight_;
+};
 
 // Everything, as a ClipBox (far beyond kMaxSonarOffsetM + kMaxRangeVoxels voxels, and with
 // room for FloorDiv).
@@ -784,6 +814,17 @@ std::vector<std::pair<std::size_t, std::size_t>> ScanRuns(const std::vector<Sona
         }
     }
     return runs;
+}
+
+// The message of an integration with no beam to integrate.
+constexpr const char* kNoValidBeams = "no valid beams";
+
+// An integration's message from its counts.
+std::string IntegrateMessage(const IntegrateResult& r) {
+    return std::string(r.cancelled ? "cancelled: " : "") + std::to_string(r.beams_used) +
+           " beams (" + std::to_string(r.beams_inconsistent) + " outvoted by footprints), " +
+           std::to_string(r.voxel_updates) + " voxel updates, " + std::to_string(r.active_voxels) +
+           " active voxels";
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point t) {
@@ -931,12 +972,16 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         config_.num_threads > 0 ? config_.num_threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
     const float trunc = static_cast<float>(config_.truncation_m);
-    const OldLeaves old{LeavesBySlab(impl_->distance->tree()), LeavesBySlab(impl_->weight->tree())};
-    const auto reach = static_cast<std::size_t>(NeighbourPings(config_));
+    const OldLeaves old{LeavesBySlab(impl_->distance->tree()),
+                        LeavesBySlab(impl_->weight->tree()),
+                        impl_->distance->tree(),
+                        impl_->weight->tree()};
+    const std::size_t reach = NeighbourScans(config_);
 
     // Chunk by chunk: prepare the chunk's scans in parallel, then integrate it slab by slab.
     // Only one chunk's prepared beams are held at a time; the slab grids persist across chunks.
     SlabMap slabs;
+    const SlabsBackOnUnwind slabs_back(slabs, old.distance_tree, old.weight_tree);
     std::atomic<bool> cancel{false};
     std::size_t total_beams = 0;
     std::vector<PreparedScan> prepared;
@@ -981,7 +1026,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
         result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
         result.elapsed_s = SecondsSince(t_start);
         result.cpu_s = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
-        result.message = "no valid beams";
+        result.message = kNoValidBeams;
         return result;
     }
 
@@ -993,12 +1038,74 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     result.cancelled = cancel.load();
     result.active_voxels = static_cast<std::int64_t>(impl_->weight->activeVoxelCount());
     result.elapsed_s = SecondsSince(t_start);
-    result.message = std::string(result.cancelled ? "cancelled: " : "") +
-                     std::to_string(result.beams_used) + " beams (" +
-                     std::to_string(result.beams_inconsistent) + " outvoted by footprints), " +
-                     std::to_string(result.voxel_updates) + " voxel updates, " +
-                     std::to_string(result.active_voxels) + " active voxels";
+    result.message = IntegrateMessage(result);
     return result;
+}
+
+std::size_t NeighbourScans(const TsdfConfig& config) {
+    return static_cast<std::size_t>(NeighbourPings(config));
+}
+
+ScanStreamIntegrator::ScanStreamIntegrator(TsdfVolume& volume,
+                                           std::size_t batch_scans,
+                                           std::size_t total_scans,
+                                           ProgressCallback progress)
+    : volume_(volume),
+      batch_(std::max<std::size_t>(1, batch_scans)),
+      total_(total_scans),
+      reach_(NeighbourScans(volume.config())),
+      progress_(std::move(progress)) {}
+
+void ScanStreamIntegrator::Add(std::vector<SonarScan>&& scans) {
+    if (sum_.cancelled) return;
+    held_.insert(
+        held_.end(), std::make_move_iterator(scans.begin()), std::make_move_iterator(scans.end()));
+    scans.clear();
+    max_held_ = std::max(max_held_, held_.size());
+    // A batch is integrated once its last scan's neighbours after it are held.
+    while (!sum_.cancelled && first_ + held_.size() >= done_ + batch_ + reach_) {
+        IntegrateTo(done_ + batch_);
+    }
+}
+
+IntegrateResult ScanStreamIntegrator::Finish() {
+    if (!sum_.cancelled && done_ < first_ + held_.size()) IntegrateTo(first_ + held_.size());
+    held_ = {};
+    sum_.active_voxels = volume_.Stats().active_voxels;
+    sum_.message = integrated_ ? IntegrateMessage(sum_) : std::string(kNoValidBeams);
+    return sum_;
+}
+
+void ScanStreamIntegrator::IntegrateTo(std::size_t end) {
+    const std::size_t begin = done_;
+    const ProgressCallback part = [&](double f) {
+        if (!progress_ || total_ == 0) return true;
+        const double scans = static_cast<double>(begin) + f * static_cast<double>(end - begin);
+        return progress_(std::min(1.0, scans / static_cast<double>(total_)));
+    };
+    const IntegrateResult r = volume_.Integrate(held_, begin - first_, end - first_, part);
+    ++calls_;
+    sum_.scans += r.scans;
+    sum_.scans_out_of_bounds += r.scans_out_of_bounds;
+    sum_.beams_used += r.beams_used;
+    sum_.beams_no_detection += r.beams_no_detection;
+    sum_.beams_out_of_range += r.beams_out_of_range;
+    sum_.beams_inconsistent += r.beams_inconsistent;
+    sum_.voxel_updates += r.voxel_updates;
+    sum_.elapsed_s += r.elapsed_s;
+    sum_.prepare_s += r.prepare_s;
+    sum_.rasterise_s += r.rasterise_s;
+    sum_.merge_s += r.merge_s;
+    sum_.cpu_s += r.cpu_s;
+    sum_.cancelled = sum_.cancelled || r.cancelled;
+    integrated_ = integrated_ || r.message != kNoValidBeams;
+    done_ = end;
+    // Keep the scans a later batch reads as neighbours (reach_ before done_) and those after.
+    const std::size_t keep_from = done_ - std::min(done_, reach_);
+    if (keep_from > first_) {
+        held_.erase(held_.begin(), held_.begin() + static_cast<std::ptrdiff_t>(keep_from - first_));
+        first_ = keep_from;
+    }
 }
 
 }  // namespace pitmap::proc::fusion

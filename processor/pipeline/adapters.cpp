@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: MIT
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "common/formats/trajectory_csv.hpp"
@@ -165,32 +167,85 @@ std::vector<fusion::SonarScan> MakeScans(const georef::GeorefResult& geo,
                                          const survey::PingSeries& pings,
                                          const survey::SonarMount& mount,
                                          int ping_stride) {
-    std::vector<fusion::SonarScan> scans;
-    if (!IsSortedByPing(geo)) return scans;
-    const std::vector<std::size_t> offset = PingOffsets(geo);
-    const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
-    const auto stride = static_cast<std::size_t>(std::max(1, ping_stride));
-    scans.resize((geo.pings.size() + stride - 1) / stride);
-    for (std::size_t k = 0; k < geo.pings.size(); k += stride) {
-        const georef::GeorefPing& ping = geo.pings[k];
-        fusion::SonarScan& s = scans[k / stride];
-        s.gps_time_s = static_cast<double>(ping.utime_gps) * 1e-6;
+    if (!IsSortedByPing(geo)) return {};
+    ScanMaker maker(geo.pings, pings, mount, ping_stride);
+    if (!maker.Add(geo.points)) return {};
+    maker.Finish();
+    return maker.Take();
+}
+
+ScanMaker::ScanMaker(const std::vector<georef::GeorefPing>& geo_pings,
+                     const survey::PingSeries& pings,
+                     const survey::SonarMount& mount,
+                     int ping_stride)
+    : geo_pings_(geo_pings),
+      pings_(pings),
+      T_vehicle_sonar_(mount.T_vehicle_sonar()),
+      stride_(static_cast<std::size_t>(std::max(1, ping_stride))),
+      num_scans_((geo_pings.size() + stride_ - 1) / stride_) {}
+
+Status ScanMaker::Add(const georef::GeorefPoints& block) {
+    std::size_t last = last_ping_;
+    for (const std::uint32_t k : block.ping) {
+        if (k < last || k >= geo_pings_.size()) {
+            return Error{"internal: the view's points are not in ping order (ping " +
+                         std::to_string(k) + " after " + std::to_string(last) + " of " +
+                         std::to_string(geo_pings_.size()) + ")"};
+        }
+        last = k;
+    }
+    for (std::size_t i = 0; i < block.ping.size(); ++i) {
+        const std::size_t k = block.ping[i];
+        OpenThrough(k);
+        if (k > last_ping_) CompleteBefore((k + stride_ - 1) / stride_);  // pings before k
+        last_ping_ = k;
+        if (k % stride_ != 0) continue;
+        std::vector<float>& ranges = open_[k / stride_ - first_].ranges_m;
+        const std::uint16_t b = block.beam[i];
+        if (b < ranges.size()) ranges[b] = block.range_m[i];
+    }
+    return Ok{};
+}
+
+void ScanMaker::Finish() {
+    if (!geo_pings_.empty()) OpenThrough(geo_pings_.size() - 1);
+    CompleteBefore(num_scans_);
+}
+
+std::vector<fusion::SonarScan> ScanMaker::Take() {
+    const std::size_t n = complete_ - first_;
+    std::vector<fusion::SonarScan> out(
+        std::make_move_iterator(open_.begin()),
+        std::make_move_iterator(open_.begin() + static_cast<long>(n)));
+    open_.erase(open_.begin(), open_.begin() + static_cast<long>(n));
+    first_ = complete_;
+    return out;
+}
+
+void ScanMaker::OpenThrough(std::size_t ping) {
+    for (; next_ping_ <= ping; ++next_ping_) {
+        if (next_ping_ % stride_ != 0) continue;
+        const georef::GeorefPing& p = geo_pings_[next_ping_];
+        fusion::SonarScan& s = open_.emplace_back();
+        s.gps_time_s = static_cast<double>(p.utime_gps) * 1e-6;
         Pose tilt = Pose::Identity();
         tilt.linear() =
-            Eigen::AngleAxisd(ping.profile_tilt_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
-        s.T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar * tilt;
-        if (ping.header_index >= pings.pings.size()) continue;
-        const survey::PingHeader& h = pings.pings[ping.header_index];
+            Eigen::AngleAxisd(p.profile_tilt_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
+        s.T_world_sonar = p.T_world_vehicle * T_vehicle_sonar_ * tilt;
+        if (p.header_index >= pings_.pings.size()) continue;
+        const survey::PingHeader& h = pings_.pings[p.header_index];
         s.start_angle_rad = static_cast<float>(frames::DegToRad(h.start_angle_deg));
         s.angle_increment_rad = static_cast<float>(frames::DegToRad(h.angle_increment_deg));
         s.ranges_m.assign(h.num_beams, 0.0f);
-        for (std::size_t i = offset[k]; i < offset[k + 1]; ++i) {
-            const std::uint16_t b = geo.points.beam[i];
-            if (b < s.ranges_m.size()) s.ranges_m[b] = geo.points.range_m[i];
-        }
-        if (pings.has_beam_angles()) ResampleToEqualAngles(pings, h, s);
     }
-    return scans;
+}
+
+void ScanMaker::CompleteBefore(std::size_t scan) {
+    for (; complete_ < scan; ++complete_) {
+        const georef::GeorefPing& p = geo_pings_[complete_ * stride_];
+        if (p.header_index >= pings_.pings.size() || !pings_.has_beam_angles()) continue;
+        ResampleToEqualAngles(pings_, pings_.pings[p.header_index], open_[complete_ - first_]);
+    }
 }
 
 TimedPoses PingPoses(const georef::GeorefResult& geo) {

@@ -13,6 +13,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <optional>
@@ -22,6 +24,7 @@
 #include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/calib/ins_slow_error.hpp"
+#include "processor/fusion/scan_stream.hpp"
 #include "processor/fusion/vdb_io.hpp"
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
@@ -33,6 +36,7 @@
 #include "processor/pipeline/posterior.hpp"
 #include "processor/pipeline/report_program.hpp"
 #include "processor/pipeline/result_json.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 #include "processor/survey/survey_file.hpp"
 
 namespace pitmap::proc::pipeline {
@@ -957,13 +961,101 @@ Status MergeFuseTiles(StageContext& s, const PipelineConfig& config, const Log& 
     return SaveSummary(s);
 }
 
+namespace {
+
+// The view's points to `maker` a block of `block` soundings at a time from its scratch file
+// (the held view at once when it could not be spilled), the scans each block completes to
+// `take` as they come.
+Status MakeScansByBlocks(const StageContext& s,
+                         ScanMaker& maker,
+                         std::size_t block,
+                         const std::function<void(std::vector<fusion::SonarScan>&&)>& take) {
+    if (!s.spilled_view) {
+        if (auto st = maker.Add(s.geo.points); !st) return st;
+    } else {
+        georef::GeorefPoints points;
+        for (std::size_t first = 0; first < s.spilled_view->size(); first += block) {
+            if (auto st = s.spilled_view->ReadBlock(first, block, points); !st) return st;
+            if (auto st = maker.Add(points); !st) return st;
+            take(maker.Take());
+        }
+    }
+    maker.Finish();
+    take(maker.Take());
+    return Ok{};
+}
+
+// Scans integrated per call by blocks (fusion::ScanStreamIntegrator): as many as make their
+// ranges (4 bytes a beam of the widest ping) the size of a block of the view (38 bytes a
+// sounding), so that the scans held never outweigh the block read, and the calls (each lists
+// the volume's leaves and moves those of the slabs it touches out and back, decision 040) stay
+// few: about 20 000 pings of 480 beams at 1 M soundings a block.
+std::size_t ScansPerBatch(const StageContext& s, std::size_t block_soundings) {
+    std::size_t beams = 1;
+    for (const georef::GeorefPing& p : s.geo.pings) {
+        if (p.header_index < s.model.ingest.pings.pings.size())
+            beams =
+                std::max<std::size_t>(beams, s.model.ingest.pings.pings[p.header_index].num_beams);
+    }
+    constexpr std::size_t kViewBytes = 38, kRangeBytes = 4, kMinScans = 512;
+    return std::max(kMinScans, block_soundings * kViewBytes / (kRangeBytes * beams));
+}
+
+// The integration of the survey's scans, made from the view by blocks: one batch of scans and
+// its neighbours held at a time, or, by tiles (each tile reads every scan), all the scans.
+Expected<fusion::IntegrateResult> IntegrateView(StageContext& s,
+                                                const PipelineConfig& config,
+                                                const fusion::TsdfConfig& tcfg,
+                                                int ping_stride,
+                                                bool by_tiles,
+                                                fusion::TsdfVolume& volume,
+                                                std::vector<MeshTile>* mesh_tiles,
+                                                ProgressReporter& bar,
+                                                json& record) {
+    ScanMaker maker(s.geo.pings, s.model.ingest.pings, s.model.mount, ping_stride);
+    const std::size_t block = BlockWithinBudget(config.run, ResidentMb());
+    record["view_block_soundings"] = s.spilled_view ? block : s.geo.points.size();
+    if (by_tiles) {
+        std::vector<fusion::SonarScan> scans;
+        scans.reserve(maker.num_scans());
+        const auto take = [&](std::vector<fusion::SonarScan>&& part) {
+            scans.insert(scans.end(),
+                         std::make_move_iterator(part.begin()),
+                         std::make_move_iterator(part.end()));
+        };
+        if (auto st = MakeScansByBlocks(s, maker, block, take); !st) return st.error();
+        return IntegrateByTiles(
+            scans, tcfg, config, volume, mesh_tiles, bar.AsCallback(), record["tiles"]);
+    }
+    fusion::ScanStreamIntegrator stream(
+        volume, ScansPerBatch(s, block), maker.num_scans(), bar.AsCallback());
+    const auto take = [&](std::vector<fusion::SonarScan>&& part) { stream.Add(std::move(part)); };
+    if (auto st = MakeScansByBlocks(s, maker, block, take); !st) return st.error();
+    fusion::IntegrateResult ir = stream.Finish();
+    record["scan_batches"] = {{"calls", stream.calls()},
+                              {"scans_per_call", ScansPerBatch(s, block)},
+                              {"max_scans_held", stream.max_held()}};
+    return ir;
+}
+
+}  // namespace
+
 Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
                                         const PipelineConfig& config,
                                         Stage stage,
                                         ViewAfterScans view,
                                         const Log& log) {
-    StageClock clock;
     const std::string name = ToString(stage);
+    // The stage reads the view by blocks from its scratch file (decision 034): a view still
+    // held by the stage before is put there before this stage's clock starts, so that its peak
+    // is its own. A view that cannot be spilled is read where it is held.
+    const auto spill_start = std::chrono::steady_clock::now();
+    if (auto st = SpillView(s); !st) {
+        log(name + ": warning: " + st.error().message + "; the view is read where it is held");
+    }
+    const double spill_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - spill_start).count();
+    StageClock clock;
     fusion::TsdfConfig tcfg = config.tsdf;
     int ping_stride = 1;
     if (stage == Stage::kFuseInitial) {
@@ -973,44 +1065,44 @@ Expected<fusion::TsdfVolume> FuseSurvey(StageContext& s,
         // The kept pings are ping_stride times as far apart: bridged as the full set would be.
         tcfg.ping_gap_fill_m *= ping_stride;
     }
-    const std::vector<fusion::SonarScan> scans =
-        MakeScans(s.geo, s.model.ingest.pings, s.model.mount, ping_stride);
-    // The integration reads the scans alone (decision 020).
-    if (view == ViewAfterScans::kReleased) {
-        s.geo.points = georef::GeorefPoints{};
-    } else if (auto st = SpillView(s); !st) {
-        return Error{name + ": " + st.error().message};
-    }
     fusion::TsdfVolume volume(tcfg);
     ProgressReporter bar(name, 1000);
-    // What integration itself holds at its peak beyond its inputs (the scans are built above):
-    // the resident high-water mark is reset here (where the kernel allows; else it stays the
-    // stage's) and compared with the memory the finished grids hold. The clock keeps the peak
-    // before the reset for the stage's own peak_rss_mb.
+    // What the stage holds at its peak beyond what it started with (the blocks of the view,
+    // the scans, the grids): the resident high-water mark is reset here (where the kernel
+    // allows; else it stays the stage's) and compared with the memory the finished grids hold.
     clock.ResetPeakWithinStage();
     const double rss_before_integrate_mb = PeakRssMb();
     // Tiles: the final fuse only (the initial one is a picture at coarser voxels).
     const bool by_tiles = config.tiles.enabled && stage == Stage::kFuse;
     std::vector<MeshTile> mesh_tiles;
-    json tiles_record;
-    const fusion::IntegrateResult ir =
-        by_tiles ? IntegrateByTiles(scans,
-                                    tcfg,
+    json record;
+    auto integrated = IntegrateView(s,
                                     config,
+                                    tcfg,
+                                    ping_stride,
+                                    by_tiles,
                                     volume,
                                     config.tiles.write_products ? &mesh_tiles : nullptr,
-                                    bar.AsCallback(),
-                                    tiles_record)
-                 : volume.Integrate(scans, bar.AsCallback());
+                                    bar,
+                                    record);
+    if (!integrated) return Error{name + ": " + integrated.error().message};
+    const fusion::IntegrateResult& ir = *integrated;
+    if (view == ViewAfterScans::kReleased) {
+        s.spilled_view.reset();  // the file removed
+        s.geo.points = georef::GeorefPoints{};
+    }
     const double integrate_peak_mb = PeakRssMb() - rss_before_integrate_mb;
     bar.Finish();
     log(name + ": " + ir.message);
     json st = FinishFuse(volume, config, tcfg, ping_stride, ir, integrate_peak_mb, log, name);
     if (by_tiles && config.tiles.write_products) {
-        if (auto w = WriteMeshTiles(s, mesh_tiles, tcfg, config, tiles_record); !w)
+        if (auto w = WriteMeshTiles(s, mesh_tiles, tcfg, config, record["tiles"]); !w)
             return w.error();
     }
-    if (by_tiles) st["tiles"] = tiles_record;
+    if (by_tiles) st["tiles"] = record["tiles"];
+    st["view_block_soundings"] = record["view_block_soundings"];
+    if (!by_tiles) st["scan_batches"] = record["scan_batches"];
+    st["view_spill_seconds_before_stage"] = spill_s;
     if (stage == Stage::kFuse) {
         if (auto w = WriteTsdf(s, volume, s.out_dir + "/tsdf.vdb"); !w) return w.error();
     }

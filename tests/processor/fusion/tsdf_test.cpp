@@ -4,13 +4,17 @@
 // outliers, bad beams counted, empty input.
 #include "processor/fusion/tsdf.hpp"
 
+#include "processor/fusion/scan_stream.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <random>
 
@@ -727,6 +731,162 @@ TEST(TsdfVolume, ChunksOfScansDoNotChangeTheResult) {
         }
         EXPECT_GT(observed, 5000);
     }
+}
+
+// Every observed voxel of a volume: index -> (distance, weight), to compare two volumes voxel
+// for voxel.
+std::map<std::array<int, 3>, std::pair<float, float>> Voxels(const TsdfVolume& v) {
+    std::map<std::array<int, 3>, std::pair<float, float>> out;
+    v.ForEachVoxel([&](const Eigen::Vector3i& ijk, float d, float w) {
+        out[{ijk.x(), ijk.y(), ijk.z()}] = {d, w};
+    });
+    return out;
+}
+
+// A survey whose integration reads its neighbouring pings across any edge: two lines over a
+// floor and a sphere with noise (the footprints' along-track slopes), and in every third ping the
+// beams within 15 deg of nadir missing (the gap to the ping after the next, decision 026).
+std::vector<SonarScan> ScansWithGaps() {
+    SyntheticWorld world;
+    world.plane_z_m = -4.0;
+    world.spheres.push_back({Eigen::Vector3d(0.3, 0.0, -3.6), 0.6});
+    LineSurvey survey;
+    survey.x0_m = -1.5;
+    survey.x1_m = 1.5;
+    // Close enough that the slope's fit takes 3 pings a side (within 4 times the cone's
+    // half-width out of the plane, 0.2 m at 4 m).
+    survey.spacing_m = 0.05;
+    survey.lines_y_m = {-0.4, 0.4};
+    survey.num_beams = 121;
+    survey.start_angle_rad = -30.0 * std::numbers::pi / 180.0;
+    survey.increment_rad = 0.5 * std::numbers::pi / 180.0;
+    survey.noise_sigma_m = 0.02;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    for (std::size_t k = 1; k < scans.size(); k += 3) {
+        for (std::size_t i = 0; i < scans[k].ranges_m.size(); ++i) {
+            const double th =
+                survey.start_angle_rad + static_cast<double>(i) * survey.increment_rad;
+            if (std::abs(th) <= 15.0 * std::numbers::pi / 180.0) scans[k].ranges_m[i] = 0.0f;
+        }
+    }
+    return scans;
+}
+
+// The volume of `scans` integrated block by block, each block [b, b + block) from a vector of
+// its own holding `carry` scans on each side of it (as a stage that reads the survey by blocks
+// holds them).
+TsdfVolume IntegrateInBlocks(const std::vector<SonarScan>& scans,
+                             const TsdfConfig& config,
+                             std::size_t block,
+                             std::size_t carry) {
+    TsdfVolume v(config);
+    for (std::size_t b = 0; b < scans.size(); b += block) {
+        const std::size_t e = std::min(scans.size(), b + block);
+        const std::size_t w0 = b - std::min(b, carry), w1 = std::min(scans.size(), e + carry);
+        const std::vector<SonarScan> window(scans.begin() + static_cast<long>(w0),
+                                            scans.begin() + static_cast<long>(w1));
+        v.Integrate(window, b - w0, e - w0);
+    }
+    return v;
+}
+
+// The edge carry: a block integrated from a vector of its own equals the whole survey's
+// integration voxel for voxel when NeighbourScans scans are carried on each side of it (two
+// here: the gap to the ping after the next, the slope fitted to two pings each side), and not
+// with one fewer; the along-track slope alone (no gap fill) reads footprint_neighbour_pings;
+// ray mode is carried the same way.
+TEST(TsdfVolume, BlocksCarryingTheirNeighbourScansMatchTheWholeSurvey) {
+    const std::vector<SonarScan> scans = ScansWithGaps();
+    for (const bool per_beam : {true, false}) {
+        TsdfConfig config = SmallConfig(SensorModel::kBeamWidth);
+        config.ping_gap_fill_per_beam = per_beam;
+        config.ping_gap_bridge_pings = 0;  // Runs bridged: below.
+        const std::size_t carry = NeighbourScans(config);
+        ASSERT_EQ(carry, 2u);
+        TsdfVolume once(config);
+        once.Integrate(scans);
+        const auto whole = Voxels(once);
+        ASSERT_GT(whole.size(), 10000u);
+        for (const std::size_t block : {1u, 2u, 5u, 16u}) {
+            EXPECT_TRUE(Voxels(IntegrateInBlocks(scans, config, block, carry)) == whole)
+                << "per beam " << per_beam << ", blocks of " << block;
+            EXPECT_FALSE(Voxels(IntegrateInBlocks(scans, config, block, carry - 1)) == whole)
+                << "per beam " << per_beam << ", blocks of " << block << ", one scan short";
+        }
+    }
+    // Runs of missing beams bridged (decision 039): the carry is NeighbourPings.
+    const TsdfConfig bridged = SmallConfig(SensorModel::kBeamWidth);
+    ASSERT_EQ(NeighbourScans(bridged), static_cast<std::size_t>(bridged.ping_gap_bridge_pings + 1));
+    TsdfVolume bridged_once(bridged);
+    bridged_once.Integrate(scans);
+    for (const std::size_t block : {1u, 5u, 16u}) {
+        EXPECT_TRUE(Voxels(IntegrateInBlocks(scans, bridged, block, NeighbourScans(bridged))) ==
+                    Voxels(bridged_once))
+            << "bridged, blocks of " << block;
+    }
+    TsdfConfig slope_only = SmallConfig(SensorModel::kBeamWidth);
+    slope_only.ping_gap_fill_m = 0.0;
+    slope_only.footprint_neighbour_pings = 3;
+    EXPECT_EQ(NeighbourScans(slope_only), 3u);
+    TsdfVolume once(slope_only);
+    once.Integrate(scans);
+    EXPECT_TRUE(Voxels(IntegrateInBlocks(scans, slope_only, 4, 3)) == Voxels(once));
+    EXPECT_FALSE(Voxels(IntegrateInBlocks(scans, slope_only, 4, 2)) == Voxels(once));
+    const TsdfConfig ray = SmallConfig(SensorModel::kRay);
+    TsdfVolume rays(ray);
+    rays.Integrate(scans);
+    EXPECT_TRUE(Voxels(IntegrateInBlocks(scans, ray, 3, NeighbourScans(ray))) == Voxels(rays));
+}
+
+// The stream: scans added a few at a time, integrated in batches of a few, give the volume of
+// one Integrate voxel for voxel, with the summed counts, holding at most a batch, the carried
+// neighbours and one Add's scans.
+TEST(ScanStreamIntegrator, BatchesOfAFewScansGiveTheWholeSurveysVolume) {
+    const std::vector<SonarScan> scans = ScansWithGaps();
+    const TsdfConfig config = SmallConfig(SensorModel::kBeamWidth);
+    TsdfVolume once(config);
+    const IntegrateResult r1 = once.Integrate(scans);
+    const auto whole = Voxels(once);
+    for (const std::size_t batch : {1u, 3u, 7u, 1000u}) {
+        for (const std::size_t add : {1u, 4u, 33u}) {
+            TsdfVolume v(config);
+            ScanStreamIntegrator stream(v, batch, scans.size());
+            for (std::size_t b = 0; b < scans.size(); b += add) {
+                const std::size_t e = std::min(scans.size(), b + add);
+                stream.Add(std::vector<SonarScan>(scans.begin() + static_cast<long>(b),
+                                                  scans.begin() + static_cast<long>(e)));
+            }
+            const IntegrateResult r = stream.Finish();
+            EXPECT_TRUE(Voxels(v) == whole) << "batch " << batch << ", add " << add;
+            EXPECT_EQ(r.scans, r1.scans);
+            EXPECT_EQ(r.beams_used, r1.beams_used);
+            EXPECT_EQ(r.beams_inconsistent, r1.beams_inconsistent);
+            EXPECT_EQ(r.voxel_updates, r1.voxel_updates);
+            EXPECT_EQ(r.active_voxels, r1.active_voxels);
+            EXPECT_EQ(r.message, r1.message);
+            EXPECT_LE(stream.max_held(), batch + 2 * NeighbourScans(config) + add);
+            if (batch < scans.size()) {
+                // The last batch and the pings after it in one call.
+                EXPECT_GE(stream.calls() + NeighbourScans(config), scans.size() / batch);
+            }
+        }
+    }
+    // Nothing added: the empty volume of an empty Integrate.
+    TsdfVolume empty(config);
+    ScanStreamIntegrator none(empty, 5);
+    EXPECT_EQ(none.Finish().message, empty.Integrate({}).message);
+}
+
+// Cancelled by the progress callback: the scans after are not integrated.
+TEST(ScanStreamIntegrator, ACancelStopsTheStream) {
+    const std::vector<SonarScan> scans = ScansWithGaps();
+    TsdfVolume v(SmallConfig(SensorModel::kBeamWidth));
+    int calls = 0;
+    ScanStreamIntegrator stream(v, 4, scans.size(), [&](double) { return ++calls < 2; });
+    stream.Add(std::vector<SonarScan>(scans));
+    const IntegrateResult r = stream.Finish();
+    EXPECT_TRUE(r.cancelled);
+    EXPECT_LT(r.scans, static_cast<std::int64_t>(scans.size()));
 }
 
 TEST(TsdfVolume, ProgressCallbackCanCancel) {

@@ -11,6 +11,7 @@
 
 #include "common/frames.hpp"
 #include "processor/pipeline/adapters.hpp"
+#include "processor/pipeline/scan_maker.hpp"
 
 namespace pitmap::proc::pipeline {
 namespace {
@@ -199,6 +200,115 @@ TEST(Adapters, ScansReproduceTheSoundingsAndMarkDroppedBeams) {
         EXPECT_EQ(thinned[k].ranges_m, scans[3 * k].ranges_m) << k;
         EXPECT_TRUE(thinned[k].T_world_sonar.isApprox(scans[3 * k].T_world_sonar)) << k;
     }
+}
+
+// Ten pings of unequally spaced beams (resampled when their scans complete): pings 0, 4, 8 and
+// 9 keep no sounding, ping 6 names no header (its scan has a pose and no beams).
+Survey SurveyWithGaps() {
+    constexpr int n = 41;
+    Survey s;
+    for (int b = 0; b < n; ++b) {
+        s.pings.beam_angles_deg.push_back(
+            static_cast<float>(-40.0 + 95.0 * std::pow(b / 40.0, 1.3)));
+    }
+    for (int k = 0; k < 10; ++k) {
+        survey::PingHeader h;
+        h.utime_gps = 1'400'000'000'000'000 + k * 100'000;
+        h.start_angle_deg = -50.0;
+        h.angle_increment_deg = 2.5;
+        h.num_beams = n;
+        s.pings.pings.push_back(h);
+        georef::GeorefPing p;
+        p.utime_gps = h.utime_gps;
+        p.header_index = k == 6 ? 999u : static_cast<std::uint32_t>(k);
+        p.T_world_vehicle = VehiclePose(k);
+        p.profile_tilt_rad = 0.01 * k;
+        s.geo.pings.push_back(p);
+        if (k == 0 || k == 4 || k >= 8) continue;
+        for (int b = k % 3; b < n; b += 1 + k % 2) {
+            s.geo.points.position_world.push_back(Eigen::Vector3d::Zero());
+            s.geo.points.ping.push_back(static_cast<std::uint32_t>(k));
+            s.geo.points.beam.push_back(static_cast<std::uint16_t>(b));
+            s.geo.points.range_m.push_back(static_cast<float>(10.0 + 0.1 * b + k));
+            s.geo.points.angle_rad.push_back(0.0f);
+        }
+    }
+    s.pings.range_counts.assign(s.pings.pings.size() * n, 1);
+    return s;
+}
+
+// Points [first, first + count) of the view.
+georef::GeorefPoints BlockOf(const georef::GeorefPoints& v, std::size_t first, std::size_t count) {
+    const std::size_t e = std::min(v.size(), first + count);
+    georef::GeorefPoints b;
+    for (std::size_t i = first; i < e; ++i) {
+        b.position_world.push_back(v.position_world[i]);
+        b.ping.push_back(v.ping[i]);
+        b.beam.push_back(v.beam[i]);
+        b.range_m.push_back(v.range_m[i]);
+        b.angle_rad.push_back(v.angle_rad[i]);
+    }
+    return b;
+}
+
+// The scans made from blocks of the view (of 1, 2, 5, 7 and 1 000 points, whole pings or cut
+// anywhere, taken after every block or once) are MakeScans' bit for bit, every ping_stride-th
+// ping, the pings without soundings and without a header included.
+TEST(Adapters, ScansMadeFromBlocksOfTheViewAreTheWholeViewsBitForBit) {
+    const Survey s = SurveyWithGaps();
+    const auto mount = Mount();
+    for (const int stride : {1, 2, 3}) {
+        const auto whole = MakeScans(s.geo, s.pings, mount, stride);
+        ASSERT_EQ(whole.size(), (10u + stride - 1) / stride);
+        for (const std::size_t block : {1u, 2u, 5u, 7u, 1000u}) {
+            for (const bool take_each : {true, false}) {
+                ScanMaker maker(s.geo.pings, s.pings, mount, stride);
+                EXPECT_EQ(maker.num_scans(), whole.size());
+                std::vector<fusion::SonarScan> made;
+                const auto take = [&] {
+                    for (auto& scan : maker.Take()) made.push_back(std::move(scan));
+                };
+                for (std::size_t first = 0; first < s.geo.points.size(); first += block) {
+                    ASSERT_TRUE(maker.Add(BlockOf(s.geo.points, first, block)));
+                    if (take_each) take();
+                }
+                maker.Finish();
+                take();
+                ASSERT_EQ(made.size(), whole.size()) << stride << " " << block;
+                for (std::size_t k = 0; k < whole.size(); ++k) {
+                    EXPECT_EQ(made[k].gps_time_s, whole[k].gps_time_s);
+                    EXPECT_EQ(made[k].start_angle_rad, whole[k].start_angle_rad);
+                    EXPECT_EQ(made[k].angle_increment_rad, whole[k].angle_increment_rad);
+                    EXPECT_TRUE(made[k].T_world_sonar.matrix() == whole[k].T_world_sonar.matrix());
+                    EXPECT_EQ(made[k].ranges_m, whole[k].ranges_m)
+                        << "stride " << stride << ", blocks of " << block << ", scan " << k;
+                }
+            }
+        }
+        // A scan is handed over only once complete: after the points of ping 5, ping 5's is not.
+        ScanMaker maker(s.geo.pings, s.pings, mount, 1);
+        std::size_t through5 = 0;
+        while (s.geo.points.ping[through5] <= 5) ++through5;
+        ASSERT_TRUE(maker.Add(BlockOf(s.geo.points, 0, through5)));
+        EXPECT_EQ(maker.Take().size(), 5u);
+    }
+    const auto whole = MakeScans(s.geo, s.pings, mount);
+    EXPECT_EQ(whole[6].ranges_m.size(), 0u) << "no header";
+    EXPECT_EQ(whole[4].ranges_m, std::vector<float>(41, 0.0f)) << "no sounding";
+    EXPECT_NE(whole[5].start_angle_rad, static_cast<float>(frames::DegToRad(-50.0))) << "resampled";
+}
+
+// Points out of ping order, or of a ping the view has not, are an error naming it.
+TEST(Adapters, ScansFromBlocksOutOfPingOrderAreAnError) {
+    const Survey s = SurveyWithGaps();
+    ScanMaker maker(s.geo.pings, s.pings, Mount());
+    georef::GeorefPoints late = BlockOf(s.geo.points, s.geo.points.size() - 1, 1);
+    ASSERT_TRUE(maker.Add(late));
+    const Status back = maker.Add(BlockOf(s.geo.points, 0, 1));
+    ASSERT_FALSE(back);
+    EXPECT_NE(back.error().message.find("ping order"), std::string::npos) << back.error().message;
+    late.ping[0] = 10;
+    EXPECT_FALSE(maker.Add(late));
 }
 
 TEST(Adapters, NewVehiclePosesMoveEachPingsSoundingsRigidly) {
