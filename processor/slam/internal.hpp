@@ -359,6 +359,14 @@ StageOutcome RunStage(const Input& in,
                       double* best_score,
                       SlamResult& res);
 
+// The rigid stage's parametrisation of the poses `current` (its base): one node per section of
+// `blocks`, at the section's centre with the corrections interpolated in time between centres
+// (SlamConfig::rigid_interpolate_sections), or rigid about the section's mean position.
+Param RigidParam(const Input& in,
+                 const std::vector<Pose>& current,
+                 const std::vector<Block>& blocks,
+                 const SlamConfig& cfg);
+
 // The rigid stage from the poses `current`, which it replaces with its result.
 StageOutcome RunRigidStage(const Input& in,
                            std::vector<Block>& blocks,

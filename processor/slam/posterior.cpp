@@ -3,11 +3,14 @@
 // covariances of the pose nodes' corrections from the undamped normal equations at the kept
 // iterate, scaled by the a-posteriori variance factor, and interpolated to the slices.
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
+#include <random>
 #include <string>
 #include <utility>
 
@@ -253,16 +256,182 @@ double FormalHorizontalMedian(const std::vector<Matrix6d>& Ckk, double scale) {
     return h[h.size() / 2];
 }
 
+// ---- the INS's steady position error through the rigid stage's result (decision 042) -------
+// The INS's steady position error (the survey's smallest sigma f per axis, what it holds with
+// GNSS) is a first-order Gauss-Markov process of correlation time tau
+// (SlamConfig::ins_correlation_time_s). Where GNSS is good the semi-rigid stage's iterates
+// usually score worse than the rigid stage's result, and the stage keeps its start (bejanca:
+// both semi-rigid iterates worse, the rigid result kept): SLAM's result is then the rigid
+// stage's, an estimator whose absolute terms are one per section (15 s) against every pair of
+// the section, and whose result errs much less than f (bejanca: the INS 14.4 mm vertically, the
+// result 9.2 mm with the INS's 5 mm white noise, uncorrelated between passes minutes apart).
+// The result's error at slice s is the INS's error there, e_s, plus the correction the rigid
+// estimator made of it: with the node increments xi = -H_r^-1 (g(e) - g(0)) (H_r the rigid
+// stage's normal equations at the result, its pairs at the solver's weights; g the pose terms'
+// gradient with the INS positions at the nodes' anchors moved by e) the correction at s is
+// xi(s) - e_i(s), xi(s) the slice's interpolation of its nodes' increments and e_i(s) the same
+// interpolation of e at the anchors: eps_s = xi(s) + e_s - e_i(s). Its variance per slice is
+// taken over kSteadyDraws draws of the process at every slice (exact transitions; fixed seed).
+// Left out: the pairs' response to e_s - e_i(s) (the process's deviation from its interpolation
+// between nodes 15 s apart, a few mm), which the correction would partly follow: conservative.
+// Without pairs xi = e at the anchors and eps_s = e_s: f, as before.
+constexpr int kSteadyDraws = 256;
+constexpr std::uint64_t kSteadySeed = 42;
+
+// Whether SLAM's result is the rigid stage's: the semi-rigid stage kept its start (p holds no
+// correction) and the rigid stage moved the poses T off the INS's.
+bool RigidResultKept(const Input& in,
+                     const Param& p,
+                     const std::vector<Pose>& T,
+                     const SlamConfig& cfg) {
+    if (cfg.rigid_iterations <= 0) return false;
+    for (std::size_t k = 0; k < p.num_nodes(); ++k) {
+        if (!(p.tc[k].isZero(0.0) && p.Rc[k] == Eigen::Matrix3d::Identity())) return false;
+    }
+    for (std::size_t s = 0; s < T.size(); ++s) {
+        if ((T[s].translation() - in.T_ins[s].translation()).norm() > 1e-6) return true;
+    }
+    return false;
+}
+
+// The pose terms' inputs alone (no points), whose INS positions the draws move.
+Input PoseTermsInput(const Input& in) {
+    Input out;
+    out.input_index = in.input_index;
+    out.t_s = in.t_s;
+    out.T_ins = in.T_ins;
+    out.sigma = in.sigma;
+    out.sigma_floor = in.sigma_floor;
+    out.position_white_sigma = in.position_white_sigma;
+    out.breaks = in.breaks;
+    return out;
+}
+
+// The gradient of the pose terms of p at T, stacked per node.
+Eigen::VectorXd PoseTermsGradient(const Input& in,
+                                  const Param& p,
+                                  const std::vector<Pose>& T,
+                                  const SlamConfig& cfg) {
+    const std::size_t n = p.num_nodes();
+    Terms acc(n);
+    AddPoseTerms(in, p, T, cfg, /*linearise=*/true, acc);
+    Eigen::VectorXd g(static_cast<Eigen::Index>(6 * n));
+    for (std::size_t k = 0; k < n; ++k) {
+        g.segment<6>(static_cast<Eigen::Index>(6 * k)) = acc.sys.grad()[k];
+    }
+    return g;
+}
+
+// Draw d of the steady error at every slice: per axis sigma f, correlation time tau, exact
+// transitions between the slices' times.
+void SteadyDraw(
+    const Input& in, const Eigen::Vector3d& f, double tau, int d, std::vector<Eigen::Vector3d>& e) {
+    std::mt19937_64 rng(kSteadySeed * 1000003ULL + static_cast<std::uint64_t>(d));
+    std::normal_distribution<double> normal;
+    e.resize(in.num_slices());
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        const Eigen::Vector3d u(normal(rng), normal(rng), normal(rng));
+        if (s == 0) {
+            e[s] = f.cwiseProduct(u);
+            continue;
+        }
+        const double a = std::exp(-std::abs(in.t_s[s] - in.t_s[s - 1]) / tau);
+        e[s] = a * e[s - 1] + std::sqrt(std::max(0.0, 1.0 - a * a)) * f.cwiseProduct(u);
+    }
+}
+
+// The rigid stage's normal equations at T (its parametrisation pr), its pairs as the solver
+// weighs them (all their information, no design effect), factorised. False when it fails.
+bool FactoriseRigid(const Input& in,
+                    const Param& pr,
+                    const std::vector<Pose>& T,
+                    const std::vector<Pair>& pairs,
+                    const SlamConfig& cfg,
+                    std::unique_ptr<reg::DampedSolver<6>>& ne,
+                    std::unique_ptr<Terms>& total) {
+    const std::size_t m = pr.num_nodes();
+    total = std::make_unique<Terms>(m);
+    AddPoseTerms(in, pr, T, cfg, /*linearise=*/true, *total);
+    tbb::enumerable_thread_specific<Terms> accs([m] { return Terms(m); });
+    AddPairTerms(in, pr, T, pairs, cfg, /*linearise=*/true, accs);
+    for (const Terms& acc : accs) total->sys.Merge(acc.sys);
+    ne = std::make_unique<reg::DampedSolver<6>>(total->sys);
+    Eigen::VectorXd delta;
+    return ne->Solve(0.0, &delta);
+}
+
+// Per slice, the variance (east, north, up) of the rigid result's error from the INS's steady
+// position error (above); empty when the rigid normal equations cannot be solved.
+std::vector<Eigen::Vector3d> RigidSteadyVariance(const Input& in,
+                                                 const std::vector<Pose>& T,
+                                                 const std::vector<Block>& blocks,
+                                                 const std::vector<Pair>& pairs,
+                                                 const SlamConfig& cfg) {
+    const Param pr = RigidParam(in, T, blocks, cfg);
+    const std::size_t m = pr.num_nodes();
+    const std::size_t n = in.num_slices();
+    std::unique_ptr<reg::DampedSolver<6>> ne;
+    std::unique_ptr<Terms> total;
+    if (m == 0 || !FactoriseRigid(in, pr, T, pairs, cfg, ne, total)) return {};
+    const Eigen::Vector3d f = in.sigma_floor.tail<3>().cwiseMax(0.0);
+    const double tau = std::max(cfg.ins_correlation_time_s, 1e-3);
+    Input ins = PoseTermsInput(in);
+    const Eigen::VectorXd g0 = PoseTermsGradient(ins, pr, T, cfg);
+    Eigen::MatrixXd G(g0.size(), kSteadyDraws);
+    std::vector<Eigen::Vector3d> ea(m * kSteadyDraws), e;
+    for (int d = 0; d < kSteadyDraws; ++d) {
+        SteadyDraw(in, f, tau, d, e);
+        for (std::size_t k = 0; k < m; ++k) {
+            const auto a = static_cast<std::size_t>(pr.anchor[k]);
+            ea[static_cast<std::size_t>(d) * m + k] = e[a];
+            ins.T_ins[a].translation() = in.T_ins[a].translation() + e[a];
+        }
+        G.col(d) = PoseTermsGradient(ins, pr, T, cfg) - g0;
+    }
+    const Eigen::MatrixXd X = ne->SolveMany(G);
+    if (X.size() == 0) return {};
+    // The slice's translation from its node increment (rot, trans): trans + rot x lever.
+    std::vector<Eigen::Vector3d> lever(n);
+    for (std::size_t s = 0; s < n; ++s) lever[s] = T[s].translation() - pr.pivot[s];
+    tbb::enumerable_thread_specific<std::vector<Eigen::Vector3d>> acc(
+        [n] { return std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()); });
+    tbb::parallel_for(0, kSteadyDraws, [&](int d) {
+        std::vector<Eigen::Vector3d> ed;
+        SteadyDraw(in, f, tau, d, ed);
+        std::vector<Eigen::Vector3d>& v = acc.local();
+        const auto o = static_cast<std::size_t>(d) * m;
+        for (std::size_t s = 0; s < n; ++s) {
+            const auto k0 = static_cast<std::size_t>(pr.k0[s]);
+            const auto k1 = static_cast<std::size_t>(pr.k1[s]);
+            const double w = pr.alpha[s];
+            const Vector6d x = (1.0 - w) * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k0)) +
+                               w * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k1));
+            // xi = -x = -H^-1 (g(e) - g(0)); the slice's translation as NodeToSlice makes it.
+            const Eigen::Vector3d moved = -(x.tail<3>() + x.head<3>().cross(lever[s]));
+            const Eigen::Vector3d eps = moved + ed[s] - ((1.0 - w) * ea[o + k0] + w * ea[o + k1]);
+            v[s] += eps.cwiseAbs2();
+        }
+    });
+    std::vector<Eigen::Vector3d> var(n, Eigen::Vector3d::Zero());
+    for (const auto& v : acc) {
+        for (std::size_t s = 0; s < n; ++s) var[s] += v[s];
+    }
+    for (Eigen::Vector3d& v : var) v /= static_cast<double>(kSteadyDraws);
+    return var;
+}
+
 // The slice's 1-sigma roll, pitch, yaw and position: the interpolated perturbation of its two
 // nodes (node blocks Ckk, cross blocks Ckn of consecutive nodes), with the INS's steady error
-// added when posterior_reference_sigma.
+// added when posterior_reference_sigma: its position part as `steady_var` states it (the rigid
+// result's response, RigidSteadyVariance), or whole when that is null.
 Vector6d SliceSigma(const Input& in,
                     const Param& p,
                     const std::vector<Pose>& T,
                     const std::vector<Matrix6d>& Ckk,
                     const std::vector<Matrix6d>& Ckn,
                     const SlamConfig& cfg,
-                    std::size_t s) {
+                    std::size_t s,
+                    const Eigen::Vector3d* steady_var) {
     const auto k0 = static_cast<std::size_t>(p.k0[s]);
     Matrix6d C;
     if (p.alpha[s] == 0.0) {
@@ -278,17 +447,20 @@ Vector6d SliceSigma(const Input& in,
         C = A * Ckk[k0] * A.transpose() + B * Ckk[k1] * B.transpose() + AXBt + AXBt.transpose();
     }
     if (cfg.posterior_reference_sigma) {
-        // SLAM is tied to the INS: its steady error (the survey's smallest sigma, what it
-        // holds with GNSS) is common to every pass SLAM aligns and is not averaged away.
+        // SLAM is tied to the INS: its steady error (the survey's smallest sigma f, what it
+        // holds with GNSS), whole (the result follows the INS: common to the passes it aligns)
+        // or as the rigid result carries it (steady_var). The attitude's steady part whole.
         // The white noise of each INS output (PositionWhiteNoise) stays in every ping too.
-        // Its slow error where the data state it larger than the INS reports (decision 027).
+        // The slow error where the data state it larger than the INS reports (decision 027):
+        // its excess over f whole.
         for (int c = 0; c < 3; ++c) {
-            const double steady =
-                c < 2 ? std::max(in.sigma_floor(3 + c), cfg.reference_horizontal_sigma_m)
-                      : in.sigma_floor(3 + c);
+            const double f = in.sigma_floor(3 + c);
+            const double stated = c < 2 ? std::max(f, cfg.reference_horizontal_sigma_m) : f;
+            const double steady2 = steady_var != nullptr
+                                       ? (*steady_var)(c) + stated * stated - f * f
+                                       : stated * stated;
             C(c, c) += in.sigma_floor(c) * in.sigma_floor(c);
-            C(3 + c, 3 + c) +=
-                steady * steady + in.position_white_sigma(c) * in.position_white_sigma(c);
+            C(3 + c, 3 + c) += steady2 + in.position_white_sigma(c) * in.position_white_sigma(c);
         }
     }
     Vector6d sig;
@@ -399,6 +571,41 @@ bool WindowedMarginals(const Input& in,
     return true;
 }
 
+// post.slice_sigma from the node blocks, the steady position error as the rigid result carries
+// it where the result is the rigid stage's (RigidResultKept), else whole; sets computed.
+void FillSliceSigma(const Input& in,
+                    const Param& p,
+                    const std::vector<Pose>& T,
+                    const std::vector<Block>& blocks,
+                    const std::vector<Pair>& pairs,
+                    const std::vector<Matrix6d>& Ckk,
+                    const std::vector<Matrix6d>& Ckn,
+                    const SlamConfig& cfg,
+                    SlamPosterior& post) {
+    const auto t0 = Clock::now();
+    std::vector<Eigen::Vector3d> steady;
+    if (cfg.posterior_reference_sigma && RigidResultKept(in, p, T, cfg)) {
+        steady = RigidSteadyVariance(in, T, blocks, pairs, cfg);
+        post.steady_model = steady.empty() ? "whole (the rigid response failed)" : "rigid_response";
+    } else {
+        post.steady_model = cfg.posterior_reference_sigma ? "whole" : "none";
+    }
+    post.steady_s = Seconds(t0);
+    post.slice_sigma.resize(in.num_slices());
+    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+        post.slice_sigma[s] =
+            SliceSigma(in, p, T, Ckk, Ckn, cfg, s, steady.empty() ? nullptr : &steady[s]);
+    }
+    if (!steady.empty()) {
+        std::vector<double> up(steady.size());
+        for (std::size_t s = 0; s < steady.size(); ++s) up[s] = std::sqrt(steady[s](2));
+        std::nth_element(
+            up.begin(), up.begin() + static_cast<std::ptrdiff_t>(up.size() / 2), up.end());
+        post.steady_up_median_m = up[up.size() / 2];
+    }
+    post.computed = true;
+}
+
 }  // namespace
 
 void ComputePosterior(const Input& in,
@@ -451,11 +658,7 @@ void ComputePosterior(const Input& in,
         if (!WindowedMarginals(in, p, T, pairs, windows, pair_info, cfg, post, Ckk, Ckn)) {
             return fail(post.message);
         }
-        post.slice_sigma.resize(in.num_slices());
-        for (std::size_t s = 0; s < in.num_slices(); ++s) {
-            post.slice_sigma[s] = SliceSigma(in, p, T, Ckk, Ckn, cfg, s);
-        }
-        post.computed = true;
+        FillSliceSigma(in, p, T, blocks, pairs, Ckk, Ckn, cfg, post);
         post.total_s = Seconds(t_start);
         return;
     }
@@ -506,11 +709,7 @@ void ComputePosterior(const Input& in,
     }
     post.marginals_s = Seconds(t0);
 
-    post.slice_sigma.resize(in.num_slices());
-    for (std::size_t s = 0; s < in.num_slices(); ++s) {
-        post.slice_sigma[s] = SliceSigma(in, p, T, Ckk, Ckn, cfg, s);
-    }
-    post.computed = true;
+    FillSliceSigma(in, p, T, blocks, pairs, Ckk, Ckn, cfg, post);
     post.total_s = Seconds(t_start);
 }
 

@@ -10,6 +10,48 @@
 
 namespace pitmap::proc::slam::detail {
 
+Param RigidParam(const Input& in,
+                 const std::vector<Pose>& current,
+                 const std::vector<Block>& blocks,
+                 const SlamConfig& cfg) {
+    // Rigid sections, rotating about the section's mean position; or, with
+    // rigid_interpolate_sections, one correction per section centre, interpolated in time
+    // between centres (the corrected track stays continuous).
+    std::vector<std::size_t> nodes;
+    // Interpolated: a node at each section centre, but at the start of a section that
+    // starts at a GNSS recovery (the INS error is continuous there, its rate is not).
+    for (const Block& b : blocks) {
+        nodes.push_back(cfg.rigid_interpolate_sections && !in.IsBreak(b.s0) ? (b.s0 + b.s1 - 1) / 2
+                                                                            : b.s0);
+    }
+    Param p = MakeParam(current, nodes);
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) c += current[s].translation();
+        c /= static_cast<double>(blocks[b].s1 - blocks[b].s0);
+        for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
+            p.pivot[s] = c;
+            p.k0[s] = p.k1[s] = static_cast<int>(b);
+        }
+    }
+    if (cfg.rigid_interpolate_sections) {
+        std::size_t k = 0;
+        for (std::size_t s = 0; s < in.num_slices(); ++s) {
+            while (k + 1 < nodes.size() && nodes[k + 1] <= s) ++k;
+            p.pivot[s] = current[s].translation();
+            p.k0[s] = static_cast<int>(k);
+            p.k1[s] = static_cast<int>(k);
+            p.alpha[s] = 0.0;
+            if (s > nodes[k] && k + 1 < nodes.size()) {
+                p.k1[s] = static_cast<int>(k + 1);
+                p.alpha[s] = (in.t_s[s] - in.t_s[nodes[k]]) /
+                             std::max(in.t_s[nodes[k + 1]] - in.t_s[nodes[k]], 1e-9);
+            }
+        }
+    }
+    return p;
+}
+
 StageOutcome RunRigidStage(const Input& in,
                            std::vector<Block>& blocks,
                            const std::vector<std::uint32_t>& slice_block,
@@ -18,44 +60,11 @@ StageOutcome RunRigidStage(const Input& in,
                            std::vector<Pose>& current,
                            double* best_score,
                            SlamResult& res) {
-    // Stage 1: rigid sections, rotating about the section's mean position; or, with
-    // rigid_interpolate_sections, one correction per section centre, interpolated in time
-    // between centres (the corrected track stays continuous).
+    // Stage 1: rigid sections (RigidParam).
     StageOutcome rigid;
     rigid.termination = SlamTermination::kConverged;
     if (cfg.rigid_iterations > 0) {
-        std::vector<std::size_t> nodes;
-        // Interpolated: a node at each section centre, but at the start of a section that
-        // starts at a GNSS recovery (the INS error is continuous there, its rate is not).
-        for (const Block& b : blocks) {
-            nodes.push_back(
-                cfg.rigid_interpolate_sections && !in.IsBreak(b.s0) ? (b.s0 + b.s1 - 1) / 2 : b.s0);
-        }
-        Param p = MakeParam(current, nodes);
-        for (std::size_t b = 0; b < blocks.size(); ++b) {
-            Eigen::Vector3d c = Eigen::Vector3d::Zero();
-            for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) c += current[s].translation();
-            c /= static_cast<double>(blocks[b].s1 - blocks[b].s0);
-            for (std::size_t s = blocks[b].s0; s < blocks[b].s1; ++s) {
-                p.pivot[s] = c;
-                p.k0[s] = p.k1[s] = static_cast<int>(b);
-            }
-        }
-        if (cfg.rigid_interpolate_sections) {
-            std::size_t k = 0;
-            for (std::size_t s = 0; s < in.num_slices(); ++s) {
-                while (k + 1 < nodes.size() && nodes[k + 1] <= s) ++k;
-                p.pivot[s] = current[s].translation();
-                p.k0[s] = static_cast<int>(k);
-                p.k1[s] = static_cast<int>(k);
-                p.alpha[s] = 0.0;
-                if (s > nodes[k] && k + 1 < nodes.size()) {
-                    p.k1[s] = static_cast<int>(k + 1);
-                    p.alpha[s] = (in.t_s[s] - in.t_s[nodes[k]]) /
-                                 std::max(in.t_s[nodes[k + 1]] - in.t_s[nodes[k]], 1e-9);
-                }
-            }
-        }
+        Param p = RigidParam(in, current, blocks, cfg);
         if (cfg.coarse_search_m > 0) {
             const auto t0 = Clock::now();
             const std::vector<Eigen::Vector3d> shift =

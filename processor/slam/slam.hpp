@@ -353,6 +353,13 @@ struct SlamPosterior {
     // The reference's horizontal sigma per axis the posterior used (the larger of the INS's
     // steady sigma and SlamConfig::reference_horizontal_sigma_m), m.
     double reference_horizontal_sigma_m = 0;
+    // How the INS's steady position error entered slice_sigma (decision 042): "whole" (the
+    // result follows the INS), "rigid_response" (the result is the rigid stage's, and its error
+    // from that process was propagated through the rigid stage's normal equations), "none";
+    // the median of that part's vertical sigma (rigid_response only), and its time.
+    std::string steady_model;
+    double steady_up_median_m = 0;
+    double steady_s = 0;
     // The perturbed-start runs (posterior_start_runs) whose spread was added to slice_sigma in
     // quadrature, and that spread alone per slice (1-sigma east, north, up, m; empty without).
     std::size_t start_runs = 0;
