@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/georef/survey_view.hpp"
+#include "processor/georef/georef_blocks.hpp"
 
 #include <utility>
 #include <vector>
@@ -46,15 +47,43 @@ GeorefResult Georeference(const survey::SurveyModel& m,
                           const ProgressCallback& progress,
                           std::size_t* kept,
                           survey::SoundingView which) {
-    GeorefResult geo = RunGeoref(m.ingest.nav,
-                                 m.ingest.pings,
-                                 m.mount,
-                                 config,
-                                 m.origin,
-                                 progress,
-                                 std::move(refraction),
-                                 &m.flags,
-                                 which);
+    // By blocks of pings into arrays reserved for every beam (decision 033): only the pages
+    // of the soundings kept are touched, where RunGeoref holds every beam's position before it
+    // compacts them (33 bytes a beam). The same points bit for bit.
+    const std::size_t beams = m.ingest.pings.range_counts.size();
+    GeorefPoints held;
+    held.position_world.reserve(beams);
+    held.ping.reserve(beams);
+    held.beam.reserve(beams);
+    held.range_m.reserve(beams);
+    held.angle_rad.reserve(beams);
+    if (which != survey::SoundingView::kAccepted) held.status.reserve(beams);
+    const auto sink = [&held](const GeorefPoints& b, const GeorefResult&) {
+        const auto append = [](auto& to, const auto& from) {
+            to.insert(to.end(), from.begin(), from.end());
+        };
+        append(held.position_world, b.position_world);
+        append(held.ping, b.ping);
+        append(held.beam, b.beam);
+        append(held.range_m, b.range_m);
+        append(held.angle_rad, b.angle_rad);
+        append(held.status, b.status);
+        return true;
+    };
+    constexpr std::size_t kBlockSoundings = std::size_t{1} << 20;
+    GeorefResult geo = RunGeorefByBlocks(m.ingest.nav,
+                                         m.ingest.pings,
+                                         m.mount,
+                                         config,
+                                         kBlockSoundings,
+                                         sink,
+                                         m.origin,
+                                         progress,
+                                         std::move(refraction),
+                                         &m.flags,
+                                         which);
+    if (geo.cancelled) return geo;
+    geo.points = std::move(held);
     // RunGeoref puts each ping on the navigation at its current time: the calibrated version
     // once the calibration ran, else the INS one. Any other version moves the pings.
     int chosen = -1;

@@ -15,10 +15,13 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/georef/georef_blocks.hpp"
+#include "processor/georef/mount_check.hpp"
 #include "processor/georef/survey_view.hpp"
 #include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/io/point_blocks.hpp"
 #include "processor/io/view_spill.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -55,6 +58,18 @@ struct StageContext {
 Status SpillView(StageContext& s);
 // Reads the spilled points back (bit for bit) into s.geo.points; nothing when none are spilled.
 Status RestoreView(StageContext& s);
+// s.geo made again from the model (georef::RunGeorefByBlocks of its ingested pings on their
+// current times, its mount, flags and s.refraction; `origin` nullopt = the first navigation
+// sample) with its points written to the view's file a block at a time (decision 033): the
+// view is never held, s.spilled_view holds it at the end (an earlier view is dropped first). A
+// folder where the file cannot be made holds the view (a warning); a write that fails midway
+// (the disk full) is an error naming the file. `check` (optional) sees every block.
+Status GeoreferenceToFile(StageContext& s,
+                          const PipelineConfig& config,
+                          std::optional<Geodetic> origin,
+                          georef::MountCheckByBlocks* check,
+                          const ProgressCallback& progress,
+                          const Log& log);
 
 // Refraction for a new georeference: the config's casts (none: straight rays) with the INS
 // height above the water line from the config, else from the vehicle file; sets the model's
@@ -240,6 +255,20 @@ Status WriteProjectedPoints(const std::string& dir,
                             const ProductMetadata& meta,
                             const std::string& run_id,
                             std::size_t block_soundings);
+// The same with the accepted soundings from `accepted` (read a block at a time from the view's
+// file, decision 033; geo's points are not read).
+Status WriteProjectedPoints(const std::string& dir,
+                            const georef::GeorefResult& geo,
+                            const io::PointBlocks& accepted,
+                            const georef::UtmProjection& utm,
+                            const georef::GeorefResult* rejected,
+                            const hydro::DatumModel& datum,
+                            const ProductMetadata& meta,
+                            const std::string& run_id,
+                            std::size_t block_soundings);
+// The view's soundings a block at a time: from its file while it is spilled (block
+// BlockWithinBudget of `run`), else held.
+io::PointBlocks ViewBlocks(const StageContext& s, const RunOptions& run);
 // A mesh's vertices (world ENU at `origin`) in the products' CRS: UTM in the origin's zone
 // (exact, GeographicLib, per vertex), heights in `datum`'s vertical CRS (the geoid at each
 // vertex; a water level's mean over the survey).

@@ -158,29 +158,37 @@ void SetMemoryBudget(json& summary, const RunOptions& run) {
                          {"block_soundings", run.block_soundings}};
 }
 
-Status WritePoints(const std::string& dir,
-                   const georef::GeorefResult& geo,
-                   const PipelineConfig& c,
-                   json& summary,
-                   const std::string& run_id,
-                   const georef::GeorefResult* rejected,
-                   const survey::PingSeries* pings,
-                   const ProductMetadata* meta) {
+namespace {
+
+// WritePoints with the accepted soundings from `accepted` (held, or read a block at a time from
+// the view's file: decision 033).
+Status WritePointsOf(const std::string& dir,
+                     const georef::GeorefResult& geo,
+                     const io::PointBlocks& accepted,
+                     const PipelineConfig& c,
+                     json& summary,
+                     const std::string& run_id,
+                     const georef::GeorefResult* rejected,
+                     const survey::PingSeries* pings,
+                     const ProductMetadata* meta) {
     io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
     extras.pings = pings;
-    if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
+    if (auto s = io::WritePly(dir + "/points.ply", geo, accepted, &extras, run_id, rejected); !s)
+        return s;
     // The soundings are placed in UTM where the files are written (24 bytes a sounding less).
     auto utm = georef::UtmProjectionOf(geo);
     if (!utm) return Error{"UTM: " + utm.error().message};
     summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
     if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected, meta);
+        if (auto s = io::WriteLas(
+                dir + "/points.las", geo, accepted, *utm, &extras, run_id, rejected, meta);
             !s)
             return s;
         // Heights above the ellipsoid here: the grid stage writes them again in the datum.
         if (!c.write_points_utm) return Ok{};
         if (auto s = WriteProjectedPoints(dir,
                                           geo,
+                                          accepted,
                                           *utm,
                                           rejected,
                                           hydro::DatumModel{},
@@ -191,6 +199,32 @@ Status WritePoints(const std::string& dir,
             return s;
     }
     return Ok{};
+}
+
+}  // namespace
+
+Status WritePoints(const std::string& dir,
+                   const georef::GeorefResult& geo,
+                   const PipelineConfig& c,
+                   json& summary,
+                   const std::string& run_id,
+                   const georef::GeorefResult* rejected,
+                   const survey::PingSeries* pings,
+                   const ProductMetadata* meta) {
+    return WritePointsOf(
+        dir, geo, io::HeldPoints(geo.points), c, summary, run_id, rejected, pings, meta);
+}
+
+io::PointBlocks ViewBlocks(const StageContext& s, const RunOptions& run) {
+    if (!s.spilled_view) return io::HeldPoints(s.geo.points);
+    io::PointBlocks b;
+    b.size = s.spilled_view->size();
+    b.block = BlockWithinBudget(run, ResidentMb());
+    const io::SpilledPoints* file = &*s.spilled_view;
+    b.read = [file](std::size_t first, std::size_t count, georef::GeorefPoints& out) {
+        return file->ReadBlock(first, count, out);
+    };
+    return b;
 }
 
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
@@ -206,13 +240,29 @@ georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
+    // The view's soundings a block at a time from its file while it is there (decision 033).
+    const io::PointBlocks accepted = ViewBlocks(s, c.run);
     if (!c.write_rejected) {
-        return WritePoints(
-            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings, &meta);
+        return WritePointsOf(s.out_dir,
+                             s.geo,
+                             accepted,
+                             c,
+                             s.summary,
+                             s.model.run_id,
+                             nullptr,
+                             &s.model.ingest.pings,
+                             &meta);
     }
     const georef::GeorefResult rejected = RejectedView(s, c);
-    return WritePoints(
-        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
+    return WritePointsOf(s.out_dir,
+                         s.geo,
+                         accepted,
+                         c,
+                         s.summary,
+                         s.model.run_id,
+                         &rejected,
+                         &s.model.ingest.pings,
+                         &meta);
 }
 
 json SoundingsJson(const georef::GeorefCounts& c) {
@@ -438,6 +488,65 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     return s;
 }
 
+namespace {
+
+// Appends `block` to `to` (the view held when its file cannot be written).
+void AppendPoints(const georef::GeorefPoints& block, georef::GeorefPoints& to) {
+    auto append = [](auto& dst, const auto& src) { dst.insert(dst.end(), src.begin(), src.end()); };
+    append(to.position_world, block.position_world);
+    append(to.ping, block.ping);
+    append(to.beam, block.beam);
+    append(to.range_m, block.range_m);
+    append(to.angle_rad, block.angle_rad);
+    append(to.status, block.status);
+}
+
+}  // namespace
+
+Status GeoreferenceToFile(StageContext& s,
+                          const PipelineConfig& config,
+                          std::optional<Geodetic> origin,
+                          georef::MountCheckByBlocks* check,
+                          const ProgressCallback& progress,
+                          const Log& log) {
+    // One view at a time: the new one is made from the model alone.
+    s.spilled_view.reset();
+    s.geo = georef::GeorefResult{};
+    const std::size_t beams = s.model.ingest.pings.range_counts.size();
+    auto writer = io::SpillWriter::Open(io::ViewSpillPath(s.out_dir), beams, false);
+    if (!writer) log("warning: " + writer.error().message + ": the view is held in memory");
+    georef::GeorefPoints held;
+    Status failed = Ok{};
+    auto sink = [&](const georef::GeorefPoints& block, const georef::GeorefResult& so_far) {
+        if (check != nullptr) check->Add(so_far, block);
+        if (!writer) {
+            AppendPoints(block, held);
+            return true;
+        }
+        failed = writer->Append(block);
+        return static_cast<bool>(failed);
+    };
+    s.geo = georef::RunGeorefByBlocks(s.model.ingest.nav,
+                                      s.model.ingest.pings,
+                                      s.model.mount,
+                                      config.georef,
+                                      BlockWithinBudget(config.run, ResidentMb()),
+                                      sink,
+                                      origin,
+                                      progress,
+                                      s.refraction,
+                                      &s.model.flags);
+    if (!failed) return Error{"georef: " + failed.error().message};
+    if (!writer) {
+        s.geo.points = std::move(held);
+        return Ok{};
+    }
+    auto spilled = writer->Finish();
+    if (!spilled) return Error{"georef: " + spilled.error().message};
+    s.spilled_view = std::move(*spilled);
+    return Ok{};
+}
+
 Status SpillView(StageContext& s) {
     if (s.spilled_view) return Ok{};
     auto spilled = io::SpilledPoints::Spill(s.geo.points, io::ViewSpillPath(s.out_dir));
@@ -648,24 +757,23 @@ Expected<std::vector<io::InsStatusWindow>> IngestSurvey(StageContext& s,
 }
 
 // georef::RunGeoref of the ingested pings on the INS trajectory, with a progress bar; the world
-// origin is the configured one, else the first navigation sample.
-void GeoreferenceIngest(StageContext& s, const PipelineConfig& config, const Log& log) {
+// origin is the configured one, else the first navigation sample. The view goes to its file
+// block by block (GeoreferenceToFile); `check` sees every block (the mount check).
+Status GeoreferenceIngest(StageContext& s,
+                          const PipelineConfig& config,
+                          georef::MountCheckByBlocks& check,
+                          const Log& log) {
     std::optional<Geodetic> origin;
     if (!std::isnan(config.origin_latitude_deg)) {
         origin = Geodetic{
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter bar(ToString(Stage::kGeoref), 1000);
-    s.geo = georef::RunGeoref(s.model.ingest.nav,
-                              s.model.ingest.pings,
-                              s.model.mount,
-                              config.georef,
-                              origin,
-                              bar.AsCallback(),
-                              s.refraction,
-                              &s.model.flags);
+    auto st = GeoreferenceToFile(s, config, origin, &check, bar.AsCallback(), log);
     bar.Finish();
+    if (!st) return st;
     log("georef: " + s.geo.message);
+    return Ok{};
 }
 
 // Pings outside the navigation's span are not georeferenced: a warning, or the georef gate
@@ -692,8 +800,7 @@ void GateOutsideNavigation(StageContext& s, const QualityConfig& quality, const 
 // A mount that does not explain the soundings stops georef (an error), unless the sonar clock
 // is in doubt (a sonar_clock gate tripped): the attitude of another time leaves the roll in
 // the soundings too, so the check cannot blame the mount and trips the gate naming both.
-Status CheckMount(StageContext& s, const Log& log) {
-    const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
+Status CheckMount(StageContext& s, const georef::MountCheck& mc, const Log& log) {
     log("georef: " + mc.message);
     s.summary["mount_check"] = {{"checked", mc.checked},
                                 {"consistent", mc.consistent},
@@ -736,6 +843,8 @@ void RecordGeoref(StageContext& s, const std::vector<std::string>& files, const 
     s.model.trajectory(survey::TrajectoryVersion::kIns) =
         georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     RecordStage(s.summary, Stage::kGeoref, s.geo.counts, clock);
+    // Whether the view went to its file as it was made (decision 033), or is held.
+    s.summary["stages"][ToString(Stage::kGeoref)]["view_in_file"] = s.spilled_view.has_value();
     s.summary["world_origin"] = survey::OriginJson(s.model.origin);
     s.summary["time"] = TimeJson(s.model.ingest);
     s.summary["inputs"] = json::array();
@@ -786,11 +895,12 @@ Status GeorefSurvey(StageContext& s,
     }
 
     StageClock georef_clock;
-    GeoreferenceIngest(s, config, log);
+    georef::MountCheckByBlocks mount_check;
+    if (auto g = GeoreferenceIngest(s, config, mount_check, log); !g) return g;
     GateOutsideNavigation(s, config.quality, log);
     InsWindowGate(s, *ins_windows, log);
     if (config.quality.check_mount) {
-        if (auto m = CheckMount(s, log); !m) return m;
+        if (auto m = CheckMount(s, mount_check.Check(s.geo), log); !m) return m;
     }
     RecordGeoref(s, *files, georef_clock);
     if (auto st = io::WriteInsTrajectoryCsv(

@@ -1277,7 +1277,9 @@ Status RunAfterGeoref(detail::StageContext& s,
     const bool grid_points = config.grid.in_run && config.grid.write_point_tpu;
     auto export_now = [&](Status failed, bool points = true) -> Status {
         s.defer_products = false;
-        if (auto r = detail::RestoreView(s); !r) return r;  // a stage failed with it spilled
+        // The point writers read the view from its file (decision 033); the grid stage that
+        // follows reads it there too (a view that cannot go there stays held).
+        (void)detail::SpillView(s);
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
@@ -1299,6 +1301,9 @@ Status RunAfterGeoref(detail::StageContext& s,
         // on what was left ended at 0.110 m ATE instead of 0.064 m (docs/uncertainty.md).
         constexpr double kCircular95 = 2.4477;  // 95 % radius over sigma, circular normal
         const double max_sigma_m = first.clean.voxel_m / kCircular95;
+        // The stages not yet by blocks read the view whole (georef and the calibration leave
+        // it in its file, decision 033).
+        if (auto r = detail::RestoreView(s); !r) return export_now(r);
         if (auto st = detail::CleanSurvey(s, first, log, max_sigma_m); !st) return export_now(st);
     }
     if (config.run.calibrate) {
@@ -1310,6 +1315,7 @@ Status RunAfterGeoref(detail::StageContext& s,
     }
     if (config.run.slam && config.run.mesh_before_slam) {
         // The view waits on disk through the mesh before SLAM (SlamSurvey reads it back).
+        if (auto r = detail::RestoreView(s); !r) return export_now(r);
         auto v = detail::FuseSurvey(
             s, config, Stage::kFuseInitial, detail::ViewAfterScans::kSpilled, log);
         if (!v) return export_now(v.error());
@@ -1320,6 +1326,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         if (auto st = detail::SlamSurvey(s, config, log); !st) return export_now(st);
     }
     if (config.clean.enabled) {
+        if (auto r = detail::RestoreView(s); !r) return export_now(r);
         if (auto st = detail::CleanSurvey(s, config, log); !st) return export_now(st);
     }
     if (auto st = export_now(Ok{}, !grid_points); !st) return st;
@@ -1331,6 +1338,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         }
     }
     {
+        if (auto r = detail::RestoreView(s); !r) return r;
         auto v =
             detail::FuseSurvey(s, config, Stage::kFuse, detail::ViewAfterScans::kReleased, log);
         if (!v) return v.error();
