@@ -8,6 +8,7 @@
 #include <limits>
 #include <memory>
 
+#include "processor/georef/georef_blocks.hpp"
 #include "processor/registration/neighbours.hpp"
 #include "processor/registration/normals.hpp"
 

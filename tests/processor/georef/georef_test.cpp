@@ -660,7 +660,9 @@ TEST(GeorefBlocks, BlocksOfPingsGiveRunGeorefsViewBitForBit) {
                     view);
                 SCOPED_TRACE("block " + std::to_string(block));
                 EXPECT_EQ(by.points.size(), 0u) << "the view is not held";
-                if (block == 0) EXPECT_GE(blocks.size(), 250u);
+                if (block == 0) {
+                    EXPECT_GE(blocks.size(), 250u);
+                }
                 ExpectSamePoints(Join(blocks), whole.points);
                 ASSERT_EQ(by.pings.size(), whole.pings.size());
                 for (std::size_t k = 0; k < by.pings.size(); ++k) {

@@ -269,22 +269,6 @@ TEST(ViewSpill, TheScratchFileIsAPartialFileOfTheFolder) {
     EXPECT_EQ(fs::path(p).filename().string().rfind(".partial-", 0), 0u) << p;
 }
 
-// A block of `P`: soundings first .. first + count - 1.
-georef::GeorefPoints Slice(const georef::GeorefPoints& P, std::size_t first, std::size_t count) {
-    georef::GeorefPoints b;
-    const auto cut = [first, count](const auto& v) {
-        return std::decay_t<decltype(v)>(v.begin() + static_cast<std::ptrdiff_t>(first),
-                                         v.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    b.position_world = cut(P.position_world);
-    b.ping = cut(P.ping);
-    b.beam = cut(P.beam);
-    b.range_m = cut(P.range_m);
-    b.angle_rad = cut(P.angle_rad);
-    if (!P.status.empty()) b.status = cut(P.status);
-    return b;
-}
-
 std::string FileBytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
