@@ -295,6 +295,8 @@ Expected<SpilledPoints> SpillWriter::Finish() {
     if (path_.empty() || failed_) return Error{"the view's file was finished or failed"};
     File f(std::fopen(path_.c_str(), "r+b"));
     const std::uint64_t n = size_;
+    // As Spill: a view of no soundings has no statuses.
+    with_status_ = with_status_ && n > 0;
     const int arrays = with_status_ ? 6 : 5;
     bool ok = static_cast<bool>(f);
     for (int a = 1; a < arrays && ok; ++a) {
