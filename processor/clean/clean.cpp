@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "processor/clean/clean.hpp"
 
+#include "processor/clean/clean_blocks.hpp"
+
 #include <openvdb/math/DDA.h>
 #include <openvdb/math/Ray.h>
 #include <openvdb/openvdb.h>
@@ -18,6 +20,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <utility>
 
 namespace pitmap::proc::clean {
 
@@ -97,12 +100,22 @@ double Median(std::vector<double>& v) {
     return *mid;
 }
 
+// What the range profiles (steps 5-8) read of the view: each sounding's ping, beam, range and
+// beam angle (the angle only where the smile is looked for), 14 bytes a sounding, without the
+// positions (24).
+struct RangeView {
+    std::vector<std::uint32_t> ping;
+    std::vector<std::uint16_t> beam;
+    std::vector<float> range_m, angle_rad;
+    std::size_t num_pings = 0;
+    std::size_t size() const { return ping.size(); }
+};
+
 // The soundings on their (ping, beam) grid, and the nearest sounding in a direction over up to
 // 3 missing ones (echo runs have dropouts).
 class SoundingGrid {
 public:
-    explicit SoundingGrid(const georef::GeorefResult& geo)
-        : P_(geo.points), pings_(geo.pings.size()) {
+    explicit SoundingGrid(const RangeView& P) : P_(P), pings_(P.num_pings) {
         for (const std::uint16_t b : P_.beam) beams_ = std::max<std::size_t>(beams_, b + 1u);
         cell_.assign(pings_ * beams_, -1);
         for (std::size_t j = 0; j < P_.size(); ++j)
@@ -152,7 +165,7 @@ public:
     }
 
 private:
-    const georef::GeorefPoints& P_;
+    const RangeView& P_;
     std::size_t pings_;
     std::size_t beams_ = 0;
     std::vector<std::int32_t> cell_;
@@ -293,11 +306,10 @@ constexpr float kDecided = 1e9f;  // the score of a sounding the 3D tests reject
 
 // Every sounding's profile score: the larger of the along-track and across-fan LineScore;
 // kDecided for those already rejected.
-std::vector<float> ProfileScores(const georef::GeorefResult& geo,
+std::vector<float> ProfileScores(const RangeView& P,
                                  const SoundingGrid& grid,
                                  const CleanConfig& config,
                                  const std::vector<std::uint8_t>& decided) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     const std::size_t beams = grid.beams();
     std::vector<float> range(grid.pings() * beams, std::numeric_limits<float>::quiet_NaN());
@@ -387,14 +399,14 @@ std::vector<char> RunsOfTwoOrMore(const std::vector<float>& score,
 // where the line is pulled towards it, are taken with it. Only runs of 2 or more are rejected:
 // a lone range off its line is the terrain's (an edge the line does not follow) or the spike
 // filter's.
-std::vector<char> Profiles(const georef::GeorefResult& geo,
+std::vector<char> Profiles(const RangeView& P,
                            const SoundingGrid& grid,
                            const CleanConfig& config,
                            const std::vector<std::uint8_t>& decided) {
-    const std::size_t n = geo.points.size();
+    const std::size_t n = P.size();
     if (n == 0 || (config.profile_pings <= 0 && config.profile_beams <= 0))
         return std::vector<char>(n, 0);
-    return RunsOfTwoOrMore(ProfileScores(geo, grid, config, decided), grid, decided);
+    return RunsOfTwoOrMore(ProfileScores(P, grid, config, decided), grid, decided);
 }
 
 // Near-field echoes (bubble sweep-down, aeration under the hull): returns from a cloud within
@@ -409,11 +421,10 @@ std::vector<char> Profiles(const georef::GeorefResult& geo,
 // by a few per cent a ping, a cloud is a third to a half of the range in front. A bench edge
 // swept across the beam in a turn is as far in front, but continuous with the terrain beside
 // it (ReleaseTerrain keeps it). Returns the soundings of such runs, not already rejected.
-std::vector<char> NearField(const georef::GeorefResult& geo,
+std::vector<char> NearField(const RangeView& P,
                             const SoundingGrid& grid,
                             const CleanConfig& config,
                             const std::vector<std::uint8_t>& decided) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     std::vector<char> flagged(n, 0);
     const int w = config.profile_pings;
@@ -480,11 +491,10 @@ std::vector<char> NearField(const georef::GeorefResult& geo,
 // smile is parted from the nadir's terrain by the step where the terrain gets further than the
 // nadir by more than the side lobe's resolution. Returns the soundings of such runs, not already
 // rejected.
-std::vector<char> Smile(const georef::GeorefResult& geo,
+std::vector<char> Smile(const RangeView& P,
                         const SoundingGrid& grid,
                         const CleanConfig& config,
                         const std::vector<std::uint8_t>& decided) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     std::vector<char> runs(n, 0);
     const int w = config.profile_pings;
@@ -573,11 +583,10 @@ std::vector<char> Smile(const georef::GeorefResult& geo,
 // profile's line passed. So is one at a run's edge: continuous with a rejected neighbour, with
 // a break in the range (profile_min_m, margin_rel) within 3 soundings on its other side. Two
 // passes (a hole of two soundings closes from both ends).
-void FillHoles(const georef::GeorefResult& geo,
+void FillHoles(const RangeView& P,
                const SoundingGrid& grid,
                const CleanConfig& config,
                std::vector<std::uint8_t>& status) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || !(config.hole_tolerance > 0)) return;
     auto nearest = [&grid](std::size_t j, int dk, int db, int* at) {
@@ -657,11 +666,10 @@ void FillHoles(const georef::GeorefResult& geo,
 // with an accepted neighbour outside it nearer than a break is open: the terrain's noise parted
 // them (the terrain is one large piece, or pieces its noise parts). An enclosed piece takes the
 // status most of its contacts have.
-void FillEnclosed(const georef::GeorefResult& geo,
+void FillEnclosed(const RangeView& P,
                   const SoundingGrid& grid,
                   const CleanConfig& config,
                   std::vector<std::uint8_t>& status) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || config.fill_max_soundings <= 0 || !(config.hole_tolerance > 0)) return;
     auto continuous = [&](std::size_t a, std::size_t b) {
@@ -752,11 +760,10 @@ void FillEnclosed(const georef::GeorefResult& geo,
 // ranges go on smoothly into the terrain beside them; the echoes of the water (schools, bubble
 // clouds, the smile, ghosts) are parted from it by breaks in the range: an echo that is not is
 // on the surface within the noise. Returns the soundings released.
-std::int64_t ReleaseTerrain(const georef::GeorefResult& geo,
+std::int64_t ReleaseTerrain(const RangeView& P,
                             const SoundingGrid& grid,
                             const CleanConfig& config,
                             std::vector<std::uint8_t>& status) {
-    const georef::GeorefPoints& P = geo.points;
     const std::size_t n = P.size();
     if (n == 0 || config.terrain_piece_soundings <= 0 || !(config.hole_tolerance > 0)) return 0;
     auto continuous = [&](std::size_t a, std::size_t b) {
@@ -828,29 +835,63 @@ std::int64_t ReleaseTerrain(const georef::GeorefResult& geo,
     return count;
 }
 
-// The soundings' voxels in an index grid (voxel id per active voxel), each voxel's coordinate
-// and sounding count in X; voxel_of per sounding.
-openvdb::Int32Grid::Ptr IndexVoxels(const georef::GeorefPoints& P,
+// Calls fn(block, first) on the view's blocks in order (first: the block's first sounding in
+// the view); false when a block could not be read or the blocks do not add up to the view
+// (*error says which).
+bool Sweep(const ViewBlocks& view,
+           const std::function<void(const georef::GeorefPoints&, std::size_t)>& fn,
+           std::string* error) {
+    std::size_t first = 0;
+    const Status st = view.sweep([&](const georef::GeorefPoints& b) {
+        if (first + b.size() <= view.size) fn(b, first);
+        first += b.size();
+    });
+    if (!st) {
+        *error = st.error().message;
+        return false;
+    }
+    if (first != view.size) {
+        *error = "the view's blocks hold " + std::to_string(first) + " soundings, not " +
+                 std::to_string(view.size);
+        return false;
+    }
+    return true;
+}
+
+// The soundings' voxels in an index grid (voxel id per active voxel, numbered in the view's
+// order), each voxel's coordinate and sounding count in X; voxel_of per sounding; the view's
+// longest range in *max_range. Null when the view could not be read.
+openvdb::Int32Grid::Ptr IndexVoxels(const ViewBlocks& view,
                                     double v,
                                     Voxels& X,
-                                    std::vector<std::int32_t>& voxel_of) {
+                                    std::vector<std::int32_t>& voxel_of,
+                                    double* max_range,
+                                    std::string* error) {
     auto index = openvdb::Int32Grid::create(kNone);
-    voxel_of.resize(P.size());
+    voxel_of.resize(view.size);
     auto acc = index->getAccessor();
-    for (std::size_t j = 0; j < P.size(); ++j) {
-        const Eigen::Vector3d& p = P.position_world[j];
-        const Coord ijk = Coord::floor(openvdb::Vec3d(p.x() / v, p.y() / v, p.z() / v));
-        std::int32_t id = kNone;
-        if (!acc.probeValue(ijk, id)) {
-            id = static_cast<std::int32_t>(X.size());
-            acc.setValue(ijk, id);
-            X.coord.push_back(ijk);
-            X.count.push_back(0);
-        }
-        voxel_of[j] = id;
-        ++X.count[id];
-    }
-    return index;
+    double longest = 0;
+    const bool ok = Sweep(
+        view,
+        [&](const georef::GeorefPoints& P, std::size_t first) {
+            for (std::size_t j = 0; j < P.size(); ++j) {
+                const Eigen::Vector3d& p = P.position_world[j];
+                const Coord ijk = Coord::floor(openvdb::Vec3d(p.x() / v, p.y() / v, p.z() / v));
+                std::int32_t id = kNone;
+                if (!acc.probeValue(ijk, id)) {
+                    id = static_cast<std::int32_t>(X.size());
+                    acc.setValue(ijk, id);
+                    X.coord.push_back(ijk);
+                    X.count.push_back(0);
+                }
+                voxel_of[first + j] = id;
+                ++X.count[id];
+                longest = std::max(longest, double{P.range_m[j]});
+            }
+        },
+        error);
+    *max_range = longest;
+    return ok ? index : nullptr;
 }
 
 // The 26-connected components of the voxels (X.component: the smallest voxel id of each);
@@ -884,28 +925,95 @@ std::vector<std::int32_t> Components(const openvdb::Int32Grid& index, Voxels& X)
     return comp_voxels;
 }
 
-// Each voxel's soundings together (a counting sort by voxel): voxel i's are
-// members[first[i] .. first[i + 1]).
-struct VoxelMembers {
-    std::vector<std::uint32_t> first, members;
-};
-VoxelMembers MembersByVoxel(const std::vector<std::int32_t>& voxel_of, std::size_t nv) {
-    const std::size_t n = voxel_of.size();
-    VoxelMembers out{std::vector<std::uint32_t>(nv + 1, 0), std::vector<std::uint32_t>(n)};
-    for (std::size_t j = 0; j < n; ++j) ++out.first[voxel_of[j] + 1];
-    std::partial_sum(out.first.begin(), out.first.end(), out.first.begin());
-    std::vector<std::uint32_t> at(out.first.begin(), out.first.end() - 1);
-    for (std::size_t j = 0; j < n; ++j)
-        out.members[at[voxel_of[j]]++] = static_cast<std::uint32_t>(j);
-    return out;
+// Voxel i's plane patch from its m soundings' positions (in the view's order): a robust fit
+// (Cauchy-weighted PCA), so that the echoes in a voxel do not tilt the surface they are judged
+// against. w: the caller's scratch.
+void FitPatch(const Eigen::Vector3d* pts,
+              std::size_t m,
+              std::size_t i,
+              const CleanConfig& config,
+              Voxels& X,
+              std::vector<double>& w) {
+    w.assign(m, 1.0);
+    Eigen::Vector3d mean, normal;
+    Eigen::Vector3d ev;
+    Eigen::Matrix3d axes;
+    for (int iter = 0; iter < 4; ++iter) {
+        double sw = 0;
+        mean.setZero();
+        for (std::size_t k = 0; k < m; ++k) {
+            mean += w[k] * pts[k];
+            sw += w[k];
+        }
+        mean /= sw;
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (std::size_t k = 0; k < m; ++k) {
+            const Eigen::Vector3d d = pts[k] - mean;
+            cov += w[k] * d * d.transpose();
+        }
+        cov /= sw;
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+        es.computeDirect(cov);
+        ev = es.eigenvalues().cwiseMax(0.0);
+        axes = es.eigenvectors();
+        normal = axes.col(0);
+        // Cauchy weights on the distance to the plane, scale: the range noise's order.
+        const double scale = std::max(0.05, std::sqrt(ev[0]));
+        for (std::size_t k = 0; k < m; ++k) {
+            const double d = normal.dot(pts[k] - mean) / scale;
+            w[k] = 1.0 / (1.0 + d * d);
+        }
+    }
+    // Thickness: the weighted spread across the plane of the soundings that support it.
+    double sw = 0, s2 = 0;
+    for (std::size_t k = 0; k < m; ++k) {
+        if (w[k] < 0.2) continue;
+        const double d = normal.dot(pts[k] - mean);
+        s2 += d * d;
+        sw += 1;
+    }
+    X.centroid[i] = mean;
+    X.normal[i] = normal;
+    X.thickness[i] = sw > 0 ? std::sqrt(s2 / sw) : 1e9;
+    X.axis_major[i] = axes.col(2);
+    X.axis_minor[i] = axes.col(1);
+    X.sigma_major[i] = std::sqrt(ev[2]);
+    X.sigma_minor[i] = std::sqrt(ev[1]);
+    // One surface: most of the voxel's soundings on it (a floor's toe, with the wall's
+    // soundings beside the floor's, is two).
+    X.patch[i] = sw >= config.surface_min_hits && sw >= 0.8 * static_cast<double>(m) &&
+                 X.thickness[i] <= config.surface_max_thickness_m;
 }
 
-// A plane patch per voxel with enough soundings: a robust fit (Cauchy-weighted PCA), so that
-// the echoes in a voxel do not tilt the surface they are judged against.
-void FitPatches(const georef::GeorefPoints& P,
-                const VoxelMembers& vm,
+// The voxels from v0 on whose soundings to fit (surface_min_hits or more) add up to at most
+// `limit` (at least one voxel): returns the end of the batch; offset[i - v0] .. offset[i - v0
+// + 1] is voxel i's part of the batch's positions (empty for a voxel not fitted).
+std::size_t FitBatch(const Voxels& X,
+                     std::size_t v0,
+                     std::size_t limit,
+                     int min_hits,
+                     std::vector<std::size_t>& offset) {
+    offset.assign(1, 0);
+    std::size_t v1 = v0, total = 0;
+    for (; v1 < X.size(); ++v1) {
+        const auto m = static_cast<std::size_t>(X.count[v1] >= min_hits ? X.count[v1] : 0);
+        if (v1 > v0 && total + m > limit) break;
+        total += m;
+        offset.push_back(total);
+    }
+    return v1;
+}
+
+// A plane patch per voxel with enough soundings (FitPatch), batch by batch of voxels: each
+// batch's soundings' positions gathered from one read of the view, voxel by voxel in the view's
+// order (the whole view's members in the order a counting sort gives them). False when the view
+// could not be read.
+bool FitPatches(const ViewBlocks& view,
+                const std::vector<std::int32_t>& voxel_of,
+                std::size_t fit_soundings,
                 const CleanConfig& config,
-                Voxels& X) {
+                Voxels& X,
+                std::string* error) {
     const std::size_t nv = X.size();
     X.centroid.resize(nv);
     X.normal.resize(nv);
@@ -915,75 +1023,46 @@ void FitPatches(const georef::GeorefPoints& P,
     X.sigma_minor.assign(nv, 0);
     X.thickness.assign(nv, 0);
     X.patch.assign(nv, 0);
-    const auto& first = vm.first;
-    const auto& members = vm.members;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 1024), [&](const auto& r) {
-        std::vector<double> w;
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const std::size_t m = first[i + 1] - first[i];
-            if (static_cast<int>(m) < config.surface_min_hits) continue;
-            w.assign(m, 1.0);
-            Eigen::Vector3d mean, normal;
-            Eigen::Vector3d ev;
-            Eigen::Matrix3d axes;
-            for (int iter = 0; iter < 4; ++iter) {
-                double sw = 0;
-                mean.setZero();
-                for (std::size_t k = 0; k < m; ++k) {
-                    mean += w[k] * P.position_world[members[first[i] + k]];
-                    sw += w[k];
+    const int min_hits = config.surface_min_hits;
+    std::vector<std::size_t> offset, at;
+    std::vector<Eigen::Vector3d> pts;
+    for (std::size_t v0 = 0; v0 < nv;) {
+        const std::size_t v1 =
+            FitBatch(X, v0, std::max<std::size_t>(fit_soundings, 1), min_hits, offset);
+        if (offset.back() > 0) {
+            pts.resize(offset.back());
+            at.assign(offset.begin(), offset.end() - 1);
+            const auto gather = [&](const georef::GeorefPoints& P, std::size_t first) {
+                for (std::size_t j = 0; j < P.size(); ++j) {
+                    const auto i = static_cast<std::size_t>(voxel_of[first + j]);
+                    if (i < v0 || i >= v1 || X.count[i] < min_hits) continue;
+                    pts[at[i - v0]++] = P.position_world[j];
                 }
-                mean /= sw;
-                Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-                for (std::size_t k = 0; k < m; ++k) {
-                    const Eigen::Vector3d d = P.position_world[members[first[i] + k]] - mean;
-                    cov += w[k] * d * d.transpose();
+            };
+            if (!Sweep(view, gather, error)) return false;
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(v0, v1, 1024), [&](const auto& r) {
+                std::vector<double> w;
+                for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                    const std::size_t m = offset[i - v0 + 1] - offset[i - v0];
+                    if (m == 0) continue;
+                    FitPatch(pts.data() + offset[i - v0], m, i, config, X, w);
                 }
-                cov /= sw;
-                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-                es.computeDirect(cov);
-                ev = es.eigenvalues().cwiseMax(0.0);
-                axes = es.eigenvectors();
-                normal = axes.col(0);
-                // Cauchy weights on the distance to the plane, scale: the range noise's order.
-                const double scale = std::max(0.05, std::sqrt(ev[0]));
-                for (std::size_t k = 0; k < m; ++k) {
-                    const double d =
-                        normal.dot(P.position_world[members[first[i] + k]] - mean) / scale;
-                    w[k] = 1.0 / (1.0 + d * d);
-                }
-            }
-            // Thickness: the weighted spread across the plane of the soundings that support it.
-            double sw = 0, s2 = 0;
-            for (std::size_t k = 0; k < m; ++k) {
-                if (w[k] < 0.2) continue;
-                const double d = normal.dot(P.position_world[members[first[i] + k]] - mean);
-                s2 += d * d;
-                sw += 1;
-            }
-            X.centroid[i] = mean;
-            X.normal[i] = normal;
-            X.thickness[i] = sw > 0 ? std::sqrt(s2 / sw) : 1e9;
-            X.axis_major[i] = axes.col(2);
-            X.axis_minor[i] = axes.col(1);
-            X.sigma_major[i] = std::sqrt(ev[2]);
-            X.sigma_minor[i] = std::sqrt(ev[1]);
-            // One surface: most of the voxel's soundings on it (a floor's toe, with the wall's
-            // soundings beside the floor's, is two).
-            X.patch[i] = sw >= config.surface_min_hits && sw >= 0.8 * static_cast<double>(m) &&
-                         X.thickness[i] <= config.surface_max_thickness_m;
+            });
         }
-    });
+        v0 = v1;
+    }
+    return true;
 }
 
-// The soundings' rays: from the transducer to the sounding, in index space.
+// The soundings' rays: from the transducer to the sounding, in index space. Soundings are a
+// block's (P, j).
 struct SoundingRays {
-    const georef::GeorefResult& geo;
+    const std::vector<georef::GeorefPing>& pings;
     const CleanConfig& config;
     double v;  // voxel size, m
 
-    const Eigen::Vector3d& Sensor(std::size_t j) const {
-        return geo.pings[geo.points.ping[j]].sensor_world;
+    const Eigen::Vector3d& Sensor(const georef::GeorefPoints& P, std::size_t j) const {
+        return pings[P.ping[j]].sensor_world;
     }
     // How far short of its end a ray counts as free space, m.
     double Margin(double range) const {
@@ -991,9 +1070,9 @@ struct SoundingRays {
     }
     // Sounding j's ray in index space (unit direction: t is in voxels) and its length in
     // voxels.
-    RayT Ray(std::size_t j, double* length_vox) const {
-        const Eigen::Vector3d s = Sensor(j) / v;
-        Eigen::Vector3d d = geo.points.position_world[j] / v - s;
+    RayT Ray(const georef::GeorefPoints& P, std::size_t j, double* length_vox) const {
+        const Eigen::Vector3d s = Sensor(P, j) / v;
+        Eigen::Vector3d d = P.position_world[j] / v - s;
         *length_vox = d.norm();
         if (*length_vox > 0) d /= *length_vox;
         return RayT(openvdb::Vec3d(s.x(), s.y(), s.z()), openvdb::Vec3d(d.x(), d.y(), d.z()));
@@ -1039,41 +1118,45 @@ struct RayEvidence {
 // Every sounding's ray, from the transducer to `margin` before its end, through every voxel it
 // passes (not its own): free_rays counts them per voxel; where it goes through a plane patch
 // (into the plane at more than min_crossing_deg, within the patch's extent) that is a crossing
-// of that patch, and the ray's first crossing is kept.
-RayEvidence MarchRays(const SoundingRays& rays,
-                      const openvdb::Int32Grid& index,
-                      const Voxels& X,
-                      const std::vector<std::int32_t>& voxel_of) {
-    const georef::GeorefPoints& P = rays.geo.points;
-    const std::size_t n = P.size();
+// of that patch, and the ray's first crossing is kept. A block of the view at a time, into
+// `ev` (sized: X's voxels, the view's soundings); false when the view could not be read.
+bool MarchRays(const ViewBlocks& view,
+               const SoundingRays& rays,
+               const openvdb::Int32Grid& index,
+               const Voxels& X,
+               const std::vector<std::int32_t>& voxel_of,
+               RayEvidence& ev,
+               std::string* error) {
     const double v = rays.v;
-    RayEvidence ev{std::vector<std::atomic<std::int32_t>>(X.size()),
-                   std::vector<std::int32_t>(n, kNone)};
     auto& free_rays = ev.free_rays;
     auto& first_crossing = ev.first_crossing;
     const double min_sin = std::sin(rays.config.min_crossing_deg * M_PI / 180.0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
-        Marcher march(index);
-        for (std::size_t j = r.begin(); j != r.end(); ++j) {
-            double len = 0;
-            const RayT ray = rays.Ray(j, &len);
-            if (!(len > 0)) continue;
-            const double range = len * v;
-            const double stop = range - rays.Margin(range);
-            const std::int32_t own_id = voxel_of[j];
-            const Eigen::Vector3d& s = rays.Sensor(j);
-            const Eigen::Vector3d d = (P.position_world[j] - s) / range;
-            march(ray, 0.0, stop / v, [&](std::int32_t vox, double) {
-                if (vox == own_id) return true;
-                free_rays[vox].fetch_add(1, std::memory_order_relaxed);
-                // Only the first crossing counts: after it, only the rays through.
-                if (!X.patch[vox] || first_crossing[j] != kNone) return true;
-                if (CrossesPatch(X, vox, s, d, 0.0, stop, min_sin, v) >= 0) first_crossing[j] = vox;
-                return true;
-            });
-        }
-    });
-    return ev;
+    const auto block = [&](const georef::GeorefPoints& P, std::size_t first) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 8192), [&](const auto& r) {
+            Marcher march(index);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const std::size_t j = first + i;
+                double len = 0;
+                const RayT ray = rays.Ray(P, i, &len);
+                if (!(len > 0)) continue;
+                const double range = len * v;
+                const double stop = range - rays.Margin(range);
+                const std::int32_t own_id = voxel_of[j];
+                const Eigen::Vector3d& s = rays.Sensor(P, i);
+                const Eigen::Vector3d d = (P.position_world[i] - s) / range;
+                march(ray, 0.0, stop / v, [&](std::int32_t vox, double) {
+                    if (vox == own_id) return true;
+                    free_rays[vox].fetch_add(1, std::memory_order_relaxed);
+                    // Only the first crossing counts: after it, only the rays through.
+                    if (!X.patch[vox] || first_crossing[j] != kNone) return true;
+                    if (CrossesPatch(X, vox, s, d, 0.0, stop, min_sin, v) >= 0)
+                        first_crossing[j] = vox;
+                    return true;
+                });
+            }
+        });
+    };
+    return Sweep(view, block, error);
 }
 
 // The patches judged by the crossings: per patch its soundings whose rays crossed no patch
@@ -1124,60 +1207,79 @@ struct ClusterRays {
     std::vector<std::atomic<std::int32_t>> behind, through, points;
     std::vector<char> went_through;  // per sounding of a cluster: its ray went through terrain
 };
-ClusterRays RaysBehindClusters(const SoundingRays& rays,
-                               const openvdb::Int32Grid& terrain_grid,
-                               const Voxels& X,
-                               const std::vector<std::int32_t>& voxel_of,
-                               const std::vector<char>& terrain_voxel,
-                               const PatchVerdicts& patches) {
-    const georef::GeorefPoints& P = rays.geo.points;
-    const std::size_t n = P.size();
-    double max_range = 0;
-    for (std::size_t j = 0; j < n; ++j) max_range = std::max(max_range, double{P.range_m[j]});
+
+// A cluster sounding's two marches (above), into `out`: whether terrain lies behind it, and
+// whether its ray went through a solid patch before its end.
+void MarchBehindCluster(const georef::GeorefPoints& P,
+                        std::size_t i,
+                        std::size_t j,
+                        std::int32_t k,
+                        const SoundingRays& rays,
+                        const Voxels& X,
+                        const PatchVerdicts& patches,
+                        double behind_vox,
+                        double min_sin,
+                        Marcher& march,
+                        ClusterRays& out) {
+    out.points[k].fetch_add(1, std::memory_order_relaxed);
+    double len = 0;
+    const RayT ray = rays.Ray(P, i, &len);
+    if (!(len > 0)) return;
+    const double range = len * rays.v;
+    const double margin = rays.Margin(range);
+    const double from = len + margin / rays.v;
+    bool behind = false;
+    march(ray, from, from + behind_vox, [&](std::int32_t, double) {
+        behind = true;
+        return false;
+    });
+    if (behind) out.behind[k].fetch_add(1, std::memory_order_relaxed);
+    const Eigen::Vector3d& s = rays.Sensor(P, i);
+    const Eigen::Vector3d d = (P.position_world[i] - s) / range;
+    bool through = false;
+    march(ray, 0.0, (range - margin) / rays.v, [&](std::int32_t vox, double) {
+        if (!patches.Solid(vox)) return true;
+        const double dn = X.normal[vox].dot(d);
+        if (std::abs(dn) < min_sin) return true;  // grazing
+        const double t_cross = X.normal[vox].dot(X.centroid[vox] - s) / dn;
+        through = t_cross > 0 && t_cross < range - margin &&
+                  (s + t_cross * d - X.centroid[vox]).norm() <= rays.v;
+        return !through;
+    });
+    if (through) {
+        out.through[k].fetch_add(1, std::memory_order_relaxed);
+        out.went_through[j] = 1;
+    }
+}
+
+// The clusters' soundings' marches through the terrain's voxels (MarchBehindCluster), a block
+// of the view at a time, into `out` (sized: X's voxels, the view's soundings); `max_range`: the
+// view's longest range. False when the view could not be read.
+bool RaysBehindClusters(const ViewBlocks& view,
+                        const SoundingRays& rays,
+                        const openvdb::Int32Grid& terrain_grid,
+                        const Voxels& X,
+                        const std::vector<std::int32_t>& voxel_of,
+                        const std::vector<char>& terrain_voxel,
+                        const PatchVerdicts& patches,
+                        double max_range,
+                        ClusterRays& out,
+                        std::string* error) {
     const double behind_vox = 1.5 * max_range / rays.v;
     const double min_sin = std::sin(rays.config.min_crossing_deg * M_PI / 180.0);
-    ClusterRays out{std::vector<std::atomic<std::int32_t>>(X.size()),
-                    std::vector<std::atomic<std::int32_t>>(X.size()),
-                    std::vector<std::atomic<std::int32_t>>(X.size()),
-                    std::vector<char>(n, 0)};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const auto& r) {
-        Marcher march(terrain_grid);
-        for (std::size_t j = r.begin(); j != r.end(); ++j) {
-            const std::int32_t own = voxel_of[j];
-            if (terrain_voxel[own]) continue;
-            const std::int32_t k = X.component[own];
-            out.points[k].fetch_add(1, std::memory_order_relaxed);
-            double len = 0;
-            const RayT ray = rays.Ray(j, &len);
-            if (!(len > 0)) continue;
-            const double range = len * rays.v;
-            const double margin = rays.Margin(range);
-            const double from = len + margin / rays.v;
-            bool behind = false;
-            march(ray, from, from + behind_vox, [&](std::int32_t, double) {
-                behind = true;
-                return false;
-            });
-            if (behind) out.behind[k].fetch_add(1, std::memory_order_relaxed);
-            const Eigen::Vector3d& s = rays.Sensor(j);
-            const Eigen::Vector3d d = (P.position_world[j] - s) / range;
-            bool through = false;
-            march(ray, 0.0, (range - margin) / rays.v, [&](std::int32_t vox, double) {
-                if (!patches.Solid(vox)) return true;
-                const double dn = X.normal[vox].dot(d);
-                if (std::abs(dn) < min_sin) return true;  // grazing
-                const double t_cross = X.normal[vox].dot(X.centroid[vox] - s) / dn;
-                through = t_cross > 0 && t_cross < range - margin &&
-                          (s + t_cross * d - X.centroid[vox]).norm() <= rays.v;
-                return !through;
-            });
-            if (through) {
-                out.through[k].fetch_add(1, std::memory_order_relaxed);
-                out.went_through[j] = 1;
+    const auto block = [&](const georef::GeorefPoints& P, std::size_t first) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 8192), [&](const auto& r) {
+            Marcher march(terrain_grid);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const std::size_t j = first + i;
+                const std::int32_t own = voxel_of[j];
+                if (terrain_voxel[own]) continue;
+                MarchBehindCluster(
+                    P, i, j, X.component[own], rays, X, patches, behind_vox, min_sin, march, out);
             }
-        }
-    });
-    return out;
+        });
+    };
+    return Sweep(view, block, error);
 }
 
 // Each sounding's verdict from its voxel and its ray.
@@ -1248,21 +1350,26 @@ void CountVerdicts(const std::vector<std::uint8_t>& status, CleanCounts& c) {
 }
 
 // Steps 1-4: each sounding's verdict from its voxel and its ray, into `status`; false when
-// cancelled (through `report`). Holds the voxels and, per sounding, its voxel, its ray's first
+// cancelled (through `report`) or when the view could not be read (*error says). Reads the view
+// in blocks (one read for the voxels, one per batch of plane fits, one for the rays, one for
+// the clusters' marches) and holds the voxels and, per sounding, its voxel, its ray's first
 // crossing and the cluster marches' marks (9 bytes), all freed on return: the range profiles
 // after it read the verdicts alone, and their own arrays are not held beside these.
-bool VoxelVerdicts(const georef::GeorefResult& geo,
+bool VoxelVerdicts(const ViewBlocks& view,
                    const CleanConfig& config,
                    const std::function<bool(double)>& report,
+                   std::size_t fit_soundings,
                    CleanCounts& c,
-                   std::vector<std::uint8_t>& status) {
-    const georef::GeorefPoints& P = geo.points;
+                   std::vector<std::uint8_t>& status,
+                   std::string* error) {
     const double v = config.voxel_m;
     auto t_start = std::chrono::steady_clock::now();
     // ---- 1. voxels, moments, components ----
     Voxels X;
     std::vector<std::int32_t> voxel_of;
-    const auto index = IndexVoxels(P, v, X, voxel_of);
+    double max_range = 0;
+    const auto index = IndexVoxels(view, v, X, voxel_of, &max_range, error);
+    if (!index) return false;
     const std::size_t nv = X.size();
     c.voxels = static_cast<std::int64_t>(nv);
     const std::vector<std::int32_t> comp_voxels = Components(*index, X);
@@ -1282,14 +1389,16 @@ bool VoxelVerdicts(const georef::GeorefResult& geo,
             if (terrain_voxel[i]) ta.setValue(X.coord[i], static_cast<std::int32_t>(i));
         }
     }
-    FitPatches(P, MembersByVoxel(voxel_of, nv), config, X);
+    if (!FitPatches(view, voxel_of, fit_soundings, config, X, error)) return false;
     c.seconds_voxels = Seconds(t_start);
     if (!report(0.1)) return false;
 
     // ---- 2. rays through the voxels: free space and crossings of plane patches ----
     t_start = std::chrono::steady_clock::now();
-    const SoundingRays rays{geo, config, v};
-    const RayEvidence evidence = MarchRays(rays, *index, X, voxel_of);
+    const SoundingRays rays{*view.pings, config, v};
+    RayEvidence evidence{std::vector<std::atomic<std::int32_t>>(nv),
+                         std::vector<std::int32_t>(view.size, kNone)};
+    if (!MarchRays(view, rays, *index, X, voxel_of, evidence, error)) return false;
     const PatchVerdicts patches(X, voxel_of, evidence.first_crossing, config);
     c.seconds_rays = Seconds(t_start);
     if (!report(0.4)) return false;
@@ -1298,13 +1407,24 @@ bool VoxelVerdicts(const georef::GeorefResult& geo,
     // A cluster is judged by its soundings: off the surface when most of them have terrain
     // behind them along their rays.
     t_start = std::chrono::steady_clock::now();
-    const ClusterRays clusters =
-        c.clusters > 0
-            ? RaysBehindClusters(rays, *terrain_grid, X, voxel_of, terrain_voxel, patches)
-            : ClusterRays{std::vector<std::atomic<std::int32_t>>(nv),
-                          std::vector<std::atomic<std::int32_t>>(nv),
-                          std::vector<std::atomic<std::int32_t>>(nv),
-                          {}};
+    ClusterRays clusters{std::vector<std::atomic<std::int32_t>>(nv),
+                         std::vector<std::atomic<std::int32_t>>(nv),
+                         std::vector<std::atomic<std::int32_t>>(nv),
+                         {}};
+    if (c.clusters > 0) {
+        clusters.went_through.assign(view.size, 0);
+        if (!RaysBehindClusters(view,
+                                rays,
+                                *terrain_grid,
+                                X,
+                                voxel_of,
+                                terrain_voxel,
+                                patches,
+                                max_range,
+                                clusters,
+                                error))
+            return false;
+    }
     c.seconds_clusters = Seconds(t_start);
 
     // ---- 4. each sounding: its voxel, its ray ----
@@ -1312,6 +1432,67 @@ bool VoxelVerdicts(const georef::GeorefResult& geo,
     Verdicts(X, voxel_of, terrain_voxel, evidence, patches, clusters, config, status);
     c.seconds_verdicts = Seconds(t_start);
     return true;
+}
+
+// What the range profiles read of the view (RangeView), from one read of its blocks; the angles
+// only where the smile is looked for. False when the view could not be read.
+bool ReadRanges(const ViewBlocks& view,
+                const CleanConfig& config,
+                RangeView& P,
+                std::string* error) {
+    const bool angles = config.profile_pings > 0 && config.smile_nadir_deg > 0;
+    P.num_pings = view.pings->size();
+    P.ping.reserve(view.size);
+    P.beam.reserve(view.size);
+    P.range_m.reserve(view.size);
+    if (angles) P.angle_rad.reserve(view.size);
+    const auto append = [](const auto& from, auto& to) {
+        to.insert(to.end(), from.begin(), from.end());
+    };
+    return Sweep(
+        view,
+        [&](const georef::GeorefPoints& b, std::size_t) {
+            append(b.ping, P.ping);
+            append(b.beam, P.beam);
+            append(b.range_m, P.range_m);
+            if (angles) append(b.angle_rad, P.angle_rad);
+        },
+        error);
+}
+
+// Steps 5-8 on the range view: the range profiles, the near-field echoes and the smile, the
+// holes and the enclosed pieces, then what is continuous with the terrain.
+void RangeVerdicts(const RangeView& P,
+                   const CleanConfig& config,
+                   CleanCounts& c,
+                   std::vector<std::uint8_t>& status) {
+    const std::size_t n = P.size();
+    // ---- 5. the range profiles: what the 3D tests left ----
+    auto t_start = std::chrono::steady_clock::now();
+    const SoundingGrid grid(P);
+    const std::vector<char> along = Profiles(P, grid, config, status);
+    const std::vector<char> near = NearField(P, grid, config, status);
+    const std::vector<char> smile = Smile(P, grid, config, status);
+    for (std::size_t j = 0; j < n; ++j) {
+        if (status[j] != 0) continue;
+        if (along[j] || near[j] || smile[j])
+            status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    }
+    FillHoles(P, grid, config, status);
+    FillEnclosed(P, grid, config, status);
+    c.seconds_profiles = Seconds(t_start);
+
+    // ---- 6. what is continuous with the terrain is terrain ----
+    t_start = std::chrono::steady_clock::now();
+    c.terrain = ReleaseTerrain(P, grid, config, status);
+    CountVerdicts(status, c);
+    for (std::size_t j = 0; j < n; ++j) {
+        c.near_field += near[j] && !along[j] &&
+                        status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
+        c.smile += smile[j] && !along[j] && !near[j] &&
+                   status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    }
+    c.seconds_terrain = Seconds(t_start);
 }
 
 }  // namespace
@@ -1351,14 +1532,30 @@ std::vector<std::string> CleanConfig::Validate() const {
 CleanResult Clean(const georef::GeorefResult& geo,
                   const CleanConfig& config,
                   const ProgressCallback& progress) {
+    ViewBlocks view;
+    view.size = geo.points.size();
+    view.pings = &geo.pings;
+    view.sweep = [&geo](const TakeBlock& take) {
+        take(geo.points);
+        return Status{Ok{}};
+    };
+    auto r = CleanBlocks(view, config, progress);
+    PITMAP_CHECK(r, "clean: a held view's one block is always read");
+    return std::move(*r);
+}
+
+Expected<CleanResult> CleanBlocks(const ViewBlocks& view,
+                                  const CleanConfig& config,
+                                  const ProgressCallback& progress,
+                                  std::size_t fit_soundings) {
     openvdb::initialize();
     CleanResult result;
-    const georef::GeorefPoints& P = geo.points;
-    const std::size_t n = P.size();
+    const std::size_t n = view.size;
     result.status.assign(n, static_cast<std::uint8_t>(SoundingStatus::kAccepted));
     CleanCounts& c = result.counts;
     c.soundings = static_cast<std::int64_t>(n);
     if (n == 0) return result;
+    PITMAP_CHECK(view.pings != nullptr && view.sweep, "clean: a view without pings or blocks");
     std::unique_ptr<tbb::global_control> limit;
     if (config.num_threads > 0) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -1367,37 +1564,23 @@ CleanResult Clean(const georef::GeorefResult& geo,
     const std::function<bool(double)> report = [&](double share) {
         return !progress || progress(share);
     };
+    std::string error;
+    const auto failed = [&]() -> Expected<CleanResult> {
+        if (!error.empty()) return Error{error};
+        result.cancelled = true;
+        return result;
+    };
 
     // ---- 1.-4. voxels, rays, clusters: each sounding's 3D verdict ----
-    if (!VoxelVerdicts(geo, config, report, c, result.status))
-        return result.cancelled = true, result;
+    if (!VoxelVerdicts(view, config, report, fit_soundings, c, result.status, &error))
+        return failed();
 
-    // ---- 5. the range profiles: what the 3D tests left ----
-    auto t_start = std::chrono::steady_clock::now();
-    const SoundingGrid grid(geo);
-    const std::vector<char> along = Profiles(geo, grid, config, result.status);
-    const std::vector<char> near = NearField(geo, grid, config, result.status);
-    const std::vector<char> smile = Smile(geo, grid, config, result.status);
-    for (std::size_t j = 0; j < n; ++j) {
-        if (result.status[j] != 0) continue;
-        if (along[j] || near[j] || smile[j])
-            result.status[j] = static_cast<std::uint8_t>(SoundingStatus::kProfile);
+    // ---- 5.-8. the range profiles on the soundings' ranges ----
+    {
+        RangeView ranges;
+        if (!ReadRanges(view, config, ranges, &error)) return failed();
+        RangeVerdicts(ranges, config, c, result.status);
     }
-    FillHoles(geo, grid, config, result.status);
-    FillEnclosed(geo, grid, config, result.status);
-    c.seconds_profiles = Seconds(t_start);
-
-    // ---- 6. what is continuous with the terrain is terrain ----
-    t_start = std::chrono::steady_clock::now();
-    c.terrain = ReleaseTerrain(geo, grid, config, result.status);
-    CountVerdicts(result.status, c);
-    for (std::size_t j = 0; j < n; ++j) {
-        c.near_field += near[j] && !along[j] &&
-                        result.status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
-        c.smile += smile[j] && !along[j] && !near[j] &&
-                   result.status[j] == static_cast<std::uint8_t>(SoundingStatus::kProfile);
-    }
-    c.seconds_terrain = Seconds(t_start);
     report(1.0);
     return result;
 }

@@ -322,46 +322,147 @@ std::vector<NeighbourFrame> SlopeNeighbours(const std::vector<ScanNeighbour>& ne
     return slope_nbs;
 }
 
+// A footprint of the scan being prepared, as the gap rule needs it: the sonar (world metres,
+// R_world_sonar), the beam's axis, its footprint range line (range, change per beam, gate; voxels)
+// and the cone's half-width across the fan (tan).
+struct FootprintHere {
+    Eigen::Vector3d p_world;
+    const Eigen::Matrix3d* R = nullptr;
+    Eigen::Vector3d x_world;  // the footprint point: the beam axis at the footprint range
+    double sin_t = 0, cos_t = 0;
+    double range_vox = 0, slope_vox = 0, gate_vox = 0;
+    double inc = 0;         // angle between beams (signed, as the scan's)
+    double max_dtheta = 0;  // tan of the cone's half-width across the fan
+    double voxel_m = 0;
+};
+
 // The fan planes of the neighbouring pings (point, normal = their sonar x axis), world metres,
-// for the gap between pings: on each side the next ping and the one after it, with their
-// footprints.
+// for the gap between pings: on each side the next kDepth pings, with their footprints.
 struct NeighbourFans {
+    static constexpr int kDepth = kMaxBridgePings + 1;
     struct Plane {
         Eigen::Vector3d p, n;
+        Eigen::Matrix3d R;  // R_world_sonar of the ping
         const ScanFootprints* footprints = nullptr;
         bool valid = false;
     };
-    Plane fans[2][2];  // [side: before, after][0: the next ping that way, 1: the one after it]
+    Plane fans[2][kDepth];  // [side: before, after][k: the (k + 1)-th ping that way]
 
     bool any() const { return fans[0][0].valid || fans[1][0].valid; }
 
-    // The largest distance, within fill_m, from x_world to a neighbouring fan on either side; 0
-    // if none. On each side the next ping's fan, or, where that ping has no footprint at beam i
-    // (its echo there was rejected or it had none) and the ping after it has, that ping's: a
-    // beam missing in one ping leaves the same strip unobserved as a missing ping, and is
-    // bridged the same way (within fill_m).
-    double GapAt(const Eigen::Vector3d& x_world,
+    // The largest distance from the footprint `here` of beam i to a neighbouring fan it is
+    // widened to, on either side; 0 if none. On each side the next ping's fan within fill_m; or,
+    // where that ping has no footprint at beam i (its echo there was rejected or it had none):
+    //  - the ping after it, when it has, within fill_m: a beam missing in one ping leaves the
+    //    same strip unobserved as a missing ping, and is bridged the same way;
+    //  - past a run of up to bridge_pings pings without it, the first ping that has it, within
+    //    the run's length times fill_m, when its footprint agrees with this one (Agrees);
+    //  - otherwise the next ping's fan within fill_m, as without per_beam.
+    // The beam is widened to half the gap on both sides of its plane, so a run's bridge is taken
+    // only where the other side holds the same surface that far (Supports): a step under a run
+    // on the other side is not bridged from this one.
+    double GapAt(const FootprintHere& here,
                  std::size_t i,
                  double fill_m,
-                 bool per_beam) const {
+                 bool per_beam,
+                 int bridge_pings) const {
         double gap_m = 0.0;
-        for (const auto& side : fans) {
+        Bridge bridge[2];
+        for (int s = 0; s < 2; ++s) {
+            const auto& side = fans[s];
             if (!side[0].valid) continue;
-            const Plane* use = &side[0];
-            if (per_beam && !HasFootprint(side[0], i) && side[1].valid &&
-                HasFootprint(side[1], i)) {
-                use = &side[1];
+            if (per_beam && !HasFootprint(side[0], i)) {
+                bridge[s] = BridgedGap(side, here, i, fill_m, bridge_pings);
             }
-            double s_m = std::abs(use->n.dot(x_world - use->p));
-            if (s_m > fill_m && use != &side[0]) s_m = std::abs(side[0].n.dot(x_world - side[0].p));
-            if (s_m <= fill_m) gap_m = std::max(gap_m, s_m);
+            const double next_m = Distance(side[0], here.x_world);
+            if (bridge[s].rule == 1) {
+                gap_m = std::max(gap_m, bridge[s].gap_m);
+            } else if (next_m <= fill_m) {
+                gap_m = std::max(gap_m, next_m);
+            }
+        }
+        for (int s = 0; s < 2; ++s) {
+            if (bridge[s].rule == 2 && bridge[s].gap_m > gap_m &&
+                Supports(fans[1 - s], here, i, 0.5 * bridge[s].gap_m, bridge[1 - s])) {
+                gap_m = bridge[s].gap_m;
+            }
         }
         return gap_m;
     }
 
+    // A side's bridge: the gap to the fan it reaches, and by which rule (0 = none, 1 = one ping
+    // missing the beam within fill_m, 2 = a run whose far footprint agrees).
+    struct Bridge {
+        double gap_m = 0.0;
+        int rule = 0;
+    };
+
+    // One side's gap past the pings without a footprint at beam i: to the first ping that has
+    // one (side[k], k >= 1; the pings between are consecutive scans of the input), within fill_m
+    // for k = 1, or k times fill_m when k <= bridge_pings and its footprint agrees with this
+    // one's.
+    static Bridge BridgedGap(const Plane (&side)[kDepth],
+                             const FootprintHere& here,
+                             std::size_t i,
+                             double fill_m,
+                             int bridge_pings) {
+        for (int k = 1; k < kDepth; ++k) {
+            if (!side[k].valid) return {};
+            if (!HasFootprint(side[k], i)) continue;
+            const double s_m = Distance(side[k], here.x_world);
+            if (k == 1 && s_m <= fill_m) return {s_m, 1};
+            if (k > bridge_pings || !(s_m <= k * fill_m)) return {};
+            return Agrees(side[k], here, i) ? Bridge{s_m, 2} : Bridge{};
+        }
+        return {};
+    }
+
+    // The other side holds the surface of `here` out to reach_m: it is bridged that far itself,
+    // or its pings within reach_m all have a footprint at beam i that agrees with this one.
+    static bool Supports(const Plane (&side)[kDepth],
+                         const FootprintHere& here,
+                         std::size_t i,
+                         double reach_m,
+                         const Bridge& its_bridge) {
+        constexpr double kEps = 1e-6;  // m: a reach equal to the other side's gap is held
+        if (its_bridge.rule >= 1 && its_bridge.gap_m >= reach_m - kEps) return true;
+        for (int k = 0; k < kDepth; ++k) {
+            if (!side[k].valid || !HasFootprint(side[k], i) || !Agrees(side[k], here, i)) {
+                return false;
+            }
+            if (Distance(side[k], here.x_world) >= reach_m - kEps) return true;
+        }
+        return false;
+    }
+
+    // The footprint of beam i in the ping `far` lies where the widened beam `here` writes the
+    // surface: seen from here, within the cone's half-width across the fan, at a range within the
+    // footprint's gate of its range line there (the rasteriser holds a sector's range out of its
+    // plane, so the test is of that sphere, not of a plane: on a level floor the far point lies
+    // beyond it by x^2 / 2r at the offset x, and the bridge reaches x / 2).
+    static bool Agrees(const Plane& far, const FootprintHere& here, std::size_t i) {
+        const double s = here.voxel_m;
+        const ScanFootprints& fp = *far.footprints;
+        const Eigen::Vector3d x_far =
+            far.p + far.R * Eigen::Vector3d(0.0,
+                                            static_cast<double>(fp.point_y[i]) * s,
+                                            static_cast<double>(fp.point_z[i]) * s);
+        const Eigen::Vector3d q = here.R->transpose() * (x_far - here.p_world) / s;
+        const double along = here.sin_t * q.y() + here.cos_t * q.z();
+        if (!(along > 0.0)) return false;
+        const double dtheta = (here.cos_t * q.y() - here.sin_t * q.z()) / along;
+        if (!(std::abs(dtheta) <= here.max_dtheta)) return false;
+        const double r_line = here.range_vox + here.slope_vox * dtheta / here.inc;
+        return std::abs(q.norm() - r_line) <= here.gate_vox;
+    }
+
+    static double Distance(const Plane& f, const Eigen::Vector3d& x_world) {
+        return std::abs(f.n.dot(x_world - f.p));
+    }
+
     static bool HasFootprint(const Plane& f, std::size_t i) {
         return f.footprints != nullptr && i < f.footprints->range.size() &&
-               std::isfinite(f.footprints->range[i]);
+               std::isfinite(f.footprints->range[i]) && i < f.footprints->point_y.size();
     }
 };
 
@@ -370,11 +471,12 @@ NeighbourFans FansOf(const std::vector<ScanNeighbour>& neighbours) {
     for (const ScanNeighbour& nb : neighbours) {
         const int side = nb.offset < 0 ? 0 : 1;
         const int k = std::abs(nb.offset) - 1;
-        if (nb.scan == nullptr || k < 0 || k > 1) continue;
+        if (nb.scan == nullptr || k < 0 || k >= NeighbourFans::kDepth) continue;
         const Eigen::Vector3d q = nb.scan->T_world_sonar.translation();
-        const Eigen::Vector3d nn = nb.scan->T_world_sonar.linear().col(0);
-        if (!q.allFinite() || !nn.allFinite() || !(nn.norm() > 0.5)) continue;
-        out.fans[side][k] = {q, nn.normalized(), nb.footprints, true};
+        const Eigen::Matrix3d R = nb.scan->T_world_sonar.linear();
+        const Eigen::Vector3d nn = R.col(0);
+        if (!q.allFinite() || !R.allFinite() || !(nn.norm() > 0.5)) continue;
+        out.fans[side][k] = {q, nn.normalized(), R, nb.footprints, true};
     }
     return out;
 }
@@ -463,6 +565,8 @@ PreparedScan PrepareScan(const SonarScan& scan,
                                                       : std::vector<NeighbourFrame>{};
     const NeighbourFans fans =
         beam_width && config.ping_gap_fill_m > 0.0 ? FansOf(neighbours) : NeighbourFans{};
+    const double max_dtheta = std::tan(std::max(0.5, static_cast<double>(footprints.half)) *
+                                       std::abs(static_cast<double>(scan.angle_increment_rad)));
     ps.beams.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(ranges[i])) continue;
@@ -480,10 +584,24 @@ PreparedScan PrepareScan(const SonarScan& scan,
         // range); a neighbour further than ping_gap_fill_m is not bridged.
         double gap_m = 0.0;
         if (fans.any()) {
-            const Eigen::Vector3d x_world =
+            const FootprintHere here{
+                p_world,
+                &ps.R,
                 p_world + ps.R * Eigen::Vector3d(0.0, sin_t, cos_t) *
-                              (static_cast<double>(pb.range_vox) * config.voxel_size_m);
-            gap_m = fans.GapAt(x_world, i, config.ping_gap_fill_m, config.ping_gap_fill_per_beam);
+                              (static_cast<double>(pb.range_vox) * config.voxel_size_m),
+                sin_t,
+                cos_t,
+                static_cast<double>(footprints.range[i]),
+                static_cast<double>(footprints.slope[i]),
+                static_cast<double>(footprints.gate[i]),
+                static_cast<double>(scan.angle_increment_rad),
+                max_dtheta,
+                config.voxel_size_m};
+            gap_m = fans.GapAt(here,
+                               i,
+                               config.ping_gap_fill_m,
+                               config.ping_gap_fill_per_beam,
+                               config.ping_gap_bridge_pings);
         }
         pb.half_gap_vox = static_cast<float>(0.5 * gap_m * inv_s);
         if (!slope_nbs.empty()) {
@@ -524,8 +642,7 @@ PreparedScan PrepareScan(const std::vector<SonarScan>& scans,
                          std::size_t index,
                          const TsdfConfig& config,
                          const Geometry& geo) {
-    const int k_max =
-        std::max(config.ping_gap_fill_m > 0.0 ? 2 : 1, config.footprint_neighbour_pings);
+    const int k_max = NeighbourPings(config);
     std::vector<ScanFootprints> fps;
     fps.reserve(static_cast<std::size_t>(2 * k_max));  // the neighbours point into it
     std::vector<ScanNeighbour> nbs;

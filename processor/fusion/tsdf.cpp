@@ -523,8 +523,8 @@ struct Slab {
 using SlabMap = std::map<int, Slab>;  // by slab index; std::map keeps references stable
 
 // The scans [c0, c1) prepared (valid beams, footprint ranges, the x and y range of every beam),
-// in parallel. Footprints of the chunk's scans and of the neighbours each one needs (the
-// two each side for the gap between pings, `reach` each side for the along-track slope)
+// in parallel. Footprints of the chunk's scans and of the neighbours each one needs (`reach`
+// each side, NeighbourPings: for the gap between pings and the along-track slope)
 // are fitted once, into `footprints` (reused across chunks).
 void PrepareChunk(const std::vector<SonarScan>& scans,
                   std::size_t c0,
@@ -837,6 +837,10 @@ std::vector<std::string> TsdfConfig::Validate() const {
     if (!(ping_gap_fill_m >= 0.0) || !std::isfinite(ping_gap_fill_m)) {
         problems.push_back("ping_gap_fill_m must be >= 0 (0 = off)");
     }
+    if (ping_gap_bridge_pings < 0 || ping_gap_bridge_pings > kMaxBridgePings) {
+        problems.push_back("ping_gap_bridge_pings must be in [0, " +
+                           std::to_string(kMaxBridgePings) + "] (0 = off)");
+    }
     if (footprint_neighbour_pings < 0 || footprint_neighbour_pings > kMaxFootprintNeighbourPings) {
         problems.push_back("footprint_neighbour_pings must be in [0, " +
                            std::to_string(kMaxFootprintNeighbourPings) + "] (0 = off)");
@@ -889,7 +893,7 @@ ScanReach ReachOf(const SonarScan& scan, const TsdfConfig& config) {
     }
     if (r_max == 0) return out;
     const double margin =
-        config.truncation_m + 0.1 * r_max + config.ping_gap_fill_m + 2 * config.voxel_size_m;
+        config.truncation_m + 0.1 * r_max + detail::WidestGapM(config) + 2 * config.voxel_size_m;
     return {x0 - margin, x1 + margin, y0 - margin, y1 + margin};
 }
 
@@ -928,8 +932,7 @@ IntegrateResult TsdfVolume::Integrate(const std::vector<SonarScan>& scans,
     tbb::task_arena arena(threads);
     const float trunc = static_cast<float>(config_.truncation_m);
     const OldLeaves old{LeavesBySlab(impl_->distance->tree()), LeavesBySlab(impl_->weight->tree())};
-    const auto reach = static_cast<std::size_t>(
-        std::max(config_.ping_gap_fill_m > 0.0 ? 2 : 1, config_.footprint_neighbour_pings));
+    const auto reach = static_cast<std::size_t>(NeighbourPings(config_));
 
     // Chunk by chunk: prepare the chunk's scans in parallel, then integrate it slab by slab.
     // Only one chunk's prepared beams are held at a time; the slab grids persist across chunks.

@@ -27,6 +27,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -54,6 +55,9 @@ enum class SensorModel : std::uint8_t {
 
 // Most pings on each side a footprint's along-track slope is fitted to.
 inline constexpr int kMaxFootprintNeighbourPings = 8;
+
+// Longest run of pings a missing beam is bridged across (TsdfConfig::ping_gap_bridge_pings).
+inline constexpr int kMaxBridgePings = 8;
 
 // Longest range gate, in voxels (TsdfConfig::max_range_m / voxel_size_m): 2 km at 0.1 m.
 inline constexpr double kMaxRangeVoxels = 20000.0;
@@ -93,6 +97,16 @@ struct TsdfConfig {
     // strip unobserved as a missing ping, and is bridged the same way (within ping_gap_fill_m).
     // false = the gap to the next pings' fans whatever they hold. docs/decisions/026.
     bool ping_gap_fill_per_beam = true;
+    // Beam-width mode, with ping_gap_fill_per_beam: a beam missing in a run of up to this many
+    // consecutive pings (its echoes rejected: a fish school, the smile, a bubble episode) is
+    // bridged across the run when the same beam's footprint in the ping past the run lies on
+    // the surface the widened beam writes: within the footprint's gate of its range line, at
+    // the range the ping sees out of its plane, within its cone across the fan (each side
+    // tests the other, and each widens to half the gap), and the run at most this many times
+    // ping_gap_fill_m long. Nothing is bridged where the two sides disagree (an edge, a step,
+    // a slope along the track steeper than the gate over the gap). 0 = only the rule above
+    // (one ping). At most kMaxBridgePings. docs/decisions/039.
+    int ping_gap_bridge_pings = 8;
     // Beam-width mode: the footprint's range varies across the beam's width along the track as
     // well as across the fan. That slope is fitted to the footprints of the same beam in up to
     // this many pings before and after (consecutive scans of the input), so a face or wall the
@@ -105,6 +119,20 @@ struct TsdfConfig {
     // Every problem with the configuration (empty when valid).
     std::vector<std::string> Validate() const;
 };
+
+// The pings on each side of a scan that its integration reads as neighbouring pings (beam-width
+// mode): the gap between pings needs the next two (ping_gap_fill_m), or one more than the
+// longest run a missing beam is bridged across (ping_gap_bridge_pings); the along-track slope
+// footprint_neighbour_pings. Integrate(scans, begin, end) reads that many scans before begin
+// and after end: a survey integrated in blocks gives each call that many of the neighbouring
+// blocks' pings around it, and equals one call.
+inline int NeighbourPings(const TsdfConfig& config) {
+    int gap = 1;
+    if (config.ping_gap_fill_m > 0.0) {
+        gap = std::max(2, config.ping_gap_fill_per_beam ? config.ping_gap_bridge_pings + 1 : 0);
+    }
+    return std::max(gap, config.footprint_neighbour_pings);
+}
 
 // Statistics of one Integrate call.
 // Sonar positions further than this from the world origin on any axis (or non-finite poses)
@@ -200,10 +228,11 @@ TriangleMesh KeepTrianglesIn(const TriangleMesh& mesh,
                              double voxel_size_m);
 
 // The horizontal box (world metres) holding every voxel a scan can update: the hit points of
-// its beams within the range gate, grown by T + 0.1 r_max + ping_gap_fill_m + 2 voxels (the
-// beam's cone, r tan(bw / 2) = 0.013 r at 1.5 deg, the footprint's range line and along-track
-// slope, the gap fill out of the fan plane). Empty (x_min > x_max) without a valid beam;
-// everything for a pose that is not finite (Integrate counts it out of bounds).
+// its beams within the range gate, grown by T + 0.1 r_max + the widest gap between pings
+// bridged (ping_gap_fill_m, times ping_gap_bridge_pings with ping_gap_fill_per_beam) + 2 voxels
+// (the beam's cone, r tan(bw / 2) = 0.013 r at 1.5 deg, the footprint's range line and
+// along-track slope, the gap fill out of the fan plane). Empty (x_min > x_max) without a valid
+// beam; everything for a pose that is not finite (Integrate counts it out of bounds).
 struct ScanReach {
     double x_min = 0, x_max = -1, y_min = 0, y_max = -1;
     bool empty() const { return !(x_min <= x_max); }

@@ -693,6 +693,34 @@ void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
     remount.Apply(result.points);
 }
 
+GeorefPoints SliceOf(const GeorefPoints& p, std::size_t first, std::size_t count) {
+    GeorefPoints out;
+    const auto take = [&](const auto& from, auto& to) {
+        if (from.empty()) return;
+        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
+                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
+    };
+    take(p.position_world, out.position_world);
+    take(p.ping, out.ping);
+    take(p.beam, out.beam);
+    take(p.range_m, out.range_m);
+    take(p.angle_rad, out.angle_rad);
+    take(p.status, out.status);
+    return out;
+}
+
+void AppendPoints(const GeorefPoints& from, GeorefPoints& to) {
+    const auto append = [](const auto& src, auto& dst) {
+        dst.insert(dst.end(), src.begin(), src.end());
+    };
+    append(from.position_world, to.position_world);
+    append(from.ping, to.ping);
+    append(from.beam, to.beam);
+    append(from.range_m, to.range_m);
+    append(from.angle_rad, to.angle_rad);
+    append(from.status, to.status);
+}
+
 Expected<UtmProjection> UtmProjectionOf(const GeorefResult& result) {
     UtmProjection out;
     auto o = UtmFromGeodetic(result.world_origin);

@@ -723,7 +723,9 @@ void CountHypotheses(const std::vector<CubeNode>& nodes, CubeResult& out) {
     }
 }
 
-std::string CubeMessage(const CubeResult& out) {
+}  // namespace
+
+std::string DescribeCube(const CubeResult& out) {
     const CubeGrid& g = out.grid;
     char buf[256];
     std::snprintf(buf,
@@ -741,8 +743,6 @@ std::string CubeMessage(const CubeResult& out) {
                   static_cast<long long>(out.node_updates));
     return buf;
 }
-
-}  // namespace
 
 namespace {
 
@@ -806,7 +806,7 @@ CubeResult RunCube(const std::vector<CubeSounding>& soundings, const CubeConfig&
     const std::vector<CubeNode> nodes = GridNodes(soundings, valid, predicted, config, out);
     CountHypotheses(nodes, out);
     out.ok = true;
-    out.message = CubeMessage(out);
+    out.message = DescribeCube(out);
     return out;
 }
 
@@ -843,14 +843,9 @@ CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
     }
     const double cell = res * config.predicted_surface_cells;
     const double half = res / 2;
-    const std::int64_t a0 =
-        Predicted::Global(static_cast<double>(core.i0) * res - overlap_m, half, cell);
-    const std::int64_t a1 =
-        Predicted::Global(static_cast<double>(core.i1 - 1) * res + overlap_m, half, cell);
-    const std::int64_t b0 =
-        Predicted::Global(static_cast<double>(core.j0) * res - overlap_m, half, cell);
-    const std::int64_t b1 =
-        Predicted::Global(static_cast<double>(core.j1 - 1) * res + overlap_m, half, cell);
+    const CubeCellRows columns = CubeTileCellRows(core.i0, core.i1, res, config, overlap_m);
+    const CubeCellRows rows = CubeTileCellRows(core.j0, core.j1, res, config, overlap_m);
+    const std::int64_t a0 = columns.first, a1 = columns.last, b0 = rows.first, b1 = rows.last;
     ValidSoundings valid;
     for (std::size_t k = 0; k < soundings.size(); ++k) {
         const CubeSounding& s = soundings[k];
@@ -917,9 +912,113 @@ CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
     }
     out.grid = std::move(cut);
     CountHypotheses(core_nodes, out);
+    // Every sounding a node was offered went to one of its hypotheses (CubeNode::Update): the
+    // core's own updates, without the halo's.
+    out.node_updates = 0;
+    for (const CubeNode& node : core_nodes) {
+        for (const CubeHypothesis& h : node.hypotheses()) out.node_updates += h.count;
+    }
     out.ok = true;
-    out.message = CubeMessage(out);
+    out.message = DescribeCube(out);
     return out;
+}
+
+bool CubeTakes(const CubeSounding& sounding) {
+    return Valid(sounding);
+}
+
+void CubeLayout::Add(const CubeSounding& s) {
+    if (!Valid(s)) {
+        ++rejected_;
+        return;
+    }
+    depths_.push_back(s.depth_m);
+    min_x_ = std::min(min_x_, s.x);
+    max_x_ = std::max(max_x_, s.x);
+    min_y_ = std::min(min_y_, s.y);
+    max_y_ = std::max(max_y_, s.y);
+}
+
+// LayOut's arithmetic on what Add kept (the median depth: the same element of the same depths).
+CubeResult CubeLayout::Finish(const CubeConfig& config) {
+    CubeResult out;
+    out.soundings_rejected = rejected_;
+    if (depths_.empty()) {
+        out.message = "grid: no valid soundings";
+        return out;
+    }
+    const auto mid = depths_.begin() + static_cast<std::ptrdiff_t>(depths_.size() / 2);
+    std::nth_element(depths_.begin(), mid, depths_.end());
+    out.median_depth_m = *mid;
+    out.soundings_used = static_cast<std::int64_t>(depths_.size());
+    std::vector<float>().swap(depths_);
+    ValidSoundings extent;
+    extent.min_x = min_x_;
+    extent.max_x = max_x_;
+    extent.min_y = min_y_;
+    extent.max_y = max_y_;
+    const double res = config.resolution_m > 0 ? config.resolution_m
+                                               : ResolutionFromDepth(out.median_depth_m, config);
+    if (std::string why = LayOutGrid(extent, res, config, out.grid); !why.empty()) {
+        out.message = std::move(why);
+        return out;
+    }
+    out.capture_distance_m = CaptureDistance(out.median_depth_m, res, config);
+    out.ok = true;
+    return out;
+}
+
+std::int64_t CubeCellIndex(double x, double resolution_m, const CubeConfig& config) {
+    return Predicted::Global(x, resolution_m / 2, resolution_m * config.predicted_surface_cells);
+}
+
+CubeCellRows CubeTileCellRows(
+    std::int64_t j0, std::int64_t j1, double res, const CubeConfig& config, double overlap_m) {
+    const double cell = res * config.predicted_surface_cells;
+    const double half = res / 2;
+    return {Predicted::Global(static_cast<double>(j0) * res - overlap_m, half, cell),
+            Predicted::Global(static_cast<double>(j1 - 1) * res + overlap_m, half, cell)};
+}
+
+std::vector<CubeBand> PlanCubeBands(const CubeGrid& layout,
+                                    std::int64_t first_cell,
+                                    const std::vector<std::int64_t>& cell_soundings,
+                                    const CubeConfig& config,
+                                    double overlap_m,
+                                    std::int64_t max_soundings,
+                                    std::int64_t max_nodes) {
+    // prefix[k]: the soundings of cell rows first_cell .. first_cell + k - 1.
+    std::vector<std::int64_t> prefix(cell_soundings.size() + 1, 0);
+    for (std::size_t k = 0; k < cell_soundings.size(); ++k)
+        prefix[k + 1] = prefix[k] + cell_soundings[k];
+    const auto last_cell = first_cell + static_cast<std::int64_t>(cell_soundings.size()) - 1;
+    const auto soundings_in = [&](const CubeCellRows& c) -> std::int64_t {
+        const std::int64_t a = std::max(c.first, first_cell), b = std::min(c.last, last_cell);
+        if (b < a) return 0;
+        return prefix[static_cast<std::size_t>(b - first_cell + 1)] -
+               prefix[static_cast<std::size_t>(a - first_cell)];
+    };
+    const double res = layout.resolution_m;
+    const std::int64_t step = std::max(1, config.predicted_surface_cells);
+    const std::int64_t end = layout.j0 + layout.ny;
+    std::vector<CubeBand> bands;
+    for (std::int64_t j = layout.j0; j < end;) {
+        std::int64_t j1 = std::min(end, j + step);
+        while (j1 < end) {
+            const std::int64_t next = std::min(end, j1 + step);
+            if ((next - j) * layout.nx > max_nodes ||
+                soundings_in(CubeTileCellRows(j, next, res, config, overlap_m)) > max_soundings)
+                break;
+            j1 = next;
+        }
+        CubeBand band;
+        band.core = {layout.i0, j, layout.i0 + layout.nx, j1};
+        band.cells = CubeTileCellRows(j, j1, res, config, overlap_m);
+        band.soundings = soundings_in(band.cells);
+        bands.push_back(band);
+        j = j1;
+    }
+    return bands;
 }
 
 }  // namespace pitmap::proc::hydro

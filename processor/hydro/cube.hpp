@@ -238,15 +238,76 @@ double CubeTileReach(double resolution_m, const CubeConfig& config);
 // within `overlap_m` of the core (>= CubeTileReach), taken in input order. Every node equals
 // RunCube's node at the same global index, bit for bit (tests/processor/hydro/cube_tile_test).
 // The grid returned is the core (x0 = core.i0 res, nx = core.nx()); its counters count the
-// core's nodes (node_updates: the tile's own, halo included). Preconditions: config.Validate()
-// is empty, config.resolution_m > 0 (the whole survey's: LayOutCube), overlap_m >=
-// CubeTileReach(resolution_m, config), a non-empty core. Fails (ok = false) when the tile
-// would exceed max_nodes; a tile without soundings is ok with every node empty.
-// `survey` is the whole survey's node range (LayOutCube): the tile's own nodes stay inside it.
+// core's nodes (node_updates: the soundings the core's nodes took, so that tiles that cover the
+// survey once add up to RunCube's; soundings_used: those the tile read, halo included).
+// Preconditions: config.Validate() is empty, config.resolution_m > 0 (the whole survey's:
+// LayOutCube), overlap_m >= CubeTileReach(resolution_m, config), a non-empty core. Fails (ok =
+// false) when the tile would exceed max_nodes; a tile without soundings is ok with every node
+// empty. `survey` is the whole survey's node range (LayOutCube): the tile's own nodes stay inside
+// it.
 CubeResult RunCubeTile(const std::vector<CubeSounding>& soundings,
                        const CubeConfig& config,
                        const CubeNodeRange& core,
                        const CubeNodeRange& survey,
                        double overlap_m);
+
+// RunCube's message for a result (the grid, the median depth, what CUBE did).
+std::string DescribeCube(const CubeResult& result);
+
+// Whether CUBE takes a sounding (finite, positive vertical sigma, finite depth); RunCube counts
+// the others in soundings_rejected.
+bool CubeTakes(const CubeSounding& sounding);
+
+// LayOutCube over soundings given one at a time in input order (Add), without holding them:
+// Finish gives LayOutCube's result for the soundings added (the median depth from their depths,
+// 4 bytes a sounding, the extent, soundings_rejected and soundings_used). Decision 035.
+class CubeLayout {
+public:
+    void Reserve(std::size_t n) { depths_.reserve(n); }
+    void Add(const CubeSounding& sounding);
+    CubeResult Finish(const CubeConfig& config);
+
+private:
+    std::vector<float> depths_;
+    double min_x_ = std::numeric_limits<double>::max(), min_y_ = min_x_;
+    double max_x_ = -min_x_, max_y_ = -min_x_;
+    std::int64_t rejected_ = 0;
+};
+
+// The global predicted-surface cell (cube.hpp: cell a covers [a c - res / 2, (a + 1) c - res / 2),
+// c = predicted_surface_cells res) of coordinate x (an easting or a northing), as RunCube takes
+// it. x finite.
+std::int64_t CubeCellIndex(double x, double resolution_m, const CubeConfig& config);
+
+// The rows of predicted-surface cells, first .. last, whose soundings RunCubeTile reads for the
+// node rows [j0, j1) with `overlap_m` (the same arithmetic).
+struct CubeCellRows {
+    std::int64_t first = 0, last = -1;
+};
+CubeCellRows CubeTileCellRows(std::int64_t j0,
+                              std::int64_t j1,
+                              double resolution_m,
+                              const CubeConfig& config,
+                              double overlap_m);
+
+// A band of whole node rows of the survey for RunCubeTile, and the cell rows of its soundings.
+struct CubeBand {
+    CubeNodeRange core;
+    CubeCellRows cells;
+    std::int64_t soundings = 0;  // in those cell rows (halo included)
+};
+
+// The survey's node rows (layout: LayOutCube's grid) cut into bands of whole rows, in order,
+// each reading at most max_soundings soundings and holding at most max_nodes nodes where one
+// predicted-surface cell's rows allow it (a band is never less than a cell of rows, nor than a
+// node row). `cell_soundings[b - first_cell]`: the soundings CUBE takes in cell row b (none
+// outside). Decision 035: CUBE by bands holds a band's soundings and nodes, not the survey's.
+std::vector<CubeBand> PlanCubeBands(const CubeGrid& layout,
+                                    std::int64_t first_cell,
+                                    const std::vector<std::int64_t>& cell_soundings,
+                                    const CubeConfig& config,
+                                    double overlap_m,
+                                    std::int64_t max_soundings,
+                                    std::int64_t max_nodes);
 
 }  // namespace pitmap::proc::hydro

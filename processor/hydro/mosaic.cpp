@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "common/result.hpp"
 
@@ -197,22 +198,22 @@ struct LevelledSoundings {
     std::vector<double> uncorrected_sum_db;  // per node
 };
 
-// The first pass: the soundings with an intensity (neither none nor saturated) on a node of the
-// grid, at an incidence up to max_incidence_deg, the others counted by reason in `r`. The DEM's
-// normal is computed once per node that a sounding falls on.
-LevelledSoundings LevelSoundings(const MosaicSoundings& s,
-                                 const MosaicGrid& g,
-                                 const MosaicConfig& c,
-                                 MosaicResult& r) {
+// The first pass, a block of the soundings at a time (in order): the soundings with an
+// intensity (neither none nor saturated) on a node of the grid, at an incidence up to
+// max_incidence_deg, appended to `out`, the others counted by reason in `r`. The DEM's normal
+// is computed once per node that a sounding falls on (`normals`, `have_normal`).
+void LevelSoundings(const MosaicSoundings& s,
+                    const MosaicGrid& g,
+                    const MosaicConfig& c,
+                    std::vector<Eigen::Vector3d>& normals,
+                    std::vector<char>& have_normal,
+                    LevelledSoundings& out,
+                    MosaicResult& r) {
     const std::size_t n = s.size();
-    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
-    LevelledSoundings out;
-    out.node.assign(n, kNoNode);
-    out.level_db.assign(n, kNaN);
-    out.incidence_deg.assign(n, kNaN);
-    out.uncorrected_sum_db.assign(cells, 0.0);
-    std::vector<Eigen::Vector3d> normals(cells, Eigen::Vector3d::Zero());
-    std::vector<char> have_normal(cells, 0);
+    const std::size_t first = out.node.size();
+    out.node.resize(first + n, kNoNode);
+    out.level_db.resize(first + n, kNaN);
+    out.incidence_deg.resize(first + n, kNaN);
     for (std::size_t j = 0; j < n; ++j) {
         const std::uint16_t intensity = s.intensity[j];
         if (intensity == 0) {
@@ -241,13 +242,12 @@ LevelledSoundings LevelSoundings(const MosaicSoundings& s,
             ++r.beyond_incidence;
             continue;
         }
-        out.node[j] = static_cast<std::uint32_t>(cell);
+        out.node[first + j] = static_cast<std::uint32_t>(cell);
         const float raw = static_cast<float>(IntensityDb(intensity));
         out.uncorrected_sum_db[cell] += raw;
-        out.level_db[j] = static_cast<float>(raw + RangeLossDb(s.range_m[j], c));
-        out.incidence_deg[j] = static_cast<float>(incidence);
+        out.level_db[first + j] = static_cast<float>(raw + RangeLossDb(s.range_m[j], c));
+        out.incidence_deg[first + j] = static_cast<float>(incidence);
     }
-    return out;
 }
 
 // The angular response the levels are corrected by: the survey's own (estimated, then refined
@@ -339,27 +339,71 @@ std::string MosaicMessage(const MosaicResult& r, const MosaicConfig& c) {
 
 }  // namespace
 
-// Two passes over the soundings: their range-corrected levels and incidences on the DEM, then,
-// with the angular response, the nodes' corrected means.
-MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& c) {
+struct MosaicByBlocks::State {
+    const MosaicGrid& grid;
+    MosaicConfig config;
+    std::size_t cells = 0;
+    LevelledSoundings levelled;
+    std::vector<Eigen::Vector3d> normals;
+    std::vector<char> have_normal;
+    MosaicResult result;
+
+    State(const MosaicGrid& g, const MosaicConfig& c) : grid(g), config(c) {
+        cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
+        levelled.uncorrected_sum_db.assign(cells, 0.0);
+        normals.assign(cells, Eigen::Vector3d::Zero());
+        have_normal.assign(cells, 0);
+    }
+};
+
+MosaicByBlocks::MosaicByBlocks(const MosaicGrid& g, const MosaicConfig& c) {
     PITMAP_CHECK(g.elevation_m != nullptr && g.nx > 0 && g.ny > 0 && g.resolution_m > 0 &&
                      g.elevation_m->size() ==
                          static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny),
                  "RunMosaic: bad grid");
-    const std::size_t n = s.size();
-    PITMAP_CHECK(s.y.size() == n && s.intensity.size() == n && s.range_m.size() == n &&
-                     s.beam_dir.size() == n,
+    state_ = std::make_unique<State>(g, c);
+}
+
+MosaicByBlocks::~MosaicByBlocks() = default;
+
+void MosaicByBlocks::Reserve(std::size_t n) {
+    state_->levelled.node.reserve(n);
+    state_->levelled.level_db.reserve(n);
+    state_->levelled.incidence_deg.reserve(n);
+}
+
+void MosaicByBlocks::Add(const MosaicSoundings& block) {
+    const std::size_t n = block.size();
+    PITMAP_CHECK(block.y.size() == n && block.intensity.size() == n && block.range_m.size() == n &&
+                     block.beam_dir.size() == n,
                  "RunMosaic: soundings arrays differ in size");
-    MosaicResult r;
-    r.soundings_in = static_cast<std::int64_t>(n);
-    const std::size_t cells = static_cast<std::size_t>(g.nx) * static_cast<std::size_t>(g.ny);
-    const LevelledSoundings levelled = LevelSoundings(s, g, c, r);
-    s = MosaicSoundings{};  // what follows needs only the nodes, levels and incidences
-    r.response = ChosenAngularResponse(levelled, cells, c);
-    GridMeans(levelled, cells, c, r);
+    State& st = *state_;
+    st.result.soundings_in += static_cast<std::int64_t>(n);
+    LevelSoundings(block, st.grid, st.config, st.normals, st.have_normal, st.levelled, st.result);
+}
+
+// With the angular response, the nodes' corrected means.
+MosaicResult MosaicByBlocks::Finish() {
+    State& st = *state_;
+    std::vector<Eigen::Vector3d>().swap(st.normals);
+    std::vector<char>().swap(st.have_normal);
+    MosaicResult r = std::move(st.result);
+    const MosaicConfig& c = st.config;
+    r.response = ChosenAngularResponse(st.levelled, st.cells, c);
+    GridMeans(st.levelled, st.cells, c, r);
+    st.levelled = LevelledSoundings{};
     r.ok = r.used > 0;
     r.message = MosaicMessage(r, c);
     return r;
+}
+
+// Two passes over the soundings: their range-corrected levels and incidences on the DEM, then,
+// with the angular response, the nodes' corrected means.
+MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& c) {
+    MosaicByBlocks blocks(g, c);
+    blocks.Add(s);
+    s = MosaicSoundings{};  // what follows needs only the nodes, levels and incidences
+    return blocks.Finish();
 }
 
 }  // namespace pitmap::proc::hydro

@@ -29,6 +29,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -128,5 +129,24 @@ AngularResponse RefineAngularResponse(const AngularResponse& response,
 // soundings are taken by value and released after the first pass (~34 bytes each, 200 MB on
 // bejanca): pass them with std::move where the caller has no further use for them.
 MosaicResult RunMosaic(MosaicSoundings s, const MosaicGrid& g, const MosaicConfig& config);
+
+// RunMosaic over the soundings given a block at a time, in order (decision 035): Add levels a
+// block (its range-corrected levels, incidences and nodes: 12 bytes a sounding kept, the blocks'
+// soundings not), Finish the angular response and the nodes' means: RunMosaic's result bit for
+// bit (RunMosaic is it with one block). `g` (and its elevation) must outlive it.
+class MosaicByBlocks {
+public:
+    MosaicByBlocks(const MosaicGrid& g, const MosaicConfig& config);
+    ~MosaicByBlocks();
+    MosaicByBlocks(const MosaicByBlocks&) = delete;
+    MosaicByBlocks& operator=(const MosaicByBlocks&) = delete;
+    void Reserve(std::size_t soundings);  // the soundings that will be added
+    void Add(const MosaicSoundings& block);
+    MosaicResult Finish();
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 }  // namespace pitmap::proc::hydro

@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <unordered_map>
+#include <utility>
 
 namespace pitmap::proc::hydro {
 
@@ -105,28 +107,33 @@ double CaptureDistance(const S44Grid& g, double depth_m) {
                       g.capture_max_res * g.resolution_m);
 }
 
-void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
-    const std::size_t n = s.z.size();
-    std::array<std::int64_t, kNumS44Orders> tvu{}, thu{}, both{}, ntvu{}, nthu{};
+// The compliance's sums over the soundings, in their order, and the nodes' THU sums.
+struct ComplianceSums {
+    std::array<std::int64_t, kNumS44Orders> tvu{}, thu{}, both{};
     std::int64_t used = 0;
+    std::vector<float> node_thu_sum;
+    std::vector<std::int32_t> node_thu_n;
+};
+
+// The soundings of `s` (a block of the survey's, in order) added to the compliance's sums.
+void ComplianceAdd(const S44Soundings& s, const S44Grid& g, ComplianceSums& c) {
+    const std::size_t n = s.z.size();
     // Node THU: the mean THU of the soundings within their capture distance of the node, the
     // soundings CUBE offered it (S44Grid). The nearest node alone would leave a THU-less node
     // wherever the soundings are sparser than the nodes (the outer beams), and such nodes
     // failed every order alike (issue 39: 89.1 % for every order on the demo).
-    std::vector<float> node_thu_sum(g.elevation_m.size(), 0.0f);
-    std::vector<std::int32_t> node_thu_n(g.elevation_m.size(), 0);
     for (std::size_t j = 0; j < n; ++j) {
         const double d = s.depth_m[j];
         if (!std::isfinite(d) || !std::isfinite(s.tvu_95_m[j]) || !std::isfinite(s.thu_95_m[j])) {
             continue;
         }
-        ++used;
+        ++c.used;
         for (int o = 0; o < kNumS44Orders; ++o) {
             const bool v = s.tvu_95_m[j] <= kLimits[o].Tvu(d);
             const bool h = s.thu_95_m[j] <= kLimits[o].Thu(d);
-            tvu[o] += v;
-            thu[o] += h;
-            both[o] += v && h;
+            c.tvu[o] += v;
+            c.thu[o] += h;
+            c.both[o] += v && h;
         }
         if (g.nx <= 0 || g.ny <= 0 || !(g.resolution_m > 0)) continue;
         const double rc = CaptureDistance(g, d);
@@ -146,11 +153,16 @@ void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
                 if (du * du + dv * dv > ru * ru) continue;
                 const std::size_t q =
                     static_cast<std::size_t>(k) * g.nx + static_cast<std::size_t>(i);
-                node_thu_sum[q] += s.thu_95_m[j];
-                ++node_thu_n[q];
+                c.node_thu_sum[q] += s.thu_95_m[j];
+                ++c.node_thu_n[q];
             }
         }
     }
+}
+
+// The shares within each order's limits, of the soundings and of the nodes.
+void ComplianceFinish(const S44Grid& g, const ComplianceSums& c, S44Result& r) {
+    std::array<std::int64_t, kNumS44Orders> ntvu{}, nthu{};
     std::int64_t nodes = 0, nodes_thu = 0;
     for (std::size_t q = 0; q < g.elevation_m.size(); ++q) {
         const double d = g.depth_m[q];
@@ -160,11 +172,12 @@ void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
         }
         ++nodes;
         for (int o = 0; o < kNumS44Orders; ++o) ntvu[o] += g.uncertainty_m[q] <= kLimits[o].Tvu(d);
-        if (node_thu_n[q] == 0) continue;
+        if (c.node_thu_n[q] == 0) continue;
         ++nodes_thu;
-        const double node_thu = node_thu_sum[q] / static_cast<double>(node_thu_n[q]);
+        const double node_thu = c.node_thu_sum[q] / static_cast<double>(c.node_thu_n[q]);
         for (int o = 0; o < kNumS44Orders; ++o) nthu[o] += node_thu <= kLimits[o].Thu(d);
     }
+    const std::int64_t used = c.used;
     r.soundings = used;
     r.nodes = nodes;
     r.nodes_without_thu = nodes - nodes_thu;
@@ -172,9 +185,9 @@ void Compliance(const S44Soundings& s, const S44Grid& g, S44Result& r) {
         const double sn = used > 0 ? static_cast<double>(used) : 1.0;
         const double nn = nodes > 0 ? static_cast<double>(nodes) : 1.0;
         const double nh = nodes_thu > 0 ? static_cast<double>(nodes_thu) : 1.0;
-        r.soundings_within_tvu[o] = static_cast<double>(tvu[o]) / sn;
-        r.soundings_within_thu[o] = static_cast<double>(thu[o]) / sn;
-        r.soundings_within_both[o] = static_cast<double>(both[o]) / sn;
+        r.soundings_within_tvu[o] = static_cast<double>(c.tvu[o]) / sn;
+        r.soundings_within_thu[o] = static_cast<double>(c.thu[o]) / sn;
+        r.soundings_within_both[o] = static_cast<double>(c.both[o]) / sn;
         r.nodes_within_tvu[o] = static_cast<double>(ntvu[o]) / nn;
         r.nodes_within_thu[o] = static_cast<double>(nthu[o]) / nh;
     }
@@ -349,76 +362,108 @@ void Holidays(const S44Grid& g, const S44Config& c, double median_depth_m, S44Re
         r.nodes_survey_area > 0 ? static_cast<double>(covered) / r.nodes_survey_area : 0.0;
 }
 
-void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44Result& r) {
-    const double cell = c.crossline_cell_m > 0 ? c.crossline_cell_m : 2.0 * g.resolution_m;
-    if (!(cell > 0) || s.ping_t_s.empty()) return;
-    constexpr double kBlockS = 20.0;
-    constexpr int kHeadingBins = 12;  // 15 deg, modulo 180 deg
+constexpr double kBlockS = 20.0;
+constexpr int kHeadingBins = 12;  // 15 deg, modulo 180 deg
+constexpr int kAngleBins = 7;     // 0-10 ... 60-70 deg
+
+int HeadingBin(double yaw) {
+    double d = std::fmod(yaw * 180.0 / kPi, 180.0);
+    if (d < 0) d += 180.0;
+    return std::min(kHeadingBins - 1, static_cast<int>(d / (180.0 / kHeadingBins)));
+}
+
+// The crossline check's state: the earlier soundings pooled per cell, time block and heading
+// bin (first pass), then the comparisons' sums (second pass), in the soundings' order.
+struct Crossline {
     struct Acc {
         double sz = 0, sx = 0, sy = 0, st = 0;
         std::int32_t n = 0;
         std::int32_t key = 0;  // time block * kHeadingBins + heading bin
     };
-    const double t0 = s.ping_t_s.front();
-    auto heading_bin = [](double yaw) {
-        double d = std::fmod(yaw * 180.0 / kPi, 180.0);
-        if (d < 0) d += 180.0;
-        return std::min(kHeadingBins - 1, static_cast<int>(d / (180.0 / kHeadingBins)));
-    };
-    const auto ncx = static_cast<std::int64_t>(std::ceil(g.nx * g.resolution_m / cell)) + 2;
-    auto cell_of = [&](double x, double y) {
+    bool on = false;
+    double cell = 0, t0 = 0;
+    std::int64_t ncx = 0;
+    std::unordered_map<std::int64_t, std::vector<Acc>> cells;
+    std::array<double, kAngleBins> bs{}, bss{};
+    std::array<std::int64_t, kAngleBins> bn{}, bin_ok{};
+    double sum = 0, sumsq = 0;
+    std::int64_t n = 0, ok = 0;
+
+    Crossline(const S44Grid& g, const S44Config& c, const std::vector<double>& ping_t_s) {
+        cell = c.crossline_cell_m > 0 ? c.crossline_cell_m : 2.0 * g.resolution_m;
+        on = cell > 0 && !ping_t_s.empty();
+        if (!on) return;
+        t0 = ping_t_s.front();
+        ncx = static_cast<std::int64_t>(std::ceil(g.nx * g.resolution_m / cell)) + 2;
+    }
+    std::int64_t CellOf(const S44Grid& g, double x, double y) const {
         const auto i = static_cast<std::int64_t>(std::floor((x - g.x0) / cell)) + 1;
         const auto j = static_cast<std::int64_t>(std::floor((y - g.y0) / cell)) + 1;
         return j * ncx + i;
-    };
-    std::unordered_map<std::int64_t, std::vector<Acc>> cells;
-    cells.reserve(s.z.size() / 8 + 16);
+    }
+};
+
+// First pass: the soundings of `s` (a block, in order) pooled into their cells.
+void CrosslineCells(const S44Soundings& s,
+                    const S44Grid& g,
+                    const std::vector<double>& ping_t_s,
+                    const std::vector<double>& ping_yaw_rad,
+                    Crossline& x) {
+    if (!x.on) return;
     for (std::size_t j = 0; j < s.z.size(); ++j) {
         if (!std::isfinite(s.z[j])) continue;
         const std::uint32_t p = s.ping[j];
         const auto key = static_cast<std::int32_t>(
-            static_cast<std::int32_t>((s.ping_t_s[p] - t0) / kBlockS) * kHeadingBins +
-            heading_bin(s.ping_yaw_rad[p]));
-        auto& v = cells[cell_of(s.x[j], s.y[j])];
-        auto it = std::find_if(v.begin(), v.end(), [key](const Acc& e) { return e.key == key; });
+            static_cast<std::int32_t>((ping_t_s[p] - x.t0) / kBlockS) * kHeadingBins +
+            HeadingBin(ping_yaw_rad[p]));
+        auto& v = x.cells[x.CellOf(g, s.x[j], s.y[j])];
+        auto it = std::find_if(
+            v.begin(), v.end(), [key](const Crossline::Acc& e) { return e.key == key; });
         if (it == v.end()) {
-            v.push_back(Acc{});
+            v.push_back(Crossline::Acc{});
             it = v.end() - 1;
             it->key = key;
         }
         it->sz += s.z[j];
         it->sx += s.x[j];
         it->sy += s.y[j];
-        it->st += s.ping_t_s[p];
+        it->st += ping_t_s[p];
         ++it->n;
     }
-    // The DEM's gradient at a point (central differences of the elevation; 0 where missing).
-    auto gradient = [&](double x, double y, double* gx, double* gy) {
-        *gx = *gy = 0;
-        const long i = std::lround((x - g.x0) / g.resolution_m);
-        const long k = std::lround((y - g.y0) / g.resolution_m);
-        if (i < 1 || k < 1 || i + 1 >= g.nx || k + 1 >= g.ny) return;
-        auto e = [&](long a, long b) {
-            return g.elevation_m[static_cast<std::size_t>(b) * g.nx + static_cast<std::size_t>(a)];
-        };
-        const double ex = e(i + 1, k) - e(i - 1, k), ey = e(i, k + 1) - e(i, k - 1);
-        if (std::isfinite(ex)) *gx = ex / (2 * g.resolution_m);
-        if (std::isfinite(ey)) *gy = ey / (2 * g.resolution_m);
+}
+
+// The DEM's gradient at a point (central differences of the elevation; 0 where missing).
+void DemGradient(const S44Grid& g, double x, double y, double* gx, double* gy) {
+    *gx = *gy = 0;
+    const long i = std::lround((x - g.x0) / g.resolution_m);
+    const long k = std::lround((y - g.y0) / g.resolution_m);
+    if (i < 1 || k < 1 || i + 1 >= g.nx || k + 1 >= g.ny) return;
+    auto e = [&](long a, long b) {
+        return g.elevation_m[static_cast<std::size_t>(b) * g.nx + static_cast<std::size_t>(a)];
     };
+    const double ex = e(i + 1, k) - e(i - 1, k), ey = e(i, k + 1) - e(i, k - 1);
+    if (std::isfinite(ex)) *gx = ex / (2 * g.resolution_m);
+    if (std::isfinite(ey)) *gy = ey / (2 * g.resolution_m);
+}
+
+// Second pass: each sounding of `s` (a block, in order) against the earlier crossing
+// soundings of its cell.
+void CrosslineCompare(const S44Soundings& s,
+                      const S44Grid& g,
+                      const S44Config& c,
+                      const std::vector<double>& ping_t_s,
+                      const std::vector<double>& ping_yaw_rad,
+                      Crossline& x) {
+    if (!x.on) return;
     const S44Limits& lim = LimitsOf(c.order);
-    constexpr int kBins = 7;  // 0-10 ... 60-70 deg
-    std::array<double, kBins> bs{}, bss{};
-    std::array<std::int64_t, kBins> bn{}, bin_ok{};
-    double sum = 0, sumsq = 0;
-    std::int64_t n = 0, ok = 0;
     for (std::size_t j = 0; j < s.z.size(); ++j) {
         if (!std::isfinite(s.z[j])) continue;
-        const auto it = cells.find(cell_of(s.x[j], s.y[j]));
-        if (it == cells.end()) continue;
-        const double t = s.ping_t_s[s.ping[j]];
-        const double yaw = s.ping_yaw_rad[s.ping[j]];
-        Acc ref;
-        for (const Acc& a : it->second) {
+        const auto it = x.cells.find(x.CellOf(g, s.x[j], s.y[j]));
+        if (it == x.cells.end()) continue;
+        const double t = ping_t_s[s.ping[j]];
+        const double yaw = ping_yaw_rad[s.ping[j]];
+        Crossline::Acc ref;
+        for (const Crossline::Acc& a : it->second) {
             const double bin_yaw = ((a.key % kHeadingBins) + 0.5) * (kPi / kHeadingBins);
             if (a.st / a.n > t - c.min_time_separation_s ||
                 LineAngleDeg(bin_yaw, yaw) < c.crossing_angle_deg) {
@@ -432,60 +477,108 @@ void Crosslines(const S44Soundings& s, const S44Grid& g, const S44Config& c, S44
         if (ref.n < c.min_reference_soundings) continue;
         const double mx = ref.sx / ref.n, my = ref.sy / ref.n;
         double gx = 0, gy = 0;
-        gradient(s.x[j], s.y[j], &gx, &gy);
+        DemGradient(g, s.x[j], s.y[j], &gx, &gy);
         const double zref = ref.sz / ref.n + gx * (s.x[j] - mx) + gy * (s.y[j] - my);
         const double d = s.z[j] - zref;
         const bool within = std::abs(d) <= lim.Tvu(s.depth_m[j]);
-        sum += d;
-        sumsq += d * d;
-        ++n;
-        ok += within;
-        const int b = std::clamp(static_cast<int>(std::abs(s.angle_deg[j]) / 10.0), 0, kBins - 1);
-        bs[b] += d;
-        bss[b] += d * d;
-        ++bn[b];
-        bin_ok[b] += within;
+        x.sum += d;
+        x.sumsq += d * d;
+        ++x.n;
+        x.ok += within;
+        const int b =
+            std::clamp(static_cast<int>(std::abs(s.angle_deg[j]) / 10.0), 0, kAngleBins - 1);
+        x.bs[b] += d;
+        x.bss[b] += d * d;
+        ++x.bn[b];
+        x.bin_ok[b] += within;
     }
-    r.crossline_compared = n;
-    if (n == 0) return;
-    const double nn = static_cast<double>(n);
-    r.crossline_mean_m = sum / nn;
-    r.crossline_rms_m = std::sqrt(sumsq / nn);
+}
+
+void CrosslineFinish(const Crossline& x, S44Result& r) {
+    r.crossline_compared = x.n;
+    if (x.n == 0) return;
+    const double nn = static_cast<double>(x.n);
+    r.crossline_mean_m = x.sum / nn;
+    r.crossline_rms_m = std::sqrt(x.sumsq / nn);
     r.crossline_sd_m =
-        std::sqrt(std::max(0.0, sumsq / nn - r.crossline_mean_m * r.crossline_mean_m));
-    r.crossline_within_tvu = static_cast<double>(ok) / nn;
-    for (int b = 0; b < kBins; ++b) {
-        if (bn[b] == 0) continue;
+        std::sqrt(std::max(0.0, x.sumsq / nn - r.crossline_mean_m * r.crossline_mean_m));
+    r.crossline_within_tvu = static_cast<double>(x.ok) / nn;
+    for (int b = 0; b < kAngleBins; ++b) {
+        if (x.bn[b] == 0) continue;
         S44AngleBin a;
         a.angle_lo_deg = 10.0 * b;
         a.angle_hi_deg = 10.0 * (b + 1);
-        a.count = bn[b];
-        const double m = static_cast<double>(bn[b]);
-        a.mean_m = bs[b] / m;
-        a.rms_m = std::sqrt(bss[b] / m);
-        a.sd_m = std::sqrt(std::max(0.0, bss[b] / m - a.mean_m * a.mean_m));
-        a.within_tvu = static_cast<double>(bin_ok[b]) / m;
+        a.count = x.bn[b];
+        const double m = static_cast<double>(x.bn[b]);
+        a.mean_m = x.bs[b] / m;
+        a.rms_m = std::sqrt(x.bss[b] / m);
+        a.sd_m = std::sqrt(std::max(0.0, x.bss[b] / m - a.mean_m * a.mean_m));
+        a.within_tvu = static_cast<double>(x.bin_ok[b]) / m;
         r.crossline_by_angle.push_back(a);
     }
 }
 
 }  // namespace
 
-S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
+struct S44ByBlocks::State {
+    const S44Grid& grid;
+    S44Config config;
+    std::vector<double> ping_t_s, ping_yaw_rad;
+    ComplianceSums compliance;
+    std::vector<float> depths;  // the finite depths, for the median
+    Crossline crossline;
+
+    State(const S44Grid& g,
+          const S44Config& c,
+          std::vector<double> t_s,
+          std::vector<double> yaw_rad)
+        : grid(g),
+          config(c),
+          ping_t_s(std::move(t_s)),
+          ping_yaw_rad(std::move(yaw_rad)),
+          crossline(g, c, ping_t_s) {
+        compliance.node_thu_sum.assign(g.elevation_m.size(), 0.0f);
+        compliance.node_thu_n.assign(g.elevation_m.size(), 0);
+    }
+};
+
+S44ByBlocks::S44ByBlocks(const S44Grid& g,
+                         const S44Config& c,
+                         std::vector<double> ping_t_s,
+                         std::vector<double> ping_yaw_rad)
+    : state_(std::make_unique<State>(g, c, std::move(ping_t_s), std::move(ping_yaw_rad))) {}
+
+S44ByBlocks::~S44ByBlocks() = default;
+
+void S44ByBlocks::AddFirst(const S44Soundings& block) {
+    State& st = *state_;
+    ComplianceAdd(block, st.grid, st.compliance);
+    for (float v : block.depth_m) {
+        if (std::isfinite(v)) st.depths.push_back(v);
+    }
+    CrosslineCells(block, st.grid, st.ping_t_s, st.ping_yaw_rad, st.crossline);
+}
+
+void S44ByBlocks::AddSecond(const S44Soundings& block) {
+    State& st = *state_;
+    CrosslineCompare(block, st.grid, st.config, st.ping_t_s, st.ping_yaw_rad, st.crossline);
+}
+
+S44Result S44ByBlocks::Finish() {
+    State& st = *state_;
+    const S44Config& c = st.config;
     S44Result r;
     r.order = c.order;
-    Compliance(s, g, r);
-    std::vector<float> d;
-    for (float v : s.depth_m) {
-        if (std::isfinite(v)) d.push_back(v);
-    }
+    ComplianceFinish(st.grid, st.compliance, r);
+    std::vector<float>& d = st.depths;
     double median_depth = 0;
     if (!d.empty()) {
         std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
         median_depth = d[d.size() / 2];
     }
-    Holidays(g, c, median_depth, r);
-    Crosslines(s, g, c, r);
+    std::vector<float>().swap(d);
+    Holidays(st.grid, c, median_depth, r);
+    CrosslineFinish(st.crossline, r);
     char b[360];
     std::snprintf(
         b,
@@ -506,6 +599,13 @@ S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
         r.crossline_rms_m);
     r.message = b;
     return r;
+}
+
+S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& c) {
+    S44ByBlocks blocks(g, c, s.ping_t_s, s.ping_yaw_rad);
+    blocks.AddFirst(s);
+    blocks.AddSecond(s);
+    return blocks.Finish();
 }
 
 }  // namespace pitmap::proc::hydro

@@ -34,6 +34,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -147,5 +148,30 @@ struct S44Result {
 int StrictestOrderMet(const S44Result& r, double share = 0.95);
 
 S44Result RunS44(const S44Soundings& s, const S44Grid& g, const S44Config& config);
+
+// RunS44 over the soundings given a block at a time (S44Soundings of a block: ping_t_s and
+// ping_yaw_rad unused, the pings' own given here), twice in the same order (decision 035): the
+// first pass (AddFirst) the compliance, the nodes' THU and the crossline check's reference
+// cells, the second (AddSecond, after every AddFirst) the crossline comparisons. Finish gives
+// RunS44's result for the soundings, bit for bit (the same sums in the same order). It holds
+// the grid's sums and the reference cells, and the soundings' finite depths (4 bytes a
+// sounding, for the holidays' median depth), not the soundings. `g` must outlive it.
+class S44ByBlocks {
+public:
+    S44ByBlocks(const S44Grid& g,
+                const S44Config& c,
+                std::vector<double> ping_t_s,
+                std::vector<double> ping_yaw_rad);
+    ~S44ByBlocks();
+    S44ByBlocks(const S44ByBlocks&) = delete;
+    S44ByBlocks& operator=(const S44ByBlocks&) = delete;
+    void AddFirst(const S44Soundings& block);
+    void AddSecond(const S44Soundings& block);
+    S44Result Finish();
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 }  // namespace pitmap::proc::hydro

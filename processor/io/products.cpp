@@ -1,6 +1,5 @@
 // SPDX-License-Identifier: MIT
 #include "processor/io/products.hpp"
-#include "processor/io/point_blocks.hpp"
 
 #include <sys/stat.h>
 
@@ -12,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <type_traits>
@@ -107,47 +107,26 @@ const survey::PingSeries* IntensityPings(const PointExtras* extras) {
 std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
                                 std::size_t i,
                                 const survey::PingSeries& pings) {
-    return SoundingIntensity(g, g.points, i, pings);
-}
-
-std::uint16_t SoundingIntensity(const georef::GeorefResult& g,
-                                const georef::GeorefPoints& points,
-                                std::size_t i,
-                                const survey::PingSeries& pings) {
-    if (!pings.has_intensities() || i >= points.size()) return 0;
-    const std::uint32_t k = points.ping[i];
+    if (!pings.has_intensities() || i >= g.points.size()) return 0;
+    const std::uint32_t k = g.points.ping[i];
     if (k >= g.pings.size()) return 0;
     const std::uint32_t h = g.pings[k].header_index;
     if (h >= pings.pings.size()) return 0;
     const survey::PingHeader& head = pings.pings[h];
-    const std::uint16_t beam = points.beam[i];
+    const std::uint16_t beam = g.points.beam[i];
     if (beam >= head.num_beams) return 0;
     const std::size_t at = static_cast<std::size_t>(head.beam_offset) + beam;
     return at < pings.intensities.size() ? pings.intensities[at] : 0;
 }
 
-PointBlocks HeldPoints(const georef::GeorefPoints& points) {
-    PointBlocks b;
-    b.held = &points;
-    b.size = points.size();
-    return b;
-}
-
-Status ForEachBlock(
-    const PointBlocks& blocks,
-    const std::function<void(const georef::GeorefPoints& points, std::size_t first)>& visit) {
-    if (blocks.held != nullptr) {
-        visit(*blocks.held, 0);
-        return Ok{};
-    }
-    const std::size_t step = std::max<std::size_t>(blocks.block, 1);
-    georef::GeorefPoints points;
-    for (std::size_t first = 0; first < blocks.size; first += step) {
-        if (auto st = blocks.read(first, std::min(step, blocks.size - first), points); !st)
-            return st;
-        visit(points, first);
-    }
-    return Ok{};
+PointBlocks WholePoints(const georef::GeorefResult& r) {
+    PointBlocks blocks;
+    blocks.count = r.points.size();
+    blocks.for_each =
+        [&r](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+            return fn(r, 0);
+        };
+    return blocks;
 }
 
 Status WritePly(const std::string& path,
@@ -155,21 +134,21 @@ Status WritePly(const std::string& path,
                 const PointExtras* extras,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected) {
-    return WritePly(path, r, HeldPoints(r.points), extras, run_id, rejected);
+    return WritePly(path, r, WholePoints(r), extras, run_id, rejected);
 }
 
 Status WritePly(const std::string& path,
                 const georef::GeorefResult& r,
-                const PointBlocks& accepted,
+                const PointBlocks& blocks,
                 const PointExtras* extras,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected) {
     namespace ply = formats::ply;
-    const std::size_t n_accepted = accepted.size;
+    const std::size_t num_accepted = blocks.count;
     const georef::GeorefResult* rej = UsableRejected(rejected);
     const std::size_t n_rejected = rej != nullptr ? rej->points.size() : 0;
-    const bool tpu = extras != nullptr && extras->thu_95_m.size() == n_accepted &&
-                     extras->tvu_95_m.size() == n_accepted;
+    const bool tpu = extras != nullptr && extras->thu_95_m.size() == num_accepted &&
+                     extras->tvu_95_m.size() == num_accepted;
     const bool datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
                        (rej == nullptr || rej->pings.size() == r.pings.size());
     ply::Header h;
@@ -205,18 +184,16 @@ Status WritePly(const std::string& path,
     }
     props.push_back({"status", ply::Type::kUInt8});
     h.comments.push_back(StatusComment());
-    h.comments.push_back("soundings: " + std::to_string(n_accepted) + " accepted, then " +
+    h.comments.push_back("soundings: " + std::to_string(num_accepted) + " accepted, then " +
                          std::to_string(n_rejected) + " rejected");
-    h.elements.push_back({"vertex", n_accepted + n_rejected, props});
+    h.elements.push_back({"vertex", num_accepted + n_rejected, props});
     std::optional<LocalTangentFrame> world;
     if (datum) world.emplace(r.world_origin);
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
     ply::Writer w(path, h);
-    // Q: a block of g's soundings, the first of them the view's sounding `first`.
-    const auto write = [&](const georef::GeorefResult& g,
-                           const georef::GeorefPoints& Q,
-                           std::size_t first,
-                           bool is_accepted) {
+    // Sounding j of g (the accepted ones' first + j when accepted).
+    const auto write = [&](const georef::GeorefResult& g, bool accepted, std::size_t first) {
+        const georef::GeorefPoints& Q = g.points;
         for (std::size_t j = 0; j < Q.size(); ++j) {
             ByteWriter& o = w.Record();
             const Eigen::Vector3d& p = Q.position_world[j];
@@ -227,25 +204,31 @@ Status WritePly(const std::string& path,
             o.F32Le(Q.range_m[j]);
             o.U32Le(Q.ping[j]);
             o.U16Le(Q.beam[j]);
-            if (intensities != nullptr) o.U16Le(SoundingIntensity(g, Q, j, *intensities));
+            if (intensities != nullptr) o.U16Le(SoundingIntensity(g, j, *intensities));
             if (tpu) {
-                o.F32Le(is_accepted ? extras->thu_95_m[first + j] : kNaN);
-                o.F32Le(is_accepted ? extras->tvu_95_m[first + j] : kNaN);
+                o.F32Le(accepted ? extras->thu_95_m[first + j] : kNaN);
+                o.F32Le(accepted ? extras->tvu_95_m[first + j] : kNaN);
             }
             if (datum) {
                 const double height = world->FromEnu(p).height_m;
                 o.F32Le(static_cast<float>(extras->datum_height_m[Q.ping[j]] - height));
             }
-            o.U8(is_accepted ? 0 : Q.status[j]);
+            o.U8(accepted ? 0 : Q.status[j]);
         }
     };
-    if (auto st = ForEachBlock(
-            accepted,
-            [&](const georef::GeorefPoints& Q, std::size_t first) { write(r, Q, first, true); });
-        !st) {
-        return Error{path + ": " + st.error().message};
-    }
-    if (rej != nullptr) write(*rej, rej->points, 0, false);
+    std::size_t written = 0;
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        if (first != written || first + g.points.size() > num_accepted)
+            return Status{Error{path + ": the soundings' blocks are out of order"}};
+        write(g, true, first);
+        written += g.points.size();
+        return Status{Ok{}};
+    });
+    if (!st) return st;
+    if (written != num_accepted)
+        return Error{path + ": " + std::to_string(written) + " of " + std::to_string(num_accepted) +
+                     " soundings given"};
+    if (rej != nullptr) write(*rej, false, 0);
     return w.Close();
 }
 
@@ -332,8 +315,7 @@ std::string LasMetadataPayload(const ProductMetadata* meta) {
 // The soundings of points.las in record order: the accepted ones, then the rejected (withheld),
 // each with its UTM position and, where the extras give the datum, its height on it.
 struct LasSoundings {
-    const georef::GeorefResult* accepted = nullptr;  // its pings (its points: `blocks`)
-    PointBlocks blocks;                              // the accepted soundings
+    const georef::GeorefResult* accepted = nullptr;
     // The accepted soundings' UTM positions: held (a UtmPoints) or placed one at a time.
     const georef::UtmPoints* accepted_utm = nullptr;
     const georef::UtmProjection* accepted_projection = nullptr;
@@ -345,20 +327,16 @@ struct LasSoundings {
     bool tpu = false;    // the extras hold THU and TVU for every accepted sounding
     bool datum = false;  // the extras hold the datum height at every ping
 
-    // Accepted sounding i of block P, the view's sounding `first` + i.
-    Eigen::Vector3d AcceptedPosition(const georef::GeorefPoints& P,
-                                     std::size_t first,
-                                     std::size_t i) const {
-        Eigen::Vector3d enh = accepted_utm != nullptr
-                                  ? accepted_utm->easting_northing_height[first + i]
-                                  : accepted_projection->At(P, accepted->pings, i);
-        if (datum) enh.z() -= extras->datum_height_m[P.ping[i]];
-        return enh;
+    // Record j: accepted sounding j for j < num_accepted, else rejected j - num_accepted.
+    std::pair<const georef::GeorefResult*, std::size_t> Source(std::size_t j) const {
+        return j < num_accepted ? std::pair{accepted, j} : std::pair{rejected, j - num_accepted};
     }
-    // Rejected sounding i.
-    Eigen::Vector3d RejectedPosition(std::size_t i) const {
-        Eigen::Vector3d enh = rejected_projection.At(*rejected, i);
-        if (datum) enh.z() -= extras->datum_height_m[rejected->points.ping[i]];
+    Eigen::Vector3d Position(std::size_t j) const {
+        const auto [geo, i] = Source(j);
+        Eigen::Vector3d enh = geo != accepted           ? rejected_projection.At(*rejected, i)
+                              : accepted_utm != nullptr ? accepted_utm->easting_northing_height[i]
+                                                        : accepted_projection->At(*accepted, i);
+        if (datum) enh.z() -= extras->datum_height_m[geo->points.ping[i]];
         return enh;
     }
 };
@@ -367,18 +345,16 @@ struct LasSoundings {
 // `utm` or `projection` (the other null) places the accepted soundings.
 Expected<LasSoundings> LasSoundingsOf(const std::string& path,
                                       const georef::GeorefResult& r,
-                                      const PointBlocks& blocks,
                                       const georef::UtmPoints* utm,
                                       const georef::UtmProjection* projection,
                                       const PointExtras* extras,
                                       const georef::GeorefResult* rejected) {
     LasSoundings s;
     s.accepted = &r;
-    s.blocks = blocks;
     s.accepted_utm = utm;
     s.accepted_projection = projection;
     s.extras = extras;
-    s.num_accepted = utm != nullptr ? utm->easting_northing_height.size() : blocks.size;
+    s.num_accepted = utm != nullptr ? utm->easting_northing_height.size() : r.points.size();
     s.rejected = UsableRejected(rejected);
     std::size_t num_rejected = 0;
     if (s.rejected != nullptr) {
@@ -394,9 +370,9 @@ Expected<LasSoundings> LasSoundingsOf(const std::string& path,
     }
     s.size = s.num_accepted + num_rejected;
     s.tpu = extras != nullptr && extras->thu_95_m.size() == s.num_accepted &&
-            extras->tvu_95_m.size() == s.num_accepted && blocks.size == s.num_accepted;
+            extras->tvu_95_m.size() == s.num_accepted && r.points.size() == s.num_accepted;
     s.datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
-              blocks.size == s.num_accepted &&
+              r.points.size() == s.num_accepted &&
               (s.rejected == nullptr || s.rejected->pings.size() == r.pings.size());
     return s;
 }
@@ -410,21 +386,15 @@ struct LasExtent {
     double scale = 0.001;
 };
 
-Expected<LasExtent> LasExtentOf(const LasSoundings& s) {
+LasExtent LasExtentOf(const LasSoundings& s) {
     LasExtent extent;
     extent.lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
     extent.hi = -extent.lo;
-    const auto add = [&extent](const Eigen::Vector3d& p) {
+    for (std::size_t j = 0; j < s.size; ++j) {
+        const Eigen::Vector3d p = s.Position(j);
         extent.lo = extent.lo.cwiseMin(p);
         extent.hi = extent.hi.cwiseMax(p);
-    };
-    auto st = ForEachBlock(s.blocks, [&](const georef::GeorefPoints& P, std::size_t first) {
-        for (std::size_t i = 0; i < P.size() && first + i < s.num_accepted; ++i)
-            add(s.AcceptedPosition(P, first, i));
-    });
-    if (!st) return st.error();
-    for (std::size_t j = s.num_accepted; j < s.size; ++j)
-        add(s.RejectedPosition(j - s.num_accepted));
+    }
     if (s.size == 0) extent.lo = extent.hi = Eigen::Vector3d::Zero();
     extent.offset = Eigen::Vector3d(
         std::floor(extent.lo.x()), std::floor(extent.lo.y()), std::floor(extent.lo.z()));
@@ -554,81 +524,63 @@ void WriteLasVlrs(ByteWriter& w, const LasLayout& layout) {
     }
 }
 
-// The LAS record fields of one sounding other than its position.
-struct LasRecordFields {
+// One point record, format 6 (and the TPU's extra bytes): bathymetry for an accepted
+// sounding, withheld with its noise class `noise` for a rejected one (THU/TVU NaN).
+struct LasRecord {
+    Eigen::Vector3d enh;
     std::uint16_t intensity = 0;
     bool accepted = true;
-    std::uint8_t noise_class = 0;
-    float angle_rad = 0;
+    std::uint8_t noise = 0;
+    double angle_rad = 0;
     double gps_time_s = 0;
     float thu_95_m = 0, tvu_95_m = 0;
 };
 
-void WriteLasRecord(ByteWriter& rec,
-                    const Eigen::Vector3d& enh,
-                    const LasExtent& extent,
-                    const LasRecordFields& f,
-                    bool tpu) {
+void WriteLasRecord(ByteWriter& rec, const LasRecord& p, const LasExtent& extent, bool tpu) {
     for (int axis = 0; axis < 3; ++axis) {
         rec.I32Le(static_cast<std::int32_t>(
-            std::llround((enh[axis] - extent.offset[axis]) / extent.scale)));
+            std::llround((p.enh[axis] - extent.offset[axis]) / extent.scale)));
     }
-    rec.U16Le(f.intensity);
-    rec.U8(1 | (1 << 4));                       // return 1 of 1
-    rec.U8(f.accepted ? 0 : kLasFlagWithheld);  // flags, channel, scan direction, edge
-    rec.U8(f.accepted ? kLasClassBathymetry : f.noise_class);  // classification
-    rec.U8(0);                                                 // user data
-    const double angle_deg = frames::RadToDeg(f.angle_rad);
+    rec.U16Le(p.intensity);
+    rec.U8(1 | (1 << 4));                                // return 1 of 1
+    rec.U8(p.accepted ? 0 : kLasFlagWithheld);           // flags, channel, scan direction, edge
+    rec.U8(p.accepted ? kLasClassBathymetry : p.noise);  // classification
+    rec.U8(0);                                           // user data
+    const double angle_deg = frames::RadToDeg(p.angle_rad);
     rec.I16Le(static_cast<std::int16_t>(std::lround(std::clamp(angle_deg, -180.0, 180.0) / 0.006)));
     rec.U16Le(0);  // point source id
-    rec.F64Le(f.gps_time_s - 1e9);
+    rec.F64Le(p.gps_time_s - 1e9);
     if (tpu) {
-        rec.F32Le(f.thu_95_m);
-        rec.F32Le(f.tvu_95_m);
+        rec.F32Le(p.thu_95_m);
+        rec.F32Le(p.tvu_95_m);
     }
 }
 
 // The point records, format 6 (and the TPU's extra bytes): bathymetry for the accepted
 // soundings, withheld with their noise class for the rejected ones (THU/TVU NaN).
-Status WriteLasPoints(formats::ByteFileWriter& file,
-                      const LasSoundings& s,
-                      const LasExtent& extent) {
+void WriteLasPoints(formats::ByteFileWriter& file, const LasSoundings& s, const LasExtent& extent) {
     std::vector<std::uint8_t> noise;
-    if (s.rejected != nullptr) {
-        auto classes = LasNoiseClassesOf(s.blocks, s.rejected->points, 2.0);
-        if (!classes) return classes.error();
-        noise = std::move(*classes);
-    }
+    if (s.rejected != nullptr) noise = LasNoiseClasses(s.accepted->points, s.rejected->points);
     // LAS 1.4 R15 asks for the sensor's intensity scaled to 16 bits: the 83P's is 16 bits.
     const auto* intensities = IntensityPings(s.extras);
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-    const auto fields =
-        [&](const georef::GeorefResult& g, const georef::GeorefPoints& P, std::size_t i) {
-            LasRecordFields f;
-            f.intensity = intensities != nullptr ? SoundingIntensity(g, P, i, *intensities) : 0;
-            f.angle_rad = P.angle_rad[i];
-            f.gps_time_s = static_cast<double>(g.pings[P.ping[i]].utime_gps) * 1e-6;
-            return f;
-        };
-    auto st = ForEachBlock(s.blocks, [&](const georef::GeorefPoints& P, std::size_t first) {
-        for (std::size_t i = 0; i < P.size() && first + i < s.num_accepted; ++i) {
-            LasRecordFields f = fields(*s.accepted, P, i);
-            if (s.tpu) {
-                f.thu_95_m = s.extras->thu_95_m[first + i];
-                f.tvu_95_m = s.extras->tvu_95_m[first + i];
-            }
-            WriteLasRecord(file.out(), s.AcceptedPosition(P, first, i), extent, f, s.tpu);
+    for (std::size_t j = 0; j < s.size; ++j) {
+        const auto [geo, i] = s.Source(j);
+        const bool accepted = geo == s.accepted;
+        const georef::GeorefPoints& points = geo->points;
+        LasRecord p;
+        p.enh = s.Position(j);
+        p.intensity = intensities != nullptr ? SoundingIntensity(*geo, i, *intensities) : 0;
+        p.accepted = accepted;
+        p.noise = accepted ? 0 : noise[i];
+        p.angle_rad = points.angle_rad[i];
+        p.gps_time_s = static_cast<double>(geo->pings[points.ping[i]].utime_gps) * 1e-6;
+        if (s.tpu) {
+            p.thu_95_m = accepted ? s.extras->thu_95_m[i] : kNaN;
+            p.tvu_95_m = accepted ? s.extras->tvu_95_m[i] : kNaN;
         }
-    });
-    if (!st) return st;
-    for (std::size_t i = 0; s.rejected != nullptr && i < s.rejected->points.size(); ++i) {
-        LasRecordFields f = fields(*s.rejected, s.rejected->points, i);
-        f.accepted = false;
-        f.noise_class = noise[i];
-        f.thu_95_m = f.tvu_95_m = kNaN;
-        WriteLasRecord(file.out(), s.RejectedPosition(i), extent, f, s.tpu);
+        WriteLasRecord(file.out(), p, extent, s.tpu);
     }
-    return Ok{};
 }
 
 }  // namespace
@@ -642,14 +594,12 @@ Status WriteLasOf(const std::string& path,
                   bool northern,
                   const std::string& run_id,
                   const ProductMetadata* meta) {
-    const auto extent = LasExtentOf(soundings);
-    if (!extent) return Error{path + ": " + extent.error().message};
+    const LasExtent extent = LasExtentOf(soundings);
     const LasLayout layout = LasLayoutOf(soundings, zone, northern, meta);
     formats::ByteFileWriter file(path);
-    WriteLasHeader(file.out(), layout, *extent, soundings.size, LasCreationDate(r), run_id, meta);
+    WriteLasHeader(file.out(), layout, extent, soundings.size, LasCreationDate(r), run_id, meta);
     WriteLasVlrs(file.out(), layout);
-    if (auto st = WriteLasPoints(file, soundings, *extent); !st)
-        return Error{path + ": " + st.error().message};
+    WriteLasPoints(file, soundings, extent);
     return file.Close();
 }
 
@@ -662,7 +612,7 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected,
                 const ProductMetadata* meta) {
-    auto soundings = LasSoundingsOf(path, r, HeldPoints(r.points), &utm, nullptr, extras, rejected);
+    auto soundings = LasSoundingsOf(path, r, &utm, nullptr, extras, rejected);
     if (!soundings) return soundings.error();
     return WriteLasOf(path, r, *soundings, utm.zone, utm.northern, run_id, meta);
 }
@@ -674,12 +624,103 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id,
                 const georef::GeorefResult* rejected,
                 const ProductMetadata* meta) {
-    return WriteLas(path, r, HeldPoints(r.points), utm, extras, run_id, rejected, meta);
+    return WriteLas(path, r, WholePoints(r), utm, extras, run_id, rejected, meta);
 }
+
+namespace {
+
+// The extent of the points grown by p (LasExtentOf's arithmetic, in its order).
+void GrowExtent(LasExtent& extent, const Eigen::Vector3d& p) {
+    extent.lo = extent.lo.cwiseMin(p);
+    extent.hi = extent.hi.cwiseMax(p);
+}
+
+// Accepted sounding i of a block in UTM, on the datum when the extras give it.
+Eigen::Vector3d AcceptedPosition(const LasSoundings& s,
+                                 const georef::UtmProjection& utm,
+                                 const georef::GeorefResult& block,
+                                 std::size_t i) {
+    Eigen::Vector3d enh = utm.At(block, i);
+    if (s.datum) enh.z() -= s.extras->datum_height_m[block.points.ping[i]];
+    return enh;
+}
+
+// The first pass over the blocks: the points' extent and the accepted heights the rejected
+// soundings' noise classes take.
+Expected<LasExtent> LasExtentOfBlocks(const std::string& path,
+                                      const LasSoundings& s,
+                                      const PointBlocks& blocks,
+                                      const georef::UtmProjection& utm,
+                                      NoiseHeights& heights) {
+    LasExtent extent;
+    extent.lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+    extent.hi = -extent.lo;
+    std::size_t given = 0;
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        if (first != given || first + g.points.size() > s.num_accepted)
+            return Status{Error{path + ": the soundings' blocks are out of order"}};
+        for (std::size_t i = 0; i < g.points.size(); ++i)
+            GrowExtent(extent, AcceptedPosition(s, utm, g, i));
+        if (s.rejected != nullptr) heights.Add(g.points);
+        given += g.points.size();
+        return Status{Ok{}};
+    });
+    if (!st) return st.error();
+    if (given != s.num_accepted)
+        return Error{path + ": " + std::to_string(given) + " of " + std::to_string(s.num_accepted) +
+                     " soundings given"};
+    for (std::size_t j = s.num_accepted; j < s.size; ++j) GrowExtent(extent, s.Position(j));
+    if (s.size == 0) extent.lo = extent.hi = Eigen::Vector3d::Zero();
+    extent.offset = Eigen::Vector3d(
+        std::floor(extent.lo.x()), std::floor(extent.lo.y()), std::floor(extent.lo.z()));
+    return extent;
+}
+
+// The second pass: the accepted soundings' records a block at a time, then the rejected ones'.
+Status WriteLasBlocks(formats::ByteFileWriter& file,
+                      const LasSoundings& s,
+                      const PointBlocks& blocks,
+                      const georef::UtmProjection& utm,
+                      const LasExtent& extent,
+                      const std::vector<std::uint8_t>& noise) {
+    const auto* intensities = IntensityPings(s.extras);
+    auto st = blocks.for_each([&](const georef::GeorefResult& g, std::size_t first) {
+        for (std::size_t i = 0; i < g.points.size(); ++i) {
+            LasRecord p;
+            p.enh = AcceptedPosition(s, utm, g, i);
+            p.intensity = intensities != nullptr ? SoundingIntensity(g, i, *intensities) : 0;
+            p.angle_rad = g.points.angle_rad[i];
+            p.gps_time_s = static_cast<double>(g.pings[g.points.ping[i]].utime_gps) * 1e-6;
+            if (s.tpu) {
+                p.thu_95_m = s.extras->thu_95_m[first + i];
+                p.tvu_95_m = s.extras->tvu_95_m[first + i];
+            }
+            WriteLasRecord(file.out(), p, extent, s.tpu);
+        }
+        return Status{Ok{}};
+    });
+    if (!st) return st;
+    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+    for (std::size_t i = 0; s.rejected != nullptr && i < s.rejected->points.size(); ++i) {
+        const georef::GeorefResult& g = *s.rejected;
+        LasRecord p;
+        p.enh = s.Position(s.num_accepted + i);
+        p.intensity = intensities != nullptr ? SoundingIntensity(g, i, *intensities) : 0;
+        p.accepted = false;
+        p.noise = noise[i];
+        p.angle_rad = g.points.angle_rad[i];
+        p.gps_time_s = static_cast<double>(g.pings[g.points.ping[i]].utime_gps) * 1e-6;
+        p.thu_95_m = p.tvu_95_m = kNaN;
+        WriteLasRecord(file.out(), p, extent, s.tpu);
+    }
+    return Ok{};
+}
+
+}  // namespace
 
 Status WriteLas(const std::string& path,
                 const georef::GeorefResult& r,
-                const PointBlocks& accepted,
+                const PointBlocks& blocks,
                 const georef::UtmProjection& utm,
                 const PointExtras* extras,
                 const std::string& run_id,
@@ -690,9 +731,27 @@ Status WriteLas(const std::string& path,
                      std::to_string(utm.sensor_utm.size()) + " pings, the soundings have " +
                      std::to_string(r.pings.size()) + ")"};
     }
-    auto soundings = LasSoundingsOf(path, r, accepted, nullptr, &utm, extras, rejected);
-    if (!soundings) return soundings.error();
-    return WriteLasOf(path, r, *soundings, utm.zone, utm.northern, run_id, meta);
+    auto made = LasSoundingsOf(path, r, nullptr, &utm, extras, rejected);
+    if (!made) return made.error();
+    LasSoundings s = std::move(*made);
+    const std::size_t num_rejected = s.size - s.num_accepted;
+    s.num_accepted = blocks.count;
+    s.size = s.num_accepted + num_rejected;
+    s.tpu = extras != nullptr && extras->thu_95_m.size() == s.num_accepted &&
+            extras->tvu_95_m.size() == s.num_accepted;
+    s.datum = extras != nullptr && extras->datum_height_m.size() == r.pings.size() &&
+              (s.rejected == nullptr || s.rejected->pings.size() == r.pings.size());
+    NoiseHeights heights;
+    auto extent = LasExtentOfBlocks(path, s, blocks, utm, heights);
+    if (!extent) return extent.error();
+    std::vector<std::uint8_t> noise;
+    if (s.rejected != nullptr) noise = heights.Classes(s.rejected->points);
+    const LasLayout layout = LasLayoutOf(s, utm.zone, utm.northern, meta);
+    formats::ByteFileWriter file(path);
+    WriteLasHeader(file.out(), layout, *extent, s.size, LasCreationDate(r), run_id, meta);
+    WriteLasVlrs(file.out(), layout);
+    if (auto w = WriteLasBlocks(file, s, blocks, utm, *extent, noise); !w) return w;
+    return file.Close();
 }
 
 Status WriteInsTrajectoryCsv(const std::string& path,
@@ -834,37 +893,31 @@ std::int64_t CellKey(std::int64_t ix, std::int64_t iy) {
 
 }  // namespace
 
-std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
-                                          const georef::GeorefPoints& rejected,
-                                          double cell_m) {
-    return *LasNoiseClassesOf(HeldPoints(accepted), rejected, cell_m);
+void NoiseHeights::Add(const georef::GeorefPoints& accepted) {
+    for (const Eigen::Vector3d& p : accepted.position_world) {
+        const std::int64_t ix = static_cast<std::int64_t>(std::floor(p.x() / cell_m));
+        const std::int64_t iy = static_cast<std::int64_t>(std::floor(p.y() / cell_m));
+        heights[CellKey(ix, iy)].push_back(static_cast<float>(p.z()));
+    }
 }
 
-Expected<std::vector<std::uint8_t>> LasNoiseClassesOf(const PointBlocks& accepted,
-                                                      const georef::GeorefPoints& rejected,
-                                                      double cell_m) {
-    const auto cell = [cell_m](double v) {
+std::vector<std::uint8_t> NoiseHeights::Classes(const georef::GeorefPoints& rejected) {
+    const auto cell = [this](double v) {
         return static_cast<std::int64_t>(std::floor(v / cell_m));
     };
-    // The accepted heights per cell, then their median.
-    std::unordered_map<std::int64_t, std::vector<float>> heights;
-    auto st = ForEachBlock(accepted, [&](const georef::GeorefPoints& P, std::size_t) {
-        for (const Eigen::Vector3d& p : P.position_world) {
-            heights[CellKey(cell(p.x()), cell(p.y()))].push_back(static_cast<float>(p.z()));
-        }
-    });
-    if (!st) return st.error();
     const auto median = [](std::vector<float>& v) {
         const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
         std::nth_element(v.begin(), mid, v.end());
         return *mid;
     };
+    // The accepted heights' median per cell.
     std::unordered_map<std::int64_t, float> surface;
     surface.reserve(heights.size());
     for (auto& [key, v] : heights) {
         surface.emplace(key, median(v));
         std::vector<float>().swap(v);
     }
+    heights.clear();
     std::vector<std::uint8_t> out(rejected.size());
     std::vector<float> around;
     for (std::size_t j = 0; j < rejected.size(); ++j) {
@@ -890,6 +943,15 @@ Expected<std::vector<std::uint8_t>> LasNoiseClassesOf(const PointBlocks& accepte
         out[j] = below ? kLasClassLowNoise : kLasClassHighNoise;
     }
     return out;
+}
+
+std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
+                                          const georef::GeorefPoints& rejected,
+                                          double cell_m) {
+    NoiseHeights heights;
+    heights.cell_m = cell_m;
+    heights.Add(accepted);
+    return heights.Classes(rejected);
 }
 
 std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id) {

@@ -34,8 +34,10 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "common/product_metadata.hpp"
@@ -101,6 +103,24 @@ Status WritePly(const std::string& path,
                 const PointExtras* extras = nullptr,
                 const std::string& run_id = "",
                 const georef::GeorefResult* rejected = nullptr);
+// The accepted soundings given a block at a time (decision 035: a writer need not hold them
+// all): for_each(fn) calls fn(block, first) for the soundings first, first + 1, ... in order,
+// `block` the survey (its pings and origin: the writer's `result`) holding them as its points,
+// until `count` are given; it returns fn's first error. WholePoints: `r`'s, one block.
+struct PointBlocks {
+    std::size_t count = 0;
+    std::function<Status(const std::function<Status(const georef::GeorefResult&, std::size_t)>&)>
+        for_each;
+};
+PointBlocks WholePoints(const georef::GeorefResult& r);
+// WritePly with the accepted soundings given by `accepted` (their pings and origin those of
+// `result`, whose points are not read): the same file byte for byte, whatever the blocks.
+Status WritePly(const std::string& path,
+                const georef::GeorefResult& result,
+                const PointBlocks& accepted,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected);
 // With extras, LAS heights are h - D (above the datum; the WKT's VERT_CS names it) and THU/TVU
 // are LAS 1.4 extra bytes (two float32 after the format-6 fields, record length 38), described
 // in an Extra Bytes VLR (LASF_Spec / 4: names kLasThuName and kLasTvuName, metres); with
@@ -128,6 +148,17 @@ Status WriteLas(const std::string& path,
                 const std::string& run_id = "",
                 const georef::GeorefResult* rejected = nullptr,
                 const ProductMetadata* meta = nullptr);
+// The same with the accepted soundings given by `accepted` (their pings those of `result`, whose
+// points are not read; two passes: the extent and the noise classes' surface, then the
+// records): the same file byte for byte, whatever the blocks (decision 035).
+Status WriteLas(const std::string& path,
+                const georef::GeorefResult& result,
+                const PointBlocks& accepted,
+                const georef::UtmProjection& utm,
+                const PointExtras* extras,
+                const std::string& run_id,
+                const georef::GeorefResult* rejected,
+                const ProductMetadata* meta);
 // The LAS metadata VLR's ids.
 inline constexpr const char* kLasMetadataUserId = "pitmap";
 inline constexpr std::uint16_t kLasMetadataRecordId = 1;
@@ -147,6 +178,14 @@ inline constexpr std::uint8_t kLasFlagWithheld = 1u << 2;  // classification fla
 std::vector<std::uint8_t> LasNoiseClasses(const georef::GeorefPoints& accepted,
                                           const georef::GeorefPoints& rejected,
                                           double cell_m = 2.0);
+// LasNoiseClasses with the accepted soundings added a block at a time, in order (Add), then the
+// classes (Classes, once): the same classes.
+struct NoiseHeights {
+    double cell_m = 2.0;
+    std::unordered_map<std::int64_t, std::vector<float>> heights;  // the accepted z per cell
+    void Add(const georef::GeorefPoints& accepted);
+    std::vector<std::uint8_t> Classes(const georef::GeorefPoints& rejected);
+};
 // The 16 bytes of a 32-hex-digit run id, in the order of its digits; zeros for anything else.
 std::array<std::uint8_t, 16> RunIdBytes(const std::string& run_id);
 // OGC WKT (WKT1) of WGS 84 / UTM zone.

@@ -4,12 +4,18 @@
 // hand edits accept, whatever an earlier cleaning said), stores its verdicts in the survey
 // model (flags.cleaning: survey.pitmap keeps them) and leaves the stages after it (grid, fuse,
 // mesh, the exports) the accepted soundings only. A hand restore wins over its verdict.
+// The view waits on disk meanwhile (SpillView): the cleaning reads it a block at a time
+// (clean::CleanBlocks) and its verdicts go to the scratch file (SpilledPoints::KeepOnly), so
+// that the stage does not hold the view whole (issue 38, docs/decisions/037).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
+#include "common/peak_memory.hpp"
 #include "common/progress.hpp"
 #include "processor/clean/clean.hpp"
+#include "processor/clean/clean_blocks.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/result_json.hpp"
@@ -86,15 +92,60 @@ std::vector<char> RejectPoints(StageContext& s, const std::vector<std::uint8_t>&
 
 namespace {
 
+// The plane fits' batches (clean::CleanBlocks' fit_soundings) in blocks of the view: 8 blocks'
+// soundings' positions, 24 bytes each (3 blocks at kBlockBytesPerSounding); the view is read
+// once per batch (bejanca 4x: 3 batches of 8 M soundings).
+constexpr std::size_t kFitBlocks = 8;
+
+// ForEachViewBlock with a visitor that cannot fail (the cleaning's).
+Status ForEachBlock(const StageContext& s,
+                    std::size_t block,
+                    const std::function<void(const georef::GeorefPoints&, std::size_t)>& fn) {
+    return ForEachViewBlock(s, block, [&fn](const georef::GeorefPoints& b, std::size_t first) {
+        fn(b, first);
+        return Status{Ok{}};
+    });
+}
+
+// The view the cleaning judges, `size` soundings read a block of `block` at a time
+// (ForEachBlock): the soundings of the pings `trusted` marks, in their order (all when it is
+// empty).
+clean::ViewBlocks CleanInput(const StageContext& s,
+                             std::size_t size,
+                             std::size_t block,
+                             const std::vector<char>& trusted) {
+    clean::ViewBlocks view;
+    view.size = size;
+    view.pings = &s.geo.pings;
+    view.sweep = [&s, block, trusted](const clean::TakeBlock& take) -> Status {
+        std::vector<char> keep;
+        georef::GeorefPoints part;
+        return ForEachBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t) {
+            if (trusted.empty()) {
+                take(b);
+                return;
+            }
+            keep.resize(b.size());
+            for (std::size_t j = 0; j < b.size(); ++j) keep[j] = trusted[b.ping[j]];
+            part = b;
+            KeepPoints(part, keep);
+            take(part);
+        });
+    };
+    return view;
+}
+
 // The cleaning's verdicts on the soundings of the pings whose INS horizontal 1-sigma is at most
 // max_sigma_m, the others left out of the view it judges (status 0 for them); `left_out` counts
-// their soundings.
-clean::CleanResult CleanTrustedPings(const StageContext& s,
-                                     const PipelineConfig& config,
-                                     double max_sigma_m,
-                                     const ProgressCallback& progress,
-                                     std::int64_t* left_out) {
+// their soundings. The view is read a block of `block` at a time.
+Expected<clean::CleanResult> CleanTrustedPings(const StageContext& s,
+                                               const PipelineConfig& config,
+                                               double max_sigma_m,
+                                               std::size_t block,
+                                               const ProgressCallback& progress,
+                                               std::int64_t* left_out) {
     const georef::GeorefResult& geo = s.geo;
+    const std::size_t n = s.spilled_view ? s.spilled_view->size() : geo.points.size();
     // Where the INS reports no sigma, SLAM's assumption (slam_stage.fallback_position_m).
     const SlamStageConfig& sc = config.slam_stage;
     PoseSigma fallback;
@@ -108,126 +159,95 @@ clean::CleanResult CleanTrustedPings(const StageContext& s,
                                          fallback);
         trusted[k] = std::sqrt(0.5 * (sg(3) * sg(3) + sg(4) * sg(4))) <= max_sigma_m ? 1 : 0;
     }
+    const bool all = std::all_of(trusted.begin(), trusted.end(), [](char t) { return t != 0; });
+    const std::vector<char> none;
+    if (all) {
+        return clean::CleanBlocks(
+            CleanInput(s, n, block, none), config.clean, progress, kFitBlocks * block);
+    }
+    // Else the trusted pings' soundings; their verdicts go back to the soundings in order (the
+    // trusted ones are those of trusted pings).
     std::size_t num_trusted = 0;
-    for (std::size_t j = 0; j < geo.points.size(); ++j) num_trusted += trusted[geo.points.ping[j]];
-    *left_out = static_cast<std::int64_t>(geo.points.size() - num_trusted);
-    // Every ping trusted (no outage): the cleaning judges the view itself, not a copy of it
-    // (38 bytes a sounding; it reads only the points and the pings).
-    if (num_trusted == geo.points.size()) return clean::Clean(geo, config.clean, progress);
-    // Else a view of the trusted pings' soundings, sized once; its verdicts go back to the
-    // soundings in order (the trusted ones are those of trusted pings).
-    georef::GeorefResult view;
-    view.world_origin = geo.world_origin;
-    view.pings = geo.pings;
-    view.mount = geo.mount;
-    view.refraction = geo.refraction;
-    const bool with_status = !geo.points.status.empty();
-    view.points.position_world.reserve(num_trusted);
-    view.points.ping.reserve(num_trusted);
-    view.points.beam.reserve(num_trusted);
-    view.points.range_m.reserve(num_trusted);
-    view.points.angle_rad.reserve(num_trusted);
-    if (with_status) view.points.status.reserve(num_trusted);
-    for (std::size_t j = 0; j < geo.points.size(); ++j) {
-        if (!trusted[geo.points.ping[j]]) continue;
-        view.points.position_world.push_back(geo.points.position_world[j]);
-        view.points.ping.push_back(geo.points.ping[j]);
-        view.points.beam.push_back(geo.points.beam[j]);
-        view.points.range_m.push_back(geo.points.range_m[j]);
-        view.points.angle_rad.push_back(geo.points.angle_rad[j]);
-        if (with_status) view.points.status.push_back(geo.points.status[j]);
-    }
-    clean::CleanResult part = clean::Clean(view, config.clean, progress);
-    view = georef::GeorefResult{};
+    const auto count = [&](const georef::GeorefPoints& b, std::size_t) {
+        for (const std::uint32_t k : b.ping) num_trusted += trusted[k];
+    };
+    if (auto st = ForEachBlock(s, block, count); !st) return st.error();
+    *left_out = static_cast<std::int64_t>(n - num_trusted);
+    auto part = clean::CleanBlocks(
+        CleanInput(s, num_trusted, block, trusted), config.clean, progress, kFitBlocks * block);
+    if (!part) return part.error();
     clean::CleanResult out;
-    out.counts = part.counts;
-    out.cancelled = part.cancelled;
-    out.status.assign(geo.points.size(), 0);
-    if (part.status.size() == num_trusted) {
-        std::size_t i = 0;
-        for (std::size_t j = 0; j < geo.points.size(); ++j) {
-            if (trusted[geo.points.ping[j]]) out.status[j] = part.status[i++];
+    out.counts = part->counts;
+    out.cancelled = part->cancelled;
+    if (part->status.size() != num_trusted) return out;
+    out.status.assign(n, 0);
+    std::size_t i = 0;
+    const auto scatter = [&](const georef::GeorefPoints& b, std::size_t first) {
+        for (std::size_t j = 0; j < b.size(); ++j) {
+            if (trusted[b.ping[j]]) out.status[first + j] = part->status[i++];
         }
-    }
+    };
+    if (auto st = ForEachBlock(s, block, scatter); !st) return st.error();
     return out;
 }
 
-}  // namespace
+// The cleaning's verdicts applied to the view (RejectPoints: the model's flags, the view's
+// counts; a sounding a hand edit restored stays): to the held points, or, while the view is
+// spilled, a block of `block` at a time and then to its file (SpilledPoints::KeepOnly), so that
+// the view is not read back whole. Returns which soundings stayed.
+Expected<std::vector<char>> RejectInView(StageContext& s,
+                                         const std::vector<std::uint8_t>& status,
+                                         std::size_t block) {
+    if (!s.spilled_view) return RejectPoints(s, status);
+    survey::SoundingFlags& flags = s.model.flags;
+    if (flags.cleaning.size() != s.model.ingest.pings.range_counts.size())
+        flags.cleaning.assign(s.model.ingest.pings.range_counts.size(), 0);
+    std::vector<char> keep(status.size(), 1);
+    std::vector<std::uint8_t> part;
+    auto st = ForEachBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        const auto from = status.begin() + static_cast<std::ptrdiff_t>(first);
+        const auto to = from + static_cast<std::ptrdiff_t>(b.size());
+        if (std::all_of(from, to, [](std::uint8_t v) { return v == 0; })) return;
+        part.assign(from, to);
+        s.geo.points = b;  // RejectPoints reads the block as the view (its pings are the view's)
+        const std::vector<char> k = RejectPoints(s, part);
+        s.geo.points = georef::GeorefPoints();
+        std::copy(k.begin(), k.end(), keep.begin() + static_cast<std::ptrdiff_t>(first));
+    });
+    if (!st) return Error{"clean: " + st.error().message};
+    if (auto k = s.spilled_view->KeepOnly(keep, block); !k)
+        return Error{"clean: " + k.error().message};
+    // RejectPoints counted each block's points as the view's: the view's own count.
+    s.geo.counts.points = static_cast<std::int64_t>(s.spilled_view->size());
+    return keep;
+}
 
-Status CleanSurvey(StageContext& s,
-                   const PipelineConfig& config,
-                   const Log& log,
-                   double max_ins_sigma_h_m) {
-    StageClock clock;
-    // A pass before this one in the same run (run: before the calibration) stays in the
-    // record, as "earlier_pass", so that the stage's whole cost is in the summary.
-    nlohmann::json earlier;
+// A pass before this one in the same run (run: before the calibration): its record, to stay in
+// this one's as "earlier_pass" so that the stage's whole cost is in the summary; null when none.
+nlohmann::json EarlierPass(const StageContext& s) {
     // summary.json is read back from disk: a member of another type is not this pass's record.
     auto member = [](const nlohmann::json& o, const char* key, auto is_type) {
         return o.contains(key) && is_type(o[key]) ? o[key] : nlohmann::json();
     };
     auto is_string = [](const nlohmann::json& v) { return v.is_string(); };
     auto is_number = [](const nlohmann::json& v) { return v.is_number(); };
-    if (s.summary.contains("stages") && s.summary["stages"].contains("clean") &&
-        member(s.summary["stages"]["clean"], "run_id", is_string) == s.model.run_id &&
-        s.summary["stages"]["clean"].contains("seconds")) {
-        const nlohmann::json& e = s.summary["stages"]["clean"];
-        earlier = {{"seconds", e["seconds"]},
-                   {"cpu_seconds", member(e, "cpu_seconds", is_number)},
-                   {"rejected", member(e, "rejected", is_number)},
-                   {"trajectory", member(e, "trajectory", is_string)}};
-    }
-    ClearGates(s, Stage::kClean);
-    survey::SoundingFlags& flags = s.model.flags;
-    const survey::PingSeries& pings = s.model.ingest.pings;
-    // The candidates: the current view is them when nothing was cleaned before and nothing is
-    // rejected by hand (a new run); otherwise the survey is viewed again.
-    bool cleaned_before = false;
-    for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
-    if (cleaned_before || AnyManualReject(flags)) {
-        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
-        s.geo = georef::Georeference(s.model,
-                                     s.model.latest(),
-                                     config.georef,
-                                     s.refraction,
-                                     {},
-                                     nullptr,
-                                     survey::SoundingView::kCandidates);
-    }
-    ProgressReporter bar(ToString(Stage::kClean), 1000);
-    std::int64_t left_out = 0;
-    const clean::CleanResult r =
-        std::isfinite(max_ins_sigma_h_m)
-            ? CleanTrustedPings(s, config, max_ins_sigma_h_m, bar.AsCallback(), &left_out)
-            : clean::Clean(s.geo, config.clean, bar.AsCallback());
-    bar.Finish();
-    if (left_out > 0) {
-        log("clean: " + std::to_string(left_out) +
-            " soundings of pings whose INS horizontal sigma exceeds " +
-            std::to_string(max_ins_sigma_h_m) + " m left out of this pass (kept)");
-    }
-    if (r.cancelled) return Error{"clean: cancelled"};
+    if (!(s.summary.contains("stages") && s.summary["stages"].contains("clean") &&
+          member(s.summary["stages"]["clean"], "run_id", is_string) == s.model.run_id &&
+          s.summary["stages"]["clean"].contains("seconds")))
+        return nlohmann::json();
+    const nlohmann::json& e = s.summary["stages"]["clean"];
+    return {{"seconds", e["seconds"]},
+            {"cpu_seconds", member(e, "cpu_seconds", is_number)},
+            {"rejected", member(e, "rejected", is_number)},
+            {"trajectory", member(e, "trajectory", is_string)}};
+}
 
-    std::vector<std::uint8_t> before = std::move(flags.cleaning);
-    flags.cleaning.assign(pings.range_counts.size(), 0);
-    // The candidates' earlier verdicts are decided again: counted as accepted until then.
-    georef::GeorefCounts& counts = s.geo.counts;
-    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
-        if (!survey::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
-        counts.status[0] += counts.status[code];
-        counts.status[code] = 0;
-    }
-    counts.cleaned = 0;
-    const std::vector<char> keep = RejectPoints(s, r.status);
-    std::int64_t restored_by_hand = 0;
-    for (std::size_t j = 0; j < keep.size(); ++j) restored_by_hand += keep[j] && r.status[j] != 0;
-    std::int64_t changed = 0;
-    for (std::size_t i = 0; i < flags.cleaning.size(); ++i) {
-        changed += flags.cleaning[i] != (i < before.size() ? before[i] : 0);
-    }
-    const clean::CleanCounts& c = r.counts;
-    const std::int64_t rejected = c.free_space + c.cluster + c.multipath + c.profile;
-    const double share = c.soundings > 0 ? static_cast<double>(rejected) / c.soundings : 0.0;
+// The pass's verdicts in the log.
+void LogVerdicts(const clean::CleanCounts& c,
+                 std::int64_t rejected,
+                 double share,
+                 std::int64_t changed,
+                 const Log& log) {
     char line[256];
     std::snprintf(line,
                   sizeof line,
@@ -244,6 +264,83 @@ Status CleanSurvey(StageContext& s,
                   static_cast<long long>(c.terrain),
                   static_cast<long long>(changed));
     log(line);
+}
+
+}  // namespace
+
+Status CleanSurvey(StageContext& s,
+                   const PipelineConfig& config,
+                   const Log& log,
+                   double max_ins_sigma_h_m) {
+    StageClock clock;
+    const nlohmann::json earlier = EarlierPass(s);
+    ClearGates(s, Stage::kClean);
+    survey::SoundingFlags& flags = s.model.flags;
+    const survey::PingSeries& pings = s.model.ingest.pings;
+    // The candidates: the current view is them when nothing was cleaned before and nothing is
+    // rejected by hand (a new run); otherwise the survey is viewed again.
+    bool cleaned_before = false;
+    for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
+    const bool held_on_entry = !s.spilled_view;
+    if (cleaned_before || AnyManualReject(flags)) {
+        s.spilled_view.reset();
+        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
+        s.geo = georef::Georeference(s.model,
+                                     s.model.latest(),
+                                     config.georef,
+                                     s.refraction,
+                                     {},
+                                     nullptr,
+                                     survey::SoundingView::kCandidates);
+    }
+    // The view waits on disk while the cleaning reads it a block at a time (issue 38): the
+    // stage's peak past this point is the cleaning's arrays, not the view (`peak_rss_mb_blocks`).
+    if (auto st = SpillView(s); !st)
+        log("clean: the view stays in memory (" + st.error().message + ")");
+    const double peak_view_mb = clock.peak_rss_mb();
+    clock.ResetPeakWithinStage();
+    const std::size_t block = BlockWithinBudget(config.run, ResidentMb());
+    ProgressReporter bar(ToString(Stage::kClean), 1000);
+    std::int64_t left_out = 0;
+    const std::size_t n = s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
+    const Expected<clean::CleanResult> cleaned =
+        std::isfinite(max_ins_sigma_h_m)
+            ? CleanTrustedPings(s, config, max_ins_sigma_h_m, block, bar.AsCallback(), &left_out)
+            : clean::CleanBlocks(
+                  CleanInput(s, n, block, {}), config.clean, bar.AsCallback(), kFitBlocks * block);
+    bar.Finish();
+    if (left_out > 0) {
+        log("clean: " + std::to_string(left_out) +
+            " soundings of pings whose INS horizontal sigma exceeds " +
+            std::to_string(max_ins_sigma_h_m) + " m left out of this pass (kept)");
+    }
+    if (!cleaned) return Error{"clean: " + cleaned.error().message};
+    const clean::CleanResult& r = *cleaned;
+    if (r.cancelled) return Error{"clean: cancelled"};
+
+    std::vector<std::uint8_t> before = std::move(flags.cleaning);
+    flags.cleaning.assign(pings.range_counts.size(), 0);
+    // The candidates' earlier verdicts are decided again: counted as accepted until then.
+    georef::GeorefCounts& counts = s.geo.counts;
+    for (int code = 0; code < survey::kNumSoundingStatus; ++code) {
+        if (!survey::IsCleaningStatus(static_cast<SoundingStatus>(code))) continue;
+        counts.status[0] += counts.status[code];
+        counts.status[code] = 0;
+    }
+    counts.cleaned = 0;
+    auto kept = RejectInView(s, r.status, block);
+    if (!kept) return kept.error();
+    const std::vector<char>& keep = *kept;
+    std::int64_t restored_by_hand = 0;
+    for (std::size_t j = 0; j < keep.size(); ++j) restored_by_hand += keep[j] && r.status[j] != 0;
+    std::int64_t changed = 0;
+    for (std::size_t i = 0; i < flags.cleaning.size(); ++i) {
+        changed += flags.cleaning[i] != (i < before.size() ? before[i] : 0);
+    }
+    const clean::CleanCounts& c = r.counts;
+    const std::int64_t rejected = c.free_space + c.cluster + c.multipath + c.profile;
+    const double share = c.soundings > 0 ? static_cast<double>(rejected) / c.soundings : 0.0;
+    LogVerdicts(c, rejected, share, changed, log);
     if (share > config.quality.max_cleaned_share) {
         TripGate(s,
                  Stage::kClean,
@@ -280,8 +377,19 @@ Status CleanSurvey(StageContext& s,
                  {"seconds_clusters", c.seconds_clusters},
                  {"seconds_verdicts", c.seconds_verdicts},
                  {"seconds_profiles", c.seconds_profiles},
-                 {"seconds_terrain", c.seconds_terrain}},
+                 {"seconds_terrain", c.seconds_terrain},
+                 {"block_soundings", block},
+                 {"peak_rss_mb_view", peak_view_mb},
+                 {"peak_rss_mb_blocks", PeakRssMb()}},
                 clock);
+    // The stage after it reads the view held, as it was given (a stage that reads blocks of it
+    // finds it spilled).
+    // The candidates' earlier verdicts (GeorefPoints::status) are not the view's after it: the
+    // accepted soundings are (RejectPoints leaves held points without them).
+    if (held_on_entry) {
+        if (auto st = RestoreView(s); !st) return Error{"clean: " + st.error().message};
+        s.geo.points.status.clear();
+    }
     return Ok{};
 }
 

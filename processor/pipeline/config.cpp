@@ -212,6 +212,10 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
     v("gicp_tangent_sigma_m", c.gicp_tangent_sigma_m, "GICP: 1-sigma along the surface, m");
     v("robust_width", c.robust_width, "robust kernel width, point sigmas");
     v("query_stride", c.query_stride, "every n-th point of a slice is a query point");
+    v("pass_cell_m",
+      c.pass_cell_m,
+      "per pass (section) and cube of this, m, only pass_cell_points enter SLAM; 0 = all");
+    v("pass_cell_points", c.pass_cell_points, "points a pass keeps per cube of pass_cell_m");
     v("ins_correlation_time_s", c.ins_correlation_time_s, "INS error correlation time, s");
     v("ins_sigma_scale", c.ins_sigma_scale, "scales the INS relative-motion sigmas");
     v("ins_sigma_recovery_time_s",
@@ -326,6 +330,9 @@ void VisitFuse(V&& v, fusion::TsdfConfig& c, fusion::WeightFilterConfig& w) {
     v("ping_gap_fill_per_beam",
       c.ping_gap_fill_per_beam,
       "beam-width: a beam missing in the next ping is bridged to the one after it");
+    v("ping_gap_bridge_pings",
+      c.ping_gap_bridge_pings,
+      "... and across up to this many pings where both sides' footprints agree (0 = off)");
     v("footprint_neighbour_pings",
       c.footprint_neighbour_pings,
       "beam-width: along-track footprint slope from this many pings each side (0 = off)");

@@ -28,6 +28,7 @@
 #include "processor/io/water_level.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/compare_stage.hpp"
+#include "processor/pipeline/grid_cube_tiles.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/posterior.hpp"
 
@@ -331,49 +332,6 @@ std::vector<std::string> GridStageConfig::Validate() const {
 namespace detail {
 
 namespace {
-
-// The view's soundings: on disk while spilled (SpillView), else held.
-std::size_t ViewSize(const StageContext& s) {
-    return s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
-}
-
-// Points first .. first + count - 1 of held points `p`.
-georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto take = [&](const auto& from, auto& to) {
-        if (from.empty()) return;
-        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
-                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    take(p.position_world, out.position_world);
-    take(p.ping, out.ping);
-    take(p.beam, out.beam);
-    take(p.range_m, out.range_m);
-    take(p.angle_rad, out.angle_rad);
-    take(p.status, out.status);
-    return out;
-}
-
-// Calls fn(block, first) on the view's soundings a block of `block` at a time, in order: read
-// from the scratch file while the view is spilled (decision 031: the view is then never whole
-// in memory), else copied from the held points. Stops at the first error.
-Status ForEachViewBlock(const StageContext& s,
-                        std::size_t block,
-                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn) {
-    const std::size_t n = ViewSize(s);
-    block = std::max<std::size_t>(block, 1);
-    georef::GeorefPoints b;
-    for (std::size_t first = 0; first < n; first += block) {
-        const std::size_t count = std::min(block, n - first);
-        if (s.spilled_view) {
-            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
-        } else {
-            b = SliceOf(s.geo.points, first, count);
-        }
-        if (auto st = fn(b, first); !st) return st;
-    }
-    return Ok{};
-}
 
 // UtmToWorld over the view's soundings 0, step, 2 step, ... (step = max(1, n / 2000)), each
 // read alone while the view is spilled.
@@ -850,25 +808,27 @@ void GateUnvalidatedPosterior(StageContext& s, const Log& log) {
 }
 
 // CUBE's input: every sounding in UTM with its height on the datum (D at its ping), its 1-sigma
-// TVU and THU and its depth below the transducer (for the capture distance). The TPU's
-// pass-common sigmas are CUBE's alone: once in its input they are released from `tpu` (8 bytes a
-// sounding).
-// The view is read a block at a time (ForEachViewBlock).
-Expected<std::vector<hydro::CubeSounding>> CubeSoundings(const StageContext& s,
-                                                         const georef::UtmProjection& utm,
-                                                         const std::vector<double>& datum_height_m,
-                                                         hydro::TpuResult& tpu,
-                                                         std::size_t block) {
+// TVU and THU and its depth below the transducer (for the capture distance), handed to `sink` a
+// block of the view at a time, in the survey's order (ForEachViewBlock). The TPU's pass-common
+// sigmas are CUBE's alone: once in its input they are released from `tpu` (8 bytes a sounding).
+Status CubeSoundingsByBlock(
+    const StageContext& s,
+    const georef::UtmProjection& utm,
+    const std::vector<double>& datum_height_m,
+    hydro::TpuResult& tpu,
+    std::size_t block,
+    const std::function<Status(const std::vector<hydro::CubeSounding>&)>& sink) {
     const std::vector<georef::GeorefPing>& pings = s.geo.pings;
-    std::vector<hydro::CubeSounding> soundings(ViewSize(s));
+    std::vector<hydro::CubeSounding> soundings;
     const std::int64_t t0_gps = pings.empty() ? 0 : pings.front().utime_gps;
     auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        soundings.resize(b.size());
         for (std::size_t i = 0; i < b.size(); ++i) {
             const std::size_t j = first + i;
             const Eigen::Vector3d enh = utm.At(b, pings, i);
             const std::uint32_t ping = b.ping[i];
             const double depth = pings[ping].sensor_world.z() - b.position_world[i].z();
-            soundings[j] = {
+            soundings[i] = {
                 enh.x(),
                 enh.y(),
                 enh.z() - datum_height_m[ping],
@@ -879,79 +839,47 @@ Expected<std::vector<hydro::CubeSounding>> CubeSoundings(const StageContext& s,
                 static_cast<float>(static_cast<double>(pings[ping].utime_gps - t0_gps) * 1e-6),
                 tpu.sigma_h_common_m[j]};
         }
-        return Status{Ok{}};
+        return sink(soundings);
     });
     if (!st) return Error{"grid: " + st.error().message};
     std::vector<float>().swap(tpu.sigma_v_common_m);
     std::vector<float>().swap(tpu.sigma_h_common_m);
+    return Ok{};
+}
+
+// CUBE's input held whole (CubeSoundingsByBlock), for a tile alone and the tile list.
+Expected<std::vector<hydro::CubeSounding>> CubeSoundings(const StageContext& s,
+                                                         const georef::UtmProjection& utm,
+                                                         const std::vector<double>& datum_height_m,
+                                                         hydro::TpuResult& tpu,
+                                                         std::size_t block) {
+    std::vector<hydro::CubeSounding> soundings;
+    soundings.reserve(ViewSize(s));
+    auto st = CubeSoundingsByBlock(
+        s, utm, datum_height_m, tpu, block, [&](const std::vector<hydro::CubeSounding>& b) {
+            soundings.insert(soundings.end(), b.begin(), b.end());
+            return Status{Ok{}};
+        });
+    if (!st) return st.error();
     return soundings;
 }
 
-// The CUBE surface of the whole survey: RunCube, or with tiles.enabled tile by tile
-// (hydro::RunCubeTile, each tile alone from the soundings around it), the tiles' cores pasted
-// into the survey's grid, node for node the same. Only one tile's nodes (their hypotheses and
-// median queues, ~150 bytes a node) are held at a time besides the survey's layers (16 bytes a
-// node). ok = false with a message naming the problem (a tile too small for the resolution, an
-// overlap below CUBE's reach).
-hydro::CubeResult SurveyCube(const std::vector<hydro::CubeSounding>& soundings,
-                             const GridStageConfig& gc,
-                             const TilesConfig& tiles) {
-    if (!tiles.enabled) return hydro::RunCube(soundings, gc.cube);
-    hydro::CubeResult out = hydro::LayOutCube(soundings, gc.cube);
-    if (!out.ok) return out;
-    const double res = out.grid.resolution_m;
-    if (const auto problems = ValidateGridTiles(tiles, res, gc.cube); !problems.empty()) {
-        out.ok = false;
-        out.message = "grid: " + problems.front();
-        for (std::size_t k = 1; k < problems.size(); ++k) out.message += "; " + problems[k];
-        return out;
-    }
-    hydro::CubeConfig cube = gc.cube;
-    cube.resolution_m = res;
-    hydro::CubeGrid& g = out.grid;
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    g.elevation_m.assign(g.size(), nan);
-    g.uncertainty_m.assign(g.size(), nan);
-    g.density.assign(g.size(), 0.0f);
-    g.hypotheses.assign(g.size(), 0.0f);
-    const hydro::CubeNodeRange survey{g.i0, g.j0, g.i0 + g.nx, g.j0 + g.ny};
-    const std::vector<GridTile> grid_tiles = GridTiles(survey, NodesPerTile(tiles, res));
-    for (const GridTile& tile : grid_tiles) {
-        const hydro::CubeResult t =
-            hydro::RunCubeTile(soundings, cube, tile.core, survey, tiles.overlap_m);
-        if (!t.ok) {
-            out.ok = false;
-            out.message = "grid: tile " + TileName(tile.index) + ": " + t.message;
-            return out;
-        }
-        for (int j = 0; j < t.grid.ny; ++j) {
-            const std::size_t to =
-                static_cast<std::size_t>(t.grid.j0 + j - g.j0) * g.nx + (t.grid.i0 - g.i0);
-            const std::size_t from = static_cast<std::size_t>(j) * t.grid.nx;
-            const auto n = static_cast<std::ptrdiff_t>(t.grid.nx);
-            const auto paste = [&](const std::vector<float>& a, std::vector<float>& b) {
-                std::copy(a.begin() + static_cast<std::ptrdiff_t>(from),
-                          a.begin() + static_cast<std::ptrdiff_t>(from) + n,
-                          b.begin() + static_cast<std::ptrdiff_t>(to));
-            };
-            paste(t.grid.elevation_m, g.elevation_m);
-            paste(t.grid.uncertainty_m, g.uncertainty_m);
-            paste(t.grid.density, g.density);
-            paste(t.grid.hypotheses, g.hypotheses);
-        }
-        out.node_updates += t.node_updates;
-        out.nodes_filled += t.nodes_filled;
-        out.nodes_multiple += t.nodes_multiple;
-        out.hypotheses_total += t.hypotheses_total;
-    }
-    out.message = std::to_string(g.nx) + " x " + std::to_string(g.ny) + " nodes at " +
-                  Fixed(res, 3) + " m in " + std::to_string(grid_tiles.size()) + " tiles of " +
-                  std::to_string(NodesPerTile(tiles, res)) + " nodes (overlap " +
-                  Fixed(tiles.overlap_m, 1) + " m): " + std::to_string(out.nodes_filled) +
-                  " filled, " + std::to_string(out.nodes_multiple) + " with several hypotheses; " +
-                  std::to_string(out.soundings_used) + " soundings, " +
-                  std::to_string(out.node_updates) + " node updates";
-    return out;
+// CUBE's input on disk (CubeInputFile, decision 035): the grid stage's CUBE and surface filter
+// read it by bands and blocks.
+Expected<CubeInputFile> CubeInputToFile(const StageContext& s,
+                                        const georef::UtmProjection& utm,
+                                        const std::vector<double>& datum_height_m,
+                                        hydro::TpuResult& tpu,
+                                        std::size_t block) {
+    auto file = CubeInputFile::Create(s.out_dir);
+    if (!file) return Error{"grid: " + file.error().message};
+    auto st = CubeSoundingsByBlock(
+        s, utm, datum_height_m, tpu, block, [&](const std::vector<hydro::CubeSounding>& b) {
+            return file->Append(b);
+        });
+    if (!st) return st.error();
+    if (auto c = file->Close(); !c) return Error{"grid: " + c.error().message};
+    return std::move(*file);
 }
 
 // The surface filter's verdicts applied to the view (RejectPoints: the model's flags, the view's
@@ -986,18 +914,23 @@ Expected<std::vector<char>> RejectInView(StageContext& s,
     return keep;
 }
 
-// The surface filter (SurfaceFilter): soundings that do not support their node's chosen
-// hypothesis are rejected in the survey (RejectInView), and taken out of the TPU and CUBE's
-// input. Returns how many.
+// The surface filter (SurfaceFilter, its verdicts from CUBE's input a block at a time):
+// soundings that do not support their node's chosen hypothesis are rejected in the survey
+// (RejectInView), taken out of the TPU and CUBE's input, and CUBE runs again by bands without
+// them. Returns how many.
 Expected<std::int64_t> RejectOffSurface(StageContext& s,
                                         const GridStageConfig& gc,
                                         const TilesConfig& tiles,
-                                        std::vector<hydro::CubeSounding>& soundings,
+                                        CubeInputFile& input,
                                         hydro::CubeResult& cube,
                                         hydro::TpuResult& tpu,
-                                        std::size_t block) {
-    auto kept_view = RejectInView(s, SurfaceFilter(soundings, cube.grid, gc), block);
+                                        std::size_t block,
+                                        std::size_t* bands) {
+    auto verdict = SurfaceVerdicts(input, cube.grid, gc, block);
+    if (!verdict) return Error{"grid: " + verdict.error().message};
+    auto kept_view = RejectInView(s, *verdict, block);
     if (!kept_view) return kept_view.error();
+    std::vector<std::uint8_t>().swap(*verdict);
     const std::vector<char>& keep = *kept_view;
     std::int64_t rejected = 0;
     std::size_t kept = 0;
@@ -1015,12 +948,12 @@ Expected<std::int64_t> RejectOffSurface(StageContext& s,
     if (rejected > 0) {
         // CUBE again without them: a node whose chosen hypothesis they made (an echo held
         // long enough over one node to outvote the seabed) is decided on the rest.
-        std::size_t k = 0;
-        for (std::size_t j = 0; j < keep.size(); ++j) {
-            if (keep[j]) soundings[k++] = soundings[j];
-        }
-        soundings.resize(k);
-        cube = SurveyCube(soundings, gc, tiles);
+        auto left = input.KeepOnly(keep, block);
+        if (!left) return Error{"grid: " + left.error().message};
+        input = std::move(*left);
+        auto again = CubeByBands(input, gc, tiles, block, bands);
+        if (!again) return Error{"grid: " + again.error().message};
+        cube = std::move(*again);
         if (!cube.ok) return Error{cube.message};
     }
     return rejected;
@@ -1133,19 +1066,62 @@ Status WriteDem(const std::string& dir,
     return Ok{};
 }
 
+// The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
+// every 0.25 m (compare's --capacity-step default): summary.json's "capacity" and the stage's
+// capacity.csv, or why there is none.
+void RecordCapacity(StageContext& s, json& stage, const Log& log) {
+    if (auto cap = SurveyCapacity(s.out_dir, s.summary, 0.25); cap) {
+        char buf[200];
+        std::snprintf(buf,
+                      sizeof buf,
+                      "grid: capacity: %.0f m3 of water at the water level %.3f m over %.0f m2 "
+                      "surveyed (capacity.csv)",
+                      (*cap)["volume_at_water_level_m3"].get<double>(),
+                      (*cap)["water_level_m"].get<double>(),
+                      (*cap)["surveyed_area_m2"].get<double>());
+        log(buf);
+        stage["files"].push_back("capacity.csv");
+        s.summary["capacity"] = std::move(*cap);
+    } else {
+        log("grid: no capacity curve: " + cap.error().message);
+        s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
+    }
+}
+
+// dem.tif and dem.bag (WriteDem) and, with tiles.enabled, the tiles' record and (with
+// tiles.write_products) the DEM's tiles.
+Status WriteDemProducts(const std::string& dir,
+                        const PipelineConfig& config,
+                        const io::GridRaster& dem,
+                        const hydro::CubeGrid& grid,
+                        json& files,
+                        json& tiles_record) {
+    if (auto w = WriteDem(dir, config.grid, dem, files); !w) return w;
+    if (!config.tiles.enabled) return Ok{};
+    tiles_record = {{"tile_size_m", config.tiles.tile_size_m},
+                    {"overlap_m", config.tiles.overlap_m},
+                    {"nodes_per_tile", NodesPerTile(config.tiles, grid.resolution_m)}};
+    if (!config.tiles.write_products) return Ok{};
+    return WriteDemTiles(dir, config.tiles, dem, grid, files, tiles_record);
+}
+
 // The point files with each sounding's THU and TVU (and its datum height when the datum is not
 // the ellipsoid): soundings_tpu.ply, points.ply, points.las and points_utm.ply, as configured;
 // each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.
+// While the view is spilled, points.ply, points.las and points_utm.ply read it a block at a time
+// (decision 035); soundings_tpu.ply (off by default) takes it back whole first.
 Status WriteSoundingProducts(StageContext& s,
                              const PipelineConfig& config,
                              const georef::UtmProjection& utm,
                              const hydro::DatumModel& datum,
                              const ProductMetadata& meta,
                              hydro::TpuResult& tpu,
+                             std::size_t block,
                              json& files) {
     const GridStageConfig& gc = config.grid;
     const std::string& dir = s.out_dir;
     if (gc.write_sounding_tpu) {
+        if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
         if (auto w = io::WriteSoundingTpuPly(
                 dir + "/soundings_tpu.ply", s.geo, tpu.thu_95_m, tpu.tvu_95_m, s.model.run_id);
             !w) {
@@ -1167,24 +1143,28 @@ Status WriteSoundingProducts(StageContext& s,
     if (config.write_rejected) rejected = RejectedView(s, config);
     const georef::GeorefResult* rej = rejected ? &*rejected : nullptr;
     s.summary["soundings"] = SoundingsJson(s.geo.counts);
-    if (auto w = io::WritePly(dir + "/points.ply", s.geo, &extras, s.model.run_id, rej); !w)
+    const io::PointBlocks blocks = ViewPointBlocks(s, block);
+    if (auto w = io::WritePly(dir + "/points.ply", s.geo, blocks, &extras, s.model.run_id, rej); !w)
         return w;
     files.push_back("points.ply");
     if (config.write_las) {
-        if (auto w =
-                io::WriteLas(dir + "/points.las", s.geo, utm, &extras, s.model.run_id, rej, &meta);
+        if (auto w = io::WriteLas(
+                dir + "/points.las", s.geo, blocks, utm, &extras, s.model.run_id, rej, &meta);
             !w)
             return w;
         files.push_back("points.las");
         if (config.write_points_utm) {
-            if (auto w = WriteProjectedPoints(dir,
-                                              s.geo,
-                                              utm,
-                                              rej,
-                                              datum,
-                                              meta,
-                                              s.model.run_id,
-                                              BlockWithinBudget(config.run, ResidentMb()));
+            if (auto w = WriteProjectedPointsOf(
+                    dir,
+                    s.geo.pings,
+                    ViewSize(s),
+                    ViewPointsReader(s, std::make_shared<georef::GeorefPoints>()),
+                    utm,
+                    rej,
+                    datum,
+                    meta,
+                    s.model.run_id,
+                    BlockWithinBudget(config.run, ResidentMb()));
                 !w)
                 return w;
             files.push_back("points_utm.ply");
@@ -1195,52 +1175,75 @@ Status WriteSoundingProducts(StageContext& s,
     return Ok{};
 }
 
-// S-44's soundings: UTM positions with heights on the datum, the depth its limits take (below
-// the water-level datum, else below the transducer), the beam angle, the THU/TVU (moved: S-44
-// is their last user) and the pings' times and headings. The soundings' ping indices are
-// borrowed from s.geo (24 MB on bejanca; the S-44 part sets the stage's peak): RunS44Survey
-// hands them back.
-Expected<hydro::S44Soundings> S44SoundingsOf(StageContext& s,
-                                             const georef::UtmProjection& utm,
-                                             const std::vector<double>& datum_height_m,
-                                             bool water_level_datum,
-                                             hydro::TpuResult& tpu,
-                                             std::size_t block) {
-    hydro::S44Soundings out;
+// S-44's soundings of a block of the view (its first sounding the view's `first`): UTM
+// positions with heights on the datum, the depth its limits take (below the water-level datum,
+// else below the transducer), the beam angle, the THU/TVU and the ping indices.
+void S44BlockOf(const StageContext& s,
+                const georef::GeorefPoints& b,
+                std::size_t first,
+                const georef::UtmProjection& utm,
+                const std::vector<double>& datum_height_m,
+                bool water_level_datum,
+                const hydro::TpuResult& tpu,
+                hydro::S44Soundings& out) {
     const std::vector<georef::GeorefPing>& pings = s.geo.pings;
-    const std::size_t n = ViewSize(s);
+    const std::size_t n = b.size();
     out.x.resize(n);
     out.y.resize(n);
     out.z.resize(n);
     out.depth_m.resize(n);
     out.angle_deg.resize(n);
     out.ping.resize(n);
-    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
-        for (std::size_t i = 0; i < b.size(); ++i) {
-            const std::size_t j = first + i;
-            const Eigen::Vector3d enh = utm.At(b, pings, i);
-            const std::uint32_t ping = b.ping[i];
-            out.x[j] = enh.x();
-            out.y[j] = enh.y();
-            out.z[j] = enh.z() - datum_height_m[ping];
-            out.depth_m[j] =
-                water_level_datum
-                    ? static_cast<float>(-out.z[j])
-                    : static_cast<float>(pings[ping].sensor_world.z() - b.position_world[i].z());
-            out.angle_deg[j] = static_cast<float>(frames::RadToDeg(b.angle_rad[i]));
-            out.ping[j] = ping;
-        }
-        return Status{Ok{}};
-    });
-    if (!st) return Error{"grid: " + st.error().message};
-    out.thu_95_m = std::move(tpu.thu_95_m);
-    out.tvu_95_m = std::move(tpu.tvu_95_m);
-    for (const auto& p : s.geo.pings) {
-        out.ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
-        const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
-        out.ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+    for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d enh = utm.At(b, pings, i);
+        const std::uint32_t ping = b.ping[i];
+        out.x[i] = enh.x();
+        out.y[i] = enh.y();
+        out.z[i] = enh.z() - datum_height_m[ping];
+        out.depth_m[i] =
+            water_level_datum
+                ? static_cast<float>(-out.z[i])
+                : static_cast<float>(pings[ping].sensor_world.z() - b.position_world[i].z());
+        out.angle_deg[i] = static_cast<float>(frames::RadToDeg(b.angle_rad[i]));
+        out.ping[i] = ping;
     }
-    return out;
+    const auto from = static_cast<std::ptrdiff_t>(first);
+    const auto to = static_cast<std::ptrdiff_t>(first + n);
+    out.thu_95_m.assign(tpu.thu_95_m.begin() + from, tpu.thu_95_m.begin() + to);
+    out.tvu_95_m.assign(tpu.tvu_95_m.begin() + from, tpu.tvu_95_m.begin() + to);
+}
+
+// hydro::RunS44 of the view's soundings, by blocks (hydro::S44ByBlocks: two passes over the
+// view, the same result bit for bit; decision 035): S-44's soundings are never whole.
+Expected<hydro::S44Result> S44OfView(const StageContext& s,
+                                     const hydro::S44Grid& nodes,
+                                     const GridStageConfig& gc,
+                                     const georef::UtmProjection& utm,
+                                     const std::vector<double>& datum_height_m,
+                                     const hydro::TpuResult& tpu,
+                                     std::size_t block) {
+    const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
+    std::vector<double> ping_t_s, ping_yaw_rad;
+    for (const auto& p : s.geo.pings) {
+        ping_t_s.push_back(static_cast<double>(p.utime_gps) * 1e-6);
+        const Eigen::Vector3d forward = p.T_world_vehicle.rotation() * Eigen::Vector3d::UnitX();
+        ping_yaw_rad.push_back(std::atan2(forward.x(), forward.y()));
+    }
+    hydro::S44ByBlocks s44(nodes, gc.s44_config, std::move(ping_t_s), std::move(ping_yaw_rad));
+    hydro::S44Soundings part;
+    for (const bool first_pass : {true, false}) {
+        auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+            S44BlockOf(s, b, first, utm, datum_height_m, water_level_datum, tpu, part);
+            if (first_pass) {
+                s44.AddFirst(part);
+            } else {
+                s44.AddSecond(part);
+            }
+            return Status{Ok{}};
+        });
+        if (!st) return Error{"grid: " + st.error().message};
+    }
+    return s44.Finish();
 }
 
 // S-44's nodes: the CUBE grid, the nodes' depth (below the datum for a water level, else below
@@ -1279,7 +1282,7 @@ hydro::S44Grid S44NodesOf(const StageContext& s,
 
 // The IHO S-44 assessment (hydro::RunS44) of the soundings and the DEM: s44_holidays.tif (added
 // to `files`), the crossline gate and the stage's "s44" record. The view is read a block at a
-// time (it stays on disk while spilled); the THU/TVU of `tpu` are lent to S-44 and handed back.
+// time, twice (it stays on disk while spilled; S44OfView).
 Expected<json> RunS44Survey(StageContext& s,
                             const PipelineConfig& config,
                             const io::GridRaster& dem,
@@ -1296,14 +1299,10 @@ Expected<json> RunS44Survey(StageContext& s,
     const GridStageConfig& gc = config.grid;
     const bool water_level_datum = gc.vertical.datum == hydro::VerticalDatum::kWaterLevel;
     const double median_tvu_95_m = tpu.median_tvu_95_m;
-    auto made = S44SoundingsOf(s, utm, datum.datum_height_m, water_level_datum, tpu, block);
-    if (!made) return made.error();
-    hydro::S44Soundings soundings = std::move(*made);
     const hydro::S44Grid nodes = S44NodesOf(s, gc, grid, datum.datum_height_m, water_level_datum);
-    const hydro::S44Result r44 = hydro::RunS44(soundings, nodes, gc.s44_config);
-    tpu.thu_95_m = std::move(soundings.thu_95_m);
-    tpu.tvu_95_m = std::move(soundings.tvu_95_m);
-    soundings = hydro::S44Soundings();
+    auto s44 = S44OfView(s, nodes, gc, utm, datum.datum_height_m, tpu, block);
+    if (!s44) return s44.error();
+    const hydro::S44Result& r44 = *s44;
     log("grid: S-44: " + r44.message);
     io::GridRaster holidays = HolidayRaster(dem, r44);
     if (!s.model.run_id.empty()) holidays.metadata.emplace_back("pitmap_run_id", s.model.run_id);
@@ -1384,8 +1383,14 @@ struct CubeInputs {
 
 // The view is read a block at a time (ForEachViewBlock): while it is spilled, only CUBE's input
 // and the TPU are held whole.
-Expected<CubeInputs> PrepareCube(
-    StageContext& s, const PipelineConfig& config, PartClock& part, json& timings, const Log& log) {
+// `whole_input` false: CUBE's input is left to the caller (the grid stage writes it to a file,
+// CubeInputToFile), in.soundings empty.
+Expected<CubeInputs> PrepareCube(StageContext& s,
+                                 const PipelineConfig& config,
+                                 PartClock& part,
+                                 json& timings,
+                                 const Log& log,
+                                 bool whole_input = true) {
     const GridStageConfig& gc = config.grid;
     CubeInputs in;
     auto tpu_setup = SurveyTpuSetup(s, gc, log);
@@ -1424,11 +1429,55 @@ Expected<CubeInputs> PrepareCube(
     auto datum = SurveyDatum(s, config, &in.datum_record, log);
     if (!datum) return datum.error();
     in.datum = *datum;
+    if (!whole_input) return in;
     auto soundings = CubeSoundings(s, *in.utm, in.datum->datum_height_m, in.tpu, in.block);
     if (!soundings) return soundings.error();
     in.soundings = std::move(*soundings);
     part.Lap(timings, "utm_datum");
     return in;
+}
+
+// The grid stage's CUBE surface and its surface filter.
+struct SurfaceOutcome {
+    hydro::CubeResult cube;
+    std::int64_t rejected = 0;  // soundings the surface filter rejected
+    std::size_t bands = 0;      // CUBE's bands of node rows (the last pass)
+};
+
+// CUBE's input written to its scratch file from the view's blocks (the part "utm_datum"), CUBE
+// by bands of node rows (CubeByBands: node for node RunCube's), then the surface filter
+// (RejectOffSurface) and CUBE again without what it rejected (decision 035). The file is
+// removed before this returns.
+Expected<SurfaceOutcome> CubeAndSurfaceFilter(StageContext& s,
+                                              const PipelineConfig& config,
+                                              CubeInputs& in,
+                                              PartClock& part,
+                                              json& timings,
+                                              const Log& log) {
+    const GridStageConfig& gc = config.grid;
+    auto input = CubeInputToFile(s, *in.utm, in.datum->datum_height_m, in.tpu, in.block);
+    if (!input) return input.error();
+    part.Lap(timings, "utm_datum");
+    SurfaceOutcome out;
+    auto cube = CubeByBands(*input, gc, config.tiles, in.block, &out.bands);
+    if (!cube) return Error{"grid: " + cube.error().message};
+    if (!cube->ok) return Error{cube->message};
+    out.cube = std::move(*cube);
+    part.Lap(timings, "cube");
+    // The surface filter: soundings that do not support the node's chosen hypothesis are
+    // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
+    if (gc.surface_filter) {
+        auto rejected =
+            RejectOffSurface(s, gc, config.tiles, *input, out.cube, in.tpu, in.block, &out.bands);
+        if (!rejected) return rejected.error();
+        out.rejected = *rejected;
+        log("grid: surface filter: " + std::to_string(out.rejected) +
+            " soundings off the CUBE surface rejected");
+        part.Lap(timings, "surface_filter");
+    }
+    log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " +
+        out.cube.message + " (" + std::to_string(out.bands) + " bands of node rows)");
+    return out;
 }
 
 }  // namespace
@@ -1457,7 +1506,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     // surface filter's verdicts read them a block at a time, and CUBE and the filter read CUBE's
     // input alone; they come back for the point files, S-44 and the mosaic.
     if (auto st = SpillView(s); !st) return Error{"grid: " + st.error().message};
-    auto in = PrepareCube(s, config, part, timings, log);
+    auto in = PrepareCube(s, config, part, timings, log, /*whole_input=*/false);
     if (!in) return in.error();
     const std::optional<TpuSetup>& tpu_setup = in->setup;
     const PoseSigmas& pose = in->pose;
@@ -1466,29 +1515,13 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     std::optional<georef::UtmProjection>& utm = in->utm;
     std::optional<hydro::DatumModel>& datum = in->datum;
     const json& datum_record = in->datum_record;
-    std::vector<hydro::CubeSounding>& soundings = in->soundings;
-    hydro::CubeResult cube = SurveyCube(soundings, gc, config.tiles);
-    if (!cube.ok) {
+    auto surface = CubeAndSurfaceFilter(s, config, *in, part, timings, log);
+    if (!surface) {
         if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
-        return Error{cube.message};
+        return surface.error();
     }
-    part.Lap(timings, "cube");
-    // The surface filter: soundings that do not support the node's chosen hypothesis are
-    // rejected, for the point files, S-44, the mosaic and the TSDF after this stage.
-    std::int64_t surface_rejected = 0;
-    if (gc.surface_filter) {
-        auto rejected = RejectOffSurface(s, gc, config.tiles, soundings, cube, tpu, in->block);
-        if (!rejected) return rejected.error();
-        surface_rejected = *rejected;
-        log("grid: surface filter: " + std::to_string(surface_rejected) +
-            " soundings off the CUBE surface rejected");
-    }
-    // The CUBE input (40 bytes per sounding, 236 MB on bejanca) is not kept for what follows:
-    // S-44 takes its soundings from the UTM positions, as CubeSoundings did. Freed before the
-    // view comes back.
-    std::vector<hydro::CubeSounding>().swap(soundings);
-    if (gc.surface_filter) part.Lap(timings, "surface_filter");
-    log("grid: CUBE " + std::string(hydro::ToString(gc.cube.disambiguation)) + ": " + cube.message);
+    const hydro::CubeResult& cube = surface->cube;
+    const std::int64_t surface_rejected = surface->rejected;
 
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
     s.datum = *datum;
@@ -1516,35 +1549,33 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_record = std::move(*s44);
         part.Lap(timings, "s44");
     }
-    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
-    json files = json::array();
-    if (auto w = WriteDem(s.out_dir, gc, dem, files); !w) return w;
-    json tiles_record = json::object();
-    if (config.tiles.enabled) {
-        tiles_record = {{"tile_size_m", config.tiles.tile_size_m},
-                        {"overlap_m", config.tiles.overlap_m},
-                        {"nodes_per_tile", NodesPerTile(config.tiles, cube.grid.resolution_m)}};
-        if (config.tiles.write_products) {
-            if (auto w =
-                    WriteDemTiles(s.out_dir, config.tiles, dem, cube.grid, files, tiles_record);
-                !w)
-                return w;
-        }
+    // The mosaic and the point files read the view a block at a time too (decision 035); it
+    // comes back at the end of the stage.
+    json mosaic_record;
+    if (gc.mosaic) {
+        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log, in->block);
+        if (!mosaic) return mosaic.error();
+        mosaic_record = std::move(*mosaic);
+        part.Lap(timings, "mosaic");
     }
-    if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, files); !w) return w;
+    json files = json::array();
+    json tiles_record = json::object();
+    if (auto w = WriteDemProducts(s.out_dir, config, dem, cube.grid, files, tiles_record); !w)
+        return w;
+    if (auto w = WriteSoundingProducts(s, config, *utm, *datum, meta, tpu, in->block, files); !w)
+        return w;
     part.Lap(timings, "write");
     for (const auto& f : s44_files) files.push_back(f);
 
     // The stage's record: the TPU's, S-44's, the mosaic's and the terrain's, then the surface's.
     json stage = TpuJson(*tpu_setup, pose, tpu);
+    std::vector<float>().swap(tpu.thu_95_m);  // their last reader was the point files
+    std::vector<float>().swap(tpu.tvu_95_m);
     stage["sound_speed"] = sound_speed;
     if (gc.s44) stage["s44"] = std::move(s44_record);
     if (gc.mosaic) {
-        auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log);
-        if (!mosaic) return mosaic.error();
-        if (mosaic->contains("file")) files.push_back((*mosaic)["file"]);
-        stage["mosaic"] = std::move(*mosaic);
-        part.Lap(timings, "mosaic");
+        if (mosaic_record.contains("file")) files.push_back(mosaic_record["file"]);
+        stage["mosaic"] = std::move(mosaic_record);
     }
     if (gc.terrain) {
         auto terrain = detail::TerrainSurvey(s, gc, dem, log);
@@ -1554,33 +1585,19 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         part.Lap(timings, "terrain");
     }
     stage.update(CubeJson(cube, gc));
-    stage["soundings"] = s.geo.points.size();
+    stage["soundings"] = ViewSize(s);
     stage["utm_epsg"] = utm->epsg;
     stage["vertical_crs"] = datum->crs_name;
     stage["surface_filter_rejected"] = surface_rejected;
+    stage["cube_bands"] = surface->bands;
     if (config.tiles.enabled) stage["tiles"] = tiles_record;
     stage["files"] = files;
     stage["timings_wall_cpu_s"] = timings;
     stage["peak_rss_mb_by_part"] = part.peak_rss_mb;
     s.summary["vertical_datum"] = datum_record;
-    // The pit's capacity curve (issue 37 item 3), as pitmap compare finds it from dem.tif, a row
-    // every 0.25 m (compare's --capacity-step default).
-    if (auto cap = SurveyCapacity(s.out_dir, s.summary, 0.25); cap) {
-        char buf[200];
-        std::snprintf(buf,
-                      sizeof buf,
-                      "grid: capacity: %.0f m3 of water at the water level %.3f m over %.0f m2 "
-                      "surveyed (capacity.csv)",
-                      (*cap)["volume_at_water_level_m3"].get<double>(),
-                      (*cap)["water_level_m"].get<double>(),
-                      (*cap)["surveyed_area_m2"].get<double>());
-        log(buf);
-        stage["files"].push_back("capacity.csv");
-        s.summary["capacity"] = std::move(*cap);
-    } else {
-        log("grid: no capacity curve: " + cap.error().message);
-        s.summary["capacity"] = {{"computed", false}, {"message", cap.error().message}};
-    }
+    RecordCapacity(s, stage, log);
+    // The view back for the stages after this one (the TSDF's scans, the export).
+    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
     RecordStage(s.summary, Stage::kGrid, stage, clock);

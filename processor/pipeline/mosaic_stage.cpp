@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "processor/io/grid_io.hpp"
+#include "processor/pipeline/grid_cube_tiles.hpp"
 #include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
@@ -70,28 +71,15 @@ std::vector<std::pair<std::string, std::string>> MosaicMetadata(const hydro::Mos
                  std::to_string(c.reference_angle_deg) + " deg incidence"}};
 }
 
-}  // namespace
-
-Expected<json> MosaicSurvey(const StageContext& s,
-                            const GridStageConfig& gc,
-                            const io::GridRaster& dem,
-                            const georef::UtmProjection& utm,
-                            const Eigen::Matrix<double, 2, 3>& utm_to_world,
-                            const Log& log) {
+// The mosaic's soundings of a block of the view: UTM positions, the 83P intensity, the range
+// and the beam's direction in the grid's axes.
+void MosaicBlockOf(const StageContext& s,
+                   const georef::GeorefPoints& pts,
+                   const georef::UtmProjection& utm,
+                   const Eigen::Matrix2d& to_utm,
+                   hydro::MosaicSoundings& m) {
     const survey::PingSeries& series = s.model.ingest.pings;
-    if (!series.has_intensities()) {
-        const std::string why =
-            "the pings carry no intensities (83P v1.00, v1.10 without them, or a survey.pitmap "
-            "of format 1: run `pitmap georef` again): no mosaic";
-        log("grid: mosaic: " + why);
-        return json{{"made", false}, {"reason", why}};
-    }
-    const georef::GeorefPoints& pts = s.geo.points;
     const std::size_t n = pts.size();
-    // World ENU directions -> the grid's (UTM) axes: the inverse of the affine fit's linear
-    // part (the grid convergence, under a degree; the scale is 1 within 1e-3).
-    const Eigen::Matrix2d to_utm = utm_to_world.block<2, 2>(0, 0).inverse();
-    hydro::MosaicSoundings m;
     m.x.resize(n);
     m.y.resize(n);
     m.intensity.resize(n);
@@ -100,7 +88,7 @@ Expected<json> MosaicSurvey(const StageContext& s,
     for (std::size_t j = 0; j < n; ++j) {
         const georef::GeorefPing& p = s.geo.pings[pts.ping[j]];
         const survey::PingHeader& h = series.pings[p.header_index];
-        const Eigen::Vector3d enh = utm.At(s.geo, j);
+        const Eigen::Vector3d enh = utm.At(pts, s.geo.pings, j);
         m.x[j] = enh.x();
         m.y[j] = enh.y();
         m.intensity[j] = series.intensities[h.beam_offset + pts.beam[j]];
@@ -111,10 +99,44 @@ Expected<json> MosaicSurvey(const StageContext& s,
         const Eigen::Vector2d xy = to_utm * d.head<2>();
         m.beam_dir[j] = Eigen::Vector3d(xy.x(), xy.y(), d.z()).normalized().cast<float>();
     }
+}
+
+}  // namespace
+
+Expected<json> MosaicSurvey(const StageContext& s,
+                            const GridStageConfig& gc,
+                            const io::GridRaster& dem,
+                            const georef::UtmProjection& utm,
+                            const Eigen::Matrix<double, 2, 3>& utm_to_world,
+                            const Log& log,
+                            std::size_t block) {
+    const survey::PingSeries& series = s.model.ingest.pings;
+    if (!series.has_intensities()) {
+        const std::string why =
+            "the pings carry no intensities (83P v1.00, v1.10 without them, or a survey.pitmap "
+            "of format 1: run `pitmap georef` again): no mosaic";
+        log("grid: mosaic: " + why);
+        return json{{"made", false}, {"reason", why}};
+    }
     const std::vector<float>* elevation = dem.Values("elevation");
     if (elevation == nullptr) return Error{"grid: mosaic: the DEM has no elevation layer"};
     const hydro::MosaicGrid grid{dem.x0, dem.y0, dem.resolution_m, dem.nx, dem.ny, elevation};
-    const hydro::MosaicResult r = hydro::RunMosaic(std::move(m), grid, gc.mosaic_config);
+    // World ENU directions -> the grid's (UTM) axes: the inverse of the affine fit's linear
+    // part (the grid convergence, under a degree; the scale is 1 within 1e-3).
+    const Eigen::Matrix2d to_utm = utm_to_world.block<2, 2>(0, 0).inverse();
+    const std::size_t n = ViewSize(s);
+    hydro::MosaicByBlocks mosaic(grid, gc.mosaic_config);
+    mosaic.Reserve(n);
+    hydro::MosaicSoundings m;
+    auto st = ForEachViewBlock(
+        s, block == 0 ? n : block, [&](const georef::GeorefPoints& b, std::size_t) {
+            MosaicBlockOf(s, b, utm, to_utm, m);
+            mosaic.Add(m);
+            return Status{Ok{}};
+        });
+    if (!st) return Error{"grid: mosaic: " + st.error().message};
+    m = hydro::MosaicSoundings{};
+    const hydro::MosaicResult r = mosaic.Finish();
     log("grid: mosaic: " + r.message);
     json rec = {{"made", r.ok},
                 {"message", r.message},

@@ -160,11 +160,13 @@ void SetMemoryBudget(json& summary, const RunOptions& run) {
 
 namespace {
 
-// WritePoints with the accepted soundings from `accepted` (held, or read a block at a time from
-// the view's file: decision 033).
+// WritePoints with the accepted soundings from `accepted` for points.ply and points.las and
+// `read_accepted` for points_utm.ply (held, or read a block at a time from the view's file:
+// decision 041); geo's pings and origin are read, not its points.
 Status WritePointsOf(const std::string& dir,
                      const georef::GeorefResult& geo,
                      const io::PointBlocks& accepted,
+                     const AcceptedPointsReader& read_accepted,
                      const PipelineConfig& c,
                      json& summary,
                      const std::string& run_id,
@@ -186,19 +188,32 @@ Status WritePointsOf(const std::string& dir,
             return s;
         // Heights above the ellipsoid here: the grid stage writes them again in the datum.
         if (!c.write_points_utm) return Ok{};
-        if (auto s = WriteProjectedPoints(dir,
-                                          geo,
-                                          accepted,
-                                          *utm,
-                                          rejected,
-                                          hydro::DatumModel{},
-                                          meta != nullptr ? *meta : ProductMetadata{},
-                                          run_id,
-                                          BlockWithinBudget(c.run, ResidentMb()));
+        if (auto s = WriteProjectedPointsOf(dir,
+                                            geo.pings,
+                                            accepted.count,
+                                            read_accepted,
+                                            *utm,
+                                            rejected,
+                                            hydro::DatumModel{},
+                                            meta != nullptr ? *meta : ProductMetadata{},
+                                            run_id,
+                                            BlockWithinBudget(c.run, ResidentMb()));
             !s)
             return s;
     }
     return Ok{};
+}
+
+// The held points as points_utm.ply reads them (one block: the points themselves).
+AcceptedPointsReader HeldPointsReader(const georef::GeorefPoints& points) {
+    return [&points](std::size_t first,
+                     std::size_t,
+                     const georef::GeorefPoints*& out,
+                     std::size_t& offset) {
+        out = &points;
+        offset = first;
+        return Status{Ok{}};
+    };
 }
 
 }  // namespace
@@ -211,20 +226,68 @@ Status WritePoints(const std::string& dir,
                    const georef::GeorefResult* rejected,
                    const survey::PingSeries* pings,
                    const ProductMetadata* meta) {
-    return WritePointsOf(
-        dir, geo, io::HeldPoints(geo.points), c, summary, run_id, rejected, pings, meta);
+    return WritePointsOf(dir,
+                         geo,
+                         io::WholePoints(geo),
+                         HeldPointsReader(geo.points),
+                         c,
+                         summary,
+                         run_id,
+                         rejected,
+                         pings,
+                         meta);
 }
 
-io::PointBlocks ViewBlocks(const StageContext& s, const RunOptions& run) {
-    if (!s.spilled_view) return io::HeldPoints(s.geo.points);
-    io::PointBlocks b;
-    b.size = s.spilled_view->size();
-    b.block = BlockWithinBudget(run, ResidentMb());
-    const io::SpilledPoints* file = &*s.spilled_view;
-    b.read = [file](std::size_t first, std::size_t count, georef::GeorefPoints& out) {
-        return file->ReadBlock(first, count, out);
+std::size_t ViewSize(const StageContext& s) {
+    return s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
+}
+
+Status ForEachViewBlock(const StageContext& s,
+                        std::size_t block,
+                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn) {
+    const std::size_t n = ViewSize(s);
+    block = std::max<std::size_t>(block, 1);
+    georef::GeorefPoints b;
+    for (std::size_t first = 0; first < n; first += block) {
+        const std::size_t count = std::min(block, n - first);
+        if (s.spilled_view) {
+            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
+        } else {
+            b = georef::SliceOf(s.geo.points, first, count);
+        }
+        if (auto st = fn(b, first); !st) return st;
+    }
+    return Ok{};
+}
+
+io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block) {
+    if (!s.spilled_view) return io::WholePoints(s.geo);
+    io::PointBlocks blocks;
+    blocks.count = ViewSize(s);
+    blocks.for_each =
+        [&s, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+            return ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+                s.geo.points = b;
+                Status w = fn(s.geo, first);
+                s.geo.points = georef::GeorefPoints();
+                return w;
+            });
+        };
+    return blocks;
+}
+
+AcceptedPointsReader ViewPointsReader(const StageContext& s,
+                                      std::shared_ptr<georef::GeorefPoints> buffer) {
+    if (!s.spilled_view) return HeldPointsReader(s.geo.points);
+    return [&s, buffer](std::size_t first,
+                        std::size_t count,
+                        const georef::GeorefPoints*& points,
+                        std::size_t& offset) -> Status {
+        if (auto st = s.spilled_view->ReadBlock(first, count, *buffer); !st) return st;
+        points = buffer.get();
+        offset = 0;
+        return Ok{};
     };
-    return b;
 }
 
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
@@ -240,27 +303,20 @@ georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
-    // The view's soundings a block at a time from its file while it is there (decision 033).
-    const io::PointBlocks accepted = ViewBlocks(s, c.run);
-    if (!c.write_rejected) {
-        return WritePointsOf(s.out_dir,
-                             s.geo,
-                             accepted,
-                             c,
-                             s.summary,
-                             s.model.run_id,
-                             nullptr,
-                             &s.model.ingest.pings,
-                             &meta);
-    }
-    const georef::GeorefResult rejected = RejectedView(s, c);
+    // The view's soundings a block at a time from its file while it is there (decision 041).
+    const io::PointBlocks accepted = ViewPointBlocks(s, BlockWithinBudget(c.run, ResidentMb()));
+    const AcceptedPointsReader read_accepted =
+        ViewPointsReader(s, std::make_shared<georef::GeorefPoints>());
+    std::optional<georef::GeorefResult> rejected;
+    if (c.write_rejected) rejected = RejectedView(s, c);
     return WritePointsOf(s.out_dir,
                          s.geo,
                          accepted,
+                         read_accepted,
                          c,
                          s.summary,
                          s.model.run_id,
-                         &rejected,
+                         rejected ? &*rejected : nullptr,
                          &s.model.ingest.pings,
                          &meta);
 }
@@ -453,7 +509,8 @@ void ClearGates(StageContext& s, Stage stage_id) {
 Expected<StageContext> LoadSurvey(const std::string& out_dir,
                                   const PipelineConfig& config,
                                   StartFrom start,
-                                  const Log& log) {
+                                  const Log& log,
+                                  ViewIn view) {
     StageContext s;
     s.out_dir = out_dir;
     auto model = survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName);
@@ -480,7 +537,24 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
     std::size_t kept = 0;
-    s.geo = georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    if (view == ViewIn::kFile) {
+        // The stage reads the view from its file: written there a block of pings at a time,
+        // never held (decision 041).
+        const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
+            return georef::GeoreferenceByBlocks(s.model,
+                                                s.model.latest(),
+                                                config.georef,
+                                                s.refraction,
+                                                BlockWithinBudget(config.run, ResidentMb()),
+                                                sink,
+                                                {},
+                                                &kept);
+        };
+        if (auto st = ViewToFile(s, make, log); !st) return st.error();
+    } else {
+        s.geo =
+            georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    }
     if (kept > 0) {
         log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
@@ -488,27 +562,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     return s;
 }
 
-namespace {
-
-// Appends `block` to `to` (the view held when its file cannot be written).
-void AppendPoints(const georef::GeorefPoints& block, georef::GeorefPoints& to) {
-    auto append = [](auto& dst, const auto& src) { dst.insert(dst.end(), src.begin(), src.end()); };
-    append(to.position_world, block.position_world);
-    append(to.ping, block.ping);
-    append(to.beam, block.beam);
-    append(to.range_m, block.range_m);
-    append(to.angle_rad, block.angle_rad);
-    append(to.status, block.status);
-}
-
-}  // namespace
-
-Status GeoreferenceToFile(StageContext& s,
-                          const PipelineConfig& config,
-                          std::optional<Geodetic> origin,
-                          georef::MountCheckByBlocks* check,
-                          const ProgressCallback& progress,
-                          const Log& log) {
+Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log) {
     // One view at a time: the new one is made from the model alone.
     s.spilled_view.reset();
     s.geo = georef::GeorefResult{};
@@ -517,33 +571,49 @@ Status GeoreferenceToFile(StageContext& s,
     if (!writer) log("warning: " + writer.error().message + ": the view is held in memory");
     georef::GeorefPoints held;
     Status failed = Ok{};
-    auto sink = [&](const georef::GeorefPoints& block, const georef::GeorefResult& so_far) {
-        if (check != nullptr) check->Add(so_far, block);
+    auto sink = [&](const georef::GeorefPoints& block, const georef::GeorefResult&) {
         if (!writer) {
-            AppendPoints(block, held);
+            georef::AppendPoints(block, held);
             return true;
         }
         failed = writer->Append(block);
         return static_cast<bool>(failed);
     };
-    s.geo = georef::RunGeorefByBlocks(s.model.ingest.nav,
-                                      s.model.ingest.pings,
-                                      s.model.mount,
-                                      config.georef,
-                                      BlockWithinBudget(config.run, ResidentMb()),
-                                      sink,
-                                      origin,
-                                      progress,
-                                      s.refraction,
-                                      &s.model.flags);
-    if (!failed) return Error{"georef: " + failed.error().message};
+    s.geo = make(sink);
+    if (!failed) return failed;
     if (!writer) {
         s.geo.points = std::move(held);
         return Ok{};
     }
     auto spilled = writer->Finish();
-    if (!spilled) return Error{"georef: " + spilled.error().message};
+    if (!spilled) return spilled.error();
     s.spilled_view = std::move(*spilled);
+    return Ok{};
+}
+
+Status GeoreferenceToFile(StageContext& s,
+                          const PipelineConfig& config,
+                          std::optional<Geodetic> origin,
+                          georef::MountCheckByBlocks* check,
+                          const ProgressCallback& progress,
+                          const Log& log) {
+    const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
+        const auto checked = [&](const georef::GeorefPoints& b, const georef::GeorefResult& so_far) {
+            if (check != nullptr) check->Add(so_far, b);
+            return sink(b, so_far);
+        };
+        return georef::RunGeorefByBlocks(s.model.ingest.nav,
+                                         s.model.ingest.pings,
+                                         s.model.mount,
+                                         config.georef,
+                                         BlockWithinBudget(config.run, ResidentMb()),
+                                         checked,
+                                         origin,
+                                         progress,
+                                         s.refraction,
+                                         &s.model.flags);
+    };
+    if (auto st = ViewToFile(s, make, log); !st) return Error{"georef: " + st.error().message};
     return Ok{};
 }
 

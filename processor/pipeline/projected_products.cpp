@@ -13,6 +13,7 @@
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
 #include "processor/mesh/export.hpp"
+#include "processor/pipeline/grid_cube_tiles.hpp"
 #include "processor/pipeline/internal.hpp"
 
 namespace pitmap::proc::pipeline::detail {
@@ -35,19 +36,36 @@ Status WriteProjectedPoints(const std::string& dir,
                             const ProductMetadata& meta,
                             const std::string& run_id,
                             std::size_t block_soundings) {
-    return WriteProjectedPoints(
-        dir, geo, io::HeldPoints(geo.points), utm, rejected, datum, meta, run_id, block_soundings);
+    const AcceptedPointsReader held = [&geo](std::size_t first,
+                                             std::size_t,
+                                             const georef::GeorefPoints*& points,
+                                             std::size_t& offset) {
+        points = &geo.points;
+        offset = first;
+        return Status{Ok{}};
+    };
+    return WriteProjectedPointsOf(dir,
+                                  geo.pings,
+                                  geo.points.size(),
+                                  held,
+                                  utm,
+                                  rejected,
+                                  datum,
+                                  meta,
+                                  run_id,
+                                  block_soundings);
 }
 
-Status WriteProjectedPoints(const std::string& dir,
-                            const georef::GeorefResult& geo,
-                            const io::PointBlocks& accepted,
-                            const georef::UtmProjection& utm,
-                            const georef::GeorefResult* rejected,
-                            const hydro::DatumModel& datum,
-                            const ProductMetadata& meta,
-                            const std::string& run_id,
-                            std::size_t block_soundings) {
+Status WriteProjectedPointsOf(const std::string& dir,
+                              const std::vector<georef::GeorefPing>& pings,
+                              std::size_t num_accepted,
+                              const AcceptedPointsReader& read_accepted,
+                              const georef::UtmProjection& utm,
+                              const georef::GeorefResult* rejected,
+                              const hydro::DatumModel& datum,
+                              const ProductMetadata& meta,
+                              const std::string& run_id,
+                              std::size_t block_soundings) {
     io::ProjectedPoints crs;
     crs.crs_name = CrsName(utm.zone, utm.northern, datum);
     crs.horizontal_epsg = utm.epsg;
@@ -65,59 +83,45 @@ Status WriteProjectedPoints(const std::string& dir,
                          "/points_utm.ply: UTM of the rejected soundings: " + r.error().message};
         rejected_utm = std::move(*r);
     }
-    const std::size_t num_accepted = accepted.size;
     const std::size_t n = num_accepted + (with_rejected ? rejected->points.size() : 0);
-    // The accepted soundings of a block: held, or read from the view's file (decision 033).
-    georef::GeorefPoints read;
-    Status read_error = Ok{};
-    const auto accepted_of =
-        [&](std::size_t first,
-            std::size_t count) -> std::pair<const georef::GeorefPoints*, std::size_t> {
-        if (accepted.held != nullptr || count == 0) return {accepted.held, 0};
-        if (auto st = accepted.read(first, count, read); !st) {
-            if (read_error) read_error = st;
-            read = georef::GeorefPoints{};
-        }
-        return {&read, first};
-    };
+    Status read_status = Ok{};
     // Point j: accepted sounding j, then rejected sounding j - num_accepted; placed where the
-    // block is made (georef::UtmProjection), not held for the survey.
+    // block is made (georef::UtmProjection), not held for the survey. The accepted soundings
+    // of a block are read (read_accepted) before it is made.
     const auto fill = [&](std::size_t first, std::span<io::ProjectedPoint> out) {
-        const std::size_t end = first + out.size();
-        const std::size_t accepted_end = std::min(end, num_accepted);
-        const auto got = accepted_of(first, accepted_end > first ? accepted_end - first : 0);
-        const georef::GeorefPoints* A = got.first;
-        const std::size_t a0 = got.second;
+        const georef::GeorefPoints* accepted_points = nullptr;
+        std::size_t offset = 0;
+        if (first < num_accepted && read_status) {
+            const std::size_t count = std::min(out.size(), num_accepted - first);
+            read_status = read_accepted(first, count, accepted_points, offset);
+        }
+        if (!read_status) return;
         tbb::parallel_for(
             tbb::blocked_range<std::size_t>(0, out.size(), 4096),
             [&](const tbb::blocked_range<std::size_t>& r) {
                 for (std::size_t k = r.begin(); k != r.end(); ++k) {
                     const std::size_t j = first + k;
-                    const bool is_accepted = j < num_accepted;
-                    if (is_accepted && (A == nullptr || j - a0 >= A->size())) continue;
-                    const georef::GeorefPoints& P = is_accepted ? *A : rejected->points;
-                    const georef::GeorefResult& g = is_accepted ? geo : *rejected;
-                    const std::size_t i = is_accepted ? j - a0 : j - num_accepted;
-                    const std::uint32_t ping = P.ping[i];
+                    const bool accepted = j < num_accepted;
+                    const georef::GeorefPoints& g = accepted ? *accepted_points : rejected->points;
+                    const std::vector<georef::GeorefPing>& gp = accepted ? pings : rejected->pings;
+                    const std::size_t i = accepted ? offset + k : j - num_accepted;
+                    const std::uint32_t ping = g.ping[i];
                     const Eigen::Vector3d enh =
-                        is_accepted ? utm.At(P, g.pings, i) : rejected_utm.At(P, g.pings, i);
+                        accepted ? utm.At(g, gp, i) : rejected_utm.At(g, gp, i);
                     out[k] = {enh - Eigen::Vector3d(0, 0, D(ping)),
-                              static_cast<double>(g.pings[ping].utime_gps) * 1e-6,
-                              is_accepted ? std::uint8_t{0} : P.status[i]};
+                              static_cast<double>(gp[ping].utime_gps) * 1e-6,
+                              accepted ? std::uint8_t{0} : g.status[i]};
                 }
             });
     };
     const std::string path = dir + "/points_utm.ply";
-    if (auto w = io::WriteProjectedPointsPly(path, crs, n, block_soundings, fill, &meta, run_id);
-        !w) {
-        return w;
-    }
-    if (!read_error) {
-        // The file was written with soundings missing: not left as a product.
+    auto w = io::WriteProjectedPointsPly(path, crs, n, block_soundings, fill, &meta, run_id);
+    if (!read_status) {
         std::error_code ec;
         std::filesystem::remove(path, ec);
-        return Error{path + ": " + read_error.error().message};
+        return Error{path + ": " + read_status.error().message};
     }
+    if (!w) return w;
     return io::WritePrj(dir + "/points_utm.prj",
                         io::LasWkt(utm.zone, utm.northern, datum.VerticalWkt()));
 }

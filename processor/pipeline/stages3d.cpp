@@ -176,6 +176,8 @@ slam::SlamResult RunSlamLogged(SliceSet& set, const slam::SlamConfig& cfg, const
                 std::to_string(it.iteration));
             return true;
         });
+    log("slam: " + std::to_string(r.num_points) + " of " + std::to_string(r.num_points_in) +
+        " finite points used (slam.pass_cell_m " + std::to_string(cfg.pass_cell_m) + ")");
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
     return r;
 }
@@ -433,6 +435,7 @@ json SlamSummary(const slam::SlamResult& r,
                {"message", r.message},
                {"slices", set.slices.size()},
                {"points", set.num_points},
+               {"points_used", r.num_points},
                {"sections", r.num_sections},
                {"section_links", r.num_section_links},
                {"poses", r.num_poses},
@@ -1277,7 +1280,7 @@ Status RunAfterGeoref(detail::StageContext& s,
     const bool grid_points = config.grid.in_run && config.grid.write_point_tpu;
     auto export_now = [&](Status failed, bool points = true) -> Status {
         s.defer_products = false;
-        // The point writers read the view from its file (decision 033); the grid stage that
+        // The point writers read the view from its file (decision 041); the grid stage that
         // follows reads it there too (a view that cannot go there stays held).
         (void)detail::SpillView(s);
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
@@ -1301,9 +1304,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         // on what was left ended at 0.110 m ATE instead of 0.064 m (docs/uncertainty.md).
         constexpr double kCircular95 = 2.4477;  // 95 % radius over sigma, circular normal
         const double max_sigma_m = first.clean.voxel_m / kCircular95;
-        // The stages not yet by blocks read the view whole (georef and the calibration leave
-        // it in its file, decision 033).
-        if (auto r = detail::RestoreView(s); !r) return export_now(r);
+        // The cleaning reads the view from the file georef left it in (decisions 037, 041).
         if (auto st = detail::CleanSurvey(s, first, log, max_sigma_m); !st) return export_now(st);
     }
     if (config.run.calibrate) {
@@ -1326,14 +1327,13 @@ Status RunAfterGeoref(detail::StageContext& s,
         if (auto st = detail::SlamSurvey(s, config, log); !st) return export_now(st);
     }
     if (config.clean.enabled) {
-        if (auto r = detail::RestoreView(s); !r) return export_now(r);
         if (auto st = detail::CleanSurvey(s, config, log); !st) return export_now(st);
     }
     if (auto st = export_now(Ok{}, !grid_points); !st) return st;
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) {
             // The points without THU/TVU rather than none.
-            if (grid_points && detail::RestoreView(s)) (void)detail::WritePoints(s, config);
+            if (grid_points) (void)detail::WritePoints(s, config);
             return st;
         }
     }

@@ -22,26 +22,36 @@
 
 namespace pitmap::proc::slam::detail {
 
-std::vector<Block> MakeBlocks(const Input& in, double length_s) {
-    std::vector<Block> blocks;
+std::vector<std::size_t> SectionStarts(const Input& in, double length_s) {
+    std::vector<std::size_t> starts;
     std::size_t s = 0;
     double t_break = -std::numeric_limits<double>::infinity();
     while (s < in.num_slices()) {
-        Block b;
         if (in.IsBreak(s)) t_break = in.t_s[s];
-        b.s0 = s++;
+        const std::size_t s0 = s++;
+        starts.push_back(s0);
         // After a GNSS recovery the INS error falls within seconds: sections of 1, 1, 2, 4, 8 s
         // there (doubling up to length_s), so that the rigid stage can follow the fall.
-        const double since = in.t_s[b.s0] - t_break;
+        const double since = in.t_s[s0] - t_break;
         const double len =
             since < length_s ? std::clamp(since, kBreakFirstSectionS, length_s) : length_s;
-        while (s < in.num_slices() && in.t_s[s] < in.t_s[b.s0] + len && !in.IsBreak(s)) ++s;
-        b.s1 = s;
+        while (s < in.num_slices() && in.t_s[s] < in.t_s[s0] + len && !in.IsBreak(s)) ++s;
+    }
+    starts.push_back(in.num_slices());
+    return starts;
+}
+
+std::vector<Block> MakeBlocks(const Input& in, double length_s) {
+    const std::vector<std::size_t> starts = SectionStarts(in, length_s);
+    std::vector<Block> blocks(starts.size() - 1);
+    for (std::size_t i = 0; i + 1 < starts.size(); ++i) {
+        Block& b = blocks[i];
+        b.s0 = starts[i];
+        b.s1 = starts[i + 1];
         b.p0 = in.offset[b.s0];
         b.p1 = in.offset[b.s1];
         b.t0 = in.t_s[b.s0];
         b.t1 = in.t_s[b.s1 - 1];
-        blocks.push_back(std::move(b));
     }
     return blocks;
 }

@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -52,6 +53,7 @@ struct Input {
     Eigen::Vector3d position_white_sigma = Eigen::Vector3d::Zero();
     std::vector<std::size_t> offset;      // first point of each slice in `points`
     std::vector<Eigen::Vector3f> points;  // vehicle frame, finite only
+    std::size_t points_in = 0;  // finite points given, before SlamConfig::pass_cell_m's bound
     // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
     // there, so sections and bins start there and are short after them (the correction stays
     // continuous; its rate changes).
@@ -191,7 +193,27 @@ struct Block {
     static constexpr std::uint32_t kNoSlot = 0xFFFFFFFFu;
 };
 
+// The sections' first slices in time order, and num_slices() after the last: sections of
+// length_s, shorter after a GNSS recovery (in.t_s and in.breaks only; no points needed).
+std::vector<std::size_t> SectionStarts(const Input& in, double length_s);
 std::vector<Block> MakeBlocks(const Input& in, double length_s);
+
+// ---- the points each pass contributes, bounded per cell (point_bound.cpp) -------------------
+
+// Which of the slices' finite points enter SLAM (SlamConfig::pass_cell_m, decision 036): per
+// section (sections given by their first slices, `section_start`, the last entry the slice
+// count) and per cube of cell_m on a side in the world frame by the poses T (one per slice),
+// the first per_cell finite points in time order (slice by slice, each slice's in its order).
+// points[s] is slice s's points (vehicle frame, non-finite ones skipped and not counted); the
+// result holds one flag (1 = kept) per finite point, slice by slice. cell_m 0: every point.
+// Deterministic: a function of the arguments only (sections are independent: made in
+// parallel).
+std::vector<std::uint8_t> BoundPointsPerCell(
+    const std::vector<const std::vector<Eigen::Vector3f>*>& points,
+    const std::vector<Pose>& T,
+    const std::vector<std::size_t>& section_start,
+    double cell_m,
+    int per_cell);
 
 // How a block's neighbour slots are packed: `bits` per block-local index (enough for `none`,
 // the block's point count, which ends a slot's list), `k` indices a slot in `words` 64-bit words

@@ -112,6 +112,10 @@ std::vector<std::string> SlamConfig::Validate() const {
     if (!(gicp_tangent_sigma_m > 0)) p.push_back("gicp_tangent_sigma_m must be > 0");
     if (!(robust_width > 0)) p.push_back("robust_width must be > 0");
     if (query_stride < 1) p.push_back("query_stride must be >= 1");
+    if (!(pass_cell_m >= 0) || !std::isfinite(pass_cell_m)) {
+        p.push_back("pass_cell_m must be finite and >= 0 (0 = every point)");
+    }
+    if (pass_cell_points < 1) p.push_back("pass_cell_points must be >= 1");
     if (!(ins_correlation_time_s > 0)) p.push_back("ins_correlation_time_s must be > 0");
     if (!(ins_sigma_scale > 0)) p.push_back("ins_sigma_scale must be > 0");
     if (!(min_relative_rotation_sigma_rad > 0)) {
@@ -166,6 +170,74 @@ void ReleasePoints(std::vector<Slice>& slices) {
     for (Slice& s : slices) std::vector<Eigen::Vector3f>().swap(s.points_vehicle);
 }
 
+// The slices' times, INS poses and sigmas in time order (ties by input index, so that the
+// result does not depend on input order), the GNSS recoveries and the sigma floor.
+Input ReadPoses(const std::vector<Slice>& slices, const SlamConfig& cfg) {
+    Input in;
+    std::vector<std::size_t> order(slices.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return slices[a].gps_time_s < slices[b].gps_time_s;
+    });
+    in.input_index = order;
+    for (std::size_t i : order) {
+        const Slice& s = slices[i];
+        in.t_s.push_back(s.gps_time_s);
+        Pose T = s.T_world_vehicle;
+        T.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
+        in.T_ins.push_back(T);
+        in.sigma.push_back(s.pose_sigma);
+    }
+    const std::size_t ns = in.num_slices();
+    in.breaks = FindBreaks(in.t_s, in.sigma, cfg.coarse_search_min_sigma_m);
+    in.sigma_floor = in.sigma.front();
+    for (const Vector6d& sg : in.sigma) in.sigma_floor = in.sigma_floor.cwiseMin(sg);
+    in.position_white_sigma = PositionWhiteNoise(in.t_s, in.T_ins);
+    if (cfg.ins_sigma_recovery_time_s > 0) {
+        for (std::size_t s = 1; s < ns; ++s) {
+            const double decay =
+                std::exp(-(in.t_s[s] - in.t_s[s - 1]) / cfg.ins_sigma_recovery_time_s);
+            in.sigma[s] = in.sigma[s].cwiseMax(decay * in.sigma[s - 1]);
+        }
+    }
+    return in;
+}
+
+// The Input of a run: ReadPoses, then the points that enter (BoundPointsPerCell by the INS
+// poses and the sections), moved out of `owned` slice by slice when it is given.
+Input ReadInput(const std::vector<Slice>& slices,
+                std::vector<Slice>* owned,
+                const SlamConfig& cfg) {
+    Input in = ReadPoses(slices, cfg);
+    std::vector<const std::vector<Eigen::Vector3f>*> sorted;
+    sorted.reserve(slices.size());
+    for (std::size_t i : in.input_index) sorted.push_back(&slices[i].points_vehicle);
+    const std::vector<std::uint8_t> keep =
+        BoundPointsPerCell(sorted,
+                           in.T_ins,
+                           SectionStarts(in, cfg.section_length_s),
+                           cfg.pass_cell_m,
+                           cfg.pass_cell_points);
+    in.points_in = keep.size();
+    // Sized once: grown by push_back its capacity would be up to twice the points (and three
+    // times while it moves), at 12 bytes a sounding the largest of SLAM's arrays.
+    in.points.reserve(static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1)));
+    in.offset.reserve(slices.size() + 1);
+    in.offset.push_back(0);
+    std::size_t k = 0;
+    for (std::size_t s = 0; s < sorted.size(); ++s) {
+        for (const auto& x : *sorted[s]) {
+            if (!x.allFinite()) continue;
+            if (keep[k++] != 0) in.points.push_back(x);
+        }
+        in.offset.push_back(in.points.size());
+        if (owned != nullptr) {
+            std::vector<Eigen::Vector3f>().swap((*owned)[in.input_index[s]].points_vehicle);
+        }
+    }
+    return in;
+}
+
 // RunSlam on `slices`; `owned` is null or the same slices, whose points are then moved into
 // SLAM's own array as they are read (the survey's points held once, not twice).
 SlamResult Run(const std::vector<Slice>& slices,
@@ -201,48 +273,10 @@ SlamResult Run(const std::vector<Slice>& slices,
                         static_cast<std::size_t>(cfg.num_threads));
     }
 
-    // Sort by time (ties by input index) so that the result does not depend on input order.
-    Input in;
-    std::vector<std::size_t> order(slices.size());
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-        return slices[a].gps_time_s < slices[b].gps_time_s;
-    });
-    in.input_index = order;
-    in.offset.reserve(slices.size() + 1);
-    in.offset.push_back(0);
-    // Sized once: grown by push_back its capacity would be up to twice the points (and three
-    // times while it moves), at 12 bytes a sounding the largest of SLAM's arrays.
-    std::size_t finite = 0;
-    for (const Slice& s : slices) {
-        for (const auto& x : s.points_vehicle) finite += x.allFinite() ? 1 : 0;
-    }
-    in.points.reserve(finite);
-    for (std::size_t i : order) {
-        const Slice& s = slices[i];
-        in.t_s.push_back(s.gps_time_s);
-        Pose T = s.T_world_vehicle;
-        T.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
-        in.T_ins.push_back(T);
-        in.sigma.push_back(s.pose_sigma);
-        for (const auto& x : s.points_vehicle) {
-            if (x.allFinite()) in.points.push_back(x);
-        }
-        in.offset.push_back(in.points.size());
-        if (owned != nullptr) std::vector<Eigen::Vector3f>().swap((*owned)[i].points_vehicle);
-    }
+    Input in = ReadInput(slices, owned, cfg);
     const std::size_t ns = in.num_slices();
-    in.breaks = FindBreaks(in.t_s, in.sigma, cfg.coarse_search_min_sigma_m);
-    in.sigma_floor = in.sigma.front();
-    for (const Vector6d& sg : in.sigma) in.sigma_floor = in.sigma_floor.cwiseMin(sg);
-    in.position_white_sigma = PositionWhiteNoise(in.t_s, in.T_ins);
-    if (cfg.ins_sigma_recovery_time_s > 0) {
-        for (std::size_t s = 1; s < ns; ++s) {
-            const double decay =
-                std::exp(-(in.t_s[s] - in.t_s[s - 1]) / cfg.ins_sigma_recovery_time_s);
-            in.sigma[s] = in.sigma[s].cwiseMax(decay * in.sigma[s - 1]);
-        }
-    }
+    res.num_points_in = in.points_in;
+    res.num_points = in.points.size();
 
     std::vector<Block> blocks = MakeBlocks(in, cfg.section_length_s);
     std::vector<std::uint32_t> slice_block(ns);
@@ -294,10 +328,22 @@ SlamResult Run(const std::vector<Slice>& slices,
     if (!(cfg.posterior && cfg.posterior_start_runs > 0 && res.posterior.computed)) return res;
     // The perturbed-start runs each hold their own copy of the points, trees and tables: this
     // run's are released first (nothing below reads them but the points of owned slices).
+    // They start from the points this run kept (not bounded again: the perturbed poses would
+    // put other points in the cubes, and the spread would be the points' as well as the start's).
     std::vector<Block>().swap(blocks);
-    if (owned != nullptr) RestorePoints(in, *owned);
+    std::vector<Slice> kept_copy;
+    std::vector<Slice>* kept = owned;
+    if (kept == nullptr && cfg.pass_cell_m > 0) {
+        kept_copy.reserve(slices.size());
+        for (const Slice& s : slices)
+            kept_copy.push_back(Slice{s.gps_time_s, s.T_world_vehicle, {}, s.pose_sigma});
+        kept = &kept_copy;
+    }
+    if (kept != nullptr) RestorePoints(in, *kept);
     in = Input{};
-    if (!AddStartSpread(slices, cfg, progress, res)) {
+    SlamConfig start_cfg = cfg;
+    start_cfg.pass_cell_m = 0;
+    if (!AddStartSpread(kept != nullptr ? *kept : slices, start_cfg, progress, res)) {
         res.termination = SlamTermination::kCancelled;
         res.message = "cancelled during the perturbed-start runs of the posterior";
     }

@@ -148,7 +148,16 @@ struct SlamConfig {
     // Down-weights wrong pairs (other surfaces within d_max, clutter). docs/decisions/009.
     RobustKernel robust_kernel = RobustKernel::kHuber;
     double robust_width = 2.0;  // kernel width, in point sigmas
-    int query_stride = 16;      // every n-th sounding of a slice is a query point
+    int query_stride = 16;      // every n-th point of a slice (of those kept) is a query point
+    // The points each pass contributes, bounded per cell (docs/decisions/036): per section
+    // (section_length_s of pings, one pass over a cell) and per cube of pass_cell_m in the world
+    // frame by the INS poses, only the first pass_cell_points points (in time order) enter SLAM.
+    // A pass's surface is then sampled at the cube's size however dense the sonar, so SLAM's
+    // points, world points and k-d trees hold a bounded count per pass over a cell, not the
+    // sonar's every sounding. 0 = every point (as before: a survey whose cubes hold at most
+    // pass_cell_points of a section's points gives the same run either way).
+    double pass_cell_m = 0.0;
+    int pass_cell_points = 1;
     // INS relative-motion terms between consecutive poses i, j: per component the sigma of the
     // motion over dt is sqrt(f^2 * 2 dt / ins_correlation_time_s (at most 1) + (g_j - g_i)^2)
     // * ins_sigma_scale, with f the survey's smallest sigma (a first-order Gauss-Markov error)
@@ -386,6 +395,8 @@ struct SlamResult {
     std::vector<SlamSection> sections;      // the rigid sections, in time order
     std::size_t num_poses = 0;              // semi-rigid unknown poses
     std::size_t num_pairs = 0;              // pairs of the last iteration
+    std::size_t num_points_in = 0;          // finite points given
+    std::size_t num_points = 0;             // ... of which SLAM used (SlamConfig::pass_cell_m)
     double initial_consistency_m = 0;       // plane-fit score of the input trajectory
     double final_consistency_m = 0;         // ... and of the result
     // The result's plane residuals per slice, as `trajectory` (NaN: in no shared cell): where

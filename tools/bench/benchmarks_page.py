@@ -49,6 +49,8 @@ COMMANDS = {
                      "`pitmap grid` per build and scale)",
     "memory_slam": "tools/bench/memory_result.py (the summary.json of `pitmap run` per build and "
                    "scale)",
+    "memory_gridtiles": "tools/bench/memory_result.py (the summary.json of `pitmap grid` per build "
+                        "and scale)",
 }
 
 
@@ -420,6 +422,9 @@ SECTIONS = {
     ("memory_blocks", "context"): render_context,
     ("memory_blocks", "stages"): render_memory_stages,
     ("memory_blocks", "grid_parts"): render_memory_grid_parts,
+    ("memory_gridtiles", "context"): render_context,
+    ("memory_gridtiles", "stages"): render_memory_stages,
+    ("memory_gridtiles", "grid_parts"): render_memory_grid_parts,
     ("memory_slam", "context"): render_context,
     ("memory_slam", "stages"): render_memory_stages,
     ("memory_slam", "per_sounding"): render_memory_per_sounding,

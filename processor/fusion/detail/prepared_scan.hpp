@@ -132,6 +132,13 @@ inline double AlongTrackReach(const PreparedBeam& pb) {
                     std::abs(static_cast<double>(pb.x_fit_hi)));
 }
 
+// The widest gap between pings a beam is widened across (half of it on each side): a bridged
+// run of missing beams is at most ping_gap_bridge_pings times ping_gap_fill_m long.
+inline double WidestGapM(const TsdfConfig& config) {
+    const int runs = config.ping_gap_fill_per_beam ? std::max(1, config.ping_gap_bridge_pings) : 1;
+    return config.ping_gap_fill_m * runs;
+}
+
 // A scan near the one being prepared, in input order (offset -1: the previous ping).
 struct ScanNeighbour {
     const SonarScan* scan = nullptr;
@@ -141,7 +148,8 @@ struct ScanNeighbour {
 
 // The beams of one scan in voxel units, from its footprints. Beam-width mode also measures the
 // gap from each footprint to the fan planes of the neighbours at offsets -1 and +1 (-2 and +2
-// where those have no footprint at the beam and these have), and fits
+// where those have no footprint at the beam and these have; further, up to
+// ping_gap_bridge_pings + 1, where the beam's footprint there agrees with this one), and fits
 // each footprint's along-track slope (PreparedBeam::dr_dx) to the footprints of the same beam
 // in the neighbours within TsdfConfig::footprint_neighbour_pings.
 PreparedScan PrepareScan(const SonarScan& scan,

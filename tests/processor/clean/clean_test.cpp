@@ -5,12 +5,17 @@
 // beams. The echoes must be rejected, the floor kept.
 #include "processor/clean/clean.hpp"
 
+#include "processor/clean/clean_blocks.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace {
 
@@ -608,6 +613,95 @@ TEST(Clean, SameVerdictsOnOneThreadAndOnAll) {
     CleanConfig one;
     one.num_threads = 1;
     EXPECT_EQ(Clean(s.geo, one).status, Clean(s.geo, CleanConfig{}).status);
+}
+
+// The view handed over in blocks of `block` soundings, each a copy (as a scratch file gives
+// them); `stop_after` blocks, then the error `fail` when it is not empty.
+pitmap::proc::clean::ViewBlocks InBlocks(const GeorefResult& geo,
+                                         std::size_t block,
+                                         std::size_t stop_after = SIZE_MAX,
+                                         const std::string& fail = "") {
+    pitmap::proc::clean::ViewBlocks view;
+    view.size = geo.points.size();
+    view.pings = &geo.pings;
+    view.sweep = [&geo, block, stop_after, fail](const pitmap::proc::clean::TakeBlock& take) {
+        const auto& P = geo.points;
+        std::size_t given = 0;
+        for (std::size_t first = 0; first < P.size() && given < stop_after; first += block) {
+            const auto from = static_cast<std::ptrdiff_t>(first);
+            const auto to = static_cast<std::ptrdiff_t>(std::min(P.size(), first + block));
+            pitmap::proc::georef::GeorefPoints b;
+            b.position_world.assign(P.position_world.begin() + from, P.position_world.begin() + to);
+            b.ping.assign(P.ping.begin() + from, P.ping.begin() + to);
+            b.beam.assign(P.beam.begin() + from, P.beam.begin() + to);
+            b.range_m.assign(P.range_m.begin() + from, P.range_m.begin() + to);
+            b.angle_rad.assign(P.angle_rad.begin() + from, P.angle_rad.begin() + to);
+            take(b);
+            ++given;
+        }
+        if (!fail.empty()) return pitmap::Status{pitmap::Error{fail}};
+        return pitmap::Status{pitmap::Ok{}};
+    };
+    return view;
+}
+
+// Every count of the cleaning but its timings.
+std::vector<std::int64_t> Counts(const pitmap::proc::clean::CleanCounts& c) {
+    return {c.soundings,
+            c.voxels,
+            c.terrain_components,
+            c.clusters,
+            c.free_space,
+            c.cluster,
+            c.multipath,
+            c.profile,
+            c.near_field,
+            c.smile,
+            c.terrain};
+}
+
+// Issue 38: the view read in blocks (a part of a ping, a few pings, many) with the plane fits in
+// batches of a few voxels' soundings gives the whole view's verdicts, sounding for sounding,
+// with the echoes (a school, bubbles, a ghost) rejected by every test and the profiles on.
+TEST(Clean, BlocksOfAFewPingsGiveTheWholeViewsVerdicts) {
+    const Survey s = MakeSurvey(true);
+    CleanConfig config;
+    config.profile_beams = 3;
+    const auto whole = Clean(s.geo, config);
+    const Tally t = Score(s, whole.status);
+    ASSERT_GT(t.rejected[kFish] + t.rejected[kBubble] + t.rejected[kGhost], 1000);
+    ASSERT_GT(whole.counts.clusters, 0);
+    for (const std::size_t block :
+         {std::size_t{97}, std::size_t{3 * kBeams + 17}, std::size_t{40 * kBeams}}) {
+        for (const std::size_t fit : {std::size_t{700}, std::size_t{1} << 23}) {
+            const auto blocks =
+                pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block), config, {}, fit);
+            ASSERT_TRUE(blocks) << blocks.error().message;
+            const auto& r = *blocks;
+            ASSERT_EQ(r.status.size(), whole.status.size());
+            std::size_t differ = 0;
+            for (std::size_t j = 0; j < r.status.size(); ++j)
+                differ += r.status[j] != whole.status[j];
+            EXPECT_EQ(differ, 0u) << "blocks of " << block << ", fits of " << fit;
+            EXPECT_EQ(Counts(r.counts), Counts(whole.counts)) << block << " " << fit;
+        }
+    }
+}
+
+TEST(Clean, ABlockThatCannotBeReadIsAnError) {
+    const Survey s = MakeSurvey(true);
+    const std::size_t block = 10 * kBeams;
+    // The reading fails half-way: its error, no verdicts.
+    auto r = pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block, 5, "view_points: short file"),
+                                              CleanConfig{});
+    ASSERT_FALSE(r);
+    EXPECT_EQ(r.error().message, "view_points: short file");
+    // Blocks that end early without an error: fewer soundings than the view's.
+    r = pitmap::proc::clean::CleanBlocks(InBlocks(s.geo, block, 5), CleanConfig{});
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("not " + std::to_string(s.geo.points.size())),
+              std::string::npos)
+        << r.error().message;
 }
 
 TEST(Clean, EmptyViewAndInvalidConfig) {

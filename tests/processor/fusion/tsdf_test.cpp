@@ -440,6 +440,96 @@ TEST(TsdfVolume, BeamsMissingInOnePingAreBridgedAsAMissingPingIs) {
     EXPECT_GT(num_vertices, 0u);
 }
 
+// A beam missing in runs of five pings (a fish school, the smile, a bubble episode: its echoes
+// rejected) over a 3 m floor: the same beam's footprints on both sides of each run agree, and the
+// floor under the run is bridged across it (ping_gap_bridge_pings); without that only a strip
+// of half a spacing by each side's ping is observed. Across a step of 0.6 m under a run (the
+// floor 3.6 m deep past it) the two sides disagree and nothing more is bridged there
+// (docs/decisions/039).
+TEST(TsdfVolume, BeamsMissingInRunsOfPingsAreBridgedWhereBothSidesAgree) {
+    SyntheticWorld world;
+    world.plane_z_m = -3.0;
+    LineSurvey survey;
+    survey.x0_m = -4.0;
+    survey.x1_m = 4.0;
+    survey.spacing_m = 0.13;
+    std::vector<SonarScan> scans = MakeScans(world, survey);
+    constexpr double kStepX = 1.0;  // between the pings at 0.68 m and 1.46 m
+    for (std::size_t k = 0; k < scans.size(); ++k) {
+        const double x = scans[k].T_world_sonar.translation().x();
+        // Past the step every range is 1.2 times the 3 m floor's: a floor 3.6 m deep.
+        if (x > kStepX) {
+            for (float& r : scans[k].ranges_m) r *= 1.2f;
+        }
+        // Within |x| <= 2 m five pings of six have no range within 18 deg of nadir.
+        if (k % 6 == 0 || std::abs(x) > 2.0) continue;
+        for (std::size_t i = 0; i < scans[k].ranges_m.size(); ++i) {
+            const double th =
+                survey.start_angle_rad + static_cast<double>(i) * survey.increment_rad;
+            if (std::abs(th) <= 18.0 * std::numbers::pi / 180.0) scans[k].ranges_m[i] = 0.0f;
+        }
+    }
+    TsdfConfig one_ping = SmallConfig(SensorModel::kBeamWidth);
+    one_ping.ping_gap_bridge_pings = 0;
+    const TsdfConfig runs = SmallConfig(SensorModel::kBeamWidth);
+    ASSERT_GE(runs.ping_gap_bridge_pings, 5);
+    TsdfVolume old_rule(one_ping), new_rule(runs);
+    old_rule.Integrate(scans);
+    new_rule.Integrate(scans);
+
+    // The level floor under the runs between the pings at -1.66 m and 0.29 m: the ping at 0.68 m
+    // is not widened towards -0.1 m (its beam would be widened as far past its plane, over the
+    // step), so the ping at -0.1 m bridges half that run.
+    int unobserved_old = 0, unobserved_new = 0, n = 0;
+    for (double x = -1.6; x <= 0.2 + 1e-9; x += 0.1) {
+        for (double y : {-0.5, 0.0, 0.5}) {
+            const Eigen::Vector3d p(x, y, world.plane_z_m);
+            unobserved_old += old_rule.WeightAt(p) == 0.0f ? 1 : 0;
+            unobserved_new += new_rule.WeightAt(p) == 0.0f ? 1 : 0;
+            ++n;
+        }
+    }
+    EXPECT_GE(unobserved_old, n / 2);
+    EXPECT_EQ(unobserved_new, 0);
+    // The floor there, x in [-1.6, 0.2] m, |y| <= 0.8 m: 2.88 m^2, within 4 cm of the plane
+    // (the widened beam holds its range out of its plane: on a level floor 3 m under the head
+    // that sphere lies x^2 / 6 m = 2.5 cm above it at x = 0.39 m, half the gap).
+    auto area_in = [](const TriangleMesh& m) {
+        double area = 0;
+        double worst = 0;
+        for (const Eigen::Vector3i& t : m.triangles) {
+            const Eigen::Vector3f a = m.vertices[static_cast<std::size_t>(t[0])];
+            const Eigen::Vector3f b = m.vertices[static_cast<std::size_t>(t[1])];
+            const Eigen::Vector3f c = m.vertices[static_cast<std::size_t>(t[2])];
+            const Eigen::Vector3f g = (a + b + c) / 3.0f;
+            if (g.x() < -1.6f || g.x() > 0.2f || std::abs(g.y()) > 0.8f) continue;
+            area += 0.5 * static_cast<double>((b - a).cross(c - a).norm());
+            worst = std::max(worst, std::abs(static_cast<double>(g.z()) + 3.0));
+        }
+        return std::pair<double, double>{area, worst};
+    };
+    const auto [area_old, worst_old] = area_in(old_rule.ExtractIsoSurface().mesh);
+    const auto [area_new, worst_new] = area_in(new_rule.ExtractIsoSurface().mesh);
+    EXPECT_LT(area_old, 0.5 * 2.88);
+    EXPECT_NEAR(area_new, 2.88, 0.2) << "one ping: " << area_old << " m^2";
+    EXPECT_LT(worst_new, 0.04);
+
+    // Under the run across the step, between the strips its two sides' pings observe with the
+    // rule of one ping: unobserved with either rule, at both floors' depths.
+    int observed_step_old = 0, observed_step_new = 0;
+    for (double x = 0.8; x <= 1.3 + 1e-9; x += 0.1) {
+        for (double y : {-0.5, 0.0, 0.5}) {
+            for (double z : {-3.0, -3.6}) {
+                const Eigen::Vector3d p(x, y, z);
+                observed_step_old += old_rule.WeightAt(p) > 0.0f ? 1 : 0;
+                observed_step_new += new_rule.WeightAt(p) > 0.0f ? 1 : 0;
+            }
+        }
+    }
+    EXPECT_EQ(observed_step_old, 0);
+    EXPECT_EQ(observed_step_new, 0);
+}
+
 // A floor the track climbs (the head pitched 0.6 rad over a level plane 5 m down: the range
 // changes by tan(0.6) = 0.68 m per metre out of the fan plane). The beam's cone is 16 cm wide
 // at the 6 m slant range; taken as a sphere of one range, its sides lie off the floor by up to
@@ -732,6 +822,10 @@ TEST(TsdfConfig, DefaultsAreValidAndEveryProblemIsListed) {
     EXPECT_EQ(bad.Validate().size(), 10u);
     bad.footprint_neighbour_pings = kMaxFootprintNeighbourPings + 1;
     EXPECT_EQ(bad.Validate().size(), 10u);
+    bad.ping_gap_bridge_pings = -1;
+    EXPECT_EQ(bad.Validate().size(), 11u);
+    bad.ping_gap_bridge_pings = kMaxBridgePings + 1;
+    EXPECT_EQ(bad.Validate().size(), 11u);
     TsdfConfig far;
     far.max_range_m = 2001.0;  // 20 010 voxels of 0.1 m
     ASSERT_EQ(far.Validate().size(), 1u);

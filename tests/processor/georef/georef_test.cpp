@@ -3,6 +3,7 @@
 // deep; every kept sounding must lie on the plane z = -10 (world up), gaps and spikes counted.
 #include "processor/georef/georef.hpp"
 #include "processor/georef/georef_blocks.hpp"
+#include "processor/georef/survey_view.hpp"
 
 #include <gtest/gtest.h>
 
@@ -582,15 +583,7 @@ struct BlockSurvey {
 
 GeorefPoints Join(const std::vector<GeorefPoints>& blocks) {
     GeorefPoints all;
-    for (const GeorefPoints& b : blocks) {
-        all.position_world.insert(
-            all.position_world.end(), b.position_world.begin(), b.position_world.end());
-        all.ping.insert(all.ping.end(), b.ping.begin(), b.ping.end());
-        all.beam.insert(all.beam.end(), b.beam.begin(), b.beam.end());
-        all.range_m.insert(all.range_m.end(), b.range_m.begin(), b.range_m.end());
-        all.angle_rad.insert(all.angle_rad.end(), b.angle_rad.begin(), b.angle_rad.end());
-        all.status.insert(all.status.end(), b.status.begin(), b.status.end());
-    }
+    for (const GeorefPoints& b : blocks) AppendPoints(b, all);
     return all;
 }
 
@@ -698,6 +691,72 @@ TEST(GeorefBlocks, ASinkThatFailsStopsTheGeoreference) {
     EXPECT_FALSE(r.message.empty());
 }
 
+// Decision 041: a stage command's view made a block of pings at a time (GeoreferenceByBlocks,
+// what LoadSurvey writes to the view's file) is the survey's view: RunGeoref's points moved onto
+// the trajectory asked for (ApplyTrajectory), bit for bit, with the pings that version lacks
+// left on the navigation and counted; and Georeference (now on blocks) is the same view held.
+TEST(GeorefBlocks, TheSurveysViewByBlocksIsRunGeorefMovedOntoItsTrajectory) {
+    const BlockSurvey sv;
+    survey::SurveyModel m;
+    m.ingest.nav = sv.nav;
+    m.ingest.pings = sv.pings;
+    m.flags = sv.flags;
+    m.mount.lever_arm_m = Eigen::Vector3d(0.8, 0.1, 0.3);
+    m.origin = {40.0005, -7.0003, 95.0};
+    const GeorefConfig cfg;
+    const GeorefResult ins =
+        RunGeoref(sv.nav, sv.pings, m.mount, cfg, m.origin, {}, nullptr, &sv.flags);
+    const std::size_t num_pings = sv.pings.pings.size();
+    m.trajectory(survey::TrajectoryVersion::kIns) = TrajectoryOf(ins, num_pings);
+    // SLAM's trajectory: every pose moved a little (a rotation and a shift growing along the
+    // survey); a few pings it has no pose for.
+    survey::PingTrajectory slam = m.trajectory(survey::TrajectoryVersion::kIns);
+    for (std::size_t i = 0; i < num_pings; ++i) {
+        const double f = static_cast<double>(i) / static_cast<double>(num_pings);
+        Pose d = Pose::Identity();
+        d.linear() = Eigen::AngleAxisd(0.002 * f, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        d.translation() = Eigen::Vector3d(0.3 * f, -0.1, 0.05 * std::sin(7.0 * f));
+        slam.T_world_vehicle[i] = d * slam.T_world_vehicle[i];
+        if (i % 37 == 5) slam.valid[i] = 0;
+    }
+    for (const bool with_slam : {false, true}) {
+        SCOPED_TRACE(with_slam ? "on SLAM's trajectory" : "on the INS's");
+        if (with_slam) m.trajectory(survey::TrajectoryVersion::kSlam) = slam;
+        GeorefResult expected = ins;
+        const std::size_t expected_kept = with_slam ? ApplyTrajectory(expected, slam) : 0;
+        ASSERT_GT(expected.points.size(), 1000u);
+        std::vector<GeorefPoints> blocks;
+        std::size_t kept = 99;
+        const GeorefResult by = GeoreferenceByBlocks(
+            m,
+            m.latest(),
+            cfg,
+            nullptr,
+            1000,
+            [&](const GeorefPoints& b, const GeorefResult&) {
+                blocks.push_back(b);
+                return true;
+            },
+            {},
+            &kept);
+        EXPECT_GT(blocks.size(), 10u);
+        EXPECT_EQ(by.points.size(), 0u) << "the view is not held";
+        ExpectSamePoints(Join(blocks), expected.points);
+        EXPECT_EQ(kept, expected_kept);
+        if (with_slam) EXPECT_GT(kept, 0u);
+        ASSERT_EQ(by.pings.size(), expected.pings.size());
+        for (std::size_t k = 0; k < by.pings.size(); ++k) {
+            EXPECT_TRUE(SameBits(by.pings[k].T_world_vehicle.data(),
+                                 expected.pings[k].T_world_vehicle.data(),
+                                 sizeof(Pose)));
+        }
+        std::size_t held_kept = 99;
+        const GeorefResult held = Georeference(m, m.latest(), cfg, nullptr, {}, &held_kept);
+        ExpectSamePoints(held.points, expected.points);
+        EXPECT_EQ(held_kept, expected_kept);
+    }
+}
+
 TEST(GeorefBlocks, TheNewMountOnBlocksIsRegeoreferencesBitForBit) {
     const BlockSurvey sv;
     survey::SonarMount mount;
@@ -714,17 +773,8 @@ TEST(GeorefBlocks, TheNewMountOnBlocksIsRegeoreferencesBitForBit) {
         const Remount remount(by, calibrated);
         std::vector<GeorefPoints> blocks;
         for (std::size_t first = 0; first < by.points.size(); first += 777) {
-            GeorefPoints b;
-            const std::size_t end = std::min(by.points.size(), first + 777);
-            const auto cut = [&](const auto& v) {
-                return std::decay_t<decltype(v)>(v.begin() + static_cast<std::ptrdiff_t>(first),
-                                                 v.begin() + static_cast<std::ptrdiff_t>(end));
-            };
-            b.position_world = cut(by.points.position_world);
-            b.ping = cut(by.points.ping);
-            b.beam = cut(by.points.beam);
-            b.range_m = cut(by.points.range_m);
-            b.angle_rad = cut(by.points.angle_rad);
+            GeorefPoints b =
+                SliceOf(by.points, first, std::min(by.points.size(), first + 777) - first);
             remount.Apply(b);
             blocks.push_back(std::move(b));
         }

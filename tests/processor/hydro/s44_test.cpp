@@ -3,12 +3,14 @@
 // soundings and nodes within them; a holiday made on purpose is found where it is and sized,
 // while a gap smaller than the feature, a gap open to the outside and the orders without full
 // coverage give none; the crossline check finds a bias between crossing passes, by beam
-// angle, and ignores passes that do not cross or are too recent.
+// angle, and ignores passes that do not cross or are too recent; the soundings given a block
+// at a time (S44ByBlocks) give the same result bit for bit.
 #include "processor/hydro/s44.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <random>
 
@@ -256,6 +258,84 @@ TEST(S44, CrosslineFindsTheBiasOfTheCrossingPassByBeamAngle) {
     // A pass along the same heading does not cross; one 10 s later is too recent.
     EXPECT_EQ(RunS44(Passes(M_PI, 130.0), g, c).crossline_compared, 0);
     EXPECT_EQ(RunS44(Passes(M_PI / 2, 40.0), g, c).crossline_compared, 0);
+}
+
+// Soundings first .. first + count - 1 of `s` (the pings' arrays left out, as a block).
+S44Soundings Slice(const S44Soundings& s, std::size_t first, std::size_t count) {
+    S44Soundings b;
+    const auto take = [&](const auto& from, auto& to) {
+        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
+                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
+    };
+    take(s.x, b.x);
+    take(s.y, b.y);
+    take(s.z, b.z);
+    take(s.depth_m, b.depth_m);
+    take(s.thu_95_m, b.thu_95_m);
+    take(s.tvu_95_m, b.tvu_95_m);
+    take(s.angle_deg, b.angle_deg);
+    take(s.ping, b.ping);
+    return b;
+}
+
+bool SameBits(double a, double b) {
+    return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+// S44ByBlocks (decision 035): the soundings given a block at a time, twice, give RunS44's
+// result bit for bit: the shares, the node THU, the holidays, the crossline sums.
+TEST(S44, BlocksGiveTheWholeSurveysResultBitForBit) {
+    S44Grid g = Flat(46, 46, 0.5, [](int i, int j) {
+        return (i > 20 && i < 29 && j > 20 && j < 29) || i + j < 4;
+    });
+    g.x0 = 999;
+    g.y0 = 1999;
+    for (std::size_t q = 0; q < g.elevation_m.size(); ++q) {
+        if (std::isfinite(g.elevation_m[q])) g.elevation_m[q] += 0.01f * static_cast<float>(q % 7);
+    }
+    S44Soundings s = Passes(M_PI / 2, 130.0);
+    for (std::size_t j = 0; j < s.z.size(); j += 101) s.depth_m[j] = std::nanf("");
+    for (std::size_t j = 0; j < s.z.size(); j += 307) s.thu_95_m[j] = 0.9f;
+    S44Config c;
+    c.crossline_cell_m = 1.0;
+    c.order = S44Order::kSpecial;
+    const S44Result whole = RunS44(s, g, c);
+    ASSERT_GT(whole.crossline_compared, 1000);
+    ASSERT_FALSE(whole.holidays.empty());
+    for (std::size_t block : {std::size_t{1}, std::size_t{977}, s.z.size(), 3 * s.z.size()}) {
+        SCOPED_TRACE(block);
+        S44ByBlocks blocks(g, c, s.ping_t_s, s.ping_yaw_rad);
+        for (std::size_t f = 0; f < s.z.size(); f += block)
+            blocks.AddFirst(Slice(s, f, std::min(block, s.z.size() - f)));
+        for (std::size_t f = 0; f < s.z.size(); f += block)
+            blocks.AddSecond(Slice(s, f, std::min(block, s.z.size() - f)));
+        const S44Result r = blocks.Finish();
+        EXPECT_EQ(r.message, whole.message);
+        EXPECT_EQ(r.soundings, whole.soundings);
+        EXPECT_EQ(r.nodes, whole.nodes);
+        EXPECT_EQ(r.nodes_without_thu, whole.nodes_without_thu);
+        for (int o = 0; o < kNumS44Orders; ++o) {
+            EXPECT_TRUE(SameBits(r.soundings_within_both[o], whole.soundings_within_both[o]));
+            EXPECT_TRUE(SameBits(r.nodes_within_thu[o], whole.nodes_within_thu[o]));
+            EXPECT_TRUE(SameBits(r.nodes_within_tvu[o], whole.nodes_within_tvu[o]));
+        }
+        EXPECT_EQ(r.holidays.size(), whole.holidays.size());
+        EXPECT_TRUE(SameBits(r.feature_size_m, whole.feature_size_m));
+        EXPECT_EQ(r.holiday_map.size(), whole.holiday_map.size());
+        EXPECT_EQ(0,
+                  std::memcmp(r.holiday_map.data(),
+                              whole.holiday_map.data(),
+                              whole.holiday_map.size() * sizeof(float)));
+        EXPECT_EQ(r.crossline_compared, whole.crossline_compared);
+        EXPECT_TRUE(SameBits(r.crossline_mean_m, whole.crossline_mean_m));
+        EXPECT_TRUE(SameBits(r.crossline_rms_m, whole.crossline_rms_m));
+        EXPECT_TRUE(SameBits(r.crossline_sd_m, whole.crossline_sd_m));
+        ASSERT_EQ(r.crossline_by_angle.size(), whole.crossline_by_angle.size());
+        for (std::size_t b = 0; b < r.crossline_by_angle.size(); ++b) {
+            EXPECT_TRUE(SameBits(r.crossline_by_angle[b].rms_m, whole.crossline_by_angle[b].rms_m));
+            EXPECT_EQ(r.crossline_by_angle[b].count, whole.crossline_by_angle[b].count);
+        }
+    }
 }
 
 TEST(S44, ValidateListsEveryProblem) {

@@ -149,23 +149,6 @@ TEST(ViewSpill, AnUnwritablePlaceOrUnequalArraysLeaveThePointsHeld) {
     EXPECT_FALSE(fs::exists(Scratch("unequal")));
 }
 
-// Points first .. first + count - 1 of `p`.
-georef::GeorefPoints Slice(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto take = [&](const auto& from, auto& to) {
-        if (from.empty()) return;
-        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
-                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    take(p.position_world, out.position_world);
-    take(p.ping, out.ping);
-    take(p.beam, out.beam);
-    take(p.range_m, out.range_m);
-    take(p.angle_rad, out.angle_rad);
-    take(p.status, out.status);
-    return out;
-}
-
 TEST(ViewSpill, BlocksReadFromTheFileAreTheViewBitForBit) {
     for (const bool with_status : {false, true}) {
         const std::size_t n = 10007;
@@ -183,18 +166,8 @@ TEST(ViewSpill, BlocksReadFromTheFileAreTheViewBitForBit) {
                 ASSERT_TRUE(spilled->ReadBlock(first, block, b)) << block;
                 const std::size_t count = std::min(block, n - first);
                 ASSERT_EQ(b.size(), count);
-                ExpectSameBits(b, Slice(original, first, count));
-                if (block != 1) {
-                    const auto append = [](const auto& from, auto& to) {
-                        to.insert(to.end(), from.begin(), from.end());
-                    };
-                    append(b.position_world, joined.position_world);
-                    append(b.ping, joined.ping);
-                    append(b.beam, joined.beam);
-                    append(b.range_m, joined.range_m);
-                    append(b.angle_rad, joined.angle_rad);
-                    append(b.status, joined.status);
-                }
+                ExpectSameBits(b, georef::SliceOf(original, first, count));
+                if (block != 1) georef::AppendPoints(b, joined);
             }
             if (block != 1) ExpectSameBits(joined, original);
         }
@@ -233,7 +206,7 @@ TEST(ViewSpill, KeepOnlyLeavesTheKeptPointsInTheirOrder) {
         georef::GeorefPoints expected;
         for (std::size_t j = 0; j < n; ++j) {
             if (!keep[j]) continue;
-            const georef::GeorefPoints one = Slice(original, j, 1);
+            const georef::GeorefPoints one = georef::SliceOf(original, j, 1);
             expected.position_world.push_back(one.position_world[0]);
             expected.ping.push_back(one.ping[0]);
             expected.beam.push_back(one.beam[0]);
@@ -293,7 +266,7 @@ TEST(ViewSpill, AFileWrittenByBlocksIsTheFileSpillWrites) {
                     ASSERT_TRUE(writer) << writer.error().message;
                     for (std::size_t first = 0; first < n; first += block) {
                         ASSERT_TRUE(
-                            writer->Append(Slice(original, first, std::min(block, n - first))));
+                            writer->Append(georef::SliceOf(original, first, std::min(block, n - first))));
                     }
                     EXPECT_EQ(writer->size(), n);
                     auto finished = writer->Finish();

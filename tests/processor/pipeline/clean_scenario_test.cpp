@@ -140,7 +140,9 @@ TEST(CleanScenario, EveryLevelCleanedAndTheProductsFollow) {
 // across the fan (docs/decisions/025-smile-and-ghost-pieces.md). The bounds at typical,
 // but the mesh completeness: -0.53 point of the run without artifacts (-0.71 before the TSDF
 // bridged a beam missing in one ping and the floor seen between a school's pings stopped being
-// multipath, docs/decisions/026-completeness-beams-the-artifacts-took.md), held at 0.6 point.
+// multipath, docs/decisions/026-completeness-beams-the-artifacts-took.md; -0.46 since it bridges
+// runs of up to 8 pings where both sides agree, 039-bridging-runs-of-missing-beams.md), held at
+// the 0.5 point.
 // The same survey without artifacts, less only the beams the artifacts took (rejected by hand,
 // nothing else cleaned), is -0.53 point too: that much of the surface no sounding of this
 // survey sees, and no cleaning can give it back.
@@ -188,7 +190,7 @@ TEST(CleanScenario, ASecondSeedAtTypical) {
     EXPECT_LE(At(typical, "points_rms_m"), 1.05 * At(none, "points_rms_m"));
     EXPECT_LE(At(typical, "mesh_share_beyond_1m"), 0.0005);
     EXPECT_LE(At(typical, "mesh_mean_abs_m"), 1.10 * At(none, "mesh_mean_abs_m"));
-    EXPECT_GE(At(typical, "mesh_completeness"), At(none, "mesh_completeness") - 0.006);
+    EXPECT_GE(At(typical, "mesh_completeness"), At(none, "mesh_completeness") - 0.005);
     EXPECT_LE(At(typical, "dem_mean_abs_m"), 1.15 * At(none, "dem_mean_abs_m"));
     if (!HasFailure()) fs::remove_all(dir);
 }

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT
 // Scenario test of the grid stage reading the georeferenced view a block at a time from its
-// scratch file (issue 38 item 1, docs/decisions/031-grid-stage-by-view-blocks.md): the first
-// 90 s of bejanca, georeferenced once, gridded twice from copies of one products folder, with
-// blocks of 1 024 soundings (the smallest; about 400 blocks) and with one block holding the
-// whole view. The DEM (every band, bit for bit), the point files and S-44's holiday map
-// (byte for byte, the processing time masked), the survey model's flags and summary.json's figures
-// (the TPU, the sound speed, S-44, CUBE, the surface filter's rejections, the soundings' counts)
-// are the same.
+// scratch file (issue 38 item 1, docs/decisions/031-grid-stage-by-view-blocks.md) and running
+// CUBE and its surface filter by bands of node rows from CUBE's input on disk (decision 035):
+// the first 90 s of bejanca, georeferenced once, gridded twice from copies of one products
+// folder, with blocks of 1 024 soundings (the smallest; about 400 blocks, CUBE in bands of at
+// most 4 096 soundings) and with one block holding the whole view (CUBE in one band). The DEM
+// (every band, bit for bit), the point files, S-44's holiday map and the layers made from the
+// DEM (byte for byte, the processing time masked), the survey model's flags and summary.json's
+// figures (the TPU, the sound speed, S-44, CUBE, the surface filter's rejections, the
+// soundings' counts) are the same, and no scratch file is left.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -61,7 +63,8 @@ nlohmann::json GridFigures(const fs::path& summary) {
                           "seconds",
                           "cpu_seconds",
                           "started_utc",
-                          "finished_utc"}) {
+                          "finished_utc",
+                          "cube_bands"}) {
         g.erase(k);
     }
     return g;
@@ -93,8 +96,13 @@ TEST(GridBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsProducts) {
                              &out),
                   0)
             << out;
-        EXPECT_FALSE(fs::exists(p / ".partial-view_points")) << p;
+        for (const auto& e : fs::directory_iterator(p)) {
+            EXPECT_NE(e.path().filename().string().rfind(".partial-", 0), 0U) << e.path();
+        }
     }
+    // CUBE by many bands with the small blocks, by one with the whole view.
+    EXPECT_GT(ReadJson(small / "summary.json")["stages"]["grid"].value("cube_bands", 0), 4);
+    EXPECT_EQ(ReadJson(whole / "summary.json")["stages"]["grid"].value("cube_bands", 0), 1);
     const nlohmann::json a = GridFigures(small / "summary.json");
     const nlohmann::json b = GridFigures(whole / "summary.json");
     ASSERT_GT(a.value("soundings", 0), 100 * 1024) << "too few soundings for many blocks";
@@ -123,6 +131,9 @@ TEST(GridBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsProducts) {
                           "s44_holidays.tif",
                           "dem.tif",
                           "mosaic.tif",
+                          "terrain.tif",
+                          "crawler.tif",
+                          "capacity.csv",
                           "survey.pitmap"}) {
         if (!fs::exists(whole / f)) continue;
         EXPECT_TRUE(Bytes(small / f) == Bytes(whole / f)) << f;

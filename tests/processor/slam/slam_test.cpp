@@ -962,5 +962,86 @@ TEST(Slam, SlicesGivenToKeepGiveTheSameRunBitForBit) {
                   moved.memory.pairs_bytes);
 }
 
+// The points each pass contributes, bounded per cube (SlamConfig::pass_cell_m, decision 036):
+// a survey whose cubes hold no more of a section's points than the bound gives the same run to
+// the bit as one without the bound (the perturbed-start runs included); a bound that thins
+// still recovers the drift, and the run given its slices to keep and the one given them to
+// move agree to the bit (the start runs take the points the main run kept).
+SlamResult RunBounded(const Survey& sv, double cell_m, int per_cell, bool move) {
+    SlamConfig cfg = TestConfig();
+    cfg.coarse_search_m = 0;
+    cfg.posterior = true;
+    cfg.posterior_start_runs = 2;
+    cfg.num_threads = 1;
+    cfg.pass_cell_m = cell_m;
+    cfg.pass_cell_points = per_cell;
+    if (!move) return RunSlam(sv.slices, cfg);
+    std::vector<Slice> given = sv.slices;
+    return RunSlam(std::move(given), cfg);
+}
+
+void ExpectSameRun(const SlamResult& a, const SlamResult& b) {
+    ASSERT_EQ(a.termination, b.termination);
+    ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+    ASSERT_EQ(a.posterior.start_runs, b.posterior.start_runs);
+    for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
+        EXPECT_TRUE(a.trajectory[i].T_world_vehicle.matrix() ==
+                    b.trajectory[i].T_world_vehicle.matrix())
+            << i;
+        EXPECT_TRUE(a.posterior.slice_sigma[i] == b.posterior.slice_sigma[i]) << i;
+        EXPECT_TRUE(a.posterior.start_spread[i] == b.posterior.start_spread[i]) << i;
+    }
+    EXPECT_EQ(a.final_pair_score_m, b.final_pair_score_m);
+}
+
+// The crossing with an outage's sigmas from 60 s to 96 s (the perturbed-start runs are made).
+Survey OutageCrossing() {
+    Survey sv = MakeSurvey(kCrossing, 0.0);
+    for (Slice& s : sv.slices) {
+        const double t = s.gps_time_s - 1000.0;
+        s.pose_sigma << 0.002, 0.002, 0.004, 0.02, 0.02, 0.02;
+        if (t >= 60.0 && t < 96.0) s.pose_sigma.tail<3>().setConstant(0.3);
+    }
+    return sv;
+}
+
+TEST(Slam, CubesBelowThePassBoundGiveTheSameRun) {
+    const Survey sv = OutageCrossing();
+    const SlamResult all = RunBounded(sv, 0.0, 1, true);
+    // 2 m cubes hold at most a few hundred of a section's points (40 pings of 61 beams).
+    const SlamResult loose = RunBounded(sv, 2.0, 100000, true);
+    ASSERT_EQ(all.posterior.start_runs, 2u) << all.posterior.start_runs_note;
+    EXPECT_EQ(loose.num_points, loose.num_points_in);
+    EXPECT_EQ(all.num_points, all.num_points_in);
+    ExpectSameRun(all, loose);
+}
+
+TEST(Slam, APassBoundThatThinsStillRecoversTheDrift) {
+    const Survey sv = MakeSurvey(kCrossing, 1.0);
+    const double before = Ate(Initial(sv.slices), sv.truth);
+    SlamConfig cfg = TestConfig();
+    const SlamResult all = RunSlam(sv.slices, cfg);
+    cfg.pass_cell_m = 0.5;
+    cfg.pass_cell_points = 1;
+    const SlamResult thin = RunSlam(sv.slices, cfg);
+    ASSERT_NE(thin.termination, SlamTermination::kInvalidInput) << thin.message;
+    ASSERT_NE(thin.termination, SlamTermination::kNoOverlap) << thin.message;
+    EXPECT_LT(thin.num_points, all.num_points * 3 / 4);
+    EXPECT_EQ(thin.num_points_in, all.num_points);
+    EXPECT_LT(thin.memory.points_bytes, all.memory.points_bytes);
+    EXPECT_EQ(thin.memory.points_bytes, thin.num_points * sizeof(Eigen::Vector3f));
+    const double ate_all = Ate(all.trajectory, sv.truth), ate_thin = Ate(thin.trajectory, sv.truth);
+    EXPECT_LT(ate_thin, 0.5 * before);
+    EXPECT_LT(ate_thin, 2.0 * ate_all + 0.01) << "all points " << ate_all;
+}
+
+TEST(Slam, APassBoundGivesTheSameRunToSlicesKeptOrMoved) {
+    const Survey sv = OutageCrossing();
+    const SlamResult moved = RunBounded(sv, 0.5, 1, true);
+    EXPECT_LT(moved.num_points, moved.num_points_in);
+    ASSERT_EQ(moved.posterior.start_runs, 2u) << moved.posterior.start_runs_note;
+    ExpectSameRun(moved, RunBounded(sv, 0.5, 1, false));
+}
+
 }  // namespace
 }  // namespace pitmap::proc::slam
