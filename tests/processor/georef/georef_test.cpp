@@ -743,7 +743,9 @@ TEST(GeorefBlocks, TheSurveysViewByBlocksIsRunGeorefMovedOntoItsTrajectory) {
         EXPECT_EQ(by.points.size(), 0u) << "the view is not held";
         ExpectSamePoints(Join(blocks), expected.points);
         EXPECT_EQ(kept, expected_kept);
-        if (with_slam) EXPECT_GT(kept, 0u);
+        if (with_slam) {
+            EXPECT_GT(kept, 0u);
+        }
         ASSERT_EQ(by.pings.size(), expected.pings.size());
         for (std::size_t k = 0; k < by.pings.size(); ++k) {
             EXPECT_TRUE(SameBits(by.pings[k].T_world_vehicle.data(),
