@@ -206,14 +206,13 @@ Status WritePointsOf(const std::string& dir,
 
 // The held points as points_utm.ply reads them (one block: the points themselves).
 AcceptedPointsReader HeldPointsReader(const georef::GeorefPoints& points) {
-    return [&points](std::size_t first,
-                     std::size_t,
-                     const georef::GeorefPoints*& out,
-                     std::size_t& offset) {
-        out = &points;
-        offset = first;
-        return Status{Ok{}};
-    };
+    return
+        [&points](
+            std::size_t first, std::size_t, const georef::GeorefPoints*& out, std::size_t& offset) {
+            out = &points;
+            offset = first;
+            return Status{Ok{}};
+        };
 }
 
 }  // namespace
@@ -266,12 +265,13 @@ io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block) {
     blocks.count = ViewSize(s);
     blocks.for_each =
         [&s, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
-            return ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
-                s.geo.points = b;
-                Status w = fn(s.geo, first);
-                s.geo.points = georef::GeorefPoints();
-                return w;
-            });
+            return ForEachViewBlock(
+                s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+                    s.geo.points = b;
+                    Status w = fn(s.geo, first);
+                    s.geo.points = georef::GeorefPoints();
+                    return w;
+                });
         };
     return blocks;
 }
@@ -598,7 +598,8 @@ Status GeoreferenceToFile(StageContext& s,
                           const ProgressCallback& progress,
                           const Log& log) {
     const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
-        const auto checked = [&](const georef::GeorefPoints& b, const georef::GeorefResult& so_far) {
+        const auto checked = [&](const georef::GeorefPoints& b,
+                                 const georef::GeorefResult& so_far) {
             if (check != nullptr) check->Add(so_far, b);
             return sink(b, so_far);
         };

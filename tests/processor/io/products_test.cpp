@@ -559,8 +559,8 @@ TEST_F(ProductReaders, PointFilesFromBlocksOfTheViewsFileAreTheHeldViewsFiles) {
         const std::string ply = (dir_ / "blocks.ply").string();
         const std::string las = (dir_ / "blocks.las").string();
         ASSERT_TRUE(WritePly(ply, pings_only, blocks, &x, "0123456789abcdef0123456789abcdef", &r));
-        ASSERT_TRUE(
-            WriteLas(las, pings_only, blocks, *utm, &x, "0123456789abcdef0123456789abcdef", &r, nullptr));
+        ASSERT_TRUE(WriteLas(
+            las, pings_only, blocks, *utm, &x, "0123456789abcdef0123456789abcdef", &r, nullptr));
         EXPECT_GE(asked, 2 * n) << "PLY once, LAS at least once more";
         EXPECT_EQ(ReadBytes(ply), ReadBytes(held_ply)) << block;
         EXPECT_EQ(ReadBytes(las), ReadBytes(held_las)) << block;

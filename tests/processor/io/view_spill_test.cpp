@@ -265,8 +265,8 @@ TEST(ViewSpill, AFileWrittenByBlocksIsTheFileSpillWrites) {
                     auto writer = SpillWriter::Open(path, capacity, with_status);
                     ASSERT_TRUE(writer) << writer.error().message;
                     for (std::size_t first = 0; first < n; first += block) {
-                        ASSERT_TRUE(
-                            writer->Append(georef::SliceOf(original, first, std::min(block, n - first))));
+                        ASSERT_TRUE(writer->Append(
+                            georef::SliceOf(original, first, std::min(block, n - first))));
                     }
                     EXPECT_EQ(writer->size(), n);
                     auto finished = writer->Finish();
