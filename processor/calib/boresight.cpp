@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/calib/boresight.hpp"
+#include "processor/calib/boresight_blocks.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -30,6 +31,7 @@ using detail::IndexOwnPasses;
 using detail::Pair;
 using detail::Samples;
 using detail::Stats;
+using detail::ViewWindows;
 using georef::GeorefResult;
 using survey::SonarMount;
 
@@ -154,7 +156,7 @@ void Positions(const PingPoses& T,
 
 // The soundings of [t0, t1) with their own passes indexed at the given mount and latency;
 // every query_every-th of them seeks pairs.
-Samples CollectIndexed(const GeorefResult& geo,
+Samples CollectIndexed(const ViewWindows& view,
                        const ShiftedPoses& poses,
                        const SonarMount& m,
                        double tau,
@@ -162,7 +164,7 @@ Samples CollectIndexed(const GeorefResult& geo,
                        double t1,
                        int query_every,
                        const BoresightConfig& cfg) {
-    Samples S = Collect(geo, t0, t1, cfg.beam_stride);
+    Samples S = Collect(view, t0, t1, cfg.beam_stride);
     S.query_every = query_every;
     std::vector<Eigen::Vector3d> p;
     Positions(PingPoses(poses, S, tau), S, m, p);
@@ -193,7 +195,7 @@ std::pair<double, std::int64_t> ScanCost(const ShiftedPoses& poses,
     return {st.pairs > 0 ? st.median_abs_m : std::numeric_limits<double>::infinity(), st.pairs};
 }
 
-SegmentScore ScoreSegment(const GeorefResult& geo,
+SegmentScore ScoreSegment(const ViewWindows& view,
                           const survey::NavSeries& nav,
                           double t0,
                           double t1,
@@ -205,16 +207,22 @@ SegmentScore ScoreSegment(const GeorefResult& geo,
         double lo = 1e300, hi = -1e300;
     };
     std::unordered_map<std::uint64_t, Span> cells;
-    const auto& P = geo.points;
-    for (std::size_t j = 0; j < P.size(); j += 7) {
-        const double t = static_cast<double>(geo.pings[P.ping[j]].utime_gps) * 1e-6;
-        if (t < t0 || t >= t1) continue;
-        const auto& x = P.position_world[j];
-        const std::uint64_t key = reg::CellKeyOf(x.x(), x.y(), 1.0);
-        Span& sp = cells[key];
-        sp.lo = std::min(sp.lo, t);
-        sp.hi = std::max(sp.hi, t);
-    }
+    const GeorefResult& geo = view.geo();
+    // Every 7th sounding of the view (by its index in the whole view).
+    view.ForEach(
+        t0,
+        t1,
+        [&](const georef::GeorefPoints& P, std::size_t first, std::size_t lo, std::size_t hi) {
+            for (std::size_t j = lo + (7 - (first + lo) % 7) % 7; j < hi; j += 7) {
+                const double t = static_cast<double>(geo.pings[P.ping[j]].utime_gps) * 1e-6;
+                if (t < t0 || t >= t1) continue;
+                const auto& x = P.position_world[j];
+                const std::uint64_t key = reg::CellKeyOf(x.x(), x.y(), 1.0);
+                Span& sp = cells[key];
+                sp.lo = std::min(sp.lo, t);
+                sp.hi = std::max(sp.hi, t);
+            }
+        });
     for (const auto& [k, sp] : cells) s.overlap_cells += (sp.hi - sp.lo >= cfg.min_separation_s);
     for (const auto& sd : nav.stddevs) {
         const double t = static_cast<double>(sd.utime_gps) * 1e-6;
@@ -287,9 +295,10 @@ bool BetterSegment(const SegmentScore& a, const SegmentScore& b) {
 // Candidate windows, overlapping by 3/4. When no window of the configured length is low drift (a
 // GNSS outage longer than the survey's quiet stretches), shorter ones are tried, down to a
 // quarter of it, before settling for the best drifting one.
-std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
+std::vector<SegmentScore> CandidateSegments(const ViewWindows& view,
                                             const survey::NavSeries& nav,
                                             const BoresightConfig& cfg) {
+    const GeorefResult& geo = view.geo();
     const double t_first = static_cast<double>(geo.pings.front().utime_gps) * 1e-6;
     const double t_last = static_cast<double>(geo.pings.back().utime_gps) * 1e-6 + 1e-6;
     std::vector<SegmentScore> candidates;
@@ -297,7 +306,7 @@ std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
     for (double dur = full; dur >= full / 4 - 1e-9; dur /= 2) {
         const double step = dur / 4;
         for (double t0 = t_first; t0 + dur <= t_last + 1e-9; t0 += step) {
-            candidates.push_back(ScoreSegment(geo, nav, t0, t0 + dur, cfg));
+            candidates.push_back(ScoreSegment(view, nav, t0, t0 + dur, cfg));
             if (step <= 0) break;
         }
         if (std::any_of(candidates.begin(),
@@ -307,18 +316,18 @@ std::vector<SegmentScore> CandidateSegments(const GeorefResult& geo,
             break;
         }
     }
-    if (candidates.empty()) candidates.push_back(ScoreSegment(geo, nav, t_first, t_last, cfg));
+    if (candidates.empty()) candidates.push_back(ScoreSegment(view, nav, t_first, t_last, cfg));
     return candidates;
 }
 
 // The configured window, else the best candidate.
-SegmentScore ChooseSegment(const GeorefResult& geo,
+SegmentScore ChooseSegment(const ViewWindows& view,
                            const survey::NavSeries& nav,
                            const std::vector<SegmentScore>& candidates,
                            const BoresightConfig& cfg) {
     if (cfg.segment_start_s >= 0) {
         return ScoreSegment(
-            geo, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
+            view, nav, cfg.segment_start_s, cfg.segment_start_s + cfg.segment_duration_s, cfg);
     }
     return *std::min_element(candidates.begin(), candidates.end(), BetterSegment);
 }
@@ -691,7 +700,7 @@ std::vector<SegmentScore> VerifySegments(const std::vector<SegmentScore>& candid
 }
 
 // The residuals on segment c before (nominal mount and latency) and after the calibration.
-VerifyResult VerifyOn(const GeorefResult& geo,
+VerifyResult VerifyOn(const ViewWindows& view,
                       const ShiftedPoses& poses,
                       const SegmentScore& c,
                       const SonarMount& mount,
@@ -699,7 +708,7 @@ VerifyResult VerifyOn(const GeorefResult& geo,
                       const BoresightResult& res,
                       const BoresightConfig& cfg) {
     const Samples V =
-        CollectIndexed(geo, poses, mount, tau0, c.start_s, c.end_s, cfg.verify_query_every, cfg);
+        CollectIndexed(view, poses, mount, tau0, c.start_s, c.end_s, cfg.verify_query_every, cfg);
     VerifyResult v{c,
                    Evaluate(poses, V, mount, tau0, cfg),
                    Evaluate(poses, V, res.mount, res.latency_s, cfg),
@@ -737,7 +746,27 @@ std::string Summary(const BoresightResult& res, bool solve_failed) {
 
 }  // namespace
 
+ViewReader HeldView(const georef::GeorefPoints& points) {
+    ViewReader r;
+    r.size = points.size();
+    r.read = [&points](std::size_t first, std::size_t end, const ViewVisit& visit) {
+        end = std::min(end, points.size());
+        if (first < end) visit(points, 0, first, end);
+        return true;
+    };
+    return r;
+}
+
 BoresightResult CalibrateBoresight(const GeorefResult& geo,
+                                   const survey::NavSeries& nav,
+                                   const SonarMount& mount,
+                                   const BoresightConfig& cfg,
+                                   const ProgressCallback& progress) {
+    return CalibrateBoresight(geo, HeldView(geo.points), nav, mount, cfg, progress);
+}
+
+BoresightResult CalibrateBoresight(const GeorefResult& geo,
+                                   const ViewReader& reader,
                                    const survey::NavSeries& nav,
                                    const SonarMount& mount,
                                    const BoresightConfig& cfg,
@@ -748,13 +777,14 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
         res.message = "too few georeferenced pings";
         return res;
     }
-    res.candidates = CandidateSegments(geo, nav, cfg);
-    res.segment = ChooseSegment(geo, nav, res.candidates, cfg);
+    const ViewWindows view(geo, reader);
+    res.candidates = CandidateSegments(view, nav, cfg);
+    res.segment = ChooseSegment(view, nav, res.candidates, cfg);
 
     const ShiftedPoses poses(geo, nav);
     const double tau0 = cfg.estimate_latency ? cfg.initial_latency_s : 0.0;
     const Samples S =
-        CollectIndexed(geo, poses, mount, tau0, res.segment.start_s, res.segment.end_s, 1, cfg);
+        CollectIndexed(view, poses, mount, tau0, res.segment.start_s, res.segment.end_s, 1, cfg);
     res.before = Evaluate(poses, S, mount, tau0, cfg);
     double tau = tau0;
     if (cfg.estimate_latency && cfg.latency_scan_s > 0) {
@@ -789,7 +819,7 @@ BoresightResult CalibrateBoresight(const GeorefResult& geo,
     res.after = Evaluate(poses, S, res.mount, res.latency_s, cfg);
 
     for (const auto& c : VerifySegments(res.candidates, res.segment, cfg))
-        res.verify.push_back(VerifyOn(geo, poses, c, mount, tau0, res, cfg));
+        res.verify.push_back(VerifyOn(view, poses, c, mount, tau0, res, cfg));
     res.message = Summary(res, fit.solve_failed);
     return res;
 }

@@ -8,6 +8,7 @@
 #include <limits>
 #include <memory>
 
+#include "processor/georef/georef_blocks.hpp"
 #include "processor/registration/neighbours.hpp"
 #include "processor/registration/normals.hpp"
 
@@ -67,6 +68,51 @@ double BoxDistance2(const Eigen::Vector3d& q, const PassBlock& b) {
 }
 
 }  // namespace
+
+ViewWindows::ViewWindows(const georef::GeorefResult& geo, const ViewReader& view)
+    : geo_(geo), view_(view), ping_first_(geo.pings.size() + 1, 0) {
+    // Counts per ping, then their running sum.
+    view.read(0,
+              view.size,
+              [&](const georef::GeorefPoints& P, std::size_t, std::size_t lo, std::size_t hi) {
+                  for (std::size_t i = lo; i < hi; ++i) {
+                      if (P.ping[i] < geo.pings.size()) ++ping_first_[P.ping[i] + 1];
+                  }
+              });
+    for (std::size_t k = 1; k < ping_first_.size(); ++k) ping_first_[k] += ping_first_[k - 1];
+}
+
+void ViewWindows::ForEach(double t0, double t1, const ViewVisit& visit) const {
+    std::size_t k_lo = geo_.pings.size(), k_hi = 0;
+    for (std::size_t k = 0; k < geo_.pings.size(); ++k) {
+        const double t = static_cast<double>(geo_.pings[k].utime_gps) * 1e-6;
+        if (t < t0 || t >= t1) continue;
+        k_lo = std::min(k_lo, k);
+        k_hi = k + 1;
+    }
+    if (k_lo >= k_hi) return;
+    view_.read(ping_first_[k_lo], std::min(ping_first_[k_hi], view_.size), visit);
+}
+
+Samples Collect(const ViewWindows& view, double t0, double t1, int stride) {
+    Samples S;
+    const georef::GeorefResult& geo = view.geo();
+    view.ForEach(
+        t0, t1, [&](const georef::GeorefPoints& P, std::size_t, std::size_t lo, std::size_t hi) {
+            for (std::size_t j = lo; j < hi; ++j) {
+                if (P.beam[j] % stride != 0) continue;
+                const auto& ping = geo.pings[P.ping[j]];
+                const double t = static_cast<double>(ping.utime_gps) * 1e-6;
+                if (t < t0 || t >= t1) continue;
+                S.ping.push_back(P.ping[j]);
+                // With refraction: the traced sounding seen from the head at the current mount
+                // (the ray's bend changes little over the boresight's fraction of a degree).
+                S.s_sonar.push_back(georef::SoundingVectorSonar(geo, P, j));
+                S.t_s.push_back(t - t0);
+            }
+        });
+    return S;
+}
 
 Samples Collect(const georef::GeorefResult& geo, double t0, double t1, int stride) {
     Samples S;

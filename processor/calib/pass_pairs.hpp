@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "processor/calib/boresight.hpp"
+#include "processor/calib/boresight_blocks.hpp"
 #include "processor/registration/correspondence.hpp"
 
 namespace pitmap::proc::calib::detail {
@@ -41,6 +42,27 @@ struct Samples {
 
 // The soundings of pings in [t0, t1) (GPS seconds), every stride-th beam.
 Samples Collect(const georef::GeorefResult& geo, double t0, double t1, int stride);
+
+// A view read by time windows: which soundings the pings of a window hold (the view's
+// soundings come in ping order), so that a window reads only its range of the view.
+class ViewWindows {
+public:
+    // One pass over the view for each ping's first sounding. `geo` (its pings) and `view`
+    // must outlive it.
+    ViewWindows(const georef::GeorefResult& geo, const ViewReader& view);
+    // Visits, in the view's order, the soundings from the first ping whose time lies in
+    // [t0, t1) (GPS seconds) to the last (the caller filters by time, as over the whole view).
+    void ForEach(double t0, double t1, const ViewVisit& visit) const;
+    const georef::GeorefResult& geo() const { return geo_; }
+
+private:
+    const georef::GeorefResult& geo_;
+    const ViewReader& view_;
+    std::vector<std::size_t> ping_first_;  // per ping and one past the last: a sounding index
+};
+
+// Collect over a view read by windows: the same samples.
+Samples Collect(const ViewWindows& view, double t0, double t1, int stride);
 
 // A correspondence (query: the sample, target: its closest point of another pass; the normal
 // is the query's, from its own pass), its point-to-plane residual and 1 / sigma^2.

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/georef/georef.hpp"
+#include "processor/georef/georef_blocks.hpp"
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -223,9 +224,10 @@ PingWork PlacePing(const PingContext& ctx, std::size_t k, PingWater& water) {
 }
 
 // The ping's ranges (-1 where the beam has none, with status kNoDetection), the range gate's
-// verdicts in `status`.
+// verdicts in `status` (the ping's beams from slot `at` on).
 void GateRanges(const PingContext& ctx,
                 const survey::PingHeader& h,
+                std::size_t at,
                 std::vector<double>& r,
                 std::vector<std::uint8_t>& status) {
     const GeorefConfig& config = ctx.config;
@@ -238,52 +240,56 @@ void GateRanges(const PingContext& ctx,
         const std::size_t j = h.beam_offset + i;
         const std::uint32_t c = ctx.series.range_counts[j];
         if (c == 0) {
-            status[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kNoDetection);
+            status[at + i] = static_cast<std::uint8_t>(survey::SoundingStatus::kNoDetection);
             continue;
         }
         const double range = c * scale;
         r[i] = range;
         if (range < config.min_range_m || range > config.max_range_m) {
-            status[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kRangeGate);
+            status[at + i] = static_cast<std::uint8_t>(survey::SoundingStatus::kRangeGate);
         }
     }
 }
 
-// Marks the ping's spikes (SpikeFilter; the median runs over the ranges inside the gate).
-// `keep_range` and `keep` are scratch.
+// Marks the ping's spikes (SpikeFilter; the median runs over the ranges inside the gate) in
+// `status` from slot `at` on. `keep_range` and `keep` are scratch.
 void FlagSpikes(const GeorefConfig& config,
                 const survey::PingHeader& h,
+                std::size_t at,
                 const std::vector<double>& r,
                 std::vector<double>& keep_range,
                 std::vector<char>& keep,
                 std::vector<std::uint8_t>& status) {
     keep_range = r;
     for (std::size_t i = 0; i < h.num_beams; ++i) {
-        if (status[h.beam_offset + i] != 0) keep_range[i] = -1.0;
+        if (status[at + i] != 0) keep_range[i] = -1.0;
     }
     SpikeFilter(keep_range, config.spike_half_window, config.spike_abs_m, config.spike_rel, keep);
     for (std::size_t i = 0; i < h.num_beams; ++i) {
         if (keep_range[i] > 0 && !keep[i]) {
-            status[h.beam_offset + i] = static_cast<std::uint8_t>(survey::SoundingStatus::kSpike);
+            status[at + i] = static_cast<std::uint8_t>(survey::SoundingStatus::kSpike);
         }
     }
 }
 
 // Every beam with a range: its final status (georef's own, resolved against the edit flags),
 // and, when it belongs to the view, its world position (traced through the water column with
-// refraction, else a straight ray; a beam that does not trace gets kRefraction).
+// refraction, else a straight ray; a beam that does not trace gets kRefraction), in `out`
+// from slot `at` on.
 void PositionBeams(const PingContext& ctx,
                    const survey::PingHeader& h,
+                   std::size_t at,
                    const GeorefPing& ping,
                    const PingWater& water,
                    const std::vector<double>& r,
                    FlatSoundings& out) {
     const Pose T_world_sonar = ping.T_world_vehicle * ctx.T_vehicle_sonar;
     for (std::size_t i = 0; i < h.num_beams; ++i) {
-        const std::size_t j = h.beam_offset + i;
+        const std::size_t j = at + i;
         if (!(r[i] > 0)) continue;
         const auto own = static_cast<survey::SoundingStatus>(out.status[j]);
-        const survey::SoundingStatus s = ctx.flags ? survey::Resolve(own, *ctx.flags, j) : own;
+        const survey::SoundingStatus s =
+            ctx.flags ? survey::Resolve(own, *ctx.flags, h.beam_offset + i) : own;
         out.status[j] = static_cast<std::uint8_t>(s);
         if (!InView(s, own, ctx.view)) continue;
         const double theta = frames::DegToRad(ctx.series.BeamAngleDeg(h, i));
@@ -309,13 +315,26 @@ void PositionBeams(const PingContext& ctx,
     }
 }
 
-// Georeferences every ping into `flat`, in parallel (tbb; config.num_threads). Returns the
-// pings' work; `cancelled` when the progress callback asked to stop.
+// Where each ping's beams sit in the flat arrays: the input's layout (beam_offset) for the
+// whole survey, or a block's own (`slots`, one per ping from `first`).
+struct FlatLayout {
+    std::size_t first = 0;           // the first ping
+    std::size_t end = 0;             // one past the last
+    std::vector<std::size_t> slots;  // empty: PingHeader::beam_offset
+    std::size_t At(const survey::PingSeries& series, std::size_t k) const {
+        return slots.empty() ? std::size_t{series.pings[k].beam_offset} : slots[k - first];
+    }
+};
+
+// Georeferences pings layout.first .. layout.end into `flat`, in parallel (tbb;
+// config.num_threads). Returns the pings' work (index k - layout.first); `cancelled` when the
+// progress callback asked to stop.
 std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
+                                        const FlatLayout& layout,
                                         FlatSoundings& flat,
                                         const ProgressCallback& progress,
                                         bool& cancelled) {
-    const std::size_t n_pings = ctx.series.pings.size();
+    const std::size_t n_pings = layout.end - layout.first;
     std::vector<PingWork> work(n_pings);
     std::unique_ptr<tbb::global_control> limit;
     if (ctx.config.num_threads > 0) {
@@ -328,15 +347,17 @@ std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_pings, 64), [&](const auto& block) {
         std::vector<double> r, keep_range;
         std::vector<char> keep;
-        for (std::size_t k = block.begin(); k != block.end(); ++k) {
+        for (std::size_t w = block.begin(); w != block.end(); ++w) {
             if (cancel.load(std::memory_order_relaxed)) return;
+            const std::size_t k = layout.first + w;
             PingWater water;
-            work[k] = PlacePing(ctx, k, water);
-            if (!work[k].ok) continue;
+            work[w] = PlacePing(ctx, k, water);
+            if (!work[w].ok) continue;
             const survey::PingHeader& h = ctx.series.pings[k];
-            GateRanges(ctx, h, r, flat.status);
-            FlagSpikes(ctx.config, h, r, keep_range, keep, flat.status);
-            PositionBeams(ctx, h, work[k].ping, water, r, flat);
+            const std::size_t at = layout.At(ctx.series, k);
+            GateRanges(ctx, h, at, r, flat.status);
+            FlagSpikes(ctx.config, h, at, r, keep_range, keep, flat.status);
+            PositionBeams(ctx, h, at, work[w].ping, water, r, flat);
         }
         const std::size_t d = done.fetch_add(block.size()) + block.size();
         if (progress && !progress(static_cast<double>(d) / static_cast<double>(n_pings))) {
@@ -352,6 +373,7 @@ std::vector<PingWork> GeoreferencePings(const PingContext& ctx,
 // place when the pings' beams follow each other in the flat array (every reader builds it so):
 // the write index then never passes the read index. Otherwise into fresh arrays.
 void CompactSoundings(const survey::PingSeries& series,
+                      const FlatLayout& layout,
                       const std::vector<PingWork>& work,
                       const std::vector<std::uint8_t>& status,
                       survey::SoundingView view,
@@ -360,16 +382,18 @@ void CompactSoundings(const survey::PingSeries& series,
     std::vector<Eigen::Vector3d>& pos = P.position_world;
     std::vector<float>& rng = P.range_m;
     std::vector<float>& ang = P.angle_rad;
-    const std::size_t n_pings = series.pings.size();
+    const std::size_t n_pings = layout.end - layout.first;
     std::size_t n_points = 0;
     bool in_place = true;
     std::size_t next_offset = 0;
-    for (std::size_t k = 0; k < n_pings; ++k) {
+    for (std::size_t w = 0; w < n_pings; ++w) {
+        const std::size_t k = layout.first + w;
         const survey::PingHeader& h = series.pings[k];
-        in_place = in_place && h.beam_offset >= next_offset;
-        next_offset = std::size_t{h.beam_offset} + h.num_beams;
-        if (!work[k].ok) continue;
-        for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[h.beam_offset + i] > 0;
+        const std::size_t at = layout.At(series, k);
+        in_place = in_place && at >= next_offset;
+        next_offset = at + h.num_beams;
+        if (!work[w].ok) continue;
+        for (std::size_t i = 0; i < h.num_beams; ++i) n_points += rng[at + i] > 0;
     }
     std::vector<Eigen::Vector3d> pos_out;
     std::vector<float> rng_out, ang_out;
@@ -395,12 +419,13 @@ void CompactSoundings(const survey::PingSeries& series,
             if (w.reason == 3) ++c.pings_bad_header;
             continue;
         }
-        const survey::PingHeader& h = series.pings[k];
-        for (std::size_t i = 0; i < h.num_beams; ++i) ++c.status[status[h.beam_offset + i]];
+        const survey::PingHeader& h = series.pings[layout.first + k];
+        const std::size_t at = layout.At(series, layout.first + k);
+        for (std::size_t i = 0; i < h.num_beams; ++i) ++c.status[status[at + i]];
         const auto ping_index = static_cast<std::uint32_t>(result.pings.size());
         result.pings.push_back(w.ping);
         for (std::size_t i = 0; i < h.num_beams; ++i) {
-            const std::size_t j = h.beam_offset + i;
+            const std::size_t j = at + i;
             if (!(rng[j] > 0)) continue;
             pos_to[out] = pos[j];
             rng_to[out] = rng[j];
@@ -421,8 +446,9 @@ void CompactSoundings(const survey::PingSeries& series,
     ang.resize(out);
 }
 
-// The summary counters from the per-status counts, and the result's message.
-void FinishCounts(GeorefResult& result) {
+// The summary counters from the per-status counts (`points`: the soundings in the view), and
+// the result's message.
+void FinishCounts(GeorefResult& result, std::size_t points) {
     GeorefCounts& c = result.counts;
     c.no_detection = c.status[static_cast<int>(survey::SoundingStatus::kNoDetection)];
     c.range_gate = c.status[static_cast<int>(survey::SoundingStatus::kRangeGate)];
@@ -435,7 +461,7 @@ void FinishCounts(GeorefResult& result) {
     }
     c.manual = c.status[static_cast<int>(survey::SoundingStatus::kManual)];
     c.pings_georeferenced = static_cast<std::int64_t>(result.pings.size());
-    c.points = static_cast<std::int64_t>(result.points.size());
+    c.points = static_cast<std::int64_t>(points);
     result.message = std::to_string(c.points) + " points from " +
                      std::to_string(c.pings_georeferenced) + " of " + std::to_string(c.pings_in) +
                      " pings";
@@ -444,7 +470,12 @@ void FinishCounts(GeorefResult& result) {
 }  // namespace
 
 Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result, std::size_t j) {
-    const GeorefPoints& P = result.points;
+    return SoundingVectorSonar(result, result.points, j);
+}
+
+Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result,
+                                    const GeorefPoints& P,
+                                    std::size_t j) {
     const GeorefPing& ping = result.pings[P.ping[j]];
     if (!result.refraction) {
         return BeamVectorSonar(P.range_m[j], P.angle_rad[j], ping.profile_tilt_rad);
@@ -491,44 +522,155 @@ GeorefResult RunGeoref(const survey::NavSeries& nav,
     const PingContext ctx{
         series, trajectory, world, mount, T_vehicle_sonar, config, refraction.get(), flags, view};
     bool cancelled = false;
-    const std::vector<PingWork> work = GeoreferencePings(ctx, flat, progress, cancelled);
+    const FlatLayout layout{0, series.pings.size(), {}};
+    const std::vector<PingWork> work = GeoreferencePings(ctx, layout, flat, progress, cancelled);
     if (cancelled) {
         result.points = GeorefPoints{};
         result.cancelled = true;
         result.message = "cancelled";
         return result;
     }
-    CompactSoundings(series, work, status, view, result);
-    FinishCounts(result);
+    CompactSoundings(series, layout, work, status, view, result);
+    FinishCounts(result, result.points.size());
     return result;
 }
 
-void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
+namespace {
+
+// One past the last ping of the block that starts at ping `first`: whole pings whose beams add
+// up to at most `block_soundings`, at least one ping.
+std::size_t BlockEnd(const survey::PingSeries& series,
+                     std::size_t first,
+                     std::size_t block_soundings) {
+    std::size_t k = first, beams = 0;
+    while (k < series.pings.size() &&
+           (k == first || beams + series.pings[k].num_beams <= block_soundings)) {
+        beams += series.pings[k].num_beams;
+        ++k;
+    }
+    return k;
+}
+
+// The block's own layout: its pings' beams one after the other from slot 0; `beams` their sum.
+FlatLayout BlockLayout(const survey::PingSeries& series,
+                       std::size_t first,
+                       std::size_t end,
+                       std::size_t& beams) {
+    FlatLayout layout{first, end, {}};
+    layout.slots.reserve(end - first);
+    beams = 0;
+    for (std::size_t k = first; k < end; ++k) {
+        layout.slots.push_back(beams);
+        beams += series.pings[k].num_beams;
+    }
+    return layout;
+}
+
+}  // namespace
+
+GeorefResult RunGeorefByBlocks(const survey::NavSeries& nav,
+                               const survey::PingSeries& series,
+                               const survey::SonarMount& mount,
+                               const GeorefConfig& config,
+                               std::size_t block_soundings,
+                               const GeorefBlockSink& sink,
+                               std::optional<Geodetic> origin,
+                               const ProgressCallback& progress,
+                               std::shared_ptr<const svp::Refraction> refraction,
+                               const survey::SoundingFlags* flags,
+                               survey::SoundingView view) {
+    GeorefResult result;
+    result.mount = mount;
+    result.refraction = refraction;
+    result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
+    result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
+    if (nav.samples.empty()) {
+        result.message = "no navigation samples";
+        result.counts.pings_outside_nav = result.counts.pings_in;
+        return result;
+    }
+    result.world_origin = origin ? *origin : nav.samples.front().position;
+    const LocalTangentFrame world(result.world_origin);
+    const Trajectory trajectory(nav, world);
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
+    const PingContext ctx{
+        series, trajectory, world, mount, T_vehicle_sonar, config, refraction.get(), flags, view};
+    const std::size_t n_pings = series.pings.size();
+    std::size_t points = 0;
+    std::vector<std::uint8_t> status;
+    auto stop = [&](const char* why) {
+        result.points = GeorefPoints{};
+        result.cancelled = true;
+        result.message = why;
+        return result;
+    };
+    for (std::size_t first = 0; first < n_pings;) {
+        std::size_t beams = 0;
+        const FlatLayout layout =
+            BlockLayout(series, first, BlockEnd(series, first, block_soundings), beams);
+        GeorefPoints& P = result.points;
+        P = GeorefPoints{};
+        P.position_world.resize(beams);
+        P.range_m.assign(beams, -1.0f);
+        P.angle_rad.resize(beams);
+        status.assign(beams, static_cast<std::uint8_t>(survey::SoundingStatus::kAccepted));
+        FlatSoundings flat{P.position_world, P.range_m, P.angle_rad, status};
+        ProgressCallback part;
+        if (progress) {
+            part = [&](double f) {
+                const double done =
+                    static_cast<double>(first) + f * static_cast<double>(layout.end - layout.first);
+                return progress(done / static_cast<double>(n_pings));
+            };
+        }
+        bool cancelled = false;
+        const std::vector<PingWork> work = GeoreferencePings(ctx, layout, flat, part, cancelled);
+        if (cancelled) return stop("cancelled");
+        CompactSoundings(series, layout, work, status, view, result);
+        points += P.size();
+        if (!sink(P, result)) return stop("stopped: the view's soundings could not be kept");
+        first = layout.end;
+    }
+    result.points = GeorefPoints{};
+    FinishCounts(result, points);
+    return result;
+}
+
+Remount::Remount(GeorefResult& result, const survey::SonarMount& mount)
+    : result_(result), T_vehicle_sonar_(mount.T_vehicle_sonar()) {
     for (GeorefPing& ping : result.pings) {
-        ping.sensor_world = (ping.T_world_vehicle * T_vehicle_sonar).translation();
+        ping.sensor_world = (ping.T_world_vehicle * T_vehicle_sonar_).translation();
     }
     result.mount = mount;
-    GeorefPoints& P = result.points;
     const svp::Refraction* refr = result.refraction.get();
-    std::vector<PingWater> water(refr ? result.pings.size() : 0);
-    for (std::size_t k = 0; k < water.size(); ++k) {
-        water[k] = WaterAt(*refr, result.pings[k], mount, result.pings[k].assumed_sound_speed_mps);
+    if (refr == nullptr) return;
+    depth_m_.resize(result.pings.size());
+    face_speed_mps_.resize(result.pings.size());
+    for (std::size_t k = 0; k < result.pings.size(); ++k) {
+        const PingWater w =
+            WaterAt(*refr, result.pings[k], mount, result.pings[k].assumed_sound_speed_mps);
+        depth_m_[k] = w.transducer_depth_m;
+        face_speed_mps_[k] = w.face_speed_mps;
     }
+}
+
+void Remount::Apply(GeorefPoints& P) const {
+    const GeorefResult& result = result_;
+    const Pose& T_vehicle_sonar = T_vehicle_sonar_;
+    const svp::Refraction* refr = result.refraction.get();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P.size(), 4096), [&](const auto& b) {
         for (std::size_t j = b.begin(); j != b.end(); ++j) {
             const GeorefPing& ping = result.pings[P.ping[j]];
             const Pose T_world_sonar = ping.T_world_vehicle * T_vehicle_sonar;
             if (refr) {
-                const PingWater& w = water[P.ping[j]];
                 const svp::BeamGeometry g = refr->Beam(ping.cast,
                                                        T_world_sonar.linear(),
                                                        P.angle_rad[j],
                                                        ping.profile_tilt_rad,
                                                        P.range_m[j],
                                                        ping.assumed_sound_speed_mps,
-                                                       w.transducer_depth_m,
-                                                       w.face_speed_mps);
+                                                       depth_m_[P.ping[j]],
+                                                       face_speed_mps_[P.ping[j]]);
                 // A beam that traced before and not now (a mount change of a fraction of a
                 // degree at a turning ray) keeps its straight position.
                 P.position_world[j] =
@@ -544,6 +686,39 @@ void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
             }
         }
     });
+}
+
+void Regeoreference(GeorefResult& result, const survey::SonarMount& mount) {
+    const Remount remount(result, mount);
+    remount.Apply(result.points);
+}
+
+GeorefPoints SliceOf(const GeorefPoints& p, std::size_t first, std::size_t count) {
+    GeorefPoints out;
+    const auto take = [&](const auto& from, auto& to) {
+        if (from.empty()) return;
+        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
+                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
+    };
+    take(p.position_world, out.position_world);
+    take(p.ping, out.ping);
+    take(p.beam, out.beam);
+    take(p.range_m, out.range_m);
+    take(p.angle_rad, out.angle_rad);
+    take(p.status, out.status);
+    return out;
+}
+
+void AppendPoints(const GeorefPoints& from, GeorefPoints& to) {
+    const auto append = [](const auto& src, auto& dst) {
+        dst.insert(dst.end(), src.begin(), src.end());
+    };
+    append(from.position_world, to.position_world);
+    append(from.ping, to.ping);
+    append(from.beam, to.beam);
+    append(from.range_m, to.range_m);
+    append(from.angle_rad, to.angle_rad);
+    append(from.status, to.status);
 }
 
 Expected<UtmProjection> UtmProjectionOf(const GeorefResult& result) {

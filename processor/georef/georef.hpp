@@ -88,6 +88,10 @@ struct GeorefPoints {
     std::vector<std::uint8_t> status;
     std::size_t size() const { return position_world.size(); }
 };
+// Points first .. first + count - 1 of `p` (every array `p` fills; first + count <= p.size()).
+GeorefPoints SliceOf(const GeorefPoints& p, std::size_t first, std::size_t count);
+// Appends `from`'s points to `to` (every array, in order).
+void AppendPoints(const GeorefPoints& from, GeorefPoints& to);
 
 // One georeferenced ping.
 struct GeorefPing {

@@ -19,19 +19,7 @@ struct PingSlope {
     double slope_deg = 0, roll_deg = 0, pitch_deg = 0;
 };
 
-// Least-squares line z = a + b u over one ping's soundings, from running sums.
-struct LineSums {
-    std::int64_t n = 0;
-    double u = 0, z = 0, uu = 0, uz = 0, zz = 0;
-    void Add(double x, double y) {
-        ++n;
-        u += x;
-        z += y;
-        uu += x * x;
-        uz += x * y;
-        zz += y * y;
-    }
-};
+using LineSums = MountLineSums;
 
 // Each series minus its moving mean over +- half_s (the neighbours' times are sorted).
 void HighPass(std::vector<PingSlope>& s, double half_s) {
@@ -71,37 +59,46 @@ double Sd(const std::vector<PingSlope>& s, double PingSlope::*field) {
 // depth the mean of the beams within 5 deg of nadir. A window of beam angles would slide across
 // the floor with the roll, and the floor's curvature would then turn the roll into a slope. u
 // runs along the fan's horizontal direction; pings whose fan stands on end have none.
-std::vector<LineSums> FloorLineSums(const GeorefResult& geo, const MountCheckConfig& cfg) {
+// `points`: whole pings (each ping's soundings all in it) of `geo`'s pings; added to `sums`.
+void AddFloorLineSums(const GeorefResult& geo,
+                      const GeorefPoints& points,
+                      const MountCheckConfig& cfg,
+                      std::vector<LineSums>& sums) {
     const std::size_t num_pings = geo.pings.size();
-    std::vector<LineSums> sums(num_pings);
-    std::vector<Eigen::Vector2d> fan_dir(num_pings, Eigen::Vector2d::Zero());
+    sums.resize(num_pings);
+    if (points.size() == 0) return;
+    const auto [lo_it, hi_it] = std::minmax_element(points.ping.begin(), points.ping.end());
+    const std::size_t lo = *lo_it;
+    const std::size_t hi = std::min<std::size_t>(*hi_it + 1, num_pings);
+    if (lo >= hi) return;
+    const std::size_t span = hi - lo;
+    std::vector<Eigen::Vector2d> fan_dir(span, Eigen::Vector2d::Zero());
     const Eigen::Matrix3d R_vs = geo.mount.R_vehicle_sonar();
-    for (std::size_t k = 0; k < num_pings; ++k) {
+    for (std::size_t k = lo; k < hi; ++k) {
         const Eigen::Vector3d y = geo.pings[k].T_world_vehicle.rotation() * R_vs.col(1);
         const Eigen::Vector2d h(y.x(), y.y());
-        if (h.norm() > 0.5) fan_dir[k] = h.normalized();  // fan not standing on end
+        if (h.norm() > 0.5) fan_dir[k - lo] = h.normalized();  // fan not standing on end
     }
-    std::vector<double> nadir_sum(num_pings, 0.0);
-    std::vector<int> nadir_n(num_pings, 0);
+    std::vector<double> nadir_sum(span, 0.0);
+    std::vector<int> nadir_n(span, 0);
     const double nadir = frames::DegToRad(5.0);
-    for (std::size_t j = 0; j < geo.points.size(); ++j) {
-        const std::uint32_t k = geo.points.ping[j];
-        if (k >= num_pings || !(std::abs(geo.points.angle_rad[j]) <= nadir)) continue;
-        nadir_sum[k] += geo.pings[k].sensor_world.z() - geo.points.position_world[j].z();
-        ++nadir_n[k];
+    for (std::size_t j = 0; j < points.size(); ++j) {
+        const std::uint32_t k = points.ping[j];
+        if (k >= num_pings || !(std::abs(points.angle_rad[j]) <= nadir)) continue;
+        nadir_sum[k - lo] += geo.pings[k].sensor_world.z() - points.position_world[j].z();
+        ++nadir_n[k - lo];
     }
     const double tan_max = std::tan(frames::DegToRad(cfg.max_angle_deg));
     const double beam_limit = frames::DegToRad(cfg.max_angle_deg + 15.0);
-    for (std::size_t j = 0; j < geo.points.size(); ++j) {
-        const std::uint32_t k = geo.points.ping[j];
-        if (k >= num_pings || fan_dir[k].isZero() || nadir_n[k] == 0) continue;
-        if (!(std::abs(geo.points.angle_rad[j]) <= beam_limit)) continue;
-        const Eigen::Vector3d d = geo.points.position_world[j] - geo.pings[k].sensor_world;
-        const double u = fan_dir[k].dot(d.head<2>());
-        if (std::abs(u) > tan_max * nadir_sum[k] / nadir_n[k]) continue;
+    for (std::size_t j = 0; j < points.size(); ++j) {
+        const std::uint32_t k = points.ping[j];
+        if (k >= num_pings || fan_dir[k - lo].isZero() || nadir_n[k - lo] == 0) continue;
+        if (!(std::abs(points.angle_rad[j]) <= beam_limit)) continue;
+        const Eigen::Vector3d d = points.position_world[j] - geo.pings[k].sensor_world;
+        const double u = fan_dir[k - lo].dot(d.head<2>());
+        if (std::abs(u) > tan_max * nadir_sum[k - lo] / nadir_n[k - lo]) continue;
         sums[k].Add(u, d.z());
     }
-    return sums;
 }
 
 // The pings whose floor line is good (enough beams, spread and fit): its slope with the
@@ -199,8 +196,21 @@ const char* LikelyCause(double roll_gain, double pitch_gain) {
 }  // namespace
 
 MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckConfig& cfg) {
+    MountCheckByBlocks check(cfg);
+    check.Add(geo, geo.points);
+    return check.Check(geo);
+}
+
+void MountCheckByBlocks::Add(const GeorefResult& geo, const GeorefPoints& block) {
+    AddFloorLineSums(geo, block, cfg_, sums_);
+}
+
+MountCheck MountCheckByBlocks::Check(const GeorefResult& geo) const {
+    const MountCheckConfig& cfg = cfg_;
+    std::vector<LineSums> sums = sums_;
+    sums.resize(geo.pings.size());
     MountCheck r;
-    std::vector<PingSlope> slopes = FloorSlopes(geo, FloorLineSums(geo, cfg), cfg);
+    std::vector<PingSlope> slopes = FloorSlopes(geo, sums, cfg);
     r.pings = static_cast<std::int64_t>(slopes.size());
     char buf[400];
     if (r.pings < cfg.min_pings) {

@@ -54,4 +54,33 @@ struct MountCheck {
 
 MountCheck CheckMountAgainstAttitude(const GeorefResult& geo, const MountCheckConfig& config = {});
 
+// Least-squares line z = a + b u over one ping's soundings, from running sums.
+struct MountLineSums {
+    std::int64_t n = 0;
+    double u = 0, z = 0, uu = 0, uz = 0, zz = 0;
+    void Add(double x, double y) {
+        ++n;
+        u += x;
+        z += y;
+        uu += x * x;
+        uz += x * y;
+        zz += y * y;
+    }
+};
+
+// CheckMountAgainstAttitude over a view read a block at a time (decision 033): Add each block
+// in turn (whole pings: a ping's soundings all in one block; its ping indices into geo.pings,
+// the result so far), then Check on the result. The same sums in the same order: the same
+// check.
+class MountCheckByBlocks {
+public:
+    explicit MountCheckByBlocks(const MountCheckConfig& config = {}) : cfg_(config) {}
+    void Add(const GeorefResult& geo, const GeorefPoints& block);
+    MountCheck Check(const GeorefResult& geo) const;
+
+private:
+    MountCheckConfig cfg_;
+    std::vector<MountLineSums> sums_;  // per ping of the result
+};
+
 }  // namespace pitmap::proc::georef

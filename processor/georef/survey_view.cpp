@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "processor/georef/survey_view.hpp"
+#include "processor/georef/georef_blocks.hpp"
 
 #include <utility>
 #include <vector>
@@ -39,24 +40,12 @@ std::size_t ApplyTrajectory(GeorefResult& geo, const survey::PingTrajectory& t) 
     return kept;
 }
 
-GeorefResult Georeference(const survey::SurveyModel& m,
-                          survey::TrajectoryVersion v,
-                          const GeorefConfig& config,
-                          std::shared_ptr<const svp::Refraction> refraction,
-                          const ProgressCallback& progress,
-                          std::size_t* kept,
-                          survey::SoundingView which) {
-    GeorefResult geo = RunGeoref(m.ingest.nav,
-                                 m.ingest.pings,
-                                 m.mount,
-                                 config,
-                                 m.origin,
-                                 progress,
-                                 std::move(refraction),
-                                 &m.flags,
-                                 which);
-    // RunGeoref puts each ping on the navigation at its current time: the calibrated version
-    // once the calibration ran, else the INS one. Any other version moves the pings.
+namespace {
+
+// The trajectory version Georeference moves the pings onto (-1: none): the newest present at or
+// before `v`, unless it is the one RunGeoref puts them on (the calibrated version once the
+// calibration ran, else the INS one).
+int MovedOnto(const survey::SurveyModel& m, survey::TrajectoryVersion v) {
     int chosen = -1;
     for (int i = static_cast<int>(v); i >= 0; --i) {
         if (!m.trajectories[i].empty()) {
@@ -67,9 +56,86 @@ GeorefResult Georeference(const survey::SurveyModel& m,
     const int current = static_cast<int>(m.has(survey::TrajectoryVersion::kCalibrated)
                                              ? survey::TrajectoryVersion::kCalibrated
                                              : survey::TrajectoryVersion::kIns);
+    return chosen != current ? chosen : -1;
+}
+
+// ApplyTrajectory's move of a ping: from its pose in `p` to its pose in `t` (identity where `t`
+// has none).
+Pose MoveOf(const GeorefPing& p, const survey::PingTrajectory& t) {
+    const std::size_t i = p.header_index;
+    if (i >= t.T_world_vehicle.size() || i >= t.valid.size() || t.valid[i] == 0)
+        return Pose::Identity();
+    return t.T_world_vehicle[i] * p.T_world_vehicle.inverse();
+}
+
+}  // namespace
+
+GeorefResult GeoreferenceByBlocks(const survey::SurveyModel& m,
+                                  survey::TrajectoryVersion v,
+                                  const GeorefConfig& config,
+                                  std::shared_ptr<const svp::Refraction> refraction,
+                                  std::size_t block_soundings,
+                                  const GeorefBlockSink& sink,
+                                  const ProgressCallback& progress,
+                                  std::size_t* kept,
+                                  survey::SoundingView which) {
+    const int onto = MovedOnto(m, v);
+    GeorefPoints moved;
+    // Each block moved as ApplyTrajectory moves the whole view (the same product per point).
+    const auto move_sink = [&](const GeorefPoints& b, const GeorefResult& so_far) {
+        if (onto < 0) return sink(b, so_far);
+        moved = b;
+        const survey::PingTrajectory& t = m.trajectories[static_cast<std::size_t>(onto)];
+        for (std::size_t j = 0; j < moved.size(); ++j) {
+            moved.position_world[j] =
+                MoveOf(so_far.pings[moved.ping[j]], t) * moved.position_world[j];
+        }
+        return sink(moved, so_far);
+    };
+    GeorefResult geo = RunGeorefByBlocks(m.ingest.nav,
+                                         m.ingest.pings,
+                                         m.mount,
+                                         config,
+                                         block_soundings,
+                                         move_sink,
+                                         m.origin,
+                                         progress,
+                                         std::move(refraction),
+                                         &m.flags,
+                                         which);
     std::size_t k = 0;
-    if (chosen >= 0 && chosen != current) k = ApplyTrajectory(geo, m.trajectories[chosen]);
+    if (!geo.cancelled && onto >= 0)
+        k = ApplyTrajectory(geo, m.trajectories[static_cast<std::size_t>(onto)]);
     if (kept != nullptr) *kept = k;
+    return geo;
+}
+
+GeorefResult Georeference(const survey::SurveyModel& m,
+                          survey::TrajectoryVersion v,
+                          const GeorefConfig& config,
+                          std::shared_ptr<const svp::Refraction> refraction,
+                          const ProgressCallback& progress,
+                          std::size_t* kept,
+                          survey::SoundingView which) {
+    // By blocks of pings into arrays reserved for every beam (decisions 033, 041): only the
+    // pages of the soundings kept are touched, where RunGeoref holds every beam's position
+    // before it compacts them (33 bytes a beam). The same points bit for bit.
+    const std::size_t beams = m.ingest.pings.range_counts.size();
+    GeorefPoints held;
+    held.position_world.reserve(beams);
+    held.ping.reserve(beams);
+    held.beam.reserve(beams);
+    held.range_m.reserve(beams);
+    held.angle_rad.reserve(beams);
+    if (which != survey::SoundingView::kAccepted) held.status.reserve(beams);
+    const auto sink = [&held](const GeorefPoints& b, const GeorefResult&) {
+        AppendPoints(b, held);
+        return true;
+    };
+    constexpr std::size_t kBlockSoundings = std::size_t{1} << 20;
+    GeorefResult geo = GeoreferenceByBlocks(
+        m, v, config, std::move(refraction), kBlockSoundings, sink, progress, kept, which);
+    if (!geo.cancelled) geo.points = std::move(held);
     return geo;
 }
 

@@ -10,6 +10,7 @@
 
 #include "common/progress.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/georef/georef_blocks.hpp"
 #include "processor/survey/sounding_status.hpp"
 #include "processor/survey/survey.hpp"
 #include "processor/svp/refraction.hpp"
@@ -27,6 +28,21 @@ GeorefResult Georeference(const survey::SurveyModel& m,
                           const ProgressCallback& progress = {},
                           std::size_t* kept = nullptr,
                           survey::SoundingView which = survey::SoundingView::kAccepted);
+
+// Georeference a block of whole pings at a time (decision 041): each block of at most
+// `block_soundings` soundings, already on trajectory `v`, is handed to `sink` (its ping indices
+// into `so_far.pings`, whose poses are still the navigation's until the end), then dropped. The
+// blocks joined are Georeference's points bit for bit; the result returned is Georeference's
+// without them (its pings on `v`, its counts). A sink that returns false stops it (cancelled).
+GeorefResult GeoreferenceByBlocks(const survey::SurveyModel& m,
+                                  survey::TrajectoryVersion v,
+                                  const GeorefConfig& config,
+                                  std::shared_ptr<const svp::Refraction> refraction,
+                                  std::size_t block_soundings,
+                                  const GeorefBlockSink& sink,
+                                  const ProgressCallback& progress = {},
+                                  std::size_t* kept = nullptr,
+                                  survey::SoundingView which = survey::SoundingView::kAccepted);
 
 // The per-ping trajectory of a georeferenced survey of `num_pings` pings.
 survey::PingTrajectory TrajectoryOf(const GeorefResult& geo, std::size_t num_pings);

@@ -188,6 +188,146 @@ Status SpilledPoints::KeepOnly(const std::vector<char>& keep, std::size_t block)
     return Ok{};
 }
 
+Expected<SpillWriter> SpillWriter::Open(const std::string& path,
+                                        std::size_t capacity,
+                                        bool with_status) {
+    File f(std::fopen(path.c_str(), "wb"));
+    if (!f) return Error{formats::ErrnoMessage(path, "cannot write the view's points", errno)};
+    if (std::fclose(f.release()) != 0) {
+        std::error_code ec;
+        std::filesystem::remove(path, ec);
+        return Error{formats::ErrnoMessage(path, "cannot write the view's points", errno)};
+    }
+    return SpillWriter(path, capacity, with_status);
+}
+
+SpillWriter::SpillWriter(SpillWriter&& other) noexcept
+    : path_(std::exchange(other.path_, std::string())),
+      capacity_(other.capacity_),
+      size_(other.size_),
+      with_status_(other.with_status_),
+      failed_(other.failed_) {}
+
+SpillWriter& SpillWriter::operator=(SpillWriter&& other) noexcept {
+    if (this != &other) {
+        if (!path_.empty()) {
+            std::error_code ec;
+            std::filesystem::remove(path_, ec);
+        }
+        path_ = std::exchange(other.path_, std::string());
+        capacity_ = other.capacity_;
+        size_ = other.size_;
+        with_status_ = other.with_status_;
+        failed_ = other.failed_;
+    }
+    return *this;
+}
+
+SpillWriter::~SpillWriter() {
+    if (path_.empty()) return;
+    std::error_code ec;
+    std::filesystem::remove(path_, ec);
+}
+
+namespace {
+
+// Writes `count` elements of array `a` at sounding `first` of a file laid out for n.
+template <typename T>
+bool WriteAt(std::FILE* f, int a, std::uint64_t n, std::size_t first, const std::vector<T>& v) {
+    if (v.empty()) return true;
+    const long long at = ArrayOffset(a, n) + static_cast<long long>(sizeof(T) * first);
+    return fseeko(f, at, SEEK_SET) == 0 &&
+           std::fwrite(v.data(), sizeof(T), v.size(), f) == v.size();
+}
+
+// Moves `bytes` bytes from `from` down to `to` (to <= from), front to back.
+bool MoveDown(std::FILE* f, long long from, long long to, long long bytes) {
+    if (from == to || bytes == 0) return true;
+    std::vector<char> buffer(std::min<long long>(bytes, 8 << 20));
+    for (long long done = 0; done < bytes;) {
+        const auto chunk = static_cast<std::size_t>(
+            std::min<long long>(bytes - done, static_cast<long long>(buffer.size())));
+        if (fseeko(f, from + done, SEEK_SET) != 0 ||
+            std::fread(buffer.data(), 1, chunk, f) != chunk ||
+            fseeko(f, to + done, SEEK_SET) != 0 ||
+            std::fwrite(buffer.data(), 1, chunk, f) != chunk) {
+            return false;
+        }
+        done += static_cast<long long>(chunk);
+    }
+    return true;
+}
+
+}  // namespace
+
+Status SpillWriter::Append(const georef::GeorefPoints& block) {
+    if (path_.empty() || failed_) return Error{"the view's file was finished or failed"};
+    const std::size_t n = block.size();
+    if (!Consistent(block) || (block.status.size() == n) != (with_status_ || n == 0)) {
+        failed_ = true;
+        return Error{path_ + ": a block of the view whose arrays differ in length"};
+    }
+    if (n > capacity_ - size_) {
+        failed_ = true;
+        return Error{path_ + ": more soundings than the " + std::to_string(capacity_) +
+                     " the view was laid out for"};
+    }
+    File f(std::fopen(path_.c_str(), "r+b"));
+    bool ok = static_cast<bool>(f);
+    const std::uint64_t cap = capacity_;
+    ok = ok && WriteAt(f.get(), 0, cap, size_, block.position_world) &&
+         WriteAt(f.get(), 1, cap, size_, block.ping) &&
+         WriteAt(f.get(), 2, cap, size_, block.beam) &&
+         WriteAt(f.get(), 3, cap, size_, block.range_m) &&
+         WriteAt(f.get(), 4, cap, size_, block.angle_rad) &&
+         WriteAt(f.get(), 5, cap, size_, block.status);
+    const int err = errno;
+    ok = f && (std::fclose(f.release()) == 0) && ok;
+    if (!ok) {
+        failed_ = true;
+        return Error{formats::ErrnoMessage(path_, "cannot write the view's points", err)};
+    }
+    size_ += n;
+    return Ok{};
+}
+
+Expected<SpilledPoints> SpillWriter::Finish() {
+    if (path_.empty() || failed_) return Error{"the view's file was finished or failed"};
+    File f(std::fopen(path_.c_str(), "r+b"));
+    const std::uint64_t n = size_;
+    // As Spill: a view of no soundings has no statuses.
+    with_status_ = with_status_ && n > 0;
+    const int arrays = with_status_ ? 6 : 5;
+    bool ok = static_cast<bool>(f);
+    for (int a = 1; a < arrays && ok; ++a) {
+        ok = MoveDown(f.get(),
+                      ArrayOffset(a, capacity_),
+                      ArrayOffset(a, n),
+                      static_cast<long long>(kArrayBytes[a] * n));
+    }
+    const std::uint8_t status = with_status_ ? 1 : 0;
+    ok = ok && fseeko(f.get(), 0, SEEK_SET) == 0 &&
+         std::fwrite(kMagic, 1, sizeof(kMagic), f.get()) == sizeof(kMagic) &&
+         std::fwrite(&n, sizeof(n), 1, f.get()) == 1 && std::fwrite(&status, 1, 1, f.get()) == 1;
+    const int err = errno;
+    ok = f && (std::fclose(f.release()) == 0) && ok;
+    std::error_code ec;
+    if (ok)
+        std::filesystem::resize_file(
+            path_, static_cast<std::uintmax_t>(ArrayOffset(arrays, n)), ec);
+    if (!ok || ec) {
+        failed_ = true;
+        return Error{
+            formats::ErrnoMessage(path_, "cannot write the view's points", ok ? EIO : err)};
+    }
+    return SpilledPoints(std::exchange(path_, std::string()), size_, with_status_);
+}
+
+std::string NextViewSpillPath(const std::string& out_dir, const std::string& current) {
+    const std::string first = ViewSpillPath(out_dir);
+    return current == first ? first + "-next" : first;
+}
+
 std::string ViewSpillPath(const std::string& out_dir) {
     return (std::filesystem::path(out_dir) / (std::string(formats::kPartialPrefix) + "view_points"))
         .string();

@@ -48,6 +48,7 @@ public:
     bool with_status() const { return with_status_; }
 
 private:
+    friend class SpillWriter;
     SpilledPoints(std::string path, std::size_t size, bool with_status)
         : path_(std::move(path)), size_(size), with_status_(with_status) {}
     std::string path_;  // empty once restored (or moved from)
@@ -55,7 +56,50 @@ private:
     bool with_status_ = false;
 };
 
+// A view written to its file a block at a time as it is made (decision 033): the file a
+// SpilledPoints then reads, byte for byte the one Spill writes of the blocks joined. At most
+// `capacity` soundings (georef: the survey's beams) are appended; the arrays are laid out for
+// that many while writing (the unwritten rest a hole of the file) and moved down to the
+// soundings appended by Finish, which writes the header. Destroyed unfinished (an error, a
+// cancelled georef), the file is removed.
+class SpillWriter {
+public:
+    // Creates `path`; an error (the folder not writable) names it.
+    static Expected<SpillWriter> Open(const std::string& path,
+                                      std::size_t capacity,
+                                      bool with_status);
+
+    SpillWriter(SpillWriter&& other) noexcept;
+    SpillWriter& operator=(SpillWriter&& other) noexcept;
+    SpillWriter(const SpillWriter&) = delete;
+    SpillWriter& operator=(const SpillWriter&) = delete;
+    ~SpillWriter();
+
+    // Appends `block`'s soundings (their arrays of one length; status filled exactly when the
+    // writer is with_status). More than the capacity, or a write error, is an error naming the
+    // file; the writer is then unusable.
+    Status Append(const georef::GeorefPoints& block);
+    // The arrays moved to where a file of size() soundings has them, the header written; the
+    // file is then the SpilledPoints'.
+    Expected<SpilledPoints> Finish();
+
+    std::size_t size() const { return size_; }  // soundings appended
+    const std::string& path() const { return path_; }
+
+private:
+    SpillWriter(std::string path, std::size_t capacity, bool with_status)
+        : path_(std::move(path)), capacity_(capacity), with_status_(with_status) {}
+    std::string path_;  // empty once finished (or moved from)
+    std::size_t capacity_ = 0;
+    std::size_t size_ = 0;
+    bool with_status_ = false;
+    bool failed_ = false;
+};
+
 // The file a stage spills the survey's view to in products folder `out_dir`.
 std::string ViewSpillPath(const std::string& out_dir);
+// A second name beside `current` (a spilled view's path) for a view made while that one is
+// still on disk (the calibration's re-georeference): ViewSpillPath's and another, in turn.
+std::string NextViewSpillPath(const std::string& out_dir, const std::string& current);
 
 }  // namespace pitmap::proc::io

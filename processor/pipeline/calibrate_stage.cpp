@@ -8,7 +8,9 @@
 #include <cstdio>
 
 #include "common/frames.hpp"
+#include "common/peak_memory.hpp"
 #include "common/progress.hpp"
+#include "processor/calib/boresight_blocks.hpp"
 #include "processor/calib/sonar_clock.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
@@ -408,12 +410,61 @@ void GateCalibration(StageContext& s,
     }
 }
 
+// The view's soundings for the calibration: read a block at a time from the view's file while
+// it is there (decision 033), else the held points. A block that cannot be read is kept in
+// `error` (the calibration then saw part of the view; the caller stops).
+calib::ViewReader CalibrationView(const StageContext& s, std::size_t block, Status& error) {
+    if (!s.spilled_view) return calib::HeldView(s.geo.points);
+    calib::ViewReader r;
+    r.size = s.spilled_view->size();
+    const io::SpilledPoints* file = &*s.spilled_view;
+    r.read = [file, block, &error](std::size_t first, std::size_t end, const calib::ViewVisit& v) {
+        georef::GeorefPoints points;
+        for (std::size_t b = first; b < end; b += block) {
+            if (auto st = file->ReadBlock(b, std::min(block, end - b), points); !st) {
+                if (error) error = st;
+                return false;
+            }
+            v(points, b, 0, points.size());
+        }
+        return true;
+    };
+    return r;
+}
+
+// The new mount on the view's soundings (georef::Regeoreference): in place when they are
+// held, else a block at a time from the view's file into a new one that replaces it.
+Status RemountView(StageContext& s, const PipelineConfig& config, const survey::SonarMount& m) {
+    if (!s.spilled_view) {
+        georef::Regeoreference(s.geo, m);
+        return Ok{};
+    }
+    const georef::Remount remount(s.geo, m);
+    const io::SpilledPoints& old = *s.spilled_view;
+    auto writer = io::SpillWriter::Open(
+        io::NextViewSpillPath(s.out_dir, old.path()), old.size(), old.with_status());
+    if (!writer) return writer.error();
+    const std::size_t block = BlockWithinBudget(config.run, ResidentMb());
+    georef::GeorefPoints points;
+    for (std::size_t b = 0; b < old.size(); b += block) {
+        if (auto st = old.ReadBlock(b, block, points); !st) return st;
+        remount.Apply(points);
+        if (auto st = writer->Append(points); !st) return st;
+    }
+    auto remounted = writer->Finish();
+    if (!remounted) return remounted.error();
+    s.spilled_view = std::move(*remounted);  // the old file removed
+    return Ok{};
+}
+
 // The calibration (or the nominal mount, kept) into the survey model, and the soundings
-// georeferenced again: from the ingested series when the ping times change, else in place.
-void ApplyCalibration(StageContext& s,
-                      const PipelineConfig& config,
-                      const calib::BoresightResult& cal,
-                      bool keep_nominal) {
+// georeferenced again: from the ingested series when the ping times change, else with the new
+// mount; the view a block at a time through its file (decision 033) when it is there.
+Status ApplyCalibration(StageContext& s,
+                        const PipelineConfig& config,
+                        const calib::BoresightResult& cal,
+                        bool keep_nominal,
+                        const Log& log) {
     s.model.mount = cal.mount;
     s.model.calibration = keep_nominal ? survey::CalibrationState::kKeptNominal
                                        : survey::CalibrationState::kCalibrated;
@@ -428,24 +479,18 @@ void ApplyCalibration(StageContext& s,
     }
     if (mc.latency_applied && cal.latency_s != 0.0) {
         survey::ShiftPingTimes(s.model.ingest.pings, cal.latency_s);
-        // The old view is released first: the new one is made from the model alone, and two
-        // views at once were the stage's peak (38 bytes a sounding twice; decision 020).
-        s.geo = georef::GeorefResult{};
-        s.geo = georef::RunGeoref(s.model.ingest.nav,
-                                  s.model.ingest.pings,
-                                  s.model.mount,
-                                  config.georef,
-                                  s.model.origin,
-                                  {},
-                                  s.refraction,
-                                  &s.model.flags);
-    } else {
-        georef::Regeoreference(s.geo, cal.mount);
+        // The old view is dropped first: the new one is made from the model alone (decision
+        // 020), and written to its file as it is made (decision 033).
+        if (auto st = GeoreferenceToFile(s, config, s.model.origin, nullptr, {}, log); !st)
+            return st;
+    } else if (auto st = RemountView(s, config, cal.mount); !st) {
+        return Error{"calibrate: " + st.error().message};
     }
     if (!keep_nominal) {
         s.model.trajectory(survey::TrajectoryVersion::kCalibrated) =
             georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     }
+    return Ok{};
 }
 
 // The pings the soundings georeferenced again leave out (a latency correction can move a ping
@@ -535,19 +580,27 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
     // Calibrate from the nominal state: an earlier calibration's mount and latency are undone.
     if (s.model.ResetCalibration()) {
         log("calibrate: starting again from the nominal mount and sonar clock");
-        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
-        s.geo = georef::Georeference(
-            s.model, survey::TrajectoryVersion::kIns, config.georef, s.refraction);
+        // The INS trajectory is the current one once the calibration is undone: a new view of
+        // the model, written to its file as it is made (decision 033).
+        if (auto st = GeoreferenceToFile(s, config, s.model.origin, nullptr, {}, log); !st)
+            return st;
     }
+    // The calibration reads the view a block at a time from its file (decision 033); a view
+    // held (a stage command's) goes there first. Where it cannot, it is read held.
+    if (auto sp = SpillView(s); !sp) log("warning: " + sp.error().message + ": the view is held");
     const survey::SonarMount before = s.model.mount;
     const QualityConfig& q = config.quality;
     json& clk = s.summary["sonar_clock"];
     if (!clk.is_object()) clk = json::object();
     const calib::BoresightConfig bc = CalibrationConfig(s, config);
     ProgressReporter bar(ToString(Stage::kCalibrate), 1000);
-    calib::BoresightResult cal =
-        calib::CalibrateBoresight(s.geo, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
+    Status read_error = Ok{};
+    const calib::ViewReader view =
+        CalibrationView(s, BlockWithinBudget(config.run, ResidentMb()), read_error);
+    calib::BoresightResult cal = calib::CalibrateBoresight(
+        s.geo, view, s.model.ingest.nav, s.model.mount, bc, bar.AsCallback());
     bar.Finish();
+    if (!read_error) return Error{"calibrate: " + read_error.error().message};
     log("calibrate: " + cal.message);
     json st = CalibrationJson(cal, bc, before);
     if (!cal.ins_attitude_reported && cal.termination != calib::Termination::kNoOverlap) {
@@ -592,7 +645,7 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
         cal.latency_s = 0;
     }
     st["kept_nominal"] = keep_nominal;
-    ApplyCalibration(s, config, cal, keep_nominal);
+    if (auto a = ApplyCalibration(s, config, cal, keep_nominal, log); !a) return a;
     RecordPingsLeftOut(s, st, log);
     RecordCalibratedClock(s, cal, q, log);
     s.summary["mount"] = MountJson(cal.mount);
@@ -603,10 +656,14 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
 }  // namespace detail
 
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kNominal, log);
-    if (!s) return s.error();
+    // The products it replaces go first: their removal takes what a killed writer left
+    // (.partial-*), and the view's file is one (decision 041).
     if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate)); !r)
         return r;
+    // The calibration reads the view from its file: made there, never held (decision 041).
+    auto s = detail::LoadSurvey(
+        out_dir, config, detail::StartFrom::kNominal, log, detail::ViewIn::kFile);
+    if (!s) return s.error();
     return detail::CalibrateSurvey(*s, config, log);
 }
 

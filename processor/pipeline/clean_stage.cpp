@@ -97,42 +97,14 @@ namespace {
 // once per batch (bejanca 4x: 3 batches of 8 M soundings).
 constexpr std::size_t kFitBlocks = 8;
 
-// Points first .. first + count - 1 of held points `p`.
-georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto take = [&](const auto& from, auto& to) {
-        if (from.empty()) return;
-        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
-                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    take(p.position_world, out.position_world);
-    take(p.ping, out.ping);
-    take(p.beam, out.beam);
-    take(p.range_m, out.range_m);
-    take(p.angle_rad, out.angle_rad);
-    take(p.status, out.status);
-    return out;
-}
-
-// Calls fn(block, first) on the view's soundings a block of `block` at a time, in order: read
-// from the scratch file while the view is spilled, else copied from the held points. Stops at
-// the first error.
+// ForEachViewBlock with a visitor that cannot fail (the cleaning's).
 Status ForEachBlock(const StageContext& s,
                     std::size_t block,
                     const std::function<void(const georef::GeorefPoints&, std::size_t)>& fn) {
-    const std::size_t n = s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
-    block = std::max<std::size_t>(block, 1);
-    georef::GeorefPoints b;
-    for (std::size_t first = 0; first < n; first += block) {
-        const std::size_t count = std::min(block, n - first);
-        if (s.spilled_view) {
-            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
-        } else {
-            b = SliceOf(s.geo.points, first, count);
-        }
+    return ForEachViewBlock(s, block, [&fn](const georef::GeorefPoints& b, std::size_t first) {
         fn(b, first);
-    }
-    return Ok{};
+        return Status{Ok{}};
+    });
 }
 
 // The view the cleaning judges, `size` soundings read a block of `block` at a time

@@ -24,23 +24,6 @@ constexpr std::size_t kBandsAPass = 64;    // band files open at once
 constexpr std::size_t kBandBuffer = 4096;  // soundings buffered a band before a write
 constexpr std::size_t kBandBlocks = 4;     // a band reads at most this many blocks' soundings
 
-// Points first .. first + count - 1 of held points `p`.
-georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto take = [&](const auto& from, auto& to) {
-        if (from.empty()) return;
-        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
-                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    take(p.position_world, out.position_world);
-    take(p.ping, out.ping);
-    take(p.beam, out.beam);
-    take(p.range_m, out.range_m);
-    take(p.angle_rad, out.angle_rad);
-    take(p.status, out.status);
-    return out;
-}
-
 // A band's soundings on their way to its scratch file.
 struct BandSink {
     io::RecordFile file;
@@ -211,28 +194,6 @@ Status GridBands(const CubeInputFile& input,
 }
 
 }  // namespace
-
-std::size_t ViewSize(const StageContext& s) {
-    return s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
-}
-
-Status ForEachViewBlock(const StageContext& s,
-                        std::size_t block,
-                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn) {
-    const std::size_t n = ViewSize(s);
-    block = std::max<std::size_t>(block, 1);
-    georef::GeorefPoints b;
-    for (std::size_t first = 0; first < n; first += block) {
-        const std::size_t count = std::min(block, n - first);
-        if (s.spilled_view) {
-            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
-        } else {
-            b = SliceOf(s.geo.points, first, count);
-        }
-        if (auto st = fn(b, first); !st) return st;
-    }
-    return Ok{};
-}
 
 Expected<CubeInputFile> CubeInputFile::Create(const std::string& out_dir) {
     const std::string path =

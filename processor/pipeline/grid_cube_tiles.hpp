@@ -21,16 +21,6 @@
 
 namespace pitmap::proc::pipeline::detail {
 
-// The view's soundings: on disk while spilled (SpillView), else held.
-std::size_t ViewSize(const StageContext& s);
-
-// Calls fn(block, first) on the view's soundings a block of `block` at a time, in order: read
-// from the scratch file while the view is spilled (decision 031: the view is then never whole
-// in memory), else copied from the held points. Stops at the first error.
-Status ForEachViewBlock(const StageContext& s,
-                        std::size_t block,
-                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn);
-
 // CUBE's own test after it has chosen (grid_stage.cpp): the surface filter's verdict of each
 // sounding (0 = kept) against the grid `g`.
 std::vector<std::uint8_t> SurfaceFilter(const std::vector<hydro::CubeSounding>& snd,
@@ -79,26 +69,5 @@ Expected<std::vector<std::uint8_t>> SurfaceVerdicts(const CubeInputFile& input,
                                                     const hydro::CubeGrid& g,
                                                     const GridStageConfig& gc,
                                                     std::size_t block);
-
-// Where the accepted soundings first .. first + count - 1 are for points_utm.ply: `points` and
-// the index `offset` of the first in them (the held view itself, or a block read from its
-// scratch file into a buffer the reader keeps).
-using AcceptedPointsReader = std::function<Status(std::size_t first,
-                                                  std::size_t count,
-                                                  const georef::GeorefPoints*& points,
-                                                  std::size_t& offset)>;
-
-// WriteProjectedPoints (projected_products.cpp) with the accepted soundings read a block at a
-// time (`num_accepted` of them, of `pings`): the same files byte for byte.
-Status WriteProjectedPointsOf(const std::string& dir,
-                              const std::vector<georef::GeorefPing>& pings,
-                              std::size_t num_accepted,
-                              const AcceptedPointsReader& read_accepted,
-                              const georef::UtmProjection& utm,
-                              const georef::GeorefResult* rejected,
-                              const hydro::DatumModel& datum,
-                              const ProductMetadata& meta,
-                              const std::string& run_id,
-                              std::size_t block_soundings);
 
 }  // namespace pitmap::proc::pipeline::detail

@@ -1105,46 +1105,6 @@ Status WriteDemProducts(const std::string& dir,
     return WriteDemTiles(dir, config.tiles, dem, grid, files, tiles_record);
 }
 
-// The view's accepted soundings for the point writers (io::PointBlocks), a block of `block` at
-// a time: each block lent to s.geo.points while a writer reads it (s.geo then is the survey
-// with the block's soundings), or the held view in one block.
-io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block) {
-    if (!s.spilled_view) return io::WholePoints(s.geo);
-    io::PointBlocks blocks;
-    blocks.count = ViewSize(s);
-    blocks.for_each =
-        [&s, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
-            auto st =
-                ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
-                    s.geo.points = b;
-                    Status w = fn(s.geo, first);
-                    s.geo.points = georef::GeorefPoints();
-                    return w;
-                });
-            return st;
-        };
-    return blocks;
-}
-
-// points_utm.ply's accepted soundings: the held view, or its blocks read from the scratch file.
-AcceptedPointsReader ViewPointsReader(const StageContext& s,
-                                      std::shared_ptr<georef::GeorefPoints> buffer) {
-    return [&s, buffer](std::size_t first,
-                        std::size_t count,
-                        const georef::GeorefPoints*& points,
-                        std::size_t& offset) -> Status {
-        if (!s.spilled_view) {
-            points = &s.geo.points;
-            offset = first;
-            return Ok{};
-        }
-        if (auto st = s.spilled_view->ReadBlock(first, count, *buffer); !st) return st;
-        points = buffer.get();
-        offset = 0;
-        return Ok{};
-    };
-}
-
 // The point files with each sounding's THU and TVU (and its datum height when the datum is not
 // the ellipsoid): soundings_tpu.ply, points.ply, points.las and points_utm.ply, as configured;
 // each file written is added to `files`. The THU/TVU are borrowed from `tpu` and handed back.

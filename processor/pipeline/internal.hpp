@@ -5,6 +5,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -15,10 +16,13 @@
 
 #include "processor/fusion/tsdf.hpp"
 #include "processor/georef/georef.hpp"
+#include "processor/georef/georef_blocks.hpp"
+#include "processor/georef/mount_check.hpp"
 #include "processor/georef/survey_view.hpp"
 #include "processor/hydro/datum.hpp"
 #include "processor/io/grid_io.hpp"
 #include "processor/io/ingest.hpp"
+#include "processor/io/products.hpp"
 #include "processor/io/view_spill.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/pipeline.hpp"
@@ -55,6 +59,23 @@ struct StageContext {
 Status SpillView(StageContext& s);
 // Reads the spilled points back (bit for bit) into s.geo.points; nothing when none are spilled.
 Status RestoreView(StageContext& s);
+// Makes a view with `sink` (georef::RunGeorefByBlocks or GeoreferenceByBlocks handing it its
+// blocks) and returns its result without points.
+using ViewMaker = std::function<georef::GeorefResult(const georef::GeorefBlockSink& sink)>;
+// s.geo made by `make` with its points written to the view's file a block at a time: the view
+// is never held, s.spilled_view holds it at the end (an earlier view is dropped first). A
+// folder where the file cannot be made holds the view (a warning); a write that fails midway
+// (the disk full) is an error naming the file.
+Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log);
+// ViewToFile of georef::RunGeorefByBlocks: the model's ingested pings on their current times,
+// its mount, flags and s.refraction (`origin` nullopt = the first navigation sample; decision
+// 033). `check` (optional) sees every block.
+Status GeoreferenceToFile(StageContext& s,
+                          const PipelineConfig& config,
+                          std::optional<Geodetic> origin,
+                          georef::MountCheckByBlocks* check,
+                          const ProgressCallback& progress,
+                          const Log& log);
 
 // Refraction for a new georeference: the config's casts (none: straight rays) with the INS
 // height above the water line from the config, else from the vehicle file; sets the model's
@@ -90,13 +111,18 @@ enum class StartFrom {
     kNominal,     // the state before any calibration (calibrate)
     kBeforeSlam,  // the calibrated trajectory, an earlier SLAM's dropped (slam)
 };
+// Where a stage command's view is made: held (s.geo.points), or written to its scratch file a
+// block of pings at a time for a stage that reads it there (s.spilled_view; decision 041).
+enum class ViewIn { kMemory, kFile };
 // Loads P/survey.pitmap (and P/summary.json, to add to the report; a missing or unreadable one,
 // or one of another run than survey.pitmap (its run_id differs), starts a new report with a
-// warning), moves the model to `start` and georeferences it once.
+// warning), moves the model to `start` and georeferences it once (the view `view`: a folder
+// where the file cannot be made holds it, a warning).
 Expected<StageContext> LoadSurvey(const std::string& out_dir,
                                   const PipelineConfig& config,
                                   StartFrom start,
-                                  const Log& log);
+                                  const Log& log,
+                                  ViewIn view = ViewIn::kMemory);
 // Saves the model (P/survey.pitmap) and summary.json.
 Status SaveSurvey(const StageContext& s);
 // points.ply, points.las (unless `points` is false: the grid stage writes them with THU/TVU)
@@ -240,6 +266,41 @@ Status WriteProjectedPoints(const std::string& dir,
                             const ProductMetadata& meta,
                             const std::string& run_id,
                             std::size_t block_soundings);
+// Where the accepted soundings first .. first + count - 1 are for points_utm.ply: `points` and
+// the index `offset` of the first in them (the held view itself, or a block read from its
+// scratch file into a buffer the reader keeps).
+using AcceptedPointsReader = std::function<Status(std::size_t first,
+                                                  std::size_t count,
+                                                  const georef::GeorefPoints*& points,
+                                                  std::size_t& offset)>;
+// WriteProjectedPoints with the accepted soundings read a block at a time (`num_accepted` of
+// them, of `pings`): the same files byte for byte (decision 035).
+Status WriteProjectedPointsOf(const std::string& dir,
+                              const std::vector<georef::GeorefPing>& pings,
+                              std::size_t num_accepted,
+                              const AcceptedPointsReader& read_accepted,
+                              const georef::UtmProjection& utm,
+                              const georef::GeorefResult* rejected,
+                              const hydro::DatumModel& datum,
+                              const ProductMetadata& meta,
+                              const std::string& run_id,
+                              std::size_t block_soundings);
+// The view's soundings: on disk while spilled (SpillView), else held.
+std::size_t ViewSize(const StageContext& s);
+// Calls fn(block, first) on the view's soundings a block of `block` at a time, in order: read
+// from the scratch file while the view is spilled (decisions 031, 041: the view is then never
+// whole in memory), else copied from the held points. Stops at the first error.
+Status ForEachViewBlock(const StageContext& s,
+                        std::size_t block,
+                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn);
+// The view's accepted soundings for the point writers (io::PointBlocks), a block of `block` at
+// a time: each block lent to s.geo.points while a writer reads it (s.geo then is the survey
+// with the block's soundings), or the held view in one block.
+io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block);
+// points_utm.ply's accepted soundings: the held view, or its blocks read from the scratch file
+// into `buffer`.
+AcceptedPointsReader ViewPointsReader(const StageContext& s,
+                                      std::shared_ptr<georef::GeorefPoints> buffer);
 // A mesh's vertices (world ENU at `origin`) in the products' CRS: UTM in the origin's zone
 // (exact, GeographicLib, per vertex), heights in `datum`'s vertical CRS (the geoid at each
 // vertex; a water level's mean over the survey).

@@ -158,6 +158,65 @@ void SetMemoryBudget(json& summary, const RunOptions& run) {
                          {"block_soundings", run.block_soundings}};
 }
 
+namespace {
+
+// WritePoints with the accepted soundings from `accepted` for points.ply and points.las and
+// `read_accepted` for points_utm.ply (held, or read a block at a time from the view's file:
+// decision 041); geo's pings and origin are read, not its points.
+Status WritePointsOf(const std::string& dir,
+                     const georef::GeorefResult& geo,
+                     const io::PointBlocks& accepted,
+                     const AcceptedPointsReader& read_accepted,
+                     const PipelineConfig& c,
+                     json& summary,
+                     const std::string& run_id,
+                     const georef::GeorefResult* rejected,
+                     const survey::PingSeries* pings,
+                     const ProductMetadata* meta) {
+    io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
+    extras.pings = pings;
+    if (auto s = io::WritePly(dir + "/points.ply", geo, accepted, &extras, run_id, rejected); !s)
+        return s;
+    // The soundings are placed in UTM where the files are written (24 bytes a sounding less).
+    auto utm = georef::UtmProjectionOf(geo);
+    if (!utm) return Error{"UTM: " + utm.error().message};
+    summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
+    if (c.write_las) {
+        if (auto s = io::WriteLas(
+                dir + "/points.las", geo, accepted, *utm, &extras, run_id, rejected, meta);
+            !s)
+            return s;
+        // Heights above the ellipsoid here: the grid stage writes them again in the datum.
+        if (!c.write_points_utm) return Ok{};
+        if (auto s = WriteProjectedPointsOf(dir,
+                                            geo.pings,
+                                            accepted.count,
+                                            read_accepted,
+                                            *utm,
+                                            rejected,
+                                            hydro::DatumModel{},
+                                            meta != nullptr ? *meta : ProductMetadata{},
+                                            run_id,
+                                            BlockWithinBudget(c.run, ResidentMb()));
+            !s)
+            return s;
+    }
+    return Ok{};
+}
+
+// The held points as points_utm.ply reads them (one block: the points themselves).
+AcceptedPointsReader HeldPointsReader(const georef::GeorefPoints& points) {
+    return
+        [&points](
+            std::size_t first, std::size_t, const georef::GeorefPoints*& out, std::size_t& offset) {
+            out = &points;
+            offset = first;
+            return Status{Ok{}};
+        };
+}
+
+}  // namespace
+
 Status WritePoints(const std::string& dir,
                    const georef::GeorefResult& geo,
                    const PipelineConfig& c,
@@ -166,31 +225,69 @@ Status WritePoints(const std::string& dir,
                    const georef::GeorefResult* rejected,
                    const survey::PingSeries* pings,
                    const ProductMetadata* meta) {
-    io::PointExtras extras;  // the 83P intensities only: no TPU or datum before the grid stage
-    extras.pings = pings;
-    if (auto s = io::WritePly(dir + "/points.ply", geo, &extras, run_id, rejected); !s) return s;
-    // The soundings are placed in UTM where the files are written (24 bytes a sounding less).
-    auto utm = georef::UtmProjectionOf(geo);
-    if (!utm) return Error{"UTM: " + utm.error().message};
-    summary["utm"] = {{"zone", utm->zone}, {"northern", utm->northern}, {"epsg", utm->epsg}};
-    if (c.write_las) {
-        if (auto s = io::WriteLas(dir + "/points.las", geo, *utm, &extras, run_id, rejected, meta);
-            !s)
-            return s;
-        // Heights above the ellipsoid here: the grid stage writes them again in the datum.
-        if (!c.write_points_utm) return Ok{};
-        if (auto s = WriteProjectedPoints(dir,
-                                          geo,
-                                          *utm,
-                                          rejected,
-                                          hydro::DatumModel{},
-                                          meta != nullptr ? *meta : ProductMetadata{},
-                                          run_id,
-                                          BlockWithinBudget(c.run, ResidentMb()));
-            !s)
-            return s;
+    return WritePointsOf(dir,
+                         geo,
+                         io::WholePoints(geo),
+                         HeldPointsReader(geo.points),
+                         c,
+                         summary,
+                         run_id,
+                         rejected,
+                         pings,
+                         meta);
+}
+
+std::size_t ViewSize(const StageContext& s) {
+    return s.spilled_view ? s.spilled_view->size() : s.geo.points.size();
+}
+
+Status ForEachViewBlock(const StageContext& s,
+                        std::size_t block,
+                        const std::function<Status(const georef::GeorefPoints&, std::size_t)>& fn) {
+    const std::size_t n = ViewSize(s);
+    block = std::max<std::size_t>(block, 1);
+    georef::GeorefPoints b;
+    for (std::size_t first = 0; first < n; first += block) {
+        const std::size_t count = std::min(block, n - first);
+        if (s.spilled_view) {
+            if (auto st = s.spilled_view->ReadBlock(first, count, b); !st) return st;
+        } else {
+            b = georef::SliceOf(s.geo.points, first, count);
+        }
+        if (auto st = fn(b, first); !st) return st;
     }
     return Ok{};
+}
+
+io::PointBlocks ViewPointBlocks(StageContext& s, std::size_t block) {
+    if (!s.spilled_view) return io::WholePoints(s.geo);
+    io::PointBlocks blocks;
+    blocks.count = ViewSize(s);
+    blocks.for_each =
+        [&s, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+            return ForEachViewBlock(
+                s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+                    s.geo.points = b;
+                    Status w = fn(s.geo, first);
+                    s.geo.points = georef::GeorefPoints();
+                    return w;
+                });
+        };
+    return blocks;
+}
+
+AcceptedPointsReader ViewPointsReader(const StageContext& s,
+                                      std::shared_ptr<georef::GeorefPoints> buffer) {
+    if (!s.spilled_view) return HeldPointsReader(s.geo.points);
+    return [&s, buffer](std::size_t first,
+                        std::size_t count,
+                        const georef::GeorefPoints*& points,
+                        std::size_t& offset) -> Status {
+        if (auto st = s.spilled_view->ReadBlock(first, count, *buffer); !st) return st;
+        points = buffer.get();
+        offset = 0;
+        return Ok{};
+    };
 }
 
 georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c) {
@@ -206,13 +303,22 @@ georef::GeorefResult RejectedView(const StageContext& s, const PipelineConfig& c
 Status WritePoints(StageContext& s, const PipelineConfig& c) {
     s.summary["soundings"] = SoundingsJson(s.geo.counts);
     const ProductMetadata meta = SurveyProductMetadata(s, c, nullptr);
-    if (!c.write_rejected) {
-        return WritePoints(
-            s.out_dir, s.geo, c, s.summary, s.model.run_id, nullptr, &s.model.ingest.pings, &meta);
-    }
-    const georef::GeorefResult rejected = RejectedView(s, c);
-    return WritePoints(
-        s.out_dir, s.geo, c, s.summary, s.model.run_id, &rejected, &s.model.ingest.pings, &meta);
+    // The view's soundings a block at a time from its file while it is there (decision 041).
+    const io::PointBlocks accepted = ViewPointBlocks(s, BlockWithinBudget(c.run, ResidentMb()));
+    const AcceptedPointsReader read_accepted =
+        ViewPointsReader(s, std::make_shared<georef::GeorefPoints>());
+    std::optional<georef::GeorefResult> rejected;
+    if (c.write_rejected) rejected = RejectedView(s, c);
+    return WritePointsOf(s.out_dir,
+                         s.geo,
+                         accepted,
+                         read_accepted,
+                         c,
+                         s.summary,
+                         s.model.run_id,
+                         rejected ? &*rejected : nullptr,
+                         &s.model.ingest.pings,
+                         &meta);
 }
 
 json SoundingsJson(const georef::GeorefCounts& c) {
@@ -403,7 +509,8 @@ void ClearGates(StageContext& s, Stage stage_id) {
 Expected<StageContext> LoadSurvey(const std::string& out_dir,
                                   const PipelineConfig& config,
                                   StartFrom start,
-                                  const Log& log) {
+                                  const Log& log,
+                                  ViewIn view) {
     StageContext s;
     s.out_dir = out_dir;
     auto model = survey::LoadSurvey(out_dir + "/" + survey::kSurveyFileName);
@@ -430,12 +537,85 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     if (start == StartFrom::kNominal) s.model.ResetCalibration();
     if (start == StartFrom::kBeforeSlam) s.model.DropFrom(survey::TrajectoryVersion::kSlam);
     std::size_t kept = 0;
-    s.geo = georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    if (view == ViewIn::kFile) {
+        // The stage reads the view from its file: written there a block of pings at a time,
+        // never held (decision 041).
+        const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
+            return georef::GeoreferenceByBlocks(s.model,
+                                                s.model.latest(),
+                                                config.georef,
+                                                s.refraction,
+                                                BlockWithinBudget(config.run, ResidentMb()),
+                                                sink,
+                                                {},
+                                                &kept);
+        };
+        if (auto st = ViewToFile(s, make, log); !st) return st.error();
+    } else {
+        s.geo =
+            georef::Georeference(s.model, s.model.latest(), config.georef, s.refraction, {}, &kept);
+    }
     if (kept > 0) {
         log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
     }
     return s;
+}
+
+Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log) {
+    // One view at a time: the new one is made from the model alone.
+    s.spilled_view.reset();
+    s.geo = georef::GeorefResult{};
+    const std::size_t beams = s.model.ingest.pings.range_counts.size();
+    auto writer = io::SpillWriter::Open(io::ViewSpillPath(s.out_dir), beams, false);
+    if (!writer) log("warning: " + writer.error().message + ": the view is held in memory");
+    georef::GeorefPoints held;
+    Status failed = Ok{};
+    auto sink = [&](const georef::GeorefPoints& block, const georef::GeorefResult&) {
+        if (!writer) {
+            georef::AppendPoints(block, held);
+            return true;
+        }
+        failed = writer->Append(block);
+        return static_cast<bool>(failed);
+    };
+    s.geo = make(sink);
+    if (!failed) return failed;
+    if (!writer) {
+        s.geo.points = std::move(held);
+        return Ok{};
+    }
+    auto spilled = writer->Finish();
+    if (!spilled) return spilled.error();
+    s.spilled_view = std::move(*spilled);
+    return Ok{};
+}
+
+Status GeoreferenceToFile(StageContext& s,
+                          const PipelineConfig& config,
+                          std::optional<Geodetic> origin,
+                          georef::MountCheckByBlocks* check,
+                          const ProgressCallback& progress,
+                          const Log& log) {
+    const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
+        const auto checked = [&](const georef::GeorefPoints& b,
+                                 const georef::GeorefResult& so_far) {
+            if (check != nullptr) check->Add(so_far, b);
+            return sink(b, so_far);
+        };
+        return georef::RunGeorefByBlocks(s.model.ingest.nav,
+                                         s.model.ingest.pings,
+                                         s.model.mount,
+                                         config.georef,
+                                         BlockWithinBudget(config.run, ResidentMb()),
+                                         checked,
+                                         origin,
+                                         progress,
+                                         s.refraction,
+                                         &s.model.flags);
+    };
+    if (auto st = ViewToFile(s, make, log); !st) return Error{"georef: " + st.error().message};
+    return Ok{};
 }
 
 Status SpillView(StageContext& s) {
@@ -648,24 +828,23 @@ Expected<std::vector<io::InsStatusWindow>> IngestSurvey(StageContext& s,
 }
 
 // georef::RunGeoref of the ingested pings on the INS trajectory, with a progress bar; the world
-// origin is the configured one, else the first navigation sample.
-void GeoreferenceIngest(StageContext& s, const PipelineConfig& config, const Log& log) {
+// origin is the configured one, else the first navigation sample. The view goes to its file
+// block by block (GeoreferenceToFile); `check` sees every block (the mount check).
+Status GeoreferenceIngest(StageContext& s,
+                          const PipelineConfig& config,
+                          georef::MountCheckByBlocks& check,
+                          const Log& log) {
     std::optional<Geodetic> origin;
     if (!std::isnan(config.origin_latitude_deg)) {
         origin = Geodetic{
             config.origin_latitude_deg, config.origin_longitude_deg, config.origin_height_m};
     }
     ProgressReporter bar(ToString(Stage::kGeoref), 1000);
-    s.geo = georef::RunGeoref(s.model.ingest.nav,
-                              s.model.ingest.pings,
-                              s.model.mount,
-                              config.georef,
-                              origin,
-                              bar.AsCallback(),
-                              s.refraction,
-                              &s.model.flags);
+    auto st = GeoreferenceToFile(s, config, origin, &check, bar.AsCallback(), log);
     bar.Finish();
+    if (!st) return st;
     log("georef: " + s.geo.message);
+    return Ok{};
 }
 
 // Pings outside the navigation's span are not georeferenced: a warning, or the georef gate
@@ -692,8 +871,7 @@ void GateOutsideNavigation(StageContext& s, const QualityConfig& quality, const 
 // A mount that does not explain the soundings stops georef (an error), unless the sonar clock
 // is in doubt (a sonar_clock gate tripped): the attitude of another time leaves the roll in
 // the soundings too, so the check cannot blame the mount and trips the gate naming both.
-Status CheckMount(StageContext& s, const Log& log) {
-    const georef::MountCheck mc = georef::CheckMountAgainstAttitude(s.geo);
+Status CheckMount(StageContext& s, const georef::MountCheck& mc, const Log& log) {
     log("georef: " + mc.message);
     s.summary["mount_check"] = {{"checked", mc.checked},
                                 {"consistent", mc.consistent},
@@ -736,6 +914,8 @@ void RecordGeoref(StageContext& s, const std::vector<std::string>& files, const 
     s.model.trajectory(survey::TrajectoryVersion::kIns) =
         georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     RecordStage(s.summary, Stage::kGeoref, s.geo.counts, clock);
+    // Whether the view went to its file as it was made (decision 033), or is held.
+    s.summary["stages"][ToString(Stage::kGeoref)]["view_in_file"] = s.spilled_view.has_value();
     s.summary["world_origin"] = survey::OriginJson(s.model.origin);
     s.summary["time"] = TimeJson(s.model.ingest);
     s.summary["inputs"] = json::array();
@@ -786,11 +966,12 @@ Status GeorefSurvey(StageContext& s,
     }
 
     StageClock georef_clock;
-    GeoreferenceIngest(s, config, log);
+    georef::MountCheckByBlocks mount_check;
+    if (auto g = GeoreferenceIngest(s, config, mount_check, log); !g) return g;
     GateOutsideNavigation(s, config.quality, log);
     InsWindowGate(s, *ins_windows, log);
     if (config.quality.check_mount) {
-        if (auto m = CheckMount(s, log); !m) return m;
+        if (auto m = CheckMount(s, mount_check.Check(s.geo), log); !m) return m;
     }
     RecordGeoref(s, *files, georef_clock);
     if (auto st = io::WriteInsTrajectoryCsv(

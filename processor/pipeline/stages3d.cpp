@@ -1372,7 +1372,9 @@ Status RunAfterGeoref(detail::StageContext& s,
     const bool grid_points = config.grid.in_run && config.grid.write_point_tpu;
     auto export_now = [&](Status failed, bool points = true) -> Status {
         s.defer_products = false;
-        if (auto r = detail::RestoreView(s); !r) return r;  // a stage failed with it spilled
+        // The point writers read the view from its file (decision 041); the grid stage that
+        // follows reads it there too (a view that cannot go there stays held).
+        (void)detail::SpillView(s);
         if (auto w = detail::ExportSurvey(s, config, points); !w) return w;
         return failed;
     };
@@ -1394,6 +1396,7 @@ Status RunAfterGeoref(detail::StageContext& s,
         // on what was left ended at 0.110 m ATE instead of 0.064 m (docs/uncertainty.md).
         constexpr double kCircular95 = 2.4477;  // 95 % radius over sigma, circular normal
         const double max_sigma_m = first.clean.voxel_m / kCircular95;
+        // The cleaning reads the view from the file georef left it in (decisions 037, 041).
         if (auto st = detail::CleanSurvey(s, first, log, max_sigma_m); !st) return export_now(st);
     }
     if (config.run.calibrate) {
@@ -1421,11 +1424,12 @@ Status RunAfterGeoref(detail::StageContext& s,
     if (config.grid.in_run) {
         if (auto st = detail::GridSurvey(s, config, log); !st) {
             // The points without THU/TVU rather than none.
-            if (grid_points && detail::RestoreView(s)) (void)detail::WritePoints(s, config);
+            if (grid_points) (void)detail::WritePoints(s, config);
             return st;
         }
     }
     {
+        // The TSDF reads the view by blocks from its file (decisions 034, 040).
         auto v =
             detail::FuseSurvey(s, config, Stage::kFuse, detail::ViewAfterScans::kReleased, log);
         if (!v) return v.error();

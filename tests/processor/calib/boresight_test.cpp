@@ -3,11 +3,14 @@
 // boresight; the soundings are georeferenced with the nominal (zero) boresight and the
 // calibration must recover the true one. One pass alone has no overlap and must say so.
 #include "processor/calib/boresight.hpp"
+#include "processor/calib/boresight_blocks.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
+#include <type_traits>
 
 #include "common/frames.hpp"
 #include "processor/calib/pass_pairs.hpp"
@@ -286,6 +289,71 @@ TEST(Boresight, ConfigValidationListsEveryProblem) {
     const auto p = c.Validate();
     EXPECT_EQ(p.size(), 4u);
     EXPECT_TRUE(BoresightConfig{}.Validate().empty());
+}
+
+// Decision 033: the calibration reading the view a block at a time (a ViewReader, as the
+// pipeline reads its file) gives the calibration of the view held, to the bit: the same
+// candidate windows and their overlap, the same samples, the same mount, latency and residuals.
+TEST(Boresight, AViewReadByBlocksGivesTheHeldViewsCalibration) {
+    const SonarMount truth = Mount(1.0, -0.8, 1.5), nominal = Mount(0, 0, 0);
+    const std::vector<Pass> passes = {{0.0, {0, -20}, {0, 1}, 40},
+                                      {60.0, {4, 20}, {0, -1}, 40},
+                                      {120.0, {-20, 2}, {1, 0}, 40},
+                                      {180.0, {20, -3}, {-1, 0}, 40}};
+    const GeorefResult geo = Survey(passes, truth, nominal);
+    const survey::NavSeries nav = InsSigmas(230, 1e9);
+    BoresightConfig cfg;
+    cfg.segment_duration_s = 130;  // several candidates, and segments to verify on
+    cfg.estimate_latency = true;
+    const BoresightResult held = CalibrateBoresight(geo, nav, nominal, cfg);
+    ASSERT_NE(held.termination, Termination::kNoOverlap) << held.message;
+    ASSERT_GT(held.candidates.size(), 2u);
+    GeorefResult pings_only = geo;
+    pings_only.points = georef::GeorefPoints{};
+    for (const std::size_t block : {std::size_t{1000}, std::size_t{4999}, std::size_t{1} << 30}) {
+        std::size_t reads = 0;
+        ViewReader reader;
+        reader.size = geo.points.size();
+        reader.read = [&](std::size_t first, std::size_t end, const ViewVisit& visit) {
+            for (std::size_t b = first; b < end; b += block) {
+                const std::size_t e = std::min(end, b + block);
+                georef::GeorefPoints P;
+                const auto cut = [&](const auto& v) {
+                    return std::decay_t<decltype(v)>(v.begin() + static_cast<std::ptrdiff_t>(b),
+                                                     v.begin() + static_cast<std::ptrdiff_t>(e));
+                };
+                P.position_world = cut(geo.points.position_world);
+                P.ping = cut(geo.points.ping);
+                P.beam = cut(geo.points.beam);
+                P.range_m = cut(geo.points.range_m);
+                P.angle_rad = cut(geo.points.angle_rad);
+                visit(P, b, 0, P.size());
+                reads += P.size();
+            }
+            return true;
+        };
+        const BoresightResult by = CalibrateBoresight(pings_only, reader, nav, nominal, cfg);
+        SCOPED_TRACE(block);
+        EXPECT_GT(reads, geo.points.size()) << "the view is read by windows";
+        EXPECT_EQ(by.message, held.message);
+        EXPECT_EQ(by.mount.boresight_roll_deg, held.mount.boresight_roll_deg);
+        EXPECT_EQ(by.mount.boresight_pitch_deg, held.mount.boresight_pitch_deg);
+        EXPECT_EQ(by.mount.boresight_yaw_deg, held.mount.boresight_yaw_deg);
+        EXPECT_EQ(by.latency_s, held.latency_s);
+        EXPECT_EQ(by.before.rms_m, held.before.rms_m);
+        EXPECT_EQ(by.after.rms_m, held.after.rms_m);
+        EXPECT_EQ(by.after.pairs, held.after.pairs);
+        EXPECT_EQ(by.segment.start_s, held.segment.start_s);
+        ASSERT_EQ(by.candidates.size(), held.candidates.size());
+        for (std::size_t c = 0; c < by.candidates.size(); ++c) {
+            EXPECT_EQ(by.candidates[c].overlap_cells, held.candidates[c].overlap_cells) << c;
+        }
+        ASSERT_EQ(by.verify.size(), held.verify.size());
+        for (std::size_t v = 0; v < by.verify.size(); ++v) {
+            EXPECT_EQ(by.verify[v].after.rms_m, held.verify[v].after.rms_m) << v;
+            EXPECT_EQ(by.verify[v].before.pairs, held.verify[v].before.pairs) << v;
+        }
+    }
 }
 
 }  // namespace

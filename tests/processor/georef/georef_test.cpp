@@ -2,13 +2,19 @@
 // Georeferencing on a synthetic flat seabed: a level vehicle heading north over water 10 m
 // deep; every kept sounding must lie on the plane z = -10 (world up), gaps and spikes counted.
 #include "processor/georef/georef.hpp"
+#include "processor/georef/georef_blocks.hpp"
+#include "processor/georef/survey_view.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <map>
+#include <memory>
 #include <optional>
+#include <type_traits>
 #include <utility>
+#include <vector>
 
 #include "common/frames.hpp"
 
@@ -511,6 +517,277 @@ TEST(GeorefViews, ResolveOrdersTheVerdicts) {
     }
     EXPECT_EQ(survey::Resolve(S::kNoDetection, f, 0), S::kNoDetection);
     EXPECT_EQ(survey::Resolve(S::kRefraction, f, 1), S::kRefraction);
+}
+
+}  // namespace
+}  // namespace pitmap::proc::georef
+
+// Decision 033: georef a block of pings at a time (RunGeorefByBlocks) gives RunGeoref's view bit
+// for bit, its pings and its counts, whatever the block, in every view, with and without
+// refraction; and the new mount on blocks (Remount) is Regeoreference's.
+namespace pitmap::proc::georef {
+namespace {
+
+// 300 pings of 121 beams over a wavy floor from a rolling vehicle: no detections, spikes,
+// range-gated beams, a navigation gap and pings after the navigation, the cleaning's and the
+// hand's flags on some soundings.
+struct BlockSurvey {
+    survey::NavSeries nav;
+    survey::PingSeries pings;
+    survey::SoundingFlags flags;
+    BlockSurvey() {
+        const LocalTangentFrame world({40.0, -7.0, 100.0});
+        for (int i = 0; i < 2000; ++i) {
+            if (i >= 900 && i < 940) continue;  // a 0.8 s gap
+            survey::NavSample s;
+            s.utime_gps = 1'000'000'000 + i * 20'000;
+            s.position = world.FromEnu(Eigen::Vector3d(0.01 * i, 0.1 * i, 0.02 * std::sin(i)));
+            s.roll_rad = 0.05 * std::sin(i * 0.03);
+            s.pitch_rad = 0.03 * std::cos(i * 0.05);
+            s.yaw_rad = 0.4 + 0.001 * i;
+            nav.samples.push_back(s);
+        }
+        for (int k = 0; k < 300; ++k) {
+            survey::PingHeader h;
+            h.utime_gps = 1'000'000'000 + 7'000 + k * 140'000;
+            h.sound_speed_mps = 1490;
+            h.sound_speed_valid = true;
+            h.range_resolution_m = 0.001;
+            h.start_angle_deg = -60;
+            h.angle_increment_deg = 1.0;
+            h.profile_tilt_deg = k % 7 == 0 ? 1.5 : 0.0;
+            h.beam_offset = static_cast<std::uint32_t>(pings.range_counts.size());
+            h.num_beams = 121;
+            for (int i = 0; i < 121; ++i) {
+                const double th = frames::DegToRad(-60.0 + i);
+                const double depth = 10.0 + 0.5 * std::sin(0.1 * k + 0.07 * i);
+                std::uint32_t c =
+                    static_cast<std::uint32_t>(std::lround(depth / std::cos(th) / 0.001));
+                if ((k * 121 + i) % 97 == 0) c = 0;      // no detection
+                if ((k * 121 + i) % 89 == 0) c = c / 2;  // a spike
+                if ((k * 121 + i) % 211 == 0) c = 200;   // 0.2 m: range gate
+                pings.range_counts.push_back(c);
+            }
+            pings.pings.push_back(h);
+        }
+        flags.cleaning.assign(pings.range_counts.size(), 0);
+        flags.manual.assign(pings.range_counts.size(), 0);
+        for (std::size_t j = 0; j < flags.cleaning.size(); j += 53) {
+            flags.cleaning[j] = static_cast<std::uint8_t>(survey::SoundingStatus::kFreeSpace);
+        }
+        for (std::size_t j = 5; j < flags.manual.size(); j += 301) {
+            flags.manual[j] = static_cast<std::uint8_t>(survey::ManualEdit::kReject);
+        }
+    }
+};
+
+GeorefPoints Join(const std::vector<GeorefPoints>& blocks) {
+    GeorefPoints all;
+    for (const GeorefPoints& b : blocks) AppendPoints(b, all);
+    return all;
+}
+
+bool SameBits(const void* a, const void* b, std::size_t bytes) {
+    return bytes == 0 || std::memcmp(a, b, bytes) == 0;
+}
+
+void ExpectSamePoints(const GeorefPoints& a, const GeorefPoints& b) {
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(a.ping, b.ping);
+    EXPECT_EQ(a.beam, b.beam);
+    EXPECT_EQ(a.status, b.status);
+    EXPECT_TRUE(SameBits(
+        a.position_world.data(), b.position_world.data(), a.size() * sizeof(Eigen::Vector3d)));
+    EXPECT_TRUE(SameBits(a.range_m.data(), b.range_m.data(), a.size() * sizeof(float)));
+    EXPECT_TRUE(SameBits(a.angle_rad.data(), b.angle_rad.data(), a.size() * sizeof(float)));
+}
+
+std::shared_ptr<const svp::Refraction> LayeredWater() {
+    svp::SoundSpeedCast cast;
+    cast.name = "layered";
+    cast.depth_m = {0, 4, 8, 30};
+    cast.speed_mps = {1495, 1480, 1470, 1468};
+    return std::make_shared<const svp::Refraction>(std::vector<svp::SoundSpeedCast>{cast},
+                                                   svp::CastSelection::kNearestPreceding,
+                                                   svp::SurfaceSpeedSource::kProfile,
+                                                   0.0);
+}
+
+TEST(GeorefBlocks, BlocksOfPingsGiveRunGeorefsViewBitForBit) {
+    const BlockSurvey sv;
+    survey::SonarMount mount;
+    mount.lever_arm_m = Eigen::Vector3d(0.8, 0.1, 0.3);
+    mount.boresight_roll_deg = 0.7;
+    const GeorefConfig cfg;
+    for (const auto& refraction : {std::shared_ptr<const svp::Refraction>(), LayeredWater()}) {
+        for (const auto view : {survey::SoundingView::kAccepted,
+                                survey::SoundingView::kRejected,
+                                survey::SoundingView::kCandidates}) {
+            const GeorefResult whole = RunGeoref(
+                sv.nav, sv.pings, mount, cfg, std::nullopt, {}, refraction, &sv.flags, view);
+            ASSERT_GT(whole.points.size(), 1000u);
+            ASSERT_GT(whole.counts.pings_in_nav_gap + whole.counts.pings_outside_nav, 0);
+            for (const std::size_t block :
+                 {std::size_t{0}, std::size_t{121}, std::size_t{1000}, std::size_t{1} << 30}) {
+                std::vector<GeorefPoints> blocks;
+                std::size_t pings_seen = 0;
+                const GeorefResult by = RunGeorefByBlocks(
+                    sv.nav,
+                    sv.pings,
+                    mount,
+                    cfg,
+                    block,
+                    [&](const GeorefPoints& b, const GeorefResult& so_far) {
+                        // Whole pings, their indices into the pings so far.
+                        for (std::uint32_t k : b.ping) EXPECT_LT(k, so_far.pings.size());
+                        EXPECT_GE(so_far.pings.size(), pings_seen);
+                        pings_seen = so_far.pings.size();
+                        EXPECT_TRUE(so_far.points.size() == b.size());
+                        blocks.push_back(b);
+                        return true;
+                    },
+                    std::nullopt,
+                    {},
+                    refraction,
+                    &sv.flags,
+                    view);
+                SCOPED_TRACE("block " + std::to_string(block));
+                EXPECT_EQ(by.points.size(), 0u) << "the view is not held";
+                if (block == 0) {
+                    EXPECT_GE(blocks.size(), 250u);
+                }
+                ExpectSamePoints(Join(blocks), whole.points);
+                ASSERT_EQ(by.pings.size(), whole.pings.size());
+                for (std::size_t k = 0; k < by.pings.size(); ++k) {
+                    EXPECT_EQ(by.pings[k].header_index, whole.pings[k].header_index);
+                    EXPECT_EQ(by.pings[k].cast, whole.pings[k].cast);
+                    EXPECT_TRUE(SameBits(
+                        by.pings[k].sensor_world.data(), whole.pings[k].sensor_world.data(), 24));
+                }
+                EXPECT_EQ(by.counts.status, whole.counts.status);
+                EXPECT_EQ(by.counts.points, whole.counts.points);
+                EXPECT_EQ(by.counts.pings_georeferenced, whole.counts.pings_georeferenced);
+                EXPECT_EQ(by.counts.pings_in_nav_gap, whole.counts.pings_in_nav_gap);
+                EXPECT_EQ(by.counts.pings_outside_nav, whole.counts.pings_outside_nav);
+                EXPECT_EQ(by.counts.spikes, whole.counts.spikes);
+                EXPECT_EQ(by.message, whole.message);
+            }
+        }
+    }
+}
+
+TEST(GeorefBlocks, ASinkThatFailsStopsTheGeoreference) {
+    const BlockSurvey sv;
+    int calls = 0;
+    const GeorefResult r =
+        RunGeorefByBlocks(sv.nav,
+                          sv.pings,
+                          survey::SonarMount{},
+                          GeorefConfig{},
+                          1000,
+                          [&](const GeorefPoints&, const GeorefResult&) { return ++calls < 3; });
+    EXPECT_EQ(calls, 3);
+    EXPECT_TRUE(r.cancelled);
+    EXPECT_FALSE(r.message.empty());
+}
+
+// Decision 041: a stage command's view made a block of pings at a time (GeoreferenceByBlocks,
+// what LoadSurvey writes to the view's file) is the survey's view: RunGeoref's points moved onto
+// the trajectory asked for (ApplyTrajectory), bit for bit, with the pings that version lacks
+// left on the navigation and counted; and Georeference (now on blocks) is the same view held.
+TEST(GeorefBlocks, TheSurveysViewByBlocksIsRunGeorefMovedOntoItsTrajectory) {
+    const BlockSurvey sv;
+    survey::SurveyModel m;
+    m.ingest.nav = sv.nav;
+    m.ingest.pings = sv.pings;
+    m.flags = sv.flags;
+    m.mount.lever_arm_m = Eigen::Vector3d(0.8, 0.1, 0.3);
+    m.origin = {40.0005, -7.0003, 95.0};
+    const GeorefConfig cfg;
+    const GeorefResult ins =
+        RunGeoref(sv.nav, sv.pings, m.mount, cfg, m.origin, {}, nullptr, &sv.flags);
+    const std::size_t num_pings = sv.pings.pings.size();
+    m.trajectory(survey::TrajectoryVersion::kIns) = TrajectoryOf(ins, num_pings);
+    // SLAM's trajectory: every pose moved a little (a rotation and a shift growing along the
+    // survey); a few pings it has no pose for.
+    survey::PingTrajectory slam = m.trajectory(survey::TrajectoryVersion::kIns);
+    for (std::size_t i = 0; i < num_pings; ++i) {
+        const double f = static_cast<double>(i) / static_cast<double>(num_pings);
+        Pose d = Pose::Identity();
+        d.linear() = Eigen::AngleAxisd(0.002 * f, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        d.translation() = Eigen::Vector3d(0.3 * f, -0.1, 0.05 * std::sin(7.0 * f));
+        slam.T_world_vehicle[i] = d * slam.T_world_vehicle[i];
+        if (i % 37 == 5) slam.valid[i] = 0;
+    }
+    for (const bool with_slam : {false, true}) {
+        SCOPED_TRACE(with_slam ? "on SLAM's trajectory" : "on the INS's");
+        if (with_slam) m.trajectory(survey::TrajectoryVersion::kSlam) = slam;
+        GeorefResult expected = ins;
+        const std::size_t expected_kept = with_slam ? ApplyTrajectory(expected, slam) : 0;
+        ASSERT_GT(expected.points.size(), 1000u);
+        std::vector<GeorefPoints> blocks;
+        std::size_t kept = 99;
+        const GeorefResult by = GeoreferenceByBlocks(
+            m,
+            m.latest(),
+            cfg,
+            nullptr,
+            1000,
+            [&](const GeorefPoints& b, const GeorefResult&) {
+                blocks.push_back(b);
+                return true;
+            },
+            {},
+            &kept);
+        EXPECT_GT(blocks.size(), 10u);
+        EXPECT_EQ(by.points.size(), 0u) << "the view is not held";
+        ExpectSamePoints(Join(blocks), expected.points);
+        EXPECT_EQ(kept, expected_kept);
+        if (with_slam) {
+            EXPECT_GT(kept, 0u);
+        }
+        ASSERT_EQ(by.pings.size(), expected.pings.size());
+        for (std::size_t k = 0; k < by.pings.size(); ++k) {
+            EXPECT_TRUE(SameBits(by.pings[k].T_world_vehicle.data(),
+                                 expected.pings[k].T_world_vehicle.data(),
+                                 sizeof(Pose)));
+        }
+        std::size_t held_kept = 99;
+        const GeorefResult held = Georeference(m, m.latest(), cfg, nullptr, {}, &held_kept);
+        ExpectSamePoints(held.points, expected.points);
+        EXPECT_EQ(held_kept, expected_kept);
+    }
+}
+
+TEST(GeorefBlocks, TheNewMountOnBlocksIsRegeoreferencesBitForBit) {
+    const BlockSurvey sv;
+    survey::SonarMount mount;
+    mount.lever_arm_m = Eigen::Vector3d(0.8, 0.1, 0.3);
+    survey::SonarMount calibrated = mount;
+    calibrated.boresight_roll_deg = 0.31;
+    calibrated.boresight_pitch_deg = -0.2;
+    calibrated.boresight_yaw_deg = 0.9;
+    for (const auto& refraction : {std::shared_ptr<const svp::Refraction>(), LayeredWater()}) {
+        GeorefResult whole = RunGeoref(
+            sv.nav, sv.pings, mount, GeorefConfig{}, std::nullopt, {}, refraction, &sv.flags);
+        GeorefResult by = whole;
+        Regeoreference(whole, calibrated);
+        const Remount remount(by, calibrated);
+        std::vector<GeorefPoints> blocks;
+        for (std::size_t first = 0; first < by.points.size(); first += 777) {
+            GeorefPoints b =
+                SliceOf(by.points, first, std::min(by.points.size(), first + 777) - first);
+            remount.Apply(b);
+            blocks.push_back(std::move(b));
+        }
+        ExpectSamePoints(Join(blocks), whole.points);
+        ASSERT_EQ(by.pings.size(), whole.pings.size());
+        for (std::size_t k = 0; k < by.pings.size(); ++k) {
+            EXPECT_TRUE(
+                SameBits(by.pings[k].sensor_world.data(), whole.pings[k].sensor_world.data(), 24));
+        }
+        EXPECT_EQ(by.mount.boresight_yaw_deg, calibrated.boresight_yaw_deg);
+    }
 }
 
 }  // namespace

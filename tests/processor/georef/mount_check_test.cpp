@@ -100,3 +100,50 @@ TEST(MountCheck, WithoutMotionItCannotTellAndSaysSo) {
 
 }  // namespace
 }  // namespace pitmap::proc::georef
+
+// Decision 033: the mount check on blocks of whole pings (MountCheckByBlocks, as georef sees
+// the view it writes to its file) is the check of the whole view, to the bit.
+namespace pitmap::proc::georef {
+namespace {
+
+TEST(MountCheck, BlocksOfWholePingsGiveTheWholeViewsCheck) {
+    for (const bool turned : {false, true}) {
+        survey::SonarMount configured;
+        if (turned) configured.boresight_yaw_deg = 180.0;
+        const GeorefResult g = Survey(configured);
+        const MountCheck whole = CheckMountAgainstAttitude(g);
+        ASSERT_TRUE(whole.checked) << whole.message;
+        for (const std::uint32_t pings_a_block : {1u, 7u, 333u, 5000u}) {
+            MountCheckByBlocks check;
+            GeorefPoints block;
+            const auto flush = [&] {
+                check.Add(g, block);
+                block = GeorefPoints{};
+            };
+            for (std::size_t j = 0; j < g.points.size(); ++j) {
+                if (block.size() > 0 &&
+                    g.points.ping[j] / pings_a_block != block.ping.front() / pings_a_block) {
+                    flush();
+                }
+                block.position_world.push_back(g.points.position_world[j]);
+                block.ping.push_back(g.points.ping[j]);
+                block.beam.push_back(g.points.beam[j]);
+                block.range_m.push_back(g.points.range_m[j]);
+                block.angle_rad.push_back(g.points.angle_rad[j]);
+            }
+            flush();
+            const MountCheck by = check.Check(g);
+            SCOPED_TRACE(pings_a_block);
+            EXPECT_EQ(by.checked, whole.checked);
+            EXPECT_EQ(by.consistent, whole.consistent);
+            EXPECT_EQ(by.pings, whole.pings);
+            EXPECT_EQ(by.roll_gain, whole.roll_gain);
+            EXPECT_EQ(by.pitch_gain, whole.pitch_gain);
+            EXPECT_EQ(by.roll_gain_sd, whole.roll_gain_sd);
+            EXPECT_EQ(by.message, whole.message);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace pitmap::proc::georef

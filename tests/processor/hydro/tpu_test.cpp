@@ -191,19 +191,6 @@ TEST(Tpu, ComputeTpuGivesOneValuePerSoundingAndTermSharesSumToOne) {
     EXPECT_EQ(invalid.Validate().size(), 2u);
 }
 
-// The slice first .. first + count - 1 of `p`.
-georef::GeorefPoints SliceOf(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto at = [&](std::size_t j) { return static_cast<std::ptrdiff_t>(j); };
-    out.position_world.assign(p.position_world.begin() + at(first),
-                              p.position_world.begin() + at(first + count));
-    out.ping.assign(p.ping.begin() + at(first), p.ping.begin() + at(first + count));
-    out.beam.assign(p.beam.begin() + at(first), p.beam.begin() + at(first + count));
-    out.range_m.assign(p.range_m.begin() + at(first), p.range_m.begin() + at(first + count));
-    out.angle_rad.assign(p.angle_rad.begin() + at(first), p.angle_rad.begin() + at(first + count));
-    return out;
-}
-
 bool SameFloats(const std::vector<float>& a, const std::vector<float>& b) {
     return a.size() == b.size() &&
            (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
@@ -253,7 +240,7 @@ TEST(Tpu, BlocksOfTheViewGiveTheWholeViewsTpuBitForBit) {
                                     n}) {
         TpuByBlocks tpu(geo.pings, mount, sigma, cfg, n);
         for (std::size_t first = 0; first < n; first += block) {
-            tpu.Add(SliceOf(geo.points, first, std::min(block, n - first)), first);
+            tpu.Add(georef::SliceOf(geo.points, first, std::min(block, n - first)), first);
         }
         const TpuResult r = tpu.Finish();
         EXPECT_TRUE(SameFloats(r.tvu_95_m, whole.tvu_95_m)) << block;
@@ -269,7 +256,7 @@ TEST(Tpu, BlocksOfTheViewGiveTheWholeViewsTpuBitForBit) {
     }
     // A block out of order is not taken (its soundings stay 0): blocks go in the view's order.
     TpuByBlocks skipped(geo.pings, mount, sigma, cfg, n);
-    skipped.Add(SliceOf(geo.points, 100, 10), 100);
+    skipped.Add(georef::SliceOf(geo.points, 100, 10), 100);
     EXPECT_EQ(skipped.Finish().tvu_95_m[100], 0.0f);
 }
 

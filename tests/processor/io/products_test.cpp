@@ -24,6 +24,7 @@
 #include "common/frames.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
+#include "processor/io/view_spill.hpp"
 
 namespace pitmap::proc::io {
 namespace {
@@ -477,6 +478,106 @@ TEST_F(ProductReaders, ProjectedPointsInBlocksAreTheFileOfTheHeldPoints) {
     const auto zero = WriteProjectedPointsPly((dir_ / "zero.ply").string(), held, n, 0, none);
     ASSERT_FALSE(zero);
     EXPECT_NE(zero.error().message.find("blocks of 0 points"), std::string::npos);
+}
+
+// 40 pings of 121 beams over a sloping floor, with 83P intensities: the accepted view, its
+// pings (`series`) and, beside it, FloorSoundings' rejected soundings on the same two first
+// pings' times.
+georef::GeorefResult ManySoundings(survey::PingSeries& series) {
+    georef::GeorefResult r;
+    r.world_origin = {40.4435, -7.7806, 412.0};
+    for (std::uint32_t k = 0; k < 40; ++k) {
+        survey::PingHeader h;
+        h.utime_gps = 1'400'000'000'000'000 + k * 100'000;
+        h.beam_offset = static_cast<std::uint32_t>(series.range_counts.size());
+        h.num_beams = 121;
+        series.pings.push_back(h);
+        georef::GeorefPing ping;
+        ping.utime_gps = h.utime_gps;
+        ping.header_index = k;
+        ping.sensor_world = Eigen::Vector3d(0.3 * k, 0.0, -0.5);
+        r.pings.push_back(ping);
+        for (std::uint16_t b = 0; b < 121; ++b) {
+            series.range_counts.push_back(1000u + b);
+            series.intensities.push_back(static_cast<std::uint16_t>(7 * k + b));
+            if ((k + b) % 13 == 0) continue;  // a beam georef dropped
+            const double a = frames::DegToRad(-60.0 + b);
+            r.points.position_world.emplace_back(
+                0.3 * k + 0.01 * b, 10.0 * std::tan(a), -10.0 - 0.02 * b + 1e-3 * std::sin(k));
+            r.points.ping.push_back(k);
+            r.points.beam.push_back(b);
+            r.points.range_m.push_back(static_cast<float>(10.0 / std::cos(a)));
+            r.points.angle_rad.push_back(static_cast<float>(a));
+        }
+    }
+    return r;
+}
+
+// Decisions 035, 041: points.ply and points.las written from the view's file a block at a
+// time (PointBlocks over SpilledPoints::ReadBlock) are the files of the held view, byte for byte,
+// whatever the block; a file that cannot be read is an error and leaves no product.
+TEST_F(ProductReaders, PointFilesFromBlocksOfTheViewsFileAreTheHeldViewsFiles) {
+    survey::PingSeries series;
+    const georef::GeorefResult a = ManySoundings(series);
+    ASSERT_TRUE(series.has_intensities());
+    const auto r = FloorSoundings(survey::SoundingView::kRejected);
+    const auto utm = georef::UtmProjectionOf(a);
+    ASSERT_TRUE(utm);
+    PointExtras x;
+    x.pings = &series;
+    const std::string held_ply = (dir_ / "held.ply").string();
+    const std::string held_las = (dir_ / "held.las").string();
+    ASSERT_TRUE(WritePly(held_ply, a, &x, "0123456789abcdef0123456789abcdef", &r));
+    ASSERT_TRUE(WriteLas(held_las, a, *utm, &x, "0123456789abcdef0123456789abcdef", &r));
+    georef::GeorefPoints points = a.points;
+    auto spilled = SpilledPoints::Spill(points, (dir_ / ".partial-view_points").string());
+    ASSERT_TRUE(spilled) << spilled.error().message;
+    georef::GeorefResult pings_only = a;
+    pings_only.points = georef::GeorefPoints{};
+    const std::size_t n = a.points.size();
+    // The blocks as the pipeline lends them (ViewPointBlocks): each read from the file into the
+    // survey's points while a writer reads it.
+    const auto from_file = [&](std::size_t block, std::size_t& asked) {
+        PointBlocks blocks;
+        blocks.count = n;
+        blocks.for_each =
+            [&, block](const std::function<Status(const georef::GeorefResult&, std::size_t)>& fn) {
+                georef::GeorefResult lent = pings_only;
+                for (std::size_t first = 0; first < n; first += block) {
+                    const std::size_t count = std::min(block, n - first);
+                    asked += count;
+                    if (auto st = spilled->ReadBlock(first, count, lent.points); !st) return st;
+                    if (auto st = fn(lent, first); !st) return st;
+                }
+                return Status{Ok{}};
+            };
+        return blocks;
+    };
+    for (const std::size_t block : {std::size_t{1}, std::size_t{977}, n + 3}) {
+        std::size_t asked = 0;
+        const PointBlocks blocks = from_file(block, asked);
+        const std::string ply = (dir_ / "blocks.ply").string();
+        const std::string las = (dir_ / "blocks.las").string();
+        ASSERT_TRUE(WritePly(ply, pings_only, blocks, &x, "0123456789abcdef0123456789abcdef", &r));
+        ASSERT_TRUE(WriteLas(
+            las, pings_only, blocks, *utm, &x, "0123456789abcdef0123456789abcdef", &r, nullptr));
+        EXPECT_GE(asked, 2 * n) << "PLY once, LAS at least once more";
+        EXPECT_EQ(ReadBytes(ply), ReadBytes(held_ply)) << block;
+        EXPECT_EQ(ReadBytes(las), ReadBytes(held_las)) << block;
+    }
+    PointBlocks gone;
+    gone.count = n;
+    gone.for_each = [](const std::function<Status(const georef::GeorefResult&, std::size_t)>&) {
+        return Status{Error{"P/.partial-view_points: cannot read a block of the view's points"}};
+    };
+    const std::string ply = (dir_ / "failed.ply").string();
+    const std::string las = (dir_ / "failed.las").string();
+    const Status p = WritePly(ply, pings_only, gone, &x, "", nullptr);
+    ASSERT_FALSE(p);
+    EXPECT_NE(p.error().message.find(".partial-view_points"), std::string::npos);
+    EXPECT_FALSE(WriteLas(las, pings_only, gone, *utm, &x, "", &r, nullptr));
+    EXPECT_FALSE(fs::exists(ply));
+    EXPECT_FALSE(fs::exists(las));
 }
 
 }  // namespace

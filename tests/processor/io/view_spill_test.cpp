@@ -9,8 +9,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace pitmap::proc::io {
@@ -147,23 +149,6 @@ TEST(ViewSpill, AnUnwritablePlaceOrUnequalArraysLeaveThePointsHeld) {
     EXPECT_FALSE(fs::exists(Scratch("unequal")));
 }
 
-// Points first .. first + count - 1 of `p`.
-georef::GeorefPoints Slice(const georef::GeorefPoints& p, std::size_t first, std::size_t count) {
-    georef::GeorefPoints out;
-    const auto take = [&](const auto& from, auto& to) {
-        if (from.empty()) return;
-        to.assign(from.begin() + static_cast<std::ptrdiff_t>(first),
-                  from.begin() + static_cast<std::ptrdiff_t>(first + count));
-    };
-    take(p.position_world, out.position_world);
-    take(p.ping, out.ping);
-    take(p.beam, out.beam);
-    take(p.range_m, out.range_m);
-    take(p.angle_rad, out.angle_rad);
-    take(p.status, out.status);
-    return out;
-}
-
 TEST(ViewSpill, BlocksReadFromTheFileAreTheViewBitForBit) {
     for (const bool with_status : {false, true}) {
         const std::size_t n = 10007;
@@ -181,18 +166,8 @@ TEST(ViewSpill, BlocksReadFromTheFileAreTheViewBitForBit) {
                 ASSERT_TRUE(spilled->ReadBlock(first, block, b)) << block;
                 const std::size_t count = std::min(block, n - first);
                 ASSERT_EQ(b.size(), count);
-                ExpectSameBits(b, Slice(original, first, count));
-                if (block != 1) {
-                    const auto append = [](const auto& from, auto& to) {
-                        to.insert(to.end(), from.begin(), from.end());
-                    };
-                    append(b.position_world, joined.position_world);
-                    append(b.ping, joined.ping);
-                    append(b.beam, joined.beam);
-                    append(b.range_m, joined.range_m);
-                    append(b.angle_rad, joined.angle_rad);
-                    append(b.status, joined.status);
-                }
+                ExpectSameBits(b, georef::SliceOf(original, first, count));
+                if (block != 1) georef::AppendPoints(b, joined);
             }
             if (block != 1) ExpectSameBits(joined, original);
         }
@@ -231,7 +206,7 @@ TEST(ViewSpill, KeepOnlyLeavesTheKeptPointsInTheirOrder) {
         georef::GeorefPoints expected;
         for (std::size_t j = 0; j < n; ++j) {
             if (!keep[j]) continue;
-            const georef::GeorefPoints one = Slice(original, j, 1);
+            const georef::GeorefPoints one = georef::SliceOf(original, j, 1);
             expected.position_world.push_back(one.position_world[0]);
             expected.ping.push_back(one.ping[0]);
             expected.beam.push_back(one.beam[0]);
@@ -265,6 +240,83 @@ TEST(ViewSpill, TheScratchFileIsAPartialFileOfTheFolder) {
     const std::string p = ViewSpillPath("some/products");
     EXPECT_EQ(fs::path(p).parent_path(), fs::path("some/products"));
     EXPECT_EQ(fs::path(p).filename().string().rfind(".partial-", 0), 0u) << p;
+}
+
+std::string FileBytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Decision 033: georef writes the view to its file as it makes it, a block at a time, into a
+// file laid out for every beam; the finished file is Spill's byte for byte.
+TEST(ViewSpill, AFileWrittenByBlocksIsTheFileSpillWrites) {
+    for (const bool with_status : {false, true}) {
+        for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{100003}}) {
+            const georef::GeorefPoints original = MakePoints(n, with_status);
+            georef::GeorefPoints P = original;
+            const std::string whole = Scratch("whole_" + std::to_string(n));
+            auto spilled = SpilledPoints::Spill(P, whole);
+            ASSERT_TRUE(spilled) << spilled.error().message;
+            for (const std::size_t block : {std::size_t{1}, std::size_t{977}, n + 5}) {
+                if (block == 1 && n > 1000) continue;  // 100 003 opens of the file
+                // Capacity: the points themselves, and more (the beams georef drops).
+                for (const std::size_t capacity : {n, 3 * n + 7}) {
+                    const std::string path = Scratch("blocks_" + std::to_string(n));
+                    auto writer = SpillWriter::Open(path, capacity, with_status);
+                    ASSERT_TRUE(writer) << writer.error().message;
+                    for (std::size_t first = 0; first < n; first += block) {
+                        ASSERT_TRUE(writer->Append(
+                            georef::SliceOf(original, first, std::min(block, n - first))));
+                    }
+                    EXPECT_EQ(writer->size(), n);
+                    auto finished = writer->Finish();
+                    ASSERT_TRUE(finished) << finished.error().message;
+                    EXPECT_EQ(finished->size(), n);
+                    EXPECT_EQ(finished->with_status(), with_status && n > 0);
+                    EXPECT_TRUE(FileBytes(path) == FileBytes(whole))
+                        << "n " << n << " block " << block << " capacity " << capacity;
+                    georef::GeorefPoints back;
+                    ASSERT_TRUE(finished->Restore(back));
+                    ExpectSameBits(back, original);
+                    EXPECT_FALSE(fs::exists(path));
+                }
+            }
+        }
+    }
+}
+
+TEST(ViewSpill, AWriterRefusesMoreThanItsCapacityAndLeavesNoFileUnfinished) {
+    const georef::GeorefPoints P = MakePoints(10, false);
+    const std::string path = Scratch("capacity");
+    {
+        auto writer = SpillWriter::Open(path, 9, false);
+        ASSERT_TRUE(writer);
+        const Status st = writer->Append(P);
+        ASSERT_FALSE(st);
+        EXPECT_NE(st.error().message.find(path), std::string::npos) << st.error().message;
+        EXPECT_FALSE(writer->Finish()) << "a failed writer cannot be finished";
+    }
+    EXPECT_FALSE(fs::exists(path)) << "an unfinished file stays";
+    {
+        auto writer = SpillWriter::Open(path, 100, false);
+        ASSERT_TRUE(writer);
+        ASSERT_TRUE(writer->Append(P));
+        // Statuses in a view written without them: an error, not a file of another layout.
+        EXPECT_FALSE(writer->Append(MakePoints(3, true)));
+    }
+    EXPECT_FALSE(fs::exists(path));
+    auto nowhere = SpillWriter::Open(Scratch("no_such_dir") + "/sub/points", 10, false);
+    ASSERT_FALSE(nowhere);
+    EXPECT_NE(nowhere.error().message.find("no_such_dir"), std::string::npos);
+}
+
+TEST(ViewSpill, TheNextFileIsBesideTheViewsAndAlternates) {
+    const std::string first = ViewSpillPath("/p");
+    const std::string next = NextViewSpillPath("/p", first);
+    EXPECT_NE(next, first);
+    EXPECT_EQ(fs::path(next).parent_path(), fs::path("/p"));
+    EXPECT_EQ(fs::path(next).filename().string().rfind(".partial-", 0), 0u) << next;
+    EXPECT_EQ(NextViewSpillPath("/p", next), first);
 }
 
 }  // namespace
