@@ -484,6 +484,31 @@ Eigen::Vector3d SoundingVectorSonar(const GeorefResult& result,
     return T_world_sonar.inverse() * P.position_world[j];
 }
 
+namespace {
+
+// The result's mount, refraction, input counts and world origin (the given one, else the first
+// navigation sample's); false, with the message, when there is no navigation to georeference on.
+bool StartResult(const survey::NavSeries& nav,
+                 const survey::PingSeries& series,
+                 const survey::SonarMount& mount,
+                 const std::shared_ptr<const svp::Refraction>& refraction,
+                 std::optional<Geodetic> origin,
+                 GeorefResult& result) {
+    result.mount = mount;
+    result.refraction = refraction;
+    result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
+    result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
+    if (nav.samples.empty()) {
+        result.message = "no navigation samples";
+        result.counts.pings_outside_nav = result.counts.pings_in;
+        return false;
+    }
+    result.world_origin = origin ? *origin : nav.samples.front().position;
+    return true;
+}
+
+}  // namespace
+
 GeorefResult RunGeoref(const survey::NavSeries& nav,
                        const survey::PingSeries& series,
                        const survey::SonarMount& mount,
@@ -494,16 +519,7 @@ GeorefResult RunGeoref(const survey::NavSeries& nav,
                        const survey::SoundingFlags* flags,
                        survey::SoundingView view) {
     GeorefResult result;
-    result.mount = mount;
-    result.refraction = refraction;
-    result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
-    result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
-    if (nav.samples.empty()) {
-        result.message = "no navigation samples";
-        result.counts.pings_outside_nav = result.counts.pings_in;
-        return result;
-    }
-    result.world_origin = origin ? *origin : nav.samples.front().position;
+    if (!StartResult(nav, series, mount, refraction, origin, result)) return result;
     const LocalTangentFrame world(result.world_origin);
     const Trajectory trajectory(nav, world);
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();
@@ -580,16 +596,7 @@ GeorefResult RunGeorefByBlocks(const survey::NavSeries& nav,
                                const survey::SoundingFlags* flags,
                                survey::SoundingView view) {
     GeorefResult result;
-    result.mount = mount;
-    result.refraction = refraction;
-    result.counts.pings_in = static_cast<std::int64_t>(series.pings.size());
-    result.counts.soundings_in = static_cast<std::int64_t>(series.range_counts.size());
-    if (nav.samples.empty()) {
-        result.message = "no navigation samples";
-        result.counts.pings_outside_nav = result.counts.pings_in;
-        return result;
-    }
-    result.world_origin = origin ? *origin : nav.samples.front().position;
+    if (!StartResult(nav, series, mount, refraction, origin, result)) return result;
     const LocalTangentFrame world(result.world_origin);
     const Trajectory trajectory(nav, world);
     const Pose T_vehicle_sonar = mount.T_vehicle_sonar();

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -30,6 +31,32 @@ inline int RunCommand(const std::string& command, std::string* out = nullptr) {
     const int status = pclose(f);
     if (out != nullptr) *out += text;
     return status;
+}
+
+// `b` with every UTC time in it (YYYY-MM-DDTHH:MM:SSZ) zeroed: the products of two runs
+// compared byte for byte but for their processing times.
+inline void ZeroUtcTimes(std::string& b) {
+    constexpr char kShape[] = "dddd-dd-ddTdd:dd:ddZ";
+    constexpr std::size_t kLength = sizeof(kShape) - 1;
+    for (std::size_t i = 0; i + kLength <= b.size(); ++i) {
+        bool time = true;
+        for (std::size_t k = 0; k < kLength && time; ++k) {
+            const char c = b[i + k];
+            time = kShape[k] == 'd' ? (c >= '0' && c <= '9') : c == kShape[k];
+        }
+        if (!time) continue;
+        for (std::size_t k = 0; k < kLength; ++k) {
+            if (kShape[k] == 'd') b[i + k] = '0';
+        }
+    }
+}
+
+// A file's bytes with every UTC time in it zeroed (ZeroUtcTimes).
+inline std::string BytesWithoutUtcTimes(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::string b{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    ZeroUtcTimes(b);
+    return b;
 }
 
 inline std::string Quote(const std::filesystem::path& p) {

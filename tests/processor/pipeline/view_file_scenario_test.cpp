@@ -44,19 +44,7 @@ std::string Bytes(const fs::path& p, const std::string& run_id) {
     for (std::size_t i = 0; i + 1 < run_id.size(); i += 2)
         guid.push_back(static_cast<char>(std::stoi(run_id.substr(i, 2), nullptr, 16)));
     if (guid.size() == 16) Mask(b, guid);
-    constexpr char kShape[] = "dddd-dd-ddTdd:dd:ddZ";
-    constexpr std::size_t kLength = sizeof(kShape) - 1;
-    for (std::size_t i = 0; i + kLength <= b.size(); ++i) {
-        bool time = true;
-        for (std::size_t k = 0; k < kLength && time; ++k) {
-            const char c = b[i + k];
-            time = kShape[k] == 'd' ? (c >= '0' && c <= '9') : c == kShape[k];
-        }
-        if (!time) continue;
-        for (std::size_t k = 0; k < kLength; ++k) {
-            if (kShape[k] == 'd') b[i + k] = '0';
-        }
-    }
+    pitmap::test::ZeroUtcTimes(b);
     return b;
 }
 
