@@ -11,6 +11,8 @@
 #   PITMAP_CMAKE_ARGS extra configure arguments
 #   BUILD_TARGETS    build only these targets (default: everything), e.g. "unit-tests" with -L unit
 #   CC, CXX          the compilers, read by cmake when it configures a new build folder
+#   BUILD_ONLY       1 = configure and build, run no test (CI builds its sanitizer stage so, in
+#                    the background, while the Release tests run)
 # ctest runs inside a private network namespace (only loopback, multicast routed to it) when
 # the machine allows one, so LCM multicast tests never meet other traffic and send nothing out.
 set -euo pipefail
@@ -31,6 +33,10 @@ cmake -S "$root" -B "$build" -G Ninja \
 echo "run-tests: configured $build (${BUILD_TYPE:-Release}${PITMAP_SANITIZE:+, sanitizers: $PITMAP_SANITIZE})"
 # shellcheck disable=SC2086
 cmake --build "$build" -j "$jobs" ${BUILD_TARGETS:+--target $BUILD_TARGETS}
+if [[ ${BUILD_ONLY:-0} == 1 ]]; then
+  echo "run-tests: built $build (BUILD_ONLY=1: no test run)"
+  exit 0
+fi
 
 ctest_cmd=(ctest --test-dir "$build" --output-on-failure -j "$jobs" "$@")
 if unshare -n true 2>/dev/null; then
