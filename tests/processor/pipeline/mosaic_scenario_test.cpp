@@ -66,7 +66,7 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
     const fs::path P = dir / "p";
     out.clear();
     ASSERT_EQ(RunCommand(kBin + "/pitmap run " + Quote(dir / "sim/log") + " --out " + Quote(P) +
-                             " --no-calibrate --no-slam",
+                             " --no-calibrate --no-slam --no-report",
                          &out),
               0)
         << out;
@@ -135,7 +135,7 @@ TEST(MosaicScenario, CorrectedMosaicMatchesTheSeabedAndBeatsTheUncorrected) {
         << out;
     out.clear();
     ASSERT_EQ(RunCommand(kBin + "/pitmap run " + Quote(dir / "v100/log") + " --out " +
-                             Quote(dir / "p100") + " --no-calibrate --no-slam",
+                             Quote(dir / "p100") + " --no-calibrate --no-slam --no-report",
                          &out),
               0)
         << out;
