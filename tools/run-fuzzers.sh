@@ -3,11 +3,11 @@
 # Builds the libFuzzer targets (tests/fuzz/*_fuzz.cpp) with clang and runs each for a bounded
 # time, seeded with tests/fuzz/seeds/<target>/ (small product and config files), else the real
 # captures in tests/data/<target>/. A crash, leak or sanitizer report fails.
-#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 20)
+#   tools/run-fuzzers.sh [seconds-per-target]     (default 60; CI uses 10)
 #   FUZZ_TARGETS="ply_fuzz novatel_fuzz" tools/run-fuzzers.sh 30   (only those targets)
 # The product and config targets need the processor and daemon libraries, so both are built
 # (with clang, only what the fuzz targets link) in build-fuzz/.
-#   BUILD_DIR=build-san tools/run-fuzzers.sh 20   (CI) reuses a build folder that was already
+#   BUILD_DIR=build-san tools/run-fuzzers.sh 10   (CI) reuses a build folder that was already
 #       configured with clang and PITMAP_BUILD_FUZZERS=ON (e.g. with PITMAP_SANITIZE and the
 #       tests too): no second configure, and only fuzz targets not yet built are built.
 set -euo pipefail
