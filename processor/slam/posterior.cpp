@@ -256,6 +256,17 @@ double FormalHorizontalMedian(const std::vector<Matrix6d>& Ckk, double scale) {
     return h[h.size() / 2];
 }
 
+// Whether the pair's slices depend only on nodes [first, last) of p.
+bool PairInWindow(const Param& p, const Pair& pr, std::size_t first, std::size_t last) {
+    for (const std::uint32_t s : {pr.slice_a, pr.slice_b}) {
+        for (const int k : {p.k0[s], p.k1[s]}) {
+            const auto u = static_cast<std::size_t>(k);
+            if (u < first || u >= last) return false;
+        }
+    }
+    return true;
+}
+
 // ---- the INS's steady position error through the rigid stage's result (decision 042) -------
 // The INS's steady position error (the survey's smallest sigma f per axis, what it holds with
 // GNSS) is a first-order Gauss-Markov process of correlation time tau
@@ -275,6 +286,11 @@ double FormalHorizontalMedian(const std::vector<Matrix6d>& Ckk, double scale) {
 // Left out: the pairs' response to e_s - e_i(s) (the process's deviation from its interpolation
 // between nodes 15 s apart, a few mm), which the correction would partly follow: conservative.
 // Without pairs xi = e at the anchors and eps_s = e_s: f, as before.
+// Where a semi-rigid iterate is kept (decision 045) the same response is taken through the
+// semi-rigid stage's normal equations at that iterate (its nodes every bin_slices slices, its
+// pairs at the solver's weights), window by window where its posterior is: one undamped
+// Gauss-Newton step from any start answers the INS's error by -H_s^-1 (g(e) - g(0)), so the
+// response does not depend on the rigid stage's result it started from.
 constexpr int kSteadyDraws = 256;
 constexpr std::uint64_t kSteadySeed = 42;
 
@@ -290,6 +306,14 @@ bool RigidResultKept(const Input& in,
     }
     for (std::size_t s = 0; s < T.size(); ++s) {
         if ((T[s].translation() - in.T_ins[s].translation()).norm() > 1e-6) return true;
+    }
+    return false;
+}
+
+// Whether the semi-rigid stage kept an iterate: some node of p holds a correction.
+bool SemiRigidIterateKept(const Param& p) {
+    for (std::size_t k = 0; k < p.num_nodes(); ++k) {
+        if (!(p.tc[k].isZero(0.0) && p.Rc[k] == Eigen::Matrix3d::Identity())) return true;
     }
     return false;
 }
@@ -322,101 +346,182 @@ Eigen::VectorXd PoseTermsGradient(const Input& in,
     return g;
 }
 
-// Draw d of the steady error at every slice: per axis sigma f, correlation time tau, exact
-// transitions between the slices' times.
-void SteadyDraw(
-    const Input& in, const Eigen::Vector3d& f, double tau, int d, std::vector<Eigen::Vector3d>& e) {
+// Draw d of the steady error at slices [s0, s1) (e[s - s0]): per axis sigma f, correlation
+// time tau, exact transitions between the slices' times, stationary at s0.
+void SteadyDraw(const Input& in,
+                const Eigen::Vector3d& f,
+                double tau,
+                int d,
+                std::size_t s0,
+                std::size_t s1,
+                std::vector<Eigen::Vector3d>& e) {
     std::mt19937_64 rng(kSteadySeed * 1000003ULL + static_cast<std::uint64_t>(d));
     std::normal_distribution<double> normal;
-    e.resize(in.num_slices());
-    for (std::size_t s = 0; s < in.num_slices(); ++s) {
+    e.resize(s1 - s0);
+    for (std::size_t s = s0; s < s1; ++s) {
         const Eigen::Vector3d u(normal(rng), normal(rng), normal(rng));
-        if (s == 0) {
-            e[s] = f.cwiseProduct(u);
+        if (s == s0) {
+            e[0] = f.cwiseProduct(u);
             continue;
         }
         const double a = std::exp(-std::abs(in.t_s[s] - in.t_s[s - 1]) / tau);
-        e[s] = a * e[s - 1] + std::sqrt(std::max(0.0, 1.0 - a * a)) * f.cwiseProduct(u);
+        e[s - s0] = a * e[s - s0 - 1] + std::sqrt(std::max(0.0, 1.0 - a * a)) * f.cwiseProduct(u);
     }
 }
 
-// The rigid stage's normal equations at T (its parametrisation pr), its pairs as the solver
-// weighs them (all their information, no design effect), factorised. False when it fails.
-bool FactoriseRigid(const Input& in,
-                    const Param& pr,
+// A stage's normal equations at T (its parametrisation q), its pairs as the solver weighs them
+// (all their information, no design effect), factorised. False when it fails.
+bool FactoriseStage(const Input& in,
+                    const Param& q,
                     const std::vector<Pose>& T,
                     const std::vector<Pair>& pairs,
                     const SlamConfig& cfg,
                     std::unique_ptr<reg::DampedSolver<6>>& ne,
                     std::unique_ptr<Terms>& total) {
-    const std::size_t m = pr.num_nodes();
+    const std::size_t m = q.num_nodes();
     total = std::make_unique<Terms>(m);
-    AddPoseTerms(in, pr, T, cfg, /*linearise=*/true, *total);
+    AddPoseTerms(in, q, T, cfg, /*linearise=*/true, *total);
     tbb::enumerable_thread_specific<Terms> accs([m] { return Terms(m); });
-    AddPairTerms(in, pr, T, pairs, cfg, /*linearise=*/true, accs);
+    AddPairTerms(in, q, T, pairs, cfg, /*linearise=*/true, accs);
     for (const Terms& acc : accs) total->sys.Merge(acc.sys);
     ne = std::make_unique<reg::DampedSolver<6>>(total->sys);
     Eigen::VectorXd delta;
     return ne->Solve(0.0, &delta);
 }
 
-// Per slice, the variance (east, north, up) of the rigid result's error from the INS's steady
-// position error (above); empty when the rigid normal equations cannot be solved.
+// The slices a response is taken over: the draws span [s0, s1) (every anchor of the
+// parametrisation's nodes and the slices stated lie in it), the variance is stated for
+// [from, to).
+struct SteadySpan {
+    std::size_t s0 = 0, s1 = 0;
+    std::size_t from = 0, to = 0;
+};
+
+// The draws per solve (the right-hand sides held at once).
+constexpr int kSteadyBatch = 64;
+
+// Per slice of span.from .. span.to, the variance (east, north, up) of the result's error from
+// the INS's steady position error (above) through the normal equations of parametrisation q
+// (the rigid stage's or the semi-rigid stage's) at T with `pairs` at the solver's weights;
+// empty when they cannot be solved.
+std::vector<Eigen::Vector3d> SteadyVariance(const Input& in,
+                                            const Param& q,
+                                            const std::vector<Pose>& T,
+                                            const std::vector<Pair>& pairs,
+                                            const SteadySpan& span,
+                                            const SlamConfig& cfg) {
+    const std::size_t m = q.num_nodes();
+    std::unique_ptr<reg::DampedSolver<6>> ne;
+    std::unique_ptr<Terms> total;
+    if (m == 0 || !FactoriseStage(in, q, T, pairs, cfg, ne, total)) return {};
+    const Eigen::Vector3d f = in.sigma_floor.tail<3>().cwiseMax(0.0);
+    const double tau = std::max(cfg.ins_correlation_time_s, 1e-3);
+    Input ins = PoseTermsInput(in);
+    const Eigen::VectorXd g0 = PoseTermsGradient(ins, q, T, cfg);
+    const std::size_t n = span.to - span.from;
+    // The slice's translation from its node increment (rot, trans): trans + rot x lever, the
+    // lever as NodeToSlice takes it.
+    std::vector<Eigen::Vector3d> lever(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t s = span.from + i;
+        Eigen::Matrix3d R;
+        Eigen::Vector3d t;
+        SliceCorrection(q, s, &R, &t);
+        lever[i] = T[s].translation() - q.pivot[s] - t;
+    }
+    std::vector<Eigen::Vector3d> var(n, Eigen::Vector3d::Zero());
+    for (int b0 = 0; b0 < kSteadyDraws; b0 += kSteadyBatch) {
+        const int nb = std::min(kSteadyBatch, kSteadyDraws - b0);
+        Eigen::MatrixXd G(g0.size(), nb);
+        std::vector<Eigen::Vector3d> ea(m * static_cast<std::size_t>(nb)), e;
+        for (int d = 0; d < nb; ++d) {
+            SteadyDraw(in, f, tau, b0 + d, span.s0, span.s1, e);
+            for (std::size_t k = 0; k < m; ++k) {
+                const auto a = static_cast<std::size_t>(q.anchor[k]);
+                ea[static_cast<std::size_t>(d) * m + k] = e[a - span.s0];
+                ins.T_ins[a].translation() = in.T_ins[a].translation() + e[a - span.s0];
+            }
+            G.col(d) = PoseTermsGradient(ins, q, T, cfg) - g0;
+        }
+        const Eigen::MatrixXd X = ne->SolveMany(G);
+        if (X.size() == 0) return {};
+        tbb::enumerable_thread_specific<std::vector<Eigen::Vector3d>> acc(
+            [n] { return std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()); });
+        tbb::parallel_for(0, nb, [&](int d) {
+            std::vector<Eigen::Vector3d> ed;
+            SteadyDraw(in, f, tau, b0 + d, span.s0, span.s1, ed);
+            std::vector<Eigen::Vector3d>& v = acc.local();
+            const auto o = static_cast<std::size_t>(d) * m;
+            for (std::size_t i = 0; i < n; ++i) {
+                const std::size_t s = span.from + i;
+                const auto k0 = static_cast<std::size_t>(q.k0[s]);
+                const auto k1 = static_cast<std::size_t>(q.k1[s]);
+                const double w = q.alpha[s];
+                const Vector6d x =
+                    (1.0 - w) * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k0)) +
+                    w * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k1));
+                // xi = -x = -H^-1 (g(e) - g(0)); the slice's translation as NodeToSlice makes it.
+                const Eigen::Vector3d moved = -(x.tail<3>() + x.head<3>().cross(lever[i]));
+                const Eigen::Vector3d eps =
+                    moved + ed[s - span.s0] - ((1.0 - w) * ea[o + k0] + w * ea[o + k1]);
+                v[i] += eps.cwiseAbs2();
+            }
+        });
+        for (const auto& v : acc) {
+            for (std::size_t i = 0; i < n; ++i) var[i] += v[i];
+        }
+    }
+    for (Eigen::Vector3d& v : var) v /= static_cast<double>(kSteadyDraws);
+    return var;
+}
+
+// Per slice, the variance of the rigid result's error from the INS's steady position error:
+// the rigid stage's parametrisation of the kept poses (decision 042).
 std::vector<Eigen::Vector3d> RigidSteadyVariance(const Input& in,
                                                  const std::vector<Pose>& T,
                                                  const std::vector<Block>& blocks,
                                                  const std::vector<Pair>& pairs,
                                                  const SlamConfig& cfg) {
     const Param pr = RigidParam(in, T, blocks, cfg);
-    const std::size_t m = pr.num_nodes();
-    const std::size_t n = in.num_slices();
-    std::unique_ptr<reg::DampedSolver<6>> ne;
-    std::unique_ptr<Terms> total;
-    if (m == 0 || !FactoriseRigid(in, pr, T, pairs, cfg, ne, total)) return {};
+    const SteadySpan all{0, in.num_slices(), 0, in.num_slices()};
+    return SteadyVariance(in, pr, T, pairs, all, cfg);
+}
+
+// Per slice, the variance of the semi-rigid result's error from the INS's steady position
+// error (decision 045): the semi-rigid stage's own normal equations at the kept iterate p, its
+// pairs at the solver's weights, window by window as its posterior (each window's terms, its
+// core's slices kept); empty when a window cannot be solved.
+std::vector<Eigen::Vector3d> SemiRigidSteadyVariance(const Input& in,
+                                                     const Param& p,
+                                                     const std::vector<Pose>& T,
+                                                     const std::vector<Pair>& pairs,
+                                                     const std::vector<NodeWindow>& windows,
+                                                     const SlamConfig& cfg) {
+    const std::size_t ns = in.num_slices();
+    const std::size_t n = p.num_nodes();
+    if (windows.size() <= 1) return SteadyVariance(in, p, T, pairs, {0, ns, 0, ns}, cfg);
+    // A slice no window's core states (a core whose last slices reach a node past its window:
+    // no overlap) keeps the steady error whole.
     const Eigen::Vector3d f = in.sigma_floor.tail<3>().cwiseMax(0.0);
-    const double tau = std::max(cfg.ins_correlation_time_s, 1e-3);
-    Input ins = PoseTermsInput(in);
-    const Eigen::VectorXd g0 = PoseTermsGradient(ins, pr, T, cfg);
-    Eigen::MatrixXd G(g0.size(), kSteadyDraws);
-    std::vector<Eigen::Vector3d> ea(m * kSteadyDraws), e;
-    for (int d = 0; d < kSteadyDraws; ++d) {
-        SteadyDraw(in, f, tau, d, e);
-        for (std::size_t k = 0; k < m; ++k) {
-            const auto a = static_cast<std::size_t>(pr.anchor[k]);
-            ea[static_cast<std::size_t>(d) * m + k] = e[a];
-            ins.T_ins[a].translation() = in.T_ins[a].translation() + e[a];
+    std::vector<Eigen::Vector3d> var(ns, f.cwiseAbs2());
+    const auto anchor = [&](std::size_t k) {
+        return k < n ? static_cast<std::size_t>(p.anchor[k]) : ns;
+    };
+    for (const NodeWindow& w : windows) {
+        std::vector<Pair> inside;
+        for (const Pair& pr : pairs) {
+            if (PairInWindow(p, pr, w.first, w.last)) inside.push_back(pr);
         }
-        G.col(d) = PoseTermsGradient(ins, pr, T, cfg) - g0;
+        const std::size_t s1 = w.last < n ? anchor(w.last) : ns;
+        const std::size_t inside_last = w.last < n ? anchor(w.last - 1) + 1 : ns;
+        const SteadySpan span{
+            anchor(w.first), s1, anchor(w.core_first), std::min(anchor(w.core_last), inside_last)};
+        if (span.to <= span.from) continue;
+        const std::vector<Eigen::Vector3d> v =
+            SteadyVariance(in, WindowParam(p, w.first, w.last), T, inside, span, cfg);
+        if (v.empty()) return {};
+        std::copy(v.begin(), v.end(), var.begin() + static_cast<std::ptrdiff_t>(span.from));
     }
-    const Eigen::MatrixXd X = ne->SolveMany(G);
-    if (X.size() == 0) return {};
-    // The slice's translation from its node increment (rot, trans): trans + rot x lever.
-    std::vector<Eigen::Vector3d> lever(n);
-    for (std::size_t s = 0; s < n; ++s) lever[s] = T[s].translation() - pr.pivot[s];
-    tbb::enumerable_thread_specific<std::vector<Eigen::Vector3d>> acc(
-        [n] { return std::vector<Eigen::Vector3d>(n, Eigen::Vector3d::Zero()); });
-    tbb::parallel_for(0, kSteadyDraws, [&](int d) {
-        std::vector<Eigen::Vector3d> ed;
-        SteadyDraw(in, f, tau, d, ed);
-        std::vector<Eigen::Vector3d>& v = acc.local();
-        const auto o = static_cast<std::size_t>(d) * m;
-        for (std::size_t s = 0; s < n; ++s) {
-            const auto k0 = static_cast<std::size_t>(pr.k0[s]);
-            const auto k1 = static_cast<std::size_t>(pr.k1[s]);
-            const double w = pr.alpha[s];
-            const Vector6d x = (1.0 - w) * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k0)) +
-                               w * X.col(d).segment<6>(static_cast<Eigen::Index>(6 * k1));
-            // xi = -x = -H^-1 (g(e) - g(0)); the slice's translation as NodeToSlice makes it.
-            const Eigen::Vector3d moved = -(x.tail<3>() + x.head<3>().cross(lever[s]));
-            const Eigen::Vector3d eps = moved + ed[s] - ((1.0 - w) * ea[o + k0] + w * ea[o + k1]);
-            v[s] += eps.cwiseAbs2();
-        }
-    });
-    std::vector<Eigen::Vector3d> var(n, Eigen::Vector3d::Zero());
-    for (const auto& v : acc) {
-        for (std::size_t s = 0; s < n; ++s) var[s] += v[s];
-    }
-    for (Eigen::Vector3d& v : var) v /= static_cast<double>(kSteadyDraws);
     return var;
 }
 
@@ -467,17 +572,6 @@ Vector6d SliceSigma(const Input& in,
     sig.head<3>() = RollPitchYawSigma(T[s].linear(), C.topLeftCorner<3, 3>());
     sig.tail<3>() = C.bottomRightCorner<3, 3>().diagonal().cwiseMax(0.0).cwiseSqrt();
     return sig;
-}
-
-// Whether the pair's slices depend only on nodes [first, last) of p.
-bool PairInWindow(const Param& p, const Pair& pr, std::size_t first, std::size_t last) {
-    for (const std::uint32_t s : {pr.slice_a, pr.slice_b}) {
-        for (const int k : {p.k0[s], p.k1[s]}) {
-            const auto u = static_cast<std::size_t>(k);
-            if (u < first || u >= last) return false;
-        }
-    }
-    return true;
 }
 
 // The marginal blocks Ckk, Ckn (scaled formal part plus the cluster-robust part) window by
@@ -571,24 +665,33 @@ bool WindowedMarginals(const Input& in,
     return true;
 }
 
-// post.slice_sigma from the node blocks, the steady position error as the rigid result carries
-// it where the result is the rigid stage's (RigidResultKept), else whole; sets computed.
+// post.slice_sigma from the node blocks, the steady position error as the kept result carries
+// it: the rigid stage's response where the result is the rigid stage's (RigidResultKept), the
+// semi-rigid stage's where its iterate is kept (SemiRigidIterateKept), else whole (the result
+// is the INS's); sets computed.
 void FillSliceSigma(const Input& in,
                     const Param& p,
                     const std::vector<Pose>& T,
                     const std::vector<Block>& blocks,
                     const std::vector<Pair>& pairs,
+                    const std::vector<NodeWindow>& windows,
                     const std::vector<Matrix6d>& Ckk,
                     const std::vector<Matrix6d>& Ckn,
                     const SlamConfig& cfg,
                     SlamPosterior& post) {
     const auto t0 = Clock::now();
     std::vector<Eigen::Vector3d> steady;
-    if (cfg.posterior_reference_sigma && RigidResultKept(in, p, T, cfg)) {
+    if (!cfg.posterior_reference_sigma) {
+        post.steady_model = "none";
+    } else if (RigidResultKept(in, p, T, cfg)) {
         steady = RigidSteadyVariance(in, T, blocks, pairs, cfg);
         post.steady_model = steady.empty() ? "whole (the rigid response failed)" : "rigid_response";
+    } else if (SemiRigidIterateKept(p)) {
+        steady = SemiRigidSteadyVariance(in, p, T, pairs, windows, cfg);
+        post.steady_model =
+            steady.empty() ? "whole (the semi-rigid response failed)" : "semi_rigid_response";
     } else {
-        post.steady_model = cfg.posterior_reference_sigma ? "whole" : "none";
+        post.steady_model = "whole";
     }
     post.steady_s = Seconds(t0);
     post.slice_sigma.resize(in.num_slices());
@@ -658,7 +761,7 @@ void ComputePosterior(const Input& in,
         if (!WindowedMarginals(in, p, T, pairs, windows, pair_info, cfg, post, Ckk, Ckn)) {
             return fail(post.message);
         }
-        FillSliceSigma(in, p, T, blocks, pairs, Ckk, Ckn, cfg, post);
+        FillSliceSigma(in, p, T, blocks, pairs, windows, Ckk, Ckn, cfg, post);
         post.total_s = Seconds(t_start);
         return;
     }
@@ -709,7 +812,7 @@ void ComputePosterior(const Input& in,
     }
     post.marginals_s = Seconds(t0);
 
-    FillSliceSigma(in, p, T, blocks, pairs, Ckk, Ckn, cfg, post);
+    FillSliceSigma(in, p, T, blocks, pairs, windows, Ckk, Ckn, cfg, post);
     post.total_s = Seconds(t_start);
 }
 
