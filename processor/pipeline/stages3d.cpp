@@ -29,9 +29,9 @@
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
+#include "processor/io/record_spill.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
-#include "processor/pipeline/grid_cube_tiles.hpp"
 #include "processor/pipeline/internal.hpp"
 #include "processor/pipeline/pipeline.hpp"
 #include "processor/pipeline/posterior.hpp"
@@ -560,9 +560,76 @@ json InsSlowErrorFromFixes(const StageContext& s,
     return out;
 }
 
-}  // namespace
+// A per-beam array of the ping series set aside in a scratch file (.partial-NAME in the
+// products folder) and given back bit for bit; an empty array has no file.
+template <typename T>
+class ArrayAside {
+public:
+    Status SetAside(std::vector<T>& v, const std::string& path) {
+        if (v.empty()) return Ok{};
+        auto f = io::RecordFile::Create(path, sizeof(T));
+        if (!f) return f.error();
+        if (auto st = f->Append(v.data(), v.size()); !st) return st;
+        if (auto st = f->Close(); !st) return st;
+        file_ = std::move(*f);
+        std::vector<T>().swap(v);
+        return Ok{};
+    }
+    Status GiveBack(std::vector<T>& v) {
+        if (!file_) return Ok{};
+        v.reserve(file_->size());
+        auto st = file_->ForEachBlock(kBlock, [&v](std::size_t, std::size_t n, const std::byte* b) {
+            const std::size_t at = v.size();
+            v.resize(at + n);
+            std::memcpy(v.data() + at, b, n * sizeof(T));
+            return Status{Ok{}};
+        });
+        file_.reset();  // the file removed
+        return st;
+    }
 
-Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+    // MB (2^20 bytes) set aside.
+    double mb() const {
+        return file_ ? static_cast<double>(file_->size() * sizeof(T)) / (1024.0 * 1024.0) : 0.0;
+    }
+
+private:
+    static constexpr std::size_t kBlock = std::size_t{1} << 20;
+    std::optional<io::RecordFile> file_;
+};
+
+// The ping series' per-beam arrays (the range counts, and the intensities and beam angles when
+// the survey has them: 4 to 10 bytes a sounding of the survey) wait on disk while SLAM's stage
+// runs: it reads the pings' headers, the navigation and the view, never them (decision 044).
+class BeamArraysAside {
+public:
+    // An array that cannot be written stays held (the error says which).
+    Status SetAside(StageContext& s) {
+        survey::PingSeries& p = s.model.ingest.pings;
+        const std::string base =
+            (std::filesystem::path(s.out_dir) / formats::kPartialPrefix).string() + "slam_beam_";
+        if (auto st = ranges_.SetAside(p.range_counts, base + "ranges"); !st) return st;
+        if (auto st = intensities_.SetAside(p.intensities, base + "intensities"); !st) return st;
+        return angles_.SetAside(p.beam_angles_deg, base + "angles");
+    }
+    Status GiveBack(StageContext& s) {
+        survey::PingSeries& p = s.model.ingest.pings;
+        if (auto st = ranges_.GiveBack(p.range_counts); !st) return st;
+        if (auto st = intensities_.GiveBack(p.intensities); !st) return st;
+        return angles_.GiveBack(p.beam_angles_deg);
+    }
+
+    double mb() const { return ranges_.mb() + intensities_.mb() + angles_.mb(); }
+
+private:
+    ArrayAside<std::uint32_t> ranges_;
+    ArrayAside<std::uint16_t> intensities_;
+    ArrayAside<float> angles_;
+};
+
+// SLAM's stage on the survey whose beams are set aside: its products and summary record, not
+// the export.
+Status SlamOnView(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
     // The view waits on disk through the stage (issue 38, decision 043): the slices, the range
     // noise, points_initial.ply and the move onto SLAM's trajectory read it a block at a time,
@@ -644,6 +711,23 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};
     }
+    return Ok{};
+}
+
+}  // namespace
+
+Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+    BeamArraysAside aside;
+    if (auto st = aside.SetAside(s); !st)
+        log("slam: the pings' beams stay in memory (" + st.error().message + ")");
+    const double aside_mb = aside.mb();
+    const Status slam = SlamOnView(s, config, log);
+    const Status back = aside.GiveBack(s);
+    const std::string slam_key = ToString(Stage::kSlam);
+    if (s.summary.contains("stages") && s.summary["stages"].contains(slam_key))
+        s.summary["stages"][slam_key]["beam_arrays_aside_mb"] = aside_mb;
+    if (!slam) return slam;
+    if (!back) return Error{"slam: " + back.error().message};
     // The export reads the view from its file too (decision 041).
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }

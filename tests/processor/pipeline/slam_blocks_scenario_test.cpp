@@ -6,7 +6,8 @@
 // blocks) and with one block holding the whole view. SLAM's input (its slices' figures, the
 // range noise of its gate, points_initial.ply), the trajectory it leaves and its sigmas
 // (trajectory.csv, trajectory_sigma.csv) and the soundings moved onto it (points.ply) are the
-// same, byte for byte.
+// same, byte for byte. The pings' per-beam arrays wait on disk through the stage and come back
+// bit for bit (decision 044).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -51,8 +52,7 @@ TEST(SlamBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsTrajectory) {
     const fs::path dir = pitmap::test::FreshDir("pitmap_slam_blocks_scenario");
     std::string out;
     ASSERT_EQ(
-        RunCommand(kBin + "/pitmap-sim synth --scenario demo --out " + Quote(dir / "sim"), &out),
-        0)
+        RunCommand(kBin + "/pitmap-sim synth --scenario demo --out " + Quote(dir / "sim"), &out), 0)
         << out;
     const fs::path small = dir / "small", whole = dir / "whole";
     ASSERT_EQ(
@@ -69,21 +69,29 @@ TEST(SlamBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsTrajectory) {
                                       << "slam:\n  posterior_start_runs: 0\n";
     for (const fs::path& p : {small, whole}) {
         const fs::path config = dir / (p.filename().string() + ".yaml");
-        ASSERT_EQ(
-            RunCommand(kBin + "/pitmap slam --out " + Quote(p) + " --config " + Quote(config),
-                       &out),
-            0)
+        ASSERT_EQ(RunCommand(kBin + "/pitmap slam --out " + Quote(p) + " --config " + Quote(config),
+                             &out),
+                  0)
             << out;
         EXPECT_FALSE(fs::exists(p / ".partial-view_points")) << p;
+        for (const auto& e : fs::directory_iterator(p)) {
+            EXPECT_EQ(e.path().filename().string().rfind(".partial-slam_beam_", 0),
+                      std::string::npos)
+                << e.path();
+        }
+        // The pings' per-beam arrays waited on disk through SLAM (decision 044).
+        EXPECT_GT(ReadJson(p / "summary.json")["stages"]["slam"].value("beam_arrays_aside_mb", 0.0),
+                  0.0)
+            << p;
     }
     const nlohmann::json a = SlamFigures(small / "summary.json");
     const nlohmann::json b = SlamFigures(whole / "summary.json");
     ASSERT_GT(a.value("points", 0), 100 * 1024) << "too few soundings for many blocks";
-    EXPECT_EQ(ReadJson(small / "summary.json")["stages"]["slam"].value("block_soundings", 0),
-              1024);
+    EXPECT_EQ(ReadJson(small / "summary.json")["stages"]["slam"].value("block_soundings", 0), 1024);
     // SLAM moved the survey: the blocks' move of the soundings is exercised.
-    EXPECT_GT(ReadJson(small / "summary.json")["stages"]["slam"].value("position_change_rms_m", 0.0),
-              0.0);
+    EXPECT_GT(
+        ReadJson(small / "summary.json")["stages"]["slam"].value("position_change_rms_m", 0.0),
+        0.0);
     EXPECT_EQ(a, b) << a.dump(1) << "\n" << b.dump(1);
     for (const char* f : {"trajectory.csv",
                           "trajectory_initial.csv",
@@ -93,6 +101,15 @@ TEST(SlamBlocksScenario, BlocksOfTheSpilledViewGiveTheWholeViewsTrajectory) {
         ASSERT_TRUE(fs::exists(whole / f)) << f;
         EXPECT_TRUE(BytesWithoutUtcTimes(small / f) == BytesWithoutUtcTimes(whole / f)) << f;
     }
+    // The beams came back bit for bit (survey.pitmap was saved with them): SLAM again on the
+    // folder georeferences the same view from them.
+    const std::string first = BytesWithoutUtcTimes(whole / "points_initial.ply");
+    ASSERT_EQ(RunCommand(kBin + "/pitmap slam --out " + Quote(whole) + " --config " +
+                             Quote(dir / "whole.yaml"),
+                         &out),
+              0)
+        << out;
+    EXPECT_TRUE(BytesWithoutUtcTimes(whole / "points_initial.ply") == first);
 }
 
 }  // namespace
