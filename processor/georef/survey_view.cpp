@@ -19,24 +19,34 @@ survey::PingTrajectory TrajectoryOf(const GeorefResult& geo, std::size_t num_pin
     return t;
 }
 
-std::size_t ApplyTrajectory(GeorefResult& geo, const survey::PingTrajectory& t) {
+std::vector<Pose> MovePings(GeorefResult& geo, const survey::PingTrajectory& t, std::size_t* kept) {
     std::vector<Pose> delta(geo.pings.size(), Pose::Identity());
-    std::size_t kept = 0;
+    std::size_t same = 0;
     const Pose T_vehicle_sonar = geo.mount.T_vehicle_sonar();
     for (std::size_t k = 0; k < geo.pings.size(); ++k) {
         GeorefPing& p = geo.pings[k];
         const std::size_t i = p.header_index;
         if (i >= t.T_world_vehicle.size() || i >= t.valid.size() || t.valid[i] == 0) {
-            ++kept;
+            ++same;
             continue;
         }
         delta[k] = t.T_world_vehicle[i] * p.T_world_vehicle.inverse();
         p.T_world_vehicle = t.T_world_vehicle[i];
         p.sensor_world = (p.T_world_vehicle * T_vehicle_sonar).translation();
     }
-    for (std::size_t j = 0; j < geo.points.size(); ++j) {
-        geo.points.position_world[j] = delta[geo.points.ping[j]] * geo.points.position_world[j];
+    if (kept != nullptr) *kept = same;
+    return delta;
+}
+
+void MovePoints(GeorefPoints& points, const std::vector<Pose>& delta) {
+    for (std::size_t j = 0; j < points.size(); ++j) {
+        points.position_world[j] = delta[points.ping[j]] * points.position_world[j];
     }
+}
+
+std::size_t ApplyTrajectory(GeorefResult& geo, const survey::PingTrajectory& t) {
+    std::size_t kept = 0;
+    MovePoints(geo.points, MovePings(geo, t, &kept));
     return kept;
 }
 

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <vector>
 
 #include "common/progress.hpp"
 #include "processor/georef/georef.hpp"
@@ -50,5 +51,10 @@ survey::PingTrajectory TrajectoryOf(const GeorefResult& geo, std::size_t num_pin
 // Moves the soundings and pings of `geo` onto trajectory `t` (indexed by the ping series).
 // Pings without a valid pose in `t` keep theirs; returns how many kept theirs.
 std::size_t ApplyTrajectory(GeorefResult& geo, const survey::PingTrajectory& t);
+// ApplyTrajectory in two steps, for soundings read a block at a time (decision 043): MovePings
+// moves the pings and returns each ping's move (identity where it kept its pose; `kept` counts
+// those), MovePoints moves soundings (any block of the view) by their ping's move.
+std::vector<Pose> MovePings(GeorefResult& geo, const survey::PingTrajectory& t, std::size_t* kept);
+void MovePoints(GeorefPoints& points, const std::vector<Pose>& delta);
 
 }  // namespace pitmap::proc::georef

@@ -328,6 +328,80 @@ std::string NextViewSpillPath(const std::string& out_dir, const std::string& cur
     return current == first ? first + "-next" : first;
 }
 
+namespace {
+
+// Copies `bytes` from `in` at `at` to the end of `out`, a buffer of at most `chunk` at a time.
+bool CopyBytes(std::FILE* in, long long at, long long bytes, std::FILE* out, std::size_t chunk) {
+    if (fseeko(in, at, SEEK_SET) != 0) return false;
+    std::vector<char> buffer(static_cast<std::size_t>(
+        std::min<long long>(bytes, static_cast<long long>(std::max<std::size_t>(chunk, 1)))));
+    while (bytes > 0) {
+        const std::size_t n = static_cast<std::size_t>(
+            std::min<long long>(bytes, static_cast<long long>(buffer.size())));
+        if (std::fread(buffer.data(), 1, n, in) != n || std::fwrite(buffer.data(), 1, n, out) != n)
+            return false;
+        bytes -= static_cast<long long>(n);
+    }
+    return true;
+}
+
+}  // namespace
+
+Status SpilledPoints::MovePositions(
+    std::size_t block, const std::function<void(georef::GeorefPoints&, std::size_t)>& move) {
+    if (path_.empty()) return Error{"the view's points were already read back"};
+    block = std::max<std::size_t>(block, 1);
+    const std::string next = path_ + ".next";
+    File out(std::fopen(next.c_str(), "wb"));
+    if (!out) return Error{formats::ErrnoMessage(next, "cannot write the view's points", errno)};
+    const std::uint64_t n = size_;
+    const std::uint8_t status = with_status_ ? 1 : 0;
+    bool ok = std::fwrite(kMagic, 1, sizeof(kMagic), out.get()) == sizeof(kMagic) &&
+              std::fwrite(&n, sizeof(n), 1, out.get()) == 1 &&
+              std::fwrite(&status, 1, 1, out.get()) == 1;
+    std::string failure;
+    georef::GeorefPoints b;
+    for (std::size_t first = 0; first < size_ && ok; first += block) {
+        if (auto st = ReadBlock(first, block, b); !st) {
+            failure = st.error().message;
+            ok = false;
+            break;
+        }
+        const std::size_t count = b.size();
+        move(b, first);
+        ok = b.position_world.size() == count &&
+             std::fwrite(b.position_world.data(), sizeof(Eigen::Vector3d), count, out.get()) ==
+                 count;
+    }
+    ReleaseAll(b);
+    // The other arrays as they are, after the positions.
+    if (ok) {
+        auto in = OpenChecked(path_, size_, with_status_);
+        if (in) {
+            const long long from = ArrayOffset(1, n);
+            const long long to = ArrayOffset(with_status_ ? 6 : 5, n);
+            ok = CopyBytes(in->get(), from, to - from, out.get(), block * sizeof(Eigen::Vector3d));
+        } else {
+            ok = false;
+            failure = in.error().message;
+        }
+    }
+    const int err = errno;
+    ok = (std::fclose(out.release()) == 0) && ok;
+    std::error_code ec;
+    if (!ok) {
+        std::filesystem::remove(next, ec);
+        if (!failure.empty()) return Error{failure};
+        return Error{formats::ErrnoMessage(next, "cannot write the view's points", err)};
+    }
+    std::filesystem::rename(next, path_, ec);
+    if (ec) {
+        std::filesystem::remove(next, ec);
+        return Error{path_ + ": cannot replace the view's points: " + ec.message()};
+    }
+    return Ok{};
+}
+
 std::string ViewSpillPath(const std::string& out_dir) {
     return (std::filesystem::path(out_dir) / (std::string(formats::kPartialPrefix) + "view_points"))
         .string();

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,14 @@ public:
     // spilled), in their order, copying `block` soundings at a time through a second file that
     // replaces it. On an error the file is as it was.
     Status KeepOnly(const std::vector<char>& keep, std::size_t block);
+
+    // Moves the soundings a block of `block` at a time: move(points, first) is given soundings
+    // first .. first + count - 1 (every array as ReadBlock gives them) and may change their
+    // positions (position_world) alone; the positions are written through a second file that
+    // replaces this one, the other arrays copied as they are (decision 043). On an error (a
+    // block's positions resized included) the file is as it was.
+    Status MovePositions(std::size_t block,
+                         const std::function<void(georef::GeorefPoints&, std::size_t)>& move);
 
     const std::string& path() const { return path_; }
     std::size_t size() const { return size_; }  // soundings spilled

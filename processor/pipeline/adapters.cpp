@@ -112,7 +112,79 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
     return out;
 }
 
-Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle) {
+SliceBuilder::SliceBuilder(const georef::GeorefResult& geo,
+                           const survey::NavSeries& nav,
+                           int point_stride,
+                           double sigma_max_age_s,
+                           const PoseSigma& fallback_sigma)
+    : geo_(geo),
+      nav_(nav),
+      stride_(static_cast<std::size_t>(std::max(1, point_stride))),
+      sigma_max_age_s_(sigma_max_age_s),
+      fallback_sigma_(fallback_sigma),
+      T_vehicle_sonar_(geo.mount.T_vehicle_sonar()) {}
+
+void SliceBuilder::Open(std::uint32_t ping) {
+    const georef::GeorefPing& p = geo_.pings[ping];
+    slice_ = slam::Slice();
+    slice_.gps_time_s = static_cast<double>(p.utime_gps) * 1e-6;
+    slice_.T_world_vehicle = p.T_world_vehicle;
+    slice_.pose_sigma = PoseSigmaAt(nav_, p.utime_gps, sigma_max_age_s_, fallback_sigma_);
+    ping_ = ping;
+    in_ping_ = 0;
+    open_ = true;
+}
+
+void SliceBuilder::Close() {
+    if (!open_) return;
+    open_ = false;
+    // A ping's count is not known before its last block: its points held as MakeSlices' are.
+    slice_.points_vehicle.shrink_to_fit();
+    out_.num_points += slice_.points_vehicle.size();
+    out_.slices.push_back(std::move(slice_));
+    out_.ping.push_back(ping_);
+}
+
+Status SliceBuilder::Add(const georef::GeorefPoints& block, std::size_t first) {
+    if (first != next_) {
+        return Error{"internal: a block of the view from sounding " + std::to_string(first) +
+                     ", expected " + std::to_string(next_)};
+    }
+    for (std::uint32_t k : block.ping) {
+        if (k >= geo_.pings.size()) {
+            return Error{"internal: a sounding of ping " + std::to_string(k) + " of " +
+                         std::to_string(geo_.pings.size())};
+        }
+    }
+    next_ += block.size();
+    for (std::size_t i = 0; i < block.size() && sorted_; ++i) {
+        const std::uint32_t k = block.ping[i];
+        if (!open_ || k != ping_) {
+            if (open_ && k < ping_) {
+                sorted_ = false;
+                break;
+            }
+            Close();
+            Open(k);
+        }
+        // In the vehicle frame straight from the sonar frame, as MakeSlices.
+        if (in_ping_ % stride_ == 0) {
+            slice_.points_vehicle.push_back(
+                (T_vehicle_sonar_ * georef::SoundingVectorSonar(geo_, block, i)).cast<float>());
+        }
+        ++in_ping_;
+    }
+    return Ok{};
+}
+
+SliceSet SliceBuilder::Finish() {
+    Close();
+    if (!sorted_) return SliceSet{};
+    return std::move(out_);
+}
+
+Expected<std::vector<Pose>> MoveVehiclePings(georef::GeorefResult& geo,
+                                             const std::vector<Pose>& T_world_vehicle) {
     if (T_world_vehicle.size() != geo.pings.size()) {
         return Error{"internal: " + std::to_string(T_world_vehicle.size()) + " poses for " +
                      std::to_string(geo.pings.size()) + " georeferenced pings"};
@@ -126,7 +198,13 @@ Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_w
         t.T_world_vehicle[geo.pings[k].header_index] = T_world_vehicle[k];
         t.valid[geo.pings[k].header_index] = 1;
     }
-    georef::ApplyTrajectory(geo, t);
+    return georef::MovePings(geo, t, nullptr);
+}
+
+Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle) {
+    auto delta = MoveVehiclePings(geo, T_world_vehicle);
+    if (!delta) return delta.error();
+    georef::MovePoints(geo.points, *delta);
     return Ok{};
 }
 

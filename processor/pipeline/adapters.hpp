@@ -53,10 +53,51 @@ SliceSet MakeSlices(const georef::GeorefResult& geo,
                     double sigma_max_age_s,
                     const PoseSigma& fallback_sigma);
 
+// MakeSlices with the view's points given a block at a time (decision 043: the view read from
+// its scratch file, never whole): Add each block in the view's order, `first` its first
+// sounding, then Finish. The same slices bit for bit as MakeSlices on the whole view, whatever
+// the blocks (a ping's soundings may straddle blocks: the stride counts on across them).
+// `geo`'s pings and mount are read, not its points; `geo` and `nav` must outlive the builder.
+class SliceBuilder {
+public:
+    SliceBuilder(const georef::GeorefResult& geo,
+                 const survey::NavSeries& nav,
+                 int point_stride,
+                 double sigma_max_age_s,
+                 const PoseSigma& fallback_sigma);
+    // An error (nothing taken from the block): `first` is not the sounding after the last
+    // block's, or a sounding names a ping the view does not have.
+    Status Add(const georef::GeorefPoints& block, std::size_t first);
+    // The slices; none when the soundings were not in ping order (as MakeSlices).
+    SliceSet Finish();
+
+private:
+    void Open(std::uint32_t ping);
+    void Close();
+
+    const georef::GeorefResult& geo_;
+    const survey::NavSeries& nav_;
+    std::size_t stride_;
+    double sigma_max_age_s_;
+    PoseSigma fallback_sigma_;
+    Pose T_vehicle_sonar_;
+    std::size_t next_ = 0;     // the sounding the next block starts at
+    bool open_ = false;        // slice_ holds the soundings of ping_ so far
+    std::uint32_t ping_ = 0;   // the open ping
+    std::size_t in_ping_ = 0;  // its soundings seen (the stride's count)
+    bool sorted_ = true;
+    slam::Slice slice_;
+    SliceSet out_;
+};
+
 // Moves every sounding and ping of `geo` to new vehicle poses, one per ping
 // (T_world_vehicle[k] for GeorefResult::pings[k]): p' = T'_k T_k^-1 p, through
 // georef::ApplyTrajectory. A pose count other than geo.pings.size() is an error (nothing moves).
 Status ApplyVehiclePoses(georef::GeorefResult& geo, const std::vector<Pose>& T_world_vehicle);
+// Its first step, for soundings read a block at a time: the pings moved, each ping's move
+// returned (georef::MovePoints moves a block's soundings by them); geo.points are not read.
+Expected<std::vector<Pose>> MoveVehiclePings(georef::GeorefResult& geo,
+                                             const std::vector<Pose>& T_world_vehicle);
 
 // New poses for every ping of `geo` from a time-stamped trajectory (e.g. trajectory.csv of the
 // SLAM stage): interpolated between the bracketing samples (position linear, attitude slerp);

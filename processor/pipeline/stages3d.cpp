@@ -29,6 +29,7 @@
 #include "processor/hydro/tpu.hpp"
 #include "processor/io/products.hpp"
 #include "processor/io/projected_points.hpp"
+#include "processor/io/record_spill.hpp"
 #include "processor/mesh/export.hpp"
 #include "processor/pipeline/adapters.hpp"
 #include "processor/pipeline/internal.hpp"
@@ -163,12 +164,52 @@ PoseSigma FallbackSigma(const SlamStageConfig& sc) {
     return fallback;
 }
 
-SliceSet SlamSlices(const StageContext& s, const SlamStageConfig& sc, const Log& log) {
-    SliceSet set = MakeSlices(
+// What the range noise alone would leave of the plane-fit consistency (calibrate's model,
+// sigma = constant + fraction * range, over every 16th sounding of the view), summed a block
+// of the view at a time in the view's order: the whole view's figure bit for bit.
+struct RangeNoise {
+    double sum_squares = 0;
+    std::size_t count = 0;
+    void Add(const georef::GeorefPoints& b, std::size_t first, const calib::BoresightConfig& cal) {
+        for (std::size_t k = (first + 15) / 16 * 16 - first; k < b.size(); k += 16) {
+            const double sr = cal.range_noise_constant_m +
+                              cal.range_noise_fraction * static_cast<double>(b.range_m[k]);
+            if (!std::isfinite(sr)) continue;
+            sum_squares += sr * sr;
+            ++count;
+        }
+    }
+    // m RMS; 0 without soundings.
+    double Rms() const {
+        return count > 0 ? std::sqrt(sum_squares / static_cast<double>(count)) : 0.0;
+    }
+};
+
+// What SLAM's stage takes from the view: its slices and the range noise's consistency.
+struct SlamInput {
+    SliceSet set;
+    double expected_consistency_m = 0;
+};
+
+// SLAM's input from the view read a block of `block` soundings at a time (decision 043: from
+// its scratch file while spilled, never whole), logged.
+Expected<SlamInput> SlamSlices(const StageContext& s,
+                               const PipelineConfig& config,
+                               std::size_t block,
+                               const Log& log) {
+    const SlamStageConfig& sc = config.slam_stage;
+    SliceBuilder slices(
         s.geo, s.model.ingest.nav, sc.point_stride, sc.sigma_max_age_s, FallbackSigma(sc));
-    log("slam: " + std::to_string(set.slices.size()) + " slices, " +
-        std::to_string(set.num_points) + " points");
-    return set;
+    RangeNoise noise;
+    auto st = ForEachViewBlock(s, block, [&](const georef::GeorefPoints& b, std::size_t first) {
+        noise.Add(b, first, config.calibrate);
+        return slices.Add(b, first);
+    });
+    if (!st) return st.error();
+    SlamInput in{slices.Finish(), noise.Rms()};
+    log("slam: " + std::to_string(in.set.slices.size()) + " slices, " +
+        std::to_string(in.set.num_points) + " points");
+    return in;
 }
 
 // SLAM on the slices, each iteration logged; their points move into SLAM (held once).
@@ -352,22 +393,6 @@ json CheckAgainstGoodIns(StageContext& s,
     return ins_check;
 }
 
-// What the range noise alone would leave of the plane-fit consistency (calibrate's model,
-// sigma = constant + fraction * range, over every 16th sounding), m RMS; 0 without soundings.
-double ExpectedConsistency(const georef::GeorefResult& geo, const calib::BoresightConfig& cal) {
-    double noise_ss = 0;
-    std::size_t noise_n = 0;
-    const auto& ranges = geo.points.range_m;
-    for (std::size_t k = 0; k < ranges.size(); k += 16) {
-        const double sr =
-            cal.range_noise_constant_m + cal.range_noise_fraction * static_cast<double>(ranges[k]);
-        if (!std::isfinite(sr)) continue;
-        noise_ss += sr * sr;
-        ++noise_n;
-    }
-    return noise_n > 0 ? std::sqrt(noise_ss / static_cast<double>(noise_n)) : 0.0;
-}
-
 // Far above the expected consistency, the passes still disagree in a way SLAM did not (and
 // should not) explain: gate slam_inconsistent, saying whether the disagreement sits in a few
 // windows (the navigation of those stretches) or everywhere (a survey-wide input).
@@ -397,6 +422,16 @@ void GateConsistency(StageContext& s,
              log);
 }
 
+// The view's soundings onto the pings' new poses: the held view, or its scratch file a block of
+// `block` soundings at a time (decision 043).
+Status MoveView(StageContext& s, const std::vector<Pose>& after, std::size_t block) {
+    if (!s.spilled_view) return ApplyVehiclePoses(s.geo, after);
+    auto delta = MoveVehiclePings(s.geo, after);
+    if (!delta) return delta.error();
+    return s.spilled_view->MovePositions(
+        block, [&delta](georef::GeorefPoints& b, std::size_t) { georef::MovePoints(b, *delta); });
+}
+
 // The per-ping products of this stage, written once: before and after; `after` becomes the
 // survey's trajectory, with SLAM's posterior sigma per ping when it was computed.
 Status WriteSlamProducts(StageContext& s,
@@ -404,12 +439,19 @@ Status WriteSlamProducts(StageContext& s,
                          const slam::SlamResult& r,
                          const SlamStageConfig& sc,
                          const TimedPoses& before,
-                         const std::vector<Pose>& after) {
+                         const std::vector<Pose>& after,
+                         std::size_t block) {
     const std::string& P = s.out_dir;
     if (auto w = WriteTrajectoryCsv(P + "/trajectory_initial.csv", before); !w) return w;
-    if (auto w = io::WritePly(P + "/points_initial.ply", s.geo, nullptr, s.model.run_id); !w)
+    if (auto w = io::WritePly(P + "/points_initial.ply",
+                              s.geo,
+                              ViewPointBlocks(s, block),
+                              nullptr,
+                              s.model.run_id,
+                              nullptr);
+        !w)
         return w;
-    if (auto w = ApplyVehiclePoses(s.geo, after); !w) return w;
+    if (auto w = MoveView(s, after, block); !w) return w;
     s.model.trajectory(survey::TrajectoryVersion::kSlam) =
         georef::TrajectoryOf(s.geo, s.model.ingest.pings.pings.size());
     s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma =
@@ -518,20 +560,94 @@ json InsSlowErrorFromFixes(const StageContext& s,
     return out;
 }
 
-}  // namespace
+// A per-beam array of the ping series set aside in a scratch file (.partial-NAME in the
+// products folder) and given back bit for bit; an empty array has no file.
+template <typename T>
+class ArrayAside {
+public:
+    Status SetAside(std::vector<T>& v, const std::string& path) {
+        if (v.empty()) return Ok{};
+        auto f = io::RecordFile::Create(path, sizeof(T));
+        if (!f) return f.error();
+        if (auto st = f->Append(v.data(), v.size()); !st) return st;
+        if (auto st = f->Close(); !st) return st;
+        file_ = std::move(*f);
+        std::vector<T>().swap(v);
+        return Ok{};
+    }
+    Status GiveBack(std::vector<T>& v) {
+        if (!file_) return Ok{};
+        v.reserve(file_->size());
+        auto st = file_->ForEachBlock(kBlock, [&v](std::size_t, std::size_t n, const std::byte* b) {
+            const std::size_t at = v.size();
+            v.resize(at + n);
+            std::memcpy(v.data() + at, b, n * sizeof(T));
+            return Status{Ok{}};
+        });
+        file_.reset();  // the file removed
+        return st;
+    }
 
-Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+    // MB (2^20 bytes) set aside.
+    double mb() const {
+        return file_ ? static_cast<double>(file_->size() * sizeof(T)) / (1024.0 * 1024.0) : 0.0;
+    }
+
+private:
+    static constexpr std::size_t kBlock = std::size_t{1} << 20;
+    std::optional<io::RecordFile> file_;
+};
+
+// The ping series' per-beam arrays (the range counts, and the intensities and beam angles when
+// the survey has them: 4 to 10 bytes a sounding of the survey) wait on disk while SLAM's stage
+// runs: it reads the pings' headers, the navigation and the view, never them (decision 044).
+class BeamArraysAside {
+public:
+    // An array that cannot be written stays held (the error says which).
+    Status SetAside(StageContext& s) {
+        survey::PingSeries& p = s.model.ingest.pings;
+        const std::string base =
+            (std::filesystem::path(s.out_dir) / formats::kPartialPrefix).string() + "slam_beam_";
+        if (auto st = ranges_.SetAside(p.range_counts, base + "ranges"); !st) return st;
+        if (auto st = intensities_.SetAside(p.intensities, base + "intensities"); !st) return st;
+        return angles_.SetAside(p.beam_angles_deg, base + "angles");
+    }
+    Status GiveBack(StageContext& s) {
+        survey::PingSeries& p = s.model.ingest.pings;
+        if (auto st = ranges_.GiveBack(p.range_counts); !st) return st;
+        if (auto st = intensities_.GiveBack(p.intensities); !st) return st;
+        return angles_.GiveBack(p.beam_angles_deg);
+    }
+
+    double mb() const { return ranges_.mb() + intensities_.mb() + angles_.mb(); }
+
+private:
+    ArrayAside<std::uint32_t> ranges_;
+    ArrayAside<std::uint16_t> intensities_;
+    ArrayAside<float> angles_;
+};
+
+// SLAM's stage on the survey whose beams are set aside: its products and summary record, not
+// the export.
+Status SlamOnView(StageContext& s, const PipelineConfig& config, const Log& log) {
     StageClock clock;
-    if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
+    // The view waits on disk through the stage (issue 38, decision 043): the slices, the range
+    // noise, points_initial.ply and the move onto SLAM's trajectory read it a block at a time,
+    // and it stays in its file for the stages after (the cleaning and the export read it there,
+    // decision 041). The stage's peak past
+    // this point is SLAM's, not the view's (`peak_rss_mb_blocks`).
+    if (auto st = SpillView(s); !st)
+        log("slam: the view stays in memory (" + st.error().message + ")");
+    const double peak_view_mb = clock.peak_rss_mb();
+    clock.ResetPeakWithinStage();
+    const std::size_t block = BlockWithinBudget(config.run, ResidentMb());
     const QualityConfig& q = config.quality;
-    SliceSet set = SlamSlices(s, config.slam_stage, log);
-    // SLAM reads its slices alone: the view's points wait on disk meanwhile and come back bit
-    // for bit (38 bytes a sounding off the stage's peak; decision 020).
-    if (auto st = SpillView(s); !st) return Error{"slam: " + st.error().message};
+    auto input = SlamSlices(s, config, block, log);
+    if (!input) return Error{"slam: " + input.error().message};
+    SliceSet& set = input->set;
     slam::SlamConfig slam_cfg = config.slam;
     json slow_error = InsSlowErrorFromFixes(s, config.slam_stage, slam_cfg, log);
     const slam::SlamResult r = RunSlamLogged(set, slam_cfg, log);
-    if (auto st = RestoreView(s); !st) return Error{"slam: " + st.error().message};
     const TimedPoses before = PingPoses(s.geo);
     std::vector<Pose> after = SlamPingPoses(s.geo, set, r, before);
 
@@ -557,7 +673,7 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const auto change = PositionChange(before.T_world_vehicle, after);
     // Where the passes still disagree, per window: a stretch far worse than the rest of the
     // survey is the navigation of that stretch; disagreement everywhere is a survey-wide input.
-    const double expected_consistency = ExpectedConsistency(s.geo, config.calibrate);
+    const double expected_consistency = input->expected_consistency_m;
     json windows_json = ConsistencyWindows(r, q, expected_consistency, &drift_text);
     GateConsistency(s, r, q, expected_consistency, windows_json, log);
     if (!drift_text.empty()) {
@@ -570,7 +686,8 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
                  log);
     }
 
-    if (auto w = WriteSlamProducts(s, set, r, config.slam_stage, before, after); !w) return w;
+    if (auto w = WriteSlamProducts(s, set, r, config.slam_stage, before, after, block); !w)
+        return w;
     log("slam: trajectory moved by " + Fixed(change.first, 3) + " m RMS, " +
         Fixed(change.second, 3) + " m at most; pair score " + Fixed(r.initial_pair_score_m, 4) +
         " -> " + Fixed(r.final_pair_score_m, 4) + " m, consistency " +
@@ -578,21 +695,40 @@ Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     json posterior = PosteriorJson(
         s.geo, s.model.trajectory(survey::TrajectoryVersion::kSlam).sigma, r, kPosteriorWindowS);
     posterior["ins_slow_error"] = std::move(slow_error);
-    RecordStage(s.summary,
-                Stage::kSlam,
-                SlamSummary(r,
-                            set,
-                            slam_cfg,
-                            expected_consistency,
-                            change,
-                            std::move(ins_check),
-                            std::move(posterior),
-                            std::move(windows_json)),
-                clock);
+    json record = SlamSummary(r,
+                              set,
+                              slam_cfg,
+                              expected_consistency,
+                              change,
+                              std::move(ins_check),
+                              std::move(posterior),
+                              std::move(windows_json));
+    record.update({{"block_soundings", block},
+                   {"peak_rss_mb_view", peak_view_mb},
+                   {"peak_rss_mb_blocks", PeakRssMb()}});
+    RecordStage(s.summary, Stage::kSlam, std::move(record), clock);
     if (r.termination == slam::SlamTermination::kInvalidInput) {
         (void)SaveSummary(s);
         return Error{"slam: " + r.message};
     }
+    return Ok{};
+}
+
+}  // namespace
+
+Status SlamSurvey(StageContext& s, const PipelineConfig& config, const Log& log) {
+    BeamArraysAside aside;
+    if (auto st = aside.SetAside(s); !st)
+        log("slam: the pings' beams stay in memory (" + st.error().message + ")");
+    const double aside_mb = aside.mb();
+    const Status slam = SlamOnView(s, config, log);
+    const Status back = aside.GiveBack(s);
+    const std::string slam_key = ToString(Stage::kSlam);
+    if (s.summary.contains("stages") && s.summary["stages"].contains(slam_key))
+        s.summary["stages"][slam_key]["beam_arrays_aside_mb"] = aside_mb;
+    if (!slam) return slam;
+    if (!back) return Error{"slam: " + back.error().message};
+    // The export reads the view from its file too (decision 041).
     return s.defer_products ? SaveSummary(s) : ExportSurvey(s, config);
 }
 
@@ -1258,10 +1394,14 @@ Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& lo
 }  // namespace detail
 
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kBeforeSlam, log);
-    if (!s) return s.error();
+    // The products it replaces go first: their removal takes what a killed writer left
+    // (.partial-*), and the view's file is one (decision 041).
     if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
         return r;
+    // The view made in its file by blocks of pings, never held (decisions 041, 044).
+    auto s = detail::LoadSurvey(
+        out_dir, config, detail::StartFrom::kBeforeSlam, log, detail::ViewIn::kFile);
+    if (!s) return s.error();
     return detail::SlamSurvey(*s, config, log);
 }
 

@@ -236,6 +236,53 @@ TEST(ViewSpill, KeepOnlyLeavesTheKeptPointsInTheirOrder) {
     }
 }
 
+// SLAM's move of the spilled view onto its trajectory (decision 043): each block's positions
+// rewritten where they are, every other array untouched, whatever the block size; a block whose
+// positions come back resized is an error and leaves the file as it was.
+TEST(ViewSpill, MovePositionsRewritesThePositionsBlockByBlock) {
+    for (const bool with_status : {false, true}) {
+        const std::size_t n = 5003;
+        const georef::GeorefPoints original = MakePoints(n, with_status);
+        georef::GeorefPoints expected = original;
+        for (std::size_t j = 0; j < n; ++j) {
+            expected.position_world[j] =
+                expected.position_world[j] * 0.5 + Eigen::Vector3d(static_cast<double>(j), 1, 2);
+        }
+        for (const std::size_t block : {std::size_t{1}, std::size_t{333}, n, n + 7}) {
+            georef::GeorefPoints P = original;
+            const std::string path = Scratch("move_" + std::to_string(block));
+            auto spilled = SpilledPoints::Spill(P, path);
+            ASSERT_TRUE(spilled);
+            std::size_t seen = 0;
+            const Status st =
+                spilled->MovePositions(block, [&](georef::GeorefPoints& b, std::size_t first) {
+                    EXPECT_EQ(first, seen);
+                    EXPECT_EQ(b.ping.size(), b.size());
+                    for (std::size_t i = 0; i < b.size(); ++i) {
+                        b.position_world[i] = b.position_world[i] * 0.5 +
+                                              Eigen::Vector3d(static_cast<double>(first + i), 1, 2);
+                    }
+                    seen += b.size();
+                });
+            ASSERT_TRUE(st) << st.error().message;
+            EXPECT_EQ(seen, n);
+            EXPECT_EQ(spilled->size(), n);
+            EXPECT_FALSE(fs::exists(path + ".next"));
+            ASSERT_TRUE(spilled->Restore(P));
+            ExpectSameBits(P, expected);
+        }
+        georef::GeorefPoints P = original;
+        auto spilled = SpilledPoints::Spill(P, Scratch("move_wrong"));
+        ASSERT_TRUE(spilled);
+        EXPECT_FALSE(spilled->MovePositions(100, [](georef::GeorefPoints& b, std::size_t first) {
+            if (first == 200) b.position_world.pop_back();
+            for (Eigen::Vector3d& x : b.position_world) x.x() += 1.0;
+        }));
+        ASSERT_TRUE(spilled->Restore(P));
+        ExpectSameBits(P, original);
+    }
+}
+
 TEST(ViewSpill, TheScratchFileIsAPartialFileOfTheFolder) {
     const std::string p = ViewSpillPath("some/products");
     EXPECT_EQ(fs::path(p).parent_path(), fs::path("some/products"));

@@ -150,6 +150,77 @@ TEST(Adapters, SlicesReproduceTheGeoreferencedSoundings) {
               (set.slices[0].points_vehicle.size() + 3) / 4);
 }
 
+// Two slice sets equal bit for bit: the same pings, times, poses, sigmas and points.
+void ExpectSameSlices(const SliceSet& a, const SliceSet& b) {
+    ASSERT_EQ(a.slices.size(), b.slices.size());
+    EXPECT_EQ(a.ping, b.ping);
+    EXPECT_EQ(a.num_points, b.num_points);
+    for (std::size_t j = 0; j < a.slices.size(); ++j) {
+        const slam::Slice& x = a.slices[j];
+        const slam::Slice& y = b.slices[j];
+        EXPECT_EQ(x.gps_time_s, y.gps_time_s) << j;
+        EXPECT_TRUE(x.T_world_vehicle.matrix() == y.T_world_vehicle.matrix()) << j;
+        EXPECT_TRUE(x.pose_sigma == y.pose_sigma) << j;
+        ASSERT_EQ(x.points_vehicle.size(), y.points_vehicle.size()) << "slice " << j;
+        for (std::size_t i = 0; i < x.points_vehicle.size(); ++i) {
+            EXPECT_TRUE(x.points_vehicle[i] == y.points_vehicle[i]) << "slice " << j << " " << i;
+        }
+    }
+}
+
+georef::GeorefPoints PointsOf(const georef::GeorefPoints& p, std::size_t first, std::size_t n) {
+    georef::GeorefPoints b;
+    const auto take = [&](const auto& from, auto& to) {
+        to.assign(from.begin() + static_cast<long>(first),
+                  from.begin() + static_cast<long>(first + n));
+    };
+    take(p.position_world, b.position_world);
+    take(p.ping, b.ping);
+    take(p.beam, b.beam);
+    take(p.range_m, b.range_m);
+    take(p.angle_rad, b.angle_rad);
+    return b;
+}
+
+// SLAM's slices from the view read a block at a time (decision 043) are MakeSlices' of the whole
+// view bit for bit, whatever the blocks: one sounding, a few (a ping's soundings straddle several
+// blocks, the stride counting on across them), a ping and a bit, the whole view.
+TEST(Adapters, SlicesFromBlocksOfTheViewAreTheWholeViewsBitForBit) {
+    const Survey s = MakeSurvey(Mount());
+    survey::NavSeries nav;
+    for (int k = 0; k < 3; ++k) {
+        survey::NavStdDev d;
+        d.utime_gps = 1'400'000'000'000'000 + k * 150'000;
+        d.east_m = 0.1f * static_cast<float>(k + 1);
+        d.north_m = d.up_m = 0.2f;
+        d.roll_deg = d.pitch_deg = d.yaw_deg = 0.01f * static_cast<float>(k + 1);
+        nav.stddevs.push_back(d);
+    }
+    const std::size_t n = s.geo.points.size();
+    for (const int stride : {1, 3, 4}) {
+        const SliceSet whole = MakeSlices(s.geo, nav, stride, 5.0, PoseSigma::Constant(0.01));
+        ASSERT_EQ(whole.slices.size(), 3u);
+        for (const std::size_t block : {std::size_t{1}, std::size_t{5}, std::size_t{71}, n}) {
+            SliceBuilder builder(s.geo, nav, stride, 5.0, PoseSigma::Constant(0.01));
+            for (std::size_t first = 0; first < n; first += block) {
+                const std::size_t count = std::min(block, n - first);
+                ASSERT_TRUE(builder.Add(PointsOf(s.geo.points, first, count), first));
+            }
+            SCOPED_TRACE("stride " + std::to_string(stride) + ", block " + std::to_string(block));
+            ExpectSameSlices(builder.Finish(), whole);
+        }
+    }
+    // A block that does not follow the last one is an error; soundings out of ping order give
+    // no slices, as MakeSlices.
+    SliceBuilder skipped(s.geo, nav, 1, 5.0, PoseSigma::Constant(0.01));
+    ASSERT_TRUE(skipped.Add(PointsOf(s.geo.points, 0, 10), 0));
+    EXPECT_FALSE(skipped.Add(PointsOf(s.geo.points, 11, 10), 11));
+    SliceBuilder unsorted(s.geo, nav, 1, 5.0, PoseSigma::Constant(0.01));
+    ASSERT_TRUE(unsorted.Add(PointsOf(s.geo.points, n - 10, 10), 0));
+    ASSERT_TRUE(unsorted.Add(PointsOf(s.geo.points, 0, 10), 10));
+    EXPECT_TRUE(unsorted.Finish().slices.empty());
+}
+
 TEST(Adapters, PoseSigmaComesFromTheNearestStddevRecord) {
     survey::NavSeries nav;
     for (int k = 0; k < 3; ++k) {
