@@ -353,10 +353,12 @@ struct SlamPosterior {
     // The reference's horizontal sigma per axis the posterior used (the larger of the INS's
     // steady sigma and SlamConfig::reference_horizontal_sigma_m), m.
     double reference_horizontal_sigma_m = 0;
-    // How the INS's steady position error entered slice_sigma (decision 042): "whole" (the
-    // result follows the INS), "rigid_response" (the result is the rigid stage's, and its error
-    // from that process was propagated through the rigid stage's normal equations), "none";
-    // the median of that part's vertical sigma (rigid_response only), and its time.
+    // How the INS's steady position error entered slice_sigma (decisions 042, 045): "whole"
+    // (the result follows the INS), "rigid_response" (the result is the rigid stage's, and its
+    // error from that process was propagated through the rigid stage's normal equations),
+    // "semi_rigid_response" (a semi-rigid iterate was kept: the same through that stage's
+    // equations, window by window), "none"; the median of that part's vertical sigma (the
+    // responses only), and its time.
     std::string steady_model;
     double steady_up_median_m = 0;
     double steady_s = 0;
