@@ -656,14 +656,17 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
 }  // namespace detail
 
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    // The products it replaces go first: their removal takes what a killed writer left
-    // (.partial-*), and the view's file is one (decision 041).
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate)); !r)
-        return r;
+    // What a killed writer left goes first (the view's file is such a scratch file, decision
+    // 041); the products this stage replaces only once the survey is loaded.
+    detail::RemoveStalePartials(out_dir);
     // The calibration reads the view from its file: made there, never held (decision 041).
     auto s = detail::LoadSurvey(
         out_dir, config, detail::StartFrom::kNominal, log, detail::ViewIn::kFile);
     if (!s) return s.error();
+    if (auto r =
+            detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate));
+        !r)
+        return r;
     return detail::CalibrateSurvey(*s, config, log);
 }
 

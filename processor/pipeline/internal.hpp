@@ -97,6 +97,12 @@ std::vector<std::string> AllProducts();
 // Removes `names` (files or folders) from P and any *.partial file a killed writer left; an
 // error names what could not be removed and why.
 Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>& names);
+// RemoveProducts's two halves, for a stage that makes scratch files of its own in P while it
+// loads (the view in its file, decision 041): what a killed writer left goes before the load,
+// the products it replaces only once the load has succeeded (a survey that cannot be loaded
+// keeps its products).
+void RemoveStalePartials(const std::string& out_dir);
+Status RemoveNamedProducts(const std::string& out_dir, const std::vector<std::string>& names);
 
 // The run id check of a product: "" when `product_run_id` is this survey's run id (or the
 // survey has none, written before run ids), else why it does not belong

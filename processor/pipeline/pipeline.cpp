@@ -432,20 +432,30 @@ std::vector<std::string> AllProducts() {
     return ProductsReplacedBy(Stage::kGeoref);
 }
 
-Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>& names) {
+Status RemoveNamedProducts(const std::string& out_dir, const std::vector<std::string>& names) {
     std::error_code ec;
     for (const std::string& name : names) {
         const fs::path p = fs::path(out_dir) / name;
         fs::remove_all(p, ec);
         if (ec) return Error{p.string() + ": cannot remove the earlier product: " + ec.message()};
     }
+    return Ok{};
+}
+
+void RemoveStalePartials(const std::string& out_dir) {
     // What a killed writer left (common/formats/replace_file.hpp).
+    std::error_code ec;
     for (const auto& e : fs::directory_iterator(out_dir, ec)) {
         if (formats::IsPartialName(e.path().filename().string())) {
             std::error_code rec;
             fs::remove(e.path(), rec);
         }
     }
+}
+
+Status RemoveProducts(const std::string& out_dir, const std::vector<std::string>& names) {
+    if (auto r = RemoveNamedProducts(out_dir, names); !r) return r;
+    RemoveStalePartials(out_dir);
     return Ok{};
 }
 

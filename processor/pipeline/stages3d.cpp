@@ -1394,14 +1394,15 @@ Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& lo
 }  // namespace detail
 
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    // The products it replaces go first: their removal takes what a killed writer left
-    // (.partial-*), and the view's file is one (decision 041).
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
-        return r;
+    // What a killed writer left goes first (the view's file is such a scratch file, decision
+    // 041); the products this stage replaces only once the survey is loaded.
+    detail::RemoveStalePartials(out_dir);
     // The view made in its file by blocks of pings, never held (decisions 041, 044).
     auto s = detail::LoadSurvey(
         out_dir, config, detail::StartFrom::kBeforeSlam, log, detail::ViewIn::kFile);
     if (!s) return s.error();
+    if (auto r = detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
+        return r;
     return detail::SlamSurvey(*s, config, log);
 }
 

@@ -262,4 +262,34 @@ TEST_F(ProductsOfTwoRuns, AGeorefThatFailsHalfWayLeavesNothingOfTheEarlierSurvey
     EXPECT_NE(RunCommand(kBin + "/pitmap report --out " + Quote(p), &out), 0) << out;
 }
 
+TEST_F(ProductsOfTwoRuns, ACalibrationOrSlamThatCannotLoadTheSurveyKeepsItsProducts) {
+    // calibrate and slam make the view's scratch file while they load the survey (decision
+    // 041): what a killed writer left goes before the load, the products they replace only once
+    // the survey is loaded. A survey that cannot be loaded (here a damaged edit log) keeps them.
+    const fs::path p = Georef("k");
+    std::string out;
+    ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(p), &out), 0) << out;
+    ASSERT_TRUE(fs::exists(p / "tsdf.vdb"));
+    std::ofstream(p / "edits.json") << "{\"pitmap_edits\": ";
+    for (const char* stage : {"calibrate", "slam"}) {
+        std::ofstream(p / ".partial-points.ply") << "a killed writer's file";
+        out.clear();
+        EXPECT_NE(RunCommand(kBin + "/pitmap " + std::string(stage) + " --out " + Quote(p), &out),
+                  0)
+            << stage << ": " << out;
+        EXPECT_TRUE(Contains(out, "edits.json")) << stage << ": " << out;
+        EXPECT_TRUE(fs::exists(p / "tsdf.vdb")) << stage << " removed a product it did not replace";
+        EXPECT_TRUE(fs::exists(p / "points.ply")) << stage;
+        EXPECT_FALSE(fs::exists(p / ".partial-points.ply"))
+            << stage << " left a killed writer's file";
+    }
+    // Once the survey loads, the stage replaces them as before.
+    fs::remove(p / "edits.json");
+    out.clear();
+    ASSERT_EQ(RunCommand(kBin + "/pitmap slam --out " + Quote(p), &out), 0) << out;
+    EXPECT_FALSE(fs::exists(p / "tsdf.vdb"))
+        << "slam kept the volume of the trajectory it replaced";
+    EXPECT_TRUE(fs::exists(p / "trajectory.csv"));
+}
+
 }  // namespace
