@@ -35,9 +35,10 @@ processor_pkgs=(
 browser_pkgs=(
   chromium libjs-three
 )
-# lintian: Debian policy checks of the packages (tools/build-packages.sh).
+# lintian: Debian policy checks of the packages (tools/build-packages.sh). lld: the sanitizer
+# build's linker (.ci/sanitize.cmake).
 tool_pkgs=(
-  clang libclang-rt-14-dev clang-format llvm-14 ccache lintian
+  clang libclang-rt-14-dev clang-format llvm-14 lld ccache lintian
 )
 
 pkgs=("${common_pkgs[@]}")
