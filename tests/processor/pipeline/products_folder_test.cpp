@@ -278,7 +278,7 @@ TEST_F(ProductsOfTwoRuns, ACalibrationOrSlamThatCannotLoadTheSurveyKeepsItsProdu
                   0)
             << stage << ": " << out;
         EXPECT_TRUE(Contains(out, "edits.json")) << stage << ": " << out;
-        EXPECT_TRUE(fs::exists(p / "tsdf.vdb")) << stage << " removed a product it did not replace";
+        EXPECT_TRUE(fs::exists(p / "tsdf.vdb")) << stage << " removed a product before the load";
         EXPECT_TRUE(fs::exists(p / "points.ply")) << stage;
         EXPECT_FALSE(fs::exists(p / ".partial-points.ply"))
             << stage << " left a killed writer's file";
