@@ -283,15 +283,21 @@ Status CleanSurvey(StageContext& s,
     for (const std::uint8_t f : flags.cleaning) cleaned_before = cleaned_before || f != 0;
     const bool held_on_entry = !s.spilled_view;
     if (cleaned_before || AnyManualReject(flags)) {
-        s.spilled_view.reset();
-        s.geo = georef::GeorefResult{};  // one view at a time (decision 020)
-        s.geo = georef::Georeference(s.model,
-                                     s.model.latest(),
-                                     config.georef,
-                                     s.refraction,
-                                     {},
-                                     nullptr,
-                                     survey::SoundingView::kCandidates);
+        // Made in its file a block of pings at a time, never held whole (decisions 041, 047):
+        // the final pass of a long survey held 38 bytes a sounding here (bejanca 8x: 1.9 GB).
+        const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
+            return georef::GeoreferenceByBlocks(s.model,
+                                                s.model.latest(),
+                                                config.georef,
+                                                s.refraction,
+                                                BlockWithinBudget(config.run, ResidentMb()),
+                                                sink,
+                                                {},
+                                                nullptr,
+                                                survey::SoundingView::kCandidates);
+        };
+        if (auto st = ViewToFile(s, make, log, true); !st)
+            return Error{"clean: " + st.error().message};
     }
     // The view waits on disk while the cleaning reads it a block at a time (issue 38): the
     // stage's peak past this point is the cleaning's arrays, not the view (`peak_rss_mb_blocks`).
@@ -398,9 +404,15 @@ Status CleanSurvey(StageContext& s,
 namespace pitmap::proc::pipeline {
 
 Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    // What a killed writer left goes first: the view's file is such a scratch file (decision
+    // 041), made by the load below, in its file and never held whole (the cleaning and the
+    // export read it by blocks); the products this stage replaces go once the survey is loaded.
+    detail::RemoveStalePartials(out_dir);
+    auto s =
+        detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log, detail::ViewIn::kFile);
     if (!s) return s.error();
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kClean)); !r)
+    if (auto r = detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kClean));
+        !r)
         return r;
     if (auto st = detail::CleanSurvey(*s, config, log); !st) {
         (void)detail::SaveSummary(*s);

@@ -65,8 +65,9 @@ using ViewMaker = std::function<georef::GeorefResult(const georef::GeorefBlockSi
 // s.geo made by `make` with its points written to the view's file a block at a time: the view
 // is never held, s.spilled_view holds it at the end (an earlier view is dropped first). A
 // folder where the file cannot be made holds the view (a warning); a write that fails midway
-// (the disk full) is an error naming the file.
-Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log);
+// (the disk full) is an error naming the file. `with_status`: the blocks carry each sounding's
+// status (a view of other soundings than the accepted ones), kept in the file.
+Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log, bool with_status = false);
 // ViewToFile of georef::RunGeorefByBlocks: the model's ingested pings on their current times,
 // its mount, flags and s.refraction (`origin` nullopt = the first navigation sample; decision
 // 033). `check` (optional) sees every block.

@@ -572,12 +572,12 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     return s;
 }
 
-Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log) {
+Status ViewToFile(StageContext& s, const ViewMaker& make, const Log& log, bool with_status) {
     // One view at a time: the new one is made from the model alone.
     s.spilled_view.reset();
     s.geo = georef::GeorefResult{};
     const std::size_t beams = s.model.ingest.pings.range_counts.size();
-    auto writer = io::SpillWriter::Open(io::ViewSpillPath(s.out_dir), beams, false);
+    auto writer = io::SpillWriter::Open(io::ViewSpillPath(s.out_dir), beams, with_status);
     if (!writer) log("warning: " + writer.error().message + ": the view is held in memory");
     georef::GeorefPoints held;
     Status failed = Ok{};
