@@ -656,17 +656,10 @@ Status CalibrateSurvey(StageContext& s, const PipelineConfig& config, const Log&
 }  // namespace detail
 
 Status RunCalibrateStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    // What a killed writer left goes first (the view's file is such a scratch file, decision
-    // 041); the products this stage replaces only once the survey is loaded.
-    detail::RemoveStalePartials(out_dir);
     // The calibration reads the view from its file: made there, never held (decision 041).
-    auto s = detail::LoadSurvey(
-        out_dir, config, detail::StartFrom::kNominal, log, detail::ViewIn::kFile);
+    auto s = detail::LoadSurveyReplacing(
+        out_dir, config, detail::StartFrom::kNominal, Stage::kCalibrate, log);
     if (!s) return s.error();
-    if (auto r =
-            detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate));
-        !r)
-        return r;
     return detail::CalibrateSurvey(*s, config, log);
 }
 

@@ -285,17 +285,7 @@ Status CleanSurvey(StageContext& s,
     if (cleaned_before || AnyManualReject(flags)) {
         // Made in its file a block of pings at a time, never held whole (decisions 041, 047):
         // the final pass of a long survey held 38 bytes a sounding here (bejanca 8x: 1.9 GB).
-        const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
-            return georef::GeoreferenceByBlocks(s.model,
-                                                s.model.latest(),
-                                                config.georef,
-                                                s.refraction,
-                                                BlockWithinBudget(config.run, ResidentMb()),
-                                                sink,
-                                                {},
-                                                nullptr,
-                                                survey::SoundingView::kCandidates);
-        };
+        const ViewMaker make = ModelViewMaker(s, config, survey::SoundingView::kCandidates);
         if (auto st = ViewToFile(s, make, log, true); !st)
             return Error{"clean: " + st.error().message};
     }
@@ -404,16 +394,10 @@ Status CleanSurvey(StageContext& s,
 namespace pitmap::proc::pipeline {
 
 Status RunCleanStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    // What a killed writer left goes first: the view's file is such a scratch file (decision
-    // 041), made by the load below, in its file and never held whole (the cleaning and the
-    // export read it by blocks); the products this stage replaces go once the survey is loaded.
-    detail::RemoveStalePartials(out_dir);
-    auto s =
-        detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log, detail::ViewIn::kFile);
+    // The cleaning and the export read the view by blocks from its file (decision 047).
+    auto s = detail::LoadSurveyReplacing(
+        out_dir, config, detail::StartFrom::kLatest, Stage::kClean, log);
     if (!s) return s.error();
-    if (auto r = detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kClean));
-        !r)
-        return r;
     if (auto st = detail::CleanSurvey(*s, config, log); !st) {
         (void)detail::SaveSummary(*s);
         return st;

@@ -1526,8 +1526,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     const ProductMetadata meta = SurveyProductMetadata(s, config, &*datum);
     s.datum = *datum;
     const io::GridRaster dem = DemRaster(s, gc, cube.grid, *utm, *datum, meta);
-    // S-44 reads the view a block at a time while it is still on disk (decision 031); the view
-    // comes back for the point files and the mosaic.
+    // S-44 reads the view a block at a time while it is still on disk (decision 031).
     auto utm_to_world = UtmToWorldOf(s, *utm);
     if (!utm_to_world) return utm_to_world.error();
     json s44_record, s44_files = json::array();
@@ -1549,8 +1548,7 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
         s44_record = std::move(*s44);
         part.Lap(timings, "s44");
     }
-    // The mosaic and the point files read the view a block at a time too (decision 035); it
-    // comes back at the end of the stage.
+    // The mosaic and the point files read the view a block at a time too (decision 035).
     json mosaic_record;
     if (gc.mosaic) {
         auto mosaic = detail::MosaicSurvey(s, gc, dem, *utm, *utm_to_world, log, in->block);
@@ -1596,8 +1594,9 @@ Status GridSurvey(StageContext& s, const PipelineConfig& config, const Log& log)
     stage["peak_rss_mb_by_part"] = part.peak_rss_mb;
     s.summary["vertical_datum"] = datum_record;
     RecordCapacity(s, stage, log);
-    // The view back for the stages after this one (the TSDF's scans, the export).
-    if (auto st = RestoreView(s); !st) return Error{"grid: " + st.error().message};
+    // The view stays in its file: the stages after this one read it there by blocks (the TSDF,
+    // decision 034; the point writers, 041). Restored here it was held whole only to be spilled
+    // again (bejanca 4x: the stage's peak, 1 322 MB; decision 047).
     log("grid: " + Fixed(cube.grid.resolution_m, 2) + " m, " + std::to_string(cube.nodes_filled) +
         " nodes; " + files.dump());
     RecordStage(s.summary, Stage::kGrid, stage, clock);
@@ -1769,10 +1768,10 @@ Status RunGridTile(const std::string& out_dir,
 }
 
 Status RunGridStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    // Every part of the grid stage reads the view by blocks from its file (decisions 031, 035).
+    auto s =
+        detail::LoadSurveyReplacing(out_dir, config, detail::StartFrom::kLatest, Stage::kGrid, log);
     if (!s) return s.error();
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kGrid)); !r)
-        return r;
     return detail::GridSurvey(*s, config, log);
 }
 

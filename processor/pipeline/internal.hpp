@@ -62,6 +62,13 @@ Status RestoreView(StageContext& s);
 // Makes a view with `sink` (georef::RunGeorefByBlocks or GeoreferenceByBlocks handing it its
 // blocks) and returns its result without points.
 using ViewMaker = std::function<georef::GeorefResult(const georef::GeorefBlockSink& sink)>;
+// A ViewMaker of the model's soundings of status `which` on its newest trajectory
+// (georef::GeoreferenceByBlocks in blocks within the run's memory budget; `kept` as there). `s`
+// and `config` must outlive it.
+ViewMaker ModelViewMaker(const StageContext& s,
+                         const PipelineConfig& config,
+                         survey::SoundingView which,
+                         std::size_t* kept = nullptr);
 // s.geo made by `make` with its points written to the view's file a block at a time: the view
 // is never held, s.spilled_view holds it at the end (an earlier view is dropped first). A
 // folder where the file cannot be made holds the view (a warning); a write that fails midway
@@ -130,6 +137,16 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
                                   StartFrom start,
                                   const Log& log,
                                   ViewIn view = ViewIn::kMemory);
+// A stage command's survey (calibrate, slam, clean, grid, fuse, rerun): what a killed writer
+// left is removed first (the view's file is such a scratch file, decision 041), the survey is
+// loaded from `start` with its view made in its file by blocks of pings (ViewIn::kFile, never
+// held whole), and only then are the products `stage` replaces removed: a survey that cannot
+// be loaded keeps them.
+Expected<StageContext> LoadSurveyReplacing(const std::string& out_dir,
+                                           const PipelineConfig& config,
+                                           StartFrom start,
+                                           Stage stage,
+                                           const Log& log);
 // Saves the model (P/survey.pitmap) and summary.json.
 Status SaveSurvey(const StageContext& s);
 // points.ply, points.las (unless `points` is false: the grid stage writes them with THU/TVU)

@@ -550,16 +550,7 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
     if (view == ViewIn::kFile) {
         // The stage reads the view from its file: written there a block of pings at a time,
         // never held (decision 041).
-        const ViewMaker make = [&](const georef::GeorefBlockSink& sink) {
-            return georef::GeoreferenceByBlocks(s.model,
-                                                s.model.latest(),
-                                                config.georef,
-                                                s.refraction,
-                                                BlockWithinBudget(config.run, ResidentMb()),
-                                                sink,
-                                                {},
-                                                &kept);
-        };
+        const ViewMaker make = ModelViewMaker(s, config, survey::SoundingView::kAccepted, &kept);
         if (auto st = ViewToFile(s, make, log); !st) return st.error();
     } else {
         s.geo =
@@ -569,6 +560,35 @@ Expected<StageContext> LoadSurvey(const std::string& out_dir,
         log("warning: " + std::to_string(kept) + " pings have no pose in the survey's " +
             survey::ToString(s.model.latest()) + " trajectory and keep the navigation's");
     }
+    return s;
+}
+
+ViewMaker ModelViewMaker(const StageContext& s,
+                         const PipelineConfig& config,
+                         survey::SoundingView which,
+                         std::size_t* kept) {
+    return [&s, &config, which, kept](const georef::GeorefBlockSink& sink) {
+        return georef::GeoreferenceByBlocks(s.model,
+                                            s.model.latest(),
+                                            config.georef,
+                                            s.refraction,
+                                            BlockWithinBudget(config.run, ResidentMb()),
+                                            sink,
+                                            {},
+                                            kept,
+                                            which);
+    };
+}
+
+Expected<StageContext> LoadSurveyReplacing(const std::string& out_dir,
+                                           const PipelineConfig& config,
+                                           StartFrom start,
+                                           Stage stage,
+                                           const Log& log) {
+    RemoveStalePartials(out_dir);
+    auto s = LoadSurvey(out_dir, config, start, log, ViewIn::kFile);
+    if (!s) return s.error();
+    if (auto r = RemoveNamedProducts(out_dir, ProductsReplacedBy(stage)); !r) return r.error();
     return s;
 }
 

@@ -1394,15 +1394,10 @@ Status ReportSurvey(StageContext& s, const PipelineConfig& config, const Log& lo
 }  // namespace detail
 
 Status RunSlamStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    // What a killed writer left goes first (the view's file is such a scratch file, decision
-    // 041); the products this stage replaces only once the survey is loaded.
-    detail::RemoveStalePartials(out_dir);
     // The view made in its file by blocks of pings, never held (decisions 041, 044).
-    auto s = detail::LoadSurvey(
-        out_dir, config, detail::StartFrom::kBeforeSlam, log, detail::ViewIn::kFile);
+    auto s = detail::LoadSurveyReplacing(
+        out_dir, config, detail::StartFrom::kBeforeSlam, Stage::kSlam, log);
     if (!s) return s.error();
-    if (auto r = detail::RemoveNamedProducts(out_dir, detail::ProductsReplacedBy(Stage::kSlam)); !r)
-        return r;
     return detail::SlamSurvey(*s, config, log);
 }
 
@@ -1434,10 +1429,10 @@ Status RunMergeFuseTiles(const std::string& out_dir, const PipelineConfig& confi
 }
 
 Status RunFuseStage(const std::string& out_dir, const PipelineConfig& config, const Log& log) {
-    auto s = detail::LoadSurvey(out_dir, config, detail::StartFrom::kLatest, log);
+    // The TSDF reads the view by blocks from its file (decision 034): made there, never held.
+    auto s =
+        detail::LoadSurveyReplacing(out_dir, config, detail::StartFrom::kLatest, Stage::kFuse, log);
     if (!s) return s.error();
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kFuse)); !r)
-        return r;
     auto v = detail::FuseSurvey(*s, config, Stage::kFuse, detail::ViewAfterScans::kReleased, log);
     if (!v) return v.error();
     return Ok{};
@@ -1618,14 +1613,14 @@ Status RunFromSurvey(const std::string& out_dir, const PipelineConfig& config, c
     const auto start = std::chrono::steady_clock::now();
     // From the state georef left: the calibration (when it runs) starts from the nominal
     // mount, and every later version goes.
-    auto s = detail::LoadSurvey(
+    // The stages after georef read the view from its file, as `run` leaves it (decision 041).
+    auto s = detail::LoadSurveyReplacing(
         out_dir,
         config,
         config.run.calibrate ? detail::StartFrom::kNominal : detail::StartFrom::kBeforeSlam,
+        Stage::kCalibrate,
         log);
     if (!s) return s.error();
-    if (auto r = detail::RemoveProducts(out_dir, detail::ProductsReplacedBy(Stage::kCalibrate)); !r)
-        return r;
     log("rerun: the stages after georef on " + out_dir + "/" + survey::kSurveyFileName);
     return RunAfterGeoref(*s, config, log, start);
 }

@@ -263,16 +263,16 @@ TEST_F(ProductsOfTwoRuns, AGeorefThatFailsHalfWayLeavesNothingOfTheEarlierSurvey
 }
 
 TEST_F(ProductsOfTwoRuns, AStageThatMakesItsViewFileCannotLoadTheSurveyKeepsItsProducts) {
-    // calibrate, slam and clean make the view's scratch file while they load the survey
-    // (decisions 041, 047): what a killed writer left goes before the load, the products they
-    // replace only once the survey is loaded. A survey that cannot be loaded (here a damaged
-    // edit log) keeps them.
+    // The stage commands make the view's scratch file while they load the survey (decisions
+    // 041, 047): what a killed writer left goes before the load, the products they replace only
+    // once the survey is loaded. A survey that cannot be loaded (here a damaged edit log) keeps
+    // them.
     const fs::path p = Georef("k");
     std::string out;
     ASSERT_EQ(RunCommand(kBin + "/pitmap fuse --out " + Quote(p), &out), 0) << out;
     ASSERT_TRUE(fs::exists(p / "tsdf.vdb"));
     std::ofstream(p / "edits.json") << "{\"pitmap_edits\": ";
-    for (const char* stage : {"calibrate", "slam", "clean"}) {
+    for (const char* stage : {"calibrate", "slam", "clean", "grid", "fuse", "rerun"}) {
         std::ofstream(p / ".partial-points.ply") << "a killed writer's file";
         out.clear();
         EXPECT_NE(RunCommand(kBin + "/pitmap " + std::string(stage) + " --out " + Quote(p), &out),
