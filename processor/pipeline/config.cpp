@@ -216,6 +216,9 @@ void VisitSlam(V&& v, slam::SlamConfig& c, SlamStageConfig& s) {
       c.pass_cell_m,
       "per pass (section) and cube of this, m, only pass_cell_points enter SLAM; 0 = all");
     v("pass_cell_points", c.pass_cell_points, "points a pass keeps per cube of pass_cell_m");
+    v("pass_cell_max_sigma_m",
+      c.pass_cell_max_sigma_m,
+      "a section whose INS horizontal sigma exceeds this keeps every point, m; 0 = none");
     v("ins_correlation_time_s", c.ins_correlation_time_s, "INS error correlation time, s");
     v("ins_sigma_scale", c.ins_sigma_scale, "scales the INS relative-motion sigmas");
     v("ins_sigma_recovery_time_s",

@@ -222,7 +222,9 @@ slam::SlamResult RunSlamLogged(SliceSet& set, const slam::SlamConfig& cfg, const
             return true;
         });
     log("slam: " + std::to_string(r.num_points) + " of " + std::to_string(r.num_points_in) +
-        " finite points used (slam.pass_cell_m " + std::to_string(cfg.pass_cell_m) + ")");
+        " finite points used (slam.pass_cell_m " + std::to_string(cfg.pass_cell_m) + "; " +
+        std::to_string(r.num_sections_every_point) +
+        " sections whole by slam.pass_cell_max_sigma_m)");
     log("slam: " + std::string(slam::ToString(r.termination)) + ": " + r.message);
     return r;
 }
@@ -482,6 +484,7 @@ json SlamSummary(const slam::SlamResult& r,
                {"slices", set.slices.size()},
                {"points", set.num_points},
                {"points_used", r.num_points},
+               {"sections_every_point", r.num_sections_every_point},
                {"sections", r.num_sections},
                {"section_links", r.num_section_links},
                {"poses", r.num_poses},

@@ -54,6 +54,7 @@ struct Input {
     std::vector<std::size_t> offset;      // first point of each slice in `points`
     std::vector<Eigen::Vector3f> points;  // vehicle frame, finite only
     std::size_t points_in = 0;  // finite points given, before SlamConfig::pass_cell_m's bound
+    std::size_t sections_every_point = 0;  // left whole by pass_cell_max_sigma_m
     // Slices where GNSS returns after an outage: the INS pulls its drift back within seconds
     // there, so sections and bins start there and are short after them (the correction stays
     // continuous; its rate changes).
@@ -208,12 +209,20 @@ std::vector<Block> MakeBlocks(const Input& in, double length_s);
 // result holds one flag (1 = kept) per finite point, slice by slice. cell_m 0: every point.
 // Deterministic: a function of the arguments only (sections are independent: made in
 // parallel).
+// `every_point` (one flag per section, or empty): the sections flagged keep every point.
 std::vector<std::uint8_t> BoundPointsPerCell(
     const std::vector<const std::vector<Eigen::Vector3f>*>& points,
     const std::vector<Pose>& T,
     const std::vector<std::size_t>& section_start,
     double cell_m,
-    int per_cell);
+    int per_cell,
+    const std::vector<char>& every_point = {});
+// Per section of `section_start` (SectionStarts): 1 where the INS's horizontal 1-sigma (the
+// larger of in.sigma's east and north) exceeds max_sigma_m at any of its slices (a GNSS
+// outage: SlamConfig::pass_cell_max_sigma_m); all 0 when max_sigma_m is 0.
+std::vector<char> SectionsKeepingEveryPoint(const Input& in,
+                                            const std::vector<std::size_t>& section_start,
+                                            double max_sigma_m);
 
 // How a block's neighbour slots are packed: `bits` per block-local index (enough for `none`,
 // the block's point count, which ends a slot's list), `k` indices a slot in `words` 64-bit words

@@ -7,6 +7,7 @@
 // surface sampled at the cube's size, which is what its pairs and normals see of it.
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <unordered_map>
@@ -35,7 +36,8 @@ std::vector<std::uint8_t> BoundPointsPerCell(
     const std::vector<Pose>& T,
     const std::vector<std::size_t>& section_start,
     double cell_m,
-    int per_cell) {
+    int per_cell,
+    const std::vector<char>& every_point) {
     // First finite point of each slice among the finite points.
     std::vector<std::size_t> first(points.size() + 1, 0);
     for (std::size_t s = 0; s < points.size(); ++s) {
@@ -47,6 +49,7 @@ std::vector<std::uint8_t> BoundPointsPerCell(
     if (!(cell_m > 0) || section_start.size() < 2) return keep;
     const auto bound = static_cast<std::uint32_t>(std::max(per_cell, 0));
     tbb::parallel_for(std::size_t{0}, section_start.size() - 1, [&](std::size_t i) {
+        if (i < every_point.size() && every_point[i] != 0) return;
         std::unordered_map<std::uint64_t, std::uint32_t> count;
         for (std::size_t s = section_start[i]; s < section_start[i + 1]; ++s) {
             std::size_t k = first[s];
@@ -59,6 +62,19 @@ std::vector<std::uint8_t> BoundPointsPerCell(
         }
     });
     return keep;
+}
+
+std::vector<char> SectionsKeepingEveryPoint(const Input& in,
+                                            const std::vector<std::size_t>& section_start,
+                                            double max_sigma_m) {
+    const std::size_t sections = section_start.empty() ? 0 : section_start.size() - 1;
+    std::vector<char> every(sections, 0);
+    if (!(max_sigma_m > 0)) return every;
+    for (std::size_t i = 0; i < sections; ++i) {
+        for (std::size_t s = section_start[i]; s < section_start[i + 1] && !every[i]; ++s)
+            every[i] = std::max(in.sigma[s](3), in.sigma[s](4)) > max_sigma_m ? 1 : 0;
+    }
+    return every;
 }
 
 }  // namespace pitmap::proc::slam::detail

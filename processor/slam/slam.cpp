@@ -116,6 +116,9 @@ std::vector<std::string> SlamConfig::Validate() const {
         p.push_back("pass_cell_m must be finite and >= 0 (0 = every point)");
     }
     if (pass_cell_points < 1) p.push_back("pass_cell_points must be >= 1");
+    if (!(pass_cell_max_sigma_m >= 0) || !std::isfinite(pass_cell_max_sigma_m)) {
+        p.push_back("pass_cell_max_sigma_m must be finite and >= 0 (0 = every section bounded)");
+    }
     if (!(ins_correlation_time_s > 0)) p.push_back("ins_correlation_time_s must be > 0");
     if (!(ins_sigma_scale > 0)) p.push_back("ins_sigma_scale must be > 0");
     if (!(min_relative_rotation_sigma_rad > 0)) {
@@ -212,12 +215,13 @@ Input ReadInput(const std::vector<Slice>& slices,
     std::vector<const std::vector<Eigen::Vector3f>*> sorted;
     sorted.reserve(slices.size());
     for (std::size_t i : in.input_index) sorted.push_back(&slices[i].points_vehicle);
-    const std::vector<std::uint8_t> keep =
-        BoundPointsPerCell(sorted,
-                           in.T_ins,
-                           SectionStarts(in, cfg.section_length_s),
-                           cfg.pass_cell_m,
-                           cfg.pass_cell_points);
+    const std::vector<std::size_t> sections = SectionStarts(in, cfg.section_length_s);
+    const std::vector<char> whole =
+        cfg.pass_cell_m > 0 ? SectionsKeepingEveryPoint(in, sections, cfg.pass_cell_max_sigma_m)
+                            : std::vector<char>{};
+    in.sections_every_point = static_cast<std::size_t>(std::count(whole.begin(), whole.end(), 1));
+    const std::vector<std::uint8_t> keep = BoundPointsPerCell(
+        sorted, in.T_ins, sections, cfg.pass_cell_m, cfg.pass_cell_points, whole);
     in.points_in = keep.size();
     // Sized once: grown by push_back its capacity would be up to twice the points (and three
     // times while it moves), at 12 bytes a sounding the largest of SLAM's arrays.
@@ -277,6 +281,7 @@ SlamResult Run(const std::vector<Slice>& slices,
     const std::size_t ns = in.num_slices();
     res.num_points_in = in.points_in;
     res.num_points = in.points.size();
+    res.num_sections_every_point = in.sections_every_point;
 
     std::vector<Block> blocks = MakeBlocks(in, cfg.section_length_s);
     std::vector<std::uint32_t> slice_block(ns);

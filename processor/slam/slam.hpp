@@ -158,6 +158,11 @@ struct SlamConfig {
     // pass_cell_points of a section's points gives the same run either way).
     double pass_cell_m = 0.0;
     int pass_cell_points = 1;
+    // A section where the INS's horizontal 1-sigma (the larger of east and north, as the coarse
+    // search reads it) exceeds this at any slice keeps every point: in a GNSS outage the drift
+    // is stated by the perturbed-start runs' spread, which the thinned points narrowed below the
+    // true error (docs/decisions/046, 048). 0 = every section bounded.
+    double pass_cell_max_sigma_m = 0.0;
     // INS relative-motion terms between consecutive poses i, j: per component the sigma of the
     // motion over dt is sqrt(f^2 * 2 dt / ins_correlation_time_s (at most 1) + (g_j - g_i)^2)
     // * ins_sigma_scale, with f the survey's smallest sigma (a first-order Gauss-Markov error)
@@ -398,16 +403,17 @@ struct SlamResult {
     int rigid_iterations = 0;
     int semi_rigid_iterations = 0;
     std::size_t num_sections = 0;
-    std::size_t num_section_links = 0;      // rigid graph edges
-    std::size_t num_sections_searched = 0;  // coarse search: sections the INS was unsure of
-    std::size_t num_sections_shifted = 0;   // ... that were moved (SlamSection::shifted)
-    std::vector<SlamSection> sections;      // the rigid sections, in time order
-    std::size_t num_poses = 0;              // semi-rigid unknown poses
-    std::size_t num_pairs = 0;              // pairs of the last iteration
-    std::size_t num_points_in = 0;          // finite points given
-    std::size_t num_points = 0;             // ... of which SLAM used (SlamConfig::pass_cell_m)
-    double initial_consistency_m = 0;       // plane-fit score of the input trajectory
-    double final_consistency_m = 0;         // ... and of the result
+    std::size_t num_section_links = 0;         // rigid graph edges
+    std::size_t num_sections_searched = 0;     // coarse search: sections the INS was unsure of
+    std::size_t num_sections_shifted = 0;      // ... that were moved (SlamSection::shifted)
+    std::vector<SlamSection> sections;         // the rigid sections, in time order
+    std::size_t num_poses = 0;                 // semi-rigid unknown poses
+    std::size_t num_pairs = 0;                 // pairs of the last iteration
+    std::size_t num_points_in = 0;             // finite points given
+    std::size_t num_points = 0;                // ... of which SLAM used (SlamConfig::pass_cell_m)
+    std::size_t num_sections_every_point = 0;  // sections left whole (pass_cell_max_sigma_m)
+    double initial_consistency_m = 0;          // plane-fit score of the input trajectory
+    double final_consistency_m = 0;            // ... and of the result
     // The result's plane residuals per slice, as `trajectory` (NaN: in no shared cell): where
     // the passes still disagree (a drift the INS did not report shows as one stretch).
     std::vector<double> final_slice_consistency_m;

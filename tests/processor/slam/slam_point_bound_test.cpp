@@ -4,6 +4,7 @@
 // per_cell finite points in time order are kept, the rest dropped; sections are counted apart.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -85,6 +86,33 @@ TEST(SlamPointBound, EachPassKeepsAtMostTheBoundPerCube) {
         }
         EXPECT_LT(kept, keep.size());  // the bound does thin these
     }
+}
+
+// Sections flagged every_point keep every point however full their cubes (decision 048: a GNSS
+// outage's sections); the flags come from the INS's horizontal sigma, east or north, at any slice.
+TEST(SlamPointBound, SectionsWhoseInsSigmaExceedsTheGateKeepEveryPoint) {
+    std::vector<std::vector<Eigen::Vector3f>> points(4, std::vector<Eigen::Vector3f>(3));
+    for (auto& slice : points) {
+        for (std::size_t i = 0; i < slice.size(); ++i)
+            slice[i] = Eigen::Vector3f(0.01f * static_cast<float>(i), 0.0f, 0.0f);
+    }
+    const std::vector<Pose> T(4, Pose::Identity());
+    const std::vector<std::size_t> sections = {0, 2, 4};
+    // One cube, one point a section: 1 of 6 kept in each unflagged section.
+    const std::vector<std::uint8_t> bounded = {1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0};
+    EXPECT_EQ(BoundPointsPerCell(Pointers(points), T, sections, 0.25, 1), bounded);
+    std::vector<std::uint8_t> second_whole = bounded;
+    std::fill(second_whole.begin() + 6, second_whole.end(), 1);
+    EXPECT_EQ(BoundPointsPerCell(Pointers(points), T, sections, 0.25, 1, {0, 1}), second_whole);
+
+    Input in;
+    in.sigma.assign(4, Vector6d::Constant(0.01));
+    in.sigma[3](4) = 0.8;  // north, in the second section's last slice
+    EXPECT_EQ(SectionsKeepingEveryPoint(in, sections, 0.05), (std::vector<char>{0, 1}));
+    EXPECT_EQ(SectionsKeepingEveryPoint(in, sections, 1.0), (std::vector<char>{0, 0}));
+    in.sigma[0](3) = 0.06;  // east, in the first section
+    EXPECT_EQ(SectionsKeepingEveryPoint(in, sections, 0.05), (std::vector<char>{1, 1}));
+    EXPECT_EQ(SectionsKeepingEveryPoint(in, sections, 0.0), (std::vector<char>{0, 0}));
 }
 
 }  // namespace
